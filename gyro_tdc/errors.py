@@ -1,0 +1,43 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Error classes of gyro_tdc; every message names what is wrong."""
+
+
+class GyroTdcError(Exception):
+    """Base class of every error gyro_tdc raises on bad input."""
+
+
+class ModelFileError(GyroTdcError):
+    """A model file is missing, malformed or inconsistent."""
+
+
+class DatasetError(GyroTdcError):
+    """A bag or data set cannot be read or does not hold what is needed."""
+
+
+class FitError(GyroTdcError):
+    """Identification cannot proceed (too few samples, too small a span...)."""
+
+
+class ScenarioError(GyroTdcError):
+    """A simulator scenario file is malformed."""
+
+
+class DeviceError(GyroTdcError):
+    """A hardware source (e.g. a Linux IIO device) is missing or returned garbage."""
+
+
+class FeatureError(GyroTdcError):
+    """An effect id is unknown or its parameters are invalid."""
