@@ -1,0 +1,273 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Linux industrial-I/O (IIO) gyro back-end reading sysfs.
+
+The IIO ABI (Documentation/ABI/testing/sysfs-bus-iio) gives every channel a
+``_raw`` value and, shared by type or per channel, a ``_scale`` and an optional
+``_offset``: ``value = (raw + offset) * scale``. Angular velocity comes out in
+rad/s, acceleration in m/s^2 and temperature in milli-degrees Celsius, or a
+processed ``in_temp_input`` already in milli-degrees Celsius. This covers the
+st_gyro driver (L3GD20, I3G4250D), the BMI160 and the MPU-6050 (inv_mpu6050).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+import time
+from typing import Callable
+
+from gyro_tdc.errors import DeviceError
+from gyro_tdc.sources.base import ImuSample, Vec3
+
+DEFAULT_IIO_ROOT = '/sys/bus/iio/devices'
+_AXES = ('x', 'y', 'z')
+
+
+def _read_text(path: Path) -> str:
+    """Return the stripped content of one sysfs file, or raise DeviceError."""
+    try:
+        with open(path, 'rb') as stream:
+            data = stream.read(128)
+    except FileNotFoundError:
+        if not path.parent.is_dir():
+            raise DeviceError(
+                f'IIO device directory {str(path.parent)!r} disappeared '
+                f'(while reading {path.name!r}).') from None
+        raise DeviceError(f'IIO file {str(path)!r} is missing.') from None
+    except OSError as exc:
+        raise DeviceError(f'Cannot read IIO file {str(path)!r}: {exc.strerror or exc}.') from None
+    return data.decode('ascii', errors='replace').strip()
+
+
+def _read_number(path: Path) -> float:
+    """Return the finite number held by one sysfs file, or raise DeviceError."""
+    text = _read_text(path)
+    try:
+        value = float(int(text))
+    except ValueError:
+        try:
+            value = float(text)
+        except ValueError:
+            raise DeviceError(
+                f'IIO file {str(path)!r} holds {text[:32]!r}, expected a number.') from None
+    if not math.isfinite(value):
+        raise DeviceError(f'IIO file {str(path)!r} holds {text[:32]!r}, expected a finite number.')
+    return value
+
+
+def find_iio_device(name: str, *, root: str | os.PathLike = DEFAULT_IIO_ROOT) -> Path:
+    """
+    Return the directory of the IIO device whose ``name`` file reads ``name``.
+
+    Parameters
+    ----------
+    name : str
+        Device name as the kernel driver reports it (e.g. ``l3gd20``, ``bmi160``).
+    root : path-like
+        Where the ``iio:deviceN`` directories live.
+
+    Returns
+    -------
+    pathlib.Path
+        The first matching device directory in sorted order.
+
+    Raises
+    ------
+    DeviceError
+        No device with that name exists under ``root``.
+
+    """
+    base = Path(root)
+    try:
+        entries = sorted(base.iterdir())
+    except OSError as exc:
+        raise DeviceError(f'Cannot list IIO devices in {str(base)!r}: '
+                          f'{exc.strerror or exc}.') from None
+    seen = []
+    for entry in entries:
+        name_file = entry / 'name'
+        if not name_file.is_file():
+            continue
+        try:
+            found = _read_text(name_file)
+        except DeviceError:
+            continue
+        seen.append(found)
+        if found == name:
+            return entry
+    raise DeviceError(f'No IIO device named {name!r} under {str(base)!r} '
+                      f'(found: {", ".join(seen) or "none"}).')
+
+
+class _Channel:
+    """One scaled channel: ``(raw + offset) * scale`` (scale already folds the unit)."""
+
+    __slots__ = ('path', 'offset', 'scale')
+
+    def __init__(self, path: Path, offset: float, scale: float) -> None:
+        self.path = path
+        self.offset = offset
+        self.scale = scale
+
+    def read(self) -> float:
+        return (_read_number(self.path) + self.offset) * self.scale
+
+
+class IioSource:
+    """
+    Read a gyro (and its accelerometer and thermometer) from a Linux IIO device.
+
+    Parameters
+    ----------
+    device_dir : path-like
+        The device's sysfs directory, e.g. ``/sys/bus/iio/devices/iio:device0``.
+    read_accel : bool
+        Read ``in_accel_{x,y,z}_raw`` when present (ignored when absent).
+    read_temperature : bool
+        Read the thermometer when present.
+    require_temperature : bool
+        Raise when the device has no thermometer instead of publishing none.
+    temp_every : int
+        Read the temperature on one sample out of ``temp_every`` (it changes slowly,
+        and a sysfs read costs tens of microseconds).
+    clock : callable returning float, s
+        Source of sample times; ``time.monotonic`` by default.
+
+    Raises
+    ------
+    DeviceError
+        The directory does not exist, a required file is missing or garbled.
+
+    """
+
+    def __init__(self, device_dir: str | os.PathLike, *, read_accel: bool = True,
+                 read_temperature: bool = True, require_temperature: bool = False,
+                 temp_every: int = 1, clock: Callable[[], float] = time.monotonic) -> None:
+        if int(temp_every) < 1:
+            raise ValueError(f'Expected `temp_every` >= 1, got {temp_every!r}.')
+        self.device_dir = Path(device_dir)
+        if not self.device_dir.is_dir():
+            raise DeviceError(f'IIO device directory {str(self.device_dir)!r} does not exist.')
+        name_file = self.device_dir / 'name'
+        self.name = _read_text(name_file) if name_file.exists() else self.device_dir.name
+        self._clock = clock
+        self._temp_every = int(temp_every)
+        self._count = 0
+        self._gyro = self._vector('anglvel', required=True)
+        self._accel = self._vector('accel', required=False) if read_accel else None
+        self._temp = self._temperature(required=require_temperature) if read_temperature else None
+        if require_temperature and self._temp is None:
+            raise DeviceError(f'IIO device {str(self.device_dir)!r} has no thermometer '
+                              '(in_temp_raw or in_temp_input), and one is required.')
+
+    @property
+    def has_accel(self) -> bool:
+        """Return whether samples carry acceleration."""
+        return self._accel is not None
+
+    @property
+    def has_temperature(self) -> bool:
+        """Return whether samples carry temperature."""
+        return self._temp is not None
+
+    def _file(self, name: str) -> Path:
+        return self.device_dir / name
+
+    def _shared_or_own(self, kind: str, axis: str, what: str, default: float | None) -> float:
+        """Return ``in_<kind>_<axis>_<what>`` or else the shared ``in_<kind>_<what>``."""
+        for name in (f'in_{kind}_{axis}_{what}', f'in_{kind}_{what}'):
+            path = self._file(name)
+            if path.exists():
+                return _read_number(path)
+        if default is None:
+            raise DeviceError(f'IIO file {str(self._file(f"in_{kind}_{what}"))!r} is missing '
+                              f'(nor is there in_{kind}_{axis}_{what}).')
+        return default
+
+    def _vector(self, kind: str, *, required: bool) -> tuple[_Channel, ...] | None:
+        raws = [self._file(f'in_{kind}_{axis}_raw') for axis in _AXES]
+        present = [path.exists() for path in raws]
+        if not any(present) and not required:
+            return None
+        for path, ok in zip(raws, present):
+            if not ok:
+                raise DeviceError(f'IIO file {str(path)!r} is missing.')
+        channels = []
+        for axis, path in zip(_AXES, raws):
+            scale = self._shared_or_own(kind, axis, 'scale', None)
+            offset = self._shared_or_own(kind, axis, 'offset', 0.0)
+            _read_number(path)
+            channels.append(_Channel(path, offset, scale))
+        return tuple(channels)
+
+    def _temperature(self, *, required: bool) -> _Channel | None:
+        processed = self._file('in_temp_input')
+        raw = self._file('in_temp_raw')
+        if raw.exists():
+            scale_file = self._file('in_temp_scale')
+            if not scale_file.exists():
+                raise DeviceError(f'IIO file {str(scale_file)!r} is missing '
+                                  '(needed to convert in_temp_raw).')
+            offset_file = self._file('in_temp_offset')
+            offset = _read_number(offset_file) if offset_file.exists() else 0.0
+            channel = _Channel(raw, offset, _read_number(scale_file) / 1000.0)
+        elif processed.exists():
+            channel = _Channel(processed, 0.0, 1.0 / 1000.0)
+        else:
+            if required:
+                raise DeviceError(f'IIO file {str(raw)!r} is missing '
+                                  '(nor is there in_temp_input).')
+            return None
+        channel.read()
+        return channel
+
+    def read(self) -> ImuSample:
+        """
+        Read one sample from sysfs.
+
+        Returns
+        -------
+        ImuSample
+            Angular velocity in rad/s, acceleration in m/s^2 (or None), temperature
+            in degC (or None on samples that skip it), stamped by ``clock``.
+
+        Raises
+        ------
+        DeviceError
+            A file vanished or holds something that is not a finite number.
+
+        """
+        g = self._gyro
+        t = self._clock()
+        omega: Vec3 = (g[0].read(), g[1].read(), g[2].read())
+        accel: Vec3 | None = None
+        if self._accel is not None:
+            a = self._accel
+            accel = (a[0].read(), a[1].read(), a[2].read())
+        temp_c = None
+        if self._temp is not None and self._count % self._temp_every == 0:
+            temp_c = self._temp.read()
+        self._count += 1
+        return ImuSample(t, omega, accel, temp_c)
+
+    def close(self) -> None:
+        """Release the device (sysfs files are opened per read; nothing is held)."""
+        self._count = 0
+
+    def __repr__(self) -> str:
+        return f'IioSource({str(self.device_dir)!r}, name={self.name!r})'
