@@ -1,0 +1,399 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Identification of the compensation model from thermal runs.
+
+The procedure follows section 3.2 of the paper with the usual modern refinements:
+
+1. the drift samples are the raw output minus the reference rate; the inputs are the effect
+   features of the measured temperature (``dT`` and ``dT^2`` for the paper's modified model);
+2. the inputs are normalised; RBF centres are placed by k-means over the input samples and
+   each width is the mean distance to the two nearest other centres;
+3. the output weights (with a constant and linear tail, and the per-axis ``scale`` term when
+   asked) are found by regularised linear least squares;
+4. optionally the centres and widths are refined with ``scipy.optimize.least_squares``
+   (variable projection: weights re-solved at every step), which does what the paper's
+   gradient rule (eq. 28) does, faster and with a stopping rule;
+5. effect parameters (lag and warm-up time constants) are fitted by a bounded search over
+   the least-squares residual.
+
+Long runs are block-averaged before the linear solve: temperature moves slowly, so averaging
+a few samples loses nothing of the drift and bounds memory and time.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import math
+from typing import Mapping, Sequence
+import warnings
+
+from gyro_tdc import __version__
+from gyro_tdc.effects import batch_features, EFFECTS, input_ids, normalise_ids, resolve_params
+from gyro_tdc.errors import FitError
+from gyro_tdc.metrics import bias_stability, rms_dps
+from gyro_tdc.model import compensate, CompensationModel, KINDS, rbf_design
+from gyro_tdc.runs import Run
+import numpy as np
+from numpy.typing import NDArray
+from scipy.cluster.vq import kmeans2
+from scipy.optimize import least_squares, minimize_scalar
+
+__all__ = ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'MIN_SAMPLES', 'MIN_SPAN_C']
+
+#: Fewest samples a fit accepts.
+MIN_SAMPLES = 50
+#: Smallest temperature span (degC) a fit with temperature features accepts.
+MIN_SPAN_C = 0.5
+
+
+def estimate_t0(run: Run, *, window_s: float = 60.0) -> float:
+    """
+    Estimate the reference temperature T0: the stable initial temperature of a run.
+
+    Parameters
+    ----------
+    run : Run
+        A run.
+    window_s : float, s
+        Length of the initial window averaged (at least the first 1 % of samples are used).
+
+    Returns
+    -------
+    float, degC
+        Median temperature over the initial window.
+
+    """
+    if len(run) == 0:
+        raise FitError('Cannot estimate T0 from an empty run.')
+    n = max(int(np.searchsorted(run.t, run.t[0] + window_s)), max(len(run) // 100, 1))
+    return float(np.median(run.temp[:n]))
+
+
+def _block_mean(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
+    """Average ``a`` over consecutive blocks of ``block`` rows (last block may be shorter)."""
+    if block <= 1:
+        return np.asarray(a, dtype=np.float64)
+    n = a.shape[0]
+    full = n // block * block
+    head = a[:full].reshape((full // block, block) + a.shape[1:]).mean(axis=1)
+    if full == n:
+        return head
+    return np.concatenate([head, a[full:].mean(axis=0, keepdims=True)])
+
+
+class _Blocks:
+    """Block means of one run: stamps, temperature, drift target and reference rate."""
+
+    def __init__(self, run: Run, block: int) -> None:
+        self.run = run
+        self.t = _block_mean(run.t, block)
+        self.temp = _block_mean(run.temp, block)
+        self.y = _block_mean(run.omega - run.omega_ref, block)
+        self.block = block
+
+    def features(self, ids: Sequence[str], t0: float, params: Mapping, *,
+                 exact: bool) -> NDArray[np.float64]:
+        """Return block-mean features; ``exact`` computes them at full rate first."""
+        if exact and self.block > 1:
+            x = batch_features(ids, self.run.t, self.run.temp, t0=t0, params=params)
+            return _block_mean(x, self.block)
+        return batch_features(ids, self.t, self.temp, t0=t0, params=params)
+
+    def scale_cols(self, t0: float) -> NDArray[np.float64]:
+        """Return block means of ``dT * omega_ref`` (N, 3)."""
+        d = self.run.temp - t0
+        return _block_mean(d[:, None] * self.run.omega_ref, self.block)
+
+
+def _place_centers(xn: NDArray[np.float64], k: int, seed: int
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Place ``k`` centres by k-means on normalised rows and derive widths."""
+    rng = np.random.default_rng(seed)
+    if xn.shape[0] > 20_000:
+        xn = xn[rng.choice(xn.shape[0], 20_000, replace=False)]
+    uniq = np.unique(np.round(xn, 9), axis=0)
+    k = min(k, uniq.shape[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        centers, _ = kmeans2(xn, k, seed=rng, minit='++')
+    centers = np.unique(centers, axis=0)
+    k = centers.shape[0]
+    if k == 1:
+        return centers, np.ones(1)
+    d = np.sqrt(((centers[:, None, :] - centers[None, :, :]) ** 2).sum(axis=2))
+    np.fill_diagonal(d, np.inf)
+    nn = np.sort(d, axis=1)[:, :min(2, k - 1)]
+    widths = np.maximum(nn.mean(axis=1), 1e-3)
+    return centers, widths
+
+
+def _solve(design: NDArray[np.float64], y: NDArray[np.float64],
+           scale_cols: NDArray[np.float64] | None, ridge: float
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Solve the regularised least squares for all axes.
+
+    Returns the coefficients (P, 3) and the per-axis scale coefficients (3,).
+    """
+    n, p = design.shape
+    lam = math.sqrt(ridge * n)
+    reg = np.zeros((p - 1, p))
+    reg[:, 1:] = np.eye(p - 1) * lam
+    if scale_cols is None:
+        a = np.vstack([design, reg])
+        b = np.vstack([y, np.zeros((p - 1, 3))])
+        coef = np.linalg.lstsq(a, b, rcond=None)[0]
+        return coef, np.zeros(3)
+    coef = np.empty((p, 3))
+    scale = np.empty(3)
+    for ax in range(3):
+        a = np.vstack([np.column_stack([design, scale_cols[:, ax]]),
+                       np.column_stack([reg, np.zeros(p - 1)])])
+        b = np.concatenate([y[:, ax], np.zeros(p - 1)])
+        sol = np.linalg.lstsq(a, b, rcond=None)[0]
+        coef[:, ax], scale[ax] = sol[:p], sol[p]
+    return coef, scale
+
+
+def _fit_linear(x: NDArray[np.float64], y: NDArray[np.float64],
+                scale_cols: NDArray[np.float64] | None, *, kind: str, n_centers: int,
+                ridge: float, seed: int) -> dict:
+    """Normalise, place centres and solve the weights for one feature matrix."""
+    mean = x.mean(axis=0) if x.shape[1] else np.zeros(0)
+    std = x.std(axis=0) if x.shape[1] else np.ones(0)
+    std = np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
+    xn = (x - mean) / std
+    if kind == 'rbf' and x.shape[1]:
+        centers, widths = _place_centers(xn, n_centers, seed)
+    else:
+        centers, widths = np.zeros((0, x.shape[1])), np.zeros(0)
+    design = rbf_design((mean, std, centers, widths), x)
+    coef, scale = _solve(design, y, scale_cols, ridge)
+    resid = design @ coef - y
+    if scale_cols is not None:
+        resid += scale_cols * scale
+    return {'mean': mean, 'std': std, 'centers': centers, 'widths': widths, 'coef': coef,
+            'scale': scale, 'sse': float((resid ** 2).sum())}
+
+
+def _refine(x: NDArray[np.float64], y: NDArray[np.float64],
+            scale_cols: NDArray[np.float64] | None, fit: dict, *, ridge: float,
+            seed: int, max_rows: int = 2000) -> dict:
+    """Refine centres and widths by nonlinear least squares (variable projection)."""
+    k, f = fit['centers'].shape
+    if k == 0:
+        return fit
+    rng = np.random.default_rng(seed)
+    rows = rng.choice(x.shape[0], min(max_rows, x.shape[0]), replace=False)
+    xs, ys = x[rows], y[rows]
+    ss = None if scale_cols is None else scale_cols[rows]
+    mean, std = fit['mean'], fit['std']
+
+    def unpack(theta: NDArray[np.float64]) -> tuple:
+        return theta[:k * f].reshape(k, f), np.exp(theta[k * f:])
+
+    def resid(theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        centers, widths = unpack(theta)
+        d = rbf_design((mean, std, centers, widths), xs)
+        coef, scale = _solve(d, ys, ss, ridge)
+        r = d @ coef - ys
+        if ss is not None:
+            r += ss * scale
+        return r.ravel()
+
+    theta0 = np.concatenate([fit['centers'].ravel(), np.log(fit['widths'])])
+    sol = least_squares(resid, theta0, method='trf', max_nfev=20, x_scale='jac')
+    if sol.cost * 2 >= float((resid(theta0) ** 2).sum()):
+        return fit
+    centers, widths = unpack(sol.x)
+    design = rbf_design((mean, std, centers, widths), x)
+    coef, scale = _solve(design, y, scale_cols, ridge)
+    out = dict(fit, centers=centers, widths=widths, coef=coef, scale=scale)
+    return out
+
+
+def _check_runs(runs: Sequence[Run], ids: Sequence[str]) -> None:
+    """Reject data that cannot support a fit, with a message naming the problem."""
+    if not runs:
+        raise FitError('No training runs given.')
+    n = sum(len(r) for r in runs)
+    if n < MIN_SAMPLES:
+        raise FitError(f'Too few samples to fit: {n} (need at least {MIN_SAMPLES}).')
+    for r in runs:
+        for key in ('temp', 'omega', 'omega_ref'):
+            if not np.all(np.isfinite(getattr(r, key))):
+                raise FitError(f'Run {r.name!r} has non-finite values in `{key}`.')
+    temp_ids = {'dT', 'dT2', 'dT3', 'dTdt', 'lag', 'scale'}
+    if temp_ids & set(ids):
+        lo = min(float(r.temp.min()) for r in runs)
+        hi = max(float(r.temp.max()) for r in runs)
+        if hi - lo < MIN_SPAN_C:
+            raise FitError(f'Temperature span too small to fit: {hi - lo:.3f} degC '
+                           f'(need at least {MIN_SPAN_C} degC).')
+    if 'scale' in ids and not any(np.any(np.abs(r.omega_ref) > 1e-9) for r in runs):
+        raise FitError('Effect `scale` needs a non-zero reference rate (rate-table data); '
+                       'every training run has omega_ref = 0.')
+
+
+def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
+              features: str | Sequence[str] = ('dT', 'dT2'), t0: float | None = None,
+              n_centers: int = 12, refine: bool = False, fit_params: bool = True,
+              params: Mapping[str, Mapping[str, float]] | None = None, ridge: float = 1e-6,
+              max_rows: int = 200_000, seed: int = 0, frame_id: str = 'imu_link',
+              sensor_id: str = '', created: Mapping | None = None) -> CompensationModel:
+    """
+    Identify a compensation model from training runs.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Training runs (each a continuous recording; filters restart per run).
+    kind : str
+        ``'rbf'`` or ``'poly'``.
+    features : str or sequence of str
+        Effect ids (``'dT,dT2'`` is the paper's modified model; ``bias`` is implied).
+    t0 : float, optional, degC
+        Reference temperature; default: :func:`estimate_t0` of the first run.
+    n_centers : int
+        RBF centres K (``rbf`` only).
+    refine : bool
+        Refine centres and widths by nonlinear least squares.
+    fit_params : bool
+        Fit the effect parameters marked as fitted in the catalog (lag, warm-up tau).
+    params : mapping, optional
+        Starting or fixed effect parameters.
+    ridge : float
+        Relative ridge penalty on the non-constant weights.
+    max_rows : int
+        Rows of the linear solve; longer data are block-averaged down to this.
+    seed : int
+        Seed of the centre placement.
+    frame_id, sensor_id : str
+        Recorded in the model.
+    created : mapping, optional
+        Extra creation info (command line, bag names).
+
+    Returns
+    -------
+    CompensationModel
+        The fitted model.
+
+    """
+    ids = normalise_ids(features)
+    if kind not in KINDS:
+        raise FitError(f'Unknown model kind {kind!r}; expected one of {", ".join(KINDS)}.')
+    if kind == 'rbf' and n_centers < 1:
+        raise FitError(f'`n_centers` must be at least 1 for an rbf model, got {n_centers}.')
+    _check_runs(runs, ids)
+    if t0 is None:
+        t0 = estimate_t0(runs[0])
+    inputs = input_ids(ids)
+    par = resolve_params(ids, params)
+    n_total = sum(len(r) for r in runs)
+    block = max(1, math.ceil(n_total / max_rows))
+    blocks = [_Blocks(r, block) for r in runs]
+    y = np.concatenate([b.y for b in blocks])
+    scale_cols = (np.concatenate([b.scale_cols(t0) for b in blocks])
+                  if 'scale' in ids else None)
+
+    def features_of(p: Mapping, exact: bool) -> NDArray[np.float64]:
+        return np.concatenate([b.features(inputs, t0, p, exact=exact) for b in blocks])
+
+    free = [(eid, name) for eid in inputs for name in EFFECTS[eid].fitted] if fit_params else []
+    if free:
+        # Parameter search on a coarser grid (<= 20k rows): cheap and smooth in log tau.
+        coarse_block = max(1, math.ceil(n_total / 20_000))
+        coarse = [_Blocks(r, coarse_block) for r in runs]
+        yc = np.concatenate([b.y for b in coarse])
+        sc = (np.concatenate([b.scale_cols(t0) for b in coarse])
+              if scale_cols is not None else None)
+        for _round in range(2 if len(free) > 1 else 1):
+            for eid, name in free:
+                lo, hi = EFFECTS[eid].bounds[name]
+
+                def sse(log_tau: float, eid: str = eid, name: str = name) -> float:
+                    trial = {k: dict(v) for k, v in par.items()}
+                    trial[eid][name] = math.exp(log_tau)
+                    xc = np.concatenate([b.features(inputs, t0, trial, exact=False)
+                                         for b in coarse])
+                    return _fit_linear(xc, yc, sc, kind=kind, n_centers=n_centers,
+                                       ridge=ridge, seed=seed)['sse']
+
+                grid = np.linspace(math.log(lo), math.log(hi), 13)
+                vals = [sse(g) for g in grid]
+                i = int(np.argmin(vals))
+                a, b_ = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+                best = minimize_scalar(sse, bounds=(a, b_), method='bounded',
+                                       options={'xatol': 1e-3})
+                par[eid][name] = float(math.exp(best.x if best.fun <= vals[i] else grid[i]))
+
+    x = features_of(par, exact=True)
+    fit = _fit_linear(x, y, scale_cols, kind=kind, n_centers=n_centers, ridge=ridge, seed=seed)
+    if refine and kind == 'rbf':
+        fit = _refine(x, y, scale_cols, fit, ridge=ridge, seed=seed)
+    f = len(inputs)
+    coef = fit['coef']
+    lo = min(float(r.temp.min()) for r in runs)
+    hi = max(float(r.temp.max()) for r in runs)
+    info = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
+            'gyro_tdc_version': __version__}
+    info.update(dict(created or {}))
+    model = CompensationModel(
+        kind=kind, features=ids, effect_params=par, t0_c=float(t0),
+        input_mean=fit['mean'], input_std=fit['std'], centers=fit['centers'],
+        widths=fit['widths'], weights=coef[1 + f:], intercept=coef[0], linear=coef[1:1 + f],
+        scale=fit['scale'], temp_range_c=(lo, hi), residual_var=np.zeros(3),
+        frame_id=frame_id, sensor_id=sensor_id, created=info)
+    sq = np.zeros(3)
+    comp = []
+    for r in runs:
+        c = compensate(model, r.t, r.temp, r.omega)
+        sq += ((c - r.omega_ref) ** 2).sum(axis=0)
+        comp.append(c)
+    residual_var = sq / n_total
+    omega_all = np.concatenate(comp)
+    ref_all = np.concatenate([r.omega_ref for r in runs])
+    metrics = {
+        'samples': int(n_total),
+        'runs': [r.name for r in runs],
+        'train_bs_dps2': [float(v) for v in bias_stability(omega_all, ref_all)],
+        'train_rms_dps': [float(v) for v in rms_dps(omega_all - ref_all)],
+        'raw_bs_dps2': [float(v) for v in bias_stability(
+            np.concatenate([r.omega for r in runs]), ref_all)],
+    }
+    return model.replace(residual_var=residual_var, metrics=metrics)
+
+
+def fit_px4_cubic(runs: Sequence[Run], *, t0: float | None = None, **kw) -> CompensationModel:
+    """
+    Fit the PX4-style baseline: a cubic in T - T0 per axis, clamped to the trained range.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Training runs.
+    t0 : float, optional, degC
+        Reference temperature (default :func:`estimate_t0` of the first run).
+    **kw
+        Passed to :func:`fit_model`.
+
+    Returns
+    -------
+    CompensationModel
+        A ``poly`` model with features ``dT, dT2, dT3``.
+
+    """
+    return fit_model(runs, kind='poly', features=('dT', 'dT2', 'dT3'), t0=t0, **kw)

@@ -1,0 +1,153 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Accuracy metrics in the paper's terms, plus the usual inertial-sensor noise figures.
+
+* bias stability, ``BS = MSE(x - x_ref)`` per axis (paper eq. 30), in (deg/s)^2;
+* the P ratios of tables 3-7: ``P1 = BS2/BS1``, ``P2 = BS3/BS1``, ``P3 = P2/P1 = BS3/BS2``
+  (eq. 32 defines P_i = BS_(i+1)/BS_i; the tables report P2 against BS1, and so do we);
+* RMS in deg/s;
+* overlapping Allan deviation (allantools, gyro rate as its ``freq`` data type) with the
+  angle random walk (deg/sqrt(h)) and bias instability (deg/h) read off it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import allantools
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['allan_deviation', 'bias_stability', 'noise_readouts', 'p_ratios', 'rms_dps']
+
+_DEG = 180.0 / math.pi
+
+
+def bias_stability(omega: NDArray[np.float64], omega_ref: NDArray[np.float64]
+                   ) -> NDArray[np.float64]:
+    """
+    Return BS = MSE(omega - omega_ref) per axis (paper eq. 30).
+
+    Parameters
+    ----------
+    omega : NDArray[np.float64], shape (N, 3), rad/s
+        Evaluated rate (raw or compensated).
+    omega_ref : NDArray[np.float64], shape (N, 3) or (3,), rad/s
+        Reference rate.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (3,), (deg/s)^2
+        Bias stability per axis.
+
+    """
+    e = (np.asarray(omega, dtype=np.float64) - np.asarray(omega_ref, dtype=np.float64)) * _DEG
+    return np.mean(e * e, axis=0)
+
+
+def rms_dps(err: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return the RMS per axis, in deg/s, of an error signal (N, 3) given in rad/s."""
+    e = np.asarray(err, dtype=np.float64) * _DEG
+    return np.sqrt(np.mean(e * e, axis=0))
+
+
+def p_ratios(bs1: NDArray[np.float64], bs2: NDArray[np.float64], bs3: NDArray[np.float64]
+             ) -> dict[str, NDArray[np.float64]]:
+    """
+    Return the paper's improvement ratios (tables 3-7).
+
+    Parameters
+    ----------
+    bs1, bs2, bs3 : NDArray[np.float64], shape (3,)
+        BS of the raw data, after the conventional model and after the modified model.
+
+    Returns
+    -------
+    dict
+        ``{'P1': BS2/BS1, 'P2': BS3/BS1, 'P3': BS3/BS2}``.
+
+    """
+    bs1, bs2, bs3 = (np.asarray(b, dtype=np.float64) for b in (bs1, bs2, bs3))
+    return {'P1': bs2 / bs1, 'P2': bs3 / bs1, 'P3': bs3 / bs2}
+
+
+def allan_deviation(omega: NDArray[np.float64], rate_hz: float, *,
+                    taus: NDArray[np.float64] | str = 'octave'
+                    ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Compute the overlapping Allan deviation of each axis.
+
+    Parameters
+    ----------
+    omega : NDArray[np.float64], shape (N, 3), rad/s
+        Rate samples at a constant rate.
+    rate_hz : float, Hz
+        Sample rate.
+    taus : array or str
+        Averaging times in s, or an allantools keyword (``'octave'``).
+
+    Returns
+    -------
+    taus : NDArray[np.float64], shape (M,), s
+        Averaging times actually used (common to the three axes).
+    adev : NDArray[np.float64], shape (M, 3), deg/s
+        Allan deviation per axis.
+
+    """
+    omega = np.asarray(omega, dtype=np.float64) * _DEG
+    out_t = None
+    cols = []
+    for ax in range(3):
+        t, dev, _err, _n = allantools.oadev(omega[:, ax], rate=float(rate_hz),
+                                            data_type='freq', taus=taus)
+        if out_t is None:
+            out_t = np.asarray(t)
+        cols.append(np.asarray(dev)[:out_t.shape[0]])
+    m = min(c.shape[0] for c in cols)
+    return out_t[:m], np.column_stack([c[:m] for c in cols])
+
+
+def noise_readouts(taus: NDArray[np.float64], adev: NDArray[np.float64]
+                   ) -> dict[str, NDArray[np.float64]]:
+    """
+    Read angle random walk and bias instability off an Allan deviation curve.
+
+    Angle random walk is ``sigma(tau) * sqrt(tau)`` on the -1/2 slope at the shortest
+    averaging times (IEEE 952), converted to deg/sqrt(h); bias instability is the minimum of
+    the curve divided by 0.664, in deg/h.
+
+    Parameters
+    ----------
+    taus : NDArray[np.float64], shape (M,), s
+        Averaging times.
+    adev : NDArray[np.float64], shape (M, 3), deg/s
+        Allan deviation per axis.
+
+    Returns
+    -------
+    dict
+        ``{'arw_deg_sqrt_h': (3,), 'bias_instability_deg_h': (3,)}``.
+
+    """
+    taus = np.asarray(taus, dtype=np.float64)
+    adev = np.asarray(adev, dtype=np.float64)
+    if taus.size == 0:
+        nan = np.full(3, np.nan)
+        return {'arw_deg_sqrt_h': nan, 'bias_instability_deg_h': nan}
+    short = taus <= max(taus[min(2, taus.size - 1)], 1.0)
+    arw = np.median(adev[short] * np.sqrt(taus[short])[:, None], axis=0) * 60.0
+    bi = adev.min(axis=0) / 0.664 * 3600.0
+    return {'arw_deg_sqrt_h': arw, 'bias_instability_deg_h': bi}

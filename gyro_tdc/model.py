@@ -1,0 +1,387 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The compensation model: features of the temperature history -> per-axis drift.
+
+The drift (temperature drift error, TDE) of each axis is modelled as
+
+    omega_raw = (1 + s dT) omega_true + b(x)
+    b(x)      = w0 + L^T x~ + sum_j W_j phi_j(x~),     j = 1..K
+    phi_j(x~) = exp(-|x~ - c_j|^2 / (2 sigma_j^2))     (paper eq. 26-27)
+
+where ``x`` are the effect features (e.g. ``dT``, ``dT^2``; see :mod:`gyro_tdc.effects`),
+``x~ = (x - mean) / std`` their normalised values, ``phi_j`` the paper's Gaussian radial basis
+functions (eq. 26) and ``W`` the output weights (eq. 27) for the three axes. The constant and
+linear tail (``w_0``, ``L``) make the network extrapolate gently and contain the conventional
+linear model. A ``poly`` model has no centres (K = 0): with features ``dT, dT2, dT3`` it is the
+PX4-style cubic. ``s`` is the optional per-axis sensitivity change (effect ``scale``).
+
+Compensation inverts the model: ``omega = (omega_raw - b(x)) / (1 + s dT)``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+import hashlib
+import math
+from typing import Any, Mapping
+
+from gyro_tdc.effects import batch_features, input_ids, StreamingFeatures
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['CompensationModel', 'StreamingCompensator', 'compensate', 'drift', 'predict_drift',
+           'rbf_design']
+
+KINDS = ('rbf', 'poly')
+
+
+@dataclass(frozen=True, eq=False)
+class CompensationModel:
+    """
+    A fitted temperature-drift compensation model (immutable data).
+
+    Parameters
+    ----------
+    kind : str
+        ``'rbf'`` (Gaussian RBF network with a linear tail) or ``'poly'`` (linear in the
+        features; the PX4-style cubic when the features are ``dT, dT2, dT3``).
+    features : tuple of str
+        Effect ids of the model, in catalog order (``bias`` is always implied).
+    effect_params : dict
+        ``{effect_id: {param: value}}`` (e.g. the fitted lag ``tau_s``).
+    t0_c : float, degC
+        Reference temperature T0.
+    input_mean, input_std : NDArray[np.float64], shape (F,)
+        Normalisation of the network inputs.
+    centers : NDArray[np.float64], shape (K, F)
+        RBF centres in normalised input space.
+    widths : NDArray[np.float64], shape (K,)
+        RBF widths sigma_j in normalised input space.
+    weights : NDArray[np.float64], shape (K, 3), rad/s
+        RBF output weights per axis.
+    intercept : NDArray[np.float64], shape (3,), rad/s
+        Constant term w_0 (the ``bias`` effect).
+    linear : NDArray[np.float64], shape (F, 3), rad/s
+        Linear tail per normalised input and axis.
+    scale : NDArray[np.float64], shape (3,), 1/degC
+        Sensitivity change s per axis (zeros when ``scale`` is not modelled).
+    temp_range_c : tuple of float, degC
+        Temperature range covered by the training data.
+    residual_var : NDArray[np.float64], shape (3,), (rad/s)^2
+        Variance of the training residual per axis.
+    frame_id : str
+        Frame of the gyro the model was fitted for.
+    sensor_id : str
+        Free-form sensor identifier.
+    metrics : dict
+        Training metrics (plain types).
+    created : dict
+        Creation info (UTC time, gyro_tdc version, command, data).
+
+    """
+
+    kind: str
+    features: tuple[str, ...]
+    effect_params: dict
+    t0_c: float
+    input_mean: NDArray[np.float64]
+    input_std: NDArray[np.float64]
+    centers: NDArray[np.float64]
+    widths: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    intercept: NDArray[np.float64]
+    linear: NDArray[np.float64]
+    scale: NDArray[np.float64]
+    temp_range_c: tuple[float, float]
+    residual_var: NDArray[np.float64]
+    frame_id: str = 'imu_link'
+    sensor_id: str = ''
+    metrics: dict = field(default_factory=dict, compare=False)
+    created: dict = field(default_factory=dict, compare=False)
+
+    def __eq__(self, other: object) -> bool:
+        """Compare every fitted field exactly (arrays element-wise)."""
+        if not isinstance(other, CompensationModel):
+            return NotImplemented
+        for f in fields(self):
+            if not f.compare:
+                continue
+            a, b = getattr(self, f.name), getattr(other, f.name)
+            if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+                a, b = np.asarray(a), np.asarray(b)
+                if a.shape != b.shape or not np.array_equal(a, b):
+                    return False
+            elif a != b:
+                return False
+        return True
+
+    __hash__ = object.__hash__
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """Return the ids of the network inputs, in feature-matrix column order."""
+        return input_ids(self.features)
+
+    @property
+    def n_centers(self) -> int:
+        """Return the number of RBF centres K."""
+        return int(self.centers.shape[0])
+
+    @property
+    def model_id(self) -> str:
+        """Return a short content hash identifying the fitted parameters."""
+        h = hashlib.sha256()
+        h.update(repr((self.kind, self.features, sorted(
+            (k, sorted(v.items())) for k, v in self.effect_params.items()), self.t0_c)).encode())
+        for arr in (self.input_mean, self.input_std, self.centers, self.widths, self.weights,
+                    self.intercept, self.linear, self.scale):
+            h.update(np.ascontiguousarray(arr, dtype=np.float64).tobytes())
+        return h.hexdigest()[:12]
+
+    def replace(self, **changes: Any) -> 'CompensationModel':
+        """Return a copy with some fields changed."""
+        from dataclasses import replace
+        return replace(self, **changes)
+
+
+def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
+               ) -> NDArray[np.float64]:
+    """
+    Build the design matrix ``[1, x~, phi_1(x~) ... phi_K(x~)]`` of feature rows ``x``.
+
+    Parameters
+    ----------
+    model_or_norm : CompensationModel or tuple
+        A model, or ``(input_mean, input_std, centers, widths)``.
+    x : NDArray[np.float64], shape (N, F)
+        Raw feature rows.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N, 1 + F + K)
+        Design matrix.
+
+    """
+    if isinstance(model_or_norm, CompensationModel):
+        m = model_or_norm
+        mean, std, centers, widths = m.input_mean, m.input_std, m.centers, m.widths
+    else:
+        mean, std, centers, widths = model_or_norm
+    xn = (np.asarray(x, dtype=np.float64) - mean) / std
+    n, f = xn.shape
+    k = centers.shape[0]
+    out = np.empty((n, 1 + f + k))
+    out[:, 0] = 1.0
+    out[:, 1:1 + f] = xn
+    if k:
+        d2 = ((xn[:, None, :] - centers[None, :, :]) ** 2).sum(axis=2)
+        np.exp(-d2 / (2.0 * widths ** 2), out=out[:, 1 + f:])
+    return out
+
+
+def _coef(model: CompensationModel) -> NDArray[np.float64]:
+    """Stack intercept, linear tail and RBF weights as a (1 + F + K, 3) matrix."""
+    return np.vstack([model.intercept[None, :], model.linear, model.weights])
+
+
+def _clamped(model: CompensationModel, temp: NDArray[np.float64], clamp: bool
+             ) -> NDArray[np.float64]:
+    """Return ``temp`` clamped to the model's valid range when asked."""
+    temp = np.asarray(temp, dtype=np.float64)
+    if clamp:
+        lo, hi = model.temp_range_c
+        return np.clip(temp, lo, hi)
+    return temp
+
+
+def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64], *,
+          clamp: bool = True, chunk: int = 200_000) -> NDArray[np.float64]:
+    """
+    Evaluate the zero-rate drift b(x) over one run.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    t : NDArray[np.float64], shape (N,), s
+        Stamps of one continuous run.
+    temp : NDArray[np.float64], shape (N,), degC
+        Measured temperature at each stamp.
+    clamp : bool
+        Clamp the temperature to the model's valid range first (default).
+    chunk : int
+        Rows evaluated at once (bounds memory for long runs).
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N, 3), rad/s
+        The drift per axis.
+
+    """
+    temp_c = _clamped(model, temp, clamp)
+    x = batch_features(model.features, t, temp_c, t0=model.t0_c, params=model.effect_params)
+    coef = _coef(model)
+    out = np.empty((x.shape[0], 3))
+    for i in range(0, x.shape[0], chunk):
+        out[i:i + chunk] = rbf_design(model, x[i:i + chunk]) @ coef
+    return out
+
+
+def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
+               omega: NDArray[np.float64], *, clamp: bool = True) -> NDArray[np.float64]:
+    """
+    Remove the modelled drift from a run: ``(omega - b) / (1 + s dT)``.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    t : NDArray[np.float64], shape (N,), s
+        Stamps of one continuous run.
+    temp : NDArray[np.float64], shape (N,), degC
+        Measured temperature at each stamp.
+    omega : NDArray[np.float64], shape (N, 3), rad/s
+        Raw gyro output.
+    clamp : bool
+        Clamp the temperature to the model's valid range first (default).
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N, 3), rad/s
+        Compensated rate.
+
+    """
+    b = drift(model, t, temp, clamp=clamp)
+    d = _clamped(model, temp, clamp) - model.t0_c
+    return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + d[:, None] * model.scale[None, :])
+
+
+def predict_drift(model: CompensationModel, t: NDArray[np.float64],
+                  temp: NDArray[np.float64], omega_ref: NDArray[np.float64], *,
+                  clamp: bool = False) -> NDArray[np.float64]:
+    """
+    Simulate the raw output for a true rate: ``(1 + s dT) omega_ref + b``.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    t : NDArray[np.float64], shape (N,), s
+        Stamps of one continuous run.
+    temp : NDArray[np.float64], shape (N,), degC
+        Measured temperature at each stamp.
+    omega_ref : NDArray[np.float64], shape (N, 3), rad/s
+        True (reference) rate.
+    clamp : bool
+        Clamp the temperature to the model's valid range first (default: no).
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N, 3), rad/s
+        Predicted raw gyro output.
+
+    """
+    b = drift(model, t, temp, clamp=clamp)
+    d = _clamped(model, temp, clamp) - model.t0_c
+    return (1.0 + d[:, None] * model.scale[None, :]) * np.asarray(omega_ref) + b
+
+
+class StreamingCompensator:
+    """
+    Compensate one sample at a time, exactly as :func:`compensate` does on a whole run.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    out_of_range : str
+        ``'clamp'`` (default) evaluates at the nearest valid temperature; ``'extrapolate'``
+        evaluates the model outside its range.
+
+    """
+
+    def __init__(self, model: CompensationModel, *, out_of_range: str = 'clamp') -> None:
+        if out_of_range not in ('clamp', 'extrapolate'):
+            raise ValueError(f"Expected `out_of_range` 'clamp' or 'extrapolate', "
+                             f'got {out_of_range!r}.')
+        self.model = model
+        self.clamp = out_of_range == 'clamp'
+        self.features = StreamingFeatures(model.features, t0=model.t0_c,
+                                          params=model.effect_params)
+        self._coef = _coef(model)
+        self._mean = model.input_mean
+        self._std = model.input_std
+        self._centers = model.centers
+        self._inv2w2 = 1.0 / (2.0 * model.widths ** 2)
+        self._f = len(model.inputs)
+        self._lo, self._hi = model.temp_range_c
+        self.offset = np.zeros(3)
+        self.in_range = True
+
+    def reset(self) -> None:
+        """Restart the feature filters (a new run)."""
+        self.features.reset()
+
+    def shift_offset(self, delta: NDArray[np.float64]) -> None:
+        """Add ``delta`` (3,), rad/s, to the modelled drift (start-up re-anchoring)."""
+        self.offset = self.offset + np.asarray(delta, dtype=np.float64).reshape(3)
+
+    def drift(self, t: float, temp: float) -> NDArray[np.float64]:
+        """Advance the filters to ``t`` and return the drift b (3,), rad/s, at ``temp``."""
+        self.in_range = self._lo <= temp <= self._hi
+        if self.clamp:
+            temp = min(max(temp, self._lo), self._hi)
+        x = self.features.update(t, temp)
+        xn = (x - self._mean) / self._std
+        row = np.empty(1 + self._f + self._centers.shape[0])
+        row[0] = 1.0
+        row[1:1 + self._f] = xn
+        if self._centers.shape[0]:
+            d2 = ((xn[None, :] - self._centers) ** 2).sum(axis=1)
+            row[1 + self._f:] = np.exp(-d2 * self._inv2w2)
+        self._last_dt = temp - self.model.t0_c
+        return row @ self._coef + self.offset
+
+    def step(self, t: float, temp: float, omega: NDArray[np.float64]) -> NDArray[np.float64]:
+        """
+        Compensate one sample.
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp.
+        temp : float, degC
+            Temperature at ``t`` (latest thermometer sample).
+        omega : NDArray[np.float64], shape (3,), rad/s
+            Raw gyro output.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (3,), rad/s
+            Compensated rate.
+
+        """
+        b = self.drift(t, temp)
+        return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + self._last_dt * self.model.scale)
+
+
+def summary(model: CompensationModel) -> Mapping[str, Any]:
+    """Return a short plain-type description of a model (for logs and diagnostics)."""
+    return {'model_id': model.model_id, 'kind': model.kind, 'features': list(model.features),
+            'centers': model.n_centers, 't0_c': model.t0_c,
+            'temp_range_c': [float(v) for v in model.temp_range_c],
+            'effect_params': model.effect_params,
+            'residual_std_dps': [math.degrees(math.sqrt(v)) for v in model.residual_var]}

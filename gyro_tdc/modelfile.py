@@ -1,0 +1,286 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The versioned YAML model file: save, load, validate.
+
+Format version 1 (all physical quantities in SI units, angles in rad)::
+
+    format_version: 1
+    kind: rbf                      # rbf | poly
+    model_id: 3f2a9c0d1e4b         # content hash, checked on load
+    features: [dT, dT2]            # effect ids (bias implied)
+    effect_params: {}              # e.g. {lag: {tau_s: 612.0}}
+    t0_c: -39.98                   # reference temperature T0, degC
+    temp_range_c: [-40.0, 85.0]    # valid (trained) temperature range, degC
+    normalization: {mean: [..F], std: [..F]}
+    centers: [[..F], ...]          # K x F, normalised input space
+    widths: [..K]
+    weights: [[wx, wy, wz], ...]   # K x 3, rad/s
+    intercept: [..3]               # rad/s
+    linear: [[..3], ...]           # F x 3, rad/s
+    scale: [..3]                   # 1/degC
+    residual_var_rad2_s2: [..3]
+    sensor: {frame_id: imu_link, sensor_id: ''}
+    training: {...}                # metrics
+    created: {utc: ..., gyro_tdc_version: ..., command: ...}
+
+Files are read with ``yaml.safe_load`` only; every field is checked and a bad one is reported
+in one line naming it. Floats are written with ``repr`` precision, so save -> load is exact.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+import tempfile
+from typing import Any, Mapping
+
+from gyro_tdc.effects import input_ids, normalise_ids, resolve_params
+from gyro_tdc.errors import FeatureError, ModelFileError
+from gyro_tdc.model import CompensationModel, KINDS
+import numpy as np
+import yaml
+
+__all__ = ['FORMAT_VERSION', 'load_model', 'model_from_dict', 'model_to_dict', 'save_model']
+
+FORMAT_VERSION = 1
+
+
+def _plain(value: Any) -> Any:
+    """Convert numpy values and tuples to plain Python types for safe YAML."""
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, (np.floating, np.integer)):
+        return value.item()
+    if isinstance(value, Mapping):
+        return {str(k): _plain(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain(v) for v in value]
+    return value
+
+
+def model_to_dict(model: CompensationModel) -> dict:
+    """Return the model as a dict of plain types, in file order."""
+    return {
+        'format_version': FORMAT_VERSION,
+        'kind': model.kind,
+        'model_id': model.model_id,
+        'features': list(model.features),
+        'effect_params': _plain(model.effect_params),
+        't0_c': float(model.t0_c),
+        'temp_range_c': [float(v) for v in model.temp_range_c],
+        'normalization': {'mean': _plain(model.input_mean), 'std': _plain(model.input_std)},
+        'centers': _plain(model.centers),
+        'widths': _plain(model.widths),
+        'weights': _plain(model.weights),
+        'intercept': _plain(model.intercept),
+        'linear': _plain(model.linear),
+        'scale': _plain(model.scale),
+        'residual_var_rad2_s2': _plain(model.residual_var),
+        'sensor': {'frame_id': model.frame_id, 'sensor_id': model.sensor_id},
+        'training': _plain(model.metrics),
+        'created': _plain(model.created),
+    }
+
+
+def _array(d: Mapping, key: str, shape: tuple, *, positive: bool = False) -> np.ndarray:
+    """Read ``d[key]`` as a finite float array of ``shape`` (``-1`` matches any length)."""
+    if key not in d:
+        raise ModelFileError(f'missing field `{key}`')
+    try:
+        arr = np.asarray(d[key], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ModelFileError(f'field `{key}` must be numbers, got {d[key]!r:.60}') from None
+    if len(shape) == 2 and arr.size == 0:
+        arr = arr.reshape(0, shape[1] if shape[1] >= 0 else 0)
+    if arr.ndim != len(shape) or any(s >= 0 and a != s for a, s in zip(arr.shape, shape)):
+        want = str(tuple('N' if s < 0 else s for s in shape)).replace("'", '')
+        raise ModelFileError(f'field `{key}` must have shape {want}, got {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise ModelFileError(f'field `{key}` has non-finite values')
+    if positive and np.any(arr <= 0):
+        raise ModelFileError(f'field `{key}` must be positive')
+    return arr
+
+
+def _number(d: Mapping, key: str) -> float:
+    """Read ``d[key]`` as a finite float."""
+    if key not in d:
+        raise ModelFileError(f'missing field `{key}`')
+    v = d[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ModelFileError(f'field `{key}` must be a finite number, got {v!r}')
+    return float(v)
+
+
+def _mapping(d: Mapping, key: str, *, required: bool = True) -> dict:
+    """Read ``d[key]`` as a mapping (empty when optional and absent)."""
+    if key not in d:
+        if required:
+            raise ModelFileError(f'missing field `{key}`')
+        return {}
+    v = d[key]
+    if v is None and not required:
+        return {}
+    if not isinstance(v, Mapping):
+        raise ModelFileError(f'field `{key}` must be a mapping, got {type(v).__name__}')
+    return dict(v)
+
+
+def model_from_dict(d: Any) -> CompensationModel:
+    """
+    Build and validate a model from a dict read from a model file.
+
+    Parameters
+    ----------
+    d : Any
+        The parsed YAML document.
+
+    Returns
+    -------
+    CompensationModel
+        The model.
+
+    Raises
+    ------
+    ModelFileError
+        Naming the first field that is missing or wrong.
+
+    """
+    if not isinstance(d, Mapping):
+        raise ModelFileError(f'expected a mapping at the top level, got {type(d).__name__}')
+    version = d.get('format_version')
+    if version != FORMAT_VERSION:
+        raise ModelFileError(f'field `format_version` must be {FORMAT_VERSION}, got {version!r}')
+    kind = d.get('kind')
+    if kind not in KINDS:
+        raise ModelFileError(f'field `kind` must be one of {", ".join(KINDS)}, got {kind!r}')
+    feats = d.get('features')
+    if not isinstance(feats, list) or not all(isinstance(f, str) for f in feats):
+        raise ModelFileError(f'field `features` must be a list of effect ids, got {feats!r}')
+    try:
+        ids = normalise_ids(feats)
+        params = resolve_params(ids, _mapping(d, 'effect_params', required=False))
+    except FeatureError as exc:
+        raise ModelFileError(f'field `features`/`effect_params`: {exc}') from None
+    if list(ids) != feats:
+        raise ModelFileError(f'field `features` must list each id once in catalog order '
+                             f'({", ".join(ids)}), got {feats!r}')
+    f = len(input_ids(ids))
+    norm = _mapping(d, 'normalization')
+    mean = _array(norm, 'mean', (f,))
+    std = _array(norm, 'std', (f,), positive=True)
+    centers = _array(d, 'centers', (-1, f))
+    k = centers.shape[0]
+    if kind == 'poly' and k:
+        raise ModelFileError(f'field `centers` must be empty for a poly model, got {k} rows')
+    widths = _array(d, 'widths', (k,), positive=True)
+    weights = _array(d, 'weights', (k, 3))
+    intercept = _array(d, 'intercept', (3,))
+    linear = _array(d, 'linear', (f, 3))
+    scale = _array(d, 'scale', (3,))
+    resid = _array(d, 'residual_var_rad2_s2', (3,))
+    if np.any(resid < 0):
+        raise ModelFileError('field `residual_var_rad2_s2` must be non-negative')
+    rng_ = _array(d, 'temp_range_c', (2,))
+    if rng_[0] > rng_[1]:
+        raise ModelFileError(f'field `temp_range_c` must be [min, max], got {rng_.tolist()}')
+    sensor = _mapping(d, 'sensor', required=False)
+    frame_id = sensor.get('frame_id', 'imu_link')
+    sensor_id = sensor.get('sensor_id', '')
+    if not isinstance(frame_id, str) or not isinstance(sensor_id, str):
+        raise ModelFileError('field `sensor` must hold string `frame_id` and `sensor_id`')
+    model = CompensationModel(
+        kind=kind, features=ids, effect_params=params, t0_c=_number(d, 't0_c'),
+        input_mean=mean, input_std=std, centers=centers, widths=widths, weights=weights,
+        intercept=intercept, linear=linear, scale=scale,
+        temp_range_c=(float(rng_[0]), float(rng_[1])), residual_var=resid,
+        frame_id=frame_id, sensor_id=sensor_id,
+        metrics=_mapping(d, 'training', required=False),
+        created=_mapping(d, 'created', required=False))
+    mid = d.get('model_id')
+    if mid is not None and mid != model.model_id:
+        raise ModelFileError(f'field `model_id` {mid!r} does not match the parameters '
+                             f'({model.model_id}): the file was edited or corrupted')
+    return model
+
+
+def save_model(model: CompensationModel, path: str | os.PathLike) -> Path:
+    """
+    Write a model file atomically (temporary file + rename).
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    path : str or PathLike
+        Destination ``.yaml`` file.
+
+    Returns
+    -------
+    Path
+        The path written.
+
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    text = '# gyro_tdc compensation model (see README "Model file")\n' + yaml.safe_dump(
+        model_to_dict(model), sort_keys=False, default_flow_style=None, width=100)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix='.' + path.name, suffix='.tmp')
+    with os.fdopen(fd, 'w', encoding='utf-8') as fh:
+        fh.write(text)
+    os.replace(tmp, path)
+    return path
+
+
+def load_model(path: str | os.PathLike) -> CompensationModel:
+    """
+    Read and validate a model file.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        A model ``.yaml`` file.
+
+    Returns
+    -------
+    CompensationModel
+        The model.
+
+    Raises
+    ------
+    ModelFileError
+        One line naming the file and what is wrong with it.
+
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding='utf-8')
+    except OSError as exc:
+        raise ModelFileError(f'{path}: cannot read model file: {exc.strerror or exc}') from None
+    except UnicodeDecodeError:
+        raise ModelFileError(f'{path}: not a text (UTF-8) model file') from None
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, 'problem_mark', None)
+        where = f' at line {mark.line + 1}' if mark is not None else ''
+        raise ModelFileError(f'{path}: malformed YAML{where}: '
+                             f'{getattr(exc, "problem", None) or exc}') from None
+    try:
+        return model_from_dict(data)
+    except ModelFileError as exc:
+        raise ModelFileError(f'{path}: {exc}') from None
