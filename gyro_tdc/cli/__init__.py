@@ -1,0 +1,139 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Command registry of ``python -m gyro_tdc <command>``.
+
+Every command lives in ``gyro_tdc.cli.<name>`` and exposes ``main(argv=None) -> int``:
+``argv`` is the argument list after the command name (``None`` means ``sys.argv[1:]``, which is
+what the ``console_scripts`` wrappers and ``ros2 run gyro_tdc <name>`` pass). It returns 0 on
+success and 2 on bad input after one line on stderr. Command modules are imported only when
+they run, so the listing works while a command is missing or broken.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import importlib
+from typing import Callable, Optional, Sequence
+
+__all__ = ['COMMANDS', 'Command', 'CommandUnavailable', 'format_help', 'load_main']
+
+
+@dataclass(frozen=True)
+class Command:
+    """
+    One sub-command: its name, the module that implements it and a one-line help.
+
+    Parameters
+    ----------
+    name : str
+        Name typed on the command line (``python -m gyro_tdc NAME``).
+    module : str
+        Dotted path of the module holding ``main(argv=None) -> int``.
+    help : str
+        One-line description shown by ``python -m gyro_tdc --help``.
+
+    """
+
+    name: str
+    module: str
+    help: str
+
+
+COMMANDS: dict[str, Command] = {
+    c.name: c for c in (
+        Command('simulate', 'gyro_tdc.cli.simulate',
+                'simulate a thermal-chamber run of a gyro and write it to a rosbag2 bag'),
+        Command('train', 'gyro_tdc.cli.train',
+                'identify a compensation model from recorded bags and save it as YAML'),
+        Command('evaluate', 'gyro_tdc.cli.evaluate',
+                'score models on held-out bags (bias stability, RMS, Allan deviation)'),
+        Command('discover', 'gyro_tdc.cli.discover',
+                'find which thermal effect a model is still missing'),
+        Command('demo', 'gyro_tdc.cli.demo',
+                'simulate, train, evaluate and discover end to end into one folder'),
+    )
+}
+
+
+class CommandUnavailable(LookupError):
+    """A registered command's module is not installed (a packaging fault, not bad input)."""
+
+
+def format_help(prog: str = 'python -m gyro_tdc') -> str:
+    """
+    Return the top-level usage text listing every command and its one-line help.
+
+    Parameters
+    ----------
+    prog : str
+        Program name shown in the usage line.
+
+    Returns
+    -------
+    str
+        Multi-line help text ending with a newline.
+
+    """
+    width = max(len(name) for name in COMMANDS)
+    lines = [
+        f'usage: {prog} <command> [args...]',
+        '',
+        'Temperature drift compensation for MEMS gyroscopes.',
+        '',
+        'commands:',
+    ]
+    lines += [f'  {c.name:<{width}}  {c.help}' for c in COMMANDS.values()]
+    lines += ['', f'Run "{prog} <command> --help" for the options of a command.']
+    return '\n'.join(lines) + '\n'
+
+
+def load_main(name: str) -> Callable[[Optional[Sequence[str]]], Optional[int]]:
+    """
+    Import the module of command ``name`` and return its ``main`` function.
+
+    Parameters
+    ----------
+    name : str
+        A key of ``COMMANDS``.
+
+    Returns
+    -------
+    callable
+        ``main(argv) -> int`` of the command module.
+
+    Raises
+    ------
+    KeyError
+        If ``name`` is not a registered command.
+    CommandUnavailable
+        If the command's module (or its ``main``) does not exist in this installation.
+        An ``ImportError`` raised by a module the command itself imports propagates unchanged.
+
+    """
+    command = COMMANDS[name]
+    try:
+        module = importlib.import_module(command.module)
+    except ModuleNotFoundError as exc:
+        if exc.name == command.module:
+            raise CommandUnavailable(
+                f'command {name!r} is not available: module {command.module} is not '
+                f'installed') from exc
+        raise
+    main = getattr(module, 'main', None)
+    if not callable(main):
+        raise CommandUnavailable(
+            f'command {name!r} is not available: {command.module} has no main(argv) function')
+    return main
