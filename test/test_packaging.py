@@ -1,0 +1,208 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Packaging: package.xml, setup.py, setup.cfg, the ament marker and ``python -m gyro_tdc``.
+
+colcon builds gyro_tdc as an ament_python package only when catkin_pkg accepts package.xml
+(an invalid maintainer e-mail silently downgrades it to a plain Python package), and
+``ros2 run gyro_tdc EXE`` only finds executables installed in ``lib/gyro_tdc``.
+"""
+
+from __future__ import annotations
+
+import configparser
+import os
+from pathlib import Path
+import runpy
+import subprocess
+import sys
+
+from catkin_pkg.package import parse_package
+import gyro_tdc
+from gyro_tdc import resources
+from gyro_tdc.cli import COMMANDS
+from gyro_tdc.errors import GyroTdcError
+from gyro_tdc.errors import ModelFileError
+from gyro_tdc.errors import ScenarioError
+import pytest
+import setuptools
+
+ROOT = Path(__file__).resolve().parent.parent
+NODES = ('driver_node', 'compensator_node')
+
+
+@pytest.fixture(scope='module')
+def package():
+    warnings = []
+    pkg = parse_package(str(ROOT / 'package.xml'), warnings=warnings)
+    assert not warnings, warnings
+    return pkg
+
+
+@pytest.fixture(scope='module')
+def setup_kwargs():
+    """Run setup.py with ``setuptools.setup`` replaced, and return the keyword arguments."""
+    captured = {}
+    original = setuptools.setup
+    setuptools.setup = captured.update
+    cwd = os.getcwd()
+    try:
+        os.chdir(ROOT)
+        runpy.run_path(str(ROOT / 'setup.py'), run_name='__main__')
+    finally:
+        os.chdir(cwd)
+        setuptools.setup = original
+    return captured
+
+
+def run_module(*args: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(ROOT), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    return subprocess.run([sys.executable, '-m', 'gyro_tdc', *args], cwd=str(ROOT), env=env,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_package_xml_is_valid_ament_python(package):
+    package.validate()
+    assert package.package_format == 3
+    assert package.name == 'gyro_tdc'
+    assert package.get_build_type() == 'ament_python'
+    assert [str(lic) for lic in package.licenses] == ['Apache-2.0']
+    assert package.maintainers and all(m.email for m in package.maintainers)
+    for maintainer in package.maintainers:
+        maintainer.validate()  # catkin_pkg's e-mail check
+
+
+def test_package_xml_dependencies(package):
+    package.evaluate_conditions({'ROS_VERSION': '2', 'ROS_PYTHON_VERSION': '3'})
+    exec_depends = {d.name for d in package.exec_depends}
+    assert exec_depends >= {
+        'rclpy', 'sensor_msgs', 'std_msgs', 'geometry_msgs', 'diagnostic_msgs', 'std_srvs',
+        'python3-numpy', 'python3-scipy', 'python3-yaml', 'python3-matplotlib'}
+    assert {d.name for d in package.test_depends} >= {
+        'ament_copyright', 'ament_flake8', 'ament_pep257', 'python3-pytest'}
+
+
+def test_versions_agree(package, setup_kwargs):
+    assert package.version == setup_kwargs['version'] == gyro_tdc.__version__
+
+
+def test_setup_data_files(setup_kwargs):
+    data_files = {dest: list(srcs) for dest, srcs in setup_kwargs['data_files']}
+    assert data_files['share/ament_index/resource_index/packages'] == ['resource/gyro_tdc']
+    assert data_files['share/gyro_tdc'] == ['package.xml']
+    marker = ROOT / 'resource' / 'gyro_tdc'
+    assert marker.is_file() and marker.stat().st_size == 0
+    config = ROOT / 'config'
+    expected = sorted(p.relative_to(ROOT).as_posix() for p in config.rglob('*')
+                      if p.is_file() and not any(part.startswith(('.', '__'))
+                                                 for part in p.relative_to(ROOT).parts))
+    installed = []
+    for dest, srcs in data_files.items():
+        for src in srcs:
+            if src.startswith('config/'):
+                assert dest == 'share/gyro_tdc/' + os.path.dirname(src), (dest, src)
+                installed.append(src)
+    assert sorted(installed) == expected
+
+
+def test_setup_packages_and_entry_points(setup_kwargs):
+    packages = setup_kwargs['packages']
+    assert 'gyro_tdc' in packages and 'gyro_tdc.cli' in packages
+    assert not any(p == 'test' or p.startswith('test.') for p in packages)
+    scripts = dict(entry.replace(' ', '').split('=')
+                   for entry in setup_kwargs['entry_points']['console_scripts'])
+    for node in NODES:
+        assert scripts[node] == f'gyro_tdc.nodes.{node}:main'
+    for name, command in COMMANDS.items():
+        assert scripts[name] == f'{command.module}:main'
+
+
+def test_setup_cfg_installs_executables_for_ros2_run():
+    cfg = configparser.ConfigParser(interpolation=None)
+    cfg.read(ROOT / 'setup.cfg')
+    assert cfg['develop']['script_dir'] == '$base/lib/gyro_tdc'
+    assert cfg['install']['install_scripts'] == '$base/lib/gyro_tdc'
+
+
+def test_setup_cfg_flake8_matches_ament_flake8():
+    ament_flake8 = pytest.importorskip('ament_flake8')
+    ament = configparser.ConfigParser(interpolation=None)
+    ament.read(Path(ament_flake8.__file__).parent / 'configuration' / 'ament_flake8.ini')
+    ours = configparser.ConfigParser(interpolation=None)
+    ours.read(ROOT / 'setup.cfg')
+    for key, value in ament['flake8'].items():
+        assert ours['flake8'].get(key, '').replace(' ', '') == value.replace(' ', ''), key
+
+
+def test_help_lists_every_command():
+    proc = run_module('--help')
+    assert proc.returncode == 0, proc.stderr
+    for name, command in COMMANDS.items():
+        assert f'  {name}' in proc.stdout
+        assert command.help in proc.stdout
+    assert set(COMMANDS) == {'simulate', 'train', 'evaluate', 'discover', 'demo'}
+
+
+def test_unknown_command_exits_2_with_one_line():
+    proc = run_module('no-such-command', '--flag')
+    assert proc.returncode == 2
+    assert proc.stdout == ''
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert 'no-such-command' in lines[0] and 'simulate' in lines[0]
+
+
+def test_no_command_prints_usage_and_exits_2():
+    proc = run_module()
+    assert proc.returncode == 2
+    assert 'usage:' in proc.stderr
+
+
+def test_config_dir_found_in_checkout():
+    if not (ROOT / 'config').is_dir():
+        pytest.skip('no config/ directory yet')
+    assert resources.config_dir() == ROOT / 'config'
+
+
+@pytest.mark.parametrize('resolve, subdir, error', [
+    (resources.scenario_path, 'scenarios', ScenarioError),
+    (resources.model_path, 'models', ModelFileError),
+])
+def test_named_resources(tmp_path, resolve, subdir, error):
+    (tmp_path / subdir).mkdir()
+    for name in ('beta', 'alpha'):
+        (tmp_path / subdir / f'{name}.yaml').write_text('{}\n')
+    assert resolve('alpha', config=tmp_path) == tmp_path / subdir / 'alpha.yaml'
+    explicit = tmp_path / 'elsewhere.yaml'
+    explicit.write_text('{}\n')
+    assert resolve(explicit, config=tmp_path) == explicit
+    assert resolve(str(explicit)) == explicit
+    with pytest.raises(error, match=r"unknown .*'gamma'.*alpha, beta"):
+        resolve('gamma', config=tmp_path)
+    with pytest.raises(error, match='does not exist'):
+        resolve(tmp_path / 'missing.yaml', config=tmp_path)
+    with pytest.raises(error, match='got int'):
+        resolve(3, config=tmp_path)
+    assert issubclass(error, GyroTdcError)
+
+
+def test_resource_names(tmp_path):
+    (tmp_path / 'scenarios').mkdir()
+    (tmp_path / 'scenarios' / 'ramp.yaml').write_text('{}\n')
+    (tmp_path / 'scenarios' / 'notes.txt').write_text('not a scenario\n')
+    assert resources.scenario_names(config=tmp_path) == ['ramp']
+    assert resources.model_names(config=tmp_path) == []
+    with pytest.raises(ModelFileError, match='<none>'):
+        resources.model_path('anything', config=tmp_path)
