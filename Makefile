@@ -1,0 +1,70 @@
+# gyro_tdc developer entry points. Everything runs from the repository's .venv.
+#
+#   make venv    create/refresh .venv (ROS 2 Jazzy wheels, deps, dev tools, editable gyro_tdc)
+#   make test    run the test suite (own ROS_DOMAIN_ID per run, loopback discovery only)
+#   make lint    flake8 + pep257 + copyright on gyro_tdc/, test/, bench/, tools/, setup.py
+#   make demo    end-to-end demo into out/demo
+#   make bench   run every bench/*.py (each prints its figures)
+#   make clean   remove build/test artefacts (keeps .venv; `make distclean` removes it too)
+
+SHELL := /bin/bash
+.SHELLFLAGS := -eu -o pipefail -c
+.DEFAULT_GOAL := test
+
+# DDS stays on loopback for every target (tests, demo and benches all may start nodes).
+export ROS_AUTOMATIC_DISCOVERY_RANGE := LOCALHOST
+
+PYTHON ?= python3
+VENV := .venv
+VPY := $(VENV)/bin/python
+STAMP := $(VENV)/.gyro_tdc-installed
+PIP_FLAGS ?= --disable-pip-version-check
+LINT_PATHS = $(wildcard gyro_tdc test bench tools setup.py)
+
+# Each run gets its own ROS_DOMAIN_ID (1..101, from the shell's PID) unless one is set, so
+# parallel runs on one machine do not discover each other's nodes.
+DOMAIN := if [ -z "$${ROS_DOMAIN_ID:-}" ]; then export ROS_DOMAIN_ID=$$(( $$$$ % 101 + 1 )); fi
+
+.PHONY: venv test lint demo bench clean distclean
+
+venv: $(STAMP)
+
+$(STAMP): requirements.txt requirements-dev.txt setup.py setup.cfg package.xml
+	@test -x $(VPY) || { echo "creating $(VENV) with $$($(PYTHON) --version)"; \
+		$(PYTHON) -m venv $(VENV); }
+	$(VPY) -m pip install $(PIP_FLAGS) -q -r requirements.txt -r requirements-dev.txt
+	$(VPY) -m pip install $(PIP_FLAGS) -q -e . --no-deps
+	@touch $@
+
+test: venv
+	@$(DOMAIN); \
+	echo "ROS_DOMAIN_ID=$$ROS_DOMAIN_ID ROS_AUTOMATIC_DISCOVERY_RANGE=$$ROS_AUTOMATIC_DISCOVERY_RANGE"; \
+	rc=0; $(VPY) -m pytest -q test || rc=$$?; \
+	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests" >&2; exit 1; fi; \
+	exit $$rc
+
+lint: venv
+	$(VENV)/bin/flake8 $(LINT_PATHS)
+	$(VENV)/bin/ament_pep257 $(LINT_PATHS)
+	$(VPY) -m pytest -q -p no:cacheprovider test/test_copyright.py
+
+demo: venv
+	@$(DOMAIN); $(VPY) -m gyro_tdc demo --out out/demo
+
+bench: venv
+	@$(DOMAIN); \
+	shopt -s nullglob; scripts=(bench/*.py); \
+	if [ $${#scripts[@]} -eq 0 ]; then echo "make bench: no bench/*.py scripts" >&2; exit 1; fi; \
+	failed=(); \
+	for script in "$${scripts[@]}"; do \
+		echo "=== $$script (ROS_DOMAIN_ID=$$ROS_DOMAIN_ID)"; \
+		$(VPY) "$$script" || failed+=("$$script"); \
+	done; \
+	if [ $${#failed[@]} -gt 0 ]; then echo "make bench: failed: $${failed[*]}" >&2; exit 1; fi
+
+clean:
+	rm -rf build install log out report .pytest_cache *.egg-info
+	find gyro_tdc test $(wildcard bench tools) -name __pycache__ -type d -prune -exec rm -rf {} +
+
+distclean: clean
+	rm -rf $(VENV)
