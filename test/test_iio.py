@@ -20,10 +20,9 @@ import math
 from pathlib import Path
 import shutil
 
-import pytest
-
 from gyro_tdc.errors import DeviceError
 from gyro_tdc.sources import find_iio_device, IioSource, ImuSample, ImuSource
+import pytest
 
 # st_gyro L3GD20 at 250 dps full scale: 8.75 mdps/digit in rad/s.
 L3GD20_SCALE = 8.75e-3 * math.pi / 180.0

@@ -21,10 +21,11 @@ releases it. Nothing here imports rclpy; ``gyro_tdc.nodes.driver_node`` turns
 samples into messages.
 """
 
-from gyro_tdc.sources.base import ImuSample, ImuSource
+from gyro_tdc.sources.base import Backoff, check_sample, ImuSample, ImuSource, SourceExhausted
 from gyro_tdc.sources.iio import find_iio_device, IioSource
 
-__all__ = ['IioSource', 'ImuSample', 'ImuSource', 'find_iio_device', 'SimSource']
+__all__ = ['Backoff', 'IioSource', 'ImuSample', 'ImuSource', 'SimSource', 'SourceExhausted',
+           'check_sample', 'find_iio_device']
 
 
 def __getattr__(name: str):

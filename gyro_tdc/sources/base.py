@@ -17,9 +17,16 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 from typing import Protocol, runtime_checkable
 
+from gyro_tdc.errors import DeviceError
+
 Vec3 = tuple[float, float, float]
+
+
+class SourceExhausted(DeviceError):
+    """A finite source (a simulated scenario) has no more samples."""
 
 
 @dataclass(frozen=True, slots=True)
@@ -37,6 +44,8 @@ class ImuSample:
         Linear acceleration x, y, z when the device has an accelerometer.
     temp_c : float, degC, or None
         Temperature read with this sample; None when no new reading came with it.
+    temp_t : float, s, or None
+        Source time of the temperature reading when it differs from ``t``.
     ref : tuple of 3 float, rad/s, or None
         Rate-table reference when it changed at this sample (simulator only).
 
@@ -46,6 +55,7 @@ class ImuSample:
     omega: Vec3
     accel: Vec3 | None = None
     temp_c: float | None = None
+    temp_t: float | None = None
     ref: Vec3 | None = None
 
 
@@ -75,3 +85,67 @@ class ImuSource(Protocol):
     def close(self) -> None:
         """Release the device."""
         ...
+
+
+def check_sample(sample: ImuSample) -> ImuSample:
+    """
+    Return ``sample`` when every number in it is finite.
+
+    Parameters
+    ----------
+    sample : ImuSample
+        A reading.
+
+    Returns
+    -------
+    ImuSample
+        The same reading.
+
+    Raises
+    ------
+    DeviceError
+        Some value is NaN or infinite (the driver never publishes garbage).
+
+    """
+    fields = [('t', (sample.t,)), ('omega', sample.omega)]
+    if sample.accel is not None:
+        fields.append(('accel', sample.accel))
+    if sample.temp_c is not None:
+        fields.append(('temp_c', (sample.temp_c,)))
+    for name, values in fields:
+        if len(values) != (1 if name in ('t', 'temp_c') else 3) or not all(
+                isinstance(v, (int, float)) and math.isfinite(v) for v in values):
+            raise DeviceError(f'Sample field `{name}` holds {values!r}, expected finite numbers.')
+    return sample
+
+
+class Backoff:
+    """
+    Exponential retry delays: ``initial``, ``2 initial``, ... capped at ``maximum``.
+
+    Parameters
+    ----------
+    initial : float, s
+        First delay, > 0.
+    maximum : float, s
+        Largest delay, >= ``initial``.
+
+    """
+
+    def __init__(self, initial: float, maximum: float) -> None:
+        if not (initial > 0.0 and maximum >= initial):
+            raise ValueError(f'Expected 0 < `initial` <= `maximum`, got {initial!r} and '
+                             f'{maximum!r}.')
+        self.initial = float(initial)
+        self.maximum = float(maximum)
+        self.failures = 0
+
+    def next_delay(self) -> float:
+        """Record one more failure and return how long to wait before the next attempt."""
+        delay = min(self.initial * 2.0 ** min(self.failures, 60), self.maximum)
+        self.failures += 1
+        return delay
+
+    def reset(self) -> None:
+        """Forget the failures (the device works again)."""
+        self.failures = 0
