@@ -43,10 +43,17 @@ test: venv
 	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests" >&2; exit 1; fi; \
 	exit $$rc
 
+# All three checks run; the target fails at the end if any of them failed.
 lint: venv
-	$(VENV)/bin/flake8 $(LINT_PATHS)
-	$(VENV)/bin/ament_pep257 $(LINT_PATHS)
-	$(VPY) -m pytest -q -p no:cacheprovider test/test_copyright.py
+	@rc=0; \
+	echo '--- flake8 (setup.cfg = ament_flake8 settings)'; \
+	$(VENV)/bin/flake8 $(LINT_PATHS) || rc=1; \
+	echo '--- ament_pep257'; \
+	out=$$($(VENV)/bin/ament_pep257 $(LINT_PATHS) 2>&1) || rc=1; \
+	grep -v '^checking ' <<<"$$out" || true; \
+	echo '--- copyright (HEADER.txt)'; \
+	$(VPY) -m pytest -q -p no:cacheprovider test/test_copyright.py || rc=1; \
+	exit $$rc
 
 demo: venv
 	@$(DOMAIN); $(VPY) -m gyro_tdc demo --out out/demo
