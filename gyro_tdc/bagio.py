@@ -40,9 +40,11 @@ from dataclasses import dataclass, field
 from itertools import compress, islice
 from pathlib import Path
 import shutil
+import struct
 from typing import Any, Callable, Sequence
 
 import apsw
+from gyro_tdc.errors import DatasetError
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from rosbags.highlevel import AnyReader, AnyReaderError
@@ -52,8 +54,6 @@ from rosbags.rosbag2 import ReaderError, StoragePlugin, Writer, WriterError
 from rosbags.serde import SerdeError
 from rosbags.typesys import get_typestore, Stores
 import yaml
-
-from gyro_tdc.errors import DatasetError
 
 __all__ = [
     'BagData',
@@ -83,8 +83,11 @@ _CDR_BE = (0, 0, 0, 0)
 _INFINITE = QosTime(9223372036, 854775807)
 _QOS = Qos(QosHistory.UNKNOWN, 0, QosReliability.RELIABLE, QosDurability.VOLATILE,
            _INFINITE, _INFINITE, QosLiveliness.AUTOMATIC, _INFINITE, False)
+# rosbags' own errors, plus what its parsers let through on damaged files (found by fuzzing
+# sqlite3 and mcap bags: huge record lengths raise OverflowError from seek, short reads
+# struct.error).
 _READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
-                UnicodeDecodeError)
+                UnicodeDecodeError, OverflowError, struct.error)
 
 _TYPESTORE = None
 
@@ -258,7 +261,7 @@ def _decode_fast(raws: Sequence[bytes], msgtype: str) -> _Decoded | None:
     """
     n = len(raws)
     first = raws[0]
-    if len(first) < 16 or first[0] != 0 or first[1] not in (0, 1) or first[2:4] != b'\0\0':
+    if len(first) < 16 or first[0] != 0 or first[1] not in (0, 1):
         return None
     big = first[1] == 0
     frame_len = int.from_bytes(first[12:16], 'big' if big else 'little')
@@ -702,7 +705,7 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     expected = {role: sum(int(c.msgcount) for c in conns[role]) for role in roles}
     sinks = {role: _Sink(expected[role], len(_KEEP[msgtypes[role]])) for role in roles}
     frame_id = {role: None for role in roles}
-    fallback = dict.fromkeys(roles, 0)
+    fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
     undecodable = 0
     typestore = reader.typestore
 

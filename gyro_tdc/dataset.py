@@ -1,0 +1,254 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Bag -> aligned numpy arrays: one :class:`gyro_tdc.runs.Run` per recording.
+
+The thermometer (typically 1 Hz) is interpolated linearly onto the IMU stamps
+(100 Hz - 1 kHz); the reference rate comes from a constant, from a rate-table topic
+(zero-order hold) or is zero. Bad samples are dropped and counted in ``run.info['rejected']``
+so that nothing is lost silently.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Iterable
+
+from gyro_tdc.bagio import read_bag
+from gyro_tdc.errors import DatasetError
+from gyro_tdc.runs import Run
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ['align_temperature', 'load_run', 'load_runs']
+
+
+def _vector(name: str, a: ArrayLike) -> NDArray[np.float64]:
+    """Return ``a`` as a 1-D float64 array or raise DatasetError naming it."""
+    arr = np.asarray(a, dtype=np.float64)
+    if arr.ndim != 1:
+        raise DatasetError(f'Expected `{name}` to have shape (N,), got {arr.shape}.')
+    return arr
+
+
+def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=False):
+    """
+    Interpolate thermometer samples linearly onto IMU stamps.
+
+    Thermometer samples with a NaN or infinite stamp or value are dropped, out-of-order
+    samples are sorted and samples sharing a stamp are averaged. An IMU sample is valid
+    when it lies within the thermometer's time span and at most ``max_gap_s`` from the
+    nearest thermometer sample; invalid samples get NaN.
+
+    Parameters
+    ----------
+    imu_t : ArrayLike, shape (N,), s
+        IMU stamps (any order).
+    temp_t : ArrayLike, shape (M,), s
+        Thermometer stamps (any order).
+    temp_c : ArrayLike, shape (M,), degC
+        Thermometer readings.
+    max_gap_s : float, s
+        Largest distance from an IMU stamp to the nearest thermometer sample.
+    return_counts : bool
+        Also return the counts of thermometer samples that were dropped or reordered.
+
+    Returns
+    -------
+    temp_at_imu : NDArray[np.float64], shape (N,), degC
+        Interpolated temperature (NaN where invalid).
+    valid : NDArray[np.bool_], shape (N,)
+        Where the interpolation is trusted.
+    counts : dict[str, int]
+        Only with ``return_counts``: ``nonfinite`` (dropped), ``out_of_order`` (backward
+        steps before sorting) and ``duplicates`` (samples merged into an earlier stamp).
+
+    Raises
+    ------
+    DatasetError
+        When shapes disagree or ``max_gap_s`` is not a positive number.
+
+    """
+    imu_t = _vector('imu_t', imu_t)
+    temp_t = _vector('temp_t', temp_t)
+    temp_c = _vector('temp_c', temp_c)
+    if temp_c.shape != temp_t.shape:
+        raise DatasetError(f'Expected `temp_c` to have shape {temp_t.shape} like `temp_t`, '
+                           f'got {temp_c.shape}.')
+    if not (np.isfinite(max_gap_s) and max_gap_s > 0):
+        raise DatasetError(f'Expected `max_gap_s` to be a positive number, got {max_gap_s!r}.')
+
+    finite = np.isfinite(temp_t) & np.isfinite(temp_c)
+    counts = {'nonfinite': int(np.count_nonzero(~finite)), 'out_of_order': 0, 'duplicates': 0}
+    tt, tc = temp_t[finite], temp_c[finite]
+    steps = np.diff(tt)
+    if np.any(steps <= 0):
+        counts['out_of_order'] = int(np.count_nonzero(steps < 0))
+        order = np.argsort(tt, kind='stable')
+        tt, tc = tt[order], tc[order]
+        stamps, inverse, per = np.unique(tt, return_inverse=True, return_counts=True)
+        if len(stamps) < len(tt):
+            counts['duplicates'] = int(len(tt) - len(stamps))
+            tc = np.bincount(inverse, weights=tc) / per
+            tt = stamps
+
+    temp = np.full(imu_t.shape, np.nan)
+    valid = np.zeros(imu_t.shape, dtype=bool)
+    if len(tt):
+        after = np.searchsorted(tt, imu_t, side='left').clip(0, len(tt) - 1)
+        before = (after - 1).clip(0, len(tt) - 1)
+        nearest = np.minimum(np.abs(imu_t - tt[before]), np.abs(tt[after] - imu_t))
+        valid = (imu_t >= tt[0]) & (imu_t <= tt[-1]) & (nearest <= max_gap_s)
+        temp[valid] = np.interp(imu_t[valid], tt, tc)
+    if return_counts:
+        return temp, valid, counts
+    return temp, valid
+
+
+def _reference(value: object) -> NDArray[np.float64]:
+    """Return a constant reference rate (x, y, z) in rad/s or raise DatasetError."""
+    try:
+        ref = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        ref = np.zeros(0)
+    if ref.shape != (3,) or not np.all(np.isfinite(ref)):
+        raise DatasetError('Expected `reference` to be three finite rates (x, y, z) in rad/s, '
+                           f'got {value!r}.')
+    return ref
+
+
+def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
+             reference=None, reference_topic='/rate_table/reference', max_gap_s=5.0,
+             progress=False) -> Run:
+    """
+    Read one bag into a :class:`~gyro_tdc.runs.Run` aligned on the IMU stamps.
+
+    IMU samples are sorted by stamp; of samples sharing a stamp the first in the bag is
+    kept. Samples with a non-finite rate, without a trusted temperature (see
+    :func:`align_temperature`) or before the first reference message are dropped. Every
+    drop is counted in ``run.info['rejected']``: ``imu_nonfinite``, ``temp_nonfinite``,
+    ``ref_nonfinite``, ``undecodable``, ``duplicate_stamps``, ``out_of_order``,
+    ``no_temperature``, ``no_reference``.
+
+    Parameters
+    ----------
+    bag : str or Path
+        rosbag2 directory (sqlite3 or mcap).
+    imu_topic : str
+        ``sensor_msgs/msg/Imu`` topic.
+    temperature_topic : str
+        ``sensor_msgs/msg/Temperature`` topic.
+    reference : tuple of 3 float, rad/s, optional
+        Constant reference rate (x, y, z); when given, the reference topic is not read.
+    reference_topic : str
+        ``geometry_msgs/msg/Vector3Stamped`` topic, held (zero-order) onto the IMU stamps
+        when present; the reference is zero when the bag has no such topic.
+    max_gap_s : float, s
+        Largest distance to the nearest thermometer sample (see :func:`align_temperature`).
+    progress : bool
+        Show a progress bar while reading.
+
+    Returns
+    -------
+    Run
+        ``name`` is the bag path; ``info`` holds ``rejected``, ``reference`` ('constant',
+        'topic' or 'zero'), ``frame_id``, ``storage``, ``topics`` and ``samples_read``.
+
+    Raises
+    ------
+    DatasetError
+        When the bag cannot be read, a topic is missing, empty or of the wrong type, or no
+        sample survives.
+
+    """
+    const = None if reference is None else _reference(reference)
+    data = read_bag(bag, imu_topic=imu_topic, temperature_topic=temperature_topic,
+                    reference_topic=None if const is not None else reference_topic,
+                    progress=progress)
+    rejected = {'imu_nonfinite': data.rejected['imu_nonfinite'],
+                'temp_nonfinite': data.rejected['temp_nonfinite'],
+                'ref_nonfinite': data.rejected['ref_nonfinite'],
+                'undecodable': data.rejected['undecodable'],
+                'duplicate_stamps': 0, 'out_of_order': 0, 'no_temperature': 0,
+                'no_reference': 0}
+
+    t, omega = data.imu_t, data.gyro
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        rejected['out_of_order'] = int(np.count_nonzero(steps < 0))
+        order = np.argsort(t, kind='stable')
+        t, omega = t[order], omega[order]
+        first = np.ones(len(t), dtype=bool)
+        first[1:] = np.diff(t) > 0
+        rejected['duplicate_stamps'] = int(np.count_nonzero(~first))
+        t, omega = t[first], omega[first]
+
+    temp, keep, counts = align_temperature(t, data.temp_t, data.temp_c, max_gap_s=max_gap_s,
+                                           return_counts=True)
+    rejected['temp_nonfinite'] += counts['nonfinite']
+    rejected['no_temperature'] = int(np.count_nonzero(~keep))
+
+    if const is not None:
+        source = 'constant'
+        omega_ref = np.broadcast_to(const, omega.shape)
+    elif data.ref_t is not None:
+        source = 'topic'
+        order = np.argsort(data.ref_t, kind='stable')
+        ref_t, ref = data.ref_t[order], data.ref[order]
+        held = np.searchsorted(ref_t, t, side='right') - 1
+        has_ref = held >= 0
+        rejected['no_reference'] = int(np.count_nonzero(keep & ~has_ref))
+        keep &= has_ref
+        omega_ref = ref[held.clip(0)]
+    else:
+        source = 'zero'
+        omega_ref = np.broadcast_to(np.zeros(3), omega.shape)
+
+    if not np.any(keep):
+        raise DatasetError(
+            f'Bag {str(bag)!r} has no usable sample: {len(data.imu_t)} IMU samples read, '
+            f'{len(data.temp_t)} temperature samples spanning '
+            + (f'[{data.temp_t.min():.3f}, {data.temp_t.max():.3f}] s'
+               if len(data.temp_t) else 'nothing')
+            + (f' vs IMU [{t.min():.3f}, {t.max():.3f}] s' if len(t) else '')
+            + f'; rejected {rejected}.')
+    info = {'rejected': rejected, 'reference': source, 'frame_id': data.frame_id,
+            'storage': data.storage, 'topics': data.topics,
+            'samples_read': int(len(data.imu_t) + data.rejected['imu_nonfinite']),
+            'decoded_by_rosbags': data.fallback}
+    return Run(t[keep], temp[keep], np.ascontiguousarray(omega[keep]),
+               np.ascontiguousarray(omega_ref[keep]), str(bag), info)
+
+
+def load_runs(bags: Iterable[str | Path] | str | Path, **kw) -> list[Run]:
+    """
+    Load several bags with :func:`load_run`.
+
+    Parameters
+    ----------
+    bags : iterable of str or Path (or a single one)
+        rosbag2 directories.
+    **kw
+        Keyword options of :func:`load_run`.
+
+    Returns
+    -------
+    list[Run]
+        One run per bag, in the given order.
+
+    """
+    if isinstance(bags, (str, Path)):
+        bags = [bags]
+    return [load_run(bag, **kw) for bag in bags]

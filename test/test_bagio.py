@@ -1,0 +1,428 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Tests of gyro_tdc.bagio: bag round trips, the fixed-layout CDR codec and bad bags."""
+
+from __future__ import annotations
+
+import ast
+from pathlib import Path
+
+from gyro_tdc import bagio
+from gyro_tdc.bagio import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag
+from gyro_tdc.errors import DatasetError
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import get_typestore, Stores
+
+TS = get_typestore(Stores.ROS2_JAZZY)
+STORAGES = ('sqlite3', 'mcap')
+PLUGINS = {'sqlite3': StoragePlugin.SQLITE3, 'mcap': StoragePlugin.MCAP}
+# Frame ids of every length mod 8 (the float64 block is aligned to 8 after the string).
+FRAME_IDS = ('', 'a', 'ab', 'abc', 'imu', 'imu_', 'imu_l', 'imu_li', 'imu_lin', 'imu_link',
+             'imu_link0', 'base_link/imu_12', 'caf\u00e9')
+
+
+def _header(sec, nsec, frame_id):
+    return TS.types['std_msgs/msg/Header'](TS.types['builtin_interfaces/msg/Time'](sec, nsec),
+                                           frame_id)
+
+
+def _imu(rng, sec=1, nsec=2, frame_id='imu_link', gyro=None):
+    vec = TS.types['geometry_msgs/msg/Vector3']
+    g = rng.normal(size=3) if gyro is None else gyro
+    quat = TS.types['geometry_msgs/msg/Quaternion']
+    return TS.types[IMU_TYPE](
+        _header(sec, nsec, frame_id), quat(*rng.normal(size=4)),
+        rng.normal(size=9), vec(*g), rng.normal(size=9), vec(*rng.normal(size=3)),
+        rng.normal(size=9))
+
+
+def _temperature(rng, sec=1, nsec=2, frame_id='imu_link', value=None):
+    return TS.types[TEMPERATURE_TYPE](_header(sec, nsec, frame_id),
+                                      rng.normal() if value is None else value, rng.random())
+
+
+def _vector3(rng, sec=1, nsec=2, frame_id='imu_link'):
+    return TS.types[REFERENCE_TYPE](_header(sec, nsec, frame_id),
+                                    TS.types['geometry_msgs/msg/Vector3'](*rng.normal(size=3)))
+
+
+MAKERS = {IMU_TYPE: _imu, TEMPERATURE_TYPE: _temperature, REFERENCE_TYPE: _vector3}
+
+
+def _fields(msgtype, msg):
+    """Flatten every field of a message for comparisons."""
+    return bagio._from_msg(msgtype, msg)
+
+
+def _write_raw(path, storage, topics):
+    """Write {topic: (msgtype, [(log_ns, bytes), ...])} with rosbags' writer, time ordered."""
+    with Writer(path, version=9, storage_plugin=PLUGINS[storage]) as writer:
+        conns = {name: writer.add_connection(name, msgtype, typestore=TS)
+                 for name, (msgtype, _) in topics.items()}
+        items = sorted((ns, name, raw) for name, (_, msgs) in topics.items()
+                       for ns, raw in msgs)
+        for ns, name, raw in items:
+            writer.write(conns[name], ns, raw)
+
+
+def _small_bag(path, storage, *, n=300, frame_id='imu_link', seed=1, **kw):
+    rng = np.random.default_rng(seed)
+    data = dict(imu_t=100.0 + np.arange(n) * 0.01, gyro=rng.normal(size=(n, 3)),
+                accel=rng.normal(size=(n, 3)), temp_t=100.0 + np.arange(n // 100 + 1) * 1.0,
+                temp_c=20.0 + rng.normal(size=n // 100 + 1))
+    data.update(kw)
+    write_bag(path, storage=storage, frame_id=frame_id, **data)
+    return data
+
+
+# ------------------------------------------------------------------------------------------
+# The fixed-layout codec equals rosbags' serialiser
+# ------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('msgtype', [IMU_TYPE, TEMPERATURE_TYPE, REFERENCE_TYPE])
+@pytest.mark.parametrize('frame_id', FRAME_IDS)
+@pytest.mark.parametrize('little_endian', [True, False])
+def test_fixed_layout_decodes_every_field_like_rosbags(msgtype, frame_id, little_endian):
+    rng = np.random.default_rng(len(frame_id))
+    msgs = [MAKERS[msgtype](rng, sec=int(rng.integers(0, 2**31)),
+                            nsec=int(rng.integers(0, 10**9)), frame_id=frame_id)
+            for _ in range(7)]
+    raws = [bytes(TS.serialize_cdr(m, msgtype, little_endian=little_endian)) for m in msgs]
+    frame = frame_id.encode() + b'\0'
+    dt = bagio._cdr_dtype(len(frame), bagio._N_DOUBLES[msgtype], big_endian=not little_endian)
+    assert dt.itemsize == len(raws[0])
+    rec = np.frombuffer(b''.join(raws), dtype=dt)
+    for i, raw in enumerate(raws):
+        sec, nsec, fid, row = _fields(msgtype, TS.deserialize_cdr(raw, msgtype))
+        assert (rec['sec'][i], rec['nanosec'][i]) == (sec, nsec)
+        assert rec['strlen'][i] == len(frame)
+        assert rec['frame'][i].tobytes() == frame
+        np.testing.assert_array_equal(rec['data'][i], row)
+
+    dec = bagio._decode_fast(raws, msgtype)
+    assert dec is not None and dec.fallback == 0 and dec.frame_id == frame_id
+    keep = list(bagio._KEEP[msgtype])
+    for i, raw in enumerate(raws):
+        sec, nsec, _, row = _fields(msgtype, TS.deserialize_cdr(raw, msgtype))
+        assert (dec.sec[i], dec.nanosec[i]) == (sec, nsec)
+        np.testing.assert_array_equal(dec.values[i], np.asarray(row)[keep])
+
+
+@pytest.mark.parametrize('msgtype', [IMU_TYPE, TEMPERATURE_TYPE, REFERENCE_TYPE])
+@pytest.mark.parametrize('frame_id', FRAME_IDS)
+def test_fixed_layout_encodes_like_rosbags(msgtype, frame_id):
+    rng = np.random.default_rng(7)
+    n = 5
+    sec = rng.integers(0, 2**31, size=n)
+    nsec = rng.integers(0, 10**9, size=n)
+    data = rng.normal(size=(n, bagio._N_DOUBLES[msgtype]))
+    data[1, 0] = np.nan
+    data[2, -1] = -np.inf
+    encoded = bagio._encode(msgtype, sec, nsec, frame_id, data)
+    for i in range(n):
+        msg = bagio._to_msg(msgtype, sec[i], nsec[i], frame_id, data[i])
+        assert encoded[i] == bytes(TS.serialize_cdr(msg, msgtype))
+
+
+def test_fast_decoder_refuses_mixed_layouts():
+    rng = np.random.default_rng(3)
+    same_len = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('imu0', 'imu1')]
+    assert bagio._decode_fast(same_len, IMU_TYPE) is None
+    other_len = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('a', 'bcd')]
+    assert bagio._decode_fast(other_len, IMU_TYPE) is None
+    mixed_endian = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE, little_endian=le))
+                    for le in (True, False)]
+    assert bagio._decode_fast(mixed_endian, IMU_TYPE) is None
+    trailing = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE)) + b'\0\0' for _ in range(2)]
+    assert bagio._decode_fast(trailing, IMU_TYPE) is None
+    # ...and the rosbags fallback decodes all of them right.
+    for raws in (same_len, other_len, mixed_endian, trailing):
+        dec = bagio._decode(raws, IMU_TYPE, TS)
+        assert dec.fallback == len(raws)
+        for i, raw in enumerate(raws):
+            row = np.asarray(_fields(IMU_TYPE, TS.deserialize_cdr(raw, IMU_TYPE))[3])
+            np.testing.assert_array_equal(dec.values[i], row[list(bagio._KEEP[IMU_TYPE])])
+
+
+# ------------------------------------------------------------------------------------------
+# Round trips through bags
+# ------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('storage', STORAGES)
+@pytest.mark.parametrize('frame_id', ['imu_link', 'odd', ''])
+def test_write_read_round_trip(tmp_path, storage, frame_id):
+    rng = np.random.default_rng(11)
+    n, m = 2500, 30
+    imu_t = 1.7e9 + np.arange(n) * 1e-3 + 0.25e-3
+    gyro = rng.normal(size=(n, 3))
+    accel = rng.normal(size=(n, 3))
+    temp_t = 1.7e9 + np.arange(m) * 0.1
+    temp_c = 20 + rng.normal(size=m)
+    temp_var = rng.random(m)
+    ref_t = 1.7e9 + np.array([0.0, 1.0, 2.0])
+    ref = rng.normal(size=(3, 3))
+    gyro_cov, accel_cov = np.array([1e-6, 2e-6, 3e-6]), np.array([0.1, 0.2, 0.3])
+    bag = tmp_path / 'bag'
+    write_bag(bag, imu_t=imu_t, gyro=gyro, accel=accel, temp_t=temp_t, temp_c=temp_c,
+              temp_var=temp_var, ref_t=ref_t, ref=ref, storage=storage, frame_id=frame_id,
+              gyro_cov=gyro_cov, accel_cov=accel_cov)
+
+    data = read_bag(bag)
+    assert data.storage == storage and data.path == str(bag) and data.frame_id == frame_id
+    assert data.fallback == {'imu': 0, 'temperature': 0, 'reference': 0}
+    assert data.rejected == {'imu_nonfinite': 0, 'temp_nonfinite': 0, 'ref_nonfinite': 0,
+                             'undecodable': 0}
+    assert data.topics == {'/imu/data_raw': (IMU_TYPE, n),
+                           '/imu/temperature': (TEMPERATURE_TYPE, m),
+                           '/rate_table/reference': (REFERENCE_TYPE, 3)}
+    np.testing.assert_allclose(data.imu_t, imu_t, rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(data.gyro, gyro)
+    np.testing.assert_array_equal(data.accel, accel)
+    np.testing.assert_allclose(data.temp_t, temp_t, rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(data.temp_c, temp_c)
+    np.testing.assert_array_equal(data.temp_var, temp_var)
+    np.testing.assert_allclose(data.ref_t, ref_t, rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(data.ref, ref)
+
+    # Every field, as any ROS 2 tool would see it, and log times in global order.
+    expected_ns = {k: np.round(np.asarray(v) * 1e9).astype(np.int64)
+                   for k, v in (('imu', imu_t), ('temp', temp_t), ('ref', ref_t))}
+    seen = {'imu': 0, 'temp': 0, 'ref': 0}
+    last = -1
+    with AnyReader([bag]) as reader:
+        for conn, log_ns, raw in reader.messages():
+            assert log_ns >= last
+            last = log_ns
+            msg = reader.deserialize(raw, conn.msgtype)
+            stamp = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
+            assert stamp == log_ns and msg.header.frame_id == frame_id
+            if conn.msgtype == IMU_TYPE:
+                i = seen['imu']
+                assert abs(stamp - expected_ns['imu'][i]) <= 1000
+                o = msg.orientation
+                assert (o.x, o.y, o.z, o.w) == (0.0, 0.0, 0.0, 1.0)
+                assert msg.orientation_covariance[0] == -1.0
+                assert not np.any(msg.orientation_covariance[1:])
+                w, a = msg.angular_velocity, msg.linear_acceleration
+                assert [w.x, w.y, w.z] == gyro[i].tolist()
+                assert [a.x, a.y, a.z] == accel[i].tolist()
+                np.testing.assert_array_equal(msg.angular_velocity_covariance,
+                                              np.diag(gyro_cov).ravel())
+                np.testing.assert_array_equal(msg.linear_acceleration_covariance,
+                                              np.diag(accel_cov).ravel())
+                seen['imu'] += 1
+            elif conn.msgtype == TEMPERATURE_TYPE:
+                i = seen['temp']
+                assert abs(stamp - expected_ns['temp'][i]) <= 1000
+                assert (msg.temperature, msg.variance) == (temp_c[i], temp_var[i])
+                seen['temp'] += 1
+            else:
+                i = seen['ref']
+                assert abs(stamp - expected_ns['ref'][i]) <= 1000
+                assert [msg.vector.x, msg.vector.y, msg.vector.z] == ref[i].tolist()
+                seen['ref'] += 1
+        assert seen == {'imu': n, 'temp': m, 'ref': 3}
+        conns = {c.topic: c for c in reader.connections}
+        assert conns['/imu/data_raw'].digest == TS.hash_rihs01(IMU_TYPE)
+    meta = (bag / 'metadata.yaml').read_text()
+    assert 'version: 9' in meta and f'storage_identifier: {storage}' in meta
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_round_trip_over_several_blocks(tmp_path, storage, monkeypatch):
+    monkeypatch.setattr(bagio, '_CHUNK', 256)
+    data = _small_bag(tmp_path / 'bag', storage, n=3000, frame_id='imu_l')
+    got = read_bag(tmp_path / 'bag', progress=True)
+    np.testing.assert_array_equal(got.gyro, data['gyro'])
+    np.testing.assert_array_equal(got.temp_c, data['temp_c'])
+    assert got.ref is None and got.ref_t is None
+    assert got.fallback == {'imu': 0, 'temperature': 0, 'reference': 0}
+
+
+def test_write_bag_accepts_scalar_variance_and_no_reference(tmp_path):
+    write_bag(tmp_path / 'bag', imu_t=[0.0, 0.5], gyro=np.zeros((2, 3)), accel=np.zeros((2, 3)),
+              temp_t=[0.0], temp_c=[21.5], temp_var=0.25)
+    data = read_bag(tmp_path / 'bag')
+    assert data.storage == 'sqlite3' and data.temp_var.tolist() == [0.25]
+    assert '/rate_table/reference' not in data.topics
+    # A header stamp of zero falls back to the log time (also zero here).
+    np.testing.assert_array_equal(data.imu_t, [0.0, 0.5])
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_mixed_frame_ids_fall_back_and_decode_right(tmp_path, storage):
+    rng = np.random.default_rng(5)
+    frames = ['a', 'imu_link', 'base', 'a']
+    imu, temp, expected = [], [], []
+    for i in range(40):
+        g = rng.normal(size=3)
+        expected.append(g)
+        imu.append((10**9 + i * 10**7, bytes(TS.serialize_cdr(
+            _imu(rng, 1, i * 10**7, frames[i % 4], gyro=g), IMU_TYPE))))
+    for i in range(3):
+        temp.append((10**9 + i * 2 * 10**8, bytes(TS.serialize_cdr(
+            _temperature(rng, 1, i * 2 * 10**8, frames[i], value=20.0 + i), TEMPERATURE_TYPE))))
+    _write_raw(tmp_path / 'bag', storage, {'/imu/data_raw': (IMU_TYPE, imu),
+                                           '/imu/temperature': (TEMPERATURE_TYPE, temp)})
+    data = read_bag(tmp_path / 'bag')
+    assert data.fallback['imu'] == 40 and data.fallback['temperature'] == 3
+    assert data.frame_id == 'a'
+    np.testing.assert_array_equal(data.gyro, np.array(expected))
+    np.testing.assert_allclose(data.imu_t, 1 + np.arange(40) * 0.01, atol=1e-9)
+    np.testing.assert_array_equal(data.temp_c, [20.0, 21.0, 22.0])
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_big_endian_zero_stamps_nonfinite_and_undecodable(tmp_path, storage):
+    rng = np.random.default_rng(9)
+    gyro = rng.normal(size=(12, 3))
+    gyro[3, 1] = np.nan
+    gyro[7, 2] = np.inf
+    imu = []
+    for i in range(12):
+        sec, nsec = (0, 0) if i == 5 else (2, i * 1000)    # zero stamp: use the log time
+        msg = _imu(rng, sec, nsec, 'imu_link', gyro=gyro[i])
+        imu.append((2 * 10**9 + i * 1000 + (777 if i == 5 else 0),
+                    bytes(TS.serialize_cdr(msg, IMU_TYPE, little_endian=False))))
+    imu.append((2 * 10**9 + 50_000, imu[0][1][:100]))     # truncated message
+    temp = [(2 * 10**9 + i, bytes(TS.serialize_cdr(
+        _temperature(rng, 2, i, value=v), TEMPERATURE_TYPE))) for i, v in
+        enumerate([20.0, np.nan, 21.0, -np.inf])]
+    _write_raw(tmp_path / 'bag', storage, {'/imu/data_raw': (IMU_TYPE, imu),
+                                           '/imu/temperature': (TEMPERATURE_TYPE, temp)})
+    data = read_bag(tmp_path / 'bag')
+    assert data.rejected == {'imu_nonfinite': 2, 'temp_nonfinite': 2, 'ref_nonfinite': 0,
+                             'undecodable': 1}
+    keep = [i for i in range(12) if i not in (3, 7)]
+    np.testing.assert_array_equal(data.gyro, gyro[keep])
+    expected_t = np.array([2 + i * 1e-6 for i in range(12)])
+    expected_t[5] = 2 + 5 * 1e-6 + 777e-9
+    np.testing.assert_allclose(data.imu_t, expected_t[keep], rtol=0, atol=1e-12)
+    np.testing.assert_array_equal(data.temp_c, [20.0, 21.0])
+
+
+# ------------------------------------------------------------------------------------------
+# Bad input
+# ------------------------------------------------------------------------------------------
+
+def test_missing_path(tmp_path):
+    with pytest.raises(DatasetError, match='does not exist'):
+        read_bag(tmp_path / 'nope')
+
+
+def test_directory_that_is_not_a_bag(tmp_path):
+    (tmp_path / 'notes.txt').write_text('hello')
+    with pytest.raises(DatasetError, match='not a rosbag2 directory: no metadata.yaml'):
+        read_bag(tmp_path)
+    with pytest.raises(DatasetError, match='is a file, not a rosbag2 directory'):
+        read_bag(tmp_path / 'notes.txt')
+    (tmp_path / 'old.bag').write_bytes(b'#ROSBAG V2.0\n')
+    with pytest.raises(DatasetError, match='ROS 1 bag'):
+        read_bag(tmp_path / 'old.bag')
+
+
+def test_storage_file_path_resolves_to_its_bag(tmp_path):
+    _small_bag(tmp_path / 'bag', 'sqlite3')
+    assert read_bag(tmp_path / 'bag' / 'bag.db3').path == str(tmp_path / 'bag')
+
+
+@pytest.mark.parametrize('damage', ['truncate', 'garbage', 'empty'])
+def test_corrupt_sqlite3(tmp_path, damage):
+    _small_bag(tmp_path / 'bag', 'sqlite3', n=3000)
+    db3 = tmp_path / 'bag' / 'bag.db3'
+    raw = db3.read_bytes()
+    if damage == 'truncate':
+        db3.write_bytes(raw[:len(raw) // 3])
+    elif damage == 'garbage':
+        db3.write_bytes(raw[:4096] + bytes(np.random.default_rng(0).integers(
+            0, 256, len(raw) - 4096, dtype=np.uint8)))
+    else:
+        db3.write_bytes(b'')
+    with pytest.raises(DatasetError, match=r'unreadable or corrupt'):
+        read_bag(tmp_path / 'bag')
+
+
+@pytest.mark.parametrize('damage', ['truncate', 'garbage'])
+def test_corrupt_mcap(tmp_path, damage):
+    _small_bag(tmp_path / 'bag', 'mcap', n=3000)
+    mcap = tmp_path / 'bag' / 'bag.mcap'
+    raw = mcap.read_bytes()
+    if damage == 'truncate':
+        mcap.write_bytes(raw[:len(raw) // 2])
+    else:
+        mcap.write_bytes(raw[:8] + b'\x07' * (len(raw) - 8))
+    with pytest.raises(DatasetError, match=r'unreadable or corrupt'):
+        read_bag(tmp_path / 'bag')
+
+
+def test_corrupt_metadata(tmp_path):
+    _small_bag(tmp_path / 'bag', 'sqlite3')
+    (tmp_path / 'bag' / 'metadata.yaml').write_text('rosbag2_bagfile_information: [\n')
+    with pytest.raises(DatasetError, match=r'unreadable or corrupt'):
+        read_bag(tmp_path / 'bag')
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_missing_topic_lists_the_topics_present(tmp_path, storage):
+    _small_bag(tmp_path / 'bag', storage, n=300)
+    with pytest.raises(DatasetError) as err:
+        read_bag(tmp_path / 'bag', imu_topic='/imu/raw')
+    text = str(err.value)
+    assert "no topic '/imu/raw'" in text
+    assert '/imu/data_raw (sensor_msgs/msg/Imu, 300 msgs)' in text
+    assert '/imu/temperature (sensor_msgs/msg/Temperature, 4 msgs)' in text
+    assert '\n' not in text
+
+
+def test_wrong_type_and_empty_topic(tmp_path):
+    _small_bag(tmp_path / 'bag', 'sqlite3')
+    with pytest.raises(DatasetError, match=r"'/imu/data_raw' .* has type 'sensor_msgs/msg/Imu', "
+                                           r"expected 'sensor_msgs/msg/Temperature'"):
+        read_bag(tmp_path / 'bag', temperature_topic='/imu/data_raw')
+    rng = np.random.default_rng(0)
+    imu = [(10**9, bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE)))]
+    _write_raw(tmp_path / 'empty', 'sqlite3', {'/imu/data_raw': (IMU_TYPE, imu),
+                                               '/imu/temperature': (TEMPERATURE_TYPE, [])})
+    with pytest.raises(DatasetError, match=r"'/imu/temperature' .* has no messages"):
+        read_bag(tmp_path / 'empty')
+
+
+def test_write_bag_rejects_bad_arguments(tmp_path):
+    ok = dict(imu_t=[0.0, 1.0], gyro=np.zeros((2, 3)), accel=np.zeros((2, 3)), temp_t=[0.0],
+              temp_c=[20.0])
+    with pytest.raises(DatasetError, match=r'`gyro` to have shape \(2, 3\), got \(2, 2\)'):
+        write_bag(tmp_path / 'a', **{**ok, 'gyro': np.zeros((2, 2))})
+    with pytest.raises(DatasetError, match='`imu_t` to hold finite times'):
+        write_bag(tmp_path / 'a', **{**ok, 'imu_t': [0.0, np.nan]})
+    with pytest.raises(DatasetError, match='`ref_t` and `ref` to be given together'):
+        write_bag(tmp_path / 'a', **ok, ref_t=[0.0])
+    with pytest.raises(DatasetError, match="`storage` to be 'sqlite3' or 'mcap', got 'ros1'"):
+        write_bag(tmp_path / 'a', **ok, storage='ros1')
+    assert not (tmp_path / 'a').exists()
+    write_bag(tmp_path / 'a', **ok)
+    with pytest.raises(DatasetError, match='exists already'):
+        write_bag(tmp_path / 'a', **ok)
+
+
+def test_bagio_imports_no_ros_packages():
+    tree = ast.parse(Path(bagio.__file__).read_text())
+    modules = {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import)
+               for alias in node.names}
+    modules |= {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
+    roots = {m.split('.')[0] for m in modules if m}
+    assert not roots & {'rclpy', 'sensor_msgs', 'std_msgs', 'geometry_msgs', 'rosbag2_py'}

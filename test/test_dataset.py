@@ -1,0 +1,298 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Tests of gyro_tdc.dataset (alignment, load_run) and the PAN CubeSat converter."""
+
+from __future__ import annotations
+
+import importlib.util
+from pathlib import Path
+
+from gyro_tdc.bagio import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag
+from gyro_tdc.dataset import align_temperature, load_run, load_runs
+from gyro_tdc.errors import DatasetError
+from gyro_tdc.realdata import default_pan_csv, LSM6DSM_TEMP_VARIANCE, pan_cubesat_to_bag
+from gyro_tdc.realdata import read_pan_cubesat_csv
+from gyro_tdc.runs import Run
+import numpy as np
+import pytest
+from rosbags.rosbag2 import Writer
+from rosbags.typesys import get_typestore, Stores
+
+TS = get_typestore(Stores.ROS2_JAZZY)
+ROOT = Path(__file__).resolve().parent.parent
+PAN_CSV = default_pan_csv()
+
+
+def _ramp(t):
+    """Return a piecewise-linear temperature, exact under linear interpolation at knots."""
+    return 20.0 + 0.01 * (t - 100.0)
+
+
+# ------------------------------------------------------------------------------------------
+# align_temperature
+# ------------------------------------------------------------------------------------------
+
+def test_align_different_rates_is_linear_interpolation():
+    imu_t = 100.0 + np.arange(0, 60_000) * 1e-3      # 1 kHz for 60 s
+    temp_t = 100.0 + np.arange(0, 61) * 1.0          # 1 Hz
+    temp, valid = align_temperature(imu_t, temp_t, _ramp(temp_t))
+    assert valid.all()
+    np.testing.assert_allclose(temp, _ramp(imu_t), rtol=0, atol=1e-12)
+
+
+def test_align_outside_span_and_gaps_are_invalid():
+    imu_t = np.arange(0.0, 60.0, 0.01)
+    temp_t = np.concatenate([np.arange(5.0, 20.0, 1.0), np.arange(40.0, 51.0, 1.0)])
+    temp, valid = align_temperature(imu_t, temp_t, _ramp(temp_t), max_gap_s=5.0)
+    near = (imu_t <= 24.0) | (imu_t >= 35.0)           # within 5 s of 19 s or of 40 s
+    expected = (imu_t >= 5.0) & (imu_t <= 50.0) & near
+    np.testing.assert_array_equal(valid, expected)
+    assert np.isnan(temp[~valid]).all()
+    np.testing.assert_allclose(temp[valid], _ramp(imu_t[valid]), atol=1e-12)
+
+
+def test_align_sorts_out_of_order_and_averages_duplicates():
+    rng = np.random.default_rng(4)
+    temp_t = np.arange(0.0, 30.0, 1.0)
+    temp_c = _ramp(temp_t)
+    order = rng.permutation(len(temp_t))
+    imu_t = np.sort(rng.uniform(0.0, 29.0, 500))
+    ref, _ = align_temperature(imu_t, temp_t, temp_c)
+    temp_t2 = np.concatenate([temp_t[order], [10.0]])
+    temp_c2 = np.concatenate([temp_c[order], [temp_c[10] + 2.0]])   # duplicate stamp
+    temp, valid, counts = align_temperature(imu_t, temp_t2, temp_c2, return_counts=True)
+    assert valid.all()
+    assert counts['duplicates'] == 1 and counts['out_of_order'] > 0
+    fixed = temp_c.copy()
+    fixed[10] += 1.0                                  # mean of the two readings at 10 s
+    np.testing.assert_allclose(temp, np.interp(imu_t, temp_t, fixed), atol=1e-12)
+    assert not np.allclose(temp, ref)
+
+
+def test_align_rejects_and_counts_nonfinite():
+    temp_t = np.arange(0.0, 10.0, 1.0)
+    temp_c = _ramp(temp_t)
+    temp_c[3] = np.nan
+    temp_c[6] = np.inf
+    temp_t = temp_t.copy()
+    temp_t[8] = np.nan
+    imu_t = np.arange(0.0, 9.0, 0.1)
+    temp, valid, counts = align_temperature(imu_t, temp_t, temp_c, return_counts=True)
+    assert counts == {'nonfinite': 3, 'out_of_order': 0, 'duplicates': 0}
+    assert valid.all() and np.isfinite(temp).all()
+    np.testing.assert_allclose(temp, _ramp(imu_t), atol=1e-12)   # a ramp survives the holes
+
+
+def test_align_with_no_thermometer_sample():
+    temp, valid = align_temperature([1.0, 2.0], [np.nan], [20.0])
+    assert not valid.any() and np.isnan(temp).all()
+    temp, valid = align_temperature([1.0, 2.0], [], [])
+    assert not valid.any()
+
+
+def test_align_bad_arguments():
+    with pytest.raises(DatasetError, match=r'`temp_c` to have shape \(3,\)'):
+        align_temperature([0.0], [0.0, 1.0, 2.0], [1.0, 2.0])
+    with pytest.raises(DatasetError, match=r'`imu_t` to have shape \(N,\)'):
+        align_temperature(np.zeros((2, 2)), [0.0], [1.0])
+    with pytest.raises(DatasetError, match='`max_gap_s` to be a positive number'):
+        align_temperature([0.0], [0.0], [1.0], max_gap_s=0.0)
+
+
+# ------------------------------------------------------------------------------------------
+# load_run
+# ------------------------------------------------------------------------------------------
+
+def _bag(path, *, storage='sqlite3', n=5000, rate=1000.0, seed=2, **kw):
+    rng = np.random.default_rng(seed)
+    imu_t = 100.0 + np.arange(n) / rate
+    temp_t = np.arange(100.0, imu_t[-1] + 1.0, 1.0)
+    args = dict(imu_t=imu_t, gyro=1e-3 * rng.normal(size=(n, 3)), accel=rng.normal(size=(n, 3)),
+                temp_t=temp_t, temp_c=_ramp(temp_t))
+    args.update(kw)
+    write_bag(path, storage=storage, **args)
+    return args
+
+
+@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
+def test_load_run_reference_sources(tmp_path, storage):
+    ref_t = np.array([99.0, 102.0, 103.5])
+    ref = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 0.5], [0.1, 0.0, -0.5]])
+    args = _bag(tmp_path / 'bag', storage=storage, ref_t=ref_t, ref=ref)
+    run = load_run(tmp_path / 'bag')
+    assert isinstance(run, Run) and run.name == str(tmp_path / 'bag')
+    assert len(run) == 5000 and run.info['reference'] == 'topic'
+    assert set(run.info['rejected'].values()) == {0}
+    np.testing.assert_array_equal(run.omega, args['gyro'])
+    np.testing.assert_allclose(run.temp, _ramp(args['imu_t']), atol=1e-9)
+    held = ref[np.searchsorted(ref_t, run.t, side='right') - 1]
+    np.testing.assert_array_equal(run.omega_ref, held)
+    assert run.omega_ref[2000].tolist() == [0.0, 0.0, 0.5]   # t = 102.0 s exactly
+
+    const = load_run(tmp_path / 'bag', reference=(0.0, 0.0, 0.25))
+    assert const.info['reference'] == 'constant'
+    np.testing.assert_array_equal(const.omega_ref, np.tile([0.0, 0.0, 0.25], (5000, 1)))
+
+    _bag(tmp_path / 'noref', storage=storage)
+    zero = load_run(tmp_path / 'noref')
+    assert zero.info['reference'] == 'zero' and not zero.omega_ref.any()
+    runs = load_runs([tmp_path / 'bag', tmp_path / 'noref'], reference=(0, 0, 0))
+    assert [r.name for r in runs] == [str(tmp_path / 'bag'), str(tmp_path / 'noref')]
+
+
+def test_load_run_drops_and_counts_bad_samples(tmp_path):
+    n = 3000
+    rng = np.random.default_rng(8)
+    imu_t = 100.0 + np.arange(n) * 1e-2
+    imu_t[1000] = imu_t[999]                         # duplicate stamp
+    gyro = rng.normal(size=(n, 3))
+    gyro[[10, 20, 30], [0, 1, 2]] = [np.nan, np.inf, -np.inf]
+    temp_t = np.arange(105.0, 131.0, 1.0)            # starts 5 s after the IMU
+    temp_c = _ramp(temp_t)
+    temp_c[4] = np.nan
+    ref_t, ref = np.array([101.0]), np.array([[0.0, 0.0, 1.0]])
+    write_bag(tmp_path / 'bag', imu_t=imu_t, gyro=gyro, accel=np.zeros((n, 3)), temp_t=temp_t,
+              temp_c=temp_c, ref_t=ref_t, ref=ref)
+    run = load_run(tmp_path / 'bag')
+    rej = run.info['rejected']
+    assert rej['imu_nonfinite'] == 3 and rej['temp_nonfinite'] == 1
+    assert rej['duplicate_stamps'] == 1
+    # IMU before 105 s (500 samples, three of them non-finite and dropped earlier) have no
+    # temperature; the samples after the last thermometer sample (130 s) neither.
+    assert rej['no_temperature'] == 500 - 3 + int(np.sum(imu_t > 130.0))
+    assert rej['no_reference'] == 0                  # all before 101 s already lack temperature
+    assert np.all(np.diff(run.t) > 0) and np.isfinite(run.omega).all()
+    assert run.t[0] == pytest.approx(105.0) and run.t[-1] <= 130.0
+    assert len(run) == n - 3 - 1 - rej['no_temperature']
+    np.testing.assert_allclose(run.temp, _ramp(run.t), atol=1e-9)
+    assert run.info['samples_read'] == n
+
+
+def test_load_run_sorts_out_of_order_header_stamps(tmp_path):
+    """Header stamps out of order (log times in order) are sorted; duplicates keep the first."""
+    rng = np.random.default_rng(6)
+    header_t = 10.0 + np.arange(200) * 0.01
+    header_t[[50, 51]] = header_t[[51, 50]]          # swapped pair
+    header_t[120] = header_t[119]                    # duplicate; the first one wins
+    gyro = rng.normal(size=(200, 3))
+    types = TS.types
+    with Writer(tmp_path / 'bag', version=9) as writer:
+        imu = writer.add_connection('/imu/data_raw', IMU_TYPE, typestore=TS)
+        temp = writer.add_connection('/imu/temperature', TEMPERATURE_TYPE, typestore=TS)
+        for k, t in enumerate([9.0, 13.0]):
+            writer.write(temp, int(t * 1e9), bytes(TS.serialize_cdr(types[TEMPERATURE_TYPE](
+                types['std_msgs/msg/Header'](types['builtin_interfaces/msg/Time'](int(t), 0),
+                                             'imu'), 20.0 + k, 0.0), TEMPERATURE_TYPE)))
+        vec = types['geometry_msgs/msg/Vector3']
+        for i in range(200):
+            sec = int(np.floor(header_t[i]))
+            nsec = int(round((header_t[i] - sec) * 1e9))
+            msg = types[IMU_TYPE](
+                types['std_msgs/msg/Header'](types['builtin_interfaces/msg/Time'](sec, nsec),
+                                             'imu'),
+                types['geometry_msgs/msg/Quaternion'](0.0, 0.0, 0.0, 1.0), np.zeros(9),
+                vec(*gyro[i]), np.zeros(9), vec(0.0, 0.0, 0.0), np.zeros(9))
+            writer.write(imu, int(9.5e9) + i * 10**7, bytes(TS.serialize_cdr(msg, IMU_TYPE)))
+    run = load_run(tmp_path / 'bag')
+    assert run.info['rejected']['out_of_order'] == 1
+    assert run.info['rejected']['duplicate_stamps'] == 1
+    assert len(run) == 199 and np.all(np.diff(run.t) > 0)
+    expected = np.delete(gyro[np.argsort(header_t, kind='stable')],
+                         np.argsort(header_t, kind='stable').tolist().index(120), axis=0)
+    np.testing.assert_array_equal(run.omega, expected)
+
+
+def test_load_run_errors(tmp_path):
+    with pytest.raises(DatasetError, match='does not exist'):
+        load_run(tmp_path / 'missing')
+    _bag(tmp_path / 'bag', n=100)
+    with pytest.raises(DatasetError, match=r'`reference` to be three finite rates'):
+        load_run(tmp_path / 'bag', reference=(0.0, 1.0))
+    with pytest.raises(DatasetError, match="no topic '/temp'.*/imu/temperature"):
+        load_run(tmp_path / 'bag', temperature_topic='/temp')
+    write_bag(tmp_path / 'apart', imu_t=[0.0, 0.1], gyro=np.zeros((2, 3)),
+              accel=np.zeros((2, 3)), temp_t=[50.0, 51.0], temp_c=[20.0, 20.0])
+    with pytest.raises(DatasetError, match='no usable sample'):
+        load_run(tmp_path / 'apart')
+
+
+# ------------------------------------------------------------------------------------------
+# Real data: PAN CubeSat TVAC
+# ------------------------------------------------------------------------------------------
+
+needs_pan = pytest.mark.skipif(not PAN_CSV.is_file(), reason=f'{PAN_CSV} not present')
+
+
+@needs_pan
+@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
+def test_pan_cubesat_converter(tmp_path, storage):
+    data = pan_cubesat_to_bag(PAN_CSV, tmp_path / 'pan', storage=storage)
+    assert data.rows_read == 6250 and data.rows_removed == 3
+    run = load_run(tmp_path / 'pan')
+    assert len(run) == 6247 and run.info['reference'] == 'topic'
+    assert set(run.info['rejected'].values()) == {0}
+    assert run.temp[0] == pytest.approx(23.8, abs=0.1)
+    assert run.temp[-1] == pytest.approx(15.6, abs=0.1)
+    assert run.temp.max() == pytest.approx(23.9, abs=0.05)
+    assert run.temp.min() == pytest.approx(15.6, abs=0.05)
+    assert not run.omega_ref.any()
+    # Corrected rates (x 0.5) and no spike left.
+    assert run.omega[:, 0].min() > -0.04 and abs(run.omega[:, 0].mean() + 0.033) < 0.002
+    raw = read_bag(tmp_path / 'pan')
+    np.testing.assert_allclose(raw.temp_var, LSM6DSM_TEMP_VARIANCE)
+    assert raw.topics['/imu/temperature'] == (TEMPERATURE_TYPE, 6247)
+    assert raw.topics['/rate_table/reference'] == (REFERENCE_TYPE, 6247)
+    assert raw.topics['/imu/data_raw'] == (IMU_TYPE, 6247)
+
+
+@needs_pan
+def test_pan_cubesat_tool_main(tmp_path, capsys):
+    spec = importlib.util.spec_from_file_location('pan_tool', ROOT / 'tools' /
+                                                  'pan_cubesat_to_bag.py')
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    assert tool.main(['--out', str(tmp_path / 'pan'), '--storage', 'mcap']) == 0
+    out = capsys.readouterr().out
+    assert '6247 samples' in out and '3 spike rows removed' in out
+    assert tool.main(['--out', str(tmp_path / 'pan')]) == 2
+    err = capsys.readouterr().err
+    assert 'exists already' in err and len(err.strip().splitlines()) == 1
+    assert tool.main(['--csv', str(tmp_path / 'none.csv'), '--out', str(tmp_path / 'x')]) == 2
+
+
+def test_pan_csv_errors(tmp_path):
+    with pytest.raises(DatasetError, match='Cannot read PAN CubeSat CSV'):
+        read_pan_cubesat_csv(tmp_path / 'none.csv')
+    bad = tmp_path / 'bad.csv'
+    bad.write_text('time (ms),a,b\n1,2,3\n')
+    with pytest.raises(DatasetError, match='Expected PAN CubeSat CSV columns'):
+        read_pan_cubesat_csv(bad)
+    header = ('time (ms),mag1x [T],mag1y [T],mag1z [T],gyrox rad/s,gyroy rad/s,gyroz rad/s,'
+              'temp\n')
+    bad.write_text(header + '1,0,0,0,0,0,0,oops\n')
+    with pytest.raises(DatasetError, match='Expected numbers'):
+        read_pan_cubesat_csv(bad)
+    bad.write_text(header + '1,0,0,0,0,0,0,70000\n')
+    with pytest.raises(DatasetError, match='raw 16-bit register'):
+        read_pan_cubesat_csv(bad)
+    good = tmp_path / 'good.csv'
+    good.write_text(header + '1000,0,0,0,-0.06,0.05,0.02,65280\n'
+                             '1020,0,0,0,-0.10,0.05,0.02,65280\n'
+                             '1040,0,0,0,-0.06,0.05,0.02,256\n')
+    data = read_pan_cubesat_csv(good)
+    assert data.rows_read == 3 and data.rows_removed == 1
+    np.testing.assert_allclose(data.t, [1.0, 1.04])
+    np.testing.assert_allclose(data.temp_c, [24.0, 26.0])      # int16: -256 and +256 LSB
+    np.testing.assert_allclose(data.gyro[0], [-0.03, 0.025, 0.01])
