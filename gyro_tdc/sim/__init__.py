@@ -1,0 +1,62 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Thermal-chamber gyro simulator (pure numpy; no rclpy).
+
+A chamber profile (soak, ramp, the paper's 0.1 degC / 20 s staircase, free points) drives a
+chain of first-order lags (air, package, die); a thermometer reads the package or the die;
+the gyro adds per-axis thermal effects (ids of :mod:`gyro_tdc.effects`) and noise to the
+rate-table reference::
+
+    from gyro_tdc.sim import load_scenario, simulate_scenario, to_run
+    runs = simulate_scenario('l3gd20_paper', seed=1, rate_hz=1.0)
+    run = to_run(runs[0])                      # gyro_tdc.runs.Run on the IMU stamps
+
+See :mod:`gyro_tdc.sim.scenario` for the scenario schema.
+"""
+
+from gyro_tdc.sim.chamber import heat_conduction_time_s, max_temperature_step_c
+from gyro_tdc.sim.chamber import nice_ceil, nice_floor, Profile, staircase_plan, StaircasePlan
+from gyro_tdc.sim.presets import PRESETS
+from gyro_tdc.sim.scenario import EFFECT_IDS, list_scenarios, load_scenario, Scenario
+from gyro_tdc.sim.scenario import scenario_dir
+from gyro_tdc.sim.simulator import SimRun, SimTruth, simulate_run, simulate_scenario, to_run
+from gyro_tdc.sim.stream import SimStream
+from gyro_tdc.sim.thermal import first_order_lag, simulate_thermal, ThermalHistory
+
+__all__ = [
+    'EFFECT_IDS',
+    'PRESETS',
+    'Profile',
+    'Scenario',
+    'SimRun',
+    'SimStream',
+    'SimTruth',
+    'StaircasePlan',
+    'ThermalHistory',
+    'first_order_lag',
+    'heat_conduction_time_s',
+    'list_scenarios',
+    'load_scenario',
+    'max_temperature_step_c',
+    'nice_ceil',
+    'nice_floor',
+    'scenario_dir',
+    'simulate_run',
+    'simulate_scenario',
+    'simulate_thermal',
+    'staircase_plan',
+    'to_run',
+]

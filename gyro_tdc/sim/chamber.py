@@ -1,0 +1,554 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Thermal chamber: temperature profiles and the paper's precise test method (section 3.1).
+
+A profile is the chamber air temperature as a piecewise-linear function of time, given by
+breakpoints ``(t, temp)``. Two breakpoints at the same time make an instantaneous jump (a
+staircase step); the profile is right-continuous there (the value after the jump).
+
+The test-method equations of the paper:
+
+- eq. 20, temperature step: ``dT <= dE_S / (|alpha| + |beta|)``;
+  L3GD20: 8.75 mdps / (0.03 + 0.04) dps/degC = 0.125 degC, rounded down to 0.1 degC;
+- eq. 24, heat-conduction time: ``t_s = C rho L^2 / k``; SET-Z-021: 17.52 s, held
+  ``t_p >= t_s`` (eq. 25), rounded up to 20 s; 0.1 degC / 20 s = 18 degC/h.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Callable, Sequence, Tuple
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    'Profile',
+    'StaircasePlan',
+    'heat_conduction_time_s',
+    'hold_segment',
+    'max_temperature_step_c',
+    'nice_ceil',
+    'nice_floor',
+    'points_segment',
+    'ramp_segment',
+    'staircase_plan',
+    'staircase_segment',
+    'step_segment',
+]
+
+
+# --------------------------------------------------------------------------------------------
+# The paper's test-method equations
+# --------------------------------------------------------------------------------------------
+
+def max_temperature_step_c(*, sensitivity_dps: float, alpha_dps_per_c: float,
+                           beta_dps_per_c: float) -> float:
+    """
+    Return the largest chamber temperature step of the precise test (paper eq. 20).
+
+    A step must not move the output by more than one digit:
+    ``dT <= dE_S / (|alpha| + |beta|)``.
+
+    Parameters
+    ----------
+    sensitivity_dps : float, deg/s per digit
+        Gyro sensitivity (resolution) ``dE_S``; 8.75e-3 for the L3GD20 at +-250 dps.
+    alpha_dps_per_c : float, (deg/s)/degC
+        Zero-rate level change vs temperature; its magnitude is used (0.03 for the L3GD20).
+    beta_dps_per_c : float, (deg/s)/degC
+        Sensitivity change vs temperature as a rate (2 % of full scale over the range;
+        0.04 for the L3GD20); its magnitude is used.
+
+    Returns
+    -------
+    float, degC
+        The bound of eq. 20 (0.125 degC for the L3GD20).
+
+    """
+    for name, value in (('sensitivity_dps', sensitivity_dps),
+                        ('alpha_dps_per_c', alpha_dps_per_c),
+                        ('beta_dps_per_c', beta_dps_per_c)):
+        if not math.isfinite(value):
+            raise ValueError(f'Expected `{name}` to be finite, got {value!r}.')
+    if sensitivity_dps <= 0.0:
+        raise ValueError(f'Expected `sensitivity_dps` > 0, got {sensitivity_dps!r}.')
+    total = abs(alpha_dps_per_c) + abs(beta_dps_per_c)
+    if total <= 0.0:
+        raise ValueError('Expected |`alpha_dps_per_c`| + |`beta_dps_per_c`| > 0, got 0.')
+    return float(sensitivity_dps / total)
+
+
+def heat_conduction_time_s(*, specific_heat_kj_per_kg_k: float, density_kg_per_m3: float,
+                           length_m: float, conductivity_w_per_m_k: float) -> float:
+    """
+    Return the paper's heat-conduction time ``t_s = C rho L^2 / k`` (eq. 24).
+
+    The paper evaluates eq. 24 with ``C`` in kJ/(kg K) and ``k`` in W/(m K) and reads the
+    result as seconds (SET-Z-021: C = 1.005, rho = 1.293, L = 0.6, k = 0.0267 -> 17.52 s).
+    This function reproduces that number. Note that in consistent SI units (C in J/(kg K))
+    the same expression is 1000 times larger (17,521 s, about 4.9 h): the 17.5 s figure,
+    and the 20 s hold derived from it, are the paper's experimental choice rather than a
+    conduction time constant. The simulator's lags are set independently, in
+    ``thermal.tau_*_s``.
+
+    Parameters
+    ----------
+    specific_heat_kj_per_kg_k : float, kJ/(kg K)
+        Specific heat capacity ``C`` of the chamber air.
+    density_kg_per_m3 : float, kg/m^3
+        Air density ``rho``.
+    length_m : float, m
+        Conduction length ``L`` from the chamber wall to the rate table centre.
+    conductivity_w_per_m_k : float, W/(m K)
+        Thermal conductivity ``k`` of air.
+
+    Returns
+    -------
+    float, s
+        ``C rho L^2 / k`` as the paper computes it (17.5209 s for SET-Z-021).
+
+    """
+    values = (('specific_heat_kj_per_kg_k', specific_heat_kj_per_kg_k),
+              ('density_kg_per_m3', density_kg_per_m3), ('length_m', length_m),
+              ('conductivity_w_per_m_k', conductivity_w_per_m_k))
+    for name, value in values:
+        if not (math.isfinite(value) and value > 0.0):
+            raise ValueError(f'Expected `{name}` to be a finite number > 0, got {value!r}.')
+    return float(specific_heat_kj_per_kg_k * density_kg_per_m3 * length_m ** 2
+                 / conductivity_w_per_m_k)
+
+
+def _nice(x: float, name: str, up: bool) -> float:
+    if not (math.isfinite(x) and x > 0.0):
+        raise ValueError(f'Expected `{name}` to be a finite number > 0, got {x!r}.')
+    exponent = math.floor(math.log10(x))
+    candidates = [m * 10.0 ** e for e in (exponent - 1, exponent, exponent + 1)
+                  for m in (1.0, 2.0, 5.0)]
+    # A relative tolerance so that 0.1 or 20 map onto themselves despite rounding.
+    if up:
+        return min(c for c in candidates if c >= x * (1.0 - 1e-12))
+    return max(c for c in candidates if c <= x * (1.0 + 1e-12))
+
+
+def nice_floor(x: float) -> float:
+    """
+    Return the largest number of the 1-2-5 series not above ``x``.
+
+    Parameters
+    ----------
+    x : float
+        A positive number (e.g. the eq. 20 bound, 0.125 degC).
+
+    Returns
+    -------
+    float
+        ``m * 10**e`` with ``m`` in (1, 2, 5), ``<= x`` (0.125 -> 0.1).
+
+    """
+    return _nice(x, 'x', up=False)
+
+
+def nice_ceil(x: float) -> float:
+    """
+    Return the smallest number of the 1-2-5 series not below ``x``.
+
+    Parameters
+    ----------
+    x : float
+        A positive number (e.g. the eq. 24 time, 17.52 s).
+
+    Returns
+    -------
+    float
+        ``m * 10**e`` with ``m`` in (1, 2, 5), ``>= x`` (17.52 -> 20).
+
+    """
+    return _nice(x, 'x', up=True)
+
+
+@dataclass(frozen=True)
+class StaircasePlan:
+    """
+    The precise test's staircase derived from the sensor and chamber data.
+
+    Parameters
+    ----------
+    max_step_c : float, degC
+        Bound of eq. 20.
+    step_c : float, degC
+        Step used (``max_step_c`` rounded down on the 1-2-5 series).
+    min_hold_s : float, s
+        Heat-conduction time of eq. 24.
+    hold_s : float, s
+        Hold used (``min_hold_s`` rounded up on the 1-2-5 series; eq. 25).
+    rate_c_per_h : float, degC/h
+        Mean heating rate ``3600 step_c / hold_s``.
+
+    """
+
+    max_step_c: float
+    step_c: float
+    min_hold_s: float
+    hold_s: float
+    rate_c_per_h: float
+
+
+def staircase_plan(*, sensitivity_dps: float = 8.75e-3, alpha_dps_per_c: float = 0.03,
+                   beta_dps_per_c: float = 0.04, specific_heat_kj_per_kg_k: float = 1.005,
+                   density_kg_per_m3: float = 1.293, length_m: float = 0.6,
+                   conductivity_w_per_m_k: float = 0.0267) -> StaircasePlan:
+    """
+    Derive step, hold and mean rate of the precise test (paper eqs. 20, 24, 25).
+
+    The defaults are the paper's L3GD20 in the SET-Z-021 chamber, giving 0.125 -> 0.1 degC,
+    17.52 -> 20 s and 18 degC/h.
+
+    Parameters
+    ----------
+    sensitivity_dps : float, deg/s per digit
+        Gyro resolution ``dE_S``.
+    alpha_dps_per_c : float, (deg/s)/degC
+        Zero-rate level change vs temperature.
+    beta_dps_per_c : float, (deg/s)/degC
+        Sensitivity change vs temperature, as a rate.
+    specific_heat_kj_per_kg_k : float, kJ/(kg K)
+        Specific heat of the chamber air.
+    density_kg_per_m3 : float, kg/m^3
+        Air density.
+    length_m : float, m
+        Conduction length.
+    conductivity_w_per_m_k : float, W/(m K)
+        Thermal conductivity of air.
+
+    Returns
+    -------
+    StaircasePlan
+        Bounds and the rounded values used.
+
+    """
+    max_step = max_temperature_step_c(sensitivity_dps=sensitivity_dps,
+                                      alpha_dps_per_c=alpha_dps_per_c,
+                                      beta_dps_per_c=beta_dps_per_c)
+    min_hold = heat_conduction_time_s(specific_heat_kj_per_kg_k=specific_heat_kj_per_kg_k,
+                                      density_kg_per_m3=density_kg_per_m3, length_m=length_m,
+                                      conductivity_w_per_m_k=conductivity_w_per_m_k)
+    step = nice_floor(max_step)
+    hold = nice_ceil(min_hold)
+    return StaircasePlan(max_step_c=max_step, step_c=step, min_hold_s=min_hold, hold_s=hold,
+                         rate_c_per_h=3600.0 * step / hold)
+
+
+# --------------------------------------------------------------------------------------------
+# Profiles
+# --------------------------------------------------------------------------------------------
+
+# A segment maps the end of the profile so far, (t0, temp0), to the breakpoints it appends.
+Segment = Callable[[float, float], Tuple[NDArray[np.float64], NDArray[np.float64]]]
+
+
+@dataclass(frozen=True)
+class Profile:
+    """
+    Chamber air temperature as a piecewise-linear function of time.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (P,), s
+        Breakpoint times from 0, non-decreasing; equal neighbours mark a jump.
+    temp_c : NDArray[np.float64], shape (P,), degC
+        Temperature at each breakpoint.
+
+    """
+
+    t: NDArray[np.float64]
+    temp_c: NDArray[np.float64]
+
+    def __post_init__(self) -> None:
+        """Check shapes, finiteness and order."""
+        t = np.asarray(self.t, dtype=np.float64)
+        temp = np.asarray(self.temp_c, dtype=np.float64)
+        if t.ndim != 1 or t.shape[0] < 1:
+            raise ValueError(f'Expected `t` to have shape (P,) with P >= 1, got {t.shape}.')
+        if temp.shape != t.shape:
+            raise ValueError(f'Expected `temp_c` to have shape {t.shape}, got {temp.shape}.')
+        if not (np.all(np.isfinite(t)) and np.all(np.isfinite(temp))):
+            raise ValueError('Expected `t` and `temp_c` to be finite.')
+        if t[0] != 0.0 or np.any(np.diff(t) < 0.0):
+            raise ValueError('Expected `t` to start at 0 and never decrease.')
+        object.__setattr__(self, 't', t)
+        object.__setattr__(self, 'temp_c', temp)
+
+    @classmethod
+    def from_points(cls, t: ArrayLike, temp_c: ArrayLike) -> 'Profile':
+        """
+        Build a profile from (time, temperature) points.
+
+        Parameters
+        ----------
+        t : ArrayLike, shape (P,), s
+            Times, non-decreasing; shifted so the first is 0.
+        temp_c : ArrayLike, shape (P,), degC
+            Temperatures.
+
+        Returns
+        -------
+        Profile
+            The piecewise-linear profile through the points.
+
+        """
+        t = np.asarray(t, dtype=np.float64)
+        return cls(t - (t[0] if t.size else 0.0), np.asarray(temp_c, dtype=np.float64))
+
+    @classmethod
+    def from_segments(cls, start_c: float, segments: Sequence[Segment]) -> 'Profile':
+        """
+        Chain segments (``hold_segment``, ``ramp_segment``, ...) from ``start_c``.
+
+        Parameters
+        ----------
+        start_c : float, degC
+            Temperature at time 0.
+        segments : sequence of callables
+            Each maps ``(t0, temp0)`` to breakpoint arrays ``(t, temp)`` that follow it.
+
+        Returns
+        -------
+        Profile
+            The chained profile.
+
+        """
+        ts = [np.zeros(1)]
+        temps = [np.array([float(start_c)])]
+        for segment in segments:
+            t_seg, temp_seg = segment(float(ts[-1][-1]), float(temps[-1][-1]))
+            ts.append(np.asarray(t_seg, dtype=np.float64))
+            temps.append(np.asarray(temp_seg, dtype=np.float64))
+        return cls(np.concatenate(ts), np.concatenate(temps))
+
+    @property
+    def duration_s(self) -> float:
+        """Return the time of the last breakpoint."""
+        return float(self.t[-1])
+
+    @property
+    def span_c(self) -> tuple[float, float]:
+        """Return the lowest and highest temperature."""
+        return float(self.temp_c.min()), float(self.temp_c.max())
+
+    def value(self, t: ArrayLike) -> NDArray[np.float64]:
+        """
+        Evaluate the temperature, right-continuous at jumps, held constant outside.
+
+        Parameters
+        ----------
+        t : ArrayLike, shape (N,), s
+            Query times.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (N,), degC
+            Temperatures.
+
+        """
+        t = np.asarray(t, dtype=np.float64)
+        tb, yb = self.t, self.temp_c
+        i = np.clip(np.searchsorted(tb, t, side='right') - 1, 0, tb.size - 1)
+        j = np.minimum(i + 1, tb.size - 1)
+        dt = tb[j] - tb[i]
+        frac = np.where(dt > 0.0, (t - tb[i]) / np.where(dt > 0.0, dt, 1.0), 0.0)
+        frac = np.clip(frac, 0.0, 1.0)
+        return yb[i] + frac * (yb[j] - yb[i])
+
+    def slope(self, t: ArrayLike) -> NDArray[np.float64]:
+        """
+        Return the slope of the segment holding each time (jumps are ignored).
+
+        Parameters
+        ----------
+        t : ArrayLike, shape (N,), s
+            Query times.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (N,), degC/s
+            Slope, 0 outside the profile.
+
+        """
+        t = np.asarray(t, dtype=np.float64)
+        tb, yb = self.t, self.temp_c
+        i = np.clip(np.searchsorted(tb, t, side='right') - 1, 0, tb.size - 1)
+        j = np.minimum(i + 1, tb.size - 1)
+        dt = tb[j] - tb[i]
+        inside = (dt > 0.0) & (t >= tb[0]) & (t < tb[-1])
+        return np.where(inside, (yb[j] - yb[i]) / np.where(dt > 0.0, dt, 1.0), 0.0)
+
+
+def _positive(name: str, value: float) -> float:
+    value = float(value)
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f'Expected `{name}` to be a finite number > 0, got {value!r}.')
+    return value
+
+
+def hold_segment(duration_s: float) -> Segment:
+    """
+    Return a segment that holds (soaks at) the current temperature.
+
+    Parameters
+    ----------
+    duration_s : float, s
+        Hold time, > 0.
+
+    Returns
+    -------
+    callable
+        Segment for :meth:`Profile.from_segments`.
+
+    """
+    duration_s = _positive('duration_s', duration_s)
+
+    def segment(t0: float, temp0: float):
+        return np.array([t0 + duration_s]), np.array([temp0])
+    return segment
+
+
+def ramp_segment(to_c: float, rate_c_per_h: float) -> Segment:
+    """
+    Return a segment that ramps linearly to ``to_c`` (heating or cooling).
+
+    Parameters
+    ----------
+    to_c : float, degC
+        Target temperature.
+    rate_c_per_h : float, degC/h
+        Magnitude of the ramp rate, > 0.
+
+    Returns
+    -------
+    callable
+        Segment for :meth:`Profile.from_segments`.
+
+    """
+    rate = _positive('rate_c_per_h', rate_c_per_h) / 3600.0
+    to_c = float(to_c)
+
+    def segment(t0: float, temp0: float):
+        duration = abs(to_c - temp0) / rate
+        if duration == 0.0:
+            return np.zeros(0), np.zeros(0)
+        return np.array([t0 + duration]), np.array([to_c])
+    return segment
+
+
+def staircase_segment(to_c: float, step_c: float, hold_s: float) -> Segment:
+    """
+    Return the paper's staircase: jump by ``step_c``, hold ``hold_s``, repeat to ``to_c``.
+
+    Each step jumps at the start of its hold, so ``n`` steps last ``n * hold_s`` and the mean
+    rate is ``3600 * step_c / hold_s`` degC/h. A last partial step lands exactly on ``to_c``.
+    Works upwards (heating) and downwards (cooling).
+
+    Parameters
+    ----------
+    to_c : float, degC
+        Target temperature.
+    step_c : float, degC
+        Magnitude of one step, > 0 (0.1 in the paper).
+    hold_s : float, s
+        Hold after each step, > 0 (20 in the paper).
+
+    Returns
+    -------
+    callable
+        Segment for :meth:`Profile.from_segments`.
+
+    """
+    step = _positive('step_c', step_c)
+    hold = _positive('hold_s', hold_s)
+    to_c = float(to_c)
+
+    def segment(t0: float, temp0: float):
+        span = to_c - temp0
+        n = int(math.ceil(abs(span) / step - 1e-9))
+        if n <= 0:
+            return np.zeros(0), np.zeros(0)
+        k = np.arange(n, dtype=np.float64)
+        levels = temp0 + np.sign(span) * step * (k + 1.0)
+        levels[-1] = to_c
+        starts = t0 + hold * k
+        # Each level: the jump at the start of its hold, then the end of the hold. The point
+        # before the jump is the previous breakpoint, so every step is two breakpoints.
+        t = np.empty(2 * n)
+        temp = np.empty(2 * n)
+        t[0::2], temp[0::2] = starts, levels
+        t[1::2], temp[1::2] = starts + hold, levels
+        return t, temp
+    return segment
+
+
+def step_segment(to_c: float) -> Segment:
+    """
+    Return an instantaneous jump of the chamber to ``to_c`` (for step responses).
+
+    Parameters
+    ----------
+    to_c : float, degC
+        Temperature after the jump.
+
+    Returns
+    -------
+    callable
+        Segment for :meth:`Profile.from_segments`.
+
+    """
+    to_c = float(to_c)
+
+    def segment(t0: float, temp0: float):
+        return np.array([t0]), np.array([to_c])
+    return segment
+
+
+def points_segment(t_s: ArrayLike, temp_c: ArrayLike) -> Segment:
+    """
+    Return a free piecewise-linear leg through (time, temperature) points.
+
+    Parameters
+    ----------
+    t_s : ArrayLike, shape (P,), s
+        Times relative to the segment start, starting at 0 and non-decreasing; a point at
+        0 with another temperature than the current one is a jump.
+    temp_c : ArrayLike, shape (P,), degC
+        Temperatures.
+
+    Returns
+    -------
+    callable
+        Segment for :meth:`Profile.from_segments`.
+
+    """
+    t_rel = np.asarray(t_s, dtype=np.float64)
+    temps = np.asarray(temp_c, dtype=np.float64)
+    if t_rel.ndim != 1 or t_rel.size < 1 or temps.shape != t_rel.shape:
+        raise ValueError(f'Expected `t_s` and `temp_c` of equal shape (P,), got {t_rel.shape} '
+                         f'and {temps.shape}.')
+    if t_rel[0] != 0.0 or np.any(np.diff(t_rel) < 0.0):
+        raise ValueError('Expected `t_s` to start at 0 and never decrease.')
+
+    def segment(t0: float, temp0: float):
+        return t0 + t_rel, temps.copy()
+    return segment

@@ -1,0 +1,125 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Sensor presets: the ``gyro``, ``noise`` and ``accel`` sections of a scenario for a device.
+
+A scenario names one with ``sensor: l3gd20``; its own sections override the preset field by
+field. Presets are Python data so that scenarios built in code need no files.
+
+Datasheet numbers (ST L3GD20 at +-250 dps; I3G4250D at +-245 dps): sensitivity
+8.75 mdps/digit, zero-rate level change vs temperature (alpha) +-0.03 dps/degC, sensitivity
+change vs temperature +-2 % over -40..85 degC, which the paper turns into
+beta = 2 % * 250 dps / 125 degC = 0.04 dps/degC, i.e. 160 ppm/degC of the scale factor;
+rate noise density 0.03 dps/sqrt(Hz); the L3GD20 datasheet allows a zero-rate level of
++-10 dps. The I3G4250D preset takes the same sensitivity and noise density and L3GD20-like
+temperature coefficients (its own datasheet figures were not transcribed here).
+
+The per-axis coefficients are a chosen, plausible unit, not a measured one: linear terms of
+the size of alpha, a curvature (dT2) large enough that the paper's modified model matters,
+and biases of a few dps, so that the raw bias stability ``mean((x - x_ref)^2)`` over the
+paper's -40 -> 85 degC run is about 30, 14 and 1.5 (deg/s)^2 on x, y and z for the
+L3GD20 and 15, 29 and 1.5 for the I3G4250D with its 10, 5, 20 dps reference (paper table 2:
+BS1 ~ 30 (deg/s)^2; tables 3-7: 15, 29 and 1.5 on x, y, z). The dynamic effects (dT/dt,
+warm-up) are small but far above the noise once averaged, as in real parts.
+"""
+
+from __future__ import annotations
+
+import copy
+
+__all__ = ['PRESETS', 'preset']
+
+_L3GD20 = {
+    'gyro': {
+        't_ref_c': 25.0,
+        'sensitivity_mdps_per_digit': 8.75,
+        'range_dps': 250.0,
+        'quantise': True,
+        'bias_dps': [3.6, -4.3, 1.3],
+        'dT_dps_per_c': [0.030, -0.024, 0.012],
+        'dT2_dps_per_c2': [8.0e-4, 6.0e-4, -2.5e-4],
+        'dT3_dps_per_c3': [4.0e-6, -3.0e-6, 2.0e-6],
+        'dTdt_dps_per_c_per_s': [6.0, -4.0, 3.0],
+        'scale_ppm_per_c': [160.0, -120.0, 90.0],
+        'warmup_dps': [0.25, -0.18, 0.12],
+        'warmup_tau_s': 240.0,
+        'power_on_s': 0.0,
+    },
+    'noise': {
+        'enabled': True,
+        'arw_dps_per_rt_hz': [0.03, 0.03, 0.03],
+        'bias_instability_dps': [0.004, 0.005, 0.004],
+        'bias_instability_tau_s': [10.0, 100.0, 1000.0],
+        'rrw_dps_per_rt_s': [1.0e-5, 1.0e-5, 1.0e-5],
+    },
+    'accel': {
+        'gravity_mps2': 9.80665,
+        'noise_mps2_per_rt_hz': 0.0015,
+    },
+}
+
+_I3G4250D = {
+    'gyro': {
+        't_ref_c': 25.0,
+        'sensitivity_mdps_per_digit': 8.75,
+        'range_dps': 245.0,
+        'quantise': True,
+        'bias_dps': [2.6, -6.2, 1.3],
+        'dT_dps_per_c': [0.026, -0.032, 0.010],
+        'dT2_dps_per_c2': [5.0e-4, 8.0e-4, -2.0e-4],
+        'dT3_dps_per_c3': [3.0e-6, -4.0e-6, 1.5e-6],
+        'dTdt_dps_per_c_per_s': [5.0, -5.0, 2.5],
+        'scale_ppm_per_c': [150.0, -110.0, 130.0],
+        'warmup_dps': [0.2, -0.22, 0.1],
+        'warmup_tau_s': 300.0,
+        'power_on_s': 0.0,
+    },
+    'noise': {
+        'enabled': True,
+        'arw_dps_per_rt_hz': [0.03, 0.03, 0.03],
+        'bias_instability_dps': [0.004, 0.004, 0.005],
+        'bias_instability_tau_s': [10.0, 100.0, 1000.0],
+        'rrw_dps_per_rt_s': [1.0e-5, 1.0e-5, 1.0e-5],
+    },
+    'accel': {
+        'gravity_mps2': 9.80665,
+        'noise_mps2_per_rt_hz': 0.0015,
+    },
+}
+
+PRESETS: dict[str, dict] = {'l3gd20': _L3GD20, 'i3g4250d': _I3G4250D}
+
+
+def preset(name: str) -> dict:
+    """
+    Return a deep copy of a sensor preset.
+
+    Parameters
+    ----------
+    name : str
+        A key of ``PRESETS`` (``'l3gd20'``, ``'i3g4250d'``).
+
+    Returns
+    -------
+    dict
+        The ``gyro``, ``noise`` and ``accel`` sections.
+
+    Raises
+    ------
+    KeyError
+        If the name is unknown.
+
+    """
+    return copy.deepcopy(PRESETS[name])

@@ -1,0 +1,175 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Stream a simulated run in time order, chunk by chunk, for a live driver.
+
+The run is precomputed (it takes well under a second for hours of data) and handed out in
+chunks up to a requested simulated time, so a node can publish in real time or faster::
+
+    stream = SimStream('demo_fast', seed=0)
+    while not stream.done:
+        imu, temp, ref = stream.next_until(stream.position + 0.02)
+        for t, w, a in zip(imu.t, imu.gyro, imu.accel):
+            ...
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple, Optional
+
+from gyro_tdc.errors import ScenarioError
+from gyro_tdc.sim.simulator import ScenarioLike, SimRun, simulate_run
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['ImuChunk', 'RefChunk', 'SimStream', 'TempChunk']
+
+
+class ImuChunk(NamedTuple):
+    """
+    IMU samples of one chunk.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (K,), s
+        Stamps.
+    gyro : NDArray[np.float64], shape (K, 3), rad/s
+        Angular velocity.
+    accel : NDArray[np.float64], shape (K, 3), m/s^2
+        Linear acceleration.
+
+    """
+
+    t: NDArray[np.float64]
+    gyro: NDArray[np.float64]
+    accel: NDArray[np.float64]
+
+
+class TempChunk(NamedTuple):
+    """
+    Thermometer readings of one chunk.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (K,), s
+        Stamps.
+    temp_c : NDArray[np.float64], shape (K,), degC
+        Readings.
+
+    """
+
+    t: NDArray[np.float64]
+    temp_c: NDArray[np.float64]
+
+
+class RefChunk(NamedTuple):
+    """
+    Rate-table change points of one chunk.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (K,), s
+        Change times.
+    ref : NDArray[np.float64], shape (K, 3), rad/s
+        Reference rate from each change on.
+
+    """
+
+    t: NDArray[np.float64]
+    ref: NDArray[np.float64]
+
+
+class SimStream:
+    """
+    Hand out one simulated run in time order.
+
+    Parameters
+    ----------
+    scenario : Scenario, str, os.PathLike or Mapping
+        The scenario, or anything :func:`gyro_tdc.sim.load_scenario` accepts.
+    seed : int
+        Seed of the run set (the same run as ``simulate_scenario(scenario, seed)``).
+    run_index : int
+        Which run of a multi-run scenario.
+    rate_hz : float, optional
+        IMU rate overriding the scenario's.
+
+    """
+
+    def __init__(self, scenario: ScenarioLike, seed: int = 0, run_index: int = 0, *,
+                 rate_hz: Optional[float] = None) -> None:
+        self.run: SimRun = simulate_run(scenario, seed=seed, run_index=run_index,
+                                        rate_hz=rate_hz)
+        self._i_imu = 0
+        self._i_temp = 0
+        self._i_ref = 0
+        self._position = -math.inf
+
+    @property
+    def position(self) -> float:
+        """Return the time up to which samples were handed out (start: the first stamp)."""
+        return self.run.imu_t[0] if self._position == -math.inf else self._position
+
+    @property
+    def t_end(self) -> float:
+        """Return the last stamp of any stream."""
+        return float(max(self.run.imu_t[-1], self.run.temp_t[-1], self.run.ref_t[-1]))
+
+    @property
+    def done(self) -> bool:
+        """Return True once every sample was handed out."""
+        return (self._i_imu >= self.run.imu_t.size and self._i_temp >= self.run.temp_t.size
+                and self._i_ref >= self.run.ref_t.size)
+
+    @property
+    def temp_var(self) -> float:
+        """Return the thermometer variance, degC^2."""
+        return self.run.temp_var
+
+    def next_until(self, t: float) -> tuple[ImuChunk, TempChunk, RefChunk]:
+        """
+        Return the samples with stamps up to and including ``t`` not handed out yet.
+
+        Parameters
+        ----------
+        t : float, s
+            Simulated time to advance to; earlier than the last call returns empty chunks.
+
+        Returns
+        -------
+        tuple of (ImuChunk, TempChunk, RefChunk)
+            Possibly empty chunks, each in time order.
+
+        Raises
+        ------
+        ScenarioError
+            If ``t`` is not a number (NaN).
+
+        """
+        t = float(t)
+        if math.isnan(t):
+            raise ScenarioError('Expected `t` to be a time in seconds, got nan.')
+        run = self.run
+        j_imu = max(self._i_imu, int(np.searchsorted(run.imu_t, t, side='right')))
+        j_temp = max(self._i_temp, int(np.searchsorted(run.temp_t, t, side='right')))
+        j_ref = max(self._i_ref, int(np.searchsorted(run.ref_t, t, side='right')))
+        imu = ImuChunk(run.imu_t[self._i_imu:j_imu], run.gyro[self._i_imu:j_imu],
+                       run.accel[self._i_imu:j_imu])
+        temp = TempChunk(run.temp_t[self._i_temp:j_temp], run.temp_c[self._i_temp:j_temp])
+        ref = RefChunk(run.ref_t[self._i_ref:j_ref], run.ref[self._i_ref:j_ref])
+        self._i_imu, self._i_temp, self._i_ref = j_imu, j_temp, j_ref
+        self._position = max(self._position, t)
+        return imu, temp, ref

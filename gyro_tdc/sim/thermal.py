@@ -1,0 +1,197 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Heat conduction: chamber set point -> air -> package -> MEMS die, as first-order lags.
+
+Each stage obeys ``tau dy/dt = u - y``. It is integrated on a uniform internal grid with the
+exact first-order-hold discretisation, so a stage is exact at the grid nodes whenever its
+input is linear between them (the set point of ramps and holds whose breakpoints fall on the
+grid). A staircase jump between two nodes is spread over that one interval, which shifts the
+response by at most half a grid step (0.05 s at the default 0.1 s). The recursion runs in
+``scipy.signal.lfilter``: a 7 h run on a 0.1 s grid (252,000 nodes) takes milliseconds.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+
+from gyro_tdc.sim.chamber import Profile
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.signal import lfilter
+
+__all__ = ['ThermalHistory', 'first_order_lag', 'simulate_thermal']
+
+
+def first_order_lag(u: ArrayLike, *, dt: float, tau: float,
+                    y0: float | None = None) -> NDArray[np.float64]:
+    """
+    Return the response of ``tau dy/dt = u - y`` to ``u`` sampled on a uniform grid.
+
+    Exact at the grid nodes when ``u`` is linear between them (first-order hold).
+
+    Parameters
+    ----------
+    u : ArrayLike, shape (N,)
+        Input at ``t_k = k dt``.
+    dt : float, s
+        Grid step, > 0.
+    tau : float, s
+        Time constant, >= 0; 0 returns a copy of ``u``.
+    y0 : float, optional
+        Initial output; ``u[0]`` (settled) when None.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N,)
+        Output at the grid nodes.
+
+    """
+    u = np.asarray(u, dtype=np.float64)
+    if u.ndim != 1:
+        raise ValueError(f'Expected `u` to have shape (N,), got {u.shape}.')
+    if not (math.isfinite(dt) and dt > 0.0):
+        raise ValueError(f'Expected `dt` to be a finite number > 0, got {dt!r}.')
+    if not (math.isfinite(tau) and tau >= 0.0):
+        raise ValueError(f'Expected `tau` to be a finite number >= 0, got {tau!r}.')
+    if tau == 0.0 or u.size == 0:
+        return u.copy()
+    start = float(u[0]) if y0 is None else float(y0)
+    a = math.exp(-dt / tau)
+    one_minus_a = -math.expm1(-dt / tau)
+    c = tau * one_minus_a / dt
+    # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]
+    b0, b1 = 1.0 - c, c - a
+    y = np.empty_like(u)
+    y[0] = start
+    if u.size > 1:
+        zi = np.array([b1 * u[0] + a * start])
+        y[1:], _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=zi)
+    return y
+
+
+@dataclass(frozen=True)
+class ThermalHistory:
+    """
+    Temperatures of every thermal node on the internal grid.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (G,), s
+        Internal grid ``k * dt``.
+    setpoint_c : NDArray[np.float64], shape (G,), degC
+        Chamber profile (set point).
+    air_c : NDArray[np.float64], shape (G,), degC
+        Chamber air at the sensor.
+    package_c : NDArray[np.float64], shape (G,), degC
+        Sensor package (metal shell) temperature.
+    die_c : NDArray[np.float64], shape (G,), degC
+        MEMS die temperature.
+    die_rate_c_per_s : NDArray[np.float64], shape (G,), degC/s
+        Time derivative of the die temperature.
+    thermometer_c : NDArray[np.float64], shape (G,), degC
+        Noise-free, unquantised thermometer reading (lagged package or die).
+
+    """
+
+    t: NDArray[np.float64]
+    setpoint_c: NDArray[np.float64]
+    air_c: NDArray[np.float64]
+    package_c: NDArray[np.float64]
+    die_c: NDArray[np.float64]
+    die_rate_c_per_s: NDArray[np.float64]
+    thermometer_c: NDArray[np.float64]
+
+    def at(self, name: str, t: ArrayLike) -> NDArray[np.float64]:
+        """
+        Interpolate one node linearly onto other times.
+
+        Parameters
+        ----------
+        name : str
+            Field name, e.g. ``'die_c'``.
+        t : ArrayLike, shape (N,), s
+            Query times.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (N,)
+            Interpolated values (held constant beyond the grid).
+
+        """
+        return np.interp(np.asarray(t, dtype=np.float64), self.t, getattr(self, name))
+
+
+def _rate(u: NDArray[np.float64], y: NDArray[np.float64], tau: float,
+          upstream: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return dy/dt of a lag stage: exact (u - y)/tau, or the input's rate when tau = 0."""
+    return (u - y) / tau if tau > 0.0 else upstream
+
+
+def simulate_thermal(profile: Profile, *, duration_s: float, dt: float = 0.1,
+                     tau_air_s: float = 0.0, tau_package_s: float = 0.0,
+                     tau_die_s: float = 0.0, thermometer_location: str = 'package',
+                     thermometer_tau_s: float = 0.0) -> ThermalHistory:
+    """
+    Propagate the chamber profile through the thermal chain on a uniform grid.
+
+    Chain: set point --tau_air--> air --tau_package--> package --tau_die--> die. The
+    thermometer is a further lag ``thermometer_tau_s`` of the package (an external probe on
+    the shell) or of the die (the on-die register). Every node starts settled at the
+    profile's first temperature.
+
+    Parameters
+    ----------
+    profile : Profile
+        Chamber set point.
+    duration_s : float, s
+        Simulated time span (the grid covers ``[0, duration_s]``).
+    dt : float, s
+        Internal grid step, > 0.
+    tau_air_s, tau_package_s, tau_die_s : float, s
+        Time constants of the three stages, >= 0 (0 = no lag).
+    thermometer_location : {'package', 'die'}
+        Node the thermometer sits on.
+    thermometer_tau_s : float, s
+        Thermometer time constant, >= 0.
+
+    Returns
+    -------
+    ThermalHistory
+        Every node on the grid.
+
+    """
+    if not (math.isfinite(duration_s) and duration_s >= 0.0):
+        raise ValueError(f'Expected `duration_s` >= 0, got {duration_s!r}.')
+    if thermometer_location not in ('package', 'die'):
+        raise ValueError("Expected `thermometer_location` to be 'package' or 'die', got "
+                         f'{thermometer_location!r}.')
+    n = int(math.floor(duration_s / dt + 1e-9)) + 1
+    t = np.arange(n, dtype=np.float64) * dt
+    if t[-1] < duration_s:
+        t = np.append(t, t[-1] + dt)
+    setpoint = profile.value(t)
+    setpoint_rate = profile.slope(t)
+    air = first_order_lag(setpoint, dt=dt, tau=tau_air_s)
+    air_rate = _rate(setpoint, air, tau_air_s, setpoint_rate)
+    package = first_order_lag(air, dt=dt, tau=tau_package_s)
+    package_rate = _rate(air, package, tau_package_s, air_rate)
+    die = first_order_lag(package, dt=dt, tau=tau_die_s)
+    die_rate = _rate(package, die, tau_die_s, package_rate)
+    source = package if thermometer_location == 'package' else die
+    thermometer = first_order_lag(source, dt=dt, tau=thermometer_tau_s)
+    return ThermalHistory(t=t, setpoint_c=setpoint, air_c=air, package_c=package, die_c=die,
+                          die_rate_c_per_s=die_rate, thermometer_c=thermometer)
