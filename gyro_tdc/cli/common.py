@@ -1,0 +1,297 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Pieces shared by the command-line tools: argument parsing, bag options, exit codes.
+
+Every command is a typed function plus a tiny ``main(argv) -> int`` built with
+:func:`run_command`, which turns bad input into exit code 2 and exactly one line on stderr
+(``gyro_tdc <command>: error: <what was wrong>``), never a traceback::
+
+    def main(argv=None):
+        return run_command('train', build_parser, _run, argv)
+
+Bad input is anything raising :class:`gyro_tdc.errors.GyroTdcError` (dataset, fit, feature,
+model-file and scenario errors), :class:`UsageError` (argparse), or an ``OSError`` from
+writing an output file.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+from pathlib import Path
+import re
+import shlex
+import sys
+from typing import Callable, NoReturn, Optional, Sequence
+
+from gyro_tdc.errors import DatasetError, GyroTdcError
+
+__all__ = [
+    'ArgumentParser', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
+    'DEFAULT_TEMPERATURE_TOPIC', 'UsageError', 'add_bag_options', 'bag_options',
+    'command_line', 'expand_bags', 'load_bag_runs', 'one_line', 'parse_reference',
+    'run_command',
+]
+
+DEFAULT_IMU_TOPIC = '/imu/data_raw'
+DEFAULT_TEMPERATURE_TOPIC = '/imu/temperature'
+DEFAULT_REFERENCE_TOPIC = '/rate_table/reference'
+PROG = 'gyro_tdc'
+
+_DEG = math.pi / 180.0
+_UNITS = {'': 1.0, 'rad/s': 1.0, 'rads': 1.0, 'deg/s': _DEG, 'dps': _DEG}
+
+
+class UsageError(GyroTdcError):
+    """A command-line argument is missing or malformed."""
+
+
+class ArgumentParser(argparse.ArgumentParser):
+    """An ``argparse.ArgumentParser`` that raises :class:`UsageError` instead of exiting."""
+
+    def error(self, message: str) -> NoReturn:
+        """Raise :class:`UsageError` with argparse's message (no usage dump, no exit)."""
+        raise UsageError(f'{message} (see --help)')
+
+
+def one_line(text: object) -> str:
+    """Return ``text`` as one line (newlines and runs of blanks collapsed)."""
+    return ' '.join(str(text).split())
+
+
+def parse_reference(text: str) -> tuple[float, float, float]:
+    """
+    Parse ``--reference x,y,z``: a constant reference rate, rad/s unless a unit follows.
+
+    Parameters
+    ----------
+    text : str
+        Three comma-separated numbers, optionally followed by a unit: ``rad/s`` (default)
+        or ``deg/s`` / ``dps``; e.g. ``0,0,0``, ``10,5,20dps``, ``0.1,0,0 rad/s``.
+
+    Returns
+    -------
+    tuple of 3 float, rad/s
+        The rate about x, y and z.
+
+    Raises
+    ------
+    UsageError
+        When the text is not three finite numbers with an optional known unit.
+
+    """
+    m = re.fullmatch(r'\s*(.*?)\s*(rad/s|rads|deg/s|dps)?\s*', str(text))
+    body, unit = (m.group(1), m.group(2) or '') if m else ('', '')
+    parts = [p.strip() for p in body.split(',')]
+    try:
+        values = [float(p) for p in parts]
+    except ValueError:
+        values = []
+    if len(values) != 3 or not all(math.isfinite(v) for v in values):
+        raise UsageError(f'--reference: expected three finite rates x,y,z in rad/s (or with a '
+                         f'deg/s suffix, e.g. 10,5,20dps), got {text!r}')
+    k = _UNITS[unit]
+    return (values[0] * k, values[1] * k, values[2] * k)
+
+
+def add_bag_options(parser: argparse.ArgumentParser) -> None:
+    """
+    Add the options every bag-reading command shares.
+
+    ``--imu-topic``, ``--temperature-topic``, ``--reference x,y,z`` (constant, rad/s) and
+    ``--reference-topic`` (mutually exclusive with ``--reference``), ``--no-progress``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The command's parser.
+
+    """
+    g = parser.add_argument_group('bag topics and reference rate')
+    g.add_argument('--imu-topic', default=DEFAULT_IMU_TOPIC, metavar='TOPIC',
+                   help='sensor_msgs/Imu topic (default: %(default)s)')
+    g.add_argument('--temperature-topic', default=DEFAULT_TEMPERATURE_TOPIC, metavar='TOPIC',
+                   help='sensor_msgs/Temperature topic (default: %(default)s)')
+    ref = g.add_mutually_exclusive_group()
+    ref.add_argument('--reference', metavar='X,Y,Z', default=None,
+                     help='constant reference (true) rate in rad/s, or with a deg/s suffix '
+                          '(e.g. 10,5,20dps); default: the reference topic when the bag has '
+                          'it, else zero')
+    ref.add_argument('--reference-topic', default=DEFAULT_REFERENCE_TOPIC, metavar='TOPIC',
+                     help='geometry_msgs/Vector3Stamped rate-table topic, held onto the IMU '
+                          'stamps, used when present (default: %(default)s)')
+    g.add_argument('--no-progress', dest='progress', action='store_false',
+                   help='no progress bar while reading (default: shown on a terminal)')
+    parser.set_defaults(progress=None)
+
+
+def bag_options(args: argparse.Namespace) -> dict:
+    """
+    Return the keyword options of :func:`gyro_tdc.dataset.load_run` from parsed arguments.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Arguments parsed by a parser set up with :func:`add_bag_options`.
+
+    Returns
+    -------
+    dict
+        ``imu_topic``, ``temperature_topic``, ``reference``, ``reference_topic``, ``progress``.
+
+    """
+    progress = args.progress
+    if progress is None:
+        progress = sys.stderr.isatty()
+    return {'imu_topic': args.imu_topic, 'temperature_topic': args.temperature_topic,
+            'reference': None if args.reference is None else parse_reference(args.reference),
+            'reference_topic': args.reference_topic, 'progress': bool(progress)}
+
+
+def _is_bag(path: Path) -> bool:
+    """Return True when ``path`` is a rosbag2 directory (holds metadata.yaml)."""
+    return path.is_dir() and (path / 'metadata.yaml').is_file()
+
+
+def expand_bags(paths: Sequence[str | os.PathLike]) -> list[Path]:
+    """
+    Expand bag arguments: a folder of bag folders (a multi-run ``simulate``) becomes its bags.
+
+    A path that is a rosbag2 directory, or anything else, is kept as is (reading reports
+    what is wrong with it); a directory without ``metadata.yaml`` whose sub-directories are
+    bags expands to those, sorted by name (natural order: ``run_2`` before ``run_10``).
+
+    Parameters
+    ----------
+    paths : sequence of str or PathLike
+        Paths given on the command line.
+
+    Returns
+    -------
+    list of Path
+        Bag paths in command-line order.
+
+    Raises
+    ------
+    DatasetError
+        When a path does not exist.
+
+    """
+    out: list[Path] = []
+    for raw in paths:
+        p = Path(raw)
+        if not p.exists():
+            raise DatasetError(f'Bag {str(p)!r} does not exist.')
+        if p.is_dir() and not _is_bag(p):
+            subs = [c for c in p.iterdir() if _is_bag(c)]
+            if subs:
+                out.extend(sorted(subs, key=_natural_key))
+                continue
+        out.append(p)
+    return out
+
+
+def _natural_key(path: Path) -> list:
+    """Sort key comparing digit runs as numbers."""
+    return [int(s) if s.isdigit() else s for s in re.split(r'(\d+)', path.name)]
+
+
+def load_bag_runs(paths: Sequence[str | os.PathLike], options: dict, *,
+                  out: Callable[[str], None] | None = None) -> list:
+    """
+    Load one run per bag (after :func:`expand_bags`) and report what was dropped.
+
+    Parameters
+    ----------
+    paths : sequence of str or PathLike
+        Bag paths (or folders of bags).
+    options : dict
+        Keyword options of :func:`gyro_tdc.dataset.load_run` (see :func:`bag_options`).
+    out : callable, optional
+        Where to print one line per bag (e.g. ``print``); silent when None.
+
+    Returns
+    -------
+    list of gyro_tdc.runs.Run
+        One run per bag.
+
+    """
+    from gyro_tdc.dataset import load_run
+    runs = []
+    for bag in expand_bags(paths):
+        run = load_run(bag, **options)
+        if out is not None:
+            rejected = {k: v for k, v in run.info.get('rejected', {}).items() if v}
+            note = f'; dropped {rejected}' if rejected else ''
+            out(f'read {bag}: {len(run)} samples over {run.duration_s / 60.0:.1f} min, '
+                f'reference {run.info.get("reference", "?")}{note}')
+        runs.append(run)
+    return runs
+
+
+def command_line(command: str, argv: Sequence[str]) -> str:
+    """Return the shell-quoted command line ``python -m gyro_tdc COMMAND ARGV...``."""
+    return shlex.join(['python', '-m', 'gyro_tdc', command, *map(str, argv)])
+
+
+def run_command(command: str, build_parser: Callable[[], argparse.ArgumentParser],
+                run: Callable[[argparse.Namespace, list[str]], int],
+                argv: Optional[Sequence[str]] = None) -> int:
+    """
+    Parse ``argv`` and run a command; map bad input to exit code 2 and one stderr line.
+
+    Parameters
+    ----------
+    command : str
+        Command name (for the error prefix).
+    build_parser : callable
+        Returns the command's :class:`ArgumentParser`.
+    run : callable
+        ``run(args, argv) -> int`` doing the work.
+    argv : sequence of str, optional
+        Arguments after the command name; ``sys.argv[1:]`` when None.
+
+    Returns
+    -------
+    int
+        0 on success (or ``--help``), 2 on bad input, 130 on Ctrl-C.
+
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    parser = build_parser()
+    try:
+        try:
+            args = parser.parse_args(argv)
+        except SystemExit as exc:  # --help / --version: argparse already printed
+            return 0 if exc.code in (0, None) else 2
+        return int(run(args, argv) or 0)
+    except GyroTdcError as exc:
+        _error(command, exc)
+        return 2
+    except OSError as exc:
+        where = f' {exc.filename!r}' if exc.filename else ''
+        _error(command, f'cannot access{where}: {exc.strerror or exc}')
+        return 2
+    except KeyboardInterrupt:
+        _error(command, 'interrupted')
+        return 130
+
+
+def _error(command: str, message: object) -> None:
+    """Print ``gyro_tdc COMMAND: error: MESSAGE`` on one stderr line."""
+    sys.stdout.flush()
+    print(f'{PROG} {command}: error: {one_line(message)}', file=sys.stderr, flush=True)

@@ -1,0 +1,654 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Reports of training and evaluation: text tables, JSON, CSV export and plots.
+
+Pure numpy (matplotlib, Agg canvas, only when plots are asked for). The evaluation of one
+held-out bag is a :class:`BagEval` holding one :class:`ModelEval` per model; the functions
+here turn it into
+
+* text: a summary table (BS in (deg/s)^2 and RMS in deg/s per axis), the paper's tables 3-7
+  (``BS1 BS2 BS3 P1 P2 P3`` with P1 = BS2/BS1, P2 = BS3/BS1, P3 = BS3/BS2) and the Allan
+  readouts (angle random walk, bias instability);
+* JSON (:func:`evaluation_json`, the shape documented in DESIGN.md, nothing more);
+* one CSV per bag (:func:`write_csv`) and three PNGs per bag (:func:`write_plots`).
+
+Training coverage (:func:`coverage`): samples and minutes per temperature bin, the bins inside
+the span that hold too little data, and minutes heating, cooling and steady.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import json
+import math
+import os
+from pathlib import Path
+import re
+from typing import Sequence
+
+from gyro_tdc.runs import Run
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    'AXES', 'BagEval', 'Coverage', 'ModelEval', 'coverage', 'csv_columns', 'evaluation_json',
+    'format_allan', 'format_coverage', 'format_paper_table', 'format_summary', 'safe_label',
+    'temperature_rate', 'write_csv', 'write_json', 'write_plots',
+]
+
+AXES = ('x', 'y', 'z')
+_DEG = 180.0 / math.pi
+#: |dT/dt| (degC/min) above which a sample counts as heating or cooling.
+RATE_THRESHOLD_C_PER_MIN = 0.05
+#: Window (s) of the centred difference that estimates dT/dt.
+RATE_WINDOW_S = 300.0
+
+
+# --------------------------------------------------------------------------------------------
+# Evaluation results
+# --------------------------------------------------------------------------------------------
+
+@dataclass
+class ModelEval:
+    """
+    Scores of one model on one bag.
+
+    Parameters
+    ----------
+    model : str
+        The model as given on the command line (a path, or ``px4``).
+    label : str
+        Short unique label for tables, CSV columns and legends.
+    features : list of str
+        Effect ids of the model.
+    bs : NDArray[np.float64], shape (3,), (deg/s)^2
+        Bias stability after compensation.
+    rms_dps : NDArray[np.float64], shape (3,), deg/s
+        RMS of compensated minus reference rate.
+    p_vs_raw : NDArray[np.float64], shape (3,)
+        ``bs`` / raw BS.
+    adev_tau_s : NDArray[np.float64], shape (M,), s
+        Allan averaging times.
+    adev_dps : NDArray[np.float64], shape (M, 3), deg/s
+        Allan deviation of the compensated error.
+    arw_deg_sqrt_h, bias_instability_deg_h : NDArray[np.float64], shape (3,)
+        Readouts of the Allan curve.
+    temp_range_c : tuple of float, degC
+        The model's trained range.
+    outside_fraction : float
+        Fraction of the bag's samples outside ``temp_range_c`` (evaluated clamped).
+    omega : NDArray[np.float64], shape (N, 3), rad/s, or None
+        The compensated rate (kept only while plots and CSVs are written).
+
+    """
+
+    model: str
+    label: str
+    features: list
+    bs: NDArray[np.float64]
+    rms_dps: NDArray[np.float64]
+    p_vs_raw: NDArray[np.float64]
+    adev_tau_s: NDArray[np.float64]
+    adev_dps: NDArray[np.float64]
+    arw_deg_sqrt_h: NDArray[np.float64]
+    bias_instability_deg_h: NDArray[np.float64]
+    temp_range_c: tuple = (math.nan, math.nan)
+    outside_fraction: float = 0.0
+    omega: NDArray[np.float64] | None = field(default=None, repr=False)
+
+
+@dataclass
+class BagEval:
+    """
+    Scores of every model on one held-out bag.
+
+    Parameters
+    ----------
+    bag : str
+        The bag path.
+    label : str
+        Short unique label (file names of plots and CSVs).
+    samples : int
+        Samples evaluated.
+    temperature_c : tuple of float, degC
+        Min and max temperature.
+    duration_s : float, s
+        Time span.
+    reference : str
+        Where the reference rate came from (``constant``, ``topic``, ``zero``).
+    raw : ModelEval
+        The uncompensated data scored like a model (``p_vs_raw`` = 1).
+    models : list of ModelEval
+        One per model, in command-line order.
+    run : Run or None
+        The data (kept only while plots and CSVs are written).
+
+    """
+
+    bag: str
+    label: str
+    samples: int
+    temperature_c: tuple
+    duration_s: float
+    reference: str
+    raw: ModelEval
+    models: list
+    run: Run | None = field(default=None, repr=False)
+
+    def release(self) -> None:
+        """Drop the sample arrays (keep the scores)."""
+        self.run = None
+        self.raw.omega = None
+        for m in self.models:
+            m.omega = None
+
+
+def safe_label(text: str) -> str:
+    """Return ``text`` reduced to a file-name and CSV-header safe label."""
+    stem = Path(str(text).rstrip('/\\')).name
+    for suffix in ('.yaml', '.yml'):
+        if stem.endswith(suffix):
+            stem = stem[:-len(suffix)]
+    return re.sub(r'[^A-Za-z0-9_.-]+', '_', stem).strip('_.') or 'unnamed'
+
+
+def _finite(v: float) -> float | None:
+    """Return ``v`` as a float, or None when it is NaN or infinite (JSON has neither)."""
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _vec(a: NDArray[np.float64]) -> list:
+    """Return a (3,) array as a list of JSON-safe floats."""
+    return [_finite(v) for v in np.asarray(a, dtype=np.float64).ravel()]
+
+
+def evaluation_json(bags: Sequence[BagEval]) -> dict:
+    """
+    Return the evaluation in the documented JSON shape (DESIGN.md), nothing more.
+
+    Parameters
+    ----------
+    bags : sequence of BagEval
+        Evaluated bags.
+
+    Returns
+    -------
+    dict
+        ``{"bags": [{"bag", "samples", "temperature_c", "raw": {"bs", "rms_dps"},
+        "models": [{"model", "features", "bs", "rms_dps", "p_vs_raw",
+        "adev": {"tau_s", "dps"}}]}]}``; BS in (deg/s)^2, RMS and ADEV in deg/s,
+        non-finite values as null.
+
+    """
+    return {'bags': [{
+        'bag': b.bag,
+        'samples': int(b.samples),
+        'temperature_c': [_finite(b.temperature_c[0]), _finite(b.temperature_c[1])],
+        'raw': {'bs': _vec(b.raw.bs), 'rms_dps': _vec(b.raw.rms_dps)},
+        'models': [{
+            'model': m.model,
+            'features': list(m.features),
+            'bs': _vec(m.bs),
+            'rms_dps': _vec(m.rms_dps),
+            'p_vs_raw': _vec(m.p_vs_raw),
+            'adev': {'tau_s': _vec(m.adev_tau_s),
+                     'dps': [_vec(row) for row in np.asarray(m.adev_dps)]},
+        } for m in b.models],
+    } for b in bags]}
+
+
+def write_json(bags: Sequence[BagEval], path: str | os.PathLike) -> Path:
+    """Write :func:`evaluation_json` to ``path`` (parents created) and return the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(json.dumps(evaluation_json(bags), indent=1, allow_nan=False) + '\n',
+                    encoding='utf-8')
+    return path
+
+
+# --------------------------------------------------------------------------------------------
+# Text tables
+# --------------------------------------------------------------------------------------------
+
+def _g(v: float, width: int = 11) -> str:
+    """Format one number for a table column."""
+    if not math.isfinite(v):
+        return f'{"-":>{width}}'
+    return f'{v:>{width}.4g}'
+
+
+def format_summary(b: BagEval) -> str:
+    """
+    Return the per-bag summary: BS, RMS and BS/BS1 per axis for raw data and every model.
+
+    Parameters
+    ----------
+    b : BagEval
+        One evaluated bag.
+
+    Returns
+    -------
+    str
+        Multi-line table (no trailing newline).
+
+    """
+    lo, hi = b.temperature_c
+    lines = [f'bag {b.bag}: {b.samples} samples over {b.duration_s / 3600.0:.2f} h, '
+             f'temperature {lo:.2f} .. {hi:.2f} degC, reference {b.reference}']
+    w = max([len(m.label) for m in b.models] + [12])
+    head = (f'  {"":<{w}} ' + ''.join(f'{"BS " + a:>11}' for a in AXES) + '  '
+            + ''.join(f'{"RMS " + a:>11}' for a in AXES) + '  '
+            + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES))
+    lines += [f'  {"":<{w}} {"BS in (deg/s)^2, RMS in deg/s":>33}', head]
+    for m in [b.raw] + list(b.models):
+        lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in m.bs) + '  '
+                     + ''.join(_g(v) for v in m.rms_dps) + '  '
+                     + ''.join(_g(v) for v in m.p_vs_raw))
+    for m in b.models:
+        if m.outside_fraction > 0:
+            lines.append(
+                f'  note: {100.0 * m.outside_fraction:.1f} % of the samples lie outside the '
+                f'trained range of {m.label} [{m.temp_range_c[0]:.2f}, '
+                f'{m.temp_range_c[1]:.2f}] degC: evaluated clamped at the range ends')
+    return '\n'.join(lines)
+
+
+def format_paper_table(b: BagEval, conventional: int, modified: int) -> str:
+    """
+    Return the paper's table 3-7 layout for one bag: BS1 BS2 BS3 P1 P2 P3 per axis.
+
+    Parameters
+    ----------
+    b : BagEval
+        One evaluated bag.
+    conventional, modified : int
+        Indices into ``b.models`` of the conventional (BS2) and modified (BS3) models.
+
+    Returns
+    -------
+    str
+        Multi-line table; P1 = BS2/BS1, P2 = BS3/BS1, P3 = P2/P1 = BS3/BS2 (in %).
+
+    """
+    from gyro_tdc.metrics import p_ratios
+    conv, modi = b.models[conventional], b.models[modified]
+    p = p_ratios(b.raw.bs, conv.bs, modi.bs)
+    lines = [f'  paper table (eq. 31-32), {b.label}: BS1 raw, BS2 {conv.label} '
+             f'(conventional), BS3 {modi.label} (modified); BS in (deg/s)^2',
+             f'  {"":<7}' + ''.join(f'{h:>11}' for h in ('BS1', 'BS2', 'BS3', 'P1', 'P2'))
+             + f'{"P3":>10}']
+    for i, a in enumerate(AXES):
+        p3 = p['P3'][i]
+        p3s = f'{100.0 * p3:>9.2f}%' if math.isfinite(p3) else f'{"-":>10}'
+        lines.append(f'  {a + "-axis":<7}' + _g(b.raw.bs[i]) + _g(conv.bs[i]) + _g(modi.bs[i])
+                     + _g(p['P1'][i]) + _g(p['P2'][i]) + p3s)
+    return '\n'.join(lines)
+
+
+def format_allan(b: BagEval) -> str:
+    """Return the Allan readouts (ARW, deg/sqrt(h); bias instability, deg/h) per axis."""
+    w = max([len(m.label) for m in b.models] + [12])
+    lines = [f'  {"Allan deviation":<{w}} ' + ''.join(f'{"ARW " + a:>11}' for a in AXES)
+             + '  ' + ''.join(f'{"BI " + a:>11}' for a in AXES),
+             f'  {"":<{w}} {"ARW in deg/sqrt(h), bias instability in deg/h":>46}']
+    for m in [b.raw] + list(b.models):
+        lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in m.arw_deg_sqrt_h) + '  '
+                     + ''.join(_g(v) for v in m.bias_instability_deg_h))
+    return '\n'.join(lines)
+
+
+# --------------------------------------------------------------------------------------------
+# Temperature coverage (training report)
+# --------------------------------------------------------------------------------------------
+
+def temperature_rate(t: NDArray[np.float64], temp: NDArray[np.float64], *,
+                     window_s: float = RATE_WINDOW_S) -> NDArray[np.float64]:
+    """
+    Estimate dT/dt at every sample by a centred difference over ``window_s``.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (N,), s
+        Increasing stamps.
+    temp : NDArray[np.float64], shape (N,), degC
+        Temperature.
+    window_s : float, s
+        Width of the difference (shortened to the run's span); wide enough that thermometer
+        quantisation does not read as heating or cooling.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N,), degC/min
+        Temperature rate.
+
+    """
+    t = np.asarray(t, dtype=np.float64)
+    temp = np.asarray(temp, dtype=np.float64)
+    if t.shape[0] < 2 or t[-1] <= t[0]:
+        return np.zeros(t.shape[0])
+    half = 0.5 * min(window_s, t[-1] - t[0])
+    a = np.clip(t - half, t[0], t[-1])
+    b = np.clip(t + half, t[0], t[-1])
+    span = np.maximum(b - a, 1e-9)
+    return (np.interp(b, t, temp) - np.interp(a, t, temp)) / span * 60.0
+
+
+def _sample_minutes(t: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return the time each sample stands for, in minutes (gaps count at most 10 periods)."""
+    if t.shape[0] < 2:
+        return np.zeros(t.shape[0])
+    d = np.diff(t)
+    med = float(np.median(d))
+    d = np.append(d, med)
+    return np.minimum(d, 10.0 * med) / 60.0
+
+
+@dataclass
+class Coverage:
+    """
+    How well training data cover temperature and thermal direction.
+
+    Parameters
+    ----------
+    bin_c : float, degC
+        Bin width.
+    edges : NDArray[np.float64], shape (B + 1,), degC
+        Bin edges.
+    samples : NDArray[np.int64], shape (B,)
+        Samples per bin.
+    minutes : NDArray[np.float64], shape (B,)
+        Minutes per bin.
+    sparse : list of int
+        Indices of bins inside the span with too little data.
+    temp_range_c : tuple of float
+        Min and max temperature.
+    heating_min, cooling_min, steady_min : float
+        Minutes with dT/dt above +threshold, below -threshold, in between.
+    threshold_c_per_min : float
+        The dT/dt threshold.
+
+    """
+
+    bin_c: float
+    edges: NDArray[np.float64]
+    samples: NDArray[np.int64]
+    minutes: NDArray[np.float64]
+    sparse: list
+    temp_range_c: tuple
+    heating_min: float
+    cooling_min: float
+    steady_min: float
+    threshold_c_per_min: float
+
+
+def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
+             threshold_c_per_min: float = RATE_THRESHOLD_C_PER_MIN,
+             sparse_fraction: float = 0.25) -> Coverage:
+    """
+    Measure the temperature and heating/cooling coverage of training runs.
+
+    A bin is sparse when at least half of it lies inside the covered span and it holds fewer
+    minutes per degC than ``sparse_fraction`` times the median over such bins (so a fast
+    sweep through a range, or a gap, is named).
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Training runs.
+    bin_c : float, degC
+        Bin width; edges at multiples of it.
+    threshold_c_per_min : float, degC/min
+        |dT/dt| above which a sample counts as heating or cooling.
+    sparse_fraction : float
+        Fraction of the median density below which a bin is sparse.
+
+    Returns
+    -------
+    Coverage
+        Per-bin counts and minutes, sparse bins and direction minutes.
+
+    """
+    temp = np.concatenate([r.temp for r in runs])
+    minutes = np.concatenate([_sample_minutes(r.t) for r in runs])
+    rate = np.concatenate([temperature_rate(r.t, r.temp) for r in runs])
+    lo, hi = float(temp.min()), float(temp.max())
+    first = math.floor(lo / bin_c) * bin_c
+    nb = max(1, int(math.floor((hi - first) / bin_c)) + 1)
+    edges = first + bin_c * np.arange(nb + 1)
+    idx = np.clip(((temp - first) // bin_c).astype(np.int64), 0, nb - 1)
+    samples = np.bincount(idx, minlength=nb)
+    mins = np.bincount(idx, weights=minutes, minlength=nb)
+    inside = np.clip(np.minimum(edges[1:], hi) - np.maximum(edges[:-1], lo), 0.0, None)
+    full = inside >= 0.5 * bin_c
+    sparse: list = []
+    if np.count_nonzero(full) >= 2:
+        density = mins / np.maximum(inside, 1e-9)
+        ref = float(np.median(density[full]))
+        sparse = [int(i) for i in np.flatnonzero(full & (density < sparse_fraction * ref))]
+    return Coverage(
+        bin_c=float(bin_c), edges=edges, samples=samples, minutes=mins, sparse=sparse,
+        temp_range_c=(lo, hi),
+        heating_min=float(minutes[rate > threshold_c_per_min].sum()),
+        cooling_min=float(minutes[rate < -threshold_c_per_min].sum()),
+        steady_min=float(minutes[np.abs(rate) <= threshold_c_per_min].sum()),
+        threshold_c_per_min=float(threshold_c_per_min))
+
+
+def _bin_name(c: Coverage, i: int) -> str:
+    """Return ``[a, b) degC`` for bin ``i``."""
+    return f'[{c.edges[i]:g}, {c.edges[i + 1]:g}) degC'
+
+
+def format_coverage(c: Coverage) -> tuple[str, list]:
+    """
+    Return the coverage table and the warning lines (without a ``warning:`` prefix).
+
+    Parameters
+    ----------
+    c : Coverage
+        Coverage of the training data.
+
+    Returns
+    -------
+    table : str
+        One line per bin with samples and minutes, then the heating/cooling line.
+    warnings : list of str
+        Sparse bins; no heating or no cooling data.
+
+    """
+    lo, hi = c.temp_range_c
+    lines = [f'temperature range covered: {lo:.2f} .. {hi:.2f} degC (span {hi - lo:.2f} degC)',
+             f'coverage per {c.bin_c:g} degC bin:']
+    for i in range(len(c.samples)):
+        mark = '  <- little data' if i in c.sparse else ''
+        lines.append(f'  {_bin_name(c, i):<22} {int(c.samples[i]):>10} samples '
+                     f'{c.minutes[i]:>9.1f} min{mark}')
+    x = c.threshold_c_per_min
+    lines.append(f'heating (dT/dt > +{x:g} degC/min): {c.heating_min:.1f} min; cooling '
+                 f'(< -{x:g}): {c.cooling_min:.1f} min; steady: {c.steady_min:.1f} min')
+    warns = []
+    if c.sparse:
+        names = ', '.join(_bin_name(c, i) for i in c.sparse)
+        warns.append(f'little data in temperature bin(s) {names} (under a quarter of the '
+                     'median minutes per degC): the model is poorly constrained there')
+    total = c.heating_min + c.cooling_min
+    if total > 0 and min(c.heating_min, c.cooling_min) == 0:
+        missing = 'cooling' if c.cooling_min == 0 else 'heating'
+        warns.append(f'no {missing} data: heating/cooling hysteresis and thermal lag cannot '
+                     f'be told apart from static drift; record a {missing} leg too')
+    return '\n'.join(lines), warns
+
+
+# --------------------------------------------------------------------------------------------
+# CSV export and plots
+# --------------------------------------------------------------------------------------------
+
+def csv_columns(b: BagEval) -> list:
+    """Return the CSV header of a bag: time, temperature, raw, reference, each model."""
+    cols = ['t_s', 'temp_c']
+    for who in ['raw', 'ref'] + [m.label for m in b.models]:
+        cols += [f'{who}_{a}_rad_s' for a in AXES]
+    return cols
+
+
+def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000) -> Path:
+    """
+    Write ``DIR/<bag label>.csv``: every sample with the raw, reference and compensated rates.
+
+    Parameters
+    ----------
+    b : BagEval
+        One evaluated bag, with its arrays (``run`` and each model's ``omega``).
+    directory : str or PathLike
+        Output directory (created).
+    chunk : int
+        Rows formatted at once.
+
+    Returns
+    -------
+    Path
+        The CSV written; columns from :func:`csv_columns`, rates in rad/s.
+
+    """
+    run = b.run
+    if run is None:
+        raise ValueError('Expected `b.run` to hold the data; it was released.')
+    path = Path(directory) / f'{b.label}.csv'
+    path.parent.mkdir(parents=True, exist_ok=True)
+    cols = csv_columns(b)
+    fmt = ['%.6f', '%.6g'] + ['%.9g'] * (len(cols) - 2)
+    with open(path, 'w', encoding='utf-8', newline='\n') as fh:
+        fh.write(','.join(cols) + '\n')
+        for i in range(0, len(run), chunk):
+            sl = slice(i, i + chunk)
+            block = np.column_stack([run.t[sl], run.temp[sl], run.omega[sl], run.omega_ref[sl]]
+                                    + [m.omega[sl] for m in b.models])
+            np.savetxt(fh, block, fmt=fmt, delimiter=',')
+    return path
+
+
+def _blocks(n: int, points: int) -> int:
+    """Return the block length that reduces ``n`` samples to about ``points``."""
+    return max(1, n // max(points, 1))
+
+
+def _bmean(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
+    """Block means over the first axis (a trailing partial block is dropped)."""
+    n = a.shape[0] // block * block
+    if n == 0:
+        return a[:0]
+    return a[:n].reshape((n // block, block) + a.shape[1:]).mean(axis=1)
+
+
+def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000) -> list:
+    """
+    Write three PNGs for one bag (Agg canvas, no display needed).
+
+    * ``<label>_timeseries.png``: raw and compensated rate error per axis and the
+      temperature against time;
+    * ``<label>_residual_vs_temperature.png``: rate error against temperature, raw and per
+      model, coloured by heating, cooling and steady temperature;
+    * ``<label>_allan.png``: Allan deviation per axis, raw and compensated.
+
+    Parameters
+    ----------
+    b : BagEval
+        One evaluated bag, with its arrays.
+    directory : str or PathLike
+        Output directory (created).
+    points : int
+        Block means plotted per curve (long runs are averaged down to this).
+
+    Returns
+    -------
+    list of Path
+        The PNGs written.
+
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    run = b.run
+    if run is None:
+        raise ValueError('Expected `b.run` to hold the data; it was released.')
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    block = _blocks(len(run), points)
+    th = (_bmean(run.t, block) - run.t[0]) / 3600.0
+    temp = _bmean(run.temp, block)
+    series = [(b.raw.label, run.omega)] + [(m.label, m.omega) for m in b.models]
+    err = [(label, _bmean((om - run.omega_ref) * _DEG, block)) for label, om in series]
+    written = []
+
+    # 1. time series
+    fig = Figure(figsize=(10, 9), constrained_layout=True)
+    FigureCanvasAgg(fig)
+    axs = fig.subplots(4, 1, sharex=True)
+    for k, a in enumerate(AXES):
+        for label, e in err:
+            axs[k].plot(th, e[:, k], lw=0.8, label=label)
+        axs[k].set_ylabel(f'{a}: rate error (deg/s)')
+        axs[k].grid(True, alpha=0.3)
+    axs[0].legend(loc='best', fontsize='small')
+    axs[0].set_title(f'{b.label}: raw vs compensated ({block}-sample means)')
+    axs[3].plot(th, temp, color='tab:red')
+    axs[3].set_ylabel('temperature (degC)')
+    axs[3].set_xlabel('time (h)')
+    axs[3].grid(True, alpha=0.3)
+    written.append(out / f'{b.label}_timeseries.png')
+    fig.savefig(written[-1], dpi=90)
+
+    # 2. residual vs temperature, coloured by heating / cooling
+    rate = _bmean(temperature_rate(run.t, run.temp), block)
+    x = RATE_THRESHOLD_C_PER_MIN
+    groups = [('heating', rate > x, 'tab:red'), ('cooling', rate < -x, 'tab:blue'),
+              ('steady', np.abs(rate) <= x, 'tab:gray')]
+    fig = Figure(figsize=(12, 2.6 * len(err) + 0.6), constrained_layout=True)
+    FigureCanvasAgg(fig)
+    axs = np.atleast_2d(fig.subplots(len(err), 3, squeeze=False))
+    for r, (label, e) in enumerate(err):
+        for k, a in enumerate(AXES):
+            ax = axs[r, k]
+            for name, sel, color in groups:
+                if np.any(sel):
+                    ax.scatter(temp[sel], e[sel, k], s=3, color=color, label=name)
+            ax.set_title(f'{label}, {a}', fontsize='small')
+            ax.grid(True, alpha=0.3)
+            if k == 0:
+                ax.set_ylabel('rate error (deg/s)')
+            if r == len(err) - 1:
+                ax.set_xlabel('temperature (degC)')
+    axs[0, 0].legend(loc='best', fontsize='small', markerscale=3)
+    written.append(out / f'{b.label}_residual_vs_temperature.png')
+    fig.savefig(written[-1], dpi=90)
+
+    # 3. Allan deviation
+    fig = Figure(figsize=(12, 4), constrained_layout=True)
+    FigureCanvasAgg(fig)
+    axs = fig.subplots(1, 3, sharey=True)
+    for k, a in enumerate(AXES):
+        for m in [b.raw] + list(b.models):
+            if len(m.adev_tau_s):
+                axs[k].loglog(m.adev_tau_s, m.adev_dps[:, k], marker='.', label=m.label)
+        axs[k].set_title(f'{a}')
+        axs[k].set_xlabel('tau (s)')
+        axs[k].grid(True, which='both', alpha=0.3)
+    axs[0].set_ylabel('Allan deviation (deg/s)')
+    axs[0].legend(loc='best', fontsize='small')
+    written.append(out / f'{b.label}_allan.png')
+    fig.savefig(written[-1], dpi=90)
+    return written
