@@ -14,6 +14,7 @@
 
 """ament_flake8 on the package, tests, benches and setup.py; setup.cfg has the same settings."""
 
+import multiprocessing
 from pathlib import Path
 
 from ament_flake8.main import main_with_errors
@@ -29,6 +30,10 @@ CHECKED = [ROOT / name for name in ('gyro_tdc', 'test', 'bench', 'tools', 'setup
 def test_flake8(monkeypatch):
     # ament_flake8 walks the working directory for AMENT_IGNORE markers: keep it on the repo.
     monkeypatch.chdir(ROOT)
+    # flake8 checks files in a multiprocessing pool, which forks by default on Linux. Earlier
+    # tests in this process may have left rclpy/DDS threads behind, and fork() in a
+    # multi-threaded process can deadlock the child: start the workers from a forkserver.
+    monkeypatch.setattr(multiprocessing, 'Pool', multiprocessing.get_context('forkserver').Pool)
     rc, errors = main_with_errors(argv=[str(p) for p in CHECKED])
     assert rc == 0, \
         'Found %d code style errors / warnings:\n' % len(errors) + \
