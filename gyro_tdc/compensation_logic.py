@@ -1,0 +1,554 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The compensator's decisions, free of rclpy: what to do with each gyro sample.
+
+:class:`CompensatorCore` holds the model, the thermometer's recent samples and the
+policies, and turns one raw sample into one output sample, the variance to add to
+its covariance and flags saying what happened. ``gyro_tdc.nodes.compensator_node``
+only converts messages to floats and back, so every rule here is tested without ROS:
+
+* the temperature used for a sample stamped ``t`` is the latest thermometer sample
+  stamped at or before ``t`` (zero-order hold by stamp, so the interleaving of the two
+  topics in the executor does not matter);
+* older than ``temperature_timeout`` it is stale: ``hold`` keeps compensating with it and
+  widens the covariance, ``passthrough`` sends the raw rate;
+* before the first temperature, without a model, or with a NaN/Inf in the sample, the raw
+  rate passes through unchanged;
+* outside the model's temperature range the model clamps or extrapolates, and the
+  covariance is widened;
+* start-up re-anchoring: once the gyro has been still for a window, the model's offset
+  is shifted so that the compensated rate averages zero.
+"""
+
+from __future__ import annotations
+
+import bisect
+from collections import deque
+from dataclasses import dataclass
+import math
+from typing import Sequence
+
+from gyro_tdc.model import CompensationModel, StreamingCompensator
+import numpy as np
+
+__all__ = ['Anchor', 'CompensatorCore', 'FLAG_NAMES', 'Policy', 'StillnessDetector',
+           'TemperatureHold', 'describe_flags', 'widen_covariance']
+
+#: Flags of one processed sample (a bit set).
+STALE = 1
+OUT_OF_RANGE = 2
+NON_FINITE = 4
+NO_TEMPERATURE = 8
+NO_MODEL = 16
+PASSTHROUGH = 32
+
+FLAG_NAMES = {STALE: 'temperature stale', OUT_OF_RANGE: 'temperature out of model range',
+              NON_FINITE: 'non-finite input', NO_TEMPERATURE: 'no temperature yet',
+              NO_MODEL: 'no model loaded', PASSTHROUGH: 'raw rate passed through'}
+
+Vec3 = tuple[float, float, float]
+
+
+def describe_flags(flags: int) -> str:
+    """Return the flags of a sample as a comma-separated text ('' when none)."""
+    return ', '.join(name for bit, name in FLAG_NAMES.items() if flags & bit)
+
+
+@dataclass(frozen=True)
+class Policy:
+    """
+    What the compensator does when it cannot simply compensate.
+
+    Parameters
+    ----------
+    out_of_range : str
+        ``'clamp'`` or ``'extrapolate'`` outside the model's temperature range.
+    temperature_timeout : float, s
+        Age (IMU stamp minus thermometer stamp) above which the temperature is stale.
+    stale_policy : str
+        ``'hold'`` (keep compensating with the last temperature) or ``'passthrough'``.
+    stale_variance : float, (rad/s)^2
+        Added to the covariance diagonal while compensating with a stale temperature.
+    out_of_range_variance : float, (rad/s)^2
+        Added while the temperature is outside the model's range.
+    passthrough_variance : float, (rad/s)^2
+        Added when the raw rate is passed through (the drift is not removed).
+    reanchor_on_start : bool
+        Re-anchor the model offset once the gyro has been still for ``still_window``.
+    still_window : float, s
+        Length of the stillness window.
+    still_gyro_std : float, rad/s
+        Largest per-axis standard deviation of the raw rate over a still window.
+    still_max_rate : float, rad/s
+        Largest per-axis mean compensated rate over a still window (the shift it allows).
+    still_accel_std : float, m/s^2
+        Largest per-axis standard deviation of the acceleration, when there is one.
+
+    """
+
+    out_of_range: str = 'clamp'
+    temperature_timeout: float = 5.0
+    stale_policy: str = 'hold'
+    stale_variance: float = 1.0e-6
+    out_of_range_variance: float = 1.0e-6
+    passthrough_variance: float = 1.0e-4
+    reanchor_on_start: bool = False
+    still_window: float = 10.0
+    still_gyro_std: float = 0.02
+    still_max_rate: float = 0.02
+    still_accel_std: float = 0.1
+
+    def __post_init__(self) -> None:
+        """Check the choices and the ranges."""
+        if self.out_of_range not in ('clamp', 'extrapolate'):
+            raise ValueError("Expected `out_of_range` 'clamp' or 'extrapolate', "
+                             f'got {self.out_of_range!r}.')
+        if self.stale_policy not in ('hold', 'passthrough'):
+            raise ValueError("Expected `stale_policy` 'hold' or 'passthrough', "
+                             f'got {self.stale_policy!r}.')
+        for name in ('temperature_timeout', 'still_window'):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value > 0.0):
+                raise ValueError(f'Expected `{name}` > 0 s, got {value!r}.')
+        for name in ('stale_variance', 'out_of_range_variance', 'passthrough_variance',
+                     'still_gyro_std', 'still_max_rate', 'still_accel_std'):
+            value = getattr(self, name)
+            if not (math.isfinite(value) and value >= 0.0):
+                raise ValueError(f'Expected `{name}` >= 0, got {value!r}.')
+
+
+class TemperatureHold:
+    """
+    Zero-order hold of the thermometer by stamp.
+
+    Parameters
+    ----------
+    capacity : int
+        Thermometer samples kept (enough to cover reordering between the two topics).
+
+    """
+
+    def __init__(self, capacity: int = 256) -> None:
+        self._t: list[float] = []
+        self._c: list[float] = []
+        self._capacity = int(capacity)
+        self.received = 0
+        self.rejected = 0
+
+    def __len__(self) -> int:
+        """Return the number of samples held."""
+        return len(self._t)
+
+    def add(self, t: float, temp_c: float) -> bool:
+        """
+        Add one thermometer sample.
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp.
+        temp_c : float, degC
+            Reading.
+
+        Returns
+        -------
+        bool
+            False when the sample is NaN/Inf and was rejected.
+
+        """
+        self.received += 1
+        if not (math.isfinite(t) and math.isfinite(temp_c)):
+            self.rejected += 1
+            return False
+        if not self._t or t > self._t[-1]:
+            self._t.append(t)
+            self._c.append(temp_c)
+        else:
+            i = bisect.bisect_right(self._t, t)
+            if i and self._t[i - 1] == t:
+                self._c[i - 1] = temp_c
+            else:
+                self._t.insert(i, t)
+                self._c.insert(i, temp_c)
+        if len(self._t) > self._capacity:
+            del self._t[:len(self._t) - self._capacity]
+            del self._c[:len(self._c) - self._capacity]
+        return True
+
+    def at(self, t: float) -> tuple[float, float] | None:
+        """
+        Return ``(temp_c, stamp)`` of the latest sample stamped at or before ``t``.
+
+        Returns
+        -------
+        tuple of float or None
+            None when every sample held is later than ``t`` (or none was received).
+
+        """
+        ts = self._t
+        if ts and ts[-1] <= t:
+            return self._c[-1], ts[-1]
+        i = bisect.bisect_right(ts, t)
+        return (self._c[i - 1], ts[i - 1]) if i else None
+
+    @property
+    def latest(self) -> tuple[float, float] | None:
+        """Return ``(temp_c, stamp)`` of the newest sample, or None."""
+        return (self._c[-1], self._t[-1]) if self._t else None
+
+
+@dataclass(frozen=True)
+class Anchor:
+    """
+    The result of a still window: the offset shift that zeroes the compensated rate.
+
+    Parameters
+    ----------
+    t : float, s
+        Stamp at the end of the window.
+    delta : tuple of 3 float, rad/s
+        Shift added to the model's drift.
+    samples : int
+        Samples in the window.
+    gyro_std : tuple of 3 float, rad/s
+        Standard deviation of the raw rate over the window.
+    temp_c : float, degC
+        Temperature at the end of the window.
+
+    """
+
+    t: float
+    delta: Vec3
+    samples: int
+    gyro_std: Vec3
+    temp_c: float
+
+
+class StillnessDetector:
+    """
+    Decide from consecutive windows whether the gyro is still.
+
+    A window is still when the raw rate's per-axis standard deviation is at most
+    ``gyro_std``, the mean compensated rate is at most ``max_rate`` per axis, and the
+    acceleration's standard deviation (when there is one) is at most ``accel_std``.
+
+    Parameters
+    ----------
+    window : float, s
+        Window length.
+    gyro_std, max_rate : float, rad/s
+        Thresholds on the raw rate's spread and the compensated rate's mean.
+    accel_std : float, m/s^2
+        Threshold on the acceleration's spread.
+
+    """
+
+    def __init__(self, window: float, gyro_std: float, max_rate: float,
+                 accel_std: float) -> None:
+        self.window = float(window)
+        self.gyro_var = float(gyro_std) ** 2
+        self.max_rate = float(max_rate)
+        self.accel_var = float(accel_std) ** 2
+        self.windows_rejected = 0
+        self.reset()
+
+    def reset(self) -> None:
+        """Start a new window with the next sample."""
+        self._t0: float | None = None
+        self._n = 0
+        self._g = np.zeros((2, 3))   # Welford mean, M2 of the raw rate
+        self._o = np.zeros(3)        # running mean of the compensated rate
+        self._a = np.zeros((2, 3))   # Welford mean, M2 of the acceleration
+        self._accel = True
+
+    def update(self, t: float, raw: Sequence[float], out: Sequence[float],
+               accel: Sequence[float] | None, temp_c: float) -> Anchor | None:
+        """
+        Add one clean sample; return an :class:`Anchor` when a still window completes.
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp.
+        raw, out : sequence of 3 float, rad/s
+            Raw and compensated rate.
+        accel : sequence of 3 float, m/s^2, or None
+            Acceleration when the IMU has an accelerometer.
+        temp_c : float, degC
+            Temperature used for the sample.
+
+        Returns
+        -------
+        Anchor or None
+            The anchor when a still window just ended, else None.
+
+        """
+        if self._t0 is None:
+            self._t0 = t
+        self._n += 1
+        n = self._n
+        g = np.asarray(raw, dtype=np.float64)
+        d = g - self._g[0]
+        self._g[0] += d / n
+        self._g[1] += d * (g - self._g[0])
+        self._o += (np.asarray(out, dtype=np.float64) - self._o) / n
+        if accel is None:
+            self._accel = False
+        else:
+            a = np.asarray(accel, dtype=np.float64)
+            d = a - self._a[0]
+            self._a[0] += d / n
+            self._a[1] += d * (a - self._a[0])
+        if t - self._t0 < self.window or n < 2:
+            return None
+        g_var = self._g[1] / (n - 1)
+        still = bool(np.all(g_var <= self.gyro_var) and np.all(np.abs(self._o) <= self.max_rate))
+        if still and self._accel:
+            still = bool(np.all(self._a[1] / (n - 1) <= self.accel_var))
+        if not still:
+            self.windows_rejected += 1
+            self.reset()
+            return None
+        anchor = Anchor(t, tuple(float(v) for v in self._o), n,
+                        tuple(float(v) for v in np.sqrt(g_var)), float(temp_c))
+        self.reset()
+        return anchor
+
+
+def widen_covariance(cov: Sequence[float], add: Sequence[float]) -> list[float]:
+    """
+    Return a 3x3 row-major covariance with ``add`` added to its diagonal.
+
+    Parameters
+    ----------
+    cov : sequence of 9 float
+        Input covariance (REP 145: all zeros means unknown).
+    add : sequence of 3 float, (rad/s)^2
+        Variance to add per axis.
+
+    Returns
+    -------
+    list of 9 float
+        The widened covariance; an input with ``cov[0] == -1`` (no data) is returned as is.
+
+    """
+    out = list(cov)
+    if out[0] == -1.0:
+        return out
+    out[0] += add[0]
+    out[4] += add[1]
+    out[8] += add[2]
+    return out
+
+
+class CompensatorCore:
+    """
+    One raw sample in, one output sample out: the compensator without ROS.
+
+    Parameters
+    ----------
+    policy : Policy
+        The policies and thresholds.
+    model : CompensationModel, optional
+        The model; without one every sample passes through, flagged.
+
+    """
+
+    #: Temperature history kept to prime a reloaded model (one sample per second at most).
+    HISTORY_SPACING_S = 1.0
+    HISTORY_LENGTH = 7200
+
+    def __init__(self, policy: Policy, model: CompensationModel | None = None) -> None:
+        self.policy = policy
+        self.temps = TemperatureHold()
+        self.counts = {'in': 0, 'out': 0, 'compensated': 0}
+        self.flag_counts = {bit: 0 for bit in FLAG_NAMES}
+        self.anchor: Anchor | None = None
+        self.last_t: float | None = None
+        self.last_temp: float | None = None
+        self.last_flags = 0
+        self._first: tuple[float, float] | None = None
+        self._history: deque[tuple[float, float]] = deque(maxlen=self.HISTORY_LENGTH)
+        self._detector = StillnessDetector(policy.still_window, policy.still_gyro_std,
+                                           policy.still_max_rate, policy.still_accel_std)
+        self.model: CompensationModel | None = None
+        self._comp: StreamingCompensator | None = None
+        if model is not None:
+            self.set_model(model)
+
+    # -- model ------------------------------------------------------------------------
+
+    def set_model(self, model: CompensationModel | None) -> None:
+        """
+        Install ``model`` in one step, primed with the temperature history seen so far.
+
+        The feature filters of the new model are replayed over the recorded history (the
+        first compensated sample, then thermometer samples at most one per second), so a
+        model with ``warmup`` or ``lag`` features carries on rather than restarting. The
+        re-anchoring shift is not carried over: it is measured again at the next still
+        window when ``reanchor_on_start`` is set.
+
+        Parameters
+        ----------
+        model : CompensationModel or None
+            The new model, or None to pass every sample through.
+
+        """
+        if model is None:
+            self.model, self._comp = None, None
+            return
+        comp = StreamingCompensator(model, out_of_range=self.policy.out_of_range)
+        if self._first is not None and self.last_t is not None:
+            t_prev, temp_prev = self._first
+            comp.drift(t_prev, temp_prev)
+            for t_k, temp_k in self._history:
+                if t_k > self.last_t:
+                    break
+                if t_k > t_prev:
+                    comp.drift(t_k, temp_prev)
+                    t_prev = t_k
+                temp_prev = temp_k
+            if self.last_t > t_prev:
+                comp.drift(self.last_t, temp_prev if self.last_temp is None else self.last_temp)
+        resid = tuple(float(v) for v in np.asarray(model.residual_var, dtype=np.float64))
+        p = self.policy
+        self._var = {
+            0: resid,
+            STALE: tuple(v + p.stale_variance for v in resid),
+            OUT_OF_RANGE: tuple(v + p.out_of_range_variance for v in resid),
+            STALE | OUT_OF_RANGE: tuple(v + p.stale_variance + p.out_of_range_variance
+                                        for v in resid),
+        }
+        self._scale = np.asarray(model.scale, dtype=np.float64)
+        self.anchor = None
+        self._detector.reset()
+        self.model, self._comp = model, comp
+
+    # -- inputs -----------------------------------------------------------------------
+
+    def add_temperature(self, t: float, temp_c: float) -> bool:
+        """
+        Record one thermometer sample.
+
+        Returns
+        -------
+        bool
+            False when the sample is NaN/Inf and was rejected.
+
+        """
+        if not self.temps.add(t, temp_c):
+            return False
+        if not self._history or t >= self._history[-1][0] + self.HISTORY_SPACING_S:
+            self._history.append((t, temp_c))
+        return True
+
+    def process(self, t: float, wx: float, wy: float, wz: float,
+                accel: Sequence[float] | None = None
+                ) -> tuple[float, float, float, tuple[float, float, float], int]:
+        """
+        Compensate one sample, or say why not.
+
+        Parameters
+        ----------
+        t : float, s
+            IMU stamp.
+        wx, wy, wz : float, rad/s
+            Raw angular velocity.
+        accel : sequence of 3 float, m/s^2, optional
+            Acceleration (for the stillness test) when the IMU has one.
+
+        Returns
+        -------
+        wx, wy, wz : float, rad/s
+            The output rate (the raw rate when passed through).
+        variance : tuple of 3 float, (rad/s)^2
+            To add to the covariance diagonal.
+        flags : int
+            Bit set of ``STALE``, ``OUT_OF_RANGE``, ``NON_FINITE``, ``NO_TEMPERATURE``,
+            ``NO_MODEL``, ``PASSTHROUGH``.
+
+        """
+        self.counts['in'] += 1
+        comp = self._comp
+        if comp is None:
+            return self._pass(t, wx, wy, wz, NO_MODEL)
+        if not (math.isfinite(wx) and math.isfinite(wy) and math.isfinite(wz)
+                and math.isfinite(t)):
+            return self._pass(t, wx, wy, wz, NON_FINITE)
+        held = self.temps.at(t)
+        if held is None:
+            return self._pass(t, wx, wy, wz, NO_TEMPERATURE)
+        temp, t_temp = held
+        flags = 0
+        if t - t_temp > self.policy.temperature_timeout:
+            if self.policy.stale_policy == 'passthrough':
+                return self._pass(t, wx, wy, wz, STALE)
+            flags = STALE
+        if self._first is None:
+            self._first = (t, temp)
+        out = comp.step(t, temp, (wx, wy, wz))
+        if not comp.in_range:
+            flags |= OUT_OF_RANGE
+        ox, oy, oz = out.tolist()
+        self.last_t, self.last_temp, self.last_flags = t, temp, flags
+        counts = self.counts
+        counts['out'] += 1
+        counts['compensated'] += 1
+        if flags:
+            for bit in (STALE, OUT_OF_RANGE):
+                if flags & bit:
+                    self.flag_counts[bit] += 1
+        elif self.policy.reanchor_on_start and self.anchor is None:
+            self._still(t, (wx, wy, wz), (ox, oy, oz), accel, temp)
+        return ox, oy, oz, self._var[flags], flags
+
+    def _pass(self, t: float, wx: float, wy: float, wz: float, why: int
+              ) -> tuple[float, float, float, tuple[float, float, float], int]:
+        flags = why | PASSTHROUGH
+        self.flag_counts[why] += 1
+        self.flag_counts[PASSTHROUGH] += 1
+        self.counts['out'] += 1
+        self.last_flags = flags
+        if math.isfinite(t):
+            self.last_t = t
+        var = self.policy.passthrough_variance
+        return wx, wy, wz, (var, var, var), flags
+
+    def _still(self, t: float, raw: Vec3, out: Vec3, accel: Sequence[float] | None,
+               temp: float) -> None:
+        found = self._detector.update(t, raw, out, accel, temp)
+        if found is None:
+            return
+        model = self.model
+        clamp = self.policy.out_of_range == 'clamp'
+        lo, hi = model.temp_range_c
+        d_t = (min(max(temp, lo), hi) if clamp else temp) - model.t0_c
+        delta = np.asarray(found.delta) * (1.0 + d_t * self._scale)
+        self._comp.shift_offset(delta)
+        self.anchor = Anchor(found.t, tuple(float(v) for v in delta), found.samples,
+                             found.gyro_std, found.temp_c)
+
+    @property
+    def still_windows_rejected(self) -> int:
+        """Return how many windows were judged not still while waiting to re-anchor."""
+        return self._detector.windows_rejected
+
+    def temperature_age(self) -> float | None:
+        """Return the last IMU stamp minus the newest thermometer stamp, s (None if unknown)."""
+        latest = self.temps.latest
+        if latest is None or self.last_t is None:
+            return None
+        return self.last_t - latest[1]

@@ -1,0 +1,247 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The compensator's pure decision logic (no rclpy): hold, staleness, stillness, policies."""
+
+from __future__ import annotations
+
+import math
+
+from gyro_tdc.compensation_logic import (
+    CompensatorCore, describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
+    PASSTHROUGH, Policy, STALE, StillnessDetector, TemperatureHold, widen_covariance)
+from gyro_tdc.fitting import fit_model
+from gyro_tdc.model import compensate
+import numpy as np
+import pytest
+from synth import synth_run
+
+DEG = math.pi / 180.0
+
+
+@pytest.fixture(scope='module')
+def model():
+    run = synth_run(hours=1.0, rate_hz=2.0, cooling=True, seed=3)
+    return fit_model([run], features=('dT', 'dT2', 'dTdt', 'lag', 'warmup'), n_centers=10,
+                     fit_params=False)
+
+
+def stream(n=3000, rate_hz=100.0, temp_hz=1.0, seed=0, t_lo=0.0, t_hi=40.0):
+    """Return IMU stamps, raw rates and thermometer samples of a short warming run."""
+    rng = np.random.default_rng(seed)
+    t = 1000.0 + np.arange(n) / rate_hz
+    tt = 1000.0 + np.arange(0.0, n / rate_hz + 1.0, 1.0 / temp_hz) - 0.25
+    tc = np.linspace(t_lo, t_hi, tt.size) + rng.normal(0, 0.01, tt.size)
+    omega = rng.normal(0.0, 1e-3, (n, 3)) + 0.01
+    return t, omega, tt, tc
+
+
+def zoh(t, tt, tc):
+    """Return the thermometer reading held at each IMU stamp (latest at or before)."""
+    idx = np.searchsorted(tt, t, side='right') - 1
+    assert np.all(idx >= 0)
+    return tc[idx]
+
+
+def run_core(core, t, omega, tt, tc):
+    """Feed temperatures and samples in stamp order; return outputs, variances, flags."""
+    out, var, flags = [], [], []
+    j = 0
+    for i in range(t.size):
+        while j < tt.size and tt[j] <= t[i]:
+            core.add_temperature(tt[j], tc[j])
+            j += 1
+        ox, oy, oz, v, f = core.process(t[i], *omega[i])
+        out.append((ox, oy, oz))
+        var.append(v)
+        flags.append(f)
+    return np.array(out), np.array(var), np.array(flags)
+
+
+def test_temperature_hold_by_stamp():
+    hold = TemperatureHold(capacity=4)
+    assert hold.at(5.0) is None and hold.latest is None
+    assert hold.add(1.0, 20.0) and hold.add(3.0, 22.0)
+    assert hold.at(0.5) is None
+    assert hold.at(1.0) == (20.0, 1.0)
+    assert hold.at(2.9) == (20.0, 1.0)
+    assert hold.at(10.0) == (22.0, 3.0)
+    # A late, out-of-order sample is slotted in by stamp; a repeated stamp replaces.
+    assert hold.add(2.0, 21.0)
+    assert hold.at(2.5) == (21.0, 2.0)
+    assert hold.add(2.0, 21.5) and hold.at(2.5) == (21.5, 2.0) and len(hold) == 3
+    assert not hold.add(4.0, math.nan) and not hold.add(math.inf, 20.0)
+    assert hold.rejected == 2 and hold.latest == (22.0, 3.0)
+    for k in range(10):
+        hold.add(10.0 + k, 30.0 + k)
+    assert len(hold) == 4 and hold.at(100.0) == (39.0, 19.0)
+
+
+def test_policy_checks_choices_and_ranges():
+    with pytest.raises(ValueError, match='stale_policy'):
+        Policy(stale_policy='drop')
+    with pytest.raises(ValueError, match='out_of_range'):
+        Policy(out_of_range='wrap')
+    with pytest.raises(ValueError, match='temperature_timeout'):
+        Policy(temperature_timeout=0.0)
+    with pytest.raises(ValueError, match='passthrough_variance'):
+        Policy(passthrough_variance=-1.0)
+
+
+def test_widen_covariance():
+    assert widen_covariance([0.0] * 9, (1.0, 2.0, 3.0)) == [1, 0, 0, 0, 2, 0, 0, 0, 3]
+    cov = [-1.0] + [0.0] * 8
+    assert widen_covariance(cov, (1.0, 2.0, 3.0)) == cov
+
+
+def test_stream_equals_offline_compensation(model):
+    t, omega, tt, tc = stream()
+    core = CompensatorCore(Policy(), model)
+    out, var, flags = run_core(core, t, omega, tt, tc)
+    ref = compensate(model, t, zoh(t, tt, tc), omega)
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12)
+    assert not flags.any()
+    np.testing.assert_array_equal(var, np.tile(model.residual_var, (t.size, 1)))
+    assert core.counts == {'in': t.size, 'out': t.size, 'compensated': t.size}
+
+
+def test_no_model_and_no_temperature_pass_through(model):
+    core = CompensatorCore(Policy(passthrough_variance=0.5))
+    assert core.process(1.0, 0.1, 0.2, 0.3) == (0.1, 0.2, 0.3, (0.5, 0.5, 0.5),
+                                                NO_MODEL | PASSTHROUGH)
+    core.set_model(model)
+    r = core.process(2.0, 0.1, 0.2, 0.3)
+    assert r[:3] == (0.1, 0.2, 0.3) and r[4] == NO_TEMPERATURE | PASSTHROUGH
+    core.add_temperature(5.0, 20.0)
+    # A thermometer sample stamped after the IMU sample is not used for it.
+    assert core.process(4.0, 0.1, 0.2, 0.3)[4] == NO_TEMPERATURE | PASSTHROUGH
+    assert core.process(5.0, 0.1, 0.2, 0.3)[4] == 0
+    assert core.counts == {'in': 4, 'out': 4, 'compensated': 1}
+    assert describe_flags(NO_TEMPERATURE | PASSTHROUGH) == \
+        'no temperature yet, raw rate passed through'
+
+
+def test_non_finite_passes_through_flagged(model):
+    core = CompensatorCore(Policy(), model)
+    core.add_temperature(0.0, 20.0)
+    for bad in (math.nan, math.inf, -math.inf):
+        r = core.process(1.0, 0.1, bad, 0.3)
+        assert r[0] == 0.1 and r[2] == 0.3 and (r[1] == bad or math.isnan(bad))
+        assert r[4] == NON_FINITE | PASSTHROUGH
+    assert core.process(math.nan, 0.1, 0.2, 0.3)[4] == NON_FINITE | PASSTHROUGH
+    assert core.flag_counts[NON_FINITE] == 4
+    assert core.process(1.0, 0.1, 0.2, 0.3)[4] == 0
+
+
+@pytest.mark.parametrize('policy', ['hold', 'passthrough'])
+def test_stale_temperature(model, policy):
+    core = CompensatorCore(Policy(temperature_timeout=2.0, stale_policy=policy,
+                                  stale_variance=0.25, passthrough_variance=0.5), model)
+    core.add_temperature(10.0, 20.0)
+    assert core.process(12.0, 0.1, 0.2, 0.3)[4] == 0
+    fresh = CompensatorCore(Policy(), model)
+    fresh.add_temperature(10.0, 20.0)
+    fresh.process(12.0, 0.1, 0.2, 0.3)
+    expect = fresh.process(12.5, 0.1, 0.2, 0.3)
+    r = core.process(12.5, 0.1, 0.2, 0.3)
+    assert core.temperature_age() == pytest.approx(2.5)
+    if policy == 'hold':
+        assert r[4] == STALE
+        assert r[:3] == pytest.approx(expect[:3], abs=1e-15)
+        assert r[3] == pytest.approx(tuple(v + 0.25 for v in model.residual_var))
+    else:
+        assert r == (0.1, 0.2, 0.3, (0.5, 0.5, 0.5), STALE | PASSTHROUGH)
+    core.add_temperature(12.6, 21.0)
+    assert core.process(12.7, 0.1, 0.2, 0.3)[4] == 0
+    assert core.flag_counts[STALE] == 1
+
+
+@pytest.mark.parametrize('mode', ['clamp', 'extrapolate'])
+def test_out_of_range(model, mode):
+    lo, hi = model.temp_range_c
+    t, omega, tt, tc = stream(n=500, t_lo=hi - 5.0, t_hi=hi + 10.0)
+    core = CompensatorCore(Policy(out_of_range=mode, out_of_range_variance=0.125), model)
+    out, var, flags = run_core(core, t, omega, tt, tc)
+    temp = zoh(t, tt, tc)
+    outside = temp > hi
+    assert outside.any() and (~outside).any()
+    np.testing.assert_array_equal(flags == OUT_OF_RANGE, outside)
+    ref = compensate(model, t, temp, omega, clamp=mode == 'clamp')
+    np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12)
+    np.testing.assert_allclose(var[outside], np.tile(model.residual_var + 0.125,
+                                                     (outside.sum(), 1)))
+
+
+def test_reload_same_model_mid_stream_carries_filters_on(model):
+    t, omega, tt, tc = stream(n=4000, rate_hz=10.0, temp_hz=1.0)
+    core = CompensatorCore(Policy(), model)
+    half = t.size // 2
+    first, _, _ = run_core(core, t[:half], omega[:half], tt[tt <= t[half - 1]],
+                           tc[tt <= t[half - 1]])
+    core.set_model(model)  # reload: primed from the temperature history
+    later = tt > t[half - 1]
+    second, _, _ = run_core(core, t[half:], omega[half:], tt[later], tc[later])
+    ref = compensate(model, t, zoh(t, tt, tc), omega)
+    np.testing.assert_allclose(first, ref[:half], rtol=0, atol=1e-12)
+    # Warm-up restarts nowhere; the lag filters resume from a 1 s decimated replay.
+    np.testing.assert_allclose(second, ref[half:], rtol=0, atol=2e-4 * DEG)
+    unprimed = CompensatorCore(Policy(), model)
+    cold, _, _ = run_core(unprimed, t[half:], omega[half:], tt[tt > t[half] - 1.0],
+                          tc[tt > t[half] - 1.0])
+    assert np.abs(cold - ref[half:]).max() > 10 * np.abs(second - ref[half:]).max()
+
+
+def test_stillness_detector():
+    rng = np.random.default_rng(1)
+    det = StillnessDetector(window=1.0, gyro_std=0.01, max_rate=0.02, accel_std=0.05)
+    found = None
+    for k in range(200):
+        raw = 0.003 + rng.normal(0, 0.002, 3)
+        found = det.update(k * 0.01, raw, raw - 0.001, (0.0, 0.0, 9.81), 20.0) or found
+    assert found is not None and found.samples == 101
+    assert found.delta == pytest.approx((0.002,) * 3, abs=1e-3)
+    # Moving (a rate swing) or shaken (accelerometer spread) is not still.
+    det = StillnessDetector(window=1.0, gyro_std=0.01, max_rate=0.02, accel_std=0.05)
+    for k in range(300):
+        raw = (0.1 * math.sin(k / 10.0), 0.0, 0.0)
+        assert det.update(k * 0.01, raw, raw, None, 20.0) is None
+    for k in range(300, 600):
+        acc = (rng.normal(0, 0.5), 0.0, 9.81)
+        assert det.update(k * 0.01, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), acc, 20.0) is None
+    assert det.windows_rejected >= 4
+    # A slow constant turn has no spread but a mean above max_rate.
+    det = StillnessDetector(window=1.0, gyro_std=0.01, max_rate=0.02, accel_std=0.05)
+    for k in range(300):
+        assert det.update(k * 0.01, (0.05, 0, 0), (0.05, 0, 0), None, 20.0) is None
+
+
+def test_reanchor_on_start(model):
+    t, omega, tt, tc = stream(n=3000, rate_hz=100.0, t_lo=20.0, t_hi=20.5)
+    omega = omega - 0.01  # zero mean around the true rate ...
+    offset = np.array([0.9e-3, -0.5e-3, 0.3e-3])  # ... plus a session bias offset
+    temp = zoh(t, tt, tc)
+    drift = -compensate(model, t, temp, np.zeros_like(omega))  # the model has no scale
+    raw = omega + drift + offset
+    core = CompensatorCore(Policy(reanchor_on_start=True, still_window=5.0), model)
+    out, _, _ = run_core(core, t, raw, tt, tc)
+    assert core.anchor is not None
+    assert core.anchor.t == pytest.approx(t[0] + 5.0, abs=0.011)
+    after = t > core.anchor.t
+    assert np.abs(out[after].mean(axis=0)).max() < 2e-4
+    assert np.abs(out[~after].mean(axis=0) - offset).max() < 2e-4
+    # Without re-anchoring the offset stays.
+    plain = CompensatorCore(Policy(), model)
+    kept, _, _ = run_core(plain, t, raw, tt, tc)
+    np.testing.assert_allclose(kept.mean(axis=0), offset, atol=2e-4)
+    assert plain.anchor is None

@@ -1,0 +1,414 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""compensator_node with real rclpy: one out per in, offline equivalence, policies, reload."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from gyro_tdc.compensation_logic import CompensatorCore, Policy
+from gyro_tdc.fitting import fit_model
+from gyro_tdc.model import compensate
+from gyro_tdc.modelfile import save_model
+from gyro_tdc.nodes.compensator_node import CompensatorNode, make_executor, PARAMS
+import numpy as np
+import pytest
+import rclpy
+from rclpy.parameter import Parameter
+from rclpy.parameter_client import AsyncParameterClient
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rosutil import spin_until
+from sensor_msgs.msg import Imu, Temperature
+from std_srvs.srv import Trigger
+from synth import synth_run
+import yaml
+
+CONFIG = Path(__file__).resolve().parent.parent / 'config'
+RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10000,
+                      reliability=ReliabilityPolicy.RELIABLE)
+
+
+@pytest.fixture(scope='module')
+def models(tmp_path_factory):
+    """Two fitted models saved to files: a paper model and one with dynamic features."""
+    root = tmp_path_factory.mktemp('models')
+    run = synth_run(hours=1.0, rate_hz=2.0, cooling=True, seed=5)
+    paper = fit_model([run], features=('dT', 'dT2'), n_centers=10)
+    dynamic = fit_model([run], features=('dT', 'dT2', 'dTdt', 'lag', 'warmup'), n_centers=12,
+                        fit_params=False)
+    return {'paper': (save_model(paper, root / 'paper.yaml'), paper),
+            'dynamic': (save_model(dynamic, root / 'dynamic.yaml'), dynamic)}
+
+
+def to_ns(t: float) -> int:
+    return int(round(t * 1e9))
+
+
+def stamp_s(ns: int) -> float:
+    """Seconds exactly as the node computes them from a builtin_interfaces/Time."""
+    return ns // 10 ** 9 + (ns % 10 ** 9) * 1e-9
+
+
+class Rig:
+    """The compensator under test plus a test node that feeds it and listens."""
+
+    def __init__(self, context, executor_kind='single', **params):
+        self.executor = make_executor(executor_kind, context)
+        self.node = CompensatorNode(context=context, parameter_overrides=[
+            Parameter(k, value=v) for k, v in params.items()])
+        self.io = rclpy.create_node('feeder', context=context)
+        self.imu_pub = self.io.create_publisher(Imu, 'imu/data_raw', RELIABLE)
+        self.temp_pub = self.io.create_publisher(Temperature, 'imu/temperature', RELIABLE)
+        self.out: list[Imu] = []
+        self.diag: list[DiagnosticStatus] = []
+        self.io.create_subscription(Imu, 'imu/data_compensated', self.out.append, RELIABLE)
+        self.io.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 10)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.io)
+        spin_until(self.executor, lambda: self.imu_pub.get_subscription_count() > 0
+                   and self.node.count_publishers('imu/temperature') > 0
+                   and self.node.count_subscribers('imu/data_compensated') > 0, 10.0,
+                   what='discovery')
+
+    def _on_diag(self, msg):
+        self.diag.extend(s for s in msg.status if 'gyro compensation' in s.name)
+
+    def spin_until(self, predicate, timeout_s=10.0, what=None):
+        spin_until(self.executor, predicate, timeout_s, what=what)
+
+    def temperature(self, ns: int, value: float) -> None:
+        msg = Temperature()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(ns), 10 ** 9)
+        msg.header.frame_id = 'imu_link'
+        msg.temperature = value
+        msg.variance = 0.01
+        self.temp_pub.publish(msg)
+
+    def imu(self, ns: int, w, k: int = 0) -> Imu:
+        msg = Imu()
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(ns), 10 ** 9)
+        msg.header.frame_id = f'imu_{k % 3}'
+        msg.orientation.w = 1.0
+        msg.orientation_covariance[0] = -1.0
+        msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = map(float, w)
+        msg.angular_velocity_covariance[0] = msg.angular_velocity_covariance[4] = 1e-6
+        msg.angular_velocity_covariance[8] = 2e-6
+        msg.angular_velocity_covariance[1] = 1e-9
+        msg.linear_acceleration.x, msg.linear_acceleration.z = 1e-3 * (k % 7), 9.81
+        msg.linear_acceleration_covariance[0] = 1e-3
+        self.imu_pub.publish(msg)
+        return msg
+
+    def feed(self, imu_ns, omega, temp_ns=(), temp_c=(), chunk=250) -> list[Imu]:
+        """Publish temperatures and IMU samples in stamp order; wait for every output."""
+        sent = []
+        j = 0
+        start = len(self.out)
+        temps_before = self.node.core.temps.received
+        for lo in range(0, len(imu_ns), chunk):
+            hi = min(lo + chunk, len(imu_ns))
+            while j < len(temp_ns) and temp_ns[j] <= imu_ns[hi - 1]:
+                self.temperature(temp_ns[j], temp_c[j])
+                j += 1
+            self.spin_until(lambda: self.node.core.temps.received >= temps_before + j,
+                            what='temperatures in')
+            for k in range(lo, hi):
+                sent.append(self.imu(imu_ns[k], omega[k], k))
+            self.spin_until(lambda: len(self.out) >= start + hi, what=f'{hi} outputs')
+        return sent
+
+    def close(self):
+        self.executor.shutdown()
+        self.io.destroy_node()
+        self.node.destroy_node()
+
+
+@pytest.fixture
+def rig_factory(ros_context):
+    rigs = []
+
+    def make(**params):
+        rig = Rig(ros_context, **params)
+        rigs.append(rig)
+        return rig
+
+    yield make
+    for rig in rigs:
+        rig.close()
+
+
+def warming_stream(n=1500, rate_hz=200.0, temp_hz=2.0, seed=0, t_lo=5.0, t_hi=30.0,
+                   t0=1_700_000_000.0):
+    """IMU stamps (ns), raw rates and thermometer samples (ns, degC) of a warming run."""
+    rng = np.random.default_rng(seed)
+    imu_ns = np.array([to_ns(t0 + k / rate_hz) for k in range(n)])
+    temp_ns = np.array([to_ns(t0 - 0.2 + k / temp_hz) for k in range(int(n / rate_hz *
+                                                                         temp_hz) + 1)])
+    temp_c = np.linspace(t_lo, t_hi, temp_ns.size) + rng.normal(0, 0.02, temp_ns.size)
+    omega = 0.02 + rng.normal(0, 2e-3, (n, 3))
+    return imu_ns, omega, temp_ns, temp_c
+
+
+def offline(model, imu_ns, omega, temp_ns, temp_c, clamp=True):
+    """Evaluate the model offline on the same stamps and zero-order-held temperatures."""
+    t = np.array([stamp_s(ns) for ns in imu_ns])
+    tt = np.array([stamp_s(ns) for ns in temp_ns])
+    idx = np.searchsorted(tt, t, side='right') - 1
+    assert np.all(idx >= 0)
+    return compensate(model, t, np.asarray(temp_c)[idx], omega, clamp=clamp)
+
+
+def rates(msgs):
+    return np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z)
+                     for m in msgs])
+
+
+@pytest.mark.parametrize('executor', ['single', 'events'])
+def test_one_out_per_in_in_order_headers_unchanged(models, rig_factory, executor):
+    path, model = models['paper']
+    rig = rig_factory(executor_kind=executor, model_file=str(path))
+    imu_ns, omega, temp_ns, temp_c = warming_stream(n=1200)
+    sent = rig.feed(imu_ns, omega, temp_ns, temp_c)
+    spin_until(rig.executor, lambda: len(rig.out) >= len(sent), 5.0)
+    assert len(rig.out) == len(sent) == 1200
+    assert rig.node.core.counts == {'in': 1200, 'out': 1200, 'compensated': 1200}
+    for s, o in zip(sent, rig.out):
+        assert o.header == s.header
+        assert o.orientation == s.orientation
+        assert list(o.orientation_covariance) == list(s.orientation_covariance)
+        assert o.linear_acceleration == s.linear_acceleration
+        assert list(o.linear_acceleration_covariance) == list(s.linear_acceleration_covariance)
+        cov = np.array(s.angular_velocity_covariance)
+        cov[[0, 4, 8]] += model.residual_var
+        np.testing.assert_array_equal(o.angular_velocity_covariance, cov)
+    np.testing.assert_allclose(rates(rig.out), offline(model, imu_ns, omega, temp_ns, temp_c),
+                               rtol=0, atol=1e-9)
+
+
+def test_output_equals_offline_evaluation_dynamic_features(models, rig_factory):
+    path, model = models['dynamic']
+    rig = rig_factory(executor_kind='events', model_file=str(path))
+    imu_ns, omega, temp_ns, temp_c = warming_stream(n=2000, rate_hz=100.0, temp_hz=1.0,
+                                                    seed=4)
+    rig.feed(imu_ns, omega, temp_ns, temp_c)
+    expect = offline(model, imu_ns, omega, temp_ns, temp_c)
+    got = rates(rig.out)
+    np.testing.assert_allclose(got, expect, rtol=0, atol=1e-9)
+    assert np.abs(got - omega).max() > 1e-4  # the model did something
+
+
+def diag_values(status):
+    return {kv.key: kv.value for kv in status.values}
+
+
+def test_no_temperature_yet_passes_through(models, rig_factory):
+    path, model = models['paper']
+    rig = rig_factory(model_file=str(path), passthrough_variance=0.25)
+    imu_ns, omega, temp_ns, temp_c = warming_stream(n=100)
+    sent = rig.feed(imu_ns, omega)
+    np.testing.assert_array_equal(rates(rig.out), rates(sent))
+    assert all(o.angular_velocity_covariance[0] == 1e-6 + 0.25 for o in rig.out)
+    st = rig.node.diagnostic_status()
+    values = diag_values(st)
+    assert st.level == DiagnosticStatus.WARN and 'no temperature yet' in st.message
+    assert values['compensation active'] == 'False'
+    assert values['why not'] == 'no temperature yet, raw rate passed through'
+    assert values['messages in'] == values['messages out'] == '100'
+
+
+@pytest.mark.parametrize('policy', ['hold', 'passthrough'])
+def test_stale_temperature(models, rig_factory, policy):
+    path, model = models['paper']
+    rig = rig_factory(model_file=str(path), temperature_timeout=0.5, stale_policy=policy,
+                      stale_variance=0.5, passthrough_variance=0.25)
+    t0 = 1_700_000_100.0
+    imu_ns = [to_ns(t0 + k * 0.01) for k in range(200)]  # 2 s of IMU, one temperature
+    omega = np.full((200, 3), 0.01)
+    rig.feed(imu_ns, omega, [to_ns(t0)], [20.0])
+    out = rates(rig.out)
+    fresh = np.arange(200) * 0.01 <= 0.5 + 1e-9
+    expect = offline(model, imu_ns, omega, [to_ns(t0)], [20.0])
+    np.testing.assert_allclose(out[fresh], expect[fresh], rtol=0, atol=1e-9)
+    cov0 = np.array([o.angular_velocity_covariance[0] for o in rig.out])
+    if policy == 'hold':
+        np.testing.assert_allclose(out[~fresh], expect[~fresh], rtol=0, atol=1e-9)
+        np.testing.assert_allclose(cov0[~fresh], 1e-6 + model.residual_var[0] + 0.5)
+    else:
+        np.testing.assert_array_equal(out[~fresh], omega[~fresh])
+        np.testing.assert_allclose(cov0[~fresh], 1e-6 + 0.25)
+    st = rig.node.diagnostic_status()
+    assert st.level == DiagnosticStatus.WARN and 'temperature stale' in st.message
+    assert float(diag_values(st)['temperature age s']) == pytest.approx(1.99, abs=1e-6)
+    spin_until(rig.executor, lambda: len(rig.diag) > 0, 5.0, what='/diagnostics')
+
+
+@pytest.mark.parametrize('mode', ['clamp', 'extrapolate'])
+def test_out_of_range(models, rig_factory, mode):
+    path, model = models['paper']
+    lo, hi = model.temp_range_c
+    rig = rig_factory(model_file=str(path), out_of_range=mode, out_of_range_variance=0.125)
+    imu_ns, omega, temp_ns, temp_c = warming_stream(n=600, t_lo=hi - 3.0, t_hi=hi + 6.0)
+    rig.feed(imu_ns, omega, temp_ns, temp_c)
+    expect = offline(model, imu_ns, omega, temp_ns, temp_c, clamp=mode == 'clamp')
+    np.testing.assert_allclose(rates(rig.out), expect, rtol=0, atol=1e-9)
+    st = rig.node.diagnostic_status()
+    assert st.level == DiagnosticStatus.WARN and 'out of model range' in st.message
+    assert diag_values(st)['in range'] == 'False'
+    assert rig.out[-1].angular_velocity_covariance[0] == pytest.approx(
+        1e-6 + model.residual_var[0] + 0.125)
+
+
+def test_nan_and_inf_pass_through_flagged(models, rig_factory):
+    path, model = models['paper']
+    rig = rig_factory(model_file=str(path))
+    imu_ns, omega, temp_ns, temp_c = warming_stream(n=50)
+    omega[10, 0] = math.nan
+    omega[20, 2] = math.inf
+    omega[30, 1] = -math.inf
+    rig.feed(imu_ns, omega, temp_ns, temp_c)
+    out = rates(rig.out)
+    assert len(rig.out) == 50
+    bad = [10, 20, 30]
+    np.testing.assert_array_equal(out[bad], omega[bad])
+    good = np.setdiff1d(np.arange(50), bad)
+    # The filters skip the bad samples; with a static model that changes nothing.
+    expect = offline(model, imu_ns[good], omega[good], temp_ns, temp_c)
+    np.testing.assert_allclose(out[good], expect, rtol=0, atol=1e-9)
+    st = rig.node.diagnostic_status()
+    assert 'non-finite input (3 samples)' in st.message
+    assert diag_values(st)['non-finite'] == '3'
+
+
+def test_non_finite_temperature_is_rejected(models, rig_factory):
+    path, model = models['paper']
+    rig = rig_factory(model_file=str(path))
+    t0 = 1_700_000_200.0
+    rig.feed([to_ns(t0 + 0.01 * k) for k in range(20)], np.zeros((20, 3)),
+             [to_ns(t0), to_ns(t0 + 0.05)], [20.0, math.nan])
+    assert rig.node.core.temps.rejected == 1
+    expect = offline(model, [to_ns(t0 + 0.01 * k) for k in range(20)], np.zeros((20, 3)),
+                     [to_ns(t0)], [20.0])
+    np.testing.assert_allclose(rates(rig.out), expect, rtol=0, atol=1e-9)
+    assert 'non-finite temperature' in rig.node.diagnostic_status().message
+
+
+def test_no_model_passes_through_with_error(rig_factory, tmp_path):
+    bad = tmp_path / 'bad.yaml'
+    bad.write_text('format_version: [\n')
+    rig = rig_factory(model_file=str(bad))
+    imu_ns, omega, temp_ns, temp_c = warming_stream(n=20)
+    sent = rig.feed(imu_ns, omega, temp_ns, temp_c)
+    np.testing.assert_array_equal(rates(rig.out), rates(sent))
+    st = rig.node.diagnostic_status()
+    assert st.level == DiagnosticStatus.ERROR and 'no model loaded' in st.message
+    assert 'malformed YAML' in st.message
+
+
+def test_reload_via_parameter_good_and_bad(models, rig_factory, tmp_path):
+    path_a, model_a = models['paper']
+    path_b, model_b = models['dynamic']
+    rig = rig_factory(model_file=str(path_a))
+    client = AsyncParameterClient(rig.io, 'compensator_node')
+    spin_until(rig.executor, lambda: client.services_are_ready(), 10.0)
+
+    def set_model_file(value):
+        future = client.set_parameters([Parameter('model_file', value=value)])
+        spin_until(rig.executor, future.done, 10.0)
+        return future.result().results[0]
+
+    bad = tmp_path / 'broken.yaml'
+    bad.write_text('kind: rbf\nfeatures: [dT]\n')
+    result = set_model_file(str(bad))
+    assert not result.successful and 'format_version' in result.reason
+    assert rig.node.core.model.model_id == model_a.model_id
+    assert rig.node.get_parameter('model_file').value == str(path_a)
+    missing = set_model_file(str(tmp_path / 'nope.yaml'))
+    assert not missing.successful and 'nope.yaml' in missing.reason
+
+    result = set_model_file(str(path_b))
+    assert result.successful
+    assert rig.node.core.model.model_id == model_b.model_id
+    values = diag_values(rig.node.diagnostic_status())
+    assert values['model id'] == model_b.model_id
+    assert values['model features'] == 'dT,dT2,dTdt,lag,warmup'
+    assert values['last reload'] == f'loaded {model_b.model_id}'
+
+
+def test_reload_service_good_and_bad(models, rig_factory, tmp_path):
+    src, model_a = models['paper']
+    path = tmp_path / 'live.yaml'
+    path.write_text(Path(src).read_text())
+    rig = rig_factory(model_file=str(path))
+    client = rig.io.create_client(Trigger, 'compensator_node/reload')
+    spin_until(rig.executor, lambda: client.service_is_ready(), 10.0)
+
+    def reload():
+        future = client.call_async(Trigger.Request())
+        spin_until(rig.executor, future.done, 10.0)
+        return future.result()
+
+    path.write_text('not: [a model\n')
+    res = reload()
+    assert not res.success and 'live.yaml' in res.message and 'YAML' in res.message
+    assert rig.node.core.model.model_id == model_a.model_id
+    imu_ns, omega, temp_ns, temp_c = warming_stream(n=100)
+    rig.feed(imu_ns, omega, temp_ns, temp_c)  # still compensating with the old model
+    np.testing.assert_allclose(rates(rig.out), offline(model_a, imu_ns, omega, temp_ns, temp_c),
+                               rtol=0, atol=1e-9)
+
+    path.write_text(Path(models['dynamic'][0]).read_text())
+    res = reload()
+    assert res.success and models['dynamic'][1].model_id in res.message
+    assert rig.node.core.model.model_id == models['dynamic'][1].model_id
+
+
+def test_reanchor_on_start(models, rig_factory):
+    path, model = models['paper']
+    rig = rig_factory(model_file=str(path), reanchor_on_start=True, still_window=1.0)
+    n = 400
+    t0 = 1_700_000_300.0
+    imu_ns = [to_ns(t0 + k * 0.005) for k in range(n)]
+    rng = np.random.default_rng(2)
+    offset = np.array([0.8e-3, -0.6e-3, 0.4e-3])
+    drift = -offline(model, imu_ns, np.zeros((n, 3)), [to_ns(t0 - 1)], [22.0])
+    raw = drift + offset + rng.normal(0, 1e-3, (n, 3))
+    rig.feed(imu_ns, raw, [to_ns(t0 - 1)], [22.0])
+    anchor = rig.node.core.anchor
+    assert anchor is not None and anchor.t == pytest.approx(t0 + 1.0, abs=0.006)
+    np.testing.assert_allclose(anchor.delta, offset, atol=3e-4)
+    out = rates(rig.out)
+    after = np.array([stamp_s(ns) for ns in imu_ns]) > anchor.t
+    assert np.abs(out[after].mean(axis=0)).max() < 3e-4
+    values = diag_values(rig.node.diagnostic_status())
+    assert values['reanchor'].startswith('done at t=')
+    assert len(values['reanchor shift dps'].split(',')) == 3
+
+
+def test_config_file_matches_declared_parameters():
+    doc = yaml.safe_load((CONFIG / 'compensator.yaml').read_text())
+    params = doc['compensator_node']['ros__parameters']
+    specs = {s.name: s for s in PARAMS}
+    assert set(params) <= set(specs)
+    for key, value in params.items():
+        assert type(value) is type(specs[key].default), key
+        if specs[key].choices:
+            assert value in specs[key].choices
+        if specs[key].lo is not None:
+            assert specs[key].lo <= value <= specs[key].hi, key
+    # The file's policies make a valid pure-logic policy.
+    CompensatorCore(Policy(**{k: v for k, v in params.items()
+                              if k in Policy.__dataclass_fields__}))
