@@ -253,7 +253,8 @@ def format_summary(b: BagEval) -> str:
     head = (f'  {"":<{w}} ' + ''.join(f'{"BS " + a:>11}' for a in AXES) + '  '
             + ''.join(f'{"RMS " + a:>11}' for a in AXES) + '  '
             + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES))
-    lines += [f'  {"":<{w}} {"BS in (deg/s)^2, RMS in deg/s":>33}', head]
+    lines += ['  BS in (deg/s)^2 (paper eq. 30), RMS in deg/s, BS/BS1 against the raw data',
+              head]
     for m in [b.raw] + list(b.models):
         lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in m.bs) + '  '
                      + ''.join(_g(v) for v in m.rms_dps) + '  '
@@ -302,9 +303,10 @@ def format_paper_table(b: BagEval, conventional: int, modified: int) -> str:
 def format_allan(b: BagEval) -> str:
     """Return the Allan readouts (ARW, deg/sqrt(h); bias instability, deg/h) per axis."""
     w = max([len(m.label) for m in b.models] + [12])
-    lines = [f'  {"Allan deviation":<{w}} ' + ''.join(f'{"ARW " + a:>11}' for a in AXES)
-             + '  ' + ''.join(f'{"BI " + a:>11}' for a in AXES),
-             f'  {"":<{w}} {"ARW in deg/sqrt(h), bias instability in deg/h":>46}']
+    lines = ['  Allan deviation: angle random walk ARW in deg/sqrt(h), bias instability BI '
+             'in deg/h',
+             f'  {"":<{w}} ' + ''.join(f'{"ARW " + a:>11}' for a in AXES)
+             + '  ' + ''.join(f'{"BI " + a:>11}' for a in AXES)]
     for m in [b.raw] + list(b.models):
         lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in m.arw_deg_sqrt_h) + '  '
                      + ''.join(_g(v) for v in m.bias_instability_deg_h))
@@ -605,7 +607,7 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000)
         axs[k].grid(True, alpha=0.3)
     axs[0].legend(loc='best', fontsize='small')
     axs[0].set_title(f'{b.label}: raw vs compensated ({block}-sample means)')
-    axs[3].plot(th, temp, color='tab:red')
+    axs[3].plot(th, temp, color='black')
     axs[3].set_ylabel('temperature (degC)')
     axs[3].set_xlabel('time (h)')
     axs[3].grid(True, alpha=0.3)
