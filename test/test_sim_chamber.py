@@ -1,0 +1,113 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Chamber profiles and the paper's precise test method (section 3.1, eqs. 20, 24, 25)."""
+
+from __future__ import annotations
+
+from gyro_tdc.sim import heat_conduction_time_s, load_scenario, max_temperature_step_c
+from gyro_tdc.sim import nice_ceil, nice_floor, Profile, staircase_plan
+from gyro_tdc.sim.chamber import hold_segment, points_segment, ramp_segment
+from gyro_tdc.sim.chamber import staircase_segment, step_segment
+import numpy as np
+import pytest
+
+
+def test_eq20_temperature_step_of_the_l3gd20():
+    bound = max_temperature_step_c(sensitivity_dps=8.75e-3, alpha_dps_per_c=0.03,
+                                   beta_dps_per_c=-0.04)
+    assert bound == pytest.approx(0.125, rel=1e-12)
+    assert nice_floor(bound) == pytest.approx(0.1)
+
+
+def test_eq24_hold_time_of_the_set_z_021_chamber():
+    t_s = heat_conduction_time_s(specific_heat_kj_per_kg_k=1.005, density_kg_per_m3=1.293,
+                                 length_m=0.6, conductivity_w_per_m_k=0.0267)
+    assert t_s == pytest.approx(17.5209, abs=1e-4)
+    assert nice_ceil(t_s) == pytest.approx(20.0)
+
+
+def test_staircase_plan_gives_18_degc_per_hour():
+    plan = staircase_plan()
+    assert plan.step_c == pytest.approx(0.1)
+    assert plan.hold_s == pytest.approx(20.0)
+    assert plan.min_hold_s <= plan.hold_s
+    assert plan.rate_c_per_h == pytest.approx(18.0)
+
+
+@pytest.mark.parametrize('x, down, up', [(0.125, 0.1, 0.2), (17.52, 10.0, 20.0),
+                                         (0.1, 0.1, 0.1), (20.0, 20.0, 20.0),
+                                         (3.0, 2.0, 5.0), (0.7, 0.5, 1.0)])
+def test_nice_numbers_follow_the_1_2_5_series(x, down, up):
+    assert nice_floor(x) == pytest.approx(down)
+    assert nice_ceil(x) == pytest.approx(up)
+
+
+@pytest.mark.parametrize('kwargs, name', [
+    ({'sensitivity_dps': 0.0, 'alpha_dps_per_c': 0.03, 'beta_dps_per_c': 0.04},
+     'sensitivity_dps'),
+    ({'sensitivity_dps': 8.75e-3, 'alpha_dps_per_c': float('nan'), 'beta_dps_per_c': 0.04},
+     'alpha_dps_per_c'),
+])
+def test_eq20_rejects_bad_input_naming_it(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        max_temperature_step_c(**kwargs)
+
+
+def test_paper_profile_matches_section_3_1():
+    profile = load_scenario('l3gd20_paper').profile
+    t, temp = profile.t, profile.temp_c
+    assert temp[0] == -40.0 and temp[-1] == 85.0
+    assert profile.span_c == (-40.0, 85.0)
+    jumps = np.flatnonzero(np.diff(t) == 0.0)
+    assert jumps.size == 1250                               # 125 degC in 0.1 degC steps
+    np.testing.assert_allclose(temp[jumps + 1] - temp[jumps], 0.1, atol=1e-9)
+    np.testing.assert_allclose(np.diff(t[jumps]), 20.0)     # one step every 20 s
+    start, end = t[jumps[0]], t[jumps[-1]] + 20.0
+    assert start == 600.0                                   # stable soak at -40 degC first
+    assert 3600.0 * 125.0 / (end - start) == pytest.approx(18.0)
+    assert profile.duration_s - end == pytest.approx(3600.0)  # then stable for 1 h
+    # Right-continuous: the value at a jump is the level after it, held for 20 s.
+    assert profile.value([start])[0] == pytest.approx(-39.9)
+    assert profile.value([start + 19.999])[0] == pytest.approx(-39.9)
+    assert profile.value([start - 1e-6])[0] == pytest.approx(-40.0)
+
+
+def test_staircase_cools_too_and_lands_on_the_target():
+    profile = Profile.from_segments(20.0, [staircase_segment(19.25, 0.1, 20.0)])
+    assert profile.temp_c[-1] == 19.25
+    assert profile.duration_s == pytest.approx(8 * 20.0)    # 7 whole steps + 1 partial
+    assert np.all(np.diff(profile.temp_c) <= 0.0)
+
+
+def test_ramp_hold_step_and_points_segments_chain():
+    profile = Profile.from_segments(10.0, [
+        hold_segment(100.0), ramp_segment(40.0, 36.0), step_segment(30.0),
+        points_segment([0.0, 50.0, 100.0], [30.0, 35.0, 35.0]), ramp_segment(10.0, 72.0)])
+    assert profile.duration_s == pytest.approx(100.0 + 3000.0 + 100.0 + 1250.0)
+    q = np.array([50.0, 1600.0, 3100.0, 3150.0, 3200.0, 4450.0])
+    np.testing.assert_allclose(profile.value(q), [10.0, 25.0, 30.0, 35.0, 35.0, 10.0])
+    np.testing.assert_allclose(profile.slope([50.0, 1600.0, 3300.0]),
+                               [0.0, 0.01, -0.02])
+
+
+def test_profile_from_points_shifts_time_to_zero():
+    profile = Profile.from_points([5.0, 15.0, 25.0], [0.0, 10.0, 10.0])
+    np.testing.assert_allclose(profile.t, [0.0, 10.0, 20.0])
+    assert profile.value([5.0])[0] == pytest.approx(5.0)
+
+
+def test_profile_rejects_decreasing_time():
+    with pytest.raises(ValueError, match='`t`'):
+        Profile(np.array([0.0, 10.0, 5.0]), np.zeros(3))
