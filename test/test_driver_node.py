@@ -24,17 +24,20 @@ from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Vector3Stamped
 from gyro_tdc.nodes.driver_node import DriverNode, PARAMS
 from gyro_tdc.sources.base import ImuSample
+import numpy as np
 import pytest
 import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_profile_sensor_data
+from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosutil import spin_until
 from sensor_msgs.msg import Imu, Temperature
 from test_iio import l3gd20_files, make_device
 import yaml
 
 CONFIG = Path(__file__).resolve().parent.parent / 'config'
+DEEP = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10000,
+                  reliability=ReliabilityPolicy.RELIABLE)
 
 
 class Listener:
@@ -46,10 +49,10 @@ class Listener:
         self.temp: list[Temperature] = []
         self.ref: list[Vector3Stamped] = []
         self.diag: list[DiagnosticStatus] = []
-        self.node.create_subscription(Imu, 'imu/data_raw', self.imu.append,
-                                      qos_profile_sensor_data)
-        self.node.create_subscription(Temperature, 'imu/temperature', self.temp.append, 100)
-        self.node.create_subscription(Vector3Stamped, 'rate_table/reference', self.ref.append, 100)
+        self.node.create_subscription(Imu, 'imu/data_raw', self.imu.append, DEEP)
+        self.node.create_subscription(Temperature, 'imu/temperature', self.temp.append, DEEP)
+        self.node.create_subscription(Vector3Stamped, 'rate_table/reference', self.ref.append,
+                                      DEEP)
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 10)
         executor.add_node(self.node)
 
@@ -214,3 +217,66 @@ def test_config_files_match_declared_parameters(name):
 def test_bad_backend_is_refused(ros_context):
     with pytest.raises(ValueError, match='backend'):
         DriverNode(context=ros_context, parameter_overrides=overrides(backend='serial'))
+
+
+def stamp_ns(msg) -> int:
+    return msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec
+
+
+def test_sim_publishes_the_scenario(ros_context, executor):
+    from gyro_tdc.sim.stream import SimStream
+    run = SimStream('demo_fast', seed=3).run
+    node, lis = start(ros_context, executor, backend='sim', scenario='demo_fast', seed=3,
+                      time_scale=20.0, frame_id='sim_imu', angular_velocity_variance=2.0e-6,
+                      temperature_variance=1.0e-4, linear_acceleration_variance=0.01)
+    spin_until(executor, lambda: len(lis.imu) >= 200 and len(lis.temp) >= 20, 10.0)
+    assert len(lis.imu) < len(run)  # paced: 20x real time, not flat out
+    msgs = lis.imu[:200]
+    w = np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z)
+                  for m in msgs])
+    np.testing.assert_array_equal(w, run.gyro[:200])
+    a = np.array([(m.linear_acceleration.x, m.linear_acceleration.y, m.linear_acceleration.z)
+                  for m in msgs])
+    np.testing.assert_array_equal(a, run.accel[:200])
+    m = msgs[0]
+    assert m.header.frame_id == 'sim_imu' and m.orientation_covariance[0] == -1.0
+    assert list(m.angular_velocity_covariance) == [2e-6, 0, 0, 0, 2e-6, 0, 0, 0, 2e-6]
+    assert list(m.linear_acceleration_covariance) == [0.01, 0, 0, 0, 0.01, 0, 0, 0, 0.01]
+    # Simulated stamps keep their spacing, shifted onto the node clock.
+    t0 = stamp_ns(msgs[0])
+    offsets = np.array([stamp_ns(x) - t0 for x in msgs]) * 1e-9
+    np.testing.assert_allclose(offsets, run.imu_t[:200] - run.imu_t[0], atol=1e-9)
+    temps = lis.temp[:20]
+    np.testing.assert_array_equal([x.temperature for x in temps], run.temp_c[:20])
+    np.testing.assert_allclose([(stamp_ns(x) - t0) * 1e-9 for x in temps],
+                               run.temp_t[:20] - run.imu_t[0], atol=1e-9)
+    assert temps[0].variance == 1.0e-4 and temps[0].header.frame_id == 'sim_imu'
+    assert lis.ref == []  # demo_fast's table does not move
+    st = node.diagnostic_status()
+    assert st.level == DiagnosticStatus.OK and 'sim:demo_fast' in st.hardware_id
+
+
+def test_sim_rate_table_reference_and_end_of_run(ros_context, executor):
+    from gyro_tdc.sim.stream import SimStream
+    run = SimStream('rate_steps', seed=0, rate_hz=0.5).run
+    node, lis = start(ros_context, executor, backend='sim', scenario='rate_steps',
+                      sim_rate_hz=0.5, time_scale=0.0, qos_depth=5000)
+    spin_until(executor, lambda: node._state == 'finished' and len(lis.imu) == len(run),
+               20.0, what='whole run received')
+    assert len(lis.ref) == run.ref_t.size
+    got = np.array([(r.vector.x, r.vector.y, r.vector.z) for r in lis.ref])
+    np.testing.assert_array_equal(got, run.ref)
+    t0 = stamp_ns(lis.imu[0])
+    np.testing.assert_allclose([(stamp_ns(r) - t0) * 1e-9 for r in lis.ref], run.ref_t,
+                               atol=1e-9)
+    st = node.diagnostic_status()
+    assert st.level == DiagnosticStatus.OK and st.message == 'scenario finished'
+
+
+def test_sim_unknown_scenario_is_reported_not_fatal(ros_context, executor):
+    node, lis = start(ros_context, executor, backend='sim', scenario='no_such_scenario',
+                      retry_initial=0.01, retry_max=0.02)
+    spin_until(executor, lambda: node._errors >= 2, 5.0)
+    st = node.diagnostic_status()
+    assert st.level == DiagnosticStatus.ERROR and 'no_such_scenario' in st.message
+    assert lis.imu == []

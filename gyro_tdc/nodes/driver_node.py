@@ -64,6 +64,8 @@ PARAMS = (
               'file path.'),
     ParamSpec('seed', 0, 'sim: random seed.', 0, 2 ** 31 - 1),
     ParamSpec('run_index', 0, 'sim: which run of a multi-run scenario.', 0, 10000),
+    ParamSpec('sim_rate_hz', 0.0, "sim: IMU rate overriding the scenario's; 0 keeps it [Hz].",
+              0.0, 100000.0),
     ParamSpec('time_scale', 1.0, 'sim: simulated seconds per wall-clock second; 0 streams '
               'as fast as the node can publish [1].', 0.0, 1.0e6),
     ParamSpec('tick_hz', 100.0, 'sim: how often the node publishes the samples that are due '
@@ -96,6 +98,7 @@ class DriverParams:
     scenario: str
     seed: int
     run_index: int
+    sim_rate_hz: float
     time_scale: float
     tick_hz: float
     max_batch: int
@@ -140,7 +143,8 @@ def open_source(p: DriverParams, clock_s: Any) -> ImuSource:
         device = p.device_dir or find_iio_device(p.device_name, root=p.iio_root)
         return IioSource(device, temp_every=p.temp_every, clock=clock_s)
     from gyro_tdc.sources.sim import SimSource
-    return SimSource(p.scenario, seed=p.seed, run_index=p.run_index)
+    return SimSource(p.scenario, seed=p.seed, run_index=p.run_index,
+                     rate_hz=p.sim_rate_hz or None)
 
 
 class DriverNode(Node):
