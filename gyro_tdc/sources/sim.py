@@ -82,7 +82,7 @@ class SimSource:
 
     @property
     def run(self) -> Any:
-        """Return the whole simulated run (:class:`gyro_tdc.sim.SimRun`)."""
+        """Return the simulated run being streamed (a gyro_tdc.sim.SimRun)."""
         return self._stream.run
 
     def _fill(self) -> None:
