@@ -262,7 +262,7 @@ def format_summary(b: BagEval) -> str:
     for m in b.models:
         if m.outside_fraction > 0:
             lines.append(
-                f'  note: {100.0 * m.outside_fraction:.1f} % of the samples lie outside the '
+                f'  note: {100.0 * m.outside_fraction:.3g} % of the samples lie outside the '
                 f'trained range of {m.label} [{m.temp_range_c[0]:.2f}, '
                 f'{m.temp_range_c[1]:.2f}] degC: evaluated clamped at the range ends')
     return '\n'.join(lines)

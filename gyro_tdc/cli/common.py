@@ -262,7 +262,7 @@ def run_command(command: str, build_parser: Callable[[], argparse.ArgumentParser
         Returns the command's :class:`ArgumentParser`.
     run : callable
         ``run(args, argv) -> int`` doing the work.
-    argv : sequence of str, optional
+    argv : sequence of str or PathLike, optional
         Arguments after the command name; ``sys.argv[1:]`` when None.
 
     Returns
@@ -271,7 +271,8 @@ def run_command(command: str, build_parser: Callable[[], argparse.ArgumentParser
         0 on success (or ``--help``), 2 on bad input, 130 on Ctrl-C.
 
     """
-    argv = list(sys.argv[1:] if argv is None else argv)
+    argv = [os.fspath(a) if isinstance(a, os.PathLike) else str(a)
+            for a in (sys.argv[1:] if argv is None else argv)]
     parser = build_parser()
     try:
         try:

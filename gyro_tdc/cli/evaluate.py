@@ -162,7 +162,8 @@ def _score(label: str, name: str, features: list, omega: NDArray[np.float64], ru
                      bias_instability_deg_h=nr['bias_instability_deg_h'], omega=omega)
 
 
-def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '') -> BagEval:
+def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
+                 reanchor_s: float = 0.0) -> BagEval:
     """
     Score raw data and every model on one run.
 
@@ -174,6 +175,10 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '') -> 
         The models, in the order to report them.
     label : str
         Short label of the run (default from its name).
+    reanchor_s : float, s
+        When > 0, remove from each model's compensated rate its mean error over the first
+        ``reanchor_s`` seconds (the run-to-run bias offset, as the compensator re-anchors at
+        start-up while the sensor is still); the raw data are never re-anchored.
 
     Returns
     -------
@@ -187,6 +192,9 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '') -> 
     for nm in models:
         m = nm.model
         comp = compensate(m, run.t, run.temp, run.omega)
+        if reanchor_s > 0:
+            head = run.t <= run.t[0] + reanchor_s
+            comp -= (comp[head] - run.omega_ref[head]).mean(axis=0)
         ev = _score(nm.label, nm.name, list(m.features), comp, run, raw.bs, rate)
         lo, hi = m.temp_range_c
         ev.temp_range_c = (lo, hi)
@@ -216,7 +224,7 @@ def _bag_labels(paths: Sequence[Path]) -> list:
 def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
              options: dict, plots: str | os.PathLike | None = None,
              export: str | os.PathLike | None = None,
-             log: Callable[[str], None] | None = None,
+             reanchor_s: float = 0.0, log: Callable[[str], None] | None = None,
              each: Callable[[BagEval], None] | None = None) -> list:
     """
     Evaluate models on held-out bags, one bag in memory at a time.
@@ -231,6 +239,8 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
         Bag options of :func:`gyro_tdc.dataset.load_run`.
     plots, export : str or PathLike, optional
         Directories for PNGs and CSVs.
+    reanchor_s : float, s
+        Start-up re-anchoring window (see :func:`evaluate_run`); 0 = off.
     log : callable, optional
         Receives one line per bag read and per file written.
     each : callable, optional
@@ -247,7 +257,7 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     results = []
     for path, label in zip(paths, labels):
         run = load_bag_runs([path], options, out=log)[0]
-        b = evaluate_run(run, models, label=label)
+        b = evaluate_run(run, models, label=label, reanchor_s=reanchor_s)
         if each is not None:
             each(b)
         if plots is not None:
@@ -280,6 +290,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help='the conventional model of the paper tables (one of the --model '
                         'values, or another model file, evaluated too); default: the first '
                         'of exactly two models')
+    p.add_argument('--reanchor', type=_non_negative, default=0.0, metavar='S',
+                   help='remove from each model the mean error over the first S s of every bag '
+                        '(the run-to-run bias offset, as the compensator re-anchors at '
+                        'start-up while still); default 0: off')
     p.add_argument('--json', metavar='OUT', default=None, help='write the scores as JSON')
     p.add_argument('--plots', metavar='DIR', default=None, help='write PNGs per bag here')
     p.add_argument('--export', metavar='DIR', default=None,
@@ -287,6 +301,17 @@ def build_parser() -> argparse.ArgumentParser:
                         'compensated rates (rad/s)')
     add_bag_options(p)
     return p
+
+
+def _non_negative(text: str) -> float:
+    """Parse a finite number >= 0 (argparse type)."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f'expected a number >= 0, got {text!r}')
+    return v
 
 
 def _print_bag(b: BagEval, baseline: int | None) -> None:
@@ -317,8 +342,11 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         lo, hi = m.temp_range_c
         log(f'model {nm.label}: {nm.name}, {m.kind} f({", ".join(m.inputs) or "bias"}), '
             f'trained {lo:.2f} .. {hi:.2f} degC')
+    if args.reanchor > 0:
+        log(f'models re-anchored: mean error over the first {args.reanchor:g} s of each bag '
+            'removed (raw data untouched)')
     results = evaluate(args.bags, models, options=opts, plots=args.plots,
-                       export=args.export, log=log,
+                       export=args.export, reanchor_s=args.reanchor, log=log,
                        each=lambda b: _print_bag(b, baseline))
     if args.json is not None:
         log(f'wrote {write_json(results, args.json)}')
