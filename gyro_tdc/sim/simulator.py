@@ -24,7 +24,7 @@ then saturated at the full scale and quantised to one digit. Each term belongs t
 effect id of :mod:`gyro_tdc.effects` (``scale``, ``bias``, ``dT``, ``dT2``, ``dT3``,
 ``dTdt``, ``warmup``); ``lag`` makes the die a first-order lag of the package the
 thermometer sits on. Everything is vectorised: a 7 h run at 100 Hz (2.52 M samples) takes
-about a second (``bench/bench_simulate.py``).
+about 2 s on a 2-core machine (``bench/bench_simulate.py``).
 
 Random numbers: run ``i`` of seed ``s`` draws from ``SeedSequence(s, spawn_key=(i,))``, with
 one independent child stream per component, so switching one effect off leaves the noise of
