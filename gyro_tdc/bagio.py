@@ -37,9 +37,10 @@ encapsulation, trailing bytes...).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from itertools import compress, islice
+from itertools import islice
 from pathlib import Path
 import shutil
+import sqlite3
 import struct
 from typing import Any, Callable, Sequence
 
@@ -74,7 +75,10 @@ _N_DOUBLES = {IMU_TYPE: 37, TEMPERATURE_TYPE: 2, REFERENCE_TYPE: 3}
 # linear_acceleration (25:28); Temperature temperature and variance; Vector3Stamped x, y, z.
 _KEEP = {IMU_TYPE: (13, 14, 15, 25, 26, 27), TEMPERATURE_TYPE: (0, 1), REFERENCE_TYPE: (0, 1, 2)}
 
-_CHUNK = 1 << 16          # messages per block, both when writing and when reading
+_WRITE_CHUNK = 1 << 16    # messages serialised per numpy call when writing
+# Messages per block when reading: small enough that a block's raw bytes (~3 MB of Imu) stay
+# in cache and are recycled by the allocator, large enough to amortise the per-block checks.
+_CHUNK = 1 << 13
 _BAG_VERSION = 9          # rosbag2 metadata version written by Jazzy (rosbag2 0.26)
 _STORAGES = {'sqlite3': StoragePlugin.SQLITE3, 'mcap': StoragePlugin.MCAP}
 _CDR_LE = (0, 1, 0, 0)
@@ -461,18 +465,22 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
     index = np.concatenate([np.arange(len(x[2])) for x in topics])
     order = np.argsort(stamps, kind='stable')
 
+    path = Path(path)
+    if path.exists():
+        raise DatasetError(f'Cannot create bag {str(path)!r}: the path exists already '
+                           '(write_bag never overwrites).')
+    writer = Writer(path, version=_BAG_VERSION, storage_plugin=_STORAGES[storage])
     try:
-        writer = Writer(Path(path), version=_BAG_VERSION, storage_plugin=_STORAGES[storage])
         writer.open()
-    except (WriterError, OSError) as err:
+    except (WriterError, OSError, sqlite3.Error) as err:
         raise DatasetError(f'Cannot create bag {str(path)!r}: {_one_line(err)}') from err
     ok = False
     try:
         conns = [writer.add_connection(name, msgtype, typestore=_jazzy(),
                                        offered_qos_profiles=[_QOS])
                  for name, msgtype, *_ in topics]
-        for k0 in range(0, len(order), _CHUNK):
-            sel = order[k0:k0 + _CHUNK]
+        for k0 in range(0, len(order), _WRITE_CHUNK):
+            sel = order[k0:k0 + _WRITE_CHUNK]
             sel_which = which[sel]
             payload: list[bytes] = [b''] * len(sel)
             for k, (_, msgtype, sec, nsec, block) in enumerate(topics):
@@ -488,14 +496,14 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
                 write(conns[cid], stamp, raw)
         writer.close()
         ok = True
-    except (WriterError, OSError, apsw.Error) as err:
+    except (WriterError, OSError, sqlite3.Error) as err:
         raise DatasetError(f'Cannot write bag {str(path)!r}: {_one_line(err)}') from err
     finally:
         if not ok:
             if writer.storage is not None:
                 writer.storage.abort()
-            # The directory was created by writer.open() above: leave no half-written bag.
-            shutil.rmtree(writer.path, ignore_errors=True)
+            # writer.open() created the directory: leave no half-written bag behind.
+            shutil.rmtree(path, ignore_errors=True)
 
 
 # --------------------------------------------------------------------------------------------
@@ -510,7 +518,8 @@ class BagData:
     Parameters
     ----------
     imu_t : NDArray[np.float64], shape (N,), s
-        IMU header stamps (the log time where a header stamp is zero), in bag order.
+        IMU header stamps (the log time where a header stamp is zero), in the order read
+        (log-time order for a topic with one connection; not sorted by header stamp).
     gyro : NDArray[np.float64], shape (N, 3), rad/s
         Angular velocity; samples with a NaN or infinite component are rejected.
     accel : NDArray[np.float64], shape (N, 3), m/s^2
@@ -709,40 +718,54 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     undecodable = 0
     typestore = reader.typestore
 
+    def decode(role: str, raws: Sequence[bytes], logs: Sequence[int]) -> None:
+        """Decode one role's messages of a block into its sink."""
+        nonlocal undecodable
+        dec = _decode(raws, msgtypes[role], typestore)
+        fallback[role] += dec.fallback
+        if frame_id[role] is None and dec.frame_id:
+            frame_id[role] = dec.frame_id
+        stamp_ns = dec.sec * 1_000_000_000 + dec.nanosec
+        zero = stamp_ns == 0
+        if zero.any():
+            stamp_ns[zero] = np.fromiter(logs, dtype=np.int64, count=len(logs))[zero]
+        t = (stamp_ns // 1_000_000_000) + (stamp_ns % 1_000_000_000) * 1e-9
+        values = dec.values
+        if dec.undecodable is not None:
+            good = ~dec.undecodable
+            undecodable += int(dec.undecodable.sum())
+            t, values = t[good], values[good]
+        sinks[role].add(t, values)
+
+    # Hot loop: the messages of the main IMU connection go straight into two lists (no tuple
+    # kept, no lookup); anything else (temperature, reference, other IMU connections) is
+    # sorted out per block.
+    main = conns['imu'][0]
     gen = reader.messages(connections=all_conns)
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
         while True:
-            block = list(islice(gen, _CHUNK))
-            if not block:
-                break
-            cs, logs, raws = zip(*block)
-            del block
-            which = np.fromiter(map(role_of.__getitem__, map(id, cs)), dtype=np.int8,
-                                count=len(cs))
-            log_ns = np.fromiter(logs, dtype=np.int64, count=len(logs))
-            for k, role in enumerate(roles):
-                mask = which == k
-                if mask.all():
-                    sel_raws, sel_log = raws, log_ns
-                elif mask.any():
-                    sel_raws, sel_log = list(compress(raws, mask.tolist())), log_ns[mask]
+            main_raws: list[bytes] = []
+            main_logs: list[int] = []
+            others: list[tuple[Any, int, bytes]] = []
+            add_raw, add_log, add_other = main_raws.append, main_logs.append, others.append
+            for conn, log, raw in islice(gen, _CHUNK):
+                if conn is main:
+                    add_raw(raw)
+                    add_log(log)
                 else:
-                    continue
-                dec = _decode(sel_raws, msgtypes[role], typestore)
-                fallback[role] += dec.fallback
-                if frame_id[role] is None and dec.frame_id:
-                    frame_id[role] = dec.frame_id
-                stamp_ns = dec.sec * 1_000_000_000 + dec.nanosec
-                t_ns = np.where(stamp_ns == 0, sel_log, stamp_ns)
-                t = (t_ns // 1_000_000_000) + (t_ns % 1_000_000_000) * 1e-9
-                values = dec.values
-                if dec.undecodable is not None:
-                    good = ~dec.undecodable
-                    undecodable += int(dec.undecodable.sum())
-                    t, values = t[good], values[good]
-                sinks[role].add(t, values)
-            bar.update(len(cs))
+                    add_other((conn, log, raw))
+            if main_raws:
+                decode('imu', main_raws, main_logs)
+            if others:
+                for k, role in enumerate(roles):
+                    mine = [x for x in others if role_of[id(x[0])] == k]
+                    if mine:
+                        decode(role, [x[2] for x in mine], [x[1] for x in mine])
+            done = len(main_raws) + len(others)
+            if not done:
+                break
+            bar.update(done)
 
     rejected = {'imu_nonfinite': 0, 'temp_nonfinite': 0, 'ref_nonfinite': 0,
                 'undecodable': undecodable}

@@ -228,8 +228,10 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
             'storage': data.storage, 'topics': data.topics,
             'samples_read': int(len(data.imu_t) + data.rejected['imu_nonfinite']),
             'decoded_by_rosbags': data.fallback}
-    return Run(t[keep], temp[keep], np.ascontiguousarray(omega[keep]),
-               np.ascontiguousarray(omega_ref[keep]), str(bag), info)
+    if not keep.all():
+        t, temp, omega, omega_ref = t[keep], temp[keep], omega[keep], omega_ref[keep]
+    return Run(t, temp, np.ascontiguousarray(omega), np.ascontiguousarray(omega_ref),
+               str(bag), info)
 
 
 def load_runs(bags: Iterable[str | Path] | str | Path, **kw) -> list[Run]:

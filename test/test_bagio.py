@@ -426,3 +426,13 @@ def test_bagio_imports_no_ros_packages():
     modules |= {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
     roots = {m.split('.')[0] for m in modules if m}
     assert not roots & {'rclpy', 'sensor_msgs', 'std_msgs', 'geometry_msgs', 'rosbag2_py'}
+
+
+def test_write_bag_leaves_nothing_behind_on_failure(tmp_path, monkeypatch):
+    def full_disk(self, connection, timestamp, data):
+        raise OSError(28, 'No space left on device')
+
+    monkeypatch.setattr(Writer, 'write', full_disk)
+    with pytest.raises(DatasetError, match='Cannot write bag .*No space left on device'):
+        _small_bag(tmp_path / 'bag', 'mcap')
+    assert not (tmp_path / 'bag').exists()
