@@ -1,0 +1,179 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+``python -m gyro_tdc discover BAG...``: name the thermal effect a model is missing.
+
+One run per bag (a folder of bag folders expands to its bags). The workflow is
+:func:`gyro_tdc.discover.discover`; this module reads the bags, prints the summary and writes
+the optional outputs: ``--json`` (the document of DESIGN.md), ``--report DIR`` (report.md with
+PNG residual maps and Allan deviation plots) and ``--out MODEL.yaml`` (a model of the
+discovered effects that ``compensator_node`` loads). Bad input exits 2 with one line on stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+from pathlib import Path
+import sys
+import tempfile
+from typing import Optional, Sequence
+
+from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
+from gyro_tdc.cli.common import load_bag_runs, run_command, UsageError
+from gyro_tdc.discover import build_model, discover, format_summary, write_report
+from gyro_tdc.effects import normalise_ids
+from gyro_tdc.model import KINDS
+from gyro_tdc.modelfile import save_model
+
+__all__ = ['build_parser', 'main']
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``discover``."""
+    p = ArgumentParser(
+        prog='python -m gyro_tdc discover',
+        description='Fit the drift model with the base effects to measured bags, show where '
+                    'it disagrees with them, name the missing effect, add it and repeat '
+                    'until the residual is noise.')
+    p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap)')
+    p.add_argument('--base', default='bias,dT', metavar='IDS',
+                   help='effects of the starting model (default: %(default)s, the conventional '
+                        'model of eq. 18; bias is always included, one offset per bag)')
+    p.add_argument('--candidates', default=None, metavar='IDS',
+                   help='effects to try (default: every catalog effect not in --base)')
+    p.add_argument('--json', dest='json_out', default=None, metavar='OUT',
+                   help='write the machine-readable result (DESIGN.md shape) to OUT')
+    p.add_argument('--report', default=None, metavar='DIR',
+                   help='write report.md with PNG residual maps and Allan deviation to DIR')
+    p.add_argument('--out', default=None, metavar='MODEL.yaml',
+                   help='write a model file of the discovered effects (compensator_node loads '
+                        'it)')
+    p.add_argument('--kind', default='poly', choices=KINDS,
+                   help='model of --out: poly (linear in the features, what discovery '
+                        'validated) or rbf (default: %(default)s)')
+    p.add_argument('--block-s', type=_positive_float, default=10.0, metavar='S',
+                   help='block length in s; gaps and the noise floor are RMS of block means '
+                        '(default: %(default)s)')
+    p.add_argument('--t0', type=_finite_float, default=None, metavar='C',
+                   help='reference temperature T0 in degC (default: the stable initial '
+                        'temperature of the first bag)')
+    p.add_argument('--alpha', type=_probability, default=0.01, metavar='P',
+                   help='family-wise significance level per step (default: %(default)s)')
+    p.add_argument('--max-steps', type=_positive_int, default=6, metavar='N',
+                   help='most effects to add (default: %(default)s)')
+    add_bag_options(p)
+    return p
+
+
+def _finite_float(text: str) -> float:
+    """Parse a finite number (argparse type)."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f'expected a finite number, got {text!r}')
+    return v
+
+
+def _positive_float(text: str) -> float:
+    """Parse a finite number > 0 (argparse type)."""
+    v = _finite_float(text)
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f'expected a number > 0, got {text!r}')
+    return v
+
+
+def _probability(text: str) -> float:
+    """Parse a number in (0, 1) (argparse type)."""
+    v = _finite_float(text)
+    if not 0.0 < v < 1.0:
+        raise argparse.ArgumentTypeError(f'expected a number between 0 and 1, got {text!r}')
+    return v
+
+
+def _positive_int(text: str) -> int:
+    """Parse an integer >= 1 (argparse type)."""
+    try:
+        v = int(text)
+    except ValueError:
+        v = 0
+    if v < 1:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {text!r}')
+    return v
+
+
+def _write_json(doc: dict, path: str | os.PathLike) -> None:
+    """Write ``doc`` as JSON atomically (temporary file + rename)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix='.' + path.name, suffix='.tmp')
+    with os.fdopen(fd, 'w', encoding='utf-8') as fh:
+        json.dump(doc, fh, indent=1)
+        fh.write('\n')
+    os.replace(tmp, path)
+
+
+def _run(args: argparse.Namespace, argv: list) -> int:
+    """Run ``discover`` with parsed arguments; print the summary, write the outputs."""
+    base = normalise_ids(args.base)            # fail on a bad id before reading any bag
+    cands = None if args.candidates is None else normalise_ids(args.candidates)
+    for opt, value in (('--json', args.json_out), ('--out', args.out)):
+        if value is not None and Path(value).is_dir():
+            raise UsageError(f'{opt}: expected a file path, got the directory {value!r}')
+    runs = load_bag_runs(args.bags, bag_options(args), out=lambda s: print(s, flush=True))
+    result = discover(runs, base=base, candidates=cands, block_s=args.block_s, t0=args.t0,
+                      alpha=args.alpha, max_steps=args.max_steps)
+    sys.stdout.write(format_summary(result))
+    model_file = None
+    if args.out is not None:
+        model = build_model(result, runs, kind=args.kind,
+                            created={'command': command_line('discover', argv),
+                                     'bags': [r.name for r in runs]})
+        model_file = str(save_model(model, args.out))
+        print(f'wrote model {model_file} (features {", ".join(model.features)}, '
+              f'model_id {model.model_id})')
+    if args.report is not None:
+        path = write_report(result, args.report)
+        print(f'wrote report {path}')
+    if args.json_out is not None:
+        _write_json(result.to_json(model_file), args.json_out)
+        print(f'wrote {args.json_out}')
+    return 0
+
+
+def main(argv: Optional[Sequence[str]] = None) -> int:
+    """
+    Run ``python -m gyro_tdc discover``.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Arguments after the command name (``sys.argv[1:]`` when None).
+
+    Returns
+    -------
+    int
+        0 on success, 2 on bad input (one line on stderr).
+
+    """
+    return run_command('discover', build_parser, _run, argv)
+
+
+if __name__ == '__main__':
+    sys.exit(main())
