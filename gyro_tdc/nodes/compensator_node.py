@@ -77,8 +77,8 @@ PARAMS = (
               'window, i.e. the largest shift allowed [rad/s].', 0.0, 10.0),
     ParamSpec('still_accel_std', 0.1, 'Largest per-axis standard deviation of the '
               'acceleration over a still window, when the IMU has one [m/s^2].', 0.0, 100.0),
-    ParamSpec('queue_depth', 2000, 'Queue depth of the imu/data_raw subscription and of the '
-              'publisher (keep last) [messages].', 1, 1000000),
+    ParamSpec('queue_depth', 2000, 'Queue depth of the imu/data_raw and imu/temperature '
+              'subscriptions and of the publisher (keep last) [messages].', 1, 1000000),
     ParamSpec('executor', 'events', 'Executor main() spins the node with: rclpy.experimental '
               'EventsExecutor (events, fastest) or SingleThreadedExecutor (single).',
               choices=('events', 'single')),
@@ -174,7 +174,9 @@ class CompensatorNode(Node):
         imu_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
                              reliability=ReliabilityPolicy.BEST_EFFORT,
                              durability=DurabilityPolicy.VOLATILE)
-        temp_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
+        # As deep as the IMU queue: a simulated run streamed faster than real time sends
+        # one temperature per IMU sample, and a lost temperature makes the next ones stale.
+        temp_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
                               reliability=qos_profile_sensor_data.reliability,
                               durability=qos_profile_sensor_data.durability)
         self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
