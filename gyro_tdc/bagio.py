@@ -276,9 +276,13 @@ def _decode_fast(raws: Sequence[bytes], msgtype: str) -> _Decoded | None:
     lengths = np.fromiter(map(len, raws), dtype=np.int64, count=n)
     if np.any(lengths != dt.itemsize):
         return None
-    rec = np.frombuffer(b''.join(raws), dtype=dt)
+    buf = b''.join(raws)
+    rec = np.frombuffer(buf, dtype=dt)
+    # Encapsulation (word 0) and frame id length (word 3) equal to the first message's, as
+    # raw 32-bit words (itemsize is always a multiple of 4); then the frame id bytes.
+    words = np.frombuffer(buf, dtype=np.uint32).reshape(n, dt.itemsize // 4)
     frame = rec['frame']
-    if (np.any(rec['encap'] != rec['encap'][0]) or np.any(rec['strlen'] != frame_len)
+    if (np.any(words[:, 0] != words[0, 0]) or np.any(words[:, 3] != words[0, 3])
             or np.any(frame != frame[0]) or frame[0, -1] != 0):
         return None
     try:
@@ -574,30 +578,37 @@ def _one_line(err: BaseException) -> str:
 
 
 class _Sink:
-    """Growable, preallocated output arrays for one role (times plus value columns)."""
+    """Growable, preallocated output columns for one role: times plus value groups."""
 
-    def __init__(self, capacity: int, width: int) -> None:
+    def __init__(self, capacity: int, widths: Sequence[int]) -> None:
+        self.widths = list(widths)
         self.t = np.empty(capacity)
-        self.v = np.empty((capacity, width))
+        self.v = [np.empty((capacity, w)) for w in self.widths]
         self.n = 0
 
-    def add(self, t: NDArray[np.float64], v: NDArray[np.float64]) -> None:
-        """Append a block, growing the arrays when the expected count was too small."""
+    def add(self, t: NDArray[np.float64], values: NDArray[np.float64]) -> None:
+        """Append a block (values: all groups side by side), growing when it must."""
         end = self.n + len(t)
         if end > len(self.t):
             cap = max(end, 2 * len(self.t))
             self.t = np.concatenate([self.t[:self.n], np.empty(cap - self.n)])
-            self.v = np.concatenate([self.v[:self.n], np.empty((cap - self.n, self.v.shape[1]))])
+            self.v = [np.concatenate([v[:self.n], np.empty((cap - self.n, v.shape[1]))])
+                      for v in self.v]
         self.t[self.n:end] = t
-        self.v[self.n:end] = v
+        col = 0
+        for v, w in zip(self.v, self.widths):
+            v[self.n:end] = values[:, col:col + w]
+            col += w
         self.n = end
 
-    def result(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Return the filled part (copied when much smaller than the allocation)."""
-        t, v = self.t[:self.n], self.v[:self.n]
+    def result(self, keep: NDArray[np.bool_] | None = None) -> list[NDArray[np.float64]]:
+        """Return [t, *groups] of the filled rows (``keep`` selects rows)."""
+        out = [self.t[:self.n]] + [v[:self.n] for v in self.v]
+        if keep is not None and not keep.all():
+            return [x[keep] for x in out]
         if self.n < 0.9 * len(self.t):
-            t, v = t.copy(), v.copy()
-        return t, v
+            return [x.copy() for x in out]
+        return out
 
 
 def _resolve(path: str | Path) -> Path:
@@ -712,7 +723,8 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     role_of = {id(c): k for k, role in enumerate(roles) for c in conns[role]}
     all_conns = [c for role in roles for c in conns[role]]
     expected = {role: sum(int(c.msgcount) for c in conns[role]) for role in roles}
-    sinks = {role: _Sink(expected[role], len(_KEEP[msgtypes[role]])) for role in roles}
+    widths = {'imu': (3, 3), 'temperature': (1, 1), 'reference': (3,)}
+    sinks = {role: _Sink(expected[role], widths[role]) for role in roles}
     frame_id = {role: None for role in roles}
     fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
     undecodable = 0
@@ -769,28 +781,22 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
 
     rejected = {'imu_nonfinite': 0, 'temp_nonfinite': 0, 'ref_nonfinite': 0,
                 'undecodable': undecodable}
-    imu_t, imu_v = sinks['imu'].result()
-    finite = np.isfinite(imu_v[:, :3]).all(axis=1)
-    if not finite.all():
-        rejected['imu_nonfinite'] = int((~finite).sum())
-        imu_t, imu_v = imu_t[finite], imu_v[finite]
-    temp_t, temp_v = sinks['temperature'].result()
-    finite = np.isfinite(temp_v[:, 0])
-    if not finite.all():
-        rejected['temp_nonfinite'] = int((~finite).sum())
-        temp_t, temp_v = temp_t[finite], temp_v[finite]
+    sink = sinks['imu']
+    finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
+    rejected['imu_nonfinite'] = int(np.count_nonzero(~finite))
+    imu_t, gyro, accel = sink.result(finite)
+    sink = sinks['temperature']
+    finite = np.isfinite(sink.v[0][:sink.n, 0])
+    rejected['temp_nonfinite'] = int(np.count_nonzero(~finite))
+    temp_t, temp_c, temp_var = sink.result(finite)
     ref_t = ref = None
     if 'reference' in sinks and sinks['reference'].n:
-        ref_t, ref = sinks['reference'].result()
-        finite = np.isfinite(ref).all(axis=1)
-        if not finite.all():
-            rejected['ref_nonfinite'] = int((~finite).sum())
-            ref_t, ref = ref_t[finite], ref[finite]
-    if (~np.isfinite(imu_t)).any() or (~np.isfinite(temp_t)).any():   # pragma: no cover
-        raise DatasetError(f'Bag {str(bag)!r} holds non-finite stamps.')
+        sink = sinks['reference']
+        finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
+        rejected['ref_nonfinite'] = int(np.count_nonzero(~finite))
+        ref_t, ref = sink.result(finite)
     return BagData(
-        imu_t=imu_t, gyro=np.ascontiguousarray(imu_v[:, :3]),
-        accel=np.ascontiguousarray(imu_v[:, 3:]), frame_id=frame_id['imu'] or '',
-        temp_t=temp_t, temp_c=np.ascontiguousarray(temp_v[:, 0]),
-        temp_var=np.ascontiguousarray(temp_v[:, 1]), ref_t=ref_t, ref=ref, topics=topics,
+        imu_t=imu_t, gyro=gyro, accel=accel, frame_id=frame_id['imu'] or '',
+        temp_t=temp_t, temp_c=temp_c[:, 0], temp_var=temp_var[:, 0], ref_t=ref_t, ref=ref,
+        topics=topics,
         rejected=rejected, storage=storage, path=str(bag), fallback=fallback)

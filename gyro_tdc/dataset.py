@@ -43,6 +43,21 @@ def _vector(name: str, a: ArrayLike) -> NDArray[np.float64]:
     return arr
 
 
+def _count_at_or_before(knots: NDArray[np.float64], t: NDArray[np.float64]) -> NDArray[np.int64]:
+    """
+    Return, for every ``t``, how many ``knots`` (sorted) are <= it.
+
+    Equal to ``np.searchsorted(knots, t, side='right')``; for sorted ``t`` (the usual case:
+    millions of IMU stamps, thousands of thermometer stamps) it is computed the other way
+    round, placing the few knots into ``t`` and counting, which avoids a binary search per
+    IMU stamp.
+    """
+    if len(t) > 1 and np.all(t[1:] >= t[:-1]):
+        pos = np.searchsorted(t, knots, side='left')
+        return np.cumsum(np.bincount(pos, minlength=len(t) + 1)[:len(t)])
+    return np.searchsorted(knots, t, side='right')
+
+
 def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=False):
     """
     Interpolate thermometer samples linearly onto IMU stamps.
@@ -87,7 +102,11 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
     if temp_c.shape != temp_t.shape:
         raise DatasetError(f'Expected `temp_c` to have shape {temp_t.shape} like `temp_t`, '
                            f'got {temp_c.shape}.')
-    if not (np.isfinite(max_gap_s) and max_gap_s > 0):
+    try:
+        gap = float(max_gap_s)
+    except (TypeError, ValueError):
+        gap = float('nan')
+    if not (np.isfinite(gap) and gap > 0):
         raise DatasetError(f'Expected `max_gap_s` to be a positive number, got {max_gap_s!r}.')
 
     finite = np.isfinite(temp_t) & np.isfinite(temp_c)
@@ -104,14 +123,18 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
             tc = np.bincount(inverse, weights=tc) / per
             tt = stamps
 
-    temp = np.full(imu_t.shape, np.nan)
-    valid = np.zeros(imu_t.shape, dtype=bool)
-    if len(tt):
-        after = np.searchsorted(tt, imu_t, side='left').clip(0, len(tt) - 1)
-        before = (after - 1).clip(0, len(tt) - 1)
-        nearest = np.minimum(np.abs(imu_t - tt[before]), np.abs(tt[after] - imu_t))
-        valid = (imu_t >= tt[0]) & (imu_t <= tt[-1]) & (nearest <= max_gap_s)
-        temp[valid] = np.interp(imu_t[valid], tt, tc)
+    m = len(tt)
+    if m < 2:
+        valid = imu_t == tt[0] if m else np.zeros(imu_t.shape, dtype=bool)
+        temp = np.where(valid, tc[0] if m else np.nan, np.nan)
+    else:
+        # Segment [tt[j], tt[j + 1]] of every IMU stamp; outside the span d0 or d1 is < 0.
+        j = (_count_at_or_before(tt, imu_t) - 1).clip(0, m - 2)
+        d0 = imu_t - tt[j]
+        d1 = tt[j + 1] - imu_t
+        valid = (d0 >= 0) & (d1 >= 0) & (np.minimum(d0, d1) <= gap)
+        slope = np.diff(tc) / np.diff(tt)
+        temp = np.where(valid, tc[j] + slope[j] * d0, np.nan)
     if return_counts:
         return temp, valid, counts
     return temp, valid
@@ -202,7 +225,8 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
 
     if const is not None:
         source = 'constant'
-        omega_ref = np.broadcast_to(const, omega.shape)
+        omega_ref = np.empty(omega.shape)
+        omega_ref[:] = const
     elif data.ref_t is not None:
         source = 'topic'
         order = np.argsort(data.ref_t, kind='stable')
@@ -214,7 +238,7 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
         omega_ref = ref[held.clip(0)]
     else:
         source = 'zero'
-        omega_ref = np.broadcast_to(np.zeros(3), omega.shape)
+        omega_ref = np.zeros(omega.shape)
 
     if not np.any(keep):
         raise DatasetError(
