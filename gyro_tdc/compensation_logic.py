@@ -44,8 +44,8 @@ from typing import Sequence
 from gyro_tdc.model import CompensationModel, StreamingCompensator
 import numpy as np
 
-__all__ = ['Anchor', 'CompensatorCore', 'FLAG_NAMES', 'Policy', 'StillnessDetector',
-           'TemperatureHold', 'describe_flags', 'widen_covariance']
+__all__ = ['Anchor', 'CompensatorCore', 'FLAG_NAMES', 'Policy', 'STATIC_EFFECTS',
+           'StillnessDetector', 'TemperatureHold', 'describe_flags', 'widen_covariance']
 
 #: Flags of one processed sample (a bit set).
 STALE = 1
@@ -60,6 +60,11 @@ FLAG_NAMES = {STALE: 'temperature stale', OUT_OF_RANGE: 'temperature out of mode
               NO_MODEL: 'no model loaded', PASSTHROUGH: 'raw rate passed through'}
 
 Vec3 = tuple[float, float, float]
+
+#: Effects whose streaming feature depends on the current temperature only (not on time or
+#: on the history): a model made of these has a drift that changes only when the
+#: temperature does, so the compensator evaluates it once per thermometer sample.
+STATIC_EFFECTS = frozenset(('bias', 'dT', 'dT2', 'dT3', 'scale'))
 
 
 def describe_flags(flags: int) -> str:
@@ -433,6 +438,8 @@ class CompensatorCore:
                                         for v in resid),
         }
         self._scale = np.asarray(model.scale, dtype=np.float64)
+        self._static = set(model.features) <= STATIC_EFFECTS
+        self._cache_temp: float | None = None
         self.anchor = None
         self._detector.reset()
         self.model, self._comp = model, comp
@@ -499,10 +506,20 @@ class CompensatorCore:
             flags = STALE
         if self._first is None:
             self._first = (t, temp)
-        out = comp.step(t, temp, (wx, wy, wz))
-        if not comp.in_range:
-            flags |= OUT_OF_RANGE
-        ox, oy, oz = out.tolist()
+        if self._static:
+            # Static features: the drift only changes when the temperature does.
+            if temp != self._cache_temp:
+                self._refresh(t, temp)
+            bx, by, bz = self._b
+            dx, dy, dz = self._den
+            ox, oy, oz = (wx - bx) / dx, (wy - by) / dy, (wz - bz) / dz
+            if not self._in_range:
+                flags |= OUT_OF_RANGE
+        else:
+            out = comp.step(t, temp, (wx, wy, wz))
+            if not comp.in_range:
+                flags |= OUT_OF_RANGE
+            ox, oy, oz = out.tolist()
         self.last_t, self.last_temp, self.last_flags = t, temp, flags
         counts = self.counts
         counts['out'] += 1
@@ -514,6 +531,24 @@ class CompensatorCore:
         elif self.policy.reanchor_on_start and self.anchor is None:
             self._still(t, (wx, wy, wz), (ox, oy, oz), accel, temp)
         return ox, oy, oz, self._var[flags], flags
+
+    def _refresh(self, t: float, temp: float) -> None:
+        """
+        Evaluate the drift of a static model at a new temperature and keep it.
+
+        ``StreamingCompensator.step`` computes ``(omega - b) / (1 + dT s)`` elementwise in
+        float64; the same operations on the kept ``b`` and ``1 + dT s`` give the same bits.
+
+        """
+        comp = self._comp
+        model = self.model
+        self._b = tuple(comp.drift(t, temp).tolist())
+        self._in_range = comp.in_range
+        self._cache_temp = temp
+        if self.policy.out_of_range == 'clamp':
+            lo, hi = model.temp_range_c
+            temp = min(max(temp, lo), hi)
+        self._den = tuple((1.0 + (temp - model.t0_c) * self._scale).tolist())
 
     def _pass(self, t: float, wx: float, wy: float, wz: float, why: int
               ) -> tuple[float, float, float, tuple[float, float, float], int]:
@@ -538,6 +573,7 @@ class CompensatorCore:
         d_t = (min(max(temp, lo), hi) if clamp else temp) - model.t0_c
         delta = np.asarray(found.delta) * (1.0 + d_t * self._scale)
         self._comp.shift_offset(delta)
+        self._cache_temp = None
         self.anchor = Anchor(found.t, tuple(float(v) for v in delta), found.samples,
                              found.gyro_std, found.temp_c)
 

@@ -20,9 +20,11 @@ import math
 
 from gyro_tdc.compensation_logic import (
     CompensatorCore, describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
-    PASSTHROUGH, Policy, STALE, StillnessDetector, TemperatureHold, widen_covariance)
+    PASSTHROUGH, Policy, STALE, STATIC_EFFECTS, StillnessDetector, TemperatureHold,
+    widen_covariance)
+from gyro_tdc.effects import batch_features, EFFECTS
 from gyro_tdc.fitting import fit_model
-from gyro_tdc.model import compensate
+from gyro_tdc.model import compensate, StreamingCompensator
 import numpy as np
 import pytest
 from synth import synth_run
@@ -114,6 +116,37 @@ def test_stream_equals_offline_compensation(model):
     assert not flags.any()
     np.testing.assert_array_equal(var, np.tile(model.residual_var, (t.size, 1)))
     assert core.counts == {'in': t.size, 'out': t.size, 'compensated': t.size}
+
+
+def test_static_effects_depend_on_temperature_only():
+    rng = np.random.default_rng(7)
+    temp = rng.uniform(-20, 60, 200)
+    t1 = np.sort(rng.uniform(0, 1e4, 200))
+    t2 = np.sort(rng.uniform(5e4, 9e4, 200))
+    ids = sorted(STATIC_EFFECTS)
+    assert set(ids) <= set(EFFECTS)
+    np.testing.assert_array_equal(batch_features(ids, t1, temp, t0=25.0),
+                                  batch_features(ids, t2, temp, t0=25.0))
+    for dynamic in set(EFFECTS) - STATIC_EFFECTS:
+        assert not np.array_equal(batch_features([dynamic], t1, temp, t0=25.0),
+                                  batch_features([dynamic], t2, temp, t0=25.0)), dynamic
+
+
+@pytest.mark.parametrize('mode', ['clamp', 'extrapolate'])
+def test_static_model_fast_path_is_bit_identical_to_step(mode):
+    run = synth_run(hours=1.0, rate_hz=2.0, ref_dps=(20.0, -10.0, 5.0), ref_period_s=300.0,
+                    scale=(1e-3, -2e-3, 5e-4), seed=9)
+    static = fit_model([run], features=('dT', 'dT2', 'scale'), n_centers=8)
+    assert np.any(static.scale != 0.0)
+    lo, hi = static.temp_range_c
+    t, omega, tt, tc = stream(n=2000, rate_hz=50.0, t_lo=lo - 5.0, t_hi=hi + 5.0)
+    core = CompensatorCore(Policy(out_of_range=mode), static)
+    out, _, flags = run_core(core, t, omega, tt, tc)
+    step = StreamingCompensator(static, out_of_range=mode)
+    temp = zoh(t, tt, tc)
+    ref = np.array([step.step(t[i], temp[i], omega[i]) for i in range(t.size)])
+    np.testing.assert_array_equal(out, ref)
+    assert (flags == OUT_OF_RANGE).any() and (flags == 0).any()
 
 
 def test_no_model_and_no_temperature_pass_through(model):

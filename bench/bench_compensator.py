@@ -1,0 +1,665 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Compensator vs a bare rclpy relay: throughput, drops, added latency, CPU per message.
+
+Both devices under test (DUT) subscribe ``imu/data_raw`` with the compensator's QoS (best
+effort, keep last 2000) and publish ``imu/data_compensated`` (reliable, keep last 2000) from
+the same executor; the relay only republishes. They run side by side in one run, trial after
+trial alternating, each in its own namespace, at 200 Hz, 1 kHz, 2 kHz and flat out:
+
+* ``inproc``: source, DUT and sink in this process, one executor (DUT + sink); flat out keeps
+  at most 200 messages in flight, so it measures the largest rate without drops;
+* ``cross``: source, relay, compensator and sink in four processes spawned here; flat out
+  publishes as fast as the source can, and the DUT's output rate is its throughput.
+
+Latency is sink arrival minus the header stamp (``time.time_ns()`` at publish; one clock for
+every process on the host); "added" is the compensator's minus the relay's. CPU per message is
+the DUT process's user + system time over the messages it forwarded (inproc: the whole
+process, source and sink included). Every process gets ``ROS_AUTOMATIC_DISCOVERY_RANGE=
+LOCALHOST`` and a private ``ROS_DOMAIN_ID``. The compensator runs a 12-centre RBF model in
+``dT, dT2`` fitted here on a simulated run (or ``--model FILE``). ``--soak`` runs the
+compensator for 10 minutes at 1 kHz across processes and samples its RSS every 10 s::
+
+    .venv/bin/python bench/bench_compensator.py                       # ~4 min
+    .venv/bin/python bench/bench_compensator.py --executor single     # compare executors
+    .venv/bin/python bench/bench_compensator.py --soak                # 10 min at 1 kHz
+"""
+
+import os
+
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+os.environ.setdefault('ROS_DOMAIN_ID', str(150 + os.getpid() % 60))
+
+import argparse  # noqa: E402, I100
+import json  # noqa: E402
+from pathlib import Path  # noqa: E402
+import statistics  # noqa: E402
+import subprocess  # noqa: E402
+import sys  # noqa: E402
+import tempfile  # noqa: E402
+import threading  # noqa: E402
+import time  # noqa: E402
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+DUTS = ('relay', 'compensator')
+QUEUE = 2000
+WINDOW = 200
+TEMP_HZ = 10.0
+
+
+# -- ROS pieces (imported lazily so --help is instant) ----------------------------------
+
+
+def _qos():
+    from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+    sub = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=QUEUE,
+                     reliability=ReliabilityPolicy.BEST_EFFORT)
+    pub = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=QUEUE,
+                     reliability=ReliabilityPolicy.RELIABLE)
+    sink = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=20000,
+                      reliability=ReliabilityPolicy.RELIABLE)
+    return sub, pub, sink
+
+
+def make_executor(kind, context=None):
+    """Return an EventsExecutor ('events') or a SingleThreadedExecutor ('single')."""
+    from gyro_tdc.nodes.compensator_node import make_executor as make
+    return make(kind, context)
+
+
+def make_relay(context, ns):
+    """Return the bare relay node: subscribe raw, publish it unchanged."""
+    import rclpy
+    from sensor_msgs.msg import Imu
+    sub_qos, pub_qos, _ = _qos()
+    node = rclpy.create_node('relay', namespace=ns, context=context)
+    pub = node.create_publisher(Imu, 'imu/data_compensated', pub_qos)
+    node.create_subscription(Imu, 'imu/data_raw', pub.publish, sub_qos)
+    return node
+
+
+def make_compensator(context, ns, model_file, executor):
+    """Return a CompensatorNode in namespace ``ns`` with the bench model."""
+    from gyro_tdc.nodes.compensator_node import CompensatorNode
+    from rclpy.parameter import Parameter
+    return CompensatorNode(context=context, namespace=ns, parameter_overrides=[
+        Parameter('model_file', value=str(model_file)), Parameter('executor', value=executor),
+        Parameter('queue_depth', value=QUEUE), Parameter('temperature_timeout', value=5.0)])
+
+
+class Source:
+    """Publish Imu (seq in orientation.x, stamp = time_ns) and a 10 Hz Temperature."""
+
+    def __init__(self, node, namespaces):
+        from sensor_msgs.msg import Imu, Temperature
+        _, pub_qos, _ = _qos()
+        self.node = node
+        self.imu = {ns: node.create_publisher(Imu, f'/{ns}/imu/data_raw', pub_qos)
+                    for ns in namespaces}
+        self.temp = {ns: node.create_publisher(Temperature, f'/{ns}/imu/temperature', pub_qos)
+                     for ns in namespaces}
+        self.msg = Imu()
+        self.msg.header.frame_id = 'imu_link'
+        self.msg.orientation_covariance[0] = -1.0
+        self.msg.angular_velocity.x, self.msg.angular_velocity.y = 0.011, -0.012
+        self.msg.angular_velocity.z = 0.005
+        self.msg.linear_acceleration.z = 9.81
+        self.tmsg = Temperature()
+        self.tmsg.header.frame_id = 'imu_link'
+        self.tmsg.variance = 1e-4
+        self.seq = 0
+        self._last_temp = 0
+
+    def matched(self, ns):
+        """Return whether the DUT in ``ns`` subscribes (the relay takes no temperature)."""
+        return (self.imu[ns].get_subscription_count() >= 1
+                and (ns == 'relay' or self.temp[ns].get_subscription_count() >= 1))
+
+    def publish(self, ns):
+        now = time.time_ns()
+        if now - self._last_temp >= 1e9 / TEMP_HZ:
+            self._last_temp = now
+            self.tmsg.header.stamp.sec, self.tmsg.header.stamp.nanosec = divmod(now, 10 ** 9)
+            self.tmsg.temperature = 25.0 + (now % 10 ** 11) * 1e-10
+            self.temp[ns].publish(self.tmsg)
+        msg = self.msg
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(now, 10 ** 9)
+        msg.orientation.x = float(self.seq)
+        self.seq += 1
+        self.imu[ns].publish(msg)
+
+
+class Sink:
+    """Record arrival latency and sequence of every output message per namespace."""
+
+    def __init__(self, node, namespaces):
+        from sensor_msgs.msg import Imu
+        _, _, sink_qos = _qos()
+        self.node = node
+        self.data = {ns: ([], []) for ns in namespaces}
+        self.topics = {ns: f'/{ns}/imu/data_compensated' for ns in namespaces}
+        for ns in namespaces:
+            node.create_subscription(Imu, self.topics[ns], self._callback(ns), sink_qos)
+
+    def _callback(self, ns):
+        def on_msg(msg, store=self.data, ns=ns):
+            now = time.time_ns()
+            lat, seq = store[ns]
+            st = msg.header.stamp
+            lat.append(now - (st.sec * 1_000_000_000 + st.nanosec))
+            seq.append(int(msg.orientation.x))
+        return on_msg
+
+    def count(self, ns):
+        return len(self.data[ns][0])
+
+    def take(self, ns):
+        """Return and reset the latencies (ns) and sequence numbers received on ``ns``."""
+        lat, seq = self.data[ns]
+        self.data[ns] = ([], [])
+        return lat, seq
+
+
+def summarise(lat_ns, seq, sent, elapsed_s, cpu_s=None):
+    """Turn one trial's raw records into figures."""
+    received = len(lat_ns)
+    out = {'sent': sent, 'received': received, 'drops': sent - received,
+           'throughput_hz': received / elapsed_s if elapsed_s > 0 else 0.0,
+           'reordered': sum(1 for a, b in zip(seq, seq[1:]) if b <= a)}
+    if received:
+        lat = sorted(lat_ns)
+        out['p50_us'] = lat[received // 2] / 1e3
+        out['p99_us'] = lat[min(received - 1, int(received * 0.99))] / 1e3
+        out['max_us'] = lat[-1] / 1e3
+    if cpu_s is not None and received:
+        out['cpu_us_per_msg'] = cpu_s / received * 1e6
+    return out
+
+
+# -- in one process -------------------------------------------------------------------
+
+
+def run_inproc(args, model_file):
+    """Run every in-process trial; return {dut: {rate: [trial, ...]}}."""
+    import rclpy
+    from rclpy.context import Context
+    context = Context()
+    rclpy.init(context=context)
+    try:
+        io = rclpy.create_node('bench_io', context=context)
+        source = Source(io, DUTS)
+        sink = Sink(io, DUTS)
+        duts = {'relay': make_relay(context, 'relay'),
+                'compensator': make_compensator(context, 'compensator', model_file,
+                                                args.executor)}
+        # One executor holds everything; only the DUT of the current trial gets traffic.
+        ex = make_executor(args.executor, context)
+        for node in (io, *duts.values()):
+            ex.add_node(node)
+        results = {d: {r: [] for r in args.rates} for d in DUTS}
+        for name in DUTS:  # discovery and a warm-up
+            _spin_for(ex, lambda n=name: source.matched(n) and io.count_publishers(
+                sink.topics[n]) >= 1, 10.0)
+            warm = _inproc_trial(ex, source, sink, name, 500.0, 0.5)
+            if warm['received'] == 0:
+                raise RuntimeError(f'{name}: nothing came through the warm-up')
+        for rep in range(args.repeats):
+            for rate in args.rates:
+                for name in (DUTS if rep % 2 == 0 else DUTS[::-1]):
+                    res = _inproc_trial(ex, source, sink, name, rate, args.duration)
+                    results[name][rate].append(res)
+                    _progress('inproc', name, rate, rep, res)
+        ex.shutdown()
+        for node in (io, *duts.values()):
+            node.destroy_node()
+        return results
+    finally:
+        rclpy.try_shutdown(context=context)
+
+
+def _spin_for(executor, predicate, timeout_s):
+    deadline = time.monotonic() + timeout_s
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise RuntimeError('discovery did not complete within %.0f s' % timeout_s)
+        executor.spin_once(timeout_sec=0.05)
+
+
+def _inproc_trial(ex, source, sink, ns, rate, duration):
+    """Publish for ``duration`` s at ``rate`` (or flat out, windowed); return figures."""
+    sink.take(ns)
+    cpu0 = time.process_time()
+    t0 = time.monotonic()
+    end = t0 + duration
+    sent = 0
+    if rate == 'max':
+        while time.monotonic() < end:
+            if sent - sink.count(ns) < WINDOW:
+                source.publish(ns)
+                sent += 1
+            else:
+                ex.spin_once(timeout_sec=0.01)
+    else:
+        period = 1.0 / float(rate)
+        while True:
+            now = time.monotonic()
+            if now >= end:
+                break
+            due = int((now - t0) / period) + 1
+            while sent < due:
+                source.publish(ns)
+                sent += 1
+            ex.spin_once(timeout_sec=max(0.0, t0 + sent * period - time.monotonic()))
+    drain = time.monotonic() + 2.0
+    while sink.count(ns) < sent and time.monotonic() < drain:
+        ex.spin_once(timeout_sec=0.01)
+    elapsed = time.monotonic() - t0
+    lat, seq = sink.take(ns)
+    return summarise(lat, seq, sent, elapsed, time.process_time() - cpu0)
+
+
+# -- across processes -----------------------------------------------------------------
+
+
+class Child:
+    """A role process spoken to with JSON lines on stdin/stdout."""
+
+    def __init__(self, role, *extra):
+        import psutil
+        cmd = [sys.executable, str(Path(__file__).resolve()), '--role', role, *extra]
+        self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                                     text=True, bufsize=1, env=dict(os.environ))
+        self.ps = psutil.Process(self.proc.pid)
+        hello = self.read()
+        if not hello.get('ready'):
+            raise RuntimeError(f'{role} did not start: {hello}')
+
+    def read(self):
+        line = self.proc.stdout.readline()
+        if not line:
+            raise RuntimeError(f'child {self.proc.args} exited with {self.proc.wait()}')
+        return json.loads(line)
+
+    def ask(self, *words):
+        self.proc.stdin.write(' '.join(str(w) for w in words) + '\n')
+        self.proc.stdin.flush()
+        return self.read()
+
+    def cpu_s(self):
+        t = self.ps.cpu_times()
+        return t.user + t.system
+
+    def rss_mb(self):
+        return self.ps.memory_info().rss / 2 ** 20
+
+    def close(self):
+        try:
+            self.proc.stdin.close()
+            self.proc.wait(timeout=10)
+        except (OSError, subprocess.TimeoutExpired):
+            self.proc.kill()
+            self.proc.wait()
+
+
+def start_cross(args, model_file, duts=DUTS):
+    """Spawn the DUTs, the sink and the source; wait for discovery."""
+    procs = {}
+    for name in duts:
+        extra = ['--executor', args.executor, '--ns', name]
+        if name == 'compensator':
+            extra += ['--model', str(model_file)]
+        procs[name] = Child(name, *extra)
+    procs['sink'] = Child('sink', '--ns', ','.join(duts))
+    procs['source'] = Child('source', '--ns', ','.join(duts))
+    for name in duts:
+        if not procs['source'].ask('ready', name).get('ok'):
+            raise RuntimeError(f'source not matched with {name}')
+        if not procs['sink'].ask('ready', name).get('ok'):
+            raise RuntimeError(f'sink not matched with {name}')
+        _cross_trial(procs, name, 500.0, 0.5)  # warm-up
+    return procs
+
+
+def _cross_trial(procs, ns, rate, duration):
+    dut = procs[ns]
+    procs['sink'].ask('take', ns)
+    cpu0 = dut.cpu_s()
+    t0 = time.monotonic()
+    sent = procs['source'].ask('run', ns, rate, duration)['sent']
+    # Drain: wait until everything arrived or nothing more arrives for 0.5 s.
+    last, still = -1, time.monotonic()
+    while True:
+        n = procs['sink'].ask('count', ns)['count']
+        if n >= sent:
+            break
+        if n != last:
+            last, still = n, time.monotonic()
+        elif time.monotonic() - still > 0.5:
+            break
+        time.sleep(0.02)
+    cpu = dut.cpu_s() - cpu0
+    rec = procs['sink'].ask('take', ns)
+    elapsed = (rec['last_arrival_ns'] - rec['first_stamp_ns']) / 1e9 if rec['lat'] else \
+        time.monotonic() - t0
+    return summarise(rec['lat'], rec['seq'], sent, elapsed, cpu)
+
+
+def run_cross(args, model_file):
+    """Run every cross-process trial; return {dut: {rate: [trial, ...]}}."""
+    procs = start_cross(args, model_file)
+    try:
+        results = {d: {r: [] for r in args.rates} for d in DUTS}
+        for rep in range(args.repeats):
+            for rate in args.rates:
+                for name in (DUTS if rep % 2 == 0 else DUTS[::-1]):
+                    res = _cross_trial(procs, name, rate, args.duration)
+                    results[name][rate].append(res)
+                    _progress('cross', name, rate, rep, res)
+        return results
+    finally:
+        for child in procs.values():
+            child.close()
+
+
+def run_soak(args, model_file):
+    """Compensator across processes at 1 kHz for ``--soak-minutes``; RSS every 10 s."""
+    procs = start_cross(args, model_file, duts=('compensator',))
+    dut = procs['compensator']
+    try:
+        procs['sink'].ask('take', 'compensator')
+        duration = args.soak_minutes * 60.0
+        cpu0 = dut.cpu_s()
+        box = {}
+        runner = threading.Thread(target=lambda: box.update(procs['source'].ask(
+            'run', 'compensator', 1000.0, duration)))
+        t0 = time.monotonic()
+        runner.start()
+        samples = []
+        while runner.is_alive():
+            samples.append((time.monotonic() - t0, dut.rss_mb()))
+            print(f'  soak t={samples[-1][0]:6.0f} s  compensator RSS {samples[-1][1]:.1f} MB',
+                  flush=True)
+            runner.join(timeout=10.0)
+        samples.append((time.monotonic() - t0, dut.rss_mb()))
+        sent = box['sent']
+        deadline = time.monotonic() + 5.0
+        while procs['sink'].ask('count', 'compensator')['count'] < sent and \
+                time.monotonic() < deadline:
+            time.sleep(0.05)
+        cpu = dut.cpu_s() - cpu0
+        rec = procs['sink'].ask('take', 'compensator')
+        res = summarise(rec['lat'], rec['seq'], sent, duration, cpu)
+        warm = [rss for t, rss in samples if t >= 30.0] or [s[1] for s in samples]
+        ts = [t for t, _ in samples if t >= 30.0] or [s[0] for s in samples]
+        slope = _slope(ts, warm) * 60.0
+        res.update({'rss_mb_first': samples[0][1], 'rss_mb_after_30s': warm[0],
+                    'rss_mb_last': samples[-1][1], 'rss_mb_max': max(r for _, r in samples),
+                    'rss_slope_mb_per_min': slope, 'rss_samples': samples})
+        return res
+    finally:
+        for child in procs.values():
+            child.close()
+
+
+def _slope(x, y):
+    if len(x) < 2:
+        return 0.0
+    mx, my = statistics.fmean(x), statistics.fmean(y)
+    den = sum((a - mx) ** 2 for a in x)
+    return sum((a - mx) * (b - my) for a, b in zip(x, y)) / den if den else 0.0
+
+
+# -- roles (child processes) ----------------------------------------------------------
+
+
+def role_main(args):
+    """Run one role until stdin closes."""
+    import rclpy
+    from rclpy.executors import ExternalShutdownException
+    rclpy.init()
+    namespaces = args.ns.split(',')
+    try:
+        if args.role in DUTS:
+            node = (make_relay(None, namespaces[0]) if args.role == 'relay' else
+                    make_compensator(None, namespaces[0], args.model, args.executor))
+            ex = make_executor(args.executor)
+            ex.add_node(node)
+            threading.Thread(target=_exit_on_eof, daemon=True).start()
+            _reply({'ready': True, 'pid': os.getpid()})
+            try:
+                ex.spin()
+            except (KeyboardInterrupt, ExternalShutdownException):
+                pass
+            return
+        node = rclpy.create_node(f'bench_{args.role}')
+        if args.role == 'source':
+            _source_loop(Source(node, namespaces), node)
+        else:
+            _sink_loop(Sink(node, namespaces), node)
+    finally:
+        rclpy.try_shutdown()
+
+
+def _exit_on_eof():
+    sys.stdin.read()
+    os._exit(0)
+
+
+def _reply(obj):
+    sys.stdout.write(json.dumps(obj) + '\n')
+    sys.stdout.flush()
+
+
+def _source_loop(source, node):
+    _reply({'ready': True, 'pid': os.getpid()})
+    for line in sys.stdin:
+        words = line.split()
+        if words[0] == 'ready':
+            deadline = time.monotonic() + 15.0
+            while not source.matched(words[1]) and time.monotonic() < deadline:
+                time.sleep(0.01)
+            _reply({'ok': source.matched(words[1])})
+        elif words[0] == 'run':
+            ns, rate, duration = words[1], words[2], float(words[3])
+            t0 = time.monotonic()
+            end = t0 + duration
+            sent = 0
+            if rate == 'max':
+                while time.monotonic() < end:
+                    for _ in range(50):
+                        source.publish(ns)
+                    sent += 50
+            else:
+                period = 1.0 / float(rate)
+                while True:
+                    now = time.monotonic()
+                    if now >= end:
+                        break
+                    due = int((now - t0) / period) + 1
+                    while sent < due:
+                        source.publish(ns)
+                        sent += 1
+                    wait = t0 + sent * period - time.monotonic()
+                    if wait > 0:
+                        time.sleep(wait)
+            _reply({'sent': sent, 'elapsed': time.monotonic() - t0})
+
+
+def _sink_loop(sink, node):
+    ex = make_executor('events')
+    ex.add_node(node)
+    threading.Thread(target=ex.spin, daemon=True).start()
+    _reply({'ready': True, 'pid': os.getpid()})
+    for line in sys.stdin:
+        words = line.split()
+        ns = words[1]
+        if words[0] == 'ready':
+            deadline = time.monotonic() + 15.0
+            while node.count_publishers(sink.topics[ns]) < 1 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            _reply({'ok': node.count_publishers(sink.topics[ns]) >= 1})
+        elif words[0] == 'count':
+            _reply({'count': sink.count(ns)})
+        elif words[0] == 'take':
+            now = time.time_ns()
+            lat, seq = sink.take(ns)
+            first = now - lat[0] if lat else 0
+            _reply({'lat': lat, 'seq': seq, 'last_arrival_ns': now,
+                    'first_stamp_ns': first})
+    ex.shutdown()
+
+
+# -- report ---------------------------------------------------------------------------
+
+
+def _progress(mode, dut, rate, rep, res):
+    print(f'  {mode:6s} {dut:11s} {str(rate):>5s} Hz #{rep + 1}: '
+          f'{res["throughput_hz"]:8.0f} msg/s, drops {res["drops"]:5d}, '
+          f'p50 {res.get("p50_us", float("nan")):7.0f} us, '
+          f'p99 {res.get("p99_us", float("nan")):7.0f} us, '
+          f'cpu {res.get("cpu_us_per_msg", float("nan")):5.0f} us/msg', flush=True)
+
+
+def _median(trials, key):
+    values = [t[key] for t in trials if key in t]
+    return statistics.median(values) if values else float('nan')
+
+
+def report(mode, results, rates):
+    """Print the medians side by side and the ratios; return a summary dict."""
+    print(f'\n{mode}: medians over repeats (relay | compensator | ratio or added)')
+    print(f'{"rate":>6s} {"thr relay":>10s} {"thr comp":>10s} {"ratio":>6s} '
+          f'{"drops r/c":>10s} {"p50 r/c us":>14s} {"p99 r/c us":>14s} {"+p50":>7s} '
+          f'{"+p99":>7s} {"cpu r/c us":>12s}')
+    summary = {}
+    for rate in rates:
+        r, c = results['relay'][rate], results['compensator'][rate]
+        row = {key: (_median(r, key), _median(c, key)) for key in
+               ('throughput_hz', 'p50_us', 'p99_us', 'cpu_us_per_msg')}
+        drops = (sum(t['drops'] for t in r), sum(t['drops'] for t in c))
+        reordered = (sum(t['reordered'] for t in r), sum(t['reordered'] for t in c))
+        ratio = row['throughput_hz'][1] / row['throughput_hz'][0]
+        added50 = row['p50_us'][1] - row['p50_us'][0]
+        added99 = row['p99_us'][1] - row['p99_us'][0]
+        print(f'{str(rate):>6s} {row["throughput_hz"][0]:10.0f} {row["throughput_hz"][1]:10.0f} '
+              f'{ratio:6.2f} {drops[0]:4d}/{drops[1]:<5d} '
+              f'{row["p50_us"][0]:6.0f}/{row["p50_us"][1]:<7.0f} '
+              f'{row["p99_us"][0]:6.0f}/{row["p99_us"][1]:<7.0f} {added50:7.0f} {added99:7.0f} '
+              f'{row["cpu_us_per_msg"][0]:5.0f}/{row["cpu_us_per_msg"][1]:<6.0f}')
+        summary[str(rate)] = {'relay': row_of(row, 0), 'compensator': row_of(row, 1),
+                              'throughput_ratio': ratio, 'added_p50_us': added50,
+                              'added_p99_us': added99, 'drops': drops,
+                              'reordered': reordered}
+    return summary
+
+
+def row_of(row, i):
+    return {k: v[i] for k, v in row.items()}
+
+
+def goals(summary):
+    """Print the issue's goals against the figures."""
+    print('\ngoals:')
+    for mode, s in summary.items():
+        if mode not in ('inproc', 'cross'):
+            continue
+        if 'max' in s:
+            ok = s['max']['throughput_ratio'] >= 0.9
+            print(f'  [{"PASS" if ok else "FAIL"}] {mode}: flat-out throughput '
+                  f'{s["max"]["throughput_ratio"]:.2f} x relay (>= 0.90)')
+        if '1000' in s:
+            ok = s['1000']['added_p99_us'] < 200.0
+            print(f'  [{"PASS" if ok else "FAIL"}] {mode}: added p99 at 1 kHz '
+                  f'{s["1000"]["added_p99_us"]:.0f} us (< 200 us)')
+        if mode == 'cross' and '2000' in s:
+            ok = s['2000']['drops'][1] == 0
+            print(f'  [{"PASS" if ok else "FAIL"}] cross: compensator drops at 2 kHz '
+                  f'{s["2000"]["drops"][1]} (0)')
+    if 'soak' in summary:
+        s = summary['soak']
+        ok = s['drops'] == 0
+        print(f'  [{"PASS" if ok else "FAIL"}] soak: {s["sent"]} messages at 1 kHz, drops '
+              f'{s["drops"]}; RSS {s["rss_mb_after_30s"]:.1f} -> {s["rss_mb_last"]:.1f} MB '
+              f'(slope {s["rss_slope_mb_per_min"]:+.3f} MB/min), p99 {s.get("p99_us", 0):.0f} '
+              'us')
+
+
+def bench_model(path):
+    """Fit the bench model (RBF, dT + dT2, 12 centres) on a simulated run; save it."""
+    from gyro_tdc.fitting import fit_model
+    from gyro_tdc.modelfile import save_model
+    from gyro_tdc.sim import simulate_run, to_run
+    run = to_run(simulate_run('demo_fast', seed=0))
+    return save_model(fit_model([run], features=('dT', 'dT2'), n_centers=12), path)
+
+
+def parse_rates(text):
+    return [r if r == 'max' else float(r) for r in text.split(',')]
+
+
+def main(argv=None):
+    """Run the benchmark (or one child role); return the exit status."""
+    parser = argparse.ArgumentParser(description=__doc__.split('\n')[1],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument('--modes', default='inproc,cross', help='inproc, cross or both')
+    parser.add_argument('--rates', default='200,1000,2000,max', type=parse_rates,
+                        help='publishing rates in Hz, or max (flat out)')
+    parser.add_argument('--duration', type=float, default=3.0, help='seconds per trial')
+    parser.add_argument('--repeats', type=int, default=3, help='trials per rate and DUT')
+    parser.add_argument('--executor', choices=('events', 'single'), default='events')
+    parser.add_argument('--model', help='model file (default: fitted on demo_fast)')
+    parser.add_argument('--soak', action='store_true',
+                        help='only the soak: compensator, 1 kHz across processes')
+    parser.add_argument('--soak-minutes', type=float, default=10.0)
+    parser.add_argument('--json', help='write every figure to this JSON file')
+    parser.add_argument('--role', choices=('source', 'sink') + DUTS, help=argparse.SUPPRESS)
+    parser.add_argument('--ns', default='', help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.role:
+        role_main(args)
+        return 0
+    args.rates = [r if r == 'max' else (int(r) if float(r).is_integer() else r)
+                  for r in args.rates]
+    print(f'bench_compensator: executor {args.executor}, ROS_DOMAIN_ID '
+          f'{os.environ["ROS_DOMAIN_ID"]}, {os.cpu_count()} CPUs, {args.duration:g} s x '
+          f'{args.repeats} per rate', flush=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        model_file = args.model or bench_model(Path(tmp) / 'bench_model.yaml')
+        summary = {'executor': args.executor, 'duration_s': args.duration,
+                   'repeats': args.repeats}
+        raw = {}
+        if args.soak:
+            print(f'soak: compensator, 1 kHz across processes, {args.soak_minutes:g} min',
+                  flush=True)
+            summary['soak'] = run_soak(args, model_file)
+        else:
+            for mode in args.modes.split(','):
+                print(f'{mode}:', flush=True)
+                raw[mode] = (run_inproc if mode == 'inproc' else run_cross)(args, model_file)
+                summary[mode] = report(mode, raw[mode], args.rates)
+        goals(summary)
+        if args.json:
+            Path(args.json).write_text(json.dumps({'summary': summary, 'trials': {
+                m: {d: {str(r): v for r, v in per.items()} for d, per in res.items()}
+                for m, res in raw.items()}}, indent=1, default=str))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
