@@ -50,6 +50,7 @@ from dataclasses import dataclass, field
 import math
 from pathlib import Path
 from typing import Any, Mapping, Sequence
+import warnings
 
 from gyro_tdc.effects import batch_features, EFFECTS, first_order_lag, input_ids, normalise_ids
 from gyro_tdc.errors import FitError
@@ -710,12 +711,40 @@ def _ar1(r: NDArray[np.float64]) -> float:
     return float(c[1:] @ c[:-1]) / den if den > 0 else 0.0
 
 
+def _bandwidth(r: NDArray[np.float64]) -> int:
+    """
+    Return a Newey-West bandwidth (lags) that covers the residual's memory.
+
+    Sokal's automatic window on the integrated autocorrelation time: the smallest ``M`` with
+    ``M >= 5 (1 + 2 sum_{l<=M} rho_l)``. Unlike an AR(1) plug-in it sees a weak but slow
+    component (bias instability) under white noise, which is what makes a smooth candidate
+    look significant when it is not.
+    """
+    k = r.shape[0]
+    c = r - r.mean()
+    n = 1 << int(math.ceil(math.log2(2 * k)))
+    f = np.fft.rfft(c, n)
+    acf = np.fft.irfft(f * np.conj(f), n)[:k]
+    if acf[0] <= 0:
+        return 1
+    rho = acf / acf[0]
+    tau = 1.0 + 2.0 * np.cumsum(rho[1:])
+    m = np.arange(1, k)
+    ok = np.flatnonzero(m >= 5.0 * tau)
+    lag = int(m[ok[0]]) if ok.size else k // 3
+    lag = max(lag, int(math.ceil(1.3 * math.sqrt(k))))
+    return int(min(max(lag, 1), max(k // 3, 1)))
+
+
 def _hac_pvalue(model: _Model, coef: NDArray[np.float64], cand: Sequence[int]) -> float:
     """
     Return the HAC Wald p-value of the columns ``cand`` (smallest over axes, times 3).
 
-    Newey-West errors with the Andrews AR(1) plug-in bandwidth from the residual of each
-    axis (statsmodels OLS, ``cov_type='HAC'``); an F test of the candidate columns.
+    Newey-West (Bartlett) errors from statsmodels OLS with ``cov_type='HAC'``, the bandwidth
+    from the residual's integrated autocorrelation time (:func:`_bandwidth`); the Wald
+    statistic is referred to an F distribution with the estimator's equivalent degrees of
+    freedom, ``1.5 K / L`` (a long bandwidth leaves few independent pieces of information,
+    so the test does not pretend to more).
     """
     import statsmodels.api as sm
 
@@ -729,23 +758,21 @@ def _hac_pvalue(model: _Model, coef: NDArray[np.float64], cand: Sequence[int]) -
         if not idx:
             continue
         xs = x[:, keep]
-        scale = np.linalg.norm(xs, axis=0)
-        xs = xs / scale
+        xs = xs / np.linalg.norm(xs, axis=0)
         pos = np.cumsum(keep) - 1
         sel = [int(pos[i]) for i in idx]
-        r = y - x @ coef[:, a]
-        rho = min(max(_ar1(r), 0.0), 0.97)
-        alpha = 4.0 * rho ** 2 / ((1.0 - rho) ** 2 * (1.0 + rho) ** 2)
-        lags = int(min(max(math.ceil(1.1447 * (alpha * d.K) ** (1.0 / 3.0)), 1), d.K // 4))
-        res = sm.OLS(y, xs).fit(cov_type='HAC', cov_kwds={'maxlags': lags,
-                                                          'use_correction': True})
+        lags = _bandwidth(y - x @ coef[:, a])
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')   # near-collinear columns: the F test says so
+            res = sm.OLS(y, xs).fit(cov_type='HAC', cov_kwds={'maxlags': lags,
+                                                              'use_correction': True})
         b = np.asarray(res.params)[sel]
         v = np.asarray(res.cov_params())[np.ix_(sel, sel)]
         try:
             f = float(b @ np.linalg.solve(v, b)) / len(sel)
         except np.linalg.LinAlgError:
             continue
-        dof = max(d.K - xs.shape[1], 1)
+        dof = max(min(1.5 * d.K / lags, d.K - xs.shape[1]), 1.0)
         ps.append(float(stats.f.sf(f, len(sel), dof)))
     return min(1.0, 3.0 * min(ps)) if ps else 1.0
 
@@ -759,6 +786,8 @@ def _tau_bounds(data: _Data, eid: str) -> tuple[float, float]:
     longest = max(r.duration_s for r in data.runs)
     grid_step = max(float(g[0][1] - g[0][0]) if g[0].size > 1 else 1.0 for g in data.grids)
     lo = max(lo, 2.0 * grid_step)
+    if eid == 'warmup':
+        lo = max(lo, 3.0 * data.block_s)   # shorter decays are a dummy for the first block
     hi = min(hi, max(2.0 * longest, 4.0 * lo))
     return lo, hi
 
@@ -1047,8 +1076,8 @@ def _adev(data: _Data, model: _Model, coef: NDArray[np.float64]
 
 def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
              candidates: str | Sequence[str] | None = None, block_s: float = 10.0,
-             t0: float | None = None, alpha: float = 0.01, min_heldout: float = 0.05,
-             min_effect: float = 0.3, alias_margin: float = 0.25, alias_corr: float = 0.9,
+             t0: float | None = None, alpha: float = 0.01, min_heldout: float = 0.1,
+             min_effect: float = 0.5, alias_margin: float = 0.25, alias_corr: float = 0.9,
              max_steps: int = 6, n_folds: int = 5, allan: bool = True) -> DiscoveryResult:
     """
     Find the effects a drift model is missing, one step at a time.
