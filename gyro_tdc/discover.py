@@ -62,7 +62,7 @@ from scipy import stats
 from scipy.optimize import minimize_scalar
 
 __all__ = ['BinMap', 'CandidateScore', 'DiscoveryResult', 'Step', 'Unidentifiable',
-           'build_model', 'discover', 'format_summary', 'write_report']
+           'build_model', 'discover', 'format_summary', 'model_kind', 'write_report']
 
 _DEG = 180.0 / math.pi
 #: Effects whose time constant is fitted by the 1-D search.
@@ -736,12 +736,13 @@ def _bandwidth(r: NDArray[np.float64]) -> int:
     return int(min(max(lag, 1), max(k // 3, 1)))
 
 
-def _hac_pvalue(model: _Model, coef: NDArray[np.float64], cand: Sequence[int]) -> float:
+def _hac_pvalue(model: _Model, coef: NDArray[np.float64], cand: Sequence[int],
+                lags: Sequence[int]) -> float:
     """
     Return the HAC Wald p-value of the columns ``cand`` (smallest over axes, times 3).
 
     Newey-West (Bartlett) errors from statsmodels OLS with ``cov_type='HAC'``, the bandwidth
-    from the residual's integrated autocorrelation time (:func:`_bandwidth`); the Wald
+    ``lags[a]`` from the noise's integrated autocorrelation time (:func:`_noise_lags`); the Wald
     statistic is referred to an F distribution with the estimator's equivalent degrees of
     freedom, ``1.5 K / L`` (a long bandwidth leaves few independent pieces of information,
     so the test does not pretend to more).
@@ -761,10 +762,9 @@ def _hac_pvalue(model: _Model, coef: NDArray[np.float64], cand: Sequence[int]) -
         xs = xs / np.linalg.norm(xs, axis=0)
         pos = np.cumsum(keep) - 1
         sel = [int(pos[i]) for i in idx]
-        lags = _bandwidth(y - x @ coef[:, a])
         with warnings.catch_warnings():
             warnings.simplefilter('ignore')   # near-collinear columns: the F test says so
-            res = sm.OLS(y, xs).fit(cov_type='HAC', cov_kwds={'maxlags': lags,
+            res = sm.OLS(y, xs).fit(cov_type='HAC', cov_kwds={'maxlags': int(lags[a]),
                                                               'use_correction': True})
         b = np.asarray(res.params)[sel]
         v = np.asarray(res.cov_params())[np.ix_(sel, sel)]
@@ -772,7 +772,7 @@ def _hac_pvalue(model: _Model, coef: NDArray[np.float64], cand: Sequence[int]) -
             f = float(b @ np.linalg.solve(v, b)) / len(sel)
         except np.linalg.LinAlgError:
             continue
-        dof = max(min(1.5 * d.K / lags, d.K - xs.shape[1]), 1.0)
+        dof = max(min(1.5 * d.K / lags[a], d.K - xs.shape[1]), 1.0)
         ps.append(float(stats.f.sf(f, len(sel), dof)))
     return min(1.0, 3.0 * min(ps)) if ps else 1.0
 
@@ -888,15 +888,39 @@ def _excitation(data: _Data, base: Sequence[str]) -> tuple[dict, list[str]]:
     return out, notes
 
 
+def _candidate_params(data: _Data, model: _Model, eid: str) -> dict:
+    """Return the model's parameters plus those of candidate ``eid`` (its tau fitted)."""
+    params = {k: dict(v) for k, v in model.params.items()}
+    if eid in _NONLINEAR:
+        effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
+        params = _fit_taus(data, effects, params, [eid])
+    return params
+
+
+def _noise_lags(data: _Data, model: _Model, todo: Sequence[str], cparams: Mapping) -> list:
+    """
+    Return per-axis HAC bandwidths from the residual of the richest model.
+
+    The memory of the noise is measured on the residual of the model plus every candidate
+    (each with its fitted time constant), so that a second effect not yet in the model does
+    not pass for long-memory noise and hide the first.
+    """
+    params = {k: dict(v) for k, v in model.params.items()}
+    for eid in todo:
+        if eid in _NONLINEAR:
+            params[eid] = dict(cparams[eid][eid])
+    effects = tuple(e for e in EFFECTS if e in set(model.effects) | set(todo))
+    rich = _Model(data, effects, params)
+    r = data.y - rich.predict(rich.fit())
+    return [_bandwidth(r[:, a] * data.sw) for a in range(3)]
+
+
 def _score(data: _Data, model: _Model, coef_m: NDArray[np.float64], sse_m: float,
-           mse_ho_m: float, folds: list, eid: str, *, n_cand: int, alpha: float,
-           min_heldout: float, min_effect: float
+           mse_ho_m: float, folds: list, eid: str, params: dict, *, lags: Sequence[int],
+           n_cand: int, alpha: float, min_heldout: float, min_effect: float
            ) -> tuple[CandidateScore, NDArray[np.float64] | None, dict]:
     """Score one candidate against ``model``; returns the score, its contribution and params."""
     effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
-    params = {k: dict(v) for k, v in model.params.items()}
-    if eid in _NONLINEAR:
-        params = _fit_taus(data, effects, params, [eid])
     cand = _Model(data, effects, params)
     idx = cand.columns_of(eid)
     own = dict(params[eid]) if eid in _NONLINEAR else {}
@@ -919,7 +943,7 @@ def _score(data: _Data, model: _Model, coef_m: NDArray[np.float64], sse_m: float
     mse_ho = float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
     gain = (mse_ho_m - mse_ho) * _DEG ** 2
     eff = math.sqrt(max(sse_m - sse, 0.0) / (3.0 * data.w.sum())) * _DEG
-    p = _hac_pvalue(cand, coef, idx)
+    p = _hac_pvalue(cand, coef, idx, lags)
     floor = data.floor * _DEG
     why = []
     if p >= alpha / max(n_cand, 1):
@@ -1169,10 +1193,12 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         mse_ho_m = float((data.w[:, None] * ho_m * ho_m).sum() / (3.0 * data.w.sum()))
         todo = [e for e in cand_ids if e not in effects and e not in unident]
         results = []
+        cparams = {eid: _candidate_params(data, model, eid) for eid in todo}
+        lags = _noise_lags(data, model, todo, cparams) if todo else [1, 1, 1]
         for eid in todo:
             sc, contrib, p = _score(data, model, coef_m, sse_m, mse_ho_m, folds, eid,
-                                    n_cand=len(todo), alpha=alpha, min_heldout=min_heldout,
-                                    min_effect=min_effect)
+                                    cparams[eid], lags=lags, n_cand=len(todo), alpha=alpha,
+                                    min_heldout=min_heldout, min_effect=min_effect)
             if sc.why_not == 'collinear':
                 if eid not in collinear:
                     collinear.append(eid)
@@ -1306,7 +1332,31 @@ def _check(runs: Sequence[Run], block_s: float) -> None:
                 raise FitError(f'Run {r.name!r} has non-finite values in `{key}`.')
 
 
-def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'poly',
+def model_kind(effects: Sequence[str]) -> str:
+    """
+    Return the model kind that holds what discovery fitted for ``effects``.
+
+    ``poly`` is exactly the linear model discovery validated, except when ``lag`` meets a
+    curvature (``dT2``, ``dT3``): the die's curvature then needs powers of the lagged
+    temperature, which a ``poly`` model of the catalog features cannot hold and an ``rbf``
+    network over them can.
+
+    Parameters
+    ----------
+    effects : sequence of str
+        Effect ids.
+
+    Returns
+    -------
+    str
+        ``'poly'`` or ``'rbf'``.
+
+    """
+    ids = set(effects)
+    return 'rbf' if 'lag' in ids and ids & {'dT2', 'dT3'} else 'poly'
+
+
+def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | None = None,
                 created: Mapping | None = None):
     """
     Fit the compensation model of the discovered effects, ready for ``save_model``.
@@ -1322,8 +1372,8 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'po
         What :func:`discover` returned for ``runs``.
     runs : sequence of Run
         The same runs.
-    kind : str
-        ``'poly'`` (default: exactly the linear model discovery validated) or ``'rbf'``.
+    kind : str, optional
+        ``'poly'`` or ``'rbf'``; default :func:`model_kind` of the final effects.
     created : mapping, optional
         Extra creation info (command line, bags).
 
@@ -1349,6 +1399,7 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'po
                          'noise_floor_dps': result.noise_floor_dps,
                          'gain_removed': [float(g) for g in gain]}}
     info.update(dict(created or {}))
+    kind = model_kind(result.final_effects) if kind is None else kind
     return fit_model(adjusted, kind=kind, features=result.final_effects, t0=result.t0_c,
                      fit_params=False, params=result.params, created=info)
 

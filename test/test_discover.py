@@ -34,8 +34,9 @@ import math
 from gyro_tdc.bagio import write_bag
 from gyro_tdc.cli.discover import main
 from gyro_tdc.dataset import load_runs
-from gyro_tdc.discover import discover
-from gyro_tdc.modelfile import load_model
+from gyro_tdc.discover import build_model, discover
+from gyro_tdc.model import compensate
+from gyro_tdc.modelfile import load_model, save_model
 from gyro_tdc.sim.simulator import simulate_run
 import numpy as np
 import pytest
@@ -170,11 +171,22 @@ def test_two_hidden_effects_dT2_and_lag(tmp_path):
     sc = calibrate(sc, 'lag', 0.5, 11)
     sc['gyro']['effects'] = ['bias', 'dT', 'dT2', 'lag']
     sc = calibrate(sc, 'dT2', 0.5, 11)
-    res = discover(load_runs(write_runs(tmp_path, sc, 11)), allan=False)
+    runs = load_runs(write_runs(tmp_path, sc, 11))
+    res = discover(runs, allan=False)
     check_found(res, {'dT2', 'lag'})
     lag = next(s for s in res.steps if 'lag' in (s.effect, *s.aliases))
     if lag.effect == 'lag':
         assert 100.0 < lag.params['tau_s'] < 250.0     # simulated die lag: 150 s
+    # The model file holds it: lag meets dT2, so an RBF over (dT, dT2, lag) is written.
+    path = save_model(build_model(res, runs), tmp_path / 'm.yaml')
+    model = load_model(path)
+    assert model.kind == 'rbf' and model.features == res.final_effects
+    for run in runs:
+        err = compensate(model, run.t, run.temp, run.omega) - run.omega_ref
+        err -= err.mean(axis=0)                       # the node re-anchors its offset
+        n = len(err) // 20 * 20
+        block = err[:n].reshape(-1, 20, 3).mean(axis=1)   # 10-s means at 2 Hz
+        assert np.sqrt((block ** 2).mean()) / DEG < 1.3 * res.noise_floor_dps
 
 
 NULLS = [('heat-cool', 21, {}), ('heat-cool', 22, {'rate_hz': 2.0}),

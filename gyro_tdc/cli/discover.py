@@ -63,9 +63,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--out', default=None, metavar='MODEL.yaml',
                    help='write a model file of the discovered effects (compensator_node loads '
                         'it)')
-    p.add_argument('--kind', default='poly', choices=KINDS,
+    p.add_argument('--kind', default=None, choices=KINDS,
                    help='model of --out: poly (linear in the features, what discovery '
-                        'validated) or rbf (default: %(default)s)')
+                        'validated) or rbf (default: poly, or rbf when lag meets dT2/dT3: '
+                        'the lagged die temperature then enters the curvature too)')
     p.add_argument('--block-s', type=_positive_float, default=10.0, metavar='S',
                    help='block length in s; gaps and the noise floor are RMS of block means '
                         '(default: %(default)s)')
@@ -146,8 +147,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                             created={'command': command_line('discover', argv),
                                      'bags': [r.name for r in runs]})
         model_file = str(save_model(model, args.out))
-        print(f'wrote model {model_file} (features {", ".join(model.features)}, '
-              f'model_id {model.model_id})')
+        print(f'wrote model {model_file} ({model.kind}, features '
+              f'{", ".join(model.features)}, model_id {model.model_id})')
     if args.report is not None:
         path = write_report(result, args.report)
         print(f'wrote report {path}')
