@@ -274,6 +274,10 @@ class DiscoveryResult:
         Caveats about this data (confounded candidates, untestable hysteresis...).
     settings : dict
         Thresholds used.
+    adev_tau_s : NDArray[np.float64], shape (M,), s
+        Allan deviation averaging times of the final residual (empty without ``allan``).
+    adev_dps : NDArray[np.float64], shape (M,), deg/s
+        Allan deviation of the final residual (longest run, full rate, RMS over axes).
 
     """
 
@@ -296,6 +300,8 @@ class DiscoveryResult:
     blocks: int
     notes: tuple[str, ...]
     settings: dict
+    adev_tau_s: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), repr=False)
+    adev_dps: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), repr=False)
 
     @property
     def named(self) -> tuple[str, ...]:
@@ -393,6 +399,7 @@ class _Data:
             'dT3', 'noise')}
         self.grids: list[tuple] = []
         white = []
+        span = 0.0
         start = 0
         for r, run in enumerate(runs):
             t = np.asarray(run.t, dtype=np.float64)
@@ -411,6 +418,7 @@ class _Data:
                 ids[a:b] = nb + np.minimum(np.arange(m) // per, full + extra - 1)
                 nb += full + extra
             cnt = np.bincount(ids, minlength=nb).astype(np.float64)
+            span += n * med
 
             def bmean(v: NDArray[np.float64], ids=ids, nb=nb, cnt=cnt) -> NDArray[np.float64]:
                 return np.bincount(ids, weights=v, minlength=nb) / cnt
@@ -465,6 +473,7 @@ class _Data:
         self.n = cat['n']
         self.K = int(self.n.shape[0])
         self.w = self.n / self.n.mean()
+        self.block_eff_s = span / self.K     # mean duration of a block
         self.sw = np.sqrt(self.w)
         self.t = cat['t']
         self.tfirst = cat['tfirst']
@@ -1259,6 +1268,10 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
                 f'({", ".join(effects)})', EFFECTS[eid].excited_by[0].upper()
                 + EFFECTS[eid].excited_by[1:] + '.')
     final_coef = _coef_dict(data, model, coef)
+    if allan:
+        adev = adev_cache or _adev(data, model, coef)
+    else:
+        adev = (np.zeros(0), np.zeros(0))
     return DiscoveryResult(
         base_effects=base_ids, final_effects=effects,
         params={k: dict(v) for k, v in params.items() if k in effects and k in _NONLINEAR},
@@ -1272,7 +1285,9 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         settings={'alpha': alpha, 'min_heldout': min_heldout, 'min_effect': min_effect,
                   'alias_margin': alias_margin, 'alias_corr': alias_corr,
                   'folds': 'leave-one-run-out' if data.n_runs >= 2 else
-                  f'{len(folds)} blocked folds', 'block_s': float(block_s)})
+                  f'{len(folds)} blocked folds', 'block_s': float(block_s),
+                  'block_mean_s': float(data.block_eff_s)},
+        adev_tau_s=adev[0], adev_dps=adev[1])
 
 
 def _confounded(data: _Data, model: _Model, scores: Sequence[CandidateScore],
@@ -1424,8 +1439,9 @@ def format_summary(result: DiscoveryResult) -> str:
         f'T0 = {result.t0_c:.2f} degC',
         f'base model: {", ".join(result.base_effects)}  '
         f'(one offset per run; cross-validation: {result.settings["folds"]})',
-        f'noise floor: {result.noise_floor_dps:.3g} deg/s on {result.block_s:g}-s means '
-        f'(white noise {result.white_noise_dps:.3g} deg/s per sample)',
+        f'noise floor: {result.noise_floor_dps:.3g} deg/s on block means of '
+        f'{result.settings["block_mean_s"]:.3g} s (white noise {result.white_noise_dps:.3g} '
+        'deg/s per sample); gaps are RMS of block means',
     ]
     if not result.steps:
         lines.append('no missing effect found: no candidate is significant, gains on held-out '
@@ -1495,6 +1511,8 @@ def _plot_maps(maps_rows: Sequence[tuple[str, Sequence[BinMap]]], path: Path) ->
                 fl = ok & m.flagged[:, a]
                 ax.plot(x[fl], y[fl], 'o', mfc='none', mec='red', ms=9)
             ax.axhline(0.0, color='k', lw=0.5)
+            if m.name == 'time' and np.nanmin(m.centers) > 0:
+                ax.set_xscale('log')
             ax.set_xlabel(m.label)
             ax.set_title(f'{title}: by {m.name} ({m.n_flagged} flagged)', fontsize=9)
             if j == 0:
@@ -1517,14 +1535,17 @@ def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
         if i == 0:
             curves.append((', '.join(result.base_effects), s.adev_tau_s, s.adev_before_dps))
         curves.append((f'+ {s.effect}', s.adev_tau_s, s.adev_after_dps))
+    if not curves and result.adev_tau_s.size:
+        curves.append((', '.join(result.final_effects), result.adev_tau_s, result.adev_dps))
     if not curves:
         return False
     fig = Figure(figsize=(6.0, 4.2), constrained_layout=True)
     ax = fig.subplots()
     for label, tau, dev in curves:
         ax.loglog(tau, dev, marker='.', label=label)
-    ax.plot([result.block_s], [result.noise_floor_dps], 'k*', ms=10,
-            label=f'noise floor at {result.block_s:g} s')
+    tb = result.settings.get('block_mean_s', result.block_s)
+    ax.plot([tb], [result.noise_floor_dps], 'k*', ms=10,
+            label=f'noise floor (block means, {tb:.3g} s)')
     ax.set_xlabel('averaging time tau (s)')
     ax.set_ylabel('Allan deviation of the residual (deg/s)')
     ax.grid(True, which='both', lw=0.3)
@@ -1557,8 +1578,9 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
           f'{result.block_s:g} s; T0 = {result.t0_c:.2f} degC).', '',
           f'Base model: **{", ".join(result.base_effects)}** (one offset per run). '
           f'Cross-validation: {result.settings["folds"]}.', '',
-          f'Noise floor: **{result.noise_floor_dps:.4g} deg/s** on {result.block_s:g}-s block '
-          f'means (x, y, z: ' + ', '.join(f'{v:.3g}' for v in result.noise_floor_axes_dps)
+          f'Noise floor: **{result.noise_floor_dps:.4g} deg/s** on block means of '
+          f'{result.settings["block_mean_s"]:.3g} s (x, y, z: '
+          + ', '.join(f'{v:.3g}' for v in result.noise_floor_axes_dps)
           + f'); white noise {result.white_noise_dps:.4g} deg/s per sample. The *gap* is the '
           'RMS over blocks and axes of measured minus simulated block means.', '']
     if not result.steps:
