@@ -359,6 +359,16 @@ def _sample_minutes(t: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.minimum(d, 10.0 * med) / 60.0
 
 
+def _coarse_rate(run: Run, *, points: int = 100_000) -> NDArray[np.float64]:
+    """Return :func:`temperature_rate` at every sample, computed on at most ``points``."""
+    n = len(run)
+    step = max(1, n // points)
+    if step == 1:
+        return temperature_rate(run.t, run.temp)
+    coarse = temperature_rate(run.t[::step], run.temp[::step])
+    return np.repeat(coarse, step)[:n]
+
+
 @dataclass
 class Coverage:
     """
@@ -426,7 +436,7 @@ def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
     """
     temp = np.concatenate([r.temp for r in runs])
     minutes = np.concatenate([_sample_minutes(r.t) for r in runs])
-    rate = np.concatenate([temperature_rate(r.t, r.temp) for r in runs])
+    rate = np.concatenate([_coarse_rate(r) for r in runs])
     lo, hi = float(temp.min()), float(temp.max())
     first = math.floor(lo / bin_c) * bin_c
     nb = max(1, int(math.floor((hi - first) / bin_c)) + 1)
