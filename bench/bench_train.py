@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Trainer vs bag read: is training a 1 h, 1 kHz bag within 1.5x of reading its raw bytes?
+Trainer vs bag read: training a 1 h, 1 kHz bag within 1.5x of reading its raw bytes.
 
 Writes (once, cached) a bag of 3.6 M ``sensor_msgs/Imu`` messages at 1 kHz and 3,600
 ``sensor_msgs/Temperature`` messages at 1 Hz over a realistic chamber cycle (soak, heating
