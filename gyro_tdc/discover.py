@@ -62,7 +62,8 @@ from scipy import stats
 from scipy.optimize import minimize_scalar
 
 __all__ = ['BinMap', 'CandidateScore', 'DiscoveryResult', 'Step', 'Unidentifiable',
-           'build_model', 'discover', 'format_summary', 'model_kind', 'write_report']
+           'build_model', 'discover', 'format_summary', 'model_features', 'model_kind',
+           'write_report']
 
 _DEG = 180.0 / math.pi
 #: Effects whose time constant is fitted by the 1-D search.
@@ -1410,13 +1411,45 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
     for r, run in enumerate(runs):
         omega = run.omega - (off[r] - mean_off)[None, :] - gain[None, :] * run.omega_ref
         adjusted.append(Run(run.t, run.temp, omega, run.omega_ref, run.name, dict(run.info)))
+    features = model_features(result, runs)
     info = {'discover': {'final_effects': list(result.final_effects),
                          'noise_floor_dps': result.noise_floor_dps,
                          'gain_removed': [float(g) for g in gain]}}
     info.update(dict(created or {}))
-    kind = model_kind(result.final_effects) if kind is None else kind
-    return fit_model(adjusted, kind=kind, features=result.final_effects, t0=result.t0_c,
+    kind = model_kind(features) if kind is None else kind
+    return fit_model(adjusted, kind=kind, features=features, t0=result.t0_c,
                      fit_params=False, params=result.params, created=info)
+
+
+def model_features(result: DiscoveryResult, runs: Sequence[Run]) -> tuple[str, ...]:
+    """
+    Return the effects of the model file: the final effects the data can support.
+
+    With a temperature span under :data:`gyro_tdc.fitting.MIN_SPAN_C` (a warm-up test at a
+    fixed ambient) the temperature effects, base ``dT`` included, are left out: the data say
+    nothing about them.
+
+    Parameters
+    ----------
+    result : DiscoveryResult
+        A discovery.
+    runs : sequence of Run
+        The runs it analysed.
+
+    Returns
+    -------
+    tuple of str
+        Effect ids, catalog order.
+
+    """
+    from gyro_tdc.fitting import MIN_SPAN_C
+
+    lo = min(float(np.min(r.temp)) for r in runs)
+    hi = max(float(np.max(r.temp)) for r in runs)
+    if hi - lo >= MIN_SPAN_C:
+        return tuple(result.final_effects)
+    thermal = {'dT', 'dT2', 'dT3', 'dTdt', 'lag', 'scale'}
+    return tuple(e for e in result.final_effects if e not in thermal)
 
 
 def format_summary(result: DiscoveryResult) -> str:

@@ -164,6 +164,9 @@ def test_hidden_effect_is_named(tmp_path, name, hidden, k, seed, opts):
     runs = load_runs(write_runs(tmp_path, sc, seed))
     res = discover(runs, allan=False)
     check_found(res, hidden)
+    if effect in ('lag', 'dTdt'):     # on ramps the two are one family: reported as aliases
+        step = res.steps[0]
+        assert {'lag', 'dTdt'} == {step.effect, *step.aliases}
 
 
 def test_two_hidden_effects_dT2_and_lag(tmp_path):
@@ -314,3 +317,32 @@ def test_api_rejects_bad_runs():
         discover([ok])
     with pytest.raises(FitError, match='block_s'):
         discover([ok], block_s=-1.0)
+
+
+def test_base_that_holds_the_effect_leaves_nothing_to_add():
+    from synth import synth_run
+
+    run = synth_run(seed=3, a2=(0.0, 0.0, 0.0), tau_die=300.0, cooling=True)
+    res = discover([run], base='bias,dT,lag', allan=False)
+    assert res.base_effects == ('bias', 'dT', 'lag') and res.steps == ()
+    assert abs(res.params['lag']['tau_s'] - 300.0) < 30.0
+
+
+def test_warmup_at_fixed_ambient_gives_a_warmup_only_model():
+    from gyro_tdc.runs import Run
+
+    # Power-on at a fixed 25 degC (no temperature span): bias + warm-up (tau 240 s).
+    n = 3600 * 2
+    t = np.arange(n) / 2.0
+    rng = np.random.default_rng(5)
+    omega = (0.1 + 0.05 * np.exp(-t / 240.0))[:, None] * DEG * np.array([1.0, -0.6, 0.4])
+    omega = omega + rng.normal(0.0, 0.05 * DEG, (n, 3))
+    run = Run(t, np.full(n, 25.0), omega, np.zeros((n, 3)), 'flat')
+    res = discover([run], allan=False)
+    assert res.named == ('warmup',)
+    assert abs(res.params['warmup']['tau_s'] - 240.0) < 60.0
+    why = {u.effect: u.reason for u in res.unidentifiable}
+    assert {'dT2', 'dT3', 'dTdt', 'lag', 'scale'} <= set(why)
+    assert 'spans only' in why['dT2']
+    model = build_model(res, [run])
+    assert model.features == ('bias', 'warmup') and model.kind == 'poly'
