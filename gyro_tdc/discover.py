@@ -662,7 +662,7 @@ class _Model:
         r = self.residual()
         return float((self.data.w[:, None] * r * r).sum())
 
-    def cv_residual(self, folds: Sequence[NDArray[np.bool_]]) -> NDArray[np.float64]:
+    def cv_residual(self, folds: Sequence[tuple]) -> NDArray[np.float64]:
         """
         Return held-out residuals (K, 3): each block predicted by a fit without its fold.
 
@@ -672,8 +672,7 @@ class _Model:
         """
         d = self.data
         out = np.empty((d.K, 3))
-        for test in folds:
-            train = ~test
+        for test, train in folds:
             coef = self.fit(train)
             pred = self.predict(coef)
             r = d.y[test] - pred[test]
@@ -701,15 +700,30 @@ def _gap(data: _Data, r: NDArray[np.float64]) -> float:
     return float(np.sqrt((data.w[:, None] * r * r).sum() / (3.0 * data.w.sum()))) * _DEG
 
 
-def _folds(data: _Data, n_folds: int) -> list[NDArray[np.bool_]]:
-    """Leave-one-run-out folds with several runs; otherwise interleaved contiguous segments."""
+def _folds(data: _Data, memory: int, max_folds: int = 20) -> list[tuple]:
+    """
+    Return cross-validation folds as ``(test, train)`` row masks.
+
+    Several runs: leave one run out. One run: leave one contiguous segment out, with a
+    buffer of ``memory`` blocks (the noise memory) on each side left out of the training rows
+    (h-block cross-validation), so that a slow non-thermal excursion cannot leak from the
+    training rows into the held-out ones; segments are at least three memories long.
+    """
     if data.n_runs >= 2:
-        return [data.run == r for r in range(data.n_runs)]
+        return [(data.run == r, data.run != r) for r in range(data.n_runs)]
     k = data.K
-    n_seg = int(min(4 * n_folds, max(k // 3, 2)))
+    n_seg = int(np.clip(k // max(3 * memory, 10), 2, max_folds))
     seg = np.minimum(np.arange(k) * n_seg // k, n_seg - 1)
-    nf = min(n_folds, n_seg)
-    return [seg % nf == f for f in range(nf)]
+    out = []
+    for f in range(n_seg):
+        test = seg == f
+        idx = np.flatnonzero(test)
+        train = np.ones(k, dtype=bool)
+        train[max(idx[0] - memory, 0):idx[-1] + memory + 1] = False
+        if np.count_nonzero(train) < 4:
+            train = ~test
+        out.append((test, train))
+    return out
 
 
 def _ar1(r: NDArray[np.float64]) -> float:
@@ -721,14 +735,16 @@ def _ar1(r: NDArray[np.float64]) -> float:
     return float(c[1:] @ c[:-1]) / den if den > 0 else 0.0
 
 
-def _bandwidth(r: NDArray[np.float64]) -> int:
+def _bandwidth(r: NDArray[np.float64], *, floor: bool = True) -> int:
     """
     Return a Newey-West bandwidth (lags) that covers the residual's memory.
 
     Sokal's automatic window on the integrated autocorrelation time: the smallest ``M`` with
     ``M >= 5 (1 + 2 sum_{l<=M} rho_l)``. Unlike an AR(1) plug-in it sees a weak but slow
     component (bias instability) under white noise, which is what makes a smooth candidate
-    look significant when it is not.
+    look significant when it is not. With ``floor`` the bandwidth is at least ``1.3 sqrt(K)``
+    (the rule of Lazarus, Lewis, Stock and Watson for a test's bandwidth); without, it is the
+    noise memory itself.
     """
     k = r.shape[0]
     c = r - r.mean()
@@ -742,7 +758,8 @@ def _bandwidth(r: NDArray[np.float64]) -> int:
     m = np.arange(1, k)
     ok = np.flatnonzero(m >= 5.0 * tau)
     lag = int(m[ok[0]]) if ok.size else k // 3
-    lag = max(lag, int(math.ceil(1.3 * math.sqrt(k))))
+    if floor:
+        lag = max(lag, int(math.ceil(1.3 * math.sqrt(k))))
     return int(min(max(lag, 1), max(k // 3, 1)))
 
 
@@ -907,9 +924,10 @@ def _candidate_params(data: _Data, model: _Model, eid: str) -> dict:
     return params
 
 
-def _noise_lags(data: _Data, model: _Model, todo: Sequence[str], cparams: Mapping) -> list:
+def _noise_lags(data: _Data, model: _Model, todo: Sequence[str], cparams: Mapping
+                ) -> tuple[list, int]:
     """
-    Return per-axis HAC bandwidths from the residual of the richest model.
+    Return per-axis HAC bandwidths and the noise memory (blocks) from the richest model.
 
     The memory of the noise is measured on the residual of the model plus every candidate
     (each with its fitted time constant), so that a second effect not yet in the model does
@@ -921,8 +939,9 @@ def _noise_lags(data: _Data, model: _Model, todo: Sequence[str], cparams: Mappin
             params[eid] = dict(cparams[eid][eid])
     effects = tuple(e for e in EFFECTS if e in set(model.effects) | set(todo))
     rich = _Model(data, effects, params)
-    r = data.y - rich.predict(rich.fit())
-    return [_bandwidth(r[:, a] * data.sw) for a in range(3)]
+    r = (data.y - rich.predict(rich.fit())) * data.sw[:, None]
+    memory = max(_bandwidth(r[:, a], floor=False) for a in range(3))
+    return [_bandwidth(r[:, a]) for a in range(3)], int(memory)
 
 
 def _score(data: _Data, model: _Model, coef_m: NDArray[np.float64], sse_m: float,
@@ -1112,7 +1131,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
              candidates: str | Sequence[str] | None = None, block_s: float = 10.0,
              t0: float | None = None, alpha: float = 0.01, min_heldout: float = 0.1,
              min_effect: float = 0.5, alias_margin: float = 0.25, alias_corr: float = 0.9,
-             max_steps: int = 6, n_folds: int = 5, allan: bool = True) -> DiscoveryResult:
+             max_steps: int = 6, max_folds: int = 20, allan: bool = True) -> DiscoveryResult:
     """
     Find the effects a drift model is missing, one step at a time.
 
@@ -1141,8 +1160,9 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         ...whose fitted contribution correlates at least this much with the best's is an alias.
     max_steps : int
         Most effects added.
-    n_folds : int
-        Cross-validation folds for a single run (several runs: leave one run out).
+    max_folds : int
+        Most cross-validation folds for a single run: contiguous segments, each left out
+        with a buffer of the noise memory (several runs: leave one run out).
     allan : bool
         Compute the Allan deviation of the residual before and after each step.
 
@@ -1187,7 +1207,6 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
     nonlin = [e for e in base_ids if e in _NONLINEAR]
     if nonlin:
         params = _fit_taus(data, base_ids, params, nonlin)
-    folds = _folds(data, n_folds)
     effects = base_ids
     model = _Model(data, effects, params)
     steps: list[Step] = []
@@ -1199,12 +1218,13 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         coef_m = model.fit()
         r_m = data.y - model.predict(coef_m)
         sse_m = float((data.w[:, None] * r_m * r_m).sum())
-        ho_m = model.cv_residual(folds)
-        mse_ho_m = float((data.w[:, None] * ho_m * ho_m).sum() / (3.0 * data.w.sum()))
         todo = [e for e in cand_ids if e not in effects and e not in unident]
         results = []
         cparams = {eid: _candidate_params(data, model, eid) for eid in todo}
-        lags = _noise_lags(data, model, todo, cparams) if todo else [1, 1, 1]
+        lags, memory = _noise_lags(data, model, todo, cparams)
+        folds = _folds(data, memory, max_folds)
+        ho_m = model.cv_residual(folds)
+        mse_ho_m = float((data.w[:, None] * ho_m * ho_m).sum() / (3.0 * data.w.sum()))
         for eid in todo:
             sc, contrib, p = _score(data, model, coef_m, sse_m, mse_ho_m, folds, eid,
                                     cparams[eid], lags=lags, n_cand=len(todo), alpha=alpha,
@@ -1286,7 +1306,8 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         settings={'alpha': alpha, 'min_heldout': min_heldout, 'min_effect': min_effect,
                   'alias_margin': alias_margin, 'alias_corr': alias_corr,
                   'folds': 'leave-one-run-out' if data.n_runs >= 2 else
-                  f'{len(folds)} blocked folds', 'block_s': float(block_s),
+                  f'leave-one-segment-out, {len(folds)} segments, buffer {memory} blocks',
+                  'block_s': float(block_s),
                   'block_mean_s': float(data.block_eff_s)},
         adev_tau_s=adev[0], adev_dps=adev[1])
 
