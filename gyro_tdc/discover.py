@@ -700,19 +700,22 @@ def _gap(data: _Data, r: NDArray[np.float64]) -> float:
     return float(np.sqrt((data.w[:, None] * r * r).sum() / (3.0 * data.w.sum()))) * _DEG
 
 
-def _folds(data: _Data, memory: int, max_folds: int = 20) -> list[tuple]:
+def _folds(data: _Data, memory: int, max_folds: int = 20) -> tuple[list[tuple], int]:
     """
     Return cross-validation folds as ``(test, train)`` row masks.
 
     Several runs: leave one run out. One run: leave one contiguous segment out, with a
     buffer of ``memory`` blocks (the noise memory) on each side left out of the training rows
     (h-block cross-validation), so that a slow non-thermal excursion cannot leak from the
-    training rows into the held-out ones; segments are at least three memories long.
+    training rows into the held-out ones; segments are three memories long where the data
+    allow (at least five segments; the buffer shrinks to half a segment for short data).
+    Returns the folds and the buffer used.
     """
     if data.n_runs >= 2:
-        return [(data.run == r, data.run != r) for r in range(data.n_runs)]
+        return [(data.run == r, data.run != r) for r in range(data.n_runs)], 0
     k = data.K
-    n_seg = int(np.clip(k // max(3 * memory, 10), 2, max_folds))
+    n_seg = int(np.clip(k // max(3 * memory, 3), min(5, max(k // 3, 2)), max_folds))
+    memory = int(min(memory, k // n_seg // 2))
     seg = np.minimum(np.arange(k) * n_seg // k, n_seg - 1)
     out = []
     for f in range(n_seg):
@@ -723,7 +726,7 @@ def _folds(data: _Data, memory: int, max_folds: int = 20) -> list[tuple]:
         if np.count_nonzero(train) < 4:
             train = ~test
         out.append((test, train))
-    return out
+    return out, memory
 
 
 def _ar1(r: NDArray[np.float64]) -> float:
@@ -1222,7 +1225,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         results = []
         cparams = {eid: _candidate_params(data, model, eid) for eid in todo}
         lags, memory = _noise_lags(data, model, todo, cparams)
-        folds = _folds(data, memory, max_folds)
+        folds, buffer = _folds(data, memory, max_folds)
         ho_m = model.cv_residual(folds)
         mse_ho_m = float((data.w[:, None] * ho_m * ho_m).sum() / (3.0 * data.w.sum()))
         for eid in todo:
@@ -1306,7 +1309,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         settings={'alpha': alpha, 'min_heldout': min_heldout, 'min_effect': min_effect,
                   'alias_margin': alias_margin, 'alias_corr': alias_corr,
                   'folds': 'leave-one-run-out' if data.n_runs >= 2 else
-                  f'leave-one-segment-out, {len(folds)} segments, buffer {memory} blocks',
+                  f'leave-one-segment-out, {len(folds)} segments, buffer {buffer} blocks',
                   'block_s': float(block_s),
                   'block_mean_s': float(data.block_eff_s)},
         adev_tau_s=adev[0], adev_dps=adev[1])
