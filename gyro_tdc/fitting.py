@@ -43,8 +43,7 @@ import warnings
 from gyro_tdc import __version__
 from gyro_tdc.effects import batch_features, EFFECTS, input_ids, normalise_ids, resolve_params
 from gyro_tdc.errors import FitError
-from gyro_tdc.metrics import bias_stability, rms_dps
-from gyro_tdc.model import compensate, CompensationModel, KINDS, rbf_design
+from gyro_tdc.model import CompensationModel, KINDS, rbf_design
 from gyro_tdc.runs import Run
 import numpy as np
 from numpy.typing import NDArray
@@ -101,8 +100,29 @@ class _Blocks:
         self.run = run
         self.t = _block_mean(run.t, block)
         self.temp = _block_mean(run.temp, block)
-        self.y = _block_mean(run.omega - run.omega_ref, block)
+        err = run.omega - run.omega_ref
+        self.y = _block_mean(err, block)
         self.block = block
+        n = len(run)
+        self.counts = np.full(self.y.shape[0], float(min(block, n)))
+        if n % block and block > 1:
+            self.counts[-1] = n % block
+        self.ss_raw = (err * err).sum(axis=0)
+        self.ss_within = self.scatter(np.zeros(3), 0.0)
+
+    def scatter(self, scale: NDArray[np.float64], t0: float) -> NDArray[np.float64]:
+        """
+        Return, per block, the sum of squared deviations from the block mean (per axis).
+
+        The error is taken after removing the sensitivity term ``scale * dT * omega_ref``,
+        which changes within a block when the rate table steps.
+        """
+        err = self.run.omega - self.run.omega_ref
+        if np.any(scale):
+            err = err - (self.run.temp - t0)[:, None] * self.run.omega_ref * scale
+        mean = _block_mean(err, self.block)
+        sq = _block_mean(err * err, self.block) * self.counts[:, None]
+        return sq - self.counts[:, None] * mean ** 2
 
     def features(self, ids: Sequence[str], t0: float, params: Mapping, *,
                  exact: bool) -> NDArray[np.float64]:
@@ -186,7 +206,7 @@ def _fit_linear(x: NDArray[np.float64], y: NDArray[np.float64],
     if scale_cols is not None:
         resid += scale_cols * scale
     return {'mean': mean, 'std': std, 'centers': centers, 'widths': widths, 'coef': coef,
-            'scale': scale, 'sse': float((resid ** 2).sum())}
+            'scale': scale, 'sse': float((resid ** 2).sum()), 'resid': resid}
 
 
 def _refine(x: NDArray[np.float64], y: NDArray[np.float64],
@@ -221,8 +241,11 @@ def _refine(x: NDArray[np.float64], y: NDArray[np.float64],
     centers, widths = unpack(sol.x)
     design = rbf_design((mean, std, centers, widths), x)
     coef, scale = _solve(design, y, scale_cols, ridge)
-    out = dict(fit, centers=centers, widths=widths, coef=coef, scale=scale)
-    return out
+    r = design @ coef - y
+    if scale_cols is not None:
+        r += scale_cols * scale
+    return dict(fit, centers=centers, widths=widths, coef=coef, scale=scale, resid=r,
+                sse=float((r ** 2).sum()))
 
 
 def _check_runs(runs: Sequence[Run], ids: Sequence[str]) -> None:
@@ -357,22 +380,22 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         widths=fit['widths'], weights=coef[1 + f:], intercept=coef[0], linear=coef[1:1 + f],
         scale=fit['scale'], temp_range_c=(lo, hi), residual_var=np.zeros(3),
         frame_id=frame_id, sensor_id=sensor_id, created=info)
-    sq = np.zeros(3)
-    comp = []
-    for r in runs:
-        c = compensate(model, r.t, r.temp, r.omega)
-        sq += ((c - r.omega_ref) ** 2).sum(axis=0)
-        comp.append(c)
-    residual_var = sq / n_total
-    omega_all = np.concatenate(comp)
-    ref_all = np.concatenate([r.omega_ref for r in runs])
+    # Training residual at full rate without a second pass over the samples: the drift
+    # moves slowly, so sum((y - b)^2) = within-block scatter + n_B * (block residual)^2.
+    # Compensation divides by (1 + s dT): so does the residual.
+    counts = np.concatenate([b.counts for b in blocks])
+    within = np.concatenate([b.scatter(fit['scale'], t0) if np.any(fit['scale'])
+                             else b.ss_within for b in blocks])
+    gain = 1.0 + (np.concatenate([b.temp for b in blocks]) - t0)[:, None] * fit['scale']
+    ss = ((within + counts[:, None] * fit['resid'] ** 2) / gain ** 2).sum(axis=0)
+    residual_var = np.maximum(ss, 0.0) / n_total
+    deg2 = (180.0 / math.pi) ** 2
     metrics = {
         'samples': int(n_total),
         'runs': [r.name for r in runs],
-        'train_bs_dps2': [float(v) for v in bias_stability(omega_all, ref_all)],
-        'train_rms_dps': [float(v) for v in rms_dps(omega_all - ref_all)],
-        'raw_bs_dps2': [float(v) for v in bias_stability(
-            np.concatenate([r.omega for r in runs]), ref_all)],
+        'train_bs_dps2': [float(v) for v in residual_var * deg2],
+        'train_rms_dps': [float(v) for v in np.sqrt(residual_var * deg2)],
+        'raw_bs_dps2': [float(v) for v in sum(b.ss_raw for b in blocks) / n_total * deg2],
     }
     return model.replace(residual_var=residual_var, metrics=metrics)
 

@@ -187,8 +187,15 @@ def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
     out[:, 0] = 1.0
     out[:, 1:1 + f] = xn
     if k:
-        d2 = ((xn[:, None, :] - centers[None, :, :]) ** 2).sum(axis=2)
-        np.exp(-d2 / (2.0 * widths ** 2), out=out[:, 1 + f:])
+        # Squared distances accumulated one input at a time: no (N, K, F) temporary.
+        phi = out[:, 1 + f:]
+        phi.fill(0.0)
+        for j in range(f):
+            diff = xn[:, j:j + 1] - centers[None, :, j]
+            diff *= diff
+            phi += diff
+        phi *= -1.0 / (2.0 * widths ** 2)
+        np.exp(phi, out=phi)
     return out
 
 

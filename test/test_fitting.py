@@ -133,3 +133,16 @@ def test_bad_training_data_raise_clear_errors():
         fit_model([run], kind='mlp')
     with pytest.raises(FitError, match='No training runs'):
         fit_model([])
+
+
+@pytest.mark.parametrize('features', ['dT,dT2', 'dT,dT2,scale'])
+def test_training_metrics_equal_the_full_rate_residual(features):
+    # The metrics come from block sums, not a second full-rate pass: check they agree.
+    run = synth_run(seed=17, hours=6.0, rate_hz=10.0, ref_dps=(10.0, 5.0, 20.0),
+                    ref_period_s=300.0, scale=(1e-3, 0.0, 2e-3), t_ref=-10.0)
+    model = fit_model([run], features=features, max_rows=20_000)
+    full = bias_stability(compensate(model, run.t, run.temp, run.omega), run.omega_ref)
+    np.testing.assert_allclose(model.metrics['train_bs_dps2'], full, rtol=1e-3)
+    np.testing.assert_allclose(model.residual_var, np.radians(np.sqrt(full)) ** 2, rtol=1e-3)
+    np.testing.assert_allclose(model.metrics['raw_bs_dps2'],
+                               bias_stability(run.omega, run.omega_ref), rtol=1e-9)
