@@ -46,6 +46,8 @@ os.environ.setdefault('ROS_DOMAIN_ID', str(150 + os.getpid() % 60))
 import argparse  # noqa: E402, I100
 import json  # noqa: E402
 from pathlib import Path  # noqa: E402
+import select  # noqa: E402
+import signal  # noqa: E402
 import statistics  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
@@ -81,6 +83,12 @@ def make_executor(kind, context=None):
     """Return an EventsExecutor ('events') or a SingleThreadedExecutor ('single')."""
     from gyro_tdc.nodes.compensator_node import make_executor as make
     return make(kind, context)
+
+
+def spin(executor):
+    """Spin until shutdown exactly as compensator_node's main() does."""
+    from gyro_tdc.nodes.compensator_node import spin as node_spin
+    node_spin(executor)
 
 
 def make_relay(context, ns):
@@ -153,14 +161,18 @@ class Sink:
         _, _, sink_qos = _qos()
         self.node = node
         self.data = {ns: ([], []) for ns in namespaces}
+        self.arrivals = {ns: [0, 0] for ns in namespaces}  # first, last arrival (ns)
         self.topics = {ns: f'/{ns}/imu/data_compensated' for ns in namespaces}
         for ns in namespaces:
             node.create_subscription(Imu, self.topics[ns], self._callback(ns), sink_qos)
 
     def _callback(self, ns):
-        def on_msg(msg, store=self.data, ns=ns):
+        def on_msg(msg, store=self.data, arrivals=self.arrivals[ns], ns=ns):
             now = time.time_ns()
             lat, seq = store[ns]
+            if not lat:
+                arrivals[0] = now
+            arrivals[1] = now
             st = msg.header.stamp
             lat.append(now - (st.sec * 1_000_000_000 + st.nanosec))
             seq.append(int(msg.orientation.x))
@@ -173,14 +185,15 @@ class Sink:
         """Return and reset the latencies (ns) and sequence numbers received on ``ns``."""
         lat, seq = self.data[ns]
         self.data[ns] = ([], [])
-        return lat, seq
+        first, last = self.arrivals[ns]
+        return lat, seq, (last - first) * 1e-9
 
 
 def summarise(lat_ns, seq, sent, elapsed_s, cpu_s=None):
-    """Turn one trial's raw records into figures."""
+    """Turn one trial's records into figures (throughput: messages over arrival span)."""
     received = len(lat_ns)
     out = {'sent': sent, 'received': received, 'drops': sent - received,
-           'throughput_hz': received / elapsed_s if elapsed_s > 0 else 0.0,
+           'throughput_hz': (received - 1) / elapsed_s if elapsed_s > 0 else 0.0,
            'reordered': sum(1 for a, b in zip(seq, seq[1:]) if b <= a)}
     if received:
         lat = sorted(lat_ns)
@@ -269,9 +282,8 @@ def _inproc_trial(ex, source, sink, ns, rate, duration):
     drain = time.monotonic() + 2.0
     while sink.count(ns) < sent and time.monotonic() < drain:
         ex.spin_once(timeout_sec=0.01)
-    elapsed = time.monotonic() - t0
-    lat, seq = sink.take(ns)
-    return summarise(lat, seq, sent, elapsed, time.process_time() - cpu0)
+    lat, seq, span = sink.take(ns)
+    return summarise(lat, seq, sent, span, time.process_time() - cpu0)
 
 
 # -- across processes -----------------------------------------------------------------
@@ -285,6 +297,7 @@ class Child:
         cmd = [sys.executable, str(Path(__file__).resolve()), '--role', role, *extra]
         self.proc = subprocess.Popen(cmd, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
                                      text=True, bufsize=1, env=dict(os.environ))
+        self.role = role
         self.ps = psutil.Process(self.proc.pid)
         hello = self.read()
         if not hello.get('ready'):
@@ -309,7 +322,10 @@ class Child:
         return self.ps.memory_info().rss / 2 ** 20
 
     def close(self):
+        """Stop the child: EOF on stdin for source and sink, SIGINT for a DUT."""
         try:
+            if self.role in DUTS:
+                self.proc.send_signal(signal.SIGINT)
             self.proc.stdin.close()
             self.proc.wait(timeout=10)
         except (OSError, subprocess.TimeoutExpired):
@@ -340,7 +356,6 @@ def _cross_trial(procs, ns, rate, duration):
     dut = procs[ns]
     procs['sink'].ask('take', ns)
     cpu0 = dut.cpu_s()
-    t0 = time.monotonic()
     sent = procs['source'].ask('run', ns, rate, duration)['sent']
     # Drain: wait until everything arrived or nothing more arrives for 0.5 s.
     last, still = -1, time.monotonic()
@@ -355,9 +370,7 @@ def _cross_trial(procs, ns, rate, duration):
         time.sleep(0.02)
     cpu = dut.cpu_s() - cpu0
     rec = procs['sink'].ask('take', ns)
-    elapsed = (rec['last_arrival_ns'] - rec['first_stamp_ns']) / 1e9 if rec['lat'] else \
-        time.monotonic() - t0
-    return summarise(rec['lat'], rec['seq'], sent, elapsed, cpu)
+    return summarise(rec['lat'], rec['seq'], sent, rec['span_s'], cpu)
 
 
 def run_cross(args, model_file):
@@ -440,10 +453,11 @@ def role_main(args):
                     make_compensator(None, namespaces[0], args.model, args.executor))
             ex = make_executor(args.executor)
             ex.add_node(node)
-            threading.Thread(target=_exit_on_eof, daemon=True).start()
+            # As compensator_node's main(): a spin_once loop (EventsExecutor.spin() dispatches
+            # nothing in the rclpy 7.1.6 wheels). The harness stops us with SIGINT.
             _reply({'ready': True, 'pid': os.getpid()})
             try:
-                ex.spin()
+                spin(ex)
             except (KeyboardInterrupt, ExternalShutdownException):
                 pass
             return
@@ -454,11 +468,6 @@ def role_main(args):
             _sink_loop(Sink(node, namespaces), node)
     finally:
         rclpy.try_shutdown()
-
-
-def _exit_on_eof():
-    sys.stdin.read()
-    os._exit(0)
 
 
 def _reply(obj):
@@ -502,27 +511,42 @@ def _source_loop(source, node):
 
 
 def _sink_loop(sink, node):
+    """Spin the sink in this thread and answer commands between callbacks."""
     ex = make_executor('events')
     ex.add_node(node)
-    threading.Thread(target=ex.spin, daemon=True).start()
     _reply({'ready': True, 'pid': os.getpid()})
-    for line in sys.stdin:
-        words = line.split()
-        ns = words[1]
-        if words[0] == 'ready':
-            deadline = time.monotonic() + 15.0
-            while node.count_publishers(sink.topics[ns]) < 1 and time.monotonic() < deadline:
-                time.sleep(0.01)
-            _reply({'ok': node.count_publishers(sink.topics[ns]) >= 1})
-        elif words[0] == 'count':
-            _reply({'count': sink.count(ns)})
-        elif words[0] == 'take':
-            now = time.time_ns()
-            lat, seq = sink.take(ns)
-            first = now - lat[0] if lat else 0
-            _reply({'lat': lat, 'seq': seq, 'last_arrival_ns': now,
-                    'first_stamp_ns': first})
+    buffer = b''
+    next_poll = 0.0
+    while True:
+        ex.spin_once(timeout_sec=0.01)
+        now = time.monotonic()
+        if now < next_poll:
+            continue
+        next_poll = now + 0.005
+        if not select.select([sys.stdin], [], [], 0)[0]:
+            continue
+        chunk = os.read(sys.stdin.fileno(), 4096)
+        if not chunk:
+            break
+        buffer += chunk
+        while b'\n' in buffer:
+            line, buffer = buffer.split(b'\n', 1)
+            _sink_command(sink, node, line.decode().split())
     ex.shutdown()
+
+
+def _sink_command(sink, node, words):
+    ns = words[1]
+    if words[0] == 'ready':
+        deadline = time.monotonic() + 15.0
+        while node.count_publishers(sink.topics[ns]) < 1 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        _reply({'ok': node.count_publishers(sink.topics[ns]) >= 1})
+    elif words[0] == 'count':
+        _reply({'count': sink.count(ns)})
+    elif words[0] == 'take':
+        lat, seq, span = sink.take(ns)
+        _reply({'lat': lat, 'seq': seq, 'span_s': span})
 
 
 # -- report ---------------------------------------------------------------------------

@@ -17,7 +17,11 @@
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
+import signal
+import subprocess
+import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from gyro_tdc.compensation_logic import CompensatorCore, Policy
@@ -230,10 +234,11 @@ def test_no_temperature_yet_passes_through(models, rig_factory):
     assert values['messages in'] == values['messages out'] == '100'
 
 
-@pytest.mark.parametrize('policy', ['hold', 'passthrough'])
-def test_stale_temperature(models, rig_factory, policy):
+@pytest.mark.parametrize('policy,executor', [('hold', 'events'), ('passthrough', 'single')])
+def test_stale_temperature(models, rig_factory, policy, executor):
     path, model = models['paper']
-    rig = rig_factory(model_file=str(path), temperature_timeout=0.5, stale_policy=policy,
+    rig = rig_factory(executor_kind=executor, model_file=str(path), temperature_timeout=0.5,
+                      stale_policy=policy,
                       stale_variance=0.5, passthrough_variance=0.25)
     t0 = 1_700_000_100.0
     imu_ns = [to_ns(t0 + k * 0.01) for k in range(200)]  # 2 s of IMU, one temperature
@@ -253,7 +258,10 @@ def test_stale_temperature(models, rig_factory, policy):
     st = rig.node.diagnostic_status()
     assert st.level == DiagnosticStatus.WARN and 'temperature stale' in st.message
     assert float(diag_values(st)['temperature age s']) == pytest.approx(1.99, abs=1e-6)
+    # The 1 Hz timer publishes the same status on /diagnostics.
     spin_until(rig.executor, lambda: len(rig.diag) > 0, 5.0, what='/diagnostics')
+    assert rig.diag[-1].level == DiagnosticStatus.OK  # nothing new since the last status
+    assert diag_values(rig.diag[-1])['messages in'] == '200'
 
 
 @pytest.mark.parametrize('mode', ['clamp', 'extrapolate'])
@@ -318,10 +326,11 @@ def test_no_model_passes_through_with_error(rig_factory, tmp_path):
     assert 'malformed YAML' in st.message
 
 
-def test_reload_via_parameter_good_and_bad(models, rig_factory, tmp_path):
+@pytest.mark.parametrize('executor', ['single', 'events'])
+def test_reload_via_parameter_good_and_bad(models, rig_factory, tmp_path, executor):
     path_a, model_a = models['paper']
     path_b, model_b = models['dynamic']
-    rig = rig_factory(model_file=str(path_a))
+    rig = rig_factory(executor_kind=executor, model_file=str(path_a))
     client = AsyncParameterClient(rig.io, 'compensator_node')
     spin_until(rig.executor, lambda: client.services_are_ready(), 10.0)
 
@@ -348,11 +357,12 @@ def test_reload_via_parameter_good_and_bad(models, rig_factory, tmp_path):
     assert values['last reload'] == f'loaded {model_b.model_id}'
 
 
-def test_reload_service_good_and_bad(models, rig_factory, tmp_path):
+@pytest.mark.parametrize('executor', ['single', 'events'])
+def test_reload_service_good_and_bad(models, rig_factory, tmp_path, executor):
     src, model_a = models['paper']
     path = tmp_path / 'live.yaml'
     path.write_text(Path(src).read_text())
-    rig = rig_factory(model_file=str(path))
+    rig = rig_factory(executor_kind=executor, model_file=str(path))
     client = rig.io.create_client(Trigger, 'compensator_node/reload')
     spin_until(rig.executor, lambda: client.service_is_ready(), 10.0)
 
@@ -412,3 +422,64 @@ def test_config_file_matches_declared_parameters():
     # The file's policies make a valid pure-logic policy.
     CompensatorCore(Policy(**{k: v for k, v in params.items()
                               if k in Policy.__dataclass_fields__}))
+
+
+def test_main_runs_as_a_process_and_stops_on_sigint(models, ros_context, tmp_path):
+    """Run ``compensator_node`` main() (EventsExecutor) in a child process, params file."""
+    path, model = models['paper']
+    params = tmp_path / 'compensator.yaml'
+    doc = yaml.safe_load((CONFIG / 'compensator.yaml').read_text())
+    doc['compensator_node']['ros__parameters']['model_file'] = str(path)
+    params.write_text(yaml.safe_dump(doc))
+    child = subprocess.Popen(
+        [sys.executable, '-m', 'gyro_tdc.nodes.compensator_node', '--ros-args',
+         '--params-file', str(params)],
+        env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        io = rclpy.create_node('feeder', context=ros_context)
+        executor = make_executor('single', ros_context)
+        executor.add_node(io)
+        imu_pub = io.create_publisher(Imu, 'imu/data_raw', RELIABLE)
+        temp_pub = io.create_publisher(Temperature, 'imu/temperature', RELIABLE)
+        out = []
+        io.create_subscription(Imu, 'imu/data_compensated', out.append, RELIABLE)
+        spin_until(executor, lambda: imu_pub.get_subscription_count() > 0
+                   and temp_pub.get_subscription_count() > 0
+                   and io.count_publishers('imu/data_compensated') > 0, 15.0,
+                   what='discovery of the compensator process')
+        t0 = 1_700_000_400.0
+        temp = Temperature()
+        temp.header.stamp.sec = int(t0)
+        temp.temperature = 30.0
+        sent = []
+        for k in range(200):
+            msg = Imu()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(to_ns(t0 + 0.001 * (k + 1)),
+                                                                    10 ** 9)
+            msg.angular_velocity.x = 0.01
+            sent.append(msg)
+        # Until both subscriptions of the process are matched on its side too, a message
+        # may be lost: repeat the temperature and one probe sample until it comes back
+        # compensated.
+
+        def probe():
+            temp_pub.publish(temp)
+            imu_pub.publish(sent[0])
+            return any(abs(m.angular_velocity.x - 0.01) > 1e-9 for m in out)
+
+        spin_until(executor, probe, 10.0, what='compensation')
+        out.clear()
+        for msg in sent[1:]:
+            imu_pub.publish(msg)
+        spin_until(executor, lambda: len(out) >= 199, 10.0, what='199 outputs')
+        t = np.array([stamp_s(to_ns(t0 + 0.001 * (k + 1))) for k in range(1, 200)])
+        expect = compensate(model, t, np.full(199, 30.0), np.tile([0.01, 0, 0], (199, 1)))
+        np.testing.assert_allclose(rates(out), expect, rtol=0, atol=1e-9)
+        child.send_signal(signal.SIGINT)
+        assert child.wait(timeout=10) == 0
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    log = child.stdout.read()
+    assert f'model {model.model_id}' in log

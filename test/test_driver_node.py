@@ -17,8 +17,12 @@
 from __future__ import annotations
 
 import math
+import os
 from pathlib import Path
 import shutil
+import signal
+import subprocess
+import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Vector3Stamped
@@ -280,3 +284,25 @@ def test_sim_unknown_scenario_is_reported_not_fatal(ros_context, executor):
     st = node.diagnostic_status()
     assert st.level == DiagnosticStatus.ERROR and 'no_such_scenario' in st.message
     assert lis.imu == []
+
+
+def test_main_runs_as_a_process_with_the_sim_params_file(ros_context, executor):
+    """Run ``driver_node`` main() in a child process with config/driver_sim.yaml."""
+    child = subprocess.Popen(
+        [sys.executable, '-m', 'gyro_tdc.nodes.driver_node', '--ros-args',
+         '--params-file', str(CONFIG / 'driver_sim.yaml'), '-p', 'scenario:=demo_fast',
+         '-p', 'time_scale:=10.0', '-p', 'frame_id:=proc_imu'],
+        env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        lis = Listener(ros_context, executor)
+        spin_until(executor, lambda: len(lis.imu) >= 20 and len(lis.temp) >= 2, 20.0,
+                   what='messages from the driver process')
+        assert lis.imu[0].header.frame_id == 'proc_imu'
+        assert lis.imu[0].orientation_covariance[0] == -1.0
+        child.send_signal(signal.SIGINT)
+        assert child.wait(timeout=10) == 0
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+    assert 'sim back-end' in child.stdout.read()

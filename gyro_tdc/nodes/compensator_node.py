@@ -398,6 +398,26 @@ def make_executor(kind: str, context: Any = None) -> Any:
     return SingleThreadedExecutor(context=context)
 
 
+def spin(executor: Any, context: Any = None) -> None:
+    """
+    Run ``executor`` until its context shuts down.
+
+    The loop calls ``spin_once``: in the rclpy 7.1.6 Jazzy wheels
+    ``EventsExecutor.spin()`` dispatches nothing at all (neither timers nor
+    subscriptions) while its ``spin_once`` works and is the fast path.
+
+    Parameters
+    ----------
+    executor : rclpy.executors.Executor
+        The executor, nodes added.
+    context : rclpy.context.Context, optional
+        Its context (default: the global one).
+
+    """
+    while rclpy.ok(context=context):
+        executor.spin_once(timeout_sec=0.5)
+
+
 def main(args: list[str] | None = None) -> None:
     """Run the compensator node until shutdown (``ros2 run gyro_tdc compensator_node``)."""
     rclpy.init(args=args)
@@ -407,7 +427,7 @@ def main(args: list[str] | None = None) -> None:
         node = CompensatorNode()
         executor = make_executor(node.params.executor)
         executor.add_node(node)
-        executor.spin()
+        spin(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
