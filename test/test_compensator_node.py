@@ -483,3 +483,23 @@ def test_main_runs_as_a_process_and_stops_on_sigint(models, ros_context, tmp_pat
             child.wait()
     log = child.stdout.read()
     assert f'model {model.model_id}' in log
+
+
+def test_unexpected_failure_passes_the_sample_through(models, rig_factory):
+    path, model = models['paper']
+    rig = rig_factory(model_file=str(path), passthrough_variance=0.25)
+
+    def broken(*args):
+        rig.node.core.counts['in'] += 1
+        raise FloatingPointError('overflow in the model')
+
+    rig.node.core.process = broken
+    imu_ns, omega, temp_ns, temp_c = warming_stream(n=30)
+    sent = rig.feed(imu_ns, omega, temp_ns, temp_c)
+    np.testing.assert_array_equal(rates(rig.out), rates(sent))
+    assert all(o.angular_velocity_covariance[0] == 1e-6 + 0.25 for o in rig.out)
+    st = rig.node.diagnostic_status()
+    values = diag_values(st)
+    assert st.level == DiagnosticStatus.ERROR and 'overflow in the model' in st.message
+    assert values['messages in'] == values['messages out'] == '30'
+    assert values['errors'] == '30'

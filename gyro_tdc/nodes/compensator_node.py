@@ -186,6 +186,9 @@ class CompensatorNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
         self._temps_rejected_seen = 0
+        self._errors = 0
+        self._errors_seen = 0
+        self._last_error = ''
         self._flags_seen = dict(self.core.flag_counts)
         self._reported_anchor = None
         self.create_timer(1.0, self._on_diagnostics)
@@ -200,8 +203,13 @@ class CompensatorNode(Node):
             la = msg.linear_acceleration
             if msg.linear_acceleration_covariance[0] != -1.0:
                 a = (la.x, la.y, la.z)
-        wx, wy, wz, var, flags = self.core.process(
-            st.sec + st.nanosec * 1e-9, w.x, w.y, w.z, a)
+        try:
+            wx, wy, wz, var, flags = self.core.process(
+                st.sec + st.nanosec * 1e-9, w.x, w.y, w.z, a)
+        except Exception as exc:  # the callback edge: never lose the message
+            self._on_error(exc)
+            v = self.params.passthrough_variance
+            wx, wy, wz, var = w.x, w.y, w.z, (v, v, v)
         w.x, w.y, w.z = wx, wy, wz
         cov = msg.angular_velocity_covariance
         if cov[0] != -1.0:
@@ -209,6 +217,14 @@ class CompensatorNode(Node):
             cov[4] += var[1]
             cov[8] += var[2]
         self._pub.publish(msg)
+
+    def _on_error(self, exc: Exception) -> None:
+        """Count an unexpected compensation failure; the raw sample goes out flagged."""
+        self.core.counts['out'] += 1
+        self._errors += 1
+        self._last_error = f'{type(exc).__name__}: {exc}'
+        self.get_logger().error(f'compensation failed, raw rate passed through: '
+                                f'{self._last_error}', throttle_duration_sec=1.0)
 
     def _on_temperature(self, msg: Temperature) -> None:
         st = msg.header.stamp
@@ -321,6 +337,12 @@ class CompensatorNode(Node):
         if rejected:
             level = max(level, DiagnosticStatus.WARN)
             problems.append(f'non-finite temperature ({rejected} samples rejected)')
+        errors = self._errors - self._errors_seen
+        self._errors_seen = self._errors
+        if errors:
+            level = DiagnosticStatus.ERROR
+            problems.append(f'compensation failed on {errors} samples, passed through: '
+                            f'{self._last_error}')
         if problems:
             st.message = '; '.join(problems)
         elif core.counts['in'] == 0:
@@ -352,6 +374,7 @@ class CompensatorNode(Node):
             'no temperature yet': counts[NO_TEMPERATURE], 'stale': counts[STALE],
             'out of range': counts[OUT_OF_RANGE], 'non-finite': counts[NON_FINITE],
             'no model': counts[NO_MODEL], 'temperatures rejected': core.temps.rejected,
+            'errors': self._errors, 'last error': self._last_error,
             'reanchor': ('off' if not core.policy.reanchor_on_start else
                          'waiting for stillness' if anchor is None else
                          f'done at t={anchor.t:.3f} s'),
