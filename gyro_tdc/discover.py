@@ -700,33 +700,33 @@ def _gap(data: _Data, r: NDArray[np.float64]) -> float:
     return float(np.sqrt((data.w[:, None] * r * r).sum() / (3.0 * data.w.sum()))) * _DEG
 
 
-def _folds(data: _Data, memory: int, max_folds: int = 20) -> tuple[list[tuple], int]:
+def _folds(data: _Data, memory: int, n_folds: int = 5) -> tuple[list[tuple], int]:
     """
-    Return cross-validation folds as ``(test, train)`` row masks.
+    Return cross-validation folds as ``(test, train)`` row masks, and the buffer used.
 
-    Several runs: leave one run out. One run: leave one contiguous segment out, with a
-    buffer of ``memory`` blocks (the noise memory) on each side left out of the training rows
-    (h-block cross-validation), so that a slow non-thermal excursion cannot leak from the
-    training rows into the held-out ones; segments are three memories long where the data
-    allow (at least five segments; the buffer shrinks to half a segment for short data).
-    Returns the folds and the buffer used.
+    Several runs: leave one run out. One run: blocked cross-validation over up to
+    ``4 n_folds`` contiguous segments dealt round-robin into ``n_folds`` folds (so every fold
+    is predicted by interpolation, never by extrapolation in temperature), with a buffer of
+    ``memory`` blocks (the noise memory, at most one segment) on each side of every held-out
+    segment left out of the training rows (h-block cross-validation), so that slowly varying
+    noise cannot leak from the training rows into the held-out ones.
     """
     if data.n_runs >= 2:
         return [(data.run == r, data.run != r) for r in range(data.n_runs)], 0
     k = data.K
-    n_seg = int(np.clip(k // max(3 * memory, 3), min(5, max(k // 3, 2)), max_folds))
-    memory = int(min(memory, k // n_seg // 2))
+    n_seg = int(min(4 * n_folds, max(k // 3, 2)))
+    nf = min(n_folds, n_seg)
     seg = np.minimum(np.arange(k) * n_seg // k, n_seg - 1)
+    buffer = int(max(0, min(memory, k // n_seg)))
     out = []
-    for f in range(n_seg):
-        test = seg == f
-        idx = np.flatnonzero(test)
-        train = np.ones(k, dtype=bool)
-        train[max(idx[0] - memory, 0):idx[-1] + memory + 1] = False
-        if np.count_nonzero(train) < 4:
+    for f in range(nf):
+        test = seg % nf == f
+        near = np.convolve(test.astype(float), np.ones(2 * buffer + 1), mode='same') > 0.5
+        train = ~near
+        if np.count_nonzero(train) < max(4, k // 10):
             train = ~test
         out.append((test, train))
-    return out, memory
+    return out, buffer
 
 
 def _ar1(r: NDArray[np.float64]) -> float:
@@ -1133,8 +1133,8 @@ def _adev(data: _Data, model: _Model, coef: NDArray[np.float64]
 def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
              candidates: str | Sequence[str] | None = None, block_s: float = 10.0,
              t0: float | None = None, alpha: float = 0.01, min_heldout: float = 0.1,
-             min_effect: float = 0.5, alias_margin: float = 0.25, alias_corr: float = 0.9,
-             max_steps: int = 6, max_folds: int = 20, allan: bool = True) -> DiscoveryResult:
+             min_effect: float = 0.6, alias_margin: float = 0.25, alias_corr: float = 0.9,
+             max_steps: int = 6, n_folds: int = 5, allan: bool = True) -> DiscoveryResult:
     """
     Find the effects a drift model is missing, one step at a time.
 
@@ -1163,9 +1163,9 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         ...whose fitted contribution correlates at least this much with the best's is an alias.
     max_steps : int
         Most effects added.
-    max_folds : int
-        Most cross-validation folds for a single run: contiguous segments, each left out
-        with a buffer of the noise memory (several runs: leave one run out).
+    n_folds : int
+        Cross-validation folds for a single run (see :func:`_folds`; several runs: leave one
+        run out).
     allan : bool
         Compute the Allan deviation of the residual before and after each step.
 
@@ -1225,7 +1225,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         results = []
         cparams = {eid: _candidate_params(data, model, eid) for eid in todo}
         lags, memory = _noise_lags(data, model, todo, cparams)
-        folds, buffer = _folds(data, memory, max_folds)
+        folds, buffer = _folds(data, memory, n_folds)
         ho_m = model.cv_residual(folds)
         mse_ho_m = float((data.w[:, None] * ho_m * ho_m).sum() / (3.0 * data.w.sum()))
         for eid in todo:
@@ -1309,7 +1309,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         settings={'alpha': alpha, 'min_heldout': min_heldout, 'min_effect': min_effect,
                   'alias_margin': alias_margin, 'alias_corr': alias_corr,
                   'folds': 'leave-one-run-out' if data.n_runs >= 2 else
-                  f'leave-one-segment-out, {len(folds)} segments, buffer {buffer} blocks',
+                  f'{len(folds)} blocked folds, buffer {buffer} blocks',
                   'block_s': float(block_s),
                   'block_mean_s': float(data.block_eff_s)},
         adev_tau_s=adev[0], adev_dps=adev[1])
