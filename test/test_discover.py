@@ -331,11 +331,12 @@ def test_base_that_holds_the_effect_leaves_nothing_to_add():
 def test_warmup_at_fixed_ambient_gives_a_warmup_only_model():
     from gyro_tdc.runs import Run
 
-    # Power-on at a fixed 25 degC (no temperature span): bias + warm-up (tau 240 s).
+    # Power-on at a fixed 25 degC (no temperature span): bias + warm-up (tau 240 s) whose
+    # RMS over the hour is about a quarter of the noise std.
     n = 3600 * 2
     t = np.arange(n) / 2.0
     rng = np.random.default_rng(5)
-    omega = (0.1 + 0.05 * np.exp(-t / 240.0))[:, None] * DEG * np.array([1.0, -0.6, 0.4])
+    omega = (0.1 + 0.1 * np.exp(-t / 240.0))[:, None] * DEG * np.array([1.0, -0.6, 0.4])
     omega = omega + rng.normal(0.0, 0.05 * DEG, (n, 3))
     run = Run(t, np.full(n, 25.0), omega, np.zeros((n, 3)), 'flat')
     res = discover([run], allan=False)
