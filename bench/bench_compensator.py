@@ -20,17 +20,23 @@ effort, keep last 2000) and publish ``imu/data_compensated`` (reliable, keep las
 the same executor; the relay only republishes. They run side by side in one run, trial after
 trial alternating, each in its own namespace, at 200 Hz, 1 kHz, 2 kHz and flat out:
 
-* ``inproc``: source, DUT and sink in this process, one executor (DUT + sink); flat out keeps
-  at most 200 messages in flight, so it measures the largest rate without drops;
-* ``cross``: source, relay, compensator and sink in four processes spawned here; flat out
-  publishes as fast as the source can, and the DUT's output rate is its throughput.
+* ``inproc``: source, both DUTs and sink in this process, one executor;
+* ``cross``: the relay, the compensator and an io process (source + sink, one executor) are
+  three processes spawned here.
+
+Paced trials publish on schedule; flat out keeps at most 200 messages in flight (less than the
+queues), so it measures the largest rate the chain sustains without drops.
 
 Latency is sink arrival minus the header stamp (``time.time_ns()`` at publish; one clock for
 every process on the host); "added" is the compensator's minus the relay's. CPU per message is
 the DUT process's user + system time over the messages it forwarded (inproc: the whole
-process, source and sink included). Every process gets ``ROS_AUTOMATIC_DISCOVERY_RANGE=
-LOCALHOST`` and a private ``ROS_DOMAIN_ID``. The compensator runs a 12-centre RBF model in
-``dT, dT2`` fitted here on a simulated run (or ``--model FILE``). ``--soak`` runs the
+process, source and sink included). Each DUT process freezes its start-up heap out of the
+cyclic garbage collector (``gc.freeze()``), as ``compensator_node``'s main() does. Every
+process gets ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST`` and a private ``ROS_DOMAIN_ID``.
+The compensator runs a 12-centre RBF model in ``dT, dT2`` fitted here on a simulated run (or
+``--model FILE``). Short trials alternate relay and compensator (ABBA) so that load from other
+processes on the host hits both alike; throughput and CPU are medians over the trials,
+latency percentiles are over every message of a rate pooled. ``--soak`` runs the
 compensator for 10 minutes at 1 kHz across processes and samples its RSS every 10 s::
 
     .venv/bin/python bench/bench_compensator.py                       # ~4 min
@@ -44,9 +50,9 @@ os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ.setdefault('ROS_DOMAIN_ID', str(150 + os.getpid() % 60))
 
 import argparse  # noqa: E402, I100
+import gc  # noqa: E402
 import json  # noqa: E402
 from pathlib import Path  # noqa: E402
-import select  # noqa: E402
 import signal  # noqa: E402
 import statistics  # noqa: E402
 import subprocess  # noqa: E402
@@ -202,6 +208,7 @@ def summarise(lat_ns, seq, sent, elapsed_s, cpu_s=None):
         out['max_us'] = lat[-1] / 1e3
     if cpu_s is not None and received:
         out['cpu_us_per_msg'] = cpu_s / received * 1e6
+    out['lat'] = lat_ns
     return out
 
 
@@ -322,7 +329,7 @@ class Child:
         return self.ps.memory_info().rss / 2 ** 20
 
     def close(self):
-        """Stop the child: EOF on stdin for source and sink, SIGINT for a DUT."""
+        """Stop the child: EOF on stdin for the io process, SIGINT for a DUT."""
         try:
             if self.role in DUTS:
                 self.proc.send_signal(signal.SIGINT)
@@ -334,43 +341,28 @@ class Child:
 
 
 def start_cross(args, model_file, duts=DUTS):
-    """Spawn the DUTs, the sink and the source; wait for discovery."""
+    """Spawn the DUTs and the io process (source + sink); wait for discovery; warm up."""
     procs = {}
     for name in duts:
         extra = ['--executor', args.executor, '--ns', name]
         if name == 'compensator':
             extra += ['--model', str(model_file)]
         procs[name] = Child(name, *extra)
-    procs['sink'] = Child('sink', '--ns', ','.join(duts))
-    procs['source'] = Child('source', '--ns', ','.join(duts))
+    procs['io'] = Child('io', '--ns', ','.join(duts))
     for name in duts:
-        if not procs['source'].ask('ready', name).get('ok'):
-            raise RuntimeError(f'source not matched with {name}')
-        if not procs['sink'].ask('ready', name).get('ok'):
-            raise RuntimeError(f'sink not matched with {name}')
-        _cross_trial(procs, name, 500.0, 0.5)  # warm-up
+        if not procs['io'].ask('ready', name).get('ok'):
+            raise RuntimeError(f'io process not matched with {name}')
+        if _cross_trial(procs, name, 500.0, 0.5)['received'] == 0:
+            raise RuntimeError(f'{name}: nothing came through the warm-up')
     return procs
 
 
 def _cross_trial(procs, ns, rate, duration):
     dut = procs[ns]
-    procs['sink'].ask('take', ns)
     cpu0 = dut.cpu_s()
-    sent = procs['source'].ask('run', ns, rate, duration)['sent']
-    # Drain: wait until everything arrived or nothing more arrives for 0.5 s.
-    last, still = -1, time.monotonic()
-    while True:
-        n = procs['sink'].ask('count', ns)['count']
-        if n >= sent:
-            break
-        if n != last:
-            last, still = n, time.monotonic()
-        elif time.monotonic() - still > 0.5:
-            break
-        time.sleep(0.02)
-    cpu = dut.cpu_s() - cpu0
-    rec = procs['sink'].ask('take', ns)
-    return summarise(rec['lat'], rec['seq'], sent, rec['span_s'], cpu)
+    res = procs['io'].ask('run', ns, rate, duration)
+    res['cpu_us_per_msg'] = (dut.cpu_s() - cpu0) / max(res['received'], 1) * 1e6
+    return res
 
 
 def run_cross(args, model_file):
@@ -395,12 +387,10 @@ def run_soak(args, model_file):
     procs = start_cross(args, model_file, duts=('compensator',))
     dut = procs['compensator']
     try:
-        procs['sink'].ask('take', 'compensator')
         duration = args.soak_minutes * 60.0
-        cpu0 = dut.cpu_s()
         box = {}
-        runner = threading.Thread(target=lambda: box.update(procs['source'].ask(
-            'run', 'compensator', 1000.0, duration)))
+        runner = threading.Thread(target=lambda: box.update(_cross_trial(
+            procs, 'compensator', 1000, duration)))
         t0 = time.monotonic()
         runner.start()
         samples = []
@@ -410,20 +400,13 @@ def run_soak(args, model_file):
                   flush=True)
             runner.join(timeout=10.0)
         samples.append((time.monotonic() - t0, dut.rss_mb()))
-        sent = box['sent']
-        deadline = time.monotonic() + 5.0
-        while procs['sink'].ask('count', 'compensator')['count'] < sent and \
-                time.monotonic() < deadline:
-            time.sleep(0.05)
-        cpu = dut.cpu_s() - cpu0
-        rec = procs['sink'].ask('take', 'compensator')
-        res = summarise(rec['lat'], rec['seq'], sent, duration, cpu)
-        warm = [rss for t, rss in samples if t >= 30.0] or [s[1] for s in samples]
-        ts = [t for t, _ in samples if t >= 30.0] or [s[0] for s in samples]
-        slope = _slope(ts, warm) * 60.0
-        res.update({'rss_mb_first': samples[0][1], 'rss_mb_after_30s': warm[0],
+        res = {k: v for k, v in box.items() if k != 'lat'}
+        warm = [(t, rss) for t, rss in samples if t >= 30.0] or samples
+        res.update({'rss_mb_first': samples[0][1], 'rss_mb_after_30s': warm[0][1],
                     'rss_mb_last': samples[-1][1], 'rss_mb_max': max(r for _, r in samples),
-                    'rss_slope_mb_per_min': slope, 'rss_samples': samples})
+                    'rss_slope_mb_per_min': _slope([t for t, _ in warm],
+                                                   [r for _, r in warm]) * 60.0,
+                    'rss_samples': samples})
         return res
     finally:
         for child in procs.values():
@@ -453,6 +436,7 @@ def role_main(args):
                     make_compensator(None, namespaces[0], args.model, args.executor))
             ex = make_executor(args.executor)
             ex.add_node(node)
+            gc.freeze()
             # As compensator_node's main(): a spin_once loop (EventsExecutor.spin() dispatches
             # nothing in the rclpy 7.1.6 wheels). The harness stops us with SIGINT.
             _reply({'ready': True, 'pid': os.getpid()})
@@ -461,11 +445,7 @@ def role_main(args):
             except (KeyboardInterrupt, ExternalShutdownException):
                 pass
             return
-        node = rclpy.create_node(f'bench_{args.role}')
-        if args.role == 'source':
-            _source_loop(Source(node, namespaces), node)
-        else:
-            _sink_loop(Sink(node, namespaces), node)
+        _io_loop(namespaces)
     finally:
         rclpy.try_shutdown()
 
@@ -475,78 +455,31 @@ def _reply(obj):
     sys.stdout.flush()
 
 
-def _source_loop(source, node):
-    _reply({'ready': True, 'pid': os.getpid()})
-    for line in sys.stdin:
-        words = line.split()
-        if words[0] == 'ready':
-            deadline = time.monotonic() + 15.0
-            while not source.matched(words[1]) and time.monotonic() < deadline:
-                time.sleep(0.01)
-            _reply({'ok': source.matched(words[1])})
-        elif words[0] == 'run':
-            ns, rate, duration = words[1], words[2], float(words[3])
-            t0 = time.monotonic()
-            end = t0 + duration
-            sent = 0
-            if rate == 'max':
-                while time.monotonic() < end:
-                    for _ in range(50):
-                        source.publish(ns)
-                    sent += 50
-            else:
-                period = 1.0 / float(rate)
-                while True:
-                    now = time.monotonic()
-                    if now >= end:
-                        break
-                    due = int((now - t0) / period) + 1
-                    while sent < due:
-                        source.publish(ns)
-                        sent += 1
-                    wait = t0 + sent * period - time.monotonic()
-                    if wait > 0:
-                        time.sleep(wait)
-            _reply({'sent': sent, 'elapsed': time.monotonic() - t0})
-
-
-def _sink_loop(sink, node):
-    """Spin the sink in this thread and answer commands between callbacks."""
+def _io_loop(namespaces):
+    """Source and sink in one process: run trials asked for on stdin, reply with figures."""
+    import rclpy
+    node = rclpy.create_node('bench_io')
+    source = Source(node, namespaces)
+    sink = Sink(node, namespaces)
     ex = make_executor('events')
     ex.add_node(node)
     _reply({'ready': True, 'pid': os.getpid()})
-    buffer = b''
-    next_poll = 0.0
-    while True:
-        ex.spin_once(timeout_sec=0.01)
-        now = time.monotonic()
-        if now < next_poll:
-            continue
-        next_poll = now + 0.005
-        if not select.select([sys.stdin], [], [], 0)[0]:
-            continue
-        chunk = os.read(sys.stdin.fileno(), 4096)
-        if not chunk:
-            break
-        buffer += chunk
-        while b'\n' in buffer:
-            line, buffer = buffer.split(b'\n', 1)
-            _sink_command(sink, node, line.decode().split())
+    for line in sys.stdin:
+        words = line.split()
+        ns = words[1]
+        if words[0] == 'ready':
+            try:
+                _spin_for(ex, lambda: source.matched(ns) and node.count_publishers(
+                    sink.topics[ns]) >= 1, 15.0)
+                _reply({'ok': True})
+            except RuntimeError:
+                _reply({'ok': False})
+        elif words[0] == 'run':
+            rate = words[2] if words[2] == 'max' else float(words[2])
+            res = _inproc_trial(ex, source, sink, ns, rate, float(words[3]))
+            del res['cpu_us_per_msg']  # the io process's; the harness adds the DUT's
+            _reply(res)
     ex.shutdown()
-
-
-def _sink_command(sink, node, words):
-    ns = words[1]
-    if words[0] == 'ready':
-        deadline = time.monotonic() + 15.0
-        while node.count_publishers(sink.topics[ns]) < 1 and time.monotonic() < deadline:
-            time.sleep(0.01)
-        _reply({'ok': node.count_publishers(sink.topics[ns]) >= 1})
-    elif words[0] == 'count':
-        _reply({'count': sink.count(ns)})
-    elif words[0] == 'take':
-        lat, seq, span = sink.take(ns)
-        _reply({'lat': lat, 'seq': seq, 'span_s': span})
 
 
 # -- report ---------------------------------------------------------------------------
@@ -560,6 +493,12 @@ def _progress(mode, dut, rate, rep, res):
           f'cpu {res.get("cpu_us_per_msg", float("nan")):5.0f} us/msg', flush=True)
 
 
+def _pooled(trials, q):
+    """Return the ``q`` quantile, us, of the latencies of every trial pooled."""
+    lat = sorted(x for t in trials for x in t['lat'])
+    return lat[min(len(lat) - 1, int(len(lat) * q))] / 1e3 if lat else float('nan')
+
+
 def _median(trials, key):
     values = [t[key] for t in trials if key in t]
     return statistics.median(values) if values else float('nan')
@@ -567,7 +506,8 @@ def _median(trials, key):
 
 def report(mode, results, rates):
     """Print the medians side by side and the ratios; return a summary dict."""
-    print(f'\n{mode}: medians over repeats (relay | compensator | ratio or added)')
+    print(f'\n{mode}: relay | compensator | ratio or added; throughput and CPU: medians over '
+          'trials; latency: all messages pooled')
     print(f'{"rate":>6s} {"thr relay":>10s} {"thr comp":>10s} {"ratio":>6s} '
           f'{"drops r/c":>10s} {"p50 r/c us":>14s} {"p99 r/c us":>14s} {"+p50":>7s} '
           f'{"+p99":>7s} {"cpu r/c us":>12s}')
@@ -575,7 +515,9 @@ def report(mode, results, rates):
     for rate in rates:
         r, c = results['relay'][rate], results['compensator'][rate]
         row = {key: (_median(r, key), _median(c, key)) for key in
-               ('throughput_hz', 'p50_us', 'p99_us', 'cpu_us_per_msg')}
+               ('throughput_hz', 'cpu_us_per_msg')}
+        row['p50_us'] = (_pooled(r, 0.5), _pooled(c, 0.5))
+        row['p99_us'] = (_pooled(r, 0.99), _pooled(c, 0.99))
         drops = (sum(t['drops'] for t in r), sum(t['drops'] for t in c))
         reordered = (sum(t['reordered'] for t in r), sum(t['reordered'] for t in c))
         ratio = row['throughput_hz'][1] / row['throughput_hz'][0]
@@ -644,15 +586,15 @@ def main(argv=None):
     parser.add_argument('--modes', default='inproc,cross', help='inproc, cross or both')
     parser.add_argument('--rates', default='200,1000,2000,max', type=parse_rates,
                         help='publishing rates in Hz, or max (flat out)')
-    parser.add_argument('--duration', type=float, default=3.0, help='seconds per trial')
-    parser.add_argument('--repeats', type=int, default=3, help='trials per rate and DUT')
+    parser.add_argument('--duration', type=float, default=1.5, help='seconds per trial')
+    parser.add_argument('--repeats', type=int, default=8, help='trials per rate and DUT')
     parser.add_argument('--executor', choices=('events', 'single'), default='events')
     parser.add_argument('--model', help='model file (default: fitted on demo_fast)')
     parser.add_argument('--soak', action='store_true',
                         help='only the soak: compensator, 1 kHz across processes')
     parser.add_argument('--soak-minutes', type=float, default=10.0)
     parser.add_argument('--json', help='write every figure to this JSON file')
-    parser.add_argument('--role', choices=('source', 'sink') + DUTS, help=argparse.SUPPRESS)
+    parser.add_argument('--role', choices=('io',) + DUTS, help=argparse.SUPPRESS)
     parser.add_argument('--ns', default='', help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
     if args.role:
@@ -680,7 +622,8 @@ def main(argv=None):
         goals(summary)
         if args.json:
             Path(args.json).write_text(json.dumps({'summary': summary, 'trials': {
-                m: {d: {str(r): v for r, v in per.items()} for d, per in res.items()}
+                m: {d: {str(r): [{k: x for k, x in t.items() if k != 'lat'} for t in v]
+                        for r, v in per.items()} for d, per in res.items()}
                 for m, res in raw.items()}}, indent=1, default=str))
     return 0
 

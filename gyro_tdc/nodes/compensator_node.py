@@ -28,6 +28,7 @@ Every decision lives in :mod:`gyro_tdc.compensation_logic`; this module converts
 from __future__ import annotations
 
 from dataclasses import dataclass
+import gc
 import math
 from typing import Any
 
@@ -450,6 +451,9 @@ def main(args: list[str] | None = None) -> None:
         node = CompensatorNode()
         executor = make_executor(node.params.executor)
         executor.add_node(node)
+        # Keep the ~30k start-up objects (numpy, the model...) out of the cyclic collector's
+        # full passes, which otherwise stall the callback for ~10 ms now and then (p99).
+        gc.freeze()
         spin(executor)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
