@@ -27,7 +27,9 @@ data. The model searched is linear in its coefficients, per axis ``a``::
 with ``x_j`` the effect features of :mod:`gyro_tdc.effects` (their time constants fitted by a
 bounded 1-D search on the residual: variable projection), ``o`` one offset per run (session-to-
 session offsets are not thermal), ``s`` the ``scale`` effect and ``g`` a constant scale-factor
-error of the rate table (a nuisance, present only when the reference rate varies).
+error of the rate table (a nuisance, present only when the reference rate varies). With
+``lag`` the die, not the thermometer, feels the curvature too: ``lag`` brings the lagged
+powers of the curvature effects present (``lag^2`` with ``dT2``, ``lag^3`` with ``dT3``).
 
 Everything works on block means (``block_s``, default 10 s): the thermal effects are slow, and
 the averages are what the noise floor and the gaps are measured on. The *gap* is the RMS over
@@ -35,13 +37,22 @@ all axes of the block means of measured minus simulated rate, in deg/s; the *noi
 what white and short-term noise alone leave in a block mean, estimated from the data inside
 the blocks (second differences of block thirds, so the drift cancels; robust median scale).
 
-A candidate is named only when three independent tests agree: its held-out gain (blocked or
-leave-one-run-out cross-validation) is positive and not negligible, a Wald test of its columns
-with heteroskedasticity- and autocorrelation-consistent (HAC, Newey-West) errors is significant
-after a Bonferroni correction over candidates and axes, and its effect is not small against
-the noise floor. Candidates the data cannot tell apart from the named one are reported as
-aliases; effects the data cannot excite are reported as unidentifiable with the experiment
-that would excite them.
+A candidate is named only when three independent tests agree (the false-discovery guard):
+
+* held-out gain: the mean squared held-out gap falls by at least ``min_heldout`` squared noise
+  floors (and 1 %) under leave-one-run-out cross-validation, or, for one run, blocked
+  cross-validation over interleaved segments with a noise-memory buffer around each held-out
+  segment;
+* significance: a Wald F test of its columns with HAC (Newey-West, statsmodels) errors, the
+  bandwidth from the memory of the noise, below ``alpha`` after a Bonferroni correction over
+  candidates and axes. Slow bias instability makes any HAC p-value optimistic on one run,
+  which is why it is never the only test;
+* size: it explains at least ``min_effect`` noise floors (RMS).
+
+The best candidate (largest held-out gain) is added, the time constants are refitted, and the
+search repeats until none passes. Candidates within ``alias_margin`` of its gain whose fitted
+contribution correlates with its own by ``alias_corr`` or more are its aliases; effects the
+data cannot excite are reported as unidentifiable with the experiment that would excite them.
 """
 
 from __future__ import annotations
