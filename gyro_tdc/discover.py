@@ -521,6 +521,9 @@ class _Data:
         self.rate_cpm = self._rate_cpm()
         self._cache: dict = {}
         self.gain_axes = self._gain_axes()
+        self.scale_axes = np.array([np.any(np.abs(self.ref[:, a]) > 1e-12) and _rel_residual(
+            np.hstack([self.offsets, self.static['dT'][:, None], self.ref[:, a:a + 1]]),
+            self.dtref[:, a]) > _COLLINEAR for a in range(3)])
 
     def _rate_cpm(self) -> NDArray[np.float64]:
         """Return the smoothed dT/dt of each block, degC/min (60 s first-order smoothing)."""
@@ -629,8 +632,8 @@ class _Model:
         if np.any(data.gain_axes):
             ax.append(data.ref * data.gain_axes[None, :])
             self.axis_labels.append('gain')
-        if 'scale' in self.effects:
-            ax.append(data.dtref)
+        if 'scale' in self.effects:      # only on axes whose rate steps can separate it
+            ax.append(data.dtref * data.scale_axes[None, :])
             self.axis_labels.append('scale')
         self.axis = np.stack(ax, axis=2) if ax else np.zeros((data.K, 3, 0))
         self.p = self.common.shape[1] + self.axis.shape[2]
@@ -903,10 +906,7 @@ def _excitation(data: _Data, base: Sequence[str]) -> tuple[dict, list[str]]:
             notes.append(f'The data only {leg}: hysteresis between heating and cooling cannot '
                          'be tested; a dT/dt or lag effect seen here rests on the change of '
                          f'the {leg}ing rate alone.')
-    ref_var = [a for a in range(3) if _rel_residual(
-        np.hstack([data.offsets, data.static['dT'][:, None], data.ref[:, a:a + 1]]),
-        data.dtref[:, a]) > _COLLINEAR and np.any(np.abs(data.ref[:, a]) > 1e-12)]
-    if not ref_var:
+    if not np.any(data.scale_axes):
         if not np.any(np.abs(data.ref) > 1e-12):
             add('scale', 'the reference rate is zero on every run: a sensitivity change has '
                 'nothing to scale')
@@ -1121,7 +1121,8 @@ def _full_rate_residual(data: _Data, model: _Model, coef: NDArray[np.float64]
             if lab == 'gain':
                 pred[:, a] += c[j] * run.omega_ref[:, a] * data.gain_axes[a]
             else:
-                pred[:, a] += c[j] * (run.temp - data.t0) * run.omega_ref[:, a]
+                pred[:, a] += c[j] * (run.temp - data.t0) * run.omega_ref[:, a] \
+                    * data.scale_axes[a]
             j += 1
     return (y - pred)[sl], 1.0 / med
 
@@ -1362,7 +1363,7 @@ def _coef_dict(data: _Data, model: _Model, coef: NDArray[np.float64]) -> dict:
     out['gain'] = np.zeros(3)
     out['scale'] = np.zeros(3)
     for lab in model.axis_labels:
-        out[lab] = coef[j].copy() * (data.gain_axes if lab == 'gain' else 1.0)
+        out[lab] = coef[j] * (data.gain_axes if lab == 'gain' else data.scale_axes)
         j += 1
     return out
 
