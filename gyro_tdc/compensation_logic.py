@@ -439,7 +439,7 @@ class CompensatorCore:
         }
         self._scale = np.asarray(model.scale, dtype=np.float64)
         self._static = set(model.features) <= STATIC_EFFECTS
-        self._cache_temp: float | None = None
+        self._cache: dict[float, tuple] = {}
         self.anchor = None
         self._detector.reset()
         self.model, self._comp = model, comp
@@ -460,6 +460,8 @@ class CompensatorCore:
             return False
         if not self._history or t >= self._history[-1][0] + self.HISTORY_SPACING_S:
             self._history.append((t, temp_c))
+        if self._comp is not None and self._static and temp_c not in self._cache:
+            self._refresh(t, temp_c)
         return True
 
     def process(self, t: float, wx: float, wy: float, wz: float,
@@ -508,12 +510,10 @@ class CompensatorCore:
             self._first = (t, temp)
         if self._static:
             # Static features: the drift only changes when the temperature does.
-            if temp != self._cache_temp:
-                self._refresh(t, temp)
-            bx, by, bz = self._b
-            dx, dy, dz = self._den
+            entry = self._cache.get(temp) or self._refresh(t, temp)
+            bx, by, bz, dx, dy, dz, in_range = entry
             ox, oy, oz = (wx - bx) / dx, (wy - by) / dy, (wz - bz) / dz
-            if not self._in_range:
+            if not in_range:
                 flags |= OUT_OF_RANGE
         else:
             out = comp.step(t, temp, (wx, wy, wz))
@@ -532,23 +532,34 @@ class CompensatorCore:
             self._still(t, (wx, wy, wz), (ox, oy, oz), accel, temp)
         return ox, oy, oz, self._var[flags], flags
 
-    def _refresh(self, t: float, temp: float) -> None:
+    def _refresh(self, t: float, temp: float) -> tuple:
         """
-        Evaluate the drift of a static model at a new temperature and keep it.
+        Evaluate the drift of a static model at one temperature and keep it.
 
         ``StreamingCompensator.step`` computes ``(omega - b) / (1 + dT s)`` elementwise in
         float64; the same operations on the kept ``b`` and ``1 + dT s`` give the same bits.
+        The thermometer callback calls this as each reading arrives, so the IMU callback only
+        looks the result up.
+
+        Returns
+        -------
+        tuple
+            ``(bx, by, bz, 1 + dT sx, 1 + dT sy, 1 + dT sz, in_range)``.
 
         """
         comp = self._comp
         model = self.model
-        self._b = tuple(comp.drift(t, temp).tolist())
-        self._in_range = comp.in_range
-        self._cache_temp = temp
+        b = comp.drift(t, temp).tolist()
+        clamped = temp
         if self.policy.out_of_range == 'clamp':
             lo, hi = model.temp_range_c
-            temp = min(max(temp, lo), hi)
-        self._den = tuple((1.0 + (temp - model.t0_c) * self._scale).tolist())
+            clamped = min(max(temp, lo), hi)
+        den = (1.0 + (clamped - model.t0_c) * self._scale).tolist()
+        entry = (*b, *den, comp.in_range)
+        if len(self._cache) >= 64:
+            self._cache.clear()
+        self._cache[temp] = entry
+        return entry
 
     def _pass(self, t: float, wx: float, wy: float, wz: float, why: int
               ) -> tuple[float, float, float, tuple[float, float, float], int]:
@@ -573,7 +584,7 @@ class CompensatorCore:
         d_t = (min(max(temp, lo), hi) if clamp else temp) - model.t0_c
         delta = np.asarray(found.delta) * (1.0 + d_t * self._scale)
         self._comp.shift_offset(delta)
-        self._cache_temp = None
+        self._cache.clear()
         self.anchor = Anchor(found.t, tuple(float(v) for v in delta), found.samples,
                              found.gyro_std, found.temp_c)
 
