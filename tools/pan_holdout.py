@@ -1,0 +1,96 @@
+#!/usr/bin/env python3
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Held-out evaluation on the PAN CubeSat TVAC recording, leaving one block of bursts out.
+
+Usage: ``python tools/pan_holdout.py [--csv PATH] [--blocks 5] [--json OUT]``. Prints, per
+model and per held-out block, BS in (deg/s)^2, RMS in deg/s and the ratio to the white-noise
+floor, interior (interpolation) and end (extrapolation) blocks apart, then the same for
+leave-one-burst-out. The evaluation is :func:`gyro_tdc.realdata_eval.pan_holdout`; the
+method and its caveats are in ``docs/real_data.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+import sys
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
+    sys.path.insert(0, str(ROOT))
+
+from gyro_tdc.errors import GyroTdcError  # noqa: E402
+from gyro_tdc.realdata import default_pan_csv  # noqa: E402
+from gyro_tdc.realdata_eval import format_holdout, pan_holdout  # noqa: E402
+
+
+def _blocks(text: str) -> int:
+    """Parse ``--blocks``: an integer of at least 2."""
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f'expected an integer, got {text!r}') from None
+    if value < 2:
+        raise argparse.ArgumentTypeError(f'expected at least 2 blocks, got {value}')
+    return value
+
+
+def main(argv: list[str] | None = None) -> int:
+    """
+    Run the evaluation; return 0 on success, 2 on bad input.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Command-line arguments (``sys.argv[1:]`` when None).
+
+    Returns
+    -------
+    int
+        Exit status.
+
+    """
+    parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
+    parser.add_argument('--csv', type=Path, default=default_pan_csv(),
+                        help='TVCtest3_7_20.csv (default: %(default)s)')
+    parser.add_argument('--blocks', type=_blocks, default=5, metavar='N',
+                        help='contiguous blocks of bursts (default: %(default)s); '
+                        'leave-one-burst-out is always added')
+    parser.add_argument('--json', type=Path, default=None, metavar='OUT',
+                        help='write the figures as JSON (keys in docs/real_data.md)')
+    args = parser.parse_args(argv)
+    try:
+        result = pan_holdout(args.csv, n_blocks=args.blocks)
+    except GyroTdcError as err:
+        print(f'pan_holdout: {err}', file=sys.stderr)
+        return 2
+    print(format_holdout(result))
+    if args.json is not None:
+        try:
+            args.json.parent.mkdir(parents=True, exist_ok=True)
+            args.json.write_text(json.dumps(result, indent=1) + '\n', encoding='utf-8')
+        except OSError as err:
+            print(f'pan_holdout: cannot write --json {str(args.json)!r}: '
+                  f'{err.strerror or err}.', file=sys.stderr)
+            return 2
+        print(f'\nwrote {args.json}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
