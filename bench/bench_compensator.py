@@ -97,8 +97,8 @@ def spin(executor):
     node_spin(executor)
 
 
-def make_relay(context, ns, timed=False):
-    """Return the bare relay node: subscribe raw, publish it unchanged."""
+def make_relay(context, ns, timed=False, raw=False):
+    """Return the bare relay node: subscribe raw, publish it unchanged (``raw``: as bytes)."""
     import rclpy
     from sensor_msgs.msg import Imu
     sub_qos, pub_qos, _ = _qos()
@@ -112,11 +112,11 @@ def make_relay(context, ns, timed=False):
             record(clock() - t0)
     else:
         relay = pub.publish
-    node.create_subscription(Imu, 'imu/data_raw', relay, sub_qos)
+    node.create_subscription(Imu, 'imu/data_raw', relay, sub_qos, raw=raw)
     return node
 
 
-def make_compensator(context, ns, model_file, executor, timed=False):
+def make_compensator(context, ns, model_file, executor, timed=False, raw_cdr=True):
     """Return a CompensatorNode in namespace ``ns`` with the bench model."""
     from gyro_tdc.nodes.compensator_node import CompensatorNode
     from rclpy.parameter import Parameter
@@ -129,10 +129,16 @@ def make_compensator(context, ns, model_file, executor, timed=False):
             super()._on_imu(msg)
             self.cb_ns.append(clock() - t0)
 
+        def _on_imu_raw(self, data, clock=time.perf_counter_ns):
+            t0 = clock()
+            super()._on_imu_raw(data)
+            self.cb_ns.append(clock() - t0)
+
     cls = TimedCompensator if timed else CompensatorNode
     node = cls(context=context, namespace=ns, parameter_overrides=[
         Parameter('model_file', value=str(model_file)), Parameter('executor', value=executor),
-        Parameter('queue_depth', value=QUEUE), Parameter('temperature_timeout', value=5.0)])
+        Parameter('queue_depth', value=QUEUE), Parameter('temperature_timeout', value=5.0),
+        Parameter('raw_cdr', value=raw_cdr)])
     node.cb_ns = []
     return node
 
@@ -245,9 +251,10 @@ def run_inproc(args, model_file):
         io = rclpy.create_node('bench_io', context=context)
         source = Source(io, DUTS)
         sink = Sink(io, DUTS)
-        duts = {'relay': make_relay(context, 'relay', timed=True),
+        duts = {'relay': make_relay(context, 'relay', timed=True, raw=args.raw_relay),
                 'compensator': make_compensator(context, 'compensator', model_file,
-                                                args.executor, timed=True)}
+                                                args.executor, timed=True,
+                                                raw_cdr=not args.no_raw_cdr)}
         # One executor holds everything; only the DUT of the current trial gets traffic.
         ex = make_executor(args.executor, context)
         for node in (io, *duts.values()):
@@ -371,6 +378,8 @@ def start_cross(args, model_file, duts=DUTS):
     procs = {}
     for name in duts:
         extra = ['--executor', args.executor, '--ns', name]
+        extra += ['--raw-relay'] if args.raw_relay else []
+        extra += ['--no-raw-cdr'] if args.no_raw_cdr else []
         if name == 'compensator':
             extra += ['--model', str(model_file)]
         procs[name] = Child(name, *extra)
@@ -458,8 +467,9 @@ def role_main(args):
     namespaces = args.ns.split(',')
     try:
         if args.role in DUTS:
-            node = (make_relay(None, namespaces[0]) if args.role == 'relay' else
-                    make_compensator(None, namespaces[0], args.model, args.executor))
+            node = (make_relay(None, namespaces[0], raw=args.raw_relay) if args.role == 'relay'
+                    else make_compensator(None, namespaces[0], args.model, args.executor,
+                                          raw_cdr=not args.no_raw_cdr))
             ex = make_executor(args.executor)
             ex.add_node(node)
             gc.freeze()
@@ -637,6 +647,10 @@ def main(argv=None):
     parser.add_argument('--repeats', type=int, default=8, help='trials per rate and DUT')
     parser.add_argument('--executor', choices=('events', 'single'), default='events')
     parser.add_argument('--model', help='model file (default: fitted on demo_fast)')
+    parser.add_argument('--no-raw-cdr', action='store_true',
+                        help='compensator deserialises each Imu (raw_cdr: false)')
+    parser.add_argument('--raw-relay', action='store_true',
+                        help='the relay forwards serialized bytes (no deserialisation)')
     parser.add_argument('--soak', action='store_true',
                         help='only the soak: compensator, 1 kHz across processes')
     parser.add_argument('--soak-minutes', type=float, default=10.0)
@@ -649,13 +663,15 @@ def main(argv=None):
         return 0
     args.rates = [r if r == 'max' else (int(r) if float(r).is_integer() else r)
                   for r in args.rates]
-    print(f'bench_compensator: executor {args.executor}, ROS_DOMAIN_ID '
+    print(f'bench_compensator: relay {"raw bytes" if args.raw_relay else "deserialising"}, '
+          f'compensator raw_cdr {not args.no_raw_cdr}, executor {args.executor}, ROS_DOMAIN_ID '
           f'{os.environ["ROS_DOMAIN_ID"]}, {os.cpu_count()} CPUs, {args.duration:g} s x '
           f'{args.repeats} per rate', flush=True)
     with tempfile.TemporaryDirectory() as tmp:
         model_file = args.model or bench_model(Path(tmp) / 'bench_model.yaml')
         summary = {'executor': args.executor, 'duration_s': args.duration,
-                   'repeats': args.repeats}
+                   'repeats': args.repeats, 'raw_relay': args.raw_relay,
+                   'raw_cdr': not args.no_raw_cdr}
         raw = {}
         if args.soak:
             print(f'soak: compensator, 1 kHz across processes, {args.soak_minutes:g} min',

@@ -29,12 +29,14 @@ from gyro_tdc.fitting import fit_model
 from gyro_tdc.model import compensate
 from gyro_tdc.modelfile import save_model
 from gyro_tdc.nodes.compensator_node import CompensatorNode, make_executor, PARAMS
+from gyro_tdc.nodes.imu_cdr import ImuView, locate
 import numpy as np
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
 from rosutil import spin_until
 from sensor_msgs.msg import Imu, Temperature
 from std_srvs.srv import Trigger
@@ -181,10 +183,11 @@ def rates(msgs):
                      for m in msgs])
 
 
-@pytest.mark.parametrize('executor', ['single', 'events'])
-def test_one_out_per_in_in_order_headers_unchanged(models, rig_factory, executor):
+@pytest.mark.parametrize('executor,raw_cdr', [
+    ('single', False), ('events', False), ('single', True), ('events', True)])
+def test_one_out_per_in_in_order_headers_unchanged(models, rig_factory, executor, raw_cdr):
     path, model = models['paper']
-    rig = rig_factory(executor_kind=executor, model_file=str(path))
+    rig = rig_factory(executor_kind=executor, model_file=str(path), raw_cdr=raw_cdr)
     imu_ns, omega, temp_ns, temp_c = warming_stream(n=1200)
     sent = rig.feed(imu_ns, omega, temp_ns, temp_c)
     spin_until(rig.executor, lambda: len(rig.out) >= len(sent), 5.0)
@@ -203,9 +206,10 @@ def test_one_out_per_in_in_order_headers_unchanged(models, rig_factory, executor
                                rtol=0, atol=1e-9)
 
 
-def test_output_equals_offline_evaluation_dynamic_features(models, rig_factory):
+@pytest.mark.parametrize('raw_cdr', [True, False])
+def test_output_equals_offline_evaluation_dynamic_features(models, rig_factory, raw_cdr):
     path, model = models['dynamic']
-    rig = rig_factory(executor_kind='events', model_file=str(path))
+    rig = rig_factory(executor_kind='events', model_file=str(path), raw_cdr=raw_cdr)
     imu_ns, omega, temp_ns, temp_c = warming_stream(n=2000, rate_hz=100.0, temp_hz=1.0,
                                                     seed=4)
     rig.feed(imu_ns, omega, temp_ns, temp_c)
@@ -485,9 +489,10 @@ def test_main_runs_as_a_process_and_stops_on_sigint(models, ros_context, tmp_pat
     assert f'model {model.model_id}' in log
 
 
-def test_unexpected_failure_passes_the_sample_through(models, rig_factory):
+@pytest.mark.parametrize('raw_cdr', [True, False])
+def test_unexpected_failure_passes_the_sample_through(models, rig_factory, raw_cdr):
     path, model = models['paper']
-    rig = rig_factory(model_file=str(path), passthrough_variance=0.25)
+    rig = rig_factory(model_file=str(path), passthrough_variance=0.25, raw_cdr=raw_cdr)
 
     def broken(*args):
         rig.node.core.counts['in'] += 1
@@ -503,3 +508,48 @@ def test_unexpected_failure_passes_the_sample_through(models, rig_factory):
     assert st.level == DiagnosticStatus.ERROR and 'overflow in the model' in st.message
     assert values['messages in'] == values['messages out'] == '30'
     assert values['errors'] == '30'
+
+
+@pytest.mark.parametrize('frame_id', ['', 'a', 'imu', 'imu_lin', 'imu_link', 'imu_link_0',
+                                      'base_link/imu_sensor_frame'])
+def test_imu_cdr_view_matches_rclpy_serialization(frame_id):
+    msg = Imu()
+    msg.header.frame_id = frame_id
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 1_700_000_000, 123_456_789
+    msg.orientation.w = 1.0
+    msg.orientation_covariance[0] = -1.0
+    msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = 0.1, -0.2, 0.3
+    msg.angular_velocity_covariance[:] = np.arange(9) * 1e-6
+    msg.linear_acceleration.x, msg.linear_acceleration.z = 0.5, 9.81
+    msg.linear_acceleration_covariance[0] = 1e-3
+    data = serialize_message(msg)
+    sec, nanosec, base = locate(data)
+    assert (sec, nanosec) == (1_700_000_000, 123_456_789)
+    view = ImuView(data, base)
+    assert view.angular_velocity() == (0.1, -0.2, 0.3)
+    assert view.linear_acceleration() == (0.5, 0.0, 9.81)
+    out = deserialize_message(view.patched(1.5, 2.5, -3.5, (1.0, 2.0, 4.0)), Imu)
+    assert out.header == msg.header and out.orientation == msg.orientation
+    assert (out.angular_velocity.x, out.angular_velocity.y, out.angular_velocity.z) == \
+        (1.5, 2.5, -3.5)
+    expect = np.arange(9) * 1e-6
+    expect[[0, 4, 8]] += (1.0, 2.0, 4.0)
+    np.testing.assert_array_equal(out.angular_velocity_covariance, expect)
+    assert out.linear_acceleration == msg.linear_acceleration
+    np.testing.assert_array_equal(out.linear_acceleration_covariance,
+                                  msg.linear_acceleration_covariance)
+    msg.linear_acceleration_covariance[0] = -1.0
+    assert ImuView(serialize_message(msg), base).linear_acceleration() is None
+    msg.angular_velocity_covariance[0] = -1.0
+    data = serialize_message(msg)
+    out = deserialize_message(ImuView(data, base).patched(0.0, 0.0, 0.0, (1.0, 1.0, 1.0)), Imu)
+    assert out.angular_velocity_covariance[0] == -1.0  # "no data" stays so
+
+
+def test_imu_cdr_refuses_what_it_does_not_know():
+    data = serialize_message(Imu())
+    assert locate(data) is not None
+    assert locate(b'\x00\x00' + data[2:]) is None      # big-endian encapsulation
+    assert locate(data[:-8]) is None                     # truncated
+    assert locate(data + b'\x00' * 8) is None           # trailing bytes
+    assert locate(b'') is None

@@ -40,6 +40,7 @@ from gyro_tdc.errors import ModelFileError
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.modelfile import load_model
 from gyro_tdc.nodes._params import declare, ParamSpec
+from gyro_tdc.nodes.imu_cdr import ImuView, locate
 from gyro_tdc.resources import model_path
 from rcl_interfaces.msg import SetParametersResult
 import rclpy
@@ -48,6 +49,7 @@ from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
                        ReliabilityPolicy)
+from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, Temperature
 from std_srvs.srv import Trigger
 
@@ -80,6 +82,9 @@ PARAMS = (
               'acceleration over a still window, when the IMU has one [m/s^2].', 0.0, 100.0),
     ParamSpec('queue_depth', 2000, 'Queue depth of the imu/data_raw and imu/temperature '
               'subscriptions and of the publisher (keep last) [messages].', 1, 1000000),
+    ParamSpec('raw_cdr', True, 'Take imu/data_raw as serialized CDR and patch the bytes '
+              'instead of deserialising each message (same output, a fraction of the cost; '
+              'other encodings fall back to deserialising).'),
     ParamSpec('executor', 'events', 'Executor main() spins the node with: rclpy.experimental '
               'EventsExecutor (events, fastest) or SingleThreadedExecutor (single).',
               choices=('events', 'single')),
@@ -103,6 +108,7 @@ class CompensatorParams:
     still_max_rate: float
     still_accel_std: float
     queue_depth: int
+    raw_cdr: bool
     executor: str
 
     def policy(self) -> Policy:
@@ -180,7 +186,10 @@ class CompensatorNode(Node):
         temp_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
                               reliability=qos_profile_sensor_data.reliability,
                               durability=qos_profile_sensor_data.durability)
-        self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
+        if p.raw_cdr:
+            self.create_subscription(Imu, 'imu/data_raw', self._on_imu_raw, imu_qos, raw=True)
+        else:
+            self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
         self.create_subscription(Temperature, 'imu/temperature', self._on_temperature, temp_qos)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_service(Trigger, '~/reload', self._on_reload)
@@ -218,6 +227,25 @@ class CompensatorNode(Node):
             cov[4] += var[1]
             cov[8] += var[2]
         self._pub.publish(msg)
+
+    def _on_imu_raw(self, data: bytes) -> None:
+        found = locate(data)
+        if found is None:  # not little-endian plain CDR: the slow, general way
+            self._on_imu(deserialize_message(data, Imu))
+            return
+        sec, nanosec, base = found
+        view = ImuView(data, base)
+        wx, wy, wz = view.angular_velocity()
+        a = None
+        if self.core.policy.reanchor_on_start and self.core.anchor is None:
+            a = view.linear_acceleration()
+        try:
+            wx, wy, wz, var, flags = self.core.process(sec + nanosec * 1e-9, wx, wy, wz, a)
+        except Exception as exc:  # the callback edge: never lose the message
+            self._on_error(exc)
+            v = self.params.passthrough_variance
+            var = (v, v, v)
+        self._pub.publish(view.patched(wx, wy, wz, var))
 
     def _on_error(self, exc: Exception) -> None:
         """Count an unexpected compensation failure; the raw sample goes out flagged."""
