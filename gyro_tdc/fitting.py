@@ -160,18 +160,30 @@ def _place_centers(xn: NDArray[np.float64], k: int, seed: int
     return centers, widths
 
 
+#: Relative penalty on the linear tail (conditioning only: the tail is the physics).
+_TAIL_RIDGE = 1e-9
+#: Relative ridge values tried by ``ridge='auto'`` on the RBF weights.
+RIDGE_GRID = (1e-8, 1e-6, 1e-4, 1e-3, 1e-2, 3e-2, 1e-1, 3e-1, 1.0)
+
+
+def _penalty(p: int, f: int, ridge: float, n: int) -> NDArray[np.float64]:
+    """Return the square-root penalty per design column: none on w0, tiny on the tail."""
+    pen = np.full(p, math.sqrt(ridge * n))
+    pen[0] = 0.0
+    pen[1:1 + f] = math.sqrt(_TAIL_RIDGE * n)
+    return pen
+
+
 def _solve(design: NDArray[np.float64], y: NDArray[np.float64],
-           scale_cols: NDArray[np.float64] | None, ridge: float
+           scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Solve the regularised least squares for all axes.
 
     Returns the coefficients (P, 3) and the per-axis scale coefficients (3,).
     """
-    n, p = design.shape
-    lam = math.sqrt(ridge * n)
-    reg = np.zeros((p - 1, p))
-    reg[:, 1:] = np.eye(p - 1) * lam
+    p = design.shape[1]
+    reg = np.diag(pen)[1:]
     if scale_cols is None:
         a = np.vstack([design, reg])
         b = np.vstack([y, np.zeros((p - 1, 3))])
@@ -188,9 +200,48 @@ def _solve(design: NDArray[np.float64], y: NDArray[np.float64],
     return coef, scale
 
 
+def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
+                  scale_cols: NDArray[np.float64] | None, f: int, *,
+                  n_segments: int = 20, n_folds: int = 5) -> float:
+    """
+    Pick the RBF ridge by cross-validation over interleaved contiguous segments.
+
+    Holding out whole segments (5 % of the rows each) tests what matters for a drift model:
+    interpolation across a gap in the temperatures covered, where an under-regularised
+    network wiggles. Normal equations per fold make the grid search cost almost nothing.
+    """
+    n, p = design.shape
+    axes = []
+    for ax in range(3):
+        d = design if scale_cols is None else np.column_stack([design, scale_cols[:, ax]])
+        axes.append((d, y[:, ax]))
+    fold = (np.arange(n) * n_segments // n) % n_folds
+    errors = np.zeros(len(RIDGE_GRID))
+    for d, yy in axes:
+        q = d.shape[1]
+        g_all, b_all = d.T @ d, d.T @ yy
+        for k in range(n_folds):
+            m = fold == k
+            dk, yk = d[m], yy[m]
+            g, b = g_all - dk.T @ dk, b_all - dk.T @ yk
+            n_tr = n - int(m.sum())
+            for i, ridge in enumerate(RIDGE_GRID):
+                pen = np.zeros(q)
+                pen[:p] = _penalty(p, f, ridge, n_tr) ** 2
+                try:
+                    w = np.linalg.solve(g + np.diag(pen), b)
+                except np.linalg.LinAlgError:
+                    w = np.linalg.lstsq(g + np.diag(pen), b, rcond=None)[0]
+                r = dk @ w - yk
+                errors[i] += float(r @ r)
+    # The largest ridge within 1 % of the best error: prefer the smoother network.
+    ok = np.flatnonzero(errors <= errors.min() * 1.01)
+    return float(RIDGE_GRID[int(ok.max())])
+
+
 def _fit_linear(x: NDArray[np.float64], y: NDArray[np.float64],
                 scale_cols: NDArray[np.float64] | None, *, kind: str, n_centers: int,
-                ridge: float, seed: int) -> dict:
+                ridge: float | str, seed: int) -> dict:
     """Normalise, place centres and solve the weights for one feature matrix."""
     mean = x.mean(axis=0) if x.shape[1] else np.zeros(0)
     std = x.std(axis=0) if x.shape[1] else np.ones(0)
@@ -201,12 +252,18 @@ def _fit_linear(x: NDArray[np.float64], y: NDArray[np.float64],
     else:
         centers, widths = np.zeros((0, x.shape[1])), np.zeros(0)
     design = rbf_design((mean, std, centers, widths), x)
-    coef, scale = _solve(design, y, scale_cols, ridge)
+    f = x.shape[1]
+    if ridge == 'auto':
+        ridge = (_choose_ridge(design, y, scale_cols, f) if centers.shape[0]
+                 and design.shape[0] >= 40 else RIDGE_GRID[1])
+    pen = _penalty(design.shape[1], f, ridge, design.shape[0])
+    coef, scale = _solve(design, y, scale_cols, pen)
     resid = design @ coef - y
     if scale_cols is not None:
         resid += scale_cols * scale
     return {'mean': mean, 'std': std, 'centers': centers, 'widths': widths, 'coef': coef,
-            'scale': scale, 'sse': float((resid ** 2).sum()), 'resid': resid}
+            'scale': scale, 'sse': float((resid ** 2).sum()), 'resid': resid,
+            'ridge': float(ridge)}
 
 
 def _refine(x: NDArray[np.float64], y: NDArray[np.float64],
@@ -228,7 +285,7 @@ def _refine(x: NDArray[np.float64], y: NDArray[np.float64],
     def resid(theta: NDArray[np.float64]) -> NDArray[np.float64]:
         centers, widths = unpack(theta)
         d = rbf_design((mean, std, centers, widths), xs)
-        coef, scale = _solve(d, ys, ss, ridge)
+        coef, scale = _solve(d, ys, ss, _penalty(d.shape[1], f, ridge, d.shape[0]))
         r = d @ coef - ys
         if ss is not None:
             r += ss * scale
@@ -240,7 +297,8 @@ def _refine(x: NDArray[np.float64], y: NDArray[np.float64],
         return fit
     centers, widths = unpack(sol.x)
     design = rbf_design((mean, std, centers, widths), x)
-    coef, scale = _solve(design, y, scale_cols, ridge)
+    pen = _penalty(design.shape[1], f, ridge, design.shape[0])
+    coef, scale = _solve(design, y, scale_cols, pen)
     r = design @ coef - y
     if scale_cols is not None:
         r += scale_cols * scale
@@ -274,7 +332,8 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str]) -> None:
 def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
               features: str | Sequence[str] = ('dT', 'dT2'), t0: float | None = None,
               n_centers: int = 12, refine: bool = False, fit_params: bool = True,
-              params: Mapping[str, Mapping[str, float]] | None = None, ridge: float = 1e-6,
+              params: Mapping[str, Mapping[str, float]] | None = None,
+              ridge: float | str = 'auto',
               max_rows: int = 200_000, seed: int = 0, frame_id: str = 'imu_link',
               sensor_id: str = '', created: Mapping | None = None) -> CompensationModel:
     """
@@ -298,8 +357,10 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         Fit the effect parameters marked as fitted in the catalog (lag, warm-up tau).
     params : mapping, optional
         Starting or fixed effect parameters.
-    ridge : float
-        Relative ridge penalty on the non-constant weights.
+    ridge : float or 'auto'
+        Relative ridge penalty on the RBF weights (the constant and linear tail are not
+        shrunk); ``'auto'`` picks it by cross-validation over interleaved contiguous
+        segments of the data, which guards the network against wiggling across gaps.
     max_rows : int
         Rows of the linear solve; longer data are block-averaged down to this.
     seed : int
@@ -336,6 +397,7 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         return np.concatenate([b.features(inputs, t0, p, exact=exact) for b in blocks])
 
     free = [(eid, name) for eid in inputs for name in EFFECTS[eid].fitted] if fit_params else []
+    search_ridge = RIDGE_GRID[1] if ridge == 'auto' else ridge
     if free:
         # Parameter search on a coarser grid (<= 20k rows): cheap and smooth in log tau.
         coarse_block = max(1, math.ceil(n_total / 20_000))
@@ -353,7 +415,7 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
                     xc = np.concatenate([b.features(inputs, t0, trial, exact=False)
                                          for b in coarse])
                     return _fit_linear(xc, yc, sc, kind=kind, n_centers=n_centers,
-                                       ridge=ridge, seed=seed)['sse']
+                                       ridge=search_ridge, seed=seed)['sse']
 
                 grid = np.linspace(math.log(lo), math.log(hi), 13)
                 vals = [sse(g) for g in grid]
@@ -366,7 +428,7 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     x = features_of(par, exact=True)
     fit = _fit_linear(x, y, scale_cols, kind=kind, n_centers=n_centers, ridge=ridge, seed=seed)
     if refine and kind == 'rbf':
-        fit = _refine(x, y, scale_cols, fit, ridge=ridge, seed=seed)
+        fit = _refine(x, y, scale_cols, fit, ridge=fit['ridge'], seed=seed)
     f = len(inputs)
     coef = fit['coef']
     lo = min(float(r.temp.min()) for r in runs)
@@ -396,6 +458,7 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         'train_bs_dps2': [float(v) for v in residual_var * deg2],
         'train_rms_dps': [float(v) for v in np.sqrt(residual_var * deg2)],
         'raw_bs_dps2': [float(v) for v in sum(b.ss_raw for b in blocks) / n_total * deg2],
+        'ridge': fit['ridge'],
     }
     return model.replace(residual_var=residual_var, metrics=metrics)
 

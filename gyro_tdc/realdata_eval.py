@@ -58,7 +58,7 @@ from typing import Any, Mapping, Sequence
 
 from gyro_tdc.effects import batch_features, EFFECTS, input_ids, normalise_ids, resolve_params
 from gyro_tdc.errors import FitError
-from gyro_tdc.fitting import estimate_t0, fit_model
+from gyro_tdc.fitting import _penalty, _solve, estimate_t0, fit_model
 from gyro_tdc.model import compensate, CompensationModel
 from gyro_tdc.realdata import default_pan_csv, PanCubesat, read_pan_cubesat_csv
 from gyro_tdc.runs import Run
@@ -152,16 +152,13 @@ def burst_index(t: NDArray[np.float64], *, gap_s: float = 2.0) -> NDArray[np.int
 
 
 def _ridge_fit(x: NDArray[np.float64], y: NDArray[np.float64], ridge: float) -> dict:
-    """Fit ``y ~ [1, (x - mean) / std]`` with the same relative ridge as ``fit_model``."""
+    """Fit ``y ~ [1, (x - mean) / std]`` with ``fit_model``'s own penalty and solver."""
     mean = x.mean(axis=0)
     std = x.std(axis=0)
     std = np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
     design = np.column_stack([np.ones(x.shape[0]), (x - mean) / std])
     n, p = design.shape
-    reg = np.zeros((p - 1, p))
-    reg[:, 1:] = np.eye(p - 1) * math.sqrt(ridge * n)
-    coef = np.linalg.lstsq(np.vstack([design, reg]), np.vstack([y, np.zeros((p - 1, 3))]),
-                           rcond=None)[0]
+    coef, _scale = _solve(design, y, None, _penalty(p, p - 1, ridge, n))
     resid = design @ coef - y
     return {'mean': mean, 'std': std, 'coef': coef, 'resid': resid,
             'sse': float((resid ** 2).sum())}

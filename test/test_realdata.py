@@ -166,17 +166,20 @@ def test_end_blocks_extrapolate_and_clamping_shows(pan):
     end = s['summary']['end']['models']
     # Clamped to the training range the model is flat over 1.3 degC: several floors on x.
     assert end['modified']['floor_ratio'][0] > 2.0
-    # Allowed to extrapolate, the polynomial follows the drift; the K = 12 RBF does not.
+    # Allowed to extrapolate, the polynomial follows the drift, and so does the K = 12 RBF:
+    # its ridge, chosen by cross-validation over held-out segments, keeps it from wiggling.
     assert end['modified']['floor_ratio_unclamped'][0] < 1.3
-    assert end['rbf']['floor_ratio_unclamped'][0] > 5.0
+    assert end['rbf']['floor_ratio_unclamped'][0] < 1.3
     # Still far better than the bias-only baseline, clamped or not.
     assert end['modified']['bs'][0] < 0.2 * end['bias']['bs'][0]
 
 
 @needs_pan
-def test_rbf_with_twelve_centres_overfits_a_hole_in_the_training_temperatures(pan):
+def test_default_rbf_does_not_overfit_a_hole_in_the_training_temperatures(pan):
+    # With a fixed tiny ridge the 12-centre network wiggled across the 1.6 degC hole a held-out
+    # block leaves (4x the floor on x); the cross-validated ridge brings it to the polynomial.
     interior = _scheme(pan, 'leave_one_block_out')['summary']['interior']['models']
-    assert interior['rbf']['floor_ratio'][0] > 2.0 * interior['modified']['floor_ratio'][0]
+    assert interior['rbf']['floor_ratio'][0] < 1.1 * interior['modified']['floor_ratio'][0]
     assert interior['rbf4']['floor_ratio'][0] < 1.3
 
 
