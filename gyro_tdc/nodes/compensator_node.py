@@ -22,7 +22,13 @@ except ``angular_velocity`` (corrected by the model) and ``angular_velocity_cova
 ``model_file`` can be changed at run time (parameter set) or re-read (``~/reload``,
 std_srvs/Trigger); an invalid file is refused with its reason and the old model stays.
 
-Every decision lives in :mod:`gyro_tdc.compensation_logic`; this module converts.
+Every decision lives in :mod:`gyro_tdc.compensation_logic`; this module converts. With
+``raw_cdr`` (default) the Imu is taken as serialized bytes and patched in place by
+:mod:`gyro_tdc.nodes.imu_cdr`, which saves most of a Python relay's per-message cost.
+``main()`` spins rclpy's EventsExecutor (``executor: events``): across processes it moves
+about twice the messages of a SingleThreadedExecutor for the same CPU (see
+``bench/bench_compensator.py``); its ``spin()`` is broken in the Jazzy wheels, so
+:func:`spin` loops on ``spin_once``.
 """
 
 from __future__ import annotations
