@@ -243,7 +243,8 @@ class _Decoded:
     undecodable: NDArray[np.bool_] | None = None
 
 
-def _decode_fast(raws: Sequence[bytes], msgtype: str) -> _Decoded | None:
+def _decode_fast(raws: Sequence[bytes], msgtype: str,
+                 keep: Sequence[int] | None = None) -> _Decoded | None:
     """
     Decode a block of raw CDR messages at once with numpy, or return None.
 
@@ -256,6 +257,8 @@ def _decode_fast(raws: Sequence[bytes], msgtype: str) -> _Decoded | None:
         Raw CDR messages of one message type.
     msgtype : str
         The message type.
+    keep : sequence of int, optional
+        Columns of the float64 block to return (default ``_KEEP[msgtype]``).
 
     Returns
     -------
@@ -301,15 +304,17 @@ def _decode_fast(raws: Sequence[bytes], msgtype: str) -> _Decoded | None:
                 or not np.array_equal(np.asarray(row, dtype=np.float64), data[i],
                                       equal_nan=True)):
             return None
-    values = data[:, list(_KEEP[msgtype])].astype(np.float64)
+    cols = list(_KEEP[msgtype] if keep is None else keep)
+    values = data[:, cols].astype(np.float64, copy=False)
     return _Decoded(rec['sec'].astype(np.int64), rec['nanosec'].astype(np.int64), frame_id,
                     values, 0)
 
 
-def _decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any) -> _Decoded:
+def _decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any,
+                 keep: Sequence[int] | None = None) -> _Decoded:
     """Decode a block message by message with rosbags (any layout, any frame ids)."""
     n = len(raws)
-    keep = list(_KEEP[msgtype])
+    keep = list(_KEEP[msgtype] if keep is None else keep)
     sec = np.zeros(n, dtype=np.int64)
     nsec = np.zeros(n, dtype=np.int64)
     values = np.full((n, len(keep)), np.nan)
@@ -328,9 +333,11 @@ def _decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any) -> _Decode
     return _Decoded(sec, nsec, frame_id or '', values, n, bad if bad.any() else None)
 
 
-def _decode(raws: Sequence[bytes], msgtype: str, typestore: Any) -> _Decoded:
+def _decode(raws: Sequence[bytes], msgtype: str, typestore: Any,
+            keep: Sequence[int] | None = None) -> _Decoded:
     """Decode a block with the numpy fast path, falling back to rosbags when needed."""
-    return _decode_fast(raws, msgtype) or _decode_slow(raws, msgtype, typestore)
+    return (_decode_fast(raws, msgtype, keep)
+            or _decode_slow(raws, msgtype, typestore, keep))
 
 
 # --------------------------------------------------------------------------------------------
@@ -526,8 +533,9 @@ class BagData:
         (log-time order for a topic with one connection; not sorted by header stamp).
     gyro : NDArray[np.float64], shape (N, 3), rad/s
         Angular velocity; samples with a NaN or infinite component are rejected.
-    accel : NDArray[np.float64], shape (N, 3), m/s^2
-        Linear acceleration (not checked: a missing accelerometer does not reject gyro data).
+    accel : NDArray[np.float64], shape (N, 3), m/s^2, or None
+        Linear acceleration (not checked: a missing accelerometer does not reject gyro
+        data); None when read with ``accel=False``.
     frame_id : str
         Header frame id of the first IMU message.
     temp_t : NDArray[np.float64], shape (M,), s
@@ -557,7 +565,7 @@ class BagData:
 
     imu_t: NDArray[np.float64]
     gyro: NDArray[np.float64]
-    accel: NDArray[np.float64]
+    accel: NDArray[np.float64] | None
     frame_id: str
     temp_t: NDArray[np.float64]
     temp_c: NDArray[np.float64]
@@ -648,7 +656,8 @@ def _describe(topics: dict[str, tuple[str, int]]) -> str:
 
 
 def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
-             reference_topic='/rate_table/reference', progress=False) -> BagData:
+             reference_topic='/rate_table/reference', progress=False,
+             accel=True) -> BagData:
     """
     Read IMU, temperature and reference-rate arrays from a rosbag2 bag, fast.
 
@@ -669,6 +678,9 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
         or empty); None skips it.
     progress : bool
         Show a tqdm progress bar (messages read).
+    accel : bool
+        Also extract the linear acceleration (``BagData.accel`` is None when False: the
+        trainer does not need it, and skipping it saves 24 bytes per IMU message).
 
     Returns
     -------
@@ -706,7 +718,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                 if topics[topic][1] == 0 and required:
                     raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has no messages.')
                 conns[role] = [c for c in reader.connections if c.topic == topic]
-            return _read_messages(reader, bag, storage, topics, conns, progress)
+            return _read_messages(reader, bag, storage, topics, conns, progress, accel)
     except _READ_ERRORS as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r} (unreadable or corrupt): '
                            f'{_one_line(err)}') from err
@@ -714,7 +726,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
 
 def _read_messages(reader: AnyReader, bag: Path, storage: str,
                    topics: dict[str, tuple[str, int]], conns: dict[str, list[Any]],
-                   progress: bool) -> BagData:
+                   progress: bool, with_accel: bool = True) -> BagData:
     """Run the block-wise raw read and decode of ``read_bag``."""
     from tqdm import tqdm
 
@@ -723,7 +735,9 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     role_of = {id(c): k for k, role in enumerate(roles) for c in conns[role]}
     all_conns = [c for role in roles for c in conns[role]]
     expected = {role: sum(int(c.msgcount) for c in conns[role]) for role in roles}
-    widths = {'imu': (3, 3), 'temperature': (1, 1), 'reference': (3,)}
+    widths = {'imu': (3, 3) if with_accel else (3,), 'temperature': (1, 1), 'reference': (3,)}
+    keep = {'imu': None if with_accel else _KEEP[IMU_TYPE][:3], 'temperature': None,
+            'reference': None}
     sinks = {role: _Sink(expected[role], widths[role]) for role in roles}
     frame_id = {role: None for role in roles}
     fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
@@ -733,7 +747,7 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     def decode(role: str, raws: Sequence[bytes], logs: Sequence[int]) -> None:
         """Decode one role's messages of a block into its sink."""
         nonlocal undecodable
-        dec = _decode(raws, msgtypes[role], typestore)
+        dec = _decode(raws, msgtypes[role], typestore, keep[role])
         fallback[role] += dec.fallback
         if frame_id[role] is None and dec.frame_id:
             frame_id[role] = dec.frame_id
@@ -753,7 +767,10 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     # kept, no lookup); anything else (temperature, reference, other IMU connections) is
     # sorted out per block.
     main = conns['imu'][0]
-    gen = reader.messages(connections=all_conns)
+    # read_bag opens one bag: iterate its rosbags Reader directly, without AnyReader's
+    # heapq merge across bags (one generator step less per message).
+    source = reader.readers[0] if len(reader.readers) == 1 else reader
+    gen = source.messages(connections=all_conns)
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
         while True:
@@ -784,7 +801,7 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     sink = sinks['imu']
     finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
     rejected['imu_nonfinite'] = int(np.count_nonzero(~finite))
-    imu_t, gyro, accel = sink.result(finite)
+    imu_t, gyro, *accel = sink.result(finite)
     sink = sinks['temperature']
     finite = np.isfinite(sink.v[0][:sink.n, 0])
     rejected['temp_nonfinite'] = int(np.count_nonzero(~finite))
@@ -796,7 +813,7 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
         rejected['ref_nonfinite'] = int(np.count_nonzero(~finite))
         ref_t, ref = sink.result(finite)
     return BagData(
-        imu_t=imu_t, gyro=gyro, accel=accel, frame_id=frame_id['imu'] or '',
+        imu_t=imu_t, gyro=gyro, accel=accel[0] if accel else None, frame_id=frame_id['imu'] or '',
         temp_t=temp_t, temp_c=temp_c[:, 0], temp_var=temp_var[:, 0], ref_t=ref_t, ref=ref,
         topics=topics,
         rejected=rejected, storage=storage, path=str(bag), fallback=fallback)

@@ -81,16 +81,53 @@ def estimate_t0(run: Run, *, window_s: float = 60.0) -> float:
     return float(np.median(run.temp[:n]))
 
 
-def _block_mean(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
-    """Average ``a`` over consecutive blocks of ``block`` rows (last block may be shorter)."""
+def _block_sum(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
+    """Sum ``a`` over consecutive blocks of ``block`` rows (last block may be shorter)."""
+    a = np.asarray(a, dtype=np.float64)
     if block <= 1:
-        return np.asarray(a, dtype=np.float64)
+        return a.copy()
     n = a.shape[0]
     full = n // block * block
-    head = a[:full].reshape((full // block, block) + a.shape[1:]).mean(axis=1)
+    # A vector-matrix product per block (BLAS) sums ~15x faster than reducing the middle
+    # axis of a (blocks, block, ...) view.
+    ones = np.ones(block)
+    stacked = a[:full].reshape((full // block, block) + a.shape[1:])
+    head = stacked @ ones if a.ndim == 1 else ones @ stacked
     if full == n:
         return head
-    return np.concatenate([head, a[full:].mean(axis=0, keepdims=True)])
+    return np.concatenate([head, a[full:].sum(axis=0, keepdims=True)])
+
+
+def _block_counts(n: int, block: int) -> NDArray[np.float64]:
+    """Return the number of rows in each block of ``block`` rows out of ``n``."""
+    if block <= 1:
+        return np.ones(n)
+    counts = np.full(-(-n // block), float(block))
+    if n % block:
+        counts[-1] = n % block
+    return counts
+
+
+def _block_mean(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
+    """Average ``a`` over consecutive blocks of ``block`` rows (last block may be shorter)."""
+    a = np.asarray(a, dtype=np.float64)
+    if block <= 1:
+        return a
+    counts = _block_counts(a.shape[0], block)
+    return _block_sum(a, block) / counts.reshape((-1,) + (1,) * (a.ndim - 1))
+
+
+def _block_sumsq(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
+    """Sum ``a * a`` (N, 3) over consecutive blocks of ``block`` rows, without a temporary."""
+    n = a.shape[0]
+    block = max(block, 1)
+    full = n // block * block
+    stacked = a[:full].reshape(full // block, block, a.shape[1])
+    head = np.einsum('ijk,ijk->ik', stacked, stacked)
+    if full == n:
+        return head
+    tail = a[full:]
+    return np.concatenate([head, np.einsum('jk,jk->k', tail, tail)[None, :]])
 
 
 class _Blocks:
@@ -103,12 +140,14 @@ class _Blocks:
         err = run.omega - run.omega_ref
         self.y = _block_mean(err, block)
         self.block = block
-        n = len(run)
-        self.counts = np.full(self.y.shape[0], float(min(block, n)))
-        if n % block and block > 1:
-            self.counts[-1] = n % block
-        self.ss_raw = (err * err).sum(axis=0)
-        self.ss_within = self.scatter(np.zeros(3), 0.0)
+        self.counts = _block_counts(len(run), block)
+        self.ss_raw = np.einsum('ij,ij->j', err, err)
+        self.ss_within = self._scatter(err, self.y)
+
+    def _scatter(self, err: NDArray[np.float64], mean: NDArray[np.float64]
+                 ) -> NDArray[np.float64]:
+        """Per block and axis, the sum of squared deviations of ``err`` from ``mean``."""
+        return _block_sumsq(err, self.block) - self.counts[:, None] * mean ** 2
 
     def scatter(self, scale: NDArray[np.float64], t0: float) -> NDArray[np.float64]:
         """
@@ -120,9 +159,7 @@ class _Blocks:
         err = self.run.omega - self.run.omega_ref
         if np.any(scale):
             err = err - (self.run.temp - t0)[:, None] * self.run.omega_ref * scale
-        mean = _block_mean(err, self.block)
-        sq = _block_mean(err * err, self.block) * self.counts[:, None]
-        return sq - self.counts[:, None] * mean ** 2
+        return self._scatter(err, _block_mean(err, self.block))
 
     def features(self, ids: Sequence[str], t0: float, params: Mapping, *,
                  exact: bool) -> NDArray[np.float64]:

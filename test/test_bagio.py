@@ -199,6 +199,13 @@ def test_write_read_round_trip(tmp_path, storage, frame_id):
     np.testing.assert_allclose(data.ref_t, ref_t, rtol=0, atol=1e-6)
     np.testing.assert_array_equal(data.ref, ref)
 
+    # Without the accelerometer (the trainer's read): the same gyro, no accel array.
+    lean = read_bag(bag, accel=False)
+    assert lean.accel is None
+    np.testing.assert_array_equal(lean.gyro, gyro)
+    np.testing.assert_array_equal(lean.imu_t, data.imu_t)
+    np.testing.assert_array_equal(lean.temp_c, temp_c)
+
     # Every field, as any ROS 2 tool would see it, and log times in global order.
     expected_ns = {k: np.round(np.asarray(v) * 1e9).astype(np.int64)
                    for k, v in (('imu', imu_t), ('temp', temp_t), ('ref', ref_t))}
@@ -285,6 +292,9 @@ def test_mixed_frame_ids_fall_back_and_decode_right(tmp_path, storage):
     np.testing.assert_array_equal(data.gyro, np.array(expected))
     np.testing.assert_allclose(data.imu_t, 1 + np.arange(40) * 0.01, atol=1e-9)
     np.testing.assert_array_equal(data.temp_c, [20.0, 21.0, 22.0])
+    lean = read_bag(tmp_path / 'bag', accel=False)     # rosbags path, gyro columns only
+    assert lean.accel is None and lean.fallback['imu'] == 40
+    np.testing.assert_array_equal(lean.gyro, np.array(expected))
 
 
 @pytest.mark.parametrize('storage', STORAGES)

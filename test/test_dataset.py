@@ -63,6 +63,30 @@ def test_align_outside_span_and_gaps_are_invalid():
     np.testing.assert_allclose(temp[valid], _ramp(imu_t[valid]), atol=1e-12)
 
 
+@pytest.mark.parametrize('seed', [0, 1, 2])
+def test_align_sorted_fast_path_equals_general_path(seed):
+    # Sorted IMU stamps take the per-knot path; the same stamps shuffled take the
+    # per-sample path. Irregular thermometer with long gaps, stamps on the knots and on
+    # the gap boundaries, samples before and after the span.
+    rng = np.random.default_rng(seed)
+    temp_t = np.cumsum(rng.choice([0.5, 1.0, 3.0, 12.0, 40.0], size=200))
+    temp_c = 20.0 + np.cumsum(rng.normal(0.0, 0.1, temp_t.size))
+    imu_t = np.sort(np.concatenate([
+        rng.uniform(temp_t[0] - 20.0, temp_t[-1] + 20.0, 20_000), temp_t[::3],
+        temp_t[:-1] + 5.0, temp_t[1:] - 5.0]))
+    temp, valid = align_temperature(imu_t, temp_t, temp_c, max_gap_s=5.0)
+    shuffle = rng.permutation(imu_t.size)
+    temp2, valid2 = align_temperature(imu_t[shuffle], temp_t, temp_c, max_gap_s=5.0)
+    back = np.empty_like(shuffle)
+    back[shuffle] = np.arange(shuffle.size)
+    np.testing.assert_array_equal(valid, valid2[back])
+    assert 0 < np.count_nonzero(~valid) < valid.size
+    np.testing.assert_allclose(temp, temp2[back], rtol=0, atol=1e-12, equal_nan=True)
+    on_knot = np.isin(imu_t, temp_t)
+    np.testing.assert_array_equal(temp[on_knot], temp_c[np.searchsorted(temp_t,
+                                                                         imu_t[on_knot])])
+
+
 def test_align_sorts_out_of_order_and_averages_duplicates():
     rng = np.random.default_rng(4)
     temp_t = np.arange(0.0, 30.0, 1.0)
