@@ -310,6 +310,11 @@ def _decode_fast(raws: Sequence[bytes], msgtype: str,
                     values, 0)
 
 
+def _seconds(stamp_ns: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Return integer nanosecond stamps as float seconds (whole seconds added exactly)."""
+    return (stamp_ns // 1_000_000_000) + (stamp_ns % 1_000_000_000) * 1e-9
+
+
 def _decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any,
                  keep: Sequence[int] | None = None) -> _Decoded:
     """Decode a block message by message with rosbags (any layout, any frame ids)."""
@@ -744,48 +749,57 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     undecodable = 0
     typestore = reader.typestore
 
-    def decode(role: str, raws: Sequence[bytes], logs: Sequence[int]) -> None:
-        """Decode one role's messages of a block into its sink."""
+    # Main-connection messages whose header stamp is zero: (index among the connection's
+    # messages, row in the IMU sink). Their log times are fetched after the main pass.
+    zero_stamped: list[tuple[NDArray[np.int64], NDArray[np.int64]]] = []
+
+    def decode(role: str, raws: Sequence[bytes], logs: Sequence[int] | None,
+               first: int = 0) -> None:
+        """Decode one role's messages of a block into its sink (``logs``: log times)."""
         nonlocal undecodable
         dec = _decode(raws, msgtypes[role], typestore, keep[role])
         fallback[role] += dec.fallback
         if frame_id[role] is None and dec.frame_id:
             frame_id[role] = dec.frame_id
         stamp_ns = dec.sec * 1_000_000_000 + dec.nanosec
+        good = None if dec.undecodable is None else ~dec.undecodable
         zero = stamp_ns == 0
         if zero.any():
-            stamp_ns[zero] = np.fromiter(logs, dtype=np.int64, count=len(logs))[zero]
-        t = (stamp_ns // 1_000_000_000) + (stamp_ns % 1_000_000_000) * 1e-9
+            if logs is not None:
+                stamp_ns[zero] = np.fromiter(logs, dtype=np.int64, count=len(logs))[zero]
+            else:
+                rows = np.arange(len(raws)) if good is None else np.cumsum(good) - 1
+                if good is not None:
+                    zero &= good
+                pos = np.flatnonzero(zero)
+                zero_stamped.append((first + pos, sinks[role].n + rows[pos]))
+        t = _seconds(stamp_ns)
         values = dec.values
-        if dec.undecodable is not None:
-            good = ~dec.undecodable
+        if good is not None:
             undecodable += int(dec.undecodable.sum())
             t, values = t[good], values[good]
         sinks[role].add(t, values)
 
-    # Hot loop: the messages of the main IMU connection go straight into two lists (no tuple
-    # kept, no lookup); anything else (temperature, reference, other IMU connections) is
-    # sorted out per block.
+    # Hot loop, one list comprehension per block: the raw bytes of the main IMU connection
+    # are collected with nothing else done per message (no log time, no call); any other
+    # message (temperature, reference, another IMU connection) is passed to
+    # ``add_other``, which returns None and so also keeps it out of the list.
     main = conns['imu'][0]
     # read_bag opens one bag: iterate its rosbags Reader directly, without AnyReader's
     # heapq merge across bags (one generator step less per message).
     source = reader.readers[0] if len(reader.readers) == 1 else reader
     gen = source.messages(connections=all_conns)
+    n_main = 0
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
         while True:
-            main_raws: list[bytes] = []
-            main_logs: list[int] = []
             others: list[tuple[Any, int, bytes]] = []
-            add_raw, add_log, add_other = main_raws.append, main_logs.append, others.append
-            for conn, log, raw in islice(gen, _CHUNK):
-                if conn is main:
-                    add_raw(raw)
-                    add_log(log)
-                else:
-                    add_other((conn, log, raw))
+            add_other = others.append
+            main_raws = [raw for conn, log, raw in islice(gen, _CHUNK)
+                         if conn is main or add_other((conn, log, raw))]
             if main_raws:
-                decode('imu', main_raws, main_logs)
+                decode('imu', main_raws, None, n_main)
+                n_main += len(main_raws)
             if others:
                 for k, role in enumerate(roles):
                     mine = [x for x in others if role_of[id(x[0])] == k]
@@ -795,6 +809,14 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
             if not done:
                 break
             bar.update(done)
+    if zero_stamped:
+        # Rare (a driver that leaves the header stamp at zero): read the main connection's
+        # log times in a second pass and use them for those messages.
+        logs = np.fromiter((log for _, log, _ in source.messages(connections=[main])),
+                           dtype=np.int64, count=n_main)
+        index = np.concatenate([z[0] for z in zero_stamped])
+        rows = np.concatenate([z[1] for z in zero_stamped])
+        sinks['imu'].t[rows] = _seconds(logs[index])
 
     rejected = {'imu_nonfinite': 0, 'temp_nonfinite': 0, 'ref_nonfinite': 0,
                 'undecodable': undecodable}

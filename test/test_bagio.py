@@ -298,6 +298,39 @@ def test_mixed_frame_ids_fall_back_and_decode_right(tmp_path, storage):
 
 
 @pytest.mark.parametrize('storage', STORAGES)
+def test_zero_stamps_across_blocks_take_the_log_time(tmp_path, storage, monkeypatch):
+    # Zero header stamps on the main IMU connection in several blocks, next to undecodable
+    # messages and interleaved temperature: each gets its own message's log time.
+    monkeypatch.setattr(bagio, '_CHUNK', 16)
+    rng = np.random.default_rng(12)
+    n = 100
+    gyro = rng.normal(size=(n, 3))
+    zero = {0, 17, 18, 40, 63, 99}
+    broken = {18 + 1, 50}
+    imu, expected_t, expected_g = [], [], []
+    for i in range(n):
+        log = 3 * 10**9 + i * 10**7 + 123
+        if i in zero:
+            msg = _imu(rng, 0, 0, 'imu_link', gyro=gyro[i])
+        else:
+            msg = _imu(rng, 3, i * 10**7, 'imu_link', gyro=gyro[i])
+        raw = bytes(TS.serialize_cdr(msg, IMU_TYPE))
+        imu.append((log, raw[:60] if i in broken else raw))
+        if i not in broken:
+            expected_t.append(log * 1e-9 if i in zero else 3 + i * 1e-2)
+            expected_g.append(gyro[i])
+    temp = [(3 * 10**9 + k * 10**8 + 5, bytes(TS.serialize_cdr(
+        _temperature(rng, 3, k * 10**8, value=20.0 + k), TEMPERATURE_TYPE))) for k in range(10)]
+    _write_raw(tmp_path / 'bag', storage, {'/imu/data_raw': (IMU_TYPE, imu),
+                                           '/imu/temperature': (TEMPERATURE_TYPE, temp)})
+    data = read_bag(tmp_path / 'bag')
+    assert data.rejected['undecodable'] == len(broken)
+    np.testing.assert_array_equal(data.gyro, np.array(expected_g))
+    np.testing.assert_allclose(data.imu_t, expected_t, rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(data.temp_c, 20.0 + np.arange(10))
+
+
+@pytest.mark.parametrize('storage', STORAGES)
 def test_big_endian_zero_stamps_nonfinite_and_undecodable(tmp_path, storage):
     rng = np.random.default_rng(9)
     gyro = rng.normal(size=(12, 3))
