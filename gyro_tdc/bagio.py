@@ -76,9 +76,10 @@ _N_DOUBLES = {IMU_TYPE: 37, TEMPERATURE_TYPE: 2, REFERENCE_TYPE: 3}
 _KEEP = {IMU_TYPE: (13, 14, 15, 25, 26, 27), TEMPERATURE_TYPE: (0, 1), REFERENCE_TYPE: (0, 1, 2)}
 
 _WRITE_CHUNK = 1 << 16    # messages serialised per numpy call when writing
-# Messages per block when reading: small enough that a block's raw bytes (~3 MB of Imu) stay
-# in cache and are recycled by the allocator, large enough to amortise the per-block checks.
-_CHUNK = 1 << 13
+# Messages per block when reading: small enough that a block's raw bytes (~5 MB of Imu) are
+# recycled by the allocator, large enough to amortise the per-block checks (1 << 14 read a
+# 1 h, 1 kHz bag ~5 % faster than 1 << 13 or 1 << 15 in bench/bench_train.py).
+_CHUNK = 1 << 14
 _BAG_VERSION = 9          # rosbag2 metadata version written by Jazzy (rosbag2 0.26)
 _STORAGES = {'sqlite3': StoragePlugin.SQLITE3, 'mcap': StoragePlugin.MCAP}
 _CDR_LE = (0, 1, 0, 0)

@@ -83,8 +83,8 @@ def test_align_sorted_fast_path_equals_general_path(seed):
     assert 0 < np.count_nonzero(~valid) < valid.size
     np.testing.assert_allclose(temp, temp2[back], rtol=0, atol=1e-12, equal_nan=True)
     on_knot = np.isin(imu_t, temp_t)
-    np.testing.assert_array_equal(temp[on_knot], temp_c[np.searchsorted(temp_t,
-                                                                         imu_t[on_knot])])
+    knot = np.searchsorted(temp_t, imu_t[on_knot])
+    np.testing.assert_array_equal(temp[on_knot], temp_c[knot])
 
 
 def test_align_sorts_out_of_order_and_averages_duplicates():
