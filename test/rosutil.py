@@ -20,10 +20,42 @@ Nothing here imports ``rclpy``; the executor comes from the test.
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
+import subprocess
+import sys
 import time
-from typing import Any, Callable, Optional
+from typing import Any, Callable, Iterator, Optional
 
-__all__ = ['spin_until']
+__all__ = ['interrupt', 'node_process', 'spin_until']
+
+
+@contextlib.contextmanager
+def node_process(module: str, *ros_args: str) -> Iterator[subprocess.Popen]:
+    """
+    Run ``python -m MODULE --ros-args ROS_ARGS...`` as a child process for the block.
+
+    The child inherits the test's environment (its ROS_DOMAIN_ID and loopback discovery);
+    stdout and stderr are captured as text. If the child is still running when the block
+    exits (a failed assertion before :func:`interrupt`), it is killed and reaped.
+    """
+    child = subprocess.Popen([sys.executable, '-m', module, '--ros-args', *ros_args],
+                             env=dict(os.environ), stdout=subprocess.PIPE,
+                             stderr=subprocess.STDOUT, text=True)
+    try:
+        yield child
+    finally:
+        if child.poll() is None:
+            child.kill()
+            child.wait()
+
+
+def interrupt(child: subprocess.Popen, timeout_s: float = 10.0) -> tuple[int, str]:
+    """Send SIGINT (Ctrl-C) to ``child``; return its exit code and everything it printed."""
+    child.send_signal(signal.SIGINT)
+    code = child.wait(timeout=timeout_s)
+    return code, child.stdout.read()
 
 
 def spin_until(executor: Any, predicate: Callable[[], bool], timeout_s: float = 10.0, *,

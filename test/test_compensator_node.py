@@ -17,11 +17,7 @@
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
-import signal
-import subprocess
-import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from gyro_tdc.compensation_logic import CompensatorCore, Policy
@@ -37,7 +33,7 @@ from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
-from rosutil import spin_until
+from rosutil import interrupt, node_process, spin_until
 from sensor_msgs.msg import Imu, Temperature
 from std_srvs.srv import Trigger
 from synth import synth_run
@@ -435,11 +431,8 @@ def test_main_runs_as_a_process_and_stops_on_sigint(models, ros_context, tmp_pat
     doc = yaml.safe_load((CONFIG / 'compensator.yaml').read_text())
     doc['compensator_node']['ros__parameters']['model_file'] = str(path)
     params.write_text(yaml.safe_dump(doc))
-    child = subprocess.Popen(
-        [sys.executable, '-m', 'gyro_tdc.nodes.compensator_node', '--ros-args',
-         '--params-file', str(params)],
-        env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
+    with node_process('gyro_tdc.nodes.compensator_node', '--params-file',
+                      str(params)) as child:
         io = rclpy.create_node('feeder', context=ros_context)
         executor = make_executor('single', ros_context)
         executor.add_node(io)
@@ -479,13 +472,8 @@ def test_main_runs_as_a_process_and_stops_on_sigint(models, ros_context, tmp_pat
         t = np.array([stamp_s(to_ns(t0 + 0.001 * (k + 1))) for k in range(1, 200)])
         expect = compensate(model, t, np.full(199, 30.0), np.tile([0.01, 0, 0], (199, 1)))
         np.testing.assert_allclose(rates(out), expect, rtol=0, atol=1e-9)
-        child.send_signal(signal.SIGINT)
-        assert child.wait(timeout=10) == 0
-    finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
-    log = child.stdout.read()
+        code, log = interrupt(child)
+        assert code == 0
     assert f'model {model.model_id}' in log
 
 

@@ -17,12 +17,8 @@
 from __future__ import annotations
 
 import math
-import os
 from pathlib import Path
 import shutil
-import signal
-import subprocess
-import sys
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Vector3Stamped
@@ -34,7 +30,7 @@ import rclpy
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rosutil import spin_until
+from rosutil import interrupt, node_process, spin_until
 from sensor_msgs.msg import Imu, Temperature
 from test_iio import l3gd20_files, make_device
 import yaml
@@ -288,21 +284,14 @@ def test_sim_unknown_scenario_is_reported_not_fatal(ros_context, executor):
 
 def test_main_runs_as_a_process_with_the_sim_params_file(ros_context, executor):
     """Run ``driver_node`` main() in a child process with config/driver_sim.yaml."""
-    child = subprocess.Popen(
-        [sys.executable, '-m', 'gyro_tdc.nodes.driver_node', '--ros-args',
-         '--params-file', str(CONFIG / 'driver_sim.yaml'), '-p', 'scenario:=demo_fast',
-         '-p', 'time_scale:=10.0', '-p', 'frame_id:=proc_imu'],
-        env=dict(os.environ), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
-    try:
+    with node_process('gyro_tdc.nodes.driver_node', '--params-file',
+                      str(CONFIG / 'driver_sim.yaml'), '-p', 'scenario:=demo_fast',
+                      '-p', 'time_scale:=10.0', '-p', 'frame_id:=proc_imu') as child:
         lis = Listener(ros_context, executor)
         spin_until(executor, lambda: len(lis.imu) >= 20 and len(lis.temp) >= 2, 20.0,
                    what='messages from the driver process')
         assert lis.imu[0].header.frame_id == 'proc_imu'
         assert lis.imu[0].orientation_covariance[0] == -1.0
-        child.send_signal(signal.SIGINT)
-        assert child.wait(timeout=10) == 0
-    finally:
-        if child.poll() is None:
-            child.kill()
-            child.wait()
-    assert 'sim back-end' in child.stdout.read()
+        code, log = interrupt(child)
+        assert code == 0
+    assert 'sim back-end' in log
