@@ -101,29 +101,30 @@ def make_bag(path, *, minutes=60.0, rate_hz=1000.0, storage='sqlite3', seed=0):
               temp_c=reading, storage=storage)
 
 
+def _count_raw(reader):
+    """Open a rosbags reader and iterate every message, touching its raw bytes only."""
+    count = nbytes = 0
+    with reader:
+        for _conn, _stamp, raw in reader.messages():
+            count += 1
+            nbytes += len(raw)
+    return {'messages': count, 'bytes': nbytes}
+
+
 def _stage_raw(bag):
-    """Iterate every message of the bag, touching its raw bytes only."""
+    """Raw bytes through rosbags' AnyReader."""
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import get_typestore, Stores
 
-    count = nbytes = 0
-    with AnyReader([Path(bag)], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
-        for _conn, _stamp, raw in reader.messages():
-            count += 1
-            nbytes += len(raw)
-    return {'messages': count, 'bytes': nbytes}
+    return _count_raw(AnyReader([Path(bag)],
+                                default_typestore=get_typestore(Stores.ROS2_JAZZY)))
 
 
 def _stage_raw_reader(bag):
-    """Iterate every message with rosbags' lower-level Reader, touching its raw bytes only."""
+    """Raw bytes through rosbags' lower-level ``rosbags.rosbag2.Reader``."""
     from rosbags.rosbag2 import Reader
 
-    count = nbytes = 0
-    with Reader(Path(bag)) as reader:
-        for _conn, _stamp, raw in reader.messages():
-            count += 1
-            nbytes += len(raw)
-    return {'messages': count, 'bytes': nbytes}
+    return _count_raw(Reader(Path(bag)))
 
 
 def _stage_load(bag):

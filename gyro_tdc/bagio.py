@@ -769,11 +769,11 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
             if logs is not None:
                 stamp_ns[zero] = np.fromiter(logs, dtype=np.int64, count=len(logs))[zero]
             else:
-                rows = np.arange(len(raws)) if good is None else np.cumsum(good) - 1
                 if good is not None:
                     zero &= good
                 pos = np.flatnonzero(zero)
-                zero_stamped.append((first + pos, sinks[role].n + rows[pos]))
+                rows = pos if good is None else np.cumsum(good)[pos] - 1
+                zero_stamped.append((first + pos, sinks[role].n + rows))
         t = _seconds(stamp_ns)
         values = dec.values
         if good is not None:

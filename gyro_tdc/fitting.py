@@ -82,10 +82,8 @@ def estimate_t0(run: Run, *, window_s: float = 60.0) -> float:
 
 
 def _block_sum(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
-    """Sum ``a`` over consecutive blocks of ``block`` rows (last block may be shorter)."""
+    """Sum ``a`` over consecutive blocks of ``block`` (>= 1) rows (last may be shorter)."""
     a = np.asarray(a, dtype=np.float64)
-    if block <= 1:
-        return a.copy()
     n = a.shape[0]
     full = n // block * block
     # A vector-matrix product per block (BLAS) sums ~15x faster than reducing the middle
@@ -99,9 +97,7 @@ def _block_sum(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
 
 
 def _block_counts(n: int, block: int) -> NDArray[np.float64]:
-    """Return the number of rows in each block of ``block`` rows out of ``n``."""
-    if block <= 1:
-        return np.ones(n)
+    """Return the number of rows in each block of ``block`` (>= 1) rows out of ``n``."""
     counts = np.full(-(-n // block), float(block))
     if n % block:
         counts[-1] = n % block
@@ -118,9 +114,8 @@ def _block_mean(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
 
 
 def _block_sumsq(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
-    """Sum ``a * a`` (N, 3) over consecutive blocks of ``block`` rows, without a temporary."""
+    """Sum ``a * a`` (N, 3) over consecutive blocks of ``block`` (>= 1) rows, no temporary."""
     n = a.shape[0]
-    block = max(block, 1)
     full = n // block * block
     stacked = a[:full].reshape(full // block, block, a.shape[1])
     head = np.einsum('ijk,ijk->ik', stacked, stacked)
