@@ -44,7 +44,8 @@ from gyro_tdc.report import AXES, Coverage, coverage, format_coverage
 from gyro_tdc.runs import Run
 import numpy as np
 
-__all__ = ['TrainResult', 'build_parser', 'format_training', 'main', 'train']
+__all__ = ['TrainResult', 'add_train_options', 'build_parser', 'format_training', 'main',
+           'train', 'train_options']
 
 
 @dataclass
@@ -194,6 +195,23 @@ def build_parser() -> argparse.ArgumentParser:
                     'write it as a YAML model file.')
     p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap)')
     p.add_argument('--out', required=True, metavar='MODEL.yaml', help='model file to write')
+    add_train_options(p)
+    return p
+
+
+def add_train_options(p: argparse.ArgumentParser) -> None:
+    """
+    Add every option of ``train`` but the bags and ``--out`` (model and bag options).
+
+    Commands that train (``fleet``) share the options and defaults through this function;
+    :func:`train_options` turns the parsed arguments into keyword options of :func:`train`.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+        The command's parser.
+
+    """
     p.add_argument('--features', default='dT,dT2', metavar='IDS',
                    help='comma-separated effect ids (default: %(default)s, the modified model '
                         'of the paper; dT alone is the conventional model; add lag to fit '
@@ -212,7 +230,32 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--bin', dest='bin_c', type=_positive_float, default=5.0, metavar='C',
                    help='width of the coverage bins in degC (default: %(default)s)')
     add_bag_options(p)
-    return p
+
+
+def train_options(args: argparse.Namespace) -> dict:
+    """
+    Return the keyword options of :func:`train` from arguments of :func:`add_train_options`.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments.
+
+    Returns
+    -------
+    dict
+        ``features`` (normalised ids), ``kind``, ``n_centers``, ``refine``, ``t0``, ``seed``,
+        ``bin_c`` and the bag options of :func:`gyro_tdc.cli.common.bag_options`.
+
+    Raises
+    ------
+    FeatureError
+        When ``--features`` names an unknown effect.
+
+    """
+    return {'features': normalise_ids(args.features), 'kind': args.kind,
+            'n_centers': args.centers, 'refine': args.refine, 't0': args.t0,
+            'seed': args.seed, 'bin_c': args.bin_c, **bag_options(args)}
 
 
 def _positive_int(text: str) -> int:
@@ -247,11 +290,8 @@ def _positive_float(text: str) -> float:
 
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``train`` with parsed arguments; print the report."""
-    ids = normalise_ids(args.features)   # fail on a bad id before reading any bag
-    opts = bag_options(args)
-    result = train(args.bags, out=args.out, features=ids, kind=args.kind,
-                   n_centers=args.centers, refine=args.refine, t0=args.t0, seed=args.seed,
-                   bin_c=args.bin_c, command=command_line('train', argv),
+    opts = train_options(args)   # fails on a bad feature id before reading any bag
+    result = train(args.bags, out=args.out, command=command_line('train', argv),
                    log=lambda line: print(line, flush=True), **opts)
     text, warns = format_training(result)
     print(text)
