@@ -41,3 +41,7 @@ class DeviceError(GyroTdcError):
 
 class FeatureError(GyroTdcError):
     """An effect id is unknown or its parameters are invalid."""
+
+
+class FleetError(GyroTdcError):
+    """A fleet manifest is malformed or the Dask engine cannot be reached."""
