@@ -39,13 +39,16 @@ import bisect
 from collections import deque
 from dataclasses import dataclass
 import math
-from typing import Sequence
+from types import MappingProxyType
+from typing import Mapping, NamedTuple, Sequence
 
 from gyro_tdc.model import CompensationModel, StreamingCompensator
+from gyro_tdc.paramspec import ParamSpec, spec_dataclass
 import numpy as np
 
-__all__ = ['Anchor', 'CompensatorCore', 'FLAG_NAMES', 'Policy', 'STATIC_EFFECTS',
-           'StillnessDetector', 'TemperatureHold', 'describe_flags', 'widen_covariance']
+__all__ = ['Anchor', 'CompensatorCore', 'ERROR', 'FLAG_NAMES', 'Health', 'HealthMark', 'OK',
+           'PARAMS', 'Policy', 'STATIC_EFFECTS', 'StillnessDetector', 'TemperatureHold', 'WARN',
+           'describe_flags', 'health', 'widen_covariance']
 
 #: Flags of one processed sample (a bit set).
 STALE = 1
@@ -72,67 +75,52 @@ def describe_flags(flags: int) -> str:
     return ', '.join(name for bit, name in FLAG_NAMES.items() if flags & bit)
 
 
-@dataclass(frozen=True)
-class Policy:
-    """
-    What the compensator does when it cannot simply compensate.
+#: The compensator's parameters (the node declares them; ``policy`` rows build :class:`Policy`).
+PARAMS = (
+    ParamSpec('model_file', '', 'Model YAML file, or the name of a model in config/models; '
+              'settable at run time (hot reload). Empty: pass the raw rate through.',
+              read_only=False),
+    ParamSpec('out_of_range', 'clamp', 'Outside the model temperature range: evaluate at the '
+              'nearest valid temperature (clamp) or extrapolate.',
+              choices=('clamp', 'extrapolate'), policy=True),
+    ParamSpec('temperature_timeout', 5.0, 'Temperature older than this (IMU stamp minus '
+              'thermometer stamp) is stale [s].', 0.001, 86400.0, policy=True),
+    ParamSpec('stale_policy', 'hold', 'With a stale temperature: keep compensating with the '
+              'last value (hold) or pass the raw rate through (passthrough).',
+              choices=('hold', 'passthrough'), policy=True),
+    ParamSpec('stale_variance', 1.0e-6, 'Added to the angular_velocity_covariance diagonal '
+              'while compensating with a stale temperature [(rad/s)^2].', 0.0, 1.0e3,
+              policy=True),
+    ParamSpec('out_of_range_variance', 1.0e-6, 'Added to the covariance diagonal outside the '
+              "model's temperature range [(rad/s)^2].", 0.0, 1.0e3, policy=True),
+    ParamSpec('passthrough_variance', 1.0e-4, 'Added to the covariance diagonal when the raw '
+              'rate is passed through uncompensated [(rad/s)^2].', 0.0, 1.0e3, policy=True),
+    ParamSpec('reanchor_on_start', False, 'Shift the model offset so the compensated rate '
+              'averages zero once the IMU has been still for still_window.', policy=True),
+    ParamSpec('still_window', 10.0, 'Stillness window for re-anchoring [s].', 0.1, 3600.0,
+              policy=True),
+    ParamSpec('still_gyro_std', 0.02, 'Largest per-axis standard deviation of the raw rate '
+              'over a still window [rad/s].', 0.0, 10.0, policy=True),
+    ParamSpec('still_max_rate', 0.02, 'Largest per-axis mean compensated rate over a still '
+              'window, i.e. the largest shift allowed [rad/s].', 0.0, 10.0, policy=True),
+    ParamSpec('still_accel_std', 0.1, 'Largest per-axis standard deviation of the '
+              'acceleration over a still window, when the IMU has one [m/s^2].', 0.0, 100.0,
+              policy=True),
+    ParamSpec('queue_depth', 2000, 'Queue depth of the imu/data_raw and imu/temperature '
+              'subscriptions and of the publisher (keep last) [messages].', 1, 1000000),
+    ParamSpec('raw_cdr', True, 'Take imu/data_raw as serialized CDR and patch the bytes '
+              'instead of deserialising each message (same output, a fraction of the cost; '
+              'other encodings fall back to deserialising).'),
+    ParamSpec('executor', 'events', 'Executor main() spins the node with: rclpy.experimental '
+              'EventsExecutor (events, fastest) or SingleThreadedExecutor (single).',
+              choices=('events', 'single')),
+)
 
-    Parameters
-    ----------
-    out_of_range : str
-        ``'clamp'`` or ``'extrapolate'`` outside the model's temperature range.
-    temperature_timeout : float, s
-        Age (IMU stamp minus thermometer stamp) above which the temperature is stale.
-    stale_policy : str
-        ``'hold'`` (keep compensating with the last temperature) or ``'passthrough'``.
-    stale_variance : float, (rad/s)^2
-        Added to the covariance diagonal while compensating with a stale temperature.
-    out_of_range_variance : float, (rad/s)^2
-        Added while the temperature is outside the model's range.
-    passthrough_variance : float, (rad/s)^2
-        Added when the raw rate is passed through (the drift is not removed).
-    reanchor_on_start : bool
-        Re-anchor the model offset once the gyro has been still for ``still_window``.
-    still_window : float, s
-        Length of the stillness window.
-    still_gyro_std : float, rad/s
-        Largest per-axis standard deviation of the raw rate over a still window.
-    still_max_rate : float, rad/s
-        Largest per-axis mean compensated rate over a still window (the shift it allows).
-    still_accel_std : float, m/s^2
-        Largest per-axis standard deviation of the acceleration, when there is one.
-
-    """
-
-    out_of_range: str = 'clamp'
-    temperature_timeout: float = 5.0
-    stale_policy: str = 'hold'
-    stale_variance: float = 1.0e-6
-    out_of_range_variance: float = 1.0e-6
-    passthrough_variance: float = 1.0e-4
-    reanchor_on_start: bool = False
-    still_window: float = 10.0
-    still_gyro_std: float = 0.02
-    still_max_rate: float = 0.02
-    still_accel_std: float = 0.1
-
-    def __post_init__(self) -> None:
-        """Check the choices and the ranges."""
-        if self.out_of_range not in ('clamp', 'extrapolate'):
-            raise ValueError("Expected `out_of_range` 'clamp' or 'extrapolate', "
-                             f'got {self.out_of_range!r}.')
-        if self.stale_policy not in ('hold', 'passthrough'):
-            raise ValueError("Expected `stale_policy` 'hold' or 'passthrough', "
-                             f'got {self.stale_policy!r}.')
-        for name in ('temperature_timeout', 'still_window'):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value > 0.0):
-                raise ValueError(f'Expected `{name}` > 0 s, got {value!r}.')
-        for name in ('stale_variance', 'out_of_range_variance', 'passthrough_variance',
-                     'still_gyro_std', 'still_max_rate', 'still_accel_std'):
-            value = getattr(self, name)
-            if not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f'Expected `{name}` >= 0, got {value!r}.')
+#: One field per ``policy`` row of :data:`PARAMS` (same name, default and meaning), checked on
+#: construction (a choice, or a finite number of the sign the row's range gives).
+Policy = spec_dataclass(
+    'Policy', [s for s in PARAMS if s.policy], 'What the compensator does when it cannot '
+    'simply compensate (the ``policy`` rows of ``PARAMS``).', module=__name__, check=True)
 
 
 class TemperatureHold:
@@ -385,6 +373,8 @@ class CompensatorCore:
         self.last_t: float | None = None
         self.last_temp: float | None = None
         self.last_flags = 0
+        self.errors = 0
+        self.last_error = ''
         self._first: tuple[float, float] | None = None
         self._history: deque[tuple[float, float]] = deque(maxlen=self.HISTORY_LENGTH)
         self._detector = StillnessDetector(policy.still_window, policy.still_gyro_std,
@@ -573,6 +563,14 @@ class CompensatorCore:
         var = self.policy.passthrough_variance
         return wx, wy, wz, (var, var, var), flags
 
+    def fail(self, exc: Exception) -> Vec3:
+        """Count a sample whose compensation raised ``exc`` (sent raw); return its variance."""
+        self.counts['out'] += 1
+        self.errors += 1
+        self.last_error = f'{type(exc).__name__}: {exc}'
+        var = self.policy.passthrough_variance
+        return var, var, var
+
     def _still(self, t: float, raw: Vec3, out: Vec3, accel: Sequence[float] | None,
                temp: float) -> None:
         found = self._detector.update(t, raw, out, accel, temp)
@@ -599,3 +597,120 @@ class CompensatorCore:
         if latest is None or self.last_t is None:
             return None
         return self.last_t - latest[1]
+
+
+#: Levels of :class:`Health` (the byte values of diagnostic_msgs/DiagnosticStatus).
+OK, WARN, ERROR = 0, 1, 2
+
+
+class HealthMark(NamedTuple):
+    """The cumulative counters at one report: flag counts, temperatures rejected, errors."""
+
+    flags: Mapping[int, int] = MappingProxyType({})
+    temps_rejected: int = 0
+    errors: int = 0
+
+
+class Health(NamedTuple):
+    """
+    The compensator's state as /diagnostics shows it.
+
+    ``level`` is ``OK``, ``WARN`` or ``ERROR``; ``hardware_id`` the model's sensor (or frame)
+    id; ``values`` the key/value pairs in display order; ``mark`` the counters now, to pass
+    to the next :func:`health` call.
+    """
+
+    level: int
+    message: str
+    hardware_id: str
+    values: dict[str, str]
+    mark: HealthMark
+
+
+def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file: str = '',
+           last_reload: str = 'none') -> Health:
+    """
+    Judge the compensator's state: what went wrong since the last report, and its figures.
+
+    ERROR without a model or when a compensation raised since ``since``; WARN when samples
+    had no, a stale, an out-of-range or a non-finite input, or thermometer samples were
+    rejected since ``since``; else OK ('compensating', or 'waiting for imu/data_raw').
+
+    Parameters
+    ----------
+    core : CompensatorCore
+        The compensator.
+    since : HealthMark, optional
+        ``mark`` of the previous report (None: from the start).
+    model_file, last_reload : str
+        Where the model came from, and the outcome of the last (re)load.
+
+    Returns
+    -------
+    Health
+        Level, message, hardware id, key/value pairs and the counters now.
+
+    """
+    since = since or HealthMark()
+    model = core.model
+    counts = core.flag_counts
+    new = {bit: counts[bit] - since.flags.get(bit, 0) for bit in counts}
+    rejected = core.temps.rejected - since.temps_rejected
+    errors = core.errors - since.errors
+    problems = []
+    level = OK
+    if model is None:
+        level = ERROR
+        problems.append(f'no model loaded ({last_reload})')
+    for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE):
+        if new[bit]:
+            level = max(level, WARN)
+            problems.append(f'{describe_flags(bit)} ({new[bit]} samples)')
+    if rejected:
+        level = max(level, WARN)
+        problems.append(f'non-finite temperature ({rejected} samples rejected)')
+    if errors:
+        level = ERROR
+        problems.append(f'compensation failed on {errors} samples, passed through: '
+                        f'{core.last_error}')
+    if problems:
+        message = '; '.join(problems)
+    elif core.counts['in'] == 0:
+        message = 'waiting for imu/data_raw'
+    else:
+        message = 'compensating'
+    if new[PASSTHROUGH]:
+        message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
+    anchor = core.anchor
+    age = core.temperature_age()
+    flags = core.last_flags
+    values = {
+        'compensation active': (model is not None and core.counts['compensated'] > 0
+                                and not flags & PASSTHROUGH),
+        'why not': describe_flags(flags & ~OUT_OF_RANGE & ~STALE) if flags & PASSTHROUGH
+        else '',
+        'model id': model.model_id if model is not None else '', 'model file': model_file,
+        'model features': ','.join(model.features) if model is not None else '',
+        'model kind': model.kind if model is not None else '',
+        'model range degC': '{:.2f}..{:.2f}'.format(*model.temp_range_c)
+        if model is not None else '',
+        'last reload': last_reload,
+        'temperature degC': f'{core.last_temp:.3f}' if core.last_temp is not None else '',
+        'temperature age s': f'{age:.3f}' if age is not None else '',
+        'temperature stale': bool(flags & STALE), 'in range': not flags & OUT_OF_RANGE,
+        'messages in': core.counts['in'], 'messages out': core.counts['out'],
+        'compensated': core.counts['compensated'], 'passed through': counts[PASSTHROUGH],
+        'no temperature yet': counts[NO_TEMPERATURE], 'stale': counts[STALE],
+        'out of range': counts[OUT_OF_RANGE], 'non-finite': counts[NON_FINITE],
+        'no model': counts[NO_MODEL], 'temperatures rejected': core.temps.rejected,
+        'errors': core.errors, 'last error': core.last_error,
+        'reanchor': ('off' if not core.policy.reanchor_on_start else
+                     'waiting for stillness' if anchor is None else
+                     f'done at t={anchor.t:.3f} s'),
+    }
+    if anchor is not None:
+        values['reanchor shift dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.delta)
+    return Health(level, message,
+                  (model.sensor_id or model.frame_id) if model is not None else '',
+                  {k: str(v) for k, v in values.items()},
+                  HealthMark(dict(counts), core.temps.rejected, core.errors))
