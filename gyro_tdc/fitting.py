@@ -41,6 +41,7 @@ from typing import Mapping, Sequence
 import warnings
 
 from gyro_tdc import __version__
+from gyro_tdc.blocks import block_counts, block_mean, block_sumsq
 from gyro_tdc.effects import batch_features, EFFECTS, input_ids, normalise_ids, resolve_params
 from gyro_tdc.errors import FitError
 from gyro_tdc.model import CompensationModel, KINDS, rbf_design
@@ -81,68 +82,24 @@ def estimate_t0(run: Run, *, window_s: float = 60.0) -> float:
     return float(np.median(run.temp[:n]))
 
 
-def _block_sum(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
-    """Sum ``a`` over consecutive blocks of ``block`` (>= 1) rows (last may be shorter)."""
-    a = np.asarray(a, dtype=np.float64)
-    n = a.shape[0]
-    full = n // block * block
-    # A vector-matrix product per block (BLAS) sums ~15x faster than reducing the middle
-    # axis of a (blocks, block, ...) view.
-    ones = np.ones(block)
-    stacked = a[:full].reshape((full // block, block) + a.shape[1:])
-    head = stacked @ ones if a.ndim == 1 else ones @ stacked
-    if full == n:
-        return head
-    return np.concatenate([head, a[full:].sum(axis=0, keepdims=True)])
-
-
-def _block_counts(n: int, block: int) -> NDArray[np.float64]:
-    """Return the number of rows in each block of ``block`` (>= 1) rows out of ``n``."""
-    counts = np.full(-(-n // block), float(block))
-    if n % block:
-        counts[-1] = n % block
-    return counts
-
-
-def _block_mean(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
-    """Average ``a`` over consecutive blocks of ``block`` rows (last block may be shorter)."""
-    a = np.asarray(a, dtype=np.float64)
-    if block <= 1:
-        return a
-    counts = _block_counts(a.shape[0], block)
-    return _block_sum(a, block) / counts.reshape((-1,) + (1,) * (a.ndim - 1))
-
-
-def _block_sumsq(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
-    """Sum ``a * a`` (N, 3) over consecutive blocks of ``block`` (>= 1) rows, no temporary."""
-    n = a.shape[0]
-    full = n // block * block
-    stacked = a[:full].reshape(full // block, block, a.shape[1])
-    head = np.einsum('ijk,ijk->ik', stacked, stacked)
-    if full == n:
-        return head
-    tail = a[full:]
-    return np.concatenate([head, np.einsum('jk,jk->k', tail, tail)[None, :]])
-
-
 class _Blocks:
     """Block means of one run: stamps, temperature, drift target and reference rate."""
 
     def __init__(self, run: Run, block: int) -> None:
         self.run = run
-        self.t = _block_mean(run.t, block)
-        self.temp = _block_mean(run.temp, block)
+        self.t = block_mean(run.t, block)
+        self.temp = block_mean(run.temp, block)
         err = run.omega - run.omega_ref
-        self.y = _block_mean(err, block)
+        self.y = block_mean(err, block)
         self.block = block
-        self.counts = _block_counts(len(run), block)
+        self.counts = block_counts(len(run), block)
         self.ss_raw = np.einsum('ij,ij->j', err, err)
         self.ss_within = self._scatter(err, self.y)
 
     def _scatter(self, err: NDArray[np.float64], mean: NDArray[np.float64]
                  ) -> NDArray[np.float64]:
         """Per block and axis, the sum of squared deviations of ``err`` from ``mean``."""
-        return _block_sumsq(err, self.block) - self.counts[:, None] * mean ** 2
+        return block_sumsq(err, self.block) - self.counts[:, None] * mean ** 2
 
     def scatter(self, scale: NDArray[np.float64], t0: float) -> NDArray[np.float64]:
         """
@@ -154,20 +111,20 @@ class _Blocks:
         err = self.run.omega - self.run.omega_ref
         if np.any(scale):
             err = err - (self.run.temp - t0)[:, None] * self.run.omega_ref * scale
-        return self._scatter(err, _block_mean(err, self.block))
+        return self._scatter(err, block_mean(err, self.block))
 
     def features(self, ids: Sequence[str], t0: float, params: Mapping, *,
                  exact: bool) -> NDArray[np.float64]:
         """Return block-mean features; ``exact`` computes them at full rate first."""
         if exact and self.block > 1:
             x = batch_features(ids, self.run.t, self.run.temp, t0=t0, params=params)
-            return _block_mean(x, self.block)
+            return block_mean(x, self.block)
         return batch_features(ids, self.t, self.temp, t0=t0, params=params)
 
     def scale_cols(self, t0: float) -> NDArray[np.float64]:
         """Return block means of ``dT * omega_ref`` (N, 3)."""
         d = self.run.temp - t0
-        return _block_mean(d[:, None] * self.run.omega_ref, self.block)
+        return block_mean(d[:, None] * self.run.omega_ref, self.block)
 
 
 def _place_centers(xn: NDArray[np.float64], k: int, seed: int
