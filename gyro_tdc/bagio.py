@@ -18,20 +18,13 @@ Write and read rosbag2 bags of IMU, temperature and reference-rate messages, fas
 Pure rosbags + numpy (no rclpy). The three message types this package records all share
 one shape on the wire: a ``std_msgs/Header`` followed by a flat run of float64 values
 (``sensor_msgs/Imu``: 37, ``sensor_msgs/Temperature``: 2, ``geometry_msgs/Vector3Stamped``:
-3). For a given ``frame_id`` length the CDR bytes of such a message have a fixed layout::
-
-    0   encapsulation  4 bytes (00 01 00 00 = CDR little endian)
-    4   stamp.sec      int32
-    8   stamp.nanosec  uint32
-    12  frame_id len   uint32 (bytes including the terminating NUL)
-    16  frame_id       len bytes, then zero padding to a multiple of 8 (counted from 4)
-    ..  float64 x K
-
-so all messages of a topic are written and read as one numpy structured array instead of
-one Python object per message. Every fast path checks itself against rosbags' own
-serialiser (``serialize_cdr`` / ``deserialize_cdr``) and falls back to it, per chunk of
-messages, whenever the layout does not hold (frame ids of different lengths, another
-encapsulation, trailing bytes...).
+3). For a given ``frame_id`` length the CDR bytes of such a message have a fixed layout,
+described once in :mod:`gyro_tdc.imu_cdr`, so all messages of a topic are written and read
+as one numpy structured array (:attr:`gyro_tdc.imu_cdr.Layout.dtype`) instead of one Python
+object per message. Every fast path checks itself against rosbags' own serialiser
+(``serialize_cdr`` / ``deserialize_cdr``) and falls back to it, per chunk of messages,
+whenever the layout does not hold (frame ids of different lengths, another encapsulation,
+trailing bytes...).
 """
 
 from __future__ import annotations
@@ -45,7 +38,9 @@ import struct
 from typing import Any, Callable, Sequence
 
 import apsw
+from gyro_tdc import imu_cdr
 from gyro_tdc.errors import DatasetError
+from gyro_tdc.imu_cdr import field_slice, IMU_DOUBLES, IMU_FIELDS, layout_of
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from rosbags.highlevel import AnyReader, AnyReaderError
@@ -70,10 +65,18 @@ TEMPERATURE_TYPE = 'sensor_msgs/msg/Temperature'
 REFERENCE_TYPE = 'geometry_msgs/msg/Vector3Stamped'
 
 # Number of float64 values after the header, per message type.
-_N_DOUBLES = {IMU_TYPE: 37, TEMPERATURE_TYPE: 2, REFERENCE_TYPE: 3}
-# Columns of that float64 block that read_bag keeps: Imu angular_velocity (13:16) and
-# linear_acceleration (25:28); Temperature temperature and variance; Vector3Stamped x, y, z.
-_KEEP = {IMU_TYPE: (13, 14, 15, 25, 26, 27), TEMPERATURE_TYPE: (0, 1), REFERENCE_TYPE: (0, 1, 2)}
+_N_DOUBLES = {IMU_TYPE: IMU_DOUBLES, TEMPERATURE_TYPE: 2, REFERENCE_TYPE: 3}
+
+
+def _columns(*names: str) -> tuple[int, ...]:
+    """Return the float64-block columns of Imu fields (see gyro_tdc.imu_cdr.IMU_FIELDS)."""
+    return tuple(k for name in names for k in range(IMU_DOUBLES)[field_slice(name)])
+
+
+# Columns of that float64 block that read_bag keeps: Imu angular_velocity and
+# linear_acceleration; Temperature temperature and variance; Vector3Stamped x, y, z.
+_KEEP = {IMU_TYPE: _columns('angular_velocity', 'linear_acceleration'),
+         TEMPERATURE_TYPE: (0, 1), REFERENCE_TYPE: (0, 1, 2)}
 
 _WRITE_CHUNK = 1 << 16    # messages serialised per numpy call when writing
 # Messages per block when reading: small enough that a block's raw bytes (~5 MB of Imu) are
@@ -82,8 +85,6 @@ _WRITE_CHUNK = 1 << 16    # messages serialised per numpy call when writing
 _CHUNK = 1 << 14
 _BAG_VERSION = 9          # rosbag2 metadata version written by Jazzy (rosbag2 0.26)
 _STORAGES = {'sqlite3': StoragePlugin.SQLITE3, 'mcap': StoragePlugin.MCAP}
-_CDR_LE = (0, 1, 0, 0)
-_CDR_BE = (0, 0, 0, 0)
 # What rosbag2 (Jazzy) records for a reliable, volatile publisher with default deadlines.
 _INFINITE = QosTime(9223372036, 854775807)
 _QOS = Qos(QosHistory.UNKNOWN, 0, QosReliability.RELIABLE, QosDurability.VOLATILE,
@@ -106,40 +107,8 @@ def _jazzy() -> Any:
 
 
 # --------------------------------------------------------------------------------------------
-# Fixed CDR layout shared by Imu, Temperature and Vector3Stamped
+# Fixed CDR layout (gyro_tdc.imu_cdr) checked against rosbags
 # --------------------------------------------------------------------------------------------
-
-def _cdr_dtype(frame_len: int, n_doubles: int, *, big_endian: bool = False) -> np.dtype:
-    """
-    Return the structured dtype of one header-plus-float64 message in CDR.
-
-    Parameters
-    ----------
-    frame_len : int
-        Length of the serialised ``frame_id`` including its terminating NUL.
-    n_doubles : int
-        Number of float64 values after the header.
-    big_endian : bool
-        Byte order of the encapsulation (CDR_BE when True).
-
-    Returns
-    -------
-    np.dtype
-        Fields ``encap`` (4 x u1), ``sec``, ``nanosec``, ``strlen``, ``frame``
-        (frame_len x u1) and ``data`` (n_doubles x f8), itemsize = message length.
-
-    """
-    order = '>' if big_endian else '<'
-    # Alignment counts from the end of the 4-byte encapsulation header.
-    start = 4 + ((12 + frame_len + 7) // 8) * 8
-    return np.dtype({
-        'names': ['encap', 'sec', 'nanosec', 'strlen', 'frame', 'data'],
-        'formats': [('u1', (4,)), order + 'i4', order + 'u4', order + 'u4',
-                    ('u1', (frame_len,)), (order + 'f8', (n_doubles,))],
-        'offsets': [0, 4, 8, 12, 16, start],
-        'itemsize': start + 8 * n_doubles,
-    })
-
 
 def _to_msg(msgtype: str, sec: int, nanosec: int, frame_id: str,
             row: NDArray[np.float64]) -> Any:
@@ -151,10 +120,12 @@ def _to_msg(msgtype: str, sec: int, nanosec: int, frame_id: str,
     row = [float(x) for x in row]
     if msgtype == IMU_TYPE:
         vec = types['geometry_msgs/msg/Vector3']
+        f = {name: row[field_slice(name)] for name in IMU_FIELDS}
         return types[IMU_TYPE](
-            header, types['geometry_msgs/msg/Quaternion'](*row[0:4]),
-            np.array(row[4:13]), vec(*row[13:16]), np.array(row[16:25]),
-            vec(*row[25:28]), np.array(row[28:37]))
+            header, types['geometry_msgs/msg/Quaternion'](*f['orientation']),
+            np.array(f['orientation_covariance']), vec(*f['angular_velocity']),
+            np.array(f['angular_velocity_covariance']), vec(*f['linear_acceleration']),
+            np.array(f['linear_acceleration_covariance']))
     if msgtype == TEMPERATURE_TYPE:
         return types[TEMPERATURE_TYPE](header, row[0], row[1])
     return types[REFERENCE_TYPE](header, types['geometry_msgs/msg/Vector3'](*row[0:3]))
@@ -163,7 +134,7 @@ def _to_msg(msgtype: str, sec: int, nanosec: int, frame_id: str,
 def _from_msg(msgtype: str, msg: Any) -> tuple[int, int, str, list[float]]:
     """Return (sec, nanosec, frame_id, float64 block) of a deserialised message."""
     stamp = msg.header.stamp
-    if msgtype == IMU_TYPE:
+    if msgtype == IMU_TYPE:   # the fields in wire order (gyro_tdc.imu_cdr.IMU_FIELDS)
         o, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
         row = ([o.x, o.y, o.z, o.w, *msg.orientation_covariance, w.x, w.y, w.z,
                 *msg.angular_velocity_covariance, a.x, a.y, a.z,
@@ -179,49 +150,12 @@ def _from_msg(msgtype: str, msg: Any) -> tuple[int, int, str, list[float]]:
     return int(stamp.sec), int(stamp.nanosec), str(msg.header.frame_id), row
 
 
-def _encode(msgtype: str, sec: NDArray[np.int64], nanosec: NDArray[np.int64], frame_id: str,
-            data: NDArray[np.float64]) -> list[bytes]:
-    """
-    Serialise messages sharing one frame id into one CDR bytes object each.
-
-    Parameters
-    ----------
-    msgtype : str
-        One of the three supported message types.
-    sec, nanosec : NDArray[np.int64], shape (n,)
-        Header stamps.
-    frame_id : str
-        Header frame id of every message.
-    data : NDArray[np.float64], shape (n, K)
-        The float64 block after the header (K from the message type).
-
-    Returns
-    -------
-    list[bytes]
-        One CDR little-endian message per row, identical to rosbags' ``serialize_cdr``.
-
-    """
-    frame = frame_id.encode('utf-8') + b'\x00'
-    dt = _cdr_dtype(len(frame), _N_DOUBLES[msgtype])
-    n = len(sec)
-    rec = np.zeros(n, dtype=dt)
-    rec['encap'] = _CDR_LE
-    rec['sec'] = sec
-    rec['nanosec'] = nanosec
-    rec['strlen'] = len(frame)
-    rec['frame'] = np.frombuffer(frame, dtype=np.uint8)
-    rec['data'] = data
-    buf = rec.tobytes()
-    size = dt.itemsize
-    return [buf[i:i + size] for i in range(0, n * size, size)]
-
-
 def _encode_checked(msgtype: str, sec: NDArray[np.int64], nanosec: NDArray[np.int64],
                     frame_id: str, data: NDArray[np.float64]) -> list[bytes]:
     """Encode with numpy once verified against rosbags on the first message, else rosbags."""
     if not len(sec):
         return []
-    out = _encode(msgtype, sec, nanosec, frame_id, data)
+    out = imu_cdr.encode(sec, nanosec, frame_id, data)
     ref = bytes(_jazzy().serialize_cdr(
         _to_msg(msgtype, sec[0], nanosec[0], frame_id, data[0]), msgtype))
     if ref == out[0]:
@@ -268,25 +202,21 @@ def _decode_fast(raws: Sequence[bytes], msgtype: str,
 
     """
     n = len(raws)
-    first = raws[0]
-    if len(first) < 16 or first[0] != 0 or first[1] not in (0, 1):
+    try:
+        dt = layout_of(raws[0], _N_DOUBLES[msgtype]).dtype
+    except DatasetError:
         return None
-    big = first[1] == 0
-    frame_len = int.from_bytes(first[12:16], 'big' if big else 'little')
-    if not 1 <= frame_len <= len(first):
-        return None
-    n_doubles = _N_DOUBLES[msgtype]
-    dt = _cdr_dtype(frame_len, n_doubles, big_endian=big)
     lengths = np.fromiter(map(len, raws), dtype=np.int64, count=n)
     if np.any(lengths != dt.itemsize):
         return None
     buf = b''.join(raws)
     rec = np.frombuffer(buf, dtype=dt)
-    # Encapsulation (word 0) and frame id length (word 3) equal to the first message's, as
-    # raw 32-bit words (itemsize is always a multiple of 4); then the frame id bytes.
+    # Encapsulation (word 0) and frame id length equal to the first message's, as raw
+    # 32-bit words (itemsize is always a multiple of 4); then the frame id bytes.
     words = np.frombuffer(buf, dtype=np.uint32).reshape(n, dt.itemsize // 4)
     frame = rec['frame']
-    if (np.any(words[:, 0] != words[0, 0]) or np.any(words[:, 3] != words[0, 3])
+    k = imu_cdr.FRAME_ID_LENGTH // 4
+    if (np.any(words[:, 0] != words[0, 0]) or np.any(words[:, k] != words[0, k])
             or np.any(frame != frame[0]) or frame[0, -1] != 0):
         return None
     try:
@@ -452,16 +382,18 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
         ref = np.zeros((0, 3))
 
     # The float64 blocks of every message, built lazily per chunk below.
-    imu_const = np.zeros(37)
-    imu_const[3] = 1.0             # orientation w
-    imu_const[4] = -1.0            # orientation_covariance[0]: no orientation (REP 145)
-    imu_const[16:25] = np.diag(gcov).ravel()
-    imu_const[28:37] = np.diag(acov).ravel()
+    imu_const = np.zeros(IMU_DOUBLES)
+    orientation = imu_const[field_slice('orientation')]
+    orientation[3] = 1.0           # orientation w
+    imu_const[field_slice('orientation_covariance').start] = -1.0  # no orientation (REP 145)
+    imu_const[field_slice('angular_velocity_covariance')] = np.diag(gcov).ravel()
+    imu_const[field_slice('linear_acceleration_covariance')] = np.diag(acov).ravel()
+    gyro_cols, accel_cols = field_slice('angular_velocity'), field_slice('linear_acceleration')
 
     def imu_block(idx: NDArray[np.int64]) -> NDArray[np.float64]:
-        block = np.broadcast_to(imu_const, (len(idx), 37)).copy()
-        block[:, 13:16] = gyro[idx]
-        block[:, 25:28] = accel[idx]
+        block = np.broadcast_to(imu_const, (len(idx), IMU_DOUBLES)).copy()
+        block[:, gyro_cols] = gyro[idx]
+        block[:, accel_cols] = accel[idx]
         return block
 
     topics: list[tuple[str, str, NDArray[np.int64], NDArray[np.int64],

@@ -22,6 +22,7 @@ from pathlib import Path
 from gyro_tdc import bagio
 from gyro_tdc.bagio import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag
 from gyro_tdc.errors import DatasetError
+from gyro_tdc.imu_cdr import encode, Layout
 import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
@@ -104,7 +105,7 @@ def test_fixed_layout_decodes_every_field_like_rosbags(msgtype, frame_id, little
             for _ in range(7)]
     raws = [bytes(TS.serialize_cdr(m, msgtype, little_endian=little_endian)) for m in msgs]
     frame = frame_id.encode() + b'\0'
-    dt = bagio._cdr_dtype(len(frame), bagio._N_DOUBLES[msgtype], big_endian=not little_endian)
+    dt = Layout(len(frame), bagio._N_DOUBLES[msgtype], big_endian=not little_endian).dtype
     assert dt.itemsize == len(raws[0])
     rec = np.frombuffer(b''.join(raws), dtype=dt)
     for i, raw in enumerate(raws):
@@ -133,7 +134,7 @@ def test_fixed_layout_encodes_like_rosbags(msgtype, frame_id):
     data = rng.normal(size=(n, bagio._N_DOUBLES[msgtype]))
     data[1, 0] = np.nan
     data[2, -1] = -np.inf
-    encoded = bagio._encode(msgtype, sec, nsec, frame_id, data)
+    encoded = encode(sec, nsec, frame_id, data)
     for i in range(n):
         msg = bagio._to_msg(msgtype, sec[i], nsec[i], frame_id, data[i])
         assert encoded[i] == bytes(TS.serialize_cdr(msg, msgtype))
