@@ -87,13 +87,13 @@ def _qos():
 
 def make_executor(kind, context=None):
     """Return an EventsExecutor ('events') or a SingleThreadedExecutor ('single')."""
-    from gyro_tdc.nodes.compensator_node import make_executor as make
+    from gyro_tdc.nodes.executors import make_executor as make
     return make(kind, context)
 
 
 def spin(executor):
     """Spin until shutdown exactly as compensator_node's main() does."""
-    from gyro_tdc.nodes.compensator_node import spin as node_spin
+    from gyro_tdc.nodes.executors import spin as node_spin
     node_spin(executor)
 
 

@@ -16,12 +16,13 @@
 
 from __future__ import annotations
 
+from dataclasses import fields, replace
 import math
 
 from gyro_tdc.compensation_logic import (
-    CompensatorCore, describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
-    PASSTHROUGH, Policy, STALE, STATIC_EFFECTS, StillnessDetector, TemperatureHold,
-    widen_covariance)
+    CompensatorCore, describe_flags, ERROR, health, NO_MODEL, NO_TEMPERATURE, NON_FINITE, OK,
+    OUT_OF_RANGE, PARAMS, PASSTHROUGH, Policy, STALE, STATIC_EFFECTS, StillnessDetector,
+    TemperatureHold, WARN, widen_covariance)
 from gyro_tdc.effects import batch_features, EFFECTS
 from gyro_tdc.fitting import fit_model
 from gyro_tdc.model import compensate, StreamingCompensator
@@ -99,6 +100,21 @@ def test_policy_checks_choices_and_ranges():
         Policy(temperature_timeout=0.0)
     with pytest.raises(ValueError, match='passthrough_variance'):
         Policy(passthrough_variance=-1.0)
+
+
+def test_policy_is_built_from_the_parameter_table():
+    rows = [s for s in PARAMS if s.policy]
+    assert [f.name for f in fields(Policy)] == [s.name for s in rows]
+    assert Policy() == Policy(**{s.name: s.default for s in rows})
+    assert len(rows) == 11 and {'model_file', 'queue_depth', 'raw_cdr', 'executor'}.isdisjoint(
+        f.name for f in fields(Policy))
+    with pytest.raises(ValueError, match='still_window'):
+        Policy(still_window=math.nan)
+    with pytest.raises(ValueError, match='still_accel_std'):
+        Policy(still_accel_std=math.inf)
+    assert Policy(stale_variance=0.0, still_window=1e9).still_window == 1e9  # sign only
+    with pytest.raises(AttributeError):
+        Policy().stale_policy = 'passthrough'  # frozen
 
 
 def test_widen_covariance():
@@ -278,3 +294,96 @@ def test_reanchor_on_start(model):
     kept, _, _ = run_core(plain, t, raw, tt, tc)
     np.testing.assert_allclose(kept.mean(axis=0), offset, atol=2e-4)
     assert plain.anchor is None
+
+
+def test_health_no_model_is_an_error_until_one_is_loaded(model):
+    core = CompensatorCore(Policy())
+    h = health(core, last_reload='failed: broken.yaml')
+    assert (h.level, h.message) == (ERROR, 'no model loaded (failed: broken.yaml)')
+    assert h.hardware_id == '' and h.values['model id'] == '' and h.values['model kind'] == ''
+    assert h.values['compensation active'] == 'False' and h.values['reanchor'] == 'off'
+    core.process(1.0, 0.0, 0.0, 0.0)
+    h = health(core, h.mark)
+    assert h.level == ERROR
+    assert h.message == 'no model loaded (none); 1 samples passed through uncompensated'
+    assert h.values['why not'] == 'no model loaded, raw rate passed through'
+    core.set_model(replace(model, sensor_id='', frame_id='gyro_link'))
+    h = health(core, h.mark, model_file='m.yaml', last_reload='loaded x')
+    assert (h.level, h.message, h.hardware_id) == (OK, 'compensating', 'gyro_link')
+    assert h.values['model file'] == 'm.yaml' and h.values['last reload'] == 'loaded x'
+    assert h.values['model features'] == ','.join(model.features)
+
+
+def test_health_waiting_then_compensating(model):
+    core = CompensatorCore(Policy(), replace(model, sensor_id='L3GD20-42'))
+    h = health(core)
+    assert (h.level, h.message, h.hardware_id) == (OK, 'waiting for imu/data_raw', 'L3GD20-42')
+    assert h.values['temperature degC'] == '' and h.values['temperature age s'] == ''
+    core.add_temperature(10.0, 20.0)
+    core.process(10.5, 0.0, 0.0, 0.0)
+    h = health(core, h.mark)
+    assert (h.level, h.message) == (OK, 'compensating')
+    v = h.values
+    assert v['compensation active'] == 'True' and v['why not'] == ''
+    assert v['temperature degC'] == '20.000' and v['temperature age s'] == '0.500'
+    assert v['messages in'] == v['messages out'] == v['compensated'] == '1'
+    assert v['in range'] == 'True' and v['temperature stale'] == 'False'
+    lo, hi = model.temp_range_c
+    assert v['model range degC'] == f'{lo:.2f}..{hi:.2f}'
+
+
+@pytest.mark.parametrize('bit,feed', [
+    (NO_TEMPERATURE, lambda core: core.process(1.0, 0.0, 0.0, 0.0)),
+    (NON_FINITE, lambda core: core.process(1.0, math.nan, 0.0, 0.0)),
+    (STALE, lambda core: (core.add_temperature(0.0, 20.0), core.process(100.0, 0, 0, 0))),
+    (OUT_OF_RANGE, lambda core: (core.add_temperature(0.0, 500.0), core.process(1.0, 0, 0, 0))),
+])
+def test_health_warns_of_what_is_new_since_the_last_report(model, bit, feed):
+    core = CompensatorCore(Policy(), model)
+    feed(core)
+    feed(core)
+    h = health(core)
+    assert h.level == WARN and h.message.startswith(f'{describe_flags(bit)} (2 samples)')
+    passed = bit in (NO_TEMPERATURE, NON_FINITE)
+    assert h.message.endswith('; 2 samples passed through uncompensated') == passed
+    assert h.values['compensation active'] == str(not passed)
+    key = {NO_TEMPERATURE: 'no temperature yet', NON_FINITE: 'non-finite', STALE: 'stale',
+           OUT_OF_RANGE: 'out of range'}[bit]
+    assert h.values[key] == '2'
+    assert h.values['temperature stale'] == str(bit == STALE)
+    assert h.values['in range'] == str(bit != OUT_OF_RANGE)
+    # Nothing new since: OK again, the cumulative counts stay.
+    again = health(core, h.mark)
+    assert again.level == OK and again.message == 'compensating'
+    assert again.values[key] == '2'
+
+
+def test_health_rejected_temperatures_errors_and_several_problems(model):
+    core = CompensatorCore(Policy(passthrough_variance=0.5), model)
+    core.add_temperature(0.0, math.nan)
+    h = health(core)
+    assert (h.level, h.message) == (WARN, 'non-finite temperature (1 samples rejected)')
+    assert h.values['temperatures rejected'] == '1'
+    assert core.fail(FloatingPointError('overflow')) == (0.5, 0.5, 0.5)
+    core.process(1.0, 0.0, 0.0, 0.0)
+    h = health(core, h.mark)
+    assert h.level == ERROR
+    assert h.message == ('no temperature yet (1 samples); compensation failed on 1 samples, '
+                         'passed through: FloatingPointError: overflow; 1 samples passed '
+                         'through uncompensated')
+    assert h.values['errors'] == '1' and h.values['last error'] == 'FloatingPointError: overflow'
+    assert core.counts == {'in': 1, 'out': 2, 'compensated': 0}
+    assert health(core, h.mark).level == OK
+
+
+def test_health_reports_the_reanchoring(model):
+    core = CompensatorCore(Policy(reanchor_on_start=True, still_window=1.0), model)
+    assert health(core).values['reanchor'] == 'waiting for stillness'
+    core.add_temperature(0.0, 20.0)
+    for k in range(300):
+        core.process(0.01 * k, 0.0, 0.0, 0.0, (0.0, 0.0, 9.81))
+    anchor = core.anchor
+    assert anchor is not None
+    v = health(core).values
+    assert v['reanchor'] == f'done at t={anchor.t:.3f} s'
+    assert v['reanchor shift dps'] == ','.join(f'{math.degrees(d):.5f}' for d in anchor.delta)

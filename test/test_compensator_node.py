@@ -22,10 +22,11 @@ from pathlib import Path
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from gyro_tdc.compensation_logic import CompensatorCore, Policy
 from gyro_tdc.fitting import fit_model
+from gyro_tdc.imu_cdr import ImuView, locate
 from gyro_tdc.model import compensate
 from gyro_tdc.modelfile import save_model
-from gyro_tdc.nodes.compensator_node import CompensatorNode, make_executor, PARAMS
-from gyro_tdc.nodes.imu_cdr import ImuView, locate
+from gyro_tdc.nodes.compensator_node import CompensatorNode, PARAMS
+from gyro_tdc.nodes.executors import make_executor
 import numpy as np
 import pytest
 import rclpy

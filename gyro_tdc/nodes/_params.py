@@ -12,60 +12,32 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Declare parameters once, with descriptors, from a table of specs."""
+"""Declare a parameter table (:mod:`gyro_tdc.paramspec`) on a node, with ROS descriptors."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Any, Sequence
 
+from gyro_tdc.paramspec import ParamSpec
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 
+__all__ = ['declare', 'descriptor']
 
-@dataclass(frozen=True)
-class ParamSpec:
-    """
-    One parameter: name, default, what it means, its unit and its valid range.
 
-    Parameters
-    ----------
-    name : str
-        Parameter name.
-    default : bool, int, float or str
-        Default value; its type is the parameter's type.
-    description : str
-        What it does, ending with the unit in brackets where there is one.
-    lo, hi : float or int, optional
-        Inclusive range (numbers only).
-    choices : sequence of str, optional
-        Allowed string values (checked by the node, listed in the descriptor).
-    read_only : bool
-        True when a change needs a restart.
-
-    """
-
-    name: str
-    default: Any
-    description: str
-    lo: float | int | None = None
-    hi: float | int | None = None
-    choices: Sequence[str] = ()
-    read_only: bool = True
-
-    def descriptor(self) -> ParameterDescriptor:
-        """Return the ROS descriptor of this parameter."""
-        d = ParameterDescriptor(description=self.description, read_only=self.read_only)
-        if self.choices:
-            d.additional_constraints = 'one of: ' + ', '.join(self.choices)
-        if self.lo is not None and self.hi is not None:
-            if isinstance(self.default, float):
-                d.floating_point_range = [FloatingPointRange(
-                    from_value=float(self.lo), to_value=float(self.hi), step=0.0)]
-            elif isinstance(self.default, int) and not isinstance(self.default, bool):
-                d.integer_range = [IntegerRange(
-                    from_value=int(self.lo), to_value=int(self.hi), step=1)]
-        return d
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """Return the ROS descriptor of one parameter: description, read-only, choices, range."""
+    d = ParameterDescriptor(description=spec.description, read_only=spec.read_only)
+    if spec.choices:
+        d.additional_constraints = 'one of: ' + ', '.join(spec.choices)
+    if spec.lo is not None and spec.hi is not None:
+        if isinstance(spec.default, float):
+            d.floating_point_range = [FloatingPointRange(
+                from_value=float(spec.lo), to_value=float(spec.hi), step=0.0)]
+        elif isinstance(spec.default, int) and not isinstance(spec.default, bool):
+            d.integer_range = [IntegerRange(
+                from_value=int(spec.lo), to_value=int(spec.hi), step=1)]
+    return d
 
 
 def declare(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
@@ -92,7 +64,7 @@ def declare(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     """
     values = {}
     for spec in specs:
-        value = node.declare_parameter(spec.name, spec.default, spec.descriptor()).value
+        value = node.declare_parameter(spec.name, spec.default, descriptor(spec)).value
         if spec.choices and value not in spec.choices:
             raise ValueError(f'Expected parameter `{spec.name}` to be one of '
                              f'{", ".join(spec.choices)}, got {value!r}.')

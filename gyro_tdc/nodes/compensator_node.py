@@ -22,35 +22,28 @@ except ``angular_velocity`` (corrected by the model) and ``angular_velocity_cova
 ``model_file`` can be changed at run time (parameter set) or re-read (``~/reload``,
 std_srvs/Trigger); an invalid file is refused with its reason and the old model stays.
 
-Every decision lives in :mod:`gyro_tdc.compensation_logic`; this module converts. With
-``raw_cdr`` (default) the Imu is taken as serialized bytes and patched in place by
-:mod:`gyro_tdc.nodes.imu_cdr`, which saves most of a Python relay's per-message cost.
-``main()`` spins rclpy's EventsExecutor (``executor: events``): measured with
-``bench/bench_compensator.py`` it moves ~2.9x the messages of a SingleThreadedExecutor in one
-process and needs ~1.5x less CPU per message across processes; its ``spin()`` is broken in the
-Jazzy wheels, so :func:`spin` loops on ``spin_once``.
+Every decision lives in :mod:`gyro_tdc.compensation_logic` (the policies, the parameter
+table ``PARAMS``, the health on /diagnostics); this module converts. With ``raw_cdr``
+(default) the Imu is taken as serialized bytes and patched in place by
+:mod:`gyro_tdc.imu_cdr`, which saves most of a Python relay's per-message cost. ``main()``
+spins rclpy's EventsExecutor (``executor: events``, see :mod:`gyro_tdc.nodes.executors`).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-import gc
-import math
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from gyro_tdc.compensation_logic import (
-    CompensatorCore, describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
-    PASSTHROUGH, Policy, STALE)
+from gyro_tdc.compensation_logic import CompensatorCore, health, HealthMark, PARAMS, Policy
 from gyro_tdc.errors import ModelFileError
+from gyro_tdc.imu_cdr import ImuView, locate
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.modelfile import load_model
-from gyro_tdc.nodes._params import declare, ParamSpec
-from gyro_tdc.nodes.imu_cdr import ImuView, locate
+from gyro_tdc.nodes._params import declare
+from gyro_tdc.nodes.executors import run_node
+from gyro_tdc.paramspec import spec_dataclass
 from gyro_tdc.resources import model_path
 from rcl_interfaces.msg import SetParametersResult
-import rclpy
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
@@ -59,74 +52,13 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, Temperature
 from std_srvs.srv import Trigger
 
-PARAMS = (
-    ParamSpec('model_file', '', 'Model YAML file, or the name of a model in config/models; '
-              'settable at run time (hot reload). Empty: pass the raw rate through.',
-              read_only=False),
-    ParamSpec('out_of_range', 'clamp', 'Outside the model temperature range: evaluate at the '
-              'nearest valid temperature (clamp) or extrapolate.',
-              choices=('clamp', 'extrapolate')),
-    ParamSpec('temperature_timeout', 5.0, 'Temperature older than this (IMU stamp minus '
-              'thermometer stamp) is stale [s].', 0.001, 86400.0),
-    ParamSpec('stale_policy', 'hold', 'With a stale temperature: keep compensating with the '
-              'last value (hold) or pass the raw rate through (passthrough).',
-              choices=('hold', 'passthrough')),
-    ParamSpec('stale_variance', 1.0e-6, 'Added to the angular_velocity_covariance diagonal '
-              'while compensating with a stale temperature [(rad/s)^2].', 0.0, 1.0e3),
-    ParamSpec('out_of_range_variance', 1.0e-6, 'Added to the covariance diagonal outside the '
-              "model's temperature range [(rad/s)^2].", 0.0, 1.0e3),
-    ParamSpec('passthrough_variance', 1.0e-4, 'Added to the covariance diagonal when the raw '
-              'rate is passed through uncompensated [(rad/s)^2].', 0.0, 1.0e3),
-    ParamSpec('reanchor_on_start', False, 'Shift the model offset so the compensated rate '
-              'averages zero once the IMU has been still for still_window.'),
-    ParamSpec('still_window', 10.0, 'Stillness window for re-anchoring [s].', 0.1, 3600.0),
-    ParamSpec('still_gyro_std', 0.02, 'Largest per-axis standard deviation of the raw rate '
-              'over a still window [rad/s].', 0.0, 10.0),
-    ParamSpec('still_max_rate', 0.02, 'Largest per-axis mean compensated rate over a still '
-              'window, i.e. the largest shift allowed [rad/s].', 0.0, 10.0),
-    ParamSpec('still_accel_std', 0.1, 'Largest per-axis standard deviation of the '
-              'acceleration over a still window, when the IMU has one [m/s^2].', 0.0, 100.0),
-    ParamSpec('queue_depth', 2000, 'Queue depth of the imu/data_raw and imu/temperature '
-              'subscriptions and of the publisher (keep last) [messages].', 1, 1000000),
-    ParamSpec('raw_cdr', True, 'Take imu/data_raw as serialized CDR and patch the bytes '
-              'instead of deserialising each message (same output, a fraction of the cost; '
-              'other encodings fall back to deserialising).'),
-    ParamSpec('executor', 'events', 'Executor main() spins the node with: rclpy.experimental '
-              'EventsExecutor (events, fastest) or SingleThreadedExecutor (single).',
-              choices=('events', 'single')),
-)
+__all__ = ['CompensatorNode', 'CompensatorParams', 'PARAMS', 'main', 'read_model']
 
-
-@dataclass(frozen=True)
-class CompensatorParams:
-    """The compensator's parameters (see ``PARAMS`` for meanings and units)."""
-
-    model_file: str
-    out_of_range: str
-    temperature_timeout: float
-    stale_policy: str
-    stale_variance: float
-    out_of_range_variance: float
-    passthrough_variance: float
-    reanchor_on_start: bool
-    still_window: float
-    still_gyro_std: float
-    still_max_rate: float
-    still_accel_std: float
-    queue_depth: int
-    raw_cdr: bool
-    executor: str
-
-    def policy(self) -> Policy:
-        """Return the pure-logic policy these parameters describe."""
-        return Policy(
-            out_of_range=self.out_of_range, temperature_timeout=self.temperature_timeout,
-            stale_policy=self.stale_policy, stale_variance=self.stale_variance,
-            out_of_range_variance=self.out_of_range_variance,
-            passthrough_variance=self.passthrough_variance,
-            reanchor_on_start=self.reanchor_on_start, still_window=self.still_window,
-            still_gyro_std=self.still_gyro_std, still_max_rate=self.still_max_rate,
-            still_accel_std=self.still_accel_std)
+#: The compensator's parameters, read once at start-up (``model_file`` also at run time).
+CompensatorParams = spec_dataclass(
+    'CompensatorParams', PARAMS, "The compensator's parameters (rows of ``PARAMS``).",
+    module=__name__, methods={'policy': lambda self: Policy(
+        **{s.name: getattr(self, s.name) for s in PARAMS if s.policy})})
 
 
 def read_model(name_or_file: str) -> CompensationModel:
@@ -201,11 +133,7 @@ class CompensatorNode(Node):
         self.create_service(Trigger, '~/reload', self._on_reload)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
-        self._temps_rejected_seen = 0
-        self._errors = 0
-        self._errors_seen = 0
-        self._last_error = ''
-        self._flags_seen = dict(self.core.flag_counts)
+        self._seen = HealthMark()
         self._reported_anchor = None
         self.create_timer(1.0, self._on_diagnostics)
 
@@ -223,9 +151,8 @@ class CompensatorNode(Node):
             wx, wy, wz, var, flags = self.core.process(
                 st.sec + st.nanosec * 1e-9, w.x, w.y, w.z, a)
         except Exception as exc:  # the callback edge: never lose the message
-            self._on_error(exc)
-            v = self.params.passthrough_variance
-            wx, wy, wz, var = w.x, w.y, w.z, (v, v, v)
+            var = self._on_error(exc)
+            wx, wy, wz = w.x, w.y, w.z
         w.x, w.y, w.z = wx, wy, wz
         cov = msg.angular_velocity_covariance
         if cov[0] != -1.0:
@@ -248,18 +175,15 @@ class CompensatorNode(Node):
         try:
             wx, wy, wz, var, flags = self.core.process(sec + nanosec * 1e-9, wx, wy, wz, a)
         except Exception as exc:  # the callback edge: never lose the message
-            self._on_error(exc)
-            v = self.params.passthrough_variance
-            var = (v, v, v)
+            var = self._on_error(exc)
         self._pub.publish(view.patched(wx, wy, wz, var))
 
-    def _on_error(self, exc: Exception) -> None:
+    def _on_error(self, exc: Exception) -> tuple[float, float, float]:
         """Count an unexpected compensation failure; the raw sample goes out flagged."""
-        self.core.counts['out'] += 1
-        self._errors += 1
-        self._last_error = f'{type(exc).__name__}: {exc}'
+        var = self.core.fail(exc)
         self.get_logger().error(f'compensation failed, raw rate passed through: '
-                                f'{self._last_error}', throttle_duration_sec=1.0)
+                                f'{self.core.last_error}', throttle_duration_sec=1.0)
+        return var
 
     def _on_temperature(self, msg: Temperature) -> None:
         st = msg.header.stamp
@@ -301,14 +225,12 @@ class CompensatorNode(Node):
             model = read_model(name)
         except ModelFileError as exc:
             self.last_reload = f'rejected: {exc}'
-            self.get_logger().error(f'model {name!r} rejected, keeping '
-                                    f'{self._model_id() or "no model"}: {exc}')
+            model = self.core.model
+            kept = (model.model_id if model is not None else '') or 'no model'
+            self.get_logger().error(f'model {name!r} rejected, keeping {kept}: {exc}')
             return False, str(exc)
         self._install(name, model)
         return True, f'loaded model {model.model_id} from {name}'
-
-    def _model_id(self) -> str:
-        return self.core.model.model_id if self.core.model is not None else ''
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """Validate a new ``model_file`` by loading it; refuse it with the reason."""
@@ -348,83 +270,20 @@ class CompensatorNode(Node):
     # -- diagnostics ------------------------------------------------------------------
 
     def diagnostic_status(self) -> DiagnosticStatus:
-        """Return the compensator's DiagnosticStatus (and log what changed)."""
-        core = self.core
-        model = core.model
-        counts = core.flag_counts
-        new = {bit: counts[bit] - self._flags_seen.get(bit, 0) for bit in counts}
-        self._flags_seen = dict(counts)
-        rejected = core.temps.rejected - self._temps_rejected_seen
-        self._temps_rejected_seen = core.temps.rejected
-        st = DiagnosticStatus()
-        st.name = f'{self.get_name()}: gyro compensation'
-        st.hardware_id = (model.sensor_id or model.frame_id) if model is not None else ''
-        age = core.temperature_age()
-        problems = []
-        level = DiagnosticStatus.OK
-        if model is None:
-            level = DiagnosticStatus.ERROR
-            problems.append(f'no model loaded ({self.last_reload})')
-        for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE):
-            if new[bit]:
-                level = max(level, DiagnosticStatus.WARN)
-                problems.append(f'{describe_flags(bit)} ({new[bit]} samples)')
-        if rejected:
-            level = max(level, DiagnosticStatus.WARN)
-            problems.append(f'non-finite temperature ({rejected} samples rejected)')
-        errors = self._errors - self._errors_seen
-        self._errors_seen = self._errors
-        if errors:
-            level = DiagnosticStatus.ERROR
-            problems.append(f'compensation failed on {errors} samples, passed through: '
-                            f'{self._last_error}')
-        if problems:
-            st.message = '; '.join(problems)
-        elif core.counts['in'] == 0:
-            st.message = 'waiting for imu/data_raw'
-        else:
-            st.message = 'compensating'
-        if new[PASSTHROUGH]:
-            st.message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
-        st.level = level
-        anchor = core.anchor
-        values: dict[str, Any] = {
-            'compensation active': (model is not None and core.counts['compensated'] > 0
-                                    and not core.last_flags & PASSTHROUGH),
-            'why not': describe_flags(core.last_flags & ~OUT_OF_RANGE & ~STALE)
-            if core.last_flags & PASSTHROUGH else '',
-            'model id': self._model_id(), 'model file': self.model_file,
-            'model features': ','.join(model.features) if model is not None else '',
-            'model kind': model.kind if model is not None else '',
-            'model range degC': '{:.2f}..{:.2f}'.format(*model.temp_range_c)
-            if model is not None else '',
-            'last reload': self.last_reload,
-            'temperature degC': f'{core.last_temp:.3f}' if core.last_temp is not None else '',
-            'temperature age s': f'{age:.3f}' if age is not None else '',
-            'temperature stale': bool(core.last_flags & STALE),
-            'in range': not core.last_flags & OUT_OF_RANGE,
-            'messages in': core.counts['in'], 'messages out': core.counts['out'],
-            'compensated': core.counts['compensated'],
-            'passed through': counts[PASSTHROUGH],
-            'no temperature yet': counts[NO_TEMPERATURE], 'stale': counts[STALE],
-            'out of range': counts[OUT_OF_RANGE], 'non-finite': counts[NON_FINITE],
-            'no model': counts[NO_MODEL], 'temperatures rejected': core.temps.rejected,
-            'errors': self._errors, 'last error': self._last_error,
-            'reanchor': ('off' if not core.policy.reanchor_on_start else
-                         'waiting for stillness' if anchor is None else
-                         f'done at t={anchor.t:.3f} s'),
-        }
-        if anchor is not None:
-            values['reanchor shift dps'] = ','.join(f'{math.degrees(v):.5f}'
-                                                    for v in anchor.delta)
-            if anchor is not self._reported_anchor:
-                self._reported_anchor = anchor
-                self.get_logger().info(
-                    f're-anchored after {anchor.samples} still samples at '
-                    f'{anchor.temp_c:.2f} degC: offset shift {values["reanchor shift dps"]} '
-                    'deg/s')
-        st.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
-        return st
+        """Return the compensator's DiagnosticStatus (and log a new re-anchoring)."""
+        h = health(self.core, self._seen, model_file=self.model_file,
+                   last_reload=self.last_reload)
+        self._seen = h.mark
+        anchor = self.core.anchor
+        if anchor is not None and anchor is not self._reported_anchor:
+            self._reported_anchor = anchor
+            self.get_logger().info(
+                f're-anchored after {anchor.samples} still samples at {anchor.temp_c:.2f} '
+                f'degC: offset shift {h.values["reanchor shift dps"]} deg/s')
+        return DiagnosticStatus(
+            level=bytes((h.level,)), name=f'{self.get_name()}: gyro compensation',
+            message=h.message, hardware_id=h.hardware_id,
+            values=[KeyValue(key=k, value=v) for k, v in h.values.items()])
 
     def _on_diagnostics(self) -> None:
         arr = DiagnosticArray()
@@ -433,70 +292,12 @@ class CompensatorNode(Node):
         self._diag_pub.publish(arr)
 
 
-def make_executor(kind: str, context: Any = None) -> Any:
-    """
-    Return the executor named by the ``executor`` parameter.
-
-    Parameters
-    ----------
-    kind : str
-        ``'events'`` (rclpy.experimental.EventsExecutor) or ``'single'``.
-    context : rclpy.context.Context, optional
-        Context of the executor.
-
-    Returns
-    -------
-    rclpy.executors.Executor
-        The executor.
-
-    """
-    if kind == 'events':
-        from rclpy.experimental import EventsExecutor
-        return EventsExecutor(context=context)
-    return SingleThreadedExecutor(context=context)
-
-
-def spin(executor: Any, context: Any = None) -> None:
-    """
-    Run ``executor`` until its context shuts down.
-
-    The loop calls ``spin_once``: in the rclpy 7.1.6 Jazzy wheels
-    ``EventsExecutor.spin()`` dispatches nothing at all (neither timers nor
-    subscriptions) while its ``spin_once`` works and is the fast path.
-
-    Parameters
-    ----------
-    executor : rclpy.executors.Executor
-        The executor, nodes added.
-    context : rclpy.context.Context, optional
-        Its context (default: the global one).
-
-    """
-    while rclpy.ok(context=context):
-        executor.spin_once(timeout_sec=0.5)
-
-
 def main(args: list[str] | None = None) -> None:
     """Run the compensator node until shutdown (``ros2 run gyro_tdc compensator_node``)."""
-    rclpy.init(args=args)
-    node = None
-    executor = None
-    try:
-        node = CompensatorNode()
-        executor = make_executor(node.params.executor)
-        executor.add_node(node)
-        # Keep the ~30k start-up objects (numpy, the model...) out of the cyclic collector's
-        # full passes, which otherwise stall the callback for ~10 ms now and then (p99).
-        gc.freeze()
-        spin(executor)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if executor is not None:
-            executor.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    # gc.freeze(): keep the ~30k start-up objects (numpy, the model...) out of the cyclic
+    # collector's full passes, which otherwise stall the callback for ~10 ms now and then (p99).
+    run_node(CompensatorNode, args, executor=lambda node: node.params.executor,
+             freeze_heap=True)
 
 
 if __name__ == '__main__':

@@ -33,11 +33,11 @@ import sys
 import time
 
 from gyro_tdc.metrics import bias_stability
+from gyro_tdc.nodes.executors import make_executor
 from gyro_tdc.resources import config_dir
 import numpy as np
 import rclpy
 from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
@@ -142,7 +142,7 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
     procs: list[subprocess.Popen] = []
     try:
         node = MonitorNode(context=ctx)
-        ex = SingleThreadedExecutor(context=ctx)
+        ex = make_executor('single', ctx)
         ex.add_node(node)
         procs.append(subprocess.Popen(comp_cmd, env=env, stdout=subprocess.DEVNULL))
         deadline = time.monotonic() + 20.0
