@@ -12,13 +12,20 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The back-end Protocol and the sample it yields."""
+"""
+The back-end Protocol and the sample it yields.
+
+The driver node talks to a back-end only through :class:`ImuSource`: on every tick of its
+timer it publishes what :meth:`~ImuSource.pending` yields, stamped by
+:meth:`~ImuSource.stamp_ns`. A back-end paces itself: the simulator releases its samples as
+its scaled clock reaches them; a device read once per tick mixes in :class:`PolledSource`.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Protocol, runtime_checkable
+from typing import Iterator, Protocol, runtime_checkable
 
 from gyro_tdc.errors import DeviceError
 
@@ -61,13 +68,47 @@ class ImuSample:
 
 @runtime_checkable
 class ImuSource(Protocol):
-    """A gyro back-end: the driver node only ever talks to this."""
+    """
+    A gyro back-end: the driver node only ever talks to this.
+
+    Attributes
+    ----------
+    name : str
+        What the back-end reads (device name, ``sim:<scenario>``), for logs and diagnostics.
+    has_accel : bool
+        Whether samples carry acceleration (REP 145: else the covariance says "no data").
+
+    """
 
     name: str
+    has_accel: bool
+
+    def pending(self) -> Iterator[ImuSample]:
+        """
+        Yield the samples due now, in time order (called once per tick of the driver).
+
+        Yields
+        ------
+        ImuSample
+            The next due reading; the driver publishes each before asking for the next.
+
+        Raises
+        ------
+        SourceExhausted
+            A finite source has no more samples.
+        gyro_tdc.errors.DeviceError
+            The device vanished or returned something that is not a number.
+
+        """
+        ...
+
+    def stamp_ns(self, t: float) -> int:
+        """Return the ROS stamp, ns on the node clock, of source time ``t`` (s)."""
+        ...
 
     def read(self) -> ImuSample:
         """
-        Return the next sample.
+        Return the next sample, whether due or not.
 
         Returns
         -------
@@ -85,6 +126,24 @@ class ImuSource(Protocol):
     def close(self) -> None:
         """Release the device."""
         ...
+
+
+class PolledSource:
+    """
+    Pacing and stamps of a back-end read once per driver tick (mixed into a source class).
+
+    Its ``read()`` returns a fresh reading whose ``t`` is in seconds on the node clock the
+    source was given (the IIO back-end): every tick one sample is due, and its stamp is its
+    time in nanoseconds.
+    """
+
+    def pending(self) -> Iterator[ImuSample]:
+        """Yield one fresh reading (``self.read()``)."""
+        yield self.read()
+
+    def stamp_ns(self, t: float) -> int:
+        """Return ``t`` (s on the node clock) in nanoseconds."""
+        return int(round(t * 1e9))
 
 
 def check_sample(sample: ImuSample) -> ImuSample:

@@ -32,7 +32,7 @@ import time
 from typing import Callable
 
 from gyro_tdc.errors import DeviceError
-from gyro_tdc.sources.base import ImuSample, Vec3
+from gyro_tdc.sources.base import ImuSample, PolledSource, Vec3
 
 DEFAULT_IIO_ROOT = '/sys/bus/iio/devices'
 _AXES = ('x', 'y', 'z')
@@ -128,7 +128,7 @@ class _Channel:
         return (_read_number(self.path) + self.offset) * self.scale
 
 
-class IioSource:
+class IioSource(PolledSource):
     """
     Read a gyro (and its accelerometer and thermometer) from a Linux IIO device.
 
