@@ -41,6 +41,7 @@ import apsw
 from gyro_tdc import imu_cdr
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.imu_cdr import field_slice, IMU_DOUBLES, IMU_FIELDS, layout_of
+from gyro_tdc.yamlio import BAG_METADATA_LIMITS, load_yaml
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from rosbags.highlevel import AnyReader, AnyReaderError
@@ -579,7 +580,9 @@ def _resolve(path: str | Path) -> Path:
 
 def _storage_id(bag: Path) -> str:
     """Return the storage identifier recorded in metadata.yaml ('' when absent)."""
-    meta = yaml.safe_load((bag / 'metadata.yaml').read_text(encoding='utf-8'))
+    meta_path = bag / 'metadata.yaml'
+    meta = load_yaml(meta_path.read_text(encoding='utf-8'), BAG_METADATA_LIMITS,
+                     source=str(meta_path), error=DatasetError)
     try:
         return str(meta['rosbag2_bagfile_information']['storage_identifier'])
     except (KeyError, TypeError):

@@ -45,3 +45,11 @@ class FeatureError(GyroTdcError):
 
 class FleetError(GyroTdcError):
     """A fleet manifest is malformed or the Dask engine cannot be reached."""
+
+
+class OutputError(GyroTdcError):
+    """An output file or directory cannot be written (the message names it)."""
+
+
+class LimitError(GyroTdcError):
+    """An input or option exceeds a documented size limit (the message names the limit)."""

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, fields
 import hashlib
+import json
 import math
 from typing import Any, Mapping
 
@@ -142,19 +143,48 @@ class CompensationModel:
 
     @property
     def model_id(self) -> str:
-        """Return a short content hash identifying the fitted parameters."""
+        """
+        Return a short content hash of every field but ``created``.
+
+        Covers the fitted parameters, ``temp_range_c``, ``residual_var``, the sensor ids and
+        the training metrics, so no field a compensator or a reader relies on can be
+        edited under the old id. Numbers are hashed as float64 bytes (or exact JSON), so
+        the id survives a YAML round trip and does not depend on numpy's ``repr``.
+        """
         h = hashlib.sha256()
-        h.update(repr((self.kind, self.features, sorted(
-            (k, sorted(v.items())) for k, v in self.effect_params.items()), self.t0_c)).encode())
-        for arr in (self.input_mean, self.input_std, self.centers, self.widths, self.weights,
-                    self.intercept, self.linear, self.scale):
-            h.update(np.ascontiguousarray(arr, dtype=np.float64).tobytes())
+        h.update(_canonical_json([self.kind, list(self.features), self.effect_params,
+                                  self.frame_id, self.sensor_id, self.metrics]).encode())
+        for arr in (self.t0_c, self.temp_range_c, self.input_mean, self.input_std, self.centers,
+                    self.widths, self.weights, self.intercept, self.linear, self.scale,
+                    self.residual_var):
+            a = np.ascontiguousarray(arr, dtype=np.float64)
+            h.update(repr(a.shape).encode())
+            h.update(a.tobytes())
         return h.hexdigest()[:12]
 
     def replace(self, **changes: Any) -> 'CompensationModel':
         """Return a copy with some fields changed."""
         from dataclasses import replace
         return replace(self, **changes)
+
+
+def _plain_value(value: Any) -> Any:
+    """Return ``value`` with numpy values, tuples and non-str keys as plain JSON types."""
+    if isinstance(value, np.ndarray):
+        return _plain_value(value.tolist())
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, Mapping):
+        return {str(k): _plain_value(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_plain_value(v) for v in value]
+    return value
+
+
+def _canonical_json(value: Any) -> str:
+    """Return one canonical JSON text of plain data (sorted keys, exact floats)."""
+    return json.dumps(_plain_value(value), sort_keys=True, separators=(',', ':'),
+                      default=repr)
 
 
 def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]

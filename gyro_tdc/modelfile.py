@@ -36,8 +36,26 @@ Format version 1 (all physical quantities in SI units, angles in rad)::
     training: {...}                # metrics
     created: {utc: ..., gyro_tdc_version: ..., command: ...}
 
-Files are read with ``yaml.safe_load`` only; every field is checked and a bad one is reported
-in one line naming it. Floats are written with ``repr`` precision, so save -> load is exact.
+Files are read with the safe YAML loader only; every field is checked and a bad one is
+reported in one line naming it. Floats are written with ``repr`` precision, so save -> load is
+exact. ``format_version`` must be the integer 1 (not ``1.0``, not ``true``). ``model_id`` is
+required: it is the content hash of every field but ``created`` (see
+:attr:`gyro_tdc.model.CompensationModel.model_id`), so an edited range, residual variance,
+sensor or training record is caught.
+
+Hard limits, checked before the document is built (:mod:`gyro_tdc.yamlio`), so a hostile
+file is refused in well under a second with bounded memory:
+
+- file size at most ``MAX_MODEL_BYTES`` (4 MiB);
+- nesting at most ``MAX_MODEL_DEPTH`` (32) levels of mappings/sequences;
+- no YAML anchors or aliases (a model file never needs them; this rules out alias bombs);
+- at most ``MAX_MODEL_NODES`` (250,000) YAML nodes;
+- at most ``MAX_CENTERS`` (10,000) RBF centres (a 10,000-centre model is about 1.4 MB and
+  loads in about a second; per message it costs about 1 ms, already too slow for a 1 kHz
+  gyro).
+
+Files are written atomically with the permissions of a normal ``open`` (see
+:func:`gyro_tdc.atomicio.atomic_write`).
 """
 
 from __future__ import annotations
@@ -45,18 +63,26 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
-import tempfile
 from typing import Any, Mapping
 
+from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.effects import input_ids, normalise_ids, resolve_params
 from gyro_tdc.errors import FeatureError, ModelFileError
 from gyro_tdc.model import CompensationModel, KINDS
+from gyro_tdc.yamlio import read_yaml, YamlLimits
 import numpy as np
 import yaml
 
-__all__ = ['FORMAT_VERSION', 'load_model', 'model_from_dict', 'model_to_dict', 'save_model']
+__all__ = ['FORMAT_VERSION', 'MAX_CENTERS', 'MAX_MODEL_BYTES', 'MAX_MODEL_DEPTH',
+           'MAX_MODEL_NODES', 'load_model', 'model_from_dict', 'model_to_dict', 'save_model']
 
 FORMAT_VERSION = 1
+MAX_MODEL_BYTES = 4 * 1024 * 1024
+MAX_MODEL_DEPTH = 32
+MAX_MODEL_NODES = 250_000
+MAX_CENTERS = 10_000
+_LIMITS = YamlLimits('model file', max_bytes=MAX_MODEL_BYTES, max_depth=MAX_MODEL_DEPTH,
+                     max_nodes=MAX_MODEL_NODES, aliases=False)
 
 
 def _plain(value: Any) -> Any:
@@ -163,8 +189,16 @@ def model_from_dict(d: Any) -> CompensationModel:
     if not isinstance(d, Mapping):
         raise ModelFileError(f'expected a mapping at the top level, got {type(d).__name__}')
     version = d.get('format_version')
-    if version != FORMAT_VERSION:
-        raise ModelFileError(f'field `format_version` must be {FORMAT_VERSION}, got {version!r}')
+    if type(version) is not int or version != FORMAT_VERSION:   # not 1.0, not true
+        note = '' if type(version) is int else f' (a {type(version).__name__}, not an integer)'
+        raise ModelFileError(f'field `format_version` must be {FORMAT_VERSION}, got '
+                             f'{version!r}{note}')
+    mid = d.get('model_id')
+    if 'model_id' not in d:
+        raise ModelFileError('missing field `model_id` (the content hash every model file '
+                             'carries; re-save the model with gyro_tdc to add it)')
+    if not isinstance(mid, str):
+        raise ModelFileError(f'field `model_id` must be a string, got {mid!r:.40}')
     kind = d.get('kind')
     if kind not in KINDS:
         raise ModelFileError(f'field `kind` must be one of {", ".join(KINDS)}, got {kind!r}')
@@ -180,6 +214,10 @@ def model_from_dict(d: Any) -> CompensationModel:
         raise ModelFileError(f'field `features` must list each id once in catalog order '
                              f'({", ".join(ids)}), got {feats!r}')
     f = len(input_ids(ids))
+    rows = d.get('centers')
+    if isinstance(rows, list) and len(rows) > MAX_CENTERS:
+        raise ModelFileError(f'field `centers` has {len(rows)} rows, more than the limit of '
+                             f'{MAX_CENTERS} centres')
     norm = _mapping(d, 'normalization')
     mean = _array(norm, 'mean', (f,))
     std = _array(norm, 'std', (f,), positive=True)
@@ -211,8 +249,7 @@ def model_from_dict(d: Any) -> CompensationModel:
         frame_id=frame_id, sensor_id=sensor_id,
         metrics=_mapping(d, 'training', required=False),
         created=_mapping(d, 'created', required=False))
-    mid = d.get('model_id')
-    if mid is not None and mid != model.model_id:
+    if mid != model.model_id:
         raise ModelFileError(f'field `model_id` {mid!r} does not match the parameters '
                              f'({model.model_id}): the file was edited or corrupted')
     return model
@@ -220,7 +257,7 @@ def model_from_dict(d: Any) -> CompensationModel:
 
 def save_model(model: CompensationModel, path: str | os.PathLike) -> Path:
     """
-    Write a model file atomically (temporary file + rename).
+    Write a model file atomically (see :func:`gyro_tdc.atomicio.atomic_write`).
 
     Parameters
     ----------
@@ -234,16 +271,15 @@ def save_model(model: CompensationModel, path: str | os.PathLike) -> Path:
     Path
         The path written.
 
+    Raises
+    ------
+    OutputError
+        When the file cannot be written (nothing is left behind).
+
     """
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     text = '# gyro_tdc compensation model (see README "Model file")\n' + yaml.safe_dump(
         model_to_dict(model), sort_keys=False, default_flow_style=None, width=100)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix='.' + path.name, suffix='.tmp')
-    with os.fdopen(fd, 'w', encoding='utf-8') as fh:
-        fh.write(text)
-    os.replace(tmp, path)
-    return path
+    return atomic_write(Path(path), text, what='model file')
 
 
 def load_model(path: str | os.PathLike) -> CompensationModel:
@@ -267,19 +303,7 @@ def load_model(path: str | os.PathLike) -> CompensationModel:
 
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding='utf-8')
-    except OSError as exc:
-        raise ModelFileError(f'{path}: cannot read model file: {exc.strerror or exc}') from None
-    except UnicodeDecodeError:
-        raise ModelFileError(f'{path}: not a text (UTF-8) model file') from None
-    try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, 'problem_mark', None)
-        where = f' at line {mark.line + 1}' if mark is not None else ''
-        raise ModelFileError(f'{path}: malformed YAML{where}: '
-                             f'{getattr(exc, "problem", None) or exc}') from None
+    data = read_yaml(path, _LIMITS, error=ModelFileError)
     try:
         return model_from_dict(data)
     except ModelFileError as exc:

@@ -92,6 +92,7 @@ from typing import Any, Mapping, Optional, Union
 from gyro_tdc.errors import GyroTdcError, ScenarioError
 from gyro_tdc.sim import chamber
 from gyro_tdc.sim.presets import PRESETS
+from gyro_tdc.yamlio import load_yaml, SCENARIO_LIMITS
 import numpy as np
 from numpy.typing import NDArray
 import yaml
@@ -899,7 +900,7 @@ def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) ->
     except (OSError, UnicodeDecodeError) as exc:
         raise ScenarioError(f'Cannot read scenario file {str(path)!r}: {exc}') from exc
     try:
-        data = yaml.safe_load(text)
+        data = load_yaml(text, SCENARIO_LIMITS, source=path.name, error=ScenarioError)
     except yaml.YAMLError as exc:
         mark = getattr(exc, 'problem_mark', None)
         where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''

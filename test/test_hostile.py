@@ -1,0 +1,344 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Hostile files and faulty inputs (issue 18, the parts outside the nodes).
+
+Each case reproduces one reported failure: deep nesting and alias bombs in YAML, oversized
+files, tampered model files, non-atomic or wrongly permissioned outputs, silent message loss
+in a damaged bag, absurd values in a bag, options sizing huge arrays, the same bag twice,
+conflicting temperature stamps. Bags are written in ``tmp_path`` with ``write_bag``; no rclpy.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+from pathlib import Path
+import stat
+import tracemalloc
+
+from gyro_tdc.atomicio import atomic_dir, atomic_write
+from gyro_tdc.errors import GyroTdcError, ModelFileError, OutputError, ScenarioError
+from gyro_tdc.model import CompensationModel
+from gyro_tdc.modelfile import load_model, MAX_CENTERS, model_from_dict, model_to_dict
+from gyro_tdc.modelfile import save_model
+from gyro_tdc.sim import load_scenario
+import numpy as np
+import pytest
+import yaml
+
+DEEP = '[' * 600 + ']' * 600          # 1.2 KB, 600 levels: RecursionError in yaml.safe_load
+
+
+def alias_bomb(levels: int = 9) -> str:
+    """Return a 'billion laughs' YAML document (2-3 KB, 10**levels leaves expanded)."""
+    lines = ['a0: &a0 [lol, lol, lol, lol, lol, lol, lol, lol, lol, lol]']
+    for k in range(1, levels + 1):
+        refs = ', '.join([f'*a{k - 1}'] * 10)
+        lines.append(f'a{k}: &a{k} [{refs}]')
+    return '\n'.join(lines) + '\n'
+
+
+def small_model(k: int = 4, **changes) -> CompensationModel:
+    """Return a small hand-made RBF model (no fitting), seeded."""
+    rng = np.random.default_rng(5)
+    m = CompensationModel(
+        kind='rbf', features=('dT', 'dT2'), effect_params={}, t0_c=20.0,
+        input_mean=np.array([10.0, 300.0]), input_std=np.array([20.0, 400.0]),
+        centers=rng.normal(size=(k, 2)), widths=rng.uniform(0.2, 1.0, k),
+        weights=rng.normal(scale=1e-3, size=(k, 3)), intercept=np.array([1e-3, -2e-3, 5e-4]),
+        linear=rng.normal(scale=1e-3, size=(2, 3)), scale=np.zeros(3),
+        temp_range_c=(-10.0, 50.0), residual_var=np.full(3, 1e-8), frame_id='imu_link',
+        sensor_id='unit-7', metrics={'samples': 1000, 'runs': ['/bags/run1']},
+        created={'utc': '2026-01-01T00:00:00+00:00', 'command': 'test'})
+    return m.replace(**changes) if changes else m
+
+
+def one_line_error(exc_info) -> str:
+    """Return the message of a raised error after checking it is one line."""
+    text = str(exc_info.value)
+    assert '\n' not in text and text
+    return text
+
+
+# --------------------------------------------------------------------------------------------
+# Items 1 and 3: deep nesting, alias bombs and size limits in every YAML the package reads
+# --------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('text', [DEEP, 'centers: ' + DEEP + '\n',
+                                  'training: ' + '{a: ' * 400 + '1' + '}' * 400 + '\n'])
+def test_deeply_nested_model_file_is_a_clear_error(tmp_path, text):
+    path = tmp_path / 'deep.yaml'
+    path.write_text(text)
+    with pytest.raises(ModelFileError, match='nesting deeper than 32 levels') as info:
+        load_model(path)
+    assert str(path) in one_line_error(info)
+
+
+def test_deeply_nested_scenario_file_is_a_clear_error(tmp_path):
+    path = tmp_path / 'deep.yaml'
+    path.write_text('profile: ' + DEEP + '\n')
+    with pytest.raises(ScenarioError, match='nesting deeper than') as info:
+        load_scenario(path)
+    assert 'deep.yaml' in one_line_error(info)
+
+
+def test_alias_bomb_model_file_is_refused_fast_in_bounded_memory(tmp_path):
+    path = tmp_path / 'bomb.yaml'
+    path.write_text(alias_bomb(9))
+    assert path.stat().st_size < 3000
+    tracemalloc.start()
+    try:
+        with pytest.raises(ModelFileError, match='aliases are not allowed in a model file'):
+            load_model(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 5e6, peak
+
+
+def test_alias_bomb_scenario_file_is_refused_by_the_expanded_node_count(tmp_path):
+    path = tmp_path / 'bomb.yaml'
+    path.write_text(alias_bomb(9))
+    tracemalloc.start()
+    try:
+        with pytest.raises(ScenarioError, match=r'more than \d+ YAML nodes \(aliases expanded\)'):
+            load_scenario(path)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 5e6, peak
+
+
+def test_recursive_alias_is_refused(tmp_path):
+    path = tmp_path / 'loop.yaml'
+    path.write_text('profile: &p [1, *p]\n')
+    with pytest.raises(ScenarioError, match='recursive YAML alias'):
+        load_scenario(path)
+
+
+def test_legitimate_aliases_still_load_in_a_scenario(tmp_path):
+    from gyro_tdc.yamlio import load_yaml, YamlLimits
+    limits = YamlLimits('test file', max_bytes=1000, max_depth=8, max_nodes=100, aliases=True)
+    assert load_yaml('a: &x [1, 2]\nb: *x\n', limits) == {'a': [1, 2], 'b': [1, 2]}
+
+
+def test_oversized_model_file_is_refused_before_it_is_read(tmp_path):
+    path = tmp_path / 'huge.yaml'
+    with open(path, 'wb') as fh:                 # sparse: 64 MiB without writing them
+        fh.truncate(64 * 1024 * 1024)
+    with pytest.raises(ModelFileError, match=r'bytes, more than the 4194304-byte limit'):
+        load_model(path)
+
+
+def test_too_many_nodes_in_a_model_file(tmp_path):
+    path = tmp_path / 'wide.yaml'
+    path.write_text('training: {x: [' + '0,' * 300_000 + '0]}\n')
+    with pytest.raises(ModelFileError, match='more than 250000 YAML nodes'):
+        load_model(path)
+
+
+def test_too_many_centres_named_with_the_limit():
+    k = MAX_CENTERS + 1
+    d = model_to_dict(small_model(4))
+    d['centers'] = [[0.0, 0.0]] * k
+    with pytest.raises(ModelFileError, match=f'`centers` has {k} rows, more than the limit '
+                                             f'of {MAX_CENTERS} centres'):
+        model_from_dict(d)
+
+
+def test_bag_metadata_with_deep_nesting_is_a_clear_error(tmp_path):
+    from gyro_tdc.bagio import read_bag, write_bag
+    from gyro_tdc.errors import DatasetError
+    bag = tmp_path / 'bag'
+    t = np.arange(100) * 0.1
+    write_bag(bag, imu_t=t, gyro=np.zeros((100, 3)), accel=np.zeros((100, 3)),
+              temp_t=t[::10], temp_c=np.full(10, 20.0))
+    (bag / 'metadata.yaml').write_text('rosbag2_bagfile_information: ' + DEEP + '\n')
+    with pytest.raises(DatasetError, match='nesting deeper than') as info:
+        read_bag(bag)
+    assert 'metadata.yaml' in one_line_error(info)
+
+
+# --------------------------------------------------------------------------------------------
+# Item 6: the content hash covers every field but `created`; a file without it is refused
+# --------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('field, value', [
+    ('temp_range_c', [-1000.0, 1000.0]),
+    ('residual_var_rad2_s2', [1.0, 1.0, 1.0]),
+    ('sensor', {'frame_id': 'other_link', 'sensor_id': 'unit-7'}),
+    ('sensor', {'frame_id': 'imu_link', 'sensor_id': 'unit-8'}),
+    ('training', {'samples': 2000, 'runs': ['/bags/run1']}),
+    ('t0_c', 21.0),
+])
+def test_tampered_field_does_not_load_under_the_old_id(tmp_path, field, value):
+    path = save_model(small_model(), tmp_path / 'm.yaml')
+    d = yaml.safe_load(path.read_text())
+    d[field] = value
+    path.write_text(yaml.safe_dump(d, sort_keys=False))
+    with pytest.raises(ModelFileError, match='`model_id` .* does not match the parameters'):
+        load_model(path)
+
+
+def test_created_is_outside_the_hash(tmp_path):
+    m = small_model()
+    path = save_model(m, tmp_path / 'm.yaml')
+    d = yaml.safe_load(path.read_text())
+    d['created'] = {'utc': 'another day', 'command': 'edited'}
+    path.write_text(yaml.safe_dump(d, sort_keys=False))
+    assert load_model(path).model_id == m.model_id
+
+
+def test_id_survives_the_round_trip_with_numpy_values_in_the_metrics(tmp_path):
+    m = small_model(metrics={'samples': np.int64(7), 'bs': np.array([1.5, 2.5]),
+                             'pair': (np.float64(0.1), 3), 'nan': float('nan')})
+    back = load_model(save_model(m, tmp_path / 'm.yaml'))
+    assert back.model_id == m.model_id
+
+
+def test_file_without_model_id_is_refused(tmp_path):
+    d = model_to_dict(small_model())
+    del d['model_id']
+    path = tmp_path / 'm.yaml'
+    path.write_text(yaml.safe_dump(d))
+    with pytest.raises(ModelFileError, match='missing field `model_id`'):
+        load_model(path)
+
+
+# --------------------------------------------------------------------------------------------
+# Item 15: format_version must be the integer 1
+# --------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('text', ['1.0', 'true', "'1'"])
+def test_format_version_must_be_the_integer_one(tmp_path, text):
+    path = save_model(small_model(), tmp_path / 'm.yaml')
+    body = path.read_text().replace('format_version: 1\n', f'format_version: {text}\n')
+    path.write_text(body)
+    with pytest.raises(ModelFileError, match='`format_version` must be 1'):
+        load_model(path)
+
+
+# --------------------------------------------------------------------------------------------
+# Items 4 and 11: atomic writes with normal permissions, through symlinks, nothing left behind
+# --------------------------------------------------------------------------------------------
+
+@pytest.fixture
+def umask():
+    """Set a umask for the test and restore the old one."""
+    old = os.umask(0o022)
+    try:
+        yield os.umask
+    finally:
+        os.umask(old)
+
+
+def _mode(path: Path) -> int:
+    return stat.S_IMODE(path.stat().st_mode)
+
+
+def _leftovers(directory: Path) -> list:
+    return sorted(p.name for p in directory.iterdir() if p.name.endswith('.tmp'))
+
+
+@pytest.mark.parametrize('mask, expected', [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664)])
+def test_new_model_file_respects_the_umask(tmp_path, umask, mask, expected):
+    umask(mask)
+    path = save_model(small_model(), tmp_path / 'm.yaml')
+    assert _mode(path) == expected
+
+
+def test_overwriting_keeps_the_mode_of_the_existing_file(tmp_path, umask):
+    umask(0o077)
+    path = tmp_path / 'm.yaml'
+    path.write_text('old')
+    path.chmod(0o644)
+    save_model(small_model(), path)
+    assert _mode(path) == 0o644
+    assert load_model(path).model_id == small_model().model_id
+
+
+def test_symlinked_output_is_written_through_to_its_target(tmp_path):
+    target = tmp_path / 'models' / 'real.yaml'
+    target.parent.mkdir()
+    target.write_text('old')
+    target.chmod(0o640)
+    link = tmp_path / 'current.yaml'
+    link.symlink_to(target)
+    save_model(small_model(), link)
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert load_model(target).model_id == small_model().model_id
+    assert _mode(target) == 0o640
+    assert _leftovers(tmp_path) == [] and _leftovers(target.parent) == []
+
+
+def test_output_that_is_a_directory_names_it_and_leaves_nothing(tmp_path):
+    target = tmp_path / 'm.yaml'
+    target.mkdir()
+    with pytest.raises(OutputError, match='it is a directory') as info:
+        save_model(small_model(), target)
+    assert str(target) in one_line_error(info)
+    assert _leftovers(tmp_path) == [] and list(target.iterdir()) == []
+
+
+@pytest.mark.parametrize('exc', [OSError(errno.ENOSPC, 'No space left on device'),
+                                 KeyboardInterrupt(), ValueError('writer bug')])
+def test_failure_during_the_write_removes_the_temporary(tmp_path, exc):
+    path = tmp_path / 'out.csv'
+    path.write_text('previous content\n')
+
+    def writer(stream):
+        stream.write('half a row,')
+        stream.flush()
+        raise exc
+
+    if isinstance(exc, OSError):
+        with pytest.raises(OutputError, match='No space left on device') as info:
+            atomic_write(path, writer, what='CSV file')
+        assert f"cannot write CSV file '{path}'" in one_line_error(info)
+    else:
+        with pytest.raises(type(exc)):
+            atomic_write(path, writer)
+    assert path.read_text() == 'previous content\n'
+    assert _leftovers(tmp_path) == []
+
+
+def test_binary_writer_and_bytes_content(tmp_path):
+    atomic_write(tmp_path / 'a.bin', lambda s: s.write(b'\x00\x01'), binary=True)
+    atomic_write(tmp_path / 'b.bin', b'\x02')
+    assert (tmp_path / 'a.bin').read_bytes() == b'\x00\x01'
+    assert (tmp_path / 'b.bin').read_bytes() == b'\x02'
+
+
+def test_atomic_dir_appears_complete_or_not_at_all(tmp_path, umask):
+    out = tmp_path / 'bags'
+    with pytest.raises(OutputError, match='No space left on device'):
+        with atomic_dir(out) as build:
+            build.mkdir()
+            (build / 'run1.db3').write_bytes(b'')
+            raise OSError(errno.ENOSPC, 'No space left on device')
+    assert list(tmp_path.iterdir()) == []
+    with atomic_dir(out) as build:
+        build.mkdir()
+        (build / 'x').write_text('1')
+    assert (out / 'x').read_text() == '1' and [p.name for p in tmp_path.iterdir()] == ['bags']
+    assert _mode(out) == 0o755
+    with pytest.raises(OutputError, match='exists already'):
+        with atomic_dir(out):
+            pass
+
+
+def test_errors_are_gyro_tdc_errors():
+    assert issubclass(OutputError, GyroTdcError)
