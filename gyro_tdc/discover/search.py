@@ -1,0 +1,469 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The search: name the missing effect, add it, refit, repeat until nothing passes.
+
+:func:`discover` scores every candidate effect against the current model with the three tests
+of the false-discovery guard (held-out gain, HAC significance, effect size; see
+:mod:`gyro_tdc.discover`), adds the best, refits the time constants (a bounded 1-D search on
+the residual each: variable projection), and repeats. Effects the data cannot excite are
+reported as unidentifiable before any fit (:func:`_excitation`); candidates whose columns the
+model already spans, after the search.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Mapping, Sequence
+
+from gyro_tdc.discover.data import BlockData
+from gyro_tdc.discover.linear import LinearModel, lstsq
+from gyro_tdc.discover.maps import residual_adev, residual_maps
+from gyro_tdc.discover.results import CandidateScore, DiscoveryResult, Step, Unidentifiable
+from gyro_tdc.discover.stats import (bandwidth, COLLINEAR, DEG, gap, hac_pvalue, make_folds,
+                                     rel_residual, weighted_corr)
+from gyro_tdc.effects import EFFECTS, input_ids, normalise_ids
+from gyro_tdc.errors import FitError
+from gyro_tdc.fitting import estimate_t0
+from gyro_tdc.runs import Run
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import minimize_scalar
+
+__all__ = ['discover']
+
+#: Effects whose time constant is fitted by the 1-D search.
+_NONLINEAR = ('lag', 'warmup')
+#: Candidate order (catalog order without ``bias``).
+_CANDIDATES = tuple(e for e in EFFECTS if e != 'bias')
+
+
+def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
+    """Return the search bounds of an effect's time constant, s."""
+    lo, hi = EFFECTS[eid].bounds['tau_s']
+    longest = max(r.duration_s for r in data.runs)
+    grid_step = max(float(g[0][1] - g[0][0]) if g[0].size > 1 else 1.0 for g in data.grids)
+    lo = max(lo, 2.0 * grid_step)
+    if eid == 'warmup':
+        lo = max(lo, 3.0 * data.block_s)   # shorter decays are a dummy for the first block
+    hi = min(hi, max(2.0 * longest, 4.0 * lo))
+    return lo, hi
+
+
+def _fit_taus(data: BlockData, effects: Sequence[str], params: dict, which: Sequence[str]) -> dict:
+    """
+    Fit the time constants of ``which`` by a bounded 1-D search on the residual each.
+
+    The linear coefficients are re-solved at every trial (variable projection); a log-spaced
+    grid finds the basin, a bounded Brent search refines it.
+    """
+    params = {k: dict(v) for k, v in params.items()}
+    for eid in which:
+        lo, hi = _tau_bounds(data, eid)
+
+        def sse(log_tau: float, eid: str = eid) -> float:
+            trial = {k: dict(v) for k, v in params.items()}
+            trial.setdefault(eid, {})['tau_s'] = math.exp(log_tau)
+            return LinearModel(data, effects, trial).sse()
+
+        grid = np.linspace(math.log(lo), math.log(hi), 14)
+        vals = np.array([sse(g) for g in grid])
+        i = int(np.argmin(vals))
+        a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+        best = grid[i]
+        if b > a:
+            res = minimize_scalar(sse, bounds=(a, b), method='bounded',
+                                  options={'xatol': 0.01})
+            if res.fun <= vals[i]:
+                best = float(res.x)
+        params.setdefault(eid, {})['tau_s'] = float(math.exp(best))
+    return params
+
+
+def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
+    """
+    Decide which candidates this data cannot excite, before any fit.
+
+    Returns ``{effect: Unidentifiable}`` and a list of notes about the data.
+    """
+    out: dict[str, Unidentifiable] = {}
+    notes: list[str] = []
+    span = float(data.temp.max() - data.temp.min())
+    rate = data.rate_cpm
+    max_rate = float(np.max(np.abs(rate))) if rate.size else 0.0
+    moving = np.abs(rate) > max(0.02, 0.1 * max_rate)
+    heating = bool(np.any(moving & (rate > 0)))
+    cooling = bool(np.any(moving & (rate < 0)))
+
+    def add(eid: str, reason: str, extra: str = '') -> None:
+        exp = EFFECTS[eid].excited_by
+        out[eid] = Unidentifiable(eid, reason, exp[0].upper() + exp[1:] + extra + '.')
+
+    if span < 0.5:
+        for eid in ('dT', 'dT2', 'dT3', 'lag', 'dTdt'):
+            add(eid, f'the temperature spans only {span:.2f} degC', ', of at least 10 degC')
+    if not np.any(moving):
+        for eid in ('dTdt', 'lag'):
+            if eid not in out:
+                add(eid, 'the temperature never changes at a measurable rate')
+    elif heating != cooling:
+        leg = 'heat' if heating else 'cool'
+        r = np.abs(rate[moving])
+        q1, q3 = np.percentile(r, [25, 75])
+        if (q3 - q1) < 0.25 * float(np.median(r)):
+            for eid in ('dTdt', 'lag'):
+                add(eid, f'the data only {leg} and at one rate (~{np.median(r):.2f} degC/min): '
+                    'a rate-dependent term is then a constant offset during the ramp, '
+                    'confounded with the bias',
+                    '; at least two rates, heating and cooling, with soaks between legs')
+        else:
+            notes.append(f'The data only {leg}: hysteresis between heating and cooling cannot '
+                         'be tested; a dT/dt or lag effect seen here rests on the change of '
+                         f'the {leg}ing rate alone.')
+    if not np.any(data.scale_axes):
+        if not np.any(np.abs(data.ref) > 1e-12):
+            add('scale', 'the reference rate is zero on every run: a sensitivity change has '
+                'nothing to scale')
+        else:
+            add('scale', 'the reference rate is constant on every run, so a sensitivity '
+                'change is indistinguishable from dT')
+    # Warm-up: some run must start with a soak (no temperature change) after power-on.
+    soak_ok = False
+    for r in range(data.n_runs):
+        m = data.run == r
+        tr, mv = data.t_since[m], moving[m]
+        first_move = tr[np.argmax(mv)] if np.any(mv) else tr[-1]
+        if first_move >= max(120.0, 3.0 * data.block_s) and np.count_nonzero(tr < first_move) >= 4:
+            soak_ok = True
+    if not soak_ok:
+        add('warmup', 'no run starts with a soak after power-on: a warm-up transient cannot be '
+            'told apart from the temperature response and the bias')
+    for eid in base:
+        out.pop(eid, None)
+    return out, notes
+
+
+def _candidate_params(data: BlockData, model: LinearModel, eid: str) -> dict:
+    """Return the model's parameters plus those of candidate ``eid`` (its tau fitted)."""
+    params = {k: dict(v) for k, v in model.params.items()}
+    if eid in _NONLINEAR:
+        effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
+        params = _fit_taus(data, effects, params, [eid])
+    return params
+
+
+def _noise_lags(data: BlockData, model: LinearModel, todo: Sequence[str], cparams: Mapping
+                ) -> tuple[list, int]:
+    """
+    Return per-axis HAC bandwidths and the noise memory (blocks) from the richest model.
+
+    The memory of the noise is measured on the residual of the model plus every candidate
+    (each with its fitted time constant), so that a second effect not yet in the model does
+    not pass for long-memory noise and hide the first.
+    """
+    params = {k: dict(v) for k, v in model.params.items()}
+    for eid in todo:
+        if eid in _NONLINEAR:
+            params[eid] = dict(cparams[eid][eid])
+    effects = tuple(e for e in EFFECTS if e in set(model.effects) | set(todo))
+    rich = LinearModel(data, effects, params)
+    r = (data.y - rich.predict(rich.fit())) * data.sw[:, None]
+    memory = max(bandwidth(r[:, a], floor=False) for a in range(3))
+    return [bandwidth(r[:, a]) for a in range(3)], int(memory)
+
+
+def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse_m: float,
+           mse_ho_m: float, folds: list, eid: str, params: dict, *, lags: Sequence[int],
+           n_cand: int, alpha: float, min_heldout: float, min_effect: float
+           ) -> tuple[CandidateScore, NDArray[np.float64] | None, dict]:
+    """Score one candidate against ``model``; returns the score, its contribution and params."""
+    effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
+    cand = LinearModel(data, effects, params)
+    idx = cand.columns_of(eid)
+    own = dict(params[eid]) if eid in _NONLINEAR else {}
+    # Is it spanned by the current model (per axis)?
+    rel = []
+    for a in range(3):
+        xa = cand.design(a) * data.sw[:, None]
+        for i in idx:
+            if np.linalg.norm(xa[:, i]) > 0:
+                rel.append(rel_residual(np.delete(xa, idx, axis=1), xa[:, i]))
+    if not rel or max(rel) < COLLINEAR:
+        sc = CandidateScore(eid, own, 1.0, 0.0, 0.0, math.nan, math.nan, False,
+                            'collinear', np.zeros((len(idx), 3)))
+        return sc, None, params
+    coef = cand.fit()
+    r = data.y - cand.predict(coef)
+    sse = float((data.w[:, None] * r * r).sum())
+    contrib = cand.predict(coef) - model.predict(coef_m)
+    ho = cand.cv_residual(folds)
+    mse_ho = float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
+    gain = (mse_ho_m - mse_ho) * DEG ** 2
+    eff = math.sqrt(max(sse_m - sse, 0.0) / (3.0 * data.w.sum())) * DEG
+    p = hac_pvalue(cand, coef, idx, lags)
+    floor = data.floor * DEG
+    why = []
+    if p >= alpha / max(n_cand, 1):
+        why.append(f'p={p:.2g}')
+    if gain <= max(min_heldout * floor ** 2, 0.01 * mse_ho_m * DEG ** 2):
+        why.append('no held-out gain')
+    if eff < min_effect * floor:
+        why.append('effect below noise')
+    sc = CandidateScore(eid, own, p, gain, eff, gap(data, r), gap(data, ho), not why,
+                        ', '.join(why), coef[idx])
+    return sc, contrib, params
+
+
+def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
+             candidates: str | Sequence[str] | None = None, block_s: float = 10.0,
+             t0: float | None = None, alpha: float = 0.01, min_heldout: float = 0.1,
+             min_effect: float = 0.6, alias_margin: float = 0.25, alias_corr: float = 0.9,
+             max_steps: int = 6, n_folds: int = 5, allan: bool = True) -> DiscoveryResult:
+    """
+    Find the effects a drift model is missing, one step at a time.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Measured runs (each a continuous recording from power-on; filters restart per run).
+    base : str or sequence of str
+        Effects of the starting model (``'bias,dT'``: eq. 18's conventional model); ``bias``
+        is always included, as one offset per run.
+    candidates : str or sequence of str, optional
+        Effects to try (default: every catalog effect not in ``base``).
+    block_s : float, s
+        Block length of the analysis; gaps and the noise floor are RMS of block means.
+    t0 : float, optional, degC
+        Reference temperature (default :func:`gyro_tdc.fitting.estimate_t0` of the first run).
+    alpha : float
+        Family-wise significance level per step (Bonferroni over candidates and axes).
+    min_heldout : float
+        Smallest held-out gain, as a fraction of the squared noise floor.
+    min_effect : float
+        Smallest effect RMS, as a fraction of the noise floor.
+    alias_margin : float
+        A candidate within this fraction of the best held-out gain...
+    alias_corr : float
+        ...whose fitted contribution correlates at least this much with the best's is an alias.
+    max_steps : int
+        Most effects added.
+    n_folds : int
+        Cross-validation folds for a single run (see :func:`make_folds`; several runs: leave one
+        run out).
+    allan : bool
+        Compute the Allan deviation of the residual before and after each step.
+
+    Returns
+    -------
+    DiscoveryResult
+        Steps, final model, unidentifiable effects, maps.
+
+    Raises
+    ------
+    FitError
+        When the runs cannot support the analysis (too few blocks, non-finite values...).
+    FeatureError
+        When an effect id is unknown.
+
+    """
+    runs = list(runs)
+    _check(runs, block_s)
+    base_ids = normalise_ids(tuple(normalise_ids(base)) + ('bias',))
+    if candidates is None:
+        cand_ids = tuple(e for e in _CANDIDATES if e not in base_ids)
+    else:
+        cand_ids = tuple(e for e in normalise_ids(candidates) if e not in base_ids and e != 'bias')
+    if t0 is None:
+        t0 = estimate_t0(runs[0])
+    data = BlockData(runs, block_s=block_s, t0=t0)
+    if data.K < 8:
+        raise FitError(f'Too few blocks to analyse: {data.K} blocks of {block_s:g} s '
+                       '(need at least 8); record longer or use a shorter block.')
+    if 'scale' in base_ids and not np.any(np.abs(data.ref) > 1e-12):
+        raise FitError('Effect `scale` in the base model needs a non-zero reference rate '
+                       '(rate-table data); every run has omega_ref = 0.')
+    p_base = len(base_ids) - 1 + data.n_runs + 2
+    if data.K <= p_base + 2:
+        raise FitError(f'Too few blocks ({data.K}) for the base model '
+                       f'({", ".join(base_ids)}); record longer or use a shorter block.')
+    unident, notes = _excitation(data, base_ids)
+    params: dict = {}
+    for eid in base_ids:
+        if EFFECTS[eid].params:
+            params[eid] = dict(EFFECTS[eid].params)
+    nonlin = [e for e in base_ids if e in _NONLINEAR]
+    if nonlin:
+        params = _fit_taus(data, base_ids, params, nonlin)
+    effects = base_ids
+    model = LinearModel(data, effects, params)
+    steps: list[Step] = []
+    collinear: list[str] = []
+    scores: tuple[CandidateScore, ...] = ()
+    adev_cache: tuple | None = None
+    first_round = True
+    while True:
+        coef_m = model.fit()
+        r_m = data.y - model.predict(coef_m)
+        sse_m = float((data.w[:, None] * r_m * r_m).sum())
+        todo = [e for e in cand_ids if e not in effects and e not in unident]
+        results = []
+        cparams = {eid: _candidate_params(data, model, eid) for eid in todo}
+        lags, memory = _noise_lags(data, model, todo, cparams)
+        folds, buffer = make_folds(data, memory, n_folds)
+        ho_m = model.cv_residual(folds)
+        mse_ho_m = float((data.w[:, None] * ho_m * ho_m).sum() / (3.0 * data.w.sum()))
+        for eid in todo:
+            sc, contrib, p = _score(data, model, coef_m, sse_m, mse_ho_m, folds, eid,
+                                    cparams[eid], lags=lags, n_cand=len(todo), alpha=alpha,
+                                    min_heldout=min_heldout, min_effect=min_effect)
+            if sc.why_not == 'collinear':
+                if eid not in collinear:
+                    collinear.append(eid)
+                continue
+            results.append((sc, contrib, p))
+        results.sort(key=lambda x: (not x[0].passed, -x[0].heldout_gain_dps2))
+        scores = tuple(x[0] for x in results)
+        if not steps and first_round:
+            notes += _confounded(data, model, scores, params)
+            first_round = False
+        passing = [x for x in results if x[0].passed]
+        if not passing or len(steps) >= max_steps:
+            break
+        best, contrib_b, p_b = passing[0]
+        aliases = []
+        for sc, contrib, _p in results[1:]:
+            if contrib is None or sc.heldout_gain_dps2 <= 0:
+                continue
+            if (sc.heldout_gain_dps2 >= (1.0 - alias_margin) * best.heldout_gain_dps2
+                    and abs(weighted_corr(contrib, contrib_b, data.w)) >= alias_corr):
+                aliases.append(sc.effect)
+        new_effects = tuple(e for e in EFFECTS if e in set(effects) | {best.effect})
+        new_params = {k: dict(v) for k, v in p_b.items()}
+        refit = [e for e in new_effects if e in _NONLINEAR]
+        if len(refit) > 1:
+            new_params = _fit_taus(data, new_effects, new_params, refit)
+        new_model = LinearModel(data, new_effects, new_params)
+        coef_n = new_model.fit()
+        r_n = data.y - new_model.predict(coef_n)
+        ho_n = new_model.cv_residual(folds)
+        if allan:
+            before = adev_cache or residual_adev(data, model, coef_m)
+            after = residual_adev(data, new_model, coef_n)
+            adev_cache = after
+        else:
+            before = after = (np.zeros(0), np.zeros(0))
+        idx = new_model.columns_of(best.effect)
+        unit = 1.0 if best.effect == 'scale' else DEG
+        steps.append(Step(
+            effect=best.effect, aliases=tuple(aliases),
+            description=EFFECTS[best.effect].description,
+            params=dict(new_params.get(best.effect, {})) if best.effect in _NONLINEAR else {},
+            coef_dps=coef_n[idx] * unit,
+            gap_before_dps=gap(data, r_m), gap_after_dps=gap(data, r_n),
+            heldout_gap_before_dps=gap(data, ho_m), heldout_gap_after_dps=gap(data, ho_n),
+            candidates=scores, maps_before=residual_maps(data, r_m),
+            maps_after=residual_maps(data, r_n),
+            adev_tau_s=before[0], adev_before_dps=before[1], adev_after_dps=after[1],
+            best=best))
+        effects, params, model = new_effects, new_params, new_model
+
+    coef = model.fit()
+    r = data.y - model.predict(coef)
+    ho = model.cv_residual(folds)
+    for eid in collinear:
+        if eid not in effects and eid not in unident:
+            unident[eid] = Unidentifiable(
+                eid, 'on this data its feature is a combination of the effects of the model '
+                f'({", ".join(effects)})', EFFECTS[eid].excited_by[0].upper()
+                + EFFECTS[eid].excited_by[1:] + '.')
+    final_coef = _coef_dict(data, model, coef)
+    if allan:
+        adev = adev_cache or residual_adev(data, model, coef)
+    else:
+        adev = (np.zeros(0), np.zeros(0))
+    return DiscoveryResult(
+        base_effects=base_ids, final_effects=effects,
+        params={k: dict(v) for k, v in params.items() if k in effects and k in _NONLINEAR},
+        noise_floor_dps=data.floor * DEG, noise_floor_axes_dps=data.floor_axes * DEG,
+        white_noise_dps=data.white * DEG, block_s=float(block_s), t0_c=float(t0),
+        steps=tuple(steps),
+        unidentifiable=tuple(unident[e] for e in EFFECTS if e in unident and e in cand_ids),
+        candidates=scores, maps=residual_maps(data, r), gap_dps=gap(data, r),
+        heldout_gap_dps=gap(data, ho), coef=final_coef, runs=tuple(x.name for x in runs),
+        blocks=data.K, notes=tuple(notes),
+        settings={'alpha': alpha, 'min_heldout': min_heldout, 'min_effect': min_effect,
+                  'alias_margin': alias_margin, 'alias_corr': alias_corr,
+                  'folds': 'leave-one-run-out' if data.n_runs >= 2 else
+                  f'{len(folds)} blocked folds, buffer {buffer} blocks',
+                  'block_s': float(block_s),
+                  'block_mean_s': float(data.block_eff_s)},
+        adev_tau_s=adev[0], adev_dps=adev[1])
+
+
+def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateScore],
+                params: dict) -> list[str]:
+    """Return notes on candidate pairs whose columns are strongly correlated on this data."""
+    notes = []
+    x = model.common
+    cols = {}
+    for sc in scores:
+        if sc.effect in ('scale',) or sc.effect not in input_ids([sc.effect]):
+            continue
+        p = {k: dict(v) for k, v in params.items()}
+        p.update({sc.effect: dict(sc.params)} if sc.params else {})
+        col = data.column(sc.effect, p)
+        beta = lstsq(x * data.sw[:, None], col * data.sw)
+        cols[sc.effect] = (col - x @ beta) * data.sw
+    ids = list(cols)
+    for i in range(len(ids)):
+        for j in range(i + 1, len(ids)):
+            a, b = cols[ids[i]], cols[ids[j]]
+            den = float(np.linalg.norm(a) * np.linalg.norm(b))
+            c = float(a @ b) / den if den > 0 else 0.0
+            if abs(c) >= 0.7:
+                notes.append(f'{ids[i]} and {ids[j]} are partly confounded on this data '
+                             f'(correlation {c:+.2f} after removing the effects of the model).')
+    return notes
+
+
+def _coef_dict(data: BlockData, model: LinearModel, coef: NDArray[np.float64]) -> dict:
+    """Return the final coefficients by name (SI units)."""
+    nr = data.n_runs
+    out: dict[str, Any] = {'offsets': coef[:nr].copy()}
+    for i, lab in enumerate(model.labels[nr:]):
+        out[lab] = coef[nr + i].copy()
+    j = model.common.shape[1]
+    out['gain'] = np.zeros(3)
+    out['scale'] = np.zeros(3)
+    for lab in model.axis_labels:
+        out[lab] = coef[j] * (data.gain_axes if lab == 'gain' else data.scale_axes)
+        j += 1
+    return out
+
+
+def _check(runs: Sequence[Run], block_s: float) -> None:
+    """Reject input that cannot be analysed, naming what is wrong."""
+    if not isinstance(block_s, (int, float)) or not math.isfinite(block_s) or block_s <= 0:
+        raise FitError(f'Expected `block_s` to be a positive number of seconds, got {block_s!r}.')
+    if not runs:
+        raise FitError('No runs given to discover.')
+    for r in runs:
+        if not isinstance(r, Run):
+            raise FitError(f'Expected gyro_tdc.runs.Run objects, got {type(r).__name__}.')
+        if len(r) < 16:
+            raise FitError(f'Run {r.name!r} has {len(r)} samples; need at least 16.')
+        for key in ('t', 'temp', 'omega', 'omega_ref'):
+            if not np.all(np.isfinite(getattr(r, key))):
+                raise FitError(f'Run {r.name!r} has non-finite values in `{key}`.')
