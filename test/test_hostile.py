@@ -342,3 +342,124 @@ def test_atomic_dir_appears_complete_or_not_at_all(tmp_path, umask):
 
 def test_errors_are_gyro_tdc_errors():
     assert issubclass(OutputError, GyroTdcError)
+
+
+# --------------------------------------------------------------------------------------------
+# Items 2 and 14: IIO permission errors are device errors; scale changes take effect
+# --------------------------------------------------------------------------------------------
+
+@pytest.fixture
+def deny(monkeypatch):
+    """
+    Return ``deny(path)``: make ``path`` unreadable as mode 000 makes it for a normal user.
+
+    The mode is set for real; since the tests may run as root (which ignores it), the
+    file-system calls the IIO back-end makes (``os.stat``, ``os.listdir``, ``os.scandir``,
+    ``open``) also raise ``PermissionError`` (EACCES) for it: a denied directory can be
+    stat'ed but not listed, and nothing inside it can be stat'ed or opened; a denied file
+    can be stat'ed but not opened.
+    """
+    import builtins
+    dirs: list[str] = []
+    files: list[str] = []
+    changed: list[tuple[Path, int]] = []
+
+    def blocked(path, *, use: bool) -> bool:
+        if not isinstance(path, (str, os.PathLike)):
+            return False
+        p = os.path.abspath(os.fspath(path))
+        return (any(p.startswith(d + os.sep) or (use and p == d) for d in dirs)
+                or (use and p in files))
+
+    def guard(real, use):
+        def call(path, *args, **kwargs):
+            if blocked(path, use=use):
+                raise PermissionError(errno.EACCES, 'Permission denied', os.fspath(path))
+            return real(path, *args, **kwargs)
+        return call
+
+    monkeypatch.setattr(os, 'stat', guard(os.stat, False))
+    monkeypatch.setattr(os, 'listdir', guard(os.listdir, True))
+    monkeypatch.setattr(os, 'scandir', guard(os.scandir, True))
+    monkeypatch.setattr(builtins, 'open', guard(builtins.open, True))
+
+    def add(path: Path) -> None:
+        changed.append((path, stat.S_IMODE(path.stat().st_mode)))
+        (dirs if path.is_dir() else files).append(os.path.abspath(path))
+        path.chmod(0)
+
+    yield add
+    for path, mode in changed:
+        path.chmod(mode)
+
+
+def _l3gd20(root: Path, dirname: str = 'iio:device0') -> Path:
+    from test_iio import l3gd20_files, make_device
+    return make_device(root, l3gd20_files(), dirname)
+
+
+def test_unreadable_device_dir_at_start_is_a_device_error(tmp_path, deny):
+    from gyro_tdc.errors import DeviceError
+    from gyro_tdc.sources import IioSource
+    dev = _l3gd20(tmp_path)
+    deny(dev)
+    with pytest.raises(DeviceError, match='Permission denied') as info:
+        IioSource(dev)
+    assert str(dev) in one_line_error(info)
+
+
+def test_device_becoming_unreadable_at_run_time_is_a_device_error(tmp_path, deny):
+    from gyro_tdc.errors import DeviceError
+    from gyro_tdc.sources import IioSource
+    dev = _l3gd20(tmp_path)
+    src = IioSource(dev)
+    src.read()
+    deny(dev / 'in_anglvel_y_raw')
+    with pytest.raises(DeviceError, match='in_anglvel_y_raw.*Permission denied'):
+        src.read()
+    deny(dev)
+    with pytest.raises(DeviceError, match='Permission denied'):
+        src.read()
+    with pytest.raises(DeviceError, match='Permission denied'):   # the driver's reopen
+        IioSource(dev)
+
+
+def test_unrelated_unreadable_device_sorting_first_is_skipped(tmp_path, deny):
+    from gyro_tdc.errors import DeviceError
+    from gyro_tdc.sources import find_iio_device
+    from test_iio import make_device
+    other = make_device(tmp_path, {'name': 'secret_adc'}, 'iio:device0')
+    wanted = _l3gd20(tmp_path, 'iio:device1')
+    deny(other)
+    assert find_iio_device('l3gd20', root=tmp_path) == wanted
+    with pytest.raises(DeviceError, match=r'found: iio:device0 unreadable \(Permission denied\)'
+                                          r', l3gd20'):
+        find_iio_device('bmi160', root=tmp_path)
+
+
+def test_scale_change_takes_effect_without_reopening(tmp_path):
+    from gyro_tdc.sources import IioSource
+    dev = _l3gd20(tmp_path)
+    src = IioSource(dev, rescale_every=10)
+    before = src.read().omega[0]
+    scale = float((dev / 'in_anglvel_scale').read_text())
+    (dev / 'in_anglvel_scale').write_text(f'{4.0 * scale:.12g}\n')    # 250 -> 1000 dps range
+    rates = [src.read().omega[0] for _ in range(10)]
+    assert rates[0] == before                   # not yet re-read (sample 2 of 10)
+    assert rates[-1] == pytest.approx(4.0 * before, rel=1e-9)
+    (dev / 'in_anglvel_scale').write_text(f'{scale:.12g}\n')
+    src.rescale()
+    assert src.read().omega[0] == pytest.approx(before, rel=1e-9)
+
+
+def test_temperature_offset_change_and_garbled_scale_at_rescale(tmp_path):
+    from gyro_tdc.errors import DeviceError
+    from gyro_tdc.sources import IioSource
+    dev = _l3gd20(tmp_path)
+    src = IioSource(dev, rescale_every=1)
+    assert src.read().temp_c == pytest.approx(25.0)
+    (dev / 'in_temp_offset').write_text('5\n')
+    assert src.read().temp_c == pytest.approx(30.0)
+    (dev / 'in_anglvel_scale').write_text('garbage\n')
+    with pytest.raises(DeviceError, match="in_anglvel_scale' holds 'garbage'"):
+        src.read()

@@ -21,6 +21,13 @@ The IIO ABI (Documentation/ABI/testing/sysfs-bus-iio) gives every channel a
 rad/s, acceleration in m/s^2 and temperature in milli-degrees Celsius, or a
 processed ``in_temp_input`` already in milli-degrees Celsius. This covers the
 st_gyro driver (L3GD20, I3G4250D), the BMI160 and the MPU-6050 (inv_mpu6050).
+
+Every file-system error -- a missing file, a device that vanished, a directory or file the
+process may not read (``PermissionError``) -- becomes a :class:`DeviceError` naming the file,
+so the driver reports it and retries instead of crashing; an unreadable device that is not
+the wanted one is skipped by :func:`find_iio_device`. Scales and offsets are re-read every
+``rescale_every`` samples, so a full-scale change made while running (a write to
+``in_anglvel_scale``) takes effect without reopening the device.
 """
 
 from __future__ import annotations
@@ -28,6 +35,7 @@ from __future__ import annotations
 import math
 import os
 from pathlib import Path
+import stat
 import time
 from typing import Callable
 
@@ -38,13 +46,35 @@ DEFAULT_IIO_ROOT = '/sys/bus/iio/devices'
 _AXES = ('x', 'y', 'z')
 
 
+def _stat(path: Path) -> os.stat_result | None:
+    """Return ``os.stat(path)``, None when it does not exist, or raise DeviceError."""
+    try:
+        return os.stat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+    except OSError as exc:       # PermissionError (an unreadable directory), EIO...
+        raise DeviceError(f'Cannot access IIO path {str(path)!r}: '
+                          f'{exc.strerror or exc}.') from None
+
+
+def _exists(path: Path) -> bool:
+    """Return whether ``path`` exists; raise DeviceError when it cannot be checked."""
+    return _stat(path) is not None
+
+
+def _is_dir(path: Path) -> bool:
+    """Return whether ``path`` is a directory; raise DeviceError when it cannot be checked."""
+    st = _stat(path)
+    return st is not None and stat.S_ISDIR(st.st_mode)
+
+
 def _read_text(path: Path) -> str:
     """Return the stripped content of one sysfs file, or raise DeviceError."""
     try:
         with open(path, 'rb') as stream:
             data = stream.read(128)
     except FileNotFoundError:
-        if not path.parent.is_dir():
+        if not _is_dir(path.parent):
             raise DeviceError(
                 f'IIO device directory {str(path.parent)!r} disappeared '
                 f'(while reading {path.name!r}).') from None
@@ -101,11 +131,14 @@ def find_iio_device(name: str, *, root: str | os.PathLike = DEFAULT_IIO_ROOT) ->
     seen = []
     for entry in entries:
         name_file = entry / 'name'
-        if not name_file.is_file():
-            continue
         try:
+            if not _exists(name_file):
+                continue
             found = _read_text(name_file)
-        except DeviceError:
+        except DeviceError as exc:
+            # An unreadable device that may not be the wanted one: skip it, say so.
+            why = str(exc).rsplit(': ', 1)[-1].rstrip('.')
+            seen.append(f'{entry.name} unreadable ({why})')
             continue
         seen.append(found)
         if found == name:
@@ -115,17 +148,40 @@ def find_iio_device(name: str, *, root: str | os.PathLike = DEFAULT_IIO_ROOT) ->
 
 
 class _Channel:
-    """One scaled channel: ``(raw + offset) * scale`` (scale already folds the unit)."""
+    """
+    One scaled channel: ``(raw + offset) * scale * factor``.
 
-    __slots__ = ('path', 'offset', 'scale')
+    ``scale_file`` / ``offset_file`` (None: constant) are re-read by :meth:`refresh`; the
+    factor folds the unit (1 for rad/s and m/s^2, 1/1000 for milli-degrees Celsius).
+    """
 
-    def __init__(self, path: Path, offset: float, scale: float) -> None:
+    __slots__ = ('path', 'scale_file', 'offset_file', 'factor', 'offset', 'scale')
+
+    def __init__(self, path: Path, *, scale_file: Path | None, offset_file: Path | None,
+                 factor: float = 1.0, scale: float = 1.0, offset: float = 0.0) -> None:
         self.path = path
+        self.scale_file = scale_file
+        self.offset_file = offset_file
+        self.factor = factor
+        self.scale = scale * factor
         self.offset = offset
-        self.scale = scale
+
+    def refresh(self, cache: dict) -> None:
+        """Re-read the scale and offset files (``cache``: values read this refresh)."""
+        if self.scale_file is not None:
+            self.scale = _cached(cache, self.scale_file) * self.factor
+        if self.offset_file is not None:
+            self.offset = _cached(cache, self.offset_file)
 
     def read(self) -> float:
         return (_read_number(self.path) + self.offset) * self.scale
+
+
+def _cached(cache: dict, path: Path) -> float:
+    """Return the number in ``path``, read once per ``cache`` (shared scale files)."""
+    if path not in cache:
+        cache[path] = _read_number(path)
+    return cache[path]
 
 
 class IioSource(PolledSource):
@@ -145,28 +201,36 @@ class IioSource(PolledSource):
     temp_every : int
         Read the temperature on one sample out of ``temp_every`` (it changes slowly,
         and a sysfs read costs tens of microseconds).
+    rescale_every : int
+        Re-read the scale and offset files once every ``rescale_every`` samples (a
+        full-scale change takes effect within that many samples; one or two sysfs reads).
     clock : callable returning float, s
         Source of sample times; ``time.monotonic`` by default.
 
     Raises
     ------
     DeviceError
-        The directory does not exist, a required file is missing or garbled.
+        The directory does not exist or cannot be read, a required file is missing,
+        unreadable or garbled.
 
     """
 
     def __init__(self, device_dir: str | os.PathLike, *, read_accel: bool = True,
                  read_temperature: bool = True, require_temperature: bool = False,
-                 temp_every: int = 1, clock: Callable[[], float] = time.monotonic) -> None:
+                 temp_every: int = 1, rescale_every: int = 100,
+                 clock: Callable[[], float] = time.monotonic) -> None:
         if int(temp_every) < 1:
             raise ValueError(f'Expected `temp_every` >= 1, got {temp_every!r}.')
+        if int(rescale_every) < 1:
+            raise ValueError(f'Expected `rescale_every` >= 1, got {rescale_every!r}.')
         self.device_dir = Path(device_dir)
-        if not self.device_dir.is_dir():
+        if not _is_dir(self.device_dir):
             raise DeviceError(f'IIO device directory {str(self.device_dir)!r} does not exist.')
         name_file = self.device_dir / 'name'
-        self.name = _read_text(name_file) if name_file.exists() else self.device_dir.name
+        self.name = _read_text(name_file) if _exists(name_file) else self.device_dir.name
         self._clock = clock
         self._temp_every = int(temp_every)
+        self._rescale_every = int(rescale_every)
         self._count = 0
         self._gyro = self._vector('anglvel', required=True)
         self._accel = self._vector('accel', required=False) if read_accel else None
@@ -174,6 +238,8 @@ class IioSource(PolledSource):
         if require_temperature and self._temp is None:
             raise DeviceError(f'IIO device {str(self.device_dir)!r} has no thermometer '
                               '(in_temp_raw or in_temp_input), and one is required.')
+        self._channels = (self._gyro + (self._accel or ())
+                          + ((self._temp,) if self._temp is not None else ()))
 
     @property
     def has_accel(self) -> bool:
@@ -188,53 +254,73 @@ class IioSource(PolledSource):
     def _file(self, name: str) -> Path:
         return self.device_dir / name
 
-    def _shared_or_own(self, kind: str, axis: str, what: str, default: float | None) -> float:
-        """Return ``in_<kind>_<axis>_<what>`` or else the shared ``in_<kind>_<what>``."""
+    def _shared_or_own(self, kind: str, axis: str, what: str) -> Path | None:
+        """Return the file ``in_<kind>_<axis>_<what>``, else ``in_<kind>_<what>``, or None."""
         for name in (f'in_{kind}_{axis}_{what}', f'in_{kind}_{what}'):
             path = self._file(name)
-            if path.exists():
-                return _read_number(path)
-        if default is None:
-            raise DeviceError(f'IIO file {str(self._file(f"in_{kind}_{what}"))!r} is missing '
-                              f'(nor is there in_{kind}_{axis}_{what}).')
-        return default
+            if _exists(path):
+                return path
+        return None
 
     def _vector(self, kind: str, *, required: bool) -> tuple[_Channel, ...] | None:
         raws = [self._file(f'in_{kind}_{axis}_raw') for axis in _AXES]
-        present = [path.exists() for path in raws]
+        present = [_exists(path) for path in raws]
         if not any(present) and not required:
             return None
         for path, ok in zip(raws, present):
             if not ok:
                 raise DeviceError(f'IIO file {str(path)!r} is missing.')
         channels = []
+        cache: dict = {}
         for axis, path in zip(_AXES, raws):
-            scale = self._shared_or_own(kind, axis, 'scale', None)
-            offset = self._shared_or_own(kind, axis, 'offset', 0.0)
+            scale_file = self._shared_or_own(kind, axis, 'scale')
+            if scale_file is None:
+                raise DeviceError(f'IIO file {str(self._file(f"in_{kind}_scale"))!r} is '
+                                  f'missing (nor is there in_{kind}_{axis}_scale).')
+            channel = _Channel(path, scale_file=scale_file,
+                               offset_file=self._shared_or_own(kind, axis, 'offset'))
+            channel.refresh(cache)
             _read_number(path)
-            channels.append(_Channel(path, offset, scale))
+            channels.append(channel)
         return tuple(channels)
 
     def _temperature(self, *, required: bool) -> _Channel | None:
         processed = self._file('in_temp_input')
         raw = self._file('in_temp_raw')
-        if raw.exists():
+        if _exists(raw):
             scale_file = self._file('in_temp_scale')
-            if not scale_file.exists():
+            if not _exists(scale_file):
                 raise DeviceError(f'IIO file {str(scale_file)!r} is missing '
                                   '(needed to convert in_temp_raw).')
             offset_file = self._file('in_temp_offset')
-            offset = _read_number(offset_file) if offset_file.exists() else 0.0
-            channel = _Channel(raw, offset, _read_number(scale_file) / 1000.0)
-        elif processed.exists():
-            channel = _Channel(processed, 0.0, 1.0 / 1000.0)
+            channel = _Channel(raw, scale_file=scale_file,
+                               offset_file=offset_file if _exists(offset_file) else None,
+                               factor=1.0 / 1000.0)
+        elif _exists(processed):
+            channel = _Channel(processed, scale_file=None, offset_file=None,
+                               factor=1.0 / 1000.0)
         else:
             if required:
                 raise DeviceError(f'IIO file {str(raw)!r} is missing '
                                   '(nor is there in_temp_input).')
             return None
+        channel.refresh({})
         channel.read()
         return channel
+
+    def rescale(self) -> None:
+        """
+        Re-read every scale and offset file now (each shared file once).
+
+        Raises
+        ------
+        DeviceError
+            A scale or offset file vanished, is unreadable or not a finite number.
+
+        """
+        cache: dict = {}
+        for channel in self._channels:
+            channel.refresh(cache)
 
     def read(self) -> ImuSample:
         """
@@ -252,6 +338,8 @@ class IioSource(PolledSource):
             A file vanished or holds something that is not a finite number.
 
         """
+        if self._count and self._count % self._rescale_every == 0:
+            self.rescale()
         g = self._gyro
         t = self._clock()
         omega: Vec3 = (g[0].read(), g[1].read(), g[2].read())
