@@ -351,7 +351,7 @@ def test_errors_are_gyro_tdc_errors():
 @pytest.fixture
 def deny(monkeypatch):
     """
-    Return ``deny(path)``: make ``path`` unreadable as mode 000 makes it for a normal user.
+    Return a function making a path unreadable as mode 000 makes it for a normal user.
 
     The mode is set for real; since the tests may run as root (which ignores it), the
     file-system calls the IIO back-end makes (``os.stat``, ``os.listdir``, ``os.scandir``,
