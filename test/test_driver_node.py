@@ -23,7 +23,7 @@ import shutil
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Vector3Stamped
 from gyro_tdc.nodes.driver_node import DriverNode, PARAMS
-from gyro_tdc.sources.base import ImuSample
+from gyro_tdc.sources.base import ImuSample, ImuSource, PolledSource
 import numpy as np
 import pytest
 import rclpy
@@ -172,8 +172,8 @@ def test_iio_missing_device_at_start_does_not_crash(ros_context, executor, tmp_p
     spin_until(executor, lambda: len(lis.imu) >= 2, 5.0, what='found by name')
 
 
-class NaNSource:
-    """A source whose second sample is NaN, then healthy again."""
+class NaNSource(PolledSource):
+    """A source whose second sample is NaN, then healthy again (read once per tick)."""
 
     name = 'nan-source'
     has_accel = False
@@ -191,6 +191,7 @@ class NaNSource:
 
 
 def test_non_finite_sample_is_rejected(ros_context, executor):
+    assert isinstance(NaNSource(), ImuSource)
     listener = Listener(ros_context, executor)
     node = DriverNode(context=ros_context, source=NaNSource(), parameter_overrides=overrides(
         backend='iio', rate_hz=1000.0, retry_initial=0.001, retry_max=0.001))

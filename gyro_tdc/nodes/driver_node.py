@@ -22,9 +22,11 @@ Publishes ``imu/data_raw`` (sensor_msgs/Imu, REP 145), ``imu/temperature``
 on ``/diagnostics`` and the log, retried with exponential backoff, and nothing is
 published from it until it reads cleanly again.
 
-Stamps: the IIO back-end stamps each sample with the node clock when it is read.
-The simulator's stamps are its simulated times shifted onto the node clock at the
-first sample (``stamp = start + (t_sim - t_sim0)``): at ``time_scale`` 1 they follow
+The node talks to its back-end only through :class:`gyro_tdc.sources.base.ImuSource`: on
+every tick it publishes what the source says is due, stamped as the source says. The IIO
+back-end is read once per tick and stamps each sample with the node clock when it is read.
+The simulator paces itself and stamps its simulated times shifted onto the node clock at
+the first sample (``stamp = start + (t_sim - t_sim0)``): at ``time_scale`` 1 they follow
 the wall clock; faster, they run ahead of it so that every time constant in the
 data (filters, dT/dt) stays in simulated seconds.
 """
@@ -33,16 +35,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import time
-from typing import Any
+from typing import Any, Callable
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
 from gyro_tdc.errors import DeviceError
-from gyro_tdc.nodes._params import declare, ParamSpec
+from gyro_tdc.nodes._params import declare
+from gyro_tdc.nodes.executors import run_node
+from gyro_tdc.paramspec import ParamSpec, spec_dataclass
 from gyro_tdc.sources.base import Backoff, check_sample, ImuSample, ImuSource, SourceExhausted
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
@@ -85,30 +87,9 @@ PARAMS = (
 )
 
 
-@dataclass(frozen=True)
-class DriverParams:
-    """The driver's parameters, read once at start-up (see ``PARAMS`` for meanings/units)."""
-
-    backend: str
-    frame_id: str
-    angular_velocity_variance: float
-    linear_acceleration_variance: float
-    temperature_variance: float
-    qos_depth: int
-    scenario: str
-    seed: int
-    run_index: int
-    sim_rate_hz: float
-    time_scale: float
-    tick_hz: float
-    max_batch: int
-    rate_hz: float
-    device_dir: str
-    device_name: str
-    iio_root: str
-    temp_every: int
-    retry_initial: float
-    retry_max: float
+#: The driver's parameters, read once at start-up.
+DriverParams = spec_dataclass('DriverParams', PARAMS,
+                              "The driver's parameters (rows of ``PARAMS``).", module=__name__)
 
 
 def stamp_from_ns(ns: int) -> Time:
@@ -116,7 +97,54 @@ def stamp_from_ns(ns: int) -> Time:
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
-def open_source(p: DriverParams, clock_s: Any) -> ImuSource:
+def _open_sim(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
+    from gyro_tdc.sources.sim import SimSource
+    return SimSource(p.scenario, seed=p.seed, run_index=p.run_index,
+                     rate_hz=p.sim_rate_hz or None, time_scale=p.time_scale,
+                     max_batch=p.max_batch, clock_ns=clock_ns)
+
+
+def _open_iio(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
+    from gyro_tdc.sources.iio import find_iio_device, IioSource
+    device = p.device_dir or find_iio_device(p.device_name, root=p.iio_root)
+    return IioSource(device, temp_every=p.temp_every, clock=lambda: clock_ns() * 1e-9)
+
+
+@dataclass(frozen=True)
+class Backend:
+    """
+    What the node knows of one back-end: the only place the ``backend`` parameter matters.
+
+    Parameters
+    ----------
+    open : callable (DriverParams, clock_ns) -> ImuSource
+        Opens the source; ``clock_ns`` returns the node clock in ns.
+    tick_hz : str
+        Parameter giving how often the node asks the source for due samples [Hz].
+    hardware_id : callable (DriverParams) -> str
+        What /diagnostics names while no source is open.
+    reference : bool
+        Whether the node publishes ``rate_table/reference``.
+    diagnostics : tuple of str
+        Parameters reported on /diagnostics.
+
+    """
+
+    open: Callable[[DriverParams, Callable[[], int]], ImuSource]
+    tick_hz: str
+    hardware_id: Callable[[DriverParams], str]
+    reference: bool = False
+    diagnostics: tuple[str, ...] = ()
+
+
+BACKENDS = {
+    'sim': Backend(_open_sim, 'tick_hz', lambda p: p.scenario, reference=True,
+                   diagnostics=('time_scale',)),
+    'iio': Backend(_open_iio, 'rate_hz', lambda p: p.device_dir or p.device_name),
+}
+
+
+def open_source(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
     """
     Open the back-end named by the parameters.
 
@@ -124,8 +152,8 @@ def open_source(p: DriverParams, clock_s: Any) -> ImuSource:
     ----------
     p : DriverParams
         Parameters.
-    clock_s : callable returning float, s
-        Clock stamping IIO samples.
+    clock_ns : callable returning int, ns
+        The node clock, which stamps the samples.
 
     Returns
     -------
@@ -138,13 +166,7 @@ def open_source(p: DriverParams, clock_s: Any) -> ImuSource:
         The device cannot be opened.
 
     """
-    if p.backend == 'iio':
-        from gyro_tdc.sources.iio import find_iio_device, IioSource
-        device = p.device_dir or find_iio_device(p.device_name, root=p.iio_root)
-        return IioSource(device, temp_every=p.temp_every, clock=clock_s)
-    from gyro_tdc.sources.sim import SimSource
-    return SimSource(p.scenario, seed=p.seed, run_index=p.run_index,
-                     rate_hz=p.sim_rate_hz or None)
+    return BACKENDS[p.backend].open(p, clock_ns)
 
 
 class DriverNode(Node):
@@ -164,12 +186,13 @@ class DriverNode(Node):
         super().__init__(kwargs.pop('node_name', 'driver_node'), **kwargs)
         self.params = DriverParams(**declare(self, PARAMS))
         p = self.params
+        self._backend = BACKENDS[p.backend]
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.qos_depth,
                          reliability=ReliabilityPolicy.RELIABLE)
         self._imu_pub = self.create_publisher(Imu, 'imu/data_raw', qos)
         self._temp_pub = self.create_publisher(Temperature, 'imu/temperature', qos)
         self._ref_pub = (self.create_publisher(Vector3Stamped, 'rate_table/reference', qos)
-                         if p.backend == 'sim' else None)
+                         if self._backend.reference else None)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
 
         self._injected = source
@@ -183,9 +206,6 @@ class DriverNode(Node):
         self._temps = 0
         self._device = ''
         self._finished = False
-        self._sim_origin: tuple[int, float] | None = None  # (node ns, sim s) at first sample
-        self._wall_origin = 0.0
-        self._diag_count = 0
 
         # The message templates: constant fields filled once.
         self._imu = Imu()
@@ -198,8 +218,7 @@ class DriverNode(Node):
         self._temp.variance = p.temperature_variance
 
         self._try_open()
-        period = 1.0 / (p.tick_hz if p.backend == 'sim' else p.rate_hz)
-        self._timer = self.create_timer(period, self._on_tick)
+        self._timer = self.create_timer(1.0 / getattr(p, self._backend.tick_hz), self._on_tick)
         self._diag_timer = self.create_timer(1.0, self._on_diagnostics)
         self.get_logger().info(
             f'{p.backend} back-end, {self._device or "no device yet"}, publishing '
@@ -214,18 +233,17 @@ class DriverNode(Node):
         """Open (or reopen) the source; on failure schedule the next attempt."""
         try:
             src = self._injected if self._injected is not None else open_source(
-                self.params, lambda: self._now_ns() * 1e-9)
+                self.params, self._now_ns)
         except DeviceError as exc:
             self._fail(exc)
             return
         self._source = src
-        self._device = getattr(src, 'name', type(src).__name__)
+        self._device = src.name
         self._state = 'running'
-        has_accel = bool(getattr(src, 'has_accel', True))
         cov = self._imu.linear_acceleration_covariance
         for i in range(9):
             cov[i] = 0.0
-        if has_accel:
+        if src.has_accel:
             for i in (0, 4, 8):
                 cov[i] = self.params.linear_acceleration_variance
         else:
@@ -249,10 +267,17 @@ class DriverNode(Node):
 
     # -- publishing -------------------------------------------------------------------
 
-    def _publish(self, sample: ImuSample, stamp_ns: int, temp_ns: int) -> None:
+    def _publish(self, src: ImuSource, sample: ImuSample) -> None:
         """Fill the message templates from one checked sample and publish them."""
+        stamp = src.stamp_ns(sample.t)
+        if sample.ref is not None and self._ref_pub is not None:
+            ref = Vector3Stamped()
+            ref.header.frame_id = self.params.frame_id
+            ref.header.stamp = stamp_from_ns(stamp)
+            ref.vector.x, ref.vector.y, ref.vector.z = sample.ref
+            self._ref_pub.publish(ref)
         msg = self._imu
-        msg.header.stamp = stamp_from_ns(stamp_ns)
+        msg.header.stamp = stamp_from_ns(stamp)
         w = sample.omega
         msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = w
         if sample.accel is not None:
@@ -260,7 +285,8 @@ class DriverNode(Node):
             msg.linear_acceleration.x, msg.linear_acceleration.y = a[0], a[1]
             msg.linear_acceleration.z = a[2]
         if sample.temp_c is not None:
-            self._temp.header.stamp = stamp_from_ns(temp_ns)
+            self._temp.header.stamp = stamp_from_ns(
+                stamp if sample.temp_t is None else src.stamp_ns(sample.temp_t))
             self._temp.temperature = sample.temp_c
             self._temp_pub.publish(self._temp)
             self._temps += 1
@@ -268,7 +294,7 @@ class DriverNode(Node):
         self._published += 1
 
     def _on_tick(self) -> None:
-        """Publish what is due (sim) or poll once (iio); errors go to diagnostics."""
+        """Publish what the source says is due; errors go to diagnostics."""
         if self._finished:
             return
         if self._source is None:
@@ -276,11 +302,13 @@ class DriverNode(Node):
                 self._try_open()
             if self._source is None:
                 return
+        src = self._source
         try:
-            if self.params.backend == 'sim':
-                self._tick_sim()
-            else:
-                self._tick_iio()
+            for sample in src.pending():
+                self._publish(src, check_sample(sample))
+            if self._backoff.failures:
+                self._backoff.reset()
+                self.get_logger().info(f'{self._device} reads again')
         except SourceExhausted as exc:
             self._finished = True
             self._state = 'finished'
@@ -290,44 +318,6 @@ class DriverNode(Node):
         except DeviceError as exc:
             self._fail(exc)
 
-    def _tick_iio(self) -> None:
-        sample = check_sample(self._source.read())
-        stamp = int(round(sample.t * 1e9))
-        self._publish(sample, stamp, stamp)
-        if self._backoff.failures:
-            self._backoff.reset()
-            self.get_logger().info(f'{self._device} reads again')
-
-    def _tick_sim(self) -> None:
-        src = self._source
-        p = self.params
-        now = time.monotonic()
-        if self._sim_origin is None:
-            first = src.peek_t()
-            if first is None:
-                raise SourceExhausted(f'scenario {p.scenario!r} has no samples')
-            self._sim_origin = (self._now_ns(), first)
-            self._wall_origin = now
-        origin_ns, sim0 = self._sim_origin
-        limit = (float('inf') if p.time_scale == 0.0
-                 else sim0 + (now - self._wall_origin) * p.time_scale)
-        for _ in range(p.max_batch):
-            t_next = src.peek_t()
-            if t_next is None:
-                src.read()  # raises SourceExhausted
-            if t_next > limit:
-                break
-            sample = check_sample(src.read())
-            stamp = origin_ns + int(round((sample.t - sim0) * 1e9))
-            temp_t = sample.temp_t if sample.temp_t is not None else sample.t
-            if sample.ref is not None and self._ref_pub is not None:
-                ref = Vector3Stamped()
-                ref.header.frame_id = p.frame_id
-                ref.header.stamp = stamp_from_ns(stamp)
-                ref.vector.x, ref.vector.y, ref.vector.z = sample.ref
-                self._ref_pub.publish(ref)
-            self._publish(sample, stamp, origin_ns + int(round((temp_t - sim0) * 1e9)))
-
     # -- diagnostics ------------------------------------------------------------------
 
     def diagnostic_status(self) -> DiagnosticStatus:
@@ -335,8 +325,7 @@ class DriverNode(Node):
         p = self.params
         st = DiagnosticStatus()
         st.name = f'{self.get_name()}: gyro driver'
-        st.hardware_id = self._device or (p.scenario if p.backend == 'sim' else
-                                          p.device_dir or p.device_name)
+        st.hardware_id = self._device or self._backend.hardware_id(p)
         if self._state == 'error':
             st.level = DiagnosticStatus.ERROR
             retry = max(self._retry_at - time.monotonic(), 0.0)
@@ -352,8 +341,8 @@ class DriverNode(Node):
             'imu messages': self._published, 'temperature messages': self._temps,
             'errors': self._errors, 'last error': self._last_error,
         }
-        if p.backend == 'sim':
-            values['time_scale'] = p.time_scale
+        for name in self._backend.diagnostics:
+            values[name] = getattr(p, name)
         st.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
         return st
 
@@ -376,17 +365,7 @@ class DriverNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Run the driver node until shutdown (``ros2 run gyro_tdc driver_node``)."""
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = DriverNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run_node(DriverNode, args, executor='single')
 
 
 if __name__ == '__main__':

@@ -19,15 +19,19 @@ Simulated back-end: a scenario of :mod:`gyro_tdc.sim` handed out sample by sampl
 streams into :class:`~gyro_tdc.sources.base.ImuSample`: each IMU sample carries the
 thermometer reading stamped since the previous IMU sample (with its own stamp in
 ``temp_t``) and, when the rate table moves, the reference rate that took effect since.
-The driver node decides when to publish (``peek_t``) so it can pace the stream in real
-time or faster.
+
+It paces itself (:meth:`SimSource.pending`): its first sample is tied to the node clock and
+the wall clock when the driver first asks, and a sample simulated ``dt`` seconds later is due
+``dt / time_scale`` wall seconds later and stamped ``dt`` seconds later, so that every time
+constant in the data (filters, dT/dt) stays in simulated seconds whatever the pace.
 """
 
 from __future__ import annotations
 
 from collections import deque
 import os
-from typing import Any
+import time
+from typing import Any, Callable, Iterator
 
 from gyro_tdc.errors import DeviceError, GyroTdcError
 from gyro_tdc.sources.base import ImuSample, SourceExhausted
@@ -49,19 +53,35 @@ class SimSource:
         IMU rate overriding the scenario's (None or 0: the scenario's).
     chunk_s : float, s
         Simulated time pulled from the stream at once.
+    time_scale : float
+        Simulated seconds per wall-clock second; 0 makes every sample due at once.
+    max_batch : int
+        Most samples :meth:`pending` yields per call.
+    clock_ns : callable returning int, ns
+        The clock stamps are shifted onto (the node clock).
+    wall : callable returning float, s
+        Monotonic clock that paces the run.
 
     Raises
     ------
     DeviceError
         The scenario cannot be loaded or simulated (the message says why).
+    ValueError
+        ``time_scale`` < 0 or ``max_batch`` < 1.
 
     """
 
     has_accel = True
 
     def __init__(self, scenario: str | os.PathLike | Any, *, seed: int = 0,
-                 run_index: int = 0, rate_hz: float | None = None,
-                 chunk_s: float = 1.0) -> None:
+                 run_index: int = 0, rate_hz: float | None = None, chunk_s: float = 1.0,
+                 time_scale: float = 1.0, max_batch: int = 2000,
+                 clock_ns: Callable[[], int] = time.time_ns,
+                 wall: Callable[[], float] = time.monotonic) -> None:
+        if not time_scale >= 0.0:
+            raise ValueError(f'Expected `time_scale` >= 0, got {time_scale!r}.')
+        if int(max_batch) < 1:
+            raise ValueError(f'Expected `max_batch` >= 1, got {max_batch!r}.')
         from gyro_tdc.sim.stream import SimStream
         try:
             self._stream = SimStream(scenario, seed=seed, run_index=run_index,
@@ -75,6 +95,12 @@ class SimSource:
         self.moving = bool(run.moving)
         self.truth = run.truth
         self._chunk_s = float(chunk_s)
+        self._scenario = scenario
+        self.time_scale = float(time_scale)
+        self.max_batch = int(max_batch)
+        self._clock_ns = clock_ns
+        self._wall = wall
+        self._origin: tuple[int, float, float] | None = None  # (clock ns, sim s, wall s)
         self._imu: deque[tuple[float, tuple, tuple]] = deque()
         self._temps: deque[tuple[float, float]] = deque()
         self._refs: deque[tuple[float, tuple]] = deque()
@@ -96,11 +122,52 @@ class SimSource:
             if self.moving:
                 self._refs.extend(zip(ref.t.tolist(), map(tuple, ref.ref.tolist())))
 
-    def peek_t(self) -> float | None:
-        """Return the stamp of the next IMU sample, s, or None when the run is over."""
+    def _peek_t(self) -> float | None:
+        """Return the time of the next IMU sample, s, or None when the run is over."""
         if not self._imu:
             self._fill()
         return self._imu[0][0] if self._imu else None
+
+    def _start(self, now: float) -> tuple[int, float, float]:
+        """Tie the first sample to the clocks (once, wall time ``now``); return the origin."""
+        if self._origin is None:
+            first = self._peek_t()
+            if first is None:
+                raise SourceExhausted(f'scenario {self._scenario!r} has no samples')
+            self._origin = (self._clock_ns(), first, now)
+        return self._origin
+
+    def pending(self) -> Iterator[ImuSample]:
+        """
+        Yield the samples due by now on the scaled clock, at most ``max_batch``.
+
+        Yields
+        ------
+        ImuSample
+            The next due sample (simulated seconds; :meth:`stamp_ns` maps them).
+
+        Raises
+        ------
+        SourceExhausted
+            The run is over (or has no samples at all).
+
+        """
+        now = self._wall()
+        _, sim0, wall0 = self._start(now)
+        limit = (float('inf') if self.time_scale == 0.0
+                 else sim0 + (now - wall0) * self.time_scale)
+        for _ in range(self.max_batch):
+            t_next = self._peek_t()
+            if t_next is None:
+                self.read()  # raises SourceExhausted
+            if t_next > limit:
+                return
+            yield self.read()
+
+    def stamp_ns(self, t: float) -> int:
+        """Return the node-clock stamp, ns, of simulated time ``t``: shifted, not scaled."""
+        origin_ns, sim0, _ = self._origin or self._start(self._wall())
+        return origin_ns + int(round((t - sim0) * 1e9))
 
     def read(self) -> ImuSample:
         """
