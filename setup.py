@@ -70,6 +70,7 @@ setup(
         'statsmodels>=0.14',
         'AllanTools>=2019.9',
         'tqdm>=4.60',
+        'dask[distributed]>=2024.1',
     ],
     extras_require={
         'test': ['pytest'],
@@ -88,6 +89,7 @@ setup(
             'evaluate = gyro_tdc.cli.evaluate:main',
             'discover = gyro_tdc.cli.discover:main',
             'demo = gyro_tdc.cli.demo:main',
+            'fleet = gyro_tdc.cli.fleet:main',
         ],
     },
 )

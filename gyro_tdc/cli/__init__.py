@@ -64,6 +64,8 @@ COMMANDS: dict[str, Command] = {
                 'find which thermal effect a model is still missing'),
         Command('demo', 'gyro_tdc.cli.demo',
                 'simulate, train, evaluate and discover end to end into one folder'),
+        Command('fleet', 'gyro_tdc.cli.fleet',
+                'calibrate many IMUs from a manifest on Dask, with fleet-outlier flags'),
     )
 }
 

@@ -1,0 +1,352 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Running a fleet on Dask: the per-sensor task, the engine, resuming, writing the models.
+
+Every sensor is one Dask task (:func:`run_sensor`, run on a worker process): it trains a model
+with the options of ``train``, evaluates it on the sensor's test bags and returns it; the
+client writes ``DIR/<sensor_id>.yaml`` (``sensor.sensor_id`` set) and the resume state
+``DIR/.fleet/<sensor_id>.json`` as each task finishes. Nothing here imports rclpy.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+from dataclasses import dataclass
+import hashlib
+import json
+import logging
+import math
+import os
+from pathlib import Path
+import tempfile
+import time
+from typing import Callable, Iterator, Sequence
+
+from gyro_tdc.atomicio import atomic_write
+from gyro_tdc.cli.common import one_line
+from gyro_tdc.cli.train import train
+from gyro_tdc.errors import FleetError, GyroTdcError
+from gyro_tdc.evaluation import evaluate, mean_scores, NamedModel
+from gyro_tdc.fleet.manifest import input_key, SensorSpec
+from gyro_tdc.fleet.results import FleetResult, SensorResult
+from gyro_tdc.fleet.stats import DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics
+from gyro_tdc.fleet.summary import write_summary
+from gyro_tdc.model import CompensationModel
+from gyro_tdc.modelfile import save_model
+
+__all__ = ['Engine', 'STATE_DIR', 'SensorOutcome', 'open_engine', 'run_fleet', 'run_sensor']
+
+STATE_DIR = '.fleet'         # DIR/.fleet/<sensor_id>.json: the resume state of each sensor
+STATE_FORMAT = 1
+_BAG_KEYS = ('imu_topic', 'temperature_topic', 'reference', 'reference_topic', 'progress')
+
+
+@dataclass
+class SensorOutcome:
+    """
+    What one sensor task returned (computed on a worker).
+
+    Parameters
+    ----------
+    sensor_id : str
+        The sensor.
+    status : str
+        ``'ok'`` (trained), ``'skipped'`` (inputs unchanged) or ``'failed'``.
+    key : str
+        Input key (:func:`input_key`); empty when it could not be computed.
+    error : str
+        One-line reason when failed.
+    model : CompensationModel or None
+        The trained model (``sensor_id`` set) when ok.
+    train_bs, heldout_bs : list of 3 float or None, (deg/s)^2
+        Training BS of the model; mean BS over the test bags (None without test bags).
+    drift_poly : list or None, deg/s per degC^k
+        :func:`drift_polynomial` as nested lists.
+    temp_range_c : list of 2 float or None, degC
+        The model's trained temperature range.
+    seconds : float, s
+        Wall time of the task on the worker.
+    pid : int
+        Process id of the worker.
+
+    """
+
+    sensor_id: str
+    status: str
+    key: str = ''
+    error: str = ''
+    model: CompensationModel | None = None
+    train_bs: list | None = None
+    heldout_bs: list | None = None
+    drift_poly: list | None = None
+    temp_range_c: list | None = None
+    seconds: float = 0.0
+    pid: int = 0
+
+
+def run_sensor(spec: SensorSpec, options: dict, *, previous_key: str | None = None,
+               command: str = '') -> SensorOutcome:
+    """
+    Train, evaluate and characterise one sensor (the Dask task; pure, no file written).
+
+    Parameters
+    ----------
+    spec : SensorSpec
+        The sensor and its bags (paths as the worker sees them).
+    options : dict
+        Keyword options of :func:`gyro_tdc.cli.train.train` (features, kind, topics...);
+        ``progress`` is ignored (no bar on workers).
+    previous_key : str, optional
+        Input key of the model already written; when equal to this run's key the sensor is
+        skipped without reading a bag.
+    command : str
+        Command line recorded in the model's ``created``.
+
+    Returns
+    -------
+    SensorOutcome
+        ``failed`` with a one-line reason for bad input (unreadable bag, missing topic, too
+        small a span...): the error never escapes, so one sensor never stops the others.
+
+    """
+    start = time.perf_counter()
+    opts = {**options, 'progress': False}
+    out = SensorOutcome(spec.sensor_id, 'failed', pid=os.getpid())
+    try:
+        out.key = input_key(spec, opts)
+        if previous_key is not None and previous_key == out.key:
+            out.status = 'skipped'
+            return out
+        with tempfile.TemporaryDirectory(prefix='gyro_tdc_fleet_') as tmp:
+            result = train(list(spec.train), out=Path(tmp) / 'model.yaml', command=command,
+                           **opts)
+        model = result.model.replace(sensor_id=spec.sensor_id)
+        if spec.test:
+            named = NamedModel(f'{spec.sensor_id}.yaml', spec.sensor_id, model)
+            bag_opts = {k: opts[k] for k in _BAG_KEYS if k in opts}
+            evals = evaluate(list(spec.test), [named], options=bag_opts)
+            out.heldout_bs = [float(v) for v in mean_scores(evals)[1][1]]
+        out.train_bs = [float(v) for v in model.metrics.get('train_bs_dps2', [math.nan] * 3)]
+        out.drift_poly = drift_polynomial(model).tolist()
+        out.temp_range_c = [float(v) for v in model.temp_range_c]
+        out.model = model
+        out.status = 'ok'
+    except (GyroTdcError, OSError) as exc:
+        out.error = one_line(exc)
+    finally:
+        out.seconds = time.perf_counter() - start
+    return out
+
+
+@dataclass
+class Engine:
+    """
+    A Dask client and what to report about it.
+
+    Parameters
+    ----------
+    client : distributed.Client
+        Connected client.
+    scheduler : str
+        ``'local'`` or the scheduler address.
+    workers : int
+        Workers connected at the start.
+
+    """
+
+    client: object
+    scheduler: str
+    workers: int
+
+
+@contextlib.contextmanager
+def open_engine(*, workers: int | None = None, scheduler: str | None = None,
+                timeout_s: float = 30.0) -> Iterator[Engine]:
+    """
+    Start an embedded Dask cluster, or connect to one, for the duration of a ``with``.
+
+    Parameters
+    ----------
+    workers : int, optional
+        Worker processes of the embedded ``LocalCluster`` (one thread each); default the
+        machine's cores. Ignored with ``scheduler``.
+    scheduler : str, optional
+        Address of a running Dask scheduler (``tcp://HOST:PORT``); its workers must read the
+        bags at the paths the manifest gives.
+    timeout_s : float, s
+        How long to wait for the scheduler and its first worker.
+
+    Yields
+    ------
+    Engine
+        The client and its description.
+
+    Raises
+    ------
+    FleetError
+        When the scheduler cannot be reached or has no worker within ``timeout_s``.
+
+    """
+    from distributed import Client, LocalCluster
+    timeouts = (OSError, ValueError, asyncio.TimeoutError)
+    if scheduler is None:
+        n = max(1, int(workers or os.cpu_count() or 1))
+        with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
+                          host='127.0.0.1', scheduler_port=0, dashboard_address='127.0.0.1:0',
+                          silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
+            yield Engine(client, 'local', n)
+        return
+    try:
+        client = Client(scheduler, timeout=f'{timeout_s}s')
+    except timeouts as exc:
+        raise FleetError(f'--scheduler {scheduler}: cannot connect: {one_line(exc)}') from exc
+    with client:
+        try:
+            client.wait_for_workers(1, timeout=timeout_s)
+        except timeouts as exc:
+            raise FleetError(f'--scheduler {scheduler}: no Dask worker connected within '
+                             f'{timeout_s:g} s (start some with: dask worker {scheduler})'
+                             ) from exc
+        yield Engine(client, scheduler, len(client.nthreads()))
+
+
+def _read_state(path: Path, model_file: Path) -> dict | None:
+    """Return a sensor's resume state when it matches the model file on disk, else None."""
+    try:
+        state = json.loads(path.read_text(encoding='utf-8'))
+        digest = hashlib.sha256(model_file.read_bytes()).hexdigest()
+    except (OSError, ValueError):
+        return None
+    if not isinstance(state, dict) or state.get('format') != STATE_FORMAT:
+        return None
+    return state if state.get('model_sha256') == digest else None
+
+
+def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
+            state: dict | None) -> SensorResult:
+    """Turn a task's outcome into a summary line; write its model and resume state."""
+    model_file = out_dir / f'{out.sensor_id}.yaml'
+    state_file = state_dir / f'{out.sensor_id}.json'
+    if out.status == 'skipped' and state is not None:
+        return SensorResult(out.sensor_id, 'ok', model_file=str(model_file), skipped=True,
+                            train_bs=state.get('train_bs'), heldout_bs=state.get('heldout_bs'),
+                            drift_poly=state.get('drift_poly'),
+                            temp_range_c=state.get('temp_range_c'))
+    if out.status != 'ok' or out.model is None:
+        with contextlib.suppress(OSError):
+            state_file.unlink()       # the model on disk no longer matches these inputs
+        return SensorResult(out.sensor_id, 'failed', error=out.error or 'unknown failure',
+                            seconds=out.seconds)
+    save_model(out.model, model_file)
+    record = {'format': STATE_FORMAT, 'key': out.key,
+              'model_sha256': hashlib.sha256(model_file.read_bytes()).hexdigest(),
+              'train_bs': out.train_bs, 'heldout_bs': out.heldout_bs,
+              'drift_poly': out.drift_poly, 'temp_range_c': out.temp_range_c,
+              'seconds': out.seconds}
+    atomic_write(state_file, json.dumps(record) + '\n', what='fleet state file')
+    return SensorResult(out.sensor_id, 'ok', model_file=str(model_file), train_bs=out.train_bs,
+                        heldout_bs=out.heldout_bs, drift_poly=out.drift_poly,
+                        temp_range_c=out.temp_range_c, seconds=out.seconds)
+
+
+def _future_failure(sid: str, future: object) -> SensorOutcome:
+    """Describe a task that raised on its worker (or was lost with it) as a failure."""
+    if future.status == 'error':
+        exc = future.exception()
+        reason = f'{type(exc).__name__} on the worker: {one_line(exc)}'
+    else:
+        reason = f'task {future.status} (worker lost or cluster shut down)'
+    return SensorOutcome(sid, 'failed', error=reason)
+
+
+def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: dict,
+              engine: Engine, *, force: bool = False, outlier_z: float = DEFAULT_OUTLIER_Z,
+              progress: bool = False, command: str = '',
+              log: Callable[[str], None] | None = None) -> FleetResult:
+    """
+    Calibrate every sensor on the engine; write models, ``summary.json`` and ``summary.csv``.
+
+    Parameters
+    ----------
+    specs : sequence of SensorSpec
+        The sensors (see :func:`read_manifest`).
+    out_dir : str or PathLike
+        Output folder (created): ``<sensor_id>.yaml``, ``summary.json``, ``summary.csv`` and
+        the resume state in ``.fleet/``.
+    options : dict
+        Keyword options of :func:`gyro_tdc.cli.train.train`, the same for every sensor.
+    engine : Engine
+        From :func:`open_engine`.
+    force : bool
+        Retrain sensors whose inputs are unchanged.
+    outlier_z : float
+        Robust z-score beyond which a drift coefficient is flagged.
+    progress : bool
+        Progress bar over sensors (stderr).
+    command : str
+        Command line recorded in every model's ``created``.
+    log : callable, optional
+        Receives one line per finished sensor.
+
+    Returns
+    -------
+    FleetResult
+        The summary (also written, even when sensors failed or the run is interrupted).
+
+    """
+    from distributed import as_completed
+    from tqdm import tqdm
+    start = time.perf_counter()
+    out = Path(out_dir)
+    state_dir = out / STATE_DIR
+    state_dir.mkdir(parents=True, exist_ok=True)
+    states: dict[str, dict | None] = {}
+    futures = {}
+    for spec in specs:
+        model_file = out / f'{spec.sensor_id}.yaml'
+        st = None if force else _read_state(state_dir / f'{spec.sensor_id}.json', model_file)
+        states[spec.sensor_id] = st
+        fut = engine.client.submit(run_sensor, spec, options, pure=False,
+                                   previous_key=None if st is None else st.get('key'),
+                                   command=command, key=f'gyro_tdc-fleet-{spec.sensor_id}-'
+                                   f'{os.urandom(6).hex()}')
+        futures[fut] = spec.sensor_id
+    done: dict[str, SensorResult] = {}
+    bar = tqdm(total=len(specs), unit='sensor', desc='fleet', disable=not progress,
+               dynamic_ncols=True)
+    try:
+        for fut in as_completed(list(futures)):
+            sid = futures[fut]
+            outcome = fut.result() if fut.status == 'finished' else _future_failure(sid, fut)
+            fut.release()
+            res = _record(outcome, out, state_dir, states[sid])
+            done[sid] = res
+            bar.update(1)
+            if log is not None:
+                what = ('unchanged, skipped' if res.skipped else res.status
+                        if res.status == 'ok' else f'failed: {res.error}')
+                log(f'{sid}: {what}' + (f' ({res.seconds:.1f} s)' if res.seconds else ''))
+    finally:
+        bar.close()
+        sensors = [done.get(s.sensor_id) or SensorResult(s.sensor_id, 'failed',
+                                                         error='not run (fleet interrupted)')
+                   for s in specs]
+        result = FleetResult(engine.scheduler, engine.workers, sensors, outlier_z=outlier_z)
+        result.reference_c = fleet_statistics(sensors, outlier_z=outlier_z)
+        result.seconds = time.perf_counter() - start
+        write_summary(result, out)
+    return result

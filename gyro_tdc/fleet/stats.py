@@ -1,0 +1,138 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Fleet statistics: each model's static drift quadratic, robust z-scores, outlier flags.
+
+The static drift curve of a model (at thermal equilibrium) is fitted with a quadratic in
+temperature; its slope at the fleet's reference temperature (the median middle of the
+trained ranges, where slopes are best determined) and its curvature, per axis, are compared
+with the fleet by a robust z-score ``(v - median) / (1.4826 MAD)``; beyond ``outlier_z`` a
+flag such as ``drift slope on x 6.0σ from the fleet`` is raised.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+from gyro_tdc.fleet.results import AXES, SensorResult
+from gyro_tdc.model import CompensationModel, drift
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['DEFAULT_OUTLIER_Z', 'MIN_FLEET', 'drift_polynomial', 'fleet_statistics',
+           'robust_z']
+
+DEFAULT_OUTLIER_Z = 3.5      # Iglewicz and Hoaglin's cut-off for the modified z-score
+MIN_FLEET = 3                # fewer trained sensors: no z-scores, no flags
+_MAD_TO_SIGMA = 1.4826       # MAD of a normal distribution times this = its sigma
+
+
+def drift_polynomial(model: CompensationModel, *, points: int = 41) -> NDArray[np.float64]:
+    """
+    Fit a quadratic in temperature to the model's static drift over its trained range.
+
+    The static drift is the model's drift at thermal equilibrium: each temperature is held
+    long enough (10^7 s apart) that lag, dT/dt and warm-up terms have settled.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        A fitted model.
+    points : int
+        Temperatures sampled over ``model.temp_range_c``.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (3, 3), deg/s per degC^k
+        ``c[axis, k]`` of ``b(T) = c0 + c1 T + c2 T^2`` (T in degC) per axis x, y, z.
+
+    """
+    lo, hi = model.temp_range_c
+    grid = np.linspace(lo, hi, points)
+    temp = np.concatenate(([grid[0]], grid))          # a settling sample, dropped below
+    t = np.arange(temp.size, dtype=np.float64) * 1e7
+    b = np.degrees(drift(model, t, temp, clamp=True)[1:])
+    design = np.stack((np.ones_like(grid), grid, grid * grid), axis=1)
+    coef, *_ = np.linalg.lstsq(design, b, rcond=None)
+    return coef.T.copy()
+
+
+def robust_z(values: Sequence[float]) -> NDArray[np.float64]:
+    """
+    Return the robust z-score ``(v - median) / (1.4826 MAD)`` of each value.
+
+    Parameters
+    ----------
+    values : sequence of float
+        One value per sensor.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N,)
+        z-scores; NaN for every value when the MAD is zero or not finite.
+
+    """
+    v = np.asarray(values, dtype=np.float64)
+    med = float(np.median(v))
+    scale = _MAD_TO_SIGMA * float(np.median(np.abs(v - med)))
+    if not (math.isfinite(scale) and scale > 0):
+        return np.full(v.shape, math.nan)
+    return (v - med) / scale
+
+
+def fleet_statistics(sensors: Sequence[SensorResult], *,
+                     outlier_z: float = DEFAULT_OUTLIER_Z) -> float | None:
+    """
+    Fill in drift slope, curvature, their robust z-scores and the flags of the sensors.
+
+    Parameters
+    ----------
+    sensors : sequence of SensorResult
+        Every sensor; those with a drift polynomial take part.
+    outlier_z : float
+        A coefficient with ``|z| > outlier_z`` is flagged.
+
+    Returns
+    -------
+    float or None, degC
+        The reference temperature of the slopes (the fleet's median of the middle of each
+        trained range, where a slope is best determined), None without any trained sensor.
+        z-scores and flags need at least :data:`MIN_FLEET` sensors.
+
+    """
+    fleet = [s for s in sensors if s.status == 'ok' and s.drift_poly is not None]
+    if not fleet:
+        return None
+    ref = float(np.median([sum(s.temp_range_c) / 2.0 for s in fleet]))
+    for s in fleet:
+        c = np.asarray(s.drift_poly, dtype=np.float64)          # (axis, power)
+        s.slope = (c[:, 1] + 2.0 * c[:, 2] * ref).tolist()
+        s.curvature = c[:, 2].tolist()
+    if len(fleet) < MIN_FLEET:
+        return ref
+    for name, attr, zattr, unit in (('slope', 'slope', 'z_slope', 'deg/s/degC'),
+                                    ('curvature', 'curvature', 'z_curvature', 'deg/s/degC^2')):
+        values = np.array([getattr(s, attr) for s in fleet])   # (sensor, axis)
+        z = np.stack([robust_z(values[:, a]) for a in range(3)], axis=1)
+        med = np.median(values, axis=0)
+        for i, s in enumerate(fleet):
+            setattr(s, zattr, [None if math.isnan(v) else float(v) for v in z[i]])
+            for a, axis in enumerate(AXES):
+                if abs(z[i, a]) > outlier_z:
+                    s.flags.append(f'drift {name} on {axis} {abs(z[i, a]):.1f}σ from the '
+                                   f'fleet ({values[i, a]:+.3g} vs median {med[a]:+.3g} '
+                                   f'{unit})')
+    return ref

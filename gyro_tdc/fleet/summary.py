@@ -1,0 +1,144 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The fleet summary: ``summary.json`` (documented shape), ``summary.csv``, console table."""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from pathlib import Path
+
+from gyro_tdc.atomicio import atomic_write
+from gyro_tdc.fleet.results import AXES, FleetResult
+
+__all__ = ['format_table', 'summary_dict', 'write_summary']
+
+
+def summary_dict(result: FleetResult) -> dict:
+    """
+    Return the ``summary.json`` content.
+
+    Parameters
+    ----------
+    result : FleetResult
+        The fleet run.
+
+    Returns
+    -------
+    dict
+        ``{"engine": "dask", "scheduler", "workers", "sensors": [{"sensor_id", "status",
+        "error" (failed only), "model_file", "train_bs", "heldout_bs", "flags"}]}``, BS in
+        (deg/s)^2 per axis x, y, z.
+
+    """
+    rows = []
+    for s in result.sensors:
+        row: dict = {'sensor_id': s.sensor_id, 'status': s.status}
+        if s.status != 'ok':
+            row['error'] = s.error
+        row.update({'model_file': s.model_file, 'train_bs': s.train_bs,
+                    'heldout_bs': s.heldout_bs, 'flags': list(s.flags)})
+        rows.append(row)
+    return {'engine': 'dask', 'scheduler': result.scheduler, 'workers': result.workers,
+            'sensors': rows}
+
+
+def _csv_text(result: FleetResult) -> str:
+    """Return ``summary.csv``: one row per sensor with BS, drift coefficients and z-scores."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator='\n')
+    per_axis = ('train_bs', 'heldout_bs', 'slope', 'curvature', 'z_slope', 'z_curvature')
+    w.writerow(['sensor_id', 'status', 'skipped', 'seconds', 'model_file', 'slope_at_c']
+               + [f'{c}_{a}' for c in per_axis for a in AXES] + ['flags', 'error'])
+
+    def cells(values: list | None) -> list:
+        return ['' if values is None or values[a] is None else f'{values[a]:.6g}'
+                for a in range(3)]
+
+    ref = '' if result.reference_c is None else f'{result.reference_c:.3f}'
+    for s in result.sensors:
+        w.writerow([s.sensor_id, s.status, int(s.skipped), f'{s.seconds:.3f}',
+                    s.model_file or '', ref if s.slope is not None else '']
+                   + [c for name in per_axis for c in cells(getattr(s, name))]
+                   + ['; '.join(s.flags), s.error])
+    return buf.getvalue()
+
+
+def write_summary(result: FleetResult, out_dir: str | os.PathLike) -> tuple[Path, Path]:
+    """
+    Write ``summary.json`` and ``summary.csv`` into ``out_dir``, each atomically.
+
+    Parameters
+    ----------
+    result : FleetResult
+        The fleet run.
+    out_dir : str or PathLike
+        Output folder (exists).
+
+    Returns
+    -------
+    tuple of Path
+        The JSON and the CSV file.
+
+    """
+    d = Path(out_dir)
+    js = atomic_write(d / 'summary.json',
+                      json.dumps(summary_dict(result), indent=1, ensure_ascii=False) + '\n',
+                      what='fleet summary')
+    return js, atomic_write(d / 'summary.csv', _csv_text(result), what='fleet summary',
+                            newline='')
+
+
+def format_table(result: FleetResult, *, max_rows: int = 40) -> str:
+    """
+    Return the console table: one line per sensor (only failed and flagged ones when many).
+
+    Parameters
+    ----------
+    result : FleetResult
+        The fleet run.
+    max_rows : int
+        Above this many sensors, list only failed and flagged sensors.
+
+    Returns
+    -------
+    str
+        The table and a count line.
+
+    """
+    def bs(values: list | None) -> str:
+        return ' '.join(f'{v:9.3g}' for v in values) if values else f'{"-":>29}'
+
+    shown = result.sensors
+    if len(shown) > max_rows:
+        shown = [s for s in shown if s.status != 'ok' or s.flags]
+    w = max([len(s.sensor_id) for s in shown] + [9])
+    lines = [f'{"sensor_id":<{w}}  {"status":<7}  {"train BS x y z (deg/s)^2":<29}  '
+             f'{"held-out BS x y z":<29}  flags / error']
+    for s in shown:
+        status = 'skipped' if s.skipped else s.status
+        note = s.error if s.status != 'ok' else '; '.join(s.flags)
+        lines.append(f'{s.sensor_id:<{w}}  {status:<7}  {bs(s.train_bs)}  '
+                     f'{bs(s.heldout_bs)}  {note}'.rstrip())
+    n_ok = sum(s.status == 'ok' for s in result.sensors)
+    n_flag = sum(bool(s.flags) for s in result.sensors)
+    n_skip = sum(s.skipped for s in result.sensors)
+    lines.append(f'{len(result.sensors)} sensors: {n_ok} ok ({n_skip} unchanged, skipped), '
+                 f'{len(result.sensors) - n_ok} failed, {n_flag} flagged as fleet outliers '
+                 f'(|z| > {result.outlier_z:g}); {result.workers} Dask worker(s), '
+                 f'{result.seconds:.1f} s')
+    return '\n'.join(lines)
