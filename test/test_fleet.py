@@ -36,7 +36,7 @@ from gyro_tdc.cli.train import build_parser as train_parser, train_options
 from gyro_tdc.errors import FleetError
 from gyro_tdc.fitting import fit_model
 from gyro_tdc.fleet import check_sensor_id, drift_polynomial, fleet_statistics, open_engine
-from gyro_tdc.fleet import read_manifest, robust_z, run_fleet, SensorResult, SensorSpec
+from gyro_tdc.fleet import read_manifest, robust_z, run_fleet, SensorResult
 from gyro_tdc.modelfile import load_model
 import numpy as np
 import pytest
@@ -275,8 +275,8 @@ def test_cli_against_a_scheduler_address(tmp_path, bags, capsys):
     rows = _rows(bags, GOOD) + [('truncated', [b['truncated'][0]], [])]
     manifest = _manifest(tmp_path / 'fleet.csv', rows)
     out = tmp_path / 'out'
-    with LocalCluster(n_workers=1, processes=True, scheduler_port=0, dashboard_address='127.0.0.1:0',
-                      threads_per_worker=1) as cluster:
+    with LocalCluster(n_workers=1, processes=True, scheduler_port=0, threads_per_worker=1,
+                      dashboard_address='127.0.0.1:0') as cluster:
         addr = cluster.scheduler_address
         code = main([str(manifest), '--out', str(out), '--scheduler', addr, '--no-progress',
                      '--centers', '6'])
