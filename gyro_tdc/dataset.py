@@ -23,8 +23,10 @@ so that nothing is lost silently.
 
 from __future__ import annotations
 
+import os
 from pathlib import Path
-from typing import Iterable
+import re
+from typing import Callable, Iterable
 
 from gyro_tdc.bagio import read_bag
 from gyro_tdc.errors import DatasetError
@@ -32,7 +34,7 @@ from gyro_tdc.runs import Run
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['align_temperature', 'load_run', 'load_runs']
+__all__ = ['align_temperature', 'expand_bags', 'load_run', 'load_runs']
 
 
 def _vector(name: str, a: ArrayLike) -> NDArray[np.float64]:
@@ -276,14 +278,76 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
                str(bag), info)
 
 
-def load_runs(bags: Iterable[str | Path] | str | Path, **kw) -> list[Run]:
+def _is_bag(path: Path) -> bool:
+    """Return True when ``path`` is a rosbag2 directory (holds metadata.yaml)."""
+    return path.is_dir() and (path / 'metadata.yaml').is_file()
+
+
+def _natural_key(path: Path) -> list:
+    """Sort key comparing digit runs as numbers."""
+    return [int(s) if s.isdigit() else s for s in re.split(r'(\d+)', path.name)]
+
+
+def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
     """
-    Load several bags with :func:`load_run`.
+    Expand bag paths: a folder of bag folders (a multi-run ``simulate``) becomes its bags.
+
+    A path that is a rosbag2 directory, or anything else, is kept as is (reading reports
+    what is wrong with it); a directory without ``metadata.yaml`` whose sub-directories are
+    bags expands to those, sorted by name (natural order: ``run_2`` before ``run_10``).
 
     Parameters
     ----------
-    bags : iterable of str or Path (or a single one)
-        rosbag2 directories.
+    paths : iterable of str or PathLike
+        Bag paths, e.g. as given on the command line.
+
+    Returns
+    -------
+    list of Path
+        Bag paths in the given order.
+
+    Raises
+    ------
+    DatasetError
+        When a path does not exist, or two paths are the same bag (after resolving links
+        and folders of bags: a run read twice would weigh double in training and would not
+        be held out in discovery's leave-one-run-out).
+
+    """
+    out: list[Path] = []
+    for raw in paths:
+        p = Path(raw)
+        if not p.exists():
+            raise DatasetError(f'Bag {str(p)!r} does not exist.')
+        if p.is_dir() and not _is_bag(p):
+            subs = [c for c in p.iterdir() if _is_bag(c)]
+            if subs:
+                out.extend(sorted(subs, key=_natural_key))
+                continue
+        out.append(p)
+    seen: dict[Path, Path] = {}
+    for p in out:
+        real = p.resolve()
+        if p.is_file() and p.suffix in ('.db3', '.mcap'):
+            real = real.parent          # a bag's storage file names the bag
+        if real in seen:
+            raise DatasetError(f'Bag {str(p)!r} is given twice (also as {str(seen[real])!r}); '
+                               'give each run once.')
+        seen[real] = p
+    return out
+
+
+def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike, *,
+              log: Callable[[str], None] | None = None, **kw) -> list[Run]:
+    """
+    Load several bags with :func:`load_run`, one run per bag, after :func:`expand_bags`.
+
+    Parameters
+    ----------
+    bags : iterable of str or PathLike (or a single one)
+        rosbag2 directories, or folders of them.
+    log : callable, optional
+        Receives one line per bag read: samples, minutes, reference and what was dropped.
     **kw
         Keyword options of :func:`load_run`.
 
@@ -293,6 +357,15 @@ def load_runs(bags: Iterable[str | Path] | str | Path, **kw) -> list[Run]:
         One run per bag, in the given order.
 
     """
-    if isinstance(bags, (str, Path)):
+    if isinstance(bags, (str, os.PathLike)):
         bags = [bags]
-    return [load_run(bag, **kw) for bag in bags]
+    runs = []
+    for bag in expand_bags(bags):
+        run = load_run(bag, **kw)
+        if log is not None:
+            rejected = {k: v for k, v in run.info.get('rejected', {}).items() if v}
+            note = f'; dropped {rejected}' if rejected else ''
+            log(f'read {bag}: {len(run)} samples over {run.duration_s / 60.0:.1f} min, '
+                f'reference {run.info.get("reference", "?")}{note}')
+        runs.append(run)
+    return runs

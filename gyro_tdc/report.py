@@ -13,157 +13,49 @@
 # limitations under the License.
 
 """
-Reports of training and evaluation: text tables, JSON, CSV export and plots.
+Formatting of training and evaluation results: text tables, JSON, CSV export and plots.
 
-Pure numpy (matplotlib, Agg canvas, only when plots are asked for). The evaluation of one
-held-out bag is a :class:`BagEval` holding one :class:`ModelEval` per model; the functions
-here turn it into
+Formats only; the numbers come from the evaluation core (:mod:`gyro_tdc.evaluation`: a
+held-out bag is a :class:`~gyro_tdc.evaluation.BagEval` holding one
+:class:`~gyro_tdc.evaluation.ModelEval` per model) and from :mod:`gyro_tdc.coverage`. The
+functions here turn them into
 
 * text: a summary table (BS in (deg/s)^2 and RMS in deg/s per axis), the paper's tables 3-7
-  (``BS1 BS2 BS3 P1 P2 P3`` with P1 = BS2/BS1, P2 = BS3/BS1, P3 = BS3/BS2) and the Allan
-  readouts (angle random walk, bias instability);
+  (``BS1 BS2 BS3 P1 P2 P3`` with P1 = BS2/BS1, P2 = BS3/BS1, P3 = BS3/BS2), the Allan
+  readouts (angle random walk, bias instability), the means over bags and the coverage of
+  training data;
 * JSON (:func:`evaluation_json`, the shape documented in DESIGN.md, nothing more);
-* one CSV per bag (:func:`write_csv`) and three PNGs per bag (:func:`write_plots`).
-
-Training coverage (:func:`coverage`): samples and minutes per temperature bin, the bins inside
-the span that hold too little data, and minutes heating, cooling and steady.
+* one CSV per bag (:func:`write_csv`) and three PNGs per bag (:func:`write_plots`, matplotlib
+  with the Agg canvas, imported only when plots are asked for).
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 import json
 import math
 import os
 from pathlib import Path
-import re
 from typing import Sequence
 
-from gyro_tdc.runs import Run
+from gyro_tdc.blocks import block_length, block_mean
+from gyro_tdc.coverage import Coverage, RATE_THRESHOLD_C_PER_MIN, temperature_rate
+from gyro_tdc.evaluation import BagEval, mean_scores
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
-    'AXES', 'BagEval', 'Coverage', 'ModelEval', 'coverage', 'csv_columns', 'evaluation_json',
-    'format_allan', 'format_coverage', 'format_paper_table', 'format_summary', 'safe_label',
-    'temperature_rate', 'write_csv', 'write_json', 'write_plots',
+    'AXES', 'csv_columns', 'evaluation_json', 'format_allan', 'format_bag', 'format_coverage',
+    'format_means', 'format_paper_table', 'format_summary', 'write_csv', 'write_json',
+    'write_plots',
 ]
 
 AXES = ('x', 'y', 'z')
 _DEG = 180.0 / math.pi
-#: |dT/dt| (degC/min) above which a sample counts as heating or cooling.
-RATE_THRESHOLD_C_PER_MIN = 0.05
-#: Window (s) of the centred difference that estimates dT/dt.
-RATE_WINDOW_S = 300.0
 
 
 # --------------------------------------------------------------------------------------------
-# Evaluation results
+# JSON
 # --------------------------------------------------------------------------------------------
-
-@dataclass
-class ModelEval:
-    """
-    Scores of one model on one bag.
-
-    Parameters
-    ----------
-    model : str
-        The model as given on the command line (a path, or ``px4``).
-    label : str
-        Short unique label for tables, CSV columns and legends.
-    features : list of str
-        Effect ids of the model.
-    bs : NDArray[np.float64], shape (3,), (deg/s)^2
-        Bias stability after compensation.
-    rms_dps : NDArray[np.float64], shape (3,), deg/s
-        RMS of compensated minus reference rate.
-    p_vs_raw : NDArray[np.float64], shape (3,)
-        ``bs`` / raw BS.
-    adev_tau_s : NDArray[np.float64], shape (M,), s
-        Allan averaging times.
-    adev_dps : NDArray[np.float64], shape (M, 3), deg/s
-        Allan deviation of the compensated error.
-    arw_deg_sqrt_h, bias_instability_deg_h : NDArray[np.float64], shape (3,)
-        Readouts of the Allan curve.
-    temp_range_c : tuple of float, degC
-        The model's trained range.
-    outside_fraction : float
-        Fraction of the bag's samples outside ``temp_range_c`` (evaluated clamped).
-    omega : NDArray[np.float64], shape (N, 3), rad/s, or None
-        The compensated rate (kept only while plots and CSVs are written).
-
-    """
-
-    model: str
-    label: str
-    features: list
-    bs: NDArray[np.float64]
-    rms_dps: NDArray[np.float64]
-    p_vs_raw: NDArray[np.float64]
-    adev_tau_s: NDArray[np.float64]
-    adev_dps: NDArray[np.float64]
-    arw_deg_sqrt_h: NDArray[np.float64]
-    bias_instability_deg_h: NDArray[np.float64]
-    temp_range_c: tuple = (math.nan, math.nan)
-    outside_fraction: float = 0.0
-    omega: NDArray[np.float64] | None = field(default=None, repr=False)
-
-
-@dataclass
-class BagEval:
-    """
-    Scores of every model on one held-out bag.
-
-    Parameters
-    ----------
-    bag : str
-        The bag path.
-    label : str
-        Short unique label (file names of plots and CSVs).
-    samples : int
-        Samples evaluated.
-    temperature_c : tuple of float, degC
-        Min and max temperature.
-    duration_s : float, s
-        Time span.
-    reference : str
-        Where the reference rate came from (``constant``, ``topic``, ``zero``).
-    raw : ModelEval
-        The uncompensated data scored like a model (``p_vs_raw`` = 1).
-    models : list of ModelEval
-        One per model, in command-line order.
-    run : Run or None
-        The data (kept only while plots and CSVs are written).
-
-    """
-
-    bag: str
-    label: str
-    samples: int
-    temperature_c: tuple
-    duration_s: float
-    reference: str
-    raw: ModelEval
-    models: list
-    run: Run | None = field(default=None, repr=False)
-
-    def release(self) -> None:
-        """Drop the sample arrays (keep the scores)."""
-        self.run = None
-        self.raw.omega = None
-        for m in self.models:
-            m.omega = None
-
-
-def safe_label(text: str) -> str:
-    """Return ``text`` reduced to a file-name and CSV-header safe label."""
-    stem = Path(str(text).rstrip('/\\')).name
-    for suffix in ('.yaml', '.yml'):
-        if stem.endswith(suffix):
-            stem = stem[:-len(suffix)]
-    return re.sub(r'[^A-Za-z0-9_.-]+', '_', stem).strip('_.') or 'unnamed'
-
 
 def _finite(v: float) -> float | None:
     """Return ``v`` as a float, or None when it is NaN or infinite (JSON has neither)."""
@@ -313,152 +205,61 @@ def format_allan(b: BagEval) -> str:
     return '\n'.join(lines)
 
 
-# --------------------------------------------------------------------------------------------
-# Temperature coverage (training report)
-# --------------------------------------------------------------------------------------------
-
-def temperature_rate(t: NDArray[np.float64], temp: NDArray[np.float64], *,
-                     window_s: float = RATE_WINDOW_S) -> NDArray[np.float64]:
+def format_bag(b: BagEval, baseline: int | None = None) -> str:
     """
-    Estimate dT/dt at every sample by a centred difference over ``window_s``.
+    Return every table of one bag: summary, paper tables against ``baseline``, Allan readouts.
 
     Parameters
     ----------
-    t : NDArray[np.float64], shape (N,), s
-        Increasing stamps.
-    temp : NDArray[np.float64], shape (N,), degC
-        Temperature.
-    window_s : float, s
-        Width of the difference (shortened to the run's span); wide enough that thermometer
-        quantisation does not read as heating or cooling.
+    b : BagEval
+        One evaluated bag.
+    baseline : int, optional
+        Index into ``b.models`` of the conventional model; one paper table (tables 3-7) is
+        added per other model. None: no paper table.
 
     Returns
     -------
-    NDArray[np.float64], shape (N,), degC/min
-        Temperature rate.
+    str
+        Multi-line text (no trailing newline).
 
     """
-    t = np.asarray(t, dtype=np.float64)
-    temp = np.asarray(temp, dtype=np.float64)
-    if t.shape[0] < 2 or t[-1] <= t[0]:
-        return np.zeros(t.shape[0])
-    half = 0.5 * min(window_s, t[-1] - t[0])
-    a = np.clip(t - half, t[0], t[-1])
-    b = np.clip(t + half, t[0], t[-1])
-    span = np.maximum(b - a, 1e-9)
-    return (np.interp(b, t, temp) - np.interp(a, t, temp)) / span * 60.0
+    parts = [format_summary(b)]
+    if baseline is not None:
+        parts += [format_paper_table(b, baseline, i) for i in range(len(b.models))
+                  if i != baseline]
+    parts.append(format_allan(b))
+    return '\n'.join(parts)
 
 
-def _sample_minutes(t: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Return the time each sample stands for, in minutes (gaps count at most 10 periods)."""
-    if t.shape[0] < 2:
-        return np.zeros(t.shape[0])
-    d = np.diff(t)
-    med = float(np.median(d))
-    d = np.append(d, med)
-    return np.minimum(d, 10.0 * med) / 60.0
-
-
-def _coarse_rate(run: Run, *, points: int = 100_000) -> NDArray[np.float64]:
-    """Return :func:`temperature_rate` at every sample, computed on at most ``points``."""
-    n = len(run)
-    step = max(1, n // points)
-    if step == 1:
-        return temperature_rate(run.t, run.temp)
-    coarse = temperature_rate(run.t[::step], run.temp[::step])
-    return np.repeat(coarse, step)[:n]
-
-
-@dataclass
-class Coverage:
+def format_means(results: Sequence[BagEval]) -> str:
     """
-    How well training data cover temperature and thermal direction.
+    Return the mean BS and BS/BS1 per model and axis over several bags.
 
     Parameters
     ----------
-    bin_c : float, degC
-        Bin width.
-    edges : NDArray[np.float64], shape (B + 1,), degC
-        Bin edges.
-    samples : NDArray[np.int64], shape (B,)
-        Samples per bin.
-    minutes : NDArray[np.float64], shape (B,)
-        Minutes per bin.
-    sparse : list of int
-        Indices of bins inside the span with too little data.
-    temp_range_c : tuple of float
-        Min and max temperature.
-    heating_min, cooling_min, steady_min : float
-        Minutes with dT/dt above +threshold, below -threshold, in between.
-    threshold_c_per_min : float
-        The dT/dt threshold.
-
-    """
-
-    bin_c: float
-    edges: NDArray[np.float64]
-    samples: NDArray[np.int64]
-    minutes: NDArray[np.float64]
-    sparse: list
-    temp_range_c: tuple
-    heating_min: float
-    cooling_min: float
-    steady_min: float
-    threshold_c_per_min: float
-
-
-def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
-             threshold_c_per_min: float = RATE_THRESHOLD_C_PER_MIN,
-             sparse_fraction: float = 0.25) -> Coverage:
-    """
-    Measure the temperature and heating/cooling coverage of training runs.
-
-    A bin is sparse when at least half of it lies inside the covered span and it holds fewer
-    minutes per degC than ``sparse_fraction`` times the median over such bins (so a fast
-    sweep through a range, or a gap, is named).
-
-    Parameters
-    ----------
-    runs : sequence of Run
-        Training runs.
-    bin_c : float, degC
-        Bin width; edges at multiples of it.
-    threshold_c_per_min : float, degC/min
-        |dT/dt| above which a sample counts as heating or cooling.
-    sparse_fraction : float
-        Fraction of the median density below which a bin is sparse.
+    results : sequence of BagEval
+        Evaluated bags (the same models in each).
 
     Returns
     -------
-    Coverage
-        Per-bin counts and minutes, sparse bins and direction minutes.
+    str
+        Multi-line table (no trailing newline); see :func:`gyro_tdc.evaluation.mean_scores`.
 
     """
-    temp = np.concatenate([r.temp for r in runs])
-    minutes = np.concatenate([_sample_minutes(r.t) for r in runs])
-    rate = np.concatenate([_coarse_rate(r) for r in runs])
-    lo, hi = float(temp.min()), float(temp.max())
-    first = math.floor(lo / bin_c) * bin_c
-    nb = max(1, int(math.floor((hi - first) / bin_c)) + 1)
-    edges = first + bin_c * np.arange(nb + 1)
-    idx = np.clip(((temp - first) // bin_c).astype(np.int64), 0, nb - 1)
-    samples = np.bincount(idx, minlength=nb)
-    mins = np.bincount(idx, weights=minutes, minlength=nb)
-    inside = np.clip(np.minimum(edges[1:], hi) - np.maximum(edges[:-1], lo), 0.0, None)
-    full = inside >= 0.5 * bin_c
-    sparse: list = []
-    if np.count_nonzero(full) >= 2:
-        density = mins / np.maximum(inside, 1e-9)
-        ref = float(np.median(density[full]))
-        sparse = [int(i) for i in np.flatnonzero(full & (density < sparse_fraction * ref))]
-    return Coverage(
-        bin_c=float(bin_c), edges=edges, samples=samples, minutes=mins, sparse=sparse,
-        temp_range_c=(lo, hi),
-        heating_min=float(minutes[rate > threshold_c_per_min].sum()),
-        cooling_min=float(minutes[rate < -threshold_c_per_min].sum()),
-        steady_min=float(minutes[np.abs(rate) <= threshold_c_per_min].sum()),
-        threshold_c_per_min=float(threshold_c_per_min))
+    rows = mean_scores(results)
+    w = max([len(label) for label, _, _ in rows[1:]] + [12])
+    lines = [f'mean over {len(results)} bags: BS in (deg/s)^2 and BS/BS1',
+             f'  {"":<{w}} ' + ''.join(f'{"BS " + a:>11}' for a in AXES) + '  '
+             + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES)]
+    for label, bs, p in rows:
+        lines.append(f'  {label:<{w}} ' + ''.join(_g(v) for v in bs) + '  '
+                     + ''.join(_g(v) for v in p))
+    return '\n'.join(lines)
 
+
+# --------------------------------------------------------------------------------------------
+# Coverage of training data
+# --------------------------------------------------------------------------------------------
 
 def _bin_name(c: Coverage, i: int) -> str:
     """Return ``[a, b) degC`` for bin ``i``."""
@@ -553,19 +354,6 @@ def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000)
     return path
 
 
-def _blocks(n: int, points: int) -> int:
-    """Return the block length that reduces ``n`` samples to about ``points``."""
-    return max(1, n // max(points, 1))
-
-
-def _bmean(a: NDArray[np.float64], block: int) -> NDArray[np.float64]:
-    """Block means over the first axis (a trailing partial block is dropped)."""
-    n = a.shape[0] // block * block
-    if n == 0:
-        return a[:0]
-    return a[:n].reshape((n // block, block) + a.shape[1:]).mean(axis=1)
-
-
 def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000) -> list:
     """
     Write three PNGs for one bag (Agg canvas, no display needed).
@@ -599,11 +387,15 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000)
         raise ValueError('Expected `b.run` to hold the data; it was released.')
     out = Path(directory)
     out.mkdir(parents=True, exist_ok=True)
-    block = _blocks(len(run), points)
-    th = (_bmean(run.t, block) - run.t[0]) / 3600.0
-    temp = _bmean(run.temp, block)
+    block = block_length(len(run), points)
+
+    def _bmean(a: NDArray[np.float64]) -> NDArray[np.float64]:
+        return block_mean(a, block, partial=False)   # a trailing partial block is dropped
+
+    th = (_bmean(run.t) - run.t[0]) / 3600.0
+    temp = _bmean(run.temp)
     series = [(b.raw.label, run.omega)] + [(m.label, m.omega) for m in b.models]
-    err = [(label, _bmean((om - run.omega_ref) * _DEG, block)) for label, om in series]
+    err = [(label, _bmean((om - run.omega_ref) * _DEG)) for label, om in series]
     written = []
 
     # 1. time series
@@ -625,7 +417,7 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000)
     fig.savefig(written[-1], dpi=90)
 
     # 2. residual vs temperature, coloured by heating / cooling
-    rate = _bmean(temperature_rate(run.t, run.temp), block)
+    rate = _bmean(temperature_rate(run.t, run.temp))
     x = RATE_THRESHOLD_C_PER_MIN
     groups = [('heating', rate > x, 'tab:red'), ('cooling', rate < -x, 'tab:blue'),
               ('steady', np.abs(rate) <= x, 'tab:gray')]

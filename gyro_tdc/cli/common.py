@@ -24,7 +24,9 @@ Every command is a typed function plus a tiny ``main(argv) -> int`` built with
 
 Bad input is anything raising :class:`gyro_tdc.errors.GyroTdcError` (dataset, fit, feature,
 model-file and scenario errors), :class:`UsageError` (argparse), or an ``OSError`` from
-writing an output file.
+writing an output file. The argparse types shared by the commands (``finite_float``,
+``positive_float``, ``non_negative_float``, ``probability``, ``positive_int``) live here
+too; bags are read with :func:`gyro_tdc.dataset.load_runs`.
 """
 
 from __future__ import annotations
@@ -32,19 +34,18 @@ from __future__ import annotations
 import argparse
 import math
 import os
-from pathlib import Path
 import re
 import shlex
 import sys
 from typing import Callable, NoReturn, Optional, Sequence
 
-from gyro_tdc.errors import DatasetError, GyroTdcError
+from gyro_tdc.errors import GyroTdcError
 
 __all__ = [
     'ArgumentParser', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
     'DEFAULT_TEMPERATURE_TOPIC', 'UsageError', 'add_bag_options', 'bag_options',
-    'command_line', 'expand_bags', 'load_bag_runs', 'one_line', 'parse_reference',
-    'run_command',
+    'command_line', 'finite_float', 'non_negative_float', 'one_line', 'parse_reference',
+    'positive_float', 'positive_int', 'probability', 'run_command',
 ]
 
 DEFAULT_IMU_TOPIC = '/imu/data_raw'
@@ -162,85 +163,57 @@ def bag_options(args: argparse.Namespace) -> dict:
             'reference_topic': args.reference_topic, 'progress': bool(progress)}
 
 
-def _is_bag(path: Path) -> bool:
-    """Return True when ``path`` is a rosbag2 directory (holds metadata.yaml)."""
-    return path.is_dir() and (path / 'metadata.yaml').is_file()
+# --------------------------------------------------------------------------------------------
+# argparse types: a bad value becomes one line naming the option (exit 2)
+# --------------------------------------------------------------------------------------------
+
+def finite_float(text: str) -> float:
+    """Parse a finite number (argparse type)."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f'expected a finite number, got {text!r}')
+    return v
 
 
-def expand_bags(paths: Sequence[str | os.PathLike]) -> list[Path]:
-    """
-    Expand bag arguments: a folder of bag folders (a multi-run ``simulate``) becomes its bags.
-
-    A path that is a rosbag2 directory, or anything else, is kept as is (reading reports
-    what is wrong with it); a directory without ``metadata.yaml`` whose sub-directories are
-    bags expands to those, sorted by name (natural order: ``run_2`` before ``run_10``).
-
-    Parameters
-    ----------
-    paths : sequence of str or PathLike
-        Paths given on the command line.
-
-    Returns
-    -------
-    list of Path
-        Bag paths in command-line order.
-
-    Raises
-    ------
-    DatasetError
-        When a path does not exist.
-
-    """
-    out: list[Path] = []
-    for raw in paths:
-        p = Path(raw)
-        if not p.exists():
-            raise DatasetError(f'Bag {str(p)!r} does not exist.')
-        if p.is_dir() and not _is_bag(p):
-            subs = [c for c in p.iterdir() if _is_bag(c)]
-            if subs:
-                out.extend(sorted(subs, key=_natural_key))
-                continue
-        out.append(p)
-    return out
+def positive_float(text: str) -> float:
+    """Parse a finite number > 0 (argparse type)."""
+    v = finite_float(text)
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f'expected a number > 0, got {text!r}')
+    return v
 
 
-def _natural_key(path: Path) -> list:
-    """Sort key comparing digit runs as numbers."""
-    return [int(s) if s.isdigit() else s for s in re.split(r'(\d+)', path.name)]
+def non_negative_float(text: str) -> float:
+    """Parse a finite number >= 0 (argparse type)."""
+    try:
+        v = float(text)
+    except ValueError:
+        v = math.nan
+    if not (math.isfinite(v) and v >= 0):
+        raise argparse.ArgumentTypeError(f'expected a number >= 0, got {text!r}')
+    return v
 
 
-def load_bag_runs(paths: Sequence[str | os.PathLike], options: dict, *,
-                  out: Callable[[str], None] | None = None) -> list:
-    """
-    Load one run per bag (after :func:`expand_bags`) and report what was dropped.
+def probability(text: str) -> float:
+    """Parse a number in (0, 1) (argparse type)."""
+    v = finite_float(text)
+    if not 0.0 < v < 1.0:
+        raise argparse.ArgumentTypeError(f'expected a number between 0 and 1, got {text!r}')
+    return v
 
-    Parameters
-    ----------
-    paths : sequence of str or PathLike
-        Bag paths (or folders of bags).
-    options : dict
-        Keyword options of :func:`gyro_tdc.dataset.load_run` (see :func:`bag_options`).
-    out : callable, optional
-        Where to print one line per bag (e.g. ``print``); silent when None.
 
-    Returns
-    -------
-    list of gyro_tdc.runs.Run
-        One run per bag.
-
-    """
-    from gyro_tdc.dataset import load_run
-    runs = []
-    for bag in expand_bags(paths):
-        run = load_run(bag, **options)
-        if out is not None:
-            rejected = {k: v for k, v in run.info.get('rejected', {}).items() if v}
-            note = f'; dropped {rejected}' if rejected else ''
-            out(f'read {bag}: {len(run)} samples over {run.duration_s / 60.0:.1f} min, '
-                f'reference {run.info.get("reference", "?")}{note}')
-        runs.append(run)
-    return runs
+def positive_int(text: str) -> int:
+    """Parse an integer >= 1 (argparse type)."""
+    try:
+        v = int(text)
+    except ValueError:
+        v = 0
+    if v < 1:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {text!r}')
+    return v
 
 
 def command_line(command: str, argv: Sequence[str]) -> str:

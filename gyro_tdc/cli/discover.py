@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 from pathlib import Path
 import sys
@@ -34,7 +33,9 @@ import tempfile
 from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
-from gyro_tdc.cli.common import load_bag_runs, run_command, UsageError
+from gyro_tdc.cli.common import finite_float, positive_float, positive_int, probability
+from gyro_tdc.cli.common import run_command, UsageError
+from gyro_tdc.dataset import load_runs
 from gyro_tdc.discover import build_model, discover, format_summary, write_report
 from gyro_tdc.effects import normalise_ids
 from gyro_tdc.model import KINDS
@@ -67,56 +68,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help='model of --out: poly (linear in the features, what discovery '
                         'validated) or rbf (default: poly, or rbf when lag meets dT2/dT3: '
                         'the lagged die temperature then enters the curvature too)')
-    p.add_argument('--block-s', type=_positive_float, default=10.0, metavar='S',
+    p.add_argument('--block-s', type=positive_float, default=10.0, metavar='S',
                    help='block length in s; gaps and the noise floor are RMS of block means '
                         '(default: %(default)s)')
-    p.add_argument('--t0', type=_finite_float, default=None, metavar='C',
+    p.add_argument('--t0', type=finite_float, default=None, metavar='C',
                    help='reference temperature T0 in degC (default: the stable initial '
                         'temperature of the first bag)')
-    p.add_argument('--alpha', type=_probability, default=0.01, metavar='P',
+    p.add_argument('--alpha', type=probability, default=0.01, metavar='P',
                    help='family-wise significance level per step (default: %(default)s)')
-    p.add_argument('--max-steps', type=_positive_int, default=6, metavar='N',
+    p.add_argument('--max-steps', type=positive_int, default=6, metavar='N',
                    help='most effects to add (default: %(default)s)')
     add_bag_options(p)
     return p
-
-
-def _finite_float(text: str) -> float:
-    """Parse a finite number (argparse type)."""
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f'expected a finite number, got {text!r}')
-    return v
-
-
-def _positive_float(text: str) -> float:
-    """Parse a finite number > 0 (argparse type)."""
-    v = _finite_float(text)
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f'expected a number > 0, got {text!r}')
-    return v
-
-
-def _probability(text: str) -> float:
-    """Parse a number in (0, 1) (argparse type)."""
-    v = _finite_float(text)
-    if not 0.0 < v < 1.0:
-        raise argparse.ArgumentTypeError(f'expected a number between 0 and 1, got {text!r}')
-    return v
-
-
-def _positive_int(text: str) -> int:
-    """Parse an integer >= 1 (argparse type)."""
-    try:
-        v = int(text)
-    except ValueError:
-        v = 0
-    if v < 1:
-        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {text!r}')
-    return v
 
 
 def _write_json(doc: dict, path: str | os.PathLike) -> None:
@@ -137,7 +100,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     for opt, value in (('--json', args.json_out), ('--out', args.out)):
         if value is not None and Path(value).is_dir():
             raise UsageError(f'{opt}: expected a file path, got the directory {value!r}')
-    runs = load_bag_runs(args.bags, bag_options(args), out=lambda s: print(s, flush=True))
+    runs = load_runs(args.bags, log=lambda s: print(s, flush=True), **bag_options(args))
     result = discover(runs, base=base, candidates=cands, block_s=args.block_s, t0=args.t0,
                       alpha=args.alpha, max_steps=args.max_steps)
     sys.stdout.write(format_summary(result))

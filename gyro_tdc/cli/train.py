@@ -35,12 +35,15 @@ import sys
 from typing import Callable, Optional, Sequence
 
 from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
-from gyro_tdc.cli.common import load_bag_runs, run_command, UsageError
+from gyro_tdc.cli.common import finite_float, positive_float, positive_int, run_command
+from gyro_tdc.cli.common import UsageError
+from gyro_tdc.coverage import Coverage, coverage
+from gyro_tdc.dataset import load_runs
 from gyro_tdc.effects import normalise_ids
 from gyro_tdc.fitting import estimate_t0, fit_model
 from gyro_tdc.model import CompensationModel, KINDS
 from gyro_tdc.modelfile import save_model
-from gyro_tdc.report import AXES, Coverage, coverage, format_coverage
+from gyro_tdc.report import AXES, format_coverage
 from gyro_tdc.runs import Run
 import numpy as np
 
@@ -129,7 +132,7 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
     options = {'imu_topic': imu_topic, 'temperature_topic': temperature_topic,
                'reference': None if reference is None else tuple(reference),
                'reference_topic': reference_topic, 'progress': progress}
-    runs: list[Run] = load_bag_runs(bags, options, out=log)
+    runs: list[Run] = load_runs(bags, log=log, **options)
     names = [r.name for r in runs]
     if t0 is None:
         t0 = estimate_t0(runs[0])
@@ -219,15 +222,15 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
     p.add_argument('--kind', default='rbf', choices=KINDS,
                    help='rbf network with a linear tail, or poly (linear in the features) '
                         '(default: %(default)s)')
-    p.add_argument('--centers', type=_positive_int, default=12, metavar='K',
+    p.add_argument('--centers', type=positive_int, default=12, metavar='K',
                    help='RBF centres (default: %(default)s)')
     p.add_argument('--refine', action='store_true',
                    help='refine RBF centres and widths by nonlinear least squares')
-    p.add_argument('--t0', type=_finite_float, default=None, metavar='C',
+    p.add_argument('--t0', type=finite_float, default=None, metavar='C',
                    help='reference temperature T0 in degC (default: the stable initial '
                         'temperature of the first bag)')
     p.add_argument('--seed', type=int, default=0, help='seed of the centre placement')
-    p.add_argument('--bin', dest='bin_c', type=_positive_float, default=5.0, metavar='C',
+    p.add_argument('--bin', dest='bin_c', type=positive_float, default=5.0, metavar='C',
                    help='width of the coverage bins in degC (default: %(default)s)')
     add_bag_options(p)
 
@@ -256,36 +259,6 @@ def train_options(args: argparse.Namespace) -> dict:
     return {'features': normalise_ids(args.features), 'kind': args.kind,
             'n_centers': args.centers, 'refine': args.refine, 't0': args.t0,
             'seed': args.seed, 'bin_c': args.bin_c, **bag_options(args)}
-
-
-def _positive_int(text: str) -> int:
-    """Parse an integer >= 1 (argparse type)."""
-    try:
-        v = int(text)
-    except ValueError:
-        v = 0
-    if v < 1:
-        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {text!r}')
-    return v
-
-
-def _finite_float(text: str) -> float:
-    """Parse a finite number (argparse type)."""
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f'expected a finite number, got {text!r}')
-    return v
-
-
-def _positive_float(text: str) -> float:
-    """Parse a finite number > 0 (argparse type)."""
-    v = _finite_float(text)
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f'expected a number > 0, got {text!r}')
-    return v
 
 
 def _run(args: argparse.Namespace, argv: list) -> int:

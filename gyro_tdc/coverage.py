@@ -1,0 +1,183 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Coverage of training data: how much of each temperature bin, heating and cooling, it holds.
+
+Pure numpy. :func:`coverage` counts samples and minutes per temperature bin, names the bins
+inside the covered span that hold too little data, and adds up the minutes heating, cooling
+and steady by the rate :func:`temperature_rate` estimates. :func:`gyro_tdc.report.format_coverage`
+prints the result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Sequence
+
+from gyro_tdc.runs import Run
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['Coverage', 'RATE_THRESHOLD_C_PER_MIN', 'RATE_WINDOW_S', 'coverage',
+           'temperature_rate']
+
+#: |dT/dt| (degC/min) above which a sample counts as heating or cooling.
+RATE_THRESHOLD_C_PER_MIN = 0.05
+#: Window (s) of the centred difference that estimates dT/dt.
+RATE_WINDOW_S = 300.0
+
+
+def temperature_rate(t: NDArray[np.float64], temp: NDArray[np.float64], *,
+                     window_s: float = RATE_WINDOW_S) -> NDArray[np.float64]:
+    """
+    Estimate dT/dt at every sample by a centred difference over ``window_s``.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (N,), s
+        Increasing stamps.
+    temp : NDArray[np.float64], shape (N,), degC
+        Temperature.
+    window_s : float, s
+        Width of the difference (shortened to the run's span); wide enough that thermometer
+        quantisation does not read as heating or cooling.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N,), degC/min
+        Temperature rate.
+
+    """
+    t = np.asarray(t, dtype=np.float64)
+    temp = np.asarray(temp, dtype=np.float64)
+    if t.shape[0] < 2 or t[-1] <= t[0]:
+        return np.zeros(t.shape[0])
+    half = 0.5 * min(window_s, t[-1] - t[0])
+    a = np.clip(t - half, t[0], t[-1])
+    b = np.clip(t + half, t[0], t[-1])
+    span = np.maximum(b - a, 1e-9)
+    return (np.interp(b, t, temp) - np.interp(a, t, temp)) / span * 60.0
+
+
+def _sample_minutes(t: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return the time each sample stands for, in minutes (gaps count at most 10 periods)."""
+    if t.shape[0] < 2:
+        return np.zeros(t.shape[0])
+    d = np.diff(t)
+    med = float(np.median(d))
+    d = np.append(d, med)
+    return np.minimum(d, 10.0 * med) / 60.0
+
+
+def _coarse_rate(run: Run, *, points: int = 100_000) -> NDArray[np.float64]:
+    """Return :func:`temperature_rate` at every sample, computed on at most ``points``."""
+    n = len(run)
+    step = max(1, n // points)
+    if step == 1:
+        return temperature_rate(run.t, run.temp)
+    coarse = temperature_rate(run.t[::step], run.temp[::step])
+    return np.repeat(coarse, step)[:n]
+
+
+@dataclass
+class Coverage:
+    """
+    How well training data cover temperature and thermal direction.
+
+    Parameters
+    ----------
+    bin_c : float, degC
+        Bin width.
+    edges : NDArray[np.float64], shape (B + 1,), degC
+        Bin edges.
+    samples : NDArray[np.int64], shape (B,)
+        Samples per bin.
+    minutes : NDArray[np.float64], shape (B,)
+        Minutes per bin.
+    sparse : list of int
+        Indices of bins inside the span with too little data.
+    temp_range_c : tuple of float
+        Min and max temperature.
+    heating_min, cooling_min, steady_min : float
+        Minutes with dT/dt above +threshold, below -threshold, in between.
+    threshold_c_per_min : float
+        The dT/dt threshold.
+
+    """
+
+    bin_c: float
+    edges: NDArray[np.float64]
+    samples: NDArray[np.int64]
+    minutes: NDArray[np.float64]
+    sparse: list
+    temp_range_c: tuple
+    heating_min: float
+    cooling_min: float
+    steady_min: float
+    threshold_c_per_min: float
+
+
+def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
+             threshold_c_per_min: float = RATE_THRESHOLD_C_PER_MIN,
+             sparse_fraction: float = 0.25) -> Coverage:
+    """
+    Measure the temperature and heating/cooling coverage of training runs.
+
+    A bin is sparse when at least half of it lies inside the covered span and it holds fewer
+    minutes per degC than ``sparse_fraction`` times the median over such bins (so a fast
+    sweep through a range, or a gap, is named).
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Training runs.
+    bin_c : float, degC
+        Bin width; edges at multiples of it.
+    threshold_c_per_min : float, degC/min
+        |dT/dt| above which a sample counts as heating or cooling.
+    sparse_fraction : float
+        Fraction of the median density below which a bin is sparse.
+
+    Returns
+    -------
+    Coverage
+        Per-bin counts and minutes, sparse bins and direction minutes.
+
+    """
+    temp = np.concatenate([r.temp for r in runs])
+    minutes = np.concatenate([_sample_minutes(r.t) for r in runs])
+    rate = np.concatenate([_coarse_rate(r) for r in runs])
+    lo, hi = float(temp.min()), float(temp.max())
+    first = math.floor(lo / bin_c) * bin_c
+    nb = max(1, int(math.floor((hi - first) / bin_c)) + 1)
+    edges = first + bin_c * np.arange(nb + 1)
+    idx = np.clip(((temp - first) // bin_c).astype(np.int64), 0, nb - 1)
+    samples = np.bincount(idx, minlength=nb)
+    mins = np.bincount(idx, weights=minutes, minlength=nb)
+    inside = np.clip(np.minimum(edges[1:], hi) - np.maximum(edges[:-1], lo), 0.0, None)
+    full = inside >= 0.5 * bin_c
+    sparse: list = []
+    if np.count_nonzero(full) >= 2:
+        density = mins / np.maximum(inside, 1e-9)
+        ref = float(np.median(density[full]))
+        sparse = [int(i) for i in np.flatnonzero(full & (density < sparse_fraction * ref))]
+    return Coverage(
+        bin_c=float(bin_c), edges=edges, samples=samples, minutes=mins, sparse=sparse,
+        temp_range_c=(lo, hi),
+        heating_min=float(minutes[rate > threshold_c_per_min].sum()),
+        cooling_min=float(minutes[rate < -threshold_c_per_min].sum()),
+        steady_min=float(minutes[np.abs(rate) <= threshold_c_per_min].sum()),
+        threshold_c_per_min=float(threshold_c_per_min))
