@@ -25,8 +25,9 @@
    processes, real DDS on loopback) with the shipped default model and print the live raw
    and compensated bias stability.
 
-Each step prints the command a user would type for it. Everything lands in ``--out``: bags,
-models, JSON, CSV and a report folder with the plots.
+Each step prints the command a user would type for it and runs that command's ``main``, so
+the demo shows exactly what the commands print. Everything lands in ``--out``: bags, models,
+JSON, CSV and a report folder with the plots.
 """
 
 from __future__ import annotations
@@ -40,9 +41,11 @@ import sys
 import time
 from typing import Callable, Sequence
 
+from gyro_tdc.cli.common import ArgumentParser, positive_float, run_command
+from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.resources import model_path
 
-__all__ = ['main', 'run_demo']
+__all__ = ['build_parser', 'main', 'run_demo']
 
 DEFAULT_MODEL = 'l3gd20_modified'
 
@@ -63,7 +66,7 @@ class _Steps:
         print(f'$ python -m gyro_tdc {command} {shlex.join(argv)}', flush=True)
         rc = fn(list(argv))
         if rc != 0:
-            raise SystemExit(f'demo: step {self.n} ({command}) failed with exit code {rc}')
+            raise GyroTdcError(f'step {self.n} ({command}) failed with exit code {rc}')
 
 
 def run_demo(out: Path, *, live_seconds: float = 20.0, skip_live: bool = False) -> int:
@@ -83,6 +86,11 @@ def run_demo(out: Path, *, live_seconds: float = 20.0, skip_live: bool = False) 
     -------
     int
         0 on success.
+
+    Raises
+    ------
+    GyroTdcError
+        When a step's command fails (it has printed its own error line).
 
     """
     from gyro_tdc.cli import discover, evaluate, simulate, train
@@ -108,7 +116,7 @@ def run_demo(out: Path, *, live_seconds: float = 20.0, skip_live: bool = False) 
     for _name, argv in train_args[1:]:
         print(f'$ python -m gyro_tdc train {shlex.join(argv)}', flush=True)
         if train.main(argv) != 0:
-            raise SystemExit('demo: training failed')
+            raise GyroTdcError('training failed')
     held_out = [str(l3 / f'run{i}') for i in range(2, 6)]
     steps.run('Evaluate on held-out runs 2-5: the paper tables 3-7 (BS1 raw, BS2 conventional, '
               'BS3 modified)', 'evaluate',
@@ -145,7 +153,7 @@ def run_demo(out: Path, *, live_seconds: float = 20.0, skip_live: bool = False) 
                 '--out', str(models / f'{name}.yaml'), '--no-progress']
         print(f'$ python -m gyro_tdc train {shlex.join(argv)}', flush=True)
         if train.main(argv) != 0:
-            raise SystemExit('demo: training failed')
+            raise GyroTdcError('training failed')
     steps.run('Evaluate on the held-out run 2: datasheet f(dT), modified f(dT, dT^2), PX4 cubic '
               '(all fitted on run 1) and the discovered model', 'evaluate',
               [str(lag / 'run2'), '--model', str(models / 'datasheet.yaml'),
@@ -178,14 +186,40 @@ def _live(steps: _Steps, model: Path, seconds: float, report: Path) -> None:
     (report / 'live.json').write_text(json.dumps(result.__dict__, indent=1) + '\n')
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Run ``python -m gyro_tdc demo [--out DIR] [--live-seconds S] [--skip-live]``."""
-    parser = argparse.ArgumentParser(prog='python -m gyro_tdc demo', description=__doc__,
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``demo``."""
+    parser = ArgumentParser(prog='python -m gyro_tdc demo', description=__doc__,
+                            formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument('--out', type=Path, default=Path('out/demo'),
                         help='output folder (default: out/demo)')
-    parser.add_argument('--live-seconds', type=float, default=20.0,
+    parser.add_argument('--live-seconds', type=positive_float, default=20.0,
                         help='length of the live ROS step in s (default 20)')
     parser.add_argument('--skip-live', action='store_true', help='leave out the live ROS step')
-    args = parser.parse_args(sys.argv[1:] if argv is None else list(argv))
+    return parser
+
+
+def _run(args: argparse.Namespace, argv: list) -> int:
+    """Run the demo with parsed arguments."""
     return run_demo(args.out, live_seconds=args.live_seconds, skip_live=args.skip_live)
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """
+    Run ``python -m gyro_tdc demo [--out DIR] [--live-seconds S] [--skip-live]``.
+
+    Parameters
+    ----------
+    argv : sequence of str, optional
+        Arguments after the command name (``sys.argv[1:]`` when None).
+
+    Returns
+    -------
+    int
+        0 on success, 2 when a step fails or on bad input (one line on stderr).
+
+    """
+    return run_command('demo', build_parser, _run, argv)
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -30,29 +30,18 @@ import sys
 import time
 from typing import Callable, Optional, Sequence
 
+from gyro_tdc.cli.common import ArgumentParser, run_command
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.sim import load_scenario, SimRun, simulate_run
 import numpy as np
 
-__all__ = ['main', 'simulate']
-
-PROG = 'python -m gyro_tdc simulate'
+__all__ = ['build_parser', 'main', 'simulate']
 
 
-class _UsageError(Exception):
-    """Bad command-line arguments (argparse's message)."""
-
-
-class _Parser(argparse.ArgumentParser):
-    """ArgumentParser that raises instead of printing usage and exiting."""
-
-    def error(self, message: str):  # noqa: D102 - argparse hook
-        raise _UsageError(message)
-
-
-def _parser() -> _Parser:
-    parser = _Parser(
-        prog=PROG,
+def build_parser() -> argparse.ArgumentParser:
+    """Return the argument parser of ``simulate``."""
+    parser = ArgumentParser(
+        prog='python -m gyro_tdc simulate',
         description='Simulate a gyro in a thermal chamber on a rate table and write rosbag2 '
                     'bags (one per run).')
     parser.add_argument('--scenario', required=True, metavar='NAME|FILE',
@@ -142,9 +131,16 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
     return paths
 
 
+def _run(args: argparse.Namespace, argv: list) -> int:
+    """Run ``simulate`` with parsed arguments (one summary line per run)."""
+    simulate(args.scenario, args.out, storage=args.storage, seed=args.seed,
+             rate_hz=args.rate_hz)
+    return 0
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """
-    Run the ``simulate`` command.
+    Run ``python -m gyro_tdc simulate``.
 
     Parameters
     ----------
@@ -157,22 +153,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         0 on success, 2 on bad input (after one line on stderr).
 
     """
-    parser = _parser()
-    try:
-        args = parser.parse_args(sys.argv[1:] if argv is None else list(argv))
-    except _UsageError as exc:
-        print(f'{PROG}: error: {exc}', file=sys.stderr)
-        return 2
-    except SystemExit as exc:  # --help
-        return int(exc.code or 0)
-    try:
-        simulate(args.scenario, args.out, storage=args.storage, seed=args.seed,
-                 rate_hz=args.rate_hz)
-    except (GyroTdcError, OSError) as exc:
-        message = ' '.join(str(exc).split())
-        print(f'{PROG}: error: {message}', file=sys.stderr)
-        return 2
-    return 0
+    return run_command('simulate', build_parser, _run, argv)
 
 
 if __name__ == '__main__':
