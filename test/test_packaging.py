@@ -31,11 +31,7 @@ import sys
 
 from catkin_pkg.package import parse_package
 import gyro_tdc
-from gyro_tdc import resources
 from gyro_tdc.cli import COMMANDS
-from gyro_tdc.errors import GyroTdcError
-from gyro_tdc.errors import ModelFileError
-from gyro_tdc.errors import ScenarioError
 import pytest
 import setuptools
 
@@ -168,41 +164,3 @@ def test_no_command_prints_usage_and_exits_2():
     proc = run_module()
     assert proc.returncode == 2
     assert 'usage:' in proc.stderr
-
-
-def test_config_dir_found_in_checkout():
-    if not (ROOT / 'config').is_dir():
-        pytest.skip('no config/ directory yet')
-    assert resources.config_dir() == ROOT / 'config'
-
-
-@pytest.mark.parametrize('resolve, subdir, error', [
-    (resources.scenario_path, 'scenarios', ScenarioError),
-    (resources.model_path, 'models', ModelFileError),
-])
-def test_named_resources(tmp_path, resolve, subdir, error):
-    (tmp_path / subdir).mkdir()
-    for name in ('beta', 'alpha'):
-        (tmp_path / subdir / f'{name}.yaml').write_text('{}\n')
-    assert resolve('alpha', config=tmp_path) == tmp_path / subdir / 'alpha.yaml'
-    explicit = tmp_path / 'elsewhere.yaml'
-    explicit.write_text('{}\n')
-    assert resolve(explicit, config=tmp_path) == explicit
-    assert resolve(str(explicit)) == explicit
-    with pytest.raises(error, match=r"unknown .*'gamma'.*alpha, beta"):
-        resolve('gamma', config=tmp_path)
-    with pytest.raises(error, match='does not exist'):
-        resolve(tmp_path / 'missing.yaml', config=tmp_path)
-    with pytest.raises(error, match='got int'):
-        resolve(3, config=tmp_path)
-    assert issubclass(error, GyroTdcError)
-
-
-def test_resource_names(tmp_path):
-    (tmp_path / 'scenarios').mkdir()
-    (tmp_path / 'scenarios' / 'ramp.yaml').write_text('{}\n')
-    (tmp_path / 'scenarios' / 'notes.txt').write_text('not a scenario\n')
-    assert resources.scenario_names(config=tmp_path) == ['ramp']
-    assert resources.model_names(config=tmp_path) == []
-    with pytest.raises(ModelFileError, match='<none>'):
-        resources.model_path('anything', config=tmp_path)
