@@ -35,13 +35,14 @@ a few samples loses nothing of the drift and bounds memory and time.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
 import datetime as _dt
 import math
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 import warnings
 
 from gyro_tdc import __version__
-from gyro_tdc.blocks import block_counts, block_mean, block_sumsq
+from gyro_tdc.blocks import block_counts, block_length, block_mean, block_sumsq
 from gyro_tdc.effects import batch_features, EFFECTS, input_ids, normalise_ids, resolve_params
 from gyro_tdc.errors import FitError
 from gyro_tdc.model import CompensationModel, KINDS, rbf_design
@@ -51,7 +52,8 @@ from numpy.typing import NDArray
 from scipy.cluster.vq import kmeans2
 from scipy.optimize import least_squares, minimize_scalar
 
-__all__ = ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'MIN_SAMPLES', 'MIN_SPAN_C']
+__all__ = ['estimate_t0', 'fit_linear', 'fit_model', 'fit_px4_cubic', 'fit_time_constant',
+           'LinearFit', 'MIN_SAMPLES', 'MIN_SPAN_C', 'RIDGE_GRID', 'TimeConstantFit']
 
 #: Fewest samples a fit accepts.
 MIN_SAMPLES = 50
@@ -228,10 +230,131 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
     return float(RIDGE_GRID[int(ok.max())])
 
 
-def _fit_linear(x: NDArray[np.float64], y: NDArray[np.float64],
-                scale_cols: NDArray[np.float64] | None, *, kind: str, n_centers: int,
-                ridge: float | str, seed: int) -> dict:
-    """Normalise, place centres and solve the weights for one feature matrix."""
+@dataclass(frozen=True, eq=False)
+class LinearFit:
+    """
+    A drift network fitted by :func:`fit_linear`: normalisation, centres and weights.
+
+    Parameters
+    ----------
+    mean, std : NDArray[np.float64], shape (F,)
+        Input normalisation, ``x~ = (x - mean) / std``.
+    centers : NDArray[np.float64], shape (K, F)
+        RBF centres in normalised units (K = 0 for ``poly``).
+    widths : NDArray[np.float64], shape (K,)
+        RBF widths in normalised units.
+    coef : NDArray[np.float64], shape (1 + F + K, 3)
+        Weights of the design columns ``[1, x~, phi]`` per axis.
+    scale : NDArray[np.float64], shape (3,)
+        Per-axis coefficients of the ``scale_cols`` (zeros without them).
+    sse : float
+        Sum of squared residuals over rows and axes.
+    resid : NDArray[np.float64], shape (N, 3)
+        Residuals ``prediction - y`` of the fitted rows.
+    ridge : float
+        Relative ridge penalty used on the RBF weights.
+
+    """
+
+    mean: NDArray[np.float64]
+    std: NDArray[np.float64]
+    centers: NDArray[np.float64]
+    widths: NDArray[np.float64]
+    coef: NDArray[np.float64]
+    scale: NDArray[np.float64]
+    sse: float
+    resid: NDArray[np.float64]
+    ridge: float
+
+    def design(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """
+        Return the design matrix ``[1, x~, phi(x~)]`` of feature rows ``x``.
+
+        Parameters
+        ----------
+        x : NDArray[np.float64], shape (N, F)
+            Raw feature rows.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (N, 1 + F + K)
+            Design matrix (:func:`gyro_tdc.model.rbf_design`).
+
+        """
+        return rbf_design((self.mean, self.std, self.centers, self.widths), x)
+
+    def predict(self, x: NDArray[np.float64],
+                scale_cols: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+        """
+        Return the fitted drift at feature rows ``x``.
+
+        Parameters
+        ----------
+        x : NDArray[np.float64], shape (N, F)
+            Raw feature rows.
+        scale_cols : NDArray[np.float64], shape (N, 3), optional
+            ``dT * omega_ref`` per axis, when the fit has a ``scale`` term.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (N, 3)
+            Predicted drift per axis.
+
+        """
+        out = self.design(x) @ self.coef
+        if scale_cols is not None:
+            out += scale_cols * self.scale
+        return out
+
+
+def _residual(design: NDArray[np.float64], y: NDArray[np.float64],
+              scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
+              ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Solve the weights and return them with the scale coefficients and the residual."""
+    coef, scale = _solve(design, y, scale_cols, pen)
+    resid = design @ coef - y
+    if scale_cols is not None:
+        resid += scale_cols * scale
+    return coef, scale, resid
+
+
+def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
+               scale_cols: NDArray[np.float64] | None = None, kind: str = 'poly',
+               n_centers: int = 12, ridge: float | str = 'auto', seed: int = 0) -> LinearFit:
+    """
+    Fit the drift network on one feature matrix by regularised linear least squares.
+
+    The inputs are normalised to zero mean and unit deviation; for ``rbf`` the centres are
+    placed by k-means on the normalised rows (each width the mean distance to the two nearest
+    other centres); then the weights of ``[1, x~, phi(x~)]`` (and of ``scale_cols``) are
+    solved with no penalty on the constant, a tiny one on the linear tail (conditioning
+    only) and the relative ``ridge`` on the RBF weights.
+
+    Parameters
+    ----------
+    x : NDArray[np.float64], shape (N, F)
+        Feature rows (effect columns, :func:`gyro_tdc.effects.batch_features`).
+    y : NDArray[np.float64], shape (N, 3)
+        Drift target per axis.
+    scale_cols : NDArray[np.float64], shape (N, 3), optional
+        ``dT * omega_ref`` per axis: fits the per-axis ``scale`` coefficient too.
+    kind : str
+        ``'poly'`` (linear in the features) or ``'rbf'``.
+    n_centers : int
+        RBF centres K (``rbf`` only; fewer when the rows have fewer distinct values).
+    ridge : float or 'auto'
+        Relative ridge on the RBF weights; ``'auto'`` picks it from :data:`RIDGE_GRID` by
+        cross-validation over interleaved contiguous segments (``rbf`` with at least 40
+        rows), else uses ``RIDGE_GRID[1]``.
+    seed : int
+        Seed of the centre placement.
+
+    Returns
+    -------
+    LinearFit
+        Normalisation, centres, weights, residuals and the ridge used.
+
+    """
     mean = x.mean(axis=0) if x.shape[1] else np.zeros(0)
     std = x.std(axis=0) if x.shape[1] else np.ones(0)
     std = np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
@@ -246,27 +369,107 @@ def _fit_linear(x: NDArray[np.float64], y: NDArray[np.float64],
         ridge = (_choose_ridge(design, y, scale_cols, f) if centers.shape[0]
                  and design.shape[0] >= 40 else RIDGE_GRID[1])
     pen = _penalty(design.shape[1], f, ridge, design.shape[0])
-    coef, scale = _solve(design, y, scale_cols, pen)
-    resid = design @ coef - y
-    if scale_cols is not None:
-        resid += scale_cols * scale
-    return {'mean': mean, 'std': std, 'centers': centers, 'widths': widths, 'coef': coef,
-            'scale': scale, 'sse': float((resid ** 2).sum()), 'resid': resid,
-            'ridge': float(ridge)}
+    coef, scale, resid = _residual(design, y, scale_cols, pen)
+    return LinearFit(mean=mean, std=std, centers=centers, widths=widths, coef=coef,
+                     scale=scale, sse=float((resid ** 2).sum()), resid=resid,
+                     ridge=float(ridge))
+
+
+@dataclass(frozen=True, eq=False)
+class TimeConstantFit:
+    """
+    A time constant chosen by :func:`fit_time_constant`, with its residual profile.
+
+    Parameters
+    ----------
+    tau : float, s
+        The best time constant found.
+    sse : float
+        The objective at ``tau``.
+    grid_tau : NDArray[np.float64], shape (G,), s
+        Time constants of the search grid, increasing.
+    grid_sse : NDArray[np.float64], shape (G,)
+        The objective at each grid point (the profile, e.g. for an interval on ``tau``).
+
+    """
+
+    tau: float
+    sse: float
+    grid_tau: NDArray[np.float64]
+    grid_sse: NDArray[np.float64]
+
+
+def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float], *,
+                      n_grid: int = 13, log: bool = True, xatol: float = 1e-3
+                      ) -> TimeConstantFit:
+    """
+    Minimise ``sse(tau)`` over a bounded range: a grid, then a bounded Brent search.
+
+    The grid (log-spaced by default) finds the basin; :func:`scipy.optimize.minimize_scalar`
+    (``method='bounded'``) then searches between the neighbours of the best grid point, and
+    its answer is kept when it is no worse than that grid point.
+
+    Parameters
+    ----------
+    sse : callable
+        ``sse(tau) -> float``, the objective (e.g. the least-squares residual with the linear
+        weights re-solved at every trial: variable projection).
+    bounds : tuple of float, s
+        ``(lo, hi)``, ``0 < lo <= hi`` (``0 <= lo`` when ``log`` is False).
+    n_grid : int
+        Grid points, >= 1.
+    log : bool
+        Grid and search in ``log(tau)`` (True) or in ``tau``.
+    xatol : float
+        Absolute tolerance of the bounded search, in the search variable (``log(tau)``
+        when ``log``).
+
+    Returns
+    -------
+    TimeConstantFit
+        The best ``tau``, its objective and the grid profile.
+
+    """
+    lo, hi = (float(v) for v in bounds)
+    if not (math.isfinite(lo) and math.isfinite(hi) and (lo > 0.0 if log else lo >= 0.0)
+            and lo <= hi):
+        raise FitError(f'Expected `bounds` (lo, hi) with {"0 <" if log else "0 <="} lo <= hi, '
+                       f'got {bounds!r}.')
+    if n_grid < 1:
+        raise FitError(f'Expected `n_grid` >= 1, got {n_grid!r}.')
+    if log:
+        def objective(v: float) -> float:
+            return sse(math.exp(v))
+        grid = np.linspace(math.log(lo), math.log(hi), n_grid)
+    else:
+        objective = sse
+        grid = np.linspace(lo, hi, n_grid)
+    vals = np.array([objective(g) for g in grid], dtype=np.float64)
+    i = int(np.argmin(vals))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    best, best_sse = grid[i], float(vals[i])
+    if b > a:
+        res = minimize_scalar(objective, bounds=(a, b), method='bounded',
+                              options={'xatol': xatol})
+        if res.fun <= vals[i]:
+            best, best_sse = res.x, float(res.fun)
+    tau = float(math.exp(best)) if log else float(best)
+    return TimeConstantFit(tau=tau, sse=best_sse,
+                           grid_tau=np.exp(grid) if log else grid, grid_sse=vals)
 
 
 def _refine(x: NDArray[np.float64], y: NDArray[np.float64],
-            scale_cols: NDArray[np.float64] | None, fit: dict, *, ridge: float,
-            seed: int, max_rows: int = 2000) -> dict:
+            scale_cols: NDArray[np.float64] | None, fit: LinearFit, *, ridge: float,
+            seed: int, max_rows: int = 2000) -> LinearFit:
     """Refine centres and widths by nonlinear least squares (variable projection)."""
-    k, f = fit['centers'].shape
+    k, f = fit.centers.shape
     if k == 0:
         return fit
     rng = np.random.default_rng(seed)
     rows = rng.choice(x.shape[0], min(max_rows, x.shape[0]), replace=False)
     xs, ys = x[rows], y[rows]
     ss = None if scale_cols is None else scale_cols[rows]
-    mean, std = fit['mean'], fit['std']
+    mean, std = fit.mean, fit.std
 
     def unpack(theta: NDArray[np.float64]) -> tuple:
         return theta[:k * f].reshape(k, f), np.exp(theta[k * f:])
@@ -274,25 +477,18 @@ def _refine(x: NDArray[np.float64], y: NDArray[np.float64],
     def resid(theta: NDArray[np.float64]) -> NDArray[np.float64]:
         centers, widths = unpack(theta)
         d = rbf_design((mean, std, centers, widths), xs)
-        coef, scale = _solve(d, ys, ss, _penalty(d.shape[1], f, ridge, d.shape[0]))
-        r = d @ coef - ys
-        if ss is not None:
-            r += ss * scale
-        return r.ravel()
+        return _residual(d, ys, ss, _penalty(d.shape[1], f, ridge, d.shape[0]))[2].ravel()
 
-    theta0 = np.concatenate([fit['centers'].ravel(), np.log(fit['widths'])])
+    theta0 = np.concatenate([fit.centers.ravel(), np.log(fit.widths)])
     sol = least_squares(resid, theta0, method='trf', max_nfev=20, x_scale='jac')
     if sol.cost * 2 >= float((resid(theta0) ** 2).sum()):
         return fit
     centers, widths = unpack(sol.x)
     design = rbf_design((mean, std, centers, widths), x)
     pen = _penalty(design.shape[1], f, ridge, design.shape[0])
-    coef, scale = _solve(design, y, scale_cols, pen)
-    r = design @ coef - y
-    if scale_cols is not None:
-        r += scale_cols * scale
-    return dict(fit, centers=centers, widths=widths, coef=coef, scale=scale, resid=r,
-                sse=float((r ** 2).sum()))
+    coef, scale, r = _residual(design, y, scale_cols, pen)
+    return replace(fit, centers=centers, widths=widths, coef=coef, scale=scale, resid=r,
+                   sse=float((r ** 2).sum()))
 
 
 def _check_runs(runs: Sequence[Run], ids: Sequence[str]) -> None:
@@ -376,7 +572,7 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     inputs = input_ids(ids)
     par = resolve_params(ids, params)
     n_total = sum(len(r) for r in runs)
-    block = max(1, math.ceil(n_total / max_rows))
+    block = block_length(n_total, max_rows, at_most=True)
     blocks = [_Blocks(r, block) for r in runs]
     y = np.concatenate([b.y for b in blocks])
     scale_cols = (np.concatenate([b.scale_cols(t0) for b in blocks])
@@ -389,37 +585,32 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     search_ridge = RIDGE_GRID[1] if ridge == 'auto' else ridge
     if free:
         # Parameter search on a coarser grid (<= 20k rows): cheap and smooth in log tau.
-        coarse_block = max(1, math.ceil(n_total / 20_000))
+        coarse_block = block_length(n_total, 20_000, at_most=True)
         coarse = [_Blocks(r, coarse_block) for r in runs]
         yc = np.concatenate([b.y for b in coarse])
         sc = (np.concatenate([b.scale_cols(t0) for b in coarse])
               if scale_cols is not None else None)
         for _round in range(2 if len(free) > 1 else 1):
             for eid, name in free:
-                lo, hi = EFFECTS[eid].bounds[name]
 
-                def sse(log_tau: float, eid: str = eid, name: str = name) -> float:
+                def sse(tau: float, eid: str = eid, name: str = name) -> float:
                     trial = {k: dict(v) for k, v in par.items()}
-                    trial[eid][name] = math.exp(log_tau)
+                    trial[eid][name] = tau
                     xc = np.concatenate([b.features(inputs, t0, trial, exact=False)
                                          for b in coarse])
-                    return _fit_linear(xc, yc, sc, kind=kind, n_centers=n_centers,
-                                       ridge=search_ridge, seed=seed)['sse']
+                    return fit_linear(xc, yc, scale_cols=sc, kind=kind, n_centers=n_centers,
+                                      ridge=search_ridge, seed=seed).sse
 
-                grid = np.linspace(math.log(lo), math.log(hi), 13)
-                vals = [sse(g) for g in grid]
-                i = int(np.argmin(vals))
-                a, b_ = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
-                best = minimize_scalar(sse, bounds=(a, b_), method='bounded',
-                                       options={'xatol': 1e-3})
-                par[eid][name] = float(math.exp(best.x if best.fun <= vals[i] else grid[i]))
+                par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name],
+                                                   n_grid=13).tau
 
     x = features_of(par, exact=True)
-    fit = _fit_linear(x, y, scale_cols, kind=kind, n_centers=n_centers, ridge=ridge, seed=seed)
+    fit = fit_linear(x, y, scale_cols=scale_cols, kind=kind, n_centers=n_centers, ridge=ridge,
+                     seed=seed)
     if refine and kind == 'rbf':
-        fit = _refine(x, y, scale_cols, fit, ridge=fit['ridge'], seed=seed)
+        fit = _refine(x, y, scale_cols, fit, ridge=fit.ridge, seed=seed)
     f = len(inputs)
-    coef = fit['coef']
+    coef = fit.coef
     lo = min(float(r.temp.min()) for r in runs)
     hi = max(float(r.temp.max()) for r in runs)
     info = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
@@ -427,18 +618,18 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     info.update(dict(created or {}))
     model = CompensationModel(
         kind=kind, features=ids, effect_params=par, t0_c=float(t0),
-        input_mean=fit['mean'], input_std=fit['std'], centers=fit['centers'],
-        widths=fit['widths'], weights=coef[1 + f:], intercept=coef[0], linear=coef[1:1 + f],
-        scale=fit['scale'], temp_range_c=(lo, hi), residual_var=np.zeros(3),
+        input_mean=fit.mean, input_std=fit.std, centers=fit.centers,
+        widths=fit.widths, weights=coef[1 + f:], intercept=coef[0], linear=coef[1:1 + f],
+        scale=fit.scale, temp_range_c=(lo, hi), residual_var=np.zeros(3),
         frame_id=frame_id, sensor_id=sensor_id, created=info)
     # Training residual at full rate without a second pass over the samples: the drift
     # moves slowly, so sum((y - b)^2) = within-block scatter + n_B * (block residual)^2.
     # Compensation divides by (1 + s dT): so does the residual.
     counts = np.concatenate([b.counts for b in blocks])
-    within = np.concatenate([b.scatter(fit['scale'], t0) if np.any(fit['scale'])
+    within = np.concatenate([b.scatter(fit.scale, t0) if np.any(fit.scale)
                              else b.ss_within for b in blocks])
-    gain = 1.0 + (np.concatenate([b.temp for b in blocks]) - t0)[:, None] * fit['scale']
-    ss = ((within + counts[:, None] * fit['resid'] ** 2) / gain ** 2).sum(axis=0)
+    gain = 1.0 + (np.concatenate([b.temp for b in blocks]) - t0)[:, None] * fit.scale
+    ss = ((within + counts[:, None] * fit.resid ** 2) / gain ** 2).sum(axis=0)
     residual_var = np.maximum(ss, 0.0) / n_total
     deg2 = (180.0 / math.pi) ** 2
     metrics = {
@@ -447,7 +638,7 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         'train_bs_dps2': [float(v) for v in residual_var * deg2],
         'train_rms_dps': [float(v) for v in np.sqrt(residual_var * deg2)],
         'raw_bs_dps2': [float(v) for v in sum(b.ss_raw for b in blocks) / n_total * deg2],
-        'ridge': fit['ridge'],
+        'ridge': fit.ridge,
     }
     return model.replace(residual_var=residual_var, metrics=metrics)
 

@@ -58,13 +58,12 @@ from typing import Any, Mapping, Sequence
 
 from gyro_tdc.effects import batch_features, EFFECTS, input_ids, normalise_ids, resolve_params
 from gyro_tdc.errors import FitError
-from gyro_tdc.fitting import _penalty, _solve, estimate_t0, fit_model
+from gyro_tdc.fitting import estimate_t0, fit_linear, fit_model, fit_time_constant
 from gyro_tdc.model import compensate, CompensationModel
 from gyro_tdc.realdata import default_pan_csv, PanCubesat, read_pan_cubesat_csv
 from gyro_tdc.runs import Run
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize_scalar
 
 __all__ = ['HOLDOUT_MODELS', 'HoldoutModel', 'burst_holdout', 'burst_index',
            'fit_full_series', 'format_holdout', 'pan_holdout', 'POSITIONS']
@@ -151,19 +150,6 @@ def burst_index(t: NDArray[np.float64], *, gap_s: float = 2.0) -> NDArray[np.int
     return np.concatenate([[0], np.cumsum(np.diff(t) > gap_s)]).astype(np.int64)
 
 
-def _ridge_fit(x: NDArray[np.float64], y: NDArray[np.float64], ridge: float) -> dict:
-    """Fit ``y ~ [1, (x - mean) / std]`` with ``fit_model``'s own penalty and solver."""
-    mean = x.mean(axis=0)
-    std = x.std(axis=0)
-    std = np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
-    design = np.column_stack([np.ones(x.shape[0]), (x - mean) / std])
-    n, p = design.shape
-    coef, _scale = _solve(design, y, None, _penalty(p, p - 1, ridge, n))
-    resid = design @ coef - y
-    return {'mean': mean, 'std': std, 'coef': coef, 'resid': resid,
-            'sse': float((resid ** 2).sum())}
-
-
 def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[str],
                     t0: float, params: Mapping[str, Mapping[str, float]] | None = None,
                     ridge: float = 1e-6, n_grid: int = 25) -> CompensationModel:
@@ -213,29 +199,24 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
 
     for eid in inputs:
         for name in EFFECTS[eid].fitted:
-            lo, hi = EFFECTS[eid].bounds[name]
 
-            def sse(log_v: float, eid: str = eid, name: str = name) -> float:
+            def sse(tau: float, eid: str = eid, name: str = name) -> float:
                 trial = {k: dict(v) for k, v in par.items()}
-                trial[eid][name] = math.exp(log_v)
-                return _ridge_fit(design(trial), y, ridge)['sse']
+                trial[eid][name] = tau
+                return fit_linear(design(trial), y, kind='poly', ridge=ridge).sse
 
-            grid = np.linspace(math.log(lo), math.log(hi), n_grid)
-            vals = [sse(g) for g in grid]
-            i = int(np.argmin(vals))
-            best = minimize_scalar(sse, bounds=(grid[max(i - 1, 0)], grid[min(i + 1, n_grid - 1)]),
-                                   method='bounded', options={'xatol': 1e-3})
-            par[eid][name] = float(math.exp(best.x if best.fun <= vals[i] else grid[i]))
-    fit = _ridge_fit(design(par), y, ridge)
+            par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name],
+                                               n_grid=n_grid).tau
+    fit = fit_linear(design(par), y, kind='poly', ridge=ridge)
     f = len(inputs)
     temp = run.temp[train]
     return CompensationModel(
         kind='poly', features=ids, effect_params=par, t0_c=float(t0),
-        input_mean=fit['mean'], input_std=fit['std'], centers=np.zeros((0, f)),
-        widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=fit['coef'][0],
-        linear=fit['coef'][1:], scale=np.zeros(3),
+        input_mean=fit.mean, input_std=fit.std, centers=np.zeros((0, f)),
+        widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=fit.coef[0],
+        linear=fit.coef[1:], scale=np.zeros(3),
         temp_range_c=(float(temp.min()), float(temp.max())),
-        residual_var=np.mean(fit['resid'] ** 2, axis=0),
+        residual_var=np.mean(fit.resid ** 2, axis=0),
         created={'fit': 'gyro_tdc.realdata_eval.fit_full_series'})
 
 

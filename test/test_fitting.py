@@ -14,8 +14,11 @@
 
 """Identification: a known drift is recovered; conventional vs modified; lag tau; errors."""
 
+import math
+
 from gyro_tdc.errors import FitError
-from gyro_tdc.fitting import estimate_t0, fit_model, fit_px4_cubic
+from gyro_tdc.fitting import (estimate_t0, fit_linear, fit_model, fit_px4_cubic,
+                              fit_time_constant, LinearFit, RIDGE_GRID, TimeConstantFit)
 from gyro_tdc.metrics import bias_stability
 from gyro_tdc.model import compensate, drift, predict_drift, StreamingCompensator
 import numpy as np
@@ -147,3 +150,88 @@ def test_training_metrics_equal_the_full_rate_residual(features):
     np.testing.assert_allclose(model.residual_var, np.radians(np.sqrt(full)) ** 2, rtol=1e-3)
     np.testing.assert_allclose(model.metrics['raw_bs_dps2'],
                                bias_stability(run.omega, run.omega_ref), rtol=1e-9)
+
+
+def test_fit_linear_recovers_a_linear_law_and_its_scale_term():
+    rng = np.random.default_rng(2)
+    x = rng.uniform(-20.0, 30.0, size=(400, 2))
+    w = np.array([[0.1, -0.2, 0.3], [0.01, 0.02, -0.03], [1e-3, 0.0, 2e-3]])
+    cols = rng.normal(size=(400, 3))
+    s = np.array([1e-3, -2e-3, 5e-4])
+    y = np.column_stack([np.ones(400), x]) @ w + cols * s
+    fit = fit_linear(x, y, scale_cols=cols, kind='poly', ridge=1e-12)
+    assert isinstance(fit, LinearFit) and fit.centers.shape == (0, 2)
+    np.testing.assert_allclose(fit.scale, s, atol=1e-9)
+    np.testing.assert_allclose(fit.predict(x, cols), y, atol=1e-9)
+    np.testing.assert_allclose(fit.resid, fit.predict(x, cols) - y, atol=1e-12)
+    assert fit.sse == pytest.approx(float((fit.resid ** 2).sum()))
+    assert fit.design(x).shape == (400, 3) and fit.coef.shape == (3, 3)
+
+
+def test_fit_linear_rbf_auto_ridge_is_from_the_grid_and_beats_poly_on_a_bump():
+    x = np.linspace(-1.0, 1.0, 300)[:, None]
+    y = np.repeat(np.exp(-(x / 0.3) ** 2), 3, axis=1)
+    rbf = fit_linear(x, y, kind='rbf', n_centers=8, ridge='auto', seed=0)
+    poly = fit_linear(x, y, kind='poly')
+    assert rbf.ridge in RIDGE_GRID and rbf.centers.shape[0] >= 2
+    assert rbf.sse < 0.01 * poly.sse
+    assert fit_linear(x, y, kind='rbf', n_centers=8, seed=0).sse == rbf.sse  # seeded
+
+
+def test_fit_time_constant_finds_the_minimum_and_keeps_the_profile():
+    calls = []
+
+    def sse(tau):
+        calls.append(tau)
+        return (math.log(tau) - math.log(173.0)) ** 2 + 2.0
+
+    res = fit_time_constant(sse, (1.0, 20000.0), n_grid=13)
+    assert isinstance(res, TimeConstantFit)
+    assert res.tau == pytest.approx(173.0, rel=2e-3) and res.sse == pytest.approx(2.0)
+    assert res.grid_tau.shape == res.grid_sse.shape == (13,)
+    np.testing.assert_allclose(res.grid_tau[[0, -1]], [1.0, 20000.0])
+    np.testing.assert_allclose(res.grid_sse, [sse(v) for v in res.grid_tau])
+    assert res.sse <= res.grid_sse.min()
+    assert all(1.0 <= c <= 20000.0 for c in calls)
+    lin = fit_time_constant(lambda tau: (tau - 7.3) ** 2, (0.0, 20.0), n_grid=5, log=False,
+                            xatol=1e-6)
+    assert lin.tau == pytest.approx(7.3, abs=1e-4)
+    np.testing.assert_allclose(lin.grid_tau, [0.0, 5.0, 10.0, 15.0, 20.0])
+
+
+def test_fit_time_constant_keeps_the_grid_point_at_an_edge_and_on_a_single_point():
+    res = fit_time_constant(lambda tau: tau, (2.0, 50.0), n_grid=6)
+    assert res.tau == pytest.approx(2.0, rel=1e-3)
+    one = fit_time_constant(lambda tau: 1.0, (30.0, 30.0), n_grid=1)
+    assert one.tau == pytest.approx(30.0) and one.grid_tau.shape == (1,)
+
+
+@pytest.mark.parametrize('bounds, n_grid, log', [((0.0, 10.0), 5, True), ((5.0, 1.0), 5, True),
+                                                 ((-1.0, 1.0), 5, False),
+                                                 ((1.0, math.inf), 5, True),
+                                                 ((1.0, 2.0), 0, True)])
+def test_fit_time_constant_rejects_bad_bounds(bounds, n_grid, log):
+    with pytest.raises(FitError, match='bounds|n_grid'):
+        fit_time_constant(lambda tau: tau, bounds, n_grid=n_grid, log=log)
+
+
+@pytest.mark.parametrize('n_grid, xatol', [(13, 1e-3), (14, 0.01), (25, 1e-3)])
+def test_fit_time_constant_equals_the_grid_then_brent_search_it_replaced(n_grid, xatol):
+    # The search formerly written inline in fitting (13 points), discover (14, xatol 0.01)
+    # and realdata_eval (25): log grid, bounded Brent between the best point's neighbours.
+    from scipy.optimize import minimize_scalar
+    rng = np.random.default_rng(n_grid)
+    bumps = rng.normal(size=8) * 0.05
+
+    def sse_log(v):
+        return (v - 5.1) ** 2 + float(bumps @ np.sin(np.arange(1, 9) * v))
+
+    grid = np.linspace(math.log(1.0), math.log(20000.0), n_grid)
+    vals = [sse_log(g) for g in grid]
+    i = int(np.argmin(vals))
+    best = minimize_scalar(sse_log, bounds=(grid[max(i - 1, 0)], grid[min(i + 1, n_grid - 1)]),
+                           method='bounded', options={'xatol': xatol})
+    want = float(math.exp(best.x if best.fun <= vals[i] else grid[i]))
+    got = fit_time_constant(lambda tau: sse_log(math.log(tau)), (1.0, 20000.0), n_grid=n_grid,
+                            xatol=xatol)
+    assert got.tau == pytest.approx(want, rel=1e-9)
