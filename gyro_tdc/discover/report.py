@@ -143,7 +143,7 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
                       f'{s.heldout_gap_before_dps:.4g} -> {s.heldout_gap_after_dps:.4g} |')
         md.append('')
     for i, s in enumerate(result.steps, 1):
-        name = f'step{i}residual_maps.png'
+        name = f'step{i}_maps.png'
         _plot_maps([('before', s.maps_before), (f'after + {s.effect}', s.maps_after)],
                    out / name)
         md += [f'## Step {i}: {s.effect}', '', s.description, '',
