@@ -25,16 +25,39 @@ median scale).
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
+from gyro_tdc.blocks import block_counts, block_sum
 from gyro_tdc.discover.stats import COLLINEAR, rel_residual
-from gyro_tdc.effects import EFFECTS, first_order_lag
+from gyro_tdc.effects import batch_features, EFFECTS, first_order_lag
 from gyro_tdc.errors import FitError
 from gyro_tdc.runs import Run
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['BlockData']
+
+#: Effects whose block-mean column is the mean of their full-rate feature (no filter state).
+_STATIC = ('dT', 'dT2', 'dT3')
+
+
+def _per_segment(blocks: Callable[[int, int], NDArray[np.float64]], bounds: NDArray[np.int64],
+                 per: int) -> NDArray[np.float64]:
+    """
+    Return ``blocks(a, b)`` of every segment ``a:b`` of ``bounds``, concatenated.
+
+    ``blocks`` reduces a segment's rows in blocks of ``per`` (a shorter last block kept, as
+    :mod:`gyro_tdc.blocks` does); a tail shorter than half a block then joins the block
+    before it.
+    """
+    out = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        s = blocks(int(a), int(b))
+        m = b - a
+        if m > per and 0 < (m % per) * 2 < per:
+            s = np.concatenate([s[:-2], s[-2:-1] + s[-1:]])
+        out.append(s)
+    return np.concatenate(out)
 
 
 class BlockData:
@@ -55,8 +78,8 @@ class BlockData:
         self.block_s = float(block_s)
         n_runs = len(runs)
         parts: dict[str, list] = {k: [] for k in (
-            'run', 'n', 't', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref', 'dT', 'dT2',
-            'dT3', 'noise')}
+            'run', 'n', 't', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref', 'static',
+            'noise')}
         self.grids: list[tuple] = []
         white = []
         span = 0.0
@@ -69,38 +92,32 @@ class BlockData:
             per = max(1, int(round(self.block_s / med)))
             breaks = np.flatnonzero(dt > max(20.0 * med, 0.5 * self.block_s)) + 1
             bounds = np.concatenate([[0], breaks, [n]])
-            ids = np.empty(n, dtype=np.int64)
-            nb = 0
-            for a, b in zip(bounds[:-1], bounds[1:]):
-                m = b - a
-                full = max(1, m // per)
-                extra = 1 if (m - full * per) * 2 >= per and m > per else 0
-                ids[a:b] = nb + np.minimum(np.arange(m) // per, full + extra - 1)
-                nb += full + extra
-            cnt = np.bincount(ids, minlength=nb).astype(np.float64)
+            cnt = _per_segment(lambda a, b: block_counts(b - a, per), bounds, per)
+            nb = cnt.shape[0]
+            ids = np.repeat(np.arange(nb), cnt.astype(np.int64))
             span += n * med
 
-            def bmean(v: NDArray[np.float64], ids=ids, nb=nb, cnt=cnt) -> NDArray[np.float64]:
-                return np.bincount(ids, weights=v, minlength=nb) / cnt
+            def bmean(v: NDArray[np.float64], bounds=bounds, per=per, cnt=cnt
+                      ) -> NDArray[np.float64]:
+                sums = _per_segment(lambda a, b: block_sum(v[a:b], per), bounds, per)
+                return sums / cnt.reshape((-1,) + (1,) * (v.ndim - 1))
 
             y = np.asarray(run.omega, dtype=np.float64) - run.omega_ref
-            d = run.temp - self.t0
+            x = batch_features(_STATIC, t, run.temp, t0=self.t0)
             parts['run'].append(np.full(nb, r))
             parts['n'].append(cnt)
             parts['t'].append(bmean(t))
-            first = np.searchsorted(ids, np.arange(nb))
-            last = np.searchsorted(ids, np.arange(nb), side='right') - 1
+            last = np.cumsum(cnt).astype(np.int64) - 1
+            first = last - cnt.astype(np.int64) + 1
             parts['tfirst'].append(t[first])
             parts['tlast'].append(t[last])
             parts['temp'].append(bmean(run.temp))
-            parts['y'].append(np.column_stack([bmean(y[:, a]) for a in range(3)]))
-            parts['ref'].append(np.column_stack([bmean(run.omega_ref[:, a]) for a in range(3)]))
-            parts['dtref'].append(np.column_stack(
-                [bmean(d * run.omega_ref[:, a]) for a in range(3)]))
-            parts['dT'].append(bmean(d))
-            parts['dT2'].append(bmean(d * d))
-            parts['dT3'].append(bmean(d * d * d))
+            parts['y'].append(bmean(y))
+            parts['ref'].append(bmean(run.omega_ref))
+            parts['dtref'].append(bmean(x[:, :1] * run.omega_ref))
+            parts['static'].append(bmean(x))
             # Noise: second difference of block thirds (linear drift cancels), per sample std.
+            # Thirds of blocks of varying length: a labelled sum (bincount), not a blocking.
             pos = np.arange(n) - first[ids]
             third = np.minimum(3 * pos // cnt[ids].astype(np.int64), 2)
             key = ids * 3 + third
@@ -142,7 +159,7 @@ class BlockData:
         self.y = cat['y']
         self.ref = cat['ref']
         self.dtref = cat['dtref']
-        self.static = {'dT': cat['dT'], 'dT2': cat['dT2'], 'dT3': cat['dT3']}
+        self.static = {eid: cat['static'][:, j] for j, eid in enumerate(_STATIC)}
         self.n_runs = n_runs
         self.t_since = self.t - np.array([runs[r].t[0] for r in self.run])
         self.offsets = np.zeros((self.K, n_runs))
