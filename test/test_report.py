@@ -1,0 +1,186 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Tests of gyro_tdc.report: tables, JSON, CSV and plots from hand-made results."""
+
+from __future__ import annotations
+
+import json
+import math
+
+from gyro_tdc.coverage import Coverage
+from gyro_tdc.evaluation import BagEval, ModelEval
+from gyro_tdc.report import csv_columns, evaluation_json, format_allan, format_bag
+from gyro_tdc.report import format_coverage, format_means, format_paper_table, format_summary
+from gyro_tdc.report import write_csv, write_json, write_plots
+from gyro_tdc.runs import Run
+import numpy as np
+import pytest
+
+DEG = math.pi / 180.0
+
+
+def _ev(label, bs, p, *, omega=None, outside=0.0):
+    bs = np.asarray(bs, dtype=float)
+    return ModelEval(model=f'models/{label}.yaml', label=label, features=['dT'], bs=bs,
+                     rms_dps=np.sqrt(bs), p_vs_raw=np.asarray(p, dtype=float),
+                     adev_tau_s=np.array([0.1, 1.0]),
+                     adev_dps=np.array([[0.2, 0.3, 0.4], [0.02, 0.03, 0.04]]),
+                     arw_deg_sqrt_h=np.array([1.5, 1.6, 1.7]),
+                     bias_instability_deg_h=np.array([10.0, 20.0, 30.0]),
+                     temp_range_c=(-10.0, 30.0), outside_fraction=outside, omega=omega)
+
+
+@pytest.fixture
+def bag():
+    n = 50
+    t = 100.0 + np.arange(n) * 0.5
+    temp = np.linspace(20.0, 40.0, n)
+    ref = np.tile([0.1, 0.0, 0.0], (n, 1))
+    raw = ref + 0.01 * np.arange(n)[:, None] * [1.0, 2.0, 3.0]
+    run = Run(t, temp, raw, ref, 'bags/run3')
+    models = [_ev('conv', [4.0, 2.0, 1.0], [0.04, 0.02, 0.01], omega=ref + 0.001),
+              _ev('mod', [1.0, 1.0, 0.5], [0.01, 0.01, 0.005], omega=ref - 0.002,
+                  outside=0.25)]
+    return BagEval(bag='bags/run3', label='run3', samples=n, temperature_c=(20.0, 40.0),
+                   duration_s=24.5 * 3600.0, reference='zero',
+                   raw=_ev('raw', [100.0, 100.0, 100.0], [1.0, 1.0, 1.0], omega=raw),
+                   models=models, run=run)
+
+
+def test_summary_table(bag):
+    lines = format_summary(bag).splitlines()
+    assert lines[0] == ('bag bags/run3: 50 samples over 24.50 h, temperature 20.00 .. 40.00 '
+                        'degC, reference zero')
+    assert lines[1].startswith('  BS in (deg/s)^2 (paper eq. 30)')
+    assert lines[2].split() == ['BS', 'x', 'BS', 'y', 'BS', 'z', 'RMS', 'x', 'RMS', 'y', 'RMS',
+                                'z', 'BS/BS1', 'x', 'BS/BS1', 'y', 'BS/BS1', 'z']
+    assert lines[3].split() == ['raw', '100', '100', '100', '10', '10', '10', '1', '1', '1']
+    assert lines[4].split() == ['conv', '4', '2', '1', '2', '1.414', '1', '0.04', '0.02', '0.01']
+    assert lines[6] == ('  note: 25 % of the samples lie outside the trained range of mod '
+                        '[-10.00, 30.00] degC: evaluated clamped at the range ends')
+    assert len(lines) == 7
+
+
+def test_paper_table_ratios(bag):
+    lines = format_paper_table(bag, 0, 1).splitlines()
+    assert lines[0] == ('  paper table (eq. 31-32), run3: BS1 raw, BS2 conv (conventional), '
+                        'BS3 mod (modified); BS in (deg/s)^2')
+    assert lines[1].split() == ['BS1', 'BS2', 'BS3', 'P1', 'P2', 'P3']
+    # P1 = BS2/BS1, P2 = BS3/BS1, P3 = BS3/BS2 in %.
+    assert lines[2].split() == ['x-axis', '100', '4', '1', '0.04', '0.01', '25.00%']
+    assert lines[3].split() == ['y-axis', '100', '2', '1', '0.02', '0.01', '50.00%']
+    assert lines[4].split() == ['z-axis', '100', '1', '0.5', '0.01', '0.005', '50.00%']
+
+
+def test_allan_table_and_non_finite_numbers(bag):
+    bag.models[0].bias_instability_deg_h = np.array([np.nan, 20.0, np.inf])
+    lines = format_allan(bag).splitlines()
+    assert 'ARW in deg/sqrt(h)' in lines[0] and 'BI in deg/h' in lines[0]
+    assert lines[2].split() == ['raw', '1.5', '1.6', '1.7', '10', '20', '30']
+    assert lines[3].split() == ['conv', '1.5', '1.6', '1.7', '-', '20', '-']
+
+
+def test_bag_text_holds_a_paper_table_per_modified_model(bag):
+    assert format_bag(bag) == format_summary(bag) + '\n' + format_allan(bag)
+    assert format_bag(bag, 1) == '\n'.join([format_summary(bag), format_paper_table(bag, 1, 0),
+                                            format_allan(bag)])
+    bag.models.append(_ev('third', [2.0, 2.0, 2.0], [0.02] * 3))
+    assert format_bag(bag, 0).count('paper table') == 2
+
+
+def test_means_over_bags(bag):
+    models = [_ev('conv', [2.0] * 3, [0.02] * 3), _ev('mod', [3.0] * 3, [0.03] * 3)]
+    other = BagEval(bag='b2', label='b2', samples=1, temperature_c=(0.0, 1.0), duration_s=1.0,
+                    reference='zero', raw=_ev('raw', [300.0] * 3, [1.0] * 3), models=models)
+    lines = format_means([bag, other]).splitlines()
+    assert lines[0] == 'mean over 2 bags: BS in (deg/s)^2 and BS/BS1'
+    assert lines[2].split() == ['raw', '200', '200', '200', '1', '1', '1']
+    assert lines[3].split() == ['conv', '3', '2', '1.5', '0.03', '0.02', '0.015']
+    assert lines[4].split() == ['mod', '2', '2', '1.75', '0.02', '0.02', '0.0175']
+
+
+def test_json_shape_and_nulls(bag, tmp_path):
+    bag.models[1].bs = np.array([1.0, np.nan, np.inf])
+    doc = evaluation_json([bag])
+    assert list(doc) == ['bags']
+    b = doc['bags'][0]
+    assert list(b) == ['bag', 'samples', 'temperature_c', 'raw', 'models']
+    assert b['raw'] == {'bs': [100.0] * 3, 'rms_dps': [10.0] * 3}
+    m = b['models'][1]
+    assert list(m) == ['model', 'features', 'bs', 'rms_dps', 'p_vs_raw', 'adev']
+    assert m['bs'] == [1.0, None, None]
+    assert m['adev'] == {'tau_s': [0.1, 1.0], 'dps': [[0.2, 0.3, 0.4], [0.02, 0.03, 0.04]]}
+    path = write_json([bag], tmp_path / 'deep' / 'scores.json')
+    assert json.loads(path.read_text()) == doc
+
+
+def test_csv_holds_every_sample(bag, tmp_path):
+    path = write_csv(bag, tmp_path / 'csv', chunk=7)
+    assert path == tmp_path / 'csv' / 'run3.csv'
+    head, *rows = path.read_text().splitlines()
+    assert head.split(',') == csv_columns(bag)
+    assert csv_columns(bag)[:5] == ['t_s', 'temp_c', 'raw_x_rad_s', 'raw_y_rad_s',
+                                    'raw_z_rad_s']
+    assert csv_columns(bag)[-3:] == ['mod_x_rad_s', 'mod_y_rad_s', 'mod_z_rad_s']
+    data = np.loadtxt(path, delimiter=',', skiprows=1)
+    run = bag.run
+    want = np.column_stack([run.t, run.temp, run.omega, run.omega_ref,
+                            bag.models[0].omega, bag.models[1].omega])
+    np.testing.assert_allclose(data[:, 0], want[:, 0], atol=1e-6)     # t: %.6f
+    np.testing.assert_allclose(data[:, 1], want[:, 1], rtol=1e-5)     # temperature: %.6g
+    np.testing.assert_allclose(data[:, 2:], want[:, 2:], rtol=1e-8)   # rates: %.9g
+    bag.release()
+    with pytest.raises(ValueError, match='released'):
+        write_csv(bag, tmp_path)
+
+
+def test_three_plots_per_bag(bag, tmp_path):
+    files = write_plots(bag, tmp_path / 'png', points=10)
+    assert [f.name for f in files] == ['run3_timeseries.png', 'run3_residual_vs_temperature.png',
+                                       'run3_allan.png']
+    for f in files:
+        assert f.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    bag.release()
+    with pytest.raises(ValueError, match='released'):
+        write_plots(bag, tmp_path)
+
+
+def _coverage(**kw):
+    c = dict(bin_c=5.0, edges=np.array([15.0, 20.0, 25.0, 30.0]),
+             samples=np.array([100, 5, 300]), minutes=np.array([10.0, 0.5, 30.0]), sparse=[1],
+             temp_range_c=(17.5, 29.0), heating_min=30.0, cooling_min=0.0, steady_min=10.5,
+             threshold_c_per_min=0.05)
+    c.update(kw)
+    return Coverage(**c)
+
+
+def test_coverage_table_and_warnings():
+    table, warns = format_coverage(_coverage())
+    lines = table.splitlines()
+    assert lines[0] == 'temperature range covered: 17.50 .. 29.00 degC (span 11.50 degC)'
+    assert lines[1] == 'coverage per 5 degC bin:'
+    assert lines[2].split() == ['[15,', '20)', 'degC', '100', 'samples', '10.0', 'min']
+    assert lines[3].endswith('0.5 min  <- little data')
+    assert lines[5] == ('heating (dT/dt > +0.05 degC/min): 30.0 min; cooling (< -0.05): '
+                        '0.0 min; steady: 10.5 min')
+    assert len(warns) == 2
+    assert warns[0].startswith('little data in temperature bin(s) [20, 25) degC')
+    assert warns[1].startswith('no cooling data:')
+    _, warns = format_coverage(_coverage(sparse=[], cooling_min=12.0))
+    assert warns == []
+    _, warns = format_coverage(_coverage(sparse=[], heating_min=0.0, cooling_min=30.0))
+    assert warns[0].startswith('no heating data:')
+    _, warns = format_coverage(_coverage(sparse=[], heating_min=0.0, cooling_min=0.0))
+    assert warns == []                 # all steady: nothing to tell apart
