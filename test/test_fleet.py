@@ -322,6 +322,8 @@ def test_bad_manifest_exits_2_with_one_line(tmp_path, capsys, content, needle):
     (['--features', 'dT,nope'], 'nope'),
     (['--workers', '2', '--scheduler', 'tcp://127.0.0.1:1'], 'not allowed with'),
     (['--outlier-z', '-1'], '--outlier-z'),
+    (['--scheduler', 'tcp://127.0.0.1:1', '--connect-timeout', '0.5'], 'cannot connect'),
+    (['--scheduler', 'no-port'], 'cannot connect'),
 ])
 def test_bad_options_exit_2_with_one_line(tmp_path, capsys, argv, needle):
     path = _manifest(tmp_path / 'fleet.csv', [('imu', [tmp_path / 'b'], [])])

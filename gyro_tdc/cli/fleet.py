@@ -60,6 +60,9 @@ def build_parser() -> argparse.ArgumentParser:
     eng.add_argument('--scheduler', default=None, metavar='ADDRESS',
                      help='use a running Dask cluster (tcp://HOST:PORT) instead; its workers '
                           'must read the bags at the paths of the manifest')
+    p.add_argument('--connect-timeout', type=float, default=30.0, metavar='S',
+                   help='seconds to wait for --scheduler and its first worker (default: '
+                        '%(default)s)')
     p.add_argument('--force', action='store_true',
                    help='retrain sensors whose bags and options are unchanged (default: skip '
                         'them, keeping their models)')
@@ -76,6 +79,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         raise UsageError(f'--workers: expected an integer >= 1, got {args.workers}')
     if not (math.isfinite(args.outlier_z) and args.outlier_z > 0):
         raise UsageError(f'--outlier-z: expected a number > 0, got {args.outlier_z}')
+    if not (math.isfinite(args.connect_timeout) and args.connect_timeout > 0):
+        raise UsageError(f'--connect-timeout: expected a number > 0, got {args.connect_timeout}')
     options = train_options(args)     # a bad feature id fails before any worker starts
     specs = read_manifest(args.manifest)
     out = Path(args.out)
@@ -83,7 +88,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         raise UsageError(f'--out: {str(out)!r} exists and is not a folder')
     progress = bool(options['progress'])
     workers = min(args.workers or os.cpu_count() or 1, len(specs))   # no idle processes
-    with open_engine(workers=workers, scheduler=args.scheduler) as engine:
+    with open_engine(workers=workers, scheduler=args.scheduler,
+                     timeout_s=args.connect_timeout) as engine:
         print(f'fleet: {len(specs)} sensor(s) on {engine.workers} Dask worker(s) '
               f'({engine.scheduler}) -> {out}', flush=True)
         result = run_fleet(specs, out, options, engine, force=args.force,
