@@ -20,7 +20,7 @@ from gyro_tdc.errors import FitError
 from gyro_tdc.fitting import (estimate_t0, fit_linear, fit_model, fit_px4_cubic,
                               fit_time_constant, LinearFit, RIDGE_GRID, TimeConstantFit)
 from gyro_tdc.metrics import bias_stability
-from gyro_tdc.model import compensate, drift, predict_drift, StreamingCompensator
+from gyro_tdc.model import compensate, predict_drift
 import numpy as np
 import pytest
 from synth import synth_run
@@ -96,27 +96,6 @@ def test_refinement_does_not_hurt():
     plain = fit_model([train], features='dT,dT2', n_centers=6)
     refined = fit_model([train], features='dT,dT2', n_centers=6, refine=True)
     assert np.all(_bs(refined, test) <= 1.02 * _bs(plain, test))
-
-
-def test_streaming_compensator_equals_batch():
-    run = synth_run(seed=13, hours=0.3, tau_die=300.0, cooling=True)
-    model = fit_model([run], features='dT,dT2,lag,dTdt')
-    comp = StreamingCompensator(model)
-    out = np.array([comp.step(t, temp, w) for t, temp, w in zip(run.t, run.temp, run.omega)])
-    ref = compensate(model, run.t, run.temp, run.omega)
-    # atol: 1e-12 rad/s is 6e-11 deg/s; compensated values near zero have no relative scale.
-    np.testing.assert_allclose(out, ref, rtol=1e-9, atol=1e-12)
-
-
-def test_clamping_holds_the_drift_at_the_range_edge():
-    run = synth_run(seed=14, hours=0.5)
-    model = fit_model([run], features='dT,dT2')
-    lo, hi = model.temp_range_c
-    t = np.arange(3.0)
-    inside = drift(model, t, np.full(3, hi))
-    outside = drift(model, t, np.full(3, hi + 30.0))
-    np.testing.assert_allclose(outside, inside)
-    assert not np.allclose(drift(model, t, np.full(3, hi + 30.0), clamp=False), inside)
 
 
 def test_t0_is_the_stable_initial_temperature():
