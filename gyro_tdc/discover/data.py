@@ -29,7 +29,7 @@ from typing import Callable, Mapping, Sequence
 
 from gyro_tdc.blocks import block_counts, block_sum
 from gyro_tdc.discover.stats import COLLINEAR, rel_residual
-from gyro_tdc.effects import batch_features, EFFECTS, first_order_lag
+from gyro_tdc.effects import batch_features, EFFECTS
 from gyro_tdc.errors import FitError
 from gyro_tdc.runs import Run
 import numpy as np
@@ -194,7 +194,8 @@ class BlockData:
         """Return the smoothed dT/dt of each block, degC/min (60 s first-order smoothing)."""
         out = np.empty(self.K)
         for tg, temp_g, lo, hi, tb, a, b in self.grids:
-            f = (temp_g - first_order_lag(tg, temp_g, 60.0)) / 60.0 * 60.0
+            f = batch_features(('dTdt',), tg, temp_g, t0=self.t0,
+                               params={'dTdt': {'tau_s': 60.0}})[:, 0] * 60.0
             out[a:b] = self._grid_mean(tg, f, lo, hi, tb)
         return out
 
@@ -243,16 +244,12 @@ class BlockData:
         key = (eid, round(tau, 9))
         if key in self._cache:
             return self._cache[key]
+        power = int(eid[len(base) + 1:]) if eid != base else 1
         out = np.empty(self.K)
         for tg, temp_g, lo, hi, tb, a, b in self.grids:
-            if base == 'lag':
-                f = (first_order_lag(tg, temp_g, tau) - self.t0) ** (
-                    int(eid[4:]) if eid != 'lag' else 1)
-            elif eid == 'dTdt':
-                f = (temp_g - first_order_lag(tg, temp_g, tau)) / tau
-            else:  # warmup
-                f = np.exp(-(tg - tg[0]) / tau)
-            out[a:b] = self._grid_mean(tg, f, lo, hi, tb)
+            f = batch_features((base,), tg, temp_g, t0=self.t0,
+                               params={base: {'tau_s': tau}})[:, 0]
+            out[a:b] = self._grid_mean(tg, f ** power, lo, hi, tb)
         if len(self._cache) > 512:
             self._cache.clear()
         self._cache[key] = out

@@ -36,11 +36,10 @@ from gyro_tdc.discover.stats import (bandwidth, COLLINEAR, DEG, gap, hac_pvalue,
                                      rel_residual, weighted_corr)
 from gyro_tdc.effects import EFFECTS, input_ids, normalise_ids
 from gyro_tdc.errors import FitError
-from gyro_tdc.fitting import estimate_t0
+from gyro_tdc.fitting import estimate_t0, fit_time_constant
 from gyro_tdc.runs import Run
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize_scalar
 
 __all__ = ['discover']
 
@@ -66,29 +65,19 @@ def _fit_taus(data: BlockData, effects: Sequence[str], params: dict, which: Sequ
     """
     Fit the time constants of ``which`` by a bounded 1-D search on the residual each.
 
-    The linear coefficients are re-solved at every trial (variable projection); a log-spaced
-    grid finds the basin, a bounded Brent search refines it.
+    The linear coefficients are re-solved at every trial (variable projection);
+    :func:`gyro_tdc.fitting.fit_time_constant` searches a log-spaced grid for the basin and
+    refines it with a bounded Brent search.
     """
     params = {k: dict(v) for k, v in params.items()}
     for eid in which:
-        lo, hi = _tau_bounds(data, eid)
-
-        def sse(log_tau: float, eid: str = eid) -> float:
+        def sse(tau: float, eid: str = eid) -> float:
             trial = {k: dict(v) for k, v in params.items()}
-            trial.setdefault(eid, {})['tau_s'] = math.exp(log_tau)
+            trial.setdefault(eid, {})['tau_s'] = tau
             return LinearModel(data, effects, trial).sse()
 
-        grid = np.linspace(math.log(lo), math.log(hi), 14)
-        vals = np.array([sse(g) for g in grid])
-        i = int(np.argmin(vals))
-        a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
-        best = grid[i]
-        if b > a:
-            res = minimize_scalar(sse, bounds=(a, b), method='bounded',
-                                  options={'xatol': 0.01})
-            if res.fun <= vals[i]:
-                best = float(res.x)
-        params.setdefault(eid, {})['tau_s'] = float(math.exp(best))
+        fit = fit_time_constant(sse, _tau_bounds(data, eid), n_grid=14, xatol=0.01)
+        params.setdefault(eid, {})['tau_s'] = fit.tau
     return params
 
 
