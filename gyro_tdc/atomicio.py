@@ -145,7 +145,7 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
     path = Path(path)
     target = _target(path)
     if target.is_dir():
-        raise OutputError(f'cannot write {what} {str(path)!r}: it is a directory')
+        raise OutputError(f'cannot access {what} {str(path)!r} for writing: it is a directory')
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         try:

@@ -18,7 +18,19 @@ Bag -> aligned numpy arrays: one :class:`gyro_tdc.runs.Run` per recording.
 The thermometer (typically 1 Hz) is interpolated linearly onto the IMU stamps
 (100 Hz - 1 kHz); the reference rate comes from a constant, from a rate-table topic
 (zero-order hold) or is zero. Bad samples are dropped and counted in ``run.info['rejected']``
-so that nothing is lost silently.
+so that nothing is lost silently:
+
+- physically impossible values are dropped at load (one finite outlier such as 1e300 would
+  otherwise wreck a fit): a temperature outside ``TEMP_PLAUSIBLE_C`` (-100 to 200 degC), a
+  rate (IMU or reference) above ``MAX_RATE_RAD_S`` (100 rad/s, 5,700 deg/s, beyond any MEMS
+  gyro's range) in magnitude;
+- thermometer samples sharing a stamp are not averaged: the last one in the bag is kept,
+  and readings that disagree are reported in ``run.info['warnings']``;
+- the messages decoded per topic are checked against the count the bag's metadata lists:
+  any shortfall (a damaged mcap chunk, undecodable messages) is a warning naming the topic
+  ("read X of Y messages"), and a shortfall above ``max_loss`` (default
+  ``MAX_LOSS_FRACTION``, 1 %) of a topic's messages refuses the bag (``DatasetError``)
+  unless the caller accepts it (``--allow-loss`` on the command line).
 """
 
 from __future__ import annotations
@@ -34,7 +46,12 @@ from gyro_tdc.runs import Run
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['align_temperature', 'expand_bags', 'load_run', 'load_runs']
+__all__ = ['MAX_LOSS_FRACTION', 'MAX_RATE_RAD_S', 'TEMP_PLAUSIBLE_C', 'align_temperature',
+           'expand_bags', 'load_run', 'load_runs']
+
+TEMP_PLAUSIBLE_C = (-100.0, 200.0)
+MAX_RATE_RAD_S = 100.0
+MAX_LOSS_FRACTION = 0.01
 
 
 def _vector(name: str, a: ArrayLike) -> NDArray[np.float64]:
@@ -81,7 +98,8 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
     Interpolate thermometer samples linearly onto IMU stamps.
 
     Thermometer samples with a NaN or infinite stamp or value are dropped, out-of-order
-    samples are sorted and samples sharing a stamp are averaged. An IMU sample is valid
+    samples are sorted and of samples sharing a stamp the last one given is kept (readings
+    that disagree are counted, not averaged). An IMU sample is valid
     when it lies within the thermometer's time span and at most ``max_gap_s`` from the
     nearest thermometer sample; invalid samples get NaN.
 
@@ -106,7 +124,8 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
         Where the interpolation is trusted.
     counts : dict[str, int]
         Only with ``return_counts``: ``nonfinite`` (dropped), ``out_of_order`` (backward
-        steps before sorting) and ``duplicates`` (samples merged into an earlier stamp).
+        steps before sorting), ``duplicates`` (samples dropped because a later one has the
+        same stamp) and ``conflicting`` (stamps whose duplicate readings disagree).
 
     Raises
     ------
@@ -128,18 +147,22 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
         raise DatasetError(f'Expected `max_gap_s` to be a positive number, got {max_gap_s!r}.')
 
     finite = np.isfinite(temp_t) & np.isfinite(temp_c)
-    counts = {'nonfinite': int(np.count_nonzero(~finite)), 'out_of_order': 0, 'duplicates': 0}
+    counts = {'nonfinite': int(np.count_nonzero(~finite)), 'out_of_order': 0, 'duplicates': 0,
+              'conflicting': 0}
     tt, tc = temp_t[finite], temp_c[finite]
     steps = np.diff(tt)
     if np.any(steps <= 0):
         counts['out_of_order'] = int(np.count_nonzero(steps < 0))
         order = np.argsort(tt, kind='stable')
         tt, tc = tt[order], tc[order]
-        stamps, inverse, per = np.unique(tt, return_inverse=True, return_counts=True)
-        if len(stamps) < len(tt):
-            counts['duplicates'] = int(len(tt) - len(stamps))
-            tc = np.bincount(inverse, weights=tc) / per
-            tt = stamps
+        last = np.ones(len(tt), dtype=bool)      # the last sample given of each stamp
+        last[:-1] = np.diff(tt) > 0
+        if not last.all():
+            kept = np.searchsorted(tt, tt, side='right') - 1
+            differ = ~last & (tc != tc[kept])
+            counts['duplicates'] = int(np.count_nonzero(~last))
+            counts['conflicting'] = int(np.unique(tt[differ]).size)
+            tt, tc = tt[last], tc[last]
 
     m = len(tt)
     if m < 2:
@@ -160,6 +183,31 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
     return temp, valid
 
 
+def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: float,
+                  warnings: list[str]) -> dict[str, list[int]]:
+    """
+    Compare the messages decoded per topic with the counts listed in the bag's metadata.
+
+    Appends a warning per topic with missing messages; raises DatasetError when more than
+    ``max_loss`` of a topic's listed messages are missing. Returns topic -> [decoded, listed].
+    """
+    out = {}
+    for topic, got in decoded.items():
+        listed = int(data.topics.get(topic, ('', 0))[1])
+        out[topic] = [int(got), listed]
+        lost = listed - int(got)
+        if lost <= 0:
+            continue
+        note = (f'{topic}: read {got} of {listed} messages listed in the bag metadata '
+                f'({lost} lost: {100.0 * lost / listed:.2g} %; a damaged file or '
+                'undecodable messages)')
+        if lost > max_loss * listed:
+            raise DatasetError(f'Bag {str(bag)!r}: {note}, more than the '
+                               f'{100.0 * max_loss:g} % allowed (--allow-loss accepts it).')
+        warnings.append(note)
+    return out
+
+
 def _reference(value: object) -> NDArray[np.float64]:
     """Return a constant reference rate (x, y, z) in rad/s or raise DatasetError."""
     try:
@@ -174,16 +222,19 @@ def _reference(value: object) -> NDArray[np.float64]:
 
 def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
              reference=None, reference_topic='/rate_table/reference', max_gap_s=5.0,
-             progress=False) -> Run:
+             progress=False, max_loss=MAX_LOSS_FRACTION) -> Run:
     """
     Read one bag into a :class:`~gyro_tdc.runs.Run` aligned on the IMU stamps.
 
     IMU samples are sorted by stamp; of samples sharing a stamp the first in the bag is
     kept. Samples with a non-finite rate, without a trusted temperature (see
-    :func:`align_temperature`) or before the first reference message are dropped. Every
-    drop is counted in ``run.info['rejected']``: ``imu_nonfinite``, ``temp_nonfinite``,
-    ``ref_nonfinite``, ``undecodable``, ``duplicate_stamps``, ``out_of_order``,
-    ``no_temperature``, ``no_reference``.
+    :func:`align_temperature`) or before the first reference message are dropped, and so
+    are physically impossible values (see the module docstring). Every drop is counted in
+    ``run.info['rejected']``: ``imu_nonfinite``, ``temp_nonfinite``, ``ref_nonfinite``,
+    ``undecodable``, ``imu_implausible``, ``temp_implausible``, ``ref_implausible``,
+    ``duplicate_stamps``, ``temp_duplicate_stamps``, ``out_of_order``, ``no_temperature``,
+    ``no_reference``. Messages missing against the bag's metadata and conflicting
+    thermometer readings are reported in ``run.info['warnings']``.
 
     Parameters
     ----------
@@ -202,18 +253,22 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
         Largest distance to the nearest thermometer sample (see :func:`align_temperature`).
     progress : bool
         Show a progress bar while reading.
+    max_loss : float
+        Largest fraction of a topic's messages (as listed in the bag's metadata) that may
+        be missing after reading; 1.0 accepts any loss (it is still reported).
 
     Returns
     -------
     Run
-        ``name`` is the bag path; ``info`` holds ``rejected``, ``reference`` ('constant',
-        'topic' or 'zero'), ``frame_id``, ``storage``, ``topics`` and ``samples_read``.
+        ``name`` is the bag path; ``info`` holds ``rejected``, ``warnings``, ``reference``
+        ('constant', 'topic' or 'zero'), ``frame_id``, ``storage``, ``topics``,
+        ``samples_read`` and ``messages`` (topic -> [decoded, listed in the metadata]).
 
     Raises
     ------
     DatasetError
-        When the bag cannot be read, a topic is missing, empty or of the wrong type, or no
-        sample survives.
+        When the bag cannot be read, a topic is missing, empty or of the wrong type, more
+        than ``max_loss`` of a topic's messages are missing, or no sample survives.
 
     """
     const = None if reference is None else _reference(reference)
@@ -224,10 +279,26 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
                 'temp_nonfinite': data.rejected['temp_nonfinite'],
                 'ref_nonfinite': data.rejected['ref_nonfinite'],
                 'undecodable': data.rejected['undecodable'],
-                'duplicate_stamps': 0, 'out_of_order': 0, 'no_temperature': 0,
-                'no_reference': 0}
+                'imu_implausible': 0, 'temp_implausible': 0, 'ref_implausible': 0,
+                'duplicate_stamps': 0, 'temp_duplicate_stamps': 0, 'out_of_order': 0,
+                'no_temperature': 0, 'no_reference': 0}
+    warnings: list[str] = []
+    messages = _check_counts(bag, data, {
+        imu_topic: len(data.imu_t) + data.rejected['imu_nonfinite'],
+        temperature_topic: len(data.temp_t) + data.rejected['temp_nonfinite'],
+        **({reference_topic: len(data.ref_t) + data.rejected['ref_nonfinite']}
+           if data.ref_t is not None else {})}, max_loss, warnings)
 
     t, omega = data.imu_t, data.gyro
+    plausible = np.all(np.abs(omega) <= MAX_RATE_RAD_S, axis=1)
+    if not plausible.all():
+        rejected['imu_implausible'] = int(np.count_nonzero(~plausible))
+        t, omega = t[plausible], omega[plausible]
+    temp_t, temp_c = data.temp_t, data.temp_c
+    plausible = (temp_c >= TEMP_PLAUSIBLE_C[0]) & (temp_c <= TEMP_PLAUSIBLE_C[1])
+    if not plausible.all():
+        rejected['temp_implausible'] = int(np.count_nonzero(~plausible))
+        temp_t, temp_c = temp_t[plausible], temp_c[plausible]
     steps = np.diff(t)
     if np.any(steps <= 0):
         rejected['out_of_order'] = int(np.count_nonzero(steps < 0))
@@ -238,9 +309,13 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
         rejected['duplicate_stamps'] = int(np.count_nonzero(~first))
         t, omega = t[first], omega[first]
 
-    temp, keep, counts = align_temperature(t, data.temp_t, data.temp_c, max_gap_s=max_gap_s,
+    temp, keep, counts = align_temperature(t, temp_t, temp_c, max_gap_s=max_gap_s,
                                            return_counts=True)
     rejected['temp_nonfinite'] += counts['nonfinite']
+    rejected['temp_duplicate_stamps'] = counts['duplicates']
+    if counts['conflicting']:
+        warnings.append(f'{temperature_topic}: {counts["conflicting"]} stamp(s) carry '
+                        'conflicting temperature readings; kept the last reading of each')
     rejected['no_temperature'] = int(np.count_nonzero(~keep))
 
     if const is not None:
@@ -249,8 +324,10 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
         omega_ref[:] = const
     elif data.ref_t is not None:
         source = 'topic'
-        order = np.argsort(data.ref_t, kind='stable')
-        ref_t, ref = data.ref_t[order], data.ref[order]
+        plausible = np.all(np.abs(data.ref) <= MAX_RATE_RAD_S, axis=1)
+        rejected['ref_implausible'] = int(np.count_nonzero(~plausible))
+        order = np.argsort(data.ref_t[plausible], kind='stable')
+        ref_t, ref = data.ref_t[plausible][order], data.ref[plausible][order]
         held = np.searchsorted(ref_t, t, side='right') - 1
         has_ref = held >= 0
         rejected['no_reference'] = int(np.count_nonzero(keep & ~has_ref))
@@ -263,15 +340,14 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
     if not np.any(keep):
         raise DatasetError(
             f'Bag {str(bag)!r} has no usable sample: {len(data.imu_t)} IMU samples read, '
-            f'{len(data.temp_t)} temperature samples spanning '
-            + (f'[{data.temp_t.min():.3f}, {data.temp_t.max():.3f}] s'
-               if len(data.temp_t) else 'nothing')
+            f'{len(temp_t)} temperature samples spanning '
+            + (f'[{temp_t.min():.3f}, {temp_t.max():.3f}] s' if len(temp_t) else 'nothing')
             + (f' vs IMU [{t.min():.3f}, {t.max():.3f}] s' if len(t) else '')
             + f'; rejected {rejected}.')
-    info = {'rejected': rejected, 'reference': source, 'frame_id': data.frame_id,
-            'storage': data.storage, 'topics': data.topics,
+    info = {'rejected': rejected, 'warnings': warnings, 'reference': source,
+            'frame_id': data.frame_id, 'storage': data.storage, 'topics': data.topics,
             'samples_read': int(len(data.imu_t) + data.rejected['imu_nonfinite']),
-            'decoded_by_rosbags': data.fallback}
+            'messages': messages, 'decoded_by_rosbags': data.fallback}
     if not keep.all():
         t, temp, omega, omega_ref = t[keep], temp[keep], omega[keep], omega_ref[keep]
     return Run(t, temp, np.ascontiguousarray(omega), np.ascontiguousarray(omega_ref),
@@ -367,5 +443,7 @@ def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike, *,
             note = f'; dropped {rejected}' if rejected else ''
             log(f'read {bag}: {len(run)} samples over {run.duration_s / 60.0:.1f} min, '
                 f'reference {run.info.get("reference", "?")}{note}')
+            for warning in run.info.get('warnings', ()):
+                log(f'warning: {bag}: {warning}')
         runs.append(run)
     return runs

@@ -87,7 +87,7 @@ def test_align_sorted_fast_path_equals_general_path(seed):
     np.testing.assert_array_equal(temp[on_knot], temp_c[knot])
 
 
-def test_align_sorts_out_of_order_and_averages_duplicates():
+def test_align_sorts_out_of_order_and_keeps_the_last_duplicate():
     rng = np.random.default_rng(4)
     temp_t = np.arange(0.0, 30.0, 1.0)
     temp_c = _ramp(temp_t)
@@ -99,8 +99,9 @@ def test_align_sorts_out_of_order_and_averages_duplicates():
     temp, valid, counts = align_temperature(imu_t, temp_t2, temp_c2, return_counts=True)
     assert valid.all()
     assert counts['duplicates'] == 1 and counts['out_of_order'] > 0
+    assert counts['conflicting'] == 1
     fixed = temp_c.copy()
-    fixed[10] += 1.0                                  # mean of the two readings at 10 s
+    fixed[10] += 2.0                                  # the last reading given at 10 s
     np.testing.assert_allclose(temp, np.interp(imu_t, temp_t, fixed), atol=1e-12)
     assert not np.allclose(temp, ref)
 
@@ -114,7 +115,7 @@ def test_align_rejects_and_counts_nonfinite():
     temp_t[8] = np.nan
     imu_t = np.arange(0.0, 9.0, 0.1)
     temp, valid, counts = align_temperature(imu_t, temp_t, temp_c, return_counts=True)
-    assert counts == {'nonfinite': 3, 'out_of_order': 0, 'duplicates': 0}
+    assert counts == {'nonfinite': 3, 'out_of_order': 0, 'duplicates': 0, 'conflicting': 0}
     assert valid.all() and np.isfinite(temp).all()
     np.testing.assert_allclose(temp, _ramp(imu_t), atol=1e-12)   # a ramp survives the holes
 

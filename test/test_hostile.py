@@ -463,3 +463,157 @@ def test_temperature_offset_change_and_garbled_scale_at_rescale(tmp_path):
     (dev / 'in_anglvel_scale').write_text('garbage\n')
     with pytest.raises(DeviceError, match="in_anglvel_scale' holds 'garbage'"):
         src.read()
+
+
+# --------------------------------------------------------------------------------------------
+# Items 5, 7, 13, 15: bags that lose messages, hold absurd values, are given twice, or carry
+# conflicting temperature stamps
+# --------------------------------------------------------------------------------------------
+
+def _heat_bag(path: Path, *, storage: str = 'sqlite3', edit=None) -> Path:
+    """Write a 2 h, 5 Hz synthetic heating run (36,000 IMU messages) as a bag."""
+    from gyro_tdc.bagio import write_bag
+    from synth import synth_run
+    run = synth_run(seed=11)
+    imu = {'t': run.t + 100.0, 'gyro': run.omega.copy()}
+    temp = {'t': run.t[::5] + 100.0, 'c': run.temp[::5].copy()}
+    if edit is not None:
+        edit(imu, temp)
+    write_bag(path, imu_t=imu['t'], gyro=imu['gyro'], accel=np.zeros((len(imu['t']), 3)),
+              temp_t=temp['t'], temp_c=temp['c'], storage=storage)
+    return path
+
+
+@pytest.fixture(scope='module')
+def heat_bag(tmp_path_factory):
+    return _heat_bag(tmp_path_factory.mktemp('heat') / 'heat')
+
+
+def _cli(capsys, entry, argv):
+    """Run a command's ``main``; return (exit code, stdout, stderr)."""
+    rc = entry([str(a) for a in argv])
+    captured = capsys.readouterr()
+    assert 'Traceback' not in captured.err
+    return rc, captured.out, captured.err
+
+
+def _one_error_line(err: str) -> str:
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    return lines[0]
+
+
+def _delete_imu_rows(bag: Path, count: int) -> None:
+    """Remove ``count`` IMU messages from a sqlite3 bag, leaving metadata.yaml as it was."""
+    import sqlite3
+    (db,) = bag.glob('*.db3')
+    with sqlite3.connect(db) as con:
+        con.execute('DELETE FROM messages WHERE id IN (SELECT m.id FROM messages m JOIN topics '
+                    "t ON m.topic_id = t.id WHERE t.name = '/imu/data_raw' "
+                    'ORDER BY m.id LIMIT ? OFFSET 5000)', (count,))
+
+
+@pytest.mark.parametrize('fill', ['random', 'zeros'])
+def test_damaged_mcap_is_refused_naming_the_loss_and_allowed_on_request(tmp_path, capsys,
+                                                                        fill):
+    from gyro_tdc.cli.train import main
+    from gyro_tdc.dataset import load_run
+    from gyro_tdc.errors import DatasetError
+    bag = _heat_bag(tmp_path / 'bag', storage='mcap')
+    (mcap,) = bag.glob('*.mcap')
+    size = mcap.stat().st_size
+    # 64 KB in the middle. rosbags skips the damaged chunk without a word (with other random
+    # seeds its reader fails loudly instead, which load_run already reports as corrupt).
+    junk = (np.random.default_rng(4).integers(0, 256, 65536, dtype=np.uint8).tobytes()
+            if fill == 'random' else bytes(65536))
+    with open(mcap, 'r+b') as fh:
+        fh.seek(size // 2 - 32768)
+        fh.write(junk)
+    with pytest.raises(DatasetError, match=r'/imu/data_raw: read \d+ of 36000 messages listed '
+                                           r'in the bag metadata') as info:
+        load_run(bag)
+    assert '--allow-loss' in one_line_error(info)
+    run = load_run(bag, max_loss=1.0)
+    read, listed = run.info['messages']['/imu/data_raw']
+    assert listed == 36000 and 0 < read < listed
+    assert any(f'read {read} of 36000 messages' in w for w in run.info['warnings'])
+
+    rc, _, err = _cli(capsys, main, [bag, '--out', tmp_path / 'm.yaml', '--no-progress'])
+    assert rc == 2 and f'read {read} of 36000 messages' in _one_error_line(err)
+    assert not (tmp_path / 'm.yaml').exists()
+    rc, out, err = _cli(capsys, main, [bag, '--out', tmp_path / 'm.yaml', '--no-progress',
+                                       '--allow-loss'])
+    assert rc == 0, err
+    assert f'warning: {bag}: /imu/data_raw: read {read} of 36000 messages' in out
+
+
+def test_small_loss_is_a_warning_and_a_large_one_refused(tmp_path, capsys):
+    import shutil
+    from gyro_tdc.cli.train import main
+    bag = _heat_bag(tmp_path / 'small')
+    big = tmp_path / 'big'
+    shutil.copytree(bag, big)
+    _delete_imu_rows(bag, 36)                           # 0.1 %: reported, used
+    _delete_imu_rows(big, 720)                          # 2 %: refused
+    rc, out, err = _cli(capsys, main, [bag, '--out', tmp_path / 'm.yaml', '--no-progress'])
+    assert rc == 0, err
+    assert 'warning: ' in out and '/imu/data_raw: read 35964 of 36000 messages' in out
+    rc, out, err = _cli(capsys, main, [big, '--out', tmp_path / 'm2.yaml', '--no-progress'])
+    assert rc == 2 and 'read 35280 of 36000 messages' in _one_error_line(err)
+    assert 'more than the 1 % allowed' in err
+
+
+def _outliers(imu, temp):
+    temp['c'][100] = 1e30
+    temp['c'][200] = 1e300
+    imu['gyro'][5000, 0] = 1e300
+    imu['gyro'][6000, 2] = -1e300
+
+
+def test_absurd_values_are_dropped_and_counted_at_load(tmp_path):
+    from gyro_tdc.dataset import load_run
+    run = load_run(_heat_bag(tmp_path / 'bag', edit=_outliers))
+    rej = run.info['rejected']
+    assert rej['temp_implausible'] == 2 and rej['imu_implausible'] == 2
+    assert np.all(np.abs(run.omega) < 1.0) and np.all(np.abs(run.temp) < 100.0)
+
+
+def test_train_and_discover_survive_one_finite_outlier(tmp_path, capsys):
+    from gyro_tdc.cli.discover import main as discover
+    from gyro_tdc.cli.train import main as train
+    bag = _heat_bag(tmp_path / 'bag', edit=_outliers)
+    rc, out, err = _cli(capsys, train, [bag, '--out', tmp_path / 'm.yaml', '--no-progress'])
+    assert rc == 0, err
+    assert "'imu_implausible': 2" in out and "'temp_implausible': 2" in out
+    model = load_model(tmp_path / 'm.yaml')
+    assert np.all(np.isfinite(model.residual_var)) and np.all(model.residual_var < 1e-3)
+    rc, out, err = _cli(capsys, discover, [bag, '--json', tmp_path / 'd.json', '--no-progress'])
+    assert rc == 0, err
+
+
+@pytest.mark.parametrize('command', ['train', 'evaluate', 'discover'])
+def test_the_same_bag_twice_is_refused(tmp_path, capsys, heat_bag, command):
+    import importlib
+    main = importlib.import_module(f'gyro_tdc.cli.{command}').main
+    extra = {'train': ['--out', tmp_path / 'm.yaml'],
+             'evaluate': ['--model', 'l3gd20_modified'], 'discover': []}[command]
+    folder = tmp_path / 'runs'
+    folder.mkdir()
+    (folder / 'run1').symlink_to(heat_bag)
+    for bags in ([heat_bag, heat_bag], [folder, heat_bag], [heat_bag, heat_bag / '.']):
+        rc, out, err = _cli(capsys, main, [*bags, *extra, '--no-progress'])
+        assert rc == 2 and 'is given twice' in _one_error_line(err), err
+        assert 'read ' not in out                        # refused before reading a bag
+
+
+def test_conflicting_temperature_stamps_keep_the_last_and_warn(tmp_path):
+    from gyro_tdc.dataset import load_run
+
+    def dup(imu, temp):
+        temp['t'] = np.insert(temp['t'], 51, temp['t'][50])
+        temp['c'] = np.insert(temp['c'], 51, temp['c'][50] + 3.0)
+
+    run = load_run(_heat_bag(tmp_path / 'bag', edit=dup))
+    assert run.info['rejected']['temp_duplicate_stamps'] == 1
+    (warning,) = run.info['warnings']
+    assert '1 stamp(s) carry conflicting temperature readings; kept the last' in warning

@@ -39,6 +39,7 @@ import shlex
 import sys
 from typing import Callable, NoReturn, Optional, Sequence
 
+from gyro_tdc.dataset import MAX_LOSS_FRACTION
 from gyro_tdc.errors import GyroTdcError
 
 __all__ = [
@@ -137,6 +138,9 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
                           'stamps, used when present (default: %(default)s)')
     g.add_argument('--no-progress', dest='progress', action='store_false',
                    help='no progress bar while reading (default: shown on a terminal)')
+    g.add_argument('--allow-loss', action='store_true',
+                   help='use a bag even when more than 1 %% of the messages of a topic listed '
+                        'in its metadata cannot be read (the loss is reported either way)')
     parser.set_defaults(progress=None)
 
 
@@ -152,7 +156,8 @@ def bag_options(args: argparse.Namespace) -> dict:
     Returns
     -------
     dict
-        ``imu_topic``, ``temperature_topic``, ``reference``, ``reference_topic``, ``progress``.
+        ``imu_topic``, ``temperature_topic``, ``reference``, ``reference_topic``, ``progress``,
+        ``max_loss`` (1.0 with ``--allow-loss``).
 
     """
     progress = args.progress
@@ -160,7 +165,8 @@ def bag_options(args: argparse.Namespace) -> dict:
         progress = sys.stderr.isatty()
     return {'imu_topic': args.imu_topic, 'temperature_topic': args.temperature_topic,
             'reference': None if args.reference is None else parse_reference(args.reference),
-            'reference_topic': args.reference_topic, 'progress': bool(progress)}
+            'reference_topic': args.reference_topic, 'progress': bool(progress),
+            'max_loss': 1.0 if getattr(args, 'allow_loss', False) else MAX_LOSS_FRACTION}
 
 
 # --------------------------------------------------------------------------------------------

@@ -38,7 +38,7 @@ from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, co
 from gyro_tdc.cli.common import finite_float, positive_float, positive_int, run_command
 from gyro_tdc.cli.common import UsageError
 from gyro_tdc.coverage import Coverage, coverage
-from gyro_tdc.dataset import load_runs
+from gyro_tdc.dataset import load_runs, MAX_LOSS_FRACTION
 from gyro_tdc.effects import normalise_ids
 from gyro_tdc.fitting import estimate_t0, fit_model
 from gyro_tdc.model import CompensationModel, KINDS
@@ -84,7 +84,7 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
           imu_topic: str = '/imu/data_raw', temperature_topic: str = '/imu/temperature',
           reference: Sequence[float] | None = None,
           reference_topic: str = '/rate_table/reference', progress: bool = False,
-          bin_c: float = 5.0, command: str = '',
+          bin_c: float = 5.0, command: str = '', max_loss: float = MAX_LOSS_FRACTION,
           log: Callable[[str], None] | None = None) -> TrainResult:
     """
     Load bags, fit a compensation model and save it.
@@ -117,6 +117,9 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
         Width of the coverage bins.
     command : str
         Command line recorded in the model's ``created``.
+    max_loss : float
+        Largest fraction of a topic's messages that may be unreadable in a bag (see
+        :func:`gyro_tdc.dataset.load_run`).
     log : callable, optional
         Receives one line per bag read.
 
@@ -131,7 +134,7 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
         raise UsageError(f'--kind: expected one of {", ".join(KINDS)}, got {kind!r}')
     options = {'imu_topic': imu_topic, 'temperature_topic': temperature_topic,
                'reference': None if reference is None else tuple(reference),
-               'reference_topic': reference_topic, 'progress': progress}
+               'reference_topic': reference_topic, 'progress': progress, 'max_loss': max_loss}
     runs: list[Run] = load_runs(bags, log=log, **options)
     names = [r.name for r in runs]
     if t0 is None:
