@@ -129,6 +129,9 @@ class LinearModel:
 
 def lstsq(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
     """Least squares with column scaling (zero columns get a zero coefficient)."""
+    # Not gyro_tdc.fitting.fit_linear: that fits the drift network (inputs normalised to zero
+    # mean, an intercept, an optional ridge); this solves discovery's design as it stands,
+    # one offset column per run and weighted rows, unpenalised, every column only rescaled.
     scale = np.linalg.norm(x, axis=0)
     scale[scale == 0] = 1.0
     beta = np.linalg.lstsq(x / scale, y, rcond=1e-12)[0]
