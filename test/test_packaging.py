@@ -164,3 +164,33 @@ def test_no_command_prints_usage_and_exits_2():
     proc = run_module()
     assert proc.returncode == 2
     assert 'usage:' in proc.stderr
+
+
+def _readme_layout() -> set:
+    """Return the gyro_tdc/**/*.py paths listed in the README's Layout code block."""
+    text = (ROOT / 'README.md').read_text(encoding='utf-8')
+    section = text.split('\n## Layout\n', 1)[1].split('\n## ', 1)[0]
+    block = section.split('```\n', 1)[1].split('```', 1)[0]
+    stack: list = []     # (indent, directory) of the enclosing folders
+    paths = set()
+    for line in block.splitlines():
+        if not line.strip():
+            continue
+        indent = len(line) - len(line.lstrip())
+        name = line.split()[0]
+        while stack and stack[-1][0] >= indent:
+            stack.pop()
+        if name.endswith('/'):
+            stack.append((indent, name))
+        elif name.endswith('.py'):
+            path = ''.join(d for _, d in stack) + name
+            assert path not in paths, f'{path} is listed twice'
+            paths.add(path)
+    return paths
+
+
+def test_readme_layout_lists_every_module():
+    listed = _readme_layout()
+    modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / 'gyro_tdc').rglob('*.py')}
+    assert sorted(modules - listed) == [], 'modules missing from the README layout'
+    assert sorted(listed - modules) == [], 'README layout names modules that do not exist'
