@@ -20,7 +20,7 @@ Writes (once, cached in ``--data``) a train and a test bag per sensor with
 hold, cool), drift slopes and curvatures spread by 10 % between units, white noise
 0.03 deg/s/sqrt(Hz). Then measures
 
-* ``train alone``: :func:`gyro_tdc.cli.train.train` on one sensor's train bag plus
+* ``train alone``: :func:`gyro_tdc.training.train` on one sensor's train bag plus
   :func:`gyro_tdc.evaluation.evaluate` on its test bag, in this process (median of
   ``--repeat`` sensors): the work a fleet task does, without Dask;
 * ``fleet``: :func:`gyro_tdc.fleet.run_fleet` over every sensor (``force``, a fresh output
@@ -124,7 +124,7 @@ def make_fleet(data, *, sensors, hours, rate_hz):
 
 def train_alone(spec, options, out):
     """Train and evaluate one sensor in this process, as a fleet task does; return seconds."""
-    from gyro_tdc.cli.train import train
+    from gyro_tdc.training import train
     from gyro_tdc.evaluation import evaluate, NamedModel
 
     start = time.perf_counter()

@@ -22,8 +22,8 @@ functions here turn them into
 
 * text: a summary table (BS in (deg/s)^2 and RMS in deg/s per axis), the paper's tables 3-7
   (``BS1 BS2 BS3 P1 P2 P3`` with P1 = BS2/BS1, P2 = BS3/BS1, P3 = BS3/BS2), the Allan
-  readouts (angle random walk, bias instability), the means over bags and the coverage of
-  training data;
+  readouts (angle random walk, bias instability), the means over bags, and the training
+  report with the coverage of the training data;
 * JSON (:func:`evaluation_json`, the shape documented in DESIGN.md, nothing more);
 * one CSV per bag (:func:`write_csv`) and three PNGs per bag (:func:`write_plots`, matplotlib
   with the Agg canvas, imported only when plots are asked for).
@@ -40,13 +40,14 @@ from typing import Sequence
 from gyro_tdc.blocks import block_length, block_mean
 from gyro_tdc.coverage import Coverage, RATE_THRESHOLD_C_PER_MIN, temperature_rate
 from gyro_tdc.evaluation import BagEval, mean_scores
+from gyro_tdc.training import TrainResult
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
     'AXES', 'csv_columns', 'evaluation_json', 'format_allan', 'format_bag', 'format_coverage',
-    'format_means', 'format_paper_table', 'format_summary', 'write_csv', 'write_json',
-    'write_plots',
+    'format_means', 'format_paper_table', 'format_summary', 'format_training', 'write_csv',
+    'write_json', 'write_plots',
 ]
 
 AXES = ('x', 'y', 'z')
@@ -303,6 +304,53 @@ def format_coverage(c: Coverage) -> tuple[str, list]:
         missing = 'cooling' if c.cooling_min == 0 else 'heating'
         warns.append(f'no {missing} data: heating/cooling hysteresis and thermal lag cannot '
                      f'be told apart from static drift; record a {missing} leg too')
+    return '\n'.join(lines), warns
+
+
+# --------------------------------------------------------------------------------------------
+# Training report
+# --------------------------------------------------------------------------------------------
+
+def _row3(label: str, values: Sequence[float]) -> str:
+    """Format one table row of three per-axis numbers."""
+    return f'  {label:<13}' + ''.join(f'{v:>12.4g}' for v in values)
+
+
+def format_training(result: TrainResult) -> tuple[str, list]:
+    """
+    Return the training report and its warnings.
+
+    Parameters
+    ----------
+    result : TrainResult
+        What :func:`gyro_tdc.training.train` returned.
+
+    Returns
+    -------
+    text : str
+        Model summary, training BS raw and compensated per axis, coverage.
+    warnings : list of str
+        Coverage warnings.
+
+    """
+    m = result.model
+    met = m.metrics
+    feats = ', '.join(m.inputs) or 'bias only'
+    params = '; '.join(f'{eid}.{k} = {v:.4g}' for eid, p in sorted(m.effect_params.items())
+                       for k, v in p.items())
+    head = (f'model: {m.kind} f({feats}), '
+            + (f'{m.n_centers} centres, ' if m.kind == 'rbf' else '')
+            + f'T0 = {m.t0_c:.3f} degC' + (f', {params}' if params else ''))
+    lines = [head, f'training data: {len(result.bags)} bag(s), {result.samples} samples',
+             'training bias stability BS, (deg/s)^2:',
+             f'  {"":<13}' + ''.join(f'{a:>12}' for a in AXES),
+             _row3('raw', met.get('raw_bs_dps2', [math.nan] * 3)),
+             _row3('compensated', met.get('train_bs_dps2', [math.nan] * 3)),
+             _row3('RMS (deg/s)', met.get('train_rms_dps', [math.nan] * 3))]
+    if np.any(m.scale != 0):
+        lines.append(_row3('scale (1/C)', m.scale))
+    table, warns = format_coverage(result.coverage)
+    lines.append(table)
     return '\n'.join(lines), warns
 
 

@@ -16,180 +16,28 @@
 ``python -m gyro_tdc train BAG... --out MODEL.yaml``: identify a model from recorded bags.
 
 One run per bag (a folder of bag folders, as ``simulate`` writes for a multi-run scenario,
-expands to its bags); the model is fitted with :func:`gyro_tdc.fitting.fit_model` and written
-with :func:`gyro_tdc.modelfile.save_model`. The report on stdout: training bias stability per
-axis raw and compensated, the temperature range, coverage per temperature bin (with a warning
-naming the bins inside the span with too little data) and minutes heating, cooling and
-steady. Bad input (missing bag or topic, unreadable bag, too small a span, too few samples,
-unknown feature id, bad reference) exits 2 with one line on stderr.
+expands to its bags). The work is :func:`gyro_tdc.training.train`; this module parses the
+arguments and prints the report of :func:`gyro_tdc.report.format_training`: training bias
+stability per axis raw and compensated, the temperature range, coverage per temperature bin
+(with a warning naming the bins inside the span with too little data) and minutes heating,
+cooling and steady. Bad input (missing bag or topic, unreadable bag, too small a span, too
+few samples, unknown feature id, bad reference) exits 2 with one line on stderr.
 """
 
 from __future__ import annotations
 
 import argparse
-from dataclasses import dataclass
-import math
-import os
-from pathlib import Path
 import sys
-from typing import Callable, Optional, Sequence
+from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
 from gyro_tdc.cli.common import finite_float, positive_float, positive_int, run_command
-from gyro_tdc.cli.common import UsageError
-from gyro_tdc.coverage import Coverage, coverage
-from gyro_tdc.dataset import load_runs, MAX_LOSS_FRACTION
 from gyro_tdc.effects import normalise_ids
-from gyro_tdc.fitting import estimate_t0, fit_model
-from gyro_tdc.model import CompensationModel, KINDS
-from gyro_tdc.modelfile import save_model
-from gyro_tdc.report import AXES, format_coverage
-from gyro_tdc.runs import Run
-import numpy as np
+from gyro_tdc.model import KINDS
+from gyro_tdc.report import format_training
+from gyro_tdc.training import train
 
-__all__ = ['TrainResult', 'add_train_options', 'build_parser', 'format_training', 'main',
-           'train', 'train_options']
-
-
-@dataclass
-class TrainResult:
-    """
-    What :func:`train` produced.
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The fitted model (as saved).
-    path : Path
-        Where it was written.
-    coverage : Coverage
-        Temperature and heating/cooling coverage of the training data.
-    bags : list of str
-        The bags trained on.
-    samples : int
-        Training samples.
-
-    """
-
-    model: CompensationModel
-    path: Path
-    coverage: Coverage
-    bags: list
-    samples: int
-
-
-def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
-          features: str | Sequence[str] = ('dT', 'dT2'), kind: str = 'rbf',
-          n_centers: int = 12, refine: bool = False, t0: float | None = None, seed: int = 0,
-          imu_topic: str = '/imu/data_raw', temperature_topic: str = '/imu/temperature',
-          reference: Sequence[float] | None = None,
-          reference_topic: str = '/rate_table/reference', progress: bool = False,
-          bin_c: float = 5.0, command: str = '', max_loss: float = MAX_LOSS_FRACTION,
-          log: Callable[[str], None] | None = None) -> TrainResult:
-    """
-    Load bags, fit a compensation model and save it.
-
-    Parameters
-    ----------
-    bags : sequence of str or PathLike
-        rosbag2 directories (or folders of them), one run each.
-    out : str or PathLike
-        Model file to write.
-    features : str or sequence of str
-        Effect ids (default ``dT,dT2``, the paper's modified model).
-    kind : str
-        ``'rbf'`` or ``'poly'``.
-    n_centers : int
-        RBF centres K.
-    refine : bool
-        Refine centres and widths by nonlinear least squares.
-    t0 : float, optional, degC
-        Reference temperature; default the stable initial temperature of the first bag.
-    seed : int
-        Seed of the centre placement.
-    imu_topic, temperature_topic, reference_topic : str
-        Topics.
-    reference : sequence of 3 float, rad/s, optional
-        Constant reference rate (overrides the reference topic).
-    progress : bool
-        Progress bar while reading.
-    bin_c : float, degC
-        Width of the coverage bins.
-    command : str
-        Command line recorded in the model's ``created``.
-    max_loss : float
-        Largest fraction of a topic's messages that may be unreadable in a bag (see
-        :func:`gyro_tdc.dataset.load_run`).
-    log : callable, optional
-        Receives one line per bag read.
-
-    Returns
-    -------
-    TrainResult
-        The model, where it was written and the coverage of the data.
-
-    """
-    ids = normalise_ids(features)
-    if kind not in KINDS:
-        raise UsageError(f'--kind: expected one of {", ".join(KINDS)}, got {kind!r}')
-    options = {'imu_topic': imu_topic, 'temperature_topic': temperature_topic,
-               'reference': None if reference is None else tuple(reference),
-               'reference_topic': reference_topic, 'progress': progress, 'max_loss': max_loss}
-    runs: list[Run] = load_runs(bags, log=log, **options)
-    names = [r.name for r in runs]
-    if t0 is None:
-        t0 = estimate_t0(runs[0])
-    model = fit_model(runs, kind=kind, features=ids, t0=t0, n_centers=n_centers,
-                      refine=refine, seed=seed,
-                      frame_id=str(runs[0].info.get('frame_id') or 'imu_link'),
-                      created={'command': command, 'bags': names})
-    cov = coverage(runs, bin_c=bin_c)
-    path = save_model(model, out)
-    return TrainResult(model=model, path=path, coverage=cov, bags=names,
-                       samples=sum(len(r) for r in runs))
-
-
-def _row(label: str, values: Sequence[float]) -> str:
-    """Format one table row of three per-axis numbers."""
-    return f'  {label:<13}' + ''.join(f'{v:>12.4g}' for v in values)
-
-
-def format_training(result: TrainResult) -> tuple[str, list]:
-    """
-    Return the training report and its warnings.
-
-    Parameters
-    ----------
-    result : TrainResult
-        What :func:`train` returned.
-
-    Returns
-    -------
-    text : str
-        Model summary, training BS raw and compensated per axis, coverage.
-    warnings : list of str
-        Coverage warnings.
-
-    """
-    m = result.model
-    met = m.metrics
-    feats = ', '.join(m.inputs) or 'bias only'
-    params = '; '.join(f'{eid}.{k} = {v:.4g}' for eid, p in sorted(m.effect_params.items())
-                       for k, v in p.items())
-    head = (f'model: {m.kind} f({feats}), '
-            + (f'{m.n_centers} centres, ' if m.kind == 'rbf' else '')
-            + f'T0 = {m.t0_c:.3f} degC' + (f', {params}' if params else ''))
-    lines = [head, f'training data: {len(result.bags)} bag(s), {result.samples} samples',
-             'training bias stability BS, (deg/s)^2:',
-             f'  {"":<13}' + ''.join(f'{a:>12}' for a in AXES),
-             _row('raw', met.get('raw_bs_dps2', [math.nan] * 3)),
-             _row('compensated', met.get('train_bs_dps2', [math.nan] * 3)),
-             _row('RMS (deg/s)', met.get('train_rms_dps', [math.nan] * 3))]
-    if np.any(m.scale != 0):
-        lines.append(_row('scale (1/C)', m.scale))
-    table, warns = format_coverage(result.coverage)
-    lines.append(table)
-    return '\n'.join(lines), warns
+__all__ = ['add_train_options', 'build_parser', 'main', 'train_options']
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -210,7 +58,8 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
     Add every option of ``train`` but the bags and ``--out`` (model and bag options).
 
     Commands that train (``fleet``) share the options and defaults through this function;
-    :func:`train_options` turns the parsed arguments into keyword options of :func:`train`.
+    :func:`train_options` turns the parsed arguments into keyword options of
+    :func:`gyro_tdc.training.train`.
 
     Parameters
     ----------
@@ -240,7 +89,7 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
 
 def train_options(args: argparse.Namespace) -> dict:
     """
-    Return the keyword options of :func:`train` from arguments of :func:`add_train_options`.
+    Return the keyword options of :func:`gyro_tdc.training.train` from parsed arguments.
 
     Parameters
     ----------

@@ -38,7 +38,6 @@ from typing import Callable, Iterator, Sequence
 
 from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.cli.common import one_line
-from gyro_tdc.cli.train import train
 from gyro_tdc.errors import FleetError, GyroTdcError
 from gyro_tdc.evaluation import evaluate, mean_scores, NamedModel
 from gyro_tdc.fleet.manifest import input_key, SensorSpec
@@ -47,6 +46,7 @@ from gyro_tdc.fleet.stats import DEFAULT_OUTLIER_Z, drift_polynomial, fleet_stat
 from gyro_tdc.fleet.summary import write_summary
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.modelfile import save_model
+from gyro_tdc.training import train
 
 __all__ = ['Engine', 'STATE_DIR', 'SensorOutcome', 'open_engine', 'run_fleet', 'run_sensor']
 
@@ -108,7 +108,7 @@ def run_sensor(spec: SensorSpec, options: dict, *, previous_key: str | None = No
     spec : SensorSpec
         The sensor and its bags (paths as the worker sees them).
     options : dict
-        Keyword options of :func:`gyro_tdc.cli.train.train` (features, kind, topics...);
+        Keyword options of :func:`gyro_tdc.training.train` (features, kind, topics...);
         ``progress`` is ignored (no bar on workers).
     previous_key : str, optional
         Input key of the model already written; when equal to this run's key the sensor is
@@ -288,7 +288,7 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
         Output folder (created): ``<sensor_id>.yaml``, ``summary.json``, ``summary.csv`` and
         the resume state in ``.fleet/``.
     options : dict
-        Keyword options of :func:`gyro_tdc.cli.train.train`, the same for every sensor.
+        Keyword options of :func:`gyro_tdc.training.train`, the same for every sensor.
     engine : Engine
         From :func:`open_engine`.
     force : bool
