@@ -27,6 +27,8 @@ functions here turn them into
 * JSON (:func:`evaluation_json`, the shape documented in DESIGN.md, nothing more);
 * one CSV per bag (:func:`write_csv`) and three PNGs per bag (:func:`write_plots`, matplotlib
   with the Agg canvas, imported only when plots are asked for).
+
+Every file is written atomically (:func:`gyro_tdc.atomicio.atomic_write`).
 """
 
 from __future__ import annotations
@@ -35,8 +37,9 @@ import json
 import math
 import os
 from pathlib import Path
-from typing import Sequence
+from typing import Any, IO, Sequence
 
+from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.blocks import block_length, block_mean
 from gyro_tdc.coverage import Coverage, RATE_THRESHOLD_C_PER_MIN, temperature_rate
 from gyro_tdc.evaluation import BagEval, mean_scores
@@ -105,12 +108,9 @@ def evaluation_json(bags: Sequence[BagEval]) -> dict:
 
 
 def write_json(bags: Sequence[BagEval], path: str | os.PathLike) -> Path:
-    """Write :func:`evaluation_json` to ``path`` (parents created) and return the path."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(json.dumps(evaluation_json(bags), indent=1, allow_nan=False) + '\n',
-                    encoding='utf-8')
-    return path
+    """Write :func:`evaluation_json` to ``path`` atomically (parents created); return it."""
+    return atomic_write(path, json.dumps(evaluation_json(bags), indent=1, allow_nan=False)
+                        + '\n', what='JSON file')
 
 
 # --------------------------------------------------------------------------------------------
@@ -389,17 +389,24 @@ def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000)
     if run is None:
         raise ValueError('Expected `b.run` to hold the data; it was released.')
     path = Path(directory) / f'{b.label}.csv'
-    path.parent.mkdir(parents=True, exist_ok=True)
     cols = csv_columns(b)
     fmt = ['%.6f', '%.6g'] + ['%.9g'] * (len(cols) - 2)
-    with open(path, 'w', encoding='utf-8', newline='\n') as fh:
+
+    def rows(fh: IO[str]) -> None:
         fh.write(','.join(cols) + '\n')
         for i in range(0, len(run), chunk):
             sl = slice(i, i + chunk)
             block = np.column_stack([run.t[sl], run.temp[sl], run.omega[sl], run.omega_ref[sl]]
                                     + [m.omega[sl] for m in b.models])
             np.savetxt(fh, block, fmt=fmt, delimiter=',')
-    return path
+
+    return atomic_write(path, rows, what='CSV file', newline='\n')
+
+
+def _save(fig: Any, path: Path) -> None:
+    """Write a matplotlib figure as a PNG, atomically."""
+    atomic_write(path, lambda fh: fig.savefig(fh, dpi=90, format='png'), binary=True,
+                 what='plot')
 
 
 def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000) -> list:
@@ -462,7 +469,7 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000)
     axs[3].set_xlabel('time (h)')
     axs[3].grid(True, alpha=0.3)
     written.append(out / f'{b.label}_timeseries.png')
-    fig.savefig(written[-1], dpi=90)
+    _save(fig, written[-1])
 
     # 2. residual vs temperature, coloured by heating / cooling
     rate = _bmean(temperature_rate(run.t, run.temp))
@@ -486,7 +493,7 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000)
                 ax.set_xlabel('temperature (degC)')
     axs[0, 0].legend(loc='best', fontsize='small', markerscale=3)
     written.append(out / f'{b.label}_residual_vs_temperature.png')
-    fig.savefig(written[-1], dpi=90)
+    _save(fig, written[-1])
 
     # 3. Allan deviation
     fig = Figure(figsize=(12, 4), constrained_layout=True)
@@ -502,5 +509,5 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000)
     axs[0].set_ylabel('Allan deviation (deg/s)')
     axs[0].legend(loc='best', fontsize='small')
     written.append(out / f'{b.label}_allan.png')
-    fig.savefig(written[-1], dpi=90)
+    _save(fig, written[-1])
     return written

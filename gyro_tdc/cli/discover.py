@@ -26,12 +26,11 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 from pathlib import Path
 import sys
-import tempfile
 from typing import Optional, Sequence
 
+from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
 from gyro_tdc.cli.common import finite_float, positive_float, positive_int, probability
 from gyro_tdc.cli.common import run_command, UsageError
@@ -82,17 +81,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _write_json(doc: dict, path: str | os.PathLike) -> None:
-    """Write ``doc`` as JSON atomically (temporary file + rename)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix='.' + path.name, suffix='.tmp')
-    with os.fdopen(fd, 'w', encoding='utf-8') as fh:
-        json.dump(doc, fh, indent=1)
-        fh.write('\n')
-    os.replace(tmp, path)
-
-
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``discover`` with parsed arguments; print the summary, write the outputs."""
     base = normalise_ids(args.base)            # fail on a bad id before reading any bag
@@ -116,7 +104,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         path = write_report(result, args.report)
         print(f'wrote report {path}')
     if args.json_out is not None:
-        _write_json(result.to_json(model_file), args.json_out)
+        atomic_write(args.json_out, json.dumps(result.to_json(model_file), indent=1) + '\n',
+                     what='JSON file')
         print(f'wrote {args.json_out}')
     return 0
 
