@@ -42,6 +42,7 @@ import math
 from types import MappingProxyType
 from typing import Mapping, NamedTuple, Sequence
 
+from gyro_tdc.effects import STATIC_EFFECTS
 from gyro_tdc.model import CompensationModel, StreamingCompensator
 from gyro_tdc.paramspec import ParamSpec, spec_dataclass
 import numpy as np
@@ -64,10 +65,8 @@ FLAG_NAMES = {STALE: 'temperature stale', OUT_OF_RANGE: 'temperature out of mode
 
 Vec3 = tuple[float, float, float]
 
-#: Effects whose streaming feature depends on the current temperature only (not on time or
-#: on the history): a model made of these has a drift that changes only when the
-#: temperature does, so the compensator evaluates it once per thermometer sample.
-STATIC_EFFECTS = frozenset(('bias', 'dT', 'dT2', 'dT3', 'scale'))
+# STATIC_EFFECTS (from the effect library): a model made of these has a drift that changes
+# only when the temperature does, so the compensator evaluates it once per thermometer sample.
 
 
 def describe_flags(flags: int) -> str:

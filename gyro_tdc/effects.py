@@ -13,39 +13,182 @@
 # limitations under the License.
 
 """
-The effect catalog: named, physically described terms of the temperature drift.
+The effect library: named, physically described terms of the temperature drift.
 
-Each effect has a stable id (used in model files and on the command line), a physical
-description, the experiment that excites it, its parameters with defaults, and a feature
-computed in two forms that agree to floating-point precision:
+Each :class:`Effect` is one catalog entry that carries everything about the term (in the
+spirit of pysindy's feature libraries, where each term owns its function): a stable id (used
+in model files and on the command line), the physics, the experiment that excites it, its
+parameters with defaults and search bounds, its flags, and its feature in two forms that
+agree to floating-point precision:
 
-* batch, :func:`batch_features`, over a whole run (training, evaluation, discovery);
-* streaming, :class:`StreamingFeatures`, one sample at a time (the compensator node).
+* batch, ``Effect.batch(series, params)``, over a whole run (training, evaluation,
+  discovery), gathered by :func:`batch_features`;
+* streaming, ``Effect.stream(params, t0)``, a small stateful step called one sample at a time
+  (the compensator node), gathered by :class:`StreamingFeatures`.
 
 Two effects are not inputs of the drift network: ``bias`` is the constant term every model
 has, and ``scale`` multiplies the true rate (sensitivity change, handled by the model).
+
+Everything else about an effect is derived from the catalog: the column layout
+(:data:`INPUT_ORDER`), the effects without time memory (:data:`STATIC_EFFECTS`), those with
+fitted parameters (:data:`NONLINEAR_EFFECTS`), those that need a temperature span
+(:data:`TEMPERATURE_EFFECTS`) or a rate-table reference (:data:`REFERENCE_EFFECTS`). Adding an
+effect is one entry in :data:`EFFECTS` (appended, so existing model files keep their column
+layout) and its tests.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 from gyro_tdc.errors import FeatureError
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
-    'EFFECTS', 'Effect', 'StreamingFeatures', 'batch_features', 'first_order_lag',
-    'input_ids', 'normalise_ids', 'resolve_params',
+    'EFFECT_IDS', 'EFFECTS', 'Effect', 'INPUT_ORDER', 'NONLINEAR_EFFECTS', 'REFERENCE_EFFECTS',
+    'STATIC_EFFECTS', 'Series', 'StreamStep', 'StreamingFeatures', 'TEMPERATURE_EFFECTS',
+    'batch_features', 'first_order_lag', 'input_ids', 'normalise_ids', 'resolve_params',
 ]
+
+#: Input holds of :func:`first_order_lag`.
+HOLDS = ('step', 'linear')
+
+
+def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str = 'step',
+                    y0: float | None = None) -> NDArray[np.float64]:
+    """
+    Filter ``u`` through the first-order lag ``tau dy/dt = u - y``.
+
+    With ``a_k = exp(-(t[k] - t[k-1]) / tau)`` the two input holds are
+
+    * ``'step'``: ``u`` jumps to ``u[k]`` just after ``t[k-1]`` and holds,
+      ``y[k] = a_k y[k-1] + (1 - a_k) u[k]``; exactly what :class:`StreamingFeatures` does one
+      sample at a time (a feature can only use samples already received);
+    * ``'linear'``: ``u`` is linear between samples (first-order hold),
+      ``y[k] = a_k y[k-1] + (1 - c_k) u[k] + (c_k - a_k) u[k-1]`` with
+      ``c_k = tau (1 - a_k) / (t[k] - t[k-1])``; exact for ramps (the simulator's heat
+      conduction).
+
+    Stamps run as a parallel prefix scan in numpy, so irregular stamps cost no Python loop; a
+    uniform grid with the linear hold runs through ``scipy.signal.lfilter``.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (N,), s, or float
+        Stamps, non-decreasing (a stamp before the previous one counts as no time step); or
+        the step of a uniform grid ``k * t``, > 0.
+    u : ArrayLike, shape (N,)
+        Input signal.
+    tau : float, s
+        Time constant, >= 0; 0 returns a copy of ``u``.
+    hold : {'step', 'linear'}
+        How ``u`` behaves between samples.
+    y0 : float, optional
+        Initial output; ``u[0]`` (settled) when None.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N,)
+        The lagged signal.
+
+    """
+    u = np.asarray(u, dtype=np.float64)
+    if u.ndim != 1:
+        raise ValueError(f'Expected `u` to have shape (N,), got {u.shape}.')
+    if not (math.isfinite(tau) and tau >= 0.0):
+        raise ValueError(f'Expected `tau` to be a finite number >= 0, got {tau!r}.')
+    if hold not in HOLDS:
+        raise ValueError(f'Expected `hold` to be one of {", ".join(HOLDS)}, got {hold!r}.')
+    uniform = np.ndim(t) == 0
+    if uniform:
+        dt = float(t)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f'Expected the uniform step `t` (dt) to be a finite number > 0, '
+                             f'got {t!r}.')
+    else:
+        t = np.asarray(t, dtype=np.float64)
+        if t.shape != u.shape:
+            raise ValueError(f'Expected `t` of shape {u.shape} like `u`, got {t.shape}.')
+    n = u.shape[0]
+    if tau == 0.0 or n == 0:
+        return u.copy()
+    start = u[0] if y0 is None else float(y0)
+    y = np.empty(n)
+    y[0] = start
+    if n == 1:
+        return y
+    if uniform and hold == 'linear':
+        from scipy.signal import lfilter
+        a = math.exp(-dt / tau)
+        c = tau * -math.expm1(-dt / tau) / dt
+        # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]
+        b0, b1 = 1.0 - c, c - a
+        y[1:], _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=np.array([b1 * u[0] + a * start]))
+        return y
+    step = np.full(n - 1, dt) if uniform else np.maximum(np.diff(t), 0.0)
+    a = np.exp(-step / tau)
+    if hold == 'step':
+        b = (1.0 - a) * u[1:]
+    else:
+        with np.errstate(divide='ignore', invalid='ignore'):
+            c = np.where(step > 0.0, tau * -np.expm1(-step / tau) / step, 1.0)
+        b = (1.0 - c) * u[1:] + (c - a) * u[:-1]
+    # y[k] = a_k y[k-1] + b_k as a prefix scan of the affine maps (a, b).
+    shift = 1
+    m = a.shape[0]
+    while shift < m:
+        b[shift:] = a[shift:] * b[:-shift] + b[shift:]
+        a[shift:] = a[shift:] * a[:-shift]
+        shift *= 2
+        if shift < m and a[shift - 1:].max() < 1e-17:
+            break
+    y[1:] = a * start + b
+    return y
+
+
+@dataclass(frozen=True)
+class Series:
+    """
+    The signals of one continuous run that batch features are computed from.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (N,), s
+        Stamps (filters start at ``t[0]``).
+    temp : NDArray[np.float64], shape (N,), degC
+        Temperature at each stamp.
+    t0 : float, degC
+        Reference temperature.
+    d : NDArray[np.float64], shape (N,), degC
+        ``temp - t0``.
+    t_start : float, s
+        Power-on time.
+
+    """
+
+    t: NDArray[np.float64]
+    temp: NDArray[np.float64]
+    t0: float
+    d: NDArray[np.float64]
+    t_start: float
+
+
+#: A batch feature: ``(series, params) -> column (N,)``.
+BatchFeature = Callable[[Series, Mapping[str, float]], NDArray[np.float64]]
+#: One streaming step: ``(t, dt_s, temp, d, first) -> value``, with ``dt_s`` the time since
+#: the previous sample (0 on the first, ``first`` True), ``d = temp - t0``.
+StreamStep = Callable[[float, float, float, float, bool], float]
+#: Builds a fresh streaming step (its own filter state): ``(params, t0) -> StreamStep``.
+StreamFactory = Callable[[Mapping[str, float], float], StreamStep]
 
 
 @dataclass(frozen=True)
 class Effect:
     """
-    One physical effect of the catalog.
+    One physical effect of the catalog: its description, parameters, flags and feature.
 
     Parameters
     ----------
@@ -64,7 +207,21 @@ class Effect:
     bounds : Mapping[str, tuple of float]
         Search bounds of the fitted parameters.
     is_input : bool
-        True when the feature is an input of the drift network.
+        True when the feature is an input of the drift network (then ``batch`` and
+        ``stream`` are given; ``bias`` and ``scale`` have neither).
+    batch : callable, optional
+        ``batch(series, params) -> NDArray (N,)``: the feature over a run.
+    stream : callable, optional
+        ``stream(params, t0) -> step``: a fresh stateful step, ``step(t, dt_s, temp, d,
+        first) -> float``, equal to ``batch`` sample by sample.
+    static : bool
+        No time memory: the effect depends on the current temperature (and rate) alone.
+        False by default, the safe side: the compensator re-evaluates a model with any
+        non-static effect at every sample.
+    needs_span : bool
+        Identifiable only from data that span a range of temperatures.
+    needs_reference : bool
+        Identifiable only with a non-zero reference rate (rate-table data).
 
     """
 
@@ -76,42 +233,136 @@ class Effect:
     fitted: tuple[str, ...] = ()
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
     is_input: bool = True
+    batch: BatchFeature | None = field(default=None, repr=False, compare=False)
+    stream: StreamFactory | None = field(default=None, repr=False, compare=False)
+    static: bool = False
+    needs_span: bool = True
+    needs_reference: bool = False
+
+    def __post_init__(self) -> None:
+        """Check that the entry is complete and consistent."""
+        forms = (self.batch is not None, self.stream is not None)
+        if forms != (self.is_input, self.is_input):
+            raise FeatureError(f'Effect {self.id!r}: a network input needs both a batch and a '
+                               'streaming feature, a non-input neither.')
+        missing = [k for k in self.fitted if k not in self.params or k not in self.bounds]
+        if missing:
+            raise FeatureError(f'Effect {self.id!r}: fitted parameter(s) {missing} need a '
+                               'default and bounds.')
+
+
+# ----------------------------------------------------------------------------- features
+# Static effects: the streaming step is elementwise in d = T - T0, so the same function maps
+# a whole run's arrays (batch) and one sample's floats (stream), in one call per sample.
+
+
+def _static(step: StreamStep) -> dict:
+    """Return the forms of a stateless step elementwise in ``d``, flagged ``static``."""
+    def batch(s: Series, p: Mapping[str, float]) -> NDArray[np.float64]:
+        return step(s.t, 0.0, s.temp, s.d, False)
+
+    def stream(p: Mapping[str, float], t0: float) -> StreamStep:
+        return step
+    return {'batch': batch, 'stream': stream, 'static': True}
+
+
+# Lagged effects: a function ``out(T, T_lag, tau, T0)`` of the first-order-lagged
+# temperature (tau_s), the lag run by first_order_lag (batch) or its recursion (streaming).
+
+
+def _of_lag(out: Callable) -> dict:
+    """Return both forms of a feature ``out(T, T_lag, tau, T0)`` of the lagged temperature."""
+    def batch(s: Series, p: Mapping[str, float]) -> NDArray[np.float64]:
+        tau = p['tau_s']
+        return out(s.temp, first_order_lag(s.t, s.temp, tau), tau, s.t0)
+
+    def stream(p: Mapping[str, float], t0: float) -> StreamStep:
+        tau = p['tau_s']
+        y = 0.0
+
+        def step(t: float, dt_s: float, temp: float, d: float, first: bool) -> float:
+            nonlocal y
+            if first:
+                y = temp
+            else:
+                a = math.exp(-dt_s / tau)
+                y = a * y + (1.0 - a) * temp
+            return out(temp, y, tau, t0)
+        return step
+    return {'batch': batch, 'stream': stream}
+
+
+def _warmup() -> dict:
+    """Return both forms of ``exp(-(t - t_power_on) / tau_s)``."""
+    def batch(s: Series, p: Mapping[str, float]) -> NDArray[np.float64]:
+        return np.exp(-(s.t - s.t_start) / p['tau_s'])
+
+    def stream(p: Mapping[str, float], t0: float) -> StreamStep:
+        tau = p['tau_s']
+        start = 0.0
+
+        def step(t: float, dt_s: float, temp: float, d: float, first: bool) -> float:
+            nonlocal start
+            if first:
+                start = t
+            return math.exp(-(t - start) / tau)
+        return step
+    return {'batch': batch, 'stream': stream}
 
 
 EFFECTS: dict[str, Effect] = {e.id: e for e in (
     Effect('bias', 'Zero-rate offset: the output at zero rate and the reference temperature.',
-           '1', 'anything', is_input=False),
+           '1', 'anything', is_input=False, static=True, needs_span=False),
     Effect('dT', 'Zero-rate level change vs temperature (paper eq. 18, alpha): the drive-mode '
            'resonance shifts as the silicon stiffness changes with temperature.',
-           'dT = T - T0', 'a temperature span'),
+           'dT = T - T0', 'a temperature span',
+           **_static(lambda t, dt_s, temp, d, first: d)),
     Effect('dT2', 'Comb gap and capacitance deformation by thermal expansion (paper eq. 15): '
            'the sensing capacitance error grows with the square of the temperature change.',
-           'dT^2', 'a temperature span (centred dT)'),
+           'dT^2', 'a temperature span (centred dT)',
+           **_static(lambda t, dt_s, temp, d, first: d * d)),
     Effect('dT3', 'Higher-order curvature of the zero-rate level (the PX4/ArduPilot cubic).',
-           'dT^3', 'a wide temperature span'),
+           'dT^3', 'a wide temperature span',
+           **_static(lambda t, dt_s, temp, d, first: d * d * d)),
     Effect('dTdt', 'Thermal gradient across the die: the output depends on how fast the '
            'temperature changes, so heating and cooling differ (hysteresis).',
            'dT/dt of T smoothed by a first-order filter (tau_s), degC/s',
-           'heating and cooling legs at varied rates', params={'tau_s': 60.0}),
+           'heating and cooling legs at varied rates', params={'tau_s': 60.0},
+           **_of_lag(lambda temp, lag, tau, t0: (temp - lag) / tau)),
     Effect('lag', 'Heat conduction between the thermometer and the MEMS die (paper eq. 24): '
            'the die follows the measured temperature with a first-order lag tau_s.',
            'dT of the first-order-lagged T (tau_s fitted)',
            'steps, soaks, heating and cooling', params={'tau_s': 120.0}, fitted=('tau_s',),
-           bounds={'tau_s': (1.0, 20000.0)}),
+           bounds={'tau_s': (1.0, 20000.0)},
+           **_of_lag(lambda temp, lag, tau, t0: lag - t0)),
     Effect('scale', 'Sensitivity change vs temperature (paper eq. 18, beta): the scale factor '
            'is (1 + s dT); removed at run time from the measured rate, '
            'omega = (omega_raw - b) / (1 + s dT).',
            'dT * omega_ref (training); measured rate at run time',
-           'rate-table steps at several rates and temperatures', is_input=False),
+           'rate-table steps at several rates and temperatures', is_input=False,
+           static=True, needs_reference=True),
     Effect('warmup', 'Self-heating after power-on that the thermometer does not see: a drift '
            'that decays with the warm-up time constant tau_s.',
            'exp(-(t - t_power_on) / tau_s) (tau_s fitted)',
            'power-on at a fixed ambient temperature, then a soak',
-           params={'tau_s': 300.0}, fitted=('tau_s',), bounds={'tau_s': (5.0, 20000.0)}),
+           params={'tau_s': 300.0}, fitted=('tau_s',), bounds={'tau_s': (5.0, 20000.0)},
+           needs_span=False, **_warmup()),
 )}
 
-#: Order in which network inputs are laid out in a feature matrix.
-_INPUT_ORDER = ('dT', 'dT2', 'dT3', 'dTdt', 'lag', 'warmup')
+#: Every effect id, in catalog order.
+EFFECT_IDS: tuple[str, ...] = tuple(EFFECTS)
+#: Order in which network inputs are laid out in a feature matrix (catalog order).
+INPUT_ORDER: tuple[str, ...] = tuple(e.id for e in EFFECTS.values() if e.is_input)
+#: Effects without time memory: a function of the current temperature (and rate) only.
+STATIC_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.static)
+#: Effects with fitted parameters (the lag and warm-up time constants): the feature is
+#: nonlinear in them, so a fit searches them around the linear solve.
+NONLINEAR_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.fitted)
+#: Effects identifiable only from data that span a range of temperatures.
+TEMPERATURE_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.needs_span)
+#: Effects identifiable only with a non-zero reference rate.
+REFERENCE_EFFECTS: frozenset[str] = frozenset(
+    e.id for e in EFFECTS.values() if e.needs_reference)
 
 
 def normalise_ids(ids: str | Sequence[str]) -> tuple[str, ...]:
@@ -141,8 +392,7 @@ def normalise_ids(ids: str | Sequence[str]) -> tuple[str, ...]:
 
 def input_ids(ids: Sequence[str]) -> tuple[str, ...]:
     """Return the ids among ``ids`` that are inputs of the drift network, in layout order."""
-    chosen = set(normalise_ids(ids))
-    return tuple(i for i in _INPUT_ORDER if i in chosen)
+    return tuple(i for i in normalise_ids(ids) if EFFECTS[i].is_input)
 
 
 def resolve_params(ids: Sequence[str],
@@ -183,53 +433,6 @@ def resolve_params(ids: Sequence[str],
     return out
 
 
-def first_order_lag(t: NDArray[np.float64], u: NDArray[np.float64],
-                    tau: float) -> NDArray[np.float64]:
-    """
-    Filter ``u`` through a first-order lag with time constant ``tau`` on stamps ``t``.
-
-    The recursion is ``y[0] = u[0]``, ``y[k] = a_k y[k-1] + (1 - a_k) u[k]`` with
-    ``a_k = exp(-(t[k] - t[k-1]) / tau)``, exactly what :class:`StreamingFeatures` does one
-    sample at a time. It is evaluated as a parallel prefix scan in numpy, so irregular stamps
-    cost no Python loop.
-
-    Parameters
-    ----------
-    t : NDArray[np.float64], shape (N,), s
-        Stamps, non-decreasing.
-    u : NDArray[np.float64], shape (N,)
-        Input signal.
-    tau : float, s
-        Time constant, > 0.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N,)
-        The lagged signal.
-
-    """
-    u = np.asarray(u, dtype=np.float64)
-    n = u.shape[0]
-    y = np.empty(n)
-    if n == 0:
-        return y
-    y[0] = u[0]
-    if n == 1:
-        return y
-    a = np.exp(-np.maximum(np.diff(np.asarray(t, dtype=np.float64)), 0.0) / tau)
-    b = (1.0 - a) * u[1:]
-    shift = 1
-    m = a.shape[0]
-    while shift < m:
-        b[shift:] = a[shift:] * b[:-shift] + b[shift:]
-        a[shift:] = a[shift:] * a[:-shift]
-        shift *= 2
-        if shift < m and a[shift - 1:].max() < 1e-17:
-            break
-    y[1:] = a * u[0] + b
-    return y
-
-
 def batch_features(ids: Sequence[str], t: NDArray[np.float64], temp: NDArray[np.float64], *,
                    t0: float, params: Mapping[str, Mapping[str, float]] | None = None,
                    t_start: float | None = None) -> NDArray[np.float64]:
@@ -265,22 +468,10 @@ def batch_features(ids: Sequence[str], t: NDArray[np.float64], temp: NDArray[np.
     cols = input_ids(ids)
     p = resolve_params(cols, params)
     out = np.empty((t.shape[0], len(cols)))
-    dt_ = temp - t0
+    start = t[0] if t_start is None and t.shape[0] else (t_start or 0.0)
+    series = Series(t=t, temp=temp, t0=t0, d=temp - t0, t_start=start)
     for j, eid in enumerate(cols):
-        if eid == 'dT':
-            out[:, j] = dt_
-        elif eid == 'dT2':
-            out[:, j] = dt_ * dt_
-        elif eid == 'dT3':
-            out[:, j] = dt_ * dt_ * dt_
-        elif eid == 'dTdt':
-            tau = p[eid]['tau_s']
-            out[:, j] = (temp - first_order_lag(t, temp, tau)) / tau
-        elif eid == 'lag':
-            out[:, j] = first_order_lag(t, temp, p[eid]['tau_s']) - t0
-        elif eid == 'warmup':
-            start = t[0] if t_start is None and t.shape[0] else (t_start or 0.0)
-            out[:, j] = np.exp(-(t - start) / p[eid]['tau_s'])
+        out[:, j] = EFFECTS[eid].batch(series, p.get(eid, {}))
     return out
 
 
@@ -309,8 +500,8 @@ class StreamingFeatures:
     def reset(self) -> None:
         """Forget the filter states (a new run starts with the next sample)."""
         self._t_prev: float | None = None
-        self._t_start = 0.0
-        self._lag: dict[str, float] = {}
+        self._steps = [EFFECTS[eid].stream(self.params.get(eid, {}), self.t0)
+                       for eid in self.ids]
 
     def update(self, t: float, temp: float) -> NDArray[np.float64]:
         """
@@ -331,27 +522,9 @@ class StreamingFeatures:
         """
         first = self._t_prev is None
         dt_s = 0.0 if first else max(t - self._t_prev, 0.0)
-        if first:
-            self._t_start = t
         self._t_prev = t if first else max(t, self._t_prev)
-        out = np.empty(len(self.ids))
+        out = np.empty(len(self._steps))
         d = temp - self.t0
-        for j, eid in enumerate(self.ids):
-            if eid == 'dT':
-                out[j] = d
-            elif eid == 'dT2':
-                out[j] = d * d
-            elif eid == 'dT3':
-                out[j] = d * d * d
-            elif eid in ('dTdt', 'lag'):
-                tau = self.params[eid]['tau_s']
-                if first:
-                    y = temp
-                else:
-                    a = math.exp(-dt_s / tau)
-                    y = a * self._lag[eid] + (1.0 - a) * temp
-                self._lag[eid] = y
-                out[j] = (temp - y) / tau if eid == 'dTdt' else y - self.t0
-            elif eid == 'warmup':
-                out[j] = math.exp(-(t - self._t_start) / self.params[eid]['tau_s'])
+        for j, step in enumerate(self._steps):
+            out[j] = step(t, dt_s, temp, d, first)
         return out

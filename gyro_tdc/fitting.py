@@ -43,7 +43,8 @@ import warnings
 
 from gyro_tdc import __version__
 from gyro_tdc.blocks import block_counts, block_length, block_mean, block_sumsq
-from gyro_tdc.effects import batch_features, EFFECTS, input_ids, normalise_ids, resolve_params
+from gyro_tdc.effects import (batch_features, EFFECTS, input_ids, normalise_ids,
+                              REFERENCE_EFFECTS, resolve_params, TEMPERATURE_EFFECTS)
 from gyro_tdc.errors import FitError
 from gyro_tdc.model import CompensationModel, KINDS, rbf_design
 from gyro_tdc.runs import Run
@@ -502,16 +503,16 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str]) -> None:
         for key in ('temp', 'omega', 'omega_ref'):
             if not np.all(np.isfinite(getattr(r, key))):
                 raise FitError(f'Run {r.name!r} has non-finite values in `{key}`.')
-    temp_ids = {'dT', 'dT2', 'dT3', 'dTdt', 'lag', 'scale'}
-    if temp_ids & set(ids):
+    if TEMPERATURE_EFFECTS & set(ids):
         lo = min(float(r.temp.min()) for r in runs)
         hi = max(float(r.temp.max()) for r in runs)
         if hi - lo < MIN_SPAN_C:
             raise FitError(f'Temperature span too small to fit: {hi - lo:.3f} degC '
                            f'(need at least {MIN_SPAN_C} degC).')
-    if 'scale' in ids and not any(np.any(np.abs(r.omega_ref) > 1e-9) for r in runs):
-        raise FitError('Effect `scale` needs a non-zero reference rate (rate-table data); '
-                       'every training run has omega_ref = 0.')
+    needs_ref = sorted(REFERENCE_EFFECTS & set(ids))
+    if needs_ref and not any(np.any(np.abs(r.omega_ref) > 1e-9) for r in runs):
+        raise FitError(f'Effect `{needs_ref[0]}` needs a non-zero reference rate (rate-table '
+                       'data); every training run has omega_ref = 0.')
 
 
 def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.sim import first_order_lag, Profile, Scenario, simulate_run, simulate_thermal
+from gyro_tdc.sim import Profile, Scenario, simulate_run, simulate_thermal
 from gyro_tdc.sim.chamber import hold_segment, ramp_segment, step_segment
 import numpy as np
 import pytest
@@ -33,28 +33,6 @@ def test_step_response_reaches_63_percent_at_tau():
     # The jump is spread over one 0.1 s grid interval: at most a 0.05 s shift.
     np.testing.assert_allclose(package, expected, atol=10.0 * 0.1 / 50.0)
     assert (package[1] - 20.0) / 10.0 == pytest.approx(1.0 - math.exp(-1.0), abs=2e-3)
-
-
-def test_lag_is_exact_for_a_ramp():
-    dt, tau, rate = 0.5, 37.0, 0.02
-    t = np.arange(2000) * dt
-    y = first_order_lag(rate * t, dt=dt, tau=tau)
-    exact = rate * (t - tau * (1.0 - np.exp(-t / tau)))
-    np.testing.assert_allclose(y, exact, atol=1e-10)
-
-
-def test_lag_with_zero_tau_passes_through_and_starts_settled():
-    u = np.array([1.0, 2.0, 5.0])
-    np.testing.assert_array_equal(first_order_lag(u, dt=1.0, tau=0.0), u)
-    assert first_order_lag(u, dt=1.0, tau=10.0)[0] == 1.0
-    assert first_order_lag(u, dt=1.0, tau=10.0, y0=-3.0)[0] == -3.0
-
-
-@pytest.mark.parametrize('kwargs, name', [({'dt': 0.0, 'tau': 1.0}, 'dt'),
-                                          ({'dt': 1.0, 'tau': -1.0}, 'tau')])
-def test_lag_rejects_bad_arguments(kwargs, name):
-    with pytest.raises(ValueError, match=name):
-        first_order_lag(np.zeros(3), **kwargs)
 
 
 def test_cascade_die_trails_package_by_rate_times_tau_on_a_ramp():

@@ -34,7 +34,7 @@ from gyro_tdc.sim.scenario import EFFECT_IDS, list_scenarios, load_scenario, Sce
 from gyro_tdc.sim.scenario import scenario_dir
 from gyro_tdc.sim.simulator import SimRun, SimTruth, simulate_run, simulate_scenario, to_run
 from gyro_tdc.sim.stream import SimStream
-from gyro_tdc.sim.thermal import first_order_lag, simulate_thermal, ThermalHistory
+from gyro_tdc.sim.thermal import simulate_thermal, ThermalHistory
 
 __all__ = [
     'EFFECT_IDS',
@@ -46,7 +46,6 @@ __all__ = [
     'SimTruth',
     'StaircasePlan',
     'ThermalHistory',
-    'first_order_lag',
     'heat_conduction_time_s',
     'list_scenarios',
     'load_scenario',

@@ -16,11 +16,13 @@
 Heat conduction: chamber set point -> air -> package -> MEMS die, as first-order lags.
 
 Each stage obeys ``tau dy/dt = u - y``. It is integrated on a uniform internal grid with the
-exact first-order-hold discretisation, so a stage is exact at the grid nodes whenever its
-input is linear between them (the set point of ramps and holds whose breakpoints fall on the
-grid). A staircase jump between two nodes is spread over that one interval, which shifts the
-response by at most half a grid step (0.05 s at the default 0.1 s). The recursion runs in
-``scipy.signal.lfilter``: a 7 h run on a 0.1 s grid (252,000 nodes) takes milliseconds.
+exact first-order-hold discretisation (:func:`gyro_tdc.effects.first_order_lag`, the one
+first-order lag of the package, with ``hold='linear'``), so a stage is exact at the grid
+nodes whenever its input is linear between them (the set point of ramps and holds whose
+breakpoints fall on the grid). A staircase jump between two nodes is spread over that one
+interval, which shifts the response by at most half a grid step (0.05 s at the default
+0.1 s). On a uniform grid the recursion runs in ``scipy.signal.lfilter``: a 7 h run on a
+0.1 s grid (252,000 nodes) takes milliseconds.
 """
 
 from __future__ import annotations
@@ -28,59 +30,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
+from gyro_tdc.effects import first_order_lag
 from gyro_tdc.sim.chamber import Profile
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from scipy.signal import lfilter
 
-__all__ = ['ThermalHistory', 'first_order_lag', 'simulate_thermal']
-
-
-def first_order_lag(u: ArrayLike, *, dt: float, tau: float,
-                    y0: float | None = None) -> NDArray[np.float64]:
-    """
-    Return the response of ``tau dy/dt = u - y`` to ``u`` sampled on a uniform grid.
-
-    Exact at the grid nodes when ``u`` is linear between them (first-order hold).
-
-    Parameters
-    ----------
-    u : ArrayLike, shape (N,)
-        Input at ``t_k = k dt``.
-    dt : float, s
-        Grid step, > 0.
-    tau : float, s
-        Time constant, >= 0; 0 returns a copy of ``u``.
-    y0 : float, optional
-        Initial output; ``u[0]`` (settled) when None.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N,)
-        Output at the grid nodes.
-
-    """
-    u = np.asarray(u, dtype=np.float64)
-    if u.ndim != 1:
-        raise ValueError(f'Expected `u` to have shape (N,), got {u.shape}.')
-    if not (math.isfinite(dt) and dt > 0.0):
-        raise ValueError(f'Expected `dt` to be a finite number > 0, got {dt!r}.')
-    if not (math.isfinite(tau) and tau >= 0.0):
-        raise ValueError(f'Expected `tau` to be a finite number >= 0, got {tau!r}.')
-    if tau == 0.0 or u.size == 0:
-        return u.copy()
-    start = float(u[0]) if y0 is None else float(y0)
-    a = math.exp(-dt / tau)
-    one_minus_a = -math.expm1(-dt / tau)
-    c = tau * one_minus_a / dt
-    # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]
-    b0, b1 = 1.0 - c, c - a
-    y = np.empty_like(u)
-    y[0] = start
-    if u.size > 1:
-        zi = np.array([b1 * u[0] + a * start])
-        y[1:], _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=zi)
-    return y
+__all__ = ['ThermalHistory', 'simulate_thermal']
 
 
 @dataclass(frozen=True)
@@ -185,13 +140,13 @@ def simulate_thermal(profile: Profile, *, duration_s: float, dt: float = 0.1,
         t = np.append(t, t[-1] + dt)
     setpoint = profile.value(t)
     setpoint_rate = profile.slope(t)
-    air = first_order_lag(setpoint, dt=dt, tau=tau_air_s)
+    air = first_order_lag(dt, setpoint, tau_air_s, hold='linear')
     air_rate = _rate(setpoint, air, tau_air_s, setpoint_rate)
-    package = first_order_lag(air, dt=dt, tau=tau_package_s)
+    package = first_order_lag(dt, air, tau_package_s, hold='linear')
     package_rate = _rate(air, package, tau_package_s, air_rate)
-    die = first_order_lag(package, dt=dt, tau=tau_die_s)
+    die = first_order_lag(dt, package, tau_die_s, hold='linear')
     die_rate = _rate(package, die, tau_die_s, package_rate)
     source = package if thermometer_location == 'package' else die
-    thermometer = first_order_lag(source, dt=dt, tau=thermometer_tau_s)
+    thermometer = first_order_lag(dt, source, thermometer_tau_s, hold='linear')
     return ThermalHistory(t=t, setpoint_c=setpoint, air_c=air, package_c=package, die_c=die,
                           die_rate_c_per_s=die_rate, thermometer_c=thermometer)
