@@ -173,12 +173,17 @@ def bag_options(args: argparse.Namespace) -> dict:
 # argparse types: a bad value becomes one line naming the option (exit 2)
 # --------------------------------------------------------------------------------------------
 
+def _number(text: str) -> float:
+    """Return ``text`` as a float, NaN when it is not a number."""
+    try:
+        return float(text)
+    except ValueError:
+        return math.nan
+
+
 def finite_float(text: str) -> float:
     """Parse a finite number (argparse type)."""
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
+    v = _number(text)
     if not math.isfinite(v):
         raise argparse.ArgumentTypeError(f'expected a finite number, got {text!r}')
     return v
@@ -194,10 +199,7 @@ def positive_float(text: str) -> float:
 
 def non_negative_float(text: str) -> float:
     """Parse a finite number >= 0 (argparse type)."""
-    try:
-        v = float(text)
-    except ValueError:
-        v = math.nan
+    v = _number(text)
     if not (math.isfinite(v) and v >= 0):
         raise argparse.ArgumentTypeError(f'expected a number >= 0, got {text!r}')
     return v

@@ -204,20 +204,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """
-    Run ``python -m gyro_tdc demo [--out DIR] [--live-seconds S] [--skip-live]``.
-
-    Parameters
-    ----------
-    argv : sequence of str, optional
-        Arguments after the command name (``sys.argv[1:]`` when None).
-
-    Returns
-    -------
-    int
-        0 on success, 2 when a step fails or on bad input (one line on stderr).
-
-    """
+    """Run ``python -m gyro_tdc demo``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('demo', build_parser, _run, argv)
 
 

@@ -111,20 +111,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """
-    Run ``python -m gyro_tdc discover``.
-
-    Parameters
-    ----------
-    argv : sequence of str, optional
-        Arguments after the command name (``sys.argv[1:]`` when None).
-
-    Returns
-    -------
-    int
-        0 on success, 2 on bad input (one line on stderr).
-
-    """
+    """Run ``python -m gyro_tdc discover``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('discover', build_parser, _run, argv)
 
 

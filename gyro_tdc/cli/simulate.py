@@ -139,20 +139,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """
-    Run ``python -m gyro_tdc simulate``.
-
-    Parameters
-    ----------
-    argv : sequence of str, optional
-        Arguments after the command name; ``sys.argv[1:]`` when None.
-
-    Returns
-    -------
-    int
-        0 on success, 2 on bad input (after one line on stderr).
-
-    """
+    """Run ``python -m gyro_tdc simulate``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('simulate', build_parser, _run, argv)
 
 

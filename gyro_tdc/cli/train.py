@@ -127,20 +127,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """
-    Run ``python -m gyro_tdc train``.
-
-    Parameters
-    ----------
-    argv : sequence of str, optional
-        Arguments after the command name (``sys.argv[1:]`` when None).
-
-    Returns
-    -------
-    int
-        0 on success, 2 on bad input (one line on stderr).
-
-    """
+    """Run ``python -m gyro_tdc train``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('train', build_parser, _run, argv)
 
 
