@@ -29,7 +29,7 @@ from typing import Callable, Mapping, Sequence
 
 from gyro_tdc.blocks import block_counts, block_sum
 from gyro_tdc.discover.stats import COLLINEAR, rel_residual
-from gyro_tdc.effects import batch_features, EFFECTS
+from gyro_tdc.effects import batch_features, EFFECTS, input_ids, STATIC_EFFECTS
 from gyro_tdc.errors import FitError
 from gyro_tdc.runs import Run
 import numpy as np
@@ -38,7 +38,7 @@ from numpy.typing import NDArray
 __all__ = ['BlockData']
 
 #: Effects whose block-mean column is the mean of their full-rate feature (no filter state).
-_STATIC = ('dT', 'dT2', 'dT3')
+_STATIC = input_ids(STATIC_EFFECTS)
 
 
 def _per_segment(blocks: Callable[[int, int], NDArray[np.float64]], bounds: NDArray[np.int64],

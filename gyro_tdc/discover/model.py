@@ -19,6 +19,7 @@ from __future__ import annotations
 from typing import Mapping, Sequence
 
 from gyro_tdc.discover.results import DiscoveryResult
+from gyro_tdc.effects import TEMPERATURE_EFFECTS
 from gyro_tdc.errors import FitError
 from gyro_tdc.runs import Run
 import numpy as np
@@ -126,5 +127,4 @@ def model_features(result: DiscoveryResult, runs: Sequence[Run]) -> tuple[str, .
     hi = max(float(np.max(r.temp)) for r in runs)
     if hi - lo >= MIN_SPAN_C:
         return tuple(result.final_effects)
-    thermal = {'dT', 'dT2', 'dT3', 'dTdt', 'lag', 'scale'}
-    return tuple(e for e in result.final_effects if e not in thermal)
+    return tuple(e for e in result.final_effects if e not in TEMPERATURE_EFFECTS)

@@ -34,19 +34,22 @@ from gyro_tdc.discover.maps import residual_adev, residual_maps
 from gyro_tdc.discover.results import CandidateScore, DiscoveryResult, Step, Unidentifiable
 from gyro_tdc.discover.stats import (bandwidth, COLLINEAR, DEG, gap, hac_pvalue, make_folds,
                                      rel_residual, weighted_corr)
-from gyro_tdc.effects import EFFECTS, input_ids, normalise_ids
+from gyro_tdc.effects import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, REFERENCE_EFFECTS,
+                              STATIC_EFFECTS, TEMPERATURE_EFFECTS)
 from gyro_tdc.errors import FitError
-from gyro_tdc.fitting import estimate_t0, fit_time_constant
+from gyro_tdc.fitting import estimate_t0, fit_time_constant, MIN_SPAN_C
 from gyro_tdc.runs import Run
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['discover']
 
-#: Effects whose time constant is fitted by the 1-D search.
-_NONLINEAR = ('lag', 'warmup')
 #: Candidate order (catalog order without ``bias``).
 _CANDIDATES = tuple(e for e in EFFECTS if e != 'bias')
+#: Effects a temperature span excites (``scale`` needs rate-table steps too: its own test).
+_SPAN = tuple(e for e in EFFECTS if e in TEMPERATURE_EFFECTS and e not in REFERENCE_EFFECTS)
+#: Of those, the ones with time memory: excited by how the temperature changes.
+_RATE = tuple(e for e in _SPAN if e not in STATIC_EFFECTS)
 
 
 def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
@@ -100,11 +103,11 @@ def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
         exp = EFFECTS[eid].excited_by
         out[eid] = Unidentifiable(eid, reason, exp[0].upper() + exp[1:] + extra + '.')
 
-    if span < 0.5:
-        for eid in ('dT', 'dT2', 'dT3', 'lag', 'dTdt'):
+    if span < MIN_SPAN_C:
+        for eid in _SPAN:
             add(eid, f'the temperature spans only {span:.2f} degC', ', of at least 10 degC')
     if not np.any(moving):
-        for eid in ('dTdt', 'lag'):
+        for eid in _RATE:
             if eid not in out:
                 add(eid, 'the temperature never changes at a measurable rate')
     elif heating != cooling:
@@ -112,7 +115,7 @@ def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
         r = np.abs(rate[moving])
         q1, q3 = np.percentile(r, [25, 75])
         if (q3 - q1) < 0.25 * float(np.median(r)):
-            for eid in ('dTdt', 'lag'):
+            for eid in _RATE:
                 add(eid, f'the data only {leg} and at one rate (~{np.median(r):.2f} degC/min): '
                     'a rate-dependent term is then a constant offset during the ramp, '
                     'confounded with the bias',
@@ -147,7 +150,7 @@ def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
 def _candidate_params(data: BlockData, model: LinearModel, eid: str) -> dict:
     """Return the model's parameters plus those of candidate ``eid`` (its tau fitted)."""
     params = {k: dict(v) for k, v in model.params.items()}
-    if eid in _NONLINEAR:
+    if eid in NONLINEAR_EFFECTS:
         effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
         params = _fit_taus(data, effects, params, [eid])
     return params
@@ -164,7 +167,7 @@ def _noise_lags(data: BlockData, model: LinearModel, todo: Sequence[str], cparam
     """
     params = {k: dict(v) for k, v in model.params.items()}
     for eid in todo:
-        if eid in _NONLINEAR:
+        if eid in NONLINEAR_EFFECTS:
             params[eid] = dict(cparams[eid][eid])
     effects = tuple(e for e in EFFECTS if e in set(model.effects) | set(todo))
     rich = LinearModel(data, effects, params)
@@ -181,7 +184,7 @@ def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse
     effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
     cand = LinearModel(data, effects, params)
     idx = cand.columns_of(eid)
-    own = dict(params[eid]) if eid in _NONLINEAR else {}
+    own = dict(params[eid]) if eid in NONLINEAR_EFFECTS else {}
     # Is it spanned by the current model (per axis)?
     rel = []
     for a in range(3):
@@ -292,7 +295,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
     for eid in base_ids:
         if EFFECTS[eid].params:
             params[eid] = dict(EFFECTS[eid].params)
-    nonlin = [e for e in base_ids if e in _NONLINEAR]
+    nonlin = [e for e in base_ids if e in NONLINEAR_EFFECTS]
     if nonlin:
         params = _fit_taus(data, base_ids, params, nonlin)
     effects = base_ids
@@ -340,7 +343,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
                 aliases.append(sc.effect)
         new_effects = tuple(e for e in EFFECTS if e in set(effects) | {best.effect})
         new_params = {k: dict(v) for k, v in p_b.items()}
-        refit = [e for e in new_effects if e in _NONLINEAR]
+        refit = [e for e in new_effects if e in NONLINEAR_EFFECTS]
         if len(refit) > 1:
             new_params = _fit_taus(data, new_effects, new_params, refit)
         new_model = LinearModel(data, new_effects, new_params)
@@ -358,7 +361,8 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         steps.append(Step(
             effect=best.effect, aliases=tuple(aliases),
             description=EFFECTS[best.effect].description,
-            params=dict(new_params.get(best.effect, {})) if best.effect in _NONLINEAR else {},
+            params=(dict(new_params.get(best.effect, {}))
+                    if best.effect in NONLINEAR_EFFECTS else {}),
             coef_dps=coef_n[idx] * unit,
             gap_before_dps=gap(data, r_m), gap_after_dps=gap(data, r_n),
             heldout_gap_before_dps=gap(data, ho_m), heldout_gap_after_dps=gap(data, ho_n),
@@ -384,7 +388,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         adev = (np.zeros(0), np.zeros(0))
     return DiscoveryResult(
         base_effects=base_ids, final_effects=effects,
-        params={k: dict(v) for k, v in params.items() if k in effects and k in _NONLINEAR},
+        params={k: dict(v) for k, v in params.items() if k in effects and k in NONLINEAR_EFFECTS},
         noise_floor_dps=data.floor * DEG, noise_floor_axes_dps=data.floor_axes * DEG,
         white_noise_dps=data.white * DEG, block_s=float(block_s), t0_c=float(t0),
         steps=tuple(steps),
@@ -408,7 +412,7 @@ def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateS
     x = model.common
     cols = {}
     for sc in scores:
-        if sc.effect in ('scale',) or sc.effect not in input_ids([sc.effect]):
+        if not EFFECTS[sc.effect].is_input:
             continue
         p = {k: dict(v) for k, v in params.items()}
         p.update({sc.effect: dict(sc.params)} if sc.params else {})
