@@ -17,8 +17,9 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Sequence
+from typing import Any, Sequence
 
+from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.discover.results import BinMap, DiscoveryResult
 import numpy as np
 
@@ -27,6 +28,12 @@ __all__ = ['write_report']
 
 _AXES = ('x', 'y', 'z')
 _COLORS = ('tab:blue', 'tab:orange', 'tab:green')
+
+
+def _save(fig: Any, path: Path) -> None:
+    """Write a matplotlib figure as a PNG, atomically."""
+    atomic_write(path, lambda fh: fig.savefig(fh, dpi=90, format='png'), binary=True,
+                 what='plot')
 
 
 def _plot_maps(maps_rows: Sequence[tuple[str, Sequence[BinMap]]], path: Path) -> None:
@@ -63,7 +70,7 @@ def _plot_maps(maps_rows: Sequence[tuple[str, Sequence[BinMap]]], path: Path) ->
                 ax.set_ylabel('mean residual (deg/s), +-3 se')
             if i == 0 and j == 0:
                 ax.legend(fontsize=7)
-    fig.savefig(path, dpi=90)
+    _save(fig, path)
 
 
 def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
@@ -94,7 +101,7 @@ def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
     ax.set_ylabel('Allan deviation of the residual (deg/s)')
     ax.grid(True, which='both', lw=0.3)
     ax.legend(fontsize=8)
-    fig.savefig(path, dpi=90)
+    _save(fig, path)
     return True
 
 
@@ -114,9 +121,14 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
     Path
         The path of ``report.md``.
 
+    Raises
+    ------
+    OutputError
+        When a file cannot be written (each is written atomically,
+        :func:`gyro_tdc.atomicio.atomic_write`).
+
     """
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
     md = ['# Discovery report', '',
           f'Runs: {", ".join(f"`{r}`" for r in result.runs)} ({result.blocks} blocks of '
           f'{result.block_s:g} s; T0 = {result.t0_c:.2f} degC).', '',
@@ -183,5 +195,5 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
     if result.notes:
         md += ['## Notes', ''] + [f'- {n}' for n in result.notes] + ['']
     path = out / 'report.md'
-    path.write_text('\n'.join(md), encoding='utf-8')
+    atomic_write(path, '\n'.join(md), what='report')
     return path
