@@ -39,7 +39,7 @@ from typing import Any, Callable, Sequence
 
 import apsw
 from gyro_tdc import imu_cdr
-from gyro_tdc.errors import DatasetError
+from gyro_tdc.errors import DatasetError, one_line
 from gyro_tdc.imu_cdr import field_slice, IMU_DOUBLES, IMU_FIELDS, layout_of
 from gyro_tdc.yamlio import BAG_METADATA_LIMITS, load_yaml
 import numpy as np
@@ -423,7 +423,7 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
     try:
         writer.open()
     except (WriterError, OSError, sqlite3.Error) as err:
-        raise DatasetError(f'Cannot create bag {str(path)!r}: {_one_line(err)}') from err
+        raise DatasetError(f'Cannot create bag {str(path)!r}: {one_line(err)}') from err
     ok = False
     try:
         conns = [writer.add_connection(name, msgtype, typestore=_jazzy(),
@@ -447,7 +447,7 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
         writer.close()
         ok = True
     except (WriterError, OSError, sqlite3.Error) as err:
-        raise DatasetError(f'Cannot write bag {str(path)!r}: {_one_line(err)}') from err
+        raise DatasetError(f'Cannot write bag {str(path)!r}: {one_line(err)}') from err
     finally:
         if not ok:
             if writer.storage is not None:
@@ -516,12 +516,6 @@ class BagData:
     storage: str = ''
     path: str = ''
     fallback: dict = field(default_factory=dict, compare=False)
-
-
-def _one_line(err: BaseException) -> str:
-    """Return an exception message on one line."""
-    text = ' '.join(str(err).split())
-    return text or type(err).__name__
 
 
 class _Sink:
@@ -662,7 +656,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
             return _read_messages(reader, bag, storage, topics, conns, progress, accel)
     except _READ_ERRORS as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r} (unreadable or corrupt): '
-                           f'{_one_line(err)}') from err
+                           f'{one_line(err)}') from err
 
 
 def _read_messages(reader: AnyReader, bag: Path, storage: str,

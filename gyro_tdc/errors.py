@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Error classes of gyro_tdc; every message names what is wrong."""
+"""Error classes of gyro_tdc; every message names what is wrong, on one line."""
 
 
 class GyroTdcError(Exception):
@@ -53,3 +53,24 @@ class OutputError(GyroTdcError):
 
 class LimitError(GyroTdcError):
     """An input or option exceeds a documented size limit (the message names the limit)."""
+
+
+def one_line(text: object) -> str:
+    """
+    Return an error or a message on one line (newlines and runs of blanks collapsed).
+
+    Parameters
+    ----------
+    text : object
+        A message, or an exception (its type name when its text is empty).
+
+    Returns
+    -------
+    str
+        The text on one line.
+
+    """
+    out = ' '.join(str(text).split())
+    if not out and isinstance(text, BaseException):
+        return type(text).__name__
+    return out

@@ -22,10 +22,10 @@ from pathlib import Path
 
 from gyro_tdc.cli import COMMANDS, load_main
 from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
-from gyro_tdc.cli.common import finite_float, non_negative_float, one_line, parse_reference
+from gyro_tdc.cli.common import finite_float, non_negative_float, parse_reference
 from gyro_tdc.cli.common import positive_float, positive_int, probability, run_command
 from gyro_tdc.cli.common import UsageError
-from gyro_tdc.errors import DatasetError
+from gyro_tdc.errors import DatasetError, one_line
 import pytest
 
 
@@ -125,5 +125,6 @@ def test_every_command_reports_bad_input_with_the_common_prefix(capsys, name):
 
 def test_one_line_and_command_line():
     assert one_line('a\n  b\tc ') == 'a b c'
+    assert one_line(KeyError()) == 'KeyError'
     assert command_line('train', ['my bag', '--out', 'm.yaml']) == \
         "python -m gyro_tdc train 'my bag' --out m.yaml"

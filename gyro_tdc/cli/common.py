@@ -40,12 +40,12 @@ import sys
 from typing import Callable, NoReturn, Optional, Sequence
 
 from gyro_tdc.dataset import MAX_LOSS_FRACTION
-from gyro_tdc.errors import GyroTdcError
+from gyro_tdc.errors import GyroTdcError, one_line
 
 __all__ = [
     'ArgumentParser', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
     'DEFAULT_TEMPERATURE_TOPIC', 'UsageError', 'add_bag_options', 'bag_options',
-    'command_line', 'finite_float', 'non_negative_float', 'one_line', 'parse_reference',
+    'command_line', 'finite_float', 'non_negative_float', 'parse_reference',
     'positive_float', 'positive_int', 'probability', 'run_command',
 ]
 
@@ -68,11 +68,6 @@ class ArgumentParser(argparse.ArgumentParser):
     def error(self, message: str) -> NoReturn:
         """Raise :class:`UsageError` with argparse's message (no usage dump, no exit)."""
         raise UsageError(f'{message} (see --help)')
-
-
-def one_line(text: object) -> str:
-    """Return ``text`` as one line (newlines and runs of blanks collapsed)."""
-    return ' '.join(str(text).split())
 
 
 def parse_reference(text: str) -> tuple[float, float, float]:

@@ -37,8 +37,7 @@ import time
 from typing import Callable, Iterator, Sequence
 
 from gyro_tdc.atomicio import atomic_write
-from gyro_tdc.cli.common import one_line
-from gyro_tdc.errors import FleetError, GyroTdcError
+from gyro_tdc.errors import FleetError, GyroTdcError, one_line
 from gyro_tdc.evaluation import evaluate, mean_scores, NamedModel
 from gyro_tdc.fleet.manifest import input_key, SensorSpec
 from gyro_tdc.fleet.results import FleetResult, SensorResult
