@@ -115,13 +115,14 @@ def measure(kind: str, bag: Path, subset: int) -> dict:
 
     """
     from rosbags.highlevel import AnyReader
+    from rosbags.typesys import get_typestore, Stores
 
-    from gyro_tdc.bagio import _jazzy, read_bag
+    from gyro_tdc.bagio import read_bag
     from gyro_tdc.dataset import load_run
 
     start, cpu_start = time.perf_counter(), time.process_time()
     if kind in ('raw', 'raw_kept', 'deserialise'):
-        with AnyReader([bag], default_typestore=_jazzy()) as reader:
+        with AnyReader([bag], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as reader:
             conns = [c for c in reader.connections if c.topic in (IMU_TOPIC, TEMP_TOPIC)]
             if kind == 'raw_kept':
                 kept = [raw for _, _, raw in reader.messages(connections=conns)]
