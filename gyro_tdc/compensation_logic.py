@@ -17,8 +17,10 @@ The compensator's decisions, free of rclpy: what to do with each gyro sample.
 
 :class:`CompensatorCore` holds the model, the thermometer's recent samples and the
 policies, and turns one raw sample into one output sample, the variance to add to
-its covariance and flags saying what happened. ``gyro_tdc.nodes.compensator_node``
-only converts messages to floats and back, so every rule here is tested without ROS:
+its covariance and flags (:mod:`gyro_tdc.health`) saying what happened.
+``gyro_tdc.nodes.compensator_node`` only converts messages to floats and back, so every rule
+here is tested without ROS (the stillness test is :mod:`gyro_tdc.stillness`, the judgement
+shown on /diagnostics :mod:`gyro_tdc.health`):
 
 * the temperature used for a sample stamped ``t`` is the latest thermometer sample
   stamped at or before ``t`` (zero-order hold by stamp, so the interleaving of the two
@@ -37,41 +39,22 @@ from __future__ import annotations
 
 import bisect
 from collections import deque
-from dataclasses import dataclass
 import math
-from types import MappingProxyType
-from typing import Mapping, NamedTuple, Sequence
+from typing import Sequence
 
 from gyro_tdc.effects import STATIC_EFFECTS
+from gyro_tdc.health import (FLAG_NAMES, NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
+                             PASSTHROUGH, STALE)
 from gyro_tdc.model import CompensationModel, StreamingCompensator
 from gyro_tdc.paramspec import ParamSpec, spec_dataclass
+from gyro_tdc.stillness import Anchor, StillnessDetector, Vec3
 import numpy as np
 
-__all__ = ['Anchor', 'CompensatorCore', 'ERROR', 'FLAG_NAMES', 'Health', 'HealthMark', 'OK',
-           'PARAMS', 'Policy', 'STATIC_EFFECTS', 'StillnessDetector', 'TemperatureHold', 'WARN',
-           'describe_flags', 'health', 'widen_covariance']
-
-#: Flags of one processed sample (a bit set).
-STALE = 1
-OUT_OF_RANGE = 2
-NON_FINITE = 4
-NO_TEMPERATURE = 8
-NO_MODEL = 16
-PASSTHROUGH = 32
-
-FLAG_NAMES = {STALE: 'temperature stale', OUT_OF_RANGE: 'temperature out of model range',
-              NON_FINITE: 'non-finite input', NO_TEMPERATURE: 'no temperature yet',
-              NO_MODEL: 'no model loaded', PASSTHROUGH: 'raw rate passed through'}
-
-Vec3 = tuple[float, float, float]
+__all__ = ['CompensatorCore', 'PARAMS', 'Policy', 'STATIC_EFFECTS', 'TemperatureHold',
+           'widen_covariance']
 
 # STATIC_EFFECTS (from the effect library): a model made of these has a drift that changes
 # only when the temperature does, so the compensator evaluates it once per thermometer sample.
-
-
-def describe_flags(flags: int) -> str:
-    """Return the flags of a sample as a comma-separated text ('' when none)."""
-    return ', '.join(name for bit, name in FLAG_NAMES.items() if flags & bit)
 
 
 #: The compensator's parameters (the node declares them; ``policy`` rows build :class:`Policy`).
@@ -200,124 +183,6 @@ class TemperatureHold:
     def latest(self) -> tuple[float, float] | None:
         """Return ``(temp_c, stamp)`` of the newest sample, or None."""
         return (self._c[-1], self._t[-1]) if self._t else None
-
-
-@dataclass(frozen=True)
-class Anchor:
-    """
-    The result of a still window: the offset shift that zeroes the compensated rate.
-
-    Parameters
-    ----------
-    t : float, s
-        Stamp at the end of the window.
-    delta : tuple of 3 float, rad/s
-        Shift added to the model's drift.
-    samples : int
-        Samples in the window.
-    gyro_std : tuple of 3 float, rad/s
-        Standard deviation of the raw rate over the window.
-    temp_c : float, degC
-        Temperature at the end of the window.
-
-    """
-
-    t: float
-    delta: Vec3
-    samples: int
-    gyro_std: Vec3
-    temp_c: float
-
-
-class StillnessDetector:
-    """
-    Decide from consecutive windows whether the gyro is still.
-
-    A window is still when the raw rate's per-axis standard deviation is at most
-    ``gyro_std``, the mean compensated rate is at most ``max_rate`` per axis, and the
-    acceleration's standard deviation (when there is one) is at most ``accel_std``.
-
-    Parameters
-    ----------
-    window : float, s
-        Window length.
-    gyro_std, max_rate : float, rad/s
-        Thresholds on the raw rate's spread and the compensated rate's mean.
-    accel_std : float, m/s^2
-        Threshold on the acceleration's spread.
-
-    """
-
-    def __init__(self, window: float, gyro_std: float, max_rate: float,
-                 accel_std: float) -> None:
-        self.window = float(window)
-        self.gyro_var = float(gyro_std) ** 2
-        self.max_rate = float(max_rate)
-        self.accel_var = float(accel_std) ** 2
-        self.windows_rejected = 0
-        self.reset()
-
-    def reset(self) -> None:
-        """Start a new window with the next sample."""
-        self._t0: float | None = None
-        self._n = 0
-        self._g = np.zeros((2, 3))   # Welford mean, M2 of the raw rate
-        self._o = np.zeros(3)        # running mean of the compensated rate
-        self._a = np.zeros((2, 3))   # Welford mean, M2 of the acceleration
-        self._accel = True
-
-    def update(self, t: float, raw: Sequence[float], out: Sequence[float],
-               accel: Sequence[float] | None, temp_c: float) -> Anchor | None:
-        """
-        Add one clean sample; return an :class:`Anchor` when a still window completes.
-
-        Parameters
-        ----------
-        t : float, s
-            Stamp.
-        raw, out : sequence of 3 float, rad/s
-            Raw and compensated rate.
-        accel : sequence of 3 float, m/s^2, or None
-            Acceleration when the IMU has an accelerometer.
-        temp_c : float, degC
-            Temperature used for the sample.
-
-        Returns
-        -------
-        Anchor or None
-            The anchor when a still window just ended, else None.
-
-        """
-        if self._t0 is None:
-            self._t0 = t
-        self._n += 1
-        n = self._n
-        g = np.asarray(raw, dtype=np.float64)
-        d = g - self._g[0]
-        self._g[0] += d / n
-        self._g[1] += d * (g - self._g[0])
-        self._o += (np.asarray(out, dtype=np.float64) - self._o) / n
-        if accel is None:
-            self._accel = False
-        else:
-            a = np.asarray(accel, dtype=np.float64)
-            d = a - self._a[0]
-            self._a[0] += d / n
-            self._a[1] += d * (a - self._a[0])
-        if t - self._t0 < self.window or n < 2:
-            return None
-        g_var = self._g[1] / (n - 1)
-        still = bool(np.all(g_var <= self.gyro_var) and np.all(np.abs(self._o) <= self.max_rate))
-        if still and self._accel:
-            still = bool(np.all(self._a[1] / (n - 1) <= self.accel_var))
-        if not still:
-            self.windows_rejected += 1
-            self.reset()
-            return None
-        anchor = Anchor(t, tuple(float(v) for v in self._o), n,
-                        tuple(float(v) for v in np.sqrt(g_var)), float(temp_c))
-        self.reset()
-        return anchor
 
 
 def widen_covariance(cov: Sequence[float], add: Sequence[float]) -> list[float]:
@@ -596,120 +461,3 @@ class CompensatorCore:
         if latest is None or self.last_t is None:
             return None
         return self.last_t - latest[1]
-
-
-#: Levels of :class:`Health` (the byte values of diagnostic_msgs/DiagnosticStatus).
-OK, WARN, ERROR = 0, 1, 2
-
-
-class HealthMark(NamedTuple):
-    """The cumulative counters at one report: flag counts, temperatures rejected, errors."""
-
-    flags: Mapping[int, int] = MappingProxyType({})
-    temps_rejected: int = 0
-    errors: int = 0
-
-
-class Health(NamedTuple):
-    """
-    The compensator's state as /diagnostics shows it.
-
-    ``level`` is ``OK``, ``WARN`` or ``ERROR``; ``hardware_id`` the model's sensor (or frame)
-    id; ``values`` the key/value pairs in display order; ``mark`` the counters now, to pass
-    to the next :func:`health` call.
-    """
-
-    level: int
-    message: str
-    hardware_id: str
-    values: dict[str, str]
-    mark: HealthMark
-
-
-def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file: str = '',
-           last_reload: str = 'none') -> Health:
-    """
-    Judge the compensator's state: what went wrong since the last report, and its figures.
-
-    ERROR without a model or when a compensation raised since ``since``; WARN when samples
-    had no, a stale, an out-of-range or a non-finite input, or thermometer samples were
-    rejected since ``since``; else OK ('compensating', or 'waiting for imu/data_raw').
-
-    Parameters
-    ----------
-    core : CompensatorCore
-        The compensator.
-    since : HealthMark, optional
-        ``mark`` of the previous report (None: from the start).
-    model_file, last_reload : str
-        Where the model came from, and the outcome of the last (re)load.
-
-    Returns
-    -------
-    Health
-        Level, message, hardware id, key/value pairs and the counters now.
-
-    """
-    since = since or HealthMark()
-    model = core.model
-    counts = core.flag_counts
-    new = {bit: counts[bit] - since.flags.get(bit, 0) for bit in counts}
-    rejected = core.temps.rejected - since.temps_rejected
-    errors = core.errors - since.errors
-    problems = []
-    level = OK
-    if model is None:
-        level = ERROR
-        problems.append(f'no model loaded ({last_reload})')
-    for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE):
-        if new[bit]:
-            level = max(level, WARN)
-            problems.append(f'{describe_flags(bit)} ({new[bit]} samples)')
-    if rejected:
-        level = max(level, WARN)
-        problems.append(f'non-finite temperature ({rejected} samples rejected)')
-    if errors:
-        level = ERROR
-        problems.append(f'compensation failed on {errors} samples, passed through: '
-                        f'{core.last_error}')
-    if problems:
-        message = '; '.join(problems)
-    elif core.counts['in'] == 0:
-        message = 'waiting for imu/data_raw'
-    else:
-        message = 'compensating'
-    if new[PASSTHROUGH]:
-        message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
-    anchor = core.anchor
-    age = core.temperature_age()
-    flags = core.last_flags
-    values = {
-        'compensation active': (model is not None and core.counts['compensated'] > 0
-                                and not flags & PASSTHROUGH),
-        'why not': describe_flags(flags & ~OUT_OF_RANGE & ~STALE) if flags & PASSTHROUGH
-        else '',
-        'model id': model.model_id if model is not None else '', 'model file': model_file,
-        'model features': ','.join(model.features) if model is not None else '',
-        'model kind': model.kind if model is not None else '',
-        'model range degC': '{:.2f}..{:.2f}'.format(*model.temp_range_c)
-        if model is not None else '',
-        'last reload': last_reload,
-        'temperature degC': f'{core.last_temp:.3f}' if core.last_temp is not None else '',
-        'temperature age s': f'{age:.3f}' if age is not None else '',
-        'temperature stale': bool(flags & STALE), 'in range': not flags & OUT_OF_RANGE,
-        'messages in': core.counts['in'], 'messages out': core.counts['out'],
-        'compensated': core.counts['compensated'], 'passed through': counts[PASSTHROUGH],
-        'no temperature yet': counts[NO_TEMPERATURE], 'stale': counts[STALE],
-        'out of range': counts[OUT_OF_RANGE], 'non-finite': counts[NON_FINITE],
-        'no model': counts[NO_MODEL], 'temperatures rejected': core.temps.rejected,
-        'errors': core.errors, 'last error': core.last_error,
-        'reanchor': ('off' if not core.policy.reanchor_on_start else
-                     'waiting for stillness' if anchor is None else
-                     f'done at t={anchor.t:.3f} s'),
-    }
-    if anchor is not None:
-        values['reanchor shift dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.delta)
-    return Health(level, message,
-                  (model.sensor_id or model.frame_id) if model is not None else '',
-                  {k: str(v) for k, v in values.items()},
-                  HealthMark(dict(counts), core.temps.rejected, core.errors))

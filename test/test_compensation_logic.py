@@ -12,19 +12,19 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The compensator's pure decision logic (no rclpy): hold, staleness, stillness, policies."""
+"""The compensator's pure decision logic (no rclpy): hold, staleness, re-anchoring, policies."""
 
 from __future__ import annotations
 
-from dataclasses import fields, replace
+from dataclasses import fields
 import math
 
 from gyro_tdc.compensation_logic import (
-    CompensatorCore, describe_flags, ERROR, health, NO_MODEL, NO_TEMPERATURE, NON_FINITE, OK,
-    OUT_OF_RANGE, PARAMS, PASSTHROUGH, Policy, STALE, STATIC_EFFECTS, StillnessDetector,
-    TemperatureHold, WARN, widen_covariance)
+    CompensatorCore, PARAMS, Policy, STATIC_EFFECTS, TemperatureHold, widen_covariance)
 from gyro_tdc.effects import batch_features, EFFECTS
 from gyro_tdc.fitting import fit_model
+from gyro_tdc.health import (describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
+                             OUT_OF_RANGE, PASSTHROUGH, STALE)
 from gyro_tdc.model import compensate, StreamingCompensator
 import numpy as np
 import pytest
@@ -251,30 +251,6 @@ def test_reload_same_model_mid_stream_carries_filters_on(model):
     assert np.abs(cold - ref[half:]).max() > 10 * np.abs(second - ref[half:]).max()
 
 
-def test_stillness_detector():
-    rng = np.random.default_rng(1)
-    det = StillnessDetector(window=1.0, gyro_std=0.01, max_rate=0.02, accel_std=0.05)
-    found = None
-    for k in range(200):
-        raw = 0.003 + rng.normal(0, 0.002, 3)
-        found = det.update(k * 0.01, raw, raw - 0.001, (0.0, 0.0, 9.81), 20.0) or found
-    assert found is not None and found.samples == 101
-    assert found.delta == pytest.approx((0.002,) * 3, abs=1e-3)
-    # Moving (a rate swing) or shaken (accelerometer spread) is not still.
-    det = StillnessDetector(window=1.0, gyro_std=0.01, max_rate=0.02, accel_std=0.05)
-    for k in range(300):
-        raw = (0.1 * math.sin(k / 10.0), 0.0, 0.0)
-        assert det.update(k * 0.01, raw, raw, None, 20.0) is None
-    for k in range(300, 600):
-        acc = (rng.normal(0, 0.5), 0.0, 9.81)
-        assert det.update(k * 0.01, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), acc, 20.0) is None
-    assert det.windows_rejected >= 4
-    # A slow constant turn has no spread but a mean above max_rate.
-    det = StillnessDetector(window=1.0, gyro_std=0.01, max_rate=0.02, accel_std=0.05)
-    for k in range(300):
-        assert det.update(k * 0.01, (0.05, 0, 0), (0.05, 0, 0), None, 20.0) is None
-
-
 def test_reanchor_on_start(model):
     t, omega, tt, tc = stream(n=3000, rate_hz=100.0, t_lo=20.0, t_hi=20.5)
     omega = omega - 0.01  # zero mean around the true rate ...
@@ -294,96 +270,3 @@ def test_reanchor_on_start(model):
     kept, _, _ = run_core(plain, t, raw, tt, tc)
     np.testing.assert_allclose(kept.mean(axis=0), offset, atol=2e-4)
     assert plain.anchor is None
-
-
-def test_health_no_model_is_an_error_until_one_is_loaded(model):
-    core = CompensatorCore(Policy())
-    h = health(core, last_reload='failed: broken.yaml')
-    assert (h.level, h.message) == (ERROR, 'no model loaded (failed: broken.yaml)')
-    assert h.hardware_id == '' and h.values['model id'] == '' and h.values['model kind'] == ''
-    assert h.values['compensation active'] == 'False' and h.values['reanchor'] == 'off'
-    core.process(1.0, 0.0, 0.0, 0.0)
-    h = health(core, h.mark)
-    assert h.level == ERROR
-    assert h.message == 'no model loaded (none); 1 samples passed through uncompensated'
-    assert h.values['why not'] == 'no model loaded, raw rate passed through'
-    core.set_model(replace(model, sensor_id='', frame_id='gyro_link'))
-    h = health(core, h.mark, model_file='m.yaml', last_reload='loaded x')
-    assert (h.level, h.message, h.hardware_id) == (OK, 'compensating', 'gyro_link')
-    assert h.values['model file'] == 'm.yaml' and h.values['last reload'] == 'loaded x'
-    assert h.values['model features'] == ','.join(model.features)
-
-
-def test_health_waiting_then_compensating(model):
-    core = CompensatorCore(Policy(), replace(model, sensor_id='L3GD20-42'))
-    h = health(core)
-    assert (h.level, h.message, h.hardware_id) == (OK, 'waiting for imu/data_raw', 'L3GD20-42')
-    assert h.values['temperature degC'] == '' and h.values['temperature age s'] == ''
-    core.add_temperature(10.0, 20.0)
-    core.process(10.5, 0.0, 0.0, 0.0)
-    h = health(core, h.mark)
-    assert (h.level, h.message) == (OK, 'compensating')
-    v = h.values
-    assert v['compensation active'] == 'True' and v['why not'] == ''
-    assert v['temperature degC'] == '20.000' and v['temperature age s'] == '0.500'
-    assert v['messages in'] == v['messages out'] == v['compensated'] == '1'
-    assert v['in range'] == 'True' and v['temperature stale'] == 'False'
-    lo, hi = model.temp_range_c
-    assert v['model range degC'] == f'{lo:.2f}..{hi:.2f}'
-
-
-@pytest.mark.parametrize('bit,feed', [
-    (NO_TEMPERATURE, lambda core: core.process(1.0, 0.0, 0.0, 0.0)),
-    (NON_FINITE, lambda core: core.process(1.0, math.nan, 0.0, 0.0)),
-    (STALE, lambda core: (core.add_temperature(0.0, 20.0), core.process(100.0, 0, 0, 0))),
-    (OUT_OF_RANGE, lambda core: (core.add_temperature(0.0, 500.0), core.process(1.0, 0, 0, 0))),
-])
-def test_health_warns_of_what_is_new_since_the_last_report(model, bit, feed):
-    core = CompensatorCore(Policy(), model)
-    feed(core)
-    feed(core)
-    h = health(core)
-    assert h.level == WARN and h.message.startswith(f'{describe_flags(bit)} (2 samples)')
-    passed = bit in (NO_TEMPERATURE, NON_FINITE)
-    assert h.message.endswith('; 2 samples passed through uncompensated') == passed
-    assert h.values['compensation active'] == str(not passed)
-    key = {NO_TEMPERATURE: 'no temperature yet', NON_FINITE: 'non-finite', STALE: 'stale',
-           OUT_OF_RANGE: 'out of range'}[bit]
-    assert h.values[key] == '2'
-    assert h.values['temperature stale'] == str(bit == STALE)
-    assert h.values['in range'] == str(bit != OUT_OF_RANGE)
-    # Nothing new since: OK again, the cumulative counts stay.
-    again = health(core, h.mark)
-    assert again.level == OK and again.message == 'compensating'
-    assert again.values[key] == '2'
-
-
-def test_health_rejected_temperatures_errors_and_several_problems(model):
-    core = CompensatorCore(Policy(passthrough_variance=0.5), model)
-    core.add_temperature(0.0, math.nan)
-    h = health(core)
-    assert (h.level, h.message) == (WARN, 'non-finite temperature (1 samples rejected)')
-    assert h.values['temperatures rejected'] == '1'
-    assert core.fail(FloatingPointError('overflow')) == (0.5, 0.5, 0.5)
-    core.process(1.0, 0.0, 0.0, 0.0)
-    h = health(core, h.mark)
-    assert h.level == ERROR
-    assert h.message == ('no temperature yet (1 samples); compensation failed on 1 samples, '
-                         'passed through: FloatingPointError: overflow; 1 samples passed '
-                         'through uncompensated')
-    assert h.values['errors'] == '1' and h.values['last error'] == 'FloatingPointError: overflow'
-    assert core.counts == {'in': 1, 'out': 2, 'compensated': 0}
-    assert health(core, h.mark).level == OK
-
-
-def test_health_reports_the_reanchoring(model):
-    core = CompensatorCore(Policy(reanchor_on_start=True, still_window=1.0), model)
-    assert health(core).values['reanchor'] == 'waiting for stillness'
-    core.add_temperature(0.0, 20.0)
-    for k in range(300):
-        core.process(0.01 * k, 0.0, 0.0, 0.0, (0.0, 0.0, 9.81))
-    anchor = core.anchor
-    assert anchor is not None
-    v = health(core).values
-    assert v['reanchor'] == f'done at t={anchor.t:.3f} s'
-    assert v['reanchor shift dps'] == ','.join(f'{math.degrees(d):.5f}' for d in anchor.delta)

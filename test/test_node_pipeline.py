@@ -16,8 +16,8 @@
 
 from __future__ import annotations
 
-from gyro_tdc.compensation_logic import PASSTHROUGH
 from gyro_tdc.fitting import fit_model
+from gyro_tdc.health import PASSTHROUGH
 from gyro_tdc.metrics import bias_stability
 from gyro_tdc.model import compensate
 from gyro_tdc.modelfile import save_model

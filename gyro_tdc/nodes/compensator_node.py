@@ -34,8 +34,9 @@ from __future__ import annotations
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from gyro_tdc.compensation_logic import CompensatorCore, health, HealthMark, PARAMS, Policy
+from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy
 from gyro_tdc.errors import ModelFileError
+from gyro_tdc.health import health, HealthMark
 from gyro_tdc.imu_cdr import ImuView, locate
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.modelfile import load_model

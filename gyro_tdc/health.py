@@ -1,0 +1,170 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The compensator's health as /diagnostics shows it: sample flags, levels and :func:`health`.
+
+Pure (no rclpy). Each processed sample carries a bit set of flags (``STALE``,
+``OUT_OF_RANGE``, ``NON_FINITE``, ``NO_TEMPERATURE``, ``NO_MODEL``, ``PASSTHROUGH``);
+:func:`health` turns a :class:`gyro_tdc.compensation_logic.CompensatorCore`'s counters into a
+level (``OK``, ``WARN``, ``ERROR``), a one-line message and the key/value pairs the node
+publishes, judging only what happened since the previous report (:class:`HealthMark`).
+"""
+
+from __future__ import annotations
+
+import math
+from types import MappingProxyType
+from typing import Mapping, NamedTuple, TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover - typing only (compensation_logic imports this module)
+    from gyro_tdc.compensation_logic import CompensatorCore
+
+__all__ = ['ERROR', 'FLAG_NAMES', 'Health', 'HealthMark', 'NO_MODEL', 'NO_TEMPERATURE',
+           'NON_FINITE', 'OK', 'OUT_OF_RANGE', 'PASSTHROUGH', 'STALE', 'WARN',
+           'describe_flags', 'health']
+
+#: Flags of one processed sample (a bit set).
+STALE = 1
+OUT_OF_RANGE = 2
+NON_FINITE = 4
+NO_TEMPERATURE = 8
+NO_MODEL = 16
+PASSTHROUGH = 32
+
+FLAG_NAMES = {STALE: 'temperature stale', OUT_OF_RANGE: 'temperature out of model range',
+              NON_FINITE: 'non-finite input', NO_TEMPERATURE: 'no temperature yet',
+              NO_MODEL: 'no model loaded', PASSTHROUGH: 'raw rate passed through'}
+
+
+def describe_flags(flags: int) -> str:
+    """Return the flags of a sample as a comma-separated text ('' when none)."""
+    return ', '.join(name for bit, name in FLAG_NAMES.items() if flags & bit)
+
+
+#: Levels of :class:`Health` (the byte values of diagnostic_msgs/DiagnosticStatus).
+OK, WARN, ERROR = 0, 1, 2
+
+
+class HealthMark(NamedTuple):
+    """The cumulative counters at one report: flag counts, temperatures rejected, errors."""
+
+    flags: Mapping[int, int] = MappingProxyType({})
+    temps_rejected: int = 0
+    errors: int = 0
+
+
+class Health(NamedTuple):
+    """
+    The compensator's state as /diagnostics shows it.
+
+    ``level`` is ``OK``, ``WARN`` or ``ERROR``; ``hardware_id`` the model's sensor (or frame)
+    id; ``values`` the key/value pairs in display order; ``mark`` the counters now, to pass
+    to the next :func:`health` call.
+    """
+
+    level: int
+    message: str
+    hardware_id: str
+    values: dict[str, str]
+    mark: HealthMark
+
+
+def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file: str = '',
+           last_reload: str = 'none') -> Health:
+    """
+    Judge the compensator's state: what went wrong since the last report, and its figures.
+
+    ERROR without a model or when a compensation raised since ``since``; WARN when samples
+    had no, a stale, an out-of-range or a non-finite input, or thermometer samples were
+    rejected since ``since``; else OK ('compensating', or 'waiting for imu/data_raw').
+
+    Parameters
+    ----------
+    core : CompensatorCore
+        The compensator.
+    since : HealthMark, optional
+        ``mark`` of the previous report (None: from the start).
+    model_file, last_reload : str
+        Where the model came from, and the outcome of the last (re)load.
+
+    Returns
+    -------
+    Health
+        Level, message, hardware id, key/value pairs and the counters now.
+
+    """
+    since = since or HealthMark()
+    model = core.model
+    counts = core.flag_counts
+    new = {bit: counts[bit] - since.flags.get(bit, 0) for bit in counts}
+    rejected = core.temps.rejected - since.temps_rejected
+    errors = core.errors - since.errors
+    problems = []
+    level = OK
+    if model is None:
+        level = ERROR
+        problems.append(f'no model loaded ({last_reload})')
+    for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE):
+        if new[bit]:
+            level = max(level, WARN)
+            problems.append(f'{describe_flags(bit)} ({new[bit]} samples)')
+    if rejected:
+        level = max(level, WARN)
+        problems.append(f'non-finite temperature ({rejected} samples rejected)')
+    if errors:
+        level = ERROR
+        problems.append(f'compensation failed on {errors} samples, passed through: '
+                        f'{core.last_error}')
+    if problems:
+        message = '; '.join(problems)
+    elif core.counts['in'] == 0:
+        message = 'waiting for imu/data_raw'
+    else:
+        message = 'compensating'
+    if new[PASSTHROUGH]:
+        message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
+    anchor = core.anchor
+    age = core.temperature_age()
+    flags = core.last_flags
+    values = {
+        'compensation active': (model is not None and core.counts['compensated'] > 0
+                                and not flags & PASSTHROUGH),
+        'why not': describe_flags(flags & ~OUT_OF_RANGE & ~STALE) if flags & PASSTHROUGH
+        else '',
+        'model id': model.model_id if model is not None else '', 'model file': model_file,
+        'model features': ','.join(model.features) if model is not None else '',
+        'model kind': model.kind if model is not None else '',
+        'model range degC': '{:.2f}..{:.2f}'.format(*model.temp_range_c)
+        if model is not None else '',
+        'last reload': last_reload,
+        'temperature degC': f'{core.last_temp:.3f}' if core.last_temp is not None else '',
+        'temperature age s': f'{age:.3f}' if age is not None else '',
+        'temperature stale': bool(flags & STALE), 'in range': not flags & OUT_OF_RANGE,
+        'messages in': core.counts['in'], 'messages out': core.counts['out'],
+        'compensated': core.counts['compensated'], 'passed through': counts[PASSTHROUGH],
+        'no temperature yet': counts[NO_TEMPERATURE], 'stale': counts[STALE],
+        'out of range': counts[OUT_OF_RANGE], 'non-finite': counts[NON_FINITE],
+        'no model': counts[NO_MODEL], 'temperatures rejected': core.temps.rejected,
+        'errors': core.errors, 'last error': core.last_error,
+        'reanchor': ('off' if not core.policy.reanchor_on_start else
+                     'waiting for stillness' if anchor is None else
+                     f'done at t={anchor.t:.3f} s'),
+    }
+    if anchor is not None:
+        values['reanchor shift dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.delta)
+    return Health(level, message,
+                  (model.sensor_id or model.frame_id) if model is not None else '',
+                  {k: str(v) for k, v in values.items()},
+                  HealthMark(dict(counts), core.temps.rejected, core.errors))
