@@ -115,6 +115,9 @@ def block_sum(a: ArrayLike, block: int, *, partial: bool = True) -> NDArray[np.f
     a = np.asarray(a, dtype=np.float64)
     n = a.shape[0]
     full = n // block * block
+    if not full:      # no whole block (e.g. a block longer than the data): no ones(block)
+        head = np.zeros((0,) + a.shape[1:])
+        return head if not partial or n == 0 else a.sum(axis=0, keepdims=True)
     ones = np.ones(block)
     if a.ndim == 1:
         head = a[:full].reshape(full // block, block) @ ones

@@ -34,6 +34,7 @@ from gyro_tdc.dataset import load_runs, MAX_LOSS_FRACTION
 from gyro_tdc.effects import normalise_ids
 from gyro_tdc.errors import FitError
 from gyro_tdc.fitting import estimate_t0, fit_model
+from gyro_tdc.limits import check_bin_width, check_centers
 from gyro_tdc.model import CompensationModel, KINDS
 from gyro_tdc.modelfile import save_model
 from gyro_tdc.runs import Run
@@ -129,6 +130,8 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
     ids = normalise_ids(features)
     if kind not in KINDS:
         raise FitError(f'Expected `kind` to be one of {", ".join(KINDS)}, got {kind!r}.')
+    check_centers(n_centers)      # sizes checked before any bag is read
+    check_bin_width(bin_c)
     options = {'imu_topic': imu_topic, 'temperature_topic': temperature_topic,
                'reference': None if reference is None else tuple(reference),
                'reference_topic': reference_topic, 'progress': progress, 'max_loss': max_loss}

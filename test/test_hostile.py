@@ -617,3 +617,104 @@ def test_conflicting_temperature_stamps_keep_the_last_and_warn(tmp_path):
     assert run.info['rejected']['temp_duplicate_stamps'] == 1
     (warning,) = run.info['warnings']
     assert '1 stamp(s) carry conflicting temperature readings; kept the last' in warning
+
+
+# --------------------------------------------------------------------------------------------
+# Item 8: options that size arrays are checked before any memory is spent
+# Items 1 and 11 at the command line: one line, exit 2, nothing left behind
+# --------------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize('option, needle', [
+    (['--bin', '1e-7'], '--bin 1e-07 degC makes up to 3e+09 coverage bins'),
+    (['--centers', '1000000'], '--centers 1000000: at most 10000 RBF centres'),
+])
+def test_train_options_sizing_arrays_are_refused_before_reading(tmp_path, capsys, heat_bag,
+                                                                option, needle):
+    from gyro_tdc.cli.train import main
+    rc, out, err = _cli(capsys, main, [heat_bag, '--out', tmp_path / 'm.yaml', *option,
+                                       '--no-progress'])
+    assert rc == 2 and needle in _one_error_line(err)
+    assert 'read ' not in out and not (tmp_path / 'm.yaml').exists()
+
+
+def test_simulate_rate_that_needs_terabytes_is_refused_upfront(tmp_path, capsys):
+    from gyro_tdc.cli.simulate import main
+    rc, _, err = _cli(capsys, main, ['--scenario', 'l3gd20_paper', '--out', tmp_path / 'b',
+                                     '--rate-hz', '1e6'])
+    line = _one_error_line(err)
+    assert rc == 2 and '--rate-hz 1e+06: 2.92e+10 IMU samples per run' in line
+    assert 'GB' in line and 'at most 2e+07 samples per run' in line
+    assert list(tmp_path.iterdir()) == []
+
+
+def _two_run_scenario(tmp_path: Path) -> Path:
+    from gyro_tdc.resources import scenario_path
+    text = scenario_path('demo_fast').read_text().replace('count: 1', 'count: 2')
+    path = tmp_path / 'two.yaml'
+    path.write_text(text)
+    return path
+
+
+@pytest.mark.parametrize('exc', [OSError(errno.ENOSPC, 'No space left on device'),
+                                 KeyboardInterrupt()])
+def test_failed_simulate_leaves_no_bag_behind(tmp_path, exc):
+    from gyro_tdc.cli.simulate import simulate
+    out = tmp_path / 'out' / 'bags'
+    logged = []
+
+    def log(line):                       # fails after the first of two bags is written
+        logged.append(line)
+        raise exc
+
+    with pytest.raises((OutputError, KeyboardInterrupt)):
+        simulate(_two_run_scenario(tmp_path), out, log=log)
+    assert len(logged) == 1 and str(out / 'run1') in logged[0]
+    assert list((tmp_path / 'out').iterdir()) == []
+    paths = simulate(_two_run_scenario(tmp_path), out, log=lambda line: None)
+    assert paths == [out / 'run1', out / 'run2']
+    assert all((p / 'metadata.yaml').is_file() for p in paths)
+    assert [p.name for p in (tmp_path / 'out').iterdir()] == ['bags']
+
+
+def test_discover_block_longer_than_the_data_is_refused_in_bounded_memory(tmp_path, capsys,
+                                                                          heat_bag):
+    from gyro_tdc.cli.discover import main
+    tracemalloc.start()
+    try:
+        rc, _, err = _cli(capsys, main, [heat_bag, '--block-s', '1e9', '--no-progress'])
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert rc == 2 and 'Too few blocks' in _one_error_line(err)
+    assert peak < 300e6, peak               # was a 14.9 GiB np.ones(block)
+
+
+def test_deep_model_and_scenario_files_at_the_command_line(tmp_path, capsys, heat_bag):
+    from gyro_tdc.cli.evaluate import main as evaluate
+    from gyro_tdc.cli.simulate import main as simulate
+    deep = tmp_path / 'deep.yaml'
+    deep.write_text(DEEP)
+    rc, _, err = _cli(capsys, evaluate, [heat_bag, '--model', deep, '--no-progress'])
+    assert rc == 2 and 'nesting deeper than 32 levels' in _one_error_line(err)
+    rc, _, err = _cli(capsys, simulate, ['--scenario', deep, '--out', tmp_path / 'b'])
+    assert rc == 2 and 'nesting deeper than 64 levels' in _one_error_line(err)
+    bomb = tmp_path / 'bomb.yaml'
+    bomb.write_text(alias_bomb(9))
+    rc, _, err = _cli(capsys, evaluate, [heat_bag, '--model', bomb, '--no-progress'])
+    assert rc == 2 and 'aliases are not allowed' in _one_error_line(err)
+
+
+def test_block_sum_of_a_block_longer_than_the_data_allocates_nothing_big():
+    from gyro_tdc.blocks import block_sum
+    a = np.arange(12.0).reshape(4, 3)
+    tracemalloc.start()
+    try:
+        kept = block_sum(a, 10**9)
+        dropped = block_sum(a, 10**9, partial=False)
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 1e6
+    np.testing.assert_array_equal(kept, a.sum(axis=0, keepdims=True))
+    assert dropped.shape == (0, 3)
+    assert block_sum(np.zeros(0), 5).shape == (0,)

@@ -30,8 +30,10 @@ import sys
 import time
 from typing import Callable, Optional, Sequence
 
+from gyro_tdc.atomicio import atomic_dir
 from gyro_tdc.cli.common import ArgumentParser, run_command
 from gyro_tdc.errors import GyroTdcError
+from gyro_tdc.limits import check_sim_samples
 from gyro_tdc.sim import load_scenario, SimRun, simulate_run
 import numpy as np
 
@@ -101,8 +103,6 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
         written; GyroTdcError when ``out`` exists.
 
     """
-    from gyro_tdc.bagio import write_bag
-
     sc = load_scenario(scenario)
     out_path = Path(out)
     if out_path.exists():
@@ -111,12 +111,24 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
         raise GyroTdcError(f'--seed: expected an integer >= 0, got {seed}.')
     if rate_hz is not None and not (math.isfinite(rate_hz) and rate_hz > 0.0):
         raise GyroTdcError(f'--rate-hz: expected a number > 0, got {rate_hz}.')
-    if sc.runs.count == 1:
-        paths = [out_path]
-    else:
-        out_path.mkdir(parents=True)
-        paths = [out_path / f'run{i + 1}' for i in range(sc.runs.count)]
-    for index, path in enumerate(paths):
+    check_sim_samples(sc.duration_s, sc.imu_rate_hz if rate_hz is None else rate_hz,
+                      option='imu_rate_hz' if rate_hz is None else '--rate-hz')
+    # One bag, or a folder of run1..runN: built out of sight and renamed when complete, so
+    # a failure (full disk, Ctrl-C, a bad run) leaves nothing behind.
+    names = [f'run{i + 1}' for i in range(sc.runs.count)] if sc.runs.count > 1 else ['']
+    with atomic_dir(out_path, what='bag') as build:
+        if sc.runs.count > 1:
+            build.mkdir()
+        _simulate_runs(sc, [build / n for n in names], [out_path / n for n in names],
+                       storage, seed, rate_hz, log)
+    return [out_path / n for n in names]
+
+
+def _simulate_runs(sc, paths, shown, storage, seed, rate_hz, log) -> None:
+    """Simulate run k of ``sc`` into ``paths[k]`` (logged as ``shown[k]``)."""
+    from gyro_tdc.bagio import write_bag
+
+    for index, (path, name) in enumerate(zip(paths, shown)):
         start = time.perf_counter()
         run = simulate_run(sc, seed=seed, run_index=index, rate_hz=rate_hz)
         accel_var = (np.asarray(sc.accel.noise_mps2_per_rt_hz) ** 2) * run.rate_hz
@@ -127,8 +139,7 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
                   frame_id='imu_link', imu_topic='/imu/data_raw',
                   temperature_topic='/imu/temperature', reference_topic='/rate_table/reference',
                   gyro_cov=run.truth.noise_std ** 2, accel_cov=accel_var)
-        log(_summary(run, path, time.perf_counter() - start))
-    return paths
+        log(_summary(run, name, time.perf_counter() - start))
 
 
 def _run(args: argparse.Namespace, argv: list) -> int:
