@@ -41,6 +41,7 @@ import sys
 import time
 from typing import Callable, Sequence
 
+from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.cli.common import ArgumentParser, positive_float, run_command
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.resources import model_path
@@ -183,7 +184,8 @@ def _live(steps: _Steps, model: Path, seconds: float, report: Path) -> None:
                       seconds=seconds)
     for line in result.lines():
         print(line)
-    (report / 'live.json').write_text(json.dumps(result.__dict__, indent=1) + '\n')
+    atomic_write(report / 'live.json', json.dumps(result.__dict__, indent=1) + '\n',
+                 what='JSON file')
 
 
 def build_parser() -> argparse.ArgumentParser:
