@@ -100,7 +100,7 @@ class SensorOutcome:
 def run_sensor(spec: SensorSpec, options: dict, *, previous_key: str | None = None,
                command: str = '') -> SensorOutcome:
     """
-    Train, evaluate and characterise one sensor (the Dask task; pure, no file written).
+    Train, evaluate and characterise one sensor (the Dask task; writes only a temporary file).
 
     Parameters
     ----------
