@@ -28,13 +28,13 @@ stderr. See :mod:`gyro_tdc.fleet`.
 from __future__ import annotations
 
 import argparse
-import math
 import os
 from pathlib import Path
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.cli.common import ArgumentParser, command_line, run_command, UsageError
+from gyro_tdc.cli.common import ArgumentParser, command_line, positive_float, positive_int
+from gyro_tdc.cli.common import run_command, UsageError
 from gyro_tdc.cli.train import add_train_options, train_options
 from gyro_tdc.fleet import DEFAULT_OUTLIER_Z, format_table, open_engine, read_manifest
 from gyro_tdc.fleet import run_fleet
@@ -54,19 +54,19 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--out', required=True, metavar='DIR',
                    help='output folder: <sensor_id>.yaml, summary.json, summary.csv')
     eng = p.add_argument_group('Dask engine').add_mutually_exclusive_group()
-    eng.add_argument('--workers', type=int, default=None, metavar='N',
+    eng.add_argument('--workers', type=positive_int, default=None, metavar='N',
                      help='worker processes of the embedded LocalCluster (default: the '
                           "machine's cores)")
     eng.add_argument('--scheduler', default=None, metavar='ADDRESS',
                      help='use a running Dask cluster (tcp://HOST:PORT) instead; its workers '
                           'must read the bags at the paths of the manifest')
-    p.add_argument('--connect-timeout', type=float, default=30.0, metavar='S',
+    p.add_argument('--connect-timeout', type=positive_float, default=30.0, metavar='S',
                    help='seconds to wait for --scheduler and its first worker (default: '
                         '%(default)s)')
     p.add_argument('--force', action='store_true',
                    help='retrain sensors whose bags and options are unchanged (default: skip '
                         'them, keeping their models)')
-    p.add_argument('--outlier-z', type=float, default=DEFAULT_OUTLIER_Z, metavar='Z',
+    p.add_argument('--outlier-z', type=positive_float, default=DEFAULT_OUTLIER_Z, metavar='Z',
                    help='flag a drift coefficient whose robust z-score against the fleet '
                         'exceeds Z (default: %(default)s)')
     add_train_options(p)
@@ -75,12 +75,6 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``fleet`` with parsed arguments; print the table; 1 when a sensor failed."""
-    if args.workers is not None and args.workers < 1:
-        raise UsageError(f'--workers: expected an integer >= 1, got {args.workers}')
-    if not (math.isfinite(args.outlier_z) and args.outlier_z > 0):
-        raise UsageError(f'--outlier-z: expected a number > 0, got {args.outlier_z}')
-    if not (math.isfinite(args.connect_timeout) and args.connect_timeout > 0):
-        raise UsageError(f'--connect-timeout: expected a number > 0, got {args.connect_timeout}')
     options = train_options(args)     # a bad feature id fails before any worker starts
     specs = read_manifest(args.manifest)
     out = Path(args.out)
