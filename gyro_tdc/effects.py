@@ -29,6 +29,16 @@ agree to floating-point precision:
 Two effects are not inputs of the drift network: ``bias`` is the constant term every model
 has, and ``scale`` multiplies the true rate (sensitivity change, handled by the model).
 
+The model temperature. In a model with a thermal front end (format 2,
+:mod:`gyro_tdc.thermal_state`) the temperature terms (``dT``, ``dT2``, ``dT3``: the static
+inputs, and the ``scale`` term) are functions of the *state*, the estimated die temperature,
+which the caller passes as ``state=``; the effect flagged ``thermal`` (``lag``) then adds no
+column: it is what makes the state follow the measured temperature with a lag, and a model
+with ``lag`` and no temperature term has ``dT`` implied (:func:`with_implied`). ``dTdt``
+(the gradient, from the measured temperature) and ``warmup`` stay additive columns. Without
+``state`` (format 1, and discovery's additive search) every feature is of the measured
+temperature and ``lag`` is the additive column ``dT`` of the lagged temperature.
+
 Everything else about an effect is derived from the catalog: the column layout
 (:data:`INPUT_ORDER`), the effects without time memory (:data:`STATIC_EFFECTS`), those with
 fitted parameters (:data:`NONLINEAR_EFFECTS`), those that need a temperature span
@@ -49,8 +59,9 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     'EFFECT_IDS', 'EFFECTS', 'Effect', 'INPUT_ORDER', 'NONLINEAR_EFFECTS', 'REFERENCE_EFFECTS',
-    'STATIC_EFFECTS', 'Series', 'StreamStep', 'StreamingFeatures', 'TEMPERATURE_EFFECTS',
-    'batch_features', 'first_order_lag', 'input_ids', 'normalise_ids', 'resolve_params',
+    'STATE_TERMS', 'STATIC_EFFECTS', 'Series', 'StreamStep', 'StreamingFeatures',
+    'TEMPERATURE_EFFECTS', 'THERMAL_EFFECTS', 'batch_features', 'first_order_lag', 'input_ids',
+    'normalise_ids', 'resolve_params', 'with_implied',
 ]
 
 #: Input holds of :func:`first_order_lag`.
@@ -159,11 +170,11 @@ class Series:
     t : NDArray[np.float64], shape (N,), s
         Stamps (filters start at ``t[0]``).
     temp : NDArray[np.float64], shape (N,), degC
-        Temperature at each stamp.
+        Measured temperature at each stamp.
     t0 : float, degC
         Reference temperature.
     d : NDArray[np.float64], shape (N,), degC
-        ``temp - t0``.
+        The model temperature minus ``t0``: the thermal state's (format 2) or ``temp``'s.
     t_start : float, s
         Power-on time.
 
@@ -179,7 +190,8 @@ class Series:
 #: A batch feature: ``(series, params) -> column (N,)``.
 BatchFeature = Callable[[Series, Mapping[str, float]], NDArray[np.float64]]
 #: One streaming step: ``(t, dt_s, temp, d, first) -> value``, with ``dt_s`` the time since
-#: the previous sample (0 on the first, ``first`` True), ``d = temp - t0``.
+#: the previous sample (0 on the first, ``first`` True), ``temp`` the measured temperature
+#: and ``d`` the model temperature minus T0 (``temp - t0`` without a thermal state).
 StreamStep = Callable[[float, float, float, float, bool], float]
 #: Builds a fresh streaming step (its own filter state): ``(params, t0) -> StreamStep``.
 StreamFactory = Callable[[Mapping[str, float], float], StreamStep]
@@ -222,6 +234,10 @@ class Effect:
         Identifiable only from data that span a range of temperatures.
     needs_reference : bool
         Identifiable only with a non-zero reference rate (rate-table data).
+    thermal : bool
+        The effect is the thermal front end (``lag``): in a model with a thermal state it
+        adds no column and makes every temperature term follow the lagged state; its
+        ``batch``/``stream`` forms are the format-1 additive column.
 
     """
 
@@ -238,6 +254,7 @@ class Effect:
     static: bool = False
     needs_span: bool = True
     needs_reference: bool = False
+    thermal: bool = False
 
     def __post_init__(self) -> None:
         """Check that the entry is complete and consistent."""
@@ -330,10 +347,12 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in (
            'heating and cooling legs at varied rates', params={'tau_s': 60.0},
            **_of_lag(lambda temp, lag, tau, t0: (temp - lag) / tau)),
     Effect('lag', 'Heat conduction between the thermometer and the MEMS die (paper eq. 24): '
-           'the die follows the measured temperature with a first-order lag tau_s.',
-           'dT of the first-order-lagged T (tau_s fitted)',
+           'the die follows the measured temperature with a first-order lag tau_s, and the '
+           'drift follows the die: every temperature term is of the lagged state.',
+           'the model temperature is the first-order-lagged state (tau_s fitted), no column '
+           'of its own (format 1: the additive column dT of the lagged T)',
            'steps, soaks, heating and cooling', params={'tau_s': 120.0}, fitted=('tau_s',),
-           bounds={'tau_s': (1.0, 20000.0)},
+           bounds={'tau_s': (1.0, 20000.0)}, thermal=True,
            **_of_lag(lambda temp, lag, tau, t0: lag - t0)),
     Effect('scale', 'Sensitivity change vs temperature (paper eq. 18, beta): the scale factor '
            'is (1 + s dT); removed at run time from the measured rate, '
@@ -363,6 +382,12 @@ TEMPERATURE_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() i
 #: Effects identifiable only with a non-zero reference rate.
 REFERENCE_EFFECTS: frozenset[str] = frozenset(
     e.id for e in EFFECTS.values() if e.needs_reference)
+#: The thermal front end (``lag``): with a thermal state, no column; the state follows it.
+THERMAL_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.thermal)
+#: The temperature terms (static inputs: ``dT``, ``dT2``, ``dT3``): of the state when there
+#: is one.
+STATE_TERMS: frozenset[str] = frozenset(
+    e.id for e in EFFECTS.values() if e.static and e.is_input)
 
 
 def normalise_ids(ids: str | Sequence[str]) -> tuple[str, ...]:
@@ -390,9 +415,51 @@ def normalise_ids(ids: str | Sequence[str]) -> tuple[str, ...]:
     return tuple(i for i in EFFECTS if i in set(ids))
 
 
-def input_ids(ids: Sequence[str]) -> tuple[str, ...]:
-    """Return the ids among ``ids`` that are inputs of the drift network, in layout order."""
-    return tuple(i for i in normalise_ids(ids) if EFFECTS[i].is_input)
+def input_ids(ids: Sequence[str], *, state: bool = False) -> tuple[str, ...]:
+    """
+    Return the ids among ``ids`` that are inputs of the drift network, in layout order.
+
+    Parameters
+    ----------
+    ids : sequence of str
+        Effect ids.
+    state : bool
+        The model has a thermal state (format 2): the ``thermal`` effect (``lag``) is not a
+        column. False: the format-1 layout, ``lag`` an additive column.
+
+    Returns
+    -------
+    tuple of str
+        The column ids.
+
+    """
+    return tuple(i for i in normalise_ids(ids) if EFFECTS[i].is_input
+                 and not (state and EFFECTS[i].thermal))
+
+
+def with_implied(ids: str | Sequence[str]) -> tuple[str, ...]:
+    """
+    Return ``ids`` with the terms a thermal state implies: ``dT`` when ``lag`` has no term.
+
+    With a thermal state, ``lag`` only says that the drift follows the lagged state; a model
+    asked for ``lag`` without any temperature term (``dT``, ``dT2``, ``dT3``) is the linear
+    one, ``dT`` of the state.
+
+    Parameters
+    ----------
+    ids : str or sequence of str
+        Effect ids.
+
+    Returns
+    -------
+    tuple of str
+        The ids in catalog order, ``dT`` added when implied.
+
+    """
+    ids = normalise_ids(ids)
+    if THERMAL_EFFECTS & set(ids) and not STATE_TERMS & set(ids):
+        ids = normalise_ids(ids + ('dT',))
+    return ids
 
 
 def resolve_params(ids: Sequence[str],
@@ -435,7 +502,8 @@ def resolve_params(ids: Sequence[str],
 
 def batch_features(ids: Sequence[str], t: NDArray[np.float64], temp: NDArray[np.float64], *,
                    t0: float, params: Mapping[str, Mapping[str, float]] | None = None,
-                   t_start: float | None = None) -> NDArray[np.float64]:
+                   t_start: float | None = None, state: NDArray[np.float64] | None = None
+                   ) -> NDArray[np.float64]:
     """
     Compute the network-input features of one run.
 
@@ -446,13 +514,17 @@ def batch_features(ids: Sequence[str], t: NDArray[np.float64], temp: NDArray[np.
     t : NDArray[np.float64], shape (N,), s
         Stamps of one continuous run (filters start at ``t[0]``).
     temp : NDArray[np.float64], shape (N,), degC
-        Temperature at each stamp.
+        Measured temperature at each stamp.
     t0 : float, degC
         Reference temperature.
     params : mapping, optional
         Effect parameters (defaults from the catalog).
     t_start : float, optional, s
         Power-on time for ``warmup`` (default ``t[0]``).
+    state : NDArray[np.float64], shape (N,), degC, optional
+        The thermal state (the model temperature, already clamped when the model clamps):
+        the temperature terms are of it, and ``lag`` adds no column
+        (``input_ids(ids, state=True)``). None: the format-1 features of ``temp``.
 
     Returns
     -------
@@ -465,11 +537,17 @@ def batch_features(ids: Sequence[str], t: NDArray[np.float64], temp: NDArray[np.
     if t.shape != temp.shape or t.ndim != 1:
         raise ValueError(f'Expected `t` and `temp` of equal shape (N,), got {t.shape} and '
                          f'{temp.shape}.')
-    cols = input_ids(ids)
+    if state is not None:
+        state = np.asarray(state, dtype=np.float64)
+        if state.shape != temp.shape:
+            raise ValueError(f'Expected `state` of shape {temp.shape} like `temp`, '
+                             f'got {state.shape}.')
+    cols = input_ids(ids, state=state is not None)
     p = resolve_params(cols, params)
     out = np.empty((t.shape[0], len(cols)))
     start = t[0] if t_start is None and t.shape[0] else (t_start or 0.0)
-    series = Series(t=t, temp=temp, t0=t0, d=temp - t0, t_start=start)
+    d = (temp if state is None else state) - t0
+    series = Series(t=t, temp=temp, t0=t0, d=d, t_start=start)
     for j, eid in enumerate(cols):
         out[:, j] = EFFECTS[eid].batch(series, p.get(eid, {}))
     return out
@@ -487,12 +565,16 @@ class StreamingFeatures:
         Reference temperature.
     params : mapping, optional
         Effect parameters (defaults from the catalog).
+    state : bool
+        :meth:`update` receives the thermal state (format 2, see :func:`batch_features`).
 
     """
 
     def __init__(self, ids: Sequence[str], *, t0: float,
-                 params: Mapping[str, Mapping[str, float]] | None = None) -> None:
-        self.ids = input_ids(ids)
+                 params: Mapping[str, Mapping[str, float]] | None = None,
+                 state: bool = False) -> None:
+        self.ids = input_ids(ids, state=state)
+        self.state = bool(state)
         self.t0 = float(t0)
         self.params = resolve_params(self.ids, params)
         self.reset()
@@ -503,7 +585,8 @@ class StreamingFeatures:
         self._steps = [EFFECTS[eid].stream(self.params.get(eid, {}), self.t0)
                        for eid in self.ids]
 
-    def update(self, t: float, temp: float) -> NDArray[np.float64]:
+    def update(self, t: float, temp: float, state: float | None = None
+               ) -> NDArray[np.float64]:
         """
         Advance to stamp ``t`` with temperature ``temp`` and return the feature vector.
 
@@ -512,7 +595,10 @@ class StreamingFeatures:
         t : float, s
             Stamp; a stamp not after the previous one leaves the filters unchanged.
         temp : float, degC
-            Temperature at ``t``.
+            Measured temperature at ``t``.
+        state : float, degC
+            The thermal state at ``t`` (required when built with ``state=True``, else
+            ignored).
 
         Returns
         -------
@@ -524,7 +610,13 @@ class StreamingFeatures:
         dt_s = 0.0 if first else max(t - self._t_prev, 0.0)
         self._t_prev = t if first else max(t, self._t_prev)
         out = np.empty(len(self._steps))
-        d = temp - self.t0
+        if self.state:
+            if state is None:
+                raise ValueError('Expected the thermal `state` (features built with '
+                                 'state=True).')
+            d = state - self.t0
+        else:
+            d = temp - self.t0
         for j, step in enumerate(self._steps):
             out[j] = step(t, dt_s, temp, d, first)
         return out

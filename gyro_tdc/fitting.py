@@ -18,7 +18,9 @@ Identification of the compensation model from thermal runs.
 The procedure follows section 3.2 of the paper with the usual modern refinements:
 
 1. the drift samples are the raw output minus the reference rate; the inputs are the effect
-   features of the measured temperature (``dT`` and ``dT^2`` for the paper's modified model);
+   features of the model temperature (``dT`` and ``dT^2`` for the paper's modified model),
+   which is the measured temperature, or with ``lag`` the thermal state (the estimated die
+   temperature, :mod:`gyro_tdc.thermal_state`);
 2. the inputs are normalised; RBF centres are placed by k-means over the input samples and
    each width is the mean distance to the two nearest other centres;
 3. the output weights (with a constant and linear tail, and the per-axis ``scale`` term when
@@ -26,8 +28,14 @@ The procedure follows section 3.2 of the paper with the usual modern refinements
 4. optionally the centres and widths are refined with ``scipy.optimize.least_squares``
    (variable projection: weights re-solved at every step), which does what the paper's
    gradient rule (eq. 28) does, faster and with a stopping rule;
-5. effect parameters (lag and warm-up time constants) are fitted by a bounded search over
-   the least-squares residual.
+5. effect parameters (the warm-up time constant) and the thermal state's time constant(s)
+   are fitted by variable projection: an outer bounded search over ``log tau``
+   (:func:`fit_time_constant`), the weights re-solved at every trial (:func:`fit_linear`);
+   the state's time constant gets a 95 % profile-likelihood interval
+   (:func:`profile_interval`, with the residual's autocorrelation counted by
+   :func:`effective_samples`), and a profile too flat to pin it marks the state as not
+   identifiable. ``thermal='auto'`` also fits the two-node state (two cascaded lags) and
+   keeps it only when it lowers the cross-validated error by :data:`TWO_NODE_MARGIN`.
 
 Long runs are block-averaged before the linear solve: temperature moves slowly, so averaging
 a few samples loses nothing of the drift and bounds memory and time.
@@ -44,22 +52,36 @@ import warnings
 from gyro_tdc import __version__
 from gyro_tdc.blocks import block_counts, block_length, block_mean, block_sumsq
 from gyro_tdc.effects import (batch_features, EFFECTS, input_ids, normalise_ids,
-                              REFERENCE_EFFECTS, resolve_params, TEMPERATURE_EFFECTS)
+                              REFERENCE_EFFECTS, resolve_params, TEMPERATURE_EFFECTS,
+                              THERMAL_EFFECTS, with_implied)
 from gyro_tdc.errors import FitError
 from gyro_tdc.model import CompensationModel, KINDS, rbf_design
 from gyro_tdc.runs import Run
+from gyro_tdc.thermal_state import ThermalState
 import numpy as np
 from numpy.typing import NDArray
 from scipy.cluster.vq import kmeans2
 from scipy.optimize import least_squares, minimize_scalar
 
-__all__ = ['estimate_t0', 'fit_linear', 'fit_model', 'fit_px4_cubic', 'fit_time_constant',
-           'LinearFit', 'MIN_SAMPLES', 'MIN_SPAN_C', 'RIDGE_GRID', 'TimeConstantFit']
+__all__ = ['effective_samples', 'estimate_t0', 'fit_linear', 'fit_model', 'fit_px4_cubic',
+           'fit_time_constant', 'LinearFit', 'MAX_TAU_RATIO', 'MIN_SAMPLES', 'MIN_SPAN_C',
+           'PROFILE_LEVEL', 'profile_interval', 'RIDGE_GRID', 'TAU_BOUNDS', 'THERMAL_CHOICES',
+           'TimeConstantFit', 'TauProfile', 'TWO_NODE_MARGIN']
 
 #: Fewest samples a fit accepts.
 MIN_SAMPLES = 50
 #: Smallest temperature span (degC) a fit with temperature features accepts.
 MIN_SPAN_C = 0.5
+#: Profile-likelihood level of a 95 % interval on one parameter (chi-square, 1 dof).
+PROFILE_LEVEL = 3.841
+#: A time-constant interval wider than this ratio (hi / lo) does not pin the time constant.
+MAX_TAU_RATIO = 3.0
+#: Relative cross-validated error a two-node state must save over first order to be kept.
+TWO_NODE_MARGIN = 0.05
+#: Values of ``fit_model(thermal=...)`` besides a fixed :class:`ThermalState`.
+THERMAL_CHOICES = ('none', 'first_order', 'two_node', 'auto')
+#: Search bounds of the thermal state's time constants, s (the ``lag`` effect's bounds).
+TAU_BOUNDS: tuple[float, float] = tuple(EFFECTS['lag'].bounds['tau_s'])
 
 
 def estimate_t0(run: Run, *, window_s: float = 60.0) -> float:
@@ -94,6 +116,7 @@ class _Blocks:
         self.temp = block_mean(run.temp, block)
         err = run.omega - run.omega_ref
         self.y = block_mean(err, block)
+        self.ref = block_mean(run.omega_ref, block)
         self.block = block
         self.counts = block_counts(len(run), block)
         self.ss_raw = np.einsum('ij,ij->j', err, err)
@@ -104,29 +127,53 @@ class _Blocks:
         """Per block and axis, the sum of squared deviations of ``err`` from ``mean``."""
         return block_sumsq(err, self.block) - self.counts[:, None] * mean ** 2
 
-    def scatter(self, scale: NDArray[np.float64], t0: float) -> NDArray[np.float64]:
+    def state(self, thermal: ThermalState) -> NDArray[np.float64]:
+        """Return the thermal state at full rate (N,), degC."""
+        return thermal.temperature(self.run.t, self.run.temp)
+
+    def scatter(self, scale: NDArray[np.float64], t0: float,
+                state: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
         """
         Return, per block, the sum of squared deviations from the block mean (per axis).
 
-        The error is taken after removing the sensitivity term ``scale * dT * omega_ref``,
-        which changes within a block when the rate table steps.
+        The error is taken after removing the sensitivity term ``scale * dT * omega_ref``
+        (``dT`` of the full-rate ``state``, or of the measured temperature), which changes
+        within a block when the rate table steps.
         """
         err = self.run.omega - self.run.omega_ref
         if np.any(scale):
-            err = err - (self.run.temp - t0)[:, None] * self.run.omega_ref * scale
+            temp = self.run.temp if state is None else state
+            err = err - (temp - t0)[:, None] * self.run.omega_ref * scale
         return self._scatter(err, block_mean(err, self.block))
 
     def features(self, ids: Sequence[str], t0: float, params: Mapping, *,
-                 exact: bool) -> NDArray[np.float64]:
-        """Return block-mean features; ``exact`` computes them at full rate first."""
-        if exact and self.block > 1:
-            x = batch_features(ids, self.run.t, self.run.temp, t0=t0, params=params)
-            return block_mean(x, self.block)
-        return batch_features(ids, self.t, self.temp, t0=t0, params=params)
+                 exact: bool, thermal: ThermalState,
+                 state: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+        """
+        Return block-mean features with the model temperature of ``thermal``.
 
-    def scale_cols(self, t0: float) -> NDArray[np.float64]:
-        """Return block means of ``dT * omega_ref`` (N, 3)."""
-        d = self.run.temp - t0
+        ``exact`` computes them at full rate first (with the full-rate ``state`` when
+        given); else from the block means (the parameter search).
+        """
+        if exact and self.block > 1:
+            run = self.run
+            s = self.state(thermal) if state is None else state
+            x = batch_features(ids, run.t, run.temp, t0=t0, params=params, state=s)
+            return block_mean(x, self.block)
+        return batch_features(ids, self.t, self.temp, t0=t0, params=params,
+                              state=thermal.temperature(self.t, self.temp))
+
+    def scale_cols(self, t0: float, state: NDArray[np.float64] | None = None,
+                   thermal: ThermalState | None = None) -> NDArray[np.float64]:
+        """
+        Return block means of ``dT * omega_ref`` (N, 3).
+
+        ``dT`` of the full-rate ``state`` (exact), else with ``thermal`` of the block-mean
+        state times the block-mean rate (the parameter search; the temperature is slow).
+        """
+        if thermal is not None:
+            return (thermal.temperature(self.t, self.temp) - t0)[:, None] * self.ref
+        d = (self.run.temp if state is None else state) - t0
         return block_mean(d[:, None] * self.run.omega_ref, self.block)
 
 
@@ -321,7 +368,9 @@ def _residual(design: NDArray[np.float64], y: NDArray[np.float64],
 
 def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
                scale_cols: NDArray[np.float64] | None = None, kind: str = 'poly',
-               n_centers: int = 12, ridge: float | str = 'auto', seed: int = 0) -> LinearFit:
+               n_centers: int = 12, ridge: float | str = 'auto', seed: int = 0,
+               centers: NDArray[np.float64] | None = None,
+               widths: NDArray[np.float64] | None = None) -> LinearFit:
     """
     Fit the drift network on one feature matrix by regularised linear least squares.
 
@@ -349,6 +398,9 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
         rows), else uses ``RIDGE_GRID[1]``.
     seed : int
         Seed of the centre placement.
+    centers, widths : NDArray[np.float64], shapes (K, F) and (K,), optional
+        ``rbf`` only: use these centres and widths (normalised units) instead of placing
+        them, so that the fit is a smooth function of the data (a time-constant search).
 
     Returns
     -------
@@ -360,7 +412,14 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
     std = x.std(axis=0) if x.shape[1] else np.ones(0)
     std = np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
     xn = (x - mean) / std
-    if kind == 'rbf' and x.shape[1]:
+    if kind == 'rbf' and centers is not None:
+        centers = np.asarray(centers, dtype=np.float64)
+        widths = np.asarray(widths, dtype=np.float64)
+        if centers.ndim != 2 or centers.shape[1] != x.shape[1] or widths.shape != (
+                centers.shape[0],):
+            raise FitError(f'Expected `centers` (K, {x.shape[1]}) and `widths` (K,), got '
+                           f'{centers.shape} and {widths.shape}.')
+    elif kind == 'rbf' and x.shape[1]:
         centers, widths = _place_centers(xn, n_centers, seed)
     else:
         centers, widths = np.zeros((0, x.shape[1])), np.zeros(0)
@@ -459,6 +518,189 @@ def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float]
                            grid_tau=np.exp(grid) if log else grid, grid_sse=vals)
 
 
+def effective_samples(resid: NDArray[np.float64], *, min_batches: int = 32
+                      ) -> NDArray[np.float64]:
+    """
+    Return, per column, the number of independent samples a correlated residual is worth.
+
+    A residual with memory (slow noise, or drift the model misses) carries less information
+    than its length: ``n_eff = n / inflation`` with the variance inflation of its mean taken
+    as the larger of the AR(1) value ``(1 + rho) / (1 - rho)`` (``rho`` the lag-1
+    autocorrelation, ``n_eff = n (1 - rho) / (1 + rho)``) and the batch-means values
+    ``m var(mean of m rows) / var(row)`` for ``m = 2, 4, ...`` while at least
+    ``min_batches`` batches remain (memory longer than one lag).
+
+    Parameters
+    ----------
+    resid : NDArray[np.float64], shape (N,) or (N, A)
+        Residual rows in time order.
+    min_batches : int
+        Fewest batches a batch-means value is taken from.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (A,)
+        ``n_eff`` per column, between 1 and N.
+
+    """
+    r = np.asarray(resid, dtype=np.float64)
+    r = r.reshape(r.shape[0], -1)
+    n = r.shape[0]
+    if n < 3:
+        return np.full(r.shape[1], float(max(n, 1)))
+    r = r - r.mean(axis=0)
+    var = np.maximum((r * r).mean(axis=0), 1e-300)
+    rho = np.clip((r[1:] * r[:-1]).mean(axis=0) / var, 0.0, 0.999)
+    inflation = (1.0 + rho) / (1.0 - rho)
+    m = 2
+    while n // m >= min_batches:
+        k = n // m * m
+        means = r[:k].reshape(-1, m, r.shape[1]).mean(axis=1)
+        inflation = np.maximum(inflation, m * means.var(axis=0) / var)
+        m *= 2
+    return np.clip(n / np.maximum(inflation, 1.0), 1.0, float(n))
+
+
+@dataclass(frozen=True, eq=False)
+class TauProfile:
+    """
+    The profile of a fit over one time constant, and the interval it gives.
+
+    Parameters
+    ----------
+    tau : float, s
+        The best time constant.
+    interval : tuple of float, s
+        ``(lo, hi)``: every evaluated ``tau`` whose statistic is within ``level`` (the
+        hull, ends resolved by bisection).
+    identifiable : bool
+        False when the interval reaches a search bound or ``hi / lo > max_ratio``.
+    grid_tau : NDArray[np.float64], shape (G,), s
+        Every evaluated time constant, increasing.
+    stat : NDArray[np.float64], shape (G,)
+        The profile statistic at each: ``sum_a n_eff_a ln(SSE_a(tau) / SSE_a(tau_best))``,
+        0 at the best point.
+    n_eff : NDArray[np.float64], shape (A,)
+        Effective samples per residual column (:func:`effective_samples`).
+    bounds : tuple of float, s
+        The search bounds.
+
+    """
+
+    tau: float
+    interval: tuple[float, float]
+    identifiable: bool
+    grid_tau: NDArray[np.float64]
+    stat: NDArray[np.float64]
+    n_eff: NDArray[np.float64]
+    bounds: tuple[float, float]
+
+    def to_dict(self) -> dict:
+        """Return the profile as plain types (for a model's training metrics)."""
+        return {'tau_s': float(self.tau), 'interval_s': [float(v) for v in self.interval],
+                'identifiable': bool(self.identifiable),
+                'bounds_s': [float(v) for v in self.bounds],
+                'n_eff': [float(v) for v in self.n_eff],
+                'profile_tau_s': [float(v) for v in self.grid_tau],
+                'profile_stat': [float(v) for v in self.stat]}
+
+
+def profile_interval(sse: Callable[[float], NDArray[np.float64]], tau: float,
+                     bounds: tuple[float, float], n_eff: NDArray[np.float64], *,
+                     evaluated: Mapping[float, NDArray[np.float64]] | None = None,
+                     level: float = PROFILE_LEVEL, max_ratio: float = MAX_TAU_RATIO,
+                     step: float = 0.005, bisections: int = 8) -> TauProfile:
+    """
+    Return the profile-likelihood interval of a time constant fitted by variable projection.
+
+    With Gaussian residuals of unknown variance per column, ``-2 ln L = sum_a n_a ln SSE_a``
+    once the linear weights are re-solved (the profile over them); the 95 % interval is
+    ``{tau : sum_a n_eff_a ln(SSE_a(tau) / SSE_a(tau_best)) <= level}``, ``n_eff`` counting the
+    residual's memory. From ``tau`` the profile is walked outwards in ``log tau`` with
+    doubling steps (from ``step``) until the statistic exceeds ``level`` or a bound is
+    reached, and each end is bisected ``bisections`` times; points already ``evaluated``
+    (e.g. the search grid) join the profile, and the interval is the hull of every point
+    within the level (a flat or multi-modal profile widens it).
+
+    Parameters
+    ----------
+    sse : callable
+        ``sse(tau) -> NDArray (A,)``: the residual sum of squares per column at ``tau``.
+    tau : float, s
+        The best time constant (a minimum of ``sum(sse(tau))``).
+    bounds : tuple of float, s
+        The search bounds ``(lo, hi)``, ``0 < lo <= tau <= hi``.
+    n_eff : NDArray[np.float64], shape (A,)
+        Effective samples per column (:func:`effective_samples` of the residual at ``tau``).
+    evaluated : mapping, optional
+        ``{tau: sse per column}`` already known (no re-evaluation).
+    level : float
+        Threshold of the statistic (:data:`PROFILE_LEVEL`: 95 %).
+    max_ratio : float
+        Widest ``hi / lo`` that still counts as identifiable.
+    step : float
+        First step of the walk, in ``log tau``.
+    bisections : int
+        Bisections of each end.
+
+    Returns
+    -------
+    TauProfile
+        The interval, whether it pins ``tau``, and the profile.
+
+    """
+    lo_b, hi_b = (float(v) for v in bounds)
+    if not (0.0 < lo_b <= tau <= hi_b):
+        raise FitError(f'Expected 0 < lo <= tau <= hi, got bounds {bounds!r} and tau {tau!r}.')
+    n_eff = np.asarray(n_eff, dtype=np.float64).ravel()
+    pts: dict[float, NDArray[np.float64]] = {
+        float(k): np.asarray(v, dtype=np.float64).ravel() for k, v in (evaluated or {}).items()}
+
+    def at(v: float) -> NDArray[np.float64]:
+        if v not in pts:
+            pts[v] = np.asarray(sse(v), dtype=np.float64).ravel()
+        return pts[v]
+
+    floor = np.maximum(at(float(tau)), 1e-300)
+
+    def stat(v: float) -> float:
+        return float((n_eff * np.log(np.maximum(at(v), 1e-300) / floor)).sum())
+
+    u0, u_lo, u_hi = math.log(tau), math.log(lo_b), math.log(hi_b)
+    ends = []
+    for side, bound in ((-1.0, u_lo), (1.0, u_hi)):
+        inside, outside, d = u0, None, step
+        while True:
+            u = u0 + side * d
+            u = max(u, bound) if side < 0 else min(u, bound)
+            if stat(math.exp(u)) > level:
+                outside = u
+                break
+            inside = u
+            if u == bound:
+                break
+            d *= 2.0
+        if outside is not None:
+            for _ in range(bisections):
+                mid = 0.5 * (inside + outside)
+                if stat(math.exp(mid)) > level:
+                    outside = mid
+                else:
+                    inside = mid
+        ends.append(inside)
+    grid = np.array(sorted(pts))
+    st = np.array([stat(v) for v in grid])
+    st -= min(0.0, float(st.min()))
+    within = grid[st <= level]
+    lo = min(math.exp(ends[0]), float(within.min()))
+    hi = max(math.exp(ends[1]), float(within.max()))
+    lo, hi = max(min(lo, tau), lo_b), min(max(hi, tau), hi_b)
+    eps = 1e-9
+    ident = lo > lo_b * (1 + eps) and hi < hi_b * (1 - eps) and hi <= max_ratio * lo
+    return TauProfile(tau=float(tau), interval=(lo, hi), identifiable=bool(ident),
+                      grid_tau=grid, stat=st, n_eff=n_eff, bounds=(lo_b, hi_b))
+
+
 def _refine(x: NDArray[np.float64], y: NDArray[np.float64],
             scale_cols: NDArray[np.float64] | None, fit: LinearFit, *, ridge: float,
             seed: int, max_rows: int = 2000) -> LinearFit:
@@ -515,15 +757,196 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str]) -> None:
                        'data); every training run has omega_ref = 0.')
 
 
+#: The effect that makes the model temperature a lagged state (``lag``, the one thermal id).
+(_LAG,) = THERMAL_EFFECTS
+
+
+class _Search:
+    """
+    The nonlinear-parameter search of :func:`fit_model`, on coarse blocks (<= 20k rows).
+
+    ``sse(thermal, params)`` is the residual sum of squares per axis with the linear weights
+    re-solved (variable projection). For a thermal-state search of an ``rbf`` model the
+    centres are placed once (:meth:`freeze_centers`) and kept, so the objective is a smooth
+    function of the time constants.
+    """
+
+    def __init__(self, runs: Sequence[Run], inputs: Sequence[str], t0: float, *, kind: str,
+                 n_centers: int, ridge: float, seed: int, scale: bool, n_total: int) -> None:
+        block = block_length(n_total, 20_000, at_most=True)
+        self.blocks = [_Blocks(r, block) for r in runs]
+        self.y = np.concatenate([b.y for b in self.blocks])
+        self.inputs, self.t0, self.scale = tuple(inputs), t0, scale
+        self.kind = self.inner = kind
+        self.n_centers, self.ridge, self.seed = n_centers, ridge, seed
+        self.centers: NDArray[np.float64] | None = None
+        self.widths: NDArray[np.float64] | None = None
+
+    def design(self, thermal: ThermalState, par: Mapping
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
+        """Return the coarse feature rows and scale columns of a front end."""
+        lagged = thermal.kind != 'none'
+        x = np.concatenate([b.features(self.inputs, self.t0, par, exact=False, thermal=thermal)
+                            for b in self.blocks])
+        sc = (np.concatenate([b.scale_cols(self.t0, thermal=thermal if lagged else None)
+                              for b in self.blocks]) if self.scale else None)
+        return x, sc
+
+    def _linear(self, x: NDArray[np.float64], y: NDArray[np.float64],
+                sc: NDArray[np.float64] | None) -> LinearFit:
+        frozen = self.inner == 'rbf' and self.centers is not None
+        return fit_linear(x, y, scale_cols=sc, kind=self.inner, n_centers=self.n_centers,
+                          ridge=self.ridge, seed=self.seed,
+                          centers=self.centers if frozen else None,
+                          widths=self.widths if frozen else None)
+
+    def fit(self, thermal: ThermalState, par: Mapping) -> LinearFit:
+        """Return the linear fit on the coarse rows with this front end and parameters."""
+        x, sc = self.design(thermal, par)
+        return self._linear(x, self.y, sc)
+
+    def sse(self, thermal: ThermalState, par: Mapping) -> NDArray[np.float64]:
+        """Return the residual sum of squares per axis (3,)."""
+        r = self.fit(thermal, par).resid
+        return np.einsum('ij,ij->j', r, r)
+
+    def freeze_centers(self, thermal: ThermalState, par: Mapping) -> None:
+        """Place the RBF centres on the features of ``thermal`` and keep them from now on."""
+        x, sc = self.design(thermal, par)
+        fit = fit_linear(x, self.y, scale_cols=sc, kind='rbf', n_centers=self.n_centers,
+                         ridge=self.ridge, seed=self.seed)
+        self.centers, self.widths = fit.centers, fit.widths
+        self.inner = 'rbf'
+
+    def cv_sse(self, thermal: ThermalState, par: Mapping, *, n_segments: int = 20,
+               n_folds: int = 5) -> float:
+        """Return the cross-validated SSE over interleaved contiguous segments."""
+        x, sc = self.design(thermal, par)
+        n = x.shape[0]
+        fold = (np.arange(n) * n_segments // n) % n_folds
+        total = 0.0
+        for k in range(n_folds):
+            test = fold == k
+            if not test.any() or test.all():
+                continue
+            fit = self._linear(x[~test], self.y[~test], None if sc is None else sc[~test])
+            pred = fit.predict(x[test], None if sc is None else sc[test])
+            total += float(((pred - self.y[test]) ** 2).sum())
+        return total
+
+    # -- thermal state ---------------------------------------------------------------
+
+    def first_order(self, par: Mapping, bounds: tuple[float, float]
+                    ) -> tuple[float, dict]:
+        """Search the first-order time constant; return it and every point evaluated."""
+        seen: dict[float, NDArray[np.float64]] = {}
+
+        def objective(tau: float) -> float:
+            seen[tau] = self.sse(ThermalState('first_order', (tau,)), par)
+            return float(seen[tau].sum())
+
+        return fit_time_constant(objective, bounds, n_grid=13).tau, seen
+
+    def profile(self, taus: tuple[float, ...], i: int, par: Mapping,
+                bounds: tuple[float, float], seen: Mapping | None = None) -> TauProfile:
+        """Return the profile interval of time constant ``i``, the others held."""
+        kind = 'first_order' if len(taus) == 1 else 'two_node'
+
+        def state(v: float) -> ThermalState:
+            return ThermalState(kind, taus[:i] + (v,) + taus[i + 1:])
+
+        n_eff = effective_samples(self.fit(state(taus[i]), par).resid)
+        return profile_interval(lambda v: self.sse(state(v), par), taus[i], bounds, n_eff,
+                                evaluated=seen)
+
+    def two_node(self, par: Mapping, tau_fo: float, bounds: tuple[float, float]
+                 ) -> tuple[float, float]:
+        """
+        Search two cascaded time constants ``(a, b)``, ``a <= b``.
+
+        The split ``q = a / (a + b)`` runs over a log grid in [0.01, 0.5] then a bounded
+        search; for each split the total ``a + b`` is searched within a factor 4 of the
+        first-order time constant.
+        """
+        lo, hi = bounds
+        span = (max(lo / 0.01, tau_fo / 4.0), min(hi, tau_fo * 4.0))
+        if span[0] > span[1]:
+            span = (span[1], span[1])
+        memo: dict[float, TimeConstantFit] = {}
+
+        def best_total(q: float) -> TimeConstantFit:
+            if q not in memo:
+                def objective(total: float) -> float:
+                    return float(self.sse(ThermalState(
+                        'two_node', (q * total, (1.0 - q) * total)), par).sum())
+                memo[q] = fit_time_constant(objective, span, n_grid=7, xatol=0.01)
+            return memo[q]
+
+        lq = np.linspace(math.log(0.01), math.log(0.5), 7)
+        vals = [best_total(math.exp(v)).sse for v in lq]
+        i = int(np.argmin(vals))
+        a, b = lq[max(i - 1, 0)], lq[min(i + 1, lq.size - 1)]
+        best_q = math.exp(lq[i])
+        res = minimize_scalar(lambda v: best_total(math.exp(v)).sse, bounds=(a, b),
+                              method='bounded', options={'xatol': 0.05})
+        if res.fun < vals[i]:
+            best_q = math.exp(res.x)
+        total = best_total(best_q).tau
+        return best_q * total, (1.0 - best_q) * total
+
+
+def _thermal_choice(ids: tuple[str, ...], thermal: str | ThermalState | None,
+                    fit_params: bool, params: Mapping | None
+                    ) -> tuple[tuple[str, ...], str, ThermalState | None]:
+    """Return the effect ids, the thermal search mode and the fixed front end (or None)."""
+    lagged = _LAG in ids
+    if isinstance(thermal, ThermalState):
+        if thermal.kind == 'none':
+            if lagged:
+                raise FitError('`lag` makes the model temperature a lagged state; a thermal '
+                               "front end of kind 'none' contradicts it.")
+            return ids, 'fixed', thermal
+        return with_implied(ids + (_LAG,)), 'fixed', thermal
+    if thermal is None:
+        thermal = 'first_order' if lagged else 'none'
+    if thermal not in THERMAL_CHOICES:
+        raise FitError(f'Unknown thermal front end {thermal!r}; expected one of '
+                       f'{", ".join(THERMAL_CHOICES)} or a ThermalState.')
+    if thermal == 'none':
+        if lagged:
+            raise FitError("`lag` makes the model temperature a lagged state; thermal='none' "
+                           'contradicts it.')
+        return ids, 'fixed', ThermalState()
+    ids = with_implied(ids + (_LAG,))
+    if not fit_params:
+        if thermal == 'two_node':
+            raise FitError("thermal='two_node' with fit_params=False needs the time constants: "
+                           'pass a ThermalState.')
+        tau = resolve_params((_LAG,), params)[_LAG]['tau_s']
+        return ids, 'fixed', ThermalState('first_order', (tau,))
+    return ids, thermal, None
+
+
 def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
               features: str | Sequence[str] = ('dT', 'dT2'), t0: float | None = None,
               n_centers: int = 12, refine: bool = False, fit_params: bool = True,
               params: Mapping[str, Mapping[str, float]] | None = None,
               ridge: float | str = 'auto',
               max_rows: int = 200_000, seed: int = 0, frame_id: str = 'imu_link',
-              sensor_id: str = '', created: Mapping | None = None) -> CompensationModel:
+              sensor_id: str = '', created: Mapping | None = None,
+              thermal: str | ThermalState | None = None) -> CompensationModel:
     """
     Identify a compensation model from training runs.
+
+    With ``lag`` among the features (or a lagged ``thermal``) the model temperature is the
+    thermal state, the estimated die temperature: every temperature term, the RBF inputs,
+    the scale term and the valid range follow it (``dT`` is implied when no temperature term
+    is given). Its time constant is fitted by variable projection (an outer search over
+    ``log tau``, the weights re-solved at every trial; an ``rbf`` model searches with its
+    centres held, placed at the time constant a ``poly`` search finds first), with a 95 %
+    profile-likelihood interval (:func:`profile_interval`); when the interval reaches a
+    search bound or spans more than :data:`MAX_TAU_RATIO` the front end is recorded as not
+    identifiable. The profiles go to ``metrics['thermal']``.
 
     Parameters
     ----------
@@ -540,7 +963,9 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     refine : bool
         Refine centres and widths by nonlinear least squares.
     fit_params : bool
-        Fit the effect parameters marked as fitted in the catalog (lag, warm-up tau).
+        Fit the effect parameters marked as fitted in the catalog (warm-up tau) and the
+        thermal state's time constants. False: take them from ``params`` (``lag.tau_s`` is
+        then the first-order state's time constant) or the catalog defaults.
     params : mapping, optional
         Starting or fixed effect parameters.
     ridge : float or 'auto'
@@ -555,11 +980,18 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         Recorded in the model.
     created : mapping, optional
         Extra creation info (command line, bag names).
+    thermal : str or ThermalState, optional
+        The thermal front end: ``'none'`` (the measured temperature), ``'first_order'``,
+        ``'two_node'`` (two cascaded lags), ``'auto'`` (first order, or two nodes when they
+        lower the cross-validated error by :data:`TWO_NODE_MARGIN`), or a fixed
+        :class:`~gyro_tdc.thermal_state.ThermalState` (nothing fitted). A lagged choice
+        adds ``lag`` to the features. Default: ``'first_order'`` with ``lag``, else
+        ``'none'``.
 
     Returns
     -------
     CompensationModel
-        The fitted model.
+        The fitted model (format 2: ``model.thermal`` holds the front end).
 
     """
     ids = normalise_ids(features)
@@ -567,53 +999,63 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         raise FitError(f'Unknown model kind {kind!r}; expected one of {", ".join(KINDS)}.')
     if kind == 'rbf' and n_centers < 1:
         raise FitError(f'`n_centers` must be at least 1 for an rbf model, got {n_centers}.')
+    ids, mode, th = _thermal_choice(ids, thermal, fit_params, params)
     _check_runs(runs, ids)
     if t0 is None:
         t0 = estimate_t0(runs[0])
-    inputs = input_ids(ids)
+    inputs = input_ids(ids, state=True)
     par = resolve_params(ids, params)
     n_total = sum(len(r) for r in runs)
     block = block_length(n_total, max_rows, at_most=True)
     blocks = [_Blocks(r, block) for r in runs]
     y = np.concatenate([b.y for b in blocks])
-    scale_cols = (np.concatenate([b.scale_cols(t0) for b in blocks])
-                  if 'scale' in ids else None)
-
-    def features_of(p: Mapping, exact: bool) -> NDArray[np.float64]:
-        return np.concatenate([b.features(inputs, t0, p, exact=exact) for b in blocks])
 
     free = [(eid, name) for eid in inputs for name in EFFECTS[eid].fitted] if fit_params else []
     search_ridge = RIDGE_GRID[1] if ridge == 'auto' else ridge
-    if free:
+    fit_state = th is None
+    thermal_info: dict = {}
+    if free or fit_state:
         # Parameter search on a coarser grid (<= 20k rows): cheap and smooth in log tau.
-        coarse_block = block_length(n_total, 20_000, at_most=True)
-        coarse = [_Blocks(r, coarse_block) for r in runs]
-        yc = np.concatenate([b.y for b in coarse])
-        sc = (np.concatenate([b.scale_cols(t0) for b in coarse])
-              if scale_cols is not None else None)
-        for _round in range(2 if len(free) > 1 else 1):
+        search = _Search(runs, inputs, t0, kind=kind, n_centers=n_centers, ridge=search_ridge,
+                         seed=seed, scale='scale' in ids, n_total=n_total)
+        if fit_state:
+            th = ThermalState('first_order', (par[_LAG]['tau_s'],))
+            if kind == 'rbf':
+                search.inner = 'poly'
+                pilot, _ = search.first_order(par, TAU_BOUNDS)
+                search.freeze_centers(ThermalState('first_order', (pilot,)), par)
+        n_rounds = 2 if len(free) + fit_state > 1 else 1
+        for _round in range(n_rounds):
             for eid, name in free:
 
                 def sse(tau: float, eid: str = eid, name: str = name) -> float:
                     trial = {k: dict(v) for k, v in par.items()}
                     trial[eid][name] = tau
-                    xc = np.concatenate([b.features(inputs, t0, trial, exact=False)
-                                         for b in coarse])
-                    return fit_linear(xc, yc, scale_cols=sc, kind=kind, n_centers=n_centers,
-                                      ridge=search_ridge, seed=seed).sse
+                    return float(search.sse(th, trial).sum())
 
                 par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name],
                                                    n_grid=13).tau
+            if fit_state:
+                tau, seen = search.first_order(par, TAU_BOUNDS)
+                th = ThermalState('first_order', (tau,))
+        if fit_state:
+            th, thermal_info = _choose_state(search, mode, par, th.tau_s[0], seen)
 
-    x = features_of(par, exact=True)
+    states = [b.state(th) for b in blocks]
+    x = np.concatenate([b.features(inputs, t0, par, exact=True, thermal=th, state=s)
+                        for b, s in zip(blocks, states)])
+    scale_cols = (np.concatenate([b.scale_cols(t0, state=s) for b, s in zip(blocks, states)])
+                  if 'scale' in ids else None)
     fit = fit_linear(x, y, scale_cols=scale_cols, kind=kind, n_centers=n_centers, ridge=ridge,
                      seed=seed)
     if refine and kind == 'rbf':
         fit = _refine(x, y, scale_cols, fit, ridge=fit.ridge, seed=seed)
     f = len(inputs)
     coef = fit.coef
-    lo = min(float(r.temp.min()) for r in runs)
-    hi = max(float(r.temp.max()) for r in runs)
+    lo = min(float(s.min()) for s in states)
+    hi = max(float(s.max()) for s in states)
+    if th.kind != 'none':
+        par[_LAG] = {'tau_s': th.tau_total_s}
     info = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
             'gyro_tdc_version': __version__}
     info.update(dict(created or {}))
@@ -622,14 +1064,15 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         input_mean=fit.mean, input_std=fit.std, centers=fit.centers,
         widths=fit.widths, weights=coef[1 + f:], intercept=coef[0], linear=coef[1:1 + f],
         scale=fit.scale, temp_range_c=(lo, hi), residual_var=np.zeros(3),
-        frame_id=frame_id, sensor_id=sensor_id, created=info)
+        frame_id=frame_id, sensor_id=sensor_id, created=info, thermal=th)
     # Training residual at full rate without a second pass over the samples: the drift
     # moves slowly, so sum((y - b)^2) = within-block scatter + n_B * (block residual)^2.
     # Compensation divides by (1 + s dT): so does the residual.
     counts = np.concatenate([b.counts for b in blocks])
-    within = np.concatenate([b.scatter(fit.scale, t0) if np.any(fit.scale)
-                             else b.ss_within for b in blocks])
-    gain = 1.0 + (np.concatenate([b.temp for b in blocks]) - t0)[:, None] * fit.scale
+    within = np.concatenate([b.scatter(fit.scale, t0, state=s) if np.any(fit.scale)
+                             else b.ss_within for b, s in zip(blocks, states)])
+    bstate = np.concatenate([block_mean(s, block) for s in states])
+    gain = 1.0 + (bstate - t0)[:, None] * fit.scale
     ss = ((within + counts[:, None] * fit.resid ** 2) / gain ** 2).sum(axis=0)
     residual_var = np.maximum(ss, 0.0) / n_total
     deg2 = (180.0 / math.pi) ** 2
@@ -641,7 +1084,32 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         'raw_bs_dps2': [float(v) for v in sum(b.ss_raw for b in blocks) / n_total * deg2],
         'ridge': fit.ridge,
     }
+    if thermal_info:
+        metrics['thermal'] = thermal_info
     return model.replace(residual_var=residual_var, metrics=metrics)
+
+
+def _choose_state(search: _Search, mode: str, par: Mapping, tau_fo: float, seen: Mapping
+                  ) -> tuple[ThermalState, dict]:
+    """Return the fitted front end of ``mode`` with its intervals, and the search record."""
+    prof = search.profile((tau_fo,), 0, par, TAU_BOUNDS, seen)
+    first = ThermalState('first_order', (tau_fo,), (prof.interval,), prof.identifiable)
+    info: dict = {'chosen': 'first_order', 'profiles': [prof.to_dict()]}
+    if mode == 'first_order':
+        return first, info
+    taus = search.two_node(par, tau_fo, TAU_BOUNDS)
+    profs = [search.profile(taus, i, par, TAU_BOUNDS) for i in range(2)]
+    two = ThermalState('two_node', taus, tuple(p.interval for p in profs),
+                       all(p.identifiable for p in profs))
+    two_info = {'chosen': 'two_node', 'profiles': [p.to_dict() for p in profs]}
+    if mode == 'two_node':
+        return two, two_info
+    cv = {'first_order': search.cv_sse(first, par), 'two_node': search.cv_sse(two, par)}
+    keep = cv['two_node'] < (1.0 - TWO_NODE_MARGIN) * cv['first_order']
+    chosen, chosen_info = (two, two_info) if keep else (first, info)
+    chosen_info = dict(chosen_info, cv_sse=cv, candidates={
+        'first_order': first.to_dict(), 'two_node': two.to_dict()})
+    return chosen, chosen_info
 
 
 def fit_px4_cubic(runs: Sequence[Run], *, t0: float | None = None, **kw) -> CompensationModel:

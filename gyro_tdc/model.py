@@ -29,6 +29,16 @@ linear model. A ``poly`` model has no centres (K = 0): with features ``dT, dT2, 
 PX4-style cubic. ``s`` is the optional per-axis sensitivity change (effect ``scale``).
 
 Compensation inverts the model: ``omega = (omega_raw - b(x)) / (1 + s dT)``.
+
+The model temperature. A model has a thermal front end (:class:`gyro_tdc.thermal_state.
+ThermalState`, format 2): the measured temperature ``T`` goes through it to the state ``S``,
+the estimated die temperature (``S = T`` without ``lag``), and ``dT = S - T0`` in every
+temperature term, the RBF inputs and the scale term; the valid range ``temp_range_c`` is the
+state's range over the training data, and clamping (the out-of-range policy) holds the state
+at the range ends. ``dTdt`` is of the measured temperature (unclamped) and ``warmup`` of the
+time since the first sample. A format-1 model (``thermal=None``, read from an old file)
+keeps its meaning exactly: every feature of the measured temperature (clamped), ``lag`` the
+additive column ``dT`` of the lagged temperature.
 """
 
 from __future__ import annotations
@@ -39,12 +49,14 @@ import json
 import math
 from typing import Any, Mapping
 
-from gyro_tdc.effects import batch_features, input_ids, StreamingFeatures
+from gyro_tdc.effects import batch_features, input_ids, StreamingFeatures, THERMAL_EFFECTS
+from gyro_tdc.errors import FeatureError
+from gyro_tdc.thermal_state import SETTLE_TAUS, ThermalState
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['CompensationModel', 'StreamingCompensator', 'compensate', 'drift', 'predict_drift',
-           'rbf_design']
+__all__ = ['CompensationModel', 'StreamingCompensator', 'compensate', 'drift',
+           'model_temperature', 'predict_drift', 'rbf_design']
 
 KINDS = ('rbf', 'poly')
 
@@ -62,7 +74,9 @@ class CompensationModel:
     features : tuple of str
         Effect ids of the model, in catalog order (``bias`` is always implied).
     effect_params : dict
-        ``{effect_id: {param: value}}`` (e.g. the fitted lag ``tau_s``).
+        ``{effect_id: {param: value}}`` (e.g. the warm-up ``tau_s``). With a thermal state,
+        ``lag.tau_s`` mirrors the state's total time constant
+        (``thermal.tau_total_s``).
     t0_c : float, degC
         Reference temperature T0.
     input_mean, input_std : NDArray[np.float64], shape (F,)
@@ -80,7 +94,7 @@ class CompensationModel:
     scale : NDArray[np.float64], shape (3,), 1/degC
         Sensitivity change s per axis (zeros when ``scale`` is not modelled).
     temp_range_c : tuple of float, degC
-        Temperature range covered by the training data.
+        Range of the model temperature (the thermal state) over the training data.
     residual_var : NDArray[np.float64], shape (3,), (rad/s)^2
         Variance of the training residual per axis.
     frame_id : str
@@ -91,6 +105,10 @@ class CompensationModel:
         Training metrics (plain types).
     created : dict
         Creation info (UTC time, gyro_tdc version, command, data).
+    thermal : ThermalState, optional
+        The thermal front end (format 2; kind ``none`` when the model has no ``lag``, else
+        ``first_order`` or ``two_node``). None: a format-1 model (the layout before the
+        thermal state, see the module docstring); what old files load as.
 
     """
 
@@ -112,6 +130,31 @@ class CompensationModel:
     sensor_id: str = ''
     metrics: dict = field(default_factory=dict, compare=False)
     created: dict = field(default_factory=dict, compare=False)
+    thermal: ThermalState | None = None
+
+    def __post_init__(self) -> None:
+        """Check that the thermal front end agrees with the features."""
+        th = self.thermal
+        if th is None:
+            return
+        if not isinstance(th, ThermalState):
+            raise FeatureError(f'`thermal` must be a ThermalState or None, got '
+                               f'{type(th).__name__}')
+        lagged = bool(THERMAL_EFFECTS & set(self.features))
+        if lagged != (th.kind != 'none'):
+            raise FeatureError(f'thermal kind {th.kind!r} does not match the features '
+                               f'{list(self.features)}: `lag` goes with a lagged state '
+                               '(first_order, two_node), no `lag` with kind none')
+        for eid in THERMAL_EFFECTS & set(self.features):
+            tau = self.effect_params.get(eid, {}).get('tau_s')
+            if tau != th.tau_total_s:
+                raise FeatureError(f'effect_params {eid}.tau_s ({tau!r}) must equal the '
+                                   f"thermal state's total time constant ({th.tau_total_s!r})")
+
+    @property
+    def format_version(self) -> int:
+        """Return the model-file format: 2 with a thermal front end, 1 without."""
+        return 1 if self.thermal is None else 2
 
     def __eq__(self, other: object) -> bool:
         """Compare every fitted field exactly (arrays element-wise)."""
@@ -134,7 +177,7 @@ class CompensationModel:
     @property
     def inputs(self) -> tuple[str, ...]:
         """Return the ids of the network inputs, in feature-matrix column order."""
-        return input_ids(self.features)
+        return input_ids(self.features, state=self.thermal is not None)
 
     @property
     def n_centers(self) -> int:
@@ -146,14 +189,20 @@ class CompensationModel:
         """
         Return a short content hash of every field but ``created``.
 
-        Covers the fitted parameters, ``temp_range_c``, ``residual_var``, the sensor ids and
-        the training metrics, so no field a compensator or a reader relies on can be
-        edited under the old id. Numbers are hashed as float64 bytes (or exact JSON), so
-        the id survives a YAML round trip and does not depend on numpy's ``repr``.
+        Covers the fitted parameters, ``temp_range_c``, ``residual_var``, the sensor ids,
+        the training metrics and (format 2) the format and the thermal front end, so no
+        field a compensator or a reader relies on can be edited under the old id. Numbers
+        are hashed as float64 bytes (or exact JSON), so the id survives a YAML round trip
+        and does not depend on numpy's ``repr``; a format-1 model keeps the id it always
+        had.
         """
         h = hashlib.sha256()
-        h.update(_canonical_json([self.kind, list(self.features), self.effect_params,
-                                  self.frame_id, self.sensor_id, self.metrics]).encode())
+        head = [self.kind, list(self.features), self.effect_params, self.frame_id,
+                self.sensor_id, self.metrics]
+        if self.thermal is not None:
+            head.append({'format_version': self.format_version,
+                         'thermal': self.thermal.to_dict()})
+        h.update(_canonical_json(head).encode())
         for arr in (self.t0_c, self.temp_range_c, self.input_mean, self.input_std, self.centers,
                     self.widths, self.weights, self.intercept, self.linear, self.scale,
                     self.residual_var):
@@ -244,6 +293,59 @@ def _clamped(model: CompensationModel, temp: NDArray[np.float64], clamp: bool
     return temp
 
 
+def model_temperature(model: CompensationModel, t: NDArray[np.float64],
+                      temp: NDArray[np.float64], *, clamp: bool = False
+                      ) -> NDArray[np.float64]:
+    """
+    Return the model temperature over one run: the thermal state, or ``temp`` (format 1).
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    t : NDArray[np.float64], shape (N,), s
+        Stamps of one continuous run.
+    temp : NDArray[np.float64], shape (N,), degC
+        Measured temperature at each stamp.
+    clamp : bool
+        Clamp it to the model's valid range ``temp_range_c``.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N,), degC
+        The temperature every temperature term of the model is evaluated at (compare it
+        with ``temp_range_c`` to know what lies outside the trained range).
+
+    """
+    temp = np.asarray(temp, dtype=np.float64)
+    if model.thermal is not None:
+        temp = model.thermal.temperature(t, temp)
+    return _clamped(model, temp, clamp)
+
+
+def _features(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
+              clamp: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return the feature rows and the model temperature minus T0 of one run."""
+    temp = np.asarray(temp, dtype=np.float64)
+    s = model_temperature(model, t, temp, clamp=clamp)
+    if model.thermal is None:        # format 1: every feature of the (clamped) measured T
+        x = batch_features(model.features, t, s, t0=model.t0_c, params=model.effect_params)
+    else:
+        x = batch_features(model.features, t, temp, t0=model.t0_c,
+                           params=model.effect_params, state=s)
+    return x, s - model.t0_c
+
+
+def _drift_of(model: CompensationModel, x: NDArray[np.float64], chunk: int
+              ) -> NDArray[np.float64]:
+    """Evaluate ``b(x)`` over feature rows in chunks."""
+    coef = _coef(model)
+    out = np.empty((x.shape[0], 3))
+    for i in range(0, x.shape[0], chunk):
+        out[i:i + chunk] = rbf_design(model, x[i:i + chunk]) @ coef
+    return out
+
+
 def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64], *,
           clamp: bool = True, chunk: int = 200_000) -> NDArray[np.float64]:
     """
@@ -258,7 +360,8 @@ def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.flo
     temp : NDArray[np.float64], shape (N,), degC
         Measured temperature at each stamp.
     clamp : bool
-        Clamp the temperature to the model's valid range first (default).
+        Clamp the model temperature (the thermal state) to the model's valid range first
+        (default).
     chunk : int
         Rows evaluated at once (bounds memory for long runs).
 
@@ -268,13 +371,7 @@ def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.flo
         The drift per axis.
 
     """
-    temp_c = _clamped(model, temp, clamp)
-    x = batch_features(model.features, t, temp_c, t0=model.t0_c, params=model.effect_params)
-    coef = _coef(model)
-    out = np.empty((x.shape[0], 3))
-    for i in range(0, x.shape[0], chunk):
-        out[i:i + chunk] = rbf_design(model, x[i:i + chunk]) @ coef
-    return out
+    return _drift_of(model, _features(model, t, temp, clamp)[0], chunk)
 
 
 def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
@@ -293,7 +390,7 @@ def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[n
     omega : NDArray[np.float64], shape (N, 3), rad/s
         Raw gyro output.
     clamp : bool
-        Clamp the temperature to the model's valid range first (default).
+        Clamp the model temperature to the model's valid range first (default).
 
     Returns
     -------
@@ -301,8 +398,8 @@ def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[n
         Compensated rate.
 
     """
-    b = drift(model, t, temp, clamp=clamp)
-    d = _clamped(model, temp, clamp) - model.t0_c
+    x, d = _features(model, t, temp, clamp)
+    b = _drift_of(model, x, 200_000)
     return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + d[:, None] * model.scale[None, :])
 
 
@@ -323,7 +420,7 @@ def predict_drift(model: CompensationModel, t: NDArray[np.float64],
     omega_ref : NDArray[np.float64], shape (N, 3), rad/s
         True (reference) rate.
     clamp : bool
-        Clamp the temperature to the model's valid range first (default: no).
+        Clamp the model temperature to the model's valid range first (default: no).
 
     Returns
     -------
@@ -331,8 +428,8 @@ def predict_drift(model: CompensationModel, t: NDArray[np.float64],
         Predicted raw gyro output.
 
     """
-    b = drift(model, t, temp, clamp=clamp)
-    d = _clamped(model, temp, clamp) - model.t0_c
+    x, d = _features(model, t, temp, clamp)
+    b = _drift_of(model, x, 200_000)
     return (1.0 + d[:, None] * model.scale[None, :]) * np.asarray(omega_ref) + b
 
 
@@ -340,13 +437,17 @@ class StreamingCompensator:
     """
     Compensate one sample at a time, exactly as :func:`compensate` does on a whole run.
 
+    With a thermal state the state starts at the first measured temperature (steady-state
+    assumption); :attr:`thermal_settled` says when :data:`gyro_tdc.thermal_state.SETTLE_TAUS`
+    time constants have passed since that first sample, judged by the stamps.
+
     Parameters
     ----------
     model : CompensationModel
         The model.
     out_of_range : str
-        ``'clamp'`` (default) evaluates at the nearest valid temperature; ``'extrapolate'``
-        evaluates the model outside its range.
+        ``'clamp'`` (default) evaluates at the nearest valid model temperature;
+        ``'extrapolate'`` evaluates the model outside its range.
 
     """
 
@@ -356,8 +457,10 @@ class StreamingCompensator:
                              f'got {out_of_range!r}.')
         self.model = model
         self.clamp = out_of_range == 'clamp'
+        self.thermal = None if model.thermal is None else model.thermal.stream()
         self.features = StreamingFeatures(model.features, t0=model.t0_c,
-                                          params=model.effect_params)
+                                          params=model.effect_params,
+                                          state=model.thermal is not None)
         self._coef = _coef(model)
         self._mean = model.input_mean
         self._std = model.input_std
@@ -367,21 +470,64 @@ class StreamingCompensator:
         self._lo, self._hi = model.temp_range_c
         self.offset = np.zeros(3)
         self.in_range = True
+        self.model_temp: float | None = None
 
     def reset(self) -> None:
-        """Restart the feature filters (a new run)."""
+        """Restart the thermal state and the feature filters (a new run)."""
         self.features.reset()
+        if self.thermal is not None:
+            self.thermal.reset()
+        self.model_temp = None
+
+    @property
+    def thermal_progress(self) -> float | None:
+        """
+        Return the stamp time since the first sample, in the state's time constants.
+
+        None when the model has no lagged state (format 1, or kind ``none``).
+        """
+        th = self.thermal
+        if th is None or th.thermal.kind == 'none':
+            return None
+        return th.progress
+
+    @property
+    def thermal_settled(self) -> bool:
+        """Return False while a lagged state is within its first ``SETTLE_TAUS`` tau."""
+        p = self.thermal_progress
+        return p is None or p >= SETTLE_TAUS
 
     def shift_offset(self, delta: NDArray[np.float64]) -> None:
         """Add ``delta`` (3,), rad/s, to the modelled drift (start-up re-anchoring)."""
         self.offset = self.offset + np.asarray(delta, dtype=np.float64).reshape(3)
 
     def drift(self, t: float, temp: float) -> NDArray[np.float64]:
-        """Advance the filters to ``t`` and return the drift b (3,), rad/s, at ``temp``."""
-        self.in_range = self._lo <= temp <= self._hi
+        """
+        Advance the state and filters to ``t``; return the drift b (3,), rad/s.
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp.
+        temp : float, degC
+            Measured temperature at ``t``.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (3,), rad/s
+            The drift (plus the re-anchoring offset). ``in_range`` tells whether the model
+            temperature was inside ``temp_range_c``; ``model_temp`` is the model
+            temperature used (clamped when the policy clamps).
+
+        """
+        s = temp if self.thermal is None else self.thermal.update(t, temp)
+        self.in_range = self._lo <= s <= self._hi
         if self.clamp:
-            temp = min(max(temp, self._lo), self._hi)
-        x = self.features.update(t, temp)
+            s = min(max(s, self._lo), self._hi)
+        if self.thermal is None:          # format 1: every feature of the (clamped) T
+            x = self.features.update(t, s)
+        else:
+            x = self.features.update(t, temp, s)
         xn = (x - self._mean) / self._std
         row = np.empty(1 + self._f + self._centers.shape[0])
         row[0] = 1.0
@@ -389,7 +535,8 @@ class StreamingCompensator:
         if self._centers.shape[0]:
             d2 = ((xn[None, :] - self._centers) ** 2).sum(axis=1)
             row[1 + self._f:] = np.exp(-d2 * self._inv2w2)
-        self._last_dt = temp - self.model.t0_c
+        self.model_temp = s
+        self._last_dt = s - self.model.t0_c
         return row @ self._coef + self.offset
 
     def step(self, t: float, temp: float, omega: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -417,8 +564,12 @@ class StreamingCompensator:
 
 def summary(model: CompensationModel) -> Mapping[str, Any]:
     """Return a short plain-type description of a model (for logs and diagnostics)."""
-    return {'model_id': model.model_id, 'kind': model.kind, 'features': list(model.features),
-            'centers': model.n_centers, 't0_c': model.t0_c,
-            'temp_range_c': [float(v) for v in model.temp_range_c],
-            'effect_params': model.effect_params,
-            'residual_std_dps': [math.degrees(math.sqrt(v)) for v in model.residual_var]}
+    out = {'model_id': model.model_id, 'kind': model.kind, 'features': list(model.features),
+           'centers': model.n_centers, 't0_c': model.t0_c,
+           'temp_range_c': [float(v) for v in model.temp_range_c],
+           'effect_params': model.effect_params,
+           'residual_std_dps': [math.degrees(math.sqrt(v)) for v in model.residual_var],
+           'format_version': model.format_version}
+    if model.thermal is not None:
+        out['thermal'] = model.thermal.to_dict()
+    return out

@@ -15,15 +15,21 @@
 """
 The versioned YAML model file: save, load, validate.
 
-Format version 1 (all physical quantities in SI units, angles in rad)::
+Format version 2 (all physical quantities in SI units, angles in rad)::
 
-    format_version: 1
+    format_version: 2
     kind: rbf                      # rbf | poly
     model_id: 3f2a9c0d1e4b         # content hash, checked on load
-    features: [dT, dT2]            # effect ids (bias implied)
-    effect_params: {}              # e.g. {lag: {tau_s: 612.0}}
+    features: [dT, dT2, lag]       # effect ids (bias implied)
+    effect_params:                 # lag.tau_s mirrors the thermal state's total tau
+      lag: {tau_s: 417.2}
+    thermal:                       # the thermal front end: measured T -> model temperature
+      kind: first_order            # none | first_order | two_node
+      tau_s: [417.2]               # one per node, s
+      tau_interval_s: [[415.1, 420.1]]   # 95 % profile interval per tau (null: given)
+      identifiable: true           # false: the data cannot pin tau (null: not assessed)
     t0_c: -39.98                   # reference temperature T0, degC
-    temp_range_c: [-40.0, 85.0]    # valid (trained) temperature range, degC
+    temp_range_c: [-40.0, 85.0]    # valid range of the model temperature (the state), degC
     normalization: {mean: [..F], std: [..F]}
     centers: [[..F], ...]          # K x F, normalised input space
     widths: [..K]
@@ -36,9 +42,16 @@ Format version 1 (all physical quantities in SI units, angles in rad)::
     training: {...}                # metrics
     created: {utc: ..., gyro_tdc_version: ..., command: ...}
 
+Format version 1 is the same without ``thermal``: every feature is of the measured
+temperature and ``lag`` is the additive column ``dT`` of the lagged temperature. Such files
+still load, and behave and hash exactly as before (:attr:`CompensationModel.thermal` is None);
+a loaded model is saved in its own format, a new one in format 2.
+
 Files are read with the safe YAML loader only; every field is checked and a bad one is
-reported in one line naming it. Floats are written with ``repr`` precision, so save -> load is
-exact. ``format_version`` must be the integer 1 (not ``1.0``, not ``true``). ``model_id`` is
+reported in one line naming it and the format (``format_version 2 model: field `widths`
+...``). Floats are written with ``repr`` precision, so save -> load is
+exact. ``format_version`` must be the integer 1 or 2 (not ``1.0``, not ``true``); another
+version is refused naming the supported ones. ``model_id`` is
 required: it is the content hash of every field but ``created`` (see
 :attr:`gyro_tdc.model.CompensationModel.model_id`), so an edited range, residual variance,
 sensor or training record is caught.
@@ -69,14 +82,19 @@ from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.effects import input_ids, normalise_ids, resolve_params
 from gyro_tdc.errors import FeatureError, ModelFileError
 from gyro_tdc.model import CompensationModel, KINDS
+from gyro_tdc.thermal_state import ThermalState
 from gyro_tdc.yamlio import read_yaml, YamlLimits
 import numpy as np
 import yaml
 
 __all__ = ['FORMAT_VERSION', 'MAX_CENTERS', 'MAX_MODEL_BYTES', 'MAX_MODEL_DEPTH',
-           'MAX_MODEL_NODES', 'load_model', 'model_from_dict', 'model_to_dict', 'save_model']
+           'MAX_MODEL_NODES', 'SUPPORTED_VERSIONS', 'load_model', 'model_from_dict',
+           'model_to_dict', 'save_model']
 
-FORMAT_VERSION = 1
+#: The format new models are written in.
+FORMAT_VERSION = 2
+#: The formats :func:`load_model` reads.
+SUPPORTED_VERSIONS = (1, 2)
 MAX_MODEL_BYTES = 4 * 1024 * 1024
 MAX_MODEL_DEPTH = 32
 MAX_MODEL_NODES = 250_000
@@ -99,13 +117,17 @@ def _plain(value: Any) -> Any:
 
 
 def model_to_dict(model: CompensationModel) -> dict:
-    """Return the model as a dict of plain types, in file order."""
-    return {
-        'format_version': FORMAT_VERSION,
+    """Return the model as a dict of plain types, in file order (its own format version)."""
+    d = {
+        'format_version': model.format_version,
         'kind': model.kind,
         'model_id': model.model_id,
         'features': list(model.features),
         'effect_params': _plain(model.effect_params),
+    }
+    if model.thermal is not None:
+        d['thermal'] = model.thermal.to_dict()
+    d.update({
         't0_c': float(model.t0_c),
         'temp_range_c': [float(v) for v in model.temp_range_c],
         'normalization': {'mean': _plain(model.input_mean), 'std': _plain(model.input_std)},
@@ -119,7 +141,8 @@ def model_to_dict(model: CompensationModel) -> dict:
         'sensor': {'frame_id': model.frame_id, 'sensor_id': model.sensor_id},
         'training': _plain(model.metrics),
         'created': _plain(model.created),
-    }
+    })
+    return d
 
 
 def _array(d: Mapping, key: str, shape: tuple, *, positive: bool = False) -> np.ndarray:
@@ -189,10 +212,19 @@ def model_from_dict(d: Any) -> CompensationModel:
     if not isinstance(d, Mapping):
         raise ModelFileError(f'expected a mapping at the top level, got {type(d).__name__}')
     version = d.get('format_version')
-    if type(version) is not int or version != FORMAT_VERSION:   # not 1.0, not true
+    if type(version) is not int or version not in SUPPORTED_VERSIONS:   # not 1.0, not true
         note = '' if type(version) is int else f' (a {type(version).__name__}, not an integer)'
-        raise ModelFileError(f'field `format_version` must be {FORMAT_VERSION}, got '
-                             f'{version!r}{note}')
+        raise ModelFileError(f'field `format_version` must be '
+                             f'{" or ".join(map(str, SUPPORTED_VERSIONS))} (the versions this '
+                             f'gyro_tdc reads), got {version!r}{note}')
+    try:
+        return _model_from_dict(d, version)
+    except ModelFileError as exc:
+        raise ModelFileError(f'format_version {version} model: {exc}') from None
+
+
+def _model_from_dict(d: Mapping, version: int) -> CompensationModel:
+    """Build and validate a model of a known format version (see :func:`model_from_dict`)."""
     mid = d.get('model_id')
     if 'model_id' not in d:
         raise ModelFileError('missing field `model_id` (the content hash every model file '
@@ -213,7 +245,16 @@ def model_from_dict(d: Any) -> CompensationModel:
     if list(ids) != feats:
         raise ModelFileError(f'field `features` must list each id once in catalog order '
                              f'({", ".join(ids)}), got {feats!r}')
-    f = len(input_ids(ids))
+    thermal = None
+    if version == 1:
+        if 'thermal' in d:
+            raise ModelFileError('field `thermal` belongs to format_version 2, not 1')
+    else:
+        try:
+            thermal = ThermalState.from_dict(_mapping(d, 'thermal'))
+        except FeatureError as exc:
+            raise ModelFileError(f'field `thermal`: {exc}') from None
+    f = len(input_ids(ids, state=thermal is not None))
     rows = d.get('centers')
     if isinstance(rows, list) and len(rows) > MAX_CENTERS:
         raise ModelFileError(f'field `centers` has {len(rows)} rows, more than the limit of '
@@ -241,14 +282,17 @@ def model_from_dict(d: Any) -> CompensationModel:
     sensor_id = sensor.get('sensor_id', '')
     if not isinstance(frame_id, str) or not isinstance(sensor_id, str):
         raise ModelFileError('field `sensor` must hold string `frame_id` and `sensor_id`')
-    model = CompensationModel(
-        kind=kind, features=ids, effect_params=params, t0_c=_number(d, 't0_c'),
-        input_mean=mean, input_std=std, centers=centers, widths=widths, weights=weights,
-        intercept=intercept, linear=linear, scale=scale,
-        temp_range_c=(float(rng_[0]), float(rng_[1])), residual_var=resid,
-        frame_id=frame_id, sensor_id=sensor_id,
-        metrics=_mapping(d, 'training', required=False),
-        created=_mapping(d, 'created', required=False))
+    try:
+        model = CompensationModel(
+            kind=kind, features=ids, effect_params=params, t0_c=_number(d, 't0_c'),
+            input_mean=mean, input_std=std, centers=centers, widths=widths, weights=weights,
+            intercept=intercept, linear=linear, scale=scale,
+            temp_range_c=(float(rng_[0]), float(rng_[1])), residual_var=resid,
+            frame_id=frame_id, sensor_id=sensor_id,
+            metrics=_mapping(d, 'training', required=False),
+            created=_mapping(d, 'created', required=False), thermal=thermal)
+    except FeatureError as exc:
+        raise ModelFileError(f'fields `thermal`/`features`/`effect_params`: {exc}') from None
     if mid != model.model_id:
         raise ModelFileError(f'field `model_id` {mid!r} does not match the parameters '
                              f'({model.model_id}): the file was edited or corrupted')

@@ -63,7 +63,8 @@ def _broken(model, **edit):
 
 
 @pytest.mark.parametrize('edit, message', [
-    ({'format_version': 2}, r'`format_version` must be 1, got 2'),
+    ({'format_version': 3}, r'`format_version` must be 1 or 2 \(the versions this gyro_tdc '
+                            r'reads\), got 3'),
     ({'kind': 'mlp'}, r'`kind` must be one of rbf, poly'),
     ({'features': ['dT', 'dT9']}, r"Unknown effect id\(s\) 'dT9'"),
     ({'features': 'dT'}, r'`features` must be a list'),
@@ -74,7 +75,7 @@ def _broken(model, **edit):
     ({'intercept': [0.0, float('nan'), 0.0]}, r'`intercept` has non-finite values'),
     ({'temp_range_c': [50.0, -10.0]}, r'`temp_range_c` must be \[min, max\]'),
     ({'residual_var_rad2_s2': [-1.0, 0.0, 0.0]}, r'must be non-negative'),
-    ({'normalization': {'mean': [0, 0, 0], 'std': [1, 0, 1]}}, r'`std` must be positive'),
+    ({'normalization': {'mean': [0, 0], 'std': [1, 0]}}, r'`std` must be positive'),
     ({'effect_params': {'lag': {'tau_s': -5}}}, r'lag.tau_s must be a positive'),
     ({'model_id': 'deadbeef0000'}, r'does not match the parameters'),
     ({'sensor': 'imu'}, r'`sensor` must be a mapping'),
