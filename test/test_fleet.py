@@ -298,6 +298,24 @@ def test_cli_against_a_scheduler_address(tmp_path, bags, capsys):
         assert '3 ok (3 unchanged, skipped)' in text
 
 
+def test_cli_refuses_workers_with_another_gyro_tdc(tmp_path, capsys, monkeypatch):
+    from distributed import LocalCluster
+    stub = tmp_path / 'stub' / 'gyro_tdc'          # another version, on the worker only
+    stub.mkdir(parents=True)
+    (stub / '__init__.py').write_text("__version__ = '0.0.0'\n")
+    manifest = _manifest(tmp_path / 'fleet.csv', [('imu', [tmp_path / 'b'], [])])
+    # Spawned workers start from this process's sys.path; this process has gyro_tdc already.
+    monkeypatch.syspath_prepend(str(stub.parent))
+    with LocalCluster(n_workers=1, processes=True, scheduler_port=0, threads_per_worker=1,
+                      dashboard_address='127.0.0.1:0') as cluster:
+        code = main([str(manifest), '--out', str(tmp_path / 'out'),
+                     '--scheduler', cluster.scheduler_address])
+    assert code == 2
+    line = _one_error_line(capsys)
+    assert 'has gyro_tdc 0.0.0' in line and 'same version' in line
+    assert not (tmp_path / 'out').exists()
+
+
 @pytest.mark.parametrize('content, needle', [
     (None, 'cannot read'),
     ('', 'is empty'),

@@ -36,6 +36,7 @@ import tempfile
 import time
 from typing import Callable, Iterator, Sequence
 
+from gyro_tdc import __version__
 from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.errors import FleetError, GyroTdcError, one_line
 from gyro_tdc.evaluation import evaluate, mean_scores, NamedModel
@@ -47,7 +48,8 @@ from gyro_tdc.model import CompensationModel
 from gyro_tdc.modelfile import save_model
 from gyro_tdc.training import train
 
-__all__ = ['Engine', 'STATE_DIR', 'SensorOutcome', 'open_engine', 'run_fleet', 'run_sensor']
+__all__ = ['Engine', 'STATE_DIR', 'SensorOutcome', 'check_workers', 'open_engine', 'run_fleet',
+           'run_sensor', 'worker_version']
 
 STATE_DIR = '.fleet'         # DIR/.fleet/<sensor_id>.json: the resume state of each sensor
 STATE_FORMAT = 1
@@ -197,7 +199,8 @@ def open_engine(*, workers: int | None = None, scheduler: str | None = None,
     Raises
     ------
     FleetError
-        When the scheduler cannot be reached or has no worker within ``timeout_s``.
+        When the scheduler cannot be reached or has no worker within ``timeout_s``, or a
+        worker cannot import this gyro_tdc (see :func:`check_workers`).
 
     """
     from distributed import Client, LocalCluster
@@ -207,6 +210,7 @@ def open_engine(*, workers: int | None = None, scheduler: str | None = None,
         with LocalCluster(n_workers=n, threads_per_worker=1, processes=True,
                           host='127.0.0.1', scheduler_port=0, dashboard_address='127.0.0.1:0',
                           silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
+            check_workers(client, 'local')
             yield Engine(client, 'local', n)
         return
     try:
@@ -220,7 +224,39 @@ def open_engine(*, workers: int | None = None, scheduler: str | None = None,
             raise FleetError(f'--scheduler {scheduler}: no Dask worker connected within '
                              f'{timeout_s:g} s (start some with: dask worker {scheduler})'
                              ) from exc
+        check_workers(client, scheduler)
         yield Engine(client, scheduler, len(client.nthreads()))
+
+
+def worker_version() -> str:
+    """Return the gyro_tdc version importable here (run on every worker before a fleet)."""
+    return __version__
+
+
+def check_workers(client: object, where: str) -> None:
+    """
+    Check that every connected worker imports this gyro_tdc (a task it cannot unpickle hangs).
+
+    Parameters
+    ----------
+    client : distributed.Client
+        Connected client.
+    where : str
+        The scheduler, for messages.
+
+    Raises
+    ------
+    FleetError
+        When a worker cannot import ``gyro_tdc.fleet`` or has another gyro_tdc version.
+
+    """
+    for address, got in client.run(worker_version, on_error='return').items():
+        if isinstance(got, BaseException):
+            raise FleetError(f'Dask worker {address} ({where}) cannot run gyro_tdc: '
+                             f'{one_line(got)}; install this gyro_tdc where the workers run')
+        if got != __version__:
+            raise FleetError(f'Dask worker {address} ({where}) has gyro_tdc {got}, this '
+                             f'client {__version__}; install the same version everywhere')
 
 
 def _read_state(path: Path, model_file: Path) -> dict | None:
