@@ -40,7 +40,7 @@ from __future__ import annotations
 import bisect
 from collections import deque
 import math
-from typing import Sequence
+from typing import Iterable, NamedTuple, Sequence
 
 from gyro_tdc.effects import STATIC_EFFECTS
 from gyro_tdc.health import (FLAG_NAMES, NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
@@ -50,8 +50,8 @@ from gyro_tdc.paramspec import ParamSpec, spec_dataclass
 from gyro_tdc.stillness import Anchor, StillnessDetector, Vec3
 import numpy as np
 
-__all__ = ['CompensatorCore', 'PARAMS', 'Policy', 'STATIC_EFFECTS', 'TemperatureHold',
-           'widen_covariance']
+__all__ = ['CompensatorCore', 'PARAMS', 'Policy', 'PreparedModel', 'Priming', 'Replay',
+           'STATIC_EFFECTS', 'TemperatureHold', 'prepare', 'widen_covariance']
 
 # STATIC_EFFECTS (from the effect library): a model made of these has a drift that changes
 # only when the temperature does, so the compensator evaluates it once per thermometer sample.
@@ -90,6 +90,14 @@ PARAMS = (
               policy=True),
     ParamSpec('queue_depth', 2000, 'Queue depth of the imu/data_raw and imu/temperature '
               'subscriptions and of the publisher (keep last) [messages].', 1, 1000000),
+    ParamSpec('input_reliability', 'best_effort', 'QoS reliability of the imu/data_raw '
+              'subscription: best_effort (REP 2003 sensor data, keep last queue_depth) or '
+              'reliable (keep all: a reliable keep-all publisher is slowed down by DDS flow '
+              'control instead of losing messages).', choices=('best_effort', 'reliable')),
+    ParamSpec('load_wait', 0.1, 'Longest time a model_file set or ~/reload waits for the new '
+              'file to be read and checked before answering: the IMU path pauses at most this '
+              'long; a slower file is installed when ready, its outcome on /diagnostics and in '
+              'the log [s].', 0.0, 10.0),
     ParamSpec('raw_cdr', True, 'Take imu/data_raw as serialized CDR and patch the bytes '
               'instead of deserialising each message (same output, a fraction of the cost; '
               'other encodings fall back to deserialising).'),
@@ -211,6 +219,110 @@ def widen_covariance(cov: Sequence[float], add: Sequence[float]) -> list[float]:
     return out
 
 
+class Priming(NamedTuple):
+    """
+    A copy of what a new model's feature filters are replayed over.
+
+    ``first`` is the stamp and temperature of the first compensated sample, ``history`` the
+    thermometer samples recorded (at most one per second), ``last_t`` and ``last_temp`` the
+    last IMU stamp and the temperature used for it (None before any).
+    """
+
+    first: tuple[float, float] | None = None
+    history: tuple[tuple[float, float], ...] = ()
+    last_t: float | None = None
+    last_temp: float | None = None
+
+
+class Replay(NamedTuple):
+    """Where a replay stopped: filters advanced to ``t_prev``, history read up to ``t_seen``."""
+
+    t_prev: float
+    temp_prev: float
+    t_seen: float
+
+
+class PreparedModel(NamedTuple):
+    """A model ready to install: its streaming compensator primed over a :class:`Priming`."""
+
+    model: CompensationModel
+    model_id: str
+    comp: StreamingCompensator
+    var: dict[int, Vec3]
+    scale: np.ndarray
+    static: bool
+    priming: Priming
+    replay: Replay | None
+
+
+def _replay(comp: StreamingCompensator, history: Iterable[tuple[float, float]], until: float,
+            state: Replay) -> Replay:
+    """Advance ``comp`` over thermometer samples later than ``state.t_seen`` up to ``until``."""
+    t_prev, temp_prev, t_seen = state
+    for t_k, temp_k in history:
+        if t_k <= t_seen:
+            continue
+        if t_k > until:
+            break
+        if t_k > t_prev:
+            comp.drift(t_k, temp_prev)
+            t_prev = t_k
+        temp_prev = temp_k
+        t_seen = t_k
+    return Replay(t_prev, temp_prev, t_seen)
+
+
+def _replay_from_first(comp: StreamingCompensator, first: tuple[float, float],
+                       history: Iterable[tuple[float, float]], until: float) -> Replay:
+    """Start ``comp`` at the first compensated sample and replay the history up to ``until``."""
+    comp.drift(*first)
+    return _replay(comp, history, until, Replay(first[0], first[1], -math.inf))
+
+
+def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> PreparedModel:
+    """
+    Make ``model`` ready to install, off the compensating thread.
+
+    Builds its streaming compensator, replays the feature filters over ``priming`` (the
+    first compensated sample, then the thermometer samples at most one per second, up to the
+    last IMU stamp of the copy), so a model with ``warmup`` or ``lag`` features carries on
+    rather than restarting, and works out its variance table and content id. Touches nothing
+    shared: safe in a worker thread while the core keeps compensating.
+    :meth:`CompensatorCore.install` finishes the replay and swaps it in.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    policy : Policy
+        The policies (``out_of_range`` and the variances).
+    priming : Priming
+        From :meth:`CompensatorCore.priming`.
+
+    Returns
+    -------
+    PreparedModel
+        The model, its primed compensator and its tables.
+
+    """
+    comp = StreamingCompensator(model, out_of_range=policy.out_of_range)
+    replay = None
+    if priming.first is not None and priming.last_t is not None:
+        replay = _replay_from_first(comp, priming.first, priming.history, priming.last_t)
+    resid = tuple(float(v) for v in np.asarray(model.residual_var, dtype=np.float64))
+    p = policy
+    var = {
+        0: resid,
+        STALE: tuple(v + p.stale_variance for v in resid),
+        OUT_OF_RANGE: tuple(v + p.out_of_range_variance for v in resid),
+        STALE | OUT_OF_RANGE: tuple(v + p.stale_variance + p.out_of_range_variance
+                                    for v in resid),
+    }
+    return PreparedModel(model, model.model_id, comp, var,
+                         np.asarray(model.scale, dtype=np.float64),
+                         set(model.features) <= STATIC_EFFECTS, priming, replay)
+
+
 class CompensatorCore:
     """
     One raw sample in, one output sample out: the compensator without ROS.
@@ -244,21 +356,20 @@ class CompensatorCore:
         self._detector = StillnessDetector(policy.still_window, policy.still_gyro_std,
                                            policy.still_max_rate, policy.still_accel_std)
         self.model: CompensationModel | None = None
+        self.model_id = ''
         self._comp: StreamingCompensator | None = None
         if model is not None:
             self.set_model(model)
 
     # -- model ------------------------------------------------------------------------
 
+    def priming(self) -> Priming:
+        """Return a copy of what a new model's filters are replayed over (see :func:`prepare`)."""
+        return Priming(self._first, tuple(self._history), self.last_t, self.last_temp)
+
     def set_model(self, model: CompensationModel | None) -> None:
         """
-        Install ``model`` in one step, primed with the temperature history seen so far.
-
-        The feature filters of the new model are replayed over the recorded history (the
-        first compensated sample, then thermometer samples at most one per second), so a
-        model with ``warmup`` or ``lag`` features carries on rather than restarting. The
-        re-anchoring shift is not carried over: it is measured again at the next still
-        window when ``reanchor_on_start`` is set.
+        Prepare and install ``model`` in one step (:func:`prepare`, then :meth:`install`).
 
         Parameters
         ----------
@@ -269,33 +380,53 @@ class CompensatorCore:
         if model is None:
             self.model, self._comp = None, None
             return
-        comp = StreamingCompensator(model, out_of_range=self.policy.out_of_range)
+        self.install(prepare(model, self.policy, self.priming()))
+
+    def install(self, prepared: PreparedModel) -> None:
+        """
+        Swap in a model made ready by :func:`prepare` (call it on the thread that compensates).
+
+        The replay :func:`prepare` did over a :meth:`priming` copy is carried on over the
+        thermometer samples recorded since, up to the last IMU stamp, so the result is that of
+        a replay done here; only that short tail costs time on this thread. Re-anchoring:
+        when the new model has the same ``model_id`` as the current one (a reload of the same
+        file), the start-up shift is kept (or the stillness window carries on); any other
+        model clears it, and with ``reanchor_on_start`` the next still window measures it
+        again.
+
+        Parameters
+        ----------
+        prepared : PreparedModel
+            The model and its primed streaming state.
+
+        """
+        model, comp = prepared.model, prepared.comp
         if self._first is not None and self.last_t is not None:
-            t_prev, temp_prev = self._first
-            comp.drift(t_prev, temp_prev)
-            for t_k, temp_k in self._history:
-                if t_k > self.last_t:
-                    break
-                if t_k > t_prev:
-                    comp.drift(t_k, temp_prev)
-                    t_prev = t_k
-                temp_prev = temp_k
-            if self.last_t > t_prev:
-                comp.drift(self.last_t, temp_prev if self.last_temp is None else self.last_temp)
-        resid = tuple(float(v) for v in np.asarray(model.residual_var, dtype=np.float64))
-        p = self.policy
-        self._var = {
-            0: resid,
-            STALE: tuple(v + p.stale_variance for v in resid),
-            OUT_OF_RANGE: tuple(v + p.out_of_range_variance for v in resid),
-            STALE | OUT_OF_RANGE: tuple(v + p.stale_variance + p.out_of_range_variance
-                                        for v in resid),
-        }
-        self._scale = np.asarray(model.scale, dtype=np.float64)
-        self._static = set(model.features) <= STATIC_EFFECTS
+            state = prepared.replay
+            if (state is None or prepared.priming.first != self._first
+                    or prepared.priming.last_t is None or self.last_t < prepared.priming.last_t):
+                # The stream moved in a way the copy did not see: replay it all here.
+                comp = StreamingCompensator(model, out_of_range=self.policy.out_of_range)
+                state = _replay_from_first(comp, self._first, self._history, self.last_t)
+            else:
+                tail = []
+                for entry in reversed(self._history):
+                    if entry[0] <= state.t_seen:
+                        break
+                    tail.append(entry)
+                state = _replay(comp, reversed(tail), self.last_t, state)
+            if self.last_t > state.t_prev:
+                comp.drift(self.last_t,
+                           state.temp_prev if self.last_temp is None else self.last_temp)
+        same = self.model is not None and prepared.model_id == self.model_id
+        if same and self.anchor is not None:
+            comp.shift_offset(np.asarray(self.anchor.delta, dtype=np.float64))
+        elif not same:
+            self.anchor = None
+            self._detector.reset()
+        self._var, self._scale, self._static = prepared.var, prepared.scale, prepared.static
         self._cache: dict[float, tuple] = {}
-        self.anchor = None
-        self._detector.reset()
+        self.model_id = prepared.model_id
         self.model, self._comp = model, comp
 
     # -- inputs -----------------------------------------------------------------------

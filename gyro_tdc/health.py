@@ -24,6 +24,7 @@ publishes, judging only what happened since the previous report (:class:`HealthM
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 import math
 from types import MappingProxyType
 from typing import Mapping, NamedTuple, TYPE_CHECKING
@@ -31,8 +32,8 @@ from typing import Mapping, NamedTuple, TYPE_CHECKING
 if TYPE_CHECKING:  # pragma: no cover - typing only (compensation_logic imports this module)
     from gyro_tdc.compensation_logic import CompensatorCore
 
-__all__ = ['ERROR', 'FLAG_NAMES', 'Health', 'HealthMark', 'NO_MODEL', 'NO_TEMPERATURE',
-           'NON_FINITE', 'OK', 'OUT_OF_RANGE', 'PASSTHROUGH', 'STALE', 'WARN',
+__all__ = ['ERROR', 'FLAG_NAMES', 'Health', 'HealthMark', 'InputStatus', 'NO_MODEL',
+           'NO_TEMPERATURE', 'NON_FINITE', 'OK', 'OUT_OF_RANGE', 'PASSTHROUGH', 'STALE', 'WARN',
            'describe_flags', 'health']
 
 #: Flags of one processed sample (a bit set).
@@ -57,12 +58,38 @@ def describe_flags(flags: int) -> str:
 OK, WARN, ERROR = 0, 1, 2
 
 
+@dataclass
+class InputStatus:
+    """
+    What the node knows of its input beyond the samples themselves (kept by the node).
+
+    Parameters
+    ----------
+    reliability : str
+        QoS reliability of the IMU subscription (``best_effort`` or ``reliable``).
+    lost : int
+        Input messages DDS reported lost (the subscription's message-lost event, cumulative).
+    already_compensated : int
+        Input samples that carried the compensation mark (:mod:`gyro_tdc.provenance`).
+    upstream : tuple of str
+        Nodes publishing the input topic that look like gyro_tdc compensators.
+
+    """
+
+    reliability: str = 'best_effort'
+    lost: int = 0
+    already_compensated: int = 0
+    upstream: tuple[str, ...] = ()
+
+
 class HealthMark(NamedTuple):
-    """The cumulative counters at one report: flag counts, temperatures rejected, errors."""
+    """The cumulative counters at one report: flags, temperatures rejected, errors, inputs."""
 
     flags: Mapping[int, int] = MappingProxyType({})
     temps_rejected: int = 0
     errors: int = 0
+    lost: int = 0
+    already_compensated: int = 0
 
 
 class Health(NamedTuple):
@@ -82,13 +109,16 @@ class Health(NamedTuple):
 
 
 def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file: str = '',
-           last_reload: str = 'none') -> Health:
+           last_reload: str = 'none', inputs: InputStatus | None = None) -> Health:
     """
     Judge the compensator's state: what went wrong since the last report, and its figures.
 
     ERROR without a model or when a compensation raised since ``since``; WARN when samples
-    had no, a stale, an out-of-range or a non-finite input, or thermometer samples were
-    rejected since ``since``; else OK ('compensating', or 'waiting for imu/data_raw').
+    had no, a stale, an out-of-range or a non-finite input, thermometer samples were
+    rejected, input messages were lost or arrived already compensated since ``since``, and
+    while a gyro_tdc compensator publishes the input topic or the last model file asked for
+    was refused (``last_reload`` 'rejected: ...'); else OK ('compensating', or 'waiting for
+    imu/data_raw').
 
     Parameters
     ----------
@@ -98,6 +128,8 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         ``mark`` of the previous report (None: from the start).
     model_file, last_reload : str
         Where the model came from, and the outcome of the last (re)load.
+    inputs : InputStatus, optional
+        Losses, marked samples and upstream compensators seen by the node.
 
     Returns
     -------
@@ -106,6 +138,7 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
 
     """
     since = since or HealthMark()
+    inputs = inputs or InputStatus()
     model = core.model
     counts = core.flag_counts
     new = {bit: counts[bit] - since.flags.get(bit, 0) for bit in counts}
@@ -116,6 +149,10 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     if model is None:
         level = ERROR
         problems.append(f'no model loaded ({last_reload})')
+    elif last_reload.startswith('rejected: '):
+        level = WARN
+        problems.append(f'model file refused, keeping {model.model_id}: '
+                        f'{last_reload[len("rejected: "):]}')
     for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE):
         if new[bit]:
             level = max(level, WARN)
@@ -123,6 +160,20 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     if rejected:
         level = max(level, WARN)
         problems.append(f'non-finite temperature ({rejected} samples rejected)')
+    lost = inputs.lost - since.lost
+    if lost:
+        level = max(level, WARN)
+        problems.append(f'input messages lost ({lost}, reported by DDS; at least that many)')
+    marked = inputs.already_compensated - since.already_compensated
+    if marked:
+        level = max(level, WARN)
+        problems.append(f'input already compensated by gyro_tdc ({marked} samples): the '
+                        'model is applied twice')
+    if inputs.upstream:
+        level = max(level, WARN)
+        problems.append(f'imu/data_raw is published by gyro_tdc compensator '
+                        f'{", ".join(inputs.upstream)}: chained compensators apply the drift '
+                        'model twice')
     if errors:
         level = ERROR
         problems.append(f'compensation failed on {errors} samples, passed through: '
@@ -141,8 +192,7 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     values = {
         'compensation active': (model is not None and core.counts['compensated'] > 0
                                 and not flags & PASSTHROUGH),
-        'why not': describe_flags(flags & ~OUT_OF_RANGE & ~STALE) if flags & PASSTHROUGH
-        else '',
+        'why not': describe_flags(flags & ~OUT_OF_RANGE) if flags & PASSTHROUGH else '',
         'model id': model.model_id if model is not None else '', 'model file': model_file,
         'model features': ','.join(model.features) if model is not None else '',
         'model kind': model.kind if model is not None else '',
@@ -158,6 +208,9 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         'out of range': counts[OUT_OF_RANGE], 'non-finite': counts[NON_FINITE],
         'no model': counts[NO_MODEL], 'temperatures rejected': core.temps.rejected,
         'errors': core.errors, 'last error': core.last_error,
+        'input reliability': inputs.reliability, 'input lost': inputs.lost,
+        'already compensated': inputs.already_compensated,
+        'upstream compensators': ','.join(inputs.upstream),
         'reanchor': ('off' if not core.policy.reanchor_on_start else
                      'waiting for stillness' if anchor is None else
                      f'done at t={anchor.t:.3f} s'),
@@ -167,4 +220,5 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     return Health(level, message,
                   (model.sensor_id or model.frame_id) if model is not None else '',
                   {k: str(v) for k, v in values.items()},
-                  HealthMark(dict(counts), core.temps.rejected, core.errors))
+                  HealthMark(dict(counts), core.temps.rejected, core.errors, inputs.lost,
+                             inputs.already_compensated))

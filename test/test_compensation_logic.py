@@ -20,7 +20,8 @@ from dataclasses import fields
 import math
 
 from gyro_tdc.compensation_logic import (
-    CompensatorCore, PARAMS, Policy, STATIC_EFFECTS, TemperatureHold, widen_covariance)
+    CompensatorCore, PARAMS, Policy, prepare, STATIC_EFFECTS, TemperatureHold,
+    widen_covariance)
 from gyro_tdc.effects import batch_features, EFFECTS
 from gyro_tdc.fitting import fit_model
 from gyro_tdc.health import (describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
@@ -270,3 +271,46 @@ def test_reanchor_on_start(model):
     kept, _, _ = run_core(plain, t, raw, tt, tc)
     np.testing.assert_allclose(kept.mean(axis=0), offset, atol=2e-4)
     assert plain.anchor is None
+
+
+def test_prepare_off_thread_then_install_equals_an_install_in_place(model):
+    """prepare() on a copy while samples keep coming, install() later: the same bits."""
+    t, omega, tt, tc = stream(n=6000, rate_hz=10.0, temp_hz=1.0, seed=6)
+    third = t.size // 3
+
+    def run_until(core, k0, k1):
+        sel = (tt > (t[k0 - 1] if k0 else -np.inf)) & (tt <= t[k1 - 1])
+        return run_core(core, t[k0:k1], omega[k0:k1], tt[sel], tc[sel])[0]
+
+    split, whole = CompensatorCore(Policy(), model), CompensatorCore(Policy(), model)
+    run_until(split, 0, third)
+    run_until(whole, 0, third)
+    prepared = prepare(model, split.policy, split.priming())  # the worker's part
+    run_until(split, third, 2 * third)  # the stream goes on while the file is read
+    run_until(whole, third, 2 * third)
+    split.install(prepared)
+    whole.set_model(model)
+    np.testing.assert_array_equal(run_until(split, 2 * third, t.size),
+                                  run_until(whole, 2 * third, t.size))
+
+
+def test_reinstalling_the_same_model_keeps_the_reanchoring(model):
+    t, omega, tt, tc = stream(n=1000, rate_hz=100.0, t_lo=20.0, t_hi=20.2)
+    raw = omega - 0.01 + [0.9e-3, -0.5e-3, 0.3e-3] - compensate(
+        model, t, zoh(t, tt, tc), np.zeros_like(omega))
+    core = CompensatorCore(Policy(reanchor_on_start=True, still_window=5.0), model)
+    out, _, _ = run_core(core, t, raw, tt, tc)
+    anchor = core.anchor
+    assert anchor is not None
+    core.set_model(model)
+    assert core.anchor is anchor
+    again = core.process(t[-1], *raw[-1])
+    # The shift (~1e-3 rad/s) is still applied; the dynamic filters resume from the replay.
+    assert np.abs(anchor.delta).min() > 2e-4
+    np.testing.assert_allclose(again[:3], out[-1], rtol=0, atol=1e-6)
+    other = fit_model([synth_run(hours=1.0, rate_hz=2.0, seed=8)], features=('dT',),
+                      n_centers=4)
+    core.set_model(other)
+    assert core.anchor is None
+    run_core(core, t + 20.0, raw, tt + 20.0, tc)
+    assert core.anchor is not None and core.anchor.t > t[-1] + 20.0 - 15.0

@@ -21,8 +21,8 @@ import math
 
 from gyro_tdc.compensation_logic import CompensatorCore, Policy
 from gyro_tdc.fitting import fit_model
-from gyro_tdc.health import (describe_flags, ERROR, health, NO_TEMPERATURE, NON_FINITE, OK,
-                             OUT_OF_RANGE, STALE, WARN)
+from gyro_tdc.health import (describe_flags, ERROR, health, InputStatus, NO_TEMPERATURE,
+                             NON_FINITE, OK, OUT_OF_RANGE, STALE, WARN)
 import pytest
 from synth import synth_run
 
@@ -125,3 +125,40 @@ def test_health_reports_the_reanchoring(model):
     v = health(core).values
     assert v['reanchor'] == f'done at t={anchor.t:.3f} s'
     assert v['reanchor shift dps'] == ','.join(f'{math.degrees(d):.5f}' for d in anchor.delta)
+
+
+def test_health_names_the_stale_temperature_when_passing_through(model):
+    core = CompensatorCore(Policy(stale_policy='passthrough', temperature_timeout=1.0), model)
+    core.add_temperature(0.0, 20.0)
+    core.process(5.0, 0.0, 0.0, 0.0)
+    v = health(core).values
+    assert v['why not'] == 'temperature stale, raw rate passed through'
+    assert v['temperature stale'] == 'True' and v['stale'] == '1'
+
+
+def test_health_warns_of_losses_marked_input_and_upstream_compensators(model):
+    core = CompensatorCore(Policy(), model)
+    inputs = InputStatus('reliable')
+    h = health(core, inputs=inputs)
+    assert h.level == OK and h.values['input reliability'] == 'reliable'
+    inputs.lost, inputs.already_compensated = 7, 3
+    h = health(core, h.mark, inputs=inputs)
+    assert h.level == WARN
+    assert h.message == ('input messages lost (7, reported by DDS; at least that many); input '
+                         'already compensated by gyro_tdc (3 samples): the model is applied '
+                         'twice')
+    assert (h.values['input lost'], h.values['already compensated']) == ('7', '3')
+    assert health(core, h.mark, inputs=inputs).level == OK  # nothing new
+    inputs.upstream = ('/imu/compensator_node',)
+    h = health(core, h.mark, inputs=inputs)
+    assert h.level == WARN and 'published by gyro_tdc compensator /imu/compensator_node' in \
+        h.message
+    assert h.values['upstream compensators'] == '/imu/compensator_node'
+
+
+def test_health_warns_while_a_refused_file_was_asked_for(model):
+    core = CompensatorCore(Policy(), model)
+    h = health(core, last_reload='rejected: m.yaml: nesting deeper than 32 levels')
+    assert h.level == WARN
+    assert h.message == (f'model file refused, keeping {model.model_id}: m.yaml: nesting '
+                         'deeper than 32 levels')

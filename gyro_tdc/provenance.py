@@ -1,0 +1,86 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The gyro_tdc compensation mark: how a compensated Imu says that a model was applied to it.
+
+Pure (struct only). A chained or looped compensator would remove the drift twice (PX4 #20660
+and ArduPilot #27294 are such bugs), so ``compensator_node`` marks every sample it compensated
+and warns when a sample arrives already marked.
+
+The mark must survive the wire, bags and deserialise/serialise relays, must not change any
+field a consumer reads (REP 145), and must leave the message's meaning intact. It therefore
+lives in the lowest bits of numbers the compensator rewrites anyway: the two least
+significant bytes of the three diagonal entries of ``angular_velocity_covariance`` (bits 0-15
+of the 52-bit mantissa) are set to :data:`MARK`. That changes each variance by less than
+2**-36 of its value (about 1.5e-11 relative), keeps it positive, and leaves the header, the
+frame id and every other field untouched. An entry of ``-1`` (REP 145: no data) or ``0``
+(unknown) is never marked, so a sample is marked only when all three diagonal entries are
+positive; the compensator always adds the model's residual variance, so in practice every
+compensated sample whose input had a covariance carries the mark. A raw sample carries it by
+chance with probability 2**-48.
+"""
+
+from __future__ import annotations
+
+import struct
+from typing import MutableSequence, Sequence
+
+__all__ = ['MARK', 'cov_marked', 'diagonal_marked', 'is_marked', 'mark', 'mark_diagonal']
+
+#: The two low-order bytes (little-endian float64) written into each marked variance.
+MARK = b'TG'
+_F64 = struct.Struct('<d')
+
+
+def mark(value: float) -> float:
+    """
+    Return ``value`` with :data:`MARK` in its two lowest mantissa bytes.
+
+    Parameters
+    ----------
+    value : float
+        A positive, finite variance; anything else is returned unchanged.
+
+    Returns
+    -------
+    float
+        The marked value (within 2**-36 relative of ``value``).
+
+    """
+    if not 0.0 < value < float('inf'):
+        return value
+    return _F64.unpack(MARK + _F64.pack(value)[2:])[0]
+
+
+def is_marked(value: float) -> bool:
+    """Return whether ``value`` carries :data:`MARK` (and is positive and finite)."""
+    return bool(0.0 < value < float('inf')) and _F64.pack(value)[:2] == MARK
+
+
+def cov_marked(data: bytes, offset: int) -> bool:
+    """Return whether the serialized covariance at ``offset`` carries the mark on its diagonal."""
+    return (data[offset:offset + 2] == MARK and data[offset + 32:offset + 34] == MARK
+            and data[offset + 64:offset + 66] == MARK)
+
+
+def mark_diagonal(cov: MutableSequence[float]) -> None:
+    """Mark entries 0, 4 and 8 of a row-major 3x3 covariance in place, if all can be marked."""
+    if all(0.0 < cov[i] < float('inf') for i in (0, 4, 8)):
+        cov[0], cov[4], cov[8] = mark(cov[0]), mark(cov[4]), mark(cov[8])
+
+
+def diagonal_marked(cov: Sequence[float]) -> bool:
+    """Return whether entries 0, 4 and 8 of a row-major 3x3 covariance carry the mark."""
+    return is_marked(cov[0]) and is_marked(cov[4]) and is_marked(cov[8])
