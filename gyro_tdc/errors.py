@@ -74,3 +74,7 @@ def one_line(text: object) -> str:
     if not out and isinstance(text, BaseException):
         return type(text).__name__
     return out
+
+
+class ConfigError(GyroTdcError, ValueError):
+    """A node's parameters or topic names are invalid or inconsistent (one line naming them)."""

@@ -48,6 +48,7 @@ import struct
 from typing import Sequence
 
 from gyro_tdc.errors import DatasetError
+from gyro_tdc.provenance import cov_marked, MARK
 import numpy as np
 from numpy.typing import ArrayLike
 
@@ -310,6 +311,7 @@ _COV = struct.Struct('<9d')
 _F64 = struct.Struct('<d')
 _TAIL = 8 * IMU_DOUBLES         # bytes of the float64 block
 _LE0, _LE1 = CDR_LE[0], CDR_LE[1]
+_INF = float('inf')
 
 
 def locate(data: bytes) -> tuple[int, int, int] | None:
@@ -368,8 +370,12 @@ class ImuView:
             return None
         return _VEC3.unpack_from(self.data, self.base + LINEAR_ACCELERATION)
 
+    def marked(self) -> bool:
+        """Return whether the angular velocity covariance carries the compensation mark."""
+        return cov_marked(self.data, self.base + ANGULAR_VELOCITY_COV)
+
     def patched(self, wx: float, wy: float, wz: float,
-                var: tuple[float, float, float]) -> bytes:
+                var: tuple[float, float, float], mark: bool = False) -> bytes:
         """
         Return a copy with ``angular_velocity`` replaced and ``var`` added to its covariance.
 
@@ -379,6 +385,9 @@ class ImuView:
             New angular velocity.
         var : tuple of 3 float, (rad/s)^2
             Added to the covariance diagonal unless its first element is -1.
+        mark : bool
+            Also write :mod:`gyro_tdc.provenance`'s mark into the diagonal (when all three
+            entries are positive and finite).
 
         Returns
         -------
@@ -392,7 +401,10 @@ class ImuView:
         c = base + ANGULAR_VELOCITY_COV
         cov = _COV.unpack_from(buf, c)
         if cov[0] != -1.0:
-            _F64.pack_into(buf, c, cov[0] + var[0])
-            _F64.pack_into(buf, c + 32, cov[4] + var[1])
-            _F64.pack_into(buf, c + 64, cov[8] + var[2])
+            v0, v4, v8 = cov[0] + var[0], cov[4] + var[1], cov[8] + var[2]
+            _F64.pack_into(buf, c, v0)
+            _F64.pack_into(buf, c + 32, v4)
+            _F64.pack_into(buf, c + 64, v8)
+            if mark and 0.0 < v0 < _INF and 0.0 < v4 < _INF and 0.0 < v8 < _INF:
+                buf[c:c + 2] = buf[c + 32:c + 34] = buf[c + 64:c + 66] = MARK
         return bytes(buf)

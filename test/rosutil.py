@@ -25,10 +25,11 @@ import os
 import signal
 import subprocess
 import sys
+import threading
 import time
-from typing import Any, Callable, Iterator, Optional
+from typing import Any, Callable, IO, Iterator, Optional
 
-__all__ = ['interrupt', 'node_process', 'spin_until']
+__all__ = ['Lines', 'interrupt', 'node_process', 'spin_until', 'spin_until_quiet']
 
 
 @contextlib.contextmanager
@@ -98,3 +99,85 @@ def spin_until(executor: Any, predicate: Callable[[], bool], timeout_s: float = 
             label = what or getattr(predicate, '__name__', repr(predicate))
             raise AssertionError(f'condition {label!r} not met within {timeout_s:g} s')
         executor.spin_once(timeout_sec=min(step_s, remaining))
+
+
+def spin_until_quiet(executor: Any, value: Callable[[], Any], quiet_s: float = 0.5,
+                     timeout_s: float = 30.0) -> None:
+    """
+    Spin ``executor`` until ``value()`` has not changed for ``quiet_s`` seconds of spinning.
+
+    For the end of a stream whose length the test cannot know (a burst that loses messages):
+    the executor keeps working the whole time, so this waits for the work, not for a clock.
+
+    Raises
+    ------
+    AssertionError
+        If ``value()`` still changes at the deadline.
+
+    """
+    deadline = time.monotonic() + timeout_s
+    last = value()
+    quiet_since = time.monotonic()
+    while time.monotonic() - quiet_since < quiet_s:
+        if time.monotonic() > deadline:
+            raise AssertionError(f'still changing after {timeout_s:g} s: {last!r}')
+        executor.spin_once(timeout_sec=0.05)
+        now = value()
+        if now != last:
+            last, quiet_since = now, time.monotonic()
+
+
+class Lines:
+    """
+    Collect the lines a child process prints, in a background thread, to check them later.
+
+    Parameters
+    ----------
+    stream : text file
+        The child's ``stdout`` (or ``stderr``).
+
+    """
+
+    def __init__(self, stream: IO[str]) -> None:
+        self.lines: list[str] = []
+        self._new = threading.Condition()
+        self._thread = threading.Thread(target=self._read, args=(stream,), daemon=True)
+        self._thread.start()
+
+    def _read(self, stream: IO[str]) -> None:
+        for line in stream:
+            with self._new:
+                self.lines.append(line.rstrip('\n'))
+                self._new.notify_all()
+
+    def has(self, text: str) -> bool:
+        """Return whether a line printed so far contains ``text``."""
+        with self._new:
+            return any(text in line for line in self.lines)
+
+    def wait_for(self, text: str, timeout_s: float = 15.0) -> str:
+        """
+        Wait until a line containing ``text`` is printed; return that line.
+
+        Raises
+        ------
+        AssertionError
+            If no such line came within ``timeout_s`` (the output so far is in the message).
+
+        """
+        deadline = time.monotonic() + timeout_s
+        with self._new:
+            while True:
+                for line in self.lines:
+                    if text in line:
+                        return line
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    raise AssertionError(f'no line with {text!r} within {timeout_s:g} s: '
+                                         + '\n'.join(self.lines))
+                self._new.wait(remaining)
+
+    def join(self, timeout_s: float = 10.0) -> str:
+        """Wait for the stream to close (the child exited); return everything printed."""
+        self._thread.join(timeout_s)
+        return '\n'.join(self.lines)

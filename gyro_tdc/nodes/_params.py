@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from typing import Any, Sequence
 
+from gyro_tdc.errors import ConfigError
 from gyro_tdc.paramspec import ParamSpec
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
@@ -58,15 +59,15 @@ def declare(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
 
     Raises
     ------
-    ValueError
-        A string parameter is not one of its choices.
+    ConfigError
+        A string parameter is not one of its choices (a ValueError).
 
     """
     values = {}
     for spec in specs:
         value = node.declare_parameter(spec.name, spec.default, descriptor(spec)).value
         if spec.choices and value not in spec.choices:
-            raise ValueError(f'Expected parameter `{spec.name}` to be one of '
-                             f'{", ".join(spec.choices)}, got {value!r}.')
+            raise ConfigError(f'Expected parameter `{spec.name}` to be one of '
+                              f'{", ".join(spec.choices)}, got {value!r}.')
         values[spec.name] = value
     return values

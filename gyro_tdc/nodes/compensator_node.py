@@ -15,36 +15,52 @@
 """
 The compensator node: raw Imu in, drift-compensated Imu out, one for one, in order.
 
-Subscribes ``imu/data_raw`` (sensor-data QoS with a deep queue) and ``imu/temperature``;
-publishes ``imu/data_compensated`` with the header and every field copied unchanged
-except ``angular_velocity`` (corrected by the model) and ``angular_velocity_covariance``
-(widened by the model's residual variance and by the policies); ``/diagnostics`` at 1 Hz.
-``model_file`` can be changed at run time (parameter set) or re-read (``~/reload``,
-std_srvs/Trigger); an invalid file is refused with its reason and the old model stays.
+Subscribes ``imu/data_raw`` (sensor-data QoS with a deep queue, or reliable keep-all with
+``input_reliability: reliable``) and ``imu/temperature``; publishes ``imu/data_compensated``
+with the header and every field copied unchanged except ``angular_velocity`` (corrected by
+the model) and ``angular_velocity_covariance`` (widened by the model's residual variance and
+by the policies, and carrying :mod:`gyro_tdc.provenance`'s mark when compensated);
+``/diagnostics`` at 1 Hz.
 
-Every decision lives in :mod:`gyro_tdc.compensation_logic` (the policies, the parameter
-table ``PARAMS``, the health on /diagnostics); this module converts. With ``raw_cdr``
-(default) the Imu is taken as serialized bytes and patched in place by
-:mod:`gyro_tdc.imu_cdr`, which saves most of a Python relay's per-message cost. ``main()``
-spins rclpy's EventsExecutor (``executor: events``, see :mod:`gyro_tdc.nodes.executors`).
+``model_file`` can be changed at run time (parameter set) or re-read (``~/reload``,
+std_srvs/Trigger). The file is read, checked and primed in a worker thread
+(:mod:`gyro_tdc.loading`) and swapped in on the executor's thread, so a large or slow file
+never holds up the IMU callback for more than ``load_wait``; an invalid file is refused
+with its reason in one line and the old model stays.
+
+Guards: the node refuses to start when its input and output resolve to the same topic (a
+loop); it warns on /diagnostics when a sample arrives already compensated (the mark) or a
+gyro_tdc compensator publishes its input (graph query), and counts the input messages DDS
+reports lost (the subscription's message-lost event).
+
+Every decision lives in :mod:`gyro_tdc.compensation_logic` and :mod:`gyro_tdc.health`; this
+module converts. With ``raw_cdr`` (default) the Imu is taken as serialized bytes and patched
+in place by :mod:`gyro_tdc.imu_cdr`, which saves most of a Python relay's per-message cost.
+``main()`` spins rclpy's EventsExecutor (``executor: events``, see
+:mod:`gyro_tdc.nodes.executors`).
 """
 
 from __future__ import annotations
 
-from typing import Any
+import sys
+from typing import Any, Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy
-from gyro_tdc.errors import ModelFileError
-from gyro_tdc.health import health, HealthMark
+from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy, prepare, PreparedModel
+from gyro_tdc.errors import ConfigError, GyroTdcError, one_line
+from gyro_tdc.health import health, HealthMark, InputStatus, PASSTHROUGH
 from gyro_tdc.imu_cdr import ImuView, locate
+from gyro_tdc.loading import Job, LatestJob
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.modelfile import load_model
 from gyro_tdc.nodes._params import declare
 from gyro_tdc.nodes.executors import run_node
 from gyro_tdc.paramspec import spec_dataclass
+from gyro_tdc.provenance import diagonal_marked, mark_diagonal
 from gyro_tdc.resources import model_path
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
+from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
@@ -53,13 +69,22 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, Temperature
 from std_srvs.srv import Trigger
 
-__all__ = ['CompensatorNode', 'CompensatorParams', 'PARAMS', 'main', 'read_model']
+__all__ = ['CompensatorNode', 'CompensatorParams', 'LOAD_ERRORS', 'PARAMS', 'main',
+           'read_model']
 
 #: The compensator's parameters, read once at start-up (``model_file`` also at run time).
 CompensatorParams = spec_dataclass(
     'CompensatorParams', PARAMS, "The compensator's parameters (rows of ``PARAMS``).",
     module=__name__, methods={'policy': lambda self: Policy(
         **{s.name: getattr(self, s.name) for s in PARAMS if s.policy})})
+
+#: What the node's load edge turns into a refused file: the loader's documented errors
+#: (every :class:`~gyro_tdc.errors.GyroTdcError`: ModelFileError, LimitError...) and, as a
+#: last resort should a parser limit ever let a hostile file through, RecursionError and
+#: MemoryError: no file may stop the node.
+LOAD_ERRORS = (GyroTdcError, RecursionError, MemoryError)
+#: How often the executor's thread looks for a model finished in the background [s].
+LOAD_POLL_S = 0.02
 
 
 def read_model(name_or_file: str) -> CompensationModel:
@@ -80,9 +105,15 @@ def read_model(name_or_file: str) -> CompensationModel:
     ------
     ModelFileError
         The file is missing, malformed or inconsistent (one-line reason).
+    LimitError
+        The file exceeds one of the model loader's limits.
 
     """
     return load_model(model_path(name_or_file))
+
+
+def _fqn(namespace: str, name: str) -> str:
+    return f'{namespace.rstrip("/")}/{name}'
 
 
 class CompensatorNode(Node):
@@ -91,25 +122,50 @@ class CompensatorNode(Node):
 
     Parameters
     ----------
+    loader : callable, optional
+        Reads a model file: ``loader(name) -> CompensationModel`` (default
+        :func:`read_model`); tests inject a slow one.
     **kwargs
         Forwarded to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``...).
 
+    Raises
+    ------
+    ConfigError
+        A parameter is invalid, or ``imu/data_raw`` and ``imu/data_compensated`` resolve to
+        the same topic.
+
     """
 
-    def __init__(self, **kwargs: Any) -> None:
+    def __init__(self, *, loader: Callable[[str], CompensationModel] | None = None,
+                 **kwargs: Any) -> None:
         super().__init__(kwargs.pop('node_name', 'compensator_node'), **kwargs)
         self.params = CompensatorParams(**declare(self, PARAMS))
         p = self.params
-        self.core = CompensatorCore(p.policy())
+        try:
+            policy = p.policy()
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        self._in_topic = self.resolve_topic_name('imu/data_raw')
+        out_topic = self.resolve_topic_name('imu/data_compensated')
+        if self._in_topic == out_topic:
+            raise ConfigError(f'imu/data_raw and imu/data_compensated both resolve to '
+                              f'{out_topic}: the compensator would compensate its own output '
+                              'in a loop; remap one of them')
+        self._read = loader or read_model
+        self.core = CompensatorCore(policy)
+        self.inputs = InputStatus(p.input_reliability)
         self.model_file = ''
         self.last_reload = 'none'
-        self._pending: dict[str, CompensationModel] = {}
+        self._jobs = LatestJob()
+        self._pending: dict[str, Job] = {}
+        self._reverting: str | None = None
         if p.model_file:
-            try:
-                self._install(p.model_file, read_model(p.model_file))
-            except ModelFileError as exc:
-                self.last_reload = f'failed: {exc}'
-                self.get_logger().error(f'cannot load model_file {p.model_file!r}: {exc}; '
+            prepared, error = self._load_work(p.model_file, self.core.priming())()
+            if prepared is not None:
+                self._install(p.model_file, prepared)
+            else:
+                self.last_reload = f'failed: {error}'
+                self.get_logger().error(f'cannot load model_file {p.model_file!r}: {error}; '
                                         'passing the raw rate through')
         else:
             self.get_logger().warning('no model_file: passing the raw rate through')
@@ -117,18 +173,23 @@ class CompensatorNode(Node):
         self._pub = self.create_publisher(Imu, 'imu/data_compensated', QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
             reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE))
-        imu_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
-                             reliability=ReliabilityPolicy.BEST_EFFORT,
-                             durability=DurabilityPolicy.VOLATILE)
+        if p.input_reliability == 'reliable':
+            imu_qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=p.queue_depth,
+                                 reliability=ReliabilityPolicy.RELIABLE,
+                                 durability=DurabilityPolicy.VOLATILE)
+        else:
+            imu_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
+                                 reliability=ReliabilityPolicy.BEST_EFFORT,
+                                 durability=DurabilityPolicy.VOLATILE)
         # As deep as the IMU queue: a simulated run streamed faster than real time sends
         # one temperature per IMU sample, and a lost temperature makes the next ones stale.
         temp_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
                               reliability=qos_profile_sensor_data.reliability,
                               durability=qos_profile_sensor_data.durability)
-        if p.raw_cdr:
-            self.create_subscription(Imu, 'imu/data_raw', self._on_imu_raw, imu_qos, raw=True)
-        else:
-            self.create_subscription(Imu, 'imu/data_raw', self._on_imu, imu_qos)
+        events = SubscriptionEventCallbacks(message_lost=self._on_message_lost)
+        self.create_subscription(Imu, 'imu/data_raw',
+                                 self._on_imu_raw if p.raw_cdr else self._on_imu, imu_qos,
+                                 raw=p.raw_cdr, event_callbacks=events)
         self.create_subscription(Temperature, 'imu/temperature', self._on_temperature, temp_qos)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_service(Trigger, '~/reload', self._on_reload)
@@ -137,12 +198,16 @@ class CompensatorNode(Node):
         self._seen = HealthMark()
         self._reported_anchor = None
         self.create_timer(1.0, self._on_diagnostics)
+        self.create_timer(LOAD_POLL_S, self._on_load_poll)
 
     # -- the hot path -----------------------------------------------------------------
 
     def _on_imu(self, msg: Imu) -> None:
         st = msg.header.stamp
         w = msg.angular_velocity
+        cov = msg.angular_velocity_covariance
+        if diagonal_marked(cov):
+            self.inputs.already_compensated += 1
         a = None
         if self.core.policy.reanchor_on_start and self.core.anchor is None:
             la = msg.linear_acceleration
@@ -152,14 +217,15 @@ class CompensatorNode(Node):
             wx, wy, wz, var, flags = self.core.process(
                 st.sec + st.nanosec * 1e-9, w.x, w.y, w.z, a)
         except Exception as exc:  # the callback edge: never lose the message
-            var = self._on_error(exc)
+            var, flags = self._on_error(exc), PASSTHROUGH
             wx, wy, wz = w.x, w.y, w.z
         w.x, w.y, w.z = wx, wy, wz
-        cov = msg.angular_velocity_covariance
         if cov[0] != -1.0:
             cov[0] += var[0]
             cov[4] += var[1]
             cov[8] += var[2]
+            if not flags & PASSTHROUGH:
+                mark_diagonal(cov)
         self._pub.publish(msg)
 
     def _on_imu_raw(self, data: bytes) -> None:
@@ -169,6 +235,8 @@ class CompensatorNode(Node):
             return
         sec, nanosec, base = found
         view = ImuView(data, base)
+        if view.marked():
+            self.inputs.already_compensated += 1
         wx, wy, wz = view.angular_velocity()
         a = None
         if self.core.policy.reanchor_on_start and self.core.anchor is None:
@@ -176,8 +244,8 @@ class CompensatorNode(Node):
         try:
             wx, wy, wz, var, flags = self.core.process(sec + nanosec * 1e-9, wx, wy, wz, a)
         except Exception as exc:  # the callback edge: never lose the message
-            var = self._on_error(exc)
-        self._pub.publish(view.patched(wx, wy, wz, var))
+            var, flags = self._on_error(exc), PASSTHROUGH
+        self._pub.publish(view.patched(wx, wy, wz, var, not flags & PASSTHROUGH))
 
     def _on_error(self, exc: Exception) -> tuple[float, float, float]:
         """Count an unexpected compensation failure; the raw sample goes out flagged."""
@@ -190,21 +258,68 @@ class CompensatorNode(Node):
         st = msg.header.stamp
         self.core.add_temperature(st.sec + st.nanosec * 1e-9, msg.temperature)
 
+    def _on_message_lost(self, info: QoSMessageLostInfo) -> None:
+        new = info.total_count - self.inputs.lost
+        self.inputs.lost = info.total_count
+        self.get_logger().warning(
+            f'{new} imu/data_raw messages lost ({info.total_count} in total, reported by '
+            'DDS): the compensator cannot keep up or the link drops', throttle_duration_sec=5.0)
+
     # -- model loading ----------------------------------------------------------------
 
-    def _install(self, name: str, model: CompensationModel) -> None:
+    def _load_work(self, name: str, priming: Any
+                   ) -> Callable[[], tuple[PreparedModel | None, str]]:
+        """Return the job that reads, checks and primes ``name``: (prepared, '') or (None, why)."""
+        read, policy = self._read, self.core.policy
+
+        def work() -> tuple[PreparedModel | None, str]:
+            try:
+                return prepare(read(name), policy, priming), ''
+            except LOAD_ERRORS as exc:  # a refused file, in one line whatever it held
+                if isinstance(exc, GyroTdcError):
+                    return None, one_line(exc)
+                return None, f'{name}: {type(exc).__name__} while reading the model file'
+            except Exception as exc:  # the worker's edge: a bug must not leave a load hanging
+                return None, f'{name}: unexpected {type(exc).__name__}: {one_line(exc)}'
+        return work
+
+    def _start_load(self, name: str, origin: str) -> Job:
+        """Read ``name`` in a worker thread (a newer request makes an older one stale)."""
+        self.last_reload = f'loading {name}'
+        return self._jobs.start(name, origin, self._load_work(name, self.core.priming()))
+
+    def _claim(self, job: Job) -> bool:
+        """Wait up to ``load_wait`` for ``job``; return whether it finished and is ours."""
+        return job.wait(self.params.load_wait) and self._jobs.claim(job) is not None
+
+    def _install(self, name: str, prepared: PreparedModel) -> None:
         """Swap the model in (one assignment inside the core) and log it."""
-        self.core.set_model(model)
+        self.core.install(prepared)
         self.model_file = name
-        self.last_reload = f'loaded {model.model_id}'
+        model = prepared.model
+        self.last_reload = f'loaded {prepared.model_id}'
         lo, hi = model.temp_range_c
         self.get_logger().info(
-            f'model {model.model_id} from {name!r}: {model.kind}, features '
+            f'model {prepared.model_id} from {name!r}: {model.kind}, features '
             f'{",".join(model.features)}, valid {lo:.1f}..{hi:.1f} degC')
+
+    def _refuse(self, name: str, error: str) -> None:
+        self.last_reload = f'rejected: {error}'
+        kept = self.core.model_id or 'no model'
+        self.get_logger().error(f'model {name!r} rejected, keeping {kept}: {error}')
+
+    def _finish(self, job: Job) -> tuple[bool, str]:
+        """Install a finished job's model, or report why not; return (success, message)."""
+        prepared, error = job.result
+        if prepared is None:
+            self._refuse(job.name, error)
+            return False, error
+        self._install(job.name, prepared)
+        return True, f'loaded model {prepared.model_id} from {job.name}'
 
     def load(self, name: str) -> tuple[bool, str]:
         """
-        Load ``name`` and install it; on failure keep the current model.
+        Load ``name`` now and install it; on failure keep the current model.
 
         Parameters
         ----------
@@ -222,58 +337,119 @@ class CompensatorNode(Node):
             self.model_file = ''
             self.last_reload = 'no model'
             return True, 'no model: passing the raw rate through'
-        try:
-            model = read_model(name)
-        except ModelFileError as exc:
-            self.last_reload = f'rejected: {exc}'
-            model = self.core.model
-            kept = (model.model_id if model is not None else '') or 'no model'
-            self.get_logger().error(f'model {name!r} rejected, keeping {kept}: {exc}')
-            return False, str(exc)
-        self._install(name, model)
-        return True, f'loaded model {model.model_id} from {name}'
+        job = Job(name, 'load')
+        job.result = self._load_work(name, self.core.priming())()
+        return self._finish(job)
+
+    def _on_load_poll(self) -> None:
+        """Install (or refuse) a model finished in the background."""
+        if self._jobs.pending is None:
+            return
+        job = self._jobs.claim()
+        if job is None:
+            return
+        ok, _ = self._finish(job)
+        if not ok and job.origin == 'parameter' and \
+                self.get_parameter('model_file').value == job.name:
+            # The set was accepted before the file was read: name the model in use again.
+            self._reverting = self.model_file
+            try:
+                self.set_parameters([Parameter('model_file', value=self.model_file)])
+            finally:
+                self._reverting = None
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """Validate a new ``model_file`` by loading it; refuse it with the reason."""
+        """Check a new ``model_file`` by reading it; a file slower than ``load_wait`` reads on."""
         for param in params:
-            if param.name == 'model_file':
-                name = param.value
-                if not isinstance(name, str):
-                    return SetParametersResult(successful=False,
-                                               reason='model_file must be a string')
-                if name:
-                    try:
-                        self._pending[name] = read_model(name)
-                    except ModelFileError as exc:
-                        self.last_reload = f'rejected: {exc}'
-                        self.get_logger().error(f'model_file {name!r} rejected: {exc}')
-                        return SetParametersResult(successful=False, reason=str(exc))
+            if param.name != 'model_file':
+                continue
+            name = param.value
+            if not isinstance(name, str):
+                return SetParametersResult(successful=False,
+                                           reason='model_file must be a string')
+            if not name or name == self._reverting:
+                continue
+            job = self._start_load(name, 'parameter')
+            if not self._claim(job):
+                continue  # slower than load_wait: installed (or refused) by _on_load_poll
+            prepared, error = job.result
+            if prepared is None:
+                self._refuse(name, error)
+                return SetParametersResult(successful=False, reason=error)
+            self._pending[name] = job
         return SetParametersResult(successful=True)
 
     def _on_parameters_set(self, params: list[Parameter]) -> None:
-        """Install the model validated by :meth:`_on_set_parameters`."""
+        """Install the model read by :meth:`_on_set_parameters`."""
         for param in params:
             if param.name == 'model_file':
                 name = param.value
-                model = self._pending.pop(name, None)
-                if model is not None:
-                    self._install(name, model)
-                elif not name:
+                job = self._pending.pop(name, None)
+                if job is not None:
+                    self._finish(job)
+                elif not name and self._reverting is None:
                     self.load('')
         self._pending.clear()
 
     def _on_reload(self, request: Trigger.Request, response: Trigger.Response
                    ) -> Trigger.Response:
         name = self.get_parameter('model_file').value
-        response.success, response.message = self.load(name)
+        if not name:
+            response.success, response.message = self.load('')
+            return response
+        job = self._start_load(name, 'reload')
+        if self._claim(job):
+            response.success, response.message = self._finish(job)
+        else:
+            kept = self.core.model_id or 'no model'
+            response.success = True
+            response.message = (f'reading {name} in the background (longer than load_wait); '
+                                f'{kept} stays in use until it is ready; the outcome goes to '
+                                '/diagnostics and the log')
         return response
 
-    # -- diagnostics ------------------------------------------------------------------
+    # -- guards and diagnostics -------------------------------------------------------
+
+    def upstream_compensators(self) -> tuple[str, ...]:
+        """
+        Return the other nodes publishing ``imu/data_raw`` that look like gyro_tdc compensators.
+
+        A node is taken for one when it offers ``~/reload`` (std_srvs/srv/Trigger) and
+        subscribes a sensor_msgs/msg/Temperature topic besides publishing Imu on our input:
+        the graph shows a compensator's interface whatever its name or remaps.
+        """
+        me = self.get_fully_qualified_name()
+        found = set()
+        for info in self.get_publishers_info_by_topic(self._in_topic):
+            fqn = _fqn(info.node_namespace, info.node_name)
+            if fqn == me or fqn in found:
+                continue
+            who = (info.node_name, info.node_namespace)
+            try:
+                services = self.get_service_names_and_types_by_node(*who)
+                subs = self.get_subscriber_names_and_types_by_node(*who)
+            except _rclpy.NodeNameNonExistentError:  # it left between the two queries
+                continue
+            if any(n == f'{fqn}/reload' and 'std_srvs/srv/Trigger' in t for n, t in services) \
+                    and any('sensor_msgs/msg/Temperature' in t for _, t in subs):
+                found.add(fqn)
+        return tuple(sorted(found))
 
     def diagnostic_status(self) -> DiagnosticStatus:
         """Return the compensator's DiagnosticStatus (and log a new re-anchoring)."""
+        upstream = self.upstream_compensators()
+        if upstream and upstream != self.inputs.upstream:
+            self.get_logger().warning(
+                f'imu/data_raw ({self._in_topic}) is published by gyro_tdc compensator '
+                f'{", ".join(upstream)}: chained compensators remove the drift twice')
+        self.inputs.upstream = upstream
         h = health(self.core, self._seen, model_file=self.model_file,
-                   last_reload=self.last_reload)
+                   last_reload=self.last_reload, inputs=self.inputs)
+        if h.mark.already_compensated > self._seen.already_compensated:
+            self.get_logger().warning(
+                f'{h.mark.already_compensated - self._seen.already_compensated} imu/data_raw '
+                'samples were already compensated by gyro_tdc: the model is applied twice',
+                throttle_duration_sec=10.0)
         self._seen = h.mark
         anchor = self.core.anchor
         if anchor is not None and anchor is not self._reported_anchor:
@@ -293,13 +469,13 @@ class CompensatorNode(Node):
         self._diag_pub.publish(arr)
 
 
-def main(args: list[str] | None = None) -> None:
+def main(args: list[str] | None = None) -> int:
     """Run the compensator node until shutdown (``ros2 run gyro_tdc compensator_node``)."""
     # gc.freeze(): keep the ~30k start-up objects (numpy, the model...) out of the cyclic
     # collector's full passes, which otherwise stall the callback for ~10 ms now and then (p99).
-    run_node(CompensatorNode, args, executor=lambda node: node.params.executor,
-             freeze_heap=True)
+    return run_node(CompensatorNode, args, executor=lambda node: node.params.executor,
+                    freeze_heap=True, name='compensator_node')
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

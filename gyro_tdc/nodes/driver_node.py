@@ -34,6 +34,7 @@ data (filters, dT/dt) stays in simulated seconds.
 from __future__ import annotations
 
 from dataclasses import dataclass
+import sys
 import time
 from typing import Any, Callable
 
@@ -363,10 +364,10 @@ class DriverNode(Node):
         super().destroy_node()
 
 
-def main(args: list[str] | None = None) -> None:
+def main(args: list[str] | None = None) -> int:
     """Run the driver node until shutdown (``ros2 run gyro_tdc driver_node``)."""
-    run_node(DriverNode, args, executor='single')
+    return run_node(DriverNode, args, executor='single', name='driver_node')
 
 
 if __name__ == '__main__':
-    main()
+    sys.exit(main())

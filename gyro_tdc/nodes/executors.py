@@ -25,13 +25,21 @@ processes; its ``spin()`` is broken in the Jazzy wheels, so :func:`spin` loops o
 from __future__ import annotations
 
 import gc
+import sys
 from typing import Any, Callable
 
+from gyro_tdc.errors import GyroTdcError, one_line
 import rclpy
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 
-__all__ = ['make_executor', 'run_node', 'spin']
+__all__ = ['STARTUP_ERRORS', 'make_executor', 'run_node', 'spin']
+
+#: Errors of a node's configuration at start-up, reported in one line by :func:`run_node`:
+#: rclpy's parameter errors (wrong type, out of range, ...) and gyro_tdc's own
+#: (:class:`~gyro_tdc.errors.ConfigError`: not one of the choices, a topic loop...).
+STARTUP_ERRORS = (GyroTdcError, ParameterException)
 
 
 def make_executor(kind: str, context: Any = None) -> Any:
@@ -79,13 +87,16 @@ def spin(executor: Any, context: Any = None) -> None:
 
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
              executor: str | Callable[[Any], str] = 'single',
-             freeze_heap: bool = False) -> None:
+             freeze_heap: bool = False, name: str = 'node') -> int:
     """
     Run one node until shutdown: the ``main()`` of ros2/demos, shared by the nodes.
 
     Initialise rclpy, build the node inside ``try``, spin it, treat Ctrl-C and an external
     shutdown as a normal end, then shut the executor down, destroy the node and shut rclpy
-    down.
+    down. A node that cannot start because of its configuration (a parameter of the wrong
+    type, out of range or not one of its choices, inconsistent topic names: every
+    :data:`STARTUP_ERRORS`) prints one line, ``NAME: error: ...``, on stderr and the exit
+    status is 2, with no traceback.
 
     Parameters
     ----------
@@ -98,13 +109,24 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
     freeze_heap : bool
         Move the objects alive after start-up out of the cyclic garbage collector's reach
         (``gc.freeze()``), so that its full passes do not stall callbacks.
+    name : str
+        Executable name for the error line.
+
+    Returns
+    -------
+    int
+        Exit status: 0, or 2 when the node could not start.
 
     """
     rclpy.init(args=args)
     node = None
     ex = None
     try:
-        node = make_node()
+        try:
+            node = make_node()
+        except STARTUP_ERRORS as exc:
+            print(f'{name}: error: {one_line(exc)}', file=sys.stderr)
+            return 2
         ex = make_executor(executor(node) if callable(executor) else executor)
         ex.add_node(node)
         if freeze_heap:
@@ -118,3 +140,4 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+    return 0
