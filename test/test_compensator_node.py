@@ -248,7 +248,8 @@ def test_no_model_passes_through_with_error(rig_factory, tmp_path):
 def test_reload_via_parameter_good_and_bad(models, rig_factory, tmp_path, executor):
     path_a, model_a = models['paper']
     path_b, model_b = models['dynamic']
-    rig = rig_factory(executor_kind=executor, model_file=str(path_a))
+    # load_wait: answer every set with the file's verdict, however busy the machine.
+    rig = rig_factory(executor_kind=executor, model_file=str(path_a), load_wait=10.0)
     client = AsyncParameterClient(rig.io, 'compensator_node')
     spin_until(rig.executor, lambda: client.services_are_ready(), 10.0)
 
@@ -280,7 +281,7 @@ def test_reload_service_good_and_bad(models, rig_factory, tmp_path, executor):
     src, model_a = models['paper']
     path = tmp_path / 'live.yaml'
     path.write_text(Path(src).read_text())
-    rig = rig_factory(executor_kind=executor, model_file=str(path))
+    rig = rig_factory(executor_kind=executor, model_file=str(path), load_wait=10.0)
     client = rig.io.create_client(Trigger, 'compensator_node/reload')
     spin_until(rig.executor, lambda: client.service_is_ready(), 10.0)
 
