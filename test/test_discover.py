@@ -164,9 +164,11 @@ def test_hidden_effect_is_named(tmp_path, name, hidden, k, seed, opts):
     runs = load_runs(write_runs(tmp_path, sc, seed))
     res = discover(runs, allan=False)
     check_found(res, hidden)
-    if effect in ('lag', 'dTdt'):     # on ramps the two are one family: reported as aliases
-        step = res.steps[0]
+    step = res.steps[0]
+    if effect == 'lag':     # on ramps a lagging die looks like a dT/dt term: reported as aliases
         assert {'lag', 'dTdt'} == {step.effect, *step.aliases}
+    if effect == 'dTdt':    # the lagged state cannot take a hysteresis of either sign
+        assert step.effect == 'dTdt' and step.params['tau_s'] > 0
 
 
 def test_two_hidden_effects_dT2_and_lag(tmp_path):
@@ -180,10 +182,14 @@ def test_two_hidden_effects_dT2_and_lag(tmp_path):
     lag = next(s for s in res.steps if 'lag' in (s.effect, *s.aliases))
     if lag.effect == 'lag':
         assert 100.0 < lag.params['tau_s'] < 250.0     # simulated die lag: 150 s
-    # The model file holds it: lag meets dT2, so an RBF over (dT, dT2, lag) is written.
+    # The model file holds it: a format-2 poly of the thermal state, tau with its interval.
     path = save_model(build_model(res, runs), tmp_path / 'm.yaml')
     model = load_model(path)
-    assert model.kind == 'rbf' and model.features == res.final_effects
+    assert model.kind == 'poly' and model.features == res.final_effects
+    assert model.format_version == 2 and model.thermal == res.thermal
+    assert res.thermal.identifiable
+    lo, hi = res.thermal.tau_interval_s[0]
+    assert lo < res.params['lag']['tau_s'] < hi
     for run in runs:
         err = compensate(model, run.t, run.temp, run.omega) - run.omega_ref
         err -= err.mean(axis=0)                       # the node re-anchors its offset

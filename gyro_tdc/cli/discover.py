@@ -19,7 +19,8 @@ One run per bag (a folder of bag folders expands to its bags). The workflow is
 :func:`gyro_tdc.discover.discover`; this module reads the bags, prints the summary and writes
 the optional outputs: ``--json`` (the document of DESIGN.md), ``--report DIR`` (report.md with
 PNG residual maps and Allan deviation plots) and ``--out MODEL.yaml`` (a model of the
-discovered effects that ``compensator_node`` loads). Bad input exits 2 with one line on stderr.
+discovered effects that ``compensator_node`` loads; format 2, with the thermal state and its
+tau interval when ``lag`` was named). Bad input exits 2 with one line on stderr.
 """
 
 from __future__ import annotations
@@ -64,9 +65,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='write a model file of the discovered effects (compensator_node loads '
                         'it)')
     p.add_argument('--kind', default=None, choices=KINDS,
-                   help='model of --out: poly (linear in the features, what discovery '
-                        'validated) or rbf (default: poly, or rbf when lag meets dT2/dT3: '
-                        'the lagged die temperature then enters the curvature too)')
+                   help='model of --out: poly (linear in the features of the model '
+                        'temperature, what discovery validated; with lag every temperature '
+                        'term is of the lagged state) or rbf (default: poly)')
     p.add_argument('--block-s', type=positive_float, default=10.0, metavar='S',
                    help='block length in s; gaps and the noise floor are RMS of block means '
                         '(default: %(default)s)')

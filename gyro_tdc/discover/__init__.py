@@ -27,9 +27,14 @@ data. The model searched is linear in its coefficients, per axis ``a``::
 with ``x_j`` the effect features of :mod:`gyro_tdc.effects` (their time constants fitted by a
 bounded 1-D search on the residual: variable projection), ``o`` one offset per run (session-to-
 session offsets are not thermal), ``s`` the ``scale`` effect and ``g`` a constant scale-factor
-error of the rate table (a nuisance, present only when the reference rate varies). With
-``lag`` the die, not the thermometer, feels the curvature too: ``lag`` brings the lagged
-powers of the curvature effects present (``lag^2`` with ``dT2``, ``lag^3`` with ``dT3``).
+error of the rate table (a nuisance, present only when the reference rate varies). ``lag``
+is not a term beside the others: naming it switches the model to the thermal state, the die
+temperature ``s = first_order_lag(t, T, tau)``, and every temperature term (``dT``, ``dT2``,
+``dT3``, the ``dT`` of ``s_a``) is recomputed from it, tau fitted jointly (an outer search
+over tau, the linear solve inside); candidates scored after it are scored on the state too.
+Being no column of its own, it is tested with Davidson and MacKinnon's J test (its fitted
+values added to the current model), and the result reports tau with its 95 % profile
+interval (:func:`gyro_tdc.fitting.profile_interval`), or says the data cannot pin it.
 
 Everything works on block means (``block_s``, default 10 s): the thermal effects are slow, and
 the averages are what the noise floor and the gaps are measured on. The *gap* is the RMS over
@@ -43,10 +48,10 @@ A candidate is named only when three independent tests agree (the false-discover
   floors (and 1 %) under leave-one-run-out cross-validation, or, for one run, blocked
   cross-validation over interleaved segments with a noise-memory buffer around each held-out
   segment;
-* significance: a Wald F test of its columns with HAC (Newey-West, statsmodels) errors, the
-  bandwidth from the memory of the noise, below ``alpha`` after a Bonferroni correction over
-  candidates and axes. Slow bias instability makes any HAC p-value optimistic on one run,
-  which is why it is never the only test;
+* significance: a Wald F test of its columns (for ``lag``, of the J column) with HAC
+  (Newey-West, statsmodels) errors, the bandwidth from the memory of the noise, below
+  ``alpha`` after a Bonferroni correction over candidates and axes. Slow bias instability
+  makes any HAC p-value optimistic on one run, which is why it is never the only test;
 * size: it explains at least ``min_effect`` noise floors (RMS).
 
 The best candidate (largest held-out gain) is added, the time constants are refitted, and the

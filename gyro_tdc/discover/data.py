@@ -20,6 +20,10 @@ effects are slow, and the averages are what the noise floor and the gaps are mea
 noise floor is what white and short-term noise alone leave in a block mean, estimated from the
 data inside the blocks (second differences of block thirds, so the drift cancels; robust
 median scale).
+
+With the thermal state (``lag``) the temperature terms (``dT``, ``dT2``, ``dT3`` and the
+``dT`` of ``scale``) are block means of the features of the state ``s = first_order_lag(t,
+T, tau)`` instead of the measured temperature: :meth:`BlockData.state_columns`.
 """
 
 from __future__ import annotations
@@ -29,7 +33,8 @@ from typing import Callable, Mapping, Sequence
 
 from gyro_tdc.blocks import block_counts, block_sum
 from gyro_tdc.discover.stats import COLLINEAR, rel_residual
-from gyro_tdc.effects import batch_features, EFFECTS, input_ids, STATIC_EFFECTS
+from gyro_tdc.effects import (batch_features, EFFECTS, first_order_lag, input_ids, STATE_TERMS,
+                              STATIC_EFFECTS)
 from gyro_tdc.errors import FitError
 from gyro_tdc.runs import Run
 import numpy as np
@@ -39,6 +44,8 @@ __all__ = ['BlockData']
 
 #: Effects whose block-mean column is the mean of their full-rate feature (no filter state).
 _STATIC = input_ids(STATIC_EFFECTS)
+#: The temperature terms, which follow the thermal state when the model has one.
+_STATE = input_ids(STATE_TERMS)
 
 
 def _per_segment(blocks: Callable[[int, int], NDArray[np.float64]], bounds: NDArray[np.int64],
@@ -67,9 +74,10 @@ class BlockData:
     Samples are grouped into blocks of ``block_s`` inside each contiguous segment (a gap of
     more than half a block or 20 sample periods starts a new segment, so bursty recordings
     work); a segment tail shorter than half a block joins the previous block. Static
-    features are block means of their full-rate values; the filtered ones (``lag``,
-    ``dTdt``, ``warmup``) are computed on a regular grid (temperature interpolated across
-    gaps) and averaged over each block's span.
+    features are block means of their full-rate values; the filtered ones (``dTdt``,
+    ``warmup``) are computed on a regular grid (temperature interpolated across gaps) and
+    averaged over each block's span; so are the temperature terms of the thermal state (the
+    reference rate held on the grid for the ``scale`` term).
     """
 
     def __init__(self, runs: Sequence[Run], *, block_s: float, t0: float) -> None:
@@ -81,6 +89,7 @@ class BlockData:
             'run', 'n', 't', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref', 'static',
             'noise')}
         self.grids: list[tuple] = []
+        self._ref_grid: list[NDArray[np.float64]] = []
         white = []
         span = 0.0
         start = 0
@@ -143,6 +152,9 @@ class BlockData:
             lo = np.searchsorted(tg, t[first], side='left')
             hi = np.searchsorted(tg, t[last], side='right')
             self.grids.append((tg, temp_g, lo, hi, bmean(t), start, start + nb))
+            # The reference rate on the grid, held from the last sample (a step schedule).
+            held = np.clip(np.searchsorted(t, tg, side='right') - 1, 0, n - 1)
+            self._ref_grid.append(np.asarray(run.omega_ref, dtype=np.float64)[held])
             start += nb
 
         cat = {k: np.concatenate(v) for k, v in parts.items()}
@@ -185,6 +197,7 @@ class BlockData:
         self.white = float(np.sqrt(np.mean(np.nan_to_num(wsig) ** 2)))
         self.rate_cpm = self._rate_cpm()
         self._cache: dict = {}
+        self._state_cache: dict = {}
         self.gain_axes = self._gain_axes()
         self.scale_axes = np.array([np.any(np.abs(self.ref[:, a]) > 1e-12) and rel_residual(
             np.hstack([self.offsets, self.static['dT'][:, None], self.ref[:, a:a + 1]]),
@@ -220,7 +233,76 @@ class BlockData:
             out[a] = rel_residual(self.offsets, col) > COLLINEAR
         return out
 
-    def column(self, eid: str, params: Mapping[str, Mapping[str, float]]) -> NDArray[np.float64]:
+    def state(self, r: int, tau: float) -> NDArray[np.float64]:
+        """
+        Return the thermal state of run ``r`` at its sample stamps, degC.
+
+        The first-order lag (:func:`gyro_tdc.effects.first_order_lag`, settled at the first
+        temperature) runs on the run's regular grid, where the temperature is linear between
+        grid points, and is interpolated back to the stamps.
+
+        Parameters
+        ----------
+        r : int
+            Run index.
+        tau : float, s
+            Time constant of the state.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (N,)
+            The state.
+
+        """
+        tg, temp_g = self.grids[r][:2]
+        return np.interp(self.runs[r].t, tg, self._grid_state(tg, temp_g, tau))
+
+    @staticmethod
+    def _grid_state(tg: NDArray[np.float64], temp_g: NDArray[np.float64], tau: float
+                    ) -> NDArray[np.float64]:
+        """Return the thermal state on a regular grid (temperature linear between points)."""
+        step = float(tg[1] - tg[0]) if tg.size > 1 else 1.0
+        return first_order_lag(step, temp_g, float(tau), hold='linear')
+
+    def state_columns(self, tau: float) -> dict[str, NDArray[np.float64]]:
+        """
+        Return the block means of the temperature terms of the thermal state, cached by tau.
+
+        Parameters
+        ----------
+        tau : float, s
+            Time constant of the state.
+
+        Returns
+        -------
+        dict
+            ``dT``, ``dT2``, ``dT3`` (K,): block means of their features of the state
+            (:func:`gyro_tdc.effects.batch_features` with ``state``); ``dtref`` (K, 3): of
+            ``(s - T0) omega_ref`` (the ``scale`` term).
+
+        """
+        key = round(float(tau), 9)
+        if key in self._state_cache:
+            return self._state_cache[key]
+        x = np.empty((self.K, len(_STATE)))
+        dtref = np.empty((self.K, 3))
+        j = _STATE.index('dT')
+        for (tg, temp_g, lo, hi, tb, a, b), ref_g in zip(self.grids, self._ref_grid):
+            xg = batch_features(_STATE, tg, temp_g, t0=self.t0,
+                                state=self._grid_state(tg, temp_g, tau))
+            for k in range(len(_STATE)):
+                x[a:b, k] = self._grid_mean(tg, xg[:, k], lo, hi, tb)
+            for k in range(3):
+                dtref[a:b, k] = self._grid_mean(tg, xg[:, j] * ref_g[:, k], lo, hi, tb)
+        out = {eid: x[:, k] for k, eid in enumerate(_STATE)}
+        out['dtref'] = dtref
+        if len(self._state_cache) > 256:
+            self._state_cache.clear()
+        self._state_cache[key] = out
+        return out
+
+    def column(self, eid: str, params: Mapping[str, Mapping[str, float]], *,
+               state_tau: float | None = None) -> NDArray[np.float64]:
         """
         Return the block-mean column of one input effect (K,), cached by parameters.
 
@@ -230,6 +312,9 @@ class BlockData:
             An input effect id.
         params : mapping
             ``{effect: {param: value}}``.
+        state_tau : float, optional, s
+            With the thermal state, its time constant: the temperature terms (``dT``,
+            ``dT2``, ``dT3``) are then powers of the state.
 
         Returns
         -------
@@ -237,19 +322,19 @@ class BlockData:
             The column.
 
         """
+        if state_tau is not None and eid in STATE_TERMS:
+            return self.state_columns(state_tau)[eid]
         if eid in self.static:
             return self.static[eid]
-        base = eid.split('^')[0]
-        tau = float(params.get(base, {}).get('tau_s', EFFECTS[base].params['tau_s']))
+        tau = float(params.get(eid, {}).get('tau_s', EFFECTS[eid].params['tau_s']))
         key = (eid, round(tau, 9))
         if key in self._cache:
             return self._cache[key]
-        power = int(eid[len(base) + 1:]) if eid != base else 1
         out = np.empty(self.K)
         for tg, temp_g, lo, hi, tb, a, b in self.grids:
-            f = batch_features((base,), tg, temp_g, t0=self.t0,
-                               params={base: {'tau_s': tau}})[:, 0]
-            out[a:b] = self._grid_mean(tg, f ** power, lo, hi, tb)
+            f = batch_features((eid,), tg, temp_g, t0=self.t0,
+                               params={eid: {'tau_s': tau}})[:, 0]
+            out[a:b] = self._grid_mean(tg, f, lo, hi, tb)
         if len(self._cache) > 512:
             self._cache.clear()
         self._cache[key] = out

@@ -20,9 +20,13 @@ Per axis ``a`` the block means are fitted as::
     omega_a - omega_ref_a = o_{run,a} + sum_j c_{j,a} x_j + s_a dT omega_ref_a
                             + g_a omega_ref_a + e_a
 
-by weighted least squares (weights: samples per block). :class:`LinearModel` builds the design
-of one effect set, fits it (on all blocks or on a fold's training rows) and gives the
-held-out residuals of cross-validation.
+by weighted least squares (weights: samples per block). With ``lag`` (the thermal state)
+every temperature term follows the state: ``dT``, ``dT2``, ``dT3`` and the ``dT`` of ``s_a``
+are powers of ``s - T0``, ``s`` the first-order lag of the measured temperature with the
+time constant ``params['lag']['tau_s']``; ``lag`` itself adds no column (the model is linear
+in its coefficients for a given tau, which the search fits around it). :class:`LinearModel`
+builds the design of one effect set, fits it (on all blocks or on a fold's training rows)
+and gives the held-out residuals of cross-validation.
 """
 
 from __future__ import annotations
@@ -30,7 +34,7 @@ from __future__ import annotations
 from typing import Mapping, Sequence
 
 from gyro_tdc.discover.data import BlockData
-from gyro_tdc.effects import input_ids
+from gyro_tdc.effects import input_ids, THERMAL_EFFECTS
 import numpy as np
 from numpy.typing import NDArray
 
@@ -41,17 +45,18 @@ class LinearModel:
     """Design matrices, least squares, cross-validation and the HAC test for one effect set."""
 
     def __init__(self, data: BlockData, effects: Sequence[str],
-                 params: Mapping[str, Mapping[str, float]]) -> None:
+                 params: Mapping[str, Mapping[str, float]], *,
+                 extra: NDArray[np.float64] | None = None) -> None:
         self.data = data
         self.effects = tuple(effects)
         self.params = {k: dict(v) for k, v in params.items()}
-        self.inputs = input_ids(self.effects)
+        #: Time constant of the thermal state (s), None without ``lag``.
+        state = bool(THERMAL_EFFECTS & set(self.effects))
+        self.state_tau = float(self.params['lag']['tau_s']) if state else None
+        self.inputs = input_ids(self.effects, state=state)
         self.labels = [f'offset:{r}' for r in range(data.n_runs)] + list(self.inputs)
-        if 'lag' in self.effects:
-            # The die, not the thermometer, feels the curvature: lagged powers too.
-            self.labels += [f'lag^{k}' for k, e in ((2, 'dT2'), (3, 'dT3')) if e in self.effects]
-        cols = [data.offsets] + [data.column(e, self.params)[:, None]
-                                 for e in self.labels[data.n_runs:]]
+        cols = [data.offsets] + [data.column(e, self.params, state_tau=self.state_tau)[:, None]
+                                 for e in self.inputs]
         self.common = np.hstack(cols)
         ax = []
         self.axis_labels = []
@@ -59,18 +64,26 @@ class LinearModel:
             ax.append(data.ref * data.gain_axes[None, :])
             self.axis_labels.append('gain')
         if 'scale' in self.effects:      # only on axes whose rate steps can separate it
-            ax.append(data.dtref * data.scale_axes[None, :])
+            dtref = (data.dtref if self.state_tau is None
+                     else data.state_columns(self.state_tau)['dtref'])
+            ax.append(dtref * data.scale_axes[None, :])
             self.axis_labels.append('scale')
+        if extra is not None:            # a per-axis column of its own (the J test)
+            ax.append(np.asarray(extra, dtype=np.float64))
+            self.axis_labels.append('extra')
         self.axis = np.stack(ax, axis=2) if ax else np.zeros((data.K, 3, 0))
         self.p = self.common.shape[1] + self.axis.shape[2]
 
     def columns_of(self, eid: str) -> list[int]:
-        """Return the design columns that belong to effect ``eid``."""
-        if eid == 'scale':
-            return [self.common.shape[1] + self.axis_labels.index('scale')]
-        own = {'lag': ('lag', 'lag^2', 'lag^3'), 'dT2': ('dT2', 'lag^2'),
-               'dT3': ('dT3', 'lag^3')}.get(eid, (eid,))
-        return [i for i, lab in enumerate(self.labels) if lab in own]
+        """
+        Return the design columns that belong to effect ``eid``.
+
+        ``lag`` has none: it changes the temperature columns instead (the thermal state).
+        ``'extra'`` is the per-axis column given to the constructor.
+        """
+        if eid in ('scale', 'extra'):
+            return [self.common.shape[1] + self.axis_labels.index(eid)]
+        return [i for i, lab in enumerate(self.labels) if lab == eid]
 
     def design(self, a: int) -> NDArray[np.float64]:
         """Return the design matrix of axis ``a`` (K, p)."""

@@ -128,11 +128,11 @@ def _full_rate_residual(data: BlockData, model: LinearModel, coef: NDArray[np.fl
     bounds = np.concatenate([[0], breaks, [len(run)]])
     i = int(np.argmax(np.diff(bounds)))
     sl = slice(int(bounds[i]), int(bounds[i + 1]))
-    x = batch_features(model.inputs, run.t, run.temp, t0=data.t0, params=model.params)
-    if len(model.labels) > data.n_runs + len(model.inputs):
-        lag = x[:, model.inputs.index('lag')]
-        x = np.column_stack([x] + [lag ** int(lab[4:]) for lab in
-                                   model.labels[data.n_runs + len(model.inputs):]])
+    # The temperature terms follow the thermal state when the model has one.
+    state = None if model.state_tau is None else data.state(r, model.state_tau)
+    x = batch_features(model.effects, run.t, run.temp, t0=data.t0, params=model.params,
+                       state=state)
+    d = (run.temp if state is None else state) - data.t0
     y = run.omega - run.omega_ref
     n = len(run)
     pred = np.zeros((n, 3))
@@ -145,8 +145,7 @@ def _full_rate_residual(data: BlockData, model: LinearModel, coef: NDArray[np.fl
             if lab == 'gain':
                 pred[:, a] += c[j] * run.omega_ref[:, a] * data.gain_axes[a]
             else:
-                pred[:, a] += c[j] * (run.temp - data.t0) * run.omega_ref[:, a] \
-                    * data.scale_axes[a]
+                pred[:, a] += c[j] * d * run.omega_ref[:, a] * data.scale_axes[a]
             j += 1
     return (y - pred)[sl], 1.0 / med
 

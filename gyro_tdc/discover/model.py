@@ -29,12 +29,11 @@ __all__ = ['build_model', 'model_features', 'model_kind']
 
 def model_kind(effects: Sequence[str]) -> str:
     """
-    Return the model kind that holds what discovery fitted for ``effects``.
+    Return the model kind that holds what discovery fitted for ``effects``: ``'poly'``.
 
-    ``poly`` is exactly the linear model discovery validated, except when ``lag`` meets a
-    curvature (``dT2``, ``dT3``): the die's curvature then needs powers of the lagged
-    temperature, which a ``poly`` model of the catalog features cannot hold and an ``rbf``
-    network over them can.
+    ``poly`` is exactly the linear model discovery validated, with ``lag`` too: the thermal
+    state makes every temperature term a power of the lagged temperature, which a ``poly``
+    model of format 2 holds as it is (the kind is kept a function for callers that choose).
 
     Parameters
     ----------
@@ -44,11 +43,10 @@ def model_kind(effects: Sequence[str]) -> str:
     Returns
     -------
     str
-        ``'poly'`` or ``'rbf'``.
+        ``'poly'``.
 
     """
-    ids = set(effects)
-    return 'rbf' if 'lag' in ids and ids & {'dT2', 'dT3'} else 'poly'
+    return 'poly'
 
 
 def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | None = None,
@@ -59,7 +57,9 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
     The per-run offsets and the constant scale-factor error found by :func:`discover` are
     removed from the runs first (they are not thermal: the compensator re-anchors its offset
     at start-up, and a rate-table gain error belongs to a separate calibration); then
-    :func:`gyro_tdc.fitting.fit_model` fits the final effects with the fitted time constants.
+    :func:`gyro_tdc.fitting.fit_model` fits the final effects with the fitted time constants
+    and, with ``lag``, the thermal state discovery found (tau with its profile interval): a
+    format 2 model whose every temperature term follows the state.
 
     Parameters
     ----------
@@ -96,8 +96,10 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
                          'gain_removed': [float(g) for g in gain]}}
     info.update(dict(created or {}))
     kind = model_kind(features) if kind is None else kind
+    thermal = result.thermal if 'lag' in features else None
+    params = {k: v for k, v in result.params.items() if k != 'lag'}
     return fit_model(adjusted, kind=kind, features=features, t0=result.t0_c,
-                     fit_params=False, params=result.params, created=info)
+                     fit_params=False, params=params, created=info, thermal=thermal)
 
 
 def model_features(result: DiscoveryResult, runs: Sequence[Run]) -> tuple[str, ...]:

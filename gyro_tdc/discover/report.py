@@ -21,6 +21,7 @@ from typing import Any, Sequence
 
 from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.discover.results import BinMap, DiscoveryResult
+from gyro_tdc.thermal_state import ThermalState
 import numpy as np
 
 __all__ = ['write_report']
@@ -105,6 +106,17 @@ def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
     return True
 
 
+def _thermal_line(thermal: ThermalState) -> str:
+    """Return the markdown line of a thermal state: tau, its interval, identifiability."""
+    text = thermal.describe()
+    line = text[0].upper() + text[1:] + '.'
+    if thermal.identifiable is False:
+        line += (' The drift is fitted on the lagged state all the same; read tau as '
+                 'unknown and excite the lag (steps or ramps with soaks, heating and '
+                 'cooling) to pin it.')
+    return line
+
+
 def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
     """
     Write ``report.md`` with PNG residual maps and the Allan deviation of the residual.
@@ -158,8 +170,10 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
         name = f'step{i}_maps.png'
         _plot_maps([('before', s.maps_before), (f'after + {s.effect}', s.maps_after)],
                    out / name)
-        md += [f'## Step {i}: {s.effect}', '', s.description, '',
-               'Coefficients per axis (deg/s per feature unit; 1/degC for scale): '
+        md += [f'## Step {i}: {s.effect}', '', s.description, '']
+        if s.thermal is not None:
+            md += [_thermal_line(s.thermal), '']
+        md += ['Coefficients per axis (deg/s per feature unit; 1/degC for scale): '
                + ', '.join(f'{v:.4g}' for v in np.ravel(s.coef_dps)), '',
                '| candidate | parameters | HAC p | held-out gain (deg/s)^2 | effect RMS (deg/s) '
                '| verdict |', '|---|---|---|---|---|---|']
@@ -172,6 +186,8 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
            f'Effects: **{", ".join(result.final_effects)}**; gap {result.gap_dps:.4g} deg/s = '
            f'{result.gap_dps / result.noise_floor_dps:.2f} x the noise floor (held-out '
            f'{result.heldout_gap_dps:.4g} deg/s).', '']
+    if result.thermal is not None:
+        md += [_thermal_line(result.thermal), '']
     if result.params:
         md += ['Fitted time constants: ' + '; '.join(
             f'{e}: ' + ', '.join(f'{k} = {v:.4g} s' for k, v in p.items())

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import math
 from typing import Any, Mapping
 
+from gyro_tdc.thermal_state import ThermalState
 import numpy as np
 from numpy.typing import NDArray
 
@@ -165,6 +166,11 @@ class Step:
         Allan deviation averaging times (longest run, full rate).
     adev_before_dps, adev_after_dps : NDArray[np.float64], shape (M,), deg/s
         Allan deviation of the residual before and after (RMS over axes).
+    best : CandidateScore, optional
+        The score of the effect added.
+    thermal : ThermalState, optional
+        The thermal state of the model after the step, tau with its profile interval (None
+        without ``lag``).
 
     """
 
@@ -184,6 +190,7 @@ class Step:
     adev_before_dps: NDArray[np.float64] = field(repr=False)
     adev_after_dps: NDArray[np.float64] = field(repr=False)
     best: CandidateScore | None = field(default=None, repr=False)
+    thermal: ThermalState | None = None
 
 
 @dataclass(frozen=True)
@@ -235,6 +242,9 @@ class DiscoveryResult:
         Allan deviation averaging times of the final residual (empty without ``allan``).
     adev_dps : NDArray[np.float64], shape (M,), deg/s
         Allan deviation of the final residual (longest run, full rate, RMS over axes).
+    thermal : ThermalState, optional
+        The final model's thermal state: tau, its 95 % profile interval and whether the data
+        pin it (None without ``lag``).
 
     """
 
@@ -259,6 +269,7 @@ class DiscoveryResult:
     settings: dict
     adev_tau_s: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), repr=False)
     adev_dps: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), repr=False)
+    thermal: ThermalState | None = None
 
     @property
     def named(self) -> tuple[str, ...]:
@@ -283,7 +294,8 @@ class DiscoveryResult:
         -------
         dict
             ``base_effects``, ``noise_floor_dps``, ``steps``, ``final_effects``,
-            ``unidentifiable``, ``model_file``.
+            ``unidentifiable``, ``model_file``; and ``thermal`` (kind, ``tau_s``,
+            ``tau_interval_s``, ``identifiable``) when the final model has a thermal state.
 
         """
         steps = []
@@ -303,8 +315,9 @@ class DiscoveryResult:
                 'flagged_bins_after': int(sum(m.n_flagged for m in s.maps_after)),
                 'adev': {'tau_s': _plain(s.adev_tau_s), 'before_dps': _plain(s.adev_before_dps),
                          'after_dps': _plain(s.adev_after_dps)},
+                'thermal': None if s.thermal is None else s.thermal.to_dict(),
             })
-        return {
+        doc = {
             'base_effects': list(self.base_effects),
             'noise_floor_dps': float(self.noise_floor_dps),
             'steps': steps,
@@ -313,6 +326,9 @@ class DiscoveryResult:
                                 'experiment': u.experiment} for u in self.unidentifiable],
             'model_file': None if model_file is None else str(model_file),
         }
+        if self.thermal is not None:        # the final thermal state, when there is one
+            doc['thermal'] = self.thermal.to_dict()
+        return doc
 
 
 def _plain(value: Any) -> Any:
@@ -370,9 +386,13 @@ def format_summary(result: DiscoveryResult) -> str:
                          f'{b.effect_rms_dps:.3g} deg/s')
         lines.append(f'  gap {s.gap_before_dps:.4g} -> {s.gap_after_dps:.4g} deg/s, held-out '
                      f'{s.heldout_gap_before_dps:.4g} -> {s.heldout_gap_after_dps:.4g} deg/s')
+        if s.thermal is not None:
+            lines.append(f'  {s.thermal.describe()}')
     lines.append(f'final model: {", ".join(result.final_effects)}; gap {result.gap_dps:.4g} '
                  f'deg/s = {result.gap_dps / result.noise_floor_dps:.2f} x noise floor '
                  f'(held-out {result.heldout_gap_dps:.4g})')
+    if result.thermal is not None:
+        lines.append(f'final {result.thermal.describe()}')
     if result.candidates:
         lines.append('remaining candidates (none passed):')
         for c in result.candidates:

@@ -35,10 +35,12 @@ from gyro_tdc.discover.results import CandidateScore, DiscoveryResult, Step, Uni
 from gyro_tdc.discover.stats import (bandwidth, COLLINEAR, DEG, gap, hac_pvalue, make_folds,
                                      rel_residual, weighted_corr)
 from gyro_tdc.effects import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, REFERENCE_EFFECTS,
-                              STATIC_EFFECTS, TEMPERATURE_EFFECTS)
+                              STATIC_EFFECTS, TEMPERATURE_EFFECTS, with_implied)
 from gyro_tdc.errors import FitError
-from gyro_tdc.fitting import estimate_t0, fit_time_constant, MIN_SPAN_C
+from gyro_tdc.fitting import (effective_samples, estimate_t0, fit_time_constant, MIN_SPAN_C,
+                              profile_interval)
 from gyro_tdc.runs import Run
+from gyro_tdc.thermal_state import ThermalState
 import numpy as np
 from numpy.typing import NDArray
 
@@ -50,11 +52,18 @@ _CANDIDATES = tuple(e for e in EFFECTS if e != 'bias')
 _SPAN = tuple(e for e in EFFECTS if e in TEMPERATURE_EFFECTS and e not in REFERENCE_EFFECTS)
 #: Of those, the ones with time memory: excited by how the temperature changes.
 _RATE = tuple(e for e in _SPAN if e not in STATIC_EFFECTS)
+#: Effects whose time constant the search fits: the catalog's fitted ones (the thermal state,
+#: warm-up) and the smoothing of ``dTdt``, whose best value is the sensor's (the die's own
+#: rate of change, or a slower gradient); it is recorded in the result's parameters, which
+#: the model of a discovery and ``train --features auto`` keep.
+_TIMED = frozenset(NONLINEAR_EFFECTS | {e for e in EFFECTS if 'tau_s' in EFFECTS[e].params})
+#: Search bounds of a time constant the catalog gives no bounds for (the dTdt smoothing), s.
+_SMOOTHING_BOUNDS_S = (1.0, 3600.0)
 
 
 def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
     """Return the search bounds of an effect's time constant, s."""
-    lo, hi = EFFECTS[eid].bounds['tau_s']
+    lo, hi = EFFECTS[eid].bounds.get('tau_s', _SMOOTHING_BOUNDS_S)
     longest = max(r.duration_s for r in data.runs)
     grid_step = max(float(g[0][1] - g[0][0]) if g[0].size > 1 else 1.0 for g in data.grids)
     lo = max(lo, 2.0 * grid_step)
@@ -82,6 +91,32 @@ def _fit_taus(data: BlockData, effects: Sequence[str], params: dict, which: Sequ
         fit = fit_time_constant(sse, _tau_bounds(data, eid), n_grid=14, xatol=0.01)
         params.setdefault(eid, {})['tau_s'] = fit.tau
     return params
+
+
+def _thermal_state(data: BlockData, model: LinearModel) -> ThermalState | None:
+    """
+    Return the model's thermal state with the profile interval of its tau (None without).
+
+    The profile is the weighted residual sum of squares per axis with every coefficient
+    re-solved at each trial tau (the other time constants held);
+    :func:`gyro_tdc.fitting.profile_interval` turns it into a 95 % interval, counting the
+    residual's memory (:func:`gyro_tdc.fitting.effective_samples` of the block means), and
+    says whether it pins tau.
+    """
+    if model.state_tau is None:
+        return None
+    tau = model.state_tau
+    lo, hi = _tau_bounds(data, 'lag')
+
+    def sse(v: float) -> NDArray[np.float64]:
+        trial = {k: dict(val) for k, val in model.params.items()}
+        trial['lag']['tau_s'] = v
+        r = LinearModel(data, model.effects, trial).residual()
+        return (data.w[:, None] * r * r).sum(axis=0)
+
+    n_eff = effective_samples(model.residual() * data.sw[:, None])
+    prof = profile_interval(sse, tau, (min(lo, tau), max(hi, tau)), n_eff)
+    return ThermalState('first_order', (tau,), (prof.interval,), prof.identifiable)
 
 
 def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
@@ -148,11 +183,19 @@ def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
 
 
 def _candidate_params(data: BlockData, model: LinearModel, eid: str) -> dict:
-    """Return the model's parameters plus those of candidate ``eid`` (its tau fitted)."""
+    """
+    Return the model's parameters plus those of candidate ``eid`` (its tau fitted).
+
+    With the thermal state in the model (or as the candidate) its tau is refitted with the
+    candidate: a curvature named after ``lag`` moves the state's time constant.
+    """
     params = {k: dict(v) for k, v in model.params.items()}
-    if eid in NONLINEAR_EFFECTS:
-        effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
-        params = _fit_taus(data, effects, params, [eid])
+    effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
+    which = [e for e in (eid, 'lag') if e in _TIMED and e in effects]
+    if eid in _TIMED or 'lag' in model.effects:
+        for e in which:
+            params.setdefault(e, dict(EFFECTS[e].params))
+        params = _fit_taus(data, effects, params, list(dict.fromkeys(which)))
     return params
 
 
@@ -167,7 +210,7 @@ def _noise_lags(data: BlockData, model: LinearModel, todo: Sequence[str], cparam
     """
     params = {k: dict(v) for k, v in model.params.items()}
     for eid in todo:
-        if eid in NONLINEAR_EFFECTS:
+        if eid in _TIMED:
             params[eid] = dict(cparams[eid][eid])
     effects = tuple(e for e in EFFECTS if e in set(model.effects) | set(todo))
     rich = LinearModel(data, effects, params)
@@ -184,27 +227,36 @@ def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse
     effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
     cand = LinearModel(data, effects, params)
     idx = cand.columns_of(eid)
-    own = dict(params[eid]) if eid in NONLINEAR_EFFECTS else {}
-    # Is it spanned by the current model (per axis)?
+    own = dict(params[eid]) if eid in _TIMED else {}
+    # Is it spanned by the current model (per axis)? (The thermal state has no column of
+    # its own: it changes the temperature columns; its test is the J test below.)
     rel = []
     for a in range(3):
         xa = cand.design(a) * data.sw[:, None]
         for i in idx:
             if np.linalg.norm(xa[:, i]) > 0:
                 rel.append(rel_residual(np.delete(xa, idx, axis=1), xa[:, i]))
-    if not rel or max(rel) < COLLINEAR:
+    if idx and (not rel or max(rel) < COLLINEAR):
         sc = CandidateScore(eid, own, 1.0, 0.0, 0.0, math.nan, math.nan, False,
                             'collinear', np.zeros((len(idx), 3)))
         return sc, None, params
     coef = cand.fit()
-    r = data.y - cand.predict(coef)
+    pred = cand.predict(coef)
+    r = data.y - pred
     sse = float((data.w[:, None] * r * r).sum())
-    contrib = cand.predict(coef) - model.predict(coef_m)
+    contrib = pred - model.predict(coef_m)
     ho = cand.cv_residual(folds)
     mse_ho = float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
     gain = (mse_ho_m - mse_ho) * DEG ** 2
     eff = math.sqrt(max(sse_m - sse, 0.0) / (3.0 * data.w.sum())) * DEG
-    p = hac_pvalue(cand, coef, idx, lags)
+    if idx:
+        p = hac_pvalue(cand, coef, idx, lags)
+    else:
+        # A candidate that changes the model instead of adding columns (the thermal state)
+        # is not nested in it: Davidson and MacKinnon's J test adds its fitted values to
+        # the current model as one column per axis and tests that column.
+        aug = LinearModel(data, model.effects, model.params, extra=pred)
+        p = hac_pvalue(aug, aug.fit(), aug.columns_of('extra'), lags)
     floor = data.floor * DEG
     why = []
     if p >= alpha / max(n_cand, 1):
@@ -272,7 +324,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
     """
     runs = list(runs)
     _check(runs, block_s)
-    base_ids = normalise_ids(tuple(normalise_ids(base)) + ('bias',))
+    base_ids = with_implied(tuple(normalise_ids(base)) + ('bias',))
     if candidates is None:
         cand_ids = tuple(e for e in _CANDIDATES if e not in base_ids)
     else:
@@ -295,7 +347,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
     for eid in base_ids:
         if EFFECTS[eid].params:
             params[eid] = dict(EFFECTS[eid].params)
-    nonlin = [e for e in base_ids if e in NONLINEAR_EFFECTS]
+    nonlin = [e for e in base_ids if e in _TIMED]
     if nonlin:
         params = _fit_taus(data, base_ids, params, nonlin)
     effects = base_ids
@@ -343,7 +395,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
                 aliases.append(sc.effect)
         new_effects = tuple(e for e in EFFECTS if e in set(effects) | {best.effect})
         new_params = {k: dict(v) for k, v in p_b.items()}
-        refit = [e for e in new_effects if e in NONLINEAR_EFFECTS]
+        refit = [e for e in new_effects if e in _TIMED]
         if len(refit) > 1:
             new_params = _fit_taus(data, new_effects, new_params, refit)
         new_model = LinearModel(data, new_effects, new_params)
@@ -356,20 +408,21 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
             adev_cache = after
         else:
             before = after = (np.zeros(0), np.zeros(0))
+        thermal = _thermal_state(data, new_model)
         idx = new_model.columns_of(best.effect)
         unit = 1.0 if best.effect == 'scale' else DEG
         steps.append(Step(
             effect=best.effect, aliases=tuple(aliases),
             description=EFFECTS[best.effect].description,
             params=(dict(new_params.get(best.effect, {}))
-                    if best.effect in NONLINEAR_EFFECTS else {}),
+                    if best.effect in _TIMED else {}),
             coef_dps=coef_n[idx] * unit,
             gap_before_dps=gap(data, r_m), gap_after_dps=gap(data, r_n),
             heldout_gap_before_dps=gap(data, ho_m), heldout_gap_after_dps=gap(data, ho_n),
             candidates=scores, maps_before=residual_maps(data, r_m),
             maps_after=residual_maps(data, r_n),
             adev_tau_s=before[0], adev_before_dps=before[1], adev_after_dps=after[1],
-            best=best))
+            best=best, thermal=thermal))
         effects, params, model = new_effects, new_params, new_model
 
     coef = model.fit()
@@ -382,13 +435,14 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
                 f'({", ".join(effects)})', EFFECTS[eid].excited_by[0].upper()
                 + EFFECTS[eid].excited_by[1:] + '.')
     final_coef = _coef_dict(data, model, coef)
+    thermal = steps[-1].thermal if steps else _thermal_state(data, model)
     if allan:
         adev = adev_cache or residual_adev(data, model, coef)
     else:
         adev = (np.zeros(0), np.zeros(0))
     return DiscoveryResult(
         base_effects=base_ids, final_effects=effects,
-        params={k: dict(v) for k, v in params.items() if k in effects and k in NONLINEAR_EFFECTS},
+        params={k: dict(v) for k, v in params.items() if k in effects and k in _TIMED},
         noise_floor_dps=data.floor * DEG, noise_floor_axes_dps=data.floor_axes * DEG,
         white_noise_dps=data.white * DEG, block_s=float(block_s), t0_c=float(t0),
         steps=tuple(steps),
@@ -402,7 +456,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
                   f'{len(folds)} blocked folds, buffer {buffer} blocks',
                   'block_s': float(block_s),
                   'block_mean_s': float(data.block_eff_s)},
-        adev_tau_s=adev[0], adev_dps=adev[1])
+        adev_tau_s=adev[0], adev_dps=adev[1], thermal=thermal)
 
 
 def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateScore],
@@ -412,11 +466,14 @@ def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateS
     x = model.common
     cols = {}
     for sc in scores:
-        if not EFFECTS[sc.effect].is_input:
+        if sc.effect == 'lag':          # what the state changes: its dT minus the measured
+            col = data.state_columns(sc.params['tau_s'])['dT'] - data.static['dT']
+        elif EFFECTS[sc.effect].is_input:
+            p = {k: dict(v) for k, v in params.items()}
+            p.update({sc.effect: dict(sc.params)} if sc.params else {})
+            col = data.column(sc.effect, p, state_tau=model.state_tau)
+        else:
             continue
-        p = {k: dict(v) for k, v in params.items()}
-        p.update({sc.effect: dict(sc.params)} if sc.params else {})
-        col = data.column(sc.effect, p)
         beta = lstsq(x * data.sw[:, None], col * data.sw)
         cols[sc.effect] = (col - x @ beta) * data.sw
     ids = list(cols)
