@@ -20,18 +20,26 @@ expands to its bags, :func:`gyro_tdc.dataset.load_runs`); the model is fitted wi
 :func:`gyro_tdc.fitting.fit_model` and written with :func:`gyro_tdc.modelfile.save_model`; the
 coverage of the training data comes from :func:`gyro_tdc.coverage.coverage`. The command line
 is :mod:`gyro_tdc.cli.train`; :mod:`gyro_tdc.fleet` trains one model per sensor with it.
+
+The features default to ``'auto'`` (:func:`choose_features`): the model starts from the
+paper's f(dT, dT2) and :func:`gyro_tdc.discover.discover` adds what the data support (the
+thermal state ``lag``, ``dTdt``, ``warmup``, ``scale`` with rate-table steps...) through its
+false-discovery guard (held-out gain, HAC test, effect size); every effect added or rejected
+is recorded with its reason in the model's ``training`` metrics. Named features (``dT,dT2``)
+fit exactly that model.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import os
 from pathlib import Path
 from typing import Callable, Sequence
 
 from gyro_tdc.coverage import Coverage, coverage
 from gyro_tdc.dataset import load_runs, MAX_LOSS_FRACTION
-from gyro_tdc.effects import normalise_ids
+from gyro_tdc.discover import discover, DiscoveryResult
+from gyro_tdc.effects import EFFECTS, normalise_ids
 from gyro_tdc.errors import FitError
 from gyro_tdc.fitting import estimate_t0, fit_model
 from gyro_tdc.limits import check_bin_width, check_centers
@@ -39,7 +47,164 @@ from gyro_tdc.model import CompensationModel, KINDS
 from gyro_tdc.modelfile import save_model
 from gyro_tdc.runs import Run
 
-__all__ = ['TrainResult', 'train']
+__all__ = ['AUTO', 'AUTO_BASE', 'Decision', 'FeatureChoice', 'TrainResult', 'choose_features',
+           'train']
+
+#: The ``features`` value that lets the data choose (:func:`choose_features`).
+AUTO = 'auto'
+#: The starting model of ``auto``: the paper's modified model f(dT, dT2) (eq. 16).
+AUTO_BASE: tuple[str, ...] = ('dT', 'dT2')
+
+
+@dataclass(frozen=True)
+class Decision:
+    """
+    One effect of the automatic choice: added, rejected or not identifiable, and why.
+
+    Parameters
+    ----------
+    effect : str
+        Effect id.
+    verdict : str
+        ``'base'``, ``'added'``, ``'rejected'`` or ``'unidentifiable'``.
+    why : str
+        The evidence (added), the test that failed (rejected) or what the data lack.
+
+    """
+
+    effect: str
+    verdict: str
+    why: str
+
+    def line(self) -> str:
+        """Return the decision as one line of the training report."""
+        if self.verdict == 'added':
+            return f'  + {self.effect}: {self.why}'
+        verdict = {'unidentifiable': 'not identifiable'}.get(self.verdict, self.verdict)
+        return f'  - {self.effect}: {verdict}: {self.why}'
+
+
+@dataclass(frozen=True)
+class FeatureChoice:
+    """
+    What ``features='auto'`` chose, and why.
+
+    Parameters
+    ----------
+    base : tuple of str
+        The starting model's effects (:data:`AUTO_BASE`).
+    features : tuple of str
+        The chosen effects (the model's features), catalog order.
+    decisions : tuple of Decision
+        One per effect considered: the base, then those added in order, then those rejected
+        and those the data cannot excite.
+    discovery : DiscoveryResult, optional
+        The search behind the choice (None when the data were too short for it).
+    note : str
+        Why no search ran, or empty.
+
+    """
+
+    base: tuple[str, ...]
+    features: tuple[str, ...]
+    decisions: tuple[Decision, ...]
+    discovery: DiscoveryResult | None = field(default=None, repr=False)
+    note: str = ''
+
+    def lines(self) -> list[str]:
+        """Return the report: a head line, one line per decision, the features chosen."""
+        d = self.discovery
+        head = (f'features auto: start from {", ".join(self.base)} (the paper\'s f(dT, dT^2)); '
+                + (f'discovery on {len(d.runs)} bag(s), gaps in noise floors of '
+                   f'{d.noise_floor_dps:.3g} deg/s (block means of {d.block_s:g} s), held out '
+                   f'by {d.settings["folds"]}' if d is not None else self.note))
+        return ([head] + [x.line() for x in self.decisions if x.verdict != 'base']
+                + [f'features chosen: {", ".join(self.features)}'])
+
+    def to_dict(self) -> dict:
+        """Return the choice as plain types (the model's ``training`` metrics)."""
+        d = self.discovery
+        out = {'mode': AUTO, 'base': list(self.base), 'chosen': list(self.features),
+               'decisions': [{'effect': x.effect, 'verdict': x.verdict, 'why': x.why}
+                             for x in self.decisions]}
+        if d is not None:
+            out['discovery'] = {
+                'noise_floor_dps': float(d.noise_floor_dps), 'gap_dps': float(d.gap_dps),
+                'heldout_gap_dps': float(d.heldout_gap_dps), 'folds': d.settings['folds'],
+                'block_s': float(d.block_s),
+                'thermal': None if d.thermal is None else d.thermal.to_dict()}
+        else:
+            out['note'] = self.note
+        return out
+
+
+def _floors(value: float, floor: float) -> str:
+    """Return a gap in noise floors, e.g. ``2.3x``."""
+    return f'{value / floor:.2f}x' if floor > 0 else f'{value:.3g} deg/s'
+
+
+def choose_features(runs: Sequence[Run], *, t0: float | None = None,
+                    base: Sequence[str] = AUTO_BASE, block_s: float = 10.0) -> FeatureChoice:
+    """
+    Choose the features of a model from the data: the paper's base plus what they support.
+
+    :func:`gyro_tdc.discover.discover` starts from ``bias`` and ``base`` and adds, one at a
+    time, the catalog effect its false-discovery guard accepts (held-out gain, HAC test,
+    effect size): the thermal state (``lag``: every temperature term then follows the
+    lagged state), ``dTdt``, ``warmup``, ``dT3``, ``scale`` when the reference rate excites
+    it. The base is kept whatever the data say (it is the paper's model). Data too short
+    for the search keep the base, with a note.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Training runs.
+    t0 : float, optional, degC
+        Reference temperature (default :func:`gyro_tdc.fitting.estimate_t0` of the first
+        run).
+    base : sequence of str
+        The starting model (default :data:`AUTO_BASE`).
+    block_s : float, s
+        Block length of the search.
+
+    Returns
+    -------
+    FeatureChoice
+        The features, with one decision per effect considered.
+
+    """
+    base_ids = tuple(e for e in normalise_ids(base) if e != 'bias')
+    decisions = [Decision(e, 'base', "the paper's model") for e in base_ids]
+    try:
+        res = discover(runs, base=('bias',) + base_ids, t0=t0, block_s=block_s, allan=False)
+    except FitError as exc:
+        return FeatureChoice(base_ids, base_ids, tuple(decisions),
+                             note=f'no search ({exc}); the base is kept')
+    floor = res.noise_floor_dps
+    for s in res.steps:
+        b = s.best
+        why = (f'held-out gap {_floors(s.heldout_gap_before_dps, floor)} -> '
+               f'{_floors(s.heldout_gap_after_dps, floor)} floor, HAC p {b.p_value:.2g}, '
+               f'effect {b.effect_rms_dps:.3g} deg/s')
+        if s.effect == 'lag' and s.thermal is not None:
+            why += f'; {s.thermal.describe()}'
+        elif s.params:
+            why += '; ' + ', '.join(f'{k} = {v:.4g}' for k, v in s.params.items())
+        if s.aliases:
+            why += f'; the data cannot tell it from {", ".join(s.aliases)}'
+        decisions.append(Decision(s.effect, 'added', why))
+    for c in res.candidates:
+        decisions.append(Decision(c.effect, 'rejected', f'{c.why_not} (held-out gain '
+                                  f'{c.heldout_gain_dps2:+.2g} (deg/s)^2, HAC p '
+                                  f'{c.p_value:.2g})'))
+    for u in res.unidentifiable:
+        decisions.append(Decision(u.effect, 'unidentifiable', f'{u.reason}'))
+    features = tuple(e for e in res.final_effects if e != 'bias')
+    seen = {x.effect for x in decisions}
+    for eid in EFFECTS:                  # every catalog effect gets its line
+        if eid != 'bias' and eid not in seen:
+            decisions.append(Decision(eid, 'rejected', 'not tested'))
+    return FeatureChoice(base_ids, features, tuple(decisions), discovery=res)
 
 
 @dataclass
@@ -59,6 +224,8 @@ class TrainResult:
         The bags trained on.
     samples : int
         Training samples.
+    choice : FeatureChoice, optional
+        What ``features='auto'`` chose and why (None for named features).
 
     """
 
@@ -67,10 +234,11 @@ class TrainResult:
     coverage: Coverage
     bags: list
     samples: int
+    choice: FeatureChoice | None = None
 
 
 def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
-          features: str | Sequence[str] = ('dT', 'dT2'), kind: str = 'rbf',
+          features: str | Sequence[str] = AUTO, kind: str = 'rbf',
           n_centers: int = 12, refine: bool = False, t0: float | None = None, seed: int = 0,
           imu_topic: str = '/imu/data_raw', temperature_topic: str = '/imu/temperature',
           reference: Sequence[float] | None = None,
@@ -87,7 +255,8 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
     out : str or PathLike
         Model file to write.
     features : str or sequence of str
-        Effect ids (default ``dT,dT2``, the paper's modified model).
+        ``'auto'`` (default: the paper's ``dT,dT2`` plus what :func:`choose_features` finds
+        the data support) or effect ids (``dT,dT2``: exactly the paper's modified model).
     kind : str
         ``'rbf'`` or ``'poly'``.
     n_centers : int
@@ -117,7 +286,8 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
     Returns
     -------
     TrainResult
-        The model, where it was written and the coverage of the data.
+        The model, where it was written, the coverage of the data and, with ``'auto'``, the
+        choice of features (also in ``model.metrics['features']``).
 
     Raises
     ------
@@ -127,7 +297,8 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
         OutputError when the model cannot be written.
 
     """
-    ids = normalise_ids(features)
+    auto = isinstance(features, str) and features.strip() == AUTO
+    ids = AUTO_BASE if auto else normalise_ids(features)
     if kind not in KINDS:
         raise FitError(f'Expected `kind` to be one of {", ".join(KINDS)}, got {kind!r}.')
     check_centers(n_centers)      # sizes checked before any bag is read
@@ -139,11 +310,22 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
     names = [r.name for r in runs]
     if t0 is None:
         t0 = estimate_t0(runs[0])
-    model = fit_model(runs, kind=kind, features=ids, t0=t0, n_centers=n_centers,
-                      refine=refine, seed=seed,
-                      frame_id=str(runs[0].info.get('frame_id') or 'imu_link'),
-                      created={'command': command, 'bags': names})
+    common = {'kind': kind, 't0': t0, 'n_centers': n_centers, 'refine': refine, 'seed': seed,
+              'frame_id': str(runs[0].info.get('frame_id') or 'imu_link'),
+              'created': {'command': command, 'bags': names}}
+    # The base model first: it checks the data (span, samples) with fit_model's messages.
+    model = fit_model(runs, features=ids, **common)
+    choice = None
+    if auto:
+        choice = choose_features(runs, t0=t0)
+        if choice.features != ids:
+            params = {}
+            if choice.discovery is not None:      # time constants fit_model does not search
+                params = {k: v for k, v in choice.discovery.params.items()
+                          if k in choice.features and not EFFECTS[k].fitted}
+            model = fit_model(runs, features=choice.features, params=params, **common)
+        model = model.replace(metrics={**model.metrics, 'features': choice.to_dict()})
     cov = coverage(runs, bin_c=bin_c)
     path = save_model(model, out)
     return TrainResult(model=model, path=path, coverage=cov, bags=names,
-                       samples=sum(len(r) for r in runs))
+                       samples=sum(len(r) for r in runs), choice=choice)

@@ -17,11 +17,13 @@
 
 One run per bag (a folder of bag folders, as ``simulate`` writes for a multi-run scenario,
 expands to its bags). The work is :func:`gyro_tdc.training.train`; this module parses the
-arguments and prints the report of :func:`gyro_tdc.report.format_training`: training bias
+arguments and prints, with the default ``--features auto``, what was chosen and why (one
+line per effect), then the report of :func:`gyro_tdc.report.format_training`: training bias
 stability per axis raw and compensated, the temperature range, coverage per temperature bin
 (with a warning naming the bins inside the span with too little data) and minutes heating,
-cooling and steady. Bad input (missing bag or topic, unreadable bag, too small a span, too
-few samples, unknown feature id, bad reference) exits 2 with one line on stderr.
+cooling and steady; and the thermal state (tau with its interval, or that the data cannot
+pin it) when the model has one. Bad input (missing bag or topic, unreadable bag, too small a
+span, too few samples, unknown feature id, bad reference) exits 2 with one line on stderr.
 """
 
 from __future__ import annotations
@@ -35,7 +37,7 @@ from gyro_tdc.cli.common import finite_float, positive_float, positive_int, run_
 from gyro_tdc.effects import normalise_ids
 from gyro_tdc.model import KINDS
 from gyro_tdc.report import format_training
-from gyro_tdc.training import train
+from gyro_tdc.training import AUTO, train
 
 __all__ = ['add_train_options', 'build_parser', 'main', 'train_options']
 
@@ -67,10 +69,12 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
         The command's parser.
 
     """
-    p.add_argument('--features', default='dT,dT2', metavar='IDS',
-                   help='comma-separated effect ids (default: %(default)s, the modified model '
-                        'of the paper; dT alone is the conventional model; add lag to fit '
-                        'a thermometer-to-die lag)')
+    p.add_argument('--features', default=AUTO, metavar='IDS',
+                   help='auto, or comma-separated effect ids (default: %(default)s: the '
+                        "paper's modified model dT,dT2 plus what discovery finds the data "
+                        'support, each choice printed with its reason; dT,dT2 is exactly '
+                        'the modified model, dT the conventional one; lag makes every '
+                        'temperature term follow the lagged die temperature, tau fitted)')
     p.add_argument('--kind', default='rbf', choices=KINDS,
                    help='rbf network with a linear tail, or poly (linear in the features) '
                         '(default: %(default)s)')
@@ -99,8 +103,9 @@ def train_options(args: argparse.Namespace) -> dict:
     Returns
     -------
     dict
-        ``features`` (normalised ids), ``kind``, ``n_centers``, ``refine``, ``t0``, ``seed``,
-        ``bin_c`` and the bag options of :func:`gyro_tdc.cli.common.bag_options`.
+        ``features`` (``'auto'`` or normalised ids), ``kind``, ``n_centers``, ``refine``,
+        ``t0``, ``seed``, ``bin_c`` and the bag options of
+        :func:`gyro_tdc.cli.common.bag_options`.
 
     Raises
     ------
@@ -108,7 +113,8 @@ def train_options(args: argparse.Namespace) -> dict:
         When ``--features`` names an unknown effect.
 
     """
-    return {'features': normalise_ids(args.features), 'kind': args.kind,
+    auto = args.features.strip() == AUTO
+    return {'features': AUTO if auto else normalise_ids(args.features), 'kind': args.kind,
             'n_centers': args.centers, 'refine': args.refine, 't0': args.t0,
             'seed': args.seed, 'bin_c': args.bin_c, **bag_options(args)}
 
@@ -118,8 +124,13 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     opts = train_options(args)   # fails on a bad feature id before reading any bag
     result = train(args.bags, out=args.out, command=command_line('train', argv),
                    log=lambda line: print(line, flush=True), **opts)
+    if result.choice is not None:
+        print('\n'.join(result.choice.lines()))
     text, warns = format_training(result)
     print(text)
+    thermal = result.model.thermal
+    if thermal is not None and thermal.kind != 'none':
+        print(thermal.describe())
     for w in warns:
         print(f'warning: {w}')
     print(f'wrote {result.path} (model_id {result.model.model_id})', flush=True)
