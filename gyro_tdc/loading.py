@@ -104,6 +104,11 @@ class LatestJob:
         threading.Thread(target=run, name=f'load {name}', daemon=True).start()
         return job
 
+    def drop(self) -> None:
+        """Make the current job stale (a newer request was served another way)."""
+        with self._lock:
+            self._current = None
+
     def claim(self, job: Job[Any] | None = None) -> Job[Any] | None:
         """
         Take the newest job if it is done (and, when ``job`` is given, is that job).

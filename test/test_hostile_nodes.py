@@ -488,3 +488,26 @@ def test_a_slow_refused_parameter_is_named_back(models, rig_factory, tmp_path):
     assert rig.node.core.model_id == model_a.model_id
     st = rig.node.diagnostic_status()
     assert st.level == DiagnosticStatus.WARN and 'malformed YAML' in st.message
+
+
+def test_a_newer_request_wins_over_a_file_still_being_read(models, rig_factory):
+    path_a, model_a = models['paper']
+    path_b, model_b = models['linear']
+    release, finished = threading.Event(), threading.Event()
+
+    def loader(name):
+        if name == str(path_b):
+            release.wait(10.0)
+            try:
+                return read_model(name)
+            finally:
+                finished.set()
+        return read_model(name)
+
+    rig = rig_factory(model_file=str(path_a), node_kwargs={'loader': loader})
+    assert set_model_file(rig, str(path_b)).successful  # accepted, being read
+    assert set_model_file(rig, '').successful  # newer: no model
+    release.set()
+    rig.spin_until(finished.is_set, what='the slow read finished')
+    spin_until_quiet(rig.executor, lambda: rig.node.last_reload, 0.3)
+    assert rig.node.core.model is None and rig.node.last_reload == 'no model'

@@ -44,3 +44,11 @@ def test_a_newer_request_makes_the_older_one_stale():
     assert old.wait(10.0) and old.result == 'old'
     assert jobs.claim() is new and new.result == 'new'
     assert jobs.claim() is None
+
+
+def test_a_dropped_job_is_never_handed_out():
+    jobs = LatestJob()
+    job = jobs.start('a.yaml', 'parameter', lambda: 'a')
+    assert job.wait(10.0)
+    jobs.drop()
+    assert jobs.pending is None and jobs.claim() is None and jobs.claim(job) is None

@@ -332,6 +332,7 @@ class CompensatorNode(Node):
             Success and a one-line message.
 
         """
+        self._jobs.drop()  # this request is newer than any file still being read
         if not name:
             self.core.set_model(None)
             self.model_file = ''
