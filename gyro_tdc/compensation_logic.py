@@ -586,6 +586,11 @@ class CompensatorCore:
         """Return how many windows were judged not still while waiting to re-anchor."""
         return self._detector.windows_rejected
 
+    @property
+    def thermal_progress(self) -> float | None:
+        """Return the time since the first sample in the model's state tau (None: no lag)."""
+        return None if self._comp is None else self._comp.thermal_progress
+
     def temperature_age(self) -> float | None:
         """Return the last IMU stamp minus the newest thermometer stamp, s (None if unknown)."""
         latest = self.temps.latest

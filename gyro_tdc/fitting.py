@@ -52,8 +52,8 @@ import warnings
 from gyro_tdc import __version__
 from gyro_tdc.blocks import block_counts, block_length, block_mean, block_sumsq
 from gyro_tdc.effects import (batch_features, EFFECTS, input_ids, normalise_ids,
-                              REFERENCE_EFFECTS, resolve_params, TEMPERATURE_EFFECTS,
-                              THERMAL_EFFECTS, with_implied)
+                              REFERENCE_EFFECTS, resolve_params, STATE_TERMS,
+                              TEMPERATURE_EFFECTS, THERMAL_EFFECTS, with_implied)
 from gyro_tdc.errors import FitError
 from gyro_tdc.model import CompensationModel, KINDS, rbf_design
 from gyro_tdc.runs import Run
@@ -368,9 +368,7 @@ def _residual(design: NDArray[np.float64], y: NDArray[np.float64],
 
 def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
                scale_cols: NDArray[np.float64] | None = None, kind: str = 'poly',
-               n_centers: int = 12, ridge: float | str = 'auto', seed: int = 0,
-               centers: NDArray[np.float64] | None = None,
-               widths: NDArray[np.float64] | None = None) -> LinearFit:
+               n_centers: int = 12, ridge: float | str = 'auto', seed: int = 0) -> LinearFit:
     """
     Fit the drift network on one feature matrix by regularised linear least squares.
 
@@ -398,9 +396,6 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
         rows), else uses ``RIDGE_GRID[1]``.
     seed : int
         Seed of the centre placement.
-    centers, widths : NDArray[np.float64], shapes (K, F) and (K,), optional
-        ``rbf`` only: use these centres and widths (normalised units) instead of placing
-        them, so that the fit is a smooth function of the data (a time-constant search).
 
     Returns
     -------
@@ -412,14 +407,7 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
     std = x.std(axis=0) if x.shape[1] else np.ones(0)
     std = np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
     xn = (x - mean) / std
-    if kind == 'rbf' and centers is not None:
-        centers = np.asarray(centers, dtype=np.float64)
-        widths = np.asarray(widths, dtype=np.float64)
-        if centers.ndim != 2 or centers.shape[1] != x.shape[1] or widths.shape != (
-                centers.shape[0],):
-            raise FitError(f'Expected `centers` (K, {x.shape[1]}) and `widths` (K,), got '
-                           f'{centers.shape} and {widths.shape}.')
-    elif kind == 'rbf' and x.shape[1]:
+    if kind == 'rbf' and x.shape[1]:
         centers, widths = _place_centers(xn, n_centers, seed)
     else:
         centers, widths = np.zeros((0, x.shape[1])), np.zeros(0)
@@ -766,21 +754,16 @@ class _Search:
     The nonlinear-parameter search of :func:`fit_model`, on coarse blocks (<= 20k rows).
 
     ``sse(thermal, params)`` is the residual sum of squares per axis with the linear weights
-    re-solved (variable projection). For a thermal-state search of an ``rbf`` model the
-    centres are placed once (:meth:`freeze_centers`) and kept, so the objective is a smooth
-    function of the time constants.
+    re-solved (variable projection) by ``fit_linear(kind=inner)`` on the ``inputs``.
     """
 
-    def __init__(self, runs: Sequence[Run], inputs: Sequence[str], t0: float, *, kind: str,
+    def __init__(self, runs: Sequence[Run], inputs: Sequence[str], t0: float, *, inner: str,
                  n_centers: int, ridge: float, seed: int, scale: bool, n_total: int) -> None:
         block = block_length(n_total, 20_000, at_most=True)
         self.blocks = [_Blocks(r, block) for r in runs]
         self.y = np.concatenate([b.y for b in self.blocks])
-        self.inputs, self.t0, self.scale = tuple(inputs), t0, scale
-        self.kind = self.inner = kind
+        self.inputs, self.t0, self.scale, self.inner = tuple(inputs), t0, scale, inner
         self.n_centers, self.ridge, self.seed = n_centers, ridge, seed
-        self.centers: NDArray[np.float64] | None = None
-        self.widths: NDArray[np.float64] | None = None
 
     def design(self, thermal: ThermalState, par: Mapping
                ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
@@ -794,11 +777,8 @@ class _Search:
 
     def _linear(self, x: NDArray[np.float64], y: NDArray[np.float64],
                 sc: NDArray[np.float64] | None) -> LinearFit:
-        frozen = self.inner == 'rbf' and self.centers is not None
         return fit_linear(x, y, scale_cols=sc, kind=self.inner, n_centers=self.n_centers,
-                          ridge=self.ridge, seed=self.seed,
-                          centers=self.centers if frozen else None,
-                          widths=self.widths if frozen else None)
+                          ridge=self.ridge, seed=self.seed)
 
     def fit(self, thermal: ThermalState, par: Mapping) -> LinearFit:
         """Return the linear fit on the coarse rows with this front end and parameters."""
@@ -810,29 +790,29 @@ class _Search:
         r = self.fit(thermal, par).resid
         return np.einsum('ij,ij->j', r, r)
 
-    def freeze_centers(self, thermal: ThermalState, par: Mapping) -> None:
-        """Place the RBF centres on the features of ``thermal`` and keep them from now on."""
-        x, sc = self.design(thermal, par)
-        fit = fit_linear(x, self.y, scale_cols=sc, kind='rbf', n_centers=self.n_centers,
-                         ridge=self.ridge, seed=self.seed)
-        self.centers, self.widths = fit.centers, fit.widths
-        self.inner = 'rbf'
+    def cv_sse(self, thermal: ThermalState, par: Mapping, *, window_s: float = 60.0,
+               n_segments: int = 20, n_folds: int = 5) -> float:
+        """
+        Return the cross-validated SSE of the slow error.
 
-    def cv_sse(self, thermal: ThermalState, par: Mapping, *, n_segments: int = 20,
-               n_folds: int = 5) -> float:
-        """Return the cross-validated SSE over interleaved contiguous segments."""
+        Each row is predicted by a fit without its fold (interleaved contiguous segments);
+        the out-of-fold residuals are averaged over ``window_s`` windows before squaring, so
+        the white noise shrinks and the figure measures the drift the model misses.
+        """
         x, sc = self.design(thermal, par)
         n = x.shape[0]
         fold = (np.arange(n) * n_segments // n) % n_folds
-        total = 0.0
+        resid = np.zeros_like(self.y)
         for k in range(n_folds):
             test = fold == k
             if not test.any() or test.all():
                 continue
             fit = self._linear(x[~test], self.y[~test], None if sc is None else sc[~test])
-            pred = fit.predict(x[test], None if sc is None else sc[test])
-            total += float(((pred - self.y[test]) ** 2).sum())
-        return total
+            resid[test] = fit.predict(x[test], None if sc is None else sc[test]) - self.y[test]
+        steps = np.concatenate([np.diff(b.t) for b in self.blocks])
+        dt = float(np.median(steps)) if steps.size else window_s
+        w = max(1, int(round(window_s / dt))) if dt > 0 else 1
+        return float((block_mean(resid, w) ** 2).sum())
 
     # -- thermal state ---------------------------------------------------------------
 
@@ -849,15 +829,39 @@ class _Search:
 
     def profile(self, taus: tuple[float, ...], i: int, par: Mapping,
                 bounds: tuple[float, float], seen: Mapping | None = None) -> TauProfile:
-        """Return the profile interval of time constant ``i``, the others held."""
-        kind = 'first_order' if len(taus) == 1 else 'two_node'
+        """
+        Return the profile interval of time constant ``i``.
 
-        def state(v: float) -> ThermalState:
-            return ThermalState(kind, taus[:i] + (v,) + taus[i + 1:])
+        With two nodes the other time constant is re-fitted at every point (a full profile,
+        not a conditional one), kept on its side: the larger one for ``i = 0``, the smaller
+        for ``i = 1`` (the cascade commutes, so only the order names the nodes).
+        """
+        if len(taus) == 1:
+            def sse(v: float) -> NDArray[np.float64]:
+                return self.sse(ThermalState('first_order', (v,)), par)
+        else:
+            other = taus[1 - i]
 
-        n_eff = effective_samples(self.fit(state(taus[i]), par).resid)
-        return profile_interval(lambda v: self.sse(state(v), par), taus[i], bounds, n_eff,
-                                evaluated=seen)
+            def pair(v: float, w: float) -> ThermalState:
+                return ThermalState('two_node', (v, w) if i == 0 else (w, v))
+
+            def sse(v: float) -> NDArray[np.float64]:
+                lo, hi = max(bounds[0], other / 3.0), min(bounds[1], other * 3.0)
+                lo, hi = (max(lo, v), hi) if i == 0 else (lo, min(hi, v))
+                if lo >= hi:
+                    w = lo if i == 0 else hi
+                else:
+                    res = minimize_scalar(
+                        lambda u: float(self.sse(pair(v, math.exp(u)), par).sum()),
+                        bounds=(math.log(lo), math.log(hi)), method='bounded',
+                        options={'xatol': 0.02})
+                    w = math.exp(res.x)
+                return self.sse(pair(v, w), par)
+
+        n_eff = effective_samples(self.fit(ThermalState(
+            'first_order' if len(taus) == 1 else 'two_node', taus), par).resid)
+        return profile_interval(sse, taus[i], bounds, n_eff, evaluated=seen,
+                                bisections=8 if len(taus) == 1 else 5)
 
     def two_node(self, par: Mapping, tau_fo: float, bounds: tuple[float, float]
                  ) -> tuple[float, float]:
@@ -869,9 +873,7 @@ class _Search:
         first-order time constant.
         """
         lo, hi = bounds
-        span = (max(lo / 0.01, tau_fo / 4.0), min(hi, tau_fo * 4.0))
-        if span[0] > span[1]:
-            span = (span[1], span[1])
+        span = (max(lo, tau_fo / 4.0), min(hi, tau_fo * 4.0))
         memo: dict[float, TimeConstantFit] = {}
 
         def best_total(q: float) -> TimeConstantFit:
@@ -942,11 +944,14 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     thermal state, the estimated die temperature: every temperature term, the RBF inputs,
     the scale term and the valid range follow it (``dT`` is implied when no temperature term
     is given). Its time constant is fitted by variable projection (an outer search over
-    ``log tau``, the weights re-solved at every trial; an ``rbf`` model searches with its
-    centres held, placed at the time constant a ``poly`` search finds first), with a 95 %
+    ``log tau``, the weights re-solved at every trial), with a 95 %
     profile-likelihood interval (:func:`profile_interval`); when the interval reaches a
     search bound or spans more than :data:`MAX_TAU_RATIO` the front end is recorded as not
-    identifiable. The profiles go to ``metrics['thermal']``.
+    identifiable. The profiles go to ``metrics['thermal']``. The time constants are searched
+    with a polynomial in the state (for an ``rbf`` model its terms and every power of the
+    state up to the cube): a flexible network of a slowly lagged state can fit any function
+    of time (the state becomes a clock) and would pin nothing; the network is then fitted
+    at the time constants found.
 
     Parameters
     ----------
@@ -1016,14 +1021,17 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     thermal_info: dict = {}
     if free or fit_state:
         # Parameter search on a coarser grid (<= 20k rows): cheap and smooth in log tau.
-        search = _Search(runs, inputs, t0, kind=kind, n_centers=n_centers, ridge=search_ridge,
-                         seed=seed, scale='scale' in ids, n_total=n_total)
+        # A thermal state is searched with a polynomial in it (for an rbf model, the model's
+        # terms with every power of the state): an RBF network of a slowly lagged state
+        # fits any function of time, the state turned into a clock, and pins nothing.
+        search_inputs, inner = inputs, kind
         if fit_state:
             th = ThermalState('first_order', (par[_LAG]['tau_s'],))
             if kind == 'rbf':
-                search.inner = 'poly'
-                pilot, _ = search.first_order(par, TAU_BOUNDS)
-                search.freeze_centers(ThermalState('first_order', (pilot,)), par)
+                search_inputs = input_ids(ids + tuple(STATE_TERMS), state=True)
+            inner = 'poly'
+        search = _Search(runs, search_inputs, t0, inner=inner, n_centers=n_centers,
+                         ridge=search_ridge, seed=seed, scale='scale' in ids, n_total=n_total)
         n_rounds = 2 if len(free) + fit_state > 1 else 1
         for _round in range(n_rounds):
             for eid, name in free:
@@ -1098,18 +1106,19 @@ def _choose_state(search: _Search, mode: str, par: Mapping, tau_fo: float, seen:
     if mode == 'first_order':
         return first, info
     taus = search.two_node(par, tau_fo, TAU_BOUNDS)
-    profs = [search.profile(taus, i, par, TAU_BOUNDS) for i in range(2)]
+    extra: dict = {}
+    if mode == 'auto':
+        cv = {'first_order': search.cv_sse(first, par),
+              'two_node': search.cv_sse(ThermalState('two_node', taus), par)}
+        extra = {'cv_sse': cv, 'candidates': {'first_order': list(first.tau_s),
+                                              'two_node': list(taus)}}
+        if not cv['two_node'] < (1.0 - TWO_NODE_MARGIN) * cv['first_order']:
+            return first, dict(info, **extra)
+    bounds = (min(TAU_BOUNDS[0], taus[0]), TAU_BOUNDS[1])    # the split may go below 1 s
+    profs = [search.profile(taus, i, par, bounds) for i in range(2)]
     two = ThermalState('two_node', taus, tuple(p.interval for p in profs),
                        all(p.identifiable for p in profs))
-    two_info = {'chosen': 'two_node', 'profiles': [p.to_dict() for p in profs]}
-    if mode == 'two_node':
-        return two, two_info
-    cv = {'first_order': search.cv_sse(first, par), 'two_node': search.cv_sse(two, par)}
-    keep = cv['two_node'] < (1.0 - TWO_NODE_MARGIN) * cv['first_order']
-    chosen, chosen_info = (two, two_info) if keep else (first, info)
-    chosen_info = dict(chosen_info, cv_sse=cv, candidates={
-        'first_order': first.to_dict(), 'two_node': two.to_dict()})
-    return chosen, chosen_info
+    return two, {'chosen': 'two_node', 'profiles': [p.to_dict() for p in profs], **extra}
 
 
 def fit_px4_cubic(runs: Sequence[Run], *, t0: float | None = None, **kw) -> CompensationModel:

@@ -29,6 +29,8 @@ import math
 from types import MappingProxyType
 from typing import Mapping, NamedTuple, TYPE_CHECKING
 
+from gyro_tdc.thermal_state import SETTLE_TAUS
+
 if TYPE_CHECKING:  # pragma: no cover - typing only (compensation_logic imports this module)
     from gyro_tdc.compensation_logic import CompensatorCore
 
@@ -215,6 +217,10 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
                      'waiting for stillness' if anchor is None else
                      f'done at t={anchor.t:.3f} s'),
     }
+    settling = core.thermal_progress       # the lagged state's start-up assumption (3 tau)
+    if settling is not None:
+        values['thermal state'] = (f'settling ({settling:.1f} of {SETTLE_TAUS:g} tau)'
+                                   if settling < SETTLE_TAUS else 'settled')
     if anchor is not None:
         values['reanchor shift dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.delta)
     return Health(level, message,

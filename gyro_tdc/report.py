@@ -330,14 +330,26 @@ def format_training(result: TrainResult) -> tuple[str, list]:
     text : str
         Model summary, training BS raw and compensated per axis, coverage.
     warnings : list of str
-        Coverage warnings.
+        Coverage warnings, and that the thermal state's tau is not identifiable when so.
 
     """
     m = result.model
     met = m.metrics
     feats = ', '.join(m.inputs) or 'bias only'
+    th = m.thermal
+    lagged = th is not None and th.kind != 'none'
     params = '; '.join(f'{eid}.{k} = {v:.4g}' for eid, p in sorted(m.effect_params.items())
-                       for k, v in p.items())
+                       for k, v in p.items() if not (lagged and eid == 'lag'))
+    if lagged:    # the state's tau with its interval, or that the data cannot pin it
+        ivs = th.tau_interval_s
+        if th.identifiable is False:
+            lo, hi = min(p[0] for p in ivs), max(p[1] for p in ivs)
+            tau = f'lag.tau_s not identifiable (profile flat over {lo:.4g}..{hi:.4g} s)'
+        else:
+            tau = f'lag.tau_s = {th.tau_total_s:.4g}' + (
+                '' if ivs is None or len(ivs) != 1 else
+                f' (95 % interval {ivs[0][0]:.4g}..{ivs[0][1]:.4g})')
+        params = '; '.join(v for v in (params, tau) if v)
     head = (f'model: {m.kind} f({feats}), '
             + (f'{m.n_centers} centres, ' if m.kind == 'rbf' else '')
             + f'T0 = {m.t0_c:.3f} degC' + (f', {params}' if params else ''))
@@ -351,6 +363,10 @@ def format_training(result: TrainResult) -> tuple[str, list]:
         lines.append(_row3('scale (1/C)', m.scale))
     table, warns = format_coverage(result.coverage)
     lines.append(table)
+    if lagged and th.identifiable is False:
+        warns = list(warns) + [
+            th.describe().split('; ', 1)[-1] + ': soaks after heating and cooling steps '
+            '(the die catching up) pin it']
     return '\n'.join(lines), warns
 
 

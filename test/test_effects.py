@@ -19,14 +19,16 @@ import math
 
 from gyro_tdc.effects import (batch_features, Effect, EFFECT_IDS, EFFECTS, first_order_lag,
                               input_ids, INPUT_ORDER, NONLINEAR_EFFECTS, normalise_ids,
-                              REFERENCE_EFFECTS, resolve_params, STATIC_EFFECTS,
-                              StreamingFeatures, TEMPERATURE_EFFECTS)
+                              REFERENCE_EFFECTS, resolve_params, STATE_TERMS, STATIC_EFFECTS,
+                              StreamingFeatures, TEMPERATURE_EFFECTS, THERMAL_EFFECTS,
+                              with_implied)
 from gyro_tdc.errors import FeatureError
 from gyro_tdc.fitting import fit_model
 from gyro_tdc.metrics import bias_stability
 from gyro_tdc.model import compensate, StreamingCompensator
 from gyro_tdc.modelfile import load_model, save_model
 from gyro_tdc.runs import Run
+from gyro_tdc.thermal_state import ThermalState
 import numpy as np
 import pytest
 from synth import synth_run
@@ -55,7 +57,9 @@ def test_derived_sets_come_from_the_entries_flags():
     assert NONLINEAR_EFFECTS == {'lag', 'warmup'}
     assert TEMPERATURE_EFFECTS == {'dT', 'dT2', 'dT3', 'dTdt', 'lag', 'scale'}
     assert REFERENCE_EFFECTS == {'scale'}
+    assert THERMAL_EFFECTS == {'lag'} and STATE_TERMS == {'dT', 'dT2', 'dT3'}
     for eff in EFFECTS.values():
+        assert (eff.id in THERMAL_EFFECTS) == eff.thermal
         assert (eff.id in STATIC_EFFECTS) == eff.static
         assert (eff.id in NONLINEAR_EFFECTS) == bool(eff.fitted)
         assert (eff.batch is not None) == (eff.stream is not None) == eff.is_input
@@ -90,9 +94,54 @@ def _irregular(seed, n=6000):
     return t, temp
 
 
-def _streamed(ids, t, temp, t0, params=None):
-    s = StreamingFeatures(ids, t0=t0, params=params)
-    return np.array([s.update(a, b) for a, b in zip(t, temp)]).reshape(t.size, -1)
+def _streamed(ids, t, temp, t0, params=None, state=None):
+    if state is None:
+        s = StreamingFeatures(ids, t0=t0, params=params)
+        return np.array([s.update(a, b) for a, b in zip(t, temp)]).reshape(t.size, -1)
+    s = StreamingFeatures(ids, t0=t0, params=params, state=True)
+    return np.array([s.update(a, b, c) for a, b, c in zip(t, temp, state)]).reshape(t.size, -1)
+
+
+def test_with_a_state_lag_is_no_column_and_the_temperature_terms_follow_the_state():
+    assert input_ids(['dT', 'dT2', 'lag', 'dTdt'], state=True) == ('dT', 'dT2', 'dTdt')
+    assert input_ids(['dT', 'lag'], state=False) == ('dT', 'lag')
+    assert with_implied('lag') == ('dT', 'lag') and with_implied('lag,dT2') == ('dT2', 'lag')
+    assert with_implied('dTdt,lag') == ('dT', 'dTdt', 'lag')
+    assert with_implied('dTdt,warmup') == ('dTdt', 'warmup')
+    t, temp = _irregular(4, 2000)
+    state = first_order_lag(t, temp, 30.0)
+    x = batch_features(['dT', 'dT2', 'dT3', 'dTdt', 'lag'], t, temp, t0=18.0, state=state)
+    d = state - 18.0
+    np.testing.assert_array_equal(x[:, :3], np.column_stack([d, d * d, d * d * d]))
+    # The gradient is of the measured temperature, as without a state.
+    np.testing.assert_array_equal(x[:, 3], batch_features(['dTdt'], t, temp, t0=18.0)[:, 0])
+    assert batch_features(['lag'], t, temp, t0=18.0, state=state).shape == (t.size, 0)
+    with pytest.raises(ValueError, match='Expected `state` of shape'):
+        batch_features(['dT'], t, temp, t0=18.0, state=state[:-1])
+    with pytest.raises(ValueError, match='thermal `state`'):
+        StreamingFeatures(['dT'], t0=18.0, state=True).update(1.0, 20.0)
+
+
+@pytest.mark.parametrize('thermal', [ThermalState('first_order', (25.0,)),
+                                     ThermalState('two_node', (3.0, 40.0))])
+@pytest.mark.parametrize('seed', [0, 1])
+def test_streaming_equals_batch_for_every_effect_of_a_state(thermal, seed):
+    t, temp = _irregular(seed)
+    t[3000:] += 600.0                     # a gap
+    t[200:210] = t[200]                   # repeated stamps
+    state = thermal.temperature(t, temp)
+    cols = input_ids(INPUTS, state=True)
+    assert cols == tuple(e for e in LAYOUT if e != 'lag')
+    x = batch_features(INPUTS, t, temp, t0=18.0, params=PARAMS, state=state)
+    stream = thermal.stream()
+    s = np.array([stream.update(a, b) for a, b in zip(t, temp)])
+    np.testing.assert_allclose(s, state, rtol=1e-12, atol=1e-9)
+    y = _streamed(INPUTS, t, temp, 18.0, PARAMS, state=s)
+    assert x.shape == y.shape == (t.size, len(cols))
+    np.testing.assert_allclose(y, x, rtol=1e-9, atol=1e-12 * np.max(np.abs(x)))
+    for eid in cols:
+        one = batch_features([eid], t, temp, t0=18.0, params=PARAMS, state=state)
+        np.testing.assert_array_equal(one[:, 0], x[:, cols.index(eid)])
 
 
 @pytest.mark.parametrize('eid', INPUTS)

@@ -12,13 +12,17 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.model: drift and compensation formulas, streaming, clamping, ids."""
+"""Tests of gyro_tdc.model: formulas, streaming, clamping, ids, format 1 and the state."""
 
+import json
 import math
+from pathlib import Path
 
 from gyro_tdc.fitting import fit_model
 from gyro_tdc.model import compensate, CompensationModel, drift, predict_drift, rbf_design
-from gyro_tdc.model import StreamingCompensator, summary
+from gyro_tdc.model import model_temperature, StreamingCompensator, summary
+from gyro_tdc.modelfile import load_model, save_model
+from gyro_tdc.thermal_state import ThermalState
 import numpy as np
 import pytest
 from synth import synth_run
@@ -133,3 +137,60 @@ def test_summary_and_properties():
     assert s['kind'] == 'poly' and s['features'] == ['dT', 'dT2'] and s['centers'] == 0
     assert s['temp_range_c'] == [0.0, 50.0]
     np.testing.assert_allclose(s['residual_std_dps'], [1e-3 / DEG] * 3)
+
+
+# ----------------------------------------------------------------------------- formats
+
+DATA = Path(__file__).parent / 'data'
+
+
+def test_a_format_1_lag_model_behaves_exactly_as_before(tmp_path):
+    # model_v1_lag.yaml and its drift were written by gyro_tdc before format 2 (lag as an
+    # additive column, every feature of the clamped measured temperature).
+    model = load_model(DATA / 'model_v1_lag.yaml')
+    want = json.loads((DATA / 'model_v1_lag_drift.json').read_text())
+    assert model.format_version == 1 and model.thermal is None
+    assert model.model_id == want['model_id'] == 'ccb82761db2c'
+    assert model.inputs == ('dT', 'dT2', 'dTdt', 'lag')
+    t, temp = np.array(want['t']), np.array(want['temp'])
+    np.testing.assert_array_equal(drift(model, t, temp), want['drift_clamp'])
+    np.testing.assert_array_equal(drift(model, t, temp, clamp=False), want['drift_extrapolate'])
+    comp = StreamingCompensator(model)
+    np.testing.assert_array_equal([comp.drift(a, b) for a, b in zip(t, temp)],
+                                  want['stream_clamp'])
+    assert comp.thermal_progress is None and comp.thermal_settled
+    assert summary(model)['format_version'] == 1 and 'thermal' not in summary(model)
+    # Saved again it stays format 1, byte for byte.
+    again = save_model(model, tmp_path / 'again.yaml')
+    assert again.read_text() == (DATA / 'model_v1_lag.yaml').read_text()
+
+
+def test_format_2_state_model_drift_and_range_follow_the_state():
+    thermal = ThermalState('first_order', (50.0,))
+    model = _hand_model(features=('dT', 'dT2', 'lag'), effect_params={'lag': {'tau_s': 50.0}},
+                        thermal=thermal)
+    assert model.format_version == 2 and model.inputs == ('dT', 'dT2')
+    t = np.arange(0.0, 400.0, 2.0)
+    temp = np.where(t < 100.0, 20.0, 60.0)              # a step past the range end (50)
+    state = thermal.temperature(t, temp)
+    np.testing.assert_array_equal(model_temperature(model, t, temp), state)
+    flat = _hand_model()                                # the same terms of the measured T
+    np.testing.assert_allclose(drift(model, t, temp), drift(flat, t, state), rtol=1e-12)
+    np.testing.assert_allclose(drift(model, t, temp, clamp=False),
+                               drift(flat, t, state, clamp=False), rtol=1e-12)
+    # The state reaches the range end about tau ln(4) after the step, not at the step.
+    clamped = model_temperature(model, t, temp, clamp=True)
+    assert clamped[t == 102.0][0] < 50.0 and clamped[-1] == 50.0
+    s = summary(model)
+    assert s['format_version'] == 2 and s['thermal']['tau_s'] == [50.0]
+
+
+def test_format_2_without_lag_matches_the_format_1_numbers():
+    # A static model: the state is the measured temperature, only the format differs.
+    run = synth_run(seed=3, hours=0.2)
+    model = fit_model([run], features='dT,dT2', n_centers=5)
+    assert model.thermal == ThermalState() and model.format_version == 2
+    legacy = model.replace(thermal=None)
+    np.testing.assert_array_equal(compensate(model, run.t, run.temp, run.omega),
+                                  compensate(legacy, run.t, run.temp, run.omega))
+    assert legacy.model_id != model.model_id
