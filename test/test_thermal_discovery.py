@@ -126,7 +126,7 @@ def test_train_by_default_reaches_the_floor_on_a_held_out_run(
     # What was chosen and why, one line per effect; the choice is in the model file too.
     assert 'features auto: start from dT, dT2' in text
     assert '  + lag: ' in text and 'features chosen: dT, dT2, lag' in text
-    assert 'thermal state: first-order lag, tau = ' in text
+    assert f'lag.tau_s = {tau:.4g} (95 % interval ' in text
     for eid in ('dT3', 'dTdt', 'warmup', 'scale'):
         assert f'  - {eid}: ' in text, text
     choice = model.metrics['features']

@@ -21,8 +21,8 @@ arguments and prints, with the default ``--features auto``, what was chosen and 
 line per effect), then the report of :func:`gyro_tdc.report.format_training`: training bias
 stability per axis raw and compensated, the temperature range, coverage per temperature bin
 (with a warning naming the bins inside the span with too little data) and minutes heating,
-cooling and steady; and the thermal state (tau with its interval, or that the data cannot
-pin it) when the model has one. Bad input (missing bag or topic, unreadable bag, too small a
+cooling and steady (with the thermal state's tau and its interval, or that the data cannot
+pin it, when the model has one). Bad input (missing bag or topic, unreadable bag, too small a
 span, too few samples, unknown feature id, bad reference) exits 2 with one line on stderr.
 """
 
@@ -128,9 +128,6 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         print('\n'.join(result.choice.lines()))
     text, warns = format_training(result)
     print(text)
-    thermal = result.model.thermal
-    if thermal is not None and thermal.kind != 'none':
-        print(thermal.describe())
     for w in warns:
         print(f'warning: {w}')
     print(f'wrote {result.path} (model_id {result.model.model_id})', flush=True)
