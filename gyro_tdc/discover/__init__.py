@@ -56,8 +56,11 @@ A candidate is named only when three independent tests agree (the false-discover
 
 The best candidate (largest held-out gain) is added, the time constants are refitted, and the
 search repeats until none passes. Candidates within ``alias_margin`` of its gain whose fitted
-contribution correlates with its own by ``alias_corr`` or more are its aliases; effects the
-data cannot excite are reported as unidentifiable with the experiment that would excite them.
+contribution correlates with its own by ``alias_corr`` or more are its aliases; of the best
+and its aliases that pass, the one with the fewest parameters is named (a lagging die with a
+linear drift, one time constant, rather than ``dTdt``, whose filtered derivative with its
+own time constant holds the same curve with a coefficient per axis). Effects the data cannot
+excite are reported as unidentifiable with the experiment that would excite them.
 
 The package, one concept per module (each imports only those above it; :mod:`stats` names
 the data and linear model in type hints only):

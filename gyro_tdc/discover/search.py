@@ -199,6 +199,13 @@ def _candidate_params(data: BlockData, model: LinearModel, eid: str) -> dict:
     return params
 
 
+def _n_params(model: LinearModel, eid: str, params: Mapping) -> int:
+    """Return the parameters candidate ``eid`` adds to ``model``: coefficients and taus."""
+    effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
+    cand = LinearModel(model.data, effects, params)
+    return (cand.p - model.p) * 3 + (eid in _TIMED)
+
+
 def _noise_lags(data: BlockData, model: LinearModel, todo: Sequence[str], cparams: Mapping
                 ) -> tuple[list, int]:
     """
@@ -386,13 +393,20 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         if not passing or len(steps) >= max_steps:
             break
         best, contrib_b, p_b = passing[0]
-        aliases = []
-        for sc, contrib, _p in results[1:]:
+        family = [passing[0]]
+        for item in results[1:]:
+            sc, contrib, _p = item
             if contrib is None or sc.heldout_gain_dps2 <= 0:
                 continue
             if (sc.heldout_gain_dps2 >= (1.0 - alias_margin) * best.heldout_gain_dps2
                     and abs(weighted_corr(contrib, contrib_b, data.w)) >= alias_corr):
-                aliases.append(sc.effect)
+                family.append(item)
+        # Among aliases that pass the guard, name the one with the fewest parameters: a
+        # lagging die with a linear drift (one time constant) rather than dT/dt (a time
+        # constant and a coefficient per axis), whose columns hold the same curve.
+        best, contrib_b, p_b = min((x for x in family if x[0].passed),
+                                   key=lambda x: _n_params(model, x[0].effect, x[2]))
+        aliases = [x[0].effect for x in family if x[0] is not best]
         new_effects = tuple(e for e in EFFECTS if e in set(effects) | {best.effect})
         new_params = {k: dict(v) for k, v in p_b.items()}
         refit = [e for e in new_effects if e in _TIMED]
