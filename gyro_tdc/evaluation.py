@@ -42,7 +42,7 @@ from gyro_tdc.dataset import expand_bags, load_runs
 from gyro_tdc.errors import FitError
 from gyro_tdc.fitting import fit_px4_cubic
 from gyro_tdc.metrics import allan_deviation, bias_stability, noise_readouts, rms_dps
-from gyro_tdc.model import compensate, CompensationModel
+from gyro_tdc.model import compensate, CompensationModel, model_temperature
 from gyro_tdc.modelfile import load_model
 from gyro_tdc.resources import model_path
 from gyro_tdc.runs import Run
@@ -90,7 +90,8 @@ class ModelEval:
     temp_range_c : tuple of float, degC
         The model's trained range.
     outside_fraction : float
-        Fraction of the bag's samples outside ``temp_range_c`` (evaluated clamped).
+        Fraction of the bag's samples whose model temperature (the thermal state) lies
+        outside ``temp_range_c`` (evaluated clamped).
     omega : NDArray[np.float64], shape (N, 3), rad/s, or None
         The compensated rate (kept only while plots and CSVs are written).
 
@@ -358,7 +359,8 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
                    bs_raw=raw.bs, rate=rate)
         lo, hi = m.temp_range_c
         ev.temp_range_c = (lo, hi)
-        ev.outside_fraction = float(np.count_nonzero((run.temp < lo) | (run.temp > hi))
+        temp = model_temperature(m, run.t, run.temp)     # what is clamped: the thermal state
+        ev.outside_fraction = float(np.count_nonzero((temp < lo) | (temp > hi))
                                     / max(len(run), 1))
         out.append(ev)
     return BagEval(bag=run.name, label=label or safe_label(run.name), samples=len(run),
