@@ -166,7 +166,7 @@ def main(argv=None):
         t_alone = statistics.median(alone)
         print(f'train alone (train + evaluate, one process): {t_alone:.2f} s per sensor '
               f'(median of {len(alone)})')
-        walls, runs = {}, {}
+        walls, runs, tasks_mean = {}, {}, {}
         for w in [int(x) for x in args.workers.split(',')]:
             t0 = time.perf_counter()
             with open_engine(workers=w) as engine:
@@ -176,6 +176,7 @@ def main(argv=None):
             t3 = time.perf_counter()
             walls[w], runs[w] = t3 - t0, t2 - t1
             tasks = [s.seconds for s in result.sensors if s.status == 'ok']
+            tasks_mean[w] = statistics.mean(tasks)
             print(f'fleet, {w} worker(s): {t3 - t0:.1f} s wall = {t1 - t0:.1f} s cluster start '
                   f'+ {t2 - t1:.1f} s run + {t3 - t2:.1f} s stop; {(t2 - t1) / n:.2f} s of run '
                   f'per sensor; mean task {statistics.mean(tasks):.2f} s on a worker; '
@@ -187,6 +188,8 @@ def main(argv=None):
               f'{runs[a] / runs[b]:.2f}x run')
     if 1 in runs:
         per = runs[1] / n
+        print(f"Dask's own cost per sensor (1 worker: run per sensor - mean task): "
+              f'{per - tasks_mean[1]:.3f} s')
         print(f'per-sensor overhead of the fleet (1 worker, run time per sensor) over train '
               f'alone: {per - t_alone:+.2f} s ({per / t_alone - 1:+.0%})')
     return 0
