@@ -313,17 +313,18 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
     common = {'kind': kind, 't0': t0, 'n_centers': n_centers, 'refine': refine, 'seed': seed,
               'frame_id': str(runs[0].info.get('frame_id') or 'imu_link'),
               'created': {'command': command, 'bags': names}}
-    # The base model first: it checks the data (span, samples) with fit_model's messages.
-    model = fit_model(runs, features=ids, **common)
     choice = None
+    params: dict = {}
     if auto:
+        # Data the search cannot analyse keep the base, and fit_model then says what is wrong
+        # with them (span, samples) as it does for named features.
         choice = choose_features(runs, t0=t0)
-        if choice.features != ids:
-            params = {}
-            if choice.discovery is not None:      # time constants fit_model does not search
-                params = {k: v for k, v in choice.discovery.params.items()
-                          if k in choice.features and not EFFECTS[k].fitted}
-            model = fit_model(runs, features=choice.features, params=params, **common)
+        ids = choice.features
+        if choice.discovery is not None:        # time constants fit_model does not search
+            params = {k: v for k, v in choice.discovery.params.items()
+                      if k in ids and not EFFECTS[k].fitted}
+    model = fit_model(runs, features=ids, params=params or None, **common)
+    if choice is not None:
         model = model.replace(metrics={**model.metrics, 'features': choice.to_dict()})
     cov = coverage(runs, bin_c=bin_c)
     path = save_model(model, out)
