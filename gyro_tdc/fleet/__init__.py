@@ -37,8 +37,9 @@ robust z-score ``(v - median) / (1.4826 MAD)``; beyond ``outlier_z`` a flag such
 Resuming: a sensor whose model file exists and is unchanged, and whose input key (bag file
 sizes and modification times, the training options, the gyro_tdc version) is unchanged, is
 skipped. The key is computed by the worker, where the bags are read; a bag's *content* is not
-hashed (a 1 kHz hour is hundreds of MB), so a bag rewritten with the same size and mtime is
-not noticed (use ``force``). This module never imports rclpy: workers never start ROS.
+hashed (an hour at 1 kHz is 1.4 GB of sqlite3), so a bag rewritten with the same size and
+mtime is not noticed (use ``force``). This package never imports rclpy: workers never start
+ROS.
 """
 
 from gyro_tdc.fleet.manifest import check_sensor_id, input_key, read_manifest, SensorSpec

@@ -16,8 +16,8 @@
 The fleet manifest: ``sensor_id,train,test`` rows, sensor ids, and the resume key of a sensor.
 
 The resume key hashes the path, size and modification time (ns) of every file of a sensor's
-bags, the training options and the gyro_tdc version; a bag's *content* is not hashed (a
-1 kHz hour is hundreds of MB), so a bag rewritten with the same size and mtime is not noticed.
+bags, the training options and the gyro_tdc version; a bag's *content* is not hashed (an hour
+at 1 kHz is 1.4 GB of sqlite3), so a bag rewritten with the same size and mtime is not noticed.
 """
 
 from __future__ import annotations
