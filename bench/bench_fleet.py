@@ -23,6 +23,9 @@ hold, cool), drift slopes and curvatures spread by 10 % between units, white noi
 * ``train alone``: :func:`gyro_tdc.training.train` on one sensor's train bag plus
   :func:`gyro_tdc.evaluation.evaluate` on its test bag, in this process (median of
   ``--repeat`` sensors): the work a fleet task does, without Dask;
+* ``plain processes``: the same, over ``2 * --repeat`` sensors in a plain two-process pool
+  (no Dask), one after the other and two at a time: what this machine gives a second process
+  at that moment, the ceiling of the fleet's speed-up;
 * ``fleet``: :func:`gyro_tdc.fleet.run_fleet` over every sensor (``force``, a fresh output
   folder) on an embedded ``LocalCluster`` with each worker count of ``--workers``, wall time
   including the cluster's start and stop;
@@ -135,6 +138,41 @@ def train_alone(spec, options, out):
     return time.perf_counter() - start
 
 
+def _warm():
+    """Import what a task needs (so that a pool's timing excludes the imports)."""
+    import gyro_tdc.evaluation  # noqa: F401
+    import gyro_tdc.training  # noqa: F401
+
+
+def plain_processes(specs, options, tmp):
+    """
+    Return the seconds of :func:`train_alone` over ``specs``: one after the other, two at a time.
+
+    Both in two already started, already warm worker processes of a plain
+    ``ProcessPoolExecutor`` (no Dask): the capacity of this machine for a second process.
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context('spawn')) as pool:
+        list(pool.map(_warm_wait, [0.5, 0.5]))
+        start = time.perf_counter()
+        for s in specs:
+            pool.submit(train_alone, s, options, tmp / f'seq_{s.sensor_id}.yaml').result()
+        t_seq = time.perf_counter() - start
+        start = time.perf_counter()
+        list(pool.map(train_alone, specs, [options] * len(specs),
+                      [tmp / f'par_{s.sensor_id}.yaml' for s in specs]))
+        t_par = time.perf_counter() - start
+    return t_seq, t_par
+
+
+def _warm_wait(seconds):
+    """Warm a pool process and hold it busy a moment, so that both processes get one."""
+    _warm()
+    time.sleep(seconds)
+
+
 def main(argv=None):
     """Run the benchmark and print its figures."""
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
@@ -166,6 +204,11 @@ def main(argv=None):
         t_alone = statistics.median(alone)
         print(f'train alone (train + evaluate, one process): {t_alone:.2f} s per sensor '
               f'(median of {len(alone)})')
+        batch = specs[:max(2, min(2 * args.repeat, n))]
+        t_seq, t_par = plain_processes(batch, options, Path(tmp))
+        print(f'plain processes, no Dask, {len(batch)} sensors: one after the other '
+              f'{t_seq:.1f} s, two at a time {t_par:.1f} s: {t_seq / t_par:.2f}x (what this '
+              f'machine gives a second process now)')
         walls, runs, tasks_mean = {}, {}, {}
         for w in [int(x) for x in args.workers.split(',')]:
             t0 = time.perf_counter()
