@@ -82,14 +82,12 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
+            # The two ROS 2 nodes (`ros2 run gyro_tdc driver_node`, `... compensator_node`).
             'driver_node = gyro_tdc.nodes.driver_node:main',
             'compensator_node = gyro_tdc.nodes.compensator_node:main',
-            'simulate = gyro_tdc.cli.simulate:main',
-            'train = gyro_tdc.cli.train:main',
-            'evaluate = gyro_tdc.cli.evaluate:main',
-            'discover = gyro_tdc.cli.discover:main',
-            'demo = gyro_tdc.cli.demo:main',
-            'fleet = gyro_tdc.cli.fleet:main',
+            # One entry point for every offline command: `gyro-tdc <command> [args...]`
+            # (the same as `python -m gyro_tdc <command>`), no generic names in bin/.
+            'gyro-tdc = gyro_tdc.__main__:main',
         ],
     },
 )

@@ -13,9 +13,11 @@
 # limitations under the License.
 
 """
-Run a gyro_tdc command: ``python -m gyro_tdc <command> [args...]``.
+Run a gyro_tdc command: ``gyro-tdc <command> [args...]`` or ``python -m gyro_tdc <command>``.
 
-The commands are listed in :mod:`gyro_tdc.cli`; ``python -m gyro_tdc --help`` prints them.
+``gyro-tdc`` is the one console script the package installs besides the two ROS nodes; both
+spellings run :func:`main`. The commands are listed in :mod:`gyro_tdc.cli`;
+``gyro-tdc --help`` prints them.
 """
 
 from __future__ import annotations
@@ -25,11 +27,10 @@ from typing import Optional, Sequence
 
 from gyro_tdc import __version__
 from gyro_tdc.cli import COMMANDS
+from gyro_tdc.cli import PROG
 from gyro_tdc.cli import CommandUnavailable
 from gyro_tdc.cli import format_help
 from gyro_tdc.cli import load_main
-
-PROG = 'python -m gyro_tdc'
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
@@ -62,13 +63,13 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         print(f'gyro_tdc {__version__}')
         return 0
     if name not in COMMANDS:
-        print(f'{PROG}: unknown command {name!r}; expected one of: {", ".join(COMMANDS)} '
-              f'(see {PROG} --help)', file=sys.stderr)
+        print(f'{PROG}: error: unknown command {name!r}; expected one of: '
+              f'{", ".join(COMMANDS)} (see {PROG} --help)', file=sys.stderr)
         return 2
     try:
         command_main = load_main(name)
     except CommandUnavailable as exc:
-        print(f'{PROG}: {exc}', file=sys.stderr)
+        print(f'{PROG}: error: {exc}', file=sys.stderr)
         return 1
     code = command_main(rest)
     return 0 if code is None else int(code)

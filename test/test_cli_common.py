@@ -85,11 +85,11 @@ def _parser():
 
 @pytest.mark.parametrize('fail, code, line', [
     (None, 0, None),
-    (UsageError('--x: bad'), 2, 'gyro_tdc thing: error: --x: bad'),
-    (DatasetError("Bag 'b'\nis gone."), 2, "gyro_tdc thing: error: Bag 'b' is gone."),
+    (UsageError('--x: bad'), 2, 'gyro-tdc thing: error: --x: bad'),
+    (DatasetError("Bag 'b'\nis gone."), 2, "gyro-tdc thing: error: Bag 'b' is gone."),
     (PermissionError(13, 'Permission denied', '/out.yaml'), 2,
-     "gyro_tdc thing: error: cannot access '/out.yaml': Permission denied"),
-    (KeyboardInterrupt(), 130, 'gyro_tdc thing: error: interrupted'),
+     "gyro-tdc thing: error: cannot access '/out.yaml': Permission denied"),
+    (KeyboardInterrupt(), 130, 'gyro-tdc thing: error: interrupted'),
 ])
 def test_run_command_maps_errors_to_one_line_and_an_exit_code(capsys, fail, code, line):
     seen = []
@@ -109,17 +109,17 @@ def test_run_command_maps_errors_to_one_line_and_an_exit_code(capsys, fail, code
 def test_run_command_argparse_errors_and_help(capsys):
     assert run_command('thing', _parser, lambda a, v: 0, ['--n', '0']) == 2
     err = capsys.readouterr().err.splitlines()
-    assert err == ["gyro_tdc thing: error: argument --n: expected an integer >= 1, got '0' "
+    assert err == ["gyro-tdc thing: error: argument --n: expected an integer >= 1, got '0' "
                    '(see --help)']
     assert run_command('thing', _parser, lambda a, v: 0, ['--help']) == 0
-    assert 'usage: python -m gyro_tdc thing' in capsys.readouterr().out
+    assert 'usage: gyro-tdc thing' in capsys.readouterr().out
 
 
 @pytest.mark.parametrize('name', sorted(COMMANDS))
 def test_every_command_reports_bad_input_with_the_common_prefix(capsys, name):
     assert load_main(name)(['--no-such-option']) == 2
     err = capsys.readouterr().err.splitlines()
-    assert len(err) == 1 and err[0].startswith(f'gyro_tdc {name}: error: '), err
+    assert len(err) == 1 and err[0].startswith(f'gyro-tdc {name}: error: '), err
     assert err[0].endswith(' (see --help)')
 
 
@@ -127,4 +127,4 @@ def test_one_line_and_command_line():
     assert one_line('a\n  b\tc ') == 'a b c'
     assert one_line(KeyError()) == 'KeyError'
     assert command_line('train', ['my bag', '--out', 'm.yaml']) == \
-        "python -m gyro_tdc train 'my bag' --out m.yaml"
+        "gyro-tdc train 'my bag' --out m.yaml"

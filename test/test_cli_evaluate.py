@@ -211,7 +211,7 @@ def test_held_out_paper_run_within_noise_floor(tmp_path, capsys):
 def test_malformed_model_file(bags, tmp_path, capsys):
     bad = tmp_path / 'bad.yaml'
     bad.write_text('kind: [unclosed\n')
-    assert_bad_input(capsys, [bags['test'], '--model', bad], 'gyro_tdc evaluate: error:',
+    assert_bad_input(capsys, [bags['test'], '--model', bad], 'gyro-tdc evaluate: error:',
                      'malformed YAML', entry=main)
     edited = tmp_path / 'edited.yaml'
     edited.write_text(bags['mod'].read_text().replace('kind: poly', 'kind: spline'))

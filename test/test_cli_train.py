@@ -105,7 +105,7 @@ def test_train_writes_a_model_that_loads_and_compensates(synth_bag, tmp_path, ca
     model = load_model(out)
     assert model.features == ('dT', 'dT2') and model.kind == 'poly'
     assert model.created['bags'] == [str(bag)]
-    assert model.created['command'].startswith('python -m gyro_tdc train ')
+    assert model.created['command'].startswith('gyro-tdc train ')
     assert '--kind poly' in model.created['command']
     held_out = synth_run(seed=12)
     floor = held_out.info['noise_dps'] ** 2
@@ -191,7 +191,7 @@ def test_lag_feature_recovers_the_die_lag_of_a_simulated_heat_cool_run(tmp_path,
 
 def test_missing_bag_path(tmp_path, capsys):
     assert_bad_input(capsys, [tmp_path / 'nope', '--out', tmp_path / 'm.yaml'],
-                     'gyro_tdc train: error:', 'does not exist')
+                     'gyro-tdc train: error:', 'does not exist')
 
 
 def test_not_a_bag(tmp_path, capsys):

@@ -265,7 +265,7 @@ def test_resume_skips_unchanged_and_reruns_on_force_or_change(tmp_path, bags, en
 def _one_error_line(capsys) -> str:
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1, err
-    assert err[0].startswith('gyro_tdc fleet: error: ')
+    assert err[0].startswith('gyro-tdc fleet: error: ')
     return err[0]
 
 

@@ -121,8 +121,10 @@ def test_setup_packages_and_entry_points(setup_kwargs):
                    for entry in setup_kwargs['entry_points']['console_scripts'])
     for node in NODES:
         assert scripts[node] == f'gyro_tdc.nodes.{node}:main'
-    for name, command in COMMANDS.items():
-        assert scripts[name] == f'{command.module}:main'
+    # One console entry point for the commands, no generic names (train, demo...) in bin/.
+    assert scripts.pop('gyro-tdc') == 'gyro_tdc.__main__:main'
+    assert set(scripts) == set(NODES)
+    assert not set(COMMANDS) & set(scripts)
 
 
 def test_setup_cfg_installs_executables_for_ros2_run():

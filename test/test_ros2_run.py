@@ -36,8 +36,9 @@ import pytest
 from rosutil import spin_until
 
 ROOT = Path(__file__).resolve().parents[1]
-EXECUTABLES = ('driver_node', 'compensator_node', 'simulate', 'train', 'evaluate', 'discover',
-               'demo')
+# The two nodes, and gyro-tdc (the offline commands: `ros2 run gyro_tdc gyro-tdc train ...`).
+EXECUTABLES = ('driver_node', 'compensator_node', 'gyro-tdc')
+GENERIC = ('simulate', 'train', 'evaluate', 'discover', 'demo', 'fleet')   # never installed
 CONFIG_FILES = ('compensator.yaml', 'driver_sim.yaml', 'driver_iio.yaml',
                 'models/l3gd20_modified.yaml', 'scenarios/demo_fast.yaml',
                 'scenarios/l3gd20_paper.yaml')
@@ -129,6 +130,8 @@ def test_executables_and_config_are_where_ros2_run_looks(install_tree, monkeypat
         path = prefix / 'lib' / 'gyro_tdc' / exe
         assert path.is_file() and os.access(path, os.X_OK), path
         assert path.read_text().startswith(f'#!{sys.executable}\n'), path
+    for exe in GENERIC:
+        assert not (prefix / 'lib' / 'gyro_tdc' / exe).exists(), exe
     for rel in CONFIG_FILES:
         assert (share / 'config' / rel).is_file(), rel
         assert (share / 'config' / rel).read_bytes() == (ROOT / 'config' / rel).read_bytes(), rel

@@ -13,13 +13,14 @@
 # limitations under the License.
 
 """
-Command registry of ``python -m gyro_tdc <command>``.
+Command registry of ``gyro-tdc <command>`` (also ``python -m gyro_tdc <command>``).
 
 Every command lives in ``gyro_tdc.cli.<name>`` and exposes ``main(argv=None) -> int``:
-``argv`` is the argument list after the command name (``None`` means ``sys.argv[1:]``, which is
-what the ``console_scripts`` wrappers and ``ros2 run gyro_tdc <name>`` pass). It returns 0 on
-success and 2 on bad input after one line on stderr. Command modules are imported only when
-they run, so the listing works while a command is missing or broken.
+``argv`` is the argument list after the command name (``None`` means ``sys.argv[1:]``). It
+returns 0 on success and 2 on bad input after one line on stderr, ``gyro-tdc <command>:
+error: ...``. ``gyro-tdc`` (:mod:`gyro_tdc.__main__`) is the only console script of the
+commands: no generic names such as ``train`` land in ``bin/``. Command modules are imported
+only when they run, so the listing works while a command is missing or broken.
 """
 
 from __future__ import annotations
@@ -28,7 +29,10 @@ from dataclasses import dataclass
 import importlib
 from typing import Callable, Optional, Sequence
 
-__all__ = ['COMMANDS', 'Command', 'CommandUnavailable', 'format_help', 'load_main']
+__all__ = ['COMMANDS', 'Command', 'CommandUnavailable', 'PROG', 'format_help', 'load_main']
+
+#: The program name every command's usage, help and error lines start with.
+PROG = 'gyro-tdc'
 
 
 @dataclass(frozen=True)
@@ -39,11 +43,11 @@ class Command:
     Parameters
     ----------
     name : str
-        Name typed on the command line (``python -m gyro_tdc NAME``).
+        Name typed on the command line (``gyro-tdc NAME``).
     module : str
         Dotted path of the module holding ``main(argv=None) -> int``.
     help : str
-        One-line description shown by ``python -m gyro_tdc --help``.
+        One-line description shown by ``gyro-tdc --help``.
 
     """
 
@@ -63,7 +67,7 @@ COMMANDS: dict[str, Command] = {
         Command('discover', 'gyro_tdc.cli.discover',
                 'find which thermal effect a model is still missing'),
         Command('demo', 'gyro_tdc.cli.demo',
-                'simulate, train, evaluate and discover end to end into one folder'),
+                'the whole pipeline on simulated data, then the two nodes live'),
         Command('fleet', 'gyro_tdc.cli.fleet',
                 'calibrate many IMUs from a manifest on Dask, with fleet-outlier flags'),
     )
@@ -74,7 +78,7 @@ class CommandUnavailable(LookupError):
     """A registered command's module is not installed (a packaging fault, not bad input)."""
 
 
-def format_help(prog: str = 'python -m gyro_tdc') -> str:
+def format_help(prog: str = PROG) -> str:
     """
     Return the top-level usage text listing every command and its one-line help.
 
@@ -98,7 +102,8 @@ def format_help(prog: str = 'python -m gyro_tdc') -> str:
         'commands:',
     ]
     lines += [f'  {c.name:<{width}}  {c.help}' for c in COMMANDS.values()]
-    lines += ['', f'Run "{prog} <command> --help" for the options of a command.']
+    lines += ['', f'Run "{prog} <command> --help" for the options of a command '
+              f'("python -m gyro_tdc" works the same as "{prog}").']
     return '\n'.join(lines) + '\n'
 
 

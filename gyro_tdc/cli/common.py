@@ -17,7 +17,7 @@ Pieces shared by the command-line tools: argument parsing, bag options, exit cod
 
 Every command is a typed function plus a tiny ``main(argv) -> int`` built with
 :func:`run_command`, which turns bad input into exit code 2 and exactly one line on stderr
-(``gyro_tdc <command>: error: <what was wrong>``), never a traceback::
+(``gyro-tdc <command>: error: <what was wrong>``), never a traceback::
 
     def main(argv=None):
         return run_command('train', build_parser, _run, argv)
@@ -39,6 +39,7 @@ import shlex
 import sys
 from typing import Callable, NoReturn, Optional, Sequence
 
+from gyro_tdc.cli import PROG
 from gyro_tdc.dataset import MAX_LOSS_FRACTION
 from gyro_tdc.errors import GyroTdcError, one_line
 
@@ -52,7 +53,6 @@ __all__ = [
 DEFAULT_IMU_TOPIC = '/imu/data_raw'
 DEFAULT_TEMPERATURE_TOPIC = '/imu/temperature'
 DEFAULT_REFERENCE_TOPIC = '/rate_table/reference'
-PROG = 'gyro_tdc'
 
 _DEG = math.pi / 180.0
 _UNITS = {'': 1.0, 'rad/s': 1.0, 'rads': 1.0, 'deg/s': _DEG, 'dps': _DEG}
@@ -220,8 +220,8 @@ def positive_int(text: str) -> int:
 
 
 def command_line(command: str, argv: Sequence[str]) -> str:
-    """Return the shell-quoted command line ``python -m gyro_tdc COMMAND ARGV...``."""
-    return shlex.join(['python', '-m', 'gyro_tdc', command, *map(str, argv)])
+    """Return the shell-quoted command line ``gyro-tdc COMMAND ARGV...``."""
+    return shlex.join([PROG, command, *map(str, argv)])
 
 
 def run_command(command: str, build_parser: Callable[[], argparse.ArgumentParser],
@@ -250,6 +250,7 @@ def run_command(command: str, build_parser: Callable[[], argparse.ArgumentParser
     argv = [os.fspath(a) if isinstance(a, os.PathLike) else str(a)
             for a in (sys.argv[1:] if argv is None else argv)]
     parser = build_parser()
+    parser.prog = f'{PROG} {command}'    # one name in every usage line, whoever built it
     try:
         try:
             args = parser.parse_args(argv)
@@ -269,6 +270,6 @@ def run_command(command: str, build_parser: Callable[[], argparse.ArgumentParser
 
 
 def _error(command: str, message: object) -> None:
-    """Print ``gyro_tdc COMMAND: error: MESSAGE`` on one stderr line."""
+    """Print ``gyro-tdc COMMAND: error: MESSAGE`` on one stderr line."""
     sys.stdout.flush()
     print(f'{PROG} {command}: error: {one_line(message)}', file=sys.stderr, flush=True)
