@@ -51,6 +51,7 @@ from typing import Any, Mapping
 
 from gyro_tdc.effects import batch_features, input_ids, StreamingFeatures, THERMAL_EFFECTS
 from gyro_tdc.errors import FeatureError
+from gyro_tdc.plain import plain
 from gyro_tdc.thermal_state import SETTLE_TAUS, ThermalState
 import numpy as np
 from numpy.typing import NDArray
@@ -217,22 +218,9 @@ class CompensationModel:
         return replace(self, **changes)
 
 
-def _plain_value(value: Any) -> Any:
-    """Return ``value`` with numpy values, tuples and non-str keys as plain JSON types."""
-    if isinstance(value, np.ndarray):
-        return _plain_value(value.tolist())
-    if isinstance(value, np.generic):
-        return value.item()
-    if isinstance(value, Mapping):
-        return {str(k): _plain_value(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain_value(v) for v in value]
-    return value
-
-
 def _canonical_json(value: Any) -> str:
     """Return one canonical JSON text of plain data (sorted keys, exact floats)."""
-    return json.dumps(_plain_value(value), sort_keys=True, separators=(',', ':'),
+    return json.dumps(plain(value), sort_keys=True, separators=(',', ':'),
                       default=repr)
 
 

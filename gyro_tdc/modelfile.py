@@ -82,6 +82,7 @@ from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.effects import input_ids, normalise_ids, resolve_params
 from gyro_tdc.errors import FeatureError, ModelFileError
 from gyro_tdc.model import CompensationModel, KINDS
+from gyro_tdc.plain import plain
 from gyro_tdc.thermal_state import ThermalState
 from gyro_tdc.yamlio import read_yaml, YamlLimits
 import numpy as np
@@ -103,19 +104,6 @@ _LIMITS = YamlLimits('model file', max_bytes=MAX_MODEL_BYTES, max_depth=MAX_MODE
                      max_nodes=MAX_MODEL_NODES, aliases=False)
 
 
-def _plain(value: Any) -> Any:
-    """Convert numpy values and tuples to plain Python types for safe YAML."""
-    if isinstance(value, np.ndarray):
-        return value.tolist()
-    if isinstance(value, (np.floating, np.integer)):
-        return value.item()
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    return value
-
-
 def model_to_dict(model: CompensationModel) -> dict:
     """Return the model as a dict of plain types, in file order (its own format version)."""
     d = {
@@ -123,24 +111,24 @@ def model_to_dict(model: CompensationModel) -> dict:
         'kind': model.kind,
         'model_id': model.model_id,
         'features': list(model.features),
-        'effect_params': _plain(model.effect_params),
+        'effect_params': plain(model.effect_params),
     }
     if model.thermal is not None:
         d['thermal'] = model.thermal.to_dict()
     d.update({
         't0_c': float(model.t0_c),
         'temp_range_c': [float(v) for v in model.temp_range_c],
-        'normalization': {'mean': _plain(model.input_mean), 'std': _plain(model.input_std)},
-        'centers': _plain(model.centers),
-        'widths': _plain(model.widths),
-        'weights': _plain(model.weights),
-        'intercept': _plain(model.intercept),
-        'linear': _plain(model.linear),
-        'scale': _plain(model.scale),
-        'residual_var_rad2_s2': _plain(model.residual_var),
+        'normalization': {'mean': plain(model.input_mean), 'std': plain(model.input_std)},
+        'centers': plain(model.centers),
+        'widths': plain(model.widths),
+        'weights': plain(model.weights),
+        'intercept': plain(model.intercept),
+        'linear': plain(model.linear),
+        'scale': plain(model.scale),
+        'residual_var_rad2_s2': plain(model.residual_var),
         'sensor': {'frame_id': model.frame_id, 'sensor_id': model.sensor_id},
-        'training': _plain(model.metrics),
-        'created': _plain(model.created),
+        'training': plain(model.metrics),
+        'created': plain(model.created),
     })
     return d
 

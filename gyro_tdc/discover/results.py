@@ -23,9 +23,8 @@ What discovery found: steps, candidate scores, residual maps, and their JSON and
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import math
-from typing import Any, Mapping
 
+from gyro_tdc.plain import plain
 from gyro_tdc.thermal_state import ThermalState
 import numpy as np
 from numpy.typing import NDArray
@@ -306,15 +305,16 @@ class DiscoveryResult:
                 'gap_before_dps': float(s.gap_before_dps), 'gap_after_dps': float(s.gap_after_dps),
                 'heldout_gap_before_dps': float(s.heldout_gap_before_dps),
                 'heldout_gap_after_dps': float(s.heldout_gap_after_dps),
-                'params': _plain(s.params),
-                'coef_dps': _plain(s.coef_dps),
+                'params': plain(s.params, nan_to_none=True),
+                'coef_dps': plain(s.coef_dps, nan_to_none=True),
                 'p_value': None if b is None else float(b.p_value),
                 'heldout_gain_dps2': None if b is None else float(b.heldout_gain_dps2),
                 'effect_rms_dps': None if b is None else float(b.effect_rms_dps),
                 'flagged_bins_before': int(sum(m.n_flagged for m in s.maps_before)),
                 'flagged_bins_after': int(sum(m.n_flagged for m in s.maps_after)),
-                'adev': {'tau_s': _plain(s.adev_tau_s), 'before_dps': _plain(s.adev_before_dps),
-                         'after_dps': _plain(s.adev_after_dps)},
+                'adev': {'tau_s': plain(s.adev_tau_s, nan_to_none=True),
+                         'before_dps': plain(s.adev_before_dps, nan_to_none=True),
+                         'after_dps': plain(s.adev_after_dps, nan_to_none=True)},
                 'thermal': None if s.thermal is None else s.thermal.to_dict(),
             })
         doc = {
@@ -329,22 +329,6 @@ class DiscoveryResult:
         if self.thermal is not None:        # the final thermal state, when there is one
             doc['thermal'] = self.thermal.to_dict()
         return doc
-
-
-def _plain(value: Any) -> Any:
-    """Convert numpy values to plain Python types (NaN becomes None)."""
-    if isinstance(value, np.ndarray):
-        return _plain(value.tolist())
-    if isinstance(value, (list, tuple)):
-        return [_plain(v) for v in value]
-    if isinstance(value, Mapping):
-        return {str(k): _plain(v) for k, v in value.items()}
-    if isinstance(value, (np.floating, float)):
-        v = float(value)
-        return v if math.isfinite(v) else None
-    if isinstance(value, np.integer):
-        return int(value)
-    return value
 
 
 def format_summary(result: DiscoveryResult) -> str:

@@ -1,0 +1,222 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+
+"""
+The typed sections of a simulator scenario (frozen dataclasses, scenario units).
+
+:mod:`gyro_tdc.sim.schema` validates a scenario mapping into these; the simulator reads them
+from :class:`gyro_tdc.sim.scenario.Scenario`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['AccelSpec', 'GyroSpec', 'NoiseSpec', 'RateTable', 'RunsSpec', 'ThermalSpec',
+           'ThermometerSpec', 'Vec3']
+
+Vec3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True)
+class ThermalSpec:
+    """
+    Heat-conduction chain, see :func:`gyro_tdc.sim.thermal.simulate_thermal`.
+
+    Parameters
+    ----------
+    tau_air_s, tau_package_s, tau_die_s : float, s
+        Set point -> air, air -> package, package -> die time constants.
+    internal_step_s : float, s
+        Integration grid step.
+
+    """
+
+    tau_air_s: float
+    tau_package_s: float
+    tau_die_s: float
+    internal_step_s: float
+
+
+@dataclass(frozen=True)
+class ThermometerSpec:
+    """
+    Thermometer: where it sits, how often and how finely it reads.
+
+    Parameters
+    ----------
+    location : {'package', 'die'}
+        External probe on the package, or the on-die register.
+    rate_hz : float, Hz
+        Sample rate.
+    resolution_c : float, degC
+        Quantisation step (0 = none).
+    noise_c : float, degC
+        White noise standard deviation.
+    tau_s : float, s
+        Sensor time constant.
+    offset_c : float, degC
+        Calibration offset added to every reading.
+
+    """
+
+    location: str
+    rate_hz: float
+    resolution_c: float
+    noise_c: float
+    tau_s: float
+    offset_c: float
+
+
+@dataclass(frozen=True)
+class GyroSpec:
+    """
+    Deterministic gyro error model, in the scenario's units (deg/s based).
+
+    Parameters
+    ----------
+    effects : tuple of str
+        Enabled effect ids (subset of :data:`gyro_tdc.effects.EFFECT_IDS`).
+    t_ref_c : float, degC
+        Reference temperature of ``dT_die``.
+    bias_dps, dT_dps_per_c, dT2_dps_per_c2, dT3_dps_per_c3 : tuple of 3 float
+        Polynomial coefficients in ``dT_die``.
+    dTdt_dps_per_c_per_s : tuple of 3 float, (deg/s)/(degC/s)
+        Gain on the die's rate of temperature change.
+    scale_ppm_per_c : tuple of 3 float, ppm/degC
+        Scale-factor change vs temperature.
+    warmup_dps : tuple of 3 float, deg/s
+        Warm-up transient amplitude.
+    warmup_tau_s : float, s
+        Warm-up time constant.
+    power_on_s : float, s
+        Power-on time relative to the start of the recording.
+    sensitivity_mdps_per_digit : float, mdps
+        One digit of the output (quantisation step).
+    range_dps : float, deg/s
+        Full scale (saturation); 0 = none.
+    quantise : bool
+        Round the output to digits.
+
+    """
+
+    effects: tuple[str, ...]
+    t_ref_c: float
+    bias_dps: Vec3
+    dT_dps_per_c: Vec3
+    dT2_dps_per_c2: Vec3
+    dT3_dps_per_c3: Vec3
+    dTdt_dps_per_c_per_s: Vec3
+    scale_ppm_per_c: Vec3
+    warmup_dps: Vec3
+    warmup_tau_s: float
+    power_on_s: float
+    sensitivity_mdps_per_digit: float
+    range_dps: float
+    quantise: bool
+
+
+@dataclass(frozen=True)
+class NoiseSpec:
+    """
+    Stochastic gyro errors.
+
+    Parameters
+    ----------
+    enabled : bool
+        Master switch.
+    arw_dps_per_rt_hz : tuple of 3 float, (deg/s)/sqrt(Hz)
+        White rate noise density.
+    bias_instability_dps : tuple of 3 float, deg/s
+        Standard deviation of the Gauss-Markov sum.
+    bias_instability_tau_s : tuple of float, s
+        Correlation times of the Gauss-Markov processes.
+    rrw_dps_per_rt_s : tuple of 3 float, (deg/s)/sqrt(s)
+        Rate random walk coefficient.
+
+    """
+
+    enabled: bool
+    arw_dps_per_rt_hz: Vec3
+    bias_instability_dps: Vec3
+    bias_instability_tau_s: tuple[float, ...]
+    rrw_dps_per_rt_s: Vec3
+
+
+@dataclass(frozen=True)
+class AccelSpec:
+    """
+    Accelerometer: gravity on +z plus white noise.
+
+    Parameters
+    ----------
+    gravity_mps2 : float, m/s^2
+        Specific force on +z.
+    noise_mps2_per_rt_hz : tuple of 3 float, (m/s^2)/sqrt(Hz)
+        Noise density.
+
+    """
+
+    gravity_mps2: float
+    noise_mps2_per_rt_hz: Vec3
+
+
+@dataclass(frozen=True)
+class RateTable:
+    """
+    Reference-rate schedule, held between change points.
+
+    Parameters
+    ----------
+    t_s : tuple of float, s
+        Change times, strictly increasing, the first at 0.
+    rate_rad_s : tuple of 3-tuples, rad/s
+        Rate from each change time on.
+
+    """
+
+    t_s: tuple[float, ...]
+    rate_rad_s: tuple[Vec3, ...]
+
+    @property
+    def moving(self) -> bool:
+        """Return True when any rate is non-zero."""
+        return any(v != 0.0 for row in self.rate_rad_s for v in row)
+
+    def arrays(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Return the change points as arrays ``(t (R,), rate (R, 3))``."""
+        return (np.asarray(self.t_s, dtype=np.float64),
+                np.asarray(self.rate_rad_s, dtype=np.float64).reshape(-1, 3))
+
+
+@dataclass(frozen=True)
+class RunsSpec:
+    """
+    How many runs a scenario yields and how they differ.
+
+    Parameters
+    ----------
+    count : int
+        Number of runs.
+    bias_offset_dps_std : tuple of 3 float, deg/s
+        Standard deviation of the run-to-run bias offset.
+
+    """
+
+    count: int
+    bias_offset_dps_std: Vec3
