@@ -80,9 +80,9 @@ class PanCubesat:
 
 
 def default_pan_csv() -> Path:
-    """Return the shared data set's CSV path (``../shared/...`` beside the repository)."""
+    """Return the recording's CSV path: ``data/pan_cubesat_tvac`` in the repository."""
     root = Path(__file__).resolve().parent.parent
-    return root.parent / 'shared' / 'data' / 'pan_cubesat_tvac' / 'TVCtest3_7_20.csv'
+    return root / 'data' / 'pan_cubesat_tvac' / 'TVCtest3_7_20.csv'
 
 
 def read_pan_cubesat_csv(path: str | Path) -> PanCubesat:

@@ -39,7 +39,7 @@ import numpy as np
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
-PAN_CSV = ROOT.parent / 'shared' / 'data' / 'pan_cubesat_tvac' / 'TVCtest3_7_20.csv'
+PAN_CSV = ROOT / 'data' / 'pan_cubesat_tvac' / 'TVCtest3_7_20.csv'   # shipped in the repository
 needs_pan = pytest.mark.skipif(
     not PAN_CSV.is_file(),
     reason=f'real recording {PAN_CSV} is absent (it ships beside the repository in CI)')
