@@ -37,11 +37,16 @@ The compensator runs a 12-centre RBF model in ``dT, dT2`` fitted here on a simul
 ``--model FILE``). Short trials alternate relay and compensator (ABBA) so that load from other
 processes on the host hits both alike; throughput and CPU are medians over the trials,
 latency percentiles are over every message of a rate pooled. ``--soak`` runs the
-compensator for 10 minutes at 1 kHz across processes and samples its RSS every 10 s::
+compensator for 10 minutes at 1 kHz across processes and samples its RSS every 10 s.
+``--hog N`` runs N busy-looping processes (CPU load competing for the cores) during the
+trials; drops are then compared with the input losses the compensator itself reports on
+/diagnostics (``input lost``, the DDS message-lost event, cross mode)::
 
     .venv/bin/python bench/bench_compensator.py                       # ~4 min
     .venv/bin/python bench/bench_compensator.py --executor single     # compare executors
     .venv/bin/python bench/bench_compensator.py --soak                # 10 min at 1 kHz
+    .venv/bin/python bench/bench_compensator.py --modes cross --rates 2000,max --hog 2
+    .venv/bin/python bench/bench_compensator.py --burst 20000   # losses and what is reported
 """
 
 import os
@@ -116,7 +121,8 @@ def make_relay(context, ns, timed=False, raw=False):
     return node
 
 
-def make_compensator(context, ns, model_file, executor, timed=False, raw_cdr=True):
+def make_compensator(context, ns, model_file, executor, timed=False, raw_cdr=True,
+                     input_reliability='best_effort'):
     """Return a CompensatorNode in namespace ``ns`` with the bench model."""
     from gyro_tdc.nodes.compensator_node import CompensatorNode
     from rclpy.parameter import Parameter
@@ -138,7 +144,8 @@ def make_compensator(context, ns, model_file, executor, timed=False, raw_cdr=Tru
     node = cls(context=context, namespace=ns, parameter_overrides=[
         Parameter('model_file', value=str(model_file)), Parameter('executor', value=executor),
         Parameter('queue_depth', value=QUEUE), Parameter('temperature_timeout', value=5.0),
-        Parameter('raw_cdr', value=raw_cdr)])
+        Parameter('raw_cdr', value=raw_cdr),
+        Parameter('input_reliability', value=input_reliability)])
     node.cb_ns = []
     return node
 
@@ -401,7 +408,12 @@ def _cross_trial(procs, ns, rate, duration):
 
 
 def run_cross(args, model_file):
-    """Run every cross-process trial; return {dut: {rate: [trial, ...]}}."""
+    """
+    Run every cross-process trial; return {dut: {rate: [trial, ...]}}.
+
+    Also sets ``args.reported_lost``: the input losses the compensator reported on
+    /diagnostics over the whole run (None when it never said).
+    """
     procs = start_cross(args, model_file)
     try:
         results = {d: {r: [] for r in args.rates} for d in DUTS}
@@ -411,6 +423,7 @@ def run_cross(args, model_file):
                     res = _cross_trial(procs, name, rate, args.duration)
                     results[name][rate].append(res)
                     _progress('cross', name, rate, rep, res)
+        args.reported_lost = procs['io'].ask('lost')['lost']
         return results
     finally:
         for child in procs.values():
@@ -456,6 +469,73 @@ def _slope(x, y):
     return sum((a - mx) * (b - my) for a, b in zip(x, y)) / den if den else 0.0
 
 
+# -- bursts: what is lost beyond capacity, and what the compensator says ----------------
+
+
+def run_burst(args, model_file):
+    """
+    Send ``--burst`` messages as fast as one process publishes into a compensator here.
+
+    The publisher is ``test/burst_publisher.py`` in a child process (best effort, keep last,
+    ``--burst-repeats`` times; then reliable keep-all into ``input_reliability: reliable``).
+    Returns one row per burst: received, lost and what the compensator reported lost.
+    """
+    import rclpy
+    from rclpy.context import Context
+    from sensor_msgs.msg import Temperature
+    rows = []
+    kinds = [('best_effort', 'keep_last', 'best_effort')] * args.burst_repeats
+    for publisher, history, subscription in kinds + [('reliable', 'keep_all', 'reliable')]:
+        context = Context()
+        rclpy.init(context=context)
+        try:
+            node = make_compensator(context, '', model_file, args.executor,
+                                    input_reliability=subscription)
+            io = rclpy.create_node('bench_burst_io', context=context)
+            temp_pub = io.create_publisher(Temperature, 'imu/temperature', _qos()[1])
+            ex = make_executor(args.executor, context)
+            ex.add_node(node)
+            ex.add_node(io)
+            _spin_for(ex, lambda: temp_pub.get_subscription_count() >= 1, 10.0)
+            temp = Temperature()
+            temp.header.stamp.sec = 1_700_000_499   # before the burst's stamps
+            temp.temperature = 30.0
+            _spin_for(ex, lambda: temp_pub.publish(temp) or node.core.temps.received, 10.0)
+            child = subprocess.Popen(
+                [sys.executable, str(ROOT / 'test' / 'burst_publisher.py'), str(args.burst),
+                 publisher, history], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+            lines = []
+            reader = threading.Thread(target=lambda: lines.extend(child.stdout), daemon=True)
+            reader.start()
+            _spin_for(ex, lambda: any('matched' in x for x in lines), 30.0)
+            _spin_for(ex, lambda: node.count_publishers('imu/data_raw') >= 1, 10.0)
+            child.stdin.write('go\n')
+            child.stdin.flush()
+            _spin_for(ex, lambda: any('published' in x for x in lines), 120.0)
+            last, quiet = -1, time.monotonic()
+            while time.monotonic() - quiet < 1.0:   # until nothing came for 1 s
+                ex.spin_once(timeout_sec=0.05)
+                if node.core.counts['in'] != last:
+                    last, quiet = node.core.counts['in'], time.monotonic()
+            child.stdin.close()
+            child.wait(timeout=30)
+            counts = node.core.counts
+            row = {'publisher': f'{publisher}/{history}', 'input': subscription,
+                   'sent': args.burst, 'received': counts['in'], 'out': counts['out'],
+                   'lost': args.burst - counts['in'], 'reported_lost': node.inputs.lost}
+            rows.append(row)
+            print(f'  burst {row["publisher"]:22s} -> input {subscription:11s}: received '
+                  f'{row["received"]:6d} of {args.burst}, out {row["out"]:6d}, lost '
+                  f'{row["lost"]:6d}, reported lost (DDS message-lost event) '
+                  f'{row["reported_lost"]:6d}', flush=True)
+            ex.shutdown()
+            io.destroy_node()
+            node.destroy_node()
+        finally:
+            rclpy.try_shutdown(context=context)
+    return rows
+
+
 # -- roles (child processes) ----------------------------------------------------------
 
 
@@ -497,14 +577,30 @@ def _reply(obj):
 def _io_loop(namespaces):
     """Source and sink in one process: run trials asked for on stdin, reply with figures."""
     import rclpy
+    from diagnostic_msgs.msg import DiagnosticArray
     node = rclpy.create_node('bench_io')
     source = Source(node, namespaces)
     sink = Sink(node, namespaces)
+    reported = {}  # the compensator's own count of lost input (its /diagnostics)
+
+    def on_diag(msg):
+        for status in msg.status:
+            for kv in status.values:
+                if kv.key == 'input lost':
+                    reported['lost'] = int(kv.value)
+
+    node.create_subscription(DiagnosticArray, '/diagnostics', on_diag, 10)
     ex = make_executor('events')
     ex.add_node(node)
     _reply({'ready': True, 'pid': os.getpid()})
     for line in sys.stdin:
         words = line.split()
+        if words[0] == 'lost':
+            end = time.monotonic() + 1.5  # the compensator reports at 1 Hz: the next report
+            while time.monotonic() < end:
+                ex.spin_once(timeout_sec=0.05)
+            _reply({'lost': reported.get('lost')})
+            continue
         ns = words[1]
         if words[0] == 'ready':
             try:
@@ -623,6 +719,17 @@ def goals(summary):
               'us')
 
 
+def start_hogs(count):
+    """Start ``count`` busy-looping processes (competing CPU load); return them."""
+    return [subprocess.Popen([sys.executable, '-c', 'while True: pass']) for _ in range(count)]
+
+
+def stop_hogs(hogs):
+    for hog in hogs:
+        hog.kill()
+        hog.wait()
+
+
 def bench_model(path):
     """Fit the bench model (RBF, dT + dT2, 12 centres) on a simulated run; save it."""
     from gyro_tdc.fitting import fit_model
@@ -654,6 +761,13 @@ def main(argv=None):
     parser.add_argument('--soak', action='store_true',
                         help='only the soak: compensator, 1 kHz across processes')
     parser.add_argument('--soak-minutes', type=float, default=10.0)
+    parser.add_argument('--burst', type=int, default=0,
+                        help='instead of the trials: bursts of this many messages into a '
+                        'compensator in this process (best effort, then reliable keep-all)')
+    parser.add_argument('--burst-repeats', type=int, default=3,
+                        help='best-effort bursts before the reliable one')
+    parser.add_argument('--hog', type=int, default=0,
+                        help='busy-looping processes competing for the CPU during the trials')
     parser.add_argument('--json', help='write every figure to this JSON file')
     parser.add_argument('--role', choices=('io',) + DUTS, help=argparse.SUPPRESS)
     parser.add_argument('--ns', default='', help=argparse.SUPPRESS)
@@ -666,14 +780,26 @@ def main(argv=None):
     print(f'bench_compensator: relay {"raw bytes" if args.raw_relay else "deserialising"}, '
           f'compensator raw_cdr {not args.no_raw_cdr}, executor {args.executor}, ROS_DOMAIN_ID '
           f'{os.environ["ROS_DOMAIN_ID"]}, {os.cpu_count()} CPUs, {args.duration:g} s x '
-          f'{args.repeats} per rate', flush=True)
+          f'{args.repeats} per rate, {args.hog} CPU hog process(es)', flush=True)
+    hogs = start_hogs(args.hog)
+    try:
+        return _run(args)
+    finally:
+        stop_hogs(hogs)
+
+
+def _run(args):
+    """Run the trials asked for and print the figures; return the exit status."""
     with tempfile.TemporaryDirectory() as tmp:
         model_file = args.model or bench_model(Path(tmp) / 'bench_model.yaml')
         summary = {'executor': args.executor, 'duration_s': args.duration,
                    'repeats': args.repeats, 'raw_relay': args.raw_relay,
-                   'raw_cdr': not args.no_raw_cdr}
+                   'raw_cdr': not args.no_raw_cdr, 'hog': args.hog}
         raw = {}
-        if args.soak:
+        if args.burst:
+            print(f'burst: {args.burst} messages as fast as one process publishes', flush=True)
+            summary['burst'] = run_burst(args, model_file)
+        elif args.soak:
             print(f'soak: compensator, 1 kHz across processes, {args.soak_minutes:g} min',
                   flush=True)
             summary['soak'] = run_soak(args, model_file)
@@ -682,6 +808,13 @@ def main(argv=None):
                 print(f'{mode}:', flush=True)
                 raw[mode] = (run_inproc if mode == 'inproc' else run_cross)(args, model_file)
                 summary[mode] = report(mode, raw[mode], args.rates)
+                if mode == 'cross':
+                    summary[mode]['reported_lost'] = args.reported_lost
+                    drops = sum(t['drops'] for per in raw[mode]['compensator'].values()
+                                for t in per)
+                    print(f'cross: compensator drops {drops} in total over every trial; '
+                          f'input lost it reported on /diagnostics (DDS message-lost event): '
+                          f'{args.reported_lost}')
         goals(summary)
         if args.json:
             Path(args.json).write_text(json.dumps({'summary': summary, 'trials': {

@@ -377,10 +377,10 @@ def test_a_burst_beyond_capacity_reports_lost_messages(models, rig_factory):
     rig = rig_factory(executor_kind='events', model_file=str(models['paper'][0]))
     rig.temperature(to_ns(1_700_000_499.0), 20.0)
     rig.spin_until(lambda: rig.node.core.temps.received == 1, what='temperature')
-    received = burst(rig, 20000, 'best_effort', 'keep_last')
+    received = burst(rig, 40000, 'best_effort', 'keep_last')
     counts = rig.node.core.counts
     assert counts['in'] == counts['out'] == received
-    assert received < 20000  # 20k as fast as one process publishes: more than one takes
+    assert received < 40000  # as fast as one process publishes: more than one takes
     assert rig.node.inputs.lost > 0
     # /diagnostics said so (WARN) at the report after the losses, with the count.
     reports = rig.diag + [rig.node.diagnostic_status()]

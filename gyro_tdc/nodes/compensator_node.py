@@ -79,7 +79,7 @@ CompensatorParams = spec_dataclass(
         **{s.name: getattr(self, s.name) for s in PARAMS if s.policy})})
 
 #: What the node's load edge turns into a refused file: the loader's documented errors
-#: (every :class:`~gyro_tdc.errors.GyroTdcError`: ModelFileError, LimitError...) and, as a
+#: (every :class:`~gyro_tdc.errors.GyroTdcError`, ModelFileError above all) and, as a
 #: last resort should a parser limit ever let a hostile file through, RecursionError and
 #: MemoryError: no file may stop the node.
 LOAD_ERRORS = (GyroTdcError, RecursionError, MemoryError)
@@ -104,9 +104,8 @@ def read_model(name_or_file: str) -> CompensationModel:
     Raises
     ------
     ModelFileError
-        The file is missing, malformed or inconsistent (one-line reason).
-    LimitError
-        The file exceeds one of the model loader's limits.
+        The file is missing, malformed, inconsistent or beyond one of the model loader's
+        limits (size, nesting, aliases, centres; one-line reason).
 
     """
     return load_model(model_path(name_or_file))
