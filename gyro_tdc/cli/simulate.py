@@ -13,20 +13,25 @@
 # limitations under the License.
 
 """
-``python -m gyro_tdc simulate``: simulate a thermal-chamber scenario into rosbag2 bags.
+``gyro-tdc simulate``: simulate a thermal-chamber scenario into rosbag2 bags.
 
 A single-run scenario writes one bag at ``--out``; a multi-run scenario writes the directory
 ``OUT/run1 ... OUT/runN``. Topics: ``/imu/data_raw`` (sensor_msgs/Imu, frame ``imu_link``),
 ``/imu/temperature`` (sensor_msgs/Temperature) and, when the rate table is ever non-zero,
 ``/rate_table/reference`` (geometry_msgs/Vector3Stamped, one message per change).
+``--force`` replaces an earlier output of ``simulate`` (and nothing else); ``--help`` lists
+the shipped scenarios.
 """
 
 from __future__ import annotations
 
 import argparse
 import math
+import os
 from pathlib import Path
+import shutil
 import sys
+import textwrap
 import time
 from typing import Callable, Optional, Sequence
 
@@ -34,30 +39,92 @@ from gyro_tdc.atomicio import atomic_dir
 from gyro_tdc.cli.common import ArgumentParser, run_command
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.limits import check_sim_samples
+from gyro_tdc.resources import scenario_names
 from gyro_tdc.sim import load_scenario, SimRun, simulate_run
 import numpy as np
 
 __all__ = ['build_parser', 'main', 'simulate']
 
 
+def scenario_listing(width: int = 92) -> str:
+    """
+    Return the shipped scenarios as help text: name, runs, length and rate, description.
+
+    Parameters
+    ----------
+    width : int
+        Line width of the wrapped descriptions.
+
+    Returns
+    -------
+    str
+        Multi-line text; a scenario that cannot be read is listed with its error.
+
+    """
+    lines = ['shipped scenarios (--scenario NAME; config/scenarios/NAME.yaml):']
+    for name in scenario_names():
+        try:
+            sc = load_scenario(name)
+        except GyroTdcError as exc:
+            lines.append(f'  {name}: cannot be read: {exc}')
+            continue
+        runs = f'{sc.runs.count} runs' if sc.runs.count > 1 else '1 run'
+        lines.append(f'  {name}: {runs} of {sc.duration_s / 3600.0:.2f} h at '
+                     f'{sc.imu_rate_hz:g} Hz')
+        lines += textwrap.wrap(' '.join(str(sc.description).split()), width,
+                               initial_indent='      ', subsequent_indent='      ')
+    return '\n'.join(lines)
+
+
+class _HelpWithScenarios(ArgumentParser):
+    """The parser of ``simulate``: ``--help`` ends with the shipped scenarios."""
+
+    def format_help(self) -> str:
+        """Return argparse's help followed by :func:`scenario_listing` (read on demand)."""
+        return super().format_help() + '\n' + scenario_listing() + '\n'
+
+
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``simulate``."""
-    parser = ArgumentParser(
-        prog='python -m gyro_tdc simulate',
+    parser = _HelpWithScenarios(
+        prog='gyro-tdc simulate',
         description='Simulate a gyro in a thermal chamber on a rate table and write rosbag2 '
                     'bags (one per run).')
     parser.add_argument('--scenario', required=True, metavar='NAME|FILE',
-                        help='shipped scenario name (config/scenarios) or a YAML file')
+                        help='shipped scenario name (listed below) or a YAML file')
     parser.add_argument('--out', required=True, metavar='BAG',
                         help='bag directory to create; for a multi-run scenario a directory '
                              'holding run1 ... runN')
+    parser.add_argument('--force', action='store_true',
+                        help='replace --out when it exists and holds what simulate writes (a '
+                             'bag, or a folder of run bags); anything else is refused')
     parser.add_argument('--storage', choices=('sqlite3', 'mcap'), default='sqlite3',
                         help='rosbag2 storage plugin (default: sqlite3)')
     parser.add_argument('--seed', type=int, default=0, metavar='N',
                         help='random seed (default: 0)')
     parser.add_argument('--rate-hz', type=float, default=None, metavar='F',
                         help="IMU rate in Hz (default: the scenario's)")
+    parser.add_argument('--no-progress', dest='progress', action='store_false', default=None,
+                        help='no progress bar over the runs (default: shown on a terminal)')
     return parser
+
+
+def _is_bag(path: Path) -> bool:
+    """Return True when ``path`` is a rosbag2 directory (it holds ``metadata.yaml``)."""
+    return path.is_dir() and not path.is_symlink() and (path / 'metadata.yaml').is_file()
+
+
+def _check_replaceable(out: Path) -> None:
+    """Raise unless ``out`` is a bag or a folder of ``runN`` bags (what simulate writes)."""
+    if _is_bag(out):
+        return
+    if out.is_dir() and not out.is_symlink():
+        entries = list(out.iterdir())
+        if entries and all(e.name.startswith('run') and e.name[3:].isdigit() and _is_bag(e)
+                           for e in entries):
+            return
+    raise GyroTdcError(f'--out: {str(out)!r} exists and is not a bag or a folder of run bags '
+                       'written by simulate; --force replaces only those. Choose a new path.')
 
 
 def _summary(run: SimRun, path: Path, seconds: float) -> str:
@@ -70,7 +137,7 @@ def _summary(run: SimRun, path: Path, seconds: float) -> str:
 
 
 def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0,
-             rate_hz: Optional[float] = None,
+             rate_hz: Optional[float] = None, force: bool = False, progress: bool = False,
              log: Callable[[str], None] = print) -> list[Path]:
     """
     Simulate every run of a scenario and write one bag per run.
@@ -81,13 +148,18 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
         Shipped scenario name or YAML path.
     out : str
         Bag directory (single run) or directory of ``run1 ... runN`` (several runs); must
-        not exist.
+        not exist unless ``force``.
     storage : {'sqlite3', 'mcap'}
         rosbag2 storage plugin.
     seed : int
         Random seed, >= 0.
     rate_hz : float, optional
         IMU rate overriding the scenario's.
+    force : bool
+        Replace ``out`` when it exists and is a bag or a folder of run bags; the old one is
+        removed only once the new one is complete (restored when the simulation fails).
+    progress : bool
+        Show a progress bar over the runs on stderr.
     log : callable
         Receives one summary line per run.
 
@@ -100,13 +172,17 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
     ------
     GyroTdcError
         ScenarioError for a bad scenario, seed or rate; DatasetError when a bag cannot be
-        written; GyroTdcError when ``out`` exists.
+        written; GyroTdcError when ``out`` exists (without ``force``, or when it is not
+        an output of simulate).
 
     """
     sc = load_scenario(scenario)
     out_path = Path(out)
-    if out_path.exists():
-        raise GyroTdcError(f'--out: {str(out_path)!r} already exists; choose a new path.')
+    if os.path.lexists(out_path):
+        if not force:
+            raise GyroTdcError(f'--out: {str(out_path)!r} already exists; choose a new path, '
+                               'or add --force to replace it.')
+        _check_replaceable(out_path)
     if seed < 0:
         raise GyroTdcError(f'--seed: expected an integer >= 0, got {seed}.')
     if rate_hz is not None and not (math.isfinite(rate_hz) and rate_hz > 0.0):
@@ -115,19 +191,44 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
                       option='imu_rate_hz' if rate_hz is None else '--rate-hz')
     # One bag, or a folder of run1..runN: built out of sight and renamed when complete, so
     # a failure (full disk, Ctrl-C, a bad run) leaves nothing behind.
+    # With --force the old output is moved aside first and removed only when the new one is
+    # in place; a failure puts it back.
     names = [f'run{i + 1}' for i in range(sc.runs.count)] if sc.runs.count > 1 else ['']
-    with atomic_dir(out_path, what='bag') as build:
-        if sc.runs.count > 1:
-            build.mkdir()
-        _simulate_runs(sc, [build / n for n in names], [out_path / n for n in names],
-                       storage, seed, rate_hz, log)
+    old = _move_aside(out_path) if os.path.lexists(out_path) else None
+    try:
+        with atomic_dir(out_path, what='bag') as build:
+            if sc.runs.count > 1:
+                build.mkdir()
+            _simulate_runs(sc, [build / n for n in names], [out_path / n for n in names],
+                           storage, seed, rate_hz, log, progress)
+    except BaseException:
+        if old is not None:
+            os.rename(old, out_path)
+        raise
+    if old is not None:
+        shutil.rmtree(old)
     return [out_path / n for n in names]
 
 
-def _simulate_runs(sc, paths, shown, storage, seed, rate_hz, log) -> None:
+def _move_aside(path: Path) -> Path:
+    """Rename ``path`` to a free hidden name beside it and return that name."""
+    for k in range(100):
+        aside = path.parent / f'.{path.name}.replaced-{os.getpid()}-{k}'
+        if not os.path.lexists(aside):
+            os.rename(path, aside)
+            return aside
+    raise GyroTdcError(f'--out: no free temporary name beside {str(path)!r}')
+
+
+def _simulate_runs(sc, paths, shown, storage, seed, rate_hz, log, progress=False) -> None:
     """Simulate run k of ``sc`` into ``paths[k]`` (logged as ``shown[k]``)."""
     from gyro_tdc.bagio import write_bag
+    from tqdm import tqdm
 
+    bar = tqdm(total=len(paths), unit='run', desc='simulate', file=sys.stderr,
+               disable=not progress or len(paths) < 2, leave=False)
+    if not bar.disable:
+        log = bar.write     # summary lines above the bar
     for index, (path, name) in enumerate(zip(paths, shown)):
         start = time.perf_counter()
         run = simulate_run(sc, seed=seed, run_index=index, rate_hz=rate_hz)
@@ -140,17 +241,20 @@ def _simulate_runs(sc, paths, shown, storage, seed, rate_hz, log) -> None:
                   temperature_topic='/imu/temperature', reference_topic='/rate_table/reference',
                   gyro_cov=run.truth.noise_std ** 2, accel_cov=accel_var)
         log(_summary(run, name, time.perf_counter() - start))
+        bar.update(1)
+    bar.close()
 
 
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``simulate`` with parsed arguments (one summary line per run)."""
+    progress = sys.stderr.isatty() if args.progress is None else args.progress
     simulate(args.scenario, args.out, storage=args.storage, seed=args.seed,
-             rate_hz=args.rate_hz)
+             rate_hz=args.rate_hz, force=args.force, progress=progress)
     return 0
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Run ``python -m gyro_tdc simulate``: 0 on success, 2 on bad input (see ``run_command``)."""
+    """Run ``gyro-tdc simulate``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('simulate', build_parser, _run, argv)
 
 
