@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.bagio: bag round trips, the fixed-layout CDR codec and bad bags."""
+"""Tests of gyro_tdc.bagio (codec, writer, reader): round trips, the codec, bad bags."""
 
 from __future__ import annotations
 
@@ -20,6 +20,7 @@ import ast
 from pathlib import Path
 
 from gyro_tdc import bagio
+from gyro_tdc.bagio import codec, reader
 from gyro_tdc.bagio import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.imu_cdr import encode, Layout
@@ -67,7 +68,7 @@ MAKERS = {IMU_TYPE: _imu, TEMPERATURE_TYPE: _temperature, REFERENCE_TYPE: _vecto
 
 def _fields(msgtype, msg):
     """Flatten every field of a message for comparisons."""
-    return bagio._from_msg(msgtype, msg)
+    return codec.from_msg(msgtype, msg)
 
 
 def _write_raw(path, storage, topics):
@@ -105,7 +106,7 @@ def test_fixed_layout_decodes_every_field_like_rosbags(msgtype, frame_id, little
             for _ in range(7)]
     raws = [bytes(TS.serialize_cdr(m, msgtype, little_endian=little_endian)) for m in msgs]
     frame = frame_id.encode() + b'\0'
-    dt = Layout(len(frame), bagio._N_DOUBLES[msgtype], big_endian=not little_endian).dtype
+    dt = Layout(len(frame), codec.N_DOUBLES[msgtype], big_endian=not little_endian).dtype
     assert dt.itemsize == len(raws[0])
     rec = np.frombuffer(b''.join(raws), dtype=dt)
     for i, raw in enumerate(raws):
@@ -115,9 +116,9 @@ def test_fixed_layout_decodes_every_field_like_rosbags(msgtype, frame_id, little
         assert rec['frame'][i].tobytes() == frame
         np.testing.assert_array_equal(rec['data'][i], row)
 
-    dec = bagio._decode_fast(raws, msgtype)
+    dec = codec.decode_fast(raws, msgtype)
     assert dec is not None and dec.fallback == 0 and dec.frame_id == frame_id
-    keep = list(bagio._KEEP[msgtype])
+    keep = list(codec.KEEP[msgtype])
     for i, raw in enumerate(raws):
         sec, nsec, _, row = _fields(msgtype, TS.deserialize_cdr(raw, msgtype))
         assert (dec.sec[i], dec.nanosec[i]) == (sec, nsec)
@@ -131,33 +132,33 @@ def test_fixed_layout_encodes_like_rosbags(msgtype, frame_id):
     n = 5
     sec = rng.integers(0, 2**31, size=n)
     nsec = rng.integers(0, 10**9, size=n)
-    data = rng.normal(size=(n, bagio._N_DOUBLES[msgtype]))
+    data = rng.normal(size=(n, codec.N_DOUBLES[msgtype]))
     data[1, 0] = np.nan
     data[2, -1] = -np.inf
     encoded = encode(sec, nsec, frame_id, data)
     for i in range(n):
-        msg = bagio._to_msg(msgtype, sec[i], nsec[i], frame_id, data[i])
+        msg = codec.to_msg(msgtype, sec[i], nsec[i], frame_id, data[i])
         assert encoded[i] == bytes(TS.serialize_cdr(msg, msgtype))
 
 
 def test_fast_decoder_refuses_mixed_layouts():
     rng = np.random.default_rng(3)
     same_len = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('imu0', 'imu1')]
-    assert bagio._decode_fast(same_len, IMU_TYPE) is None
+    assert codec.decode_fast(same_len, IMU_TYPE) is None
     other_len = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('a', 'bcd')]
-    assert bagio._decode_fast(other_len, IMU_TYPE) is None
+    assert codec.decode_fast(other_len, IMU_TYPE) is None
     mixed_endian = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE, little_endian=le))
                     for le in (True, False)]
-    assert bagio._decode_fast(mixed_endian, IMU_TYPE) is None
+    assert codec.decode_fast(mixed_endian, IMU_TYPE) is None
     trailing = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE)) + b'\0\0' for _ in range(2)]
-    assert bagio._decode_fast(trailing, IMU_TYPE) is None
+    assert codec.decode_fast(trailing, IMU_TYPE) is None
     # ...and the rosbags fallback decodes all of them right.
     for raws in (same_len, other_len, mixed_endian, trailing):
-        dec = bagio._decode(raws, IMU_TYPE, TS)
+        dec = codec.decode(raws, IMU_TYPE, TS)
         assert dec.fallback == len(raws)
         for i, raw in enumerate(raws):
             row = np.asarray(_fields(IMU_TYPE, TS.deserialize_cdr(raw, IMU_TYPE))[3])
-            np.testing.assert_array_equal(dec.values[i], row[list(bagio._KEEP[IMU_TYPE])])
+            np.testing.assert_array_equal(dec.values[i], row[list(codec.KEEP[IMU_TYPE])])
 
 
 # ------------------------------------------------------------------------------------------
@@ -253,7 +254,7 @@ def test_write_read_round_trip(tmp_path, storage, frame_id):
 
 @pytest.mark.parametrize('storage', STORAGES)
 def test_round_trip_over_several_blocks(tmp_path, storage, monkeypatch):
-    monkeypatch.setattr(bagio, '_CHUNK', 256)
+    monkeypatch.setattr(reader, '_CHUNK', 256)
     data = _small_bag(tmp_path / 'bag', storage, n=3000, frame_id='imu_l')
     got = read_bag(tmp_path / 'bag', progress=True)
     np.testing.assert_array_equal(got.gyro, data['gyro'])
@@ -302,7 +303,7 @@ def test_mixed_frame_ids_fall_back_and_decode_right(tmp_path, storage):
 def test_zero_stamps_across_blocks_take_the_log_time(tmp_path, storage, monkeypatch):
     # Zero header stamps on the main IMU connection in several blocks, next to undecodable
     # messages and interleaved temperature: each gets its own message's log time.
-    monkeypatch.setattr(bagio, '_CHUNK', 16)
+    monkeypatch.setattr(reader, '_CHUNK', 16)
     rng = np.random.default_rng(12)
     n = 100
     gyro = rng.normal(size=(n, 3))
@@ -464,10 +465,13 @@ def test_write_bag_rejects_bad_arguments(tmp_path):
 
 
 def test_bagio_imports_no_ros_packages():
-    tree = ast.parse(Path(bagio.__file__).read_text())
-    modules = {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import)
-               for alias in node.names}
-    modules |= {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom)}
+    files = sorted(Path(bagio.__file__).parent.glob('*.py'))
+    assert {f.name for f in files} >= {'__init__.py', 'codec.py', 'reader.py', 'writer.py'}
+    trees = [ast.parse(f.read_text()) for f in files]
+    modules = {alias.name for tree in trees for node in ast.walk(tree)
+               if isinstance(node, ast.Import) for alias in node.names}
+    modules |= {node.module for tree in trees for node in ast.walk(tree)
+                if isinstance(node, ast.ImportFrom)}
     roots = {m.split('.')[0] for m in modules if m}
     assert not roots & {'rclpy', 'sensor_msgs', 'std_msgs', 'geometry_msgs', 'rosbag2_py'}
 
