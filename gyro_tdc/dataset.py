@@ -47,7 +47,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['MAX_LOSS_FRACTION', 'MAX_RATE_RAD_S', 'TEMP_PLAUSIBLE_C', 'align_temperature',
-           'expand_bags', 'load_run', 'load_runs']
+           'describe_read', 'expand_bags', 'load_run', 'load_runs']
 
 TEMP_PLAUSIBLE_C = (-100.0, 200.0)
 MAX_RATE_RAD_S = 100.0
@@ -413,6 +413,57 @@ def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
     return out
 
 
+# What each count of ``run.info['rejected']`` means, as a reader would say it.
+_DROPPED = {
+    'imu_nonfinite': 'IMU samples with a NaN or infinite rate',
+    'temp_nonfinite': 'temperature readings that are NaN or infinite',
+    'ref_nonfinite': 'reference messages that are NaN or infinite',
+    'undecodable': 'messages that could not be decoded',
+    'imu_implausible': f'IMU samples above {MAX_RATE_RAD_S:g} rad/s',
+    'temp_implausible': (f'temperature readings outside {TEMP_PLAUSIBLE_C[0]:g} .. '
+                         f'{TEMP_PLAUSIBLE_C[1]:g} degC'),
+    'ref_implausible': f'reference messages above {MAX_RATE_RAD_S:g} rad/s',
+    'duplicate_stamps': 'IMU samples repeating an earlier stamp',
+    'temp_duplicate_stamps': 'temperature readings repeating a stamp (the last one kept)',
+    'out_of_order': 'IMU samples out of order (sorted, not dropped)',
+    'no_temperature': ('IMU samples without a temperature reading close enough (before the '
+                       'first, after the last, or across a gap in the thermometer)'),
+    'no_reference': 'IMU samples before the first reference message',
+}
+
+
+def describe_read(bag: str | os.PathLike, run: Run, reference_topic: str) -> str:
+    """
+    Return the one line that says what was read from a bag, in words.
+
+    Parameters
+    ----------
+    bag : str or PathLike
+        The bag read.
+    run : Run
+        What :func:`load_run` made of it.
+    reference_topic : str
+        The reference topic asked for (named when it was used).
+
+    Returns
+    -------
+    str
+        ``read BAG: N samples over M min, reference rate ...; dropped ...``.
+
+    """
+    source = run.info.get('reference', '?')
+    zero = not np.any(run.omega_ref)
+    reference = {'topic': f'reference rate from {reference_topic}'
+                          + (' (zero throughout)' if zero else ''),
+                 'constant': 'constant reference rate (--reference)',
+                 'zero': f'reference rate zero (no {reference_topic} in the bag)'}.get(
+                     source, f'reference {source}')
+    counts = run.info.get('rejected', {})
+    dropped = '; '.join(f'{v} {_DROPPED.get(k, k)}' for k, v in counts.items() if v)
+    return (f'read {bag}: {len(run)} samples over {run.duration_s / 60.0:.1f} min, '
+            f'{reference}' + (f'; dropped {dropped}' if dropped else ''))
+
+
 def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike, *,
               log: Callable[[str], None] | None = None, **kw) -> list[Run]:
     """
@@ -439,10 +490,7 @@ def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike, *,
     for bag in expand_bags(bags):
         run = load_run(bag, **kw)
         if log is not None:
-            rejected = {k: v for k, v in run.info.get('rejected', {}).items() if v}
-            note = f'; dropped {rejected}' if rejected else ''
-            log(f'read {bag}: {len(run)} samples over {run.duration_s / 60.0:.1f} min, '
-                f'reference {run.info.get("reference", "?")}{note}')
+            log(describe_read(bag, run, kw.get('reference_topic', '/rate_table/reference')))
             for warning in run.info.get('warnings', ()):
                 log(f'warning: {bag}: {warning}')
         runs.append(run)

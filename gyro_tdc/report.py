@@ -48,9 +48,9 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
-    'AXES', 'csv_columns', 'evaluation_json', 'format_allan', 'format_bag', 'format_coverage',
-    'format_means', 'format_paper_table', 'format_summary', 'format_training', 'write_csv',
-    'write_json', 'write_plots',
+    'AXES', 'csv_columns', 'drift_slope', 'evaluation_json', 'format_allan', 'format_bag',
+    'format_coverage', 'format_means', 'format_paper_table', 'format_summary', 'format_training',
+    'is_coverage_line', 'write_csv', 'write_json', 'write_plots',
 ]
 
 AXES = ('x', 'y', 'z')
@@ -124,6 +124,12 @@ def _g(v: float, width: int = 11) -> str:
     return f'{v:>{width}.4g}'
 
 
+# BagEval.reference (where the reference rate came from) in words.
+_REFERENCE = {'topic': 'reference rate from the reference topic',
+              'constant': 'constant reference rate (--reference)',
+              'zero': 'reference rate zero (no reference topic)'}
+
+
 def format_summary(b: BagEval) -> str:
     """
     Return the per-bag summary: BS, RMS and BS/BS1 per axis for raw data and every model.
@@ -140,8 +146,9 @@ def format_summary(b: BagEval) -> str:
 
     """
     lo, hi = b.temperature_c
+    reference = _REFERENCE.get(b.reference, f'reference {b.reference}')
     lines = [f'bag {b.bag}: {b.samples} samples over {b.duration_s / 3600.0:.2f} h, '
-             f'temperature {lo:.2f} .. {hi:.2f} degC, reference {b.reference}']
+             f'temperature {lo:.2f} .. {hi:.2f} degC, {reference}']
     w = max([len(m.label) for m in b.models] + [12])
     head = (f'  {"":<{w}} ' + ''.join(f'{"BS " + a:>11}' for a in AXES) + '  '
             + ''.join(f'{"RMS " + a:>11}' for a in AXES) + '  '
@@ -152,13 +159,25 @@ def format_summary(b: BagEval) -> str:
         lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in m.bs) + '  '
                      + ''.join(_g(v) for v in m.rms_dps) + '  '
                      + ''.join(_g(v) for v in m.p_vs_raw))
+    note = _outside_note(b)
+    if note:
+        lines.append(note)
+    return '\n'.join(lines)
+
+
+def _outside_note(b: BagEval) -> str:
+    """Return one note for every model the bag leaves the trained range of ('' if none)."""
+    groups: dict = {}       # (fraction text, range) -> labels, in model order
     for m in b.models:
         if m.outside_fraction > 0:
-            lines.append(
-                f'  note: {100.0 * m.outside_fraction:.3g} % of the samples lie outside the '
-                f'trained range of {m.label} [{m.temp_range_c[0]:.2f}, '
-                f'{m.temp_range_c[1]:.2f}] degC: evaluated clamped at the range ends')
-    return '\n'.join(lines)
+            key = (f'{100.0 * m.outside_fraction:.3g} %',
+                   f'[{m.temp_range_c[0]:.2f}, {m.temp_range_c[1]:.2f}] degC')
+            groups.setdefault(key, []).append(m.label)
+    parts = [f'{pct} of the samples lie outside the trained range of {", ".join(labels)} '
+             f'{span}' if i == 0 else f'{pct} outside that of {", ".join(labels)} {span}'
+             for i, ((pct, span), labels) in enumerate(groups.items())]
+    return (f'  note: {"; ".join(parts)}: evaluated clamped at the range ends'
+            if parts else '')
 
 
 def format_paper_table(b: BagEval, conventional: int, modified: int) -> str:
@@ -269,7 +288,7 @@ def _bin_name(c: Coverage, i: int) -> str:
 
 def format_coverage(c: Coverage) -> tuple[str, list]:
     """
-    Return the coverage table and the warning lines (without a ``warning:`` prefix).
+    Return the coverage summary (three lines) and the warning lines (no ``warning:`` prefix).
 
     Parameters
     ----------
@@ -279,18 +298,25 @@ def format_coverage(c: Coverage) -> tuple[str, list]:
     Returns
     -------
     table : str
-        One line per bin with samples and minutes, then the heating/cooling line.
+        The range covered; the bins in one line (how many, their minutes: least, median,
+        most, and how many are thin, i.e. under a quarter of the median minutes per degC);
+        minutes heating, cooling and steady.
     warnings : list of str
-        Sparse bins; no heating or no cooling data.
+        The thin bins by name; no heating or no cooling data.
 
     """
     lo, hi = c.temp_range_c
-    lines = [f'temperature range covered: {lo:.2f} .. {hi:.2f} degC (span {hi - lo:.2f} degC)',
-             f'coverage per {c.bin_c:g} degC bin:']
-    for i in range(len(c.samples)):
-        mark = '  <- little data' if i in c.sparse else ''
-        lines.append(f'  {_bin_name(c, i):<22} {int(c.samples[i]):>10} samples '
-                     f'{c.minutes[i]:>9.1f} min{mark}')
+    lines = [f'temperature range covered: {lo:.2f} .. {hi:.2f} degC (span {hi - lo:.2f} degC)']
+    minutes = np.asarray(c.minutes, dtype=np.float64)
+    if minutes.size:
+        least, most = int(np.argmin(minutes)), int(np.argmax(minutes))
+        thin = (f'{len(c.sparse)} thin (named in the warning below)' if c.sparse
+                else 'none thin')
+        lines.append(f'coverage per {c.bin_c:g} degC bin: {minutes.size} bins '
+                     f'{c.edges[0]:g} .. {c.edges[-1]:g} degC; minutes per bin '
+                     f'{minutes[least]:.1f} ({_bin_name(c, least)}) .. {minutes[most]:.1f} '
+                     f'({_bin_name(c, most)}), median {float(np.median(minutes)):.1f}; '
+                     f'{thin}')
     x = c.threshold_c_per_min
     lines.append(f'heating (dT/dt > +{x:g} degC/min): {c.heating_min:.1f} min; cooling '
                  f'(< -{x:g}): {c.cooling_min:.1f} min; steady: {c.steady_min:.1f} min')
@@ -307,9 +333,63 @@ def format_coverage(c: Coverage) -> tuple[str, list]:
     return '\n'.join(lines), warns
 
 
+def is_coverage_line(line: str) -> bool:
+    """
+    Return True for a line of :func:`format_coverage` (its table or its warnings).
+
+    Lets a caller that trains several models on the same bags show the coverage once.
+
+    Parameters
+    ----------
+    line : str
+        One printed line (with or without the ``warning:`` prefix).
+
+    Returns
+    -------
+    bool
+        Whether the line belongs to the coverage report.
+
+    """
+    text = line.removeprefix('warning: ')
+    return text.startswith(('temperature range covered:', 'coverage per ', 'heating (dT/dt',
+                            'little data in temperature bin', 'no heating data:',
+                            'no cooling data:'))
+
+
 # --------------------------------------------------------------------------------------------
 # Training report
 # --------------------------------------------------------------------------------------------
+
+def drift_slope(model: Any) -> NDArray[np.float64]:
+    """
+    Return the mean slope of a model's static drift over its trained range, per axis.
+
+    The static drift is the drift at thermal equilibrium (each temperature held until lag,
+    dT/dt and warm-up terms have settled); the slope is its change from the cold end of
+    ``temp_range_c`` to the warm end, divided by the span. For the conventional model f(dT)
+    it is the fitted zero-rate level change per degC (eq. 18, alpha).
+
+    Parameters
+    ----------
+    model : CompensationModel
+        A fitted model.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (3,), deg/s per degC
+        The slope on x, y and z; NaN when the range has no span.
+
+    """
+    from gyro_tdc.model import drift
+
+    lo, hi = (float(v) for v in model.temp_range_c)
+    if not hi > lo:
+        return np.full(3, math.nan)
+    temp = np.array([lo, lo, hi])            # a settling sample, then the two ends
+    t = np.arange(3, dtype=np.float64) * 1e7    # far apart: every dynamic term has settled
+    b = np.degrees(drift(model, t, temp, clamp=True))
+    return (b[2] - b[1]) / (hi - lo)
+
 
 def _row3(label: str, values: Sequence[float]) -> str:
     """Format one table row of three per-axis numbers."""
@@ -361,6 +441,8 @@ def format_training(result: TrainResult) -> tuple[str, list]:
              _row3('RMS (deg/s)', met.get('train_rms_dps', [math.nan] * 3))]
     if np.any(m.scale != 0):
         lines.append(_row3('scale (1/C)', m.scale))
+    lines.append(_row3('drift/degC', drift_slope(m)) + '   (deg/s per degC: static drift, '
+                 'mean slope over the range)')
     table, warns = format_coverage(result.coverage)
     lines.append(table)
     if lagged and th.identifiable is False:

@@ -153,7 +153,7 @@ def test_constant_and_stepped_reference_rates(tmp_path, capsys):
     floor = 0.05 ** 2
     assert np.all(np.array(doc['models'][0]['bs']) < 1.2 * floor), doc
     assert np.all(np.array(doc['raw']['bs']) > 10 * floor)
-    assert 'reference constant' in capsys.readouterr().out
+    assert 'constant reference rate' in capsys.readouterr().out
     # ... and stepped (+1, 0, -1, 0.5 times those rates every 5 min) on the reference topic.
     kw = dict(hours=1.0, ref_dps=(10.0, 5.0, 20.0), ref_period_s=300.0)
     train = bag_from_run(synth_run(seed=43, **kw), tmp_path / 'step_train', reference='topic')
@@ -165,7 +165,7 @@ def test_constant_and_stepped_reference_rates(tmp_path, capsys):
     assert main([test, '--model', model, '--json', out]) == 0
     doc = json.loads(out.read_text())['bags'][0]
     assert np.all(np.array(doc['models'][0]['bs']) < 1.2 * floor), doc
-    assert 'reference topic' in capsys.readouterr().out
+    assert 'reference rate from the reference topic' in capsys.readouterr().out
     # Ignoring the table (zero reference) would count the commanded rate as error.
     assert main([test, '--model', model, '--reference', '0,0,0', '--json', out]) == 0
     capsys.readouterr()

@@ -23,6 +23,7 @@ from gyro_tdc.coverage import Coverage
 from gyro_tdc.evaluation import BagEval, ModelEval
 from gyro_tdc.report import csv_columns, evaluation_json, format_allan, format_bag
 from gyro_tdc.report import format_coverage, format_means, format_paper_table, format_summary
+from gyro_tdc.report import is_coverage_line
 from gyro_tdc.report import write_csv, write_json, write_plots
 from gyro_tdc.runs import Run
 import numpy as np
@@ -62,7 +63,7 @@ def bag():
 def test_summary_table(bag):
     lines = format_summary(bag).splitlines()
     assert lines[0] == ('bag bags/run3: 50 samples over 24.50 h, temperature 20.00 .. 40.00 '
-                        'degC, reference zero')
+                        'degC, reference rate zero (no reference topic)')
     assert lines[1].startswith('  BS in (deg/s)^2 (paper eq. 30)')
     assert lines[2].split() == ['BS', 'x', 'BS', 'y', 'BS', 'z', 'RMS', 'x', 'RMS', 'y', 'RMS',
                                 'z', 'BS/BS1', 'x', 'BS/BS1', 'y', 'BS/BS1', 'z']
@@ -170,16 +171,20 @@ def test_coverage_table_and_warnings():
     table, warns = format_coverage(_coverage())
     lines = table.splitlines()
     assert lines[0] == 'temperature range covered: 17.50 .. 29.00 degC (span 11.50 degC)'
-    assert lines[1] == 'coverage per 5 degC bin:'
-    assert lines[2].split() == ['[15,', '20)', 'degC', '100', 'samples', '10.0', 'min']
-    assert lines[3].endswith('0.5 min  <- little data')
-    assert lines[5] == ('heating (dT/dt > +0.05 degC/min): 30.0 min; cooling (< -0.05): '
+    # The bins in one line: count, least and most minutes (named), median, thin ones counted.
+    assert lines[1] == ('coverage per 5 degC bin: 3 bins 15 .. 30 degC; minutes per bin 0.5 '
+                        '([20, 25) degC) .. 30.0 ([25, 30) degC), median 10.0; 1 thin (named '
+                        'in the warning below)')
+    assert lines[2] == ('heating (dT/dt > +0.05 degC/min): 30.0 min; cooling (< -0.05): '
                         '0.0 min; steady: 10.5 min')
+    assert len(lines) == 3 and all(is_coverage_line(line) for line in lines)
     assert len(warns) == 2
     assert warns[0].startswith('little data in temperature bin(s) [20, 25) degC')
     assert warns[1].startswith('no cooling data:')
-    _, warns = format_coverage(_coverage(sparse=[], cooling_min=12.0))
-    assert warns == []
+    assert all(is_coverage_line(f'warning: {w}') for w in warns)
+    assert not is_coverage_line('training bias stability BS, (deg/s)^2:')
+    table, warns = format_coverage(_coverage(sparse=[], cooling_min=12.0))
+    assert warns == [] and table.splitlines()[1].endswith('median 10.0; none thin')
     _, warns = format_coverage(_coverage(sparse=[], heating_min=0.0, cooling_min=30.0))
     assert warns[0].startswith('no heating data:')
     _, warns = format_coverage(_coverage(sparse=[], heating_min=0.0, cooling_min=0.0))

@@ -346,14 +346,16 @@ def format_summary(result: DiscoveryResult) -> str:
         The summary, ending with a newline.
 
     """
+    held = result.settings['block_mean_s']    # seconds of data a block holds, on average
+    grid = (f'{result.blocks} blocks of {result.block_s:g} s' if held >= 0.9 * result.block_s
+            else f'{result.blocks} blocks on a {result.block_s:g} s grid holding {held:.3g} s '
+                 'of data each on average (gaps in the recording)')
     lines = [
-        f'discover: {len(result.runs)} run(s), {result.blocks} blocks of {result.block_s:g} s, '
-        f'T0 = {result.t0_c:.2f} degC',
+        f'discover: {len(result.runs)} run(s), {grid}, T0 = {result.t0_c:.2f} degC',
         f'base model: {", ".join(result.base_effects)}  '
         f'(one offset per run; cross-validation: {result.settings["folds"]})',
-        f'noise floor: {result.noise_floor_dps:.3g} deg/s on block means of '
-        f'{result.settings["block_mean_s"]:.3g} s (white noise {result.white_noise_dps:.3g} '
-        'deg/s per sample); gaps are RMS of block means',
+        f'noise floor: {result.noise_floor_dps:.3g} deg/s on those block means (white noise '
+        f'{result.white_noise_dps:.3g} deg/s per sample); gaps are RMS of block means',
     ]
     if not result.steps:
         lines.append('no missing effect found: no candidate is significant, gains on held-out '

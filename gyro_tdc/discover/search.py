@@ -497,7 +497,9 @@ def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateS
             den = float(np.linalg.norm(a) * np.linalg.norm(b))
             c = float(a @ b) / den if den > 0 else 0.0
             if abs(c) >= 0.7:
-                notes.append(f'{ids[i]} and {ids[j]} are partly confounded on this data '
+                how = ('confounded on this data: it cannot tell them apart' if abs(c) >= 0.95
+                       else 'partly confounded on this data')
+                notes.append(f'{ids[i]} and {ids[j]} are {how} '
                              f'(correlation {c:+.2f} after removing the effects of the model).')
     return notes
 
