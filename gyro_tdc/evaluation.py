@@ -280,7 +280,7 @@ def rate_hz(t: NDArray[np.float64]) -> float:
 
 def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: str = 'raw',
           features: Sequence[str] = (), bs_raw: NDArray[np.float64] | None = None,
-          rate: float | None = None) -> ModelEval:
+          rate: float | None = None, allan: bool = True) -> ModelEval:
     """
     Score one compensated (or raw) rate against the run's reference rate.
 
@@ -298,6 +298,9 @@ def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: st
         BS of the raw data; ``p_vs_raw`` is ones when None.
     rate : float, Hz, optional
         Sample rate for the Allan deviation (default :func:`rate_hz` of the stamps).
+    allan : bool
+        Compute the Allan deviation; False leaves it empty (BS and RMS only, e.g. for
+        held-out samples with gaps between them).
 
     Returns
     -------
@@ -309,7 +312,7 @@ def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: st
     """
     err = omega - run.omega_ref
     bs = bias_stability(omega, run.omega_ref)
-    if len(run) >= 4:
+    if allan and len(run) >= 4:
         tau, adev = allan_deviation(err, rate_hz(run.t) if rate is None else rate)
     else:
         tau, adev = np.zeros(0), np.zeros((0, 3))

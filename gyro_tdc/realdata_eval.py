@@ -43,6 +43,9 @@ Choices, and why:
   model is fitted on the training rows only (tau chosen on the training rows); the held-out
   gyro samples are never used. Static models (dT, dT^2, dT^3) do not depend on history and
   are fitted with :func:`gyro_tdc.fitting.fit_model` on the training bursts as one run.
+- **Scores.** BS and RMS are :func:`gyro_tdc.evaluation.score`'s (the evaluate command's) on
+  the held-out samples; a summary over a group of folds scores all their held-out samples
+  together, so it is the sample-weighted mean of the folds' BS.
 - **Extrapolation.** A block at the warm or the cold end lies outside the training range;
   :func:`gyro_tdc.model.compensate` clamps the temperature to it, as the compensator node
   does, so the model is flat there. Interior and end blocks are reported apart, and the end
@@ -58,7 +61,9 @@ from typing import Any, Mapping, Sequence
 
 from gyro_tdc.effects import batch_features, EFFECTS, input_ids, normalise_ids, resolve_params
 from gyro_tdc.errors import FitError
+from gyro_tdc.evaluation import score
 from gyro_tdc.fitting import estimate_t0, fit_linear, fit_model, fit_time_constant
+from gyro_tdc.metrics import bias_stability
 from gyro_tdc.model import compensate, CompensationModel
 from gyro_tdc.realdata import default_pan_csv, PanCubesat, read_pan_cubesat_csv
 from gyro_tdc.runs import Run
@@ -238,76 +243,86 @@ def _blocks(n_bursts: int, n_blocks: int) -> list[NDArray[np.int64]]:
             for b in np.array_split(np.arange(n_bursts), n_blocks)]
 
 
+def _rows(run: Run, idx: NDArray[np.int64], name: str) -> Run:
+    """Return the rows ``idx`` (increasing) of a run as a run of their own."""
+    return Run(run.t[idx], run.temp[idx], run.omega[idx], run.omega_ref[idx], name)
+
+
+def _scored(omega: tuple[NDArray[np.float64], NDArray[np.float64]], held: Run,
+            floor: NDArray[np.float64]) -> tuple[dict, NDArray[np.float64]]:
+    """Score a clamped and an unclamped rate on held-out rows; return the row and BS."""
+    ev, ev_u = (score(o, held, allan=False) for o in omega)
+    return {'bs': ev.bs.tolist(), 'rms_dps': ev.rms_dps.tolist(),
+            'floor_ratio': (ev.bs / floor).tolist(), 'bs_unclamped': ev_u.bs.tolist(),
+            'floor_ratio_unclamped': (ev_u.bs / floor).tolist()}, ev.bs
+
+
 def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
             models: Sequence[HoldoutModel], t0: float) -> dict:
     """Run one leave-one-block-out scheme; return its folds and summaries."""
     n_bursts = int(burst.max()) + 1
     err = run.omega - run.omega_ref
     means = np.array([err[burst == b].mean(axis=0) for b in range(n_bursts)])
-    dev2 = ((err - means[burst]) * _DEG) ** 2
+
+    def floor_of(idx: NDArray[np.int64]) -> NDArray[np.float64]:
+        """BS of held-out samples around their own burst means (the white-noise floor)."""
+        return bias_stability(err[idx], means[burst[idx]])
+
     folds = []
-    # Sums of squares per group for the pooled summaries.
-    acc = {g: {'n': 0, 'floor': np.zeros(3),
-               **{m.name: {'ss': np.zeros(3), 'ss_unclamped': np.zeros(3)} for m in models}}
-           for g in GROUPS}
+    # Held-out rows and rates of every fold, pooled per group for the summaries.
+    pooled: dict[str, list] = {g: [] for g in GROUPS}
     for i, held_bursts in enumerate(_blocks(n_bursts, n_blocks)):
         held = np.isin(burst, held_bursts)
         train = ~held
-        n = int(np.count_nonzero(held))
+        idx = np.flatnonzero(held)
         position = 'end' if held_bursts[0] == 0 or held_bursts[-1] == n_bursts - 1 \
             else 'interior'
-        floor = dev2[held].mean(axis=0)
+        floor = floor_of(idx)
+        held_run = _rows(run, idx, f'{run.name}[block {i}]')
         t_lo, t_hi = float(run.temp[train].min()), float(run.temp[train].max())
         temp_h = run.temp[held]
         fold = {'block': i, 'bursts': [int(held_bursts[0]), int(held_bursts[-1])],
-                'samples': n, 'position': position,
+                'samples': len(idx), 'position': position,
                 'temperature_c': [float(temp_h.min()), float(temp_h.max())],
                 'train_temperature_c': [t_lo, t_hi],
                 'outside_fraction': float(np.mean((temp_h < t_lo) | (temp_h > t_hi))),
                 'floor_bs_dps2': floor.tolist(), 'models': {}}
+        rates = {}
         for spec in models:
             if spec.kind == 'raw':
-                ss = ss_u = (err[held] * _DEG) ** 2
+                rates[spec.name] = (run.omega[held],) * 2
                 extra = {}
             else:
                 model = _fit(spec, run, train, t0)
-                ref = run.omega_ref[held]
-                out = [compensate(model, run.t, run.temp, run.omega, clamp=c)[held] - ref
-                       for c in (True, False)]
-                ss, ss_u = ((o * _DEG) ** 2 for o in out)
+                rates[spec.name] = tuple(
+                    compensate(model, run.t, run.temp, run.omega, clamp=c)[held]
+                    for c in (True, False))
                 extra = {'effect_params': {k: dict(v) for k, v in model.effect_params.items()}}
-            bs, bs_u = ss.mean(axis=0), ss_u.mean(axis=0)
-            fold['models'][spec.name] = {
-                'bs': bs.tolist(), 'rms_dps': np.sqrt(bs).tolist(),
-                'floor_ratio': (bs / floor).tolist(), 'bs_unclamped': bs_u.tolist(),
-                'floor_ratio_unclamped': (bs_u / floor).tolist(), **extra}
-            for g in (position, 'all'):
-                acc[g][spec.name]['ss'] += ss.sum(axis=0)
-                acc[g][spec.name]['ss_unclamped'] += ss_u.sum(axis=0)
+            fold['models'][spec.name] = {**_scored(rates[spec.name], held_run, floor)[0],
+                                         **extra}
         for g in (position, 'all'):
-            acc[g]['n'] += n
-            acc[g]['floor'] += floor * n
+            pooled[g].append((idx, rates))
         folds.append(fold)
     summary = {}
     for g in GROUPS:
-        a = acc[g]
-        if not a['n']:
+        if not pooled[g]:
             summary[g] = None
             continue
-        floor = a['floor'] / a['n']
-        bs_of = {m.name: a[m.name]['ss'] / a['n'] for m in models}
-        summary[g] = {'folds': sum(1 for f in folds if g in ('all', f['position'])),
-                      'samples': a['n'], 'floor_bs_dps2': floor.tolist(), 'models': {}}
+        idx = np.concatenate([x[0] for x in pooled[g]])
+        floor = floor_of(idx)
+        group_run = _rows(run, idx, f'{run.name}[{g}]')
+        summary[g] = {'folds': len(pooled[g]), 'samples': len(idx),
+                      'floor_bs_dps2': floor.tolist(), 'models': {}}
+        bs_of = {}
         for spec in models:
-            bs = bs_of[spec.name]
-            bs_u = a[spec.name]['ss_unclamped'] / a['n']
-            row = {'bs': bs.tolist(), 'rms_dps': np.sqrt(bs).tolist(),
-                   'floor_ratio': (bs / floor).tolist(), 'bs_unclamped': bs_u.tolist(),
-                   'floor_ratio_unclamped': (bs_u / floor).tolist()}
+            rate = tuple(np.concatenate([x[1][spec.name][c] for x in pooled[g]])
+                         for c in (0, 1))
+            summary[g]['models'][spec.name], bs_of[spec.name] = _scored(rate, group_run, floor)
+        for spec in models:
+            row = summary[g]['models'][spec.name]
             for base in ('raw', 'bias'):
                 if base in bs_of:
-                    row[f'p_vs_{base}'] = (bs / bs_of[base]).tolist()
-            summary[g]['models'][spec.name] = row
+                    row[f'p_vs_{base}'] = (bs_of[spec.name] / bs_of[base]).tolist()
     sizes = sorted({len(b) for b in _blocks(n_bursts, n_blocks)})
     name = 'leave_one_burst_out' if n_blocks == n_bursts else 'leave_one_block_out'
     return {'name': name, 'n_blocks': n_blocks, 'bursts_per_block': sizes, 'folds': folds,

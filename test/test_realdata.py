@@ -119,6 +119,28 @@ def test_noise_floor_is_the_within_burst_scatter(pan):
 
 
 @needs_pan
+def test_summaries_pool_the_held_out_samples_of_their_folds(pan):
+    # A group's BS (and its floor) is over all held-out samples of its folds together: the
+    # sample-weighted mean of the folds' figures.
+    for s in pan['schemes']:
+        for g, sm in s['summary'].items():
+            folds = [f for f in s['folds'] if g in ('all', f['position'])]
+            n = np.array([f['samples'] for f in folds], dtype=float)[:, None]
+            assert sm['samples'] == int(n.sum()) and sm['folds'] == len(folds)
+            np.testing.assert_allclose(
+                sm['floor_bs_dps2'], (n * [f['floor_bs_dps2'] for f in folds]).sum(0) / n.sum(),
+                rtol=1e-12)
+            for name, m in sm['models'].items():
+                for key in ('bs', 'bs_unclamped'):
+                    fold_bs = np.array([f['models'][name][key] for f in folds])
+                    np.testing.assert_allclose(m[key], (n * fold_bs).sum(0) / n.sum(),
+                                               rtol=1e-12)
+                np.testing.assert_allclose(np.sqrt(m['bs']), m['rms_dps'])
+                np.testing.assert_allclose(np.array(m['bs']) / sm['models']['raw']['bs'],
+                                           m['p_vs_raw'])
+
+
+@needs_pan
 def test_raw_bs_is_the_constant_offset(pan):
     raw = pan['schemes'][0]['summary']['all']['models']['raw']
     # BS1 around the reference 0 is dominated by the zero-rate offset (about -2, 1.7 and
