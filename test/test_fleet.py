@@ -36,7 +36,8 @@ from gyro_tdc.cli.train import build_parser as train_parser, train_options
 from gyro_tdc.errors import FleetError
 from gyro_tdc.fitting import fit_model
 from gyro_tdc.fleet import check_sensor_id, drift_polynomial, fleet_statistics, open_engine
-from gyro_tdc.fleet import read_manifest, robust_z, run_fleet, SensorResult
+from gyro_tdc.fleet import FleetResult, format_table, read_manifest, robust_z, run_fleet
+from gyro_tdc.fleet import SensorResult
 from gyro_tdc.modelfile import load_model
 import numpy as np
 import pytest
@@ -178,6 +179,16 @@ def test_fleet_statistics_need_three_sensors():
     two = [SensorResult(f's{i}', 'ok', drift_poly=poly, temp_range_c=[0, 10]) for i in range(2)]
     assert fleet_statistics(two) == 5.0
     assert all(s.z_slope is None and not s.flags for s in two)
+
+
+def test_table_of_a_large_fleet_lists_only_failed_and_flagged_sensors():
+    sensors = [SensorResult(f's{i:02d}', 'ok', train_bs=[0.1] * 3) for i in range(45)]
+    sensors[7] = SensorResult('s07', 'failed', error='Bag is corrupt')
+    sensors[9].flags.append('drift slope on x 9.0σ from the fleet')
+    lines = format_table(FleetResult('local', 2, sensors, seconds=1.0)).splitlines()
+    assert [line.split()[0] for line in lines[1:-1]] == ['s07', 's09']
+    assert 'Bag is corrupt' in lines[1] and '9.0σ' in lines[2]
+    assert lines[-1].startswith('45 sensors: 44 ok (0 unchanged, skipped), 1 failed, 1 flagged')
 
 
 # ---- on a LocalCluster with two worker processes ------------------------------------------
