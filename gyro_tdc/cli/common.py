@@ -46,7 +46,7 @@ from gyro_tdc.errors import GyroTdcError, one_line
 __all__ = [
     'ArgumentParser', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
     'DEFAULT_TEMPERATURE_TOPIC', 'UsageError', 'add_bag_options', 'bag_options',
-    'command_line', 'finite_float', 'non_negative_float', 'parse_reference',
+    'command_line', 'effect_listing', 'finite_float', 'non_negative_float', 'parse_reference',
     'positive_float', 'positive_int', 'probability', 'run_command',
 ]
 
@@ -63,11 +63,52 @@ class UsageError(GyroTdcError):
 
 
 class ArgumentParser(argparse.ArgumentParser):
-    """An ``argparse.ArgumentParser`` that raises :class:`UsageError` instead of exiting."""
+    """
+    An ``argparse.ArgumentParser`` that raises :class:`UsageError` instead of exiting.
+
+    ``help_tail``, when set to a function returning text, is called by ``--help`` and its text
+    printed after the options, line breaks kept (the effect ids, the shipped scenarios).
+    """
+
+    help_tail: Optional[Callable[[], str]] = None
 
     def error(self, message: str) -> NoReturn:
         """Raise :class:`UsageError` with argparse's message (no usage dump, no exit)."""
         raise UsageError(f'{message} (see --help)')
+
+    def format_help(self) -> str:
+        """Return argparse's help, then the text of ``help_tail`` when set."""
+        text = super().format_help()
+        return text if self.help_tail is None else f'{text}\n{self.help_tail()}\n'
+
+
+def effect_listing(width: int = 92) -> str:
+    """
+    Return the effect catalog as help text: each id, what it models, what excites it.
+
+    Parameters
+    ----------
+    width : int
+        Line width.
+
+    Returns
+    -------
+    str
+        One entry per effect of :data:`gyro_tdc.effects.EFFECTS`, in catalog order.
+
+    """
+    import textwrap
+
+    from gyro_tdc.effects import EFFECTS
+
+    lines = ['effect ids (for --features, --base, --candidates; bias is always in the model):']
+    w = max(len(k) for k in EFFECTS)
+    for eid, effect in EFFECTS.items():
+        text = ' '.join(f'{effect.description.rstrip(".")}. Excited by {effect.excited_by}.'
+                        .split())
+        lines += textwrap.wrap(text, width, initial_indent=f'  {eid:<{w}}  ',
+                               subsequent_indent=' ' * (w + 4))
+    return '\n'.join(lines)
 
 
 def parse_reference(text: str) -> tuple[float, float, float]:

@@ -33,6 +33,7 @@ from typing import Optional, Sequence
 
 from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
+from gyro_tdc.cli.common import effect_listing
 from gyro_tdc.cli.common import finite_float, positive_float, positive_int, probability
 from gyro_tdc.cli.common import run_command, UsageError
 from gyro_tdc.dataset import load_runs
@@ -52,13 +53,14 @@ def build_parser() -> argparse.ArgumentParser:
                     'it disagrees with them, name the missing effect, add it and repeat '
                     'until the residual is noise.')
     p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap)')
+    p.help_tail = effect_listing     # --help ends with the effect ids
     p.add_argument('--base', default='bias,dT', metavar='IDS',
                    help='effects of the starting model (default: %(default)s, the conventional '
                         'model of eq. 18; bias is always included, one offset per bag)')
     p.add_argument('--candidates', default=None, metavar='IDS',
                    help='effects to try (default: every catalog effect not in --base)')
     p.add_argument('--json', dest='json_out', default=None, metavar='OUT',
-                   help='write the machine-readable result (DESIGN.md shape) to OUT')
+                   help='write the machine-readable result to OUT (shape: docs/json.md)')
     p.add_argument('--report', default=None, metavar='DIR',
                    help='write report.md with PNG residual maps and Allan deviation to DIR')
     p.add_argument('--out', default=None, metavar='MODEL.yaml',

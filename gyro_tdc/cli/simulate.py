@@ -76,17 +76,9 @@ def scenario_listing(width: int = 92) -> str:
     return '\n'.join(lines)
 
 
-class _HelpWithScenarios(ArgumentParser):
-    """The parser of ``simulate``: ``--help`` ends with the shipped scenarios."""
-
-    def format_help(self) -> str:
-        """Return argparse's help followed by :func:`scenario_listing` (read on demand)."""
-        return super().format_help() + '\n' + scenario_listing() + '\n'
-
-
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``simulate``."""
-    parser = _HelpWithScenarios(
+    parser = ArgumentParser(
         prog='gyro-tdc simulate',
         description='Simulate a gyro in a thermal chamber on a rate table and write rosbag2 '
                     'bags (one per run).')
@@ -104,6 +96,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help='random seed (default: 0)')
     parser.add_argument('--rate-hz', type=float, default=None, metavar='F',
                         help="IMU rate in Hz (default: the scenario's)")
+    parser.help_tail = scenario_listing      # read only when --help asks for it
     parser.add_argument('--no-progress', dest='progress', action='store_false', default=None,
                         help='no progress bar over the runs (default: shown on a terminal)')
     return parser

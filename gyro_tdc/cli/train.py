@@ -33,6 +33,7 @@ import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
+from gyro_tdc.cli.common import effect_listing
 from gyro_tdc.cli.common import finite_float, positive_float, positive_int, run_command
 from gyro_tdc.effects import normalise_ids
 from gyro_tdc.model import KINDS
@@ -51,6 +52,7 @@ def build_parser() -> argparse.ArgumentParser:
                     'write it as a YAML model file.')
     p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap)')
     p.add_argument('--out', required=True, metavar='MODEL.yaml', help='model file to write')
+    p.help_tail = effect_listing     # --help ends with the effect ids
     add_train_options(p)
     return p
 
