@@ -386,31 +386,26 @@ def test_storage_file_path_resolves_to_its_bag(tmp_path):
     assert read_bag(tmp_path / 'bag' / 'bag.db3').path == str(tmp_path / 'bag')
 
 
-@pytest.mark.parametrize('damage', ['truncate', 'garbage', 'empty'])
-def test_corrupt_sqlite3(tmp_path, damage):
-    _small_bag(tmp_path / 'bag', 'sqlite3', n=3000)
-    db3 = tmp_path / 'bag' / 'bag.db3'
-    raw = db3.read_bytes()
-    if damage == 'truncate':
-        db3.write_bytes(raw[:len(raw) // 3])
-    elif damage == 'garbage':
-        db3.write_bytes(raw[:4096] + bytes(np.random.default_rng(0).integers(
-            0, 256, len(raw) - 4096, dtype=np.uint8)))
-    else:
-        db3.write_bytes(b'')
-    with pytest.raises(DatasetError, match=r'unreadable or corrupt'):
-        read_bag(tmp_path / 'bag')
+def _garbage_after(head: int):
+    """Return a damage that keeps ``head`` bytes and replaces the rest with seeded noise."""
+    return lambda raw: raw[:head] + bytes(np.random.default_rng(0).integers(
+        0, 256, len(raw) - head, dtype=np.uint8))
 
 
-@pytest.mark.parametrize('damage', ['truncate', 'garbage'])
-def test_corrupt_mcap(tmp_path, damage):
-    _small_bag(tmp_path / 'bag', 'mcap', n=3000)
-    mcap = tmp_path / 'bag' / 'bag.mcap'
-    raw = mcap.read_bytes()
-    if damage == 'truncate':
-        mcap.write_bytes(raw[:len(raw) // 2])
-    else:
-        mcap.write_bytes(raw[:8] + b'\x07' * (len(raw) - 8))
+DAMAGES = {
+    ('sqlite3', 'truncate'): lambda raw: raw[:len(raw) // 3],
+    ('sqlite3', 'garbage'): _garbage_after(4096),
+    ('sqlite3', 'empty'): lambda raw: b'',
+    ('mcap', 'truncate'): lambda raw: raw[:len(raw) // 2],
+    ('mcap', 'garbage'): lambda raw: raw[:8] + b'\x07' * (len(raw) - 8),
+}
+
+
+@pytest.mark.parametrize('storage, damage', sorted(DAMAGES))
+def test_corrupt_storage_file(tmp_path, storage, damage):
+    _small_bag(tmp_path / 'bag', storage, n=3000)
+    path = tmp_path / 'bag' / ('bag.db3' if storage == 'sqlite3' else 'bag.mcap')
+    path.write_bytes(DAMAGES[storage, damage](path.read_bytes()))
     with pytest.raises(DatasetError, match=r'unreadable or corrupt'):
         read_bag(tmp_path / 'bag')
 

@@ -35,20 +35,7 @@ from gyro_tdc.realdata import default_pan_csv, pan_cubesat_to_bag  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:
-    """
-    Run the converter; return 0 on success, 2 on bad input.
-
-    Parameters
-    ----------
-    argv : list of str, optional
-        Command-line arguments (``sys.argv[1:]`` when None).
-
-    Returns
-    -------
-    int
-        Exit status.
-
-    """
+    """Run the converter on ``argv`` (``sys.argv[1:]`` when None); return 0, or 2 on bad input."""
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
     parser.add_argument('--csv', type=Path, default=default_pan_csv(),
                         help='TVCtest3_7_20.csv (default: %(default)s)')
