@@ -29,7 +29,7 @@ a fresh interpreter (so its peak RSS is its own), the median of ``--repeat`` run
 * ``train``: the ``train`` command end to end (read, fit, coverage, save), through
   :func:`gyro_tdc.cli.train.main`;
 
-and prints seconds, messages per second, peak RSS and the ratios train / raw and
+and prints seconds, messages per second, CPU time, peak RSS and the ratios train / raw and
 train / raw_reader (goal <= 1.5).
 ``--profile`` adds a cProfile of the train stage (top functions by cumulative time)::
 
@@ -168,16 +168,17 @@ STAGES = {'raw': _stage_raw, 'raw_reader': _stage_raw_reader, 'load': _stage_loa
 
 
 def _child(stage, bag, profile):
-    """Run one stage in this process; print seconds, peak RSS and details as JSON."""
+    """Run one stage in this process; print seconds, CPU time, peak RSS and details as JSON."""
     # Import what every stage needs before the clock starts: the stage is timed, not Python.
     import gyro_tdc.cli.train  # noqa: F401
     import rosbags.highlevel  # noqa: F401
 
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     info = _stage_train(bag, profile=True) if profile else STAGES[stage](bag)
-    seconds = time.perf_counter() - t0
+    seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024   # Linux: KiB
-    print(json.dumps({'stage': stage, 'seconds': seconds, 'peak_rss': peak, **info}))
+    print(json.dumps({'stage': stage, 'seconds': seconds, 'cpu': cpu, 'peak_rss': peak,
+                      **info}))
 
 
 def _run_child(stage, bag, profile=False):
@@ -224,7 +225,7 @@ def main(argv=None):
             r = _run_child(stage, bag)
             results.setdefault(stage, []).append(r)
             print(f'  run {k + 1}/{args.repeat} {stage:<10} {r["seconds"]:7.2f} s  '
-                  f'peak RSS {r["peak_rss"] / 1e6:7.0f} MB', flush=True)
+                  f'CPU {r["cpu"]:7.2f} s  peak RSS {r["peak_rss"] / 1e6:7.0f} MB', flush=True)
 
     msgs = results['raw'][0]['messages']
     print(f'\nmedian of {args.repeat} runs, {msgs} messages '
@@ -235,10 +236,11 @@ def main(argv=None):
                          ('load', 'dataset extraction (load_run)'),
                          ('train', 'training end to end (train CLI: read + fit + save)')):
         s = statistics.median(r['seconds'] for r in results[stage])
+        cpu = statistics.median(r['cpu'] for r in results[stage])
         rss = statistics.median(r['peak_rss'] for r in results[stage])
         med[stage] = s
         print(f'  {label:<52} {s:7.2f} s  {msgs / s / 1e3:7.0f} k msg/s  '
-              f'peak RSS {rss / 1e6:6.0f} MB')
+              f'CPU {cpu:7.2f} s  peak RSS {rss / 1e6:6.0f} MB')
     print(f'  load / raw  = {med["load"] / med["raw"]:.2f}')
     for base in ('raw', 'raw_reader'):
         ratio = med['train'] / med[base]
