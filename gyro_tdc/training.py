@@ -119,9 +119,9 @@ class FeatureChoice:
         """Return the report: a head line, one line per decision, the features chosen."""
         d = self.discovery
         head = (f'features auto: start from {", ".join(self.base)} (the paper\'s f(dT, dT^2)); '
-                + (f'discovery on {len(d.runs)} bag(s), gaps in noise floors of '
-                   f'{d.noise_floor_dps:.3g} deg/s (block means of {d.block_s:g} s), held out '
-                   f'by {d.settings["folds"]}' if d is not None else self.note))
+                + (f'discovery on {len(d.runs)} bag(s): noise floor {d.noise_floor_dps:.3g} '
+                   f'deg/s on {d.block_s:g} s block means, held out by '
+                   f'{d.settings["folds"]}' if d is not None else self.note))
         return ([head] + [x.line() for x in self.decisions if x.verdict != 'base']
                 + [f'features chosen: {", ".join(self.features)}'])
 
