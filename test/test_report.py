@@ -23,7 +23,7 @@ from gyro_tdc.coverage import Coverage
 from gyro_tdc.evaluation import BagEval, ModelEval
 from gyro_tdc.report import csv_columns, evaluation_json, format_allan, format_bag
 from gyro_tdc.report import format_coverage, format_means, format_paper_table, format_summary
-from gyro_tdc.report import is_coverage_line
+from gyro_tdc.report import is_coverage_line, model_description
 from gyro_tdc.report import write_csv, write_json, write_plots
 from gyro_tdc.runs import Run
 import numpy as np
@@ -153,6 +153,16 @@ def test_three_plots_per_bag(bag, tmp_path):
                                        'run3_allan.png']
     for f in files:
         assert f.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+    # Legends per model and the options in the titles; one description per model.
+    files = write_plots(bag, tmp_path / 'described', points=10, reanchor_s=300.0,
+                        descriptions=['conv.yaml: poly f(dT)', 'mod.yaml: poly f(dT, dT2)'],
+                        options='re-anchored: mean error of the first 300 s removed')
+    assert [f.read_bytes()[:8] for f in files] == [b'\x89PNG\r\n\x1a\n'] * 3
+    with pytest.raises(ValueError, match='one per model'):
+        write_plots(bag, tmp_path, descriptions=['only one'])
+    assert model_description('out/m/modified.yaml', 'poly', ['dT', 'dT2']) == \
+        'modified.yaml: poly f(dT, dT2)'
+    assert model_description('px4', 'poly', ['dT', 'dT2', 'dT3']).startswith('px4: cubic')
     bag.release()
     with pytest.raises(ValueError, match='released'):
         write_plots(bag, tmp_path)

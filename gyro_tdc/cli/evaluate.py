@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-``python -m gyro_tdc evaluate BAG... --model A.yaml [--model B.yaml ...]``: score models.
+``gyro-tdc evaluate BAG... --model A.yaml [--model B.yaml ...]``: score models.
 
 For every held-out bag and axis: BS of the raw data (BS1, paper eq. 30-31) and after each
 model, BS/BS1, RMS in deg/s, Allan deviation before and after with angle random walk and
@@ -21,7 +21,9 @@ bias instability. With exactly two models (or a ``--baseline``) the paper's tabl
 printed: ``BS1 BS2 BS3 P1 P2 P3`` with P1 = BS2/BS1, P2 = BS3/BS1 and P3 = BS3/BS2, the
 baseline (first model) as the conventional one. ``--model px4 --train BAG...`` adds a
 PX4-style cubic in T fitted on the training bags. Outputs: ``--json`` (the shape in
-DESIGN.md), ``--plots DIR`` (PNGs per bag), ``--export DIR`` (a CSV per bag).
+docs/json.md), ``--plots DIR`` (PNGs per bag, titled with the models and whether re-anchoring
+was applied), ``--export DIR`` (a CSV per bag). A progress bar over the bags shows on a
+terminal (stderr; ``--no-progress`` turns it and the bag-reading bar off).
 
 A bag whose temperature leaves a model's trained range is evaluated with the temperature
 clamped to that range (as the compensator node does), and the output says so. The scoring is
@@ -37,8 +39,10 @@ from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options
 from gyro_tdc.cli.common import non_negative_float, run_command, UsageError
+from gyro_tdc.dataset import expand_bags
 from gyro_tdc.evaluation import BagEval, evaluate, load_models, PX4
-from gyro_tdc.report import format_bag, format_means, write_csv, write_json, write_plots
+from gyro_tdc.report import format_bag, format_means, model_description, write_csv, write_json
+from gyro_tdc.report import write_plots
 
 __all__ = ['build_parser', 'main']
 
@@ -64,7 +68,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='remove from each model the mean error over the first S s of every bag '
                         '(the run-to-run bias offset, as the compensator re-anchors at '
                         'start-up while still); default 0: off')
-    p.add_argument('--json', metavar='OUT', default=None, help='write the scores as JSON')
+    p.add_argument('--json', metavar='OUT', default=None,
+                   help='write the scores as JSON (shape: docs/json.md)')
     p.add_argument('--plots', metavar='DIR', default=None, help='write PNGs per bag here')
     p.add_argument('--export', metavar='DIR', default=None,
                    help='write a CSV per bag here: time, temperature, raw, reference and '
@@ -85,38 +90,82 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     baseline = (specs.index(args.baseline) if args.baseline is not None
                 else (0 if len(specs) == 2 else None))
     opts = bag_options(args)
+    options = (f're-anchored: mean error of the first {args.reanchor:g} s removed'
+               if args.reanchor > 0 else 'no re-anchoring')
+    bar = _Progress(len(expand_bags(args.bags)), enabled=opts['progress'])
 
     def log(line: str) -> None:
-        print(line, flush=True)
-
-    def each(b: BagEval) -> None:
-        print(format_bag(b, baseline), flush=True)
-        if args.plots is not None:
-            for f in write_plots(b, args.plots):
-                log(f'wrote {f}')
-        if args.export is not None:
-            log(f'wrote {write_csv(b, args.export)}')
+        bar.write(line)
 
     models = load_models(specs, train_bags=args.train, options=opts, log=log)
-    for nm in models:
-        m = nm.model
-        lo, hi = m.temp_range_c
-        log(f'model {nm.label}: {nm.name}, {m.kind} f({", ".join(m.inputs) or "bias"}), '
-            f'trained {lo:.2f} .. {hi:.2f} degC')
+    descriptions = [model_description(nm.name, nm.model.kind, nm.model.inputs)
+                    for nm in models]
+
+    def each(b: BagEval) -> None:
+        bar.write(format_bag(b, baseline))
+        if args.plots is not None:
+            bar.stage(f'{b.label}: plots')
+            for f in write_plots(b, args.plots, descriptions=descriptions, options=options,
+                                 reanchor_s=args.reanchor):
+                log(f'wrote {f}')
+        if args.export is not None:
+            bar.stage(f'{b.label}: CSV')
+            log(f'wrote {write_csv(b, args.export)}')
+        bar.done_one()
+
+    for nm, text in zip(models, descriptions):
+        lo, hi = nm.model.temp_range_c
+        log(f'model {nm.label} = {text}, trained {lo:.2f} .. {hi:.2f} degC')
     if args.reanchor > 0:
         log(f'models re-anchored: mean error over the first {args.reanchor:g} s of each bag '
             'removed (raw data untouched)')
-    results = evaluate(args.bags, models, options=opts, reanchor_s=args.reanchor, log=log,
-                       each=each)
+    try:
+        results = evaluate(args.bags, models, options=opts, reanchor_s=args.reanchor, log=log,
+                           each=each)
+    finally:
+        bar.close()
     if args.json is not None:
-        log(f'wrote {write_json(results, args.json)}')
+        print(f'wrote {write_json(results, args.json)}')
     if len(results) > 1:
         print(format_means(results))
     return 0
 
 
+class _Progress:
+    """A progress bar over the bags on stderr (tqdm), lines printed above it on stdout."""
+
+    def __init__(self, total: int, *, enabled: bool) -> None:
+        self.bar = None
+        if enabled:
+            from tqdm import tqdm
+            self.bar = tqdm(total=total, unit='bag', desc='evaluate', file=sys.stderr,
+                            leave=False)
+
+    def write(self, text: str) -> None:
+        """Print ``text`` on stdout (above the bar when there is one)."""
+        if self.bar is None:
+            print(text, flush=True)
+        else:
+            self.bar.write(text, file=sys.stdout)
+
+    def stage(self, what: str) -> None:
+        """Say what the bar is waiting for."""
+        if self.bar is not None:
+            self.bar.set_postfix_str(what)
+
+    def done_one(self) -> None:
+        """Count one bag done."""
+        if self.bar is not None:
+            self.bar.update(1)
+
+    def close(self) -> None:
+        """Remove the bar."""
+        if self.bar is not None:
+            self.bar.close()
+
+
 def main(argv: Optional[Sequence[str]] = None) -> int:
-    """Run ``python -m gyro_tdc evaluate``: 0 on success, 2 on bad input (see ``run_command``)."""
+    """Run ``gyro-tdc evaluate``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('evaluate', build_parser, _run, argv)
 
 
