@@ -476,16 +476,19 @@ def run_burst(args, model_file):
     """
     Send ``--burst`` messages as fast as one process publishes into a compensator here.
 
-    The publisher is ``test/burst_publisher.py`` in a child process (best effort, keep last,
-    ``--burst-repeats`` times; then reliable keep-all into ``input_reliability: reliable``).
+    The publisher is ``test/burst_publisher.py`` in a child process: best effort, keep last,
+    ``--burst-repeats`` times; then into ``input_reliability: reliable`` a reliable keep-last
+    publisher of depth 100 (as ``driver_node`` publishes) and a reliable keep-all one.
     Returns one row per burst: received, lost and what the compensator reported lost.
     """
     import rclpy
     from rclpy.context import Context
     from sensor_msgs.msg import Temperature
     rows = []
-    kinds = [('best_effort', 'keep_last', 'best_effort')] * args.burst_repeats
-    for publisher, history, subscription in kinds + [('reliable', 'keep_all', 'reliable')]:
+    kinds = [('best_effort', 'keep_last', args.burst, 'best_effort')] * args.burst_repeats
+    kinds += [('reliable', 'keep_last', 100, 'reliable'),
+              ('reliable', 'keep_all', args.burst, 'reliable')]
+    for publisher, history, depth, subscription in kinds:
         context = Context()
         rclpy.init(context=context)
         try:
@@ -503,7 +506,8 @@ def run_burst(args, model_file):
             _spin_for(ex, lambda: temp_pub.publish(temp) or node.core.temps.received, 10.0)
             child = subprocess.Popen(
                 [sys.executable, str(ROOT / 'test' / 'burst_publisher.py'), str(args.burst),
-                 publisher, history], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+                 publisher, history, str(depth)], stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                text=True)
             lines = []
             reader = threading.Thread(target=lambda: lines.extend(child.stdout), daemon=True)
             reader.start()
@@ -520,7 +524,7 @@ def run_burst(args, model_file):
             child.stdin.close()
             child.wait(timeout=30)
             counts = node.core.counts
-            row = {'publisher': f'{publisher}/{history}', 'input': subscription,
+            row = {'publisher': f'{publisher}/{history} {depth}', 'input': subscription,
                    'sent': args.burst, 'received': counts['in'], 'out': counts['out'],
                    'lost': args.burst - counts['in'], 'reported_lost': node.inputs.lost}
             rows.append(row)
