@@ -29,16 +29,19 @@ shown on /diagnostics :mod:`gyro_tdc.health`):
   widens the covariance, ``passthrough`` sends the raw rate;
 * before the first temperature, without a model, or with a NaN/Inf in the sample, the raw
   rate passes through unchanged;
-* outside the model's temperature range the model clamps or extrapolates, and the
-  covariance is widened;
-* start-up re-anchoring: once the gyro has been still for a window, the model's offset
-  is shifted so that the compensated rate averages zero.
+* outside the model's temperature range the model continues along its tangent (``linear``,
+  :mod:`gyro_tdc.out_of_range`), clamps or extrapolates, and the covariance is widened (with
+  ``linear`` the more, the farther);
+* start-up re-anchoring: once the gyro is still, the compensated rate is averaged until its
+  mean is known to ``reanchor_tolerance`` (:mod:`gyro_tdc.stillness`), and the model's
+  offset is shifted so that it averages zero.
 """
 
 from __future__ import annotations
 
 import bisect
 from collections import deque
+from dataclasses import replace
 import math
 from typing import Iterable, NamedTuple, Sequence
 
@@ -46,8 +49,11 @@ from gyro_tdc.effects import STATIC_EFFECTS
 from gyro_tdc.health import (FLAG_NAMES, NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
                              PASSTHROUGH, STALE)
 from gyro_tdc.model import CompensationModel, StreamingCompensator
+from gyro_tdc.out_of_range import (added_variance, DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C,
+                                   OUT_OF_RANGE_POLICIES)
 from gyro_tdc.paramspec import ParamSpec, spec_dataclass
-from gyro_tdc.stillness import Anchor, StillnessDetector, Vec3
+from gyro_tdc.stillness import (Anchor, STILL_WINDOW_MAX_S, STILL_WINDOW_S, StillnessDetector,
+                                Vec3)
 import numpy as np
 
 __all__ = ['CompensatorCore', 'PARAMS', 'Policy', 'PreparedModel', 'Priming', 'Replay',
@@ -62,9 +68,14 @@ PARAMS = (
     ParamSpec('model_file', '', 'Model YAML file, or the name of a model in config/models; '
               'settable at run time (hot reload). Empty: pass the raw rate through.',
               read_only=False),
-    ParamSpec('out_of_range', 'clamp', 'Outside the model temperature range: evaluate at the '
-              'nearest valid temperature (clamp) or extrapolate.',
-              choices=('clamp', 'extrapolate'), policy=True),
+    ParamSpec('out_of_range', DEFAULT_OUT_OF_RANGE, 'Outside the model temperature range: '
+              'continue the correction along its tangent at the range end for up to '
+              'max_extrapolation_c, then hold it (linear); evaluate at the nearest valid '
+              'temperature (clamp); or evaluate the model there (extrapolate).',
+              choices=OUT_OF_RANGE_POLICIES, policy=True),
+    ParamSpec('max_extrapolation_c', MAX_EXTRAPOLATION_C, 'How far beyond the model '
+              'temperature range the linear policy follows the tangent before it holds '
+              '[degC].', 0.0, 1000.0, policy=True),
     ParamSpec('temperature_timeout', 5.0, 'Temperature older than this (IMU stamp minus '
               'thermometer stamp) is stale [s].', 0.001, 86400.0, policy=True),
     ParamSpec('stale_policy', 'hold', 'With a stale temperature: keep compensating with the '
@@ -74,20 +85,29 @@ PARAMS = (
               'while compensating with a stale temperature [(rad/s)^2].', 0.0, 1.0e3,
               policy=True),
     ParamSpec('out_of_range_variance', 1.0e-6, 'Added to the covariance diagonal outside the '
-              "model's temperature range [(rad/s)^2].", 0.0, 1.0e3, policy=True),
+              "model's temperature range; with linear, times 1 + (d / 5 degC)^2 at a distance "
+              'd from the range [(rad/s)^2].', 0.0, 1.0e3, policy=True),
     ParamSpec('passthrough_variance', 1.0e-4, 'Added to the covariance diagonal when the raw '
               'rate is passed through uncompensated [(rad/s)^2].', 0.0, 1.0e3, policy=True),
     ParamSpec('reanchor_on_start', False, 'Shift the model offset so the compensated rate '
-              'averages zero once the IMU has been still for still_window.', policy=True),
-    ParamSpec('still_window', 10.0, 'Stillness window for re-anchoring [s].', 0.1, 3600.0,
-              policy=True),
-    ParamSpec('still_gyro_std', 0.02, 'Largest per-axis standard deviation of the raw rate '
-              'over a still window [rad/s].', 0.0, 10.0, policy=True),
+              'averages zero once the IMU is still and the mean is known to '
+              'reanchor_tolerance.', policy=True),
+    ParamSpec('reanchor_tolerance', 0.0, 'Largest standard error of the re-anchoring shift '
+              "per axis; 0: auto, 0.1 x the model's residual standard deviation, at least "
+              '1e-5 rad/s [rad/s].', 0.0, 10.0, policy=True),
+    ParamSpec('still_window', STILL_WINDOW_S, 'Stillness window: the shortest averaging for '
+              're-anchoring [s].', 0.1, 3600.0, policy=True),
+    ParamSpec('still_window_max', STILL_WINDOW_MAX_S, 'Longest averaging for re-anchoring '
+              '(the shift is taken then even when its standard error is above the '
+              'tolerance) [s].', 0.1, 86400.0, policy=True),
+    ParamSpec('still_gyro_std', 0.0, 'Largest per-axis standard deviation of the raw rate '
+              'over a still window; 0: auto, 4 x the quietest window so far [rad/s].', 0.0,
+              10.0, policy=True),
     ParamSpec('still_max_rate', 0.02, 'Largest per-axis mean compensated rate over a still '
               'window, i.e. the largest shift allowed [rad/s].', 0.0, 10.0, policy=True),
-    ParamSpec('still_accel_std', 0.1, 'Largest per-axis standard deviation of the '
-              'acceleration over a still window, when the IMU has one [m/s^2].', 0.0, 100.0,
-              policy=True),
+    ParamSpec('still_accel_std', 0.0, 'Largest per-axis standard deviation of the '
+              'acceleration over a still window, when the IMU has one; 0: auto, 4 x the '
+              'quietest window so far [m/s^2].', 0.0, 100.0, policy=True),
     ParamSpec('queue_depth', 2000, 'Queue depth of the imu/data_raw and imu/temperature '
               'subscriptions and of the publisher (keep last) [messages].', 1, 1000000),
     ParamSpec('input_reliability', 'best_effort', 'QoS reliability of the imu/data_raw '
@@ -305,7 +325,8 @@ def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> Prepa
         The model, its primed compensator and its tables.
 
     """
-    comp = StreamingCompensator(model, out_of_range=policy.out_of_range)
+    comp = StreamingCompensator(model, out_of_range=policy.out_of_range,
+                                max_extrapolation_c=policy.max_extrapolation_c)
     replay = None
     if priming.first is not None and priming.last_t is not None:
         replay = _replay_from_first(comp, priming.first, priming.history, priming.last_t)
@@ -354,7 +375,10 @@ class CompensatorCore:
         self._first: tuple[float, float] | None = None
         self._history: deque[tuple[float, float]] = deque(maxlen=self.HISTORY_LENGTH)
         self._detector = StillnessDetector(policy.still_window, policy.still_gyro_std,
-                                           policy.still_max_rate, policy.still_accel_std)
+                                           policy.still_max_rate, policy.still_accel_std,
+                                           window_max=policy.still_window_max,
+                                           tolerance=policy.reanchor_tolerance)
+        self.last_distance_c = 0.0
         self.model: CompensationModel | None = None
         self.model_id = ''
         self._comp: StreamingCompensator | None = None
@@ -406,7 +430,8 @@ class CompensatorCore:
             if (state is None or prepared.priming.first != self._first
                     or prepared.priming.last_t is None or self.last_t < prepared.priming.last_t):
                 # The stream moved in a way the copy did not see: replay it all here.
-                comp = StreamingCompensator(model, out_of_range=self.policy.out_of_range)
+                comp = StreamingCompensator(model, out_of_range=self.policy.out_of_range,
+                                            max_extrapolation_c=self.policy.max_extrapolation_c)
                 state = _replay_from_first(comp, self._first, self._history, self.last_t)
             else:
                 tail = []
@@ -423,7 +448,7 @@ class CompensatorCore:
             comp.shift_offset(np.asarray(self.anchor.delta, dtype=np.float64))
         elif not same:
             self.anchor = None
-            self._detector.reset()
+            self._detector.reset(residual_var=model.residual_var)
         self._var, self._scale, self._static = prepared.var, prepared.scale, prepared.static
         self._cache: dict[float, tuple] = {}
         self.model_id = prepared.model_id
@@ -496,16 +521,18 @@ class CompensatorCore:
         if self._static:
             # Static features: the drift only changes when the temperature does.
             entry = self._cache.get(temp) or self._refresh(t, temp)
-            bx, by, bz, dx, dy, dz, in_range = entry
+            bx, by, bz, dx, dy, dz, in_range, dist = entry
             ox, oy, oz = (wx - bx) / dx, (wy - by) / dy, (wz - bz) / dz
             if not in_range:
                 flags |= OUT_OF_RANGE
         else:
             out = comp.step(t, temp, (wx, wy, wz))
+            dist = comp.range_distance_c
             if not comp.in_range:
                 flags |= OUT_OF_RANGE
             ox, oy, oz = out.tolist()
         self.last_t, self.last_temp, self.last_flags = t, temp, flags
+        self.last_distance_c = dist
         counts = self.counts
         counts['out'] += 1
         counts['compensated'] += 1
@@ -515,6 +542,11 @@ class CompensatorCore:
                     self.flag_counts[bit] += 1
         elif self.policy.reanchor_on_start and self.anchor is None:
             self._still(t, (wx, wy, wz), (ox, oy, oz), accel, temp)
+        if dist and self.policy.out_of_range == 'linear':   # grows with the distance
+            p = self.policy
+            more = added_variance(p.out_of_range_variance, dist, 'linear') \
+                - p.out_of_range_variance
+            return ox, oy, oz, tuple(v + more for v in self._var[flags]), flags
         return ox, oy, oz, self._var[flags], flags
 
     def _refresh(self, t: float, temp: float) -> tuple:
@@ -529,18 +561,13 @@ class CompensatorCore:
         Returns
         -------
         tuple
-            ``(bx, by, bz, 1 + dT sx, 1 + dT sy, 1 + dT sz, in_range)``.
+            ``(bx, by, bz, 1 + dT sx, 1 + dT sy, 1 + dT sz, in_range, distance_c)``.
 
         """
         comp = self._comp
-        model = self.model
         b = comp.drift(t, temp).tolist()
-        clamped = temp
-        if self.policy.out_of_range == 'clamp':
-            lo, hi = model.temp_range_c
-            clamped = min(max(temp, lo), hi)
-        den = (1.0 + (clamped - model.t0_c) * self._scale).tolist()
-        entry = (*b, *den, comp.in_range)
+        den = (1.0 + comp.dt_c * self._scale).tolist()
+        entry = (*b, *den, comp.in_range, comp.range_distance_c)
         if len(self._cache) >= 64:
             self._cache.clear()
         self._cache[temp] = entry
@@ -571,15 +598,14 @@ class CompensatorCore:
         found = self._detector.update(t, raw, out, accel, temp)
         if found is None:
             return
-        model = self.model
-        clamp = self.policy.out_of_range == 'clamp'
-        lo, hi = model.temp_range_c
-        d_t = (min(max(temp, lo), hi) if clamp else temp) - model.t0_c
-        delta = np.asarray(found.delta) * (1.0 + d_t * self._scale)
+        # The compensated rate is divided by 1 + s dT: the drift shift is the mean times it.
+        den = (np.asarray(self._cache[temp][3:6]) if self._static
+               else 1.0 + self._comp.dt_c * self._scale)
+        delta = np.asarray(found.delta) * den
         self._comp.shift_offset(delta)
         self._cache.clear()
-        self.anchor = Anchor(found.t, tuple(float(v) for v in delta), found.samples,
-                             found.gyro_std, found.temp_c)
+        self.anchor = replace(found, delta=tuple(float(v) for v in delta),
+                              se=tuple(float(v) for v in np.asarray(found.se) * np.abs(den)))
 
     @property
     def still_windows_rejected(self) -> int:

@@ -204,6 +204,8 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         'temperature degC': f'{core.last_temp:.3f}' if core.last_temp is not None else '',
         'temperature age s': f'{age:.3f}' if age is not None else '',
         'temperature stale': bool(flags & STALE), 'in range': not flags & OUT_OF_RANGE,
+        'out of range policy': core.policy.out_of_range,
+        'range distance degC': f'{core.last_distance_c:+.2f}',
         'messages in': core.counts['in'], 'messages out': core.counts['out'],
         'compensated': core.counts['compensated'], 'passed through': counts[PASSTHROUGH],
         'no temperature yet': counts[NO_TEMPERATURE], 'stale': counts[STALE],
@@ -223,6 +225,12 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
                                    if settling < SETTLE_TAUS else 'settled')
     if anchor is not None:
         values['reanchor shift dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.delta)
+        values['reanchor samples'] = anchor.samples
+        values['reanchor duration s'] = f'{anchor.duration_s:.3f}'
+        values['reanchor se dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.se)
+        values['reanchor tolerance dps'] = ','.join(f'{math.degrees(v):.5f}'
+                                                    for v in anchor.tolerance)
+        values['reanchor stopped on'] = anchor.reason or 'one window'
     return Health(level, message,
                   (model.sensor_id or model.frame_id) if model is not None else '',
                   {k: str(v) for k, v in values.items()},

@@ -39,6 +39,11 @@ at the range ends. ``dTdt`` is of the measured temperature (unclamped) and ``war
 time since the first sample. A format-1 model (``thermal=None``, read from an old file)
 keeps its meaning exactly: every feature of the measured temperature (clamped), ``lag`` the
 additive column ``dT`` of the lagged temperature.
+
+Outside the trained range the policy of :mod:`gyro_tdc.out_of_range` applies (``linear``:
+the correction continues along its tangent at the range end, then holds; ``clamp``;
+``extrapolate``); the library functions keep ``clamp=True`` as their default, and
+``out_of_range=`` overrides it.
 """
 
 from __future__ import annotations
@@ -51,6 +56,7 @@ from typing import Any, Mapping
 
 from gyro_tdc.effects import batch_features, input_ids, StreamingFeatures, THERMAL_EFFECTS
 from gyro_tdc.errors import FeatureError
+from gyro_tdc.out_of_range import check_policy, MAX_EXTRAPOLATION_C, split, Tangent
 from gyro_tdc.plain import plain
 from gyro_tdc.thermal_state import SETTLE_TAUS, ThermalState
 import numpy as np
@@ -271,16 +277,6 @@ def _coef(model: CompensationModel) -> NDArray[np.float64]:
     return np.vstack([model.intercept[None, :], model.linear, model.weights])
 
 
-def _clamped(model: CompensationModel, temp: NDArray[np.float64], clamp: bool
-             ) -> NDArray[np.float64]:
-    """Return ``temp`` clamped to the model's valid range when asked."""
-    temp = np.asarray(temp, dtype=np.float64)
-    if clamp:
-        lo, hi = model.temp_range_c
-        return np.clip(temp, lo, hi)
-    return temp
-
-
 def model_temperature(model: CompensationModel, t: NDArray[np.float64],
                       temp: NDArray[np.float64], *, clamp: bool = False
                       ) -> NDArray[np.float64]:
@@ -308,34 +304,61 @@ def model_temperature(model: CompensationModel, t: NDArray[np.float64],
     temp = np.asarray(temp, dtype=np.float64)
     if model.thermal is not None:
         temp = model.thermal.temperature(t, temp)
-    return _clamped(model, temp, clamp)
+    if clamp:
+        lo, hi = model.temp_range_c
+        return np.clip(temp, lo, hi)
+    return temp
+
+
+def _policy(clamp: bool, out_of_range: str | None) -> str:
+    """Return the out-of-range policy: ``out_of_range`` when given, else from ``clamp``."""
+    if out_of_range is None:
+        return 'clamp' if clamp else 'extrapolate'
+    return check_policy(out_of_range)
 
 
 def _features(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
-              clamp: bool) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return the feature rows and the model temperature minus T0 of one run."""
+              policy: str, max_c: float
+              ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return the feature rows of one run, their model temperature minus T0 and the reach.
+
+    The rows are evaluated at the model temperature :func:`gyro_tdc.out_of_range.split`
+    gives for ``policy``; the reach is how far the ``linear`` tangent continues from there.
+    """
     temp = np.asarray(temp, dtype=np.float64)
-    s = model_temperature(model, t, temp, clamp=clamp)
+    lo, hi = model.temp_range_c
+    s, reach = split(model_temperature(model, t, temp), lo, hi, policy, max_c)
     if model.thermal is None:        # format 1: every feature of the (clamped) measured T
         x = batch_features(model.features, t, s, t0=model.t0_c, params=model.effect_params)
     else:
         x = batch_features(model.features, t, temp, t0=model.t0_c,
                            params=model.effect_params, state=s)
-    return x, s - model.t0_c
+    return x, s - model.t0_c, reach
 
 
-def _drift_of(model: CompensationModel, x: NDArray[np.float64], chunk: int
+def _drift_of(model: CompensationModel, x: NDArray[np.float64], chunk: int,
+              d: NDArray[np.float64] | None = None, reach: NDArray[np.float64] | None = None
               ) -> NDArray[np.float64]:
-    """Evaluate ``b(x)`` over feature rows in chunks."""
+    """Evaluate ``b(x)`` over feature rows in chunks, plus the tangent times ``reach``."""
     coef = _coef(model)
     out = np.empty((x.shape[0], 3))
+    tangent = None if reach is None or not np.any(reach) else Tangent(model)
     for i in range(0, x.shape[0], chunk):
-        out[i:i + chunk] = rbf_design(model, x[i:i + chunk]) @ coef
+        design = rbf_design(model, x[i:i + chunk])
+        out[i:i + chunk] = design @ coef
+        if tangent is not None:
+            r = reach[i:i + chunk]
+            k = np.flatnonzero(r)
+            if k.size:
+                out[i + k] += r[k, None] * tangent.slope(design[k], d[i:i + chunk][k])
     return out
 
 
 def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64], *,
-          clamp: bool = True, chunk: int = 200_000) -> NDArray[np.float64]:
+          clamp: bool = True, out_of_range: str | None = None,
+          max_extrapolation_c: float = MAX_EXTRAPOLATION_C, chunk: int = 200_000
+          ) -> NDArray[np.float64]:
     """
     Evaluate the zero-rate drift b(x) over one run.
 
@@ -349,7 +372,11 @@ def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.flo
         Measured temperature at each stamp.
     clamp : bool
         Clamp the model temperature (the thermal state) to the model's valid range first
-        (default).
+        (default); False extrapolates. Ignored when ``out_of_range`` is given.
+    out_of_range : str, optional
+        ``'linear'``, ``'clamp'`` or ``'extrapolate'`` (:mod:`gyro_tdc.out_of_range`).
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent beyond the range, after which it holds.
     chunk : int
         Rows evaluated at once (bounds memory for long runs).
 
@@ -359,11 +386,14 @@ def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.flo
         The drift per axis.
 
     """
-    return _drift_of(model, _features(model, t, temp, clamp)[0], chunk)
+    x, d, reach = _features(model, t, temp, _policy(clamp, out_of_range), max_extrapolation_c)
+    return _drift_of(model, x, chunk, d, reach)
 
 
 def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
-               omega: NDArray[np.float64], *, clamp: bool = True) -> NDArray[np.float64]:
+               omega: NDArray[np.float64], *, clamp: bool = True,
+               out_of_range: str | None = None,
+               max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> NDArray[np.float64]:
     """
     Remove the modelled drift from a run: ``(omega - b) / (1 + s dT)``.
 
@@ -378,7 +408,12 @@ def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[n
     omega : NDArray[np.float64], shape (N, 3), rad/s
         Raw gyro output.
     clamp : bool
-        Clamp the model temperature to the model's valid range first (default).
+        Clamp the model temperature to the model's valid range first (default); ignored
+        when ``out_of_range`` is given.
+    out_of_range : str, optional
+        ``'linear'``, ``'clamp'`` or ``'extrapolate'`` (:mod:`gyro_tdc.out_of_range`).
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent beyond the range, after which it holds.
 
     Returns
     -------
@@ -386,14 +421,16 @@ def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[n
         Compensated rate.
 
     """
-    x, d = _features(model, t, temp, clamp)
-    b = _drift_of(model, x, 200_000)
+    x, d, reach = _features(model, t, temp, _policy(clamp, out_of_range), max_extrapolation_c)
+    b = _drift_of(model, x, 200_000, d, reach)
+    d = d + reach
     return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + d[:, None] * model.scale[None, :])
 
 
 def predict_drift(model: CompensationModel, t: NDArray[np.float64],
                   temp: NDArray[np.float64], omega_ref: NDArray[np.float64], *,
-                  clamp: bool = False) -> NDArray[np.float64]:
+                  clamp: bool = False, out_of_range: str | None = None,
+                  max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> NDArray[np.float64]:
     """
     Simulate the raw output for a true rate: ``(1 + s dT) omega_ref + b``.
 
@@ -408,7 +445,12 @@ def predict_drift(model: CompensationModel, t: NDArray[np.float64],
     omega_ref : NDArray[np.float64], shape (N, 3), rad/s
         True (reference) rate.
     clamp : bool
-        Clamp the model temperature to the model's valid range first (default: no).
+        Clamp the model temperature to the model's valid range first (default: no);
+        ignored when ``out_of_range`` is given.
+    out_of_range : str, optional
+        ``'linear'``, ``'clamp'`` or ``'extrapolate'`` (:mod:`gyro_tdc.out_of_range`).
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent beyond the range, after which it holds.
 
     Returns
     -------
@@ -416,8 +458,9 @@ def predict_drift(model: CompensationModel, t: NDArray[np.float64],
         Predicted raw gyro output.
 
     """
-    x, d = _features(model, t, temp, clamp)
-    b = _drift_of(model, x, 200_000)
+    x, d, reach = _features(model, t, temp, _policy(clamp, out_of_range), max_extrapolation_c)
+    b = _drift_of(model, x, 200_000, d, reach)
+    d = d + reach
     return (1.0 + d[:, None] * model.scale[None, :]) * np.asarray(omega_ref) + b
 
 
@@ -435,16 +478,21 @@ class StreamingCompensator:
         The model.
     out_of_range : str
         ``'clamp'`` (default) evaluates at the nearest valid model temperature;
-        ``'extrapolate'`` evaluates the model outside its range.
+        ``'linear'`` continues along the tangent at the range end up to
+        ``max_extrapolation_c``, then holds; ``'extrapolate'`` evaluates the model outside
+        its range (:mod:`gyro_tdc.out_of_range`).
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent.
 
     """
 
-    def __init__(self, model: CompensationModel, *, out_of_range: str = 'clamp') -> None:
-        if out_of_range not in ('clamp', 'extrapolate'):
-            raise ValueError(f"Expected `out_of_range` 'clamp' or 'extrapolate', "
-                             f'got {out_of_range!r}.')
+    def __init__(self, model: CompensationModel, *, out_of_range: str = 'clamp',
+                 max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> None:
         self.model = model
+        self.policy = check_policy(out_of_range)
         self.clamp = out_of_range == 'clamp'
+        self.max_extrapolation_c = float(max_extrapolation_c)
+        self._tangent = Tangent(model) if self.policy == 'linear' else None
         self.thermal = None if model.thermal is None else model.thermal.stream()
         self.features = StreamingFeatures(model.features, t0=model.t0_c,
                                           params=model.effect_params,
@@ -459,6 +507,8 @@ class StreamingCompensator:
         self.offset = np.zeros(3)
         self.in_range = True
         self.model_temp: float | None = None
+        self.range_distance_c = 0.0
+        self.dt_c = 0.0
 
     def reset(self) -> None:
         """Restart the thermal state and the feature filters (a new run)."""
@@ -504,14 +554,22 @@ class StreamingCompensator:
         -------
         NDArray[np.float64], shape (3,), rad/s
             The drift (plus the re-anchoring offset). ``in_range`` tells whether the model
-            temperature was inside ``temp_range_c``; ``model_temp`` is the model
-            temperature used (clamped when the policy clamps).
+            temperature was inside ``temp_range_c``, ``range_distance_c`` how far outside it
+            was (degC, negative below, 0 inside); ``model_temp`` is the model temperature
+            the correction stands for (clamped when the policy clamps, the range end plus
+            the tangent's reach with ``linear``) and ``dt_c`` that minus T0, the ``dT`` of
+            the scale term.
 
         """
         s = temp if self.thermal is None else self.thermal.update(t, temp)
-        self.in_range = self._lo <= s <= self._hi
-        if self.clamp:
-            s = min(max(s, self._lo), self._hi)
+        reach = 0.0
+        if self._lo <= s <= self._hi:
+            self.in_range = True
+            self.range_distance_c = 0.0
+        else:
+            self.in_range = False
+            self.range_distance_c = s - min(max(s, self._lo), self._hi)
+            s, reach = split(s, self._lo, self._hi, self.policy, self.max_extrapolation_c)
         if self.thermal is None:          # format 1: every feature of the (clamped) T
             x = self.features.update(t, s)
         else:
@@ -523,9 +581,14 @@ class StreamingCompensator:
         if self._centers.shape[0]:
             d2 = ((xn[None, :] - self._centers) ** 2).sum(axis=1)
             row[1 + self._f:] = np.exp(-d2 * self._inv2w2)
-        self.model_temp = s
-        self._last_dt = s - self.model.t0_c
-        return row @ self._coef + self.offset
+        d = s - self.model.t0_c
+        b = row @ self._coef + self.offset
+        if reach:
+            b = b + reach * self._tangent.slope(row[None, :], np.array([d]))[0]
+            d = d + reach
+        self.model_temp = s + reach
+        self.dt_c = d
+        return b
 
     def step(self, t: float, temp: float, omega: NDArray[np.float64]) -> NDArray[np.float64]:
         """
@@ -547,7 +610,7 @@ class StreamingCompensator:
 
         """
         b = self.drift(t, temp)
-        return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + self._last_dt * self.model.scale)
+        return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + self.dt_c * self.model.scale)
 
 
 def summary(model: CompensationModel) -> Mapping[str, Any]:

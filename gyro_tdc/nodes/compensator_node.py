@@ -455,8 +455,10 @@ class CompensatorNode(Node):
         if anchor is not None and anchor is not self._reported_anchor:
             self._reported_anchor = anchor
             self.get_logger().info(
-                f're-anchored after {anchor.samples} still samples at {anchor.temp_c:.2f} '
-                f'degC: offset shift {h.values["reanchor shift dps"]} deg/s')
+                f're-anchored after {anchor.samples} still samples over '
+                f'{anchor.duration_s:.1f} s at {anchor.temp_c:.2f} degC: offset shift '
+                f'{h.values["reanchor shift dps"]} deg/s, standard error '
+                f'{h.values["reanchor se dps"]} deg/s ({h.values["reanchor stopped on"]})')
         return DiagnosticStatus(
             level=bytes((h.level,)), name=f'{self.get_name()}: gyro compensation',
             message=h.message, hardware_id=h.hardware_id,
