@@ -426,8 +426,7 @@ _DROPPED = {
     'duplicate_stamps': 'IMU samples repeating an earlier stamp',
     'temp_duplicate_stamps': 'temperature readings repeating a stamp (the last one kept)',
     'out_of_order': 'IMU samples out of order (sorted, not dropped)',
-    'no_temperature': ('IMU samples without a temperature reading close enough (before the '
-                       'first, after the last, or across a gap in the thermometer)'),
+    'no_temperature': 'IMU samples with no temperature reading near them (ends or gaps)',
     'no_reference': 'IMU samples before the first reference message',
 }
 

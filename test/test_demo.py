@@ -12,12 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""`python -m gyro_tdc demo`: the whole offline pipeline runs and shows what it should."""
+
+"""`gyro-tdc demo`: the whole offline pipeline runs, shows what it should, and re-runs."""
 
 import json
+import re
 
 from gyro_tdc.cli import demo
 import numpy as np
+import pytest
 
 
 def test_demo_offline_pipeline(tmp_path, capsys):
@@ -26,8 +29,16 @@ def test_demo_offline_pipeline(tmp_path, capsys):
     text = capsys.readouterr().out
     # Every step prints the command a user would type.
     for cmd in ('simulate --scenario l3gd20_paper', 'train ', 'evaluate ', 'discover '):
-        assert f'$ python -m gyro_tdc {cmd}' in text
+        assert f'$ gyro-tdc {cmd}' in text
     assert 'paper table (eq. 31-32)' in text
+    # The steps are numbered 1..N of the one list --help and the README show too.
+    total = len(demo.STEPS) - 1
+    found = re.findall(r'^\[(\d+)/(\d+)\] (.*?)  \(t = \d+ s\)$', text, flags=re.M)
+    assert [(int(i), int(n), title) for i, n, title in found] == [
+        (i, total, title) for i, title in enumerate(demo.STEPS[:-1], 1)]
+    # Six trainings on two bags: each bag's coverage is printed once.
+    assert len(re.findall(r'^coverage per 5 degC bin', text, flags=re.M)) == 2
+    assert text.count('as printed above)') == 4
 
     tables = json.loads((out / 'report' / 'paper_tables.json').read_text())
     assert [b['bag'].rsplit('/', 1)[-1] for b in tables['bags']] == ['run2', 'run3', 'run4',
@@ -49,3 +60,61 @@ def test_demo_offline_pipeline(tmp_path, capsys):
     assert (out / 'models' / 'discovered.yaml').is_file()
     assert (out / 'report' / 'discovery' / 'report.md').is_file()
     assert sorted(p.name for p in (out / 'report' / 'evaluate').glob('*.png'))
+    # --help promises only what is written: every output it lists exists (live.json is the
+    # live step's, left out here).
+    for pattern in demo.OUTPUTS:
+        if pattern == 'report/live.json':
+            assert not (out / pattern).exists()
+            continue
+        for part in pattern.replace(' .. ', ', ').split(', '):
+            part = part if '/' in part else f'{pattern.rsplit("/", 1)[0]}/{part}'
+            assert list(out.glob(part.strip())), part
+
+
+def test_help_lists_the_steps_and_outputs(capsys):
+    assert demo.main(['--help']) == 0
+    text = capsys.readouterr().out
+    flat = ' '.join(text.split())
+    for i, title in enumerate(demo.STEPS, 1):
+        assert f'{i}. {" ".join(title.split())}' in flat
+    for pattern in demo.OUTPUTS:
+        assert pattern in text
+    assert 'csv' not in text.lower()
+
+
+def test_out_is_cleared_only_when_an_earlier_demo_wrote_it(tmp_path, capsys):
+    out = tmp_path / 'demo'
+    demo.prepare_out(out)                       # new folder: created and marked
+    assert (out / demo.MARKER).is_file()
+    (out / 'bags' / 'l3gd20_paper').mkdir(parents=True)
+    (out / 'old.txt').write_text('from the last demo')
+    demo.prepare_out(out)                       # an earlier demo's: cleared, marked again
+    assert sorted(p.name for p in out.iterdir()) == [demo.MARKER]
+    assert 'removing the previous demo output' in capsys.readouterr().out
+    mine = tmp_path / 'mine'
+    mine.mkdir()
+    (mine / 'thesis.tex').write_text('keep')
+    assert demo.main(['--out', str(mine), '--skip-live']) == 2
+    err = capsys.readouterr().err.splitlines()
+    assert len(err) == 1 and 'was not written by the demo' in err[0]
+    assert (mine / 'thesis.tex').read_text() == 'keep'
+    empty = tmp_path / 'empty'
+    empty.mkdir()
+    demo.prepare_out(empty)                     # an empty folder is fine
+    assert (empty / demo.MARKER).is_file()
+
+
+@pytest.mark.parametrize('counts, needles', [
+    ((8320, 8050, 8050, 8050), ['one out per in: while both streams were heard, 8050 raw',
+                                'the totals (8320 raw, 8050 compensated) differ', 'DDS']),
+    ((8440, 9460, 8440, 8440), ['one out per in', '8440 compensated came out',
+                                'no raw twin']),
+    ((500, 500, 500, 500), ['one out per in', '500 raw messages went in']),
+    ((600, 590, 600, 590), ['not one out per in', '(10 lost']),
+])
+def test_live_counts_are_explained(counts, needles):
+    lines = demo.live_counts_explained(*counts)
+    text = '\n'.join(lines)
+    for needle in needles:
+        assert needle in text
+    assert len(lines) == (1 if counts[:2] == counts[2:] else 2)

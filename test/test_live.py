@@ -26,6 +26,8 @@ def test_live_stream_is_compensated_across_processes():
                       sim_rate_hz=10.0, time_scale=40.0, seconds=5.0)
     assert result.matched >= 100
     assert result.compensated_received >= result.matched
+    # While the monitor heard both streams: one compensated message per raw one.
+    assert result.compensated_in_window == result.raw_in_window >= result.matched
     raw, comp = np.array(result.bs_raw_dps2), np.array(result.bs_compensated_dps2)
     # Raw BS holds the L3GD20's few-dps zero-rate offset; the model removes it down to
     # about the 10 Hz white-noise floor (0.009 (deg/s)^2).

@@ -80,6 +80,11 @@ class LiveResult:
     bs_compensated_dps2: tuple[float, float, float]
     temperature_c: tuple[float, float]
     seconds: float
+    # Messages stamped inside the window where the monitor heard both streams (from the
+    # later first stamp to the earlier last one); outside it one subscription (the
+    # compensator's input or one of the monitor's) was not yet matched by DDS discovery.
+    raw_in_window: int = 0
+    compensated_in_window: int = 0
 
     def lines(self) -> list[str]:
         """Return a short human-readable report."""
@@ -167,7 +172,11 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
         ref = np.radians(np.asarray(reference_dps, dtype=float))
         nan3 = (math.nan,) * 3
         temps = node.temps or [math.nan]
+        lo = max(min(node.raw, default=0), min(node.comp, default=0))
+        hi = min(max(node.raw, default=-1), max(node.comp, default=-1))
         return LiveResult(
+            raw_in_window=sum(1 for s in node.raw if lo <= s <= hi),
+            compensated_in_window=sum(1 for s in node.comp if lo <= s <= hi),
             raw_received=len(node.raw), compensated_received=len(node.comp),
             matched=len(stamps),
             bs_raw_dps2=tuple(bias_stability(raw, ref).tolist()) if stamps else nan3,
