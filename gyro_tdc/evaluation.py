@@ -21,9 +21,12 @@ its angle random walk and bias instability (:func:`score`). A model is a
 :class:`NamedModel` (a model file, or the ``px4`` cubic fitted on training bags:
 :func:`load_models`); :func:`evaluate_run` scores every model on one run and returns a
 :class:`BagEval` of :class:`ModelEval`; :func:`evaluate` does so for bags, one in memory at
-a time. A run whose temperature leaves a model's trained range is evaluated with the
-temperature clamped to that range (as the compensator node does), and the result says how
-much of it was outside.
+a time. Where a run's model temperature leaves a model's trained range the out-of-range
+policy applies (:mod:`gyro_tdc.out_of_range`; ``linear`` by default, as the compensator
+node), and the result says which and how much of the run was outside. Re-anchoring removes
+each model's mean error over the head of the run: the first ``reanchor_s`` seconds, or
+(``'auto'``) as long as the compensator's rule takes to know it to its tolerance
+(:func:`gyro_tdc.stillness.reanchor_shift`, the same windows, blocks and tolerance).
 
 Formatting (tables, JSON, CSV, plots) lives in :mod:`gyro_tdc.report`; the command line in
 :mod:`gyro_tdc.cli.evaluate`.
@@ -44,18 +47,24 @@ from gyro_tdc.fitting import fit_px4_cubic
 from gyro_tdc.metrics import allan_deviation, bias_stability, noise_readouts, rms_dps
 from gyro_tdc.model import compensate, CompensationModel, model_temperature
 from gyro_tdc.modelfile import load_model
+from gyro_tdc.out_of_range import check_policy, DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C
 from gyro_tdc.resources import model_path
 from gyro_tdc.runs import Run
+from gyro_tdc.stillness import default_tolerance, reanchor_shift, STILL_WINDOW_MAX_S
+from gyro_tdc.stillness import STILL_WINDOW_S
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = [
-    'BagEval', 'ModelEval', 'NamedModel', 'PX4', 'bag_labels', 'evaluate', 'evaluate_run',
-    'load_models', 'mean_scores', 'model_labels', 'rate_hz', 'safe_label', 'score',
+    'AUTO_REANCHOR', 'BagEval', 'ModelEval', 'NamedModel', 'PX4', 'bag_labels', 'evaluate',
+    'evaluate_run', 'load_models', 'mean_scores', 'model_labels', 'rate_hz', 'safe_label',
+    'score',
 ]
 
 #: Model spec of the PX4-style cubic in T fitted on training bags.
 PX4 = 'px4'
+#: ``reanchor_s`` value for the compensator's precision-driven rule.
+AUTO_REANCHOR = 'auto'
 
 
 # --------------------------------------------------------------------------------------------
@@ -91,9 +100,12 @@ class ModelEval:
         The model's trained range.
     outside_fraction : float
         Fraction of the bag's samples whose model temperature (the thermal state) lies
-        outside ``temp_range_c`` (evaluated clamped).
+        outside ``temp_range_c`` (evaluated with the bag's out-of-range policy).
     omega : NDArray[np.float64], shape (N, 3), rad/s, or None
         The compensated rate (kept only while plots and CSVs are written).
+    reanchor : dict, optional
+        With ``reanchor_s='auto'``: ``samples``, ``duration_s``, ``shift_dps``, ``se_dps``,
+        ``tolerance_dps`` (3 each) and ``reason`` of the re-anchoring.
 
     """
 
@@ -110,6 +122,7 @@ class ModelEval:
     temp_range_c: tuple = (math.nan, math.nan)
     outside_fraction: float = 0.0
     omega: NDArray[np.float64] | None = field(default=None, repr=False)
+    reanchor: dict | None = None
 
 
 @dataclass
@@ -137,6 +150,10 @@ class BagEval:
         One per model, in command-line order.
     run : Run or None
         The data (kept only while plots and CSVs are written).
+    out_of_range : str
+        The out-of-range policy the models were evaluated with (:func:`evaluate_run` sets
+        it; ``'clamp'``, what every evaluation did before the policy existed, when a result
+        is built by hand).
 
     """
 
@@ -149,6 +166,7 @@ class BagEval:
     raw: ModelEval
     models: list
     run: Run | None = field(default=None, repr=False)
+    out_of_range: str = 'clamp'
 
     def release(self) -> None:
         """Drop the sample arrays (keep the scores)."""
@@ -325,8 +343,27 @@ def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: st
                      bias_instability_deg_h=nr['bias_instability_deg_h'], omega=omega)
 
 
+def _reanchored(comp: NDArray[np.float64], run: Run, model: CompensationModel,
+                reanchor_s: float | str) -> tuple[NDArray[np.float64], dict | None]:
+    """Return ``comp`` minus its mean error over the head of the run, and what was done."""
+    if reanchor_s == AUTO_REANCHOR:
+        tol = default_tolerance(model.residual_var)
+        r = reanchor_shift(run.t, comp - run.omega_ref, tolerance=tol, window=STILL_WINDOW_S,
+                           window_max=STILL_WINDOW_MAX_S)
+        deg = np.degrees
+        return comp - np.asarray(r.delta), {
+            'samples': int(r.samples), 'duration_s': float(r.duration_s),
+            'shift_dps': deg(r.delta).tolist(), 'se_dps': deg(r.se).tolist(),
+            'tolerance_dps': deg(tol).tolist(), 'reason': r.reason}
+    if reanchor_s > 0:
+        head = run.t <= run.t[0] + reanchor_s
+        comp = comp - (comp[head] - run.omega_ref[head]).mean(axis=0)
+    return comp, None
+
+
 def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
-                 reanchor_s: float = 0.0) -> BagEval:
+                 reanchor_s: float | str = 0.0, out_of_range: str = DEFAULT_OUT_OF_RANGE,
+                 max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> BagEval:
     """
     Score raw data and every model on one run.
 
@@ -338,10 +375,17 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         The models, in the order to report them.
     label : str
         Short label of the run (default from its name).
-    reanchor_s : float, s
+    reanchor_s : float (s) or ``'auto'``
         When > 0, remove from each model's compensated rate its mean error over the first
         ``reanchor_s`` seconds (the run-to-run bias offset, as the compensator re-anchors at
-        start-up while the sensor is still); the raw data are never re-anchored.
+        start-up while the sensor is still); ``'auto'``: over as long as the compensator's
+        rule averages (:func:`gyro_tdc.stillness.reanchor_shift` with the default windows
+        and tolerance, reported in ``ModelEval.reanchor``); the raw data are never
+        re-anchored.
+    out_of_range : str
+        ``'linear'`` (default), ``'clamp'`` or ``'extrapolate'`` beyond a model's range.
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent.
 
     Returns
     -------
@@ -349,31 +393,34 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         Scores, with the arrays kept for plots and export (call ``release()`` after).
 
     """
+    check_policy(out_of_range)
     rate = rate_hz(run.t)
     raw = score(run.omega, run, rate=rate)
     out = []
     for nm in models:
         m = nm.model
-        comp = compensate(m, run.t, run.temp, run.omega)
-        if reanchor_s > 0:
-            head = run.t <= run.t[0] + reanchor_s
-            comp -= (comp[head] - run.omega_ref[head]).mean(axis=0)
+        comp = compensate(m, run.t, run.temp, run.omega, out_of_range=out_of_range,
+                          max_extrapolation_c=max_extrapolation_c)
+        comp, info = _reanchored(comp, run, m, reanchor_s)
         ev = score(comp, run, label=nm.label, model=nm.name, features=list(m.features),
                    bs_raw=raw.bs, rate=rate)
+        ev.reanchor = info
         lo, hi = m.temp_range_c
         ev.temp_range_c = (lo, hi)
-        temp = model_temperature(m, run.t, run.temp)     # what is clamped: the thermal state
+        temp = model_temperature(m, run.t, run.temp)     # the range is the thermal state's
         ev.outside_fraction = float(np.count_nonzero((temp < lo) | (temp > hi))
                                     / max(len(run), 1))
         out.append(ev)
     return BagEval(bag=run.name, label=label or safe_label(run.name), samples=len(run),
                    temperature_c=(float(run.temp.min()), float(run.temp.max())),
                    duration_s=run.duration_s, reference=str(run.info.get('reference', '?')),
-                   raw=raw, models=out, run=run)
+                   raw=raw, models=out, run=run, out_of_range=out_of_range)
 
 
 def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
-             options: dict | None = None, reanchor_s: float = 0.0,
+             options: dict | None = None, reanchor_s: float | str = 0.0,
+             out_of_range: str = DEFAULT_OUT_OF_RANGE,
+             max_extrapolation_c: float = MAX_EXTRAPOLATION_C,
              log: Callable[[str], None] | None = None,
              each: Callable[[BagEval], None] | None = None) -> list:
     """
@@ -387,8 +434,12 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
         Models to score.
     options : dict, optional
         Bag options of :func:`gyro_tdc.dataset.load_run`.
-    reanchor_s : float, s
-        Start-up re-anchoring window (see :func:`evaluate_run`); 0 = off.
+    reanchor_s : float (s) or ``'auto'``
+        Start-up re-anchoring (see :func:`evaluate_run`); 0 = off.
+    out_of_range : str
+        Out-of-range policy (see :func:`evaluate_run`).
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent.
     log : callable, optional
         Receives one line per bag read.
     each : callable, optional
@@ -401,11 +452,13 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
         One per bag, arrays released.
 
     """
+    check_policy(out_of_range)
     paths = expand_bags(bags)
     results = []
     for path, label in zip(paths, bag_labels(paths)):
         run = load_runs([path], log=log, **(options or {}))[0]
-        b = evaluate_run(run, models, label=label, reanchor_s=reanchor_s)
+        b = evaluate_run(run, models, label=label, reanchor_s=reanchor_s,
+                         out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c)
         if each is not None:
             each(b)
         b.release()

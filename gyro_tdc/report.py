@@ -43,6 +43,7 @@ from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.blocks import block_length, block_mean
 from gyro_tdc.coverage import Coverage, RATE_THRESHOLD_C_PER_MIN, temperature_rate
 from gyro_tdc.evaluation import BagEval, mean_scores
+from gyro_tdc.out_of_range import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C
 from gyro_tdc.training import TrainResult
 import numpy as np
 from numpy.typing import NDArray
@@ -86,11 +87,13 @@ def evaluation_json(bags: Sequence[BagEval]) -> dict:
     dict
         ``{"bags": [{"bag", "samples", "temperature_c", "raw": {"bs", "rms_dps"},
         "models": [{"model", "features", "bs", "rms_dps", "p_vs_raw",
-        "adev": {"tau_s", "dps"}}]}]}``; BS in (deg/s)^2, RMS and ADEV in deg/s,
-        non-finite values as null.
+        "adev": {"tau_s", "dps"}, "reanchor"?}]}], "out_of_range"}``; BS in (deg/s)^2, RMS
+        and ADEV in deg/s, non-finite values as null; ``out_of_range`` the policy beyond the
+        trained range, ``reanchor`` (``--reanchor auto`` only) ``{samples, duration_s,
+        shift_dps, se_dps, tolerance_dps, reason}``.
 
     """
-    return {'bags': [{
+    doc = {'bags': [{
         'bag': b.bag,
         'samples': int(b.samples),
         'temperature_c': [_finite(b.temperature_c[0]), _finite(b.temperature_c[1])],
@@ -103,8 +106,11 @@ def evaluation_json(bags: Sequence[BagEval]) -> dict:
             'p_vs_raw': _vec(m.p_vs_raw),
             'adev': {'tau_s': _vec(m.adev_tau_s),
                      'dps': [_vec(row) for row in np.asarray(m.adev_dps)]},
+            **({} if m.reanchor is None else {'reanchor': m.reanchor}),
         } for m in b.models],
     } for b in bags]}
+    doc['out_of_range'] = bags[0].out_of_range if bags else DEFAULT_OUT_OF_RANGE
+    return doc
 
 
 def write_json(bags: Sequence[BagEval], path: str | os.PathLike) -> Path:
@@ -176,7 +182,12 @@ def _outside_note(b: BagEval) -> str:
     parts = [f'{pct} of the samples lie outside the trained range of {", ".join(labels)} '
              f'{span}' if i == 0 else f'{pct} outside that of {", ".join(labels)} {span}'
              for i, ((pct, span), labels) in enumerate(groups.items())]
-    return (f'  note: {"; ".join(parts)}: evaluated clamped at the range ends'
+    how = {'clamp': 'evaluated clamped at the range ends',
+           'extrapolate': 'the models evaluated there (extrapolated, not clamped)',
+           'linear': 'the correction continued along its tangent at the range end, held '
+                     f'beyond {MAX_EXTRAPOLATION_C:g} degC (out-of-range policy linear, not '
+                     'clamped)'}
+    return (f'  note: {"; ".join(parts)}: {how.get(b.out_of_range, b.out_of_range)}'
             if parts else '')
 
 
@@ -657,7 +668,7 @@ def _flag_spans(ax: Any, th: NDArray[np.float64], temp: NDArray[np.float64], b: 
         ax.fill_between(th, 0, 1, where=outside, transform=ax.get_xaxis_transform(),
                         color=_MODEL_STYLES[i % len(_MODEL_STYLES)][0], alpha=0.12, lw=0,
                         label=(f'outside the trained range of {legends[i + 1].split(":")[0]} '
-                               '(clamped)') if labelled else None)
+                               f'({b.out_of_range})') if labelled else None)
 
 
 def _plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head, block,

@@ -56,7 +56,7 @@ def test_json_has_exactly_the_documented_shape(bags, tmp_path, capsys):
                '--train', bags['train'], '--model', bags['conv'], '--json', out])
     assert rc == 0, capsys.readouterr().err
     doc = json.loads(out.read_text())
-    assert list(doc) == ['bags']
+    assert list(doc) == ['bags', 'out_of_range'] and doc['out_of_range'] == 'linear'
     assert [b['bag'] for b in doc['bags']] == [str(bags['test']), str(bags['train'])]
     for b in doc['bags']:
         assert list(b) == ['bag', 'samples', 'temperature_c', 'raw', 'models']

@@ -25,6 +25,7 @@ from gyro_tdc.evaluation import bag_labels, evaluate, evaluate_run, load_models,
 from gyro_tdc.evaluation import model_labels, NamedModel, PX4, rate_hz, safe_label, score
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runs import Run
+from gyro_tdc.stillness import reanchor_shift
 import numpy as np
 import pytest
 
@@ -111,12 +112,23 @@ def test_outside_the_trained_range_is_clamped_and_counted():
     temp = np.linspace(20.0, 40.0, n)
     run = _run(np.tile(ERR_DPS, (n // 8, 1)) + (temp - 25.0)[:, None] * 0.02, temp=temp)
     narrow = NamedModel('narrow', 'narrow', _linear_model([0, 0, 0], [0.02] * 3, hi=30.0))
-    ev = evaluate_run(run, [narrow]).models[0]
+    b = evaluate_run(run, [narrow], out_of_range='clamp')
+    ev = b.models[0]
+    assert b.out_of_range == 'clamp'
     assert ev.outside_fraction == pytest.approx(np.count_nonzero(temp > 30.0) / n)
     assert ev.temp_range_c == (-40.0, 30.0)
     # Clamped at 30 degC the model leaves 0.02 * (T - 30) deg/s above the range.
     left = np.tile(ERR_DPS, (n // 8, 1)) + np.clip(temp - 30.0, 0.0, None)[:, None] * 0.02
     np.testing.assert_allclose(ev.bs, np.mean(left ** 2, axis=0), rtol=1e-9)
+    # The default, linear: a straight line continues exactly, up to 15 degC beyond.
+    b = evaluate_run(run, [narrow])
+    assert b.out_of_range == 'linear'
+    np.testing.assert_allclose(b.models[0].bs, BS_HAND, rtol=1e-9)
+    short = evaluate_run(run, [narrow], max_extrapolation_c=4.0).models[0]
+    left = np.tile(ERR_DPS, (n // 8, 1)) + np.clip(temp - 34.0, 0.0, None)[:, None] * 0.02
+    np.testing.assert_allclose(short.bs, np.mean(left ** 2, axis=0), rtol=1e-9)
+    with pytest.raises(ValueError, match="'linear', 'clamp' or 'extrapolate'"):
+        evaluate_run(run, [narrow], out_of_range='hold')
 
 
 def test_reanchor_removes_the_start_up_offset_of_models_only():
@@ -130,6 +142,29 @@ def test_reanchor_removes_the_start_up_offset_of_models_only():
     anchored = evaluate_run(run, [model], reanchor_s=0.35)
     np.testing.assert_allclose(anchored.models[0].bs, BS_HAND + [0.0, 1.0, 0.0], rtol=1e-9)
     np.testing.assert_allclose(anchored.raw.bs, plain.raw.bs)
+    assert anchored.models[0].reanchor is None
+
+
+def test_reanchor_auto_is_the_compensators_rule():
+    rng = np.random.default_rng(4)
+    n = 20 * 300                                     # 300 s at 20 Hz
+    offset = np.array([0.05, -0.03, 0.02])           # deg/s, the session offset
+    err = rng.normal(0.0, 0.02, (n, 3)) + offset
+    run = _run(err, rate=20.0)
+    sd = 0.05 * DEG                                  # the model's residual std
+    model = _linear_model([0, 0, 0], [0, 0, 0]).replace(residual_var=np.full(3, sd ** 2))
+    ev = evaluate_run(run, [NamedModel('m', 'm', model)], reanchor_s='auto').models[0]
+    r = ev.reanchor
+    want = reanchor_shift(run.t, run.omega - run.omega_ref, tolerance=[0.1 * sd] * 3)
+    assert r['samples'] == want.samples and r['reason'] == want.reason == 'precision'
+    np.testing.assert_allclose(r['shift_dps'], np.degrees(want.delta), rtol=1e-12)
+    np.testing.assert_allclose(r['tolerance_dps'], [0.005] * 3, rtol=1e-12)
+    # 0.02 deg/s white noise needs (0.02 / 0.005)^2 = 16 samples: the first 10 s window does.
+    assert r['duration_s'] == pytest.approx(10.0, abs=0.06)
+    assert max(r['se_dps']) <= 0.005
+    np.testing.assert_allclose(r['shift_dps'], offset, atol=4 * 0.005)
+    head = err[:r['samples']].mean(axis=0)
+    np.testing.assert_allclose(ev.bs, np.mean((err - head) ** 2, axis=0), rtol=1e-9)
 
 
 def test_labels_are_safe_and_unique():

@@ -115,7 +115,7 @@ def test_means_over_bags(bag):
 def test_json_shape_and_nulls(bag, tmp_path):
     bag.models[1].bs = np.array([1.0, np.nan, np.inf])
     doc = evaluation_json([bag])
-    assert list(doc) == ['bags']
+    assert list(doc) == ['bags', 'out_of_range'] and doc['out_of_range'] == 'clamp'
     b = doc['bags'][0]
     assert list(b) == ['bag', 'samples', 'temperature_c', 'raw', 'models']
     assert b['raw'] == {'bs': [100.0] * 3, 'rms_dps': [10.0] * 3}

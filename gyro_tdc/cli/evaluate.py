@@ -25,10 +25,12 @@ docs/json.md), ``--plots DIR`` (PNGs per bag, titled with the models and whether
 was applied), ``--export DIR`` (a CSV per bag). A progress bar over the bags shows on a
 terminal (stderr; ``--no-progress`` turns it and the bag-reading bar off).
 
-A bag whose temperature leaves a model's trained range is evaluated with the temperature
-clamped to that range (as the compensator node does), and the output says so. The scoring is
-:mod:`gyro_tdc.evaluation`, the tables and files :mod:`gyro_tdc.report`; this module parses
-the arguments and prints.
+Beyond a model's trained range the ``--out-of-range`` policy applies (``linear`` by default,
+as the compensator node: the correction continues along its tangent at the range end, then
+holds), printed once, in the notes and in the JSON. ``--reanchor auto`` applies the
+compensator's precision-driven re-anchoring rule (:func:`gyro_tdc.stillness.reanchor_shift`).
+The scoring is :mod:`gyro_tdc.evaluation`, the tables and files :mod:`gyro_tdc.report`; this
+module parses the arguments and prints.
 """
 
 from __future__ import annotations
@@ -40,7 +42,9 @@ from typing import Optional, Sequence
 from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options
 from gyro_tdc.cli.common import non_negative_float, run_command, UsageError
 from gyro_tdc.dataset import expand_bags
-from gyro_tdc.evaluation import BagEval, evaluate, load_models, PX4
+from gyro_tdc.evaluation import AUTO_REANCHOR, BagEval, evaluate, load_models, PX4
+from gyro_tdc.out_of_range import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C
+from gyro_tdc.out_of_range import OUT_OF_RANGE_POLICIES
 from gyro_tdc.report import format_bag, format_means, model_description, write_csv, write_json
 from gyro_tdc.report import write_plots
 
@@ -64,10 +68,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help='the conventional model of the paper tables (one of the --model '
                         'values, or another model file, evaluated too); default: the first '
                         'of exactly two models')
-    p.add_argument('--reanchor', type=non_negative_float, default=0.0, metavar='S',
+    p.add_argument('--reanchor', type=_reanchor, default=0.0, metavar='S|auto',
                    help='remove from each model the mean error over the first S s of every bag '
                         '(the run-to-run bias offset, as the compensator re-anchors at '
-                        'start-up while still); default 0: off')
+                        'start-up while still); auto: over as long as the compensator takes '
+                        "to know it to its tolerance (0.1 x the model's residual std, 10 to "
+                        '600 s); default 0: off')
+    p.add_argument('--out-of-range', dest='out_of_range', default=DEFAULT_OUT_OF_RANGE,
+                   choices=OUT_OF_RANGE_POLICIES,
+                   help="beyond a model's trained range: linear (the correction continues "
+                        f'along its tangent at the range end, held beyond '
+                        f'{MAX_EXTRAPOLATION_C:g} degC, as the compensator node by default), '
+                        'clamp, or extrapolate (default: %(default)s)')
     p.add_argument('--json', metavar='OUT', default=None,
                    help='write the scores as JSON (shape: docs/json.md)')
     p.add_argument('--plots', metavar='DIR', default=None, help='write PNGs per bag here')
@@ -76,6 +88,20 @@ def build_parser() -> argparse.ArgumentParser:
                         'compensated rates (rad/s)')
     add_bag_options(p)
     return p
+
+
+def _reanchor(text: str) -> float | str:
+    """Parse ``--reanchor``: ``auto`` or a number of seconds >= 0 (argparse type)."""
+    if text.strip().lower() == AUTO_REANCHOR:
+        return AUTO_REANCHOR
+    return non_negative_float(text)
+
+
+_POLICY_WORDS = {
+    'linear': 'the correction continues along its tangent at the range end, held beyond '
+              f'{MAX_EXTRAPOLATION_C:g} degC',
+    'clamp': 'the correction is held at the range end',
+    'extrapolate': 'the model is evaluated there'}
 
 
 def _run(args: argparse.Namespace, argv: list) -> int:
@@ -90,7 +116,10 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     baseline = (specs.index(args.baseline) if args.baseline is not None
                 else (0 if len(specs) == 2 else None))
     opts = bag_options(args)
-    options = (f're-anchored: mean error of the first {args.reanchor:g} s removed'
+    auto = args.reanchor == AUTO_REANCHOR
+    options = ('re-anchored: mean error removed over the head of each bag until known to '
+               "the compensator's tolerance" if auto else
+               f're-anchored: mean error of the first {args.reanchor:g} s removed'
                if args.reanchor > 0 else 'no re-anchoring')
     bar = _Progress(len(expand_bags(args.bags)), enabled=opts['progress'])
 
@@ -106,7 +135,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         if args.plots is not None:
             bar.stage(f'{b.label}: plots')
             for f in write_plots(b, args.plots, descriptions=descriptions, options=options,
-                                 reanchor_s=args.reanchor):
+                                 reanchor_s=0.0 if auto else args.reanchor):
                 log(f'wrote {f}')
         if args.export is not None:
             bar.stage(f'{b.label}: CSV')
@@ -116,12 +145,20 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     for nm, text in zip(models, descriptions):
         lo, hi = nm.model.temp_range_c
         log(f'model {nm.label} = {text}, trained {lo:.2f} .. {hi:.2f} degC')
-    if args.reanchor > 0:
+    log(f"out-of-range policy: {args.out_of_range} (beyond a model's trained range of the "
+        f'model temperature {_POLICY_WORDS[args.out_of_range]}; --out-of-range '
+        f'{"|".join(OUT_OF_RANGE_POLICIES)})')
+    if auto:
+        log('models re-anchored (auto): mean error removed over the head of each bag, '
+            "averaged until its standard error is 0.1 x the model's residual std or 600 s "
+            '(raw data untouched); per model: samples, seconds, standard error')
+    elif args.reanchor > 0:
         log(f'models re-anchored: mean error over the first {args.reanchor:g} s of each bag '
             'removed (raw data untouched)')
     try:
         results = evaluate(args.bags, models, options=opts, reanchor_s=args.reanchor, log=log,
-                           each=each)
+                           each=_with_reanchor(each, log) if auto else each,
+                           out_of_range=args.out_of_range)
     finally:
         bar.close()
     if args.json is not None:
@@ -129,6 +166,19 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     if len(results) > 1:
         print(format_means(results))
     return 0
+
+
+def _with_reanchor(each, log):
+    """Wrap ``each`` to log every model's automatic re-anchoring first."""
+    def wrapped(b: BagEval) -> None:
+        for m in b.models:
+            r = m.reanchor
+            log(f'{b.label}: {m.label} re-anchored on {r["samples"]} samples over '
+                f'{r["duration_s"]:.1f} s ({r["reason"]}): shift '
+                + ', '.join(f'{v:+.5f}' for v in r['shift_dps']) + ' deg/s, standard error '
+                + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
+        each(b)
+    return wrapped
 
 
 class _Progress:
