@@ -16,7 +16,7 @@
 """
 Convert the PAN CubeSat thermal-vacuum CSV into a rosbag2 bag.
 
-Usage: ``python tools/pan_cubesat_to_bag.py [--csv PATH] [--out BAG] [--storage mcap]``.
+Usage: ``python tools/pan_cubesat_to_bag.py [--csv PATH] [--out BAG] [--storage mcap] [--force]``.
 The conversion itself is :func:`gyro_tdc.realdata.pan_cubesat_to_bag`.
 """
 
@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+import shutil
 import sys
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -43,11 +44,15 @@ def main(argv: list[str] | None = None) -> int:
                         help='bag directory to create (default: %(default)s)')
     parser.add_argument('--storage', choices=('sqlite3', 'mcap'), default='sqlite3',
                         help='rosbag2 storage plugin (default: %(default)s)')
+    parser.add_argument('--force', action='store_true',
+                        help='replace --out when it is a bag (a folder with metadata.yaml)')
     args = parser.parse_args(argv)
     try:
+        if args.force and (args.out / 'metadata.yaml').is_file() and not args.out.is_symlink():
+            shutil.rmtree(args.out)
         data = pan_cubesat_to_bag(args.csv, args.out, storage=args.storage)
     except GyroTdcError as err:
-        print(f'pan_cubesat_to_bag: {err}', file=sys.stderr)
+        print(f'pan_cubesat_to_bag: error: {err}', file=sys.stderr)
         return 2
     print(f'{args.out}: {len(data.t)} samples ({data.rows_read} rows read, '
           f'{data.rows_removed} spike rows removed at t = '

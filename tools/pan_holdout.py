@@ -64,7 +64,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         result = pan_holdout(args.csv, n_blocks=args.blocks)
     except GyroTdcError as err:
-        print(f'pan_holdout: {err}', file=sys.stderr)
+        print(f'pan_holdout: error: {err}', file=sys.stderr)
         return 2
     print(format_holdout(result))
     if args.json is not None:
@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
             args.json.parent.mkdir(parents=True, exist_ok=True)
             args.json.write_text(json.dumps(result, indent=1) + '\n', encoding='utf-8')
         except OSError as err:
-            print(f'pan_holdout: cannot write --json {str(args.json)!r}: '
+            print(f'pan_holdout: error: cannot write --json {str(args.json)!r}: '
                   f'{err.strerror or err}.', file=sys.stderr)
             return 2
         print(f'\nwrote {args.json}')
