@@ -207,7 +207,8 @@ class Tangent:
 
 
 def range_shortfall(temp_range_c: Sequence[float],
-                    operating_c: Sequence[float] = OPERATING_RANGE_C) -> str:
+                    operating_c: Sequence[float] = OPERATING_RANGE_C, *,
+                    margin_c: float = 1.0) -> str:
     """
     Return what a trained range misses of a typical operating range ('' when it covers it).
 
@@ -217,6 +218,8 @@ def range_shortfall(temp_range_c: Sequence[float],
         The trained range of the model temperature.
     operating_c : sequence of 2 float, degC
         The operating range to compare with (default -10 .. 50 degC).
+    margin_c : float, degC
+        A shortfall up to this much is not counted (a ramp that stops at 49.99 degC).
 
     Returns
     -------
@@ -227,8 +230,8 @@ def range_shortfall(temp_range_c: Sequence[float],
     lo, hi = (float(v) for v in temp_range_c)
     want_lo, want_hi = (float(v) for v in operating_c)
     parts = []
-    if math.isfinite(lo) and lo > want_lo:
+    if math.isfinite(lo) and lo > want_lo + margin_c:
         parts.append(f'{lo - want_lo:.1f} degC below ({want_lo:g} .. {lo:.1f})')
-    if math.isfinite(hi) and hi < want_hi:
+    if math.isfinite(hi) and hi < want_hi - margin_c:
         parts.append(f'{want_hi - hi:.1f} degC above ({hi:.1f} .. {want_hi:g})')
     return ' and '.join(parts)

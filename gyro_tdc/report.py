@@ -44,6 +44,7 @@ from gyro_tdc.blocks import block_length, block_mean
 from gyro_tdc.coverage import Coverage, RATE_THRESHOLD_C_PER_MIN, temperature_rate
 from gyro_tdc.evaluation import BagEval, mean_scores
 from gyro_tdc.out_of_range import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C
+from gyro_tdc.out_of_range import OPERATING_RANGE_C, range_shortfall
 from gyro_tdc.training import TrainResult
 import numpy as np
 from numpy.typing import NDArray
@@ -444,7 +445,12 @@ def format_training(result: TrainResult) -> tuple[str, list]:
     head = (f'model: {m.kind} f({feats}), '
             + (f'{m.n_centers} centres, ' if m.kind == 'rbf' else '')
             + f'T0 = {m.t0_c:.3f} degC' + (f', {params}' if params else ''))
-    lines = [head, f'training data: {len(result.bags)} bag(s), {result.samples} samples',
+    lo, hi = m.temp_range_c
+    of = 'the model temperature, the thermal state' if lagged else 'the model temperature'
+    lines = [head, f'TRAINED RANGE {lo:.2f} .. {hi:.2f} degC ({of}); beyond it the compensator '
+                   'continues the correction along its tangent (out_of_range: linear) for up '
+                   f'to {MAX_EXTRAPOLATION_C:g} degC, then holds it',
+             f'training data: {len(result.bags)} bag(s), {result.samples} samples',
              'training bias stability BS, (deg/s)^2:',
              f'  {"":<13}' + ''.join(f'{a:>12}' for a in AXES),
              _row3('raw', met.get('raw_bs_dps2', [math.nan] * 3)),
@@ -456,6 +462,16 @@ def format_training(result: TrainResult) -> tuple[str, list]:
                  'mean slope over the range)')
     table, warns = format_coverage(result.coverage)
     lines.append(table)
+    short = range_shortfall((lo, hi))
+    if short:
+        a, b = OPERATING_RANGE_C
+        warns = list(warns) + [
+            f'the training data cover {lo:.1f} .. {hi:.1f} degC, less than a typical operating '
+            f'range of {a:g} .. {b:g} degC ({short} missing): there the model is not '
+            'calibrated; the compensator extrapolates along the tangent at the range end '
+            f'(out_of_range: linear, up to {MAX_EXTRAPOLATION_C:g} degC, then held; clamp '
+            'or extrapolate are the alternatives, see docs/real_data.md); record the missing '
+            'temperatures to calibrate them']
     if lagged and th.identifiable is False:
         warns = list(warns) + [
             th.describe().split('; ', 1)[-1] + ': soaks after heating and cooling steps '
