@@ -41,6 +41,9 @@ class Run:
         Where the run came from (bag path, scenario name...).
     info : dict
         Free-form extras (e.g. counts of rejected samples, simulator truth).
+    accel : NDArray[np.float64], shape (N, 3), m/s^2, optional
+        Linear acceleration at each stamp; None when not read or the IMU has no
+        accelerometer (:mod:`gyro_tdc.accel` fits its thermal part).
 
     """
 
@@ -50,6 +53,7 @@ class Run:
     omega_ref: NDArray[np.float64]
     name: str = 'run'
     info: dict = field(default_factory=dict, compare=False)
+    accel: NDArray[np.float64] | None = field(default=None, compare=False, repr=False)
 
     def __post_init__(self) -> None:
         """Check shapes and that stamps increase."""
@@ -60,6 +64,9 @@ class Run:
             got = np.shape(getattr(self, key))
             if got != shape:
                 raise ValueError(f'Expected `{key}` to have shape {shape}, got {got}.')
+        if self.accel is not None and np.shape(self.accel) != (n, 3):
+            raise ValueError(f'Expected `accel` to have shape {(n, 3)}, got '
+                             f'{np.shape(self.accel)}.')
         if n > 1 and not np.all(np.diff(self.t) > 0):
             raise ValueError('Expected `t` to be strictly increasing.')
 
@@ -75,4 +82,5 @@ class Run:
     def slice(self, start: int, stop: int, name: str | None = None) -> 'Run':
         """Return samples ``start:stop`` as a new run."""
         return Run(self.t[start:stop], self.temp[start:stop], self.omega[start:stop],
-                   self.omega_ref[start:stop], name or self.name, dict(self.info))
+                   self.omega_ref[start:stop], name or self.name, dict(self.info),
+                   None if self.accel is None else self.accel[start:stop])

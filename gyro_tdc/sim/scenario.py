@@ -67,9 +67,18 @@ sections and their defaults::
       bias_instability_dps: 0.0   # std of a sum of Gauss-Markov processes...
       bias_instability_tau_s: [10.0, 100.0, 1000.0]  # ...with these correlation times
       rrw_dps_per_rt_s: 0.0       # rate random walk
-    accel:
-      gravity_mps2: 9.80665       # on +z
+    accel:                        # specific force: gravity in the sensor frame + offset + noise
+      gravity_mps2: 9.80665       # magnitude; on +z when level
       noise_mps2_per_rt_hz: 0.0
+      tilt_deg: [0.0, 0.0]        # roll, pitch of the sensor (fixed per run) ...
+      tilt_std_deg: 0.0           # ... plus a random roll and pitch drawn per run (std)
+      bias_mg: 0.0                # static offset (the ordinary calibration's)
+      dT_mg_per_c: 0.0            # offset change per degC of the die (dT of gyro.t_ref_c)
+      dT2_mg_per_c2: 0.0          # curvature of the offset in the die temperature
+      sensitivity_mg_per_digit: 0.0  # quantisation step, 0 = none
+      range_g: 0.0                # saturation, 0 = none
+      reorient_at_s: 0.0          # a mid-run orientation change at this time, 0 = none ...
+      reorient_tilt_deg: [0.0, 0.0]  # ... adding this roll and pitch
     rate_table:                   # reference rate schedule (ZOH); empty = still
       - {t_s: 0.0, rate_dps: [10.0, 5.0, 20.0]}   # or rate_rad_s
     runs:

@@ -72,13 +72,17 @@ DEFAULTS: dict = {
     },
     'noise': {'enabled': True, 'arw_dps_per_rt_hz': 0.0, 'bias_instability_dps': 0.0,
               'bias_instability_tau_s': [10.0, 100.0, 1000.0], 'rrw_dps_per_rt_s': 0.0},
-    'accel': {'gravity_mps2': 9.80665, 'noise_mps2_per_rt_hz': 0.0},
+    'accel': {'gravity_mps2': 9.80665, 'noise_mps2_per_rt_hz': 0.0, 'tilt_deg': [0.0, 0.0],
+              'tilt_std_deg': 0.0, 'bias_mg': 0.0, 'dT_mg_per_c': 0.0, 'dT2_mg_per_c2': 0.0,
+              'sensitivity_mg_per_digit': 0.0, 'range_g': 0.0, 'reorient_at_s': 0.0,
+              'reorient_tilt_deg': [0.0, 0.0]},
     'rate_table': [],
     'runs': {'count': 1, 'bias_offset_dps_std': 0.0},
 }
 
 # Field kinds: 'num' any finite number, 'pos' > 0, 'nonneg' >= 0, 'axis' per-axis number,
-# 'axis_nonneg' per-axis >= 0, 'bool', 'str', 'count' int >= 1, 'taus' list of numbers > 0.
+# 'axis_nonneg' per-axis >= 0, 'bool', 'str', 'count' int >= 1, 'taus' list of numbers > 0,
+# 'tilt' roll and pitch in degrees (a list of 2 numbers, each within +-180).
 _SECTIONS: dict[str, dict[str, str]] = {
     'thermal': {'tau_air_s': 'nonneg', 'tau_package_s': 'nonneg', 'tau_die_s': 'nonneg',
                 'internal_step_s': 'pos'},
@@ -92,7 +96,10 @@ _SECTIONS: dict[str, dict[str, str]] = {
     'noise': {'enabled': 'bool', 'arw_dps_per_rt_hz': 'axis_nonneg',
               'bias_instability_dps': 'axis_nonneg', 'bias_instability_tau_s': 'taus',
               'rrw_dps_per_rt_s': 'axis_nonneg'},
-    'accel': {'gravity_mps2': 'num', 'noise_mps2_per_rt_hz': 'axis_nonneg'},
+    'accel': {'gravity_mps2': 'num', 'noise_mps2_per_rt_hz': 'axis_nonneg', 'tilt_deg': 'tilt',
+              'tilt_std_deg': 'nonneg', 'bias_mg': 'axis', 'dT_mg_per_c': 'axis',
+              'dT2_mg_per_c2': 'axis', 'sensitivity_mg_per_digit': 'nonneg',
+              'range_g': 'nonneg', 'reorient_at_s': 'nonneg', 'reorient_tilt_deg': 'tilt'},
     'runs': {'count': 'count', 'bias_offset_dps_std': 'axis_nonneg'},
 }
 _TOP = ('format_version', 'name', 'description', 'sensor', 'imu_rate_hz', 'duration_s',
@@ -207,6 +214,12 @@ class _Checker:
             return tuple(float(e) for e in x)
         if kind == 'effects':
             return self.effects(path, x)
+        if kind == 'tilt':
+            if (not isinstance(x, (list, tuple)) or len(x) != 2
+                    or not all(self._is_num(e) and abs(float(e)) <= 180.0 for e in x)):
+                raise self.fail(path, 'roll and pitch in degrees, a list of 2 numbers within '
+                                '+-180', x)
+            return (float(x[0]), float(x[1]))
         raise AssertionError(kind)  # pragma: no cover - schema table is static
 
     def effects(self, path: str, x: Any) -> dict[str, bool]:

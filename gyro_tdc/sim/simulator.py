@@ -23,8 +23,11 @@ Per axis, with ``dT = T_die - T_ref`` and ``t`` since power-on::
 then saturated at the full scale and quantised to one digit. Each term belongs to one
 effect id of :mod:`gyro_tdc.effects` (``scale``, ``bias``, ``dT``, ``dT2``, ``dT3``,
 ``dTdt``, ``warmup``); ``lag`` makes the die a first-order lag of the package the
-thermometer sits on. Everything is vectorised: a 7 h run at 100 Hz (2.52 M samples) takes
-about 2 s on a 2-core machine (``bench/bench_simulate.py``).
+thermometer sits on. The accelerometer on the same die reads gravity in the sensor frame
+(a tilt fixed per run, optionally changed once mid-run) plus an offset curved in the die
+temperature, noise, saturation and digits (:class:`gyro_tdc.sim.specs.AccelSpec`).
+Everything is vectorised: a 7 h run at 100 Hz (2.52 M samples) takes about 2 s
+on a 2-core machine (``bench/bench_simulate.py``).
 
 Random numbers: run ``i`` of seed ``s`` draws from ``SeedSequence(s, spawn_key=(i,))``, with
 one independent child stream per component, so switching one effect off leaves the noise of
@@ -46,12 +49,16 @@ from gyro_tdc.sim.thermal import simulate_thermal, ThermalHistory
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['SimRun', 'SimTruth', 'simulate_run', 'simulate_scenario', 'to_run']
+__all__ = ['G0', 'SimRun', 'SimTruth', 'gravity_vector', 'simulate_run', 'simulate_scenario',
+           'to_run']
 
 ScenarioLike = Union[Scenario, str, 'os.PathLike[str]', Mapping[str, Any]]
 
 # Child random streams of one run, in SeedSequence.spawn order.
-_STREAMS = ('offset', 'white', 'bias_instability', 'rrw', 'accel', 'thermometer')
+# Appending a stream leaves the earlier ones (and so every earlier run) unchanged.
+_STREAMS = ('offset', 'white', 'bias_instability', 'rrw', 'accel', 'thermometer', 'tilt')
+#: Standard gravity: one g in m/s^2 (the unit of the accelerometer's mg coefficients).
+G0 = 9.80665
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,6 +97,24 @@ class SimTruth:
         Noise floor per sample: ``sqrt(white_std^2 + quant_step^2 / 12)``.
     thermal : gyro_tdc.sim.thermal.ThermalHistory
         Every thermal node on the internal grid.
+    accel_offset : NDArray[np.float64], shape (N, 3), m/s^2
+        Accelerometer offset before noise: static bias plus the thermal terms.
+    accel_thermal : NDArray[np.float64], shape (N, 3), m/s^2
+        Its change with temperature alone, relative to ``t_ref_c`` (what a model removes).
+    accel_gravity : NDArray[np.float64], shape (2, 3), m/s^2
+        Gravity in the sensor frame before and after ``reorient_at_s`` (equal without one).
+    accel_tilt_deg : NDArray[np.float64], shape (2,), deg
+        Roll and pitch of this run (before any reorientation).
+    accel_reorient_s : float, s
+        Time of the orientation change (0: none).
+    accel_coefficients : dict of str to NDArray, shape (3,)
+        ``bias`` m/s^2, ``dT`` m/s^2/degC, ``dT2`` m/s^2/degC^2.
+    accel_white_std : NDArray[np.float64], shape (3,), m/s^2
+        Per-sample standard deviation of the white noise.
+    accel_quant_step : float, m/s^2
+        One accelerometer digit (0 when not quantised).
+    accel_noise_std : NDArray[np.float64], shape (3,), m/s^2
+        Accelerometer noise floor per sample: ``sqrt(white^2 + step^2 / 12)``.
 
     """
 
@@ -106,6 +131,15 @@ class SimTruth:
     quant_step: float
     noise_std: NDArray[np.float64]
     thermal: ThermalHistory = field(repr=False)
+    accel_offset: NDArray[np.float64] = field(default=None, repr=False)
+    accel_thermal: NDArray[np.float64] = field(default=None, repr=False)
+    accel_gravity: NDArray[np.float64] = field(default=None)
+    accel_tilt_deg: NDArray[np.float64] = field(default=None)
+    accel_reorient_s: float = 0.0
+    accel_coefficients: dict = field(default_factory=dict)
+    accel_white_std: NDArray[np.float64] = field(default=None)
+    accel_quant_step: float = 0.0
+    accel_noise_std: NDArray[np.float64] = field(default=None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,7 +156,7 @@ class SimRun:
     gyro : NDArray[np.float64], shape (N, 3), rad/s
         Gyro output.
     accel : NDArray[np.float64], shape (N, 3), m/s^2
-        Accelerometer output (gravity on +z).
+        Accelerometer output (gravity in the sensor frame plus offset and noise).
     temp_t : NDArray[np.float64], shape (M,), s
         Thermometer stamps (its own rate).
     temp_c : NDArray[np.float64], shape (M,), degC
@@ -325,8 +359,8 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     step = g.sensitivity_mdps_per_digit * 1e-3 * DEG if g.quantise else 0.0
     quantise(gyro, step, limit=g.range_dps * DEG)
 
-    accel = white_noise(rng('accel'), n, density=sc.accel.noise_mps2_per_rt_hz, rate_hz=rate)
-    accel[:, 2] += sc.accel.gravity_mps2
+    acc = _accelerometer(sc.accel, rng('accel'), rng('tilt'), imu_t, d_t, rate)
+    accel = acc.pop('accel')
 
     # Thermometer at its own rate.
     th = sc.thermometer
@@ -348,11 +382,76 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
                 'power_on_s': g.power_on_s},
         bias_offset=offset if on['bias'] else np.zeros(3), white_std=white_std,
         quant_step=step, noise_std=np.sqrt(white_std ** 2 + step ** 2 / 12.0),
-        thermal=thermal)
+        thermal=thermal, **acc)
     name = sc.name if sc.runs.count == 1 else f'{sc.name}/run{run_index + 1}'
     return SimRun(name=name, imu_t=imu_t, gyro=gyro, accel=accel, temp_t=temp_t,
                   temp_c=temp_c, temp_var=float(temp_var), ref_t=ref_t, ref=ref, truth=truth,
                   scenario=sc.name, seed=seed, run_index=run_index, rate_hz=rate)
+
+
+def gravity_vector(gravity_mps2: float, roll_deg: float, pitch_deg: float
+                   ) -> NDArray[np.float64]:
+    """
+    Return the specific force of gravity at rest in the sensor frame.
+
+    Parameters
+    ----------
+    gravity_mps2 : float, m/s^2
+        Magnitude.
+    roll_deg, pitch_deg : float, deg
+        Roll (about x) and pitch (about y) of the sensor.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (3,), m/s^2
+        ``g (-sin p, sin r cos p, cos r cos p)``: ``(0, 0, g)`` when level.
+
+    """
+    r, p = math.radians(roll_deg), math.radians(pitch_deg)
+    return gravity_mps2 * np.array([-math.sin(p), math.sin(r) * math.cos(p),
+                                    math.cos(r) * math.cos(p)])
+
+
+def _accelerometer(spec: Any, noise_rng: np.random.Generator, tilt_rng: np.random.Generator,
+                   imu_t: NDArray[np.float64], d_t: NDArray[np.float64], rate: float
+                   ) -> dict[str, Any]:
+    """
+    Simulate the accelerometer of one run: its output and the truth fields of SimTruth.
+
+    ``d_t`` is the die temperature minus the reference (degC) at the IMU stamps. The white
+    noise draws from ``noise_rng`` exactly as before the accelerometer physics existed, so
+    a scenario without tilt, offsets and digits gives the same output as then.
+    """
+    n = imu_t.size
+    accel = white_noise(noise_rng, n, density=spec.noise_mps2_per_rt_hz, rate_hz=rate)
+    extra = tilt_rng.standard_normal(2) * spec.tilt_std_deg
+    tilt = np.asarray(spec.tilt_deg, dtype=np.float64) + extra
+    g_before = gravity_vector(spec.gravity_mps2, tilt[0], tilt[1])
+    after = tilt + np.asarray(spec.reorient_tilt_deg, dtype=np.float64)
+    g_after = gravity_vector(spec.gravity_mps2, after[0], after[1])
+    mg = G0 * 1e-3
+    coefficients = {'bias': _vec(spec.bias_mg, mg), 'dT': _vec(spec.dT_mg_per_c, mg),
+                    'dT2': _vec(spec.dT2_mg_per_c2, mg)}
+    thermal = (d_t[:, None] * coefficients['dT'] + (d_t * d_t)[:, None] * coefficients['dT2'])
+    offset = thermal + coefficients['bias']
+    reorient = float(spec.reorient_at_s)
+    if reorient > 0.0:
+        k = int(np.searchsorted(imu_t, reorient, side='left'))
+        accel[:k] += g_before
+        accel[k:] += g_after
+    else:
+        accel += g_before
+        g_after = g_before
+    if np.any(offset):
+        accel += offset
+    step = spec.sensitivity_mg_per_digit * mg
+    quantise(accel, step, limit=spec.range_g * G0)
+    white = _vec(spec.noise_mps2_per_rt_hz) * math.sqrt(rate)
+    return {'accel': accel, 'accel_offset': offset, 'accel_thermal': thermal,
+            'accel_gravity': np.stack([g_before, g_after]), 'accel_tilt_deg': tilt,
+            'accel_reorient_s': reorient, 'accel_coefficients': coefficients,
+            'accel_white_std': white, 'accel_quant_step': float(step),
+            'accel_noise_std': np.sqrt(white ** 2 + step ** 2 / 12.0)}
 
 
 def simulate_scenario(scenario: ScenarioLike, seed: int = 0, rate_hz: Optional[float] = None,
@@ -409,7 +508,7 @@ def to_run(simrun: SimRun) -> Run:
     -------
     gyro_tdc.runs.Run
         ``info`` holds ``truth`` (SimTruth), ``scenario``, ``seed``, ``run_index``,
-        ``source='sim'``.
+        ``source='sim'``; ``accel`` the accelerometer output.
 
     """
     idx = np.clip(np.searchsorted(simrun.temp_t, simrun.imu_t, side='right') - 1, 0,
@@ -417,4 +516,5 @@ def to_run(simrun: SimRun) -> Run:
     return Run(t=simrun.imu_t, temp=simrun.temp_c[idx], omega=simrun.gyro,
                omega_ref=simrun.ref_at(simrun.imu_t), name=simrun.name,
                info={'source': 'sim', 'scenario': simrun.scenario, 'seed': simrun.seed,
-                     'run_index': simrun.run_index, 'truth': simrun.truth})
+                     'run_index': simrun.run_index, 'truth': simrun.truth},
+               accel=simrun.accel)

@@ -161,19 +161,62 @@ class NoiseSpec:
 @dataclass(frozen=True)
 class AccelSpec:
     """
-    Accelerometer: gravity on +z plus white noise.
+    Accelerometer: gravity in the sensor frame, a thermal offset of the die, noise, digits.
+
+    Per axis, with ``dT = T_die - gyro.t_ref_c`` (the die the gyro sits on) and
+    ``g0 = 9.80665 m/s^2`` per g::
+
+        accel = gravity_mps2 * u(roll, pitch) + g0 / 1000 * (bias + a1 dT + a2 dT^2) + white
+
+    then saturated at ``range_g`` and quantised to ``sensitivity_mg_per_digit``. ``u`` is the
+    unit vector of "up" in the sensor frame, ``(-sin p, sin r cos p, cos r cos p)``: +z when
+    level. The tilt is fixed per run: ``tilt_deg`` plus a random part drawn per run
+    (``tilt_std_deg``); ``reorient_at_s`` > 0 adds ``reorient_tilt_deg`` from that time on
+    (a mid-run orientation change, for the detection tests).
 
     Parameters
     ----------
     gravity_mps2 : float, m/s^2
-        Specific force on +z.
+        Magnitude of the specific force at rest.
     noise_mps2_per_rt_hz : tuple of 3 float, (m/s^2)/sqrt(Hz)
         Noise density.
+    tilt_deg : tuple of 2 float, deg
+        Roll and pitch of the sensor (0, 0: gravity on +z).
+    tilt_std_deg : float, deg
+        Standard deviation of a random roll and pitch added per run.
+    bias_mg : tuple of 3 float, mg
+        Static offset (the ordinary calibration's; not thermal).
+    dT_mg_per_c : tuple of 3 float, mg/degC
+        Offset change per degC of the die.
+    dT2_mg_per_c2 : tuple of 3 float, mg/degC^2
+        Curvature of the offset in the die temperature.
+    sensitivity_mg_per_digit : float, mg
+        One output digit (quantisation step); 0 = not quantised.
+    range_g : float, g
+        Full scale (saturation); 0 = none.
+    reorient_at_s : float, s
+        Time of a mid-run orientation change; 0 = none.
+    reorient_tilt_deg : tuple of 2 float, deg
+        Roll and pitch added at ``reorient_at_s``.
 
     """
 
     gravity_mps2: float
     noise_mps2_per_rt_hz: Vec3
+    tilt_deg: tuple[float, float] = (0.0, 0.0)
+    tilt_std_deg: float = 0.0
+    bias_mg: Vec3 = (0.0, 0.0, 0.0)
+    dT_mg_per_c: Vec3 = (0.0, 0.0, 0.0)
+    dT2_mg_per_c2: Vec3 = (0.0, 0.0, 0.0)
+    sensitivity_mg_per_digit: float = 0.0
+    range_g: float = 0.0
+    reorient_at_s: float = 0.0
+    reorient_tilt_deg: tuple[float, float] = (0.0, 0.0)
+
+    @property
+    def thermal(self) -> bool:
+        """Return True when the offset changes with temperature."""
+        return any(v != 0.0 for v in self.dT_mg_per_c + self.dT2_mg_per_c2)
 
 
 @dataclass(frozen=True)
