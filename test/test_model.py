@@ -194,3 +194,21 @@ def test_format_2_without_lag_matches_the_format_1_numbers():
     np.testing.assert_array_equal(compensate(model, run.t, run.temp, run.omega),
                                   compensate(legacy, run.t, run.temp, run.omega))
     assert legacy.model_id != model.model_id
+
+
+def test_linear_policy_continues_the_hand_model_along_its_tangent():
+    model = _hand_model()              # quadratic in dT, range 0..50 degC, T0 = 25
+    t = np.zeros(1)
+    lin = StreamingCompensator(model, out_of_range='linear', max_extrapolation_c=15.0)
+    w = np.zeros(3)
+    # d b / d T at 50 degC: a1 / 10 + a2 * 2 (T - 25) / 50.
+    slope = model.linear[0] / 10.0 + model.linear[1] * 2.0 * 25.0 / 50.0
+    for temp, reach in ((58.0, 8.0), (80.0, 15.0)):
+        want = drift(model, t, np.array([50.0]))[0] + reach * slope
+        np.testing.assert_allclose(-lin.step(0.0, temp, w), want, rtol=1e-9)
+        np.testing.assert_allclose(drift(model, t, np.array([temp]), out_of_range='linear')[0],
+                                   want, rtol=1e-9)
+        assert not lin.in_range and lin.range_distance_c == pytest.approx(temp - 50.0)
+        assert lin.model_temp == pytest.approx(50.0 + reach)
+    with pytest.raises(ValueError, match="'linear', 'clamp' or 'extrapolate'"):
+        StreamingCompensator(model, out_of_range='tangent')

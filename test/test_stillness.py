@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.stillness import StillnessDetector
+from gyro_tdc.stillness import (block_length, default_tolerance, max_windows, reanchor_shift,
+                                standard_error, StillnessDetector, window_stats)
 import numpy as np
 import pytest
 
@@ -45,3 +46,33 @@ def test_stillness_detector():
     det = StillnessDetector(window=1.0, gyro_std=0.01, max_rate=0.02, accel_std=0.05)
     for k in range(300):
         assert det.update(k * 0.01, (0.05, 0, 0), (0.05, 0, 0), None, 20.0) is None
+
+
+def test_block_standard_error_is_the_cluster_formula():
+    rng = np.random.default_rng(6)
+    t = np.sort(rng.uniform(0.0, 3.0, 200))
+    x = rng.normal(0.0, 1.0, (200, 3)) + [5.0, -2.0, 0.0]
+    st = window_stats(t, x, (1.0, 1.0, 1.0), 0.25)
+    k = np.floor((t - t[0]) / 0.25)
+    blocks = [x[k == v] for v in np.unique(k)]
+    mu = x.mean(axis=0)
+    m = len(blocks)
+    want = np.sqrt(m / (m - 1) * sum(len(b) ** 2 * (b.mean(axis=0) - mu) ** 2
+                                     for b in blocks)) / len(x)
+    np.testing.assert_allclose(standard_error(st), want, rtol=1e-10)
+    assert (st.n, st.m) == (200, m)
+    halves = window_stats(t[:90], x[:90], (1.0,) * 3, 0.25) + window_stats(
+        t[90:], x[90:], (1.0,) * 3, 0.25)
+    assert halves.n == 200
+    assert standard_error(window_stats(t[:1], x[:1], (0.0,) * 3, 0.25)) == (math.inf,) * 3
+
+
+def test_default_tolerance_and_window_counts():
+    assert default_tolerance([4e-6, 1e-12, 0.0]) == pytest.approx((2e-4, 1e-5, 1e-5))
+    assert max_windows(10.0, 600.0) == 60 and max_windows(10.0, 5.0) == 1
+    assert block_length(10.0) == pytest.approx(0.2) and block_length(600.0) == 1.0
+    with pytest.raises(ValueError, match='shape'):
+        reanchor_shift(np.zeros(3), np.zeros((3, 2)), tolerance=[1.0] * 3)
+    # Shorter than one window: every sample, said so.
+    r = reanchor_shift(np.arange(5.0), np.ones((5, 3)), tolerance=[1.0] * 3)
+    assert (r.samples, r.reason, r.delta) == (5, 'end of data', (1.0, 1.0, 1.0))
