@@ -5,7 +5,9 @@
 #   make lint    flake8 + pep257 + copyright on gyro_tdc/, test/, bench/, tools/, setup.py
 #   make demo    end-to-end demo into out/demo
 #   make bench   run every bench/*.py (each prints its figures)
-#   make clean   remove build/test artefacts (keeps .venv; `make distclean` removes it too)
+#   make readme-check  run every README command block, in order, in a fresh clone (long)
+#   make clean   remove out/ (every README output) and build/test artefacts (keeps .venv;
+#                `make distclean` removes it too)
 
 SHELL := /bin/bash
 .SHELLFLAGS := -eu -o pipefail -c
@@ -25,7 +27,7 @@ LINT_PATHS = $(wildcard gyro_tdc test bench tools setup.py)
 # parallel runs on one machine do not discover each other's nodes.
 DOMAIN := if [ -z "$${ROS_DOMAIN_ID:-}" ]; then export ROS_DOMAIN_ID=$$(( $$$$ % 101 + 1 )); fi
 
-.PHONY: venv test lint demo bench clean distclean
+.PHONY: venv test lint demo bench readme-check clean distclean
 
 venv: $(STAMP)
 
@@ -68,6 +70,11 @@ bench: venv
 		$(VPY) "$$script" || failed+=("$$script"); \
 	done; \
 	if [ $${#failed[@]} -gt 0 ]; then echo "make bench: failed: $${failed[*]}" >&2; exit 1; fi
+
+# Every ```bash block of README.md, in order, in a fresh clone of HEAD with its own .venv; stops
+# at the first failing command (test/readme_check.py: standard library only, no venv needed).
+readme-check:
+	@$(DOMAIN); $(PYTHON) test/readme_check.py
 
 clean:
 	rm -rf build install log out report .pytest_cache *.egg-info

@@ -255,7 +255,8 @@ def test_tool_bad_input_exits_2(tmp_path, capsys):
     spec.loader.exec_module(tool)
     assert tool.main(['--csv', str(tmp_path / 'none.csv')]) == 2
     err = capsys.readouterr().err
-    assert err.startswith('pan_holdout: error: Cannot read PAN CubeSat CSV') and err.count('\n') == 1
+    assert err.startswith('pan_holdout: error: Cannot read PAN CubeSat CSV')
+    assert err.count('\n') == 1
     with pytest.raises(SystemExit) as exc:
         tool.main(['--blocks', '1'])
     assert exc.value.code == 2
