@@ -47,9 +47,10 @@ Choices, and why:
   the held-out samples; a summary over a group of folds scores all their held-out samples
   together, so it is the sample-weighted mean of the folds' BS.
 - **Extrapolation.** A block at the warm or the cold end lies outside the training range;
-  :func:`gyro_tdc.model.compensate` clamps the temperature to it, as the compensator node
-  does, so the model is flat there. Interior and end blocks are reported apart, and the end
-  blocks also without clamping.
+  :func:`gyro_tdc.model.compensate` clamps the temperature to it by default, so the model is
+  flat there. Interior and end blocks are reported apart, and the end blocks also without
+  clamping (the compensator node's default, a tangent at the range end, is measured by
+  ``tools/pan_range_holdout.py``).
 """
 
 from __future__ import annotations
@@ -517,7 +518,7 @@ def format_holdout(result: Mapping[str, Any]) -> str:
         sizes = '/'.join(str(v) for v in s['bursts_per_block'])
         lines += ['', f'== {s["name"]}: {s["n_blocks"]} blocks of {sizes} bursts; fit on the '
                   f'others, score the held-out block; temperatures outside the training range '
-                  f'clamped (runtime default) =']
+                  f'clamped =']
         if s['n_blocks'] <= 10:
             for f in s['folds']:
                 lines += ['', f'block {f["block"]}: bursts {f["bursts"][0]}-{f["bursts"][1]}, '
