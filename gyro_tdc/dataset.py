@@ -222,7 +222,7 @@ def _reference(value: object) -> NDArray[np.float64]:
 
 def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
              reference=None, reference_topic='/rate_table/reference', max_gap_s=5.0,
-             progress=False, max_loss=MAX_LOSS_FRACTION) -> Run:
+             progress=False, max_loss=MAX_LOSS_FRACTION, accel=False) -> Run:
     """
     Read one bag into a :class:`~gyro_tdc.runs.Run` aligned on the IMU stamps.
 
@@ -256,6 +256,9 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
     max_loss : float
         Largest fraction of a topic's messages (as listed in the bag's metadata) that may
         be missing after reading; 1.0 accepts any loss (it is still reported).
+    accel : bool
+        Also read the linear acceleration into ``run.accel`` (the same samples kept; None
+        when the bag's IMU publishes none, all zero per REP 145); False (default) skips it.
 
     Returns
     -------
@@ -274,7 +277,7 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
     const = None if reference is None else _reference(reference)
     data = read_bag(bag, imu_topic=imu_topic, temperature_topic=temperature_topic,
                     reference_topic=None if const is not None else reference_topic,
-                    progress=progress, accel=False)
+                    progress=progress, accel=bool(accel))
     rejected = {'imu_nonfinite': data.rejected['imu_nonfinite'],
                 'temp_nonfinite': data.rejected['temp_nonfinite'],
                 'ref_nonfinite': data.rejected['ref_nonfinite'],
@@ -290,10 +293,11 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
            if data.ref_t is not None else {})}, max_loss, warnings)
 
     t, omega = data.imu_t, data.gyro
+    rows = np.arange(len(t))          # of data.accel: follows every IMU sample dropped
     plausible = np.all(np.abs(omega) <= MAX_RATE_RAD_S, axis=1)
     if not plausible.all():
         rejected['imu_implausible'] = int(np.count_nonzero(~plausible))
-        t, omega = t[plausible], omega[plausible]
+        t, omega, rows = t[plausible], omega[plausible], rows[plausible]
     temp_t, temp_c = data.temp_t, data.temp_c
     plausible = (temp_c >= TEMP_PLAUSIBLE_C[0]) & (temp_c <= TEMP_PLAUSIBLE_C[1])
     if not plausible.all():
@@ -303,11 +307,11 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
     if np.any(steps <= 0):
         rejected['out_of_order'] = int(np.count_nonzero(steps < 0))
         order = np.argsort(t, kind='stable')
-        t, omega = t[order], omega[order]
+        t, omega, rows = t[order], omega[order], rows[order]
         first = np.ones(len(t), dtype=bool)
         first[1:] = np.diff(t) > 0
         rejected['duplicate_stamps'] = int(np.count_nonzero(~first))
-        t, omega = t[first], omega[first]
+        t, omega, rows = t[first], omega[first], rows[first]
 
     temp, keep, counts = align_temperature(t, temp_t, temp_c, max_gap_s=max_gap_s,
                                            return_counts=True)
@@ -350,8 +354,14 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
             'messages': messages, 'decoded_by_rosbags': data.fallback}
     if not keep.all():
         t, temp, omega, omega_ref = t[keep], temp[keep], omega[keep], omega_ref[keep]
+        rows = rows[keep]
+    acc = data.accel
+    if acc is not None:
+        acc = np.ascontiguousarray(acc[rows])
+        if not (np.isfinite(acc).all(axis=1) & np.any(acc != 0.0, axis=1)).any():
+            acc = None                # no accelerometer data (REP 145: zeros)
     return Run(t, temp, np.ascontiguousarray(omega), np.ascontiguousarray(omega_ref),
-               str(bag), info)
+               str(bag), info, acc)
 
 
 def _is_bag(path: Path) -> bool:

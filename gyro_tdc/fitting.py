@@ -301,6 +301,8 @@ class LinearFit:
         Residuals ``prediction - y`` of the fitted rows.
     ridge : float
         Relative ridge penalty used on the RBF weights.
+    offsets : NDArray[np.float64], shape (G, 3), optional
+        With ``groups``: the constant of each group (``coef[0]`` is then zero).
 
     """
 
@@ -313,6 +315,7 @@ class LinearFit:
     sse: float
     resid: NDArray[np.float64]
     ridge: float
+    offsets: NDArray[np.float64] | None = None
 
     def design(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """
@@ -366,9 +369,19 @@ def _residual(design: NDArray[np.float64], y: NDArray[np.float64],
     return coef, scale, resid
 
 
+def _within(a: NDArray[np.float64], inverse: NDArray[np.int64], counts: NDArray[np.float64]
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return the group means of the rows of ``a`` and ``a`` minus its group's mean."""
+    means = np.zeros((counts.size,) + a.shape[1:])
+    np.add.at(means, inverse, a)
+    means /= counts.reshape((-1,) + (1,) * (a.ndim - 1))
+    return means, a - means[inverse]
+
+
 def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
                scale_cols: NDArray[np.float64] | None = None, kind: str = 'poly',
-               n_centers: int = 12, ridge: float | str = 'auto', seed: int = 0) -> LinearFit:
+               n_centers: int = 12, ridge: float | str = 'auto', seed: int = 0,
+               groups: NDArray[np.int64] | None = None) -> LinearFit:
     """
     Fit the drift network on one feature matrix by regularised linear least squares.
 
@@ -396,11 +409,17 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
         rows), else uses ``RIDGE_GRID[1]``.
     seed : int
         Seed of the centre placement.
+    groups : NDArray[np.int64], shape (N,), optional
+        A label per row: each group gets its own constant instead of the common ``w0``
+        (the within-group problem is solved exactly: design columns and target centred per
+        group), e.g. one offset per accelerometer orientation.
 
     Returns
     -------
     LinearFit
-        Normalisation, centres, weights, residuals and the ridge used.
+        Normalisation, centres, weights, residuals and the ridge used (with ``groups``,
+        ``coef[0]`` is zero and ``offsets`` holds the constant of each group, in the order
+        of ``np.unique(groups)``).
 
     """
     mean = x.mean(axis=0) if x.shape[1] else np.zeros(0)
@@ -413,14 +432,29 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
         centers, widths = np.zeros((0, x.shape[1])), np.zeros(0)
     design = rbf_design((mean, std, centers, widths), x)
     f = x.shape[1]
+    if groups is not None:
+        _, inverse, counts = np.unique(np.asarray(groups), return_inverse=True,
+                                       return_counts=True)
+        inverse = inverse.reshape(-1)
+        counts = counts.astype(np.float64)
+        dmeans, design = _within(design, inverse, counts)
+        ymeans, y = _within(np.asarray(y, dtype=np.float64), inverse, counts)
+        if scale_cols is not None:
+            smeans, scale_cols = _within(scale_cols, inverse, counts)
     if ridge == 'auto':
         ridge = (_choose_ridge(design, y, scale_cols, f) if centers.shape[0]
                  and design.shape[0] >= 40 else RIDGE_GRID[1])
     pen = _penalty(design.shape[1], f, ridge, design.shape[0])
     coef, scale, resid = _residual(design, y, scale_cols, pen)
+    offsets = None
+    if groups is not None:          # the centred constant column is zero: no w0
+        coef[0] = 0.0
+        offsets = ymeans - dmeans @ coef
+        if scale_cols is not None:
+            offsets -= smeans * scale
     return LinearFit(mean=mean, std=std, centers=centers, widths=widths, coef=coef,
                      scale=scale, sse=float((resid ** 2).sum()), resid=resid,
-                     ridge=float(ridge))
+                     ridge=float(ridge), offsets=offsets)
 
 
 @dataclass(frozen=True, eq=False)

@@ -40,6 +40,12 @@ time since the first sample. A format-1 model (``thermal=None``, read from an ol
 keeps its meaning exactly: every feature of the measured temperature (clamped), ``lag`` the
 additive column ``dT`` of the lagged temperature.
 
+The accelerometer part. A format-2 model may carry ``accel``: a second model of the same
+form, in m/s^2, that shares the thermal front end and T0 and holds the accelerometer
+offset's *change* with temperature (zero at T0; see :mod:`gyro_tdc.accel`). ``drift``,
+``compensate`` and :class:`StreamingCompensator` apply to it as to the gyro part
+(``scale`` is zero there), and :attr:`StreamingCompensator.accel` streams it.
+
 Outside the trained range the policy of :mod:`gyro_tdc.out_of_range` applies (``linear``:
 the correction continues along its tangent at the range end, then holds; ``clamp``;
 ``extrapolate``); the library functions keep ``clamp=True`` as their default, and
@@ -116,6 +122,10 @@ class CompensationModel:
         The thermal front end (format 2; kind ``none`` when the model has no ``lag``, else
         ``first_order`` or ``two_node``). None: a format-1 model (the layout before the
         thermal state, see the module docstring); what old files load as.
+    accel : CompensationModel, optional
+        The accelerometer part (format 2 only): the same thermal front end and T0, output
+        in m/s^2, ``residual_var`` in (m/s^2)^2, ``scale`` zero, zero at T0
+        (:mod:`gyro_tdc.accel`). None: the model compensates the gyro only.
 
     """
 
@@ -138,10 +148,13 @@ class CompensationModel:
     metrics: dict = field(default_factory=dict, compare=False)
     created: dict = field(default_factory=dict, compare=False)
     thermal: ThermalState | None = None
+    accel: 'CompensationModel | None' = None
 
     def __post_init__(self) -> None:
         """Check that the thermal front end agrees with the features."""
         th = self.thermal
+        if self.accel is not None:
+            self._check_accel()
         if th is None:
             return
         if not isinstance(th, ThermalState):
@@ -157,6 +170,23 @@ class CompensationModel:
             if tau != th.tau_total_s:
                 raise FeatureError(f'effect_params {eid}.tau_s ({tau!r}) must equal the '
                                    f"thermal state's total time constant ({th.tau_total_s!r})")
+
+    def _check_accel(self) -> None:
+        """Check that the accelerometer part shares the thermal front end and T0."""
+        a = self.accel
+        if not isinstance(a, CompensationModel):
+            raise FeatureError(f'`accel` must be a CompensationModel or None, got '
+                               f'{type(a).__name__}')
+        if self.thermal is None:
+            raise FeatureError('an accelerometer part needs a format-2 model (a thermal '
+                               'front end)')
+        if a.accel is not None:
+            raise FeatureError('an accelerometer part cannot hold an accelerometer part')
+        if a.thermal != self.thermal or a.t0_c != self.t0_c:
+            raise FeatureError('the accelerometer part must share the thermal front end and '
+                               'T0 of the model')
+        if np.any(a.scale != 0):
+            raise FeatureError('the accelerometer part has no scale term (scale must be 0)')
 
     @property
     def format_version(self) -> int:
@@ -197,7 +227,8 @@ class CompensationModel:
         Return a short content hash of every field but ``created``.
 
         Covers the fitted parameters, ``temp_range_c``, ``residual_var``, the sensor ids,
-        the training metrics and (format 2) the format and the thermal front end, so no
+        the training metrics, (format 2) the format and the thermal front end, and the
+        accelerometer part when there is one (its own id), so no
         field a compensator or a reader relies on can be edited under the old id. Numbers
         are hashed as float64 bytes (or exact JSON), so the id survives a YAML round trip
         and does not depend on numpy's ``repr``; a format-1 model keeps the id it always
@@ -209,6 +240,8 @@ class CompensationModel:
         if self.thermal is not None:
             head.append({'format_version': self.format_version,
                          'thermal': self.thermal.to_dict()})
+        if self.accel is not None:          # a gyro-only model keeps the id it had
+            head.append({'accel': self.accel.model_id})
         h.update(_canonical_json(head).encode())
         for arr in (self.t0_c, self.temp_range_c, self.input_mean, self.input_std, self.centers,
                     self.widths, self.weights, self.intercept, self.linear, self.scale,
@@ -509,6 +542,12 @@ class StreamingCompensator:
         self.model_temp: float | None = None
         self.range_distance_c = 0.0
         self.dt_c = 0.0
+        #: The accelerometer part streamed alongside (None without one): ``accel.drift(t,
+        #: temp)`` is the correction in m/s^2, ``accel.step(t, temp, a)`` the corrected
+        #: specific force; its own copy of the thermal state, fed the same samples, equals
+        #: this one's exactly.
+        self.accel = (None if getattr(model, 'accel', None) is None else StreamingCompensator(
+            model.accel, out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c))
 
     def reset(self) -> None:
         """Restart the thermal state and the feature filters (a new run)."""
@@ -516,6 +555,8 @@ class StreamingCompensator:
         if self.thermal is not None:
             self.thermal.reset()
         self.model_temp = None
+        if self.accel is not None:
+            self.accel.reset()
 
     @property
     def thermal_progress(self) -> float | None:
@@ -623,4 +664,9 @@ def summary(model: CompensationModel) -> Mapping[str, Any]:
            'format_version': model.format_version}
     if model.thermal is not None:
         out['thermal'] = model.thermal.to_dict()
+    if model.accel is not None:
+        a = model.accel
+        out['accel'] = {'model_id': a.model_id, 'kind': a.kind, 'features': list(a.features),
+                        'temp_range_c': [float(v) for v in a.temp_range_c],
+                        'residual_std_mps2': [math.sqrt(v) for v in a.residual_var]}
     return out

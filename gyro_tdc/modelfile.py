@@ -41,11 +41,26 @@ Format version 2 (all physical quantities in SI units, angles in rad)::
     sensor: {frame_id: imu_link, sensor_id: ''}
     training: {...}                # metrics
     created: {utc: ..., gyro_tdc_version: ..., command: ...}
+    accel:                         # optional: accelerometer offset change vs temperature
+      model_id: 0c1d2e3f4a5b       # the part's own content hash (the model's id covers it)
+      kind: rbf                    # same form as above, of the same thermal state and T0
+      features: [dT, dT2, lag]
+      effect_params: {lag: {tau_s: 417.2}}
+      temp_range_c: [-40.0, 85.0]  # the state's range over the static training data
+      normalization: {mean: [..F], std: [..F]}
+      centers: [[..F], ...]
+      widths: [..K]
+      weights: [[ax, ay, az], ...] # m/s^2
+      intercept: [..3]             # m/s^2, set so the correction is 0 at T0
+      linear: [[..3], ...]         # m/s^2
+      residual_var_m2_s4: [..3]    # (m/s^2)^2
+      training: {...}              # accelerometer metrics (BS before/after, coverage...)
 
 Format version 1 is the same without ``thermal``: every feature is of the measured
 temperature and ``lag`` is the additive column ``dT`` of the lagged temperature. Such files
 still load, and behave and hash exactly as before (:attr:`CompensationModel.thermal` is None);
-a loaded model is saved in its own format, a new one in format 2.
+a loaded model is saved in its own format, a new one in format 2. The ``accel`` part is
+optional (format 2 only): files without it load, save and hash as before.
 
 Files are read with the safe YAML loader only; every field is checked and a bad one is
 reported in one line naming it and the format (``format_version 2 model: field `widths`
@@ -130,7 +145,41 @@ def model_to_dict(model: CompensationModel) -> dict:
         'training': plain(model.metrics),
         'created': plain(model.created),
     })
+    if model.accel is not None:
+        d['accel'] = _accel_to_dict(model.accel)
     return d
+
+
+#: Fields of the model an ``accel`` part shares (not repeated in its section).
+_SHARED = ('format_version', 'thermal', 't0_c', 'sensor', 'created', 'scale')
+
+
+def _accel_to_dict(part: CompensationModel) -> dict:
+    """Return the ``accel`` section: the part's fields but those it shares, in m/s^2."""
+    return {('residual_var_m2_s4' if k == 'residual_var_rad2_s2' else k): v
+            for k, v in model_to_dict(part).items() if k not in _SHARED}
+
+
+def _accel_from_dict(d: Mapping, version: int) -> CompensationModel | None:
+    """Read the optional ``accel`` section of a model file (None when absent)."""
+    if d.get('accel') is None:
+        return None
+    if version == 1:
+        raise ModelFileError('field `accel` belongs to format_version 2, not 1')
+    sec = _mapping(d, 'accel')
+    bad = sorted(set(sec) & (set(_SHARED) | {'residual_var_rad2_s2'}))
+    if bad:
+        raise ModelFileError(f'field `accel`: {bad} belong to the model, not to its '
+                             'accelerometer part')
+    sub = dict(sec, format_version=version, thermal=d.get('thermal'), t0_c=d.get('t0_c'),
+               sensor=d.get('sensor'), scale=[0.0, 0.0, 0.0])
+    if 'residual_var_m2_s4' not in sub:
+        raise ModelFileError('field `accel`: missing field `residual_var_m2_s4`')
+    sub['residual_var_rad2_s2'] = sub.pop('residual_var_m2_s4')
+    try:
+        return _model_from_dict(sub, version)
+    except ModelFileError as exc:
+        raise ModelFileError(f'field `accel`: {exc}') from None
 
 
 def _array(d: Mapping, key: str, shape: tuple, *, positive: bool = False) -> np.ndarray:
@@ -265,6 +314,7 @@ def _model_from_dict(d: Mapping, version: int) -> CompensationModel:
     rng_ = _array(d, 'temp_range_c', (2,))
     if rng_[0] > rng_[1]:
         raise ModelFileError(f'field `temp_range_c` must be [min, max], got {rng_.tolist()}')
+    accel = _accel_from_dict(d, version)
     sensor = _mapping(d, 'sensor', required=False)
     frame_id = sensor.get('frame_id', 'imu_link')
     sensor_id = sensor.get('sensor_id', '')
@@ -278,7 +328,7 @@ def _model_from_dict(d: Mapping, version: int) -> CompensationModel:
             temp_range_c=(float(rng_[0]), float(rng_[1])), residual_var=resid,
             frame_id=frame_id, sensor_id=sensor_id,
             metrics=_mapping(d, 'training', required=False),
-            created=_mapping(d, 'created', required=False), thermal=thermal)
+            created=_mapping(d, 'created', required=False), thermal=thermal, accel=accel)
     except FeatureError as exc:
         raise ModelFileError(f'fields `thermal`/`features`/`effect_params`: {exc}') from None
     if mid != model.model_id:
