@@ -27,6 +27,9 @@ node), and the result says which and how much of the run was outside. Re-anchori
 each model's mean error over the head of the run: the first ``reanchor_s`` seconds, or
 (``'auto'``) as long as the compensator's rule takes to know it to its tolerance
 (:func:`gyro_tdc.stillness.reanchor_shift`, the same windows, blocks and tolerance).
+For static runs with accelerometer data the accelerometer's BS (variance around the run
+mean, (m/s^2)^2) is scored too, raw and per model with an accelerometer part
+(:func:`gyro_tdc.accel.accel_scores`); the ``px4`` baseline then fits a cubic for it too.
 
 Formatting (tables, JSON, CSV, plots) lives in :mod:`gyro_tdc.report`; the command line in
 :mod:`gyro_tdc.cli.evaluate`.
@@ -41,6 +44,7 @@ from pathlib import Path
 import re
 from typing import Callable, Sequence
 
+from gyro_tdc.accel import accel_scores, fit_accel, PX4_FEATURES
 from gyro_tdc.dataset import expand_bags, load_runs
 from gyro_tdc.errors import FitError
 from gyro_tdc.fitting import fit_px4_cubic
@@ -106,6 +110,10 @@ class ModelEval:
     reanchor : dict, optional
         With ``reanchor_s='auto'``: ``samples``, ``duration_s``, ``shift_dps``, ``se_dps``,
         ``tolerance_dps`` (3 each) and ``reason`` of the re-anchoring.
+    accel_bs : NDArray[np.float64], shape (3,), (m/s^2)^2, optional
+        Accelerometer BS (variance around the run mean over the still samples) after the
+        model's accelerometer part (raw: of the raw data); None when not applicable (no
+        accelerometer data, a run not static, a model without an accelerometer part).
 
     """
 
@@ -123,6 +131,7 @@ class ModelEval:
     outside_fraction: float = 0.0
     omega: NDArray[np.float64] | None = field(default=None, repr=False)
     reanchor: dict | None = None
+    accel_bs: NDArray[np.float64] | None = None
 
 
 @dataclass
@@ -277,12 +286,16 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     files = {s: load_model(model_path(s)) for s in specs if s != PX4}
     px4 = None
     if PX4 in specs:
-        runs = load_runs(train_bags, log=log, **(options or {}))
+        runs = load_runs(train_bags, log=log, **{'accel': True, **(options or {})})
         px4 = fit_px4_cubic(runs, created={'bags': [r.name for r in runs]})
+        acc = fit_accel(runs, px4, kind='poly', features=PX4_FEATURES)
+        if acc.part is not None:          # PX4's TC_A*: a cubic for the accelerometer too
+            px4 = px4.replace(accel=acc.part)
         if log is not None:
             lo, hi = px4.temp_range_c
             log(f'fitted px4 cubic in T - T0 on {len(runs)} bag(s): T0 = {px4.t0_c:.3f} degC, '
-                f'range {lo:.2f} .. {hi:.2f} degC')
+                f'range {lo:.2f} .. {hi:.2f} degC; accelerometer '
+                + ('cubic too' if acc.part is not None else f'not fitted: {acc.note}'))
     return [NamedModel(s, label, px4 if s == PX4 else files[s])
             for s, label in zip(specs, model_labels(specs))]
 
@@ -411,6 +424,11 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         ev.outside_fraction = float(np.count_nonzero((temp < lo) | (temp > hi))
                                     / max(len(run), 1))
         out.append(ev)
+    raw.accel_bs, per_model = accel_scores(run, [nm.model for nm in models],
+                                           out_of_range=out_of_range,
+                                           max_extrapolation_c=max_extrapolation_c)
+    for ev, bs in zip(out, per_model):
+        ev.accel_bs = bs
     return BagEval(bag=run.name, label=label or safe_label(run.name), samples=len(run),
                    temperature_c=(float(run.temp.min()), float(run.temp.max())),
                    duration_s=run.duration_s, reference=str(run.info.get('reference', '?')),
@@ -433,7 +451,8 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     models : sequence of NamedModel
         Models to score.
     options : dict, optional
-        Bag options of :func:`gyro_tdc.dataset.load_run`.
+        Bag options of :func:`gyro_tdc.dataset.load_run` (the accelerometer is read unless
+        they hold ``accel=False``).
     reanchor_s : float (s) or ``'auto'``
         Start-up re-anchoring (see :func:`evaluate_run`); 0 = off.
     out_of_range : str
@@ -456,7 +475,7 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     paths = expand_bags(bags)
     results = []
     for path, label in zip(paths, bag_labels(paths)):
-        run = load_runs([path], log=log, **(options or {}))[0]
+        run = load_runs([path], log=log, **{'accel': True, **(options or {})})[0]
         b = evaluate_run(run, models, label=label, reanchor_s=reanchor_s,
                          out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c)
         if each is not None:

@@ -27,6 +27,11 @@ thermal state ``lag``, ``dTdt``, ``warmup``, ``scale`` with rate-table steps...)
 false-discovery guard (held-out gain, HAC test, effect size); every effect added or rejected
 is recorded with its reason in the model's ``training`` metrics. Named features (``dT,dT2``)
 fit exactly that model.
+
+The accelerometer: when the bags carry accelerometer data and the data are still (a thermal
+chamber: the whole run), the model also gets its accelerometer part
+(:func:`gyro_tdc.accel.fit_accel`: the change of the offset with temperature, of the same
+thermal state); ``accel=False`` skips it.
 """
 
 from __future__ import annotations
@@ -36,6 +41,7 @@ import os
 from pathlib import Path
 from typing import Callable, Sequence
 
+from gyro_tdc.accel import AccelFit, fit_accel
 from gyro_tdc.blocks import block_mean
 from gyro_tdc.coverage import Coverage, coverage
 from gyro_tdc.dataset import load_runs, MAX_LOSS_FRACTION
@@ -252,6 +258,9 @@ class TrainResult:
         Training samples.
     choice : FeatureChoice, optional
         What ``features='auto'`` chose and why (None for named features).
+    accel : AccelFit, optional
+        The accelerometer part's fit and figures, or why there is none (None with
+        ``accel=False``).
 
     """
 
@@ -261,6 +270,7 @@ class TrainResult:
     bags: list
     samples: int
     choice: FeatureChoice | None = None
+    accel: AccelFit | None = None
 
 
 def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
@@ -270,7 +280,7 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
           reference: Sequence[float] | None = None,
           reference_topic: str = '/rate_table/reference', progress: bool = False,
           bin_c: float = 5.0, command: str = '', max_loss: float = MAX_LOSS_FRACTION,
-          log: Callable[[str], None] | None = None) -> TrainResult:
+          log: Callable[[str], None] | None = None, accel: bool = True) -> TrainResult:
     """
     Load bags, fit a compensation model and save it.
 
@@ -308,6 +318,9 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
         :func:`gyro_tdc.dataset.load_run`).
     log : callable, optional
         Receives one line per bag read.
+    accel : bool
+        Read the accelerometer and fit the model's accelerometer part on its still data
+        (default); False skips both (``--no-accel``).
 
     Returns
     -------
@@ -331,7 +344,8 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
     check_bin_width(bin_c)
     options = {'imu_topic': imu_topic, 'temperature_topic': temperature_topic,
                'reference': None if reference is None else tuple(reference),
-               'reference_topic': reference_topic, 'progress': progress, 'max_loss': max_loss}
+               'reference_topic': reference_topic, 'progress': progress, 'max_loss': max_loss,
+               'accel': bool(accel)}
     runs: list[Run] = load_runs(bags, log=log, **options)
     names = [r.name for r in runs]
     if t0 is None:
@@ -350,9 +364,14 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
             params = {k: v for k, v in choice.discovery.params.items()
                       if k in ids and not EFFECTS[k].fitted}
     model = fit_model(runs, features=ids, params=params or None, **common)
+    accel_fit = None
+    if accel:
+        accel_fit = fit_accel(runs, model, n_centers=n_centers, seed=seed, bin_c=bin_c)
+        if accel_fit.part is not None:
+            model = model.replace(accel=accel_fit.part)
     if choice is not None:
         model = model.replace(metrics={**model.metrics, 'features': choice.to_dict()})
     cov = coverage(runs, bin_c=bin_c)
     path = save_model(model, out)
     return TrainResult(model=model, path=path, coverage=cov, bags=names,
-                       samples=sum(len(r) for r in runs), choice=choice)
+                       samples=sum(len(r) for r in runs), choice=choice, accel=accel_fit)

@@ -22,7 +22,10 @@ line per effect), then the report of :func:`gyro_tdc.report.format_training`: tr
 stability per axis raw and compensated, the temperature range, coverage per temperature bin
 (with a warning naming the bins inside the span with too little data) and minutes heating,
 cooling and steady (with the thermal state's tau and its interval, or that the data cannot
-pin it, when the model has one). Bad input (missing bag or topic, unreadable bag, too small a
+pin it, when the model has one). With accelerometer data that are still (a chamber run)
+the model gets its accelerometer part, reported the same way (BS before and after, in
+(m/s^2)^2, coverage of the still data, orientation changes found and split at); ``--no-accel``
+skips it. Bad input (missing bag or topic, unreadable bag, too small a
 span, too few samples, unknown feature id, bad reference) exits 2 with one line on stderr.
 """
 
@@ -37,7 +40,7 @@ from gyro_tdc.cli.common import effect_listing
 from gyro_tdc.cli.common import finite_float, positive_float, positive_int, run_command
 from gyro_tdc.effects import normalise_ids
 from gyro_tdc.model import KINDS
-from gyro_tdc.report import format_training
+from gyro_tdc.report import format_coverage, format_training
 from gyro_tdc.training import AUTO, train
 
 __all__ = ['add_train_options', 'build_parser', 'main', 'train_options']
@@ -90,6 +93,10 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
     p.add_argument('--seed', type=int, default=0, help='seed of the centre placement')
     p.add_argument('--bin', dest='bin_c', type=positive_float, default=5.0, metavar='C',
                    help='width of the coverage bins in degC (default: %(default)s)')
+    p.add_argument('--no-accel', dest='accel', action='store_false',
+                   help='do not read the accelerometer nor fit its part (default: fit the '
+                        "accelerometer offset's change with temperature on still data when "
+                        'the bags have accelerometer data)')
     add_bag_options(p)
 
 
@@ -106,7 +113,7 @@ def train_options(args: argparse.Namespace) -> dict:
     -------
     dict
         ``features`` (``'auto'`` or normalised ids), ``kind``, ``n_centers``, ``refine``,
-        ``t0``, ``seed``, ``bin_c`` and the bag options of
+        ``t0``, ``seed``, ``bin_c``, ``accel`` and the bag options of
         :func:`gyro_tdc.cli.common.bag_options`.
 
     Raises
@@ -118,7 +125,7 @@ def train_options(args: argparse.Namespace) -> dict:
     auto = args.features.strip() == AUTO
     return {'features': AUTO if auto else normalise_ids(args.features), 'kind': args.kind,
             'n_centers': args.centers, 'refine': args.refine, 't0': args.t0,
-            'seed': args.seed, 'bin_c': args.bin_c, **bag_options(args)}
+            'seed': args.seed, 'bin_c': args.bin_c, 'accel': args.accel, **bag_options(args)}
 
 
 def _run(args: argparse.Namespace, argv: list) -> int:
@@ -130,6 +137,16 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         print('\n'.join(result.choice.lines()))
     text, warns = format_training(result)
     print(text)
+    if result.accel is not None:
+        print('\n'.join(result.accel.lines()))
+        fit = result.accel
+        if fit.part is not None and fit.coverage is not None:
+            if fit.samples == result.samples:
+                print("accelerometer coverage: the gyro's (every sample still)")
+            else:
+                table, accel_warns = format_coverage(fit.coverage)
+                print('accelerometer coverage (still data):\n' + table)
+                warns = list(warns) + [f'accelerometer: {w}' for w in accel_warns]
     for w in warns:
         print(f'warning: {w}')
     print(f'wrote {result.path} (model_id {result.model.model_id})', flush=True)
