@@ -74,6 +74,11 @@ def _vec(a: NDArray[np.float64]) -> list:
     return [_finite(v) for v in np.asarray(a, dtype=np.float64).ravel()]
 
 
+def _vec_or_null(a: NDArray[np.float64] | None) -> list | None:
+    """Return :func:`_vec` of ``a``, or None when there is none (not applicable)."""
+    return None if a is None else _vec(a)
+
+
 def evaluation_json(bags: Sequence[BagEval]) -> dict:
     """
     Return the evaluation in the documented JSON shape (docs/json.md), nothing more.
@@ -91,18 +96,21 @@ def evaluation_json(bags: Sequence[BagEval]) -> dict:
         "adev": {"tau_s", "dps"}, "reanchor"?}]}], "out_of_range"}``; BS in (deg/s)^2, RMS
         and ADEV in deg/s, non-finite values as null; ``out_of_range`` the policy beyond the
         trained range, ``reanchor`` (``--reanchor auto`` only) ``{samples, duration_s,
-        shift_dps, se_dps, tolerance_dps, reason}``.
+        shift_dps, se_dps, tolerance_dps, reason}``; ``accel_bs`` beside ``bs`` in ``raw``
+        and each model: the accelerometer BS in (m/s^2)^2, null when not applicable.
 
     """
     doc = {'bags': [{
         'bag': b.bag,
         'samples': int(b.samples),
         'temperature_c': [_finite(b.temperature_c[0]), _finite(b.temperature_c[1])],
-        'raw': {'bs': _vec(b.raw.bs), 'rms_dps': _vec(b.raw.rms_dps)},
+        'raw': {'bs': _vec(b.raw.bs), 'accel_bs': _vec_or_null(b.raw.accel_bs),
+                'rms_dps': _vec(b.raw.rms_dps)},
         'models': [{
             'model': m.model,
             'features': list(m.features),
             'bs': _vec(m.bs),
+            'accel_bs': _vec_or_null(m.accel_bs),
             'rms_dps': _vec(m.rms_dps),
             'p_vs_raw': _vec(m.p_vs_raw),
             'adev': {'tau_s': _vec(m.adev_tau_s),
@@ -169,7 +177,23 @@ def format_summary(b: BagEval) -> str:
     note = _outside_note(b)
     if note:
         lines.append(note)
+    lines += _accel_rows(b, w)
     return '\n'.join(lines)
+
+
+def _accel_rows(b: BagEval, w: int) -> list:
+    """Return the accelerometer rows of a bag's summary (none when not applicable)."""
+    if b.raw.accel_bs is None:
+        return []
+    lines = ['  accelerometer (still run): BS = variance around the run mean in (m/s^2)^2, '
+             'BS/BS1 against the raw data; - : no accelerometer part',
+             f'  {"":<{w}} ' + ''.join(f'{"aBS " + a:>11}' for a in AXES) + '  '
+             + ''.join(f'{"aBS/BS1 " + a:>11}' for a in AXES)]
+    for m in [b.raw] + list(b.models):
+        bs = np.full(3, math.nan) if m.accel_bs is None else np.asarray(m.accel_bs)
+        lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in bs) + '  '
+                     + ''.join(_g(v) for v in bs / b.raw.accel_bs))
+    return lines
 
 
 def _outside_note(b: BagEval) -> str:

@@ -62,13 +62,16 @@ def test_json_has_exactly_the_documented_shape(bags, tmp_path, capsys):
         assert list(b) == ['bag', 'samples', 'temperature_c', 'raw', 'models']
         assert isinstance(b['samples'], int) and b['samples'] > 10_000
         assert len(b['temperature_c']) == 2 and b['temperature_c'][0] < b['temperature_c'][1]
-        assert list(b['raw']) == ['bs', 'rms_dps']
-        assert all(len(v) == 3 for v in b['raw'].values())
+        assert list(b['raw']) == ['bs', 'accel_bs', 'rms_dps']
+        assert b['raw']['accel_bs'] is None      # the synthetic bags carry no accelerometer
+        assert all(len(b['raw'][k]) == 3 for k in ('bs', 'rms_dps'))
         assert [m['model'] for m in b['models']] == [str(bags['mod']), 'px4', str(bags['conv'])]
         assert [m['features'] for m in b['models']] == [['dT', 'dT2'], ['dT', 'dT2', 'dT3'],
                                                         ['dT']]
         for m in b['models']:
-            assert list(m) == ['model', 'features', 'bs', 'rms_dps', 'p_vs_raw', 'adev']
+            assert list(m) == ['model', 'features', 'bs', 'accel_bs', 'rms_dps', 'p_vs_raw',
+                               'adev']
+            assert m['accel_bs'] is None
             for key in ('bs', 'rms_dps', 'p_vs_raw'):
                 assert len(m[key]) == 3 and all(isinstance(v, float) for v in m[key])
             assert list(m['adev']) == ['tau_s', 'dps']

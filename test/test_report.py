@@ -118,9 +118,10 @@ def test_json_shape_and_nulls(bag, tmp_path):
     assert list(doc) == ['bags', 'out_of_range'] and doc['out_of_range'] == 'clamp'
     b = doc['bags'][0]
     assert list(b) == ['bag', 'samples', 'temperature_c', 'raw', 'models']
-    assert b['raw'] == {'bs': [100.0] * 3, 'rms_dps': [10.0] * 3}
+    assert b['raw'] == {'bs': [100.0] * 3, 'accel_bs': None, 'rms_dps': [10.0] * 3}
     m = b['models'][1]
-    assert list(m) == ['model', 'features', 'bs', 'rms_dps', 'p_vs_raw', 'adev']
+    assert list(m) == ['model', 'features', 'bs', 'accel_bs', 'rms_dps', 'p_vs_raw', 'adev']
+    assert m['accel_bs'] is None
     assert m['bs'] == [1.0, None, None]
     assert m['adev'] == {'tau_s': [0.1, 1.0], 'dps': [[0.2, 0.3, 0.4], [0.02, 0.03, 0.04]]}
     path = write_json([bag], tmp_path / 'deep' / 'scores.json')
