@@ -20,7 +20,11 @@ One run per bag (a folder of bag folders expands to its bags). The workflow is
 the optional outputs: ``--json`` (the document of DESIGN.md), ``--report DIR`` (report.md with
 PNG residual maps and Allan deviation plots) and ``--out MODEL.yaml`` (a model of the
 discovered effects that ``compensator_node`` loads; format 2, with the thermal state and its
-tau interval when ``lag`` was named). Bad input exits 2 with one line on stderr.
+tau interval when ``lag`` was named). ``--sensor accel`` runs the same search on the
+accelerometer's still data (:func:`gyro_tdc.accel.discovery_runs`: each orientation of each
+bag one run with its own offset), with the effects an accelerometer part can hold; figures
+are then in mg (the JSON adds ``"sensor": "accel", "unit": "mg"``; its ``*_dps`` fields hold
+mg). Bad input exits 2 with one line on stderr.
 """
 
 from __future__ import annotations
@@ -31,6 +35,7 @@ from pathlib import Path
 import sys
 from typing import Optional, Sequence
 
+from gyro_tdc.accel import ACCEL_EFFECTS, discovery_runs
 from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
 from gyro_tdc.cli.common import effect_listing
@@ -80,6 +85,10 @@ def build_parser() -> argparse.ArgumentParser:
                    help='family-wise significance level per step (default: %(default)s)')
     p.add_argument('--max-steps', type=positive_int, default=6, metavar='N',
                    help='most effects to add (default: %(default)s)')
+    p.add_argument('--sensor', choices=('gyro', 'accel'), default='gyro',
+                   help='gyro, or accel: search the accelerometer offset on the still data '
+                        '(one offset per bag and orientation; candidates among '
+                        f'{", ".join(ACCEL_EFFECTS)}; figures in mg) (default: %(default)s)')
     add_bag_options(p)
     return p
 
@@ -91,10 +100,20 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     for opt, value in (('--json', args.json_out), ('--out', args.out)):
         if value is not None and Path(value).is_dir():
             raise UsageError(f'{opt}: expected a file path, got the directory {value!r}')
-    runs = load_runs(args.bags, log=lambda s: print(s, flush=True), **bag_options(args))
+    accel = args.sensor == 'accel'
+    if accel:
+        cands = _accel_options(args, base, cands)
+    runs = load_runs(args.bags, log=lambda s: print(s, flush=True), accel=accel,
+                     **bag_options(args))
+    if accel:
+        n_bags = len(runs)
+        runs = discovery_runs(runs)
+        print(f'accelerometer: the still data of {n_bags} bag(s) as {len(runs)} run(s) (one '
+              'offset per bag and orientation); figures in mg (1 mg = 9.80665e-3 m/s^2)')
     result = discover(runs, base=base, candidates=cands, block_s=args.block_s, t0=args.t0,
                       alpha=args.alpha, max_steps=args.max_steps)
-    sys.stdout.write(format_summary(result))
+    text = format_summary(result)
+    sys.stdout.write(text.replace('deg/s', 'mg') if accel else text)
     model_file = None
     if args.out is not None:
         model = build_model(result, runs, kind=args.kind,
@@ -107,10 +126,26 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         path = write_report(result, args.report)
         print(f'wrote report {path}')
     if args.json_out is not None:
-        atomic_write(args.json_out, json.dumps(result.to_json(model_file), indent=1) + '\n',
-                     what='JSON file')
+        doc = result.to_json(model_file)
+        if accel:
+            doc.update({'sensor': 'accel', 'unit': 'mg'})
+        atomic_write(args.json_out, json.dumps(doc, indent=1) + '\n', what='JSON file')
         print(f'wrote {args.json_out}')
     return 0
+
+
+def _accel_options(args: argparse.Namespace, base: tuple, cands: tuple | None) -> tuple:
+    """Check the options of ``--sensor accel``; return its candidates."""
+    for opt, value in (('--out', args.out), ('--report', args.report)):
+        if value is not None:
+            raise UsageError(f'{opt} is for the gyro; with --sensor accel, train fits the '
+                             'accelerometer part and --json holds the search')
+    allowed = ('bias',) + ACCEL_EFFECTS
+    bad = [e for e in base + (cands or ()) if e not in allowed]
+    if bad:
+        raise UsageError(f'--sensor accel: {", ".join(bad)} cannot be an accelerometer '
+                         f'effect; expected some of {", ".join(allowed)}')
+    return cands if cands is not None else tuple(e for e in ACCEL_EFFECTS if e not in base)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
