@@ -123,11 +123,17 @@ def readme_blocks(text: str) -> list:
             while j < len(lines) and lines[j].strip() != '```':
                 j += 1
             body = tuple(lines[start:j])
-            first = next((b.strip() for b in body if b.strip()), '')
+            comments = []        # the block's first comment, with lines that continue it
+            for b in body:
+                if not b.strip().startswith('#') or (comments and
+                                                     not comments[-1].endswith(',')):
+                    break
+                comments.append(b.strip().lstrip('#').strip())
+            first = ' '.join(comments)
             skip = None
             for marker in SKIP_MARKERS:
-                if first.startswith(marker):
-                    skip = first.lstrip('#').strip()
+                if ('# ' + first).startswith(marker):
+                    skip = first
             blocks.append(Block(start + 1, body, section, skip))
             i = j
         i += 1
