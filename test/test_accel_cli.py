@@ -52,7 +52,7 @@ def bags(tmp_path_factory):
 
 @pytest.fixture(scope='module')
 def models(bags, tmp_path_factory):
-    """A model trained with the accelerometer and one with --no-accel, and the outputs."""
+    """Train a model with the accelerometer and one with --no-accel; return their paths."""
     d = tmp_path_factory.mktemp('models')
     out = {}
     for name, extra in (('with', []), ('without', ['--no-accel'])):
