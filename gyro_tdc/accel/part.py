@@ -13,44 +13,10 @@
 # limitations under the License.
 
 """
-The accelerometer part of a model: its offset's change with temperature, as PX4 and ArduPilot.
+The accelerometer part itself: its features, its fit on still data, scores and discovery runs.
 
-A MEMS accelerometer's offset moves with the die temperature (1-5 mg per 10 degC on
-consumer parts). The accelerometer part of a model (:attr:`gyro_tdc.model.
-CompensationModel.accel`, model file section ``accel:``) holds that change per axis, in
-m/s^2: the same effect library and the same thermal state as the gyro part (the
-accelerometer sits on the same die), the same network form (``rbf`` or ``poly``), and
-nothing else. It removes only the *change* relative to T0: the intercept is set so the
-correction is zero at the reference point (the model temperature at T0, every dynamic term
-settled), so the compensated specific force at T0 equals the raw one; the static offset and
-the gravity direction belong to the ordinary accelerometer calibration.
-
-**Static data only.** Gravity dominates the accelerometer, so its offset can be learnt only
-while the IMU is still with a fixed orientation. :func:`static_data` cuts a run into windows
-of :data:`gyro_tdc.stillness.STILL_WINDOW_S` (at least :data:`MIN_WINDOW_SAMPLES` samples)
-and keeps the still ones, with the thresholds of the stillness detector
-(:mod:`gyro_tdc.stillness`): the raw rate's and the acceleration's per-axis standard
-deviation at most :data:`~gyro_tdc.stillness.NOISE_FACTOR` times the quietest window's, a
-zero reference rate (a turning rate table is not static), and with a gyro model the mean
-compensated rate at most ``max_rate``. In a thermal chamber the whole run is still.
-
-**Orientation.** The orientation must stay fixed: between consecutive still windows the
-mean specific force is compared with the local trend; a jump beyond :data:`JUMP_SIGMAS`
-times its noise and :data:`MIN_JUMP_DEG` in direction is an orientation change. It is
-reported (time, angle) and the run is split there: every orientation (and every still
-stretch after more than :data:`MAX_GAP_WINDOWS` windows of motion) gets its own offset, so
-a change is never fitted as drift (:func:`gyro_tdc.fitting.fit_linear` with ``groups``).
-
-**Figures.** The accelerometer bias stability (BS) is the variance around the run mean
-(around each orientation's mean when there are several), in (m/s^2)^2, raw and compensated
-(:func:`static_bs`); ``evaluate`` reports it for static runs (:func:`accel_scores`) beside
-the gyro's BS, with a PX4-style cubic in the measured temperature as the baseline
-(:data:`PX4_FEATURES`).
-
-**Streaming.** The part is a :class:`~gyro_tdc.model.CompensationModel` in m/s^2, so
-:func:`gyro_tdc.model.compensate` (batch) and :attr:`gyro_tdc.model.StreamingCompensator.
-accel` (one sample at a time, equal to the batch form) apply it; its ``residual_var`` is in
-(m/s^2)^2. :func:`compensate_accel` is the batch form from the whole model.
+See :mod:`gyro_tdc.accel` for what the part is; the still data come from
+:mod:`gyro_tdc.accel.static`.
 """
 
 from __future__ import annotations
@@ -59,6 +25,7 @@ from dataclasses import dataclass, field
 import math
 from typing import Sequence
 
+from gyro_tdc.accel.static import static_bs, static_data
 from gyro_tdc.blocks import block_length, block_mean
 from gyro_tdc.coverage import Coverage, coverage
 from gyro_tdc.effects import (batch_features, input_ids, normalise_ids, resolve_params,
@@ -68,15 +35,11 @@ from gyro_tdc.fitting import fit_linear, LinearFit, MIN_SAMPLES, MIN_SPAN_C
 from gyro_tdc.model import compensate, CompensationModel, drift, KINDS
 from gyro_tdc.out_of_range import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C
 from gyro_tdc.runs import Run
-from gyro_tdc.stillness import NOISE_FACTOR, STILL_WINDOW_S
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['ACCEL_EFFECTS', 'AccelFit', 'G0', 'JUMP_SIGMAS', 'MAX_GAP_WINDOWS', 'MG',
-           'MIN_JUMP_DEG', 'MIN_SEGMENT_S', 'MIN_STATIC_FRACTION', 'MIN_WINDOW_SAMPLES',
-           'OrientationChange', 'PX4_FEATURES', 'StaticData', 'accel_features', 'accel_scores',
-           'compensate_accel', 'discovery_runs', 'fit_accel', 'has_accelerometer',
-           'static_bs', 'static_data']
+__all__ = ['ACCEL_EFFECTS', 'AccelFit', 'G0', 'MG', 'MIN_STATIC_FRACTION', 'PX4_FEATURES',
+           'accel_features', 'accel_scores', 'compensate_accel', 'discovery_runs', 'fit_accel']
 
 #: Standard gravity, m/s^2 per g.
 G0 = 9.80665
@@ -86,283 +49,8 @@ MG = G0 * 1e-3
 ACCEL_EFFECTS: tuple[str, ...] = ('dT', 'dT2', 'dT3', 'dTdt', 'lag')
 #: The PX4-style baseline (``TC_A*``): a cubic in the measured temperature.
 PX4_FEATURES: tuple[str, ...] = ('dT', 'dT2', 'dT3')
-#: Fewest samples per still window (the window grows at low rates).
-MIN_WINDOW_SAMPLES = 20
-#: An orientation jump must exceed this many standard deviations of its noise ...
-JUMP_SIGMAS = 8.0
-#: ... and turn gravity by at least this much, deg (1.7 mg): smaller is not told from drift.
-MIN_JUMP_DEG = 0.1
-#: More non-still windows than this between two still ones start a new orientation segment.
-MAX_GAP_WINDOWS = 6
-#: Shortest orientation segment kept, s.
-MIN_SEGMENT_S = 60.0
 #: ``evaluate`` reports accelerometer figures for runs at least this still.
 MIN_STATIC_FRACTION = 0.5
-#: Largest mean compensated rate of a still window (with a gyro model), rad/s (as the node).
-MAX_RATE = 0.02
-#: Trend of the specific force: median step over this many previous still windows.
-_TREND_WINDOWS = 5
-
-
-def has_accelerometer(accel: ArrayLike | None) -> bool:
-    """
-    Return True when ``accel`` holds accelerometer data (not None, not all zero or NaN).
-
-    A driver without an accelerometer publishes zeros with
-    ``linear_acceleration_covariance[0] = -1`` (REP 145).
-    """
-    if accel is None:
-        return False
-    a = np.asarray(accel, dtype=np.float64)
-    if a.ndim != 2 or a.shape[0] == 0:
-        return False
-    fin = np.isfinite(a).all(axis=1)
-    return bool(np.any(a[fin] != 0.0))
-
-
-@dataclass(frozen=True)
-class OrientationChange:
-    """
-    A jump of the gravity direction between two still windows of a run.
-
-    Parameters
-    ----------
-    run : str
-        The run (bag) it happened in.
-    t_s : float, s
-        Stamp of the first still sample after the change.
-    angle_deg : float, deg
-        Angle between the mean specific force before and after.
-    before, after : NDArray[np.float64], shape (3,), m/s^2
-        Mean specific force of the still windows on either side.
-
-    """
-
-    run: str
-    t_s: float
-    angle_deg: float
-    before: NDArray[np.float64]
-    after: NDArray[np.float64]
-
-    def line(self) -> str:
-        """Return the change as one report line."""
-        return (f'orientation changed in {self.run} at t = {self.t_s:.1f} s by '
-                f'{self.angle_deg:.3g} deg (gravity direction jump beyond noise): split '
-                'there, each part its own offset (never fitted as drift)')
-
-    def to_dict(self) -> dict:
-        """Return the change as plain types."""
-        return {'run': self.run, 't_s': float(self.t_s), 'angle_deg': float(self.angle_deg),
-                'before_mps2': [float(v) for v in self.before],
-                'after_mps2': [float(v) for v in self.after]}
-
-
-@dataclass(frozen=True, eq=False)
-class StaticData:
-    """
-    The still samples of one run, grouped by orientation.
-
-    Parameters
-    ----------
-    run : str
-        The run's name.
-    mask : NDArray[np.bool_], shape (N,)
-        Still samples (in a still window of a kept segment, finite acceleration).
-    segment : NDArray[np.int64], shape (N,)
-        Orientation segment of every still sample (0, 1, ...), -1 elsewhere.
-    n_segments : int
-        Number of segments.
-    changes : tuple of OrientationChange
-        The orientation changes found (each starts a segment).
-    window_s : float, s
-        Window length used.
-    reason : str
-        Why no sample is still (empty when some are).
-
-    """
-
-    run: str
-    mask: NDArray[np.bool_]
-    segment: NDArray[np.int64]
-    n_segments: int
-    changes: tuple
-    window_s: float
-    reason: str = ''
-
-    @property
-    def fraction(self) -> float:
-        """Return the fraction of the run's samples that are still."""
-        return float(self.mask.mean()) if self.mask.size else 0.0
-
-
-def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
-                  counts: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return per-window means and standard deviations (N, 3) of ``x`` (ddof 1)."""
-    c = x[0]
-    d = x - c
-    s = np.add.reduceat(d, starts, axis=0)
-    q = np.add.reduceat(d * d, starts, axis=0)
-    n = counts[:, None]
-    mean = s / n
-    with np.errstate(invalid='ignore', divide='ignore'):
-        var = np.maximum(q - s * mean, 0.0) / (n - 1.0)
-    return mean + c, np.sqrt(var)
-
-
-def _threshold(std: NDArray[np.float64], ok: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """Return NOISE_FACTOR x the quietest positive window std per axis (inf when none)."""
-    out = np.full(3, math.inf)
-    for a in range(3):
-        v = std[ok, a]
-        v = v[np.isfinite(v) & (v > 0.0)]
-        if v.size:
-            out[a] = NOISE_FACTOR * float(v.min())
-    return out
-
-
-def _angle_deg(u: NDArray[np.float64], v: NDArray[np.float64]) -> float:
-    """Return the angle between two vectors, deg."""
-    nu, nv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
-    if nu == 0.0 or nv == 0.0:
-        return 0.0
-    c = float(np.dot(u, v)) / (nu * nv)
-    return math.degrees(math.acos(min(1.0, max(-1.0, c))))
-
-
-def static_data(run: Run, *, model: CompensationModel | None = None,
-                window_s: float = STILL_WINDOW_S, max_rate: float = MAX_RATE,
-                min_segment_s: float = MIN_SEGMENT_S) -> StaticData | None:
-    """
-    Find the still samples of a run and split them at orientation changes.
-
-    Parameters
-    ----------
-    run : Run
-        A run with ``accel``.
-    model : CompensationModel, optional
-        A gyro model: a still window must also have a mean compensated rate (minus the
-        reference) of at most ``max_rate`` (a slow constant turn has no spread).
-    window_s : float, s
-        Window length (at least :data:`MIN_WINDOW_SAMPLES` sample periods).
-    max_rate : float, rad/s
-        Largest mean compensated rate of a still window (with ``model``).
-    min_segment_s : float, s
-        Orientation segments shorter than this are dropped.
-
-    Returns
-    -------
-    StaticData or None
-        None when the run has no accelerometer data (:func:`has_accelerometer`).
-
-    """
-    acc = run.accel
-    if not has_accelerometer(acc):
-        return None
-    acc = np.asarray(acc, dtype=np.float64)
-    t = np.asarray(run.t, dtype=np.float64)
-    n = len(run)
-    empty = np.zeros(n, dtype=bool)
-    dt = float(np.median(np.diff(t))) if n > 1 else 1.0
-    window = max(float(window_s), MIN_WINDOW_SAMPLES * dt)
-    if n < 3:
-        return StaticData(run.name, empty, np.full(n, -1), 0, (), window,
-                          'too few samples to judge stillness')
-    k = np.floor((t - t[0]) / window).astype(np.int64)
-    starts = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
-    counts = np.diff(np.append(starts, n)).astype(np.float64)
-    finite = np.isfinite(acc).all(axis=1)
-    bad = np.add.reduceat((~finite).astype(np.float64), starts) > 0
-    a_mean, a_std = _window_stats(np.where(finite[:, None], acc, 0.0), starts, counts)
-    _, g_std = _window_stats(np.asarray(run.omega, dtype=np.float64), starts, counts)
-    ref_moves = np.maximum.reduceat(np.abs(run.omega_ref).max(axis=1), starts) > 0.0
-    usable = (counts >= max(3, MIN_WINDOW_SAMPLES // 2)) & ~bad
-    g_thr = _threshold(g_std, usable & ~ref_moves)
-    a_thr = _threshold(a_std, usable & ~ref_moves)
-    still = (usable & ~ref_moves & np.all(g_std <= g_thr, axis=1)
-             & np.all(a_std <= a_thr, axis=1))
-    if model is not None and np.any(still):
-        comp = compensate(model, t, run.temp, run.omega, out_of_range=DEFAULT_OUT_OF_RANGE)
-        mean_rate = np.add.reduceat(comp - run.omega_ref, starts, axis=0) / counts[:, None]
-        still &= np.all(np.abs(mean_rate) <= max_rate, axis=1)
-    if not np.any(still):
-        reason = ('the reference rate is not zero (a turning rate table is not static)'
-                  if np.all(ref_moves | ~usable) else 'no still window (the IMU moves)')
-        return StaticData(run.name, empty, np.full(n, -1), 0, (), window, reason)
-
-    # Orientation segments over the still windows.
-    seg_of = np.full(starts.size, -1, dtype=np.int64)
-    changes: list[OrientationChange] = []
-    seg = -1
-    prev = -1
-    steps: list[NDArray[np.float64]] = []
-    for j in np.flatnonzero(still).tolist():
-        new = prev < 0 or j - prev - 1 > MAX_GAP_WINDOWS
-        if not new:
-            gap = j - prev
-            trend = np.median(np.array(steps[-_TREND_WINDOWS:]), axis=0) if steps else 0.0
-            e = a_mean[j] - (a_mean[prev] + gap * trend)
-            se = math.sqrt(float(np.sum(a_std[j] ** 2 / counts[j]
-                                        + a_std[prev] ** 2 / counts[prev])))
-            angle = _angle_deg(a_mean[prev], a_mean[j])
-            if float(np.linalg.norm(e)) > JUMP_SIGMAS * se and angle >= MIN_JUMP_DEG:
-                new = True
-                changes.append(OrientationChange(run.name, float(t[starts[j]]), angle,
-                                                 a_mean[prev].copy(), a_mean[j].copy()))
-            elif gap == 1:
-                steps.append(a_mean[j] - a_mean[prev])
-        if new:
-            seg += 1
-            steps = []
-        seg_of[j] = seg
-        prev = j
-    # Drop short segments, renumber the rest.
-    ends = np.append(starts[1:], n)
-    keep_ids = []
-    for s in range(seg + 1):
-        w = np.flatnonzero(seg_of == s)
-        if t[ends[w[-1]] - 1] - t[starts[w[0]]] >= min_segment_s or seg == 0:
-            keep_ids.append(s)
-    remap = np.full(seg + 1, -1, dtype=np.int64)
-    remap[keep_ids] = np.arange(len(keep_ids))
-    seg_of = np.where(seg_of >= 0, remap[np.maximum(seg_of, 0)], -1)
-    per_sample = np.repeat(seg_of, counts.astype(np.int64))
-    mask = (per_sample >= 0) & finite
-    per_sample = np.where(mask, per_sample, -1)
-    reason = '' if mask.any() else 'no still stretch long enough'
-    return StaticData(run.name, mask, per_sample, len(keep_ids), tuple(changes), window, reason)
-
-
-def static_bs(accel: ArrayLike, data: StaticData) -> NDArray[np.float64] | None:
-    """
-    Return the accelerometer bias stability: the variance around the run mean, (m/s^2)^2.
-
-    Over the still samples of ``data``; with several orientation segments, around each
-    segment's own mean (pooled).
-
-    Parameters
-    ----------
-    accel : ArrayLike, shape (N, 3), m/s^2
-        Raw or compensated specific force of the run.
-    data : StaticData
-        Its still samples (:func:`static_data`).
-
-    Returns
-    -------
-    NDArray[np.float64], shape (3,), (m/s^2)^2, or None
-        Per axis; None without still samples.
-
-    """
-    m = data.mask
-    if not np.any(m):
-        return None
-    a = np.asarray(accel, dtype=np.float64)[m]
-    seg = data.segment[m]
-    counts = np.bincount(seg, minlength=data.n_segments).astype(np.float64)
-    means = np.zeros((data.n_segments, 3))
-    np.add.at(means, seg, a)
-    means /= np.maximum(counts, 1.0)[:, None]
-    r = a - means[seg]
-    return np.einsum('ij,ij->j', r, r) / float(a.shape[0])
 
 
 def accel_features(model: CompensationModel, features: str | Sequence[str] | None = None
