@@ -49,8 +49,8 @@ from gyro_tdc.effects import STATIC_EFFECTS
 from gyro_tdc.health import (FLAG_NAMES, NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
                              PASSTHROUGH, STALE)
 from gyro_tdc.model import CompensationModel, StreamingCompensator
-from gyro_tdc.out_of_range import (added_variance, DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C,
-                                   OUT_OF_RANGE_POLICIES)
+from gyro_tdc.out_of_range import (DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C,
+                                   OUT_OF_RANGE_POLICIES, variance_growth)
 from gyro_tdc.paramspec import ParamSpec, spec_dataclass
 from gyro_tdc.stillness import (Anchor, STILL_WINDOW_MAX_S, STILL_WINDOW_S, StillnessDetector,
                                 Vec3)
@@ -108,12 +108,14 @@ PARAMS = (
     ParamSpec('still_accel_std', 0.0, 'Largest per-axis standard deviation of the '
               'acceleration over a still window, when the IMU has one; 0: auto, 4 x the '
               'quietest window so far [m/s^2].', 0.0, 100.0, policy=True),
-    ParamSpec('queue_depth', 2000, 'Queue depth of the imu/data_raw and imu/temperature '
-              'subscriptions and of the publisher (keep last) [messages].', 1, 1000000),
-    ParamSpec('input_reliability', 'best_effort', 'QoS reliability of the imu/data_raw '
-              'subscription: best_effort (REP 2003 sensor data, keep last queue_depth) or '
-              'reliable (keep all: a reliable keep-all publisher is slowed down by DDS flow '
-              'control instead of losing messages).', choices=('best_effort', 'reliable')),
+    ParamSpec('queue_depth', 2000, 'Queue depth of the imu/data_raw (best_effort) and '
+              'imu/temperature subscriptions and of the publisher (keep last) [messages].', 1,
+              1000000),
+    ParamSpec('input_reliability', 'best_effort', 'QoS of the imu/data_raw subscription: '
+              'best_effort (REP 2003 sensor data, keep last queue_depth: the freshest samples '
+              'when behind; DDS does not report what this queue overwrites) or reliable (keep '
+              'all: every loss is counted, and a reliable keep-all publisher is held back by '
+              'flow control instead of losing messages).', choices=('best_effort', 'reliable')),
     ParamSpec('load_wait', 0.1, 'Longest time a model_file set or ~/reload waits for the new '
               'file to be read and checked before answering: the IMU path pauses at most this '
               'long; a slower file is installed when ready, its outcome on /diagnostics and in '
@@ -521,15 +523,18 @@ class CompensatorCore:
         if self._static:
             # Static features: the drift only changes when the temperature does.
             entry = self._cache.get(temp) or self._refresh(t, temp)
-            bx, by, bz, dx, dy, dz, in_range, dist = entry
+            bx, by, bz, dx, dy, dz, in_range, dist, more = entry
             ox, oy, oz = (wx - bx) / dx, (wy - by) / dy, (wz - bz) / dz
             if not in_range:
                 flags |= OUT_OF_RANGE
         else:
             out = comp.step(t, temp, (wx, wy, wz))
             dist = comp.range_distance_c
+            more = 0.0
             if not comp.in_range:
                 flags |= OUT_OF_RANGE
+                more = variance_growth(self.policy.out_of_range_variance, dist,
+                                       self.policy.out_of_range)
             ox, oy, oz = out.tolist()
         self.last_t, self.last_temp, self.last_flags = t, temp, flags
         self.last_distance_c = dist
@@ -542,11 +547,9 @@ class CompensatorCore:
                     self.flag_counts[bit] += 1
         elif self.policy.reanchor_on_start and self.anchor is None:
             self._still(t, (wx, wy, wz), (ox, oy, oz), accel, temp)
-        if dist and self.policy.out_of_range == 'linear':   # grows with the distance
-            p = self.policy
-            more = added_variance(p.out_of_range_variance, dist, 'linear') \
-                - p.out_of_range_variance
-            return ox, oy, oz, tuple(v + more for v in self._var[flags]), flags
+        if more:           # linear: the added variance grows with the distance
+            var = self._var[flags]
+            return ox, oy, oz, (var[0] + more, var[1] + more, var[2] + more), flags
         return ox, oy, oz, self._var[flags], flags
 
     def _refresh(self, t: float, temp: float) -> tuple:
@@ -561,13 +564,17 @@ class CompensatorCore:
         Returns
         -------
         tuple
-            ``(bx, by, bz, 1 + dT sx, 1 + dT sy, 1 + dT sz, in_range, distance_c)``.
+            ``(bx, by, bz, 1 + dT sx, 1 + dT sy, 1 + dT sz, in_range, distance_c,
+            variance growth)``.
 
         """
         comp = self._comp
         b = comp.drift(t, temp).tolist()
         den = (1.0 + comp.dt_c * self._scale).tolist()
-        entry = (*b, *den, comp.in_range, comp.range_distance_c)
+        dist = comp.range_distance_c
+        entry = (*b, *den, comp.in_range, dist,
+                 variance_growth(self.policy.out_of_range_variance, dist,
+                                 self.policy.out_of_range) if dist else 0.0)
         if len(self._cache) >= 64:
             self._cache.clear()
         self._cache[temp] = entry

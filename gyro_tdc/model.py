@@ -625,7 +625,7 @@ class StreamingCompensator:
         d = s - self.model.t0_c
         b = row @ self._coef + self.offset
         if reach:
-            b = b + reach * self._tangent.slope(row[None, :], np.array([d]))[0]
+            b = b + reach * self._tangent.slope_one(row, d)
             d = d + reach
         self.model_temp = s + reach
         self.dt_c = d

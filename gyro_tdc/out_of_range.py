@@ -53,7 +53,7 @@ from numpy.typing import NDArray
 
 __all__ = ['DEFAULT_OUT_OF_RANGE', 'MAX_EXTRAPOLATION_C', 'OPERATING_RANGE_C',
            'OUT_OF_RANGE_POLICIES', 'Tangent', 'VARIANCE_SCALE_C', 'added_variance',
-           'check_policy', 'range_shortfall', 'split']
+           'check_policy', 'range_shortfall', 'split', 'variance_growth']
 
 #: What a model does outside its trained range (see the module docstring).
 OUT_OF_RANGE_POLICIES = ('linear', 'clamp', 'extrapolate')
@@ -140,10 +140,15 @@ def added_variance(base: float, distance_c: float, policy: str) -> float:
         ``extrapolate`` add ``base``.
 
     """
+    return base + variance_growth(base, distance_c, policy)
+
+
+def variance_growth(base: float, distance_c: float, policy: str) -> float:
+    """Return what :func:`added_variance` adds to ``base``: ``base (d / 5 degC)^2`` (linear)."""
     if policy != 'linear':
-        return base
+        return 0.0
     r = distance_c / VARIANCE_SCALE_C
-    return base * (1.0 + r * r)
+    return base * r * r
 
 
 class Tangent:
@@ -169,6 +174,35 @@ class Tangent:
         self._centers = np.asarray(model.centers, dtype=np.float64)
         self._inv_w2 = 1.0 / np.asarray(model.widths, dtype=np.float64) ** 2
         self._weights = np.asarray(model.weights, dtype=np.float64)
+
+    def slope_one(self, row: NDArray[np.float64], d: float) -> NDArray[np.float64]:
+        """
+        Return db/dS at one design row (the streaming form of :meth:`slope`, same maths).
+
+        Parameters
+        ----------
+        row : NDArray[np.float64], shape (1 + F + K,)
+            One row of :func:`gyro_tdc.model.rbf_design`.
+        d : float, degC
+            Its model temperature minus T0.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (3,), rad/s per degC
+
+        """
+        h = SLOPE_STEP_C
+        g = np.zeros(self._f)
+        for j, step in self._terms:
+            g[j] = (step(0.0, 0.0, 0.0, d + h, False)
+                    - step(0.0, 0.0, 0.0, d - h, False)) / (2.0 * h)
+        g /= self._std
+        out = g @ self._linear
+        if self._centers.shape[0]:
+            f = self._f
+            proj = row[1:1 + f] @ g - self._centers @ g
+            out += (-row[1 + f:] * proj * self._inv_w2) @ self._weights
+        return out
 
     def slope(self, design: NDArray[np.float64], d: NDArray[np.float64]
               ) -> NDArray[np.float64]:
