@@ -26,6 +26,9 @@ hold, cool), drift slopes and curvatures spread by 10 % between units, white noi
 * ``plain processes``: the same, over ``2 * --repeat`` sensors in a plain two-process pool
   (no Dask), one after the other and two at a time: what this machine gives a second process
   at that moment, the ceiling of the fleet's speed-up;
+* ``paired``: the same ``2 * --repeat`` sensors two at a time, alternately in that plain pool
+  and in a two-worker fleet, ``--rounds`` times (both see the same load): the fleet's cost
+  against plain processes, free of the load drifting between measurements;
 * ``fleet``: :func:`gyro_tdc.fleet.run_fleet` over every sensor (``force``, a fresh output
   folder) on an embedded ``LocalCluster`` with each worker count of ``--workers``, wall time
   including the cluster's start and stop;
@@ -167,6 +170,34 @@ def plain_processes(specs, options, tmp):
     return t_seq, t_par
 
 
+def paired(specs, options, tmp, rounds):
+    """
+    Alternate a plain two-process pool and a two-worker fleet on the same sensors.
+
+    Both are started and warm before the first round; each round times the pool, then the
+    fleet, on ``specs``, so that both see the same load of a shared machine. Returns the
+    seconds per round of each.
+    """
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+    from gyro_tdc.fleet import open_engine, run_fleet
+
+    plain, fleet = [], []
+    with ProcessPoolExecutor(2, mp_context=multiprocessing.get_context('spawn')) as pool, \
+            open_engine(workers=2) as engine:
+        list(pool.map(_warm_wait, [0.5, 0.5]))
+        engine.client.run(_warm)
+        for r in range(rounds):
+            start = time.perf_counter()
+            list(pool.map(train_alone, specs, [options] * len(specs),
+                          [tmp / f'pair{r}_{s.sensor_id}.yaml' for s in specs]))
+            plain.append(time.perf_counter() - start)
+            start = time.perf_counter()
+            run_fleet(specs, tmp / f'pair{r}', options, engine, force=True)
+            fleet.append(time.perf_counter() - start)
+    return plain, fleet
+
+
 def _warm_wait(seconds):
     """Warm a pool process and hold it busy a moment, so that both processes get one."""
     _warm()
@@ -181,6 +212,8 @@ def main(argv=None):
     p.add_argument('--rate-hz', type=float, default=100.0)
     p.add_argument('--workers', default='1,2', help='worker counts to time (default: 1,2)')
     p.add_argument('--repeat', type=int, default=3, help='sensors timed by train alone')
+    p.add_argument('--rounds', type=int, default=3,
+                   help='alternating rounds of the paired pool / fleet comparison')
     p.add_argument('--data', type=Path, default=None,
                    help='folder of the cached bags (default: under the temporary folder)')
     args = p.parse_args(argv)
@@ -209,6 +242,11 @@ def main(argv=None):
         print(f'plain processes, no Dask, {len(batch)} sensors: one after the other '
               f'{t_seq:.1f} s, two at a time {t_par:.1f} s: {t_seq / t_par:.2f}x (what this '
               f'machine gives a second process now)')
+        plain, fleet = paired(batch, options, Path(tmp), args.rounds)
+        print(f'paired, {len(batch)} sensors two at a time, {args.rounds} alternating rounds: '
+              f'plain pool {statistics.median(plain):.1f} s, Dask fleet with 2 workers '
+              f'{statistics.median(fleet):.1f} s (medians): fleet / plain '
+              f'{statistics.median(f / q for f, q in zip(fleet, plain)):.2f}')
         walls, runs, tasks_mean = {}, {}, {}
         for w in [int(x) for x in args.workers.split(',')]:
             t0 = time.perf_counter()
