@@ -25,8 +25,12 @@ least ``window`` seconds after its first one. The stillness test judges whole wi
 raw rate's per-axis standard deviation, the mean compensated rate (the shift, at most
 ``max_rate``) and, when there is one, the acceleration's standard deviation.
 
-**Thresholds from the stream's own noise.** ``gyro_std`` and ``accel_std`` of 0 (the
-default) mean *auto*: the threshold is :data:`NOISE_FACTOR` times the noise floor, the
+**Thresholds from the stream's own noise.** The still test itself (statistic, thresholds,
+verdict) is :mod:`gyro_tdc.still`, the one home the trainer and the accelerometer part use
+too; this detector is its streaming form: it keeps the window sums and the running noise
+floor and asks :func:`gyro_tdc.still.noise_thresholds` and
+:func:`gyro_tdc.still.judge_windows` for the verdict. ``gyro_std`` and ``accel_std`` of 0
+(the default) mean *auto*: the threshold is :data:`NOISE_FACTOR` times the noise floor, the
 smallest window standard deviation seen so far (per axis: the quietest window), so the test
 scales with the sensor and the sample rate (1 Hz to 2 kHz) without tuning. Until
 :data:`NOISE_WINDOWS` windows have been seen the gyro threshold is also held below
@@ -60,6 +64,8 @@ from dataclasses import dataclass
 import math
 from typing import NamedTuple, Sequence
 
+from gyro_tdc.still import judge_windows, NOISE_FACTOR, noise_thresholds, NOISE_WINDOWS
+from gyro_tdc.still import STILL_WINDOW_S
 import numpy as np
 from numpy.typing import NDArray
 
@@ -71,8 +77,8 @@ __all__ = ['Anchor', 'BLOCKS_PER_WINDOW', 'BlockStats', 'MAX_BLOCK_S', 'NOISE_FA
 
 Vec3 = tuple[float, float, float]
 
-#: Default shortest averaging (the stillness window), s.
-STILL_WINDOW_S = 10.0
+# STILL_WINDOW_S (the default shortest averaging, the stillness window), NOISE_FACTOR and
+# NOISE_WINDOWS come from gyro_tdc.still, the home of the still test.
 #: Default longest averaging, s.
 STILL_WINDOW_MAX_S = 600.0
 #: Blocks per window in the block-means standard error ...
@@ -83,10 +89,6 @@ MAX_BLOCK_S = 1.0
 TOLERANCE_FRACTION = 0.1
 #: ... and at least this, rad/s.
 TOLERANCE_FLOOR = 1e-5
-#: Auto thresholds: this many times the noise floor (the quietest window's std).
-NOISE_FACTOR = 4.0
-#: Windows seen before the noise floor alone sets the auto gyro threshold.
-NOISE_WINDOWS = 3
 
 _INF3 = (math.inf, math.inf, math.inf)
 
@@ -460,15 +462,11 @@ class StillnessDetector:
 
     def _thresholds(self) -> tuple[list[float], list[float]]:
         """Return the gyro and accelerometer thresholds in force (fixed or auto)."""
-        if self.gyro_std > 0:
-            g = [self.gyro_std] * 3
-        else:
-            g = [NOISE_FACTOR * f for f in self.noise_gyro]
-            if self.windows_seen < NOISE_WINDOWS and self.noise_prior is not None:
-                g = [min(v, NOISE_FACTOR * p) for v, p in zip(g, self.noise_prior)]
-        a = ([self.accel_std] * 3 if self.accel_std > 0
-             else [NOISE_FACTOR * f for f in self.noise_accel])
-        return g, a
+        early = self.windows_seen < NOISE_WINDOWS
+        g, a = noise_thresholds(self.noise_gyro, self.noise_accel, gyro_std=self.gyro_std,
+                                accel_std=self.accel_std,
+                                prior_std=self.noise_prior if early else None)
+        return g.tolist(), a.tolist()
 
     def _judge(self, t: float, temp_c: float) -> Anchor | None:
         """Judge the window that just ended; extend, drop or finish the run."""
@@ -491,10 +489,10 @@ class StillnessDetector:
         g_thr, a_thr = self._thresholds()
 
         def quiet(g: Vec3, a: Vec3 | None) -> bool:
-            return (all(v <= h for v, h in zip(g, g_thr))
-                    and (a is None or all(v <= h for v, h in zip(a, a_thr))))
+            return judge_windows([g], None if a is None else [a], g_thr, a_thr)[0] == ''
 
-        if not (quiet(g_std, a_std) and all(abs(v) <= self.max_rate for v in mean_out)):
+        if judge_windows([g_std], None if a_std is None else [a_std], g_thr, a_thr,
+                         mean_rate=[mean_out], max_rate=self.max_rate)[0]:
             self.windows_rejected += 1
             self._run = []          # motion before the tolerance was met: start over
             return None

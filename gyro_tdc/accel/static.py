@@ -15,9 +15,9 @@
 """
 Still data of one run: the still windows and the orientation segments of the accelerometer.
 
-The windows, thresholds and orientation test of :mod:`gyro_tdc.accel` (see there); the
-batch form of the stillness test of :mod:`gyro_tdc.stillness` (the same window length and
-noise factor) for whole runs.
+The orientation test of :mod:`gyro_tdc.accel` (see there); the still windows are those of
+the one still test, :func:`gyro_tdc.still.detect_still` (its window length, noise factor and
+thresholds), with a non-zero reference rate as the motion veto.
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ import math
 from gyro_tdc.model import compensate, CompensationModel
 from gyro_tdc.out_of_range import DEFAULT_OUT_OF_RANGE
 from gyro_tdc.runs import Run
-from gyro_tdc.stillness import NOISE_FACTOR, STILL_WINDOW_S
+from gyro_tdc.still import detect_still, has_accelerometer, MAX_RATE, MIN_WINDOW_SAMPLES
+from gyro_tdc.still import STILL_WINDOW_S
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -36,8 +37,6 @@ __all__ = ['JUMP_SIGMAS', 'MAX_GAP_WINDOWS', 'MAX_RATE', 'MIN_JUMP_DEG', 'MIN_SE
            'MIN_WINDOW_SAMPLES', 'OrientationChange', 'StaticData', 'has_accelerometer',
            'static_bs', 'static_data']
 
-#: Fewest samples per still window (the window grows at low rates).
-MIN_WINDOW_SAMPLES = 20
 #: An orientation jump must exceed this many standard deviations of its noise ...
 JUMP_SIGMAS = 8.0
 #: ... and turn gravity by at least this much, deg (1.7 mg): smaller is not told from drift.
@@ -48,26 +47,8 @@ MAX_GAP_WINDOWS = 6
 MIN_SEGMENT_S = 60.0
 #: ``evaluate`` reports accelerometer figures for runs at least this still.
 MIN_STATIC_FRACTION = 0.5
-#: Largest mean compensated rate of a still window (with a gyro model), rad/s (as the node).
-MAX_RATE = 0.02
 #: Trend of the specific force: median step over this many previous still windows.
 _TREND_WINDOWS = 5
-
-
-def has_accelerometer(accel: ArrayLike | None) -> bool:
-    """
-    Return True when ``accel`` holds accelerometer data (not None, not all zero or NaN).
-
-    A driver without an accelerometer publishes zeros with
-    ``linear_acceleration_covariance[0] = -1`` (REP 145).
-    """
-    if accel is None:
-        return False
-    a = np.asarray(accel, dtype=np.float64)
-    if a.ndim != 2 or a.shape[0] == 0:
-        return False
-    fin = np.isfinite(a).all(axis=1)
-    return bool(np.any(a[fin] != 0.0))
 
 
 @dataclass(frozen=True)
@@ -145,31 +126,6 @@ class StaticData:
         return float(self.mask.mean()) if self.mask.size else 0.0
 
 
-def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
-                  counts: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return per-window means and standard deviations (N, 3) of ``x`` (ddof 1)."""
-    c = x[0]
-    d = x - c
-    s = np.add.reduceat(d, starts, axis=0)
-    q = np.add.reduceat(d * d, starts, axis=0)
-    n = counts[:, None]
-    mean = s / n
-    with np.errstate(invalid='ignore', divide='ignore'):
-        var = np.maximum(q - s * mean, 0.0) / (n - 1.0)
-    return mean + c, np.sqrt(var)
-
-
-def _threshold(std: NDArray[np.float64], ok: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """Return NOISE_FACTOR x the quietest positive window std per axis (inf when none)."""
-    out = np.full(3, math.inf)
-    for a in range(3):
-        v = std[ok, a]
-        v = v[np.isfinite(v) & (v > 0.0)]
-        if v.size:
-            out[a] = NOISE_FACTOR * float(v.min())
-    return out
-
-
 def _angle_deg(u: NDArray[np.float64], v: NDArray[np.float64]) -> float:
     """Return the angle between two vectors, deg."""
     nu, nv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
@@ -212,31 +168,27 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
     t = np.asarray(run.t, dtype=np.float64)
     n = len(run)
     empty = np.zeros(n, dtype=bool)
-    dt = float(np.median(np.diff(t))) if n > 1 else 1.0
-    window = max(float(window_s), MIN_WINDOW_SAMPLES * dt)
-    if n < 3:
-        return StaticData(run.name, empty, np.full(n, -1), 0, (), window,
-                          'too few samples to judge stillness')
-    k = np.floor((t - t[0]) / window).astype(np.int64)
-    starts = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
-    counts = np.diff(np.append(starts, n)).astype(np.float64)
+    ref_moves = np.any(np.asarray(run.omega_ref) != 0.0, axis=1)
+    rate = None
+    if model is not None:
+        rate = compensate(model, t, run.temp, run.omega,
+                          out_of_range=DEFAULT_OUT_OF_RANGE) - run.omega_ref
+    # The one still test (gyro_tdc.still): every still window counts, the orientation
+    # segments below set the shortest stretch kept.
+    st = detect_still(t, run.omega, acc, rate=rate, moving=ref_moves, window_s=window_s,
+                      min_still_s=0.0, max_rate=max_rate)
+    window = st.window_s
+    if st.reason == 'too few samples to judge stillness':
+        return StaticData(run.name, empty, np.full(n, -1), 0, (), window, st.reason)
+    starts, counts = st.starts, st.counts.astype(np.float64)
+    a_mean, a_std = st.accel_mean, st.accel_std
     finite = np.isfinite(acc).all(axis=1)
-    bad = np.add.reduceat((~finite).astype(np.float64), starts) > 0
-    a_mean, a_std = _window_stats(np.where(finite[:, None], acc, 0.0), starts, counts)
-    _, g_std = _window_stats(np.asarray(run.omega, dtype=np.float64), starts, counts)
-    ref_moves = np.maximum.reduceat(np.abs(run.omega_ref).max(axis=1), starts) > 0.0
-    usable = (counts >= max(3, MIN_WINDOW_SAMPLES // 2)) & ~bad
-    g_thr = _threshold(g_std, usable & ~ref_moves)
-    a_thr = _threshold(a_std, usable & ~ref_moves)
-    still = (usable & ~ref_moves & np.all(g_std <= g_thr, axis=1)
-             & np.all(a_std <= a_thr, axis=1))
-    if model is not None and np.any(still):
-        comp = compensate(model, t, run.temp, run.omega, out_of_range=DEFAULT_OUT_OF_RANGE)
-        mean_rate = np.add.reduceat(comp - run.omega_ref, starts, axis=0) / counts[:, None]
-        still &= np.all(np.abs(mean_rate) <= max_rate, axis=1)
+    still = st.still_windows
     if not np.any(still):
+        usable = ~np.isin(st.why, ('samples', 'non-finite'))
         reason = ('the reference rate is not zero (a turning rate table is not static)'
-                  if np.all(ref_moves | ~usable) else 'no still window (the IMU moves)')
+                  if np.all((st.why == 'motion') | ~usable) else
+                  'no still window (the IMU moves)')
         return StaticData(run.name, empty, np.full(n, -1), 0, (), window, reason)
 
     # Orientation segments over the still windows.

@@ -1,0 +1,174 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The one still test (gyro_tdc.still): still, driving, slow constant turns, motion veto."""
+
+from __future__ import annotations
+
+import math
+
+from gyro_tdc.still import (detect_still, judge_windows, MAX_RATE, motion_veto, NOISE_FACTOR,
+                            noise_floor, noise_thresholds)
+from gyro_tdc.stillness import StillnessDetector
+import numpy as np
+import pytest
+
+RATE_HZ = 20.0
+DEG = math.pi / 180.0
+G = np.array([0.0, 0.0, 9.80665])
+
+
+def _rest(seconds: float, seed: int = 0, *, bias=(0.06, -0.07, 0.02)):
+    """Return stamps, gyro and accel of a still IMU (L3GD20-like noise at 20 Hz)."""
+    rng = np.random.default_rng(seed)
+    t = np.arange(int(seconds * RATE_HZ)) / RATE_HZ
+    gyro = np.asarray(bias) + rng.normal(0.0, 0.03 * DEG * math.sqrt(RATE_HZ), (t.size, 3))
+    accel = G + rng.normal(0.0, 0.0015 * math.sqrt(RATE_HZ), (t.size, 3))
+    return t, gyro, accel
+
+
+def _drive(t, gyro, accel, a: float, b: float, seed: int = 1):
+    """Add driving (manoeuvres plus vibration) between a and b seconds, in place."""
+    rng = np.random.default_rng(seed)
+    on = (t >= a) & (t < b)
+    gyro[on] += rng.normal(0.0, 0.5 * DEG, (on.sum(), 3)) + [0, 0, 10 * DEG]
+    accel[on] += rng.normal(0.0, 0.8, (on.sum(), 3))
+    return on
+
+
+def test_a_still_run_is_still_and_driving_splits_it():
+    t, gyro, accel = _rest(1800.0)
+    st = detect_still(t, gyro, accel)
+    assert st.reason == '' and st.fraction > 0.99 and len(st.segments) == 1
+    assert st.still_s == pytest.approx(1800.0, abs=1.0)
+    # The auto thresholds sit at NOISE_FACTOR times the quietest window, near the noise.
+    sd = 0.03 * DEG * math.sqrt(RATE_HZ)
+    assert np.all(st.gyro_threshold > 2.5 * sd) and np.all(st.gyro_threshold < NOISE_FACTOR * sd)
+    on = _drive(t, gyro, accel, 600.0, 1200.0)
+    st = detect_still(t, gyro, accel)
+    assert len(st.segments) == 2 and not np.any(st.mask & on)
+    assert st.rejected()['gyro'] >= 59
+    assert st.still_s == pytest.approx(1200.0, abs=20.0)
+    # Without the accelerometer the gyro's scatter alone sees the drive.
+    st = detect_still(t, gyro)
+    assert st.accel_std is None and not np.any(st.mask & on) and len(st.segments) == 2
+
+
+def test_short_stops_are_dropped_below_the_minimum_duration():
+    t, gyro, accel = _rest(900.0)
+    _drive(t, gyro, accel, 100.0, 400.0)
+    _drive(t, gyro, accel, 440.0, 800.0, seed=2)      # a 40 s stop between two drives
+    st = detect_still(t, gyro, accel, min_still_s=60.0)
+    assert [round(float(t[a])) for a, _ in st.segments] == [0, 800]
+    assert st.rejected().get('brief', 0) >= 3
+    st = detect_still(t, gyro, accel, min_still_s=0.0)
+    assert len(st.segments) == 3
+    # A run that never stops looks still to itself (auto thresholds take its quietest
+    # window as the noise); the floor of a run of the same sensor that stops refuses it.
+    floors = detect_still(t, gyro, accel)
+    _drive(t, gyro, accel, 0.0, 900.0, seed=3)
+    assert detect_still(t, gyro, accel).fraction > 0.9
+    st = detect_still(t, gyro, accel, gyro_floor=floors.gyro_floor,
+                      accel_floor=floors.accel_floor)
+    assert not st.mask.any() and st.reason.startswith('no still')
+
+
+@pytest.mark.parametrize('turn_dps', [0.5, 2.0, 5.0])
+def test_slow_constant_yaw_turn_what_rejects_it(turn_dps):
+    """A slow constant turn has no scatter: what tells it from a bias, and the honest limit."""
+    t, gyro, accel = _rest(1200.0, seed=4)
+    turn = (t >= 400.0) & (t < 800.0)
+    gyro[turn, 2] += turn_dps * DEG
+    # 1. The limit: a smooth turn about the vertical leaves the accelerometer unchanged and
+    # adds no scatter: with no prior and no motion topic it passes as still.
+    st = detect_still(t, gyro, accel)
+    assert st.mask[turn].mean() > 0.9
+    # 2. The motion veto (cmd_vel angular.z) rejects it.
+    cmd_t = np.arange(0.0, 1200.0, 0.2)
+    cmd = np.zeros((cmd_t.size, 6))
+    cmd[(cmd_t >= 400.0) & (cmd_t < 800.0), 5] = turn_dps * DEG
+    moving = motion_veto(t, cmd_t, cmd)
+    st = detect_still(t, gyro, accel, moving=moving)
+    assert not np.any(st.mask & turn) and st.rejected()['motion'] >= 39
+    assert st.mask[~turn].mean() > 0.95
+    # 3. A prior (the rate compensated by a model) rejects a turn above max_rate only.
+    comp = gyro - [0.06, -0.07, 0.02]
+    st = detect_still(t, gyro, accel, rate=comp)
+    if turn_dps * DEG > MAX_RATE:
+        assert not np.any(st.mask & turn) and st.rejected()['rate'] >= 39
+    else:
+        assert st.mask[turn].mean() > 0.9
+
+
+def test_a_slow_turn_about_a_horizontal_axis_shows_in_the_accelerometer():
+    t, gyro, accel = _rest(1200.0, seed=5)
+    turn = (t >= 400.0) & (t < 800.0)
+    w = 0.5 * DEG
+    gyro[turn, 1] += w
+    # Gravity turns in the sensor frame as the IMU pitches at 0.5 deg/s.
+    th = np.clip(t - 400.0, 0.0, 400.0) * w
+    accel[:, 0] += -9.80665 * np.sin(th)
+    accel[:, 2] += 9.80665 * (np.cos(th) - 1.0)
+    st = detect_still(t, gyro, accel)
+    assert not np.any(st.mask & turn) and st.rejected()['accel'] >= 39
+    # The gyro alone cannot see it.
+    assert detect_still(t, gyro).mask[turn].mean() > 0.9
+
+
+def test_motion_veto_holds_the_latest_report():
+    t = np.arange(0.0, 10.0, 0.5)
+    mt = np.array([2.0, 5.0, 7.0])
+    # Twist-like rows (linear x, y, z, angular x, y, z): moving from 5 s to 7 s.
+    rows = np.zeros((3, 6))
+    rows[1, 0] = 0.3
+    v = motion_veto(t, mt, rows)
+    assert v[t < 2.0].all()                       # no report yet: vetoed
+    assert not v[(t >= 2.0) & (t < 5.0)].any()
+    assert v[(t >= 5.0) & (t < 7.0)].all() and not v[t >= 7.0].any()
+    np.testing.assert_array_equal(motion_veto(t, mt[::-1], rows[::-1]), v)   # any order
+    np.testing.assert_array_equal(motion_veto(t, mt, np.array([False, True, False])), v)
+    assert motion_veto(t, [], np.zeros((0, 6))).all()
+    nan = rows.copy()
+    nan[2, 0] = np.nan                            # a NaN report is not a report of rest
+    assert motion_veto(t, mt, nan)[t >= 7.0].all()
+
+
+def test_judge_and_thresholds_are_the_streaming_detectors_too():
+    g_std = np.array([[1.0, 1.0, 1.0], [5.0, 1.0, 1.0], [1.0, 1.0, 1.0], [1.0, 1.0, 1.0]]) * 1e-3
+    a_std = np.array([[1, 1, 1], [1, 1, 1], [9, 1, 1], [1, 1, 1]]) * 1e-2
+    g_thr, a_thr = noise_thresholds(noise_floor(g_std), noise_floor(a_std))
+    np.testing.assert_allclose(g_thr, [4e-3] * 3)
+    why = judge_windows(g_std, a_std, g_thr, a_thr, mean_rate=[[0, 0, 0], [0, 0, 0],
+                                                               [0, 0, 0], [0, 0, 0.5]],
+                        moving=[False, False, False, False])
+    assert why.tolist() == ['', 'gyro', 'accel', 'rate']
+    assert judge_windows(g_std, None, g_thr, a_thr, moving=[True] * 4).tolist() == ['motion'] * 4
+    g_thr, _ = noise_thresholds([1e-3] * 3, None, prior_std=[1e-4] * 3)
+    np.testing.assert_allclose(g_thr, [4e-4] * 3)
+    g_thr, a_thr = noise_thresholds([1e-3] * 3, [1.0] * 3, gyro_std=0.01, accel_std=0.2)
+    assert g_thr.tolist() == [0.01] * 3 and a_thr.tolist() == [0.2] * 3
+    # The streaming detector takes the same verdict on a slow turn (mean above max_rate).
+    t, gyro, accel = _rest(60.0, seed=6)
+    det = StillnessDetector(10.0)
+    out = gyro - [0.06, -0.07, 0.02] + [0.0, 0.0, 2.0 * DEG]
+    assert all(det.update(float(a), g, o, c, 20.0) is None
+               for a, g, o, c in zip(t, gyro, out, accel))
+    assert det.windows_rejected >= 4
+
+
+def test_bad_input_is_named():
+    with pytest.raises(ValueError, match='gyro'):
+        detect_still(np.arange(5.0), np.zeros((4, 3)))
+    st = detect_still(np.arange(2.0), np.zeros((2, 3)))
+    assert not st.mask.any() and 'too few' in st.reason
