@@ -574,7 +574,8 @@ def _style(i: int, n_points: int, n_models: int) -> dict:
             'markersize': 5, 'markevery': (i * step // max(n_models, 1), step)}
 
 
-def model_description(name: str, kind: str, features: Sequence[str]) -> str:
+def model_description(name: str, kind: str, features: Sequence[str], *,
+                      tau_s: float | None = None) -> str:
     """
     Return the legend text of a model: its file (or ``px4``) and what it is.
 
@@ -585,17 +586,22 @@ def model_description(name: str, kind: str, features: Sequence[str]) -> str:
     kind : str
         ``rbf`` or ``poly``.
     features : sequence of str
-        Its effect ids.
+        Its effect ids (``lag`` included when the model has a thermal state).
+    tau_s : float, s, optional
+        The thermal state's total tau, shown beside ``lag``.
 
     Returns
     -------
     str
-        E.g. ``modified.yaml: poly f(dT, dT2)`` or ``px4: cubic in T fitted on --train``.
+        E.g. ``modified.yaml: poly f(dT, dT2)``, ``auto.yaml: rbf f(dT, dT2, lag 176 s)`` or
+        ``px4: cubic in T fitted on --train``.
 
     """
     if name == 'px4':
         return 'px4: cubic in T fitted on --train'
-    return f'{Path(name).name}: {kind} f({", ".join(features) or "bias"})'
+    shown = [f'lag {tau_s:.3g} s' if f == 'lag' and tau_s is not None else f
+             for f in features if f != 'bias']          # bias is in every model
+    return f'{Path(name).name}: {kind} f({", ".join(shown) or "bias"})'
 
 
 def _save(fig: Any, path: Path) -> None:

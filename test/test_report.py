@@ -164,6 +164,8 @@ def test_three_plots_per_bag(bag, tmp_path):
     assert model_description('out/m/modified.yaml', 'poly', ['dT', 'dT2']) == \
         'modified.yaml: poly f(dT, dT2)'
     assert model_description('px4', 'poly', ['dT', 'dT2', 'dT3']).startswith('px4: cubic')
+    assert model_description('a/auto.yaml', 'rbf', ['dT', 'dT2', 'lag'], tau_s=175.95) == \
+        'auto.yaml: rbf f(dT, dT2, lag 176 s)'
     bag.release()
     with pytest.raises(ValueError, match='released'):
         write_plots(bag, tmp_path)

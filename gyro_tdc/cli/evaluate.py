@@ -127,7 +127,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         bar.write(line)
 
     models = load_models(specs, train_bags=args.train, options=opts, log=log)
-    descriptions = [model_description(nm.name, nm.model.kind, nm.model.inputs)
+    descriptions = [model_description(nm.name, nm.model.kind, nm.model.features,
+                                      tau_s=_state_tau(nm.model))
                     for nm in models]
 
     def each(b: BagEval) -> None:
@@ -179,6 +180,12 @@ def _with_reanchor(each, log):
                 + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
         each(b)
     return wrapped
+
+
+def _state_tau(model) -> float | None:
+    """Return the total tau of a model's thermal state in s (None without a state)."""
+    th = getattr(model, 'thermal', None)
+    return None if th is None or th.kind == 'none' else float(th.tau_total_s)
 
 
 class _Progress:
