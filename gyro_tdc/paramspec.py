@@ -19,16 +19,23 @@ A node's parameters are one tuple of :class:`ParamSpec` rows. From it
 :func:`gyro_tdc.nodes._params.declare` declares them with their ROS descriptors,
 :func:`spec_dataclass` builds the frozen dataclass the node reads them into, and the pure
 logic builds its own settings from the rows it takes (the compensator's
-:class:`gyro_tdc.compensation_logic.Policy` from the rows marked ``policy``).
+:class:`gyro_tdc.compensation_logic.Policy` from the rows marked ``policy``), and
+:func:`format_help` prints them for a node's ``--help`` (:func:`help_requested` finds it in
+the command line before ``rclpy.init``).
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, make_dataclass
 import math
+import re
+import textwrap
 from typing import Any, Callable, Mapping, Sequence
 
-__all__ = ['ParamSpec', 'spec_dataclass']
+__all__ = ['ParamSpec', 'format_help', 'help_requested', 'spec_dataclass']
+
+#: Width of the ``--help`` text [columns].
+HELP_WIDTH = 79
 
 
 @dataclass(frozen=True)
@@ -70,6 +77,12 @@ class ParamSpec:
         """Return the unit in brackets at the end of the description ('' when none)."""
         head, bracket, tail = self.description.rpartition('[')
         return tail.rstrip('].') if bracket else ''
+
+    @property
+    def meaning(self) -> str:
+        """Return the description without its unit in brackets."""
+        head, bracket, _ = self.description.rpartition('[')
+        return head.rstrip() + '.' if bracket else self.description
 
     def check(self, value: Any) -> None:
         """
@@ -134,3 +147,100 @@ def spec_dataclass(name: str, specs: Sequence[ParamSpec], summary: str, *, modul
                    for s in specs)
     cls.__doc__ = f'{summary}\n\nParameters\n----------\n{rows}'
     return cls
+
+
+def help_requested(argv: Sequence[str]) -> bool:
+    """
+    Say whether a node's command line asks for ``--help`` (or ``-h``).
+
+    Only the node's own arguments count: everything between ``--ros-args`` and the next
+    ``--`` (or the end) belongs to ROS (``-p name:=value``...), and ``argv[0]`` is the
+    program.
+
+    Parameters
+    ----------
+    argv : sequence of str
+        The command line, program first (``sys.argv``).
+
+    Returns
+    -------
+    bool
+        True when ``-h`` or ``--help`` is among the node's own arguments.
+
+    """
+    in_ros = False
+    for arg in list(argv)[1:]:
+        if arg == '--ros-args':
+            in_ros = True
+        elif arg == '--':
+            in_ros = False
+        elif not in_ros and arg in ('-h', '--help'):
+            return True
+    return False
+
+
+def _value_text(value: Any, like: Any) -> str:
+    """Return ``value`` as typed after ``-p NAME:=`` for a parameter of ``like``'s type."""
+    if isinstance(like, str):
+        return repr(value)
+    if isinstance(like, bool):
+        return str(value).lower()
+    return repr(float(value)) if isinstance(like, float) else str(int(value))
+
+
+def _fill(text: str, indent: str = '', subsequent: str | None = None) -> str:
+    return textwrap.fill(text, HELP_WIDTH, initial_indent=indent,
+                         subsequent_indent=indent if subsequent is None else subsequent,
+                         break_long_words=False, break_on_hyphens=False)
+
+
+def format_help(prog: str, summary: str, specs: Sequence[ParamSpec], *,
+                epilog: str = '') -> str:
+    """
+    Return a node's ``--help`` text: usage, summary and one entry per parameter.
+
+    Each entry gives the name, type, default and unit, the choices or the range, whether it
+    can be set at run time, and the description.
+
+    Parameters
+    ----------
+    prog : str
+        Executable name.
+    summary : str
+        What the node does: paragraphs separated by a blank line (reST ``literals`` and
+        roles such as :mod:`x` are printed plain).
+    specs : sequence of ParamSpec
+        The node's parameter table.
+    epilog : str
+        A closing paragraph (parameter files...).
+
+    Returns
+    -------
+    str
+        The text, lines at most 79 columns but for long words.
+
+    """
+    lines = [_fill(f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]... '
+                   '[--params-file FILE]...]', '', ' ' * (8 + len(prog))),
+             '']
+    for paragraph in summary.split('\n\n'):
+        plain = re.sub(r':\w+:`~?([^`]+)`', r'\1', paragraph).replace('``', '')
+        lines += [_fill(plain), '']
+    lines.append('parameters (name: type, default, unit; meaning):')
+    for spec in specs:
+        default = _value_text(spec.default, spec.default)
+        facts = [type(spec.default).__name__, f'default {default}']
+        if spec.unit:
+            facts.append(spec.unit)
+        if spec.choices:
+            facts.append('one of ' + ', '.join(spec.choices))
+        elif spec.lo is not None and spec.hi is not None:
+            facts.append(f'{_value_text(spec.lo, spec.default)}..'
+                         f'{_value_text(spec.hi, spec.default)}')
+        if not spec.read_only:
+            facts.append('settable at run time')
+        lines.append(f'  {spec.name}: ' + '; '.join(facts))
+        lines.append(_fill(spec.meaning, ' ' * 6))
+    if epilog:
+        lines += ['', _fill(epilog)]
+    return '\n'.join(lines)

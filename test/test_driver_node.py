@@ -22,7 +22,9 @@ import shutil
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Vector3Stamped
+from gyro_tdc.errors import ConfigError
 from gyro_tdc.nodes.driver_node import DriverNode, PARAMS
+from gyro_tdc.resources import scenario_names
 from gyro_tdc.sources.base import ImuSample, ImuSource, PolledSource
 import numpy as np
 import pytest
@@ -274,12 +276,31 @@ def test_sim_rate_table_reference_and_end_of_run(ros_context, executor):
     assert st.level == DiagnosticStatus.OK and st.message == 'scenario finished'
 
 
-def test_sim_unknown_scenario_is_reported_not_fatal(ros_context, executor):
-    node, lis = start(ros_context, executor, backend='sim', scenario='no_such_scenario',
-                      retry_initial=0.01, retry_max=0.02)
+def test_sim_unknown_scenario_is_a_configuration_error(ros_context):
+    """An unknown scenario is no device error retried forever: the node does not start."""
+    with pytest.raises(ConfigError) as err:
+        DriverNode(context=ros_context, parameter_overrides=overrides(
+            backend='sim', scenario='no_such_scenario', retry_initial=0.01))
+    message = str(err.value)
+    assert '\n' not in message and "'no_such_scenario'" in message
+    for name in scenario_names():
+        assert name in message
+
+
+def test_sim_run_too_large_is_a_configuration_error(ros_context):
+    """A rate that would simulate gigabytes is refused before any memory is spent."""
+    with pytest.raises(ConfigError, match=r'sim_rate_hz 100000: .*\(use sim_rate_hz <= \d+'):
+        DriverNode(context=ros_context, parameter_overrides=overrides(
+            backend='sim', scenario='l3gd20_paper', sim_rate_hz=100000.0))
+
+
+def test_iio_missing_device_is_retried_not_fatal(ros_context, executor, tmp_path):
+    """A device may appear later: its absence at start-up is a device error, retried."""
+    node, lis = start(ros_context, executor, backend='iio', iio_root=str(tmp_path),
+                      device_name='l3gd20', retry_initial=0.01, retry_max=0.02)
     spin_until(executor, lambda: node._errors >= 2, 5.0)
     st = node.diagnostic_status()
-    assert st.level == DiagnosticStatus.ERROR and 'no_such_scenario' in st.message
+    assert st.level == DiagnosticStatus.ERROR and 'l3gd20' in st.message
     assert lis.imu == []
 
 

@@ -12,18 +12,25 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Declare a parameter table (:mod:`gyro_tdc.paramspec`) on a node, with ROS descriptors."""
+"""
+A node's parameter table (:mod:`gyro_tdc.paramspec`): declared with ROS descriptors, or --help.
+
+:func:`declare` declares the table on a node and returns the values; :func:`print_help`
+answers ``--help`` / ``-h`` from the same table before ``rclpy.init``, so asking a node for
+its parameters never starts it.
+"""
 
 from __future__ import annotations
 
+import sys
 from typing import Any, Sequence
 
 from gyro_tdc.errors import ConfigError
-from gyro_tdc.paramspec import ParamSpec
+from gyro_tdc.paramspec import format_help, help_requested, ParamSpec
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 
-__all__ = ['declare', 'descriptor']
+__all__ = ['declare', 'descriptor', 'print_help']
 
 
 def descriptor(spec: ParamSpec) -> ParameterDescriptor:
@@ -71,3 +78,36 @@ def declare(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
                               f'{", ".join(spec.choices)}, got {value!r}.')
         values[spec.name] = value
     return values
+
+
+def print_help(prog: str, doc: str, specs: Sequence[ParamSpec], args: Sequence[str] | None,
+               *, paragraphs: int = 2, epilog: str = '') -> bool:
+    """
+    Print a node's ``--help`` on stdout when its command line asks for it.
+
+    Parameters
+    ----------
+    prog : str
+        Executable name.
+    doc : str
+        The node module's docstring: its first ``paragraphs`` paragraphs are the summary.
+    specs : sequence of ParamSpec
+        The node's parameter table.
+    args : sequence of str or None
+        The command line, program first (None: ``sys.argv``).
+    paragraphs : int
+        How many paragraphs of ``doc`` to print.
+    epilog : str
+        Closing paragraph (parameter files...).
+
+    Returns
+    -------
+    bool
+        True when help was asked for and printed: the node must not start.
+
+    """
+    if not help_requested(sys.argv if args is None else args):
+        return False
+    text = '\n\n'.join(' '.join(p.split()) for p in doc.strip().split('\n\n')[:paragraphs])
+    print(format_help(prog, text, specs, epilog=epilog))
+    return True

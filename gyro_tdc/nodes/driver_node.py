@@ -20,7 +20,8 @@ Publishes ``imu/data_raw`` (sensor_msgs/Imu, REP 145), ``imu/temperature``
 (geometry_msgs/Vector3Stamped, rad/s) whenever the table changes rate, and
 ``/diagnostics`` at 1 Hz. A device that disappears or returns garbage is reported
 on ``/diagnostics`` and the log, retried with exponential backoff, and nothing is
-published from it until it reads cleanly again.
+published from it until it reads cleanly again. A scenario the simulator cannot load is a
+configuration error, not a device error: the node does not start (one line, exit 2).
 
 The node talks to its back-end only through :class:`gyro_tdc.sources.base.ImuSource`: on
 every tick it publishes what the source says is due, stamped as the source says. The IIO
@@ -41,8 +42,8 @@ from typing import Any, Callable
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
-from gyro_tdc.errors import DeviceError
-from gyro_tdc.nodes._params import declare
+from gyro_tdc.errors import ConfigError, DeviceError, GyroTdcError, one_line
+from gyro_tdc.nodes._params import declare, print_help
 from gyro_tdc.nodes.executors import run_node
 from gyro_tdc.paramspec import ParamSpec, spec_dataclass
 from gyro_tdc.sources.base import Backoff, check_sample, ImuSample, ImuSource, SourceExhausted
@@ -59,7 +60,7 @@ PARAMS = (
     ParamSpec('linear_acceleration_variance', 1.0e-3,
               'Diagonal of linear_acceleration_covariance when the device has an '
               'accelerometer [(m/s^2)^2].', 0.0, 1.0e6),
-    ParamSpec('temperature_variance', 0.01, 'variance of imu/temperature [degC^2].',
+    ParamSpec('temperature_variance', 0.01, 'Variance of imu/temperature [degC^2].',
               0.0, 1.0e4),
     ParamSpec('qos_depth', 100, 'Publisher history depth (reliable, keep last) [messages].',
               1, 100000),
@@ -99,8 +100,18 @@ def stamp_from_ns(ns: int) -> Time:
 
 
 def _open_sim(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
+    """Open the simulator; a scenario it cannot load, or a run too large, is a ConfigError."""
+    from gyro_tdc.limits import check_sim_samples
+    from gyro_tdc.sim import load_scenario
     from gyro_tdc.sources.sim import SimSource
-    return SimSource(p.scenario, seed=p.seed, run_index=p.run_index,
+    try:
+        scenario = load_scenario(p.scenario)
+        rate = p.sim_rate_hz or scenario.imu_rate_hz
+        check_sim_samples(scenario.duration_s, rate,
+                          option='sim_rate_hz' if p.sim_rate_hz else 'imu_rate_hz')
+    except (GyroTdcError, ValueError) as exc:
+        raise ConfigError(one_line(exc)) from None
+    return SimSource(scenario, seed=p.seed, run_index=p.run_index,
                      rate_hz=p.sim_rate_hz or None, time_scale=p.time_scale,
                      max_batch=p.max_batch, clock_ns=clock_ns)
 
@@ -128,6 +139,9 @@ class Backend:
         Whether the node publishes ``rate_table/reference``.
     diagnostics : tuple of str
         Parameters reported on /diagnostics.
+    retry : bool
+        Whether a source that cannot be opened at start-up is retried (a device may
+        appear); False makes it a configuration error and the node does not start.
 
     """
 
@@ -136,11 +150,13 @@ class Backend:
     hardware_id: Callable[[DriverParams], str]
     reference: bool = False
     diagnostics: tuple[str, ...] = ()
+    retry: bool = True
 
 
 BACKENDS = {
+    # The simulator fails only on its configuration (scenario, rates): no use retrying.
     'sim': Backend(_open_sim, 'tick_hz', lambda p: p.scenario, reference=True,
-                   diagnostics=('time_scale',)),
+                   diagnostics=('time_scale',), retry=False),
     'iio': Backend(_open_iio, 'rate_hz', lambda p: p.device_dir or p.device_name),
 }
 
@@ -181,6 +197,12 @@ class DriverNode(Node):
     **kwargs
         Forwarded to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``...).
 
+    Raises
+    ------
+    ConfigError
+        A parameter is not one of its choices, or a back-end that is not retried (the
+        simulator) cannot be opened: an unknown scenario names the shipped ones.
+
     """
 
     def __init__(self, *, source: ImuSource | None = None, **kwargs: Any) -> None:
@@ -218,7 +240,11 @@ class DriverNode(Node):
         self._temp.header.frame_id = p.frame_id
         self._temp.variance = p.temperature_variance
 
-        self._try_open()
+        try:
+            self._try_open(fatal=not self._backend.retry)
+        except ConfigError:
+            self.destroy_node()
+            raise
         self._timer = self.create_timer(1.0 / getattr(p, self._backend.tick_hz), self._on_tick)
         self._diag_timer = self.create_timer(1.0, self._on_diagnostics)
         self.get_logger().info(
@@ -230,12 +256,14 @@ class DriverNode(Node):
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
 
-    def _try_open(self) -> None:
-        """Open (or reopen) the source; on failure schedule the next attempt."""
+    def _try_open(self, *, fatal: bool = False) -> None:
+        """Open (or reopen) the source; on failure schedule the next attempt, or raise."""
         try:
             src = self._injected if self._injected is not None else open_source(
                 self.params, self._now_ns)
         except DeviceError as exc:
+            if fatal:
+                raise ConfigError(one_line(exc)) from None
             self._fail(exc)
             return
         self._source = src
@@ -365,7 +393,12 @@ class DriverNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Run the driver node until shutdown (``ros2 run gyro_tdc driver_node``)."""
+    """Run the driver node until shutdown (``ros2 run gyro_tdc driver_node``), or --help."""
+    if print_help('driver_node', __doc__, PARAMS, args, epilog=(
+            'Parameter files: share/gyro_tdc/config/driver_sim.yaml and driver_iio.yaml '
+            '(--params-file); an unknown backend or scenario, or a value of the wrong type '
+            'or out of range, stops the node with one line and exit status 2.')):
+        return 0
     return run_node(DriverNode, args, executor='single', name='driver_node')
 
 
