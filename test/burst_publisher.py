@@ -20,7 +20,7 @@ Publish a burst of Imu messages as fast as one process can (a child of the node 
 stamps 1 ms apart from 1,700,000,500 s and ``orientation.x`` = the sequence number,
 angular-velocity covariance 1e-6. Talks to the test on stdin/stdout: prints ``matched`` once
 a subscription matched, publishes when it reads ``go``, prints ``published COUNT`` (after
-every message was acknowledged, when reliable) and exits when stdin closes. A reliable
+every message was acknowledged, when reliable keep-all) and exits when stdin closes. A reliable
 keep-all publisher whose reader falls behind is held back by DDS flow control: ``publish``
 then fails (Fast DDS: after its 100 ms blocking time) and the same message is published
 again, as a driver that must not lose data would.
@@ -73,7 +73,7 @@ def main(argv):
                 break
             except RCLError:  # held back by flow control (reliable keep-all): again
                 retries += 1
-    if reliability == 'reliable':
+    if reliability == 'reliable' and history == 'keep_all':
         pub.wait_for_all_acked(Duration(seconds=60))
     print(f'published {count} ({retries} publish calls held back)', flush=True)
     sys.stdin.read()
