@@ -114,8 +114,9 @@ PARAMS = (
     ParamSpec('input_reliability', 'best_effort', 'QoS of the imu/data_raw subscription: '
               'best_effort (REP 2003 sensor data, keep last queue_depth: the freshest samples '
               'when behind; DDS does not report what this queue overwrites) or reliable (keep '
-              'all: every loss is counted, and a reliable keep-all publisher is held back by '
-              'flow control instead of losing messages).', choices=('best_effort', 'reliable')),
+              "all: a keep-last publisher's drops are reported, and a reliable keep-all "
+              'publisher is held back by flow control instead of losing messages).',
+              choices=('best_effort', 'reliable')),
     ParamSpec('load_wait', 0.1, 'Longest time a model_file set or ~/reload waits for the new '
               'file to be read and checked before answering: the IMU path pauses at most this '
               'long; a slower file is installed when ready, its outcome on /diagnostics and in '
