@@ -57,11 +57,16 @@ from gyro_tdc.stillness import (Anchor, STILL_WINDOW_MAX_S, STILL_WINDOW_S, Stil
 import numpy as np
 
 __all__ = ['CompensatorCore', 'PARAMS', 'Policy', 'PreparedModel', 'Priming', 'Replay',
-           'STATIC_EFFECTS', 'TemperatureHold', 'prepare', 'widen_covariance']
+           'STATIC_EFFECTS', 'TEMPERATURE_TYPES', 'TemperatureHold', 'prepare',
+           'widen_covariance']
 
 # STATIC_EFFECTS (from the effect library): a model made of these has a drift that changes
 # only when the temperature does, so the compensator evaluates it once per thermometer sample.
 
+
+#: Message types the compensator's ``imu/temperature`` input accepts (``temperature_type``).
+TEMPERATURE_TYPES = ('sensor_msgs/msg/Temperature', 'std_msgs/msg/Float32',
+                     'std_msgs/msg/Float64')
 
 #: The compensator's parameters (the node declares them; ``policy`` rows build :class:`Policy`).
 PARAMS = (
@@ -127,6 +132,14 @@ PARAMS = (
     ParamSpec('executor', 'events', 'Executor main() spins the node with: rclpy.experimental '
               'EventsExecutor (events, fastest) or SingleThreadedExecutor (single).',
               choices=('events', 'single')),
+    ParamSpec('temperature_type', TEMPERATURE_TYPES[0], 'Message type of imu/temperature: '
+              'sensor_msgs/msg/Temperature (stamped), or std_msgs/msg/Float32 or Float64 (degC, '
+              'no stamp: each reading takes the stamp of the latest IMU message received; '
+              'readings before the first IMU message are ignored).', choices=TEMPERATURE_TYPES),
+    ParamSpec('sensor_id', '', "This IMU's id: when set and the model's sensor.sensor_id "
+              'differs, the node warns in the log and on /diagnostics (WARN) for as long as '
+              'that model is in use (a model trained on another sensor, or the shipped '
+              'simulated one). Empty: no check.'),
 )
 
 #: One field per ``policy`` row of :data:`PARAMS` (same name, default and meaning), checked on

@@ -33,10 +33,11 @@ from gyro_tdc.thermal_state import SETTLE_TAUS
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (compensation_logic imports this module)
     from gyro_tdc.compensation_logic import CompensatorCore
+    from gyro_tdc.model import CompensationModel
 
 __all__ = ['ERROR', 'FLAG_NAMES', 'Health', 'HealthMark', 'InputStatus', 'NO_MODEL',
            'NO_TEMPERATURE', 'NON_FINITE', 'OK', 'OUT_OF_RANGE', 'PASSTHROUGH', 'STALE', 'WARN',
-           'describe_flags', 'health']
+           'describe_flags', 'health', 'sensor_mismatch']
 
 #: Flags of one processed sample (a bit set).
 STALE = 1
@@ -110,16 +111,44 @@ class Health(NamedTuple):
     mark: HealthMark
 
 
+def sensor_mismatch(model: CompensationModel | None, sensor_id: str) -> str:
+    """
+    Say why ``model`` was not trained for the sensor ``sensor_id`` ('' when it was).
+
+    Parameters
+    ----------
+    model : CompensationModel or None
+        The model in use.
+    sensor_id : str
+        The compensator's ``sensor_id`` parameter; '' checks nothing.
+
+    Returns
+    -------
+    str
+        One line naming both ids and what to do, or '' (no model, no check, or a match).
+
+    """
+    if not sensor_id or model is None or model.sensor_id == sensor_id:
+        return ''
+    trained = (f'sensor_id {model.sensor_id!r}' if model.sensor_id else
+               'no sensor_id (the shipped l3gd20_modified is a simulated L3GD20)')
+    return (f'model {model.model_id} was trained for {trained}, not for this IMU '
+            f"(sensor_id {sensor_id!r}): its drift curve is another sensor's; train one on "
+            "this IMU's recordings (gyro-tdc train --sensor-id)")
+
+
 def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file: str = '',
-           last_reload: str = 'none', inputs: InputStatus | None = None) -> Health:
+           last_reload: str = 'none', inputs: InputStatus | None = None,
+           sensor_id: str = '') -> Health:
     """
     Judge the compensator's state: what went wrong since the last report, and its figures.
 
     ERROR without a model or when a compensation raised since ``since``; WARN when samples
     had no, a stale, an out-of-range or a non-finite input, thermometer samples were
     rejected, input messages were lost or arrived already compensated since ``since``, and
-    while a gyro_tdc compensator publishes the input topic or the last model file asked for
-    was refused (``last_reload`` 'rejected: ...'); else OK ('compensating', or 'waiting for
+    while a gyro_tdc compensator publishes the input topic, the last model file asked for
+    was refused (``last_reload`` 'rejected: ...') or the model was trained for another
+    sensor than ``sensor_id`` (:func:`sensor_mismatch`); else OK ('compensating', or 'waiting for
     imu/data_raw').
 
     Parameters
@@ -132,6 +161,8 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         Where the model came from, and the outcome of the last (re)load.
     inputs : InputStatus, optional
         Losses, marked samples and upstream compensators seen by the node.
+    sensor_id : str
+        The IMU the compensator runs on ('' checks nothing).
 
     Returns
     -------
@@ -155,6 +186,10 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         level = WARN
         problems.append(f'model file refused, keeping {model.model_id}: '
                         f'{last_reload[len("rejected: "):]}')
+    mismatch = sensor_mismatch(model, sensor_id)
+    if mismatch:
+        level = max(level, WARN)
+        problems.append(mismatch)
     for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE):
         if new[bit]:
             level = max(level, WARN)

@@ -16,7 +16,8 @@
 The compensator node: raw Imu in, drift-compensated Imu out, one for one, in order.
 
 Subscribes ``imu/data_raw`` (sensor-data QoS with a deep queue, or reliable keep-all with
-``input_reliability: reliable``) and ``imu/temperature``; publishes ``imu/data_compensated``
+``input_reliability: reliable``) and ``imu/temperature`` (sensor_msgs/Temperature, or
+std_msgs/Float32 or Float64 with ``temperature_type``); publishes ``imu/data_compensated``
 with the header and every field copied unchanged except ``angular_velocity`` (corrected by
 the model) and ``angular_velocity_covariance`` (widened by the model's residual variance and
 by the policies, and carrying :mod:`gyro_tdc.provenance`'s mark when compensated);
@@ -29,9 +30,10 @@ never holds up the IMU callback for more than ``load_wait``; an invalid file is 
 with its reason in one line and the old model stays.
 
 Guards: the node refuses to start when its input and output resolve to the same topic (a
-loop); it warns on /diagnostics when a sample arrives already compensated (the mark) or a
-gyro_tdc compensator publishes its input (graph query), and counts the input messages DDS
-reports lost (the subscription's message-lost event).
+loop); it warns on /diagnostics when a sample arrives already compensated (the mark), a
+gyro_tdc compensator publishes its input (graph query) or the model was trained for
+another sensor than ``sensor_id``, and counts the input messages DDS reports lost (the
+subscription's message-lost event).
 
 Every decision lives in :mod:`gyro_tdc.compensation_logic` and :mod:`gyro_tdc.health`; this
 module converts. With ``raw_cdr`` (default) the Imu is taken as serialized bytes and patched
@@ -48,12 +50,12 @@ from typing import Any, Callable
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy, prepare, PreparedModel
 from gyro_tdc.errors import ConfigError, GyroTdcError, one_line
-from gyro_tdc.health import health, HealthMark, InputStatus, PASSTHROUGH
+from gyro_tdc.health import health, HealthMark, InputStatus, PASSTHROUGH, sensor_mismatch
 from gyro_tdc.imu_cdr import ImuView, locate
 from gyro_tdc.loading import Job, LatestJob
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.modelfile import load_model
-from gyro_tdc.nodes._params import declare
+from gyro_tdc.nodes._params import declare, print_help
 from gyro_tdc.nodes.executors import run_node
 from gyro_tdc.paramspec import spec_dataclass
 from gyro_tdc.provenance import diagonal_marked, mark_diagonal
@@ -67,6 +69,7 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data,
                        ReliabilityPolicy)
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, Temperature
+from std_msgs.msg import Float32, Float64
 from std_srvs.srv import Trigger
 
 __all__ = ['CompensatorNode', 'CompensatorParams', 'LOAD_ERRORS', 'PARAMS', 'main',
@@ -85,6 +88,9 @@ CompensatorParams = spec_dataclass(
 LOAD_ERRORS = (GyroTdcError, RecursionError, MemoryError)
 #: How often the executor's thread looks for a model finished in the background [s].
 LOAD_POLL_S = 0.02
+#: The message class of each ``temperature_type`` (compensation_logic.TEMPERATURE_TYPES).
+TEMPERATURE_MESSAGES = {'sensor_msgs/msg/Temperature': Temperature,
+                        'std_msgs/msg/Float32': Float32, 'std_msgs/msg/Float64': Float64}
 
 
 def read_model(name_or_file: str) -> CompensationModel:
@@ -153,6 +159,7 @@ class CompensatorNode(Node):
         self._read = loader or read_model
         self.core = CompensatorCore(policy)
         self.inputs = InputStatus(p.input_reliability)
+        self.temperatures_ignored = 0  # std_msgs readings before the first IMU message
         self.model_file = ''
         self.last_reload = 'none'
         self._jobs = LatestJob()
@@ -195,7 +202,10 @@ class CompensatorNode(Node):
         self.create_subscription(Imu, 'imu/data_raw',
                                  self._on_imu_raw if p.raw_cdr else self._on_imu, imu_qos,
                                  raw=p.raw_cdr, event_callbacks=events)
-        self.create_subscription(Temperature, 'imu/temperature', self._on_temperature, temp_qos)
+        stamped = TEMPERATURE_MESSAGES[p.temperature_type] is Temperature
+        self.create_subscription(
+            TEMPERATURE_MESSAGES[p.temperature_type], 'imu/temperature',
+            self._on_temperature if stamped else self._on_float_temperature, temp_qos)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self.create_service(Trigger, '~/reload', self._on_reload)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -263,6 +273,14 @@ class CompensatorNode(Node):
         st = msg.header.stamp
         self.core.add_temperature(st.sec + st.nanosec * 1e-9, msg.temperature)
 
+    def _on_float_temperature(self, msg: Float32 | Float64) -> None:
+        """Take a reading without a header at the stamp of the latest IMU message received."""
+        t = self.core.last_t
+        if t is None:  # before the first IMU message there is no stamp to give it
+            self.temperatures_ignored += 1
+            return
+        self.core.add_temperature(t, msg.data)
+
     def _on_message_lost(self, info: QoSMessageLostInfo) -> None:
         new = info.total_count - self.inputs.lost
         self.inputs.lost = info.total_count
@@ -307,6 +325,9 @@ class CompensatorNode(Node):
         self.get_logger().info(
             f'model {prepared.model_id} from {name!r}: {model.kind}, features '
             f'{",".join(model.features)}, valid {lo:.1f}..{hi:.1f} degC')
+        mismatch = sensor_mismatch(model, self.params.sensor_id)
+        if mismatch:
+            self.get_logger().warning(mismatch)
 
     def _refuse(self, name: str, error: str) -> None:
         self.last_reload = f'rejected: {error}'
@@ -421,8 +442,8 @@ class CompensatorNode(Node):
         Return the other nodes publishing ``imu/data_raw`` that look like gyro_tdc compensators.
 
         A node is taken for one when it offers ``~/reload`` (std_srvs/srv/Trigger) and
-        subscribes a sensor_msgs/msg/Temperature topic besides publishing Imu on our input:
-        the graph shows a compensator's interface whatever its name or remaps.
+        subscribes a temperature topic (any ``temperature_type``) besides publishing Imu on
+        our input: the graph shows a compensator's interface whatever its name or remaps.
         """
         me = self.get_fully_qualified_name()
         found = set()
@@ -443,7 +464,7 @@ class CompensatorNode(Node):
             except _rclpy.RCLError:  # it left between the queries (NodeNameNonExistentError)
                 continue
             if any(n == f'{fqn}/reload' and 'std_srvs/srv/Trigger' in t for n, t in services) \
-                    and any('sensor_msgs/msg/Temperature' in t for _, t in subs):
+                    and any(TEMPERATURE_MESSAGES.keys() & set(t) for _, t in subs):
                 found.add(fqn)
         return tuple(sorted(found))
 
@@ -456,6 +477,7 @@ class CompensatorNode(Node):
                 f'{", ".join(upstream)}: chained compensators remove the drift twice')
         self.inputs.upstream = upstream
         h = health(self.core, self._seen, model_file=self.model_file,
+                   sensor_id=self.params.sensor_id,
                    last_reload=self.last_reload, inputs=self.inputs)
         if h.mark.already_compensated > self._seen.already_compensated:
             self.get_logger().warning(
@@ -484,7 +506,12 @@ class CompensatorNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Run the compensator node until shutdown (``ros2 run gyro_tdc compensator_node``)."""
+    """Run the compensator node until shutdown (``ros2 run gyro_tdc compensator_node``); --help."""
+    if print_help('compensator_node', __doc__, PARAMS, args, epilog=(
+            'Parameter file: share/gyro_tdc/config/compensator.yaml (--params-file). A value '
+            'of the wrong type, out of range or not one of the choices stops the node with '
+            'one line and exit status 2.')):
+        return 0
     # gc.freeze(): keep the ~30k start-up objects (numpy, the model...) out of the cyclic
     # collector's full passes, which otherwise stall the callback for ~10 ms now and then (p99).
     return run_node(CompensatorNode, args, executor=lambda node: node.params.executor,
