@@ -389,7 +389,7 @@ def is_coverage_line(line: str) -> bool:
     text = line.removeprefix('warning: ')
     return text.startswith(('temperature range covered:', 'coverage per ', 'heating (dT/dt',
                             'little data in temperature bin', 'no heating data:',
-                            'no cooling data:'))
+                            'no cooling data:', 'the training data cover '))
 
 
 # --------------------------------------------------------------------------------------------
