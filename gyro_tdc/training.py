@@ -280,7 +280,8 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
           reference: Sequence[float] | None = None,
           reference_topic: str = '/rate_table/reference', progress: bool = False,
           bin_c: float = 5.0, command: str = '', max_loss: float = MAX_LOSS_FRACTION,
-          log: Callable[[str], None] | None = None, accel: bool = True) -> TrainResult:
+          log: Callable[[str], None] | None = None, accel: bool = True,
+          sensor_id: str = '') -> TrainResult:
     """
     Load bags, fit a compensation model and save it.
 
@@ -321,6 +322,9 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
     accel : bool
         Read the accelerometer and fit the model's accelerometer part on its still data
         (default); False skips both (``--no-accel``).
+    sensor_id : str
+        The sensor's id, written to the model's ``sensor.sensor_id`` (``--sensor-id``);
+        compensator_node warns when its own ``sensor_id`` differs.
 
     Returns
     -------
@@ -352,6 +356,7 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
         t0 = estimate_t0(runs[0])
     common = {'kind': kind, 't0': t0, 'n_centers': n_centers, 'refine': refine, 'seed': seed,
               'frame_id': str(runs[0].info.get('frame_id') or 'imu_link'),
+              'sensor_id': str(sensor_id),
               'created': {'command': command, 'bags': names}}
     choice = None
     params: dict = {}

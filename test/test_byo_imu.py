@@ -24,10 +24,11 @@ was trained for another sensor (the shipped simulated model has none).
 from __future__ import annotations
 
 from compensator_rig import RELIABLE, stamp_s, to_ns
+from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy, TEMPERATURE_TYPES
 from gyro_tdc.fitting import fit_model
 from gyro_tdc.health import health, OK, sensor_mismatch, WARN
-from gyro_tdc.modelfile import save_model
+from gyro_tdc.modelfile import load_model, save_model
 from gyro_tdc.nodes.compensator_node import CompensatorNode, TEMPERATURE_MESSAGES
 from gyro_tdc.nodes.executors import make_executor
 import pytest
@@ -37,6 +38,7 @@ from rosutil import interrupt, Lines, node_process, spin_until
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float32, Float64
 from synth import synth_run
+from test_cli_train import bag_from_run
 
 T0 = 1_700_000_000.0
 
@@ -46,6 +48,21 @@ def model():
     """Fit a paper model f(dT, dT2) on a synthetic run (no sensor_id)."""
     return fit_model([synth_run(hours=1.0, rate_hz=2.0, cooling=True, seed=5)],
                      features=('dT', 'dT2'), n_centers=8)
+
+
+def test_train_writes_the_sensor_id(tmp_path, capsys):
+    """``train --sensor-id`` names the sensor in the model; without it the id stays empty."""
+    bag = bag_from_run(synth_run(hours=0.5, rate_hz=2.0, seed=2), tmp_path / 'bag')
+    ids = {}
+    for name, extra in (('own', ['--sensor-id', 'imu-7']), ('plain', [])):
+        out = tmp_path / f'{name}.yaml'
+        assert train_main([str(bag), '--features', 'dT', '--kind', 'poly', '--no-accel',
+                           '--no-progress', '--out', str(out), *extra]) == 0
+        model = load_model(out)
+        ids[name] = model.model_id
+        assert model.sensor_id == ('imu-7' if extra else '')
+    assert ids['own'] != ids['plain']    # the id is part of the model's identity
+    capsys.readouterr()
 
 
 def test_temperature_types_agree_between_the_table_and_the_node():

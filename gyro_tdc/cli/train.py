@@ -55,6 +55,10 @@ def build_parser() -> argparse.ArgumentParser:
                     'write it as a YAML model file.')
     p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap)')
     p.add_argument('--out', required=True, metavar='MODEL.yaml', help='model file to write')
+    p.add_argument('--sensor-id', default='', metavar='ID',
+                   help="the recorded sensor's id (e.g. its serial number), written to the "
+                        "model's sensor.sensor_id; compensator_node warns when its sensor_id "
+                        'parameter differs (default: none)')
     p.help_tail = effect_listing     # --help ends with the effect ids
     add_train_options(p)
     return p
@@ -132,7 +136,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``train`` with parsed arguments; print the report."""
     opts = train_options(args)   # fails on a bad feature id before reading any bag
     result = train(args.bags, out=args.out, command=command_line('train', argv),
-                   log=lambda line: print(line, flush=True), **opts)
+                   log=lambda line: print(line, flush=True), sensor_id=args.sensor_id, **opts)
     if result.choice is not None:
         print('\n'.join(result.choice.lines()))
     text, warns = format_training(result)
