@@ -50,7 +50,7 @@ from typing import Callable, Mapping, Sequence
 import warnings
 
 from gyro_tdc import __version__
-from gyro_tdc.blocks import block_counts, block_length, block_mean, block_sumsq
+from gyro_tdc.blocks import block_counts, block_length, block_mean, block_sum, block_sumsq
 from gyro_tdc.effects import (batch_features, EFFECTS, input_ids, normalise_ids,
                               REFERENCE_EFFECTS, resolve_params, STATE_TERMS,
                               TEMPERATURE_EFFECTS, THERMAL_EFFECTS, with_implied)
@@ -108,24 +108,55 @@ def estimate_t0(run: Run, *, window_s: float = 60.0) -> float:
 
 
 class _Blocks:
-    """Block means of one run: stamps, temperature, drift target and reference rate."""
+    """
+    Block means of one run: stamps, temperature, drift target and reference rate.
 
-    def __init__(self, run: Run, block: int) -> None:
+    With ``rows`` (the samples that count, e.g. the still ones of ``train --still-only``)
+    every mean but the stamps' and the temperature's is over those rows only and the blocks
+    without any are dropped; the filters (thermal state, dT/dt, warm-up) still run over every
+    sample, so the die temperature evolves through the rows that do not count.
+    """
+
+    def __init__(self, run: Run, block: int, rows: NDArray[np.bool_] | None = None) -> None:
         self.run = run
+        self.block = block
         self.t = block_mean(run.t, block)
         self.temp = block_mean(run.temp, block)
         err = run.omega - run.omega_ref
-        self.y = block_mean(err, block)
-        self.ref = block_mean(run.omega_ref, block)
-        self.block = block
-        self.counts = block_counts(len(run), block)
-        self.ss_raw = np.einsum('ij,ij->j', err, err)
+        self.rows = None if rows is None else np.asarray(rows, dtype=bool)
+        self.keep = None
+        if self.rows is None:
+            self.counts = block_counts(len(run), block)
+            self.ss_raw = np.einsum('ij,ij->j', err, err)
+        else:
+            c = block_sum(self.rows.astype(np.float64), block)
+            self.keep = c > 0
+            self.counts = c[self.keep]
+            e = err[self.rows]
+            self.ss_raw = np.einsum('ij,ij->j', e, e)
+        self.y = self._mean(err)
+        self.ref = self._mean(run.omega_ref)
         self.ss_within = self._scatter(err, self.y)
+
+    def _sel(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return the rows of ``x`` (one per block) of the blocks kept."""
+        return x if self.keep is None else x[self.keep]
+
+    def _mean(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return the block means of ``x`` (N, ...) over the rows that count."""
+        if self.rows is None:
+            return block_mean(x, self.block)
+        x = np.asarray(x, dtype=np.float64)
+        shape = (-1,) + (1,) * (x.ndim - 1)
+        sums = block_sum(np.where(self.rows.reshape(shape), x, 0.0), self.block)
+        return sums[self.keep] / self.counts.reshape(shape)
 
     def _scatter(self, err: NDArray[np.float64], mean: NDArray[np.float64]
                  ) -> NDArray[np.float64]:
         """Per block and axis, the sum of squared deviations of ``err`` from ``mean``."""
-        return block_sumsq(err, self.block) - self.counts[:, None] * mean ** 2
+        if self.rows is not None:
+            err = np.where(self.rows[:, None], err, 0.0)
+        return self._sel(block_sumsq(err, self.block)) - self.counts[:, None] * mean ** 2
 
     def state(self, thermal: ThermalState) -> NDArray[np.float64]:
         """Return the thermal state at full rate (N,), degC."""
@@ -144,7 +175,7 @@ class _Blocks:
         if np.any(scale):
             temp = self.run.temp if state is None else state
             err = err - (temp - t0)[:, None] * self.run.omega_ref * scale
-        return self._scatter(err, block_mean(err, self.block))
+        return self._scatter(err, self._mean(err))
 
     def features(self, ids: Sequence[str], t0: float, params: Mapping, *,
                  exact: bool, thermal: ThermalState,
@@ -159,9 +190,9 @@ class _Blocks:
             run = self.run
             s = self.state(thermal) if state is None else state
             x = batch_features(ids, run.t, run.temp, t0=t0, params=params, state=s)
-            return block_mean(x, self.block)
-        return batch_features(ids, self.t, self.temp, t0=t0, params=params,
-                              state=thermal.temperature(self.t, self.temp))
+            return self._mean(x)
+        return self._sel(batch_features(ids, self.t, self.temp, t0=t0, params=params,
+                                        state=thermal.temperature(self.t, self.temp)))
 
     def scale_cols(self, t0: float, state: NDArray[np.float64] | None = None,
                    thermal: ThermalState | None = None) -> NDArray[np.float64]:
@@ -172,9 +203,9 @@ class _Blocks:
         state times the block-mean rate (the parameter search; the temperature is slow).
         """
         if thermal is not None:
-            return (thermal.temperature(self.t, self.temp) - t0)[:, None] * self.ref
+            return (self._sel(thermal.temperature(self.t, self.temp)) - t0)[:, None] * self.ref
         d = (self.run.temp if state is None else state) - t0
-        return block_mean(d[:, None] * self.run.omega_ref, self.block)
+        return self._mean(d[:, None] * self.run.omega_ref)
 
 
 def _place_centers(xn: NDArray[np.float64], k: int, seed: int
@@ -756,11 +787,16 @@ def _refine(x: NDArray[np.float64], y: NDArray[np.float64],
                    sse=float((r ** 2).sum()))
 
 
-def _check_runs(runs: Sequence[Run], ids: Sequence[str]) -> None:
+def _check_runs(runs: Sequence[Run], ids: Sequence[str],
+                rows: Sequence[NDArray[np.bool_]] | None = None) -> None:
     """Reject data that cannot support a fit, with a message naming the problem."""
     if not runs:
         raise FitError('No training runs given.')
-    n = sum(len(r) for r in runs)
+    if rows is not None and (len(rows) != len(runs) or any(
+            np.shape(m) != (len(r),) for r, m in zip(runs, rows))):
+        raise FitError('Expected `rows` to hold one boolean mask of shape (N,) per run.')
+    n = sum(len(r) for r in runs) if rows is None else int(sum(np.count_nonzero(m)
+                                                               for m in rows))
     if n < MIN_SAMPLES:
         raise FitError(f'Too few samples to fit: {n} (need at least {MIN_SAMPLES}).')
     for r in runs:
@@ -768,8 +804,9 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str]) -> None:
             if not np.all(np.isfinite(getattr(r, key))):
                 raise FitError(f'Run {r.name!r} has non-finite values in `{key}`.')
     if TEMPERATURE_EFFECTS & set(ids):
-        lo = min(float(r.temp.min()) for r in runs)
-        hi = max(float(r.temp.max()) for r in runs)
+        temps = [r.temp if rows is None else r.temp[rows[i]] for i, r in enumerate(runs)]
+        lo = min(float(x.min()) for x in temps if x.size)
+        hi = max(float(x.max()) for x in temps if x.size)
         if hi - lo < MIN_SPAN_C:
             raise FitError(f'Temperature span too small to fit: {hi - lo:.3f} degC '
                            f'(need at least {MIN_SPAN_C} degC).')
@@ -792,9 +829,11 @@ class _Search:
     """
 
     def __init__(self, runs: Sequence[Run], inputs: Sequence[str], t0: float, *, inner: str,
-                 n_centers: int, ridge: float, seed: int, scale: bool, n_total: int) -> None:
+                 n_centers: int, ridge: float, seed: int, scale: bool, n_total: int,
+                 rows: Sequence[NDArray[np.bool_]] | None = None) -> None:
         block = block_length(n_total, 20_000, at_most=True)
-        self.blocks = [_Blocks(r, block) for r in runs]
+        self.blocks = [_Blocks(r, block, None if rows is None else rows[i])
+                       for i, r in enumerate(runs)]
         self.y = np.concatenate([b.y for b in self.blocks])
         self.inputs, self.t0, self.scale, self.inner = tuple(inputs), t0, scale, inner
         self.n_centers, self.ridge, self.seed = n_centers, ridge, seed
@@ -970,7 +1009,8 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
               ridge: float | str = 'auto',
               max_rows: int = 200_000, seed: int = 0, frame_id: str = 'imu_link',
               sensor_id: str = '', created: Mapping | None = None,
-              thermal: str | ThermalState | None = None) -> CompensationModel:
+              thermal: str | ThermalState | None = None,
+              rows: Sequence[NDArray[np.bool_]] | None = None) -> CompensationModel:
     """
     Identify a compensation model from training runs.
 
@@ -1026,6 +1066,11 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         :class:`~gyro_tdc.thermal_state.ThermalState` (nothing fitted). A lagged choice
         adds ``lag`` to the features. Default: ``'first_order'`` with ``lag``, else
         ``'none'``.
+    rows : sequence of NDArray[np.bool_], shape (N,) each, optional
+        Per run, the samples that count (e.g. the still ones, ``train --still-only``): the
+        fit, the residual, the sample count and the trained range use them only, while the
+        filters (thermal state, dT/dt, warm-up) run over every sample of the run, so the
+        die temperature evolves through the samples that do not count. None: every sample.
 
     Returns
     -------
@@ -1039,14 +1084,16 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     if kind == 'rbf' and n_centers < 1:
         raise FitError(f'`n_centers` must be at least 1 for an rbf model, got {n_centers}.')
     ids, mode, th = _thermal_choice(ids, thermal, fit_params, params)
-    _check_runs(runs, ids)
+    _check_runs(runs, ids, rows)
     if t0 is None:
         t0 = estimate_t0(runs[0])
     inputs = input_ids(ids, state=True)
     par = resolve_params(ids, params)
-    n_total = sum(len(r) for r in runs)
-    block = block_length(n_total, max_rows, at_most=True)
-    blocks = [_Blocks(r, block) for r in runs]
+    n_all = sum(len(r) for r in runs)
+    rows = None if rows is None else [np.asarray(m, dtype=bool) for m in rows]
+    n_total = n_all if rows is None else int(sum(np.count_nonzero(m) for m in rows))
+    block = block_length(n_all, max_rows, at_most=True)
+    blocks = [_Blocks(r, block, None if rows is None else rows[i]) for i, r in enumerate(runs)]
     y = np.concatenate([b.y for b in blocks])
 
     free = [(eid, name) for eid in inputs for name in EFFECTS[eid].fitted] if fit_params else []
@@ -1065,7 +1112,8 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
                 search_inputs = input_ids(ids + tuple(STATE_TERMS), state=True)
             inner = 'poly'
         search = _Search(runs, search_inputs, t0, inner=inner, n_centers=n_centers,
-                         ridge=search_ridge, seed=seed, scale='scale' in ids, n_total=n_total)
+                         ridge=search_ridge, seed=seed, scale='scale' in ids, n_total=n_all,
+                         rows=rows)
         n_rounds = 2 if len(free) + fit_state > 1 else 1
         for _round in range(n_rounds):
             for eid, name in free:
@@ -1094,8 +1142,9 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         fit = _refine(x, y, scale_cols, fit, ridge=fit.ridge, seed=seed)
     f = len(inputs)
     coef = fit.coef
-    lo = min(float(s.min()) for s in states)
-    hi = max(float(s.max()) for s in states)
+    counted = states if rows is None else [s[m] for s, m in zip(states, rows)]
+    lo = min(float(s.min()) for s in counted if s.size)
+    hi = max(float(s.max()) for s in counted if s.size)
     if th.kind != 'none':
         par[_LAG] = {'tau_s': th.tau_total_s}
     info = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
@@ -1113,7 +1162,7 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     counts = np.concatenate([b.counts for b in blocks])
     within = np.concatenate([b.scatter(fit.scale, t0, state=s) if np.any(fit.scale)
                              else b.ss_within for b, s in zip(blocks, states)])
-    bstate = np.concatenate([block_mean(s, block) for s in states])
+    bstate = np.concatenate([b._mean(s) for b, s in zip(blocks, states)])
     gain = 1.0 + (bstate - t0)[:, None] * fit.scale
     ss = ((within + counts[:, None] * fit.resid ** 2) / gain ** 2).sum(axis=0)
     residual_var = np.maximum(ss, 0.0) / n_total

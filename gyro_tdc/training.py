@@ -261,6 +261,8 @@ class TrainResult:
     accel : AccelFit, optional
         The accelerometer part's fit and figures, or why there is none (None with
         ``accel=False``).
+    still : gyro_tdc.field_training.StillReport, optional
+        With ``train --still-only``: the still time, its coverage and what to record next.
 
     """
 
@@ -271,6 +273,7 @@ class TrainResult:
     samples: int
     choice: FeatureChoice | None = None
     accel: AccelFit | None = None
+    still: object | None = None
 
 
 def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,

@@ -78,7 +78,7 @@ def _values(name: str, a: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float
 def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=None, ref=None,
               storage='sqlite3', frame_id='imu_link', imu_topic='/imu/data_raw',
               temperature_topic='/imu/temperature', reference_topic='/rate_table/reference',
-              gyro_cov=None, accel_cov=None) -> None:
+              gyro_cov=None, accel_cov=None, extra=()) -> None:
     """
     Write IMU, temperature and (optionally) reference-rate messages to a new rosbag2 bag.
 
@@ -118,6 +118,10 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
         Diagonals of ``angular_velocity_covariance`` and ``linear_acceleration_covariance``
         ((rad/s)^2 and (m/s^2)^2); zeros (unknown) when None. ``(-1, 0, 0)`` marks the
         quantity as absent (REP 145).
+    extra : sequence of (str, str, ArrayLike, sequence of bytes)
+        Further topics already serialised: ``(topic, msgtype, t, messages)`` with the log
+        times ``t`` (s, shape (K,)) and K CDR messages (e.g. a ``cmd_vel`` Twist stream,
+        :func:`gyro_tdc.bagio.motion.encode_twists`).
 
     Raises
     ------
@@ -173,6 +177,14 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
     ]
     if ref_t is not None:
         topics.append((reference_topic, REFERENCE_TYPE, ref_sec, ref_nsec, lambda idx: ref[idx]))
+    raw_topics = set()
+    for topic, msgtype, t_x, msgs in extra:
+        sec_x, nsec_x = _times(f'extra {topic} t', t_x)
+        if len(msgs) != len(sec_x):
+            raise DatasetError(f'Expected as many messages as stamps for {topic!r}, got '
+                               f'{len(msgs)} and {len(sec_x)}.')
+        raw_topics.add(len(topics))
+        topics.append((topic, msgtype, sec_x, nsec_x, lambda idx, msgs=msgs: msgs))
     names = [x[0] for x in topics]
     if len(set(names)) != len(names):
         raise DatasetError(f'Expected distinct topic names, got {names}.')
@@ -206,7 +218,11 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
                 if not pos.size:
                     continue
                 idx = index[sel[pos]]
-                encoded = encode_checked(msgtype, sec[idx], nsec[idx], frame_id, block(idx))
+                if k in raw_topics:
+                    raws = block(idx)
+                    encoded = [raws[i] for i in idx.tolist()]
+                else:
+                    encoded = encode_checked(msgtype, sec[idx], nsec[idx], frame_id, block(idx))
                 for p, raw in zip(pos.tolist(), encoded):
                     payload[p] = raw
             write = writer.write

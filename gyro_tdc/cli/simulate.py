@@ -18,7 +18,10 @@
 A single-run scenario writes one bag at ``--out``; a multi-run scenario writes the directory
 ``OUT/run1 ... OUT/runN``. Topics: ``/imu/data_raw`` (sensor_msgs/Imu, frame ``imu_link``),
 ``/imu/temperature`` (sensor_msgs/Temperature) and, when the rate table is ever non-zero,
-``/rate_table/reference`` (geometry_msgs/Vector3Stamped, one message per change).
+``/rate_table/reference`` (geometry_msgs/Vector3Stamped, one message per change). A vehicle
+scenario (:mod:`gyro_tdc.sim.vehicle`) has no reference: its true body rate goes to
+``/truth/angular_velocity`` (Vector3Stamped at every IMU stamp, for ``evaluate
+--reference-topic`` only) and its commanded motion to ``/cmd_vel`` (geometry_msgs/Twist).
 ``--force`` replaces an earlier output of ``simulate`` (and nothing else); ``--help`` lists
 the shipped scenarios.
 """
@@ -41,6 +44,7 @@ from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.limits import check_sim_samples
 from gyro_tdc.resources import scenario_names
 from gyro_tdc.sim import load_scenario, SimRun, simulate_run
+from gyro_tdc.sim.vehicle import CMD_VEL_TOPIC, TRUTH_TOPIC
 import numpy as np
 
 __all__ = ['build_parser', 'main', 'simulate']
@@ -123,10 +127,16 @@ def _check_replaceable(out: Path) -> None:
 def _summary(run: SimRun, path: Path, seconds: float) -> str:
     lo, hi = float(np.min(run.temp_c)), float(np.max(run.temp_c))
     span_h = (run.imu_t[-1] - run.imu_t[0]) / 3600.0
+    if run.vehicle is not None:
+        v = run.vehicle
+        drives = sum(leg.kind == 'drive' for leg in v.legs)
+        ref = (f'{drives} drives, parked {100.0 * float(v.parked.mean()):.0f} % of the time, '
+               f'true rate on {TRUTH_TOPIC}, {v.cmd_t.size} {CMD_VEL_TOPIC} messages')
+    else:
+        ref = f'{run.ref_t.size if run.moving else 0} reference messages'
     return (f'{run.name}: {len(run)} IMU samples at {run.rate_hz:g} Hz ({span_h:.2f} h), '
             f'{run.temp_t.size} temperature readings {lo:.2f}..{hi:.2f} degC, '
-            f'{run.ref_t.size if run.moving else 0} reference messages, '
-            f'{seconds:.2f} s -> {path}')
+            f'{ref}, {seconds:.2f} s -> {path}')
 
 
 def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0,
@@ -216,6 +226,7 @@ def _move_aside(path: Path) -> Path:
 def _simulate_runs(sc, paths, shown, storage, seed, rate_hz, log, progress=False) -> None:
     """Simulate run k of ``sc`` into ``paths[k]`` (logged as ``shown[k]``)."""
     from gyro_tdc.bagio import write_bag
+    from gyro_tdc.bagio.motion import encode_twists, TWIST_TYPE
     from tqdm import tqdm
 
     bar = tqdm(total=len(paths), unit='run', desc='simulate', file=sys.stderr,
@@ -226,13 +237,18 @@ def _simulate_runs(sc, paths, shown, storage, seed, rate_hz, log, progress=False
         start = time.perf_counter()
         run = simulate_run(sc, seed=seed, run_index=index, rate_hz=rate_hz)
         accel_var = (np.asarray(sc.accel.noise_mps2_per_rt_hz) ** 2) * run.rate_hz
+        ref_topic, extra = '/rate_table/reference', []
+        ref_t, ref = (run.ref_t, run.ref) if run.moving else (None, None)
+        if run.vehicle is not None:      # no rate table: the true rate, for evaluation only
+            ref_topic, ref_t, ref = TRUTH_TOPIC, run.imu_t, run.ref
+            if run.vehicle.cmd_t.size:
+                extra = [(CMD_VEL_TOPIC, TWIST_TYPE, run.vehicle.cmd_t,
+                          encode_twists(run.vehicle.cmd))]
         write_bag(path, imu_t=run.imu_t, gyro=run.gyro, accel=run.accel, temp_t=run.temp_t,
-                  temp_c=run.temp_c, temp_var=run.temp_var,
-                  ref_t=run.ref_t if run.moving else None,
-                  ref=run.ref if run.moving else None, storage=storage,
-                  frame_id='imu_link', imu_topic='/imu/data_raw',
-                  temperature_topic='/imu/temperature', reference_topic='/rate_table/reference',
-                  gyro_cov=run.truth.noise_std ** 2, accel_cov=accel_var)
+                  temp_c=run.temp_c, temp_var=run.temp_var, ref_t=ref_t, ref=ref,
+                  storage=storage, frame_id='imu_link', imu_topic='/imu/data_raw',
+                  temperature_topic='/imu/temperature', reference_topic=ref_topic,
+                  gyro_cov=run.truth.noise_std ** 2, accel_cov=accel_var, extra=extra)
         log(_summary(run, name, time.perf_counter() - start))
         bar.update(1)
     bar.close()

@@ -27,6 +27,13 @@ the model gets its accelerometer part, reported the same way (BS before and afte
 (m/s^2)^2, coverage of the still data, orientation changes found and split at); ``--no-accel``
 skips it. Bad input (missing bag or topic, unreadable bag, too small a
 span, too few samples, unknown feature id, bad reference) exits 2 with one line on stderr.
+
+``--still-only`` trains from bags recorded in ordinary operation (no reference topic): only
+the still stretches count (:func:`gyro_tdc.field_training.train_still_only`; the thermal
+state still runs over every sample), ``--motion-topic`` vetoes stillness while a ``cmd_vel``
+or odometry topic reports motion, and the report adds the still time, its coverage per bin,
+the minutes heating and cooling while still, and what to record next. No still stretch, or
+too small a span of still temperatures, exits 2 with one line.
 """
 
 from __future__ import annotations
@@ -39,8 +46,11 @@ from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, co
 from gyro_tdc.cli.common import effect_listing
 from gyro_tdc.cli.common import finite_float, positive_float, positive_int, run_command
 from gyro_tdc.effects import normalise_ids
+from gyro_tdc.errors import GyroTdcError
+from gyro_tdc.field_training import train_still_only
 from gyro_tdc.model import KINDS
 from gyro_tdc.report import format_coverage, format_training
+from gyro_tdc.still import MIN_STILL_S
 from gyro_tdc.training import AUTO, train
 
 __all__ = ['add_train_options', 'build_parser', 'main', 'train_options']
@@ -61,6 +71,18 @@ def build_parser() -> argparse.ArgumentParser:
                         'parameter differs (default: none)')
     p.help_tail = effect_listing     # --help ends with the effect ids
     add_train_options(p)
+    g = p.add_argument_group('training from ordinary operation (no reference, no chamber)')
+    g.add_argument('--still-only', action='store_true',
+                   help='train on the still stretches only (bags recorded in normal '
+                        'operation: the rate is zero while still); the thermal state runs '
+                        'over every sample; no reference is read')
+    g.add_argument('--motion-topic', default='', metavar='TOPIC',
+                   help='with --still-only: a geometry_msgs/Twist (cmd_vel), TwistStamped or '
+                        'nav_msgs/Odometry topic; still only while it reports zero motion '
+                        '(rejects slow constant turns the IMU cannot tell from rest)')
+    g.add_argument('--min-still', type=positive_float, default=MIN_STILL_S, metavar='S',
+                   help='with --still-only: shortest still stretch kept, in s (default: '
+                        '%(default)s)')
     return p
 
 
@@ -135,12 +157,25 @@ def train_options(args: argparse.Namespace) -> dict:
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``train`` with parsed arguments; print the report."""
     opts = train_options(args)   # fails on a bad feature id before reading any bag
-    result = train(args.bags, out=args.out, command=command_line('train', argv),
-                   log=lambda line: print(line, flush=True), sensor_id=args.sensor_id, **opts)
+    if args.still_only:
+        for key in ('reference', 'reference_topic'):     # still: the rate is zero
+            opts.pop(key)
+        result = train_still_only(args.bags, out=args.out, command=command_line('train', argv),
+                                  log=lambda line: print(line, flush=True),
+                                  sensor_id=args.sensor_id, motion_topic=args.motion_topic,
+                                  min_still_s=args.min_still, **opts)
+    elif args.motion_topic:
+        raise GyroTdcError('--motion-topic: only with --still-only.')
+    else:
+        result = train(args.bags, out=args.out, command=command_line('train', argv),
+                       log=lambda line: print(line, flush=True), sensor_id=args.sensor_id,
+                       **opts)
     if result.choice is not None:
         print('\n'.join(result.choice.lines()))
     text, warns = format_training(result)
     print(text)
+    if result.still is not None:
+        print('\n'.join(result.still.lines()))
     if result.accel is not None:
         print('\n'.join(result.accel.lines()))
         fit = result.accel

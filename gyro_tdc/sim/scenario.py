@@ -84,6 +84,9 @@ sections and their defaults::
     runs:
       count: 1                    # a multi-run scenario yields several runs
       bias_offset_dps_std: 0.0    # run-to-run bias offset (drawn per run)
+    vehicle:                      # optional: a vehicle day instead of a chamber (see
+      start_parked_s: 1800.0      # gyro_tdc.sim.vehicle for every field and default);
+      drive_s: [600.0, 1800.0]    # the profile is then the ambient, the rate table empty
 
 An effect switched off contributes nothing whatever its coefficient; the ``lag`` switch
 turns ``thermal.tau_die_s`` on and off.
@@ -105,6 +108,7 @@ from gyro_tdc.sim import chamber
 from gyro_tdc.sim.schema import DEG, FORMAT_VERSION, merge, validate
 from gyro_tdc.sim.specs import AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsSpec
 from gyro_tdc.sim.specs import ThermalSpec, ThermometerSpec
+from gyro_tdc.sim.vehicle import VehicleSpec
 from gyro_tdc.yamlio import load_yaml, SCENARIO_LIMITS
 import yaml
 
@@ -167,6 +171,8 @@ class Scenario:
         Number of runs and run-to-run offsets.
     data : dict
         Normalised mapping (preset and defaults merged); ``to_dict()`` returns a copy.
+    vehicle : gyro_tdc.sim.vehicle.VehicleSpec or None
+        A vehicle day (drives, stops on slopes, self-heating) instead of a chamber.
 
     """
 
@@ -185,6 +191,7 @@ class Scenario:
     rate_table: RateTable
     runs: RunsSpec
     data: dict = field(repr=False)
+    vehicle: Optional[VehicleSpec] = None
 
     @classmethod
     def from_dict(cls, data: Mapping[str, Any], *, name: Optional[str] = None,

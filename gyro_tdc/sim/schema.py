@@ -35,6 +35,7 @@ from gyro_tdc.sim import chamber
 from gyro_tdc.sim.presets import PRESETS
 from gyro_tdc.sim.specs import AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsSpec
 from gyro_tdc.sim.specs import ThermalSpec, ThermometerSpec, Vec3
+from gyro_tdc.sim.vehicle import vehicle_spec
 import numpy as np
 
 __all__ = ['DEFAULTS', 'DEG', 'FORMAT_VERSION', 'merge', 'validate']
@@ -103,7 +104,7 @@ _SECTIONS: dict[str, dict[str, str]] = {
     'runs': {'count': 'count', 'bias_offset_dps_std': 'axis_nonneg'},
 }
 _TOP = ('format_version', 'name', 'description', 'sensor', 'imu_rate_hz', 'duration_s',
-        'profile', 'rate_table') + tuple(_SECTIONS)
+        'profile', 'rate_table') + tuple(_SECTIONS) + ('vehicle',)
 _SEGMENTS: dict[str, tuple[str, ...]] = {
     'hold': ('duration_s',),
     'ramp': ('to_c', 'rate_c_per_h'),
@@ -409,6 +410,14 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
         raise chk.fail('thermometer.rate_hz', f'at least one reading in {duration:g} s',
                        thermometer_rate)
 
+    # Optional vehicle day (gyro_tdc.sim.vehicle): normalised over its defaults when present.
+    vehicle = None
+    if merged.get('vehicle') is not None:
+        vehicle = vehicle_spec(chk, merged['vehicle'])
+        merged['vehicle'] = vehicle.to_dict()
+    else:
+        merged.pop('vehicle', None)
+
     gyro_vals = dict(values['gyro'])
     effects = gyro_vals.pop('effects')
     gyro = GyroSpec(effects=tuple(k for k in EFFECT_IDS if effects[k]), **gyro_vals)
@@ -419,4 +428,4 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
         thermometer=ThermometerSpec(**values['thermometer']),
         gyro=gyro, noise=NoiseSpec(**values['noise']), accel=AccelSpec(**values['accel']),
         rate_table=_rate_table(chk, merged.get('rate_table')),
-        runs=RunsSpec(**values['runs']), data=merged)
+        runs=RunsSpec(**values['runs']), data=merged, vehicle=vehicle)

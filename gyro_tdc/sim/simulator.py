@@ -46,6 +46,7 @@ from gyro_tdc.runs import Run
 from gyro_tdc.sim.noise import gauss_markov, quantise, random_walk, white_noise
 from gyro_tdc.sim.scenario import DEG, EFFECT_IDS, load_scenario, Scenario
 from gyro_tdc.sim.thermal import simulate_thermal, ThermalHistory
+from gyro_tdc.sim.vehicle import heated_profile, plan_legs, vehicle_motion, VehicleMotion
 import numpy as np
 from numpy.typing import NDArray
 
@@ -56,7 +57,8 @@ ScenarioLike = Union[Scenario, str, 'os.PathLike[str]', Mapping[str, Any]]
 
 # Child random streams of one run, in SeedSequence.spawn order.
 # Appending a stream leaves the earlier ones (and so every earlier run) unchanged.
-_STREAMS = ('offset', 'white', 'bias_instability', 'rrw', 'accel', 'thermometer', 'tilt')
+_STREAMS = ('offset', 'white', 'bias_instability', 'rrw', 'accel', 'thermometer', 'tilt',
+            'vehicle')
 #: Standard gravity: one g in m/s^2 (the unit of the accelerometer's mg coefficients).
 G0 = 9.80665
 
@@ -177,6 +179,9 @@ class SimRun:
         Index of this run (0-based).
     rate_hz : float, Hz
         IMU rate.
+    vehicle : gyro_tdc.sim.vehicle.VehicleMotion, optional
+        A vehicle day's schedule, motion and commanded motion (``ref`` is then the true
+        body rate at every IMU stamp, never a rate table).
 
     """
 
@@ -194,6 +199,7 @@ class SimRun:
     seed: int = 0
     run_index: int = 0
     rate_hz: float = 0.0
+    vehicle: Optional[VehicleMotion] = field(default=None, repr=False)
 
     def __len__(self) -> int:
         """Return the number of IMU samples."""
@@ -294,10 +300,16 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     on = {k: k in g.effects for k in EFFECT_IDS}
     tau_die = sc.thermal.tau_die_s if on['lag'] else 0.0
     duration = sc.duration_s
+    # A vehicle day: the schedule first; the set point is the ambient plus self-heating.
+    profile, legs, heating = sc.profile, None, None
+    if sc.vehicle is not None:
+        vehicle_rng = rng('vehicle')
+        legs = plan_legs(sc.vehicle, duration, vehicle_rng)
+        profile, heating = heated_profile(sc.profile, sc.vehicle, legs, duration)
 
     # Thermal chain on the internal grid, then onto the IMU stamps.
     thermal = simulate_thermal(
-        sc.profile, duration_s=duration, dt=sc.thermal.internal_step_s,
+        profile, duration_s=duration, dt=sc.thermal.internal_step_s,
         tau_air_s=sc.thermal.tau_air_s, tau_package_s=sc.thermal.tau_package_s,
         tau_die_s=tau_die, thermometer_location=sc.thermometer.location,
         thermometer_tau_s=sc.thermometer.tau_s)
@@ -329,6 +341,11 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     ref_t, ref = ref_t[keep], ref[keep]
     idx = np.searchsorted(ref_t, imu_t, side='right') - 1
     omega_ref = ref[idx]
+    motion = None
+    if legs is not None:     # the vehicle's true body rate replaces the rate table
+        motion = vehicle_motion(sc.vehicle, legs, imu_t, vehicle_rng,
+                                gravity_mps2=sc.accel.gravity_mps2, heating=heating)
+        ref_t, ref, omega_ref = imu_t, motion.rate, motion.rate
     poly = np.stack((d_t, d_t * d_t, d_t * d_t * d_t), axis=1)            # (N, 3 powers)
     weights = np.stack((coefficients['dT'], coefficients['dT2'], coefficients['dT3']))
     drift = poly @ weights                                                # (N, 3 axes)
@@ -359,7 +376,8 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     step = g.sensitivity_mdps_per_digit * 1e-3 * DEG if g.quantise else 0.0
     quantise(gyro, step, limit=g.range_dps * DEG)
 
-    acc = _accelerometer(sc.accel, rng('accel'), rng('tilt'), imu_t, d_t, rate)
+    acc = _accelerometer(sc.accel, rng('accel'), rng('tilt'), imu_t, d_t, rate,
+                         force=None if motion is None else motion.force)
     accel = acc.pop('accel')
 
     # Thermometer at its own rate.
@@ -386,7 +404,8 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     name = sc.name if sc.runs.count == 1 else f'{sc.name}/run{run_index + 1}'
     return SimRun(name=name, imu_t=imu_t, gyro=gyro, accel=accel, temp_t=temp_t,
                   temp_c=temp_c, temp_var=float(temp_var), ref_t=ref_t, ref=ref, truth=truth,
-                  scenario=sc.name, seed=seed, run_index=run_index, rate_hz=rate)
+                  scenario=sc.name, seed=seed, run_index=run_index, rate_hz=rate,
+                  vehicle=motion)
 
 
 def gravity_vector(gravity_mps2: float, roll_deg: float, pitch_deg: float
@@ -413,14 +432,15 @@ def gravity_vector(gravity_mps2: float, roll_deg: float, pitch_deg: float
 
 
 def _accelerometer(spec: Any, noise_rng: np.random.Generator, tilt_rng: np.random.Generator,
-                   imu_t: NDArray[np.float64], d_t: NDArray[np.float64], rate: float
-                   ) -> dict[str, Any]:
+                   imu_t: NDArray[np.float64], d_t: NDArray[np.float64], rate: float, *,
+                   force: Optional[NDArray[np.float64]] = None) -> dict[str, Any]:
     """
     Simulate the accelerometer of one run: its output and the truth fields of SimTruth.
 
     ``d_t`` is the die temperature minus the reference (degC) at the IMU stamps. The white
     noise draws from ``noise_rng`` exactly as before the accelerometer physics existed, so
-    a scenario without tilt, offsets and digits gives the same output as then.
+    a scenario without tilt, offsets and digits gives the same output as then. ``force``
+    (a vehicle day's specific force, N x 3) replaces gravity at the fixed tilt.
     """
     n = imu_t.size
     accel = white_noise(noise_rng, n, density=spec.noise_mps2_per_rt_hz, rate_hz=rate)
@@ -435,7 +455,10 @@ def _accelerometer(spec: Any, noise_rng: np.random.Generator, tilt_rng: np.rando
     thermal = (d_t[:, None] * coefficients['dT'] + (d_t * d_t)[:, None] * coefficients['dT2'])
     offset = thermal + coefficients['bias']
     reorient = float(spec.reorient_at_s)
-    if reorient > 0.0:
+    if force is not None:
+        accel += force
+        g_before, g_after, reorient = force[0], force[-1], 0.0
+    elif reorient > 0.0:
         k = int(np.searchsorted(imu_t, reorient, side='left'))
         accel[:k] += g_before
         accel[k:] += g_after

@@ -1,0 +1,448 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Vehicle scenarios: a day of ordinary operation instead of a thermal chamber.
+
+A scenario with a ``vehicle:`` section (``config/scenarios/vehicle_day1.yaml``) simulates an
+IMU on a vehicle that drives and parks through a day, with no rate table and no reference
+topic (``simulate`` writes the true rate under :data:`TRUTH_TOPIC`, for evaluation only):
+
+* **the ambient** is the scenario's ``profile`` (the daily cycle; a compressed day is a
+  shorter profile); **self-heating** while driving adds ``self_heating_c`` to it through a
+  first-order rise and fall of ``self_heating_tau_s`` (engine, electronics, sun on the
+  body), so the IMU warms on every drive and cools on every stop; the sum drives the
+  scenario's thermal chain (air -> package -> die) like a chamber's set point;
+* **the day** starts parked (``start_parked_s``, long enough for start-up re-anchoring),
+  then alternates drives (``drive_s``: shortest and longest, drawn uniformly) and stops
+  (``park_s``) until the profile ends;
+* **parked** the vehicle is still on a slope (roll and pitch drawn per stop, standard
+  deviation ``slope_deg``): rate zero, gravity tilted in the sensor frame;
+* **driving** it speeds up at ``accel_mps2`` to ``speed_mps``, brakes to a stop at the end,
+  and in between alternates straight stretches (``straight_s``) and constant-rate turns
+  (``turn_s`` long at ``turn_rate_dps``, 1 s ramps, either sign) about the vertical; it
+  leaves the previous slope and reaches the next over ``slope_change_s``; road and engine
+  vibration adds white rate (``vibration_dps``) and acceleration (``vibration_mps2``) noise
+  scaled by the speed. The body rates follow the Euler kinematics of yaw, pitch and roll;
+  the specific force is gravity in the sensor frame plus the longitudinal and centripetal
+  accelerations (in the level frame: the slopes are small);
+* **cmd_vel**: with ``cmd_vel_rate_hz`` > 0, ``simulate`` also writes the commanded motion
+  as ``geometry_msgs/Twist`` on :data:`CMD_VEL_TOPIC` (linear.x the commanded speed,
+  angular.z the commanded yaw rate, zero while parked), the motion veto of
+  ``train --still-only --motion-topic``.
+
+The gyro and accelerometer error models, noise and thermometer are the scenario's own
+sections (a sensor preset), exactly as in the chamber: only the temperature input and the
+motion differ. Random draws (schedule, slopes, manoeuvres, vibration) come from the run's
+``vehicle`` stream, so the other streams and every chamber scenario are unchanged.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, fields
+import math
+from typing import Any
+
+from gyro_tdc.effects import first_order_lag
+from gyro_tdc.sim.chamber import Profile
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['CMD_VEL_TOPIC', 'Leg', 'TRUTH_TOPIC', 'VEHICLE_DEFAULTS', 'VehicleMotion',
+           'VehicleSpec', 'gravity_in_sensor', 'heated_profile', 'plan_legs', 'vehicle_motion',
+           'vehicle_spec']
+
+#: Topic of the true body rate in simulated vehicle bags (evaluation only, never trained on).
+TRUTH_TOPIC = '/truth/angular_velocity'
+#: Topic of the commanded motion (geometry_msgs/Twist) in simulated vehicle bags.
+CMD_VEL_TOPIC = '/cmd_vel'
+_DEG = math.pi / 180.0
+
+#: Defaults of the ``vehicle:`` section (units in the keys).
+VEHICLE_DEFAULTS: dict = {
+    'start_parked_s': 1800.0,
+    'drive_s': [600.0, 1800.0],
+    'park_s': [600.0, 3000.0],
+    'slope_deg': 4.0,
+    'slope_change_s': 10.0,
+    'speed_mps': 10.0,
+    'accel_mps2': 1.5,
+    'straight_s': [5.0, 60.0],
+    'turn_s': [3.0, 20.0],
+    'turn_rate_dps': [2.0, 20.0],
+    'vibration_dps': 0.5,
+    'vibration_mps2': 0.8,
+    'self_heating_c': 10.0,
+    'self_heating_tau_s': 900.0,
+    'cmd_vel_rate_hz': 5.0,
+}
+# Field kinds: 'nonneg' >= 0, 'pos' > 0, 'range' [low, high] with 0 <= low <= high,
+# 'prange' the same with low > 0.
+_KINDS = {'start_parked_s': 'nonneg', 'drive_s': 'prange', 'park_s': 'prange',
+          'slope_deg': 'nonneg', 'slope_change_s': 'pos', 'speed_mps': 'pos',
+          'accel_mps2': 'pos', 'straight_s': 'prange', 'turn_s': 'prange',
+          'turn_rate_dps': 'range', 'vibration_dps': 'nonneg', 'vibration_mps2': 'nonneg',
+          'self_heating_c': 'num', 'self_heating_tau_s': 'pos', 'cmd_vel_rate_hz': 'nonneg'}
+#: Grid step of the heated set point, s (the self-heating moves over minutes).
+_HEAT_STEP_S = 5.0
+#: Ramp of a turn's yaw rate in and out, s.
+_TURN_RAMP_S = 1.0
+
+
+@dataclass(frozen=True)
+class VehicleSpec:
+    """
+    The ``vehicle:`` section of a scenario (see the module docstring for every field).
+
+    Durations in s, rates in deg/s, slopes in deg, speeds in m/s, accelerations in m/s^2,
+    temperatures in degC, ranges as ``(low, high)``.
+    """
+
+    start_parked_s: float
+    drive_s: tuple[float, float]
+    park_s: tuple[float, float]
+    slope_deg: float
+    slope_change_s: float
+    speed_mps: float
+    accel_mps2: float
+    straight_s: tuple[float, float]
+    turn_s: tuple[float, float]
+    turn_rate_dps: tuple[float, float]
+    vibration_dps: float
+    vibration_mps2: float
+    self_heating_c: float
+    self_heating_tau_s: float
+    cmd_vel_rate_hz: float
+
+    def to_dict(self) -> dict:
+        """Return the section as plain YAML-safe types."""
+        return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
+                for f in fields(self)}
+
+
+def vehicle_spec(chk: Any, raw: Any) -> VehicleSpec:
+    """
+    Validate a ``vehicle:`` mapping over :data:`VEHICLE_DEFAULTS`.
+
+    Parameters
+    ----------
+    chk : object
+        The scenario schema's field checker (``mapping``, ``num`` and ``fail`` methods, one
+        ScenarioError naming the field).
+    raw : Any
+        The section as read.
+
+    Returns
+    -------
+    VehicleSpec
+        The typed section.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the first bad field.
+
+    """
+    body = dict(VEHICLE_DEFAULTS, **chk.mapping('vehicle', raw, tuple(VEHICLE_DEFAULTS)))
+    out: dict[str, Any] = {}
+    for key, kind in _KINDS.items():
+        path, x = f'vehicle.{key}', body[key]
+        if kind in ('range', 'prange'):
+            ok = (isinstance(x, (list, tuple)) and len(x) == 2
+                  and all(chk._is_num(e) for e in x))
+            lo, hi = (float(x[0]), float(x[1])) if ok else (0.0, 0.0)
+            if not ok or lo < 0.0 or hi < lo or (kind == 'prange' and lo <= 0.0):
+                low = '0 < low' if kind == 'prange' else '0 <= low'
+                raise chk.fail(path, f'[low, high] with {low} <= high', x)
+            out[key] = (lo, hi)
+        elif kind == 'num':
+            out[key] = chk.num(path, x)
+        else:
+            out[key] = chk.num(path, x, low=0.0, strict=kind == 'pos')
+    return VehicleSpec(**out)
+
+
+@dataclass(frozen=True)
+class Leg:
+    """
+    One part of the day: parked or driving.
+
+    Parameters
+    ----------
+    kind : str
+        ``'park'`` or ``'drive'``.
+    t0_s, t1_s : float, s
+        Start and end.
+    roll_deg, pitch_deg : float, deg
+        The slope parked on (a park), or reached at the end (a drive).
+
+    """
+
+    kind: str
+    t0_s: float
+    t1_s: float
+    roll_deg: float
+    pitch_deg: float
+
+
+def plan_legs(spec: VehicleSpec, duration_s: float, rng: np.random.Generator
+              ) -> tuple[Leg, ...]:
+    """
+    Draw the day's schedule: parked first, then drives and stops until ``duration_s``.
+
+    Parameters
+    ----------
+    spec : VehicleSpec
+        The vehicle section.
+    duration_s : float, s
+        Length of the day.
+    rng : numpy.random.Generator
+        The run's ``vehicle`` stream.
+
+    Returns
+    -------
+    tuple of Leg
+        In time order, covering ``[0, duration_s]`` (the last one cut at the end).
+
+    """
+    legs = []
+
+    def slope() -> tuple[float, float]:
+        r, p = rng.standard_normal(2) * spec.slope_deg
+        return float(r), float(p)
+
+    t = 0.0
+    roll, pitch = slope()
+    legs.append(Leg('park', 0.0, min(spec.start_parked_s, duration_s), roll, pitch))
+    t = legs[-1].t1_s
+    while t < duration_s:
+        d = float(rng.uniform(*spec.drive_s))
+        roll, pitch = slope()
+        legs.append(Leg('drive', t, min(t + d, duration_s), roll, pitch))
+        t = legs[-1].t1_s
+        if t >= duration_s:
+            break
+        p = float(rng.uniform(*spec.park_s))
+        legs.append(Leg('park', t, min(t + p, duration_s), roll, pitch))
+        t = legs[-1].t1_s
+    return tuple(legs)
+
+
+def _driving(legs: tuple[Leg, ...], t: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Return True at the times inside a drive."""
+    out = np.zeros(t.shape[0], dtype=bool)
+    for leg in legs:
+        if leg.kind == 'drive':
+            out |= (t >= leg.t0_s) & (t < leg.t1_s)
+    return out
+
+
+def heated_profile(ambient: Profile, spec: VehicleSpec, legs: tuple[Leg, ...],
+                   duration_s: float) -> tuple[Profile, Profile]:
+    """
+    Return the set point of the thermal chain: the ambient plus the self-heating.
+
+    Parameters
+    ----------
+    ambient : Profile
+        The scenario's profile (the daily ambient cycle).
+    spec : VehicleSpec
+        The vehicle section.
+    legs : tuple of Leg
+        The day's schedule.
+    duration_s : float, s
+        Length of the day.
+
+    Returns
+    -------
+    setpoint, heating : Profile
+        The heated set point and the self-heating alone (degC above ambient), on a
+        :data:`_HEAT_STEP_S` grid.
+
+    """
+    n = int(math.ceil(duration_s / _HEAT_STEP_S)) + 1
+    t = np.arange(n, dtype=np.float64) * _HEAT_STEP_S
+    drive = _driving(legs, t).astype(np.float64) * spec.self_heating_c
+    heat = first_order_lag(_HEAT_STEP_S, drive, spec.self_heating_tau_s, hold='step', y0=0.0)
+    return Profile(t, ambient.value(t) + heat), Profile(t, heat)
+
+
+def gravity_in_sensor(gravity_mps2: float, roll_deg: NDArray[np.float64],
+                      pitch_deg: NDArray[np.float64]) -> NDArray[np.float64]:
+    """
+    Return the specific force of gravity in the sensor frame for arrays of roll and pitch.
+
+    The convention of :func:`gyro_tdc.sim.simulator.gravity_vector` (``(0, 0, g)`` level),
+    vectorised: shape (N, 3), m/s^2.
+    """
+    r, p = np.radians(roll_deg), np.radians(pitch_deg)
+    return gravity_mps2 * np.stack([-np.sin(p), np.sin(r) * np.cos(p), np.cos(r) * np.cos(p)],
+                                   axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class VehicleMotion:
+    """
+    The motion of a simulated vehicle day at the IMU stamps (what a real day does not record).
+
+    Parameters
+    ----------
+    legs : tuple of Leg
+        The schedule.
+    rate : NDArray[np.float64], shape (N,), 3), rad/s
+        True body rate (manoeuvres, slope changes, vibration).
+    force : NDArray[np.float64], shape (N, 3), m/s^2
+        Specific force: gravity in the sensor frame plus the vehicle's acceleration.
+    speed : NDArray[np.float64], shape (N,), m/s
+        Speed.
+    roll_deg, pitch_deg : NDArray[np.float64], shape (N,), deg
+        Attitude.
+    parked : NDArray[np.bool_], shape (N,)
+        Samples where the vehicle is parked (still).
+    heating_c : NDArray[np.float64], shape (N,), degC
+        Self-heating above the ambient.
+    cmd_t : NDArray[np.float64], shape (M,), s
+        Stamps of the commanded motion (empty without cmd_vel).
+    cmd : NDArray[np.float64], shape (M, 6)
+        Twist components: linear x, y, z (m/s), angular x, y, z (rad/s).
+
+    """
+
+    legs: tuple
+    rate: NDArray[np.float64]
+    force: NDArray[np.float64]
+    speed: NDArray[np.float64]
+    roll_deg: NDArray[np.float64]
+    pitch_deg: NDArray[np.float64]
+    parked: NDArray[np.bool_]
+    heating_c: NDArray[np.float64]
+    cmd_t: NDArray[np.float64]
+    cmd: NDArray[np.float64]
+
+
+def _drive_profile(spec: VehicleSpec, leg: Leg, rng: np.random.Generator
+                   ) -> tuple[list[float], list[float], list[float], list[float]]:
+    """Return the knots (t, speed) and (t, yaw rate rad/s) of one drive."""
+    d = leg.t1_s - leg.t0_s
+    ramp = spec.speed_mps / spec.accel_mps2
+    if 2.0 * ramp > d:
+        ramp = 0.5 * d
+    vmax = spec.accel_mps2 * ramp
+    vt = [leg.t0_s, leg.t0_s + ramp, leg.t1_s - ramp, leg.t1_s]
+    vv = [0.0, vmax, vmax, 0.0]
+    yt, yv = [leg.t0_s], [0.0]
+    t = leg.t0_s + ramp
+    end = leg.t1_s - ramp
+    while True:
+        t += float(rng.uniform(*spec.straight_s))
+        dur = float(rng.uniform(*spec.turn_s))
+        if t + dur + 2.0 * _TURN_RAMP_S >= end:
+            break
+        sign = 1.0 if rng.random() < 0.5 else -1.0
+        w = float(rng.uniform(*spec.turn_rate_dps)) * _DEG * sign
+        yt += [t, t + _TURN_RAMP_S, t + _TURN_RAMP_S + dur, t + 2.0 * _TURN_RAMP_S + dur]
+        yv += [0.0, w, w, 0.0]
+        t += 2.0 * _TURN_RAMP_S + dur
+    yt.append(leg.t1_s)
+    yv.append(0.0)
+    return vt, vv, yt, yv
+
+
+def _pl(tk: list[float], vk: list[float], t: NDArray[np.float64]
+        ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return a piecewise-linear function through knots and its slope at ``t``."""
+    tk_a, vk_a = np.asarray(tk, dtype=np.float64), np.asarray(vk, dtype=np.float64)
+    value = np.interp(t, tk_a, vk_a)
+    dt = np.diff(tk_a)
+    slopes = np.where(dt > 0.0, np.diff(vk_a) / np.where(dt > 0.0, dt, 1.0), 0.0)
+    i = np.clip(np.searchsorted(tk_a, t, side='right') - 1, 0, max(slopes.size - 1, 0))
+    inside = (t >= tk_a[0]) & (t < tk_a[-1])
+    return value, np.where(inside, slopes[i] if slopes.size else 0.0, 0.0)
+
+
+def vehicle_motion(spec: VehicleSpec, legs: tuple[Leg, ...], imu_t: NDArray[np.float64],
+                   rng: np.random.Generator, *, gravity_mps2: float,
+                   heating: Profile) -> VehicleMotion:
+    """
+    Simulate the vehicle's motion at the IMU stamps.
+
+    Parameters
+    ----------
+    spec : VehicleSpec
+        The vehicle section.
+    legs : tuple of Leg
+        The schedule (:func:`plan_legs`).
+    imu_t : NDArray[np.float64], shape (N,), s
+        IMU stamps.
+    rng : numpy.random.Generator
+        The run's ``vehicle`` stream (after :func:`plan_legs`).
+    gravity_mps2 : float, m/s^2
+        Gravity (the accelerometer section's).
+    heating : Profile
+        The self-heating (:func:`heated_profile`).
+
+    Returns
+    -------
+    VehicleMotion
+        Rates, specific force, speed, attitude and the commanded motion.
+
+    """
+    t = np.asarray(imu_t, dtype=np.float64)
+    vt, vv, yt, yv = [0.0], [0.0], [0.0], [0.0]
+    at, ar, ap = [0.0], [legs[0].roll_deg], [legs[0].pitch_deg]
+    change = spec.slope_change_s
+    for prev, leg in zip((None,) + legs[:-1], legs):
+        if leg.kind != 'drive':
+            continue
+        k_vt, k_vv, k_yt, k_yv = _drive_profile(spec, leg, rng)
+        vt += k_vt
+        vv += k_vv
+        yt += k_yt
+        yv += k_yv
+        d = leg.t1_s - leg.t0_s
+        c = min(change, 0.5 * d)
+        r0, p0 = (prev.roll_deg, prev.pitch_deg) if prev is not None else (0.0, 0.0)
+        at += [leg.t0_s, leg.t0_s + c, leg.t1_s - c, leg.t1_s]
+        ar += [r0, 0.0, 0.0, leg.roll_deg]
+        ap += [p0, 0.0, 0.0, leg.pitch_deg]
+    speed, dspeed = _pl(vt, vv, t)
+    yaw_rate, _ = _pl(yt, yv, t)
+    roll, droll = _pl(at, ar, t)
+    pitch, dpitch = _pl(at, ap, t)
+    phi, th = np.radians(roll), np.radians(pitch)
+    dphi, dth = np.radians(droll), np.radians(dpitch)
+    # Euler (yaw-pitch-roll) kinematics: body rates from the attitude rates.
+    rate = np.stack([dphi - yaw_rate * np.sin(th),
+                     dth * np.cos(phi) + yaw_rate * np.sin(phi) * np.cos(th),
+                     -dth * np.sin(phi) + yaw_rate * np.cos(phi) * np.cos(th)], axis=1)
+    force = gravity_in_sensor(gravity_mps2, roll, pitch)
+    force[:, 0] += dspeed
+    force[:, 1] += speed * yaw_rate
+    shake = np.clip(speed / spec.speed_mps, 0.0, 1.0)[:, None]
+    n = t.shape[0]
+    rate += rng.standard_normal((n, 3)) * (spec.vibration_dps * _DEG) * shake
+    force += rng.standard_normal((n, 3)) * spec.vibration_mps2 * shake
+    driving = _driving(legs, t)
+    if spec.cmd_vel_rate_hz > 0.0 and n:
+        duration = float(t[-1]) + (float(t[1] - t[0]) if n > 1 else 0.0)
+        cmd_t = np.arange(int(math.ceil(duration * spec.cmd_vel_rate_hz - 1e-9)),
+                          dtype=np.float64) / spec.cmd_vel_rate_hz
+        cmd = np.zeros((cmd_t.size, 6))
+        cmd[:, 0] = _pl(vt, vv, cmd_t)[0]
+        cmd[:, 5] = _pl(yt, yv, cmd_t)[0]
+    else:
+        cmd_t, cmd = np.zeros(0), np.zeros((0, 6))
+    return VehicleMotion(legs=legs, rate=rate, force=force, speed=speed, roll_deg=roll,
+                         pitch_deg=pitch, parked=~driving, heating_c=heating.value(t),
+                         cmd_t=cmd_t, cmd=cmd)
