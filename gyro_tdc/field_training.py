@@ -380,7 +380,9 @@ def train_still_only(bags: Sequence[str | os.PathLike], *, out: str | os.PathLik
     check_centers(n_centers)
     check_bin_width(bin_c)
     if runs is None:
-        runs = load_runs(bags, log=log, imu_topic=imu_topic,
+        said = None if log is None else (lambda line: log(line.replace(
+            'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
+        runs = load_runs(bags, log=said, imu_topic=imu_topic,
                          temperature_topic=temperature_topic, reference=(0.0, 0.0, 0.0),
                          progress=progress, max_loss=max_loss, accel=bool(accel))
         if motion_topic:
