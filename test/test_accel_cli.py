@@ -83,7 +83,7 @@ def test_train_fits_and_reports_the_accelerometer_part(bags, tmp_path, capsys):
     text = capsys.readouterr().out
     assert 'accelerometer: rbf f(dT, dT2) of the thermal state shared with the gyro' in text
     assert 'accelerometer bias stability BS' in text and 'change/degC' in text
-    assert "accelerometer coverage: the gyro's (every sample still)" in text
+    assert "accelerometer coverage: the gyro's (100 % of the samples still)" in text
     model = load_model(out)
     assert model.accel is not None and model.accel.thermal == model.thermal
     raw = model.accel.metrics['raw_bs_m2_s4']

@@ -26,13 +26,12 @@ settled), so the compensated specific force at T0 equals the raw one; the static
 the gravity direction belong to the ordinary accelerometer calibration.
 
 **Static data only.** Gravity dominates the accelerometer, so its offset can be learnt only
-while the IMU is still with a fixed orientation. :func:`static_data` cuts a run into windows
-of :data:`gyro_tdc.stillness.STILL_WINDOW_S` (at least :data:`MIN_WINDOW_SAMPLES` samples)
-and keeps the still ones, with the thresholds of the stillness detector
-(:mod:`gyro_tdc.stillness`): the raw rate's and the acceleration's per-axis standard
-deviation at most :data:`~gyro_tdc.stillness.NOISE_FACTOR` times the quietest window's, a
-zero reference rate (a turning rate table is not static), and with a gyro model the mean
-compensated rate at most ``max_rate``. In a thermal chamber the whole run is still.
+while the IMU is still with a fixed orientation. :func:`static_data` keeps the still windows
+of the one still test (:func:`gyro_tdc.still.detect_still`): the raw rate's and the
+acceleration's per-axis scatter within the noise, a zero reference rate (a turning rate table
+is not static) and, when a gyro model is given, its mean compensated rate at most
+``max_rate`` (:func:`fit_accel` gives none: a poor gyro model would reject still data). In
+a thermal chamber the whole run is still.
 
 **Orientation.** The orientation must stay fixed: between consecutive still windows the
 mean specific force is compared with the local trend; a jump beyond :data:`JUMP_SIGMAS`

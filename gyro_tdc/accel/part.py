@@ -198,8 +198,8 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     runs : sequence of Run
         Training runs (those without ``accel`` data are skipped).
     model : CompensationModel
-        The gyro model (format 2): its thermal state, T0 and sensor ids are shared; it also
-        judges stillness (mean compensated rate).
+        The gyro model (format 2): its thermal state, T0 and sensor ids are shared. It does
+        not judge stillness (a model still being judged would reject still data).
     features : str or sequence of str, optional
         See :func:`accel_features`.
     kind : str, optional
@@ -228,7 +228,9 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
         raise FeatureError(f'Expected `kind` to be one of {", ".join(KINDS)}, got {kind!r}.')
     if n_centers is None:
         n_centers = max(model.n_centers, 1)
-    datas = [static_data(r, model=model) for r in runs]
+    # No prior rate: a model still being judged (a conventional f(dT) leaves degrees per
+    # second) would reject still data; the scatter, reference and accelerometer decide.
+    datas = [static_data(r) for r in runs]
     with_acc = [(r, d) for r, d in zip(runs, datas) if d is not None]
     out = AccelFit(None, static=datas, total=sum(len(r) for r, _ in with_acc))
     if not with_acc:

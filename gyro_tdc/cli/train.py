@@ -180,8 +180,10 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         print('\n'.join(result.accel.lines()))
         fit = result.accel
         if fit.part is not None and fit.coverage is not None:
-            if fit.samples == result.samples:
-                print("accelerometer coverage: the gyro's (every sample still)")
+            share = fit.samples / max(result.samples, 1)
+            if share >= 0.99:          # a chamber run: still throughout
+                print(f"accelerometer coverage: the gyro's ({100.0 * share:.4g} % of the "
+                      'samples still)')
             else:
                 table, accel_warns = format_coverage(fit.coverage)
                 print('accelerometer coverage (still data):\n' + table)
