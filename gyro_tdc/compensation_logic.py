@@ -34,7 +34,11 @@ shown on /diagnostics :mod:`gyro_tdc.health`):
   ``linear`` the more, the farther);
 * start-up re-anchoring: once the gyro is still, the compensated rate is averaged until its
   mean is known to ``reanchor_tolerance`` (:mod:`gyro_tdc.stillness`), and the model's
-  offset is shifted so that it averages zero.
+  offset is shifted so that it averages zero;
+* a model with an accelerometer part (``model.accel``) also corrects the specific force of
+  each sample that carries one, with the same temperature, the same policies and the same
+  variances (read in (m/s^2)^2) added to the accelerometer residual variance; the result is
+  left in :attr:`CompensatorCore.accel_out` and :attr:`CompensatorCore.accel_var`.
 """
 
 from __future__ import annotations
@@ -46,8 +50,8 @@ import math
 from typing import Iterable, NamedTuple, Sequence
 
 from gyro_tdc.effects import STATIC_EFFECTS
-from gyro_tdc.health import (FLAG_NAMES, NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
-                             PASSTHROUGH, STALE)
+from gyro_tdc.health import (FLAG_NAMES, NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
+                             OUT_OF_RANGE, PASSTHROUGH, STALE)
 from gyro_tdc.model import CompensationModel, StreamingCompensator
 from gyro_tdc.out_of_range import (DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C,
                                    OUT_OF_RANGE_POLICIES, variance_growth)
@@ -291,6 +295,13 @@ class PreparedModel(NamedTuple):
     replay: Replay | None
 
 
+def _advance(comp: StreamingCompensator, t: float, temp: float) -> None:
+    """Advance ``comp``'s filters (and its accelerometer part's) to ``t``."""
+    comp.drift(t, temp)
+    if comp.accel is not None:
+        comp.accel.drift(t, temp)
+
+
 def _replay(comp: StreamingCompensator, history: Iterable[tuple[float, float]], until: float,
             state: Replay) -> Replay:
     """Advance ``comp`` over thermometer samples later than ``state.t_seen`` up to ``until``."""
@@ -301,7 +312,7 @@ def _replay(comp: StreamingCompensator, history: Iterable[tuple[float, float]], 
         if t_k > until:
             break
         if t_k > t_prev:
-            comp.drift(t_k, temp_prev)
+            _advance(comp, t_k, temp_prev)
             t_prev = t_k
         temp_prev = temp_k
         t_seen = t_k
@@ -311,7 +322,7 @@ def _replay(comp: StreamingCompensator, history: Iterable[tuple[float, float]], 
 def _replay_from_first(comp: StreamingCompensator, first: tuple[float, float],
                        history: Iterable[tuple[float, float]], until: float) -> Replay:
     """Start ``comp`` at the first compensated sample and replay the history up to ``until``."""
-    comp.drift(*first)
+    _advance(comp, *first)
     return _replay(comp, history, until, Replay(first[0], first[1], -math.inf))
 
 
@@ -395,6 +406,18 @@ class CompensatorCore:
                                            window_max=policy.still_window_max,
                                            tolerance=policy.reanchor_tolerance)
         self.last_distance_c = 0.0
+        #: The model has an accelerometer part: :meth:`process` then sets ``accel_out`` (the
+        #: corrected specific force, None: leave it as it is) and ``accel_var`` (to add to the
+        #: linear_acceleration_covariance diagonal, None: leave it) for every sample.
+        self.accel_on = False
+        self.accel_out: Vec3 | None = None
+        self.accel_var: Vec3 | None = None
+        #: Flags of the last sample's accelerometer (``PASSTHROUGH`` with why;
+        #: ``NO_ACCEL_DATA``: the sample had none); -1 before any.
+        self.accel_flags = -1
+        self.accel_counts = {'compensated': 0, 'passed through': 0, 'missing': 0}
+        self._acomp: StreamingCompensator | None = None
+        self._acache: dict[float, tuple] = {}
         self.model: CompensationModel | None = None
         self.model_id = ''
         self._comp: StreamingCompensator | None = None
@@ -419,6 +442,7 @@ class CompensatorCore:
         """
         if model is None:
             self.model, self._comp = None, None
+            self._accel_tables(None, None)
             return
         self.install(prepare(model, self.policy, self.priming()))
 
@@ -457,8 +481,8 @@ class CompensatorCore:
                     tail.append(entry)
                 state = _replay(comp, reversed(tail), self.last_t, state)
             if self.last_t > state.t_prev:
-                comp.drift(self.last_t,
-                           state.temp_prev if self.last_temp is None else self.last_temp)
+                _advance(comp, self.last_t,
+                         state.temp_prev if self.last_temp is None else self.last_temp)
         same = self.model is not None and prepared.model_id == self.model_id
         if same and self.anchor is not None:
             comp.shift_offset(np.asarray(self.anchor.delta, dtype=np.float64))
@@ -467,6 +491,7 @@ class CompensatorCore:
             self._detector.reset(residual_var=model.residual_var)
         self._var, self._scale, self._static = prepared.var, prepared.scale, prepared.static
         self._cache: dict[float, tuple] = {}
+        self._accel_tables(model, comp)
         self.model_id = prepared.model_id
         self.model, self._comp = model, comp
 
@@ -503,7 +528,8 @@ class CompensatorCore:
         wx, wy, wz : float, rad/s
             Raw angular velocity.
         accel : sequence of 3 float, m/s^2, optional
-            Acceleration (for the stillness test) when the IMU has one.
+            Acceleration when the IMU has one: the stillness test's input, and corrected by
+            the model's accelerometer part (result in ``accel_out``/``accel_var``).
 
         Returns
         -------
@@ -522,15 +548,15 @@ class CompensatorCore:
             return self._pass(t, wx, wy, wz, NO_MODEL)
         if not (math.isfinite(wx) and math.isfinite(wy) and math.isfinite(wz)
                 and math.isfinite(t)):
-            return self._pass(t, wx, wy, wz, NON_FINITE)
+            return self._pass(t, wx, wy, wz, NON_FINITE, accel)
         held = self.temps.at(t)
         if held is None:
-            return self._pass(t, wx, wy, wz, NO_TEMPERATURE)
+            return self._pass(t, wx, wy, wz, NO_TEMPERATURE, accel)
         temp, t_temp = held
         flags = 0
         if t - t_temp > self.policy.temperature_timeout:
             if self.policy.stale_policy == 'passthrough':
-                return self._pass(t, wx, wy, wz, STALE)
+                return self._pass(t, wx, wy, wz, STALE, accel)
             flags = STALE
         if self._first is None:
             self._first = (t, temp)
@@ -550,6 +576,8 @@ class CompensatorCore:
                 more = variance_growth(self.policy.out_of_range_variance, dist,
                                        self.policy.out_of_range)
             ox, oy, oz = out.tolist()
+        if self.accel_on:
+            self._accel(t, temp, accel, flags & STALE)
         self.last_t, self.last_temp, self.last_flags = t, temp, flags
         self.last_distance_c = dist
         counts = self.counts
@@ -591,12 +619,96 @@ class CompensatorCore:
                                  self.policy.out_of_range) if dist else 0.0)
         if len(self._cache) >= 64:
             self._cache.clear()
+            self._acache.clear()
         self._cache[temp] = entry
+        if self._astatic:
+            self._arefresh(t, temp)
         return entry
 
-    def _pass(self, t: float, wx: float, wy: float, wz: float, why: int
+    # -- the accelerometer part -------------------------------------------------------
+
+    def _accel_tables(self, model: CompensationModel | None,
+                      comp: StreamingCompensator | None) -> None:
+        """Set up (or clear) the accelerometer part's variance table and cache."""
+        part = None if model is None or comp is None else model.accel
+        self._acache = {}
+        self.accel_out = self.accel_var = None
+        if part is None:
+            self._acomp, self.accel_on, self._astatic = None, False, False
+            return
+        p = self.policy
+        resid = tuple(float(v) for v in np.asarray(part.residual_var, dtype=np.float64))
+        self._avar = {
+            0: resid,
+            STALE: tuple(v + p.stale_variance for v in resid),
+            OUT_OF_RANGE: tuple(v + p.out_of_range_variance for v in resid),
+            STALE | OUT_OF_RANGE: tuple(v + p.stale_variance + p.out_of_range_variance
+                                        for v in resid),
+        }
+        self._acomp = comp.accel
+        # Cached per temperature only when the gyro's drift is (both static).
+        self._astatic = self._static and set(part.features) <= STATIC_EFFECTS
+        self.accel_on = True
+
+    def _arefresh(self, t: float, temp: float) -> tuple:
+        """Evaluate a static accelerometer part at one temperature and keep it."""
+        acomp = self._acomp
+        b = acomp.drift(t, temp).tolist()
+        dist = acomp.range_distance_c
+        entry = (*b, acomp.in_range,
+                 variance_growth(self.policy.out_of_range_variance, dist,
+                                 self.policy.out_of_range) if dist else 0.0)
+        self._acache[temp] = entry
+        return entry
+
+    def _accel(self, t: float, temp: float, accel: Sequence[float] | None, flags: int) -> None:
+        """Correct one sample's specific force (``flags``: ``STALE`` or 0)."""
+        counts = self.accel_counts
+        if accel is None:
+            self.accel_out = self.accel_var = None
+            self.accel_flags = NO_ACCEL_DATA
+            counts['missing'] += 1
+            return
+        ax, ay, az = accel
+        if not (math.isfinite(ax) and math.isfinite(ay) and math.isfinite(az)):
+            self._accel_pass(accel, NON_FINITE)
+            return
+        if self._astatic:
+            bx, by, bz, in_range, more = (self._acache.get(temp)
+                                          or self._arefresh(t, temp))
+            self.accel_out = (ax - bx, ay - by, az - bz)
+        else:
+            acomp = self._acomp
+            self.accel_out = tuple(acomp.step(t, temp, (ax, ay, az)).tolist())
+            in_range = acomp.in_range
+            more = 0.0 if in_range else variance_growth(
+                self.policy.out_of_range_variance, acomp.range_distance_c,
+                self.policy.out_of_range)
+        if not in_range:
+            flags |= OUT_OF_RANGE
+        var = self._avar[flags]
+        self.accel_var = (var[0] + more, var[1] + more, var[2] + more) if more else var
+        self.accel_flags = flags
+        counts['compensated'] += 1
+
+    def _accel_pass(self, accel: Sequence[float] | None, why: int) -> None:
+        """Leave one sample's specific force as it is, widened by ``passthrough_variance``."""
+        if accel is None:
+            self.accel_out = self.accel_var = None
+            self.accel_flags = NO_ACCEL_DATA
+            self.accel_counts['missing'] += 1
+            return
+        var = self.policy.passthrough_variance
+        self.accel_out, self.accel_var = None, (var, var, var)
+        self.accel_flags = why | PASSTHROUGH
+        self.accel_counts['passed through'] += 1
+
+    def _pass(self, t: float, wx: float, wy: float, wz: float, why: int,
+              accel: Sequence[float] | None = None
               ) -> tuple[float, float, float, tuple[float, float, float], int]:
         flags = why | PASSTHROUGH
+        if self.accel_on:
+            self._accel_pass(accel, why)
         self.flag_counts[why] += 1
         self.flag_counts[PASSTHROUGH] += 1
         self.counts['out'] += 1
@@ -625,6 +737,7 @@ class CompensatorCore:
         delta = np.asarray(found.delta) * den
         self._comp.shift_offset(delta)
         self._cache.clear()
+        self._acache.clear()
         self.anchor = replace(found, delta=tuple(float(v) for v in delta),
                               se=tuple(float(v) for v in np.asarray(found.se) * np.abs(den)))
 

@@ -35,9 +35,9 @@ if TYPE_CHECKING:  # pragma: no cover - typing only (compensation_logic imports 
     from gyro_tdc.compensation_logic import CompensatorCore
     from gyro_tdc.model import CompensationModel
 
-__all__ = ['ERROR', 'FLAG_NAMES', 'Health', 'HealthMark', 'InputStatus', 'NO_MODEL',
-           'NO_TEMPERATURE', 'NON_FINITE', 'OK', 'OUT_OF_RANGE', 'PASSTHROUGH', 'STALE', 'WARN',
-           'describe_flags', 'health', 'sensor_mismatch']
+__all__ = ['ERROR', 'FLAG_NAMES', 'Health', 'HealthMark', 'InputStatus', 'NO_ACCEL_DATA',
+           'NO_MODEL', 'NO_TEMPERATURE', 'NON_FINITE', 'OK', 'OUT_OF_RANGE', 'PASSTHROUGH',
+           'STALE', 'WARN', 'accel_state', 'describe_flags', 'health', 'sensor_mismatch']
 
 #: Flags of one processed sample (a bit set).
 STALE = 1
@@ -47,6 +47,10 @@ NO_TEMPERATURE = 8
 NO_MODEL = 16
 PASSTHROUGH = 32
 
+#: The accelerometer's own flag (``CompensatorCore.accel_flags``, not counted per sample in
+#: ``flag_counts``): the Imu carried no accelerometer data (covariance[0] == -1).
+NO_ACCEL_DATA = 64
+
 FLAG_NAMES = {STALE: 'temperature stale', OUT_OF_RANGE: 'temperature out of model range',
               NON_FINITE: 'non-finite input', NO_TEMPERATURE: 'no temperature yet',
               NO_MODEL: 'no model loaded', PASSTHROUGH: 'raw rate passed through'}
@@ -55,6 +59,30 @@ FLAG_NAMES = {STALE: 'temperature stale', OUT_OF_RANGE: 'temperature out of mode
 def describe_flags(flags: int) -> str:
     """Return the flags of a sample as a comma-separated text ('' when none)."""
     return ', '.join(name for bit, name in FLAG_NAMES.items() if flags & bit)
+
+
+def accel_state(core: CompensatorCore) -> str:
+    """
+    Say whether the accelerometer is compensated (the ``accelerometer`` value of /diagnostics).
+
+    Returns
+    -------
+    str
+        ``'compensated'``, ``'not in model'`` (no model, or one without an accelerometer
+        part) or ``'passthrough (why)'`` for the last sample.
+
+    """
+    model = core.model
+    if model is None or model.accel is None:
+        return 'not in model'
+    flags = core.accel_flags
+    if flags == -1:
+        return 'passthrough (no sample yet)'
+    if flags & NO_ACCEL_DATA:
+        return 'passthrough (no accelerometer data in the Imu)'
+    if flags & PASSTHROUGH:
+        return f'passthrough ({describe_flags(flags & ~PASSTHROUGH)})'
+    return 'compensated'
 
 
 #: Levels of :class:`Health` (the byte values of diagnostic_msgs/DiagnosticStatus).
@@ -250,10 +278,15 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         'input reliability': inputs.reliability, 'input lost': inputs.lost,
         'already compensated': inputs.already_compensated,
         'upstream compensators': ','.join(inputs.upstream),
+        'accelerometer': accel_state(core),
         'reanchor': ('off' if not core.policy.reanchor_on_start else
                      'waiting for stillness' if anchor is None else
                      f'done at t={anchor.t:.3f} s'),
     }
+    if core.accel_on:
+        values['accelerometer compensated'] = core.accel_counts['compensated']
+        values['accelerometer passed through'] = core.accel_counts['passed through']
+        values['accelerometer missing'] = core.accel_counts['missing']
     settling = core.thermal_progress       # the lagged state's start-up assumption (3 tau)
     if settling is not None:
         values['thermal state'] = (f'settling ({settling:.1f} of {SETTLE_TAUS:g} tau)'

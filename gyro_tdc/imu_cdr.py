@@ -36,7 +36,8 @@ them too.
 
 Users: :mod:`gyro_tdc.bagio` reads and writes whole topics as numpy structured arrays of
 :attr:`Layout.dtype`; the compensator node finds the fields of each incoming message with
-:func:`locate` and patches ``angular_velocity`` with :class:`ImuView`, instead of
+:func:`locate` and patches ``angular_velocity`` (and ``linear_acceleration`` when the model
+has an accelerometer part) with :class:`ImuView`, instead of
 deserialising every message into a Python object and serialising it back.
 """
 
@@ -377,7 +378,9 @@ class ImuView:
         return cov_marked(self.data, self.base + ANGULAR_VELOCITY_COV)
 
     def patched(self, wx: float, wy: float, wz: float,
-                var: tuple[float, float, float], mark: bool = False) -> bytes:
+                var: tuple[float, float, float], mark: bool = False,
+                accel: tuple[float, float, float] | None = None,
+                accel_var: tuple[float, float, float] | None = None) -> bytes:
         """
         Return a copy with ``angular_velocity`` replaced and ``var`` added to its covariance.
 
@@ -390,6 +393,11 @@ class ImuView:
         mark : bool
             Also write :mod:`gyro_tdc.provenance`'s mark into the diagonal (when all three
             entries are positive and finite).
+        accel : tuple of 3 float, m/s^2, optional
+            New ``linear_acceleration`` (None: left as it is).
+        accel_var : tuple of 3 float, (m/s^2)^2, optional
+            Added to the ``linear_acceleration_covariance`` diagonal unless its first element
+            is -1 (None: left as it is). The mark is only ever in the angular velocity's.
 
         Returns
         -------
@@ -411,4 +419,13 @@ class ImuView:
                 _U16_INTO(buf, c, _MARK16)   # (3x faster than bytearray slice assignment)
                 _U16_INTO(buf, c + 32, _MARK16)
                 _U16_INTO(buf, c + 64, _MARK16)
+        if accel is not None:
+            _VEC3.pack_into(buf, base + LINEAR_ACCELERATION, *accel)
+        if accel_var is not None:
+            c = base + LINEAR_ACCELERATION_COV
+            cov = _COV.unpack_from(buf, c)
+            if cov[0] != -1.0:
+                _F64.pack_into(buf, c, cov[0] + accel_var[0])
+                _F64.pack_into(buf, c + 32, cov[4] + accel_var[1])
+                _F64.pack_into(buf, c + 64, cov[8] + accel_var[2])
         return bytes(buf)

@@ -20,8 +20,10 @@ Subscribes ``imu/data_raw`` (sensor-data QoS with a deep queue, or reliable keep
 std_msgs/Float32 or Float64 with ``temperature_type``); publishes ``imu/data_compensated``
 with the header and every field copied unchanged except ``angular_velocity`` (corrected by
 the model) and ``angular_velocity_covariance`` (widened by the model's residual variance and
-by the policies, and carrying :mod:`gyro_tdc.provenance`'s mark when compensated);
-``/diagnostics`` at 1 Hz.
+by the policies, and carrying :mod:`gyro_tdc.provenance`'s mark when compensated); with a
+model that has an accelerometer part also ``linear_acceleration`` and
+``linear_acceleration_covariance`` (the accelerometer residual variance, the same policies);
+``/diagnostics`` at 1 Hz (``accelerometer``: compensated, not in model or passthrough).
 
 ``model_file`` can be changed at run time (parameter set) or re-read (``~/reload``,
 std_srvs/Trigger). The file is read, checked and primed in a worker thread
@@ -223,17 +225,22 @@ class CompensatorNode(Node):
         cov = msg.angular_velocity_covariance
         if diagonal_marked(cov):
             self.inputs.already_compensated += 1
-        a = None
-        if self.core.policy.reanchor_on_start and self.core.anchor is None:
+        core = self.core
+        a = aout = avar = None
+        if core.accel_on or (core.policy.reanchor_on_start and core.anchor is None):
             la = msg.linear_acceleration
             if msg.linear_acceleration_covariance[0] != -1.0:
                 a = (la.x, la.y, la.z)
         try:
-            wx, wy, wz, var, flags = self.core.process(
+            wx, wy, wz, var, flags = core.process(
                 st.sec + st.nanosec * 1e-9, w.x, w.y, w.z, a)
+            if a is not None and core.accel_on:
+                aout, avar = core.accel_out, core.accel_var
         except Exception as exc:  # the callback edge: never lose the message
             var, flags = self._on_error(exc), PASSTHROUGH
             wx, wy, wz = w.x, w.y, w.z
+            if a is not None and core.accel_on:
+                avar = var
         w.x, w.y, w.z = wx, wy, wz
         if cov[0] != -1.0:
             cov[0] += var[0]
@@ -241,6 +248,13 @@ class CompensatorNode(Node):
             cov[8] += var[2]
             if not flags & PASSTHROUGH:
                 mark_diagonal(cov)
+        if aout is not None:
+            la.x, la.y, la.z = aout
+        if avar is not None:
+            acov = msg.linear_acceleration_covariance
+            acov[0] += avar[0]
+            acov[4] += avar[1]
+            acov[8] += avar[2]
         self._pub.publish(msg)
 
     def _on_imu_raw(self, data: bytes) -> None:
@@ -253,14 +267,19 @@ class CompensatorNode(Node):
         if view.marked():
             self.inputs.already_compensated += 1
         wx, wy, wz = view.angular_velocity()
-        a = None
-        if self.core.policy.reanchor_on_start and self.core.anchor is None:
+        core = self.core
+        a = aout = avar = None
+        if core.accel_on or (core.policy.reanchor_on_start and core.anchor is None):
             a = view.linear_acceleration()
         try:
-            wx, wy, wz, var, flags = self.core.process(sec + nanosec * 1e-9, wx, wy, wz, a)
+            wx, wy, wz, var, flags = core.process(sec + nanosec * 1e-9, wx, wy, wz, a)
+            if a is not None and core.accel_on:
+                aout, avar = core.accel_out, core.accel_var
         except Exception as exc:  # the callback edge: never lose the message
             var, flags = self._on_error(exc), PASSTHROUGH
-        self._pub.publish(view.patched(wx, wy, wz, var, not flags & PASSTHROUGH))
+            if a is not None and core.accel_on:
+                avar = var
+        self._pub.publish(view.patched(wx, wy, wz, var, not flags & PASSTHROUGH, aout, avar))
 
     def _on_error(self, exc: Exception) -> tuple[float, float, float]:
         """Count an unexpected compensation failure; the raw sample goes out flagged."""
