@@ -71,6 +71,7 @@ def test_vehicle_day_physics(days):
     assert len(slopes) >= 4
     assert np.degrees(np.abs(v.rate[~v.parked, 2]).max()) > 10.0
     np.testing.assert_allclose(d1.ref, v.rate)               # the truth, never a rate table
+    assert not d1.moving                 # so a sim driver publishes no rate_table/reference
     assert not load_scenario('vehicle_day1').rate_table.moving
     # The accelerometer reads the specific force plus its offset and noise.
     off = d1.truth.accel_offset

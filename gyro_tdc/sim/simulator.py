@@ -207,8 +207,8 @@ class SimRun:
 
     @property
     def moving(self) -> bool:
-        """Return True when the rate table is ever non-zero."""
-        return bool(np.any(self.ref != 0.0))
+        """Return True when the rate table is ever non-zero (a vehicle day has none)."""
+        return self.vehicle is None and bool(np.any(self.ref != 0.0))
 
     def ref_at(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """
