@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 from gyro_tdc.still import (detect_still, judge_windows, MAX_RATE, motion_veto, NOISE_FACTOR,
-                            noise_floor, noise_thresholds)
+                            noise_floor, noise_thresholds, StreamingStill)
 from gyro_tdc.stillness import StillnessDetector
 import numpy as np
 import pytest
@@ -172,3 +172,65 @@ def test_bad_input_is_named():
         detect_still(np.arange(5.0), np.zeros((4, 3)))
     st = detect_still(np.arange(2.0), np.zeros((2, 3)))
     assert not st.mask.any() and 'too few' in st.reason
+
+
+def _stream(det, t, gyro, accel=None, rate=None, moving=None, temp=None):
+    segs = []
+    for k in range(t.size):
+        s = det.update(float(t[k]), gyro[k].tolist(),
+                       None if accel is None else accel[k].tolist(),
+                       rate=None if rate is None else rate[k].tolist(),
+                       temp_c=math.nan if temp is None else float(temp[k]),
+                       moving=False if moving is None else bool(moving[k]))
+        if s is not None:
+            segs.append(s)
+    last = det.flush()
+    return segs + ([last] if last is not None else [])
+
+
+@pytest.mark.parametrize('fixed', [True, False])
+def test_streaming_still_equals_the_batch_form(fixed):
+    t, gyro, accel = _rest(2400.0, seed=7)
+    _drive(t, gyro, accel, 300.0, 700.0)
+    _drive(t, gyro, accel, 1000.0, 1045.0, seed=8)     # a stop of 5 min, then a short drive
+    _drive(t, gyro, accel, 1345.0, 1380.0, seed=9)     # a 25 s drive ...
+    _drive(t, gyro, accel, 1405.0, 1900.0, seed=10)    # ... a 25 s stop (too brief)
+    temp = 20.0 + t / 600.0
+    opts = {'gyro_std': 0.01, 'accel_std': 0.2} if fixed else {}
+    batch = detect_still(t, gyro, accel, **opts)
+    segs = _stream(StreamingStill(**opts), t, gyro, accel, temp=temp)
+    assert [(s.t0_s, s.t1_s) for s in segs] == [(t[a], t[b - 1]) for a, b in batch.segments]
+    assert len(segs) == 4
+    for s, (a, b) in zip(segs, batch.segments):
+        assert s.samples == b - a
+        np.testing.assert_allclose(s.gyro_mean, gyro[a:b].mean(axis=0), rtol=0, atol=1e-12)
+        assert s.temp_c == pytest.approx(temp[a:b].mean())
+        assert s.rate_mean is None
+
+
+def test_streaming_still_veto_prior_and_rate():
+    t, gyro, accel = _rest(1200.0, seed=11)
+    turn = (t >= 400.0) & (t < 800.0)
+    gyro[turn, 2] += 2.0 * DEG
+    # The motion veto splits the stretch; the rate test (a prior) too; without either the
+    # smooth turn passes (the limit of the test).
+    assert len(_stream(StreamingStill(), t, gyro, accel)) == 1
+    det = StreamingStill()
+    segs = _stream(det, t, gyro, accel, moving=turn)
+    assert len(segs) == 2 and det.rejected['motion'] == 40
+    comp = gyro - [0.06, -0.07, 0.02]
+    segs = _stream(StreamingStill(), t, gyro, accel, rate=comp)
+    assert len(segs) == 2 and segs[0].rate_mean is not None
+    assert max(abs(v) for v in segs[0].rate_mean) < 1e-3
+    # A prior holds the first windows' threshold: moving from the start is not the floor.
+    t2, g2, a2 = _rest(300.0, seed=12)
+    _drive(t2, g2, a2, 0.0, 120.0)
+    det = StreamingStill(prior_std=[0.03 * DEG * math.sqrt(RATE_HZ)] * 3)
+    segs = _stream(det, t2, g2, a2)
+    assert len(segs) == 1 and segs[0].t0_s >= 120.0
+    # A NaN sample spoils its window only.
+    gyro[6000, 0] = np.nan
+    det = StreamingStill()
+    assert len(_stream(det, t, gyro, accel, moving=turn)) == 3 and det.rejected['non-finite'] == 1
+    with pytest.raises(ValueError, match='window_s'):
+        StreamingStill(0.0)
