@@ -6,6 +6,8 @@
 #   make demo    end-to-end demo into out/demo
 #   make bench   run every bench/*.py (each prints its figures)
 #   make readme-check  run every README command block, in order, in a fresh clone (long)
+#   make test-apt-versions  the tests in .venv-apt, with Ubuntu 24.04's apt numpy, scipy,
+#                matplotlib and PyYAML and requirements-apt.txt (the robot recipe; not in `test`)
 #   make clean   remove out/ (every README output) and build/test artefacts (keeps .venv;
 #                `make distclean` removes it too)
 
@@ -27,7 +29,7 @@ LINT_PATHS = $(wildcard gyro_tdc test bench tools setup.py)
 # parallel runs on one machine do not discover each other's nodes.
 DOMAIN := if [ -z "$${ROS_DOMAIN_ID:-}" ]; then export ROS_DOMAIN_ID=$$(( $$$$ % 101 + 1 )); fi
 
-.PHONY: venv test lint demo bench readme-check clean distclean
+.PHONY: venv test lint demo bench readme-check test-apt-versions clean distclean
 
 venv: $(STAMP)
 
@@ -76,9 +78,36 @@ bench: venv
 readme-check:
 	@$(DOMAIN); $(PYTHON) test/readme_check.py
 
+# A robot with apt-installed Jazzy has numpy, scipy, matplotlib and PyYAML from apt (Ubuntu
+# 24.04's versions below) and pip-installs only requirements-apt.txt into a venv that sees them.
+# This builds that set in .venv-apt: the apt versions first (as apt would), then
+# requirements-apt.txt as the robot recipe runs it; it fails if pip replaced an apt version,
+# then runs APT_TESTS (default: the whole suite) there. Not part of `make test` (CI time).
+APT_VENV := .venv-apt
+APT_VERSIONS := numpy==1.26.4 scipy==1.11.4 matplotlib==3.6.3 PyYAML==6.0.1
+APT_TESTS ?= test
+APT_CHECK := import importlib.metadata as m, sys; \
+	want = dict(a.split('==') for a in sys.argv[1:]); \
+	got = {k: m.version(k) for k in want}; \
+	print('apt versions in $(APT_VENV):', ', '.join(f'{k} {v}' for k, v in got.items())); \
+	sys.exit(0 if got == want else f'pip replaced an apt version: {got} instead of {want}')
+
+test-apt-versions:
+	@test -x $(APT_VENV)/bin/python || { echo "creating $(APT_VENV) with $$($(PYTHON) --version)"; \
+		$(PYTHON) -m venv $(APT_VENV); }
+	grep -E '^ros-jazzy-' requirements.txt > $(APT_VENV)/ros-wheels.txt
+	$(APT_VENV)/bin/python -m pip install $(PIP_FLAGS) -q $(APT_VERSIONS) -r $(APT_VENV)/ros-wheels.txt
+	$(APT_VENV)/bin/python -m pip install $(PIP_FLAGS) -q -r requirements-apt.txt
+	$(APT_VENV)/bin/python -m pip install $(PIP_FLAGS) -q -r requirements-dev.txt
+	$(APT_VENV)/bin/python -m pip install $(PIP_FLAGS) -q -e . --no-deps
+	@$(APT_VENV)/bin/python -c "$(APT_CHECK)" $(APT_VERSIONS)
+	@$(DOMAIN); \
+	echo "ROS_DOMAIN_ID=$$ROS_DOMAIN_ID ROS_AUTOMATIC_DISCOVERY_RANGE=$$ROS_AUTOMATIC_DISCOVERY_RANGE"; \
+	$(APT_VENV)/bin/python -m pytest -q $(APT_TESTS)
+
 clean:
 	rm -rf build install log out report .pytest_cache *.egg-info
 	find gyro_tdc test $(wildcard bench tools) -name __pycache__ -type d -prune -exec rm -rf {} +
 
 distclean: clean
-	rm -rf $(VENV)
+	rm -rf $(VENV) $(APT_VENV)

@@ -58,6 +58,10 @@ setup(
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
+        # ros2 launch gyro_tdc gyro_tdc.launch.xml (test/test_launch.py checks it).
+        ('share/' + package_name + '/launch', sorted(
+            os.path.join('launch', f) for f in os.listdir(os.path.join(here, 'launch'))
+            if f.endswith('.launch.xml'))),
     ] + config_data_files(),
     python_requires='>=3.10',
     install_requires=[
