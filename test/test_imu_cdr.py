@@ -156,6 +156,40 @@ def test_locate_and_view_patch_only_the_angular_velocity(frame_id):
     assert out.angular_velocity_covariance[0] == -1.0  # "unknown" stays so
 
 
+@pytest.mark.parametrize('frame_id', FRAME_IDS)
+def test_view_patches_the_linear_acceleration_and_keeps_the_mark_on_the_rate(frame_id):
+    rng = np.random.default_rng(11)
+    msg = _imu(rng, frame_id)
+    msg.angular_velocity_covariance[:] = np.arange(1, 10) * 1e-6
+    msg.linear_acceleration_covariance[:] = np.arange(1, 10) * 1e-4
+    raw = bytes(TS.serialize_cdr(msg, IMU))
+    view = ImuView(raw, locate(raw)[2])
+    out = TS.deserialize_cdr(view.patched(0.1, 0.2, 0.3, (1e-6,) * 3, True,
+                                          (0.5, -9.75, 1.25), (1.0, 2.0, 4.0)), IMU)
+    a = out.linear_acceleration
+    assert (a.x, a.y, a.z) == (0.5, -9.75, 1.25)
+    expect = np.arange(1, 10) * 1e-4
+    expect[[0, 4, 8]] += (1.0, 2.0, 4.0)
+    np.testing.assert_array_equal(out.linear_acceleration_covariance, expect)
+    assert ImuView(bytes(TS.serialize_cdr(out, IMU)), view.base).marked()
+    before, after = _values(msg), _values(out)
+    for name in ('orientation', 'orientation_covariance'):
+        assert after[name] == before[name], name
+    # Only the covariance: the values stay; None and None: the bytes of the gyro-only patch.
+    out = TS.deserialize_cdr(view.patched(0.1, 0.2, 0.3, (0.0,) * 3, False, None,
+                                          (1.0, 1.0, 1.0)), IMU)
+    assert _values(out)['linear_acceleration'] == before['linear_acceleration']
+    assert view.patched(0.1, 0.2, 0.3, (1e-6,) * 3, True, None, None) == \
+        view.patched(0.1, 0.2, 0.3, (1e-6,) * 3, True)
+    # No accelerometer (covariance[0] == -1): the covariance stays "no data".
+    msg.linear_acceleration_covariance[0] = -1.0
+    raw = bytes(TS.serialize_cdr(msg, IMU))
+    out = TS.deserialize_cdr(ImuView(raw, view.base).patched(
+        0.0, 0.0, 0.0, (0.0,) * 3, False, None, (1.0, 1.0, 1.0)), IMU)
+    np.testing.assert_array_equal(out.linear_acceleration_covariance,
+                                  msg.linear_acceleration_covariance)
+
+
 def test_locate_leaves_big_endian_to_the_general_path():
     raw = bytes(TS.serialize_cdr(_imu(np.random.default_rng(1), 'imu'), IMU, little_endian=False))
     assert layout_of(raw).big_endian
