@@ -239,7 +239,7 @@ def format_help(prog: str, summary: str, specs: Sequence[ParamSpec], *,
                          f'{_value_text(spec.hi, spec.default)}')
         if not spec.read_only:
             facts.append('settable at run time')
-        lines.append(f'  {spec.name}: ' + '; '.join(facts))
+        lines.append(_fill(f'{spec.name}: ' + '; '.join(facts), '  ', ' ' * 4))
         lines.append(_fill(spec.meaning, ' ' * 6))
     if epilog:
         lines += ['', _fill(epilog)]
