@@ -1,0 +1,306 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Time constants: the bounded search and the profile-likelihood interval.
+
+:func:`fit_time_constant` is the one "log grid, then bounded Brent" search of the package;
+:func:`profile_interval` turns the residual profile into a 95 % interval, with the
+residual's autocorrelation counted by :func:`effective_samples`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Callable, Mapping
+
+from gyro_tdc.errors import FitError
+import numpy as np
+from numpy.typing import NDArray
+from scipy.optimize import minimize_scalar
+
+__all__ = ['effective_samples', 'fit_time_constant', 'MAX_TAU_RATIO', 'PROFILE_LEVEL',
+           'profile_interval', 'TauProfile', 'TimeConstantFit']
+
+#: Profile-likelihood level of a 95 % interval on one parameter (chi-square, 1 dof).
+PROFILE_LEVEL = 3.841
+#: A time-constant interval wider than this ratio (hi / lo) does not pin the time constant.
+MAX_TAU_RATIO = 3.0
+
+
+@dataclass(frozen=True, eq=False)
+class TimeConstantFit:
+    """
+    A time constant chosen by :func:`fit_time_constant`, with its residual profile.
+
+    Parameters
+    ----------
+    tau : float, s
+        The best time constant found.
+    sse : float
+        The objective at ``tau``.
+    grid_tau : NDArray[np.float64], shape (G,), s
+        Time constants of the search grid, increasing.
+    grid_sse : NDArray[np.float64], shape (G,)
+        The objective at each grid point (the profile, e.g. for an interval on ``tau``).
+
+    """
+
+    tau: float
+    sse: float
+    grid_tau: NDArray[np.float64]
+    grid_sse: NDArray[np.float64]
+
+
+def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float], *,
+                      n_grid: int = 13, log: bool = True, xatol: float = 1e-3
+                      ) -> TimeConstantFit:
+    """
+    Minimise ``sse(tau)`` over a bounded range: a grid, then a bounded Brent search.
+
+    The grid (log-spaced by default) finds the basin; :func:`scipy.optimize.minimize_scalar`
+    (``method='bounded'``) then searches between the neighbours of the best grid point, and
+    its answer is kept when it is no worse than that grid point.
+
+    Parameters
+    ----------
+    sse : callable
+        ``sse(tau) -> float``, the objective (e.g. the least-squares residual with the linear
+        weights re-solved at every trial: variable projection).
+    bounds : tuple of float, s
+        ``(lo, hi)``, ``0 < lo <= hi`` (``0 <= lo`` when ``log`` is False).
+    n_grid : int
+        Grid points, >= 1.
+    log : bool
+        Grid and search in ``log(tau)`` (True) or in ``tau``.
+    xatol : float
+        Absolute tolerance of the bounded search, in the search variable (``log(tau)``
+        when ``log``).
+
+    Returns
+    -------
+    TimeConstantFit
+        The best ``tau``, its objective and the grid profile.
+
+    """
+    lo, hi = (float(v) for v in bounds)
+    if not (math.isfinite(lo) and math.isfinite(hi) and (lo > 0.0 if log else lo >= 0.0)
+            and lo <= hi):
+        raise FitError(f'Expected `bounds` (lo, hi) with {"0 <" if log else "0 <="} lo <= hi, '
+                       f'got {bounds!r}.')
+    if n_grid < 1:
+        raise FitError(f'Expected `n_grid` >= 1, got {n_grid!r}.')
+    if log:
+        def objective(v: float) -> float:
+            return sse(math.exp(v))
+        grid = np.linspace(math.log(lo), math.log(hi), n_grid)
+    else:
+        objective = sse
+        grid = np.linspace(lo, hi, n_grid)
+    vals = np.array([objective(g) for g in grid], dtype=np.float64)
+    i = int(np.argmin(vals))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
+    best, best_sse = grid[i], float(vals[i])
+    if b > a:
+        res = minimize_scalar(objective, bounds=(a, b), method='bounded',
+                              options={'xatol': xatol})
+        if res.fun <= vals[i]:
+            best, best_sse = res.x, float(res.fun)
+    tau = float(math.exp(best)) if log else float(best)
+    return TimeConstantFit(tau=tau, sse=best_sse,
+                           grid_tau=np.exp(grid) if log else grid, grid_sse=vals)
+
+
+def effective_samples(resid: NDArray[np.float64], *, min_batches: int = 32
+                      ) -> NDArray[np.float64]:
+    """
+    Return, per column, the number of independent samples a correlated residual is worth.
+
+    A residual with memory (slow noise, or drift the model misses) carries less information
+    than its length: ``n_eff = n / inflation`` with the variance inflation of its mean taken
+    as the larger of the AR(1) value ``(1 + rho) / (1 - rho)`` (``rho`` the lag-1
+    autocorrelation, ``n_eff = n (1 - rho) / (1 + rho)``) and the batch-means values
+    ``m var(mean of m rows) / var(row)`` for ``m = 2, 4, ...`` while at least
+    ``min_batches`` batches remain (memory longer than one lag).
+
+    Parameters
+    ----------
+    resid : NDArray[np.float64], shape (N,) or (N, A)
+        Residual rows in time order.
+    min_batches : int
+        Fewest batches a batch-means value is taken from.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (A,)
+        ``n_eff`` per column, between 1 and N.
+
+    """
+    r = np.asarray(resid, dtype=np.float64)
+    r = r.reshape(r.shape[0], -1)
+    n = r.shape[0]
+    if n < 3:
+        return np.full(r.shape[1], float(max(n, 1)))
+    r = r - r.mean(axis=0)
+    var = np.maximum((r * r).mean(axis=0), 1e-300)
+    rho = np.clip((r[1:] * r[:-1]).mean(axis=0) / var, 0.0, 0.999)
+    inflation = (1.0 + rho) / (1.0 - rho)
+    m = 2
+    while n // m >= min_batches:
+        k = n // m * m
+        means = r[:k].reshape(-1, m, r.shape[1]).mean(axis=1)
+        inflation = np.maximum(inflation, m * means.var(axis=0) / var)
+        m *= 2
+    return np.clip(n / np.maximum(inflation, 1.0), 1.0, float(n))
+
+
+@dataclass(frozen=True, eq=False)
+class TauProfile:
+    """
+    The profile of a fit over one time constant, and the interval it gives.
+
+    Parameters
+    ----------
+    tau : float, s
+        The best time constant.
+    interval : tuple of float, s
+        ``(lo, hi)``: every evaluated ``tau`` whose statistic is within ``level`` (the
+        hull, ends resolved by bisection).
+    identifiable : bool
+        False when the interval reaches a search bound or ``hi / lo > max_ratio``.
+    grid_tau : NDArray[np.float64], shape (G,), s
+        Every evaluated time constant, increasing.
+    stat : NDArray[np.float64], shape (G,)
+        The profile statistic at each: ``sum_a n_eff_a ln(SSE_a(tau) / SSE_a(tau_best))``,
+        0 at the best point.
+    n_eff : NDArray[np.float64], shape (A,)
+        Effective samples per residual column (:func:`effective_samples`).
+    bounds : tuple of float, s
+        The search bounds.
+
+    """
+
+    tau: float
+    interval: tuple[float, float]
+    identifiable: bool
+    grid_tau: NDArray[np.float64]
+    stat: NDArray[np.float64]
+    n_eff: NDArray[np.float64]
+    bounds: tuple[float, float]
+
+    def to_dict(self) -> dict:
+        """Return the profile as plain types (for a model's training metrics)."""
+        return {'tau_s': float(self.tau), 'interval_s': [float(v) for v in self.interval],
+                'identifiable': bool(self.identifiable),
+                'bounds_s': [float(v) for v in self.bounds],
+                'n_eff': [float(v) for v in self.n_eff],
+                'profile_tau_s': [float(v) for v in self.grid_tau],
+                'profile_stat': [float(v) for v in self.stat]}
+
+
+def profile_interval(sse: Callable[[float], NDArray[np.float64]], tau: float,
+                     bounds: tuple[float, float], n_eff: NDArray[np.float64], *,
+                     evaluated: Mapping[float, NDArray[np.float64]] | None = None,
+                     level: float = PROFILE_LEVEL, max_ratio: float = MAX_TAU_RATIO,
+                     step: float = 0.005, bisections: int = 8) -> TauProfile:
+    """
+    Return the profile-likelihood interval of a time constant fitted by variable projection.
+
+    With Gaussian residuals of unknown variance per column, ``-2 ln L = sum_a n_a ln SSE_a``
+    once the linear weights are re-solved (the profile over them); the 95 % interval is
+    ``{tau : sum_a n_eff_a ln(SSE_a(tau) / SSE_a(tau_best)) <= level}``, ``n_eff`` counting the
+    residual's memory. From ``tau`` the profile is walked outwards in ``log tau`` with
+    doubling steps (from ``step``) until the statistic exceeds ``level`` or a bound is
+    reached, and each end is bisected ``bisections`` times; points already ``evaluated``
+    (e.g. the search grid) join the profile, and the interval is the hull of every point
+    within the level (a flat or multi-modal profile widens it).
+
+    Parameters
+    ----------
+    sse : callable
+        ``sse(tau) -> NDArray (A,)``: the residual sum of squares per column at ``tau``.
+    tau : float, s
+        The best time constant (a minimum of ``sum(sse(tau))``).
+    bounds : tuple of float, s
+        The search bounds ``(lo, hi)``, ``0 < lo <= tau <= hi``.
+    n_eff : NDArray[np.float64], shape (A,)
+        Effective samples per column (:func:`effective_samples` of the residual at ``tau``).
+    evaluated : mapping, optional
+        ``{tau: sse per column}`` already known (no re-evaluation).
+    level : float
+        Threshold of the statistic (:data:`PROFILE_LEVEL`: 95 %).
+    max_ratio : float
+        Widest ``hi / lo`` that still counts as identifiable.
+    step : float
+        First step of the walk, in ``log tau``.
+    bisections : int
+        Bisections of each end.
+
+    Returns
+    -------
+    TauProfile
+        The interval, whether it pins ``tau``, and the profile.
+
+    """
+    lo_b, hi_b = (float(v) for v in bounds)
+    if not (0.0 < lo_b <= tau <= hi_b):
+        raise FitError(f'Expected 0 < lo <= tau <= hi, got bounds {bounds!r} and tau {tau!r}.')
+    n_eff = np.asarray(n_eff, dtype=np.float64).ravel()
+    pts: dict[float, NDArray[np.float64]] = {
+        float(k): np.asarray(v, dtype=np.float64).ravel() for k, v in (evaluated or {}).items()}
+
+    def at(v: float) -> NDArray[np.float64]:
+        if v not in pts:
+            pts[v] = np.asarray(sse(v), dtype=np.float64).ravel()
+        return pts[v]
+
+    floor = np.maximum(at(float(tau)), 1e-300)
+
+    def stat(v: float) -> float:
+        return float((n_eff * np.log(np.maximum(at(v), 1e-300) / floor)).sum())
+
+    u0, u_lo, u_hi = math.log(tau), math.log(lo_b), math.log(hi_b)
+    ends = []
+    for side, bound in ((-1.0, u_lo), (1.0, u_hi)):
+        inside, outside, d = u0, None, step
+        while True:
+            u = u0 + side * d
+            u = max(u, bound) if side < 0 else min(u, bound)
+            if stat(math.exp(u)) > level:
+                outside = u
+                break
+            inside = u
+            if u == bound:
+                break
+            d *= 2.0
+        if outside is not None:
+            for _ in range(bisections):
+                mid = 0.5 * (inside + outside)
+                if stat(math.exp(mid)) > level:
+                    outside = mid
+                else:
+                    inside = mid
+        ends.append(inside)
+    grid = np.array(sorted(pts))
+    st = np.array([stat(v) for v in grid])
+    st -= min(0.0, float(st.min()))
+    within = grid[st <= level]
+    lo = min(math.exp(ends[0]), float(within.min()))
+    hi = max(math.exp(ends[1]), float(within.max()))
+    lo, hi = max(min(lo, tau), lo_b), min(max(hi, tau), hi_b)
+    eps = 1e-9
+    ident = lo > lo_b * (1 + eps) and hi < hi_b * (1 - eps) and hi <= max_ratio * lo
+    return TauProfile(tau=float(tau), interval=(lo, hi), identifiable=bool(ident),
+                      grid_tau=grid, stat=st, n_eff=n_eff, bounds=(lo_b, hi_b))
