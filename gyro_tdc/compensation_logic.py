@@ -421,6 +421,9 @@ class CompensatorCore:
         self.model: CompensationModel | None = None
         self.model_id = ''
         self._comp: StreamingCompensator | None = None
+        #: The online learner (:class:`gyro_tdc.learning.Learner`), None: not learning. It
+        #: sees every raw sample and thermometer reading (one list append each).
+        self.learner = None
         if model is not None:
             self.set_model(model)
 
@@ -509,6 +512,8 @@ class CompensatorCore:
         """
         if not self.temps.add(t, temp_c):
             return False
+        if self.learner is not None:
+            self.learner.add_temperature(t, temp_c)
         if not self._history or t >= self._history[-1][0] + self.HISTORY_SPACING_S:
             self._history.append((t, temp_c))
         if self._comp is not None and self._static and temp_c not in self._cache:
@@ -543,6 +548,8 @@ class CompensatorCore:
 
         """
         self.counts['in'] += 1
+        if self.learner is not None:
+            self.learner.buf.append((t, wx, wy, wz, accel))
         comp = self._comp
         if comp is None:
             return self._pass(t, wx, wy, wz, NO_MODEL)
@@ -678,8 +685,9 @@ class CompensatorCore:
                                           or self._arefresh(t, temp))
             self.accel_out = (ax - bx, ay - by, az - bz)
         else:
-            acomp = self._acomp
-            self.accel_out = tuple(acomp.step(t, temp, (ax, ay, az)).tolist())
+            acomp = self._acomp        # no scale term: step() is a - b (saves numpy ops)
+            bx, by, bz = acomp.drift(t, temp).tolist()
+            self.accel_out = (ax - bx, ay - by, az - bz)
             in_range = acomp.in_range
             more = 0.0 if in_range else variance_growth(
                 self.policy.out_of_range_variance, acomp.range_distance_c,

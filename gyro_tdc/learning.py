@@ -1,0 +1,600 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Learn in the field: the compensator's online bias-vs-temperature learner (issue 14 item 3).
+
+Pure (numpy only). The message path only appends ``(t, wx, wy, wz, accel)`` to a list
+(:meth:`Learner.observe`, a few hundred nanoseconds) and thermometer readings to another;
+everything else runs in :meth:`Learner.step`, which the node calls from a timer (never from
+the IMU callback) and which is vectorised over the samples gathered since the last call.
+
+**Still test.** The one still test of :mod:`gyro_tdc.still`: windows of
+:data:`~gyro_tdc.still.STILL_WINDOW_S` on the grid of the first stamp, judged by
+:func:`~gyro_tdc.still.judge_windows` against :func:`~gyro_tdc.still.noise_thresholds` of
+the running noise floor (the quietest window so far, gyro and, when the IMU has one,
+accelerometer); consecutive still windows make a stretch, kept when it lasts
+:data:`~gyro_tdc.still.MIN_STILL_S`. When a stretch ends, its windows that the thresholds
+then in force refuse are dropped with everything before them.
+
+**Points.** The windows of a finished stretch are grouped by the bin of their temperature
+(``bin_c``, 1 degC; the temperature is the thermometer reading held by stamp, which is the
+temperature the learned model takes): each group gives one entry ``(t_end, samples, mean
+temperature, mean raw rate, stretch)``; a long stretch is learned every ``commit_s`` while
+it goes on (one entry per bin and stretch, merged). A bin keeps its :data:`BIN_ENTRIES`
+newest entries, so it learns while heating and while cooling alike and old data fade out.
+
+**Fit.** Weighted least squares of the entries' mean raw rate on ``T - T0`` with weights
+``samples * 0.5 ** (age / half_life_s)`` (age by message stamp to the newest entry, as AOSP
+``over_temp_cal`` weights its model points by age), then entries whose residual exceeds
+:data:`OUTLIER_K` robust standard deviations (1.4826 x the weighted median absolute
+residual, at least the noise floor's) are dropped and the fit repeated once. **Growth
+rule**: the features grow with the covered temperature span of the bins: under
+:data:`SPAN_DT_C` (or fewer than 2 bins) a bias only (the first still stretch's bias); from
+there ``dT``; from :data:`SPAN_DT2_C` and at least :data:`BINS_DT2` bins ``dT, dT2``; from
+:data:`SPAN_DT3_C` and :data:`BINS_DT3` bins ``dT, dT2, dT3``. The
+learned model is a ``poly`` model of those features (a bias-only model is ``dT`` with a zero
+slope), its range the covered bins.
+
+**Swap.** A refit after each finished stretch gives a candidate; it is swapped in only when
+its weighted mean squared error over the windows of the :data:`CHECK_STRETCHES` most recent
+stretches is below the current model's (no current model: always). A ``model_file`` model
+is the current model at start (the prior, jump-start); it is replaced only by a candidate
+that predicts the recent still time better.
+
+**Timing** comes from message stamps only: a bag replayed faster gives the same points, fits
+and swaps (the swap lands at the first :meth:`step` after the stretch ended).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import json
+import math
+from pathlib import Path
+from typing import Any, Sequence
+
+from gyro_tdc.atomicio import atomic_write
+from gyro_tdc.model import CompensationModel, drift
+from gyro_tdc.still import (has_accelerometer, judge_windows, MIN_STILL_S, noise_thresholds,
+                            STILL_WINDOW_S)
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['BIN_ENTRIES', 'CHECK_STRETCHES', 'FORMAT', 'Learner', 'LearnConfig',
+           'OUTLIER_K', 'SPAN_DT2_C', 'SPAN_DT3_C', 'SPAN_DT_C', 'BINS_DT2', 'BINS_DT3',
+           'learned_model']
+
+FORMAT = 'gyro_tdc learn 1'
+BIN_ENTRIES = 4
+CHECK_STRETCHES = 3
+OUTLIER_K = 4.0
+SPAN_DT_C = 2.0
+SPAN_DT2_C = 8.0
+BINS_DT2 = 5
+SPAN_DT3_C = 15.0
+BINS_DT3 = 10
+
+
+@dataclass(frozen=True)
+class LearnConfig:
+    """
+    Settings of the learner.
+
+    Parameters
+    ----------
+    bin_c : float, degC
+        Temperature bin width.
+    half_life_s : float, s
+        Age (by message stamp) at which an entry weighs half.
+    window_s, min_still_s : float, s
+        Still test window and shortest stretch.
+    temperature_timeout : float, s
+        A thermometer reading older than this (by stamp) gives no temperature.
+    save_period_s : float, s
+        Stamp time between periodic saves.
+    commit_s : float, s
+        A still stretch longer than this is learned every ``commit_s`` while it goes on.
+
+    """
+
+    bin_c: float = 1.0
+    half_life_s: float = 86400.0
+    window_s: float = STILL_WINDOW_S
+    min_still_s: float = MIN_STILL_S
+    temperature_timeout: float = 5.0
+    save_period_s: float = 180.0
+    commit_s: float = 300.0
+
+
+def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
+                  temp_range: tuple[float, float], resid_var: NDArray[np.float64]
+                  ) -> CompensationModel:
+    """
+    Return the ``poly`` model of a learned fit.
+
+    Parameters
+    ----------
+    coef : NDArray[np.float64], shape (1 + F, 3), rad/s
+        Intercept then one row per feature (``dT``; ``dT, dT2``).
+    features : sequence of str
+        ``('dT',)`` or ``('dT', 'dT2')``.
+    t0 : float, degC
+        Reference temperature.
+    temp_range : tuple of float, degC
+        Covered range.
+    resid_var : NDArray[np.float64], shape (3,)
+        Residual variance of the fit.
+
+    Returns
+    -------
+    CompensationModel
+
+    """
+    f = len(features)
+    coef = np.asarray(coef, dtype=np.float64).reshape(1 + f, 3)
+    return CompensationModel(
+        kind='poly', features=tuple(features), effect_params={}, t0_c=float(t0),
+        input_mean=np.zeros(f), input_std=np.ones(f), centers=np.zeros((0, f)),
+        widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=coef[0].copy(),
+        linear=coef[1:].copy(), scale=np.zeros(3),
+        temp_range_c=(float(temp_range[0]), float(temp_range[1])),
+        residual_var=np.asarray(resid_var, dtype=np.float64).reshape(3),
+        created={'fit': 'gyro_tdc.learning (online, still time)'})
+
+
+@dataclass
+class _Stretch:
+    """Windows of the current still stretch: rows of (t0, t1, n, temp, mean3, std3, astd3)."""
+
+    rows: list = field(default_factory=list)
+
+
+class Learner:
+    """
+    Online learner of the bias vs temperature from still time (module docstring).
+
+    Parameters
+    ----------
+    config : LearnConfig
+        Settings.
+    prior : CompensationModel, optional
+        The current model at start (from ``model_file``).
+
+    """
+
+    def __init__(self, config: LearnConfig | None = None,
+                 prior: CompensationModel | None = None) -> None:
+        self.config = config or LearnConfig()
+        self.prior = prior
+        self.buf: list[tuple] = []
+        self.temps: list[tuple[float, float]] = []
+        self.reset()
+
+    # -- state -----------------------------------------------------------------------
+
+    def reset(self) -> None:
+        """Forget everything learned (points, floor, model); the prior is current again."""
+        self.bins: dict[int, list[list]] = {}
+        self.gyro_floor = np.full(3, math.inf)
+        self.accel_floor = np.full(3, math.inf)
+        self.t_first: float | None = None
+        self.still_s = 0.0
+        self.stretches = 0
+        self.windows = 0
+        self.recent: list[list] = []          # window rows of the newest stretches
+        self.fit: dict | None = None          # the learned model in use
+        self.model: CompensationModel | None = self.prior
+        self.last_update_t: float | None = None
+        self.last_t: float | None = None
+        self.last_save_t: float | None = None
+        self.check: dict | None = None
+        self.swaps = 0
+        self._pending: tuple | None = None    # rows of the unfinished window
+        self._stretch = _Stretch()
+        self._done = 0
+        self._new_model: CompensationModel | None = None
+
+    def state(self) -> dict[str, Any]:
+        """Return the persistent state as plain types (what :meth:`save` writes)."""
+        return {
+            'format': FORMAT,
+            'bins': {str(k): [list(map(float, e[:3])) + [list(map(float, e[3])), e[4]]
+                              for e in v] for k, v in sorted(self.bins.items())},
+            'gyro_floor': [float(v) for v in self.gyro_floor],
+            'accel_floor': [float(v) for v in self.accel_floor],
+            't_first': self.t_first, 'still_s': self.still_s, 'stretches': self.stretches,
+            'windows': self.windows, 'recent': self.recent, 'fit': self.fit,
+            'last_update_t': self.last_update_t, 'last_t': self.last_t, 'check': self.check,
+            'swaps': self.swaps, 'config': {k: getattr(self.config, k) for k in (
+                'bin_c', 'half_life_s', 'window_s', 'min_still_s')},
+        }
+
+    def load_state(self, state: dict[str, Any]) -> None:
+        """
+        Resume from :meth:`state` (a restart: nothing saved is lost).
+
+        Raises
+        ------
+        ValueError
+            The state is not one this learner wrote.
+
+        """
+        if not isinstance(state, dict) or state.get('format') != FORMAT:
+            raise ValueError(f'not a learner state ({FORMAT!r} expected)')
+        self.reset()
+        self.bins = {int(k): [[float(e[0]), float(e[1]), float(e[2]),
+                               tuple(float(x) for x in e[3]), int(e[4])] for e in v]
+                     for k, v in state['bins'].items()}
+        self.gyro_floor = np.asarray(state['gyro_floor'], dtype=np.float64)
+        self.accel_floor = np.asarray(state['accel_floor'], dtype=np.float64)
+        self.t_first = state['t_first']
+        self.still_s = float(state['still_s'])
+        self.stretches = int(state['stretches'])
+        self.windows = int(state['windows'])
+        self.recent = [list(r) for r in state['recent']]
+        self.fit = state['fit']
+        self.last_update_t = state['last_update_t']
+        self.last_t = state['last_t']
+        self.last_save_t = state['last_t']
+        self.check = state['check']
+        self.swaps = int(state['swaps'])
+        if self.fit is not None:
+            self.model = self._model_of(self.fit)
+            self._new_model = self.model
+
+    def save(self, path: str | Path) -> None:
+        """Write the state (model and point table) to ``path`` atomically (JSON)."""
+        atomic_write(path, json.dumps(self.state(), indent=1) + '\n')
+        self.saved()
+
+    def load(self, path: str | Path) -> bool:
+        """
+        Resume from ``path`` when it exists; return whether it did.
+
+        Raises
+        ------
+        ValueError
+            The file is not a learner state.
+
+        """
+        p = Path(path)
+        if not p.is_file():
+            return False
+        try:
+            state = json.loads(p.read_text(encoding='utf-8'))
+        except json.JSONDecodeError as exc:
+            raise ValueError(f'{p}: not JSON ({exc})') from None
+        self.load_state(state)
+        return True
+
+    # -- the message path -------------------------------------------------------------
+
+    def observe(self, t: float, wx: float, wy: float, wz: float,
+                accel: Sequence[float] | None = None) -> None:
+        """Record one raw IMU sample (the only per-message work)."""
+        self.buf.append((t, wx, wy, wz, accel))
+
+    def add_temperature(self, t: float, temp_c: float) -> None:
+        """Record one thermometer reading."""
+        self.temps.append((t, temp_c))
+
+    def take_model(self) -> CompensationModel | None:
+        """Return a model swapped in since the last call (once), else None."""
+        m, self._new_model = self._new_model, None
+        return m
+
+    def save_due(self) -> bool:
+        """Return whether ``save_period_s`` of stamp time passed since the last save."""
+        if self.last_t is None:
+            return False
+        if self.last_save_t is None:
+            self.last_save_t = self.last_t
+            return False
+        return self.last_t - self.last_save_t >= self.config.save_period_s
+
+    def saved(self) -> None:
+        """Note that the state was saved now (by stamp)."""
+        self.last_save_t = self.last_t
+
+    # -- off the message path ----------------------------------------------------------
+
+    def step(self) -> bool:
+        """
+        Process the samples gathered since the last call; refit after each finished stretch.
+
+        Returns
+        -------
+        bool
+            True when a new model was swapped in (:meth:`take_model` gives it).
+
+        """
+        buf, self.buf = self.buf, []
+        if not buf:
+            return False
+        t = np.fromiter((r[0] for r in buf), dtype=np.float64, count=len(buf))
+        w = np.array([r[1:4] for r in buf], dtype=np.float64)
+        acc = None
+        if buf[0][4] is not None and all(r[4] is not None for r in buf):
+            acc = np.array([r[4] for r in buf], dtype=np.float64).reshape(-1, 3)
+        ok = np.isfinite(t)
+        t, w = t[ok], w[ok]
+        acc = None if acc is None else acc[ok]
+        if not t.size:
+            return False
+        temp = self._temperature(t)
+        if self._pending is not None:
+            pt, pw, pa, ptemp = self._pending
+            if (pa is None) != (acc is None):
+                pa = acc = None
+            t, w, temp = np.concatenate([pt, t]), np.vstack([pw, w]), np.concatenate(
+                [ptemp, temp])
+            acc = None if acc is None else np.vstack([pa, acc])
+        if self.t_first is None:
+            self.t_first = float(t[0])
+        self.last_t = float(t[-1])
+        k = np.floor((t - self.t_first) / self.config.window_s).astype(np.int64)
+        cut = np.flatnonzero(k != k[-1])
+        done = cut[-1] + 1 if cut.size else 0
+        self._pending = (t[done:], w[done:], None if acc is None else acc[done:],
+                         temp[done:])
+        if done == 0:
+            return False
+        return self._windows(t[:done], w[:done], None if acc is None else acc[:done],
+                             temp[:done], k[:done])
+
+    def flush(self) -> bool:
+        """Judge the window in progress and end the stretch (at shutdown)."""
+        swapped = False
+        if self._pending is not None and self._pending[0].size:
+            pt, pw, pa, ptemp = self._pending
+            self._pending = None
+            k = np.zeros(pt.size, dtype=np.int64)
+            swapped = self._windows(pt, pw, pa, ptemp, k)
+        return self._close() or swapped
+
+    def _temperature(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Hold the thermometer by stamp: the newest reading at or before each stamp."""
+        if not self.temps:
+            return np.full(t.size, math.nan)
+        tt = np.array([x[0] for x in self.temps])
+        tc = np.array([x[1] for x in self.temps])
+        order = np.argsort(tt, kind='stable')
+        tt, tc = tt[order], tc[order]
+        i = np.searchsorted(tt, t, side='right') - 1
+        out = np.where(i >= 0, tc[np.clip(i, 0, None)], math.nan)
+        out[(i >= 0) & (t - tt[np.clip(i, 0, None)] > self.config.temperature_timeout)] = \
+            math.nan
+        # Keep the newest reading at or before the last stamp and everything after it.
+        keep = max(int(i[-1]), 0)
+        self.temps = list(zip(tt[keep:].tolist(), tc[keep:].tolist()))
+        return out
+
+    def _windows(self, t, w, acc, temp, k) -> bool:
+        """Judge finished windows in order; close and learn the stretches they end."""
+        start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
+        n = np.diff(np.r_[start, k.size])
+        s = np.add.reduceat(w, start, axis=0)
+        mean = s / n[:, None]
+        dev = w - np.repeat(mean, n, axis=0)
+        var = np.add.reduceat(dev * dev, start, axis=0) / np.maximum(n - 1, 1)[:, None]
+        std = np.sqrt(var)
+        astd = None
+        if acc is not None and has_accelerometer(acc):
+            am = np.add.reduceat(acc, start, axis=0) / n[:, None]
+            ad = acc - np.repeat(am, n, axis=0)
+            astd = np.sqrt(np.add.reduceat(ad * ad, start, axis=0)
+                           / np.maximum(n - 1, 1)[:, None])
+        tmean = np.add.reduceat(temp, start) / n
+        t0 = t[start]
+        t1 = t[np.r_[start[1:], k.size] - 1]
+        fin = np.isfinite(std).all(axis=1) & np.isfinite(mean).all(axis=1) & (n >= 3)
+        swapped = False
+        for i in range(start.size):
+            self.windows += 1
+            if fin[i]:
+                self.gyro_floor = np.minimum(self.gyro_floor, np.where(std[i] > 0, std[i],
+                                                                       math.inf))
+                if astd is not None:
+                    self.accel_floor = np.minimum(self.accel_floor, np.where(
+                        astd[i] > 0, astd[i], math.inf))
+            g_thr, a_thr = noise_thresholds(self.gyro_floor,
+                                            None if astd is None else self.accel_floor)
+            why = judge_windows(std[i:i + 1], None if astd is None else astd[i:i + 1],
+                                g_thr, a_thr)[0]
+            if not fin[i] or not math.isfinite(tmean[i]):
+                why = 'non-finite'
+            if why:
+                swapped = self._close() or swapped
+                continue
+            self._stretch.rows.append([float(t0[i]), float(t1[i]), int(n[i]),
+                                       float(tmean[i]), mean[i].tolist(), std[i].tolist(),
+                                       None if astd is None else astd[i].tolist()])
+            swapped = self._commit() or swapped
+        return swapped
+
+    def _close(self) -> bool:
+        """End the stretch: keep it when long enough, learn what is not learned yet."""
+        rows, self._stretch = self._stretch.rows, _Stretch()
+        done, self._done = self._done, 0
+        if not rows:
+            return False
+        if not done:
+            g_thr, a_thr = noise_thresholds(self.gyro_floor, self.accel_floor
+                                            if rows[0][6] is not None else None)
+            bad = judge_windows([r[5] for r in rows], None if rows[0][6] is None else
+                                [r[6] for r in rows], g_thr, a_thr)
+            refused = np.flatnonzero(bad != '')
+            if refused.size:
+                rows = rows[refused[-1] + 1:]
+            if not rows or self._span(rows) + 1e-9 < self.config.min_still_s:
+                return False
+            self.stretches += 1
+        return self._learn(rows[done:], rows)
+
+    @staticmethod
+    def _span(rows: list) -> float:
+        """Return the duration of consecutive window rows, s (one sample period included)."""
+        n = sum(r[2] for r in rows)
+        return rows[-1][1] - rows[0][0] + (rows[-1][1] - rows[0][0]) / max(n - 1, 1)
+
+    def _commit(self) -> bool:
+        """Learn a long stretch's windows so far (every ``commit_s``) while it goes on."""
+        rows = self._stretch.rows
+        done = self._done
+        if (self._span(rows) < self.config.min_still_s
+                or rows[-1][1] - rows[done][0] < self.config.commit_s):
+            return False
+        if not done:
+            self.stretches += 1
+        self._done = len(rows)
+        return self._learn(rows[done:], rows)
+
+    def _learn(self, new: list, rows: list) -> bool:
+        """Bin new windows of the current stretch (merged per bin), refit, maybe swap."""
+        if not new:
+            return False
+        n = sum(r[2] for r in new)
+        self.still_s += new[-1][1] - new[0][0] + (new[-1][1] - new[0][0]) / max(n - 1, 1)
+        groups: dict[int, list] = {}
+        for r in new:
+            groups.setdefault(int(math.floor(r[3] / self.config.bin_c)), []).append(r)
+        sid = self.stretches
+        for b, rs in groups.items():
+            m = sum(r[2] for r in rs)
+            entry = [float(rs[-1][1]), float(m), sum(r[3] * r[2] for r in rs) / m,
+                     tuple(sum(r[4][a] * r[2] for r in rs) / m for a in range(3)), sid]
+            lst = self.bins.setdefault(b, [])
+            if lst and lst[-1][4] == sid:          # the same stretch: one entry per bin
+                o = lst[-1]
+                tot = o[1] + m
+                entry = [entry[0], tot, (o[2] * o[1] + entry[2] * m) / tot,
+                         tuple((o[3][a] * o[1] + entry[3][a] * m) / tot for a in range(3)),
+                         sid]
+                lst[-1] = entry
+            else:
+                lst.append(entry)
+            del lst[:-BIN_ENTRIES]
+        recent = [[r[2], r[3], *r[4]] for r in rows]
+        if self.recent and self.recent[-1][0] == sid:
+            self.recent[-1] = [sid, recent]
+        else:
+            self.recent.append([sid, recent])
+        del self.recent[:-CHECK_STRETCHES]
+        return self._refit(new[-1][1])
+
+    # -- the fit ----------------------------------------------------------------------
+
+    def entries(self) -> NDArray[np.float64]:
+        """Return the point table: rows ``(t_end, samples, temp, bx, by, bz)``."""
+        rows = [[e[0], e[1], e[2], *e[3]] for v in self.bins.values() for e in v]
+        return np.asarray(rows, dtype=np.float64).reshape(-1, 6)
+
+    def covered_c(self) -> tuple[float, float] | None:
+        """Return the covered temperature range (the entries' extremes), None when empty."""
+        e = self.entries()
+        return None if not e.shape[0] else (float(e[:, 2].min()), float(e[:, 2].max()))
+
+    def _features(self) -> tuple[str, ...]:
+        """Return the features the covered span allows (the growth rule)."""
+        cov = self.covered_c()
+        span = 0.0 if cov is None else cov[1] - cov[0]
+        if span >= SPAN_DT3_C and len(self.bins) >= BINS_DT3:
+            return ('dT', 'dT2', 'dT3')
+        if span >= SPAN_DT2_C and len(self.bins) >= BINS_DT2:
+            return ('dT', 'dT2')
+        if span >= SPAN_DT_C and len(self.bins) >= 2:
+            return ('dT',)
+        return ()
+
+    def _solve(self, e: NDArray[np.float64], wt: NDArray[np.float64], feats: tuple,
+               t0: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Weighted least squares; return the coefficients (1 + F, 3) and the residuals."""
+        d = e[:, 2] - t0
+        x = np.column_stack([np.ones(d.size)] + [d ** (j + 1) for j in range(len(feats))])
+        sw = np.sqrt(wt)[:, None]
+        coef = np.linalg.lstsq(x * sw, e[:, 3:] * sw, rcond=None)[0]
+        return coef, e[:, 3:] - x @ coef
+
+    def _refit(self, t_now: float) -> bool:
+        """Fit the point table; swap the candidate in when it predicts recent still time better."""
+        e = self.entries()
+        feats = self._features()
+        age = np.maximum(t_now - e[:, 0], 0.0)
+        wt = e[:, 1] * 0.5 ** (age / self.config.half_life_s)
+        t0 = float(np.average(e[:, 2], weights=wt))
+        coef, res = self._solve(e, wt, feats, t0)
+        if e.shape[0] > len(feats) + 2:
+            r = np.abs(res).max(axis=1)
+            order = np.argsort(r)
+            cw = np.cumsum(wt[order])
+            mad = r[order][np.searchsorted(cw, 0.5 * cw[-1])]
+            floor = float(np.nanmax(np.where(np.isfinite(self.gyro_floor), self.gyro_floor,
+                                             0.0)))
+            sigma = max(1.4826 * mad, floor / math.sqrt(max(e[:, 1].min(), 1.0)), 1e-12)
+            keep = r <= OUTLIER_K * sigma
+            if keep.sum() > len(feats) + 1 and not keep.all():
+                e, wt = e[keep], wt[keep]
+                coef, res = self._solve(e, wt, feats, t0)
+        resid = np.average(res ** 2, axis=0, weights=wt)
+        fit = {'features': list(feats), 't0_c': t0, 'coef': coef.tolist(),
+               'range_c': [float(e[:, 2].min()), float(e[:, 2].max())],
+               'resid_var': resid.tolist(), 'points': int(e.shape[0])}
+        cand = self._model_of(fit)
+        new = self._score(cand)
+        old = None if self.model is None else self._score(self.model)
+        self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old,
+                      'swapped': old is None or new < old}
+        if old is not None and not new < old:
+            return False
+        self.fit, self.model, self._new_model = fit, cand, cand
+        self.last_update_t = t_now
+        self.swaps += 1
+        return True
+
+    @staticmethod
+    def _model_of(fit: dict) -> CompensationModel:
+        """Return the model of a fit record (a bias only as ``dT`` with a zero slope)."""
+        feats = tuple(fit['features'])
+        coef = np.asarray(fit['coef'], dtype=np.float64)
+        if not feats:
+            feats, coef = ('dT',), np.vstack([coef, np.zeros((1, 3))])
+        return learned_model(coef, feats, fit['t0_c'], tuple(fit['range_c']),
+                             np.asarray(fit['resid_var']))
+
+    def _score(self, model: CompensationModel) -> float:
+        """Return the sample-weighted mean squared error over the recent stretches' windows."""
+        rows = np.asarray([r for s in self.recent for r in s[1]], dtype=np.float64)
+        temp = rows[:, 1]
+        pred = drift(model, np.zeros(temp.size), temp, out_of_range='linear')
+        err = ((rows[:, 2:5] - pred) ** 2).sum(axis=1)
+        return float(np.average(err, weights=rows[:, 0]))
+
+    # -- reporting --------------------------------------------------------------------
+
+    def summary(self) -> dict[str, Any]:
+        """Return what /diagnostics shows: points, range, still time, last update, check."""
+        cov = self.covered_c()
+        chk = self.check
+        return {
+            'points': int(self.entries().shape[0]), 'bins': len(self.bins),
+            'covered_c': cov, 'still_s': self.still_s, 'stretches': self.stretches,
+            'features': None if self.fit is None else (self.fit['features'] or ['bias']),
+            'last_update_t': self.last_update_t, 'swaps': self.swaps,
+            'check': None if chk is None else (
+                f"candidate {math.sqrt(chk['candidate_mse']):.3g} rad/s vs current "
+                + ('none' if chk['current_mse'] is None
+                   else f"{math.sqrt(chk['current_mse']):.3g} rad/s")
+                + (' -> swapped' if chk['swapped'] else ' -> kept')),
+        }
