@@ -35,6 +35,10 @@ temperature, mean raw rate, stretch)``; a long stretch is learned every ``commit
 it goes on (one entry per bin and stretch, merged). A bin keeps its :data:`BIN_ENTRIES`
 newest entries, so it learns while heating and while cooling alike and old data fade out.
 
+**Sessions.** A gap in the IMU stamps over ``session_gap_s`` starts a new session (a
+power-up, with its own turn-on offset, e.g. the next day): the fit gives each session its
+own intercept and shares the temperature shape; the model uses the newest session's.
+
 **Fit.** Weighted least squares of the entries' mean raw rate on ``T - T0`` with weights
 ``samples * 0.5 ** (age / half_life_s)`` (age by message stamp to the newest entry, as AOSP
 ``over_temp_cal`` weights its model points by age), then entries whose residual exceeds
@@ -106,6 +110,9 @@ class LearnConfig:
         Stamp time between periodic saves.
     commit_s : float, s
         A still stretch longer than this is learned every ``commit_s`` while it goes on.
+    session_gap_s : float, s
+        A gap in the IMU stamps longer than this starts a new session (a power-up: the
+        gyro's turn-on offset changes; each session gets its own intercept in the fit).
 
     """
 
@@ -116,6 +123,7 @@ class LearnConfig:
     temperature_timeout: float = 5.0
     save_period_s: float = 180.0
     commit_s: float = 300.0
+    session_gap_s: float = 600.0
 
 
 def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
@@ -193,7 +201,8 @@ class Learner:
         self.still_s = 0.0
         self.stretches = 0
         self.windows = 0
-        self.recent: list[list] = []          # window rows of the newest stretches
+        self.recent: list[list] = []          # [stretch, session, window rows] newest last
+        self.session = 0
         self.fit: dict | None = None          # the learned model in use
         self.model: CompensationModel | None = self.prior
         self.last_update_t: float | None = None
@@ -210,8 +219,9 @@ class Learner:
         """Return the persistent state as plain types (what :meth:`save` writes)."""
         return {
             'format': FORMAT,
-            'bins': {str(k): [list(map(float, e[:3])) + [list(map(float, e[3])), e[4]]
+            'bins': {str(k): [list(map(float, e[:3])) + [list(map(float, e[3])), e[4], e[5]]
                               for e in v] for k, v in sorted(self.bins.items())},
+            'session': self.session,
             'gyro_floor': [float(v) for v in self.gyro_floor],
             'accel_floor': [float(v) for v in self.accel_floor],
             't_first': self.t_first, 'still_s': self.still_s, 'stretches': self.stretches,
@@ -235,11 +245,13 @@ class Learner:
             raise ValueError(f'not a learner state ({FORMAT!r} expected)')
         self.reset()
         self.bins = {int(k): [[float(e[0]), float(e[1]), float(e[2]),
-                               tuple(float(x) for x in e[3]), int(e[4])] for e in v]
+                               tuple(float(x) for x in e[3]), int(e[4]), int(e[5])]
+                              for e in v]
                      for k, v in state['bins'].items()}
         self.gyro_floor = np.asarray(state['gyro_floor'], dtype=np.float64)
         self.accel_floor = np.asarray(state['accel_floor'], dtype=np.float64)
         self.t_first = state['t_first']
+        self.session = int(state['session'])
         self.still_s = float(state['still_s'])
         self.stretches = int(state['stretches'])
         self.windows = int(state['windows'])
@@ -334,6 +346,12 @@ class Learner:
         if not t.size:
             return False
         temp = self._temperature(t)
+        swapped = False
+        if self.last_t is not None and t[0] - self.last_t > self.config.session_gap_s:
+            # A new session (power-up): its own turn-on offset, learned apart.
+            swapped = self.flush()
+            self.session += 1
+            self.t_first = None
         if self._pending is not None:
             pt, pw, pa, ptemp = self._pending
             if (pa is None) != (acc is None):
@@ -350,9 +368,9 @@ class Learner:
         self._pending = (t[done:], w[done:], None if acc is None else acc[done:],
                          temp[done:])
         if done == 0:
-            return False
+            return swapped
         return self._windows(t[:done], w[:done], None if acc is None else acc[:done],
-                             temp[:done], k[:done])
+                             temp[:done], k[:done]) or swapped
 
     def flush(self) -> bool:
         """Judge the window in progress and end the stretch (at shutdown)."""
@@ -454,7 +472,7 @@ class Learner:
         rows = self._stretch.rows
         done = self._done
         if (self._span(rows) < self.config.min_still_s
-                or rows[-1][1] - rows[done][0] < self.config.commit_s):
+                or (done and rows[-1][1] - rows[done][0] < self.config.commit_s)):
             return False
         if not done:
             self.stretches += 1
@@ -474,32 +492,33 @@ class Learner:
         for b, rs in groups.items():
             m = sum(r[2] for r in rs)
             entry = [float(rs[-1][1]), float(m), sum(r[3] * r[2] for r in rs) / m,
-                     tuple(sum(r[4][a] * r[2] for r in rs) / m for a in range(3)), sid]
+                     tuple(sum(r[4][a] * r[2] for r in rs) / m for a in range(3)), sid,
+                     self.session]
             lst = self.bins.setdefault(b, [])
             if lst and lst[-1][4] == sid:          # the same stretch: one entry per bin
                 o = lst[-1]
                 tot = o[1] + m
                 entry = [entry[0], tot, (o[2] * o[1] + entry[2] * m) / tot,
                          tuple((o[3][a] * o[1] + entry[3][a] * m) / tot for a in range(3)),
-                         sid]
+                         sid, self.session]
                 lst[-1] = entry
             else:
                 lst.append(entry)
             del lst[:-BIN_ENTRIES]
         recent = [[r[2], r[3], *r[4]] for r in rows]
         if self.recent and self.recent[-1][0] == sid:
-            self.recent[-1] = [sid, recent]
+            self.recent[-1] = [sid, self.session, recent]
         else:
-            self.recent.append([sid, recent])
+            self.recent.append([sid, self.session, recent])
         del self.recent[:-CHECK_STRETCHES]
         return self._refit(new[-1][1])
 
     # -- the fit ----------------------------------------------------------------------
 
     def entries(self) -> NDArray[np.float64]:
-        """Return the point table: rows ``(t_end, samples, temp, bx, by, bz)``."""
-        rows = [[e[0], e[1], e[2], *e[3]] for v in self.bins.values() for e in v]
-        return np.asarray(rows, dtype=np.float64).reshape(-1, 6)
+        """Return the point table: rows ``(t_end, samples, temp, bx, by, bz, session)``."""
+        rows = [[e[0], e[1], e[2], *e[3], e[5]] for v in self.bins.values() for e in v]
+        return np.asarray(rows, dtype=np.float64).reshape(-1, 7)
 
     def covered_c(self) -> tuple[float, float] | None:
         """Return the covered temperature range (the entries' extremes), None when empty."""
@@ -520,12 +539,25 @@ class Learner:
 
     def _solve(self, e: NDArray[np.float64], wt: NDArray[np.float64], feats: tuple,
                t0: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """Weighted least squares; return the coefficients (1 + F, 3) and the residuals."""
+        """
+        Weighted least squares, one intercept per session and a shared shape.
+
+        Returns
+        -------
+        coef : NDArray[np.float64], shape (1 + F, 3)
+            The newest session's intercept, then the shape.
+        resid : NDArray[np.float64], shape (E, 3)
+            Residuals.
+
+        """
         d = e[:, 2] - t0
-        x = np.column_stack([np.ones(d.size)] + [d ** (j + 1) for j in range(len(feats))])
+        sessions = np.unique(e[:, 6])
+        x = np.column_stack([(e[:, 6] == s).astype(np.float64) for s in sessions]
+                            + [d ** (j + 1) for j in range(len(feats))])
         sw = np.sqrt(wt)[:, None]
-        coef = np.linalg.lstsq(x * sw, e[:, 3:] * sw, rcond=None)[0]
-        return coef, e[:, 3:] - x @ coef
+        coef = np.linalg.lstsq(x * sw, e[:, 3:6] * sw, rcond=None)[0]
+        k = sessions.size
+        return np.vstack([coef[k - 1:k], coef[k:]]), e[:, 3:6] - x @ coef
 
     def _refit(self, t_now: float) -> bool:
         """Fit the point table; swap the candidate in when it predicts recent still time better."""
@@ -535,7 +567,7 @@ class Learner:
         wt = e[:, 1] * 0.5 ** (age / self.config.half_life_s)
         t0 = float(np.average(e[:, 2], weights=wt))
         coef, res = self._solve(e, wt, feats, t0)
-        if e.shape[0] > len(feats) + 2:
+        if e.shape[0] > len(feats) + np.unique(e[:, 6]).size + 1:
             r = np.abs(res).max(axis=1)
             order = np.argsort(r)
             cw = np.cumsum(wt[order])
@@ -544,7 +576,8 @@ class Learner:
                                              0.0)))
             sigma = max(1.4826 * mad, floor / math.sqrt(max(e[:, 1].min(), 1.0)), 1e-12)
             keep = r <= OUTLIER_K * sigma
-            if keep.sum() > len(feats) + 1 and not keep.all():
+            if (keep.sum() > len(feats) + 1 and not keep.all()
+                    and np.any(e[keep, 6] == e[:, 6].max())):
                 e, wt = e[keep], wt[keep]
                 coef, res = self._solve(e, wt, feats, t0)
         resid = np.average(res ** 2, axis=0, weights=wt)
@@ -575,7 +608,8 @@ class Learner:
 
     def _score(self, model: CompensationModel) -> float:
         """Return the sample-weighted mean squared error over the recent stretches' windows."""
-        rows = np.asarray([r for s in self.recent for r in s[1]], dtype=np.float64)
+        rows = np.asarray([r for s in self.recent if s[1] == self.session for r in s[2]],
+                          dtype=np.float64)
         temp = rows[:, 1]
         pred = drift(model, np.zeros(temp.size), temp, out_of_range='linear')
         err = ((rows[:, 2:5] - pred) ** 2).sum(axis=1)
