@@ -17,7 +17,7 @@
 
 One run per bag (a folder of bag folders expands to its bags). The workflow is
 :func:`gyro_tdc.discover.discover`; this module reads the bags, prints the summary and writes
-the optional outputs: ``--json`` (the document of DESIGN.md), ``--report DIR`` (report.md with
+the optional outputs: ``--json`` (the document of docs/json.md), ``--report DIR`` (report.md with
 PNG residual maps and Allan deviation plots) and ``--out MODEL.yaml`` (a model of the
 discovered effects that ``compensator_node`` loads; format 2, with the thermal state and its
 tau interval when ``lag`` was named). ``--sensor accel`` runs the same search on the
