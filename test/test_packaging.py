@@ -25,6 +25,7 @@ from __future__ import annotations
 import configparser
 import os
 from pathlib import Path
+import re
 import runpy
 import subprocess
 import sys
@@ -196,3 +197,83 @@ def test_readme_layout_lists_every_module():
     modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / 'gyro_tdc').rglob('*.py')}
     assert sorted(modules - listed) == [], 'modules missing from the README layout'
     assert sorted(listed - modules) == [], 'README layout names modules that do not exist'
+
+
+# -- the apt recipe: what apt gives, what pip adds, and the README that says so ---------------
+
+#: What a robot with apt-installed Jazzy takes from apt (rosdep key: Ubuntu 24.04's version).
+APT_PROVIDED = {'numpy': ('python3-numpy', '1.26.4'), 'scipy': ('python3-scipy', '1.11.4'),
+                'matplotlib': ('python3-matplotlib', '3.6.3'),
+                'pyyaml': ('python3-yaml', '6.0.1')}
+
+
+def _pins(path: Path) -> dict:
+    """Return ``{normalised name: version}`` of a requirements file's ``==`` pins (3.11)."""
+    pins = {}
+    for line in path.read_text().splitlines():
+        line = line.split('#', 1)[0].strip()
+        if not line:
+            continue
+        req, _, marker = line.partition(';')
+        if marker and '< "3.11"' in marker:
+            continue
+        name, sep, version = req.strip().partition('==')
+        assert sep, f'{path.name}: {line!r} is not pinned with =='
+        pins[name.split('[')[0].strip().lower().replace('_', '-')] = version.strip()
+    return pins
+
+
+def test_requirements_apt_adds_to_apt_what_requirements_txt_pins():
+    apt, full = _pins(ROOT / 'requirements-apt.txt'), _pins(ROOT / 'requirements.txt')
+    assert not set(apt) & set(APT_PROVIDED)          # never pip over apt's builds
+    assert not [n for n in apt if n.startswith('ros-')]
+    wanted = {n: v for n, v in full.items()
+              if n not in APT_PROVIDED and not n.startswith('ros-')}
+    assert wanted and {n: apt.get(n) for n in wanted} == wanted
+    # pandas 3 needs numpy 2: the pin keeps pip from replacing apt's numpy and scipy.
+    assert apt['pandas'].startswith('2.')
+
+
+def test_package_xml_gets_the_rest_from_apt(package):
+    package.evaluate_conditions({'ROS_VERSION': '2', 'ROS_PYTHON_VERSION': '3'})
+    exec_depends = {d.name for d in package.exec_depends}
+    assert {key for key, _ in APT_PROVIDED.values()} | {'ros2launch'} <= exec_depends
+    text = (ROOT / 'package.xml').read_text()
+    assert re.findall(r'pip install\s+(\S+)', text) == ['-r'], 'a bare pip install'
+
+
+def test_make_test_apt_versions_uses_apt_versions():
+    text = (ROOT / 'Makefile').read_text()
+    pins = re.search(r'^APT_VERSIONS := (.+)$', text, re.M).group(1).split()
+    assert {p.split('==')[0].lower(): p.split('==')[1] for p in pins} == \
+        {name: version for name, (_, version) in APT_PROVIDED.items()}
+    assert re.search(r'^test-apt-versions:', text, re.M)
+    assert 'test-apt-versions' not in text.split('\ntest: ', 1)[1].split('\n\n', 1)[0]
+
+
+def test_readme_apt_recipe_sources_ros_runs_rosdep_and_pips_only_in_a_venv():
+    from readme_check import readme_blocks
+
+    readme = (ROOT / 'README.md').read_text(encoding='utf-8')
+    section = readme.split('\n## Running on a robot\n', 1)[1].split('\n## ', 1)[0]
+    for name, (key, version) in APT_PROVIDED.items():
+        assert key in section and version in section, key
+    blocks = readme_blocks(readme)
+    recipe = next(b for b in blocks if any('rosdep install' in line for line in b.lines))
+    assert recipe.skip.startswith('robot only')
+    lines = [line.split('#', 1)[0].strip() for line in recipe.lines]
+    assert lines.index('source /opt/ros/jazzy/setup.bash') == 1   # first, after the marker
+    assert 'cd ~/ws && rosdep install --from-paths src -y --ignore-src' in lines
+    venv = next(i for i, line in enumerate(lines) if 'venv --system-site-packages' in line)
+    activate = lines.index('. ~/ws/venv/bin/activate')
+    assert venv < activate
+    for block in blocks:
+        for i, line in enumerate(block.lines):
+            if re.match(r'\s*(sudo )?pip3? install', line):
+                assert block is recipe and i > activate, (block.line, line)
+                assert line.split('#')[0].split() == [
+                    'pip', 'install', '-r', 'src/gyro_tdc/requirements-apt.txt']
+    # The shipped simulated model only with the simulated driver.
+    for line in section.splitlines():
+        if 'l3gd20_modified' in line and line.startswith('ros2 '):
+            assert 'backend:=sim' in line, line
