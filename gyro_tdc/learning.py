@@ -42,8 +42,12 @@ own intercept and shares the temperature shape; the model uses the newest sessio
 **Fit.** Weighted least squares of the entries' mean raw rate on ``T - T0`` with weights
 ``samples * 0.5 ** (age / half_life_s)`` (age by message stamp to the newest entry, as AOSP
 ``over_temp_cal`` weights its model points by age), then entries whose residual exceeds
-:data:`OUTLIER_K` robust standard deviations (1.4826 x the weighted median absolute
-residual, at least the noise floor's) are dropped and the fit repeated once. **Growth
+:data:`OUTLIER_K` robust standard deviations are dropped: each entry is compared with
+the fit of the others (leave one out; an entry alone in its session is kept); the one that
+departs most is dropped when its departure exceeds :data:`OUTLIER_K` times the others'
+scatter in that fit (1.4826 x their weighted median absolute residual, at least the noise
+floor over the root of the largest entry's samples), up to :data:`MAX_DROPS` times; then
+the fit is repeated on the rest. **Growth
 rule**: the features grow with the covered temperature span of the bins: under
 :data:`SPAN_DT_C` (or fewer than 2 bins) a bias only (the first still stretch's bias); from
 there ``dT``; from :data:`SPAN_DT2_C` and at least :data:`BINS_DT2` bins ``dT, dT2``; from
@@ -78,12 +82,13 @@ from numpy.typing import NDArray
 
 __all__ = ['BIN_ENTRIES', 'CHECK_STRETCHES', 'FORMAT', 'Learner', 'LearnConfig',
            'OUTLIER_K', 'SPAN_DT2_C', 'SPAN_DT3_C', 'SPAN_DT_C', 'BINS_DT2', 'BINS_DT3',
-           'learned_model']
+           'MAX_DROPS', 'learned_model']
 
 FORMAT = 'gyro_tdc learn 1'
 BIN_ENTRIES = 4
 CHECK_STRETCHES = 3
 OUTLIER_K = 4.0
+MAX_DROPS = 3
 SPAN_DT_C = 2.0
 SPAN_DT2_C = 8.0
 BINS_DT2 = 5
@@ -538,14 +543,15 @@ class Learner:
         return ()
 
     def _solve(self, e: NDArray[np.float64], wt: NDArray[np.float64], feats: tuple,
-               t0: float) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+               t0: float, session: float | None = None
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """
         Weighted least squares, one intercept per session and a shared shape.
 
         Returns
         -------
         coef : NDArray[np.float64], shape (1 + F, 3)
-            The newest session's intercept, then the shape.
+            The intercept of ``session`` (default the newest), then the shape.
         resid : NDArray[np.float64], shape (E, 3)
             Residuals.
 
@@ -557,7 +563,43 @@ class Learner:
         sw = np.sqrt(wt)[:, None]
         coef = np.linalg.lstsq(x * sw, e[:, 3:6] * sw, rcond=None)[0]
         k = sessions.size
-        return np.vstack([coef[k - 1:k], coef[k:]]), e[:, 3:6] - x @ coef
+        i = k - 1 if session is None else int(np.flatnonzero(sessions == session)[0])
+        return np.vstack([coef[i:i + 1], coef[k:]]), e[:, 3:6] - x @ coef
+
+    def _inliers(self, e: NDArray[np.float64], wt: NDArray[np.float64], feats: tuple,
+                 t0: float) -> NDArray[np.bool_]:
+        """Return the entries to keep: each against the fit of the others (leave one out)."""
+        n = e.shape[0]
+        keep = np.ones(n, dtype=bool)
+        floor = float(np.nanmax(np.where(np.isfinite(self.gyro_floor), self.gyro_floor,
+                                         0.0)))
+        for _ in range(MAX_DROPS):
+            idx = np.flatnonzero(keep)
+            if idx.size <= len(feats) + np.unique(e[idx, 6]).size + 2:
+                break
+            best = None
+            for i in idx:
+                others = idx[idx != i]
+                if not np.any(e[others, 6] == e[i, 6]):
+                    continue              # its session's intercept needs it
+                c, res = self._solve(e[others], wt[others], feats, t0, session=e[i, 6])
+                x = e[i, 2] - t0
+                pred = c[0] + sum(c[j + 1] * x ** (j + 1) for j in range(len(feats)))
+                loo = float(np.abs(e[i, 3:6] - pred).max())
+                if best is None or loo > best[1]:
+                    best = (i, loo, np.abs(res).max(axis=1), wt[others])
+            if best is None:
+                break
+            i, loo, r, w = best
+            order = np.argsort(r)
+            cw = np.cumsum(w[order])
+            mad = float(r[order][np.searchsorted(cw, 0.5 * cw[-1])])
+            sigma = max(1.4826 * mad, floor / math.sqrt(max(float(e[:, 1].max()), 1.0)),
+                        1e-12)
+            if loo <= OUTLIER_K * sigma:
+                break
+            keep[i] = False
+        return keep
 
     def _refit(self, t_now: float) -> bool:
         """Fit the point table; swap the candidate in when it predicts recent still time better."""
@@ -567,19 +609,10 @@ class Learner:
         wt = e[:, 1] * 0.5 ** (age / self.config.half_life_s)
         t0 = float(np.average(e[:, 2], weights=wt))
         coef, res = self._solve(e, wt, feats, t0)
-        if e.shape[0] > len(feats) + np.unique(e[:, 6]).size + 1:
-            r = np.abs(res).max(axis=1)
-            order = np.argsort(r)
-            cw = np.cumsum(wt[order])
-            mad = r[order][np.searchsorted(cw, 0.5 * cw[-1])]
-            floor = float(np.nanmax(np.where(np.isfinite(self.gyro_floor), self.gyro_floor,
-                                             0.0)))
-            sigma = max(1.4826 * mad, floor / math.sqrt(max(e[:, 1].min(), 1.0)), 1e-12)
-            keep = r <= OUTLIER_K * sigma
-            if (keep.sum() > len(feats) + 1 and not keep.all()
-                    and np.any(e[keep, 6] == e[:, 6].max())):
-                e, wt = e[keep], wt[keep]
-                coef, res = self._solve(e, wt, feats, t0)
+        keep = self._inliers(e, wt, feats, t0)
+        if not keep.all():
+            e, wt = e[keep], wt[keep]
+            coef, res = self._solve(e, wt, feats, t0)
         resid = np.average(res ** 2, axis=0, weights=wt)
         fit = {'features': list(feats), 't0_c': t0, 'coef': coef.tolist(),
                'range_c': [float(e[:, 2].min()), float(e[:, 2].max())],
