@@ -144,6 +144,15 @@ PARAMS = (
               'differs, the node warns in the log and on /diagnostics (WARN) for as long as '
               'that model is in use (a model trained on another sensor, or the shipped '
               'simulated one). Empty: no check.'),
+    ParamSpec('learn', False, 'Learn the bias vs temperature from still time while '
+              'compensating (gyro_tdc.learning): still-stretch means in 1 degC bins, refit off '
+              'the message path, swapped in when it predicts the recent still time better; '
+              'model_file is the prior, none: starts from the first still stretch.'),
+    ParamSpec('learn_file', '', 'Learned model and point table (JSON), written atomically '
+              'every learn_save_period of message-stamp time, on ~/learn_save and at '
+              'shutdown, and resumed from at start. Empty: nothing is kept across restarts.'),
+    ParamSpec('learn_save_period', 180.0, 'Message-stamp time between saves of learn_file '
+              '[s].', 1.0, 86400.0),
 )
 
 #: One field per ``policy`` row of :data:`PARAMS` (same name, default and meaning), checked on

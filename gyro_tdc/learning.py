@@ -650,6 +650,21 @@ class Learner:
 
     # -- reporting --------------------------------------------------------------------
 
+    def diagnostic_values(self) -> dict[str, str]:
+        """Return the learner's /diagnostics key/value pairs (strings)."""
+        s = self.summary()
+        cov = s['covered_c']
+        return {
+            'learn points': str(s['points']),
+            'learn covered degC': 'none' if cov is None else f'{cov[0]:.2f} .. {cov[1]:.2f}',
+            'learn still s': f'{s["still_s"]:.0f}',
+            'learn features': 'none' if s['features'] is None else ', '.join(s['features']),
+            'learn last update stamp s': ('never' if s['last_update_t'] is None
+                                          else f'{s["last_update_t"]:.3f}'),
+            'learn prediction check': s['check'] or 'none yet',
+            'learn session': str(self.session),
+        }
+
     def summary(self) -> dict[str, Any]:
         """Return what /diagnostics shows: points, range, still time, last update, check."""
         cov = self.covered_c()

@@ -51,9 +51,10 @@ from typing import Any, Callable
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy, prepare, PreparedModel
-from gyro_tdc.errors import ConfigError, GyroTdcError, one_line
+from gyro_tdc.errors import ConfigError, GyroTdcError, one_line, OutputError
 from gyro_tdc.health import health, HealthMark, InputStatus, PASSTHROUGH, sensor_mismatch
 from gyro_tdc.imu_cdr import ImuView, locate
+from gyro_tdc.learning import LearnConfig, Learner
 from gyro_tdc.loading import Job, LatestJob
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.modelfile import load_model
@@ -90,6 +91,8 @@ CompensatorParams = spec_dataclass(
 LOAD_ERRORS = (GyroTdcError, RecursionError, MemoryError)
 #: How often the executor's thread looks for a model finished in the background [s].
 LOAD_POLL_S = 0.02
+#: Period of the learner's timer (learn:=true), s: the IMU callback only appends.
+LEARN_STEP_S = 1.0
 #: The message class of each ``temperature_type`` (compensation_logic.TEMPERATURE_TYPES).
 TEMPERATURE_MESSAGES = {'sensor_msgs/msg/Temperature': Temperature,
                         'std_msgs/msg/Float32': Float32, 'std_msgs/msg/Float64': Float64}
@@ -216,6 +219,90 @@ class CompensatorNode(Node):
         self._reported_anchor = None
         self.create_timer(1.0, self._on_diagnostics)
         self.create_timer(LOAD_POLL_S, self._on_load_poll)
+        self.learner: Learner | None = None
+        if p.learn:
+            self._start_learning(policy)
+
+    # -- learning in the field (gyro_tdc.learning) --------------------------------------
+
+    def _start_learning(self, policy: Policy) -> None:
+        """Create the learner (the model in use is the prior), resume learn_file, services."""
+        p = self.params
+        self.learner = Learner(LearnConfig(temperature_timeout=policy.temperature_timeout,
+                                           save_period_s=p.learn_save_period),
+                               prior=self.core.model)
+        if p.learn_file:
+            try:
+                resumed = self.learner.load(p.learn_file)
+            except (ValueError, KeyError, TypeError, OSError) as exc:
+                resumed = False
+                self.get_logger().error(f'cannot resume learn_file {p.learn_file!r}: {exc}; '
+                                        'learning from the start')
+            if resumed:
+                self._take_learned()
+                s = self.learner.summary()
+                self.get_logger().info(f'resumed learning from {p.learn_file}: '
+                                       f'{s["points"]} points, {s["still_s"]:.0f} s still')
+        else:
+            self.get_logger().warning('learn without learn_file: nothing is kept across '
+                                      'restarts')
+        self.core.learner = self.learner
+        self.create_service(Trigger, '~/learn_save', self._on_learn_save)
+        self.create_service(Trigger, '~/learn_reset', self._on_learn_reset)
+        self.create_timer(LEARN_STEP_S, self._on_learn)
+
+    def _take_learned(self) -> None:
+        """Install a model the learner swapped in (on the thread that compensates)."""
+        model = self.learner.take_model()
+        if model is not None:
+            self.core.set_model(model)
+            self.model_file = 'learned'
+
+    def save_learning(self) -> str:
+        """Write learn_file now; return what happened (one line)."""
+        path = self.params.learn_file
+        if not path:
+            return 'no learn_file'
+        try:
+            self.learner.save(path)
+        except OutputError as exc:
+            self.get_logger().error(f'cannot save learn_file: {exc}')
+            return f'failed: {exc}'
+        return f'saved {path}'
+
+    def _on_learn(self) -> None:
+        """Timer: learn from the samples gathered since the last tick, save when due."""
+        self.learner.step()
+        self._take_learned()
+        if self.params.learn_file and self.learner.save_due():
+            self.save_learning()
+
+    def _on_learn_save(self, request: Trigger.Request, response: Trigger.Response
+                       ) -> Trigger.Response:
+        self.learner.step()
+        self._take_learned()
+        response.message = self.save_learning()
+        response.success = response.message.startswith('saved')
+        return response
+
+    def _on_learn_reset(self, request: Trigger.Request, response: Trigger.Response
+                        ) -> Trigger.Response:
+        self.learner.step()
+        self.learner.reset()
+        self.core.set_model(self.learner.prior)
+        response.success = True
+        response.message = ('learning reset: back to the prior'
+                            if self.learner.prior is not None else
+                            'learning reset: no model until the next still stretch')
+        return response
+
+    def destroy_node(self) -> None:
+        """Save what was learned (the stretch in progress too) before going away."""
+        if self.learner is not None and self.params.learn_file:
+            self.learner.step()
+            self.learner.flush()
+            self.save_learning()
+        super().destroy_node()
 
     # -- the hot path -----------------------------------------------------------------
 
@@ -512,10 +599,13 @@ class CompensatorNode(Node):
                 f'{anchor.duration_s:.1f} s at {anchor.temp_c:.2f} degC: offset shift '
                 f'{h.values["reanchor shift dps"]} deg/s, standard error '
                 f'{h.values["reanchor se dps"]} deg/s ({h.values["reanchor stopped on"]})')
+        values = dict(h.values)
+        if self.learner is not None:
+            values.update(self.learner.diagnostic_values())
         return DiagnosticStatus(
             level=bytes((h.level,)), name=f'{self.get_name()}: gyro compensation',
             message=h.message, hardware_id=h.hardware_id,
-            values=[KeyValue(key=k, value=v) for k, v in h.values.items()])
+            values=[KeyValue(key=k, value=v) for k, v in values.items()])
 
     def _on_diagnostics(self) -> None:
         arr = DiagnosticArray()
