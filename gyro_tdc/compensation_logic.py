@@ -430,11 +430,23 @@ class CompensatorCore:
         self.model: CompensationModel | None = None
         self.model_id = ''
         self._comp: StreamingCompensator | None = None
-        #: The online learner (:class:`gyro_tdc.learning.Learner`), None: not learning. It
-        #: sees every raw sample and thermometer reading (one list append each).
-        self.learner = None
+        self._learner = None
+        self._lbuf = self._labuf = None
         if model is not None:
             self.set_model(model)
+
+    @property
+    def learner(self):
+        """Return the online learner (:class:`gyro_tdc.learning.Learner`), None: none."""
+        return self._learner
+
+    @learner.setter
+    def learner(self, learner) -> None:
+        """Attach a learner: it sees every raw sample and thermometer reading (appends)."""
+        self._learner = learner
+        self._lbuf = self._labuf = None
+        if learner is not None:
+            self._lbuf, self._labuf = learner.buf.append, learner.abuf.append
 
     # -- model ------------------------------------------------------------------------
 
@@ -557,8 +569,9 @@ class CompensatorCore:
 
         """
         self.counts['in'] += 1
-        if self.learner is not None:
-            self.learner.buf.append((t, wx, wy, wz, accel))
+        if self._lbuf is not None:                  # learning: two appends
+            self._lbuf((t, wx, wy, wz))
+            self._labuf(accel)
         comp = self._comp
         if comp is None:
             return self._pass(t, wx, wy, wz, NO_MODEL)

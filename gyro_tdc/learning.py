@@ -15,8 +15,10 @@
 """
 Learn in the field: the compensator's online bias-vs-temperature learner (issue 14 item 3).
 
-Pure (numpy only). The message path only appends ``(t, wx, wy, wz, accel)`` to a list
-(:meth:`Learner.observe`, a few hundred nanoseconds) and thermometer readings to another;
+Pure (numpy only). The message path only appends ``(t, wx, wy, wz)`` and the acceleration
+to two lists (:meth:`Learner.observe`, or the same appends inlined in
+:meth:`gyro_tdc.compensation_logic.CompensatorCore.process`) and thermometer readings to a
+third;
 everything else runs in :meth:`Learner.step`, which the node calls from a timer (never from
 the IMU callback) and which is vectorised over the samples gathered since the last call.
 
@@ -68,6 +70,7 @@ and swaps (the swap lands at the first :meth:`step` after the stretch ended).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from itertools import chain
 import json
 import math
 from pathlib import Path
@@ -191,7 +194,9 @@ class Learner:
                  prior: CompensationModel | None = None) -> None:
         self.config = config or LearnConfig()
         self.prior = prior
+        #: ``(t, wx, wy, wz)`` per raw sample, and its acceleration (or None) beside it.
         self.buf: list[tuple] = []
+        self.abuf: list = []
         self.temps: list[tuple[float, float]] = []
         self.reset()
 
@@ -216,6 +221,7 @@ class Learner:
         self.check: dict | None = None
         self.swaps = 0
         self._pending: tuple | None = None    # rows of the unfinished window
+        self._wend: float | None = None       # its end on the grid (stamp)
         self._stretch = _Stretch()
         self._done = 0
         self._new_model: CompensationModel | None = None
@@ -300,8 +306,9 @@ class Learner:
 
     def observe(self, t: float, wx: float, wy: float, wz: float,
                 accel: Sequence[float] | None = None) -> None:
-        """Record one raw IMU sample (the only per-message work)."""
-        self.buf.append((t, wx, wy, wz, accel))
+        """Record one raw IMU sample (the only per-message work: two list appends)."""
+        self.buf.append((t, wx, wy, wz))
+        self.abuf.append(accel)
 
     def add_temperature(self, t: float, temp_c: float) -> None:
         """Record one thermometer reading."""
@@ -327,9 +334,12 @@ class Learner:
 
     # -- off the message path ----------------------------------------------------------
 
-    def step(self) -> bool:
+    def step(self, force: bool = False) -> bool:
         """
         Process the samples gathered since the last call; refit after each finished stretch.
+
+        Until a sample beyond the window in progress has arrived, nothing is done (unless
+        ``force``): the samples are converted once per window.
 
         Returns
         -------
@@ -337,14 +347,25 @@ class Learner:
             True when a new model was swapped in (:meth:`take_model` gives it).
 
         """
-        buf, self.buf = self.buf, []
+        if not self.buf or (not force and self._wend is not None
+                            and self.buf[-1][0] < self._wend):
+            return False                  # the window in progress has not ended: wait
+        # The core holds these lists' append methods: empty them in place (call this on the
+        # thread that compensates, as the node's timer does).
+        buf, abuf = self.buf[:], self.abuf[:]
+        self.buf.clear()
+        self.abuf.clear()
         if not buf:
             return False
-        t = np.fromiter((r[0] for r in buf), dtype=np.float64, count=len(buf))
-        w = np.array([r[1:4] for r in buf], dtype=np.float64)
+        tw = np.fromiter(chain.from_iterable(buf), np.float64, 4 * len(buf)).reshape(-1, 4)
+        t, w = tw[:, 0].copy(), tw[:, 1:]
         acc = None
-        if buf[0][4] is not None and all(r[4] is not None for r in buf):
-            acc = np.array([r[4] for r in buf], dtype=np.float64).reshape(-1, 3)
+        if len(abuf) == len(buf) and None not in abuf:
+            try:
+                acc = np.fromiter(chain.from_iterable(abuf), np.float64, 3 * len(abuf)
+                                  ).reshape(-1, 3)
+            except ValueError:            # not three values each: judge the gyro alone
+                acc = None
         ok = np.isfinite(t)
         t, w = t[ok], w[ok]
         acc = None if acc is None else acc[ok]
@@ -356,7 +377,7 @@ class Learner:
             # A new session (power-up): its own turn-on offset, learned apart.
             swapped = self.flush()
             self.session += 1
-            self.t_first = None
+            self.t_first = self._wend = None
         if self._pending is not None:
             pt, pw, pa, ptemp = self._pending
             if (pa is None) != (acc is None):
@@ -372,6 +393,7 @@ class Learner:
         done = cut[-1] + 1 if cut.size else 0
         self._pending = (t[done:], w[done:], None if acc is None else acc[done:],
                          temp[done:])
+        self._wend = self.t_first + (int(k[-1]) + 1) * self.config.window_s
         if done == 0:
             return swapped
         return self._windows(t[:done], w[:done], None if acc is None else acc[:done],
@@ -379,12 +401,12 @@ class Learner:
 
     def flush(self) -> bool:
         """Judge the window in progress and end the stretch (at shutdown)."""
-        swapped = False
+        swapped = self.step(force=True)
         if self._pending is not None and self._pending[0].size:
             pt, pw, pa, ptemp = self._pending
-            self._pending = None
+            self._pending = self._wend = None
             k = np.zeros(pt.size, dtype=np.int64)
-            swapped = self._windows(pt, pw, pa, ptemp, k)
+            swapped = self._windows(pt, pw, pa, ptemp, k) or swapped
         return self._close() or swapped
 
     def _temperature(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
