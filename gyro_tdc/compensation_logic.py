@@ -437,7 +437,7 @@ class CompensatorCore:
 
     @property
     def learner(self):
-        """Return the online learner (:class:`gyro_tdc.learning.Learner`), None: none."""
+        """Return the attached :class:`gyro_tdc.learning.Learner`, or None."""
         return self._learner
 
     @learner.setter
