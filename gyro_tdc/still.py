@@ -100,8 +100,14 @@ def has_accelerometer(accel: ArrayLike | None) -> bool:
     a = np.asarray(accel, dtype=np.float64)
     if a.ndim != 2 or a.shape[0] == 0:
         return False
-    fin = np.isfinite(a).all(axis=1)
-    return bool(np.any(a[fin] != 0.0))
+    # In chunks, stopping at the first finite non-zero row: a real accelerometer answers at
+    # once, without a pass (and copies) over a long run.
+    step = 1 << 16
+    for i in range(0, a.shape[0], step):
+        c = a[i:i + step]
+        if np.any(np.isfinite(c).all(axis=1) & (c != 0.0).any(axis=1)):
+            return True
+    return False
 
 
 def noise_floor(std: ArrayLike, ok: ArrayLike | None = None) -> NDArray[np.float64]:
@@ -335,7 +341,7 @@ def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
     c = x[0]
     d = x - c
     s = np.add.reduceat(d, starts, axis=0)
-    q = np.add.reduceat(d * d, starts, axis=0)
+    q = np.add.reduceat(np.multiply(d, d, out=d), starts, axis=0)   # d is ours: square it
     n = counts[:, None]
     mean = s / n
     with np.errstate(invalid='ignore', divide='ignore'):
@@ -414,10 +420,13 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     if acc is not None:
         finite &= np.isfinite(acc).all(axis=1)
     bad = np.add.reduceat((~finite).astype(np.int64), starts) > 0
-    g_mean, g_std = _window_stats(np.where(finite[:, None], g, 0.0), starts, fc)
+    all_finite = bool(finite.all())     # then no zeroed copy of the (long) inputs
+    g_mean, g_std = _window_stats(g if all_finite else np.where(finite[:, None], g, 0.0),
+                                  starts, fc)
     a_mean = a_std = None
     if acc is not None:
-        a_mean, a_std = _window_stats(np.where(finite[:, None], acc, 0.0), starts, fc)
+        a_mean, a_std = _window_stats(
+            acc if all_finite else np.where(finite[:, None], acc, 0.0), starts, fc)
     usable = (counts >= max(3, MIN_WINDOW_SAMPLES // 2)) & ~bad
     vetoed = (np.zeros(starts.size, dtype=bool) if moving is None else
               np.add.reduceat(np.asarray(moving, dtype=bool).astype(np.int64), starts) > 0)

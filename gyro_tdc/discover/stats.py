@@ -139,7 +139,8 @@ def hac_pvalue(model: LinearModel, coef: NDArray[np.float64], cand: Sequence[int
     freedom, ``1.5 K / L`` (a long bandwidth leaves few independent pieces of information,
     so the test does not pretend to more).
     """
-    import statsmodels.api as sm
+    # The OLS class alone: statsmodels.api also imports its datasets, formulas and plots.
+    from statsmodels.regression.linear_model import OLS
 
     d = model.data
     ps = []
@@ -156,8 +157,8 @@ def hac_pvalue(model: LinearModel, coef: NDArray[np.float64], cand: Sequence[int
         sel = [int(pos[i]) for i in idx]
         with warnings.catch_warnings():
             warnings.simplefilter('ignore')   # near-collinear columns: the F test says so
-            res = sm.OLS(y, xs).fit(cov_type='HAC', cov_kwds={'maxlags': int(lags[a]),
-                                                              'use_correction': True})
+            res = OLS(y, xs).fit(cov_type='HAC', cov_kwds={'maxlags': int(lags[a]),
+                                                           'use_correction': True})
         b = np.asarray(res.params)[sel]
         v = np.asarray(res.cov_params())[np.ix_(sel, sel)]
         try:

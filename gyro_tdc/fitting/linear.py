@@ -108,20 +108,32 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
     network wiggles. Normal equations per fold make the grid search cost almost nothing.
     """
     n, p = design.shape
-    axes = []
-    for ax in range(3):
-        d = design if scale_cols is None else np.column_stack([design, scale_cols[:, ax]])
-        axes.append((d, y[:, ax]))
     fold = (np.arange(n) * n_segments // n) % n_folds
+    masks = [fold == k for k in range(n_folds)]
+    n_trs = [n - int(m.sum()) for m in masks]
+    # Without scale columns every axis shares the design: its Gram matrices and fold rows
+    # are computed once (the same products, so the same numbers as per axis).
+    shared = None
+    if scale_cols is None:
+        dks = [design[m] for m in masks]
+        shared = (design.T @ design, dks, [dk.T @ dk for dk in dks])
     errors = np.zeros(len(RIDGE_GRID))
-    for d, yy in axes:
+    for ax in range(3):
+        yy = y[:, ax]
+        if shared is None:
+            d = np.column_stack([design, scale_cols[:, ax]])
+            g_all, dks, gks = d.T @ d, None, None
+        else:
+            d = design
+            g_all, dks, gks = shared
         q = d.shape[1]
-        g_all, b_all = d.T @ d, d.T @ yy
-        for k in range(n_folds):
-            m = fold == k
-            dk, yk = d[m], yy[m]
-            g, b = g_all - dk.T @ dk, b_all - dk.T @ yk
-            n_tr = n - int(m.sum())
+        b_all = d.T @ yy
+        for k, m in enumerate(masks):
+            dk = d[m] if dks is None else dks[k]
+            yk = yy[m]
+            g = g_all - (dk.T @ dk if gks is None else gks[k])
+            b = b_all - dk.T @ yk
+            n_tr = n_trs[k]
             for i, ridge in enumerate(RIDGE_GRID):
                 pen = np.zeros(q)
                 pen[:p] = _penalty(p, f, ridge, n_tr) ** 2
