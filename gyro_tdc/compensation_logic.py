@@ -431,7 +431,7 @@ class CompensatorCore:
         self.model_id = ''
         self._comp: StreamingCompensator | None = None
         self._learner = None
-        self._lbuf = self._labuf = None
+        self._lt = self._lw = self._la = None
         if model is not None:
             self.set_model(model)
 
@@ -444,9 +444,11 @@ class CompensatorCore:
     def learner(self, learner) -> None:
         """Attach a learner: it sees every raw sample and thermometer reading (appends)."""
         self._learner = learner
-        self._lbuf = self._labuf = None
+        self._lt = self._lw = self._la = None
         if learner is not None:
-            self._lbuf, self._labuf = learner.buf.append, learner.abuf.append
+            self._lt, self._lw, self._la = (learner.bt.append, learner.bw.append,
+                                            learner.ba.extend)
+            self._nan3 = (math.nan,) * 3
 
     # -- model ------------------------------------------------------------------------
 
@@ -569,9 +571,13 @@ class CompensatorCore:
 
         """
         self.counts['in'] += 1
-        if self._lbuf is not None:                  # learning: two appends
-            self._lbuf((t, wx, wy, wz))
-            self._labuf(accel)
+        if self._lt is not None:                    # learning: float appends only
+            self._lt(t)
+            lw = self._lw
+            lw(wx)
+            lw(wy)
+            lw(wz)
+            self._la(self._nan3 if accel is None else accel)
         comp = self._comp
         if comp is None:
             return self._pass(t, wx, wy, wz, NO_MODEL)

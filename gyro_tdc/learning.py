@@ -15,10 +15,10 @@
 """
 Learn in the field: the compensator's online bias-vs-temperature learner (issue 14 item 3).
 
-Pure (numpy only). The message path only appends ``(t, wx, wy, wz)`` and the acceleration
-to two lists (:meth:`Learner.observe`, or the same appends inlined in
-:meth:`gyro_tdc.compensation_logic.CompensatorCore.process`) and thermometer readings to a
-third;
+Pure (numpy only). The message path only appends the stamp, the raw rate and the
+acceleration to flat float arrays (:meth:`Learner.observe`, or the same appends inlined in
+:meth:`gyro_tdc.compensation_logic.CompensatorCore.process`; no object per sample) and
+thermometer readings to a list;
 everything else runs in :meth:`Learner.step`, which the node calls from a timer (never from
 the IMU callback) and which is vectorised over the samples gathered since the last call.
 
@@ -69,8 +69,8 @@ and swaps (the swap lands at the first :meth:`step` after the stretch ended).
 
 from __future__ import annotations
 
+from array import array
 from dataclasses import dataclass, field
-from itertools import chain
 import json
 import math
 from pathlib import Path
@@ -88,6 +88,7 @@ __all__ = ['BIN_ENTRIES', 'CHECK_STRETCHES', 'FORMAT', 'Learner', 'LearnConfig',
            'MAX_DROPS', 'learned_model']
 
 FORMAT = 'gyro_tdc learn 1'
+NAN3 = (math.nan, math.nan, math.nan)
 BIN_ENTRIES = 4
 CHECK_STRETCHES = 3
 OUTLIER_K = 4.0
@@ -194,9 +195,11 @@ class Learner:
                  prior: CompensationModel | None = None) -> None:
         self.config = config or LearnConfig()
         self.prior = prior
-        #: ``(t, wx, wy, wz)`` per raw sample, and its acceleration (or None) beside it.
-        self.buf: list[tuple] = []
-        self.abuf: list = []
+        #: Flat float arrays (no object per sample): stamps, raw rates and accelerations (3
+        #: per sample; NaN: none).
+        self.bt = array('d')
+        self.bw = array('d')
+        self.ba = array('d')
         self.temps: list[tuple[float, float]] = []
         self.reset()
 
@@ -306,9 +309,13 @@ class Learner:
 
     def observe(self, t: float, wx: float, wy: float, wz: float,
                 accel: Sequence[float] | None = None) -> None:
-        """Record one raw IMU sample (the only per-message work: two list appends)."""
-        self.buf.append((t, wx, wy, wz))
-        self.abuf.append(accel)
+        """Record one raw IMU sample (the only per-message work: float appends)."""
+        self.bt.append(t)
+        bw = self.bw
+        bw.append(wx)
+        bw.append(wy)
+        bw.append(wz)
+        self.ba.extend(NAN3 if accel is None else accel)
 
     def add_temperature(self, t: float, temp_c: float) -> None:
         """Record one thermometer reading."""
@@ -347,25 +354,18 @@ class Learner:
             True when a new model was swapped in (:meth:`take_model` gives it).
 
         """
-        if not self.buf or (not force and self._wend is not None
-                            and self.buf[-1][0] < self._wend):
+        if not self.bt or (not force and self._wend is not None
+                           and self.bt[-1] < self._wend):
             return False                  # the window in progress has not ended: wait
         # The core holds these lists' append methods: empty them in place (call this on the
         # thread that compensates, as the node's timer does).
-        buf, abuf = self.buf[:], self.abuf[:]
-        self.buf.clear()
-        self.abuf.clear()
-        if not buf:
-            return False
-        tw = np.fromiter(chain.from_iterable(buf), np.float64, 4 * len(buf)).reshape(-1, 4)
-        t, w = tw[:, 0].copy(), tw[:, 1:]
-        acc = None
-        if len(abuf) == len(buf) and None not in abuf:
-            try:
-                acc = np.fromiter(chain.from_iterable(abuf), np.float64, 3 * len(abuf)
-                                  ).reshape(-1, 3)
-            except ValueError:            # not three values each: judge the gyro alone
-                acc = None
+        n = min(len(self.bt), len(self.bw) // 3, len(self.ba) // 3)
+        t = np.array(self.bt[:n], dtype=np.float64)
+        w = np.array(self.bw[:3 * n], dtype=np.float64).reshape(n, 3)
+        acc = np.array(self.ba[:3 * n], dtype=np.float64).reshape(n, 3)
+        del self.bt[:n], self.bw[:3 * n], self.ba[:3 * n]
+        if not np.isfinite(acc).all():
+            acc = None                    # missing or not three values: the gyro alone
         ok = np.isfinite(t)
         t, w = t[ok], w[ok]
         acc = None if acc is None else acc[ok]
