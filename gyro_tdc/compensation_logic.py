@@ -449,6 +449,8 @@ class CompensatorCore:
             self._lt, self._lw, self._la = (learner.bt.append, learner.bw.append,
                                             learner.ba.extend)
             self._nan3 = (math.nan,) * 3
+            self._lperiod = 1.0 / learner.config.max_rate_hz
+            self._lnext = -math.inf
 
     # -- model ------------------------------------------------------------------------
 
@@ -571,7 +573,8 @@ class CompensatorCore:
 
         """
         self.counts['in'] += 1
-        if self._lt is not None:                    # learning: float appends only
+        if self._lt is not None and t >= self._lnext:  # learning, at most max_rate_hz
+            self._lnext = t + self._lperiod
             self._lt(t)
             lw = self._lw
             lw(wx)

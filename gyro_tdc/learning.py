@@ -15,7 +15,8 @@
 """
 Learn in the field: the compensator's online bias-vs-temperature learner (issue 14 item 3).
 
-Pure (numpy only). The message path only appends the stamp, the raw rate and the
+Pure (numpy only). The message path only appends (at most ``max_rate_hz`` samples a
+second of stamps) the stamp, the raw rate and the
 acceleration to flat float arrays (:meth:`Learner.observe`, or the same appends inlined in
 :meth:`gyro_tdc.compensation_logic.CompensatorCore.process`; no object per sample) and
 thermometer readings to a list;
@@ -119,6 +120,11 @@ class LearnConfig:
         Stamp time between periodic saves.
     commit_s : float, s
         A still stretch longer than this is learned every ``commit_s`` while it goes on.
+    max_rate_hz : float, Hz
+        The core hands the learner a sample only when its stamp is at least
+        ``1 / max_rate_hz`` after the last one handed (by stamp, so a replay at any speed
+        hands the same samples): a 1 kHz IMU is learned from every 10th sample, plenty for
+        10 s still windows, and the message path stays cheap.
     session_gap_s : float, s
         A gap in the IMU stamps longer than this starts a new session (a power-up: the
         gyro's turn-on offset changes; each session gets its own intercept in the fit).
@@ -132,6 +138,7 @@ class LearnConfig:
     temperature_timeout: float = 5.0
     save_period_s: float = 180.0
     commit_s: float = 300.0
+    max_rate_hz: float = 100.0
     session_gap_s: float = 600.0
 
 
