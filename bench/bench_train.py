@@ -27,7 +27,9 @@ a fresh interpreter (so its peak RSS is its own), the median of ``--repeat`` run
   trainer iterates that reader;
 * ``load``: dataset extraction, :func:`gyro_tdc.dataset.load_run` (read, decode, align);
 * ``train``: the ``train`` command end to end (read, fit, coverage, save), through
-  :func:`gyro_tdc.cli.train.main`;
+  :func:`gyro_tdc.cli.train.main` with its defaults: ``--features auto`` (the discovery
+  gates on 20 Hz block means), the default thermal front end, and the accelerometer part
+  (the bag carries a constant 1 g, so the still test and the accelerometer fit run too);
 
 and prints seconds, messages per second, CPU time, peak RSS and the ratios train / raw and
 train / raw_reader (goal <= 1.5).
