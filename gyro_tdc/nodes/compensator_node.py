@@ -31,6 +31,13 @@ std_srvs/Trigger). The file is read, checked and primed in a worker thread
 never holds up the IMU callback for more than ``load_wait``; an invalid file is refused
 with its reason in one line and the old model stays.
 
+``learn: true`` (:mod:`gyro_tdc.learning`): the IMU callback hands each raw sample to the
+learner (float appends, at most 100 per second of stamps); a 1 s timer runs its still test,
+refits and installs a learned model when it predicts the recent still time better; the
+learner's state is saved atomically to ``learn_file`` every ``learn_save_period`` of stamp
+time, on ``~/learn_save`` and at shutdown, and resumed at start; ``~/learn_reset`` forgets it
+(back to the ``model_file`` prior, or none).
+
 Guards: the node refuses to start when its input and output resolve to the same topic (a
 loop); it warns on /diagnostics when a sample arrives already compensated (the mark), a
 gyro_tdc compensator publishes its input (graph query) or the model was trained for
