@@ -539,7 +539,7 @@ class Learner:
             else:
                 lst.append(entry)
             del lst[:-BIN_ENTRIES]
-        recent = [[r[2], r[3], *r[4]] for r in rows]
+        recent = [[r[2], r[3], *r[4], r[1]] for r in rows]
         if self.recent and self.recent[-1][0] == sid:
             self.recent[-1] = [sid, self.session, recent]
         else:
@@ -673,7 +673,7 @@ class Learner:
         rows = np.asarray([r for s in self.recent if s[1] == self.session for r in s[2]],
                           dtype=np.float64)
         temp = rows[:, 1]
-        pred = drift(model, np.zeros(temp.size), temp, out_of_range='linear')
+        pred = drift(model, rows[:, 5], temp, out_of_range='linear')
         err = ((rows[:, 2:5] - pred) ** 2).sum(axis=1)
         return float(np.average(err, weights=rows[:, 0]))
 
