@@ -240,7 +240,7 @@ def commands(unit: Unit) -> list:
     return [c for c in out if c and c[0] not in ('do', 'done', 'then', 'fi')]
 
 
-def script(blocks: Sequence[Block]) -> tuple:
+def script(blocks: Sequence[Block], *, keep_going: bool = False) -> tuple:
     """
     Return the bash script that runs the blocks in order, and its line map.
 
@@ -248,6 +248,9 @@ def script(blocks: Sequence[Block]) -> tuple:
     ----------
     blocks : sequence of Block
         The README's blocks; skipped ones are left out.
+    keep_going : bool
+        Report every failing command and go on (exit 1 at the end when any failed) instead
+        of stopping at the first.
 
     Returns
     -------
@@ -270,16 +273,18 @@ def script(blocks: Sequence[Block]) -> tuple:
                 body.append((f'printf "%s\\n" {shlex.quote(shown)}', 0))
             for k, line in enumerate(unit.lines):
                 body.append((line, unit.line + k))
-    head = ['#!/bin/bash', 'set -e -o pipefail']
+    head = ['#!/bin/bash', 'set -o pipefail' if keep_going else 'set -e -o pipefail',
+            'FAILS=0']
     map_line = len(head) + 1
     head.append('')            # the MAP line, filled in below
-    head.append('trap \'rc=$?; echo "readme-check: FAILED (exit $rc) at README.md:'
-                '${MAP[$LINENO]:-?}: $BASH_COMMAND" >&2\' ERR')
+    head.append('trap \'rc=$?; FAILS=$((FAILS + 1)); echo "readme-check: FAILED (exit $rc) '
+                'at README.md:${MAP[$LINENO]:-?}: $BASH_COMMAND" >&2\' ERR')
     line_map = {len(head) + k + 1: readme for k, (_, readme) in enumerate(body) if readme}
     size = len(head) + len(body) + 2
     entries = ' '.join(str(line_map.get(k, 0)) for k in range(size))
     head[map_line - 1] = f'MAP=({entries})'
-    text = '\n'.join(head + [t for t, _ in body]) + '\n'
+    tail = ['trap - ERR', 'test "$FAILS" -eq 0']
+    text = '\n'.join(head + [t for t, _ in body] + tail) + '\n'
     return text, line_map
 
 
@@ -298,7 +303,8 @@ def _clean_env() -> dict:
     return env
 
 
-def run(repo: Path, *, keep: bool = False, workdir: Optional[Path] = None) -> int:
+def run(repo: Path, *, keep: bool = False, workdir: Optional[Path] = None,
+        keep_going: bool = False) -> int:
     """
     Clone ``repo`` and run its README's blocks there; return 0 when every command passed.
 
@@ -310,6 +316,8 @@ def run(repo: Path, *, keep: bool = False, workdir: Optional[Path] = None) -> in
         Leave the clone in place afterwards.
     workdir : Path, optional
         Where to make the temporary folder (default: the system's).
+    keep_going : bool
+        Run every command even after a failure (see :func:`script`).
 
     Returns
     -------
@@ -336,7 +344,7 @@ def run(repo: Path, *, keep: bool = False, workdir: Optional[Path] = None) -> in
         n_commands = sum(len(units(b)) for b in runnable)
         print(f'readme-check: {len(blocks)} bash blocks, {len(runnable)} to run '
               f'({n_commands} commands), {len(blocks) - len(runnable)} skipped', flush=True)
-        text, _ = script(blocks)
+        text, _ = script(blocks, keep_going=keep_going)
         path = base / 'readme.sh'
         path.write_text(text, encoding='utf-8')
         rc = subprocess.run(['bash', str(path)], cwd=clone, env=_clean_env(),
@@ -366,6 +374,9 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     parser.add_argument('--keep', action='store_true', help='keep the clone afterwards')
     parser.add_argument('--workdir', type=Path, default=None,
                         help='folder for the temporary clone (default: the system temp)')
+    parser.add_argument('--keep-going', action='store_true',
+                        help='run every command even after a failure, report each (for '
+                             'diagnosis; make readme-check stops at the first)')
     parser.add_argument('--print-script', action='store_true',
                         help='print the bash script of this README and exit')
     args = parser.parse_args(argv)
@@ -373,7 +384,7 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
         text, _ = script(readme_blocks((args.repo / 'README.md').read_text(encoding='utf-8')))
         sys.stdout.write(text)
         return 0
-    return run(args.repo, keep=args.keep, workdir=args.workdir)
+    return run(args.repo, keep=args.keep, workdir=args.workdir, keep_going=args.keep_going)
 
 
 if __name__ == '__main__':

@@ -161,6 +161,12 @@ def test_the_checker_stops_at_the_first_failing_command_and_names_its_line(tmp_p
     assert '$ echo first > made.txt' in done.stdout and 'never' not in done.stdout
     assert 'readme-check: FAILED (exit 1) at README.md:20: false' in done.stderr
     assert sorted(p.name for p in tmp_path.iterdir()) == ['repo']      # clone removed
+    # --keep-going (diagnosis) reports the failure and runs the rest.
+    done = subprocess.run([sys.executable, readme_check.__file__, '--repo', str(repo),
+                           '--workdir', str(tmp_path), '--keep-going'], capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 1 and 'at README.md:20: false' in done.stderr
+    assert '$ echo never' in done.stdout and '\nnever\n' in done.stdout
 
 
 def _run_block(block, cwd, timeout):
