@@ -33,6 +33,7 @@ import argparse
 from dataclasses import dataclass
 import os
 from pathlib import Path
+import re
 import shlex
 import shutil
 import subprocess
@@ -45,6 +46,7 @@ ROOT = Path(__file__).resolve().parent.parent
 SKIP_MARKERS = ('# robot only', '# not run by make readme-check')
 _OPENERS = ('for ', 'while ', 'until ', 'if ')
 _CLOSERS = ('done', 'fi')
+_ASSIGNMENT = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*=')
 
 
 @dataclass(frozen=True)
@@ -185,7 +187,8 @@ def commands(unit: Unit) -> list:
     Return the simple commands of a unit as argument lists, loop variables substituted.
 
     ``for k in a b; do ... done`` gives the body's commands with ``$k`` replaced by the first
-    value; ``&&``, ``||``, ``;`` and ``|`` separate commands.
+    value; ``&&``, ``||``, ``;`` and ``|`` separate commands; ``VAR=value`` words before a
+    command (its environment) are left out.
 
     Parameters
     ----------
@@ -237,6 +240,8 @@ def commands(unit: Unit) -> list:
         i += 1
     if current:
         out.append(current)
+    out = [c[next((k for k, w in enumerate(c) if not _ASSIGNMENT.match(w)), len(c)):]
+           for c in out]                          # VAR=value prefixes are environment
     return [c for c in out if c and c[0] not in ('do', 'done', 'then', 'fi')]
 
 
