@@ -334,6 +334,23 @@ def test_base_that_holds_the_effect_leaves_nothing_to_add():
     assert abs(res.params['lag']['tau_s'] - 300.0) < 30.0
 
 
+def test_progress_is_called_for_every_candidate_scored():
+    from synth import synth_run
+
+    run = synth_run(seed=3, a2=(0.0, 0.0, 0.0), tau_die=300.0, cooling=True)
+    calls = []
+    res = discover([run], base='bias,dT,lag', allan=False,
+                   progress=lambda step, eid: calls.append((step, eid)))
+    plain = discover([run], base='bias,dT,lag', allan=False)
+    # One call per candidate scored in the one round (nothing named), none for the base.
+    assert calls and {step for step, _ in calls} == {0}
+    called = [eid for _, eid in calls]
+    assert len(called) == len(set(called))
+    assert {sc.effect for sc in res.candidates} <= set(called)
+    assert not {'bias', 'dT', 'lag'} & {eid for _, eid in calls}
+    assert res.to_json() == plain.to_json()
+
+
 def test_warmup_at_fixed_ambient_gives_a_warmup_only_model():
     from gyro_tdc.runs import Run
 

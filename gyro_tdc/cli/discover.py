@@ -110,8 +110,22 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         runs = discovery_runs(runs)
         print(f'accelerometer: the still data of {n_bags} bag(s) as {len(runs)} run(s) (one '
               'offset per bag and orientation); figures in mg (1 mg = 9.80665e-3 m/s^2)')
-    result = discover(runs, base=base, candidates=cands, block_s=args.block_s, t0=args.t0,
-                      alpha=args.alpha, max_steps=args.max_steps)
+    bar = None
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+        bar = tqdm(unit='candidate', desc='discover', file=sys.stderr, leave=False)
+
+    def progress(step: int, eid: str) -> None:
+        bar.set_postfix_str(f'step {step + 1}: scoring {eid}')
+        bar.update(1)
+
+    try:
+        result = discover(runs, base=base, candidates=cands, block_s=args.block_s,
+                          t0=args.t0, alpha=args.alpha, max_steps=args.max_steps,
+                          progress=None if bar is None else progress)
+    finally:
+        if bar is not None:
+            bar.close()
     text = format_summary(result)
     sys.stdout.write(text.replace('deg/s', 'mg') if accel else text)
     model_file = None

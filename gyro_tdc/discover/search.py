@@ -26,7 +26,7 @@ model already spans, after the search.
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 from gyro_tdc.discover.data import BlockData
 from gyro_tdc.discover.linear import LinearModel, lstsq
@@ -281,7 +281,8 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
              candidates: str | Sequence[str] | None = None, block_s: float = 10.0,
              t0: float | None = None, alpha: float = 0.01, min_heldout: float = 0.1,
              min_effect: float = 0.6, alias_margin: float = 0.25, alias_corr: float = 0.9,
-             max_steps: int = 6, n_folds: int = 5, allan: bool = True) -> DiscoveryResult:
+             max_steps: int = 6, n_folds: int = 5, allan: bool = True,
+             progress: Callable[[int, str], None] | None = None) -> DiscoveryResult:
     """
     Find the effects a drift model is missing, one step at a time.
 
@@ -315,6 +316,9 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         run out).
     allan : bool
         Compute the Allan deviation of the residual before and after each step.
+    progress : callable, optional
+        Called as ``progress(step, effect_id)`` before each candidate is scored (``step``
+        counts the effects named so far, from 0), e.g. to drive a progress bar.
 
     Returns
     -------
@@ -376,6 +380,8 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         ho_m = model.cv_residual(folds)
         mse_ho_m = float((data.w[:, None] * ho_m * ho_m).sum() / (3.0 * data.w.sum()))
         for eid in todo:
+            if progress is not None:
+                progress(len(steps), eid)
             sc, contrib, p = _score(data, model, coef_m, sse_m, mse_ho_m, folds, eid,
                                     cparams[eid], lags=lags, n_cand=len(todo), alpha=alpha,
                                     min_heldout=min_heldout, min_effect=min_effect)
