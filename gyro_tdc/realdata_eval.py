@@ -56,12 +56,15 @@ Choices, and why:
 from __future__ import annotations
 
 from dataclasses import dataclass
+import json
 import math
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+import sys
+from typing import Any, Callable, Mapping, Sequence
 
+from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.effects import batch_features, EFFECTS, input_ids, normalise_ids, resolve_params
-from gyro_tdc.errors import FitError
+from gyro_tdc.errors import FitError, GyroTdcError
 from gyro_tdc.evaluation import score
 from gyro_tdc.fitting import estimate_t0, fit_linear, fit_model, fit_time_constant
 from gyro_tdc.metrics import bias_stability
@@ -72,7 +75,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['HOLDOUT_MODELS', 'HoldoutModel', 'burst_holdout', 'burst_index',
-           'fit_full_series', 'format_holdout', 'pan_holdout', 'POSITIONS']
+           'fit_full_series', 'format_holdout', 'pan_holdout', 'POSITIONS', 'run_tool']
 
 _DEG = 180.0 / math.pi
 #: Fold positions: interior blocks are interpolation, end blocks extrapolation.
@@ -551,3 +554,37 @@ def format_holdout(result: Mapping[str, Any]) -> str:
                       _head(not unclamped)]
             lines += _model_rows(sm['models'], names, unclamped=unclamped, ratios=True)
     return '\n'.join(lines)
+
+
+def run_tool(prog: str, compute: Callable[[], Mapping[str, Any]],
+             fmt: Callable[[Mapping[str, Any]], str], json_path: Path | None) -> int:
+    """
+    Run a real-data tool: compute, print the table, write the JSON; one line on failure.
+
+    Parameters
+    ----------
+    prog : str
+        The tool's name, the prefix of its error lines (``PROG: error: ...``).
+    compute : callable
+        Returns the figures (a JSON-serialisable mapping).
+    fmt : callable
+        Formats the figures as the printed table.
+    json_path : Path, optional
+        Where to write the figures as JSON (atomically).
+
+    Returns
+    -------
+    int
+        0, or 2 on bad input or an unwritable ``json_path``.
+
+    """
+    try:
+        result = compute()
+        print(fmt(result))
+        if json_path is not None:
+            atomic_write(json_path, json.dumps(result, indent=1) + '\n', what='JSON file')
+            print(f'\nwrote {json_path}')
+    except GyroTdcError as err:
+        print(f'{prog}: error: {err}', file=sys.stderr)
+        return 2
+    return 0

@@ -26,7 +26,6 @@ method and its caveats are in ``docs/real_data.md``.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 import sys
 
@@ -34,9 +33,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(ROOT))
 
-from gyro_tdc.errors import GyroTdcError  # noqa: E402
 from gyro_tdc.realdata import default_pan_csv  # noqa: E402
-from gyro_tdc.realdata_eval import format_holdout, pan_holdout  # noqa: E402
+from gyro_tdc.realdata_eval import format_holdout, pan_holdout, run_tool  # noqa: E402
 
 
 def _blocks(text: str) -> int:
@@ -61,22 +59,8 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--json', type=Path, default=None, metavar='OUT',
                         help='write the figures as JSON (keys in docs/real_data.md)')
     args = parser.parse_args(argv)
-    try:
-        result = pan_holdout(args.csv, n_blocks=args.blocks)
-    except GyroTdcError as err:
-        print(f'pan_holdout: error: {err}', file=sys.stderr)
-        return 2
-    print(format_holdout(result))
-    if args.json is not None:
-        try:
-            args.json.parent.mkdir(parents=True, exist_ok=True)
-            args.json.write_text(json.dumps(result, indent=1) + '\n', encoding='utf-8')
-        except OSError as err:
-            print(f'pan_holdout: error: cannot write --json {str(args.json)!r}: '
-                  f'{err.strerror or err}.', file=sys.stderr)
-            return 2
-        print(f'\nwrote {args.json}')
-    return 0
+    return run_tool('pan_holdout', lambda: pan_holdout(args.csv, n_blocks=args.blocks),
+                    format_holdout, args.json)
 
 
 if __name__ == '__main__':

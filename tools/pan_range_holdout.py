@@ -28,7 +28,6 @@ white-noise floor of the held-out bursts (their samples around their own burst m
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 import sys
 
@@ -43,7 +42,7 @@ from gyro_tdc.metrics import bias_stability  # noqa: E402
 from gyro_tdc.model import compensate  # noqa: E402
 from gyro_tdc.out_of_range import MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES  # noqa: E402
 from gyro_tdc.realdata import default_pan_csv, read_pan_cubesat_csv  # noqa: E402
-from gyro_tdc.realdata_eval import burst_index  # noqa: E402
+from gyro_tdc.realdata_eval import burst_index, run_tool  # noqa: E402
 from gyro_tdc.runs import Run  # noqa: E402
 import numpy as np  # noqa: E402
 
@@ -159,22 +158,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--json', type=Path, default=None, metavar='OUT',
                         help='write the figures as JSON')
     args = parser.parse_args(argv)
-    try:
-        result = range_holdout(args.csv, split_c=args.split_c)
-    except GyroTdcError as err:
-        print(f'pan_range_holdout: {err}', file=sys.stderr)
-        return 2
-    print(format_range_holdout(result))
-    if args.json is not None:
-        try:
-            args.json.parent.mkdir(parents=True, exist_ok=True)
-            args.json.write_text(json.dumps(result, indent=1) + '\n', encoding='utf-8')
-        except OSError as err:
-            print(f'pan_range_holdout: cannot write --json {str(args.json)!r}: '
-                  f'{err.strerror or err}.', file=sys.stderr)
-            return 2
-        print(f'\nwrote {args.json}')
-    return 0
+    return run_tool('pan_range_holdout',
+                    lambda: range_holdout(args.csv, split_c=args.split_c),
+                    format_range_holdout, args.json)
 
 
 if __name__ == '__main__':
