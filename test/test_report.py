@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.report: tables, JSON, CSV and plots from hand-made results."""
+"""Tests of gyro_tdc.report: tables, JSON and CSV from hand-made results."""
 
 from __future__ import annotations
 
@@ -20,44 +20,21 @@ import json
 import math
 
 from gyro_tdc.coverage import Coverage
-from gyro_tdc.evaluation import BagEval, ModelEval
+from gyro_tdc.evaluation import BagEval
 from gyro_tdc.report import csv_columns, evaluation_json, format_allan, format_bag
 from gyro_tdc.report import format_coverage, format_means, format_paper_table, format_summary
-from gyro_tdc.report import is_coverage_line, model_description
-from gyro_tdc.report import write_csv, write_json, write_plots
-from gyro_tdc.runs import Run
+from gyro_tdc.report import is_coverage_line
+from gyro_tdc.report import write_csv, write_json
+from handmade_bag import handmade_bag, model_eval as _ev
 import numpy as np
 import pytest
 
 DEG = math.pi / 180.0
 
 
-def _ev(label, bs, p, *, omega=None, outside=0.0):
-    bs = np.asarray(bs, dtype=float)
-    return ModelEval(model=f'models/{label}.yaml', label=label, features=['dT'], bs=bs,
-                     rms_dps=np.sqrt(bs), p_vs_raw=np.asarray(p, dtype=float),
-                     adev_tau_s=np.array([0.1, 1.0]),
-                     adev_dps=np.array([[0.2, 0.3, 0.4], [0.02, 0.03, 0.04]]),
-                     arw_deg_sqrt_h=np.array([1.5, 1.6, 1.7]),
-                     bias_instability_deg_h=np.array([10.0, 20.0, 30.0]),
-                     temp_range_c=(-10.0, 30.0), outside_fraction=outside, omega=omega)
-
-
 @pytest.fixture
 def bag():
-    n = 50
-    t = 100.0 + np.arange(n) * 0.5
-    temp = np.linspace(20.0, 40.0, n)
-    ref = np.tile([0.1, 0.0, 0.0], (n, 1))
-    raw = ref + 0.01 * np.arange(n)[:, None] * [1.0, 2.0, 3.0]
-    run = Run(t, temp, raw, ref, 'bags/run3')
-    models = [_ev('conv', [4.0, 2.0, 1.0], [0.04, 0.02, 0.01], omega=ref + 0.001),
-              _ev('mod', [1.0, 1.0, 0.5], [0.01, 0.01, 0.005], omega=ref - 0.002,
-                  outside=0.25)]
-    return BagEval(bag='bags/run3', label='run3', samples=n, temperature_c=(20.0, 40.0),
-                   duration_s=24.5 * 3600.0, reference='zero',
-                   raw=_ev('raw', [100.0, 100.0, 100.0], [1.0, 1.0, 1.0], omega=raw),
-                   models=models, run=run)
+    return handmade_bag()
 
 
 def test_summary_table(bag):
@@ -146,29 +123,6 @@ def test_csv_holds_every_sample(bag, tmp_path):
     bag.release()
     with pytest.raises(ValueError, match='released'):
         write_csv(bag, tmp_path)
-
-
-def test_three_plots_per_bag(bag, tmp_path):
-    files = write_plots(bag, tmp_path / 'png', points=10)
-    assert [f.name for f in files] == ['run3_timeseries.png', 'run3_residual_vs_temperature.png',
-                                       'run3_allan.png']
-    for f in files:
-        assert f.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
-    # Legends per model and the options in the titles; one description per model.
-    files = write_plots(bag, tmp_path / 'described', points=10, reanchor_s=300.0,
-                        descriptions=['conv.yaml: poly f(dT)', 'mod.yaml: poly f(dT, dT2)'],
-                        options='re-anchored: mean error of the first 300 s removed')
-    assert [f.read_bytes()[:8] for f in files] == [b'\x89PNG\r\n\x1a\n'] * 3
-    with pytest.raises(ValueError, match='one per model'):
-        write_plots(bag, tmp_path, descriptions=['only one'])
-    assert model_description('out/m/modified.yaml', 'poly', ['dT', 'dT2']) == \
-        'modified.yaml: poly f(dT, dT2)'
-    assert model_description('px4', 'poly', ['dT', 'dT2', 'dT3']).startswith('px4: cubic')
-    assert model_description('a/auto.yaml', 'rbf', ['dT', 'dT2', 'lag'], tau_s=175.95) == \
-        'auto.yaml: rbf f(dT, dT2, lag 176 s)'
-    bag.release()
-    with pytest.raises(ValueError, match='released'):
-        write_plots(bag, tmp_path)
 
 
 def _coverage(**kw):

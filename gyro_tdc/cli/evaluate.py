@@ -29,8 +29,8 @@ Beyond a model's trained range the ``--out-of-range`` policy applies (``linear``
 as the compensator node: the correction continues along its tangent at the range end, then
 holds), printed once, in the notes and in the JSON. ``--reanchor auto`` applies the
 compensator's precision-driven re-anchoring rule (:func:`gyro_tdc.stillness.reanchor_shift`).
-The scoring is :mod:`gyro_tdc.evaluation`, the tables and files :mod:`gyro_tdc.report`; this
-module parses the arguments and prints.
+The scoring is :mod:`gyro_tdc.evaluation`, the tables and files :mod:`gyro_tdc.report`
+(plots: :mod:`gyro_tdc.plots`); this module parses the arguments and prints.
 """
 
 from __future__ import annotations
@@ -45,8 +45,8 @@ from gyro_tdc.dataset import expand_bags
 from gyro_tdc.evaluation import AUTO_REANCHOR, BagEval, evaluate, load_models, PX4
 from gyro_tdc.out_of_range import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C
 from gyro_tdc.out_of_range import OUT_OF_RANGE_POLICIES
-from gyro_tdc.report import format_bag, format_means, model_description, write_csv, write_json
-from gyro_tdc.report import write_plots
+from gyro_tdc.plots import model_description, write_plots
+from gyro_tdc.report import format_bag, format_means, write_csv, write_json
 
 __all__ = ['build_parser', 'main']
 
