@@ -81,6 +81,7 @@ from gyro_tdc.atomicio import atomic_write
 from gyro_tdc.model import CompensationModel, drift
 from gyro_tdc.still import (has_accelerometer, judge_windows, MIN_STILL_S, noise_thresholds,
                             STILL_WINDOW_S)
+from gyro_tdc.stillness import windows_moving
 import numpy as np
 from numpy.typing import NDArray
 
@@ -208,6 +209,8 @@ class Learner:
         self.bw = array('d')
         self.ba = array('d')
         self.temps: list[tuple[float, float]] = []
+        #: Motion reports (stamp, moving), from the one held at the window in progress on.
+        self.motion: list[tuple[float, bool]] = []
         self.reset()
 
     # -- state -----------------------------------------------------------------------
@@ -248,7 +251,8 @@ class Learner:
             't_first': self.t_first, 'still_s': self.still_s, 'stretches': self.stretches,
             'windows': self.windows, 'recent': self.recent, 'fit': self.fit,
             'last_update_t': self.last_update_t, 'last_t': self.last_t, 'check': self.check,
-            'swaps': self.swaps, 'config': {k: getattr(self.config, k) for k in (
+            'swaps': self.swaps, 'motion': [[float(m[0]), bool(m[1])] for m in self.motion],
+            'config': {k: getattr(self.config, k) for k in (
                 'bin_c', 'half_life_s', 'window_s', 'min_still_s')},
         }
 
@@ -283,6 +287,7 @@ class Learner:
         self.last_save_t = state['last_t']
         self.check = state['check']
         self.swaps = int(state['swaps'])
+        self.motion = [(float(m[0]), bool(m[1])) for m in state.get('motion', [])]
         if self.fit is not None:
             self.model = self._model_of(self.fit)
             self._new_model = self.model
@@ -327,6 +332,27 @@ class Learner:
     def add_temperature(self, t: float, temp_c: float) -> None:
         """Record one thermometer reading."""
         self.temps.append((t, temp_c))
+
+    def observe_motion(self, t: float, moving: bool) -> None:
+        """
+        Record a motion report: from stamp ``t`` until the next report, moving or not.
+
+        A still window that overlaps a moving interval is not still (the motion veto of
+        :mod:`gyro_tdc.stillness`: before the first report nothing is vetoed). Reports are
+        applied when :meth:`step` judges the windows they cover, so one that arrives after
+        its windows were judged (more than a window late) no longer vetoes them.
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp of the report.
+        moving : bool
+            Whether it reports motion.
+
+        """
+        t = float(t)
+        if math.isfinite(t):
+            self.motion.append((t, bool(moving)))
 
     def take_model(self) -> CompensationModel | None:
         """Return a model swapped in since the last call (once), else None."""
@@ -452,6 +478,7 @@ class Learner:
         t0 = t[start]
         t1 = t[np.r_[start[1:], k.size] - 1]
         fin = np.isfinite(std).all(axis=1) & np.isfinite(mean).all(axis=1) & (n >= 3)
+        moving = self._moving(t0, t1)
         swapped = False
         for i in range(start.size):
             self.windows += 1
@@ -467,6 +494,8 @@ class Learner:
                                 g_thr, a_thr)[0]
             if not fin[i] or not math.isfinite(tmean[i]):
                 why = 'non-finite'
+            elif moving[i]:
+                why = 'motion'
             if why:
                 swapped = self._close() or swapped
                 continue
@@ -475,6 +504,17 @@ class Learner:
                                        None if astd is None else astd[i].tolist()])
             swapped = self._commit() or swapped
         return swapped
+
+    def _moving(self, t0: NDArray[np.float64], t1: NDArray[np.float64]) -> NDArray[np.bool_]:
+        """Return which windows overlap reported motion; forget reports before the last end."""
+        mo = sorted(self.motion, key=lambda r: r[0])
+        if not mo:
+            return np.zeros(t0.size, dtype=bool)
+        mt = np.array([r[0] for r in mo])
+        out = windows_moving(t0, t1, mt, [r[1] for r in mo])
+        held = max(int(np.searchsorted(mt, t1[-1], side='right')) - 1, 0)
+        self.motion = mo[held:]             # the report held at the next window on
+        return out
 
     def _close(self) -> bool:
         """End the stretch: keep it when long enough, learn what is not learned yet."""

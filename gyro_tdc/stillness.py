@@ -56,6 +56,16 @@ then ten times more precise than the model's own scatter, and as the SE of a mea
 does not depend on the sample rate, a 1 Hz and a 1 kHz stream of one sensor stop at the
 same precision. Motion before the tolerance is met drops the run (an imprecise anchor can
 add more noise than the offset it removes); re-anchoring waits for the next still period.
+
+**Motion veto.** A vehicle turning slowly at a constant rate has no spread and an
+accelerometer that may not see it: its windows pass the noise test (false stillness). An
+outside motion report (``cmd_vel``, odometry) vetoes them: :meth:`StillnessDetector.
+observe_motion` (and :meth:`gyro_tdc.learning.Learner.observe_motion`) take ``(t, moving)``;
+a report holds from its stamp until the next one, and a window that overlaps a moving
+interval is not still (:func:`windows_moving`; at a report's stamp the held state is that
+of :func:`gyro_tdc.still.motion_veto`, the trainer's batch form). Until the first report
+the veto is off and the noise test alone decides (a stream with no motion input behaves as
+before; a node with a motion topic sees its first report within a window of starting).
 """
 
 from __future__ import annotations
@@ -64,16 +74,16 @@ from dataclasses import dataclass
 import math
 from typing import NamedTuple, Sequence
 
-from gyro_tdc.still import judge_windows, NOISE_FACTOR, noise_thresholds, NOISE_WINDOWS
-from gyro_tdc.still import STILL_WINDOW_S
+from gyro_tdc.still import judge_windows, motion_veto, NOISE_FACTOR, noise_thresholds
+from gyro_tdc.still import NOISE_WINDOWS, STILL_WINDOW_S
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['Anchor', 'BLOCKS_PER_WINDOW', 'BlockStats', 'MAX_BLOCK_S', 'NOISE_FACTOR',
            'NOISE_WINDOWS', 'STILL_WINDOW_MAX_S', 'STILL_WINDOW_S', 'Shift',
            'StillnessDetector', 'TOLERANCE_FLOOR', 'TOLERANCE_FRACTION', 'Vec3',
            'block_length', 'default_tolerance', 'max_windows', 'reanchor_shift',
-           'standard_error', 'window_stats']
+           'standard_error', 'window_stats', 'windows_moving']
 
 Vec3 = tuple[float, float, float]
 
@@ -310,6 +320,44 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
     return Shift(delta, standard_error(total), total.n, float(t[last] - t[0]), reason)
 
 
+def windows_moving(t_start: ArrayLike, t_end: ArrayLike, motion_t: ArrayLike,
+                   moving: ArrayLike) -> NDArray[np.bool_]:
+    """
+    Return which windows overlap a moving interval of the motion reports.
+
+    A report at stamp ``t`` holds from ``t`` until the next report. Before the first report
+    nothing is vetoed (see the module docstring).
+
+    Parameters
+    ----------
+    t_start, t_end : ArrayLike, shape (W,), s
+        First and last stamp of each window.
+    motion_t : ArrayLike, shape (M,), s
+        Report stamps, increasing.
+    moving : ArrayLike, shape (M,) of bool
+        Per report, whether it says the vehicle moves.
+
+    Returns
+    -------
+    NDArray[np.bool_], shape (W,)
+        True where the report held at ``t_start`` or any report within
+        ``(t_start, t_end]`` says motion.
+
+    """
+    t0 = np.atleast_1d(np.asarray(t_start, dtype=np.float64))
+    t1 = np.atleast_1d(np.asarray(t_end, dtype=np.float64))
+    mt = np.asarray(motion_t, dtype=np.float64).reshape(-1)
+    mv = np.asarray(moving, dtype=bool).reshape(-1)
+    if mt.size == 0:
+        return np.zeros(t0.shape, dtype=bool)
+    held = motion_veto(t0, mt, mv) & (t0 >= mt[0])
+    # Moving reports within (t_start, t_end]: a difference of a running count.
+    count = np.concatenate([[0], np.cumsum(mv)])
+    inside = (count[np.searchsorted(mt, t1, side='right')]
+              - count[np.searchsorted(mt, t0, side='right')])
+    return held | (inside > 0)
+
+
 class _Window(NamedTuple):
     """One still window of the current run."""
 
@@ -358,7 +406,47 @@ class StillnessDetector:
         self.tolerance: Vec3 = ((self.fixed_tolerance,) * 3 if self.fixed_tolerance > 0
                                 else _INF3)
         self.noise_prior: Vec3 | None = None
+        #: Motion reports (stamp, moving) from the one held at the window in progress on.
+        self.motion: list[tuple[float, bool]] = []
         self.reset()
+
+    def observe_motion(self, t: float, moving: bool) -> None:
+        """
+        Record a motion report: from stamp ``t`` until the next report, moving or not.
+
+        A window that overlaps a moving interval is not still (the module docstring);
+        :meth:`reset` keeps the reports (they are of the vehicle, not of the model).
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp of the report (``cmd_vel``/odometry message).
+        moving : bool
+            Whether it reports motion.
+
+        """
+        t = float(t)
+        if not math.isfinite(t):
+            return
+        rep = (t, bool(moving))
+        if not self.motion or t >= self.motion[-1][0]:
+            self.motion.append(rep)
+        else:                                   # out of order: keep the list sorted
+            self.motion.append(rep)
+            self.motion.sort(key=lambda r: r[0])
+
+    def _moving(self, t_start: float, t_end: float) -> bool:
+        """Return whether the window overlaps motion; forget reports before its end."""
+        mo = self.motion
+        if not mo:
+            return False
+        moving = bool(windows_moving([t_start], [t_end], [r[0] for r in mo],
+                                     [r[1] for r in mo])[0])
+        held = 0
+        while held + 1 < len(mo) and mo[held + 1][0] <= t_end:
+            held += 1
+        del mo[:held]                           # keep the report held at the next window
+        return moving
 
     def reset(self, *, residual_var: Sequence[float] | None = None) -> None:
         """
@@ -487,6 +575,10 @@ class StillnessDetector:
                 if v > 0:
                     self.noise_accel[i] = min(self.noise_accel[i], v)
         g_thr, a_thr = self._thresholds()
+        if self._moving(t_start, t):
+            self.windows_rejected += 1
+            self._run = []          # the vehicle reports motion: not still, start over
+            return None
 
         def quiet(g: Vec3, a: Vec3 | None) -> bool:
             return judge_windows([g], None if a is None else [a], g_thr, a_thr)[0] == ''

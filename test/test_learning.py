@@ -232,3 +232,29 @@ def test_reset_and_bad_file(tmp_path):
     with pytest.raises(ValueError, match='not a learner state'):
         learner.load(bad)
     assert not learner.load(tmp_path / 'missing.json')
+
+
+def test_motion_reports_veto_a_slow_constant_turn(tmp_path):
+    """A constant-rate turn has only noise-floor scatter: a motion report keeps it out."""
+    turn = [0.05, 0.0, 0.0]          # rad/s, constant: passes the noise test alone
+    # Without motion reports the (false) stillness is what the still test alone sees.
+    alone = Learner(LearnConfig(temperature_timeout=1e9))
+    _still(alone, 0.0, 300.0, turn, 20.0)
+    assert alone.summary()['points'] == 1
+    np.testing.assert_allclose(alone.model.intercept, turn, atol=3e-5)
+    # Reported moving: nothing learned; the state (reports included) survives a restart.
+    learner = Learner(LearnConfig(temperature_timeout=1e9))
+    learner.observe_motion(0.0, True)
+    t = _still(learner, 0.0, 300.0, turn, 20.0)
+    assert learner.summary()['points'] == 0 and learner.model is None
+    path = tmp_path / 'learn.json'
+    learner.save(path)
+    again = Learner(LearnConfig(temperature_timeout=1e9))
+    assert again.load(path) and again.motion == learner.motion == [(0.0, True)]
+    t = _still(again, t, 120.0, turn, 20.0, seed=1)
+    assert again.summary()['points'] == 0
+    # Stopped: still time counts again, from the report on.
+    again.observe_motion(t, False)
+    _still(again, t, 120.0, [0.01, 0.0, 0.0], 20.0, seed=2)
+    assert again.summary()['points'] == 1
+    np.testing.assert_allclose(again.model.intercept, [0.01, 0.0, 0.0], atol=3e-5)

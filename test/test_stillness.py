@@ -19,7 +19,8 @@ from __future__ import annotations
 import math
 
 from gyro_tdc.stillness import (block_length, default_tolerance, max_windows, reanchor_shift,
-                                standard_error, StillnessDetector, window_stats)
+                                standard_error, StillnessDetector, window_stats,
+                                windows_moving)
 import numpy as np
 import pytest
 
@@ -76,3 +77,47 @@ def test_default_tolerance_and_window_counts():
     # Shorter than one window: every sample, said so.
     r = reanchor_shift(np.arange(5.0), np.ones((5, 3)), tolerance=[1.0] * 3)
     assert (r.samples, r.reason, r.delta) == (5, 'end of data', (1.0, 1.0, 1.0))
+
+
+def _turn(det, t0, n, rate=0.01, seed=3):
+    """Feed a slow constant-rate turn (noise-floor scatter, no accelerometer); anchors."""
+    rng = np.random.default_rng(seed)
+    anchors = []
+    for k in range(n):
+        raw = (rate + rng.normal(0, 1e-3), rng.normal(0, 1e-3), rng.normal(0, 1e-3))
+        a = det.update(t0 + k * 0.01, raw, raw, None, 20.0)
+        if a is not None:
+            anchors.append(a)
+    return anchors
+
+
+def test_motion_reports_veto_a_slow_constant_turn():
+    """A 0.01 rad/s turn has only the noise's scatter: only a motion report tells it."""
+    # Without motion reports the detector alone sees stillness (false: the turn rate
+    # becomes the anchor), which is what the veto is for.
+    det = StillnessDetector(window=1.0, max_rate=0.02)
+    anchors = _turn(det, 0.0, 500)
+    assert anchors and anchors[0].delta[0] == pytest.approx(0.01, abs=1e-3)
+    # Reported moving: no window is still, no anchor.
+    det = StillnessDetector(window=1.0, max_rate=0.02)
+    det.observe_motion(0.0, True)
+    assert _turn(det, 0.0, 500) == [] and det.windows_rejected >= 4
+    # Stopped at 5 s (the report holds until the next): anchors again after it only.
+    det.observe_motion(5.0, False)
+    anchors = _turn(det, 5.0, 300, rate=0.0)
+    assert anchors and all(a.t - a.duration_s >= 5.0 for a in anchors)
+    # A brief motion report inside a window vetoes that window only; reset keeps reports.
+    det.reset()
+    det.observe_motion(8.5, True)
+    det.observe_motion(8.6, False)
+    anchors = _turn(det, 8.0, 300, rate=0.0, seed=4)
+    assert anchors and all(not (a.t - a.duration_s <= 8.5 <= a.t) for a in anchors)
+
+
+def test_windows_moving_holds_each_report_until_the_next():
+    mt, mv = [1.0, 2.0, 4.0], [False, True, False]
+    got = windows_moving([0.0, 1.0, 2.5, 3.9, 4.0, 0.0], [0.9, 1.9, 3.0, 4.5, 5.0, 1.5],
+                         mt, mv)
+    # Before the first report: no veto; [2, 4) moving.
+    assert got.tolist() == [False, False, True, True, False, False]
+    assert not windows_moving([0.0], [9.0], [], []).any()
