@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Held-out evaluation on the real PAN CubeSat TVAC recording (leave one burst block out).
+Tests of gyro_tdc.realdata_eval: held-out evaluation on the real PAN CubeSat TVAC recording.
 
 The recording ships beside the repository in ``shared/data/pan_cubesat_tvac``; the tests that
 need it skip only when that file is absent. One synthetic bursty run checks the machinery
