@@ -16,9 +16,10 @@
 Hostile files and faulty inputs (issue 18, the parts outside the nodes).
 
 Each case reproduces one reported failure: deep nesting and alias bombs in YAML, oversized
-files, tampered model files, non-atomic or wrongly permissioned outputs, silent message loss
-in a damaged bag, absurd values in a bag, options sizing huge arrays, the same bag twice,
-conflicting temperature stamps. Bags are written in ``tmp_path`` with ``write_bag``; no rclpy.
+files, tampered model files (atomic, permission-keeping outputs: test_atomicio.py), silent
+message loss in a damaged bag, absurd values in a bag, options sizing huge arrays, the same bag
+twice, conflicting temperature stamps. Bags are written in ``tmp_path`` with ``write_bag``; no
+rclpy.
 """
 
 from __future__ import annotations
@@ -29,12 +30,11 @@ from pathlib import Path
 import stat
 import tracemalloc
 
-from gyro_tdc.atomicio import atomic_dir, atomic_write
 from gyro_tdc.errors import GyroTdcError, ModelFileError, OutputError, ScenarioError
-from gyro_tdc.model import CompensationModel
 from gyro_tdc.modelfile import load_model, MAX_CENTERS, model_from_dict, model_to_dict
 from gyro_tdc.modelfile import save_model
 from gyro_tdc.sim import load_scenario
+from hostile_helpers import one_line_error, small_model
 import numpy as np
 import pytest
 import yaml
@@ -49,28 +49,6 @@ def alias_bomb(levels: int = 9) -> str:
         refs = ', '.join([f'*a{k - 1}'] * 10)
         lines.append(f'a{k}: &a{k} [{refs}]')
     return '\n'.join(lines) + '\n'
-
-
-def small_model(k: int = 4, **changes) -> CompensationModel:
-    """Return a small hand-made RBF model (no fitting), seeded."""
-    rng = np.random.default_rng(5)
-    m = CompensationModel(
-        kind='rbf', features=('dT', 'dT2'), effect_params={}, t0_c=20.0,
-        input_mean=np.array([10.0, 300.0]), input_std=np.array([20.0, 400.0]),
-        centers=rng.normal(size=(k, 2)), widths=rng.uniform(0.2, 1.0, k),
-        weights=rng.normal(scale=1e-3, size=(k, 3)), intercept=np.array([1e-3, -2e-3, 5e-4]),
-        linear=rng.normal(scale=1e-3, size=(2, 3)), scale=np.zeros(3),
-        temp_range_c=(-10.0, 50.0), residual_var=np.full(3, 1e-8), frame_id='imu_link',
-        sensor_id='unit-7', metrics={'samples': 1000, 'runs': ['/bags/run1']},
-        created={'utc': '2026-01-01T00:00:00+00:00', 'command': 'test'})
-    return m.replace(**changes) if changes else m
-
-
-def one_line_error(exc_info) -> str:
-    """Return the message of a raised error after checking it is one line."""
-    text = str(exc_info.value)
-    assert '\n' not in text and text
-    return text
 
 
 # --------------------------------------------------------------------------------------------
@@ -229,115 +207,6 @@ def test_format_version_must_be_the_integer_one(tmp_path, text):
     path.write_text(body)
     with pytest.raises(ModelFileError, match='`format_version` must be 1'):
         load_model(path)
-
-
-# --------------------------------------------------------------------------------------------
-# Items 4 and 11: atomic writes with normal permissions, through symlinks, nothing left behind
-# --------------------------------------------------------------------------------------------
-
-@pytest.fixture
-def umask():
-    """Set a umask for the test and restore the old one."""
-    old = os.umask(0o022)
-    try:
-        yield os.umask
-    finally:
-        os.umask(old)
-
-
-def _mode(path: Path) -> int:
-    return stat.S_IMODE(path.stat().st_mode)
-
-
-def _leftovers(directory: Path) -> list:
-    return sorted(p.name for p in directory.iterdir() if p.name.endswith('.tmp'))
-
-
-@pytest.mark.parametrize('mask, expected', [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664)])
-def test_new_model_file_respects_the_umask(tmp_path, umask, mask, expected):
-    umask(mask)
-    path = save_model(small_model(), tmp_path / 'm.yaml')
-    assert _mode(path) == expected
-
-
-def test_overwriting_keeps_the_mode_of_the_existing_file(tmp_path, umask):
-    umask(0o077)
-    path = tmp_path / 'm.yaml'
-    path.write_text('old')
-    path.chmod(0o644)
-    save_model(small_model(), path)
-    assert _mode(path) == 0o644
-    assert load_model(path).model_id == small_model().model_id
-
-
-def test_symlinked_output_is_written_through_to_its_target(tmp_path):
-    target = tmp_path / 'models' / 'real.yaml'
-    target.parent.mkdir()
-    target.write_text('old')
-    target.chmod(0o640)
-    link = tmp_path / 'current.yaml'
-    link.symlink_to(target)
-    save_model(small_model(), link)
-    assert link.is_symlink() and os.readlink(link) == str(target)
-    assert load_model(target).model_id == small_model().model_id
-    assert _mode(target) == 0o640
-    assert _leftovers(tmp_path) == [] and _leftovers(target.parent) == []
-
-
-def test_output_that_is_a_directory_names_it_and_leaves_nothing(tmp_path):
-    target = tmp_path / 'm.yaml'
-    target.mkdir()
-    with pytest.raises(OutputError, match='it is a directory') as info:
-        save_model(small_model(), target)
-    assert str(target) in one_line_error(info)
-    assert _leftovers(tmp_path) == [] and list(target.iterdir()) == []
-
-
-@pytest.mark.parametrize('exc', [OSError(errno.ENOSPC, 'No space left on device'),
-                                 KeyboardInterrupt(), ValueError('writer bug')])
-def test_failure_during_the_write_removes_the_temporary(tmp_path, exc):
-    path = tmp_path / 'out.csv'
-    path.write_text('previous content\n')
-
-    def writer(stream):
-        stream.write('half a row,')
-        stream.flush()
-        raise exc
-
-    if isinstance(exc, OSError):
-        with pytest.raises(OutputError, match='No space left on device') as info:
-            atomic_write(path, writer, what='CSV file')
-        assert f"cannot write CSV file '{path}'" in one_line_error(info)
-    else:
-        with pytest.raises(type(exc)):
-            atomic_write(path, writer)
-    assert path.read_text() == 'previous content\n'
-    assert _leftovers(tmp_path) == []
-
-
-def test_binary_writer_and_bytes_content(tmp_path):
-    atomic_write(tmp_path / 'a.bin', lambda s: s.write(b'\x00\x01'), binary=True)
-    atomic_write(tmp_path / 'b.bin', b'\x02')
-    assert (tmp_path / 'a.bin').read_bytes() == b'\x00\x01'
-    assert (tmp_path / 'b.bin').read_bytes() == b'\x02'
-
-
-def test_atomic_dir_appears_complete_or_not_at_all(tmp_path, umask):
-    out = tmp_path / 'bags'
-    with pytest.raises(OutputError, match='No space left on device'):
-        with atomic_dir(out) as build:
-            build.mkdir()
-            (build / 'run1.db3').write_bytes(b'')
-            raise OSError(errno.ENOSPC, 'No space left on device')
-    assert list(tmp_path.iterdir()) == []
-    with atomic_dir(out) as build:
-        build.mkdir()
-        (build / 'x').write_text('1')
-    assert (out / 'x').read_text() == '1' and [p.name for p in tmp_path.iterdir()] == ['bags']
-    assert _mode(out) == 0o755
-    with pytest.raises(OutputError, match='exists already'):
-        with atomic_dir(out):
-            pass
 
 
 def test_errors_are_gyro_tdc_errors():

@@ -1,0 +1,139 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Tests of gyro_tdc.atomicio: atomic writes with normal permissions, through symlinks.
+
+Issue 18, items 4 and 11 (moved from test_hostile.py): a new file gets the umask's mode, an
+overwritten one keeps its mode, a symlink is written through to its target, a failure leaves
+the previous content and no temporary behind, a directory appears complete or not at all.
+"""
+
+from __future__ import annotations
+
+import errno
+import os
+from pathlib import Path
+import stat
+
+from gyro_tdc.atomicio import atomic_dir, atomic_write
+from gyro_tdc.errors import OutputError
+from gyro_tdc.modelfile import load_model, save_model
+from hostile_helpers import one_line_error, small_model
+import pytest
+
+
+@pytest.fixture
+def umask():
+    """Set a umask for the test and restore the old one."""
+    old = os.umask(0o022)
+    try:
+        yield os.umask
+    finally:
+        os.umask(old)
+
+
+def _mode(path: Path) -> int:
+    return stat.S_IMODE(path.stat().st_mode)
+
+
+def _leftovers(directory: Path) -> list:
+    return sorted(p.name for p in directory.iterdir() if p.name.endswith('.tmp'))
+
+
+@pytest.mark.parametrize('mask, expected', [(0o022, 0o644), (0o077, 0o600), (0o002, 0o664)])
+def test_new_model_file_respects_the_umask(tmp_path, umask, mask, expected):
+    umask(mask)
+    path = save_model(small_model(), tmp_path / 'm.yaml')
+    assert _mode(path) == expected
+
+
+def test_overwriting_keeps_the_mode_of_the_existing_file(tmp_path, umask):
+    umask(0o077)
+    path = tmp_path / 'm.yaml'
+    path.write_text('old')
+    path.chmod(0o644)
+    save_model(small_model(), path)
+    assert _mode(path) == 0o644
+    assert load_model(path).model_id == small_model().model_id
+
+
+def test_symlinked_output_is_written_through_to_its_target(tmp_path):
+    target = tmp_path / 'models' / 'real.yaml'
+    target.parent.mkdir()
+    target.write_text('old')
+    target.chmod(0o640)
+    link = tmp_path / 'current.yaml'
+    link.symlink_to(target)
+    save_model(small_model(), link)
+    assert link.is_symlink() and os.readlink(link) == str(target)
+    assert load_model(target).model_id == small_model().model_id
+    assert _mode(target) == 0o640
+    assert _leftovers(tmp_path) == [] and _leftovers(target.parent) == []
+
+
+def test_output_that_is_a_directory_names_it_and_leaves_nothing(tmp_path):
+    target = tmp_path / 'm.yaml'
+    target.mkdir()
+    with pytest.raises(OutputError, match='it is a directory') as info:
+        save_model(small_model(), target)
+    assert str(target) in one_line_error(info)
+    assert _leftovers(tmp_path) == [] and list(target.iterdir()) == []
+
+
+@pytest.mark.parametrize('exc', [OSError(errno.ENOSPC, 'No space left on device'),
+                                 KeyboardInterrupt(), ValueError('writer bug')])
+def test_failure_during_the_write_removes_the_temporary(tmp_path, exc):
+    path = tmp_path / 'out.csv'
+    path.write_text('previous content\n')
+
+    def writer(stream):
+        stream.write('half a row,')
+        stream.flush()
+        raise exc
+
+    if isinstance(exc, OSError):
+        with pytest.raises(OutputError, match='No space left on device') as info:
+            atomic_write(path, writer, what='CSV file')
+        assert f"cannot write CSV file '{path}'" in one_line_error(info)
+    else:
+        with pytest.raises(type(exc)):
+            atomic_write(path, writer)
+    assert path.read_text() == 'previous content\n'
+    assert _leftovers(tmp_path) == []
+
+
+def test_binary_writer_and_bytes_content(tmp_path):
+    atomic_write(tmp_path / 'a.bin', lambda s: s.write(b'\x00\x01'), binary=True)
+    atomic_write(tmp_path / 'b.bin', b'\x02')
+    assert (tmp_path / 'a.bin').read_bytes() == b'\x00\x01'
+    assert (tmp_path / 'b.bin').read_bytes() == b'\x02'
+
+
+def test_atomic_dir_appears_complete_or_not_at_all(tmp_path, umask):
+    out = tmp_path / 'bags'
+    with pytest.raises(OutputError, match='No space left on device'):
+        with atomic_dir(out) as build:
+            build.mkdir()
+            (build / 'run1.db3').write_bytes(b'')
+            raise OSError(errno.ENOSPC, 'No space left on device')
+    assert list(tmp_path.iterdir()) == []
+    with atomic_dir(out) as build:
+        build.mkdir()
+        (build / 'x').write_text('1')
+    assert (out / 'x').read_text() == '1' and [p.name for p in tmp_path.iterdir()] == ['bags']
+    assert _mode(out) == 0o755
+    with pytest.raises(OutputError, match='exists already'):
+        with atomic_dir(out):
+            pass
