@@ -20,7 +20,9 @@ policies, and turns one raw sample into one output sample, the variance to add t
 its covariance and flags (:mod:`gyro_tdc.health`) saying what happened.
 ``gyro_tdc.nodes.compensator_node`` only converts messages to floats and back, so every rule
 here is tested without ROS (the stillness test is :mod:`gyro_tdc.stillness`, the judgement
-shown on /diagnostics :mod:`gyro_tdc.health`):
+shown on /diagnostics :mod:`gyro_tdc.health`, the parameter table and :class:`Policy`
+:mod:`gyro_tdc.compensator_params`, a model made ready off the compensating thread
+:mod:`gyro_tdc.priming`):
 
 * the temperature used for a sample stamped ``t`` is the latest thermometer sample
   stamped at or before ``t`` (zero-order hold by stamp, so the interleaving of the two
@@ -47,119 +49,27 @@ import bisect
 from collections import deque
 from dataclasses import replace
 import math
-from typing import Iterable, NamedTuple, Sequence
+from typing import Sequence
 
+from gyro_tdc.compensator_params import PARAMS, Policy, TEMPERATURE_TYPES
 from gyro_tdc.effects import STATIC_EFFECTS
 from gyro_tdc.health import (FLAG_NAMES, NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
                              OUT_OF_RANGE, PASSTHROUGH, STALE)
 from gyro_tdc.model import CompensationModel, StreamingCompensator
-from gyro_tdc.out_of_range import (DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C,
-                                   OUT_OF_RANGE_POLICIES, variance_growth)
-from gyro_tdc.paramspec import ParamSpec, spec_dataclass
-from gyro_tdc.stillness import (Anchor, STILL_WINDOW_MAX_S, STILL_WINDOW_S, StillnessDetector,
-                                Vec3)
+from gyro_tdc.out_of_range import variance_growth
+from gyro_tdc.priming import (advance, prepare, PreparedModel, Priming, Replay, replay,
+                              replay_from_first)
+from gyro_tdc.stillness import Anchor, StillnessDetector, Vec3
 import numpy as np
 
+# PARAMS, Policy, TEMPERATURE_TYPES (gyro_tdc.compensator_params) and the priming types
+# (gyro_tdc.priming) are re-exported: the compensator's pure API stays importable from here.
 __all__ = ['CompensatorCore', 'PARAMS', 'Policy', 'PreparedModel', 'Priming', 'Replay',
            'STATIC_EFFECTS', 'TEMPERATURE_TYPES', 'TemperatureHold', 'prepare',
            'widen_covariance']
 
 # STATIC_EFFECTS (from the effect library): a model made of these has a drift that changes
 # only when the temperature does, so the compensator evaluates it once per thermometer sample.
-
-
-#: Message types the compensator's ``imu/temperature`` input accepts (``temperature_type``).
-TEMPERATURE_TYPES = ('sensor_msgs/msg/Temperature', 'std_msgs/msg/Float32',
-                     'std_msgs/msg/Float64')
-
-#: The compensator's parameters (the node declares them; ``policy`` rows build :class:`Policy`).
-PARAMS = (
-    ParamSpec('model_file', '', 'Model YAML file, or the name of a model in config/models; '
-              'settable at run time (hot reload). Empty: pass the raw rate through.',
-              read_only=False),
-    ParamSpec('out_of_range', DEFAULT_OUT_OF_RANGE, 'Outside the model temperature range: '
-              'continue the correction along its tangent at the range end for up to '
-              'max_extrapolation_c, then hold it (linear); evaluate at the nearest valid '
-              'temperature (clamp); or evaluate the model there (extrapolate).',
-              choices=OUT_OF_RANGE_POLICIES, policy=True),
-    ParamSpec('max_extrapolation_c', MAX_EXTRAPOLATION_C, 'How far beyond the model '
-              'temperature range the linear policy follows the tangent before it holds '
-              '[degC].', 0.0, 1000.0, policy=True),
-    ParamSpec('temperature_timeout', 5.0, 'Temperature older than this (IMU stamp minus '
-              'thermometer stamp) is stale [s].', 0.001, 86400.0, policy=True),
-    ParamSpec('stale_policy', 'hold', 'With a stale temperature: keep compensating with the '
-              'last value (hold) or pass the raw rate through (passthrough).',
-              choices=('hold', 'passthrough'), policy=True),
-    ParamSpec('stale_variance', 1.0e-6, 'Added to the angular_velocity_covariance diagonal '
-              'while compensating with a stale temperature [(rad/s)^2].', 0.0, 1.0e3,
-              policy=True),
-    ParamSpec('out_of_range_variance', 1.0e-6, 'Added to the covariance diagonal outside the '
-              "model's temperature range; with linear, times 1 + (d / 5 degC)^2 at a distance "
-              'd from the range [(rad/s)^2].', 0.0, 1.0e3, policy=True),
-    ParamSpec('passthrough_variance', 1.0e-4, 'Added to the covariance diagonal when the raw '
-              'rate is passed through uncompensated [(rad/s)^2].', 0.0, 1.0e3, policy=True),
-    ParamSpec('reanchor_on_start', False, 'Shift the model offset so the compensated rate '
-              'averages zero once the IMU is still and the mean is known to '
-              'reanchor_tolerance.', policy=True),
-    ParamSpec('reanchor_tolerance', 0.0, 'Largest standard error of the re-anchoring shift '
-              "per axis; 0: auto, 0.1 x the model's residual standard deviation, at least "
-              '1e-5 rad/s [rad/s].', 0.0, 10.0, policy=True),
-    ParamSpec('still_window', STILL_WINDOW_S, 'Stillness window: the shortest averaging for '
-              're-anchoring [s].', 0.1, 3600.0, policy=True),
-    ParamSpec('still_window_max', STILL_WINDOW_MAX_S, 'Longest averaging for re-anchoring '
-              '(the shift is taken then even when its standard error is above the '
-              'tolerance) [s].', 0.1, 86400.0, policy=True),
-    ParamSpec('still_gyro_std', 0.0, 'Largest per-axis standard deviation of the raw rate '
-              'over a still window; 0: auto, 4 x the quietest window so far [rad/s].', 0.0,
-              10.0, policy=True),
-    ParamSpec('still_max_rate', 0.02, 'Largest per-axis mean compensated rate over a still '
-              'window, i.e. the largest shift allowed [rad/s].', 0.0, 10.0, policy=True),
-    ParamSpec('still_accel_std', 0.0, 'Largest per-axis standard deviation of the '
-              'acceleration over a still window, when the IMU has one; 0: auto, 4 x the '
-              'quietest window so far [m/s^2].', 0.0, 100.0, policy=True),
-    ParamSpec('queue_depth', 2000, 'Queue depth of the imu/data_raw (best_effort) and '
-              'imu/temperature subscriptions and of the publisher (keep last) [messages].', 1,
-              1000000),
-    ParamSpec('input_reliability', 'best_effort', 'QoS of the imu/data_raw subscription: '
-              'best_effort (REP 2003 sensor data, keep last queue_depth: the freshest samples '
-              'when behind; DDS does not report what this queue overwrites) or reliable (keep '
-              "all: a keep-last publisher's drops are reported, and a reliable keep-all "
-              'publisher is held back by flow control instead of losing messages).',
-              choices=('best_effort', 'reliable')),
-    ParamSpec('load_wait', 0.1, 'Longest time a model_file set or ~/reload waits for the new '
-              'file to be read and checked before answering: the IMU path pauses at most this '
-              'long; a slower file is installed when ready, its outcome on /diagnostics and in '
-              'the log [s].', 0.0, 10.0),
-    ParamSpec('raw_cdr', True, 'Take imu/data_raw as serialized CDR and patch the bytes '
-              'instead of deserialising each message (same output, a fraction of the cost; '
-              'other encodings fall back to deserialising).'),
-    ParamSpec('executor', 'events', 'Executor main() spins the node with: rclpy.experimental '
-              'EventsExecutor (events, fastest) or SingleThreadedExecutor (single).',
-              choices=('events', 'single')),
-    ParamSpec('temperature_type', TEMPERATURE_TYPES[0], 'Message type of imu/temperature: '
-              'sensor_msgs/msg/Temperature (stamped), or std_msgs/msg/Float32 or Float64 (degC, '
-              'no stamp: each reading takes the stamp of the latest IMU message received; '
-              'readings before the first IMU message are ignored).', choices=TEMPERATURE_TYPES),
-    ParamSpec('sensor_id', '', "This IMU's id: when set and the model's sensor.sensor_id "
-              'differs, the node warns in the log and on /diagnostics (WARN) for as long as '
-              'that model is in use (a model trained on another sensor, or the shipped '
-              'simulated one). Empty: no check.'),
-    ParamSpec('learn', False, 'Learn the bias vs temperature from still time while '
-              'compensating (gyro_tdc.learning): still-stretch means in 1 degC bins, refit off '
-              'the message path, swapped in when it predicts the recent still time better; '
-              'model_file is the prior, none: starts from the first still stretch.'),
-    ParamSpec('learn_file', '', 'Learned model and point table (JSON), written atomically '
-              'every learn_save_period of message-stamp time, on ~/learn_save and at '
-              'shutdown, and resumed from at start. Empty: nothing is kept across restarts.'),
-    ParamSpec('learn_save_period', 180.0, 'Message-stamp time between saves of learn_file '
-              '[s].', 1.0, 86400.0),
-)
-
-#: One field per ``policy`` row of :data:`PARAMS` (same name, default and meaning), checked on
-#: construction (a choice, or a finite number of the sign the row's range gives).
-Policy = spec_dataclass(
-    'Policy', [s for s in PARAMS if s.policy], 'What the compensator does when it cannot '
-    'simply compensate (the ``policy`` rows of ``PARAMS``).', module=__name__, check=True)
 
 
 class TemperatureHold:
@@ -266,118 +176,6 @@ def widen_covariance(cov: Sequence[float], add: Sequence[float]) -> list[float]:
     out[4] += add[1]
     out[8] += add[2]
     return out
-
-
-class Priming(NamedTuple):
-    """
-    A copy of what a new model's feature filters are replayed over.
-
-    ``first`` is the stamp and temperature of the first compensated sample, ``history`` the
-    thermometer samples recorded (at most one per second), ``last_t`` and ``last_temp`` the
-    last IMU stamp and the temperature used for it (None before any).
-    """
-
-    first: tuple[float, float] | None = None
-    history: tuple[tuple[float, float], ...] = ()
-    last_t: float | None = None
-    last_temp: float | None = None
-
-
-class Replay(NamedTuple):
-    """Where a replay stopped: filters advanced to ``t_prev``, history read up to ``t_seen``."""
-
-    t_prev: float
-    temp_prev: float
-    t_seen: float
-
-
-class PreparedModel(NamedTuple):
-    """A model ready to install: its streaming compensator primed over a :class:`Priming`."""
-
-    model: CompensationModel
-    model_id: str
-    comp: StreamingCompensator
-    var: dict[int, Vec3]
-    scale: np.ndarray
-    static: bool
-    priming: Priming
-    replay: Replay | None
-
-
-def _advance(comp: StreamingCompensator, t: float, temp: float) -> None:
-    """Advance ``comp``'s filters (and its accelerometer part's) to ``t``."""
-    comp.drift(t, temp)
-    if comp.accel is not None:
-        comp.accel.drift(t, temp)
-
-
-def _replay(comp: StreamingCompensator, history: Iterable[tuple[float, float]], until: float,
-            state: Replay) -> Replay:
-    """Advance ``comp`` over thermometer samples later than ``state.t_seen`` up to ``until``."""
-    t_prev, temp_prev, t_seen = state
-    for t_k, temp_k in history:
-        if t_k <= t_seen:
-            continue
-        if t_k > until:
-            break
-        if t_k > t_prev:
-            _advance(comp, t_k, temp_prev)
-            t_prev = t_k
-        temp_prev = temp_k
-        t_seen = t_k
-    return Replay(t_prev, temp_prev, t_seen)
-
-
-def _replay_from_first(comp: StreamingCompensator, first: tuple[float, float],
-                       history: Iterable[tuple[float, float]], until: float) -> Replay:
-    """Start ``comp`` at the first compensated sample and replay the history up to ``until``."""
-    _advance(comp, *first)
-    return _replay(comp, history, until, Replay(first[0], first[1], -math.inf))
-
-
-def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> PreparedModel:
-    """
-    Make ``model`` ready to install, off the compensating thread.
-
-    Builds its streaming compensator, replays the feature filters over ``priming`` (the
-    first compensated sample, then the thermometer samples at most one per second, up to the
-    last IMU stamp of the copy), so a model with ``warmup`` or ``lag`` features carries on
-    rather than restarting, and works out its variance table and content id. Touches nothing
-    shared: safe in a worker thread while the core keeps compensating.
-    :meth:`CompensatorCore.install` finishes the replay and swaps it in.
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The model.
-    policy : Policy
-        The policies (``out_of_range`` and the variances).
-    priming : Priming
-        From :meth:`CompensatorCore.priming`.
-
-    Returns
-    -------
-    PreparedModel
-        The model, its primed compensator and its tables.
-
-    """
-    comp = StreamingCompensator(model, out_of_range=policy.out_of_range,
-                                max_extrapolation_c=policy.max_extrapolation_c)
-    replay = None
-    if priming.first is not None and priming.last_t is not None:
-        replay = _replay_from_first(comp, priming.first, priming.history, priming.last_t)
-    resid = tuple(float(v) for v in np.asarray(model.residual_var, dtype=np.float64))
-    p = policy
-    var = {
-        0: resid,
-        STALE: tuple(v + p.stale_variance for v in resid),
-        OUT_OF_RANGE: tuple(v + p.out_of_range_variance for v in resid),
-        STALE | OUT_OF_RANGE: tuple(v + p.stale_variance + p.out_of_range_variance
-                                    for v in resid),
-    }
-    return PreparedModel(model, model.model_id, comp, var,
-                         np.asarray(model.scale, dtype=np.float64),
-                         set(model.features) <= STATIC_EFFECTS, priming, replay)
 
 
 class CompensatorCore:
@@ -500,17 +298,17 @@ class CompensatorCore:
                 # The stream moved in a way the copy did not see: replay it all here.
                 comp = StreamingCompensator(model, out_of_range=self.policy.out_of_range,
                                             max_extrapolation_c=self.policy.max_extrapolation_c)
-                state = _replay_from_first(comp, self._first, self._history, self.last_t)
+                state = replay_from_first(comp, self._first, self._history, self.last_t)
             else:
                 tail = []
                 for entry in reversed(self._history):
                     if entry[0] <= state.t_seen:
                         break
                     tail.append(entry)
-                state = _replay(comp, reversed(tail), self.last_t, state)
+                state = replay(comp, reversed(tail), self.last_t, state)
             if self.last_t > state.t_prev:
-                _advance(comp, self.last_t,
-                         state.temp_prev if self.last_temp is None else self.last_temp)
+                advance(comp, self.last_t,
+                        state.temp_prev if self.last_temp is None else self.last_temp)
         same = self.model is not None and prepared.model_id == self.model_id
         if same and self.anchor is not None:
             comp.shift_offset(np.asarray(self.anchor.delta, dtype=np.float64))

@@ -12,20 +12,25 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The compensator under test plus a feeding and listening node (real rclpy; tests import it)."""
+"""
+The compensator under test plus a feeding and listening node (real rclpy; tests import it).
+
+The ``rig_factory`` fixture (conftest.py) makes rigs of this class and closes them.
+"""
 
 from __future__ import annotations
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from gyro_tdc.nodes.compensator_node import CompensatorNode
 from gyro_tdc.nodes.executors import make_executor
+import numpy as np
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosutil import spin_until
 from sensor_msgs.msg import Imu, Temperature
 
-__all__ = ['RELIABLE', 'Rig', 'stamp_s', 'to_ns']
+__all__ = ['RELIABLE', 'Rig', 'rates', 'stamp_s', 'to_ns']
 
 RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10000,
                       reliability=ReliabilityPolicy.RELIABLE)
@@ -38,6 +43,12 @@ def to_ns(t: float) -> int:
 def stamp_s(ns: int) -> float:
     """Seconds exactly as the node computes them from a builtin_interfaces/Time."""
     return ns // 10 ** 9 + (ns % 10 ** 9) * 1e-9
+
+
+def rates(msgs):
+    """Return the angular velocities of Imu messages, shape (N, 3)."""
+    return np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z)
+                     for m in msgs])
 
 
 class Rig:

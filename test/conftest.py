@@ -59,3 +59,25 @@ def ros_context():
         yield context
     finally:
         rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def rig_factory(ros_context):
+    """
+    Yield a maker of compensator rigs (:class:`compensator_rig.Rig`), called with parameters.
+
+    Every rig made is closed after the test; ``compensator_rig`` (which imports ``rclpy``) is
+    imported only when a test asks for this fixture.
+    """
+    from compensator_rig import Rig
+
+    rigs = []
+
+    def make(**params):
+        rig = Rig(ros_context, **params)
+        rigs.append(rig)
+        return rig
+
+    yield make
+    for rig in rigs:
+        rig.close()

@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from compensator_rig import RELIABLE, Rig, stamp_s, to_ns
+from compensator_rig import rates, RELIABLE, stamp_s, to_ns
 from diagnostic_msgs.msg import DiagnosticStatus
 from gyro_tdc.compensation_logic import CompensatorCore, Policy
 from gyro_tdc.fitting import fit_model
@@ -56,20 +56,6 @@ def models(tmp_path_factory):
             'dynamic': (save_model(dynamic, root / 'dynamic.yaml'), dynamic)}
 
 
-@pytest.fixture
-def rig_factory(ros_context):
-    rigs = []
-
-    def make(**params):
-        rig = Rig(ros_context, **params)
-        rigs.append(rig)
-        return rig
-
-    yield make
-    for rig in rigs:
-        rig.close()
-
-
 def warming_stream(n=1500, rate_hz=200.0, temp_hz=2.0, seed=0, t_lo=5.0, t_hi=30.0,
                    t0=1_700_000_000.0):
     """IMU stamps (ns), raw rates and thermometer samples (ns, degC) of a warming run."""
@@ -89,11 +75,6 @@ def offline(model, imu_ns, omega, temp_ns, temp_c, clamp=True):
     idx = np.searchsorted(tt, t, side='right') - 1
     assert np.all(idx >= 0)
     return compensate(model, t, np.asarray(temp_c)[idx], omega, clamp=clamp)
-
-
-def rates(msgs):
-    return np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z)
-                     for m in msgs])
 
 
 @pytest.mark.parametrize('executor,raw_cdr', [

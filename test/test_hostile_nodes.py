@@ -29,7 +29,7 @@ import sys
 import threading
 import time
 
-from compensator_rig import RELIABLE, Rig, to_ns
+from compensator_rig import rates, RELIABLE, to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.fitting import fit_model
@@ -64,20 +64,6 @@ def models(tmp_path_factory):
             'linear': (save_model(linear, root / 'linear.yaml'), linear)}
 
 
-@pytest.fixture
-def rig_factory(ros_context):
-    rigs = []
-
-    def make(**params):
-        rig = Rig(ros_context, **params)
-        rigs.append(rig)
-        return rig
-
-    yield make
-    for rig in rigs:
-        rig.close()
-
-
 def values(status):
     return {kv.key: kv.value for kv in status.values}
 
@@ -104,11 +90,6 @@ def set_model_file(rig, value):
 def steady(model, temp_c, omega=(0.01, -0.02, 0.005)):
     """Return the compensated rate of ``omega`` at a constant temperature (static model)."""
     return compensate(model, np.array([T0]), np.array([temp_c]), np.array([omega]))[0]
-
-
-def rates(msgs):
-    return np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z)
-                     for m in msgs])
 
 
 # -- 1: a file that crashes parsers -------------------------------------------------------

@@ -56,25 +56,22 @@ from __future__ import annotations
 import sys
 from typing import Any, Callable
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy, prepare, PreparedModel
-from gyro_tdc.errors import ConfigError, GyroTdcError, one_line, OutputError
-from gyro_tdc.health import health, HealthMark, InputStatus, PASSTHROUGH, sensor_mismatch
+from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy
+from gyro_tdc.errors import ConfigError
+from gyro_tdc.health import InputStatus, PASSTHROUGH
 from gyro_tdc.imu_cdr import ImuView, locate
-from gyro_tdc.learning import LearnConfig, Learner
-from gyro_tdc.loading import Job, LatestJob
 from gyro_tdc.model import CompensationModel
-from gyro_tdc.modelfile import load_model
 from gyro_tdc.nodes._params import declare, print_help
+from gyro_tdc.nodes.compensator_diagnostics import (Diagnostics, DIAGNOSTICS_PERIOD_S,
+                                                    TEMPERATURE_MESSAGES)
+from gyro_tdc.nodes.compensator_learning import Learning
+from gyro_tdc.nodes.compensator_loading import (LOAD_ERRORS, LOAD_POLL_S, ModelLoading,
+                                                read_model)
 from gyro_tdc.nodes.executors import run_node
 from gyro_tdc.paramspec import spec_dataclass
 from gyro_tdc.provenance import diagonal_marked, mark_diagonal
-from gyro_tdc.resources import model_path
-from rcl_interfaces.msg import SetParametersResult
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.node import Node
-from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
                        ReliabilityPolicy)
 from rclpy.serialization import deserialize_message
@@ -82,8 +79,8 @@ from sensor_msgs.msg import Imu, Temperature
 from std_msgs.msg import Float32, Float64
 from std_srvs.srv import Trigger
 
-__all__ = ['CompensatorNode', 'CompensatorParams', 'LOAD_ERRORS', 'PARAMS', 'main',
-           'read_model']
+__all__ = ['CompensatorNode', 'CompensatorParams', 'LOAD_ERRORS', 'PARAMS',
+           'TEMPERATURE_MESSAGES', 'main', 'read_model']
 
 #: The compensator's parameters, read once at start-up (``model_file`` also at run time).
 CompensatorParams = spec_dataclass(
@@ -91,51 +88,15 @@ CompensatorParams = spec_dataclass(
     module=__name__, methods={'policy': lambda self: Policy(
         **{s.name: getattr(self, s.name) for s in PARAMS if s.policy})})
 
-#: What the node's load edge turns into a refused file: the loader's documented errors
-#: (every :class:`~gyro_tdc.errors.GyroTdcError`, ModelFileError above all) and, as a
-#: last resort should a parser limit ever let a hostile file through, RecursionError and
-#: MemoryError: no file may stop the node.
-LOAD_ERRORS = (GyroTdcError, RecursionError, MemoryError)
-#: How often the executor's thread looks for a model finished in the background [s].
-LOAD_POLL_S = 0.02
-#: Period of the learner's timer (learn:=true), s: the IMU callback only appends.
-LEARN_STEP_S = 1.0
-#: The message class of each ``temperature_type`` (compensation_logic.TEMPERATURE_TYPES).
-TEMPERATURE_MESSAGES = {'sensor_msgs/msg/Temperature': Temperature,
-                        'std_msgs/msg/Float32': Float32, 'std_msgs/msg/Float64': Float64}
 
-
-def read_model(name_or_file: str) -> CompensationModel:
-    """
-    Resolve and load a model file.
-
-    Parameters
-    ----------
-    name_or_file : str
-        A path or the name of a model shipped in ``config/models``.
-
-    Returns
-    -------
-    CompensationModel
-        The validated model.
-
-    Raises
-    ------
-    ModelFileError
-        The file is missing, malformed, inconsistent or beyond one of the model loader's
-        limits (size, nesting, aliases, centres; one-line reason).
-
-    """
-    return load_model(model_path(name_or_file))
-
-
-def _fqn(namespace: str, name: str) -> str:
-    return f'{namespace.rstrip("/")}/{name}'
-
-
-class CompensatorNode(Node):
+class CompensatorNode(ModelLoading, Learning, Diagnostics, Node):
     """
     Remove the temperature drift of a gyro, one output message per input message.
+
+    Model loading (:mod:`~gyro_tdc.nodes.compensator_loading`), learning
+    (:mod:`~gyro_tdc.nodes.compensator_learning`) and /diagnostics
+    (:mod:`~gyro_tdc.nodes.compensator_diagnostics`) come from mixins; this class wires
+    the topics and converts messages on the hot path.
 
     Parameters
     ----------
@@ -168,25 +129,11 @@ class CompensatorNode(Node):
             raise ConfigError(f'imu/data_raw and imu/data_compensated both resolve to '
                               f'{out_topic}: the compensator would compensate its own output '
                               'in a loop; remap one of them')
-        self._read = loader or read_model
         self.core = CompensatorCore(policy)
         self.inputs = InputStatus(p.input_reliability)
         self.temperatures_ignored = 0  # std_msgs readings before the first IMU message
-        self.model_file = ''
-        self.last_reload = 'none'
-        self._jobs = LatestJob()
-        self._pending: dict[str, Job] = {}
-        self._reverting: str | None = None
-        if p.model_file:
-            prepared, error = self._load_work(p.model_file, self.core.priming())()
-            if prepared is not None:
-                self._install(p.model_file, prepared)
-            else:
-                self.last_reload = f'failed: {error}'
-                self.get_logger().error(f'cannot load model_file {p.model_file!r}: {error}; '
-                                        'passing the raw rate through')
-        else:
-            self.get_logger().warning('no model_file: passing the raw rate through')
+        self.learner = None
+        self._init_loading(loader)
 
         self._pub = self.create_publisher(Imu, 'imu/data_compensated', QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
@@ -218,97 +165,18 @@ class CompensatorNode(Node):
         self.create_subscription(
             TEMPERATURE_MESSAGES[p.temperature_type], 'imu/temperature',
             self._on_temperature if stamped else self._on_float_temperature, temp_qos)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        self._init_diagnostics()
         self.create_service(Trigger, '~/reload', self._on_reload)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
-        self._seen = HealthMark()
-        self._reported_anchor = None
-        self.create_timer(1.0, self._on_diagnostics)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diagnostics)
         self.create_timer(LOAD_POLL_S, self._on_load_poll)
-        self.learner: Learner | None = None
         if p.learn:
             self._start_learning(policy)
 
-    # -- learning in the field (gyro_tdc.learning) --------------------------------------
-
-    def _start_learning(self, policy: Policy) -> None:
-        """Create the learner (the model in use is the prior), resume learn_file, services."""
-        p = self.params
-        self.learner = Learner(LearnConfig(temperature_timeout=policy.temperature_timeout,
-                                           save_period_s=p.learn_save_period),
-                               prior=self.core.model)
-        if p.learn_file:
-            try:
-                resumed = self.learner.load(p.learn_file)
-            except (ValueError, KeyError, TypeError, OSError) as exc:
-                resumed = False
-                self.get_logger().error(f'cannot resume learn_file {p.learn_file!r}: {exc}; '
-                                        'learning from the start')
-            if resumed:
-                self._take_learned()
-                s = self.learner.summary()
-                self.get_logger().info(f'resumed learning from {p.learn_file}: '
-                                       f'{s["points"]} points, {s["still_s"]:.0f} s still')
-        else:
-            self.get_logger().warning('learn without learn_file: nothing is kept across '
-                                      'restarts')
-        self.core.learner = self.learner
-        self.create_service(Trigger, '~/learn_save', self._on_learn_save)
-        self.create_service(Trigger, '~/learn_reset', self._on_learn_reset)
-        self.create_timer(LEARN_STEP_S, self._on_learn)
-
-    def _take_learned(self) -> None:
-        """Install a model the learner swapped in (on the thread that compensates)."""
-        model = self.learner.take_model()
-        if model is not None:
-            self.core.set_model(model)
-            self.model_file = 'learned'
-
-    def save_learning(self) -> str:
-        """Write learn_file now; return what happened (one line)."""
-        path = self.params.learn_file
-        if not path:
-            return 'no learn_file'
-        try:
-            self.learner.save(path)
-        except OutputError as exc:
-            self.get_logger().error(f'cannot save learn_file: {exc}')
-            return f'failed: {exc}'
-        return f'saved {path}'
-
-    def _on_learn(self) -> None:
-        """Timer: learn from the samples gathered since the last tick, save when due."""
-        self.learner.step()
-        self._take_learned()
-        if self.params.learn_file and self.learner.save_due():
-            self.save_learning()
-
-    def _on_learn_save(self, request: Trigger.Request, response: Trigger.Response
-                       ) -> Trigger.Response:
-        self.learner.step()
-        self._take_learned()
-        response.message = self.save_learning()
-        response.success = response.message.startswith('saved')
-        return response
-
-    def _on_learn_reset(self, request: Trigger.Request, response: Trigger.Response
-                        ) -> Trigger.Response:
-        self.learner.step()
-        self.learner.reset()
-        self.core.set_model(self.learner.prior)
-        response.success = True
-        response.message = ('learning reset: back to the prior'
-                            if self.learner.prior is not None else
-                            'learning reset: no model until the next still stretch')
-        return response
-
     def destroy_node(self) -> None:
         """Save what was learned (the stretch in progress too) before going away."""
-        if self.learner is not None and self.params.learn_file:
-            self.learner.step()
-            self.learner.flush()
-            self.save_learning()
+        self._stop_learning()
         super().destroy_node()
 
     # -- the hot path -----------------------------------------------------------------
@@ -400,225 +268,6 @@ class CompensatorNode(Node):
         self.get_logger().warning(
             f'{new} imu/data_raw messages lost ({info.total_count} in total, reported by '
             'DDS): the compensator cannot keep up or the link drops', throttle_duration_sec=5.0)
-
-    # -- model loading ----------------------------------------------------------------
-
-    def _load_work(self, name: str, priming: Any
-                   ) -> Callable[[], tuple[PreparedModel | None, str]]:
-        """Return the job that reads, checks and primes ``name``: (prepared, '') or (None, why)."""
-        read, policy = self._read, self.core.policy
-
-        def work() -> tuple[PreparedModel | None, str]:
-            try:
-                return prepare(read(name), policy, priming), ''
-            except LOAD_ERRORS as exc:  # a refused file, in one line whatever it held
-                if isinstance(exc, GyroTdcError):
-                    return None, one_line(exc)
-                return None, f'{name}: {type(exc).__name__} while reading the model file'
-            except Exception as exc:  # the worker's edge: a bug must not leave a load hanging
-                return None, f'{name}: unexpected {type(exc).__name__}: {one_line(exc)}'
-        return work
-
-    def _start_load(self, name: str, origin: str) -> Job:
-        """Read ``name`` in a worker thread (a newer request makes an older one stale)."""
-        self.last_reload = f'loading {name}'
-        return self._jobs.start(name, origin, self._load_work(name, self.core.priming()))
-
-    def _claim(self, job: Job) -> bool:
-        """Wait up to ``load_wait`` for ``job``; return whether it finished and is ours."""
-        return job.wait(self.params.load_wait) and self._jobs.claim(job) is not None
-
-    def _install(self, name: str, prepared: PreparedModel) -> None:
-        """Swap the model in (one assignment inside the core) and log it."""
-        self.core.install(prepared)
-        self.model_file = name
-        model = prepared.model
-        self.last_reload = f'loaded {prepared.model_id}'
-        lo, hi = model.temp_range_c
-        self.get_logger().info(
-            f'model {prepared.model_id} from {name!r}: {model.kind}, features '
-            f'{",".join(model.features)}, valid {lo:.1f}..{hi:.1f} degC')
-        mismatch = sensor_mismatch(model, self.params.sensor_id)
-        if mismatch:
-            self.get_logger().warning(mismatch)
-
-    def _refuse(self, name: str, error: str) -> None:
-        self.last_reload = f'rejected: {error}'
-        kept = self.core.model_id or 'no model'
-        self.get_logger().error(f'model {name!r} rejected, keeping {kept}: {error}')
-
-    def _finish(self, job: Job) -> tuple[bool, str]:
-        """Install a finished job's model, or report why not; return (success, message)."""
-        prepared, error = job.result
-        if prepared is None:
-            self._refuse(job.name, error)
-            return False, error
-        self._install(job.name, prepared)
-        return True, f'loaded model {prepared.model_id} from {job.name}'
-
-    def load(self, name: str) -> tuple[bool, str]:
-        """
-        Load ``name`` now and install it; on failure keep the current model.
-
-        Parameters
-        ----------
-        name : str
-            Model file path or shipped model name ('' to pass through).
-
-        Returns
-        -------
-        tuple of (bool, str)
-            Success and a one-line message.
-
-        """
-        self._jobs.drop()  # this request is newer than any file still being read
-        if not name:
-            self.core.set_model(None)
-            self.model_file = ''
-            self.last_reload = 'no model'
-            return True, 'no model: passing the raw rate through'
-        job = Job(name, 'load')
-        job.result = self._load_work(name, self.core.priming())()
-        return self._finish(job)
-
-    def _on_load_poll(self) -> None:
-        """Install (or refuse) a model finished in the background."""
-        if self._jobs.pending is None:
-            return
-        job = self._jobs.claim()
-        if job is None:
-            return
-        ok, _ = self._finish(job)
-        if not ok and job.origin == 'parameter' and \
-                self.get_parameter('model_file').value == job.name:
-            # The set was accepted before the file was read: name the model in use again.
-            self._reverting = self.model_file
-            try:
-                self.set_parameters([Parameter('model_file', value=self.model_file)])
-            finally:
-                self._reverting = None
-
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """Check a new ``model_file`` by reading it; a file slower than ``load_wait`` reads on."""
-        for param in params:
-            if param.name != 'model_file':
-                continue
-            name = param.value
-            if not isinstance(name, str):
-                return SetParametersResult(successful=False,
-                                           reason='model_file must be a string')
-            if not name or name == self._reverting:
-                continue
-            job = self._start_load(name, 'parameter')
-            if not self._claim(job):
-                continue  # slower than load_wait: installed (or refused) by _on_load_poll
-            prepared, error = job.result
-            if prepared is None:
-                self._refuse(name, error)
-                return SetParametersResult(successful=False, reason=error)
-            self._pending[name] = job
-        return SetParametersResult(successful=True)
-
-    def _on_parameters_set(self, params: list[Parameter]) -> None:
-        """Install the model read by :meth:`_on_set_parameters`."""
-        for param in params:
-            if param.name == 'model_file':
-                name = param.value
-                job = self._pending.pop(name, None)
-                if job is not None:
-                    self._finish(job)
-                elif not name and self._reverting is None:
-                    self.load('')
-        self._pending.clear()
-
-    def _on_reload(self, request: Trigger.Request, response: Trigger.Response
-                   ) -> Trigger.Response:
-        name = self.get_parameter('model_file').value
-        if not name:
-            response.success, response.message = self.load('')
-            return response
-        job = self._start_load(name, 'reload')
-        if self._claim(job):
-            response.success, response.message = self._finish(job)
-        else:
-            kept = self.core.model_id or 'no model'
-            response.success = True
-            response.message = (f'reading {name} in the background (longer than load_wait); '
-                                f'{kept} stays in use until it is ready; the outcome goes to '
-                                '/diagnostics and the log')
-        return response
-
-    # -- guards and diagnostics -------------------------------------------------------
-
-    def upstream_compensators(self) -> tuple[str, ...]:
-        """
-        Return the other nodes publishing ``imu/data_raw`` that look like gyro_tdc compensators.
-
-        A node is taken for one when it offers ``~/reload`` (std_srvs/srv/Trigger) and
-        subscribes a temperature topic (any ``temperature_type``) besides publishing Imu on
-        our input: the graph shows a compensator's interface whatever its name or remaps.
-        """
-        me = self.get_fully_qualified_name()
-        found = set()
-        try:
-            publishers = self.get_publishers_info_by_topic(self._in_topic)
-        except _rclpy.RCLError:  # the graph cannot say now: ask again at the next report
-            return self.inputs.upstream
-        for info in publishers:
-            if not info.node_namespace.startswith('/'):
-                continue  # a writer whose node is not discovered yet: next time
-            fqn = _fqn(info.node_namespace, info.node_name)
-            if fqn == me or fqn in found:
-                continue
-            who = (info.node_name, info.node_namespace)
-            try:
-                services = self.get_service_names_and_types_by_node(*who)
-                subs = self.get_subscriber_names_and_types_by_node(*who)
-            except _rclpy.RCLError:  # it left between the queries (NodeNameNonExistentError)
-                continue
-            if any(n == f'{fqn}/reload' and 'std_srvs/srv/Trigger' in t for n, t in services) \
-                    and any(TEMPERATURE_MESSAGES.keys() & set(t) for _, t in subs):
-                found.add(fqn)
-        return tuple(sorted(found))
-
-    def diagnostic_status(self) -> DiagnosticStatus:
-        """Return the compensator's DiagnosticStatus (and log a new re-anchoring)."""
-        upstream = self.upstream_compensators()
-        if upstream and upstream != self.inputs.upstream:
-            self.get_logger().warning(
-                f'imu/data_raw ({self._in_topic}) is published by gyro_tdc compensator '
-                f'{", ".join(upstream)}: chained compensators remove the drift twice')
-        self.inputs.upstream = upstream
-        h = health(self.core, self._seen, model_file=self.model_file,
-                   sensor_id=self.params.sensor_id,
-                   last_reload=self.last_reload, inputs=self.inputs)
-        if h.mark.already_compensated > self._seen.already_compensated:
-            self.get_logger().warning(
-                f'{h.mark.already_compensated - self._seen.already_compensated} imu/data_raw '
-                'samples were already compensated by gyro_tdc: the model is applied twice',
-                throttle_duration_sec=10.0)
-        self._seen = h.mark
-        anchor = self.core.anchor
-        if anchor is not None and anchor is not self._reported_anchor:
-            self._reported_anchor = anchor
-            self.get_logger().info(
-                f're-anchored after {anchor.samples} still samples over '
-                f'{anchor.duration_s:.1f} s at {anchor.temp_c:.2f} degC: offset shift '
-                f'{h.values["reanchor shift dps"]} deg/s, standard error '
-                f'{h.values["reanchor se dps"]} deg/s ({h.values["reanchor stopped on"]})')
-        values = dict(h.values)
-        if self.learner is not None:
-            values.update(self.learner.diagnostic_values())
-        return DiagnosticStatus(
-            level=bytes((h.level,)), name=f'{self.get_name()}: gyro compensation',
-            message=h.message, hardware_id=h.hardware_id,
-            values=[KeyValue(key=k, value=v) for k, v in values.items()])
-
-    def _on_diagnostics(self) -> None:
-        arr = DiagnosticArray()
-        arr.header.stamp = self.get_clock().now().to_msg()
-        arr.status = [self.diagnostic_status()]
-        self._diag_pub.publish(arr)
 
 
 def main(args: list[str] | None = None) -> int:

@@ -1,0 +1,139 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The compensator's learning in the field (``learn: true``, :mod:`gyro_tdc.learning`).
+
+:class:`Learning` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`.
+The IMU callback hands each raw sample to the learner through the core (float appends, at
+most 100 per second of stamps); a :data:`LEARN_STEP_S` timer runs its still test, refits
+and installs a learned model when it predicts the recent still time better; the learner's
+state is saved atomically to ``learn_file`` every ``learn_save_period`` of stamp time, on
+``~/learn_save`` and at shutdown, and resumed at start; ``~/learn_reset`` forgets it (back
+to the ``model_file`` prior, or none). A ``model_file`` loaded while learning (parameter set
+or ``~/reload``) becomes the prior: the model a learned one must beat.
+
+The node provides ``core``, ``params`` (``learn_file``, ``learn_save_period``) and
+``model_file``; this mixin keeps ``learner`` (None unless ``learn``).
+"""
+
+from __future__ import annotations
+
+from gyro_tdc.compensation_logic import Policy
+from gyro_tdc.errors import OutputError
+from gyro_tdc.learning import LearnConfig, Learner
+from gyro_tdc.model import CompensationModel
+from std_srvs.srv import Trigger
+
+__all__ = ['LEARN_STEP_S', 'Learning']
+
+#: Period of the learner's timer (learn:=true), s: the IMU callback only appends.
+LEARN_STEP_S = 1.0
+
+
+class Learning:
+    """Learn the bias vs temperature from still time while compensating (mixin)."""
+
+    learner: Learner | None = None
+
+    def _start_learning(self, policy: Policy) -> None:
+        """Create the learner (the model in use is the prior), resume learn_file, services."""
+        p = self.params
+        self.learner = Learner(LearnConfig(temperature_timeout=policy.temperature_timeout,
+                                           save_period_s=p.learn_save_period),
+                               prior=self.core.model)
+        if p.learn_file:
+            try:
+                resumed = self.learner.load(p.learn_file)
+            except (ValueError, KeyError, TypeError, OSError) as exc:
+                resumed = False
+                self.get_logger().error(f'cannot resume learn_file {p.learn_file!r}: {exc}; '
+                                        'learning from the start')
+            if resumed:
+                self._take_learned()
+                s = self.learner.summary()
+                self.get_logger().info(f'resumed learning from {p.learn_file}: '
+                                       f'{s["points"]} points, {s["still_s"]:.0f} s still')
+        else:
+            self.get_logger().warning('learn without learn_file: nothing is kept across '
+                                      'restarts')
+        self.core.learner = self.learner
+        self.create_service(Trigger, '~/learn_save', self._on_learn_save)
+        self.create_service(Trigger, '~/learn_reset', self._on_learn_reset)
+        self.create_timer(LEARN_STEP_S, self._on_learn)
+
+    def _new_prior(self, model: CompensationModel | None) -> None:
+        """
+        Make a model loaded from ``model_file`` the learner's prior and current model.
+
+        A learned model is then swapped in only when it predicts the recent still time better
+        than this one; a learned swap not yet installed is older than the file and dropped.
+        """
+        learner = self.learner
+        if learner is None:
+            return
+        learner.prior = learner.model = model
+        learner.take_model()
+
+    def _take_learned(self) -> None:
+        """Install a model the learner swapped in (on the thread that compensates)."""
+        model = self.learner.take_model()
+        if model is not None:
+            self.core.set_model(model)
+            self.model_file = 'learned'
+
+    def save_learning(self) -> str:
+        """Write learn_file now; return what happened (one line)."""
+        path = self.params.learn_file
+        if not path:
+            return 'no learn_file'
+        try:
+            self.learner.save(path)
+        except OutputError as exc:
+            self.get_logger().error(f'cannot save learn_file: {exc}')
+            return f'failed: {exc}'
+        return f'saved {path}'
+
+    def _on_learn(self) -> None:
+        """Timer: learn from the samples gathered since the last tick, save when due."""
+        self.learner.step()
+        self._take_learned()
+        if self.params.learn_file and self.learner.save_due():
+            self.save_learning()
+
+    def _on_learn_save(self, request: Trigger.Request, response: Trigger.Response
+                       ) -> Trigger.Response:
+        self.learner.step()
+        self._take_learned()
+        response.message = self.save_learning()
+        response.success = response.message.startswith('saved')
+        return response
+
+    def _on_learn_reset(self, request: Trigger.Request, response: Trigger.Response
+                        ) -> Trigger.Response:
+        self.learner.step()
+        self.learner.reset()
+        self.core.set_model(self.learner.prior)
+        response.success = True
+        response.message = ('learning reset: back to the prior'
+                            if self.learner.prior is not None else
+                            'learning reset: no model until the next still stretch')
+        return response
+
+    def _stop_learning(self) -> None:
+        """Save what was learned (the stretch in progress too) before the node goes away."""
+        if self.learner is not None and self.params.learn_file:
+            self.learner.step()
+            self.learner.flush()
+            self.save_learning()
