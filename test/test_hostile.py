@@ -107,12 +107,6 @@ def test_recursive_alias_is_refused(tmp_path):
         load_scenario(path)
 
 
-def test_legitimate_aliases_still_load_in_a_scenario(tmp_path):
-    from gyro_tdc.yamlio import load_yaml, YamlLimits
-    limits = YamlLimits('test file', max_bytes=1000, max_depth=8, max_nodes=100, aliases=True)
-    assert load_yaml('a: &x [1, 2]\nb: *x\n', limits) == {'a': [1, 2], 'b': [1, 2]}
-
-
 def test_oversized_model_file_is_refused_before_it_is_read(tmp_path):
     path = tmp_path / 'huge.yaml'
     with open(path, 'wb') as fh:                 # sparse: 64 MiB without writing them
