@@ -16,7 +16,7 @@
 Block sums and means over consecutive rows: the one home of block averaging.
 
 Thermal drift moves slowly, so long runs are reduced to means over blocks of consecutive
-samples before a fit (:mod:`gyro_tdc.fitting`) or a plot (:mod:`gyro_tdc.report`). Rows are
+samples before a fit (:mod:`gyro_tdc.fitting`) or a plot (:mod:`gyro_tdc.plots`). Rows are
 grouped along the first axis in blocks of ``block`` rows; the last block holds the remainder
 and is kept (``partial=True``, the default) or dropped.
 

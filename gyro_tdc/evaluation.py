@@ -31,8 +31,8 @@ For static runs with accelerometer data the accelerometer's BS (variance around 
 mean, (m/s^2)^2) is scored too, raw and per model with an accelerometer part
 (:func:`gyro_tdc.accel.accel_scores`); the ``px4`` baseline then fits a cubic for it too.
 
-Formatting (tables, JSON, CSV, plots) lives in :mod:`gyro_tdc.report`; the command line in
-:mod:`gyro_tdc.cli.evaluate`.
+Formatting (tables, JSON, CSV) lives in :mod:`gyro_tdc.report`, plots in :mod:`gyro_tdc.plots`;
+the command line in :mod:`gyro_tdc.cli.evaluate`.
 """
 
 from __future__ import annotations
