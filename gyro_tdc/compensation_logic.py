@@ -230,6 +230,9 @@ class CompensatorCore:
         self._comp: StreamingCompensator | None = None
         self._learner = None
         self._lt = self._lw = self._la = None
+        #: The latest outside motion report: None before any, else whether it says motion.
+        self.moving: bool | None = None
+        self.motion_reports = 0
         if model is not None:
             self.set_model(model)
 
@@ -342,6 +345,45 @@ class CompensatorCore:
         if self._comp is not None and self._static and temp_c not in self._cache:
             self._refresh(t, temp_c)
         return True
+
+    def motion(self, t: float, components: Sequence[float]) -> bool:
+        """
+        Record an outside motion report (``cmd_vel``, odometry) by its velocity components.
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp of the report (the message's, or the latest IMU stamp for a bare Twist).
+        components : sequence of float, m/s and rad/s
+            Linear and angular velocity: motion when any is above ``motion_threshold`` in
+            magnitude or not finite.
+
+        Returns
+        -------
+        bool
+            Whether the report says motion.
+
+        """
+        eps = self.policy.motion_threshold
+        moving = not all(math.isfinite(v) and abs(v) <= eps for v in components)
+        self.observe_motion(t, moving)
+        return moving
+
+    def observe_motion(self, t: float, moving: bool) -> None:
+        """
+        Record that the vehicle is moving (or not) from stamp ``t`` until the next report.
+
+        While a report says motion, no sample is still: the re-anchoring detector and the
+        learner both veto the windows that overlap it. Only changes are passed on (a report
+        holds until the next one, so a repeated state adds nothing).
+        """
+        self.motion_reports += 1
+        if moving == self.moving:
+            return
+        self.moving = moving
+        self._detector.observe_motion(t, moving)
+        if self._learner is not None:
+            self._learner.observe_motion(t, moving)
 
     def process(self, t: float, wx: float, wy: float, wz: float,
                 accel: Sequence[float] | None = None

@@ -27,14 +27,19 @@ from __future__ import annotations
 from gyro_tdc.out_of_range import (DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C,
                                    OUT_OF_RANGE_POLICIES)
 from gyro_tdc.paramspec import ParamSpec, spec_dataclass
+from gyro_tdc.still import MOTION_EPS
 from gyro_tdc.stillness import STILL_WINDOW_MAX_S, STILL_WINDOW_S
 
-__all__ = ['PARAMS', 'Policy', 'TEMPERATURE_TYPES']
+__all__ = ['MOTION_TYPES', 'PARAMS', 'Policy', 'TEMPERATURE_TYPES']
 
 
 #: Message types the compensator's ``imu/temperature`` input accepts (``temperature_type``).
 TEMPERATURE_TYPES = ('sensor_msgs/msg/Temperature', 'std_msgs/msg/Float32',
                      'std_msgs/msg/Float64')
+
+#: Message types of the compensator's ``motion_topic`` (``motion_type``): geometry_msgs/Twist,
+#: geometry_msgs/TwistStamped, nav_msgs/Odometry.
+MOTION_TYPES = ('twist', 'twist_stamped', 'odometry')
 
 #: The compensator's parameters (the node declares them; ``policy`` rows build :class:`Policy`).
 PARAMS = (
@@ -117,6 +122,19 @@ PARAMS = (
               'shutdown, and resumed from at start. Empty: nothing is kept across restarts.'),
     ParamSpec('learn_save_period', 180.0, 'Message-stamp time between saves of learn_file '
               '[s].', 1.0, 86400.0),
+    ParamSpec('motion_topic', '', 'Outside motion reports (e.g. cmd_vel or odom; QoS as '
+              'input_reliability): from a report that says motion until the next report, '
+              'samples are not still, for re-anchoring and the learner alike (a slow turn at a '
+              'constant rate looks still to the gyro). Before the first report nothing is '
+              'vetoed. Empty: no motion input.'),
+    ParamSpec('motion_type', MOTION_TYPES[0], 'Message type of motion_topic: twist '
+              '(geometry_msgs/Twist such as cmd_vel; no stamp: each report takes the stamp of '
+              'the latest IMU message received), twist_stamped (geometry_msgs/TwistStamped) or '
+              'odometry (nav_msgs/Odometry, its twist); a zero header stamp counts as none.',
+              choices=MOTION_TYPES),
+    ParamSpec('motion_threshold', MOTION_EPS, 'A motion report whose linear or angular '
+              'velocity has a component above this in magnitude (or a NaN) reports motion '
+              '[m/s, rad/s].', 0.0, 1000.0, policy=True),
 )
 
 #: One field per ``policy`` row of :data:`PARAMS` (same name, default and meaning), checked on

@@ -26,6 +26,7 @@ from gyro_tdc.effects import batch_features, EFFECTS
 from gyro_tdc.fitting import fit_model
 from gyro_tdc.health import (describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
                              OUT_OF_RANGE, PASSTHROUGH, STALE)
+from gyro_tdc.learning import Learner
 from gyro_tdc.model import compensate, model_temperature, StreamingCompensator
 import numpy as np
 import pytest
@@ -107,7 +108,7 @@ def test_policy_is_built_from_the_parameter_table():
     rows = [s for s in PARAMS if s.policy]
     assert [f.name for f in fields(Policy)] == [s.name for s in rows]
     assert Policy() == Policy(**{s.name: s.default for s in rows})
-    assert len(rows) == 14 and {'model_file', 'queue_depth', 'raw_cdr', 'executor'}.isdisjoint(
+    assert len(rows) == 15 and {'model_file', 'queue_depth', 'raw_cdr', 'executor'}.isdisjoint(
         f.name for f in fields(Policy))
     with pytest.raises(ValueError, match='still_window'):
         Policy(still_window=math.nan)
@@ -315,3 +316,17 @@ def test_reinstalling_the_same_model_keeps_the_reanchoring(model):
     assert core.anchor is None
     run_core(core, t + 20.0, raw, tt + 20.0, tc)
     assert core.anchor is not None and core.anchor.t > t[-1] + 20.0 - 15.0
+
+
+def test_motion_reports_by_threshold_and_only_changes_passed_on():
+    """CompensatorCore.motion: any component above motion_threshold (or NaN) is motion."""
+    core = CompensatorCore(Policy(motion_threshold=0.01))
+    core.learner = learner = Learner()
+    assert core.moving is None
+    assert core.motion(1.0, (0.0, 0.0, 0.0, 0.0, 0.0, 0.005)) is False
+    assert core.motion(2.0, (0.0, 0.0, 0.0, 0.0, 0.0, -0.02)) is True
+    assert core.motion(3.0, (0.5, 0.0, 0.0, 0.0, 0.0, 0.0)) is True
+    assert core.motion(4.0, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)) is False
+    assert core.motion(5.0, (math.nan, 0.0, 0.0, 0.0, 0.0, 0.0)) is True
+    assert learner.motion == [(1.0, False), (2.0, True), (4.0, False), (5.0, True)]
+    assert core.motion_reports == 5 and core.moving is True

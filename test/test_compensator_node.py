@@ -313,8 +313,10 @@ def test_config_file_matches_declared_parameters():
     params = doc['compensator_node']['ros__parameters']
     specs = {s.name: s for s in PARAMS}
     assert set(params) <= set(specs)
+    assert set(params) == set(specs), set(specs) - set(params)   # every row, for the reader
     for key, value in params.items():
         assert type(value) is type(specs[key].default), key
+        assert value == specs[key].default, key       # the file shows the defaults
         if specs[key].choices:
             assert value in specs[key].choices
         if specs[key].lo is not None:

@@ -19,9 +19,15 @@ from __future__ import annotations
 import json
 
 from compensator_rig import RELIABLE, to_ns
+from geometry_msgs.msg import Twist
+from gyro_tdc.learning import learned_model
+from gyro_tdc.modelfile import save_model
+from gyro_tdc.nodes.compensator_motion import MOTION_MESSAGES
 from gyro_tdc.nodes.compensator_node import CompensatorNode
 from gyro_tdc.nodes.executors import make_executor
+from nav_msgs.msg import Odometry
 import numpy as np
+import pytest
 import rclpy
 from rclpy.parameter import Parameter
 from rosutil import spin_until
@@ -41,6 +47,11 @@ class LearnRig:
         self.io = rclpy.create_node('feeder', context=context)
         self.imu_pub = self.io.create_publisher(Imu, 'imu/data_raw', RELIABLE)
         self.temp_pub = self.io.create_publisher(Temperature, 'imu/temperature', RELIABLE)
+        self.motion_pub = None
+        if params.get('motion_topic'):
+            self.motion_pub = self.io.create_publisher(
+                MOTION_MESSAGES[params.get('motion_type', 'twist')], params['motion_topic'],
+                RELIABLE)
         self.out: list[Imu] = []
         self.io.create_subscription(Imu, 'imu/data_compensated', self.out.append, RELIABLE)
         self.save = self.io.create_client(Trigger, 'compensator_node/learn_save')
@@ -50,7 +61,9 @@ class LearnRig:
         spin_until(self.executor, lambda: self.imu_pub.get_subscription_count() > 0
                    and self.temp_pub.get_subscription_count() > 0
                    and self.save.service_is_ready() and self.reset.service_is_ready()
-                   and self.node.count_subscribers('imu/data_compensated') > 0, 10.0,
+                   and self.node.count_subscribers('imu/data_compensated') > 0
+                   and (self.motion_pub is None
+                        or self.motion_pub.get_subscription_count() > 0), 10.0,
                    what='discovery')
 
     def feed(self, t0, secs, temp, bias, moving, seed):
@@ -141,3 +154,122 @@ def test_learn_save_reset_and_restart_resume(ros_context, tmp_path):
     finally:
         rig.close()
     assert json.loads(path.read_text())['bins'] == {}
+
+
+def _motion(cls, t, speed, turn):
+    """Return a motion report of type ``cls`` (a bare Twist carries no stamp)."""
+    msg = cls()
+    twist = msg if isinstance(msg, Twist) else (
+        msg.twist.twist if isinstance(msg, Odometry) else msg.twist)
+    if not isinstance(msg, Twist):
+        msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(to_ns(t), 10 ** 9)
+    twist.linear.x, twist.angular.z = speed, turn
+    return msg
+
+
+def _zero_model(path):
+    """Save a model that corrects nothing (the re-anchoring needs a model to shift)."""
+    return save_model(learned_model(np.zeros((2, 3)), ('dT',), 20.0, (0.0, 40.0),
+                                    np.full(3, 1e-8)), path)
+
+
+@pytest.mark.parametrize('motion_type,moving', [
+    ('twist', True), ('odometry', True), ('twist', False)])
+def test_a_slow_constant_turn_reported_by_motion_topic_is_not_still(ros_context, tmp_path,
+                                                                    motion_type, moving):
+    """
+    Issue 14: a vehicle turning slowly at a constant rate looks still to the gyro.
+
+    The gyro reads a constant 0.005 rad/s (below still_max_rate) with tiny noise for 150 s,
+    a textbook still stretch. While cmd_vel (or odometry) reports the turn, the node neither
+    re-anchors nor learns; the same data with zero motion reports does both.
+    """
+    rig = LearnRig(ros_context, learn=True, model_file=str(_zero_model(tmp_path / 'm.yaml')),
+                   reanchor_on_start=True, reanchor_tolerance=3e-5, motion_topic='cmd_vel',
+                   motion_type=motion_type, input_reliability='reliable')
+    node, cls = rig.node, MOTION_MESSAGES[motion_type]
+    turn = 0.005 if moving else 0.0
+    try:
+        rng = np.random.default_rng(7)
+        n = int(150.0 * RATE)
+        start = len(rig.out)
+        for k in range(n):
+            t = 1000.0 + k / RATE
+            if k % int(RATE) == 0:
+                m = Temperature()
+                m.header.stamp.sec, m.header.stamp.nanosec = divmod(to_ns(t), 10 ** 9)
+                m.temperature = 20.0
+                rig.temp_pub.publish(m)
+            w = (0.0, 0.0, 0.005) + 1e-5 * rng.standard_normal(3)
+            msg = Imu()
+            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(to_ns(t), 10 ** 9)
+            msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = \
+                (float(v) for v in w)
+            msg.orientation_covariance[0] = -1.0
+            msg.linear_acceleration_covariance[0] = -1.0
+            rig.imu_pub.publish(msg)
+            if k % int(RATE) == 0:
+                # The report of this second, once the IMU stamp it may take is in.
+                spin_until(rig.executor, lambda: len(rig.out) >= start + k + 1, 10.0,
+                           what='outputs')
+                reports = node.core.motion_reports
+                rig.motion_pub.publish(_motion(cls, t, 2.0 * turn, turn))
+                spin_until(rig.executor, lambda: node.core.motion_reports > reports, 10.0,
+                           what='motion report')
+        spin_until(rig.executor, lambda: len(rig.out) >= start + n, 10.0, what='outputs')
+        anchor = node.core.anchor         # a learned model swapped in below clears it
+        assert rig.call(rig.save).message.startswith('no learn_file')
+        node.learner.flush()
+        v = _values(node)
+        assert v['motion'] == ('moving' if moving else 'not moving')
+        assert v['motion reports'] == str(int(n / RATE)) and v['motion reports ignored'] == '0'
+        s = node.learner.summary()
+        if moving:
+            assert anchor is None and node.core.still_windows_rejected > 0
+            assert s['points'] == 0 and s['still_s'] == 0.0
+            assert node.core.model_id == node.learner.prior.model_id   # nothing swapped in
+        else:             # the same data, reported still: a false stillness, by design here
+            assert anchor is not None
+            np.testing.assert_allclose(anchor.delta, (0.0, 0.0, 0.005), atol=3e-5)
+            assert s['points'] >= 1 and s['still_s'] >= 60.0
+            assert node.core.model_id != node.learner.prior.model_id   # the turn, learned
+    finally:
+        rig.close()
+
+
+def test_a_model_file_loaded_while_learning_becomes_the_prior(ros_context, tmp_path):
+    """A model_file set (or ~/reload) at run time is the model a learned one must beat."""
+    b1 = np.array([0.01, -0.02, 0.005])
+    b2 = b1 + [0.01, 0.0, 0.0]
+    rig = LearnRig(ros_context, learn=True)
+    try:
+        node = rig.node
+        t = rig.feed(1000.0, 100.0, 20.0, b1, False, 1)
+        t = rig.feed(t, 20.0, 20.0, b1, True, 2)
+        rig.call(rig.save)                       # steps the learner: b1 learned, in use
+        assert node.model_file == 'learned' and node.learner.fit is not None
+        path = tmp_path / 'b2.yaml'
+        save_model(learned_model(np.vstack([b2, np.zeros(3)]), ('dT',), 20.0, (0.0, 40.0),
+                                 np.full(3, 1e-8)), path)
+        result = node.set_parameters([Parameter('model_file', value=str(path))])[0]
+        assert result.successful
+        b2_id = node.core.model_id
+        assert node.model_file == str(path) and node.learner.prior.model_id == b2_id
+        assert node.learner.model is node.learner.prior and node.learner.fit is None
+        # The next power-up (a new session) is still at b2: the file predicts it, so the
+        # check compares the candidate with the file's model (not the old learned b1).
+        t = rig.feed(t + 3600.0, 100.0, 20.0, b2, False, 3)
+        rig.feed(t, 20.0, 20.0, b2, True, 4)
+        rig.call(rig.save)
+        check = node.learner.check
+        assert check is not None and check['current_mse'] < 1e-8, check
+        # ~/reload of a changed file: the new contents are the prior.
+        save_model(learned_model(np.vstack([b1, np.zeros(3)]), ('dT',), 20.0, (0.0, 40.0),
+                                 np.full(3, 1e-8)), path)
+        reload = rig.io.create_client(Trigger, 'compensator_node/reload')
+        spin_until(rig.executor, reload.service_is_ready, 10.0, what='reload service')
+        assert rig.call(reload).success
+        assert node.core.model_id not in ('', b2_id)
+        assert node.learner.prior.model_id == node.core.model_id
+    finally:
+        rig.close()

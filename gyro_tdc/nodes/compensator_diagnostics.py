@@ -20,7 +20,7 @@ once a second it publishes the judgement of :func:`gyro_tdc.health.health` (plus
 learner's keys) and logs what is new since the last report (a compensator upstream, samples
 already compensated, a re-anchoring). The node provides ``core``, ``inputs``
 (:class:`~gyro_tdc.health.InputStatus`), ``params``, ``model_file``, ``last_reload``,
-``learner`` and ``_in_topic``.
+``learner``, ``motion_values()`` and ``_in_topic``.
 """
 
 from __future__ import annotations
@@ -110,6 +110,7 @@ class Diagnostics:
                 f'{h.values["reanchor shift dps"]} deg/s, standard error '
                 f'{h.values["reanchor se dps"]} deg/s ({h.values["reanchor stopped on"]})')
         values = dict(h.values)
+        values.update(self.motion_values())
         if self.learner is not None:
             values.update(self.learner.diagnostic_values())
         return DiagnosticStatus(

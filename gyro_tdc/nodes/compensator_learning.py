@@ -78,13 +78,11 @@ class Learning:
         Make a model loaded from ``model_file`` the learner's prior and current model.
 
         A learned model is then swapped in only when it predicts the recent still time better
-        than this one; a learned swap not yet installed is older than the file and dropped.
+        than this one; a learned swap not yet installed is older than the file and dropped
+        (:meth:`gyro_tdc.learning.Learner.set_prior`).
         """
-        learner = self.learner
-        if learner is None:
-            return
-        learner.prior = learner.model = model
-        learner.take_model()
+        if self.learner is not None:
+            self.learner.set_prior(model)
 
     def _take_learned(self) -> None:
         """Install a model the learner swapped in (on the thread that compensates)."""

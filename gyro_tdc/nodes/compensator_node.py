@@ -36,7 +36,12 @@ learner (float appends, at most 100 per second of stamps); a 1 s timer runs its 
 refits and installs a learned model when it predicts the recent still time better; the
 learner's state is saved atomically to ``learn_file`` every ``learn_save_period`` of stamp
 time, on ``~/learn_save`` and at shutdown, and resumed at start; ``~/learn_reset`` forgets it
-(back to the ``model_file`` prior, or none).
+(back to the ``model_file`` prior, or none); a ``model_file`` loaded at run time becomes the
+learner's prior.
+
+``motion_topic`` (``motion_type``: geometry_msgs/Twist such as ``cmd_vel``, TwistStamped or
+nav_msgs/Odometry): while it reports motion no sample is still, for re-anchoring and the
+learner alike (a slow turn at a constant rate looks still to the gyro).
 
 Guards: the node refuses to start when its input and output resolve to the same topic (a
 loop); it warns on /diagnostics when a sample arrives already compensated (the mark), a
@@ -67,6 +72,7 @@ from gyro_tdc.nodes.compensator_diagnostics import (Diagnostics, DIAGNOSTICS_PER
 from gyro_tdc.nodes.compensator_learning import Learning
 from gyro_tdc.nodes.compensator_loading import (LOAD_ERRORS, LOAD_POLL_S, ModelLoading,
                                                 read_model)
+from gyro_tdc.nodes.compensator_motion import MotionInput
 from gyro_tdc.nodes.executors import run_node
 from gyro_tdc.paramspec import spec_dataclass
 from gyro_tdc.provenance import diagonal_marked, mark_diagonal
@@ -89,12 +95,13 @@ CompensatorParams = spec_dataclass(
         **{s.name: getattr(self, s.name) for s in PARAMS if s.policy})})
 
 
-class CompensatorNode(ModelLoading, Learning, Diagnostics, Node):
+class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
     """
     Remove the temperature drift of a gyro, one output message per input message.
 
     Model loading (:mod:`~gyro_tdc.nodes.compensator_loading`), learning
-    (:mod:`~gyro_tdc.nodes.compensator_learning`) and /diagnostics
+    (:mod:`~gyro_tdc.nodes.compensator_learning`), the motion input
+    (:mod:`~gyro_tdc.nodes.compensator_motion`) and /diagnostics
     (:mod:`~gyro_tdc.nodes.compensator_diagnostics`) come from mixins; this class wires
     the topics and converts messages on the hot path.
 
@@ -165,6 +172,7 @@ class CompensatorNode(ModelLoading, Learning, Diagnostics, Node):
         self.create_subscription(
             TEMPERATURE_MESSAGES[p.temperature_type], 'imu/temperature',
             self._on_temperature if stamped else self._on_float_temperature, temp_qos)
+        self._init_motion()
         self._init_diagnostics()
         self.create_service(Trigger, '~/reload', self._on_reload)
         self.add_on_set_parameters_callback(self._on_set_parameters)
