@@ -15,13 +15,12 @@
 """
 Learn in the field: the compensator's online bias-vs-temperature learner (issue 14 item 3).
 
-Pure (numpy only). The message path only appends (at most ``max_rate_hz`` samples a
-second of stamps) the stamp, the raw rate and the
-acceleration to flat float arrays (:meth:`Learner.observe`, or the same appends inlined in
+Pure (numpy only). The message path only appends (at most ``max_rate_hz`` samples a second
+of stamps) the stamp, the raw rate and the acceleration to flat float arrays
+(:meth:`Learner.observe`, or the same appends inlined in
 :meth:`gyro_tdc.compensation_logic.CompensatorCore.process`; no object per sample) and
-thermometer readings to a list;
-everything else runs in :meth:`Learner.step`, which the node calls from a timer (never from
-the IMU callback) and which is vectorised over the samples gathered since the last call.
+thermometer readings to a list; everything else runs in :meth:`Learner.step`, which the
+node calls from a timer (never from the IMU callback), vectorised over the samples since.
 
 **Still test.** The one still test of :mod:`gyro_tdc.still`: windows of
 :data:`~gyro_tdc.still.STILL_WINDOW_S` on the grid of the first stamp, judged by
@@ -31,9 +30,15 @@ accelerometer); consecutive still windows make a stretch, kept when it lasts
 :data:`~gyro_tdc.still.MIN_STILL_S`. When a stretch ends, its windows that the thresholds
 then in force refuse are dropped with everything before them.
 
-**Points.** The windows of a finished stretch are grouped by the bin of their temperature
-(``bin_c``, 1 degC; the temperature is the thermometer reading held by stamp, which is the
-temperature the learned model takes): each group gives one entry ``(t_end, samples, mean
+**Model temperature.** Windows are binned and fitted against the model temperature
+(:mod:`gyro_tdc.learning_temperature`): the thermometer held by stamp, through the prior's
+thermal front end when it has a lag, streamed across :meth:`Learner.step` calls and saved,
+so a restart resumes it exactly (a new session restarts it at the next reading). Learned
+models carry the same thermal section. Without a prior, or with kind ``none``, it is the
+thermometer.
+
+**Points.** The windows of a finished stretch are grouped by the bin of their model
+temperature (``bin_c``, 1 degC): each group gives one entry ``(t_end, samples, mean
 temperature, mean raw rate, stretch)``; a long stretch is learned every ``commit_s`` while
 it goes on (one entry per bin and stretch, merged). A bin keeps its :data:`BIN_ENTRIES`
 newest entries, so it learns while heating and while cooling alike and old data fade out.
@@ -42,21 +47,19 @@ newest entries, so it learns while heating and while cooling alike and old data 
 power-up, with its own turn-on offset, e.g. the next day): the fit gives each session its
 own intercept and shares the temperature shape; the model uses the newest session's.
 
-**Fit.** Weighted least squares of the entries' mean raw rate on ``T - T0`` with weights
-``samples * 0.5 ** (age / half_life_s)`` (age by message stamp to the newest entry, as AOSP
-``over_temp_cal`` weights its model points by age), then entries whose residual exceeds
-:data:`OUTLIER_K` robust standard deviations are dropped: each entry is compared with
-the fit of the others (leave one out; an entry alone in its session is kept); the one that
-departs most is dropped when its departure exceeds :data:`OUTLIER_K` times the others'
-scatter in that fit (1.4826 x their weighted median absolute residual, at least the noise
-floor over the root of the largest entry's samples), up to :data:`MAX_DROPS` times; then
-the fit is repeated on the rest. **Growth
-rule**: the features grow with the covered temperature span of the bins: under
-:data:`SPAN_DT_C` (or fewer than 2 bins) a bias only (the first still stretch's bias); from
-there ``dT``; from :data:`SPAN_DT2_C` and at least :data:`BINS_DT2` bins ``dT, dT2``; from
-:data:`SPAN_DT3_C` and :data:`BINS_DT3` bins ``dT, dT2, dT3``. The
-learned model is a ``poly`` model of those features (a bias-only model is ``dT`` with a zero
-slope), its range the covered bins.
+**Fit** and **growth rule**: :mod:`gyro_tdc.learning_fit` (age- and sample-weighted least
+squares, leave-one-out outlier drops, features growing with the covered span).
+
+**Motion veto.** :meth:`Learner.observe_motion` takes outside motion reports
+(``cmd_vel``, odometry): a window overlapping a moving interval is not still
+(:func:`gyro_tdc.stillness.windows_moving`; before the first report nothing is vetoed); the
+reports are part of the saved state.
+
+**Prior replaced** (:meth:`Learner.set_prior`, a new ``model_file`` at run time): the new
+model becomes the current one. The points are kept when its thermal section gives the same
+model temperature; otherwise they are dropped (they keep means, not the thermometer history,
+so they cannot be rebinned) and the state restarts. :meth:`Learner.load` applies the same
+rule when the saved thermal section is not the prior's (restarted with another model).
 
 **Swap.** A refit after each finished stretch gives a candidate; it is swapped in only when
 its weighted mean squared error over the windows of the :data:`CHECK_STRETCHES` most recent
@@ -78,10 +81,16 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from gyro_tdc.atomicio import atomic_write
-from gyro_tdc.model import CompensationModel, drift
+from gyro_tdc.errors import FeatureError
+from gyro_tdc.learning_fit import (BINS_DT2, BINS_DT3, fit_points, grow_features,
+                                   learned_model, MAX_DROPS, model_of, OUTLIER_K,
+                                   prediction_mse, SPAN_DT2_C, SPAN_DT3_C, SPAN_DT_C)
+from gyro_tdc.learning_temperature import hold_readings, same_thermal, stream_state
+from gyro_tdc.model import CompensationModel
 from gyro_tdc.still import (has_accelerometer, judge_windows, MIN_STILL_S, noise_thresholds,
                             STILL_WINDOW_S)
 from gyro_tdc.stillness import windows_moving
+from gyro_tdc.thermal_state import ThermalState
 import numpy as np
 from numpy.typing import NDArray
 
@@ -93,13 +102,6 @@ FORMAT = 'gyro_tdc learn 1'
 NAN3 = (math.nan, math.nan, math.nan)
 BIN_ENTRIES = 4
 CHECK_STRETCHES = 3
-OUTLIER_K = 4.0
-MAX_DROPS = 3
-SPAN_DT_C = 2.0
-SPAN_DT2_C = 8.0
-BINS_DT2 = 5
-SPAN_DT3_C = 15.0
-BINS_DT3 = 10
 
 
 @dataclass(frozen=True)
@@ -143,42 +145,6 @@ class LearnConfig:
     session_gap_s: float = 600.0
 
 
-def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
-                  temp_range: tuple[float, float], resid_var: NDArray[np.float64]
-                  ) -> CompensationModel:
-    """
-    Return the ``poly`` model of a learned fit.
-
-    Parameters
-    ----------
-    coef : NDArray[np.float64], shape (1 + F, 3), rad/s
-        Intercept then one row per feature (``dT``; ``dT, dT2``).
-    features : sequence of str
-        ``('dT',)`` or ``('dT', 'dT2')``.
-    t0 : float, degC
-        Reference temperature.
-    temp_range : tuple of float, degC
-        Covered range.
-    resid_var : NDArray[np.float64], shape (3,)
-        Residual variance of the fit.
-
-    Returns
-    -------
-    CompensationModel
-
-    """
-    f = len(features)
-    coef = np.asarray(coef, dtype=np.float64).reshape(1 + f, 3)
-    return CompensationModel(
-        kind='poly', features=tuple(features), effect_params={}, t0_c=float(t0),
-        input_mean=np.zeros(f), input_std=np.ones(f), centers=np.zeros((0, f)),
-        widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=coef[0].copy(),
-        linear=coef[1:].copy(), scale=np.zeros(3),
-        temp_range_c=(float(temp_range[0]), float(temp_range[1])),
-        residual_var=np.asarray(resid_var, dtype=np.float64).reshape(3),
-        created={'fit': 'gyro_tdc.learning (online, still time)'})
-
-
 @dataclass
 class _Stretch:
     """Windows of the current still stretch: rows of (t0, t1, n, temp, mean3, std3, astd3)."""
@@ -203,6 +169,10 @@ class Learner:
                  prior: CompensationModel | None = None) -> None:
         self.config = config or LearnConfig()
         self.prior = prior
+        #: The thermal front end of the model temperature (the prior's; None: thermometer).
+        self.thermal: ThermalState | None = None if prior is None else prior.thermal
+        #: The thermal state after the last sample: (stamp, one value per node), or None.
+        self.thermal_state: tuple[float, list[float]] | None = None
         #: Flat float arrays (no object per sample): stamps, raw rates and accelerations (3
         #: per sample; NaN: none).
         self.bt = array('d')
@@ -252,6 +222,9 @@ class Learner:
             'windows': self.windows, 'recent': self.recent, 'fit': self.fit,
             'last_update_t': self.last_update_t, 'last_t': self.last_t, 'check': self.check,
             'swaps': self.swaps, 'motion': [[float(m[0]), bool(m[1])] for m in self.motion],
+            'thermal': None if self.thermal is None else self.thermal.to_dict(),
+            'thermal_state': None if self.thermal_state is None else [
+                float(self.thermal_state[0]), [float(v) for v in self.thermal_state[1]]],
             'config': {k: getattr(self.config, k) for k in (
                 'bin_c', 'half_life_s', 'window_s', 'min_still_s')},
         }
@@ -288,9 +261,53 @@ class Learner:
         self.check = state['check']
         self.swaps = int(state['swaps'])
         self.motion = [(float(m[0]), bool(m[1])) for m in state.get('motion', [])]
+        ts = state.get('thermal_state')
+        self.thermal_state = None if ts is None else (float(ts[0]), [float(v) for v in ts[1]])
+        try:
+            saved = state.get('thermal')
+            saved = None if saved is None else ThermalState.from_dict(saved)
+        except FeatureError as exc:
+            raise ValueError(f'learner state: `thermal` {exc}') from None
+        if not same_thermal(saved, self.thermal):
+            # Binned at another model temperature than the prior's: the set_prior rule.
+            self._forget_points()
+            return
         if self.fit is not None:
-            self.model = self._model_of(self.fit)
+            self.model = model_of(self.fit, self.thermal)
             self._new_model = self.model
+
+    def set_prior(self, model: CompensationModel | None) -> None:
+        """
+        Replace the prior (a new ``model_file``): it becomes the current model.
+
+        The points, the thermal state and the motion reports are kept when the new model's
+        thermal section gives the same model temperature
+        (:func:`gyro_tdc.learning_temperature.same_thermal`); otherwise the points were binned
+        at another model temperature and are dropped (module docstring). A learned model
+        swaps in again only by predicting the recent still time better than ``model``;
+        :meth:`take_model` gives nothing for this change (the caller installs ``model``).
+
+        Parameters
+        ----------
+        model : CompensationModel or None
+            The new prior (None: no model; the next candidate is swapped in).
+
+        """
+        thermal = None if model is None else model.thermal
+        same = same_thermal(thermal, self.thermal)
+        self.prior, self.thermal = model, thermal
+        self.fit, self.model, self._new_model = None, model, None
+        if not same:
+            self._forget_points()
+
+    def _forget_points(self) -> None:
+        """Drop what was binned at the old model temperature; restart the thermal state."""
+        self.bins = {}
+        self.recent = []
+        self.fit, self.model, self._new_model, self.check = None, self.prior, None, None
+        self._stretch, self._done = _Stretch(), 0
+        self._pending = self._wend = None
+        self.thermal_state = None
 
     def save(self, path: str | Path) -> None:
         """Write the state (model and point table) to ``path`` atomically (JSON)."""
@@ -335,20 +352,10 @@ class Learner:
 
     def observe_motion(self, t: float, moving: bool) -> None:
         """
-        Record a motion report: from stamp ``t`` until the next report, moving or not.
+        Record a motion report (stamp ``t``, s): it holds until the next (module docstring).
 
-        A still window that overlaps a moving interval is not still (the motion veto of
-        :mod:`gyro_tdc.stillness`: before the first report nothing is vetoed). Reports are
-        applied when :meth:`step` judges the windows they cover, so one that arrives after
-        its windows were judged (more than a window late) no longer vetoes them.
-
-        Parameters
-        ----------
-        t : float, s
-            Stamp of the report.
-        moving : bool
-            Whether it reports motion.
-
+        Reports apply when :meth:`step` judges the windows they cover: one that arrives more
+        than a window late no longer vetoes the windows already judged.
         """
         t = float(t)
         if math.isfinite(t):
@@ -404,13 +411,15 @@ class Learner:
         acc = None if acc is None else acc[ok]
         if not t.size:
             return False
-        temp = self._temperature(t)
+        temp, self.temps = hold_readings(self.temps, t, self.config.temperature_timeout)
         swapped = False
         if self.last_t is not None and t[0] - self.last_t > self.config.session_gap_s:
             # A new session (power-up): its own turn-on offset, learned apart.
             swapped = self.flush()
             self.session += 1
             self.t_first = self._wend = None
+            self.thermal_state = None     # after a power-off: steady state at the next reading
+        temp, self.thermal_state = stream_state(self.thermal, self.thermal_state, t, temp)
         if self._pending is not None:
             pt, pw, pa, ptemp = self._pending
             if (pa is None) != (acc is None):
@@ -441,23 +450,6 @@ class Learner:
             k = np.zeros(pt.size, dtype=np.int64)
             swapped = self._windows(pt, pw, pa, ptemp, k) or swapped
         return self._close() or swapped
-
-    def _temperature(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Hold the thermometer by stamp: the newest reading at or before each stamp."""
-        if not self.temps:
-            return np.full(t.size, math.nan)
-        tt = np.array([x[0] for x in self.temps])
-        tc = np.array([x[1] for x in self.temps])
-        order = np.argsort(tt, kind='stable')
-        tt, tc = tt[order], tc[order]
-        i = np.searchsorted(tt, t, side='right') - 1
-        out = np.where(i >= 0, tc[np.clip(i, 0, None)], math.nan)
-        out[(i >= 0) & (t - tt[np.clip(i, 0, None)] > self.config.temperature_timeout)] = \
-            math.nan
-        # Keep the newest reading at or before the last stamp and everything after it.
-        keep = max(int(i[-1]), 0)
-        self.temps = list(zip(tt[keep:].tolist(), tc[keep:].tolist()))
-        return out
 
     def _windows(self, t, w, acc, temp, k) -> bool:
         """Judge finished windows in order; close and learn the stretches they end."""
@@ -599,94 +591,13 @@ class Learner:
         e = self.entries()
         return None if not e.shape[0] else (float(e[:, 2].min()), float(e[:, 2].max()))
 
-    def _features(self) -> tuple[str, ...]:
-        """Return the features the covered span allows (the growth rule)."""
-        cov = self.covered_c()
-        span = 0.0 if cov is None else cov[1] - cov[0]
-        if span >= SPAN_DT3_C and len(self.bins) >= BINS_DT3:
-            return ('dT', 'dT2', 'dT3')
-        if span >= SPAN_DT2_C and len(self.bins) >= BINS_DT2:
-            return ('dT', 'dT2')
-        if span >= SPAN_DT_C and len(self.bins) >= 2:
-            return ('dT',)
-        return ()
-
-    def _solve(self, e: NDArray[np.float64], wt: NDArray[np.float64], feats: tuple,
-               t0: float, session: float | None = None
-               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-        """
-        Weighted least squares, one intercept per session and a shared shape.
-
-        Returns
-        -------
-        coef : NDArray[np.float64], shape (1 + F, 3)
-            The intercept of ``session`` (default the newest), then the shape.
-        resid : NDArray[np.float64], shape (E, 3)
-            Residuals.
-
-        """
-        d = e[:, 2] - t0
-        sessions = np.unique(e[:, 6])
-        x = np.column_stack([(e[:, 6] == s).astype(np.float64) for s in sessions]
-                            + [d ** (j + 1) for j in range(len(feats))])
-        sw = np.sqrt(wt)[:, None]
-        coef = np.linalg.lstsq(x * sw, e[:, 3:6] * sw, rcond=None)[0]
-        k = sessions.size
-        i = k - 1 if session is None else int(np.flatnonzero(sessions == session)[0])
-        return np.vstack([coef[i:i + 1], coef[k:]]), e[:, 3:6] - x @ coef
-
-    def _inliers(self, e: NDArray[np.float64], wt: NDArray[np.float64], feats: tuple,
-                 t0: float) -> NDArray[np.bool_]:
-        """Return the entries to keep: each against the fit of the others (leave one out)."""
-        n = e.shape[0]
-        keep = np.ones(n, dtype=bool)
-        floor = float(np.nanmax(np.where(np.isfinite(self.gyro_floor), self.gyro_floor,
-                                         0.0)))
-        for _ in range(MAX_DROPS):
-            idx = np.flatnonzero(keep)
-            if idx.size <= len(feats) + np.unique(e[idx, 6]).size + 2:
-                break
-            best = None
-            for i in idx:
-                others = idx[idx != i]
-                if not np.any(e[others, 6] == e[i, 6]):
-                    continue              # its session's intercept needs it
-                c, res = self._solve(e[others], wt[others], feats, t0, session=e[i, 6])
-                x = e[i, 2] - t0
-                pred = c[0] + sum(c[j + 1] * x ** (j + 1) for j in range(len(feats)))
-                loo = float(np.abs(e[i, 3:6] - pred).max())
-                if best is None or loo > best[1]:
-                    best = (i, loo, np.abs(res).max(axis=1), wt[others])
-            if best is None:
-                break
-            i, loo, r, w = best
-            order = np.argsort(r)
-            cw = np.cumsum(w[order])
-            mad = float(r[order][np.searchsorted(cw, 0.5 * cw[-1])])
-            sigma = max(1.4826 * mad, floor / math.sqrt(max(float(e[:, 1].max()), 1.0)),
-                        1e-12)
-            if loo <= OUTLIER_K * sigma:
-                break
-            keep[i] = False
-        return keep
-
     def _refit(self, t_now: float) -> bool:
         """Fit the point table; swap the candidate in when it predicts recent still time better."""
         e = self.entries()
-        feats = self._features()
-        age = np.maximum(t_now - e[:, 0], 0.0)
-        wt = e[:, 1] * 0.5 ** (age / self.config.half_life_s)
-        t0 = float(np.average(e[:, 2], weights=wt))
-        coef, res = self._solve(e, wt, feats, t0)
-        keep = self._inliers(e, wt, feats, t0)
-        if not keep.all():
-            e, wt = e[keep], wt[keep]
-            coef, res = self._solve(e, wt, feats, t0)
-        resid = np.average(res ** 2, axis=0, weights=wt)
-        fit = {'features': list(feats), 't0_c': t0, 'coef': coef.tolist(),
-               'range_c': [float(e[:, 2].min()), float(e[:, 2].max())],
-               'resid_var': resid.tolist(), 'points': int(e.shape[0])}
-        cand = self._model_of(fit)
+        floor = float(np.nanmax(np.where(np.isfinite(self.gyro_floor), self.gyro_floor, 0.0)))
+        fit = fit_points(e, grow_features(e[:, 2], len(self.bins)), t_now,
+                         self.config.half_life_s, floor)
+        cand = model_of(fit, self.thermal)
         new = self._score(cand)
         old = None if self.model is None else self._score(self.model)
         self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old,
@@ -698,24 +609,10 @@ class Learner:
         self.swaps += 1
         return True
 
-    @staticmethod
-    def _model_of(fit: dict) -> CompensationModel:
-        """Return the model of a fit record (a bias only as ``dT`` with a zero slope)."""
-        feats = tuple(fit['features'])
-        coef = np.asarray(fit['coef'], dtype=np.float64)
-        if not feats:
-            feats, coef = ('dT',), np.vstack([coef, np.zeros((1, 3))])
-        return learned_model(coef, feats, fit['t0_c'], tuple(fit['range_c']),
-                             np.asarray(fit['resid_var']))
-
     def _score(self, model: CompensationModel) -> float:
-        """Return the sample-weighted mean squared error over the recent stretches' windows."""
-        rows = np.asarray([r for s in self.recent if s[1] == self.session for r in s[2]],
-                          dtype=np.float64)
-        temp = rows[:, 1]
-        pred = drift(model, rows[:, 5], temp, out_of_range='linear')
-        err = ((rows[:, 2:5] - pred) ** 2).sum(axis=1)
-        return float(np.average(err, weights=rows[:, 0]))
+        """Return the prediction check's error of ``model`` over this session's recent windows."""
+        return prediction_mse(model, [r for s in self.recent if s[1] == self.session
+                                      for r in s[2]], self.thermal)
 
     # -- reporting --------------------------------------------------------------------
 

@@ -22,9 +22,12 @@ import math
 from gyro_tdc.compensation_logic import CompensatorCore, Policy
 from gyro_tdc.health import PASSTHROUGH
 from gyro_tdc.learning import LearnConfig, learned_model, Learner
+from gyro_tdc.model import drift
 from gyro_tdc.sim import simulate_run
+from gyro_tdc.thermal_state import ThermalState
 import numpy as np
 import pytest
+from thermal_synth import lag_run, OTHER
 
 BOUND = 1.3
 DEG2 = (180.0 / math.pi) ** 2
@@ -258,3 +261,126 @@ def test_motion_reports_veto_a_slow_constant_turn(tmp_path):
     _still(again, t, 120.0, [0.01, 0.0, 0.0], 20.0, seed=2)
     assert again.summary()['points'] == 1
     np.testing.assert_allclose(again.model.intercept, [0.01, 0.0, 0.0], atol=3e-5)
+
+
+TAU_DIE = 300.0
+
+
+def _feed(learner, run, start=0, stop=None, poll=600):
+    """Feed a chamber run (10 Hz IMU, thermometer at 1 Hz), stepping every ``poll``."""
+    stop = run.t.size if stop is None else stop
+    for k in range(start, stop):
+        if k % 10 == 0:
+            learner.add_temperature(run.t[k], run.temp[k])
+        learner.observe(run.t[k], *run.omega[k])
+        if k % poll == poll - 1:
+            learner.step()
+
+
+def _lag_prior(thermal):
+    """Return a prior that knows nothing of the drift (zero), with ``thermal``."""
+    return learned_model(np.zeros((2, 3)), ('dT',), 20.0, (0.0, 60.0), np.full(3, 1e-6),
+                         thermal)
+
+
+@pytest.fixture(scope='module')
+def lag_runs():
+    """Return a chamber run to learn and one held out, the die 300 s behind the thermometer."""
+    return (lag_run(seed=1, tau_die=TAU_DIE),
+            lag_run(seed=2, tau_die=TAU_DIE, segments=OTHER))
+
+
+def test_binning_at_the_model_temperature_removes_the_hysteresis(lag_runs):
+    """Binned at the thermometer, heating and cooling disagree; at the prior's state, not."""
+    train, held = lag_runs
+    floor = (0.05 * math.pi / 180.0) ** 2
+    heating = np.gradient(held.temp, held.t) > 5e-3
+    cooling = np.gradient(held.temp, held.t) < -5e-3
+    got = {}
+    for name, thermal in (('state', ThermalState('first_order', (TAU_DIE,))),
+                          ('thermometer', None)):
+        learner = Learner(prior=_lag_prior(thermal))
+        _feed(learner, train)
+        learner.flush()
+        m = learner.model
+        assert m.thermal == thermal and learner.fit['features'] == ['dT', 'dT2', 'dT3']
+        err = held.omega - drift(m, held.t, held.temp, out_of_range='linear')
+        # Hysteresis: the mean error while heating minus that while cooling (x axis), deg/s.
+        hyst = (err[heating, 0].mean() - err[cooling, 0].mean()) * 180.0 / math.pi
+        got[name] = ((err ** 2).mean(axis=0) / floor, hyst)
+    (with_state, hyst_state), (without, hyst_thermo) = got['state'], got['thermometer']
+    assert np.all(with_state < 1.05), with_state          # measured 1.00 / 1.00 / 1.00
+    assert without[0] > 1.8 and np.all(without > with_state + 0.2), without   # 2.08/1.61/1.28
+    # Measured -0.00008 vs -0.0111 deg/s.
+    assert abs(hyst_state) < 0.002 and abs(hyst_thermo) > 0.008, (hyst_state, hyst_thermo)
+
+
+def test_thermal_state_persists_across_steps_and_a_restart(lag_runs, tmp_path):
+    """The state streams across steps (any poll) and resumes from the learn file exactly."""
+    train = lag_runs[0]
+    thermal = ThermalState('two_node', (60.0, TAU_DIE))
+    a, b = Learner(prior=_lag_prior(thermal)), Learner(prior=_lag_prior(thermal))
+    half = 40000
+    _feed(a, train, stop=half)
+    _feed(b, train, stop=half, poll=37)
+    a.step(force=True)
+    b.step(force=True)
+    want = thermal.temperature(train.t[:half], np.repeat(train.temp[:half:10], 10)[:half])
+    for learner in (a, b):
+        t_last, ys = learner.thermal_state
+        assert t_last == train.t[half - 1]
+        assert ys[-1] == pytest.approx(want[-1], abs=1e-9)
+    # The same points whatever the poll (to rounding: the filter runs per batch).
+    ba, bb = a.state()['bins'], b.state()['bins']
+    assert ba.keys() == bb.keys() and len(ba) > 3
+    for k in ba:
+        np.testing.assert_allclose([e[2] for e in ba[k]], [e[2] for e in bb[k]], atol=1e-9)
+        assert [e[:2] + e[3:] for e in ba[k]] == [e[:2] + e[3:] for e in bb[k]]
+    path = tmp_path / 'learn.json'
+    a.save(path)
+    again = Learner(prior=_lag_prior(thermal))
+    assert again.load(path) and again.thermal_state == a.thermal_state
+    assert again.model.thermal == thermal and json.loads(path.read_text())['thermal'] == \
+        thermal.to_dict()
+    _feed(a, train, start=half, stop=half + 3000)
+    _feed(again, train, start=half, stop=half + 3000)
+    a.step(force=True)
+    again.step(force=True)
+    np.testing.assert_allclose(again.thermal_state[1], a.thermal_state[1], rtol=0, atol=1e-9)
+
+
+def test_set_prior_keeps_points_of_the_same_thermal_section_only(lag_runs, tmp_path):
+    train = lag_runs[0]
+    lag = ThermalState('first_order', (TAU_DIE,))
+    learner = Learner(prior=_lag_prior(lag))
+    _feed(learner, train, stop=30000)
+    learner.step()
+    points = learner.summary()['points']
+    assert points > 3 and learner.fit is not None
+    path = tmp_path / 'learn.json'
+    learner.save(path)
+    # The same thermal section (a refitted model_file): points and state kept; the new
+    # prior is current until a learned candidate predicts better.
+    new = learned_model(np.array([[1e-3, 0, 0], [1e-4, 0, 0]]), ('dT',), 20.0, (0.0, 60.0),
+                        np.full(3, 1e-6), ThermalState('first_order', (TAU_DIE,), ((200.0,
+                                                                                   400.0),)))
+    learner.set_prior(new)
+    assert learner.summary()['points'] == points and learner.thermal_state is not None
+    assert learner.model is new and learner.fit is None and learner.take_model() is None
+    # Another thermal section: the points were binned at another temperature: dropped.
+    other = _lag_prior(ThermalState('first_order', (100.0,)))
+    learner.set_prior(other)
+    assert learner.summary()['points'] == 0 and learner.thermal_state is None
+    assert learner.model is other and learner.thermal == other.thermal
+    _feed(learner, train, start=30000, stop=40000)
+    learner.step()
+    assert learner.summary()['points'] > 0 and learner.model.thermal == other.thermal
+    # The same rule at load: restarted with a lag-free model_file, the saved points go.
+    restarted = Learner(prior=_lag_prior(None))
+    assert restarted.load(path) and restarted.summary()['points'] == 0
+    assert restarted.model.thermal is None and restarted.take_model() is None
+    # No prior and kind none are the same model temperature: nothing is dropped.
+    plain = Learner(LearnConfig(temperature_timeout=1e9))
+    _still(plain, 0.0, 120.0, [0.01, 0.0, 0.0], 20.0)
+    plain.set_prior(_lag_prior(ThermalState('none')))
+    assert plain.summary()['points'] == 1
