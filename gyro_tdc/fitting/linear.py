@@ -97,6 +97,18 @@ def _solve(design: NDArray[np.float64], y: NDArray[np.float64],
     return coef, scale
 
 
+def _segment_sums(d: NDArray[np.float64], y: NDArray[np.float64],
+                  bounds: NDArray[np.int64]) -> tuple[NDArray[np.float64], ...]:
+    """Return per row segment ``d'd`` (S, Q, Q), ``d'y`` (S, Q, M) and ``y'y`` (S, M)."""
+    gs, bs, ys = [], [], []
+    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+        dj, yj = d[a:b], y[a:b]
+        gs.append(dj.T @ dj)
+        bs.append(dj.T @ yj)
+        ys.append(np.einsum('ij,ij->j', yj, yj))
+    return np.array(gs), np.array(bs), np.array(ys)
+
+
 def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
                   scale_cols: NDArray[np.float64] | None, f: int, *,
                   n_segments: int = 20, n_folds: int = 5) -> float:
@@ -105,44 +117,42 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
 
     Holding out whole segments (5 % of the rows each) tests what matters for a drift model:
     interpolation across a gap in the temperatures covered, where an under-regularised
-    network wiggles. Normal equations per fold make the grid search cost almost nothing.
+    network wiggles. Everything comes from each segment's Gram matrix, ``d'y`` and ``y'y``
+    (one pass over the rows): a fold's training problem is the total minus its own
+    segments, its held-out error ``|d w - y|^2 = w'Gw - 2 w'b + y'y``, so the grid search
+    costs almost nothing.
     """
     n, p = design.shape
-    fold = (np.arange(n) * n_segments // n) % n_folds
-    masks = [fold == k for k in range(n_folds)]
-    n_trs = [n - int(m.sum()) for m in masks]
-    # Without scale columns every axis shares the design: its Gram matrices and fold rows
-    # are computed once (the same products, so the same numbers as per axis).
-    shared = None
-    if scale_cols is None:
-        dks = [design[m] for m in masks]
-        shared = (design.T @ design, dks, [dk.T @ dk for dk in dks])
+    seg = np.arange(n) * n_segments // n          # segment j is in fold j % n_folds
+    bounds = np.searchsorted(seg, np.arange(n_segments + 1))
+    n_trs = [n - int(np.diff(bounds)[k::n_folds].sum()) for k in range(n_folds)]
+    # Without scale columns every axis shares the design: its sums are computed once.
+    shared = None if scale_cols is not None else _segment_sums(design, y, bounds)
     errors = np.zeros(len(RIDGE_GRID))
     for ax in range(3):
-        yy = y[:, ax]
         if shared is None:
             d = np.column_stack([design, scale_cols[:, ax]])
-            g_all, dks, gks = d.T @ d, None, None
+            gs, bs, ys = _segment_sums(d, y[:, ax:ax + 1], bounds)
+            col = 0
         else:
-            d = design
-            g_all, dks, gks = shared
-        q = d.shape[1]
-        b_all = d.T @ yy
-        for k, m in enumerate(masks):
-            dk = d[m] if dks is None else dks[k]
-            yk = yy[m]
-            g = g_all - (dk.T @ dk if gks is None else gks[k])
-            b = b_all - dk.T @ yk
-            n_tr = n_trs[k]
+            gs, bs, ys = shared
+            col = ax
+        q = gs.shape[1]
+        g_all, b_all = gs.sum(axis=0), bs[:, :, col].sum(axis=0)
+        for k in range(n_folds):
+            gk = gs[k::n_folds].sum(axis=0)
+            bk = bs[k::n_folds, :, col].sum(axis=0)
+            yyk = float(ys[k::n_folds, col].sum())
+            g = g_all - gk
+            b = b_all - bk
             for i, ridge in enumerate(RIDGE_GRID):
                 pen = np.zeros(q)
-                pen[:p] = _penalty(p, f, ridge, n_tr) ** 2
+                pen[:p] = _penalty(p, f, ridge, n_trs[k]) ** 2
                 try:
                     w = np.linalg.solve(g + np.diag(pen), b)
                 except np.linalg.LinAlgError:
                     w = np.linalg.lstsq(g + np.diag(pen), b, rcond=None)[0]
-                r = dk @ w - yk
-                errors[i] += float(r @ r)
+                errors[i] += float(w @ (gk @ w)) - 2.0 * float(w @ bk) + yyk
     # The largest ridge within 1 % of the best error: prefer the smoother network.
     ok = np.flatnonzero(errors <= errors.min() * 1.01)
     return float(RIDGE_GRID[int(ok.max())])
