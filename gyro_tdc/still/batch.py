@@ -108,13 +108,39 @@ class Stillness:
                 if np.any(self.why == r)}
 
 
+#: Rows per pass of :func:`_window_stats` (its temporaries stay small: a few MB).
+_CHUNK_ROWS = 1 << 17
+
+
 def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
-                  counts: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return per-window means and standard deviations (W, 3) of ``x`` (ddof 1)."""
-    c = x[0]
-    d = x - c
-    s = np.add.reduceat(d, starts, axis=0)
-    q = np.add.reduceat(np.multiply(d, d, out=d), starts, axis=0)   # d is ours: square it
+                  counts: NDArray[np.float64], finite: NDArray[np.bool_] | None = None
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return per-window means and standard deviations (W, 3) of ``x`` (ddof 1).
+
+    Rows where ``finite`` is False count as zeros. The sums run over whole windows in
+    passes of about :data:`_CHUNK_ROWS` rows, each window's in the same order as one pass
+    over all rows would (so the same numbers), without a full-length temporary.
+    """
+    n = x.shape[0]
+    c = x[0] if finite is None or finite[0] else np.zeros(x.shape[1])
+    w = starts.size
+    s = np.empty((w, x.shape[1]))
+    q = np.empty((w, x.shape[1]))
+    ends = np.append(starts[1:], n)
+    zero = 0.0 - c                       # a zeroed row, centred
+    buf = np.empty((min(n, max(_CHUNK_ROWS, int(counts.max()))), x.shape[1]))
+    i = 0
+    while i < w:
+        j = max(i + 1, int(np.searchsorted(ends, starts[i] + _CHUNK_ROWS, side='right')))
+        a, b = int(starts[i]), int(ends[j - 1])
+        d = np.subtract(x[a:b], c, out=buf[:b - a])
+        if finite is not None:
+            d[~finite[a:b]] = zero
+        loc = starts[i:j] - a
+        s[i:j] = np.add.reduceat(d, loc, axis=0)
+        q[i:j] = np.add.reduceat(np.multiply(d, d, out=d), loc, axis=0)
+        i = j
     n = counts[:, None]
     mean = s / n
     with np.errstate(invalid='ignore', divide='ignore'):
@@ -185,24 +211,27 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
                          np.zeros(0), np.full(3, math.inf),
                          None if acc is None else np.full(3, math.inf),
                          'too few samples to judge stillness')
-    k = np.floor((t - t[0]) / window).astype(np.int64)
-    starts = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
+    k = np.subtract(t, t[0])           # window index floor((t - t0) / window), in place
+    k /= window
+    np.floor(k, out=k)
+    edge = np.empty(n, dtype=bool)
+    edge[0] = True
+    np.not_equal(k[1:], k[:-1], out=edge[1:])
+    starts = np.flatnonzero(edge)
     counts = np.diff(np.append(starts, n))
     fc = counts.astype(np.float64)
     finite = np.isfinite(g).all(axis=1)
     if acc is not None:
         finite &= np.isfinite(acc).all(axis=1)
-    bad = np.add.reduceat((~finite).astype(np.int64), starts) > 0
-    all_finite = bool(finite.all())     # then no zeroed copy of the (long) inputs
-    g_mean, g_std = _window_stats(g if all_finite else np.where(finite[:, None], g, 0.0),
-                                  starts, fc)
+    bad = np.logical_or.reduceat(~finite, starts)
+    zeroed = None if finite.all() else finite      # non-finite rows count as zeros
+    g_mean, g_std = _window_stats(g, starts, fc, zeroed)
     a_mean = a_std = None
     if acc is not None:
-        a_mean, a_std = _window_stats(
-            acc if all_finite else np.where(finite[:, None], acc, 0.0), starts, fc)
+        a_mean, a_std = _window_stats(acc, starts, fc, zeroed)
     usable = (counts >= max(3, MIN_WINDOW_SAMPLES // 2)) & ~bad
     vetoed = (np.zeros(starts.size, dtype=bool) if moving is None else
-              np.add.reduceat(np.asarray(moving, dtype=bool).astype(np.int64), starts) > 0)
+              np.logical_or.reduceat(np.asarray(moving, dtype=bool), starts))
     may = usable & ~vetoed
     g_floor = noise_floor(g_std, may) if gyro_floor is None else np.asarray(gyro_floor, float)
     a_floor = None
