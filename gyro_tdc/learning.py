@@ -63,9 +63,8 @@ rule when the saved thermal section is not the prior's (restarted with another m
 
 **Swap.** A refit after each finished stretch gives a candidate; it is swapped in only when
 its weighted mean squared error over the windows of the :data:`CHECK_STRETCHES` most recent
-stretches is below the current model's (no current model: always). A ``model_file`` model
-is the current model at start (the prior, jump-start); it is replaced only by a candidate
-that predicts the recent still time better.
+stretches is below the current model's (none: always); the prior (``model_file``, the
+jump-start) is the current model at start.
 
 **Timing** comes from message stamps only: a bag replayed faster gives the same points, fits
 and swaps (the swap lands at the first :meth:`step` after the stretch ended).
@@ -278,20 +277,11 @@ class Learner:
 
     def set_prior(self, model: CompensationModel | None) -> None:
         """
-        Replace the prior (a new ``model_file``): it becomes the current model.
+        Replace the prior (a new ``model_file``; None: no model): it becomes the current model.
 
-        The points, the thermal state and the motion reports are kept when the new model's
-        thermal section gives the same model temperature
-        (:func:`gyro_tdc.learning_temperature.same_thermal`); otherwise the points were binned
-        at another model temperature and are dropped (module docstring). A learned model
-        swaps in again only by predicting the recent still time better than ``model``;
-        :meth:`take_model` gives nothing for this change (the caller installs ``model``).
-
-        Parameters
-        ----------
-        model : CompensationModel or None
-            The new prior (None: no model; the next candidate is swapped in).
-
+        Points are kept or dropped by its thermal section (module docstring); a learned model
+        swaps in again only by predicting the recent still time better. :meth:`take_model`
+        gives nothing for this change (the caller installs ``model``).
         """
         thermal = None if model is None else model.thermal
         same = same_thermal(thermal, self.thermal)
@@ -412,8 +402,20 @@ class Learner:
         if not t.size:
             return False
         temp, self.temps = hold_readings(self.temps, t, self.config.temperature_timeout)
+        # A gap over session_gap_s (before the batch or inside it) starts a new session.
+        gaps = np.flatnonzero(np.diff(t, prepend=t[0] if self.last_t is None else self.last_t)
+                              > self.config.session_gap_s)
         swapped = False
-        if self.last_t is not None and t[0] - self.last_t > self.config.session_gap_s:
+        for lo, hi in zip(np.r_[0, gaps], np.r_[gaps, t.size]):
+            if hi > lo:
+                swapped = self._batch(t[lo:hi], w[lo:hi], None if acc is None else acc[lo:hi],
+                                      temp[lo:hi], lo in gaps) or swapped
+        return swapped
+
+    def _batch(self, t, w, acc, temp, new_session: bool) -> bool:
+        """Process samples of one session: cut them into windows, judge the finished ones."""
+        swapped = False
+        if new_session:
             # A new session (power-up): its own turn-on offset, learned apart.
             swapped = self.flush()
             self.session += 1

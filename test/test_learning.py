@@ -384,3 +384,20 @@ def test_set_prior_keeps_points_of_the_same_thermal_section_only(lag_runs, tmp_p
     _still(plain, 0.0, 120.0, [0.01, 0.0, 0.0], 20.0)
     plain.set_prior(_lag_prior(ThermalState('none')))
     assert plain.summary()['points'] == 1
+
+
+def test_a_gap_inside_one_step_starts_a_new_session():
+    """The night between two days starts a session even when one step spans it."""
+    rng = np.random.default_rng(7)
+    learner = Learner(LearnConfig(temperature_timeout=1e9))
+    for t0, bias, temp in ((0.0, 0.01, 20.0), (5000.0, 0.02, 20.2)):
+        learner.add_temperature(t0, temp)
+        t = t0 + np.arange(12000) / 100.0
+        for ti, w in zip(t.tolist(), (bias + 1e-4 * rng.standard_normal((t.size, 3))).tolist()):
+            learner.observe(ti, *w)
+    learner.step()                       # one step over both days
+    learner.flush()
+    assert learner.session == 1
+    e = learner.entries()
+    assert sorted(set(e[:, 6].tolist())) == [0.0, 1.0]
+    np.testing.assert_allclose(learner.model.intercept, [0.02] * 3, atol=3e-5)
