@@ -76,10 +76,13 @@ def _sample_minutes(t: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return the time each sample stands for, in minutes (gaps count at most 10 periods)."""
     if t.shape[0] < 2:
         return np.zeros(t.shape[0])
-    d = np.diff(t)
-    med = float(np.median(d))
-    d = np.append(d, med)
-    return np.minimum(d, 10.0 * med) / 60.0
+    d = np.empty(t.shape[0])               # in place: no temporaries of a long run
+    np.subtract(t[1:], t[:-1], out=d[:-1])
+    med = float(np.median(d[:-1]))
+    d[-1] = med
+    np.minimum(d, 10.0 * med, out=d)
+    d /= 60.0
+    return d
 
 
 def _coarse_rate(run: Run, *, points: int = 100_000) -> NDArray[np.float64]:
@@ -157,14 +160,19 @@ def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
         Per-bin counts and minutes, sparse bins and direction minutes.
 
     """
-    temp = np.concatenate([r.temp for r in runs])
-    minutes = np.concatenate([_sample_minutes(r.t) for r in runs])
-    rate = np.concatenate([_coarse_rate(r) for r in runs])
+    one = len(runs) == 1                    # one run: its arrays, not copies
+    temp = np.asarray(runs[0].temp) if one else np.concatenate([r.temp for r in runs])
+    minutes = _sample_minutes(runs[0].t) if one else np.concatenate(
+        [_sample_minutes(r.t) for r in runs])
+    rate = _coarse_rate(runs[0]) if one else np.concatenate([_coarse_rate(r) for r in runs])
     lo, hi = float(temp.min()), float(temp.max())
     first = math.floor(lo / bin_c) * bin_c
     nb = max(1, int(math.floor((hi - first) / bin_c)) + 1)
     edges = first + bin_c * np.arange(nb + 1)
-    idx = np.clip(((temp - first) // bin_c).astype(np.int64), 0, nb - 1)
+    v = np.subtract(temp, first)
+    np.floor_divide(v, bin_c, out=v)
+    idx = v.astype(np.int64)
+    np.clip(idx, 0, nb - 1, out=idx)
     samples = np.bincount(idx, minlength=nb)
     mins = np.bincount(idx, weights=minutes, minlength=nb)
     inside = np.clip(np.minimum(edges[1:], hi) - np.maximum(edges[:-1], lo), 0.0, None)

@@ -161,9 +161,10 @@ def _for_search(run: Run) -> Run:
     m = int(rate // SEARCH_RATE_HZ)
     if m < 2 or len(run) < 2 * m:
         return run
+    ref = (block_mean(run.omega_ref, m, partial=False) if np.any(run.omega_ref)
+           else np.zeros((len(run) // m, 3)))         # no reference: its means are zeros
     return Run(block_mean(run.t, m, partial=False), block_mean(run.temp, m, partial=False),
-               block_mean(run.omega, m, partial=False),
-               block_mean(run.omega_ref, m, partial=False), run.name, dict(run.info))
+               block_mean(run.omega, m, partial=False), ref, run.name, dict(run.info))
 
 
 def _floors(value: float, floor: float) -> str:

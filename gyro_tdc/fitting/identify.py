@@ -117,7 +117,10 @@ class _Blocks:
         self.block = block
         self.t = block_mean(run.t, block)
         self.temp = block_mean(run.temp, block)
-        err = run.omega - run.omega_ref
+        # A chamber run has no reference rate: skip subtracting and averaging its zeros (the
+        # same numbers: x - 0 is x, and the block means of zeros are zeros).
+        self.has_ref = bool(np.any(run.omega_ref))
+        err = run.omega - run.omega_ref if self.has_ref else run.omega
         self.rows = None if rows is None else np.asarray(rows, dtype=bool)
         self.keep = None
         if self.rows is None:
@@ -130,7 +133,7 @@ class _Blocks:
             e = err[self.rows]
             self.ss_raw = np.einsum('ij,ij->j', e, e)
         self.y = self._mean(err)
-        self.ref = self._mean(run.omega_ref)
+        self.ref = self._mean(run.omega_ref) if self.has_ref else np.zeros(self.y.shape)
         self.ss_within = self._scatter(err, self.y)
 
     def _sel(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -166,7 +169,7 @@ class _Blocks:
         (``dT`` of the full-rate ``state``, or of the measured temperature), which changes
         within a block when the rate table steps.
         """
-        err = self.run.omega - self.run.omega_ref
+        err = self.run.omega - self.run.omega_ref if self.has_ref else self.run.omega
         if np.any(scale):
             temp = self.run.temp if state is None else state
             err = err - (temp - t0)[:, None] * self.run.omega_ref * scale
