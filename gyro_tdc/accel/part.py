@@ -175,6 +175,35 @@ def _slope_mg(part: CompensationModel) -> NDArray[np.float64]:
     return (b[2] - b[1]) / (hi - lo) / MG
 
 
+#: Rows per pass of :func:`_force_blocks` (rounded down to whole blocks).
+_CHUNK_ROWS = 1 << 17
+
+
+def _force_blocks(acc: NDArray[np.float64], sel: slice | NDArray[np.int64], n: int,
+                  block: int) -> tuple[NDArray[np.float64], ...]:
+    """
+    Return the block means, counts and within-block sums of squares of ``acc[sel]``.
+
+    The force is centred on its first row (no cancellation in the sums) in passes of whole
+    blocks (about :data:`_CHUNK_ROWS` rows): each block's sums are those of one pass over
+    the ``n`` rows, without a centred copy of them all.
+    """
+    first = acc[sel.start] if isinstance(sel, slice) else acc[sel[0]]
+    step = block * max(1, _CHUNK_ROWS // block)
+    buf = np.empty((min(step, n), acc.shape[1]))
+    means, sumsq = [], []
+    for c0 in range(0, n, step):
+        c1 = min(c0 + step, n)
+        rows = (acc[sel.start + c0:sel.start + c1] if isinstance(sel, slice)
+                else acc[sel[c0:c1]])
+        a = np.subtract(rows, first, out=buf[:c1 - c0])
+        means.append(block_mean(a, block))
+        sumsq.append(block_sumsq(a, block))
+    ya = np.concatenate(means)
+    cnt = block_counts(n, block)
+    return ya + first, cnt, np.maximum(np.concatenate(sumsq) - cnt[:, None] * ya ** 2, 0.0)
+
+
 def _reference_design(lf: LinearFit, f: int) -> NDArray[np.float64]:
     """Return the design row at the reference point (every feature zero), (1 + F + K,)."""
     return lf.design(np.zeros((1, f)))[0]
@@ -261,14 +290,11 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
                 continue
             # A contiguous segment (a chamber run: all of it) is a view, not a copy.
             sel = slice(idx[0], idx[-1] + 1) if idx[-1] - idx[0] + 1 == idx.size else idx
-            a = acc[sel] - acc[idx[0]]            # centred: no cancellation in the sums
-            ya = block_mean(a, block)
-            cnt = block_counts(a.shape[0], block)
-            within = block_sumsq(a, block) - cnt[:, None] * ya ** 2
+            ya, cnt, within = _force_blocks(acc, sel, idx.size, block)
             lo = min(lo, float(state[sel].min()))
             hi = max(hi, float(state[sel].max()))
-            segs.append({'x': block_mean(x[sel], block), 'y': ya + acc[idx[0]], 'n': cnt,
-                         'within': np.maximum(within, 0.0), 't': block_mean(r.t[sel], block),
+            segs.append({'x': block_mean(x[sel], block), 'y': ya, 'n': cnt, 'within': within,
+                         't': block_mean(r.t[sel], block),
                          'temp': block_mean(r.temp[sel], block)})
     g0 = len(segs)
     span = (lo, hi)
