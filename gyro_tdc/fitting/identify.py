@@ -220,7 +220,9 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
         raise FitError(f'Too few samples to fit: {n} (need at least {MIN_SAMPLES}).')
     for r in runs:
         for key in ('temp', 'omega', 'omega_ref'):
-            if not np.all(np.isfinite(getattr(r, key))):
+            x = np.asarray(getattr(r, key))
+            # All finite iff the min and the max are (NaN propagates): no boolean temporary.
+            if x.size and not (np.isfinite(x.min()) and np.isfinite(x.max())):
                 raise FitError(f'Run {r.name!r} has non-finite values in `{key}`.')
     if TEMPERATURE_EFFECTS & set(ids):
         temps = [r.temp if rows is None else r.temp[rows[i]] for i, r in enumerate(runs)]

@@ -139,19 +139,24 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
             col = ax
         q = gs.shape[1]
         g_all, b_all = gs.sum(axis=0), bs[:, :, col].sum(axis=0)
+        # A column that is zero in every row (the constant, centred per group) has weight 0:
+        # solve without it (else every solve is singular and falls back to lstsq).
+        live = np.flatnonzero(np.diag(g_all) != 0.0)
+        sub = np.ix_(live, live)
         for k in range(n_folds):
-            gk = gs[k::n_folds].sum(axis=0)
-            bk = bs[k::n_folds, :, col].sum(axis=0)
+            gk = gs[k::n_folds].sum(axis=0)[sub]
+            bk = bs[k::n_folds, :, col].sum(axis=0)[live]
             yyk = float(ys[k::n_folds, col].sum())
-            g = g_all - gk
-            b = b_all - bk
+            g = g_all[sub] - gk
+            b = b_all[live] - bk
             for i, ridge in enumerate(RIDGE_GRID):
                 pen = np.zeros(q)
                 pen[:p] = _penalty(p, f, ridge, n_trs[k]) ** 2
+                a = g + np.diag(pen[live])
                 try:
-                    w = np.linalg.solve(g + np.diag(pen), b)
+                    w = np.linalg.solve(a, b)
                 except np.linalg.LinAlgError:
-                    w = np.linalg.lstsq(g + np.diag(pen), b, rcond=None)[0]
+                    w = np.linalg.lstsq(a, b, rcond=None)[0]
                 errors[i] += float(w @ (gk @ w)) - 2.0 * float(w @ bk) + yyk
     # The largest ridge within 1 % of the best error: prefer the smoother network.
     ok = np.flatnonzero(errors <= errors.min() * 1.01)
