@@ -270,3 +270,15 @@ def test_discovery_runs_are_the_still_segments_in_mg(chamber):
     run = chamber['runs'][0]
     with pytest.raises(FitError, match='no still accelerometer data.*x: no accelerometer'):
         discovery_runs([Run(run.t, run.temp, run.omega, run.omega_ref, 'x')])
+
+
+@pytest.mark.parametrize('chunk_rows', [1, 7, 1000])
+def test_the_fit_is_the_same_in_passes_of_any_size(chamber, monkeypatch, chunk_rows):
+    # The force's block sums run in passes of whole blocks; the pass size changes no bit.
+    import gyro_tdc.accel.part as part
+
+    monkeypatch.setattr(part, '_CHUNK_ROWS', chunk_rows)
+    fit = fit_accel(chamber['runs'][:1], chamber['gyro'])
+    assert fit.part.model_id == chamber['fit'].part.model_id
+    np.testing.assert_array_equal(fit.train_bs, chamber['fit'].train_bs)
+    np.testing.assert_array_equal(fit.raw_bs, chamber['fit'].raw_bs)

@@ -234,3 +234,25 @@ def test_streaming_still_veto_prior_and_rate():
     assert len(_stream(det, t, gyro, accel, moving=turn)) == 3 and det.rejected['non-finite'] == 1
     with pytest.raises(ValueError, match='window_s'):
         StreamingStill(0.0)
+
+
+def test_window_statistics_over_several_passes_are_each_windows_own():
+    # 2 h at 20 Hz with a drive, a NaN and a motion report: 144,000 samples, more than one
+    # pass of the window sums; every window's mean and std (ddof 1) is its own, a row with a
+    # NaN counting as zeros and flagging its window.
+    t, gyro, accel = _rest(7200.0)
+    _drive(t, gyro, accel, 3000.0, 3600.0)
+    gyro[100_000, 1] = math.nan
+    moving = np.zeros(t.size, dtype=bool)
+    moving[50_000] = True
+    st = detect_still(t, gyro, accel, moving=moving)
+    assert t.size > 1 << 17 and st.starts.size == 720
+    finite = (np.isfinite(gyro) & np.isfinite(accel)).all(axis=1)[:, None]
+    g, a = np.where(finite, gyro, 0.0), np.where(finite, accel, 0.0)
+    for j in (0, 300, 400, 500, 719):
+        rows = slice(st.starts[j], st.starts[j] + st.counts[j])
+        np.testing.assert_allclose(st.gyro_mean[j], g[rows].mean(axis=0), rtol=1e-12)
+        np.testing.assert_allclose(st.gyro_std[j], g[rows].std(axis=0, ddof=1), rtol=1e-9)
+        np.testing.assert_allclose(st.accel_std[j], a[rows].std(axis=0, ddof=1), rtol=1e-9)
+    assert st.why[100_000 // 200] == 'non-finite' and st.why[50_000 // 200] == 'motion'
+    assert set(st.why[3000 // 10:3600 // 10]) <= {'gyro', 'accel'}
