@@ -139,9 +139,7 @@ def feed(core: CompensatorCore, imu_t: NDArray[np.float64], gyro: NDArray[np.flo
     ok = np.ones(gyro.shape[0], dtype=bool)
     tt, tc = temp_t.tolist(), temp_c.tolist()
     m = len(tt)
-    j = int(np.searchsorted(temp_t, imu_t[0], side='left')) if imu_t.size else 0
-    if j:                              # the newest reading before the first sample
-        core.add_temperature(tt[j - 1], tc[j - 1])
+    j = 0
     learner = core.learner
     acc = accel.tolist() if accel is not None else [None] * gyro.shape[0]
     for k, (t, w, a) in enumerate(zip(imu_t.tolist(), gyro.tolist(), acc)):
