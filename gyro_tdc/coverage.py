@@ -85,14 +85,20 @@ def _sample_minutes(t: NDArray[np.float64]) -> NDArray[np.float64]:
     return d
 
 
-def _coarse_rate(run: Run, *, points: int = 100_000) -> NDArray[np.float64]:
-    """Return :func:`temperature_rate` at every sample, computed on at most ``points``."""
+def _directions(run: Run, threshold: float, *, points: int = 100_000
+                ) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+    """
+    Return the heating, cooling and steady samples of a run (dT/dt vs ``threshold``).
+
+    The rate is :func:`temperature_rate` computed on at most ``points`` samples, each held
+    over the samples it stands for (the masks are repeated, not the rates).
+    """
     n = len(run)
     step = max(1, n // points)
-    if step == 1:
-        return temperature_rate(run.t, run.temp)
-    coarse = temperature_rate(run.t[::step], run.temp[::step])
-    return np.repeat(coarse, step)[:n]
+    rate = (temperature_rate(run.t, run.temp) if step == 1 else
+            temperature_rate(run.t[::step], run.temp[::step]))
+    masks = (rate > threshold, rate < -threshold, np.abs(rate) <= threshold)
+    return masks if step == 1 else tuple(np.repeat(m, step)[:n] for m in masks)
 
 
 @dataclass
@@ -164,7 +170,9 @@ def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
     temp = np.asarray(runs[0].temp) if one else np.concatenate([r.temp for r in runs])
     minutes = _sample_minutes(runs[0].t) if one else np.concatenate(
         [_sample_minutes(r.t) for r in runs])
-    rate = _coarse_rate(runs[0]) if one else np.concatenate([_coarse_rate(r) for r in runs])
+    thr = threshold_c_per_min
+    heating, cooling, steady = (_directions(runs[0], thr) if one else [
+        np.concatenate(m) for m in zip(*(_directions(r, thr) for r in runs))])
     lo, hi = float(temp.min()), float(temp.max())
     first = math.floor(lo / bin_c) * bin_c
     nb = max(1, int(math.floor((hi - first) / bin_c)) + 1)
@@ -185,7 +193,7 @@ def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
     return Coverage(
         bin_c=float(bin_c), edges=edges, samples=samples, minutes=mins, sparse=sparse,
         temp_range_c=(lo, hi),
-        heating_min=float(minutes[rate > threshold_c_per_min].sum()),
-        cooling_min=float(minutes[rate < -threshold_c_per_min].sum()),
-        steady_min=float(minutes[np.abs(rate) <= threshold_c_per_min].sum()),
+        heating_min=float(minutes[heating].sum()),
+        cooling_min=float(minutes[cooling].sum()),
+        steady_min=float(minutes[steady].sum()),
         threshold_c_per_min=float(threshold_c_per_min))
