@@ -70,27 +70,39 @@ class LearnRig:
         """Publish ``secs`` of IMU at RATE (still at ``bias`` or moving) and 1 Hz temperature."""
         rng = np.random.default_rng(seed)
         n = int(secs * RATE)
+        w = (0.3 if moving else 1e-4) * rng.standard_normal((n, 3)) + (0 if moving else bias)
+        return self.stream(t0, w, temp)
+
+    def stream(self, t0, w, temp, each_second=None):
+        """
+        Publish the rates ``w`` (N, 3) at RATE from ``t0``, a temperature every second.
+
+        ``each_second(t)``, when given, runs once a second after that second's first IMU
+        sample came out; the outputs are awaited at least every 200 samples.
+        """
         start = len(self.out)
-        for k in range(n):
+        for k, row in enumerate(w):
             t = t0 + k / RATE
             if k % int(RATE) == 0:
                 m = Temperature()
                 m.header.stamp.sec, m.header.stamp.nanosec = divmod(to_ns(t), 10 ** 9)
                 m.temperature = temp
                 self.temp_pub.publish(m)
-            w = (0.3 if moving else 1e-4) * rng.standard_normal(3) + (0 if moving else bias)
             msg = Imu()
             msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(to_ns(t), 10 ** 9)
             msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = \
-                (float(v) for v in w)
+                (float(v) for v in row)
             msg.orientation_covariance[0] = -1.0
             msg.linear_acceleration_covariance[0] = -1.0
             self.imu_pub.publish(msg)
-            if k % 200 == 199:
+            if k % 200 == 199 or (each_second is not None and k % int(RATE) == 0):
                 spin_until(self.executor, lambda: len(self.out) >= start + k + 1, 10.0,
                            what='outputs')
-        spin_until(self.executor, lambda: len(self.out) >= start + n, 10.0, what='outputs')
-        return t0 + n / RATE
+                if k % int(RATE) == 0:
+                    each_second(t)
+        spin_until(self.executor, lambda: len(self.out) >= start + len(w), 10.0,
+                   what='outputs')
+        return t0 + len(w) / RATE
 
     def call(self, client):
         future = client.call_async(Trigger.Request())
@@ -189,34 +201,17 @@ def test_a_slow_constant_turn_reported_by_motion_topic_is_not_still(ros_context,
                    motion_type=motion_type, input_reliability='reliable')
     node, cls = rig.node, MOTION_MESSAGES[motion_type]
     turn = 0.005 if moving else 0.0
+    n = int(150.0 * RATE)
+
+    def report(t):                        # the report of this second, at its first stamp
+        reports = node.core.motion_reports
+        rig.motion_pub.publish(_motion(cls, t, 2.0 * turn, turn))
+        spin_until(rig.executor, lambda: node.core.motion_reports > reports, 10.0,
+                   what='motion report')
+
     try:
-        rng = np.random.default_rng(7)
-        n = int(150.0 * RATE)
-        start = len(rig.out)
-        for k in range(n):
-            t = 1000.0 + k / RATE
-            if k % int(RATE) == 0:
-                m = Temperature()
-                m.header.stamp.sec, m.header.stamp.nanosec = divmod(to_ns(t), 10 ** 9)
-                m.temperature = 20.0
-                rig.temp_pub.publish(m)
-            w = (0.0, 0.0, 0.005) + 1e-5 * rng.standard_normal(3)
-            msg = Imu()
-            msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(to_ns(t), 10 ** 9)
-            msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = \
-                (float(v) for v in w)
-            msg.orientation_covariance[0] = -1.0
-            msg.linear_acceleration_covariance[0] = -1.0
-            rig.imu_pub.publish(msg)
-            if k % int(RATE) == 0:
-                # The report of this second, once the IMU stamp it may take is in.
-                spin_until(rig.executor, lambda: len(rig.out) >= start + k + 1, 10.0,
-                           what='outputs')
-                reports = node.core.motion_reports
-                rig.motion_pub.publish(_motion(cls, t, 2.0 * turn, turn))
-                spin_until(rig.executor, lambda: node.core.motion_reports > reports, 10.0,
-                           what='motion report')
-        spin_until(rig.executor, lambda: len(rig.out) >= start + n, 10.0, what='outputs')
+        w = (0.0, 0.0, 0.005) + 1e-5 * np.random.default_rng(7).standard_normal((n, 3))
+        rig.stream(1000.0, w, 20.0, report)
         anchor = node.core.anchor         # a learned model swapped in below clears it
         assert rig.call(rig.save).message.startswith('no learn_file')
         node.learner.flush()
