@@ -199,16 +199,17 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
     seg = -1
     prev = -1
     steps: list[NDArray[np.float64]] = []
+    var_mean = a_std ** 2 / counts[:, None]      # variance of each window's mean, per axis
     for j in np.flatnonzero(still).tolist():
         new = prev < 0 or j - prev - 1 > MAX_GAP_WINDOWS
         if not new:
             gap = j - prev
             trend = np.median(np.array(steps[-_TREND_WINDOWS:]), axis=0) if steps else 0.0
             e = a_mean[j] - (a_mean[prev] + gap * trend)
-            se = math.sqrt(float(np.sum(a_std[j] ** 2 / counts[j]
-                                        + a_std[prev] ** 2 / counts[prev])))
-            angle = _angle_deg(a_mean[prev], a_mean[j])
-            if float(np.linalg.norm(e)) > JUMP_SIGMAS * se and angle >= MIN_JUMP_DEG:
+            se = math.sqrt(float(np.sum(var_mean[j] + var_mean[prev])))
+            jump = float(np.linalg.norm(e)) > JUMP_SIGMAS * se
+            angle = _angle_deg(a_mean[prev], a_mean[j]) if jump else 0.0
+            if jump and angle >= MIN_JUMP_DEG:
                 new = True
                 changes.append(OrientationChange(run.name, float(t[starts[j]]), angle,
                                                  a_mean[prev].copy(), a_mean[j].copy()))
