@@ -96,10 +96,7 @@ def run(stream, learn: bool) -> tuple[float, float, float]:
         process(ts, wi[0], wi[1], wi[2], ai)
         if learner is not None and k % 1000 == 999:
             s0 = time.process_time()
-            learner.step()
-            new = learner.take_model()
-            if new is not None:
-                core.set_model(new)
+            core.learn_step()
             step_s += time.process_time() - s0
     total = time.process_time() - t0
     return total / len(t), step_s / len(t), 0 if learner is None else learner.swaps

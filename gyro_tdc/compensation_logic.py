@@ -230,6 +230,16 @@ class CompensatorCore:
         self._comp: StreamingCompensator | None = None
         self._learner = None
         self._lt = self._lw = self._la = None
+        self._lnext = math.inf          # next stamp the learner takes a sample at
+        #: Learned models waiting for their effective stamp: [stamp, PreparedModel], oldest
+        #: first (:meth:`schedule`); ``_due`` is the first one's stamp, ``_gate`` the smaller
+        #: of it and ``_lnext``: the message path's one compare for all learning work.
+        self._queue: deque[tuple[float, PreparedModel]] = deque()
+        self._due = math.inf
+        self._gate = math.inf
+        #: Learned models installed (:meth:`schedule`, on time or late: the learner counts
+        #: the late ones, ``Learner.late_swaps``).
+        self.learned_installs = 0
         #: The latest outside motion report: None before any, else whether it says motion.
         self.moving: bool | None = None
         self.motion_reports = 0
@@ -246,12 +256,83 @@ class CompensatorCore:
         """Attach a learner: it sees every raw sample and thermometer reading (appends)."""
         self._learner = learner
         self._lt = self._lw = self._la = None
+        self._lnext = math.inf
         if learner is not None:
-            self._lt, self._lw, self._la = (learner.bt.append, learner.bw.append,
+            self._lt, self._lw, self._la = (learner.bt.append, learner.bw.extend,
                                             learner.ba.extend)
             self._nan3 = (math.nan,) * 3
             self._lperiod = 1.0 / learner.config.max_rate_hz
             self._lnext = -math.inf
+        self._gate = min(self._lnext, self._due)
+
+    def learn_step(self) -> list:
+        """
+        Step the learner (off the message path: a timer) and schedule the models it swapped in.
+
+        Each accepted candidate is made ready here (:func:`prepare`) and installed by
+        :meth:`process` at the first message stamped at or after its effective stamp
+        (:meth:`gyro_tdc.learning.Learner.take_swaps`), so the output does not depend on
+        when this runs, provided it runs within the learner's ``swap_delay_s`` of stamps
+        after the data; later, the model is installed here at once (the next message is
+        the first to use it) and the learner counts it in ``late_swaps``.
+
+        Returns
+        -------
+        list of (float or None, CompensationModel)
+            The models scheduled (or installed) with their effective stamps, oldest first.
+
+        """
+        learner = self._learner
+        if learner is None:
+            return []
+        learner.step()
+        swaps = learner.take_swaps(self.last_t)
+        for due, model in swaps:
+            self.schedule(model, due)
+        return swaps
+
+    def schedule(self, model: CompensationModel, due: float | None) -> None:
+        """
+        Install a learned ``model`` at the first message stamped at or after ``due`` (s).
+
+        Made ready now (:func:`prepare`; call it on the thread that compensates); installed
+        at once when ``due`` is None or the message path has already passed it (late).
+        """
+        prepared = prepare(model, self.policy, self.priming())
+        if due is None or (self.last_t is not None and due <= self.last_t):
+            self._queue.clear()
+            self._due = math.inf
+            self._gate = min(self._lnext, self._due)
+            self.learned_installs += 1
+            self.install(prepared)
+            return
+        self._queue.append((due, prepared))
+        self._due = self._queue[0][0]
+        self._gate = min(self._lnext, self._due)
+
+    def cancel_scheduled(self) -> None:
+        """Drop the learned models waiting for their stamp (a model_file or a reset came)."""
+        self._queue.clear()
+        self._due = math.inf
+        self._gate = min(self._lnext, self._due)
+
+    def _learning(self, t: float, wx: float, wy: float, wz: float,
+                  accel: Sequence[float] | None) -> None:
+        """Install a learned model that is due, hand the learner a sample (``_gate`` passed)."""
+        if t >= self._due:
+            queue = self._queue
+            prepared = None
+            while queue and queue[0][0] <= t:
+                prepared = queue.popleft()[1]
+            self._due = queue[0][0] if queue else math.inf
+            self.learned_installs += 1
+            self.install(prepared)
+        if t >= self._lnext:                  # at most max_rate_hz, by stamp
+            self._lnext = t + self._lperiod
+            self._lt(t)
+            self._lw((wx, wy, wz))
+            self._la(self._nan3 if accel is None else accel)
+        self._gate = min(self._lnext, self._due)
 
     # -- model ------------------------------------------------------------------------
 
@@ -413,14 +494,8 @@ class CompensatorCore:
 
         """
         self.counts['in'] += 1
-        if self._lt is not None and t >= self._lnext:  # learning, at most max_rate_hz
-            self._lnext = t + self._lperiod
-            self._lt(t)
-            lw = self._lw
-            lw(wx)
-            lw(wy)
-            lw(wz)
-            self._la(self._nan3 if accel is None else accel)
+        if t >= self._gate:            # learning: a sample to hand over, or a model due
+            self._learning(t, wx, wy, wz, accel)
         comp = self._comp
         if comp is None:
             return self._pass(t, wx, wy, wz, NO_MODEL)

@@ -122,6 +122,12 @@ PARAMS = (
               'shutdown, and resumed from at start. Empty: nothing is kept across restarts.'),
     ParamSpec('learn_save_period', 180.0, 'Message-stamp time between saves of learn_file '
               '[s].', 1.0, 86400.0),
+    ParamSpec('learn_swap_delay', 5.0, 'A learned model takes effect at the first message '
+              'stamped this long after the sample that let it be computed, so the output does '
+              'not depend on when the learner ran (the 0.1 s learn timer: a replay up to about '
+              'learn_swap_delay / 0.1 s times faster than real time gives the same output; '
+              'beyond, it is installed at the next message and counted as a late swap on '
+              '/diagnostics) [s].', 0.0, 86400.0),
     ParamSpec('motion_topic', '', 'Outside motion reports (e.g. cmd_vel or odom; QoS as '
               'input_reliability): from a report that says motion until the next report, '
               'samples are not still, for re-anchoring and the learner alike (a slow turn at a '

@@ -130,6 +130,10 @@ class LearnConfig:
     session_gap_s : float, s
         A gap in the IMU stamps longer than this starts a new session (a power-up: the
         gyro's turn-on offset changes; each session gets its own intercept in the fit).
+    swap_delay_s : float, s
+        An accepted candidate takes effect this long (by stamp) after the sample that let it
+        be computed (:meth:`Learner.take_swaps`), so its effective stamp is fixed by the
+        data, not by when :meth:`Learner.step` happens to run.
 
     """
 
@@ -142,6 +146,7 @@ class LearnConfig:
     commit_s: float = 300.0
     max_rate_hz: float = 100.0
     session_gap_s: float = 600.0
+    swap_delay_s: float = 5.0
 
 
 @dataclass
@@ -180,6 +185,9 @@ class Learner:
         self.temps: list[tuple[float, float]] = []
         #: Motion reports (stamp, moving), from the one held at the window in progress on.
         self.motion: list[tuple[float, bool]] = []
+        #: Candidates handed over too late (:meth:`take_swaps`): a count of this process, not
+        #: of the learned state (it depends on the step cadence, so it is not saved).
+        self.late_swaps = 0
         self.reset()
 
     # -- state -----------------------------------------------------------------------
@@ -206,7 +214,9 @@ class Learner:
         self._wend: float | None = None       # its end on the grid (stamp)
         self._stretch = _Stretch()
         self._done = 0
-        self._new_model: CompensationModel | None = None
+        #: Accepted candidates not handed over yet: (effective stamp or None: at once, model).
+        self._swaps: list[tuple[float | None, CompensationModel]] = []
+        self._trigger: float | None = None    # stamp of the sample that let a refit run
 
     def state(self) -> dict[str, Any]:
         """Return the persistent state as plain types (what :meth:`save` writes)."""
@@ -273,7 +283,7 @@ class Learner:
             return
         if self.fit is not None:
             self.model = model_of(self.fit, self.thermal)
-            self._new_model = self.model
+            self._swaps = [(None, self.model)]
 
     def set_prior(self, model: CompensationModel | None) -> None:
         """
@@ -286,7 +296,7 @@ class Learner:
         thermal = None if model is None else model.thermal
         same = same_thermal(thermal, self.thermal)
         self.prior, self.thermal = model, thermal
-        self.fit, self.model, self._new_model = None, model, None
+        self.fit, self.model, self._swaps = None, model, []
         if not same:
             self._forget_points()
 
@@ -294,7 +304,7 @@ class Learner:
         """Drop what was binned at the old model temperature; restart the thermal state."""
         self.bins = {}
         self.recent = []
-        self.fit, self.model, self._new_model, self.check = None, self.prior, None, None
+        self.fit, self.model, self._swaps, self.check = None, self.prior, [], None
         self._stretch, self._done = _Stretch(), 0
         self._pending = self._wend = None
         self.thermal_state = None
@@ -352,9 +362,34 @@ class Learner:
             self.motion.append((t, bool(moving)))
 
     def take_model(self) -> CompensationModel | None:
-        """Return a model swapped in since the last call (once), else None."""
-        m, self._new_model = self._new_model, None
-        return m
+        """Return the newest model swapped in since the last call (once), else None."""
+        swaps, self._swaps = self._swaps, []
+        return swaps[-1][1] if swaps else None
+
+    def take_swaps(self, t_seen: float | None = None
+                   ) -> list[tuple[float | None, CompensationModel]]:
+        """
+        Return the models swapped in since the last call (once), oldest first.
+
+        Each comes with the stamp from which it takes effect: ``swap_delay_s`` after the
+        sample that let it be computed (the first sample after the window that ended or
+        extended the still stretch; for a new session its first sample), or None: at once
+        (resumed from a file). Installed at the first message stamped at or after it
+        (:meth:`gyro_tdc.compensation_logic.CompensatorCore.schedule`), the output does not
+        depend on when :meth:`step` ran, as long as it ran within ``swap_delay_s`` of stamps.
+
+        Parameters
+        ----------
+        t_seen : float, s, optional
+            The newest stamp the message path has compensated: a model whose stamp is not
+            after it comes late (the step ran too long after the data) and is counted in
+            ``late_swaps``.
+
+        """
+        swaps, self._swaps = self._swaps, []
+        if t_seen is not None:
+            self.late_swaps += sum(1 for due, _ in swaps if due is not None and due <= t_seen)
+        return swaps
 
     def save_due(self) -> bool:
         """Return whether ``save_period_s`` of stamp time passed since the last save."""
@@ -416,8 +451,9 @@ class Learner:
         """Process samples of one session: cut them into windows, judge the finished ones."""
         swapped = False
         if new_session:
-            # A new session (power-up): its own turn-on offset, learned apart.
-            swapped = self.flush()
+            # A new session (power-up): its own turn-on offset, learned apart; what it
+            # closes was computable at its first sample.
+            swapped = self.flush(float(t[0]))
             self.session += 1
             self.t_first = self._wend = None
             self.thermal_state = None     # after a power-off: steady state at the next reading
@@ -441,20 +477,32 @@ class Learner:
         if done == 0:
             return swapped
         return self._windows(t[:done], w[:done], None if acc is None else acc[:done],
-                             temp[:done], k[:done]) or swapped
+                             temp[:done], k[:done], float(t[done])) or swapped
 
-    def flush(self) -> bool:
-        """Judge the window in progress and end the stretch (at shutdown)."""
+    def flush(self, t_trigger: float | None = None) -> bool:
+        """
+        Judge the window in progress and end the stretch (at shutdown, or a new session).
+
+        ``t_trigger`` (s) is the stamp a candidate computed here counts from (default: the
+        last sample's).
+        """
         swapped = self.step(force=True)
+        trigger = self.last_t if t_trigger is None else t_trigger
         if self._pending is not None and self._pending[0].size:
             pt, pw, pa, ptemp = self._pending
             self._pending = self._wend = None
             k = np.zeros(pt.size, dtype=np.int64)
-            swapped = self._windows(pt, pw, pa, ptemp, k) or swapped
+            swapped = self._windows(pt, pw, pa, ptemp, k, trigger) or swapped
+        self._trigger = trigger
         return self._close() or swapped
 
-    def _windows(self, t, w, acc, temp, k) -> bool:
-        """Judge finished windows in order; close and learn the stretches they end."""
+    def _windows(self, t, w, acc, temp, k, t_next) -> bool:
+        """
+        Judge finished windows in order; close and learn the stretches they end.
+
+        ``t_next`` (s) is the stamp of the first sample after them: with it the last one
+        was known to be finished (the trigger of what it decides).
+        """
         start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
         n = np.diff(np.r_[start, k.size])
         s = np.add.reduceat(w, start, axis=0)
@@ -473,9 +521,13 @@ class Learner:
         t1 = t[np.r_[start[1:], k.size] - 1]
         fin = np.isfinite(std).all(axis=1) & np.isfinite(mean).all(axis=1) & (n >= 3)
         moving = self._moving(t0, t1)
+        # Window i is known finished at the first sample after it (data, not step timing).
+        trigger = np.r_[t[start[1:]], t_next].tolist() if t_next is not None else [
+            float(t[-1])] * start.size
         swapped = False
         for i in range(start.size):
             self.windows += 1
+            self._trigger = trigger[i]
             if fin[i]:
                 self.gyro_floor = np.minimum(self.gyro_floor, np.where(std[i] > 0, std[i],
                                                                        math.inf))
@@ -606,7 +658,9 @@ class Learner:
                       'swapped': old is None or new < old}
         if old is not None and not new < old:
             return False
-        self.fit, self.model, self._new_model = fit, cand, cand
+        trigger = t_now if self._trigger is None else max(self._trigger, t_now)
+        self._swaps.append((trigger + self.config.swap_delay_s, cand))
+        self.fit, self.model = fit, cand
         self.last_update_t = t_now
         self.swaps += 1
         return True
@@ -631,6 +685,7 @@ class Learner:
                                           else f'{s["last_update_t"]:.3f}'),
             'learn prediction check': s['check'] or 'none yet',
             'learn session': str(self.session),
+            'learn late swaps': str(self.late_swaps),
         }
 
     def summary(self) -> dict[str, Any]:

@@ -65,10 +65,7 @@ def stream(core, learner, d, off, *, poll=600, start=0, stop=None, on_poll=None)
         out[k] = (ox, oy, oz)
         ok[k] = not fl & PASSTHROUGH
         if k % poll == poll - 1:
-            learner.step()
-            model = learner.take_model()
-            if model is not None:
-                core.set_model(model)
+            core.learn_step()
             if on_poll is not None:
                 on_poll(start + k)
     return out, ok

@@ -194,11 +194,15 @@ def test_a_slow_constant_turn_reported_by_motion_topic_is_not_still(ros_context,
 
     The gyro reads a constant 0.005 rad/s (below still_max_rate) with tiny noise for 150 s,
     a textbook still stretch. While cmd_vel (or odometry) reports the turn, the node neither
-    re-anchors nor learns; the same data with zero motion reports does both.
+    re-anchors nor learns; the same data with zero motion reports does both. A learned model
+    takes effect ``learn_swap_delay`` (200 s) of stamps after the data that made it, so none
+    replaces the re-anchored prior during the 150 s stream, whenever the learn timer runs; a
+    sample stamped past that delay installs it.
     """
     rig = LearnRig(ros_context, learn=True, model_file=str(_zero_model(tmp_path / 'm.yaml')),
                    reanchor_on_start=True, reanchor_tolerance=3e-5, motion_topic='cmd_vel',
-                   motion_type=motion_type, input_reliability='reliable')
+                   motion_type=motion_type, input_reliability='reliable',
+                   learn_swap_delay=200.0)
     node, cls = rig.node, MOTION_MESSAGES[motion_type]
     turn = 0.005 if moving else 0.0
     n = int(150.0 * RATE)
@@ -215,10 +219,12 @@ def test_a_slow_constant_turn_reported_by_motion_topic_is_not_still(ros_context,
             rig.motion_pub.publish(_motion(cls, 0.0, 1.0, 1.0))
             spin_until(rig.executor, lambda: node.motion_ignored == 1, 10.0, what='ignored')
         w = (0.0, 0.0, 0.005) + 1e-5 * np.random.default_rng(7).standard_normal((n, 3))
-        rig.stream(1000.0, w, 20.0, report)
+        t = rig.stream(1000.0, w, 20.0, report)
         anchor = node.core.anchor         # a learned model swapped in below clears it
-        assert rig.call(rig.save).message.startswith('no learn_file')
-        node.learner.flush()
+        node.learner.flush()              # the stretch in progress too
+        assert rig.call(rig.save).message.startswith('no learn_file')   # steps, schedules
+        assert node.core.model_id == node.learner.prior.model_id        # not due yet
+        rig.stream(t + 250.0, w[:1], 20.0)   # a sample past the delay: a learned one is due
         v = _values(node)
         assert v['motion'] == ('moving' if moving else 'not moving')
         assert v['motion reports'] == str(int(n / RATE))

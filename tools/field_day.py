@@ -150,10 +150,7 @@ def feed(core: CompensatorCore, imu_t: NDArray[np.float64], gyro: NDArray[np.flo
         out[k] = (ox, oy, oz)
         ok[k] = not flags & PASSTHROUGH
         if learner is not None and k % POLL == POLL - 1:
-            learner.step()
-            model = learner.take_model()
-            if model is not None:
-                core.set_model(model)
+            core.learn_step()
             if on_poll is not None:
                 on_poll(k)
     return out, ok

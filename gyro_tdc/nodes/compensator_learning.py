@@ -17,15 +17,21 @@ The compensator's learning in the field (``learn: true``, :mod:`gyro_tdc.learnin
 
 :class:`Learning` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`.
 The IMU callback hands each raw sample to the learner through the core (float appends, at
-most 100 per second of stamps); a :data:`LEARN_STEP_S` timer runs its still test, refits
-and installs a learned model when it predicts the recent still time better; the learner's
+most 100 per second of stamps); a :data:`LEARN_STEP_S` timer runs its still test and
+refits (:meth:`~gyro_tdc.compensation_logic.CompensatorCore.learn_step`); a learned model
+that predicts the recent still time better is made ready there and installed by the IMU
+callback at the first message stamped ``learn_swap_delay`` after the sample that let it be
+computed, so the output does not depend on when the timer ran (in real time, and in a
+replay up to about ``learn_swap_delay / LEARN_STEP_S`` times faster; beyond, it is
+installed at the next message and counted as a late swap on /diagnostics); the learner's
 state is saved atomically to ``learn_file`` every ``learn_save_period`` of stamp time, on
 ``~/learn_save`` and at shutdown, and resumed at start; ``~/learn_reset`` forgets it (back
 to the ``model_file`` prior, or none). A ``model_file`` loaded while learning (parameter set
 or ``~/reload``) becomes the prior: the model a learned one must beat.
 
 The node provides ``core``, ``params`` (``learn_file``, ``learn_save_period``) and
-``model_file``; this mixin keeps ``learner`` (None unless ``learn``).
+``model_file`` (set to ``'learned'`` once a learned model is in use); this mixin keeps
+``learner`` (None unless ``learn``).
 """
 
 from __future__ import annotations
@@ -38,8 +44,9 @@ from std_srvs.srv import Trigger
 
 __all__ = ['LEARN_STEP_S', 'Learning']
 
-#: Period of the learner's timer (learn:=true), s: the IMU callback only appends.
-LEARN_STEP_S = 1.0
+#: Period of the learner's timer (learn:=true), s: the IMU callback only appends. Cheap when
+#: no window has ended (one compare); short so that a candidate is ready before its stamp.
+LEARN_STEP_S = 0.1
 
 
 class Learning:
@@ -51,8 +58,10 @@ class Learning:
         """Create the learner (the model in use is the prior), resume learn_file, services."""
         p = self.params
         self.learner = Learner(LearnConfig(temperature_timeout=policy.temperature_timeout,
-                                           save_period_s=p.learn_save_period),
+                                           save_period_s=p.learn_save_period,
+                                           swap_delay_s=p.learn_swap_delay),
                                prior=self.core.model)
+        self._learned_installs = 0
         if p.learn_file:
             try:
                 resumed = self.learner.load(p.learn_file)
@@ -83,12 +92,21 @@ class Learning:
         """
         if self.learner is not None:
             self.learner.set_prior(model)
+            self.core.cancel_scheduled()
 
     def _take_learned(self) -> None:
-        """Install a model the learner swapped in (on the thread that compensates)."""
+        """Install a model resumed from learn_file at once (on the thread that compensates)."""
         model = self.learner.take_model()
         if model is not None:
             self.core.set_model(model)
+            self.model_file = 'learned'
+
+    def _learn_step(self) -> None:
+        """Step the learner, schedule what it swapped in; note a learned model in use."""
+        core = self.core
+        core.learn_step()
+        if core.learned_installs != self._learned_installs:
+            self._learned_installs = core.learned_installs
             self.model_file = 'learned'
 
     def save_learning(self) -> str:
@@ -105,23 +123,22 @@ class Learning:
 
     def _on_learn(self) -> None:
         """Timer: learn from the samples gathered since the last tick, save when due."""
-        self.learner.step()
-        self._take_learned()
+        self._learn_step()
         if self.params.learn_file and self.learner.save_due():
             self.save_learning()
 
     def _on_learn_save(self, request: Trigger.Request, response: Trigger.Response
                        ) -> Trigger.Response:
-        self.learner.step()
-        self._take_learned()
+        self._learn_step()
         response.message = self.save_learning()
         response.success = response.message.startswith('saved')
         return response
 
     def _on_learn_reset(self, request: Trigger.Request, response: Trigger.Response
                         ) -> Trigger.Response:
-        self.learner.step()
+        self._learn_step()
         self.learner.reset()
+        self.core.cancel_scheduled()
         self.core.set_model(self.learner.prior)
         response.success = True
         response.message = ('learning reset: back to the prior'
