@@ -79,7 +79,24 @@ def _vec_or_null(a: NDArray[np.float64] | None) -> list | None:
     return None if a is None else _vec(a)
 
 
-def evaluation_json(bags: Sequence[BagEval]) -> dict:
+def _over(bs: NDArray[np.float64] | None, floor: Sequence[float] | None) -> dict:
+    """Return ``{'...over_floor': BS / floor}`` when a floor is given, else ``{}``."""
+    if floor is None:
+        return {}
+    return {'over_floor': None if bs is None else _vec(np.asarray(bs) / np.asarray(floor))}
+
+
+def _scores(m: Any, floor: Sequence[float] | None, accel_floor: Sequence[float] | None) -> dict:
+    """Return the ``bs`` and ``accel_bs`` keys of one entry, each with its ratio to a floor."""
+    out = {'bs': _vec(m.bs)}
+    out.update({f'bs_{k}': v for k, v in _over(m.bs, floor).items()})
+    out['accel_bs'] = _vec_or_null(m.accel_bs)
+    out.update({f'accel_bs_{k}': v for k, v in _over(m.accel_bs, accel_floor).items()})
+    return out
+
+
+def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = None,
+                    accel_floor: Sequence[float] | None = None) -> dict:
     """
     Return the evaluation in the documented JSON shape (docs/json.md), nothing more.
 
@@ -87,6 +104,12 @@ def evaluation_json(bags: Sequence[BagEval]) -> dict:
     ----------
     bags : sequence of BagEval
         Evaluated bags.
+    floor : sequence of 3 float, (deg/s)^2, optional
+        A known white-noise floor of the gyro per axis (``--floor``): adds ``bs_over_floor``
+        beside every ``bs`` and ``floor`` at the top.
+    accel_floor : sequence of 3 float, (m/s^2)^2, optional
+        Likewise for the accelerometer (``--accel-floor``): ``accel_bs_over_floor`` beside
+        every ``accel_bs`` (null where that is null) and ``accel_floor`` at the top.
 
     Returns
     -------
@@ -97,20 +120,20 @@ def evaluation_json(bags: Sequence[BagEval]) -> dict:
         and ADEV in deg/s, non-finite values as null; ``out_of_range`` the policy beyond the
         trained range, ``reanchor`` (``--reanchor auto`` only) ``{samples, duration_s,
         shift_dps, se_dps, tolerance_dps, reason}``; ``accel_bs`` beside ``bs`` in ``raw``
-        and each model: the accelerometer BS in (m/s^2)^2, null when not applicable.
+        and each model: the accelerometer BS in (m/s^2)^2, null when not applicable;
+        ``bs_over_floor``, ``accel_bs_over_floor``, ``floor`` and ``accel_floor`` only with
+        ``floor`` and ``accel_floor``.
 
     """
     doc = {'bags': [{
         'bag': b.bag,
         'samples': int(b.samples),
         'temperature_c': [_finite(b.temperature_c[0]), _finite(b.temperature_c[1])],
-        'raw': {'bs': _vec(b.raw.bs), 'accel_bs': _vec_or_null(b.raw.accel_bs),
-                'rms_dps': _vec(b.raw.rms_dps)},
+        'raw': {**_scores(b.raw, floor, accel_floor), 'rms_dps': _vec(b.raw.rms_dps)},
         'models': [{
             'model': m.model,
             'features': list(m.features),
-            'bs': _vec(m.bs),
-            'accel_bs': _vec_or_null(m.accel_bs),
+            **_scores(m, floor, accel_floor),
             'rms_dps': _vec(m.rms_dps),
             'p_vs_raw': _vec(m.p_vs_raw),
             'adev': {'tau_s': _vec(m.adev_tau_s),
@@ -119,13 +142,20 @@ def evaluation_json(bags: Sequence[BagEval]) -> dict:
         } for m in b.models],
     } for b in bags]}
     doc['out_of_range'] = bags[0].out_of_range if bags else DEFAULT_OUT_OF_RANGE
+    if floor is not None:
+        doc['floor'] = _vec(np.asarray(floor))
+    if accel_floor is not None:
+        doc['accel_floor'] = _vec(np.asarray(accel_floor))
     return doc
 
 
-def write_json(bags: Sequence[BagEval], path: str | os.PathLike) -> Path:
+def write_json(bags: Sequence[BagEval], path: str | os.PathLike, *,
+               floor: Sequence[float] | None = None,
+               accel_floor: Sequence[float] | None = None) -> Path:
     """Write :func:`evaluation_json` to ``path`` atomically (parents created); return it."""
-    return atomic_write(path, json.dumps(evaluation_json(bags), indent=1, allow_nan=False)
-                        + '\n', what='JSON file')
+    doc = evaluation_json(bags, floor=floor, accel_floor=accel_floor)
+    return atomic_write(path, json.dumps(doc, indent=1, allow_nan=False) + '\n',
+                        what='JSON file')
 
 
 # --------------------------------------------------------------------------------------------
@@ -145,7 +175,27 @@ _REFERENCE = {'topic': 'reference rate from the reference topic',
               'zero': 'reference rate zero (no reference topic)'}
 
 
-def format_summary(b: BagEval) -> str:
+def _floor_text(floor: Sequence[float]) -> str:
+    """Return a floor as ``0.009`` when the axes agree, else ``x, y, z``."""
+    f = [float(v) for v in floor]
+    return f'{f[0]:.4g}' if f[0] == f[1] == f[2] else ', '.join(f'{v:.4g}' for v in f)
+
+
+def _floor_head(floor: Sequence[float] | None, what: str = 'BS') -> str:
+    """Return the column headers of the ratio to a floor ('' without a floor)."""
+    return '' if floor is None else '  ' + ''.join(f'{what + "/fl " + a:>11}' for a in AXES)
+
+
+def _floor_cells(bs: NDArray[np.float64] | None, floor: Sequence[float] | None) -> str:
+    """Return the cells of BS / floor ('' without a floor, - where there is no BS)."""
+    if floor is None:
+        return ''
+    v = np.full(3, math.nan) if bs is None else np.asarray(bs) / np.asarray(floor)
+    return '  ' + ''.join(_g(x) for x in v)
+
+
+def format_summary(b: BagEval, *, floor: Sequence[float] | None = None,
+                   accel_floor: Sequence[float] | None = None) -> str:
     """
     Return the per-bag summary: BS, RMS and BS/BS1 per axis for raw data and every model.
 
@@ -153,6 +203,10 @@ def format_summary(b: BagEval) -> str:
     ----------
     b : BagEval
         One evaluated bag.
+    floor : sequence of 3 float, (deg/s)^2, optional
+        A known white-noise floor per axis: adds the columns BS / floor (``BS/fl``).
+    accel_floor : sequence of 3 float, (m/s^2)^2, optional
+        Likewise for the accelerometer rows (``aBS/fl``).
 
     Returns
     -------
@@ -167,32 +221,38 @@ def format_summary(b: BagEval) -> str:
     w = max([len(m.label) for m in b.models] + [12])
     head = (f'  {"":<{w}} ' + ''.join(f'{"BS " + a:>11}' for a in AXES) + '  '
             + ''.join(f'{"RMS " + a:>11}' for a in AXES) + '  '
-            + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES))
-    lines += ['  BS in (deg/s)^2 (paper eq. 30), RMS in deg/s, BS/BS1 against the raw data',
+            + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES) + _floor_head(floor))
+    lines += ['  BS in (deg/s)^2 (paper eq. 30), RMS in deg/s, BS/BS1 against the raw data'
+              + ('' if floor is None else
+                 f', BS/fl against the floor {_floor_text(floor)} (deg/s)^2 (--floor)'),
               head]
     for m in [b.raw] + list(b.models):
         lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in m.bs) + '  '
                      + ''.join(_g(v) for v in m.rms_dps) + '  '
-                     + ''.join(_g(v) for v in m.p_vs_raw))
+                     + ''.join(_g(v) for v in m.p_vs_raw) + _floor_cells(m.bs, floor))
     note = _outside_note(b)
     if note:
         lines.append(note)
-    lines += _accel_rows(b, w)
+    lines += _accel_rows(b, w, accel_floor)
     return '\n'.join(lines)
 
 
-def _accel_rows(b: BagEval, w: int) -> list:
+def _accel_rows(b: BagEval, w: int, accel_floor: Sequence[float] | None = None) -> list:
     """Return the accelerometer rows of a bag's summary (none when not applicable)."""
     if b.raw.accel_bs is None:
         return []
     lines = ['  accelerometer (still run): BS = variance around the run mean in (m/s^2)^2, '
-             'BS/BS1 against the raw data; - : no accelerometer part',
+             'BS/BS1 against the raw data'
+             + ('' if accel_floor is None else
+                f', aBS/fl against the floor {_floor_text(accel_floor)} (m/s^2)^2 '
+                '(--accel-floor)') + '; - : no accelerometer part',
              f'  {"":<{w}} ' + ''.join(f'{"aBS " + a:>11}' for a in AXES) + '  '
-             + ''.join(f'{"aBS/BS1 " + a:>11}' for a in AXES)]
+             + ''.join(f'{"aBS/BS1 " + a:>11}' for a in AXES) + _floor_head(accel_floor, 'aBS')]
     for m in [b.raw] + list(b.models):
         bs = np.full(3, math.nan) if m.accel_bs is None else np.asarray(m.accel_bs)
         lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in bs) + '  '
-                     + ''.join(_g(v) for v in bs / b.raw.accel_bs))
+                     + ''.join(_g(v) for v in bs / b.raw.accel_bs)
+                     + _floor_cells(m.accel_bs, accel_floor))
     return lines
 
 
@@ -261,7 +321,9 @@ def format_allan(b: BagEval) -> str:
     return '\n'.join(lines)
 
 
-def format_bag(b: BagEval, baseline: int | None = None) -> str:
+def format_bag(b: BagEval, baseline: int | None = None, *,
+               floor: Sequence[float] | None = None,
+               accel_floor: Sequence[float] | None = None) -> str:
     """
     Return every table of one bag: summary, paper tables against ``baseline``, Allan readouts.
 
@@ -272,6 +334,8 @@ def format_bag(b: BagEval, baseline: int | None = None) -> str:
     baseline : int, optional
         Index into ``b.models`` of the conventional model; one paper table (tables 3-7) is
         added per other model. None: no paper table.
+    floor, accel_floor : sequence of 3 float, optional
+        Known white-noise floors, (deg/s)^2 and (m/s^2)^2: see :func:`format_summary`.
 
     Returns
     -------
@@ -279,7 +343,7 @@ def format_bag(b: BagEval, baseline: int | None = None) -> str:
         Multi-line text (no trailing newline).
 
     """
-    parts = [format_summary(b)]
+    parts = [format_summary(b, floor=floor, accel_floor=accel_floor)]
     if baseline is not None:
         parts += [format_paper_table(b, baseline, i) for i in range(len(b.models))
                   if i != baseline]
@@ -287,7 +351,7 @@ def format_bag(b: BagEval, baseline: int | None = None) -> str:
     return '\n'.join(parts)
 
 
-def format_means(results: Sequence[BagEval]) -> str:
+def format_means(results: Sequence[BagEval], *, floor: Sequence[float] | None = None) -> str:
     """
     Return the mean BS and BS/BS1 per model and axis over several bags.
 
@@ -295,6 +359,8 @@ def format_means(results: Sequence[BagEval]) -> str:
     ----------
     results : sequence of BagEval
         Evaluated bags (the same models in each).
+    floor : sequence of 3 float, (deg/s)^2, optional
+        A known white-noise floor per axis: adds the mean BS / floor (``BS/fl``).
 
     Returns
     -------
@@ -304,12 +370,13 @@ def format_means(results: Sequence[BagEval]) -> str:
     """
     rows = mean_scores(results)
     w = max([len(label) for label, _, _ in rows[1:]] + [12])
-    lines = [f'mean over {len(results)} bags: BS in (deg/s)^2 and BS/BS1',
+    lines = [f'mean over {len(results)} bags: BS in (deg/s)^2 and BS/BS1'
+             + ('' if floor is None else f', BS/fl against the floor {_floor_text(floor)}'),
              f'  {"":<{w}} ' + ''.join(f'{"BS " + a:>11}' for a in AXES) + '  '
-             + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES)]
+             + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES) + _floor_head(floor)]
     for label, bs, p in rows:
         lines.append(f'  {label:<{w}} ' + ''.join(_g(v) for v in bs) + '  '
-                     + ''.join(_g(v) for v in p))
+                     + ''.join(_g(v) for v in p) + _floor_cells(bs, floor))
     return '\n'.join(lines)
 
 

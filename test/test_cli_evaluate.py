@@ -207,6 +207,44 @@ def test_held_out_paper_run_within_noise_floor(tmp_path, capsys):
     assert np.all(bs < 1.2 * floor), (bs, floor)
 
 
+def test_floor_prints_and_writes_bs_over_floor(bags, tmp_path, capsys):
+    # A known white-noise floor (one value: every axis) adds BS / floor per model.
+    out = tmp_path / 'floor.json'
+    assert main([bags['test'], '--model', bags['conv'], '--model', bags['mod'], '--floor',
+                 '0.0025', '--json', out, '--no-progress']) == 0
+    text = capsys.readouterr().out
+    doc = json.loads(out.read_text())
+    assert doc['floor'] == [0.0025] * 3 and 'accel_floor' not in doc
+    rows = {}      # the first row of each label: the summary (the Allan table follows)
+    for line in text.splitlines():
+        if line.startswith(('  raw ', '  conv ', '  mod ')):
+            rows.setdefault(line.split()[0], line.split())
+    assert 'BS/fl against the floor 0.0025 (deg/s)^2 (--floor)' in text
+    for entry, label in [(doc['bags'][0]['raw'], 'raw')] + [
+            (m, lb) for m, lb in zip(doc['bags'][0]['models'], ('conv', 'mod'))]:
+        assert np.allclose(entry['bs_over_floor'], np.array(entry['bs']) / 0.0025)
+        # The console prints the same ratios (4 significant digits), last three columns.
+        assert np.allclose([float(v) for v in rows[label][-3:]], entry['bs_over_floor'],
+                           rtol=1e-3)
+    # Three values, one per axis; --accel-floor on a bag without accelerometer: null ratios.
+    assert main([bags['test'], '--model', bags['mod'], '--floor', '0.001, 0.002,0.004',
+                 '--accel-floor', '2.25e-5', '--json', out, '--no-progress']) == 0
+    capsys.readouterr()
+    doc = json.loads(out.read_text())
+    assert doc['floor'] == [0.001, 0.002, 0.004] and doc['accel_floor'] == [2.25e-5] * 3
+    m = doc['bags'][0]['models'][0]
+    assert np.allclose(m['bs_over_floor'], np.array(m['bs']) / [0.001, 0.002, 0.004])
+    assert m['accel_bs'] is None and m['accel_bs_over_floor'] is None
+
+
+@pytest.mark.parametrize('option', ['--floor', '--accel-floor'])
+@pytest.mark.parametrize('value', ['0', '-0.009', '1,2', '1,2,3,4', 'abc', 'nan', 'inf',
+                                   '0.009,0,0.009'])
+def test_bad_floor_is_one_line_exit_2(bags, capsys, option, value):
+    assert_bad_input(capsys, [bags['test'], '--model', bags['mod'], option, value],
+                     option, 'expected one number > 0 or three x,y,z', entry=main)
+
+
 # --------------------------------------------------------------------------------------------
 # Bad input
 # --------------------------------------------------------------------------------------------

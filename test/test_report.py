@@ -105,6 +105,39 @@ def test_json_shape_and_nulls(bag, tmp_path):
     assert json.loads(path.read_text()) == doc
 
 
+def test_floor_columns_and_json_keys(bag, tmp_path):
+    # A known white-noise floor per axis: every BS also as a multiple of it.
+    bag.raw.accel_bs = np.array([4e-4, 8e-4, 2e-4])
+    bag.models[0].accel_bs = np.array([2e-5, 4e-5, 1e-5])
+    lines = format_summary(bag, floor=(0.5, 0.5, 0.5), accel_floor=(1e-5, 2e-5, 1e-5))
+    lines = lines.splitlines()
+    assert lines[1].endswith(', BS/fl against the floor 0.5 (deg/s)^2 (--floor)')
+    assert lines[2].split()[-6:] == ['BS/fl', 'x', 'BS/fl', 'y', 'BS/fl', 'z']
+    assert lines[3].split()[-3:] == ['200', '200', '200']
+    assert lines[4].split()[-3:] == ['8', '4', '2']      # conv BS 4, 2, 1 over 0.5
+    assert 'aBS/fl against the floor 1e-05, 2e-05, 1e-05 (m/s^2)^2' in lines[7]
+    assert lines[8].split()[-6:] == ['aBS/fl', 'x', 'aBS/fl', 'y', 'aBS/fl', 'z']
+    assert lines[9].split()[-3:] == ['40', '40', '20']
+    assert lines[10].split()[-3:] == ['2', '2', '1']
+    assert lines[11].split()[-3:] == ['-', '-', '-']     # no accelerometer part
+    assert 'BS/fl' not in format_summary(bag)
+    means = format_means([bag, bag], floor=(2.0, 2.0, 4.0)).splitlines()
+    assert means[0].endswith(', BS/fl against the floor 2, 2, 4')
+    assert means[3].split() == ['conv', '4', '2', '1', '0.04', '0.02', '0.01', '2', '1', '0.25']
+    doc = evaluation_json([bag], floor=(0.5, 0.5, 0.5), accel_floor=(1e-5, 2e-5, 1e-5))
+    assert list(doc) == ['bags', 'out_of_range', 'floor', 'accel_floor']
+    assert doc['floor'] == [0.5] * 3 and doc['accel_floor'] == [1e-5, 2e-5, 1e-5]
+    raw, conv, mod = doc['bags'][0]['raw'], *doc['bags'][0]['models']
+    assert list(raw) == ['bs', 'bs_over_floor', 'accel_bs', 'accel_bs_over_floor', 'rms_dps']
+    assert raw['bs_over_floor'] == [200.0] * 3
+    assert raw['accel_bs_over_floor'] == pytest.approx([40.0, 40.0, 20.0])
+    assert conv['bs_over_floor'] == [8.0, 4.0, 2.0]
+    assert conv['accel_bs_over_floor'] == pytest.approx([2.0, 2.0, 1.0])
+    assert mod['accel_bs'] is None and mod['accel_bs_over_floor'] is None
+    path = write_json([bag], tmp_path / 'f.json', floor=(0.5, 0.5, 0.5))
+    assert 'accel_floor' not in json.loads(path.read_text())
+
+
 def test_csv_holds_every_sample(bag, tmp_path):
     path = write_csv(bag, tmp_path / 'csv', chunk=7)
     assert path == tmp_path / 'csv' / 'run3.csv'

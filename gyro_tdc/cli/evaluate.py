@@ -22,7 +22,9 @@ printed: ``BS1 BS2 BS3 P1 P2 P3`` with P1 = BS2/BS1, P2 = BS3/BS1 and P3 = BS3/B
 baseline (first model) as the conventional one. ``--model px4 --train BAG...`` adds a
 PX4-style cubic in T fitted on the training bags. Outputs: ``--json`` (the shape in
 docs/json.md), ``--plots DIR`` (PNGs per bag, titled with the models and whether re-anchoring
-was applied), ``--export DIR`` (a CSV per bag). A progress bar over the bags shows on a
+was applied), ``--export DIR`` (a CSV per bag). ``--floor`` (and ``--accel-floor``) give a
+known white-noise floor per axis; every BS is then also shown as a multiple of it (``BS/fl``
+columns, ``bs_over_floor`` in the JSON). A progress bar over the bags shows on a
 terminal (stderr; ``--no-progress`` turns it and the bag-reading bar off).
 
 Beyond a model's trained range the ``--out-of-range`` policy applies (``linear`` by default,
@@ -36,6 +38,7 @@ The scoring is :mod:`gyro_tdc.evaluation`, the tables and files :mod:`gyro_tdc.r
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from typing import Optional, Sequence
 
@@ -80,6 +83,14 @@ def build_parser() -> argparse.ArgumentParser:
                         f'along its tangent at the range end, held beyond '
                         f'{MAX_EXTRAPOLATION_C:g} degC, as the compensator node by default), '
                         'clamp, or extrapolate (default: %(default)s)')
+    p.add_argument('--floor', type=_floor, default=None, metavar='X,Y,Z|V',
+                   help='a known white-noise floor of the gyro per axis in (deg/s)^2 (one '
+                        'value: all axes), e.g. ARW^2 x rate from the simulator or a '
+                        'datasheet: adds BS / floor per model (BS/fl; bs_over_floor in --json)')
+    p.add_argument('--accel-floor', dest='accel_floor', type=_floor, default=None,
+                   metavar='X,Y,Z|V',
+                   help='likewise for the accelerometer, in (m/s^2)^2 (aBS/fl; '
+                        'accel_bs_over_floor in --json)')
     p.add_argument('--json', metavar='OUT', default=None,
                    help='write the scores as JSON (shape: docs/json.md)')
     p.add_argument('--plots', metavar='DIR', default=None, help='write PNGs per bag here')
@@ -95,6 +106,19 @@ def _reanchor(text: str) -> float | str:
     if text.strip().lower() == AUTO_REANCHOR:
         return AUTO_REANCHOR
     return non_negative_float(text)
+
+
+def _floor(text: str) -> tuple[float, float, float]:
+    """Parse ``--floor``: one number > 0 for every axis, or three x,y,z (argparse type)."""
+    parts = [q.strip() for q in str(text).split(',')]
+    try:
+        values = [float(q) for q in parts]
+    except ValueError:
+        values = []
+    if len(values) not in (1, 3) or not all(math.isfinite(v) and v > 0 for v in values):
+        raise argparse.ArgumentTypeError(
+            f'expected one number > 0 or three x,y,z (a variance per axis), got {text!r}')
+    return tuple(values * 3) if len(values) == 1 else tuple(values)
 
 
 _POLICY_WORDS = {
@@ -132,7 +156,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                     for nm in models]
 
     def each(b: BagEval) -> None:
-        bar.write(format_bag(b, baseline))
+        bar.write(format_bag(b, baseline, floor=args.floor, accel_floor=args.accel_floor))
         if args.plots is not None:
             bar.stage(f'{b.label}: plots')
             for f in write_plots(b, args.plots, descriptions=descriptions, options=options,
@@ -163,9 +187,10 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     finally:
         bar.close()
     if args.json is not None:
-        print(f'wrote {write_json(results, args.json)}')
+        path = write_json(results, args.json, floor=args.floor, accel_floor=args.accel_floor)
+        print(f'wrote {path}')
     if len(results) > 1:
-        print(format_means(results))
+        print(format_means(results, floor=args.floor))
     return 0
 
 
