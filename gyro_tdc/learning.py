@@ -391,6 +391,10 @@ class Learner:
             self.late_swaps += sum(1 for due, _ in swaps if due is not None and due <= t_seen)
         return swaps
 
+    def caught_up(self) -> bool:
+        """Return whether :meth:`step` has nothing to judge until the next sample arrives."""
+        return not self.bt or (self._wend is not None and self.bt[-1] < self._wend)
+
     def save_due(self) -> bool:
         """Return whether ``save_period_s`` of stamp time passed since the last save."""
         if self.last_t is None:

@@ -17,14 +17,16 @@ Issue 14 "Done when", through a real compensator_node: learn on the vehicle, the
 
 A vehicle day 1 then day 2 (config/scenarios/vehicle_day*.yaml at a reduced 2 Hz, so the two
 compressed 6 h days are 86,400 messages) stream through a real CompensatorNode with
-``learn: true`` and no model: a feeder publishes pre-serialised Imu and Temperature (reliable,
-the node's ``input_reliability: reliable``) with flow control: 240 messages (2 min of
-stamps) at a time, then it waits for every output from a draining subscriber and calls
-``~/learn_save`` (it steps the learner, installs a swapped model and writes ``learn_file``),
-so the learner is stepped at the same stamps in every run, as test_learning's core-level
-stream polls it. Judged against the simulator's
-true rate with test_learning's figures: day 2 within 1.3x the noise floor per axis; a node
-destroyed in the middle of day 2 and restarted from ``learn_file`` gives the same result.
+``learn: true``, no model and ``learn_swap_delay`` 240 s: a feeder publishes pre-serialised
+Imu and Temperature (reliable, the node's ``input_reliability: reliable``) with flow control:
+400 messages (200 s of stamps) at a time, then it waits for every output from a draining
+subscriber and for the node's own learn timer to have caught up with them. Each learned
+model takes effect 240 s of stamps after the data that made it, always after the learner
+has made it ready (asserted: no late swap), so the output does not depend on when the
+timer ran (test_learning_cadence shows it bit for bit at the core). Judged against the
+simulator's true rate with test_learning's figures: day 2 within 1.3x the noise floor per
+axis; a node destroyed in the middle of day 2 and restarted from ``learn_file`` gives the
+same result.
 """
 
 from __future__ import annotations
@@ -47,7 +49,10 @@ from std_srvs.srv import Trigger
 from test_learning import _offset, _ratio, BOUND
 
 RATE_HZ = 2.0        # Hz: the learner's 10 s windows still hold 20 samples
-STEP = 240           # messages between learner steps (~/learn_save): 2 min of stamps
+# Messages per flow-control chunk (200 s of stamps): its 200 temperatures stay within the
+# core's TemperatureHold (256) when the executor takes them before the chunk's IMU messages.
+STEP = 400
+SWAP_DELAY_S = 240.0  # learn_swap_delay: longer than a chunk, so no swap comes late
 FRAME = 'imu_link'
 
 
@@ -98,8 +103,10 @@ class Live:
         """Start a compensator (learn:=true, no model) resuming ``learn_file``."""
         self.node = CompensatorNode(context=self.context, parameter_overrides=[
             Parameter('learn', value=True), Parameter('learn_file', value=self.learn_file),
-            Parameter('input_reliability', value='reliable')])
+            Parameter('input_reliability', value='reliable'),
+            Parameter('learn_swap_delay', value=SWAP_DELAY_S)])
         self.executor.add_node(self.node)
+        # The service's discovery too: the new node's readers have matched by then.
         self.save = self.io.create_client(Trigger, 'compensator_node/learn_save')
         self.spin_until(lambda: self.imu_pub.get_subscription_count() > 0
                         and self.temp_pub.get_subscription_count() > 0
@@ -113,27 +120,30 @@ class Live:
         self.node.destroy_node()
         self.node = None
         self.io.destroy_client(self.save)
+        self.spin_until(lambda: self.imu_pub.get_subscription_count() == 0
+                        and self.temp_pub.get_subscription_count() == 0, 'unmatched')
 
     def spin_until(self, predicate, what, timeout_s=30.0):
         spin_until(self.executor, predicate, timeout_s, what=what)
-
-    def learn_save(self):
-        """Call ``~/learn_save``: step the learner, install a swapped model, write the file."""
-        future = self.save.call_async(Trigger.Request())
-        self.spin_until(future.done, 'learn_save answered')
-        assert future.result().success, future.result().message
 
     def stream(self, msgs, start=0, stop=None):
         """
         Publish ``msgs[start:stop]`` of a day in stamp order; one output for each input.
 
-        Flow control: STEP messages at a time, then every output is awaited and the learner
-        stepped (``~/learn_save``), so it is stepped at the same stamps in every run.
+        Flow control: STEP messages at a time, then every output is awaited and the node's
+        learn timer has caught up with them (a candidate is then ready before its stamp).
         """
         imu, temps, imu_t, temp_t = msgs
         stop = len(imu) if stop is None else stop
         first = len(self.out)
         j = max(int(np.searchsorted(temp_t, imu_t[start], side='right')) - 1, 0)
+        if temp_t[j] <= imu_t[start]:
+            # The reading held at the first sample, received before it: the executor may
+            # take a burst's IMU messages before its temperatures (later ones are held).
+            self.temp_pub.publish(temps[j])
+            j += 1
+            latest = self.node.core.temps.latest
+            self.spin_until(lambda: latest != self.node.core.temps.latest, 'temperature')
         for lo in range(start, stop, STEP):
             hi = min(lo + STEP, stop)
             for k in range(lo, hi):
@@ -142,8 +152,9 @@ class Live:
                     j += 1
                 self.imu_pub.publish(imu[k])
             self.spin_until(lambda: len(self.out) >= first + hi - start, 'outputs')
-            self.learn_save()
+            self.spin_until(self.node.learner.caught_up, 'learn timer')
         assert len(self.out) == first + stop - start          # one out for every one in
+        assert self.node.learner.diagnostic_values()['learn late swaps'] == '0'
         return self.out[first:]
 
     def close(self):
