@@ -19,11 +19,23 @@ The same scenarios, calibrations and seeds as the test (imported from it): each 
 is scaled so that what the datasheet base (bias, dT) cannot absorb has an RMS of ``k`` times
 the per-sample noise standard deviation, written to a bag and read back; the table gives what
 discovery named (aliases in brackets), the gap before and after in its own noise floors, in
-sample for ``k = 0.25`` and ``k = 1`` and held out for ``k = 1``::
+sample for ``k = 0.25`` and ``k = 1`` and held out for ``k = 1``; the last row is the null
+cases of the test (no hidden effect: three seeds, and three sessions with offsets and a
+non-thermal bump), where discovery must name nothing::
 
-    .venv/bin/python bench/bench_discover_hidden.py      # ~30 s
+    .venv/bin/python bench/bench_discover_hidden.py      # ~10 s
+
+``--sweep`` runs, instead of the table, the seed sweep outside the suite at 2 Hz: every
+effect at ``k = 0.25`` on new seeds (found: :func:`test_discover.check_found` holds), the
+test's null scenarios on new seeds (at 2 Hz its first two are the same scenario) and the
+multi-session null (offsets and a bump) on new seeds (named nothing), and prints the counts;
+``--seeds E,N,S`` sets the seeds per effect, per null scenario and of the multi-session null
+(default 8,20,10: 40, 60 and 10 runs)::
+
+    .venv/bin/python bench/bench_discover_hidden.py --sweep
 """
 
+import argparse
 import os
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
@@ -42,14 +54,24 @@ LABELS = {'dT2': 'ΔT²', 'lag': 'thermometer-to-die lag, heat + cool',
           'warmup': 'warm-up after power-on'}
 
 
-def _run(sc: dict, seed: int, folder: Path):
+def _run(sc: dict, seed: int, folder: Path, excursion_dps: float = 0.0):
     """Write the runs of ``sc`` as bags and run discovery on them."""
     from test_discover import write_runs
 
     from gyro_tdc.dataset import load_runs
     from gyro_tdc.discover import discover
 
-    return discover(load_runs(write_runs(folder, sc, seed)), allan=False)
+    folder.mkdir(parents=True, exist_ok=True)
+    return discover(load_runs(write_runs(folder, sc, seed, excursion_dps=excursion_dps)),
+                    allan=False)
+
+
+def _session_null(seed: int, folder: Path):
+    """Run the test's multi-session null: 3 sessions with offsets and a non-thermal bump."""
+    from test_discover import scenario
+
+    sc = scenario(['bias', 'dT'], rate_hz=2.0, runs=3, offset_dps=0.05)
+    return _run(sc, seed, folder, excursion_dps=0.03)
 
 
 def _named(res) -> str:
@@ -70,9 +92,87 @@ def _gap(res, held: bool = False) -> str:
     return f'{before / res.noise_floor_dps:.2f} → {after / res.noise_floor_dps:.2f}'
 
 
-def main() -> int:
-    """Run the cases and print the table."""
+def _null_row(tmp: Path) -> str:
+    """Return the table row of the test's null cases (test_null_* of test_discover.py)."""
+    from test_discover import NULLS, scenario
+
+    res = [_run(scenario(['bias', 'dT'], **opts), seed, tmp / f'null{seed}')
+           for _name, seed, opts in NULLS]
+    res.append(_session_null(31, tmp / 'sessions'))
+    named = sorted({_named(r) for r in res})
+    gaps = ', '.join(_gap(r) for r in res[:-1]) + f'; {_gap(res[-1])}'
+    return (f'| nothing ({len(NULLS)} seeds; 3 sessions with offsets and a non-thermal bump) '
+            f'| {" / ".join(named)} (gap / floor {gaps}) | | | |')
+
+
+def sweep(effect_seeds: int, null_seeds: int, session_seeds: int) -> int:
+    """Run the seed sweep at 2 Hz and print how many runs found the effect / named nothing."""
+    from test_discover import calibrate, CASES, check_found, NULLS, scenario
+
+    quarter = {next(iter(h)): (k, opts) for name, h, k, _s, opts in CASES
+               if name.endswith('-quarter')}
+    found, total, missed = 0, 0, []
+    nulls, null_total, named = 0, 0, []
+    with tempfile.TemporaryDirectory() as tmp:
+        for effect, (k, opts) in quarter.items():
+            for j in range(effect_seeds):
+                seed = 1000 + j
+                sc = calibrate(scenario(['bias', 'dT', effect], **dict(opts, rate_hz=2.0)),
+                               effect, k, seed)
+                res = _run(sc, seed, Path(tmp) / f'{effect}{seed}')
+                try:
+                    check_found(res, {effect})
+                    found += 1
+                except AssertionError:
+                    missed.append(f'{effect} seed {seed}: {_named(res)}')
+                total += 1
+        for i, (name, _seed, opts) in enumerate(NULLS):
+            for j in range(null_seeds):
+                seed = 2000 + 100 * i + j
+                res = _run(scenario(['bias', 'dT'], **dict(opts, rate_hz=2.0)), seed,
+                           Path(tmp) / f'null{seed}')
+                nulls += not res.steps
+                null_total += 1
+                if res.steps:
+                    named.append(f'{name} seed {seed}: {_named(res)}')
+        sessions = 0
+        for j in range(session_seeds):
+            seed = 3000 + j
+            res = _session_null(seed, Path(tmp) / f'sessions{seed}')
+            sessions += not res.steps
+            if res.steps:
+                named.append(f'3 sessions seed {seed}: {_named(res)}')
+    for line in missed + named:
+        print(f'  {line}')
+    print(f'seed sweep (2 Hz, k = 0.25): {found}/{total} effects found, '
+          f'{nulls}/{null_total} null runs named nothing, {sessions}/{session_seeds} '
+          'multi-session nulls with offsets and a bump named nothing')
+    return 0
+
+
+def _seeds(text: str) -> tuple:
+    """Parse ``--seeds E,N,S`` (argparse type): three integers >= 1."""
+    try:
+        v = tuple(int(q) for q in text.split(','))
+    except ValueError:
+        v = ()
+    if len(v) != 3 or min(v) < 1:
+        raise argparse.ArgumentTypeError(f'expected three integers >= 1, got {text!r}')
+    return v
+
+
+def main(argv=None) -> int:
+    """Run the cases and print the table (or, with ``--sweep``, the seed sweep)."""
     from test_discover import calibrate, CASES, scenario
+
+    p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0].strip())
+    p.add_argument('--sweep', action='store_true', help='run the seed sweep instead')
+    p.add_argument('--seeds', type=_seeds, default=(8, 20, 10), metavar='E,N,S',
+                   help='seeds per effect, per null scenario, of the multi-session null '
+                        '(default 8,20,10)')
+    args = p.parse_args(argv)
+    if args.sweep:
+        return sweep(*args.seeds)
 
     print('| hidden | named (aliases) | gap / floor, k = 0.25 | k = 1 | held out, k = 1 |')
     print('|---|---|---|---|---|')
@@ -82,7 +182,6 @@ def main() -> int:
             (effect,) = hidden
             sc = calibrate(scenario(['bias', 'dT', effect], **opts), effect, k, seed)
             folder = Path(tmp) / f'case{i}'
-            folder.mkdir()
             found[name] = _run(sc, seed, folder)
         for effect, label in LABELS.items():
             q, one = found[f'{effect}-quarter'], found[f'{effect}-one']
@@ -96,11 +195,11 @@ def main() -> int:
         sc['gyro']['effects'] = ['bias', 'dT', 'dT2', 'lag']
         sc = calibrate(sc, 'dT2', 0.5, 11)
         folder = Path(tmp) / 'two'
-        folder.mkdir()
         res = _run(sc, 11, folder)
         tau = res.thermal.tau_s[0] if res.thermal is not None else float('nan')
         print(f'| ΔT² and lag, k = 0.5 each (die tau 150 s) | {_named(res)} (tau {tau:.0f} s) | '
-              f'{_gap(res)} | | {_gap(res, True)} |')
+              f'{_gap(res)} | | {_gap(res, True)} |', flush=True)
+        print(_null_row(Path(tmp)))
     return 0
 
 
