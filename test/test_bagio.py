@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import ast
+import io
 from pathlib import Path
 
 from gyro_tdc import bagio
@@ -159,6 +160,35 @@ def test_fast_decoder_refuses_mixed_layouts():
         for i, raw in enumerate(raws):
             row = np.asarray(_fields(IMU_TYPE, TS.deserialize_cdr(raw, IMU_TYPE))[3])
             np.testing.assert_array_equal(dec.values[i], row[list(codec.KEEP[IMU_TYPE])])
+
+
+def _same_decoded(a, b):
+    assert (a.frame_id, a.fallback) == (b.frame_id, b.fallback)
+    for x, y in ((a.sec, b.sec), (a.nanosec, b.nanosec), (a.values, b.values)):
+        np.testing.assert_array_equal(x, y)
+    assert (a.undecodable is None) == (b.undecodable is None)
+
+
+def test_decode_joined_equals_decode_on_one_reused_buffer():
+    # The reader's path: messages written end to end into one BytesIO reused from block to
+    # block (a longer block first, so stale bytes follow the shorter one), decoded from a
+    # view of it: the same result as decode() on the list, fast path and fallback alike.
+    rng = np.random.default_rng(5)
+    uniform = [bytes(TS.serialize_cdr(_imu(rng, sec=i + 1, nsec=7 * i), IMU_TYPE))
+               for i in range(9)]
+    mixed = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('a', 'bcd')]
+    trailing = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE)) + b'\0\0' for _ in range(2)]
+    scratch = io.BytesIO()
+    for raws in (uniform + uniform, uniform, mixed, trailing):
+        scratch.seek(0)
+        lengths = [scratch.write(raw) for raw in raws]
+        view = scratch.getbuffer()
+        dec = codec.decode_joined(view, lengths, IMU_TYPE, TS)
+        del view
+        _same_decoded(dec, codec.decode(raws, IMU_TYPE, TS))
+        assert dec.fallback == (0 if raws[0] is uniform[0] else len(raws))
+    scratch.seek(0)
+    scratch.write(b'')            # nothing returned still holds the buffer
 
 
 # ------------------------------------------------------------------------------------------

@@ -28,7 +28,7 @@ layout does not hold.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence
 
 from gyro_tdc import imu_cdr
 from gyro_tdc.errors import DatasetError
@@ -39,8 +39,8 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import get_typestore, Stores
 
 __all__ = ['Decoded', 'IMU_TYPE', 'KEEP', 'N_DOUBLES', 'REFERENCE_TYPE', 'TEMPERATURE_TYPE',
-           'decode', 'decode_fast', 'decode_slow', 'encode_checked', 'from_msg', 'jazzy',
-           'to_msg']
+           'decode', 'decode_fast', 'decode_joined', 'decode_slow', 'encode_checked',
+           'from_msg', 'jazzy', 'to_msg']
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'
 TEMPERATURE_TYPE = 'sensor_msgs/msg/Temperature'
@@ -171,7 +171,13 @@ def decode_fast(raws: Sequence[bytes], msgtype: str,
     lengths = np.fromiter(map(len, raws), dtype=np.int64, count=n)
     if np.any(lengths != dt.itemsize):
         return None
-    buf = b''.join(raws)
+    return _decode_records(b''.join(raws), n, dt, raws.__getitem__, msgtype, keep)
+
+
+def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype,
+                    message: Callable[[int], bytes], msgtype: str,
+                    keep: Sequence[int] | None) -> Decoded | None:
+    """Decode ``n`` messages of layout ``dt`` stored end to end in ``buf`` (see decode_fast)."""
     rec = np.frombuffer(buf, dtype=dt)
     # Encapsulation (word 0) and frame id length equal to the first message's, as raw
     # 32-bit words (itemsize is always a multiple of 4); then the frame id bytes.
@@ -190,7 +196,7 @@ def decode_fast(raws: Sequence[bytes], msgtype: str,
     ts = jazzy()
     for i in sorted({0, n // 2, n - 1}):
         try:
-            sec, nsec, fid, row = from_msg(msgtype, ts.deserialize_cdr(raws[i], msgtype))
+            sec, nsec, fid, row = from_msg(msgtype, ts.deserialize_cdr(message(i), msgtype))
         except (SerdeError, AttributeError, DatasetError):
             return None
         if (sec != rec['sec'][i] or nsec != rec['nanosec'][i] or fid != frame_id
@@ -201,6 +207,53 @@ def decode_fast(raws: Sequence[bytes], msgtype: str,
     values = data[:, cols].astype(np.float64, copy=False)
     return Decoded(rec['sec'].astype(np.int64), rec['nanosec'].astype(np.int64), frame_id,
                    values, 0)
+
+
+def decode_joined(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
+                  typestore: Any, keep: Sequence[int] | None = None) -> Decoded:
+    """
+    Decode a block of messages already stored end to end, as :func:`decode` does.
+
+    The reader writes each message into one reused buffer as it arrives (while its bytes
+    are still in the CPU cache), which costs less than collecting the messages and joining
+    them afterwards; this decodes that buffer with the same checks and the same fallback.
+
+    Parameters
+    ----------
+    buf : bytes or memoryview
+        The messages end to end (at least ``sum(lengths)`` bytes; nothing returned refers
+        to it).
+    lengths : sequence of int
+        The length of every message, in order.
+    msgtype : str
+        The message type.
+    typestore : Any
+        rosbags typestore of the fallback.
+    keep : sequence of int, optional
+        Columns of the float64 block to return (default ``KEEP[msgtype]``).
+
+    Returns
+    -------
+    Decoded
+        The decoded block (``fallback`` counts the messages decoded by rosbags).
+
+    """
+    n = len(lengths)
+    sizes = np.fromiter(lengths, dtype=np.int64, count=n)
+    size = int(sizes[0]) if n else 0
+    if n and not np.any(sizes != size):
+        try:
+            dt = layout_of(bytes(buf[:size]), N_DOUBLES[msgtype]).dtype
+        except DatasetError:
+            dt = None
+        if dt is not None and dt.itemsize == size:
+            dec = _decode_records(buf[:n * size], n, dt,
+                                  lambda i: bytes(buf[i * size:(i + 1) * size]), msgtype, keep)
+            if dec is not None:
+                return dec
+    ends = np.cumsum(sizes).tolist()
+    raws = [bytes(buf[a:b]) for a, b in zip([0] + ends[:-1], ends)]
+    return decode_slow(raws, msgtype, typestore, keep)
 
 
 def decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any,
