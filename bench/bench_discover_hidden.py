@@ -197,7 +197,7 @@ def main(argv=None) -> int:
         folder = Path(tmp) / 'two'
         res = _run(sc, 11, folder)
         tau = res.thermal.tau_s[0] if res.thermal is not None else float('nan')
-        print(f'| ΔT² and lag, k = 0.5 each (die tau 150 s) | {_named(res)} (tau {tau:.0f} s) | '
+        print(f'| ΔT² and lag, k = 0.5 each (die τ 150 s) | {_named(res)}; τ = {tau:.0f} s | '
               f'{_gap(res)} | | {_gap(res, True)} |', flush=True)
         print(_null_row(Path(tmp)))
     return 0
