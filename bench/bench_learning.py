@@ -17,17 +17,17 @@ What learning adds to the compensator's per-message cost at 1 kHz (issue 14).
 
 A synthetic 1 kHz stream (``--minutes`` of it: still 2 min, moving 30 s, the temperature
 between 15 and 20 degC at 1 degC a minute, a thermometer at 1 Hz, an accelerometer in every
-sample) goes
-through :class:`gyro_tdc.compensation_logic.CompensatorCore` with a static ``dT, dT2``
-model, one message at a time, twice per trial (ABBA over ``--trials``): plain, and with a
-:class:`gyro_tdc.learning.Learner` attached whose :meth:`~gyro_tdc.learning.Learner.step`
-runs every 1000 messages (the node's 1 s timer at 1 kHz) and whose swapped models are
-installed. Printed side by side, per message (median over trials): the plain core; the
-learning core's message path (the append); and its total with the timer's work amortised
+sample) goes through :class:`gyro_tdc.compensation_logic.CompensatorCore` with a static
+``dT, dT2`` model, one message at a time, twice per trial (ABBA over ``--trials``): plain,
+and with a :class:`gyro_tdc.learning.Learner` attached, stepped every 100 messages
+(:meth:`~gyro_tdc.compensation_logic.CompensatorCore.learn_step`: the node's 0.1 s timer at
+1 kHz), its swapped models scheduled and installed at their stamps. Printed side by side,
+per message (median over trials): the plain core; the learning core's message path (the
+append); and its total with the timer's work amortised
 over the messages (the still test, binning, refits, installs). Then the same at the node:
 ``compensator_node``'s IMU callback (``raw_cdr``: the serialized message patched and
 published, no subscriber) called directly on the serialized stream, with ``learn`` off and
-on (its learner timer callback run every 1000 messages and counted), which is the
+on (its learner timer callback run every 100 messages and counted), which is the
 compensator's per-message cost the issue bounds (10 %). Times are this process's CPU time
 (``time.process_time``: other load on the host does not count)::
 
@@ -53,6 +53,7 @@ from gyro_tdc.learning import learned_model, Learner  # noqa: E402
 import numpy as np  # noqa: E402
 
 RATE = 1000.0
+STEP = 100              # messages between learner steps: the node's 0.1 s timer at 1 kHz
 MODEL = learned_model(np.array([[0.01, 0.0, 0.0], [1e-3, 0, 0], [1e-6, 0, 0]]), ('dT', 'dT2'),
                       20.0, (0.0, 60.0), np.full(3, 1e-6))
 
@@ -94,7 +95,7 @@ def run(stream, learn: bool) -> tuple[float, float, float]:
             add(tt[j], tc[j])
             j += 1
         process(ts, wi[0], wi[1], wi[2], ai)
-        if learner is not None and k % 1000 == 999:
+        if learner is not None and k % STEP == STEP - 1:
             s0 = time.process_time()
             core.learn_step()
             step_s += time.process_time() - s0
@@ -136,7 +137,7 @@ def run_node(stream, learn: bool, model_file: str, context) -> float:
                 on_temp(temps[j])
                 j += 1
             on_imu(d)
-            if on_learn is not None and k % 1000 == 999:
+            if on_learn is not None and k % STEP == STEP - 1:
                 on_learn()
         return (time.process_time() - t0) / len(t)
     finally:

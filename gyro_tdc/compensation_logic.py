@@ -229,7 +229,7 @@ class CompensatorCore:
         self.model_id = ''
         self._comp: StreamingCompensator | None = None
         self._learner = None
-        self._lt = self._lw = self._la = None
+        self._lx = None                 # the learner's buffer's extend (one call a sample)
         self._lnext = math.inf          # next stamp the learner takes a sample at
         #: Learned models waiting for their effective stamp: [stamp, PreparedModel], oldest
         #: first (:meth:`schedule`); ``_due`` is the first one's stamp, ``_gate`` the smaller
@@ -255,12 +255,10 @@ class CompensatorCore:
     def learner(self, learner) -> None:
         """Attach a learner: it sees every raw sample and thermometer reading (appends)."""
         self._learner = learner
-        self._lt = self._lw = self._la = None
+        self._lx = None
         self._lnext = math.inf
         if learner is not None:
-            self._lt, self._lw, self._la = (learner.bt.append, learner.bw.extend,
-                                            learner.ba.extend)
-            self._nan3 = (math.nan,) * 3
+            self._lx = learner.buf.extend
             self._lperiod = 1.0 / learner.config.max_rate_hz
             self._lnext = -math.inf
         self._gate = min(self._lnext, self._due)
@@ -329,9 +327,11 @@ class CompensatorCore:
             self.install(prepared)
         if t >= self._lnext:                  # at most max_rate_hz, by stamp
             self._lnext = t + self._lperiod
-            self._lt(t)
-            self._lw((wx, wy, wz))
-            self._la(self._nan3 if accel is None else accel)
+            if accel is None:                 # Learner.observe's layout, one extend
+                self._lx((t, wx, wy, wz, math.nan, math.nan, math.nan))
+            else:
+                ax, ay, az = accel
+                self._lx((t, wx, wy, wz, ax, ay, az))
         self._gate = min(self._lnext, self._due)
 
     # -- model ------------------------------------------------------------------------
@@ -514,20 +514,27 @@ class CompensatorCore:
         if self._first is None:
             self._first = (t, temp)
         if self._static:
-            # Static features: the drift only changes when the temperature does.
+            # Static features: the drift, and the variance to add, only change when the
+            # temperature does.
             entry = self._cache.get(temp) or self._refresh(t, temp)
-            bx, by, bz, dx, dy, dz, in_range, dist, more = entry
+            bx, by, bz, dx, dy, dz, in_range, dist, _, var, var_stale = entry
             ox, oy, oz = (wx - bx) / dx, (wy - by) / dy, (wz - bz) / dz
+            if flags:
+                var = var_stale
             if not in_range:
                 flags |= OUT_OF_RANGE
         else:
             out = comp.step(t, temp, (wx, wy, wz))
             dist = comp.range_distance_c
-            more = 0.0
-            if not comp.in_range:
+            if comp.in_range:
+                var = self._var[flags]
+            else:
                 flags |= OUT_OF_RANGE
                 more = variance_growth(self.policy.out_of_range_variance, dist,
                                        self.policy.out_of_range)
+                var = self._var[flags]
+                if more:       # linear: the added variance grows with the distance
+                    var = (var[0] + more, var[1] + more, var[2] + more)
             ox, oy, oz = out.tolist()
         if self.accel_on:
             self._accel(t, temp, accel, flags & STALE)
@@ -537,15 +544,14 @@ class CompensatorCore:
         counts['out'] += 1
         counts['compensated'] += 1
         if flags:
-            for bit in (STALE, OUT_OF_RANGE):
-                if flags & bit:
-                    self.flag_counts[bit] += 1
+            fc = self.flag_counts
+            if flags & STALE:
+                fc[STALE] += 1
+            if flags & OUT_OF_RANGE:
+                fc[OUT_OF_RANGE] += 1
         elif self.policy.reanchor_on_start and self.anchor is None:
             self._still(t, (wx, wy, wz), (ox, oy, oz), accel, temp)
-        if more:           # linear: the added variance grows with the distance
-            var = self._var[flags]
-            return ox, oy, oz, (var[0] + more, var[1] + more, var[2] + more), flags
-        return ox, oy, oz, self._var[flags], flags
+        return ox, oy, oz, var, flags
 
     def _refresh(self, t: float, temp: float) -> tuple:
         """
@@ -560,16 +566,21 @@ class CompensatorCore:
         -------
         tuple
             ``(bx, by, bz, 1 + dT sx, 1 + dT sy, 1 + dT sz, in_range, distance_c,
-            variance growth)``.
+            variance growth, variance to add, the same when stale)``.
 
         """
         comp = self._comp
         b = comp.drift(t, temp).tolist()
         den = (1.0 + comp.dt_c * self._scale).tolist()
         dist = comp.range_distance_c
-        entry = (*b, *den, comp.in_range, dist,
-                 variance_growth(self.policy.out_of_range_variance, dist,
-                                 self.policy.out_of_range) if dist else 0.0)
+        more = (variance_growth(self.policy.out_of_range_variance, dist,
+                                self.policy.out_of_range) if dist else 0.0)
+        oor = 0 if comp.in_range else OUT_OF_RANGE
+        var, var_stale = self._var[oor], self._var[oor | STALE]
+        if more:           # linear: the added variance grows with the distance
+            var = (var[0] + more, var[1] + more, var[2] + more)
+            var_stale = (var_stale[0] + more, var_stale[1] + more, var_stale[2] + more)
+        entry = (*b, *den, comp.in_range, dist, more, var, var_stale)
         if len(self._cache) >= 64:
             self._cache.clear()
             self._acache.clear()

@@ -16,11 +16,12 @@
 Learn in the field: the compensator's online bias-vs-temperature learner (issue 14 item 3).
 
 Pure (numpy only). The message path only appends (at most ``max_rate_hz`` samples a second
-of stamps) the stamp, the raw rate and the acceleration to flat float arrays
-(:meth:`Learner.observe`, or the same appends inlined in
-:meth:`gyro_tdc.compensation_logic.CompensatorCore.process`; no object per sample) and
-thermometer readings to a list; everything else runs in :meth:`Learner.step`, which the
-node calls from a timer (never from the IMU callback), vectorised over the samples since.
+of stamps) the stamp, the raw rate and the acceleration to one flat float array, seven
+floats a sample in one ``extend`` (:meth:`Learner.observe`, or the same in
+:meth:`gyro_tdc.compensation_logic.CompensatorCore.process`, behind the one stamp compare
+that also installs a learned model when it is due; no object per sample) and thermometer
+readings to a list; everything else runs in :meth:`Learner.step`, which the node calls
+from a timer (never from the IMU callback), vectorised over the samples since.
 
 **Still test.** The one still test of :mod:`gyro_tdc.still`: windows of
 :data:`~gyro_tdc.still.STILL_WINDOW_S` on the grid of the first stamp, judged by
@@ -64,10 +65,22 @@ rule when the saved thermal section is not the prior's (restarted with another m
 **Swap.** A refit after each finished stretch gives a candidate; it is swapped in only when
 its weighted mean squared error over the windows of the :data:`CHECK_STRETCHES` most recent
 stretches is below the current model's (none: always); the prior (``model_file``, the
-jump-start) is the current model at start.
+jump-start) is the current model at start. An accepted candidate takes effect at a stamp
+fixed by the data: ``swap_delay_s`` after the sample that let it be computed (the first
+sample after the window that ended or extended the stretch; a new session's first sample)
+(:meth:`Learner.take_swaps`); the compensator makes it ready when it steps the learner and
+installs it at the first message stamped at or after that
+(:meth:`gyro_tdc.compensation_logic.CompensatorCore.learn_step`). A candidate handed over
+after that stamp has passed (the learner stepped more than ``swap_delay_s`` of stamps after
+the data: a replay far faster than real time) is installed at once and counted in
+``late_swaps`` (/diagnostics ``learn late swaps``).
 
-**Timing** comes from message stamps only: a bag replayed faster gives the same points, fits
-and swaps (the swap lands at the first :meth:`step` after the stretch ended).
+**Timing** comes from message stamps only: a bag replayed faster gives the same points, fits,
+accepted candidates and effective stamps, and so the same state and ``learn_file``, however
+often :meth:`step` runs; and, while every step comes within ``swap_delay_s`` of stamps after
+the data, the same compensated output bit for bit (``test/test_learning_cadence.py``).
+Motion reports count in that too when they arrive in stamp order with the IMU (a report
+later than a window's judgement does not veto it).
 """
 
 from __future__ import annotations
@@ -99,6 +112,8 @@ __all__ = ['BIN_ENTRIES', 'CHECK_STRETCHES', 'FORMAT', 'Learner', 'LearnConfig',
 
 FORMAT = 'gyro_tdc learn 1'
 NAN3 = (math.nan, math.nan, math.nan)
+#: Floats per sample in :attr:`Learner.buf`: stamp, rate (3), acceleration (3).
+SAMPLE = 7
 BIN_ENTRIES = 4
 CHECK_STRETCHES = 3
 
@@ -177,11 +192,9 @@ class Learner:
         self.thermal: ThermalState | None = None if prior is None else prior.thermal
         #: The thermal state after the last sample: (stamp, one value per node), or None.
         self.thermal_state: tuple[float, list[float]] | None = None
-        #: Flat float arrays (no object per sample): stamps, raw rates and accelerations (3
-        #: per sample; NaN: none).
-        self.bt = array('d')
-        self.bw = array('d')
-        self.ba = array('d')
+        #: One flat float array (no object per sample), :data:`SAMPLE` floats a sample: the
+        #: stamp, the raw rate and the acceleration (NaN: none).
+        self.buf = array('d')
         self.temps: list[tuple[float, float]] = []
         #: Motion reports (stamp, moving), from the one held at the window in progress on.
         self.motion: list[tuple[float, bool]] = []
@@ -338,13 +351,12 @@ class Learner:
 
     def observe(self, t: float, wx: float, wy: float, wz: float,
                 accel: Sequence[float] | None = None) -> None:
-        """Record one raw IMU sample (the only per-message work: float appends)."""
-        self.bt.append(t)
-        bw = self.bw
-        bw.append(wx)
-        bw.append(wy)
-        bw.append(wz)
-        self.ba.extend(NAN3 if accel is None else accel)
+        """Record one raw IMU sample (the only per-message work: one ``extend``)."""
+        if accel is None:
+            self.buf.extend((t, wx, wy, wz, math.nan, math.nan, math.nan))
+        else:
+            ax, ay, az = accel
+            self.buf.extend((t, wx, wy, wz, ax, ay, az))
 
     def add_temperature(self, t: float, temp_c: float) -> None:
         """Record one thermometer reading."""
@@ -393,7 +405,8 @@ class Learner:
 
     def caught_up(self) -> bool:
         """Return whether :meth:`step` has nothing to judge until the next sample arrives."""
-        return not self.bt or (self._wend is not None and self.bt[-1] < self._wend)
+        buf = self.buf
+        return not buf or (self._wend is not None and buf[-SAMPLE] < self._wend)
 
     def save_due(self) -> bool:
         """Return whether ``save_period_s`` of stamp time passed since the last save."""
@@ -423,16 +436,15 @@ class Learner:
             True when a new model was swapped in (:meth:`take_model` gives it).
 
         """
-        if not self.bt or (not force and self._wend is not None
-                           and self.bt[-1] < self._wend):
+        buf = self.buf
+        if not buf or (not force and self._wend is not None and buf[-SAMPLE] < self._wend):
             return False                  # the window in progress has not ended: wait
-        # The core holds these lists' append methods: empty them in place (call this on the
+        # The core holds this array's extend method: empty it in place (call this on the
         # thread that compensates, as the node's timer does).
-        n = min(len(self.bt), len(self.bw) // 3, len(self.ba) // 3)
-        t = np.array(self.bt[:n], dtype=np.float64)
-        w = np.array(self.bw[:3 * n], dtype=np.float64).reshape(n, 3)
-        acc = np.array(self.ba[:3 * n], dtype=np.float64).reshape(n, 3)
-        del self.bt[:n], self.bw[:3 * n], self.ba[:3 * n]
+        m = len(buf) // SAMPLE * SAMPLE
+        x = np.array(buf[:m], dtype=np.float64).reshape(-1, SAMPLE)
+        del buf[:m]
+        t, w, acc = x[:, 0], x[:, 1:4], x[:, 4:7]
         if not np.isfinite(acc).all():
             acc = None                    # missing or not three values: the gyro alone
         ok = np.isfinite(t)

@@ -32,9 +32,11 @@ never holds up the IMU callback for more than ``load_wait``; an invalid file is 
 with its reason in one line and the old model stays.
 
 ``learn: true`` (:mod:`gyro_tdc.learning`): the IMU callback hands each raw sample to the
-learner (float appends, at most 100 per second of stamps); a 1 s timer runs its still test,
-refits and installs a learned model when it predicts the recent still time better; the
-learner's state is saved atomically to ``learn_file`` every ``learn_save_period`` of stamp
+learner (float appends, at most 100 per second of stamps); a 0.1 s timer runs its still
+test and refits; a learned model that predicts the recent still time better takes effect at
+the first message stamped ``learn_swap_delay`` after the data that made it (late ones, from
+a replay far faster than real time, at once, counted on /diagnostics); the learner's state
+is saved atomically to ``learn_file`` every ``learn_save_period`` of stamp
 time, on ``~/learn_save`` and at shutdown, and resumed at start; ``~/learn_reset`` forgets it
 (back to the ``model_file`` prior, or none); a ``model_file`` loaded at run time becomes the
 learner's prior.
