@@ -16,7 +16,8 @@
 """
 Read IMU, temperature and reference-rate arrays from a rosbag2 bag, fast (:func:`read_bag`).
 
-The raw CDR bytes are collected in blocks and decoded with the fixed-layout codec of
+The raw CDR bytes are collected in blocks (the IMU messages written end to end into one
+reused buffer as they arrive) and decoded with the fixed-layout codec of
 :mod:`gyro_tdc.bagio.codec` (rosbags' per-message deserialiser only where the layout does
 not hold) into preallocated columns; memory is bounded by the output arrays plus one block
 of raw messages.
