@@ -26,7 +26,7 @@ from gyro_tdc.effects import batch_features, EFFECTS
 from gyro_tdc.fitting import fit_model
 from gyro_tdc.health import (describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
                              OUT_OF_RANGE, PASSTHROUGH, STALE)
-from gyro_tdc.learning import Learner
+from gyro_tdc.learning import learned_model, Learner
 from gyro_tdc.model import compensate, model_temperature, StreamingCompensator
 import numpy as np
 import pytest
@@ -330,3 +330,30 @@ def test_motion_reports_by_threshold_and_only_changes_passed_on():
     assert core.motion(5.0, (math.nan, 0.0, 0.0, 0.0, 0.0, 0.0)) is True
     assert learner.motion == [(1.0, False), (2.0, True), (4.0, False), (5.0, True)]
     assert core.motion_reports == 5 and core.moving is True
+
+
+def test_a_scheduled_model_is_installed_at_its_stamp_a_late_one_at_once(model):
+    """CompensatorCore.schedule: the first message stamped at or after ``due`` uses it."""
+    other = learned_model(np.array([[0.01, 0.0, 0.0], [1e-3, 0.0, 0.0]]), ('dT',), 20.0,
+                          (0.0, 40.0), np.full(3, 1e-8))
+    t, omega, tt, tc = stream(n=600, rate_hz=10.0)
+    ref = CompensatorCore(Policy(), model)
+    a = run_core(ref, t[:300], omega[:300], tt, tc)
+    ref.set_model(other)                   # in place, just before sample 300
+    b = run_core(ref, t[300:], omega[300:], tt, tc)
+    core = CompensatorCore(Policy(), model)
+    c = run_core(core, t[:100], omega[:100], tt, tc)
+    core.schedule(other, float(t[300]))    # made ready at sample 100, due at 300
+    assert core.model_id == model.model_id
+    d = run_core(core, t[100:], omega[100:], tt, tc)
+    assert core.model_id == other.model_id and core.learned_installs == 1
+    for x, y in zip(a + b, (np.vstack([c[0], d[0][:200]]), np.vstack([c[1], d[1][:200]]),
+                            np.r_[c[2], d[2][:200]], d[0][200:], d[1][200:], d[2][200:])):
+        np.testing.assert_array_equal(x, y)
+    # Late (its stamp already passed): installed at once; cancelled: never.
+    core.schedule(model, float(t[50]))
+    assert core.model_id == model.model_id and core.learned_installs == 2
+    core.schedule(other, float(t[-1]) + 1.0)
+    core.cancel_scheduled()
+    core.process(float(t[-1]) + 2.0, *omega[-1])
+    assert core.model_id == model.model_id and core.learned_installs == 2

@@ -76,7 +76,8 @@ BOUND = 1.1
 LEARN_BOUND = 1.3
 #: The night between the days (stamp gap): the learner starts a new session.
 GAP_S = 3600.0
-#: IMU messages between learner steps (1 s at 10 Hz: the node's timer; results are by stamp).
+#: IMU messages between learner steps (1 s at 10 Hz): within ``swap_delay_s``, so the output
+#: is the node's whenever its timer runs (swaps take effect at their stamps).
 POLL = 10
 _DEG2 = (180.0 / math.pi) ** 2
 
