@@ -40,7 +40,11 @@ shown on /diagnostics :mod:`gyro_tdc.health`, the parameter table and :class:`Po
 * a model with an accelerometer part (``model.accel``) also corrects the specific force of
   each sample that carries one, with the same temperature, the same policies and the same
   variances (read in (m/s^2)^2) added to the accelerometer residual variance; the result is
-  left in :attr:`CompensatorCore.accel_out` and :attr:`CompensatorCore.accel_var`.
+  left in :attr:`CompensatorCore.accel_out` and :attr:`CompensatorCore.accel_var`;
+* with a learner attached (:mod:`gyro_tdc.learning`), one stamp compare per message gates
+  both handing it a sample (at most ``max_rate_hz``) and installing a learned model whose
+  effective stamp has come (:meth:`CompensatorCore.learn_step` made it ready off the
+  message path), so the output does not depend on when the learner was stepped.
 """
 
 from __future__ import annotations
