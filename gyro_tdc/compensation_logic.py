@@ -25,8 +25,8 @@ shown on /diagnostics :mod:`gyro_tdc.health`, the parameter table and :class:`Po
 :mod:`gyro_tdc.priming`):
 
 * the temperature used for a sample stamped ``t`` is the latest thermometer sample
-  stamped at or before ``t`` (zero-order hold by stamp, so the interleaving of the two
-  topics in the executor does not matter);
+  stamped at or before ``t`` (zero-order hold by stamp, :mod:`gyro_tdc.temperature_hold`,
+  so the interleaving of the two topics in the executor does not matter);
 * older than ``temperature_timeout`` it is stale: ``hold`` keeps compensating with it and
   widens the covariance, ``passthrough`` sends the raw rate;
 * before the first temperature, without a model, or with a NaN/Inf in the sample, the raw
@@ -49,7 +49,6 @@ shown on /diagnostics :mod:`gyro_tdc.health`, the parameter table and :class:`Po
 
 from __future__ import annotations
 
-import bisect
 from collections import deque
 from dataclasses import replace
 import math
@@ -64,122 +63,18 @@ from gyro_tdc.out_of_range import variance_growth
 from gyro_tdc.priming import (advance, prepare, PreparedModel, Priming, Replay, replay,
                               replay_from_first)
 from gyro_tdc.stillness import Anchor, StillnessDetector, Vec3
+from gyro_tdc.temperature_hold import TemperatureHold, widen_covariance
 import numpy as np
 
-# PARAMS, Policy, TEMPERATURE_TYPES (gyro_tdc.compensator_params) and the priming types
-# (gyro_tdc.priming) are re-exported: the compensator's pure API stays importable from here.
+# PARAMS, Policy, TEMPERATURE_TYPES (gyro_tdc.compensator_params), the priming types
+# (gyro_tdc.priming), TemperatureHold and widen_covariance (gyro_tdc.temperature_hold) are
+# re-exported: the compensator's pure API stays importable from here.
 __all__ = ['CompensatorCore', 'PARAMS', 'Policy', 'PreparedModel', 'Priming', 'Replay',
            'STATIC_EFFECTS', 'TEMPERATURE_TYPES', 'TemperatureHold', 'prepare',
            'widen_covariance']
 
 # STATIC_EFFECTS (from the effect library): a model made of these has a drift that changes
 # only when the temperature does, so the compensator evaluates it once per thermometer sample.
-
-
-class TemperatureHold:
-    """
-    Zero-order hold of the thermometer by stamp.
-
-    Parameters
-    ----------
-    capacity : int
-        Thermometer samples kept (enough to cover reordering between the two topics).
-
-    """
-
-    def __init__(self, capacity: int = 256) -> None:
-        self._t: list[float] = []
-        self._c: list[float] = []
-        self._capacity = int(capacity)
-        self.received = 0
-        self.rejected = 0
-
-    def __len__(self) -> int:
-        """Return the number of samples held."""
-        return len(self._t)
-
-    def add(self, t: float, temp_c: float) -> bool:
-        """
-        Add one thermometer sample.
-
-        Parameters
-        ----------
-        t : float, s
-            Stamp.
-        temp_c : float, degC
-            Reading.
-
-        Returns
-        -------
-        bool
-            False when the sample is NaN/Inf and was rejected.
-
-        """
-        self.received += 1
-        if not (math.isfinite(t) and math.isfinite(temp_c)):
-            self.rejected += 1
-            return False
-        if not self._t or t > self._t[-1]:
-            self._t.append(t)
-            self._c.append(temp_c)
-        else:
-            i = bisect.bisect_right(self._t, t)
-            if i and self._t[i - 1] == t:
-                self._c[i - 1] = temp_c
-            else:
-                self._t.insert(i, t)
-                self._c.insert(i, temp_c)
-        if len(self._t) > self._capacity:
-            del self._t[:len(self._t) - self._capacity]
-            del self._c[:len(self._c) - self._capacity]
-        return True
-
-    def at(self, t: float) -> tuple[float, float] | None:
-        """
-        Return ``(temp_c, stamp)`` of the latest sample stamped at or before ``t``.
-
-        Returns
-        -------
-        tuple of float or None
-            None when every sample held is later than ``t`` (or none was received).
-
-        """
-        ts = self._t
-        if ts and ts[-1] <= t:
-            return self._c[-1], ts[-1]
-        i = bisect.bisect_right(ts, t)
-        return (self._c[i - 1], ts[i - 1]) if i else None
-
-    @property
-    def latest(self) -> tuple[float, float] | None:
-        """Return ``(temp_c, stamp)`` of the newest sample, or None."""
-        return (self._c[-1], self._t[-1]) if self._t else None
-
-
-def widen_covariance(cov: Sequence[float], add: Sequence[float]) -> list[float]:
-    """
-    Return a 3x3 row-major covariance with ``add`` added to its diagonal.
-
-    Parameters
-    ----------
-    cov : sequence of 9 float
-        Input covariance (REP 145: all zeros means unknown).
-    add : sequence of 3 float, (rad/s)^2
-        Variance to add per axis.
-
-    Returns
-    -------
-    list of 9 float
-        The widened covariance; an input with ``cov[0] == -1`` (no data) is returned as is.
-
-    """
-    out = list(cov)
-    if out[0] == -1.0:
-        return out
-    out[0] += add[0]
-    out[4] += add[1]
-    out[8] += add[2]
-    return out
 
 
 class CompensatorCore:

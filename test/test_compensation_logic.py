@@ -19,9 +19,7 @@ from __future__ import annotations
 from dataclasses import fields
 import math
 
-from gyro_tdc.compensation_logic import (
-    CompensatorCore, PARAMS, Policy, prepare, STATIC_EFFECTS, TemperatureHold,
-    widen_covariance)
+from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy, prepare, STATIC_EFFECTS
 from gyro_tdc.effects import batch_features, EFFECTS
 from gyro_tdc.fitting import fit_model
 from gyro_tdc.health import (describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
@@ -74,25 +72,6 @@ def run_core(core, t, omega, tt, tc):
     return np.array(out), np.array(var), np.array(flags)
 
 
-def test_temperature_hold_by_stamp():
-    hold = TemperatureHold(capacity=4)
-    assert hold.at(5.0) is None and hold.latest is None
-    assert hold.add(1.0, 20.0) and hold.add(3.0, 22.0)
-    assert hold.at(0.5) is None
-    assert hold.at(1.0) == (20.0, 1.0)
-    assert hold.at(2.9) == (20.0, 1.0)
-    assert hold.at(10.0) == (22.0, 3.0)
-    # A late, out-of-order sample is slotted in by stamp; a repeated stamp replaces.
-    assert hold.add(2.0, 21.0)
-    assert hold.at(2.5) == (21.0, 2.0)
-    assert hold.add(2.0, 21.5) and hold.at(2.5) == (21.5, 2.0) and len(hold) == 3
-    assert not hold.add(4.0, math.nan) and not hold.add(math.inf, 20.0)
-    assert hold.rejected == 2 and hold.latest == (22.0, 3.0)
-    for k in range(10):
-        hold.add(10.0 + k, 30.0 + k)
-    assert len(hold) == 4 and hold.at(100.0) == (39.0, 19.0)
-
-
 def test_policy_checks_choices_and_ranges():
     with pytest.raises(ValueError, match='stale_policy'):
         Policy(stale_policy='drop')
@@ -117,12 +96,6 @@ def test_policy_is_built_from_the_parameter_table():
     assert Policy(stale_variance=0.0, still_window=1e9).still_window == 1e9  # sign only
     with pytest.raises(AttributeError):
         Policy().stale_policy = 'passthrough'  # frozen
-
-
-def test_widen_covariance():
-    assert widen_covariance([0.0] * 9, (1.0, 2.0, 3.0)) == [1, 0, 0, 0, 2, 0, 0, 0, 3]
-    cov = [-1.0] + [0.0] * 8
-    assert widen_covariance(cov, (1.0, 2.0, 3.0)) == cov
 
 
 def test_stream_equals_offline_compensation(model):

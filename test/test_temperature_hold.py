@@ -1,0 +1,50 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The thermometer held by stamp and the covariance widening (pure)."""
+
+import math
+
+from gyro_tdc import compensation_logic
+from gyro_tdc.temperature_hold import TemperatureHold, widen_covariance
+
+
+def test_temperature_hold_by_stamp():
+    hold = TemperatureHold(capacity=4)
+    assert hold.at(5.0) is None and hold.latest is None
+    assert hold.add(1.0, 20.0) and hold.add(3.0, 22.0)
+    assert hold.at(0.5) is None
+    assert hold.at(1.0) == (20.0, 1.0)
+    assert hold.at(2.9) == (20.0, 1.0)
+    assert hold.at(10.0) == (22.0, 3.0)
+    # A late, out-of-order sample is slotted in by stamp; a repeated stamp replaces.
+    assert hold.add(2.0, 21.0)
+    assert hold.at(2.5) == (21.0, 2.0)
+    assert hold.add(2.0, 21.5) and hold.at(2.5) == (21.5, 2.0) and len(hold) == 3
+    assert not hold.add(4.0, math.nan) and not hold.add(math.inf, 20.0)
+    assert hold.rejected == 2 and hold.latest == (22.0, 3.0)
+    for k in range(10):
+        hold.add(10.0 + k, 30.0 + k)
+    assert len(hold) == 4 and hold.at(100.0) == (39.0, 19.0)
+
+
+def test_widen_covariance():
+    assert widen_covariance([0.0] * 9, (1.0, 2.0, 3.0)) == [1, 0, 0, 0, 2, 0, 0, 0, 3]
+    cov = [-1.0] + [0.0] * 8
+    assert widen_covariance(cov, (1.0, 2.0, 3.0)) == cov
+
+
+def test_the_compensation_logic_re_exports_them():
+    assert compensation_logic.TemperatureHold is TemperatureHold
+    assert compensation_logic.widen_covariance is widen_covariance
