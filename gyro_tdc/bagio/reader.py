@@ -25,6 +25,7 @@ of raw messages.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
 import io
 from itertools import islice
@@ -154,6 +155,36 @@ class _Sink:
         return out
 
 
+@contextlib.contextmanager
+def _small_pages() -> Any:
+    """
+    Turn numpy's transparent-huge-page advice off for the read, restoring it after.
+
+    numpy advises the kernel to back every array of 4 MB or more with 2 MB pages. Where
+    transparent huge pages are enabled and defragmented on advice only (``madvise``, as
+    Ubuntu and Debian ship them), the first touch of such a page may stall while the kernel
+    compacts memory to find one; the columns filled block by block here (~200 MB for a 1 h,
+    1 kHz bag) then cost ~0.4 s CPU more than with ordinary pages
+    (``bench/bench_train.py``). The advice is numpy's private switch: where it is missing,
+    nothing changes.
+    """
+    try:
+        from numpy._core.multiarray import _set_madvise_hugepage as advise
+    except ImportError:           # numpy 1.x
+        try:
+            from numpy.core.multiarray import _set_madvise_hugepage as advise
+        except ImportError:
+            advise = None
+    if advise is None:
+        yield
+        return
+    previous = advise(False)
+    try:
+        yield
+    finally:
+        advise(previous)
+
+
 def _resolve(path: str | Path) -> Path:
     """Return the rosbag2 directory of ``path`` or raise DatasetError saying why not."""
     p = Path(path)
@@ -255,7 +286,8 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                 if topics[topic][1] == 0 and required:
                     raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has no messages.')
                 conns[role] = [c for c in reader.connections if c.topic == topic]
-            return _read_messages(reader, bag, storage, topics, conns, progress, accel)
+            with _small_pages():
+                return _read_messages(reader, bag, storage, topics, conns, progress, accel)
     except _READ_ERRORS as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r} (unreadable or corrupt): '
                            f'{one_line(err)}') from err
