@@ -75,6 +75,9 @@ after that stamp has passed (the learner stepped more than ``swap_delay_s`` of s
 the data: a replay far faster than real time) is installed at once and counted in
 ``late_swaps`` (/diagnostics ``learn late swaps``).
 
+**State.** :meth:`Learner.save` and :meth:`Learner.load` keep what is learned in
+``learn_file`` (JSON, :mod:`gyro_tdc.learning_store`), so a restart loses nothing.
+
 **Timing** comes from message stamps only: a bag replayed faster gives the same points, fits,
 accepted candidates and effective stamps, and so the same state and ``learn_file``, however
 often :meth:`step` runs; and, while every step comes within ``swap_delay_s`` of stamps after
@@ -87,16 +90,14 @@ from __future__ import annotations
 
 from array import array
 from dataclasses import dataclass, field
-import json
 import math
 from pathlib import Path
 from typing import Any, Sequence
 
-from gyro_tdc.atomicio import atomic_write
-from gyro_tdc.errors import FeatureError
 from gyro_tdc.learning_fit import (BINS_DT2, BINS_DT3, fit_points, grow_features,
                                    learned_model, MAX_DROPS, model_of, OUTLIER_K,
                                    prediction_mse, SPAN_DT2_C, SPAN_DT3_C, SPAN_DT_C)
+from gyro_tdc.learning_store import decode_state, encode_state, FORMAT, read_state, write_state
 from gyro_tdc.learning_temperature import hold_readings, same_thermal, stream_state
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.still import (has_accelerometer, judge_windows, MIN_STILL_S, noise_thresholds,
@@ -110,7 +111,6 @@ __all__ = ['BIN_ENTRIES', 'CHECK_STRETCHES', 'FORMAT', 'Learner', 'LearnConfig',
            'OUTLIER_K', 'SPAN_DT2_C', 'SPAN_DT3_C', 'SPAN_DT_C', 'BINS_DT2', 'BINS_DT3',
            'MAX_DROPS', 'learned_model']
 
-FORMAT = 'gyro_tdc learn 1'
 NAN3 = (math.nan, math.nan, math.nan)
 #: Floats per sample in :attr:`Learner.buf`: stamp, rate (3), acceleration (3).
 SAMPLE = 7
@@ -233,23 +233,7 @@ class Learner:
 
     def state(self) -> dict[str, Any]:
         """Return the persistent state as plain types (what :meth:`save` writes)."""
-        return {
-            'format': FORMAT,
-            'bins': {str(k): [list(map(float, e[:3])) + [list(map(float, e[3])), e[4], e[5]]
-                              for e in v] for k, v in sorted(self.bins.items())},
-            'session': self.session,
-            'gyro_floor': [float(v) for v in self.gyro_floor],
-            'accel_floor': [float(v) for v in self.accel_floor],
-            't_first': self.t_first, 'still_s': self.still_s, 'stretches': self.stretches,
-            'windows': self.windows, 'recent': self.recent, 'fit': self.fit,
-            'last_update_t': self.last_update_t, 'last_t': self.last_t, 'check': self.check,
-            'swaps': self.swaps, 'motion': [[float(m[0]), bool(m[1])] for m in self.motion],
-            'thermal': None if self.thermal is None else self.thermal.to_dict(),
-            'thermal_state': None if self.thermal_state is None else [
-                float(self.thermal_state[0]), [float(v) for v in self.thermal_state[1]]],
-            'config': {k: getattr(self.config, k) for k in (
-                'bin_c', 'half_life_s', 'window_s', 'min_still_s')},
-        }
+        return encode_state(self)
 
     def load_state(self, state: dict[str, Any]) -> None:
         """
@@ -261,35 +245,10 @@ class Learner:
             The state is not one this learner wrote.
 
         """
-        if not isinstance(state, dict) or state.get('format') != FORMAT:
-            raise ValueError(f'not a learner state ({FORMAT!r} expected)')
+        values, saved = decode_state(state)
         self.reset()
-        self.bins = {int(k): [[float(e[0]), float(e[1]), float(e[2]),
-                               tuple(float(x) for x in e[3]), int(e[4]), int(e[5])]
-                              for e in v]
-                     for k, v in state['bins'].items()}
-        self.gyro_floor = np.asarray(state['gyro_floor'], dtype=np.float64)
-        self.accel_floor = np.asarray(state['accel_floor'], dtype=np.float64)
-        self.t_first = state['t_first']
-        self.session = int(state['session'])
-        self.still_s = float(state['still_s'])
-        self.stretches = int(state['stretches'])
-        self.windows = int(state['windows'])
-        self.recent = [list(r) for r in state['recent']]
-        self.fit = state['fit']
-        self.last_update_t = state['last_update_t']
-        self.last_t = state['last_t']
-        self.last_save_t = state['last_t']
-        self.check = state['check']
-        self.swaps = int(state['swaps'])
-        self.motion = [(float(m[0]), bool(m[1])) for m in state.get('motion', [])]
-        ts = state.get('thermal_state')
-        self.thermal_state = None if ts is None else (float(ts[0]), [float(v) for v in ts[1]])
-        try:
-            saved = state.get('thermal')
-            saved = None if saved is None else ThermalState.from_dict(saved)
-        except FeatureError as exc:
-            raise ValueError(f'learner state: `thermal` {exc}') from None
+        for name, value in values.items():
+            setattr(self, name, value)
         if not same_thermal(saved, self.thermal):
             # Binned at another model temperature than the prior's: the set_prior rule.
             self._forget_points()
@@ -324,7 +283,7 @@ class Learner:
 
     def save(self, path: str | Path) -> None:
         """Write the state (model and point table) to ``path`` atomically (JSON)."""
-        atomic_write(path, json.dumps(self.state(), indent=1) + '\n')
+        write_state(path, self.state())
         self.saved()
 
     def load(self, path: str | Path) -> bool:
@@ -337,13 +296,9 @@ class Learner:
             The file is not a learner state.
 
         """
-        p = Path(path)
-        if not p.is_file():
+        state = read_state(path)
+        if state is None:
             return False
-        try:
-            state = json.loads(p.read_text(encoding='utf-8'))
-        except json.JSONDecodeError as exc:
-            raise ValueError(f'{p}: not JSON ({exc})') from None
         self.load_state(state)
         return True
 
