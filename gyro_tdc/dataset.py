@@ -41,6 +41,7 @@ import re
 from typing import Callable, Iterable
 
 from gyro_tdc.bagio import read_bag
+from gyro_tdc.bagio.reader import small_pages
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.runs import Run
 from gyro_tdc.still import has_accelerometer
@@ -221,6 +222,7 @@ def _reference(value: object) -> NDArray[np.float64]:
     return ref
 
 
+@small_pages()    # its full-length arrays too: see gyro_tdc.bagio.reader.small_pages
 def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
              reference=None, reference_topic='/rate_table/reference', max_gap_s=5.0,
              progress=False, max_loss=MAX_LOSS_FRACTION, accel=False) -> Run:

@@ -45,7 +45,7 @@ from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 import yaml
 
-__all__ = ['BagData', 'read_bag']
+__all__ = ['BagData', 'read_bag', 'small_pages']
 
 # Messages per block when reading: small enough that a block's raw bytes (~5 MB of Imu) are
 # recycled by the allocator, large enough to amortise the per-block checks (1 << 14 read a
@@ -156,9 +156,9 @@ class _Sink:
 
 
 @contextlib.contextmanager
-def _small_pages() -> Any:
+def small_pages() -> Any:
     """
-    Turn numpy's transparent-huge-page advice off for the read, restoring it after.
+    Turn numpy's transparent-huge-page advice off inside, restoring it after.
 
     numpy advises the kernel to back every array of 4 MB or more with 2 MB pages. Where
     transparent huge pages are enabled and defragmented on advice only (``madvise``, as
@@ -166,7 +166,7 @@ def _small_pages() -> Any:
     compacts memory to find one; the columns filled block by block here (~200 MB for a 1 h,
     1 kHz bag) then cost ~0.4 s CPU more than with ordinary pages
     (``bench/bench_train.py``). The advice is numpy's private switch: where it is missing,
-    nothing changes.
+    nothing changes. A context manager, also usable as a decorator (``load_run``).
     """
     try:
         from numpy._core.multiarray import _set_madvise_hugepage as advise
@@ -286,7 +286,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                 if topics[topic][1] == 0 and required:
                     raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has no messages.')
                 conns[role] = [c for c in reader.connections if c.topic == topic]
-            with _small_pages():
+            with small_pages():
                 return _read_messages(reader, bag, storage, topics, conns, progress, accel)
     except _READ_ERRORS as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r} (unreadable or corrupt): '
