@@ -34,8 +34,8 @@ a fresh interpreter (so its peak RSS is its own), the median of ``--repeat`` run
   trainer did before the thermal-state and accelerometer defaults (what the restructuring
   itself costs);
 
-and prints seconds, messages per second, CPU time, peak RSS and the ratios train / raw and
-train / raw_reader (goal <= 1.5).
+and prints seconds, messages per second, CPU time, peak RSS and the ratios load / raw,
+train / raw, train / raw_reader and train_paper / raw (goal <= 1.5).
 ``--profile`` adds a cProfile of the train stage (top functions by cumulative time)::
 
     .venv/bin/python bench/bench_train.py                 # sqlite3, 3 repeats
