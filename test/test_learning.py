@@ -45,8 +45,13 @@ def _offset(days):
     return d1.imu_t[-1] + GAP_S - d2.imu_t[0]
 
 
-def stream(core, learner, d, off, *, poll=600, start=0, stop=None, on_poll=None):
-    """Stream a day through the core, one message at a time; poll the learner off-path."""
+def stream(core, learner, d, off, *, poll=600, start=0, stop=None, on_poll=None,
+           accepted=None):
+    """
+    Stream a day through the core, one message at a time; poll the learner off-path.
+
+    ``accepted``, a list, collects ``(due stamp, model_id)`` of each model a poll scheduled.
+    """
     stop = len(d.imu_t) if stop is None else stop
     imu_t = (d.imu_t + off)[start:stop]
     out = np.empty((imu_t.size, 3))
@@ -65,7 +70,9 @@ def stream(core, learner, d, off, *, poll=600, start=0, stop=None, on_poll=None)
         out[k] = (ox, oy, oz)
         ok[k] = not fl & PASSTHROUGH
         if k % poll == poll - 1:
-            core.learn_step()
+            swaps = core.learn_step()
+            if accepted is not None:
+                accepted += [(due, model.model_id) for due, model in swaps]
             if on_poll is not None:
                 on_poll(start + k)
     return out, ok

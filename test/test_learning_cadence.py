@@ -28,12 +28,11 @@ from __future__ import annotations
 import json
 
 from gyro_tdc.compensation_logic import CompensatorCore, Policy
-from gyro_tdc.health import PASSTHROUGH
 from gyro_tdc.learning import LearnConfig, Learner
 from gyro_tdc.sim import simulate_run
 import numpy as np
 import pytest
-from test_learning import GAP_S
+from test_learning import GAP_S, stream
 
 RATE_HZ = 2.0
 DELAY_S = 120.0
@@ -54,23 +53,9 @@ def run(days, every_s, delay_s=DELAY_S):
     learner = Learner(LearnConfig(swap_delay_s=delay_s))
     core.learner = learner
     every = int(round(every_s * RATE_HZ))
-    outs, accepted = [], []
-    for d, shift in ((d1, 0.0), (d2, off)):
-        out = np.empty((d.imu_t.size, 3))
-        ok = np.ones(d.imu_t.size, dtype=bool)
-        tt, tc = (d.temp_t + shift).tolist(), d.temp_c.tolist()
-        j, m = 0, len(tt)
-        for k, (t, w, a) in enumerate(zip((d.imu_t + shift).tolist(), d.gyro.tolist(),
-                                          d.accel.tolist())):
-            while j < m and tt[j] <= t:
-                core.add_temperature(tt[j], tc[j])
-                j += 1
-            ox, oy, oz, _, fl = core.process(t, w[0], w[1], w[2], a)
-            out[k] = (ox, oy, oz)
-            ok[k] = not fl & PASSTHROUGH
-            if k % every == every - 1:
-                accepted += [(due, model.model_id) for due, model in core.learn_step()]
-        outs.append((out, ok))
+    accepted = []
+    outs = [stream(core, learner, d, shift, poll=every, accepted=accepted)
+            for d, shift in ((d1, 0.0), (d2, off))]
     accepted += [(due, model.model_id) for due, model in core.learn_step()]
     learner.flush()
     return outs, accepted, learner, core
