@@ -20,17 +20,11 @@ from __future__ import annotations
 from gyro_tdc.cli.simulate import main
 from gyro_tdc.resources import scenario_names
 import pytest
+from test_sim_cli import TINY as SIM_CLI_TINY
 import yaml
 
-TINY = {
-    'name': 'tiny',
-    'sensor': 'l3gd20',
-    'imu_rate_hz': 20.0,
-    'profile': {'start_c': 20.0, 'segments': [{'kind': 'ramp', 'to_c': 21.0,
-                                               'rate_c_per_h': 60.0}]},
-    'thermometer': {'rate_hz': 2.0, 'resolution_c': 0.03},
-    'runs': {'count': 2},
-}
+# test_sim_cli's tiny scenario without its rate table, two runs.
+TINY = {**{k: v for k, v in SIM_CLI_TINY.items() if k != 'rate_table'}, 'runs': {'count': 2}}
 
 
 @pytest.fixture
