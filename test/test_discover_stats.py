@@ -128,7 +128,6 @@ def test_hac_pvalue_of_a_present_and_an_absent_curvature(a2, significant):
     assert (p < 1e-20) if significant else (p > 0.1)
 
 
-@pytest.mark.filterwarnings('ignore:The design matrix is rank-deficient')
 @pytest.mark.parametrize('collinear', [False, True])
 def test_ols_hac_equals_statsmodels_hac_with_correction(collinear):
     ols = pytest.importorskip('statsmodels.regression.linear_model').OLS
