@@ -26,8 +26,8 @@ import math
 
 from gyro_tdc.discover.data import BlockData
 from gyro_tdc.discover.linear import LinearModel
-from gyro_tdc.discover.stats import (ar1, bandwidth, hac_pvalue, make_folds, ols_hac,
-                                     rel_residual, weighted_corr)
+from gyro_tdc.discover.stats import (ar1, bandwidth, hac_pvalue, make_folds, rel_residual,
+                                     weighted_corr)
 from gyro_tdc.runs import Run
 import numpy as np
 import pytest
@@ -126,20 +126,3 @@ def test_hac_pvalue_of_a_present_and_an_absent_curvature(a2, significant):
     p = hac_pvalue(model, coef, model.columns_of('dT2'), lags)
     assert 0.0 <= p <= 1.0
     assert (p < 1e-20) if significant else (p > 0.1)
-
-
-@pytest.mark.parametrize('collinear', [False, True])
-def test_ols_hac_equals_statsmodels_hac_with_correction(collinear):
-    ols = pytest.importorskip('statsmodels.regression.linear_model').OLS
-    rng = np.random.default_rng(3)
-    for n, p, lags in ((40, 3, 5), (300, 6, 30), (120, 1, 1)):
-        x = rng.normal(size=(n, p))
-        if collinear and p > 1:
-            x[:, -1] = x[:, 0] * (1.0 + 1e-7)       # near-collinear: pinv cuts nothing
-        x /= np.linalg.norm(x, axis=0)
-        y = x @ rng.normal(size=p) + np.cumsum(rng.normal(size=n)) * 0.1   # serial noise
-        ref = ols(y, x).fit(cov_type='HAC', cov_kwds={'maxlags': lags, 'use_correction': True})
-        coef, cov = ols_hac(x, y, lags)
-        np.testing.assert_allclose(coef, ref.params, rtol=1e-12, atol=1e-12)
-        np.testing.assert_allclose(cov, ref.cov_params(), rtol=1e-10,
-                                   atol=1e-12 * np.abs(cov).max())

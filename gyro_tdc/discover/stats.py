@@ -35,7 +35,7 @@ if TYPE_CHECKING:
     from gyro_tdc.discover.linear import LinearModel
 
 __all__ = ['ar1', 'bandwidth', 'COLLINEAR', 'DEG', 'gap', 'hac_pvalue', 'make_folds',
-           'ols_hac', 'rel_residual', 'weighted_corr']
+           'rel_residual', 'weighted_corr']
 
 #: rad/s to deg/s.
 DEG = 180.0 / math.pi
@@ -128,61 +128,20 @@ def bandwidth(r: NDArray[np.float64], *, floor: bool = True) -> int:
     return int(min(max(lag, 1), max(k // 3, 1)))
 
 
-def ols_hac(x: NDArray[np.float64], y: NDArray[np.float64],
-            lags: int) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """
-    Return OLS coefficients and their Newey-West (Bartlett) covariance.
-
-    The estimator of statsmodels' ``OLS(y, x).fit(cov_type='HAC', cov_kwds={'maxlags':
-    lags, 'use_correction': True})`` in numpy (the same pseudo-inverse, sandwich and
-    small-sample factor ``n / (n - p)``), without importing statsmodels (0.3 s).
-
-    Parameters
-    ----------
-    x : NDArray[np.float64], shape (n, p)
-        Design.
-    y : NDArray[np.float64], shape (n,)
-        Response.
-    lags : int
-        Bandwidth: the highest lag of the Bartlett kernel.
-
-    Returns
-    -------
-    coef : NDArray[np.float64], shape (p,)
-        Coefficients (the pseudo-inverse solution).
-    cov : NDArray[np.float64], shape (p, p)
-        Their HAC covariance.
-
-    """
-    u, s, vt = np.linalg.svd(x, False)
-    inv = np.where(s > 1e-15 * np.max(s), 1.0 / np.where(s > 0, s, 1.0), 0.0)
-    pinv = np.dot(vt.T, inv[:, None] * u.T)
-    bread = np.dot(pinv, pinv.T)
-    coef = np.dot(pinv, y)
-    xu = x * (y - np.dot(x, coef))[:, None]
-    w = 1.0 - np.arange(lags + 1) / (lags + 1.0)
-    meat = w[0] * np.dot(xu.T, xu)
-    for lag in range(1, lags + 1):
-        c = np.dot(xu[lag:].T, xu[:-lag])
-        meat += w[lag] * (c + c.T)
-    cov = np.dot(np.dot(bread, meat), bread.T)
-    n, p = xu.shape
-    cov *= n / float(n - p)
-    return coef, cov
-
-
 def hac_pvalue(model: LinearModel, coef: NDArray[np.float64], cand: Sequence[int],
                lags: Sequence[int]) -> float:
     """
     Return the HAC Wald p-value of the columns ``cand`` (smallest over axes, times 3).
 
-    Newey-West (Bartlett) errors of the OLS fit (:func:`ols_hac`, statsmodels'
-    ``cov_type='HAC'`` with its small-sample correction), the bandwidth ``lags[a]`` from
-    the noise's integrated autocorrelation time (:func:`bandwidth`); the Wald statistic is
-    referred to an F distribution with the estimator's equivalent degrees of freedom,
-    ``1.5 K / L`` (a long bandwidth leaves few independent pieces of information, so the
-    test does not pretend to more).
+    Newey-West (Bartlett) errors from statsmodels OLS with ``cov_type='HAC'``, the bandwidth
+    ``lags[a]`` from the noise's integrated autocorrelation time (:func:`bandwidth`); the Wald
+    statistic is referred to an F distribution with the estimator's equivalent degrees of
+    freedom, ``1.5 K / L`` (a long bandwidth leaves few independent pieces of information,
+    so the test does not pretend to more).
     """
+    # The OLS class alone: statsmodels.api also imports its datasets, formulas and plots.
+    from statsmodels.regression.linear_model import OLS
+
     d = model.data
     ps = []
     for a in range(3):
@@ -196,13 +155,14 @@ def hac_pvalue(model: LinearModel, coef: NDArray[np.float64], cand: Sequence[int
         xs = xs / np.linalg.norm(xs, axis=0)
         pos = np.cumsum(keep) - 1
         sel = [int(pos[i]) for i in idx]
-        params, cov = ols_hac(xs, y, int(lags[a]))
-        b = params[sel]
-        v = cov[np.ix_(sel, sel)]
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')   # near-collinear columns: the F test says so
+            res = OLS(y, xs).fit(cov_type='HAC', cov_kwds={'maxlags': int(lags[a]),
+                                                           'use_correction': True})
+        b = np.asarray(res.params)[sel]
+        v = np.asarray(res.cov_params())[np.ix_(sel, sel)]
         try:
-            with warnings.catch_warnings():
-                warnings.simplefilter('ignore')   # near-collinear columns: the F test says so
-                f = float(b @ np.linalg.solve(v, b)) / len(sel)
+            f = float(b @ np.linalg.solve(v, b)) / len(sel)
         except np.linalg.LinAlgError:
             continue
         dof = max(min(1.5 * d.K / lags[a], d.K - xs.shape[1]), 1.0)
