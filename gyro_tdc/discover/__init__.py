@@ -49,7 +49,7 @@ A candidate is named only when three independent tests agree (the false-discover
   cross-validation over interleaved segments with a noise-memory buffer around each held-out
   segment;
 * significance: a Wald F test of its columns (for ``lag``, of the J column) with HAC
-  (Newey-West, statsmodels' estimator in numpy) errors, the noise memory's bandwidth, below
+  (Newey-West, statsmodels' OLS) errors, the noise memory's bandwidth, below
   ``alpha`` after a Bonferroni correction over candidates and axes. Slow bias instability
   makes any HAC p-value optimistic on one run, which is why it is never the only test;
 * size: it explains at least ``min_effect`` noise floors (RMS).
