@@ -81,3 +81,24 @@ def rig_factory(ros_context):
     yield make
     for rig in rigs:
         rig.close()
+
+
+@pytest.fixture(scope='module')
+def setup_kwargs():
+    """Run setup.py with ``setuptools.setup`` replaced, and return the keyword arguments."""
+    import runpy
+    from pathlib import Path
+
+    import setuptools
+
+    root = Path(__file__).resolve().parent.parent
+    captured = {}
+    original, cwd = setuptools.setup, os.getcwd()
+    setuptools.setup = captured.update
+    try:
+        os.chdir(root)
+        runpy.run_path(str(root / 'setup.py'), run_name='__main__')
+    finally:
+        os.chdir(cwd)
+        setuptools.setup = original
+    return captured

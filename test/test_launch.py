@@ -29,13 +29,11 @@ import inspect
 import os
 from pathlib import Path
 import re
-import runpy
 import xml.etree.ElementTree as ET
 
 from gyro_tdc.compensation_logic import TEMPERATURE_TYPES
 from gyro_tdc.nodes import compensator_node, driver_node
 import pytest
-import setuptools
 import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -76,21 +74,6 @@ def resolve(text: str, values: dict) -> str:
         text = SUBST.sub(one, text)
     assert '$(' not in text, text
     return text
-
-
-@pytest.fixture(scope='module')
-def setup_kwargs():
-    """Run setup.py with ``setuptools.setup`` replaced, and return the keyword arguments."""
-    captured = {}
-    original, cwd = setuptools.setup, os.getcwd()
-    setuptools.setup = captured.update
-    try:
-        os.chdir(ROOT)
-        runpy.run_path(str(ROOT / 'setup.py'), run_name='__main__')
-    finally:
-        os.chdir(cwd)
-        setuptools.setup = original
-    return captured
 
 
 def installed_files(setup_kwargs) -> dict:

@@ -26,7 +26,6 @@ import configparser
 import os
 from pathlib import Path
 import re
-import runpy
 import subprocess
 import sys
 
@@ -34,7 +33,6 @@ from catkin_pkg.package import parse_package
 import gyro_tdc
 from gyro_tdc.cli import COMMANDS
 import pytest
-import setuptools
 
 ROOT = Path(__file__).resolve().parent.parent
 NODES = ('driver_node', 'compensator_node')
@@ -46,22 +44,6 @@ def package():
     pkg = parse_package(str(ROOT / 'package.xml'), warnings=warnings)
     assert not warnings, warnings
     return pkg
-
-
-@pytest.fixture(scope='module')
-def setup_kwargs():
-    """Run setup.py with ``setuptools.setup`` replaced, and return the keyword arguments."""
-    captured = {}
-    original = setuptools.setup
-    setuptools.setup = captured.update
-    cwd = os.getcwd()
-    try:
-        os.chdir(ROOT)
-        runpy.run_path(str(ROOT / 'setup.py'), run_name='__main__')
-    finally:
-        os.chdir(cwd)
-        setuptools.setup = original
-    return captured
 
 
 def run_module(*args: str) -> subprocess.CompletedProcess:
