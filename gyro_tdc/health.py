@@ -102,6 +102,8 @@ class InputStatus:
         Input messages DDS reported lost (the subscription's message-lost event, cumulative).
     already_compensated : int
         Input samples that carried the compensation mark (:mod:`gyro_tdc.provenance`).
+    malformed : int
+        Input messages that could not be read as an Imu (dropped: nothing to republish).
     upstream : tuple of str
         Nodes publishing the input topic that look like gyro_tdc compensators.
 
@@ -110,6 +112,7 @@ class InputStatus:
     reliability: str = 'best_effort'
     lost: int = 0
     already_compensated: int = 0
+    malformed: int = 0
     upstream: tuple[str, ...] = ()
 
 
@@ -121,6 +124,7 @@ class HealthMark(NamedTuple):
     errors: int = 0
     lost: int = 0
     already_compensated: int = 0
+    malformed: int = 0
 
 
 class Health(NamedTuple):
@@ -229,6 +233,11 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     if lost:
         level = max(level, WARN)
         problems.append(f'input messages lost ({lost}, reported by DDS; at least that many)')
+    malformed = inputs.malformed - since.malformed
+    if malformed:
+        level = max(level, WARN)
+        problems.append(f'malformed input messages dropped ({malformed}: not a serialized '
+                        'sensor_msgs/Imu)')
     marked = inputs.already_compensated - since.already_compensated
     if marked:
         level = max(level, WARN)
@@ -276,6 +285,7 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         'no model': counts[NO_MODEL], 'temperatures rejected': core.temps.rejected,
         'errors': core.errors, 'last error': core.last_error,
         'input reliability': inputs.reliability, 'input lost': inputs.lost,
+        'input malformed': inputs.malformed,
         'already compensated': inputs.already_compensated,
         'upstream compensators': ','.join(inputs.upstream),
         'accelerometer': accel_state(core),
@@ -303,4 +313,4 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
                   (model.sensor_id or model.frame_id) if model is not None else '',
                   {k: str(v) for k, v in values.items()},
                   HealthMark(dict(counts), core.temps.rejected, core.errors, inputs.lost,
-                             inputs.already_compensated))
+                             inputs.already_compensated, inputs.malformed))

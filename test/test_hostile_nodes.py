@@ -518,3 +518,44 @@ def test_a_newer_request_wins_over_a_file_still_being_read(models, rig_factory):
     rig.spin_until(finished.is_set, what='the slow read finished')
     spin_until_quiet(rig.executor, lambda: rig.node.last_reload, 0.3)
     assert rig.node.core.model is None and rig.node.last_reload == 'no model'
+
+
+# -- malformed CDR on imu/data_raw ----------------------------------------------------------
+
+
+def _malformed_payloads():
+    """Serialized messages that are not an Imu: each once killed the node (exit 1)."""
+    from rclpy.serialization import serialize_message
+    good = serialize_message(Imu())
+    big_endian = b'\x00\x00' + good[2:]
+    huge_frame_id = good[:12] + b'\xff\xff\xff\xff' + good[16:]
+    return {'truncated': good[:40], 'garbage': bytes(range(256)) * 3,
+            'big-endian header': big_endian, 'frame_id length 2**32-1': huge_frame_id,
+            'empty': b''}
+
+
+@pytest.mark.parametrize('executor_kind', ['single', 'events'])
+def test_malformed_messages_are_dropped_counted_and_reported(models, rig_factory,
+                                                             executor_kind):
+    """Any participant can publish bytes: the node drops them, counts them and goes on."""
+    rig = rig_factory(executor_kind=executor_kind, model_file=str(models['paper'][0]))
+    raw = rig.io.create_publisher(Imu, 'imu/data_raw', RELIABLE)
+    rig.spin_until(lambda: raw.get_subscription_count() > 0, what='raw publisher matched')
+    rig.temperature(to_ns(T0 - 1.0), 20.0)
+    rig.spin_until(lambda: rig.node.core.temps.received == 1, what='temperature')
+    payloads = _malformed_payloads()
+    for k, data in enumerate(payloads.values()):
+        rig.imu(to_ns(T0 + k), (0.01, 0.0, 0.0), k)
+        raw.publish(data)
+    rig.imu(to_ns(T0 + len(payloads)), (0.01, 0.0, 0.0))
+    rig.spin_until(lambda: len(rig.out) == len(payloads) + 1
+                   and rig.node.inputs.malformed == len(payloads), what='outputs and drops')
+    counts = rig.node.core.counts
+    assert counts['in'] == counts['out'] == len(payloads) + 1
+    st = rig.node.diagnostic_status()
+    assert st.level == DiagnosticStatus.WARN
+    assert f'malformed input messages dropped ({len(payloads)}' in st.message
+    assert values(st)['input malformed'] == str(len(payloads))
+    # The next report, with nothing new, is OK again; the total stays.
+    st = rig.node.diagnostic_status()
+    assert 'malformed' not in st.message and values(st)['input malformed'] == str(len(payloads))

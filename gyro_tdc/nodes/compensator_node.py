@@ -232,7 +232,12 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
     def _on_imu_raw(self, data: bytes) -> None:
         found = locate(data)
         if found is None:  # not little-endian plain CDR: the slow, general way
-            self._on_imu(deserialize_message(data, Imu))
+            try:
+                msg = deserialize_message(data, Imu)
+            except Exception as exc:  # the callback edge: any participant can send bytes
+                self._on_malformed(exc, len(data))
+                return
+            self._on_imu(msg)
             return
         sec, nanosec, base = found
         view = ImuView(data, base)
@@ -252,6 +257,13 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
             if a is not None and core.accel_on:
                 avar = var
         self._pub.publish(view.patched(wx, wy, wz, var, not flags & PASSTHROUGH, aout, avar))
+
+    def _on_malformed(self, exc: Exception, size: int) -> None:
+        """Count a message that is not an Imu (nothing to republish); the stream goes on."""
+        self.inputs.malformed += 1
+        self.get_logger().warning(
+            f'malformed imu/data_raw message dropped ({size} bytes, {self.inputs.malformed} '
+            f'in total): {type(exc).__name__}: {exc}', throttle_duration_sec=5.0)
 
     def _on_error(self, exc: Exception) -> tuple[float, float, float]:
         """Count an unexpected compensation failure; the raw sample goes out flagged."""
