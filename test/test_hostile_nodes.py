@@ -524,7 +524,7 @@ def test_a_newer_request_wins_over_a_file_still_being_read(models, rig_factory):
 
 
 def _malformed_payloads():
-    """Serialized messages that are not an Imu: each once killed the node (exit 1)."""
+    """Return serialized messages that are not an Imu: each once killed the node (exit 1)."""
     from rclpy.serialization import serialize_message
     good = serialize_message(Imu())
     big_endian = b'\x00\x00' + good[2:]
