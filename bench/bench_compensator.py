@@ -736,8 +736,8 @@ def stop_hogs(hogs):
 
 def bench_model(path):
     """Fit the bench model (RBF, dT + dT2, 12 centres) on a simulated run; save it."""
-    from gyro_tdc.fitting import fit_model
-    from gyro_tdc.modelfile import save_model
+    from gyro_tdc.identify import fit_model
+    from gyro_tdc.model.modelfile import save_model
     from gyro_tdc.sim import simulate_run, to_run
     run = to_run(simulate_run('demo_fast', seed=0))
     return save_model(fit_model([run], features=('dT', 'dT2'), n_centers=12), path)

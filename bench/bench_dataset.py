@@ -21,12 +21,12 @@ Measured, each in a fresh subprocess (so that every peak RSS is its own), median
 - ``raw bytes``: iterate ``AnyReader.messages`` over the two topics, touching ``rawdata``
   only (the physical limit of any reader built on rosbags);
 - ``raw bytes, kept``: the same, collecting every ``rawdata`` in a list;
-- ``read_bag``: gyro_tdc.bagio.read_bag (numpy decode of the CDR bytes);
-- ``load_run``: gyro_tdc.dataset.load_run (read_bag + temperature alignment + checks);
+- ``read_bag``: gyro_tdc.data.read_bag (numpy decode of the CDR bytes);
+- ``load_run``: gyro_tdc.data.dataset.load_run (read_bag + temperature alignment + checks);
 - ``rosbags deserialise``: raw bytes + ``deserialize_cdr`` per message, timed on a subset of
   ``--subset`` messages and extrapolated to the whole bag.
 
-The bag is written once with gyro_tdc.bagio.write_bag and cached (``--bag`` to choose where).
+The bag is written once with gyro_tdc.data.write_bag and cached (``--bag`` to choose where).
 Run: ``.venv/bin/python bench/bench_dataset.py [--storage mcap] [--repeats 5]``.
 """
 
@@ -79,7 +79,7 @@ def make_bag(path: Path, *, duration_s: float, rate_hz: float, storage: str) -> 
     """
     import numpy as np
 
-    from gyro_tdc.bagio import write_bag
+    from gyro_tdc.data import write_bag
 
     rng = np.random.default_rng(0)
     n = int(round(duration_s * rate_hz))
@@ -117,8 +117,8 @@ def measure(kind: str, bag: Path, subset: int) -> dict:
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import get_typestore, Stores
 
-    from gyro_tdc.bagio import read_bag
-    from gyro_tdc.dataset import load_run
+    from gyro_tdc.data import read_bag
+    from gyro_tdc.data.dataset import load_run
 
     start, cpu_start = time.perf_counter(), time.process_time()
     if kind in ('raw', 'raw_kept', 'deserialise'):

@@ -23,7 +23,7 @@ analysed ``--repeat`` times, each in a fresh process as a user would run it::
 
 The median wall time of the whole command (interpreter start, imports, bag read, discovery
 with the Allan deviation of the residual, model file, JSON) is the figure; the time of the
-analysis alone (``load_runs`` + :func:`gyro_tdc.discover.discover`, in this process) is
+analysis alone (``load_runs`` + :func:`gyro_tdc.identify.discover.discover`, in this process) is
 printed too, as is what was found. ``--report`` adds the markdown report with its PNGs::
 
     .venv/bin/python bench/bench_discover.py              # ~1 min
@@ -64,7 +64,7 @@ SCENARIO = {
 
 def make_bag(path: Path) -> None:
     """Simulate the scenario and write it as a bag."""
-    from gyro_tdc.bagio import write_bag
+    from gyro_tdc.data import write_bag
     from gyro_tdc.sim.simulator import simulate_run
 
     run = simulate_run(SCENARIO, seed=7)
@@ -82,8 +82,8 @@ def main() -> int:
     parser.add_argument('--report', action='store_true', help='also write --report DIR')
     args = parser.parse_args()
 
-    from gyro_tdc.dataset import load_runs
-    from gyro_tdc.discover import discover
+    from gyro_tdc.data.dataset import load_runs
+    from gyro_tdc.identify.discover import discover
 
     with tempfile.TemporaryDirectory() as tmp:
         bag = Path(tmp) / 'bag'

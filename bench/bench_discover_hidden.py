@@ -58,8 +58,8 @@ def _run(sc: dict, seed: int, folder: Path, excursion_dps: float = 0.0):
     """Write the runs of ``sc`` as bags and run discovery on them."""
     from test_discover import write_runs
 
-    from gyro_tdc.dataset import load_runs
-    from gyro_tdc.discover import discover
+    from gyro_tdc.data.dataset import load_runs
+    from gyro_tdc.identify.discover import discover
 
     folder.mkdir(parents=True, exist_ok=True)
     return discover(load_runs(write_runs(folder, sc, seed, excursion_dps=excursion_dps)),

@@ -25,7 +25,7 @@ The field defaults swept wider than the tests: out-of-range policies and re-anch
 2. **Re-anchoring precision vs sample rate.** A still stream at 1 Hz (1 s means), 10 Hz,
    200 Hz, 1 kHz and 2 kHz (noise low-passed at tau = 5 ms, i.e. oversampled at 1 and 2 kHz),
    the same low-frequency noise (1e-3 rad/s over 1 s), through
-   :func:`gyro_tdc.stillness.reanchor_shift` with the defaults (tolerance 1.5e-4 rad/s: 0.1
+   :func:`gyro_tdc.runtime.reanchor.reanchor_shift` with the defaults (tolerance 1.5e-4 rad/s: 0.1
    of a residual std of 1.5e-3): the SE it reports, the actual scatter of the shift over
    seeds, the time it took, and the per-sample SE a naive formula would claim.
 
@@ -44,12 +44,12 @@ for p in (ROOT, ROOT / 'test'):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
-from gyro_tdc.fitting import fit_model  # noqa: E402
-from gyro_tdc.metrics import bias_stability  # noqa: E402
-from gyro_tdc.model import compensate  # noqa: E402
+from gyro_tdc.identify import fit_model  # noqa: E402
+from gyro_tdc.model.compensation import compensate  # noqa: E402
+from gyro_tdc.runtime.reanchor import reanchor_shift  # noqa: E402
+from gyro_tdc.signal.metrics import bias_stability  # noqa: E402
 from gyro_tdc.sim import load_scenario  # noqa: E402
 from gyro_tdc.sim.simulator import simulate_run, to_run  # noqa: E402
-from gyro_tdc.stillness import reanchor_shift  # noqa: E402
 import numpy as np  # noqa: E402
 from scipy.signal import lfilter  # noqa: E402
 from synth import synth_run  # noqa: E402

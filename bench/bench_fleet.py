@@ -16,12 +16,12 @@
 Fleet on Dask: 32 sensors, 1 h at 100 Hz each, with 1 and 2 local worker processes.
 
 Writes (once, cached in ``--data``) a train and a test bag per sensor with
-:func:`gyro_tdc.bagio.write_bag`: a chamber cycle (soak 20 degC, heat to 60 at 1.5 degC/min,
+:func:`gyro_tdc.data.write_bag`: a chamber cycle (soak 20 degC, heat to 60 at 1.5 degC/min,
 hold, cool), drift slopes and curvatures spread by 10 % between units, white noise
 0.03 deg/s/sqrt(Hz). Then measures
 
-* ``train alone``: :func:`gyro_tdc.training.train` on one sensor's train bag plus
-  :func:`gyro_tdc.evaluation.evaluate` on its test bag, in this process (median of
+* ``train alone``: :func:`gyro_tdc.identify.train.train` on one sensor's train bag plus
+  :func:`gyro_tdc.evaluate.score.evaluate` on its test bag, in this process (median of
   ``--repeat`` sensors): the work a fleet task does, without Dask;
 * ``plain processes``: the same, over ``2 * --repeat`` sensors in a plain two-process pool
   (no Dask), one after the other and two at a time: what this machine gives a second process
@@ -83,8 +83,8 @@ def make_sensor_bag(path, *, unit, seed, hours, rate_hz):
         IMU rate.
 
     """
-    from gyro_tdc.bagio import write_bag
-    from gyro_tdc.effects import first_order_lag
+    from gyro_tdc.data import write_bag
+    from gyro_tdc.model.effects import first_order_lag
 
     rng = np.random.default_rng(seed)
     duration = hours * 3600.0
@@ -130,8 +130,8 @@ def make_fleet(data, *, sensors, hours, rate_hz):
 
 def train_alone(spec, options, out):
     """Train and evaluate one sensor in this process, as a fleet task does; return seconds."""
-    from gyro_tdc.training import train
-    from gyro_tdc.evaluation import evaluate, NamedModel
+    from gyro_tdc.identify.train import train
+    from gyro_tdc.evaluate.score import evaluate, NamedModel
 
     start = time.perf_counter()
     result = train(list(spec.train), out=out, **options)
@@ -143,8 +143,8 @@ def train_alone(spec, options, out):
 
 def _warm():
     """Import what a task needs (so that a pool's timing excludes the imports)."""
-    import gyro_tdc.evaluation  # noqa: F401
-    import gyro_tdc.training  # noqa: F401
+    import gyro_tdc.evaluate.score  # noqa: F401
+    import gyro_tdc.identify.train  # noqa: F401
 
 
 def plain_processes(specs, options, tmp):

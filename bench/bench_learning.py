@@ -17,10 +17,10 @@ What learning adds to the compensator's per-message cost at 1 kHz (issue 14).
 
 A synthetic 1 kHz stream (``--minutes`` of it: still 2 min, moving 30 s, the temperature
 between 15 and 20 degC at 1 degC a minute, a thermometer at 1 Hz, an accelerometer in every
-sample) goes through :class:`gyro_tdc.compensation_logic.CompensatorCore` with a static
+sample) goes through :class:`gyro_tdc.runtime.core.CompensatorCore` with a static
 ``dT, dT2`` model, one message at a time, twice per trial (ABBA over ``--trials``): plain,
-and with a :class:`gyro_tdc.learning.Learner` attached, stepped every 100 messages
-(:meth:`~gyro_tdc.compensation_logic.CompensatorCore.learn_step`: the node's 0.1 s timer at
+and with a :class:`gyro_tdc.learn.learner.Learner` attached, stepped every 100 messages
+(:meth:`~gyro_tdc.runtime.core.CompensatorCore.learn_step`: the node's 0.1 s timer at
 1 kHz), its swapped models scheduled and installed at their stamps. Printed side by side,
 per message (median over trials): the plain core; the learning core's message path (the
 append); and its total with the timer's work amortised
@@ -48,8 +48,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
-from gyro_tdc.compensation_logic import CompensatorCore, Policy  # noqa: E402
-from gyro_tdc.learning import learned_model, Learner  # noqa: E402
+from gyro_tdc.learn.learner import learned_model, Learner  # noqa: E402
+from gyro_tdc.runtime.core import CompensatorCore, Policy  # noqa: E402
 import numpy as np  # noqa: E402
 
 RATE = 1000.0
@@ -152,7 +152,7 @@ def bench_node(stream, trials: int) -> tuple[float, float] | None:
     except ImportError:
         return None
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    from gyro_tdc.modelfile import save_model
+    from gyro_tdc.model.modelfile import save_model
     context = Context()
     rclpy.init(context=context, args=['--ros-args', '--log-level', 'error'])
     plain, learn = [], []

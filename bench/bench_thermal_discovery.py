@@ -76,15 +76,15 @@ def run_case(tau_die: float, curvature: str, seed: int, folder: Path) -> dict:
 
     import numpy as np
 
-    from gyro_tdc.bagio import write_bag
-    from gyro_tdc.discover import discover
-    from gyro_tdc.discover.data import BlockData
-    from gyro_tdc.metrics import bias_stability
-    from gyro_tdc.model import compensate
-    from gyro_tdc.runs import Run
+    from gyro_tdc.data import write_bag
+    from gyro_tdc.identify.discover import discover
+    from gyro_tdc.identify.discover.data import BlockData
+    from gyro_tdc.signal.metrics import bias_stability
+    from gyro_tdc.model.compensation import compensate
+    from gyro_tdc.data.runs import Run
     from gyro_tdc.sim import simulate_scenario
     from gyro_tdc.sim.simulator import to_run
-    from gyro_tdc.training import train
+    from gyro_tdc.identify.train import train
 
     sims = simulate_scenario('die_lag', seed=seed, overrides=overrides(tau_die, curvature))
     runs = [to_run(s) for s in sims]

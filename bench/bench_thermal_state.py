@@ -48,8 +48,8 @@ def held_out(model, run) -> float:
     """Return the held-out BS over the floor, worst axis."""
     import numpy as np
 
-    from gyro_tdc.metrics import bias_stability
-    from gyro_tdc.model import compensate
+    from gyro_tdc.signal.metrics import bias_stability
+    from gyro_tdc.model.compensation import compensate
 
     bs = bias_stability(compensate(model, run.t, run.temp, run.omega), run.omega_ref)
     return float(np.max(bs) / FLOOR)
@@ -57,7 +57,7 @@ def held_out(model, run) -> float:
 
 def sweep(taus, curvatures, seed: int) -> None:
     """Print the tau x curvature x kind table."""
-    from gyro_tdc.fitting import fit_model
+    from gyro_tdc.identify import fit_model
     from thermal_synth import lag_run, OTHER
 
     print('tau_die s | curvature | kind | tau s (95 % interval) | error | holds tau_die | '
@@ -83,7 +83,7 @@ def sweep(taus, curvatures, seed: int) -> None:
 
 def cases(seed: int) -> None:
     """Print what the estimator says where the data cannot pin tau, and the two-node choice."""
-    from gyro_tdc.fitting import fit_model
+    from gyro_tdc.identify import fit_model
     from thermal_synth import lag_run, OTHER
 
     print('\ncase | thermal | result | held-out BS / floor | fit s')

@@ -17,7 +17,7 @@ Trainer vs bag read: training a 1 h, 1 kHz bag within 1.5x of reading its raw by
 
 Writes (once, cached) a bag of 3.6 M ``sensor_msgs/Imu`` messages at 1 kHz and 3,600
 ``sensor_msgs/Temperature`` messages at 1 Hz over a realistic chamber cycle (soak, heating
-ramp, hold, cooling ramp) with :func:`gyro_tdc.bagio.write_bag`, then measures, each stage in
+ramp, hold, cooling ramp) with :func:`gyro_tdc.data.write_bag`, then measures, each stage in
 a fresh interpreter (so its peak RSS is its own), the median of ``--repeat`` runs of:
 
 * ``raw``: the physical limit, iterating rosbags' ``AnyReader`` over every message and touching
@@ -25,7 +25,7 @@ a fresh interpreter (so its peak RSS is its own), the median of ``--repeat`` run
 * ``raw_reader``: the same through rosbags' lower-level ``rosbags.rosbag2.Reader`` (no merge
   across bags: one generator step less per message), the stricter baseline, since the
   trainer iterates that reader;
-* ``load``: dataset extraction, :func:`gyro_tdc.dataset.load_run` (read, decode, align);
+* ``load``: dataset extraction, :func:`gyro_tdc.data.dataset.load_run` (read, decode, align);
 * ``train``: the ``train`` command end to end (read, fit, coverage, save), through
   :func:`gyro_tdc.cli.train.main` with its defaults: ``--features auto`` (the discovery
   gates on 20 Hz block means), the default thermal front end, and the accelerometer part
@@ -86,8 +86,8 @@ def make_bag(path, *, minutes=60.0, rate_hz=1000.0, storage='sqlite3', seed=0):
         Noise seed.
 
     """
-    from gyro_tdc.bagio import write_bag
-    from gyro_tdc.effects import first_order_lag
+    from gyro_tdc.data import write_bag
+    from gyro_tdc.model.effects import first_order_lag
 
     rng = np.random.default_rng(seed)
     n = int(round(minutes * 60.0 * rate_hz))
@@ -134,7 +134,7 @@ def _stage_raw_reader(bag):
 
 def _stage_load(bag):
     """Extract the aligned run with the dataset loader."""
-    from gyro_tdc.dataset import load_run
+    from gyro_tdc.data.dataset import load_run
 
     run = load_run(bag)
     return {'samples': len(run)}

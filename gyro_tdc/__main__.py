@@ -26,11 +26,7 @@ import sys
 from typing import Optional, Sequence
 
 from gyro_tdc import __version__
-from gyro_tdc.cli import COMMANDS
-from gyro_tdc.cli import CommandUnavailable
-from gyro_tdc.cli import format_help
-from gyro_tdc.cli import load_main
-from gyro_tdc.cli import PROG
+from gyro_tdc.cli import COMMANDS, CommandUnavailable, format_help, load_main, PROG
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

@@ -16,8 +16,8 @@
 
 from __future__ import annotations
 
-from gyro_tdc.evaluation import BagEval, ModelEval
-from gyro_tdc.runs import Run
+from gyro_tdc.data.runs import Run
+from gyro_tdc.evaluate.score import BagEval, ModelEval
 import numpy as np
 
 

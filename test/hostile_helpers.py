@@ -16,7 +16,7 @@
 
 from __future__ import annotations
 
-from gyro_tdc.model import CompensationModel
+from gyro_tdc.model.compensation import CompensationModel
 import numpy as np
 
 

@@ -24,16 +24,15 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.accel import (accel_features, accel_scores, compensate_accel, discovery_runs,
-                            fit_accel, has_accelerometer, MG, PX4_FEATURES, static_bs,
-                            static_data)
+from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import FeatureError, FitError, ModelFileError
-from gyro_tdc.fitting import fit_linear, fit_model, fit_px4_cubic
-from gyro_tdc.model import drift, StreamingCompensator
-from gyro_tdc.modelfile import load_model, model_from_dict, model_to_dict, save_model
-from gyro_tdc.runs import Run
+from gyro_tdc.identify import (accel_features, accel_scores, compensate_accel, discovery_runs,
+                               fit_accel, fit_linear, fit_model, fit_px4_cubic, has_accelerometer,
+                               MG, PX4_FEATURES, static_bs, static_data)
+from gyro_tdc.model.compensation import drift, StreamingCompensator
+from gyro_tdc.model.modelfile import load_model, model_from_dict, model_to_dict, save_model
+from gyro_tdc.model.thermal_state import ThermalState
 from gyro_tdc.sim import load_scenario, simulate_scenario, to_run
-from gyro_tdc.thermal_state import ThermalState
 import numpy as np
 import pytest
 
@@ -275,7 +274,7 @@ def test_discovery_runs_are_the_still_segments_in_mg(chamber):
 @pytest.mark.parametrize('chunk_rows', [1, 7, 1000])
 def test_the_fit_is_the_same_in_passes_of_any_size(chamber, monkeypatch, chunk_rows):
     # The force's block sums run in passes of whole blocks; the pass size changes no bit.
-    import gyro_tdc.accel.part as part
+    import gyro_tdc.identify.accel as part
 
     monkeypatch.setattr(part, '_CHUNK_ROWS', chunk_rows)
     fit = fit_accel(chamber['runs'][:1], chamber['gyro'])

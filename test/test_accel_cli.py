@@ -26,8 +26,8 @@ import json
 from gyro_tdc.cli.discover import main as discover_main
 from gyro_tdc.cli.evaluate import main as evaluate_main
 from gyro_tdc.cli.train import main as train_main
-from gyro_tdc.dataset import load_run
-from gyro_tdc.modelfile import load_model
+from gyro_tdc.data.dataset import load_run
+from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.sim import load_scenario, simulate_scenario
 import numpy as np
 import pytest

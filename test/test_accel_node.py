@@ -17,7 +17,7 @@ compensator_node corrects the specific force with the model's accelerometer part
 
 The live done-criterion: a short, low-rate ``accel_chamber`` run streamed through a real
 compensator_node (fresh Context) gives, sample for sample, the offline batch compensation
-(:func:`gyro_tdc.accel.compensate_accel`) in both input paths, with the covariance widened by
+(:func:`gyro_tdc.identify.compensate_accel`) in both input paths, with the covariance widened by
 the accelerometer residual variance (and the out-of-range policy); a model without an
 accelerometer part leaves ``linear_acceleration`` as it came.
 """
@@ -25,13 +25,12 @@ accelerometer part leaves ``linear_acceleration`` as it came.
 from __future__ import annotations
 
 from compensator_rig import Rig, stamp_s, to_ns
-from gyro_tdc.accel import compensate_accel, fit_accel
-from gyro_tdc.compensation_logic import CompensatorCore, Policy
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.health import accel_state, OUT_OF_RANGE
-from gyro_tdc.model import compensate, StreamingCompensator
-from gyro_tdc.modelfile import save_model
-from gyro_tdc.out_of_range import variance_growth
+from gyro_tdc.identify import compensate_accel, fit_accel, fit_model
+from gyro_tdc.model.compensation import compensate, StreamingCompensator
+from gyro_tdc.model.modelfile import save_model
+from gyro_tdc.model.out_of_range import variance_growth
+from gyro_tdc.runtime.core import CompensatorCore, Policy
+from gyro_tdc.runtime.health import accel_state, OUT_OF_RANGE
 from gyro_tdc.sim import load_scenario, simulate_scenario, to_run
 import numpy as np
 import pytest

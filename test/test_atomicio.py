@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Tests of gyro_tdc.atomicio: atomic writes with normal permissions, through symlinks.
+Tests of gyro_tdc.base.atomicio: atomic writes with normal permissions, through symlinks.
 
 Issue 18, items 4 and 11 (moved from test_hostile.py): a new file gets the umask's mode, an
 overwritten one keeps its mode, a symlink is written through to its target, a failure leaves
@@ -27,9 +27,9 @@ import os
 from pathlib import Path
 import stat
 
-from gyro_tdc.atomicio import atomic_dir, atomic_write
+from gyro_tdc.base.atomicio import atomic_dir, atomic_write
 from gyro_tdc.errors import OutputError
-from gyro_tdc.modelfile import load_model, save_model
+from gyro_tdc.model.modelfile import load_model, save_model
 from hostile_helpers import one_line_error, small_model
 import pytest
 

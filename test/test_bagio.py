@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.bagio (codec, writer, reader): round trips, the codec, bad bags."""
+"""Tests of gyro_tdc.data (codec, writer, reader): round trips, the codec, bad bags."""
 
 from __future__ import annotations
 
@@ -20,11 +20,11 @@ import ast
 import io
 from pathlib import Path
 
-from gyro_tdc import bagio
-from gyro_tdc.bagio import codec, reader
-from gyro_tdc.bagio import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag
+from gyro_tdc import data as bagio
+from gyro_tdc.data import (bag_codec as codec, bag_reader as reader, IMU_TYPE, read_bag,
+                           REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag)
+from gyro_tdc.data.imu_cdr import encode, Layout
 from gyro_tdc.errors import DatasetError
-from gyro_tdc.imu_cdr import encode, Layout
 import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader

@@ -14,7 +14,7 @@
 
 """Block sums and means agree with a plain loop over the blocks, partial last block included."""
 
-from gyro_tdc.blocks import block_counts, block_length, block_mean, block_sum, block_sumsq
+from gyro_tdc.signal.blocks import block_counts, block_length, block_mean, block_sum, block_sumsq
 import numpy as np
 import pytest
 

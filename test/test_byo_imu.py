@@ -25,12 +25,12 @@ from __future__ import annotations
 
 from compensator_rig import RELIABLE, stamp_s, to_ns
 from gyro_tdc.cli.train import main as train_main
-from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy, TEMPERATURE_TYPES
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.health import health, OK, sensor_mismatch, WARN
-from gyro_tdc.modelfile import load_model, save_model
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.modelfile import load_model, save_model
 from gyro_tdc.nodes.compensator_node import CompensatorNode, TEMPERATURE_MESSAGES
 from gyro_tdc.nodes.executors import make_executor
+from gyro_tdc.runtime.core import CompensatorCore, PARAMS, Policy, TEMPERATURE_TYPES
+from gyro_tdc.runtime.health import health, OK, sensor_mismatch, WARN
 import pytest
 import rclpy
 from rclpy.parameter import Parameter

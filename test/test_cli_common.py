@@ -21,10 +21,9 @@ import math
 from pathlib import Path
 
 from gyro_tdc.cli import COMMANDS, load_main
-from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
-from gyro_tdc.cli.common import finite_float, non_negative_float, parse_reference
-from gyro_tdc.cli.common import positive_float, positive_int, probability, run_command
-from gyro_tdc.cli.common import UsageError
+from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
+                                 finite_float, non_negative_float, parse_reference, positive_float,
+                                 positive_int, probability, run_command, UsageError)
 from gyro_tdc.errors import DatasetError, one_line
 import pytest
 

@@ -26,10 +26,10 @@ import json
 
 from gyro_tdc.cli.evaluate import main
 from gyro_tdc.cli.train import main as train_main
-from gyro_tdc.dataset import load_run
-from gyro_tdc.metrics import bias_stability
-from gyro_tdc.model import compensate
-from gyro_tdc.modelfile import load_model
+from gyro_tdc.data.dataset import load_run
+from gyro_tdc.model.compensation import compensate
+from gyro_tdc.model.modelfile import load_model
+from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
 import pytest
 from synth import synth_run

@@ -17,9 +17,9 @@
 
 from __future__ import annotations
 
+from gyro_tdc.base.resources import scenario_names
 from gyro_tdc.cli import COMMANDS, load_main
-from gyro_tdc.effects import EFFECTS
-from gyro_tdc.resources import scenario_names
+from gyro_tdc.model.effects import EFFECTS
 import pytest
 
 

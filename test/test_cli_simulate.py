@@ -17,8 +17,8 @@
 
 from __future__ import annotations
 
+from gyro_tdc.base.resources import scenario_names
 from gyro_tdc.cli.simulate import main
-from gyro_tdc.resources import scenario_names
 import pytest
 from test_sim_cli import TINY as SIM_CLI_TINY
 import yaml

@@ -15,7 +15,7 @@
 """
 ``python -m gyro_tdc train``: bags in, a model file out, a coverage report, exit 2 on bad input.
 
-Bags are written in ``tmp_path`` with :func:`gyro_tdc.bagio.write_bag` from the exact synthetic
+Bags are written in ``tmp_path`` with :func:`gyro_tdc.data.write_bag` from the exact synthetic
 runs of ``synth.py`` or from the simulator. The helpers here are shared with
 ``test_cli_evaluate.py``.
 """
@@ -24,12 +24,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from gyro_tdc.bagio import write_bag
 from gyro_tdc.cli.train import main
-from gyro_tdc.metrics import bias_stability
-from gyro_tdc.model import compensate
-from gyro_tdc.modelfile import load_model
-from gyro_tdc.runs import Run
+from gyro_tdc.data import write_bag
+from gyro_tdc.data.runs import Run
+from gyro_tdc.model.compensation import compensate
+from gyro_tdc.model.modelfile import load_model
+from gyro_tdc.signal.metrics import bias_stability
 from gyro_tdc.sim import simulate_scenario
 import numpy as np
 import pytest

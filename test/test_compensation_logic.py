@@ -19,13 +19,13 @@ from __future__ import annotations
 from dataclasses import fields
 import math
 
-from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy, prepare, STATIC_EFFECTS
-from gyro_tdc.effects import batch_features, EFFECTS
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.health import (describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
-                             OUT_OF_RANGE, PASSTHROUGH, STALE)
-from gyro_tdc.learning import learned_model, Learner
-from gyro_tdc.model import compensate, model_temperature, StreamingCompensator
+from gyro_tdc.identify import fit_model
+from gyro_tdc.learn.learner import learned_model, Learner
+from gyro_tdc.model.compensation import compensate, model_temperature, StreamingCompensator
+from gyro_tdc.model.effects import batch_features, EFFECTS
+from gyro_tdc.runtime.core import CompensatorCore, PARAMS, Policy, prepare, STATIC_EFFECTS
+from gyro_tdc.runtime.health import (describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
+                                     OUT_OF_RANGE, PASSTHROUGH, STALE)
 import numpy as np
 import pytest
 from synth import synth_run

@@ -21,14 +21,14 @@ from pathlib import Path
 
 from compensator_rig import rates, RELIABLE, stamp_s, to_ns
 from diagnostic_msgs.msg import DiagnosticStatus
-from gyro_tdc.compensation_logic import CompensatorCore, Policy
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.imu_cdr import ImuView, locate
-from gyro_tdc.model import compensate
-from gyro_tdc.modelfile import save_model
+from gyro_tdc.data.imu_cdr import ImuView, locate
+from gyro_tdc.data.mark import mark_diagonal
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.compensation import compensate
+from gyro_tdc.model.modelfile import save_model
 from gyro_tdc.nodes.compensator_node import PARAMS
 from gyro_tdc.nodes.executors import make_executor
-from gyro_tdc.provenance import mark_diagonal
+from gyro_tdc.runtime.core import CompensatorCore, Policy
 import numpy as np
 import pytest
 import rclpy

@@ -141,7 +141,7 @@ def test_every_core_module_imports_without_rclpy():
     assert not report['errors'], 'modules that fail to import without ROS:\n' + '\n'.join(
         f'--- {name}\n{text}' for name, text in sorted(report['errors'].items()))
     assert not report['leaked'], f'ROS modules imported anyway: {report["leaked"]}'
-    for expected in ('gyro_tdc', 'gyro_tdc.errors', 'gyro_tdc.runs', 'gyro_tdc.resources',
-                     'gyro_tdc.cli', 'gyro_tdc.__main__'):
+    for expected in ('gyro_tdc', 'gyro_tdc.errors', 'gyro_tdc.data.runs',
+                     'gyro_tdc.base.resources', 'gyro_tdc.cli', 'gyro_tdc.__main__'):
         assert expected in report['imported']
     assert not any(name.startswith('gyro_tdc.nodes') for name in report['imported'])

@@ -12,12 +12,12 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.coverage: temperature bins, sparse bins, heating and cooling minutes."""
+"""Tests of gyro_tdc.data.coverage: temperature bins, sparse bins, heating and cooling minutes."""
 
 from __future__ import annotations
 
-from gyro_tdc.coverage import coverage, RATE_WINDOW_S, temperature_rate
-from gyro_tdc.runs import Run
+from gyro_tdc.data.coverage import coverage, RATE_WINDOW_S, temperature_rate
+from gyro_tdc.data.runs import Run
 import numpy as np
 import pytest
 

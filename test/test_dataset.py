@@ -12,14 +12,14 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.dataset (alignment, load_run)."""
+"""Tests of gyro_tdc.data.dataset (alignment, load_run)."""
 
 from __future__ import annotations
 
-from gyro_tdc.bagio import IMU_TYPE, TEMPERATURE_TYPE, write_bag
-from gyro_tdc.dataset import align_temperature, load_run, load_runs
+from gyro_tdc.data import IMU_TYPE, TEMPERATURE_TYPE, write_bag
+from gyro_tdc.data.dataset import align_temperature, load_run, load_runs
+from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import DatasetError
-from gyro_tdc.runs import Run
 import numpy as np
 import pytest
 from rosbags.rosbag2 import Writer

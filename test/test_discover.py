@@ -20,7 +20,8 @@ bias instability and rate random walk, 8.75 mdps quantisation; a package thermom
 0.03 degC resolution), with one effect switched on and scaled so that the part of it the base
 model (bias, dT) cannot absorb has a chosen RMS, ``k`` times the per-sample noise standard
 deviation, over the whole recording. The run is written to a bag, read back with
-:func:`gyro_tdc.dataset.load_runs` and handed to :func:`gyro_tdc.discover.discover`, which
+:func:`gyro_tdc.data.dataset.load_runs` and handed to :func:`gyro_tdc.identify.discover.discover`,
+which
 must name the effect (or an alias it reports), bring the gap within 1.3 times the noise floor
 it estimates and shrink the held-out gap; and must name nothing when nothing is hidden, also
 with session-to-session offsets and a non-thermal bias excursion.
@@ -31,12 +32,12 @@ from __future__ import annotations
 import json
 import math
 
-from gyro_tdc.bagio import write_bag
 from gyro_tdc.cli.discover import main
-from gyro_tdc.dataset import load_runs
-from gyro_tdc.discover import build_model, discover
-from gyro_tdc.model import compensate
-from gyro_tdc.modelfile import load_model, save_model
+from gyro_tdc.data import write_bag
+from gyro_tdc.data.dataset import load_runs
+from gyro_tdc.identify.discover import build_model, discover
+from gyro_tdc.model.compensation import compensate
+from gyro_tdc.model.modelfile import load_model, save_model
 from gyro_tdc.sim.simulator import simulate_run
 import numpy as np
 import pytest
@@ -230,7 +231,7 @@ def test_null_with_session_offsets_and_bias_excursion(tmp_path):
 
 
 def test_unidentifiable_without_soak_or_rate_steps():
-    from gyro_tdc.runs import Run
+    from gyro_tdc.data.runs import Run
 
     # Constant non-zero rate, a ramp from the first sample (no soak): scale and warm-up
     # cannot be excited; the reason and the experiment name what is missing.
@@ -310,7 +311,7 @@ def test_cli_bad_input_exits_2_with_one_line(tmp_path, capsys, args, needle):
 
 def test_api_rejects_bad_runs():
     from gyro_tdc.errors import FitError
-    from gyro_tdc.runs import Run
+    from gyro_tdc.data.runs import Run
 
     with pytest.raises(FitError, match='No runs'):
         discover([])
@@ -352,7 +353,7 @@ def test_progress_is_called_for_every_candidate_scored():
 
 
 def test_warmup_at_fixed_ambient_gives_a_warmup_only_model():
-    from gyro_tdc.runs import Run
+    from gyro_tdc.data.runs import Run
 
     # Power-on at a fixed 25 degC (no temperature span): bias + warm-up (tau 240 s) whose
     # RMS over the hour is about a quarter of the noise std.

@@ -15,8 +15,8 @@
 """
 The parts of discovery on their own: block grid, folds, noise memory and the HAC test.
 
-:mod:`gyro_tdc.discover.data` groups samples into blocks per contiguous segment;
-:mod:`gyro_tdc.discover.stats` holds the statistics the false-discovery guard is built on.
+:mod:`gyro_tdc.identify.discover.data` groups samples into blocks per contiguous segment;
+:mod:`gyro_tdc.identify.discover.stats` holds the statistics the false-discovery guard is built on.
 Each is checked against a known answer on seeded synthetic data.
 """
 
@@ -24,11 +24,11 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.discover.data import BlockData
-from gyro_tdc.discover.linear import LinearModel
-from gyro_tdc.discover.stats import (ar1, bandwidth, hac_pvalue, make_folds, rel_residual,
-                                     weighted_corr)
-from gyro_tdc.runs import Run
+from gyro_tdc.data.runs import Run
+from gyro_tdc.identify.discover.data import BlockData
+from gyro_tdc.identify.discover.linear import LinearModel
+from gyro_tdc.identify.discover.stats import (ar1, bandwidth, hac_pvalue, make_folds, rel_residual,
+                                              weighted_corr)
 import numpy as np
 import pytest
 from synth import synth_run

@@ -22,9 +22,9 @@ import shutil
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from geometry_msgs.msg import Vector3Stamped
+from gyro_tdc.base.resources import scenario_names
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.nodes.driver_node import DriverNode, PARAMS
-from gyro_tdc.resources import scenario_names
 from gyro_tdc.sources.base import ImuSample, ImuSource, PolledSource
 import numpy as np
 import pytest

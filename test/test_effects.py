@@ -17,18 +17,18 @@
 
 import math
 
-from gyro_tdc.effects import (batch_features, Effect, EFFECT_IDS, EFFECTS, first_order_lag,
-                              input_ids, INPUT_ORDER, NONLINEAR_EFFECTS, normalise_ids,
-                              REFERENCE_EFFECTS, resolve_params, STATE_TERMS, STATIC_EFFECTS,
-                              StreamingFeatures, TEMPERATURE_EFFECTS, THERMAL_EFFECTS,
-                              with_implied)
+from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import FeatureError
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.metrics import bias_stability
-from gyro_tdc.model import compensate, StreamingCompensator
-from gyro_tdc.modelfile import load_model, save_model
-from gyro_tdc.runs import Run
-from gyro_tdc.thermal_state import ThermalState
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.compensation import compensate, StreamingCompensator
+from gyro_tdc.model.effects import (batch_features, Effect, EFFECT_IDS, EFFECTS, first_order_lag,
+                                    input_ids, INPUT_ORDER, NONLINEAR_EFFECTS, normalise_ids,
+                                    REFERENCE_EFFECTS, resolve_params, STATE_TERMS, STATIC_EFFECTS,
+                                    StreamingFeatures, TEMPERATURE_EFFECTS, THERMAL_EFFECTS,
+                                    with_implied)
+from gyro_tdc.model.modelfile import load_model, save_model
+from gyro_tdc.model.thermal_state import ThermalState
+from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
 import pytest
 from synth import synth_run

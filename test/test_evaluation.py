@@ -12,20 +12,20 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.evaluation: scores against hand-computed BS, models, labels, bags."""
+"""Tests of gyro_tdc.evaluate.score: scores against hand-computed BS, models, labels, bags."""
 
 from __future__ import annotations
 
 import math
 
-from gyro_tdc.bagio import write_bag
-from gyro_tdc.dataset import load_run
+from gyro_tdc.data import write_bag
+from gyro_tdc.data.dataset import load_run
+from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import FitError, ModelFileError
-from gyro_tdc.evaluation import bag_labels, evaluate, evaluate_run, load_models, mean_scores
-from gyro_tdc.evaluation import model_labels, NamedModel, PX4, rate_hz, safe_label, score
-from gyro_tdc.model import CompensationModel
-from gyro_tdc.runs import Run
-from gyro_tdc.stillness import reanchor_shift
+from gyro_tdc.evaluate.score import (bag_labels, evaluate, evaluate_run, load_models, mean_scores,
+                                     model_labels, NamedModel, PX4, rate_hz, safe_label, score)
+from gyro_tdc.model.compensation import CompensationModel
+from gyro_tdc.runtime.reanchor import reanchor_shift
 import numpy as np
 import pytest
 

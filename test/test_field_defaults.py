@@ -31,14 +31,14 @@ from pathlib import Path
 
 from gyro_tdc.cli.evaluate import main as evaluate_main
 from gyro_tdc.cli.train import main as train_main
-from gyro_tdc.compensation_logic import CompensatorCore, Policy
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.health import health
-from gyro_tdc.metrics import bias_stability
-from gyro_tdc.model import compensate, CompensationModel, drift, StreamingCompensator
-from gyro_tdc.out_of_range import added_variance, range_shortfall, VARIANCE_SCALE_C
-from gyro_tdc.stillness import (BLOCKS_PER_WINDOW, reanchor_shift, StillnessDetector,
-                                TOLERANCE_FRACTION)
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.compensation import compensate, CompensationModel, drift, StreamingCompensator
+from gyro_tdc.model.out_of_range import added_variance, range_shortfall, VARIANCE_SCALE_C
+from gyro_tdc.runtime.core import CompensatorCore, Policy
+from gyro_tdc.runtime.health import health
+from gyro_tdc.runtime.reanchor import (BLOCKS_PER_WINDOW, reanchor_shift, StillnessDetector,
+                                       TOLERANCE_FRACTION)
+from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
 import pytest
 from synth import synth_run

@@ -23,15 +23,15 @@ from pathlib import Path
 from gyro_tdc.cli.evaluate import main as evaluate_main
 from gyro_tdc.cli.simulate import simulate
 from gyro_tdc.cli.train import main as train_main
-from gyro_tdc.evaluation import evaluate_run, NamedModel
-from gyro_tdc.field_training import train_still_only
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.modelfile import load_model
-from gyro_tdc.runs import Run
+from gyro_tdc.data.runs import Run
+from gyro_tdc.evaluate.score import evaluate_run, NamedModel
+from gyro_tdc.identify import fit_model
+from gyro_tdc.identify.still_only import train_still_only
+from gyro_tdc.model.modelfile import load_model
+from gyro_tdc.signal import motion_veto
 from gyro_tdc.sim import load_scenario, simulate_run, to_run
 from gyro_tdc.sim.simulator import gravity_vector
 from gyro_tdc.sim.vehicle import CMD_VEL_TOPIC, gravity_in_sensor, TRUTH_TOPIC
-from gyro_tdc.still import motion_veto
 import numpy as np
 import pytest
 import yaml

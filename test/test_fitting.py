@@ -17,10 +17,10 @@
 import math
 
 from gyro_tdc.errors import FitError
-from gyro_tdc.fitting import (estimate_t0, fit_linear, fit_model, fit_px4_cubic,
-                              fit_time_constant, LinearFit, RIDGE_GRID, TimeConstantFit)
-from gyro_tdc.metrics import bias_stability
-from gyro_tdc.model import compensate, predict_drift
+from gyro_tdc.identify import (estimate_t0, fit_linear, fit_model, fit_px4_cubic,
+                               fit_time_constant, LinearFit, RIDGE_GRID, TimeConstantFit)
+from gyro_tdc.model.compensation import compensate, predict_drift
+from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
 import pytest
 from synth import synth_run

@@ -30,15 +30,15 @@ import os
 from pathlib import Path
 import shutil
 
-from gyro_tdc.bagio import write_bag
 from gyro_tdc.cli.fleet import main
 from gyro_tdc.cli.train import build_parser as train_parser, train_options
+from gyro_tdc.data import write_bag
 from gyro_tdc.errors import FleetError
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.fleet import check_sensor_id, drift_polynomial, fleet_statistics, open_engine
-from gyro_tdc.fleet import FleetResult, format_table, read_manifest, robust_z, run_fleet
-from gyro_tdc.fleet import SensorResult
-from gyro_tdc.modelfile import load_model
+from gyro_tdc.fleet import (check_sensor_id, drift_polynomial, fleet_statistics, FleetResult,
+                            format_table, open_engine, read_manifest, robust_z, run_fleet,
+                            SensorResult)
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.modelfile import load_model
 import numpy as np
 import pytest
 from synth import synth_run

@@ -19,10 +19,10 @@ from __future__ import annotations
 from dataclasses import replace
 import math
 
-from gyro_tdc.compensation_logic import CompensatorCore, Policy
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.health import (describe_flags, ERROR, health, InputStatus, NO_TEMPERATURE,
-                             NON_FINITE, OK, OUT_OF_RANGE, STALE, WARN)
+from gyro_tdc.identify import fit_model
+from gyro_tdc.runtime.core import CompensatorCore, Policy
+from gyro_tdc.runtime.health import (describe_flags, ERROR, health, InputStatus, NO_TEMPERATURE,
+                                     NON_FINITE, OK, OUT_OF_RANGE, STALE, WARN)
 import pytest
 from synth import synth_run
 

@@ -30,9 +30,9 @@ from pathlib import Path
 import stat
 import tracemalloc
 
+from gyro_tdc.base.limits import MAX_CENTERS
 from gyro_tdc.errors import GyroTdcError, ModelFileError, OutputError, ScenarioError
-from gyro_tdc.modelfile import load_model, MAX_CENTERS, model_from_dict, model_to_dict
-from gyro_tdc.modelfile import save_model
+from gyro_tdc.model.modelfile import load_model, model_from_dict, model_to_dict, save_model
 from gyro_tdc.sim import load_scenario
 from hostile_helpers import one_line_error, small_model
 import numpy as np
@@ -132,7 +132,7 @@ def test_too_many_centres_named_with_the_limit():
 
 
 def test_bag_metadata_with_deep_nesting_is_a_clear_error(tmp_path):
-    from gyro_tdc.bagio import read_bag, write_bag
+    from gyro_tdc.data import read_bag, write_bag
     from gyro_tdc.errors import DatasetError
     bag = tmp_path / 'bag'
     t = np.arange(100) * 0.1
@@ -335,7 +335,7 @@ def test_temperature_offset_change_and_garbled_scale_at_rescale(tmp_path):
 
 def _heat_bag(path: Path, *, storage: str = 'sqlite3', edit=None) -> Path:
     """Write a 2 h, 5 Hz synthetic heating run (36,000 IMU messages) as a bag."""
-    from gyro_tdc.bagio import write_bag
+    from gyro_tdc.data import write_bag
     from synth import synth_run
     run = synth_run(seed=11)
     imu = {'t': run.t + 100.0, 'gyro': run.omega.copy()}
@@ -380,7 +380,7 @@ def _delete_imu_rows(bag: Path, count: int) -> None:
 def test_damaged_mcap_is_refused_naming_the_loss_and_allowed_on_request(tmp_path, capsys,
                                                                         fill):
     from gyro_tdc.cli.train import main
-    from gyro_tdc.dataset import load_run
+    from gyro_tdc.data.dataset import load_run
     from gyro_tdc.errors import DatasetError
     bag = _heat_bag(tmp_path / 'bag', storage='mcap')
     (mcap,) = bag.glob('*.mcap')
@@ -434,7 +434,7 @@ def _outliers(imu, temp):
 
 
 def test_absurd_values_are_dropped_and_counted_at_load(tmp_path):
-    from gyro_tdc.dataset import load_run
+    from gyro_tdc.data.dataset import load_run
     run = load_run(_heat_bag(tmp_path / 'bag', edit=_outliers))
     rej = run.info['rejected']
     assert rej['temp_implausible'] == 2 and rej['imu_implausible'] == 2
@@ -470,7 +470,7 @@ def test_the_same_bag_twice_is_refused(tmp_path, capsys, heat_bag, command):
 
 
 def test_conflicting_temperature_stamps_keep_the_last_and_warn(tmp_path):
-    from gyro_tdc.dataset import load_run
+    from gyro_tdc.data.dataset import load_run
 
     def dup(imu, temp):
         temp['t'] = np.insert(temp['t'], 51, temp['t'][50])
@@ -511,7 +511,7 @@ def test_simulate_rate_that_needs_terabytes_is_refused_upfront(tmp_path, capsys)
 
 
 def _two_run_scenario(tmp_path: Path) -> Path:
-    from gyro_tdc.resources import scenario_path
+    from gyro_tdc.base.resources import scenario_path
     text = scenario_path('demo_fast').read_text().replace('count: 1', 'count: 2')
     path = tmp_path / 'two.yaml'
     path.write_text(text)
@@ -568,7 +568,7 @@ def test_deep_model_and_scenario_files_at_the_command_line(tmp_path, capsys, hea
 
 
 def test_block_sum_of_a_block_longer_than_the_data_allocates_nothing_big():
-    from gyro_tdc.blocks import block_sum
+    from gyro_tdc.signal.blocks import block_sum
     a = np.arange(12.0).reshape(4, 3)
     tracemalloc.start()
     try:

@@ -32,9 +32,9 @@ import time
 from compensator_rig import rates, RELIABLE, to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from gyro_tdc.errors import ConfigError
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.model import compensate
-from gyro_tdc.modelfile import save_model
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.compensation import compensate
+from gyro_tdc.model.modelfile import save_model
 from gyro_tdc.nodes.compensator_node import CompensatorNode, read_model
 from gyro_tdc.nodes.executors import make_executor
 import numpy as np

@@ -12,16 +12,16 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.imu_cdr: the Imu wire layout against rosbags' CDR serialiser."""
+"""Tests of gyro_tdc.data.imu_cdr: the Imu wire layout against rosbags' CDR serialiser."""
 
 from __future__ import annotations
 
 import struct
 
-from gyro_tdc import imu_cdr
+from gyro_tdc.data import imu_cdr
+from gyro_tdc.data.imu_cdr import (encode, field_slice, IMU_DOUBLES, IMU_FIELDS, ImuView, Layout,
+                                   layout_of, locate)
 from gyro_tdc.errors import DatasetError
-from gyro_tdc.imu_cdr import encode, field_slice, IMU_DOUBLES, IMU_FIELDS, ImuView, Layout
-from gyro_tdc.imu_cdr import layout_of, locate
 import numpy as np
 import pytest
 from rosbags.typesys import get_typestore, Stores

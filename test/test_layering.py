@@ -71,7 +71,7 @@ MODULES = _modules()
 
 def test_every_module_is_found():
     names = {m for m, _, _ in MODULES}
-    assert {'gyro_tdc', 'gyro_tdc.evaluation', 'gyro_tdc.cli.common',
+    assert {'gyro_tdc', 'gyro_tdc.evaluate.score', 'gyro_tdc.cli.common',
             'gyro_tdc.nodes.compensator_node'} <= names
 
 

@@ -19,12 +19,12 @@ from __future__ import annotations
 import json
 import math
 
-from gyro_tdc.compensation_logic import CompensatorCore, Policy
-from gyro_tdc.health import PASSTHROUGH
-from gyro_tdc.learning import LearnConfig, learned_model, Learner
-from gyro_tdc.model import drift
+from gyro_tdc.learn.learner import LearnConfig, learned_model, Learner
+from gyro_tdc.model.compensation import drift
+from gyro_tdc.model.thermal_state import ThermalState
+from gyro_tdc.runtime.core import CompensatorCore, Policy
+from gyro_tdc.runtime.health import PASSTHROUGH
 from gyro_tdc.sim import simulate_run
-from gyro_tdc.thermal_state import ThermalState
 import numpy as np
 import pytest
 from thermal_synth import lag_run, OTHER

@@ -27,8 +27,8 @@ from __future__ import annotations
 
 import json
 
-from gyro_tdc.compensation_logic import CompensatorCore, Policy
-from gyro_tdc.learning import LearnConfig, Learner
+from gyro_tdc.learn.learner import LearnConfig, Learner
+from gyro_tdc.runtime.core import CompensatorCore, Policy
 from gyro_tdc.sim import simulate_run
 import numpy as np
 import pytest

@@ -16,11 +16,11 @@
 
 from __future__ import annotations
 
-from gyro_tdc.learning_fit import (fit_points, grow_features, inliers, learned_model, model_of,
-                                   prediction_mse, solve)
-from gyro_tdc.model import drift
-from gyro_tdc.modelfile import model_from_dict, model_to_dict
-from gyro_tdc.thermal_state import ThermalState
+from gyro_tdc.learn.fit import (fit_points, grow_features, inliers, learned_model, model_of,
+                                prediction_mse, solve)
+from gyro_tdc.model.compensation import drift
+from gyro_tdc.model.modelfile import model_from_dict, model_to_dict
+from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 import pytest
 

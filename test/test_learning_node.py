@@ -20,8 +20,8 @@ import json
 
 from compensator_rig import RELIABLE, to_ns
 from geometry_msgs.msg import Twist
-from gyro_tdc.learning import learned_model
-from gyro_tdc.modelfile import save_model
+from gyro_tdc.learn.learner import learned_model
+from gyro_tdc.model.modelfile import save_model
 from gyro_tdc.nodes.compensator_motion import MOTION_MESSAGES
 from gyro_tdc.nodes.compensator_node import CompensatorNode
 from gyro_tdc.nodes.executors import make_executor

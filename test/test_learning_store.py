@@ -18,11 +18,10 @@ from __future__ import annotations
 
 import json
 
-from gyro_tdc import learning
-from gyro_tdc.learning import LearnConfig, Learner
-from gyro_tdc.learning_store import (decode_state, encode_state, FORMAT, read_state,
-                                     write_state)
-from gyro_tdc.thermal_state import ThermalState
+from gyro_tdc.learn import learner as learning
+from gyro_tdc.learn.learner import LearnConfig, Learner
+from gyro_tdc.learn.store import decode_state, encode_state, FORMAT, read_state, write_state
+from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 import pytest
 

@@ -12,15 +12,13 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.limits: options that size arrays are refused before memory is spent."""
+"""Tests of gyro_tdc.base.limits: options that size arrays are refused before memory is spent."""
 
 from __future__ import annotations
 
-from gyro_tdc.dataset import TEMP_PLAUSIBLE_C
+from gyro_tdc.base.limits import (check_bin_width, check_centers, check_sim_samples, MAX_CENTERS,
+                                  MAX_COVERAGE_BINS, MAX_SIM_SAMPLES, TEMP_PLAUSIBLE_C)
 from gyro_tdc.errors import GyroTdcError, LimitError
-from gyro_tdc.limits import check_bin_width, check_centers, check_sim_samples
-from gyro_tdc.limits import MAX_COVERAGE_BINS, MAX_SIM_SAMPLES
-from gyro_tdc.modelfile import MAX_CENTERS
 import pytest
 
 SPAN = TEMP_PLAUSIBLE_C[1] - TEMP_PLAUSIBLE_C[0]

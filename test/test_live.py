@@ -14,7 +14,7 @@
 
 """The demo's live step: driver_node -> compensator_node as two processes over DDS."""
 
-from gyro_tdc.resources import model_path
+from gyro_tdc.base.resources import model_path
 import numpy as np
 
 

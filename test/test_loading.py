@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import threading
 
-from gyro_tdc.loading import LatestJob
+from gyro_tdc.base.worker import LatestJob
 
 
 def test_a_job_runs_off_the_calling_thread_and_is_claimed_once():

@@ -16,7 +16,8 @@
 
 import math
 
-from gyro_tdc.metrics import allan_deviation, bias_stability, noise_readouts, p_ratios, rms_dps
+from gyro_tdc.signal.metrics import (allan_deviation, bias_stability, noise_readouts, p_ratios,
+                                     rms_dps)
 import numpy as np
 import pytest
 

@@ -12,17 +12,17 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.model: formulas, streaming, clamping, ids, format 1 and the state."""
+"""Tests of gyro_tdc.model.compensation: formulas, streaming, clamping, ids, format 1, state."""
 
 import json
 import math
 from pathlib import Path
 
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.model import compensate, CompensationModel, drift, predict_drift, rbf_design
-from gyro_tdc.model import model_temperature, StreamingCompensator, summary
-from gyro_tdc.modelfile import load_model, save_model
-from gyro_tdc.thermal_state import ThermalState
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.compensation import (compensate, CompensationModel, drift, model_temperature,
+                                         predict_drift, rbf_design, StreamingCompensator, summary)
+from gyro_tdc.model.modelfile import load_model, save_model
+from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 import pytest
 from synth import synth_run

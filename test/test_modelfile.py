@@ -15,9 +15,9 @@
 """Model file: exact round trip, and every malformed file rejected naming its field."""
 
 from gyro_tdc.errors import ModelFileError
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.model import compensate
-from gyro_tdc.modelfile import load_model, model_to_dict, save_model
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.compensation import compensate
+from gyro_tdc.model.modelfile import load_model, model_to_dict, save_model
 import numpy as np
 import pytest
 from synth import synth_run

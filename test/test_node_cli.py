@@ -27,10 +27,10 @@ import os
 import subprocess
 import sys
 
-from gyro_tdc.compensation_logic import TEMPERATURE_TYPES
+from gyro_tdc.base.paramspec import help_requested
+from gyro_tdc.base.resources import scenario_names
 from gyro_tdc.nodes import compensator_node, driver_node
-from gyro_tdc.paramspec import help_requested
-from gyro_tdc.resources import scenario_names
+from gyro_tdc.runtime.core import TEMPERATURE_TYPES
 import pytest
 
 NODES = {'driver_node': driver_node, 'compensator_node': compensator_node}

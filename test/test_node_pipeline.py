@@ -16,14 +16,14 @@
 
 from __future__ import annotations
 
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.health import PASSTHROUGH
-from gyro_tdc.metrics import bias_stability
-from gyro_tdc.model import compensate
-from gyro_tdc.modelfile import save_model
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.compensation import compensate
+from gyro_tdc.model.modelfile import save_model
 from gyro_tdc.nodes.compensator_node import CompensatorNode
 from gyro_tdc.nodes.driver_node import DriverNode
 from gyro_tdc.nodes.executors import make_executor
+from gyro_tdc.runtime.health import PASSTHROUGH
+from gyro_tdc.signal.metrics import bias_stability
 from gyro_tdc.sim import simulate_run, to_run
 import numpy as np
 import rclpy

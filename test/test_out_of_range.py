@@ -12,15 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.out_of_range: the policies beyond the trained range, the tangent's slope."""
+"""Tests of gyro_tdc.model.out_of_range: policies beyond the trained range, the tangent slope."""
 
 from __future__ import annotations
 
-from gyro_tdc.effects import batch_features
-from gyro_tdc.model import drift, rbf_design
-from gyro_tdc.out_of_range import added_variance, check_policy, MAX_EXTRAPOLATION_C
-from gyro_tdc.out_of_range import OUT_OF_RANGE_POLICIES, range_shortfall, split, Tangent
-from gyro_tdc.out_of_range import variance_growth
+from gyro_tdc.model.compensation import drift, rbf_design
+from gyro_tdc.model.effects import batch_features
+from gyro_tdc.model.out_of_range import (added_variance, check_policy, MAX_EXTRAPOLATION_C,
+                                         OUT_OF_RANGE_POLICIES, range_shortfall, split, Tangent,
+                                         variance_growth)
 from hostile_helpers import small_model
 import numpy as np
 import pytest

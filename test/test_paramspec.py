@@ -19,7 +19,7 @@ from __future__ import annotations
 from dataclasses import fields, FrozenInstanceError
 import math
 
-from gyro_tdc.paramspec import ParamSpec, spec_dataclass
+from gyro_tdc.base.paramspec import ParamSpec, spec_dataclass
 import pytest
 
 TABLE = (

@@ -12,14 +12,14 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.plain: numpy values into what JSON and yaml.safe_dump accept."""
+"""Tests of gyro_tdc.base.plain: numpy values into what JSON and yaml.safe_dump accept."""
 
 from __future__ import annotations
 
 import json
 import math
 
-from gyro_tdc.plain import plain
+from gyro_tdc.base.plain import plain
 import numpy as np
 import yaml
 

@@ -12,11 +12,11 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.plots: the three PNGs of a hand-made evaluated bag, legend texts."""
+"""Tests of gyro_tdc.evaluate.plots: the three PNGs of a hand-made evaluated bag, legend texts."""
 
 from __future__ import annotations
 
-from gyro_tdc.plots import model_description, write_plots
+from gyro_tdc.evaluate.plots import model_description, write_plots
 from handmade_bag import handmade_bag
 import pytest
 

@@ -18,9 +18,8 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.imu_cdr import ImuView, locate
-from gyro_tdc.provenance import (cov_marked, diagonal_marked, is_marked, MARK, mark,
-                                 mark_diagonal)
+from gyro_tdc.data.imu_cdr import ImuView, locate
+from gyro_tdc.data.mark import cov_marked, diagonal_marked, is_marked, MARK, mark, mark_diagonal
 import numpy as np
 import pytest
 from rosbags.typesys import get_typestore, Stores

@@ -31,10 +31,8 @@ import shutil
 import subprocess
 import sys
 
-from gyro_tdc.cli import COMMANDS
-from gyro_tdc.cli import demo as demo_cli
-from gyro_tdc.cli import load_main
-from gyro_tdc.modelfile import load_model
+from gyro_tdc.cli import COMMANDS, demo as demo_cli, load_main
+from gyro_tdc.model.modelfile import load_model
 import pytest
 import readme_check
 from readme_check import commands, readme_blocks, units

@@ -12,18 +12,18 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.realdata: the PAN CubeSat CSV reader, its bag converter and tool."""
+"""Tests of gyro_tdc.data.realdata: the PAN CubeSat CSV reader, its bag converter and tool."""
 
 from __future__ import annotations
 
 import importlib.util
 from pathlib import Path
 
-from gyro_tdc.bagio import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE
-from gyro_tdc.dataset import load_run
+from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE
+from gyro_tdc.data.dataset import load_run
+from gyro_tdc.data.realdata import (default_pan_csv, LSM6DSM_TEMP_VARIANCE, pan_cubesat_to_bag,
+                                    read_pan_cubesat_csv)
 from gyro_tdc.errors import DatasetError
-from gyro_tdc.realdata import default_pan_csv, LSM6DSM_TEMP_VARIANCE, pan_cubesat_to_bag
-from gyro_tdc.realdata import read_pan_cubesat_csv
 import numpy as np
 import pytest
 

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Tests of gyro_tdc.realdata_eval: held-out evaluation on the real PAN CubeSat TVAC recording.
+Tests of gyro_tdc.evaluate.realdata: held-out evaluation on the real PAN CubeSat TVAC recording.
 
 The recording ships beside the repository in ``shared/data/pan_cubesat_tvac``; the tests that
 need it skip only when that file is absent. One synthetic bursty run checks the machinery
@@ -27,14 +27,14 @@ import json
 import math
 from pathlib import Path
 
-from gyro_tdc.dataset import load_run
+from gyro_tdc.data.dataset import load_run
+from gyro_tdc.data.realdata import pan_cubesat_to_bag, read_pan_cubesat_csv
+from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import FitError
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.model import compensate
-from gyro_tdc.realdata import pan_cubesat_to_bag, read_pan_cubesat_csv
-from gyro_tdc.realdata_eval import burst_holdout, burst_index, fit_full_series
-from gyro_tdc.realdata_eval import format_holdout, HOLDOUT_MODELS, HoldoutModel, pan_holdout
-from gyro_tdc.runs import Run
+from gyro_tdc.evaluate.realdata import (burst_holdout, burst_index, fit_full_series,
+                                        format_holdout, HOLDOUT_MODELS, HoldoutModel, pan_holdout)
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.compensation import compensate
 import numpy as np
 import pytest
 

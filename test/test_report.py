@@ -12,19 +12,18 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.report: tables, JSON and CSV from hand-made results."""
+"""Tests of gyro_tdc.evaluate.report: tables, JSON and CSV from hand-made results."""
 
 from __future__ import annotations
 
 import json
 import math
 
-from gyro_tdc.coverage import Coverage
-from gyro_tdc.evaluation import BagEval
-from gyro_tdc.report import csv_columns, evaluation_json, format_allan, format_bag
-from gyro_tdc.report import format_coverage, format_means, format_paper_table, format_summary
-from gyro_tdc.report import is_coverage_line
-from gyro_tdc.report import write_csv, write_json
+from gyro_tdc.data.coverage import Coverage
+from gyro_tdc.evaluate.report import (csv_columns, evaluation_json, format_allan, format_bag,
+                                      format_coverage, format_means, format_paper_table,
+                                      format_summary, is_coverage_line, write_csv, write_json)
+from gyro_tdc.evaluate.score import BagEval
 from handmade_bag import handmade_bag, model_eval as _ev
 import numpy as np
 import pytest

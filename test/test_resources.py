@@ -12,16 +12,14 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.resources: finding config/, shipped names and resolving paths."""
+"""Tests of gyro_tdc.base.resources: finding config/, shipped names and resolving paths."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from gyro_tdc import resources
-from gyro_tdc.errors import GyroTdcError
-from gyro_tdc.errors import ModelFileError
-from gyro_tdc.errors import ScenarioError
+from gyro_tdc.base import resources
+from gyro_tdc.errors import GyroTdcError, ModelFileError, ScenarioError
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent

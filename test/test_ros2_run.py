@@ -202,7 +202,7 @@ def test_installed_nodes_compensate_live(install_tree, monkeypatch, ros_context,
     # The nodes ran the installed package, which found the model through the ament index
     # (not the checkout's config/: the same interpreter, environment and a neutral cwd).
     where = subprocess.run(
-        [sys.executable, '-c', 'import gyro_tdc, gyro_tdc.resources as r; '
+        [sys.executable, '-c', 'import gyro_tdc, gyro_tdc.base.resources as r; '
          "print(gyro_tdc.__file__); print(r.model_path('l3gd20_modified'))"],
         env=env, cwd=tmp_path, capture_output=True, text=True, check=True).stdout.split()
     assert where[0].startswith(str(prefix / 'lib')), where

@@ -12,14 +12,14 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.runs: the Run container's shape checks, length, duration and slices."""
+"""Tests of gyro_tdc.data.runs: the Run container's shape checks, length, duration and slices."""
 
 from __future__ import annotations
 
 import dataclasses
 import re
 
-from gyro_tdc.runs import Run
+from gyro_tdc.data.runs import Run
 import numpy as np
 import pytest
 

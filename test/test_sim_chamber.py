@@ -16,10 +16,10 @@
 
 from __future__ import annotations
 
-from gyro_tdc.sim import heat_conduction_time_s, load_scenario, max_temperature_step_c
-from gyro_tdc.sim import nice_ceil, nice_floor, Profile, staircase_plan
-from gyro_tdc.sim.chamber import hold_segment, points_segment, ramp_segment
-from gyro_tdc.sim.chamber import staircase_segment, step_segment
+from gyro_tdc.sim import (heat_conduction_time_s, load_scenario, max_temperature_step_c, nice_ceil,
+                          nice_floor, Profile, staircase_plan)
+from gyro_tdc.sim.chamber import (hold_segment, points_segment, ramp_segment, staircase_segment,
+                                  step_segment)
 import numpy as np
 import pytest
 

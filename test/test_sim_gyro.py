@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.runs import Run
+from gyro_tdc.data.runs import Run
 from gyro_tdc.sim import EFFECT_IDS, Scenario, simulate_run, simulate_scenario, to_run
 import numpy as np
 import pytest

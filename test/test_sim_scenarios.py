@@ -21,8 +21,8 @@ import math
 import re
 
 from gyro_tdc.errors import ScenarioError
-from gyro_tdc.sim import list_scenarios, load_scenario, Scenario, scenario_dir
-from gyro_tdc.sim import simulate_run, simulate_scenario
+from gyro_tdc.sim import (list_scenarios, load_scenario, Scenario, scenario_dir, simulate_run,
+                          simulate_scenario)
 import numpy as np
 import pytest
 import yaml

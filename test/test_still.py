@@ -12,15 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The one still test (gyro_tdc.still): still, driving, slow constant turns, motion veto."""
+"""The one still test (gyro_tdc.signal): still, driving, slow constant turns, motion veto."""
 
 from __future__ import annotations
 
 import math
 
-from gyro_tdc.still import (detect_still, judge_windows, MAX_RATE, motion_veto, NOISE_FACTOR,
-                            noise_floor, noise_thresholds, StreamingStill)
-from gyro_tdc.stillness import StillnessDetector
+from gyro_tdc.runtime.reanchor import StillnessDetector
+from gyro_tdc.signal import (detect_still, judge_windows, MAX_RATE, motion_veto, NOISE_FACTOR,
+                             noise_floor, noise_thresholds, StreamingStill)
 import numpy as np
 import pytest
 

@@ -18,9 +18,9 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.stillness import (block_length, default_tolerance, max_windows, reanchor_shift,
-                                standard_error, StillnessDetector, window_stats,
-                                windows_moving)
+from gyro_tdc.runtime.reanchor import (block_length, default_tolerance, max_windows,
+                                       reanchor_shift, standard_error, StillnessDetector,
+                                       window_stats, windows_moving)
 import numpy as np
 import pytest
 

@@ -16,8 +16,8 @@
 
 import math
 
-from gyro_tdc import compensation_logic
-from gyro_tdc.temperature_hold import TemperatureHold, widen_covariance
+from gyro_tdc.runtime import core as compensation_logic
+from gyro_tdc.runtime.temperature_hold import TemperatureHold, widen_covariance
 
 
 def test_temperature_hold_by_stamp():

@@ -41,12 +41,12 @@ import json
 
 from gyro_tdc.cli.discover import main as discover_main
 from gyro_tdc.cli.train import main as train_main
-from gyro_tdc.dataset import load_runs
-from gyro_tdc.discover import discover, format_summary, write_report
-from gyro_tdc.fitting import fit_model
-from gyro_tdc.metrics import bias_stability
-from gyro_tdc.model import compensate
-from gyro_tdc.modelfile import load_model
+from gyro_tdc.data.dataset import load_runs
+from gyro_tdc.identify import fit_model
+from gyro_tdc.identify.discover import discover, format_summary, write_report
+from gyro_tdc.model.compensation import compensate
+from gyro_tdc.model.modelfile import load_model
+from gyro_tdc.signal.metrics import bias_stability
 from gyro_tdc.sim import simulate_scenario
 from gyro_tdc.sim.presets import preset
 from gyro_tdc.sim.simulator import to_run

@@ -22,17 +22,17 @@ bench_thermal_state.py`` runs the full sweep of time constants and curvatures.
 
 import math
 
-from gyro_tdc.compensation_logic import CompensatorCore, Policy
 from gyro_tdc.errors import FeatureError, FitError, ModelFileError
-from gyro_tdc.fitting import (effective_samples, fit_model, profile_interval, TAU_BOUNDS,
-                              THERMAL_CHOICES)
-from gyro_tdc.health import health
-from gyro_tdc.metrics import bias_stability
-from gyro_tdc.model import (compensate, CompensationModel, drift, model_temperature,
-                            StreamingCompensator)
-from gyro_tdc.modelfile import load_model, model_to_dict, save_model
-from gyro_tdc.thermal_state import (SETTLE_TAUS, StreamingThermalState, THERMAL_KINDS,
-                                    ThermalState)
+from gyro_tdc.identify import (effective_samples, fit_model, profile_interval, TAU_BOUNDS,
+                               THERMAL_CHOICES)
+from gyro_tdc.model.compensation import (compensate, CompensationModel, drift, model_temperature,
+                                         StreamingCompensator)
+from gyro_tdc.model.modelfile import load_model, model_to_dict, save_model
+from gyro_tdc.model.thermal_state import (SETTLE_TAUS, StreamingThermalState, THERMAL_KINDS,
+                                          ThermalState)
+from gyro_tdc.runtime.core import CompensatorCore, Policy
+from gyro_tdc.runtime.health import health
+from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
 import pytest
 from thermal_synth import lag_run, OTHER
@@ -402,9 +402,9 @@ def test_hand_built_models_default_to_format_1():
 
 
 def test_training_report_prints_tau_with_its_interval_or_that_it_is_not_pinned():
-    from gyro_tdc.coverage import coverage
-    from gyro_tdc.report import format_training
-    from gyro_tdc.training import TrainResult
+    from gyro_tdc.data.coverage import coverage
+    from gyro_tdc.evaluate.report import format_training
+    from gyro_tdc.identify.train import TrainResult
 
     ramp = lag_run(seed=3, tau_die=300.0, segments=(('ramp', 60.0, 20.0),), start_c=-10.0,
                    skip_s=3000.0, rate_hz=1.0)

@@ -12,16 +12,16 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.training: bags in, a saved model and the coverage of the data out."""
+"""Tests of gyro_tdc.identify.train: bags in, a saved model and the coverage of the data out."""
 
 from __future__ import annotations
 
 from gyro_tdc.errors import FeatureError, FitError
-from gyro_tdc.metrics import bias_stability
-from gyro_tdc.model import compensate
-from gyro_tdc.modelfile import load_model
-from gyro_tdc.report import format_training
-from gyro_tdc.training import train
+from gyro_tdc.evaluate.report import format_training
+from gyro_tdc.identify.train import train
+from gyro_tdc.model.compensation import compensate
+from gyro_tdc.model.modelfile import load_model
+from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
 import pytest
 from synth import synth_run

@@ -12,15 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.yamlio: YAML read within size, depth, node-count and alias limits."""
+"""Tests of gyro_tdc.base.yamlio: YAML read within size, depth, node-count and alias limits."""
 
 from __future__ import annotations
 
 import re
 
+from gyro_tdc.base.yamlio import (BAG_METADATA_LIMITS, load_yaml, read_yaml, SCENARIO_LIMITS,
+                                  YamlLimits)
 from gyro_tdc.errors import DatasetError, GyroTdcError, ScenarioError
-from gyro_tdc.yamlio import BAG_METADATA_LIMITS, load_yaml, read_yaml, SCENARIO_LIMITS
-from gyro_tdc.yamlio import YamlLimits
 import pytest
 
 STRICT = YamlLimits('test file', max_bytes=200, max_depth=3, max_nodes=20, aliases=False)

@@ -25,8 +25,8 @@ Usage: ``python tools/field_day.py [--out DIR] [--force] [--json OUT]``.
    rate (``/truth/angular_velocity``, never trained on) with the compensator's default
    settings plus start-up re-anchoring, two ways:
 
-   * ``evaluate`` (batch, :func:`gyro_tdc.evaluation.evaluate`, ``--reanchor auto``);
-   * streamed one message at a time through :class:`gyro_tdc.compensation_logic.
+   * ``evaluate`` (batch, :func:`gyro_tdc.evaluate.score.evaluate`, ``--reanchor auto``);
+   * streamed one message at a time through :class:`gyro_tdc.runtime.core.
      CompensatorCore` with default parameters and ``reanchor_on_start`` (the node's logic
      without ROS: thermometer and IMU messages in stamp order, re-anchoring by the node's
      own still test), scored on the samples it compensated;
@@ -35,7 +35,7 @@ Usage: ``python tools/field_day.py [--out DIR] [--force] [--json OUT]``.
    quantisation, ``SimTruth.noise_std``), and the ratio the done-criterion of issue 14
    bounds (1.1x);
 5. learns on the vehicle (``compensator_node`` ``learn:=true``, no model): the same core
-   with a :class:`gyro_tdc.learning.Learner` attached and stepped by stamp, fed day 1 then
+   with a :class:`gyro_tdc.learn.learner.Learner` attached and stepped by stamp, fed day 1 then
    day 2 (a new session after a 1 h gap); prints day 2's ratio (bound 1.3x), and the second
    half of day 2 uninterrupted beside the same after a kill in the middle of day 2 and a
    restart from the ``learn_file`` saved every ``learn_save_period`` (the restarted state
@@ -54,16 +54,16 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(ROOT))
 
-from gyro_tdc.bagio import read_bag  # noqa: E402
 from gyro_tdc.cli.simulate import simulate  # noqa: E402
 from gyro_tdc.cli.train import main as train_main  # noqa: E402
-from gyro_tdc.compensation_logic import CompensatorCore, Policy  # noqa: E402
+from gyro_tdc.data import read_bag  # noqa: E402
 from gyro_tdc.errors import GyroTdcError  # noqa: E402
-from gyro_tdc.evaluation import evaluate, NamedModel  # noqa: E402
-from gyro_tdc.health import PASSTHROUGH  # noqa: E402
-from gyro_tdc.learning import Learner  # noqa: E402
-from gyro_tdc.model import CompensationModel  # noqa: E402
-from gyro_tdc.modelfile import load_model  # noqa: E402
+from gyro_tdc.evaluate.score import evaluate, NamedModel  # noqa: E402
+from gyro_tdc.learn.learner import Learner  # noqa: E402
+from gyro_tdc.model.compensation import CompensationModel  # noqa: E402
+from gyro_tdc.model.modelfile import load_model  # noqa: E402
+from gyro_tdc.runtime.core import CompensatorCore, Policy  # noqa: E402
+from gyro_tdc.runtime.health import PASSTHROUGH  # noqa: E402
 from gyro_tdc.sim import simulate_run  # noqa: E402
 from gyro_tdc.sim.vehicle import TRUTH_TOPIC  # noqa: E402
 import numpy as np  # noqa: E402

@@ -17,7 +17,7 @@
 Convert the PAN CubeSat thermal-vacuum CSV into a rosbag2 bag.
 
 Usage: ``python tools/pan_cubesat_to_bag.py [--csv PATH] [--out BAG] [--storage mcap] [--force]``.
-The conversion itself is :func:`gyro_tdc.realdata.pan_cubesat_to_bag`.
+The conversion itself is :func:`gyro_tdc.data.realdata.pan_cubesat_to_bag`.
 """
 
 from __future__ import annotations
@@ -31,8 +31,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(ROOT))
 
+from gyro_tdc.data.realdata import default_pan_csv, pan_cubesat_to_bag  # noqa: E402
 from gyro_tdc.errors import GyroTdcError  # noqa: E402
-from gyro_tdc.realdata import default_pan_csv, pan_cubesat_to_bag  # noqa: E402
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -19,7 +19,7 @@ Held-out evaluation on the PAN CubeSat TVAC recording, leaving one block of burs
 Usage: ``python tools/pan_holdout.py [--csv PATH] [--blocks 5] [--json OUT]``. Prints, per
 model and per held-out block, BS in (deg/s)^2, RMS in deg/s and the ratio to the white-noise
 floor, interior (interpolation) and end (extrapolation) blocks apart, then the same for
-leave-one-burst-out. The evaluation is :func:`gyro_tdc.realdata_eval.pan_holdout`; the
+leave-one-burst-out. The evaluation is :func:`gyro_tdc.evaluate.realdata.pan_holdout`; the
 method and its caveats are in ``docs/real_data.md``.
 """
 
@@ -33,8 +33,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(ROOT))
 
-from gyro_tdc.realdata import default_pan_csv  # noqa: E402
-from gyro_tdc.realdata_eval import format_holdout, pan_holdout, run_tool  # noqa: E402
+from gyro_tdc.data.realdata import default_pan_csv  # noqa: E402
+from gyro_tdc.evaluate.realdata import format_holdout, pan_holdout, run_tool  # noqa: E402
 
 
 def _blocks(text: str) -> int:

@@ -18,9 +18,9 @@ Beyond the trained range on the PAN CubeSat TVAC recording: clamp vs linear vs e
 Usage: ``python tools/pan_range_holdout.py [--csv PATH] [--split-c 19] [--json OUT]``.
 Trains on the warmer bursts only (burst mean above ``--split-c``), holds out the colder ones
 (every held-out sample lies below the trained range: the unit cools), and scores each model
-on them under the three out-of-range policies of :mod:`gyro_tdc.out_of_range`, beside a
+on them under the three out-of-range policies of :mod:`gyro_tdc.model.out_of_range`, beside a
 plain linear fit f(dT) (for which the three coincide but clamp) and a bias-only baseline.
-Scores are BS in (deg/s)^2 (:func:`gyro_tdc.evaluation.score`, reference 0) and BS over the
+Scores are BS in (deg/s)^2 (:func:`gyro_tdc.evaluate.score.score`, reference 0) and BS over the
 white-noise floor of the held-out bursts (their samples around their own burst means, as in
 ``tools/pan_holdout.py``). The table and its reading are in ``docs/real_data.md``.
 """
@@ -35,15 +35,15 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(ROOT))
 
+from gyro_tdc.data.realdata import default_pan_csv, read_pan_cubesat_csv  # noqa: E402
+from gyro_tdc.data.runs import Run  # noqa: E402
 from gyro_tdc.errors import GyroTdcError  # noqa: E402
-from gyro_tdc.evaluation import score  # noqa: E402
-from gyro_tdc.fitting import fit_model  # noqa: E402
-from gyro_tdc.metrics import bias_stability  # noqa: E402
-from gyro_tdc.model import compensate  # noqa: E402
-from gyro_tdc.out_of_range import MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES  # noqa: E402
-from gyro_tdc.realdata import default_pan_csv, read_pan_cubesat_csv  # noqa: E402
-from gyro_tdc.realdata_eval import burst_index, run_tool  # noqa: E402
-from gyro_tdc.runs import Run  # noqa: E402
+from gyro_tdc.evaluate.realdata import burst_index, run_tool  # noqa: E402
+from gyro_tdc.evaluate.score import score  # noqa: E402
+from gyro_tdc.identify import fit_model  # noqa: E402
+from gyro_tdc.model.compensation import compensate  # noqa: E402
+from gyro_tdc.model.out_of_range import MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES  # noqa: E402
+from gyro_tdc.signal.metrics import bias_stability  # noqa: E402
 import numpy as np  # noqa: E402
 
 #: (name, description, fit_model options); ``bias`` and ``linear fit`` are the baselines.

@@ -26,7 +26,7 @@ Bad input is anything raising :class:`gyro_tdc.errors.GyroTdcError` (dataset, fi
 model-file and scenario errors), :class:`UsageError` (argparse), or an ``OSError`` from
 writing an output file. The argparse types shared by the commands (``finite_float``,
 ``positive_float``, ``non_negative_float``, ``probability``, ``positive_int``) live here
-too; bags are read with :func:`gyro_tdc.dataset.load_runs`.
+too; bags are read with :func:`gyro_tdc.data.dataset.load_runs`.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ import sys
 from typing import Callable, NoReturn, Optional, Sequence
 
 from gyro_tdc.cli import PROG
-from gyro_tdc.dataset import MAX_LOSS_FRACTION
+from gyro_tdc.data import MAX_LOSS_FRACTION
 from gyro_tdc.errors import GyroTdcError, one_line
 
 __all__ = [
@@ -94,12 +94,12 @@ def effect_listing(width: int = 92) -> str:
     Returns
     -------
     str
-        One entry per effect of :data:`gyro_tdc.effects.EFFECTS`, in catalog order.
+        One entry per effect of :data:`gyro_tdc.model.effects.EFFECTS`, in catalog order.
 
     """
     import textwrap
 
-    from gyro_tdc.effects import EFFECTS
+    from gyro_tdc.model import EFFECTS
 
     lines = ['effect ids (for --features, --base, --candidates; bias is always in the model):']
     w = max(len(k) for k in EFFECTS)
@@ -182,7 +182,7 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
 
 def bag_options(args: argparse.Namespace) -> dict:
     """
-    Return the keyword options of :func:`gyro_tdc.dataset.load_run` from parsed arguments.
+    Return the keyword options of :func:`gyro_tdc.data.dataset.load_run` from parsed arguments.
 
     Parameters
     ----------

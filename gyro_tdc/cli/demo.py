@@ -39,12 +39,11 @@ import textwrap
 import time
 from typing import Callable, Sequence
 
-from gyro_tdc.atomicio import atomic_write
+from gyro_tdc.base import atomic_write, model_path
 from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import ArgumentParser, positive_float, run_command
 from gyro_tdc.errors import GyroTdcError
-from gyro_tdc.report import is_coverage_line
-from gyro_tdc.resources import model_path
+from gyro_tdc.evaluate import is_coverage_line
 
 __all__ = ['MARKER', 'OUTPUTS', 'STEPS', 'build_parser', 'live_counts_explained', 'main',
            'prepare_out', 'run_demo']
@@ -300,7 +299,7 @@ def _live(model: Path, seconds: float, report: Path) -> None:
         print(line)
     print(f'(run here as two processes for {seconds:g} s; the compensator starts first, the '
           'driver once the compensator publishes)', flush=True)
-    from gyro_tdc.nodes.live import run_live
+    from gyro_tdc.nodes import run_live
     result = run_live(model, scenario='demo_fast', seed=7, sim_rate_hz=10.0, time_scale=50.0,
                       seconds=seconds)
     for line in result.lines():

@@ -16,12 +16,13 @@
 ``python -m gyro_tdc discover BAG...``: name the thermal effect a model is missing.
 
 One run per bag (a folder of bag folders expands to its bags). The workflow is
-:func:`gyro_tdc.discover.discover`; this module reads the bags, prints the summary and writes
+:func:`gyro_tdc.identify.discover.discover`; this module reads the bags, prints the summary and
+writes
 the optional outputs: ``--json`` (the document of docs/json.md), ``--report DIR`` (report.md with
 PNG residual maps and Allan deviation plots) and ``--out MODEL.yaml`` (a model of the
 discovered effects that ``compensator_node`` loads; format 2, with the thermal state and its
 tau interval when ``lag`` was named). ``--sensor accel`` runs the same search on the
-accelerometer's still data (:func:`gyro_tdc.accel.discovery_runs`: each orientation of each
+accelerometer's still data (:func:`gyro_tdc.identify.discovery_runs`: each orientation of each
 bag one run with its own offset), with the effects an accelerometer part can hold; figures
 are then in mg (the JSON adds ``"sensor": "accel", "unit": "mg"``; its ``*_dps`` fields hold
 mg). Bad input exits 2 with one line on stderr.
@@ -35,17 +36,14 @@ from pathlib import Path
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.accel import ACCEL_EFFECTS, discovery_runs
-from gyro_tdc.atomicio import atomic_write
-from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
-from gyro_tdc.cli.common import effect_listing
-from gyro_tdc.cli.common import finite_float, positive_float, positive_int, probability
-from gyro_tdc.cli.common import run_command, UsageError
-from gyro_tdc.dataset import load_runs
-from gyro_tdc.discover import build_model, discover, format_summary, write_report
-from gyro_tdc.effects import normalise_ids
-from gyro_tdc.model import KINDS
-from gyro_tdc.modelfile import save_model
+from gyro_tdc.base import atomic_write
+from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
+                                 effect_listing, finite_float, positive_float, positive_int,
+                                 probability, run_command, UsageError)
+from gyro_tdc.data import load_runs
+from gyro_tdc.identify import (ACCEL_EFFECTS, build_model, discover, discovery_runs,
+                               format_summary, write_report)
+from gyro_tdc.model import KINDS, normalise_ids, save_model
 
 __all__ = ['build_parser', 'main']
 

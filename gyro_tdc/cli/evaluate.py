@@ -30,9 +30,10 @@ terminal (stderr; ``--no-progress`` turns it and the bag-reading bar off).
 Beyond a model's trained range the ``--out-of-range`` policy applies (``linear`` by default,
 as the compensator node: the correction continues along its tangent at the range end, then
 holds), printed once, in the notes and in the JSON. ``--reanchor auto`` applies the
-compensator's precision-driven re-anchoring rule (:func:`gyro_tdc.stillness.reanchor_shift`).
-The scoring is :mod:`gyro_tdc.evaluation`, the tables and files :mod:`gyro_tdc.report`
-(plots: :mod:`gyro_tdc.plots`); this module parses the arguments and prints.
+compensator's precision-driven re-anchoring rule
+(:func:`gyro_tdc.runtime.reanchor.reanchor_shift`).
+The scoring is :mod:`gyro_tdc.evaluate.score`, the tables and files :mod:`gyro_tdc.evaluate.report`
+(plots: :mod:`gyro_tdc.evaluate.plots`); this module parses the arguments and prints.
 """
 
 from __future__ import annotations
@@ -42,14 +43,13 @@ import math
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options
-from gyro_tdc.cli.common import non_negative_float, run_command, UsageError
-from gyro_tdc.dataset import expand_bags
-from gyro_tdc.evaluation import AUTO_REANCHOR, BagEval, evaluate, load_models, PX4
-from gyro_tdc.out_of_range import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C
-from gyro_tdc.out_of_range import OUT_OF_RANGE_POLICIES
-from gyro_tdc.plots import model_description, write_plots
-from gyro_tdc.report import format_bag, format_means, write_csv, write_json
+from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, non_negative_float,
+                                 run_command, UsageError)
+from gyro_tdc.data import expand_bags
+from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
+                               load_models, model_description, PX4, write_csv, write_json,
+                               write_plots)
+from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES
 
 __all__ = ['build_parser', 'main']
 

@@ -33,11 +33,10 @@ from pathlib import Path
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.cli.common import ArgumentParser, command_line, positive_float, positive_int
-from gyro_tdc.cli.common import run_command, UsageError
+from gyro_tdc.cli.common import (ArgumentParser, command_line, positive_float, positive_int,
+                                 run_command, UsageError)
 from gyro_tdc.cli.train import add_train_options, train_options
-from gyro_tdc.fleet import DEFAULT_OUTLIER_Z, format_table, open_engine, read_manifest
-from gyro_tdc.fleet import run_fleet
+from gyro_tdc.fleet import DEFAULT_OUTLIER_Z, format_table, open_engine, read_manifest, run_fleet
 
 __all__ = ['build_parser', 'main']
 

@@ -38,13 +38,10 @@ import textwrap
 import time
 from typing import Callable, Optional, Sequence
 
-from gyro_tdc.atomicio import atomic_dir
+from gyro_tdc.base import atomic_dir, check_sim_samples, scenario_names
 from gyro_tdc.cli.common import ArgumentParser, run_command
 from gyro_tdc.errors import GyroTdcError
-from gyro_tdc.limits import check_sim_samples
-from gyro_tdc.resources import scenario_names
-from gyro_tdc.sim import load_scenario, SimRun, simulate_run
-from gyro_tdc.sim.vehicle import CMD_VEL_TOPIC, TRUTH_TOPIC
+from gyro_tdc.sim import CMD_VEL_TOPIC, load_scenario, SimRun, simulate_run, TRUTH_TOPIC
 import numpy as np
 
 __all__ = ['build_parser', 'main', 'simulate']
@@ -225,8 +222,8 @@ def _move_aside(path: Path) -> Path:
 
 def _simulate_runs(sc, paths, shown, storage, seed, rate_hz, log, progress=False) -> None:
     """Simulate run k of ``sc`` into ``paths[k]`` (logged as ``shown[k]``)."""
-    from gyro_tdc.bagio import write_bag
-    from gyro_tdc.bagio.motion import encode_twists, TWIST_TYPE
+    from gyro_tdc.data import write_bag
+    from gyro_tdc.data import encode_twists, TWIST_TYPE
     from tqdm import tqdm
 
     bar = tqdm(total=len(paths), unit='run', desc='simulate', file=sys.stderr,

@@ -16,9 +16,10 @@
 ``python -m gyro_tdc train BAG... --out MODEL.yaml``: identify a model from recorded bags.
 
 One run per bag (a folder of bag folders, as ``simulate`` writes for a multi-run scenario,
-expands to its bags). The work is :func:`gyro_tdc.training.train`; this module parses the
+expands to its bags). The work is :func:`gyro_tdc.identify.train.train`; this module parses the
 arguments and prints, with the default ``--features auto``, what was chosen and why (one
-line per effect), then the report of :func:`gyro_tdc.report.format_training`: training bias
+line per effect), then the report of :func:`gyro_tdc.evaluate.report.format_training`: training
+bias
 stability per axis raw and compensated, the temperature range, coverage per temperature bin
 (with a warning naming the bins inside the span with too little data) and minutes heating,
 cooling and steady (with the thermal state's tau and its interval, or that the data cannot
@@ -29,7 +30,7 @@ skips it. Bad input (missing bag or topic, unreadable bag, too small a
 span, too few samples, unknown feature id, bad reference) exits 2 with one line on stderr.
 
 ``--still-only`` trains from bags recorded in ordinary operation (no reference topic): only
-the still stretches count (:func:`gyro_tdc.field_training.train_still_only`; the thermal
+the still stretches count (:func:`gyro_tdc.identify.still_only.train_still_only`; the thermal
 state still runs over every sample), ``--motion-topic`` vetoes stillness while a ``cmd_vel``
 or odometry topic reports motion, and the report adds the still time, its coverage per bin,
 the minutes heating and cooling while still, and what to record next. No still stretch, or
@@ -42,16 +43,14 @@ import argparse
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.cli.common import add_bag_options, ArgumentParser, bag_options, command_line
-from gyro_tdc.cli.common import effect_listing
-from gyro_tdc.cli.common import finite_float, positive_float, positive_int, run_command
-from gyro_tdc.effects import normalise_ids
+from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
+                                 effect_listing, finite_float, positive_float, positive_int,
+                                 run_command)
 from gyro_tdc.errors import GyroTdcError
-from gyro_tdc.field_training import train_still_only
-from gyro_tdc.model import KINDS
-from gyro_tdc.report import format_coverage, format_training
-from gyro_tdc.still import MIN_STILL_S
-from gyro_tdc.training import AUTO, train
+from gyro_tdc.evaluate import format_coverage, format_training
+from gyro_tdc.identify import AUTO, train, train_still_only
+from gyro_tdc.model import KINDS, normalise_ids
+from gyro_tdc.signal import MIN_STILL_S
 
 __all__ = ['add_train_options', 'build_parser', 'main', 'train_options']
 
@@ -92,7 +91,7 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
 
     Commands that train (``fleet``) share the options and defaults through this function;
     :func:`train_options` turns the parsed arguments into keyword options of
-    :func:`gyro_tdc.training.train`.
+    :func:`gyro_tdc.identify.train.train`.
 
     Parameters
     ----------
@@ -128,7 +127,7 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
 
 def train_options(args: argparse.Namespace) -> dict:
     """
-    Return the keyword options of :func:`gyro_tdc.training.train` from parsed arguments.
+    Return the keyword options of :func:`gyro_tdc.identify.train.train` from parsed arguments.
 
     Parameters
     ----------

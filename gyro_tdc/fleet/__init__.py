@@ -45,8 +45,8 @@ ROS.
 from gyro_tdc.fleet.manifest import check_sensor_id, input_key, read_manifest, SensorSpec
 from gyro_tdc.fleet.results import FleetResult, SensorResult
 from gyro_tdc.fleet.run import Engine, open_engine, run_fleet, run_sensor, SensorOutcome
-from gyro_tdc.fleet.stats import DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics
-from gyro_tdc.fleet.stats import MIN_FLEET, robust_z
+from gyro_tdc.fleet.stats import (DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics, MIN_FLEET,
+                                  robust_z)
 from gyro_tdc.fleet.summary import format_table, summary_dict, write_summary
 
 __all__ = [

@@ -194,7 +194,7 @@ def input_key(spec: SensorSpec, options: dict) -> str:
     spec : SensorSpec
         The sensor.
     options : dict
-        Keyword options of :func:`gyro_tdc.training.train`.
+        Keyword options of :func:`gyro_tdc.identify.train.train`.
 
     Returns
     -------

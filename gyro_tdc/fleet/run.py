@@ -37,16 +37,15 @@ import time
 from typing import Callable, Iterator, Sequence
 
 from gyro_tdc import __version__
-from gyro_tdc.atomicio import atomic_write
+from gyro_tdc.base import atomic_write
 from gyro_tdc.errors import FleetError, GyroTdcError, one_line
-from gyro_tdc.evaluation import evaluate, mean_scores, NamedModel
+from gyro_tdc.evaluate import evaluate, mean_scores, NamedModel
 from gyro_tdc.fleet.manifest import input_key, SensorSpec
 from gyro_tdc.fleet.results import FleetResult, SensorResult
 from gyro_tdc.fleet.stats import DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics
 from gyro_tdc.fleet.summary import write_summary
-from gyro_tdc.model import CompensationModel
-from gyro_tdc.modelfile import save_model
-from gyro_tdc.training import train
+from gyro_tdc.identify import train
+from gyro_tdc.model import CompensationModel, save_model
 
 __all__ = ['Engine', 'STATE_DIR', 'SensorOutcome', 'check_workers', 'open_engine', 'run_fleet',
            'run_sensor', 'worker_version']
@@ -109,7 +108,7 @@ def run_sensor(spec: SensorSpec, options: dict, *, previous_key: str | None = No
     spec : SensorSpec
         The sensor and its bags (paths as the worker sees them).
     options : dict
-        Keyword options of :func:`gyro_tdc.training.train` (features, kind, topics...);
+        Keyword options of :func:`gyro_tdc.identify.train.train` (features, kind, topics...);
         ``progress`` is ignored (no bar on workers).
     previous_key : str, optional
         Input key of the model already written; when equal to this run's key the sensor is
@@ -323,7 +322,7 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
         Output folder (created): ``<sensor_id>.yaml``, ``summary.json``, ``summary.csv`` and
         the resume state in ``.fleet/``.
     options : dict
-        Keyword options of :func:`gyro_tdc.training.train`, the same for every sensor.
+        Keyword options of :func:`gyro_tdc.identify.train.train`, the same for every sensor.
     engine : Engine
         From :func:`open_engine`.
     force : bool

@@ -22,7 +22,7 @@ import json
 import os
 from pathlib import Path
 
-from gyro_tdc.atomicio import atomic_write
+from gyro_tdc.base import atomic_write
 from gyro_tdc.fleet.results import AXES, FleetResult
 
 __all__ = ['format_table', 'summary_dict', 'write_summary']

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-A node's parameter table (:mod:`gyro_tdc.paramspec`): declared with ROS descriptors, or --help.
+A node's parameter table (:mod:`gyro_tdc.base.paramspec`): ROS descriptors, or --help.
 
 :func:`declare` declares the table on a node and returns the values; :func:`print_help`
 answers ``--help`` / ``-h`` from the same table before ``rclpy.init``, so asking a node for
@@ -25,8 +25,8 @@ from __future__ import annotations
 import sys
 from typing import Any, Sequence
 
+from gyro_tdc.base import format_help, help_requested, ParamSpec
 from gyro_tdc.errors import ConfigError
-from gyro_tdc.paramspec import format_help, help_requested, ParamSpec
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 

@@ -16,17 +16,17 @@
 The compensator's ``/diagnostics`` and its graph guard against chained compensators.
 
 :class:`Diagnostics` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`:
-once a second it publishes the judgement of :func:`gyro_tdc.health.health` (plus the
+once a second it publishes the judgement of :func:`gyro_tdc.runtime.health.health` (plus the
 learner's keys) and logs what is new since the last report (a compensator upstream, samples
 already compensated, a re-anchoring). The node provides ``core``, ``inputs``
-(:class:`~gyro_tdc.health.InputStatus`), ``params``, ``model_file``, ``last_reload``,
+(:class:`~gyro_tdc.runtime.health.InputStatus`), ``params``, ``model_file``, ``last_reload``,
 ``learner``, ``motion_values()`` and ``_in_topic``.
 """
 
 from __future__ import annotations
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from gyro_tdc.health import health, HealthMark
+from gyro_tdc.runtime import health, HealthMark
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from sensor_msgs.msg import Temperature
 from std_msgs.msg import Float32, Float64

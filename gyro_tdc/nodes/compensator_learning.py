@@ -13,12 +13,12 @@
 # limitations under the License.
 
 """
-The compensator's learning in the field (``learn: true``, :mod:`gyro_tdc.learning`).
+The compensator's learning in the field (``learn: true``, :mod:`gyro_tdc.learn.learner`).
 
 :class:`Learning` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`.
 The IMU callback hands each raw sample to the learner through the core (float appends, at
 most 100 per second of stamps); a :data:`LEARN_STEP_S` timer runs its still test and
-refits (:meth:`~gyro_tdc.compensation_logic.CompensatorCore.learn_step`); a learned model
+refits (:meth:`~gyro_tdc.runtime.core.CompensatorCore.learn_step`); a learned model
 that predicts the recent still time better is made ready there and installed by the IMU
 callback at the first message stamped ``learn_swap_delay`` after the sample that let it be
 computed, so the output does not depend on when the timer ran (in real time, and in a
@@ -36,10 +36,10 @@ The node provides ``core``, ``params`` (``learn_file``, ``learn_save_period``) a
 
 from __future__ import annotations
 
-from gyro_tdc.compensation_logic import Policy
 from gyro_tdc.errors import OutputError
-from gyro_tdc.learning import LearnConfig, Learner
+from gyro_tdc.learn import LearnConfig, Learner
 from gyro_tdc.model import CompensationModel
+from gyro_tdc.runtime import Policy
 from std_srvs.srv import Trigger
 
 __all__ = ['LEARN_STEP_S', 'Learning']
@@ -88,7 +88,7 @@ class Learning:
 
         A learned model is then swapped in only when it predicts the recent still time better
         than this one; a learned swap not yet installed is older than the file and dropped
-        (:meth:`gyro_tdc.learning.Learner.set_prior`).
+        (:meth:`gyro_tdc.learn.learner.Learner.set_prior`).
         """
         if self.learner is not None:
             self.learner.set_prior(model)

@@ -16,15 +16,15 @@
 The compensator's model loading, off the message path: start-up, parameter set, ``~/reload``.
 
 :class:`ModelLoading` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`.
-A model file is read, checked and primed (:func:`gyro_tdc.compensation_logic.prepare`) in a
-worker thread (:mod:`gyro_tdc.loading`) and swapped into the core on the executor's thread,
+A model file is read, checked and primed (:func:`gyro_tdc.runtime.core.prepare`) in a
+worker thread (:mod:`gyro_tdc.base.worker`) and swapped into the core on the executor's thread,
 so a large or slow file never holds up the IMU callback for more than ``load_wait``; an
 invalid file is refused with its reason in one line and the old model stays. A
 ``model_file`` set waits up to ``load_wait`` for the file and refuses the set when the file
 is invalid; a slower file is installed (or refused, the parameter then naming the model in
 use again) by the :data:`LOAD_POLL_S` timer.
 
-The node provides ``core`` (:class:`~gyro_tdc.compensation_logic.CompensatorCore`),
+The node provides ``core`` (:class:`~gyro_tdc.runtime.core.CompensatorCore`),
 ``params`` (``model_file``, ``load_wait``, ``sensor_id``) and :meth:`_new_prior` (the
 learner's hook); this mixin keeps ``model_file`` (the file in use), ``last_reload`` (the
 outcome shown on /diagnostics) and its jobs.
@@ -34,13 +34,10 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from gyro_tdc.compensation_logic import prepare, PreparedModel
+from gyro_tdc.base import Job, LatestJob, model_path
 from gyro_tdc.errors import GyroTdcError, one_line
-from gyro_tdc.health import sensor_mismatch
-from gyro_tdc.loading import Job, LatestJob
-from gyro_tdc.model import CompensationModel
-from gyro_tdc.modelfile import load_model
-from gyro_tdc.resources import model_path
+from gyro_tdc.model import CompensationModel, load_model
+from gyro_tdc.runtime import prepare, PreparedModel, sensor_mismatch
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger

@@ -20,18 +20,18 @@ Subscribes ``imu/data_raw`` (sensor-data QoS with a deep queue, or reliable keep
 std_msgs/Float32 or Float64 with ``temperature_type``); publishes ``imu/data_compensated``
 with the header and every field copied unchanged except ``angular_velocity`` (corrected by
 the model) and ``angular_velocity_covariance`` (widened by the model's residual variance and
-by the policies, and carrying :mod:`gyro_tdc.provenance`'s mark when compensated); with a
+by the policies, and carrying :mod:`gyro_tdc.data.mark`'s mark when compensated); with a
 model that has an accelerometer part also ``linear_acceleration`` and
 ``linear_acceleration_covariance`` (the accelerometer residual variance, the same policies);
 ``/diagnostics`` at 1 Hz (``accelerometer``: compensated, not in model or passthrough).
 
 ``model_file`` can be changed at run time (parameter set) or re-read (``~/reload``,
 std_srvs/Trigger). The file is read, checked and primed in a worker thread
-(:mod:`gyro_tdc.loading`) and swapped in on the executor's thread, so a large or slow file
+(:mod:`gyro_tdc.base.worker`) and swapped in on the executor's thread, so a large or slow file
 never holds up the IMU callback for more than ``load_wait``; an invalid file is refused
 with its reason in one line and the old model stays.
 
-``learn: true`` (:mod:`gyro_tdc.learning`): the IMU callback hands each raw sample to the
+``learn: true`` (:mod:`gyro_tdc.learn.learner`): the IMU callback hands each raw sample to the
 learner (float appends, at most 100 per second of stamps); a 0.1 s timer runs its still
 test and refits; a learned model that predicts the recent still time better takes effect at
 the first message stamped ``learn_swap_delay`` after the data that made it (late ones, from
@@ -51,9 +51,9 @@ gyro_tdc compensator publishes its input (graph query) or the model was trained 
 another sensor than ``sensor_id``, and counts the input messages DDS reports lost (the
 subscription's message-lost event).
 
-Every decision lives in :mod:`gyro_tdc.compensation_logic` and :mod:`gyro_tdc.health`; this
+Every decision lives in :mod:`gyro_tdc.runtime.core` and :mod:`gyro_tdc.runtime.health`; this
 module converts. With ``raw_cdr`` (default) the Imu is taken as serialized bytes and patched
-in place by :mod:`gyro_tdc.imu_cdr`, which saves most of a Python relay's per-message cost.
+in place by :mod:`gyro_tdc.data.imu_cdr`, which saves most of a Python relay's per-message cost.
 ``main()`` spins rclpy's EventsExecutor (``executor: events``, see
 :mod:`gyro_tdc.nodes.executors`).
 """
@@ -63,21 +63,18 @@ from __future__ import annotations
 import sys
 from typing import Any, Callable
 
-from gyro_tdc.compensation_logic import CompensatorCore, PARAMS, Policy
+from gyro_tdc.base import spec_dataclass
+from gyro_tdc.data import diagonal_marked, ImuView, locate, mark_diagonal
 from gyro_tdc.errors import ConfigError
-from gyro_tdc.health import InputStatus, PASSTHROUGH
-from gyro_tdc.imu_cdr import ImuView, locate
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.nodes._params import declare, print_help
 from gyro_tdc.nodes.compensator_diagnostics import (Diagnostics, DIAGNOSTICS_PERIOD_S,
                                                     TEMPERATURE_MESSAGES)
 from gyro_tdc.nodes.compensator_learning import Learning
-from gyro_tdc.nodes.compensator_loading import (LOAD_ERRORS, LOAD_POLL_S, ModelLoading,
-                                                read_model)
+from gyro_tdc.nodes.compensator_loading import LOAD_ERRORS, LOAD_POLL_S, ModelLoading, read_model
 from gyro_tdc.nodes.compensator_motion import MotionInput
 from gyro_tdc.nodes.executors import run_node
-from gyro_tdc.paramspec import spec_dataclass
-from gyro_tdc.provenance import diagonal_marked, mark_diagonal
+from gyro_tdc.runtime import CompensatorCore, InputStatus, PARAMS, PASSTHROUGH, Policy
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,

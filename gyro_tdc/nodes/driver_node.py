@@ -42,11 +42,11 @@ from typing import Any, Callable
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from geometry_msgs.msg import Vector3Stamped
+from gyro_tdc.base import ParamSpec, spec_dataclass
 from gyro_tdc.errors import ConfigError, DeviceError, GyroTdcError, one_line
 from gyro_tdc.nodes._params import declare, print_help
 from gyro_tdc.nodes.executors import run_node
-from gyro_tdc.paramspec import ParamSpec, spec_dataclass
-from gyro_tdc.sources.base import Backoff, check_sample, ImuSample, ImuSource, SourceExhausted
+from gyro_tdc.sources import Backoff, check_sample, ImuSample, ImuSource, SourceExhausted
 from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
@@ -101,9 +101,9 @@ def stamp_from_ns(ns: int) -> Time:
 
 def _open_sim(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
     """Open the simulator; a scenario it cannot load, or a run too large, is a ConfigError."""
-    from gyro_tdc.limits import check_sim_samples
+    from gyro_tdc.base import check_sim_samples
     from gyro_tdc.sim import load_scenario
-    from gyro_tdc.sources.sim import SimSource
+    from gyro_tdc.sources import SimSource
     try:
         scenario = load_scenario(p.scenario)
         rate = p.sim_rate_hz or scenario.imu_rate_hz
@@ -117,7 +117,7 @@ def _open_sim(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
 
 
 def _open_iio(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
-    from gyro_tdc.sources.iio import find_iio_device, IioSource
+    from gyro_tdc.sources import find_iio_device, IioSource
     device = p.device_dir or find_iio_device(p.device_name, root=p.iio_root)
     return IioSource(device, temp_every=p.temp_every, clock=lambda: clock_ns() * 1e-9)
 

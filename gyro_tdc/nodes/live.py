@@ -32,9 +32,9 @@ import subprocess
 import sys
 import time
 
-from gyro_tdc.metrics import bias_stability
+from gyro_tdc.base import config_dir
 from gyro_tdc.nodes.executors import make_executor
-from gyro_tdc.resources import config_dir
+from gyro_tdc.signal import bias_stability
 import numpy as np
 import rclpy
 from rclpy.context import Context

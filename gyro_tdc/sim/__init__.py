@@ -17,26 +17,28 @@ Thermal-chamber gyro simulator (pure numpy; no rclpy).
 
 A chamber profile (soak, ramp, the paper's 0.1 degC / 20 s staircase, free points) drives a
 chain of first-order lags (air, package, die); a thermometer reads the package or the die;
-the gyro adds per-axis thermal effects (ids of :mod:`gyro_tdc.effects`) and noise to the
+the gyro adds per-axis thermal effects (ids of :mod:`gyro_tdc.model.effects`) and noise to the
 rate-table reference::
 
     from gyro_tdc.sim import load_scenario, simulate_scenario, to_run
     runs = simulate_scenario('l3gd20_paper', seed=1, rate_hz=1.0)
-    run = to_run(runs[0])                      # gyro_tdc.runs.Run on the IMU stamps
+    run = to_run(runs[0])                      # gyro_tdc.data.runs.Run on the IMU stamps
 
 See :mod:`gyro_tdc.sim.scenario` for the scenario schema.
 """
 
-from gyro_tdc.sim.chamber import heat_conduction_time_s, max_temperature_step_c
-from gyro_tdc.sim.chamber import nice_ceil, nice_floor, Profile, staircase_plan, StaircasePlan
+from gyro_tdc.model import EFFECT_IDS
+from gyro_tdc.sim.chamber import (heat_conduction_time_s, max_temperature_step_c, nice_ceil,
+                                  nice_floor, Profile, staircase_plan, StaircasePlan)
 from gyro_tdc.sim.presets import PRESETS
-from gyro_tdc.sim.scenario import EFFECT_IDS, list_scenarios, load_scenario, Scenario
-from gyro_tdc.sim.scenario import scenario_dir
+from gyro_tdc.sim.scenario import list_scenarios, load_scenario, Scenario, scenario_dir
 from gyro_tdc.sim.simulator import SimRun, SimTruth, simulate_run, simulate_scenario, to_run
 from gyro_tdc.sim.stream import SimStream
 from gyro_tdc.sim.thermal import simulate_thermal, ThermalHistory
+from gyro_tdc.sim.vehicle import CMD_VEL_TOPIC, TRUTH_TOPIC
 
 __all__ = [
+    'CMD_VEL_TOPIC',
     'EFFECT_IDS',
     'PRESETS',
     'Profile',
@@ -46,6 +48,7 @@ __all__ = [
     'SimTruth',
     'StaircasePlan',
     'ThermalHistory',
+    'TRUTH_TOPIC',
     'heat_conduction_time_s',
     'list_scenarios',
     'load_scenario',

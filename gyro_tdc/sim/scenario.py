@@ -47,7 +47,7 @@ sections and their defaults::
       tau_s: 0.0                  # sensor time constant
       offset_c: 0.0
     gyro:
-      effects: [bias, dT, dT2]    # or a mapping id -> bool; ids of gyro_tdc.effects
+      effects: [bias, dT, dT2]    # or a mapping id -> bool; ids of gyro_tdc.model.effects
       t_ref_c: 25.0               # dT_die = T_die - t_ref_c
       bias_dps: 0.0               # b0
       dT_dps_per_c: 0.0           # a1
@@ -101,15 +101,14 @@ import os
 from pathlib import Path
 from typing import Any, Mapping, Optional, Union
 
-from gyro_tdc.effects import EFFECT_IDS
+from gyro_tdc.base import load_yaml, plain, SCENARIO_LIMITS
 from gyro_tdc.errors import GyroTdcError, ScenarioError
-from gyro_tdc.plain import plain
+from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim import chamber
 from gyro_tdc.sim.schema import DEG, FORMAT_VERSION, merge, validate
-from gyro_tdc.sim.specs import AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsSpec
-from gyro_tdc.sim.specs import ThermalSpec, ThermometerSpec
+from gyro_tdc.sim.specs import (AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsSpec, ThermalSpec,
+                                ThermometerSpec)
 from gyro_tdc.sim.vehicle import VehicleSpec
-from gyro_tdc.yamlio import load_yaml, SCENARIO_LIMITS
 import yaml
 
 __all__ = [
@@ -291,7 +290,7 @@ def scenario_dir() -> Path:
     Returns
     -------
     pathlib.Path
-        Found through :func:`gyro_tdc.resources.config_dir`.
+        Found through :func:`gyro_tdc.base.resources.config_dir`.
 
     Raises
     ------
@@ -299,7 +298,7 @@ def scenario_dir() -> Path:
         If the configuration directory cannot be found.
 
     """
-    from gyro_tdc import resources
+    from gyro_tdc.base import resources
     try:
         return resources.config_dir() / 'scenarios'
     except ScenarioError:
@@ -318,7 +317,7 @@ def list_scenarios() -> list[str]:
         Stems of ``config/scenarios/*.yaml``.
 
     """
-    from gyro_tdc import resources
+    from gyro_tdc.base import resources
     try:
         return resources.scenario_names()
     except GyroTdcError as exc:
@@ -350,7 +349,7 @@ def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) ->
         return name_or_path
     if isinstance(name_or_path, Mapping):
         return Scenario.from_dict(name_or_path)
-    from gyro_tdc import resources
+    from gyro_tdc.base import resources
     try:
         path = resources.scenario_path(name_or_path)
     except ScenarioError:

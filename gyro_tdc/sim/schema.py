@@ -28,13 +28,13 @@ import copy
 import math
 from typing import Any, Mapping, Optional
 
-from gyro_tdc.effects import EFFECT_IDS
+from gyro_tdc.base import plain
 from gyro_tdc.errors import ScenarioError
-from gyro_tdc.plain import plain
+from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim import chamber
 from gyro_tdc.sim.presets import PRESETS
-from gyro_tdc.sim.specs import AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsSpec
-from gyro_tdc.sim.specs import ThermalSpec, ThermometerSpec, Vec3
+from gyro_tdc.sim.specs import (AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsSpec, ThermalSpec,
+                                ThermometerSpec, Vec3)
 from gyro_tdc.sim.vehicle import vehicle_spec
 import numpy as np
 

@@ -21,7 +21,7 @@ Per axis, with ``dT = T_die - T_ref`` and ``t`` since power-on::
            + w exp(-t / tau_w) + white + bias instability + rate random walk
 
 then saturated at the full scale and quantised to one digit. Each term belongs to one
-effect id of :mod:`gyro_tdc.effects` (``scale``, ``bias``, ``dT``, ``dT2``, ``dT3``,
+effect id of :mod:`gyro_tdc.model.effects` (``scale``, ``bias``, ``dT``, ``dT2``, ``dT3``,
 ``dTdt``, ``warmup``); ``lag`` makes the die a first-order lag of the package the
 thermometer sits on. The accelerometer on the same die reads gravity in the sensor frame
 (a tilt fixed per run, optionally changed once mid-run) plus an offset curved in the die
@@ -41,10 +41,12 @@ import math
 import os
 from typing import Any, Mapping, Optional, Sequence, Union
 
+from gyro_tdc.data import Run
 from gyro_tdc.errors import ScenarioError
-from gyro_tdc.runs import Run
+from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim.noise import gauss_markov, quantise, random_walk, white_noise
-from gyro_tdc.sim.scenario import DEG, EFFECT_IDS, load_scenario, Scenario
+from gyro_tdc.sim.scenario import load_scenario, Scenario
+from gyro_tdc.sim.schema import DEG
 from gyro_tdc.sim.thermal import simulate_thermal, ThermalHistory
 from gyro_tdc.sim.vehicle import heated_profile, plan_legs, vehicle_motion, VehicleMotion
 import numpy as np
@@ -529,7 +531,7 @@ def to_run(simrun: SimRun) -> Run:
 
     Returns
     -------
-    gyro_tdc.runs.Run
+    gyro_tdc.data.runs.Run
         ``info`` holds ``truth`` (SimTruth), ``scenario``, ``seed``, ``run_index``,
         ``source='sim'``; ``accel`` the accelerometer output.
 

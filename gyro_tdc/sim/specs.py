@@ -91,7 +91,7 @@ class GyroSpec:
     Parameters
     ----------
     effects : tuple of str
-        Enabled effect ids (subset of :data:`gyro_tdc.effects.EFFECT_IDS`).
+        Enabled effect ids (subset of :data:`gyro_tdc.model.effects.EFFECT_IDS`).
     t_ref_c : float, degC
         Reference temperature of ``dT_die``.
     bias_dps, dT_dps_per_c, dT2_dps_per_c2, dT3_dps_per_c3 : tuple of 3 float

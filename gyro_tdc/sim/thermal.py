@@ -16,7 +16,7 @@
 Heat conduction: chamber set point -> air -> package -> MEMS die, as first-order lags.
 
 Each stage obeys ``tau dy/dt = u - y``. It is integrated on a uniform internal grid with the
-exact first-order-hold discretisation (:func:`gyro_tdc.effects.first_order_lag`, the one
+exact first-order-hold discretisation (:func:`gyro_tdc.model.effects.first_order_lag`, the one
 first-order lag of the package, with ``hold='linear'``), so a stage is exact at the grid
 nodes whenever its input is linear between them (the set point of ramps and holds whose
 breakpoints fall on the grid). A staircase jump between two nodes is spread over that one
@@ -30,7 +30,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gyro_tdc.effects import first_order_lag
+from gyro_tdc.model import first_order_lag
 from gyro_tdc.sim.chamber import Profile
 import numpy as np
 from numpy.typing import ArrayLike, NDArray

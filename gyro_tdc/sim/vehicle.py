@@ -54,7 +54,7 @@ from dataclasses import dataclass, fields
 import math
 from typing import Any
 
-from gyro_tdc.effects import first_order_lag
+from gyro_tdc.model import first_order_lag
 from gyro_tdc.sim.chamber import Profile
 import numpy as np
 from numpy.typing import NDArray

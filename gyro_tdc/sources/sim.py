@@ -82,7 +82,7 @@ class SimSource:
             raise ValueError(f'Expected `time_scale` >= 0, got {time_scale!r}.')
         if int(max_batch) < 1:
             raise ValueError(f'Expected `max_batch` >= 1, got {max_batch!r}.')
-        from gyro_tdc.sim.stream import SimStream
+        from gyro_tdc.sim import SimStream
         try:
             self._stream = SimStream(scenario, seed=seed, run_index=run_index,
                                      rate_hz=rate_hz or None)

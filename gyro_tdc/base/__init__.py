@@ -1,0 +1,33 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The base every package stands on.
+
+Atomic writes, bounded YAML, plain types, limits, shipped resources, parameter specs and
+the latest-job worker.
+"""
+
+from gyro_tdc.base.face import lazy
+
+__all__, __getattr__, __dir__ = lazy(__name__, {
+    'atomicio': ['atomic_dir', 'atomic_write'],
+    'face': ['lazy'],
+    'limits': ['check_bin_width', 'check_centers', 'check_sim_samples', 'MAX_CENTERS',
+               'MAX_RATE_RAD_S', 'TEMP_PLAUSIBLE_C'],
+    'paramspec': ['format_help', 'help_requested', 'ParamSpec', 'spec_dataclass'],
+    'resources': ['config_dir', 'model_path', 'scenario_names'],
+    'worker': ['Job', 'LatestJob'],
+    'yamlio': ['BAG_METADATA_LIMITS', 'load_yaml', 'read_yaml', 'SCENARIO_LIMITS', 'YamlLimits'],
+})

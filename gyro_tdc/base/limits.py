@@ -1,0 +1,146 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Upfront size checks of options that size arrays, before any memory is spent.
+
+An option such as ``train --bin 1e-7`` or ``simulate --rate-hz 1e6`` is valid as a number
+but asks for gigabytes; each check here estimates the size first and refuses with one line
+(:class:`~gyro_tdc.errors.LimitError`, exit 2 on the command line) that names the option,
+the estimate, the limit and a value that fits:
+
+- ``--bin``: at most ``MAX_COVERAGE_BINS`` (10,000) coverage bins over the plausible
+  temperature span (``TEMP_PLAUSIBLE_C``, 300 degC): ``--bin >= 0.03``;
+- ``--centers``: at most ``MAX_CENTERS`` (10,000), the most a model
+  file may hold;
+- ``--rate-hz`` (and a scenario's own rate and duration): at most ``MAX_SIM_SAMPLES``
+  (2e7) IMU samples per simulated run, about 7 GB while simulating (350 bytes per sample,
+  measured: 14.4 M samples peaked at 5.0 GB).
+"""
+
+from __future__ import annotations
+
+import math
+
+from gyro_tdc.errors import LimitError
+
+__all__ = ['MAX_CENTERS', 'MAX_COVERAGE_BINS', 'MAX_RATE_RAD_S', 'MAX_SIM_SAMPLES',
+           'SIM_BYTES_PER_SAMPLE', 'TEMP_PLAUSIBLE_C', 'check_bin_width', 'check_centers',
+           'check_sim_samples']
+
+#: Temperatures a MEMS die can read, degC: outside, a reading is a glitch (one home for the
+#: trainer, the driver, the compensator and the learner).
+TEMP_PLAUSIBLE_C = (-100.0, 200.0)
+#: Rates beyond any gyro's range, rad/s (about 5,700 deg/s).
+MAX_RATE_RAD_S = 100.0
+#: RBF centres a model file may hold.
+MAX_CENTERS = 10_000
+MAX_COVERAGE_BINS = 10_000
+MAX_SIM_SAMPLES = 20_000_000
+SIM_BYTES_PER_SAMPLE = 350
+
+
+def check_bin_width(bin_c: float, *, option: str = '--bin') -> float:
+    """
+    Return ``bin_c`` when the coverage table it implies is small enough.
+
+    Parameters
+    ----------
+    bin_c : float, degC
+        Coverage bin width.
+    option : str
+        Option name for the message.
+
+    Returns
+    -------
+    float
+        ``bin_c``.
+
+    Raises
+    ------
+    LimitError
+        When the plausible temperature span would need more than ``MAX_COVERAGE_BINS``.
+
+    """
+    span = TEMP_PLAUSIBLE_C[1] - TEMP_PLAUSIBLE_C[0]
+    smallest = span / MAX_COVERAGE_BINS
+    if not bin_c >= smallest:
+        bins = span / bin_c if bin_c > 0 else math.inf
+        raise LimitError(f'{option} {bin_c:g} degC makes up to {bins:.3g} coverage bins over the '
+                         f'{span:g} degC plausible range; at most {MAX_COVERAGE_BINS} '
+                         f'(use {option} >= {smallest:g})')
+    return bin_c
+
+
+def check_centers(n_centers: int, *, option: str = '--centers') -> int:
+    """
+    Return ``n_centers`` when a model file may hold that many RBF centres.
+
+    Parameters
+    ----------
+    n_centers : int
+        RBF centres K.
+    option : str
+        Option name for the message.
+
+    Returns
+    -------
+    int
+        ``n_centers``.
+
+    Raises
+    ------
+    LimitError
+        When ``n_centers`` exceeds ``MAX_CENTERS``.
+
+    """
+    if n_centers > MAX_CENTERS:
+        raise LimitError(f'{option} {n_centers}: at most {MAX_CENTERS} RBF centres (the limit '
+                         'of a model file)')
+    return n_centers
+
+
+def check_sim_samples(duration_s: float, rate_hz: float, *,
+                      option: str = '--rate-hz') -> int:
+    """
+    Return the IMU samples of one simulated run when they fit in ``MAX_SIM_SAMPLES``.
+
+    Parameters
+    ----------
+    duration_s : float, s
+        Run duration.
+    rate_hz : float, Hz
+        IMU rate.
+    option : str
+        Option name for the message.
+
+    Returns
+    -------
+    int
+        Samples per run.
+
+    Raises
+    ------
+    LimitError
+        When the run would exceed ``MAX_SIM_SAMPLES`` samples.
+
+    """
+    n = duration_s * rate_hz
+    if not n <= MAX_SIM_SAMPLES:
+        gb = n * SIM_BYTES_PER_SAMPLE / 1e9
+        raise LimitError(f'{option} {rate_hz:g}: {n:.3g} IMU samples per run ({duration_s:g} s '
+                         f'at {rate_hz:g} Hz) would need about {gb:.3g} GB; at most '
+                         f'{MAX_SIM_SAMPLES:.3g} samples per run (use {option} <= '
+                         f'{MAX_SIM_SAMPLES / duration_s:.3g})')
+    return int(math.ceil(n))

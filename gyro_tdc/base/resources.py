@@ -1,0 +1,213 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Locate the files shipped in ``config/``: node parameters, scenarios and models.
+
+In a source checkout or an editable install (``pip install -e .``, ``colcon build
+--symlink-install``) ``config/`` sits next to the ``gyro_tdc`` package; ``pip install -e`` installs
+no ``data_files``, so that is looked at first. A regular colcon install copies it to
+``share/gyro_tdc/config``, found through the ament index (``ament_index_python``, imported
+lazily; no ``rclpy``).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Optional, Union
+
+from gyro_tdc.errors import GyroTdcError, ModelFileError, ScenarioError
+
+__all__ = ['config_dir', 'model_names', 'model_path', 'scenario_names', 'scenario_path']
+
+PACKAGE = 'gyro_tdc'
+YAML_SUFFIXES = ('.yaml', '.yml')
+
+PathLike = Union[str, 'os.PathLike[str]']
+
+
+def _checkout_config_dir() -> Optional[Path]:
+    root = Path(__file__).resolve().parent.parent
+    candidate = root / 'config'
+    # package.xml beside config/ tells a checkout from an unrelated site-packages/config.
+    if candidate.is_dir() and (root / 'package.xml').is_file():
+        return candidate
+    return None
+
+
+def _share_config_dir() -> Optional[Path]:
+    try:
+        from ament_index_python.packages import get_package_share_directory
+    except ImportError:
+        return None
+    try:
+        share = Path(get_package_share_directory(PACKAGE))
+    except (LookupError, ValueError, OSError):
+        # PackageNotFoundError is a KeyError; an unset AMENT_PREFIX_PATH raises OSError.
+        return None
+    candidate = share / 'config'
+    return candidate if candidate.is_dir() else None
+
+
+def config_dir() -> Path:
+    """
+    Return the directory holding gyro_tdc's shipped configuration files.
+
+    Returns
+    -------
+    pathlib.Path
+        ``<checkout>/config`` in a source checkout or editable install, otherwise
+        ``<prefix>/share/gyro_tdc/config`` found through the ament index.
+
+    Raises
+    ------
+    GyroTdcError
+        If neither location exists.
+
+    """
+    found = _checkout_config_dir() or _share_config_dir()
+    if found is None:
+        checkout = Path(__file__).resolve().parent.parent / 'config'
+        raise GyroTdcError(
+            f'gyro_tdc config directory not found: expected {checkout} (source checkout) or '
+            f'share/{PACKAGE}/config in a prefix on AMENT_PREFIX_PATH '
+            f'(AMENT_PREFIX_PATH={os.environ.get("AMENT_PREFIX_PATH", "<unset>")!r})')
+    return found
+
+
+def _names(directory: Path) -> list[str]:
+    if not directory.is_dir():
+        return []
+    return sorted(p.stem for p in directory.iterdir()
+                  if p.is_file() and p.suffix in YAML_SUFFIXES)
+
+
+def _resolve(name_or_file: PathLike, *, kind: str, argument: str, subdir: str,
+             error: type[GyroTdcError], config: Optional[PathLike]) -> Path:
+    if not isinstance(name_or_file, (str, os.PathLike)):
+        raise error(f'`{argument}` must be a {kind} name or a file path, '
+                    f'got {type(name_or_file).__name__}: {name_or_file!r}')
+    text = os.fspath(name_or_file)
+    if not text:
+        raise error(f'`{argument}` must be a {kind} name or a file path, got an empty string')
+    path = Path(text).expanduser()
+    looks_like_file = (path.suffix in YAML_SUFFIXES or os.sep in text or '/' in text
+                       or (os.altsep is not None and os.altsep in text))
+    if looks_like_file:
+        if path.is_file():
+            return path
+        raise error(f'`{argument}`: {kind} file {text!r} does not exist or is not a file')
+    directory = (Path(config) if config is not None else config_dir()) / subdir
+    for suffix in YAML_SUFFIXES:
+        candidate = directory / f'{text}{suffix}'
+        if candidate.is_file():
+            return candidate
+    if path.is_file():
+        # A bare file name in the working directory that is not a shipped name.
+        return path
+    names = _names(directory)
+    available = ', '.join(names) if names else '<none>'
+    raise error(f'`{argument}`: unknown {kind} {text!r}; expected a YAML file path or one of '
+                f'the shipped {kind}s in {directory}: {available}')
+
+
+def scenario_names(*, config: Optional[PathLike] = None) -> list[str]:
+    """
+    Return the names of the shipped scenarios, sorted.
+
+    Parameters
+    ----------
+    config : str or os.PathLike, optional
+        Configuration directory to search instead of :func:`config_dir`.
+
+    Returns
+    -------
+    list of str
+        Stems of ``config/scenarios/*.yaml``.
+
+    """
+    return _names((Path(config) if config is not None else config_dir()) / 'scenarios')
+
+
+def model_names(*, config: Optional[PathLike] = None) -> list[str]:
+    """
+    Return the names of the shipped models, sorted.
+
+    Parameters
+    ----------
+    config : str or os.PathLike, optional
+        Configuration directory to search instead of :func:`config_dir`.
+
+    Returns
+    -------
+    list of str
+        Stems of ``config/models/*.yaml``.
+
+    """
+    return _names((Path(config) if config is not None else config_dir()) / 'models')
+
+
+def scenario_path(name_or_file: PathLike, *, config: Optional[PathLike] = None) -> Path:
+    """
+    Resolve a scenario name (``config/scenarios/NAME.yaml``) or a scenario file path.
+
+    Parameters
+    ----------
+    name_or_file : str or os.PathLike
+        A shipped scenario name such as ``'ramp'``, or a path to a YAML file. Anything with a
+        ``.yaml``/``.yml`` suffix or a path separator is taken as a path.
+    config : str or os.PathLike, optional
+        Configuration directory to search instead of :func:`config_dir`.
+
+    Returns
+    -------
+    pathlib.Path
+        Path of an existing scenario file.
+
+    Raises
+    ------
+    ScenarioError
+        If the file does not exist or the name is unknown; the message lists the shipped names.
+
+    """
+    return _resolve(name_or_file, kind='scenario', argument='scenario', subdir='scenarios',
+                    error=ScenarioError, config=config)
+
+
+def model_path(name_or_file: PathLike, *, config: Optional[PathLike] = None) -> Path:
+    """
+    Resolve a model name (``config/models/NAME.yaml``) or a model file path.
+
+    Parameters
+    ----------
+    name_or_file : str or os.PathLike
+        A shipped model name, or a path to a YAML model file. Anything with a
+        ``.yaml``/``.yml`` suffix or a path separator is taken as a path.
+    config : str or os.PathLike, optional
+        Configuration directory to search instead of :func:`config_dir`.
+
+    Returns
+    -------
+    pathlib.Path
+        Path of an existing model file.
+
+    Raises
+    ------
+    ModelFileError
+        If the file does not exist or the name is unknown; the message lists the shipped names.
+
+    """
+    return _resolve(name_or_file, kind='model', argument='model', subdir='models',
+                    error=ModelFileError, config=config)

@@ -1,0 +1,245 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Bounded YAML reading: every YAML file the package reads goes through :func:`read_yaml`.
+
+``yaml.safe_load`` alone is safe against code execution but not against denial of service:
+a 1 KB file of 500 nested brackets raises ``RecursionError`` (the composer recurses per
+level), and a 3 KB "billion laughs" alias bomb expands into gigabytes when the loaded
+document is walked. So the limits are checked before the document is built:
+
+1. the file size, from ``fstat`` and a bounded read (a special file cannot stream forever);
+2. one pass over the parser's event stream (libyaml's C parser when available; the parser
+   is iterative, it does not recurse) that refuses nesting deeper than ``max_depth``, an
+   alias when aliases are not allowed, a recursive alias, and more than ``max_nodes`` nodes
+   counting every alias as the full size of the node it repeats;
+3. only then the document is composed (``yaml.CSafeLoader`` / ``yaml.SafeLoader``), with a
+   depth that is now known to be small.
+
+Each limit is reported in one line, as the caller's error class, naming the file, the line
+and the limit.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+from gyro_tdc.errors import GyroTdcError
+import yaml
+
+__all__ = ['BAG_METADATA_LIMITS', 'SCENARIO_LIMITS', 'YamlLimits', 'load_yaml', 'read_yaml']
+
+_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
+_OPEN = (yaml.MappingStartEvent, yaml.SequenceStartEvent)
+_CLOSE = (yaml.MappingEndEvent, yaml.SequenceEndEvent)
+
+
+class YamlLimits:
+    """
+    Hard limits of one kind of YAML file.
+
+    Parameters
+    ----------
+    what : str
+        Kind of file, for messages (e.g. ``'model file'``).
+    max_bytes : int
+        Largest file size in bytes.
+    max_depth : int
+        Deepest nesting of mappings and sequences.
+    max_nodes : int
+        Most nodes, an alias counting as the size of the node it repeats.
+    aliases : bool
+        Whether anchors and aliases (``&a`` / ``*a``) are allowed at all.
+
+    """
+
+    __slots__ = ('what', 'max_bytes', 'max_depth', 'max_nodes', 'aliases')
+
+    def __init__(self, what: str, *, max_bytes: int, max_depth: int, max_nodes: int,
+                 aliases: bool) -> None:
+        self.what = what
+        self.max_bytes = int(max_bytes)
+        self.max_depth = int(max_depth)
+        self.max_nodes = int(max_nodes)
+        self.aliases = bool(aliases)
+
+    def __repr__(self) -> str:
+        return (f'YamlLimits({self.what!r}, max_bytes={self.max_bytes}, '
+                f'max_depth={self.max_depth}, max_nodes={self.max_nodes}, '
+                f'aliases={self.aliases})')
+
+
+# Scenario files and rosbag2 metadata.yaml may use anchors and aliases; their expansion is
+# counted. (Model files have their own, stricter limits in gyro_tdc.model.modelfile.)
+SCENARIO_LIMITS = YamlLimits('scenario file', max_bytes=4 * 1024 * 1024, max_depth=64,
+                             max_nodes=1_000_000, aliases=True)
+BAG_METADATA_LIMITS = YamlLimits('bag metadata file', max_bytes=16 * 1024 * 1024,
+                                 max_depth=64, max_nodes=2_000_000, aliases=True)
+
+
+def _line(event: Any) -> str:
+    """Return ' at line N' for an event (empty when it has no mark)."""
+    mark = getattr(event, 'start_mark', None)
+    return f' at line {mark.line + 1}' if mark is not None else ''
+
+
+def _check_events(text: str, limits: YamlLimits, source: str,
+                  error: type[GyroTdcError]) -> None:
+    """Walk the event stream once and raise ``error`` at the first limit exceeded."""
+    depth = 0
+    total = 0
+    sizes: dict[str, int] = {}          # anchor -> expanded size of its node
+    open_: list[list] = []              # per open collection: [anchor, expanded size]
+    for event in yaml.parse(text, Loader=_LOADER):
+        kind = type(event)
+        if kind in _OPEN:
+            depth += 1
+            if depth > limits.max_depth:
+                raise error(f'{source}: nesting deeper than {limits.max_depth} levels'
+                            f'{_line(event)} (the limit of a {limits.what})')
+            if event.anchor is not None and not limits.aliases:
+                raise error(f'{source}: YAML anchor &{event.anchor}{_line(event)}: '
+                            f'anchors and aliases are not allowed in a {limits.what}')
+            open_.append([event.anchor, 1])
+            total += 1
+        elif kind in _CLOSE:
+            anchor, size = open_.pop()
+            depth -= 1
+            if anchor is not None:
+                sizes[anchor] = size
+            if open_:
+                open_[-1][1] += size
+            continue
+        elif kind is yaml.ScalarEvent:
+            if event.anchor is not None:
+                if not limits.aliases:
+                    raise error(f'{source}: YAML anchor &{event.anchor}{_line(event)}: '
+                                f'anchors and aliases are not allowed in a {limits.what}')
+                sizes[event.anchor] = 1
+            total += 1
+            if open_:
+                open_[-1][1] += 1
+        elif kind is yaml.AliasEvent:
+            if not limits.aliases:
+                raise error(f'{source}: YAML alias *{event.anchor}{_line(event)}: '
+                            f'anchors and aliases are not allowed in a {limits.what}')
+            if any(frame[0] == event.anchor for frame in open_):
+                raise error(f'{source}: recursive YAML alias *{event.anchor}{_line(event)}')
+            size = sizes.get(event.anchor, 1)
+            total += size
+            if open_:
+                open_[-1][1] += size
+        else:
+            continue
+        if total > limits.max_nodes:
+            raise error(f'{source}: more than {limits.max_nodes} YAML nodes'
+                        + (' (aliases expanded)' if limits.aliases else '')
+                        + f'{_line(event)} (the limit of a {limits.what})')
+
+
+def _malformed(exc: yaml.YAMLError, source: str, error: type[GyroTdcError]) -> GyroTdcError:
+    """Return ``error`` describing a YAML syntax error on one line."""
+    mark = getattr(exc, 'problem_mark', None)
+    where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark is not None else ''
+    problem = getattr(exc, 'problem', None) or type(exc).__name__
+    return error(f'{source}: malformed YAML{where}: {" ".join(str(problem).split())}')
+
+
+def load_yaml(text: str, limits: YamlLimits, *, source: str = '<string>',
+              error: type[GyroTdcError] = GyroTdcError) -> Any:
+    """
+    Parse one YAML document within ``limits`` (safe types only).
+
+    Parameters
+    ----------
+    text : str
+        The document.
+    limits : YamlLimits
+        Size, depth, node-count and alias limits.
+    source : str
+        Name of the document in messages (e.g. the file path).
+    error : type
+        The :class:`~gyro_tdc.errors.GyroTdcError` subclass to raise.
+
+    Returns
+    -------
+    Any
+        The parsed document (None when empty).
+
+    Raises
+    ------
+    GyroTdcError
+        As ``error``: a limit exceeded, in one line naming ``source``.
+    yaml.YAMLError
+        When the text is not valid YAML (the caller words the message; :func:`read_yaml`
+        turns it into ``error``).
+
+    """
+    size = len(text.encode('utf-8', errors='surrogatepass'))
+    if size > limits.max_bytes:
+        raise error(f'{source}: {size} bytes, more than the {limits.max_bytes}-byte limit of '
+                    f'a {limits.what}')
+    _check_events(text, limits, source, error)
+    return yaml.load(text, Loader=_LOADER)
+
+
+def read_yaml(path: str | os.PathLike, limits: YamlLimits, *,
+              error: type[GyroTdcError] = GyroTdcError) -> Any:
+    """
+    Read and parse a YAML file within ``limits``; the size is checked before reading.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file.
+    limits : YamlLimits
+        Size, depth, node-count and alias limits.
+    error : type
+        The :class:`~gyro_tdc.errors.GyroTdcError` subclass to raise.
+
+    Returns
+    -------
+    Any
+        The parsed document (None when empty).
+
+    Raises
+    ------
+    GyroTdcError
+        As ``error``, in one line naming the file: unreadable, not UTF-8, too large,
+        malformed, or over a limit.
+
+    """
+    path = Path(path)
+    try:
+        with open(path, 'rb') as stream:
+            size = os.fstat(stream.fileno()).st_size
+            if size > limits.max_bytes:
+                raise error(f'{path}: {size} bytes, more than the {limits.max_bytes}-byte '
+                            f'limit of a {limits.what}')
+            data = stream.read(limits.max_bytes + 1)
+    except OSError as exc:
+        raise error(f'{path}: cannot read {limits.what}: {exc.strerror or exc}') from None
+    if len(data) > limits.max_bytes:
+        raise error(f'{path}: more than the {limits.max_bytes}-byte limit of a {limits.what}')
+    try:
+        text = data.decode('utf-8')
+    except UnicodeDecodeError:
+        raise error(f'{path}: not a text (UTF-8) {limits.what}') from None
+    try:
+        return load_yaml(text, limits, source=str(path), error=error)
+    except yaml.YAMLError as exc:
+        raise _malformed(exc, str(path), error) from None

@@ -1,0 +1,35 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Data in.
+
+Rosbag2 bags (read, written, motion reports), the serialized Imu and its compensation
+mark, thermal runs as arrays, their coverage, and real-data converters.
+"""
+
+from gyro_tdc.base.face import lazy
+
+__all__, __getattr__, __dir__ = lazy(__name__, {
+    'bag_codec': ['IMU_TYPE', 'REFERENCE_TYPE', 'TEMPERATURE_TYPE'],
+    'bag_motion': ['encode_twists', 'read_motion', 'TWIST_TYPE'],
+    'bag_reader': ['read_bag'],
+    'bag_writer': ['write_bag'],
+    'coverage': ['Coverage', 'RATE_THRESHOLD_C_PER_MIN', 'temperature_rate'],
+    'dataset': ['expand_bags', 'load_runs', 'MAX_LOSS_FRACTION'],
+    'imu_cdr': ['ImuView', 'locate'],
+    'mark': ['diagonal_marked', 'mark_diagonal'],
+    'realdata': ['default_pan_csv', 'PanCubesat', 'read_pan_cubesat_csv'],
+    'runs': ['Run'],
+})

@@ -1,0 +1,286 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+
+"""
+The fixed-layout numpy CDR codec of the three recorded message types, checked against rosbags.
+
+``sensor_msgs/Imu``, ``sensor_msgs/Temperature`` and ``geometry_msgs/Vector3Stamped`` are a
+``std_msgs/Header`` followed by a flat run of float64 values (37, 2 and 3). For a given
+``frame_id`` length their CDR bytes have one fixed layout (:mod:`gyro_tdc.data.imu_cdr`), so a
+block of messages is encoded (:func:`encode_checked`) or decoded (:func:`decode_fast`) as one
+numpy structured array. Every fast path checks itself against rosbags' own serialiser on a
+few messages and falls back to it (:func:`decode_slow`, one message at a time) whenever the
+layout does not hold.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Sequence
+
+from gyro_tdc.data import imu_cdr
+from gyro_tdc.data.imu_cdr import field_slice, IMU_DOUBLES, IMU_FIELDS, layout_of
+from gyro_tdc.errors import DatasetError
+import numpy as np
+from numpy.typing import NDArray
+from rosbags.serde import SerdeError
+from rosbags.typesys import get_typestore, Stores
+
+__all__ = ['Decoded', 'IMU_TYPE', 'KEEP', 'N_DOUBLES', 'REFERENCE_TYPE', 'TEMPERATURE_TYPE',
+           'decode', 'decode_fast', 'decode_joined', 'decode_slow', 'encode_checked',
+           'from_msg', 'jazzy', 'to_msg']
+
+IMU_TYPE = 'sensor_msgs/msg/Imu'
+TEMPERATURE_TYPE = 'sensor_msgs/msg/Temperature'
+REFERENCE_TYPE = 'geometry_msgs/msg/Vector3Stamped'
+
+# Number of float64 values after the header, per message type.
+N_DOUBLES = {IMU_TYPE: IMU_DOUBLES, TEMPERATURE_TYPE: 2, REFERENCE_TYPE: 3}
+
+
+def _columns(*names: str) -> tuple[int, ...]:
+    """Return the float64-block columns of Imu fields (see gyro_tdc.data.imu_cdr.IMU_FIELDS)."""
+    return tuple(k for name in names for k in range(IMU_DOUBLES)[field_slice(name)])
+
+
+# Columns of that float64 block that read_bag keeps: Imu angular_velocity and
+# linear_acceleration; Temperature temperature and variance; Vector3Stamped x, y, z.
+KEEP = {IMU_TYPE: _columns('angular_velocity', 'linear_acceleration'),
+        TEMPERATURE_TYPE: (0, 1), REFERENCE_TYPE: (0, 1, 2)}
+
+
+_TYPESTORE = None
+
+
+def jazzy() -> Any:
+    """Return the (cached) ROS 2 Jazzy typestore."""
+    global _TYPESTORE
+    if _TYPESTORE is None:
+        _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+    return _TYPESTORE
+
+
+def to_msg(msgtype: str, sec: int, nanosec: int, frame_id: str,
+           row: NDArray[np.float64]) -> Any:
+    """Build a rosbags message object of ``msgtype`` from a header and its float64 block."""
+    ts = jazzy()
+    types = ts.types
+    header = types['std_msgs/msg/Header'](
+        types['builtin_interfaces/msg/Time'](int(sec), int(nanosec)), frame_id)
+    row = [float(x) for x in row]
+    if msgtype == IMU_TYPE:
+        vec = types['geometry_msgs/msg/Vector3']
+        f = {name: row[field_slice(name)] for name in IMU_FIELDS}
+        return types[IMU_TYPE](
+            header, types['geometry_msgs/msg/Quaternion'](*f['orientation']),
+            np.array(f['orientation_covariance']), vec(*f['angular_velocity']),
+            np.array(f['angular_velocity_covariance']), vec(*f['linear_acceleration']),
+            np.array(f['linear_acceleration_covariance']))
+    if msgtype == TEMPERATURE_TYPE:
+        return types[TEMPERATURE_TYPE](header, row[0], row[1])
+    return types[REFERENCE_TYPE](header, types['geometry_msgs/msg/Vector3'](*row[0:3]))
+
+
+def from_msg(msgtype: str, msg: Any) -> tuple[int, int, str, list[float]]:
+    """Return (sec, nanosec, frame_id, float64 block) of a deserialised message."""
+    stamp = msg.header.stamp
+    if msgtype == IMU_TYPE:   # the fields in wire order (gyro_tdc.data.imu_cdr.IMU_FIELDS)
+        o, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
+        row = ([o.x, o.y, o.z, o.w, *msg.orientation_covariance, w.x, w.y, w.z,
+                *msg.angular_velocity_covariance, a.x, a.y, a.z,
+                *msg.linear_acceleration_covariance])
+    elif msgtype == TEMPERATURE_TYPE:
+        row = [msg.temperature, msg.variance]
+    else:
+        v = msg.vector
+        row = [v.x, v.y, v.z]
+    if len(row) != N_DOUBLES[msgtype]:
+        raise DatasetError(f'Expected {msgtype} to hold {N_DOUBLES[msgtype]} float64 values '
+                           f'after its header, got {len(row)}.')
+    return int(stamp.sec), int(stamp.nanosec), str(msg.header.frame_id), row
+
+
+def encode_checked(msgtype: str, sec: NDArray[np.int64], nanosec: NDArray[np.int64],
+                   frame_id: str, data: NDArray[np.float64]) -> list[bytes]:
+    """Encode with numpy once verified against rosbags on the first message, else rosbags."""
+    if not len(sec):
+        return []
+    out = imu_cdr.encode(sec, nanosec, frame_id, data)
+    ref = bytes(jazzy().serialize_cdr(
+        to_msg(msgtype, sec[0], nanosec[0], frame_id, data[0]), msgtype))
+    if ref == out[0]:
+        return out
+    # The fixed layout disagrees with rosbags (should not happen): serialise one by one.
+    ts = jazzy()
+    return [bytes(ts.serialize_cdr(to_msg(msgtype, s, ns, frame_id, row), msgtype))
+            for s, ns, row in zip(sec.tolist(), nanosec.tolist(), data)]
+
+
+@dataclass(frozen=True)
+class Decoded:
+    """Header stamps, first frame id and kept float64 columns of a block of messages."""
+
+    sec: NDArray[np.int64]
+    nanosec: NDArray[np.int64]
+    frame_id: str
+    values: NDArray[np.float64]
+    fallback: int
+    undecodable: NDArray[np.bool_] | None = None
+
+
+def decode_fast(raws: Sequence[bytes], msgtype: str,
+                keep: Sequence[int] | None = None) -> Decoded | None:
+    """
+    Decode a block of raw CDR messages at once with numpy, or return None.
+
+    None means the block does not share one fixed layout (lengths, encapsulation, frame id
+    length or bytes differ) or a sampled message disagrees with rosbags' deserialiser.
+
+    Parameters
+    ----------
+    raws : Sequence[bytes]
+        Raw CDR messages of one message type.
+    msgtype : str
+        The message type.
+    keep : sequence of int, optional
+        Columns of the float64 block to return (default ``KEEP[msgtype]``).
+
+    Returns
+    -------
+    Decoded or None
+        The decoded block, or None when the caller must fall back.
+
+    """
+    n = len(raws)
+    try:
+        dt = layout_of(raws[0], N_DOUBLES[msgtype]).dtype
+    except DatasetError:
+        return None
+    lengths = np.fromiter(map(len, raws), dtype=np.int64, count=n)
+    if np.any(lengths != dt.itemsize):
+        return None
+    return _decode_records(b''.join(raws), n, dt, raws.__getitem__, msgtype, keep)
+
+
+def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype,
+                    message: Callable[[int], bytes], msgtype: str,
+                    keep: Sequence[int] | None) -> Decoded | None:
+    """Decode ``n`` messages of layout ``dt`` stored end to end in ``buf`` (see decode_fast)."""
+    rec = np.frombuffer(buf, dtype=dt)
+    # Encapsulation (word 0) and frame id length equal to the first message's, as raw
+    # 32-bit words (itemsize is always a multiple of 4); then the frame id bytes.
+    words = np.frombuffer(buf, dtype=np.uint32).reshape(n, dt.itemsize // 4)
+    frame = rec['frame']
+    k = imu_cdr.FRAME_ID_LENGTH // 4
+    if (np.any(words[:, 0] != words[0, 0]) or np.any(words[:, k] != words[0, k])
+            or np.any(frame != frame[0]) or frame[0, -1] != 0):
+        return None
+    try:
+        frame_id = frame[0, :-1].tobytes().decode('utf-8')
+    except UnicodeDecodeError:
+        return None
+    data = rec['data']
+    # Check the layout against rosbags on a few messages of every block.
+    ts = jazzy()
+    for i in sorted({0, n // 2, n - 1}):
+        try:
+            sec, nsec, fid, row = from_msg(msgtype, ts.deserialize_cdr(message(i), msgtype))
+        except (SerdeError, AttributeError, DatasetError):
+            return None
+        if (sec != rec['sec'][i] or nsec != rec['nanosec'][i] or fid != frame_id
+                or not np.array_equal(np.asarray(row, dtype=np.float64), data[i],
+                                      equal_nan=True)):
+            return None
+    cols = list(KEEP[msgtype] if keep is None else keep)
+    values = data[:, cols].astype(np.float64, copy=False)
+    return Decoded(rec['sec'].astype(np.int64), rec['nanosec'].astype(np.int64), frame_id,
+                   values, 0)
+
+
+def decode_joined(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
+                  typestore: Any, keep: Sequence[int] | None = None) -> Decoded:
+    """
+    Decode a block of messages already stored end to end, as :func:`decode` does.
+
+    The reader writes each message into one reused buffer as it arrives (while its bytes
+    are still in the CPU cache), which costs less than collecting the messages and joining
+    them afterwards; this decodes that buffer with the same checks and the same fallback.
+
+    Parameters
+    ----------
+    buf : bytes or memoryview
+        The messages end to end (at least ``sum(lengths)`` bytes; nothing returned refers
+        to it).
+    lengths : sequence of int
+        The length of every message, in order.
+    msgtype : str
+        The message type.
+    typestore : Any
+        rosbags typestore of the fallback.
+    keep : sequence of int, optional
+        Columns of the float64 block to return (default ``KEEP[msgtype]``).
+
+    Returns
+    -------
+    Decoded
+        The decoded block (``fallback`` counts the messages decoded by rosbags).
+
+    """
+    n = len(lengths)
+    sizes = np.fromiter(lengths, dtype=np.int64, count=n)
+    size = int(sizes[0]) if n else 0
+    if n and not np.any(sizes != size):
+        try:
+            dt = layout_of(bytes(buf[:size]), N_DOUBLES[msgtype]).dtype
+        except DatasetError:
+            dt = None
+        if dt is not None and dt.itemsize == size:
+            dec = _decode_records(buf[:n * size], n, dt,
+                                  lambda i: bytes(buf[i * size:(i + 1) * size]), msgtype, keep)
+            if dec is not None:
+                return dec
+    ends = np.cumsum(sizes).tolist()
+    raws = [bytes(buf[a:b]) for a, b in zip([0] + ends[:-1], ends)]
+    return decode_slow(raws, msgtype, typestore, keep)
+
+
+def decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any,
+                keep: Sequence[int] | None = None) -> Decoded:
+    """Decode a block message by message with rosbags (any layout, any frame ids)."""
+    n = len(raws)
+    keep = list(KEEP[msgtype] if keep is None else keep)
+    sec = np.zeros(n, dtype=np.int64)
+    nsec = np.zeros(n, dtype=np.int64)
+    values = np.full((n, len(keep)), np.nan)
+    bad = np.zeros(n, dtype=bool)
+    frame_id = None
+    for i, raw in enumerate(raws):
+        try:
+            s, ns, fid, row = from_msg(msgtype, typestore.deserialize_cdr(raw, msgtype))
+        except (SerdeError, AttributeError):
+            bad[i] = True
+            continue
+        sec[i], nsec[i] = s, ns
+        values[i] = [row[k] for k in keep]
+        if frame_id is None:
+            frame_id = fid
+    return Decoded(sec, nsec, frame_id or '', values, n, bad if bad.any() else None)
+
+
+def decode(raws: Sequence[bytes], msgtype: str, typestore: Any,
+           keep: Sequence[int] | None = None) -> Decoded:
+    """Decode a block with the numpy fast path, falling back to rosbags when needed."""
+    return (decode_fast(raws, msgtype, keep)
+            or decode_slow(raws, msgtype, typestore, keep))

@@ -1,0 +1,164 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Motion reports in bags: ``cmd_vel`` Twists and odometry, the veto of the still test.
+
+A vehicle that can turn slowly at a constant rate looks still to an IMU (no scatter); what
+it was told to do, or what its wheels measured, says otherwise. :func:`read_motion` reads
+a ``geometry_msgs/Twist`` (stamped by the bag's log time: a Twist has no header),
+``geometry_msgs/TwistStamped`` or ``nav_msgs/Odometry`` topic (header stamps) into the
+six twist components per report, which :func:`gyro_tdc.signal.motion_veto` holds onto the
+IMU stamps. Reports are few (tens of Hz at most), so rosbags' own deserialiser is used.
+:func:`encode_twists` writes a Twist stream (the simulator's ``cmd_vel``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Sequence
+
+import apsw
+from gyro_tdc.data.bag_codec import jazzy
+from gyro_tdc.errors import DatasetError, one_line
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.rosbag2 import ReaderError
+from rosbags.serde import SerdeError
+
+__all__ = ['MOTION_TYPES', 'MotionReports', 'ODOMETRY_TYPE', 'TWIST_STAMPED_TYPE',
+           'TWIST_TYPE', 'encode_twists', 'read_motion']
+
+TWIST_TYPE = 'geometry_msgs/msg/Twist'
+TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
+ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
+#: Message types a motion topic may have.
+MOTION_TYPES = (TWIST_TYPE, TWIST_STAMPED_TYPE, ODOMETRY_TYPE)
+_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, KeyError)
+
+
+@dataclass(frozen=True)
+class MotionReports:
+    """
+    The motion reports of one bag topic.
+
+    Parameters
+    ----------
+    topic : str
+        The topic.
+    msgtype : str
+        Its type (one of :data:`MOTION_TYPES`).
+    t : NDArray[np.float64], shape (M,), s
+        Stamps: the header stamp, or the log time for a plain Twist.
+    twist : NDArray[np.float64], shape (M, 6)
+        Linear x, y, z (m/s) and angular x, y, z (rad/s).
+
+    """
+
+    topic: str
+    msgtype: str
+    t: NDArray[np.float64]
+    twist: NDArray[np.float64]
+
+
+def _twist_of(msgtype: str, msg: object) -> object:
+    """Return the Twist inside a message of ``msgtype``."""
+    if msgtype == TWIST_TYPE:
+        return msg
+    if msgtype == TWIST_STAMPED_TYPE:
+        return msg.twist
+    return msg.twist.twist
+
+
+def read_motion(path: str | Path, topic: str) -> MotionReports:
+    """
+    Read a motion topic (Twist, TwistStamped or Odometry) of a bag.
+
+    Parameters
+    ----------
+    path : str or Path
+        rosbag2 directory.
+    topic : str
+        The topic (e.g. ``/cmd_vel`` or ``/odom``).
+
+    Returns
+    -------
+    MotionReports
+        Stamps and twist components, in time order.
+
+    Raises
+    ------
+    DatasetError
+        When the bag cannot be read, has no such topic (the topics present are named), or
+        the topic has another type or no messages.
+
+    """
+    bag = Path(path)
+    try:
+        with AnyReader([bag], default_typestore=jazzy()) as reader:
+            topics = {name: info.msgtype or '?' for name, info in reader.topics.items()}
+            if topic not in topics:
+                present = ', '.join(f'{k} ({v})' for k, v in sorted(topics.items()))
+                raise DatasetError(f'Bag {str(bag)!r} has no motion topic {topic!r}; topics '
+                                   f'present: {present or "none"}.')
+            msgtype = topics[topic]
+            if msgtype not in MOTION_TYPES:
+                raise DatasetError(f'Motion topic {topic!r} in bag {str(bag)!r} has type '
+                                   f'{msgtype!r}, expected one of {", ".join(MOTION_TYPES)}.')
+            conns = [c for c in reader.connections if c.topic == topic]
+            stamps, rows = [], []
+            for conn, log_ns, raw in reader.messages(connections=conns):
+                msg = reader.deserialize(raw, conn.msgtype)
+                if msgtype == TWIST_TYPE:
+                    stamps.append(log_ns * 1e-9)
+                else:
+                    st = msg.header.stamp
+                    stamps.append(st.sec + st.nanosec * 1e-9)
+                tw = _twist_of(msgtype, msg)
+                rows.append((tw.linear.x, tw.linear.y, tw.linear.z,
+                             tw.angular.x, tw.angular.y, tw.angular.z))
+    except _ERRORS as err:
+        raise DatasetError(f'Cannot read motion topic {topic!r} of bag {str(bag)!r}: '
+                           f'{one_line(err)}') from err
+    if not stamps:
+        raise DatasetError(f'Motion topic {topic!r} in bag {str(bag)!r} has no messages.')
+    t = np.asarray(stamps, dtype=np.float64)
+    order = np.argsort(t, kind='stable')
+    return MotionReports(topic, msgtype, t[order],
+                         np.asarray(rows, dtype=np.float64).reshape(-1, 6)[order])
+
+
+def encode_twists(twist: ArrayLike) -> Sequence[bytes]:
+    """
+    Serialise ``geometry_msgs/Twist`` messages (CDR, as rosbag2 records them).
+
+    Parameters
+    ----------
+    twist : ArrayLike, shape (M, 6)
+        Linear x, y, z (m/s) and angular x, y, z (rad/s) per message.
+
+    Returns
+    -------
+    list of bytes
+        One CDR message per row.
+
+    """
+    rows = np.asarray(twist, dtype=np.float64).reshape(-1, 6)
+    ts = jazzy()
+    vec = ts.types['geometry_msgs/msg/Vector3']
+    make = ts.types[TWIST_TYPE]
+    return [ts.serialize_cdr(make(vec(*r[:3]), vec(*r[3:])), TWIST_TYPE)
+            for r in rows.tolist()]

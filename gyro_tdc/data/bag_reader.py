@@ -1,0 +1,414 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+
+"""
+Read IMU, temperature and reference-rate arrays from a rosbag2 bag, fast (:func:`read_bag`).
+
+The raw CDR bytes are collected in blocks (the IMU messages written end to end into one
+reused buffer as they arrive) and decoded with the fixed-layout codec of
+:mod:`gyro_tdc.data.bag_codec` (rosbags' per-message deserialiser only where the layout does
+not hold) into preallocated columns; memory is bounded by the output arrays plus one block
+of raw messages.
+"""
+
+from __future__ import annotations
+
+import contextlib
+from dataclasses import dataclass, field
+import io
+from itertools import islice
+from pathlib import Path
+import struct
+from typing import Any, Sequence
+
+import apsw
+from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
+from gyro_tdc.data.bag_codec import (decode, decode_joined, Decoded, IMU_TYPE, jazzy, KEEP,
+                                     REFERENCE_TYPE, TEMPERATURE_TYPE)
+from gyro_tdc.errors import DatasetError, one_line
+import numpy as np
+from numpy.typing import NDArray
+from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.rosbag2 import ReaderError
+from rosbags.serde import SerdeError
+import yaml
+
+__all__ = ['BagData', 'read_bag', 'small_pages']
+
+# Messages per block when reading: small enough that a block's raw bytes (~5 MB of Imu) are
+# recycled by the allocator, large enough to amortise the per-block checks (1 << 14 read a
+# 1 h, 1 kHz bag ~5 % faster than 1 << 13 or 1 << 15 in bench/bench_train.py).
+_CHUNK = 1 << 14
+# rosbags' own errors, plus what its parsers let through on damaged files (found by fuzzing
+# sqlite3 and mcap bags: huge record lengths raise OverflowError from seek, short reads
+# struct.error).
+_READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
+                UnicodeDecodeError, OverflowError, struct.error)
+
+
+def _seconds(stamp_ns: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Return integer nanosecond stamps as float seconds (whole seconds added exactly)."""
+    return (stamp_ns // 1_000_000_000) + (stamp_ns % 1_000_000_000) * 1e-9
+
+
+@dataclass(frozen=True)
+class BagData:
+    """
+    Arrays read from a bag, one entry per message that held finite values.
+
+    Parameters
+    ----------
+    imu_t : NDArray[np.float64], shape (N,), s
+        IMU header stamps (the log time where a header stamp is zero), in the order read
+        (log-time order for a topic with one connection; not sorted by header stamp).
+    gyro : NDArray[np.float64], shape (N, 3), rad/s
+        Angular velocity; samples with a NaN or infinite component are rejected.
+    accel : NDArray[np.float64], shape (N, 3), m/s^2, or None
+        Linear acceleration (not checked: a missing accelerometer does not reject gyro
+        data); None when read with ``accel=False``.
+    frame_id : str
+        Header frame id of the first IMU message.
+    temp_t : NDArray[np.float64], shape (M,), s
+        Thermometer stamps.
+    temp_c : NDArray[np.float64], shape (M,), degC
+        Temperature; non-finite samples rejected.
+    temp_var : NDArray[np.float64], shape (M,), degC^2
+        Temperature variance as recorded.
+    ref_t : NDArray[np.float64], shape (R,), s, or None
+        Reference-rate stamps; None when the bag has no (non-empty) reference topic.
+    ref : NDArray[np.float64], shape (R, 3), rad/s, or None
+        Reference rate.
+    topics : dict[str, tuple[str, int]]
+        Every topic of the bag: name -> (type, message count).
+    rejected : dict[str, int]
+        Counts of rejected messages: ``imu_nonfinite``, ``temp_nonfinite``,
+        ``ref_nonfinite`` and ``undecodable`` (messages rosbags could not deserialise).
+    storage : str
+        Storage plugin of the bag ('sqlite3' or 'mcap').
+    path : str
+        The bag directory.
+    fallback : dict[str, int]
+        Messages per role ('imu', 'temperature', 'reference') decoded one by one with
+        rosbags because the fixed-layout numpy decoder did not apply.
+
+    """
+
+    imu_t: NDArray[np.float64]
+    gyro: NDArray[np.float64]
+    accel: NDArray[np.float64] | None
+    frame_id: str
+    temp_t: NDArray[np.float64]
+    temp_c: NDArray[np.float64]
+    temp_var: NDArray[np.float64]
+    ref_t: NDArray[np.float64] | None
+    ref: NDArray[np.float64] | None
+    topics: dict = field(default_factory=dict)
+    rejected: dict = field(default_factory=dict)
+    storage: str = ''
+    path: str = ''
+    fallback: dict = field(default_factory=dict, compare=False)
+
+
+class _Sink:
+    """Growable, preallocated output columns for one role: times plus value groups."""
+
+    def __init__(self, capacity: int, widths: Sequence[int]) -> None:
+        self.widths = list(widths)
+        self.t = np.empty(capacity)
+        self.v = [np.empty((capacity, w)) for w in self.widths]
+        self.n = 0
+
+    def add(self, t: NDArray[np.float64], values: NDArray[np.float64]) -> None:
+        """Append a block (values: all groups side by side), growing when it must."""
+        end = self.n + len(t)
+        if end > len(self.t):
+            cap = max(end, 2 * len(self.t))
+            self.t = np.concatenate([self.t[:self.n], np.empty(cap - self.n)])
+            self.v = [np.concatenate([v[:self.n], np.empty((cap - self.n, v.shape[1]))])
+                      for v in self.v]
+        self.t[self.n:end] = t
+        col = 0
+        for v, w in zip(self.v, self.widths):
+            v[self.n:end] = values[:, col:col + w]
+            col += w
+        self.n = end
+
+    def result(self, keep: NDArray[np.bool_] | None = None) -> list[NDArray[np.float64]]:
+        """Return [t, *groups] of the filled rows (``keep`` selects rows)."""
+        out = [self.t[:self.n]] + [v[:self.n] for v in self.v]
+        if keep is not None and not keep.all():
+            return [x[keep] for x in out]
+        if self.n < 0.9 * len(self.t):
+            return [x.copy() for x in out]
+        return out
+
+
+@contextlib.contextmanager
+def small_pages() -> Any:
+    """
+    Turn numpy's transparent-huge-page advice off inside, restoring it after.
+
+    numpy advises the kernel to back every array of 4 MB or more with 2 MB pages. Where
+    transparent huge pages are enabled and defragmented on advice only (``madvise``, as
+    Ubuntu and Debian ship them), the first touch of such a page may stall while the kernel
+    compacts memory to find one; the columns filled block by block here (~200 MB for a 1 h,
+    1 kHz bag) then cost ~0.4 s CPU more than with ordinary pages
+    (``bench/bench_train.py``). The advice is numpy's private switch: where it is missing,
+    nothing changes. A context manager, also usable as a decorator (``load_run``).
+    """
+    try:
+        from numpy._core.multiarray import _set_madvise_hugepage as advise
+    except ImportError:           # numpy 1.x
+        try:
+            from numpy.core.multiarray import _set_madvise_hugepage as advise
+        except ImportError:
+            advise = None
+    if advise is None:
+        yield
+        return
+    previous = advise(False)
+    try:
+        yield
+    finally:
+        advise(previous)
+
+
+def _resolve(path: str | Path) -> Path:
+    """Return the rosbag2 directory of ``path`` or raise DatasetError saying why not."""
+    p = Path(path)
+    if not p.exists():
+        raise DatasetError(f'Bag {str(p)!r} does not exist.')
+    if p.is_file():
+        if p.suffix == '.bag':
+            raise DatasetError(f'Bag {str(p)!r} is a ROS 1 bag; expected a rosbag2 directory '
+                               '(convert it with rosbags-convert).')
+        if p.suffix in ('.db3', '.mcap') and (p.parent / 'metadata.yaml').is_file():
+            return p.parent
+        raise DatasetError(f'Bag {str(p)!r} is a file, not a rosbag2 directory (a folder '
+                           'with metadata.yaml and .db3 or .mcap files).')
+    if not (p / 'metadata.yaml').is_file():
+        found = sorted(x.name for x in p.iterdir())[:5]
+        raise DatasetError(f'Bag {str(p)!r} is not a rosbag2 directory: no metadata.yaml '
+                           f'(found {found or "nothing"}; `ros2 bag reindex` can rebuild it).')
+    return p
+
+
+def _storage_id(bag: Path) -> str:
+    """Return the storage identifier recorded in metadata.yaml ('' when absent)."""
+    meta_path = bag / 'metadata.yaml'
+    meta = load_yaml(meta_path.read_text(encoding='utf-8'), BAG_METADATA_LIMITS,
+                     source=str(meta_path), error=DatasetError)
+    try:
+        return str(meta['rosbag2_bagfile_information']['storage_identifier'])
+    except (KeyError, TypeError):
+        return ''
+
+
+def _describe(topics: dict[str, tuple[str, int]]) -> str:
+    """Return 'name (type, N msgs), ...' for error messages."""
+    if not topics:
+        return 'none'
+    return ', '.join(f'{k} ({t}, {c} msgs)' for k, (t, c) in sorted(topics.items()))
+
+
+def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
+             reference_topic='/rate_table/reference', progress=False,
+             accel=True) -> BagData:
+    """
+    Read IMU, temperature and reference-rate arrays from a rosbag2 bag, fast.
+
+    The raw CDR bytes are collected in blocks and decoded with numpy (see the module
+    docstring); rosbags' per-message deserialiser is used only where the fixed layout does
+    not apply. Memory is bounded by the output arrays plus one block of raw messages.
+
+    Parameters
+    ----------
+    path : str or Path
+        rosbag2 directory (sqlite3 or mcap); a path to its .db3/.mcap file also works.
+    imu_topic : str
+        ``sensor_msgs/msg/Imu`` topic (required, non-empty).
+    temperature_topic : str
+        ``sensor_msgs/msg/Temperature`` topic (required, non-empty).
+    reference_topic : str or None
+        ``geometry_msgs/msg/Vector3Stamped`` topic; optional (``ref`` is None when absent
+        or empty); None skips it.
+    progress : bool
+        Show a tqdm progress bar (messages read).
+    accel : bool
+        Also extract the linear acceleration (``BagData.accel`` is None when False: the
+        trainer does not need it, and skipping it saves 24 bytes per IMU message).
+
+    Returns
+    -------
+    BagData
+        The arrays, the topics of the bag and the counts of rejected samples.
+
+    Raises
+    ------
+    DatasetError
+        When the path does not exist, is not a rosbag2 directory, cannot be read or is
+        corrupt, or when a topic is missing, empty or of the wrong type.
+
+    """
+    bag = _resolve(path)
+    try:
+        storage = _storage_id(bag)
+        with AnyReader([bag], default_typestore=jazzy()) as reader:
+            topics = {name: (info.msgtype or '?', int(info.msgcount))
+                      for name, info in reader.topics.items()}
+            wanted = [('imu', imu_topic, IMU_TYPE, True),
+                      ('temperature', temperature_topic, TEMPERATURE_TYPE, True)]
+            if reference_topic is not None:
+                wanted.append(('reference', reference_topic, REFERENCE_TYPE, False))
+            conns: dict[str, list[Any]] = {}
+            for role, topic, msgtype, required in wanted:
+                if topic not in topics:
+                    if required:
+                        raise DatasetError(
+                            f'Bag {str(bag)!r} has no topic {topic!r} ({role}); topics '
+                            f'present: {_describe(topics)}.')
+                    continue
+                if topics[topic][0] != msgtype:
+                    raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has type '
+                                       f'{topics[topic][0]!r}, expected {msgtype!r}.')
+                if topics[topic][1] == 0 and required:
+                    raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has no messages.')
+                conns[role] = [c for c in reader.connections if c.topic == topic]
+            with small_pages():
+                return _read_messages(reader, bag, storage, topics, conns, progress, accel)
+    except _READ_ERRORS as err:
+        raise DatasetError(f'Cannot read bag {str(bag)!r} (unreadable or corrupt): '
+                           f'{one_line(err)}') from err
+
+
+def _read_messages(reader: AnyReader, bag: Path, storage: str,
+                   topics: dict[str, tuple[str, int]], conns: dict[str, list[Any]],
+                   progress: bool, with_accel: bool = True) -> BagData:
+    """Run the block-wise raw read and decode of ``read_bag``."""
+    from tqdm import tqdm
+
+    roles = list(conns)
+    msgtypes = {'imu': IMU_TYPE, 'temperature': TEMPERATURE_TYPE, 'reference': REFERENCE_TYPE}
+    role_of = {id(c): k for k, role in enumerate(roles) for c in conns[role]}
+    all_conns = [c for role in roles for c in conns[role]]
+    expected = {role: sum(int(c.msgcount) for c in conns[role]) for role in roles}
+    widths = {'imu': (3, 3) if with_accel else (3,), 'temperature': (1, 1), 'reference': (3,)}
+    keep = {'imu': None if with_accel else KEEP[IMU_TYPE][:3], 'temperature': None,
+            'reference': None}
+    sinks = {role: _Sink(expected[role], widths[role]) for role in roles}
+    frame_id = {role: None for role in roles}
+    fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
+    undecodable = 0
+    typestore = reader.typestore
+
+    # Main-connection messages whose header stamp is zero: (index among the connection's
+    # messages, row in the IMU sink). Their log times are fetched after the main pass.
+    zero_stamped: list[tuple[NDArray[np.int64], NDArray[np.int64]]] = []
+
+    def decode_into(role: str, dec: Decoded, logs: Sequence[int] | None,
+                    first: int = 0) -> None:
+        """Put one role's decoded messages of a block into its sink (``logs``: log times)."""
+        nonlocal undecodable
+        fallback[role] += dec.fallback
+        if frame_id[role] is None and dec.frame_id:
+            frame_id[role] = dec.frame_id
+        stamp_ns = dec.sec * 1_000_000_000 + dec.nanosec
+        good = None if dec.undecodable is None else ~dec.undecodable
+        zero = stamp_ns == 0
+        if zero.any():
+            if logs is not None:
+                stamp_ns[zero] = np.fromiter(logs, dtype=np.int64, count=len(logs))[zero]
+            else:
+                if good is not None:
+                    zero &= good
+                pos = np.flatnonzero(zero)
+                rows = pos if good is None else np.cumsum(good)[pos] - 1
+                zero_stamped.append((first + pos, sinks[role].n + rows))
+        t = _seconds(stamp_ns)
+        values = dec.values
+        if good is not None:
+            undecodable += int(dec.undecodable.sum())
+            t, values = t[good], values[good]
+        sinks[role].add(t, values)
+
+    # Hot loop, one list comprehension per block: each message of the main IMU connection
+    # is written into one reused buffer as it arrives (its bytes still in the CPU cache:
+    # cheaper than collecting the messages and joining them later), its length kept, and
+    # nothing else done per message (no log time, no call of ours); any other message
+    # (temperature, reference, another IMU connection) is passed to ``add_other``, which
+    # returns None and so also keeps it out of the list.
+    main = conns['imu'][0]
+    # read_bag opens one bag: iterate its rosbags Reader directly, without AnyReader's
+    # heapq merge across bags (one generator step less per message).
+    source = reader.readers[0] if len(reader.readers) == 1 else reader
+    gen = source.messages(connections=all_conns)
+    scratch = io.BytesIO()
+    n_main = 0
+    with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
+              disable=not progress, leave=False) as bar:
+        while True:
+            others: list[tuple[Any, int, bytes]] = []
+            add_other = others.append
+            scratch.seek(0)
+            write = scratch.write
+            lengths = [write(raw) for conn, log, raw in islice(gen, _CHUNK)
+                       if conn is main or add_other((conn, log, raw))]
+            if lengths:
+                view = scratch.getbuffer()    # released when the decode returns
+                dec = decode_joined(view, lengths, IMU_TYPE, typestore, keep['imu'])
+                del view
+                decode_into('imu', dec, None, n_main)
+                n_main += len(lengths)
+            if others:
+                for k, role in enumerate(roles):
+                    mine = [x for x in others if role_of[id(x[0])] == k]
+                    if mine:
+                        dec = decode([x[2] for x in mine], msgtypes[role], typestore,
+                                     keep[role])
+                        decode_into(role, dec, [x[1] for x in mine])
+            done = len(lengths) + len(others)
+            if not done:
+                break
+            bar.update(done)
+    if zero_stamped:
+        # Rare (a driver that leaves the header stamp at zero): read the main connection's
+        # log times in a second pass and use them for those messages.
+        logs = np.fromiter((log for _, log, _ in source.messages(connections=[main])),
+                           dtype=np.int64, count=n_main)
+        index = np.concatenate([z[0] for z in zero_stamped])
+        rows = np.concatenate([z[1] for z in zero_stamped])
+        sinks['imu'].t[rows] = _seconds(logs[index])
+
+    rejected = {'imu_nonfinite': 0, 'temp_nonfinite': 0, 'ref_nonfinite': 0,
+                'undecodable': undecodable}
+    sink = sinks['imu']
+    finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
+    rejected['imu_nonfinite'] = int(np.count_nonzero(~finite))
+    imu_t, gyro, *accel = sink.result(finite)
+    sink = sinks['temperature']
+    finite = np.isfinite(sink.v[0][:sink.n, 0])
+    rejected['temp_nonfinite'] = int(np.count_nonzero(~finite))
+    temp_t, temp_c, temp_var = sink.result(finite)
+    ref_t = ref = None
+    if 'reference' in sinks and sinks['reference'].n:
+        sink = sinks['reference']
+        finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
+        rejected['ref_nonfinite'] = int(np.count_nonzero(~finite))
+        ref_t, ref = sink.result(finite)
+    return BagData(
+        imu_t=imu_t, gyro=gyro, accel=accel[0] if accel else None, frame_id=frame_id['imu'] or '',
+        temp_t=temp_t, temp_c=temp_c[:, 0], temp_var=temp_var[:, 0], ref_t=ref_t, ref=ref,
+        topics=topics,
+        rejected=rejected, storage=storage, path=str(bag), fallback=fallback)

@@ -1,0 +1,200 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Coverage of training data: how much of each temperature bin, heating and cooling, it holds.
+
+Pure numpy. :func:`coverage` counts samples and minutes per temperature bin, names the bins
+inside the covered span that hold too little data, and adds up the minutes heating, cooling
+and steady by the rate :func:`temperature_rate` estimates.
+:func:`gyro_tdc.evaluate.report.format_coverage`
+prints the result.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Sequence
+
+from gyro_tdc.data.runs import Run
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['Coverage', 'RATE_THRESHOLD_C_PER_MIN', 'RATE_WINDOW_S', 'coverage',
+           'temperature_rate']
+
+#: |dT/dt| (degC/min) above which a sample counts as heating or cooling.
+RATE_THRESHOLD_C_PER_MIN = 0.05
+#: Window (s) of the centred difference that estimates dT/dt.
+RATE_WINDOW_S = 300.0
+
+
+def temperature_rate(t: NDArray[np.float64], temp: NDArray[np.float64], *,
+                     window_s: float = RATE_WINDOW_S) -> NDArray[np.float64]:
+    """
+    Estimate dT/dt at every sample by a centred difference over ``window_s``.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (N,), s
+        Increasing stamps.
+    temp : NDArray[np.float64], shape (N,), degC
+        Temperature.
+    window_s : float, s
+        Width of the difference (shortened to the run's span); wide enough that thermometer
+        quantisation does not read as heating or cooling.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N,), degC/min
+        Temperature rate.
+
+    """
+    t = np.asarray(t, dtype=np.float64)
+    temp = np.asarray(temp, dtype=np.float64)
+    if t.shape[0] < 2 or t[-1] <= t[0]:
+        return np.zeros(t.shape[0])
+    half = 0.5 * min(window_s, t[-1] - t[0])
+    a = np.clip(t - half, t[0], t[-1])
+    b = np.clip(t + half, t[0], t[-1])
+    span = np.maximum(b - a, 1e-9)
+    return (np.interp(b, t, temp) - np.interp(a, t, temp)) / span * 60.0
+
+
+def _sample_minutes(t: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return the time each sample stands for, in minutes (gaps count at most 10 periods)."""
+    if t.shape[0] < 2:
+        return np.zeros(t.shape[0])
+    d = np.empty(t.shape[0])               # in place: no temporaries of a long run
+    np.subtract(t[1:], t[:-1], out=d[:-1])
+    med = float(np.median(d[:-1]))
+    d[-1] = med
+    np.minimum(d, 10.0 * med, out=d)
+    d /= 60.0
+    return d
+
+
+def _directions(run: Run, threshold: float, *, points: int = 100_000
+                ) -> tuple[NDArray[np.bool_], NDArray[np.bool_], NDArray[np.bool_]]:
+    """
+    Return the heating, cooling and steady samples of a run (dT/dt vs ``threshold``).
+
+    The rate is :func:`temperature_rate` computed on at most ``points`` samples, each held
+    over the samples it stands for (the masks are repeated, not the rates).
+    """
+    n = len(run)
+    step = max(1, n // points)
+    rate = (temperature_rate(run.t, run.temp) if step == 1 else
+            temperature_rate(run.t[::step], run.temp[::step]))
+    masks = (rate > threshold, rate < -threshold, np.abs(rate) <= threshold)
+    return masks if step == 1 else tuple(np.repeat(m, step)[:n] for m in masks)
+
+
+@dataclass
+class Coverage:
+    """
+    How well training data cover temperature and thermal direction.
+
+    Parameters
+    ----------
+    bin_c : float, degC
+        Bin width.
+    edges : NDArray[np.float64], shape (B + 1,), degC
+        Bin edges.
+    samples : NDArray[np.int64], shape (B,)
+        Samples per bin.
+    minutes : NDArray[np.float64], shape (B,)
+        Minutes per bin.
+    sparse : list of int
+        Indices of bins inside the span with too little data.
+    temp_range_c : tuple of float
+        Min and max temperature.
+    heating_min, cooling_min, steady_min : float
+        Minutes with dT/dt above +threshold, below -threshold, in between.
+    threshold_c_per_min : float
+        The dT/dt threshold.
+
+    """
+
+    bin_c: float
+    edges: NDArray[np.float64]
+    samples: NDArray[np.int64]
+    minutes: NDArray[np.float64]
+    sparse: list
+    temp_range_c: tuple
+    heating_min: float
+    cooling_min: float
+    steady_min: float
+    threshold_c_per_min: float
+
+
+def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
+             threshold_c_per_min: float = RATE_THRESHOLD_C_PER_MIN,
+             sparse_fraction: float = 0.25) -> Coverage:
+    """
+    Measure the temperature and heating/cooling coverage of training runs.
+
+    A bin is sparse when at least half of it lies inside the covered span and it holds fewer
+    minutes per degC than ``sparse_fraction`` times the median over such bins (so a fast
+    sweep through a range, or a gap, is named).
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Training runs.
+    bin_c : float, degC
+        Bin width; edges at multiples of it.
+    threshold_c_per_min : float, degC/min
+        |dT/dt| above which a sample counts as heating or cooling.
+    sparse_fraction : float
+        Fraction of the median density below which a bin is sparse.
+
+    Returns
+    -------
+    Coverage
+        Per-bin counts and minutes, sparse bins and direction minutes.
+
+    """
+    one = len(runs) == 1                    # one run: its arrays, not copies
+    temp = np.asarray(runs[0].temp) if one else np.concatenate([r.temp for r in runs])
+    minutes = _sample_minutes(runs[0].t) if one else np.concatenate(
+        [_sample_minutes(r.t) for r in runs])
+    thr = threshold_c_per_min
+    heating, cooling, steady = (_directions(runs[0], thr) if one else [
+        np.concatenate(m) for m in zip(*(_directions(r, thr) for r in runs))])
+    lo, hi = float(temp.min()), float(temp.max())
+    first = math.floor(lo / bin_c) * bin_c
+    nb = max(1, int(math.floor((hi - first) / bin_c)) + 1)
+    edges = first + bin_c * np.arange(nb + 1)
+    v = np.subtract(temp, first)
+    np.floor_divide(v, bin_c, out=v)
+    idx = v.astype(np.int64)
+    np.clip(idx, 0, nb - 1, out=idx)
+    samples = np.bincount(idx, minlength=nb)
+    mins = np.bincount(idx, weights=minutes, minlength=nb)
+    inside = np.clip(np.minimum(edges[1:], hi) - np.maximum(edges[:-1], lo), 0.0, None)
+    full = inside >= 0.5 * bin_c
+    sparse: list = []
+    if np.count_nonzero(full) >= 2:
+        density = mins / np.maximum(inside, 1e-9)
+        ref = float(np.median(density[full]))
+        sparse = [int(i) for i in np.flatnonzero(full & (density < sparse_fraction * ref))]
+    return Coverage(
+        bin_c=float(bin_c), edges=edges, samples=samples, minutes=mins, sparse=sparse,
+        temp_range_c=(lo, hi),
+        heating_min=float(minutes[heating].sum()),
+        cooling_min=float(minutes[cooling].sum()),
+        steady_min=float(minutes[steady].sum()),
+        threshold_c_per_min=float(threshold_c_per_min))

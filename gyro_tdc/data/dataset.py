@@ -1,0 +1,512 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Bag -> aligned numpy arrays: one :class:`gyro_tdc.data.runs.Run` per recording.
+
+The thermometer (typically 1 Hz) is interpolated linearly onto the IMU stamps
+(100 Hz - 1 kHz); the reference rate comes from a constant, from a rate-table topic
+(zero-order hold) or is zero. Bad samples are dropped and counted in ``run.info['rejected']``
+so that nothing is lost silently:
+
+- physically impossible values are dropped at load (one finite outlier such as 1e300 would
+  otherwise wreck a fit): a temperature outside ``TEMP_PLAUSIBLE_C`` (-100 to 200 degC), a
+  rate (IMU or reference) above ``MAX_RATE_RAD_S`` (100 rad/s, 5,700 deg/s, beyond any MEMS
+  gyro's range) in magnitude;
+- thermometer samples sharing a stamp are not averaged: the last one in the bag is kept,
+  and readings that disagree are reported in ``run.info['warnings']``;
+- the messages decoded per topic are checked against the count the bag's metadata lists:
+  any shortfall (a damaged mcap chunk, undecodable messages) is a warning naming the topic
+  ("read X of Y messages"), and a shortfall above ``max_loss`` (default
+  ``MAX_LOSS_FRACTION``, 1 %) of a topic's messages refuses the bag (``DatasetError``)
+  unless the caller accepts it (``--allow-loss`` on the command line).
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import re
+from typing import Callable, Iterable
+
+from gyro_tdc.base import MAX_RATE_RAD_S, TEMP_PLAUSIBLE_C
+from gyro_tdc.data.bag_reader import read_bag, small_pages
+from gyro_tdc.data.runs import Run
+from gyro_tdc.errors import DatasetError
+from gyro_tdc.signal import has_accelerometer
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ['MAX_LOSS_FRACTION', 'align_temperature',
+           'describe_read', 'expand_bags', 'load_run', 'load_runs']
+
+MAX_LOSS_FRACTION = 0.01
+
+
+def _vector(name: str, a: ArrayLike) -> NDArray[np.float64]:
+    """Return ``a`` as a 1-D float64 array or raise DatasetError naming it."""
+    arr = np.asarray(a, dtype=np.float64)
+    if arr.ndim != 1:
+        raise DatasetError(f'Expected `{name}` to have shape (N,), got {arr.shape}.')
+    return arr
+
+
+def _interp_sorted(imu_t: NDArray[np.float64], tt: NDArray[np.float64],
+                   tc: NDArray[np.float64], gap: float
+                   ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+    """
+    Interpolate onto sorted IMU stamps, working on the knots rather than on every sample.
+
+    The usual case (millions of sorted IMU stamps, thousands of thermometer samples): one
+    ``np.interp`` pass, then the invalid stretches -- before and after the thermometer's
+    span, and the middle of every segment longer than ``2 * gap`` -- are located among the
+    IMU stamps by binary search per knot instead of being tested per sample. Gives the same
+    result as the general path of :func:`align_temperature`.
+    """
+    n = len(imu_t)
+    temp = np.interp(imu_t, tt, tc)
+    valid = np.ones(n, dtype=bool)
+    valid[:np.searchsorted(imu_t, tt[0], side='left')] = False
+    valid[np.searchsorted(imu_t, tt[-1], side='right'):] = False
+    # In segment j a stamp is invalid when both distances exceed the gap:
+    # t - tt[j] > gap and tt[j + 1] - t > gap.
+    seg = np.flatnonzero(np.diff(tt) > 2.0 * gap)
+    if seg.size:
+        start = np.searchsorted(imu_t, tt[seg], side='right')
+        stop = np.searchsorted(imu_t, tt[seg + 1], side='left')
+        for a, b, j in zip(start.tolist(), stop.tolist(), seg.tolist()):
+            if a < b:
+                part = imu_t[a:b]
+                valid[a:b] &= ~((part - tt[j] > gap) & (tt[j + 1] - part > gap))
+    temp[~valid] = np.nan
+    return temp, valid
+
+
+def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=False):
+    """
+    Interpolate thermometer samples linearly onto IMU stamps.
+
+    Thermometer samples with a NaN or infinite stamp or value are dropped, out-of-order
+    samples are sorted and of samples sharing a stamp the last one given is kept (readings
+    that disagree are counted, not averaged). An IMU sample is valid
+    when it lies within the thermometer's time span and at most ``max_gap_s`` from the
+    nearest thermometer sample; invalid samples get NaN.
+
+    Parameters
+    ----------
+    imu_t : ArrayLike, shape (N,), s
+        IMU stamps (any order).
+    temp_t : ArrayLike, shape (M,), s
+        Thermometer stamps (any order).
+    temp_c : ArrayLike, shape (M,), degC
+        Thermometer readings.
+    max_gap_s : float, s
+        Largest distance from an IMU stamp to the nearest thermometer sample.
+    return_counts : bool
+        Also return the counts of thermometer samples that were dropped or reordered.
+
+    Returns
+    -------
+    temp_at_imu : NDArray[np.float64], shape (N,), degC
+        Interpolated temperature (NaN where invalid).
+    valid : NDArray[np.bool_], shape (N,)
+        Where the interpolation is trusted.
+    counts : dict[str, int]
+        Only with ``return_counts``: ``nonfinite`` (dropped), ``out_of_order`` (backward
+        steps before sorting), ``duplicates`` (samples dropped because a later one has the
+        same stamp) and ``conflicting`` (stamps whose duplicate readings disagree).
+
+    Raises
+    ------
+    DatasetError
+        When shapes disagree or ``max_gap_s`` is not a positive number.
+
+    """
+    imu_t = _vector('imu_t', imu_t)
+    temp_t = _vector('temp_t', temp_t)
+    temp_c = _vector('temp_c', temp_c)
+    if temp_c.shape != temp_t.shape:
+        raise DatasetError(f'Expected `temp_c` to have shape {temp_t.shape} like `temp_t`, '
+                           f'got {temp_c.shape}.')
+    try:
+        gap = float(max_gap_s)
+    except (TypeError, ValueError):
+        gap = float('nan')
+    if not (np.isfinite(gap) and gap > 0):
+        raise DatasetError(f'Expected `max_gap_s` to be a positive number, got {max_gap_s!r}.')
+
+    finite = np.isfinite(temp_t) & np.isfinite(temp_c)
+    counts = {'nonfinite': int(np.count_nonzero(~finite)), 'out_of_order': 0, 'duplicates': 0,
+              'conflicting': 0}
+    tt, tc = temp_t[finite], temp_c[finite]
+    steps = np.diff(tt)
+    if np.any(steps <= 0):
+        counts['out_of_order'] = int(np.count_nonzero(steps < 0))
+        order = np.argsort(tt, kind='stable')
+        tt, tc = tt[order], tc[order]
+        last = np.ones(len(tt), dtype=bool)      # the last sample given of each stamp
+        last[:-1] = np.diff(tt) > 0
+        if not last.all():
+            kept = np.searchsorted(tt, tt, side='right') - 1
+            differ = ~last & (tc != tc[kept])
+            counts['duplicates'] = int(np.count_nonzero(~last))
+            counts['conflicting'] = int(np.unique(tt[differ]).size)
+            tt, tc = tt[last], tc[last]
+
+    m = len(tt)
+    if m < 2:
+        valid = imu_t == tt[0] if m else np.zeros(imu_t.shape, dtype=bool)
+        temp = np.where(valid, tc[0] if m else np.nan, np.nan)
+    elif len(imu_t) > 1 and np.all(imu_t[1:] >= imu_t[:-1]):
+        temp, valid = _interp_sorted(imu_t, tt, tc, gap)
+    else:
+        # Segment [tt[j], tt[j + 1]] of every IMU stamp; outside the span d0 or d1 is < 0.
+        j = (np.searchsorted(tt, imu_t, side='right') - 1).clip(0, m - 2)
+        d0 = imu_t - tt[j]
+        d1 = tt[j + 1] - imu_t
+        valid = (d0 >= 0) & (d1 >= 0) & (np.minimum(d0, d1) <= gap)
+        slope = np.diff(tc) / np.diff(tt)
+        temp = np.where(valid, tc[j] + slope[j] * d0, np.nan)
+    if return_counts:
+        return temp, valid, counts
+    return temp, valid
+
+
+def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: float,
+                  warnings: list[str]) -> dict[str, list[int]]:
+    """
+    Compare the messages decoded per topic with the counts listed in the bag's metadata.
+
+    Appends a warning per topic with missing messages; raises DatasetError when more than
+    ``max_loss`` of a topic's listed messages are missing. Returns topic -> [decoded, listed].
+    """
+    out = {}
+    for topic, got in decoded.items():
+        listed = int(data.topics.get(topic, ('', 0))[1])
+        out[topic] = [int(got), listed]
+        lost = listed - int(got)
+        if lost <= 0:
+            continue
+        note = (f'{topic}: read {got} of {listed} messages listed in the bag metadata '
+                f'({lost} lost: {100.0 * lost / listed:.2g} %; a damaged file or '
+                'undecodable messages)')
+        if lost > max_loss * listed:
+            raise DatasetError(f'Bag {str(bag)!r}: {note}, more than the '
+                               f'{100.0 * max_loss:g} % allowed (--allow-loss accepts it).')
+        warnings.append(note)
+    return out
+
+
+def _reference(value: object) -> NDArray[np.float64]:
+    """Return a constant reference rate (x, y, z) in rad/s or raise DatasetError."""
+    try:
+        ref = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        ref = np.zeros(0)
+    if ref.shape != (3,) or not np.all(np.isfinite(ref)):
+        raise DatasetError('Expected `reference` to be three finite rates (x, y, z) in rad/s, '
+                           f'got {value!r}.')
+    return ref
+
+
+@small_pages()    # its full-length arrays too: see gyro_tdc.data.bag_reader.small_pages
+def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
+             reference=None, reference_topic='/rate_table/reference', max_gap_s=5.0,
+             progress=False, max_loss=MAX_LOSS_FRACTION, accel=False) -> Run:
+    """
+    Read one bag into a :class:`~gyro_tdc.data.runs.Run` aligned on the IMU stamps.
+
+    IMU samples are sorted by stamp; of samples sharing a stamp the first in the bag is
+    kept. Samples with a non-finite rate, without a trusted temperature (see
+    :func:`align_temperature`) or before the first reference message are dropped, and so
+    are physically impossible values (see the module docstring). Every drop is counted in
+    ``run.info['rejected']``: ``imu_nonfinite``, ``temp_nonfinite``, ``ref_nonfinite``,
+    ``undecodable``, ``imu_implausible``, ``temp_implausible``, ``ref_implausible``,
+    ``duplicate_stamps``, ``temp_duplicate_stamps``, ``out_of_order``, ``no_temperature``,
+    ``no_reference``. Messages missing against the bag's metadata and conflicting
+    thermometer readings are reported in ``run.info['warnings']``.
+
+    Parameters
+    ----------
+    bag : str or Path
+        rosbag2 directory (sqlite3 or mcap).
+    imu_topic : str
+        ``sensor_msgs/msg/Imu`` topic.
+    temperature_topic : str
+        ``sensor_msgs/msg/Temperature`` topic.
+    reference : tuple of 3 float, rad/s, optional
+        Constant reference rate (x, y, z); when given, the reference topic is not read.
+    reference_topic : str
+        ``geometry_msgs/msg/Vector3Stamped`` topic, held (zero-order) onto the IMU stamps
+        when present; the reference is zero when the bag has no such topic.
+    max_gap_s : float, s
+        Largest distance to the nearest thermometer sample (see :func:`align_temperature`).
+    progress : bool
+        Show a progress bar while reading.
+    max_loss : float
+        Largest fraction of a topic's messages (as listed in the bag's metadata) that may
+        be missing after reading; 1.0 accepts any loss (it is still reported).
+    accel : bool
+        Also read the linear acceleration into ``run.accel`` (the same samples kept; None
+        when the bag's IMU publishes none, all zero per REP 145); False (default) skips it.
+
+    Returns
+    -------
+    Run
+        ``name`` is the bag path; ``info`` holds ``rejected``, ``warnings``, ``reference``
+        ('constant', 'topic' or 'zero'), ``frame_id``, ``storage``, ``topics``,
+        ``samples_read`` and ``messages`` (topic -> [decoded, listed in the metadata]).
+
+    Raises
+    ------
+    DatasetError
+        When the bag cannot be read, a topic is missing, empty or of the wrong type, more
+        than ``max_loss`` of a topic's messages are missing, or no sample survives.
+
+    """
+    const = None if reference is None else _reference(reference)
+    data = read_bag(bag, imu_topic=imu_topic, temperature_topic=temperature_topic,
+                    reference_topic=None if const is not None else reference_topic,
+                    progress=progress, accel=bool(accel))
+    rejected = {'imu_nonfinite': data.rejected['imu_nonfinite'],
+                'temp_nonfinite': data.rejected['temp_nonfinite'],
+                'ref_nonfinite': data.rejected['ref_nonfinite'],
+                'undecodable': data.rejected['undecodable'],
+                'imu_implausible': 0, 'temp_implausible': 0, 'ref_implausible': 0,
+                'duplicate_stamps': 0, 'temp_duplicate_stamps': 0, 'out_of_order': 0,
+                'no_temperature': 0, 'no_reference': 0}
+    warnings: list[str] = []
+    messages = _check_counts(bag, data, {
+        imu_topic: len(data.imu_t) + data.rejected['imu_nonfinite'],
+        temperature_topic: len(data.temp_t) + data.rejected['temp_nonfinite'],
+        **({reference_topic: len(data.ref_t) + data.rejected['ref_nonfinite']}
+           if data.ref_t is not None else {})}, max_loss, warnings)
+
+    t, omega = data.imu_t, data.gyro
+    rows = np.arange(len(t))          # of data.accel: follows every IMU sample dropped
+    same_rows = True                  # rows is still arange: data.accel needs no gather
+    plausible = np.abs(omega) <= MAX_RATE_RAD_S     # rows column by column: 3x faster
+    plausible = plausible[:, 0] & plausible[:, 1] & plausible[:, 2]
+    if not plausible.all():
+        rejected['imu_implausible'] = int(np.count_nonzero(~plausible))
+        t, omega, rows = t[plausible], omega[plausible], rows[plausible]
+        same_rows = False
+    temp_t, temp_c = data.temp_t, data.temp_c
+    plausible = (temp_c >= TEMP_PLAUSIBLE_C[0]) & (temp_c <= TEMP_PLAUSIBLE_C[1])
+    if not plausible.all():
+        rejected['temp_implausible'] = int(np.count_nonzero(~plausible))
+        temp_t, temp_c = temp_t[plausible], temp_c[plausible]
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        rejected['out_of_order'] = int(np.count_nonzero(steps < 0))
+        order = np.argsort(t, kind='stable')
+        t, omega, rows = t[order], omega[order], rows[order]
+        same_rows = False
+        first = np.ones(len(t), dtype=bool)
+        first[1:] = np.diff(t) > 0
+        rejected['duplicate_stamps'] = int(np.count_nonzero(~first))
+        t, omega, rows = t[first], omega[first], rows[first]
+
+    temp, keep, counts = align_temperature(t, temp_t, temp_c, max_gap_s=max_gap_s,
+                                           return_counts=True)
+    rejected['temp_nonfinite'] += counts['nonfinite']
+    rejected['temp_duplicate_stamps'] = counts['duplicates']
+    if counts['conflicting']:
+        warnings.append(f'{temperature_topic}: {counts["conflicting"]} stamp(s) carry '
+                        'conflicting temperature readings; kept the last reading of each')
+    rejected['no_temperature'] = int(np.count_nonzero(~keep))
+
+    if const is not None:
+        source = 'constant'
+        omega_ref = np.empty(omega.shape)
+        omega_ref[:] = const
+    elif data.ref_t is not None:
+        source = 'topic'
+        plausible = np.all(np.abs(data.ref) <= MAX_RATE_RAD_S, axis=1)
+        rejected['ref_implausible'] = int(np.count_nonzero(~plausible))
+        order = np.argsort(data.ref_t[plausible], kind='stable')
+        ref_t, ref = data.ref_t[plausible][order], data.ref[plausible][order]
+        held = np.searchsorted(ref_t, t, side='right') - 1
+        has_ref = held >= 0
+        rejected['no_reference'] = int(np.count_nonzero(keep & ~has_ref))
+        keep &= has_ref
+        omega_ref = ref[held.clip(0)]
+    else:
+        source = 'zero'
+        omega_ref = np.zeros(omega.shape)
+
+    if not np.any(keep):
+        raise DatasetError(
+            f'Bag {str(bag)!r} has no usable sample: {len(data.imu_t)} IMU samples read, '
+            f'{len(temp_t)} temperature samples spanning '
+            + (f'[{temp_t.min():.3f}, {temp_t.max():.3f}] s' if len(temp_t) else 'nothing')
+            + (f' vs IMU [{t.min():.3f}, {t.max():.3f}] s' if len(t) else '')
+            + f'; rejected {rejected}.')
+    info = {'rejected': rejected, 'warnings': warnings, 'reference': source,
+            'frame_id': data.frame_id, 'storage': data.storage, 'topics': data.topics,
+            'samples_read': int(len(data.imu_t) + data.rejected['imu_nonfinite']),
+            'messages': messages, 'decoded_by_rosbags': data.fallback}
+    if not keep.all():
+        t, temp, omega, omega_ref = t[keep], temp[keep], omega[keep], omega_ref[keep]
+        rows = rows[keep]
+        same_rows = False
+    acc = data.accel
+    if acc is not None:
+        acc = np.ascontiguousarray(acc if same_rows else acc[rows])
+        if not has_accelerometer(acc):
+            acc = None                # no accelerometer data (REP 145: zeros)
+    return Run(t, temp, np.ascontiguousarray(omega), np.ascontiguousarray(omega_ref),
+               str(bag), info, acc)
+
+
+def _is_bag(path: Path) -> bool:
+    """Return True when ``path`` is a rosbag2 directory (holds metadata.yaml)."""
+    return path.is_dir() and (path / 'metadata.yaml').is_file()
+
+
+def _natural_key(path: Path) -> list:
+    """Sort key comparing digit runs as numbers."""
+    return [int(s) if s.isdigit() else s for s in re.split(r'(\d+)', path.name)]
+
+
+def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
+    """
+    Expand bag paths: a folder of bag folders (a multi-run ``simulate``) becomes its bags.
+
+    A path that is a rosbag2 directory, or anything else, is kept as is (reading reports
+    what is wrong with it); a directory without ``metadata.yaml`` whose sub-directories are
+    bags expands to those, sorted by name (natural order: ``run_2`` before ``run_10``).
+
+    Parameters
+    ----------
+    paths : iterable of str or PathLike
+        Bag paths, e.g. as given on the command line.
+
+    Returns
+    -------
+    list of Path
+        Bag paths in the given order.
+
+    Raises
+    ------
+    DatasetError
+        When a path does not exist, or two paths are the same bag (after resolving links
+        and folders of bags: a run read twice would weigh double in training and would not
+        be held out in discovery's leave-one-run-out).
+
+    """
+    out: list[Path] = []
+    for raw in paths:
+        p = Path(raw)
+        if not p.exists():
+            raise DatasetError(f'Bag {str(p)!r} does not exist.')
+        if p.is_dir() and not _is_bag(p):
+            subs = [c for c in p.iterdir() if _is_bag(c)]
+            if subs:
+                out.extend(sorted(subs, key=_natural_key))
+                continue
+        out.append(p)
+    seen: dict[Path, Path] = {}
+    for p in out:
+        real = p.resolve()
+        if p.is_file() and p.suffix in ('.db3', '.mcap'):
+            real = real.parent          # a bag's storage file names the bag
+        if real in seen:
+            raise DatasetError(f'Bag {str(p)!r} is given twice (also as {str(seen[real])!r}); '
+                               'give each run once.')
+        seen[real] = p
+    return out
+
+
+# What each count of ``run.info['rejected']`` means, as a reader would say it.
+_DROPPED = {
+    'imu_nonfinite': 'IMU samples with a NaN or infinite rate',
+    'temp_nonfinite': 'temperature readings that are NaN or infinite',
+    'ref_nonfinite': 'reference messages that are NaN or infinite',
+    'undecodable': 'messages that could not be decoded',
+    'imu_implausible': f'IMU samples above {MAX_RATE_RAD_S:g} rad/s',
+    'temp_implausible': (f'temperature readings outside {TEMP_PLAUSIBLE_C[0]:g} .. '
+                         f'{TEMP_PLAUSIBLE_C[1]:g} degC'),
+    'ref_implausible': f'reference messages above {MAX_RATE_RAD_S:g} rad/s',
+    'duplicate_stamps': 'IMU samples repeating an earlier stamp',
+    'temp_duplicate_stamps': 'temperature readings repeating a stamp (the last one kept)',
+    'out_of_order': 'IMU samples out of order (sorted, not dropped)',
+    'no_temperature': 'IMU samples with no temperature reading near them (ends or gaps)',
+    'no_reference': 'IMU samples before the first reference message',
+}
+
+
+def describe_read(bag: str | os.PathLike, run: Run, reference_topic: str) -> str:
+    """
+    Return the one line that says what was read from a bag, in words.
+
+    Parameters
+    ----------
+    bag : str or PathLike
+        The bag read.
+    run : Run
+        What :func:`load_run` made of it.
+    reference_topic : str
+        The reference topic asked for (named when it was used).
+
+    Returns
+    -------
+    str
+        ``read BAG: N samples over M min, reference rate ...; dropped ...``.
+
+    """
+    source = run.info.get('reference', '?')
+    zero = not np.any(run.omega_ref)
+    reference = {'topic': f'reference rate from {reference_topic}'
+                          + (' (zero throughout)' if zero else ''),
+                 'constant': 'constant reference rate (--reference)',
+                 'zero': f'reference rate zero (no {reference_topic} in the bag)'}.get(
+                     source, f'reference {source}')
+    counts = run.info.get('rejected', {})
+    dropped = '; '.join(f'{v} {_DROPPED.get(k, k)}' for k, v in counts.items() if v)
+    return (f'read {bag}: {len(run)} samples over {run.duration_s / 60.0:.1f} min, '
+            f'{reference}' + (f'; dropped {dropped}' if dropped else ''))
+
+
+def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike, *,
+              log: Callable[[str], None] | None = None, **kw) -> list[Run]:
+    """
+    Load several bags with :func:`load_run`, one run per bag, after :func:`expand_bags`.
+
+    Parameters
+    ----------
+    bags : iterable of str or PathLike (or a single one)
+        rosbag2 directories, or folders of them.
+    log : callable, optional
+        Receives one line per bag read: samples, minutes, reference and what was dropped.
+    **kw
+        Keyword options of :func:`load_run`.
+
+    Returns
+    -------
+    list[Run]
+        One run per bag, in the given order.
+
+    """
+    if isinstance(bags, (str, os.PathLike)):
+        bags = [bags]
+    runs = []
+    for bag in expand_bags(bags):
+        run = load_run(bag, **kw)
+        if log is not None:
+            log(describe_read(bag, run, kw.get('reference_topic', '/rate_table/reference')))
+            for warning in run.info.get('warnings', ()):
+                log(f'warning: {bag}: {warning}')
+        runs.append(run)
+    return runs

@@ -1,0 +1,182 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Real recordings -> rosbag2 bags.
+
+``pan_cubesat``: the Cornell PAN CubeSat engineering unit (ST LSM6DSM gyro) cooling in a
+thermal-vacuum chamber, 2020-03-07 (``data/pan_cubesat_tvac/TVCtest3_7_20.csv`` beside the
+repository; see its SOURCE.md). The conversion follows the authors' analysis script:
+
+- gyro in rad/s *as logged* x 0.5 ("to correct for an error in driver script");
+- the rows whose logged ``gyrox`` is <= -0.08 rad/s are spikes and are removed (three);
+- ``temp`` is the raw LSM6DSM ``OUT_TEMP`` register: ``T = 25 + int16(temp) / 256`` degC;
+- the unit is stationary, so the reference rate is zero.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from gyro_tdc.data.bag_writer import write_bag
+from gyro_tdc.errors import DatasetError
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['PAN_CSV_COLUMNS', 'PanCubesat', 'default_pan_csv', 'pan_cubesat_to_bag',
+           'read_pan_cubesat_csv']
+
+PAN_CSV_COLUMNS = ('time (ms)', 'mag1x [T]', 'mag1y [T]', 'mag1z [T]', 'gyrox rad/s',
+                   'gyroy rad/s', 'gyroz rad/s', 'temp')
+PAN_GYRO_CORRECTION = 0.5          # the authors' "error in driver script" factor
+PAN_SPIKE_GYROX = -0.08            # rad/s as logged: rows at or below are spikes
+LSM6DSM_LSB_PER_C = 256.0          # OUT_TEMP sensitivity; 0 LSB at 25 degC
+# Quantisation noise of a 1/256 degC register: uniform over one LSB -> LSB^2 / 12.
+LSM6DSM_TEMP_VARIANCE = (1.0 / LSM6DSM_LSB_PER_C) ** 2 / 12.0
+
+
+@dataclass(frozen=True)
+class PanCubesat:
+    """
+    The PAN CubeSat TVAC recording after the authors' corrections.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (N,), s
+        Time since boot.
+    gyro : NDArray[np.float64], shape (N, 3), rad/s
+        Corrected angular rate (logged x 0.5).
+    temp_c : NDArray[np.float64], shape (N,), degC
+        Die temperature from the raw register.
+    rows_read : int
+        Data rows in the CSV.
+    removed_t : NDArray[np.float64], shape (K,), s
+        Times of the spike rows that were removed.
+
+    """
+
+    t: NDArray[np.float64]
+    gyro: NDArray[np.float64]
+    temp_c: NDArray[np.float64]
+    rows_read: int
+    removed_t: NDArray[np.float64]
+
+    @property
+    def rows_removed(self) -> int:
+        """Return the number of spike rows removed."""
+        return int(len(self.removed_t))
+
+
+def default_pan_csv() -> Path:
+    """Return the recording's CSV path: ``data/pan_cubesat_tvac`` in the repository."""
+    root = Path(__file__).resolve().parent.parent
+    return root / 'data' / 'pan_cubesat_tvac' / 'TVCtest3_7_20.csv'
+
+
+def read_pan_cubesat_csv(path: str | Path) -> PanCubesat:
+    """
+    Parse ``TVCtest3_7_20.csv`` and apply the authors' corrections.
+
+    Parameters
+    ----------
+    path : str or Path
+        The CSV file.
+
+    Returns
+    -------
+    PanCubesat
+        Corrected samples and what was removed.
+
+    Raises
+    ------
+    DatasetError
+        When the file is missing, has other columns, non-numeric cells, a temperature
+        register outside 0..65535 or non-increasing times.
+
+    """
+    path = Path(path)
+    try:
+        with path.open(encoding='utf-8-sig') as f:
+            header = f.readline()
+            rows = np.loadtxt(f, delimiter=',', dtype=np.float64, ndmin=2)
+    except OSError as err:
+        raise DatasetError(f'Cannot read PAN CubeSat CSV {str(path)!r}: '
+                           f'{err.strerror or err}.') from err
+    except ValueError as err:
+        raise DatasetError(f'Expected numbers in PAN CubeSat CSV {str(path)!r}: '
+                           f'{" ".join(str(err).split())}') from err
+    columns = tuple(x.strip() for x in header.strip().split(','))
+    if tuple(x.lower() for x in columns) != tuple(x.lower() for x in PAN_CSV_COLUMNS):
+        raise DatasetError(f'Expected PAN CubeSat CSV columns {list(PAN_CSV_COLUMNS)}, '
+                           f'got {list(columns)} in {str(path)!r}.')
+    if rows.shape[1] != len(PAN_CSV_COLUMNS) or not len(rows):
+        raise DatasetError(f'Expected {len(PAN_CSV_COLUMNS)} columns and at least one row in '
+                           f'{str(path)!r}, got shape {rows.shape}.')
+    if not np.all(np.isfinite(rows)):
+        raise DatasetError(f'Expected finite numbers in {str(path)!r}, got '
+                           f'{int(np.count_nonzero(~np.isfinite(rows)))} NaN/Inf cells.')
+    raw = rows[:, 7]
+    if np.any(raw != np.round(raw)) or raw.min() < 0 or raw.max() > 65535:
+        raise DatasetError(f'Expected `temp` to be the raw 16-bit register (integers in '
+                           f'0..65535), got values in [{raw.min()}, {raw.max()}].')
+    t = rows[:, 0] / 1000.0
+    if np.any(np.diff(t) <= 0):
+        raise DatasetError(f'Expected strictly increasing `time (ms)` in {str(path)!r}.')
+    spike = rows[:, 4] <= PAN_SPIKE_GYROX
+    keep = ~spike
+    counts = raw.astype(np.int64).astype(np.uint16).view(np.int16)
+    temp_c = 25.0 + counts.astype(np.float64) / LSM6DSM_LSB_PER_C
+    return PanCubesat(t=t[keep], gyro=PAN_GYRO_CORRECTION * rows[keep, 4:7],
+                      temp_c=temp_c[keep], rows_read=int(len(rows)), removed_t=t[spike])
+
+
+def pan_cubesat_to_bag(csv_path: str | Path, out: str | Path, *,
+                       storage: str = 'sqlite3') -> PanCubesat:
+    """
+    Convert the PAN CubeSat TVAC CSV into a rosbag2 bag.
+
+    One ``sensor_msgs/Imu`` per row on ``/imu/data_raw`` (no accelerometer in the file:
+    acceleration 0 with ``linear_acceleration_covariance[0] = -1``, REP 145), one
+    ``sensor_msgs/Temperature`` per row on ``/imu/temperature`` on the same stamps (variance
+    = quantisation variance of the 1/256 degC register) and a zero reference rate on
+    ``/rate_table/reference`` on the same stamps.
+
+    Parameters
+    ----------
+    csv_path : str or Path
+        ``TVCtest3_7_20.csv``.
+    out : str or Path
+        Bag directory to create (must not exist).
+    storage : {'sqlite3', 'mcap'}
+        rosbag2 storage plugin.
+
+    Returns
+    -------
+    PanCubesat
+        What was written and what was removed.
+
+    Raises
+    ------
+    DatasetError
+        When the CSV is unreadable or malformed, or the bag cannot be created.
+
+    """
+    data = read_pan_cubesat_csv(csv_path)
+    n = len(data.t)
+    write_bag(out, imu_t=data.t, gyro=data.gyro, accel=np.zeros((n, 3)), temp_t=data.t,
+              temp_c=data.temp_c, temp_var=LSM6DSM_TEMP_VARIANCE, ref_t=data.t,
+              ref=np.zeros((n, 3)), storage=storage, frame_id='imu_link',
+              accel_cov=(-1.0, 0.0, 0.0))
+    return data

@@ -1,0 +1,312 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Plots of one evaluated bag: three PNGs (matplotlib, Agg canvas, no display needed).
+
+:func:`write_plots` draws the rate error against time (full scale and a zoom on the models),
+against temperature (split into heating, cooling and steady) and its Allan deviation, for the
+raw rate and every model of a :class:`~gyro_tdc.evaluate.score.BagEval`; :func:`model_description`
+is the legend text of a model. matplotlib is imported only when a plot is asked for; every PNG
+is written atomically (:func:`gyro_tdc.base.atomicio.atomic_write`). The tables, JSON and CSV of
+the
+same results are in :mod:`gyro_tdc.evaluate.report`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any, Sequence
+
+from gyro_tdc.base import atomic_write
+from gyro_tdc.data import RATE_THRESHOLD_C_PER_MIN, temperature_rate
+from gyro_tdc.evaluate.report import AXES
+from gyro_tdc.evaluate.score import BagEval
+from gyro_tdc.signal import block_length, block_mean
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['model_description', 'write_plots']
+
+_DEG = 180.0 / math.pi
+
+
+# Plot styles: raw in grey, each model its own colour, line style and marker, so traces that
+# lie on top of each other stay visible; fonts 9 pt and up.
+_RAW_STYLE = {'color': '0.45', 'linestyle': '-', 'linewidth': 1.0}
+_MODEL_STYLES = [('tab:blue', '-', 'o'), ('tab:orange', '--', 's'), ('tab:green', '-.', '^'),
+                 ('tab:red', ':', 'D'), ('tab:purple', (0, (6, 2, 1, 2)), 'v'),
+                 ('tab:brown', (0, (3, 1, 1, 1, 1, 1)), 'P'), ('tab:pink', '--', 'X'),
+                 ('tab:olive', '-.', '*'), ('tab:cyan', ':', 'h')]
+_FONTS = {'font.size': 10, 'axes.titlesize': 10, 'axes.labelsize': 10, 'legend.fontsize': 9,
+          'xtick.labelsize': 9, 'ytick.labelsize': 9, 'figure.titlesize': 12}
+_MARKERS_PER_CURVE = 12
+_ZOOM_BS_FACTOR = 10.0
+_ZOOM_POINTS = 150
+
+
+def _style(i: int, n_points: int, n_models: int) -> dict:
+    """Return the matplotlib style of model ``i``: markers staggered between models."""
+    color, ls, marker = _MODEL_STYLES[i % len(_MODEL_STYLES)]
+    step = max(n_points // _MARKERS_PER_CURVE, 1)
+    return {'color': color, 'linestyle': ls, 'linewidth': 1.3, 'marker': marker,
+            'markersize': 5, 'markevery': (i * step // max(n_models, 1), step)}
+
+
+def model_description(name: str, kind: str, features: Sequence[str], *,
+                      tau_s: float | None = None) -> str:
+    """
+    Return the legend text of a model: its file (or ``px4``) and what it is.
+
+    Parameters
+    ----------
+    name : str
+        The model as given on the command line (a path, a shipped name or ``px4``).
+    kind : str
+        ``rbf`` or ``poly``.
+    features : sequence of str
+        Its effect ids (``lag`` included when the model has a thermal state).
+    tau_s : float, s, optional
+        The thermal state's total tau, shown beside ``lag``.
+
+    Returns
+    -------
+    str
+        E.g. ``modified.yaml: poly f(dT, dT2)``, ``auto.yaml: rbf f(dT, dT2, lag 176 s)`` or
+        ``px4: cubic in T fitted on --train``.
+
+    """
+    if name == 'px4':
+        return 'px4: cubic in T fitted on --train'
+    shown = [f'lag {tau_s:.3g} s' if f == 'lag' and tau_s is not None else f
+             for f in features if f != 'bias']          # bias is in every model
+    return f'{Path(name).name}: {kind} f({", ".join(shown) or "bias"})'
+
+
+def _save(fig: Any, path: Path) -> None:
+    """Write a matplotlib figure as a PNG, atomically."""
+    atomic_write(path, lambda fh: fig.savefig(fh, dpi=90, format='png'), binary=True,
+                 what='plot')
+
+
+def _zoom_limits(curves: Sequence[NDArray[np.float64]]) -> tuple[float, float] | None:
+    """Return y-limits holding 99 % of the points of ``curves`` (None when there are none)."""
+    values = np.concatenate([c[np.isfinite(c)] for c in curves]) if curves else np.zeros(0)
+    if values.size == 0:
+        return None
+    lo, hi = np.percentile(values, [0.5, 99.5])
+    pad = 0.15 * max(hi - lo, 1e-9)
+    return float(lo - pad), float(hi + pad)
+
+
+def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
+                descriptions: Sequence[str] | None = None, options: str = '',
+                reanchor_s: float = 0.0) -> list:
+    """
+    Write three PNGs for one bag (Agg canvas, no display needed).
+
+    * ``<label>_timeseries.png``: per axis the rate error against time, raw and every model
+      (left) and the models alone on a zoomed scale (right), then the temperature; the
+      re-anchoring window and the stretches outside a model's trained range are shaded and
+      labelled;
+    * ``<label>_residual_vs_temperature.png``: rate error against temperature, raw and per
+      model, coloured by heating, cooling and steady temperature;
+    * ``<label>_allan.png``: Allan deviation per axis, raw and compensated.
+
+    Each figure's title names the bag, the models and the options (``options``: re-anchoring
+    applied or not); every model keeps one colour, line style and marker in all three.
+
+    Parameters
+    ----------
+    b : BagEval
+        One evaluated bag, with its arrays.
+    directory : str or PathLike
+        Output directory (created).
+    points : int
+        Block means plotted per curve (long runs are averaged down to this).
+    descriptions : sequence of str, optional
+        Legend text per model of ``b.models`` (see :func:`model_description`); default: the
+        model as given and its effect ids.
+    options : str
+        What was applied, for the titles (e.g. ``re-anchored: mean error of the first 300 s
+        removed``); empty: nothing said.
+    reanchor_s : float, s
+        The re-anchoring window to shade (0: none).
+
+    Returns
+    -------
+    list of Path
+        The PNGs written.
+
+    """
+    import matplotlib
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    run = b.run
+    if run is None:
+        raise ValueError('Expected `b.run` to hold the data; it was released.')
+    if descriptions is None:
+        descriptions = [f'{m.model} ({", ".join(m.features) or "bias"})' for m in b.models]
+    if len(descriptions) != len(b.models):
+        raise ValueError(f'Expected {len(b.models)} `descriptions` (one per model), got '
+                         f'{len(descriptions)}.')
+    out = Path(directory)
+    out.mkdir(parents=True, exist_ok=True)
+    block = block_length(len(run), points)
+
+    def _bmean(a: NDArray[np.float64]) -> NDArray[np.float64]:
+        return block_mean(a, block, partial=False)   # a trailing partial block is dropped
+
+    th = (_bmean(run.t) - run.t[0]) / 3600.0
+    temp = _bmean(run.temp)
+    n_models = len(b.models)
+    raw_err = _bmean((run.omega - run.omega_ref) * _DEG)
+    model_err = [_bmean((m.omega - run.omega_ref) * _DEG) for m in b.models]
+    legends = [f'raw ({b.raw.label})' if b.raw.label != 'raw' else 'raw, uncompensated'] + [
+        str(d) for d in descriptions]
+    styles = [_RAW_STYLE] + [_style(i, len(th), n_models) for i in range(n_models)]
+    models_text = ', '.join(Path(str(m.model)).name for m in b.models) or 'none'
+    head = f'{b.bag}: models {models_text}' + (f'; {options}' if options else '')
+    written = []
+    with matplotlib.rc_context(_FONTS):
+        written.append(_plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles,
+                                        head, block, reanchor_s, FigureCanvasAgg, Figure))
+        written.append(_plot_residual_vs_temperature(b, out, run, th, temp, raw_err, model_err,
+                                                     legends, head, _bmean, FigureCanvasAgg,
+                                                     Figure))
+        written.append(_plot_allan(b, out, legends, styles, head, FigureCanvasAgg, Figure))
+    return written
+
+
+def _flag_spans(ax: Any, th: NDArray[np.float64], temp: NDArray[np.float64], b: BagEval,
+                legends: Sequence[str], labelled: bool, reanchor_s: float) -> None:
+    """Shade the re-anchoring window and the time outside each model's trained range."""
+    if reanchor_s > 0:
+        ax.axvspan(0.0, reanchor_s / 3600.0, color='gold', alpha=0.35, lw=0,
+                   label=f're-anchoring window (first {reanchor_s:g} s)' if labelled else None)
+    for i, m in enumerate(b.models):
+        if m.outside_fraction <= 0:
+            continue
+        lo, hi = m.temp_range_c
+        outside = (temp < lo) | (temp > hi)
+        ax.fill_between(th, 0, 1, where=outside, transform=ax.get_xaxis_transform(),
+                        color=_MODEL_STYLES[i % len(_MODEL_STYLES)][0], alpha=0.12, lw=0,
+                        label=(f'outside the trained range of {legends[i + 1].split(":")[0]} '
+                               f'({b.out_of_range})') if labelled else None)
+
+
+def _plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head, block,
+                     reanchor_s, canvas, figure_cls) -> Path:
+    """Write ``<label>_timeseries.png``: full scale, zoomed models, temperature."""
+    fig = figure_cls(figsize=(15, 11.5), constrained_layout=True)
+    canvas(fig)
+    grid = fig.add_gridspec(4, 2, height_ratios=[1, 1, 1, 0.8])
+    first = fig.add_subplot(grid[0, 0])
+    left = [first] + [fig.add_subplot(grid[k, 0], sharex=first) for k in (1, 2)]
+    right = [fig.add_subplot(grid[k, 1], sharex=first) for k in range(3)]
+    bottom = fig.add_subplot(grid[3, :], sharex=first)
+    # The zoom averages further (about _ZOOM_POINTS means per curve), so the drift a model
+    # leaves shows above the white noise and models that nearly agree can be told apart.
+    coarse = max(len(th) // _ZOOM_POINTS, 1)
+    zth = block_mean(th, coarse, partial=False)
+    zerr = [block_mean(e, coarse, partial=False) for e in model_err]
+    zstyles = [_style(i, len(zth), len(model_err)) for i in range(len(model_err))]
+    zoom_s = 3600.0 * (th[1] - th[0]) * coarse if len(th) > 1 else 0.0
+    for k, a in enumerate(AXES):
+        left[k].plot(th, raw_err[:, k], label=legends[0], **styles[0])
+        for i, e in enumerate(model_err):
+            left[k].plot(th, e[:, k], label=legends[i + 1], **styles[i + 1])
+            right[k].plot(zth, zerr[i][:, k], label=legends[i + 1], **zstyles[i])
+        left[k].set_ylabel(f'{a}: rate error (deg/s)')
+        # Zoom on the models within ZOOM_BS_FACTOR of the best BS on this axis; a model far
+        # worse runs off this scale (it is on the full-scale panel).
+        best = min((float(m.bs[k]) for m in b.models), default=math.nan)
+        near = [e[:, k] for m, e in zip(b.models, zerr)
+                if math.isfinite(best) and float(m.bs[k]) <= _ZOOM_BS_FACTOR * best]
+        limits = _zoom_limits(near)
+        if limits is not None:
+            right[k].set_ylim(*limits)
+        right[k].axhline(0.0, color='0.3', lw=0.8)
+        for ax in (left[k], right[k]):
+            ax.grid(True, alpha=0.3)
+            _flag_spans(ax, th, temp, b, legends, labelled=(ax is left[0]),
+                        reanchor_s=reanchor_s)
+    left[0].set_title('raw and compensated, full scale')
+    right[0].set_title(f'zoom: compensated only, {zoom_s:.3g} s means, scaled to the models '
+                       f'within {_ZOOM_BS_FACTOR:g}x of the best BS')
+    left[0].legend(loc='best', framealpha=0.85)
+    bottom.plot(th, temp, color='black', lw=1.2)
+    bottom.set_ylabel('temperature (degC)')
+    bottom.set_xlabel('time since the start of the bag (h)')
+    bottom.grid(True, alpha=0.3)
+    fig.suptitle(f'Rate error vs time (left: {block}-sample means)\n{head}')
+    path = out / f'{b.label}_timeseries.png'
+    _save(fig, path)
+    return path
+
+
+def _plot_residual_vs_temperature(b, out, run, th, temp, raw_err, model_err, legends, head,
+                                  bmean, canvas, figure_cls) -> Path:
+    """Write ``<label>_residual_vs_temperature.png``: one row per series, heating/cooling."""
+    rate = bmean(temperature_rate(run.t, run.temp))
+    x = RATE_THRESHOLD_C_PER_MIN
+    groups = [(f'heating (> +{x:g} degC/min)', rate > x, 'tab:red'),
+              (f'cooling (< -{x:g} degC/min)', rate < -x, 'tab:blue'),
+              ('steady', np.abs(rate) <= x, 'tab:gray')]
+    series = [raw_err] + list(model_err)
+    fig = figure_cls(figsize=(14, 2.9 * len(series) + 1.0), constrained_layout=True)
+    canvas(fig)
+    axs = np.atleast_2d(fig.subplots(len(series), 3, squeeze=False))
+    for r, e in enumerate(series):
+        for k, a in enumerate(AXES):
+            ax = axs[r, k]
+            for name, sel, color in groups:
+                if np.any(sel):
+                    ax.scatter(temp[sel], e[sel, k], s=4, color=color, label=name)
+            ax.set_title(f'{legends[r]} - {a}')
+            ax.grid(True, alpha=0.3)
+            if k == 0:
+                ax.set_ylabel('rate error (deg/s)')
+            if r == len(series) - 1:
+                ax.set_xlabel('temperature (degC)')
+    axs[0, 0].legend(loc='best', markerscale=3)
+    fig.suptitle(f'Rate error vs temperature, by heating and cooling\n{head}')
+    path = out / f'{b.label}_residual_vs_temperature.png'
+    _save(fig, path)
+    return path
+
+
+def _plot_allan(b, out, legends, styles, head, canvas, figure_cls) -> Path:
+    """Write ``<label>_allan.png``: Allan deviation per axis, raw and every model."""
+    fig = figure_cls(figsize=(15, 5.2), constrained_layout=True)
+    canvas(fig)
+    axs = fig.subplots(1, 3, sharey=True)
+    for k, a in enumerate(AXES):
+        for i, m in enumerate([b.raw] + list(b.models)):
+            if len(m.adev_tau_s):
+                style = dict(styles[i])
+                style['markevery'] = None if i == 0 else (i % 3, 3)
+                axs[k].loglog(m.adev_tau_s, m.adev_dps[:, k], label=legends[i], **style)
+        axs[k].set_title(f'{a} axis')
+        axs[k].set_xlabel('averaging time tau (s)')
+        axs[k].grid(True, which='both', alpha=0.3)
+    axs[0].set_ylabel('Allan deviation of the rate error (deg/s)')
+    axs[0].legend(loc='best')
+    fig.suptitle(f'Allan deviation\n{head}')
+    path = out / f'{b.label}_allan.png'
+    _save(fig, path)
+    return path

@@ -1,0 +1,590 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Held-out evaluation on a bursty real recording: leave one block of bursts out.
+
+The PAN CubeSat TVAC recording (:mod:`gyro_tdc.data.realdata`) is 25 bursts of about 250 samples
+at 50 Hz, one every ~305 s, while the unit cools from 23.9 to 15.6 degC. There is one
+session, so held-out runs do not exist; what can be held out are bursts. The bursts are split
+into contiguous blocks (default 5 blocks of 5 bursts, and also one burst at a time); for each
+block every model is fitted on the other bursts and scored on the held-out block.
+
+Choices, and why:
+
+- **Reference and baselines.** The unit is still: the reference rate is 0. ``raw`` is BS1 of
+  the paper (the MSE of the output around 0), which the constant zero-rate offset dominates
+  (about -2 deg/s on x). The honest baseline is ``bias``: a constant offset fitted on the
+  training bursts, nothing thermal.
+- **Noise floor.** A held-out burst's samples scatter around the burst mean with the white
+  noise of the gyro (the drift moves by under 1e-3 deg/s within a 5 s burst). The floor of a
+  block is the mean squared deviation of its samples from their own burst means; any model
+  whose prediction is constant over a burst has a held-out BS at or above it, so
+  ``floor_ratio = BS / floor >= 1`` and ``BS - floor`` is the squared error of the drift
+  prediction.
+- **Dynamic features on the whole time series.** ``lag`` (and ``dTdt``, which spans the same
+  columns: ``dTdt = (T - lag) / tau``) filters the temperature through a first-order lag on
+  the bursts' true stamps, across the ~300 s gaps (the filter holds the new sample over a gap;
+  with tau >= one burst period this still tracks the cooling rate). Restarting the filter per
+  training segment, or running it across the hole left by the held-out block, would give the
+  bursts after the hole a wrong filter state for about tau. The thermometer is an input
+  available at run time, so the features are computed once on the full recording and the
+  model is fitted on the training rows only (tau chosen on the training rows); the held-out
+  gyro samples are never used. Static models (dT, dT^2, dT^3) do not depend on history and
+  are fitted with :func:`gyro_tdc.identify.fit_model` on the training bursts as one run.
+- **Scores.** BS and RMS are :func:`gyro_tdc.evaluate.score.score`'s (the evaluate command's) on
+  the held-out samples; a summary over a group of folds scores all their held-out samples
+  together, so it is the sample-weighted mean of the folds' BS.
+- **Extrapolation.** A block at the warm or the cold end lies outside the training range;
+  :func:`gyro_tdc.model.compensation.compensate` clamps the temperature to it by default, so the
+  model is
+  flat there. Interior and end blocks are reported apart, and the end blocks also without
+  clamping (the compensator node's default, a tangent at the range end, is measured by
+  ``tools/pan_range_holdout.py``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import json
+import math
+from pathlib import Path
+import sys
+from typing import Any, Callable, Mapping, Sequence
+
+from gyro_tdc.base import atomic_write
+from gyro_tdc.data import default_pan_csv, PanCubesat, read_pan_cubesat_csv, Run
+from gyro_tdc.errors import FitError, GyroTdcError
+from gyro_tdc.evaluate.score import score
+from gyro_tdc.identify import estimate_t0, fit_linear, fit_model, fit_time_constant
+from gyro_tdc.model import (batch_features, compensate, CompensationModel, EFFECTS, input_ids,
+                            normalise_ids, resolve_params)
+from gyro_tdc.signal import bias_stability
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['HOLDOUT_MODELS', 'HoldoutModel', 'burst_holdout', 'burst_index',
+           'fit_full_series', 'format_holdout', 'pan_holdout', 'POSITIONS', 'run_tool']
+
+_DEG = 180.0 / math.pi
+#: Fold positions: interior blocks are interpolation, end blocks extrapolation.
+POSITIONS = ('interior', 'end')
+#: Summary groups of a scheme.
+GROUPS = ('interior', 'end', 'all')
+
+
+@dataclass(frozen=True)
+class HoldoutModel:
+    """
+    One model compared in the held-out evaluation.
+
+    Parameters
+    ----------
+    name : str
+        Short name (JSON key and table label).
+    description : str
+        What it is.
+    kind : str
+        ``'raw'`` (no compensation), ``'poly'`` or ``'rbf'``.
+    features : tuple of str
+        Effect ids (``bias`` implied; empty: a constant offset).
+    n_centers : int
+        RBF centres K (``rbf`` only).
+    full_series : bool
+        Features computed on the whole recording (dynamic effects), see the module notes.
+
+    """
+
+    name: str
+    description: str
+    kind: str
+    features: tuple[str, ...] = ()
+    n_centers: int = 12
+    full_series: bool = False
+
+    def to_dict(self) -> dict:
+        """Return the plain-type description written to the JSON."""
+        return {'name': self.name, 'description': self.description, 'kind': self.kind,
+                'features': list(self.features),
+                'n_centers': self.n_centers if self.kind == 'rbf' else 0,
+                'full_series': self.full_series}
+
+
+HOLDOUT_MODELS: tuple[HoldoutModel, ...] = (
+    HoldoutModel('raw', 'raw output around the reference 0 (BS1)', 'raw'),
+    HoldoutModel('bias', 'constant offset fitted on the training bursts', 'poly'),
+    HoldoutModel('conventional', 'poly f(dT)', 'poly', ('dT',)),
+    HoldoutModel('modified', 'poly f(dT, dT^2)', 'poly', ('dT', 'dT2')),
+    HoldoutModel('rbf', 'RBF f(dT, dT^2), K = 12 (the train default)', 'rbf', ('dT', 'dT2'),
+                 12),
+    HoldoutModel('rbf4', 'RBF f(dT, dT^2), K = 4', 'rbf', ('dT', 'dT2'), 4),
+    HoldoutModel('px4', 'PX4-style cubic f(dT, dT^2, dT^3)', 'poly', ('dT', 'dT2', 'dT3')),
+    HoldoutModel('lag', 'poly f(dT, lagged T) = f(dT, dT/dt), tau fitted on the training '
+                 'rows, features on the full time series', 'poly', ('dT', 'lag'),
+                 full_series=True),
+)
+
+
+def burst_index(t: NDArray[np.float64], *, gap_s: float = 2.0) -> NDArray[np.int64]:
+    """
+    Return the burst number of each sample: a gap longer than ``gap_s`` starts a burst.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (N,), s
+        Increasing stamps.
+    gap_s : float, s
+        Shortest gap between bursts.
+
+    Returns
+    -------
+    NDArray[np.int64], shape (N,)
+        Burst number of each sample, 0, 1, ...
+
+    """
+    t = np.asarray(t, dtype=np.float64)
+    if t.ndim != 1 or t.shape[0] == 0:
+        raise FitError(f'Expected `t` of shape (N,) with N >= 1, got {t.shape}.')
+    return np.concatenate([[0], np.cumsum(np.diff(t) > gap_s)]).astype(np.int64)
+
+
+def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[str],
+                    t0: float, params: Mapping[str, Mapping[str, float]] | None = None,
+                    ridge: float = 1e-6, n_grid: int = 25) -> CompensationModel:
+    """
+    Fit a ``poly`` model on some rows, the features computed on the whole run.
+
+    The effect parameters marked as fitted in the catalog (the ``lag`` time constant) are
+    chosen on the training rows: a log grid over the catalog bounds, then a bounded 1-D
+    search around the best point. With static features this is the same least squares as
+    :func:`gyro_tdc.identify.fit_model` with ``kind='poly'``.
+
+    Parameters
+    ----------
+    run : Run
+        The whole recording (stamps of every burst; filters run across the gaps).
+    train : NDArray[np.bool_], shape (N,)
+        Rows the model is fitted on.
+    features : sequence of str
+        Effect ids.
+    t0 : float, degC
+        Reference temperature.
+    params : mapping, optional
+        Starting or fixed effect parameters.
+    ridge : float
+        Relative ridge penalty on the non-constant weights (as ``fit_model``).
+    n_grid : int
+        Points of the log grid per fitted parameter.
+
+    Returns
+    -------
+    CompensationModel
+        A ``poly`` model; its ``temp_range_c`` is the range of the training rows.
+
+    """
+    train = np.asarray(train, dtype=bool)
+    if train.shape != (len(run),):
+        raise FitError(f'Expected `train` of shape ({len(run)},), got {train.shape}.')
+    if np.count_nonzero(train) < 2:
+        raise FitError(f'Expected at least 2 training rows, got {np.count_nonzero(train)}.')
+    ids = normalise_ids(features)
+    inputs = input_ids(ids)
+    par = resolve_params(ids, params)
+    y = (run.omega - run.omega_ref)[train]
+
+    def design(p: Mapping) -> NDArray[np.float64]:
+        return batch_features(inputs, run.t, run.temp, t0=t0, params=p)[train]
+
+    for eid in inputs:
+        for name in EFFECTS[eid].fitted:
+
+            def sse(tau: float, eid: str = eid, name: str = name) -> float:
+                trial = {k: dict(v) for k, v in par.items()}
+                trial[eid][name] = tau
+                return fit_linear(design(trial), y, kind='poly', ridge=ridge).sse
+
+            par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name],
+                                               n_grid=n_grid).tau
+    fit = fit_linear(design(par), y, kind='poly', ridge=ridge)
+    f = len(inputs)
+    temp = run.temp[train]
+    return CompensationModel(
+        kind='poly', features=ids, effect_params=par, t0_c=float(t0),
+        input_mean=fit.mean, input_std=fit.std, centers=np.zeros((0, f)),
+        widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=fit.coef[0],
+        linear=fit.coef[1:], scale=np.zeros(3),
+        temp_range_c=(float(temp.min()), float(temp.max())),
+        residual_var=np.mean(fit.resid ** 2, axis=0),
+        created={'fit': 'gyro_tdc.evaluate.realdata.fit_full_series'})
+
+
+def _fit(spec: HoldoutModel, run: Run, train: NDArray[np.bool_], t0: float
+         ) -> CompensationModel:
+    """Fit one compared model on the training rows."""
+    if spec.full_series:
+        return fit_full_series(run, train, features=spec.features, t0=t0)
+    idx = np.flatnonzero(train)
+    sub = Run(run.t[idx], run.temp[idx], run.omega[idx], run.omega_ref[idx],
+              f'{run.name}[train]')
+    return fit_model([sub], kind=spec.kind, features=spec.features, t0=t0,
+                     n_centers=spec.n_centers, seed=0)
+
+
+def _blocks(n_bursts: int, n_blocks: int) -> list[NDArray[np.int64]]:
+    """Split ``0..n_bursts-1`` into ``n_blocks`` contiguous blocks of near-equal size."""
+    return [np.asarray(b, dtype=np.int64)
+            for b in np.array_split(np.arange(n_bursts), n_blocks)]
+
+
+def _rows(run: Run, idx: NDArray[np.int64], name: str) -> Run:
+    """Return the rows ``idx`` (increasing) of a run as a run of their own."""
+    return Run(run.t[idx], run.temp[idx], run.omega[idx], run.omega_ref[idx], name)
+
+
+def _scored(omega: tuple[NDArray[np.float64], NDArray[np.float64]], held: Run,
+            floor: NDArray[np.float64]) -> tuple[dict, NDArray[np.float64]]:
+    """Score a clamped and an unclamped rate on held-out rows; return the row and BS."""
+    ev, ev_u = (score(o, held, allan=False) for o in omega)
+    return {'bs': ev.bs.tolist(), 'rms_dps': ev.rms_dps.tolist(),
+            'floor_ratio': (ev.bs / floor).tolist(), 'bs_unclamped': ev_u.bs.tolist(),
+            'floor_ratio_unclamped': (ev_u.bs / floor).tolist()}, ev.bs
+
+
+def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
+            models: Sequence[HoldoutModel], t0: float) -> dict:
+    """Run one leave-one-block-out scheme; return its folds and summaries."""
+    n_bursts = int(burst.max()) + 1
+    err = run.omega - run.omega_ref
+    means = np.array([err[burst == b].mean(axis=0) for b in range(n_bursts)])
+
+    def floor_of(idx: NDArray[np.int64]) -> NDArray[np.float64]:
+        """BS of held-out samples around their own burst means (the white-noise floor)."""
+        return bias_stability(err[idx], means[burst[idx]])
+
+    folds = []
+    # Held-out rows and rates of every fold, pooled per group for the summaries.
+    pooled: dict[str, list] = {g: [] for g in GROUPS}
+    for i, held_bursts in enumerate(_blocks(n_bursts, n_blocks)):
+        held = np.isin(burst, held_bursts)
+        train = ~held
+        idx = np.flatnonzero(held)
+        position = 'end' if held_bursts[0] == 0 or held_bursts[-1] == n_bursts - 1 \
+            else 'interior'
+        floor = floor_of(idx)
+        held_run = _rows(run, idx, f'{run.name}[block {i}]')
+        t_lo, t_hi = float(run.temp[train].min()), float(run.temp[train].max())
+        temp_h = run.temp[held]
+        fold = {'block': i, 'bursts': [int(held_bursts[0]), int(held_bursts[-1])],
+                'samples': len(idx), 'position': position,
+                'temperature_c': [float(temp_h.min()), float(temp_h.max())],
+                'train_temperature_c': [t_lo, t_hi],
+                'outside_fraction': float(np.mean((temp_h < t_lo) | (temp_h > t_hi))),
+                'floor_bs_dps2': floor.tolist(), 'models': {}}
+        rates = {}
+        for spec in models:
+            if spec.kind == 'raw':
+                rates[spec.name] = (run.omega[held],) * 2
+                extra = {}
+            else:
+                model = _fit(spec, run, train, t0)
+                rates[spec.name] = tuple(
+                    compensate(model, run.t, run.temp, run.omega, clamp=c)[held]
+                    for c in (True, False))
+                extra = {'effect_params': {k: dict(v) for k, v in model.effect_params.items()}}
+            fold['models'][spec.name] = {**_scored(rates[spec.name], held_run, floor)[0],
+                                         **extra}
+        for g in (position, 'all'):
+            pooled[g].append((idx, rates))
+        folds.append(fold)
+    summary = {}
+    for g in GROUPS:
+        if not pooled[g]:
+            summary[g] = None
+            continue
+        idx = np.concatenate([x[0] for x in pooled[g]])
+        floor = floor_of(idx)
+        group_run = _rows(run, idx, f'{run.name}[{g}]')
+        summary[g] = {'folds': len(pooled[g]), 'samples': len(idx),
+                      'floor_bs_dps2': floor.tolist(), 'models': {}}
+        bs_of = {}
+        for spec in models:
+            rate = tuple(np.concatenate([x[1][spec.name][c] for x in pooled[g]])
+                         for c in (0, 1))
+            summary[g]['models'][spec.name], bs_of[spec.name] = _scored(rate, group_run, floor)
+        for spec in models:
+            row = summary[g]['models'][spec.name]
+            for base in ('raw', 'bias'):
+                if base in bs_of:
+                    row[f'p_vs_{base}'] = (bs_of[spec.name] / bs_of[base]).tolist()
+    sizes = sorted({len(b) for b in _blocks(n_bursts, n_blocks)})
+    name = 'leave_one_burst_out' if n_blocks == n_bursts else 'leave_one_block_out'
+    return {'name': name, 'n_blocks': n_blocks, 'bursts_per_block': sizes, 'folds': folds,
+            'summary': summary}
+
+
+def burst_holdout(run: Run, *, n_blocks: int = 5, leave_one_out: bool = True,
+                  models: Sequence[HoldoutModel] = HOLDOUT_MODELS, gap_s: float = 2.0,
+                  t0: float | None = None) -> dict:
+    """
+    Evaluate the models on a bursty recording by leave-one-burst-block-out.
+
+    Parameters
+    ----------
+    run : Run
+        The whole recording as one run (bursts separated by gaps longer than ``gap_s``).
+    n_blocks : int
+        Contiguous blocks of bursts (2 .. number of bursts).
+    leave_one_out : bool
+        Also run leave-one-burst-out (skipped when ``n_blocks`` already is the burst count).
+    models : sequence of HoldoutModel
+        Models compared (``raw`` and ``bias`` give the baselines and the ``p_vs_*`` ratios).
+    gap_s : float, s
+        Shortest gap between bursts.
+    t0 : float, optional, degC
+        Reference temperature of every fold (default: :func:`estimate_t0` of the run, the
+        first burst; for models with an intercept it only re-parameterises).
+
+    Returns
+    -------
+    dict
+        Plain types (JSON): ``samples``, ``bursts``, ``burst_period_s``, ``temperature_c``,
+        ``t0_c``, ``noise``, ``models`` and ``schemes`` (see ``docs/real_data.md``).
+
+    """
+    burst = burst_index(run.t, gap_s=gap_s)
+    n_bursts = int(burst[-1]) + 1
+    if not isinstance(n_blocks, (int, np.integer)) or not 2 <= n_blocks <= n_bursts:
+        raise FitError(f'Expected `n_blocks` between 2 and the number of bursts '
+                       f'({n_bursts}), got {n_blocks!r}.')
+    names = [m.name for m in models]
+    if len(set(names)) != len(names) or not names:
+        raise FitError(f'Expected `models` with unique names, got {names}.')
+    counts = np.bincount(burst)
+    if counts.min() < 2:
+        raise FitError(f'Expected at least 2 samples per burst (gap_s = {gap_s} s), got a '
+                       f'burst of {int(counts.min())}.')
+    if t0 is None:
+        t0 = estimate_t0(run)
+    err = (run.omega - run.omega_ref) * _DEG
+    means = np.array([err[burst == b].mean(axis=0) for b in range(n_bursts)])
+    dev = err - means[burst]
+    sd = np.sqrt((dev ** 2).mean(axis=0))
+    # First differences within bursts: an independent look at the white noise.
+    same = np.diff(burst) == 0
+    diff_sd = np.std(np.diff(err, axis=0)[same], axis=0) / math.sqrt(2.0)
+    starts = np.array([run.t[burst == b][0] for b in range(n_bursts)])
+    schemes = [_scheme(run, burst, n_blocks, models, t0)]
+    if leave_one_out and n_blocks != n_bursts:
+        schemes.append(_scheme(run, burst, n_bursts, models, t0))
+    return {
+        'source': run.name, 'samples': len(run), 'bursts': n_bursts,
+        'samples_per_burst': [int(counts.min()), int(counts.max())],
+        'burst_period_s': float(np.median(np.diff(starts))) if n_bursts > 1 else 0.0,
+        'temperature_c': [float(run.temp.min()), float(run.temp.max())],
+        'temperature_first_last_c': [float(run.temp[burst == 0].mean()),
+                                     float(run.temp[burst == n_bursts - 1].mean())],
+        't0_c': float(t0),
+        'noise': {'within_burst_sd_dps': sd.tolist(), 'floor_bs_dps2': (sd ** 2).tolist(),
+                  'diff_sd_dps': diff_sd.tolist(),
+                  'burst_mean_se_dps': (sd / math.sqrt(float(np.median(counts)))).tolist()},
+        'drift_dps': (means[-1] - means[0]).tolist(),
+        'models': [m.to_dict() for m in models],
+        'schemes': schemes,
+    }
+
+
+def pan_holdout(csv: str | Path | PanCubesat | None = None, *, n_blocks: int = 5,
+                leave_one_out: bool = True,
+                models: Sequence[HoldoutModel] = HOLDOUT_MODELS) -> dict:
+    """
+    Evaluate the models on the PAN CubeSat TVAC recording (leave one burst block out).
+
+    Parameters
+    ----------
+    csv : str, Path or PanCubesat, optional
+        ``TVCtest3_7_20.csv`` or its parsed content (default: the shared data set beside the
+        repository).
+    n_blocks : int
+        Contiguous blocks of bursts (default 5 blocks of 5 bursts).
+    leave_one_out : bool
+        Also run leave-one-burst-out.
+    models : sequence of HoldoutModel
+        Models compared.
+
+    Returns
+    -------
+    dict
+        As :func:`burst_holdout`, with ``source`` the CSV path.
+
+    Raises
+    ------
+    DatasetError
+        When the CSV is missing or malformed.
+
+    """
+    if isinstance(csv, PanCubesat):
+        data, source = csv, 'PanCubesat'
+    else:
+        path = Path(csv) if csv is not None else default_pan_csv()
+        data, source = read_pan_cubesat_csv(path), str(path)
+    run = Run(data.t, data.temp_c, data.gyro, np.zeros_like(data.gyro), source)
+    out = burst_holdout(run, n_blocks=n_blocks, leave_one_out=leave_one_out, models=models)
+    out['rows_removed'] = data.rows_removed
+    return out
+
+
+def _f3(values: Sequence[float], fmt: str) -> str:
+    """Format three per-axis values."""
+    return ' '.join(format(v, fmt) for v in values)
+
+
+def _model_rows(models: Mapping[str, Any], names: Sequence[str], *, unclamped: bool,
+                ratios: bool) -> list[str]:
+    """Format one row per model: BS, RMS and floor ratio per axis (x y z)."""
+    rows = []
+    for name in names:
+        m = models[name]
+        bs = m['bs_unclamped'] if unclamped else m['bs']
+        ratio = m['floor_ratio_unclamped'] if unclamped else m['floor_ratio']
+        line = (f'  {name:<13}{_f3(bs, "10.3e")} | {_f3(np.sqrt(bs), "7.4f")} | '
+                f'{_f3(ratio, "9.2f")}')
+        if ratios and 'p_vs_bias' in m and not unclamped:
+            line += f' | {_f3(m["p_vs_bias"], "7.3f")}'
+        rows.append(line)
+    return rows
+
+
+def _fitted(models: Mapping[str, Any]) -> str:
+    """Return the effect parameters fitted in a fold, e.g. ``, lag model lag.tau_s = 1364``."""
+    out = [f'{name} model {eid}.{k} = {v:.0f}' for name, m in models.items()
+           for eid, p in m.get('effect_params', {}).items() for k, v in p.items()
+           if EFFECTS[eid].fitted and k in EFFECTS[eid].fitted]
+    return ''.join(f', {x}' for x in out)
+
+
+def _head(ratios: bool) -> str:
+    """Return the column header matching :func:`_model_rows`."""
+    line = ('  ' + 'model'.ljust(13) + ' '.join(f'{"BS " + a:>10}' for a in 'xyz') + ' | '
+            + ' '.join(f'{"RMS " + a:>7}' for a in 'xyz') + ' | '
+            + ' '.join(f'{"ratio " + a:>9}' for a in 'xyz'))
+    if ratios:
+        line += ' | ' + ' '.join(f'{"/bias " + a:>7}' for a in 'xyz')
+    return line
+
+
+def format_holdout(result: Mapping[str, Any]) -> str:
+    """
+    Format the evaluation as the tables ``tools/pan_holdout.py`` prints.
+
+    Parameters
+    ----------
+    result : mapping
+        What :func:`burst_holdout` or :func:`pan_holdout` returned.
+
+    Returns
+    -------
+    str
+        Header, then per scheme: the per-block tables (small schemes), the x-axis floor
+        ratios per fold (leave-one-burst-out) and the interior / end / all summaries.
+
+    """
+    r = result
+    names = [m['name'] for m in r['models']]
+    nz = r['noise']
+    lines = [
+        f'{r["source"]}: {r["samples"]} samples in {r["bursts"]} bursts of '
+        f'{r["samples_per_burst"][0]}-{r["samples_per_burst"][1]} (one every '
+        f'{r["burst_period_s"]:.0f} s), {r["temperature_first_last_c"][0]:.2f} -> '
+        f'{r["temperature_first_last_c"][1]:.2f} degC, T0 = {r["t0_c"]:.2f} degC',
+        f'drift of the burst means, last - first: x y z = {_f3(r["drift_dps"], "+.4f")} deg/s',
+        f'white noise (within-burst sd at 50 Hz): {_f3(nz["within_burst_sd_dps"], ".4f")} '
+        f'deg/s (first differences: {_f3(nz["diff_sd_dps"], ".4f")}); noise floor = '
+        f'{_f3(nz["floor_bs_dps2"], ".3e")} (deg/s)^2; burst-mean s.e. '
+        f'{_f3(nz["burst_mean_se_dps"], ".4f")} deg/s',
+        'models: ' + '; '.join(f'{m["name"]} = {m["description"]}' for m in r['models']),
+        'columns: BS in (deg/s)^2 around the reference 0, RMS in deg/s, ratio = BS / noise '
+        'floor of the held-out samples (>= 1 up to the temperature-noise term), /bias = BS / '
+        'BS of the bias-only baseline',
+    ]
+    for s in r['schemes']:
+        sizes = '/'.join(str(v) for v in s['bursts_per_block'])
+        lines += ['', f'== {s["name"]}: {s["n_blocks"]} blocks of {sizes} bursts; fit on the '
+                  f'others, score the held-out block; temperatures outside the training range '
+                  f'clamped =']
+        if s['n_blocks'] <= 10:
+            for f in s['folds']:
+                lines += ['', f'block {f["block"]}: bursts {f["bursts"][0]}-{f["bursts"][1]}, '
+                          f'{f["temperature_c"][1]:.2f}..{f["temperature_c"][0]:.2f} degC, '
+                          f'{f["position"]} ('
+                          + ('interpolation' if f['position'] == 'interior' else
+                             f'extrapolation, {100 * f["outside_fraction"]:.0f} % of samples '
+                             'outside the training range')
+                          + f'), floor {_f3(f["floor_bs_dps2"], ".3e")}'
+                          + _fitted(f['models']), _head(False)]
+                lines += _model_rows(f['models'], names, unclamped=False, ratios=False)
+        else:
+            lines += ['', 'BS/floor on x per held-out fold:',
+                      '  fold  T degC  pos       ' + ' '.join(f'{n:>12}' for n in names)]
+            for f in s['folds']:
+                t_mid = 0.5 * sum(f['temperature_c'])
+                lines.append(f'  {f["block"]:>4}  {t_mid:6.2f}  {f["position"]:<8}  '
+                             + ' '.join(f'{f["models"][n]["floor_ratio"][0]:12.2f}'
+                                        for n in names))
+        for g, label, unclamped in (
+                ('interior', 'interior blocks (interpolation)', False),
+                ('end', 'end blocks (extrapolation), clamped', False),
+                ('end', 'end blocks, NOT clamped (models extrapolate)', True),
+                ('all', 'all blocks, clamped', False)):
+            sm = s['summary'][g]
+            if sm is None:
+                continue
+            lines += ['', f'mean over {label}: {sm["folds"]} folds, {sm["samples"]} samples, '
+                      f'floor {_f3(sm["floor_bs_dps2"], ".3e")}',
+                      _head(not unclamped)]
+            lines += _model_rows(sm['models'], names, unclamped=unclamped, ratios=True)
+    return '\n'.join(lines)
+
+
+def run_tool(prog: str, compute: Callable[[], Mapping[str, Any]],
+             fmt: Callable[[Mapping[str, Any]], str], json_path: Path | None) -> int:
+    """
+    Run a real-data tool: compute, print the table, write the JSON; one line on failure.
+
+    Parameters
+    ----------
+    prog : str
+        The tool's name, the prefix of its error lines (``PROG: error: ...``).
+    compute : callable
+        Returns the figures (a JSON-serialisable mapping).
+    fmt : callable
+        Formats the figures as the printed table.
+    json_path : Path, optional
+        Where to write the figures as JSON (atomically).
+
+    Returns
+    -------
+    int
+        0, or 2 on bad input or an unwritable ``json_path``.
+
+    """
+    try:
+        result = compute()
+        print(fmt(result))
+        if json_path is not None:
+            atomic_write(json_path, json.dumps(result, indent=1) + '\n', what='JSON file')
+            print(f'\nwrote {json_path}')
+    except GyroTdcError as err:
+        print(f'{prog}: error: {err}', file=sys.stderr)
+        return 2
+    return 0

@@ -1,0 +1,619 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Formatting of training and evaluation results: text tables, JSON and CSV export.
+
+Formats only; the numbers come from the evaluation core (:mod:`gyro_tdc.evaluate.score`: a
+held-out bag is a :class:`~gyro_tdc.evaluate.score.BagEval` holding one
+:class:`~gyro_tdc.evaluate.score.ModelEval` per model) and from :mod:`gyro_tdc.data.coverage`. The
+functions here turn them into
+
+* text: a summary table (BS in (deg/s)^2 and RMS in deg/s per axis), the paper's tables 3-7
+  (``BS1 BS2 BS3 P1 P2 P3`` with P1 = BS2/BS1, P2 = BS3/BS1, P3 = BS3/BS2), the Allan
+  readouts (angle random walk, bias instability), the means over bags, and the training
+  report with the coverage of the training data;
+* JSON (:func:`evaluation_json`, the shape documented in docs/json.md, nothing more);
+* one CSV per bag (:func:`write_csv`).
+
+The three PNGs per bag are drawn by :mod:`gyro_tdc.evaluate.plots`.
+
+Every file is written atomically (:func:`gyro_tdc.base.atomicio.atomic_write`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+from typing import Any, IO, Sequence
+
+from gyro_tdc.base import atomic_write
+from gyro_tdc.data import Coverage
+from gyro_tdc.evaluate.score import BagEval, mean_scores
+from gyro_tdc.identify import TrainResult
+from gyro_tdc.model import (DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OPERATING_RANGE_C,
+                            range_shortfall)
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    'AXES', 'csv_columns', 'drift_slope', 'evaluation_json', 'format_allan', 'format_bag',
+    'format_coverage', 'format_means', 'format_paper_table', 'format_summary', 'format_training',
+    'is_coverage_line', 'write_csv', 'write_json',
+]
+
+AXES = ('x', 'y', 'z')
+_DEG = 180.0 / math.pi
+
+
+# --------------------------------------------------------------------------------------------
+# JSON
+# --------------------------------------------------------------------------------------------
+
+def _finite(v: float) -> float | None:
+    """Return ``v`` as a float, or None when it is NaN or infinite (JSON has neither)."""
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def _vec(a: NDArray[np.float64]) -> list:
+    """Return a (3,) array as a list of JSON-safe floats."""
+    return [_finite(v) for v in np.asarray(a, dtype=np.float64).ravel()]
+
+
+def _vec_or_null(a: NDArray[np.float64] | None) -> list | None:
+    """Return :func:`_vec` of ``a``, or None when there is none (not applicable)."""
+    return None if a is None else _vec(a)
+
+
+def _over(bs: NDArray[np.float64] | None, floor: Sequence[float] | None) -> dict:
+    """Return ``{'...over_floor': BS / floor}`` when a floor is given, else ``{}``."""
+    if floor is None:
+        return {}
+    return {'over_floor': None if bs is None else _vec(np.asarray(bs) / np.asarray(floor))}
+
+
+def _scores(m: Any, floor: Sequence[float] | None, accel_floor: Sequence[float] | None) -> dict:
+    """Return the ``bs`` and ``accel_bs`` keys of one entry, each with its ratio to a floor."""
+    out = {'bs': _vec(m.bs)}
+    out.update({f'bs_{k}': v for k, v in _over(m.bs, floor).items()})
+    out['accel_bs'] = _vec_or_null(m.accel_bs)
+    out.update({f'accel_bs_{k}': v for k, v in _over(m.accel_bs, accel_floor).items()})
+    return out
+
+
+def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = None,
+                    accel_floor: Sequence[float] | None = None) -> dict:
+    """
+    Return the evaluation in the documented JSON shape (docs/json.md), nothing more.
+
+    Parameters
+    ----------
+    bags : sequence of BagEval
+        Evaluated bags.
+    floor : sequence of 3 float, (deg/s)^2, optional
+        A known white-noise floor of the gyro per axis (``--floor``): adds ``bs_over_floor``
+        beside every ``bs`` and ``floor`` at the top.
+    accel_floor : sequence of 3 float, (m/s^2)^2, optional
+        Likewise for the accelerometer (``--accel-floor``): ``accel_bs_over_floor`` beside
+        every ``accel_bs`` (null where that is null) and ``accel_floor`` at the top.
+
+    Returns
+    -------
+    dict
+        ``{"bags": [{"bag", "samples", "temperature_c", "raw": {"bs", "rms_dps"},
+        "models": [{"model", "features", "bs", "rms_dps", "p_vs_raw",
+        "adev": {"tau_s", "dps"}, "reanchor"?}]}], "out_of_range"}``; BS in (deg/s)^2, RMS
+        and ADEV in deg/s, non-finite values as null; ``out_of_range`` the policy beyond the
+        trained range, ``reanchor`` (``--reanchor auto`` only) ``{samples, duration_s,
+        shift_dps, se_dps, tolerance_dps, reason}``; ``accel_bs`` beside ``bs`` in ``raw``
+        and each model: the accelerometer BS in (m/s^2)^2, null when not applicable;
+        ``bs_over_floor``, ``accel_bs_over_floor``, ``floor`` and ``accel_floor`` only with
+        ``floor`` and ``accel_floor``.
+
+    """
+    doc = {'bags': [{
+        'bag': b.bag,
+        'samples': int(b.samples),
+        'temperature_c': [_finite(b.temperature_c[0]), _finite(b.temperature_c[1])],
+        'raw': {**_scores(b.raw, floor, accel_floor), 'rms_dps': _vec(b.raw.rms_dps)},
+        'models': [{
+            'model': m.model,
+            'features': list(m.features),
+            **_scores(m, floor, accel_floor),
+            'rms_dps': _vec(m.rms_dps),
+            'p_vs_raw': _vec(m.p_vs_raw),
+            'adev': {'tau_s': _vec(m.adev_tau_s),
+                     'dps': [_vec(row) for row in np.asarray(m.adev_dps)]},
+            **({} if m.reanchor is None else {'reanchor': m.reanchor}),
+        } for m in b.models],
+    } for b in bags]}
+    doc['out_of_range'] = bags[0].out_of_range if bags else DEFAULT_OUT_OF_RANGE
+    if floor is not None:
+        doc['floor'] = _vec(np.asarray(floor))
+    if accel_floor is not None:
+        doc['accel_floor'] = _vec(np.asarray(accel_floor))
+    return doc
+
+
+def write_json(bags: Sequence[BagEval], path: str | os.PathLike, *,
+               floor: Sequence[float] | None = None,
+               accel_floor: Sequence[float] | None = None) -> Path:
+    """Write :func:`evaluation_json` to ``path`` atomically (parents created); return it."""
+    doc = evaluation_json(bags, floor=floor, accel_floor=accel_floor)
+    return atomic_write(path, json.dumps(doc, indent=1, allow_nan=False) + '\n',
+                        what='JSON file')
+
+
+# --------------------------------------------------------------------------------------------
+# Text tables
+# --------------------------------------------------------------------------------------------
+
+def _g(v: float, width: int = 11) -> str:
+    """Format one number for a table column."""
+    if not math.isfinite(v):
+        return f'{"-":>{width}}'
+    return f'{v:>{width}.4g}'
+
+
+# BagEval.reference (where the reference rate came from) in words.
+_REFERENCE = {'topic': 'reference rate from the reference topic',
+              'constant': 'constant reference rate (--reference)',
+              'zero': 'reference rate zero (no reference topic)'}
+
+
+def _floor_text(floor: Sequence[float]) -> str:
+    """Return a floor as ``0.009`` when the axes agree, else ``x, y, z``."""
+    f = [float(v) for v in floor]
+    return f'{f[0]:.4g}' if f[0] == f[1] == f[2] else ', '.join(f'{v:.4g}' for v in f)
+
+
+def _floor_head(floor: Sequence[float] | None, what: str = 'BS') -> str:
+    """Return the column headers of the ratio to a floor ('' without a floor)."""
+    return '' if floor is None else '  ' + ''.join(f'{what + "/fl " + a:>11}' for a in AXES)
+
+
+def _floor_cells(bs: NDArray[np.float64] | None, floor: Sequence[float] | None) -> str:
+    """Return the cells of BS / floor ('' without a floor, - where there is no BS)."""
+    if floor is None:
+        return ''
+    v = np.full(3, math.nan) if bs is None else np.asarray(bs) / np.asarray(floor)
+    return '  ' + ''.join(_g(x) for x in v)
+
+
+def format_summary(b: BagEval, *, floor: Sequence[float] | None = None,
+                   accel_floor: Sequence[float] | None = None) -> str:
+    """
+    Return the per-bag summary: BS, RMS and BS/BS1 per axis for raw data and every model.
+
+    Parameters
+    ----------
+    b : BagEval
+        One evaluated bag.
+    floor : sequence of 3 float, (deg/s)^2, optional
+        A known white-noise floor per axis: adds the columns BS / floor (``BS/fl``).
+    accel_floor : sequence of 3 float, (m/s^2)^2, optional
+        Likewise for the accelerometer rows (``aBS/fl``).
+
+    Returns
+    -------
+    str
+        Multi-line table (no trailing newline).
+
+    """
+    lo, hi = b.temperature_c
+    reference = _REFERENCE.get(b.reference, f'reference {b.reference}')
+    lines = [f'bag {b.bag}: {b.samples} samples over {b.duration_s / 3600.0:.2f} h, '
+             f'temperature {lo:.2f} .. {hi:.2f} degC, {reference}']
+    w = max([len(m.label) for m in b.models] + [12])
+    head = (f'  {"":<{w}} ' + ''.join(f'{"BS " + a:>11}' for a in AXES) + '  '
+            + ''.join(f'{"RMS " + a:>11}' for a in AXES) + '  '
+            + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES) + _floor_head(floor))
+    lines += ['  BS in (deg/s)^2 (paper eq. 30), RMS in deg/s, BS/BS1 against the raw data'
+              + ('' if floor is None else
+                 f', BS/fl against the floor {_floor_text(floor)} (deg/s)^2 (--floor)'),
+              head]
+    for m in [b.raw] + list(b.models):
+        lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in m.bs) + '  '
+                     + ''.join(_g(v) for v in m.rms_dps) + '  '
+                     + ''.join(_g(v) for v in m.p_vs_raw) + _floor_cells(m.bs, floor))
+    note = _outside_note(b)
+    if note:
+        lines.append(note)
+    lines += _accel_rows(b, w, accel_floor)
+    return '\n'.join(lines)
+
+
+def _accel_rows(b: BagEval, w: int, accel_floor: Sequence[float] | None = None) -> list:
+    """Return the accelerometer rows of a bag's summary (none when not applicable)."""
+    if b.raw.accel_bs is None:
+        return []
+    lines = ['  accelerometer (still run): BS = variance around the run mean in (m/s^2)^2, '
+             'BS/BS1 against the raw data'
+             + ('' if accel_floor is None else
+                f', aBS/fl against the floor {_floor_text(accel_floor)} (m/s^2)^2 '
+                '(--accel-floor)') + '; - : no accelerometer part',
+             f'  {"":<{w}} ' + ''.join(f'{"aBS " + a:>11}' for a in AXES) + '  '
+             + ''.join(f'{"aBS/BS1 " + a:>11}' for a in AXES) + _floor_head(accel_floor, 'aBS')]
+    for m in [b.raw] + list(b.models):
+        bs = np.full(3, math.nan) if m.accel_bs is None else np.asarray(m.accel_bs)
+        lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in bs) + '  '
+                     + ''.join(_g(v) for v in bs / b.raw.accel_bs)
+                     + _floor_cells(m.accel_bs, accel_floor))
+    return lines
+
+
+def _outside_note(b: BagEval) -> str:
+    """Return one note for every model the bag leaves the trained range of ('' if none)."""
+    groups: dict = {}       # (fraction text, range) -> labels, in model order
+    for m in b.models:
+        if m.outside_fraction > 0:
+            key = (f'{100.0 * m.outside_fraction:.3g} %',
+                   f'[{m.temp_range_c[0]:.2f}, {m.temp_range_c[1]:.2f}] degC')
+            groups.setdefault(key, []).append(m.label)
+    parts = [f'{pct} of the samples lie outside the trained range of {", ".join(labels)} '
+             f'{span}' if i == 0 else f'{pct} outside that of {", ".join(labels)} {span}'
+             for i, ((pct, span), labels) in enumerate(groups.items())]
+    how = {'clamp': 'evaluated clamped at the range ends',
+           'extrapolate': 'the models evaluated there (extrapolated, not clamped)',
+           'linear': 'the correction continued along its tangent at the range end, held '
+                     f'beyond {MAX_EXTRAPOLATION_C:g} degC (out-of-range policy linear, not '
+                     'clamped)'}
+    return (f'  note: {"; ".join(parts)}: {how.get(b.out_of_range, b.out_of_range)}'
+            if parts else '')
+
+
+def format_paper_table(b: BagEval, conventional: int, modified: int) -> str:
+    """
+    Return the paper's table 3-7 layout for one bag: BS1 BS2 BS3 P1 P2 P3 per axis.
+
+    Parameters
+    ----------
+    b : BagEval
+        One evaluated bag.
+    conventional, modified : int
+        Indices into ``b.models`` of the conventional (BS2) and modified (BS3) models.
+
+    Returns
+    -------
+    str
+        Multi-line table; P1 = BS2/BS1, P2 = BS3/BS1, P3 = P2/P1 = BS3/BS2 (in %).
+
+    """
+    from gyro_tdc.signal import p_ratios
+    conv, modi = b.models[conventional], b.models[modified]
+    p = p_ratios(b.raw.bs, conv.bs, modi.bs)
+    lines = [f'  paper table (eq. 31-32), {b.label}: BS1 raw, BS2 {conv.label} '
+             f'(conventional), BS3 {modi.label} (modified); BS in (deg/s)^2',
+             f'  {"":<7}' + ''.join(f'{h:>11}' for h in ('BS1', 'BS2', 'BS3', 'P1', 'P2'))
+             + f'{"P3":>10}']
+    for i, a in enumerate(AXES):
+        p3 = p['P3'][i]
+        p3s = f'{100.0 * p3:>9.2f}%' if math.isfinite(p3) else f'{"-":>10}'
+        lines.append(f'  {a + "-axis":<7}' + _g(b.raw.bs[i]) + _g(conv.bs[i]) + _g(modi.bs[i])
+                     + _g(p['P1'][i]) + _g(p['P2'][i]) + p3s)
+    return '\n'.join(lines)
+
+
+def format_allan(b: BagEval) -> str:
+    """Return the Allan readouts (ARW, deg/sqrt(h); bias instability, deg/h) per axis."""
+    w = max([len(m.label) for m in b.models] + [12])
+    lines = ['  Allan deviation: angle random walk ARW in deg/sqrt(h), bias instability BI '
+             'in deg/h',
+             f'  {"":<{w}} ' + ''.join(f'{"ARW " + a:>11}' for a in AXES)
+             + '  ' + ''.join(f'{"BI " + a:>11}' for a in AXES)]
+    for m in [b.raw] + list(b.models):
+        lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in m.arw_deg_sqrt_h) + '  '
+                     + ''.join(_g(v) for v in m.bias_instability_deg_h))
+    return '\n'.join(lines)
+
+
+def format_bag(b: BagEval, baseline: int | None = None, *,
+               floor: Sequence[float] | None = None,
+               accel_floor: Sequence[float] | None = None) -> str:
+    """
+    Return every table of one bag: summary, paper tables against ``baseline``, Allan readouts.
+
+    Parameters
+    ----------
+    b : BagEval
+        One evaluated bag.
+    baseline : int, optional
+        Index into ``b.models`` of the conventional model; one paper table (tables 3-7) is
+        added per other model. None: no paper table.
+    floor, accel_floor : sequence of 3 float, optional
+        Known white-noise floors, (deg/s)^2 and (m/s^2)^2: see :func:`format_summary`.
+
+    Returns
+    -------
+    str
+        Multi-line text (no trailing newline).
+
+    """
+    parts = [format_summary(b, floor=floor, accel_floor=accel_floor)]
+    if baseline is not None:
+        parts += [format_paper_table(b, baseline, i) for i in range(len(b.models))
+                  if i != baseline]
+    parts.append(format_allan(b))
+    return '\n'.join(parts)
+
+
+def format_means(results: Sequence[BagEval], *, floor: Sequence[float] | None = None) -> str:
+    """
+    Return the mean BS and BS/BS1 per model and axis over several bags.
+
+    Parameters
+    ----------
+    results : sequence of BagEval
+        Evaluated bags (the same models in each).
+    floor : sequence of 3 float, (deg/s)^2, optional
+        A known white-noise floor per axis: adds the mean BS / floor (``BS/fl``).
+
+    Returns
+    -------
+    str
+        Multi-line table (no trailing newline); see :func:`gyro_tdc.evaluate.score.mean_scores`.
+
+    """
+    rows = mean_scores(results)
+    w = max([len(label) for label, _, _ in rows[1:]] + [12])
+    lines = [f'mean over {len(results)} bags: BS in (deg/s)^2 and BS/BS1'
+             + ('' if floor is None else f', BS/fl against the floor {_floor_text(floor)}'),
+             f'  {"":<{w}} ' + ''.join(f'{"BS " + a:>11}' for a in AXES) + '  '
+             + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES) + _floor_head(floor)]
+    for label, bs, p in rows:
+        lines.append(f'  {label:<{w}} ' + ''.join(_g(v) for v in bs) + '  '
+                     + ''.join(_g(v) for v in p) + _floor_cells(bs, floor))
+    return '\n'.join(lines)
+
+
+# --------------------------------------------------------------------------------------------
+# Coverage of training data
+# --------------------------------------------------------------------------------------------
+
+def _bin_name(c: Coverage, i: int) -> str:
+    """Return ``[a, b) degC`` for bin ``i``."""
+    return f'[{c.edges[i]:g}, {c.edges[i + 1]:g}) degC'
+
+
+def format_coverage(c: Coverage) -> tuple[str, list]:
+    """
+    Return the coverage summary (three lines) and the warning lines (no ``warning:`` prefix).
+
+    Parameters
+    ----------
+    c : Coverage
+        Coverage of the training data.
+
+    Returns
+    -------
+    table : str
+        The range covered; the bins in one line (how many, their minutes: least, median,
+        most, and how many are thin, i.e. under a quarter of the median minutes per degC);
+        minutes heating, cooling and steady.
+    warnings : list of str
+        The thin bins by name; no heating or no cooling data.
+
+    """
+    lo, hi = c.temp_range_c
+    lines = [f'temperature range covered: {lo:.2f} .. {hi:.2f} degC (span {hi - lo:.2f} degC)']
+    minutes = np.asarray(c.minutes, dtype=np.float64)
+    if minutes.size:
+        least, most = int(np.argmin(minutes)), int(np.argmax(minutes))
+        thin = (f'{len(c.sparse)} thin (named in the warning below)' if c.sparse
+                else 'none thin')
+        lines.append(f'coverage per {c.bin_c:g} degC bin: {minutes.size} bins '
+                     f'{c.edges[0]:g} .. {c.edges[-1]:g} degC; minutes per bin '
+                     f'{minutes[least]:.1f} ({_bin_name(c, least)}) .. {minutes[most]:.1f} '
+                     f'({_bin_name(c, most)}), median {float(np.median(minutes)):.1f}; '
+                     f'{thin}')
+    x = c.threshold_c_per_min
+    lines.append(f'heating (dT/dt > +{x:g} degC/min): {c.heating_min:.1f} min; cooling '
+                 f'(< -{x:g}): {c.cooling_min:.1f} min; steady: {c.steady_min:.1f} min')
+    warns = []
+    if c.sparse:
+        names = ', '.join(_bin_name(c, i) for i in c.sparse)
+        warns.append(f'little data in temperature bin(s) {names} (under a quarter of the '
+                     'median minutes per degC): the model is poorly constrained there')
+    total = c.heating_min + c.cooling_min
+    if total > 0 and min(c.heating_min, c.cooling_min) == 0:
+        missing = 'cooling' if c.cooling_min == 0 else 'heating'
+        warns.append(f'no {missing} data: heating/cooling hysteresis and thermal lag cannot '
+                     f'be told apart from static drift; record a {missing} leg too')
+    return '\n'.join(lines), warns
+
+
+def is_coverage_line(line: str) -> bool:
+    """
+    Return True for a line of :func:`format_coverage` (its table or its warnings).
+
+    Lets a caller that trains several models on the same bags show the coverage once.
+
+    Parameters
+    ----------
+    line : str
+        One printed line (with or without the ``warning:`` prefix).
+
+    Returns
+    -------
+    bool
+        Whether the line belongs to the coverage report.
+
+    """
+    text = line.removeprefix('warning: ')
+    return text.startswith(('temperature range covered:', 'coverage per ', 'heating (dT/dt',
+                            'little data in temperature bin', 'no heating data:',
+                            'no cooling data:', 'the training data cover '))
+
+
+# --------------------------------------------------------------------------------------------
+# Training report
+# --------------------------------------------------------------------------------------------
+
+def drift_slope(model: Any) -> NDArray[np.float64]:
+    """
+    Return the mean slope of a model's static drift over its trained range, per axis.
+
+    The static drift is the drift at thermal equilibrium (each temperature held until lag,
+    dT/dt and warm-up terms have settled); the slope is its change from the cold end of
+    ``temp_range_c`` to the warm end, divided by the span. For the conventional model f(dT)
+    it is the fitted zero-rate level change per degC (eq. 18, alpha).
+
+    Parameters
+    ----------
+    model : CompensationModel
+        A fitted model.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (3,), deg/s per degC
+        The slope on x, y and z; NaN when the range has no span.
+
+    """
+    from gyro_tdc.model import drift
+
+    lo, hi = (float(v) for v in model.temp_range_c)
+    if not hi > lo:
+        return np.full(3, math.nan)
+    temp = np.array([lo, lo, hi])            # a settling sample, then the two ends
+    t = np.arange(3, dtype=np.float64) * 1e7    # far apart: every dynamic term has settled
+    b = np.degrees(drift(model, t, temp, clamp=True))
+    return (b[2] - b[1]) / (hi - lo)
+
+
+def _row3(label: str, values: Sequence[float]) -> str:
+    """Format one table row of three per-axis numbers."""
+    return f'  {label:<13}' + ''.join(f'{v:>12.4g}' for v in values)
+
+
+def format_training(result: TrainResult) -> tuple[str, list]:
+    """
+    Return the training report and its warnings.
+
+    Parameters
+    ----------
+    result : TrainResult
+        What :func:`gyro_tdc.identify.train.train` returned.
+
+    Returns
+    -------
+    text : str
+        Model summary, training BS raw and compensated per axis, coverage.
+    warnings : list of str
+        Coverage warnings, and that the thermal state's tau is not identifiable when so.
+
+    """
+    m = result.model
+    met = m.metrics
+    feats = ', '.join(m.inputs) or 'bias only'
+    th = m.thermal
+    lagged = th is not None and th.kind != 'none'
+    params = '; '.join(f'{eid}.{k} = {v:.4g}' for eid, p in sorted(m.effect_params.items())
+                       for k, v in p.items() if not (lagged and eid == 'lag'))
+    if lagged:    # the state's tau with its interval, or that the data cannot pin it
+        ivs = th.tau_interval_s
+        if th.identifiable is False:
+            lo, hi = min(p[0] for p in ivs), max(p[1] for p in ivs)
+            tau = f'lag.tau_s not identifiable (profile flat over {lo:.4g}..{hi:.4g} s)'
+        else:
+            tau = f'lag.tau_s = {th.tau_total_s:.4g}' + (
+                '' if ivs is None or len(ivs) != 1 else
+                f' (95 % interval {ivs[0][0]:.4g}..{ivs[0][1]:.4g})')
+        params = '; '.join(v for v in (params, tau) if v)
+    head = (f'model: {m.kind} f({feats}), '
+            + (f'{m.n_centers} centres, ' if m.kind == 'rbf' else '')
+            + f'T0 = {m.t0_c:.3f} degC' + (f', {params}' if params else ''))
+    lo, hi = m.temp_range_c
+    of = 'the model temperature, the thermal state' if lagged else 'the model temperature'
+    lines = [head, f'TRAINED RANGE {lo:.2f} .. {hi:.2f} degC ({of}); beyond it the compensator '
+                   'continues the correction along its tangent (out_of_range: linear) for up '
+                   f'to {MAX_EXTRAPOLATION_C:g} degC, then holds it',
+             f'training data: {len(result.bags)} bag(s), {result.samples} samples',
+             'training bias stability BS, (deg/s)^2:',
+             f'  {"":<13}' + ''.join(f'{a:>12}' for a in AXES),
+             _row3('raw', met.get('raw_bs_dps2', [math.nan] * 3)),
+             _row3('compensated', met.get('train_bs_dps2', [math.nan] * 3)),
+             _row3('RMS (deg/s)', met.get('train_rms_dps', [math.nan] * 3))]
+    if np.any(m.scale != 0):
+        lines.append(_row3('scale (1/C)', m.scale))
+    lines.append(_row3('drift/degC', drift_slope(m)) + '   (deg/s per degC: static drift, '
+                 'mean slope over the range)')
+    table, warns = format_coverage(result.coverage)
+    lines.append(table)
+    short = range_shortfall((lo, hi))
+    if short:
+        a, b = OPERATING_RANGE_C
+        warns = list(warns) + [
+            f'the training data cover {lo:.1f} .. {hi:.1f} degC, less than a typical operating '
+            f'range of {a:g} .. {b:g} degC ({short} missing): there the model is not '
+            'calibrated; the compensator extrapolates along the tangent at the range end '
+            f'(out_of_range: linear, up to {MAX_EXTRAPOLATION_C:g} degC, then held; clamp '
+            'or extrapolate are the alternatives, see docs/real_data.md); record the missing '
+            'temperatures to calibrate them']
+    if lagged and th.identifiable is False:
+        warns = list(warns) + [
+            th.describe().split('; ', 1)[-1] + ': soaks after heating and cooling steps '
+            '(the die catching up) pin it']
+    return '\n'.join(lines), warns
+
+
+# --------------------------------------------------------------------------------------------
+# CSV export and plots
+# --------------------------------------------------------------------------------------------
+
+def csv_columns(b: BagEval) -> list:
+    """Return the CSV header of a bag: time, temperature, raw, reference, each model."""
+    cols = ['t_s', 'temp_c']
+    for who in ['raw', 'ref'] + [m.label for m in b.models]:
+        cols += [f'{who}_{a}_rad_s' for a in AXES]
+    return cols
+
+
+def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000) -> Path:
+    """
+    Write ``DIR/<bag label>.csv``: every sample with the raw, reference and compensated rates.
+
+    Parameters
+    ----------
+    b : BagEval
+        One evaluated bag, with its arrays (``run`` and each model's ``omega``).
+    directory : str or PathLike
+        Output directory (created).
+    chunk : int
+        Rows formatted at once.
+
+    Returns
+    -------
+    Path
+        The CSV written; columns from :func:`csv_columns`, rates in rad/s.
+
+    """
+    run = b.run
+    if run is None:
+        raise ValueError('Expected `b.run` to hold the data; it was released.')
+    path = Path(directory) / f'{b.label}.csv'
+    cols = csv_columns(b)
+    fmt = ['%.6f', '%.6g'] + ['%.9g'] * (len(cols) - 2)
+
+    def rows(fh: IO[str]) -> None:
+        fh.write(','.join(cols) + '\n')
+        for i in range(0, len(run), chunk):
+            sl = slice(i, i + chunk)
+            block = np.column_stack([run.t[sl], run.temp[sl], run.omega[sl], run.omega_ref[sl]]
+                                    + [m.omega[sl] for m in b.models])
+            np.savetxt(fh, block, fmt=fmt, delimiter=',')
+
+    return atomic_write(path, rows, what='CSV file', newline='\n')

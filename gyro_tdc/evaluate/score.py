@@ -1,0 +1,507 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The evaluation core: score compensation models on held-out runs, in the paper's terms.
+
+For every run and axis: the bias stability BS of the raw data (BS1, paper eq. 30-31) and
+after each model, BS/BS1, the RMS error in deg/s and the Allan deviation of the error with
+its angle random walk and bias instability (:func:`score`). A model is a
+:class:`NamedModel` (a model file, or the ``px4`` cubic fitted on training bags:
+:func:`load_models`); :func:`evaluate_run` scores every model on one run and returns a
+:class:`BagEval` of :class:`ModelEval`; :func:`evaluate` does so for bags, one in memory at
+a time. Where a run's model temperature leaves a model's trained range the out-of-range
+policy applies (:mod:`gyro_tdc.model.out_of_range`; ``linear`` by default, as the compensator
+node), and the result says which and how much of the run was outside. Re-anchoring removes
+each model's mean error over the head of the run: the first ``reanchor_s`` seconds, or
+(``'auto'``) as long as the compensator's rule takes to know it to its tolerance
+(:func:`gyro_tdc.runtime.reanchor.reanchor_shift`, the same windows, blocks and tolerance).
+For static runs with accelerometer data the accelerometer's BS (variance around the run
+mean, (m/s^2)^2) is scored too, raw and per model with an accelerometer part
+(:func:`gyro_tdc.identify.accel_scores`); the ``px4`` baseline then fits a cubic for it too.
+
+Formatting (tables, JSON, CSV) lives in :mod:`gyro_tdc.evaluate.report`, plots in
+:mod:`gyro_tdc.evaluate.plots`;
+the command line in :mod:`gyro_tdc.cli.evaluate`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+import os
+from pathlib import Path
+import re
+from typing import Callable, Sequence
+
+from gyro_tdc.base import model_path
+from gyro_tdc.data import expand_bags, load_runs, Run
+from gyro_tdc.errors import FitError
+from gyro_tdc.identify import accel_scores, fit_accel, fit_px4_cubic, PX4_FEATURES
+from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
+                            load_model, MAX_EXTRAPOLATION_C, model_temperature)
+from gyro_tdc.runtime import default_tolerance, reanchor_shift, STILL_WINDOW_MAX_S
+from gyro_tdc.signal import (allan_deviation, bias_stability, noise_readouts, rms_dps,
+                             STILL_WINDOW_S)
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = [
+    'AUTO_REANCHOR', 'BagEval', 'ModelEval', 'NamedModel', 'PX4', 'bag_labels', 'evaluate',
+    'evaluate_run', 'load_models', 'mean_scores', 'model_labels', 'rate_hz', 'safe_label',
+    'score',
+]
+
+#: Model spec of the PX4-style cubic in T fitted on training bags.
+PX4 = 'px4'
+#: ``reanchor_s`` value for the compensator's precision-driven rule.
+AUTO_REANCHOR = 'auto'
+
+
+# --------------------------------------------------------------------------------------------
+# Result types
+# --------------------------------------------------------------------------------------------
+
+@dataclass
+class ModelEval:
+    """
+    Scores of one model on one bag.
+
+    Parameters
+    ----------
+    model : str
+        The model as given on the command line (a path, or ``px4``).
+    label : str
+        Short unique label for tables, CSV columns and legends.
+    features : list of str
+        Effect ids of the model.
+    bs : NDArray[np.float64], shape (3,), (deg/s)^2
+        Bias stability after compensation.
+    rms_dps : NDArray[np.float64], shape (3,), deg/s
+        RMS of compensated minus reference rate.
+    p_vs_raw : NDArray[np.float64], shape (3,)
+        ``bs`` / raw BS.
+    adev_tau_s : NDArray[np.float64], shape (M,), s
+        Allan averaging times.
+    adev_dps : NDArray[np.float64], shape (M, 3), deg/s
+        Allan deviation of the compensated error.
+    arw_deg_sqrt_h, bias_instability_deg_h : NDArray[np.float64], shape (3,)
+        Readouts of the Allan curve.
+    temp_range_c : tuple of float, degC
+        The model's trained range.
+    outside_fraction : float
+        Fraction of the bag's samples whose model temperature (the thermal state) lies
+        outside ``temp_range_c`` (evaluated with the bag's out-of-range policy).
+    omega : NDArray[np.float64], shape (N, 3), rad/s, or None
+        The compensated rate (kept only while plots and CSVs are written).
+    reanchor : dict, optional
+        With ``reanchor_s='auto'``: ``samples``, ``duration_s``, ``shift_dps``, ``se_dps``,
+        ``tolerance_dps`` (3 each) and ``reason`` of the re-anchoring.
+    accel_bs : NDArray[np.float64], shape (3,), (m/s^2)^2, optional
+        Accelerometer BS (variance around the run mean over the still samples) after the
+        model's accelerometer part (raw: of the raw data); None when not applicable (no
+        accelerometer data, a run not static, a model without an accelerometer part).
+
+    """
+
+    model: str
+    label: str
+    features: list
+    bs: NDArray[np.float64]
+    rms_dps: NDArray[np.float64]
+    p_vs_raw: NDArray[np.float64]
+    adev_tau_s: NDArray[np.float64]
+    adev_dps: NDArray[np.float64]
+    arw_deg_sqrt_h: NDArray[np.float64]
+    bias_instability_deg_h: NDArray[np.float64]
+    temp_range_c: tuple = (math.nan, math.nan)
+    outside_fraction: float = 0.0
+    omega: NDArray[np.float64] | None = field(default=None, repr=False)
+    reanchor: dict | None = None
+    accel_bs: NDArray[np.float64] | None = None
+
+
+@dataclass
+class BagEval:
+    """
+    Scores of every model on one held-out bag.
+
+    Parameters
+    ----------
+    bag : str
+        The bag path.
+    label : str
+        Short unique label (file names of plots and CSVs).
+    samples : int
+        Samples evaluated.
+    temperature_c : tuple of float, degC
+        Min and max temperature.
+    duration_s : float, s
+        Time span.
+    reference : str
+        Where the reference rate came from (``constant``, ``topic``, ``zero``).
+    raw : ModelEval
+        The uncompensated data scored like a model (``p_vs_raw`` = 1).
+    models : list of ModelEval
+        One per model, in command-line order.
+    run : Run or None
+        The data (kept only while plots and CSVs are written).
+    out_of_range : str
+        The out-of-range policy the models were evaluated with (:func:`evaluate_run` sets
+        it; ``'clamp'``, what every evaluation did before the policy existed, when a result
+        is built by hand).
+
+    """
+
+    bag: str
+    label: str
+    samples: int
+    temperature_c: tuple
+    duration_s: float
+    reference: str
+    raw: ModelEval
+    models: list
+    run: Run | None = field(default=None, repr=False)
+    out_of_range: str = 'clamp'
+
+    def release(self) -> None:
+        """Drop the sample arrays (keep the scores)."""
+        self.run = None
+        self.raw.omega = None
+        for m in self.models:
+            m.omega = None
+
+
+@dataclass(frozen=True)
+class NamedModel:
+    """
+    A model with the name it was given on the command line.
+
+    Parameters
+    ----------
+    name : str
+        A model file path as given, or ``px4``.
+    label : str
+        Short unique label (tables, CSV columns, legends).
+    model : CompensationModel
+        The model.
+
+    """
+
+    name: str
+    label: str
+    model: CompensationModel
+
+
+# --------------------------------------------------------------------------------------------
+# Labels
+# --------------------------------------------------------------------------------------------
+
+def safe_label(text: str) -> str:
+    """Return ``text`` reduced to a file-name and CSV-header safe label."""
+    stem = Path(str(text).rstrip('/\\')).name
+    for suffix in ('.yaml', '.yml'):
+        if stem.endswith(suffix):
+            stem = stem[:-len(suffix)]
+    return re.sub(r'[^A-Za-z0-9_.-]+', '_', stem).strip('_.') or 'unnamed'
+
+
+def model_labels(names: Sequence[str]) -> list:
+    """Return short labels for model specs, made unique with a numeric suffix."""
+    out: list = []
+    for name in names:
+        base = PX4 if name == PX4 else safe_label(name)
+        if base == 'raw':
+            base = 'raw_model'
+        label, k = base, 2
+        while label in out:
+            label, k = f'{base}_{k}', k + 1
+        out.append(label)
+    return out
+
+
+def bag_labels(paths: Sequence[str | os.PathLike]) -> list:
+    """Return unique file-name labels for bag paths (parent folder added on clashes)."""
+    base = [safe_label(str(p)) for p in paths]
+    out = []
+    for p, b in zip(paths, base):
+        if base.count(b) > 1:
+            b = safe_label(f'{Path(p).parent.name}_{b}')
+        label, k = b, 2
+        while label in out:
+            label, k = f'{b}_{k}', k + 1
+        out.append(label)
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# Models
+# --------------------------------------------------------------------------------------------
+
+def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None,
+                options: dict | None = None,
+                log: Callable[[str], None] | None = None) -> list:
+    """
+    Load model files and fit the ``px4`` baseline when asked.
+
+    Parameters
+    ----------
+    specs : sequence of str
+        Model file paths (or shipped model names), or ``px4``.
+    train_bags : sequence of str, optional
+        Bags the ``px4`` cubic is fitted on (required with ``px4``, used only by it).
+    options : dict, optional
+        Bag options of :func:`gyro_tdc.data.dataset.load_run`.
+    log : callable, optional
+        Receives progress lines.
+
+    Returns
+    -------
+    list of NamedModel
+        In the order of ``specs``, labelled by :func:`model_labels`.
+
+    Raises
+    ------
+    FitError
+        ``px4`` without training bags.
+    ModelFileError
+        A model file is missing or malformed.
+
+    """
+    if PX4 in specs and not train_bags:
+        raise FitError('The px4 baseline needs training bags to fit its cubic on.')
+    files = {s: load_model(model_path(s)) for s in specs if s != PX4}
+    px4 = None
+    if PX4 in specs:
+        runs = load_runs(train_bags, log=log, **{'accel': True, **(options or {})})
+        px4 = fit_px4_cubic(runs, created={'bags': [r.name for r in runs]})
+        acc = fit_accel(runs, px4, kind='poly', features=PX4_FEATURES)
+        if acc.part is not None:          # PX4's TC_A*: a cubic for the accelerometer too
+            px4 = px4.replace(accel=acc.part)
+        if log is not None:
+            lo, hi = px4.temp_range_c
+            log(f'fitted px4 cubic in T - T0 on {len(runs)} bag(s): T0 = {px4.t0_c:.3f} degC, '
+                f'range {lo:.2f} .. {hi:.2f} degC; accelerometer '
+                + ('cubic too' if acc.part is not None else f'not fitted: {acc.note}'))
+    return [NamedModel(s, label, px4 if s == PX4 else files[s])
+            for s, label in zip(specs, model_labels(specs))]
+
+
+# --------------------------------------------------------------------------------------------
+# Scoring
+# --------------------------------------------------------------------------------------------
+
+def rate_hz(t: NDArray[np.float64]) -> float:
+    """Return the sample rate in Hz from the median stamp step (1 for fewer than 2 stamps)."""
+    return 1.0 / float(np.median(np.diff(t))) if len(t) > 1 else 1.0
+
+
+def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: str = 'raw',
+          features: Sequence[str] = (), bs_raw: NDArray[np.float64] | None = None,
+          rate: float | None = None, allan: bool = True) -> ModelEval:
+    """
+    Score one compensated (or raw) rate against the run's reference rate.
+
+    Parameters
+    ----------
+    omega : NDArray[np.float64], shape (N, 3), rad/s
+        The rate to score (``run.omega`` for the raw data).
+    run : Run
+        The run (stamps and reference rate).
+    label, model : str
+        Label and name of what is scored (``'raw'`` for the raw data).
+    features : sequence of str
+        Effect ids of the model.
+    bs_raw : NDArray[np.float64], shape (3,), (deg/s)^2, optional
+        BS of the raw data; ``p_vs_raw`` is ones when None.
+    rate : float, Hz, optional
+        Sample rate for the Allan deviation (default :func:`rate_hz` of the stamps).
+    allan : bool
+        Compute the Allan deviation; False leaves it empty (BS and RMS only, e.g. for
+        held-out samples with gaps between them).
+
+    Returns
+    -------
+    ModelEval
+        BS = mean((omega - omega_ref)^2) per axis in (deg/s)^2 (paper eq. 30), RMS in
+        deg/s, BS / ``bs_raw``, Allan deviation of the error (empty below 4 samples) and its
+        readouts; the rate itself kept in ``omega``.
+
+    """
+    err = omega - run.omega_ref
+    bs = bias_stability(omega, run.omega_ref)
+    if allan and len(run) >= 4:
+        tau, adev = allan_deviation(err, rate_hz(run.t) if rate is None else rate)
+    else:
+        tau, adev = np.zeros(0), np.zeros((0, 3))
+    nr = noise_readouts(tau, adev)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        p = np.ones(3) if bs_raw is None else bs / bs_raw
+    return ModelEval(model=model, label=label, features=list(features), bs=bs,
+                     rms_dps=rms_dps(err), p_vs_raw=p, adev_tau_s=np.asarray(tau),
+                     adev_dps=np.asarray(adev), arw_deg_sqrt_h=nr['arw_deg_sqrt_h'],
+                     bias_instability_deg_h=nr['bias_instability_deg_h'], omega=omega)
+
+
+def _reanchored(comp: NDArray[np.float64], run: Run, model: CompensationModel,
+                reanchor_s: float | str) -> tuple[NDArray[np.float64], dict | None]:
+    """Return ``comp`` minus its mean error over the head of the run, and what was done."""
+    if reanchor_s == AUTO_REANCHOR:
+        tol = default_tolerance(model.residual_var)
+        r = reanchor_shift(run.t, comp - run.omega_ref, tolerance=tol, window=STILL_WINDOW_S,
+                           window_max=STILL_WINDOW_MAX_S)
+        deg = np.degrees
+        return comp - np.asarray(r.delta), {
+            'samples': int(r.samples), 'duration_s': float(r.duration_s),
+            'shift_dps': deg(r.delta).tolist(), 'se_dps': deg(r.se).tolist(),
+            'tolerance_dps': deg(tol).tolist(), 'reason': r.reason}
+    if reanchor_s > 0:
+        head = run.t <= run.t[0] + reanchor_s
+        comp = comp - (comp[head] - run.omega_ref[head]).mean(axis=0)
+    return comp, None
+
+
+def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
+                 reanchor_s: float | str = 0.0, out_of_range: str = DEFAULT_OUT_OF_RANGE,
+                 max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> BagEval:
+    """
+    Score raw data and every model on one run.
+
+    Parameters
+    ----------
+    run : Run
+        A held-out run.
+    models : sequence of NamedModel
+        The models, in the order to report them.
+    label : str
+        Short label of the run (default from its name).
+    reanchor_s : float (s) or ``'auto'``
+        When > 0, remove from each model's compensated rate its mean error over the first
+        ``reanchor_s`` seconds (the run-to-run bias offset, as the compensator re-anchors at
+        start-up while the sensor is still); ``'auto'``: over as long as the compensator's
+        rule averages (:func:`gyro_tdc.runtime.reanchor.reanchor_shift` with the default windows
+        and tolerance, reported in ``ModelEval.reanchor``); the raw data are never
+        re-anchored.
+    out_of_range : str
+        ``'linear'`` (default), ``'clamp'`` or ``'extrapolate'`` beyond a model's range.
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent.
+
+    Returns
+    -------
+    BagEval
+        Scores, with the arrays kept for plots and export (call ``release()`` after).
+
+    """
+    check_policy(out_of_range)
+    rate = rate_hz(run.t)
+    raw = score(run.omega, run, rate=rate)
+    out = []
+    for nm in models:
+        m = nm.model
+        comp = compensate(m, run.t, run.temp, run.omega, out_of_range=out_of_range,
+                          max_extrapolation_c=max_extrapolation_c)
+        comp, info = _reanchored(comp, run, m, reanchor_s)
+        ev = score(comp, run, label=nm.label, model=nm.name, features=list(m.features),
+                   bs_raw=raw.bs, rate=rate)
+        ev.reanchor = info
+        lo, hi = m.temp_range_c
+        ev.temp_range_c = (lo, hi)
+        temp = model_temperature(m, run.t, run.temp)     # the range is the thermal state's
+        ev.outside_fraction = float(np.count_nonzero((temp < lo) | (temp > hi))
+                                    / max(len(run), 1))
+        out.append(ev)
+    raw.accel_bs, per_model = accel_scores(run, [nm.model for nm in models],
+                                           out_of_range=out_of_range,
+                                           max_extrapolation_c=max_extrapolation_c)
+    for ev, bs in zip(out, per_model):
+        ev.accel_bs = bs
+    return BagEval(bag=run.name, label=label or safe_label(run.name), samples=len(run),
+                   temperature_c=(float(run.temp.min()), float(run.temp.max())),
+                   duration_s=run.duration_s, reference=str(run.info.get('reference', '?')),
+                   raw=raw, models=out, run=run, out_of_range=out_of_range)
+
+
+def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
+             options: dict | None = None, reanchor_s: float | str = 0.0,
+             out_of_range: str = DEFAULT_OUT_OF_RANGE,
+             max_extrapolation_c: float = MAX_EXTRAPOLATION_C,
+             log: Callable[[str], None] | None = None,
+             each: Callable[[BagEval], None] | None = None) -> list:
+    """
+    Evaluate models on held-out bags, one bag in memory at a time.
+
+    Parameters
+    ----------
+    bags : sequence of str or PathLike
+        Held-out bags (folders of bags expand to their bags).
+    models : sequence of NamedModel
+        Models to score.
+    options : dict, optional
+        Bag options of :func:`gyro_tdc.data.dataset.load_run` (the accelerometer is read unless
+        they hold ``accel=False``).
+    reanchor_s : float (s) or ``'auto'``
+        Start-up re-anchoring (see :func:`evaluate_run`); 0 = off.
+    out_of_range : str
+        Out-of-range policy (see :func:`evaluate_run`).
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent.
+    log : callable, optional
+        Receives one line per bag read.
+    each : callable, optional
+        Called with every :class:`BagEval` while its arrays are still held (print its
+        tables, write its plots and CSV there).
+
+    Returns
+    -------
+    list of BagEval
+        One per bag, arrays released.
+
+    """
+    check_policy(out_of_range)
+    paths = expand_bags(bags)
+    results = []
+    for path, label in zip(paths, bag_labels(paths)):
+        run = load_runs([path], log=log, **{'accel': True, **(options or {})})[0]
+        b = evaluate_run(run, models, label=label, reanchor_s=reanchor_s,
+                         out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c)
+        if each is not None:
+            each(b)
+        b.release()
+        results.append(b)
+    return results
+
+
+def mean_scores(results: Sequence[BagEval]) -> list:
+    """
+    Return the mean BS and BS/BS1 per model and axis over bags (BS/BS1 averaged per bag).
+
+    Parameters
+    ----------
+    results : sequence of BagEval
+        Evaluated bags, the same models in the same order in each.
+
+    Returns
+    -------
+    list of (str, NDArray[np.float64], NDArray[np.float64])
+        ``(label, mean BS in (deg/s)^2, mean BS/BS1)`` for the raw data, then each model.
+
+    """
+    rows = [('raw', [b.raw for b in results])] + [
+        (m.label, [b.models[i] for b in results]) for i, m in enumerate(results[0].models)]
+    out = []
+    for label, evs in rows:
+        out.append((label, np.mean([e.bs for e in evs], axis=0),
+                    np.mean([e.p_vs_raw for e in evs], axis=0)))
+    return out

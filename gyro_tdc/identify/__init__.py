@@ -1,0 +1,36 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Identification of a model from recorded runs.
+
+Fits (linear stage, time constants, the full model), training from bags and from still
+time, the accelerometer part, and discovery of missing effects.
+"""
+
+from gyro_tdc.base.face import lazy
+
+__all__, __getattr__, __dir__ = lazy(__name__, {
+    'accel': ['ACCEL_EFFECTS', 'accel_features', 'accel_scores', 'compensate_accel',
+              'discovery_runs', 'fit_accel', 'MG', 'PX4_FEATURES'],
+    'accel_static': ['static_bs', 'static_data'],
+    'discover.model': ['build_model'],
+    'discover.report': ['write_report'],
+    'discover.results': ['format_summary'],
+    'fit': ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'TAU_BOUNDS', 'THERMAL_CHOICES'],
+    'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],
+    'still_only': ['train_still_only'],
+    'tau': ['effective_samples', 'fit_time_constant', 'profile_interval', 'TimeConstantFit'],
+    'train': ['AUTO', 'TrainResult'],
+})

@@ -1,0 +1,341 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The measured runs on the block grid: block means, the noise floor and the effect columns.
+
+Everything discovery fits works on block means of ``block_s`` (default 10 s): the thermal
+effects are slow, and the averages are what the noise floor and the gaps are measured on. The
+noise floor is what white and short-term noise alone leave in a block mean, estimated from the
+data inside the blocks (second differences of block thirds, so the drift cancels; robust
+median scale).
+
+With the thermal state (``lag``) the temperature terms (``dT``, ``dT2``, ``dT3`` and the
+``dT`` of ``scale``) are block means of the features of the state ``s = first_order_lag(t,
+T, tau)`` instead of the measured temperature: :meth:`BlockData.state_columns`.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Callable, Mapping, Sequence
+
+from gyro_tdc.data import Run
+from gyro_tdc.errors import FitError
+from gyro_tdc.identify.discover.stats import COLLINEAR, rel_residual
+from gyro_tdc.model import (batch_features, EFFECTS, first_order_lag, input_ids, STATE_TERMS,
+                            STATIC_EFFECTS)
+from gyro_tdc.signal import block_counts, block_sum
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['BlockData']
+
+#: Effects whose block-mean column is the mean of their full-rate feature (no filter state).
+_STATIC = input_ids(STATIC_EFFECTS)
+#: The temperature terms, which follow the thermal state when the model has one.
+_STATE = input_ids(STATE_TERMS)
+
+
+def _per_segment(blocks: Callable[[int, int], NDArray[np.float64]], bounds: NDArray[np.int64],
+                 per: int) -> NDArray[np.float64]:
+    """
+    Return ``blocks(a, b)`` of every segment ``a:b`` of ``bounds``, concatenated.
+
+    ``blocks`` reduces a segment's rows in blocks of ``per`` (a shorter last block kept, as
+    :mod:`gyro_tdc.signal.blocks` does); a tail shorter than half a block then joins the block
+    before it.
+    """
+    out = []
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        s = blocks(int(a), int(b))
+        m = b - a
+        if m > per and 0 < (m % per) * 2 < per:
+            s = np.concatenate([s[:-2], s[-2:-1] + s[-1:]])
+        out.append(s)
+    return np.concatenate(out)
+
+
+class BlockData:
+    """
+    Block means of all runs, the noise floor, and the effect columns on the block grid.
+
+    Samples are grouped into blocks of ``block_s`` inside each contiguous segment (a gap of
+    more than half a block or 20 sample periods starts a new segment, so bursty recordings
+    work); a segment tail shorter than half a block joins the previous block. Static
+    features are block means of their full-rate values; the filtered ones (``dTdt``,
+    ``warmup``) are computed on a regular grid (temperature interpolated across gaps) and
+    averaged over each block's span; so are the temperature terms of the thermal state (the
+    reference rate held on the grid for the ``scale`` term).
+    """
+
+    def __init__(self, runs: Sequence[Run], *, block_s: float, t0: float) -> None:
+        self.runs = list(runs)
+        self.t0 = float(t0)
+        self.block_s = float(block_s)
+        n_runs = len(runs)
+        parts: dict[str, list] = {k: [] for k in (
+            'run', 'n', 't', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref', 'static',
+            'noise')}
+        self.grids: list[tuple] = []
+        self._ref_grid: list[NDArray[np.float64]] = []
+        white = []
+        span = 0.0
+        start = 0
+        for r, run in enumerate(runs):
+            t = np.asarray(run.t, dtype=np.float64)
+            n = t.shape[0]
+            dt = np.diff(t)
+            med = float(np.median(dt)) if n > 1 else self.block_s
+            per = max(1, int(round(self.block_s / med)))
+            breaks = np.flatnonzero(dt > max(20.0 * med, 0.5 * self.block_s)) + 1
+            bounds = np.concatenate([[0], breaks, [n]])
+            cnt = _per_segment(lambda a, b: block_counts(b - a, per), bounds, per)
+            nb = cnt.shape[0]
+            ids = np.repeat(np.arange(nb), cnt.astype(np.int64))
+            span += n * med
+
+            def bmean(v: NDArray[np.float64], bounds=bounds, per=per, cnt=cnt
+                      ) -> NDArray[np.float64]:
+                sums = _per_segment(lambda a, b: block_sum(v[a:b], per), bounds, per)
+                return sums / cnt.reshape((-1,) + (1,) * (v.ndim - 1))
+
+            y = np.asarray(run.omega, dtype=np.float64) - run.omega_ref
+            x = batch_features(_STATIC, t, run.temp, t0=self.t0)
+            parts['run'].append(np.full(nb, r))
+            parts['n'].append(cnt)
+            parts['t'].append(bmean(t))
+            last = np.cumsum(cnt).astype(np.int64) - 1
+            first = last - cnt.astype(np.int64) + 1
+            parts['tfirst'].append(t[first])
+            parts['tlast'].append(t[last])
+            parts['temp'].append(bmean(run.temp))
+            parts['y'].append(bmean(y))
+            parts['ref'].append(bmean(run.omega_ref))
+            parts['dtref'].append(bmean(x[:, :1] * run.omega_ref))
+            parts['static'].append(bmean(x))
+            # Noise: second difference of block thirds (linear drift cancels), per sample std.
+            # Thirds of blocks of varying length: a labelled sum (bincount), not a blocking.
+            pos = np.arange(n) - first[ids]
+            third = np.minimum(3 * pos // cnt[ids].astype(np.int64), 2)
+            key = ids * 3 + third
+            c3 = np.bincount(key, minlength=3 * nb).reshape(nb, 3)
+            ok = np.all(c3 > 0, axis=1)
+            with np.errstate(invalid='ignore', divide='ignore'):
+                nz = []
+                for a in range(3):
+                    m3 = np.bincount(key, weights=y[:, a], minlength=3 * nb).reshape(nb, 3) / c3
+                    dd = (m3[:, 0] - 2.0 * m3[:, 1] + m3[:, 2]) / np.sqrt(
+                        1.0 / c3[:, 0] + 4.0 / c3[:, 1] + 1.0 / c3[:, 2])
+                    nz.append(np.where(ok, dd, np.nan))
+            parts['noise'].append(np.column_stack(nz))
+            # White noise from first differences inside segments.
+            inside = np.ones(max(n - 1, 0), dtype=bool)
+            inside[breaks - 1] = False
+            white.append(np.diff(y, axis=0)[inside])
+            # Regular grid for the filtered features.
+            step = min(max(med, self.block_s / 10.0), 1.0) if self.block_s > med else med
+            tg = t[0] + np.arange(int(math.floor((t[-1] - t[0]) / step)) + 2) * step
+            tg = tg[tg <= t[-1] + step]
+            temp_g = np.interp(tg, t, run.temp)
+            lo = np.searchsorted(tg, t[first], side='left')
+            hi = np.searchsorted(tg, t[last], side='right')
+            self.grids.append((tg, temp_g, lo, hi, bmean(t), start, start + nb))
+            # The reference rate on the grid, held from the last sample (a step schedule).
+            held = np.clip(np.searchsorted(t, tg, side='right') - 1, 0, n - 1)
+            self._ref_grid.append(np.asarray(run.omega_ref, dtype=np.float64)[held])
+            start += nb
+
+        cat = {k: np.concatenate(v) for k, v in parts.items()}
+        self.run = cat['run'].astype(np.int64)
+        self.n = cat['n']
+        self.K = int(self.n.shape[0])
+        self.w = self.n / self.n.mean()
+        self.block_eff_s = span / self.K     # mean duration of a block
+        self.sw = np.sqrt(self.w)
+        self.t = cat['t']
+        self.tfirst = cat['tfirst']
+        self.tlast = cat['tlast']
+        self.temp = cat['temp']
+        self.y = cat['y']
+        self.ref = cat['ref']
+        self.dtref = cat['dtref']
+        self.static = {eid: cat['static'][:, j] for j, eid in enumerate(_STATIC)}
+        self.n_runs = n_runs
+        self.t_since = self.t - np.array([runs[r].t[0] for r in self.run])
+        self.offsets = np.zeros((self.K, n_runs))
+        self.offsets[np.arange(self.K), self.run] = 1.0
+
+        noise = cat['noise']
+        sig = np.empty(3)
+        for a in range(3):
+            v = noise[:, a][np.isfinite(noise[:, a])]
+            sig[a] = 1.4826 * np.median(np.abs(v - np.median(v))) if v.size >= 3 else np.nan
+        wd = np.concatenate(white) if white else np.zeros((0, 3))
+        if wd.shape[0] >= 3:
+            wsig = 1.4826 * np.median(np.abs(wd - np.median(wd, axis=0)), axis=0) / math.sqrt(2)
+        else:
+            wsig = np.full(3, np.nan)
+        sig = np.where(np.isfinite(sig), sig, wsig)
+        if not np.all(np.isfinite(sig)):
+            raise FitError('Cannot estimate the noise floor: blocks too short; '
+                           'use a longer `block_s` or more samples per run.')
+        self.sigma = sig                            # per-sample equivalent, rad/s
+        self.floor_axes = sig / math.sqrt(self.n.mean())   # on the block scale, rad/s
+        self.floor = float(np.sqrt(np.mean(self.floor_axes ** 2)))
+        self.white = float(np.sqrt(np.mean(np.nan_to_num(wsig) ** 2)))
+        self.rate_cpm = self._rate_cpm()
+        self._cache: dict = {}
+        self._state_cache: dict = {}
+        self.gain_axes = self._gain_axes()
+        self.scale_axes = np.array([np.any(np.abs(self.ref[:, a]) > 1e-12) and rel_residual(
+            np.hstack([self.offsets, self.static['dT'][:, None], self.ref[:, a:a + 1]]),
+            self.dtref[:, a]) > COLLINEAR for a in range(3)])
+
+    def _rate_cpm(self) -> NDArray[np.float64]:
+        """Return the smoothed dT/dt of each block, degC/min (60 s first-order smoothing)."""
+        out = np.empty(self.K)
+        for tg, temp_g, lo, hi, tb, a, b in self.grids:
+            f = batch_features(('dTdt',), tg, temp_g, t0=self.t0,
+                               params={'dTdt': {'tau_s': 60.0}})[:, 0] * 60.0
+            out[a:b] = self._grid_mean(tg, f, lo, hi, tb)
+        return out
+
+    @staticmethod
+    def _grid_mean(tg: NDArray[np.float64], f: NDArray[np.float64], lo: NDArray[np.int64],
+                   hi: NDArray[np.int64], tb: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Average grid values over each block's span (interpolate when none falls inside)."""
+        cs = np.concatenate([[0.0], np.cumsum(f)])
+        cnt = hi - lo
+        out = np.interp(tb, tg, f)
+        has = cnt > 0
+        out[has] = (cs[hi[has]] - cs[lo[has]]) / cnt[has]
+        return out
+
+    def _gain_axes(self) -> NDArray[np.bool_]:
+        """Return the axes whose reference rate is not explained by the run offsets alone."""
+        out = np.zeros(3, dtype=bool)
+        for a in range(3):
+            col = self.ref[:, a]
+            if not np.any(np.abs(col) > 1e-12):
+                continue
+            out[a] = rel_residual(self.offsets, col) > COLLINEAR
+        return out
+
+    def state(self, r: int, tau: float) -> NDArray[np.float64]:
+        """
+        Return the thermal state of run ``r`` at its sample stamps, degC.
+
+        The first-order lag (:func:`gyro_tdc.model.effects.first_order_lag`, settled at the first
+        temperature) runs on the run's regular grid, where the temperature is linear between
+        grid points, and is interpolated back to the stamps.
+
+        Parameters
+        ----------
+        r : int
+            Run index.
+        tau : float, s
+            Time constant of the state.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (N,)
+            The state.
+
+        """
+        tg, temp_g = self.grids[r][:2]
+        return np.interp(self.runs[r].t, tg, self._grid_state(tg, temp_g, tau))
+
+    @staticmethod
+    def _grid_state(tg: NDArray[np.float64], temp_g: NDArray[np.float64], tau: float
+                    ) -> NDArray[np.float64]:
+        """Return the thermal state on a regular grid (temperature linear between points)."""
+        step = float(tg[1] - tg[0]) if tg.size > 1 else 1.0
+        return first_order_lag(step, temp_g, float(tau), hold='linear')
+
+    def state_columns(self, tau: float) -> dict[str, NDArray[np.float64]]:
+        """
+        Return the block means of the temperature terms of the thermal state, cached by tau.
+
+        Parameters
+        ----------
+        tau : float, s
+            Time constant of the state.
+
+        Returns
+        -------
+        dict
+            ``dT``, ``dT2``, ``dT3`` (K,): block means of their features of the state
+            (:func:`gyro_tdc.model.effects.batch_features` with ``state``); ``dtref`` (K, 3): of
+            ``(s - T0) omega_ref`` (the ``scale`` term).
+
+        """
+        key = round(float(tau), 9)
+        if key in self._state_cache:
+            return self._state_cache[key]
+        x = np.empty((self.K, len(_STATE)))
+        dtref = np.empty((self.K, 3))
+        j = _STATE.index('dT')
+        for (tg, temp_g, lo, hi, tb, a, b), ref_g in zip(self.grids, self._ref_grid):
+            xg = batch_features(_STATE, tg, temp_g, t0=self.t0,
+                                state=self._grid_state(tg, temp_g, tau))
+            for k in range(len(_STATE)):
+                x[a:b, k] = self._grid_mean(tg, xg[:, k], lo, hi, tb)
+            for k in range(3):
+                dtref[a:b, k] = self._grid_mean(tg, xg[:, j] * ref_g[:, k], lo, hi, tb)
+        out = {eid: x[:, k] for k, eid in enumerate(_STATE)}
+        out['dtref'] = dtref
+        if len(self._state_cache) > 256:
+            self._state_cache.clear()
+        self._state_cache[key] = out
+        return out
+
+    def column(self, eid: str, params: Mapping[str, Mapping[str, float]], *,
+               state_tau: float | None = None) -> NDArray[np.float64]:
+        """
+        Return the block-mean column of one input effect (K,), cached by parameters.
+
+        Parameters
+        ----------
+        eid : str
+            An input effect id.
+        params : mapping
+            ``{effect: {param: value}}``.
+        state_tau : float, optional, s
+            With the thermal state, its time constant: the temperature terms (``dT``,
+            ``dT2``, ``dT3``) are then powers of the state.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (K,)
+            The column.
+
+        """
+        if state_tau is not None and eid in STATE_TERMS:
+            return self.state_columns(state_tau)[eid]
+        if eid in self.static:
+            return self.static[eid]
+        tau = float(params.get(eid, {}).get('tau_s', EFFECTS[eid].params['tau_s']))
+        key = (eid, round(tau, 9))
+        if key in self._cache:
+            return self._cache[key]
+        out = np.empty(self.K)
+        for tg, temp_g, lo, hi, tb, a, b in self.grids:
+            f = batch_features((eid,), tg, temp_g, t0=self.t0,
+                               params={eid: {'tau_s': tau}})[:, 0]
+            out[a:b] = self._grid_mean(tg, f, lo, hi, tb)
+        if len(self._cache) > 512:
+            self._cache.clear()
+        self._cache[key] = out
+        return out

@@ -1,0 +1,132 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""From a discovery to a compensation model file: which effects, which kind, fitted how."""
+
+from __future__ import annotations
+
+from typing import Mapping, Sequence
+
+from gyro_tdc.data import Run
+from gyro_tdc.errors import FitError
+from gyro_tdc.identify.discover.results import DiscoveryResult
+from gyro_tdc.model import TEMPERATURE_EFFECTS
+import numpy as np
+
+__all__ = ['build_model', 'model_features', 'model_kind']
+
+
+def model_kind(effects: Sequence[str]) -> str:
+    """
+    Return the model kind that holds what discovery fitted for ``effects``: ``'poly'``.
+
+    ``poly`` is exactly the linear model discovery validated, with ``lag`` too: the thermal
+    state makes every temperature term a power of the lagged temperature, which a ``poly``
+    model of format 2 holds as it is (the kind is kept a function for callers that choose).
+
+    Parameters
+    ----------
+    effects : sequence of str
+        Effect ids.
+
+    Returns
+    -------
+    str
+        ``'poly'``.
+
+    """
+    return 'poly'
+
+
+def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | None = None,
+                created: Mapping | None = None):
+    """
+    Fit the compensation model of the discovered effects, ready for ``save_model``.
+
+    The per-run offsets and the constant scale-factor error found by :func:`discover` are
+    removed from the runs first (they are not thermal: the compensator re-anchors its offset
+    at start-up, and a rate-table gain error belongs to a separate calibration); then
+    :func:`gyro_tdc.identify.fit_model` fits the final effects with the fitted time constants
+    and, with ``lag``, the thermal state discovery found (tau with its profile interval): a
+    format 2 model whose every temperature term follows the state.
+
+    Parameters
+    ----------
+    result : DiscoveryResult
+        What :func:`discover` returned for ``runs``.
+    runs : sequence of Run
+        The same runs.
+    kind : str, optional
+        ``'poly'`` or ``'rbf'``; default :func:`model_kind` of the final effects.
+    created : mapping, optional
+        Extra creation info (command line, bags).
+
+    Returns
+    -------
+    gyro_tdc.model.compensation.CompensationModel
+        The fitted model.
+
+    """
+    from gyro_tdc.identify.fit import fit_model
+
+    if len(runs) != len(result.runs):
+        raise FitError(f'Expected the {len(result.runs)} runs discovery analysed, '
+                       f'got {len(runs)}.')
+    off = np.asarray(result.coef['offsets'])
+    mean_off = off.mean(axis=0)
+    gain = np.asarray(result.coef['gain'])
+    adjusted = []
+    for r, run in enumerate(runs):
+        omega = run.omega - (off[r] - mean_off)[None, :] - gain[None, :] * run.omega_ref
+        adjusted.append(Run(run.t, run.temp, omega, run.omega_ref, run.name, dict(run.info)))
+    features = model_features(result, runs)
+    info = {'discover': {'final_effects': list(result.final_effects),
+                         'noise_floor_dps': result.noise_floor_dps,
+                         'gain_removed': [float(g) for g in gain]}}
+    info.update(dict(created or {}))
+    kind = model_kind(features) if kind is None else kind
+    thermal = result.thermal if 'lag' in features else None
+    params = {k: v for k, v in result.params.items() if k != 'lag'}
+    return fit_model(adjusted, kind=kind, features=features, t0=result.t0_c,
+                     fit_params=False, params=params, created=info, thermal=thermal)
+
+
+def model_features(result: DiscoveryResult, runs: Sequence[Run]) -> tuple[str, ...]:
+    """
+    Return the effects of the model file: the final effects the data can support.
+
+    With a temperature span under :data:`gyro_tdc.identify.MIN_SPAN_C` (a warm-up test at a
+    fixed ambient) the temperature effects, base ``dT`` included, are left out: the data say
+    nothing about them.
+
+    Parameters
+    ----------
+    result : DiscoveryResult
+        A discovery.
+    runs : sequence of Run
+        The runs it analysed.
+
+    Returns
+    -------
+    tuple of str
+        Effect ids, catalog order.
+
+    """
+    from gyro_tdc.identify.fit import MIN_SPAN_C
+
+    lo = min(float(np.min(r.temp)) for r in runs)
+    hi = max(float(np.max(r.temp)) for r in runs)
+    if hi - lo >= MIN_SPAN_C:
+        return tuple(result.final_effects)
+    return tuple(e for e in result.final_effects if e not in TEMPERATURE_EFFECTS)

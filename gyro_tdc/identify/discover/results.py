@@ -1,0 +1,396 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+What discovery found: steps, candidate scores, residual maps, and their JSON and text forms.
+
+:class:`DiscoveryResult` holds the outcome of :func:`gyro_tdc.identify.discover.discover`;
+:meth:`DiscoveryResult.to_json` is the ``discover --json`` document and
+:func:`format_summary` the text the command prints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from gyro_tdc.base import plain
+from gyro_tdc.model import ThermalState
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['BinMap', 'CandidateScore', 'DiscoveryResult', 'format_summary', 'Step',
+           'Unidentifiable']
+
+
+@dataclass(frozen=True)
+class BinMap:
+    """
+    The residual binned by one quantity, per axis, with the bins noise cannot explain marked.
+
+    Parameters
+    ----------
+    name : str
+        ``temperature``, ``dTdt``, ``reference`` or ``time``.
+    label : str
+        What the bins are, with unit (x axis of a plot).
+    centers : NDArray[np.float64], shape (B, 3)
+        Bin centres per axis (the reference map bins each axis by its own rate); NaN where a
+        bin is empty on that axis.
+    mean_dps : NDArray[np.float64], shape (B, 3), deg/s
+        Weighted mean residual per bin and axis.
+    se_dps : NDArray[np.float64], shape (B, 3), deg/s
+        Its standard error from the noise floor, inflated for autocorrelated noise.
+    count : NDArray[np.int64], shape (B, 3)
+        Blocks per bin and axis.
+    flagged : NDArray[np.bool_], shape (B, 3)
+        ``|mean| > 3 se``: a disagreement noise does not explain.
+    labels : tuple of str
+        Bin labels (e.g. ``cooling fast``), one per bin.
+
+    """
+
+    name: str
+    label: str
+    centers: NDArray[np.float64]
+    mean_dps: NDArray[np.float64]
+    se_dps: NDArray[np.float64]
+    count: NDArray[np.int64]
+    flagged: NDArray[np.bool_]
+    labels: tuple[str, ...] = ()
+
+    @property
+    def n_flagged(self) -> int:
+        """Return the number of flagged (bin, axis) cells."""
+        return int(np.count_nonzero(self.flagged))
+
+
+@dataclass(frozen=True)
+class CandidateScore:
+    """
+    How well one candidate effect explains what the current model misses.
+
+    Parameters
+    ----------
+    effect : str
+        Effect id.
+    params : dict
+        Fitted effect parameters (e.g. ``{'tau_s': 180.0}``).
+    p_value : float
+        HAC Wald test of the added columns, smallest over axes times 3 (Bonferroni over axes).
+    heldout_gain_dps2 : float, (deg/s)^2
+        Held-out mean squared gap of the model minus that with the candidate.
+    effect_rms_dps : float, deg/s
+        RMS of the in-sample improvement (what the candidate explains), over blocks and axes.
+    gap_dps, heldout_gap_dps : float, deg/s
+        In-sample and held-out gap with the candidate added.
+    passed : bool
+        Significant, held-out gain and effect size all above their thresholds.
+    why_not : str
+        Which test failed (empty when passed).
+    coef : NDArray[np.float64], shape (q, 3)
+        Fitted coefficients of the candidate's columns (SI units of the feature).
+
+    """
+
+    effect: str
+    params: dict
+    p_value: float
+    heldout_gain_dps2: float
+    effect_rms_dps: float
+    gap_dps: float
+    heldout_gap_dps: float
+    passed: bool
+    why_not: str
+    coef: NDArray[np.float64] = field(repr=False)
+
+
+@dataclass(frozen=True)
+class Unidentifiable:
+    """
+    An effect this data cannot excite or cannot tell apart from the model's effects.
+
+    Parameters
+    ----------
+    effect : str
+        Effect id.
+    reason : str
+        Why, in terms of this data.
+    experiment : str
+        The experiment that would excite or separate it.
+
+    """
+
+    effect: str
+    reason: str
+    experiment: str
+
+
+@dataclass(frozen=True)
+class Step:
+    """
+    One discovery step: the effect named, the evidence and the gap before and after.
+
+    Parameters
+    ----------
+    effect : str
+        The effect added.
+    aliases : tuple of str
+        Candidates this data cannot tell apart from it.
+    description : str
+        Its physics (``EFFECTS[effect].description``).
+    params : dict
+        Its fitted parameters (time constants, s).
+    coef_dps : NDArray[np.float64], shape (q, 3)
+        Its coefficients per axis in deg/s per feature unit (after the refit).
+    gap_before_dps, gap_after_dps : float, deg/s
+        In-sample gap before and after.
+    heldout_gap_before_dps, heldout_gap_after_dps : float, deg/s
+        Held-out gap before and after.
+    candidates : tuple of CandidateScore
+        Every candidate scored at this step, best first.
+    maps_before, maps_after : tuple of BinMap
+        Residual maps before and after.
+    adev_tau_s : NDArray[np.float64], shape (M,), s
+        Allan deviation averaging times (longest run, full rate).
+    adev_before_dps, adev_after_dps : NDArray[np.float64], shape (M,), deg/s
+        Allan deviation of the residual before and after (RMS over axes).
+    best : CandidateScore, optional
+        The score of the effect added.
+    thermal : ThermalState, optional
+        The thermal state of the model after the step, tau with its profile interval (None
+        without ``lag``).
+
+    """
+
+    effect: str
+    aliases: tuple[str, ...]
+    description: str
+    params: dict
+    coef_dps: NDArray[np.float64]
+    gap_before_dps: float
+    gap_after_dps: float
+    heldout_gap_before_dps: float
+    heldout_gap_after_dps: float
+    candidates: tuple[CandidateScore, ...] = field(repr=False)
+    maps_before: tuple[BinMap, ...] = field(repr=False)
+    maps_after: tuple[BinMap, ...] = field(repr=False)
+    adev_tau_s: NDArray[np.float64] = field(repr=False)
+    adev_before_dps: NDArray[np.float64] = field(repr=False)
+    adev_after_dps: NDArray[np.float64] = field(repr=False)
+    best: CandidateScore | None = field(default=None, repr=False)
+    thermal: ThermalState | None = None
+
+
+@dataclass(frozen=True)
+class DiscoveryResult:
+    """
+    Everything :func:`discover` found; :meth:`to_json` gives the ``discover --json`` document.
+
+    Parameters
+    ----------
+    base_effects : tuple of str
+        Effects of the starting model (``bias`` always included).
+    final_effects : tuple of str
+        Effects of the final model, catalog order.
+    params : dict
+        Fitted effect parameters of the final model, ``{effect: {param: value}}``.
+    noise_floor_dps : float, deg/s
+        Noise floor on the scale of the gap (block means), RMS over axes.
+    noise_floor_axes_dps : NDArray[np.float64], shape (3,), deg/s
+        The same per axis.
+    white_noise_dps : float, deg/s
+        Per-sample white-noise standard deviation (first differences), RMS over axes.
+    block_s : float, s
+        Nominal block length.
+    t0_c : float, degC
+        Reference temperature of the features.
+    steps : tuple of Step
+        Discovery steps, in order.
+    unidentifiable : tuple of Unidentifiable
+        Effects this data cannot excite.
+    candidates : tuple of CandidateScore
+        Candidates scored against the final model (none passed).
+    maps : tuple of BinMap
+        Residual maps of the final model.
+    gap_dps, heldout_gap_dps : float, deg/s
+        Gaps of the final model.
+    coef : dict
+        Final coefficients: ``offsets`` (R, 3) rad/s per run, ``gain`` (3,) constant
+        scale-factor error, ``scale`` (3,) 1/degC, and per input effect (3,) in rad/s per
+        feature unit.
+    runs : tuple of str
+        Run names.
+    blocks : int
+        Number of blocks analysed.
+    notes : tuple of str
+        Caveats about this data (confounded candidates, untestable hysteresis...).
+    settings : dict
+        Thresholds used.
+    adev_tau_s : NDArray[np.float64], shape (M,), s
+        Allan deviation averaging times of the final residual (empty without ``allan``).
+    adev_dps : NDArray[np.float64], shape (M,), deg/s
+        Allan deviation of the final residual (longest run, full rate, RMS over axes).
+    thermal : ThermalState, optional
+        The final model's thermal state: tau, its 95 % profile interval and whether the data
+        pin it (None without ``lag``).
+
+    """
+
+    base_effects: tuple[str, ...]
+    final_effects: tuple[str, ...]
+    params: dict
+    noise_floor_dps: float
+    noise_floor_axes_dps: NDArray[np.float64]
+    white_noise_dps: float
+    block_s: float
+    t0_c: float
+    steps: tuple[Step, ...]
+    unidentifiable: tuple[Unidentifiable, ...]
+    candidates: tuple[CandidateScore, ...]
+    maps: tuple[BinMap, ...]
+    gap_dps: float
+    heldout_gap_dps: float
+    coef: dict
+    runs: tuple[str, ...]
+    blocks: int
+    notes: tuple[str, ...]
+    settings: dict
+    adev_tau_s: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), repr=False)
+    adev_dps: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), repr=False)
+    thermal: ThermalState | None = None
+
+    @property
+    def named(self) -> tuple[str, ...]:
+        """Return the effects named, in step order."""
+        return tuple(s.effect for s in self.steps)
+
+    @property
+    def consistent_with_noise(self) -> bool:
+        """Return True when the final gap is within 1.3 times the noise floor."""
+        return self.gap_dps <= 1.3 * self.noise_floor_dps
+
+    def to_json(self, model_file: str | None = None) -> dict:
+        """
+        Return the ``discover --json`` document (plain types).
+
+        Parameters
+        ----------
+        model_file : str, optional
+            Path of the model file written, or None.
+
+        Returns
+        -------
+        dict
+            ``base_effects``, ``noise_floor_dps``, ``steps``, ``final_effects``,
+            ``unidentifiable``, ``model_file``; and ``thermal`` (kind, ``tau_s``,
+            ``tau_interval_s``, ``identifiable``) when the final model has a thermal state.
+
+        """
+        steps = []
+        for s in self.steps:
+            b = s.best
+            steps.append({
+                'effect': s.effect, 'aliases': list(s.aliases), 'description': s.description,
+                'gap_before_dps': float(s.gap_before_dps), 'gap_after_dps': float(s.gap_after_dps),
+                'heldout_gap_before_dps': float(s.heldout_gap_before_dps),
+                'heldout_gap_after_dps': float(s.heldout_gap_after_dps),
+                'params': plain(s.params, nan_to_none=True),
+                'coef_dps': plain(s.coef_dps, nan_to_none=True),
+                'p_value': None if b is None else float(b.p_value),
+                'heldout_gain_dps2': None if b is None else float(b.heldout_gain_dps2),
+                'effect_rms_dps': None if b is None else float(b.effect_rms_dps),
+                'flagged_bins_before': int(sum(m.n_flagged for m in s.maps_before)),
+                'flagged_bins_after': int(sum(m.n_flagged for m in s.maps_after)),
+                'adev': {'tau_s': plain(s.adev_tau_s, nan_to_none=True),
+                         'before_dps': plain(s.adev_before_dps, nan_to_none=True),
+                         'after_dps': plain(s.adev_after_dps, nan_to_none=True)},
+                'thermal': None if s.thermal is None else s.thermal.to_dict(),
+            })
+        doc = {
+            'base_effects': list(self.base_effects),
+            'noise_floor_dps': float(self.noise_floor_dps),
+            'steps': steps,
+            'final_effects': list(self.final_effects),
+            'unidentifiable': [{'effect': u.effect, 'reason': u.reason,
+                                'experiment': u.experiment} for u in self.unidentifiable],
+            'model_file': None if model_file is None else str(model_file),
+        }
+        if self.thermal is not None:        # the final thermal state, when there is one
+            doc['thermal'] = self.thermal.to_dict()
+        return doc
+
+
+def format_summary(result: DiscoveryResult) -> str:
+    """
+    Return a readable multi-line summary of a discovery.
+
+    Parameters
+    ----------
+    result : DiscoveryResult
+        A discovery.
+
+    Returns
+    -------
+    str
+        The summary, ending with a newline.
+
+    """
+    held = result.settings['block_mean_s']    # seconds of data a block holds, on average
+    grid = (f'{result.blocks} blocks of {result.block_s:g} s' if held >= 0.9 * result.block_s
+            else f'{result.blocks} blocks on a {result.block_s:g} s grid holding {held:.3g} s '
+                 'of data each on average (gaps in the recording)')
+    lines = [
+        f'discover: {len(result.runs)} run(s), {grid}, T0 = {result.t0_c:.2f} degC',
+        f'base model: {", ".join(result.base_effects)}  '
+        f'(one offset per run; cross-validation: {result.settings["folds"]})',
+        f'noise floor: {result.noise_floor_dps:.3g} deg/s on those block means (white noise '
+        f'{result.white_noise_dps:.3g} deg/s per sample); gaps are RMS of block means',
+    ]
+    if not result.steps:
+        lines.append('no missing effect found: no candidate is significant, gains on held-out '
+                     'data and exceeds the noise')
+    for i, s in enumerate(result.steps, 1):
+        par = ', '.join(f'{k} = {v:.4g}' for k, v in s.params.items())
+        b = s.best
+        lines.append(f'step {i}: add {s.effect}' + (f' ({par})' if par else '')
+                     + (f'; aliases: {", ".join(s.aliases)}' if s.aliases else ''))
+        lines.append(f'  {s.description}')
+        if b is not None:
+            lines.append(f'  evidence: HAC p = {b.p_value:.2g}, held-out gain '
+                         f'{b.heldout_gain_dps2:.3g} (deg/s)^2, effect RMS '
+                         f'{b.effect_rms_dps:.3g} deg/s')
+        lines.append(f'  gap {s.gap_before_dps:.4g} -> {s.gap_after_dps:.4g} deg/s, held-out '
+                     f'{s.heldout_gap_before_dps:.4g} -> {s.heldout_gap_after_dps:.4g} deg/s')
+        if s.thermal is not None:
+            lines.append(f'  {s.thermal.describe()}')
+    lines.append(f'final model: {", ".join(result.final_effects)}; gap {result.gap_dps:.4g} '
+                 f'deg/s = {result.gap_dps / result.noise_floor_dps:.2f} x noise floor '
+                 f'(held-out {result.heldout_gap_dps:.4g})')
+    if result.thermal is not None:
+        lines.append(f'final {result.thermal.describe()}')
+    if result.candidates:
+        lines.append('remaining candidates (none passed):')
+        for c in result.candidates:
+            lines.append(f'  {c.effect:7s} p = {c.p_value:.2g}, held-out gain '
+                         f'{c.heldout_gain_dps2:+.2g} (deg/s)^2, effect {c.effect_rms_dps:.2g} '
+                         f'deg/s: {c.why_not}')
+    for u in result.unidentifiable:
+        lines.append(f'unidentifiable: {u.effect}: {u.reason}. Experiment: {u.experiment}')
+    for n in result.notes:
+        lines.append(f'note: {n}')
+    gain = np.asarray(result.coef.get('gain', np.zeros(3)))
+    if np.any(gain != 0):
+        lines.append('constant scale-factor error vs the reference (not thermal, not in the '
+                     'model file): ' + ', '.join(f'{g * 1e6:+.0f} ppm' for g in gain))
+    return '\n'.join(lines) + '\n'

@@ -1,0 +1,375 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The linear stage of identification: RBF centre placement, ridge choice and the weights.
+
+:func:`fit_linear` is the inner solve of every variable-projection search in the package
+(the thermal state, warm-up, discovery, the accelerometer part); :func:`refine_rbf`
+refines centres and widths by nonlinear least squares.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+import math
+import warnings
+
+from gyro_tdc.model import rbf_design
+import numpy as np
+from numpy.typing import NDArray
+from scipy.cluster.vq import kmeans2
+from scipy.optimize import least_squares
+
+__all__ = ['fit_linear', 'LinearFit', 'refine_rbf', 'RIDGE_GRID']
+
+
+def _place_centers(xn: NDArray[np.float64], k: int, seed: int
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Place ``k`` centres by k-means on normalised rows and derive widths."""
+    rng = np.random.default_rng(seed)
+    if xn.shape[0] > 20_000:
+        xn = xn[rng.choice(xn.shape[0], 20_000, replace=False)]
+    uniq = np.unique(np.round(xn, 9), axis=0)
+    k = min(k, uniq.shape[0])
+    with warnings.catch_warnings():
+        warnings.simplefilter('ignore')
+        centers, _ = kmeans2(xn, k, seed=rng, minit='++')
+    centers = np.unique(centers, axis=0)
+    k = centers.shape[0]
+    if k == 1:
+        return centers, np.ones(1)
+    d = np.sqrt(((centers[:, None, :] - centers[None, :, :]) ** 2).sum(axis=2))
+    np.fill_diagonal(d, np.inf)
+    nn = np.sort(d, axis=1)[:, :min(2, k - 1)]
+    widths = np.maximum(nn.mean(axis=1), 1e-3)
+    return centers, widths
+
+
+#: Relative penalty on the linear tail (conditioning only: the tail is the physics).
+_TAIL_RIDGE = 1e-9
+#: Relative ridge values tried by ``ridge='auto'`` on the RBF weights.
+RIDGE_GRID = (1e-8, 1e-6, 1e-4, 1e-3, 1e-2, 3e-2, 1e-1, 3e-1, 1.0)
+
+
+def _penalty(p: int, f: int, ridge: float, n: int) -> NDArray[np.float64]:
+    """Return the square-root penalty per design column: none on w0, tiny on the tail."""
+    pen = np.full(p, math.sqrt(ridge * n))
+    pen[0] = 0.0
+    pen[1:1 + f] = math.sqrt(_TAIL_RIDGE * n)
+    return pen
+
+
+def _solve(design: NDArray[np.float64], y: NDArray[np.float64],
+           scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Solve the regularised least squares for all axes.
+
+    Returns the coefficients (P, 3) and the per-axis scale coefficients (3,).
+    """
+    p = design.shape[1]
+    reg = np.diag(pen)[1:]
+    if scale_cols is None:
+        a = np.vstack([design, reg])
+        b = np.vstack([y, np.zeros((p - 1, 3))])
+        coef = np.linalg.lstsq(a, b, rcond=None)[0]
+        return coef, np.zeros(3)
+    coef = np.empty((p, 3))
+    scale = np.empty(3)
+    for ax in range(3):
+        a = np.vstack([np.column_stack([design, scale_cols[:, ax]]),
+                       np.column_stack([reg, np.zeros(p - 1)])])
+        b = np.concatenate([y[:, ax], np.zeros(p - 1)])
+        sol = np.linalg.lstsq(a, b, rcond=None)[0]
+        coef[:, ax], scale[ax] = sol[:p], sol[p]
+    return coef, scale
+
+
+def _segment_sums(d: NDArray[np.float64], y: NDArray[np.float64],
+                  bounds: NDArray[np.int64]) -> tuple[NDArray[np.float64], ...]:
+    """Return per row segment ``d'd`` (S, Q, Q), ``d'y`` (S, Q, M) and ``y'y`` (S, M)."""
+    gs, bs, ys = [], [], []
+    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+        dj, yj = d[a:b], y[a:b]
+        gs.append(dj.T @ dj)
+        bs.append(dj.T @ yj)
+        ys.append(np.einsum('ij,ij->j', yj, yj))
+    return np.array(gs), np.array(bs), np.array(ys)
+
+
+def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
+                  scale_cols: NDArray[np.float64] | None, f: int, *,
+                  n_segments: int = 20, n_folds: int = 5) -> float:
+    """
+    Pick the RBF ridge by cross-validation over interleaved contiguous segments.
+
+    Holding out whole segments (5 % of the rows each) tests what matters for a drift model:
+    interpolation across a gap in the temperatures covered, where an under-regularised
+    network wiggles. Everything comes from each segment's Gram matrix, ``d'y`` and ``y'y``
+    (one pass over the rows): a fold's training problem is the total minus its own
+    segments, its held-out error ``|d w - y|^2 = w'Gw - 2 w'b + y'y``, so the grid search
+    costs almost nothing.
+    """
+    n, p = design.shape
+    seg = np.arange(n) * n_segments // n          # segment j is in fold j % n_folds
+    bounds = np.searchsorted(seg, np.arange(n_segments + 1))
+    n_trs = [n - int(np.diff(bounds)[k::n_folds].sum()) for k in range(n_folds)]
+    # Without scale columns every axis shares the design: its sums are computed once.
+    shared = None if scale_cols is not None else _segment_sums(design, y, bounds)
+    errors = np.zeros(len(RIDGE_GRID))
+    for ax in range(3):
+        if shared is None:
+            d = np.column_stack([design, scale_cols[:, ax]])
+            gs, bs, ys = _segment_sums(d, y[:, ax:ax + 1], bounds)
+            col = 0
+        else:
+            gs, bs, ys = shared
+            col = ax
+        q = gs.shape[1]
+        g_all, b_all = gs.sum(axis=0), bs[:, :, col].sum(axis=0)
+        # A column that is zero in every row (the constant, centred per group) has weight 0:
+        # solve without it (else every solve is singular and falls back to lstsq).
+        live = np.flatnonzero(np.diag(g_all) != 0.0)
+        sub = np.ix_(live, live)
+        for k in range(n_folds):
+            gk = gs[k::n_folds].sum(axis=0)[sub]
+            bk = bs[k::n_folds, :, col].sum(axis=0)[live]
+            yyk = float(ys[k::n_folds, col].sum())
+            g = g_all[sub] - gk
+            b = b_all[live] - bk
+            for i, ridge in enumerate(RIDGE_GRID):
+                pen = np.zeros(q)
+                pen[:p] = _penalty(p, f, ridge, n_trs[k]) ** 2
+                a = g + np.diag(pen[live])
+                try:
+                    w = np.linalg.solve(a, b)
+                except np.linalg.LinAlgError:
+                    w = np.linalg.lstsq(a, b, rcond=None)[0]
+                errors[i] += float(w @ (gk @ w)) - 2.0 * float(w @ bk) + yyk
+    # The largest ridge within 1 % of the best error: prefer the smoother network.
+    ok = np.flatnonzero(errors <= errors.min() * 1.01)
+    return float(RIDGE_GRID[int(ok.max())])
+
+
+@dataclass(frozen=True, eq=False)
+class LinearFit:
+    """
+    A drift network fitted by :func:`fit_linear`: normalisation, centres and weights.
+
+    Parameters
+    ----------
+    mean, std : NDArray[np.float64], shape (F,)
+        Input normalisation, ``x~ = (x - mean) / std``.
+    centers : NDArray[np.float64], shape (K, F)
+        RBF centres in normalised units (K = 0 for ``poly``).
+    widths : NDArray[np.float64], shape (K,)
+        RBF widths in normalised units.
+    coef : NDArray[np.float64], shape (1 + F + K, 3)
+        Weights of the design columns ``[1, x~, phi]`` per axis.
+    scale : NDArray[np.float64], shape (3,)
+        Per-axis coefficients of the ``scale_cols`` (zeros without them).
+    sse : float
+        Sum of squared residuals over rows and axes.
+    resid : NDArray[np.float64], shape (N, 3)
+        Residuals ``prediction - y`` of the fitted rows.
+    ridge : float
+        Relative ridge penalty used on the RBF weights.
+    offsets : NDArray[np.float64], shape (G, 3), optional
+        With ``groups``: the constant of each group (``coef[0]`` is then zero).
+
+    """
+
+    mean: NDArray[np.float64]
+    std: NDArray[np.float64]
+    centers: NDArray[np.float64]
+    widths: NDArray[np.float64]
+    coef: NDArray[np.float64]
+    scale: NDArray[np.float64]
+    sse: float
+    resid: NDArray[np.float64]
+    ridge: float
+    offsets: NDArray[np.float64] | None = None
+
+    def design(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """
+        Return the design matrix ``[1, x~, phi(x~)]`` of feature rows ``x``.
+
+        Parameters
+        ----------
+        x : NDArray[np.float64], shape (N, F)
+            Raw feature rows.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (N, 1 + F + K)
+            Design matrix (:func:`gyro_tdc.model.compensation.rbf_design`).
+
+        """
+        return rbf_design((self.mean, self.std, self.centers, self.widths), x)
+
+    def predict(self, x: NDArray[np.float64],
+                scale_cols: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+        """
+        Return the fitted drift at feature rows ``x``.
+
+        Parameters
+        ----------
+        x : NDArray[np.float64], shape (N, F)
+            Raw feature rows.
+        scale_cols : NDArray[np.float64], shape (N, 3), optional
+            ``dT * omega_ref`` per axis, when the fit has a ``scale`` term.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (N, 3)
+            Predicted drift per axis.
+
+        """
+        out = self.design(x) @ self.coef
+        if scale_cols is not None:
+            out += scale_cols * self.scale
+        return out
+
+
+def _residual(design: NDArray[np.float64], y: NDArray[np.float64],
+              scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
+              ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Solve the weights and return them with the scale coefficients and the residual."""
+    coef, scale = _solve(design, y, scale_cols, pen)
+    resid = design @ coef - y
+    if scale_cols is not None:
+        resid += scale_cols * scale
+    return coef, scale, resid
+
+
+def _within(a: NDArray[np.float64], inverse: NDArray[np.int64], counts: NDArray[np.float64]
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return the group means of the rows of ``a`` and ``a`` minus its group's mean."""
+    means = np.zeros((counts.size,) + a.shape[1:])
+    np.add.at(means, inverse, a)
+    means /= counts.reshape((-1,) + (1,) * (a.ndim - 1))
+    return means, a - means[inverse]
+
+
+def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
+               scale_cols: NDArray[np.float64] | None = None, kind: str = 'poly',
+               n_centers: int = 12, ridge: float | str = 'auto', seed: int = 0,
+               groups: NDArray[np.int64] | None = None) -> LinearFit:
+    """
+    Fit the drift network on one feature matrix by regularised linear least squares.
+
+    The inputs are normalised to zero mean and unit deviation; for ``rbf`` the centres are
+    placed by k-means on the normalised rows (each width the mean distance to the two nearest
+    other centres); then the weights of ``[1, x~, phi(x~)]`` (and of ``scale_cols``) are
+    solved with no penalty on the constant, a tiny one on the linear tail (conditioning
+    only) and the relative ``ridge`` on the RBF weights.
+
+    Parameters
+    ----------
+    x : NDArray[np.float64], shape (N, F)
+        Feature rows (effect columns, :func:`gyro_tdc.model.effects.batch_features`).
+    y : NDArray[np.float64], shape (N, 3)
+        Drift target per axis.
+    scale_cols : NDArray[np.float64], shape (N, 3), optional
+        ``dT * omega_ref`` per axis: fits the per-axis ``scale`` coefficient too.
+    kind : str
+        ``'poly'`` (linear in the features) or ``'rbf'``.
+    n_centers : int
+        RBF centres K (``rbf`` only; fewer when the rows have fewer distinct values).
+    ridge : float or 'auto'
+        Relative ridge on the RBF weights; ``'auto'`` picks it from :data:`RIDGE_GRID` by
+        cross-validation over interleaved contiguous segments (``rbf`` with at least 40
+        rows), else uses ``RIDGE_GRID[1]``.
+    seed : int
+        Seed of the centre placement.
+    groups : NDArray[np.int64], shape (N,), optional
+        A label per row: each group gets its own constant instead of the common ``w0``
+        (the within-group problem is solved exactly: design columns and target centred per
+        group), e.g. one offset per accelerometer orientation.
+
+    Returns
+    -------
+    LinearFit
+        Normalisation, centres, weights, residuals and the ridge used (with ``groups``,
+        ``coef[0]`` is zero and ``offsets`` holds the constant of each group, in the order
+        of ``np.unique(groups)``).
+
+    """
+    mean = x.mean(axis=0) if x.shape[1] else np.zeros(0)
+    std = x.std(axis=0) if x.shape[1] else np.ones(0)
+    std = np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
+    xn = (x - mean) / std
+    if kind == 'rbf' and x.shape[1]:
+        centers, widths = _place_centers(xn, n_centers, seed)
+    else:
+        centers, widths = np.zeros((0, x.shape[1])), np.zeros(0)
+    design = rbf_design((mean, std, centers, widths), x)
+    f = x.shape[1]
+    if groups is not None:
+        _, inverse, counts = np.unique(np.asarray(groups), return_inverse=True,
+                                       return_counts=True)
+        inverse = inverse.reshape(-1)
+        counts = counts.astype(np.float64)
+        dmeans, design = _within(design, inverse, counts)
+        ymeans, y = _within(np.asarray(y, dtype=np.float64), inverse, counts)
+        if scale_cols is not None:
+            smeans, scale_cols = _within(scale_cols, inverse, counts)
+    if ridge == 'auto':
+        ridge = (_choose_ridge(design, y, scale_cols, f) if centers.shape[0]
+                 and design.shape[0] >= 40 else RIDGE_GRID[1])
+    pen = _penalty(design.shape[1], f, ridge, design.shape[0])
+    coef, scale, resid = _residual(design, y, scale_cols, pen)
+    offsets = None
+    if groups is not None:          # the centred constant column is zero: no w0
+        coef[0] = 0.0
+        offsets = ymeans - dmeans @ coef
+        if scale_cols is not None:
+            offsets -= smeans * scale
+    return LinearFit(mean=mean, std=std, centers=centers, widths=widths, coef=coef,
+                     scale=scale, sse=float((resid ** 2).sum()), resid=resid,
+                     ridge=float(ridge), offsets=offsets)
+
+
+def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
+               scale_cols: NDArray[np.float64] | None, fit: LinearFit, *, ridge: float,
+               seed: int, max_rows: int = 2000) -> LinearFit:
+    """Refine centres and widths by nonlinear least squares (variable projection)."""
+    k, f = fit.centers.shape
+    if k == 0:
+        return fit
+    rng = np.random.default_rng(seed)
+    rows = rng.choice(x.shape[0], min(max_rows, x.shape[0]), replace=False)
+    xs, ys = x[rows], y[rows]
+    ss = None if scale_cols is None else scale_cols[rows]
+    mean, std = fit.mean, fit.std
+
+    def unpack(theta: NDArray[np.float64]) -> tuple:
+        return theta[:k * f].reshape(k, f), np.exp(theta[k * f:])
+
+    def resid(theta: NDArray[np.float64]) -> NDArray[np.float64]:
+        centers, widths = unpack(theta)
+        d = rbf_design((mean, std, centers, widths), xs)
+        return _residual(d, ys, ss, _penalty(d.shape[1], f, ridge, d.shape[0]))[2].ravel()
+
+    theta0 = np.concatenate([fit.centers.ravel(), np.log(fit.widths)])
+    sol = least_squares(resid, theta0, method='trf', max_nfev=20, x_scale='jac')
+    if sol.cost * 2 >= float((resid(theta0) ** 2).sum()):
+        return fit
+    centers, widths = unpack(sol.x)
+    design = rbf_design((mean, std, centers, widths), x)
+    pen = _penalty(design.shape[1], f, ridge, design.shape[0])
+    coef, scale, r = _residual(design, y, scale_cols, pen)
+    return replace(fit, centers=centers, widths=widths, coef=coef, scale=scale, resid=r,
+                   sse=float((r ** 2).sum()))

@@ -1,0 +1,466 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Training from ordinary operation: only the still stretches count (``train --still-only``).
+
+Bags recorded on a vehicle in normal use (``imu/data_raw`` and ``imu/temperature``, no
+reference topic) hold the gyro's drift only while the vehicle is still: then the true rate
+is zero and the output is the drift. :func:`train_still_only`
+
+1. finds the still stretches of every bag with the one still test
+   (:func:`gyro_tdc.signal.detect_still`: gyro and accelerometer scatter within the noise,
+   the noise floor the quietest window over all bags, a minimum duration, and with
+   ``motion_topic`` the veto of a ``cmd_vel``/odometry stream, :mod:`gyro_tdc.data.bag_motion`);
+2. chooses the features on the still stretches (``features='auto'``: discovery, as
+   :func:`gyro_tdc.identify.train.choose_features`; its filters see the temperature interpolated
+   across the drives, an approximation good enough to choose effects) and fits the model with
+   :func:`gyro_tdc.identify.fit_model` on the still rows only (``rows=``), while the thermal
+   state runs over every sample: the die temperature evolves while driving;
+3. drops, and refits without, the still stretches whose mean compensated rate departs from
+   the others' by more than :data:`OUTLIER_SIGMAS` robust standard deviations (and
+   :data:`OUTLIER_FLOOR_RAD_S`): a slow constant turn that passed the still test shows there,
+   provided other still time covers the same temperatures;
+4. reports the still time, its temperature coverage (per bin), the minutes heating and
+   cooling while still, and what to record next (:class:`StillReport`).
+
+The accelerometer part is fitted as in the chamber (:func:`gyro_tdc.identify.fit_accel`, on
+the same still test, one offset per parking orientation).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+import math
+import os
+from pathlib import Path
+from typing import Callable, Sequence
+
+from gyro_tdc.base import check_bin_width, check_centers
+from gyro_tdc.data import (Coverage, coverage, load_runs, MAX_LOSS_FRACTION,
+                           RATE_THRESHOLD_C_PER_MIN, read_motion, Run, temperature_rate)
+from gyro_tdc.errors import FitError
+from gyro_tdc.identify.accel import fit_accel
+from gyro_tdc.identify.fit import fit_model
+from gyro_tdc.identify.train import AUTO, AUTO_BASE, choose_features, TrainResult
+from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, EFFECTS, KINDS,
+                            normalise_ids, OPERATING_RANGE_C, save_model)
+from gyro_tdc.signal import detect_still, MIN_STILL_S, motion_veto, STILL_WINDOW_S, Stillness
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['ADVICE_PARK_MIN', 'MIN_STILL_SPAN_C', 'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS',
+           'StillReport', 'Stretch', 'find_still', 'still_report', 'train_still_only']
+
+#: Smallest temperature span of the still time a model is fitted on, degC.
+MIN_STILL_SPAN_C = 2.0
+#: A still stretch whose mean compensated rate departs from the others' by more than this
+#: many robust standard deviations ...
+OUTLIER_SIGMAS = 5.0
+#: ... and more than this (rad/s, 0.02 deg/s) is dropped as motion (a slow turn).
+OUTLIER_FLOOR_RAD_S = 3.5e-4
+#: The advice asks for still stretches of this many minutes.
+ADVICE_PARK_MIN = 20
+#: A bin (or direction) with less still time than this is named in the advice, min.
+_FEW_MIN = 10.0
+_DEG = 180.0 / math.pi
+
+
+@dataclass(frozen=True)
+class Stretch:
+    """
+    One still stretch of a bag.
+
+    Parameters
+    ----------
+    bag : str
+        The bag.
+    t0_s, t1_s : float, s
+        First and last stamp.
+    temp_c : float, degC
+        Mean measured temperature.
+    kept : bool
+        False when dropped as an outlier of the fit.
+    offset_dps : tuple of 3 float, deg/s
+        Mean compensated rate of the stretch under the final model.
+
+    """
+
+    bag: str
+    t0_s: float
+    t1_s: float
+    temp_c: float
+    kept: bool = True
+    offset_dps: tuple = (0.0, 0.0, 0.0)
+
+    @property
+    def minutes(self) -> float:
+        """Return the duration in minutes."""
+        return (self.t1_s - self.t0_s) / 60.0
+
+
+@dataclass
+class StillReport:
+    """
+    What the still time of ``train --still-only`` covered, and what to record next.
+
+    Parameters
+    ----------
+    total_s : float, s
+        Duration of the bags.
+    still_s : float, s
+        Still time kept (outliers excluded).
+    stretches : list of Stretch
+        Every still stretch found, kept or dropped.
+    coverage : Coverage
+        Temperature bins and heating/cooling minutes of the still time kept (the direction
+        from the temperature over the whole bag).
+    motion_topic : str
+        The motion veto's topic, or empty.
+    rejected : dict
+        Windows refused per test (:data:`gyro_tdc.signal.REASONS`), over all bags.
+    advice : list of str
+        What to record next.
+
+    """
+
+    total_s: float
+    still_s: float
+    stretches: list
+    coverage: Coverage
+    motion_topic: str = ''
+    rejected: dict = field(default_factory=dict)
+    advice: list = field(default_factory=list)
+
+    def lines(self) -> list[str]:
+        """Return the report, one line each: still time, coverage, direction, advice."""
+        kept = [s for s in self.stretches if s.kept]
+        longest = max((s.minutes for s in kept), default=0.0)
+        veto = f'; motion veto {self.motion_topic}' if self.motion_topic else ''
+        out = [f'still time: {self.still_s / 3600.0:.2f} h of {self.total_s / 3600.0:.2f} h '
+               f'({100.0 * self.still_s / max(self.total_s, 1e-9):.0f} %) in {len(kept)} '
+               f'stretches, longest {longest:.0f} min{veto}']
+        cov = self.coverage
+        bins = ' | '.join(f'{lo:g}..{hi:g} {m:.0f}' for lo, hi, m in
+                          zip(cov.edges[:-1], cov.edges[1:], cov.minutes))
+        out.append(f'still time per {cov.bin_c:g} degC (min): {bins}')
+        out.append(f'still time heating {cov.heating_min:.0f} min, cooling '
+                   f'{cov.cooling_min:.0f} min, steady {cov.steady_min:.0f} min (|dT/dt| '
+                   f'above {cov.threshold_c_per_min:g} degC/min)')
+        for s in self.stretches:
+            if not s.kept:
+                off = ', '.join(f'{v:+.3f}' for v in s.offset_dps)
+                out.append(f'dropped still stretch {s.bag} at {s.t0_s:.0f}..{s.t1_s:.0f} s '
+                           f'({s.minutes:.0f} min, {s.temp_c:.1f} degC): mean rate ({off}) '
+                           'deg/s off the others (a slow turn? use --motion-topic)')
+        out += [f'record next: {a}' for a in self.advice]
+        return out
+
+    def to_dict(self) -> dict:
+        """Return the report as plain types (the model's ``training`` metrics)."""
+        cov = self.coverage
+        return {'still_s': float(self.still_s), 'total_s': float(self.total_s),
+                'stretches': len([s for s in self.stretches if s.kept]),
+                'dropped': len([s for s in self.stretches if not s.kept]),
+                'bin_c': float(cov.bin_c), 'edges_c': [float(v) for v in cov.edges],
+                'minutes': [float(v) for v in cov.minutes],
+                'heating_min': float(cov.heating_min), 'cooling_min': float(cov.cooling_min),
+                'steady_min': float(cov.steady_min), 'motion_topic': self.motion_topic,
+                'advice': list(self.advice)}
+
+
+def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None] | None = None,
+               window_s: float = STILL_WINDOW_S, min_still_s: float = MIN_STILL_S
+               ) -> list[Stillness]:
+    """
+    Find the still samples of runs of one sensor, with one noise floor for them all.
+
+    The auto thresholds take the quietest window as the noise (:mod:`gyro_tdc.signal`); over
+    several bags of one sensor the quietest window of any of them is the floor, so a bag
+    that never stops does not look still to itself.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        The runs (raw rate, and the accelerometer when read).
+    moving : sequence of (NDArray[np.bool_] or None), optional
+        Per run, the samples a motion report vetoes (:func:`gyro_tdc.signal.motion_veto`).
+    window_s, min_still_s : float, s
+        Window length and shortest still stretch (:func:`gyro_tdc.signal.detect_still`).
+
+    Returns
+    -------
+    list of Stillness
+        One per run.
+
+    """
+    moving = [None] * len(runs) if moving is None else list(moving)
+    first = [detect_still(r.t, r.omega, r.accel, moving=m, window_s=window_s,
+                          min_still_s=min_still_s) for r, m in zip(runs, moving)]
+    if len(runs) < 2:
+        return first
+    g_floor = np.min([s.gyro_floor for s in first], axis=0)
+    a_floors = [s.accel_floor for s in first if s.accel_floor is not None]
+    a_floor = np.min(a_floors, axis=0) if a_floors else None
+    return [detect_still(r.t, r.omega, r.accel, moving=m, window_s=window_s,
+                         min_still_s=min_still_s, gyro_floor=g_floor, accel_floor=a_floor)
+            for r, m in zip(runs, moving)]
+
+
+def _rows(run: Run, m: NDArray[np.bool_]) -> Run:
+    """Return the samples ``m`` of a run as a run (with gaps)."""
+    return Run(run.t[m], run.temp[m], run.omega[m], run.omega_ref[m], run.name,
+               dict(run.info), None if run.accel is None else run.accel[m])
+
+
+def _stretches(runs: Sequence[Run], still: Sequence[Stillness]) -> list[tuple[int, int, int]]:
+    """Return (run, start, stop) of every still stretch."""
+    return [(i, a, b) for i, st in enumerate(still) for a, b in st.segments]
+
+
+def _outliers(means: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Return the stretches whose mean (S, 3, rad/s) departs from the others' (robust)."""
+    if means.shape[0] < 4:
+        return np.zeros(means.shape[0], dtype=bool)
+    med = np.median(means, axis=0)
+    dev = np.abs(means - med)
+    scale = 1.4826 * np.median(dev, axis=0)
+    limit = np.maximum(OUTLIER_SIGMAS * scale, OUTLIER_FLOOR_RAD_S)
+    return np.any(dev > limit, axis=1)
+
+
+def still_report(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
+                 stretches: list, *, bin_c: float, motion_topic: str = '',
+                 rejected: dict | None = None) -> StillReport:
+    """
+    Measure the still time kept and say what to record next.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        The whole runs.
+    rows : sequence of NDArray[np.bool_]
+        Their still samples kept.
+    stretches : list of Stretch
+        Every stretch found.
+    bin_c : float, degC
+        Coverage bin width.
+    motion_topic : str
+        The motion veto's topic, or empty.
+    rejected : dict, optional
+        Windows refused per test.
+
+    Returns
+    -------
+    StillReport
+        Still time, coverage, heating/cooling minutes and advice.
+
+    """
+    subs = [_rows(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
+    cov = coverage(subs, bin_c=bin_c)
+    # The direction from the temperature over the whole bag (the drives in between count).
+    minutes, rate = [], []
+    for r, m in zip(runs, rows):
+        dt = np.diff(r.t)
+        per = np.append(np.minimum(dt, 10.0 * float(np.median(dt))), float(np.median(dt)))
+        minutes.append(per[m] / 60.0)
+        rate.append(temperature_rate(r.t, r.temp)[m])
+    mins, rate_c = np.concatenate(minutes), np.concatenate(rate)
+    thr = RATE_THRESHOLD_C_PER_MIN
+    cov = replace(cov, heating_min=float(mins[rate_c > thr].sum()),
+                  cooling_min=float(mins[rate_c < -thr].sum()),
+                  steady_min=float(mins[np.abs(rate_c) <= thr].sum()))
+    total = float(sum(r.duration_s for r in runs))
+    still_s = float(sum(s.t1_s - s.t0_s for s in stretches if s.kept))
+    report = StillReport(total, still_s, list(stretches), cov, motion_topic, dict(rejected or {}))
+    report.advice = _advice(cov)
+    return report
+
+
+def _advice(cov: Coverage) -> list[str]:
+    """Return what to record next, from the still time's coverage."""
+    lo, hi = cov.temp_range_c
+    park = f'park for {ADVICE_PARK_MIN} min'
+    out = []
+    a, b = OPERATING_RANGE_C
+    if lo > a:
+        out.append(f'{park} at temperatures below {math.floor(lo):g} degC (a cold morning, '
+                   f'down to {a:g} degC): the still time starts at {lo:.1f} degC')
+    if hi < b:
+        out.append(f'{park} at temperatures above {math.ceil(hi):g} degC (right after a long '
+                   f'drive on a warm day, up to {b:g} degC): the still time ends at '
+                   f'{hi:.1f} degC')
+    for i in cov.sparse:
+        a, b = cov.edges[i], cov.edges[i + 1]
+        out.append(f'{park} at {a:g} .. {b:g} degC: only {cov.minutes[i]:.0f} min of still '
+                   'time there')
+    if cov.cooling_min < _FEW_MIN:
+        out.append(f'no cooling still time ({cov.cooling_min:.0f} min): park right after a '
+                   'drive, while the IMU cools')
+    if cov.heating_min < _FEW_MIN:
+        out.append(f'no heating still time ({cov.heating_min:.0f} min): park while the day '
+                   'warms up (morning sun), or power the IMU on and leave it still')
+    return out
+
+
+def train_still_only(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
+                     features: str | Sequence[str] = AUTO, kind: str = 'rbf',
+                     n_centers: int = 12, refine: bool = False, t0: float | None = None,
+                     seed: int = 0, sensor_id: str = '', imu_topic: str = '/imu/data_raw',
+                     temperature_topic: str = '/imu/temperature', motion_topic: str = '',
+                     window_s: float = STILL_WINDOW_S, min_still_s: float = MIN_STILL_S,
+                     progress: bool = False, bin_c: float = 5.0, command: str = '',
+                     max_loss: float = MAX_LOSS_FRACTION,
+                     log: Callable[[str], None] | None = None, accel: bool = True,
+                     runs: Sequence[Run] | None = None,
+                     moving: Sequence[NDArray[np.bool_] | None] | None = None
+                     ) -> TrainResult:
+    """
+    Fit a model on the still stretches of bags recorded in ordinary operation.
+
+    Parameters
+    ----------
+    bags : sequence of str or PathLike
+        rosbag2 directories (or folders of them), one run each; no reference is read (the
+        rate is zero while still).
+    out : str or PathLike
+        Model file to write.
+    features, kind, n_centers, refine, t0, seed, sensor_id, bin_c, command, max_loss, progress
+        As :func:`gyro_tdc.identify.train.train` (``t0`` defaults to the temperature at the start
+        of the first still stretch).
+    imu_topic, temperature_topic : str
+        Topics.
+    motion_topic : str
+        A ``geometry_msgs/Twist`` (``cmd_vel``), ``TwistStamped`` or ``nav_msgs/Odometry``
+        topic: still only while it reports zero motion. Empty: no veto.
+    window_s, min_still_s : float, s
+        Still-test window and shortest still stretch kept.
+    log : callable, optional
+        Receives one line per bag read.
+    accel : bool
+        Fit the accelerometer part too (when the bags have accelerometer data).
+    runs : sequence of Run, optional
+        Runs already loaded (``bags`` then only names them); for tests and scripts.
+    moving : sequence of (NDArray[np.bool_] or None), optional
+        With ``runs``: the motion veto per run.
+
+    Returns
+    -------
+    TrainResult
+        As :func:`gyro_tdc.identify.train.train`, with ``still`` the :class:`StillReport`;
+        ``coverage`` and ``samples`` are those of the still time kept.
+
+    Raises
+    ------
+    GyroTdcError
+        DatasetError for a bag or motion topic that cannot be read; FitError when no still
+        stretch is found or their temperatures span less than :data:`MIN_STILL_SPAN_C`
+        (with what to record), and as :func:`gyro_tdc.identify.train.train`.
+
+    """
+    auto = isinstance(features, str) and features.strip() == AUTO
+    ids = AUTO_BASE if auto else normalise_ids(features)
+    if kind not in KINDS:
+        raise FitError(f'Expected `kind` to be one of {", ".join(KINDS)}, got {kind!r}.')
+    check_centers(n_centers)
+    check_bin_width(bin_c)
+    if runs is None:
+        said = None if log is None else (lambda line: log(line.replace(
+            'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
+        runs = load_runs(bags, log=said, imu_topic=imu_topic,
+                         temperature_topic=temperature_topic, reference=(0.0, 0.0, 0.0),
+                         progress=progress, max_loss=max_loss, accel=bool(accel))
+        if motion_topic:
+            moving = []
+            for r in runs:
+                rep = read_motion(r.name, motion_topic)
+                moving.append(motion_veto(r.t, rep.t, rep.twist))
+    else:
+        runs = [replace(r, omega_ref=np.zeros_like(r.omega)) for r in runs]
+    names = [r.name for r in runs]
+    still = find_still(runs, moving=moving, window_s=window_s, min_still_s=min_still_s)
+    rejected: dict = {}
+    for st in still:
+        for k, v in st.rejected().items():
+            rejected[k] = rejected.get(k, 0) + v
+    rows = [st.mask.copy() for st in still]
+    if not any(m.any() for m in rows):
+        why = '; '.join(sorted({st.reason for st in still if st.reason}))
+        raise FitError(f'--still-only: no still stretch of {min_still_s:g} s or more in '
+                       f'{len(runs)} bag(s) ({why}): park the vehicle for '
+                       f'{ADVICE_PARK_MIN} min with the IMU on, and record it.')
+    temps = np.concatenate([r.temp[m] for r, m in zip(runs, rows)])
+    span = float(temps.max() - temps.min())
+    if span < MIN_STILL_SPAN_C:
+        raise FitError(f'--still-only: the still time spans {span:.2f} degC only '
+                       f'({temps.min():.1f} .. {temps.max():.1f} degC; need at least '
+                       f'{MIN_STILL_SPAN_C:g} degC): record stops at other temperatures '
+                       '(a cold morning, right after a long drive).')
+    if t0 is None:
+        i = next(k for k, m in enumerate(rows) if m.any())
+        first = np.flatnonzero(rows[i])
+        head = first[runs[i].t[first] <= runs[i].t[first[0]] + 60.0]
+        t0 = float(np.median(runs[i].temp[head]))
+    common = {'kind': kind, 't0': t0, 'n_centers': n_centers, 'refine': refine, 'seed': seed,
+              'frame_id': str(runs[0].info.get('frame_id') or 'imu_link'),
+              'sensor_id': sensor_id,
+              'created': {'command': command, 'bags': names, 'still_only': True}}
+    choice = None
+    params: dict = {}
+    if auto:
+        subs = [_rows(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
+        choice = choose_features(subs, t0=t0)
+        ids = choice.features
+        if choice.discovery is not None:
+            params = {k: v for k, v in choice.discovery.params.items()
+                      if k in ids and not EFFECTS[k].fitted}
+    spans = _stretches(runs, still)
+    model = fit_model(runs, features=ids, params=params or None, rows=rows, **common)
+    means = _stretch_means(model, runs, spans)
+    bad = _outliers(means)
+    if bad.any() and not bad.all():
+        for (i, a, b), drop in zip(spans, bad):
+            if drop:
+                rows[i][a:b] = False
+        model = fit_model(runs, features=ids, params=params or None, rows=rows, **common)
+        means = _stretch_means(model, runs, spans)
+    else:
+        bad[:] = False
+    stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
+                         float(runs[i].temp[a:b].mean()), not drop,
+                         tuple(float(v) * _DEG for v in mu))
+                 for (i, a, b), drop, mu in zip(spans, bad, means)]
+    report = still_report(runs, rows, stretches, bin_c=bin_c, motion_topic=motion_topic,
+                          rejected=rejected)
+    accel_fit = None
+    if accel:
+        accel_fit = fit_accel(runs, model, n_centers=n_centers, seed=seed, bin_c=bin_c)
+        if accel_fit.part is not None:
+            model = model.replace(accel=accel_fit.part)
+    metrics = {**model.metrics, 'still': report.to_dict()}
+    if choice is not None:
+        metrics['features'] = choice.to_dict()
+    model = model.replace(metrics=metrics)
+    path = save_model(model, out)
+    return TrainResult(model=model, path=Path(path), coverage=report.coverage, bags=names,
+                       samples=int(sum(np.count_nonzero(m) for m in rows)), choice=choice,
+                       accel=accel_fit, still=report)
+
+
+def _stretch_means(model: CompensationModel, runs: Sequence[Run],
+                   spans: list[tuple[int, int, int]]) -> NDArray[np.float64]:
+    """Return the mean compensated rate (rad/s) of every still stretch (S, 3)."""
+    comp = [compensate(model, r.t, r.temp, r.omega, out_of_range=DEFAULT_OUT_OF_RANGE)
+            for r in runs]
+    return np.array([comp[i][a:b].mean(axis=0) for i, a, b in spans]).reshape(-1, 3)

@@ -1,0 +1,316 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The online learner's fit: point table -> weighted, outlier-robust model (issue 14 item 3).
+
+Pure (numpy only); :class:`gyro_tdc.learn.learner.Learner` gathers the points and decides the
+swap, this module fits them. The point table has one row per entry ``(t_end, samples,
+temp, bx, by, bz, session)``; ``temp`` is the model temperature the entry was binned at (the
+prior's thermal state, or the thermometer without one).
+
+**Fit.** Weighted least squares of the entries' mean raw rate on ``T - T0`` with weights
+``samples * 0.5 ** (age / half_life_s)`` (age by message stamp to the newest entry, as AOSP
+``over_temp_cal`` weights its model points by age), one intercept per session and a shared
+shape (:func:`solve`; the model uses the newest session's intercept). Then outliers go
+(:func:`inliers`): each entry is compared with the fit of the others (leave one out; an entry
+alone in its session is kept); the one that departs most is dropped when its departure
+exceeds :data:`OUTLIER_K` times the others' scatter in that fit (1.4826 x their weighted
+median absolute residual, at least the noise floor over the root of the largest entry's
+samples), up to :data:`MAX_DROPS` times; then the fit is repeated on the rest.
+
+**Growth rule** (:func:`grow_features`): the features grow with the covered temperature span
+of the bins: under :data:`SPAN_DT_C` (or fewer than 2 bins) a bias only; from there ``dT``;
+from :data:`SPAN_DT2_C` and at least :data:`BINS_DT2` bins ``dT, dT2``; from
+:data:`SPAN_DT3_C` and :data:`BINS_DT3` bins ``dT, dT2, dT3``.
+
+**Prediction check** (:func:`prediction_mse`): a model's sample-weighted mean squared error
+over still windows, evaluated at the windows' model temperatures.
+
+**Model** (:func:`learned_model`): a ``poly`` model of those features (a bias only is ``dT``
+with a zero slope), its range the covered model temperatures. With a thermal front end (the
+prior's) the model carries it (format 2: a lagged state adds ``lag`` with the state's total
+time constant), so the compensator evaluates it on the same model temperature the points
+were binned at.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+from gyro_tdc.learn.temperature import at_state, same_thermal
+from gyro_tdc.model import CompensationModel, drift, normalise_ids, ThermalState
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['BINS_DT2', 'BINS_DT3', 'MAX_DROPS', 'OUTLIER_K', 'SPAN_DT2_C', 'SPAN_DT3_C',
+           'SPAN_DT_C', 'fit_points', 'grow_features', 'inliers', 'learned_model',
+           'model_of', 'prediction_mse', 'solve']
+
+OUTLIER_K = 4.0
+MAX_DROPS = 3
+SPAN_DT_C = 2.0
+SPAN_DT2_C = 8.0
+BINS_DT2 = 5
+SPAN_DT3_C = 15.0
+BINS_DT3 = 10
+
+
+def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
+                  temp_range: tuple[float, float], resid_var: NDArray[np.float64],
+                  thermal: ThermalState | None = None) -> CompensationModel:
+    """
+    Return the ``poly`` model of a learned fit.
+
+    Parameters
+    ----------
+    coef : NDArray[np.float64], shape (1 + F, 3), rad/s
+        Intercept then one row per feature (``dT``; ``dT, dT2``).
+    features : sequence of str
+        ``('dT',)`` or ``('dT', 'dT2')``.
+    t0 : float, degC
+        Reference temperature.
+    temp_range : tuple of float, degC
+        Covered range (of the model temperature).
+    resid_var : NDArray[np.float64], shape (3,)
+        Residual variance of the fit.
+    thermal : ThermalState, optional
+        The thermal front end the points were binned with (None: a format-1 model of the
+        measured temperature).
+
+    Returns
+    -------
+    CompensationModel
+
+    """
+    f = len(features)
+    coef = np.asarray(coef, dtype=np.float64).reshape(1 + f, 3)
+    feats, params = tuple(features), {}
+    if thermal is not None and thermal.kind != 'none':
+        feats, params = normalise_ids(feats + ('lag',)), {'lag': {'tau_s': thermal.tau_total_s}}
+    return CompensationModel(
+        kind='poly', features=feats, effect_params=params, t0_c=float(t0),
+        input_mean=np.zeros(f), input_std=np.ones(f), centers=np.zeros((0, f)),
+        widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=coef[0].copy(),
+        linear=coef[1:].copy(), scale=np.zeros(3),
+        temp_range_c=(float(temp_range[0]), float(temp_range[1])),
+        residual_var=np.asarray(resid_var, dtype=np.float64).reshape(3),
+        created={'fit': 'gyro_tdc.learn.learner (online, still time)'}, thermal=thermal)
+
+
+def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:
+    """
+    Return the features the covered span allows (the growth rule).
+
+    Parameters
+    ----------
+    temps : NDArray[np.float64], shape (E,), degC
+        The entries' temperatures.
+    bins : int
+        Occupied temperature bins.
+
+    Returns
+    -------
+    tuple of str
+        ``()`` (a bias only), ``('dT',)``, ``('dT', 'dT2')`` or ``('dT', 'dT2', 'dT3')``.
+
+    """
+    span = float(temps.max() - temps.min()) if temps.size else 0.0
+    if span >= SPAN_DT3_C and bins >= BINS_DT3:
+        return ('dT', 'dT2', 'dT3')
+    if span >= SPAN_DT2_C and bins >= BINS_DT2:
+        return ('dT', 'dT2')
+    if span >= SPAN_DT_C and bins >= 2:
+        return ('dT',)
+    return ()
+
+
+def solve(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
+          session: float | None = None
+          ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Weighted least squares, one intercept per session and a shared shape.
+
+    Parameters
+    ----------
+    e : NDArray[np.float64], shape (E, 7)
+        Point table rows ``(t_end, samples, temp, bx, by, bz, session)``.
+    wt : NDArray[np.float64], shape (E,)
+        Weights.
+    feats : sequence of str
+        Features (powers of ``temp - t0``, in order).
+    t0 : float, degC
+        Reference temperature.
+    session : float, optional
+        Whose intercept to return (default the newest).
+
+    Returns
+    -------
+    coef : NDArray[np.float64], shape (1 + F, 3)
+        The intercept of ``session``, then the shape.
+    resid : NDArray[np.float64], shape (E, 3)
+        Residuals.
+
+    """
+    d = e[:, 2] - t0
+    sessions = np.unique(e[:, 6])
+    x = np.column_stack([(e[:, 6] == s).astype(np.float64) for s in sessions]
+                        + [d ** (j + 1) for j in range(len(feats))])
+    sw = np.sqrt(wt)[:, None]
+    coef = np.linalg.lstsq(x * sw, e[:, 3:6] * sw, rcond=None)[0]
+    k = sessions.size
+    i = k - 1 if session is None else int(np.flatnonzero(sessions == session)[0])
+    return np.vstack([coef[i:i + 1], coef[k:]]), e[:, 3:6] - x @ coef
+
+
+def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
+            floor: float) -> NDArray[np.bool_]:
+    """
+    Return the entries to keep: each against the fit of the others (leave one out).
+
+    Parameters
+    ----------
+    e, wt, feats, t0
+        As for :func:`solve`.
+    floor : float, rad/s
+        The gyro's noise floor (per sample): the smallest scatter an entry is judged by is
+        this over the root of the largest entry's samples.
+
+    Returns
+    -------
+    NDArray[np.bool_], shape (E,)
+        True for the entries kept.
+
+    """
+    n = e.shape[0]
+    keep = np.ones(n, dtype=bool)
+    for _ in range(MAX_DROPS):
+        idx = np.flatnonzero(keep)
+        if idx.size <= len(feats) + np.unique(e[idx, 6]).size + 2:
+            break
+        best = None
+        for i in idx:
+            others = idx[idx != i]
+            if not np.any(e[others, 6] == e[i, 6]):
+                continue              # its session's intercept needs it
+            c, res = solve(e[others], wt[others], feats, t0, session=e[i, 6])
+            x = e[i, 2] - t0
+            pred = c[0] + sum(c[j + 1] * x ** (j + 1) for j in range(len(feats)))
+            loo = float(np.abs(e[i, 3:6] - pred).max())
+            if best is None or loo > best[1]:
+                best = (i, loo, np.abs(res).max(axis=1), wt[others])
+        if best is None:
+            break
+        i, loo, r, w = best
+        order = np.argsort(r)
+        cw = np.cumsum(w[order])
+        mad = float(r[order][np.searchsorted(cw, 0.5 * cw[-1])])
+        sigma = max(1.4826 * mad, floor / math.sqrt(max(float(e[:, 1].max()), 1.0)), 1e-12)
+        if loo <= OUTLIER_K * sigma:
+            break
+        keep[i] = False
+    return keep
+
+
+def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_life_s: float,
+               floor: float) -> dict:
+    """
+    Fit the point table: weights by samples and age, outliers dropped, then refit.
+
+    Parameters
+    ----------
+    e : NDArray[np.float64], shape (E, 7)
+        Point table (:func:`solve`), E >= 1.
+    feats : sequence of str
+        Features (:func:`grow_features`).
+    t_now : float, s
+        Stamp the ages are counted to.
+    half_life_s : float, s
+        Age at which an entry weighs half.
+    floor : float, rad/s
+        The gyro's noise floor (:func:`inliers`).
+
+    Returns
+    -------
+    dict
+        The fit record (plain types, what the learn file stores): ``features``, ``t0_c``,
+        ``coef``, ``range_c``, ``resid_var``, ``points``.
+
+    """
+    age = np.maximum(t_now - e[:, 0], 0.0)
+    wt = e[:, 1] * 0.5 ** (age / half_life_s)
+    t0 = float(np.average(e[:, 2], weights=wt))
+    coef, res = solve(e, wt, feats, t0)
+    keep = inliers(e, wt, feats, t0, floor)
+    if not keep.all():
+        e, wt = e[keep], wt[keep]
+        coef, res = solve(e, wt, feats, t0)
+    resid = np.average(res ** 2, axis=0, weights=wt)
+    return {'features': list(feats), 't0_c': t0, 'coef': coef.tolist(),
+            'range_c': [float(e[:, 2].min()), float(e[:, 2].max())],
+            'resid_var': resid.tolist(), 'points': int(e.shape[0])}
+
+
+def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationModel:
+    """
+    Return the model of a fit record (a bias only as ``dT`` with a zero slope).
+
+    Parameters
+    ----------
+    fit : dict
+        :func:`fit_points` output.
+    thermal : ThermalState, optional
+        The thermal front end the points were binned with.
+
+    Returns
+    -------
+    CompensationModel
+
+    """
+    feats = tuple(fit['features'])
+    coef = np.asarray(fit['coef'], dtype=np.float64)
+    if not feats:
+        feats, coef = ('dT',), np.vstack([coef, np.zeros((1, 3))])
+    return learned_model(coef, feats, fit['t0_c'], tuple(fit['range_c']),
+                         np.asarray(fit['resid_var']), thermal)
+
+
+def prediction_mse(model: CompensationModel, rows: Sequence[Sequence[float]],
+                   thermal: ThermalState | None) -> float:
+    """
+    Return the sample-weighted mean squared error of ``model`` over still windows.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model checked.
+    rows : sequence of rows ``(samples, temp, bx, by, bz, t_end)``
+        The windows: ``temp`` the model temperature (of ``thermal``), ``b`` the mean raw
+        rate (rad/s), ``t_end`` the stamp.
+    thermal : ThermalState or None
+        The thermal front end ``temp`` was computed with: a model with the same one is
+        evaluated at ``temp`` directly; any other runs its own front end over the windows.
+
+    Returns
+    -------
+    float, (rad/s)^2
+        The error, summed over the axes.
+
+    """
+    r = np.asarray(rows, dtype=np.float64).reshape(-1, 6)
+    m = at_state(model) if same_thermal(model.thermal, thermal) else model
+    pred = drift(m, r[:, 5], r[:, 1], out_of_range='linear')
+    err = ((r[:, 2:5] - pred) ** 2).sum(axis=1)
+    return float(np.average(err, weights=r[:, 0]))

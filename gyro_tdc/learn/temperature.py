@@ -1,0 +1,135 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The online learner's model temperature: held thermometer, streamed thermal state (issue 14).
+
+Pure (numpy only). :class:`gyro_tdc.learn.learner.Learner` bins and fits still-time means against
+the *model* temperature, the one the compensator evaluates the model at: the thermometer
+reading held by stamp (:func:`hold_readings`), through the thermal front end of the prior
+(:class:`gyro_tdc.model.thermal_state.ThermalState`) when it has a lag (:func:`stream_state`: the
+step-hold filter of :class:`~gyro_tdc.model.thermal_state.StreamingThermalState`, vectorised over
+a batch of samples and carried from one batch to the next by a small state, so batches of
+any size give the same values). :func:`same_thermal` says when two thermal sections give
+the same model temperature; :func:`at_state` turns a lagged model into one that takes the
+model temperature itself as its input (to score it on windows binned at that temperature).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+import math
+from typing import Sequence
+
+from gyro_tdc.model import CompensationModel, first_order_lag, THERMAL_EFFECTS, ThermalState
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['ThermalCarry', 'at_state', 'hold_readings', 'same_thermal', 'stream_state']
+
+#: The state carried between batches: the last stamp and one value per node.
+ThermalCarry = tuple[float, list[float]]
+
+
+def hold_readings(readings: Sequence[tuple[float, float]], t: NDArray[np.float64],
+                  timeout: float) -> tuple[NDArray[np.float64], list[tuple[float, float]]]:
+    """
+    Hold the thermometer by stamp: the newest reading at or before each stamp.
+
+    Parameters
+    ----------
+    readings : sequence of (float, float)
+        Thermometer readings ``(stamp s, degC)``, any order.
+    t : NDArray[np.float64], shape (N,), s
+        Sample stamps, N >= 1.
+    timeout : float, s
+        A reading older than this gives NaN.
+
+    Returns
+    -------
+    held : NDArray[np.float64], shape (N,), degC
+        The held reading (NaN before the first and after a timeout).
+    keep : list of (float, float)
+        The readings still needed: the newest at or before ``t[-1]`` and all after it.
+
+    """
+    if not readings:
+        return np.full(t.size, math.nan), []
+    tt = np.array([x[0] for x in readings])
+    tc = np.array([x[1] for x in readings])
+    order = np.argsort(tt, kind='stable')
+    tt, tc = tt[order], tc[order]
+    i = np.searchsorted(tt, t, side='right') - 1
+    j = np.clip(i, 0, None)
+    out = np.where(i >= 0, tc[j], math.nan)
+    out[(i >= 0) & (t - tt[j] > timeout)] = math.nan
+    keep = max(int(i[-1]), 0)
+    return out, list(zip(tt[keep:].tolist(), tc[keep:].tolist()))
+
+
+def stream_state(thermal: ThermalState | None, carry: ThermalCarry | None,
+                 t: NDArray[np.float64], temp: NDArray[np.float64]
+                 ) -> tuple[NDArray[np.float64], ThermalCarry | None]:
+    """
+    Return the model temperature of a batch of samples and the state to carry on.
+
+    Parameters
+    ----------
+    thermal : ThermalState or None
+        The front end (None or kind ``none``: the model temperature is ``temp``).
+    carry : ThermalCarry or None
+        The state after the previous batch; None starts settled at the first finite
+        ``temp`` (steady state).
+    t : NDArray[np.float64], shape (N,), s
+        Stamps.
+    temp : NDArray[np.float64], shape (N,), degC
+        Held measured temperature; NaN samples give NaN and do not advance the state.
+
+    Returns
+    -------
+    state : NDArray[np.float64], shape (N,), degC
+        The model temperature (``temp`` itself without a lag).
+    carry : ThermalCarry or None
+        The state after the last finite sample.
+
+    """
+    ok = np.isfinite(temp)
+    if thermal is None or thermal.kind == 'none' or not ok.any():
+        return temp, carry
+    tt, x = t[ok], temp[ok]
+    t_prev, ys = carry or (float(tt[0]), [float(x[0])] * len(thermal.tau_s))
+    new = []
+    for tau, y0 in zip(thermal.tau_s, ys):        # cascaded nodes, from the carried state on
+        x = first_order_lag(np.r_[t_prev, tt], np.r_[y0, x], tau, y0=y0)[1:]
+        new.append(float(x[-1]))
+    out = np.full(t.size, math.nan)
+    out[ok] = x
+    return out, (max(float(tt[-1]), t_prev), new)
+
+
+def same_thermal(a: ThermalState | None, b: ThermalState | None) -> bool:
+    """Return whether two thermal sections give the same model temperature (None = none)."""
+    ka = 'none' if a is None else a.kind
+    kb = 'none' if b is None else b.kind
+    return ka == kb and (ka == 'none' or a.tau_s == b.tau_s)
+
+
+def at_state(model: CompensationModel) -> CompensationModel:
+    """Return ``model`` taking the model temperature as its input (its lag switched off)."""
+    if model.thermal is None or model.thermal.kind == 'none':
+        return model
+    return replace(model, features=tuple(f for f in model.features if f not in THERMAL_EFFECTS),
+                   effect_params={k: v for k, v in model.effect_params.items()
+                                  if k not in THERMAL_EFFECTS},
+                   thermal=ThermalState('none'), accel=None)

@@ -1,0 +1,672 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The compensation model: features of the temperature history -> per-axis drift.
+
+The drift (temperature drift error, TDE) of each axis is modelled as
+
+    omega_raw = (1 + s dT) omega_true + b(x)
+    b(x)      = w0 + L^T x~ + sum_j W_j phi_j(x~),     j = 1..K
+    phi_j(x~) = exp(-|x~ - c_j|^2 / (2 sigma_j^2))     (paper eq. 26-27)
+
+where ``x`` are the effect features (e.g. ``dT``, ``dT^2``; see :mod:`gyro_tdc.model.effects`),
+``x~ = (x - mean) / std`` their normalised values, ``phi_j`` the paper's Gaussian radial basis
+functions (eq. 26) and ``W`` the output weights (eq. 27) for the three axes. The constant and
+linear tail (``w_0``, ``L``) make the network extrapolate gently and contain the conventional
+linear model. A ``poly`` model has no centres (K = 0): with features ``dT, dT2, dT3`` it is the
+PX4-style cubic. ``s`` is the optional per-axis sensitivity change (effect ``scale``).
+
+Compensation inverts the model: ``omega = (omega_raw - b(x)) / (1 + s dT)``.
+
+The model temperature. A model has a thermal front end (:class:`gyro_tdc.model.thermal_state.
+ThermalState`, format 2): the measured temperature ``T`` goes through it to the state ``S``,
+the estimated die temperature (``S = T`` without ``lag``), and ``dT = S - T0`` in every
+temperature term, the RBF inputs and the scale term; the valid range ``temp_range_c`` is the
+state's range over the training data, and clamping (the out-of-range policy) holds the state
+at the range ends. ``dTdt`` is of the measured temperature (unclamped) and ``warmup`` of the
+time since the first sample. A format-1 model (``thermal=None``, read from an old file)
+keeps its meaning exactly: every feature of the measured temperature (clamped), ``lag`` the
+additive column ``dT`` of the lagged temperature.
+
+The accelerometer part. A format-2 model may carry ``accel``: a second model of the same
+form, in m/s^2, that shares the thermal front end and T0 and holds the accelerometer
+offset's *change* with temperature (zero at T0; see :mod:`gyro_tdc.identify`). ``drift``,
+``compensate`` and :class:`StreamingCompensator` apply to it as to the gyro part
+(``scale`` is zero there), and :attr:`StreamingCompensator.accel` streams it.
+
+Outside the trained range the policy of :mod:`gyro_tdc.model.out_of_range` applies (``linear``:
+the correction continues along its tangent at the range end, then holds; ``clamp``;
+``extrapolate``); the library functions keep ``clamp=True`` as their default, and
+``out_of_range=`` overrides it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+import hashlib
+import json
+import math
+from typing import Any, Mapping
+
+from gyro_tdc.base import plain
+from gyro_tdc.errors import FeatureError
+from gyro_tdc.model.effects import batch_features, input_ids, StreamingFeatures, THERMAL_EFFECTS
+from gyro_tdc.model.out_of_range import check_policy, MAX_EXTRAPOLATION_C, split, Tangent
+from gyro_tdc.model.thermal_state import SETTLE_TAUS, ThermalState
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['CompensationModel', 'StreamingCompensator', 'compensate', 'drift',
+           'model_temperature', 'predict_drift', 'rbf_design']
+
+KINDS = ('rbf', 'poly')
+
+
+@dataclass(frozen=True, eq=False)
+class CompensationModel:
+    """
+    A fitted temperature-drift compensation model (immutable data).
+
+    Parameters
+    ----------
+    kind : str
+        ``'rbf'`` (Gaussian RBF network with a linear tail) or ``'poly'`` (linear in the
+        features; the PX4-style cubic when the features are ``dT, dT2, dT3``).
+    features : tuple of str
+        Effect ids of the model, in catalog order (``bias`` is always implied).
+    effect_params : dict
+        ``{effect_id: {param: value}}`` (e.g. the warm-up ``tau_s``). With a thermal state,
+        ``lag.tau_s`` mirrors the state's total time constant
+        (``thermal.tau_total_s``).
+    t0_c : float, degC
+        Reference temperature T0.
+    input_mean, input_std : NDArray[np.float64], shape (F,)
+        Normalisation of the network inputs.
+    centers : NDArray[np.float64], shape (K, F)
+        RBF centres in normalised input space.
+    widths : NDArray[np.float64], shape (K,)
+        RBF widths sigma_j in normalised input space.
+    weights : NDArray[np.float64], shape (K, 3), rad/s
+        RBF output weights per axis.
+    intercept : NDArray[np.float64], shape (3,), rad/s
+        Constant term w_0 (the ``bias`` effect).
+    linear : NDArray[np.float64], shape (F, 3), rad/s
+        Linear tail per normalised input and axis.
+    scale : NDArray[np.float64], shape (3,), 1/degC
+        Sensitivity change s per axis (zeros when ``scale`` is not modelled).
+    temp_range_c : tuple of float, degC
+        Range of the model temperature (the thermal state) over the training data.
+    residual_var : NDArray[np.float64], shape (3,), (rad/s)^2
+        Variance of the training residual per axis.
+    frame_id : str
+        Frame of the gyro the model was fitted for.
+    sensor_id : str
+        Free-form sensor identifier.
+    metrics : dict
+        Training metrics (plain types).
+    created : dict
+        Creation info (UTC time, gyro_tdc version, command, data).
+    thermal : ThermalState, optional
+        The thermal front end (format 2; kind ``none`` when the model has no ``lag``, else
+        ``first_order`` or ``two_node``). None: a format-1 model (the layout before the
+        thermal state, see the module docstring); what old files load as.
+    accel : CompensationModel, optional
+        The accelerometer part (format 2 only): the same thermal front end and T0, output
+        in m/s^2, ``residual_var`` in (m/s^2)^2, ``scale`` zero, zero at T0
+        (:mod:`gyro_tdc.identify`). None: the model compensates the gyro only.
+
+    """
+
+    kind: str
+    features: tuple[str, ...]
+    effect_params: dict
+    t0_c: float
+    input_mean: NDArray[np.float64]
+    input_std: NDArray[np.float64]
+    centers: NDArray[np.float64]
+    widths: NDArray[np.float64]
+    weights: NDArray[np.float64]
+    intercept: NDArray[np.float64]
+    linear: NDArray[np.float64]
+    scale: NDArray[np.float64]
+    temp_range_c: tuple[float, float]
+    residual_var: NDArray[np.float64]
+    frame_id: str = 'imu_link'
+    sensor_id: str = ''
+    metrics: dict = field(default_factory=dict, compare=False)
+    created: dict = field(default_factory=dict, compare=False)
+    thermal: ThermalState | None = None
+    accel: 'CompensationModel | None' = None
+
+    def __post_init__(self) -> None:
+        """Check that the thermal front end agrees with the features."""
+        th = self.thermal
+        if self.accel is not None:
+            self._check_accel()
+        if th is None:
+            return
+        if not isinstance(th, ThermalState):
+            raise FeatureError(f'`thermal` must be a ThermalState or None, got '
+                               f'{type(th).__name__}')
+        lagged = bool(THERMAL_EFFECTS & set(self.features))
+        if lagged != (th.kind != 'none'):
+            raise FeatureError(f'thermal kind {th.kind!r} does not match the features '
+                               f'{list(self.features)}: `lag` goes with a lagged state '
+                               '(first_order, two_node), no `lag` with kind none')
+        for eid in THERMAL_EFFECTS & set(self.features):
+            tau = self.effect_params.get(eid, {}).get('tau_s')
+            if tau != th.tau_total_s:
+                raise FeatureError(f'effect_params {eid}.tau_s ({tau!r}) must equal the '
+                                   f"thermal state's total time constant ({th.tau_total_s!r})")
+
+    def _check_accel(self) -> None:
+        """Check that the accelerometer part shares the thermal front end and T0."""
+        a = self.accel
+        if not isinstance(a, CompensationModel):
+            raise FeatureError(f'`accel` must be a CompensationModel or None, got '
+                               f'{type(a).__name__}')
+        if self.thermal is None:
+            raise FeatureError('an accelerometer part needs a format-2 model (a thermal '
+                               'front end)')
+        if a.accel is not None:
+            raise FeatureError('an accelerometer part cannot hold an accelerometer part')
+        if a.thermal != self.thermal or a.t0_c != self.t0_c:
+            raise FeatureError('the accelerometer part must share the thermal front end and '
+                               'T0 of the model')
+        if np.any(a.scale != 0):
+            raise FeatureError('the accelerometer part has no scale term (scale must be 0)')
+
+    @property
+    def format_version(self) -> int:
+        """Return the model-file format: 2 with a thermal front end, 1 without."""
+        return 1 if self.thermal is None else 2
+
+    def __eq__(self, other: object) -> bool:
+        """Compare every fitted field exactly (arrays element-wise)."""
+        if not isinstance(other, CompensationModel):
+            return NotImplemented
+        for f in fields(self):
+            if not f.compare:
+                continue
+            a, b = getattr(self, f.name), getattr(other, f.name)
+            if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
+                a, b = np.asarray(a), np.asarray(b)
+                if a.shape != b.shape or not np.array_equal(a, b):
+                    return False
+            elif a != b:
+                return False
+        return True
+
+    __hash__ = object.__hash__
+
+    @property
+    def inputs(self) -> tuple[str, ...]:
+        """Return the ids of the network inputs, in feature-matrix column order."""
+        return input_ids(self.features, state=self.thermal is not None)
+
+    @property
+    def n_centers(self) -> int:
+        """Return the number of RBF centres K."""
+        return int(self.centers.shape[0])
+
+    @property
+    def model_id(self) -> str:
+        """
+        Return a short content hash of every field but ``created``.
+
+        Covers the fitted parameters, ``temp_range_c``, ``residual_var``, the sensor ids,
+        the training metrics, (format 2) the format and the thermal front end, and the
+        accelerometer part when there is one (its own id), so no
+        field a compensator or a reader relies on can be edited under the old id. Numbers
+        are hashed as float64 bytes (or exact JSON), so the id survives a YAML round trip
+        and does not depend on numpy's ``repr``; a format-1 model keeps the id it always
+        had.
+        """
+        h = hashlib.sha256()
+        head = [self.kind, list(self.features), self.effect_params, self.frame_id,
+                self.sensor_id, self.metrics]
+        if self.thermal is not None:
+            head.append({'format_version': self.format_version,
+                         'thermal': self.thermal.to_dict()})
+        if self.accel is not None:          # a gyro-only model keeps the id it had
+            head.append({'accel': self.accel.model_id})
+        h.update(_canonical_json(head).encode())
+        for arr in (self.t0_c, self.temp_range_c, self.input_mean, self.input_std, self.centers,
+                    self.widths, self.weights, self.intercept, self.linear, self.scale,
+                    self.residual_var):
+            a = np.ascontiguousarray(arr, dtype=np.float64)
+            h.update(repr(a.shape).encode())
+            h.update(a.tobytes())
+        return h.hexdigest()[:12]
+
+    def replace(self, **changes: Any) -> 'CompensationModel':
+        """Return a copy with some fields changed."""
+        from dataclasses import replace
+        return replace(self, **changes)
+
+
+def _canonical_json(value: Any) -> str:
+    """Return one canonical JSON text of plain data (sorted keys, exact floats)."""
+    return json.dumps(plain(value), sort_keys=True, separators=(',', ':'),
+                      default=repr)
+
+
+def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
+               ) -> NDArray[np.float64]:
+    """
+    Build the design matrix ``[1, x~, phi_1(x~) ... phi_K(x~)]`` of feature rows ``x``.
+
+    Parameters
+    ----------
+    model_or_norm : CompensationModel or tuple
+        A model, or ``(input_mean, input_std, centers, widths)``.
+    x : NDArray[np.float64], shape (N, F)
+        Raw feature rows.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N, 1 + F + K)
+        Design matrix.
+
+    """
+    if isinstance(model_or_norm, CompensationModel):
+        m = model_or_norm
+        mean, std, centers, widths = m.input_mean, m.input_std, m.centers, m.widths
+    else:
+        mean, std, centers, widths = model_or_norm
+    xn = (np.asarray(x, dtype=np.float64) - mean) / std
+    n, f = xn.shape
+    k = centers.shape[0]
+    out = np.empty((n, 1 + f + k))
+    out[:, 0] = 1.0
+    out[:, 1:1 + f] = xn
+    if k:
+        # Squared distances accumulated one input at a time: no (N, K, F) temporary.
+        phi = out[:, 1 + f:]
+        phi.fill(0.0)
+        for j in range(f):
+            diff = xn[:, j:j + 1] - centers[None, :, j]
+            diff *= diff
+            phi += diff
+        phi *= -1.0 / (2.0 * widths ** 2)
+        np.exp(phi, out=phi)
+    return out
+
+
+def _coef(model: CompensationModel) -> NDArray[np.float64]:
+    """Stack intercept, linear tail and RBF weights as a (1 + F + K, 3) matrix."""
+    return np.vstack([model.intercept[None, :], model.linear, model.weights])
+
+
+def model_temperature(model: CompensationModel, t: NDArray[np.float64],
+                      temp: NDArray[np.float64], *, clamp: bool = False
+                      ) -> NDArray[np.float64]:
+    """
+    Return the model temperature over one run: the thermal state, or ``temp`` (format 1).
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    t : NDArray[np.float64], shape (N,), s
+        Stamps of one continuous run.
+    temp : NDArray[np.float64], shape (N,), degC
+        Measured temperature at each stamp.
+    clamp : bool
+        Clamp it to the model's valid range ``temp_range_c``.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N,), degC
+        The temperature every temperature term of the model is evaluated at (compare it
+        with ``temp_range_c`` to know what lies outside the trained range).
+
+    """
+    temp = np.asarray(temp, dtype=np.float64)
+    if model.thermal is not None:
+        temp = model.thermal.temperature(t, temp)
+    if clamp:
+        lo, hi = model.temp_range_c
+        return np.clip(temp, lo, hi)
+    return temp
+
+
+def _policy(clamp: bool, out_of_range: str | None) -> str:
+    """Return the out-of-range policy: ``out_of_range`` when given, else from ``clamp``."""
+    if out_of_range is None:
+        return 'clamp' if clamp else 'extrapolate'
+    return check_policy(out_of_range)
+
+
+def _features(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
+              policy: str, max_c: float
+              ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return the feature rows of one run, their model temperature minus T0 and the reach.
+
+    The rows are evaluated at the model temperature :func:`gyro_tdc.model.out_of_range.split`
+    gives for ``policy``; the reach is how far the ``linear`` tangent continues from there.
+    """
+    temp = np.asarray(temp, dtype=np.float64)
+    lo, hi = model.temp_range_c
+    s, reach = split(model_temperature(model, t, temp), lo, hi, policy, max_c)
+    if model.thermal is None:        # format 1: every feature of the (clamped) measured T
+        x = batch_features(model.features, t, s, t0=model.t0_c, params=model.effect_params)
+    else:
+        x = batch_features(model.features, t, temp, t0=model.t0_c,
+                           params=model.effect_params, state=s)
+    return x, s - model.t0_c, reach
+
+
+def _drift_of(model: CompensationModel, x: NDArray[np.float64], chunk: int,
+              d: NDArray[np.float64] | None = None, reach: NDArray[np.float64] | None = None
+              ) -> NDArray[np.float64]:
+    """Evaluate ``b(x)`` over feature rows in chunks, plus the tangent times ``reach``."""
+    coef = _coef(model)
+    out = np.empty((x.shape[0], 3))
+    tangent = None if reach is None or not np.any(reach) else Tangent(model)
+    for i in range(0, x.shape[0], chunk):
+        design = rbf_design(model, x[i:i + chunk])
+        out[i:i + chunk] = design @ coef
+        if tangent is not None:
+            r = reach[i:i + chunk]
+            k = np.flatnonzero(r)
+            if k.size:
+                out[i + k] += r[k, None] * tangent.slope(design[k], d[i:i + chunk][k])
+    return out
+
+
+def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64], *,
+          clamp: bool = True, out_of_range: str | None = None,
+          max_extrapolation_c: float = MAX_EXTRAPOLATION_C, chunk: int = 200_000
+          ) -> NDArray[np.float64]:
+    """
+    Evaluate the zero-rate drift b(x) over one run.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    t : NDArray[np.float64], shape (N,), s
+        Stamps of one continuous run.
+    temp : NDArray[np.float64], shape (N,), degC
+        Measured temperature at each stamp.
+    clamp : bool
+        Clamp the model temperature (the thermal state) to the model's valid range first
+        (default); False extrapolates. Ignored when ``out_of_range`` is given.
+    out_of_range : str, optional
+        ``'linear'``, ``'clamp'`` or ``'extrapolate'`` (:mod:`gyro_tdc.model.out_of_range`).
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent beyond the range, after which it holds.
+    chunk : int
+        Rows evaluated at once (bounds memory for long runs).
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N, 3), rad/s
+        The drift per axis.
+
+    """
+    x, d, reach = _features(model, t, temp, _policy(clamp, out_of_range), max_extrapolation_c)
+    return _drift_of(model, x, chunk, d, reach)
+
+
+def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
+               omega: NDArray[np.float64], *, clamp: bool = True,
+               out_of_range: str | None = None,
+               max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> NDArray[np.float64]:
+    """
+    Remove the modelled drift from a run: ``(omega - b) / (1 + s dT)``.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    t : NDArray[np.float64], shape (N,), s
+        Stamps of one continuous run.
+    temp : NDArray[np.float64], shape (N,), degC
+        Measured temperature at each stamp.
+    omega : NDArray[np.float64], shape (N, 3), rad/s
+        Raw gyro output.
+    clamp : bool
+        Clamp the model temperature to the model's valid range first (default); ignored
+        when ``out_of_range`` is given.
+    out_of_range : str, optional
+        ``'linear'``, ``'clamp'`` or ``'extrapolate'`` (:mod:`gyro_tdc.model.out_of_range`).
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent beyond the range, after which it holds.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N, 3), rad/s
+        Compensated rate.
+
+    """
+    x, d, reach = _features(model, t, temp, _policy(clamp, out_of_range), max_extrapolation_c)
+    b = _drift_of(model, x, 200_000, d, reach)
+    d = d + reach
+    return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + d[:, None] * model.scale[None, :])
+
+
+def predict_drift(model: CompensationModel, t: NDArray[np.float64],
+                  temp: NDArray[np.float64], omega_ref: NDArray[np.float64], *,
+                  clamp: bool = False, out_of_range: str | None = None,
+                  max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> NDArray[np.float64]:
+    """
+    Simulate the raw output for a true rate: ``(1 + s dT) omega_ref + b``.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    t : NDArray[np.float64], shape (N,), s
+        Stamps of one continuous run.
+    temp : NDArray[np.float64], shape (N,), degC
+        Measured temperature at each stamp.
+    omega_ref : NDArray[np.float64], shape (N, 3), rad/s
+        True (reference) rate.
+    clamp : bool
+        Clamp the model temperature to the model's valid range first (default: no);
+        ignored when ``out_of_range`` is given.
+    out_of_range : str, optional
+        ``'linear'``, ``'clamp'`` or ``'extrapolate'`` (:mod:`gyro_tdc.model.out_of_range`).
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent beyond the range, after which it holds.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N, 3), rad/s
+        Predicted raw gyro output.
+
+    """
+    x, d, reach = _features(model, t, temp, _policy(clamp, out_of_range), max_extrapolation_c)
+    b = _drift_of(model, x, 200_000, d, reach)
+    d = d + reach
+    return (1.0 + d[:, None] * model.scale[None, :]) * np.asarray(omega_ref) + b
+
+
+class StreamingCompensator:
+    """
+    Compensate one sample at a time, exactly as :func:`compensate` does on a whole run.
+
+    With a thermal state the state starts at the first measured temperature (steady-state
+    assumption); :attr:`thermal_settled` says when :data:`gyro_tdc.model.thermal_state.SETTLE_TAUS`
+    time constants have passed since that first sample, judged by the stamps.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    out_of_range : str
+        ``'clamp'`` (default) evaluates at the nearest valid model temperature;
+        ``'linear'`` continues along the tangent at the range end up to
+        ``max_extrapolation_c``, then holds; ``'extrapolate'`` evaluates the model outside
+        its range (:mod:`gyro_tdc.model.out_of_range`).
+    max_extrapolation_c : float, degC
+        Reach of the ``linear`` tangent.
+
+    """
+
+    def __init__(self, model: CompensationModel, *, out_of_range: str = 'clamp',
+                 max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> None:
+        self.model = model
+        self.policy = check_policy(out_of_range)
+        self.clamp = out_of_range == 'clamp'
+        self.max_extrapolation_c = float(max_extrapolation_c)
+        self._tangent = Tangent(model) if self.policy == 'linear' else None
+        self.thermal = None if model.thermal is None else model.thermal.stream()
+        self.features = StreamingFeatures(model.features, t0=model.t0_c,
+                                          params=model.effect_params,
+                                          state=model.thermal is not None)
+        self._coef = _coef(model)
+        self._mean = model.input_mean
+        self._std = model.input_std
+        self._centers = model.centers
+        self._inv2w2 = 1.0 / (2.0 * model.widths ** 2)
+        self._f = len(model.inputs)
+        self._lo, self._hi = model.temp_range_c
+        self.offset = np.zeros(3)
+        self.in_range = True
+        self.model_temp: float | None = None
+        self.range_distance_c = 0.0
+        self.dt_c = 0.0
+        #: The accelerometer part streamed alongside (None without one): ``accel.drift(t,
+        #: temp)`` is the correction in m/s^2, ``accel.step(t, temp, a)`` the corrected
+        #: specific force; its own copy of the thermal state, fed the same samples, equals
+        #: this one's exactly.
+        self.accel = (None if getattr(model, 'accel', None) is None else StreamingCompensator(
+            model.accel, out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c))
+
+    def reset(self) -> None:
+        """Restart the thermal state and the feature filters (a new run)."""
+        self.features.reset()
+        if self.thermal is not None:
+            self.thermal.reset()
+        self.model_temp = None
+        if self.accel is not None:
+            self.accel.reset()
+
+    @property
+    def thermal_progress(self) -> float | None:
+        """
+        Return the stamp time since the first sample, in the state's time constants.
+
+        None when the model has no lagged state (format 1, or kind ``none``).
+        """
+        th = self.thermal
+        if th is None or th.thermal.kind == 'none':
+            return None
+        return th.progress
+
+    @property
+    def thermal_settled(self) -> bool:
+        """Return False while a lagged state is within its first ``SETTLE_TAUS`` tau."""
+        p = self.thermal_progress
+        return p is None or p >= SETTLE_TAUS
+
+    def shift_offset(self, delta: NDArray[np.float64]) -> None:
+        """Add ``delta`` (3,), rad/s, to the modelled drift (start-up re-anchoring)."""
+        self.offset = self.offset + np.asarray(delta, dtype=np.float64).reshape(3)
+
+    def drift(self, t: float, temp: float) -> NDArray[np.float64]:
+        """
+        Advance the state and filters to ``t``; return the drift b (3,), rad/s.
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp.
+        temp : float, degC
+            Measured temperature at ``t``.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (3,), rad/s
+            The drift (plus the re-anchoring offset). ``in_range`` tells whether the model
+            temperature was inside ``temp_range_c``, ``range_distance_c`` how far outside it
+            was (degC, negative below, 0 inside); ``model_temp`` is the model temperature
+            the correction stands for (clamped when the policy clamps, the range end plus
+            the tangent's reach with ``linear``) and ``dt_c`` that minus T0, the ``dT`` of
+            the scale term.
+
+        """
+        s = temp if self.thermal is None else self.thermal.update(t, temp)
+        reach = 0.0
+        if self._lo <= s <= self._hi:
+            self.in_range = True
+            self.range_distance_c = 0.0
+        else:
+            self.in_range = False
+            self.range_distance_c = s - min(max(s, self._lo), self._hi)
+            s, reach = split(s, self._lo, self._hi, self.policy, self.max_extrapolation_c)
+        if self.thermal is None:          # format 1: every feature of the (clamped) T
+            x = self.features.update(t, s)
+        else:
+            x = self.features.update(t, temp, s)
+        xn = (x - self._mean) / self._std
+        row = np.empty(1 + self._f + self._centers.shape[0])
+        row[0] = 1.0
+        row[1:1 + self._f] = xn
+        if self._centers.shape[0]:
+            d2 = ((xn[None, :] - self._centers) ** 2).sum(axis=1)
+            row[1 + self._f:] = np.exp(-d2 * self._inv2w2)
+        d = s - self.model.t0_c
+        b = row @ self._coef + self.offset
+        if reach:
+            b = b + reach * self._tangent.slope_one(row, d)
+            d = d + reach
+        self.model_temp = s + reach
+        self.dt_c = d
+        return b
+
+    def step(self, t: float, temp: float, omega: NDArray[np.float64]) -> NDArray[np.float64]:
+        """
+        Compensate one sample.
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp.
+        temp : float, degC
+            Temperature at ``t`` (latest thermometer sample).
+        omega : NDArray[np.float64], shape (3,), rad/s
+            Raw gyro output.
+
+        Returns
+        -------
+        NDArray[np.float64], shape (3,), rad/s
+            Compensated rate.
+
+        """
+        b = self.drift(t, temp)
+        return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + self.dt_c * self.model.scale)
+
+
+def summary(model: CompensationModel) -> Mapping[str, Any]:
+    """Return a short plain-type description of a model (for logs and diagnostics)."""
+    out = {'model_id': model.model_id, 'kind': model.kind, 'features': list(model.features),
+           'centers': model.n_centers, 't0_c': model.t0_c,
+           'temp_range_c': [float(v) for v in model.temp_range_c],
+           'effect_params': model.effect_params,
+           'residual_std_dps': [math.degrees(math.sqrt(v)) for v in model.residual_var],
+           'format_version': model.format_version}
+    if model.thermal is not None:
+        out['thermal'] = model.thermal.to_dict()
+    if model.accel is not None:
+        a = model.accel
+        out['accel'] = {'model_id': a.model_id, 'kind': a.kind, 'features': list(a.features),
+                        'temp_range_c': [float(v) for v in a.temp_range_c],
+                        'residual_std_mps2': [math.sqrt(v) for v in a.residual_var]}
+    return out

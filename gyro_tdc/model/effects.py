@@ -1,0 +1,622 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The effect library: named, physically described terms of the temperature drift.
+
+Each :class:`Effect` is one catalog entry that carries everything about the term (in the
+spirit of pysindy's feature libraries, where each term owns its function): a stable id (used
+in model files and on the command line), the physics, the experiment that excites it, its
+parameters with defaults and search bounds, its flags, and its feature in two forms that
+agree to floating-point precision:
+
+* batch, ``Effect.batch(series, params)``, over a whole run (training, evaluation,
+  discovery), gathered by :func:`batch_features`;
+* streaming, ``Effect.stream(params, t0)``, a small stateful step called one sample at a time
+  (the compensator node), gathered by :class:`StreamingFeatures`.
+
+Two effects are not inputs of the drift network: ``bias`` is the constant term every model
+has, and ``scale`` multiplies the true rate (sensitivity change, handled by the model).
+
+The model temperature. In a model with a thermal front end (format 2,
+:mod:`gyro_tdc.model.thermal_state`) the temperature terms (``dT``, ``dT2``, ``dT3``: the static
+inputs, and the ``scale`` term) are functions of the *state*, the estimated die temperature,
+which the caller passes as ``state=``; the effect flagged ``thermal`` (``lag``) then adds no
+column: it is what makes the state follow the measured temperature with a lag, and a model
+with ``lag`` and no temperature term has ``dT`` implied (:func:`with_implied`). ``dTdt``
+(the gradient, from the measured temperature) and ``warmup`` stay additive columns. Without
+``state`` (format 1, and discovery's additive search) every feature is of the measured
+temperature and ``lag`` is the additive column ``dT`` of the lagged temperature.
+
+Everything else about an effect is derived from the catalog: the column layout
+(:data:`INPUT_ORDER`), the effects without time memory (:data:`STATIC_EFFECTS`), those with
+fitted parameters (:data:`NONLINEAR_EFFECTS`), those that need a temperature span
+(:data:`TEMPERATURE_EFFECTS`) or a rate-table reference (:data:`REFERENCE_EFFECTS`). Adding an
+effect is one entry in :data:`EFFECTS` (appended, so existing model files keep their column
+layout) and its tests.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+from typing import Callable, Mapping, Sequence
+
+from gyro_tdc.errors import FeatureError
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = [
+    'EFFECT_IDS', 'EFFECTS', 'Effect', 'INPUT_ORDER', 'NONLINEAR_EFFECTS', 'REFERENCE_EFFECTS',
+    'STATE_TERMS', 'STATIC_EFFECTS', 'Series', 'StreamStep', 'StreamingFeatures',
+    'TEMPERATURE_EFFECTS', 'THERMAL_EFFECTS', 'batch_features', 'first_order_lag', 'input_ids',
+    'normalise_ids', 'resolve_params', 'with_implied',
+]
+
+#: Input holds of :func:`first_order_lag`.
+HOLDS = ('step', 'linear')
+
+
+def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str = 'step',
+                    y0: float | None = None) -> NDArray[np.float64]:
+    """
+    Filter ``u`` through the first-order lag ``tau dy/dt = u - y``.
+
+    With ``a_k = exp(-(t[k] - t[k-1]) / tau)`` the two input holds are
+
+    * ``'step'``: ``u`` jumps to ``u[k]`` just after ``t[k-1]`` and holds,
+      ``y[k] = a_k y[k-1] + (1 - a_k) u[k]``; exactly what :class:`StreamingFeatures` does one
+      sample at a time (a feature can only use samples already received);
+    * ``'linear'``: ``u`` is linear between samples (first-order hold),
+      ``y[k] = a_k y[k-1] + (1 - c_k) u[k] + (c_k - a_k) u[k-1]`` with
+      ``c_k = tau (1 - a_k) / (t[k] - t[k-1])``; exact for ramps (the simulator's heat
+      conduction).
+
+    Stamps run as a parallel prefix scan in numpy, so irregular stamps cost no Python loop; a
+    uniform grid with the linear hold runs through ``scipy.signal.lfilter``.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (N,), s, or float
+        Stamps, non-decreasing (a stamp before the previous one counts as no time step); or
+        the step of a uniform grid ``k * t``, > 0.
+    u : ArrayLike, shape (N,)
+        Input signal.
+    tau : float, s
+        Time constant, >= 0; 0 returns a copy of ``u``.
+    hold : {'step', 'linear'}
+        How ``u`` behaves between samples.
+    y0 : float, optional
+        Initial output; ``u[0]`` (settled) when None.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N,)
+        The lagged signal.
+
+    """
+    u = np.asarray(u, dtype=np.float64)
+    if u.ndim != 1:
+        raise ValueError(f'Expected `u` to have shape (N,), got {u.shape}.')
+    if not (math.isfinite(tau) and tau >= 0.0):
+        raise ValueError(f'Expected `tau` to be a finite number >= 0, got {tau!r}.')
+    if hold not in HOLDS:
+        raise ValueError(f'Expected `hold` to be one of {", ".join(HOLDS)}, got {hold!r}.')
+    uniform = np.ndim(t) == 0
+    if uniform:
+        dt = float(t)
+        if not (math.isfinite(dt) and dt > 0.0):
+            raise ValueError(f'Expected the uniform step `t` (dt) to be a finite number > 0, '
+                             f'got {t!r}.')
+    else:
+        t = np.asarray(t, dtype=np.float64)
+        if t.shape != u.shape:
+            raise ValueError(f'Expected `t` of shape {u.shape} like `u`, got {t.shape}.')
+    n = u.shape[0]
+    if tau == 0.0 or n == 0:
+        return u.copy()
+    start = u[0] if y0 is None else float(y0)
+    y = np.empty(n)
+    y[0] = start
+    if n == 1:
+        return y
+    if uniform and hold == 'linear':
+        from scipy.signal import lfilter
+        a = math.exp(-dt / tau)
+        c = tau * -math.expm1(-dt / tau) / dt
+        # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]
+        b0, b1 = 1.0 - c, c - a
+        y[1:], _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=np.array([b1 * u[0] + a * start]))
+        return y
+    step = np.full(n - 1, dt) if uniform else np.maximum(np.diff(t), 0.0)
+    a = np.exp(-step / tau)
+    if hold == 'step':
+        b = (1.0 - a) * u[1:]
+    else:
+        with np.errstate(divide='ignore', invalid='ignore'):
+            c = np.where(step > 0.0, tau * -np.expm1(-step / tau) / step, 1.0)
+        b = (1.0 - c) * u[1:] + (c - a) * u[:-1]
+    # y[k] = a_k y[k-1] + b_k as a prefix scan of the affine maps (a, b).
+    shift = 1
+    m = a.shape[0]
+    while shift < m:
+        b[shift:] = a[shift:] * b[:-shift] + b[shift:]
+        a[shift:] = a[shift:] * a[:-shift]
+        shift *= 2
+        if shift < m and a[shift - 1:].max() < 1e-17:
+            break
+    y[1:] = a * start + b
+    return y
+
+
+@dataclass(frozen=True)
+class Series:
+    """
+    The signals of one continuous run that batch features are computed from.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (N,), s
+        Stamps (filters start at ``t[0]``).
+    temp : NDArray[np.float64], shape (N,), degC
+        Measured temperature at each stamp.
+    t0 : float, degC
+        Reference temperature.
+    d : NDArray[np.float64], shape (N,), degC
+        The model temperature minus ``t0``: the thermal state's (format 2) or ``temp``'s.
+    t_start : float, s
+        Power-on time.
+
+    """
+
+    t: NDArray[np.float64]
+    temp: NDArray[np.float64]
+    t0: float
+    d: NDArray[np.float64]
+    t_start: float
+
+
+#: A batch feature: ``(series, params) -> column (N,)``.
+BatchFeature = Callable[[Series, Mapping[str, float]], NDArray[np.float64]]
+#: One streaming step: ``(t, dt_s, temp, d, first) -> value``, with ``dt_s`` the time since
+#: the previous sample (0 on the first, ``first`` True), ``temp`` the measured temperature
+#: and ``d`` the model temperature minus T0 (``temp - t0`` without a thermal state).
+StreamStep = Callable[[float, float, float, float, bool], float]
+#: Builds a fresh streaming step (its own filter state): ``(params, t0) -> StreamStep``.
+StreamFactory = Callable[[Mapping[str, float], float], StreamStep]
+
+
+@dataclass(frozen=True)
+class Effect:
+    """
+    One physical effect of the catalog: its description, parameters, flags and feature.
+
+    Parameters
+    ----------
+    id : str
+        Stable identifier (``dT``, ``lag``...).
+    description : str
+        The physics, in one or two sentences.
+    feature : str
+        What the feature is, in symbols.
+    excited_by : str
+        The experiment that makes the effect visible.
+    params : Mapping[str, float]
+        Parameter defaults (e.g. ``{'tau_s': 60.0}``).
+    fitted : tuple of str
+        Parameters identified from data during training (others stay at their default).
+    bounds : Mapping[str, tuple of float]
+        Search bounds of the fitted parameters.
+    is_input : bool
+        True when the feature is an input of the drift network (then ``batch`` and
+        ``stream`` are given; ``bias`` and ``scale`` have neither).
+    batch : callable, optional
+        ``batch(series, params) -> NDArray (N,)``: the feature over a run.
+    stream : callable, optional
+        ``stream(params, t0) -> step``: a fresh stateful step, ``step(t, dt_s, temp, d,
+        first) -> float``, equal to ``batch`` sample by sample.
+    static : bool
+        No time memory: the effect depends on the current temperature (and rate) alone.
+        False by default, the safe side: the compensator re-evaluates a model with any
+        non-static effect at every sample.
+    needs_span : bool
+        Identifiable only from data that span a range of temperatures.
+    needs_reference : bool
+        Identifiable only with a non-zero reference rate (rate-table data).
+    thermal : bool
+        The effect is the thermal front end (``lag``): in a model with a thermal state it
+        adds no column and makes every temperature term follow the lagged state; its
+        ``batch``/``stream`` forms are the format-1 additive column.
+
+    """
+
+    id: str
+    description: str
+    feature: str
+    excited_by: str
+    params: Mapping[str, float] = field(default_factory=dict)
+    fitted: tuple[str, ...] = ()
+    bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    is_input: bool = True
+    batch: BatchFeature | None = field(default=None, repr=False, compare=False)
+    stream: StreamFactory | None = field(default=None, repr=False, compare=False)
+    static: bool = False
+    needs_span: bool = True
+    needs_reference: bool = False
+    thermal: bool = False
+
+    def __post_init__(self) -> None:
+        """Check that the entry is complete and consistent."""
+        forms = (self.batch is not None, self.stream is not None)
+        if forms != (self.is_input, self.is_input):
+            raise FeatureError(f'Effect {self.id!r}: a network input needs both a batch and a '
+                               'streaming feature, a non-input neither.')
+        missing = [k for k in self.fitted if k not in self.params or k not in self.bounds]
+        if missing:
+            raise FeatureError(f'Effect {self.id!r}: fitted parameter(s) {missing} need a '
+                               'default and bounds.')
+
+
+# ----------------------------------------------------------------------------- features
+# Static effects: the streaming step is elementwise in d = T - T0, so the same function maps
+# a whole run's arrays (batch) and one sample's floats (stream), in one call per sample.
+
+
+def _static(step: StreamStep) -> dict:
+    """Return the forms of a stateless step elementwise in ``d``, flagged ``static``."""
+    def batch(s: Series, p: Mapping[str, float]) -> NDArray[np.float64]:
+        return step(s.t, 0.0, s.temp, s.d, False)
+
+    def stream(p: Mapping[str, float], t0: float) -> StreamStep:
+        return step
+    return {'batch': batch, 'stream': stream, 'static': True}
+
+
+# Lagged effects: a function ``out(T, T_lag, tau, T0)`` of the first-order-lagged
+# temperature (tau_s), the lag run by first_order_lag (batch) or its recursion (streaming).
+
+
+def _of_lag(out: Callable) -> dict:
+    """Return both forms of a feature ``out(T, T_lag, tau, T0)`` of the lagged temperature."""
+    def batch(s: Series, p: Mapping[str, float]) -> NDArray[np.float64]:
+        tau = p['tau_s']
+        return out(s.temp, first_order_lag(s.t, s.temp, tau), tau, s.t0)
+
+    def stream(p: Mapping[str, float], t0: float) -> StreamStep:
+        tau = p['tau_s']
+        y = 0.0
+
+        def step(t: float, dt_s: float, temp: float, d: float, first: bool) -> float:
+            nonlocal y
+            if first:
+                y = temp
+            else:
+                a = math.exp(-dt_s / tau)
+                y = a * y + (1.0 - a) * temp
+            return out(temp, y, tau, t0)
+        return step
+    return {'batch': batch, 'stream': stream}
+
+
+def _warmup() -> dict:
+    """Return both forms of ``exp(-(t - t_power_on) / tau_s)``."""
+    def batch(s: Series, p: Mapping[str, float]) -> NDArray[np.float64]:
+        return np.exp(-(s.t - s.t_start) / p['tau_s'])
+
+    def stream(p: Mapping[str, float], t0: float) -> StreamStep:
+        tau = p['tau_s']
+        start = 0.0
+
+        def step(t: float, dt_s: float, temp: float, d: float, first: bool) -> float:
+            nonlocal start
+            if first:
+                start = t
+            return math.exp(-(t - start) / tau)
+        return step
+    return {'batch': batch, 'stream': stream}
+
+
+EFFECTS: dict[str, Effect] = {e.id: e for e in (
+    Effect('bias', 'Zero-rate offset: the output at zero rate and the reference temperature.',
+           '1', 'anything', is_input=False, static=True, needs_span=False),
+    Effect('dT', 'Zero-rate level change vs temperature (paper eq. 18, alpha): the drive-mode '
+           'resonance shifts as the silicon stiffness changes with temperature.',
+           'dT = T - T0', 'a temperature span',
+           **_static(lambda t, dt_s, temp, d, first: d)),
+    Effect('dT2', 'Comb gap and capacitance deformation by thermal expansion (paper eq. 15): '
+           'the sensing capacitance error grows with the square of the temperature change.',
+           'dT^2', 'a temperature span (centred dT)',
+           **_static(lambda t, dt_s, temp, d, first: d * d)),
+    Effect('dT3', 'Higher-order curvature of the zero-rate level (the PX4/ArduPilot cubic).',
+           'dT^3', 'a wide temperature span',
+           **_static(lambda t, dt_s, temp, d, first: d * d * d)),
+    Effect('dTdt', 'Thermal gradient across the die: the output depends on how fast the '
+           'temperature changes, so heating and cooling differ (hysteresis).',
+           'dT/dt of T smoothed by a first-order filter (tau_s), degC/s',
+           'heating and cooling legs at varied rates', params={'tau_s': 60.0},
+           **_of_lag(lambda temp, lag, tau, t0: (temp - lag) / tau)),
+    Effect('lag', 'Heat conduction between the thermometer and the MEMS die (paper eq. 24): '
+           'the die follows the measured temperature with a first-order lag tau_s, and the '
+           'drift follows the die: every temperature term is of the lagged state.',
+           'the model temperature is the first-order-lagged state (tau_s fitted), no column '
+           'of its own (format 1: the additive column dT of the lagged T)',
+           'steps, soaks, heating and cooling', params={'tau_s': 120.0}, fitted=('tau_s',),
+           bounds={'tau_s': (1.0, 20000.0)}, thermal=True,
+           **_of_lag(lambda temp, lag, tau, t0: lag - t0)),
+    Effect('scale', 'Sensitivity change vs temperature (paper eq. 18, beta): the scale factor '
+           'is (1 + s dT); removed at run time from the measured rate, '
+           'omega = (omega_raw - b) / (1 + s dT).',
+           'dT * omega_ref (training); measured rate at run time',
+           'rate-table steps at several rates and temperatures', is_input=False,
+           static=True, needs_reference=True),
+    Effect('warmup', 'Self-heating after power-on that the thermometer does not see: a drift '
+           'that decays with the warm-up time constant tau_s.',
+           'exp(-(t - t_power_on) / tau_s) (tau_s fitted)',
+           'power-on at a fixed ambient temperature, then a soak',
+           params={'tau_s': 300.0}, fitted=('tau_s',), bounds={'tau_s': (5.0, 20000.0)},
+           needs_span=False, **_warmup()),
+)}
+
+#: Every effect id, in catalog order.
+EFFECT_IDS: tuple[str, ...] = tuple(EFFECTS)
+#: Order in which network inputs are laid out in a feature matrix (catalog order).
+INPUT_ORDER: tuple[str, ...] = tuple(e.id for e in EFFECTS.values() if e.is_input)
+#: Effects without time memory: a function of the current temperature (and rate) only.
+STATIC_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.static)
+#: Effects with fitted parameters (the lag and warm-up time constants): the feature is
+#: nonlinear in them, so a fit searches them around the linear solve.
+NONLINEAR_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.fitted)
+#: Effects identifiable only from data that span a range of temperatures.
+TEMPERATURE_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.needs_span)
+#: Effects identifiable only with a non-zero reference rate.
+REFERENCE_EFFECTS: frozenset[str] = frozenset(
+    e.id for e in EFFECTS.values() if e.needs_reference)
+#: The thermal front end (``lag``): with a thermal state, no column; the state follows it.
+THERMAL_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.thermal)
+#: The temperature terms (static inputs: ``dT``, ``dT2``, ``dT3``): of the state when there
+#: is one.
+STATE_TERMS: frozenset[str] = frozenset(
+    e.id for e in EFFECTS.values() if e.static and e.is_input)
+
+
+def normalise_ids(ids: str | Sequence[str]) -> tuple[str, ...]:
+    """
+    Parse and check a list of effect ids.
+
+    Parameters
+    ----------
+    ids : str or sequence of str
+        Ids, or one comma-separated string such as ``'dT,dT2'``.
+
+    Returns
+    -------
+    tuple of str
+        The unique ids in catalog order.
+
+    """
+    if isinstance(ids, str):
+        ids = [s.strip() for s in ids.split(',') if s.strip()]
+    unknown = [i for i in ids if i not in EFFECTS]
+    if unknown:
+        raise FeatureError(
+            f'Unknown effect id(s) {", ".join(map(repr, unknown))}; '
+            f'expected some of {", ".join(EFFECTS)}.')
+    return tuple(i for i in EFFECTS if i in set(ids))
+
+
+def input_ids(ids: Sequence[str], *, state: bool = False) -> tuple[str, ...]:
+    """
+    Return the ids among ``ids`` that are inputs of the drift network, in layout order.
+
+    Parameters
+    ----------
+    ids : sequence of str
+        Effect ids.
+    state : bool
+        The model has a thermal state (format 2): the ``thermal`` effect (``lag``) is not a
+        column. False: the format-1 layout, ``lag`` an additive column.
+
+    Returns
+    -------
+    tuple of str
+        The column ids.
+
+    """
+    return tuple(i for i in normalise_ids(ids) if EFFECTS[i].is_input
+                 and not (state and EFFECTS[i].thermal))
+
+
+def with_implied(ids: str | Sequence[str]) -> tuple[str, ...]:
+    """
+    Return ``ids`` with the terms a thermal state implies: ``dT`` when ``lag`` has no term.
+
+    With a thermal state, ``lag`` only says that the drift follows the lagged state; a model
+    asked for ``lag`` without any temperature term (``dT``, ``dT2``, ``dT3``) is the linear
+    one, ``dT`` of the state.
+
+    Parameters
+    ----------
+    ids : str or sequence of str
+        Effect ids.
+
+    Returns
+    -------
+    tuple of str
+        The ids in catalog order, ``dT`` added when implied.
+
+    """
+    ids = normalise_ids(ids)
+    if THERMAL_EFFECTS & set(ids) and not STATE_TERMS & set(ids):
+        ids = normalise_ids(ids + ('dT',))
+    return ids
+
+
+def resolve_params(ids: Sequence[str],
+                   params: Mapping[str, Mapping[str, float]] | None = None
+                   ) -> dict[str, dict[str, float]]:
+    """
+    Merge parameter values over the catalog defaults and check them.
+
+    Parameters
+    ----------
+    ids : sequence of str
+        Effect ids.
+    params : mapping, optional
+        ``{effect_id: {param: value}}`` overrides.
+
+    Returns
+    -------
+    dict
+        ``{effect_id: {param: value}}`` for every id with parameters.
+
+    """
+    params = params or {}
+    out: dict[str, dict[str, float]] = {}
+    for eid in normalise_ids(ids):
+        eff = EFFECTS[eid]
+        given = dict(params.get(eid, {}))
+        extra = set(given) - set(eff.params)
+        if extra:
+            raise FeatureError(f'Effect {eid!r} has no parameter(s) {sorted(extra)}; '
+                               f'expected {sorted(eff.params)}.')
+        if eff.params:
+            merged = {k: float(given.get(k, v)) for k, v in eff.params.items()}
+            for k, v in merged.items():
+                if not math.isfinite(v) or v <= 0.0:
+                    raise FeatureError(f'Parameter {eid}.{k} must be a positive finite number, '
+                                       f'got {v!r}.')
+            out[eid] = merged
+    return out
+
+
+def batch_features(ids: Sequence[str], t: NDArray[np.float64], temp: NDArray[np.float64], *,
+                   t0: float, params: Mapping[str, Mapping[str, float]] | None = None,
+                   t_start: float | None = None, state: NDArray[np.float64] | None = None
+                   ) -> NDArray[np.float64]:
+    """
+    Compute the network-input features of one run.
+
+    Parameters
+    ----------
+    ids : sequence of str
+        Effect ids; only the network inputs (see :func:`input_ids`) produce columns.
+    t : NDArray[np.float64], shape (N,), s
+        Stamps of one continuous run (filters start at ``t[0]``).
+    temp : NDArray[np.float64], shape (N,), degC
+        Measured temperature at each stamp.
+    t0 : float, degC
+        Reference temperature.
+    params : mapping, optional
+        Effect parameters (defaults from the catalog).
+    t_start : float, optional, s
+        Power-on time for ``warmup`` (default ``t[0]``).
+    state : NDArray[np.float64], shape (N,), degC, optional
+        The thermal state (the model temperature, already clamped when the model clamps):
+        the temperature terms are of it, and ``lag`` adds no column
+        (``input_ids(ids, state=True)``). None: the format-1 features of ``temp``.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N, F)
+        One column per input id in :func:`input_ids` order.
+
+    """
+    t = np.asarray(t, dtype=np.float64)
+    temp = np.asarray(temp, dtype=np.float64)
+    if t.shape != temp.shape or t.ndim != 1:
+        raise ValueError(f'Expected `t` and `temp` of equal shape (N,), got {t.shape} and '
+                         f'{temp.shape}.')
+    if state is not None:
+        state = np.asarray(state, dtype=np.float64)
+        if state.shape != temp.shape:
+            raise ValueError(f'Expected `state` of shape {temp.shape} like `temp`, '
+                             f'got {state.shape}.')
+    cols = input_ids(ids, state=state is not None)
+    p = resolve_params(cols, params)
+    out = np.empty((t.shape[0], len(cols)))
+    start = t[0] if t_start is None and t.shape[0] else (t_start or 0.0)
+    d = (temp if state is None else state) - t0
+    series = Series(t=t, temp=temp, t0=t0, d=d, t_start=start)
+    for j, eid in enumerate(cols):
+        out[:, j] = EFFECTS[eid].batch(series, p.get(eid, {}))
+    return out
+
+
+class StreamingFeatures:
+    """
+    Compute the same features as :func:`batch_features`, one sample at a time.
+
+    Parameters
+    ----------
+    ids : sequence of str
+        Effect ids.
+    t0 : float, degC
+        Reference temperature.
+    params : mapping, optional
+        Effect parameters (defaults from the catalog).
+    state : bool
+        :meth:`update` receives the thermal state (format 2, see :func:`batch_features`).
+
+    """
+
+    def __init__(self, ids: Sequence[str], *, t0: float,
+                 params: Mapping[str, Mapping[str, float]] | None = None,
+                 state: bool = False) -> None:
+        self.ids = input_ids(ids, state=state)
+        self.state = bool(state)
+        self.t0 = float(t0)
+        self.params = resolve_params(self.ids, params)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the filter states (a new run starts with the next sample)."""
+        self._t_prev: float | None = None
+        self._steps = [EFFECTS[eid].stream(self.params.get(eid, {}), self.t0)
+                       for eid in self.ids]
+
+    def update(self, t: float, temp: float, state: float | None = None
+               ) -> NDArray[np.float64]:
+        """
+        Advance to stamp ``t`` with temperature ``temp`` and return the feature vector.
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp; a stamp not after the previous one leaves the filters unchanged.
+        temp : float, degC
+            Measured temperature at ``t``.
+        state : float, degC
+            The thermal state at ``t`` (required when built with ``state=True``, else
+            ignored).
+
+        Returns
+        -------
+        NDArray[np.float64], shape (F,)
+            The features in :func:`input_ids` order.
+
+        """
+        first = self._t_prev is None
+        dt_s = 0.0 if first else max(t - self._t_prev, 0.0)
+        self._t_prev = t if first else max(t, self._t_prev)
+        out = np.empty(len(self._steps))
+        if self.state:
+            if state is None:
+                raise ValueError('Expected the thermal `state` (features built with '
+                                 'state=True).')
+            d = state - self.t0
+        else:
+            d = temp - self.t0
+        for j, step in enumerate(self._steps):
+            out[j] = step(t, dt_s, temp, d, first)
+        return out

@@ -1,0 +1,390 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The versioned YAML model file: save, load, validate.
+
+Format version 2 (all physical quantities in SI units, angles in rad)::
+
+    format_version: 2
+    kind: rbf                      # rbf | poly
+    model_id: 3f2a9c0d1e4b         # content hash, checked on load
+    features: [dT, dT2, lag]       # effect ids (bias implied)
+    effect_params:                 # lag.tau_s mirrors the thermal state's total tau
+      lag: {tau_s: 417.2}
+    thermal:                       # the thermal front end: measured T -> model temperature
+      kind: first_order            # none | first_order | two_node
+      tau_s: [417.2]               # one per node, s
+      tau_interval_s: [[415.1, 420.1]]   # 95 % profile interval per tau (null: given)
+      identifiable: true           # false: the data cannot pin tau (null: not assessed)
+    t0_c: -39.98                   # reference temperature T0, degC
+    temp_range_c: [-40.0, 85.0]    # valid range of the model temperature (the state), degC
+    normalization: {mean: [..F], std: [..F]}
+    centers: [[..F], ...]          # K x F, normalised input space
+    widths: [..K]
+    weights: [[wx, wy, wz], ...]   # K x 3, rad/s
+    intercept: [..3]               # rad/s
+    linear: [[..3], ...]           # F x 3, rad/s
+    scale: [..3]                   # 1/degC
+    residual_var_rad2_s2: [..3]
+    sensor: {frame_id: imu_link, sensor_id: ''}
+    training: {...}                # metrics
+    created: {utc: ..., gyro_tdc_version: ..., command: ...}
+    accel:                         # optional: accelerometer offset change vs temperature
+      model_id: 0c1d2e3f4a5b       # the part's own content hash (the model's id covers it)
+      kind: rbf                    # same form as above, of the same thermal state and T0
+      features: [dT, dT2, lag]
+      effect_params: {lag: {tau_s: 417.2}}
+      temp_range_c: [-40.0, 85.0]  # the state's range over the static training data
+      normalization: {mean: [..F], std: [..F]}
+      centers: [[..F], ...]
+      widths: [..K]
+      weights: [[ax, ay, az], ...] # m/s^2
+      intercept: [..3]             # m/s^2, set so the correction is 0 at T0
+      linear: [[..3], ...]         # m/s^2
+      residual_var_m2_s4: [..3]    # (m/s^2)^2
+      training: {...}              # accelerometer metrics (BS before/after, coverage...)
+
+Format version 1 is the same without ``thermal``: every feature is of the measured
+temperature and ``lag`` is the additive column ``dT`` of the lagged temperature. Such files
+still load, and behave and hash exactly as before (:attr:`CompensationModel.thermal` is None);
+a loaded model is saved in its own format, a new one in format 2. The ``accel`` part is
+optional (format 2 only): files without it load, save and hash as before.
+
+Files are read with the safe YAML loader only; every field is checked and a bad one is
+reported in one line naming it and the format (``format_version 2 model: field `widths`
+...``). Floats are written with ``repr`` precision, so save -> load is
+exact. ``format_version`` must be the integer 1 or 2 (not ``1.0``, not ``true``); another
+version is refused naming the supported ones. ``model_id`` is
+required: it is the content hash of every field but ``created`` (see
+:attr:`gyro_tdc.model.compensation.CompensationModel.model_id`), so an edited range, residual
+variance,
+sensor or training record is caught.
+
+Hard limits, checked before the document is built (:mod:`gyro_tdc.base.yamlio`), so a hostile
+file is refused in well under a second with bounded memory:
+
+- file size at most ``MAX_MODEL_BYTES`` (4 MiB);
+- nesting at most ``MAX_MODEL_DEPTH`` (32) levels of mappings/sequences;
+- no YAML anchors or aliases (a model file never needs them; this rules out alias bombs);
+- at most ``MAX_MODEL_NODES`` (250,000) YAML nodes;
+- at most ``MAX_CENTERS`` (10,000) RBF centres (a 10,000-centre model is about 1.4 MB and
+  loads in about a second; per message it costs about 1 ms, already too slow for a 1 kHz
+  gyro).
+
+Files are written atomically with the permissions of a normal ``open`` (see
+:func:`gyro_tdc.base.atomicio.atomic_write`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+from pathlib import Path
+from typing import Any, Mapping
+
+from gyro_tdc.base import atomic_write, MAX_CENTERS, plain, read_yaml, YamlLimits
+from gyro_tdc.errors import FeatureError, ModelFileError
+from gyro_tdc.model.compensation import CompensationModel, KINDS
+from gyro_tdc.model.effects import input_ids, normalise_ids, resolve_params
+from gyro_tdc.model.thermal_state import ThermalState
+import numpy as np
+import yaml
+
+__all__ = ['FORMAT_VERSION', 'MAX_MODEL_BYTES', 'MAX_MODEL_DEPTH',
+           'MAX_MODEL_NODES', 'SUPPORTED_VERSIONS', 'load_model', 'model_from_dict',
+           'model_to_dict', 'save_model']
+
+#: The format new models are written in.
+FORMAT_VERSION = 2
+#: The formats :func:`load_model` reads.
+SUPPORTED_VERSIONS = (1, 2)
+MAX_MODEL_BYTES = 4 * 1024 * 1024
+MAX_MODEL_DEPTH = 32
+MAX_MODEL_NODES = 250_000
+_LIMITS = YamlLimits('model file', max_bytes=MAX_MODEL_BYTES, max_depth=MAX_MODEL_DEPTH,
+                     max_nodes=MAX_MODEL_NODES, aliases=False)
+
+
+def model_to_dict(model: CompensationModel) -> dict:
+    """Return the model as a dict of plain types, in file order (its own format version)."""
+    d = {
+        'format_version': model.format_version,
+        'kind': model.kind,
+        'model_id': model.model_id,
+        'features': list(model.features),
+        'effect_params': plain(model.effect_params),
+    }
+    if model.thermal is not None:
+        d['thermal'] = model.thermal.to_dict()
+    d.update({
+        't0_c': float(model.t0_c),
+        'temp_range_c': [float(v) for v in model.temp_range_c],
+        'normalization': {'mean': plain(model.input_mean), 'std': plain(model.input_std)},
+        'centers': plain(model.centers),
+        'widths': plain(model.widths),
+        'weights': plain(model.weights),
+        'intercept': plain(model.intercept),
+        'linear': plain(model.linear),
+        'scale': plain(model.scale),
+        'residual_var_rad2_s2': plain(model.residual_var),
+        'sensor': {'frame_id': model.frame_id, 'sensor_id': model.sensor_id},
+        'training': plain(model.metrics),
+        'created': plain(model.created),
+    })
+    if model.accel is not None:
+        d['accel'] = _accel_to_dict(model.accel)
+    return d
+
+
+#: Fields of the model an ``accel`` part shares (not repeated in its section).
+_SHARED = ('format_version', 'thermal', 't0_c', 'sensor', 'created', 'scale')
+
+
+def _accel_to_dict(part: CompensationModel) -> dict:
+    """Return the ``accel`` section: the part's fields but those it shares, in m/s^2."""
+    return {('residual_var_m2_s4' if k == 'residual_var_rad2_s2' else k): v
+            for k, v in model_to_dict(part).items() if k not in _SHARED}
+
+
+def _accel_from_dict(d: Mapping, version: int) -> CompensationModel | None:
+    """Read the optional ``accel`` section of a model file (None when absent)."""
+    if d.get('accel') is None:
+        return None
+    if version == 1:
+        raise ModelFileError('field `accel` belongs to format_version 2, not 1')
+    sec = _mapping(d, 'accel')
+    bad = sorted(set(sec) & (set(_SHARED) | {'residual_var_rad2_s2'}))
+    if bad:
+        raise ModelFileError(f'field `accel`: {bad} belong to the model, not to its '
+                             'accelerometer part')
+    sub = dict(sec, format_version=version, thermal=d.get('thermal'), t0_c=d.get('t0_c'),
+               sensor=d.get('sensor'), scale=[0.0, 0.0, 0.0])
+    if 'residual_var_m2_s4' not in sub:
+        raise ModelFileError('field `accel`: missing field `residual_var_m2_s4`')
+    sub['residual_var_rad2_s2'] = sub.pop('residual_var_m2_s4')
+    try:
+        return _model_from_dict(sub, version)
+    except ModelFileError as exc:
+        raise ModelFileError(f'field `accel`: {exc}') from None
+
+
+def _array(d: Mapping, key: str, shape: tuple, *, positive: bool = False) -> np.ndarray:
+    """Read ``d[key]`` as a finite float array of ``shape`` (``-1`` matches any length)."""
+    if key not in d:
+        raise ModelFileError(f'missing field `{key}`')
+    try:
+        arr = np.asarray(d[key], dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ModelFileError(f'field `{key}` must be numbers, got {d[key]!r:.60}') from None
+    if len(shape) == 2 and arr.size == 0:
+        arr = arr.reshape(0, shape[1] if shape[1] >= 0 else 0)
+    if arr.ndim != len(shape) or any(s >= 0 and a != s for a, s in zip(arr.shape, shape)):
+        want = str(tuple('N' if s < 0 else s for s in shape)).replace("'", '')
+        raise ModelFileError(f'field `{key}` must have shape {want}, got {arr.shape}')
+    if not np.all(np.isfinite(arr)):
+        raise ModelFileError(f'field `{key}` has non-finite values')
+    if positive and np.any(arr <= 0):
+        raise ModelFileError(f'field `{key}` must be positive')
+    return arr
+
+
+def _number(d: Mapping, key: str) -> float:
+    """Read ``d[key]`` as a finite float."""
+    if key not in d:
+        raise ModelFileError(f'missing field `{key}`')
+    v = d[key]
+    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+        raise ModelFileError(f'field `{key}` must be a finite number, got {v!r}')
+    return float(v)
+
+
+def _mapping(d: Mapping, key: str, *, required: bool = True) -> dict:
+    """Read ``d[key]`` as a mapping (empty when optional and absent)."""
+    if key not in d:
+        if required:
+            raise ModelFileError(f'missing field `{key}`')
+        return {}
+    v = d[key]
+    if v is None and not required:
+        return {}
+    if not isinstance(v, Mapping):
+        raise ModelFileError(f'field `{key}` must be a mapping, got {type(v).__name__}')
+    return dict(v)
+
+
+def model_from_dict(d: Any) -> CompensationModel:
+    """
+    Build and validate a model from a dict read from a model file.
+
+    Parameters
+    ----------
+    d : Any
+        The parsed YAML document.
+
+    Returns
+    -------
+    CompensationModel
+        The model.
+
+    Raises
+    ------
+    ModelFileError
+        Naming the first field that is missing or wrong.
+
+    """
+    if not isinstance(d, Mapping):
+        raise ModelFileError(f'expected a mapping at the top level, got {type(d).__name__}')
+    version = d.get('format_version')
+    if type(version) is not int or version not in SUPPORTED_VERSIONS:   # not 1.0, not true
+        note = '' if type(version) is int else f' (a {type(version).__name__}, not an integer)'
+        raise ModelFileError(f'field `format_version` must be '
+                             f'{" or ".join(map(str, SUPPORTED_VERSIONS))} (the versions this '
+                             f'gyro_tdc reads), got {version!r}{note}')
+    try:
+        return _model_from_dict(d, version)
+    except ModelFileError as exc:
+        raise ModelFileError(f'format_version {version} model: {exc}') from None
+
+
+def _model_from_dict(d: Mapping, version: int) -> CompensationModel:
+    """Build and validate a model of a known format version (see :func:`model_from_dict`)."""
+    mid = d.get('model_id')
+    if 'model_id' not in d:
+        raise ModelFileError('missing field `model_id` (the content hash every model file '
+                             'carries; re-save the model with gyro_tdc to add it)')
+    if not isinstance(mid, str):
+        raise ModelFileError(f'field `model_id` must be a string, got {mid!r:.40}')
+    kind = d.get('kind')
+    if kind not in KINDS:
+        raise ModelFileError(f'field `kind` must be one of {", ".join(KINDS)}, got {kind!r}')
+    feats = d.get('features')
+    if not isinstance(feats, list) or not all(isinstance(f, str) for f in feats):
+        raise ModelFileError(f'field `features` must be a list of effect ids, got {feats!r}')
+    try:
+        ids = normalise_ids(feats)
+        params = resolve_params(ids, _mapping(d, 'effect_params', required=False))
+    except FeatureError as exc:
+        raise ModelFileError(f'field `features`/`effect_params`: {exc}') from None
+    if list(ids) != feats:
+        raise ModelFileError(f'field `features` must list each id once in catalog order '
+                             f'({", ".join(ids)}), got {feats!r}')
+    thermal = None
+    if version == 1:
+        if 'thermal' in d:
+            raise ModelFileError('field `thermal` belongs to format_version 2, not 1')
+    else:
+        try:
+            thermal = ThermalState.from_dict(_mapping(d, 'thermal'))
+        except FeatureError as exc:
+            raise ModelFileError(f'field `thermal`: {exc}') from None
+    f = len(input_ids(ids, state=thermal is not None))
+    rows = d.get('centers')
+    if isinstance(rows, list) and len(rows) > MAX_CENTERS:
+        raise ModelFileError(f'field `centers` has {len(rows)} rows, more than the limit of '
+                             f'{MAX_CENTERS} centres')
+    norm = _mapping(d, 'normalization')
+    mean = _array(norm, 'mean', (f,))
+    std = _array(norm, 'std', (f,), positive=True)
+    centers = _array(d, 'centers', (-1, f))
+    k = centers.shape[0]
+    if kind == 'poly' and k:
+        raise ModelFileError(f'field `centers` must be empty for a poly model, got {k} rows')
+    widths = _array(d, 'widths', (k,), positive=True)
+    weights = _array(d, 'weights', (k, 3))
+    intercept = _array(d, 'intercept', (3,))
+    linear = _array(d, 'linear', (f, 3))
+    scale = _array(d, 'scale', (3,))
+    resid = _array(d, 'residual_var_rad2_s2', (3,))
+    if np.any(resid < 0):
+        raise ModelFileError('field `residual_var_rad2_s2` must be non-negative')
+    rng_ = _array(d, 'temp_range_c', (2,))
+    if rng_[0] > rng_[1]:
+        raise ModelFileError(f'field `temp_range_c` must be [min, max], got {rng_.tolist()}')
+    accel = _accel_from_dict(d, version)
+    sensor = _mapping(d, 'sensor', required=False)
+    frame_id = sensor.get('frame_id', 'imu_link')
+    sensor_id = sensor.get('sensor_id', '')
+    if not isinstance(frame_id, str) or not isinstance(sensor_id, str):
+        raise ModelFileError('field `sensor` must hold string `frame_id` and `sensor_id`')
+    try:
+        model = CompensationModel(
+            kind=kind, features=ids, effect_params=params, t0_c=_number(d, 't0_c'),
+            input_mean=mean, input_std=std, centers=centers, widths=widths, weights=weights,
+            intercept=intercept, linear=linear, scale=scale,
+            temp_range_c=(float(rng_[0]), float(rng_[1])), residual_var=resid,
+            frame_id=frame_id, sensor_id=sensor_id,
+            metrics=_mapping(d, 'training', required=False),
+            created=_mapping(d, 'created', required=False), thermal=thermal, accel=accel)
+    except FeatureError as exc:
+        raise ModelFileError(f'fields `thermal`/`features`/`effect_params`: {exc}') from None
+    if mid != model.model_id:
+        raise ModelFileError(f'field `model_id` {mid!r} does not match the parameters '
+                             f'({model.model_id}): the file was edited or corrupted')
+    return model
+
+
+def save_model(model: CompensationModel, path: str | os.PathLike) -> Path:
+    """
+    Write a model file atomically (see :func:`gyro_tdc.base.atomicio.atomic_write`).
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    path : str or PathLike
+        Destination ``.yaml`` file.
+
+    Returns
+    -------
+    Path
+        The path written.
+
+    Raises
+    ------
+    OutputError
+        When the file cannot be written (nothing is left behind).
+
+    """
+    text = '# gyro_tdc compensation model (see README "Model file")\n' + yaml.safe_dump(
+        model_to_dict(model), sort_keys=False, default_flow_style=None, width=100)
+    return atomic_write(Path(path), text, what='model file')
+
+
+def load_model(path: str | os.PathLike) -> CompensationModel:
+    """
+    Read and validate a model file.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        A model ``.yaml`` file.
+
+    Returns
+    -------
+    CompensationModel
+        The model.
+
+    Raises
+    ------
+    ModelFileError
+        One line naming the file and what is wrong with it.
+
+    """
+    path = Path(path)
+    data = read_yaml(path, _LIMITS, error=ModelFileError)
+    try:
+        return model_from_dict(data)
+    except ModelFileError as exc:
+        raise ModelFileError(f'{path}: {exc}') from None

@@ -1,0 +1,316 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The compensator's health as /diagnostics shows it: sample flags, levels and :func:`health`.
+
+Pure (no rclpy). Each processed sample carries a bit set of flags (``STALE``,
+``OUT_OF_RANGE``, ``NON_FINITE``, ``NO_TEMPERATURE``, ``NO_MODEL``, ``PASSTHROUGH``);
+:func:`health` turns a :class:`gyro_tdc.runtime.core.CompensatorCore`'s counters into a
+level (``OK``, ``WARN``, ``ERROR``), a one-line message and the key/value pairs the node
+publishes, judging only what happened since the previous report (:class:`HealthMark`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from types import MappingProxyType
+from typing import Mapping, NamedTuple, TYPE_CHECKING
+
+from gyro_tdc.model import SETTLE_TAUS
+
+if TYPE_CHECKING:  # pragma: no cover - typing only (compensation_logic imports this module)
+    from gyro_tdc.model import CompensationModel
+    from gyro_tdc.runtime.core import CompensatorCore
+
+__all__ = ['ERROR', 'FLAG_NAMES', 'Health', 'HealthMark', 'InputStatus', 'NO_ACCEL_DATA',
+           'NO_MODEL', 'NO_TEMPERATURE', 'NON_FINITE', 'OK', 'OUT_OF_RANGE', 'PASSTHROUGH',
+           'STALE', 'WARN', 'accel_state', 'describe_flags', 'health', 'sensor_mismatch']
+
+#: Flags of one processed sample (a bit set).
+STALE = 1
+OUT_OF_RANGE = 2
+NON_FINITE = 4
+NO_TEMPERATURE = 8
+NO_MODEL = 16
+PASSTHROUGH = 32
+
+#: The accelerometer's own flag (``CompensatorCore.accel_flags``, not counted per sample in
+#: ``flag_counts``): the Imu carried no accelerometer data (covariance[0] == -1).
+NO_ACCEL_DATA = 64
+
+FLAG_NAMES = {STALE: 'temperature stale', OUT_OF_RANGE: 'temperature out of model range',
+              NON_FINITE: 'non-finite input', NO_TEMPERATURE: 'no temperature yet',
+              NO_MODEL: 'no model loaded', PASSTHROUGH: 'raw rate passed through'}
+
+
+def describe_flags(flags: int) -> str:
+    """Return the flags of a sample as a comma-separated text ('' when none)."""
+    return ', '.join(name for bit, name in FLAG_NAMES.items() if flags & bit)
+
+
+def accel_state(core: CompensatorCore) -> str:
+    """
+    Say whether the accelerometer is compensated (the ``accelerometer`` value of /diagnostics).
+
+    Returns
+    -------
+    str
+        ``'compensated'``, ``'not in model'`` (no model, or one without an accelerometer
+        part) or ``'passthrough (why)'`` for the last sample.
+
+    """
+    model = core.model
+    if model is None or model.accel is None:
+        return 'not in model'
+    flags = core.accel_flags
+    if flags == -1:
+        return 'passthrough (no sample yet)'
+    if flags & NO_ACCEL_DATA:
+        return 'passthrough (no accelerometer data in the Imu)'
+    if flags & PASSTHROUGH:
+        return f'passthrough ({describe_flags(flags & ~PASSTHROUGH)})'
+    return 'compensated'
+
+
+#: Levels of :class:`Health` (the byte values of diagnostic_msgs/DiagnosticStatus).
+OK, WARN, ERROR = 0, 1, 2
+
+
+@dataclass
+class InputStatus:
+    """
+    What the node knows of its input beyond the samples themselves (kept by the node).
+
+    Parameters
+    ----------
+    reliability : str
+        QoS reliability of the IMU subscription (``best_effort`` or ``reliable``).
+    lost : int
+        Input messages DDS reported lost (the subscription's message-lost event, cumulative).
+    already_compensated : int
+        Input samples that carried the compensation mark (:mod:`gyro_tdc.data.mark`).
+    malformed : int
+        Input messages that could not be read as an Imu (dropped: nothing to republish).
+    upstream : tuple of str
+        Nodes publishing the input topic that look like gyro_tdc compensators.
+
+    """
+
+    reliability: str = 'best_effort'
+    lost: int = 0
+    already_compensated: int = 0
+    malformed: int = 0
+    upstream: tuple[str, ...] = ()
+
+
+class HealthMark(NamedTuple):
+    """The cumulative counters at one report: flags, temperatures rejected, errors, inputs."""
+
+    flags: Mapping[int, int] = MappingProxyType({})
+    temps_rejected: int = 0
+    errors: int = 0
+    lost: int = 0
+    already_compensated: int = 0
+    malformed: int = 0
+
+
+class Health(NamedTuple):
+    """
+    The compensator's state as /diagnostics shows it.
+
+    ``level`` is ``OK``, ``WARN`` or ``ERROR``; ``hardware_id`` the model's sensor (or frame)
+    id; ``values`` the key/value pairs in display order; ``mark`` the counters now, to pass
+    to the next :func:`health` call.
+    """
+
+    level: int
+    message: str
+    hardware_id: str
+    values: dict[str, str]
+    mark: HealthMark
+
+
+def sensor_mismatch(model: CompensationModel | None, sensor_id: str) -> str:
+    """
+    Say why ``model`` was not trained for the sensor ``sensor_id`` ('' when it was).
+
+    Parameters
+    ----------
+    model : CompensationModel or None
+        The model in use.
+    sensor_id : str
+        The compensator's ``sensor_id`` parameter; '' checks nothing.
+
+    Returns
+    -------
+    str
+        One line naming both ids and what to do, or '' (no model, no check, or a match).
+
+    """
+    if not sensor_id or model is None or model.sensor_id == sensor_id:
+        return ''
+    trained = (f'sensor_id {model.sensor_id!r}' if model.sensor_id else
+               'no sensor_id (the shipped l3gd20_modified is a simulated L3GD20)')
+    return (f'model {model.model_id} was trained for {trained}, not for this IMU '
+            f"(sensor_id {sensor_id!r}): its drift curve is another sensor's; train one on "
+            "this IMU's recordings (gyro-tdc train --sensor-id)")
+
+
+def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file: str = '',
+           last_reload: str = 'none', inputs: InputStatus | None = None,
+           sensor_id: str = '') -> Health:
+    """
+    Judge the compensator's state: what went wrong since the last report, and its figures.
+
+    ERROR without a model or when a compensation raised since ``since``; WARN when samples
+    had no, a stale, an out-of-range or a non-finite input, thermometer samples were
+    rejected, input messages were lost or arrived already compensated since ``since``, and
+    while a gyro_tdc compensator publishes the input topic, the last model file asked for
+    was refused (``last_reload`` 'rejected: ...') or the model was trained for another
+    sensor than ``sensor_id`` (:func:`sensor_mismatch`); else OK ('compensating', or 'waiting for
+    imu/data_raw').
+
+    Parameters
+    ----------
+    core : CompensatorCore
+        The compensator.
+    since : HealthMark, optional
+        ``mark`` of the previous report (None: from the start).
+    model_file, last_reload : str
+        Where the model came from, and the outcome of the last (re)load.
+    inputs : InputStatus, optional
+        Losses, marked samples and upstream compensators seen by the node.
+    sensor_id : str
+        The IMU the compensator runs on ('' checks nothing).
+
+    Returns
+    -------
+    Health
+        Level, message, hardware id, key/value pairs and the counters now.
+
+    """
+    since = since or HealthMark()
+    inputs = inputs or InputStatus()
+    model = core.model
+    counts = core.flag_counts
+    new = {bit: counts[bit] - since.flags.get(bit, 0) for bit in counts}
+    rejected = core.temps.rejected - since.temps_rejected
+    errors = core.errors - since.errors
+    problems = []
+    level = OK
+    if model is None:
+        level = ERROR
+        problems.append(f'no model loaded ({last_reload})')
+    elif last_reload.startswith('rejected: '):
+        level = WARN
+        problems.append(f'model file refused, keeping {model.model_id}: '
+                        f'{last_reload[len("rejected: "):]}')
+    mismatch = sensor_mismatch(model, sensor_id)
+    if mismatch:
+        level = max(level, WARN)
+        problems.append(mismatch)
+    for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE):
+        if new[bit]:
+            level = max(level, WARN)
+            problems.append(f'{describe_flags(bit)} ({new[bit]} samples)')
+    if rejected:
+        level = max(level, WARN)
+        problems.append(f'non-finite temperature ({rejected} samples rejected)')
+    lost = inputs.lost - since.lost
+    if lost:
+        level = max(level, WARN)
+        problems.append(f'input messages lost ({lost}, reported by DDS; at least that many)')
+    malformed = inputs.malformed - since.malformed
+    if malformed:
+        level = max(level, WARN)
+        problems.append(f'malformed input messages dropped ({malformed}: not a serialized '
+                        'sensor_msgs/Imu)')
+    marked = inputs.already_compensated - since.already_compensated
+    if marked:
+        level = max(level, WARN)
+        problems.append(f'input already compensated by gyro_tdc ({marked} samples): the '
+                        'model is applied twice')
+    if inputs.upstream:
+        level = max(level, WARN)
+        problems.append(f'imu/data_raw is published by gyro_tdc compensator '
+                        f'{", ".join(inputs.upstream)}: chained compensators apply the drift '
+                        'model twice')
+    if errors:
+        level = ERROR
+        problems.append(f'compensation failed on {errors} samples, passed through: '
+                        f'{core.last_error}')
+    if problems:
+        message = '; '.join(problems)
+    elif core.counts['in'] == 0:
+        message = 'waiting for imu/data_raw'
+    else:
+        message = 'compensating'
+    if new[PASSTHROUGH]:
+        message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
+    anchor = core.anchor
+    age = core.temperature_age()
+    flags = core.last_flags
+    values = {
+        'compensation active': (model is not None and core.counts['compensated'] > 0
+                                and not flags & PASSTHROUGH),
+        'why not': describe_flags(flags & ~OUT_OF_RANGE) if flags & PASSTHROUGH else '',
+        'model id': model.model_id if model is not None else '', 'model file': model_file,
+        'model features': ','.join(model.features) if model is not None else '',
+        'model kind': model.kind if model is not None else '',
+        'model range degC': '{:.2f}..{:.2f}'.format(*model.temp_range_c)
+        if model is not None else '',
+        'last reload': last_reload,
+        'temperature degC': f'{core.last_temp:.3f}' if core.last_temp is not None else '',
+        'temperature age s': f'{age:.3f}' if age is not None else '',
+        'temperature stale': bool(flags & STALE), 'in range': not flags & OUT_OF_RANGE,
+        'out of range policy': core.policy.out_of_range,
+        'range distance degC': f'{core.last_distance_c:+.2f}',
+        'messages in': core.counts['in'], 'messages out': core.counts['out'],
+        'compensated': core.counts['compensated'], 'passed through': counts[PASSTHROUGH],
+        'no temperature yet': counts[NO_TEMPERATURE], 'stale': counts[STALE],
+        'out of range': counts[OUT_OF_RANGE], 'non-finite': counts[NON_FINITE],
+        'no model': counts[NO_MODEL], 'temperatures rejected': core.temps.rejected,
+        'errors': core.errors, 'last error': core.last_error,
+        'input reliability': inputs.reliability, 'input lost': inputs.lost,
+        'input malformed': inputs.malformed,
+        'already compensated': inputs.already_compensated,
+        'upstream compensators': ','.join(inputs.upstream),
+        'accelerometer': accel_state(core),
+        'reanchor': ('off' if not core.policy.reanchor_on_start else
+                     'waiting for stillness' if anchor is None else
+                     f'done at t={anchor.t:.3f} s'),
+    }
+    if core.accel_on:
+        values['accelerometer compensated'] = core.accel_counts['compensated']
+        values['accelerometer passed through'] = core.accel_counts['passed through']
+        values['accelerometer missing'] = core.accel_counts['missing']
+    settling = core.thermal_progress       # the lagged state's start-up assumption (3 tau)
+    if settling is not None:
+        values['thermal state'] = (f'settling ({settling:.1f} of {SETTLE_TAUS:g} tau)'
+                                   if settling < SETTLE_TAUS else 'settled')
+    if anchor is not None:
+        values['reanchor shift dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.delta)
+        values['reanchor samples'] = anchor.samples
+        values['reanchor duration s'] = f'{anchor.duration_s:.3f}'
+        values['reanchor se dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.se)
+        values['reanchor tolerance dps'] = ','.join(f'{math.degrees(v):.5f}'
+                                                    for v in anchor.tolerance)
+        values['reanchor stopped on'] = anchor.reason or 'one window'
+    return Health(level, message,
+                  (model.sensor_id or model.frame_id) if model is not None else '',
+                  {k: str(v) for k, v in values.items()},
+                  HealthMark(dict(counts), core.temps.rejected, core.errors, inputs.lost,
+                             inputs.already_compensated, inputs.malformed))

@@ -1,0 +1,150 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+A model made ready to install off the compensating thread: its feature filters primed (pure).
+
+A reloaded model with dynamic features (``warmup``, ``lag``, ``dTdt``) must carry on from
+where the stream is, not restart. :func:`prepare` builds the model's streaming compensator
+in a worker thread and replays its filters over a :class:`Priming` copy of the core's
+thermometer history; :meth:`~gyro_tdc.runtime.core.CompensatorCore.install` carries
+the replay on (:func:`replay`) over the few samples recorded since, on the thread that
+compensates, and swaps it in.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Iterable, NamedTuple
+
+from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensator
+from gyro_tdc.runtime.health import OUT_OF_RANGE, STALE
+from gyro_tdc.runtime.policy import Policy
+from gyro_tdc.runtime.reanchor import Vec3
+import numpy as np
+
+__all__ = ['PreparedModel', 'Priming', 'Replay', 'advance', 'prepare', 'replay',
+           'replay_from_first']
+
+
+class Priming(NamedTuple):
+    """
+    A copy of what a new model's feature filters are replayed over.
+
+    ``first`` is the stamp and temperature of the first compensated sample, ``history`` the
+    thermometer samples recorded (at most one per second), ``last_t`` and ``last_temp`` the
+    last IMU stamp and the temperature used for it (None before any).
+    """
+
+    first: tuple[float, float] | None = None
+    history: tuple[tuple[float, float], ...] = ()
+    last_t: float | None = None
+    last_temp: float | None = None
+
+
+class Replay(NamedTuple):
+    """Where a replay stopped: filters advanced to ``t_prev``, history read up to ``t_seen``."""
+
+    t_prev: float
+    temp_prev: float
+    t_seen: float
+
+
+class PreparedModel(NamedTuple):
+    """A model ready to install: its streaming compensator primed over a :class:`Priming`."""
+
+    model: CompensationModel
+    model_id: str
+    comp: StreamingCompensator
+    var: dict[int, Vec3]
+    scale: np.ndarray
+    static: bool
+    priming: Priming
+    replay: Replay | None
+
+
+def advance(comp: StreamingCompensator, t: float, temp: float) -> None:
+    """Advance ``comp``'s filters (and its accelerometer part's) to ``t``."""
+    comp.drift(t, temp)
+    if comp.accel is not None:
+        comp.accel.drift(t, temp)
+
+
+def replay(comp: StreamingCompensator, history: Iterable[tuple[float, float]], until: float,
+           state: Replay) -> Replay:
+    """Advance ``comp`` over thermometer samples later than ``state.t_seen`` up to ``until``."""
+    t_prev, temp_prev, t_seen = state
+    for t_k, temp_k in history:
+        if t_k <= t_seen:
+            continue
+        if t_k > until:
+            break
+        if t_k > t_prev:
+            advance(comp, t_k, temp_prev)
+            t_prev = t_k
+        temp_prev = temp_k
+        t_seen = t_k
+    return Replay(t_prev, temp_prev, t_seen)
+
+
+def replay_from_first(comp: StreamingCompensator, first: tuple[float, float],
+                      history: Iterable[tuple[float, float]], until: float) -> Replay:
+    """Start ``comp`` at the first compensated sample and replay the history up to ``until``."""
+    advance(comp, *first)
+    return replay(comp, history, until, Replay(first[0], first[1], -math.inf))
+
+
+def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> PreparedModel:
+    """
+    Make ``model`` ready to install, off the compensating thread.
+
+    Builds its streaming compensator, replays the feature filters over ``priming`` (the
+    first compensated sample, then the thermometer samples at most one per second, up to the
+    last IMU stamp of the copy), so a model with ``warmup`` or ``lag`` features carries on
+    rather than restarting, and works out its variance table and content id. Touches nothing
+    shared: safe in a worker thread while the core keeps compensating.
+    :meth:`CompensatorCore.install` finishes the replay and swaps it in.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model.
+    policy : Policy
+        The policies (``out_of_range`` and the variances).
+    priming : Priming
+        From :meth:`CompensatorCore.priming`.
+
+    Returns
+    -------
+    PreparedModel
+        The model, its primed compensator and its tables.
+
+    """
+    comp = StreamingCompensator(model, out_of_range=policy.out_of_range,
+                                max_extrapolation_c=policy.max_extrapolation_c)
+    state = None
+    if priming.first is not None and priming.last_t is not None:
+        state = replay_from_first(comp, priming.first, priming.history, priming.last_t)
+    resid = tuple(float(v) for v in np.asarray(model.residual_var, dtype=np.float64))
+    p = policy
+    var = {
+        0: resid,
+        STALE: tuple(v + p.stale_variance for v in resid),
+        OUT_OF_RANGE: tuple(v + p.out_of_range_variance for v in resid),
+        STALE | OUT_OF_RANGE: tuple(v + p.stale_variance + p.out_of_range_variance
+                                    for v in resid),
+    }
+    return PreparedModel(model, model.model_id, comp, var,
+                         np.asarray(model.scale, dtype=np.float64),
+                         set(model.features) <= STATIC_EFFECTS, priming, state)

@@ -1,0 +1,137 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The compensator's thermometer held by stamp, and its covariance widening (pure).
+
+:class:`TemperatureHold` gives, for a gyro sample stamped ``t``, the latest thermometer
+sample stamped at or before ``t`` (zero-order hold by stamp, so the interleaving of the two
+topics in the executor does not matter); :func:`widen_covariance` adds a variance to the
+diagonal of a REP 145 covariance. Both are used by
+:class:`gyro_tdc.runtime.core.CompensatorCore` and re-exported from there.
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+from typing import Sequence
+
+__all__ = ['TemperatureHold', 'widen_covariance']
+
+
+class TemperatureHold:
+    """
+    Zero-order hold of the thermometer by stamp.
+
+    Parameters
+    ----------
+    capacity : int
+        Thermometer samples kept (enough to cover reordering between the two topics).
+
+    """
+
+    def __init__(self, capacity: int = 256) -> None:
+        self._t: list[float] = []
+        self._c: list[float] = []
+        self._capacity = int(capacity)
+        self.received = 0
+        self.rejected = 0
+
+    def __len__(self) -> int:
+        """Return the number of samples held."""
+        return len(self._t)
+
+    def add(self, t: float, temp_c: float) -> bool:
+        """
+        Add one thermometer sample.
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp.
+        temp_c : float, degC
+            Reading.
+
+        Returns
+        -------
+        bool
+            False when the sample is NaN/Inf and was rejected.
+
+        """
+        self.received += 1
+        if not (math.isfinite(t) and math.isfinite(temp_c)):
+            self.rejected += 1
+            return False
+        if not self._t or t > self._t[-1]:
+            self._t.append(t)
+            self._c.append(temp_c)
+        else:
+            i = bisect.bisect_right(self._t, t)
+            if i and self._t[i - 1] == t:
+                self._c[i - 1] = temp_c
+            else:
+                self._t.insert(i, t)
+                self._c.insert(i, temp_c)
+        if len(self._t) > self._capacity:
+            del self._t[:len(self._t) - self._capacity]
+            del self._c[:len(self._c) - self._capacity]
+        return True
+
+    def at(self, t: float) -> tuple[float, float] | None:
+        """
+        Return ``(temp_c, stamp)`` of the latest sample stamped at or before ``t``.
+
+        Returns
+        -------
+        tuple of float or None
+            None when every sample held is later than ``t`` (or none was received).
+
+        """
+        ts = self._t
+        if ts and ts[-1] <= t:
+            return self._c[-1], ts[-1]
+        i = bisect.bisect_right(ts, t)
+        return (self._c[i - 1], ts[i - 1]) if i else None
+
+    @property
+    def latest(self) -> tuple[float, float] | None:
+        """Return ``(temp_c, stamp)`` of the newest sample, or None."""
+        return (self._c[-1], self._t[-1]) if self._t else None
+
+
+def widen_covariance(cov: Sequence[float], add: Sequence[float]) -> list[float]:
+    """
+    Return a 3x3 row-major covariance with ``add`` added to its diagonal.
+
+    Parameters
+    ----------
+    cov : sequence of 9 float
+        Input covariance (REP 145: all zeros means unknown).
+    add : sequence of 3 float, (rad/s)^2
+        Variance to add per axis.
+
+    Returns
+    -------
+    list of 9 float
+        The widened covariance; an input with ``cov[0] == -1`` (no data) is returned as is.
+
+    """
+    out = list(cov)
+    if out[0] == -1.0:
+        return out
+    out[0] += add[0]
+    out[4] += add[1]
+    out[8] += add[2]
+    return out

@@ -1,0 +1,32 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Signal tools on IMU samples.
+
+Block means, noise and accuracy metrics, and the one still detector (its verdict, batch
+and streaming forms).
+"""
+
+from gyro_tdc.base.face import lazy
+
+__all__, __getattr__, __dir__ = lazy(__name__, {
+    'blocks': ['block_counts', 'block_length', 'block_mean', 'block_sum', 'block_sumsq'],
+    'metrics': ['allan_deviation', 'bias_stability', 'noise_readouts', 'p_ratios', 'rms_dps'],
+    'still_batch': ['detect_still', 'Stillness'],
+    'still_stream': ['StreamingStill'],
+    'still_verdict': ['has_accelerometer', 'judge_windows', 'MAX_RATE', 'MIN_STILL_S',
+                      'MIN_WINDOW_SAMPLES', 'MOTION_EPS', 'motion_veto', 'NOISE_FACTOR',
+                      'noise_floor', 'noise_thresholds', 'NOISE_WINDOWS', 'STILL_WINDOW_S'],
+})

@@ -1,0 +1,223 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The still test proper: its constants, noise floor, thresholds, window verdict, motion veto.
+
+Shared by the batch form (:mod:`gyro_tdc.signal.still_batch`), the streaming form
+(:mod:`gyro_tdc.signal.still_stream`) and the compensator's re-anchoring
+(:class:`gyro_tdc.runtime.reanchor.StillnessDetector`); see :mod:`gyro_tdc.signal` for the test.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ['has_accelerometer', 'judge_windows', 'MAX_RATE', 'MIN_STILL_S',
+           'MIN_WINDOW_SAMPLES', 'MOTION_EPS', 'motion_veto', 'NOISE_FACTOR', 'NOISE_WINDOWS',
+           'noise_floor', 'noise_thresholds', 'REASONS', 'STILL_WINDOW_S']
+
+#: Default window, s: the shortest still stretch judged (and the re-anchoring window).
+STILL_WINDOW_S = 10.0
+#: Auto thresholds: this many times the noise floor (the quietest window's std).
+NOISE_FACTOR = 4.0
+#: Streaming: windows seen before the noise floor alone sets the auto gyro threshold.
+NOISE_WINDOWS = 3
+#: Fewest samples per window (the window grows at low rates).
+MIN_WINDOW_SAMPLES = 20
+#: Largest mean compensated rate of a still window, rad/s (a session-to-session offset).
+MAX_RATE = 0.02
+#: Default shortest still stretch kept by :func:`detect_still`, s.
+MIN_STILL_S = 60.0
+#: A motion report above this (m/s or rad/s, any component) is motion.
+MOTION_EPS = 1e-6
+
+#: Why a window is not still (``''`` when it is), in the order they are checked.
+REASONS = ('samples', 'non-finite', 'motion', 'gyro', 'accel', 'rate', 'brief')
+
+
+def has_accelerometer(accel: ArrayLike | None) -> bool:
+    """
+    Return True when ``accel`` holds accelerometer data (not None, not all zero or NaN).
+
+    A driver without an accelerometer publishes zeros with
+    ``linear_acceleration_covariance[0] = -1`` (REP 145).
+    """
+    if accel is None:
+        return False
+    a = np.asarray(accel, dtype=np.float64)
+    if a.ndim != 2 or a.shape[0] == 0:
+        return False
+    # In chunks, stopping at the first finite non-zero row: a real accelerometer answers at
+    # once, without a pass (and copies) over a long run.
+    step = 1 << 16
+    for i in range(0, a.shape[0], step):
+        c = a[i:i + step]
+        if np.any(np.isfinite(c).all(axis=1) & (c != 0.0).any(axis=1)):
+            return True
+    return False
+
+
+def noise_floor(std: ArrayLike, ok: ArrayLike | None = None) -> NDArray[np.float64]:
+    """
+    Return the noise floor: the smallest positive window standard deviation per axis.
+
+    Parameters
+    ----------
+    std : ArrayLike, shape (W, 3)
+        Per-window standard deviations.
+    ok : ArrayLike of bool, shape (W,), optional
+        Windows that may be still (default all).
+
+    Returns
+    -------
+    NDArray[np.float64], shape (3,)
+        The floor per axis, inf where no window qualifies.
+
+    """
+    s = np.asarray(std, dtype=np.float64).reshape(-1, 3)
+    use = np.ones(s.shape[0], dtype=bool) if ok is None else np.asarray(ok, dtype=bool)
+    out = np.full(3, math.inf)
+    for a in range(3):
+        v = s[use, a]
+        v = v[np.isfinite(v) & (v > 0.0)]
+        if v.size:
+            out[a] = float(v.min())
+    return out
+
+
+def noise_thresholds(gyro_floor: ArrayLike, accel_floor: ArrayLike | None = None, *,
+                     gyro_std: float = 0.0, accel_std: float = 0.0,
+                     prior_std: ArrayLike | None = None
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return the gyro and accelerometer thresholds in force, fixed or auto.
+
+    Parameters
+    ----------
+    gyro_floor, accel_floor : ArrayLike, shape (3,)
+        Noise floors (:func:`noise_floor`; inf: none yet).
+    gyro_std, accel_std : float
+        Fixed thresholds, rad/s and m/s^2; 0: auto, :data:`NOISE_FACTOR` times the floor.
+    prior_std : ArrayLike, shape (3,), rad/s, optional
+        A prior of the gyro's scatter (the model's residual standard deviation): the auto
+        gyro threshold is held below :data:`NOISE_FACTOR` times it (the streaming form, over
+        its first :data:`NOISE_WINDOWS` windows, so a first window that moves is not taken as
+        the floor).
+
+    Returns
+    -------
+    gyro, accel : NDArray[np.float64], shape (3,)
+        Thresholds per axis (inf: nothing known yet).
+
+    """
+    if gyro_std > 0:
+        g = np.full(3, float(gyro_std))
+    else:
+        g = NOISE_FACTOR * np.asarray(gyro_floor, dtype=np.float64)
+        if prior_std is not None:
+            g = np.minimum(g, NOISE_FACTOR * np.asarray(prior_std, dtype=np.float64))
+    if accel_std > 0:
+        a = np.full(3, float(accel_std))
+    elif accel_floor is None:
+        a = np.full(3, math.inf)
+    else:
+        a = NOISE_FACTOR * np.asarray(accel_floor, dtype=np.float64)
+    return g, a
+
+
+def judge_windows(gyro_std: ArrayLike, accel_std: ArrayLike | None, gyro_thr: ArrayLike,
+                  accel_thr: ArrayLike, *, mean_rate: ArrayLike | None = None,
+                  max_rate: float = MAX_RATE, moving: ArrayLike | None = None
+                  ) -> NDArray[np.str_]:
+    """
+    Judge windows: the still test proper (one home for the batch and streaming forms).
+
+    Parameters
+    ----------
+    gyro_std : ArrayLike, shape (W, 3), rad/s
+        Raw-rate standard deviation per window.
+    accel_std : ArrayLike, shape (W, 3), m/s^2, or None
+        Acceleration standard deviation per window (None: no accelerometer).
+    gyro_thr, accel_thr : ArrayLike, shape (3,)
+        Thresholds (:func:`noise_thresholds`).
+    mean_rate : ArrayLike, shape (W, 3), rad/s, optional
+        Mean compensated rate per window (with a prior); at most ``max_rate`` when given.
+    max_rate : float, rad/s
+        Largest mean compensated rate.
+    moving : ArrayLike of bool, shape (W,), optional
+        Windows a motion report vetoes.
+
+    Returns
+    -------
+    NDArray[np.str_], shape (W,)
+        ``''`` for a still window, else the first failed test: ``'motion'``, ``'gyro'``,
+        ``'accel'`` or ``'rate'``.
+
+    """
+    g = np.asarray(gyro_std, dtype=np.float64).reshape(-1, 3)
+    w = g.shape[0]
+    why = np.full(w, '', dtype='<U10')
+    checks = []
+    if moving is not None:
+        checks.append(('motion', np.asarray(moving, dtype=bool).reshape(w)))
+    checks.append(('gyro', ~np.all(g <= np.asarray(gyro_thr), axis=1)))
+    if accel_std is not None:
+        a = np.asarray(accel_std, dtype=np.float64).reshape(-1, 3)
+        checks.append(('accel', ~np.all(a <= np.asarray(accel_thr), axis=1)))
+    if mean_rate is not None:
+        m = np.asarray(mean_rate, dtype=np.float64).reshape(-1, 3)
+        checks.append(('rate', ~np.all(np.abs(m) <= max_rate, axis=1)))
+    for name, bad in reversed(checks):      # the first failed test wins
+        why[bad] = name
+    return why
+
+
+def motion_veto(t: ArrayLike, motion_t: ArrayLike, moving: ArrayLike) -> NDArray[np.bool_]:
+    """
+    Hold motion reports onto the IMU stamps: True where the latest report says motion.
+
+    Parameters
+    ----------
+    t : ArrayLike, shape (N,), s
+        IMU stamps.
+    motion_t : ArrayLike, shape (M,), s
+        Stamps of the motion reports (``cmd_vel``, odometry), any order.
+    moving : ArrayLike, shape (M,) of bool, or (M, K) of float
+        Per report, motion (bool) or its components (m/s, rad/s: motion when any exceeds
+        :data:`MOTION_EPS` in magnitude).
+
+    Returns
+    -------
+    NDArray[np.bool_], shape (N,)
+        Vetoed samples: the latest report at or before the stamp reports motion, or there is
+        no report yet (still only while the stream reports zero motion).
+
+    """
+    t = np.asarray(t, dtype=np.float64)
+    mt = np.asarray(motion_t, dtype=np.float64).reshape(-1)
+    if mt.size == 0:
+        return np.ones(t.shape[0], dtype=bool)
+    mv = np.asarray(moving)
+    if mv.dtype != bool:
+        v = np.asarray(moving, dtype=np.float64).reshape(mt.size, -1)
+        mv = ~np.all(np.isfinite(v) & (np.abs(v) <= MOTION_EPS), axis=1)
+    mv = mv.reshape(mt.size)
+    order = np.argsort(mt, kind='stable')
+    mt, mv = mt[order], mv[order]
+    held = np.searchsorted(mt, t, side='right') - 1
+    return np.where(held >= 0, mv[np.clip(held, 0, None)], True)
