@@ -27,11 +27,12 @@ import math
 from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import FeatureError, FitError, ModelFileError
 from gyro_tdc.identify import (accel_features, accel_scores, compensate_accel, discovery_runs,
-                               fit_accel, fit_linear, fit_model, fit_px4_cubic, has_accelerometer,
-                               MG, PX4_FEATURES, static_bs, static_data)
+                               fit_accel, fit_linear, fit_model, fit_px4_cubic, MG, PX4_FEATURES,
+                               static_bs, static_data)
 from gyro_tdc.model.compensation import drift, StreamingCompensator
 from gyro_tdc.model.modelfile import load_model, model_from_dict, model_to_dict, save_model
 from gyro_tdc.model.thermal_state import ThermalState
+from gyro_tdc.signal import has_accelerometer
 from gyro_tdc.sim import load_scenario, simulate_scenario, to_run
 import numpy as np
 import pytest

@@ -26,6 +26,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'face': ['lazy'],
     'limits': ['check_bin_width', 'check_centers', 'check_sim_samples', 'MAX_CENTERS',
                'MAX_RATE_RAD_S', 'TEMP_PLAUSIBLE_C'],
+    'plain': ['plain'],
     'paramspec': ['format_help', 'help_requested', 'ParamSpec', 'spec_dataclass'],
     'resources': ['config_dir', 'model_path', 'scenario_names'],
     'worker': ['Job', 'LatestJob'],

@@ -16,7 +16,9 @@
 A package's face: the names other packages use, each imported from its module on first use.
 
 A face imports nothing until a name is asked for, so importing one name of a package loads
-one module (the compensator never loads the trainer's scipy or rosbags).
+one module (the compensator never loads the trainer's scipy or rosbags). A name that is also
+the name of its module (``plain`` in ``base/plain.py``) is bound when the face is built: the
+import of the module would otherwise set the package attribute to the module itself.
 """
 
 from __future__ import annotations
@@ -60,4 +62,7 @@ def lazy(package: str, modules: Mapping[str, Sequence[str]]
     def __dir__() -> list[str]:
         return list(names)
 
+    for name, module in where.items():
+        if name == module:
+            __getattr__(name)
     return names, __getattr__, __dir__

@@ -39,7 +39,7 @@ PathLike = Union[str, 'os.PathLike[str]']
 
 
 def _checkout_config_dir() -> Optional[Path]:
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     candidate = root / 'config'
     # package.xml beside config/ tells a checkout from an unrelated site-packages/config.
     if candidate.is_dir() and (root / 'package.xml').is_file():
@@ -79,7 +79,7 @@ def config_dir() -> Path:
     """
     found = _checkout_config_dir() or _share_config_dir()
     if found is None:
-        checkout = Path(__file__).resolve().parent.parent / 'config'
+        checkout = Path(__file__).resolve().parents[2] / 'config'
         raise GyroTdcError(
             f'gyro_tdc config directory not found: expected {checkout} (source checkout) or '
             f'share/{PACKAGE}/config in a prefix on AMENT_PREFIX_PATH '

@@ -26,7 +26,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'bag_motion': ['encode_twists', 'read_motion', 'TWIST_TYPE'],
     'bag_reader': ['read_bag'],
     'bag_writer': ['write_bag'],
-    'coverage': ['Coverage', 'RATE_THRESHOLD_C_PER_MIN', 'temperature_rate'],
+    'coverage': ['Coverage', 'coverage', 'RATE_THRESHOLD_C_PER_MIN', 'temperature_rate'],
     'dataset': ['expand_bags', 'load_runs', 'MAX_LOSS_FRACTION'],
     'imu_cdr': ['ImuView', 'locate'],
     'mark': ['diagonal_marked', 'mark_diagonal'],

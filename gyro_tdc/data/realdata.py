@@ -81,7 +81,7 @@ class PanCubesat:
 
 def default_pan_csv() -> Path:
     """Return the recording's CSV path: ``data/pan_cubesat_tvac`` in the repository."""
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     return root / 'data' / 'pan_cubesat_tvac' / 'TVCtest3_7_20.csv'
 
 

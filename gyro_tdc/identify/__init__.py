@@ -25,6 +25,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'accel': ['ACCEL_EFFECTS', 'accel_features', 'accel_scores', 'compensate_accel',
               'discovery_runs', 'fit_accel', 'MG', 'PX4_FEATURES'],
     'accel_static': ['static_bs', 'static_data'],
+    'discover': ['discover'],
     'discover.model': ['build_model'],
     'discover.report': ['write_report'],
     'discover.results': ['format_summary'],
@@ -32,5 +33,5 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],
     'still_only': ['train_still_only'],
     'tau': ['effective_samples', 'fit_time_constant', 'profile_interval', 'TimeConstantFit'],
-    'train': ['AUTO', 'TrainResult'],
+    'train': ['AUTO', 'train', 'TrainResult'],
 })

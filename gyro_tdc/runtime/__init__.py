@@ -23,7 +23,7 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'core': ['CompensatorCore'],
-    'health': ['HealthMark', 'InputStatus', 'PASSTHROUGH', 'sensor_mismatch'],
+    'health': ['health', 'HealthMark', 'InputStatus', 'PASSTHROUGH', 'sensor_mismatch'],
     'policy': ['PARAMS', 'Policy'],
     'priming': ['prepare', 'PreparedModel'],
     'reanchor': ['default_tolerance', 'reanchor_shift', 'STILL_WINDOW_MAX_S', 'windows_moving'],
