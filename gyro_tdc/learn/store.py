@@ -15,33 +15,55 @@
 """
 The learner's ``learn_file``: its state as plain types, read and written as JSON (pure).
 
-:func:`encode_state` turns a :class:`gyro_tdc.learn.learner.Learner` into the dict that
-:meth:`~gyro_tdc.learn.learner.Learner.save` writes (tagged :data:`FORMAT`), :func:`decode_state`
-checks such a dict and gives back the attribute values it restores (and the thermal section
-the points were binned with), :func:`write_state` and :func:`read_state` move it to and from
-a file (atomically; a missing file is no state).
+:func:`encode_state` turns a learner (any :class:`LearnerState`, such as
+:class:`gyro_tdc.learn.learner.Learner`, which this module does not import) into the dict its
+``save`` writes (tagged :data:`FORMAT`); :func:`decode_state` checks such a dict and gives back
+the attribute values it restores; :func:`write_state` and :func:`read_state` move it to and
+from a file (atomically; a missing file is no state).
 """
 
 from __future__ import annotations
 
 import json
 from pathlib import Path
-from typing import Any, TYPE_CHECKING
+from typing import Any, Protocol
 
 from gyro_tdc.base import atomic_write
 from gyro_tdc.errors import FeatureError
 from gyro_tdc.model import ThermalState
 import numpy as np
+from numpy.typing import NDArray
 
-if TYPE_CHECKING:
-    from gyro_tdc.learn.learner import Learner
-
-__all__ = ['FORMAT', 'decode_state', 'encode_state', 'read_state', 'write_state']
+__all__ = ['FORMAT', 'LearnerState', 'decode_state', 'encode_state', 'read_state',
+           'write_state']
 
 FORMAT = 'gyro_tdc learn 1'
 
 
-def encode_state(learner: Learner) -> dict[str, Any]:
+class LearnerState(Protocol):
+    """What :func:`encode_state` reads of a learner: the attributes a ``learn_file`` keeps."""
+
+    bins: dict[int, list[list]]
+    session: int
+    gyro_floor: NDArray[np.float64]
+    accel_floor: NDArray[np.float64]
+    t_first: float | None
+    still_s: float
+    stretches: int
+    windows: int
+    recent: list[list]
+    fit: dict | None
+    last_update_t: float | None
+    last_t: float | None
+    check: dict | None
+    swaps: int
+    motion: list[tuple[float, bool]]
+    thermal: ThermalState | None
+    thermal_state: tuple[float, list[float]] | None
+    config: Any
+
+
+def encode_state(learner: LearnerState) -> dict[str, Any]:
     """Return the persistent state of ``learner`` as plain types (what ``save`` writes)."""
     ts = learner.thermal_state
     return {

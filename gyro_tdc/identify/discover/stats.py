@@ -16,31 +16,53 @@
 Statistics of the search: gaps, cross-validation folds, noise memory and HAC Wald tests.
 
 The functions here work on block-mean residuals; none of them knows which effects are
-searched. :func:`hac_pvalue` is the significance test of the false-discovery guard,
-:func:`make_folds` the held-out test's folds, :func:`bandwidth` the noise memory both use.
+searched, nor imports the modules that do: :class:`Blocks` and :class:`Design` name what they
+read of the block data and of a linear model. :func:`hac_pvalue` is the significance test of
+the false-discovery guard, :func:`make_folds` the held-out test's folds, :func:`bandwidth` the
+noise memory both use.
 """
 
 from __future__ import annotations
 
 import math
-from typing import Sequence, TYPE_CHECKING
+from typing import Protocol, Sequence
 import warnings
 
 import numpy as np
 from numpy.typing import NDArray
 from scipy.stats import f as f_distribution
 
-if TYPE_CHECKING:
-    from gyro_tdc.identify.discover.data import BlockData
-    from gyro_tdc.identify.discover.linear import LinearModel
+__all__ = ['ar1', 'bandwidth', 'Blocks', 'COLLINEAR', 'DEG', 'Design', 'gap', 'hac_pvalue',
+           'make_folds', 'rel_residual', 'weighted_corr']
 
-__all__ = ['ar1', 'bandwidth', 'COLLINEAR', 'DEG', 'gap', 'hac_pvalue', 'make_folds',
-           'rel_residual', 'weighted_corr']
 
 #: rad/s to deg/s.
 DEG = 180.0 / math.pi
 #: Relative norm below which a column is taken as spanned by the others.
 COLLINEAR = 1e-3
+
+
+class Blocks(Protocol):
+    """What the statistics read of block data (:class:`~.data.BlockData` is one)."""
+
+    #: Number of blocks.
+    K: int
+    #: Number of runs, and the run of each block (K,).
+    n_runs: int
+    run: NDArray[np.int64]
+    #: Block weights (K,), their square roots, and the block-mean rate error (K, 3).
+    w: NDArray[np.float64]
+    sw: NDArray[np.float64]
+    y: NDArray[np.float64]
+
+
+class Design(Protocol):
+    """What :func:`hac_pvalue` reads of a linear model (:class:`~.linear.LinearModel` is one)."""
+
+    data: Blocks
+
+    def design(self, a: int) -> NDArray[np.float64]:
+        """Return the design matrix of axis ``a``, one row per block (K, p)."""
 
 
 def rel_residual(x: NDArray[np.float64], col: NDArray[np.float64]) -> float:
@@ -57,12 +79,12 @@ def rel_residual(x: NDArray[np.float64], col: NDArray[np.float64]) -> float:
     return float(np.linalg.norm(col - (x / scale) @ beta)) / nc
 
 
-def gap(data: BlockData, r: NDArray[np.float64]) -> float:
+def gap(data: Blocks, r: NDArray[np.float64]) -> float:
     """Return the weighted RMS over blocks and axes of a residual (K, 3), in deg/s."""
     return float(np.sqrt((data.w[:, None] * r * r).sum() / (3.0 * data.w.sum()))) * DEG
 
 
-def make_folds(data: BlockData, memory: int, n_folds: int = 5) -> tuple[list[tuple], int]:
+def make_folds(data: Blocks, memory: int, n_folds: int = 5) -> tuple[list[tuple], int]:
     """
     Return cross-validation folds as ``(test, train)`` row masks, and the buffer used.
 
@@ -128,7 +150,7 @@ def bandwidth(r: NDArray[np.float64], *, floor: bool = True) -> int:
     return int(min(max(lag, 1), max(k // 3, 1)))
 
 
-def hac_pvalue(model: LinearModel, coef: NDArray[np.float64], cand: Sequence[int],
+def hac_pvalue(model: Design, coef: NDArray[np.float64], cand: Sequence[int],
                lags: Sequence[int]) -> float:
     """
     Return the HAC Wald p-value of the columns ``cand`` (smallest over axes, times 3).
