@@ -74,9 +74,9 @@ bench: venv
 	if [ $${#failed[@]} -gt 0 ]; then echo "make bench: failed: $${failed[*]}" >&2; exit 1; fi
 
 # Every ```bash block of README.md, in order, in a fresh clone of HEAD with its own .venv; stops
-# at the first failing command (test/readme_check.py: standard library only, no venv needed).
+# at the first failing command (test/support/readme_check.py: standard library only, no venv needed).
 readme-check:
-	@$(DOMAIN); $(PYTHON) test/readme_check.py
+	@$(DOMAIN); $(PYTHON) test/support/readme_check.py
 
 # A robot with apt-installed Jazzy has numpy, scipy, matplotlib and PyYAML from apt (Ubuntu
 # 24.04's versions below) and pip-installs only requirements-apt.txt into a venv that sees them.

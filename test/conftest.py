@@ -19,10 +19,17 @@ The environment is set at import time, before any test module can import ``rclpy
 discovery stays on loopback and, unless the caller chose one, this run gets its own
 ``ROS_DOMAIN_ID`` (1..101, from the process id) so parallel runs do not talk to each other.
 ``rclpy`` itself is imported only inside the ``ros_context`` fixture, so pure tests never load
-it. Use ``rosutil.spin_until`` to wait on a condition with a deadline.
+it. Use ``rosutil.spin_until`` to wait on a condition with a deadline. The tests mirror the
+packages (``test/<package>/test_<module>.py``); shared helpers live in ``test/support/``, which
+is put on ``sys.path`` here, and system suites (lint, packaging, hostile input, docs) in
+``test/system/``.
 """
 
 import os
+from pathlib import Path
+import sys
+
+sys.path.insert(0, str(Path(__file__).resolve().parent / 'support'))
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 if not os.environ.get('ROS_DOMAIN_ID'):

@@ -1,0 +1,73 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Tests of gyro_tdc.identify.train: bags in, a saved model and the coverage of the data out."""
+
+from __future__ import annotations
+
+from bags import bag_from_run
+from gyro_tdc.errors import FeatureError, FitError
+from gyro_tdc.evaluate.report import format_training
+from gyro_tdc.identify.train import train
+from gyro_tdc.model.compensation import compensate
+from gyro_tdc.model.modelfile import load_model
+from gyro_tdc.signal.metrics import bias_stability
+import numpy as np
+import pytest
+from synth import synth_run
+
+
+@pytest.fixture(scope='module')
+def bags(tmp_path_factory):
+    folder = tmp_path_factory.mktemp('train') / 'runs'
+    folder.mkdir()
+    runs = [synth_run(seed=21, hours=1.0, cooling=True), synth_run(seed=22, hours=1.0)]
+    for k, run in enumerate(runs, start=1):
+        bag_from_run(run, folder / f'run{k}')
+    return folder, runs
+
+
+def test_train_saves_the_model_it_returns(bags, tmp_path):
+    folder, runs = bags
+    lines = []
+    result = train([folder], out=tmp_path / 'm.yaml', features='dT,dT2', kind='poly',
+                   command='python -m gyro_tdc train ...', log=lines.append)
+    assert result.path == tmp_path / 'm.yaml'
+    assert load_model(result.path) == result.model
+    assert result.bags == [str(folder / 'run1'), str(folder / 'run2')]
+    total = sum(len(r) for r in runs)
+    assert total - 10 <= result.samples < total   # the IMU tail after the last thermometer
+    assert [line.split(':')[0] for line in lines] == [f'read {b}' for b in result.bags]
+    assert result.model.created['command'] == 'python -m gyro_tdc train ...'
+    assert result.model.kind == 'poly' and result.model.features == ('dT', 'dT2')
+    # The model removes the drift of a held-out run to the white-noise floor.
+    held = synth_run(seed=23, hours=1.0)
+    bs = bias_stability(compensate(result.model, held.t, held.temp, held.omega),
+                        held.omega_ref)
+    assert np.all(bs < 1.5 * held.info['noise_dps'] ** 2)
+    # Coverage of both runs: heating on both, cooling on the first.
+    c = result.coverage
+    assert c.heating_min > 0 and c.cooling_min > 0 and int(c.samples.sum()) == result.samples
+    text, warns = format_training(result)
+    assert text.startswith('model: poly f(dT, dT2), T0 = ')
+    assert 'training data: 2 bag(s)' in text and warns == []
+
+
+def test_bad_features_and_kind_fail_before_reading(tmp_path):
+    missing = tmp_path / 'no_such_bag'
+    with pytest.raises(FeatureError, match='bogus'):
+        train([missing], out=tmp_path / 'm.yaml', features='dT,bogus')
+    with pytest.raises(FitError, match="Expected `kind` to be one of rbf, poly, got 'spline'"):
+        train([missing], out=tmp_path / 'm.yaml', kind='spline')
+    assert not (tmp_path / 'm.yaml').exists()

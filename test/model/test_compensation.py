@@ -1,0 +1,214 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Tests of gyro_tdc.model.compensation: formulas, streaming, clamping, ids, format 1, state."""
+
+import json
+import math
+from pathlib import Path
+
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.compensation import (compensate, CompensationModel, drift, model_temperature,
+                                         predict_drift, rbf_design, StreamingCompensator, summary)
+from gyro_tdc.model.modelfile import load_model, save_model
+from gyro_tdc.model.thermal_state import ThermalState
+import numpy as np
+import pytest
+from synth import synth_run
+
+DEG = math.pi / 180.0
+
+
+def _hand_model(**kw):
+    """Poly f(dT, dT2): drift = b + a1 (T - 25) / 10 + a2 ((T - 25)^2 - 100) / 50, rad/s."""
+    m = dict(kind='poly', features=('dT', 'dT2'), effect_params={}, t0_c=25.0,
+             input_mean=np.array([0.0, 100.0]), input_std=np.array([10.0, 50.0]),
+             centers=np.zeros((0, 2)), widths=np.zeros(0), weights=np.zeros((0, 3)),
+             intercept=np.array([0.01, -0.02, 0.03]),
+             linear=np.array([[0.001, 0.002, -0.003], [0.0004, 0.0, 0.0001]]),
+             scale=np.zeros(3), temp_range_c=(0.0, 50.0), residual_var=np.full(3, 1e-6))
+    m.update(kw)
+    return CompensationModel(**m)
+
+
+def test_drift_is_the_normalised_linear_formula():
+    model = _hand_model()
+    temp = np.array([0.0, 10.0, 25.0, 37.5, 50.0])
+    d = temp - 25.0
+    want = (model.intercept + (d / 10.0)[:, None] * model.linear[0]
+            + ((d ** 2 - 100.0) / 50.0)[:, None] * model.linear[1])
+    np.testing.assert_allclose(drift(model, np.arange(5.0), temp), want, rtol=1e-12)
+
+
+def test_rbf_design_columns():
+    centers = np.array([[0.0], [1.0]])
+    x = np.array([[2.0], [4.0]])                       # normalised: 0 and 1 (mean 2, std 2)
+    out = rbf_design((np.array([2.0]), np.array([2.0]), centers, np.array([1.0, 0.5])), x)
+    np.testing.assert_allclose(out, [[1.0, 0.0, 1.0, math.exp(-2.0)],
+                                     [1.0, 1.0, math.exp(-0.5), 1.0]], rtol=1e-12)
+
+
+def test_compensate_inverts_predict_drift_with_a_scale_factor():
+    model = _hand_model(scale=np.array([1e-3, -2e-3, 5e-4]))
+    n = 200
+    rng = np.random.default_rng(3)
+    t = np.arange(n) * 0.1
+    temp = np.linspace(5.0, 45.0, n)
+    ref = rng.normal(0.0, 1.0, size=(n, 3))
+    raw = predict_drift(model, t, temp, ref)
+    want = (1.0 + (temp - 25.0)[:, None] * model.scale) * ref + drift(model, t, temp)
+    np.testing.assert_allclose(raw, want, rtol=1e-12)
+    np.testing.assert_allclose(compensate(model, t, temp, raw), ref, rtol=1e-9, atol=1e-12)
+
+
+def test_drift_in_chunks_equals_one_block():
+    model = fit_model([synth_run(seed=3, hours=0.2)], features='dT,dT2', n_centers=5)
+    run = synth_run(seed=4, hours=0.2)
+    np.testing.assert_array_equal(drift(model, run.t, run.temp, chunk=97),
+                                  drift(model, run.t, run.temp))
+
+
+def test_streaming_compensator_equals_batch():
+    run = synth_run(seed=13, hours=0.3, tau_die=300.0, cooling=True)
+    model = fit_model([run], features='dT,dT2,lag,dTdt')
+    comp = StreamingCompensator(model)
+    out = np.array([comp.step(t, temp, w) for t, temp, w in zip(run.t, run.temp, run.omega)])
+    ref = compensate(model, run.t, run.temp, run.omega)
+    # atol: 1e-12 rad/s is 6e-11 deg/s; compensated values near zero have no relative scale.
+    np.testing.assert_allclose(out, ref, rtol=1e-9, atol=1e-12)
+
+
+def test_clamping_holds_the_drift_at_the_range_edge():
+    run = synth_run(seed=14, hours=0.5)
+    model = fit_model([run], features='dT,dT2')
+    lo, hi = model.temp_range_c
+    t = np.arange(3.0)
+    inside = drift(model, t, np.full(3, hi))
+    outside = drift(model, t, np.full(3, hi + 30.0))
+    np.testing.assert_allclose(outside, inside)
+    assert not np.allclose(drift(model, t, np.full(3, hi + 30.0), clamp=False), inside)
+
+
+def test_streaming_range_flag_extrapolation_and_offset():
+    model = _hand_model()
+    clamp = StreamingCompensator(model)
+    free = StreamingCompensator(model, out_of_range='extrapolate')
+    w = np.array([0.1, 0.2, 0.3])
+    np.testing.assert_allclose(clamp.step(0.0, 70.0, w),
+                               w - drift(model, np.zeros(1), np.array([50.0]))[0], rtol=1e-12)
+    assert not clamp.in_range
+    np.testing.assert_allclose(free.step(0.0, 70.0, w),
+                               w - drift(model, np.zeros(1), np.array([70.0]), clamp=False)[0],
+                               rtol=1e-12)
+    clamp.step(1.0, 30.0, w)
+    assert clamp.in_range
+    before = clamp.drift(2.0, 30.0)
+    clamp.shift_offset([0.001, 0.0, -0.001])
+    np.testing.assert_allclose(clamp.drift(3.0, 30.0) - before, [0.001, 0.0, -0.001],
+                               atol=1e-15)
+    with pytest.raises(ValueError, match="'clamp' or 'extrapolate'"):
+        StreamingCompensator(model, out_of_range='wrap')
+
+
+def test_model_id_covers_fitted_fields_but_not_created():
+    model = _hand_model()
+    assert model.model_id == _hand_model().model_id
+    assert model.replace(created={'utc': 'now'}).model_id == model.model_id
+    assert model.replace(intercept=model.intercept + 1e-12).model_id != model.model_id
+    assert model.replace(sensor_id='imu7').model_id != model.model_id
+    assert model == _hand_model() and model != model.replace(t0_c=26.0)
+
+
+def test_summary_and_properties():
+    model = _hand_model()
+    assert model.inputs == ('dT', 'dT2') and model.n_centers == 0
+    s = summary(model)
+    assert s['kind'] == 'poly' and s['features'] == ['dT', 'dT2'] and s['centers'] == 0
+    assert s['temp_range_c'] == [0.0, 50.0]
+    np.testing.assert_allclose(s['residual_std_dps'], [1e-3 / DEG] * 3)
+
+
+# ----------------------------------------------------------------------------- formats
+
+DATA = Path(__file__).resolve().parents[1] / 'support' / 'files'
+
+
+def test_a_format_1_lag_model_behaves_exactly_as_before(tmp_path):
+    # model_v1_lag.yaml and its drift were written by gyro_tdc before format 2 (lag as an
+    # additive column, every feature of the clamped measured temperature).
+    model = load_model(DATA / 'model_v1_lag.yaml')
+    want = json.loads((DATA / 'model_v1_lag_drift.json').read_text())
+    assert model.format_version == 1 and model.thermal is None
+    assert model.model_id == want['model_id'] == 'ccb82761db2c'
+    assert model.inputs == ('dT', 'dT2', 'dTdt', 'lag')
+    t, temp = np.array(want['t']), np.array(want['temp'])
+    np.testing.assert_array_equal(drift(model, t, temp), want['drift_clamp'])
+    np.testing.assert_array_equal(drift(model, t, temp, clamp=False), want['drift_extrapolate'])
+    comp = StreamingCompensator(model)
+    np.testing.assert_array_equal([comp.drift(a, b) for a, b in zip(t, temp)],
+                                  want['stream_clamp'])
+    assert comp.thermal_progress is None and comp.thermal_settled
+    assert summary(model)['format_version'] == 1 and 'thermal' not in summary(model)
+    # Saved again it stays format 1, byte for byte.
+    again = save_model(model, tmp_path / 'again.yaml')
+    assert again.read_text() == (DATA / 'model_v1_lag.yaml').read_text()
+
+
+def test_format_2_state_model_drift_and_range_follow_the_state():
+    thermal = ThermalState('first_order', (50.0,))
+    model = _hand_model(features=('dT', 'dT2', 'lag'), effect_params={'lag': {'tau_s': 50.0}},
+                        thermal=thermal)
+    assert model.format_version == 2 and model.inputs == ('dT', 'dT2')
+    t = np.arange(0.0, 400.0, 2.0)
+    temp = np.where(t < 100.0, 20.0, 60.0)              # a step past the range end (50)
+    state = thermal.temperature(t, temp)
+    np.testing.assert_array_equal(model_temperature(model, t, temp), state)
+    flat = _hand_model()                                # the same terms of the measured T
+    np.testing.assert_allclose(drift(model, t, temp), drift(flat, t, state), rtol=1e-12)
+    np.testing.assert_allclose(drift(model, t, temp, clamp=False),
+                               drift(flat, t, state, clamp=False), rtol=1e-12)
+    # The state reaches the range end about tau ln(4) after the step, not at the step.
+    clamped = model_temperature(model, t, temp, clamp=True)
+    assert clamped[t == 102.0][0] < 50.0 and clamped[-1] == 50.0
+    s = summary(model)
+    assert s['format_version'] == 2 and s['thermal']['tau_s'] == [50.0]
+
+
+def test_format_2_without_lag_matches_the_format_1_numbers():
+    # A static model: the state is the measured temperature, only the format differs.
+    run = synth_run(seed=3, hours=0.2)
+    model = fit_model([run], features='dT,dT2', n_centers=5)
+    assert model.thermal == ThermalState() and model.format_version == 2
+    legacy = model.replace(thermal=None)
+    np.testing.assert_array_equal(compensate(model, run.t, run.temp, run.omega),
+                                  compensate(legacy, run.t, run.temp, run.omega))
+    assert legacy.model_id != model.model_id
+
+
+def test_linear_policy_continues_the_hand_model_along_its_tangent():
+    model = _hand_model()              # quadratic in dT, range 0..50 degC, T0 = 25
+    t = np.zeros(1)
+    lin = StreamingCompensator(model, out_of_range='linear', max_extrapolation_c=15.0)
+    w = np.zeros(3)
+    # d b / d T at 50 degC: a1 / 10 + a2 * 2 (T - 25) / 50.
+    slope = model.linear[0] / 10.0 + model.linear[1] * 2.0 * 25.0 / 50.0
+    for temp, reach in ((58.0, 8.0), (80.0, 15.0)):
+        want = drift(model, t, np.array([50.0]))[0] + reach * slope
+        np.testing.assert_allclose(-lin.step(0.0, temp, w), want, rtol=1e-9)
+        np.testing.assert_allclose(drift(model, t, np.array([temp]), out_of_range='linear')[0],
+                                   want, rtol=1e-9)
+        assert not lin.in_range and lin.range_distance_c == pytest.approx(temp - 50.0)
+        assert lin.model_temp == pytest.approx(50.0 + reach)
+    with pytest.raises(ValueError, match="'linear', 'clamp' or 'extrapolate'"):
+        StreamingCompensator(model, out_of_range='tangent')

@@ -1,0 +1,261 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Packaging: package.xml, setup.py, setup.cfg, the ament marker and ``python -m gyro_tdc``.
+
+colcon builds gyro_tdc as an ament_python package only when catkin_pkg accepts package.xml
+(an invalid maintainer e-mail silently downgrades it to a plain Python package), and
+``ros2 run gyro_tdc EXE`` only finds executables installed in ``lib/gyro_tdc``.
+"""
+
+from __future__ import annotations
+
+import configparser
+import os
+from pathlib import Path
+import re
+import subprocess
+import sys
+
+from catkin_pkg.package import parse_package
+import gyro_tdc
+from gyro_tdc.cli import COMMANDS
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+NODES = ('driver_node', 'compensator_node')
+
+
+@pytest.fixture(scope='module')
+def package():
+    warnings = []
+    pkg = parse_package(str(ROOT / 'package.xml'), warnings=warnings)
+    assert not warnings, warnings
+    return pkg
+
+
+def run_module(*args: str) -> subprocess.CompletedProcess:
+    env = dict(os.environ, PYTHONPATH=str(ROOT), ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    return subprocess.run([sys.executable, '-m', 'gyro_tdc', *args], cwd=str(ROOT), env=env,
+                          capture_output=True, text=True, timeout=120)
+
+
+def test_package_xml_is_valid_ament_python(package):
+    package.validate()
+    assert package.package_format == 3
+    assert package.name == 'gyro_tdc'
+    assert package.get_build_type() == 'ament_python'
+    assert [str(lic) for lic in package.licenses] == ['Apache-2.0']
+    assert package.maintainers and all(m.email for m in package.maintainers)
+    for maintainer in package.maintainers:
+        maintainer.validate()  # catkin_pkg's e-mail check
+
+
+def test_package_xml_dependencies(package):
+    package.evaluate_conditions({'ROS_VERSION': '2', 'ROS_PYTHON_VERSION': '3'})
+    exec_depends = {d.name for d in package.exec_depends}
+    assert exec_depends >= {
+        'rclpy', 'sensor_msgs', 'std_msgs', 'geometry_msgs', 'diagnostic_msgs', 'std_srvs',
+        'python3-numpy', 'python3-scipy', 'python3-yaml', 'python3-matplotlib'}
+    assert {d.name for d in package.test_depends} >= {
+        'ament_copyright', 'ament_flake8', 'ament_pep257', 'python3-pytest'}
+
+
+def test_versions_agree(package, setup_kwargs):
+    assert package.version == setup_kwargs['version'] == gyro_tdc.__version__
+
+
+def test_setup_data_files(setup_kwargs):
+    data_files = {dest: list(srcs) for dest, srcs in setup_kwargs['data_files']}
+    assert data_files['share/ament_index/resource_index/packages'] == ['resource/gyro_tdc']
+    assert data_files['share/gyro_tdc'] == ['package.xml']
+    marker = ROOT / 'resource' / 'gyro_tdc'
+    assert marker.is_file() and marker.stat().st_size == 0
+    config = ROOT / 'config'
+    expected = sorted(p.relative_to(ROOT).as_posix() for p in config.rglob('*')
+                      if p.is_file() and not any(part.startswith(('.', '__'))
+                                                 for part in p.relative_to(ROOT).parts))
+    installed = []
+    for dest, srcs in data_files.items():
+        for src in srcs:
+            if src.startswith('config/'):
+                assert dest == 'share/gyro_tdc/' + os.path.dirname(src), (dest, src)
+                installed.append(src)
+    assert sorted(installed) == expected
+
+
+def test_setup_packages_and_entry_points(setup_kwargs):
+    packages = setup_kwargs['packages']
+    assert 'gyro_tdc' in packages and 'gyro_tdc.cli' in packages
+    assert not any(p == 'test' or p.startswith('test.') for p in packages)
+    scripts = dict(entry.replace(' ', '').split('=')
+                   for entry in setup_kwargs['entry_points']['console_scripts'])
+    for node in NODES:
+        assert scripts[node] == f'gyro_tdc.nodes.{node}:main'
+    # One console entry point for the commands, no generic names (train, demo...) in bin/.
+    assert scripts.pop('gyro-tdc') == 'gyro_tdc.__main__:main'
+    assert set(scripts) == set(NODES)
+    assert not set(COMMANDS) & set(scripts)
+
+
+def test_setup_cfg_installs_executables_for_ros2_run():
+    cfg = configparser.ConfigParser(interpolation=None)
+    cfg.read(ROOT / 'setup.cfg')
+    assert cfg['develop']['script_dir'] == '$base/lib/gyro_tdc'
+    assert cfg['install']['install_scripts'] == '$base/lib/gyro_tdc'
+
+
+def test_setup_cfg_flake8_matches_ament_flake8():
+    ament_flake8 = pytest.importorskip('ament_flake8')
+    ament = configparser.ConfigParser(interpolation=None)
+    ament.read(Path(ament_flake8.__file__).parent / 'configuration' / 'ament_flake8.ini')
+    ours = configparser.ConfigParser(interpolation=None)
+    ours.read(ROOT / 'setup.cfg')
+    for key, value in ament['flake8'].items():
+        assert ours['flake8'].get(key, '').replace(' ', '') == value.replace(' ', ''), key
+
+
+def test_help_lists_every_command():
+    proc = run_module('--help')
+    assert proc.returncode == 0, proc.stderr
+    for name, command in COMMANDS.items():
+        assert f'  {name}' in proc.stdout
+        assert command.help in proc.stdout
+    assert set(COMMANDS) == {'simulate', 'train', 'evaluate', 'discover', 'demo', 'fleet'}
+
+
+def test_unknown_command_exits_2_with_one_line():
+    proc = run_module('no-such-command', '--flag')
+    assert proc.returncode == 2
+    assert proc.stdout == ''
+    lines = proc.stderr.splitlines()
+    assert len(lines) == 1, proc.stderr
+    assert 'no-such-command' in lines[0] and 'simulate' in lines[0]
+
+
+def test_no_command_prints_usage_and_exits_2():
+    proc = run_module()
+    assert proc.returncode == 2
+    assert 'usage:' in proc.stderr
+
+
+def _readme_layout() -> set:
+    """Return the gyro_tdc/**/*.py paths listed in the README's Layout code block."""
+    text = (ROOT / 'README.md').read_text(encoding='utf-8')
+    section = text.split('\n## Layout\n', 1)[1].split('\n## ', 1)[0]
+    block = section.split('```\n', 1)[1].split('```', 1)[0]
+    stack: list = []     # (indent, directory) of the enclosing folders
+    paths = set()
+    for line in block.splitlines():
+        if not line.strip():
+            continue
+        indent = len(line) - len(line.lstrip())
+        name = line.split()[0]
+        while stack and stack[-1][0] >= indent:
+            stack.pop()
+        if name.endswith('/'):
+            stack.append((indent, name))
+        elif name.endswith('.py'):
+            path = ''.join(d for _, d in stack) + name
+            assert path not in paths, f'{path} is listed twice'
+            paths.add(path)
+    return paths
+
+
+def test_readme_layout_lists_every_module():
+    listed = _readme_layout()
+    modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / 'gyro_tdc').rglob('*.py')}
+    assert sorted(modules - listed) == [], 'modules missing from the README layout'
+    assert sorted(listed - modules) == [], 'README layout names modules that do not exist'
+
+
+# -- the apt recipe: what apt gives, what pip adds, and the README that says so ---------------
+
+#: What a robot with apt-installed Jazzy takes from apt (rosdep key: Ubuntu 24.04's version).
+APT_PROVIDED = {'numpy': ('python3-numpy', '1.26.4'), 'scipy': ('python3-scipy', '1.11.4'),
+                'matplotlib': ('python3-matplotlib', '3.6.3'),
+                'pyyaml': ('python3-yaml', '6.0.1')}
+
+
+def _pins(path: Path) -> dict:
+    """Return ``{normalised name: version}`` of a requirements file's ``==`` pins (3.11)."""
+    pins = {}
+    for line in path.read_text().splitlines():
+        line = line.split('#', 1)[0].strip()
+        if not line:
+            continue
+        req, _, marker = line.partition(';')
+        if marker and '< "3.11"' in marker:
+            continue
+        name, sep, version = req.strip().partition('==')
+        assert sep, f'{path.name}: {line!r} is not pinned with =='
+        pins[name.split('[')[0].strip().lower().replace('_', '-')] = version.strip()
+    return pins
+
+
+def test_requirements_apt_adds_to_apt_what_requirements_txt_pins():
+    apt, full = _pins(ROOT / 'requirements-apt.txt'), _pins(ROOT / 'requirements.txt')
+    assert not set(apt) & set(APT_PROVIDED)          # never pip over apt's builds
+    assert not [n for n in apt if n.startswith('ros-')]
+    wanted = {n: v for n, v in full.items()
+              if n not in APT_PROVIDED and not n.startswith('ros-')}
+    assert wanted and {n: apt.get(n) for n in wanted} == wanted
+    # pandas 3 needs numpy 2: the pin keeps pip from replacing apt's numpy and scipy.
+    assert apt['pandas'].startswith('2.')
+
+
+def test_package_xml_gets_the_rest_from_apt(package):
+    package.evaluate_conditions({'ROS_VERSION': '2', 'ROS_PYTHON_VERSION': '3'})
+    exec_depends = {d.name for d in package.exec_depends}
+    assert {key for key, _ in APT_PROVIDED.values()} | {'ros2launch'} <= exec_depends
+    text = (ROOT / 'package.xml').read_text()
+    assert re.findall(r'pip install\s+(\S+)', text) == ['-r'], 'a bare pip install'
+
+
+def test_make_test_apt_versions_uses_apt_versions():
+    text = (ROOT / 'Makefile').read_text()
+    pins = re.search(r'^APT_VERSIONS := (.+)$', text, re.M).group(1).split()
+    assert {p.split('==')[0].lower(): p.split('==')[1] for p in pins} == \
+        {name: version for name, (_, version) in APT_PROVIDED.items()}
+    assert re.search(r'^test-apt-versions:', text, re.M)
+    assert 'test-apt-versions' not in text.split('\ntest: ', 1)[1].split('\n\n', 1)[0]
+
+
+def test_readme_apt_recipe_sources_ros_runs_rosdep_and_pips_only_in_a_venv():
+    from readme_check import readme_blocks
+
+    readme = (ROOT / 'README.md').read_text(encoding='utf-8')
+    section = readme.split('\n## Running on a robot\n', 1)[1].split('\n## ', 1)[0]
+    for name, (key, version) in APT_PROVIDED.items():
+        assert key in section and version in section, key
+    blocks = readme_blocks(readme)
+    recipe = next(b for b in blocks if any('rosdep install' in line for line in b.lines))
+    assert recipe.skip.startswith('robot only')
+    lines = [line.split('#', 1)[0].strip() for line in recipe.lines]
+    assert lines.index('source /opt/ros/jazzy/setup.bash') == 1   # first, after the marker
+    assert 'cd ~/ws && rosdep install --from-paths src -y --ignore-src' in lines
+    venv = next(i for i, line in enumerate(lines) if 'venv --system-site-packages' in line)
+    activate = lines.index('. ~/ws/venv/bin/activate')
+    assert venv < activate
+    for block in blocks:
+        for i, line in enumerate(block.lines):
+            if re.match(r'\s*(sudo )?pip3? install', line):
+                assert block is recipe and i > activate, (block.line, line)
+                assert line.split('#')[0].split() == [
+                    'pip', 'install', '-r', 'src/gyro_tdc/requirements-apt.txt']
+    # The shipped simulated model only with the simulated driver.
+    for line in section.splitlines():
+        if 'l3gd20_modified' in line and line.startswith('ros2 '):
+            assert 'backend:=sim' in line, line
