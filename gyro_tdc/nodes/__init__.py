@@ -12,4 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The ROS 2 shell: the only package of gyro_tdc that imports rclpy and message types."""
+"""
+The ROS 2 shell: the only package of gyro_tdc that imports rclpy and message types.
+
+The nodes run with ``ros2 run gyro_tdc <node>``; the face shows what the command line uses
+(``gyro-tdc demo`` runs both nodes live), and loads rclpy only when a name is asked for.
+"""
+
+from gyro_tdc.base.face import lazy
+
+__all__, __getattr__, __dir__ = lazy(__name__, {
+    'live': ['LiveResult', 'run_live'],
+})
