@@ -28,7 +28,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
                'MAX_RATE_RAD_S', 'TEMP_PLAUSIBLE_C'],
     'plain': ['plain'],
     'paramspec': ['format_help', 'help_requested', 'ParamSpec', 'spec_dataclass'],
-    'resources': ['config_dir', 'model_path', 'scenario_names'],
+    'resources': ['config_dir', 'model_path', 'scenario_names', 'scenario_path'],
     'worker': ['Job', 'LatestJob'],
     'yamlio': ['BAG_METADATA_LIMITS', 'load_yaml', 'read_yaml', 'SCENARIO_LIMITS', 'YamlLimits'],
 })

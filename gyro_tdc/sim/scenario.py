@@ -298,9 +298,9 @@ def scenario_dir() -> Path:
         If the configuration directory cannot be found.
 
     """
-    from gyro_tdc.base import resources
+    from gyro_tdc.base import config_dir
     try:
-        return resources.config_dir() / 'scenarios'
+        return config_dir() / 'scenarios'
     except ScenarioError:
         raise
     except GyroTdcError as exc:
@@ -317,9 +317,9 @@ def list_scenarios() -> list[str]:
         Stems of ``config/scenarios/*.yaml``.
 
     """
-    from gyro_tdc.base import resources
+    from gyro_tdc.base import scenario_names
     try:
-        return resources.scenario_names()
+        return scenario_names()
     except GyroTdcError as exc:
         raise ScenarioError(str(exc)) from exc
 
@@ -349,9 +349,9 @@ def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) ->
         return name_or_path
     if isinstance(name_or_path, Mapping):
         return Scenario.from_dict(name_or_path)
-    from gyro_tdc.base import resources
+    from gyro_tdc.base import scenario_path
     try:
-        path = resources.scenario_path(name_or_path)
+        path = scenario_path(name_or_path)
     except ScenarioError:
         raise
     except GyroTdcError as exc:
