@@ -170,7 +170,7 @@ def _stage_train(bag, profile=False, extra=()):
 
 def _stage_train_paper(bag):
     """
-    Run the train command with the paper's model only, as the defaults were before issue 12.
+    Run the train command with the paper's model only, as the defaults were before discovery.
 
     ``--features dT,dT2 --no-accel``: no discovery gates, no thermal state, no accelerometer
     part; the same work the trainer did when the 1.5x goal was first met, so this ratio shows

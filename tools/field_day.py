@@ -32,7 +32,7 @@ Usage: ``python tools/field_day.py [--out DIR] [--force] [--json OUT]``.
      own still test), scored on the samples it compensated;
 
 4. prints BS per axis beside the noise floor (the simulator's per-sample white noise and
-   quantisation, ``SimTruth.noise_std``), and the ratio the done-criterion of issue 14
+   quantisation, ``SimTruth.noise_std``), and the ratio the field criterion
    bounds (1.1x);
 5. learns on the vehicle (``compensator_node`` ``learn:=true``, no model): the same core
    with a :class:`gyro_tdc.learn.learner.Learner` attached and stepped by stamp, fed day 1 then
@@ -62,8 +62,7 @@ from gyro_tdc.evaluate.score import evaluate, NamedModel  # noqa: E402
 from gyro_tdc.learn.learner import Learner  # noqa: E402
 from gyro_tdc.model.compensation import CompensationModel  # noqa: E402
 from gyro_tdc.model.modelfile import load_model  # noqa: E402
-from gyro_tdc.runtime.core import CompensatorCore, Policy  # noqa: E402
-from gyro_tdc.runtime.health import PASSTHROUGH  # noqa: E402
+from gyro_tdc.runtime import CompensatorCore, PASSTHROUGH, Policy  # noqa: E402
 from gyro_tdc.sim import simulate_run  # noqa: E402
 from gyro_tdc.sim.vehicle import TRUTH_TOPIC  # noqa: E402
 import numpy as np  # noqa: E402
@@ -147,7 +146,7 @@ def feed(core: CompensatorCore, imu_t: NDArray[np.float64], gyro: NDArray[np.flo
         while j < m and tt[j] <= t:
             core.add_temperature(tt[j], tc[j])
             j += 1
-        ox, oy, oz, _, flags = core.process(t, w[0], w[1], w[2], a)
+        ox, oy, oz, _, flags, _, _ = core.process(t, w[0], w[1], w[2], a)
         out[k] = (ox, oy, oz)
         ok[k] = not flags & PASSTHROUGH
         if learner is not None and k % POLL == POLL - 1:

@@ -15,7 +15,7 @@
 """
 Tests of gyro_tdc.base.atomicio: atomic writes with normal permissions, through symlinks.
 
-Issue 18, items 4 and 11 (moved from test_hostile.py): a new file gets the umask's mode, an
+Hostile outputs (moved from test_hostile.py): a new file gets the umask's mode, an
 overwritten one keeps its mode, a symlink is written through to its target, a failure leaves
 the previous content and no temporary behind, a directory appears complete or not at all.
 """

@@ -109,7 +109,7 @@ def test_a_chamber_scenario_is_unchanged_by_the_vehicle_stream():
 # ------------------------------------------------------------------------ the done-criterion
 
 def test_still_only_day1_compensates_day2_within_the_noise_floor(days, tmp_path):
-    """Issue 14: train --still-only on day 1; day 2, driving included, within 1.1x floor."""
+    """Train --still-only on day 1; day 2, driving included, is within 1.1x the floor."""
     d1, d2 = days
     res = train_still_only(['vehicle_day1'], out=tmp_path / 'm.yaml', runs=[to_run(d1)])
     m = res.model

@@ -28,7 +28,7 @@ it even the true drift removed leaves 1.06-1.13 times the white floor in 10-s bl
 (seed to seed), so a bound of 1.1 would measure the sensor, not the model. The white noise
 and the 8.75 mdps quantisation stay.
 
-Done when (issue 12): ``discover`` names ``lag`` and ``dT2`` (only ``lag`` without
+Done when: ``discover`` names ``lag`` and ``dT2`` (only ``lag`` without
 curvature), recovers tau within 10 %, ends within 1.1x its noise floor in sample and 1.2x
 held out; ``train`` with default options reaches 1.1x the floor on the held-out run and
 reports tau within 10 %.

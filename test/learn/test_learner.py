@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Online learning (issue 14 item 3): vehicle day 1 then day 2, restart, growth, swap check."""
+"""Online learning: vehicle day 1 then day 2, restart, growth, swap check."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ import math
 from gyro_tdc.learn.learner import LearnConfig, learned_model, Learner
 from gyro_tdc.model.compensation import drift
 from gyro_tdc.model.thermal_state import ThermalState
-from gyro_tdc.runtime.core import CompensatorCore, Policy
+from gyro_tdc.runtime import CompensatorCore, Policy
 from gyro_tdc.sim import simulate_run
 from learning_days import BOUND, day_offset, DEG2, floor_ratio, stream
 import numpy as np
@@ -54,7 +54,7 @@ def uninterrupted(days):
 
 
 def test_no_model_day1_then_day2_within_the_noise_floor(days, uninterrupted):
-    """Issue 14: learn:=true, no model, fed day 1 then day 2: day 2 within 1.3x the floor."""
+    """Learn:=true, no model, fed day 1 then day 2: day 2 is within 1.3x the floor."""
     out, ok, learner = uninterrupted
     assert ok.all()                      # learned on day 1: day 2 is compensated throughout
     ratio = floor_ratio(days, out, ok)

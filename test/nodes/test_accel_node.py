@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-compensator_node corrects the specific force with the model's accelerometer part (issue 15).
+compensator_node corrects the specific force with the model's accelerometer part.
 
 The live done-criterion: a short, low-rate ``accel_chamber`` run streamed through a real
 compensator_node (fresh Context) gives, sample for sample, the offline batch compensation

@@ -190,7 +190,7 @@ def _zero_model(path):
 def test_a_slow_constant_turn_reported_by_motion_topic_is_not_still(ros_context, tmp_path,
                                                                     motion_type, moving):
     """
-    Issue 14: a vehicle turning slowly at a constant rate looks still to the gyro.
+    A vehicle turning slowly at a constant rate looks still to the gyro.
 
     The gyro reads a constant 0.005 rad/s (below still_max_rate) with tiny noise for 150 s,
     a textbook still stretch. While cmd_vel (or odometry) reports the turn, the node neither

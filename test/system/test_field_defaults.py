@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Field defaults (issue 13) that hold on real recordings.
+Field defaults that hold on real recordings.
 
 ``out_of_range: linear``, precision-driven re-anchoring, stillness from the stream's own
 noise, the trained-range warning, and the PAN range hold-out.
@@ -35,7 +35,7 @@ from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model.compensation import compensate, CompensationModel, drift, StreamingCompensator
 from gyro_tdc.model.out_of_range import added_variance, range_shortfall, VARIANCE_SCALE_C
-from gyro_tdc.runtime.core import CompensatorCore, Policy
+from gyro_tdc.runtime import CompensatorCore, Policy
 from gyro_tdc.runtime.health import health
 from gyro_tdc.runtime.reanchor import (BLOCKS_PER_WINDOW, reanchor_shift, StillnessDetector,
                                        TOLERANCE_FRACTION)
@@ -132,7 +132,7 @@ def test_linear_widens_the_covariance_with_the_distance_and_reports_it():
     for policy in POLICIES:
         core = CompensatorCore(Policy(out_of_range=policy, out_of_range_variance=1e-6), model)
         core.add_temperature(0.0, hi + 7.5)
-        var, flags = core.process(1.0, 0.0, 0.0, 0.0)[3:]
+        var, flags = core.process(1.0, 0.0, 0.0, 0.0)[3:5]
         grow = 1.0 + (7.5 / VARIANCE_SCALE_C) ** 2 if policy == 'linear' else 1.0
         assert flags and added_variance(1e-6, 7.5, policy) == pytest.approx(1e-6 * grow)
         np.testing.assert_allclose(var, model.residual_var + 1e-6 * grow, rtol=1e-9)
@@ -143,7 +143,7 @@ def test_linear_widens_the_covariance_with_the_distance_and_reports_it():
         assert core.process(3.0, 0.0, 0.0, 0.0)[4] and \
             health(core).values['range distance degC'] == '-3.00'
         core.add_temperature(4.0, 0.5 * (lo + hi))
-        var, flags = core.process(5.0, 0.0, 0.0, 0.0)[3:]
+        var, flags = core.process(5.0, 0.0, 0.0, 0.0)[3:5]
         assert flags == 0 and health(core).values['range distance degC'] == '+0.00'
         np.testing.assert_allclose(var, model.residual_var)
 

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Issue 14 "Done when", through a real compensator_node: learn on the vehicle, then restart.
+The field criterion through a real compensator_node: learn on the vehicle, then restart.
 
 A vehicle day 1 then day 2 (config/scenarios/vehicle_day*.yaml at a reduced 2 Hz, so the two
 compressed 6 h days are 86,400 messages) stream through a real CompensatorNode with
@@ -58,7 +58,7 @@ RATE_HZ = 2.0        # Hz: the learner's 10 s windows still hold 20 samples
 STEP = 400
 SWAP_DELAY_S = 240.0  # learn_swap_delay: longer than a chunk, so no swap comes late
 FRAME = 'imu_link'
-STILL_ONLY_BOUND = 1.1   # issue 14: a still-only model of day 1, day 2 through the node
+STILL_ONLY_BOUND = 1.1   # a still-only model of day 1, day 2 through the node
 ROOT = Path(__file__).resolve().parents[2]
 
 
@@ -227,7 +227,7 @@ def test_learn_on_the_vehicle_through_a_live_node_and_restart(days, ros_context,
 
 def test_still_only_model_of_day1_streams_day2_through_a_live_node(days, ros_context, tmp_path):
     """
-    Issue 14: ``train --still-only`` on day 1; day 2 through a real node, within 1.1x.
+    Train ``--still-only`` on day 1; day 2 through a real node is within 1.1x.
 
     Default parameters plus ``reanchor_on_start`` (and reliable input): day 2, driving
     included, within 1.1x the noise floor per axis against the simulator's true rate, and

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Hostile files and faulty inputs (issue 18, the parts outside the nodes).
+Hostile files and faulty inputs (the parts outside the nodes).
 
 Each case reproduces one reported failure: deep nesting and alias bombs in YAML, oversized
 files, tampered model files (atomic, permission-keeping outputs: test_atomicio.py), silent

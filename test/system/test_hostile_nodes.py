@@ -13,11 +13,11 @@
 # limitations under the License.
 
 """
-compensator_node against hostile input (issue 18), with real rclpy: each case reproduces one.
+compensator_node against hostile input, with real rclpy: each case reproduces one failure.
 
-Files that crash parsers (1), a slow model file read while the IMU streams (3), loops and
-double compensation (9), input losses (10), re-anchoring across reloads (12), the stale
-passthrough on /diagnostics and start-up parameter errors (15).
+Files that crash parsers, a slow model file read while the IMU streams, loops and double
+compensation, input losses, re-anchoring across reloads, the stale passthrough on
+/diagnostics and start-up parameter errors.
 """
 
 from __future__ import annotations
