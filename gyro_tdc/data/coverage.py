@@ -35,7 +35,7 @@ from numpy.typing import NDArray
 __all__ = ['Coverage', 'RATE_THRESHOLD_C_PER_MIN', 'RATE_WINDOW_S', 'coverage',
            'temperature_rate']
 
-#: |dT/dt| (degC/min) above which a sample counts as heating or cooling.
+#: ``|dT/dt|`` (degC/min) above which a sample counts as heating or cooling.
 RATE_THRESHOLD_C_PER_MIN = 0.05
 #: Window (s) of the centred difference that estimates dT/dt.
 RATE_WINDOW_S = 300.0
@@ -157,7 +157,7 @@ def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
     bin_c : float, degC
         Bin width; edges at multiples of it.
     threshold_c_per_min : float, degC/min
-        |dT/dt| above which a sample counts as heating or cooling.
+        ``|dT/dt|`` above which a sample counts as heating or cooling.
     sparse_fraction : float
         Fraction of the median density below which a bin is sparse.
 

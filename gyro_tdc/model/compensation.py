@@ -15,7 +15,7 @@
 """
 The compensation model: features of the temperature history -> per-axis drift.
 
-The drift (temperature drift error, TDE) of each axis is modelled as
+The drift (temperature drift error, TDE) of each axis is modelled as::
 
     omega_raw = (1 + s dT) omega_true + b(x)
     b(x)      = w0 + L^T x~ + sum_j W_j phi_j(x~),     j = 1..K

@@ -68,7 +68,7 @@ the data and linear model in type hints only):
 * :mod:`~gyro_tdc.identify.discover.results`: what was found, its JSON and text forms;
 * :mod:`~gyro_tdc.identify.discover.stats`: gaps, folds, noise memory, HAC tests, correlations;
 * :mod:`~gyro_tdc.identify.discover.data`: the runs as block means, the noise floor, effect
-columns;
+  columns;
 * :mod:`~gyro_tdc.identify.discover.linear`: the linear model of one effect set, its fits and
   held-out residuals;
 * :mod:`~gyro_tdc.identify.discover.maps`: residual maps and the Allan deviation of the residual;

@@ -66,7 +66,7 @@ class Design(Protocol):
 
 
 def rel_residual(x: NDArray[np.float64], col: NDArray[np.float64]) -> float:
-    """Return |col - projection on span(x)| / |col - mean| (0: col is in the span)."""
+    """Return ``|col - projection on span(x)| / |col - mean|`` (0: col is in the span)."""
     c = col - col.mean()
     nc = float(np.linalg.norm(c))
     if nc == 0.0:
