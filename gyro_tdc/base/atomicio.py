@@ -15,21 +15,11 @@
 """
 Atomic output: every file and bag directory the package writes goes through here.
 
-:func:`atomic_write` writes a file as a reader would want it: either the old content or the
-complete new content, never a truncated file, and
-
-- a new file gets the mode a plain ``open(path, 'w')`` would give it (``0666 & ~umask``,
-  applied by the kernel), not ``mkstemp``'s 0600; overwriting keeps the existing file's mode
-  (and, where permitted, its owner), so a 0644 model stays readable by a service user;
-- a symbolic link is written through: its target is replaced, the link stays a link;
-- on every failure (the target is a directory, the disk is full, the writer raises, Ctrl-C)
-  the temporary file is removed and an ``OSError`` becomes one
-  :class:`~gyro_tdc.errors.OutputError` line naming the file.
-
-:func:`atomic_dir` does the same for a directory built in several steps (a rosbag2 bag, a
-folder of bags): it is built inside a hidden staging directory beside the target and renamed
-into place only when complete; on failure the staging directory is removed, so nothing (no
-0-byte ``.db3``, no half-written folder) is left behind.
+:func:`atomic_write` leaves either the old content or the complete new one (a new file with
+the mode of a plain ``open``, an overwritten one keeping its mode, symbolic links written
+through); :func:`atomic_dir` builds a directory beside its target and renames it into place.
+A failure leaves nothing behind and is one :class:`~gyro_tdc.errors.OutputError` line.
+See ``doc/internals/base.md``.
 """
 
 from __future__ import annotations

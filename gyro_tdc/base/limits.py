@@ -15,18 +15,10 @@
 """
 Upfront size checks of options that size arrays, before any memory is spent.
 
-An option such as ``train --bin 1e-7`` or ``simulate --rate-hz 1e6`` is valid as a number
-but asks for gigabytes; each check here estimates the size first and refuses with one line
-(:class:`~gyro_tdc.errors.LimitError`, exit 2 on the command line) that names the option,
-the estimate, the limit and a value that fits:
-
-- ``--bin``: at most ``MAX_COVERAGE_BINS`` (10,000) coverage bins over the plausible
-  temperature span (``TEMP_PLAUSIBLE_C``, 300 degC): ``--bin >= 0.03``;
-- ``--centers``: at most ``MAX_CENTERS`` (10,000), the most a model
-  file may hold;
-- ``--rate-hz`` (and a scenario's own rate and duration): at most ``MAX_SIM_SAMPLES``
-  (2e7) IMU samples per simulated run, about 7 GB while simulating (350 bytes per sample,
-  measured: 14.4 M samples peaked at 5.0 GB).
+``train --bin``, ``--centers`` and ``simulate --rate-hz`` are checked against the plausible
+temperature span and the sample budget; a refusal is one :class:`~gyro_tdc.errors.LimitError`
+line naming the option, the estimate, the limit and a value that fits.
+See ``doc/internals/base.md``.
 """
 
 from __future__ import annotations

@@ -15,13 +15,9 @@
 """
 Parameter tables as plain data: each node parameter spelled once, free of rclpy.
 
-A node's parameters are one tuple of :class:`ParamSpec` rows. From it
-:func:`gyro_tdc.nodes._params.declare` declares them with their ROS descriptors,
-:func:`spec_dataclass` builds the frozen dataclass the node reads them into, and the pure
-logic builds its own settings from the rows it takes (the compensator's
-:class:`gyro_tdc.runtime.core.Policy` from the rows marked ``policy``), and
-:func:`format_help` prints them for a node's ``--help`` (:func:`help_requested` finds it in
-the command line before ``rclpy.init``).
+A node's parameters are one tuple of :class:`ParamSpec` rows, from which the node declares
+them, :func:`spec_dataclass` builds the frozen dataclass it reads them into and
+:func:`format_help` prints its ``--help``. See ``doc/internals/base.md``.
 """
 
 from __future__ import annotations

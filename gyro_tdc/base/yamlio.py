@@ -15,21 +15,9 @@
 """
 Bounded YAML reading: every YAML file the package reads goes through :func:`read_yaml`.
 
-``yaml.safe_load`` alone is safe against code execution but not against denial of service:
-a 1 KB file of 500 nested brackets raises ``RecursionError`` (the composer recurses per
-level), and a 3 KB "billion laughs" alias bomb expands into gigabytes when the loaded
-document is walked. So the limits are checked before the document is built:
-
-1. the file size, from ``fstat`` and a bounded read (a special file cannot stream forever);
-2. one pass over the parser's event stream (libyaml's C parser when available; the parser
-   is iterative, it does not recurse) that refuses nesting deeper than ``max_depth``, an
-   alias when aliases are not allowed, a recursive alias, and more than ``max_nodes`` nodes
-   counting every alias as the full size of the node it repeats;
-3. only then the document is composed (``yaml.CSafeLoader`` / ``yaml.SafeLoader``), with a
-   depth that is now known to be small.
-
-Each limit is reported in one line, as the caller's error class, naming the file, the line
-and the limit.
+The file size, the nesting depth, aliases and the node count are checked on the parser's
+event stream before the document is built, so a nesting or alias bomb is refused in one
+line naming the file, the line and the limit. See ``doc/internals/base.md``.
 """
 
 from __future__ import annotations

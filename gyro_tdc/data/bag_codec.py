@@ -16,13 +16,9 @@
 """
 The fixed-layout numpy CDR codec of the three recorded message types, checked against rosbags.
 
-``sensor_msgs/Imu``, ``sensor_msgs/Temperature`` and ``geometry_msgs/Vector3Stamped`` are a
-``std_msgs/Header`` followed by a flat run of float64 values (37, 2 and 3). For a given
-``frame_id`` length their CDR bytes have one fixed layout (:mod:`gyro_tdc.data.imu_cdr`), so a
-block of messages is encoded (:func:`encode_checked`) or decoded (:func:`decode_fast`) as one
-numpy structured array. Every fast path checks itself against rosbags' own serialiser on a
-few messages and falls back to it (:func:`decode_slow`, one message at a time) whenever the
-layout does not hold.
+Imu, Temperature and Vector3Stamped blocks are encoded (:func:`encode_checked`) and decoded
+(:func:`decode_fast`) as numpy structured arrays; every fast path checks itself against
+rosbags' serialiser and falls back to it (:func:`decode_slow`). See ``doc/internals/data.md``.
 """
 
 from __future__ import annotations

@@ -15,13 +15,9 @@
 """
 Motion reports in bags: ``cmd_vel`` Twists and odometry, the veto of the still test.
 
-A vehicle that can turn slowly at a constant rate looks still to an IMU (no scatter); what
-it was told to do, or what its wheels measured, says otherwise. :func:`read_motion` reads
-a ``geometry_msgs/Twist`` (stamped by the bag's log time: a Twist has no header),
-``geometry_msgs/TwistStamped`` or ``nav_msgs/Odometry`` topic (header stamps) into the
-six twist components per report, which :func:`gyro_tdc.signal.motion_veto` holds onto the
-IMU stamps. Reports are few (tens of Hz at most), so rosbags' own deserialiser is used.
-:func:`encode_twists` writes a Twist stream (the simulator's ``cmd_vel``).
+:func:`read_motion` reads a Twist, TwistStamped or Odometry topic into the six twist
+components per report; :func:`encode_twists` writes a Twist stream (the simulator's
+``cmd_vel``). See ``doc/internals/data.md``.
 """
 
 from __future__ import annotations

@@ -15,30 +15,9 @@
 """
 The wire layout of a serialized ``sensor_msgs/Imu`` (plain CDR), in one place.
 
-Pure (numpy and struct; no rclpy, no rosbags). A ``std_msgs/Header`` followed by a flat run
-of float64 values has, for a given ``frame_id`` length, a fixed layout::
-
-    offset         field
-    0              encapsulation, 4 bytes: 00 01 00 00 little endian, 00 00 00 00 big endian
-    4              header.stamp.sec       int32
-    8              header.stamp.nanosec   uint32
-    12             header.frame_id length uint32, n = bytes including the terminating NUL
-    16             header.frame_id        n bytes, then zero padding
-    body           the float64 values; body = 4 + (12 + n) rounded up to a multiple of 8
-                   (CDR aligns from the end of the encapsulation header)
-
-For an Imu the 37 float64 values are, from ``body``: ``orientation`` (4, x y z w),
-``orientation_covariance`` (9), ``angular_velocity`` (3), ``angular_velocity_covariance``
-(9), ``linear_acceleration`` (3), ``linear_acceleration_covariance`` (9): 296 bytes
-(:data:`IMU_FIELDS`). ``sensor_msgs/Temperature`` (2 values) and
-``geometry_msgs/Vector3Stamped`` (3) share the header part, so :class:`Layout` describes
-them too.
-
-Users: :mod:`gyro_tdc.data` reads and writes whole topics as numpy structured arrays of
-:attr:`Layout.dtype`; the compensator node finds the fields of each incoming message with
-:func:`locate` and patches ``angular_velocity`` (and ``linear_acceleration`` when the model
-has an accelerometer part) with :class:`ImuView`, instead of
-deserialising every message into a Python object and serialising it back.
+Pure (numpy and struct). :class:`Layout` gives the fixed field offsets for a ``frame_id``
+length (also of Temperature and Vector3Stamped), :func:`locate` finds them in one message and
+:class:`ImuView` patches its rates in place. See ``doc/internals/data.md``.
 """
 
 from __future__ import annotations

@@ -15,21 +15,10 @@
 """
 The gyro_tdc compensation mark: how a compensated Imu says that a model was applied to it.
 
-Pure (struct only). A chained or looped compensator would remove the drift twice (PX4 #20660
-and ArduPilot #27294 are such bugs), so ``compensator_node`` marks every sample it compensated
-and warns when a sample arrives already marked.
-
-The mark must survive the wire, bags and deserialise/serialise relays, must not change any
-field a consumer reads (REP 145), and must leave the message's meaning intact. It therefore
-lives in the lowest bits of numbers the compensator rewrites anyway: the two least
-significant bytes of the three diagonal entries of ``angular_velocity_covariance`` (bits 0-15
-of the 52-bit mantissa) are set to :data:`MARK`. That changes each variance by less than
-2**-36 of its value (about 1.5e-11 relative), keeps it positive, and leaves the header, the
-frame id and every other field untouched. An entry of ``-1`` (REP 145: no data) or ``0``
-(unknown) is never marked, so a sample is marked only when all three diagonal entries are
-positive; the compensator always adds the model's residual variance, so in practice every
-compensated sample whose input had a covariance carries the mark. A raw sample carries it by
-chance with probability 2**-48.
+Pure (struct only). The mark lives in the lowest mantissa bits of the three diagonal
+entries of ``angular_velocity_covariance`` (a relative change under 1.5e-11), so a chained or
+looped compensator can warn instead of removing the drift twice.
+See ``doc/internals/data.md``.
 """
 
 from __future__ import annotations

@@ -15,14 +15,8 @@
 """
 Real recordings -> rosbag2 bags.
 
-``pan_cubesat``: the Cornell PAN CubeSat engineering unit (ST LSM6DSM gyro) cooling in a
-thermal-vacuum chamber, 2020-03-07 (``data/pan_cubesat_tvac/TVCtest3_7_20.csv`` beside the
-repository; see its SOURCE.md). The conversion follows the authors' analysis script:
-
-- gyro in rad/s *as logged* x 0.5 ("to correct for an error in driver script");
-- the rows whose logged ``gyrox`` is <= -0.08 rad/s are spikes and are removed (three);
-- ``temp`` is the raw LSM6DSM ``OUT_TEMP`` register: ``T = 25 + int16(temp) / 256`` degC;
-- the unit is stationary, so the reference rate is zero.
+``pan_cubesat``: the Cornell PAN CubeSat engineering unit cooling in a thermal-vacuum
+chamber, converted as the authors' analysis script does. See ``doc/internals/data.md``.
 """
 
 from __future__ import annotations

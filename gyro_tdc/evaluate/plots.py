@@ -15,13 +15,9 @@
 """
 Plots of one evaluated bag: three PNGs (matplotlib, Agg canvas, no display needed).
 
-:func:`write_plots` draws the rate error against time (full scale and a zoom on the models),
-against temperature (split into heating, cooling and steady) and its Allan deviation, for the
-raw rate and every model of a :class:`~gyro_tdc.evaluate.score.BagEval`; :func:`model_description`
-is the legend text of a model. matplotlib is imported only when a plot is asked for; every PNG
-is written atomically (:func:`gyro_tdc.base.atomicio.atomic_write`). The tables, JSON and CSV of
-the
-same results are in :mod:`gyro_tdc.evaluate.report`.
+:func:`write_plots` draws the rate error against time and temperature and its Allan
+deviation for the raw rate and every model; matplotlib is imported only when a plot is
+asked for. See ``doc/internals/evaluate.md``.
 """
 
 from __future__ import annotations

@@ -15,43 +15,9 @@
 """
 Held-out evaluation on a bursty real recording: leave one block of bursts out.
 
-The PAN CubeSat TVAC recording (:mod:`gyro_tdc.data.realdata`) is 25 bursts of about 250 samples
-at 50 Hz, one every ~305 s, while the unit cools from 23.9 to 15.6 degC. There is one
-session, so held-out runs do not exist; what can be held out are bursts. The bursts are split
-into contiguous blocks (default 5 blocks of 5 bursts, and also one burst at a time); for each
-block every model is fitted on the other bursts and scored on the held-out block.
-
-Choices, and why:
-
-- **Reference and baselines.** The unit is still: the reference rate is 0. ``raw`` is BS1 of
-  the paper (the MSE of the output around 0), which the constant zero-rate offset dominates
-  (about -2 deg/s on x). The honest baseline is ``bias``: a constant offset fitted on the
-  training bursts, nothing thermal.
-- **Noise floor.** A held-out burst's samples scatter around the burst mean with the white
-  noise of the gyro (the drift moves by under 1e-3 deg/s within a 5 s burst). The floor of a
-  block is the mean squared deviation of its samples from their own burst means; any model
-  whose prediction is constant over a burst has a held-out BS at or above it, so
-  ``floor_ratio = BS / floor >= 1`` and ``BS - floor`` is the squared error of the drift
-  prediction.
-- **Dynamic features on the whole time series.** ``lag`` (and ``dTdt``, which spans the same
-  columns: ``dTdt = (T - lag) / tau``) filters the temperature through a first-order lag on
-  the bursts' true stamps, across the ~300 s gaps (the filter holds the new sample over a gap;
-  with tau >= one burst period this still tracks the cooling rate). Restarting the filter per
-  training segment, or running it across the hole left by the held-out block, would give the
-  bursts after the hole a wrong filter state for about tau. The thermometer is an input
-  available at run time, so the features are computed once on the full recording and the
-  model is fitted on the training rows only (tau chosen on the training rows); the held-out
-  gyro samples are never used. Static models (dT, dT^2, dT^3) do not depend on history and
-  are fitted with :func:`gyro_tdc.identify.fit_model` on the training bursts as one run.
-- **Scores.** BS and RMS are :func:`gyro_tdc.evaluate.score.score`'s (the evaluate command's) on
-  the held-out samples; a summary over a group of folds scores all their held-out samples
-  together, so it is the sample-weighted mean of the folds' BS.
-- **Extrapolation.** A block at the warm or the cold end lies outside the training range;
-  :func:`gyro_tdc.model.compensation.compensate` clamps the temperature to it by default, so the
-  model is
-  flat there. Interior and end blocks are reported apart, and the end blocks also without
-  clamping (the compensator node's default, a tangent at the range end, is measured by
-  ``tools/pan_range_holdout.py``).
+The PAN CubeSat TVAC recording is one session of 25 bursts; each block of bursts is held out
+in turn, every model fitted on the others and scored against the bursts' own noise floor,
+interior and end blocks apart. The choices and why: ``doc/internals/evaluate.md``.
 """
 
 from __future__ import annotations

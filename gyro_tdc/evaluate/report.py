@@ -15,21 +15,9 @@
 """
 Formatting of training and evaluation results: text tables, JSON and CSV export.
 
-Formats only; the numbers come from the evaluation core (:mod:`gyro_tdc.evaluate.score`: a
-held-out bag is a :class:`~gyro_tdc.evaluate.score.BagEval` holding one
-:class:`~gyro_tdc.evaluate.score.ModelEval` per model) and from :mod:`gyro_tdc.data.coverage`. The
-functions here turn them into
-
-* text: a summary table (BS in (deg/s)^2 and RMS in deg/s per axis), the paper's tables 3-7
-  (``BS1 BS2 BS3 P1 P2 P3`` with P1 = BS2/BS1, P2 = BS3/BS1, P3 = BS3/BS2), the Allan
-  readouts (angle random walk, bias instability), the means over bags, and the training
-  report with the coverage of the training data;
-* JSON (:func:`evaluation_json`, the shape documented in docs/json.md, nothing more);
-* one CSV per bag (:func:`write_csv`).
-
-The three PNGs per bag are drawn by :mod:`gyro_tdc.evaluate.plots`.
-
-Every file is written atomically (:func:`gyro_tdc.base.atomicio.atomic_write`).
+Formats only: the summary and the paper's tables, the training report with its coverage,
+:func:`evaluation_json` (the shape of ``doc/json.md``) and :func:`write_csv`, each written
+atomically. See ``doc/internals/evaluate.md``.
 """
 
 from __future__ import annotations

@@ -15,25 +15,10 @@
 """
 The evaluation core: score compensation models on held-out runs, in the paper's terms.
 
-For every run and axis: the bias stability BS of the raw data (BS1, paper eq. 30-31) and
-after each model, BS/BS1, the RMS error in deg/s and the Allan deviation of the error with
-its angle random walk and bias instability (:func:`score`). A model is a
-:class:`NamedModel` (a model file, or the ``px4`` cubic fitted on training bags:
-:func:`load_models`); :func:`evaluate_run` scores every model on one run and returns a
-:class:`BagEval` of :class:`ModelEval`; :func:`evaluate` does so for bags, one in memory at
-a time. Where a run's model temperature leaves a model's trained range the out-of-range
-policy applies (:mod:`gyro_tdc.model.out_of_range`; ``linear`` by default, as the compensator
-node), and the result says which and how much of the run was outside. Re-anchoring removes
-each model's mean error over the head of the run: the first ``reanchor_s`` seconds, or
-(``'auto'``) as long as the compensator's rule takes to know it to its tolerance
-(:func:`gyro_tdc.runtime.reanchor.reanchor_shift`, the same windows, blocks and tolerance).
-For static runs with accelerometer data the accelerometer's BS (variance around the run
-mean, (m/s^2)^2) is scored too, raw and per model with an accelerometer part
-(:func:`gyro_tdc.identify.accel_scores`); the ``px4`` baseline then fits a cubic for it too.
-
-Formatting (tables, JSON, CSV) lives in :mod:`gyro_tdc.evaluate.report`, plots in
-:mod:`gyro_tdc.evaluate.plots`;
-the command line in :mod:`gyro_tdc.cli.evaluate`.
+:func:`score` gives BS, BS/BS1, RMS and the Allan deviation of the error per axis;
+:func:`evaluate_run` scores every :class:`NamedModel` on one run (a :class:`BagEval` of
+:class:`ModelEval`) and :func:`evaluate` does so for bags, one in memory at a time, with
+the out-of-range policy and re-anchoring of the compensator. See ``doc/internals/evaluate.md``.
 """
 
 from __future__ import annotations

@@ -15,31 +15,10 @@
 """
 Identification of the compensation model from thermal runs.
 
-The procedure follows section 3.2 of the paper with the usual modern refinements:
-
-1. the drift samples are the raw output minus the reference rate; the inputs are the effect
-   features of the model temperature (``dT`` and ``dT^2`` for the paper's modified model),
-   which is the measured temperature, or with ``lag`` the thermal state (the estimated die
-   temperature, :mod:`gyro_tdc.model.thermal_state`);
-2. the inputs are normalised; RBF centres are placed by k-means over the input samples and
-   each width is the mean distance to the two nearest other centres;
-3. the output weights (with a constant and linear tail, and the per-axis ``scale`` term when
-   asked) are found by regularised linear least squares;
-4. optionally the centres and widths are refined with ``scipy.optimize.least_squares``
-   (variable projection: weights re-solved at every step), which does what the paper's
-   gradient rule (eq. 28) does, faster and with a stopping rule;
-5. effect parameters (the warm-up time constant) and the thermal state's time constant(s)
-   are fitted by variable projection: an outer bounded search over ``log tau``
-   (:func:`fit_time_constant`), the weights re-solved at every trial (:func:`fit_linear`);
-   the state's time constant gets a 95 % profile-likelihood interval
-   (:func:`profile_interval`, with the residual's autocorrelation counted by
-   :func:`effective_samples`), and a profile too flat to pin it marks the state as not
-   identifiable. ``thermal='auto'`` also fits the two-node state (two cascaded lags) and
-   keeps it only when it lowers the cross-validated error by :data:`TWO_NODE_MARGIN`.
-
-Long runs are block-averaged before the linear solve: temperature moves slowly, so averaging
-a few samples loses nothing of the drift and bounds memory and time.
-
+:func:`fit_model` follows section 3.2 of the paper with modern refinements: normalised
+effect features, k-means RBF centres, regularised least squares, optional refinement, and
+the thermal state's time constants by variable projection with a profile interval.
+See ``doc/internals/identify.md``.
 """
 
 from __future__ import annotations

@@ -13,36 +13,12 @@
 # limitations under the License.
 
 """
-The online learner's fit: point table -> weighted, outlier-robust model (issue 14 item 3).
+The online learner's fit: point table -> weighted, outlier-robust model.
 
-Pure (numpy only); :class:`gyro_tdc.learn.learner.Learner` gathers the points and decides the
-swap, this module fits them. The point table has one row per entry ``(t_end, samples,
-temp, bx, by, bz, session)``; ``temp`` is the model temperature the entry was binned at (the
-prior's thermal state, or the thermometer without one).
-
-**Fit.** Weighted least squares of the entries' mean raw rate on ``T - T0`` with weights
-``samples * 0.5 ** (age / half_life_s)`` (age by message stamp to the newest entry, as AOSP
-``over_temp_cal`` weights its model points by age), one intercept per session and a shared
-shape (:func:`solve`; the model uses the newest session's intercept). Then outliers go
-(:func:`inliers`): each entry is compared with the fit of the others (leave one out; an entry
-alone in its session is kept); the one that departs most is dropped when its departure
-exceeds :data:`OUTLIER_K` times the others' scatter in that fit (1.4826 x their weighted
-median absolute residual, at least the noise floor over the root of the largest entry's
-samples), up to :data:`MAX_DROPS` times; then the fit is repeated on the rest.
-
-**Growth rule** (:func:`grow_features`): the features grow with the covered temperature span
-of the bins: under :data:`SPAN_DT_C` (or fewer than 2 bins) a bias only; from there ``dT``;
-from :data:`SPAN_DT2_C` and at least :data:`BINS_DT2` bins ``dT, dT2``; from
-:data:`SPAN_DT3_C` and :data:`BINS_DT3` bins ``dT, dT2, dT3``.
-
-**Prediction check** (:func:`prediction_mse`): a model's sample-weighted mean squared error
-over still windows, evaluated at the windows' model temperatures.
-
-**Model** (:func:`learned_model`): a ``poly`` model of those features (a bias only is ``dT``
-with a zero slope), its range the covered model temperatures. With a thermal front end (the
-prior's) the model carries it (format 2: a lagged state adds ``lag`` with the state's total
-time constant), so the compensator evaluates it on the same model temperature the points
-were binned at.
+Pure (numpy only). :func:`solve` and :func:`inliers` fit the still-time points (age-weighted,
+one intercept per session, leave-one-out outliers dropped), :func:`grow_features` picks the
+features from the covered span, :func:`prediction_mse` scores a model on still windows and
+:func:`learned_model` builds it. See ``doc/internals/learn.md``.
 """
 
 from __future__ import annotations

@@ -13,17 +13,12 @@
 # limitations under the License.
 
 """
-The online learner's model temperature: held thermometer, streamed thermal state (issue 14).
+The online learner's model temperature: held thermometer, streamed thermal state.
 
-Pure (numpy only). :class:`gyro_tdc.learn.learner.Learner` bins and fits still-time means against
-the *model* temperature, the one the compensator evaluates the model at: the thermometer
-reading held by stamp (:func:`hold_readings`), through the thermal front end of the prior
-(:class:`gyro_tdc.model.thermal_state.ThermalState`) when it has a lag (:func:`stream_state`: the
-step-hold filter of :class:`~gyro_tdc.model.thermal_state.StreamingThermalState`, vectorised over
-a batch of samples and carried from one batch to the next by a small state, so batches of
-any size give the same values). :func:`same_thermal` says when two thermal sections give
-the same model temperature; :func:`at_state` turns a lagged model into one that takes the
-model temperature itself as its input (to score it on windows binned at that temperature).
+Pure (numpy only). :func:`hold_readings` holds the thermometer by stamp, :func:`stream_state`
+runs the prior's thermal front end over batches of any size, :func:`same_thermal` compares
+two front ends and :func:`at_state` makes a lagged model take the state as its input.
+See ``doc/internals/learn.md``.
 """
 
 from __future__ import annotations

@@ -15,41 +15,10 @@
 """
 The compensation model: features of the temperature history -> per-axis drift.
 
-The drift (temperature drift error, TDE) of each axis is modelled as::
-
-    omega_raw = (1 + s dT) omega_true + b(x)
-    b(x)      = w0 + L^T x~ + sum_j W_j phi_j(x~),     j = 1..K
-    phi_j(x~) = exp(-|x~ - c_j|^2 / (2 sigma_j^2))     (paper eq. 26-27)
-
-where ``x`` are the effect features (e.g. ``dT``, ``dT^2``; see :mod:`gyro_tdc.model.effects`),
-``x~ = (x - mean) / std`` their normalised values, ``phi_j`` the paper's Gaussian radial basis
-functions (eq. 26) and ``W`` the output weights (eq. 27) for the three axes. The constant and
-linear tail (``w_0``, ``L``) make the network extrapolate gently and contain the conventional
-linear model. A ``poly`` model has no centres (K = 0): with features ``dT, dT2, dT3`` it is the
-PX4-style cubic. ``s`` is the optional per-axis sensitivity change (effect ``scale``).
-
-Compensation inverts the model: ``omega = (omega_raw - b(x)) / (1 + s dT)``.
-
-The model temperature. A model has a thermal front end (:class:`gyro_tdc.model.thermal_state.
-ThermalState`, format 2): the measured temperature ``T`` goes through it to the state ``S``,
-the estimated die temperature (``S = T`` without ``lag``), and ``dT = S - T0`` in every
-temperature term, the RBF inputs and the scale term; the valid range ``temp_range_c`` is the
-state's range over the training data, and clamping (the out-of-range policy) holds the state
-at the range ends. ``dTdt`` is of the measured temperature (unclamped) and ``warmup`` of the
-time since the first sample. A format-1 model (``thermal=None``, read from an old file)
-keeps its meaning exactly: every feature of the measured temperature (clamped), ``lag`` the
-additive column ``dT`` of the lagged temperature.
-
-The accelerometer part. A format-2 model may carry ``accel``: a second model of the same
-form, in m/s^2, that shares the thermal front end and T0 and holds the accelerometer
-offset's *change* with temperature (zero at T0; see :mod:`gyro_tdc.identify`). ``drift``,
-``compensate`` and :class:`StreamingCompensator` apply to it as to the gyro part
-(``scale`` is zero there), and :attr:`StreamingCompensator.accel` streams it.
-
-Outside the trained range the policy of :mod:`gyro_tdc.model.out_of_range` applies (``linear``:
-the correction continues along its tangent at the range end, then holds; ``clamp``;
-``extrapolate``); the library functions keep ``clamp=True`` as their default, and
-``out_of_range=`` overrides it.
+:class:`CompensationModel` is the fitted model (RBF network or polynomial over the effect
+features, optional scale term, thermal front end, accelerometer part); :func:`drift` and
+:func:`compensate` evaluate it over a run, :class:`StreamingCompensator` one sample at a
+time. The equations and the model temperature: ``doc/internals/model.md``.
 """
 
 from __future__ import annotations

@@ -15,36 +15,10 @@
 """
 The effect library: named, physically described terms of the temperature drift.
 
-Each :class:`Effect` is one catalog entry that carries everything about the term (in the
-spirit of pysindy's feature libraries, where each term owns its function): a stable id (used
-in model files and on the command line), the physics, the experiment that excites it, its
-parameters with defaults and search bounds, its flags, and its feature in two forms that
-agree to floating-point precision:
-
-* batch, ``Effect.batch(series, params)``, over a whole run (training, evaluation,
-  discovery), gathered by :func:`batch_features`;
-* streaming, ``Effect.stream(params, t0)``, a small stateful step called one sample at a time
-  (the compensator node), gathered by :class:`StreamingFeatures`.
-
-Two effects are not inputs of the drift network: ``bias`` is the constant term every model
-has, and ``scale`` multiplies the true rate (sensitivity change, handled by the model).
-
-The model temperature. In a model with a thermal front end (format 2,
-:mod:`gyro_tdc.model.thermal_state`) the temperature terms (``dT``, ``dT2``, ``dT3``: the static
-inputs, and the ``scale`` term) are functions of the *state*, the estimated die temperature,
-which the caller passes as ``state=``; the effect flagged ``thermal`` (``lag``) then adds no
-column: it is what makes the state follow the measured temperature with a lag, and a model
-with ``lag`` and no temperature term has ``dT`` implied (:func:`with_implied`). ``dTdt``
-(the gradient, from the measured temperature) and ``warmup`` stay additive columns. Without
-``state`` (format 1, and discovery's additive search) every feature is of the measured
-temperature and ``lag`` is the additive column ``dT`` of the lagged temperature.
-
-Everything else about an effect is derived from the catalog: the column layout
-(:data:`INPUT_ORDER`), the effects without time memory (:data:`STATIC_EFFECTS`), those with
-fitted parameters (:data:`NONLINEAR_EFFECTS`), those that need a temperature span
-(:data:`TEMPERATURE_EFFECTS`) or a rate-table reference (:data:`REFERENCE_EFFECTS`). Adding an
-effect is one entry in :data:`EFFECTS` (appended, so existing model files keep their column
-layout) and its tests.
+Each :class:`Effect` in :data:`EFFECTS` carries its id, physics, exciting experiment,
+parameters and feature, batch (:func:`batch_features`) and streaming
+(:class:`StreamingFeatures`) alike; column layouts and effect groups are derived from the
+catalog. Adding an effect is one entry and its tests. See ``doc/internals/model.md``.
 """
 
 from __future__ import annotations

@@ -15,76 +15,10 @@
 """
 The versioned YAML model file: save, load, validate.
 
-Format version 2 (all physical quantities in SI units, angles in rad)::
-
-    format_version: 2
-    kind: rbf                      # rbf | poly
-    model_id: 3f2a9c0d1e4b         # content hash, checked on load
-    features: [dT, dT2, lag]       # effect ids (bias implied)
-    effect_params:                 # lag.tau_s mirrors the thermal state's total tau
-      lag: {tau_s: 417.2}
-    thermal:                       # the thermal front end: measured T -> model temperature
-      kind: first_order            # none | first_order | two_node
-      tau_s: [417.2]               # one per node, s
-      tau_interval_s: [[415.1, 420.1]]   # 95 % profile interval per tau (null: given)
-      identifiable: true           # false: the data cannot pin tau (null: not assessed)
-    t0_c: -39.98                   # reference temperature T0, degC
-    temp_range_c: [-40.0, 85.0]    # valid range of the model temperature (the state), degC
-    normalization: {mean: [..F], std: [..F]}
-    centers: [[..F], ...]          # K x F, normalised input space
-    widths: [..K]
-    weights: [[wx, wy, wz], ...]   # K x 3, rad/s
-    intercept: [..3]               # rad/s
-    linear: [[..3], ...]           # F x 3, rad/s
-    scale: [..3]                   # 1/degC
-    residual_var_rad2_s2: [..3]
-    sensor: {frame_id: imu_link, sensor_id: ''}
-    training: {...}                # metrics
-    created: {utc: ..., gyro_tdc_version: ..., command: ...}
-    accel:                         # optional: accelerometer offset change vs temperature
-      model_id: 0c1d2e3f4a5b       # the part's own content hash (the model's id covers it)
-      kind: rbf                    # same form as above, of the same thermal state and T0
-      features: [dT, dT2, lag]
-      effect_params: {lag: {tau_s: 417.2}}
-      temp_range_c: [-40.0, 85.0]  # the state's range over the static training data
-      normalization: {mean: [..F], std: [..F]}
-      centers: [[..F], ...]
-      widths: [..K]
-      weights: [[ax, ay, az], ...] # m/s^2
-      intercept: [..3]             # m/s^2, set so the correction is 0 at T0
-      linear: [[..3], ...]         # m/s^2
-      residual_var_m2_s4: [..3]    # (m/s^2)^2
-      training: {...}              # accelerometer metrics (BS before/after, coverage...)
-
-Format version 1 is the same without ``thermal``: every feature is of the measured
-temperature and ``lag`` is the additive column ``dT`` of the lagged temperature. Such files
-still load, and behave and hash exactly as before (:attr:`CompensationModel.thermal` is None);
-a loaded model is saved in its own format, a new one in format 2. The ``accel`` part is
-optional (format 2 only): files without it load, save and hash as before.
-
-Files are read with the safe YAML loader only; every field is checked and a bad one is
-reported in one line naming it and the format (``format_version 2 model: field `widths`
-...``). Floats are written with ``repr`` precision, so save -> load is
-exact. ``format_version`` must be the integer 1 or 2 (not ``1.0``, not ``true``); another
-version is refused naming the supported ones. ``model_id`` is
-required: it is the content hash of every field but ``created`` (see
-:attr:`gyro_tdc.model.compensation.CompensationModel.model_id`), so an edited range, residual
-variance,
-sensor or training record is caught.
-
-Hard limits, checked before the document is built (:mod:`gyro_tdc.base.yamlio`), so a hostile
-file is refused in well under a second with bounded memory:
-
-- file size at most ``MAX_MODEL_BYTES`` (4 MiB);
-- nesting at most ``MAX_MODEL_DEPTH`` (32) levels of mappings/sequences;
-- no YAML anchors or aliases (a model file never needs them; this rules out alias bombs);
-- at most ``MAX_MODEL_NODES`` (250,000) YAML nodes;
-- at most ``MAX_CENTERS`` (10,000) RBF centres (a 10,000-centre model is about 1.4 MB and
-  loads in about a second; per message it costs about 1 ms, already too slow for a 1 kHz
-  gyro).
-
-Files are written atomically with the permissions of a normal ``open`` (see
-:func:`gyro_tdc.base.atomicio.atomic_write`).
+:func:`save_model` writes format 2 (format 1 files still load and keep their meaning);
+:func:`load_model` reads with the safe loader under hard limits (size, depth, no aliases,
+nodes, centres), checks every field and the ``model_id`` content hash, and reports a bad
+field in one line. The format, field by field: ``doc/internals/model.md``.
 """
 
 from __future__ import annotations

@@ -15,32 +15,10 @@
 """
 Beyond the trained range: what a model does where its temperature leaves ``temp_range_c``.
 
-A model is fitted over the range ``[lo, hi]`` its model temperature ``S`` (the thermal state;
-the measured temperature without one) took in the training data. Outside it, the policy
-(:data:`OUT_OF_RANGE_POLICIES`) decides:
-
-* ``'linear'`` (:data:`DEFAULT_OUT_OF_RANGE`, the compensator's and ``evaluate``'s default):
-  the correction continues along its tangent at the range end, per axis,
-  ``b(S) = b(S_end) + e db/dS(S_end)`` with ``e = S - S_end`` limited to
-  ``max_extrapolation_c`` (:data:`MAX_EXTRAPOLATION_C`, 15 degC), beyond which it holds.
-  ``db/dS`` is the analytic derivative of the drift network (linear tail and Gaussian RBF
-  terms alike) through the temperature terms ``dT, dT2, dT3`` (:data:`gyro_tdc.model.effects.
-  STATE_TERMS`; the slope of each term is a central difference of the effect's own function,
-  exact for ``dT`` and ``dT2``), with the other inputs (``dTdt``, ``warmup``; format 1: the
-  additive ``lag`` column) at their current values. The scale term ``1 + s dT`` uses the same
-  extended ``dT``. A first-order model continues exactly; a curved one continues with the
-  slope it has at the end instead of bending away (``dT^2``, ``dT^3`` and RBF terms diverge
-  far from the data).
-* ``'clamp'``: evaluated at the nearest range end, flat beyond it (PX4, ArduPilot).
-* ``'extrapolate'``: every term evaluated at ``S``, without bound.
-
-The compensator widens the covariance outside the range by ``out_of_range_variance``; with
-``linear`` that term grows with the distance ``d`` from the range
-(:func:`added_variance`: ``out_of_range_variance * (1 + (d / 5 degC)^2)``, in (rad/s)^2),
-since a tangent's error grows with its reach. :func:`split` is the one home of the rule,
-used by the batch functions of :mod:`gyro_tdc.model.compensation` and by its streaming compensator
-alike;
-:class:`Tangent` the one home of the slope.
+The policies (:data:`OUT_OF_RANGE_POLICIES`): ``linear`` continues along the tangent at the
+range end for up to :data:`MAX_EXTRAPOLATION_C`, ``clamp`` holds the end value,
+``extrapolate`` evaluates without bound. :func:`split` is the one home of the rule,
+:class:`Tangent` of the slope. See ``doc/internals/model.md``.
 """
 
 from __future__ import annotations

@@ -15,27 +15,10 @@
 """
 The thermal front end of a model: the model temperature as a state of the measured one.
 
-The MEMS die does not sit at the thermometer: heat conducts through the package (paper
-eq. 24), so the die follows the measured temperature with a lag, and every drift term
-(``dT``, ``dT2``, ``dT3``, the sensitivity change) is a function of the die temperature.
-A :class:`ThermalState` estimates it from the measured temperature ``T``:
-
-* ``none``: the state is ``T`` itself;
-* ``first_order``: ``tau dS/dt = T - S``, one conduction node (the effect ``lag``);
-* ``two_node``: two cascaded first-order lags, package then die (two time constants).
-
-The state starts at the first measured temperature (steady-state assumption) and is filtered
-with the input held between samples (``hold='step'`` of
-:func:`gyro_tdc.model.effects.first_order_lag`), which is exactly what the streaming form
-(:class:`StreamingThermalState`, one sample at a time) computes. Until about
-:data:`SETTLE_TAUS` time constants have passed the state still carries its start-up
-assumption; :attr:`StreamingThermalState.settled` says when it is over, judged by the
-stamps.
-
-The time constants come from :func:`gyro_tdc.identify.fit_model` (variable projection, with a
-profile-likelihood interval); a front end whose interval is too wide or reaches a search
-bound is recorded as not identifiable, and :meth:`ThermalState.describe` says so instead of
-printing a precise-looking number.
+A :class:`ThermalState` (``none``, ``first_order`` or ``two_node``) estimates the die
+temperature from the thermometer's; :class:`StreamingThermalState` computes the same one
+sample at a time and says when its start-up assumption has settled.
+See ``doc/internals/model.md``.
 """
 
 from __future__ import annotations

@@ -13,25 +13,12 @@
 # limitations under the License.
 
 """
-The compensator's learning in the field (``learn: true``, :mod:`gyro_tdc.learn.learner`).
+The compensator's learning in the field (``learn: true``, :mod:`gyro_tdc.learn`).
 
-:class:`Learning` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`.
-The IMU callback hands each raw sample to the learner through the core (float appends, at
-most 100 per second of stamps); a :data:`LEARN_STEP_S` timer runs its still test and
-refits (:meth:`~gyro_tdc.runtime.core.CompensatorCore.learn_step`); a learned model
-that predicts the recent still time better is made ready there and installed by the IMU
-callback at the first message stamped ``learn_swap_delay`` after the sample that let it be
-computed, so the output does not depend on when the timer ran (in real time, and in a
-replay up to about ``learn_swap_delay / LEARN_STEP_S`` times faster; beyond, it is
-installed at the next message and counted as a late swap on /diagnostics); the learner's
-state is saved atomically to ``learn_file`` every ``learn_save_period`` of stamp time, on
-``~/learn_save`` and at shutdown, and resumed at start; ``~/learn_reset`` forgets it (back
-to the ``model_file`` prior, or none). A ``model_file`` loaded while learning (parameter set
-or ``~/reload``) becomes the prior: the model a learned one must beat.
-
-The node provides ``core``, ``params`` (``learn_file``, ``learn_save_period``) and
-``model_file`` (set to ``'learned'`` once a learned model is in use); this mixin keeps
-``learner`` (None unless ``learn``).
+:class:`Learning`, a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`,
+hands raw samples to the learner, steps it on a timer, installs a better learned model at a
+stamp fixed by the data, and saves, resumes and resets its state.
+See ``doc/internals/nodes.md``.
 """
 
 from __future__ import annotations

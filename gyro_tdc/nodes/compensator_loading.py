@@ -15,19 +15,10 @@
 """
 The compensator's model loading, off the message path: start-up, parameter set, ``~/reload``.
 
-:class:`ModelLoading` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`.
-A model file is read, checked and primed (:func:`gyro_tdc.runtime.core.prepare`) in a
-worker thread (:mod:`gyro_tdc.base.worker`) and swapped into the core on the executor's thread,
-so a large or slow file never holds up the IMU callback for more than ``load_wait``; an
-invalid file is refused with its reason in one line and the old model stays. A
-``model_file`` set waits up to ``load_wait`` for the file and refuses the set when the file
-is invalid; a slower file is installed (or refused, the parameter then naming the model in
-use again) by the :data:`LOAD_POLL_S` timer.
-
-The node provides ``core`` (:class:`~gyro_tdc.runtime.core.CompensatorCore`),
-``params`` (``model_file``, ``load_wait``, ``sensor_id``) and :meth:`_new_prior` (the
-learner's hook); this mixin keeps ``model_file`` (the file in use), ``last_reload`` (the
-outcome shown on /diagnostics) and its jobs.
+:class:`ModelLoading`, a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`,
+reads, checks and primes a model file in a worker thread and swaps it in on the executor's
+thread; an invalid file is refused in one line and the old model stays.
+See ``doc/internals/nodes.md``.
 """
 
 from __future__ import annotations

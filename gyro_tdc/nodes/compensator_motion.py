@@ -15,13 +15,9 @@
 """
 The compensator's motion input (``motion_topic``): a veto on stillness for moving vehicles.
 
-:class:`MotionInput` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`.
-A vehicle turning slowly at a constant rate gives the gyro a steady, quiet signal that the
-noise test takes for a bias; a ``cmd_vel`` Twist or an Odometry stream says it is moving.
-Each report goes to :meth:`gyro_tdc.runtime.core.CompensatorCore.motion` with its
-stamp (a bare Twist has none: it takes the latest IMU stamp received, and a report before
-the first IMU message is ignored and counted), never the wall clock, so a replayed bag gives
-the same result at any speed. The node provides ``core`` and ``params``.
+:class:`MotionInput`, a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`,
+hands each Twist or Odometry report to the core with its stamp (never the wall clock), so a
+slow constant turn is not taken for a bias. See ``doc/internals/nodes.md``.
 """
 
 from __future__ import annotations

@@ -15,47 +15,10 @@
 """
 The compensator node: raw Imu in, drift-compensated Imu out, one for one, in order.
 
-Subscribes ``imu/data_raw`` (sensor-data QoS with a deep queue, or reliable keep-all with
-``input_reliability: reliable``) and ``imu/temperature`` (sensor_msgs/Temperature, or
-std_msgs/Float32 or Float64 with ``temperature_type``); publishes ``imu/data_compensated``
-with the header and every field copied unchanged except ``angular_velocity`` (corrected by
-the model) and ``angular_velocity_covariance`` (widened by the model's residual variance and
-by the policies, and carrying :mod:`gyro_tdc.data.mark`'s mark when compensated); with a
-model that has an accelerometer part also ``linear_acceleration`` and
-``linear_acceleration_covariance`` (the accelerometer residual variance, the same policies);
-``/diagnostics`` at 1 Hz (``accelerometer``: compensated, not in model or passthrough).
-
-``model_file`` can be changed at run time (parameter set) or re-read (``~/reload``,
-std_srvs/Trigger). The file is read, checked and primed in a worker thread
-(:mod:`gyro_tdc.base.worker`) and swapped in on the executor's thread, so a large or slow file
-never holds up the IMU callback for more than ``load_wait``; an invalid file is refused
-with its reason in one line and the old model stays.
-
-``learn: true`` (:mod:`gyro_tdc.learn.learner`): the IMU callback hands each raw sample to the
-learner (float appends, at most 100 per second of stamps); a 0.1 s timer runs its still
-test and refits; a learned model that predicts the recent still time better takes effect at
-the first message stamped ``learn_swap_delay`` after the data that made it (late ones, from
-a replay far faster than real time, at once, counted on /diagnostics); the learner's state
-is saved atomically to ``learn_file`` every ``learn_save_period`` of stamp
-time, on ``~/learn_save`` and at shutdown, and resumed at start; ``~/learn_reset`` forgets it
-(back to the ``model_file`` prior, or none); a ``model_file`` loaded at run time becomes the
-learner's prior.
-
-``motion_topic`` (``motion_type``: geometry_msgs/Twist such as ``cmd_vel``, TwistStamped or
-nav_msgs/Odometry): while it reports motion no sample is still, for re-anchoring and the
-learner alike (a slow turn at a constant rate looks still to the gyro).
-
-Guards: the node refuses to start when its input and output resolve to the same topic (a
-loop); it warns on /diagnostics when a sample arrives already compensated (the mark), a
-gyro_tdc compensator publishes its input (graph query) or the model was trained for
-another sensor than ``sensor_id``, and counts the input messages DDS reports lost (the
-subscription's message-lost event).
-
-Every decision lives in :mod:`gyro_tdc.runtime.core` and :mod:`gyro_tdc.runtime.health`; this
-module converts. With ``raw_cdr`` (default) the Imu is taken as serialized bytes and patched
-in place by :mod:`gyro_tdc.data.imu_cdr`, which saves most of a Python relay's per-message cost.
-``main()`` spins rclpy's EventsExecutor (``executor: events``, see
-:mod:`gyro_tdc.nodes.executors`).
+Subscribes ``imu/data_raw`` and ``imu/temperature``, publishes ``imu/data_compensated``
+(every field copied but the corrected rates and widened covariances) and ``/diagnostics``.
+Every decision lives in :mod:`gyro_tdc.runtime`; this module converts. Topics, loading,
+learning, motion and guards: ``doc/internals/nodes.md``.
 """
 
 from __future__ import annotations

@@ -15,21 +15,9 @@
 """
 The gyro driver node: a simulated scenario or a Linux IIO device -> Imu and Temperature.
 
-Publishes ``imu/data_raw`` (sensor_msgs/Imu, REP 145), ``imu/temperature``
-(sensor_msgs/Temperature, degC), for the simulator ``rate_table/reference``
-(geometry_msgs/Vector3Stamped, rad/s) whenever the table changes rate, and
-``/diagnostics`` at 1 Hz. A device that disappears or returns garbage is reported
-on ``/diagnostics`` and the log, retried with exponential backoff, and nothing is
-published from it until it reads cleanly again. A scenario the simulator cannot load is a
-configuration error, not a device error: the node does not start (one line, exit 2).
-
-The node talks to its back-end only through :class:`gyro_tdc.sources.base.ImuSource`: on
-every tick it publishes what the source says is due, stamped as the source says. The IIO
-back-end is read once per tick and stamps each sample with the node clock when it is read.
-The simulator paces itself and stamps its simulated times shifted onto the node clock at
-the first sample (``stamp = start + (t_sim - t_sim0)``): at ``time_scale`` 1 they follow
-the wall clock; faster, they run ahead of it so that every time constant in the
-data (filters, dT/dt) stays in simulated seconds.
+Publishes ``imu/data_raw``, ``imu/temperature``, the simulator's ``rate_table/reference``
+and ``/diagnostics``, from any :class:`gyro_tdc.sources.base.ImuSource`; a failing device is
+reported and retried with backoff. See ``doc/internals/nodes.md``.
 """
 
 from __future__ import annotations

@@ -15,14 +15,8 @@
 """
 Block sums and means over consecutive rows: the one home of block averaging.
 
-Thermal drift moves slowly, so long runs are reduced to means over blocks of consecutive
-samples before a fit (:mod:`gyro_tdc.identify`) or a plot (:mod:`gyro_tdc.evaluate.plots`). Rows
-are
-grouped along the first axis in blocks of ``block`` rows; the last block holds the remainder
-and is kept (``partial=True``, the default) or dropped.
-
-The sums run as one vector-matrix product per block (BLAS), about 15 times faster than
-reducing the middle axis of a ``(blocks, block, ...)`` view.
+Long runs are reduced to means over blocks of consecutive samples before a fit or a plot;
+the last block holds the remainder and is kept or dropped. See ``doc/internals/signal.md``.
 """
 
 from __future__ import annotations

@@ -15,16 +15,10 @@
 """
 Thermal-chamber gyro simulator (pure numpy; no rclpy).
 
-A chamber profile (soak, ramp, the paper's 0.1 degC / 20 s staircase, free points) drives a
-chain of first-order lags (air, package, die); a thermometer reads the package or the die;
-the gyro adds per-axis thermal effects (ids of :mod:`gyro_tdc.model.effects`) and noise to the
-rate-table reference::
-
-    from gyro_tdc.sim import load_scenario, simulate_scenario, to_run
-    runs = simulate_scenario('l3gd20_paper', seed=1, rate_hz=1.0)
-    run = to_run(runs[0])                      # gyro_tdc.data.runs.Run on the IMU stamps
-
-See :mod:`gyro_tdc.sim.scenario` for the scenario schema.
+A chamber profile drives a chain of first-order lags (air, package, die); a thermometer reads
+the package or the die; the gyro adds per-axis thermal effects and noise to the rate-table
+reference. :func:`load_scenario` reads a scenario, :func:`simulate_scenario` runs it and
+:func:`to_run` turns a run into a :class:`gyro_tdc.data.runs.Run`. See ``doc/internals/sim.md``.
 """
 
 from gyro_tdc.model import EFFECT_IDS

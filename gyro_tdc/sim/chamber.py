@@ -15,16 +15,9 @@
 """
 Thermal chamber: temperature profiles and the paper's precise test method (section 3.1).
 
-A profile is the chamber air temperature as a piecewise-linear function of time, given by
-breakpoints ``(t, temp)``. Two breakpoints at the same time make an instantaneous jump (a
-staircase step); the profile is right-continuous there (the value after the jump).
-
-The test-method equations of the paper:
-
-- eq. 20, temperature step: ``dT <= dE_S / (|alpha| + |beta|)``;
-  L3GD20: 8.75 mdps / (0.03 + 0.04) dps/degC = 0.125 degC, rounded down to 0.1 degC;
-- eq. 24, heat-conduction time: ``t_s = C rho L^2 / k``; SET-Z-021: 17.52 s, held
-  ``t_p >= t_s`` (eq. 25), rounded up to 20 s; 0.1 degC / 20 s = 18 degC/h.
+A :class:`Profile` is the air temperature as a piecewise-linear function of time (two
+breakpoints at one time make a jump); :func:`staircase_plan` applies the paper's step and
+heat-conduction equations (eq. 20, 24). See ``doc/internals/sim.md``.
 """
 
 from __future__ import annotations

@@ -16,23 +16,7 @@
 Sensor presets: the ``gyro``, ``noise`` and ``accel`` sections of a scenario for a device.
 
 A scenario names one with ``sensor: l3gd20``; its own sections override the preset field by
-field. Presets are Python data so that scenarios built in code need no files.
-
-Datasheet numbers (ST L3GD20 at +-250 dps; I3G4250D at +-245 dps): sensitivity
-8.75 mdps/digit, zero-rate level change vs temperature (alpha) +-0.03 dps/degC, sensitivity
-change vs temperature +-2 % over -40..85 degC, which the paper turns into
-beta = 2 % * 250 dps / 125 degC = 0.04 dps/degC, i.e. 160 ppm/degC of the scale factor;
-rate noise density 0.03 dps/sqrt(Hz); the L3GD20 datasheet allows a zero-rate level of
-+-10 dps. The I3G4250D preset takes the same sensitivity and noise density and L3GD20-like
-temperature coefficients (its own datasheet figures were not transcribed here).
-
-The per-axis coefficients are a chosen, plausible unit, not a measured one: linear terms of
-the size of alpha, a curvature (dT2) large enough that the paper's modified model matters,
-and biases of a few dps, so that the raw bias stability ``mean((x - x_ref)^2)`` over the
-paper's -40 -> 85 degC run is about 30, 14 and 1.5 (deg/s)^2 on x, y and z for the
-L3GD20 and 15, 29 and 1.5 for the I3G4250D with its 10, 5, 20 dps reference (paper table 2:
-BS1 ~ 30 (deg/s)^2; tables 3-7: 15, 29 and 1.5 on x, y, z). The dynamic effects (dT/dt,
-warm-up) are small but far above the noise once averaged, as in real parts.
+field. The datasheet figures and the chosen unit: ``doc/internals/sim.md``.
 """
 
 from __future__ import annotations

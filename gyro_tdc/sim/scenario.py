@@ -15,81 +15,10 @@
 """
 Simulator scenarios: the schema, the Scenario, loading and overrides.
 
-A scenario is a YAML mapping (``config/scenarios/NAME.yaml``) or a dict. Every physical
-quantity carries its unit in its key; per-axis quantities take one number (all axes) or a
-list of three (x, y, z). Unknown keys are errors, so a typo never passes silently. The
-sections and their defaults::
-
-    format_version: 1
-    name: NAME                    # default: the file stem
-    description: ''
-    sensor: l3gd20                # optional preset (l3gd20, i3g4250d) under gyro/noise/accel
-    imu_rate_hz: 100.0
-    duration_s: null              # default: the profile's duration; longer holds the end
-    profile:                      # chamber air temperature
-      start_c: 25.0
-      segments:                   # in order; each has a kind
-        - {kind: hold, duration_s: 600.0}                         # soak
-        - {kind: ramp, to_c: 85.0, rate_c_per_h: 18.0}            # heating or cooling
-        - {kind: staircase, to_c: 85.0, step_c: 0.1, hold_s: 20.0}  # paper eq. 20/24
-        - {kind: step, to_c: 30.0}                                # instantaneous jump
-        - {kind: points, t_s: [0.0, 60.0], temp_c: [30.0, 35.0]}  # free piecewise leg
-    thermal:                      # first-order lags, s (0 = none)
-      tau_air_s: 0.0              # set point -> air at the sensor
-      tau_package_s: 0.0          # air -> package (shell the probe is glued to)
-      tau_die_s: 0.0              # package -> MEMS die: the `lag` effect (die lags probe)
-      internal_step_s: 0.1        # integration grid
-    thermometer:
-      location: package           # package (external probe) | die (on-die register)
-      rate_hz: 1.0
-      resolution_c: 0.0           # quantisation step, 0 = none (probe 0.03, register 1/256)
-      noise_c: 0.0                # white noise std
-      tau_s: 0.0                  # sensor time constant
-      offset_c: 0.0
-    gyro:
-      effects: [bias, dT, dT2]    # or a mapping id -> bool; ids of gyro_tdc.model.effects
-      t_ref_c: 25.0               # dT_die = T_die - t_ref_c
-      bias_dps: 0.0               # b0
-      dT_dps_per_c: 0.0           # a1
-      dT2_dps_per_c2: 0.0         # a2
-      dT3_dps_per_c3: 0.0         # a3
-      dTdt_dps_per_c_per_s: 0.0   # h, per (degC/s) of the die
-      scale_ppm_per_c: 0.0        # s, output = w_ref (1 + s dT_die) + ...
-      warmup_dps: 0.0             # w, times exp(-(t - power_on_s) / warmup_tau_s)
-      warmup_tau_s: 300.0
-      power_on_s: 0.0             # power-on time (<= 0: before the recording)
-      sensitivity_mdps_per_digit: 0.0  # quantisation step
-      range_dps: 0.0              # saturation, 0 = none
-      quantise: true
-    noise:
-      enabled: true
-      arw_dps_per_rt_hz: 0.0      # white rate noise density (angle random walk)
-      bias_instability_dps: 0.0   # std of a sum of Gauss-Markov processes...
-      bias_instability_tau_s: [10.0, 100.0, 1000.0]  # ...with these correlation times
-      rrw_dps_per_rt_s: 0.0       # rate random walk
-    accel:                        # specific force: gravity in the sensor frame + offset + noise
-      gravity_mps2: 9.80665       # magnitude; on +z when level
-      noise_mps2_per_rt_hz: 0.0
-      tilt_deg: [0.0, 0.0]        # roll, pitch of the sensor (fixed per run) ...
-      tilt_std_deg: 0.0           # ... plus a random roll and pitch drawn per run (std)
-      bias_mg: 0.0                # static offset (the ordinary calibration's)
-      dT_mg_per_c: 0.0            # offset change per degC of the die (dT of gyro.t_ref_c)
-      dT2_mg_per_c2: 0.0          # curvature of the offset in the die temperature
-      sensitivity_mg_per_digit: 0.0  # quantisation step, 0 = none
-      range_g: 0.0                # saturation, 0 = none
-      reorient_at_s: 0.0          # a mid-run orientation change at this time, 0 = none ...
-      reorient_tilt_deg: [0.0, 0.0]  # ... adding this roll and pitch
-    rate_table:                   # reference rate schedule (ZOH); empty = still
-      - {t_s: 0.0, rate_dps: [10.0, 5.0, 20.0]}   # or rate_rad_s
-    runs:
-      count: 1                    # a multi-run scenario yields several runs
-      bias_offset_dps_std: 0.0    # run-to-run bias offset (drawn per run)
-    vehicle:                      # optional: a vehicle day instead of a chamber (see
-      start_parked_s: 1800.0      # gyro_tdc.sim.vehicle for every field and default);
-      drive_s: [600.0, 1800.0]    # the profile is then the ambient, the rate table empty
-
-An effect switched off contributes nothing whatever its coefficient; the ``lag`` switch
-turns ``thermal.tau_die_s`` on and off.
+A scenario is a YAML mapping (``config/scenarios/NAME.yaml``) or a dict with a unit in every
+key; unknown keys are errors. :func:`load_scenario` reads and validates one into a
+:class:`Scenario`; :func:`list_scenarios` names the shipped ones. Every section and its
+defaults: ``doc/internals/sim.md``.
 """
 
 

@@ -15,23 +15,10 @@
 """
 Simulate a gyro in a thermal chamber on a rate table: whole runs as numpy arrays.
 
-Per axis, with ``dT = T_die - T_ref`` and ``t`` since power-on::
-
-    gyro = w_ref (1 + s dT) + b0 + a1 dT + a2 dT^2 + a3 dT^3 + h dT_die/dt
-           + w exp(-t / tau_w) + white + bias instability + rate random walk
-
-then saturated at the full scale and quantised to one digit. Each term belongs to one
-effect id of :mod:`gyro_tdc.model.effects` (``scale``, ``bias``, ``dT``, ``dT2``, ``dT3``,
-``dTdt``, ``warmup``); ``lag`` makes the die a first-order lag of the package the
-thermometer sits on. The accelerometer on the same die reads gravity in the sensor frame
-(a tilt fixed per run, optionally changed once mid-run) plus an offset curved in the die
-temperature, noise, saturation and digits (:class:`gyro_tdc.sim.specs.AccelSpec`).
-Everything is vectorised: a 7 h run at 100 Hz (2.52 M samples) takes about 2 s
-on a 2-core machine (``bench/bench_simulate.py``).
-
-Random numbers: run ``i`` of seed ``s`` draws from ``SeedSequence(s, spawn_key=(i,))``, with
-one independent child stream per component, so switching one effect off leaves the noise of
-the others unchanged, and :class:`gyro_tdc.sim.stream.SimStream` reproduces run ``i``.
+:func:`simulate_run` and :func:`simulate_scenario` compute each effect's term of the gyro
+and accelerometer outputs, noise, saturation and digits, vectorised, with one seeded random
+stream per component (switching an effect off leaves the others' noise unchanged).
+The output equation: ``doc/internals/sim.md``.
 """
 
 from __future__ import annotations

@@ -15,14 +15,8 @@
 """
 Stream a simulated run in time order, chunk by chunk, for a live driver.
 
-The run is precomputed (it takes well under a second for hours of data) and handed out in
-chunks up to a requested simulated time, so a node can publish in real time or faster::
-
-    stream = SimStream('demo_fast', seed=0)
-    while not stream.done:
-        imu, temp, ref = stream.next_until(stream.position + 0.02)
-        for t, w, a in zip(imu.t, imu.gyro, imu.accel):
-            ...
+:class:`SimStream` precomputes the run and hands it out in chunks up to a requested simulated
+time, so a node can publish in real time or faster. See ``doc/internals/sim.md``.
 """
 
 from __future__ import annotations

@@ -15,14 +15,9 @@
 """
 Heat conduction: chamber set point -> air -> package -> MEMS die, as first-order lags.
 
-Each stage obeys ``tau dy/dt = u - y``. It is integrated on a uniform internal grid with the
-exact first-order-hold discretisation (:func:`gyro_tdc.model.effects.first_order_lag`, the one
-first-order lag of the package, with ``hold='linear'``), so a stage is exact at the grid
-nodes whenever its input is linear between them (the set point of ramps and holds whose
-breakpoints fall on the grid). A staircase jump between two nodes is spread over that one
-interval, which shifts the response by at most half a grid step (0.05 s at the default
-0.1 s). On a uniform grid the recursion runs in ``scipy.signal.lfilter``: a 7 h run on a
-0.1 s grid (252,000 nodes) takes milliseconds.
+:func:`simulate_thermal` integrates each stage exactly on a uniform internal grid
+(first-order hold), fast enough for hours of data in milliseconds.
+See ``doc/internals/sim.md``.
 """
 
 from __future__ import annotations

@@ -15,37 +15,10 @@
 """
 Vehicle scenarios: a day of ordinary operation instead of a thermal chamber.
 
-A scenario with a ``vehicle:`` section (``config/scenarios/vehicle_day1.yaml``) simulates an
-IMU on a vehicle that drives and parks through a day, with no rate table and no reference
-topic (``simulate`` writes the true rate under :data:`TRUTH_TOPIC`, for evaluation only):
-
-* **the ambient** is the scenario's ``profile`` (the daily cycle; a compressed day is a
-  shorter profile); **self-heating** while driving adds ``self_heating_c`` to it through a
-  first-order rise and fall of ``self_heating_tau_s`` (engine, electronics, sun on the
-  body), so the IMU warms on every drive and cools on every stop; the sum drives the
-  scenario's thermal chain (air -> package -> die) like a chamber's set point;
-* **the day** starts parked (``start_parked_s``, long enough for start-up re-anchoring),
-  then alternates drives (``drive_s``: shortest and longest, drawn uniformly) and stops
-  (``park_s``) until the profile ends;
-* **parked** the vehicle is still on a slope (roll and pitch drawn per stop, standard
-  deviation ``slope_deg``): rate zero, gravity tilted in the sensor frame;
-* **driving** it speeds up at ``accel_mps2`` to ``speed_mps``, brakes to a stop at the end,
-  and in between alternates straight stretches (``straight_s``) and constant-rate turns
-  (``turn_s`` long at ``turn_rate_dps``, 1 s ramps, either sign) about the vertical; it
-  leaves the previous slope and reaches the next over ``slope_change_s``; road and engine
-  vibration adds white rate (``vibration_dps``) and acceleration (``vibration_mps2``) noise
-  scaled by the speed. The body rates follow the Euler kinematics of yaw, pitch and roll;
-  the specific force is gravity in the sensor frame plus the longitudinal and centripetal
-  accelerations (in the level frame: the slopes are small);
-* **cmd_vel**: with ``cmd_vel_rate_hz`` > 0, ``simulate`` also writes the commanded motion
-  as ``geometry_msgs/Twist`` on :data:`CMD_VEL_TOPIC` (linear.x the commanded speed,
-  angular.z the commanded yaw rate, zero while parked), the motion veto of
-  ``train --still-only --motion-topic``.
-
-The gyro and accelerometer error models, noise and thermometer are the scenario's own
-sections (a sensor preset), exactly as in the chamber: only the temperature input and the
-motion differ. Random draws (schedule, slopes, manoeuvres, vibration) come from the run's
-``vehicle`` stream, so the other streams and every chamber scenario are unchanged.
+A ``vehicle:`` section simulates an IMU on a vehicle that drives and parks through a day:
+the ambient plus self-heating drives the thermal chain, parked stops sit on slopes, drives
+speed up, turn and vibrate, and ``cmd_vel`` can be written beside. No rate table and no
+reference topic. Every field: ``doc/internals/sim.md``.
 """
 
 from __future__ import annotations

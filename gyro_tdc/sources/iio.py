@@ -15,19 +15,10 @@
 """
 Linux industrial-I/O (IIO) gyro back-end reading sysfs.
 
-The IIO ABI (Documentation/ABI/testing/sysfs-bus-iio) gives every channel a
-``_raw`` value and, shared by type or per channel, a ``_scale`` and an optional
-``_offset``: ``value = (raw + offset) * scale``. Angular velocity comes out in
-rad/s, acceleration in m/s^2 and temperature in milli-degrees Celsius, or a
-processed ``in_temp_input`` already in milli-degrees Celsius. This covers the
-st_gyro driver (L3GD20, I3G4250D), the BMI160 and the MPU-6050 (inv_mpu6050).
-
-Every file-system error -- a missing file, a device that vanished, a directory or file the
-process may not read (``PermissionError``) -- becomes a :class:`DeviceError` naming the file,
-so the driver reports it and retries instead of crashing; an unreadable device that is not
-the wanted one is skipped by :func:`find_iio_device`. Scales and offsets are re-read every
-``rescale_every`` samples, so a full-scale change made while running (a write to
-``in_anglvel_scale``) takes effect without reopening the device.
+:class:`IioSource` reads ``(raw + offset) * scale`` of each channel (st_gyro, BMI160,
+MPU-6050) and re-reads the scales every ``rescale_every`` samples; every file-system error
+becomes a :class:`~gyro_tdc.errors.DeviceError` naming the file. :func:`find_iio_device` finds
+the device. See ``doc/internals/sources.md``.
 """
 
 from __future__ import annotations

@@ -15,15 +15,9 @@
 """
 Simulated back-end: a scenario of :mod:`gyro_tdc.sim` handed out sample by sample.
 
-:class:`SimSource` wraps :class:`gyro_tdc.sim.stream.SimStream` and merges its three
-streams into :class:`~gyro_tdc.sources.base.ImuSample`: each IMU sample carries the
-thermometer reading stamped since the previous IMU sample (with its own stamp in
-``temp_t``) and, when the rate table moves, the reference rate that took effect since.
-
-It paces itself (:meth:`SimSource.pending`): its first sample is tied to the node clock and
-the wall clock when the driver first asks, and a sample simulated ``dt`` seconds later is due
-``dt / time_scale`` wall seconds later and stamped ``dt`` seconds later, so that every time
-constant in the data (filters, dT/dt) stays in simulated seconds whatever the pace.
+:class:`SimSource` merges the simulator's IMU, thermometer and reference streams into
+:class:`~gyro_tdc.sources.base.ImuSample` and paces itself by ``time_scale``, keeping every
+time constant in simulated seconds. See ``doc/internals/sources.md``.
 """
 
 from __future__ import annotations

@@ -15,15 +15,9 @@
 """
 The measured runs on the block grid: block means, the noise floor and the effect columns.
 
-Everything discovery fits works on block means of ``block_s`` (default 10 s): the thermal
-effects are slow, and the averages are what the noise floor and the gaps are measured on. The
-noise floor is what white and short-term noise alone leave in a block mean, estimated from the
-data inside the blocks (second differences of block thirds, so the drift cancels; robust
-median scale).
-
-With the thermal state (``lag``) the temperature terms (``dT``, ``dT2``, ``dT3`` and the
-``dT`` of ``scale``) are block means of the features of the state ``s = first_order_lag(t,
-T, tau)`` instead of the measured temperature: :meth:`BlockData.state_columns`.
+:class:`BlockData` holds the block means of every run, the noise floor left in a block mean
+and the effect columns, of the thermal state too (:meth:`BlockData.state_columns`).
+See ``doc/internals/identify.md``.
 """
 
 from __future__ import annotations

@@ -15,18 +15,9 @@
 """
 The linear model discovery searches: per-run offsets, effect columns, gain and scale terms.
 
-Per axis ``a`` the block means are fitted as::
-
-    omega_a - omega_ref_a = o_{run,a} + sum_j c_{j,a} x_j + s_a dT omega_ref_a
-                            + g_a omega_ref_a + e_a
-
-by weighted least squares (weights: samples per block). With ``lag`` (the thermal state)
-every temperature term follows the state: ``dT``, ``dT2``, ``dT3`` and the ``dT`` of ``s_a``
-are powers of ``s - T0``, ``s`` the first-order lag of the measured temperature with the
-time constant ``params['lag']['tau_s']``; ``lag`` itself adds no column (the model is linear
-in its coefficients for a given tau, which the search fits around it). :class:`LinearModel`
-builds the design of one effect set, fits it (on all blocks or on a fold's training rows)
-and gives the held-out residuals of cross-validation.
+:class:`LinearModel` builds the design of one effect set on the block grid, fits it by
+weighted least squares (on all blocks or a fold's training rows) and gives the held-out
+residuals of cross-validation. See ``doc/internals/identify.md``.
 """
 
 from __future__ import annotations

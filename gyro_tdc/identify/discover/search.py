@@ -15,13 +15,9 @@
 """
 The search: name the missing effect, add it, refit, repeat until nothing passes.
 
-:func:`discover` scores every candidate effect against the current model with the three tests
-of the false-discovery guard (held-out gain, HAC significance, effect size; see
-:mod:`gyro_tdc.identify.discover`), adds the best, refits the time constants (a bounded 1-D search
-on
-the residual each: variable projection), and repeats. Effects the data cannot excite are
-reported as unidentifiable before any fit (:func:`_excitation`); candidates whose columns the
-model already spans, after the search.
+:func:`discover` scores every candidate against the current model with the three tests of
+the false-discovery guard, adds the best, refits the time constants and repeats; effects the
+data cannot excite are reported before any fit. See ``doc/internals/identify.md``.
 """
 
 from __future__ import annotations
