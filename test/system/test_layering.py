@@ -54,7 +54,7 @@ LAYERS: dict[str, frozenset] = {k: frozenset(v.split()) for k, v in {
     'evaluate': 'base data errors identify model runtime signal',
     'sim': 'base data errors model',
     'sources': 'errors sim',
-    'fleet': 'gyro_tdc base errors evaluate identify model',
+    'fleet': 'gyro_tdc base data errors evaluate identify model',
     'nodes': 'base data errors learn model runtime signal sim sources',
     'cli': 'base data errors evaluate fleet identify model nodes signal sim',
     '__main__': 'gyro_tdc cli',
