@@ -21,6 +21,12 @@ reused buffer as they arrive) and decoded with the fixed-layout codec of
 :mod:`gyro_tdc.data.bag_codec` (rosbags' per-message deserialiser only where the layout does
 not hold) into preallocated columns; memory is bounded by the output arrays plus one block
 of raw messages.
+
+The message counts of ``metadata.yaml`` size those columns, so they are checked first
+(:func:`check_counts`): whole numbers, not negative, and no more messages than the storage
+files can hold at the smallest size a message of the topic's type can have. A bag whose
+metadata lies is refused in one line (:class:`~gyro_tdc.errors.DatasetError`, exit 2 on the
+command line), as is one whose data do not match its ``compression_format``.
 """
 
 from __future__ import annotations
@@ -29,14 +35,16 @@ import contextlib
 from dataclasses import dataclass, field
 import io
 from itertools import islice
-from pathlib import Path
+from pathlib import Path, PurePath
 import struct
-from typing import Any, Sequence
+import sys
+from typing import Any, Mapping, Sequence
 
 import apsw
 from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
 from gyro_tdc.data.bag_codec import (decode, decode_joined, Decoded, IMU_TYPE, jazzy, KEEP,
-                                     REFERENCE_TYPE, TEMPERATURE_TYPE)
+                                     N_DOUBLES, REFERENCE_TYPE, TEMPERATURE_TYPE)
+from gyro_tdc.data.imu_cdr import FRAME_ID
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import NDArray
@@ -45,7 +53,12 @@ from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 import yaml
 
-__all__ = ['BagData', 'read_bag', 'small_pages']
+if sys.version_info >= (3, 14):
+    from compression.zstd import ZstdError
+else:                         # rosbags' own zstd before Python 3.14
+    from backports.zstd import ZstdError
+
+__all__ = ['BagData', 'check_counts', 'min_message_bytes', 'read_bag', 'small_pages']
 
 # Messages per block when reading: small enough that a block's raw bytes (~5 MB of Imu) are
 # recycled by the allocator, large enough to amortise the per-block checks (1 << 14 read a
@@ -53,9 +66,15 @@ __all__ = ['BagData', 'read_bag', 'small_pages']
 _CHUNK = 1 << 14
 # rosbags' own errors, plus what its parsers let through on damaged files (found by fuzzing
 # sqlite3 and mcap bags: huge record lengths raise OverflowError from seek, short reads
-# struct.error).
+# struct.error); zstd's error (data not compressed as metadata.yaml says) is caught apart.
 _READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
                 UnicodeDecodeError, OverflowError, struct.error)
+#: Smallest zstd frame (magic, frame header, one block header): a message compressed on its
+#: own (``compression_mode: message``) takes at least this many bytes.
+ZSTD_MIN_FRAME_BYTES = 9
+#: Largest expansion of zstd (a 4-byte RLE block stands for up to 128 KiB): a storage file
+#: compressed whole (``compression_mode: file``) holds at most this many bytes per byte.
+ZSTD_MAX_RATIO = 32768
 
 
 def _seconds(stamp_ns: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -205,15 +224,103 @@ def _resolve(path: str | Path) -> Path:
     return p
 
 
-def _storage_id(bag: Path) -> str:
-    """Return the storage identifier recorded in metadata.yaml ('' when absent)."""
+def _metadata(bag: Path) -> Mapping:
+    """Return the ``rosbag2_bagfile_information`` of metadata.yaml (empty when absent)."""
     meta_path = bag / 'metadata.yaml'
     meta = load_yaml(meta_path.read_text(encoding='utf-8'), BAG_METADATA_LIMITS,
                      source=str(meta_path), error=DatasetError)
-    try:
-        return str(meta['rosbag2_bagfile_information']['storage_identifier'])
-    except (KeyError, TypeError):
-        return ''
+    info = meta.get('rosbag2_bagfile_information') if isinstance(meta, Mapping) else None
+    return info if isinstance(info, Mapping) else {}
+
+
+def min_message_bytes(msgtype: str) -> int:
+    """
+    Return the fewest bytes a serialized message of ``msgtype`` can take.
+
+    The three recorded types are a header (CDR encapsulation, stamp, a ``frame_id`` of at
+    least its NUL) and a run of float64 values; any other type at least its 4-byte CDR
+    encapsulation.
+    """
+    if msgtype in N_DOUBLES:
+        return FRAME_ID + 1 + 8 * N_DOUBLES[msgtype]
+    return 4
+
+
+def _storage_bytes(bag: Path, info: Mapping) -> int | None:
+    """Return the size of the storage files metadata.yaml lists, bytes (None: one is missing)."""
+    names = info.get('relative_file_paths')
+    total = 0
+    for name in names if isinstance(names, list) else []:
+        try:
+            total += (bag / PurePath(str(name)).name).stat().st_size
+        except OSError:
+            return None           # rosbags names the missing file
+    return total
+
+
+def _topic_counts(info: Mapping) -> list[tuple[str, str, Any]]:
+    """Return (name, type, message_count) of every well-formed topic entry of the metadata."""
+    out = []
+    entries = info.get('topics_with_message_count')
+    for entry in entries if isinstance(entries, list) else []:
+        meta = entry.get('topic_metadata') if isinstance(entry, Mapping) else None
+        if isinstance(meta, Mapping) and 'message_count' in entry:
+            out.append((str(meta.get('name')), str(meta.get('type')), entry['message_count']))
+    return out
+
+
+def check_counts(bag: Path, info: Mapping) -> None:
+    """
+    Check that the message counts of a bag's metadata are plausible, before any sizing.
+
+    Every count (per topic, per file and in total) must be a whole number >= 0, and the
+    topics together no more messages than the storage files can hold: each message takes
+    at least :func:`min_message_bytes` of its type (at least ``ZSTD_MIN_FRAME_BYTES`` when
+    compressed message by message; a file compressed whole holds at most ``ZSTD_MAX_RATIO``
+    times its size).
+
+    Parameters
+    ----------
+    bag : Path
+        The bag directory.
+    info : Mapping
+        Its ``rosbag2_bagfile_information`` (rosbags reports its topic counts unchecked).
+
+    Raises
+    ------
+    DatasetError
+        One line naming the bag, the count and why it cannot be true (a storage file cut
+        short fails here too).
+
+    """
+    where = f'Cannot read bag {str(bag)!r} (unreadable or corrupt): metadata.yaml'
+    fix = '`ros2 bag reindex` rebuilds metadata.yaml from the storage files'
+    topics = _topic_counts(info)
+    counts = [(f'topic {name!r}', count) for name, _, count in topics]
+    files = info.get('files')
+    counts += [(f'file {f.get("path")!r}', f['message_count'])
+               for f in (files if isinstance(files, list) else [])
+               if isinstance(f, Mapping) and 'message_count' in f]
+    if 'message_count' in info:
+        counts.append(('the bag', info['message_count']))
+    for what, count in counts:
+        if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+            raise DatasetError(f'{where} gives {what} a message_count of {count!r:.40}, not a '
+                               f'whole number >= 0 ({fix}).')
+    size = _storage_bytes(bag, info)
+    if size is None:
+        return
+    mode = str(info.get('compression_mode') or '').lower()
+    room = size * ZSTD_MAX_RATIO if mode == 'file' else size
+    need = 0
+    for name, msgtype, count in topics:
+        each = ZSTD_MIN_FRAME_BYTES if mode == 'message' else min_message_bytes(msgtype)
+        need += count * each
+        if need > room:
+            raise DatasetError(f'{where} says topic {name!r} holds {count} messages, more '
+                               f'than its {size} bytes of storage can hold (a {msgtype} '
+                               f'message takes at least {each} bytes): the storage is '
+                               f'truncated or the metadata wrong ({fix}).')
 
 
 def _describe(topics: dict[str, tuple[str, int]]) -> str:
@@ -221,6 +328,26 @@ def _describe(topics: dict[str, tuple[str, int]]) -> str:
     if not topics:
         return 'none'
     return ', '.join(f'{k} ({t}, {c} msgs)' for k, (t, c) in sorted(topics.items()))
+
+
+def _reusable(scratch: io.BytesIO) -> io.BytesIO:
+    """
+    Return ``scratch`` rewound for the next block, or a fresh buffer when it is still exported.
+
+    The decode of a block reads the buffer through a view, and arrays made from it; when the
+    decode returns they are gone, unless something else still holds them: a sampling
+    profiler that took the thread's frames (Dask's worker samples every running task's stack
+    every 10 ms) or a reference cycle not yet collected keeps a returned frame, with its
+    locals, alive. Writing into a BytesIO with a live view raises ``BufferError: Existing
+    exports of data: object cannot be re-sized``; the empty write probes for that, and the
+    held buffer is left to its holder.
+    """
+    scratch.seek(0)
+    try:
+        scratch.write(b'')
+    except BufferError:
+        return io.BytesIO()
+    return scratch
 
 
 def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
@@ -263,11 +390,14 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
 
     """
     bag = _resolve(path)
+    info: Mapping = {}
     try:
-        storage = _storage_id(bag)
+        info = _metadata(bag)
+        storage = str(info.get('storage_identifier', ''))
+        check_counts(bag, info)
         with AnyReader([bag], default_typestore=jazzy()) as reader:
-            topics = {name: (info.msgtype or '?', int(info.msgcount))
-                      for name, info in reader.topics.items()}
+            topics = {name: (topic.msgtype or '?', int(topic.msgcount))
+                      for name, topic in reader.topics.items()}
             wanted = [('imu', imu_topic, IMU_TYPE, True),
                       ('temperature', temperature_topic, TEMPERATURE_TYPE, True)]
             if reference_topic is not None:
@@ -288,6 +418,11 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                 conns[role] = [c for c in reader.connections if c.topic == topic]
             with small_pages():
                 return _read_messages(reader, bag, storage, topics, conns, progress, accel)
+    except ZstdError as err:
+        raise DatasetError(f'Cannot read bag {str(bag)!r}: its data are not compressed as '
+                           f'metadata.yaml says (compression_format '
+                           f'{info.get("compression_format")!r:.20}, compression_mode '
+                           f'{info.get("compression_mode")!r:.20}): {one_line(err)}') from err
     except _READ_ERRORS as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r} (unreadable or corrupt): '
                            f'{one_line(err)}') from err
@@ -348,7 +483,8 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     # cheaper than collecting the messages and joining them later), its length kept, and
     # nothing else done per message (no log time, no call of ours); any other message
     # (temperature, reference, another IMU connection) is passed to ``add_other``, which
-    # returns None and so also keeps it out of the list.
+    # returns None and so also keeps it out of the list. The buffer is reused only when
+    # nothing holds a view of it any more (see _reusable).
     main = conns['imu'][0]
     # read_bag opens one bag: iterate its rosbags Reader directly, without AnyReader's
     # heapq merge across bags (one generator step less per message).
@@ -361,7 +497,7 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
         while True:
             others: list[tuple[Any, int, bytes]] = []
             add_other = others.append
-            scratch.seek(0)
+            scratch = _reusable(scratch)
             write = scratch.write
             lengths = [write(raw) for conn, log, raw in islice(gen, _CHUNK)
                        if conn is main or add_other((conn, log, raw))]

@@ -1,0 +1,225 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The bag reader: lying metadata refused in one line, and its reused buffer never stuck."""
+
+from __future__ import annotations
+
+import gc
+from pathlib import Path
+import shutil
+import sys
+
+from gyro_tdc.data import (bag_reader as reader, IMU_TYPE, read_bag, REFERENCE_TYPE,
+                           TEMPERATURE_TYPE, write_bag)
+from gyro_tdc.errors import DatasetError
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, Writer
+from rosbags.typesys import get_typestore, Stores
+import yaml
+
+TS = get_typestore(Stores.ROS2_JAZZY)
+N_IMU = 600
+
+
+def _write(path: Path, *, seed: int = 1, n: int = N_IMU, scale: float = 1.0) -> Path:
+    rng = np.random.default_rng(seed)
+    t = 100.0 + np.arange(n) * 0.01
+    write_bag(path, imu_t=t, gyro=scale * rng.normal(size=(n, 3)),
+              accel=scale * rng.normal(size=(n, 3)), temp_t=t[::100],
+              temp_c=20.0 + scale * rng.normal(size=len(t[::100])))
+    return path
+
+
+@pytest.fixture(scope='module')
+def small_bag(tmp_path_factory):
+    return _write(tmp_path_factory.mktemp('bag') / 'bag')
+
+
+def edited(src: Path, dst: Path, edit) -> Path:
+    """Copy a bag and apply ``edit`` to the ``rosbag2_bagfile_information`` of its metadata."""
+    shutil.copytree(src, dst)
+    meta = dst / 'metadata.yaml'
+    doc = yaml.safe_load(meta.read_text())
+    edit(doc['rosbag2_bagfile_information'])
+    meta.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return dst
+
+
+def imu_count(value):
+    """Return an edit setting the IMU topic's message_count to ``value``."""
+    def edit(info):
+        for entry in info['topics_with_message_count']:
+            if entry['topic_metadata']['name'] == '/imu/data_raw':
+                entry['message_count'] = value
+    return edit
+
+
+def _refused(bag: Path, *needles: str) -> str:
+    with pytest.raises(DatasetError) as info:
+        read_bag(bag)
+    text = str(info.value)
+    assert '\n' not in text and str(bag) in text
+    for needle in needles:
+        assert needle in text, text
+    return text
+
+
+@pytest.mark.parametrize('count, needle', [
+    (10 ** 15, 'holds 1000000000000000 messages, more than its'),
+    (N_IMU * 10, f'holds {N_IMU * 10} messages, more than its'),
+    (-5, 'a message_count of -5, not a whole number >= 0'),
+    ('600', "a message_count of '600', not a whole number"),
+    (6.5, 'a message_count of 6.5, not a whole number'),
+    (True, 'a message_count of True, not a whole number'),
+])
+def test_lying_topic_count_is_refused_before_anything_is_sized(tmp_path, small_bag, count,
+                                                               needle):
+    bag = edited(small_bag, tmp_path / 'bag', imu_count(count))
+    _refused(bag, "topic '/imu/data_raw'", needle, '`ros2 bag reindex`')
+
+
+def test_count_of_a_file_and_of_the_bag_must_be_whole_numbers(tmp_path, small_bag):
+    def file_count(info):
+        info['files'][0]['message_count'] = -1
+
+    def bag_count(info):
+        info['message_count'] = 'many'
+    _refused(edited(small_bag, tmp_path / 'a', file_count), 'message_count of -1')
+    _refused(edited(small_bag, tmp_path / 'b', bag_count), "the bag a message_count of 'many'")
+
+
+def test_counts_are_checked_against_the_smallest_message_of_each_type(tmp_path, small_bag):
+    # Within the storage size for a 4-byte message of another type, impossible for Imu.
+    size = (small_bag / 'bag.db3').stat().st_size
+    n = size // reader.min_message_bytes(IMU_TYPE) + 1
+    bag = edited(small_bag, tmp_path / 'bag', imu_count(n))
+    _refused(bag, f'holds {n} messages', f'its {size} bytes of storage',
+             f'at least {reader.min_message_bytes(IMU_TYPE)} bytes')
+
+
+@pytest.mark.parametrize('msgtype', [IMU_TYPE, TEMPERATURE_TYPE, REFERENCE_TYPE])
+def test_min_message_bytes_is_a_lower_bound_of_the_smallest_message(msgtype):
+    types = TS.types
+    header = types['std_msgs/msg/Header'](types['builtin_interfaces/msg/Time'](0, 0), '')
+    vec = types['geometry_msgs/msg/Vector3'](0.0, 0.0, 0.0)
+    msg = {IMU_TYPE: lambda: types[IMU_TYPE](
+        header, types['geometry_msgs/msg/Quaternion'](0.0, 0.0, 0.0, 1.0), np.zeros(9), vec,
+        np.zeros(9), vec, np.zeros(9)),
+        TEMPERATURE_TYPE: lambda: types[TEMPERATURE_TYPE](header, 0.0, 0.0),
+        REFERENCE_TYPE: lambda: types[REFERENCE_TYPE](header, vec)}[msgtype]()
+    smallest = len(TS.serialize_cdr(msg, msgtype))
+    assert reader.min_message_bytes(msgtype) <= smallest < reader.min_message_bytes(msgtype) + 8
+
+
+@pytest.mark.parametrize('mode', ['message', 'file'])
+def test_compression_the_data_do_not_have_is_one_line(tmp_path, small_bag, mode):
+    def compressed(info):
+        info['compression_format'] = 'zstd'
+        info['compression_mode'] = mode
+    bag = edited(small_bag, tmp_path / 'bag', compressed)
+    _refused(bag, 'not compressed as metadata.yaml says', "compression_format 'zstd'",
+             f"compression_mode '{mode}'")
+
+
+def _recompressed(src: Path, dst: Path, mode: CompressionMode) -> Path:
+    """Copy a bag message by message into a zstd-compressed one (rosbags' own writer)."""
+    wr = Writer(dst, version=9)
+    wr.set_compression(mode, CompressionFormat.ZSTD)
+    with AnyReader([src]) as rd, wr:
+        out = {c.id: wr.add_connection(c.topic, c.msgtype, typestore=TS)
+               for c in rd.connections}
+        for conn, log, raw in rd.messages():
+            wr.write(out[conn.id], log, raw)
+    return dst
+
+
+@pytest.mark.parametrize('mode', [CompressionMode.MESSAGE, CompressionMode.FILE])
+def test_genuinely_compressed_bags_pass_the_count_check(tmp_path, mode):
+    # Constant readings compress well: the compressed storage is smaller than the IMU
+    # messages could be uncompressed, and the counts are still accepted.
+    flat = _write(tmp_path / 'flat', scale=0.0)
+    bag = _recompressed(flat, tmp_path / 'z', mode)
+    info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert info['compression_format'] == 'zstd'
+    size = sum((bag / name).stat().st_size for name in info['relative_file_paths'])
+    assert size < N_IMU * reader.min_message_bytes(IMU_TYPE)
+    got, want = read_bag(bag), read_bag(flat)
+    np.testing.assert_array_equal(got.gyro, want.gyro)
+    np.testing.assert_array_equal(got.temp_c, want.temp_c)
+
+
+# ------------------------------------------------------------------------------------------
+# The reused decode buffer in a long-lived process
+# ------------------------------------------------------------------------------------------
+
+@pytest.fixture()
+def several_bags(tmp_path, monkeypatch):
+    """Three bags of 600 IMU messages, read in blocks of 64 (ten blocks each)."""
+    monkeypatch.setattr(reader, '_CHUNK', 64)
+    return [_write(tmp_path / f'bag{k}', seed=k) for k in range(3)]
+
+
+def _read_all(bags):
+    return [read_bag(b) for b in bags]
+
+
+def test_a_profiler_holding_the_decode_frames_does_not_break_the_next_block(several_bags):
+    # A sampling profiler (Dask's worker samples the stack of every running task every
+    # 10 ms) holds the frames it took; a frame of the decode kept after it returned keeps
+    # its views of the reader's buffer, which the next block must not be written into.
+    plain = _read_all(several_bags)
+    held = []
+
+    def sample(frame, event, arg):
+        if event == 'return' and frame.f_code.co_name in ('decode_joined', '_decode_records'):
+            held.append(frame)
+    sys.setprofile(sample)
+    try:
+        profiled = _read_all(several_bags)
+    finally:
+        sys.setprofile(None)
+    assert len(held) >= 3 * 2 * (N_IMU // 64)
+    for a, b in zip(profiled, plain):
+        np.testing.assert_array_equal(a.gyro, b.gyro)
+        np.testing.assert_array_equal(a.imu_t, b.imu_t)
+        np.testing.assert_array_equal(a.accel, b.accel)
+
+
+def test_views_kept_by_uncollected_cycles_do_not_break_the_next_block(several_bags,
+                                                                      monkeypatch):
+    plain = _read_all(several_bags)
+    decode_joined = reader.decode_joined
+    cycles = []
+
+    def decode_in_a_cycle(buf, *args, **kwargs):
+        dec = decode_joined(buf, *args, **kwargs)
+        cycle = [buf]
+        cycle.append(cycle)                 # garbage only the cyclic collector frees
+        cycles.append(id(cycle))
+        return dec
+    monkeypatch.setattr(reader, 'decode_joined', decode_in_a_cycle)
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        cyclic = _read_all(several_bags)
+    finally:
+        if was_enabled:
+            gc.enable()
+    assert len(cycles) == 3 * -(-N_IMU // 64)
+    for a, b in zip(cyclic, plain):
+        np.testing.assert_array_equal(a.gyro, b.gyro)
+        np.testing.assert_array_equal(a.temp_c, b.temp_c)
