@@ -49,7 +49,7 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 from gyro_tdc.learn.learner import learned_model, Learner  # noqa: E402
-from gyro_tdc.runtime.core import CompensatorCore, Policy  # noqa: E402
+from gyro_tdc.runtime import CompensatorCore, Policy  # noqa: E402
 import numpy as np  # noqa: E402
 
 RATE = 1000.0

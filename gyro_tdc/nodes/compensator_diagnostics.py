@@ -15,12 +15,9 @@
 """
 The compensator's ``/diagnostics`` and its graph guard against chained compensators.
 
-:class:`Diagnostics` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`:
-once a second it publishes the judgement of :func:`gyro_tdc.runtime.health.health` (plus the
-learner's keys) and logs what is new since the last report (a compensator upstream, samples
-already compensated, a re-anchoring). The node provides ``core``, ``inputs``
-(:class:`~gyro_tdc.runtime.health.InputStatus`), ``params``, ``model_file``, ``last_reload``,
-``learner``, ``motion_values()`` and ``_in_topic``.
+:class:`Diagnostics` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
+(see doc/internals/runtime.md); the node provides ``core``, ``inputs``, ``params``,
+``model_file``, ``last_reload``, ``learner``, ``motion_values()`` and ``_in_topic``.
 """
 
 from __future__ import annotations
@@ -33,7 +30,7 @@ from std_msgs.msg import Float32, Float64
 
 __all__ = ['DIAGNOSTICS_PERIOD_S', 'Diagnostics', 'TEMPERATURE_MESSAGES']
 
-#: The message class of each ``temperature_type`` (compensation_logic.TEMPERATURE_TYPES).
+#: The message class of each ``temperature_type`` (gyro_tdc.runtime.policy.TEMPERATURE_TYPES).
 TEMPERATURE_MESSAGES = {'sensor_msgs/msg/Temperature': Temperature,
                         'std_msgs/msg/Float32': Float32, 'std_msgs/msg/Float64': Float64}
 #: Period of the /diagnostics report [s].

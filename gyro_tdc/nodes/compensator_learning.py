@@ -13,12 +13,11 @@
 # limitations under the License.
 
 """
-The compensator's learning in the field (``learn: true``, :mod:`gyro_tdc.learn`).
+The compensator's learning in the field (``learn: true``, :mod:`gyro_tdc.learn.learner`).
 
-:class:`Learning`, a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`,
-hands raw samples to the learner, steps it on a timer, installs a better learned model at a
-stamp fixed by the data, and saves, resumes and resets its state.
-See ``doc/internals/nodes.md``.
+:class:`Learning` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
+(the timer, saving, ``~/learn_save`` and ``~/learn_reset``: doc/internals/runtime.md). The node
+provides ``core``, ``params`` and ``model_file``; this mixin keeps ``learner``.
 """
 
 from __future__ import annotations

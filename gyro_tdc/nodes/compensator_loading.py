@@ -15,10 +15,10 @@
 """
 The compensator's model loading, off the message path: start-up, parameter set, ``~/reload``.
 
-:class:`ModelLoading`, a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`,
-reads, checks and primes a model file in a worker thread and swaps it in on the executor's
-thread; an invalid file is refused in one line and the old model stays.
-See ``doc/internals/nodes.md``.
+:class:`ModelLoading` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
+(how a file is read, primed and swapped in: doc/internals/runtime.md). The node provides
+``core``, ``params`` and :meth:`_new_prior`; this mixin keeps ``model_file``, ``last_reload``
+and its jobs.
 """
 
 from __future__ import annotations

@@ -15,9 +15,8 @@
 """
 The compensator's motion input (``motion_topic``): a veto on stillness for moving vehicles.
 
-:class:`MotionInput`, a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`,
-hands each Twist or Odometry report to the core with its stamp (never the wall clock), so a
-slow constant turn is not taken for a bias. See ``doc/internals/nodes.md``.
+:class:`MotionInput` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
+(see doc/internals/runtime.md); the node provides ``core`` and ``params``.
 """
 
 from __future__ import annotations

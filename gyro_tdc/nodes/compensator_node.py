@@ -158,21 +158,18 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
         if diagonal_marked(cov):
             self.inputs.already_compensated += 1
         core = self.core
-        a = aout = avar = None
-        if core.accel_on or (core.policy.reanchor_on_start and core.anchor is None):
+        a = None
+        if core.needs_accel:
             la = msg.linear_acceleration
             if msg.linear_acceleration_covariance[0] != -1.0:
                 a = (la.x, la.y, la.z)
         try:
-            wx, wy, wz, var, flags = core.process(
+            wx, wy, wz, var, flags, aout, avar = core.process(
                 st.sec + st.nanosec * 1e-9, w.x, w.y, w.z, a)
-            if a is not None and core.accel_on:
-                aout, avar = core.accel_out, core.accel_var
         except Exception as exc:  # the callback edge: never lose the message
             var, flags = self._on_error(exc), PASSTHROUGH
             wx, wy, wz = w.x, w.y, w.z
-            if a is not None and core.accel_on:
-                avar = var
+            aout, avar = None, (var if a is not None and core.accel_on else None)
         w.x, w.y, w.z = wx, wy, wz
         if cov[0] != -1.0:
             cov[0] += var[0]
@@ -205,17 +202,13 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
             self.inputs.already_compensated += 1
         wx, wy, wz = view.angular_velocity()
         core = self.core
-        a = aout = avar = None
-        if core.accel_on or (core.policy.reanchor_on_start and core.anchor is None):
-            a = view.linear_acceleration()
+        a = view.linear_acceleration() if core.needs_accel else None
         try:
-            wx, wy, wz, var, flags = core.process(sec + nanosec * 1e-9, wx, wy, wz, a)
-            if a is not None and core.accel_on:
-                aout, avar = core.accel_out, core.accel_var
+            wx, wy, wz, var, flags, aout, avar = core.process(
+                sec + nanosec * 1e-9, wx, wy, wz, a)
         except Exception as exc:  # the callback edge: never lose the message
             var, flags = self._on_error(exc), PASSTHROUGH
-            if a is not None and core.accel_on:
-                avar = var
+            aout, avar = None, (var if a is not None and core.accel_on else None)
         self._pub.publish(view.patched(wx, wy, wz, var, not flags & PASSTHROUGH, aout, avar))
 
     def _on_malformed(self, exc: Exception, size: int) -> None:

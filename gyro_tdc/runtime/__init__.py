@@ -23,8 +23,9 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'core': ['CompensatorCore'],
-    'health': ['health', 'HealthMark', 'InputStatus', 'PASSTHROUGH', 'sensor_mismatch'],
-    'policy': ['PARAMS', 'Policy'],
+    'flags': ['PASSTHROUGH'],
+    'health': ['health', 'HealthMark', 'InputStatus', 'sensor_mismatch'],
+    'policy': ['PARAMS', 'Policy', 'TEMPERATURE_TYPES'],
     'priming': ['prepare', 'PreparedModel'],
     'reanchor': ['default_tolerance', 'reanchor_shift', 'STILL_WINDOW_MAX_S', 'windows_moving'],
 })

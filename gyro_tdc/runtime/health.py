@@ -13,13 +13,9 @@
 # limitations under the License.
 
 """
-The compensator's health as /diagnostics shows it: sample flags, levels and :func:`health`.
+The compensator's health as /diagnostics shows it: a level, a message and key/value pairs.
 
-Pure (no rclpy). Each processed sample carries a bit set of flags (``STALE``,
-``OUT_OF_RANGE``, ``NON_FINITE``, ``NO_TEMPERATURE``, ``NO_MODEL``, ``PASSTHROUGH``);
-:func:`health` turns a :class:`gyro_tdc.runtime.core.CompensatorCore`'s counters into a
-level (``OK``, ``WARN``, ``ERROR``), a one-line message and the key/value pairs the node
-publishes, judging only what happened since the previous report (:class:`HealthMark`).
+Pure (no rclpy); what it judges and shows: doc/internals/runtime.md.
 """
 
 from __future__ import annotations
@@ -30,35 +26,15 @@ from types import MappingProxyType
 from typing import Mapping, NamedTuple, TYPE_CHECKING
 
 from gyro_tdc.model import SETTLE_TAUS
+from gyro_tdc.runtime.flags import (describe_flags, NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE,
+                                    NON_FINITE, OUT_OF_RANGE, PASSTHROUGH, STALE)
 
-if TYPE_CHECKING:  # pragma: no cover - typing only (compensation_logic imports this module)
+if TYPE_CHECKING:  # pragma: no cover - typing only (core does not import this module)
     from gyro_tdc.model import CompensationModel
     from gyro_tdc.runtime.core import CompensatorCore
 
-__all__ = ['ERROR', 'FLAG_NAMES', 'Health', 'HealthMark', 'InputStatus', 'NO_ACCEL_DATA',
-           'NO_MODEL', 'NO_TEMPERATURE', 'NON_FINITE', 'OK', 'OUT_OF_RANGE', 'PASSTHROUGH',
-           'STALE', 'WARN', 'accel_state', 'describe_flags', 'health', 'sensor_mismatch']
-
-#: Flags of one processed sample (a bit set).
-STALE = 1
-OUT_OF_RANGE = 2
-NON_FINITE = 4
-NO_TEMPERATURE = 8
-NO_MODEL = 16
-PASSTHROUGH = 32
-
-#: The accelerometer's own flag (``CompensatorCore.accel_flags``, not counted per sample in
-#: ``flag_counts``): the Imu carried no accelerometer data (covariance[0] == -1).
-NO_ACCEL_DATA = 64
-
-FLAG_NAMES = {STALE: 'temperature stale', OUT_OF_RANGE: 'temperature out of model range',
-              NON_FINITE: 'non-finite input', NO_TEMPERATURE: 'no temperature yet',
-              NO_MODEL: 'no model loaded', PASSTHROUGH: 'raw rate passed through'}
-
-
-def describe_flags(flags: int) -> str:
-    """Return the flags of a sample as a comma-separated text ('' when none)."""
-    return ', '.join(name for bit, name in FLAG_NAMES.items() if flags & bit)
+__all__ = ['ERROR', 'Health', 'HealthMark', 'InputStatus', 'OK', 'WARN', 'accel_state',
+           'health', 'sensor_mismatch']
 
 
 def accel_state(core: CompensatorCore) -> str:

@@ -15,11 +15,8 @@
 """
 The compensator's parameter table and the :class:`Policy` it builds (pure, no rclpy).
 
-:data:`PARAMS` is the one table of ``compensator_node``'s parameters (name, default,
-description with unit, range or choices): the node declares it (with ROS descriptors) and
-answers ``--help`` from it, ``config/compensator.yaml`` mirrors it, and its ``policy`` rows
-are the fields of :class:`Policy`, what :class:`~gyro_tdc.runtime.core.CompensatorCore`
-decides with.
+:data:`PARAMS` is the one table of ``compensator_node``'s parameters; its ``policy`` rows are
+the fields of :class:`Policy` (doc/internals/runtime.md).
 """
 
 from __future__ import annotations

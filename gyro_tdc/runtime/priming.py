@@ -15,12 +15,8 @@
 """
 A model made ready to install off the compensating thread: its feature filters primed (pure).
 
-A reloaded model with dynamic features (``warmup``, ``lag``, ``dTdt``) must carry on from
-where the stream is, not restart. :func:`prepare` builds the model's streaming compensator
-in a worker thread and replays its filters over a :class:`Priming` copy of the core's
-thermometer history; :meth:`~gyro_tdc.runtime.core.CompensatorCore.install` carries
-the replay on (:func:`replay`) over the few samples recorded since, on the thread that
-compensates, and swaps it in.
+:func:`prepare` runs in a worker, :func:`replay` carries it on at install (see
+doc/internals/runtime.md).
 """
 
 from __future__ import annotations
@@ -29,7 +25,7 @@ import math
 from typing import Iterable, NamedTuple
 
 from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensator
-from gyro_tdc.runtime.health import OUT_OF_RANGE, STALE
+from gyro_tdc.runtime.flags import OUT_OF_RANGE, STALE
 from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.reanchor import Vec3
 import numpy as np

@@ -15,11 +15,8 @@
 """
 The compensator's thermometer held by stamp, and its covariance widening (pure).
 
-:class:`TemperatureHold` gives, for a gyro sample stamped ``t``, the latest thermometer
-sample stamped at or before ``t`` (zero-order hold by stamp, so the interleaving of the two
-topics in the executor does not matter); :func:`widen_covariance` adds a variance to the
-diagonal of a REP 145 covariance. Both are used by
-:class:`gyro_tdc.runtime.core.CompensatorCore` and re-exported from there.
+:class:`TemperatureHold` is a zero-order hold by stamp; :func:`widen_covariance` widens a
+REP 145 covariance's diagonal.
 """
 
 from __future__ import annotations

@@ -28,7 +28,7 @@ from __future__ import annotations
 import json
 
 from gyro_tdc.learn.learner import LearnConfig, Learner
-from gyro_tdc.runtime.core import CompensatorCore, Policy
+from gyro_tdc.runtime import CompensatorCore, Policy
 from gyro_tdc.sim import simulate_run
 from learning_days import GAP_S, stream
 import numpy as np

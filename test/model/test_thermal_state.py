@@ -30,7 +30,7 @@ from gyro_tdc.model.compensation import (compensate, CompensationModel, drift, m
 from gyro_tdc.model.modelfile import load_model, model_to_dict, save_model
 from gyro_tdc.model.thermal_state import (SETTLE_TAUS, StreamingThermalState, THERMAL_KINDS,
                                           ThermalState)
-from gyro_tdc.runtime.core import CompensatorCore, Policy
+from gyro_tdc.runtime import CompensatorCore, Policy
 from gyro_tdc.runtime.health import health
 from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
@@ -404,7 +404,7 @@ def test_hand_built_models_default_to_format_1():
 def test_training_report_prints_tau_with_its_interval_or_that_it_is_not_pinned():
     from gyro_tdc.data.coverage import coverage
     from gyro_tdc.evaluate.report import format_training
-    from gyro_tdc.identify.train import TrainResult
+    from gyro_tdc.identify.result import TrainResult
 
     ramp = lag_run(seed=3, tau_die=300.0, segments=(('ramp', 60.0, 20.0),), start_c=-10.0,
                    skip_s=3000.0, rate_hz=1.0)

@@ -29,8 +29,10 @@ from gyro_tdc.identify import compensate_accel, fit_accel, fit_model
 from gyro_tdc.model.compensation import compensate, StreamingCompensator
 from gyro_tdc.model.modelfile import save_model
 from gyro_tdc.model.out_of_range import variance_growth
-from gyro_tdc.runtime.core import CompensatorCore, Policy
-from gyro_tdc.runtime.health import accel_state, OUT_OF_RANGE
+from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.flags import OUT_OF_RANGE
+from gyro_tdc.runtime.health import accel_state
+from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.sim import load_scenario, simulate_scenario, to_run
 import numpy as np
 import pytest
@@ -170,43 +172,44 @@ def test_passthrough_widens_the_accel_covariance_and_keeps_the_values(chamber):
     policy = Policy(stale_policy='passthrough', temperature_timeout=1.0)
     core = CompensatorCore(policy, model)
     a = (0.1, -0.2, 9.8)
-    core.process(1.0, 0.0, 0.0, 0.0, a)                       # no temperature yet
-    assert core.accel_out is None and core.accel_var == (policy.passthrough_variance,) * 3
+    *_, aout, avar = core.process(1.0, 0.0, 0.0, 0.0, a)      # no temperature yet
+    assert aout is None and avar == (policy.passthrough_variance,) * 3
     core.add_temperature(1.0, 20.0)
-    core.process(1.5, 0.0, 0.0, 0.0, a)
-    assert core.accel_out is not None and core.accel_var == tuple(model.accel.residual_var)
-    core.process(3.0, 0.0, 0.0, 0.0, a)                       # stale: passed through
-    assert core.accel_out is None and core.accel_var == (policy.passthrough_variance,) * 3
+    *_, aout, avar = core.process(1.5, 0.0, 0.0, 0.0, a)
+    assert aout is not None and avar == tuple(model.accel.residual_var)
+    *_, aout, avar = core.process(3.0, 0.0, 0.0, 0.0, a)      # stale: passed through
+    assert aout is None and avar == (policy.passthrough_variance,) * 3
     assert accel_state(core) == 'passthrough (temperature stale)'
-    core.process(3.0, 0.0, 0.0, 0.0, None)                    # an Imu without accelerometer
-    assert core.accel_out is None and core.accel_var is None
+    *_, aout, avar = core.process(3.0, 0.0, 0.0, 0.0, None)   # an Imu without accelerometer
+    assert aout is None and avar is None
     assert accel_state(core) == 'passthrough (no accelerometer data in the Imu)'
     hold = CompensatorCore(Policy(temperature_timeout=1.0), model)
     hold.add_temperature(1.0, 20.0)
     hold.process(1.5, 0.0, 0.0, 0.0, a)
-    hold.process(3.0, 0.0, 0.0, 0.0, a)                       # stale, held: widened
-    assert hold.accel_out is not None
-    np.testing.assert_allclose(hold.accel_var, np.asarray(model.accel.residual_var)
+    *_, aout, avar = hold.process(3.0, 0.0, 0.0, 0.0, a)      # stale, held: widened
+    assert aout is not None
+    np.testing.assert_allclose(avar, np.asarray(model.accel.residual_var)
                                + Policy().stale_variance, rtol=1e-15)
     assert accel_state(hold) == 'compensated'
     gyro_only = CompensatorCore(policy, model.replace(accel=None))
     gyro_only.add_temperature(1.0, 20.0)
-    gyro_only.process(1.5, 0.0, 0.0, 0.0, a)
+    *_, aout, avar = gyro_only.process(1.5, 0.0, 0.0, 0.0, a)
     assert not gyro_only.accel_on and accel_state(gyro_only) == 'not in model'
+    assert aout is None and avar is None
 
 
 def test_a_static_part_is_cached_per_temperature_and_equals_batch(chamber):
     model = chamber['static']
     core = CompensatorCore(Policy(), model)
-    assert core._astatic                      # dT, dT2 without a lag: the cached path
+    assert core.slot.accel.static             # dT, dT2 without a lag: the cached path
     t, temp, acc = chamber['t'], chamber['temp'], chamber['accel']
     out = []
     for k in range(N):
         core.add_temperature(t[k], temp[k])
-        core.process(t[k], *chamber['omega'][k], acc[k])
-        out.append(core.accel_out)
+        *_, aout, avar = core.process(t[k], *chamber['omega'][k], acc[k])
+        out.append(aout)
     batch = compensate_accel(model, t, temp, acc, out_of_range=Policy().out_of_range)
     np.testing.assert_allclose(np.array(out), batch, rtol=0, atol=1e-9)
     # Beyond the range: residual + out_of_range_variance + the linear growth.
     assert core.accel_flags & OUT_OF_RANGE
-    assert core.accel_var[0] > model.accel.residual_var[0] + Policy().out_of_range_variance
+    assert avar[0] > model.accel.residual_var[0] + Policy().out_of_range_variance

@@ -30,7 +30,7 @@ from gyro_tdc.identify import fit_model
 from gyro_tdc.model.modelfile import load_model, save_model
 from gyro_tdc.nodes.compensator_node import CompensatorNode, TEMPERATURE_MESSAGES
 from gyro_tdc.nodes.executors import make_executor
-from gyro_tdc.runtime.core import CompensatorCore, PARAMS, Policy, TEMPERATURE_TYPES
+from gyro_tdc.runtime import CompensatorCore, PARAMS, Policy, TEMPERATURE_TYPES
 from gyro_tdc.runtime.health import health, OK, sensor_mismatch, WARN
 import pytest
 import rclpy
@@ -161,7 +161,7 @@ def test_float_temperature_takes_the_latest_imu_stamp(ros_context, model, tmp_pa
         ref = CompensatorCore(node.core.policy, model)
         ref.process(stamp_s(to_ns(T0)), *w)
         ref.add_temperature(stamp_s(to_ns(T0)), 21.5)
-        wx, wy, wz, _, flags = ref.process(stamp_s(to_ns(t1)), *w)
+        wx, wy, wz, _, flags, _, _ = ref.process(stamp_s(to_ns(t1)), *w)
         assert flags == 0
         assert (out.angular_velocity.x, out.angular_velocity.y, out.angular_velocity.z) == \
             (wx, wy, wz)

@@ -28,7 +28,7 @@ from gyro_tdc.model.compensation import compensate
 from gyro_tdc.model.modelfile import save_model
 from gyro_tdc.nodes.compensator_node import PARAMS
 from gyro_tdc.nodes.executors import make_executor
-from gyro_tdc.runtime.core import CompensatorCore, Policy
+from gyro_tdc.runtime import CompensatorCore, Policy
 import numpy as np
 import pytest
 import rclpy

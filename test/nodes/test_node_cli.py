@@ -30,7 +30,7 @@ import sys
 from gyro_tdc.base.paramspec import help_requested
 from gyro_tdc.base.resources import scenario_names
 from gyro_tdc.nodes import compensator_node, driver_node
-from gyro_tdc.runtime.core import TEMPERATURE_TYPES
+from gyro_tdc.runtime import TEMPERATURE_TYPES
 import pytest
 
 NODES = {'driver_node': driver_node, 'compensator_node': compensator_node}

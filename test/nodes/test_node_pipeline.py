@@ -22,7 +22,7 @@ from gyro_tdc.model.modelfile import save_model
 from gyro_tdc.nodes.compensator_node import CompensatorNode
 from gyro_tdc.nodes.driver_node import DriverNode
 from gyro_tdc.nodes.executors import make_executor
-from gyro_tdc.runtime.health import PASSTHROUGH
+from gyro_tdc.runtime import PASSTHROUGH
 from gyro_tdc.signal.metrics import bias_stability
 from gyro_tdc.sim import simulate_run, to_run
 import numpy as np

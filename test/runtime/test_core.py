@@ -22,10 +22,12 @@ import math
 from gyro_tdc.identify import fit_model
 from gyro_tdc.learn.learner import learned_model, Learner
 from gyro_tdc.model.compensation import compensate, model_temperature, StreamingCompensator
-from gyro_tdc.model.effects import batch_features, EFFECTS
-from gyro_tdc.runtime.core import CompensatorCore, PARAMS, Policy, prepare, STATIC_EFFECTS
-from gyro_tdc.runtime.health import (describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
-                                     OUT_OF_RANGE, PASSTHROUGH, STALE)
+from gyro_tdc.model.effects import batch_features, EFFECTS, STATIC_EFFECTS
+from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.flags import (describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
+                                    OUT_OF_RANGE, PASSTHROUGH, STALE)
+from gyro_tdc.runtime.policy import PARAMS, Policy
+from gyro_tdc.runtime.priming import prepare
 import numpy as np
 import pytest
 from synth import synth_run
@@ -65,7 +67,7 @@ def run_core(core, t, omega, tt, tc):
         while j < tt.size and tt[j] <= t[i]:
             core.add_temperature(tt[j], tc[j])
             j += 1
-        ox, oy, oz, v, f = core.process(t[i], *omega[i])
+        ox, oy, oz, v, f, _, _ = core.process(t[i], *omega[i])
         out.append((ox, oy, oz))
         var.append(v)
         flags.append(f)
@@ -143,7 +145,7 @@ def test_static_model_fast_path_is_bit_identical_to_step(mode):
 def test_no_model_and_no_temperature_pass_through(model):
     core = CompensatorCore(Policy(passthrough_variance=0.5))
     assert core.process(1.0, 0.1, 0.2, 0.3) == (0.1, 0.2, 0.3, (0.5, 0.5, 0.5),
-                                                NO_MODEL | PASSTHROUGH)
+                                                NO_MODEL | PASSTHROUGH, None, None)
     core.set_model(model)
     r = core.process(2.0, 0.1, 0.2, 0.3)
     assert r[:3] == (0.1, 0.2, 0.3) and r[4] == NO_TEMPERATURE | PASSTHROUGH
@@ -185,7 +187,7 @@ def test_stale_temperature(model, policy):
         assert r[:3] == pytest.approx(expect[:3], abs=1e-15)
         assert r[3] == pytest.approx(tuple(v + 0.25 for v in model.residual_var))
     else:
-        assert r == (0.1, 0.2, 0.3, (0.5, 0.5, 0.5), STALE | PASSTHROUGH)
+        assert r == (0.1, 0.2, 0.3, (0.5, 0.5, 0.5), STALE | PASSTHROUGH, None, None)
     core.add_temperature(12.6, 21.0)
     assert core.process(12.7, 0.1, 0.2, 0.3)[4] == 0
     assert core.flag_counts[STALE] == 1

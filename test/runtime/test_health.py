@@ -20,9 +20,10 @@ from dataclasses import replace
 import math
 
 from gyro_tdc.identify import fit_model
-from gyro_tdc.runtime.core import CompensatorCore, Policy
-from gyro_tdc.runtime.health import (describe_flags, ERROR, health, InputStatus, NO_TEMPERATURE,
-                                     NON_FINITE, OK, OUT_OF_RANGE, STALE, WARN)
+from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.flags import describe_flags, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE, STALE
+from gyro_tdc.runtime.health import ERROR, health, InputStatus, OK, WARN
+from gyro_tdc.runtime.policy import Policy
 import pytest
 from synth import synth_run
 

@@ -16,7 +16,6 @@
 
 import math
 
-from gyro_tdc.runtime import core as compensation_logic
 from gyro_tdc.runtime.temperature_hold import TemperatureHold, widen_covariance
 
 
@@ -43,8 +42,3 @@ def test_widen_covariance():
     assert widen_covariance([0.0] * 9, (1.0, 2.0, 3.0)) == [1, 0, 0, 0, 2, 0, 0, 0, 3]
     cov = [-1.0] + [0.0] * 8
     assert widen_covariance(cov, (1.0, 2.0, 3.0)) == cov
-
-
-def test_the_compensation_logic_re_exports_them():
-    assert compensation_logic.TemperatureHold is TemperatureHold
-    assert compensation_logic.widen_covariance is widen_covariance

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.runtime.health import PASSTHROUGH
+from gyro_tdc.runtime import PASSTHROUGH
 import numpy as np
 
 BOUND = 1.3
@@ -56,7 +56,7 @@ def stream(core, learner, d, off, *, poll=600, start=0, stop=None, on_poll=None,
         while j < m and tt[j] <= t:
             core.add_temperature(tt[j], tc[j])
             j += 1
-        ox, oy, oz, _, fl = core.process(t, w[0], w[1], w[2], a)
+        ox, oy, oz, _, fl, _, _ = core.process(t, w[0], w[1], w[2], a)
         out[k] = (ox, oy, oz)
         ok[k] = not fl & PASSTHROUGH
         if k % poll == poll - 1:

@@ -32,7 +32,7 @@ import re
 import xml.etree.ElementTree as ET
 
 from gyro_tdc.nodes import compensator_node, driver_node
-from gyro_tdc.runtime.core import TEMPERATURE_TYPES
+from gyro_tdc.runtime import TEMPERATURE_TYPES
 import pytest
 import yaml
 
