@@ -20,7 +20,7 @@ Usage: ``python tools/pan_holdout.py [--csv PATH] [--blocks 5] [--json OUT]``. P
 model and per held-out block, BS in (deg/s)^2, RMS in deg/s and the ratio to the white-noise
 floor, interior (interpolation) and end (extrapolation) blocks apart, then the same for
 leave-one-burst-out. The evaluation is :func:`gyro_tdc.evaluate.realdata.pan_holdout`; the
-method and its caveats are in ``docs/real_data.md``.
+method and its caveats are in ``doc/real_data.md``.
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
                         help='contiguous blocks of bursts (default: %(default)s); '
                         'leave-one-burst-out is always added')
     parser.add_argument('--json', type=Path, default=None, metavar='OUT',
-                        help='write the figures as JSON (keys in docs/real_data.md)')
+                        help='write the figures as JSON (keys in doc/real_data.md)')
     args = parser.parse_args(argv)
     return run_tool('pan_holdout', lambda: pan_holdout(args.csv, n_blocks=args.blocks),
                     format_holdout, args.json)

@@ -22,7 +22,7 @@ on them under the three out-of-range policies of :mod:`gyro_tdc.model.out_of_ran
 plain linear fit f(dT) (for which the three coincide but clamp) and a bias-only baseline.
 Scores are BS in (deg/s)^2 (:func:`gyro_tdc.evaluate.score.score`, reference 0) and BS over the
 white-noise floor of the held-out bursts (their samples around their own burst means, as in
-``tools/pan_holdout.py``). The table and its reading are in ``docs/real_data.md``.
+``tools/pan_holdout.py``). The table and its reading are in ``doc/real_data.md``.
 """
 
 from __future__ import annotations

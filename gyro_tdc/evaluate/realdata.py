@@ -325,7 +325,7 @@ def burst_holdout(run: Run, *, n_blocks: int = 5, leave_one_out: bool = True,
     -------
     dict
         Plain types (JSON): ``samples``, ``bursts``, ``burst_period_s``, ``temperature_c``,
-        ``t0_c``, ``noise``, ``models`` and ``schemes`` (see ``docs/real_data.md``).
+        ``t0_c``, ``noise``, ``models`` and ``schemes`` (see ``doc/real_data.md``).
 
     """
     burst = burst_index(run.t, gap_s=gap_s)

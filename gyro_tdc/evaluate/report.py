@@ -86,7 +86,7 @@ def _scores(m: Any, floor: Sequence[float] | None, accel_floor: Sequence[float] 
 def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = None,
                     accel_floor: Sequence[float] | None = None) -> dict:
     """
-    Return the evaluation in the documented JSON shape (docs/json.md), nothing more.
+    Return the evaluation in the documented JSON shape (doc/json.md), nothing more.
 
     Parameters
     ----------
@@ -549,7 +549,7 @@ def format_training(result: TrainResult) -> tuple[str, list]:
             f'range of {a:g} .. {b:g} degC ({short} missing): there the model is not '
             'calibrated; the compensator extrapolates along the tangent at the range end '
             f'(out_of_range: linear, up to {MAX_EXTRAPOLATION_C:g} degC, then held; clamp '
-            'or extrapolate are the alternatives, see docs/real_data.md); record the missing '
+            'or extrapolate are the alternatives, see doc/real_data.md); record the missing '
             'temperatures to calibrate them']
     if lagged and th.identifiable is False:
         warns = list(warns) + [
