@@ -5,7 +5,8 @@
 #   make lint    flake8 + pep257 + copyright on gyro_tdc/, test/, bench/, tools/, setup.py
 #   make demo    end-to-end demo into out/demo
 #   make bench   run every bench/*.py (each prints its figures)
-#   make readme-check  run every README command block, in order, in a fresh clone (long)
+#   make readme-check  run every command block of README.md and doc/, in order, in a fresh
+#                clone (long)
 #   make test-apt-versions  the tests in .venv-apt, with Ubuntu 24.04's apt numpy, scipy,
 #                matplotlib and PyYAML and requirements-apt.txt (the robot recipe; not in `test`)
 #   make clean   remove out/ (every README output) and build/test artefacts (keeps .venv;
@@ -73,8 +74,9 @@ bench: venv
 	done; \
 	if [ $${#failed[@]} -gt 0 ]; then echo "make bench: failed: $${failed[*]}" >&2; exit 1; fi
 
-# Every ```bash block of README.md, in order, in a fresh clone of HEAD with its own .venv; stops
-# at the first failing command (test/support/readme_check.py: standard library only, no venv needed).
+# Every ```bash block of README.md, then of the doc/ pages in the site's reading order, in a
+# fresh clone of HEAD with its own .venv; stops at the first failing command, named by page and
+# line (test/support/readme_check.py: standard library only, no venv needed).
 readme-check:
 	@$(DOMAIN); $(PYTHON) test/support/readme_check.py
 

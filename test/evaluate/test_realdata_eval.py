@@ -44,7 +44,7 @@ needs_pan = pytest.mark.skipif(
     not PAN_CSV.is_file(),
     reason=f'real recording {PAN_CSV} is absent (it ships beside the repository in CI)')
 
-# The documented JSON shape (docs/real_data.md).
+# The documented JSON shape (doc/real_data.md).
 TOP_KEYS = {'source', 'samples', 'bursts', 'samples_per_burst', 'burst_period_s',
             'temperature_c', 'temperature_first_last_c', 't0_c', 'noise', 'drift_dps',
             'models', 'schemes', 'rows_removed'}

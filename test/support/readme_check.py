@@ -13,24 +13,28 @@
 # limitations under the License.
 
 """
-Run every command block of README.md, in order, in a fresh clone: ``make readme-check``.
+Run every command block of the README and the doc pages, in order, in a fresh clone.
 
-The repository's committed state (``HEAD``) is cloned into a temporary folder; the README's
-```` ```bash ```` blocks are turned into one bash script (``set -e -o pipefail``) that prints
-each command as ``$ ...`` before running it, in a shell that starts from nothing (no
-``.venv``: the README's own ``make venv`` creates it). The first failing command stops the
-run and is named with its README line. A block whose first line is a comment starting with
-one of :data:`SKIP_MARKERS` (``# robot only: ...``, ``# not run by make readme-check: ...``)
-is skipped, and the rest of that comment is printed as the reason.
+``make readme-check``: the repository's committed state (``HEAD``) is cloned into a
+temporary folder; the ```` ```bash ```` blocks of ``README.md`` and then of every page under
+``doc/`` (:func:`doc_pages`: the order of the site's table of contents, then any other page)
+are turned into one bash script (``set -e -o pipefail``) that prints each command as
+``$ ...`` before running it, in a shell that starts from nothing (no ``.venv``: the README's
+own ``make venv`` creates it). The first failing command stops the run and is named with its
+page and line. A block whose first line is a comment starting with one of
+:data:`SKIP_MARKERS` (``# robot only: ...``, ``# not run by make readme-check: ...``) is
+skipped, and the rest of that comment is printed as the reason.
 
-Standard library only, so it runs before any venv exists (``python3 test/readme_check.py``).
-``test/test_readme.py`` uses :func:`readme_blocks` and :func:`commands` for its fast checks.
+Standard library only, so it runs before any venv exists
+(``python3 test/support/readme_check.py``). ``test/system/test_readme.py`` uses
+:func:`doc_blocks`, :func:`units` and :func:`commands` for its fast checks.
 """
 
 from __future__ import annotations
 
 import argparse
 from dataclasses import dataclass
+import fnmatch
 import os
 from pathlib import Path
 import re
@@ -47,23 +51,29 @@ SKIP_MARKERS = ('# robot only', '# not run by make readme-check')
 _OPENERS = ('for ', 'while ', 'until ', 'if ')
 _CLOSERS = ('done', 'fi')
 _ASSIGNMENT = re.compile(r'^[A-Za-z_][A-Za-z0-9_]*=')
+README = 'README.md'
+DOC = 'doc'
+#: Folders of doc/ that hold no pages of their own (Sphinx extensions, build output).
+DOC_SKIP = ('_ext', '_build')
 
 
 @dataclass(frozen=True)
 class Block:
     """
-    One ```` ```bash ```` block of the README.
+    One ```` ```bash ```` block of the README or of a doc page.
 
     Parameters
     ----------
     line : int
-        README line (1-based) of the block's first line inside the fence.
+        Page line (1-based) of the block's first line inside the fence.
     lines : tuple of str
         The block's lines.
     section : str
-        The ``## `` heading the block sits under.
+        The ``## `` heading the block sits under (the page's ``# `` title before the first).
     skip : str or None
         Why it is not run (its marker comment), or None when it runs.
+    page : str
+        The page, relative to the repository (``README.md``, ``doc/robot.md``).
 
     """
 
@@ -71,6 +81,12 @@ class Block:
     lines: tuple
     section: str
     skip: Optional[str]
+    page: str = README
+
+    @property
+    def where(self) -> str:
+        """Return ``page:line`` of the block's first line."""
+        return f'{self.page}:{self.line}'
 
 
 @dataclass(frozen=True)
@@ -81,14 +97,17 @@ class Unit:
     Parameters
     ----------
     line : int
-        README line of its first line.
+        Page line of its first line.
     lines : tuple of str
-        Its README lines.
+        Its page lines.
+    page : str
+        The page it is on.
 
     """
 
     line: int
     lines: tuple
+    page: str = README
 
     @property
     def text(self) -> str:
@@ -96,19 +115,22 @@ class Unit:
         return '\n'.join(self.lines)
 
 
-def readme_blocks(text: str) -> list:
+def readme_blocks(text: str, page: str = README) -> list:
     """
-    Return every ```` ```bash ```` block of a README, in order.
+    Return every ```` ```bash ```` block of a README or doc page, in order.
 
     Parameters
     ----------
     text : str
-        The README.
+        The page (Markdown: GitHub's or MyST's).
+    page : str
+        Its path relative to the repository, recorded in each block.
 
     Returns
     -------
     list of Block
-        With their README line, section and skip reason.
+        With their line, section and skip reason. Lines inside other fences (```` ```text ````,
+        ```` ```{toctree} ````) are never taken for headings.
 
     """
     blocks = []
@@ -119,6 +141,8 @@ def readme_blocks(text: str) -> list:
         line = lines[i]
         if line.startswith('## '):
             section = line[3:].strip()
+        elif line.startswith('# ') and not section:
+            section = line[2:].strip()
         if line.strip() == '```bash':
             start = i + 1
             j = start
@@ -136,10 +160,113 @@ def readme_blocks(text: str) -> list:
             for marker in SKIP_MARKERS:
                 if ('# ' + first).startswith(marker):
                     skip = first
-            blocks.append(Block(start + 1, body, section, skip))
+            blocks.append(Block(start + 1, body, section, skip, page))
+            i = j
+        elif line.lstrip().startswith('```'):          # another fence: skip its body
+            j = i + 1
+            while j < len(lines) and lines[j].strip() != '```':
+                j += 1
             i = j
         i += 1
     return blocks
+
+
+def _toctree_entries(text: str, rst: bool) -> list:
+    """Return the entries of every toctree of a page, in order (``:glob:`` ones marked)."""
+    entries = []
+    lines = text.splitlines()
+    i = 0
+    while i < len(lines):
+        line = lines[i].strip()
+        opened = line == '.. toctree::' if rst else line.startswith('```{toctree}')
+        i += 1
+        if not opened:
+            continue
+        glob = False
+        while i < len(lines):
+            raw = lines[i]
+            item = raw.strip()
+            if rst and item and not raw[:1].isspace():
+                break                                   # the directive's body ended
+            if not rst and item == '```':
+                break
+            i += 1
+            if item.startswith(':'):
+                glob = glob or item == ':glob:'
+            elif item:
+                target = re.search(r'<([^<>]+)>$', item)
+                entries.append((target.group(1) if target else item, glob))
+    return entries
+
+
+def doc_pages(root: Path) -> list:
+    """
+    Return the pages whose blocks run: ``README.md``, then ``doc/`` in reading order.
+
+    The reading order is the site's: a depth-first walk of the toctrees from
+    ``doc/index.rst`` (or ``index.md``), each page followed by the pages of its own toctrees
+    (``:glob:`` entries in name order). Pages no toctree reaches follow in name order, so
+    every page runs, in a stable order.
+
+    Parameters
+    ----------
+    root : Path
+        The repository.
+
+    Returns
+    -------
+    list of str
+        Paths relative to ``root`` (POSIX), ``README.md`` first when it exists.
+
+    """
+    doc = root / DOC
+    found = sorted(p.relative_to(doc).as_posix() for p in doc.rglob('*')
+                   if p.suffix in ('.md', '.rst') and p.is_file()
+                   and not p.relative_to(doc).parts[0] in DOC_SKIP) if doc.is_dir() else []
+    by_name = {}
+    for rel in found:
+        by_name.setdefault(rel.rsplit('.', 1)[0], rel)
+    order: list = []
+
+    def visit(name: str) -> None:
+        rel = by_name.get(name)
+        if rel is None or rel in order:
+            return
+        order.append(rel)
+        base = name.rsplit('/', 1)[0] + '/' if '/' in name else ''
+        text = (doc / rel).read_text(encoding='utf-8')
+        for entry, glob in _toctree_entries(text, rel.endswith('.rst')):
+            target = entry.lstrip('/') if entry.startswith('/') else base + entry
+            target = os.path.normpath(target).replace(os.sep, '/')
+            if glob:
+                for match in sorted(n for n in by_name if fnmatch.fnmatch(n, target)):
+                    visit(match)
+            else:
+                visit(target.rsplit('.', 1)[0] if target.endswith(('.md', '.rst')) else target)
+
+    visit('index')
+    order += [rel for rel in found if rel not in order]
+    pages = [README] if (root / README).is_file() else []
+    return pages + [f'{DOC}/{rel}' for rel in order]
+
+
+def doc_blocks(root: Path) -> list:
+    """
+    Return every ```` ```bash ```` block of the README and the doc pages, in run order.
+
+    Parameters
+    ----------
+    root : Path
+        The repository.
+
+    Returns
+    -------
+    list of Block
+        :func:`readme_blocks` of each page of :func:`doc_pages`, in that order.
+
+    """
+    return [b for page in doc_pages(root)
+            for b in readme_blocks((root / page).read_text(encoding='utf-8'), page)]
 
 
 def units(block: Block) -> list:
@@ -149,7 +276,7 @@ def units(block: Block) -> list:
     Parameters
     ----------
     block : Block
-        A README block.
+        A README or doc page block.
 
     Returns
     -------
@@ -175,10 +302,10 @@ def units(block: Block) -> list:
                 head.startswith(tuple(c + ';' for c in _CLOSERS)):
             depth -= 1
         if depth <= 0 and not stripped.endswith('\\'):
-            out.append(Unit(start, tuple(current)))
+            out.append(Unit(start, tuple(current), block.page))
             current, depth = [], 0
     if current:
-        out.append(Unit(start, tuple(current)))
+        out.append(Unit(start, tuple(current), block.page))
     return out
 
 
@@ -193,7 +320,7 @@ def commands(unit: Unit) -> list:
     Parameters
     ----------
     unit : Unit
-        One shell command of a README block.
+        One shell command of a block.
 
     Returns
     -------
@@ -252,7 +379,7 @@ def script(blocks: Sequence[Block], *, keep_going: bool = False) -> tuple:
     Parameters
     ----------
     blocks : sequence of Block
-        The README's blocks; skipped ones are left out.
+        The blocks of the README and the doc pages; skipped ones are left out.
     keep_going : bool
         Report every failing command and go on (exit 1 at the end when any failed) instead
         of stopping at the first.
@@ -260,33 +387,33 @@ def script(blocks: Sequence[Block], *, keep_going: bool = False) -> tuple:
     Returns
     -------
     text : str
-        The script: ``set -e -o pipefail``, an ERR trap naming the README line, and for
+        The script: ``set -e -o pipefail``, an ERR trap naming the page and line, and for
         each command a ``$ ...`` line then the command.
     line_map : dict
-        Script line -> README line of the commands.
+        Script line -> ``page:line`` of the commands.
 
     """
-    body: list = []          # (script text line, README line or 0)
+    body: list = []          # (script text line, page:line or '')
     runnable = [b for b in blocks if b.skip is None]
     for n, block in enumerate(runnable, 1):
-        body.append((f'printf "\\n--- README.md:%s, %s (block %s of %s, t = %ss)\\n" '
-                     f'{block.line} {shlex.quote(block.section)} {n} {len(runnable)} '
-                     '"$SECONDS"', 0))
+        body.append((f'printf "\\n--- %s, %s (block %s of %s, t = %ss)\\n" '
+                     f'{shlex.quote(block.where)} {shlex.quote(block.section)} {n} '
+                     f'{len(runnable)} "$SECONDS"', ''))
         for unit in units(block):
             for k, line in enumerate(unit.lines):     # one script line per printed line
                 shown = '$ ' + line.strip() if k == 0 else '  ' + line.rstrip()
-                body.append((f'printf "%s\\n" {shlex.quote(shown)}', 0))
+                body.append((f'printf "%s\\n" {shlex.quote(shown)}', ''))
             for k, line in enumerate(unit.lines):
-                body.append((line, unit.line + k))
+                body.append((line, f'{unit.page}:{unit.line + k}'))
     head = ['#!/bin/bash', 'set -o pipefail' if keep_going else 'set -e -o pipefail',
             'FAILS=0']
     map_line = len(head) + 1
     head.append('')            # the MAP line, filled in below
     head.append('trap \'rc=$?; FAILS=$((FAILS + 1)); echo "readme-check: FAILED (exit $rc) '
-                'at README.md:${MAP[$LINENO]:-?}: $BASH_COMMAND" >&2\' ERR')
-    line_map = {len(head) + k + 1: readme for k, (_, readme) in enumerate(body) if readme}
+                'at ${MAP[$LINENO]:-?}: $BASH_COMMAND" >&2\' ERR')
+    line_map = {len(head) + k + 1: where for k, (_, where) in enumerate(body) if where}
     size = len(head) + len(body) + 2
-    entries = ' '.join(str(line_map.get(k, 0)) for k in range(size))
+    entries = ' '.join(shlex.quote(line_map.get(k, '?')) for k in range(size))
     head[map_line - 1] = f'MAP=({entries})'
     tail = ['trap - ERR', 'test "$FAILS" -eq 0']
     text = '\n'.join(head + [t for t, _ in body] + tail) + '\n'
@@ -311,7 +438,7 @@ def _clean_env() -> dict:
 def run(repo: Path, *, keep: bool = False, workdir: Optional[Path] = None,
         keep_going: bool = False) -> int:
     """
-    Clone ``repo`` and run its README's blocks there; return 0 when every command passed.
+    Clone ``repo`` and run its README's and doc pages' blocks there; 0 when all passed.
 
     Parameters
     ----------
@@ -341,14 +468,17 @@ def run(repo: Path, *, keep: bool = False, workdir: Optional[Path] = None,
             print('readme-check: note: uncommitted changes in the working tree are not '
                   'checked', flush=True)
         subprocess.run(['git', 'clone', '--quiet', str(repo), str(clone)], check=True)
-        blocks = readme_blocks((clone / 'README.md').read_text(encoding='utf-8'))
+        pages = doc_pages(clone)
+        blocks = doc_blocks(clone)
+        print(f'readme-check: pages in order: {", ".join(pages)}')
         for b in blocks:
             if b.skip is not None:
-                print(f'readme-check: skip README.md:{b.line} ({b.section}): {b.skip}')
+                print(f'readme-check: skip {b.where} ({b.section}): {b.skip}')
         runnable = [b for b in blocks if b.skip is None]
         n_commands = sum(len(units(b)) for b in runnable)
-        print(f'readme-check: {len(blocks)} bash blocks, {len(runnable)} to run '
-              f'({n_commands} commands), {len(blocks) - len(runnable)} skipped', flush=True)
+        print(f'readme-check: {len(blocks)} bash blocks in {len(pages)} pages, '
+              f'{len(runnable)} to run ({n_commands} commands), '
+              f'{len(blocks) - len(runnable)} skipped', flush=True)
         text, _ = script(blocks, keep_going=keep_going)
         path = base / 'readme.sh'
         path.write_text(text, encoding='utf-8')
@@ -373,7 +503,8 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
     """Parse the arguments and run the check (see the module docstring)."""
     parser = argparse.ArgumentParser(
         prog='readme_check.py',
-        description='Run every README command block in order in a fresh clone.')
+        description='Run every command block of README.md and doc/, in order, in a fresh '
+                    'clone.')
     parser.add_argument('--repo', type=Path, default=ROOT,
                         help='repository to clone (default: this one)')
     parser.add_argument('--keep', action='store_true', help='keep the clone afterwards')
@@ -383,10 +514,10 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
                         help='run every command even after a failure, report each (for '
                              'diagnosis; make readme-check stops at the first)')
     parser.add_argument('--print-script', action='store_true',
-                        help='print the bash script of this README and exit')
+                        help='print the bash script of the README and doc pages and exit')
     args = parser.parse_args(argv)
     if args.print_script:
-        text, _ = script(readme_blocks((args.repo / 'README.md').read_text(encoding='utf-8')))
+        text, _ = script(doc_blocks(args.repo))
         sys.stdout.write(text)
         return 0
     return run(args.repo, keep=args.keep, workdir=args.workdir, keep_going=args.keep_going)

@@ -350,7 +350,7 @@ def test_pan_range_holdout_tool_runs_and_linear_beats_clamp(capsys):
         assert np.all(lin[:2] < clamp[:2]) and p['linear']['total_ratio'] < \
             0.5 * p['clamp']['total_ratio'], name
         # z has no thermal drift: its fitted slope is wander, and continuing it costs
-        # (docs/real_data.md reports it); never more than a floor for the low-order models.
+        # (doc/real_data.md reports it); never more than a floor for the low-order models.
         if name != 'px4':
             assert lin[2] - clamp[2] < 1.0, name
     # The cubic's tangent is poor, but extrapolating the cubic itself is far worse.

@@ -151,11 +151,11 @@ def test_no_command_prints_usage_and_exits_2():
     assert 'usage:' in proc.stderr
 
 
-def _readme_layout() -> set:
-    """Return the gyro_tdc/**/*.py paths listed in the README's Layout code block."""
-    text = (ROOT / 'README.md').read_text(encoding='utf-8')
+def _doc_layout() -> set:
+    """Return the gyro_tdc/**/*.py paths listed in doc/architecture.md's Layout code block."""
+    text = (ROOT / 'doc' / 'architecture.md').read_text(encoding='utf-8')
     section = text.split('\n## Layout\n', 1)[1].split('\n## ', 1)[0]
-    block = section.split('```\n', 1)[1].split('```', 1)[0]
+    block = section.split('```text\n', 1)[1].split('```', 1)[0]
     stack: list = []     # (indent, directory) of the enclosing folders
     paths = set()
     for line in block.splitlines():
@@ -174,11 +174,11 @@ def _readme_layout() -> set:
     return paths
 
 
-def test_readme_layout_lists_every_module():
-    listed = _readme_layout()
+def test_doc_layout_lists_every_module():
+    listed = _doc_layout()
     modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / 'gyro_tdc').rglob('*.py')}
-    assert sorted(modules - listed) == [], 'modules missing from the README layout'
-    assert sorted(listed - modules) == [], 'README layout names modules that do not exist'
+    assert sorted(modules - listed) == [], 'modules missing from doc/architecture.md Layout'
+    assert sorted(listed - modules) == [], 'doc/architecture.md Layout names missing modules'
 
 
 # -- the apt recipe: what apt gives, what pip adds, and the README that says so ---------------
@@ -234,14 +234,15 @@ def test_make_test_apt_versions_uses_apt_versions():
 
 
 def test_readme_apt_recipe_sources_ros_runs_rosdep_and_pips_only_in_a_venv():
-    from readme_check import readme_blocks
+    from readme_check import doc_blocks
 
     readme = (ROOT / 'README.md').read_text(encoding='utf-8')
-    section = readme.split('\n## Running on a robot\n', 1)[1].split('\n## ', 1)[0]
+    section = readme.split('\n## Install\n', 1)[1].split('\n## ', 1)[0]
     for name, (key, version) in APT_PROVIDED.items():
         assert key in section and version in section, key
-    blocks = readme_blocks(readme)
+    blocks = doc_blocks(ROOT)                        # the README's, then every doc page's
     recipe = next(b for b in blocks if any('rosdep install' in line for line in b.lines))
+    assert recipe.page == 'README.md' and recipe.section == 'Install'
     assert recipe.skip.startswith('robot only')
     lines = [line.split('#', 1)[0].strip() for line in recipe.lines]
     assert lines.index('source /opt/ros/jazzy/setup.bash') == 1   # first, after the marker
@@ -255,7 +256,7 @@ def test_readme_apt_recipe_sources_ros_runs_rosdep_and_pips_only_in_a_venv():
                 assert block is recipe and i > activate, (block.line, line)
                 assert line.split('#')[0].split() == [
                     'pip', 'install', '-r', 'src/gyro_tdc/requirements-apt.txt']
-    # The shipped simulated model only with the simulated driver.
-    for line in section.splitlines():
-        if 'l3gd20_modified' in line and line.startswith('ros2 '):
-            assert 'backend:=sim' in line, line
+    # The shipped simulated model only with the simulated driver, on every page.
+    launches = [line for block in blocks for line in block.lines
+                if 'l3gd20_modified' in line and line.startswith('ros2 ')]
+    assert launches and all('backend:=sim' in line for line in launches), launches
