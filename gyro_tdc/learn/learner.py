@@ -13,77 +13,12 @@
 # limitations under the License.
 
 """
-Learn in the field: the compensator's online bias-vs-temperature learner (issue 14 item 3).
+Learn in the field: the compensator's online bias-vs-temperature learner.
 
-Pure (numpy only). The message path only appends (at most ``max_rate_hz`` samples a second
-of stamps) the stamp, the raw rate and the acceleration to one flat float array, seven
-floats a sample in one ``extend`` (:meth:`Learner.observe`, or the same in
-:meth:`gyro_tdc.runtime.core.CompensatorCore.process`, behind the one stamp compare
-that also installs a learned model when it is due; no object per sample) and thermometer
-readings to a list; everything else runs in :meth:`Learner.step`, which the node calls
-from a timer (never from the IMU callback), vectorised over the samples since.
-
-**Still test.** The one still test of :mod:`gyro_tdc.signal`: windows of
-:data:`~gyro_tdc.signal.STILL_WINDOW_S` on the grid of the first stamp, judged by
-:func:`~gyro_tdc.signal.judge_windows` against :func:`~gyro_tdc.signal.noise_thresholds` of
-the running noise floor (the quietest window so far, gyro and, when the IMU has one,
-accelerometer); consecutive still windows make a stretch, kept when it lasts
-:data:`~gyro_tdc.signal.MIN_STILL_S`. When a stretch ends, its windows that the thresholds
-then in force refuse are dropped with everything before them.
-
-**Model temperature.** Windows are binned and fitted against the model temperature
-(:mod:`gyro_tdc.learn.temperature`): the thermometer held by stamp, through the prior's
-thermal front end when it has a lag, streamed across :meth:`Learner.step` calls and saved,
-so a restart resumes it exactly (a new session restarts it at the next reading). Learned
-models carry the same thermal section. Without a prior, or with kind ``none``, it is the
-thermometer.
-
-**Points.** The windows of a finished stretch are grouped by the bin of their model
-temperature (``bin_c``, 1 degC): each group gives one entry ``(t_end, samples, mean
-temperature, mean raw rate, stretch)``; a long stretch is learned every ``commit_s`` while
-it goes on (one entry per bin and stretch, merged). A bin keeps its :data:`BIN_ENTRIES`
-newest entries, so it learns while heating and while cooling alike and old data fade out.
-
-**Sessions.** A gap in the IMU stamps over ``session_gap_s`` starts a new session (a
-power-up, with its own turn-on offset, e.g. the next day): the fit gives each session its
-own intercept and shares the temperature shape; the model uses the newest session's.
-
-**Fit** and **growth rule**: :mod:`gyro_tdc.learn.fit` (age- and sample-weighted least
-squares, leave-one-out outlier drops, features growing with the covered span).
-
-**Motion veto.** :meth:`Learner.observe_motion` takes outside motion reports
-(``cmd_vel``, odometry): a window overlapping a moving interval is not still
-(:func:`gyro_tdc.runtime.reanchor.windows_moving`; before the first report nothing is vetoed); the
-reports are part of the saved state.
-
-**Prior replaced** (:meth:`Learner.set_prior`, a new ``model_file`` at run time): the new
-model becomes the current one. The points are kept when its thermal section gives the same
-model temperature; otherwise they are dropped (they keep means, not the thermometer history,
-so they cannot be rebinned) and the state restarts. :meth:`Learner.load` applies the same
-rule when the saved thermal section is not the prior's (restarted with another model).
-
-**Swap.** A refit after each finished stretch gives a candidate; it is swapped in only when
-its weighted mean squared error over the windows of the :data:`CHECK_STRETCHES` most recent
-stretches is below the current model's (none: always); the prior (``model_file``, the
-jump-start) is the current model at start. An accepted candidate takes effect at a stamp
-fixed by the data: ``swap_delay_s`` after the sample that let it be computed (the first
-sample after the window that ended or extended the stretch; a new session's first sample)
-(:meth:`Learner.take_swaps`); the compensator makes it ready when it steps the learner and
-installs it at the first message stamped at or after that
-(:meth:`gyro_tdc.runtime.core.CompensatorCore.learn_step`). A candidate handed over
-after that stamp has passed (the learner stepped more than ``swap_delay_s`` of stamps after
-the data: a replay far faster than real time) is installed at once and counted in
-``late_swaps`` (/diagnostics ``learn late swaps``).
-
-**State.** :meth:`Learner.save` and :meth:`Learner.load` keep what is learned in
-``learn_file`` (JSON, :mod:`gyro_tdc.learn.store`), so a restart loses nothing.
-
-**Timing** comes from message stamps only: a bag replayed faster gives the same points, fits,
-accepted candidates and effective stamps, and so the same state and ``learn_file``, however
-often :meth:`step` runs; and, while every step comes within ``swap_delay_s`` of stamps after
-the data, the same compensated output bit for bit (``test/test_learning_cadence.py``).
-Motion reports count in that too when they arrive in stamp order with the IMU (a report
-later than a window's judgement does not veto it).
+Pure (numpy only): the message path appends samples to one flat array; :meth:`Learner.step`
+(from a timer) takes its still windows from the one streaming still test
+(:class:`gyro_tdc.signal.StillWindows`), bins them by model temperature and refits. See
+doc/internals/signal.md for the still test and the learner's use of it.
 """
 
 from __future__ import annotations
@@ -100,9 +35,7 @@ from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, l
 from gyro_tdc.learn.store import decode_state, encode_state, FORMAT, read_state, write_state
 from gyro_tdc.learn.temperature import hold_readings, same_thermal, stream_state
 from gyro_tdc.model import CompensationModel, ThermalState
-from gyro_tdc.runtime import windows_moving
-from gyro_tdc.signal import (has_accelerometer, judge_windows, MIN_STILL_S, noise_thresholds,
-                             STILL_WINDOW_S)
+from gyro_tdc.signal import MIN_STILL_S, STILL_WINDOW_S, StillWindows, Window
 import numpy as np
 from numpy.typing import NDArray
 
@@ -165,9 +98,9 @@ class LearnConfig:
 
 @dataclass
 class _Stretch:
-    """Windows of the current still stretch: rows of (t0, t1, n, temp, mean3, std3, astd3)."""
+    """Windows of the current still stretch (:class:`gyro_tdc.signal.Window`, no samples)."""
 
-    rows: list = field(default_factory=list)
+    rows: list[Window] = field(default_factory=list)
 
 
 class Learner:
@@ -195,8 +128,9 @@ class Learner:
         #: stamp, the raw rate and the acceleration (NaN: none).
         self.buf = array('d')
         self.temps: list[tuple[float, float]] = []
-        #: Motion reports (stamp, moving), from the one held at the window in progress on.
-        self.motion: list[tuple[float, bool]] = []
+        #: The one streaming still test (windows on the grid of the first stamp; a window of
+        #: three samples may be still); it keeps the motion reports.
+        self.still = StillWindows(self.config.window_s, min_samples=3)
         #: Candidates handed over too late (:meth:`take_swaps`): a count of this process, not
         #: of the learned state (it depends on the step cadence, so it is not saved).
         self.late_swaps = 0
@@ -207,9 +141,7 @@ class Learner:
     def reset(self) -> None:
         """Forget everything learned (points, floor, model); the prior is current again."""
         self.bins: dict[int, list[list]] = {}
-        self.gyro_floor = np.full(3, math.inf)
-        self.accel_floor = np.full(3, math.inf)
-        self.t_first: float | None = None
+        self.still.reset()
         self.still_s = 0.0
         self.stretches = 0
         self.windows = 0
@@ -222,13 +154,47 @@ class Learner:
         self.last_save_t: float | None = None
         self.check: dict | None = None
         self.swaps = 0
-        self._pending: tuple | None = None    # rows of the unfinished window
-        self._wend: float | None = None       # its end on the grid (stamp)
         self._stretch = _Stretch()
         self._done = 0
         #: Accepted candidates not handed over yet: (effective stamp or None: at once, model).
         self._swaps: list[tuple[float | None, CompensationModel]] = []
         self._trigger: float | None = None    # stamp of the sample that let a refit run
+
+    @property
+    def gyro_floor(self) -> NDArray[np.float64]:
+        """Return the gyro noise floor, shape (3,), rad/s (the still test's)."""
+        return self.still.gyro_floor
+
+    @gyro_floor.setter
+    def gyro_floor(self, value) -> None:
+        self.still.gyro_floor = np.asarray(value, dtype=np.float64)
+
+    @property
+    def accel_floor(self) -> NDArray[np.float64]:
+        """Return the accelerometer noise floor, shape (3,), m/s^2."""
+        return self.still.accel_floor
+
+    @accel_floor.setter
+    def accel_floor(self, value) -> None:
+        self.still.accel_floor = np.asarray(value, dtype=np.float64)
+
+    @property
+    def t_first(self) -> float | None:
+        """Return the first stamp of the session: the origin of the window grid, s."""
+        return self.still.t_first
+
+    @t_first.setter
+    def t_first(self, value: float | None) -> None:
+        self.still.t_first = value
+
+    @property
+    def motion(self) -> list[tuple[float, bool]]:
+        """Return the motion reports (stamp, moving), from the one held at the window on."""
+        return self.still.motion.reports
+
+    @motion.setter
+    def motion(self, value) -> None:
+        self.still.motion.reports = list(value)
 
     def state(self) -> dict[str, Any]:
         """Return the persistent state as plain types (what :meth:`save` writes)."""
@@ -277,7 +243,7 @@ class Learner:
         self.recent = []
         self.fit, self.model, self._swaps, self.check = None, self.prior, [], None
         self._stretch, self._done = _Stretch(), 0
-        self._pending = self._wend = None
+        self.still.drop_window()
         self.thermal_state = None
 
     def save(self, path: str | Path) -> None:
@@ -323,9 +289,7 @@ class Learner:
         Reports apply when :meth:`step` judges the windows they cover: one that arrives more
         than a window late no longer vetoes the windows already judged.
         """
-        t = float(t)
-        if math.isfinite(t):
-            self.motion.append((t, bool(moving)))
+        self.still.observe_motion(t, moving)
 
     def take_model(self) -> CompensationModel | None:
         """Return the newest model swapped in since the last call (once), else None."""
@@ -360,7 +324,8 @@ class Learner:
     def caught_up(self) -> bool:
         """Return whether :meth:`step` has nothing to judge until the next sample arrives."""
         buf = self.buf
-        return not buf or (self._wend is not None and buf[-SAMPLE] < self._wend)
+        wend = self.still.window_end
+        return not buf or (wend is not None and buf[-SAMPLE] < wend)
 
     def save_due(self) -> bool:
         """Return whether ``save_period_s`` of stamp time passed since the last save."""
@@ -391,7 +356,8 @@ class Learner:
 
         """
         buf = self.buf
-        if not buf or (not force and self._wend is not None and buf[-SAMPLE] < self._wend):
+        wend = self.still.window_end
+        if not buf or (not force and wend is not None and buf[-SAMPLE] < wend):
             return False                  # the window in progress has not ended: wait
         # The core holds this array's extend method: empty it in place (call this on the
         # thread that compensates, as the node's timer does).
@@ -418,36 +384,19 @@ class Learner:
         return swapped
 
     def _batch(self, t, w, acc, temp, new_session: bool) -> bool:
-        """Process samples of one session: cut them into windows, judge the finished ones."""
+        """Process samples of one session: the still test judges the windows they end."""
         swapped = False
         if new_session:
             # A new session (power-up): its own turn-on offset, learned apart; what it
             # closes was computable at its first sample.
             swapped = self.flush(float(t[0]))
             self.session += 1
-            self.t_first = self._wend = None
+            self.still.restart()          # the window grid starts again
             self.thermal_state = None     # after a power-off: steady state at the next reading
         temp, self.thermal_state = stream_state(self.thermal, self.thermal_state, t, temp)
-        if self._pending is not None:
-            pt, pw, pa, ptemp = self._pending
-            if (pa is None) != (acc is None):
-                pa = acc = None
-            t, w, temp = np.concatenate([pt, t]), np.vstack([pw, w]), np.concatenate(
-                [ptemp, temp])
-            acc = None if acc is None else np.vstack([pa, acc])
-        if self.t_first is None:
-            self.t_first = float(t[0])
         self.last_t = float(t[-1])
-        k = np.floor((t - self.t_first) / self.config.window_s).astype(np.int64)
-        cut = np.flatnonzero(k != k[-1])
-        done = cut[-1] + 1 if cut.size else 0
-        self._pending = (t[done:], w[done:], None if acc is None else acc[done:],
-                         temp[done:])
-        self._wend = self.t_first + (int(k[-1]) + 1) * self.config.window_s
-        if done == 0:
-            return swapped
-        return self._windows(t[:done], w[:done], None if acc is None else acc[:done],
-                             temp[:done], k[:done], float(t[done])) or swapped
+        windows = self.still.extend(t, w, acc, temp)
+        return self._windows(windows, None) or swapped
 
     def flush(self, t_trigger: float | None = None) -> bool:
         """
@@ -458,111 +407,62 @@ class Learner:
         """
         swapped = self.step(force=True)
         trigger = self.last_t if t_trigger is None else t_trigger
-        if self._pending is not None and self._pending[0].size:
-            pt, pw, pa, ptemp = self._pending
-            self._pending = self._wend = None
-            k = np.zeros(pt.size, dtype=np.int64)
-            swapped = self._windows(pt, pw, pa, ptemp, k, trigger) or swapped
+        last = self.still.flush()
+        if last is not None:
+            swapped = self._windows([last], trigger) or swapped
         self._trigger = trigger
         return self._close() or swapped
 
-    def _windows(self, t, w, acc, temp, k, t_next) -> bool:
+    def _windows(self, windows: list[Window], t_next: float | None) -> bool:
         """
-        Judge finished windows in order; close and learn the stretches they end.
+        Take judged windows in order; close and learn the stretches they end.
 
-        ``t_next`` (s) is the stamp of the first sample after them: with it the last one
-        was known to be finished (the trigger of what it decides).
+        A window is known finished at the first sample after it (data, not step timing):
+        its ``t_next``, else ``t_next`` here (the trigger of what it decides).
         """
-        start = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
-        n = np.diff(np.r_[start, k.size])
-        s = np.add.reduceat(w, start, axis=0)
-        mean = s / n[:, None]
-        dev = w - np.repeat(mean, n, axis=0)
-        var = np.add.reduceat(dev * dev, start, axis=0) / np.maximum(n - 1, 1)[:, None]
-        std = np.sqrt(var)
-        astd = None
-        if acc is not None and has_accelerometer(acc):
-            am = np.add.reduceat(acc, start, axis=0) / n[:, None]
-            ad = acc - np.repeat(am, n, axis=0)
-            astd = np.sqrt(np.add.reduceat(ad * ad, start, axis=0)
-                           / np.maximum(n - 1, 1)[:, None])
-        tmean = np.add.reduceat(temp, start) / n
-        t0 = t[start]
-        t1 = t[np.r_[start[1:], k.size] - 1]
-        fin = np.isfinite(std).all(axis=1) & np.isfinite(mean).all(axis=1) & (n >= 3)
-        moving = self._moving(t0, t1)
-        # Window i is known finished at the first sample after it (data, not step timing).
-        trigger = np.r_[t[start[1:]], t_next].tolist() if t_next is not None else [
-            float(t[-1])] * start.size
         swapped = False
-        for i in range(start.size):
+        for win in windows:
             self.windows += 1
-            self._trigger = trigger[i]
-            if fin[i]:
-                self.gyro_floor = np.minimum(self.gyro_floor, np.where(std[i] > 0, std[i],
-                                                                       math.inf))
-                if astd is not None:
-                    self.accel_floor = np.minimum(self.accel_floor, np.where(
-                        astd[i] > 0, astd[i], math.inf))
-            g_thr, a_thr = noise_thresholds(self.gyro_floor,
-                                            None if astd is None else self.accel_floor)
-            why = judge_windows(std[i:i + 1], None if astd is None else astd[i:i + 1],
-                                g_thr, a_thr)[0]
-            if not fin[i] or not math.isfinite(tmean[i]):
-                why = 'non-finite'
-            elif moving[i]:
-                why = 'motion'
-            if why:
-                swapped = self._close() or swapped
+            self._trigger = win.t_next if win.t_next is not None else t_next
+            if win.why or not math.isfinite(win.temp_c):
+                swapped = self._close(win.thresholds) or swapped
                 continue
-            self._stretch.rows.append([float(t0[i]), float(t1[i]), int(n[i]),
-                                       float(tmean[i]), mean[i].tolist(), std[i].tolist(),
-                                       None if astd is None else astd[i].tolist()])
+            self._stretch.rows.append(win.light())
             swapped = self._commit() or swapped
         return swapped
 
-    def _moving(self, t0: NDArray[np.float64], t1: NDArray[np.float64]) -> NDArray[np.bool_]:
-        """Return which windows overlap reported motion; forget reports before the last end."""
-        mo = sorted(self.motion, key=lambda r: r[0])
-        if not mo:
-            return np.zeros(t0.size, dtype=bool)
-        mt = np.array([r[0] for r in mo])
-        out = windows_moving(t0, t1, mt, [r[1] for r in mo])
-        held = max(int(np.searchsorted(mt, t1[-1], side='right')) - 1, 0)
-        self.motion = mo[held:]             # the report held at the next window on
-        return out
+    def _close(self, thresholds: tuple | None = None) -> bool:
+        """
+        End the stretch: keep it when long enough, learn what is not learned yet.
 
-    def _close(self) -> bool:
-        """End the stretch: keep it when long enough, learn what is not learned yet."""
+        Its windows that ``thresholds`` (default: those in force) refuse are dropped with
+        everything before them (unless part of it was learned already).
+        """
         rows, self._stretch = self._stretch.rows, _Stretch()
         done, self._done = self._done, 0
         if not rows:
             return False
         if not done:
-            g_thr, a_thr = noise_thresholds(self.gyro_floor, self.accel_floor
-                                            if rows[0][6] is not None else None)
-            bad = judge_windows([r[5] for r in rows], None if rows[0][6] is None else
-                                [r[6] for r in rows], g_thr, a_thr)
-            refused = np.flatnonzero(bad != '')
-            if refused.size:
-                rows = rows[refused[-1] + 1:]
+            j, _ = self.still.last_refused(rows, thresholds)
+            if j >= 0:
+                rows = rows[j + 1:]
             if not rows or self._span(rows) + 1e-9 < self.config.min_still_s:
                 return False
             self.stretches += 1
         return self._learn(rows[done:], rows)
 
     @staticmethod
-    def _span(rows: list) -> float:
-        """Return the duration of consecutive window rows, s (one sample period included)."""
-        n = sum(r[2] for r in rows)
-        return rows[-1][1] - rows[0][0] + (rows[-1][1] - rows[0][0]) / max(n - 1, 1)
+    def _span(rows: list[Window]) -> float:
+        """Return the duration of consecutive windows, s (one sample period included)."""
+        n = sum(r.n for r in rows)
+        return rows[-1].t1 - rows[0].t0 + (rows[-1].t1 - rows[0].t0) / max(n - 1, 1)
 
     def _commit(self) -> bool:
         """Learn a long stretch's windows so far (every ``commit_s``) while it goes on."""
         rows = self._stretch.rows
         done = self._done
         if (self._span(rows) < self.config.min_still_s
-                or (done and rows[-1][1] - rows[done][0] < self.config.commit_s)):
+                or (done and rows[-1].t1 - rows[done].t0 < self.config.commit_s)):
             return False
         if not done:
             self.stretches += 1
@@ -573,16 +473,16 @@ class Learner:
         """Bin new windows of the current stretch (merged per bin), refit, maybe swap."""
         if not new:
             return False
-        n = sum(r[2] for r in new)
-        self.still_s += new[-1][1] - new[0][0] + (new[-1][1] - new[0][0]) / max(n - 1, 1)
+        n = sum(r.n for r in new)
+        self.still_s += new[-1].t1 - new[0].t0 + (new[-1].t1 - new[0].t0) / max(n - 1, 1)
         groups: dict[int, list] = {}
         for r in new:
-            groups.setdefault(int(math.floor(r[3] / self.config.bin_c)), []).append(r)
+            groups.setdefault(int(math.floor(r.temp_c / self.config.bin_c)), []).append(r)
         sid = self.stretches
         for b, rs in groups.items():
-            m = sum(r[2] for r in rs)
-            entry = [float(rs[-1][1]), float(m), sum(r[3] * r[2] for r in rs) / m,
-                     tuple(sum(r[4][a] * r[2] for r in rs) / m for a in range(3)), sid,
+            m = sum(r.n for r in rs)
+            entry = [float(rs[-1].t1), float(m), sum(r.temp_c * r.n for r in rs) / m,
+                     tuple(sum(r.gyro_mean[a] * r.n for r in rs) / m for a in range(3)), sid,
                      self.session]
             lst = self.bins.setdefault(b, [])
             if lst and lst[-1][4] == sid:          # the same stretch: one entry per bin
@@ -595,13 +495,13 @@ class Learner:
             else:
                 lst.append(entry)
             del lst[:-BIN_ENTRIES]
-        recent = [[r[2], r[3], *r[4], r[1]] for r in rows]
+        recent = [[r.n, r.temp_c, *r.gyro_mean, r.t1] for r in rows]
         if self.recent and self.recent[-1][0] == sid:
             self.recent[-1] = [sid, self.session, recent]
         else:
             self.recent.append([sid, self.session, recent])
         del self.recent[:-CHECK_STRETCHES]
-        return self._refit(new[-1][1])
+        return self._refit(new[-1].t1)
 
     # -- the fit ----------------------------------------------------------------------
 

@@ -13,59 +13,12 @@
 # limitations under the License.
 
 """
-Stillness and re-anchoring: is the IMU still, and how precisely is the offset shift known.
+Re-anchoring: average the compensated rate over still windows until its mean is precise.
 
-Pure (numpy only); the one home of the stillness test and of the re-anchoring rule, used by
-the compensator's start-up re-anchoring (:class:`StillnessDetector`, fed one sample at a
-time by :class:`gyro_tdc.runtime.core.CompensatorCore`) and by ``evaluate --reanchor
-auto`` (:func:`reanchor_shift`, on a whole run).
-
-**Windows.** Samples are cut into consecutive windows: a window ends at the first sample at
-least ``window`` seconds after its first one. The stillness test judges whole windows: the
-raw rate's per-axis standard deviation, the mean compensated rate (the shift, at most
-``max_rate``) and, when there is one, the acceleration's standard deviation.
-
-**Thresholds from the stream's own noise.** The still test itself (statistic, thresholds,
-verdict) is :mod:`gyro_tdc.signal`, the one home the trainer and the accelerometer part use
-too; this detector is its streaming form: it keeps the window sums and the running noise
-floor and asks :func:`gyro_tdc.signal.noise_thresholds` and
-:func:`gyro_tdc.signal.judge_windows` for the verdict. ``gyro_std`` and ``accel_std`` of 0
-(the default) mean *auto*: the threshold is :data:`NOISE_FACTOR` times the noise floor, the
-smallest window standard deviation seen so far (per axis: the quietest window), so the test
-scales with the sensor and the sample rate (1 Hz to 2 kHz) without tuning. Until
-:data:`NOISE_WINDOWS` windows have been seen the gyro threshold is also held below
-:data:`NOISE_FACTOR` times the model's residual standard deviation (the prior the
-compensator passes with :meth:`StillnessDetector.reset`), so a first window that moves is
-not taken as the floor. When the floor drops, windows of the current run above the new
-threshold are dropped with everything before them. A slow constant turn has no spread: the
-shift bound ``max_rate`` (a plausible session-to-session bias offset, not a noise figure)
-and the accelerometer reject it. A positive ``gyro_std``/``accel_std`` is a fixed override.
-
-**Precision-driven re-anchoring.** Once a window is still, averaging goes on over the
-following still windows until the standard error (SE) of the mean shift is at most the
-tolerance on every axis, or :func:`max_windows` windows (``window_max`` seconds) have been
-averaged. The SE comes from the scatter of block means (:func:`standard_error`): each window
-is cut into blocks of :func:`block_length` (``window / 50``, at most 1 s), and
-``SE^2 = m / (m - 1) * sum_k n_k^2 (mean_k - mean)^2 / N^2`` over the ``m`` blocks of ``n_k``
-samples (``N`` in all): one sample per block at 1 Hz gives the usual ``s / sqrt(N)``; at
-2 kHz a block holds hundreds of samples, so noise correlated over less than a block (an
-oversampled, low-passed stream) still gives an honest SE. The default tolerance is
-:func:`default_tolerance`: :data:`TOLERANCE_FRACTION` (0.1) of the model's residual standard
-deviation per axis, at least :data:`TOLERANCE_FLOOR` (1e-5 rad/s, 2 deg/h): the anchor is
-then ten times more precise than the model's own scatter, and as the SE of a mean over time
-does not depend on the sample rate, a 1 Hz and a 1 kHz stream of one sensor stop at the
-same precision. Motion before the tolerance is met drops the run (an imprecise anchor can
-add more noise than the offset it removes); re-anchoring waits for the next still period.
-
-**Motion veto.** A vehicle turning slowly at a constant rate has no spread and an
-accelerometer that may not see it: its windows pass the noise test (false stillness). An
-outside motion report (``cmd_vel``, odometry) vetoes them: :meth:`StillnessDetector.
-observe_motion` (and :meth:`gyro_tdc.learn.learner.Learner.observe_motion`) take ``(t, moving)``;
-a report holds from its stamp until the next one, and a window that overlaps a moving
-interval is not still (:func:`windows_moving`; at a report's stamp the held state is that
-of :func:`gyro_tdc.signal.motion_veto`, the trainer's batch form). Until the first report
-the veto is off and the noise test alone decides (a stream with no motion input behaves as
-before; a node with a motion topic sees its first report within a window of starting).
+:class:`StillnessDetector` (the compensator's start-up re-anchoring) stacks the block-means
+standard error on the windows of the one streaming still test
+(:class:`gyro_tdc.signal.StillWindows`); :func:`reanchor_shift` is the rule on a whole run
+(``evaluate --reanchor auto``). See doc/internals/signal.md.
 """
 
 from __future__ import annotations
@@ -74,10 +27,10 @@ from dataclasses import dataclass
 import math
 from typing import NamedTuple, Sequence
 
-from gyro_tdc.signal import (judge_windows, motion_veto, NOISE_FACTOR, noise_thresholds,
-                             NOISE_WINDOWS, STILL_WINDOW_S)
+from gyro_tdc.signal import (NOISE_FACTOR, NOISE_WINDOWS, STILL_WINDOW_S, StillWindows, Window,
+                             windows_moving)
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 __all__ = ['Anchor', 'BLOCKS_PER_WINDOW', 'BlockStats', 'MAX_BLOCK_S', 'NOISE_FACTOR',
            'NOISE_WINDOWS', 'STILL_WINDOW_MAX_S', 'STILL_WINDOW_S', 'Shift',
@@ -320,44 +273,6 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
     return Shift(delta, standard_error(total), total.n, float(t[last] - t[0]), reason)
 
 
-def windows_moving(t_start: ArrayLike, t_end: ArrayLike, motion_t: ArrayLike,
-                   moving: ArrayLike) -> NDArray[np.bool_]:
-    """
-    Return which windows overlap a moving interval of the motion reports.
-
-    A report at stamp ``t`` holds from ``t`` until the next report. Before the first report
-    nothing is vetoed (see the module docstring).
-
-    Parameters
-    ----------
-    t_start, t_end : ArrayLike, shape (W,), s
-        First and last stamp of each window.
-    motion_t : ArrayLike, shape (M,), s
-        Report stamps, increasing.
-    moving : ArrayLike, shape (M,) of bool
-        Per report, whether it says the vehicle moves.
-
-    Returns
-    -------
-    NDArray[np.bool_], shape (W,)
-        True where the report held at ``t_start`` or any report within
-        ``(t_start, t_end]`` says motion.
-
-    """
-    t0 = np.atleast_1d(np.asarray(t_start, dtype=np.float64))
-    t1 = np.atleast_1d(np.asarray(t_end, dtype=np.float64))
-    mt = np.asarray(motion_t, dtype=np.float64).reshape(-1)
-    mv = np.asarray(moving, dtype=bool).reshape(-1)
-    if mt.size == 0:
-        return np.zeros(t0.shape, dtype=bool)
-    held = motion_veto(t0, mt, mv) & (t0 >= mt[0])
-    # Moving reports within (t_start, t_end]: a difference of a running count.
-    count = np.concatenate([[0], np.cumsum(mv)])
-    inside = (count[np.searchsorted(mt, t1, side='right')]
-              - count[np.searchsorted(mt, t0, side='right')])
-    return held | (inside > 0)
-
-
 class _Window(NamedTuple):
     """One still window of the current run."""
 
@@ -373,13 +288,18 @@ class StillnessDetector:
     """
     Decide from consecutive windows that the gyro is still, and average the shift precisely.
 
+    The windows and their verdict are :class:`gyro_tdc.signal.StillWindows` (cut ``'span'``:
+    a window ends with its first sample ``window`` after its first one); consecutive still
+    windows make a run, whose block statistics of the compensated rate give the shift and
+    its standard error.
+
     Parameters
     ----------
     window : float, s
         Window length: the shortest averaging.
     gyro_std : float, rad/s
         Largest raw-rate standard deviation per axis over a window; 0: auto (from the
-        stream's noise, see the module docstring).
+        stream's noise).
     max_rate : float, rad/s
         Largest mean compensated rate over a window (the largest shift).
     accel_std : float, m/s^2
@@ -406,16 +326,28 @@ class StillnessDetector:
         self.tolerance: Vec3 = ((self.fixed_tolerance,) * 3 if self.fixed_tolerance > 0
                                 else _INF3)
         self.noise_prior: Vec3 | None = None
-        #: Motion reports (stamp, moving) from the one held at the window in progress on.
-        self.motion: list[tuple[float, bool]] = []
+        #: The one streaming still test; re-anchoring windows hold at least two samples.
+        self.still = StillWindows(self.window, cut='span', gyro_std=self.gyro_std,
+                                  accel_std=self.accel_std, max_rate=self.max_rate,
+                                  min_samples=2)
         self.reset()
+
+    @property
+    def motion(self) -> list[tuple[float, bool]]:
+        """Return the motion reports (stamp, moving) from the one held at the window on."""
+        return self.still.motion.reports
+
+    @property
+    def windows_seen(self) -> int:
+        """Return the windows judged since :meth:`reset`."""
+        return self.still.windows_seen
 
     def observe_motion(self, t: float, moving: bool) -> None:
         """
         Record a motion report: from stamp ``t`` until the next report, moving or not.
 
-        A window that overlaps a moving interval is not still (the module docstring);
-        :meth:`reset` keeps the reports (they are of the vehicle, not of the model).
+        A window that overlaps a moving interval is not still; :meth:`reset` keeps the
+        reports (they are of the vehicle, not of the model).
 
         Parameters
         ----------
@@ -425,28 +357,7 @@ class StillnessDetector:
             Whether it reports motion.
 
         """
-        t = float(t)
-        if not math.isfinite(t):
-            return
-        rep = (t, bool(moving))
-        if not self.motion or t >= self.motion[-1][0]:
-            self.motion.append(rep)
-        else:                                   # out of order: keep the list sorted
-            self.motion.append(rep)
-            self.motion.sort(key=lambda r: r[0])
-
-    def _moving(self, t_start: float, t_end: float) -> bool:
-        """Return whether the window overlaps motion; forget reports before its end."""
-        mo = self.motion
-        if not mo:
-            return False
-        moving = bool(windows_moving([t_start], [t_end], [r[0] for r in mo],
-                                     [r[1] for r in mo])[0])
-        held = 0
-        while held + 1 < len(mo) and mo[held + 1][0] <= t_end:
-            held += 1
-        del mo[:held]                           # keep the report held at the next window
-        return moving
+        self.still.observe_motion(t, moving)
 
     def reset(self, *, residual_var: Sequence[float] | None = None) -> None:
         """
@@ -463,37 +374,9 @@ class StillnessDetector:
             self.noise_prior = tuple(math.sqrt(max(float(v), 0.0)) for v in residual_var)
             if self.fixed_tolerance <= 0:
                 self.tolerance = default_tolerance(residual_var)
-        self.noise_gyro = [math.inf] * 3
-        self.noise_accel = [math.inf] * 3
-        self.windows_seen = 0
+        self.still.reset(prior_std=self.noise_prior)
         self._run: list[_Window] = []
         self._c: Vec3 = (0.0, 0.0, 0.0)
-        self._start()
-
-    def _start(self) -> None:
-        """Start a new window with the next sample."""
-        self._t0: float | None = None
-        self._n = 0
-        self._g = [[0.0, 0.0] for _ in range(3)]     # Welford mean, M2 of the raw rate
-        self._a = [[0.0, 0.0] for _ in range(3)]     # ... of the acceleration
-        self._accel = True
-        self._k = None                               # current block, its count and sums
-        self._bn = 0
-        self._bs = [0.0, 0.0, 0.0]
-        self._st = [0, 0, [0.0] * 3, [0.0] * 3, [0.0] * 3, 0.0]   # n m s a b c2
-
-    def _fold(self) -> None:
-        """Add the current block to the window's sums."""
-        if not self._bn:
-            return
-        st, n = self._st, self._bn
-        st[0] += n
-        st[1] += 1
-        for i, v in enumerate(self._bs):
-            st[2][i] += v
-            st[3][i] += v * v
-            st[4][i] += v * n
-        st[5] += float(n * n)
 
     def update(self, t: float, raw: Sequence[float], out: Sequence[float],
                accel: Sequence[float] | None, temp_c: float) -> Anchor | None:
@@ -517,88 +400,52 @@ class StillnessDetector:
             The anchor when the averaging just ended, else None.
 
         """
-        if self._t0 is None:
-            self._t0 = t
-            if not self._run:
-                self._c = (float(out[0]), float(out[1]), float(out[2]))
-        self._n += 1
-        n = self._n
-        for w, v in zip(self._g, raw):
-            d = v - w[0]
-            w[0] += d / n
-            w[1] += d * (v - w[0])
-        if accel is None:
-            self._accel = False
-        else:
-            for w, v in zip(self._a, accel):
-                d = v - w[0]
-                w[0] += d / n
-                w[1] += d * (v - w[0])
-        k = math.floor((t - self._t0) / self.block_s)
-        if k != self._k:
-            self._fold()
-            self._k, self._bn, self._bs = k, 0, [0.0, 0.0, 0.0]
-        self._bn += 1
-        bs, c = self._bs, self._c
-        bs[0] += out[0] - c[0]
-        bs[1] += out[1] - c[1]
-        bs[2] += out[2] - c[2]
-        if t - self._t0 < self.window or n < 2:
-            return None
-        self._fold()
-        return self._judge(t, temp_c)
+        w = self.still.add(t, raw, accel, rate=out, temp_c=temp_c)
+        return None if w is None else self._judge(w)
 
-    def _thresholds(self) -> tuple[list[float], list[float]]:
-        """Return the gyro and accelerometer thresholds in force (fixed or auto)."""
-        early = self.windows_seen < NOISE_WINDOWS
-        g, a = noise_thresholds(self.noise_gyro, self.noise_accel, gyro_std=self.gyro_std,
-                                accel_std=self.accel_std,
-                                prior_std=self.noise_prior if early else None)
-        return g.tolist(), a.tolist()
+    def _blocks(self, w: Window) -> BlockStats:
+        """
+        Return the block statistics of a window's compensated rate around the run's centre.
 
-    def _judge(self, t: float, temp_c: float) -> Anchor | None:
-        """Judge the window that just ended; extend, drop or finish the run."""
-        n = self._n
-        st = self._st
-        stats = BlockStats(st[0], st[1], tuple(st[2]), tuple(st[3]), tuple(st[4]), st[5])
-        g_std = tuple(math.sqrt(w[1] / (n - 1)) for w in self._g)
-        a_std = tuple(math.sqrt(w[1] / (n - 1)) for w in self._a) if self._accel else None
-        mean_out = [ci + si / st[0] for ci, si in zip(self._c, st[2])]
-        t_start = self._t0
-        self._start()
-        self.windows_seen += 1
-        for i, v in enumerate(g_std):
-            if v > 0:
-                self.noise_gyro[i] = min(self.noise_gyro[i], v)
-        if a_std is not None:
-            for i, v in enumerate(a_std):
-                if v > 0:
-                    self.noise_accel[i] = min(self.noise_accel[i], v)
-        g_thr, a_thr = self._thresholds()
-        if self._moving(t_start, t):
-            self.windows_rejected += 1
-            self._run = []          # the vehicle reports motion: not still, start over
-            return None
+        Each block's sum runs sample by sample (as a stream adds them), then the blocks in
+        order.
+        """
+        t, x = w.t, w.rate - np.asarray(self._c)
+        k = np.floor((t - t[0]) / self.block_s)
+        starts = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]])).tolist()
+        n = m = 0
+        s, a, b = [0.0] * 3, [0.0] * 3, [0.0] * 3
+        c2 = 0.0
+        for i0, i1 in zip(starts, starts[1:] + [t.size]):
+            nk = i1 - i0
+            n += nk
+            m += 1
+            for i, v in enumerate(x[i0:i1].sum(axis=0).tolist()):
+                s[i] += v
+                a[i] += v * v
+                b[i] += v * nk
+            c2 += float(nk * nk)
+        return BlockStats(n, m, tuple(s), tuple(a), tuple(b), c2)
 
-        def quiet(g: Vec3, a: Vec3 | None) -> bool:
-            return judge_windows([g], None if a is None else [a], g_thr, a_thr)[0] == ''
-
-        if judge_windows([g_std], None if a_std is None else [a_std], g_thr, a_thr,
-                         mean_rate=[mean_out], max_rate=self.max_rate)[0]:
+    def _judge(self, w: Window) -> Anchor | None:
+        """Extend, drop or finish the run with the window that just ended."""
+        if not self._run:                 # a run starts: its centring constant
+            self._c = tuple(w.rate[0].tolist())
+        if w.why:
             self.windows_rejected += 1
             self._run = []          # motion before the tolerance was met: start over
             return None
         run = self._run
-        run.append(_Window(t_start, t, stats, g_std, a_std, float(temp_c)))
-        # A lower floor may show earlier windows of the run as moving: keep what follows.
-        for j in range(len(run) - 1, -1, -1):
-            if not quiet(run[j].gyro_std, run[j].accel_std):
-                del run[:j + 1]
-                self.windows_rejected += 1
-                return None
+        temp_c = float(w.temp[-1])
+        run.append(_Window(w.t0, w.t1, self._blocks(w), w.gyro_std, w.accel_std, temp_c))
+        j, _ = self.still.last_refused(run, w.thresholds)
+        if j >= 0:
+            del run[:j + 1]
+            self.windows_rejected += 1
+            return None
         total = BlockStats()
-        for w in run:
-            total = total + w.stats
+        for r in run:
+            total = total + r.stats
         se = standard_error(total)
         if all(s <= v for s, v in zip(se, self.tolerance)):
             reason = 'precision'
@@ -608,10 +455,11 @@ class StillnessDetector:
             return None
         if len(run) == 1 and self.window_max <= self.window:
             reason = ''
+        t = w.t1
         delta = tuple(ci + si / total.n for ci, si in zip(self._c, total.s))
-        g_rms = tuple(math.sqrt(sum(w.gyro_std[i] ** 2 for w in run) / len(run))
+        g_rms = tuple(math.sqrt(sum(r.gyro_std[i] ** 2 for r in run) / len(run))
                       for i in range(3))
-        anchor = Anchor(t, delta, total.n, g_rms, float(temp_c), t - run[0].t_start, se,
+        anchor = Anchor(t, delta, total.n, g_rms, temp_c, t - run[0].t_start, se,
                         self.tolerance, reason)
         self._run = []
         return anchor

@@ -25,8 +25,10 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'blocks': ['block_counts', 'block_length', 'block_mean', 'block_sum', 'block_sumsq'],
     'metrics': ['allan_deviation', 'bias_stability', 'noise_readouts', 'p_ratios', 'rms_dps'],
     'still_batch': ['detect_still', 'Stillness'],
-    'still_stream': ['StreamingStill'],
+    'still_stream': ['MotionReports', 'StillSegment', 'StillWindows', 'StreamingStill',
+                     'Window'],
     'still_verdict': ['has_accelerometer', 'judge_windows', 'MAX_RATE', 'MIN_STILL_S',
                       'MIN_WINDOW_SAMPLES', 'MOTION_EPS', 'motion_veto', 'NOISE_FACTOR',
-                      'noise_floor', 'noise_thresholds', 'NOISE_WINDOWS', 'STILL_WINDOW_S'],
+                      'noise_floor', 'noise_thresholds', 'NOISE_WINDOWS', 'STILL_WINDOW_S',
+                      'windows_moving'],
 })

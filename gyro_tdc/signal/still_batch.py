@@ -15,9 +15,8 @@
 """
 The batch form of the still test: :func:`detect_still` over a whole run.
 
-The windows, thresholds and verdict are those of :mod:`gyro_tdc.signal.still_verdict`; the auto
-thresholds know the run's noise floor from the start (the quietest window that may be
-still). See :mod:`gyro_tdc.signal` for the test.
+The verdict is :mod:`gyro_tdc.signal.still_verdict`'s; the auto thresholds know the run's noise
+floor from the start. See doc/internals/signal.md.
 """
 
 from __future__ import annotations

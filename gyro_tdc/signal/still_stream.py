@@ -13,40 +13,423 @@
 # limitations under the License.
 
 """
-The streaming form of the still test: :class:`StreamingStill`, one sample at a time.
+The streaming form of the still test: windows judged one sample (or one chunk) at a time.
 
-It returns each still stretch (:class:`StillSegment`: its mean rate and temperature) as it
-ends, equal to :func:`gyro_tdc.signal.detect_still` on the same samples once the noise
-floor is known. See :mod:`gyro_tdc.signal` for the test.
+:class:`StillWindows` is the one streaming detector (windows, running noise floor, motion
+reports, verdict); :class:`StreamingStill` adds still stretches. See doc/internals/signal.md.
 """
 
 from __future__ import annotations
 
+from array import array
 from dataclasses import dataclass
 import math
+from typing import NamedTuple, Sequence
 
 from gyro_tdc.signal.still_verdict import (has_accelerometer, judge_windows, MAX_RATE, MIN_STILL_S,
                                            MIN_WINDOW_SAMPLES, noise_thresholds, NOISE_WINDOWS,
-                                           REASONS, STILL_WINDOW_S)
+                                           REASONS, STILL_WINDOW_S, windows_moving)
 import numpy as np
-from numpy.typing import ArrayLike
+from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['StillSegment', 'StreamingStill']
+__all__ = ['CUTS', 'MotionReports', 'StillSegment', 'StillWindows', 'StreamingStill', 'Window']
+
+#: How a stream is cut into windows: ``'grid'``, on ``floor((t - t_first) / window_s)`` (the
+#: batch form's grid; a window is judged when the first sample of the next arrives), or
+#: ``'span'``, a window ends with (and includes) its first sample at least ``window_s``
+#: after its first one (the re-anchoring's windows).
+CUTS = ('grid', 'span')
+
+#: Columns of a buffered sample: stamp, raw rate (3), acceleration (3), rate (3), temperature.
+_COLS = 11
+_NAN3 = (math.nan, math.nan, math.nan)
 
 
-def _accumulate(v: ArrayLike, c: list, s: list, q: list | None = None) -> None:
-    """Add ``v - c`` to the running sums ``s`` and, when given, its square to ``q``."""
-    for i in range(3):
-        d = v[i] - c[i]
-        s[i] += d
-        if q is not None:
-            q[i] += d * d
+class Window(NamedTuple):
+    """
+    One judged window of a stream (:class:`StillWindows`).
+
+    Parameters
+    ----------
+    t0, t1 : float, s
+        First and last stamp.
+    n : int
+        Samples.
+    gyro_mean, gyro_std : tuple of 3 float, rad/s
+        Raw-rate mean and standard deviation (ddof 1).
+    accel_std : tuple of 3 float, m/s^2, or None
+        The acceleration's standard deviation (None: the window has no accelerometer data).
+    rate_mean : tuple of 3 float, rad/s, or None
+        Mean of the ``rate`` given (None: none was).
+    temp_c : float, degC
+        Mean temperature given (NaN when a sample had none).
+    moving : bool
+        A motion report or flag vetoed it.
+    why : str
+        ``''`` for a still window, else why not (one of :data:`REASONS`).
+    thresholds : tuple of two tuples of 3 float
+        Gyro (rad/s) and accelerometer (m/s^2) thresholds in force when it was judged.
+    t_next : float or None, s
+        Stamp of the sample that ended it (``'grid'``: the next window's first; None when
+        it ended with its own last sample or was flushed).
+    samples : NDArray[np.float64], shape (n, 11), or None
+        Its samples: stamp, raw rate, acceleration, rate, temperature (NaN: not given);
+        None in a window kept without them (:meth:`light`).
+
+    """
+
+    t0: float
+    t1: float
+    n: int
+    gyro_mean: tuple
+    gyro_std: tuple
+    accel_std: tuple | None
+    rate_mean: tuple | None
+    temp_c: float
+    moving: bool
+    why: str
+    thresholds: tuple
+    t_next: float | None
+    samples: NDArray[np.float64] | None
+
+    def light(self) -> 'Window':
+        """Return the window without its samples (to keep many without their memory)."""
+        return self._replace(samples=None)
+
+    @property
+    def t(self) -> NDArray[np.float64]:
+        """Return the stamps, shape (n,), s."""
+        return self.samples[:, 0]
+
+    @property
+    def rate(self) -> NDArray[np.float64]:
+        """Return the ``rate`` given, shape (n, 3), rad/s (NaN: not given)."""
+        return self.samples[:, 7:10]
+
+    @property
+    def temp(self) -> NDArray[np.float64]:
+        """Return the temperatures, shape (n,), degC (NaN: not given)."""
+        return self.samples[:, 10]
 
 
-def _std(s: list, q: list, n: int) -> list:
-    """Return per-axis standard deviations (ddof 1) from centred sums (NaN below 2 samples)."""
-    return [math.sqrt(max(qi - si * si / n, 0.0) / (n - 1)) if n > 1 else math.nan
-            for si, qi in zip(s, q)]
+class MotionReports:
+    """
+    Outside motion reports (``cmd_vel``, odometry): each holds from its stamp to the next.
+
+    A window that overlaps a moving interval is vetoed (:func:`windows_moving`; before the
+    first report nothing is). Reports are kept from the one held at the window in progress on.
+    """
+
+    def __init__(self) -> None:
+        #: Reports (stamp, moving), in stamp order.
+        self.reports: list[tuple[float, bool]] = []
+
+    def add(self, t: float, moving: bool) -> None:
+        """Record a report (a non-finite stamp is ignored)."""
+        t = float(t)
+        if not math.isfinite(t):
+            return
+        rep = (t, bool(moving))
+        self.reports.append(rep)
+        if len(self.reports) > 1 and t < self.reports[-2][0]:     # out of order
+            self.reports.sort(key=lambda r: r[0])
+
+    def veto(self, t0: float, t1: float) -> bool:
+        """Return whether ``[t0, t1]`` overlaps motion; drop reports before the one held at t1."""
+        mo = self.reports
+        if not mo:
+            return False
+        mt = [r[0] for r in mo]
+        moving = bool(windows_moving([t0], [t1], mt, [r[1] for r in mo])[0])
+        held = max(int(np.searchsorted(mt, t1, side='right')) - 1, 0)
+        del mo[:held]
+        return moving
+
+
+def _moments(x: NDArray[np.float64], start: NDArray[np.int64], n: NDArray[np.int64]
+             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return per-window means and standard deviations (ddof 1, two passes) of ``x`` (N, 3)."""
+    mean = np.add.reduceat(x, start, axis=0) / n[:, None]
+    dev = x - np.repeat(mean, n, axis=0)
+    var = np.add.reduceat(dev * dev, start, axis=0) / np.maximum(n - 1, 1)[:, None]
+    return mean, np.sqrt(var)
+
+
+class StillWindows:
+    """
+    The still test one sample at a time: each window's statistics and verdict as it ends.
+
+    The verdict is :func:`judge_windows` against :func:`noise_thresholds` of the running
+    noise floor (the quietest window so far with at least ``min_samples`` finite samples),
+    held below the prior over the first :data:`NOISE_WINDOWS` windows when one is given; a
+    window is vetoed by a ``moving`` sample flag or a motion report (:meth:`observe_motion`),
+    and with a ``rate`` its mean is at most ``max_rate``. Acceleration counts for a window
+    when every sample has a finite one and :func:`has_accelerometer` says it is data.
+
+    Parameters
+    ----------
+    window_s : float, s
+        Window length.
+    cut : str
+        One of :data:`CUTS`.
+    gyro_std, accel_std : float
+        Fixed thresholds, rad/s and m/s^2; 0: auto.
+    max_rate : float, rad/s
+        Largest mean of the ``rate`` given over a still window.
+    min_samples : int
+        Fewest samples of a window that may be still (and lower the floor).
+    prior_std : sequence of 3 float, rad/s, optional
+        Prior of the gyro's scatter (a model's residual standard deviation).
+
+    """
+
+    def __init__(self, window_s: float = STILL_WINDOW_S, *, cut: str = 'grid',
+                 gyro_std: float = 0.0, accel_std: float = 0.0, max_rate: float = MAX_RATE,
+                 min_samples: int = max(3, MIN_WINDOW_SAMPLES // 2),
+                 prior_std: ArrayLike | None = None) -> None:
+        if not (math.isfinite(window_s) and window_s > 0.0):
+            raise ValueError(f'Expected `window_s` > 0, got {window_s!r}.')
+        if cut not in CUTS:
+            raise ValueError(f'Expected `cut` in {CUTS}, got {cut!r}.')
+        self.window_s = float(window_s)
+        self.cut = cut
+        self.gyro_std, self.accel_std = float(gyro_std), float(accel_std)
+        self.max_rate = float(max_rate)
+        self.min_samples = int(min_samples)
+        self.motion = MotionReports()
+        self.reset(prior_std=prior_std)
+
+    # -- state -------------------------------------------------------------------------
+
+    def reset(self, *, prior_std: ArrayLike | None = None) -> None:
+        """Forget the floor and the window in progress (motion reports are kept)."""
+        self.prior_std = None if prior_std is None else np.asarray(prior_std, float).reshape(3)
+        self.gyro_floor = np.full(3, math.inf)
+        self.accel_floor = np.full(3, math.inf)
+        self.windows_seen = 0
+        self.restart()
+
+    def restart(self) -> None:
+        """Drop the window in progress; the next sample starts the grid again (floor kept)."""
+        self.t_first: float | None = None
+        self.drop_window()
+
+    def drop_window(self) -> None:
+        """Drop the samples of the window in progress (the grid and the floor are kept)."""
+        self._buf = array('d')
+        self._chunk: NDArray[np.float64] | None = None
+        self._k: int | None = None
+        self._t0 = math.nan
+        self._moving = False
+
+    @property
+    def window_end(self) -> float | None:
+        """Return the grid stamp at which the window in progress ends (None: no window)."""
+        if self._k is None or self.t_first is None or self.cut != 'grid':
+            return None
+        return self.t_first + (self._k + 1) * self.window_s
+
+    def observe_motion(self, t: float, moving: bool) -> None:
+        """Record a motion report: from stamp ``t`` (s) until the next, moving or not."""
+        self.motion.add(t, moving)
+
+    def thresholds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """Return the gyro and accelerometer thresholds in force (fixed or auto)."""
+        early = self.windows_seen < NOISE_WINDOWS
+        return noise_thresholds(self.gyro_floor, self.accel_floor, gyro_std=self.gyro_std,
+                                accel_std=self.accel_std,
+                                prior_std=self.prior_std if early else None)
+
+    def last_refused(self, windows: Sequence[Window], thresholds: tuple | None = None
+                     ) -> tuple[int, str]:
+        """
+        Return the newest of ``windows`` the thresholds refuse, and why (-1, '': none).
+
+        A lower floor may show earlier windows of a stretch as moving: what follows the
+        newest refused one is kept. ``thresholds`` default to those in force.
+        """
+        g_thr, a_thr = self.thresholds() if thresholds is None else thresholds
+        for j in range(len(windows) - 1, -1, -1):
+            w = windows[j]
+            why = judge_windows([w.gyro_std], None if w.accel_std is None else [w.accel_std],
+                                g_thr, a_thr)[0]
+            if why:
+                return j, str(why)
+        return -1, ''
+
+    # -- samples -----------------------------------------------------------------------
+
+    def add(self, t: float, raw: Sequence[float], accel: Sequence[float] | None = None, *,
+            rate: Sequence[float] | None = None, temp_c: float = math.nan,
+            moving: bool = False) -> Window | None:
+        """
+        Add one sample; return the window it ended, judged, if any.
+
+        Parameters
+        ----------
+        t : float, s
+            Stamp (increasing).
+        raw : sequence of 3 float, rad/s
+            Raw rate.
+        accel : sequence of 3 float, m/s^2, optional
+            Acceleration.
+        rate : sequence of 3 float, rad/s, optional
+            The rate compensated by a prior (the rate test).
+        temp_c : float, degC
+            Temperature to average over the window.
+        moving : bool
+            A motion flag vetoes this sample's window.
+
+        Returns
+        -------
+        Window or None
+            The window that just ended, else None.
+
+        """
+        done = None
+        if self.cut == 'grid':
+            if self.t_first is None:
+                self.t_first = float(t)
+            k = math.floor((t - self.t_first) / self.window_s)
+            if self._k is not None and k != self._k:
+                done = self._end(t)
+            self._k = k
+        buf = self._buf
+        if not buf and self._chunk is None:
+            self._t0 = t
+        a = _NAN3 if accel is None else accel
+        r = _NAN3 if rate is None else rate
+        buf.extend((t, raw[0], raw[1], raw[2], a[0], a[1], a[2], r[0], r[1], r[2], temp_c))
+        if moving:
+            self._moving = True
+        if (self.cut == 'span' and t - self._t0 >= self.window_s
+                and (len(buf) > _COLS or self._chunk is not None)):
+            done = self._end(None)
+        return done
+
+    def extend(self, t: NDArray[np.float64], gyro: NDArray[np.float64],
+               accel: NDArray[np.float64] | None = None,
+               temp: NDArray[np.float64] | None = None) -> list[Window]:
+        """
+        Add a chunk of samples (stamps increasing); return the windows it ended, judged.
+
+        The same windows and statistics as :meth:`add` one sample at a time.
+        """
+        t = np.asarray(t, dtype=np.float64)
+        m = t.size
+        if not m:
+            return []
+        x = np.full((m, _COLS), math.nan)
+        x[:, 0] = t
+        x[:, 1:4] = gyro
+        if accel is not None:
+            x[:, 4:7] = accel
+        if temp is not None:
+            x[:, 10] = temp
+        pending = self._take()
+        if pending is not None:
+            x = np.concatenate([pending, x])
+        tt = x[:, 0]
+        if self.cut == 'grid':
+            if self.t_first is None:
+                self.t_first = float(tt[0])
+            k = np.floor((tt - self.t_first) / self.window_s).astype(np.int64)
+            cut = np.flatnonzero(k != k[-1])
+            done = int(cut[-1]) + 1 if cut.size else 0
+            start = np.flatnonzero(np.r_[True, k[1:done] != k[:done - 1]]) if done else \
+                np.zeros(0, dtype=np.int64)
+            nxt = np.r_[tt[start[1:]], tt[done]].tolist() if done else []
+            self._k = int(k[-1])
+        else:
+            start, i0 = [], 0
+            while i0 < tt.size:
+                later = np.flatnonzero(tt[i0 + 1:] - tt[i0] >= self.window_s)
+                if not later.size:
+                    break
+                start.append(i0)
+                i0 = i0 + 2 + int(later[0])
+            done = i0
+            start = np.asarray(start, dtype=np.int64)
+            nxt = [None] * start.size
+        if done < tt.size:
+            self._chunk = x[done:]
+            self._t0 = float(tt[done])
+        return self._finish(x[:done], start, nxt) if done else []
+
+    def flush(self) -> Window | None:
+        """Judge the window in progress (at shutdown, or a new session); None when empty."""
+        x = self._take()
+        self._k = None
+        if x is None:
+            return None
+        return self._finish(x, np.zeros(1, dtype=np.int64), [None])[0]
+
+    def _take(self) -> NDArray[np.float64] | None:
+        """Return the samples of the window in progress, shape (n, 11), and empty it (None)."""
+        parts = [p for p in (self._chunk, np.frombuffer(self._buf).reshape(-1, _COLS)
+                             if self._buf else None) if p is not None]
+        self._buf = array('d')
+        self._chunk = None
+        if not parts:
+            return None
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+
+    def _end(self, t_next: float | None) -> Window:
+        """Judge the window in progress (it ends before the sample at ``t_next``)."""
+        return self._finish(self._take(), np.zeros(1, dtype=np.int64), [t_next])[0]
+
+    def _finish(self, x: NDArray[np.float64], start: NDArray[np.int64],
+                t_next: list) -> list[Window]:
+        """Compute the statistics of the windows of ``x`` starting at ``start``; judge them."""
+        m = x.shape[0]
+        n = np.diff(np.r_[start, m])
+        g_mean, g_std = _moments(x[:, 1:4], start, n)
+        fin_g = np.isfinite(g_mean).all(axis=1) & np.isfinite(g_std).all(axis=1)
+        acc = x[:, 4:7]
+        fin_a = np.logical_and.reduceat(np.isfinite(acc).all(axis=1), start)
+        a_std = _moments(acc, start, n)[1] if fin_a.any() else None
+        rate = x[:, 7:10]
+        given = np.logical_or.reduceat(np.isfinite(rate).any(axis=1), start)
+        r_mean = np.add.reduceat(rate, start, axis=0) / n[:, None] if given.any() else None
+        temp = np.add.reduceat(np.ascontiguousarray(x[:, 10]), start) / n
+        stop = np.r_[start[1:], m]
+        flag, self._moving = self._moving, False     # the flag of the window in progress
+        out = []
+        for i in range(start.size):
+            rows = x[int(start[i]):int(stop[i])]
+            astd = None
+            if fin_a[i] and has_accelerometer(rows[:, 4:7]):
+                astd = tuple(a_std[i].tolist())
+            rm = None if r_mean is None or not given[i] else tuple(r_mean[i].tolist())
+            out.append(self._judge(rows, int(n[i]), tuple(g_mean[i].tolist()),
+                                   tuple(g_std[i].tolist()), astd, rm, float(temp[i]),
+                                   bool(fin_g[i]), flag and i == 0, t_next[i]))
+        return out
+
+    def _judge(self, rows: NDArray[np.float64], n: int, g_mean: tuple, g_std: tuple,
+               a_std: tuple | None, r_mean: tuple | None, temp: float, finite: bool,
+               flagged: bool, t_next: float | None) -> Window:
+        """Lower the floor, take the verdict of one window."""
+        t0, t1 = float(rows[0, 0]), float(rows[-1, 0])
+        self.windows_seen += 1
+        enough = n >= self.min_samples
+        if finite and enough:
+            g = np.asarray(g_std)
+            self.gyro_floor = np.minimum(self.gyro_floor, np.where(g > 0, g, math.inf))
+            if a_std is not None:
+                a = np.asarray(a_std)
+                self.accel_floor = np.minimum(self.accel_floor, np.where(a > 0, a, math.inf))
+        g_thr, a_thr = self.thresholds()
+        moving = self.motion.veto(t0, t1) or flagged
+        why = str(judge_windows([g_std], None if a_std is None else [a_std], g_thr, a_thr,
+                                mean_rate=None if r_mean is None else [r_mean],
+                                max_rate=self.max_rate, moving=[moving])[0])
+        if not finite:
+            why = 'non-finite'
+        if not enough:
+            why = 'samples'
+        return Window(t0, t1, n, g_mean, g_std, a_std, r_mean, temp, moving, why,
+                      (tuple(g_thr.tolist()), tuple(a_thr.tolist())), t_next, rows)
 
 
 @dataclass(frozen=True)
@@ -87,26 +470,18 @@ class StillSegment:
 
 class StreamingStill:
     """
-    The still test one sample at a time: still stretches as they end (the streaming form).
+    Still stretches of a stream as they end: consecutive still windows of :class:`StillWindows`.
 
-    Windows are cut on the grid ``floor((t - t_first) / window_s)`` as in
-    :func:`detect_still` (a window is judged when the first sample of the next one arrives;
-    set ``window_s`` to at least :data:`MIN_WINDOW_SAMPLES` sample periods, the batch form
-    lengthens it itself); the verdict is :func:`judge_windows` with :func:`noise_thresholds`
-    of the running noise floor (the quietest window so far that a motion report did not
-    veto), held below the prior over the first :data:`NOISE_WINDOWS` windows when one is
-    given; when the floor drops, the windows of the current stretch that the new thresholds
-    refuse are dropped with everything before them. Consecutive still windows make a
-    stretch; it is returned by :meth:`update` when the first window that is not still ends
-    it, if it lasted ``min_still_s``. With fixed
-    thresholds the stretches are exactly those of :func:`detect_still` on the same samples;
-    with auto thresholds they match once the floor is known (the batch form knows it from
-    the start).
+    When the floor drops, the windows of the current stretch that the new thresholds refuse
+    are dropped with everything before them; a stretch is returned when the first window
+    that is not still ends it, if it lasted ``min_still_s``. With fixed thresholds the
+    stretches are exactly those of :func:`detect_still` on the same samples; with auto
+    thresholds they match once the floor is known (the batch form knows it from the start).
 
     Parameters
     ----------
     window_s : float, s
-        Window length.
+        Window length (at least :data:`MIN_WINDOW_SAMPLES` sample periods).
     min_still_s : float, s
         Shortest stretch returned.
     gyro_std, accel_std : float
@@ -121,58 +496,23 @@ class StreamingStill:
     def __init__(self, window_s: float = STILL_WINDOW_S, *, min_still_s: float = MIN_STILL_S,
                  gyro_std: float = 0.0, accel_std: float = 0.0, max_rate: float = MAX_RATE,
                  prior_std: ArrayLike | None = None) -> None:
-        if not (math.isfinite(window_s) and window_s > 0.0):
-            raise ValueError(f'Expected `window_s` > 0, got {window_s!r}.')
-        self.window_s = float(window_s)
+        self.windows = StillWindows(window_s, gyro_std=gyro_std, accel_std=accel_std,
+                                    max_rate=max_rate, prior_std=prior_std)
         self.min_still_s = float(min_still_s)
-        self.gyro_std, self.accel_std, self.max_rate = float(gyro_std), float(accel_std), \
-            float(max_rate)
-        self.prior_std = None if prior_std is None else np.asarray(prior_std, float).reshape(3)
         self.reset()
 
     def reset(self) -> None:
         """Forget everything (noise floor included); the next sample starts the grid."""
-        self.gyro_floor = np.full(3, math.inf)
-        self.accel_floor = np.full(3, math.inf)
-        self.windows_seen = 0
+        self.windows.reset(prior_std=self.windows.prior_std)
         self.rejected = {r: 0 for r in REASONS}
         self.last_why: str | None = None
-        self._t_first: float | None = None
-        self._k: int | None = None
-        self._stretch: list[tuple] = []
-        self._w: dict | None = None
-
-    def _new(self, t: float, raw: ArrayLike, accel: ArrayLike | None,
-             rate: ArrayLike | None) -> dict:
-        """Return the sums of a window starting at this sample."""
-        return {'t0': t, 't1': t, 'n': 0, 'cg': [float(v) for v in raw], 'sg': [0.0] * 3,
-                'qg': [0.0] * 3,
-                'ca': None if accel is None else [float(v) for v in accel],
-                'sa': [0.0] * 3, 'qa': [0.0] * 3,
-                'cr': None if rate is None else [float(v) for v in rate], 'sr': [0.0] * 3,
-                'temp': 0.0, 'nt': 0, 'moving': False}
+        self._stretch: list[Window] = []
 
     def update(self, t: float, raw: ArrayLike, accel: ArrayLike | None = None, *,
                rate: ArrayLike | None = None, temp_c: float = math.nan,
                moving: bool = False) -> StillSegment | None:
         """
-        Add one sample; return the still stretch it ended, if any.
-
-        Parameters
-        ----------
-        t : float, s
-            Stamp (increasing).
-        raw : sequence of 3 float, rad/s
-            Raw rate.
-        accel : sequence of 3 float, m/s^2, optional
-            Acceleration (an IMU with an accelerometer gives it with every sample).
-        rate : sequence of 3 float, rad/s, optional
-            The rate compensated by a prior: a still window's mean of it is at most
-            ``max_rate``.
-        temp_c : float, degC
-            Temperature to average over the stretch (e.g. the model temperature).
-        moving : bool
-            A motion report vetoes this sample (:func:`motion_veto` of the latest report).
+        Add one sample (as :meth:`StillWindows.add`); return the still stretch it ended, if any.
 
         Returns
         -------
@@ -180,80 +520,27 @@ class StreamingStill:
             The stretch that just ended (at least ``min_still_s``), else None.
 
         """
-        if self._t_first is None:
-            self._t_first = float(t)
-        k = int(math.floor((t - self._t_first) / self.window_s))
-        done = None
-        if self._w is not None and k != self._k:
-            done = self._judge()
-        if self._w is None:
-            self._w = self._new(t, raw, accel, rate)
-            self._k = k
-        w = self._w
-        w['t1'] = t
-        w['n'] += 1
-        _accumulate(raw, w['cg'], w['sg'], w['qg'])
-        if accel is not None and w['ca'] is not None:
-            _accumulate(accel, w['ca'], w['sa'], w['qa'])
-        if rate is not None and w['cr'] is not None:
-            _accumulate(rate, w['cr'], w['sr'])
-        if temp_c == temp_c:              # not NaN
-            w['temp'] += temp_c
-            w['nt'] += 1
-        if moving:
-            w['moving'] = True
-        return done
+        w = self.windows.add(t, raw, accel, rate=rate, temp_c=temp_c, moving=moving)
+        return None if w is None else self._take(w)
 
     def flush(self) -> StillSegment | None:
         """Judge the window in progress and return the stretch it ends (at shutdown)."""
-        done = self._judge() if self._w is not None else None
+        w = self.windows.flush()
+        done = None if w is None else self._take(w)
         return done if done is not None else self._close()
 
-    def _judge(self) -> StillSegment | None:
-        """Judge the finished window; extend the stretch, or end it."""
-        w, self._w = self._w, None
-        n = w['n']
-        finite = all(math.isfinite(v) for v in w['sg'] + w['qg'] + w['sa'] + w['qa'])
-        mean = [c + s / n for c, s in zip(w['cg'], w['sg'])]
-        std = _std(w['sg'], w['qg'], n)
-        a_std = None
-        if w['ca'] is not None and has_accelerometer([w['ca']]):
-            a_std = _std(w['sa'], w['qa'], n)
-        self.windows_seen += 1
-        if finite and not w['moving'] and n >= max(3, MIN_WINDOW_SAMPLES // 2):
-            self.gyro_floor = np.minimum(self.gyro_floor, np.where(np.asarray(std) > 0,
-                                                                   std, math.inf))
-            if a_std is not None:
-                self.accel_floor = np.minimum(self.accel_floor, np.where(
-                    np.asarray(a_std) > 0, a_std, math.inf))
-        early = self.windows_seen < NOISE_WINDOWS
-        g_thr, a_thr = noise_thresholds(self.gyro_floor,
-                                        None if a_std is None else self.accel_floor,
-                                        gyro_std=self.gyro_std, accel_std=self.accel_std,
-                                        prior_std=self.prior_std if early else None)
-        rate_mean = (None if w['cr'] is None else
-                     [c + s / n for c, s in zip(w['cr'], w['sr'])])
-        why = str(judge_windows([std], None if a_std is None else [a_std], g_thr, a_thr,
-                                mean_rate=None if rate_mean is None else [rate_mean],
-                                max_rate=self.max_rate, moving=[w['moving']])[0])
-        if not finite:
-            why = 'non-finite'
-        if n < max(3, MIN_WINDOW_SAMPLES // 2):
-            why = 'samples'
-        self.last_why = why
-        if why:
-            self.rejected[why] += 1
+    def _take(self, w: Window) -> StillSegment | None:
+        """Extend the stretch with a judged window, or end it."""
+        self.last_why = w.why
+        if w.why:
+            self.rejected[w.why] += 1
             return self._close()
-        # A lower floor may show earlier windows of the stretch as moving: keep what follows.
         st = self._stretch
-        for j in range(len(st) - 1, -1, -1):
-            old = judge_windows([st[j][2]], None if st[j][4] is None else [st[j][4]], g_thr,
-                                a_thr)[0]
-            if old:
-                self.rejected[str(old)] += j + 1
-                del st[:j + 1]
-                break
-        st.append((w, mean, std, rate_mean, a_std))
+        j, why = self.windows.last_refused(st, w.thresholds)
+        if j >= 0:
+            self.rejected[why] += j + 1
+            del st[:j + 1]
+        st.append(w.light())
         return None
 
     def _close(self) -> StillSegment | None:
@@ -261,18 +548,17 @@ class StreamingStill:
         st, self._stretch = self._stretch, []
         if not st:
             return None
-        t0, t1 = st[0][0]['t0'], st[-1][0]['t1']
-        n = sum(w['n'] for w, *_ in st)
+        t0, t1 = st[0].t0, st[-1].t1
+        n = sum(w.n for w in st)
         period = (t1 - t0) / max(n - 1, 1)
         if t1 - t0 + period + 1e-9 < self.min_still_s:
             self.rejected['brief'] += len(st)
             return None
-        g_mean = tuple(sum(m[i] * w['n'] for w, m, *_ in st) / n for i in range(3))
-        g_std = tuple(math.sqrt(sum(s[i] ** 2 for _, _, s, *_ in st) / len(st))
+        g_mean = tuple(sum(w.gyro_mean[i] * w.n for w in st) / n for i in range(3))
+        g_std = tuple(math.sqrt(sum(w.gyro_std[i] ** 2 for w in st) / len(st))
                       for i in range(3))
         r_mean = None
-        if all(x[3] is not None for x in st):
-            r_mean = tuple(sum(x[3][i] * x[0]['n'] for x in st) / n for i in range(3))
-        nt = sum(w['nt'] for w, *_ in st)
-        temp = sum(w['temp'] for w, *_ in st) / nt if nt else math.nan
+        if all(w.rate_mean is not None for w in st):
+            r_mean = tuple(sum(w.rate_mean[i] * w.n for w in st) / n for i in range(3))
+        temp = sum(w.temp_c * w.n for w in st) / n
         return StillSegment(float(t0), float(t1), int(n), g_mean, g_std, r_mean, float(temp))

@@ -15,9 +15,8 @@
 """
 The still test proper: its constants, noise floor, thresholds, window verdict, motion veto.
 
-Shared by the batch form (:mod:`gyro_tdc.signal.still_batch`), the streaming form
-(:mod:`gyro_tdc.signal.still_stream`) and the compensator's re-anchoring
-(:class:`gyro_tdc.runtime.reanchor.StillnessDetector`); see :mod:`gyro_tdc.signal` for the test.
+Shared by the batch form (:mod:`gyro_tdc.signal.still_batch`) and the streaming one
+(:mod:`gyro_tdc.signal.still_stream`). See doc/internals/signal.md.
 """
 
 from __future__ import annotations
@@ -29,7 +28,7 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['has_accelerometer', 'judge_windows', 'MAX_RATE', 'MIN_STILL_S',
            'MIN_WINDOW_SAMPLES', 'MOTION_EPS', 'motion_veto', 'NOISE_FACTOR', 'NOISE_WINDOWS',
-           'noise_floor', 'noise_thresholds', 'REASONS', 'STILL_WINDOW_S']
+           'noise_floor', 'noise_thresholds', 'REASONS', 'STILL_WINDOW_S', 'windows_moving']
 
 #: Default window, s: the shortest still stretch judged (and the re-anchoring window).
 STILL_WINDOW_S = 10.0
@@ -221,3 +220,42 @@ def motion_veto(t: ArrayLike, motion_t: ArrayLike, moving: ArrayLike) -> NDArray
     mt, mv = mt[order], mv[order]
     held = np.searchsorted(mt, t, side='right') - 1
     return np.where(held >= 0, mv[np.clip(held, 0, None)], True)
+
+
+def windows_moving(t_start: ArrayLike, t_end: ArrayLike, motion_t: ArrayLike,
+                   moving: ArrayLike) -> NDArray[np.bool_]:
+    """
+    Return which windows overlap a moving interval of the motion reports.
+
+    A report at stamp ``t`` holds from ``t`` until the next report. Before the first report
+    nothing is vetoed (the streaming form: a stream without a motion input is judged by the
+    noise test alone); at a report's stamp the held state is that of :func:`motion_veto`.
+
+    Parameters
+    ----------
+    t_start, t_end : ArrayLike, shape (W,), s
+        First and last stamp of each window.
+    motion_t : ArrayLike, shape (M,), s
+        Report stamps, increasing.
+    moving : ArrayLike, shape (M,) of bool
+        Per report, whether it says the vehicle moves.
+
+    Returns
+    -------
+    NDArray[np.bool_], shape (W,)
+        True where the report held at ``t_start`` or any report within
+        ``(t_start, t_end]`` says motion.
+
+    """
+    t0 = np.atleast_1d(np.asarray(t_start, dtype=np.float64))
+    t1 = np.atleast_1d(np.asarray(t_end, dtype=np.float64))
+    mt = np.asarray(motion_t, dtype=np.float64).reshape(-1)
+    mv = np.asarray(moving, dtype=bool).reshape(-1)
+    if mt.size == 0:
+        return np.zeros(t0.shape, dtype=bool)
+    held = motion_veto(t0, mt, mv) & (t0 >= mt[0])
+    # Moving reports within (t_start, t_end]: a difference of a running count.
+    count = np.concatenate([[0], np.cumsum(mv)])
+    inside = (count[np.searchsorted(mt, t1, side='right')]
+              - count[np.searchsorted(mt, t0, side='right')])
+    return held | (inside > 0)

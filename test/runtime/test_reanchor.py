@@ -20,7 +20,7 @@ import math
 
 from gyro_tdc.runtime.reanchor import (block_length, default_tolerance, max_windows,
                                        reanchor_shift, standard_error, StillnessDetector,
-                                       window_stats, windows_moving)
+                                       window_stats)
 import numpy as np
 import pytest
 
@@ -112,12 +112,3 @@ def test_motion_reports_veto_a_slow_constant_turn():
     det.observe_motion(8.6, False)
     anchors = _turn(det, 8.0, 300, rate=0.0, seed=4)
     assert anchors and all(not (a.t - a.duration_s <= 8.5 <= a.t) for a in anchors)
-
-
-def test_windows_moving_holds_each_report_until_the_next():
-    mt, mv = [1.0, 2.0, 4.0], [False, True, False]
-    got = windows_moving([0.0, 1.0, 2.5, 3.9, 4.0, 0.0], [0.9, 1.9, 3.0, 4.5, 5.0, 1.5],
-                         mt, mv)
-    # Before the first report: no veto; [2, 4) moving.
-    assert got.tolist() == [False, False, True, True, False, False]
-    assert not windows_moving([0.0], [9.0], [], []).any()

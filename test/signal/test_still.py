@@ -20,7 +20,8 @@ import math
 
 from gyro_tdc.runtime.reanchor import StillnessDetector
 from gyro_tdc.signal import (detect_still, judge_windows, MAX_RATE, motion_veto, NOISE_FACTOR,
-                             noise_floor, noise_thresholds, StreamingStill)
+                             noise_floor, noise_thresholds, StillWindows, StreamingStill,
+                             windows_moving)
 import numpy as np
 import pytest
 
@@ -256,3 +257,89 @@ def test_window_statistics_over_several_passes_are_each_windows_own():
         np.testing.assert_allclose(st.accel_std[j], a[rows].std(axis=0, ddof=1), rtol=1e-9)
     assert st.why[100_000 // 200] == 'non-finite' and st.why[50_000 // 200] == 'motion'
     assert set(st.why[3000 // 10:3600 // 10]) <= {'gyro', 'accel'}
+
+
+def _windows_one_by_one(det, t, gyro, accel, temp):
+    out = []
+    for k in range(t.size):
+        w = det.add(float(t[k]), gyro[k].tolist(), accel[k].tolist(), temp_c=float(temp[k]))
+        if w is not None:
+            out.append(w)
+    return out
+
+
+def _key(w):
+    return (w.t0, w.t1, w.n, w.gyro_mean, w.gyro_std, w.accel_std, w.temp_c, w.why,
+            w.thresholds, w.t_next)
+
+
+@pytest.mark.parametrize('cut', ['grid', 'span'])
+def test_still_windows_sample_by_sample_equal_chunk_by_chunk(cut):
+    """One sample at a time (the compensator) or in chunks (the learner): the same bits."""
+    t, gyro, accel = _rest(900.0, seed=13)
+    _drive(t, gyro, accel, 300.0, 420.0)
+    temp = 20.0 + t / 600.0
+    one = _windows_one_by_one(StillWindows(10.0, cut=cut), t, gyro, accel, temp)
+    det = StillWindows(10.0, cut=cut)
+    chunks = []
+    for lo, hi in ((0, 7), (7, 4000), (4000, 4001), (4001, t.size)):
+        chunks += det.extend(t[lo:hi], gyro[lo:hi], accel[lo:hi], temp[lo:hi])
+    assert len(one) == len(chunks) > 80
+    assert [_key(w) for w in one] == [_key(w) for w in chunks]
+    assert {w.why for w in one[30:42]} <= {'gyro', 'accel'} and one[0].why == ''
+    # 'span' windows end with their first sample window_s after the first one (201 at 20 Hz).
+    assert one[0].n == (201 if cut == 'span' else 200)
+
+
+def test_still_windows_are_the_batch_forms_windows():
+    """The streaming windows on the grid are detect_still's: statistics and verdict."""
+    t, gyro, accel = _rest(1200.0, seed=14)
+    _drive(t, gyro, accel, 500.0, 700.0)
+    opts = {'gyro_std': 0.01, 'accel_std': 0.2}
+    batch = detect_still(t, gyro, accel, window_s=10.0, min_still_s=0.0, **opts)
+    det = StillWindows(10.0, **opts)
+    wins = det.extend(t, gyro, accel)
+    last = det.flush()
+    wins.append(last)
+    assert [w.n for w in wins] == batch.counts.tolist()
+    assert [w.t0 for w in wins] == t[batch.starts].tolist()
+    np.testing.assert_allclose([w.gyro_mean for w in wins], batch.gyro_mean, rtol=0, atol=1e-15)
+    np.testing.assert_allclose([w.gyro_std for w in wins], batch.gyro_std, rtol=1e-9)
+    np.testing.assert_allclose([w.accel_std for w in wins], batch.accel_std, rtol=1e-9)
+    assert [w.why for w in wins] == batch.why.tolist()
+    assert det.flush() is None and det.window_end is None
+
+
+def test_still_windows_floor_prior_motion_and_samples():
+    t, gyro, accel = _rest(200.0, seed=15)
+    det = StillWindows(10.0, prior_std=[1e-6] * 3)
+    wins = det.extend(t, gyro, accel)
+    # The prior holds the first NOISE_WINDOWS - 1 windows below 4e-6 rad/s: refused.
+    assert [w.why for w in wins[:3]] == ['gyro', 'gyro', '']
+    np.testing.assert_array_equal(det.gyro_floor, np.min([w.gyro_std for w in wins], axis=0))
+    # A report holds until the next; a window overlapping motion is vetoed (the first
+    # window judged here is the one in progress before, 190 .. 200 s).
+    det.observe_motion(205.0, True)
+    det.observe_motion(212.0, False)
+    t2 = 200.0 + t[:800]
+    wins = det.extend(t2, gyro[:800], accel[:800])
+    assert [(w.t0, w.why) for w in wins] == [(190.0, ''), (200.0, 'motion'), (210.0, 'motion'),
+                                             (220.0, '')]
+    assert det.motion.reports == [(212.0, False)]
+    # Too few samples (below min_samples) is never still; a NaN spoils its window only.
+    few = StillWindows(10.0, min_samples=50)
+    assert {w.why for w in few.extend(t[::10], gyro[::10])} == {'samples'}
+    g = gyro.copy()
+    g[250, 1] = np.nan
+    assert [w.why for w in StillWindows(10.0).extend(t, g)][:3] == ['', 'non-finite', '']
+    with pytest.raises(ValueError, match='cut'):
+        StillWindows(10.0, cut='other')
+
+
+def test_windows_moving_holds_each_report_until_the_next():
+    mt, mv = [1.0, 2.0, 4.0], [False, True, False]
+    got = windows_moving([0.0, 1.0, 2.5, 3.9, 4.0, 0.0], [0.9, 1.9, 3.0, 4.5, 5.0, 1.5],
+                         mt, mv)
+    # Before the first report: no veto; [2, 4) moving.
+    assert got.tolist() == [False, False, True, True, False, False]
+    assert not windows_moving([0.0], [9.0], [], []).any()
