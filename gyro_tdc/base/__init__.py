@@ -22,7 +22,7 @@ the latest-job worker.
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
-    'atomicio': ['atomic_dir', 'atomic_write'],
+    'atomicio': ['atomic_dir', 'atomic_write', 'clean_leftovers'],
     'face': ['lazy'],
     'limits': ['check_bin_width', 'check_centers', 'check_sim_samples', 'MAX_CENTERS',
                'MAX_RATE_RAD_S', 'TEMP_PLAUSIBLE_C'],

@@ -25,20 +25,35 @@ See ``doc/internals/base.md``.
 from __future__ import annotations
 
 from contextlib import contextmanager
+import ctypes
 import errno
+import functools
+import hashlib
+import logging
 import os
 from pathlib import Path
+import re
 import secrets
 import shutil
+import socket
 import stat
 from typing import Callable, IO, Iterator, Union
 
 from gyro_tdc.errors import OutputError
 
-__all__ = ['atomic_dir', 'atomic_write']
+__all__ = ['atomic_dir', 'atomic_write', 'clean_leftovers']
 
 Content = Union[str, bytes, Callable[[IO], None]]
 _NAME_MAX = 200     # characters of the target name kept in a temporary name
+_HOST = hashlib.sha256(socket.gethostname().encode('utf-8', 'replace')).hexdigest()[:4]
+# What follows '.NAME.' in a hidden sibling: ours (host, pid, random, kind), the backups of
+# simulate --force before this module swapped (pid), and temporaries without an owner.
+_OWNED = re.compile(r'(?P<host>[0-9a-f]{4})-(?P<pid>[0-9]{1,10})-[0-9a-f]{8}\.(?P<kind>tmp|old)')
+_LEGACY_BACKUP = re.compile(r'replaced-(?P<pid>[0-9]{1,10})-[0-9]{1,3}')
+_LEGACY_TMP = re.compile(r'[0-9a-f]{8}\.tmp')
+_RENAME_NOREPLACE, _RENAME_EXCHANGE = 1, 2
+_AT_FDCWD = -100
+_log = logging.getLogger(__name__)
 
 
 def _describe(exc: OSError) -> str:
@@ -51,9 +66,10 @@ def _fail(what: str, path: Path, exc: OSError) -> OutputError:
     return OutputError(f'cannot write {what} {str(path)!r}: {_describe(exc)}')
 
 
-def _temp_name(directory: Path, name: str) -> Path:
-    """Return an unused hidden name beside ``name`` (not created)."""
-    return directory / f'.{name[:_NAME_MAX]}.{secrets.token_hex(4)}.tmp'
+def _temp_name(directory: Path, name: str, kind: str = 'tmp') -> Path:
+    """Return an unused hidden name beside ``name``, owned by this process (not created)."""
+    return directory / (f'.{name[:_NAME_MAX]}.{_HOST}-{os.getpid()}-{secrets.token_hex(4)}'
+                        f'.{kind}')
 
 
 def _create_temp(directory: Path, name: str) -> tuple[int, Path]:
@@ -97,11 +113,99 @@ def _target(path: Path) -> Path:
     return path
 
 
+def _alive(pid: int) -> bool:
+    """Return True unless process ``pid`` certainly does not exist (this one counts as alive)."""
+    if pid <= 0 or pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (OSError, OverflowError):
+        return True         # another user's process, or a number no process can have
+    return True
+
+
+def _remove(path: Path) -> None:
+    """Remove a file, link or directory tree (raises OSError)."""
+    if os.path.isdir(path) and not os.path.islink(path):
+        shutil.rmtree(path)
+    else:
+        os.unlink(path)
+
+
+def clean_leftovers(path: str | os.PathLike) -> list[str]:
+    """
+    Remove what killed runs left beside ``path``; put a backup back when ``path`` is missing.
+
+    A hidden sibling ``.NAME.HOST-PID-RANDOM.tmp`` (a temporary file or staging directory) or
+    ``.old`` (the old output during a replacing write) whose process, on this host, no
+    longer exists is removed; an ``.old`` backup, or a ``.NAME.replaced-PID-K`` of an earlier
+    ``simulate --force``, is renamed back to ``path`` first when ``path`` does not exist (the
+    run died between moving the old output aside and moving the new one in). Siblings of
+    running processes are left alone. Temporaries without an owner (``.NAME.RANDOM.tmp``,
+    written by earlier versions) and siblings that cannot be removed are reported on one
+    warning line of the ``gyro_tdc.base.atomicio`` logger.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The output about to be written.
+
+    Returns
+    -------
+    list of str
+        One note per action taken (``removed ...``, ``restored ...``), for messages.
+
+    """
+    path = Path(path)
+    prefix = f'.{path.name[:_NAME_MAX]}.'
+    try:
+        with os.scandir(path.parent) as entries:
+            names = sorted(e.name for e in entries if e.name.startswith(prefix))
+    except OSError:
+        return []
+    done, kept = [], []
+    for name in names:
+        rest = name[len(prefix):]
+        owned = _OWNED.fullmatch(rest)
+        legacy = _LEGACY_BACKUP.fullmatch(rest)
+        if owned is not None and owned['host'] != _HOST:
+            kept.append(name)           # another host's process: it may be running
+            continue
+        match = owned or legacy
+        if match is None:
+            if _LEGACY_TMP.fullmatch(rest):
+                kept.append(name)
+            continue
+        if _alive(int(match['pid'])):
+            continue
+        leftover = path.parent / name
+        backup = legacy is not None or owned['kind'] == 'old'
+        try:
+            if (backup and len(path.name) <= _NAME_MAX and not os.path.lexists(path)):
+                os.rename(leftover, path)
+                done.append(f'restored {str(path)!r} from {name!r} (a run was killed while '
+                            'replacing it)')
+                continue
+            _remove(leftover)
+            done.append(f'removed {name!r} (left by a killed run)')
+        except OSError as exc:
+            kept.append(f'{name} ({_describe(exc)})')
+    if kept:
+        _log.warning('%d hidden leftover(s) of earlier runs beside %r not removed (owner '
+                     'unknown, running elsewhere or not removable): %s; remove them when no '
+                     'gyro_tdc run writes there', len(kept), str(path), ', '.join(kept))
+    return done
+
+
 def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = False,
                  what: str = 'file', encoding: str = 'utf-8',
                  newline: str | None = None) -> Path:
     """
     Write a file atomically (temporary file beside it, fsync, rename).
+
+    Leftovers of killed writes of the same file are removed first (:func:`clean_leftovers`).
 
     Parameters
     ----------
@@ -136,6 +240,7 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
     target = _target(path)
     if target.is_dir():
         raise OutputError(f'cannot access {what} {str(path)!r} for writing: it is a directory')
+    clean_leftovers(target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         try:
@@ -178,8 +283,70 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
     return path
 
 
+@functools.lru_cache(maxsize=1)
+def _renameat2_func() -> Callable | None:
+    """Return libc's ``renameat2``, or None (not Linux, or glibc older than 2.28)."""
+    try:
+        func = ctypes.CDLL(None, use_errno=True).renameat2
+    except (AttributeError, OSError):
+        return None
+    func.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
+                     ctypes.c_uint]
+    func.restype = ctypes.c_int
+    return func
+
+
+def _renameat2(src: Path, dst: Path, flags: int) -> bool:
+    """
+    Rename with Linux ``renameat2`` flags; return False when the system cannot.
+
+    Raises OSError for any other failure (``dst`` exists with ``RENAME_NOREPLACE``...).
+    """
+    func = _renameat2_func()
+    if func is None:
+        return False
+    if func(_AT_FDCWD, os.fsencode(src), _AT_FDCWD, os.fsencode(dst), flags) == 0:
+        return True
+    err = ctypes.get_errno()
+    if err in (errno.EINVAL, errno.ENOSYS, errno.ENOTSUP, errno.EOPNOTSUPP):
+        return False        # the kernel or this file system does not do it
+    raise OSError(err, os.strerror(err), str(dst))
+
+
+def _move_in(new: Path, path: Path, replace: bool) -> None:
+    """
+    Put the complete tree ``new`` at ``path``; an old ``path`` ends at ``new``.
+
+    The old tree stays at ``path`` until the new one takes its place: swapped in one step
+    where the system can, else moved to a backup beside it (restored when the second rename
+    fails; after a kill between the two, restored by the next :func:`clean_leftovers`).
+    """
+    if not (replace and os.path.lexists(path)):
+        if not _renameat2(new, path, _RENAME_NOREPLACE):
+            if os.path.lexists(path):
+                raise FileExistsError(errno.EEXIST, 'it exists already')
+            os.rename(new, path)
+        return
+    if _renameat2(new, path, _RENAME_EXCHANGE):
+        return              # ``new`` now names the old tree, removed with the staging dir
+    for _ in range(100):
+        backup = _temp_name(path.parent, path.name, 'old')
+        if not os.path.lexists(backup):
+            break
+    else:
+        raise FileExistsError(f'no free temporary name beside {path.name!r}')
+    os.rename(path, backup)
+    try:
+        os.rename(new, path)
+    except BaseException:
+        os.rename(backup, path)
+        raise
+    os.rename(backup, new)
+
+
 @contextmanager
-def atomic_dir(path: str | os.PathLike, *, what: str = 'directory') -> Iterator[Path]:
+def atomic_dir(path: str | os.PathLike, *, what: str = 'directory',
+               replace: bool = False) -> Iterator[Path]:
     """
     Build a new directory out of sight and move it into place only when complete.
 
@@ -187,14 +354,19 @@ def atomic_dir(path: str | os.PathLike, *, what: str = 'directory') -> Iterator[
     ``path``; the caller creates it (``mkdir``, a bag writer...). When the block ends
     normally it is renamed to ``path``; when it raises, the staging directory and all it
     holds are removed and the exception propagates (an ``OSError`` as
-    :class:`~gyro_tdc.errors.OutputError` naming ``path``).
+    :class:`~gyro_tdc.errors.OutputError` naming ``path``). Leftovers of killed runs beside
+    ``path`` are removed first (:func:`clean_leftovers`).
 
     Parameters
     ----------
     path : str or PathLike
-        The directory to create; must not exist.
+        The directory to create; must not exist unless ``replace``.
     what : str
         What the directory is, for messages (``'bag'``...).
+    replace : bool
+        Replace an existing ``path``: it stays there, complete, until the new tree is
+        complete, then the two are swapped and the old one is removed (the caller checks
+        that ``path`` is something it may replace).
 
     Yields
     ------
@@ -204,11 +376,12 @@ def atomic_dir(path: str | os.PathLike, *, what: str = 'directory') -> Iterator[
     Raises
     ------
     OutputError
-        When ``path`` exists already or cannot be created.
+        When ``path`` exists already (without ``replace``) or cannot be created.
 
     """
     path = Path(path)
-    if os.path.lexists(path):
+    clean_leftovers(path)
+    if not replace and os.path.lexists(path):
         raise OutputError(f'cannot write {what} {str(path)!r}: it exists already')
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -226,17 +399,12 @@ def atomic_dir(path: str | os.PathLike, *, what: str = 'directory') -> Iterator[
     inner = staging / path.name
     try:
         yield inner
-        if os.path.lexists(path):
-            raise FileExistsError(errno.EEXIST, 'it exists already')
-        os.rename(inner, path)
+        _move_in(inner, path, replace)
     except OSError as exc:
         shutil.rmtree(staging, ignore_errors=True)
         raise _fail(what, path, exc) from None
     except BaseException:
         shutil.rmtree(staging, ignore_errors=True)
         raise
-    try:
-        os.rmdir(staging)
-    except OSError:
-        shutil.rmtree(staging, ignore_errors=True)
+    shutil.rmtree(staging, ignore_errors=True)      # empty, or the replaced tree
     _sync_dir(path.parent)

@@ -15,15 +15,10 @@
 """
 ``gyro-tdc simulate``: simulate a thermal-chamber scenario into rosbag2 bags.
 
-A single-run scenario writes one bag at ``--out``; a multi-run scenario writes the directory
-``OUT/run1 ... OUT/runN``. Topics: ``/imu/data_raw`` (sensor_msgs/Imu, frame ``imu_link``),
-``/imu/temperature`` (sensor_msgs/Temperature) and, when the rate table is ever non-zero,
-``/rate_table/reference`` (geometry_msgs/Vector3Stamped, one message per change). A vehicle
-scenario (:mod:`gyro_tdc.sim.vehicle`) has no reference: its true body rate goes to
-``/truth/angular_velocity`` (Vector3Stamped at every IMU stamp, for ``evaluate
---reference-topic`` only) and its commanded motion to ``/cmd_vel`` (geometry_msgs/Twist).
-``--force`` replaces an earlier output of ``simulate`` (and nothing else); ``--help`` lists
-the shipped scenarios.
+One bag at ``--out``, or ``OUT/run1 ... OUT/runN`` for a multi-run scenario; the topics of
+the Imu, the temperature and, when used, the rate table (a vehicle scenario: the truth and
+``/cmd_vel``). ``--force`` replaces an earlier output of ``simulate`` only.
+See ``doc/internals/cli.md``.
 """
 
 from __future__ import annotations
@@ -32,13 +27,12 @@ import argparse
 import math
 import os
 from pathlib import Path
-import shutil
 import sys
 import textwrap
 import time
 from typing import Callable, Optional, Sequence
 
-from gyro_tdc.base import atomic_dir, check_sim_samples, scenario_names
+from gyro_tdc.base import atomic_dir, check_sim_samples, clean_leftovers, scenario_names
 from gyro_tdc.cli.common import ArgumentParser, run_command
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.sim import CMD_VEL_TOPIC, load_scenario, SimRun, simulate_run, TRUTH_TOPIC
@@ -156,8 +150,8 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
     rate_hz : float, optional
         IMU rate overriding the scenario's.
     force : bool
-        Replace ``out`` when it exists and is a bag or a folder of run bags; the old one is
-        removed only once the new one is complete (restored when the simulation fails).
+        Replace ``out`` when it exists and is a bag or a folder of run bags; the old one
+        stays at ``out`` until the new one is complete (and when the simulation fails).
     progress : bool
         Show a progress bar over the runs on stderr.
     log : callable
@@ -178,6 +172,7 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
     """
     sc = load_scenario(scenario)
     out_path = Path(out)
+    clean_leftovers(out_path)     # what killed runs left; may put a replaced bag back
     if os.path.lexists(out_path):
         if not force:
             raise GyroTdcError(f'--out: {str(out_path)!r} already exists; choose a new path, '
@@ -190,34 +185,16 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
     check_sim_samples(sc.duration_s, sc.imu_rate_hz if rate_hz is None else rate_hz,
                       option='imu_rate_hz' if rate_hz is None else '--rate-hz')
     # One bag, or a folder of run1..runN: built out of sight and renamed when complete, so
-    # a failure (full disk, Ctrl-C, a bad run) leaves nothing behind.
-    # With --force the old output is moved aside first and removed only when the new one is
-    # in place; a failure puts it back.
+    # a failure (full disk, Ctrl-C, a bad run) leaves nothing behind. With --force the old
+    # output stays at its path until the new one is complete, then the two are swapped; a
+    # run killed at any point leaves the old or the new output there, never neither.
     names = [f'run{i + 1}' for i in range(sc.runs.count)] if sc.runs.count > 1 else ['']
-    old = _move_aside(out_path) if os.path.lexists(out_path) else None
-    try:
-        with atomic_dir(out_path, what='bag') as build:
-            if sc.runs.count > 1:
-                build.mkdir()
-            _simulate_runs(sc, [build / n for n in names], [out_path / n for n in names],
-                           storage, seed, rate_hz, log, progress)
-    except BaseException:
-        if old is not None:
-            os.rename(old, out_path)
-        raise
-    if old is not None:
-        shutil.rmtree(old)
+    with atomic_dir(out_path, what='bag', replace=force) as build:
+        if sc.runs.count > 1:
+            build.mkdir()
+        _simulate_runs(sc, [build / n for n in names], [out_path / n for n in names],
+                       storage, seed, rate_hz, log, progress)
     return [out_path / n for n in names]
-
-
-def _move_aside(path: Path) -> Path:
-    """Rename ``path`` to a free hidden name beside it and return that name."""
-    for k in range(100):
-        aside = path.parent / f'.{path.name}.replaced-{os.getpid()}-{k}'
-        if not os.path.lexists(aside):
-            os.rename(path, aside)
-            return aside
-    raise GyroTdcError(f'--out: no free temporary name beside {str(path)!r}')
 
 
 def _simulate_runs(sc, paths, shown, storage, seed, rate_hz, log, progress=False) -> None:

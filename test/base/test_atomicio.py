@@ -17,7 +17,8 @@ Tests of gyro_tdc.base.atomicio: atomic writes with normal permissions, through 
 
 Hostile outputs (moved from test_hostile.py): a new file gets the umask's mode, an
 overwritten one keeps its mode, a symlink is written through to its target, a failure leaves
-the previous content and no temporary behind, a directory appears complete or not at all.
+the previous content and no temporary behind, a directory appears complete or not at all and
+a replaced one stays until its successor is complete; what a dead writer left is removed.
 """
 
 from __future__ import annotations
@@ -137,3 +138,73 @@ def test_atomic_dir_appears_complete_or_not_at_all(tmp_path, umask):
     with pytest.raises(OutputError, match='exists already'):
         with atomic_dir(out):
             pass
+
+
+def _tree(path: Path) -> dict:
+    return {p.name: p.read_text() for p in path.iterdir()}
+
+
+def _dead_pid() -> int:
+    import subprocess
+    import sys
+    return int(subprocess.run([sys.executable, '-c', 'import os; print(os.getpid())'],
+                              capture_output=True, text=True, check=True).stdout)
+
+
+@pytest.mark.parametrize('exchange', [True, False], ids=['exchange', 'two_renames'])
+def test_replaced_dir_stays_until_the_new_one_is_complete(tmp_path, monkeypatch, exchange):
+    from gyro_tdc.base import atomicio
+    if not exchange:        # a system without renameat2: old -> backup, new -> path
+        monkeypatch.setattr(atomicio, '_renameat2_func', lambda: None)
+    out = tmp_path / 'bag'
+    out.mkdir()
+    (out / 'a').write_text('old')
+    with pytest.raises(KeyboardInterrupt):
+        with atomic_dir(out, replace=True) as build:
+            build.mkdir()
+            (build / 'b').write_text('new')
+            assert _tree(out) == {'a': 'old'}
+            raise KeyboardInterrupt
+    assert _tree(out) == {'a': 'old'} and os.listdir(tmp_path) == ['bag']
+    with atomic_dir(out, replace=True) as build:
+        build.mkdir()
+        (build / 'b').write_text('new')
+        assert _tree(out) == {'a': 'old'}
+    assert _tree(out) == {'b': 'new'} and os.listdir(tmp_path) == ['bag']
+
+
+def test_second_rename_failing_puts_the_old_tree_back(tmp_path, monkeypatch):
+    from gyro_tdc.base import atomicio
+    monkeypatch.setattr(atomicio, '_renameat2_func', lambda: None)
+    out = tmp_path / 'bag'
+    out.mkdir()
+    (out / 'a').write_text('old')
+    real = os.rename
+
+    def rename(src, dst):
+        if Path(dst) == out and Path(src).name == 'bag':
+            raise OSError(errno.EXDEV, 'Invalid cross-device link')
+        real(src, dst)
+
+    monkeypatch.setattr(atomicio.os, 'rename', rename)
+    with pytest.raises(OutputError, match='cross-device'):
+        with atomic_dir(out, replace=True) as build:
+            build.mkdir()
+    assert _tree(out) == {'a': 'old'} and os.listdir(tmp_path) == ['bag']
+
+
+def test_dead_writers_leftovers_are_removed_and_their_backup_put_back(tmp_path):
+    from gyro_tdc.base.atomicio import _HOST, clean_leftovers
+    dead = _dead_pid()
+    out = tmp_path / 'bag'
+    backup = tmp_path / f'.bag.{_HOST}-{dead}-0123abcd.old'     # killed between two renames
+    backup.mkdir()
+    (backup / 'a').write_text('old')
+    (tmp_path / f'.bag.{_HOST}-{dead}-4567abcd.tmp').mkdir()    # its complete new tree
+    (tmp_path / f'.m.yaml.{_HOST}-{dead}-89abcdef.tmp').write_text('half')
+    notes = clean_leftovers(out)
+    assert len(notes) == 2 and notes[0].startswith('restored')
+    assert _tree(out) == {'a': 'old'}
+    assert sorted(os.listdir(tmp_path)) == ['.m.yaml.' + f'{_HOST}-{dead}-89abcdef.tmp', 'bag']
+    atomic_write(tmp_path / 'm.yaml', 'whole')     # the next write of m.yaml removes its own
+    assert sorted(os.listdir(tmp_path)) == ['bag', 'm.yaml']
