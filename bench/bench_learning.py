@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-What learning adds to the compensator's per-message cost at 1 kHz (issue 14).
+What learning adds to the compensator's per-message cost at 1 kHz.
 
 A synthetic 1 kHz stream (``--minutes`` of it: still 2 min, moving 30 s, the temperature
 between 15 and 20 degC at 1 degC a minute, a thermometer at 1 Hz, an accelerometer in every
