@@ -117,7 +117,7 @@ def measure(kind: str, bag: Path, subset: int) -> dict:
     from rosbags.highlevel import AnyReader
     from rosbags.typesys import get_typestore, Stores
 
-    from gyro_tdc.data import read_bag
+    from gyro_tdc.data import BagOptions, read_bag
     from gyro_tdc.data.dataset import load_run
 
     start, cpu_start = time.perf_counter(), time.process_time()
@@ -151,7 +151,7 @@ def measure(kind: str, bag: Path, subset: int) -> dict:
         seconds, cpu = time.perf_counter() - start, time.process_time() - cpu_start
         messages = len(data.imu_t) + len(data.temp_t)
     else:
-        run = load_run(bag, imu_topic=IMU_TOPIC, temperature_topic=TEMP_TOPIC)
+        run = load_run(bag, BagOptions(imu_topic=IMU_TOPIC, temperature_topic=TEMP_TOPIC))
         seconds, cpu = time.perf_counter() - start, time.process_time() - cpu_start
         messages = len(run) + run.info['topics'][TEMP_TOPIC][1]
     rss_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0

@@ -130,14 +130,14 @@ def make_fleet(data, *, sensors, hours, rate_hz):
 
 def train_alone(spec, options, out):
     """Train and evaluate one sensor in this process, as a fleet task does; return seconds."""
-    from gyro_tdc.identify.train import train
+    from gyro_tdc.data import BagOptions
     from gyro_tdc.evaluate.score import evaluate, NamedModel
+    from gyro_tdc.identify.train import train
 
     start = time.perf_counter()
-    result = train(list(spec.train), out=out, **options)
+    result = train(list(spec.train), out, options, BagOptions())
     evaluate(list(spec.test), [NamedModel(str(out), spec.sensor_id, result.model)],
-             options={k: options[k] for k in ('imu_topic', 'temperature_topic', 'reference',
-                                              'reference_topic', 'progress')})
+             bag=BagOptions())
     return time.perf_counter() - start
 
 

@@ -84,7 +84,7 @@ def run_case(tau_die: float, curvature: str, seed: int, folder: Path) -> dict:
     from gyro_tdc.data.runs import Run
     from gyro_tdc.sim import simulate_scenario
     from gyro_tdc.sim.simulator import to_run
-    from gyro_tdc.identify.train import train
+    from gyro_tdc.identify import train, TrainOptions
 
     sims = simulate_scenario('die_lag', seed=seed, overrides=overrides(tau_die, curvature))
     runs = [to_run(s) for s in sims]
@@ -110,7 +110,8 @@ def run_case(tau_die: float, curvature: str, seed: int, folder: Path) -> dict:
     for name, features in (('auto', 'auto'), ('paper', 'dT,dT2')):
         t = time.perf_counter()
         with contextlib.redirect_stdout(io.StringIO()):
-            tr = train([bag], out=folder / f'{bag.name}_{name}.yaml', features=features)
+            tr = train([bag], folder / f'{bag.name}_{name}.yaml',
+                       TrainOptions(features=features))
         out[f't_{name}'] = time.perf_counter() - t
         bs = bias_stability(compensate(tr.model, held.t, held.temp, held.omega),
                             held.omega_ref)

@@ -56,7 +56,7 @@ if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
 
 from gyro_tdc.cli.simulate import simulate  # noqa: E402
 from gyro_tdc.cli.train import main as train_main  # noqa: E402
-from gyro_tdc.data import read_bag  # noqa: E402
+from gyro_tdc.data import BagOptions, read_bag  # noqa: E402
 from gyro_tdc.errors import GyroTdcError  # noqa: E402
 from gyro_tdc.evaluate.score import evaluate, NamedModel  # noqa: E402
 from gyro_tdc.learn.learner import Learner  # noqa: E402
@@ -245,7 +245,7 @@ def field_day(out_dir: Path, *, force: bool = False) -> dict:
     truth = simulate_run('vehicle_day2', seed=2).truth
     floor = truth.noise_std ** 2 * _DEG2
     batch = evaluate([out_dir / 'day2'], [NamedModel('still-only', 'still-only', model)],
-                     options={'reference_topic': TRUTH_TOPIC}, reanchor_s='auto')[0]
+                     bag=BagOptions(reference_topic=TRUTH_TOPIC), reanchor_s='auto')[0]
     bs_batch = batch.models[0].bs
     raw_bs = batch.raw.bs
     data = read_bag(out_dir / 'day2', reference_topic=TRUTH_TOPIC)

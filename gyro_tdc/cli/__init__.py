@@ -15,12 +15,9 @@
 """
 Command registry of ``gyro-tdc <command>`` (also ``python -m gyro_tdc <command>``).
 
-Every command lives in ``gyro_tdc.cli.<name>`` and exposes ``main(argv=None) -> int``:
-``argv`` is the argument list after the command name (``None`` means ``sys.argv[1:]``). It
-returns 0 on success and 2 on bad input after one line on stderr, ``gyro-tdc <command>:
-error: ...``. ``gyro-tdc`` (:mod:`gyro_tdc.__main__`) is the only console script of the
-commands: no generic names such as ``train`` land in ``bin/``. Command modules are imported
-only when they run, so the listing works while a command is missing or broken.
+Every command lives in ``gyro_tdc.cli.<name>`` and exposes ``main(argv=None) -> int`` (0 on
+success, 2 on bad input after one line on stderr); command modules are imported only when
+they run, so the listing works while one is broken. See ``doc/internals/cli.md``.
 """
 
 from __future__ import annotations

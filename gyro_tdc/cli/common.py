@@ -16,17 +16,9 @@
 Pieces shared by the command-line tools: argument parsing, bag options, exit codes.
 
 Every command is a typed function plus a tiny ``main(argv) -> int`` built with
-:func:`run_command`, which turns bad input into exit code 2 and exactly one line on stderr
-(``gyro-tdc <command>: error: <what was wrong>``), never a traceback::
-
-    def main(argv=None):
-        return run_command('train', build_parser, _run, argv)
-
-Bad input is anything raising :class:`gyro_tdc.errors.GyroTdcError` (dataset, fit, feature,
-model-file and scenario errors), :class:`UsageError` (argparse), or an ``OSError`` from
-writing an output file. The argparse types shared by the commands (``finite_float``,
-``positive_float``, ``non_negative_float``, ``probability``, ``positive_int``) live here
-too; bags are read with :func:`gyro_tdc.data.dataset.load_runs`.
+:func:`run_command`, which turns bad input (:class:`gyro_tdc.errors.GyroTdcError`,
+:class:`UsageError`, an ``OSError``) into exit code 2 and one line on stderr, never a
+traceback; :func:`bag_options` turns the shared bag options into one ``BagOptions``.
 """
 
 from __future__ import annotations
@@ -40,19 +32,15 @@ import sys
 from typing import Callable, NoReturn, Optional, Sequence
 
 from gyro_tdc.cli import PROG
-from gyro_tdc.data import MAX_LOSS_FRACTION
+from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPIC,
+                           DEFAULT_TEMPERATURE_TOPIC, MAX_LOSS_FRACTION)
 from gyro_tdc.errors import GyroTdcError, one_line
 
 __all__ = [
-    'ArgumentParser', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
-    'DEFAULT_TEMPERATURE_TOPIC', 'UsageError', 'add_bag_options', 'bag_options',
-    'command_line', 'effect_listing', 'finite_float', 'non_negative_float', 'parse_reference',
-    'positive_float', 'positive_int', 'probability', 'run_command',
+    'ArgumentParser', 'UsageError', 'add_bag_options', 'bag_options', 'command_line',
+    'effect_listing', 'finite_float', 'non_negative_float', 'parse_reference', 'positive_float',
+    'positive_int', 'probability', 'run_command',
 ]
-
-DEFAULT_IMU_TOPIC = '/imu/data_raw'
-DEFAULT_TEMPERATURE_TOPIC = '/imu/temperature'
-DEFAULT_REFERENCE_TOPIC = '/rate_table/reference'
 
 _DEG = math.pi / 180.0
 _UNITS = {'': 1.0, 'rad/s': 1.0, 'rads': 1.0, 'deg/s': _DEG, 'dps': _DEG}
@@ -180,29 +168,33 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(progress=None)
 
 
-def bag_options(args: argparse.Namespace) -> dict:
+def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
     """
-    Return the keyword options of :func:`gyro_tdc.data.dataset.load_run` from parsed arguments.
+    Return how to read the bags, from arguments parsed with :func:`add_bag_options`.
 
     Parameters
     ----------
     args : argparse.Namespace
         Arguments parsed by a parser set up with :func:`add_bag_options`.
+    **more
+        Further :class:`~gyro_tdc.data.BagOptions` fields the command sets itself
+        (``accel``, ``motion_topic``).
 
     Returns
     -------
-    dict
-        ``imu_topic``, ``temperature_topic``, ``reference``, ``reference_topic``, ``progress``,
-        ``max_loss`` (1.0 with ``--allow-loss``).
+    BagOptions
+        The topics, the reference (``--reference`` parsed, rad/s), ``progress`` (a terminal
+        when not given), ``max_loss`` (1.0 with ``--allow-loss``) and ``more``.
 
     """
     progress = args.progress
     if progress is None:
         progress = sys.stderr.isatty()
-    return {'imu_topic': args.imu_topic, 'temperature_topic': args.temperature_topic,
-            'reference': None if args.reference is None else parse_reference(args.reference),
-            'reference_topic': args.reference_topic, 'progress': bool(progress),
-            'max_loss': 1.0 if getattr(args, 'allow_loss', False) else MAX_LOSS_FRACTION}
+    return BagOptions(
+        imu_topic=args.imu_topic, temperature_topic=args.temperature_topic,
+        reference=None if args.reference is None else parse_reference(args.reference),
+        reference_topic=args.reference_topic, progress=bool(progress),
+        max_loss=1.0 if getattr(args, 'allow_loss', False) else MAX_LOSS_FRACTION, **more)
 
 
 # --------------------------------------------------------------------------------------------

@@ -15,13 +15,9 @@
 """
 ``gyro-tdc demo``: the whole pipeline on simulated data, in a few minutes.
 
-The steps are :data:`STEPS` (``gyro-tdc demo --help``, the console's ``[i/N]`` and the
-README's list all come from it; ``test/test_readme.py`` checks the README). Each step prints
-the command a user would type for it and runs that command's ``main``, so the demo shows
-exactly what the commands print; the coverage of a bag trained on several times is printed
-once. Everything lands in ``--out`` (:data:`OUTPUTS`); a folder the demo wrote before is
-cleared first (it carries the marker file :data:`MARKER`), any other existing folder is
-refused, so ``make demo`` runs again and again.
+The steps are :data:`STEPS`; each prints the command a user would type and runs that
+command's ``main``. Everything lands in ``--out`` (:data:`OUTPUTS`), which a later demo
+clears (marker :data:`MARKER`). See ``doc/internals/cli.md``.
 """
 
 from __future__ import annotations

@@ -15,17 +15,10 @@
 """
 ``python -m gyro_tdc discover BAG...``: name the thermal effect a model is missing.
 
-One run per bag (a folder of bag folders expands to its bags). The workflow is
-:func:`gyro_tdc.identify.discover.discover`; this module reads the bags, prints the summary and
-writes
-the optional outputs: ``--json`` (the document of docs/json.md), ``--report DIR`` (report.md with
-PNG residual maps and Allan deviation plots) and ``--out MODEL.yaml`` (a model of the
-discovered effects that ``compensator_node`` loads; format 2, with the thermal state and its
-tau interval when ``lag`` was named). ``--sensor accel`` runs the same search on the
-accelerometer's still data (:func:`gyro_tdc.identify.discovery_runs`: each orientation of each
-bag one run with its own offset), with the effects an accelerometer part can hold; figures
-are then in mg (the JSON adds ``"sensor": "accel", "unit": "mg"``; its ``*_dps`` fields hold
-mg). Bad input exits 2 with one line on stderr.
+Reads the bags (one :class:`~gyro_tdc.data.BagOptions`), runs
+:func:`gyro_tdc.identify.discover.discover` (``--sensor accel``: on the accelerometer's still
+data), prints the summary and writes ``--json``, ``--report DIR`` and ``--out MODEL.yaml``.
+See ``doc/internals/cli.md``.
 """
 
 from __future__ import annotations
@@ -101,8 +94,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     accel = args.sensor == 'accel'
     if accel:
         cands = _accel_options(args, base, cands)
-    runs = load_runs(args.bags, log=lambda s: print(s, flush=True), accel=accel,
-                     **bag_options(args))
+    runs = load_runs(args.bags, bag_options(args, accel=accel),
+                     log=lambda s: print(s, flush=True))
     if accel:
         n_bags = len(runs)
         runs = discovery_runs(runs)

@@ -15,25 +15,10 @@
 """
 ``gyro-tdc evaluate BAG... --model A.yaml [--model B.yaml ...]``: score models.
 
-For every held-out bag and axis: BS of the raw data (BS1, paper eq. 30-31) and after each
-model, BS/BS1, RMS in deg/s, Allan deviation before and after with angle random walk and
-bias instability. With exactly two models (or a ``--baseline``) the paper's tables 3-7 are
-printed: ``BS1 BS2 BS3 P1 P2 P3`` with P1 = BS2/BS1, P2 = BS3/BS1 and P3 = BS3/BS2, the
-baseline (first model) as the conventional one. ``--model px4 --train BAG...`` adds a
-PX4-style cubic in T fitted on the training bags. Outputs: ``--json`` (the shape in
-docs/json.md), ``--plots DIR`` (PNGs per bag, titled with the models and whether re-anchoring
-was applied), ``--export DIR`` (a CSV per bag). ``--floor`` (and ``--accel-floor``) give a
-known white-noise floor per axis; every BS is then also shown as a multiple of it (``BS/fl``
-columns, ``bs_over_floor`` in the JSON). A progress bar over the bags shows on a
-terminal (stderr; ``--no-progress`` turns it and the bag-reading bar off).
-
-Beyond a model's trained range the ``--out-of-range`` policy applies (``linear`` by default,
-as the compensator node: the correction continues along its tangent at the range end, then
-holds), printed once, in the notes and in the JSON. ``--reanchor auto`` applies the
-compensator's precision-driven re-anchoring rule
-(:func:`gyro_tdc.runtime.reanchor.reanchor_shift`).
-The scoring is :mod:`gyro_tdc.evaluate.score`, the tables and files :mod:`gyro_tdc.evaluate.report`
-(plots: :mod:`gyro_tdc.evaluate.plots`); this module parses the arguments and prints.
+Reads the held-out bags (one :class:`~gyro_tdc.data.BagOptions`), scores every model with
+:mod:`gyro_tdc.evaluate.score` (BS, BS/BS1, RMS, Allan deviation; the paper's tables with two
+models; ``px4`` a cubic fitted on ``--train``) and prints or writes the tables, ``--json``,
+``--plots`` and ``--export``. See ``doc/internals/cli.md``.
 """
 
 from __future__ import annotations
@@ -139,18 +124,18 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         raise UsageError('--train is only used by --model px4; add --model px4 or drop --train')
     baseline = (specs.index(args.baseline) if args.baseline is not None
                 else (0 if len(specs) == 2 else None))
-    opts = bag_options(args)
+    bag = bag_options(args)
     auto = args.reanchor == AUTO_REANCHOR
     options = ('re-anchored: mean error removed over the head of each bag until known to '
                "the compensator's tolerance" if auto else
                f're-anchored: mean error of the first {args.reanchor:g} s removed'
                if args.reanchor > 0 else 'no re-anchoring')
-    bar = _Progress(len(expand_bags(args.bags)), enabled=opts['progress'])
+    bar = _Progress(len(expand_bags(args.bags)), enabled=bag.progress)
 
     def log(line: str) -> None:
         bar.write(line)
 
-    models = load_models(specs, train_bags=args.train, options=opts, log=log)
+    models = load_models(specs, train_bags=args.train, bag=bag, log=log)
     descriptions = [model_description(nm.name, nm.model.kind, nm.model.features,
                                       tau_s=_state_tau(nm.model))
                     for nm in models]
@@ -181,7 +166,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         log(f'models re-anchored: mean error over the first {args.reanchor:g} s of each bag '
             'removed (raw data untouched)')
     try:
-        results = evaluate(args.bags, models, options=opts, reanchor_s=args.reanchor, log=log,
+        results = evaluate(args.bags, models, bag=bag, reanchor_s=args.reanchor, log=log,
                            each=_with_reanchor(each, log) if auto else each,
                            out_of_range=args.out_of_range)
     finally:

@@ -15,14 +15,9 @@
 """
 ``python -m gyro_tdc fleet MANIFEST.csv --out DIR``: calibrate many sensors on Dask.
 
-One model per manifest row (``sensor_id,train,test``), trained with the options and defaults
-of ``train`` and evaluated on the row's test bags, on an embedded Dask ``LocalCluster``
-(``--workers N`` processes, default the machine's cores) or on a running Dask cluster
-(``--scheduler tcp://HOST:PORT``; its workers must read the bags at the manifest's paths).
-Writes ``DIR/<sensor_id>.yaml``, ``DIR/summary.json`` and ``DIR/summary.csv`` and prints a
-short table. Exit 0 when every sensor is calibrated, 1 when any failed (the summary names
-each failure), 2 on bad input (manifest, options, unreachable scheduler) with one line on
-stderr. See :mod:`gyro_tdc.fleet`.
+One model per manifest row, trained with the options and defaults of ``train`` (one
+``TrainOptions`` and one ``BagOptions`` for every sensor) and evaluated on the row's test
+bags; exit 1 when any sensor failed. See :mod:`gyro_tdc.fleet` and ``doc/internals/cli.md``.
 """
 
 from __future__ import annotations
@@ -33,10 +28,11 @@ from pathlib import Path
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.cli.common import (ArgumentParser, command_line, positive_float, positive_int,
-                                 run_command, UsageError)
+from gyro_tdc.cli.common import (ArgumentParser, bag_options, command_line, positive_float,
+                                 positive_int, run_command, UsageError)
 from gyro_tdc.cli.train import add_train_options, train_options
-from gyro_tdc.fleet import DEFAULT_OUTLIER_Z, format_table, open_engine, read_manifest, run_fleet
+from gyro_tdc.fleet import (DEFAULT_OUTLIER_Z, format_table, open_engine, read_manifest, run_fleet,
+                            sigterm_as_interrupt)
 
 __all__ = ['build_parser', 'main']
 
@@ -60,8 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
                      help='use a running Dask cluster (tcp://HOST:PORT) instead; its workers '
                           'must read the bags at the paths of the manifest')
     p.add_argument('--connect-timeout', type=positive_float, default=30.0, metavar='S',
-                   help='seconds to wait for --scheduler and its first worker (default: '
-                        '%(default)s)')
+                   help='seconds to wait for --scheduler and its first worker, and for a '
+                        'worker when the cluster has lost them all (default: %(default)s)')
     p.add_argument('--force', action='store_true',
                    help='retrain sensors whose bags and options are unchanged (default: skip '
                         'them, keeping their models)')
@@ -75,17 +71,18 @@ def build_parser() -> argparse.ArgumentParser:
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``fleet`` with parsed arguments; print the table; 1 when a sensor failed."""
     options = train_options(args)     # a bad feature id fails before any worker starts
+    bag = bag_options(args)
     specs = read_manifest(args.manifest)
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UsageError(f'--out: {str(out)!r} exists and is not a folder')
-    progress = bool(options['progress'])
+    progress = bag.progress
     workers = min(args.workers or os.cpu_count() or 1, len(specs))   # no idle processes
-    with open_engine(workers=workers, scheduler=args.scheduler,
-                     timeout_s=args.connect_timeout) as engine:
+    with sigterm_as_interrupt(), open_engine(workers=workers, scheduler=args.scheduler,
+                                             timeout_s=args.connect_timeout) as engine:
         print(f'fleet: {len(specs)} sensor(s) on {engine.workers} Dask worker(s) '
               f'({engine.scheduler}) -> {out}', flush=True)
-        result = run_fleet(specs, out, options, engine, force=args.force,
+        result = run_fleet(specs, out, options, engine, bag=bag, force=args.force,
                            outlier_z=args.outlier_z, progress=progress,
                            command=command_line('fleet', argv),
                            log=None if progress else (lambda line: print(line, flush=True)))

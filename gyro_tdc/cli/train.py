@@ -15,26 +15,10 @@
 """
 ``python -m gyro_tdc train BAG... --out MODEL.yaml``: identify a model from recorded bags.
 
-One run per bag (a folder of bag folders, as ``simulate`` writes for a multi-run scenario,
-expands to its bags). The work is :func:`gyro_tdc.identify.train.train`; this module parses the
-arguments and prints, with the default ``--features auto``, what was chosen and why (one
-line per effect), then the report of :func:`gyro_tdc.evaluate.report.format_training`: training
-bias
-stability per axis raw and compensated, the temperature range, coverage per temperature bin
-(with a warning naming the bins inside the span with too little data) and minutes heating,
-cooling and steady (with the thermal state's tau and its interval, or that the data cannot
-pin it, when the model has one). With accelerometer data that are still (a chamber run)
-the model gets its accelerometer part, reported the same way (BS before and after, in
-(m/s^2)^2, coverage of the still data, orientation changes found and split at); ``--no-accel``
-skips it. Bad input (missing bag or topic, unreadable bag, too small a
-span, too few samples, unknown feature id, bad reference) exits 2 with one line on stderr.
-
-``--still-only`` trains from bags recorded in ordinary operation (no reference topic): only
-the still stretches count (:func:`gyro_tdc.identify.still_only.train_still_only`; the thermal
-state still runs over every sample), ``--motion-topic`` vetoes stillness while a ``cmd_vel``
-or odometry topic reports motion, and the report adds the still time, its coverage per bin,
-the minutes heating and cooling while still, and what to record next. No still stretch, or
-too small a span of still temperatures, exits 2 with one line.
+Parses the arguments into one :class:`~gyro_tdc.identify.TrainOptions` and one
+:class:`~gyro_tdc.data.BagOptions`, runs :func:`gyro_tdc.identify.train.train` (or, with
+``--still-only``, :func:`gyro_tdc.identify.still_only.train_still_only`) and prints the
+choice of features, the training report and the coverage; bad input exits 2 with one line.
 """
 
 from __future__ import annotations
@@ -48,8 +32,8 @@ from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, c
                                  run_command)
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.evaluate import format_coverage, format_training
-from gyro_tdc.identify import AUTO, train, train_still_only
-from gyro_tdc.model import KINDS, normalise_ids
+from gyro_tdc.identify import AUTO, train, train_still_only, TrainOptions
+from gyro_tdc.model import KINDS
 from gyro_tdc.signal import MIN_STILL_S
 
 __all__ = ['add_train_options', 'build_parser', 'main', 'train_options']
@@ -90,8 +74,8 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
     Add every option of ``train`` but the bags and ``--out`` (model and bag options).
 
     Commands that train (``fleet``) share the options and defaults through this function;
-    :func:`train_options` turns the parsed arguments into keyword options of
-    :func:`gyro_tdc.identify.train.train`.
+    :func:`train_options` and :func:`gyro_tdc.cli.common.bag_options` turn the parsed
+    arguments into the options of :func:`gyro_tdc.identify.train.train`.
 
     Parameters
     ----------
@@ -125,50 +109,46 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
     add_bag_options(p)
 
 
-def train_options(args: argparse.Namespace) -> dict:
+def train_options(args: argparse.Namespace, **more: object) -> TrainOptions:
     """
-    Return the keyword options of :func:`gyro_tdc.identify.train.train` from parsed arguments.
+    Return the training options from arguments parsed with :func:`add_train_options`.
 
     Parameters
     ----------
     args : argparse.Namespace
         Parsed arguments.
+    **more
+        Further :class:`~gyro_tdc.identify.TrainOptions` fields the command sets itself
+        (``sensor_id``, ``min_still_s``).
 
     Returns
     -------
-    dict
-        ``features`` (``'auto'`` or normalised ids), ``kind``, ``n_centers``, ``refine``,
-        ``t0``, ``seed``, ``bin_c``, ``accel`` and the bag options of
-        :func:`gyro_tdc.cli.common.bag_options`.
+    TrainOptions
+        ``features``, ``kind``, ``n_centers``, ``refine``, ``t0``, ``seed``, ``bin_c``,
+        ``accel`` and ``more``.
 
     Raises
     ------
-    FeatureError
-        When ``--features`` names an unknown effect.
+    GyroTdcError
+        FeatureError when ``--features`` names an unknown effect (and the checks of
+        :class:`~gyro_tdc.identify.TrainOptions`).
 
     """
-    auto = args.features.strip() == AUTO
-    return {'features': AUTO if auto else normalise_ids(args.features), 'kind': args.kind,
-            'n_centers': args.centers, 'refine': args.refine, 't0': args.t0,
-            'seed': args.seed, 'bin_c': args.bin_c, 'accel': args.accel, **bag_options(args)}
+    return TrainOptions(features=args.features, kind=args.kind, n_centers=args.centers,
+                        refine=args.refine, t0=args.t0, seed=args.seed, bin_c=args.bin_c,
+                        accel=args.accel, **more)
 
 
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``train`` with parsed arguments; print the report."""
-    opts = train_options(args)   # fails on a bad feature id before reading any bag
-    if args.still_only:
-        for key in ('reference', 'reference_topic'):     # still: the rate is zero
-            opts.pop(key)
-        result = train_still_only(args.bags, out=args.out, command=command_line('train', argv),
-                                  log=lambda line: print(line, flush=True),
-                                  sensor_id=args.sensor_id, motion_topic=args.motion_topic,
-                                  min_still_s=args.min_still, **opts)
-    elif args.motion_topic:
+    # Checked before any bag is read: a bad feature id fails at once.
+    options = train_options(args, sensor_id=args.sensor_id, min_still_s=args.min_still)
+    if args.motion_topic and not args.still_only:
         raise GyroTdcError('--motion-topic: only with --still-only.')
-    else:
-        result = train(args.bags, out=args.out, command=command_line('train', argv),
-                       log=lambda line: print(line, flush=True), sensor_id=args.sensor_id,
-                       **opts)
+    bag = bag_options(args, motion_topic=args.motion_topic)
+    fit = train_still_only if args.still_only else train     # still: no reference is read
+    result = fit(args.bags, args.out, options, bag, command=command_line('train', argv),
+                 log=lambda line: print(line, flush=True))
     if result.choice is not None:
         print('\n'.join(result.choice.lines()))
     text, warns = format_training(result)

@@ -15,8 +15,9 @@
 """
 Data in.
 
-Rosbag2 bags (read, written, motion reports), the serialized Imu and its compensation
-mark, thermal runs as arrays, their coverage, and real-data converters.
+Rosbag2 bags (read, written, motion reports; how to read them one :class:`BagOptions`), the
+serialized Imu and its compensation mark, thermal runs as arrays, their coverage, and
+real-data converters. See ``doc/internals/data.md``.
 """
 
 from gyro_tdc.base.face import lazy
@@ -27,9 +28,11 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'bag_reader': ['read_bag'],
     'bag_writer': ['write_bag'],
     'coverage': ['Coverage', 'coverage', 'RATE_THRESHOLD_C_PER_MIN', 'temperature_rate'],
-    'dataset': ['expand_bags', 'load_runs', 'MAX_LOSS_FRACTION'],
+    'dataset': ['expand_bags', 'load_runs'],
     'imu_cdr': ['ImuView', 'locate'],
     'mark': ['diagonal_marked', 'mark_diagonal'],
+    'options': ['BagOptions', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
+                'DEFAULT_TEMPERATURE_TOPIC', 'MAX_LOSS_FRACTION'],
     'realdata': ['default_pan_csv', 'PanCubesat', 'read_pan_cubesat_csv'],
     'runs': ['Run'],
 })

@@ -15,22 +15,8 @@
 """
 Bag -> aligned numpy arrays: one :class:`gyro_tdc.data.runs.Run` per recording.
 
-The thermometer (typically 1 Hz) is interpolated linearly onto the IMU stamps
-(100 Hz - 1 kHz); the reference rate comes from a constant, from a rate-table topic
-(zero-order hold) or is zero. Bad samples are dropped and counted in ``run.info['rejected']``
-so that nothing is lost silently:
-
-- physically impossible values are dropped at load (one finite outlier such as 1e300 would
-  otherwise wreck a fit): a temperature outside ``TEMP_PLAUSIBLE_C`` (-100 to 200 degC), a
-  rate (IMU or reference) above ``MAX_RATE_RAD_S`` (100 rad/s, 5,700 deg/s, beyond any MEMS
-  gyro's range) in magnitude;
-- thermometer samples sharing a stamp are not averaged: the last one in the bag is kept,
-  and readings that disagree are reported in ``run.info['warnings']``;
-- the messages decoded per topic are checked against the count the bag's metadata lists:
-  any shortfall (a damaged mcap chunk, undecodable messages) is a warning naming the topic
-  ("read X of Y messages"), and a shortfall above ``max_loss`` (default
-  ``MAX_LOSS_FRACTION``, 1 %) of a topic's messages refuses the bag (``DatasetError``)
-  unless the caller accepts it (``--allow-loss`` on the command line).
+How a bag is read is one :class:`gyro_tdc.data.options.BagOptions`; what is dropped and why
+(implausible values, duplicate stamps, lost messages) is in ``doc/internals/data.md``.
 """
 
 from __future__ import annotations
@@ -42,16 +28,14 @@ from typing import Callable, Iterable
 
 from gyro_tdc.base import MAX_RATE_RAD_S, TEMP_PLAUSIBLE_C
 from gyro_tdc.data.bag_reader import read_bag, small_pages
+from gyro_tdc.data.options import BagOptions
 from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.signal import has_accelerometer
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['MAX_LOSS_FRACTION', 'align_temperature',
-           'describe_read', 'expand_bags', 'load_run', 'load_runs']
-
-MAX_LOSS_FRACTION = 0.01
+__all__ = ['align_temperature', 'describe_read', 'expand_bags', 'load_run', 'load_runs']
 
 
 def _vector(name: str, a: ArrayLike) -> NDArray[np.float64]:
@@ -208,29 +192,16 @@ def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: 
     return out
 
 
-def _reference(value: object) -> NDArray[np.float64]:
-    """Return a constant reference rate (x, y, z) in rad/s or raise DatasetError."""
-    try:
-        ref = np.asarray(value, dtype=np.float64)
-    except (TypeError, ValueError):
-        ref = np.zeros(0)
-    if ref.shape != (3,) or not np.all(np.isfinite(ref)):
-        raise DatasetError('Expected `reference` to be three finite rates (x, y, z) in rad/s, '
-                           f'got {value!r}.')
-    return ref
-
-
 @small_pages()    # its full-length arrays too: see gyro_tdc.data.bag_reader.small_pages
-def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
-             reference=None, reference_topic='/rate_table/reference', max_gap_s=5.0,
-             progress=False, max_loss=MAX_LOSS_FRACTION, accel=False) -> Run:
+def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     """
     Read one bag into a :class:`~gyro_tdc.data.runs.Run` aligned on the IMU stamps.
 
     IMU samples are sorted by stamp; of samples sharing a stamp the first in the bag is
     kept. Samples with a non-finite rate, without a trusted temperature (see
     :func:`align_temperature`) or before the first reference message are dropped, and so
-    are physically impossible values (see the module docstring). Every drop is counted in
+    are physically impossible values (a temperature outside ``TEMP_PLAUSIBLE_C``, a rate
+    above ``MAX_RATE_RAD_S`` in magnitude). Every drop is counted in
     ``run.info['rejected']``: ``imu_nonfinite``, ``temp_nonfinite``, ``ref_nonfinite``,
     ``undecodable``, ``imu_implausible``, ``temp_implausible``, ``ref_implausible``,
     ``duplicate_stamps``, ``temp_duplicate_stamps``, ``out_of_order``, ``no_temperature``,
@@ -241,25 +212,9 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
     ----------
     bag : str or Path
         rosbag2 directory (sqlite3 or mcap).
-    imu_topic : str
-        ``sensor_msgs/msg/Imu`` topic.
-    temperature_topic : str
-        ``sensor_msgs/msg/Temperature`` topic.
-    reference : tuple of 3 float, rad/s, optional
-        Constant reference rate (x, y, z); when given, the reference topic is not read.
-    reference_topic : str
-        ``geometry_msgs/msg/Vector3Stamped`` topic, held (zero-order) onto the IMU stamps
-        when present; the reference is zero when the bag has no such topic.
-    max_gap_s : float, s
-        Largest distance to the nearest thermometer sample (see :func:`align_temperature`).
-    progress : bool
-        Show a progress bar while reading.
-    max_loss : float
-        Largest fraction of a topic's messages (as listed in the bag's metadata) that may
-        be missing after reading; 1.0 accepts any loss (it is still reported).
-    accel : bool
-        Also read the linear acceleration into ``run.accel`` (the same samples kept; None
-        when the bag's IMU publishes none, all zero per REP 145); False (default) skips it.
+    options : BagOptions, optional
+        Topics, reference rate, temperature gap, loss allowed, accelerometer (default
+        :class:`~gyro_tdc.data.options.BagOptions`: the accelerometer is not read).
 
     Returns
     -------
@@ -272,13 +227,16 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
     ------
     DatasetError
         When the bag cannot be read, a topic is missing, empty or of the wrong type, more
-        than ``max_loss`` of a topic's messages are missing, or no sample survives.
+        than ``options.max_loss`` of a topic's messages are missing, or no sample survives.
 
     """
-    const = None if reference is None else _reference(reference)
+    o = BagOptions() if options is None else options
+    imu_topic, temperature_topic, reference_topic = (o.imu_topic, o.temperature_topic,
+                                                     o.reference_topic)
+    const = None if o.reference is None else np.asarray(o.reference, dtype=np.float64)
     data = read_bag(bag, imu_topic=imu_topic, temperature_topic=temperature_topic,
                     reference_topic=None if const is not None else reference_topic,
-                    progress=progress, accel=bool(accel))
+                    progress=o.progress, accel=bool(o.accel))
     rejected = {'imu_nonfinite': data.rejected['imu_nonfinite'],
                 'temp_nonfinite': data.rejected['temp_nonfinite'],
                 'ref_nonfinite': data.rejected['ref_nonfinite'],
@@ -291,7 +249,7 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
         imu_topic: len(data.imu_t) + data.rejected['imu_nonfinite'],
         temperature_topic: len(data.temp_t) + data.rejected['temp_nonfinite'],
         **({reference_topic: len(data.ref_t) + data.rejected['ref_nonfinite']}
-           if data.ref_t is not None else {})}, max_loss, warnings)
+           if data.ref_t is not None else {})}, o.max_loss, warnings)
 
     t, omega = data.imu_t, data.gyro
     rows = np.arange(len(t))          # of data.accel: follows every IMU sample dropped
@@ -318,7 +276,7 @@ def load_run(bag, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperat
         rejected['duplicate_stamps'] = int(np.count_nonzero(~first))
         t, omega, rows = t[first], omega[first], rows[first]
 
-    temp, keep, counts = align_temperature(t, temp_t, temp_c, max_gap_s=max_gap_s,
+    temp, keep, counts = align_temperature(t, temp_t, temp_c, max_gap_s=o.max_gap_s,
                                            return_counts=True)
     rejected['temp_nonfinite'] += counts['nonfinite']
     rejected['temp_duplicate_stamps'] = counts['duplicates']
@@ -479,8 +437,9 @@ def describe_read(bag: str | os.PathLike, run: Run, reference_topic: str) -> str
             f'{reference}' + (f'; dropped {dropped}' if dropped else ''))
 
 
-def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike, *,
-              log: Callable[[str], None] | None = None, **kw) -> list[Run]:
+def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
+              options: BagOptions | None = None, *,
+              log: Callable[[str], None] | None = None) -> list[Run]:
     """
     Load several bags with :func:`load_run`, one run per bag, after :func:`expand_bags`.
 
@@ -488,10 +447,10 @@ def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike, *,
     ----------
     bags : iterable of str or PathLike (or a single one)
         rosbag2 directories, or folders of them.
+    options : BagOptions, optional
+        How to read every bag (see :func:`load_run`).
     log : callable, optional
         Receives one line per bag read: samples, minutes, reference and what was dropped.
-    **kw
-        Keyword options of :func:`load_run`.
 
     Returns
     -------
@@ -499,13 +458,14 @@ def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike, *,
         One run per bag, in the given order.
 
     """
+    options = BagOptions() if options is None else options
     if isinstance(bags, (str, os.PathLike)):
         bags = [bags]
     runs = []
     for bag in expand_bags(bags):
-        run = load_run(bag, **kw)
+        run = load_run(bag, options)
         if log is not None:
-            log(describe_read(bag, run, kw.get('reference_topic', '/rate_table/reference')))
+            log(describe_read(bag, run, options.reference_topic))
             for warning in run.info.get('warnings', ()):
                 log(f'warning: {bag}: {warning}')
         runs.append(run)

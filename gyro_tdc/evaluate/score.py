@@ -23,7 +23,7 @@ the out-of-range policy and re-anchoring of the compensator. See ``doc/internals
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 import os
 from pathlib import Path
@@ -31,7 +31,7 @@ import re
 from typing import Callable, Sequence
 
 from gyro_tdc.base import model_path
-from gyro_tdc.data import expand_bags, load_runs, Run
+from gyro_tdc.data import BagOptions, expand_bags, load_runs, Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify import accel_scores, fit_accel, fit_px4_cubic, PX4_FEATURES
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
@@ -234,8 +234,13 @@ def bag_labels(paths: Sequence[str | os.PathLike]) -> list:
 # Models
 # --------------------------------------------------------------------------------------------
 
+def _with_accel(bag: BagOptions | None) -> BagOptions:
+    """Return ``bag`` (default :class:`~gyro_tdc.data.BagOptions`) reading the accelerometer."""
+    return replace(BagOptions() if bag is None else bag, accel=True)
+
+
 def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None,
-                options: dict | None = None,
+                bag: BagOptions | None = None,
                 log: Callable[[str], None] | None = None) -> list:
     """
     Load model files and fit the ``px4`` baseline when asked.
@@ -246,8 +251,9 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
         Model file paths (or shipped model names), or ``px4``.
     train_bags : sequence of str, optional
         Bags the ``px4`` cubic is fitted on (required with ``px4``, used only by it).
-    options : dict, optional
-        Bag options of :func:`gyro_tdc.data.dataset.load_run`.
+    bag : BagOptions, optional
+        How to read the training bags (the accelerometer is read whatever ``bag.accel``
+        says: the cubic gets an accelerometer part too).
     log : callable, optional
         Receives progress lines.
 
@@ -269,7 +275,7 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     files = {s: load_model(model_path(s)) for s in specs if s != PX4}
     px4 = None
     if PX4 in specs:
-        runs = load_runs(train_bags, log=log, **{'accel': True, **(options or {})})
+        runs = load_runs(train_bags, _with_accel(bag), log=log)
         px4 = fit_px4_cubic(runs, created={'bags': [r.name for r in runs]})
         acc = fit_accel(runs, px4, kind='poly', features=PX4_FEATURES)
         if acc.part is not None:          # PX4's TC_A*: a cubic for the accelerometer too
@@ -419,7 +425,7 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
 
 
 def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
-             options: dict | None = None, reanchor_s: float | str = 0.0,
+             bag: BagOptions | None = None, reanchor_s: float | str = 0.0,
              out_of_range: str = DEFAULT_OUT_OF_RANGE,
              max_extrapolation_c: float = MAX_EXTRAPOLATION_C,
              log: Callable[[str], None] | None = None,
@@ -433,9 +439,9 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
         Held-out bags (folders of bags expand to their bags).
     models : sequence of NamedModel
         Models to score.
-    options : dict, optional
-        Bag options of :func:`gyro_tdc.data.dataset.load_run` (the accelerometer is read unless
-        they hold ``accel=False``).
+    bag : BagOptions, optional
+        How to read the bags (the accelerometer is read whatever ``bag.accel`` says: its
+        scores need it).
     reanchor_s : float (s) or ``'auto'``
         Start-up re-anchoring (see :func:`evaluate_run`); 0 = off.
     out_of_range : str
@@ -458,7 +464,7 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     paths = expand_bags(bags)
     results = []
     for path, label in zip(paths, bag_labels(paths)):
-        run = load_runs([path], log=log, **{'accel': True, **(options or {})})[0]
+        run = load_runs([path], _with_accel(bag), log=log)[0]
         b = evaluate_run(run, models, label=label, reanchor_s=reanchor_s,
                          out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c)
         if each is not None:

@@ -25,34 +25,36 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass, replace
 import hashlib
 import json
 import logging
 import math
 import os
 from pathlib import Path
+import signal
 import tempfile
+import threading
 import time
 from typing import Callable, Iterator, Sequence
 
 from gyro_tdc import __version__
 from gyro_tdc.base import atomic_write
-from gyro_tdc.errors import FleetError, GyroTdcError, one_line
+from gyro_tdc.data import BagOptions
+from gyro_tdc.errors import FleetError, GyroTdcError, one_line, OutputError
 from gyro_tdc.evaluate import evaluate, mean_scores, NamedModel
 from gyro_tdc.fleet.manifest import input_key, SensorSpec
 from gyro_tdc.fleet.results import FleetResult, SensorResult
 from gyro_tdc.fleet.stats import DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics
 from gyro_tdc.fleet.summary import write_summary
-from gyro_tdc.identify import train
+from gyro_tdc.identify import train, TrainOptions
 from gyro_tdc.model import CompensationModel, save_model
 
 __all__ = ['Engine', 'STATE_DIR', 'SensorOutcome', 'check_workers', 'open_engine', 'run_fleet',
-           'run_sensor', 'worker_version']
+           'run_sensor', 'sigterm_as_interrupt', 'worker_version']
 
 STATE_DIR = '.fleet'         # DIR/.fleet/<sensor_id>.json: the resume state of each sensor
 STATE_FORMAT = 1
-_BAG_KEYS = ('imu_topic', 'temperature_topic', 'reference', 'reference_topic', 'progress')
 
 
 @dataclass
@@ -98,8 +100,13 @@ class SensorOutcome:
     pid: int = 0
 
 
-def run_sensor(spec: SensorSpec, options: dict, *, previous_key: str | None = None,
-               command: str = '') -> SensorOutcome:
+def _key_options(options: TrainOptions, bag: BagOptions) -> dict:
+    """Return the options a sensor's resume key hashes: all but the progress bar."""
+    return {'train': asdict(options), 'bag': asdict(replace(bag, progress=False))}
+
+
+def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | None = None,
+               previous_key: str | None = None, command: str = '') -> SensorOutcome:
     """
     Train, evaluate and characterise one sensor (the Dask task; writes only a temporary file).
 
@@ -107,9 +114,10 @@ def run_sensor(spec: SensorSpec, options: dict, *, previous_key: str | None = No
     ----------
     spec : SensorSpec
         The sensor and its bags (paths as the worker sees them).
-    options : dict
-        Keyword options of :func:`gyro_tdc.identify.train.train` (features, kind, topics...);
-        ``progress`` is ignored (no bar on workers).
+    options : TrainOptions
+        How to train (:func:`gyro_tdc.identify.train.train`).
+    bag : BagOptions, optional
+        How to read the train and test bags; ``progress`` is ignored (no bar on workers).
     previous_key : str, optional
         Input key of the model already written; when equal to this run's key the sensor is
         skipped without reading a bag.
@@ -124,21 +132,20 @@ def run_sensor(spec: SensorSpec, options: dict, *, previous_key: str | None = No
 
     """
     start = time.perf_counter()
-    opts = {**options, 'progress': False}
+    bag = replace(BagOptions() if bag is None else bag, progress=False)
     out = SensorOutcome(spec.sensor_id, 'failed', pid=os.getpid())
     try:
-        out.key = input_key(spec, opts)
+        out.key = input_key(spec, _key_options(options, bag))
         if previous_key is not None and previous_key == out.key:
             out.status = 'skipped'
             return out
         with tempfile.TemporaryDirectory(prefix='gyro_tdc_fleet_') as tmp:
-            result = train(list(spec.train), out=Path(tmp) / 'model.yaml', command=command,
-                           **opts)
+            result = train(list(spec.train), Path(tmp) / 'model.yaml', options, bag,
+                           command=command)
         model = result.model.replace(sensor_id=spec.sensor_id)
         if spec.test:
             named = NamedModel(f'{spec.sensor_id}.yaml', spec.sensor_id, model)
-            bag_opts = {k: opts[k] for k in _BAG_KEYS if k in opts}
-            evals = evaluate(list(spec.test), [named], options=bag_opts)
+            evals = evaluate(list(spec.test), [named], bag=bag)
             out.heldout_bs = [float(v) for v in mean_scores(evals)[1][1]]
         out.train_bs = [float(v) for v in model.metrics.get('train_bs_dps2', [math.nan] * 3)]
         out.drift_poly = drift_polynomial(model).tolist()
@@ -165,12 +172,15 @@ class Engine:
         ``'local'`` or the scheduler address.
     workers : int
         Workers connected at the start.
+    timeout_s : float, s
+        How long a fleet waits while the cluster has no worker before it gives up.
 
     """
 
     client: object
     scheduler: str
     workers: int
+    timeout_s: float = 30.0
 
 
 @contextlib.contextmanager
@@ -188,7 +198,8 @@ def open_engine(*, workers: int | None = None, scheduler: str | None = None,
         Address of a running Dask scheduler (``tcp://HOST:PORT``); its workers must read the
         bags at the paths the manifest gives.
     timeout_s : float, s
-        How long to wait for the scheduler and its first worker.
+        How long to wait for the scheduler and its first worker, and how long a fleet waits
+        when the cluster has lost every worker (:attr:`Engine.timeout_s`).
 
     Yields
     ------
@@ -210,7 +221,7 @@ def open_engine(*, workers: int | None = None, scheduler: str | None = None,
                           host='127.0.0.1', scheduler_port=0, dashboard_address='127.0.0.1:0',
                           silence_logs=logging.CRITICAL) as cluster, Client(cluster) as client:
             check_workers(client, 'local')
-            yield Engine(client, 'local', n)
+            yield Engine(client, 'local', n, timeout_s)
         return
     try:
         client = Client(scheduler, timeout=f'{timeout_s}s')
@@ -224,7 +235,7 @@ def open_engine(*, workers: int | None = None, scheduler: str | None = None,
                              f'{timeout_s:g} s (start some with: dask worker {scheduler})'
                              ) from exc
         check_workers(client, scheduler)
-        yield Engine(client, scheduler, len(client.nthreads()))
+        yield Engine(client, scheduler, len(client.nthreads()), timeout_s)
 
 
 def worker_version() -> str:
@@ -285,16 +296,101 @@ def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
             state_file.unlink()       # the model on disk no longer matches these inputs
         return SensorResult(out.sensor_id, 'failed', error=out.error or 'unknown failure',
                             seconds=out.seconds)
-    save_model(out.model, model_file)
-    record = {'format': STATE_FORMAT, 'key': out.key,
-              'model_sha256': hashlib.sha256(model_file.read_bytes()).hexdigest(),
-              'train_bs': out.train_bs, 'heldout_bs': out.heldout_bs,
-              'drift_poly': out.drift_poly, 'temp_range_c': out.temp_range_c,
-              'seconds': out.seconds}
-    atomic_write(state_file, json.dumps(record) + '\n', what='fleet state file')
+    try:
+        save_model(out.model, model_file)
+        record = {'format': STATE_FORMAT, 'key': out.key,
+                  'model_sha256': hashlib.sha256(model_file.read_bytes()).hexdigest(),
+                  'train_bs': out.train_bs, 'heldout_bs': out.heldout_bs,
+                  'drift_poly': out.drift_poly, 'temp_range_c': out.temp_range_c,
+                  'seconds': out.seconds}
+        atomic_write(state_file, json.dumps(record) + '\n', what='fleet state file')
+    except (GyroTdcError, OSError) as exc:       # this sensor's output only: the others go on
+        with contextlib.suppress(OSError):
+            state_file.unlink()
+        return SensorResult(out.sensor_id, 'failed', error=one_line(exc), seconds=out.seconds)
     return SensorResult(out.sensor_id, 'ok', model_file=str(model_file), train_bs=out.train_bs,
                         heldout_bs=out.heldout_bs, drift_poly=out.drift_poly,
                         temp_range_c=out.temp_range_c, seconds=out.seconds)
+
+
+class _NoWorker(FleetError):
+    """The cluster has had no worker for longer than the engine's timeout."""
+
+
+@contextlib.contextmanager
+def sigterm_as_interrupt() -> Iterator[None]:
+    """
+    Turn SIGTERM into KeyboardInterrupt for the duration of a ``with`` (main thread only).
+
+    Batch systems stop a job with SIGTERM: a fleet stopped so ends as on Ctrl-C, with its
+    summary written. Elsewhere than in the main thread this does nothing.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def interrupt(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt('terminated (SIGTERM)')
+
+    previous = signal.signal(signal.SIGTERM, interrupt)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, previous)
+
+
+def _worker_count(engine: Engine) -> int:
+    """Return the workers connected to the engine's scheduler (0 when it cannot be asked)."""
+    try:
+        return len(engine.client.nthreads())
+    except (OSError, TimeoutError):
+        return 0
+
+
+def _completed(futures: list, engine: Engine) -> Iterator[object]:
+    """
+    Yield the futures as they finish; raise _NoWorker when the cluster lost every worker.
+
+    Tasks of a cluster without workers wait for ever: when no task finished and no worker
+    was connected for ``engine.timeout_s``, the remaining tasks are cancelled.
+    """
+    from distributed import as_completed
+    pending = as_completed(futures)
+    idle_since, next_check = None, 0.0
+    while not pending.is_empty():
+        if pending.has_ready():
+            idle_since = None
+            yield next(pending)
+            continue
+        now = time.monotonic()
+        if now >= next_check:
+            next_check = now + min(1.0, engine.timeout_s / 4.0)
+            if _worker_count(engine):
+                idle_since = None
+            elif idle_since is None:
+                idle_since = now
+            elif now - idle_since >= engine.timeout_s:
+                with contextlib.suppress(OSError, TimeoutError):
+                    engine.client.cancel([f for f in futures if not f.done()])
+                raise _NoWorker(f'the Dask cluster ({engine.scheduler}) has had no worker for '
+                                f'{engine.timeout_s:g} s')
+        time.sleep(0.05)
+
+
+def _summary_error(exc: Exception, pending: BaseException | None,
+                   write_errors: list) -> OutputError:
+    """Return one line: why the fleet stopped or what it could not write, then the summary."""
+    why = []
+    if isinstance(pending, KeyboardInterrupt):
+        why.append('interrupted')
+    elif pending is not None:
+        why.append(one_line(pending))
+    if write_errors:
+        more = len(write_errors) - 1
+        why.append(write_errors[0] + (f' (and {more} more sensor(s))' if more else ''))
+    if not why:
+        return OutputError(one_line(exc))
+    return OutputError(f'{"; ".join(why)}; and no fleet summary: {one_line(exc)}')
 
 
 def _future_failure(sid: str, future: object) -> SensorOutcome:
@@ -307,8 +403,9 @@ def _future_failure(sid: str, future: object) -> SensorOutcome:
     return SensorOutcome(sid, 'failed', error=reason)
 
 
-def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: dict,
-              engine: Engine, *, force: bool = False, outlier_z: float = DEFAULT_OUTLIER_Z,
+def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: TrainOptions,
+              engine: Engine, *, bag: BagOptions | None = None, force: bool = False,
+              outlier_z: float = DEFAULT_OUTLIER_Z,
               progress: bool = False, command: str = '',
               log: Callable[[str], None] | None = None) -> FleetResult:
     """
@@ -321,10 +418,12 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
     out_dir : str or PathLike
         Output folder (created): ``<sensor_id>.yaml``, ``summary.json``, ``summary.csv`` and
         the resume state in ``.fleet/``.
-    options : dict
-        Keyword options of :func:`gyro_tdc.identify.train.train`, the same for every sensor.
+    options : TrainOptions
+        How to train, the same for every sensor.
     engine : Engine
         From :func:`open_engine`.
+    bag : BagOptions, optional
+        How to read the bags, the same for every sensor.
     force : bool
         Retrain sensors whose inputs are unchanged.
     outlier_z : float
@@ -342,7 +441,6 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
         The summary (also written, even when sensors failed or the run is interrupted).
 
     """
-    from distributed import as_completed
     from tqdm import tqdm
     start = time.perf_counter()
     out = Path(out_dir)
@@ -350,37 +448,54 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
     state_dir.mkdir(parents=True, exist_ok=True)
     states: dict[str, dict | None] = {}
     futures = {}
-    for spec in specs:
-        model_file = out / f'{spec.sensor_id}.yaml'
-        st = None if force else _read_state(state_dir / f'{spec.sensor_id}.json', model_file)
-        states[spec.sensor_id] = st
-        fut = engine.client.submit(run_sensor, spec, options, pure=False,
-                                   previous_key=None if st is None else st.get('key'),
-                                   command=command, key=f'gyro_tdc-fleet-{spec.sensor_id}-'
-                                   f'{os.urandom(6).hex()}')
-        futures[fut] = spec.sensor_id
     done: dict[str, SensorResult] = {}
+    write_errors: list[str] = []        # per-sensor output errors (a full disk...)
+    pending: BaseException | None = None
+    not_run = 'not run (fleet interrupted)'
     bar = tqdm(total=len(specs), unit='sensor', desc='fleet', disable=not progress,
                dynamic_ncols=True)
     try:
-        for fut in as_completed(list(futures)):
-            sid = futures[fut]
-            outcome = fut.result() if fut.status == 'finished' else _future_failure(sid, fut)
-            fut.release()
-            res = _record(outcome, out, state_dir, states[sid])
-            done[sid] = res
-            bar.update(1)
-            if log is not None:
-                what = ('unchanged, skipped' if res.skipped else res.status
-                        if res.status == 'ok' else f'failed: {res.error}')
-                log(f'{sid}: {what}' + (f' ({res.seconds:.1f} s)' if res.seconds else ''))
+        with sigterm_as_interrupt():
+            for spec in specs:
+                model_file = out / f'{spec.sensor_id}.yaml'
+                st = (None if force
+                      else _read_state(state_dir / f'{spec.sensor_id}.json', model_file))
+                states[spec.sensor_id] = st
+                fut = engine.client.submit(run_sensor, spec, options, bag=bag, pure=False,
+                                           previous_key=None if st is None else st.get('key'),
+                                           command=command, key=f'gyro_tdc-fleet-'
+                                           f'{spec.sensor_id}-{os.urandom(6).hex()}')
+                futures[fut] = spec.sensor_id
+            for fut in _completed(list(futures), engine):
+                sid = futures[fut]
+                outcome = (fut.result() if fut.status == 'finished'
+                           else _future_failure(sid, fut))
+                fut.release()
+                res = _record(outcome, out, state_dir, states[sid])
+                if res.status != 'ok' and outcome.status == 'ok':
+                    write_errors.append(f'{sid}: {res.error}')
+                done[sid] = res
+                bar.update(1)
+                if log is not None:
+                    what = ('unchanged, skipped' if res.skipped else res.status
+                            if res.status == 'ok' else f'failed: {res.error}')
+                    log(f'{sid}: {what}' + (f' ({res.seconds:.1f} s)' if res.seconds else ''))
+    except _NoWorker as exc:
+        pending, not_run = exc, f'not run: {exc}'
+        raise FleetError(f'{exc}; {len(specs) - len(done)} sensor(s) not run (see the '
+                         'summary); start workers and run fleet again to finish them') from None
+    except BaseException as exc:
+        pending = exc
+        raise
     finally:
         bar.close()
-        sensors = [done.get(s.sensor_id) or SensorResult(s.sensor_id, 'failed',
-                                                         error='not run (fleet interrupted)')
+        sensors = [done.get(s.sensor_id) or SensorResult(s.sensor_id, 'failed', error=not_run)
                    for s in specs]
         result = FleetResult(engine.scheduler, engine.workers, sensors, outlier_z=outlier_z)
         result.reference_c = fleet_statistics(sensors, outlier_z=outlier_z)
         result.seconds = time.perf_counter() - start
-        write_summary(result, out)
+        try:
+            write_summary(result, out)
+        except GyroTdcError as exc:     # say why, not only that the summary failed too
+            raise _summary_error(exc, pending, write_errors) from pending
     return result

@@ -16,7 +16,8 @@
 Identification of a model from recorded runs.
 
 Fits (linear stage, time constants, the full model), training from bags and from still
-time, the accelerometer part, and discovery of missing effects.
+time (its choices one :class:`TrainOptions`), the accelerometer part, and discovery of
+missing effects. See ``doc/internals/identify.md``.
 """
 
 from gyro_tdc.base.face import lazy
@@ -29,9 +30,12 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'discover.model': ['build_model'],
     'discover.report': ['write_report'],
     'discover.results': ['format_summary'],
+    'features': ['AUTO', 'choose_features', 'FeatureChoice'],
     'fit': ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'TAU_BOUNDS', 'THERMAL_CHOICES'],
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],
+    'options': ['TrainOptions'],
+    'result': ['TrainResult'],
     'still_only': ['train_still_only'],
     'tau': ['effective_samples', 'fit_time_constant', 'profile_interval', 'TimeConstantFit'],
-    'train': ['AUTO', 'train', 'TrainResult'],
+    'train': ['train'],
 })

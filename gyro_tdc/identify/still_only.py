@@ -15,28 +15,9 @@
 """
 Training from ordinary operation: only the still stretches count (``train --still-only``).
 
-Bags recorded on a vehicle in normal use (``imu/data_raw`` and ``imu/temperature``, no
-reference topic) hold the gyro's drift only while the vehicle is still: then the true rate
-is zero and the output is the drift. :func:`train_still_only`
-
-1. finds the still stretches of every bag with the one still test
-   (:func:`gyro_tdc.signal.detect_still`: gyro and accelerometer scatter within the noise,
-   the noise floor the quietest window over all bags, a minimum duration, and with
-   ``motion_topic`` the veto of a ``cmd_vel``/odometry stream, :mod:`gyro_tdc.data.bag_motion`);
-2. chooses the features on the still stretches (``features='auto'``: discovery, as
-   :func:`gyro_tdc.identify.train.choose_features`; its filters see the temperature interpolated
-   across the drives, an approximation good enough to choose effects) and fits the model with
-   :func:`gyro_tdc.identify.fit_model` on the still rows only (``rows=``), while the thermal
-   state runs over every sample: the die temperature evolves while driving;
-3. drops, and refits without, the still stretches whose mean compensated rate departs from
-   the others' by more than :data:`OUTLIER_SIGMAS` robust standard deviations (and
-   :data:`OUTLIER_FLOOR_RAD_S`): a slow constant turn that passed the still test shows there,
-   provided other still time covers the same temperatures;
-4. reports the still time, its temperature coverage (per bin), the minutes heating and
-   cooling while still, and what to record next (:class:`StillReport`).
-
-The accelerometer part is fitted as in the chamber (:func:`gyro_tdc.identify.fit_accel`, on
-the same still test, one offset per parking orientation).
+:func:`train_still_only` finds the still stretches of every bag, fits the model on them
+while the thermal state runs over every sample, drops still stretches that look like slow
+turns, and reports what to record next (:class:`StillReport`); ``doc/internals/identify.md``.
 """
 
 from __future__ import annotations
@@ -47,15 +28,16 @@ import os
 from pathlib import Path
 from typing import Callable, Sequence
 
-from gyro_tdc.base import check_bin_width, check_centers
-from gyro_tdc.data import (Coverage, coverage, load_runs, MAX_LOSS_FRACTION,
-                           RATE_THRESHOLD_C_PER_MIN, read_motion, Run, temperature_rate)
+from gyro_tdc.data import (BagOptions, Coverage, coverage, load_runs, RATE_THRESHOLD_C_PER_MIN,
+                           read_motion, Run, temperature_rate)
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.accel import fit_accel
+from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import fit_model
-from gyro_tdc.identify.train import AUTO, AUTO_BASE, choose_features, TrainResult
-from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, EFFECTS, KINDS,
-                            normalise_ids, OPERATING_RANGE_C, save_model)
+from gyro_tdc.identify.options import TrainOptions
+from gyro_tdc.identify.result import TrainResult
+from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
+                            OPERATING_RANGE_C, save_model)
 from gyro_tdc.signal import detect_still, MIN_STILL_S, motion_veto, STILL_WINDOW_S, Stillness
 import numpy as np
 from numpy.typing import NDArray
@@ -314,15 +296,9 @@ def _advice(cov: Coverage) -> list[str]:
     return out
 
 
-def train_still_only(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
-                     features: str | Sequence[str] = AUTO, kind: str = 'rbf',
-                     n_centers: int = 12, refine: bool = False, t0: float | None = None,
-                     seed: int = 0, sensor_id: str = '', imu_topic: str = '/imu/data_raw',
-                     temperature_topic: str = '/imu/temperature', motion_topic: str = '',
-                     window_s: float = STILL_WINDOW_S, min_still_s: float = MIN_STILL_S,
-                     progress: bool = False, bin_c: float = 5.0, command: str = '',
-                     max_loss: float = MAX_LOSS_FRACTION,
-                     log: Callable[[str], None] | None = None, accel: bool = True,
+def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
+                     options: TrainOptions | None = None, bag: BagOptions | None = None, *,
+                     command: str = '', log: Callable[[str], None] | None = None,
                      runs: Sequence[Run] | None = None,
                      moving: Sequence[NDArray[np.bool_] | None] | None = None
                      ) -> TrainResult:
@@ -332,24 +308,21 @@ def train_still_only(bags: Sequence[str | os.PathLike], *, out: str | os.PathLik
     Parameters
     ----------
     bags : sequence of str or PathLike
-        rosbag2 directories (or folders of them), one run each; no reference is read (the
-        rate is zero while still).
+        rosbag2 directories (or folders of them), one run each.
     out : str or PathLike
         Model file to write.
-    features, kind, n_centers, refine, t0, seed, sensor_id, bin_c, command, max_loss, progress
-        As :func:`gyro_tdc.identify.train.train` (``t0`` defaults to the temperature at the start
-        of the first still stretch).
-    imu_topic, temperature_topic : str
-        Topics.
-    motion_topic : str
-        A ``geometry_msgs/Twist`` (``cmd_vel``), ``TwistStamped`` or ``nav_msgs/Odometry``
-        topic: still only while it reports zero motion. Empty: no veto.
-    window_s, min_still_s : float, s
-        Still-test window and shortest still stretch kept.
+    options : TrainOptions, optional
+        As :func:`gyro_tdc.identify.train.train` (``t0`` defaults to the temperature at the
+        start of the first still stretch), with the still test's ``window_s`` and
+        ``min_still_s``.
+    bag : BagOptions, optional
+        How to read the bags; no reference is read (the rate is zero while still), and
+        ``motion_topic`` (a ``Twist``, ``TwistStamped`` or ``Odometry`` topic) vetoes
+        stillness while it reports motion.
+    command : str
+        Command line recorded in the model's ``created``.
     log : callable, optional
         Receives one line per bag read.
-    accel : bool
-        Fit the accelerometer part too (when the bags have accelerometer data).
     runs : sequence of Run, optional
         Runs already loaded (``bags`` then only names them); for tests and scripts.
     moving : sequence of (NDArray[np.bool_] or None), optional
@@ -369,27 +342,22 @@ def train_still_only(bags: Sequence[str | os.PathLike], *, out: str | os.PathLik
         (with what to record), and as :func:`gyro_tdc.identify.train.train`.
 
     """
-    auto = isinstance(features, str) and features.strip() == AUTO
-    ids = AUTO_BASE if auto else normalise_ids(features)
-    if kind not in KINDS:
-        raise FitError(f'Expected `kind` to be one of {", ".join(KINDS)}, got {kind!r}.')
-    check_centers(n_centers)
-    check_bin_width(bin_c)
+    o = TrainOptions() if options is None else options
+    bag = BagOptions() if bag is None else bag
     if runs is None:
         said = None if log is None else (lambda line: log(line.replace(
             'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
-        runs = load_runs(bags, log=said, imu_topic=imu_topic,
-                         temperature_topic=temperature_topic, reference=(0.0, 0.0, 0.0),
-                         progress=progress, max_loss=max_loss, accel=bool(accel))
-        if motion_topic:
+        runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
+                         log=said)
+        if bag.motion_topic:
             moving = []
             for r in runs:
-                rep = read_motion(r.name, motion_topic)
+                rep = read_motion(r.name, bag.motion_topic)
                 moving.append(motion_veto(r.t, rep.t, rep.twist))
     else:
         runs = [replace(r, omega_ref=np.zeros_like(r.omega)) for r in runs]
     names = [r.name for r in runs]
-    still = find_still(runs, moving=moving, window_s=window_s, min_still_s=min_still_s)
+    still = find_still(runs, moving=moving, window_s=o.window_s, min_still_s=o.min_still_s)
     rejected: dict = {}
     for st in still:
         for k, v in st.rejected().items():
@@ -397,7 +365,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], *, out: str | os.PathLik
     rows = [st.mask.copy() for st in still]
     if not any(m.any() for m in rows):
         why = '; '.join(sorted({st.reason for st in still if st.reason}))
-        raise FitError(f'--still-only: no still stretch of {min_still_s:g} s or more in '
+        raise FitError(f'--still-only: no still stretch of {o.min_still_s:g} s or more in '
                        f'{len(runs)} bag(s) ({why}): park the vehicle for '
                        f'{ADVICE_PARK_MIN} min with the IMU on, and record it.')
     temps = np.concatenate([r.temp[m] for r, m in zip(runs, rows)])
@@ -407,33 +375,29 @@ def train_still_only(bags: Sequence[str | os.PathLike], *, out: str | os.PathLik
                        f'({temps.min():.1f} .. {temps.max():.1f} degC; need at least '
                        f'{MIN_STILL_SPAN_C:g} degC): record stops at other temperatures '
                        '(a cold morning, right after a long drive).')
+    t0 = o.t0
     if t0 is None:
         i = next(k for k, m in enumerate(rows) if m.any())
         first = np.flatnonzero(rows[i])
         head = first[runs[i].t[first] <= runs[i].t[first[0]] + 60.0]
         t0 = float(np.median(runs[i].temp[head]))
-    common = {'kind': kind, 't0': t0, 'n_centers': n_centers, 'refine': refine, 'seed': seed,
-              'frame_id': str(runs[0].info.get('frame_id') or 'imu_link'),
-              'sensor_id': sensor_id,
+    subs = ([_rows(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
+            if o.auto else [])            # the still rows, for the choice of features
+    ids, params, choice = features_for_fit(subs, o.features, t0=t0)
+    common = {'features': ids, 'params': params or None, 'kind': o.kind, 't0': t0,
+              'n_centers': o.n_centers, 'refine': o.refine, 'ridge': o.ridge, 'seed': o.seed,
+              'thermal': o.thermal, 'frame_id': str(runs[0].info.get('frame_id') or 'imu_link'),
+              'sensor_id': o.sensor_id,
               'created': {'command': command, 'bags': names, 'still_only': True}}
-    choice = None
-    params: dict = {}
-    if auto:
-        subs = [_rows(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
-        choice = choose_features(subs, t0=t0)
-        ids = choice.features
-        if choice.discovery is not None:
-            params = {k: v for k, v in choice.discovery.params.items()
-                      if k in ids and not EFFECTS[k].fitted}
     spans = _stretches(runs, still)
-    model = fit_model(runs, features=ids, params=params or None, rows=rows, **common)
+    model = fit_model(runs, rows=rows, **common)
     means = _stretch_means(model, runs, spans)
     bad = _outliers(means)
     if bad.any() and not bad.all():
         for (i, a, b), drop in zip(spans, bad):
             if drop:
                 rows[i][a:b] = False
-        model = fit_model(runs, features=ids, params=params or None, rows=rows, **common)
+        model = fit_model(runs, rows=rows, **common)
         means = _stretch_means(model, runs, spans)
     else:
         bad[:] = False
@@ -441,11 +405,11 @@ def train_still_only(bags: Sequence[str | os.PathLike], *, out: str | os.PathLik
                          float(runs[i].temp[a:b].mean()), not drop,
                          tuple(float(v) * _DEG for v in mu))
                  for (i, a, b), drop, mu in zip(spans, bad, means)]
-    report = still_report(runs, rows, stretches, bin_c=bin_c, motion_topic=motion_topic,
+    report = still_report(runs, rows, stretches, bin_c=o.bin_c, motion_topic=bag.motion_topic,
                           rejected=rejected)
     accel_fit = None
-    if accel:
-        accel_fit = fit_accel(runs, model, n_centers=n_centers, seed=seed, bin_c=bin_c)
+    if o.accel:
+        accel_fit = fit_accel(runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c)
         if accel_fit.part is not None:
             model = model.replace(accel=accel_fit.part)
     metrics = {**model.metrics, 'still': report.to_dict()}

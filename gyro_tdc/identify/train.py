@@ -15,276 +15,31 @@
 """
 Training: bags in, a fitted and saved compensation model out, with the coverage of the data.
 
-One run per bag (a folder of bag folders, as ``simulate`` writes for a multi-run scenario,
-expands to its bags, :func:`gyro_tdc.data.dataset.load_runs`); the model is fitted with
-:func:`gyro_tdc.identify.fit_model` and written with :func:`gyro_tdc.model.modelfile.save_model`;
-the
-coverage of the training data comes from :func:`gyro_tdc.data.coverage.coverage`. The command line
-is :mod:`gyro_tdc.cli.train`; :mod:`gyro_tdc.fleet` trains one model per sensor with it.
-
-The features default to ``'auto'`` (:func:`choose_features`): the model starts from the
-paper's f(dT, dT2) and :func:`gyro_tdc.identify.discover.discover` adds what the data support (the
-thermal state ``lag``, ``dTdt``, ``warmup``, ``scale`` with rate-table steps...) through its
-false-discovery guard (held-out gain, HAC test, effect size); every effect added or rejected
-is recorded with its reason in the model's ``training`` metrics. Named features (``dT,dT2``)
-fit exactly that model.
-
-The accelerometer: when the bags carry accelerometer data and the data are still (a thermal
-chamber: the whole run), the model also gets its accelerometer part
-(:func:`gyro_tdc.identify.fit_accel`: the change of the offset with temperature, of the same
-thermal state); ``accel=False`` skips it.
+:func:`train` takes the bags, a :class:`~gyro_tdc.identify.options.TrainOptions` and a
+:class:`~gyro_tdc.data.BagOptions`; the command line is :mod:`gyro_tdc.cli.train`. How the
+features, the accelerometer part and the coverage come about: ``doc/internals/identify.md``.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import replace
 import os
-from pathlib import Path
 from typing import Callable, Sequence
 
-from gyro_tdc.base import check_bin_width, check_centers
-from gyro_tdc.data import Coverage, coverage, load_runs, MAX_LOSS_FRACTION, Run
-from gyro_tdc.errors import FitError
-from gyro_tdc.identify.accel import AccelFit, fit_accel
-from gyro_tdc.identify.discover.results import DiscoveryResult
-from gyro_tdc.identify.discover.search import discover
+from gyro_tdc.data import BagOptions, coverage, load_runs, Run
+from gyro_tdc.identify.accel import fit_accel
+from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import estimate_t0, fit_model
-from gyro_tdc.model import CompensationModel, EFFECTS, KINDS, normalise_ids, save_model
-from gyro_tdc.signal import block_mean
-import numpy as np
+from gyro_tdc.identify.options import TrainOptions
+from gyro_tdc.identify.result import TrainResult
+from gyro_tdc.model import save_model
 
-__all__ = ['AUTO', 'AUTO_BASE', 'Decision', 'FeatureChoice', 'SEARCH_RATE_HZ', 'TrainResult',
-           'choose_features', 'train']
-
-#: The ``features`` value that lets the data choose (:func:`choose_features`).
-AUTO = 'auto'
-#: The starting model of ``auto``: the paper's modified model f(dT, dT2) (eq. 16).
-AUTO_BASE: tuple[str, ...] = ('dT', 'dT2')
-#: Sample rate (Hz) the feature search of ``auto`` runs at: faster runs are averaged down.
-SEARCH_RATE_HZ = 20.0
+__all__ = ['train']
 
 
-@dataclass(frozen=True)
-class Decision:
-    """
-    One effect of the automatic choice: added, rejected or not identifiable, and why.
-
-    Parameters
-    ----------
-    effect : str
-        Effect id.
-    verdict : str
-        ``'base'``, ``'added'``, ``'rejected'`` or ``'unidentifiable'``.
-    why : str
-        The evidence (added), the test that failed (rejected) or what the data lack.
-
-    """
-
-    effect: str
-    verdict: str
-    why: str
-
-    def line(self) -> str:
-        """Return the decision as one line of the training report."""
-        if self.verdict == 'added':
-            return f'  + {self.effect}: {self.why}'
-        verdict = {'unidentifiable': 'not identifiable'}.get(self.verdict, self.verdict)
-        return f'  - {self.effect}: {verdict}: {self.why}'
-
-
-@dataclass(frozen=True)
-class FeatureChoice:
-    """
-    What ``features='auto'`` chose, and why.
-
-    Parameters
-    ----------
-    base : tuple of str
-        The starting model's effects (:data:`AUTO_BASE`).
-    features : tuple of str
-        The chosen effects (the model's features), catalog order.
-    decisions : tuple of Decision
-        One per effect considered: the base, then those added in order, then those rejected
-        and those the data cannot excite.
-    discovery : DiscoveryResult, optional
-        The search behind the choice (None when the data were too short for it).
-    note : str
-        Why no search ran, or empty.
-
-    """
-
-    base: tuple[str, ...]
-    features: tuple[str, ...]
-    decisions: tuple[Decision, ...]
-    discovery: DiscoveryResult | None = field(default=None, repr=False)
-    note: str = ''
-
-    def lines(self) -> list[str]:
-        """Return the report: a head line, one line per decision, the features chosen."""
-        d = self.discovery
-        head = (f'features auto: start from {", ".join(self.base)} (the paper\'s f(dT, dT^2)); '
-                + (f'discovery on {len(d.runs)} bag(s): noise floor {d.noise_floor_dps:.3g} '
-                   f'deg/s on {d.block_s:g} s block means, held out by '
-                   f'{d.settings["folds"]}' if d is not None else self.note))
-        return ([head] + [x.line() for x in self.decisions if x.verdict != 'base']
-                + [f'features chosen: {", ".join(self.features)}'])
-
-    def to_dict(self) -> dict:
-        """Return the choice as plain types (the model's ``training`` metrics)."""
-        d = self.discovery
-        out = {'mode': AUTO, 'base': list(self.base), 'chosen': list(self.features),
-               'decisions': [{'effect': x.effect, 'verdict': x.verdict, 'why': x.why}
-                             for x in self.decisions]}
-        if d is not None:
-            out['discovery'] = {
-                'noise_floor_dps': float(d.noise_floor_dps), 'gap_dps': float(d.gap_dps),
-                'heldout_gap_dps': float(d.heldout_gap_dps), 'folds': d.settings['folds'],
-                'block_s': float(d.block_s),
-                'thermal': None if d.thermal is None else d.thermal.to_dict()}
-        else:
-            out['note'] = self.note
-        return out
-
-
-def _for_search(run: Run) -> Run:
-    """
-    Return ``run`` averaged down to about :data:`SEARCH_RATE_HZ` for the feature search.
-
-    The search works on block means of seconds; averaging groups of samples first leaves
-    those block means and their white-noise floor as they are (a mean of means), and makes
-    the search on a 1 kHz recording cost what it costs at 20 Hz.
-    """
-    dt = np.diff(run.t)
-    rate = 1.0 / float(np.median(dt)) if dt.size and np.median(dt) > 0 else 0.0
-    m = int(rate // SEARCH_RATE_HZ)
-    if m < 2 or len(run) < 2 * m:
-        return run
-    ref = (block_mean(run.omega_ref, m, partial=False) if np.any(run.omega_ref)
-           else np.zeros((len(run) // m, 3)))         # no reference: its means are zeros
-    return Run(block_mean(run.t, m, partial=False), block_mean(run.temp, m, partial=False),
-               block_mean(run.omega, m, partial=False), ref, run.name, dict(run.info))
-
-
-def _floors(value: float, floor: float) -> str:
-    """Return a gap in noise floors, e.g. ``2.3x``."""
-    return f'{value / floor:.2f}x' if floor > 0 else f'{value:.3g} deg/s'
-
-
-def choose_features(runs: Sequence[Run], *, t0: float | None = None,
-                    base: Sequence[str] = AUTO_BASE, block_s: float = 10.0) -> FeatureChoice:
-    """
-    Choose the features of a model from the data: the paper's base plus what they support.
-
-    :func:`gyro_tdc.identify.discover.discover` starts from ``bias`` and ``base`` and adds, one at
-    a
-    time, the catalog effect its false-discovery guard accepts (held-out gain, HAC test,
-    effect size): the thermal state (``lag``: every temperature term then follows the
-    lagged state), ``dTdt``, ``warmup``, ``dT3``, ``scale`` when the reference rate excites
-    it. The base is kept whatever the data say (it is the paper's model). Data too short
-    for the search keep the base, with a note. Runs faster than :data:`SEARCH_RATE_HZ` are
-    averaged down to it first (the search works on block means of ``block_s``).
-
-    Parameters
-    ----------
-    runs : sequence of Run
-        Training runs.
-    t0 : float, optional, degC
-        Reference temperature (default :func:`gyro_tdc.identify.estimate_t0` of the first
-        run).
-    base : sequence of str
-        The starting model (default :data:`AUTO_BASE`).
-    block_s : float, s
-        Block length of the search.
-
-    Returns
-    -------
-    FeatureChoice
-        The features, with one decision per effect considered.
-
-    """
-    base_ids = tuple(e for e in normalise_ids(base) if e != 'bias')
-    decisions = [Decision(e, 'base', "the paper's model") for e in base_ids]
-    if t0 is None and runs:
-        t0 = estimate_t0(runs[0])
-    try:
-        res = discover([_for_search(r) for r in runs], base=('bias',) + base_ids, t0=t0,
-                       block_s=block_s, allan=False)
-    except FitError as exc:
-        return FeatureChoice(base_ids, base_ids, tuple(decisions),
-                             note=f'no search ({exc}); the base is kept')
-    floor = res.noise_floor_dps
-    for s in res.steps:
-        b = s.best
-        why = (f'held-out gap {_floors(s.heldout_gap_before_dps, floor)} -> '
-               f'{_floors(s.heldout_gap_after_dps, floor)} floor, HAC p {b.p_value:.2g}, '
-               f'effect {b.effect_rms_dps:.3g} deg/s')
-        if s.effect == 'lag' and s.thermal is not None:
-            why += f'; {s.thermal.describe()}'
-        elif s.params:
-            why += '; ' + ', '.join(f'{k} = {v:.4g}' for k, v in s.params.items())
-        if s.aliases:
-            why += f'; the data cannot tell it from {", ".join(s.aliases)}'
-        decisions.append(Decision(s.effect, 'added', why))
-    for c in res.candidates:
-        decisions.append(Decision(c.effect, 'rejected', f'{c.why_not} (held-out gain '
-                                  f'{c.heldout_gain_dps2:+.2g} (deg/s)^2, HAC p '
-                                  f'{c.p_value:.2g})'))
-    for u in res.unidentifiable:
-        decisions.append(Decision(u.effect, 'unidentifiable', f'{u.reason}'))
-    features = tuple(e for e in res.final_effects if e != 'bias')
-    seen = {x.effect for x in decisions}
-    for eid in EFFECTS:                  # every catalog effect gets its line
-        if eid != 'bias' and eid not in seen:
-            decisions.append(Decision(eid, 'rejected', 'not tested'))
-    return FeatureChoice(base_ids, features, tuple(decisions), discovery=res)
-
-
-@dataclass
-class TrainResult:
-    """
-    What :func:`train` produced.
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The fitted model (as saved).
-    path : Path
-        Where it was written.
-    coverage : Coverage
-        Temperature and heating/cooling coverage of the training data.
-    bags : list of str
-        The bags trained on.
-    samples : int
-        Training samples.
-    choice : FeatureChoice, optional
-        What ``features='auto'`` chose and why (None for named features).
-    accel : AccelFit, optional
-        The accelerometer part's fit and figures, or why there is none (None with
-        ``accel=False``).
-    still : gyro_tdc.identify.still_only.StillReport, optional
-        With ``train --still-only``: the still time, its coverage and what to record next.
-
-    """
-
-    model: CompensationModel
-    path: Path
-    coverage: Coverage
-    bags: list
-    samples: int
-    choice: FeatureChoice | None = None
-    accel: AccelFit | None = None
-    still: object | None = None
-
-
-def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
-          features: str | Sequence[str] = AUTO, kind: str = 'rbf',
-          n_centers: int = 12, refine: bool = False, t0: float | None = None, seed: int = 0,
-          imu_topic: str = '/imu/data_raw', temperature_topic: str = '/imu/temperature',
-          reference: Sequence[float] | None = None,
-          reference_topic: str = '/rate_table/reference', progress: bool = False,
-          bin_c: float = 5.0, command: str = '', max_loss: float = MAX_LOSS_FRACTION,
-          log: Callable[[str], None] | None = None, accel: bool = True,
-          sensor_id: str = '') -> TrainResult:
+def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
+          options: TrainOptions | None = None, bag: BagOptions | None = None, *,
+          command: str = '', log: Callable[[str], None] | None = None) -> TrainResult:
     """
     Load bags, fit a compensation model and save it.
 
@@ -294,40 +49,16 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
         rosbag2 directories (or folders of them), one run each.
     out : str or PathLike
         Model file to write.
-    features : str or sequence of str
-        ``'auto'`` (default: the paper's ``dT,dT2`` plus what :func:`choose_features` finds
-        the data support) or effect ids (``dT,dT2``: exactly the paper's modified model).
-    kind : str
-        ``'rbf'`` or ``'poly'``.
-    n_centers : int
-        RBF centres K.
-    refine : bool
-        Refine centres and widths by nonlinear least squares.
-    t0 : float, optional, degC
-        Reference temperature; default the stable initial temperature of the first bag.
-    seed : int
-        Seed of the centre placement.
-    imu_topic, temperature_topic, reference_topic : str
-        Topics.
-    reference : sequence of 3 float, rad/s, optional
-        Constant reference rate (overrides the reference topic).
-    progress : bool
-        Progress bar while reading.
-    bin_c : float, degC
-        Width of the coverage bins.
+    options : TrainOptions, optional
+        Features, network, reference temperature, coverage bins, accelerometer part, sensor
+        id (default :class:`~gyro_tdc.identify.options.TrainOptions`).
+    bag : BagOptions, optional
+        How to read the bags (default :class:`~gyro_tdc.data.BagOptions`); the accelerometer
+        is read when ``options.accel`` says so.
     command : str
         Command line recorded in the model's ``created``.
-    max_loss : float
-        Largest fraction of a topic's messages that may be unreadable in a bag (see
-        :func:`gyro_tdc.data.dataset.load_run`).
     log : callable, optional
         Receives one line per bag read.
-    accel : bool
-        Read the accelerometer and fit the model's accelerometer part on its still data
-        (default); False skips both (``--no-accel``).
-    sensor_id : str
-        The sensor's id, written to the model's ``sensor.sensor_id`` (``--sensor-id``);
-        compensator_node warns when its own ``sensor_id`` differs.
 
     Returns
     -------
@@ -338,48 +69,29 @@ def train(bags: Sequence[str | os.PathLike], *, out: str | os.PathLike,
     Raises
     ------
     GyroTdcError
-        DatasetError for a bag that cannot be read, FeatureError for an unknown effect id,
-        FitError for a bad ``kind`` or data that cannot be fitted, ModelFileError or
-        OutputError when the model cannot be written.
+        DatasetError for a bag that cannot be read, FitError for data that cannot be fitted,
+        ModelFileError or OutputError when the model cannot be written.
 
     """
-    auto = isinstance(features, str) and features.strip() == AUTO
-    ids = AUTO_BASE if auto else normalise_ids(features)
-    if kind not in KINDS:
-        raise FitError(f'Expected `kind` to be one of {", ".join(KINDS)}, got {kind!r}.')
-    check_centers(n_centers)      # sizes checked before any bag is read
-    check_bin_width(bin_c)
-    options = {'imu_topic': imu_topic, 'temperature_topic': temperature_topic,
-               'reference': None if reference is None else tuple(reference),
-               'reference_topic': reference_topic, 'progress': progress, 'max_loss': max_loss,
-               'accel': bool(accel)}
-    runs: list[Run] = load_runs(bags, log=log, **options)
+    o = TrainOptions() if options is None else options
+    bag = replace(BagOptions() if bag is None else bag, accel=bool(o.accel))
+    runs: list[Run] = load_runs(bags, bag, log=log)
     names = [r.name for r in runs]
-    if t0 is None:
-        t0 = estimate_t0(runs[0])
-    common = {'kind': kind, 't0': t0, 'n_centers': n_centers, 'refine': refine, 'seed': seed,
-              'frame_id': str(runs[0].info.get('frame_id') or 'imu_link'),
-              'sensor_id': str(sensor_id),
-              'created': {'command': command, 'bags': names}}
-    choice = None
-    params: dict = {}
-    if auto:
-        # Data the search cannot analyse keep the base, and fit_model then says what is wrong
-        # with them (span, samples) as it does for named features.
-        choice = choose_features(runs, t0=t0)
-        ids = choice.features
-        if choice.discovery is not None:        # time constants fit_model does not search
-            params = {k: v for k, v in choice.discovery.params.items()
-                      if k in ids and not EFFECTS[k].fitted}
-    model = fit_model(runs, features=ids, params=params or None, **common)
+    t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
+    ids, params, choice = features_for_fit(runs, o.features, t0=t0)
+    model = fit_model(runs, features=ids, params=params or None, kind=o.kind, t0=t0,
+                      n_centers=o.n_centers, refine=o.refine, ridge=o.ridge, seed=o.seed,
+                      thermal=o.thermal,
+                      frame_id=str(runs[0].info.get('frame_id') or 'imu_link'),
+                      sensor_id=str(o.sensor_id), created={'command': command, 'bags': names})
     accel_fit = None
-    if accel:
-        accel_fit = fit_accel(runs, model, n_centers=n_centers, seed=seed, bin_c=bin_c)
+    if o.accel:
+        accel_fit = fit_accel(runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c)
         if accel_fit.part is not None:
             model = model.replace(accel=accel_fit.part)
     if choice is not None:
         model = model.replace(metrics={**model.metrics, 'features': choice.to_dict()})
-    cov = coverage(runs, bin_c=bin_c)
+    cov = coverage(runs, bin_c=o.bin_c)
     path = save_model(model, out)
     return TrainResult(model=model, path=path, coverage=cov, bags=names,
                        samples=sum(len(r) for r in runs), choice=choice, accel=accel_fit)

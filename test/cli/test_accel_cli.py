@@ -28,6 +28,7 @@ from gyro_tdc.cli.discover import main as discover_main
 from gyro_tdc.cli.evaluate import main as evaluate_main
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data.dataset import load_run
+from gyro_tdc.data.options import BagOptions
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.sim import load_scenario, simulate_scenario
 import numpy as np
@@ -64,7 +65,7 @@ def models(bags, tmp_path_factory):
 
 
 def test_load_run_reads_the_accelerometer_only_when_asked(bags):
-    run = load_run(bags['train'], accel=True)
+    run = load_run(bags['train'], BagOptions(accel=True))
     sim = bags['sims'][0]
     k = np.searchsorted(sim.imu_t, run.t)
     np.testing.assert_array_equal(run.accel, sim.accel[k])
@@ -74,7 +75,7 @@ def test_load_run_reads_the_accelerometer_only_when_asked(bags):
 def test_load_run_without_accelerometer_data_has_none(tmp_path):
     from synth import synth_run
     bag = bag_from_run(synth_run(seed=3, hours=0.2), tmp_path / 'zeros')   # accel all zero
-    assert load_run(bag, accel=True).accel is None
+    assert load_run(bag, BagOptions(accel=True)).accel is None
 
 
 def test_train_fits_and_reports_the_accelerometer_part(bags, tmp_path, capsys):

@@ -67,10 +67,13 @@ def test_bag_options_from_the_shared_parser():
     p = ArgumentParser(prog='x')
     add_bag_options(p)
     opts = bag_options(p.parse_args(['--reference', '0,0,1', '--no-progress']))
-    assert opts['imu_topic'] == '/imu/data_raw'
-    assert opts['temperature_topic'] == '/imu/temperature'
-    assert opts['reference'] == pytest.approx((0.0, 0.0, 1.0))
-    assert opts['progress'] is False
+    assert opts.imu_topic == '/imu/data_raw'
+    assert opts.temperature_topic == '/imu/temperature'
+    assert opts.reference == pytest.approx((0.0, 0.0, 1.0))
+    assert opts.progress is False and opts.max_loss == 0.01 and opts.accel is False
+    lossy = bag_options(p.parse_args(['--allow-loss', '--temperature-topic', '/t']), accel=True)
+    assert (lossy.max_loss, lossy.temperature_topic, lossy.reference) == (1.0, '/t', None)
+    assert lossy.accel is True
     with pytest.raises(UsageError, match='not allowed with argument'):
         p.parse_args(['--reference', '0,0,0', '--reference-topic', '/r'])
 

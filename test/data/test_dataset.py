@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from gyro_tdc.data import IMU_TYPE, TEMPERATURE_TYPE, write_bag
 from gyro_tdc.data.dataset import align_temperature, load_run, load_runs
+from gyro_tdc.data.options import BagOptions
 from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import DatasetError
 import numpy as np
@@ -159,15 +160,22 @@ def test_load_run_reference_sources(tmp_path, storage):
     np.testing.assert_array_equal(run.omega_ref, held)
     assert run.omega_ref[2000].tolist() == [0.0, 0.0, 0.5]   # t = 102.0 s exactly
 
-    const = load_run(tmp_path / 'bag', reference=(0.0, 0.0, 0.25))
+    const = load_run(tmp_path / 'bag', BagOptions(reference=(0.0, 0.0, 0.25)))
     assert const.info['reference'] == 'constant'
     np.testing.assert_array_equal(const.omega_ref, np.tile([0.0, 0.0, 0.25], (5000, 1)))
 
     _bag(tmp_path / 'noref', storage=storage)
     zero = load_run(tmp_path / 'noref')
     assert zero.info['reference'] == 'zero' and not zero.omega_ref.any()
-    runs = load_runs([tmp_path / 'bag', tmp_path / 'noref'], reference=(0, 0, 0))
+    lines = []
+    runs = load_runs([tmp_path / 'bag', tmp_path / 'noref'], BagOptions(reference=(0, 0, 0)),
+                     log=lines.append)
     assert [r.name for r in runs] == [str(tmp_path / 'bag'), str(tmp_path / 'noref')]
+    assert [r.info['reference'] for r in runs] == ['constant', 'constant']
+    assert all('constant reference rate' in line for line in lines) and len(lines) == 2
+    # The reference topic the options name is the one read (and named when missing).
+    other = load_runs(tmp_path / 'bag', BagOptions(reference_topic='/other'), log=lines.append)
+    assert other[0].info['reference'] == 'zero' and lines[-1].endswith('(no /other in the bag)')
 
 
 def test_load_run_drops_and_counts_bad_samples(tmp_path):
@@ -237,9 +245,11 @@ def test_load_run_errors(tmp_path):
         load_run(tmp_path / 'missing')
     _bag(tmp_path / 'bag', n=100)
     with pytest.raises(DatasetError, match=r'`reference` to be three finite rates'):
-        load_run(tmp_path / 'bag', reference=(0.0, 1.0))
+        BagOptions(reference=(0.0, 1.0))
+    with pytest.raises(DatasetError, match=r'`reference` to be three finite rates'):
+        BagOptions(reference=(0.0, 1.0, float('nan')))
     with pytest.raises(DatasetError, match="no topic '/temp'.*/imu/temperature"):
-        load_run(tmp_path / 'bag', temperature_topic='/temp')
+        load_run(tmp_path / 'bag', BagOptions(temperature_topic='/temp'))
     write_bag(tmp_path / 'apart', imu_t=[0.0, 0.1], gyro=np.zeros((2, 3)),
               accel=np.zeros((2, 3)), temp_t=[50.0, 51.0], temp_c=[20.0, 20.0])
     with pytest.raises(DatasetError, match='no usable sample'):

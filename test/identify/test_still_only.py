@@ -26,6 +26,7 @@ from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data.runs import Run
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
 from gyro_tdc.identify import fit_model
+from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.still_only import train_still_only
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal import motion_veto
@@ -111,7 +112,7 @@ def test_a_chamber_scenario_is_unchanged_by_the_vehicle_stream():
 def test_still_only_day1_compensates_day2_within_the_noise_floor(days, tmp_path):
     """Train --still-only on day 1; day 2, driving included, is within 1.1x the floor."""
     d1, d2 = days
-    res = train_still_only(['vehicle_day1'], out=tmp_path / 'm.yaml', runs=[to_run(d1)])
+    res = train_still_only(['vehicle_day1'], tmp_path / 'm.yaml', runs=[to_run(d1)])
     m = res.model
     assert 'lag' in m.features and m.thermal.kind == 'first_order'
     assert 100.0 < m.thermal.tau_s[0] < 150.0          # the die lags the probe by 120 s
@@ -164,8 +165,8 @@ def test_a_slow_turn_that_looks_still_is_dropped_or_vetoed(days, tmp_path):
     omega = run.omega.copy()
     omega[turn, 2] += 2.0 * DEG
     turning = Run(run.t, run.temp, omega, np.zeros_like(omega), 'turning', {}, run.accel)
-    res = train_still_only(['turning'], out=tmp_path / 't.yaml', runs=[turning],
-                           features='dT,dT2', kind='poly')
+    paper = TrainOptions(features='dT,dT2', kind='poly')
+    res = train_still_only(['turning'], tmp_path / 't.yaml', paper, runs=[turning])
     dropped = [s for s in res.still.stretches if not s.kept]
     assert len(dropped) == 1 and dropped[0].offset_dps[2] == pytest.approx(2.0, abs=0.05)
     assert stop.t0_s + 290.0 < dropped[0].t0_s < stop.t0_s + 320.0
@@ -178,8 +179,8 @@ def test_a_slow_turn_that_looks_still_is_dropped_or_vetoed(days, tmp_path):
     held = np.searchsorted(d1.vehicle.cmd_t, cmd_t, side='right') - 1
     cmd[:, 0] = d1.vehicle.cmd[held, 0]
     veto = motion_veto(run.t, cmd_t, cmd)
-    vetoed = train_still_only(['turning'], out=tmp_path / 'v.yaml', runs=[turning],
-                              moving=[veto], features='dT,dT2', kind='poly')
+    vetoed = train_still_only(['turning'], tmp_path / 'v.yaml', paper, runs=[turning],
+                              moving=[veto])
     assert all(s.kept for s in vetoed.still.stretches)
     assert not np.any(turn & ~veto)
     np.testing.assert_allclose(vetoed.model.residual_var, res.model.residual_var, rtol=0.05)

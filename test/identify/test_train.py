@@ -17,8 +17,11 @@
 from __future__ import annotations
 
 from bags import bag_from_run
-from gyro_tdc.errors import FeatureError, FitError
+from gyro_tdc.base.limits import MAX_CENTERS
+from gyro_tdc.data.options import BagOptions
+from gyro_tdc.errors import DatasetError, FeatureError, FitError, LimitError
 from gyro_tdc.evaluate.report import format_training
+from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.train import train
 from gyro_tdc.model.compensation import compensate
 from gyro_tdc.model.modelfile import load_model
@@ -41,7 +44,7 @@ def bags(tmp_path_factory):
 def test_train_saves_the_model_it_returns(bags, tmp_path):
     folder, runs = bags
     lines = []
-    result = train([folder], out=tmp_path / 'm.yaml', features='dT,dT2', kind='poly',
+    result = train([folder], tmp_path / 'm.yaml', TrainOptions(features='dT,dT2', kind='poly'),
                    command='python -m gyro_tdc train ...', log=lines.append)
     assert result.path == tmp_path / 'm.yaml'
     assert load_model(result.path) == result.model
@@ -64,10 +67,35 @@ def test_train_saves_the_model_it_returns(bags, tmp_path):
     assert 'training data: 2 bag(s)' in text and warns == []
 
 
-def test_bad_features_and_kind_fail_before_reading(tmp_path):
-    missing = tmp_path / 'no_such_bag'
+def test_the_options_reach_the_model(bags, tmp_path):
+    folder, _ = bags
+    options = TrainOptions(features='dT', kind='rbf', n_centers=5, t0=31.5, seed=4,
+                           sensor_id='imu-7', accel=False)
+    result = train([folder / 'run2'], tmp_path / 'm.yaml', options)
+    m = result.model
+    assert (m.kind, m.features, m.n_centers, m.t0_c, m.sensor_id) == ('rbf', ('dT',), 5, 31.5,
+                                                                      'imu-7')
+    assert result.accel is None and result.choice is None
+    # The bag options say how to read: a topic the bag lacks is refused by name.
+    with pytest.raises(DatasetError, match='/other/temperature'):
+        train([folder / 'run2'], tmp_path / 'n.yaml', options,
+              BagOptions(temperature_topic='/other/temperature'))
+    assert not (tmp_path / 'n.yaml').exists()
+
+
+def test_options_are_checked_when_built():
+    assert TrainOptions().auto and TrainOptions(features=' auto ').features == 'auto'
+    assert TrainOptions(features='dT2, dT').features == ('dT', 'dT2')     # catalog order
+    assert TrainOptions(features=['lag', 'dT']).features == ('dT', 'lag')
     with pytest.raises(FeatureError, match='bogus'):
-        train([missing], out=tmp_path / 'm.yaml', features='dT,bogus')
+        TrainOptions(features='dT,bogus')
     with pytest.raises(FitError, match="Expected `kind` to be one of rbf, poly, got 'spline'"):
-        train([missing], out=tmp_path / 'm.yaml', kind='spline')
-    assert not (tmp_path / 'm.yaml').exists()
+        TrainOptions(kind='spline')
+    with pytest.raises(FitError, match='ridge'):
+        TrainOptions(ridge=-1.0)
+    with pytest.raises(FitError, match='thermal'):
+        TrainOptions(thermal='third_order')
+    with pytest.raises(LimitError, match='centres'):
+        TrainOptions(n_centers=MAX_CENTERS + 1)
+    with pytest.raises(LimitError, match='bin'):
+        TrainOptions(bin_c=0.0)

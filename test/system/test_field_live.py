@@ -235,7 +235,7 @@ def test_still_only_model_of_day1_streams_day2_through_a_live_node(days, ros_con
     """
     d1, d2 = days
     model_file = tmp_path / 'still_only.yaml'
-    res = train_still_only(['vehicle_day1'], out=model_file, runs=[to_run(d1)])
+    res = train_still_only(['vehicle_day1'], model_file, runs=[to_run(d1)])
     assert 'lag' in res.model.features
     live = Live(ros_context, tmp_path / 'unused.json', params=[
         Parameter('model_file', value=str(model_file)),

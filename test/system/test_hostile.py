@@ -381,6 +381,7 @@ def test_damaged_mcap_is_refused_naming_the_loss_and_allowed_on_request(tmp_path
                                                                         fill):
     from gyro_tdc.cli.train import main
     from gyro_tdc.data.dataset import load_run
+    from gyro_tdc.data.options import BagOptions
     from gyro_tdc.errors import DatasetError
     bag = _heat_bag(tmp_path / 'bag', storage='mcap')
     (mcap,) = bag.glob('*.mcap')
@@ -396,7 +397,7 @@ def test_damaged_mcap_is_refused_naming_the_loss_and_allowed_on_request(tmp_path
                                            r'in the bag metadata') as info:
         load_run(bag)
     assert '--allow-loss' in one_line_error(info)
-    run = load_run(bag, max_loss=1.0)
+    run = load_run(bag, BagOptions(max_loss=1.0))
     read, listed = run.info['messages']['/imu/data_raw']
     assert listed == 36000 and 0 < read < listed
     assert any(f'read {read} of 36000 messages' in w for w in run.info['warnings'])

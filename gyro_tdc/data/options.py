@@ -1,0 +1,95 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""How to read bags: topics, the reference rate, the loss allowed (:class:`BagOptions`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from gyro_tdc.errors import DatasetError
+import numpy as np
+
+__all__ = ['BagOptions', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
+           'DEFAULT_TEMPERATURE_TOPIC', 'MAX_LOSS_FRACTION']
+
+DEFAULT_IMU_TOPIC = '/imu/data_raw'
+DEFAULT_TEMPERATURE_TOPIC = '/imu/temperature'
+DEFAULT_REFERENCE_TOPIC = '/rate_table/reference'
+#: Default largest fraction of a topic's listed messages that may be unreadable in a bag.
+MAX_LOSS_FRACTION = 0.01
+
+
+@dataclass(frozen=True)
+class BagOptions:
+    """
+    Every choice about reading bags, as :func:`gyro_tdc.data.dataset.load_run` takes them.
+
+    Parameters
+    ----------
+    imu_topic : str
+        ``sensor_msgs/msg/Imu`` topic.
+    temperature_topic : str
+        ``sensor_msgs/msg/Temperature`` topic.
+    reference : tuple of 3 float, rad/s, optional
+        Constant reference rate (x, y, z); when given, the reference topic is not read.
+    reference_topic : str
+        ``geometry_msgs/msg/Vector3Stamped`` topic, held (zero-order) onto the IMU stamps
+        when present; the reference is zero when the bag has no such topic.
+    max_gap_s : float, s
+        Largest distance from an IMU stamp to the nearest thermometer sample.
+    progress : bool
+        Show a progress bar while reading.
+    max_loss : float
+        Largest fraction of a topic's messages (as listed in the bag's metadata) that may be
+        missing after reading; 1.0 accepts any loss (it is still reported).
+    accel : bool
+        Also read the linear acceleration into ``run.accel``.
+    motion_topic : str
+        A ``cmd_vel`` (Twist), TwistStamped or Odometry topic vetoing stillness while it
+        reports motion (``train --still-only``); empty: none.
+
+    Raises
+    ------
+    DatasetError
+        When ``reference`` is not three finite rates.
+
+    """
+
+    imu_topic: str = DEFAULT_IMU_TOPIC
+    temperature_topic: str = DEFAULT_TEMPERATURE_TOPIC
+    reference: tuple[float, float, float] | None = None
+    reference_topic: str = DEFAULT_REFERENCE_TOPIC
+    max_gap_s: float = 5.0
+    progress: bool = False
+    max_loss: float = MAX_LOSS_FRACTION
+    accel: bool = False
+    motion_topic: str = ''
+
+    def __post_init__(self) -> None:
+        """Check the reference rate and hold it as a tuple of floats."""
+        if self.reference is not None:
+            object.__setattr__(self, 'reference', _reference(self.reference))
+
+
+def _reference(value: object) -> tuple[float, float, float]:
+    """Return a constant reference rate (x, y, z) in rad/s or raise DatasetError."""
+    try:
+        ref = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError):
+        ref = np.zeros(0)
+    if ref.shape != (3,) or not np.all(np.isfinite(ref)):
+        raise DatasetError('Expected `reference` to be three finite rates (x, y, z) in rad/s, '
+                           f'got {value!r}.')
+    return (float(ref[0]), float(ref[1]), float(ref[2]))

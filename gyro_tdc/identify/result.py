@@ -1,0 +1,64 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""What training produced: the model, where it went, the coverage, the choices made."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+from gyro_tdc.data import Coverage
+from gyro_tdc.identify.accel import AccelFit
+from gyro_tdc.identify.features import FeatureChoice
+from gyro_tdc.model import CompensationModel
+
+__all__ = ['TrainResult']
+
+
+@dataclass
+class TrainResult:
+    """
+    What :func:`gyro_tdc.identify.train.train` (or ``train_still_only``) produced.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The fitted model (as saved).
+    path : Path
+        Where it was written.
+    coverage : Coverage
+        Temperature and heating/cooling coverage of the training data.
+    bags : list of str
+        The bags trained on.
+    samples : int
+        Training samples.
+    choice : FeatureChoice, optional
+        What ``features='auto'`` chose and why (None for named features).
+    accel : AccelFit, optional
+        The accelerometer part's fit and figures, or why there is none (None with
+        ``accel=False``).
+    still : gyro_tdc.identify.still_only.StillReport, optional
+        With ``train --still-only``: the still time, its coverage and what to record next.
+
+    """
+
+    model: CompensationModel
+    path: Path
+    coverage: Coverage
+    bags: list
+    samples: int
+    choice: FeatureChoice | None = None
+    accel: AccelFit | None = None
+    still: object | None = None
