@@ -35,7 +35,7 @@ hold, cool), drift slopes and curvatures spread by 10 % between units, white noi
 
 and prints the wall times (cluster start, run, stop), the speed-up between the first two
 worker counts, the run time per sensor, the mean task time on a worker and the per-sensor
-overhead of the fleet over ``train alone`` (1 worker). The figures feed the README's
+overhead of the fleet over ``train alone`` (1 worker). The figures feed doc/benchmarks.md's
 10,000-sensor estimate::
 
     .venv/bin/python bench/bench_fleet.py                        # 32 sensors, 1 h, 100 Hz

@@ -56,7 +56,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--candidates', default=None, metavar='IDS',
                    help='effects to try (default: every catalog effect not in --base)')
     p.add_argument('--json', dest='json_out', default=None, metavar='OUT',
-                   help='write the machine-readable result to OUT (shape: docs/json.md)')
+                   help='write the machine-readable result to OUT (shape: doc/json.md)')
     p.add_argument('--report', default=None, metavar='DIR',
                    help='write report.md with PNG residual maps and Allan deviation to DIR')
     p.add_argument('--out', default=None, metavar='MODEL.yaml',

@@ -77,7 +77,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='likewise for the accelerometer, in (m/s^2)^2 (aBS/fl; '
                         'accel_bs_over_floor in --json)')
     p.add_argument('--json', metavar='OUT', default=None,
-                   help='write the scores as JSON (shape: docs/json.md)')
+                   help='write the scores as JSON (shape: doc/json.md)')
     p.add_argument('--plots', metavar='DIR', default=None, help='write PNGs per bag here')
     p.add_argument('--export', metavar='DIR', default=None,
                    help='write a CSV per bag here: time, temperature, raw, reference and '
