@@ -31,7 +31,7 @@ def test_demo_offline_pipeline(tmp_path, capsys):
     for cmd in ('simulate --scenario l3gd20_paper', 'train ', 'evaluate ', 'discover '):
         assert f'$ gyro-tdc {cmd}' in text
     assert 'paper table (eq. 31-32)' in text
-    # The steps are numbered 1..N of the one list --help and the README show too.
+    # The steps are numbered 1..N of the one list --help and doc/getting_started.md show too.
     total = len(demo.STEPS) - 1
     found = re.findall(r'^\[(\d+)/(\d+)\] (.*?)  \(t = \d+ s\)$', text, flags=re.M)
     assert [(int(i), int(n), title) for i, n, title in found] == [
