@@ -23,7 +23,8 @@ The manifest, the statistics and resuming: ``doc/internals/fleet.md``.
 
 from gyro_tdc.fleet.manifest import check_sensor_id, input_key, read_manifest, SensorSpec
 from gyro_tdc.fleet.results import FleetResult, SensorResult
-from gyro_tdc.fleet.run import Engine, open_engine, run_fleet, run_sensor, SensorOutcome
+from gyro_tdc.fleet.run import (Engine, open_engine, run_fleet, run_sensor, SensorOutcome,
+                                sigterm_as_interrupt)
 from gyro_tdc.fleet.stats import (DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics, MIN_FLEET,
                                   robust_z)
 from gyro_tdc.fleet.summary import format_table, summary_dict, write_summary
@@ -32,5 +33,5 @@ __all__ = [
     'DEFAULT_OUTLIER_Z', 'Engine', 'FleetResult', 'MIN_FLEET', 'SensorOutcome', 'SensorResult',
     'SensorSpec', 'check_sensor_id', 'drift_polynomial', 'fleet_statistics', 'format_table',
     'input_key', 'open_engine', 'read_manifest', 'robust_z', 'run_fleet', 'run_sensor',
-    'summary_dict', 'write_summary',
+    'sigterm_as_interrupt', 'summary_dict', 'write_summary',
 ]

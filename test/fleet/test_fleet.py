@@ -19,22 +19,29 @@ Small sensors are exact synthetic runs (``synth.py``) written as bags in a tempo
 half an hour at 5 Hz, a -10 -> 50 degC ramp, drift slopes spread by 5 % between units and one
 unit with three times the x slope. The core runs on one embedded ``LocalCluster`` with two
 worker processes (shared by the tests of this module); the CLI runs against the address of a
-one-worker cluster started in its test.
+one-worker cluster started in its test. A sensor's own write error (an unwritable model path,
+a full disk) fails that sensor and is the error reported; a fleet whose cluster loses every
+worker, or that gets SIGTERM, runs as a child process and ends with one line and a summary.
 """
 
 from __future__ import annotations
 
 import csv
+import errno
 import json
 import os
 from pathlib import Path
+import selectors
 import shutil
+import signal
+import subprocess
+import sys
 
 from bags import bag_from_run
 from gyro_tdc.cli.fleet import main
 from gyro_tdc.cli.train import build_parser as train_parser, train_options
 from gyro_tdc.data import BagOptions, write_bag
-from gyro_tdc.errors import FleetError
+from gyro_tdc.errors import FleetError, OutputError
 from gyro_tdc.fleet import (check_sensor_id, drift_polynomial, fleet_statistics, FleetResult,
                             format_table, open_engine, read_manifest, robust_z, run_fleet,
                             SensorResult)
@@ -362,3 +369,104 @@ def test_bad_options_exit_2_with_one_line(tmp_path, capsys, argv, needle):
     path = _manifest(tmp_path / 'fleet.csv', [('imu', [tmp_path / 'b'], [])])
     assert main([str(path), '--out', str(tmp_path / 'out'), *argv]) == 2
     assert needle in _one_error_line(capsys)
+
+
+# ---- failures stay with their sensor; lost clusters and SIGTERM end with a summary ---------
+
+def test_an_unwritable_model_path_fails_that_sensor_only(tmp_path, bags, engine):
+    specs = read_manifest(_manifest(tmp_path / 'fleet.csv', _rows(bags, GOOD)))
+    out = tmp_path / 'out'
+    (out / 'imu-b.yaml').mkdir(parents=True)        # a directory where imu-b's model goes
+    result = run_fleet(specs, out, _options(), engine)
+    status = {s.sensor_id: s for s in result.sensors}
+    assert status['imu-a'].status == 'ok' and status['imu-c'].status == 'ok'
+    assert load_model(out / 'imu-c.yaml').sensor_id == 'imu-c'
+    assert status['imu-b'].status == 'failed'
+    assert str(out / 'imu-b.yaml') in status['imu-b'].error
+    assert 'it is a directory' in status['imu-b'].error
+    summary = json.loads((out / 'summary.json').read_text())
+    assert [r['status'] for r in summary['sensors']] == ['ok', 'failed', 'ok']
+
+
+def test_a_full_disk_reports_the_model_write_error(tmp_path, bags, engine, monkeypatch):
+    from gyro_tdc.base import atomicio
+
+    def full(directory, name):
+        raise OSError(errno.ENOSPC, 'No space left on device')
+
+    monkeypatch.setattr(atomicio, '_create_temp', full)     # every write of this process
+    specs = read_manifest(_manifest(tmp_path / 'fleet.csv', _rows(bags, GOOD[:2])))
+    out = tmp_path / 'out'
+    with pytest.raises(OutputError) as info:
+        run_fleet(specs, out, _options(), engine)
+    line = str(info.value)
+    assert '\n' not in line
+    first = line.split(';')[0]
+    assert first.startswith('imu-') and 'cannot write model file' in first, line
+    assert 'No space left on device' in first and '(and 1 more sensor(s))' in first, line
+    assert 'summary' in line and not (out / 'summary.json').exists()
+
+
+def _fleet_child(argv: list) -> subprocess.Popen:
+    """Start ``python -m gyro_tdc fleet ARGV`` with its output on pipes."""
+    return subprocess.Popen([sys.executable, '-m', 'gyro_tdc', 'fleet', *map(str, argv),
+                             '--no-progress'], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+
+
+def _wait_for_line(child: subprocess.Popen, prefix: str, bound_s: float = 300.0) -> list:
+    """Return the child's stdout lines up to the first starting with ``prefix``."""
+    lines = []
+    with selectors.DefaultSelector() as sel:
+        sel.register(child.stdout, selectors.EVENT_READ)
+        while not lines or not lines[-1].startswith(prefix):
+            assert sel.select(bound_s), f'no line {prefix!r} from fleet: {lines}'
+            line = child.stdout.readline()
+            assert line, f'fleet ended before {prefix!r}: {lines} {child.stderr.read()}'
+            lines.append(line.rstrip('\n'))
+    return lines
+
+
+def _end(child: subprocess.Popen, bound_s: float = 300.0) -> tuple[int, str, list]:
+    """Wait for the child's end (killed when it has not ended within ``bound_s``)."""
+    try:
+        out, err = child.communicate(timeout=bound_s)
+    except subprocess.TimeoutExpired:
+        child.kill()
+        out, err = child.communicate()
+        pytest.fail(f'fleet still running {bound_s:g} s after it should have stopped: {out}')
+    return child.returncode, out, err.strip().splitlines()
+
+
+def test_a_cluster_that_loses_every_worker_ends_fleet_with_one_line(tmp_path, bags):
+    from distributed import LocalCluster
+    manifest = _manifest(tmp_path / 'fleet.csv', _rows(bags, GOOD + (OUTLIER,)))
+    out = tmp_path / 'out'
+    with LocalCluster(n_workers=1, processes=True, scheduler_port=0, threads_per_worker=1,
+                      dashboard_address='127.0.0.1:0') as cluster:
+        child = _fleet_child([manifest, '--out', out, '--scheduler', cluster.scheduler_address,
+                              '--connect-timeout', '2'])
+        _wait_for_line(child, 'imu-a: ')
+        cluster.scale(0)                            # every worker gone, the scheduler stays
+        code, _, err = _end(child)
+    assert code == 2, err
+    assert len(err) == 1 and 'has had no worker for 2 s' in err[0], err
+    summary = json.loads((out / 'summary.json').read_text())
+    status = {r['sensor_id']: r for r in summary['sensors']}
+    assert status['imu-a']['status'] == 'ok'
+    assert any(r.get('error', '').startswith('not run: ') for r in status.values()), status
+
+
+def test_sigterm_ends_fleet_like_ctrl_c_with_a_summary(tmp_path, bags):
+    manifest = _manifest(tmp_path / 'fleet.csv', _rows(bags, GOOD + (OUTLIER,)))
+    out = tmp_path / 'out'
+    child = _fleet_child([manifest, '--out', out, '--workers', '1'])
+    _wait_for_line(child, 'imu-a: ')
+    child.send_signal(signal.SIGTERM)
+    code, _, err = _end(child)
+    assert code == 130, err
+    assert err[-1:] == ['gyro-tdc fleet: error: interrupted'], err
+    summary = json.loads((out / 'summary.json').read_text())
+    assert [r['sensor_id'] for r in summary['sensors']] == list(GOOD + (OUTLIER,))
+    assert summary['sensors'][0]['status'] == 'ok'
+    assert summary['sensors'][-1]['error'] == 'not run (fleet interrupted)'
