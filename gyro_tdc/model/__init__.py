@@ -16,7 +16,7 @@
 The model.
 
 The effect library, the thermal state, the compensation model, its out-of-range rules and
-the versioned model file.
+the versioned model file; the flight controllers' thermal calibration.
 """
 
 from gyro_tdc.base.face import lazy
@@ -28,6 +28,8 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
                 'NONLINEAR_EFFECTS', 'normalise_ids', 'REFERENCE_EFFECTS', 'resolve_params',
                 'STATE_TERMS', 'STATIC_EFFECTS', 'TEMPERATURE_EFFECTS', 'THERMAL_EFFECTS',
                 'with_implied'],
+    'fc_tempcal': ['ardupilot_correction', 'ArduPilotTempCal', 'onboard_status',
+                   'px4_correction', 'Px4TempCal'],
     'modelfile': ['load_model', 'save_model'],
     'out_of_range': ['check_policy', 'DEFAULT_OUT_OF_RANGE', 'MAX_EXTRAPOLATION_C',
                      'OPERATING_RANGE_C', 'OUT_OF_RANGE_POLICIES', 'range_shortfall',
