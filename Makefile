@@ -5,6 +5,8 @@
 #   make lint    flake8 + pep257 + copyright on gyro_tdc/, test/, bench/, tools/, setup.py
 #   make demo    end-to-end demo into out/demo
 #   make bench   run every bench/*.py (each prints its figures)
+#   make docs    the documentation site (doc/, Sphinx, warnings are errors) into build/docs/html
+#   make rosdoc2 the site as the ROS documentation index builds it (rosdoc2) into build/rosdoc2
 #   make readme-check  run every command block of README.md and doc/, in order, in a fresh
 #                clone (long)
 #   make test-apt-versions  the tests in .venv-apt, with Ubuntu 24.04's apt numpy, scipy,
@@ -30,7 +32,7 @@ LINT_PATHS = $(wildcard gyro_tdc test bench tools setup.py)
 # parallel runs on one machine do not discover each other's nodes.
 DOMAIN := if [ -z "$${ROS_DOMAIN_ID:-}" ]; then export ROS_DOMAIN_ID=$$(( $$$$ % 101 + 1 )); fi
 
-.PHONY: venv test lint demo bench readme-check test-apt-versions clean distclean
+.PHONY: venv test lint demo bench docs rosdoc2 readme-check test-apt-versions clean distclean
 
 venv: $(STAMP)
 
@@ -73,6 +75,27 @@ bench: venv
 		$(VPY) "$$script" || failed+=("$$script"); \
 	done; \
 	if [ $${#failed[@]} -gt 0 ]; then echo "make bench: failed: $${failed[*]}" >&2; exit 1; fi
+
+# The documentation site: doc/ with the reference pages generated from the code (doc/_ext).
+# -W --keep-going: every warning is reported, and any fails the build.
+DOCS_OUT := build/docs
+docs: venv
+	$(VENV)/bin/sphinx-build -W --keep-going -b html doc $(DOCS_OUT)/html
+	@echo "make docs: $(DOCS_OUT)/html/index.html"
+
+# The same site built by rosdoc2, as the ROS documentation index builds a package (its own
+# conf.py runs doc/conf.py; sphinx-apidoc must be on PATH). rosdoc2 does not stop on a Sphinx
+# warning, so this target fails when its log has one.
+ROSDOC2_OUT := build/rosdoc2
+rosdoc2: venv
+	@rm -rf $(ROSDOC2_OUT); mkdir -p $(ROSDOC2_OUT)
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(VENV)/bin/rosdoc2 build --package-path . \
+		--doc-build-directory $(ROSDOC2_OUT)/docs_build \
+		--cross-reference-directory $(ROSDOC2_OUT)/cross_reference \
+		--output-directory $(ROSDOC2_OUT)/docs_output 2>&1 | tee $(ROSDOC2_OUT)/build.log
+	@if grep -E 'WARNING|ERROR' $(ROSDOC2_OUT)/build.log; then \
+		echo "make rosdoc2: warnings above (log: $(ROSDOC2_OUT)/build.log)" >&2; exit 1; fi
+	@echo "make rosdoc2: $(ROSDOC2_OUT)/docs_output/gyro_tdc/index.html"
 
 # Every ```bash block of README.md, then of the doc/ pages in the site's reading order, in a
 # fresh clone of HEAD with its own .venv; stops at the first failing command, named by page and

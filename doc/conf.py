@@ -104,10 +104,37 @@ rosdoc2_settings = {
     'support_markdown': True,
 }
 
-if os.path.basename(here) == 'wrapped_sphinx_directory':
+#: True when rosdoc2 runs this file from the copy of doc/ it builds.
+in_rosdoc2 = os.path.basename(here) == 'wrapped_sphinx_directory'
+
+if in_rosdoc2:
     exclude_patterns += [
         'user_docs', 'user_docs.rst', 'user_docs_*.rst',     # a second copy of doc/
         'gyro_tdc.rst', 'gyro_tdc.*.rst', 'modules.rst',     # sphinx-apidoc: reference/api
         'standards.rst', 'standard_docs', '__readme_include.rst',
         'sphinx_output',                                     # rosdoc2's output directory
     ]
+
+#: The package-root documents rosdoc2 copies into ``standard_docs/original/`` (its names).
+STANDARD_DOCUMENTS = ('CHANGELOG.rst', 'CONTRIBUTING.md', 'LICENSE', 'README.md')
+
+
+def _root_includes(app, docname, source):
+    """
+    Point ``include:: ../X`` of a page at rosdoc2's copy of the package-root document X.
+
+    doc/changelog.rst includes ../CHANGELOG.rst (the changelog stays at the package root,
+    where catkin and bloom look for it); in rosdoc2's copy of doc/ that path leads nowhere,
+    but rosdoc2 has copied the file into standard_docs/original/.
+    """
+    if '/' in docname:
+        return
+    for name in STANDARD_DOCUMENTS:
+        source[0] = source[0].replace(f'.. include:: ../{name}',
+                                      f'.. include:: standard_docs/original/{name}')
+
+
+def setup(app):
+    """Connect the rosdoc2 shim (only when rosdoc2 builds)."""
+    if in_rosdoc2:
+        app.connect('source-read', _root_includes)
