@@ -23,7 +23,7 @@ The compensator's ``/diagnostics`` and its graph guard against chained compensat
 from __future__ import annotations
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from gyro_tdc.runtime import health, HealthMark
+from gyro_tdc.runtime import health, HealthMark, upstream_note
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from sensor_msgs.msg import Temperature
 from std_msgs.msg import Float32, Float64
@@ -49,6 +49,10 @@ class Diagnostics:
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._seen = HealthMark()
         self._reported_anchor = None
+        note = upstream_note(self.core.policy)     # never twice: said once at start-up
+        if note:
+            log = self.get_logger()
+            (log.warning if self.core.upstream_pass else log.info)(note)
 
     def upstream_compensators(self) -> tuple[str, ...]:
         """

@@ -23,9 +23,10 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'core': ['CompensatorCore'],
-    'flags': ['PASSTHROUGH'],
-    'health': ['health', 'HealthMark', 'InputStatus', 'sensor_mismatch'],
-    'policy': ['PARAMS', 'Policy', 'TEMPERATURE_TYPES'],
+    'flags': ['PASSTHROUGH', 'UPSTREAM'],
+    'health': ['health', 'HealthMark', 'InputStatus', 'sensor_mismatch', 'upstream_note'],
+    'policy': ['PARAMS', 'Policy', 'TEMPERATURE_TYPES', 'UPSTREAM_CORRECTIONS',
+               'UPSTREAM_POLICIES'],
     'priming': ['prepare', 'PreparedModel'],
     'reanchor': ['default_tolerance', 'reanchor_shift', 'STILL_WINDOW_MAX_S', 'windows_moving'],
 })

@@ -30,7 +30,7 @@ from typing import Any, Callable, Sequence
 
 from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensator, variance_growth
 from gyro_tdc.runtime.flags import (FLAG_NAMES, NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE,
-                                    NON_FINITE, OUT_OF_RANGE, PASSTHROUGH, STALE)
+                                    NON_FINITE, OUT_OF_RANGE, PASSTHROUGH, STALE, UPSTREAM)
 from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.priming import (advance, prepare, PreparedModel, Priming, replay,
                                       replay_from_first)
@@ -213,6 +213,10 @@ class CompensatorCore:
             policy.still_accel_std, window_max=policy.still_window_max,
             tolerance=policy.reanchor_tolerance))
         self.learning = LearningGate()
+        #: The gyro is declared thermally corrected upstream and is to pass through (never
+        #: corrected twice): :meth:`process`'s one check for it.
+        self.upstream_pass = bool(policy.upstream_correction) and (
+            policy.upstream_policy == 'passthrough')
         #: :meth:`process` uses the sample's specific force: the model has an accelerometer
         #: part, or re-anchoring waits for a still window (the node reads it per message).
         self.needs_accel = False
@@ -523,7 +527,7 @@ class CompensatorCore:
             To add to the covariance diagonal.
         flags : int
             Bit set of ``STALE``, ``OUT_OF_RANGE``, ``NON_FINITE``, ``NO_TEMPERATURE``,
-            ``NO_MODEL``, ``PASSTHROUGH``.
+            ``NO_MODEL``, ``UPSTREAM``, ``PASSTHROUGH``.
         accel : tuple of 3 float or None, m/s^2
             The corrected specific force (None: leave the message's as it is).
         accel_variance : tuple of 3 float or None, (m/s^2)^2
@@ -534,6 +538,8 @@ class CompensatorCore:
         tally.counts['in'] += 1
         if t >= self.learning.gate:    # learning: a sample to hand over, or a model due
             self._learning(t, wx, wy, wz, accel)
+        if self.upstream_pass:         # the flight controller corrected it: never twice
+            return self._pass(t, wx, wy, wz, UPSTREAM, accel)
         slot = self.slot
         comp = slot.comp
         if comp is None:

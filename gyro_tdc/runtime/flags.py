@@ -17,7 +17,7 @@
 from __future__ import annotations
 
 __all__ = ['FLAG_NAMES', 'NO_ACCEL_DATA', 'NO_MODEL', 'NO_TEMPERATURE', 'NON_FINITE',
-           'OUT_OF_RANGE', 'PASSTHROUGH', 'STALE', 'describe_flags']
+           'OUT_OF_RANGE', 'PASSTHROUGH', 'STALE', 'UPSTREAM', 'describe_flags']
 
 #: Flags of one processed sample (a bit set).
 STALE = 1
@@ -30,10 +30,13 @@ PASSTHROUGH = 32
 #: The accelerometer's own flag (``CompensatorCore.accel_flags``, not counted per sample in
 #: ``flag_counts``): the Imu carried no accelerometer data (covariance[0] == -1).
 NO_ACCEL_DATA = 64
+#: The gyro is declared thermally corrected upstream (``upstream_correction``): passed through.
+UPSTREAM = 128
 
 FLAG_NAMES = {STALE: 'temperature stale', OUT_OF_RANGE: 'temperature out of model range',
               NON_FINITE: 'non-finite input', NO_TEMPERATURE: 'no temperature yet',
-              NO_MODEL: 'no model loaded', PASSTHROUGH: 'raw rate passed through'}
+              NO_MODEL: 'no model loaded', PASSTHROUGH: 'raw rate passed through',
+              UPSTREAM: 'gyro already thermally corrected upstream'}
 
 
 def describe_flags(flags: int) -> str:

@@ -27,14 +27,15 @@ from typing import Mapping, NamedTuple, TYPE_CHECKING
 
 from gyro_tdc.model import SETTLE_TAUS
 from gyro_tdc.runtime.flags import (describe_flags, NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE,
-                                    NON_FINITE, OUT_OF_RANGE, PASSTHROUGH, STALE)
+                                    NON_FINITE, OUT_OF_RANGE, PASSTHROUGH, STALE, UPSTREAM)
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (core does not import this module)
     from gyro_tdc.model import CompensationModel
     from gyro_tdc.runtime.core import CompensatorCore
+    from gyro_tdc.runtime.policy import Policy
 
 __all__ = ['ERROR', 'Health', 'HealthMark', 'InputStatus', 'OK', 'WARN', 'accel_state',
-           'health', 'sensor_mismatch']
+           'health', 'sensor_mismatch', 'upstream_note']
 
 
 def accel_state(core: CompensatorCore) -> str:
@@ -145,13 +146,44 @@ def sensor_mismatch(model: CompensationModel | None, sensor_id: str) -> str:
             "this IMU's recordings (gyro-tdc train --sensor-id)")
 
 
+def upstream_note(policy: Policy) -> str:
+    """
+    Say what the compensator does about a declared upstream thermal correction ('' none).
+
+    Parameters
+    ----------
+    policy : Policy
+        The compensator's policy (``upstream_correction``, ``upstream_policy``).
+
+    Returns
+    -------
+    str
+        '' when no upstream correction is declared; else one line starting with
+        ``gyro already thermally corrected upstream (<which>)`` and saying whether the raw
+        rate passes through or is compensated on top.
+
+    """
+    which = policy.upstream_correction
+    if not which:
+        return ''
+    head = f'gyro already thermally corrected upstream ({which})'
+    if policy.upstream_policy == 'passthrough':
+        return (f'{head}: raw rate passed through, not corrected twice (to compensate here '
+                'instead, disable the upstream correction, e.g. TC_G_ENABLE=0 or '
+                'INS_TCALn_ENABLE=0, and clear upstream_correction)')
+    return (f'{head}: compensating on top of it (upstream_policy compensate: the model must '
+            'be trained on the already corrected rate)')
+
+
 def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file: str = '',
            last_reload: str = 'none', inputs: InputStatus | None = None,
            sensor_id: str = '') -> Health:
     """
     Judge the compensator's state: what went wrong since the last report, and its figures.
 
-    ERROR without a model or when a compensation raised since ``since``; WARN when samples
+    ERROR without a model (unless the rate passes through because the gyro is declared
+    corrected upstream) or when a compensation raised since ``since``; WARN while an upstream
+    correction is declared and the rate passes through (:func:`upstream_note`), when samples
     had no, a stale, an out-of-range or a non-finite input, thermometer samples were
     rejected, input messages were lost or arrived already compensated since ``since``, and
     while a gyro_tdc compensator publishes the input topic, the last model file asked for
@@ -187,7 +219,11 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     errors = core.errors - since.errors
     problems = []
     level = OK
-    if model is None:
+    upstream = upstream_note(core.policy)
+    if upstream and core.upstream_pass:
+        level = WARN
+        problems.append(upstream)
+    if model is None and not core.upstream_pass:
         level = ERROR
         problems.append(f'no model loaded ({last_reload})')
     elif last_reload.startswith('rejected: '):
@@ -264,6 +300,8 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         'input malformed': inputs.malformed,
         'already compensated': inputs.already_compensated,
         'upstream compensators': ','.join(inputs.upstream),
+        'upstream correction': upstream or 'none declared',
+        'passed through as corrected upstream': counts[UPSTREAM],
         'accelerometer': accel_state(core),
         'reanchor': ('off' if not core.policy.reanchor_on_start else
                      'waiting for stillness' if anchor is None else

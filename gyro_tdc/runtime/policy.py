@@ -26,7 +26,8 @@ from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OUT_OF_RAN
 from gyro_tdc.runtime.reanchor import STILL_WINDOW_MAX_S
 from gyro_tdc.signal import MOTION_EPS, STILL_WINDOW_S
 
-__all__ = ['MOTION_TYPES', 'PARAMS', 'Policy', 'TEMPERATURE_TYPES']
+__all__ = ['MOTION_TYPES', 'PARAMS', 'Policy', 'TEMPERATURE_TYPES', 'UPSTREAM_CORRECTIONS',
+           'UPSTREAM_POLICIES']
 
 
 #: Message types the compensator's ``imu/temperature`` input accepts (``temperature_type``).
@@ -36,6 +37,11 @@ TEMPERATURE_TYPES = ('sensor_msgs/msg/Temperature', 'std_msgs/msg/Float32',
 #: Message types of the compensator's ``motion_topic`` (``motion_type``): geometry_msgs/Twist,
 #: geometry_msgs/TwistStamped, nav_msgs/Odometry.
 MOTION_TYPES = ('twist', 'twist_stamped', 'odometry')
+
+#: Upstream thermal corrections the compensator can be told about (``upstream_correction``;
+#: '' none), and what it does then (``upstream_policy``).
+UPSTREAM_CORRECTIONS = ('', 'px4', 'ardupilot', 'other')
+UPSTREAM_POLICIES = ('passthrough', 'compensate')
 
 #: The compensator's parameters (the node declares them; ``policy`` rows build :class:`Policy`).
 PARAMS = (
@@ -109,6 +115,15 @@ PARAMS = (
               'differs, the node warns in the log and on /diagnostics (WARN) for as long as '
               'that model is in use (a model trained on another sensor, or the shipped '
               'simulated one). Empty: no check.'),
+    ParamSpec('upstream_correction', '', 'A thermal correction known to be active upstream of '
+              'imu/data_raw: px4 (TC_G_ENABLE=1), ardupilot (INS_TCALn_ENABLE=1) or other. '
+              'Set: the node warns in the log and on /diagnostics (WARN) and, with '
+              'upstream_policy passthrough, passes the rate through instead of correcting it '
+              'twice. Empty: none known.', choices=UPSTREAM_CORRECTIONS, policy=True),
+    ParamSpec('upstream_policy', 'passthrough', 'With upstream_correction set: pass the raw '
+              'rate through, flagged and without the compensation mark (passthrough), or '
+              'compensate anyway, for a model trained on the already corrected rate '
+              '(compensate; no WARN).', choices=UPSTREAM_POLICIES, policy=True),
     ParamSpec('learn', False, 'Learn the bias vs temperature from still time while '
               'compensating (gyro_tdc.learn.learner): still-stretch means in 1 degC bins, '
               'refit off the message path, swapped in when it predicts the recent still '
