@@ -407,20 +407,23 @@ class StillnessDetector:
         """
         Return the block statistics of a window's compensated rate around the run's centre.
 
-        Each block's sum runs sample by sample (as a stream adds them), then the blocks in
-        order.
+        Each block's sum runs sample by sample, as a stream adds them (the blocks padded
+        with zeros to one length, summed along it), then the blocks in order.
         """
         t, x = w.t, w.rate - np.asarray(self._c)
         k = np.floor((t - t[0]) / self.block_s)
-        starts = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]])).tolist()
+        first = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
+        counts = np.diff(np.append(first, t.size))
+        block = np.repeat(np.arange(first.size), counts)
+        padded = np.zeros((first.size, int(counts.max()), 3))
+        padded[block, np.arange(t.size) - first[block]] = x
         n = m = 0
         s, a, b = [0.0] * 3, [0.0] * 3, [0.0] * 3
         c2 = 0.0
-        for i0, i1 in zip(starts, starts[1:] + [t.size]):
-            nk = i1 - i0
+        for nk, sums in zip(counts.tolist(), padded.sum(axis=1).tolist()):
             n += nk
             m += 1
-            for i, v in enumerate(x[i0:i1].sum(axis=0).tolist()):
+            for i, v in enumerate(sums):
                 s[i] += v
                 a[i] += v * v
                 b[i] += v * nk

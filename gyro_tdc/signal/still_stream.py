@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import math
 from typing import NamedTuple, Sequence
 
-from gyro_tdc.signal.still_verdict import (has_accelerometer, judge_windows, MAX_RATE, MIN_STILL_S,
+from gyro_tdc.signal.still_verdict import (judge_windows, MAX_RATE, MIN_STILL_S,
                                            MIN_WINDOW_SAMPLES, noise_thresholds, NOISE_WINDOWS,
                                            REASONS, STILL_WINDOW_S, windows_moving)
 import numpy as np
@@ -150,7 +150,7 @@ def _moments(x: NDArray[np.float64], start: NDArray[np.int64], n: NDArray[np.int
              ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return per-window means and standard deviations (ddof 1, two passes) of ``x`` (N, 3)."""
     mean = np.add.reduceat(x, start, axis=0) / n[:, None]
-    dev = x - np.repeat(mean, n, axis=0)
+    dev = x - (mean if start.size == 1 else np.repeat(mean, n, axis=0))
     var = np.add.reduceat(dev * dev, start, axis=0) / np.maximum(n - 1, 1)[:, None]
     return mean, np.sqrt(var)
 
@@ -164,7 +164,8 @@ class StillWindows:
     held below the prior over the first :data:`NOISE_WINDOWS` windows when one is given; a
     window is vetoed by a ``moving`` sample flag or a motion report (:meth:`observe_motion`),
     and with a ``rate`` its mean is at most ``max_rate``. Acceleration counts for a window
-    when every sample has a finite one and :func:`has_accelerometer` says it is data.
+    when every sample has a finite one and not all are zero (as
+    :func:`~gyro_tdc.signal.has_accelerometer`: a driver without one publishes zeros).
 
     Parameters
     ----------
@@ -193,6 +194,7 @@ class StillWindows:
             raise ValueError(f'Expected `cut` in {CUTS}, got {cut!r}.')
         self.window_s = float(window_s)
         self.cut = cut
+        self._grid = cut == 'grid'
         self.gyro_std, self.accel_std = float(gyro_std), float(accel_std)
         self.max_rate = float(max_rate)
         self.min_samples = int(min_samples)
@@ -225,7 +227,7 @@ class StillWindows:
     @property
     def window_end(self) -> float | None:
         """Return the grid stamp at which the window in progress ends (None: no window)."""
-        if self._k is None or self.t_first is None or self.cut != 'grid':
+        if self._k is None or self.t_first is None or not self._grid:
             return None
         return self.t_first + (self._k + 1) * self.window_s
 
@@ -287,7 +289,7 @@ class StillWindows:
 
         """
         done = None
-        if self.cut == 'grid':
+        if self._grid:
             if self.t_first is None:
                 self.t_first = float(t)
             k = math.floor((t - self.t_first) / self.window_s)
@@ -297,12 +299,15 @@ class StillWindows:
         buf = self._buf
         if not buf and self._chunk is None:
             self._t0 = t
-        a = _NAN3 if accel is None else accel
-        r = _NAN3 if rate is None else rate
-        buf.extend((t, raw[0], raw[1], raw[2], a[0], a[1], a[2], r[0], r[1], r[2], temp_c))
+        if accel is None:
+            accel = _NAN3
+        if rate is None:
+            rate = _NAN3
+        buf.extend((t, raw[0], raw[1], raw[2], accel[0], accel[1], accel[2], rate[0], rate[1],
+                    rate[2], temp_c))
         if moving:
             self._moving = True
-        if (self.cut == 'span' and t - self._t0 >= self.window_s
+        if (not self._grid and t - self._t0 >= self.window_s
                 and (len(buf) > _COLS or self._chunk is not None)):
             done = self._end(None)
         return done
@@ -330,7 +335,7 @@ class StillWindows:
         if pending is not None:
             x = np.concatenate([pending, x])
         tt = x[:, 0]
-        if self.cut == 'grid':
+        if self._grid:
             if self.t_first is None:
                 self.t_first = float(tt[0])
             k = np.floor((tt - self.t_first) / self.window_s).astype(np.int64)
@@ -387,7 +392,11 @@ class StillWindows:
         fin_g = np.isfinite(g_mean).all(axis=1) & np.isfinite(g_std).all(axis=1)
         acc = x[:, 4:7]
         fin_a = np.logical_and.reduceat(np.isfinite(acc).all(axis=1), start)
-        a_std = _moments(acc, start, n)[1] if fin_a.any() else None
+        a_mean = a_std = None
+        if fin_a.any():
+            a_mean, a_std = _moments(acc, start, n)
+            # Finite rows, all zero exactly when mean and std are (has_accelerometer).
+            fin_a &= ~(np.all(a_mean == 0.0, axis=1) & np.all(a_std == 0.0, axis=1))
         rate = x[:, 7:10]
         given = np.logical_or.reduceat(np.isfinite(rate).any(axis=1), start)
         r_mean = np.add.reduceat(rate, start, axis=0) / n[:, None] if given.any() else None
@@ -397,9 +406,7 @@ class StillWindows:
         out = []
         for i in range(start.size):
             rows = x[int(start[i]):int(stop[i])]
-            astd = None
-            if fin_a[i] and has_accelerometer(rows[:, 4:7]):
-                astd = tuple(a_std[i].tolist())
+            astd = tuple(a_std[i].tolist()) if fin_a[i] else None
             rm = None if r_mean is None or not given[i] else tuple(r_mean[i].tolist())
             out.append(self._judge(rows, int(n[i]), tuple(g_mean[i].tolist()),
                                    tuple(g_std[i].tolist()), astd, rm, float(temp[i]),

@@ -112,3 +112,36 @@ def test_motion_reports_veto_a_slow_constant_turn():
     det.observe_motion(8.6, False)
     anchors = _turn(det, 8.0, 300, rate=0.0, seed=4)
     assert anchors and all(not (a.t - a.duration_s <= 8.5 <= a.t) for a in anchors)
+
+
+def test_anchor_is_the_streams_own_sums_bit_for_bit():
+    """The shift is the block sums of a stream adding one sample at a time, exactly."""
+    rng = np.random.default_rng(8)
+    det = StillnessDetector(window=10.0, window_max=30.0, tolerance=1e-9)
+    t = np.arange(3500) / 100.0 + 0.003 * rng.random(3500)
+    out = 1e-3 * rng.standard_normal((3500, 3)) + 0.004
+    found = None
+    for k in range(3500):
+        found = det.update(float(t[k]), (0.0, 0.0, 0.0), out[k].tolist(), None, 20.0) or found
+    assert found is not None and found.reason == 'longest'
+    # By hand: windows of 10 s from their first sample (that sample included), blocks of
+    # block_length(10.0) (20 samples) from each window's start, sums in sample order around
+    # out[0].
+    c, i0, windows = out[0].tolist(), 0, []
+    while len(windows) < 3:
+        i1 = i0 + 1 + int(np.flatnonzero(t[i0 + 1:] - t[i0] >= 10.0)[0])
+        windows.append((i0, i1 + 1))
+        i0 = i1 + 1
+    s, n = [0.0] * 3, 0
+    for a, b in windows:                 # each window's sum of block sums, then the windows
+        block, bs, ws = None, [0.0] * 3, [0.0] * 3
+        for k in range(a, b):
+            kb = math.floor((t[k] - t[a]) / block_length(10.0))
+            if kb != block:
+                ws = [u + v for u, v in zip(ws, bs)]
+                block, bs = kb, [0.0] * 3
+            bs = [u + (o - ci) for u, o, ci in zip(bs, out[k].tolist(), c)]
+            n += 1
+        s = [u + v for u, v in zip(s, [u + v for u, v in zip(ws, bs)])]
+    assert found.samples == n
+    assert found.delta == tuple(ci + si / n for ci, si in zip(c, s))
