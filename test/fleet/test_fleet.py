@@ -470,3 +470,12 @@ def test_sigterm_ends_fleet_like_ctrl_c_with_a_summary(tmp_path, bags):
     assert [r['sensor_id'] for r in summary['sensors']] == list(GOOD + (OUTLIER,))
     assert summary['sensors'][0]['status'] == 'ok'
     assert summary['sensors'][-1]['error'] == 'not run (fleet interrupted)'
+
+
+def test_a_scheduler_without_workers_exits_2_after_the_timeout(tmp_path, capsys):
+    from distributed import LocalCluster
+    path = _manifest(tmp_path / 'fleet.csv', [('imu', [tmp_path / 'b'], [])])
+    with LocalCluster(n_workers=0, scheduler_port=0, dashboard_address='127.0.0.1:0') as cluster:
+        assert main([str(path), '--out', str(tmp_path / 'out'), '--scheduler',
+                     cluster.scheduler_address, '--connect-timeout', '1']) == 2
+    assert 'no Dask worker connected within 1 s' in _one_error_line(capsys)
