@@ -35,6 +35,8 @@ def escape(text: str) -> str:
 
 def literal(text: str) -> str:
     """Wrap ``text`` in an inline ``:code:`` role, escaped for reST."""
+    if not text:
+        raise ValueError('Expected a non-empty `text` for an inline literal, got an empty one.')
     return ':code:`' + text.replace('\\', '\\\\').replace('`', '\\`') + '`'
 
 

@@ -214,7 +214,7 @@ def parameter_rows(specs: Any) -> list[list[str]]:
     rows = []
     for spec in specs:
         if spec.choices:
-            valid = 'one of ' + ', '.join(literal(c) for c in spec.choices)
+            valid = 'one of ' + ', '.join(literal(c or "''") for c in spec.choices)
         elif spec.lo is not None and spec.hi is not None:
             valid = literal(f'{_value(spec.lo)} .. {_value(spec.hi)}')
         else:
