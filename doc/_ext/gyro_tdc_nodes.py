@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import importlib
 import inspect
 import pkgutil
+import re
 import textwrap
 from types import ModuleType
 from typing import Any
@@ -83,6 +84,10 @@ def ros_type(cls: Any) -> str:
     if len(parts) >= 2 and parts[1] in ('msg', 'srv', 'action'):
         return f'{parts[0]}/{parts[1]}/{cls.__name__}'
     return getattr(cls, '__qualname__', repr(cls))
+
+
+#: A parameter read in a condition's source (``p.x``, ``self.params.x``), shown as its name.
+_PARAM = re.compile(r'\b(?:self\.params|p)\.(\w+)')
 
 
 def _parameter(expr: ast.expr) -> str | None:
@@ -194,7 +199,7 @@ def interfaces(cls: type) -> list[Interface]:
                 found.append(Interface(
                     kind=CALLS[call.func.attr], name=resolver.name(call.args[1]),
                     types=resolver.types(call.args[0]),
-                    condition=' and '.join(literal(c) for c in conditions),
+                    condition=' and '.join(literal(_PARAM.sub(r'\1', c)) for c in conditions),
                     where=f':py:meth:`~{klass.__module__}.{klass.__qualname__}.'
                           f'{function.name}`'))
     return found
