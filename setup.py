@@ -75,6 +75,8 @@ setup(
         'AllanTools>=2019.9',
         'tqdm>=4.60',
         'dask[distributed]>=2024.1',
+        'pyulog>=1.1',
+        'pymavlink>=2.4.40',
     ],
     extras_require={
         'test': ['pytest'],

@@ -33,12 +33,13 @@ from typing import Callable, NoReturn, Optional, Sequence
 
 from gyro_tdc.cli import PROG
 from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPIC,
-                           DEFAULT_TEMPERATURE_TOPIC, MAX_LOSS_FRACTION)
+                           DEFAULT_TEMPERATURE_TOPIC, LOG_FORMATS, MAX_LOSS_FRACTION)
 from gyro_tdc.errors import GyroTdcError, one_line
 
 __all__ = [
     'ArgumentParser', 'UsageError', 'add_bag_options', 'bag_options', 'command_line',
-    'effect_listing', 'finite_float', 'non_negative_float', 'parse_reference', 'positive_float',
+    'effect_listing', 'finite_float', 'non_negative_float', 'non_negative_int', 'parse_reference',
+    'positive_float',
     'positive_int', 'probability', 'run_command',
 ]
 
@@ -139,7 +140,9 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
     Add the options every bag-reading command shares.
 
     ``--imu-topic``, ``--temperature-topic``, ``--reference x,y,z`` (constant, rad/s) and
-    ``--reference-topic`` (mutually exclusive with ``--reference``), ``--no-progress``.
+    ``--reference-topic`` (mutually exclusive with ``--reference``), ``--no-progress``,
+    ``--allow-loss``; for flight logs ``--log-format``, ``--imu-instance`` and
+    ``--allow-onboard-corrected``.
 
     Parameters
     ----------
@@ -164,7 +167,19 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
                    help='no progress bar while reading (default: shown on a terminal)')
     g.add_argument('--allow-loss', action='store_true',
                    help='use a bag even when more than 1 %% of the messages of a topic listed '
-                        'in its metadata cannot be read (the loss is reported either way)')
+                        'in its metadata cannot be read, or a flight log cut short (the loss '
+                        'is reported either way)')
+    f = parser.add_argument_group('flight-controller logs (PX4 ULog, ArduPilot DataFlash)')
+    f.add_argument('--log-format', default='auto', choices=LOG_FORMATS,
+                   help='how to read each path: auto tells a rosbag2 bag, a .ulg and a .bin '
+                        'apart by their first bytes and name (default: %(default)s)')
+    f.add_argument('--imu-instance', type=non_negative_int, default=0, metavar='N',
+                   help='the IMU of a flight log to read: sensor_gyro instance (PX4) or IMU '
+                        'instance (ArduPilot), from 0 (default: %(default)s)')
+    f.add_argument('--allow-onboard-corrected', action='store_true',
+                   help='use flight-log data the flight controller already thermally '
+                        'compensated (TC_G_ENABLE=1, INS_TCALn_ENABLE=1) as they are '
+                        '(default: refused, as a model of them would compensate twice)')
     parser.set_defaults(progress=None)
 
 
@@ -184,7 +199,8 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
     -------
     BagOptions
         The topics, the reference (``--reference`` parsed, rad/s), ``progress`` (a terminal
-        when not given), ``max_loss`` (1.0 with ``--allow-loss``) and ``more``.
+        when not given), ``max_loss`` (1.0 with ``--allow-loss``), the flight-log choices
+        (``--log-format``, ``--imu-instance``, ``--allow-onboard-corrected``) and ``more``.
 
     """
     progress = args.progress
@@ -194,7 +210,10 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
         imu_topic=args.imu_topic, temperature_topic=args.temperature_topic,
         reference=None if args.reference is None else parse_reference(args.reference),
         reference_topic=args.reference_topic, progress=bool(progress),
-        max_loss=1.0 if getattr(args, 'allow_loss', False) else MAX_LOSS_FRACTION, **more)
+        max_loss=1.0 if getattr(args, 'allow_loss', False) else MAX_LOSS_FRACTION,
+        log_format=getattr(args, 'log_format', 'auto'),
+        imu_instance=getattr(args, 'imu_instance', 0),
+        allow_onboard_corrected=bool(getattr(args, 'allow_onboard_corrected', False)), **more)
 
 
 # --------------------------------------------------------------------------------------------
@@ -249,6 +268,17 @@ def positive_int(text: str) -> int:
         v = 0
     if v < 1:
         raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {text!r}')
+    return v
+
+
+def non_negative_int(text: str) -> int:
+    """Parse an integer >= 0 (argparse type)."""
+    try:
+        v = int(text)
+    except ValueError:
+        v = -1
+    if v < 0:
+        raise argparse.ArgumentTypeError(f'expected an integer >= 0, got {text!r}')
     return v
 
 

@@ -15,9 +15,9 @@
 """
 Data in.
 
-Rosbag2 bags (read, written, motion reports; how to read them one :class:`BagOptions`), the
-serialized Imu and its compensation mark, thermal runs as arrays, their coverage, and
-real-data converters. See ``doc/internals/data.md``.
+Rosbag2 bags and flight-controller logs (PX4 ULog, ArduPilot DataFlash; how to read them one
+:class:`BagOptions`), the serialized Imu and its compensation mark, thermal runs as arrays,
+their coverage, and real-data converters. See ``doc/internals/data.md``.
 """
 
 from gyro_tdc.base.face import lazy
@@ -28,11 +28,14 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'bag_reader': ['read_bag'],
     'bag_writer': ['write_bag'],
     'coverage': ['Coverage', 'coverage', 'RATE_THRESHOLD_C_PER_MIN', 'temperature_rate'],
+    'dataflash': ['read_dataflash'],
     'dataset': ['expand_bags', 'load_runs'],
+    'flightlog': ['detect_format', 'FlightLog', 'is_flight_log'],
     'imu_cdr': ['ImuView', 'locate'],
     'mark': ['diagonal_marked', 'mark_diagonal'],
     'options': ['BagOptions', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
-                'DEFAULT_TEMPERATURE_TOPIC', 'MAX_LOSS_FRACTION'],
+                'DEFAULT_TEMPERATURE_TOPIC', 'LOG_FORMATS', 'MAX_LOSS_FRACTION'],
     'realdata': ['default_pan_csv', 'PanCubesat', 'read_pan_cubesat_csv'],
     'runs': ['Run'],
+    'ulog': ['read_ulog'],
 })

@@ -28,8 +28,11 @@ from typing import Callable, Iterable
 
 from gyro_tdc.base import MAX_RATE_RAD_S, TEMP_PLAUSIBLE_C
 from gyro_tdc.data.bag_reader import read_bag, small_pages
+from gyro_tdc.data.dataflash import read_dataflash
+from gyro_tdc.data.flightlog import detect_format, flight_log_data, is_flight_log
 from gyro_tdc.data.options import BagOptions
 from gyro_tdc.data.runs import Run
+from gyro_tdc.data.ulog import read_ulog
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.signal import has_accelerometer
 import numpy as np
@@ -211,7 +214,8 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     Parameters
     ----------
     bag : str or Path
-        rosbag2 directory (sqlite3 or mcap).
+        rosbag2 directory (sqlite3 or mcap), or a PX4 ULog / ArduPilot DataFlash log (as
+        ``options.log_format`` says; see :mod:`gyro_tdc.data.flightlog`).
     options : BagOptions, optional
         Topics, reference rate, temperature gap, loss allowed, accelerometer (default
         :class:`~gyro_tdc.data.options.BagOptions`: the accelerometer is not read).
@@ -221,7 +225,9 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     Run
         ``name`` is the bag path; ``info`` holds ``rejected``, ``warnings``, ``reference``
         ('constant', 'topic' or 'zero'), ``frame_id``, ``storage``, ``topics``,
-        ``samples_read`` and ``messages`` (topic -> [decoded, listed in the metadata]).
+        ``samples_read`` and ``messages`` (topic -> [decoded, listed in the metadata]); for a
+        flight log also what :func:`gyro_tdc.data.flightlog.flight_log_data` adds
+        (``log_format``, ``log``, ``params``, ``onboard_compensated``...).
 
     Raises
     ------
@@ -234,9 +240,18 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     imu_topic, temperature_topic, reference_topic = (o.imu_topic, o.temperature_topic,
                                                      o.reference_topic)
     const = None if o.reference is None else np.asarray(o.reference, dtype=np.float64)
-    data = read_bag(bag, imu_topic=imu_topic, temperature_topic=temperature_topic,
-                    reference_topic=None if const is not None else reference_topic,
-                    progress=o.progress, accel=bool(o.accel))
+    fmt = detect_format(bag, o.log_format)
+    extra: dict = {}
+    if fmt == 'rosbag2':
+        data = read_bag(bag, imu_topic=imu_topic, temperature_topic=temperature_topic,
+                        reference_topic=None if const is not None else reference_topic,
+                        progress=o.progress, accel=bool(o.accel))
+    else:                             # a flight-controller log: one IMU, no reference topic
+        if not Path(bag).is_file():
+            raise DatasetError(f'Log {str(bag)!r} is not a file.')
+        reader = read_ulog if fmt == 'ulog' else read_dataflash
+        log = reader(bag, instance=o.imu_instance, accel=bool(o.accel))
+        data, extra = flight_log_data(bag, log, fmt, o)
     rejected = {'imu_nonfinite': data.rejected['imu_nonfinite'],
                 'temp_nonfinite': data.rejected['temp_nonfinite'],
                 'ref_nonfinite': data.rejected['ref_nonfinite'],
@@ -244,8 +259,8 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
                 'imu_implausible': 0, 'temp_implausible': 0, 'ref_implausible': 0,
                 'duplicate_stamps': 0, 'temp_duplicate_stamps': 0, 'out_of_order': 0,
                 'no_temperature': 0, 'no_reference': 0}
-    warnings: list[str] = []
-    messages = _check_counts(bag, data, {
+    warnings: list[str] = list(extra.pop('warnings', ()))
+    messages = {} if extra else _check_counts(bag, data, {
         imu_topic: len(data.imu_t) + data.rejected['imu_nonfinite'],
         temperature_topic: len(data.temp_t) + data.rejected['temp_nonfinite'],
         **({reference_topic: len(data.ref_t) + data.rejected['ref_nonfinite']}
@@ -314,7 +329,7 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     info = {'rejected': rejected, 'warnings': warnings, 'reference': source,
             'frame_id': data.frame_id, 'storage': data.storage, 'topics': data.topics,
             'samples_read': int(len(data.imu_t) + data.rejected['imu_nonfinite']),
-            'messages': messages, 'decoded_by_rosbags': data.fallback}
+            'messages': messages, 'decoded_by_rosbags': data.fallback, **extra}
     if not keep.all():
         t, temp, omega, omega_ref = t[keep], temp[keep], omega[keep], omega_ref[keep]
         rows = rows[keep]
@@ -342,9 +357,10 @@ def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
     """
     Expand bag paths: a folder of bag folders (a multi-run ``simulate``) becomes its bags.
 
-    A path that is a rosbag2 directory, or anything else, is kept as is (reading reports
-    what is wrong with it); a directory without ``metadata.yaml`` whose sub-directories are
-    bags expands to those, sorted by name (natural order: ``run_2`` before ``run_10``).
+    A path that is a rosbag2 directory, a flight log, or anything else, is kept as is
+    (reading reports what is wrong with it); a directory without ``metadata.yaml`` whose
+    entries are bags or flight logs (``.ulg``, ``.bin``) expands to those, sorted by name
+    (natural order: ``run_2`` before ``run_10``).
 
     Parameters
     ----------
@@ -370,7 +386,7 @@ def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
         if not p.exists():
             raise DatasetError(f'Bag {str(p)!r} does not exist.')
         if p.is_dir() and not _is_bag(p):
-            subs = [c for c in p.iterdir() if _is_bag(c)]
+            subs = [c for c in p.iterdir() if _is_bag(c) or is_flight_log(c)]
             if subs:
                 out.extend(sorted(subs, key=_natural_key))
                 continue
@@ -426,11 +442,15 @@ def describe_read(bag: str | os.PathLike, run: Run, reference_topic: str) -> str
     """
     source = run.info.get('reference', '?')
     zero = not np.any(run.omega_ref)
+    log = run.info.get('log')
     reference = {'topic': f'reference rate from {reference_topic}'
                           + (' (zero throughout)' if zero else ''),
                  'constant': 'constant reference rate (--reference)',
-                 'zero': f'reference rate zero (no {reference_topic} in the bag)'}.get(
-                     source, f'reference {source}')
+                 'zero': 'reference rate zero (' + ('a flight log has none' if log else
+                                                    f'no {reference_topic} in the bag') + ')'
+                 }.get(source, f'reference {source}')
+    if log:
+        reference = f'{log}; {reference}'
     counts = run.info.get('rejected', {})
     dropped = '; '.join(f'{v} {_DROPPED.get(k, k)}' for k, v in counts.items() if v)
     return (f'read {bag}: {len(run)} samples over {run.duration_s / 60.0:.1f} min, '

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""How to read bags: topics, the reference rate, the loss allowed (:class:`BagOptions`)."""
+"""How to read bags and flight logs: topics, reference rate, loss allowed (:class:`BagOptions`)."""
 
 from __future__ import annotations
 
@@ -22,13 +22,15 @@ from gyro_tdc.errors import DatasetError
 import numpy as np
 
 __all__ = ['BagOptions', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
-           'DEFAULT_TEMPERATURE_TOPIC', 'MAX_LOSS_FRACTION']
+           'DEFAULT_TEMPERATURE_TOPIC', 'LOG_FORMATS', 'MAX_LOSS_FRACTION']
 
 DEFAULT_IMU_TOPIC = '/imu/data_raw'
 DEFAULT_TEMPERATURE_TOPIC = '/imu/temperature'
 DEFAULT_REFERENCE_TOPIC = '/rate_table/reference'
 #: Default largest fraction of a topic's listed messages that may be unreadable in a bag.
 MAX_LOSS_FRACTION = 0.01
+#: ``--log-format`` values: ``auto`` tells a bag, a PX4 ULog and an ArduPilot DataFlash log apart.
+LOG_FORMATS = ('auto', 'rosbag2', 'ulog', 'dataflash')
 
 
 @dataclass(frozen=True)
@@ -59,11 +61,20 @@ class BagOptions:
     motion_topic : str
         A ``cmd_vel`` (Twist), TwistStamped or Odometry topic vetoing stillness while it
         reports motion (``train --still-only``); empty: none.
+    log_format : str
+        One of :data:`LOG_FORMATS`: how to read each path (``auto``: by the file).
+    imu_instance : int
+        The IMU of a flight-controller log to read (0-based: ``sensor_gyro`` multi-id,
+        DataFlash ``IMU`` instance).
+    allow_onboard_corrected : bool
+        Read flight-log data the flight controller already thermally compensated (refused
+        otherwise).
 
     Raises
     ------
     DatasetError
-        When ``reference`` is not three finite rates.
+        When ``reference`` is not three finite rates, ``log_format`` is unknown or
+        ``imu_instance`` is not an integer >= 0.
 
     """
 
@@ -76,11 +87,21 @@ class BagOptions:
     max_loss: float = MAX_LOSS_FRACTION
     accel: bool = False
     motion_topic: str = ''
+    log_format: str = 'auto'
+    imu_instance: int = 0
+    allow_onboard_corrected: bool = False
 
     def __post_init__(self) -> None:
-        """Check the reference rate and hold it as a tuple of floats."""
+        """Check the reference rate (held as a tuple of floats), log format and instance."""
         if self.reference is not None:
             object.__setattr__(self, 'reference', _reference(self.reference))
+        if self.log_format not in LOG_FORMATS:
+            raise DatasetError(f'Expected `log_format` to be one of {", ".join(LOG_FORMATS)}, '
+                               f'got {self.log_format!r}.')
+        if (isinstance(self.imu_instance, bool) or not isinstance(self.imu_instance, int)
+                or self.imu_instance < 0):
+            raise DatasetError('Expected `imu_instance` to be an integer >= 0, got '
+                               f'{self.imu_instance!r}.')
 
 
 def _reference(value: object) -> tuple[float, float, float]:

@@ -372,7 +372,7 @@ def onboard_status(params: Mapping[str, float], firmware: str, *, instance: int 
     Returns
     -------
     (bool, str)
-        Active, and e.g. ``'TC_G_ENABLE=1 (on-board thermal compensation active)'``.
+        Active, and e.g. ``'TC_G_ENABLE=1: on-board thermal compensation active'``.
 
     Raises
     ------
@@ -389,8 +389,8 @@ def onboard_status(params: Mapping[str, float], firmware: str, *, instance: int 
     else:
         raise ValueError(f"Expected `firmware` to be 'px4' or 'ardupilot', got {firmware!r}.")
     if name not in params:
-        return False, f'{name} not in the log (no on-board thermal compensation known)'
+        return False, f'{name} not in the log: no on-board thermal compensation known'
     value = params[name]
     shown = int(value) if float(value).is_integer() else value
-    return active, (f'{name}={shown} (on-board thermal compensation '
-                    + ('active)' if active else 'off)'))
+    return active, (f'{name}={shown}: on-board thermal compensation '
+                    + ('active' if active else 'off'))

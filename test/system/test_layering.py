@@ -46,7 +46,7 @@ LAYERS: dict[str, frozenset] = {k: frozenset(v.split()) for k, v in {
     'errors': '',
     'base': 'errors',
     'signal': 'base',
-    'data': 'base errors signal',
+    'data': 'base errors model signal',
     'model': 'base errors',
     'identify': 'gyro_tdc base data errors model signal',
     'runtime': 'base model signal',

@@ -1,0 +1,160 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+ArduPilot DataFlash (``.bin``) -> one IMU as a :class:`gyro_tdc.data.flightlog.FlightLog`.
+
+pymavlink's ``DFReader`` indexes the records and their FMT formats; the ``IMU`` records (with
+``T``, per instance) and ``PARM`` are decoded here column-wise with numpy.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import struct
+
+from gyro_tdc.data.flightlog import FlightLog
+from gyro_tdc.errors import DatasetError
+from gyro_tdc.model import onboard_status
+import numpy as np
+
+__all__ = ['DATAFLASH_TYPES', 'read_dataflash']
+
+#: DataFlash format characters -> numpy dtypes (little-endian, packed).
+DATAFLASH_TYPES = {
+    'a': ('<i2', (32,)), 'b': 'i1', 'B': 'u1', 'h': '<i2', 'H': '<u2', 'i': '<i4', 'I': '<u4',
+    'f': '<f4', 'd': '<f8', 'n': 'S4', 'N': 'S16', 'Z': 'S64', 'c': '<i2', 'C': '<u2',
+    'e': '<i4', 'E': '<u4', 'L': '<i4', 'M': 'u1', 'q': '<i8', 'Q': '<u8', 'g': '<f2',
+}
+#: Scaled format characters (centi-units; degE7 for ``L``).
+_SCALE = {'c': 0.01, 'C': 0.01, 'e': 0.01, 'E': 0.01, 'L': 1e-7}
+
+
+def _records(reader, mtype: int) -> dict[str, np.ndarray]:
+    """Decode every whole record of one message type into columns."""
+    fmt = reader.formats[mtype]
+    offs = np.asarray(reader.offsets[mtype], dtype=np.int64)
+    offs = offs[offs + fmt.len <= reader.data_len]
+    names = list(fmt.columns)
+    dt = np.dtype([(n, DATAFLASH_TYPES[c]) for n, c in zip(names, fmt.format)])
+    if dt.itemsize != fmt.len - 3:
+        raise DatasetError(f'{fmt.name}: format {fmt.format!r} is {dt.itemsize} bytes, the '
+                           f'FMT record says {fmt.len - 3}.')
+    buf = np.frombuffer(reader.data_map, dtype=np.uint8)
+    rows = buf[offs[:, None] + 3 + np.arange(dt.itemsize)]
+    rec = np.ascontiguousarray(rows).view(dt).ravel()
+    out = {}
+    for n, c in zip(names, fmt.format):
+        col = rec[n]
+        out[n] = col * _SCALE[c] if c in _SCALE else col
+    return out
+
+
+def _truncated(reader) -> int:
+    """Return the bytes of a record cut short at the end of the log (0: none)."""
+    last, end = -1, 0
+    for mtype, offs in enumerate(reader.offsets):
+        if len(offs) and mtype in reader.formats and offs[-1] > last:
+            last, end = int(offs[-1]), int(offs[-1]) + reader.formats[mtype].len
+    return reader.data_len - last if last >= 0 and end > reader.data_len else 0
+
+
+def _params(reader) -> dict[str, float]:
+    """Return the first value of every PARM record's parameter."""
+    mtype = reader.name_to_id.get('PARM')
+    if mtype is None:
+        return {}
+    cols = _records(reader, mtype)
+    out: dict[str, float] = {}
+    for name, value in zip(cols['Name'], cols['Value']):
+        out.setdefault(name.split(b'\0')[0].decode('ascii', 'replace'), float(value))
+    return out
+
+
+def _imu(reader) -> dict[int, dict[str, np.ndarray]]:
+    """Return the IMU records per instance (the ``I`` field, or IMU/IMU2/IMU3 of old logs)."""
+    out: dict[int, dict[str, np.ndarray]] = {}
+    for name, base in (('IMU', 0), ('IMU2', 1), ('IMU3', 2)):
+        mtype = reader.name_to_id.get(name)
+        if mtype is None or not len(reader.offsets[mtype]):
+            continue
+        cols = _records(reader, mtype)
+        if 'I' in cols:
+            for i in np.unique(cols['I']).tolist():
+                sel = cols['I'] == i
+                out[int(i)] = {k: v[sel] for k, v in cols.items()}
+        else:
+            out[base] = cols
+    return out
+
+
+def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
+                   accel: bool = False) -> FlightLog:
+    """
+    Read one IMU of an ArduPilot DataFlash log.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The ``.bin`` file.
+    instance : int
+        IMU instance (0-based, the ``I`` field).
+    accel : bool
+        Also read ``AccX..Z``.
+
+    Returns
+    -------
+    FlightLog
+        Never ``raw``: ``IMU`` is logged after the offsets and the temperature correction;
+        ``compensated`` when ``INS_TCALn_ENABLE`` is 1.
+
+    Raises
+    ------
+    DatasetError
+        The file is no DataFlash log, has no ``IMU`` records or not the instance asked for.
+
+    """
+    from pymavlink.DFReader import DFReader_binary
+
+    p = Path(path)
+    try:
+        reader = DFReader_binary(str(p), zero_time_base=False)
+    except (struct.error, ValueError, KeyError, IndexError, TypeError, AttributeError) as exc:
+        raise DatasetError(f'Log {str(p)!r} is not a readable DataFlash log: {exc}') from None
+    try:
+        params = _params(reader)
+        imus = _imu(reader)
+        cut = _truncated(reader)
+    finally:
+        reader.data_map.close()
+        reader.filehandle.close()
+    if not imus:
+        raise DatasetError(f'Log {str(p)!r} has no IMU records.')
+    if instance not in imus:
+        raise DatasetError(f'Log {str(p)!r}: IMU has no instance {instance} (it has '
+                           f'{", ".join(map(str, sorted(imus)))}; --imu-instance N).')
+    d = imus[instance]
+    t = np.asarray(d['TimeUS'], dtype=np.float64) * 1e-6
+    gyro = np.column_stack([np.asarray(d[k], dtype=np.float64) for k in ('GyrX', 'GyrY', 'GyrZ')])
+    temp = (np.asarray(d['T'], dtype=np.float64) if 'T' in d else np.full(len(t), np.nan))
+    acc = None
+    if accel and all(k in d for k in ('AccX', 'AccY', 'AccZ')):
+        acc = np.column_stack([np.asarray(d[k], dtype=np.float64)
+                               for k in ('AccX', 'AccY', 'AccZ')])
+    active, words = onboard_status(params, 'ardupilot', instance=instance)
+    return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
+                     firmware='ardupilot', source='IMU', instance=int(instance),
+                     instances=tuple(sorted(imus)), raw=False, compensated=active,
+                     onboard=words, truncated_bytes=cut)

@@ -1,0 +1,233 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Flight-controller logs beside bags: which format a path is, and one IMU read from it.
+
+PX4 ULog (:mod:`gyro_tdc.data.ulog`) and ArduPilot DataFlash (:mod:`gyro_tdc.data.dataflash`)
+give one :class:`FlightLog`; :func:`flight_log_data` turns it into the arrays a bag gives,
+refusing data the flight controller already compensated (see ``doc/internals/data.md``).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import os
+from pathlib import Path
+
+from gyro_tdc.data.bag_reader import BagData
+from gyro_tdc.data.options import BagOptions, LOG_FORMATS
+from gyro_tdc.errors import DatasetError
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['DATAFLASH_MAGIC', 'describe_log', 'detect_format', 'flight_log_data', 'FlightLog',
+           'is_flight_log', 'ULOG_MAGIC']
+
+#: A ULog starts with these 7 bytes (then the version byte).
+ULOG_MAGIC = b'ULog\x01\x125'
+#: A DataFlash log starts with a FMT record: the two head bytes, then message type 0x80.
+DATAFLASH_MAGIC = b'\xa3\x95\x80'
+_SUFFIXES = {'.ulg': 'ulog', '.bin': 'dataflash'}
+
+
+@dataclass(frozen=True)
+class FlightLog:
+    """
+    One IMU of a flight-controller log, as its reader found it.
+
+    Parameters
+    ----------
+    imu_t : NDArray[np.float64], shape (N,), s
+        Sample stamps (the log's boot clock).
+    gyro : NDArray[np.float64], shape (N, 3), rad/s
+        Angular rate.
+    temp_c : NDArray[np.float64], shape (N,), degC
+        The IMU's temperature at each sample (NaN where the log has none).
+    accel : NDArray[np.float64], shape (N, 3), m/s^2, or None
+        Specific force at each sample; None when not read or absent.
+    params : dict[str, float]
+        The log's parameters (the values at its start).
+    firmware : str
+        ``'px4'`` or ``'ardupilot'``.
+    source : str
+        Where the samples came from (``sensor_gyro``, ``sensor_combined``, ``IMU``).
+    instance : int
+        The IMU instance read (0-based).
+    instances : tuple of int
+        Every instance the log holds.
+    raw : bool
+        True: the samples precede every on-board correction.
+    compensated : bool
+        True: the flight controller's thermal compensation was applied to the samples.
+    onboard : str
+        What the parameters say about on-board thermal compensation, in words.
+    device_id : int
+        The sensor's device id where the log gives one (0 otherwise).
+    truncated_bytes : int
+        Bytes after the last whole message (a log cut short), 0 when none.
+    notes : list of str
+        Further facts for the reader's line (e.g. the temperature's source).
+
+    """
+
+    imu_t: NDArray[np.float64]
+    gyro: NDArray[np.float64]
+    temp_c: NDArray[np.float64]
+    accel: NDArray[np.float64] | None
+    params: dict
+    firmware: str
+    source: str
+    instance: int
+    instances: tuple
+    raw: bool
+    compensated: bool
+    onboard: str
+    device_id: int = 0
+    truncated_bytes: int = 0
+    notes: list = field(default_factory=list)
+
+
+def is_flight_log(path: str | os.PathLike) -> bool:
+    """Return True when ``path`` is a file that looks like a ULog or DataFlash log."""
+    p = Path(path)
+    return p.is_file() and _sniff(p) != ''
+
+
+def _sniff(path: Path) -> str:
+    """Return the format the file's first bytes or its suffix say ('' when neither does)."""
+    try:
+        with open(path, 'rb') as f:
+            head = f.read(8)
+    except OSError:
+        head = b''
+    if head.startswith(ULOG_MAGIC):
+        return 'ulog'
+    if head.startswith(DATAFLASH_MAGIC):
+        return 'dataflash'
+    return _SUFFIXES.get(path.suffix.lower(), '')
+
+
+def detect_format(path: str | os.PathLike, requested: str = 'auto') -> str:
+    """
+    Return how to read ``path``: ``'rosbag2'``, ``'ulog'`` or ``'dataflash'``.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        A bag directory, a bag's storage file, or a log file.
+    requested : str
+        ``--log-format``: ``'auto'`` (magic bytes, then the suffix ``.ulg`` / ``.bin``; a
+        directory or anything else is a bag) or the format itself.
+
+    Returns
+    -------
+    str
+        The format.
+
+    Raises
+    ------
+    DatasetError
+        An unknown ``requested`` format.
+
+    """
+    if requested not in LOG_FORMATS:
+        raise DatasetError(f'Expected the log format to be one of {", ".join(LOG_FORMATS)}, '
+                           f'got {requested!r}.')
+    if requested != 'auto':
+        return requested
+    p = Path(path)
+    return (_sniff(p) or 'rosbag2') if p.is_file() else 'rosbag2'
+
+
+def describe_log(log: FlightLog) -> str:
+    """Return what was read from a log, in words (for the reader's line)."""
+    kind = {'px4': 'PX4 ULog', 'ardupilot': 'ArduPilot DataFlash'}[log.firmware]
+    dev = f' (device id {log.device_id})' if log.device_id else ''
+    data = ('raw (before any on-board correction)' if log.raw else
+            'corrected on board (thermal compensation included)' if log.compensated else
+            'calibrated on board (no thermal compensation active)')
+    return (f'{kind}, {log.source} instance {log.instance} of {len(log.instances)}{dev}: '
+            f'{data}; {log.onboard}'
+            + ''.join(f'; {n}' for n in log.notes))
+
+
+def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
+                    options: BagOptions) -> tuple[BagData, dict]:
+    """
+    Return one IMU of a ULog or DataFlash log as the arrays a bag gives, or refuse it.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The log file.
+    log : FlightLog
+        What :func:`gyro_tdc.data.ulog.read_ulog` or
+        :func:`gyro_tdc.data.dataflash.read_dataflash` read from it.
+    fmt : str
+        ``'ulog'`` or ``'dataflash'`` (see :func:`detect_format`).
+    options : BagOptions
+        ``imu_instance``, ``accel``, ``max_loss`` (a log cut short is refused below 1.0) and
+        ``allow_onboard_corrected``.
+
+    Returns
+    -------
+    (BagData, dict)
+        The arrays (the temperature on the IMU stamps, no reference), and the run's extra
+        ``info``: ``log_format``, ``log`` (what was read, in words), ``firmware``,
+        ``source``, ``instance``, ``raw``, ``onboard_compensated``, ``params`` (the
+        thermal-calibration ones) and ``warnings``.
+
+    Raises
+    ------
+    DatasetError
+        The log has no temperature, is cut short (unless ``max_loss`` is 1.0) or was
+        compensated on board (unless allowed).
+
+    """
+    p = Path(path)
+    warnings: list[str] = []
+    if log.truncated_bytes:
+        note = (f'the log ends inside a message ({log.truncated_bytes} bytes after the last '
+                'whole one: cut short)')
+        if options.max_loss < 1.0:
+            raise DatasetError(f'Log {str(p)!r}: {note}; --allow-loss reads the whole '
+                               'messages before the cut.')
+        warnings.append(note)
+    if log.compensated and not options.allow_onboard_corrected:
+        raise DatasetError(
+            f'Log {str(p)!r}: the {log.source} data were already thermally compensated on '
+            f'board ({log.onboard}), a model of them would compensate twice; record the raw '
+            'sensor data (PX4: log sensor_gyro) or turn the on-board compensation off, or '
+            'pass --allow-onboard-corrected to use them as they are.')
+    ok = np.isfinite(log.gyro).all(axis=1)
+    gyro_t, gyro = log.imu_t[ok], log.gyro[ok]
+    accel = None if log.accel is None else log.accel[ok]
+    warm = np.isfinite(log.temp_c)
+    if not warm.any():
+        raise DatasetError(f'Log {str(p)!r}: {log.source} instance {log.instance} carries no '
+                           'temperature; a drift model needs the IMU temperature.')
+    data = BagData(imu_t=gyro_t, gyro=gyro, accel=accel, frame_id='', temp_t=log.imu_t[warm],
+                   temp_c=log.temp_c[warm], temp_var=np.zeros(int(warm.sum())), ref_t=None,
+                   ref=None, topics={}, storage=fmt, path=str(p),
+                   rejected={'imu_nonfinite': int(np.count_nonzero(~ok)),
+                             'temp_nonfinite': int(np.count_nonzero(~warm)),
+                             'ref_nonfinite': 0, 'undecodable': 0})
+    keep = {k: v for k, v in log.params.items() if k.startswith(('TC_', 'INS_TCAL'))
+            or k.endswith('_CALTEMP')}
+    info = {'log_format': fmt, 'log': describe_log(log), 'firmware': log.firmware,
+            'source': log.source, 'instance': log.instance, 'device_id': log.device_id,
+            'raw': log.raw, 'onboard_compensated': log.compensated, 'params': keep,
+            'warnings': warnings}
+    return data, info
