@@ -67,6 +67,8 @@ COMMANDS: dict[str, Command] = {
                 'the whole pipeline on simulated data, then the two nodes live'),
         Command('fleet', 'gyro_tdc.cli.fleet',
                 'calibrate many IMUs from a manifest on Dask, with fleet-outlier flags'),
+        Command('export', 'gyro_tdc.cli.export',
+                'write a model as PX4 or ArduPilot thermal-calibration parameters'),
     )
 }
 

@@ -30,6 +30,8 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'discover.model': ['build_model'],
     'discover.report': ['write_report'],
     'discover.results': ['format_summary'],
+    'export': ['clamp_cost', 'ExportScore', 'FcExport', 'FIRMWARES', 'fit_export', 'from_params',
+               'read_params', 'score_export', 'steady_drift', 'write_params'],
     'features': ['AUTO', 'choose_features', 'FeatureChoice'],
     'fit': ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'TAU_BOUNDS', 'THERMAL_CHOICES'],
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],

@@ -1,0 +1,493 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+A model's drift in a flight controller's form: PX4 ``TC_G*``/``TC_A*``, ArduPilot ``INS_TCALn_*``.
+
+The steady-state drift over the trained range, on a uniform temperature grid, fitted in the
+firmware's exact cubic (:mod:`gyro_tdc.model.fc_tempcal` applies it), written as the
+parameter file its ground station loads, scored held out beside the full model, and where
+its clamp costs. See ``doc/flight_controllers.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+import os
+from pathlib import Path
+from typing import Sequence
+
+from gyro_tdc.base import atomic_write
+from gyro_tdc.data import Run
+from gyro_tdc.errors import FitError, ModelFileError
+from gyro_tdc.model import (ArduPilotTempCal, compensate, CompensationModel,
+                            DEFAULT_OUT_OF_RANGE, drift, Px4TempCal)
+from gyro_tdc.signal import bias_stability, rms_dps
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ['ExportScore', 'FIRMWARES', 'FcExport', 'GRID_POINTS', 'clamp_cost', 'fit_export',
+           'from_params', 'read_params', 'score_export', 'steady_drift', 'write_params']
+
+#: The flight-controller firmwares an export targets.
+FIRMWARES = ('px4', 'ardupilot')
+#: Points of the uniform temperature grid the cubic is fitted on.
+GRID_POINTS = 201
+#: ArduPilot's fixed reference of the cubic (``TEMP_REFERENCE``), degC, and the x1e6 storage.
+AP_TREF_C = 35.0
+AP_SCALE = 1.0e6
+#: Valid range of ArduPilot's INS_TCALn_TMIN/TMAX (its parameter metadata), degC.
+AP_LIMITS_C = (-70.0, 80.0)
+#: Stamp step of the steady-state staircase, s: every filter and warm-up term has settled.
+_SETTLED_S = 1.0e7
+#: MAVLink parameter types in a QGroundControl .params file.
+_INT32, _REAL32 = 6, 9
+
+
+def steady_drift(model: CompensationModel, temps: ArrayLike, *,
+                 out_of_range: str = 'clamp') -> NDArray[np.float64]:
+    """
+    Return a model's steady-state drift at each temperature, shape (N, 3).
+
+    Held long at a temperature, the thermal state equals it, dT/dt is 0 and the warm-up has
+    decayed: each temperature is held for :data:`_SETTLED_S` (twice, the second value kept)
+    after one settling sample, so the batch features are exactly their settled values.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model (gyro in rad/s; an accelerometer part in m/s^2).
+    temps : ArrayLike, shape (N,), degC
+        Temperatures.
+    out_of_range : str
+        Beyond the trained range: ``'clamp'``, ``'linear'`` or ``'extrapolate'``.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N, 3)
+        The drift b(T) the model would subtract at steady state.
+
+    """
+    temps = np.asarray(temps, dtype=np.float64).reshape(-1)
+    if temps.size == 0:
+        return np.zeros((0, 3))
+    u = np.concatenate([temps[:1], np.repeat(temps, 2)])
+    t = np.arange(u.size) * _SETTLED_S
+    return drift(model, t, u, out_of_range=out_of_range)[2::2]
+
+
+@dataclass(frozen=True)
+class FcExport:
+    """
+    A model's drift in one firmware's form: the parameters, and what the firmware subtracts.
+
+    Parameters
+    ----------
+    firmware : str
+        ``'px4'`` or ``'ardupilot'``.
+    params : dict
+        ``{name: value}`` in file order (ints are MAVLink INT32, floats REAL32).
+    gyro : Px4TempCal or ArduPilotTempCal
+        The gyro calibration as the firmware reads it.
+    gyro_offset : NDArray[np.float64], shape (3,), rad/s
+        ArduPilot's static offsets (``INS_GYROFFS``) taken at CALTEMP; zeros for PX4 (X0 holds
+        the constant).
+    accel : Px4TempCal or ArduPilotTempCal, optional
+        The accelerometer calibration (None: the model has no accelerometer part).
+    range_c : tuple of float, degC
+        TMIN, TMAX.
+    fit_rms_dps : NDArray[np.float64], shape (3,), deg/s
+        RMS over the grid of the firmware's form minus the model's steady-state drift.
+    notes : list of str
+        What the user must know (device id, clamp range, offsets).
+
+    """
+
+    firmware: str
+    params: dict
+    gyro: Px4TempCal | ArduPilotTempCal
+    gyro_offset: NDArray[np.float64]
+    accel: Px4TempCal | ArduPilotTempCal | None = None
+    range_c: tuple = (math.nan, math.nan)
+    fit_rms_dps: NDArray[np.float64] = field(default_factory=lambda: np.zeros(3))
+    notes: list = field(default_factory=list)
+
+    def correction(self, temp_c: ArrayLike) -> NDArray[np.float64]:
+        """Return the total gyro correction the firmware subtracts at ``temp_c``, (N, 3) rad/s."""
+        return self.gyro.offset(temp_c) + self.gyro_offset
+
+
+def _f32(x: ArrayLike) -> NDArray[np.float64]:
+    """Round to float32, as the firmware stores a REAL32 parameter."""
+    return np.asarray(x, dtype=np.float32).astype(np.float64)
+
+
+def _cubic(d: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return the least-squares cubic in ``d`` per column: rows c0, c1, c2, c3, shape (4, 3)."""
+    a = np.vander(d, 4, increasing=True)
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    return coef
+
+
+def fit_export(model: CompensationModel, firmware: str, *, instance: int = 0,
+               device_id: int = 0, points: int = GRID_POINTS) -> FcExport:
+    """
+    Fit the model's steady-state drift over its trained range in a firmware's exact form.
+
+    The grid is uniform in temperature over ``model.temp_range_c``, so the cubic weighs every
+    degree alike whatever the time the recording spent there. PX4: ``X0..X3`` about
+    ``TREF`` (the middle of the range), clamped to ``TMIN..TMAX`` (the range).
+    ArduPilot: the cubic about 35 degC without its constant, stored x1e6, clamped to the
+    range; the constant goes to ``INS_GYROFFS`` at ``INS_GYRn_CALTEMP`` (35 degC, or the
+    range end nearest it). Values are rounded to float32 as the firmware stores them.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The model (its accelerometer part, when it has one, is exported too).
+    firmware : str
+        ``'px4'`` or ``'ardupilot'``.
+    instance : int
+        PX4 calibration slot 0..3 (``TC_G<instance>``) or ArduPilot IMU 0..2
+        (``INS_TCAL<instance + 1>``).
+    device_id : int
+        PX4 ``TC_Gn_ID``: the ``device_id`` of the gyro (PX4 applies a slot to that device
+        only); not used by ArduPilot.
+    points : int
+        Grid points (>= 8).
+
+    Returns
+    -------
+    FcExport
+        The parameters and the corrections as the firmware applies them.
+
+    Raises
+    ------
+    FitError
+        An unknown firmware, a slot out of range, or a range too narrow to fit.
+
+    """
+    if firmware not in FIRMWARES:
+        raise FitError(f'Expected `firmware` to be one of {", ".join(FIRMWARES)}, '
+                       f'got {firmware!r}.')
+    slots = 4 if firmware == 'px4' else 3
+    if not (isinstance(instance, int) and 0 <= instance < slots):
+        raise FitError(f'Expected `instance` 0..{slots - 1} for {firmware}, got {instance!r}.')
+    lo, hi = (float(v) for v in model.temp_range_c)
+    if not (math.isfinite(lo) and math.isfinite(hi) and hi - lo >= 1.0):
+        raise FitError(f'the model range {lo:g} .. {hi:g} degC is too narrow for a cubic in '
+                       'temperature (at least 1 degC)')
+    grid = np.linspace(lo, hi, max(int(points), 8))
+    gyro = steady_drift(model, grid)
+    acc = None if model.accel is None else steady_drift(model.accel, grid)
+    notes: list[str] = []
+    if firmware == 'px4':
+        exp = _px4(gyro, acc, grid, instance, int(device_id), notes)
+    else:
+        exp = _ardupilot(gyro, acc, grid, instance, notes)
+    fc = exp.correction(grid)
+    return FcExport(exp.firmware, exp.params, exp.gyro, exp.gyro_offset, exp.accel, (lo, hi),
+                    rms_dps(fc - gyro), notes)
+
+
+def _px4(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None, grid: NDArray[np.float64],
+         slot: int, device_id: int, notes: list) -> FcExport:
+    """Return the PX4 form: a cubic about the middle of the range, per sensor."""
+    lo, hi = float(grid[0]), float(grid[-1])
+    tref = float(_f32(0.5 * (lo + hi)))
+    tmin, tmax = (float(v) for v in _f32([lo, hi]))
+    cals = {}
+    params: dict = {'TC_G_ENABLE': 1}
+    for sensor, y in (('gyro', gyro), ('accel', acc)):
+        if y is None:
+            continue
+        cal = Px4TempCal(_f32(_cubic(grid - tref, y)), tref, tmin, tmax, device_id)
+        cals[sensor] = cal
+        if sensor == 'accel':
+            params['TC_A_ENABLE'] = 1
+        params.update(cal.to_params(sensor, slot))
+    if not device_id:
+        notes.append(f'TC_G{slot}_ID is 0: PX4 applies a slot only to the gyro whose device_id '
+                     'it holds; pass --device-id (sensor_gyro.device_id in a ULog, or '
+                     'CAL_GYRn_ID)')
+    notes.append(f'after loading, redo the gyro calibration (CAL_GYR{slot}_OFF) and reboot: '
+                 'PX4 reads TC_* at start-up')
+    return FcExport('px4', params, cals['gyro'], np.zeros(3), cals.get('accel'))
+
+
+def _ardupilot(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None,
+               grid: NDArray[np.float64], imu: int, notes: list) -> FcExport:
+    """Return the ArduPilot form: the cubic about 35 degC without constant, x1e6."""
+    lo, hi = float(grid[0]), float(grid[-1])
+    tmin, tmax = (float(v) for v in _f32([lo, hi]))
+    if lo < AP_LIMITS_C[0] or hi > AP_LIMITS_C[1]:
+        notes.append(f'the range {lo:.1f} .. {hi:.1f} degC exceeds what INS_TCALn_TMIN/TMAX '
+                     f'accept ({AP_LIMITS_C[0]:g} .. {AP_LIMITS_C[1]:g} degC)')
+    n = imu + 1
+    caltemp = float(_f32(min(max(AP_TREF_C, lo), hi)))
+    params: dict = {f'INS_TCAL{n}_ENABLE': 1}
+    cals = {}
+    offset = np.zeros(3)
+    for sensor, y in (('gyro', gyro), ('accel', acc)):
+        if y is None:          # ENABLE applies to both: no accelerometer part is zeros
+            cals[sensor] = ArduPilotTempCal(np.zeros((3, 3)), tmin, tmax, caltemp)
+            notes.append('the model has no accelerometer part: INS_TCAL'
+                         f'{n}_ACC* are written as 0 (no accelerometer correction)')
+            continue
+        coef = _cubic(grid - AP_TREF_C, y)
+        cal = ArduPilotTempCal(_f32(coef[1:] * AP_SCALE), tmin, tmax, caltemp)
+        cals[sensor] = cal
+        if sensor == 'gyro':
+            # The firmware subtracts p(T) - p(CALTEMP) and INS_GYROFFS: the offsets are the
+            # cubic's value at CALTEMP, constant included.
+            offset = _f32(coef[0] + cal.poly([caltemp])[0])
+    params.update(cals['gyro'].to_params('gyro', imu))
+    params.update({k: v for k, v in cals['accel'].to_params('accel', imu).items()
+                   if 'ACC' in k})
+    params[f'INS_GYR{n}_CALTEMP'] = caltemp
+    stem = 'INS_GYR' if imu == 0 else f'INS_GYR{n}'
+    for i, axis in enumerate('XYZ'):
+        params[f'{stem}OFFS_{axis}'] = float(offset[i])
+    notes.append(f'INS_GYR{n}_CALTEMP and {stem}OFFS_* carry the constant; a gyro calibration '
+                 'at boot (INS_GYR_CAL=1) replaces both with what it measures then')
+    return FcExport('ardupilot', params, cals['gyro'], offset,
+                    None if acc is None else cals['accel'])
+
+
+# --------------------------------------------------------------------------------------------
+# Parameter files
+# --------------------------------------------------------------------------------------------
+
+def _value_text(value: float | int) -> str:
+    """Return a parameter value as written: an int, or a float32 with every digit kept."""
+    if isinstance(value, (int, np.integer)) and not isinstance(value, bool):
+        return str(int(value))
+    return f'{float(np.float32(value)):.9g}'
+
+
+def write_params(export: FcExport, path: str | os.PathLike, *, header: Sequence[str] = ()
+                 ) -> Path:
+    """
+    Write the parameters as the firmware's ground station loads them.
+
+    PX4: a QGroundControl ``.params`` file, ``#`` comment lines then tab-separated
+    ``vehicle-id component-id name value type`` (1, 1, type 6 INT32 or 9 REAL32), as
+    ``Tools/process_sensor_caldata.py`` writes it. ArduPilot: ``NAME VALUE`` lines (Mission
+    Planner, MAVProxy ``param load``) after ``#`` comments.
+
+    Parameters
+    ----------
+    export : FcExport
+        The export.
+    path : str or PathLike
+        Output file (written atomically).
+    header : sequence of str
+        Comment lines (without ``#``) to put first.
+
+    Returns
+    -------
+    Path
+        The file written.
+
+    """
+    lines = [f'# {h}'.rstrip() for h in header]
+    if export.firmware == 'px4':
+        lines += ['#', '# Vehicle-Id Component-Id Name Value Type']
+        for name, value in export.params.items():
+            kind = _INT32 if isinstance(value, int) else _REAL32
+            lines.append(f'1\t1\t{name}\t{_value_text(value)}\t{kind}')
+    else:
+        lines += [f'{name} {_value_text(value)}' for name, value in export.params.items()]
+    return atomic_write(path, '\n'.join(lines) + '\n', what='parameter file')
+
+
+def read_params(path: str | os.PathLike) -> dict:
+    """
+    Read a ``.params`` (tab-separated, QGroundControl) or ``.parm`` (``NAME VALUE``) file.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file.
+
+    Returns
+    -------
+    dict
+        ``{name: value}`` (int for INT32 / integral values, else float).
+
+    Raises
+    ------
+    ModelFileError
+        A line is neither a comment nor a parameter.
+
+    """
+    out: dict = {}
+    for k, line in enumerate(Path(path).read_text().splitlines(), 1):
+        text = line.strip()
+        if not text or text.startswith('#'):
+            continue
+        parts = text.split('\t') if '\t' in text else text.replace(',', ' ').split()
+        try:
+            if len(parts) == 5:
+                name, value = parts[2], (int(parts[3]) if parts[4] == str(_INT32)
+                                         else float(parts[3]))
+            elif len(parts) == 2:
+                name, number = parts[0], float(parts[1])
+                value = int(number) if number.is_integer() and '.' not in parts[1] else number
+            else:
+                raise ValueError(f'{len(parts)} fields')
+        except ValueError as exc:
+            raise ModelFileError(f'{path}:{k}: not a parameter line ({exc}): {text!r:.80}'
+                                 ) from None
+        out[name] = value
+    return out
+
+
+def from_params(params: dict, firmware: str, *, instance: int = 0) -> FcExport:
+    """Return the export a firmware reads from ``params``: REAL32 values rounded to float32."""
+    params = {k: v if isinstance(v, int) else float(np.float32(v)) for k, v in params.items()}
+    if firmware == 'px4':
+        gyro = Px4TempCal.from_params(params, 'gyro', instance)
+        accel = (Px4TempCal.from_params(params, 'accel', instance)
+                 if f'TC_A{instance}_X0_0' in params else None)
+        return FcExport('px4', dict(params), gyro, np.zeros(3), accel, (gyro.tmin, gyro.tmax))
+    gyro = ArduPilotTempCal.from_params(params, 'gyro', instance)
+    stem = 'INS_GYR' if instance == 0 else f'INS_GYR{instance + 1}'
+    offset = np.array([float(params.get(f'{stem}OFFS_{a}', 0.0)) for a in 'XYZ'])
+    return FcExport('ardupilot', dict(params), gyro, offset,
+                    ArduPilotTempCal.from_params(params, 'accel', instance),
+                    (gyro.tmin, gyro.tmax))
+
+
+# --------------------------------------------------------------------------------------------
+# What the form keeps, and what its clamp costs
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ExportScore:
+    """
+    One held-out run scored raw, with the full model and with forms as the firmware applies them.
+
+    Parameters
+    ----------
+    name : str
+        The run.
+    samples : int
+        Samples scored.
+    outside_fraction : float
+        Fraction of samples whose temperature lies outside TMIN..TMAX (clamped there).
+    bs : dict of str to NDArray[np.float64], shape (3,), (deg/s)^2
+        BS per axis of ``raw``, ``model`` and every form by its label.
+    rms_dps : dict of str to NDArray[np.float64], shape (3,), deg/s
+        RMS per axis, same keys.
+
+    """
+
+    name: str
+    samples: int
+    outside_fraction: float
+    bs: dict
+    rms_dps: dict
+
+    def kept(self, label: str) -> float:
+        """Return the share of the full model's BS improvement (axes' mean) ``label`` keeps."""
+        raw, full = float(np.mean(self.bs['raw'])), float(np.mean(self.bs['model']))
+        gain = raw - full
+        return (raw - float(np.mean(self.bs[label]))) / gain if gain > 0 else math.nan
+
+
+def _head_removed(comp: NDArray[np.float64], run: Run, reanchor_s: float
+                  ) -> NDArray[np.float64]:
+    """Return ``comp`` minus its mean error over the first ``reanchor_s`` s (0: as it is)."""
+    if reanchor_s <= 0:
+        return comp
+    head = run.t <= run.t[0] + reanchor_s
+    return comp - (comp[head] - run.omega_ref[head]).mean(axis=0)
+
+
+def score_export(model: CompensationModel, forms: dict, runs: Sequence[Run], *,
+                 reanchor_s: float = 0.0, out_of_range: str = DEFAULT_OUT_OF_RANGE) -> list:
+    """
+    Score held-out runs raw, with the full model and with each firmware form.
+
+    A form is applied as the firmware applies it: the raw rate minus its correction at the
+    measured temperature (its formula, clamp and reference; no thermal state).
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The full model (evaluated with ``out_of_range``, as the compensator node does).
+    forms : dict of str to FcExport
+        Label -> form (e.g. ``{'px4': ..., 'px4 script': ...}``).
+    runs : sequence of Run
+        Held-out runs.
+    reanchor_s : float, s
+        When > 0, the model's and every form's mean error over the first ``reanchor_s`` s of
+        each run is removed (the offset a gyro calibration at boot takes); raw never.
+    out_of_range : str
+        The full model's policy beyond its range.
+
+    Returns
+    -------
+    list of ExportScore
+        One per run.
+
+    """
+    out = []
+    for run in runs:
+        comp = {'raw': run.omega,
+                'model': _head_removed(compensate(model, run.t, run.temp, run.omega,
+                                                  out_of_range=out_of_range), run, reanchor_s)}
+        outside = 0.0
+        for label, form in forms.items():
+            comp[label] = _head_removed(run.omega - form.correction(run.temp), run, reanchor_s)
+            lo, hi = form.range_c
+            outside = max(outside, float(np.mean((run.temp < lo) | (run.temp > hi))))
+        out.append(ExportScore(run.name, len(run), outside,
+                               {k: bias_stability(v, run.omega_ref) for k, v in comp.items()},
+                               {k: rms_dps(v - run.omega_ref) for k, v in comp.items()}))
+    return out
+
+
+def clamp_cost(model: CompensationModel, export: FcExport, *, beyond_c: Sequence[float] = (
+        5.0, 10.0), out_of_range: str = DEFAULT_OUT_OF_RANGE) -> list:
+    """
+    Say where the firmware's clamp costs: the model's drift beyond TMIN/TMAX vs the held one.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The full model (beyond its range as ``out_of_range`` continues it).
+    export : FcExport
+        The firmware form (held at its value at TMIN / TMAX beyond them).
+    beyond_c : sequence of float, degC
+        Distances beyond each end.
+    out_of_range : str
+        How the full model continues beyond its range (the compensator's policy).
+
+    Returns
+    -------
+    list of dict
+        Per end and distance: ``temp_c``, ``model_dps`` and ``form_dps`` (drift per axis,
+        deg/s) and ``gap_dps`` (the largest axis difference).
+
+    """
+    lo, hi = export.range_c
+    temps = [lo - d for d in beyond_c] + [hi + d for d in beyond_c]
+    full = np.degrees(steady_drift(model, temps, out_of_range=out_of_range))
+    form = np.degrees(export.correction(temps))
+    return [{'temp_c': float(t), 'model_dps': full[k].tolist(), 'form_dps': form[k].tolist(),
+             'gap_dps': float(np.max(np.abs(full[k] - form[k])))}
+            for k, t in enumerate(temps)]
