@@ -24,8 +24,9 @@ from gyro_tdc.base.face import lazy
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'atomicio': ['atomic_dir', 'atomic_write', 'clean_leftovers'],
     'face': ['lazy'],
-    'limits': ['check_bin_width', 'check_centers', 'check_sim_samples', 'MAX_CENTERS',
-               'MAX_RATE_RAD_S', 'TEMP_PLAUSIBLE_C'],
+    'limits': ['check_bin_width', 'check_centers', 'check_sim_samples',
+               'MAX_ACCEL_DRIFT_MPS2', 'MAX_CENTERS', 'MAX_DRIFT_RAD_S', 'MAX_RATE_RAD_S',
+               'MAX_TEMP_RATE_C_S', 'TEMP_PLAUSIBLE_C'],
     'plain': ['plain'],
     'paramspec': ['format_help', 'help_requested', 'ParamSpec', 'spec_dataclass'],
     'resources': ['config_dir', 'model_path', 'scenario_names', 'scenario_path'],

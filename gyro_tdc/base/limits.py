@@ -27,15 +27,25 @@ import math
 
 from gyro_tdc.errors import LimitError
 
-__all__ = ['MAX_CENTERS', 'MAX_COVERAGE_BINS', 'MAX_RATE_RAD_S', 'MAX_SIM_SAMPLES',
-           'SIM_BYTES_PER_SAMPLE', 'TEMP_PLAUSIBLE_C', 'check_bin_width', 'check_centers',
-           'check_sim_samples']
+__all__ = ['MAX_ACCEL_DRIFT_MPS2', 'MAX_CENTERS', 'MAX_COVERAGE_BINS', 'MAX_DRIFT_RAD_S',
+           'MAX_RATE_RAD_S', 'MAX_SIM_SAMPLES', 'MAX_TEMP_RATE_C_S', 'SIM_BYTES_PER_SAMPLE',
+           'TEMP_PLAUSIBLE_C', 'check_bin_width', 'check_centers', 'check_sim_samples']
 
 #: Temperatures a MEMS die can read, degC: outside, a reading is a glitch (one home for the
 #: trainer, the driver, the compensator and the learner).
 TEMP_PLAUSIBLE_C = (-100.0, 200.0)
 #: Rates beyond any gyro's range, rad/s (about 5,700 deg/s).
 MAX_RATE_RAD_S = 100.0
+#: The largest zero-rate drift a model may compute, rad/s (about 290 deg/s): beyond any MEMS
+#: gyro's zero-rate level (datasheets: tens of deg/s at most) plus its temperature drift.
+MAX_DRIFT_RAD_S = 5.0
+#: The largest accelerometer offset change a model may compute, m/s^2 (about 2 g; datasheets:
+#: about 1 mg/degC).
+MAX_ACCEL_DRIFT_MPS2 = 20.0
+#: The fastest a die's temperature plausibly changes in service, degC/s (a chamber ramps at
+#: a few degC/min, self-heating after power-on slower still): a model's ``dTdt`` terms are
+#: checked up to it.
+MAX_TEMP_RATE_C_S = 2.0
 #: RBF centres a model file may hold.
 MAX_CENTERS = 10_000
 MAX_COVERAGE_BINS = 10_000

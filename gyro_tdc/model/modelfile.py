@@ -17,8 +17,9 @@ The versioned YAML model file: save, load, validate.
 
 :func:`save_model` writes format 2 (format 1 files still load and keep their meaning);
 :func:`load_model` reads with the safe loader under hard limits (size, depth, no aliases,
-nodes, centres), checks every field and the ``model_id`` content hash, and reports a bad
-field in one line. The format, field by field: ``doc/internals/model.md``.
+nodes, centres), checks every field, the ``model_id`` content hash and what the model
+computes (:mod:`gyro_tdc.model.validate`), and reports a bad field in one line. The format,
+field by field: ``doc/internals/model.md``.
 """
 
 from __future__ import annotations
@@ -33,6 +34,7 @@ from gyro_tdc.errors import FeatureError, ModelFileError
 from gyro_tdc.model.compensation import CompensationModel, KINDS
 from gyro_tdc.model.effects import input_ids, normalise_ids, resolve_params
 from gyro_tdc.model.thermal_state import ThermalState
+from gyro_tdc.model.validate import check_model
 import numpy as np
 import yaml
 
@@ -187,9 +189,11 @@ def model_from_dict(d: Any) -> CompensationModel:
                              f'{" or ".join(map(str, SUPPORTED_VERSIONS))} (the versions this '
                              f'gyro_tdc reads), got {version!r}{note}')
     try:
-        return _model_from_dict(d, version)
+        model = _model_from_dict(d, version)
+        check_model(model)
     except ModelFileError as exc:
         raise ModelFileError(f'format_version {version} model: {exc}') from None
+    return model
 
 
 def _model_from_dict(d: Mapping, version: int) -> CompensationModel:

@@ -1,0 +1,320 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+A model validated by what it computes: bounded parameters and a bounded drift.
+
+A model file can pass every shape and finiteness check and still compute Inf, NaN or
+1e300 rad/s (its ``model_id`` is a public hash, so a crafted file carries a matching one);
+:func:`check_model`, run on every load, refuses such a model in one line.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Iterator, Sequence
+
+from gyro_tdc.base import (MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_TEMP_RATE_C_S,
+                           TEMP_PLAUSIBLE_C)
+from gyro_tdc.errors import ModelFileError
+from gyro_tdc.model.compensation import CompensationModel, rbf_design
+from gyro_tdc.model.effects import EFFECTS
+from gyro_tdc.model.out_of_range import MAX_EXTRAPOLATION_C, Tangent
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['GAIN_BOUNDS', 'MAX_PARAM', 'MIN_INPUT_STD', 'MIN_WIDTH', 'TAU_BOUNDS_S',
+           'check_model', 'drift_grid']
+
+#: Smallest input standard deviation (in the feature's own unit): 1/std scales every input.
+MIN_INPUT_STD = 1e-9
+#: Smallest RBF width (normalised input units): 1/width^2 scales the squared distances.
+MIN_WIDTH = 1e-6
+#: Largest magnitude of an input mean or std, a centre, a width, a weight, the intercept or a
+#: linear-tail entry (weights in the output's unit, rad/s or m/s^2): far beyond any fitted
+#: model (a ``dT3`` mean over the plausible span reaches 3e7), small enough that nothing a
+#: model computes overflows.
+MAX_PARAM = 1e9
+#: Range of the sensitivity gain ``1 + scale dT`` (compensation divides by it).
+GAIN_BOUNDS = (0.5, 2.0)
+#: Range of an effect's time constant ``tau_s``, s.
+TAU_BOUNDS_S = (1e-3, 1e8)
+#: Model temperatures on the grid (besides the range ends and the centres' own points).
+_GRID_TEMPS = 257
+#: Values of each dynamic input on the grid.
+_GRID_DYNAMIC = 5
+#: Rows evaluated at once.
+_CHUNK = 1024
+#: Centres (those of the largest weights) whose own points are evaluated.
+_MAX_OWN = 512
+#: Grid rows times centres evaluated term by term (fewer temperatures for a large model).
+_BUDGET = 20_000_000
+
+
+def check_model(model: CompensationModel) -> None:
+    """
+    Check that a model's parameters are bounded and its drift finite and plausible.
+
+    Refused, in one line naming the field or what the model computes:
+
+    - ``t0_c`` and ``temp_range_c`` outside the plausible temperatures
+      (``TEMP_PLAUSIBLE_C``);
+    - an input ``std`` below :data:`MIN_INPUT_STD` or an RBF width below :data:`MIN_WIDTH`
+      (they divide the inputs and their squares);
+    - an input mean, centre, weight, intercept or linear-tail entry beyond
+      :data:`MAX_PARAM`, a residual variance beyond the square of the drift bound, an
+      effect's or the thermal state's time constant outside :data:`TAU_BOUNDS_S`;
+    - a gain ``1 + scale dT`` outside :data:`GAIN_BOUNDS` anywhere over the trained range
+      plus the extrapolation limit (``MAX_EXTRAPOLATION_C``): compensation divides by it;
+    - a drift that is not finite or exceeds ``MAX_DRIFT_RAD_S`` (the accelerometer part:
+      ``MAX_ACCEL_DRIFT_MPS2``) on the grid of :func:`drift_grid`, evaluated as the
+      ``extrapolate`` policy does, and along the ``linear`` policy's tangent at the range
+      ends out to the extrapolation limit.
+
+    Parameters
+    ----------
+    model : CompensationModel
+        A model built from a file (shapes and finiteness already checked).
+
+    Raises
+    ------
+    ModelFileError
+        One line naming the field or what the model computes, and the bound.
+
+    """
+    with np.errstate(all='ignore'):          # overflow shows as a value out of bounds
+        _check_part(model, MAX_DRIFT_RAD_S, 'rad/s', 'residual_var_rad2_s2')
+        if model.accel is not None:
+            try:
+                _check_part(model.accel, MAX_ACCEL_DRIFT_MPS2, 'm/s^2', 'residual_var_m2_s4')
+            except ModelFileError as exc:
+                raise ModelFileError(f'field `accel`: {exc}') from None
+
+
+def _check_part(m: CompensationModel, bound: float, unit: str, resid: str) -> None:
+    """Check one part (the gyro model, or its accelerometer part) against ``bound``."""
+    lo_c, hi_c = TEMP_PLAUSIBLE_C
+    if not lo_c <= m.t0_c <= hi_c:
+        raise ModelFileError(f'field `t0_c` must lie within the plausible temperatures '
+                             f'{lo_c:g} .. {hi_c:g} degC, got {m.t0_c:g}')
+    lo, hi = m.temp_range_c
+    if not (lo_c <= lo and hi <= hi_c):
+        raise ModelFileError(f'field `temp_range_c` must lie within the plausible '
+                             f'temperatures {lo_c:g} .. {hi_c:g} degC, got [{lo:g}, {hi:g}]')
+    _at_least(m.input_std, MIN_INPUT_STD, 'normalization.std', 'it divides every input')
+    _at_least(m.widths, MIN_WIDTH, 'widths', 'normalised input units')
+    for name, arr, what in (('normalization.mean', m.input_mean, ''),
+                            ('normalization.std', m.input_std, ''),
+                            ('centers', m.centers, ' (normalised input units)'),
+                            ('widths', m.widths, ' (normalised input units)'),
+                            ('weights', m.weights, f' {unit}'),
+                            ('intercept', m.intercept, f' {unit}'),
+                            ('linear', m.linear, f' {unit}')):
+        _at_most(arr, MAX_PARAM, name, what)
+    _at_most(m.residual_var, bound * bound, resid, f' ({unit})^2, the square of the drift '
+             'bound,')
+    _check_taus(m)
+    ext = MAX_EXTRAPOLATION_C
+    d_ends = np.array([lo - ext, hi + ext]) - m.t0_c
+    gain = 1.0 + d_ends[:, None] * m.scale[None, :]
+    g_lo, g_hi = GAIN_BOUNDS
+    bad = ~((gain >= g_lo) & (gain <= g_hi))
+    if bad.any():
+        i, axis = np.argwhere(bad)[0]
+        raise ModelFileError(f'field `scale` ({m.scale[axis]:g} 1/degC, axis {"xyz"[axis]}) '
+                             f'makes the gain 1 + scale*dT {gain[i, axis]:.3g} at '
+                             f'{d_ends[i] + m.t0_c:g} degC, outside {g_lo:g} .. {g_hi:g} '
+                             f'(compensation divides by it; the range plus the '
+                             f'{ext:g} degC extrapolation limit)')
+    for where, b in _drifts(m, bound):
+        big = ~(np.abs(b) <= bound)
+        if big.any():
+            row, axis = np.argwhere(big)[0]
+            raise ModelFileError(f'the drift it computes is {b[row, axis]:.3g} {unit} '
+                                 f'(axis {"xyz"[axis]}) {where(row)}, beyond the plausible '
+                                 f'{bound:g} {unit}')
+
+
+def _at_least(arr: NDArray[np.float64], floor: float, name: str, why: str) -> None:
+    """Refuse an entry of ``arr`` below ``floor``."""
+    low = ~(arr >= floor)
+    if low.any():
+        idx = tuple(int(i) for i in np.argwhere(low)[0])
+        raise ModelFileError(f'field `{name}` must be at least {floor:g} ({why}), got '
+                             f'{arr[idx]:.3g} at {list(idx)}')
+
+
+def _at_most(arr: NDArray[np.float64], limit: float, name: str, unit: str) -> None:
+    """Refuse an entry of ``arr`` whose magnitude exceeds ``limit``."""
+    big = ~(np.abs(arr) <= limit)
+    if big.any():
+        idx = tuple(int(i) for i in np.argwhere(big)[0])
+        raise ModelFileError(f'field `{name}` must be within +-{limit:g}{unit}, got '
+                             f'{arr[idx]:.3g} at {list(idx)}')
+
+
+def _check_taus(m: CompensationModel) -> None:
+    """Refuse a time constant of an effect or of the thermal state outside TAU_BOUNDS_S."""
+    lo, hi = TAU_BOUNDS_S
+    taus = [(f'effect_params.{eid}.{k}', v) for eid, p in m.effect_params.items()
+            for k, v in p.items()]
+    if m.thermal is not None:
+        taus += [(f'thermal.tau_s[{i}]', v) for i, v in enumerate(m.thermal.tau_s)]
+    for name, v in taus:
+        if not lo <= v <= hi:
+            raise ModelFileError(f'field `{name}` must lie within {lo:g} .. {hi:g} s, got '
+                                 f'{v:g}')
+
+
+def drift_grid(m: CompensationModel, *, ext: float = MAX_EXTRAPOLATION_C,
+               own: Sequence[int] | None = None, n_temps: int = _GRID_TEMPS
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return the feature rows :func:`check_model` evaluates, and their model temperature.
+
+    Model temperatures from the range's low end minus ``ext`` to its high end plus ``ext``,
+    with the dynamic inputs over what they plausibly take (``dTdt`` within
+    +-``MAX_TEMP_RATE_C_S``, ``warmup`` 0 .. 1, a format-1 ``lag`` column over the range), in
+    every combination; and every RBF centre's own point (its dynamic coordinates, at the
+    temperatures where the temperature terms reach it), so a narrow peak between grid
+    points is seen too.
+
+    Parameters
+    ----------
+    m : CompensationModel
+        The model (or an accelerometer part).
+    ext : float, degC
+        How far beyond the trained range the grid reaches.
+    own : sequence of int, optional
+        The centres whose own points are added (default: all; ``()``: the grid alone).
+    n_temps : int
+        Model temperatures on the grid, besides the range ends.
+
+    Returns
+    -------
+    x : NDArray[np.float64], shape (N, F)
+        Raw feature rows (the model's inputs, in column order).
+    s : NDArray[np.float64], shape (N,), degC
+        The model temperature of each row.
+
+    """
+    lo, hi = m.temp_range_c
+    t0 = float(m.t0_c)
+    inputs = m.inputs
+    known = {'dTdt': (-MAX_TEMP_RATE_C_S, MAX_TEMP_RATE_C_S), 'warmup': (0.0, 1.0),
+             'lag': (lo - ext - t0, hi + ext - t0)}
+    dyn_cols = _dynamic(inputs)
+    # Another dynamic effect: the values it took in training, mean +- 4 std.
+    dynamic = {inputs[j]: np.linspace(*known.get(inputs[j], (
+        m.input_mean[j] - 4.0 * m.input_std[j], m.input_mean[j] + 4.0 * m.input_std[j])),
+        _GRID_DYNAMIC) for j in dyn_cols}
+    # The grid: model temperatures x every combination of the dynamic inputs' values.
+    temps = np.concatenate([np.linspace(lo - ext, hi + ext, n_temps), [lo, hi]])
+    combos = np.zeros((1, 0))
+    if dyn_cols:
+        combos = np.array(np.meshgrid(*[dynamic[inputs[j]] for j in dyn_cols],
+                                      indexing='ij')).reshape(len(dyn_cols), -1).T
+    s = np.repeat(temps, combos.shape[0])
+    dyn = np.tile(combos, (temps.size, 1))
+    # Every centre's own point: the dynamic inputs at its coordinates (clipped to what
+    # they plausibly take), the temperature where each temperature term reaches it.
+    picked = np.arange(m.n_centers) if own is None else np.asarray(own, dtype=np.intp)
+    if picked.size:
+        raw = m.input_mean + m.centers[picked] * m.input_std   # raw feature units
+        at = np.column_stack([np.clip(raw[:, j], dynamic[inputs[j]][0],
+                                      dynamic[inputs[j]][-1]) for j in dyn_cols]
+                             ) if dyn_cols else np.zeros((picked.size, 0))
+        for j, eid in enumerate(inputs):
+            if j in dyn_cols:
+                continue
+            for d in _roots(eid, raw[:, j], t0, (lo - ext - t0, hi + ext - t0)):
+                s = np.concatenate([s, np.clip(d + t0, lo - ext, hi + ext)])
+                dyn = np.vstack([dyn, at])
+    x = np.empty((s.size, len(inputs)))
+    for j, eid in enumerate(inputs):
+        if j not in dyn_cols:
+            x[:, j] = EFFECTS[eid].stream({}, t0)(0.0, 0.0, 0.0, s - t0, False)
+    for k, j in enumerate(dyn_cols):
+        x[:, j] = dyn[:, k]
+    return x, s
+
+
+def _dynamic(inputs: tuple[str, ...]) -> list[int]:
+    """Return the columns of the inputs with time memory (not a function of dT alone)."""
+    return [j for j, eid in enumerate(inputs) if not EFFECTS[eid].static]
+
+
+def _roots(eid: str, v: NDArray[np.float64], t0: float, span: tuple[float, float]
+           ) -> list[NDArray[np.float64]]:
+    """Return dT values at which the temperature term ``eid`` equals (or is nearest) ``v``."""
+    if eid == 'dT':
+        return [v]
+    if eid == 'dT2':
+        r = np.sqrt(np.maximum(v, 0.0))
+        return [r, -r]
+    if eid == 'dT3':
+        return [np.cbrt(v)]
+    # Another temperature term: the nearest of 1025 temperatures, on each side of T0.
+    d = np.linspace(*span, 1025)
+    f = EFFECTS[eid].stream({}, t0)(0.0, 0.0, 0.0, d, False)
+    out = []
+    for side in (d <= 0.0, d >= 0.0):
+        if side.any():
+            ds, fs = d[side], f[side]
+            out.append(ds[np.abs(fs[None, :] - v[:, None]).argmin(axis=1)])
+    return out
+
+
+def _drifts(m: CompensationModel, bound: float
+            ) -> Iterator[tuple[Any, NDArray[np.float64]]]:
+    """
+    Yield (row describer, drift) blocks: the grid, then the linear tangents' far ends.
+
+    A Gaussian term is at most 1, so the RBF terms add at most the sum of their weights'
+    magnitudes anywhere: when the intercept and linear tail on the grid plus that sum stay
+    within ``bound``, the whole drift does, and the grid is not evaluated term by term (a
+    fitted model's weights are small). Otherwise it is, with the own points of the
+    ``_MAX_OWN`` centres of the largest weights (and, for a large model, fewer grid
+    temperatures: at most ``_BUDGET`` rows times centres).
+    """
+    lo, hi = m.temp_range_c
+    ext = MAX_EXTRAPOLATION_C
+    x, s = drift_grid(m, own=())
+    coef = np.vstack([m.intercept[None, :], m.linear, m.weights])
+    dyn_cols = _dynamic(m.inputs)
+
+    def describe(xs: NDArray[np.float64], ss: NDArray[np.float64], note: str = '') -> Any:
+        def where(row: int) -> str:
+            extra = ''.join(f', {m.inputs[j]} {xs[row, j]:.3g}' for j in dyn_cols)
+            return f'at {ss[row]:.4g} degC{note}{extra}'
+        return where
+
+    tail = m.intercept + ((x - m.input_mean) / m.input_std) @ m.linear
+    spread = np.abs(m.weights).sum(axis=0)
+    if not np.all(np.abs(tail).max(axis=0, initial=0.0) + spread <= bound):
+        top = np.argsort(-np.abs(m.weights).max(axis=1), kind='stable')[:_MAX_OWN]
+        per_temp = max(_GRID_DYNAMIC ** len(dyn_cols) * m.n_centers, 1)
+        n = int(np.clip(_BUDGET // per_temp, 65, _GRID_TEMPS))
+        xa, sa = drift_grid(m, own=top, n_temps=n)
+        for i in range(0, sa.size, _CHUNK):
+            xs, ss = xa[i:i + _CHUNK], sa[i:i + _CHUNK]
+            yield describe(xs, ss), rbf_design(m, xs) @ coef
+    # The ``linear`` policy: the tangent at each range end, followed out to the limit.
+    tangent = Tangent(m)
+    for end, sign in ((lo, -1.0), (hi, 1.0)):
+        rows = s == end
+        xs, ss = x[rows], s[rows]
+        design = rbf_design(m, xs)
+        slope = tangent.slope(design, ss - m.t0_c)
+        yield (describe(xs, ss + sign * ext, ' (along the linear policy tangent)'),
+               design @ coef + sign * ext * slope)
