@@ -31,13 +31,24 @@ extensions in ``_ext/`` (parameter tables, topics, argparse help, autodoc).
 """
 
 import os
+import re
 import sys
 
 here = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.join(here, '_ext'))
-# The package itself, when it is not installed (a fresh clone runs `make venv`, which
-# installs it editable; rosdoc2 in the index imports the installed package).
+
+#: True when rosdoc2 runs this file from the copy of doc/ it builds.
+in_rosdoc2 = os.path.basename(here) == 'wrapped_sphinx_directory'
+
+# The package documented is the one beside this doc/, installed or not (the editable install
+# of `make venv` may point at another tree). Under rosdoc2 this file runs from rosdoc2's
+# conf.py, as exec(open("<package>/doc/conf.py").read()): that path names the package.
 root = os.path.dirname(here)
+if in_rosdoc2:
+    with open(__file__, encoding='utf-8') as wrapper:
+        run = re.search(r'exec\(open\("(.+?)"\)', wrapper.read())
+    if run:
+        root = os.path.dirname(os.path.dirname(run.group(1)))
 if os.path.isfile(os.path.join(root, 'gyro_tdc', '__init__.py')):
     sys.path.insert(0, root)
 
@@ -103,9 +114,6 @@ rosdoc2_settings = {
     'override_theme': True,
     'support_markdown': True,
 }
-
-#: True when rosdoc2 runs this file from the copy of doc/ it builds.
-in_rosdoc2 = os.path.basename(here) == 'wrapped_sphinx_directory'
 
 if in_rosdoc2:
     exclude_patterns += [
