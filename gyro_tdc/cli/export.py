@@ -164,14 +164,14 @@ def _evaluate(args: argparse.Namespace, model, form, firmware: str) -> None:
               'TMIN..TMAX')
         for label in ('raw', 'model', firmware):
             print(f'  {label:<10} BS {_axes(s.bs[label])}   RMS {_axes(s.rms_dps[label])}')
-        print(f"  {firmware} keeps {100 * s.kept(firmware):.1f} % of the full model's "
+        print(f"  {firmware} keeps {100 * s.kept(firmware):.2f} % of the full model's "
               f'improvement over raw (BS {firmware}/model '
               f'{np.mean(s.bs[firmware]) / np.mean(s.bs["model"]):.2f})')
     if len(scores) > 1:
         mean = {k: float(np.mean([np.mean(s.bs[k]) for s in scores]))
                 for k in ('raw', 'model', firmware)}
         kept = (mean['raw'] - mean[firmware]) / (mean['raw'] - mean['model'])
-        print(f'mean over {len(scores)} bags: {firmware} keeps {100 * kept:.1f} % '
+        print(f'mean over {len(scores)} bags: {firmware} keeps {100 * kept:.2f} % '
               f'(BS raw {mean["raw"]:.3e}, model {mean["model"]:.3e}, {firmware} '
               f'{mean[firmware]:.3e})')
 

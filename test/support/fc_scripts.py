@@ -30,7 +30,7 @@ from gyro_tdc.identify.export import from_params
 import numpy as np
 from scipy.signal import medfilt
 
-__all__ = ['ardupilot_script', 'heating_leg', 'px4_script']
+__all__ = ['ardupilot_script', 'compare', 'heating_leg', 'px4_script']
 
 
 def heating_leg(run: Run) -> Run:
@@ -127,3 +127,41 @@ def ardupilot_script(run: Run, *, imu: int = 0):
     for i, axis in enumerate('XYZ'):
         params[f'{stem}OFFS_{axis}'] = float(np.float32(offset[i]))
     return from_params(params, 'ardupilot', instance=imu)
+
+
+def compare(reanchor_s: float = 0.0) -> dict:
+    """
+    Score the exported forms and the scripts' on a held-out heating-and-cooling session.
+
+    The session's die lags its thermometer by 300 s (``synth_run``, 2 h at 2 Hz, seed 1 to
+    train, seed 2 held out with another turn-on offset); the model is ``poly dT,dT2,dT3,lag``
+    fitted on the whole training session, the scripts see its heating leg. Returns the mean
+    BS over the axes per label, in (deg/s)^2, and the exported forms' share of the full
+    model's improvement.
+    """
+    from gyro_tdc.identify import fit_model
+    from gyro_tdc.identify.export import fit_export, FIRMWARES, score_export
+    from synth import synth_run
+    train = synth_run(hours=2.0, rate_hz=2.0, cooling=True, seed=1, tau_die=300.0)
+    held = synth_run(hours=2.0, rate_hz=2.0, cooling=True, seed=2, tau_die=300.0,
+                     offset_dps=(0.02, -0.01, 0.01))
+    model = fit_model([train], kind='poly', features=('dT', 'dT2', 'dT3', 'lag'))
+    forms = {fw: fit_export(model, fw) for fw in FIRMWARES}
+    heat = heating_leg(train)
+    forms.update({'px4 script': px4_script(heat), 'ardupilot script': ardupilot_script(heat)})
+    s = score_export(model, forms, [held], reanchor_s=reanchor_s)[0]
+    return {'bs': {k: float(np.mean(v)) for k, v in s.bs.items()},
+            'kept': {k: s.kept(k) for k in forms}}
+
+
+if __name__ == '__main__':      # python test/support/fc_scripts.py: the figures of the docs
+    for reanchor in (0.0, 60.0):
+        r = compare(reanchor)
+        bs = r['bs']
+        print(f'held out, first {reanchor:g} s re-anchored: mean BS (deg/s)^2 and share of the '
+              "full model's improvement over raw kept")
+        for label, value in bs.items():
+            kept = r['kept'].get(label)
+            print(f'  {label:<17} {value:.5f}' + ('' if kept is None else
+                                                  f'  kept {100 * kept:5.1f} %  '
+                                                  f'BS/model {value / bs["model"]:.2f}'))
