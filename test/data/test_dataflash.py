@@ -1,0 +1,93 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""ArduPilot DataFlash in: ``IMU`` with ``T`` per instance, ``PARM``, the guards."""
+
+from __future__ import annotations
+
+from flightlogs import Imu, write_dataflash
+from gyro_tdc.data import BagOptions, detect_format
+from gyro_tdc.data.dataflash import read_dataflash
+from gyro_tdc.data.dataset import describe_read, load_run
+from gyro_tdc.errors import DatasetError
+import numpy as np
+import pytest
+
+
+def _imus(n: int = 300, count: int = 3) -> list:
+    """Return ``count`` IMUs of ``n`` samples at 50 Hz, each with its own rates."""
+    rng = np.random.default_rng(5)
+    t = 20.0 + np.arange(n) * 0.02
+    return [Imu(t=t, gyro=rng.normal(0.0, 0.01, (n, 3)).astype(np.float32).astype(float),
+                temp=np.linspace(30.0 + k, 45.0 + k, n).astype(np.float32).astype(float),
+                accel=rng.normal(0.0, 1.0, (n, 3)).astype(np.float32).astype(float))
+            for k in range(count)]
+
+
+def test_each_imu_instance_reads_as_its_own_run_with_the_log_parameters(tmp_path):
+    imus = _imus()
+    params = {'INS_TCAL1_ENABLE': 0, 'INS_TCAL1_GYR1_X': 120.5, 'INS_GYR1_CALTEMP': 31.0,
+              'INS_TCAL2_ENABLE': 2, 'ATC_RAT_RLL_P': 0.135}
+    path = write_dataflash(tmp_path / 'three.bin', imus, params)
+    assert detect_format(path) == 'dataflash'
+    for k, imu in enumerate(imus):
+        log = read_dataflash(path, instance=k, accel=True)
+        assert (log.source, log.instance, log.instances) == ('IMU', k, (0, 1, 2))
+        assert not log.raw and not log.compensated      # ENABLE 2 is learning: not applied
+        np.testing.assert_array_equal(log.gyro, imu.gyro)
+        np.testing.assert_array_equal(log.temp_c, imu.temp)
+        np.testing.assert_array_equal(log.accel, imu.accel)
+        np.testing.assert_allclose(log.imu_t, imu.t, atol=1e-9)
+        assert log.params['ATC_RAT_RLL_P'] == pytest.approx(0.135)
+        run = load_run(path, BagOptions(imu_instance=k))
+        np.testing.assert_array_equal(run.omega, imu.gyro)
+        assert run.info['params'] == pytest.approx({
+            'INS_TCAL1_ENABLE': 0.0, 'INS_TCAL1_GYR1_X': 120.5, 'INS_GYR1_CALTEMP': 31.0,
+            'INS_TCAL2_ENABLE': 2.0})
+    line = describe_read(path, load_run(path, BagOptions(imu_instance=1)), '/r')
+    assert 'ArduPilot DataFlash, IMU instance 1 of 3: calibrated on board' in line
+    assert 'INS_TCAL2_ENABLE=2: on-board thermal compensation off' in line
+    with pytest.raises(DatasetError, match=r'IMU has no instance 3 \(it has 0, 1, 2'):
+        load_run(path, BagOptions(imu_instance=3))
+
+
+def test_an_imu_compensated_on_board_is_refused_unless_allowed_and_only_that_imu(tmp_path):
+    path = write_dataflash(tmp_path / 'tcal.bin', _imus(count=2), {'INS_TCAL1_ENABLE': 1})
+    with pytest.raises(DatasetError, match=r'the IMU data were already thermally compensated '
+                                           r'on board \(INS_TCAL1_ENABLE=1'):
+        load_run(path)
+    run = load_run(path, BagOptions(allow_onboard_corrected=True))
+    assert run.info['onboard_compensated']
+    assert not load_run(path, BagOptions(imu_instance=1)).info['onboard_compensated']
+
+
+def test_a_log_without_temperature_is_one_error(tmp_path):
+    path = write_dataflash(tmp_path / 'cold.bin', _imus(count=1), temperature=False)
+    with pytest.raises(DatasetError, match='IMU instance 0 carries no temperature'):
+        load_run(path)
+
+
+def test_a_truncated_log_is_refused_unless_the_loss_is_allowed(tmp_path):
+    imus = _imus(count=1)
+    whole = write_dataflash(tmp_path / 'whole.bin', imus)
+    cut = tmp_path / 'cut.bin'
+    cut.write_bytes(whole.read_bytes()[:-9])
+    with pytest.raises(DatasetError, match='cut.bin.*ends inside a message.*--allow-loss'):
+        load_run(cut)
+    run = load_run(cut, BagOptions(max_loss=1.0))
+    assert len(run) == len(imus[0].t) - 1
+    head = tmp_path / 'head.bin'
+    head.write_bytes(whole.read_bytes()[:50])
+    with pytest.raises(DatasetError, match='head.bin'):
+        load_run(head, BagOptions(max_loss=1.0))

@@ -1,0 +1,149 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""PX4 ULog in: ``sensor_gyro`` per instance, ``sensor_combined`` fallback, the guards."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+from flightlogs import Imu, px4_topics, write_ulog
+from gyro_tdc.data import BagOptions, detect_format, load_runs
+from gyro_tdc.data.dataset import describe_read, load_run
+from gyro_tdc.data.ulog import read_ulog, ulog_truncated_bytes
+from gyro_tdc.errors import DatasetError
+import numpy as np
+import pytest
+
+
+def _imus(n: int = 300, count: int = 2) -> list:
+    """Return ``count`` IMUs of ``n`` samples at 50 Hz, each with its own rates and device."""
+    rng = np.random.default_rng(4)
+    t = 50.0 + np.arange(n) * 0.02
+    return [Imu(t=t, gyro=rng.normal(0.0, 0.01, (n, 3)).astype(np.float32).astype(float),
+                temp=np.linspace(20.0 + k, 40.0 + k, n).astype(np.float32).astype(float),
+                accel=rng.normal(0.0, 1.0, (n, 3)).astype(np.float32).astype(float),
+                device_id=2293768 + 256 * k) for k in range(count)]
+
+
+def test_each_sensor_gyro_instance_reads_as_its_own_run(tmp_path):
+    imus = _imus()
+    path = write_ulog(tmp_path / 'two.ulg', px4_topics(imus), {'TC_G_ENABLE': 0})
+    for k, imu in enumerate(imus):
+        log = read_ulog(path, instance=k, accel=True)
+        assert (log.source, log.instance, log.instances) == ('sensor_gyro', k, (0, 1))
+        assert log.raw and not log.compensated
+        assert log.device_id == imu.device_id
+        np.testing.assert_array_equal(log.gyro, imu.gyro)
+        np.testing.assert_array_equal(log.temp_c, imu.temp)
+        np.testing.assert_allclose(log.accel, imu.accel)
+        run = load_run(path, BagOptions(imu_instance=k))
+        np.testing.assert_array_equal(run.omega, imu.gyro)
+        np.testing.assert_allclose(run.t, imu.t, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(run.temp, imu.temp)
+        assert not run.omega_ref.any()
+        assert run.info['reference'] == 'zero' and run.info['log_format'] == 'ulog'
+        line = describe_read(path, run, '/rate_table/reference')
+        assert f'sensor_gyro instance {k} of 2 (device id {imu.device_id}): raw' in line
+        assert 'TC_G_ENABLE=0: on-board thermal compensation off' in line
+    with pytest.raises(DatasetError, match=r'sensor_gyro has no instance 2 \(it has 0, 1'):
+        load_run(path, BagOptions(imu_instance=2))
+
+
+def test_raw_sensor_gyro_is_used_even_when_px4_compensates_and_its_parameters_are_kept(
+        tmp_path):
+    params = {'TC_G_ENABLE': 1, 'TC_G0_ID': 2293768, 'TC_G0_X0_0': 0.01, 'TC_G0_TREF': 30.0,
+              'SENS_BOARD_ROT': 0}
+    path = write_ulog(tmp_path / 'tc.ulg', px4_topics(_imus(count=1)), params)
+    run = load_run(path)
+    assert run.info['raw'] and not run.info['onboard_compensated']
+    assert run.info['params'] == pytest.approx({'TC_G_ENABLE': 1.0, 'TC_G0_ID': 2293768.0,
+                                                'TC_G0_X0_0': 0.01, 'TC_G0_TREF': 30.0})
+    assert 'TC_G_ENABLE=1: on-board thermal compensation active' in run.info['log']
+
+
+def test_sensor_combined_where_that_is_all_there_is_said_so_and_refused_when_compensated(
+        tmp_path):
+    imus = _imus(count=2)
+    off = write_ulog(tmp_path / 'off.ulg', px4_topics(imus, combined=True), {'TC_G_ENABLE': 0})
+    run = load_run(off)
+    np.testing.assert_array_equal(run.omega, imus[0].gyro)
+    np.testing.assert_allclose(run.temp, imus[0].temp)       # vehicle_imu_status instance 0
+    assert not run.info['raw'] and not run.info['onboard_compensated']
+    assert 'sensor_combined (rotated, calibrated on board) is all there is' in run.info['log']
+    assert 'temperature from vehicle_imu_status.temperature_gyro' in run.info['log']
+    on = write_ulog(tmp_path / 'on.ulg', px4_topics(imus, combined=True), {'TC_G_ENABLE': 1})
+    with pytest.raises(DatasetError, match='already thermally compensated on board '
+                                           r'\(TC_G_ENABLE=1.*--allow-onboard-corrected'):
+        load_run(on)
+    run = load_run(on, BagOptions(allow_onboard_corrected=True))
+    assert run.info['onboard_compensated']
+    assert 'corrected on board (thermal compensation included)' in run.info['log']
+
+
+def test_a_log_without_temperature_is_one_error(tmp_path):
+    path = write_ulog(tmp_path / 'cold.ulg', px4_topics(_imus(count=1), temperature=False))
+    with pytest.raises(DatasetError, match='sensor_gyro instance 0 carries no temperature'):
+        load_run(path)
+    path = write_ulog(tmp_path / 'cold_combined.ulg',
+                      px4_topics(_imus(count=1), combined=True, temperature=False))
+    with pytest.raises(DatasetError, match='sensor_combined instance 0 carries no temperature'):
+        load_run(path)
+
+
+def test_a_truncated_log_is_refused_unless_the_loss_is_allowed(tmp_path):
+    imus = [replace(_imus(count=1)[0], accel=None)]          # the last message a gyro one
+    whole = write_ulog(tmp_path / 'whole.ulg', px4_topics(imus))
+    assert ulog_truncated_bytes(whole) == 0
+    cut = tmp_path / 'cut.ulg'
+    cut.write_bytes(whole.read_bytes()[:-5])
+    assert ulog_truncated_bytes(cut) > 0
+    with pytest.raises(DatasetError, match='ends inside a message.*--allow-loss'):
+        load_run(cut)
+    run = load_run(cut, BagOptions(max_loss=1.0))
+    assert len(run) == len(imus[0].t) - 1
+    assert any('cut short' in w for w in run.info['warnings'])
+    head = tmp_path / 'head.ulg'
+    head.write_bytes(whole.read_bytes()[:40])
+    with pytest.raises(DatasetError, match='head.ulg'):
+        load_run(head, BagOptions(max_loss=1.0))
+
+
+def test_the_format_is_told_by_the_file_and_can_be_forced(tmp_path):
+    path = write_ulog(tmp_path / 'log.ulg', px4_topics(_imus(count=1)))
+    renamed = tmp_path / 'log.dat'
+    renamed.write_bytes(path.read_bytes())
+    assert detect_format(path) == detect_format(renamed) == 'ulog'    # magic bytes
+    assert detect_format(tmp_path) == 'rosbag2'
+    assert detect_format(renamed, 'dataflash') == 'dataflash'
+    (tmp_path / 'empty.ulg').write_bytes(b'')
+    assert detect_format(tmp_path / 'empty.ulg') == 'ulog'             # the suffix
+    with pytest.raises(DatasetError, match='log format to be one of auto, rosbag2'):
+        detect_format(path, 'csv')
+    with pytest.raises(DatasetError, match='log_format'):
+        replace(BagOptions(), log_format='px4')
+    with pytest.raises(DatasetError, match='imu_instance'):
+        BagOptions(imu_instance=-1)
+    with pytest.raises(DatasetError, match='not a readable DataFlash log|no IMU records'):
+        load_run(renamed, BagOptions(log_format='dataflash'))
+
+
+def test_a_folder_of_logs_expands_to_its_logs(tmp_path):
+    imus = _imus(count=1)
+    folder = tmp_path / 'flights'
+    folder.mkdir()
+    for name in ('run_10.ulg', 'run_2.ulg'):
+        write_ulog(folder / name, px4_topics(imus))
+    runs = load_runs(folder)
+    assert [r.name.rsplit('/', 1)[-1] for r in runs] == ['run_2.ulg', 'run_10.ulg']

@@ -1,0 +1,265 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Small flight-controller logs written by the tests: PX4 ULog and ArduPilot DataFlash.
+
+Both are written from their specifications with numpy (pyulog writes a ULog only back from
+one it has read, record by record): ULog = header, FLAG_BITS, FORMAT, INFO, PARAMETER,
+ADD_LOGGED and DATA messages; DataFlash = FMT records, then PARM and IMU records.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+import struct
+
+from gyro_tdc.data import write_bag
+import numpy as np
+
+# --------------------------------------------------------------------------------------------
+# ULog
+# --------------------------------------------------------------------------------------------
+
+_ULOG_TYPES = {'uint64_t': '<u8', 'uint32_t': '<u4', 'uint8_t': 'u1', 'float': '<f4',
+               'int32_t': '<i4'}
+SENSOR_GYRO = [('uint64_t', 'timestamp'), ('uint64_t', 'timestamp_sample'),
+               ('uint32_t', 'device_id'), ('float', 'x'), ('float', 'y'), ('float', 'z'),
+               ('float', 'temperature'), ('uint32_t', 'error_count')]
+SENSOR_ACCEL = SENSOR_GYRO
+SENSOR_COMBINED = [('uint64_t', 'timestamp'), ('float[3]', 'gyro_rad'),
+                   ('uint32_t', 'gyro_integral_dt'), ('float[3]', 'accelerometer_m_s2')]
+VEHICLE_IMU_STATUS = [('uint64_t', 'timestamp'), ('uint32_t', 'gyro_device_id'),
+                      ('float', 'temperature_gyro')]
+
+
+@dataclass
+class Topic:
+    """One logged ULog topic instance: its fields (type, name) and its columns."""
+
+    name: str
+    fields: list
+    data: dict
+    multi_id: int = 0
+
+
+def _ulog_dtype(fields: list) -> np.dtype:
+    """Return the packed numpy dtype of a ULog format's fields."""
+    out = []
+    for typ, name in fields:
+        if typ.endswith(']'):
+            base, n = typ[:-1].split('[')
+            out.append((name, _ULOG_TYPES[base], (int(n),)))
+        else:
+            out.append((name, _ULOG_TYPES[typ]))
+    return np.dtype(out)
+
+
+def _msg(kind: bytes, payload: bytes) -> bytes:
+    """Return one ULog message: uint16 size, uint8 type, payload."""
+    return struct.pack('<HB', len(payload), kind[0]) + payload
+
+
+def _key_value(key: str, value: bytes) -> bytes:
+    """Return an INFO / PARAMETER payload: uint8 key length, key, value."""
+    k = key.encode()
+    return bytes([len(k)]) + k + value
+
+
+def write_ulog(path: Path, topics: list, params: dict | None = None, *,
+               info: dict | None = None) -> Path:
+    """
+    Write a ULog (version 1) holding ``topics`` and the initial ``params``.
+
+    Integer-valued ``int`` parameters are written as ``int32_t``, the rest as ``float``;
+    data messages are interleaved by timestamp in blocks, as a logger writes them.
+    """
+    out = [b'ULog\x01\x125' + bytes([1]) + struct.pack('<Q', 0)]
+    out.append(_msg(b'B', bytes(16) + struct.pack('<3Q', 0, 0, 0)))
+    formats = {}
+    for tp in topics:
+        if tp.name not in formats:
+            formats[tp.name] = tp.fields
+            spec = ''.join(f'{typ} {name};' for typ, name in tp.fields)
+            out.append(_msg(b'F', f'{tp.name}:{spec}'.encode()))
+    for key, value in (info or {'sys_name': 'PX4'}).items():
+        v = value.encode()
+        out.append(_msg(b'I', _key_value(f'char[{len(v)}] {key}', v)))
+    for name, value in (params or {}).items():
+        if isinstance(value, int) and not isinstance(value, bool):
+            out.append(_msg(b'P', _key_value(f'int32_t {name}', struct.pack('<i', value))))
+        else:
+            out.append(_msg(b'P', _key_value(f'float {name}', struct.pack('<f', value))))
+    blocks = []
+    for msg_id, tp in enumerate(topics):
+        out.append(_msg(b'A', struct.pack('<BH', tp.multi_id, msg_id) + tp.name.encode()))
+        dt = _ulog_dtype(tp.fields)
+        n = len(tp.data['timestamp'])
+        rec = np.zeros(n, dtype=np.dtype([('size', '<u2'), ('kind', 'u1'), ('id', '<u2'),
+                                          ('body', dt)]))
+        rec['size'] = 2 + dt.itemsize
+        rec['kind'] = ord('D')
+        rec['id'] = msg_id
+        for _, name in tp.fields:
+            rec['body'][name] = tp.data.get(name, 0)
+        blocks.append((np.asarray(tp.data['timestamp'], dtype=np.uint64), rec))
+    edges = np.unique(np.concatenate([t for t, _ in blocks] or [np.zeros(0, np.uint64)]))
+    edges = edges[::max(1, len(edges) // 50)]
+    for lo, hi in zip(edges, list(edges[1:]) + [np.iinfo(np.uint64).max]):
+        for t, rec in blocks:
+            out.append(rec[(t >= lo) & (t < hi)].tobytes())
+    Path(path).write_bytes(b''.join(out))
+    return Path(path)
+
+
+@dataclass
+class Imu:
+    """One simulated IMU as a flight controller logs it (per sample temperature)."""
+
+    t: np.ndarray
+    gyro: np.ndarray
+    temp: np.ndarray
+    accel: np.ndarray | None = None
+    device_id: int = 2293768
+    extra: dict = field(default_factory=dict)
+
+
+def _us(t: np.ndarray) -> np.ndarray:
+    """Return stamps in s as whole microseconds."""
+    return np.round(np.asarray(t) * 1e6).astype(np.uint64)
+
+
+def px4_topics(imus: list, *, combined: bool = False, temperature: bool = True) -> list:
+    """
+    Return the ULog topics of IMUs: ``sensor_gyro`` + ``sensor_accel`` per instance.
+
+    ``combined``: ``sensor_combined`` (of IMU 0) and ``vehicle_imu_status`` instead;
+    ``temperature=False`` leaves every temperature out (NaN, as a driver without one).
+    """
+    out = []
+    for k, imu in enumerate(imus):
+        us = _us(imu.t)
+        temp = imu.temp if temperature else np.full(len(us), np.nan)
+        if combined:
+            if k == 0:
+                acc = imu.accel if imu.accel is not None else np.zeros((len(us), 3))
+                out.append(Topic('sensor_combined', SENSOR_COMBINED,
+                                 {'timestamp': us, 'gyro_rad': imu.gyro,
+                                  'accelerometer_m_s2': acc}))
+            if temperature:
+                out.append(Topic('vehicle_imu_status', VEHICLE_IMU_STATUS,
+                                 {'timestamp': us, 'gyro_device_id': imu.device_id,
+                                  'temperature_gyro': temp}, multi_id=k))
+            continue
+        g = {'timestamp': us, 'timestamp_sample': us, 'device_id': imu.device_id,
+             'x': imu.gyro[:, 0], 'y': imu.gyro[:, 1], 'z': imu.gyro[:, 2], 'temperature': temp}
+        out.append(Topic('sensor_gyro', SENSOR_GYRO, g, multi_id=k))
+        if imu.accel is not None:
+            a = dict(g, x=imu.accel[:, 0], y=imu.accel[:, 1], z=imu.accel[:, 2],
+                     device_id=imu.device_id + 1)
+            out.append(Topic('sensor_accel', SENSOR_ACCEL, a, multi_id=k))
+    return out
+
+
+# --------------------------------------------------------------------------------------------
+# DataFlash
+# --------------------------------------------------------------------------------------------
+
+_DF = {'Q': '<u8', 'B': 'u1', 'f': '<f4', 'I': '<u4', 'H': '<u2', 'N': 'S16', 'n': 'S4',
+       'Z': 'S64'}
+IMU_FORMAT = ('IMU', 'QBffffffIIfBBHH', 'TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,EG,EA,T,GH,AH,'
+              'GHz,AHz')
+IMU_FORMAT_NO_T = ('IMU', 'QBffffffIIBBHH', 'TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,EG,EA,GH,AH,'
+                   'GHz,AHz')
+PARM_FORMAT = ('PARM', 'QNf', 'TimeUS,Name,Value')
+
+
+def _df_records(mtype: int, fmt: str, columns: str, data: dict) -> np.ndarray:
+    """Return DataFlash records (head bytes, type, body) of one message type."""
+    names = columns.split(',')
+    body = np.dtype([(n, _DF[c]) for n, c in zip(names, fmt)])
+    n = len(next(iter(data.values())))
+    rec = np.zeros(n, dtype=np.dtype([('h1', 'u1'), ('h2', 'u1'), ('type', 'u1'),
+                                      ('body', body)]))
+    rec['h1'], rec['h2'], rec['type'] = 0xA3, 0x95, mtype
+    for name in names:
+        if name in data:
+            rec['body'][name] = data[name]
+    return rec
+
+
+def _fmt_record(mtype: int, name: str, fmt: str, columns: str) -> bytes:
+    """Return one FMT record describing a message type."""
+    length = 3 + _df_records(mtype, fmt, columns, {columns.split(',')[0]: [0]}).dtype[
+        'body'].itemsize
+    return (bytes([0xA3, 0x95, 0x80, mtype, length]) + name.encode().ljust(4, b'\0')
+            + fmt.encode().ljust(16, b'\0') + columns.encode().ljust(64, b'\0'))
+
+
+def write_dataflash(path: Path, imus: list, params: dict | None = None, *,
+                    temperature: bool = True) -> Path:
+    """
+    Write an ArduPilot DataFlash log: FMT records, PARM, then IMU records of every instance.
+
+    ``temperature=False`` uses an IMU format without ``T``.
+    """
+    name, fmt, cols = IMU_FORMAT if temperature else IMU_FORMAT_NO_T
+    out = [_fmt_record(0x80, 'FMT', 'BBnNZ', 'Type,Length,Name,Format,Columns'),
+           _fmt_record(64, *PARM_FORMAT), _fmt_record(65, name, fmt, cols)]
+    if params:
+        keys = list(params)
+        out.append(_df_records(64, PARM_FORMAT[1], PARM_FORMAT[2], {
+            'TimeUS': np.zeros(len(keys), dtype=np.uint64),
+            'Name': [k.encode() for k in keys],
+            'Value': [float(params[k]) for k in keys]}).tobytes())
+    recs = []
+    for k, imu in enumerate(imus):
+        acc = imu.accel if imu.accel is not None else np.zeros((len(imu.t), 3))
+        recs.append(_df_records(65, fmt, cols, {
+            'TimeUS': _us(imu.t), 'I': np.full(len(imu.t), k), 'GyrX': imu.gyro[:, 0],
+            'GyrY': imu.gyro[:, 1], 'GyrZ': imu.gyro[:, 2], 'AccX': acc[:, 0],
+            'AccY': acc[:, 1], 'AccZ': acc[:, 2], 'T': imu.temp, 'GH': 1, 'AH': 1}))
+    if recs:
+        both = np.concatenate(recs)
+        both = both[np.argsort(both['body']['TimeUS'], kind='stable')]
+        out.append(both.tobytes())
+    Path(path).write_bytes(b''.join(out))
+    return Path(path)
+
+
+# --------------------------------------------------------------------------------------------
+# A simulated session in every format
+# --------------------------------------------------------------------------------------------
+
+def imu_from_sim(sim, *, t_offset: float = 100.0, device_id: int = 2293768) -> Imu:
+    """
+    Return a simulated run as a flight controller logs it, in float32 like the logs.
+
+    The temperature at each sample is the latest thermometer reading (zero-order hold).
+    """
+    idx = np.clip(np.searchsorted(sim.temp_t, sim.imu_t, side='right') - 1, 0,
+                  sim.temp_t.size - 1)
+    f32 = lambda a: np.asarray(a, dtype=np.float32).astype(np.float64)  # noqa: E731
+    t = np.round((sim.imu_t + t_offset) * 1e6) * 1e-6
+    return Imu(t=t, gyro=f32(sim.gyro), temp=f32(sim.temp_c[idx]), accel=f32(sim.accel),
+               device_id=device_id)
+
+
+def bag_from_imu(imu: Imu, path: Path) -> Path:
+    """Write the same samples as a bag (temperature on the IMU stamps)."""
+    t = _us(imu.t).astype(np.float64) * 1e-6
+    acc = imu.accel if imu.accel is not None else np.zeros((len(t), 3))
+    write_bag(path, imu_t=t, gyro=imu.gyro, accel=acc, temp_t=t, temp_c=imu.temp)
+    return path
