@@ -13,8 +13,10 @@
 # limitations under the License.
 
 """
-``train`` and ``evaluate`` on flight-controller logs: a simulated calibration session written
-as a ULog, a DataFlash log and a bag gives one held-out accuracy; bad logs are one line.
+``train`` and ``evaluate`` on flight-controller logs.
+
+A simulated calibration session written as a ULog, a DataFlash log and a bag gives one
+held-out accuracy; bad logs are one line.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ import pytest
 
 @pytest.fixture(scope='module')
 def session(tmp_path_factory):
-    """Return a heat-cool chamber session (two runs) as ULogs, DataFlash logs and bags."""
+    """Write a heat-cool chamber session (two runs) as ULogs, DataFlash logs and bags."""
     root = tmp_path_factory.mktemp('session')
     imus = [imu_from_sim(s) for s in simulate_scenario('l3gd20_heat_cool', seed=3,
                                                        rate_hz=1.0)]
