@@ -2,7 +2,8 @@
 #
 #   make venv    create/refresh .venv (ROS 2 Jazzy wheels, deps, dev tools, editable gyro_tdc)
 #   make test    run the test suite (own ROS_DOMAIN_ID per run, loopback discovery only)
-#   make lint    flake8 + pep257 + copyright on gyro_tdc/, test/, bench/, tools/, setup.py
+#   make lint    flake8 + pep257 + copyright on gyro_tdc/, test/, bench/, tools/, setup.py (and
+#                flake8 + pep257 on the docs' conf.py and extensions)
 #   make demo    end-to-end demo into out/demo
 #   make bench   run every bench/*.py (each prints its figures)
 #   make docs    the documentation site (doc/, Sphinx, warnings are errors) into build/docs/html
@@ -26,7 +27,7 @@ VENV := .venv
 VPY := $(VENV)/bin/python
 STAMP := $(VENV)/.gyro_tdc-installed
 PIP_FLAGS ?= --disable-pip-version-check
-LINT_PATHS = $(wildcard gyro_tdc test bench tools setup.py)
+LINT_PATHS = $(wildcard gyro_tdc test bench tools setup.py doc/conf.py doc/_ext)
 
 # Each run gets its own ROS_DOMAIN_ID (1..101, from the shell's PID) unless one is set, so
 # parallel runs on one machine do not discover each other's nodes.
