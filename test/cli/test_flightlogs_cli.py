@@ -35,7 +35,7 @@ import pytest
 
 @pytest.fixture(scope='module')
 def session(tmp_path_factory):
-    """Write a heat-cool chamber session (two runs) as ULogs, DataFlash logs and bags."""
+    """Write two heat-cool chamber runs as ULogs, DataFlash logs and bags."""
     root = tmp_path_factory.mktemp('session')
     imus = [imu_from_sim(s) for s in simulate_scenario('l3gd20_heat_cool', seed=3,
                                                        rate_hz=1.0)]
