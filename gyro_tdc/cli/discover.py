@@ -48,7 +48,9 @@ def build_parser() -> argparse.ArgumentParser:
         description='Fit the drift model with the base effects to measured bags, show where '
                     'it disagrees with them, name the missing effect, add it and repeat '
                     'until the residual is noise.')
-    p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap)')
+    p.add_argument('bags', nargs='+', metavar='BAG',
+                   help='rosbag2 directory (sqlite3 or mcap), or a PX4 .ulg / ArduPilot .bin '
+                        'flight log')
     p.help_tail = effect_listing     # --help ends with the effect ids
     p.add_argument('--base', default='bias,dT', metavar='IDS',
                    help='effects of the starting model (default: %(default)s, the conventional '

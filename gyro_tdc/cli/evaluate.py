@@ -46,10 +46,13 @@ def build_parser() -> argparse.ArgumentParser:
         description='Score compensation models on held-out rosbag2 bags in the terms of the '
                     'paper (BS, P ratios), plus RMS and Allan deviation.')
     p.add_argument('bags', nargs='+', metavar='BAG',
-                   help='held-out rosbag2 directory (sqlite3 or mcap), or a folder of them')
+                   help='held-out rosbag2 directory (sqlite3 or mcap), PX4 .ulg or '
+                        'ArduPilot .bin log, or a folder of them')
     p.add_argument('--model', dest='models', action='append', required=True, metavar='MODEL',
-                   help='model file (repeat for several; reported in this order), or px4 for '
-                        'a PX4-style cubic in T fitted on the --train bags')
+                   help='model file (repeat for several; reported in this order), px4 for '
+                        'a PX4-style cubic in T fitted on the --train bags, or px4-onboard / '
+                        "ardupilot-onboard for the flight controller's own correction as each "
+                        "held-out log's TC_G* / INS_TCALn_* parameters define it (its clamp)")
     p.add_argument('--train', nargs='+', metavar='BAG', default=None,
                    help='bags to fit the px4 cubic on')
     p.add_argument('--baseline', metavar='MODEL', default=None,
@@ -135,7 +138,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     def log(line: str) -> None:
         bar.write(line)
 
-    models = load_models(specs, train_bags=args.train, bag=bag, log=log)
+    models = load_models(specs, train_bags=args.train, bag=bag, log=log, held_out=args.bags)
     descriptions = [model_description(nm.name, nm.model.kind, nm.model.features,
                                       tau_s=_state_tau(nm.model))
                     for nm in models]

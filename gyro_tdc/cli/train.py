@@ -46,7 +46,9 @@ def build_parser() -> argparse.ArgumentParser:
         description='Identify a temperature-drift compensation model from rosbag2 bags '
                     '(one run per bag; a folder of bag folders expands to its bags) and '
                     'write it as a YAML model file.')
-    p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap)')
+    p.add_argument('bags', nargs='+', metavar='BAG',
+                   help='rosbag2 directory (sqlite3 or mcap), or a PX4 .ulg / ArduPilot .bin '
+                        'flight log')
     p.add_argument('--out', required=True, metavar='MODEL.yaml', help='model file to write')
     p.add_argument('--sensor-id', default='', metavar='ID',
                    help="the recorded sensor's id (e.g. its serial number), written to the "

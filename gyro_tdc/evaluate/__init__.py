@@ -22,6 +22,7 @@ evaluation.
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
+    'onboard': ['ONBOARD', 'onboard_model'],
     'plots': ['model_description', 'write_plots'],
     'report': ['format_bag', 'format_coverage', 'format_means', 'format_training',
                'is_coverage_line', 'write_csv', 'write_json'],

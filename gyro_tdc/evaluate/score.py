@@ -33,6 +33,7 @@ from typing import Callable, Sequence
 from gyro_tdc.base import model_path
 from gyro_tdc.data import BagOptions, expand_bags, load_runs, Run
 from gyro_tdc.errors import FitError
+from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
 from gyro_tdc.identify import accel_scores, fit_accel, fit_px4_cubic, PX4_FEATURES
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             load_model, MAX_EXTRAPOLATION_C, model_temperature)
@@ -181,12 +182,16 @@ class NamedModel:
         Short unique label (tables, CSV columns, legends).
     model : CompensationModel
         The model.
+    out_of_range : str, optional
+        The model's own out-of-range policy (a flight controller's clamp), overriding the
+        evaluation's.
 
     """
 
     name: str
     label: str
     model: CompensationModel
+    out_of_range: str | None = None
 
 
 # --------------------------------------------------------------------------------------------
@@ -241,14 +246,16 @@ def _with_accel(bag: BagOptions | None) -> BagOptions:
 
 def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None,
                 bag: BagOptions | None = None,
-                log: Callable[[str], None] | None = None) -> list:
+                log: Callable[[str], None] | None = None,
+                held_out: Sequence[str | os.PathLike] | None = None) -> list:
     """
     Load model files and fit the ``px4`` baseline when asked.
 
     Parameters
     ----------
     specs : sequence of str
-        Model file paths (or shipped model names), or ``px4``.
+        Model file paths (or shipped model names), ``px4``, or ``px4-onboard`` /
+        ``ardupilot-onboard`` (:mod:`gyro_tdc.evaluate.onboard`).
     train_bags : sequence of str, optional
         Bags the ``px4`` cubic is fitted on (required with ``px4``, used only by it).
     bag : BagOptions, optional
@@ -256,6 +263,9 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
         says: the cubic gets an accelerometer part too).
     log : callable, optional
         Receives progress lines.
+    held_out : sequence of str or PathLike, optional
+        The held-out logs: ``px4-onboard`` / ``ardupilot-onboard`` are built from the
+        parameters of the first here (and rebuilt from each log's own by :func:`evaluate`).
 
     Returns
     -------
@@ -272,7 +282,16 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     """
     if PX4 in specs and not train_bags:
         raise FitError('The px4 baseline needs training bags to fit its cubic on.')
-    files = {s: load_model(model_path(s)) for s in specs if s != PX4}
+    files = {s: load_model(model_path(s)) for s in specs if s != PX4 and s not in ONBOARD}
+    if any(s in ONBOARD for s in specs):
+        if not held_out:
+            raise FitError('The on-board models need the held-out logs they are read from.')
+        first = load_runs([expand_bags(held_out)[0]], _with_accel(bag))[0]
+        for s in specs:
+            if s in ONBOARD and s not in files:
+                files[s], line = onboard_model(s, first)
+                if log is not None:
+                    log(line)
     px4 = None
     if PX4 in specs:
         runs = load_runs(train_bags, _with_accel(bag), log=log)
@@ -285,7 +304,8 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
             log(f'fitted px4 cubic in T - T0 on {len(runs)} bag(s): T0 = {px4.t0_c:.3f} degC, '
                 f'range {lo:.2f} .. {hi:.2f} degC; accelerometer '
                 + ('cubic too' if acc.part is not None else f'not fitted: {acc.note}'))
-    return [NamedModel(s, label, px4 if s == PX4 else files[s])
+    return [NamedModel(s, label, px4 if s == PX4 else files[s],
+                       'clamp' if s in ONBOARD else None)
             for s, label in zip(specs, model_labels(specs))]
 
 
@@ -401,7 +421,8 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     out = []
     for nm in models:
         m = nm.model
-        comp = compensate(m, run.t, run.temp, run.omega, out_of_range=out_of_range,
+        comp = compensate(m, run.t, run.temp, run.omega,
+                          out_of_range=nm.out_of_range or out_of_range,
                           max_extrapolation_c=max_extrapolation_c)
         comp, info = _reanchored(comp, run, m, reanchor_s)
         ev = score(comp, run, label=nm.label, model=nm.name, features=list(m.features),
@@ -465,7 +486,9 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     results = []
     for path, label in zip(paths, bag_labels(paths)):
         run = load_runs([path], _with_accel(bag), log=log)[0]
-        b = evaluate_run(run, models, label=label, reanchor_s=reanchor_s,
+        here = [replace(nm, model=onboard_model(nm.name, run)[0]) if nm.name in ONBOARD
+                else nm for nm in models]         # each log's own on-board parameters
+        b = evaluate_run(run, here, label=label, reanchor_s=reanchor_s,
                          out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c)
         if each is not None:
             each(b)

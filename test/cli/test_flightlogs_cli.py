@@ -16,7 +16,8 @@
 ``train`` and ``evaluate`` on flight-controller logs.
 
 A simulated calibration session written as a ULog, a DataFlash log and a bag gives one
-held-out accuracy; bad logs are one line.
+held-out accuracy; the flight controller's own correction is scored as it applies it; bad
+logs are one line.
 """
 
 from __future__ import annotations
@@ -25,9 +26,12 @@ from dataclasses import replace
 import json
 
 from bags import assert_bad_input
-from flightlogs import bag_from_imu, imu_from_sim, px4_topics, write_dataflash, write_ulog
+from flightlogs import (bag_from_imu, Imu, imu_from_sim, px4_topics, write_dataflash,
+                        write_ulog)
 from gyro_tdc.cli.evaluate import main as evaluate
 from gyro_tdc.cli.train import main as train
+from gyro_tdc.model.fc_tempcal import ardupilot_correction, px4_correction
+from gyro_tdc.signal.metrics import bias_stability
 from gyro_tdc.sim import simulate_scenario
 import numpy as np
 import pytest
@@ -115,3 +119,47 @@ def test_data_compensated_on_board_are_refused_unless_the_override_is_given(
     assert train([str(ardu), *out, '--allow-onboard-corrected']) == 0
     said = capsys.readouterr().out
     assert 'IMU instance 0 of 1: corrected on board (thermal compensation included)' in said
+
+
+def _drifting(n=3000):
+    """Return an IMU heated 0 -> 70 degC whose gyro drifts as a quadratic, in float32."""
+    t = 10.0 + np.arange(n) * 0.1
+    temp = np.linspace(0.0, 70.0, n).astype(np.float32).astype(float)
+    d = (temp - 30.0)[:, None]
+    rng = np.random.default_rng(8)
+    gyro = 2e-3 * d * [1.0, -0.5, 0.3] + 1e-5 * d ** 2 + rng.normal(0.0, 1e-3, (n, 3))
+    return Imu(t=t, gyro=gyro.astype(np.float32).astype(float), temp=temp, device_id=555)
+
+
+def _f32(params):
+    """Return parameters as the log stores them (float32)."""
+    return {k: float(np.float32(v)) for k, v in params.items()}
+
+
+def test_the_flight_controllers_own_correction_is_scored_exactly_as_it_applies_it(
+        tmp_path, capsys):
+    imu = _drifting()
+    px4 = {'TC_G_ENABLE': 1, 'TC_G0_ID': 555, 'TC_G0_TREF': 30.0, 'TC_G0_TMIN': 10.0,
+           'TC_G0_TMAX': 60.0, 'TC_G0_X0_1': 1e-4, 'TC_G0_X1_0': 2e-3, 'TC_G0_X1_1': -1e-3,
+           'TC_G0_X2_0': 1e-5, 'TC_G0_X3_2': 1e-8}
+    ardu = {'INS_TCAL1_ENABLE': 0, 'INS_TCAL1_TMIN': 10.0, 'INS_TCAL1_TMAX': 60.0,
+            'INS_TCAL1_GYR1_X': 2000.0, 'INS_TCAL1_GYR2_X': 10.0, 'INS_TCAL1_GYR1_Y': -900.0,
+            'INS_GYR1_CALTEMP': 25.0}
+    cases = [(write_ulog(tmp_path / 'tc.ulg', px4_topics([imu]), px4), 'px4-onboard',
+              px4_correction(_f32(px4), imu.temp), 'TC_G0_* (device id 555)'),
+             (write_dataflash(tmp_path / 'tc.bin', [imu], ardu), 'ardupilot-onboard',
+              ardupilot_correction(_f32(ardu), imu.temp), 'in this log it was not applied')]
+    for path, spec, correction, words in cases:
+        scores = tmp_path / f'{spec}.json'
+        assert evaluate([str(path), '--model', spec, '--json', str(scores),
+                         '--no-progress']) == 0
+        got = json.loads(scores.read_text())['bags'][0]['models'][0]['bs']
+        want = bias_stability(imu.gyro - correction, np.zeros_like(imu.gyro))
+        np.testing.assert_allclose(got, want, rtol=1e-9)          # the clamp included
+        assert words in capsys.readouterr().out
+    assert_bad_input(capsys, [cases[1][0], '--model', 'px4-onboard', '--no-progress'],
+                     '--model px4-onboard needs a PX4 ULog', entry=evaluate)
+    done = write_dataflash(tmp_path / 'done.bin', [imu], {**ardu, 'INS_TCAL1_ENABLE': 1})
+    assert_bad_input(capsys, [done, '--model', 'ardupilot-onboard', '--no-progress',
+                              '--allow-onboard-corrected'],
+                     'already carries the on-board correction', entry=evaluate)
