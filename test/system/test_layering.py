@@ -27,6 +27,7 @@ from __future__ import annotations
 import ast
 import json
 from pathlib import Path
+import re
 import subprocess
 import sys
 
@@ -227,6 +228,13 @@ def test_declared_graph_is_tight():
     loose = {layer: sorted(deps - used[layer]) for layer, deps in LAYERS.items()
              if deps - used[layer]}
     assert loose == {}, f'declared but imported by no module: {loose}'
+
+
+def test_internals_page_shows_the_declared_graph():
+    page = (ROOT / 'doc' / 'internals' / 'index.md').read_text(encoding='utf-8')
+    rows = re.findall(r'^\| `([\w]+)`[^|]* \| (.*) \|$', page, flags=re.M)
+    shown = {layer: frozenset(re.findall(r'`(\w+)`', deps)) for layer, deps in rows}
+    assert shown == LAYERS
 
 
 def test_declared_graph_is_acyclic():
