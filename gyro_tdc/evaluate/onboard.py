@@ -16,8 +16,9 @@
 ``evaluate --model px4-onboard|ardupilot-onboard``: the flight controller's own correction.
 
 The log's ``TC_G*`` / ``INS_TCALn_*`` parameters become an exact cubic
-:class:`~gyro_tdc.model.CompensationModel` (features ``dT, dT2, dT3`` about ``TREF`` or 35 degC,
-range ``[TMIN, TMAX]``), evaluated with the firmware's clamp whatever ``--out-of-range`` says.
+:class:`~gyro_tdc.model.compensation.CompensationModel` (features ``dT, dT2, dT3`` about
+``TREF`` or 35 degC, range ``[TMIN, TMAX]``), evaluated with the firmware's clamp whatever
+``--out-of-range`` says.
 """
 
 from __future__ import annotations
