@@ -18,15 +18,9 @@ Read IMU, temperature and reference-rate arrays from a rosbag2 bag, fast (:func:
 
 The raw CDR bytes are collected in blocks (the IMU messages written end to end into one
 reused buffer as they arrive) and decoded with the fixed-layout codec of
-:mod:`gyro_tdc.data.bag_codec` (rosbags' per-message deserialiser only where the layout does
-not hold) into preallocated columns; memory is bounded by the output arrays plus one block
-of raw messages.
-
-The message counts of ``metadata.yaml`` size those columns, so they are checked first
-(:func:`check_counts`): whole numbers, not negative, and no more messages than the storage
-files can hold at the smallest size a message of the topic's type can have. A bag whose
-metadata lies is refused in one line (:class:`~gyro_tdc.errors.DatasetError`, exit 2 on the
-command line), as is one whose data do not match its ``compression_format``.
+:mod:`gyro_tdc.data.bag_codec` (rosbags' per-message deserialiser where the layout does not
+hold) into columns sized by the message counts of ``metadata.yaml``, checked first
+(:func:`check_counts`); memory is bounded by the columns plus one block of raw messages.
 """
 
 from __future__ import annotations
@@ -42,8 +36,9 @@ from typing import Any, Mapping, Sequence
 
 import apsw
 from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
-from gyro_tdc.data.bag_codec import (decode, decode_joined, Decoded, IMU_TYPE, jazzy, KEEP,
-                                     N_DOUBLES, REFERENCE_TYPE, TEMPERATURE_TYPE)
+from gyro_tdc.data.bag_codec import (decode, decode_float, decode_joined, Decoded, FLOAT_TYPES,
+                                     IMU_TYPE, jazzy, KEEP, N_DOUBLES, REFERENCE_TYPE,
+                                     TEMPERATURE_TYPES)
 from gyro_tdc.data.imu_cdr import FRAME_ID
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
@@ -100,11 +95,14 @@ class BagData:
     frame_id : str
         Header frame id of the first IMU message.
     temp_t : NDArray[np.float64], shape (M,), s
-        Thermometer stamps.
+        Thermometer stamps. A ``std_msgs/msg/Float32`` or ``Float64`` reading, which has no
+        header, takes the stamp of the latest IMU message before it in the bag's order (log
+        time), as the compensator node stamps it live; readings before the first IMU
+        message are dropped (``temp_before_imu``), as the node ignores them.
     temp_c : NDArray[np.float64], shape (M,), degC
         Temperature; non-finite samples rejected.
     temp_var : NDArray[np.float64], shape (M,), degC^2
-        Temperature variance as recorded.
+        Temperature variance as recorded (0, unknown, for a Float reading).
     ref_t : NDArray[np.float64], shape (R,), s, or None
         Reference-rate stamps; None when the bag has no (non-empty) reference topic.
     ref : NDArray[np.float64], shape (R, 3), rad/s, or None
@@ -113,7 +111,8 @@ class BagData:
         Every topic of the bag: name -> (type, message count).
     rejected : dict[str, int]
         Counts of rejected messages: ``imu_nonfinite``, ``temp_nonfinite``,
-        ``ref_nonfinite`` and ``undecodable`` (messages rosbags could not deserialise).
+        ``ref_nonfinite``, ``undecodable`` (messages rosbags could not deserialise) and
+        ``temp_before_imu`` (Float readings before the first IMU message).
     storage : str
         Storage plugin of the bag ('sqlite3' or 'mcap').
     path : str
@@ -367,7 +366,9 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
     imu_topic : str
         ``sensor_msgs/msg/Imu`` topic (required, non-empty).
     temperature_topic : str
-        ``sensor_msgs/msg/Temperature`` topic (required, non-empty).
+        Temperature topic (required, non-empty): ``sensor_msgs/msg/Temperature``, or a bare
+        ``std_msgs/msg/Float32`` / ``Float64`` in degC, its type taken from the bag and its
+        readings stamped as the compensator node stamps them (see ``BagData.temp_t``).
     reference_topic : str or None
         ``geometry_msgs/msg/Vector3Stamped`` topic; optional (``ref`` is None when absent
         or empty); None skips it.
@@ -398,10 +399,10 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
         with AnyReader([bag], default_typestore=jazzy()) as reader:
             topics = {name: (topic.msgtype or '?', int(topic.msgcount))
                       for name, topic in reader.topics.items()}
-            wanted = [('imu', imu_topic, IMU_TYPE, True),
-                      ('temperature', temperature_topic, TEMPERATURE_TYPE, True)]
+            wanted = [('imu', imu_topic, (IMU_TYPE,), True),
+                      ('temperature', temperature_topic, TEMPERATURE_TYPES, True)]
             if reference_topic is not None:
-                wanted.append(('reference', reference_topic, REFERENCE_TYPE, False))
+                wanted.append(('reference', reference_topic, (REFERENCE_TYPE,), False))
             conns: dict[str, list[Any]] = {}
             for role, topic, msgtype, required in wanted:
                 if topic not in topics:
@@ -410,9 +411,10 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                             f'Bag {str(bag)!r} has no topic {topic!r} ({role}); topics '
                             f'present: {_describe(topics)}.')
                     continue
-                if topics[topic][0] != msgtype:
+                if topics[topic][0] not in msgtype:
+                    expected = ' or '.join(repr(x) for x in msgtype)
                     raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has type '
-                                       f'{topics[topic][0]!r}, expected {msgtype!r}.')
+                                       f'{topics[topic][0]!r}, expected {expected}.')
                 if topics[topic][1] == 0 and required:
                     raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has no messages.')
                 conns[role] = [c for c in reader.connections if c.topic == topic]
@@ -435,7 +437,15 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     from tqdm import tqdm
 
     roles = list(conns)
-    msgtypes = {'imu': IMU_TYPE, 'temperature': TEMPERATURE_TYPE, 'reference': REFERENCE_TYPE}
+    msgtypes = {'imu': IMU_TYPE, 'temperature': topics[conns['temperature'][0].topic][0],
+                'reference': REFERENCE_TYPE}
+    # Float temperatures have no stamp: each takes the sink row of the latest IMU message
+    # before it (the node's core.last_t), resolved once every IMU stamp is final.
+    floating = msgtypes['temperature'] in FLOAT_TYPES
+    temp_rows: list[int] = []
+    before_imu = 0
+    last_row = -1                 # sink row of the latest decodable IMU message read
+    last_main = -1                # sink row of the latest decodable main-connection one
     role_of = {id(c): k for k, role in enumerate(roles) for c in conns[role]}
     all_conns = [c for role in roles for c in conns[role]]
     expected = {role: sum(int(c.msgcount) for c in conns[role]) for role in roles}
@@ -453,9 +463,14 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     zero_stamped: list[tuple[NDArray[np.int64], NDArray[np.int64]]] = []
 
     def decode_into(role: str, dec: Decoded, logs: Sequence[int] | None,
-                    first: int = 0) -> None:
-        """Put one role's decoded messages of a block into its sink (``logs``: log times)."""
+                    first: int = 0) -> NDArray[np.int64]:
+        """
+        Put one role's decoded messages of a block into its sink (``logs``: log times).
+
+        Returns the sink row of every message (-1: undecodable, not stored).
+        """
         nonlocal undecodable
+        start = sinks[role].n
         fallback[role] += dec.fallback
         if frame_id[role] is None and dec.frame_id:
             frame_id[role] = dec.frame_id
@@ -473,10 +488,55 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
                 zero_stamped.append((first + pos, sinks[role].n + rows))
         t = _seconds(stamp_ns)
         values = dec.values
-        if good is not None:
+        if good is None:
+            rows = start + np.arange(len(t))
+        else:
             undecodable += int(dec.undecodable.sum())
             t, values = t[good], values[good]
+            rows = np.where(good, start + np.cumsum(good) - 1, -1)
         sinks[role].add(t, values)
+        return rows
+
+    def stamp_floats(lengths: list[int], main_rows: NDArray[np.int64] | None,
+                     others: list[tuple[Any, ...]], imu_rows: NDArray[np.int64] | None,
+                     temps: Decoded | None) -> None:
+        """
+        Give a block's Float readings the sink row of the IMU message before each.
+
+        Walks the block's other messages in the order read; ``pos`` (the bytes of main IMU
+        messages written before one) says how many main messages came before it.
+        """
+        nonlocal last_row, last_main, before_imu, undecodable
+        ends = np.cumsum(lengths) if lengths else np.zeros(0, dtype=np.int64)
+        upto = (np.maximum.accumulate(main_rows) if main_rows is not None
+                else np.zeros(0, dtype=np.int64))
+        i_imu = i_temp = 0
+        keep = []
+        for conn, _, _, pos in others:
+            k = int(np.searchsorted(ends, pos, side='right'))
+            if k and upto[k - 1] > last_main:
+                last_main = last_row = int(upto[k - 1])
+            role = roles[role_of[id(conn)]]
+            if role == 'imu':
+                if imu_rows[i_imu] >= 0:
+                    last_row = int(imu_rows[i_imu])
+                i_imu += 1
+            elif role == 'temperature':
+                ok = temps.undecodable is None or not temps.undecodable[i_temp]
+                i_temp += 1
+                keep.append(ok and last_row >= 0)
+                if ok and last_row < 0:
+                    before_imu += 1
+                elif ok:
+                    temp_rows.append(last_row)
+        if len(upto) and upto[-1] > last_main:
+            last_main = last_row = int(upto[-1])
+        if temps is not None:
+            if temps.undecodable is not None:
+                undecodable += int(temps.undecodable.sum())
+            fallback['temperature'] += temps.fallback
+            mask = np.array(keep, dtype=bool)
+            sinks['temperature'].add(np.zeros(int(mask.sum())), temps.values[mask])
 
     # Hot loop, one list comprehension per block: each message of the main IMU connection
     # is written into one reused buffer as it arrives (its bytes still in the CPU cache:
@@ -495,25 +555,39 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
         while True:
-            others: list[tuple[Any, int, bytes]] = []
+            others: list[tuple[Any, ...]] = []
             add_other = others.append
             scratch = _reusable(scratch)
             write = scratch.write
-            lengths = [write(raw) for conn, log, raw in islice(gen, _CHUNK)
-                       if conn is main or add_other((conn, log, raw))]
+            if floating:          # also where each other message fell among the main ones
+                tell = scratch.tell
+                lengths = [write(raw) for conn, log, raw in islice(gen, _CHUNK)
+                           if conn is main or add_other((conn, log, raw, tell()))]
+            else:
+                lengths = [write(raw) for conn, log, raw in islice(gen, _CHUNK)
+                           if conn is main or add_other((conn, log, raw))]
+            main_rows = imu_rows = temps = None
             if lengths:
                 view = scratch.getbuffer()    # released when the decode returns
                 dec = decode_joined(view, lengths, IMU_TYPE, typestore, keep['imu'])
                 del view
-                decode_into('imu', dec, None, n_main)
+                main_rows = decode_into('imu', dec, None, n_main)
                 n_main += len(lengths)
             if others:
                 for k, role in enumerate(roles):
                     mine = [x for x in others if role_of[id(x[0])] == k]
-                    if mine:
-                        dec = decode([x[2] for x in mine], msgtypes[role], typestore,
-                                     keep[role])
-                        decode_into(role, dec, [x[1] for x in mine])
+                    if not mine:
+                        continue
+                    if floating and role == 'temperature':
+                        temps = decode_float([x[2] for x in mine], msgtypes[role], typestore)
+                        continue
+                    dec = decode([x[2] for x in mine], msgtypes[role], typestore,
+                                 keep[role])
+                    rows = decode_into(role, dec, [x[1] for x in mine])
+                    if role == 'imu':
+                        imu_rows = rows
+            if floating:
+                stamp_floats(lengths, main_rows, others, imu_rows, temps)
             done = len(lengths) + len(others)
             if not done:
                 break
@@ -526,9 +600,12 @@ def _read_messages(reader: AnyReader, bag: Path, storage: str,
         index = np.concatenate([z[0] for z in zero_stamped])
         rows = np.concatenate([z[1] for z in zero_stamped])
         sinks['imu'].t[rows] = _seconds(logs[index])
+    if floating:
+        sink = sinks['temperature']
+        sink.t[:sink.n] = sinks['imu'].t[np.asarray(temp_rows, dtype=np.int64)]
 
     rejected = {'imu_nonfinite': 0, 'temp_nonfinite': 0, 'ref_nonfinite': 0,
-                'undecodable': undecodable}
+                'undecodable': undecodable, 'temp_before_imu': before_imu}
     sink = sinks['imu']
     finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
     rejected['imu_nonfinite'] = int(np.count_nonzero(~finite))
