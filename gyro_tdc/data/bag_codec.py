@@ -18,7 +18,9 @@ The fixed-layout numpy CDR codec of the three recorded message types, checked ag
 
 Imu, Temperature and Vector3Stamped blocks are encoded (:func:`encode_checked`) and decoded
 (:func:`decode_fast`) as numpy structured arrays; every fast path checks itself against
-rosbags' serialiser and falls back to it (:func:`decode_slow`). See ``doc/internals/data.md``.
+rosbags' serialiser and falls back to it (:func:`decode_slow`). Temperatures published as a
+bare ``std_msgs/msg/Float32`` or ``Float64`` (no header) are decoded by
+:func:`decode_float`. See ``doc/internals/data.md``.
 """
 
 from __future__ import annotations
@@ -34,13 +36,18 @@ from numpy.typing import NDArray
 from rosbags.serde import SerdeError
 from rosbags.typesys import get_typestore, Stores
 
-__all__ = ['Decoded', 'IMU_TYPE', 'KEEP', 'N_DOUBLES', 'REFERENCE_TYPE', 'TEMPERATURE_TYPE',
-           'decode', 'decode_fast', 'decode_joined', 'decode_slow', 'encode_checked',
-           'from_msg', 'jazzy', 'to_msg']
+__all__ = ['Decoded', 'FLOAT_TYPES', 'IMU_TYPE', 'KEEP', 'N_DOUBLES', 'REFERENCE_TYPE',
+           'TEMPERATURE_TYPE', 'TEMPERATURE_TYPES', 'decode', 'decode_fast', 'decode_float',
+           'decode_joined', 'decode_slow', 'encode_checked', 'from_msg', 'jazzy', 'to_msg']
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'
 TEMPERATURE_TYPE = 'sensor_msgs/msg/Temperature'
 REFERENCE_TYPE = 'geometry_msgs/msg/Vector3Stamped'
+#: Bare temperature readings (degC, no header), as the compensator node also takes them: the
+#: little-endian numpy dtype of the value after the 4-byte CDR encapsulation.
+FLOAT_TYPES = {'std_msgs/msg/Float32': '<f4', 'std_msgs/msg/Float64': '<f8'}
+#: The message types a temperature topic may have, the stamped one first.
+TEMPERATURE_TYPES = (TEMPERATURE_TYPE, *FLOAT_TYPES)
 
 # Number of float64 values after the header, per message type.
 N_DOUBLES = {IMU_TYPE: IMU_DOUBLES, TEMPERATURE_TYPE: 2, REFERENCE_TYPE: 3}
@@ -280,3 +287,60 @@ def decode(raws: Sequence[bytes], msgtype: str, typestore: Any,
     """Decode a block with the numpy fast path, falling back to rosbags when needed."""
     return (decode_fast(raws, msgtype, keep)
             or decode_slow(raws, msgtype, typestore, keep))
+
+
+# CDR little-endian encapsulation (plain CDR, no options): the fast path of decode_float.
+_CDR_LE = b'\x00\x01\x00\x00'
+
+
+def decode_float(raws: Sequence[bytes], msgtype: str, typestore: Any) -> Decoded:
+    """
+    Decode a block of ``std_msgs/msg/Float32`` or ``Float64`` temperature readings.
+
+    The messages have no header: ``sec`` and ``nanosec`` are zero (the reader gives each
+    reading the stamp of the latest IMU message, as the node does live) and the second value
+    column, the variance, is 0 (unknown, as ``sensor_msgs/msg/Temperature`` says it). A block
+    of little-endian plain CDR messages of the one fixed size is read with numpy, checked
+    against rosbags on its first, middle and last message; anything else with rosbags.
+
+    Parameters
+    ----------
+    raws : Sequence[bytes]
+        Raw CDR messages of ``msgtype``.
+    msgtype : str
+        A key of :data:`FLOAT_TYPES`.
+    typestore : Any
+        rosbags typestore of the fallback.
+
+    Returns
+    -------
+    Decoded
+        Columns (value degC, variance 0); ``undecodable`` marks what rosbags could not read.
+
+    """
+    n = len(raws)
+    dtype = np.dtype(FLOAT_TYPES[msgtype])
+    size = len(_CDR_LE) + dtype.itemsize
+    zeros = np.zeros(n, dtype=np.int64)
+    values = np.zeros((n, 2))
+    if n and all(len(r) == size and r[:4] == _CDR_LE for r in raws):
+        buf = b''.join(raws)
+        value = np.ndarray((n,), dtype=dtype, buffer=buf, offset=len(_CDR_LE),
+                           strides=(size,))
+        try:
+            same = all(np.array_equal(np.float64(typestore.deserialize_cdr(
+                raws[i], msgtype).data), np.float64(value[i]), equal_nan=True)
+                for i in sorted({0, n // 2, n - 1}))
+        except (SerdeError, AttributeError):
+            same = False
+        if same:
+            values[:, 0] = value
+            return Decoded(zeros, zeros.copy(), '', values, 0)
+    bad = np.zeros(n, dtype=bool)
+    for i, raw in enumerate(raws):
+        try:
+            values[i, 0] = float(typestore.deserialize_cdr(raw, msgtype).data)
+        except (SerdeError, AttributeError, TypeError, ValueError):
+            bad[i] = True
+            values[i, 0] = np.nan
+    return Decoded(zeros, zeros.copy(), '', values, n, bad if bad.any() else None)
