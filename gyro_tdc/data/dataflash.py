@@ -21,9 +21,13 @@ pymavlink's ``DFReader`` indexes the records and their FMT formats; the ``IMU`` 
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 from pathlib import Path
-import struct
+import sys
+import tempfile
+from typing import Iterator
 
 from gyro_tdc.data.flightlog import FlightLog
 from gyro_tdc.errors import DatasetError
@@ -40,6 +44,34 @@ DATAFLASH_TYPES = {
 }
 #: Scaled format characters (centi-units; degE7 for ``L``).
 _SCALE = {'c': 0.01, 'C': 0.01, 'e': 0.01, 'E': 0.01, 'L': 1e-7}
+
+
+@contextlib.contextmanager
+def _captured(sink: io.StringIO) -> Iterator[None]:
+    """
+    Send what is printed meanwhile to ``sink``, at the file descriptors too.
+
+    pymavlink's compiled indexer prints every damaged header of a log to the process's
+    stderr; a damaged log must stay one line (the error, or a count in the reader's line).
+    """
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    with tempfile.TemporaryFile(mode='w+b') as tmp:
+        try:
+            os.dup2(tmp.fileno(), 1)
+            os.dup2(tmp.fileno(), 2)
+            with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+                yield
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            os.dup2(saved[0], 1)
+            os.dup2(saved[1], 2)
+            for fd in saved:
+                os.close(fd)
+            tmp.seek(0)
+            sink.write(tmp.read().decode('utf-8', 'replace'))
 
 
 def _records(reader, mtype: int) -> dict[str, np.ndarray]:
@@ -129,14 +161,20 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     from pymavlink.DFReader import DFReader_binary
 
     p = Path(path)
+    chatter = io.StringIO()        # DFReader prints what it skips; the count is reported
     try:
-        reader = DFReader_binary(str(p), zero_time_base=False)
-    except (struct.error, ValueError, KeyError, IndexError, TypeError, AttributeError) as exc:
+        with _captured(chatter):
+            reader = DFReader_binary(str(p), zero_time_base=False)
+    # pymavlink raises a bare Exception for a FMT record it cannot use (DFFormat): caught
+    # here, at the library's edge, so that a damaged log is one line like any bad input.
+    except Exception as exc:  # noqa: B902
         raise DatasetError(f'Log {str(p)!r} is not a readable DataFlash log: {exc}') from None
     try:
         params = _params(reader)
         imus = _imu(reader)
         cut = _truncated(reader)
+    except (KeyError, ValueError, TypeError, UnicodeDecodeError) as exc:
+        raise DatasetError(f'Log {str(p)!r}: a record cannot be decoded ({exc}).') from None
     finally:
         reader.data_map.close()
         reader.filehandle.close()
@@ -154,7 +192,9 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
         acc = np.column_stack([np.asarray(d[k], dtype=np.float64)
                                for k in ('AccX', 'AccY', 'AccZ')])
     active, words = onboard_status(params, 'ardupilot', instance=instance)
+    skipped = chatter.getvalue().count('\n')
+    notes = [f'pymavlink skipped damaged bytes ({skipped} reports)'] if skipped else []
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
                      firmware='ardupilot', source='IMU', instance=int(instance),
                      instances=tuple(sorted(imus)), raw=False, compensated=active,
-                     onboard=words, truncated_bytes=cut)
+                     onboard=words, truncated_bytes=cut, notes=notes)

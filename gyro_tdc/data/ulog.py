@@ -21,6 +21,8 @@ else ``sensor_combined`` (corrected on board) with the temperature of ``vehicle_
 
 from __future__ import annotations
 
+import contextlib
+import io
 import mmap
 import os
 from pathlib import Path
@@ -36,6 +38,9 @@ __all__ = ['read_ulog', 'ulog_truncated_bytes']
 
 _TOPICS = ['sensor_gyro', 'sensor_accel', 'sensor_combined', 'vehicle_imu_status']
 _HEADER_BYTES = 16
+#: ULog message types (FLAG_BITS, FORMAT, INFO, INFO_MULTIPLE, PARAMETER, PARAMETER_DEFAULT,
+#: ADD_LOGGED, REMOVE_LOGGED, DATA, LOGGING, LOGGING_TAGGED, DROPOUT, SYNC).
+_KINDS = frozenset(b'BFIMPQARDLCOS')
 
 
 def ulog_truncated_bytes(path: str | os.PathLike) -> int:
@@ -51,7 +56,7 @@ def ulog_truncated_bytes(path: str | os.PathLike) -> int:
     -------
     int
         Bytes of a message cut short at the end (the whole file past the header when even
-        the header is incomplete).
+        the header is incomplete); 0 also when the walk meets a damaged message first.
 
     """
     size = os.path.getsize(path)
@@ -59,9 +64,12 @@ def ulog_truncated_bytes(path: str | os.PathLike) -> int:
         return size
     with open(path, 'rb') as f, mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as m:
         ofs = _HEADER_BYTES
-        unpack = struct.Struct('<H').unpack_from
+        unpack = struct.Struct('<HB').unpack_from
         while ofs + 3 <= size:
-            end = ofs + 3 + unpack(m, ofs)[0]
+            length, kind = unpack(m, ofs)
+            if kind not in _KINDS:
+                return 0            # damaged, not cut: pyulog resynchronises and says so
+            end = ofs + 3 + length
             if end > size:
                 return size - ofs
             ofs = end
@@ -119,17 +127,22 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
 
     p = Path(path)
     cut = ulog_truncated_bytes(p)
+    chatter = io.StringIO()        # pyulog prints what it finds corrupt; the count is reported
     try:
-        ulog = ULog(str(p), _TOPICS)
+        with contextlib.redirect_stdout(chatter):
+            ulog = ULog(str(p), _TOPICS)
     except (ULogException, struct.error, UnicodeDecodeError, ValueError, IndexError,
-            KeyError) as exc:
+            KeyError, TypeError, OSError) as exc:     # OSError: a seek past a damaged start
         raise DatasetError(f'Log {str(p)!r} is not a readable ULog: {exc}') from None
-    params = {k: float(v) for k, v in ulog.initial_parameters.items()}
+    params = {k: float(v) for k, v in ulog.initial_parameters.items()
+              if isinstance(v, (int, float, np.number))}
     topics: dict[str, dict[int, dict]] = {}
     for d in ulog.data_list:
         topics.setdefault(d.name, {})[int(d.multi_id)] = d.data
     active, words = onboard_status(params, 'px4')
     notes: list[str] = []
+    if ulog.file_corruption or chatter.getvalue():
+        notes.append('pyulog found damaged messages (skipped)')
     if 'sensor_gyro' in topics:
         found = topics['sensor_gyro']
         source, raw, compensated = 'sensor_gyro', True, False

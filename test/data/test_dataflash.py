@@ -91,3 +91,16 @@ def test_a_truncated_log_is_refused_unless_the_loss_is_allowed(tmp_path):
     head.write_bytes(whole.read_bytes()[:50])
     with pytest.raises(DatasetError, match='head.bin'):
         load_run(head, BagOptions(max_loss=1.0))
+
+
+def test_damaged_bytes_inside_are_skipped_quietly_and_said_on_the_read_line(tmp_path, capfd):
+    imus = _imus(count=1)
+    data = bytearray(write_dataflash(tmp_path / 'whole.bin', imus).read_bytes())
+    middle = len(data) // 2
+    data[middle:middle + 60] = bytes(60)
+    path = tmp_path / 'damaged.bin'
+    path.write_bytes(bytes(data))
+    run = load_run(path)
+    assert len(imus[0].t) - 3 <= len(run) < len(imus[0].t)
+    assert 'pymavlink skipped damaged bytes' in run.info['log']
+    assert capfd.readouterr().err == ''          # the indexer's reports do not leak

@@ -147,3 +147,16 @@ def test_a_folder_of_logs_expands_to_its_logs(tmp_path):
         write_ulog(folder / name, px4_topics(imus))
     runs = load_runs(folder)
     assert [r.name.rsplit('/', 1)[-1] for r in runs] == ['run_2.ulg', 'run_10.ulg']
+
+
+def test_damaged_bytes_inside_are_said_on_the_read_line_not_taken_for_a_cut(tmp_path):
+    imus = [replace(_imus(count=1)[0], accel=None)]
+    data = bytearray(write_ulog(tmp_path / 'whole.ulg', px4_topics(imus)).read_bytes())
+    middle = len(data) // 2
+    data[middle:middle + 60] = bytes(60)
+    path = tmp_path / 'damaged.ulg'
+    path.write_bytes(bytes(data))
+    assert ulog_truncated_bytes(path) == 0
+    run = load_run(path)
+    assert 0 < len(run) < len(imus[0].t)
+    assert 'pyulog found damaged messages (skipped)' in run.info['log']
