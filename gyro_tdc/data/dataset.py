@@ -206,10 +206,11 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     are physically impossible values (a temperature outside ``TEMP_PLAUSIBLE_C``, a rate
     above ``MAX_RATE_RAD_S`` in magnitude). Every drop is counted in
     ``run.info['rejected']``: ``imu_nonfinite``, ``temp_nonfinite``, ``ref_nonfinite``,
-    ``undecodable``, ``imu_implausible``, ``temp_implausible``, ``ref_implausible``,
-    ``duplicate_stamps``, ``temp_duplicate_stamps``, ``out_of_order``, ``no_temperature``,
-    ``no_reference``. Messages missing against the bag's metadata and conflicting
-    thermometer readings are reported in ``run.info['warnings']``.
+    ``undecodable``, ``temp_before_imu`` (Float readings before the first IMU message),
+    ``imu_implausible``, ``temp_implausible``, ``ref_implausible``, ``duplicate_stamps``,
+    ``temp_duplicate_stamps``, ``out_of_order``, ``no_temperature``, ``no_reference``.
+    Messages missing against the bag's metadata and conflicting thermometer readings are
+    reported in ``run.info['warnings']``.
 
     Parameters
     ----------
@@ -256,13 +257,15 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
                 'temp_nonfinite': data.rejected['temp_nonfinite'],
                 'ref_nonfinite': data.rejected['ref_nonfinite'],
                 'undecodable': data.rejected['undecodable'],
+                'temp_before_imu': data.rejected.get('temp_before_imu', 0),
                 'imu_implausible': 0, 'temp_implausible': 0, 'ref_implausible': 0,
                 'duplicate_stamps': 0, 'temp_duplicate_stamps': 0, 'out_of_order': 0,
                 'no_temperature': 0, 'no_reference': 0}
     warnings: list[str] = list(extra.pop('warnings', ()))
     messages = {} if extra else _check_counts(bag, data, {
         imu_topic: len(data.imu_t) + data.rejected['imu_nonfinite'],
-        temperature_topic: len(data.temp_t) + data.rejected['temp_nonfinite'],
+        temperature_topic: (len(data.temp_t) + data.rejected['temp_nonfinite']
+                            + data.rejected.get('temp_before_imu', 0)),
         **({reference_topic: len(data.ref_t) + data.rejected['ref_nonfinite']}
            if data.ref_t is not None else {})}, o.max_loss, warnings)
 
