@@ -64,21 +64,27 @@ setup(
             if f.endswith('.launch.xml'))),
     ] + config_data_files(),
     python_requires='>=3.10',
+    # What the robot needs: the nodes import numpy and PyYAML and nothing else outside ROS
+    # (test/system/test_packaging.py starts them with every training module blocked).
     install_requires=[
         'setuptools',
         'numpy>=1.26',
-        'scipy>=1.11',
         'PyYAML>=6.0',
-        'matplotlib>=3.6',
-        'rosbags>=0.11',
-        'statsmodels>=0.14',
-        'AllanTools>=2019.9',
-        'tqdm>=4.60',
-        'dask[distributed]>=2024.1',
-        'pyulog>=1.1',
-        'pymavlink>=2.4.40',
     ],
     extras_require={
+        # Training, evaluation, reports, simulation, fleet calibration and flight-controller
+        # logs: pip install 'gyro_tdc[train]' (package.xml: the GYRO_TDC_TRAINING condition).
+        'train': [
+            'scipy>=1.11',
+            'matplotlib>=3.6',
+            'rosbags>=0.11',
+            'statsmodels>=0.14',
+            'AllanTools>=2019.9',
+            'tqdm>=4.60',
+            'dask[distributed]>=2024.1',
+            'pyulog>=1.1',
+            'pymavlink>=2.4.40',
+        ],
         'test': ['pytest'],
     },
     zip_safe=True,

@@ -63,14 +63,116 @@ def test_package_xml_is_valid_ament_python(package):
         maintainer.validate()  # catkin_pkg's e-mail check
 
 
+#: rosdep keys of what only training, evaluation, reports and fleet calibration need
+#: (rosdistro's rosdep/python.yaml); statsmodels, allantools, dask and pyulog have none.
+TRAINING_KEYS = {'python3-scipy', 'python3-matplotlib', 'python3-tqdm', 'python3-rosbags-pip',
+                 'python3-pymavlink-pip'}
+#: Import names of setup.py's extras_require['train'], which the nodes must never import.
+TRAINING_MODULES = ('scipy', 'matplotlib', 'rosbags', 'statsmodels', 'allantools', 'tqdm',
+                    'dask', 'distributed', 'pyulog', 'pymavlink')
+
+
+def _exec_depends(package, **env) -> set:
+    package.evaluate_conditions({'ROS_VERSION': '2', 'ROS_PYTHON_VERSION': '3', **env})
+    return {d.name for d in package.exec_depends if d.evaluated_condition}
+
+
+def _ros_imports() -> set:
+    """Return the top-level packages the node modules import that are not ours or stdlib."""
+    import ast
+
+    found = set()
+    for path in (ROOT / 'gyro_tdc' / 'nodes').glob('*.py'):
+        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+            if isinstance(node, ast.Import):
+                found |= {alias.name.split('.')[0] for alias in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+                found.add(node.module.split('.')[0])
+    return found - set(sys.stdlib_module_names) - {'gyro_tdc', '__future__', 'numpy', 'yaml'}
+
+
 def test_package_xml_dependencies(package):
-    package.evaluate_conditions({'ROS_VERSION': '2', 'ROS_PYTHON_VERSION': '3'})
-    exec_depends = {d.name for d in package.exec_depends}
-    assert exec_depends >= {
-        'rclpy', 'sensor_msgs', 'std_msgs', 'geometry_msgs', 'diagnostic_msgs', 'std_srvs',
-        'python3-numpy', 'python3-scipy', 'python3-yaml', 'python3-matplotlib'}
+    everything = _exec_depends(package)
+    robot = _exec_depends(package, GYRO_TDC_TRAINING='0')
+    # Every ROS package a node imports directly, for the robot too; numpy and PyYAML.
+    assert _ros_imports() >= {'rclpy', 'rcl_interfaces', 'builtin_interfaces', 'sensor_msgs'}
+    assert robot == _ros_imports() | {'python3-numpy', 'python3-yaml', 'ros2launch'}
+    # Training's rosdep keys unless GYRO_TDC_TRAINING=0 says the robot only compensates.
+    assert everything == robot | TRAINING_KEYS
+    assert _exec_depends(package, GYRO_TDC_TRAINING='1') == everything
     assert {d.name for d in package.test_depends} >= {
         'ament_copyright', 'ament_flake8', 'ament_pep257', 'python3-pytest'}
+
+
+def test_setup_splits_the_robot_from_training(setup_kwargs):
+    def names(reqs):
+        return {re.split(r'[\[<>=]', r)[0].lower() for r in reqs}
+
+    assert names(setup_kwargs['install_requires']) == {'setuptools', 'numpy', 'pyyaml'}
+    train = names(setup_kwargs['extras_require']['train'])
+    assert train == {m.replace('distributed', 'dask') for m in TRAINING_MODULES} | {'allantools'}
+    # requirements.txt pins everything a full install takes.
+    pinned = {line.split('==')[0].split('[')[0].strip().lower()
+              for line in (ROOT / 'requirements.txt').read_text().splitlines()
+              if '==' in line and not line.startswith('#')}
+    assert train | {'numpy', 'pyyaml'} <= pinned
+
+
+# Run in a child interpreter: a meta-path finder refuses every training module, both nodes are
+# imported, a CompensatorNode with the shipped model compensates one sample and a DriverNode
+# reads a fake IIO gyro; then no training module may be loaded.
+_BLOCKED_CHILD = r"""
+import importlib.abc
+import sys
+
+BLOCKED = set(sys.argv[1].split(','))
+refused = []
+
+
+class Refuse(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path=None, target=None):
+        if name.split('.')[0] in BLOCKED:
+            refused.append(name)
+            raise ImportError(f'{name} is a training dependency')
+        return None
+
+
+sys.meta_path.insert(0, Refuse())
+from gyro_tdc.nodes.compensator_node import CompensatorNode
+from gyro_tdc.nodes.driver_node import DriverNode
+import rclpy
+from rclpy.context import Context
+from rclpy.parameter import Parameter
+
+context = Context()
+rclpy.init(context=context)
+node = CompensatorNode(context=context, parameter_overrides=[
+    Parameter('model_file', value=sys.argv[2])])
+core = node.core
+core.process(100.0, 0.01, 0.02, 0.03)
+core.add_temperature(100.0, 30.0)
+out = core.process(100.01, 0.01, 0.02, 0.03)
+node.destroy_node()
+driver = DriverNode(context=context, parameter_overrides=[
+    Parameter('backend', value='iio'), Parameter('device_dir', value=sys.argv[3])])
+driver.destroy_node()
+rclpy.shutdown(context=context)
+loaded = sorted({m.split('.')[0] for m in sys.modules} & BLOCKED)
+print('flags', out[4], 'refused', refused, 'loaded', loaded)
+"""
+
+
+def test_the_nodes_import_no_training_dependency(tmp_path):
+    from fake_iio import l3gd20_files, make_device
+
+    device = make_device(tmp_path, l3gd20_files())
+    model = ROOT / 'config' / 'models' / 'l3gd20_modified.yaml'
+    env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
+    proc = subprocess.run([sys.executable, '-c', _BLOCKED_CHILD, ','.join(TRAINING_MODULES),
+                           str(model), str(device)], cwd=str(tmp_path), env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.splitlines()[-1] == 'flags 0 refused [] loaded []', proc.stdout
 
 
 def test_versions_agree(package, setup_kwargs):
