@@ -62,6 +62,11 @@ setup(
         ('share/' + package_name + '/launch', sorted(
             os.path.join('launch', f) for f in os.listdir(os.path.join(here, 'launch'))
             if f.endswith('.launch.xml'))),
+        # The driver recipes: ros2 launch gyro_tdc recipes/<driver>.launch.xml (doc/drivers.md).
+        ('share/' + package_name + '/launch/recipes', sorted(
+            os.path.join('launch', 'recipes', f)
+            for f in os.listdir(os.path.join(here, 'launch', 'recipes'))
+            if f.endswith('.launch.xml'))),
     ] + config_data_files(),
     python_requires='>=3.10',
     # What the robot needs: the nodes import numpy and PyYAML and nothing else outside ROS
