@@ -101,7 +101,9 @@ napoleon_preprocess_types = True
 
 html_theme = 'sphinx_rtd_theme'
 html_theme_options = {'navigation_depth': 3, 'collapse_navigation': False}
-html_static_path = []
+# Wrapping reference tables (doc/_ext/static/gyro_tdc.css).
+html_static_path = ['_ext/static']
+html_css_files = ['gyro_tdc.css']
 html_show_sourcelink = False
 
 # -- rosdoc2 --------------------------------------------------------------------------------

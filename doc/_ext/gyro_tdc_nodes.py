@@ -215,7 +215,7 @@ def _value(value: Any) -> str:
 
 
 def parameter_rows(specs: Any) -> list[list[str]]:
-    """Return the parameter table rows of a ``PARAMS`` tuple (reST cells)."""
+    """Return the parameter table rows of a ``PARAMS`` tuple (reST cells; read-only yes/no)."""
     rows = []
     for spec in specs:
         if spec.choices:
@@ -224,10 +224,11 @@ def parameter_rows(specs: Any) -> list[list[str]]:
             valid = literal(f'{_value(spec.lo)} .. {_value(spec.hi)}')
         else:
             valid = ''
-        rows.append([literal(spec.name), type(spec.default).__name__,
-                     literal(_value(spec.default)), escape(spec.unit),
-                     valid, 'yes' if spec.read_only else 'no: settable at run time',
-                     escape(spec.meaning)])
+        default = literal(_value(spec.default))
+        if spec.unit:
+            default += ' ' + escape(spec.unit)
+        rows.append([literal(spec.name), type(spec.default).__name__, default, valid,
+                     'yes' if spec.read_only else 'no', escape(spec.meaning)])
     return rows
 
 
@@ -251,14 +252,13 @@ class NodesDirective(GeneratedDirective):
             lines += list_table(
                 ['Direction', 'Name', 'Type', 'Only when', 'Created in'],
                 [[i.kind, i.name, i.types, i.condition, i.where] for i in interfaces(cls)],
-                widths=[10, 20, 30, 20, 20])
+                widths=[10, 22, 32, 14, 22])
             lines += heading('Parameters', '~')
             lines += [f'The rows of :py:data:`{module.__name__}.PARAMS` '
                       f'(``ros2 run gyro_tdc {name} --help`` prints the same table).', '']
             lines += list_table(
-                ['Parameter', 'Type', 'Default', 'Unit', 'Valid values', 'Read-only',
-                 'Meaning'], parameter_rows(module.PARAMS),
-                widths=[16, 6, 12, 8, 14, 10, 34])
+                ['Parameter', 'Type', 'Default [unit]', 'Valid values', 'Read-only', 'Meaning'],
+                parameter_rows(module.PARAMS), widths=[22, 6, 14, 16, 8, 34])
         return lines
 
 

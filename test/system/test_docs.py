@@ -132,7 +132,7 @@ def test_every_node_parameter_is_a_row_of_its_table(reference):
     for node, params in (('compensator_node', COMPENSATOR_PARAMS),
                          ('driver_node', DRIVER_PARAMS)):
         header, *rows = page.table(node, 'Parameters')
-        assert header[:3] == ['Parameter', 'Type', 'Default']
+        assert header[:3] == ['Parameter', 'Type', 'Default [unit]']
         assert [row[0] for row in rows] == [spec.name for spec in params]
         assert [row[1] for row in rows] == [type(spec.default).__name__ for spec in params]
         read_only = header.index('Read-only')
