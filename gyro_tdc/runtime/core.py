@@ -118,6 +118,8 @@ class Tally:
 
     ``counts``: ``in``, ``out`` and ``compensated`` samples; ``flags``: samples per flag bit;
     ``accel``: accelerometer samples ``compensated``, ``passed through`` and ``missing``.
+    Every sample goes out once, compensated, passed through or raw after an error, so ``out``
+    is not counted per sample: :attr:`CompensatorCore.counts` works it out when read.
     """
 
     counts: dict[str, int] = field(default_factory=lambda: {
@@ -228,8 +230,6 @@ class CompensatorCore:
     model_id = property(attrgetter('slot.model_id'), doc="The model's content id.")
     anchor = property(attrgetter('reanchoring.anchor'),
                       doc='The start-up re-anchoring shift, or None.')
-    counts = property(attrgetter('tally.counts'),
-                      doc="Samples ``in``, ``out`` and ``compensated`` (the core's dict).")
     flag_counts = property(attrgetter('tally.flags'), doc='Samples per flag bit.')
     accel_counts = property(attrgetter('tally.accel'),
                             doc='Accelerometer samples compensated, passed through, missing.')
@@ -250,6 +250,14 @@ class CompensatorCore:
                       doc='The latest outside motion report: None before any, else motion.')
     learned_installs = property(attrgetter('learning.installs'), doc=(
         'Learned models installed (on time or late: the learner counts the late ones).'))
+
+    @property
+    def counts(self) -> dict[str, int]:
+        """Return the samples ``in``, ``out`` and ``compensated`` (the core's own dict)."""
+        tally = self.tally
+        counts = tally.counts
+        counts['out'] = counts['compensated'] + tally.flags[PASSTHROUGH] + tally.errors
+        return counts
 
     @property
     def accel_on(self) -> bool:
@@ -589,9 +597,7 @@ class CompensatorCore:
         stream.temp = temp
         stream.flags = flags
         stream.distance_c = dist
-        counts = tally.counts
-        counts['out'] += 1
-        counts['compensated'] += 1
+        tally.counts['compensated'] += 1
         if flags:
             fc = tally.flags
             if flags & STALE:
@@ -696,7 +702,6 @@ class CompensatorCore:
         tally = self.tally
         tally.flags[why] += 1
         tally.flags[PASSTHROUGH] += 1
-        tally.counts['out'] += 1
         stream = self.stream
         stream.flags = flags
         if math.isfinite(t):
@@ -707,7 +712,6 @@ class CompensatorCore:
     def fail(self, exc: Exception) -> Vec3:
         """Count a sample whose compensation raised ``exc`` (sent raw); return its variance."""
         tally = self.tally
-        tally.counts['out'] += 1
         tally.errors += 1
         tally.last_error = f'{type(exc).__name__}: {exc}'
         var = self.policy.passthrough_variance
