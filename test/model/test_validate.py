@@ -243,7 +243,7 @@ def _plausible(m: CompensationModel, bound: float) -> None:
         assert np.all(np.isfinite(b)) and np.abs(b).max() <= bound, (policy, np.abs(b).max())
 
 
-@settings(max_examples=200, deadline=None, derandomize=True,
+@settings(max_examples=200, deadline=None, derandomize=True, database=None,
           suppress_health_check=[HealthCheck.too_slow])
 @given(data=st.data())
 @pytest.mark.parametrize('base', _MAKERS)
