@@ -359,7 +359,8 @@ class ImuView:
     def patched(self, wx: float, wy: float, wz: float,
                 var: tuple[float, float, float], mark: bool = False,
                 accel: tuple[float, float, float] | None = None,
-                accel_var: tuple[float, float, float] | None = None) -> bytes:
+                accel_var: tuple[float, float, float] | None = None,
+                base_variance: float = 0.0) -> bytes:
         """
         Return a copy with ``angular_velocity`` replaced and ``var`` added to its covariance.
 
@@ -368,7 +369,9 @@ class ImuView:
         wx, wy, wz : float, rad/s
             New angular velocity.
         var : tuple of 3 float, (rad/s)^2
-            Added to the covariance diagonal unless its first element is -1.
+            Added to the covariance diagonal unless its first element is -1 (REP 145: no
+            data) or the covariance is all zero (unknown) and ``base_variance`` is not > 0:
+            unknown stays unknown, unmarked.
         mark : bool
             Also write :mod:`gyro_tdc.data.mark`'s mark into the diagonal (when all three
             entries are positive and finite).
@@ -377,6 +380,10 @@ class ImuView:
         accel_var : tuple of 3 float, (m/s^2)^2, optional
             Added to the ``linear_acceleration_covariance`` diagonal unless its first element
             is -1 (None: left as it is). The mark is only ever in the angular velocity's.
+        base_variance : float, (rad/s)^2
+            The base of an all-zero (unknown) angular velocity covariance: > 0, its diagonal
+            becomes ``base_variance + var`` (and is marked with ``mark``); else it stays all
+            zero.
 
         Returns
         -------
@@ -389,8 +396,11 @@ class ImuView:
         _VEC3.pack_into(buf, base + ANGULAR_VELOCITY, wx, wy, wz)
         c = base + ANGULAR_VELOCITY_COV
         cov = _COV.unpack_from(buf, c)
-        if cov[0] != -1.0:
-            v0, v4, v8 = cov[0] + var[0], cov[4] + var[1], cov[8] + var[2]
+        b = 0.0
+        if cov[0] == 0.0 and not any(cov):  # REP 145 unknown: stays so without a base
+            b = base_variance if base_variance > 0.0 else None
+        if cov[0] != -1.0 and b is not None:
+            v0, v4, v8 = cov[0] + (b + var[0]), cov[4] + (b + var[1]), cov[8] + (b + var[2])
             _F64.pack_into(buf, c, v0)
             _F64.pack_into(buf, c + 32, v4)
             _F64.pack_into(buf, c + 64, v8)

@@ -171,12 +171,21 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
             wx, wy, wz = w.x, w.y, w.z
             aout, avar = None, (var if a is not None and core.accel_on else None)
         w.x, w.y, w.z = wx, wy, wz
+        # REP 145: -1 in element 0 is no data (left as it came); all zero is unknown, which
+        # stays unknown (unmarked: the mark says a known variance was widened) unless
+        # base_variance gives unknown input a base (ImuView.patched, the same rule).
         if cov[0] != -1.0:
-            cov[0] += var[0]
-            cov[4] += var[1]
-            cov[8] += var[2]
-            if not flags & PASSTHROUGH:
-                mark_diagonal(cov)
+            base = core.policy.base_variance
+            if cov[0] != 0.0 or any(cov):
+                base = 0.0
+            elif base <= 0.0:
+                base = None
+            if base is not None:
+                cov[0] += base + var[0]
+                cov[4] += base + var[1]
+                cov[8] += base + var[2]
+                if not flags & PASSTHROUGH:
+                    mark_diagonal(cov)
         if aout is not None:
             la.x, la.y, la.z = aout
         if avar is not None:
@@ -209,7 +218,8 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
         except Exception as exc:  # the callback edge: never lose the message
             var, flags = self._on_error(exc), PASSTHROUGH
             aout, avar = None, (var if a is not None and core.accel_on else None)
-        self._pub.publish(view.patched(wx, wy, wz, var, not flags & PASSTHROUGH, aout, avar))
+        self._pub.publish(view.patched(wx, wy, wz, var, not flags & PASSTHROUGH, aout, avar,
+                                       core.policy.base_variance))
 
     def _on_malformed(self, exc: Exception, size: int) -> None:
         """Count a message that is not an Imu (nothing to republish); the stream goes on."""

@@ -69,6 +69,11 @@ PARAMS = (
               'd from the range [(rad/s)^2].', 0.0, 1.0e3, policy=True),
     ParamSpec('passthrough_variance', 1.0e-4, 'Added to the covariance diagonal when the raw '
               'rate is passed through uncompensated [(rad/s)^2].', 0.0, 1.0e3, policy=True),
+    ParamSpec('base_variance', 0.0, 'Base variance for an input whose '
+              'angular_velocity_covariance is all zero (REP 145: unknown). 0: unknown stays '
+              'unknown (all zero out, no compensation mark); > 0: the output diagonal is this '
+              "plus the model's variance, marked. A -1 in element 0 (no data) stays as it "
+              'came [(rad/s)^2].', 0.0, 1.0e3, policy=True, read_only=False),
     ParamSpec('reanchor_on_start', False, 'Shift the model offset so the compensated rate '
               'averages zero once the IMU is still and the mean is known to '
               'reanchor_tolerance.', policy=True),
@@ -115,6 +120,11 @@ PARAMS = (
               'differs, the node warns in the log and on /diagnostics (WARN) for as long as '
               'that model is in use (a model trained on another sensor, or the shipped '
               'simulated one). Empty: no check.'),
+    ParamSpec('expected_rate_hz', 0.0, 'Expected imu/data_raw rate for the liveness check '
+              'on /diagnostics (as diagnostic_updater FrequencyStatus, 10 % tolerance: WARN '
+              'when slower or faster, ERROR when none came over its window); 0: learnt from '
+              'the arrivals of the first 5 s, then only slowing is judged. Read at start: the '
+              'check is built then [Hz].', 0.0, 1.0e6),
     ParamSpec('upstream_correction', '', 'A thermal correction known to be active upstream of '
               'imu/data_raw: px4 (TC_G_ENABLE=1), ardupilot (INS_TCALn_ENABLE=1) or other. '
               'Set: the node warns in the log and on /diagnostics (WARN) and, with '

@@ -89,7 +89,7 @@ def test_policy_is_built_from_the_parameter_table():
     rows = [s for s in PARAMS if s.policy]
     assert [f.name for f in fields(Policy)] == [s.name for s in rows]
     assert Policy() == Policy(**{s.name: s.default for s in rows})
-    assert len(rows) == 17 and {'model_file', 'queue_depth', 'raw_cdr', 'executor'}.isdisjoint(
+    assert len(rows) == 18 and {'model_file', 'queue_depth', 'raw_cdr', 'executor'}.isdisjoint(
         f.name for f in fields(Policy))
     with pytest.raises(ValueError, match='still_window'):
         Policy(still_window=math.nan)
