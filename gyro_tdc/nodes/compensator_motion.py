@@ -26,6 +26,7 @@ from typing import Any
 from geometry_msgs.msg import Twist, TwistStamped
 from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.qos_overriding_options import QoSOverridingOptions
 
 __all__ = ['MOTION_MESSAGES', 'MotionInput']
 
@@ -37,7 +38,7 @@ class MotionInput:
     """Take outside motion reports and pass them to the core by stamp (mixin)."""
 
     def _init_motion(self) -> None:
-        """Subscribe ``motion_topic`` (when set) with ``input_reliability``'s QoS."""
+        """Subscribe ``motion_topic`` (when set) with ``input_reliability``'s QoS (overridable)."""
         p = self.params
         self.motion_ignored = 0     # bare Twists before the first IMU message
         if not p.motion_topic:
@@ -48,7 +49,9 @@ class MotionInput:
                                       else ReliabilityPolicy.BEST_EFFORT),
                          durability=DurabilityPolicy.VOLATILE)
         cls = MOTION_MESSAGES[p.motion_type]
-        self.create_subscription(cls, p.motion_topic, self._on_motion, qos)
+        self.create_subscription(  # qos above: the default of its qos_overrides parameters
+            cls, p.motion_topic, self._on_motion, qos,
+            qos_overriding_options=QoSOverridingOptions.with_default_policies())
 
     def _on_motion(self, msg: Any) -> None:
         if isinstance(msg, Twist):

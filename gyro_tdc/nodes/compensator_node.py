@@ -23,6 +23,7 @@ learning, motion and guards: ``doc/internals/nodes.md``.
 
 from __future__ import annotations
 
+from dataclasses import replace
 import sys
 from typing import Any, Callable
 
@@ -37,11 +38,16 @@ from gyro_tdc.nodes.compensator_learning import Learning
 from gyro_tdc.nodes.compensator_loading import LOAD_ERRORS, LOAD_POLL_S, ModelLoading, read_model
 from gyro_tdc.nodes.compensator_motion import MotionInput
 from gyro_tdc.nodes.executors import run_node
-from gyro_tdc.runtime import CompensatorCore, InputStatus, PARAMS, PASSTHROUGH, Policy
+from gyro_tdc.runtime import (CompensatorCore, InputStatus, PARAMS, PASSTHROUGH, Policy,
+                              sensor_mismatch, upstream_note)
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
                        ReliabilityPolicy)
+from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import Imu, Temperature
 from std_msgs.msg import Float32, Float64
@@ -50,11 +56,25 @@ from std_srvs.srv import Trigger
 __all__ = ['CompensatorNode', 'CompensatorParams', 'LOAD_ERRORS', 'PARAMS',
            'TEMPERATURE_MESSAGES', 'main', 'read_model']
 
-#: The compensator's parameters, read once at start-up (``model_file`` also at run time).
+#: The compensator's parameters, read at start-up; the writable rows are replaced when set.
 CompensatorParams = spec_dataclass(
     'CompensatorParams', PARAMS, "The compensator's parameters (rows of ``PARAMS``).",
     module=__name__, methods={'policy': lambda self: Policy(
         **{s.name: getattr(self, s.name) for s in PARAMS if s.policy})})
+
+#: The rows a running node takes from a parameter set: the policies (a new Policy swapped in
+#: between two messages) and the others read where they are used; ``model_file`` is loading's.
+POLICY_NAMES = frozenset(s.name for s in PARAMS if s.policy)
+LIVE_NAMES = frozenset(s.name for s in PARAMS if not s.read_only and not s.policy) - {
+    'model_file'}
+
+#: The deprecated QoS parameters, aliases of the ``qos_overrides.`` ones for one release.
+DEPRECATED_QOS = ('input_reliability', 'queue_depth')
+
+
+def qos_overrides() -> QoSOverridingOptions:
+    """Return the options of one entity's qos_overrides parameters: history, depth, reliability."""
+    return QoSOverridingOptions.with_default_policies()
 
 
 class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
@@ -100,13 +120,20 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
                               'in a loop; remap one of them')
         self.core = CompensatorCore(policy)
         self.inputs = InputStatus(p.input_reliability)
+        for name in DEPRECATED_QOS:
+            if getattr(p, name) != next(s.default for s in PARAMS if s.name == name):
+                self.get_logger().warning(
+                    f'{name} is deprecated (kept for one release): it seeds the defaults of '
+                    'the qos_overrides.<topic>.subscription|publisher.* parameters, which '
+                    'override it; set those instead')
         self.temperatures_ignored = 0  # std_msgs readings before the first IMU message
         self.learner = None
         self._init_loading(loader)
 
         self._pub = self.create_publisher(Imu, 'imu/data_compensated', QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
-            reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE))
+            reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE),
+            qos_overriding_options=qos_overrides())
         if p.input_reliability == 'reliable':
             # Keep all: nothing is overwritten here. A keep-all publisher is held back by
             # flow control; a keep-last one drops its oldest unacknowledged samples, which
@@ -127,20 +154,31 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
                               reliability=qos_profile_sensor_data.reliability,
                               durability=qos_profile_sensor_data.durability)
         events = SubscriptionEventCallbacks(message_lost=self._on_message_lost)
-        self.create_subscription(Imu, 'imu/data_raw',
-                                 self._on_imu_raw if p.raw_cdr else self._on_imu, imu_qos,
-                                 raw=p.raw_cdr, event_callbacks=events)
+        # The profiles above are the defaults of the qos_overrides.<resolved topic>.* parameters
+        # (read-only: QoS is fixed when an entity is created), which may override them.
+        imu_sub = self.create_subscription(
+            Imu, 'imu/data_raw', self._on_imu_raw if p.raw_cdr else self._on_imu, imu_qos,
+            raw=p.raw_cdr, event_callbacks=events, qos_overriding_options=qos_overrides())
+        self.inputs.reliability = imu_sub.qos_profile.reliability.name.lower()
         stamped = TEMPERATURE_MESSAGES[p.temperature_type] is Temperature
         self.create_subscription(
             TEMPERATURE_MESSAGES[p.temperature_type], 'imu/temperature',
-            self._on_temperature if stamped else self._on_float_temperature, temp_qos)
+            self._on_temperature if stamped else self._on_float_temperature, temp_qos,
+            qos_overriding_options=qos_overrides())
         self._init_motion()
         self._init_diagnostics()
         self.create_service(Trigger, '~/reload', self._on_reload)
+        # rclpy calls the callbacks added last first: the policy check runs before
+        # model_file's (which reads the file), the policy swap after the model install.
+        self.add_post_set_parameters_callback(self._on_policy_set)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.add_post_set_parameters_callback(self._on_parameters_set)
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diagnostics)
-        self.create_timer(LOAD_POLL_S, self._on_load_poll)
+        self.add_on_set_parameters_callback(self._on_set_policy)
+        # The steady clock: with use_sim_time and no /clock (or a paused bag) the reports and
+        # the model poll go on; every decision on the data follows the message stamps anyway.
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diagnostics, clock=steady)
+        self.create_timer(LOAD_POLL_S, self._on_load_poll, clock=steady)
         if p.learn:
             self._start_learning(policy)
 
@@ -149,9 +187,51 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
         self._stop_learning()
         super().destroy_node()
 
+    # -- run-time parameter changes ----------------------------------------------------
+
+    def _on_set_policy(self, params: list[Parameter]) -> SetParametersResult:
+        """Check a set of policy parameters (ROS checked types and ranges): refuse with why."""
+        changes = {q.name: q.value for q in params if q.name in POLICY_NAMES}
+        if changes:
+            try:
+                replace(self.core.policy, **changes)
+            except (TypeError, ValueError) as exc:   # Policy's own check: choices, signs
+                return SetParametersResult(successful=False, reason=str(exc))
+        return SetParametersResult(successful=True)
+
+    def _on_policy_set(self, params: list[Parameter]) -> None:
+        """Swap the new policy in on the executor's thread: it applies from the next message."""
+        changes = {q.name: q.value for q in params if q.name in POLICY_NAMES}
+        live = {q.name: q.value for q in params if q.name in LIVE_NAMES}
+        if not changes and not live:
+            return
+        self.params = replace(self.params, **changes, **live)
+        log = self.get_logger()
+        old = self.core.policy
+        policy = replace(old, **changes)
+        said = [f'{k} {getattr(old, k)!r} -> {v!r}' for k, v in changes.items()
+                if getattr(old, k) != v]
+        if said:
+            self.core.set_policy(policy)
+            if self.learner is not None and policy.temperature_timeout != \
+                    self.learner.config.temperature_timeout:
+                self.learner.config = replace(self.learner.config,
+                                              temperature_timeout=policy.temperature_timeout)
+            log.info('policy changed, from the next message: ' + ', '.join(said))
+            if (old.upstream_correction, old.upstream_policy) != (
+                    policy.upstream_correction, policy.upstream_policy):
+                note = upstream_note(policy)
+                if note:
+                    (log.warning if self.core.upstream_pass else log.info)(note)
+        if 'sensor_id' in live and self.core.model is not None:
+            mismatch = sensor_mismatch(self.core.model, self.params.sensor_id)
+            if mismatch:
+                log.warning(mismatch)
+
     # -- the hot path -----------------------------------------------------------------
 
     def _on_imu(self, msg: Imu) -> None:
+        self._last_imu = msg                # its frame_id, read by /diagnostics
         st = msg.header.stamp
         w = msg.angular_velocity
         cov = msg.angular_velocity_covariance
@@ -206,6 +286,7 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
             self._on_imu(msg)
             return
         sec, nanosec, base = found
+        self._last_imu = data               # its frame_id, read by /diagnostics
         view = ImuView(data, base)
         if view.marked():
             self.inputs.already_compensated += 1

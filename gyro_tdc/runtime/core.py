@@ -32,8 +32,8 @@ from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensat
 from gyro_tdc.runtime.flags import (FLAG_NAMES, NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE,
                                     NON_FINITE, OUT_OF_RANGE, PASSTHROUGH, STALE, UPSTREAM)
 from gyro_tdc.runtime.policy import Policy
-from gyro_tdc.runtime.priming import (advance, prepare, PreparedModel, Priming, replay,
-                                      replay_from_first)
+from gyro_tdc.runtime.priming import (advance, prepare, PREPARED_BY, prepared_for, PreparedModel,
+                                      Priming, replay, replay_from_first)
 from gyro_tdc.runtime.reanchor import Anchor, StillnessDetector, Vec3
 from gyro_tdc.runtime.temperature_hold import TemperatureHold
 import numpy as np
@@ -399,6 +399,8 @@ class CompensatorCore:
             The model and its primed streaming state.
 
         """
+        if not prepared_for(prepared, self.policy):   # read before a policy change
+            prepared = prepare(prepared.model, self.policy, prepared.priming)
         model, comp = prepared.model, prepared.comp
         stream = self.stream
         if stream.first is not None and stream.t is not None:
@@ -428,6 +430,48 @@ class CompensatorCore:
             anchoring.detector.reset(residual_var=model.residual_var)
         self.slot = ModelSlot(model, prepared.model_id, comp, prepared.var, prepared.scale,
                               prepared.static, {}, self._accel_slot(model, comp, prepared.static))
+        self._update_needs()
+
+    def set_policy(self, policy: Policy) -> None:
+        """
+        Swap in new policies between two messages (call it on the thread that compensates).
+
+        :meth:`process` reads ``policy`` once per message; what was built from the old one is
+        rebuilt here: the model in use is prepared again when a field of ``PREPARED_BY``
+        changed (replayed over the stream so far; the same model keeps its start-up shift),
+        and so are the learned models waiting for their stamp; while no start-up shift has
+        been taken, the stillness detector is made anew when a re-anchoring threshold
+        changed (its windows start over; the motion report in force carries over).
+
+        Parameters
+        ----------
+        policy : Policy
+            The new policies, checked (a :class:`Policy` checks itself when built).
+
+        """
+        old, self.policy = self.policy, policy
+        self.upstream_pass = bool(policy.upstream_correction) and (
+            policy.upstream_policy == 'passthrough')
+        still = ('still_window', 'still_gyro_std', 'still_max_rate', 'still_accel_std',
+                 'still_window_max', 'reanchor_tolerance')
+        anchoring = self.reanchoring
+        if anchoring.anchor is None and any(getattr(old, f) != getattr(policy, f)
+                                            for f in still):
+            detector = StillnessDetector(
+                policy.still_window, policy.still_gyro_std, policy.still_max_rate,
+                policy.still_accel_std, window_max=policy.still_window_max,
+                tolerance=policy.reanchor_tolerance)
+            model = self.slot.model
+            detector.reset(residual_var=None if model is None else model.residual_var)
+            if self.stream.moving and self.stream.t is not None:
+                detector.observe_motion(self.stream.t, True)
+            anchoring.detector = detector
+        if any(getattr(old, f) != getattr(policy, f) for f in PREPARED_BY):
+            gate = self.learning
+            gate.queue = deque((due, prepare(p.model, policy, p.priming))
+                               for due, p in gate.queue)
+            if self.slot.model is not None:
+                self.install(prepare(self.slot.model, policy, self.priming()))
         self._update_needs()
 
     def _accel_slot(self, model: CompensationModel, comp: StreamingCompensator,

@@ -16,7 +16,9 @@
 The compensator's parameter table and the :class:`Policy` it builds (pure, no rclpy).
 
 :data:`PARAMS` is the one table of ``compensator_node``'s parameters; its ``policy`` rows are
-the fields of :class:`Policy` (doc/internals/runtime.md).
+the fields of :class:`Policy` (doc/internals/runtime.md), settable at run time (the node
+swaps a new Policy in between two messages); a read-only row says why a change needs a
+restart.
 """
 
 from __future__ import annotations
@@ -52,23 +54,24 @@ PARAMS = (
               'continue the correction along its tangent at the range end for up to '
               'max_extrapolation_c, then hold it (linear); evaluate at the nearest valid '
               'temperature (clamp); or evaluate the model there (extrapolate).',
-              choices=OUT_OF_RANGE_POLICIES, policy=True),
+              choices=OUT_OF_RANGE_POLICIES, policy=True, read_only=False),
     ParamSpec('max_extrapolation_c', MAX_EXTRAPOLATION_C, 'How far beyond the model '
               'temperature range the linear policy follows the tangent before it holds '
-              '[degC].', 0.0, 1000.0, policy=True),
+              '[degC].', 0.0, 1000.0, policy=True, read_only=False),
     ParamSpec('temperature_timeout', 5.0, 'Temperature older than this (IMU stamp minus '
-              'thermometer stamp) is stale [s].', 0.001, 86400.0, policy=True),
+              'thermometer stamp) is stale [s].', 0.001, 86400.0, policy=True, read_only=False),
     ParamSpec('stale_policy', 'hold', 'With a stale temperature: keep compensating with the '
               'last value (hold) or pass the raw rate through (passthrough).',
-              choices=('hold', 'passthrough'), policy=True),
+              choices=('hold', 'passthrough'), policy=True, read_only=False),
     ParamSpec('stale_variance', 1.0e-6, 'Added to the angular_velocity_covariance diagonal '
               'while compensating with a stale temperature [(rad/s)^2].', 0.0, 1.0e3,
-              policy=True),
+              policy=True, read_only=False),
     ParamSpec('out_of_range_variance', 1.0e-6, 'Added to the covariance diagonal outside the '
               "model's temperature range; with linear, times 1 + (d / 5 degC)^2 at a distance "
-              'd from the range [(rad/s)^2].', 0.0, 1.0e3, policy=True),
+              'd from the range [(rad/s)^2].', 0.0, 1.0e3, policy=True, read_only=False),
     ParamSpec('passthrough_variance', 1.0e-4, 'Added to the covariance diagonal when the raw '
-              'rate is passed through uncompensated [(rad/s)^2].', 0.0, 1.0e3, policy=True),
+              'rate is passed through uncompensated [(rad/s)^2].', 0.0, 1.0e3, policy=True,
+              read_only=False),
     ParamSpec('base_variance', 0.0, 'Base variance for an input whose '
               'angular_velocity_covariance is all zero (REP 145: unknown). 0: unknown stays '
               'unknown (all zero out, no compensation mark); > 0: the output diagonal is this '
@@ -76,50 +79,60 @@ PARAMS = (
               'came [(rad/s)^2].', 0.0, 1.0e3, policy=True, read_only=False),
     ParamSpec('reanchor_on_start', False, 'Shift the model offset so the compensated rate '
               'averages zero once the IMU is still and the mean is known to '
-              'reanchor_tolerance.', policy=True),
+              'reanchor_tolerance.', policy=True, read_only=False),
     ParamSpec('reanchor_tolerance', 0.0, 'Largest standard error of the re-anchoring shift '
               "per axis; 0: auto, 0.1 x the model's residual standard deviation, at least "
-              '1e-5 rad/s [rad/s].', 0.0, 10.0, policy=True),
+              '1e-5 rad/s [rad/s].', 0.0, 10.0, policy=True, read_only=False),
     ParamSpec('still_window', STILL_WINDOW_S, 'Stillness window: the shortest averaging for '
-              're-anchoring [s].', 0.1, 3600.0, policy=True),
+              're-anchoring [s].', 0.1, 3600.0, policy=True, read_only=False),
     ParamSpec('still_window_max', STILL_WINDOW_MAX_S, 'Longest averaging for re-anchoring '
               '(the shift is taken then even when its standard error is above the '
-              'tolerance) [s].', 0.1, 86400.0, policy=True),
+              'tolerance) [s].', 0.1, 86400.0, policy=True, read_only=False),
     ParamSpec('still_gyro_std', 0.0, 'Largest per-axis standard deviation of the raw rate '
               'over a still window; 0: auto, 4 x the quietest window so far [rad/s].', 0.0,
-              10.0, policy=True),
+              10.0, policy=True, read_only=False),
     ParamSpec('still_max_rate', 0.02, 'Largest per-axis mean compensated rate over a still '
-              'window, i.e. the largest shift allowed [rad/s].', 0.0, 10.0, policy=True),
+              'window, i.e. the largest shift allowed [rad/s].', 0.0, 10.0, policy=True,
+              read_only=False),
     ParamSpec('still_accel_std', 0.0, 'Largest per-axis standard deviation of the '
               'acceleration over a still window, when the IMU has one; 0: auto, 4 x the '
-              'quietest window so far [m/s^2].', 0.0, 100.0, policy=True),
-    ParamSpec('queue_depth', 2000, 'Queue depth of the imu/data_raw (best_effort) and '
-              'imu/temperature subscriptions and of the publisher (keep last) [messages].', 1,
+              'quietest window so far [m/s^2].', 0.0, 100.0, policy=True, read_only=False),
+    ParamSpec('queue_depth', 2000, 'Deprecated (kept for one release; use qos_overrides.'
+              '<topic>.<subscription|publisher>.depth): seeds the depth of the imu/data_raw, '
+              'imu/temperature and motion_topic subscriptions and of the imu/data_compensated '
+              'publisher, which those qos_overrides parameters can still override. Read at '
+              "start: a subscription's QoS is fixed when it is created [messages].", 1,
               1000000),
     ParamSpec('input_reliability', 'best_effort', 'QoS of the imu/data_raw subscription: '
               'best_effort (REP 2003 sensor data, keep last queue_depth: the freshest samples '
               'when behind; DDS does not report what this queue overwrites) or reliable (keep '
               "all: a keep-last publisher's drops are reported, and a reliable keep-all "
-              'publisher is held back by flow control instead of losing messages).',
-              choices=('best_effort', 'reliable')),
+              'publisher is held back by flow control instead of losing messages). '
+              'Deprecated (kept for one release; use qos_overrides.<imu topic>.subscription.'
+              'reliability and .history): seeds those defaults, which the qos_overrides '
+              "parameters can still override. Read at start: a subscription's QoS is fixed "
+              'when it is created.', choices=('best_effort', 'reliable')),
     ParamSpec('load_wait', 0.1, 'Longest time a model_file set or ~/reload waits for the new '
               'file to be read and checked before answering: the IMU path pauses at most this '
               'long; a slower file is installed when ready, its outcome on /diagnostics and in '
-              'the log [s].', 0.0, 10.0),
+              'the log [s].', 0.0, 10.0, read_only=False),
     ParamSpec('raw_cdr', True, 'Take imu/data_raw as serialized CDR and patch the bytes '
               'instead of deserialising each message (same output, a fraction of the cost; '
-              'other encodings fall back to deserialising).'),
+              'other encodings fall back to deserialising). Read at start: the subscription '
+              'is created raw or typed.'),
     ParamSpec('executor', 'events', 'Executor main() spins the node with: rclpy.experimental '
-              'EventsExecutor (events, fastest) or SingleThreadedExecutor (single).',
+              'EventsExecutor (events, fastest) or SingleThreadedExecutor (single). Read at '
+              'start: main() builds the executor before spinning.',
               choices=('events', 'single')),
     ParamSpec('temperature_type', TEMPERATURE_TYPES[0], 'Message type of imu/temperature: '
               'sensor_msgs/msg/Temperature (stamped), or std_msgs/msg/Float32 or Float64 (degC, '
               'no stamp: each reading takes the stamp of the latest IMU message received; '
-              'readings before the first IMU message are ignored).', choices=TEMPERATURE_TYPES),
+              'readings before the first IMU message are ignored). Read at start: a '
+              "subscription's type is fixed when it is created.", choices=TEMPERATURE_TYPES),
     ParamSpec('sensor_id', '', "This IMU's id: when set and the model's sensor.sensor_id "
               'differs, the node warns in the log and on /diagnostics (WARN) for as long as '
               'that model is in use (a model trained on another sensor, or the shipped '
-              'simulated one). Empty: no check.'),
+              'simulated one). Empty: no check.', read_only=False),
     ParamSpec('expected_rate_hz', 0.0, 'Expected imu/data_raw rate for the liveness check '
               'on /diagnostics (as diagnostic_updater FrequencyStatus, 10 % tolerance: WARN '
               'when slower or faster, ERROR when none came over its window); 0: learnt from '
@@ -129,40 +142,44 @@ PARAMS = (
               'imu/data_raw: px4 (TC_G_ENABLE=1), ardupilot (INS_TCALn_ENABLE=1) or other. '
               'Set: the node warns in the log and on /diagnostics (WARN) and, with '
               'upstream_policy passthrough, passes the rate through instead of correcting it '
-              'twice. Empty: none known.', choices=UPSTREAM_CORRECTIONS, policy=True),
+              'twice. Empty: none known.', choices=UPSTREAM_CORRECTIONS, policy=True,
+              read_only=False),
     ParamSpec('upstream_policy', 'passthrough', 'With upstream_correction set: pass the raw '
               'rate through, flagged and without the compensation mark (passthrough), or '
               'compensate anyway, for a model trained on the already corrected rate '
-              '(compensate; no WARN).', choices=UPSTREAM_POLICIES, policy=True),
+              '(compensate; no WARN).', choices=UPSTREAM_POLICIES, policy=True, read_only=False),
     ParamSpec('learn', False, 'Learn the bias vs temperature from still time while '
               'compensating (gyro_tdc.learn.learner): still-stretch means in 1 degC bins, '
               'refit off the message path, swapped in when it predicts the recent still '
               'time better; '
-              'model_file is the prior, none: starts from the first still stretch.'),
+              'model_file is the prior, none: starts from the first still stretch. Read at '
+              'start: the learner, its services and timer are made at start.'),
     ParamSpec('learn_file', '', 'Learned model and point table (JSON), written atomically '
               'every learn_save_period of message-stamp time, on ~/learn_save and at '
-              'shutdown, and resumed from at start. Empty: nothing is kept across restarts.'),
-    ParamSpec('learn_save_period', 180.0, 'Message-stamp time between saves of learn_file '
-              '[s].', 1.0, 86400.0),
+              'shutdown, and resumed from at start. Empty: nothing is kept across restarts. '
+              'Read at start: the file is opened and resumed from then.'),
+    ParamSpec('learn_save_period', 180.0, 'Message-stamp time between saves of learn_file; '
+              "read at start, into the learner's settings [s].", 1.0, 86400.0),
     ParamSpec('learn_swap_delay', 5.0, 'A learned model takes effect at the first message '
               'stamped this long after the sample that let it be computed, so the output does '
               'not depend on when the learner ran (the 0.1 s learn timer: a replay up to about '
               'learn_swap_delay / 0.1 s times faster than real time gives the same output; '
               'beyond, it is installed at the next message and counted as a late swap on '
-              '/diagnostics) [s].', 0.0, 86400.0),
+              "/diagnostics); read at start, into the learner's settings [s].", 0.0, 86400.0),
     ParamSpec('motion_topic', '', 'Outside motion reports (e.g. cmd_vel or odom; QoS as '
               'input_reliability): from a report that says motion until the next report, '
               'samples are not still, for re-anchoring and the learner alike (a slow turn at a '
               'constant rate looks still to the gyro). Before the first report nothing is '
-              'vetoed. Empty: no motion input.'),
+              'vetoed. Empty: no motion input. Read at start: the subscription is made then.'),
     ParamSpec('motion_type', MOTION_TYPES[0], 'Message type of motion_topic: twist '
               '(geometry_msgs/Twist such as cmd_vel; no stamp: each report takes the stamp of '
               'the latest IMU message received), twist_stamped (geometry_msgs/TwistStamped) or '
-              'odometry (nav_msgs/Odometry, its twist); a zero header stamp counts as none.',
+              'odometry (nav_msgs/Odometry, its twist); a zero header stamp counts as none. '
+              "Read at start: a subscription's type is fixed when it is created.",
               choices=MOTION_TYPES),
     ParamSpec('motion_threshold', MOTION_EPS, 'A motion report whose linear or angular '
               'velocity has a component above this in magnitude (or a NaN) reports motion '
-              '[m/s, rad/s].', 0.0, 1000.0, policy=True),
+              '[m/s, rad/s].', 0.0, 1000.0, policy=True, read_only=False),
 )
 
 #: One field per ``policy`` row of :data:`PARAMS` (same name, default and meaning), checked on

@@ -30,8 +30,11 @@ from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.reanchor import Vec3
 import numpy as np
 
-__all__ = ['PreparedModel', 'Priming', 'Replay', 'advance', 'prepare', 'replay',
-           'replay_from_first']
+__all__ = ['PREPARED_BY', 'PreparedModel', 'Priming', 'Replay', 'advance', 'prepare',
+           'prepared_for', 'replay', 'replay_from_first']
+
+#: The Policy fields :func:`prepare` builds a model's compensator and variance tables from.
+PREPARED_BY = ('out_of_range', 'max_extrapolation_c', 'stale_variance', 'out_of_range_variance')
 
 
 class Priming(NamedTuple):
@@ -68,6 +71,8 @@ class PreparedModel(NamedTuple):
     static: bool
     priming: Priming
     replay: Replay | None
+    #: The policy it was prepared with (:data:`PREPARED_BY`: what of it went into the tables).
+    policy: Policy | None = None
 
 
 def advance(comp: StreamingCompensator, t: float, temp: float) -> None:
@@ -143,4 +148,10 @@ def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> Prepa
     }
     return PreparedModel(model, model.model_id, comp, var,
                          np.asarray(model.scale, dtype=np.float64),
-                         set(model.features) <= STATIC_EFFECTS, priming, state)
+                         set(model.features) <= STATIC_EFFECTS, priming, state, policy)
+
+
+def prepared_for(prepared: PreparedModel, policy: Policy) -> bool:
+    """Return whether ``prepared`` was made with what ``policy`` says of :data:`PREPARED_BY`."""
+    made = prepared.policy
+    return made is None or all(getattr(made, f) == getattr(policy, f) for f in PREPARED_BY)

@@ -310,7 +310,7 @@ def test_reanchor_on_start(models, rig_factory):
 
 def test_config_file_matches_declared_parameters():
     doc = yaml.safe_load((CONFIG / 'compensator.yaml').read_text())
-    params = doc['compensator_node']['ros__parameters']
+    params = doc['/**']['ros__parameters']
     specs = {s.name: s for s in PARAMS}
     assert set(params) <= set(specs)
     assert set(params) == set(specs), set(specs) - set(params)   # every row, for the reader
@@ -331,7 +331,7 @@ def test_main_runs_as_a_process_and_stops_on_sigint(models, ros_context, tmp_pat
     path, model = models['paper']
     params = tmp_path / 'compensator.yaml'
     doc = yaml.safe_load((CONFIG / 'compensator.yaml').read_text())
-    doc['compensator_node']['ros__parameters']['model_file'] = str(path)
+    doc['/**']['ros__parameters']['model_file'] = str(path)
     params.write_text(yaml.safe_dump(doc))
     with node_process('gyro_tdc.nodes.compensator_node', '--params-file',
                       str(params)) as child:

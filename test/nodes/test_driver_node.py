@@ -206,7 +206,7 @@ def test_non_finite_sample_is_rejected(ros_context, executor):
 @pytest.mark.parametrize('name', ['driver_sim.yaml', 'driver_iio.yaml'])
 def test_config_files_match_declared_parameters(name):
     doc = yaml.safe_load((CONFIG / name).read_text())
-    params = doc['driver_node']['ros__parameters']
+    params = doc['/**']['ros__parameters']
     specs = {s.name: s for s in PARAMS}
     assert set(params) <= set(specs)
     for key, value in params.items():
