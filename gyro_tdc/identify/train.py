@@ -27,6 +27,7 @@ import os
 from typing import Callable, Sequence
 
 from gyro_tdc.data import BagOptions, coverage, load_runs, Run
+from gyro_tdc.errors import DatasetError
 from gyro_tdc.identify.accel import fit_accel
 from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import estimate_t0, fit_model
@@ -34,7 +35,45 @@ from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.result import TrainResult
 from gyro_tdc.model import save_model
 
-__all__ = ['train']
+__all__ = ['data_frame', 'train']
+
+
+def data_frame(runs: Sequence[Run]) -> str:
+    """
+    Return the frame the training data were recorded in, for the model's ``sensor.frame_id``.
+
+    The frame is the ``header.frame_id`` of the IMU messages each run was read from
+    (``run.info['frame_id']``); the compensator warns when its input is in another one.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        The training runs.
+
+    Returns
+    -------
+    str
+        Their one frame; '' when none of them names one (a flight log, a frame-less bag):
+        the model then claims none and the compensator checks nothing.
+
+    Raises
+    ------
+    DatasetError
+        When the runs were recorded in different frames: a model corrects per axis, in one
+        frame.
+
+    """
+    frames: dict[str, str] = {}
+    for run in runs:
+        frame = str(run.info.get('frame_id') or '')
+        if frame:
+            frames.setdefault(frame, run.name)
+    if len(frames) > 1:
+        named = ', '.join(f'{name}: {frame!r}' for frame, name in frames.items())
+        raise DatasetError(f'Expected the IMU data of every bag in one frame (a model corrects '
+                           f'per axis), got {len(frames)} frames ({named}); train one model '
+                           'per frame.')
+    return next(iter(frames), '')
 
 
 def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
@@ -82,7 +121,7 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     model = fit_model(runs, features=ids, params=params or None, kind=o.kind, t0=t0,
                       n_centers=o.n_centers, refine=o.refine, ridge=o.ridge, seed=o.seed,
                       thermal=o.thermal,
-                      frame_id=str(runs[0].info.get('frame_id') or 'imu_link'),
+                      frame_id=data_frame(runs),
                       sensor_id=str(o.sensor_id), created={'command': command, 'bags': names})
     accel_fit = None
     if o.accel:

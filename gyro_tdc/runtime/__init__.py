@@ -24,7 +24,9 @@ from gyro_tdc.base.face import lazy
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'core': ['CompensatorCore'],
     'flags': ['PASSTHROUGH', 'UPSTREAM'],
-    'health': ['health', 'HealthMark', 'InputStatus', 'sensor_mismatch', 'upstream_note'],
+    'health': ['frame_mismatch', 'health', 'HealthMark', 'InputStatus', 'sensor_mismatch',
+               'upstream_note'],
+    'liveness': ['InputRate', 'RateReport'],
     'policy': ['PARAMS', 'Policy', 'TEMPERATURE_TYPES', 'UPSTREAM_CORRECTIONS',
                'UPSTREAM_POLICIES'],
     'priming': ['prepare', 'PreparedModel'],

@@ -35,7 +35,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only (core does not import this m
     from gyro_tdc.runtime.policy import Policy
 
 __all__ = ['ERROR', 'Health', 'HealthMark', 'InputStatus', 'OK', 'WARN', 'accel_state',
-           'health', 'sensor_mismatch', 'upstream_note']
+           'frame_mismatch', 'health', 'sensor_mismatch', 'upstream_note']
 
 
 def accel_state(core: CompensatorCore) -> str:
@@ -108,9 +108,10 @@ class Health(NamedTuple):
     """
     The compensator's state as /diagnostics shows it.
 
-    ``level`` is ``OK``, ``WARN`` or ``ERROR``; ``hardware_id`` the model's sensor (or frame)
-    id; ``values`` the key/value pairs in display order; ``mark`` the counters now, to pass
-    to the next :func:`health` call.
+    ``level`` is ``OK``, ``WARN`` or ``ERROR``; ``hardware_id`` the ``sensor_id`` parameter,
+    else the data's frame id (never the model's: it names the hardware reporting);
+    ``values`` the key/value pairs in display order; ``mark`` the counters now, to pass to
+    the next :func:`health` call.
     """
 
     level: int
@@ -146,6 +147,30 @@ def sensor_mismatch(model: CompensationModel | None, sensor_id: str) -> str:
             "this IMU's recordings (gyro-tdc train --sensor-id)")
 
 
+def frame_mismatch(model: CompensationModel | None, frame_id: str) -> str:
+    """
+    Say why ``model`` was not trained in the frame of the data ``frame_id`` ('' when it was).
+
+    Parameters
+    ----------
+    model : CompensationModel or None
+        The model in use.
+    frame_id : str
+        ``header.frame_id`` of the latest imu/data_raw message; '' checks nothing.
+
+    Returns
+    -------
+    str
+        One line naming both frames, or '' (no model, no frame on either side, or a match).
+
+    """
+    if model is None or not frame_id or not model.frame_id or model.frame_id == frame_id:
+        return ''
+    return (f'imu/data_raw is in frame {frame_id!r} but model {model.model_id} was trained in '
+            f'{model.frame_id!r} (sensor.frame_id): its per-axis correction assumes that '
+            "frame's axes; train on data in this frame, or check the driver's frame_id")
+
+
 def upstream_note(policy: Policy) -> str:
     """
     Say what the compensator does about a declared upstream thermal correction ('' none).
@@ -177,7 +202,7 @@ def upstream_note(policy: Policy) -> str:
 
 def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file: str = '',
            last_reload: str = 'none', inputs: InputStatus | None = None,
-           sensor_id: str = '') -> Health:
+           sensor_id: str = '', frame_id: str = '') -> Health:
     """
     Judge the compensator's state: what went wrong since the last report, and its figures.
 
@@ -188,7 +213,8 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     rejected, input messages were lost or arrived already compensated since ``since``, and
     while a gyro_tdc compensator publishes the input topic, the last model file asked for
     was refused (``last_reload`` 'rejected: ...') or the model was trained for another
-    sensor than ``sensor_id`` (:func:`sensor_mismatch`); else OK ('compensating', or 'waiting for
+    sensor than ``sensor_id`` (:func:`sensor_mismatch`) or in another frame than the data's
+    ``frame_id`` (:func:`frame_mismatch`); else OK ('compensating', or 'waiting for
     imu/data_raw').
 
     Parameters
@@ -203,6 +229,9 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         Losses, marked samples and upstream compensators seen by the node.
     sensor_id : str
         The IMU the compensator runs on ('' checks nothing).
+    frame_id : str
+        ``header.frame_id`` of the latest input ('' unknown): checked against the model's
+        (:func:`frame_mismatch`, WARN) and the ``hardware_id`` when ``sensor_id`` is ''.
 
     Returns
     -------
@@ -231,6 +260,10 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         problems.append(f'model file refused, keeping {model.model_id}: '
                         f'{last_reload[len("rejected: "):]}')
     mismatch = sensor_mismatch(model, sensor_id)
+    if mismatch:
+        level = max(level, WARN)
+        problems.append(mismatch)
+    mismatch = frame_mismatch(model, frame_id)
     if mismatch:
         level = max(level, WARN)
         problems.append(mismatch)
@@ -282,6 +315,7 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         'model id': model.model_id if model is not None else '', 'model file': model_file,
         'model features': ','.join(model.features) if model is not None else '',
         'model kind': model.kind if model is not None else '',
+        'model frame': model.frame_id if model is not None else '', 'data frame': frame_id,
         'model range degC': '{:.2f}..{:.2f}'.format(*model.temp_range_c)
         if model is not None else '',
         'last reload': last_reload,
@@ -323,8 +357,7 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         values['reanchor tolerance dps'] = ','.join(f'{math.degrees(v):.5f}'
                                                     for v in anchor.tolerance)
         values['reanchor stopped on'] = anchor.reason or 'one window'
-    return Health(level, message,
-                  (model.sensor_id or model.frame_id) if model is not None else '',
+    return Health(level, message, sensor_id or frame_id,
                   {k: str(v) for k, v in values.items()},
                   HealthMark(dict(counts), core.temps.rejected, core.errors, inputs.lost,
                              inputs.already_compensated, inputs.malformed))

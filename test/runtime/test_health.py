@@ -47,15 +47,15 @@ def test_health_no_model_is_an_error_until_one_is_loaded(model):
     assert h.message == 'no model loaded (none); 1 samples passed through uncompensated'
     assert h.values['why not'] == 'no model loaded, raw rate passed through'
     core.set_model(replace(model, sensor_id='', frame_id='gyro_link'))
-    h = health(core, h.mark, model_file='m.yaml', last_reload='loaded x')
-    assert (h.level, h.message, h.hardware_id) == (OK, 'compensating', 'gyro_link')
+    h = health(core, h.mark, model_file='m.yaml', last_reload='loaded x', frame_id='gyro_link')
+    assert (h.level, h.message, h.hardware_id) == (OK, 'compensating', 'gyro_link')  # the data's
     assert h.values['model file'] == 'm.yaml' and h.values['last reload'] == 'loaded x'
     assert h.values['model features'] == ','.join(model.features)
 
 
 def test_health_waiting_then_compensating(model):
     core = CompensatorCore(Policy(), replace(model, sensor_id='L3GD20-42'))
-    h = health(core)
+    h = health(core, sensor_id='L3GD20-42', frame_id='imu_link')
     assert (h.level, h.message, h.hardware_id) == (OK, 'waiting for imu/data_raw', 'L3GD20-42')
     assert h.values['temperature degC'] == '' and h.values['temperature age s'] == ''
     core.add_temperature(10.0, 20.0)
@@ -163,3 +163,14 @@ def test_health_warns_while_a_refused_file_was_asked_for(model):
     assert h.level == WARN
     assert h.message == (f'model file refused, keeping {model.model_id}: m.yaml: nesting '
                          'deeper than 32 levels')
+
+def test_health_warns_of_a_frame_other_than_the_models(model):
+    core = CompensatorCore(Policy(), replace(model, frame_id='imu_link'))
+    core.add_temperature(10.0, 20.0)
+    core.process(10.5, 0.0, 0.0, 0.0)
+    h = health(core, frame_id='base_link')
+    assert h.level == WARN and "frame 'base_link'" in h.message and "'imu_link'" in h.message
+    assert (h.hardware_id, h.values['data frame'], h.values['model frame']) == (
+        'base_link', 'base_link', 'imu_link')
+    assert health(core, h.mark, frame_id='imu_link').level == OK
+    assert health(core, h.mark).level == OK              # no frame on the data: no check

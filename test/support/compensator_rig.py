@@ -89,7 +89,7 @@ class Rig:
     def imu(self, ns: int, w, k: int = 0) -> Imu:
         msg = Imu()
         msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(ns), 10 ** 9)
-        msg.header.frame_id = f'imu_{k % 3}'
+        msg.header.frame_id = 'imu_link'
         msg.orientation.w = 1.0
         msg.orientation_covariance[0] = -1.0
         msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = map(float, w)

@@ -314,7 +314,7 @@ def test_chained_compensators_are_reported(models, ros_context):
                    what='the graph shows the first compensator upstream')
         assert first.upstream_compensators() == ()
         # The 1 Hz timer may have reported the marked samples already: look at every report.
-        reports = [s for s in diag if s.name.startswith('second')]
+        reports = [s for s in diag if s.name.startswith('/second')]
         st = second.diagnostic_status()
         assert st.level == DiagnosticStatus.WARN
         assert any('input already compensated by gyro_tdc (' in s.message and
@@ -324,7 +324,7 @@ def test_chained_compensators_are_reported(models, ros_context):
         st = first.diagnostic_status()
         assert st.level == DiagnosticStatus.OK and values(st)['already compensated'] == '0'
         assert not any('compensator' in s.message for s in diag
-                       if s.name.startswith('compensator_node'))
+                       if s.name.startswith('/compensator_node'))
     finally:
         executor.shutdown()
         for node in (io, second, first):
@@ -444,7 +444,7 @@ def test_diagnostics_name_the_stale_temperature_under_passthrough(models, rig_fa
     rig = rig_factory(model_file=str(path), temperature_timeout=0.5, stale_policy='passthrough')
     diag = []
     rig.io.create_subscription(DiagnosticArray, '/diagnostics', lambda m: diag.extend(
-        s for s in m.status if s.name.startswith('compensator_node')), 10)
+        s for s in m.status if s.name.startswith('/compensator_node')), 10)
     rig.feed([to_ns(T0 + 0.01 * k) for k in range(200)], np.zeros((200, 3)),
              [to_ns(T0)], [20.0])
     rig.spin_until(lambda: any(values(s)['messages in'] == '200' for s in diag),
