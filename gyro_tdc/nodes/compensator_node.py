@@ -339,9 +339,12 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
 def main(args: list[str] | None = None) -> int:
     """Run the compensator node until shutdown (``ros2 run gyro_tdc compensator_node``); --help."""
     if print_help('compensator_node', __doc__, PARAMS, args, epilog=(
-            'Parameter file: share/gyro_tdc/config/compensator.yaml (--params-file). A value '
-            'of the wrong type, out of range or not one of the choices stops the node with '
-            'one line and exit status 2.')):
+            'Parameter file: share/gyro_tdc/config/compensator.yaml (--params-file; keyed /**, '
+            'it applies under any namespace and node name). A value of the wrong type, out of '
+            'range or not one of the choices stops the node with one line and exit status 2; '
+            'set at run time, it is refused with the reason. QoS: the read-only '
+            'qos_overrides.<topic>.subscription|publisher.reliability|history|depth '
+            'parameters, <topic> as resolved.')):
         return 0
     # gc.freeze(): keep the ~30k start-up objects (numpy, the model...) out of the cyclic
     # collector's full passes, which otherwise stall the callback for ~10 ms now and then (p99).
