@@ -54,16 +54,16 @@ def write(tmp_path: Path, doc: dict) -> str:
     return str(path)
 
 
-def read_back(ros_context, names: list[str]) -> dict:
-    """Read parameters of /mavros/gyro_comp through its parameter service."""
+def read_back(ros_context, names: list[str], node_name: str = '/mavros/gyro_comp') -> dict:
+    """Read parameters of a node (default /mavros/gyro_comp) through its parameter service."""
     import rclpy
     node = rclpy.create_node('param_reader', context=ros_context)
     executor = make_executor('single', ros_context)
     executor.add_node(node)
     try:
-        client = AsyncParameterClient(node, '/mavros/gyro_comp')
+        client = AsyncParameterClient(node, node_name)
         spin_until(executor, lambda: client.services_are_ready(), 20.0,
-                   what='parameter services of /mavros/gyro_comp')
+                   what=f'parameter services of {node_name}')
         future = client.get_parameters(names)
         spin_until(executor, future.done, 10.0, what='get_parameters')
         values = [parameter_value_to_python(v) for v in future.result().values]
@@ -92,6 +92,20 @@ def test_shipped_file_applies_under_a_namespace_and_a_new_name(ros_context, tmp_
 def test_driver_files_are_keyed_for_any_node(name):
     doc = shipped(name)
     assert doc['/**']['ros__parameters']['backend'] in ('sim', 'iio')
+
+
+def test_driver_file_applies_under_a_namespace_and_a_new_name(ros_context, tmp_path):
+    from gyro_tdc.nodes.driver_node import PARAMS as DRIVER_PARAMS
+    doc = shipped('driver_sim.yaml')
+    params = doc['/**']['ros__parameters']
+    params.update(scenario='demo_fast', seed=7)             # seed: not the default
+    assert next(s.default for s in DRIVER_PARAMS if s.name == 'seed') != 7
+    with node_process('gyro_tdc.nodes.driver_node', '-r', '__ns:=/mavros', '-r',
+                      '__node:=imu_driver', '--params-file', write(tmp_path, doc)) as child:
+        values = read_back(ros_context, list(params), '/mavros/imu_driver')
+        code, log = interrupt(child)
+    assert code == 0, log
+    assert values == params
 
 
 def test_invalid_value_in_the_file_is_reported_under_a_namespace(tmp_path):
