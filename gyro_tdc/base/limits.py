@@ -28,8 +28,9 @@ import math
 from gyro_tdc.errors import LimitError
 
 __all__ = ['MAX_ACCEL_DRIFT_MPS2', 'MAX_CENTERS', 'MAX_COVERAGE_BINS', 'MAX_DRIFT_RAD_S',
-           'MAX_RATE_RAD_S', 'MAX_SIM_SAMPLES', 'MAX_TEMP_RATE_C_S', 'SIM_BYTES_PER_SAMPLE',
-           'TEMP_PLAUSIBLE_C', 'check_bin_width', 'check_centers', 'check_sim_samples']
+           'MAX_RATE_RAD_S', 'MAX_SIM_SAMPLES', 'MAX_TEMP_RATE_C_S', 'MAX_TEMP_SLEW_C_S',
+           'SIM_BYTES_PER_SAMPLE', 'TEMP_PLAUSIBLE_C', 'TEMP_SLEW_MARGIN_C', 'check_bin_width',
+           'check_centers', 'check_sim_samples']
 
 #: Temperatures a MEMS die can read, degC: outside, a reading is a glitch (one home for the
 #: trainer, the driver, the compensator and the learner).
@@ -46,6 +47,15 @@ MAX_ACCEL_DRIFT_MPS2 = 20.0
 #: a few degC/min, self-heating after power-on slower still): a model's ``dTdt`` terms are
 #: checked up to it.
 MAX_TEMP_RATE_C_S = 2.0
+#: The fastest a thermometer reading may move from the last plausible one, degC/s: beyond it
+#: a reading is a glitch (``gyro_tdc.base.plausible``). Generous on purpose: a die's time
+#: constant is about 17.5 s (the paper's t_s = C rho L^2 / k), so even a full-range thermal
+#: shock (a 100 degC liquid-to-liquid step) moves it at about 6 degC/s; 20 degC/s leaves that
+#: three times over, and a real run never comes near it.
+MAX_TEMP_SLEW_C_S = 20.0
+#: A change any two readings may show however close their stamps, degC: the thermometer's
+#: noise and quantisation (registers of 0.5-1 degC per digit exist) on top of the slew.
+TEMP_SLEW_MARGIN_C = 2.0
 #: RBF centres a model file may hold.
 MAX_CENTERS = 10_000
 MAX_COVERAGE_BINS = 10_000

@@ -26,7 +26,8 @@ from pathlib import Path
 import re
 from typing import Callable, Iterable
 
-from gyro_tdc.base import MAX_RATE_RAD_S, TEMP_PLAUSIBLE_C
+from gyro_tdc.base import (MAX_RATE_RAD_S, MAX_TEMP_SLEW_C_S, plausible_temperatures,
+                           TEMP_PLAUSIBLE_C)
 from gyro_tdc.data.bag_reader import read_bag, small_pages
 from gyro_tdc.data.dataflash import read_dataflash
 from gyro_tdc.data.flightlog import detect_format, flight_log_data, is_flight_log
@@ -203,8 +204,10 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     IMU samples are sorted by stamp; of samples sharing a stamp the first in the bag is
     kept. Samples with a non-finite rate, without a trusted temperature (see
     :func:`align_temperature`) or before the first reference message are dropped, and so
-    are physically impossible values (a temperature outside ``TEMP_PLAUSIBLE_C``, a rate
-    above ``MAX_RATE_RAD_S`` in magnitude). Every drop is counted in
+    are physically impossible values (a temperature the plausibility gate refuses, outside
+    ``TEMP_PLAUSIBLE_C`` or jumping faster than ``MAX_TEMP_SLEW_C_S`` from the last plausible
+    reading, :mod:`gyro_tdc.base.plausible`; a rate above ``MAX_RATE_RAD_S`` in magnitude).
+    Every drop is counted in
     ``run.info['rejected']``: ``imu_nonfinite``, ``temp_nonfinite``, ``ref_nonfinite``,
     ``undecodable``, ``temp_before_imu`` (Float readings before the first IMU message),
     ``imu_implausible``, ``temp_implausible``, ``ref_implausible``, ``duplicate_stamps``,
@@ -279,7 +282,7 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
         t, omega, rows = t[plausible], omega[plausible], rows[plausible]
         same_rows = False
     temp_t, temp_c = data.temp_t, data.temp_c
-    plausible = (temp_c >= TEMP_PLAUSIBLE_C[0]) & (temp_c <= TEMP_PLAUSIBLE_C[1])
+    plausible = plausible_temperatures(temp_t, temp_c)     # the node's and driver's gate
     if not plausible.all():
         rejected['temp_implausible'] = int(np.count_nonzero(~plausible))
         temp_t, temp_c = temp_t[plausible], temp_c[plausible]
@@ -414,7 +417,8 @@ _DROPPED = {
     'undecodable': 'messages that could not be decoded',
     'imu_implausible': f'IMU samples above {MAX_RATE_RAD_S:g} rad/s',
     'temp_implausible': (f'temperature readings outside {TEMP_PLAUSIBLE_C[0]:g} .. '
-                         f'{TEMP_PLAUSIBLE_C[1]:g} degC'),
+                         f'{TEMP_PLAUSIBLE_C[1]:g} degC or jumping faster than '
+                         f'{MAX_TEMP_SLEW_C_S:g} degC/s'),
     'ref_implausible': f'reference messages above {MAX_RATE_RAD_S:g} rad/s',
     'duplicate_stamps': 'IMU samples repeating an earlier stamp',
     'temp_duplicate_stamps': 'temperature readings repeating a stamp (the last one kept)',

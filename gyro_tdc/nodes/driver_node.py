@@ -215,6 +215,7 @@ class DriverNode(Node):
         self._errors = 0
         self._published = 0
         self._temps = 0
+        self._temps_rejected = 0      # implausible readings the source dropped, as last logged
         self._device = ''
         self._finished = False
 
@@ -323,6 +324,13 @@ class DriverNode(Node):
         try:
             for sample in src.pending():
                 self._publish(src, check_sample(sample))
+            rejected = getattr(src, 'temperatures_rejected', 0)
+            if rejected != self._temps_rejected:
+                self._temps_rejected = rejected
+                self.get_logger().warning(
+                    f'{rejected} implausible thermometer readings dropped (outside the '
+                    'plausible range or jumping faster than the slew bound)',
+                    throttle_duration_sec=10.0)
             if self._backoff.failures:
                 self._backoff.reset()
                 self.get_logger().info(f'{self._device} reads again')
@@ -357,6 +365,7 @@ class DriverNode(Node):
             'backend': p.backend, 'device': self._device, 'state': self._state,
             'imu messages': self._published, 'temperature messages': self._temps,
             'errors': self._errors, 'last error': self._last_error,
+            'temperatures rejected (implausible)': self._temps_rejected,
         }
         for name in self._backend.diagnostics:
             values[name] = getattr(p, name)

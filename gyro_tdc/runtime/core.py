@@ -28,9 +28,11 @@ import math
 from operator import attrgetter
 from typing import Any, Callable, Sequence
 
+from gyro_tdc.base import MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_RATE_RAD_S
 from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensator, variance_growth
-from gyro_tdc.runtime.flags import (FLAG_NAMES, NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE,
-                                    NON_FINITE, OUT_OF_RANGE, PASSTHROUGH, STALE, UPSTREAM)
+from gyro_tdc.runtime.flags import (FLAG_NAMES, IMPLAUSIBLE_INPUT, IMPLAUSIBLE_OUTPUT,
+                                    NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
+                                    OUT_OF_RANGE, PASSTHROUGH, STALE, UPSTREAM)
 from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.priming import (advance, prepare, PREPARED_BY, prepared_for, PreparedModel,
                                       Priming, replay, replay_from_first)
@@ -47,6 +49,11 @@ __all__ = ['AccelEntry', 'AccelSlot', 'CompensatorCore', 'DriftEntry', 'Learning
 #: message's as it is), ``accel_variance`` what to add to the linear_acceleration_covariance
 #: diagonal, (m/s^2)^2 (None: leave it).
 Output = tuple[float, float, float, Vec3, int, Vec3 | None, Vec3 | None]
+
+#: The plausibility bounds of the message path (gyro_tdc.base.limits), as module constants.
+_MAX_RATE = MAX_RATE_RAD_S
+_MAX_DRIFT = MAX_DRIFT_RAD_S
+_MAX_ACCEL_DRIFT = MAX_ACCEL_DRIFT_MPS2
 
 
 @dataclass(frozen=True, slots=True)
@@ -497,13 +504,20 @@ class CompensatorCore:
         """
         Record one thermometer sample.
 
+        A reading that is not finite, outside the plausible range, jumping faster than the
+        slew bound (:mod:`gyro_tdc.base.plausible`) or stamped more than
+        ``temperature_timeout`` ahead of the last IMU stamp is counted and dropped: it reaches
+        neither the hold, nor a filter, nor the thermometer history, nor the learner.
+
         Returns
         -------
         bool
-            False when the sample is NaN/Inf and was rejected.
+            False when the sample was rejected.
 
         """
-        if not self.temps.add(t, temp_c):
+        last_t = self.stream.t
+        if not self.temps.add(t, temp_c, math.inf if last_t is None
+                              else last_t + self.policy.temperature_timeout):
             return False
         learner = self.learning.learner
         if learner is not None:
@@ -579,7 +593,9 @@ class CompensatorCore:
             To add to the covariance diagonal.
         flags : int
             Bit set of ``STALE``, ``OUT_OF_RANGE``, ``NON_FINITE``, ``NO_TEMPERATURE``,
-            ``NO_MODEL``, ``UPSTREAM``, ``PASSTHROUGH``.
+            ``NO_MODEL``, ``UPSTREAM``, ``IMPLAUSIBLE_INPUT`` (a rate beyond
+            ``MAX_RATE_RAD_S``), ``IMPLAUSIBLE_OUTPUT`` (an output not finite or corrected by
+            more than ``MAX_DRIFT_RAD_S``), ``PASSTHROUGH``.
         accel : tuple of 3 float or None, m/s^2
             The corrected specific force (None: leave the message's as it is).
         accel_variance : tuple of 3 float or None, (m/s^2)^2
@@ -596,9 +612,11 @@ class CompensatorCore:
         comp = slot.comp
         if comp is None:
             return self._pass(t, wx, wy, wz, NO_MODEL)
-        if not (math.isfinite(wx) and math.isfinite(wy) and math.isfinite(wz)
-                and math.isfinite(t)):
-            return self._pass(t, wx, wy, wz, NON_FINITE, accel)
+        if not (abs(wx) <= _MAX_RATE and abs(wy) <= _MAX_RATE and abs(wz) <= _MAX_RATE
+                and math.isfinite(t)):                 # NaN fails the compares
+            finite = (math.isfinite(wx) and math.isfinite(wy) and math.isfinite(wz)
+                      and math.isfinite(t))
+            return self._pass(t, wx, wy, wz, IMPLAUSIBLE_INPUT if finite else NON_FINITE, accel)
         held = self.temps.at(t)
         if held is None:
             return self._pass(t, wx, wy, wz, NO_TEMPERATURE, accel)
@@ -633,6 +651,10 @@ class CompensatorCore:
                 if more:       # linear: the added variance grows with the distance
                     var = (var[0] + more, var[1] + more, var[2] + more)
             ox, oy, oz = out.tolist()
+        # The output check: finite, and corrected by a plausible drift (NaN fails).
+        if not (abs(ox - wx) <= _MAX_DRIFT and abs(oy - wy) <= _MAX_DRIFT
+                and abs(oz - wz) <= _MAX_DRIFT and math.isfinite(var[0] + var[1] + var[2])):
+            return self._pass(t, wx, wy, wz, IMPLAUSIBLE_OUTPUT, accel)
         if slot.accel is None:
             aout = avar = None
         else:
@@ -721,9 +743,14 @@ class CompensatorCore:
                 more = variance_growth(self.policy.out_of_range_variance,
                                        acomp.range_distance_c, self.policy.out_of_range)
         var = acc.var[flags]
+        var = (var[0] + more, var[1] + more, var[2] + more) if more else var
+        if not (abs(out[0] - ax) <= _MAX_ACCEL_DRIFT and abs(out[1] - ay) <= _MAX_ACCEL_DRIFT
+                and abs(out[2] - az) <= _MAX_ACCEL_DRIFT
+                and math.isfinite(var[0] + var[1] + var[2])):
+            return self._accel_pass(accel, IMPLAUSIBLE_OUTPUT)
         self.stream.accel_flags = flags
         self.tally.accel['compensated'] += 1
-        return out, ((var[0] + more, var[1] + more, var[2] + more) if more else var)
+        return out, var
 
     def _accel_pass(self, accel: Sequence[float] | None, why: int
                     ) -> tuple[None, Vec3 | None]:

@@ -16,8 +16,9 @@
 
 from __future__ import annotations
 
-__all__ = ['FLAG_NAMES', 'NO_ACCEL_DATA', 'NO_MODEL', 'NO_TEMPERATURE', 'NON_FINITE',
-           'OUT_OF_RANGE', 'PASSTHROUGH', 'STALE', 'UPSTREAM', 'describe_flags']
+__all__ = ['FLAG_NAMES', 'IMPLAUSIBLE_INPUT', 'IMPLAUSIBLE_OUTPUT', 'NO_ACCEL_DATA', 'NO_MODEL',
+           'NO_TEMPERATURE', 'NON_FINITE', 'OUT_OF_RANGE', 'PASSTHROUGH', 'STALE', 'UPSTREAM',
+           'describe_flags']
 
 #: Flags of one processed sample (a bit set).
 STALE = 1
@@ -32,11 +33,18 @@ PASSTHROUGH = 32
 NO_ACCEL_DATA = 64
 #: The gyro is declared thermally corrected upstream (``upstream_correction``): passed through.
 UPSTREAM = 128
+#: A raw rate beyond any gyro's range (``MAX_RATE_RAD_S``): passed through.
+IMPLAUSIBLE_INPUT = 256
+#: The compensated rate, its variance or the corrected specific force was not finite, or
+#: corrected more than ``MAX_DRIFT_RAD_S`` (``MAX_ACCEL_DRIFT_MPS2``): the raw passed through.
+IMPLAUSIBLE_OUTPUT = 512
 
 FLAG_NAMES = {STALE: 'temperature stale', OUT_OF_RANGE: 'temperature out of model range',
               NON_FINITE: 'non-finite input', NO_TEMPERATURE: 'no temperature yet',
               NO_MODEL: 'no model loaded', PASSTHROUGH: 'raw rate passed through',
-              UPSTREAM: 'gyro already thermally corrected upstream'}
+              UPSTREAM: 'gyro already thermally corrected upstream',
+              IMPLAUSIBLE_INPUT: 'input rate beyond any gyro range',
+              IMPLAUSIBLE_OUTPUT: 'compensated output not finite or implausible'}
 
 
 def describe_flags(flags: int) -> str:

@@ -25,9 +25,11 @@ import math
 from types import MappingProxyType
 from typing import Mapping, NamedTuple, TYPE_CHECKING
 
+from gyro_tdc.base import MAX_TEMP_SLEW_C_S, TEMP_PLAUSIBLE_C
 from gyro_tdc.model import SETTLE_TAUS
-from gyro_tdc.runtime.flags import (describe_flags, NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE,
-                                    NON_FINITE, OUT_OF_RANGE, PASSTHROUGH, STALE, UPSTREAM)
+from gyro_tdc.runtime.flags import (describe_flags, IMPLAUSIBLE_INPUT, IMPLAUSIBLE_OUTPUT,
+                                    NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
+                                    OUT_OF_RANGE, PASSTHROUGH, STALE, UPSTREAM)
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (core does not import this module)
     from gyro_tdc.model import CompensationModel
@@ -94,7 +96,12 @@ class InputStatus:
 
 
 class HealthMark(NamedTuple):
-    """The cumulative counters at one report: flags, temperatures rejected, errors, inputs."""
+    """
+    The cumulative counters at one report: flags, temperatures rejected, errors, inputs.
+
+    ``temps_rejected`` counts non-finite readings, ``temps_implausible`` the readings the
+    plausibility gate refused.
+    """
 
     flags: Mapping[int, int] = MappingProxyType({})
     temps_rejected: int = 0
@@ -102,6 +109,7 @@ class HealthMark(NamedTuple):
     lost: int = 0
     already_compensated: int = 0
     malformed: int = 0
+    temps_implausible: int = 0
 
 
 class Health(NamedTuple):
@@ -209,8 +217,9 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     ERROR without a model (unless the rate passes through because the gyro is declared
     corrected upstream) or when a compensation raised since ``since``; WARN while an upstream
     correction is declared and the rate passes through (:func:`upstream_note`), when samples
-    had no, a stale, an out-of-range or a non-finite input, thermometer samples were
-    rejected, input messages were lost or arrived already compensated since ``since``, and
+    had no, a stale, an out-of-range, a non-finite or an implausible input or an implausible
+    output, thermometer samples were rejected (non-finite or implausible), input messages
+    were lost or arrived already compensated since ``since``, and
     while a gyro_tdc compensator publishes the input topic, the last model file asked for
     was refused (``last_reload`` 'rejected: ...') or the model was trained for another
     sensor than ``sensor_id`` (:func:`sensor_mismatch`) or in another frame than the data's
@@ -245,6 +254,7 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     counts = core.flag_counts
     new = {bit: counts[bit] - since.flags.get(bit, 0) for bit in counts}
     rejected = core.temps.rejected - since.temps_rejected
+    implausible = core.temps.implausible - since.temps_implausible
     errors = core.errors - since.errors
     problems = []
     level = OK
@@ -267,13 +277,20 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     if mismatch:
         level = max(level, WARN)
         problems.append(mismatch)
-    for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE):
+    for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE, IMPLAUSIBLE_INPUT,
+                IMPLAUSIBLE_OUTPUT):
         if new[bit]:
             level = max(level, WARN)
             problems.append(f'{describe_flags(bit)} ({new[bit]} samples)')
     if rejected:
         level = max(level, WARN)
         problems.append(f'non-finite temperature ({rejected} samples rejected)')
+    if implausible:
+        level = max(level, WARN)
+        problems.append(f'temperatures rejected (implausible): {implausible} (outside '
+                        f'{TEMP_PLAUSIBLE_C[0]:g}..{TEMP_PLAUSIBLE_C[1]:g} degC, faster than '
+                        f'{MAX_TEMP_SLEW_C_S:g} degC/s from the last good one, or stamped '
+                        'over temperature_timeout ahead of the IMU; the last good one is held)')
     lost = inputs.lost - since.lost
     if lost:
         level = max(level, WARN)
@@ -328,7 +345,10 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         'compensated': core.counts['compensated'], 'passed through': counts[PASSTHROUGH],
         'no temperature yet': counts[NO_TEMPERATURE], 'stale': counts[STALE],
         'out of range': counts[OUT_OF_RANGE], 'non-finite': counts[NON_FINITE],
-        'no model': counts[NO_MODEL], 'temperatures rejected': core.temps.rejected,
+        'no model': counts[NO_MODEL], 'implausible input': counts[IMPLAUSIBLE_INPUT],
+        'implausible output': counts[IMPLAUSIBLE_OUTPUT],
+        'temperatures rejected': core.temps.rejected,
+        'temperatures rejected (implausible)': core.temps.implausible,
         'errors': core.errors, 'last error': core.last_error,
         'input reliability': inputs.reliability, 'input lost': inputs.lost,
         'input malformed': inputs.malformed,
@@ -360,4 +380,5 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     return Health(level, message, sensor_id or frame_id,
                   {k: str(v) for k, v in values.items()},
                   HealthMark(dict(counts), core.temps.rejected, core.errors, inputs.lost,
-                             inputs.already_compensated, inputs.malformed))
+                             inputs.already_compensated, inputs.malformed,
+                             core.temps.implausible))

@@ -15,8 +15,9 @@
 """
 The compensator's thermometer held by stamp, and its covariance widening (pure).
 
-:class:`TemperatureHold` is a zero-order hold by stamp; :func:`widen_covariance` widens a
-REP 145 covariance's diagonal.
+:class:`TemperatureHold` is a zero-order hold by stamp of the readings the plausibility gate
+(:mod:`gyro_tdc.base.plausible`) lets through; :func:`widen_covariance` widens a REP 145
+covariance's diagonal.
 """
 
 from __future__ import annotations
@@ -25,12 +26,19 @@ import bisect
 import math
 from typing import Sequence
 
+from gyro_tdc.base import TemperatureGate
+
 __all__ = ['TemperatureHold', 'widen_covariance']
 
 
 class TemperatureHold:
     """
-    Zero-order hold of the thermometer by stamp.
+    Zero-order hold of the thermometer by stamp, behind the plausibility gate.
+
+    ``received`` counts the readings offered, ``rejected`` the non-finite ones and
+    ``implausible`` those outside the plausible range, jumping faster than the slew bound from
+    the last plausible one, or stamped too far ahead (:meth:`add`'s ``not_after``): none of
+    them is held, so the held reading stays the last good one and ages by its stamp.
 
     Parameters
     ----------
@@ -45,12 +53,14 @@ class TemperatureHold:
         self._capacity = int(capacity)
         self.received = 0
         self.rejected = 0
+        self.implausible = 0
+        self._gate = TemperatureGate()
 
     def __len__(self) -> int:
         """Return the number of samples held."""
         return len(self._t)
 
-    def add(self, t: float, temp_c: float) -> bool:
+    def add(self, t: float, temp_c: float, not_after: float = math.inf) -> bool:
         """
         Add one thermometer sample.
 
@@ -60,16 +70,22 @@ class TemperatureHold:
             Stamp.
         temp_c : float, degC
             Reading.
+        not_after : float, s
+            Latest plausible stamp (the core: the last IMU stamp plus the stale timeout).
 
         Returns
         -------
         bool
-            False when the sample is NaN/Inf and was rejected.
+            False when the sample is NaN/Inf (``rejected``) or implausible (``implausible``)
+            and was not held.
 
         """
         self.received += 1
         if not (math.isfinite(t) and math.isfinite(temp_c)):
             self.rejected += 1
+            return False
+        if t > not_after or not self._gate.accept(t, temp_c):
+            self.implausible += 1
             return False
         if not self._t or t > self._t[-1]:
             self._t.append(t)

@@ -17,8 +17,9 @@ Linux industrial-I/O (IIO) gyro back-end reading sysfs.
 
 :class:`IioSource` reads ``(raw + offset) * scale`` of each channel (st_gyro, BMI160,
 MPU-6050) and re-reads the scales every ``rescale_every`` samples; every file-system error
-becomes a :class:`~gyro_tdc.errors.DeviceError` naming the file. :func:`find_iio_device` finds
-the device. See ``doc/internals/sources.md``.
+becomes a :class:`~gyro_tdc.errors.DeviceError` naming the file; a thermometer reading the
+plausibility gate (:mod:`gyro_tdc.base.plausible`) refuses is dropped and counted.
+:func:`find_iio_device` finds the device. See ``doc/internals/sources.md``.
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ import stat
 import time
 from typing import Callable
 
+from gyro_tdc.base import TemperatureGate
 from gyro_tdc.errors import DeviceError
 from gyro_tdc.sources.base import ImuSample, PolledSource, Vec3
 
@@ -198,6 +200,12 @@ class IioSource(PolledSource):
     clock : callable returning float, s
         Source of sample times; ``time.monotonic`` by default.
 
+    Attributes
+    ----------
+    temperatures_rejected : int
+        Thermometer readings dropped as implausible (outside the plausible range, or jumping
+        faster than the slew bound from the last plausible one): the sample carries none.
+
     Raises
     ------
     DeviceError
@@ -223,6 +231,7 @@ class IioSource(PolledSource):
         self._temp_every = int(temp_every)
         self._rescale_every = int(rescale_every)
         self._count = 0
+        self._temp_gate = TemperatureGate()
         self._gyro = self._vector('anglvel', required=True)
         self._accel = self._vector('accel', required=False) if read_accel else None
         self._temp = self._temperature(required=require_temperature) if read_temperature else None
@@ -321,7 +330,8 @@ class IioSource(PolledSource):
         -------
         ImuSample
             Angular velocity in rad/s, acceleration in m/s^2 (or None), temperature
-            in degC (or None on samples that skip it), stamped by ``clock``.
+            in degC (or None on samples that skip it or whose reading was implausible),
+            stamped by ``clock``.
 
         Raises
         ------
@@ -341,8 +351,15 @@ class IioSource(PolledSource):
         temp_c = None
         if self._temp is not None and self._count % self._temp_every == 0:
             temp_c = self._temp.read()
+            if not self._temp_gate.accept(t, temp_c):
+                temp_c = None             # a glitch is never published
         self._count += 1
         return ImuSample(t, omega, accel, temp_c)
+
+    @property
+    def temperatures_rejected(self) -> int:
+        """Return the thermometer readings dropped as implausible."""
+        return self._temp_gate.rejected
 
     def close(self) -> None:
         """Release the device (sysfs files are opened per read; nothing is held)."""

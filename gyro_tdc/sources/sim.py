@@ -27,6 +27,7 @@ import os
 import time
 from typing import Any, Callable, Iterator
 
+from gyro_tdc.base import TemperatureGate
 from gyro_tdc.errors import DeviceError, GyroTdcError
 from gyro_tdc.sources.base import ImuSample, SourceExhausted
 
@@ -99,6 +100,7 @@ class SimSource:
         self._temps: deque[tuple[float, float]] = deque()
         self._refs: deque[tuple[float, tuple]] = deque()
         self.skipped_temperatures = 0
+        self._temp_gate = TemperatureGate()
 
     @property
     def run(self) -> Any:
@@ -185,14 +187,23 @@ class SimSource:
         t, gyro, accel = self._imu.popleft()
         temp_c = temp_t = ref = None
         temps = self._temps
+        gate = self._temp_gate
         while temps and temps[0][0] <= t:
+            reading = temps.popleft()
+            if not gate.accept(*reading):
+                continue                  # implausible: never published (counted)
             if temp_t is not None:
                 self.skipped_temperatures += 1
-            temp_t, temp_c = temps.popleft()
+            temp_t, temp_c = reading
         refs = self._refs
         while refs and refs[0][0] <= t:
             ref = refs.popleft()[1]
         return ImuSample(t, gyro, accel, temp_c, temp_t, ref)
+
+    @property
+    def temperatures_rejected(self) -> int:
+        """Return the thermometer readings dropped as implausible (the plausibility gate)."""
+        return self._temp_gate.rejected
 
     def close(self) -> None:
         """Drop the buffered samples."""

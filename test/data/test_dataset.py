@@ -254,3 +254,14 @@ def test_load_run_errors(tmp_path):
               accel=np.zeros((2, 3)), temp_t=[50.0, 51.0], temp_c=[20.0, 20.0])
     with pytest.raises(DatasetError, match='no usable sample'):
         load_run(tmp_path / 'apart')
+
+
+def test_load_run_drops_a_thermometer_jump_as_the_node_does(tmp_path):
+    """The trainer's gate is the node's: in range but 80 degC in 1 s is dropped and counted."""
+    temp_t = np.arange(100.0, 106.0, 1.0)
+    temp_c = _ramp(temp_t)
+    temp_c[2] = 100.0                   # 80 degC above its neighbours, 1 s after the last
+    _bag(tmp_path / 'bag', temp_t=temp_t, temp_c=temp_c)
+    run = load_run(tmp_path / 'bag', BagOptions(reference=(0.0, 0.0, 0.0)))
+    assert run.info['rejected']['temp_implausible'] == 1
+    assert np.abs(run.temp - 20.0).max() < 0.1

@@ -275,7 +275,7 @@ def test_reload_service_good_and_bad(models, rig_factory, tmp_path, executor):
     res = reload()
     assert not res.success and 'live.yaml' in res.message and 'YAML' in res.message
     assert rig.node.core.model.model_id == model_a.model_id
-    imu_ns, omega, temp_ns, temp_c = warming_stream(n=100)
+    imu_ns, omega, temp_ns, temp_c = warming_stream(n=100, t_hi=10.0)  # 5 degC in 0.5 s: plausible
     rig.feed(imu_ns, omega, temp_ns, temp_c)  # still compensating with the old model
     np.testing.assert_allclose(rates(rig.out), offline(model_a, imu_ns, omega, temp_ns, temp_c),
                                rtol=0, atol=1e-9)

@@ -75,7 +75,7 @@ def test_health_waiting_then_compensating(model):
     (NO_TEMPERATURE, lambda core: core.process(1.0, 0.0, 0.0, 0.0)),
     (NON_FINITE, lambda core: core.process(1.0, math.nan, 0.0, 0.0)),
     (STALE, lambda core: (core.add_temperature(0.0, 20.0), core.process(100.0, 0, 0, 0))),
-    (OUT_OF_RANGE, lambda core: (core.add_temperature(0.0, 500.0), core.process(1.0, 0, 0, 0))),
+    (OUT_OF_RANGE, lambda core: (core.add_temperature(0.0, 150.0), core.process(1.0, 0, 0, 0))),
 ])
 def test_health_warns_of_what_is_new_since_the_last_report(model, bit, feed):
     core = CompensatorCore(Policy(), model)
@@ -163,6 +163,7 @@ def test_health_warns_while_a_refused_file_was_asked_for(model):
     assert h.level == WARN
     assert h.message == (f'model file refused, keeping {model.model_id}: m.yaml: nesting '
                          'deeper than 32 levels')
+
 
 def test_health_warns_of_a_frame_other_than_the_models(model):
     core = CompensatorCore(Policy(), replace(model, frame_id='imu_link'))

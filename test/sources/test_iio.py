@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import itertools
 import math
 import shutil
 
@@ -121,13 +122,30 @@ def test_temperature_decimation(tmp_path):
 
 def test_values_are_reread_each_sample(tmp_path):
     dev = make_device(tmp_path, l3gd20_files())
-    src = IioSource(dev)
+    src = IioSource(dev, clock=itertools.count(0.0, 1.0).__next__)   # 5 degC in 1 s: plausible
     first = src.read()
     (dev / 'in_anglvel_x_raw').write_text('-100\n')
     (dev / 'in_temp_raw').write_text('30\n')
     second = src.read()
     assert second.omega[0] == pytest.approx(-first.omega[0])
     assert second.temp_c == pytest.approx(30.0)
+
+
+def test_an_implausible_thermometer_reading_is_not_published(tmp_path):
+    # in_temp_raw of 2**31 - 1 for 0.1 s (ten samples at 100 Hz): no reading comes out, each
+    # is counted, and the next good reading is published again.
+    dev = make_device(tmp_path, l3gd20_files())
+    src = IioSource(dev, clock=itertools.count(0.0, 0.01).__next__)
+    assert [src.read().temp_c for _ in range(5)] == [25.0] * 5
+    (dev / 'in_temp_raw').write_text('2147483647\n')
+    assert [src.read().temp_c for _ in range(10)] == [None] * 10
+    assert src.temperatures_rejected == 10
+    (dev / 'in_temp_raw').write_text('26\n')
+    assert src.read().temp_c == pytest.approx(26.0)
+    # A jump no thermal mass makes (25 -> 80 degC in 10 ms) is dropped too, until the slew
+    # allowance from the last good reading has grown to it.
+    (dev / 'in_temp_raw').write_text('80\n')
+    assert src.read().temp_c is None and src.temperatures_rejected == 11
 
 
 @pytest.mark.parametrize('missing', ['in_anglvel_y_raw', 'in_anglvel_scale', 'in_temp_scale'])

@@ -128,3 +128,17 @@ def test_polled_source_yields_one_reading_per_tick_stamped_in_ns(tmp_path):
     assert [s.t for s in first + second] == [12.25, 12.5]
     assert src.stamp_ns(1.23e-7) == 123 and src.stamp_ns(3.0000000004) == 3_000_000_000
     assert src.stamp_ns(12.5) == 12_500_000_000
+
+
+def test_sim_source_never_hands_out_an_implausible_reading():
+    src = sim(Wall())
+    src._fill()                                   # the first chunk of the scenario
+    t0, c0 = src._temps[0]
+    src._temps.insert(1, (t0 + 1e-3, 1e30))       # a glitch slotted into the stream
+    temps = []
+    while src._temps:
+        sample = src.read()
+        if sample.temp_c is not None:
+            temps.append(sample.temp_c)
+    assert temps and max(abs(c - c0) for c in temps) < 5.0
+    assert src.temperatures_rejected == 1

@@ -54,7 +54,7 @@ LAYERS: dict[str, frozenset] = {k: frozenset(v.split()) for k, v in {
     'learn': 'base errors model signal',
     'evaluate': 'base data errors identify model runtime signal',
     'sim': 'base data errors model',
-    'sources': 'errors sim',
+    'sources': 'base errors sim',
     'fleet': 'gyro_tdc base data errors evaluate identify model',
     'nodes': 'base data errors learn model runtime signal sim sources',
     'cli': 'base data errors evaluate fleet identify model nodes signal sim',
