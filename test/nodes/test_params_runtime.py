@@ -125,8 +125,9 @@ def diagnostics_listener(rig):
     return arrays
 
 
-def test_sim_time_without_clock_still_reports_and_compensates(rig_factory, model_file):
-    rig = rig_factory(model_file=model_file, use_sim_time=True)
+@pytest.mark.parametrize('executor', ['single', 'events'])   # main() spins events
+def test_sim_time_without_clock_still_reports_and_compensates(rig_factory, model_file, executor):
+    rig = rig_factory(executor_kind=executor, model_file=model_file, use_sim_time=True)
     assert rig.node.get_clock().now().nanoseconds == 0        # no /clock: time stands at 0
     arrays = diagnostics_listener(rig)
     out = rig.feed([to_ns(T0 + 0.1 * k) for k in range(1, 11)], [(0.02, 0.01, -0.01)] * 10,
