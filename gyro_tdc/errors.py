@@ -55,6 +55,10 @@ class LimitError(GyroTdcError):
     """An input or option exceeds a documented size limit (the message names the limit)."""
 
 
+class LearnFileError(GyroTdcError, ValueError):
+    """A ``learn_file`` is not a learner state this learner may use (one line naming why)."""
+
+
 def one_line(text: object) -> str:
     """
     Return an error or a message on one line (newlines and runs of blanks collapsed).

@@ -201,7 +201,7 @@ def clean_leftovers(path: str | os.PathLike) -> list[str]:
 
 def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = False,
                  what: str = 'file', encoding: str = 'utf-8',
-                 newline: str | None = None) -> Path:
+                 newline: str | None = None, follow_symlinks: bool = True) -> Path:
     """
     Write a file atomically (temporary file beside it, fsync, rename).
 
@@ -223,6 +223,10 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
         Text encoding.
     newline : str, optional
         Newline translation of the text stream (as for :func:`open`).
+    follow_symlinks : bool
+        False: a symbolic link at ``path`` is replaced by the new file, its target left
+        alone (the rename does not follow it, so a link put there meanwhile cannot redirect
+        the write).
 
     Returns
     -------
@@ -237,16 +241,18 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
 
     """
     path = Path(path)
-    target = _target(path)
-    if target.is_dir():
+    target = _target(path) if follow_symlinks else path
+    if target.is_dir() and (follow_symlinks or not os.path.islink(target)):
         raise OutputError(f'cannot access {what} {str(path)!r} for writing: it is a directory')
     clean_leftovers(target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
         try:
-            old = os.stat(target)
+            old = os.stat(target, follow_symlinks=follow_symlinks)
         except FileNotFoundError:
             old = None
+        if old is not None and stat.S_ISLNK(old.st_mode):
+            old = None          # a link replaced by a file: a fresh file's mode
         fd, tmp = _create_temp(target.parent, target.name)
     except OSError as exc:
         raise _fail(what, path, exc) from None

@@ -22,4 +22,5 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'learner': ['LearnConfig', 'Learner'],
+    'store': ['LearnFile', 'open_learn_file'],
 })

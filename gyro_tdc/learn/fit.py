@@ -27,7 +27,7 @@ import math
 from typing import Sequence
 
 from gyro_tdc.learn.temperature import at_state, same_thermal
-from gyro_tdc.model import CompensationModel, drift, normalise_ids, ThermalState
+from gyro_tdc.model import check_model, CompensationModel, drift, normalise_ids, ThermalState
 import numpy as np
 from numpy.typing import NDArray
 
@@ -241,7 +241,11 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
 
 def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationModel:
     """
-    Return the model of a fit record (a bias only as ``dT`` with a zero slope).
+    Return the model of a fit record (a bias only as ``dT`` with a zero slope), checked.
+
+    The model is checked as a model file's is (:func:`gyro_tdc.model.check_model`: bounded
+    parameters, a finite and plausible drift over its range and the extrapolation limit)
+    before anything installs it.
 
     Parameters
     ----------
@@ -254,13 +258,20 @@ def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationMode
     -------
     CompensationModel
 
+    Raises
+    ------
+    ModelFileError
+        The model is refused (one line naming what it computes or the field).
+
     """
     feats = tuple(fit['features'])
     coef = np.asarray(fit['coef'], dtype=np.float64)
     if not feats:
         feats, coef = ('dT',), np.vstack([coef, np.zeros((1, 3))])
-    return learned_model(coef, feats, fit['t0_c'], tuple(fit['range_c']),
-                         np.asarray(fit['resid_var']), thermal)
+    model = learned_model(coef, feats, fit['t0_c'], tuple(fit['range_c']),
+                          np.asarray(fit['resid_var']), thermal)
+    check_model(model)
+    return model
 
 
 def prediction_mse(model: CompensationModel, rows: Sequence[Sequence[float]],

@@ -29,6 +29,7 @@ import math
 from pathlib import Path
 from typing import Any, Sequence
 
+from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, learned_model,
                                 MAX_DROPS, model_of, OUTLIER_K, prediction_mse, SPAN_DT2_C,
                                 SPAN_DT3_C, SPAN_DT_C)
@@ -134,6 +135,9 @@ class Learner:
         #: Candidates handed over too late (:meth:`take_swaps`): a count of this process, not
         #: of the learned state (it depends on the step cadence, so it is not saved).
         self.late_swaps = 0
+        #: Candidates refused by the model check (:func:`gyro_tdc.model.check_model`), and
+        #: the last reason: a count of this process, not saved.
+        self.refused, self.refused_why = 0, ''
         self.reset()
 
     # -- state -----------------------------------------------------------------------
@@ -206,11 +210,13 @@ class Learner:
 
         Raises
         ------
-        ValueError
-            The state is not one this learner wrote.
+        LearnFileError
+            The state is not one this learner wrote (every field is checked first, the fit's
+            model as a model file's: nothing changes then).
 
         """
-        values, saved = decode_state(state)
+        values, saved = decode_state(state, bin_c=self.config.bin_c, bin_entries=BIN_ENTRIES,
+                                     stretches=CHECK_STRETCHES)
         self.reset()
         for name, value in values.items():
             setattr(self, name, value)
@@ -257,8 +263,9 @@ class Learner:
 
         Raises
         ------
-        ValueError
-            The file is not a learner state.
+        LearnFileError
+            The file is not a learner state (``gyro_tdc.learn.store``: read bounded, a
+            symbolic link refused, every field checked).
 
         """
         state = read_state(path)
@@ -521,7 +528,11 @@ class Learner:
         floor = float(np.nanmax(np.where(np.isfinite(self.gyro_floor), self.gyro_floor, 0.0)))
         fit = fit_points(e, grow_features(e[:, 2], len(self.bins)), t_now,
                          self.config.half_life_s, floor)
-        cand = model_of(fit, self.thermal)
+        try:
+            cand = model_of(fit, self.thermal)
+        except ModelFileError as exc:     # checked as a model file: never installed
+            self.refused, self.refused_why = self.refused + 1, str(exc)
+            return False
         new = self._score(cand)
         old = None if self.model is None else self._score(self.model)
         self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old,
@@ -556,6 +567,8 @@ class Learner:
             'learn prediction check': s['check'] or 'none yet',
             'learn session': str(self.session),
             'learn late swaps': str(self.late_swaps),
+            'learn candidates refused': (f'{self.refused} (last: {self.refused_why})'
+                                         if self.refused else '0'),
         }
 
     def summary(self) -> dict[str, Any]:

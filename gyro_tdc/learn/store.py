@@ -15,29 +15,59 @@
 """
 The learner's ``learn_file``: its state as plain types, read and written as JSON (pure).
 
-:func:`encode_state` turns a learner (any :class:`LearnerState`, such as
-:class:`gyro_tdc.learn.learner.Learner`, which this module does not import) into the dict its
-``save`` writes (tagged :data:`FORMAT`); :func:`decode_state` checks such a dict and gives back
-the attribute values it restores; :func:`write_state` and :func:`read_state` move it to and
-from a file (atomically; a missing file is no state).
+:func:`encode_state` turns a learner (any :class:`LearnerState`) into the dict its ``save``
+writes (tagged :data:`FORMAT`); :func:`decode_state` checks every field of such a dict and
+gives back the attribute values it restores; :class:`LearnFile` reads (bounded) and writes
+(atomically, never over a file that is not a learner state, never through a symbolic link)
+one file, and :func:`open_learn_file` picks the file a node learns into. The rules:
+``doc/internals/learn.md``.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 import json
+import math
+import os
 from pathlib import Path
-from typing import Any, Protocol
+import re
+import stat
+from typing import Any, Callable, Protocol
 
-from gyro_tdc.base import atomic_write
-from gyro_tdc.errors import FeatureError
-from gyro_tdc.model import ThermalState
+from gyro_tdc.base import atomic_write, MAX_RATE_RAD_S, TEMP_PLAUSIBLE_C
+from gyro_tdc.errors import FeatureError, LearnFileError, ModelFileError, OutputError
+from gyro_tdc.learn.fit import model_of
+from gyro_tdc.model import MAX_PARAM, ThermalState
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['FORMAT', 'LearnerState', 'decode_state', 'encode_state', 'read_state',
-           'write_state']
+__all__ = ['ALTERNATE_SUFFIX', 'FORMAT', 'LearnerState', 'LearnFile', 'MAX_BYTES', 'MAX_DEPTH',
+           'Opened', 'RECENT_ROWS', 'alternate_path', 'decode_state', 'dumps', 'encode_state',
+           'open_learn_file', 'read_state', 'write_state']
 
 FORMAT = 'gyro_tdc learn 1'
+#: Largest learn_file read, bytes (checked before reading). A full state (300 bins of 4
+#: entries, three recent stretches of :data:`RECENT_ROWS` windows) takes under 3 MiB.
+MAX_BYTES = 4 * 1024 * 1024
+#: Deepest nesting of lists and objects read (a learner's state nests 4 deep).
+MAX_DEPTH = 16
+#: Windows of one recent stretch kept in the file (its newest): a day of 10 s windows.
+RECENT_ROWS = 8640
+#: Added to a refused learn_file's name for the file learned into instead.
+ALTERNATE_SUFFIX = '.gyro_tdc-learn.json'
+#: Largest stamp magnitude, s (an unsigned 32-bit second count).
+MAX_STAMP_S = 2.0 ** 32
+#: Largest count (sessions, stretches, windows, swaps, samples of an entry).
+MAX_COUNT = 2 ** 53
+_FEATURES = ((), ('dT',), ('dT', 'dT2'), ('dT', 'dT2', 'dT3'))
+_REQUIRED = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 'still_s',
+             'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check',
+             'swaps')
+_OPTIONAL = ('motion', 'thermal', 'thermal_state', 'config')
+_FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points')
+_CHECK_KEYS = ('t', 'candidate_mse', 'current_mse', 'swapped')
+_CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
+_STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
 
 
 class LearnerState(Protocol):
@@ -64,36 +94,277 @@ class LearnerState(Protocol):
 
 
 def encode_state(learner: LearnerState) -> dict[str, Any]:
-    """Return the persistent state of ``learner`` as plain types (what ``save`` writes)."""
+    """
+    Return the persistent state of ``learner`` as plain types (what ``save`` writes).
+
+    A noise floor not known yet (infinite) is ``None``; a recent stretch keeps its newest
+    :data:`RECENT_ROWS` windows.
+    """
     ts = learner.thermal_state
     return {
         'format': FORMAT,
         'bins': {str(k): [list(map(float, e[:3])) + [list(map(float, e[3])), e[4], e[5]]
                           for e in v] for k, v in sorted(learner.bins.items())},
         'session': learner.session,
-        'gyro_floor': [float(v) for v in learner.gyro_floor],
-        'accel_floor': [float(v) for v in learner.accel_floor],
+        'gyro_floor': _floor_out(learner.gyro_floor),
+        'accel_floor': _floor_out(learner.accel_floor),
         't_first': learner.t_first, 'still_s': learner.still_s,
-        'stretches': learner.stretches, 'windows': learner.windows, 'recent': learner.recent,
+        'stretches': learner.stretches, 'windows': learner.windows,
+        'recent': [[s[0], s[1], s[2][-RECENT_ROWS:]] for s in learner.recent],
         'fit': learner.fit, 'last_update_t': learner.last_update_t, 'last_t': learner.last_t,
         'check': learner.check, 'swaps': learner.swaps,
         'motion': [[float(m[0]), bool(m[1])] for m in learner.motion],
         'thermal': None if learner.thermal is None else learner.thermal.to_dict(),
         'thermal_state': None if ts is None else [float(ts[0]), [float(v) for v in ts[1]]],
-        'config': {k: getattr(learner.config, k) for k in (
-            'bin_c', 'half_life_s', 'window_s', 'min_still_s')},
+        'config': {k: getattr(learner.config, k) for k in _CONFIG_KEYS},
     }
 
 
-def decode_state(state: dict[str, Any]
+def _floor_out(floor: NDArray[np.float64]) -> list[float | None]:
+    """Return a noise floor as plain types: None where it is not known yet (infinite)."""
+    return [float(v) if math.isfinite(v) else None for v in floor]
+
+
+# -- decoding: every field checked, by name ------------------------------------------------
+
+
+def _bad(name: str, what: str) -> LearnFileError:
+    """Return the error for field ``name``."""
+    return LearnFileError(f'learner state: field `{name}` {what}')
+
+
+def _got(v: Any) -> str:
+    """Return a short description of a value for a message."""
+    return f'{type(v).__name__} {v!r:.40}' if not isinstance(v, (int, float)) else f'{v!r:.40}'
+
+
+def _number(v: Any, name: str, lo: float = -math.inf, hi: float = math.inf,
+            what: str = 'a number') -> float:
+    """Return ``v`` as a finite float within ``lo .. hi``."""
+    if isinstance(v, bool) or not isinstance(v, (int, float)):
+        raise _bad(name, f'must be {what}, got {_got(v)}')
+    try:
+        f = float(v)
+    except OverflowError:
+        f = math.inf
+    if not (math.isfinite(f) and lo <= f <= hi):
+        raise _bad(name, f'must be {what} (finite, {lo:g} .. {hi:g}), got {_got(v)}')
+    return f
+
+
+def _count(v: Any, name: str, lo: int = 0) -> int:
+    """Return ``v`` as an int within ``lo .. MAX_COUNT`` (an integral float is accepted)."""
+    f = _number(v, name, lo, MAX_COUNT, 'a count')
+    if f != math.floor(f):
+        raise _bad(name, f'must be a whole count, got {_got(v)}')
+    return int(f)
+
+
+def _stamp(v: Any, name: str, optional: bool = False) -> float | None:
+    """Return a stamp, s (None when ``optional`` and null)."""
+    if v is None and optional:
+        return None
+    return _number(v, name, -MAX_STAMP_S, MAX_STAMP_S, 'a stamp in s')
+
+
+def _temp(v: Any, name: str) -> float:
+    """Return a plausible temperature, degC."""
+    return _number(v, name, *TEMP_PLAUSIBLE_C, 'a plausible temperature in degC')
+
+
+def _list(v: Any, name: str, n: int | None = None, most: int | None = None) -> list:
+    """Return ``v`` as a list of ``n`` items (or at most ``most``)."""
+    if not isinstance(v, list):
+        raise _bad(name, f'must be a list, got {_got(v)}')
+    if n is not None and len(v) != n:
+        raise _bad(name, f'must hold {n} items, got {len(v)}')
+    if most is not None and len(v) > most:
+        raise _bad(name, f'must hold at most {most} items, got {len(v)}')
+    return v
+
+
+def _dict(v: Any, name: str, keys: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
+    """Return ``v`` as a dict with exactly ``keys`` (and maybe ``optional`` ones)."""
+    if not isinstance(v, dict):
+        raise _bad(name, f'must be an object, got {_got(v)}')
+    missing = [k for k in keys if k not in v]
+    extra = sorted(str(k) for k in v if k not in keys and k not in optional)
+    if missing or extra:
+        raise _bad(name, f'must hold {", ".join(keys)}'
+                   + (f'; missing {", ".join(missing)}' if missing else '')
+                   + (f'; unknown {", ".join(extra)}' if extra else ''))
+    return v
+
+
+def _rates(v: Any, name: str, bound: float = MAX_RATE_RAD_S,
+           what: str = 'a rate in rad/s') -> tuple[float, float, float]:
+    """Return three numbers within +-``bound`` (plausible rates, rad/s)."""
+    x, y, z = (_number(r, f'{name}[{i}]', -bound, bound, what)
+               for i, r in enumerate(_list(v, name, 3)))
+    return x, y, z
+
+
+def _floor_in(v: Any, name: str) -> NDArray[np.float64]:
+    """Return a noise floor: positive, or infinite (null, or Infinity in older files)."""
+    out = np.full(3, math.inf)
+    for i, f in enumerate(_list(v, name, 3)):
+        if f is None or (isinstance(f, float) and f == math.inf):
+            continue
+        out[i] = _number(f, f'{name}[{i}]', 0.0, 1e6, 'a noise floor (positive or null)')
+        if not out[i] > 0.0:
+            raise _bad(f'{name}[{i}]', f'must be positive or null, got {f!r}')
+    return out
+
+
+def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[list]]:
+    """Return the point table: bin -> entries ``[t_end, samples, temp, b, stretch, session]``."""
+    if not isinstance(v, dict):
+        raise _bad('bins', f'must be an object (bin -> entries), got {_got(v)}')
+    lo = hi = None
+    if bin_c is not None:
+        lo = math.floor(TEMP_PLAUSIBLE_C[0] / bin_c) - 1
+        hi = math.floor(TEMP_PLAUSIBLE_C[1] / bin_c) + 1
+    out: dict[int, list[list]] = {}
+    for key, entries in v.items():
+        name = f'bins[{key!r:.20}]'
+        if not (isinstance(key, str) and re.fullmatch(r'-?[0-9]{1,9}', key)):
+            raise _bad(name, 'must be keyed by a bin number')
+        k = int(key)
+        if lo is not None and not lo <= k <= hi:
+            raise _bad(name, f'must be a bin of a plausible temperature ({lo} .. {hi})')
+        rows = []
+        for j, e in enumerate(_list(entries, name, most=most)):
+            en = f'{name}[{j}]'
+            e = _list(e, en, 6)
+            rows.append([_stamp(e[0], f'{en}[0] (t_end)'),
+                         _number(e[1], f'{en}[1] (samples)', 1.0, MAX_COUNT, 'a sample count'),
+                         _temp(e[2], f'{en}[2] (temperature)'),
+                         _rates(e[3], f'{en}[3]'),
+                         _count(e[4], f'{en}[4] (stretch)'),
+                         _count(e[5], f'{en}[5] (session)')])
+        if not rows:
+            raise _bad(name, 'must hold at least one entry')
+        out[k] = rows
+    return out
+
+
+def _recent(v: Any, most: int | None) -> list[list]:
+    """Return the recent stretches: ``[stretch, session, windows]``."""
+    out = []
+    for i, s in enumerate(_list(v, 'recent', most=most)):
+        name = f'recent[{i}]'
+        s = _list(s, name, 3)
+        rows = []
+        for j, r in enumerate(_list(s[2], f'{name}[2]', most=RECENT_ROWS)):
+            rn = f'{name}[2][{j}]'
+            r = _list(r, rn, 6)
+            rows.append([_number(r[0], f'{rn}[0] (samples)', 1.0, MAX_COUNT, 'a sample count'),
+                         _temp(r[1], f'{rn}[1] (temperature)'),
+                         *(_number(r[a], f'{rn}[{a}] (mean rate)', -MAX_RATE_RAD_S,
+                                   MAX_RATE_RAD_S, 'a rate in rad/s') for a in (2, 3, 4)),
+                         _stamp(r[5], f'{rn}[5] (t_end)')])
+        out.append([_count(s[0], f'{name}[0] (stretch)'), _count(s[1], f'{name}[1] (session)'),
+                    rows])
+    return out
+
+
+def _fit(v: Any, thermal: ThermalState | None) -> dict | None:
+    """Return the fit record, its model checked like a model file's (None: no fit)."""
+    if v is None:
+        return None
+    v = _dict(v, 'fit', _FIT_KEYS)
+    feats = _list(v['features'], 'fit.features')
+    if tuple(feats) not in _FEATURES:
+        raise _bad('fit.features', f'must be one of {", ".join(map(str, _FEATURES))}, '
+                   f'got {feats!r:.60}')
+    coef = [list(_rates(row, f'fit.coef[{i}]', MAX_PARAM, 'a coefficient'))
+            for i, row in enumerate(_list(v['coef'], 'fit.coef', 1 + len(feats)))]
+    rng = [_temp(t, f'fit.range_c[{i}]') for i, t in enumerate(_list(v['range_c'],
+                                                                     'fit.range_c', 2))]
+    if not rng[0] <= rng[1]:
+        raise _bad('fit.range_c', f'must be [low, high], got {rng}')
+    fit = {'features': list(feats), 't0_c': _temp(v['t0_c'], 'fit.t0_c'), 'coef': coef,
+           'range_c': rng,
+           'resid_var': [_number(r, f'fit.resid_var[{i}]', 0.0, MAX_RATE_RAD_S ** 2,
+                                 'a variance in (rad/s)^2')
+                         for i, r in enumerate(_list(v['resid_var'], 'fit.resid_var', 3))],
+           'points': _count(v['points'], 'fit.points', 1)}
+    try:
+        model_of(fit, thermal)
+    except ModelFileError as exc:
+        raise _bad('fit', f'gives a model refused as a model file would be: {exc}') from None
+    return fit
+
+
+def _check(v: Any) -> dict | None:
+    """Return the last prediction check (None: none yet)."""
+    if v is None:
+        return None
+    v = _dict(v, 'check', _CHECK_KEYS)
+    if not isinstance(v['swapped'], bool):
+        raise _bad('check.swapped', f'must be true or false, got {_got(v["swapped"])}')
+    mse = (0.0, MAX_RATE_RAD_S ** 2 * 3, 'a squared error in (rad/s)^2')
+    return {'t': _stamp(v['t'], 'check.t'),
+            'candidate_mse': _number(v['candidate_mse'], 'check.candidate_mse', *mse),
+            'current_mse': (None if v['current_mse'] is None
+                            else _number(v['current_mse'], 'check.current_mse', *mse)),
+            'swapped': v['swapped']}
+
+
+def _thermal(v: Any) -> ThermalState | None:
+    """Return the thermal section the points were binned with (None: the thermometer)."""
+    if v is None:
+        return None
+    if not isinstance(v, dict) or not isinstance(v.get('kind'), str):
+        raise _bad('thermal', f'must be a thermal section with a `kind`, got {_got(v)}')
+    try:
+        thermal = ThermalState.from_dict(v)
+    except (FeatureError, TypeError, ValueError) as exc:
+        raise _bad('thermal', str(exc)) from None
+    for i, tau in enumerate(thermal.tau_s):
+        _number(tau, f'thermal.tau_s[{i}]', 1e-3, 1e8, 'a time constant in s')
+    return thermal
+
+
+def _thermal_state(v: Any, thermal: ThermalState | None) -> tuple[float, list[float]] | None:
+    """Return the carried thermal state: (stamp, one value per node of ``thermal``)."""
+    if v is None:
+        return None
+    nodes = 0 if thermal is None else len(thermal.tau_s)
+    if not nodes:
+        raise _bad('thermal_state', 'must be null without a thermal section with a lag')
+    v = _list(v, 'thermal_state', 2)
+    return (_stamp(v[0], 'thermal_state[0]'),
+            [_temp(x, f'thermal_state[1][{i}]')
+             for i, x in enumerate(_list(v[1], 'thermal_state[1]', nodes))])
+
+
+def _motion(v: Any) -> list[tuple[float, bool]]:
+    """Return the motion reports (stamp, moving), in stamp order."""
+    out = []
+    for i, m in enumerate(_list(v, 'motion')):
+        m = _list(m, f'motion[{i}]', 2)
+        if not isinstance(m[1], bool):
+            raise _bad(f'motion[{i}][1]', f'must be true or false, got {_got(m[1])}')
+        out.append((_stamp(m[0], f'motion[{i}][0]'), m[1]))
+    out.sort(key=lambda r: r[0])
+    return out
+
+
+def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | None = None,
+                 stretches: int | None = None
                  ) -> tuple[dict[str, Any], ThermalState | None]:
     """
-    Check a state :func:`encode_state` made; return what it restores.
+    Check every field of a state :func:`encode_state` made; return what it restores.
 
     Parameters
     ----------
-    state : dict
+    state : Any
         The state, as read from a ``learn_file``.
+    bin_c : float, degC, optional
+        The learner's bin width: bins outside the plausible temperatures are refused.
+    bin_entries, stretches : int, optional
+        Most entries a bin and most recent stretches the learner keeps.
 
     Returns
     -------
@@ -104,62 +375,329 @@ def decode_state(state: dict[str, Any]
 
     Raises
     ------
-    ValueError
-        The state is not one a learner wrote.
+    LearnFileError
+        The state is not one a learner wrote: one line naming the field, what it must be and
+        what it holds (NaN or infinite values, negative counts, wrong shapes, implausible
+        temperatures or rates, a fit whose model a model file could not hold).
 
     """
     if not isinstance(state, dict) or state.get('format') != FORMAT:
-        raise ValueError(f'not a learner state ({FORMAT!r} expected)')
-    ts = state.get('thermal_state')
+        raise LearnFileError(f'not a learner state ({FORMAT!r} expected)')
+    _dict(state, 'state', _REQUIRED, _OPTIONAL)
+    if state.get('config') is not None:
+        for k, x in _dict(state['config'], 'config', _CONFIG_KEYS).items():
+            _number(x, f'config.{k}', 0.0)
+    thermal = _thermal(state.get('thermal'))
     values = {
-        'bins': {int(k): [[float(e[0]), float(e[1]), float(e[2]),
-                           tuple(float(x) for x in e[3]), int(e[4]), int(e[5])]
-                          for e in v]
-                 for k, v in state['bins'].items()},
-        'gyro_floor': np.asarray(state['gyro_floor'], dtype=np.float64),
-        'accel_floor': np.asarray(state['accel_floor'], dtype=np.float64),
-        't_first': state['t_first'],
-        'session': int(state['session']),
-        'still_s': float(state['still_s']),
-        'stretches': int(state['stretches']),
-        'windows': int(state['windows']),
-        'recent': [list(r) for r in state['recent']],
-        'fit': state['fit'],
-        'last_update_t': state['last_update_t'],
-        'last_t': state['last_t'],
-        'last_save_t': state['last_t'],
-        'check': state['check'],
-        'swaps': int(state['swaps']),
-        'motion': [(float(m[0]), bool(m[1])) for m in state.get('motion', [])],
-        'thermal_state': None if ts is None else (float(ts[0]), [float(v) for v in ts[1]]),
+        'bins': _bins(state['bins'], bin_c, bin_entries),
+        'gyro_floor': _floor_in(state['gyro_floor'], 'gyro_floor'),
+        'accel_floor': _floor_in(state['accel_floor'], 'accel_floor'),
+        't_first': _stamp(state['t_first'], 't_first', optional=True),
+        'session': _count(state['session'], 'session'),
+        'still_s': _number(state['still_s'], 'still_s', 0.0, MAX_COUNT, 'a duration in s'),
+        'stretches': _count(state['stretches'], 'stretches'),
+        'windows': _count(state['windows'], 'windows'),
+        'recent': _recent(state['recent'], stretches),
+        'fit': _fit(state['fit'], thermal),
+        'last_update_t': _stamp(state['last_update_t'], 'last_update_t', optional=True),
+        'last_t': _stamp(state['last_t'], 'last_t', optional=True),
+        'check': _check(state['check']),
+        'swaps': _count(state['swaps'], 'swaps'),
+        'motion': _motion(state.get('motion', [])),
+        'thermal_state': _thermal_state(state.get('thermal_state'), thermal),
     }
-    try:
-        saved = state.get('thermal')
-        thermal = None if saved is None else ThermalState.from_dict(saved)
-    except FeatureError as exc:
-        raise ValueError(f'learner state: `thermal` {exc}') from None
+    values['last_save_t'] = values['last_t']
     return values, thermal
 
 
-def write_state(path: str | Path, state: dict[str, Any]) -> None:
-    """Write ``state`` to ``path`` atomically (JSON)."""
-    atomic_write(path, json.dumps(state, indent=1) + '\n')
+# -- the file ------------------------------------------------------------------------------
 
 
-def read_state(path: str | Path) -> dict[str, Any] | None:
+def dumps(state: dict[str, Any]) -> str:
     """
-    Return the state in ``path``, or None when there is no such file.
+    Return ``state`` as the text of a learn_file: strict JSON, one top-level field a line.
 
     Raises
     ------
-    ValueError
-        The file is not JSON.
+    OutputError
+        A field holds NaN or an infinite value (nothing would read it back).
 
     """
-    p = Path(path)
-    if not p.is_file():
-        return None
+    lines = []
+    for key, value in state.items():
+        try:
+            text = json.dumps(value, separators=(',', ':'), allow_nan=False)
+        except (TypeError, ValueError) as exc:
+            raise OutputError(f'learner state not written: field `{key}`: {exc}') from None
+        lines.append(f'{json.dumps(str(key))}: {text}')
+    return '{\n' + ',\n'.join(lines) + '\n}\n'
+
+
+def _depth(text: str) -> int:
+    """Return the deepest nesting of lists and objects in JSON ``text`` (strings skipped)."""
+    a = np.frombuffer(_STRING.sub('', text).encode('utf-8', 'surrogatepass'), dtype=np.uint8)
+    step = ((a == 0x5B) | (a == 0x7B)).astype(np.int64) - ((a == 0x5D) | (a == 0x7D))
+    return int(np.cumsum(step).max(initial=0))
+
+
+def _signature(st: os.stat_result) -> tuple[int, int, int, int]:
+    """Return what tells one version of a file from another."""
+    return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
+
+
+def _owner_rw(path: Path, st: os.stat_result) -> str:
+    """Give the owner read and write permission when it lacks them; return a note (or '')."""
+    mode = stat.S_IMODE(st.st_mode)
+    if mode & 0o600 == 0o600:
+        return ''
     try:
-        return json.loads(p.read_text(encoding='utf-8'))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f'{p}: not JSON ({exc})') from None
+        os.chmod(path, mode | 0o600)        # a regular file: the caller checked (lstat)
+    except OSError:
+        return ''
+    return (f'learn_file {str(path)!r} had mode {mode:04o}: set to {mode | 0o600:04o} (the '
+            'node must read at start-up what it writes)')
+
+
+class LearnFile:
+    """
+    One learn_file: read bounded, written only over a learner state this node read or wrote.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The file (a symbolic link is refused: neither read nor written through).
+
+    """
+
+    def __init__(self, path: str | os.PathLike) -> None:
+        self.path = Path(path)
+        #: Lines worth a warning from the last read or write (a mode given back to the owner).
+        self.notes: list[str] = []
+        self._mine: tuple[int, int, int, int] | None = None
+
+    def read(self) -> Any:
+        """
+        Return the JSON document in the file, or None when there is none.
+
+        Refused before anything is parsed: a symbolic link, anything but a regular file, a
+        file over :data:`MAX_BYTES` or nested deeper than :data:`MAX_DEPTH`. A file the owner
+        (this node's user) may not read or write is given ``u+rw`` first.
+
+        Raises
+        ------
+        LearnFileError
+            One line naming the file and why it cannot be a learner state.
+
+        """
+        p = self.path
+        self._mine = None
+        self.notes = []
+        try:
+            st = os.lstat(p)
+        except FileNotFoundError:
+            return None
+        except OSError as exc:
+            raise LearnFileError(f'{p}: cannot read: {exc.strerror or exc}') from None
+        if stat.S_ISLNK(st.st_mode):
+            try:
+                to = f' to {os.readlink(p)!r:.80}'
+            except OSError:
+                to = ''
+            raise LearnFileError(f'{p}: a symbolic link{to}: not followed (set learn_file to '
+                                 'the file itself)')
+        if not stat.S_ISREG(st.st_mode):
+            raise LearnFileError(f'{p}: not a regular file')
+        if st.st_size > MAX_BYTES:
+            raise LearnFileError(f'{p}: {st.st_size} bytes, more than the {MAX_BYTES}-byte '
+                                 '(4 MiB) limit of a learn_file')
+        if st.st_uid == os.geteuid():
+            note = _owner_rw(p, st)
+            if note:
+                self.notes.append(note)
+        flags = (os.O_RDONLY | getattr(os, 'O_NOFOLLOW', 0) | getattr(os, 'O_NONBLOCK', 0)
+                 | getattr(os, 'O_CLOEXEC', 0))
+        try:
+            fd = os.open(p, flags)
+            with os.fdopen(fd, 'rb') as stream:
+                st = os.fstat(stream.fileno())
+                if not stat.S_ISREG(st.st_mode):
+                    raise LearnFileError(f'{p}: not a regular file')
+                data = stream.read(MAX_BYTES + 1)
+        except OSError as exc:
+            raise LearnFileError(f'{p}: cannot read: {exc.strerror or exc}') from None
+        if len(data) > MAX_BYTES:
+            raise LearnFileError(f'{p}: more than the {MAX_BYTES}-byte (4 MiB) limit of a '
+                                 'learn_file')
+        try:
+            text = data.decode('utf-8')
+        except UnicodeDecodeError:
+            raise LearnFileError(f'{p}: not JSON (not UTF-8 text)') from None
+        if _depth(text) > MAX_DEPTH:
+            raise LearnFileError(f'{p}: not a learner state (nested deeper than {MAX_DEPTH} '
+                                 'levels)')
+        try:
+            doc = json.loads(text)
+        except RecursionError:
+            raise LearnFileError(f'{p}: not a learner state (nested too deep)') from None
+        except ValueError as exc:
+            raise LearnFileError(f'{p}: not JSON ({" ".join(str(exc).split())[:120]})'
+                                 ) from None
+        self._mine = _signature(st)
+        return doc
+
+    def resume(self, load: Callable[[Any], None]) -> bool:
+        """
+        Give the file's state to ``load`` (a learner's ``load_state``); return whether any.
+
+        Raises
+        ------
+        LearnFileError
+            The file is not a learner state (:meth:`read`, or ``load`` refused it).
+
+        """
+        doc = self.read()
+        if doc is None:
+            return False
+        try:
+            load(doc)
+        except LearnFileError as exc:
+            self._mine = None
+            raise LearnFileError(f'{self.path}: {exc}') from None
+        return True
+
+    def write(self, state: dict[str, Any]) -> None:
+        """
+        Write ``state`` atomically, never over something that is not a learner state.
+
+        An existing file is replaced only when it is the version this object last read or
+        wrote, or holds a learner state (its ``format``); a symbolic link or anything but a
+        regular file is refused. The new file keeps the old one's mode, with ``u+rw``.
+
+        Raises
+        ------
+        OutputError
+            One line: the file is refused (kept as it is), the state is over
+            :data:`MAX_BYTES` or holds a non-finite value, or the write failed.
+
+        """
+        p = self.path
+        text = dumps(state)
+        size = len(text.encode('utf-8'))
+        if size > MAX_BYTES:
+            raise OutputError(f'cannot write learn_file {str(p)!r}: the state takes {size} '
+                              f'bytes, more than the {MAX_BYTES}-byte limit it is read with')
+        try:
+            st = os.lstat(p)
+        except FileNotFoundError:
+            st = None
+        except OSError as exc:
+            raise OutputError(f'cannot write learn_file {str(p)!r}: '
+                              f'{exc.strerror or exc}') from None
+        if st is not None and _signature(st) != self._mine:
+            try:
+                doc = LearnFile(p).read()
+            except LearnFileError as exc:
+                raise OutputError(f'learn_file {str(p)!r} not overwritten, kept as it is: '
+                                  f'{exc}') from None
+            if not (isinstance(doc, dict) and doc.get('format') == FORMAT):
+                raise OutputError(f'learn_file {str(p)!r} not overwritten, kept as it is: it '
+                                  f'is not a learner state ({FORMAT!r} expected)')
+        atomic_write(p, text, what='learn_file', follow_symlinks=False)
+        self.notes = []
+        try:
+            st = os.lstat(p)
+            note = _owner_rw(p, st)
+            if note:
+                self.notes.append(note)
+                st = os.lstat(p)
+            self._mine = _signature(st)
+        except OSError:
+            self._mine = None
+
+
+def alternate_path(path: str | os.PathLike) -> Path:
+    """Return the file learned into when ``path`` is refused: beside it, ``NAME`` + suffix."""
+    p = Path(path)
+    return p.with_name(p.name + ALTERNATE_SUFFIX)
+
+
+@dataclass(frozen=True)
+class Opened:
+    """
+    The file a learner learns into, as :func:`open_learn_file` chose it.
+
+    Attributes
+    ----------
+    file : LearnFile or None
+        Where the state is written (None: both candidates refused; nothing is kept).
+    resumed : bool
+        Whether a saved state was loaded.
+    warning : str
+        One line when ``learn_file`` itself was refused (kept as it is), else ''.
+    notes : tuple of str
+        Other lines worth a warning (a mode given back to the owner).
+
+    """
+
+    file: LearnFile | None
+    resumed: bool
+    warning: str
+    notes: tuple[str, ...] = ()
+
+
+def open_learn_file(path: str | os.PathLike, load: Callable[[Any], None]) -> Opened:
+    """
+    Resume from ``path`` and learn into it; when it is refused, keep it and use one beside it.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The configured ``learn_file``.
+    load : callable
+        ``load(document)``: a learner's ``load_state`` (raises LearnFileError to refuse).
+
+    Returns
+    -------
+    Opened
+        The file learned into: ``path`` when it is missing or a learner state; otherwise
+        :func:`alternate_path` (resumed when it holds a learner state), with one warning
+        line saying why ``path`` was refused and where learning goes; no file when the
+        alternate is refused too.
+
+    """
+    main = LearnFile(path)
+    try:
+        resumed = main.resume(load)
+        return Opened(main, resumed, '', tuple(main.notes))
+    except LearnFileError as exc:
+        why = str(exc).removeprefix(f'{main.path}: ')
+    alt = LearnFile(alternate_path(path))
+    kept = f'learn_file {str(path)!r} is kept as it is and not written ({why})'
+    try:
+        resumed = alt.resume(load)
+    except LearnFileError as exc:
+        why = str(exc).removeprefix(f'{alt.path}: ')
+        return Opened(None, False, f'{kept}; {str(alt.path)!r} is refused too ({why}): '
+                      'learning from the start, nothing is kept across restarts',
+                      tuple(main.notes + alt.notes))
+    where = 'resumed from' if resumed else 'from the start into'
+    return Opened(alt, resumed, f'{kept}: learning {where} {str(alt.path)!r}',
+                  tuple(main.notes + alt.notes))
+
+
+def write_state(path: str | os.PathLike, state: dict[str, Any]) -> None:
+    """Write ``state`` to ``path`` atomically (:meth:`LearnFile.write`; raises OutputError)."""
+    LearnFile(path).write(state)
+
+
+def read_state(path: str | os.PathLike) -> Any:
+    """
+    Return the JSON document in ``path``, or None when there is no such file.
+
+    Raises
+    ------
+    LearnFileError
+        The file cannot be a learner state (:meth:`LearnFile.read`).
+
+    """
+    return LearnFile(path).read()

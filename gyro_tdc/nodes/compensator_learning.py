@@ -23,7 +23,7 @@ provides ``core``, ``params`` and ``model_file``; this mixin keeps ``learner``.
 from __future__ import annotations
 
 from gyro_tdc.errors import OutputError
-from gyro_tdc.learn import LearnConfig, Learner
+from gyro_tdc.learn import LearnConfig, Learner, LearnFile, open_learn_file
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime import Policy
 from std_srvs.srv import Trigger
@@ -39,27 +39,45 @@ class Learning:
     """Learn the bias vs temperature from still time while compensating (mixin)."""
 
     learner: Learner | None = None
+    #: Where the learner's state is written (None: nowhere).
+    learn_store: LearnFile | None = None
+    #: One line while learn_file itself is refused (kept; learning goes beside it), else ''.
+    learn_file_warning: str = ''
+
+    def _new_learner(self, policy: Policy) -> Learner:
+        """Return a learner from the start (the model in use is the prior)."""
+        p = self.params
+        return Learner(LearnConfig(temperature_timeout=policy.temperature_timeout,
+                                   save_period_s=p.learn_save_period,
+                                   swap_delay_s=p.learn_swap_delay), prior=self.core.model)
 
     def _start_learning(self, policy: Policy) -> None:
-        """Create the learner (the model in use is the prior), resume learn_file, services."""
+        """Create the learner, resume learn_file (or the file beside it), services."""
         p = self.params
-        self.learner = Learner(LearnConfig(temperature_timeout=policy.temperature_timeout,
-                                           save_period_s=p.learn_save_period,
-                                           swap_delay_s=p.learn_swap_delay),
-                               prior=self.core.model)
+        self.learner = self._new_learner(policy)
         self._learned_installs = 0
         if p.learn_file:
+            log = self.get_logger()
             try:
-                resumed = self.learner.load(p.learn_file)
-            except (ValueError, KeyError, TypeError, OSError) as exc:
-                resumed = False
-                self.get_logger().error(f'cannot resume learn_file {p.learn_file!r}: {exc}; '
-                                        'learning from the start')
-            if resumed:
+                opened = open_learn_file(p.learn_file, self.learner.load_state)
+            except Exception as exc:  # the start-up edge: no file content stops the node
+                self.learner = self._new_learner(policy)
+                opened = None
+                self.learn_file_warning = (f'learn_file {p.learn_file!r} not used '
+                                           f'({type(exc).__name__}: {exc}): learning from '
+                                           'the start, nothing is kept across restarts')
+            else:
+                self.learn_store = opened.file
+                self.learn_file_warning = opened.warning
+                for note in opened.notes:
+                    log.warning(note)
+            if self.learn_file_warning:
+                log.warning(self.learn_file_warning)
+            if opened is not None and opened.resumed:
                 self._take_learned()
                 s = self.learner.summary()
-                self.get_logger().info(f'resumed learning from {p.learn_file}: '
-                                       f'{s["points"]} points, {s["still_s"]:.0f} s still')
+                log.info(f'resumed learning from {opened.file.path}: {s["points"]} points, '
+                         f'{s["still_s"]:.0f} s still')
         else:
             self.get_logger().warning('learn without learn_file: nothing is kept across '
                                       'restarts')
@@ -96,16 +114,31 @@ class Learning:
             self.model_file = 'learned'
 
     def save_learning(self) -> str:
-        """Write learn_file now; return what happened (one line)."""
-        path = self.params.learn_file
-        if not path:
+        """Write learn_file (or the file used instead) now; return what happened (one line)."""
+        if not self.params.learn_file:
             return 'no learn_file'
+        store = self.learn_store
+        if store is None:
+            return f'failed: nothing is written ({self.learn_file_warning})'
         try:
-            self.learner.save(path)
+            store.write(self.learner.state())
         except OutputError as exc:
             self.get_logger().error(f'cannot save learn_file: {exc}')
             return f'failed: {exc}'
-        return f'saved {path}'
+        self.learner.saved()
+        for note in store.notes:
+            self.get_logger().warning(note)
+        return f'saved {store.path}'
+
+    def learning_values(self) -> dict[str, str]:
+        """Return the learner's /diagnostics pairs and where its state is written."""
+        values = self.learner.diagnostic_values()
+        store = self.learn_store
+        values['learn file'] = (
+            'none' if not self.params.learn_file else
+            (str(store.path) if store is not None else 'nothing written')
+            + (f' ({self.learn_file_warning})' if self.learn_file_warning else ''))
+        return values
 
     def _on_learn(self) -> None:
         """Timer: learn from the samples gathered since the last tick, save when due."""

@@ -17,14 +17,20 @@
 from __future__ import annotations
 
 import json
+import math
+import os
+import shutil
+import stat
 
 from compensator_rig import RELIABLE, to_ns
+from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Twist
-from gyro_tdc.learn.learner import learned_model
+from gyro_tdc.learn.learner import FORMAT, learned_model
 from gyro_tdc.model.modelfile import save_model
 from gyro_tdc.nodes.compensator_motion import MOTION_MESSAGES
 from gyro_tdc.nodes.compensator_node import CompensatorNode
 from gyro_tdc.nodes.executors import make_executor
+from learn_states import BIAS, hostile_files, learned, plain_state
 from nav_msgs.msg import Odometry
 import numpy as np
 import pytest
@@ -279,3 +285,85 @@ def test_a_model_file_loaded_while_learning_becomes_the_prior(ros_context, tmp_p
         assert node.learner.prior.model_id == node.core.model_id
     finally:
         rig.close()
+
+
+@pytest.fixture(scope='module')
+def learned_state():
+    """Return the state of a learner that learned two still stretches (a file's content)."""
+    return plain_state(learned(rate_hz=20.0))
+
+
+def _unusable(tmp_path, state, name):
+    """Make learn.json a file the node cannot use; return it and the file to watch."""
+    path = tmp_path / 'learn.json'
+    if name == 'symlink':                 # as root, a link to the real /etc/passwd
+        watched = tmp_path / 'passwd'
+        shutil.copyfile('/etc/passwd', watched)
+        path.symlink_to(watched)
+        return path, watched
+    if name == 'too_big':                 # a valid state past the 4 MiB limit
+        path.write_text(json.dumps({**state, 'motion': [[float(k), False]
+                                                        for k in range(300_000)]}))
+    else:
+        path.write_bytes(hostile_files(state)[name])
+    return path, path
+
+
+@pytest.mark.parametrize('name', ['model_yaml', 'truncated', 'list', 'bins_list', 'deep',
+                                  'nan_fit', 'symlink', 'too_big'])
+def test_a_learn_file_the_node_cannot_use_is_kept_and_learning_goes_beside_it(
+        ros_context, tmp_path, learned_state, name):
+    """
+    Not a learner state: the node starts, keeps the file byte for byte and learns beside it.
+
+    A model YAML given by mistake, truncated JSON, a JSON list, ``"bins": []``, deep
+    nesting, a fit holding NaN, a symbolic link (to a copy of /etc/passwd) and a state over
+    the size limit: one WARN line, /diagnostics WARN naming the file learned into, the
+    stream compensated with finite values, and the restart resumes from that file.
+    """
+    path, watched = _unusable(tmp_path, learned_state, name)
+    before = watched.read_bytes()
+    alt = tmp_path / 'learn.json.gyro_tdc-learn.json'
+    rig = LearnRig(ros_context, learn=True, learn_file=str(path))
+    try:
+        node = rig.node
+        assert node.core.model is None and node.learner.summary()['points'] == 0
+        t = rig.feed(1000.0, 100.0, 20.0, np.array(BIAS), False, 1)
+        rig.feed(t, 20.0, 20.0, np.array(BIAS), True, 2)
+        assert all(math.isfinite(m.angular_velocity.x) for m in rig.out)
+        r = rig.call(rig.save)
+        assert watched.read_bytes() == before, 'the file was written over'
+        assert r.success and r.message == f'saved {alt}'
+        where = _values(node)['learn file']
+        assert where.startswith(f'{alt} (learn_file ') and 'kept as it is' in where, where
+        status = node.diagnostic_status()
+        assert status.level >= DiagnosticStatus.WARN and 'learn_file refused' in status.message
+    finally:
+        rig.close()
+    assert watched.read_bytes() == before and path.is_symlink() == (name == 'symlink')
+    saved = json.loads(alt.read_text())
+    assert saved['format'] == FORMAT and len(saved['bins']) == 1
+    rig = LearnRig(ros_context, learn=True, learn_file=str(path))
+    try:                                  # restarted: resumes from the file beside it
+        node = rig.node
+        assert node.learner.summary()['points'] == 1 and node.core.model is not None
+        assert node.learn_store.path == alt
+    finally:
+        rig.close()
+    assert watched.read_bytes() == before
+
+
+def test_a_mode_000_learn_file_is_resumed_and_written_readable(ros_context, tmp_path,
+                                                               learned_state):
+    """A learn_file of mode 000 is written back with u+rw, so the next start can read it."""
+    path = tmp_path / 'learn.json'
+    path.write_text(json.dumps(learned_state))
+    os.chmod(path, 0)
+    rig = LearnRig(ros_context, learn=True, learn_file=str(path))
+    try:
+        assert rig.node.learner.summary()['points'] == 2 and rig.node.core.model is not None
+    finally:
+        rig.close()
+    mode = stat.S_IMODE(path.stat().st_mode)
+    assert mode & 0o600 == 0o600, oct(mode)
+    assert json.loads(path.read_text())['bins'] == learned_state['bins']
