@@ -18,15 +18,24 @@ The compensator's ``/diagnostics`` and its graph guard against chained compensat
 :class:`Diagnostics` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
 (see doc/internals/runtime.md); the node provides ``core``, ``inputs``, ``params``,
 ``model_file``, ``last_reload``, ``learner``, ``learning_values()``,
-``learn_file_warning``, ``motion_values()`` and ``_in_topic``.
+``learn_file_warning``, ``motion_values()``, ``_in_topic`` and, set by the IMU callbacks,
+``_last_imu`` (the latest input: an Imu, or its serialized bytes on the ``raw_cdr`` path).
+
+Statuses are named ``<fully qualified node name>: gyro compensation``, diagnostic_updater's
+``<node name>: <task>`` with its ``use_fqn`` form, so two compensators in two namespaces
+differ; the liveness of the inputs (:mod:`gyro_tdc.runtime.liveness`) is judged on the
+monotonic clock, never on ROS time.
 """
 
 from __future__ import annotations
 
+import time
+
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from gyro_tdc.runtime import health, HealthMark, upstream_note
+from gyro_tdc.runtime import frame_mismatch, health, HealthMark, InputRate, upstream_note
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-from sensor_msgs.msg import Temperature
+from rclpy.serialization import deserialize_message
+from sensor_msgs.msg import Imu, Temperature
 from std_msgs.msg import Float32, Float64
 
 __all__ = ['DIAGNOSTICS_PERIOD_S', 'Diagnostics', 'TEMPERATURE_MESSAGES']
@@ -36,6 +45,8 @@ TEMPERATURE_MESSAGES = {'sensor_msgs/msg/Temperature': Temperature,
                         'std_msgs/msg/Float32': Float32, 'std_msgs/msg/Float64': Float64}
 #: Period of the /diagnostics report [s].
 DIAGNOSTICS_PERIOD_S = 1.0
+#: The task part of the status name (``<fully qualified node name>: <task>``).
+TASK = 'gyro compensation'
 
 
 def _fqn(namespace: str, name: str) -> str:
@@ -50,6 +61,14 @@ class Diagnostics:
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._seen = HealthMark()
         self._reported_anchor = None
+        self._last_imu = None
+        self._frame_warned: tuple[str, str] | None = None
+        self._live_clock = time.monotonic        # wall time for liveness (tests replace it)
+        start = self._live_clock()
+        self._rates = {'imu': InputRate('imu/data_raw', start, self.params.expected_rate_hz),
+                       'temperature': InputRate('imu/temperature', start, None)}
+        if self.params.motion_topic:
+            self._rates['motion'] = InputRate(self.params.motion_topic, start, None)
         note = upstream_note(self.core.policy)     # never twice: said once at start-up
         if note:
             log = self.get_logger()
@@ -94,9 +113,11 @@ class Diagnostics:
                 f'imu/data_raw ({self._in_topic}) is published by gyro_tdc compensator '
                 f'{", ".join(upstream)}: chained compensators remove the drift twice')
         self.inputs.upstream = upstream
+        frame = self.data_frame_id()
         h = health(self.core, self._seen, model_file=self.model_file,
-                   sensor_id=self.params.sensor_id,
+                   sensor_id=self.params.sensor_id, frame_id=frame,
                    last_reload=self.last_reload, inputs=self.inputs)
+        self._warn_frame(frame)
         if h.mark.already_compensated > self._seen.already_compensated:
             self.get_logger().warning(
                 f'{h.mark.already_compensated - self._seen.already_compensated} imu/data_raw '
@@ -114,15 +135,50 @@ class Diagnostics:
         values = dict(h.values)
         values.update(self.motion_values())
         level, message = h.level, h.message
+        live = self.liveness()
+        for role, report in live.items():
+            values.update(report.values(role))
+            if report.level > level:
+                level = report.level
+            if report.message:
+                message = (report.message if message in ('compensating',
+                                                         'waiting for imu/data_raw')
+                           else f'{message}; {report.message}')
         if self.learner is not None:
             values.update(self.learning_values())
             if self.learn_file_warning:       # learn_file refused: kept, learning beside it
                 level = max(level, DiagnosticStatus.WARN[0])
                 message = f'{message}; learn_file refused (see learn file)'
         return DiagnosticStatus(
-            level=bytes((level,)), name=f'{self.get_name()}: gyro compensation',
+            level=bytes((level,)), name=f'{self.get_fully_qualified_name()}: {TASK}',
             message=message, hardware_id=h.hardware_id,
             values=[KeyValue(key=k, value=v) for k, v in values.items()])
+
+    def liveness(self) -> dict:
+        """Judge each input's arrivals now (monotonic clock): role -> RateReport."""
+        now = self._live_clock()
+        core = self.core
+        counts = {'imu': core.counts['in'],
+                  'temperature': core.temps.received + self.temperatures_ignored,
+                  'motion': core.motion_reports + getattr(self, 'motion_ignored', 0)}
+        return {role: rate.run(now, counts[role]) for role, rate in self._rates.items()}
+
+    def data_frame_id(self) -> str:
+        """Return ``header.frame_id`` of the latest imu/data_raw message ('' before one)."""
+        last = self._last_imu
+        if last is None:
+            return ''
+        if isinstance(last, (bytes, bytearray, memoryview)):     # raw_cdr: once a report
+            last = deserialize_message(bytes(last), Imu)
+        return last.header.frame_id
+
+    def _warn_frame(self, frame: str) -> None:
+        """Log a frame mismatch once per model and data frame (/diagnostics warns throughout)."""
+        model = self.core.model
+        why = frame_mismatch(model, frame)
+        if why and self._frame_warned != (model.model_id, frame):
+            self._frame_warned = (model.model_id, frame)
+            self.get_logger().warning(why)
 
     def _on_diagnostics(self) -> None:
         arr = DiagnosticArray()
