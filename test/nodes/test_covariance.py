@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from gyro_tdc.data.mark import diagonal_marked, mark
 import pytest
+from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
 
 T0_NS = 1_700_000_000 * 10 ** 9
@@ -75,3 +76,17 @@ def test_passthrough_keeps_unknown_unknown_and_never_marks(rig_factory):
     known, unknown, _ = _feed(rig, [KNOWN, UNKNOWN, NO_DATA])
     assert unknown == UNKNOWN
     assert known[0] == KNOWN[0] + 0.25 and not diagonal_marked(known)
+
+
+def test_base_variance_is_set_at_run_time(rig_factory):
+    rig = rig_factory(model_file='l3gd20_modified')
+    before = _feed(rig, [UNKNOWN])[0]
+    result = rig.node.set_parameters([Parameter('base_variance', value=4e-6)])[0]
+    assert result.successful, result.reason
+    msg = Imu()
+    msg.header.stamp.sec = T0_NS // 10 ** 9 + 1
+    msg.header.frame_id = 'imu_link'
+    rig.imu_pub.publish(msg)                                 # all zero: unknown
+    rig.spin_until(lambda: len(rig.out) == 2, what='the next output')
+    after = tuple(rig.out[1].angular_velocity_covariance)
+    assert before == UNKNOWN and after[0] > 4e-6 and diagonal_marked(after)
