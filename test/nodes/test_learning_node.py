@@ -72,12 +72,17 @@ class LearnRig:
                         or self.motion_pub.get_subscription_count() > 0), 10.0,
                    what='discovery')
 
-    def feed(self, t0, secs, temp, bias, moving, seed):
-        """Publish ``secs`` of IMU at RATE (still at ``bias`` or moving) and 1 Hz temperature."""
+    def feed(self, t0, secs, temp, bias, moving, seed, paced=False):
+        """
+        Publish ``secs`` of IMU at RATE (still at ``bias`` or moving) and 1 Hz temperature.
+
+        ``paced``: each second's first output is awaited before the next temperature is
+        published, so no reading is stamped seconds ahead of the last IMU sample compensated.
+        """
         rng = np.random.default_rng(seed)
         n = int(secs * RATE)
         w = (0.3 if moving else 1e-4) * rng.standard_normal((n, 3)) + (0 if moving else bias)
-        return self.stream(t0, w, temp)
+        return self.stream(t0, w, temp, (lambda t: None) if paced else None)
 
     def stream(self, t0, w, temp, each_second=None):
         """
@@ -328,8 +333,8 @@ def test_a_learn_file_the_node_cannot_use_is_kept_and_learning_goes_beside_it(
     try:
         node = rig.node
         assert node.core.model is None and node.learner.summary()['points'] == 0
-        t = rig.feed(1000.0, 100.0, 20.0, np.array(BIAS), False, 1)
-        rig.feed(t, 20.0, 20.0, np.array(BIAS), True, 2)
+        t = rig.feed(1000.0, 100.0, 20.0, np.array(BIAS), False, 1, paced=True)
+        rig.feed(t, 20.0, 20.0, np.array(BIAS), True, 2, paced=True)
         assert all(math.isfinite(m.angular_velocity.x) for m in rig.out)
         r = rig.call(rig.save)
         assert watched.read_bytes() == before, 'the file was written over'
