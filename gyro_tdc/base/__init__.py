@@ -26,7 +26,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'face': ['lazy'],
     'limits': ['check_bin_width', 'check_centers', 'check_sim_samples',
                'MAX_ACCEL_DRIFT_MPS2', 'MAX_CENTERS', 'MAX_DRIFT_RAD_S', 'MAX_RATE_RAD_S',
-               'MAX_TEMP_RATE_C_S', 'MAX_TEMP_SLEW_C_S', 'TEMP_PLAUSIBLE_C',
+               'MAX_TEMP_LEAD_S', 'MAX_TEMP_RATE_C_S', 'MAX_TEMP_SLEW_C_S', 'TEMP_PLAUSIBLE_C',
                'TEMP_SLEW_MARGIN_C'],
     'plain': ['plain'],
     'plausible': ['plausible_temperatures', 'temperature_ok', 'TemperatureGate'],

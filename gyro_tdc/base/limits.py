@@ -28,7 +28,8 @@ import math
 from gyro_tdc.errors import LimitError
 
 __all__ = ['MAX_ACCEL_DRIFT_MPS2', 'MAX_CENTERS', 'MAX_COVERAGE_BINS', 'MAX_DRIFT_RAD_S',
-           'MAX_RATE_RAD_S', 'MAX_SIM_SAMPLES', 'MAX_TEMP_RATE_C_S', 'MAX_TEMP_SLEW_C_S',
+           'MAX_RATE_RAD_S', 'MAX_SIM_SAMPLES', 'MAX_TEMP_LEAD_S', 'MAX_TEMP_RATE_C_S',
+           'MAX_TEMP_SLEW_C_S',
            'SIM_BYTES_PER_SAMPLE', 'TEMP_PLAUSIBLE_C', 'TEMP_SLEW_MARGIN_C', 'check_bin_width',
            'check_centers', 'check_sim_samples']
 
@@ -56,6 +57,11 @@ MAX_TEMP_SLEW_C_S = 20.0
 #: A change any two readings may show however close their stamps, degC: the thermometer's
 #: noise and quantisation (registers of 0.5-1 degC per digit exist) on top of the slew.
 TEMP_SLEW_MARGIN_C = 2.0
+#: How far a thermometer stamp may lead the last IMU stamp, s, when ``temperature_timeout``
+#: is shorter: a reading published just before the IMU sample it goes with leads by the IMU's
+#: period (one sample a minute at the slowest); a reading stamped further ahead (a clock a day
+#: off) is refused, or it would stand for the future in the priming history and the slew check.
+MAX_TEMP_LEAD_S = 60.0
 #: RBF centres a model file may hold.
 MAX_CENTERS = 10_000
 MAX_COVERAGE_BINS = 10_000

@@ -28,7 +28,7 @@ import math
 from operator import attrgetter
 from typing import Any, Callable, Sequence
 
-from gyro_tdc.base import MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_RATE_RAD_S
+from gyro_tdc.base import MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_RATE_RAD_S, MAX_TEMP_LEAD_S
 from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensator, variance_growth
 from gyro_tdc.runtime.flags import (FLAG_NAMES, IMPLAUSIBLE_INPUT, IMPLAUSIBLE_OUTPUT,
                                     NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
@@ -505,9 +505,10 @@ class CompensatorCore:
         Record one thermometer sample.
 
         A reading that is not finite, outside the plausible range, jumping faster than the
-        slew bound (:mod:`gyro_tdc.base.plausible`) or stamped more than
-        ``temperature_timeout`` ahead of the last IMU stamp is counted and dropped: it reaches
-        neither the hold, nor a filter, nor the thermometer history, nor the learner.
+        slew bound (:mod:`gyro_tdc.base.plausible`) or stamped further ahead of the last IMU
+        stamp than ``temperature_timeout`` or ``MAX_TEMP_LEAD_S``, whichever is longer, is
+        counted and dropped: it reaches neither the hold, nor a filter, nor the thermometer
+        history, nor the learner.
 
         Returns
         -------
@@ -516,8 +517,8 @@ class CompensatorCore:
 
         """
         last_t = self.stream.t
-        if not self.temps.add(t, temp_c, math.inf if last_t is None
-                              else last_t + self.policy.temperature_timeout):
+        if not self.temps.add(t, temp_c, math.inf if last_t is None else last_t + max(
+                self.policy.temperature_timeout, MAX_TEMP_LEAD_S)):
             return False
         learner = self.learning.learner
         if learner is not None:

@@ -290,7 +290,7 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         problems.append(f'temperatures rejected (implausible): {implausible} (outside '
                         f'{TEMP_PLAUSIBLE_C[0]:g}..{TEMP_PLAUSIBLE_C[1]:g} degC, faster than '
                         f'{MAX_TEMP_SLEW_C_S:g} degC/s from the last good one, or stamped '
-                        'over temperature_timeout ahead of the IMU; the last good one is held)')
+                        'too far ahead of the IMU; the last good one is held)')
     lost = inputs.lost - since.lost
     if lost:
         level = max(level, WARN)

@@ -94,8 +94,13 @@ def _imu(ns: int, w, a) -> Imu:
     return msg
 
 
-def _stream(r: Rig, c: dict, chunk: int = 200) -> list[Imu]:
-    """Publish each sample's temperature (same stamp) then the Imu; wait for every output."""
+def _stream(r: Rig, c: dict, chunk: int = 5) -> list[Imu]:
+    """
+    Publish each sample's temperature (same stamp) then the Imu; wait for every output.
+
+    A chunk's readings lead its Imu by at most 50 s: the node refuses readings stamped over
+    a minute ahead of the last IMU stamp.
+    """
     start = len(r.out)
     temps = r.node.core.temps.received
     for lo in range(0, N, chunk):
