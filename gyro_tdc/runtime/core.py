@@ -613,8 +613,8 @@ class CompensatorCore:
         comp = slot.comp
         if comp is None:
             return self._pass(t, wx, wy, wz, NO_MODEL)
-        if not (abs(wx) <= _MAX_RATE and abs(wy) <= _MAX_RATE and abs(wz) <= _MAX_RATE
-                and math.isfinite(t)):                 # NaN fails the compares
+        m = _MAX_RATE                   # NaN fails the compares
+        if not (abs(wx) <= m and abs(wy) <= m and abs(wz) <= m and math.isfinite(t)):
             finite = (math.isfinite(wx) and math.isfinite(wy) and math.isfinite(wz)
                       and math.isfinite(t))
             return self._pass(t, wx, wy, wz, IMPLAUSIBLE_INPUT if finite else NON_FINITE, accel)
@@ -636,6 +636,11 @@ class CompensatorCore:
             # temperature does.
             e = slot.cache.get(temp) or self._refresh(t, temp)
             ox, oy, oz = (wx - e.bx) / e.dx, (wy - e.by) / e.dy, (wz - e.bz) / e.dz
+            # The output check (the entry's variances were checked when it was made): finite
+            # and corrected by a plausible drift on every axis (NaN fails the compares).
+            m = _MAX_DRIFT
+            if not (abs(ox - wx) <= m and abs(oy - wy) <= m and abs(oz - wz) <= m):
+                return self._pass(t, wx, wy, wz, IMPLAUSIBLE_OUTPUT, accel)
             var = e.var_stale if flags else e.var
             flags |= e.oor
             dist = e.distance_c
@@ -652,10 +657,10 @@ class CompensatorCore:
                 if more:       # linear: the added variance grows with the distance
                     var = (var[0] + more, var[1] + more, var[2] + more)
             ox, oy, oz = out.tolist()
-        # The output check: finite, and corrected by a plausible drift (NaN fails).
-        if not (abs(ox - wx) <= _MAX_DRIFT and abs(oy - wy) <= _MAX_DRIFT
-                and abs(oz - wz) <= _MAX_DRIFT and math.isfinite(var[0] + var[1] + var[2])):
-            return self._pass(t, wx, wy, wz, IMPLAUSIBLE_OUTPUT, accel)
+            m = _MAX_DRIFT
+            if not (abs(ox - wx) <= m and abs(oy - wy) <= m and abs(oz - wz) <= m
+                    and math.isfinite(var[0] + var[1] + var[2])):     # the output check
+                return self._pass(t, wx, wy, wz, IMPLAUSIBLE_OUTPUT, accel)
         if slot.accel is None:
             aout = avar = None
         else:
@@ -694,6 +699,9 @@ class CompensatorCore:
         if more:           # linear: the added variance grows with the distance
             var = (var[0] + more, var[1] + more, var[2] + more)
             var_stale = (var_stale[0] + more, var_stale[1] + more, var_stale[2] + more)
+        if not math.isfinite(var[0] + var[1] + var[2] + var_stale[0] + var_stale[1]
+                             + var_stale[2]):
+            bx = math.nan              # process's output check refuses the entry
         entry = DriftEntry(bx, by, bz, dx, dy, dz, oor, dist, var, var_stale)
         acc = slot.accel
         if len(slot.cache) >= 64:
