@@ -58,10 +58,11 @@ MAX_TEMP_SLEW_C_S = 20.0
 #: noise and quantisation (registers of 0.5-1 degC per digit exist) on top of the slew.
 TEMP_SLEW_MARGIN_C = 2.0
 #: How far a thermometer stamp may lead the last IMU stamp, s, when ``temperature_timeout``
-#: is shorter: a reading published just before the IMU sample it goes with leads by the IMU's
-#: period (one sample a minute at the slowest); a reading stamped further ahead (a clock a day
-#: off) is refused, or it would stand for the future in the priming history and the slew check.
-MAX_TEMP_LEAD_S = 60.0
+#: is shorter: a node that stays up while its IMU pauses (a vehicle parked overnight) takes the
+#: first reading of the next run before its first IMU sample, so the lead may be a night; a
+#: reading stamped further ahead (a clock a day off) is refused, or it would stand for the
+#: future in the priming history and the slew check.
+MAX_TEMP_LEAD_S = 12 * 3600.0
 #: RBF centres a model file may hold.
 MAX_CENTERS = 10_000
 MAX_COVERAGE_BINS = 10_000

@@ -30,7 +30,7 @@ from synth import synth_run
 
 @pytest.fixture(scope='module')
 def lagged():
-    """A heating-and-cooling session whose die lags the thermometer (hysteresis), held out too."""
+    """Return a heating-and-cooling session whose die lags the thermometer, and a held-out one."""
     train = synth_run(hours=2.0, rate_hz=2.0, cooling=True, seed=1, tau_die=300.0)
     held = synth_run(hours=2.0, rate_hz=2.0, cooling=True, seed=2, tau_die=300.0,
                      offset_dps=(0.02, -0.01, 0.01))
@@ -39,7 +39,7 @@ def lagged():
 
 @pytest.fixture(scope='module')
 def static():
-    """A cubic model of a session without lag: its drift is a cubic in the measured T."""
+    """Return a cubic model of a session without lag: its drift is a cubic in the measured T."""
     run = synth_run(hours=1.0, rate_hz=2.0, seed=3)
     return fit_model([run], kind='poly', features=('dT', 'dT2', 'dT3'))
 

@@ -19,6 +19,7 @@ from __future__ import annotations
 from dataclasses import replace
 import math
 
+from gyro_tdc.base.limits import MAX_TEMP_LEAD_S
 from gyro_tdc.identify import fit_model
 from gyro_tdc.learn.learner import Learner
 from gyro_tdc.runtime import flags as F
@@ -97,14 +98,16 @@ def test_a_reading_stamped_a_day_ahead_is_rejected(models):
     np.testing.assert_array_equal(feed(core)[0], feed(clean)[0])
 
 
-def test_a_reading_ahead_by_up_to_a_minute_or_the_timeout_is_held():
+def test_a_reading_ahead_by_up_to_a_night_or_the_timeout_is_held():
+    lead = MAX_TEMP_LEAD_S
     core = CompensatorCore(Policy(temperature_timeout=5.0))
-    core.process(100.0, 0.0, 0.0, 0.0)     # a slow IMU: its next sample may be 60 s away
-    assert core.add_temperature(159.9, 25.0)
-    assert not core.add_temperature(160.2, 25.0) and core.temps.implausible == 1
-    core = CompensatorCore(Policy(temperature_timeout=600.0))
+    core.process(100.0, 0.0, 0.0, 0.0)     # the IMU pauses: the next run starts up to a night on
+    assert core.add_temperature(100.0 + lead - 0.1, 25.0)
+    assert not core.add_temperature(100.0 + lead + 0.2, 25.0) and core.temps.implausible == 1
+    core = CompensatorCore(Policy(temperature_timeout=2.0 * lead))
     core.process(100.0, 0.0, 0.0, 0.0)
-    assert core.add_temperature(699.0, 25.0) and not core.add_temperature(701.0, 25.0)
+    assert core.add_temperature(99.0 + 2.0 * lead, 25.0)
+    assert not core.add_temperature(101.0 + 2.0 * lead, 25.0)
 
 
 def test_the_learner_sees_only_plausible_readings(models):

@@ -139,11 +139,12 @@ def test_linear_widens_the_covariance_with_the_distance_and_reports_it():
         v = health(core).values
         assert v['range distance degC'] == '+7.50' and v['out of range policy'] == policy
         assert v['in range'] == 'False'
-        core.add_temperature(2.0, lo - 3.0)
-        assert core.process(3.0, 0.0, 0.0, 0.0)[4] and \
+        # Readings far enough apart for the die to get there (the slew gate refuses faster).
+        core.add_temperature(1000.0, lo - 3.0)
+        assert core.process(1001.0, 0.0, 0.0, 0.0)[4] and \
             health(core).values['range distance degC'] == '-3.00'
-        core.add_temperature(4.0, 0.5 * (lo + hi))
-        var, flags = core.process(5.0, 0.0, 0.0, 0.0)[3:5]
+        core.add_temperature(2000.0, 0.5 * (lo + hi))
+        var, flags = core.process(2001.0, 0.0, 0.0, 0.0)[3:5]
         assert flags == 0 and health(core).values['range distance degC'] == '+0.00'
         np.testing.assert_allclose(var, model.residual_var)
 

@@ -321,8 +321,8 @@ def test_temperature_offset_change_and_garbled_scale_at_rescale(tmp_path):
     dev = _l3gd20(tmp_path)
     src = IioSource(dev, rescale_every=1)
     assert src.read().temp_c == pytest.approx(25.0)
-    (dev / 'in_temp_offset').write_text('5\n')
-    assert src.read().temp_c == pytest.approx(30.0)
+    (dev / 'in_temp_offset').write_text('1\n')      # 1 degC: within the slew gate's margin
+    assert src.read().temp_c == pytest.approx(26.0)
     (dev / 'in_anglvel_scale').write_text('garbage\n')
     with pytest.raises(DeviceError, match="in_anglvel_scale' holds 'garbage'"):
         src.read()
@@ -475,7 +475,7 @@ def test_conflicting_temperature_stamps_keep_the_last_and_warn(tmp_path):
 
     def dup(imu, temp):
         temp['t'] = np.insert(temp['t'], 51, temp['t'][50])
-        temp['c'] = np.insert(temp['c'], 51, temp['c'][50] + 3.0)
+        temp['c'] = np.insert(temp['c'], 51, temp['c'][50] + 1.5)   # within the slew margin
 
     run = load_run(_heat_bag(tmp_path / 'bag', edit=dup))
     assert run.info['rejected']['temp_duplicate_stamps'] == 1

@@ -235,7 +235,8 @@ def test_help_lists_every_command():
     for name, command in COMMANDS.items():
         assert f'  {name}' in proc.stdout
         assert command.help in proc.stdout
-    assert set(COMMANDS) == {'simulate', 'train', 'evaluate', 'discover', 'demo', 'fleet'}
+    assert set(COMMANDS) == {'simulate', 'train', 'evaluate', 'discover', 'demo', 'fleet',
+                             'export'}
 
 
 def test_unknown_command_exits_2_with_one_line():
