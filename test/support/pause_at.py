@@ -182,7 +182,11 @@ class PausingRunner:
     def close(self) -> None:
         """End the server."""
         self.proc.stdin.close()
-        self.proc.wait(self.timeout_s)
+        try:
+            self.proc.wait(10.0)
+        except subprocess.TimeoutExpired:   # a server stuck in a dead child's pipe: end it
+            self.proc.kill()
+            self.proc.wait(self.timeout_s)
         self.proc.stdout.close()
         self._sel.close()
 
