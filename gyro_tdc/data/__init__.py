@@ -23,10 +23,10 @@ their coverage, and real-data converters. See ``doc/internals/data.md``.
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
-    'bag_codec': ['IMU_TYPE', 'REFERENCE_TYPE', 'TEMPERATURE_TYPE'],
-    'bag_motion': ['encode_twists', 'read_motion', 'TWIST_TYPE'],
-    'bag_reader': ['read_bag'],
-    'bag_writer': ['write_bag'],
+    'bag.codec': ['IMU_TYPE', 'REFERENCE_TYPE', 'TEMPERATURE_TYPE'],
+    'bag.motion': ['encode_twists', 'read_motion', 'TWIST_TYPE'],
+    'bag.reader': ['read_bag'],
+    'bag.writer': ['write_bag'],
     'coverage': ['Coverage', 'coverage', 'RATE_THRESHOLD_C_PER_MIN', 'temperature_rate'],
     'dataflash': ['read_dataflash'],
     'dataset': ['expand_bags', 'load_runs'],

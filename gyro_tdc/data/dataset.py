@@ -28,7 +28,7 @@ from typing import Callable, Iterable
 
 from gyro_tdc.base import (MAX_RATE_RAD_S, MAX_TEMP_SLEW_C_S, plausible_temperatures,
                            TEMP_PLAUSIBLE_C)
-from gyro_tdc.data.bag_reader import read_bag, small_pages
+from gyro_tdc.data.bag.reader import read_bag, small_pages
 from gyro_tdc.data.dataflash import read_dataflash
 from gyro_tdc.data.flightlog import detect_format, flight_log_data, is_flight_log
 from gyro_tdc.data.options import BagOptions
@@ -196,7 +196,7 @@ def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: 
     return out
 
 
-@small_pages()    # its full-length arrays too: see gyro_tdc.data.bag_reader.small_pages
+@small_pages()    # its full-length arrays too: see gyro_tdc.data.bag.reader.small_pages
 def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     """
     Read one bag into a :class:`~gyro_tdc.data.runs.Run` aligned on the IMU stamps.

@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 import os
 from pathlib import Path
 
-from gyro_tdc.data.bag_reader import BagData
+from gyro_tdc.data.bag.reader import BagData
 from gyro_tdc.data.options import BagOptions, LOG_FORMATS
 from gyro_tdc.errors import DatasetError
 import numpy as np

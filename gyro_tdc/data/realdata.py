@@ -24,7 +24,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from gyro_tdc.data.bag_writer import write_bag
+from gyro_tdc.data.bag.writer import write_bag
 from gyro_tdc.errors import DatasetError
 import numpy as np
 from numpy.typing import NDArray

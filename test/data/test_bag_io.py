@@ -21,8 +21,8 @@ import io
 from pathlib import Path
 
 from gyro_tdc import data as bagio
-from gyro_tdc.data import (bag_codec as codec, bag_reader as reader, IMU_TYPE, read_bag,
-                           REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag)
+from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag
+from gyro_tdc.data.bag import codec, reader
 from gyro_tdc.data.imu_cdr import encode, Layout
 from gyro_tdc.errors import DatasetError
 import numpy as np
@@ -517,9 +517,9 @@ def test_write_bag_rejects_bad_arguments(tmp_path):
 
 
 def test_bagio_imports_no_ros_packages():
-    files = sorted(Path(bagio.__file__).parent.glob('*.py'))
-    assert {f.name for f in files} >= {'__init__.py', 'bag_codec.py', 'bag_reader.py',
-                                       'bag_writer.py'}
+    files = sorted(Path(bagio.__file__).parent.rglob('*.py'))
+    assert {f.relative_to(Path(bagio.__file__).parent).as_posix() for f in files} >= {
+        '__init__.py', 'bag/codec.py', 'bag/reader.py', 'bag/writer.py'}
     trees = [ast.parse(f.read_text()) for f in files]
     modules = {alias.name for tree in trees for node in ast.walk(tree)
                if isinstance(node, ast.Import) for alias in node.names}

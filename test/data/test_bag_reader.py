@@ -21,8 +21,8 @@ from pathlib import Path
 import shutil
 import sys
 
-from gyro_tdc.data import (bag_reader as reader, IMU_TYPE, read_bag, REFERENCE_TYPE,
-                           TEMPERATURE_TYPE, write_bag)
+from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag
+from gyro_tdc.data.bag import reader
 from gyro_tdc.errors import DatasetError
 import numpy as np
 import pytest

@@ -24,7 +24,8 @@ bag stamped that way, and ``train`` on both gives the same model.
 from __future__ import annotations
 
 from gyro_tdc.cli.train import main as train_main
-from gyro_tdc.data import bag_codec as codec, bag_reader, IMU_TYPE, read_bag, TEMPERATURE_TYPE
+from gyro_tdc.data import IMU_TYPE, read_bag, TEMPERATURE_TYPE
+from gyro_tdc.data.bag import codec, reader as bag_reader
 from gyro_tdc.data.dataset import load_run
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model.modelfile import load_model

@@ -16,7 +16,7 @@
 
 from __future__ import annotations
 
-from gyro_tdc.data.bag_writer import write_bag
+from gyro_tdc.data.bag.writer import write_bag
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.train import train

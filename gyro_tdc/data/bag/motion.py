@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import Sequence
 
 import apsw
-from gyro_tdc.data.bag_codec import jazzy
+from gyro_tdc.data.bag.codec import jazzy
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import ArrayLike, NDArray

@@ -18,7 +18,7 @@ Read IMU, temperature and reference-rate arrays from a rosbag2 bag, fast (:func:
 
 The raw CDR bytes are collected in blocks (the IMU messages written end to end into one
 reused buffer as they arrive) and decoded with the fixed-layout codec of
-:mod:`gyro_tdc.data.bag_codec` (rosbags' per-message deserialiser where the layout does not
+:mod:`gyro_tdc.data.bag.codec` (rosbags' per-message deserialiser where the layout does not
 hold) into columns sized by the message counts of ``metadata.yaml``, checked first
 (:func:`check_counts`); memory is bounded by the columns plus one block of raw messages.
 """
@@ -36,7 +36,7 @@ from typing import Any, Mapping, Sequence
 
 import apsw
 from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
-from gyro_tdc.data.bag_codec import (decode, decode_float, decode_joined, Decoded, FLOAT_TYPES,
+from gyro_tdc.data.bag.codec import (decode, decode_float, decode_joined, Decoded, FLOAT_TYPES,
                                      IMU_TYPE, jazzy, KEEP, N_DOUBLES, REFERENCE_TYPE,
                                      TEMPERATURE_TYPES)
 from gyro_tdc.data.imu_cdr import FRAME_ID

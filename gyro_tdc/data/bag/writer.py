@@ -17,7 +17,7 @@
 Write rosbag2 bags of IMU, temperature and reference-rate messages (:func:`write_bag`).
 
 Messages are encoded a chunk at a time with the fixed-layout codec of
-:mod:`gyro_tdc.data.bag_codec` (checked against rosbags' serialiser) and written with rosbags'
+:mod:`gyro_tdc.data.bag.codec` (checked against rosbags' serialiser) and written with rosbags'
 ``Writer``, in time order across topics, as Jazzy's rosbag2 would record them.
 """
 
@@ -28,7 +28,7 @@ import shutil
 import sqlite3
 from typing import Callable
 
-from gyro_tdc.data.bag_codec import (encode_checked, IMU_TYPE, jazzy, REFERENCE_TYPE,
+from gyro_tdc.data.bag.codec import (encode_checked, IMU_TYPE, jazzy, REFERENCE_TYPE,
                                      TEMPERATURE_TYPE)
 from gyro_tdc.data.imu_cdr import field_slice, IMU_DOUBLES
 from gyro_tdc.errors import DatasetError, one_line
@@ -121,7 +121,7 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
     extra : sequence of (str, str, ArrayLike, sequence of bytes)
         Further topics already serialised: ``(topic, msgtype, t, messages)`` with the log
         times ``t`` (s, shape (K,)) and K CDR messages (e.g. a ``cmd_vel`` Twist stream,
-        :func:`gyro_tdc.data.bag_motion.encode_twists`).
+        :func:`gyro_tdc.data.bag.motion.encode_twists`).
 
     Raises
     ------
