@@ -238,8 +238,10 @@ def _accel_rows(b: BagEval, w: int, accel_floor: Sequence[float] | None = None) 
              + ''.join(f'{"aBS/BS1 " + a:>11}' for a in AXES) + _floor_head(accel_floor, 'aBS')]
     for m in [b.raw] + list(b.models):
         bs = np.full(3, math.nan) if m.accel_bs is None else np.asarray(m.accel_bs)
+        with np.errstate(divide='ignore', invalid='ignore'):    # a constant axis: 0 / 0
+            ratio = bs / np.asarray(b.raw.accel_bs)
         lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in bs) + '  '
-                     + ''.join(_g(v) for v in bs / b.raw.accel_bs)
+                     + ''.join(_g(v) for v in ratio)
                      + _floor_cells(m.accel_bs, accel_floor))
     return lines
 

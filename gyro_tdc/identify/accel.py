@@ -38,7 +38,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['ACCEL_EFFECTS', 'AccelFit', 'G0', 'MG', 'MIN_STATIC_FRACTION', 'PX4_FEATURES',
-           'accel_features', 'accel_scores', 'compensate_accel', 'discovery_runs', 'fit_accel']
+           'accel_features', 'accel_scores', 'compensate_accel', 'constant_axes',
+           'constant_note', 'discovery_runs', 'fit_accel']
 
 #: Standard gravity, m/s^2 per g.
 G0 = 9.80665
@@ -50,6 +51,54 @@ ACCEL_EFFECTS: tuple[str, ...] = ('dT', 'dT2', 'dT3', 'dTdt', 'lag')
 PX4_FEATURES: tuple[str, ...] = ('dT', 'dT2', 'dT3')
 #: ``evaluate`` reports accelerometer figures for runs at least this still.
 MIN_STATIC_FRACTION = 0.5
+
+
+def constant_axes(values: ArrayLike) -> NDArray[np.bool_]:
+    """
+    Return, per axis, whether the readings never vary beyond one quantum (a constant).
+
+    An axis is constant when its finite readings take at most two values (two values are
+    one quantum apart by definition: the smallest step seen): a driver that fills a fixed
+    value (e.g. exactly ``(0, 0, g)``) or a sensor whose drift stays below its resolution.
+    There is nothing to fit on such an axis.
+
+    Parameters
+    ----------
+    values : ArrayLike, shape (N, 3)
+        Readings (NaN rows ignored).
+
+    Returns
+    -------
+    NDArray[np.bool_], shape (3,)
+        True for the constant axes (also when an axis has no finite reading).
+
+    """
+    a = np.asarray(values, dtype=np.float64).reshape(-1, 3)
+    out = np.ones(3, dtype=bool)
+    for i in range(3):
+        v = a[:, i]
+        v = v[np.isfinite(v)]
+        if v.size:
+            lo, hi = float(v.min()), float(v.max())
+            out[i] = lo == hi or bool(np.all((v == lo) | (v == hi)))
+    return out
+
+
+def constant_note(runs: Sequence[Run]) -> str:
+    """
+    Return why the accelerometer of ``runs`` counts as absent ('' when it does not).
+
+    Every axis of the readings of all the runs together is constant (:func:`constant_axes`).
+    """
+    acc = [np.asarray(r.accel, dtype=np.float64).reshape(-1, 3) for r in runs
+           if r.accel is not None]
+    if not acc or not constant_axes(np.concatenate(acc)).all():
+        return ''
+    first = np.concatenate(acc)
+    ok = np.isfinite(first).all(axis=1)
+    value = ', '.join(f'{v:.6g}' for v in (first[ok][0] if ok.any() else first[0]))
+    return (f'the accelerometer readings are constant (({value}) m/s^2, never varying '
+            'beyond one quantum: a driver filling a fixed value); treated as absent')
 
 
 def accel_features(model: CompensationModel, features: str | Sequence[str] | None = None
@@ -265,6 +314,10 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     if not with_acc:
         out.note = 'no accelerometer data in the bags (all zero: the IMU publishes none)'
         return out
+    constant = constant_note([r for r, _ in with_acc])
+    if constant:
+        out.note = constant
+        return out
     usable = [(r, d) for r, d in with_acc if d.mask.any()]
     if not usable:
         out.note = 'no static data: ' + '; '.join(sorted({d.reason for _, d in with_acc}))
@@ -406,14 +459,15 @@ def accel_scores(run: Run, models: Sequence[CompensationModel], *,
     Returns
     -------
     raw : NDArray[np.float64], shape (3,), (m/s^2)^2, or None
-        :func:`static_bs` of the raw data; None when the run has no accelerometer data or
-        is still for less than :data:`MIN_STATIC_FRACTION` of its samples.
+        :func:`static_bs` of the raw data; None when the run has no accelerometer data,
+        constant readings (:func:`constant_axes`) or is still for less than
+        :data:`MIN_STATIC_FRACTION` of its samples.
     per_model : list of (NDArray[np.float64] or None)
         The same after each model.
 
     """
     data = static_data(run)
-    if data is None or data.fraction < MIN_STATIC_FRACTION:
+    if data is None or data.fraction < MIN_STATIC_FRACTION or constant_note([run]):
         return None, [None] * len(models)
     raw = static_bs(run.accel, data)
     out = []
