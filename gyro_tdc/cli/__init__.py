@@ -68,7 +68,8 @@ COMMANDS: dict[str, Command] = {
         Command('fleet', 'gyro_tdc.cli.fleet',
                 'calibrate many IMUs from a manifest on Dask, with fleet-outlier flags'),
         Command('export', 'gyro_tdc.cli.export',
-                'write a model as PX4 or ArduPilot thermal-calibration parameters'),
+                'write a model as PX4 or ArduPilot thermal-calibration parameters, or a '
+                "learn_file's learned model as a model file"),
     )
 }
 

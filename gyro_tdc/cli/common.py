@@ -29,18 +29,21 @@ import os
 import re
 import shlex
 import sys
-from typing import Callable, NoReturn, Optional, Sequence
+from typing import Callable, NoReturn, Optional, Sequence, TYPE_CHECKING
 
 from gyro_tdc.cli import PROG
 from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPIC,
                            DEFAULT_TEMPERATURE_TOPIC, LOG_FORMATS, MAX_LOSS_FRACTION)
 from gyro_tdc.errors import GyroTdcError, one_line
 
+if TYPE_CHECKING:
+    from gyro_tdc.model import CompensationModel
+
 __all__ = [
     'ArgumentParser', 'UsageError', 'add_bag_options', 'bag_options', 'command_line',
     'effect_listing', 'finite_float', 'non_negative_float', 'non_negative_int', 'parse_reference',
     'positive_float',
-    'positive_int', 'probability', 'run_command',
+    'positive_int', 'probability', 'read_model', 'run_command',
 ]
 
 _DEG = math.pi / 180.0
@@ -280,6 +283,17 @@ def non_negative_int(text: str) -> int:
     if v < 0:
         raise argparse.ArgumentTypeError(f'expected an integer >= 0, got {text!r}')
     return v
+
+
+def read_model(spec: str) -> 'CompensationModel':
+    """
+    Return the model a command's model argument names: a file, a shipped name, a learn_file.
+
+    A ``learn_file`` gives its current learned model (:func:`gyro_tdc.learn.read_model`); one
+    with no accepted model yet is bad input (one line, exit 2).
+    """
+    from gyro_tdc.learn import read_model as read
+    return read(spec)
 
 
 def command_line(command: str, argv: Sequence[str]) -> str:

@@ -29,7 +29,7 @@ import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, non_negative_float,
-                                 run_command, UsageError)
+                                 read_model, run_command, UsageError)
 from gyro_tdc.data import expand_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
                                load_models, model_description, PX4, write_csv, write_json,
@@ -49,7 +49,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='held-out rosbag2 directory (sqlite3 or mcap), PX4 .ulg or '
                         'ArduPilot .bin log, or a folder of them')
     p.add_argument('--model', dest='models', action='append', required=True, metavar='MODEL',
-                   help='model file (repeat for several; reported in this order), px4 for '
+                   help='model file or learn_file (its learned model; repeat for several; '
+                        'reported in this order), px4 for '
                         'a PX4-style cubic in T fitted on the --train bags, or px4-onboard / '
                         "ardupilot-onboard for the flight controller's own correction as each "
                         "held-out log's TC_G* / INS_TCALn_* parameters define it (its clamp)")
@@ -138,7 +139,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     def log(line: str) -> None:
         bar.write(line)
 
-    models = load_models(specs, train_bags=args.train, bag=bag, log=log, held_out=args.bags)
+    models = load_models(specs, train_bags=args.train, bag=bag, log=log, held_out=args.bags,
+                         loader=read_model)
     descriptions = [model_description(nm.name, nm.model.kind, nm.model.features,
                                       tau_s=_state_tau(nm.model))
                     for nm in models]

@@ -13,12 +13,13 @@
 # limitations under the License.
 
 """
-``gyro-tdc export --px4 MODEL --out FILE.params`` (or ``--ardupilot MODEL --out FILE.parm``).
+``gyro-tdc export --px4 MODEL --out FILE.params`` (``--ardupilot``; ``--model`` -> YAML).
 
 Fits the model's steady-state drift in the flight controller's cubic
 (:mod:`gyro_tdc.identify.export`), writes the parameter file its ground station loads, says
 where the firmware's clamp will cost and, with ``--eval BAG...``, how much of the held-out
-improvement the form keeps against the full model. See ``doc/flight_controllers.md``.
+improvement the form keeps against the full model (``doc/flight_controllers.md``).
+``--model LEARN_FILE --out model.yaml`` writes a learn_file's learned model as a model file.
 """
 
 from __future__ import annotations
@@ -27,13 +28,12 @@ import argparse
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.base import model_path
 from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
-                                 non_negative_float, run_command, UsageError)
+                                 non_negative_float, read_model, run_command, UsageError)
 from gyro_tdc.data import load_runs
 from gyro_tdc.identify import (clamp_cost, fit_export, from_params, read_params, score_export,
                                write_params)
-from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, load_model
+from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, save_model
 import numpy as np
 
 __all__ = ['build_parser', 'main']
@@ -52,15 +52,22 @@ def build_parser() -> argparse.ArgumentParser:
         description="Write a model's drift as a flight controller's thermal-calibration "
                     'parameters (PX4 TC_G*/TC_A*, ArduPilot INS_TCALn_*), fitted in their '
                     'exact cubic over the trained range; with --eval, score the form as the '
-                    'firmware applies it beside the full model on held-out bags.')
+                    'firmware applies it beside the full model on held-out bags. Or, with '
+                    '--model, write a model (a learn_file: its learned model) as a model '
+                    'file. MODEL is a model file, a shipped name or a learn_file.')
     which = p.add_mutually_exclusive_group(required=True)
+    which.add_argument('--model', metavar='MODEL', default=None,
+                       help='model file or learn_file to write as a gyro_tdc model file '
+                            '(YAML) at --out: the learned model of a learn_file, to evaluate, '
+                            'inspect or ship to another vehicle as model_file')
     which.add_argument('--px4', metavar='MODEL', default=None,
                        help='model file (or shipped name) to export as PX4 TC_* parameters '
                             '(a QGroundControl .params file)')
     which.add_argument('--ardupilot', metavar='MODEL', default=None,
                        help='model file (or shipped name) to export as ArduPilot INS_TCALn_* '
                             'parameters (a Mission Planner / MAVProxy .parm file)')
-    p.add_argument('--out', required=True, metavar='FILE', help='parameter file to write')
+    p.add_argument('--out', required=True, metavar='FILE',
+                   help='parameter file to write (with --model: the model file)')
     p.add_argument('--instance', type=_count, default=0, metavar='N',
                    help='PX4 calibration slot 0..3 (TC_G<N>) or ArduPilot IMU 0..2 '
                         '(INS_TCAL<N+1>) (default: %(default)s)')
@@ -102,8 +109,29 @@ def _axes(values) -> str:
     return ' '.join(f'{v:10.3e}' for v in values)
 
 
+def _write_model(args: argparse.Namespace) -> int:
+    """Write ``--model`` (a learn_file's learned model) as a model file at ``--out``."""
+    if args.eval or args.reanchor:
+        raise UsageError('--eval and --reanchor are for --px4/--ardupilot; evaluate a model '
+                         'with gyro-tdc evaluate BAG --model MODEL')
+    model = read_model(args.model)
+    path = save_model(model, args.out)
+    lo, hi = model.temp_range_c
+    learned = model.created.get('learn_file')
+    print(f'model {args.model} ({model.model_id}, {model.kind} {",".join(model.features)}), '
+          f'range {lo:.2f} .. {hi:.2f} degC'
+          + (f': learned, {model.created.get("points")} points, last update at stamp '
+             f'{model.created.get("last_update_stamp_s")} s' if learned else ''))
+    print(f'wrote {path}' + (' (its offset is that of the last session: re-anchor it on another '
+                             'power cycle, reanchor_on_start / evaluate --reanchor auto)'
+                             if learned else ''))
+    return 0
+
+
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``export`` with parsed arguments."""
+    if args.model is not None:
+        return _write_model(args)
     firmware = 'px4' if args.px4 is not None else 'ardupilot'
     spec = args.px4 if args.px4 is not None else args.ardupilot
     slots = 4 if firmware == 'px4' else 3
@@ -112,7 +140,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                          f'{"slots 0..3" if slots == 4 else "IMUs 0..2"}')
     if args.reanchor and not args.eval:
         raise UsageError('--reanchor is only used with --eval BAG...')
-    model = load_model(model_path(spec))
+    model = read_model(spec)
     lo, hi = model.temp_range_c
     state = ('steady-state drift vs temperature (the thermal state settled)'
              if model.thermal is not None and model.thermal.kind != 'none' else

@@ -247,7 +247,8 @@ def _with_accel(bag: BagOptions | None) -> BagOptions:
 def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None,
                 bag: BagOptions | None = None,
                 log: Callable[[str], None] | None = None,
-                held_out: Sequence[str | os.PathLike] | None = None) -> list:
+                held_out: Sequence[str | os.PathLike] | None = None,
+                loader: Callable[[str], CompensationModel] | None = None) -> list:
     """
     Load model files and fit the ``px4`` baseline when asked.
 
@@ -266,6 +267,9 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     held_out : sequence of str or PathLike, optional
         The held-out logs: ``px4-onboard`` / ``ardupilot-onboard`` are built from the
         parameters of the first here (and rebuilt from each log's own by :func:`evaluate`).
+    loader : callable, optional
+        Reads one model spec (default: a model file or shipped name; the CLI's also takes a
+        learn_file, :func:`gyro_tdc.learn.read_model`).
 
     Returns
     -------
@@ -282,7 +286,10 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     """
     if PX4 in specs and not train_bags:
         raise FitError('The px4 baseline needs training bags to fit its cubic on.')
-    files = {s: load_model(model_path(s)) for s in specs if s != PX4 and s not in ONBOARD}
+    if loader is None:
+        def loader(spec: str) -> CompensationModel:
+            return load_model(model_path(spec))
+    files = {s: loader(s) for s in specs if s != PX4 and s not in ONBOARD}
     if any(s in ONBOARD for s in specs):
         if not held_out:
             raise FitError('The on-board models need the held-out logs they are read from.')

@@ -15,12 +15,14 @@
 """
 Learning on the vehicle.
 
-The online learner, its fit, its model temperature and its learn file.
+The online learner, its fit, its model temperature, its learn file and the learned model
+as a model.
 """
 
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
+    'learned': ['is_learn_file', 'model_from_file', 'read_model'],
     'learner': ['LearnConfig', 'Learner'],
     'store': ['LearnFile', 'open_learn_file'],
 })

@@ -475,13 +475,14 @@ class LearnFile:
         self.notes: list[str] = []
         self._mine: tuple[int, int, int, int] | None = None
 
-    def read(self) -> Any:
+    def read(self, *, fix_mode: bool = True) -> Any:
         """
         Return the JSON document in the file, or None when there is none.
 
         Refused before anything is parsed: a symbolic link, anything but a regular file, a
         file over :data:`MAX_BYTES` or nested deeper than :data:`MAX_DEPTH`. A file the owner
-        (this node's user) may not read or write is given ``u+rw`` first.
+        (this node's user) may not read or write is given ``u+rw`` first (unless
+        ``fix_mode`` is False: a reader that never writes it).
 
         Raises
         ------
@@ -510,7 +511,7 @@ class LearnFile:
         if st.st_size > MAX_BYTES:
             raise LearnFileError(f'{p}: {st.st_size} bytes, more than the {MAX_BYTES}-byte '
                                  '(4 MiB) limit of a learn_file')
-        if st.st_uid == os.geteuid():
+        if fix_mode and st.st_uid == os.geteuid():
             note = _owner_rw(p, st)
             if note:
                 self.notes.append(note)

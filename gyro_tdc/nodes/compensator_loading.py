@@ -25,9 +25,10 @@ from __future__ import annotations
 
 from typing import Any, Callable
 
-from gyro_tdc.base import Job, LatestJob, model_path
+from gyro_tdc.base import Job, LatestJob
 from gyro_tdc.errors import GyroTdcError, one_line
-from gyro_tdc.model import CompensationModel, load_model
+from gyro_tdc.learn import read_model as read_any_model
+from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime import prepare, PreparedModel, sensor_mismatch
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
@@ -46,12 +47,13 @@ LOAD_POLL_S = 0.02
 
 def read_model(name_or_file: str) -> CompensationModel:
     """
-    Resolve and load a model file.
+    Resolve and load a model file (or a learn_file's learned model).
 
     Parameters
     ----------
     name_or_file : str
-        A path or the name of a model shipped in ``config/models``.
+        A path, the name of a model shipped in ``config/models``, or a learn_file (its
+        current learned model, :func:`gyro_tdc.learn.read_model`).
 
     Returns
     -------
@@ -62,10 +64,13 @@ def read_model(name_or_file: str) -> CompensationModel:
     ------
     ModelFileError
         The file is missing, malformed, inconsistent or beyond one of the model loader's
-        limits (size, nesting, aliases, centres; one-line reason).
+        limits (size, nesting, aliases, centres; one-line reason), or a learn_file holds
+        no accepted model yet.
+    LearnFileError
+        A learn_file that is not a learner state.
 
     """
-    return load_model(model_path(name_or_file))
+    return read_any_model(name_or_file)
 
 
 class ModelLoading:

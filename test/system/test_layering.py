@@ -41,7 +41,8 @@ PACKAGE = ROOT / 'gyro_tdc'
 #: (runtime), is scored (evaluate) and calibrated by the fleet; cli and nodes are the shells.
 #: ``gyro_tdc`` is the top package (``__version__``), ``errors`` its exception classes.
 #: cli may import nodes: ``gyro-tdc demo`` starts the two nodes (inside its live step, so the
-#: other commands never load rclpy); nodes never import cli.
+#: other commands never load rclpy); nodes never import cli. cli may import learn: a
+#: learn_file's learned model is taken wherever a model file is (evaluate, export).
 LAYERS: dict[str, frozenset] = {k: frozenset(v.split()) for k, v in {
     'gyro_tdc': '',
     'errors': '',
@@ -57,7 +58,7 @@ LAYERS: dict[str, frozenset] = {k: frozenset(v.split()) for k, v in {
     'sources': 'base errors sim',
     'fleet': 'gyro_tdc base data errors evaluate identify model',
     'nodes': 'base data errors learn model runtime signal sim sources',
-    'cli': 'base data errors evaluate fleet identify model nodes signal sim',
+    'cli': 'base data errors evaluate fleet identify learn model nodes signal sim',
     '__main__': 'gyro_tdc cli',
 }.items()}
 
