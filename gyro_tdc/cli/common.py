@@ -33,14 +33,16 @@ from typing import Callable, NoReturn, Optional, Sequence, TYPE_CHECKING
 
 from gyro_tdc.cli import PROG
 from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPIC,
-                           DEFAULT_TEMPERATURE_TOPIC, LOG_FORMATS, MAX_LOSS_FRACTION)
+                           DEFAULT_TEMPERATURE_TOPIC, GAP_PERIODS, LOG_FORMATS,
+                           MAX_LOSS_FRACTION, SESSION_GAP_S, SESSION_MODES)
 from gyro_tdc.errors import GyroTdcError, one_line
 
 if TYPE_CHECKING:
     from gyro_tdc.model import CompensationModel
 
 __all__ = [
-    'ArgumentParser', 'UsageError', 'add_bag_options', 'bag_options', 'command_line',
+    'ArgumentParser', 'UsageError', 'add_bag_options', 'add_session_options', 'bag_options',
+    'command_line',
     'effect_listing', 'finite_float', 'non_negative_float', 'non_negative_int', 'parse_reference',
     'positive_float',
     'positive_int', 'probability', 'read_model', 'run_command',
@@ -186,6 +188,30 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
     parser.set_defaults(progress=None)
 
 
+def add_session_options(parser: argparse.ArgumentParser) -> None:
+    """
+    Add ``--sessions auto|bag|none`` and ``--session-gap S`` (commands that fit or score).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The command's parser.
+
+    """
+    g = parser.add_argument_group('sessions (power cycles, one turn-on offset each)')
+    g.add_argument('--sessions', default='auto', choices=SESSION_MODES,
+                   help='how the bags are cut into sessions, each with its own turn-on '
+                        'offset beside one shared thermal curve: auto (every bag, cut again '
+                        'where its stamps pause for longer than --session-gap or its device '
+                        'clock restarts), bag (one per bag) or none (one offset for all, as '
+                        'one power cycle) (default: %(default)s)')
+    g.add_argument('--session-gap', dest='session_gap', type=non_negative_float, default=0.0,
+                   metavar='S',
+                   help='a stamp gap longer than S seconds starts a new session; 0: automatic '
+                        f'(longer than {SESSION_GAP_S:g} s and than {GAP_PERIODS} sample '
+                        'periods, and in a bursty log than 3 x its usual pause) (default: 0)')
+
+
 def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
     """
     Return how to read the bags, from arguments parsed with :func:`add_bag_options`.
@@ -203,7 +229,8 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
     BagOptions
         The topics, the reference (``--reference`` parsed, rad/s), ``progress`` (a terminal
         when not given), ``max_loss`` (1.0 with ``--allow-loss``), the flight-log choices
-        (``--log-format``, ``--imu-instance``, ``--allow-onboard-corrected``) and ``more``.
+        (``--log-format``, ``--imu-instance``, ``--allow-onboard-corrected``), the sessions
+        (``--sessions``, ``--session-gap``, :func:`add_session_options`) and ``more``.
 
     """
     progress = args.progress
@@ -216,7 +243,9 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
         max_loss=1.0 if getattr(args, 'allow_loss', False) else MAX_LOSS_FRACTION,
         log_format=getattr(args, 'log_format', 'auto'),
         imu_instance=getattr(args, 'imu_instance', 0),
-        allow_onboard_corrected=bool(getattr(args, 'allow_onboard_corrected', False)), **more)
+        allow_onboard_corrected=bool(getattr(args, 'allow_onboard_corrected', False)),
+        sessions=getattr(args, 'sessions', 'auto'),
+        session_gap_s=float(getattr(args, 'session_gap', 0.0)), **more)
 
 
 # --------------------------------------------------------------------------------------------

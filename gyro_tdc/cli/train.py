@@ -27,11 +27,11 @@ import argparse
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
-                                 effect_listing, finite_float, positive_float, positive_int,
-                                 run_command)
+from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser,
+                                 bag_options, command_line, effect_listing, finite_float,
+                                 positive_float, positive_int, run_command)
 from gyro_tdc.errors import GyroTdcError
-from gyro_tdc.evaluate import format_coverage, format_training
+from gyro_tdc.evaluate import format_coverage, format_sessions, format_training
 from gyro_tdc.identify import AUTO, train, train_still_only, TrainOptions
 from gyro_tdc.model import KINDS
 from gyro_tdc.signal import MIN_STILL_S
@@ -109,6 +109,7 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
                         "accelerometer offset's change with temperature on still data when "
                         'the bags have accelerometer data)')
     add_bag_options(p)
+    add_session_options(p)
 
 
 def train_options(args: argparse.Namespace, **more: object) -> TrainOptions:
@@ -153,6 +154,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                  log=lambda line: print(line, flush=True))
     if result.choice is not None:
         print('\n'.join(result.choice.lines()))
+    for line in format_sessions(result):
+        print(line)
     text, warns = format_training(result)
     print(text)
     if result.still is not None:

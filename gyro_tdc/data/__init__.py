@@ -35,6 +35,8 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'mark': ['diagonal_marked', 'mark_diagonal'],
     'options': ['BagOptions', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
                 'DEFAULT_TEMPERATURE_TOPIC', 'LOG_FORMATS', 'MAX_LOSS_FRACTION'],
+    'sessions': ['find_breaks', 'GAP_PERIODS', 'Session', 'session_gap', 'SESSION_GAP_S',
+                 'SESSION_MODES', 'SessionSplit', 'split_sessions'],
     'realdata': ['default_pan_csv', 'PanCubesat', 'read_pan_cubesat_csv'],
     'runs': ['Run'],
     'ulog': ['read_ulog'],

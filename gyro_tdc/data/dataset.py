@@ -21,6 +21,8 @@ How a bag is read is one :class:`gyro_tdc.data.options.BagOptions`; what is drop
 
 from __future__ import annotations
 
+from dataclasses import replace
+import math
 import os
 from pathlib import Path
 import re
@@ -196,6 +198,54 @@ def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: 
     return out
 
 
+#: IMU stamps stepping back by more than this (s) in the bag's order: the device restarted.
+RESTART_BACK_S = 1.0
+
+
+def _parts(t: NDArray[np.float64]) -> list[int]:
+    """Return where ``t`` (bag order) steps back by more than RESTART_BACK_S: part starts."""
+    return [0] + (np.flatnonzero(np.diff(t) < -RESTART_BACK_S) + 1).tolist() + [len(t)]
+
+
+def _follow_restarts(bag: object, data: object, gap: float) -> tuple[object, list]:
+    """
+    Move every restarted part's stamps to follow the previous part, ``gap`` s after it.
+
+    A device whose clock restarts (stamps since boot) steps its IMU stamps back in the bag's
+    order; its thermometer (and reference) stamps step back with them. Each part is moved,
+    every topic by the same amount, so the parts follow one another in the bag's order;
+    returns the data and, per restart, ``(first moved stamp, step back in s)``.
+    """
+    imu = _parts(data.imu_t)
+    streams = {'temp_t': data.temp_t}
+    if data.ref_t is not None and len(data.ref_t):
+        streams['ref_t'] = data.ref_t
+    cuts = {k: _parts(v) for k, v in streams.items()}
+    for key, c in cuts.items():
+        if len(c) != len(imu):
+            what = 'thermometer' if key == 'temp_t' else 'reference'
+            raise DatasetError(
+                f'Bag {str(bag)!r}: the IMU stamps step back {len(imu) - 2} time(s) (a device '
+                f'clock restart) but the {what} stamps {len(c) - 2} time(s): the parts cannot '
+                'be matched; split the bag at the restarts.')
+    new = {'imu_t': data.imu_t.astype(np.float64, copy=True)}
+    new.update({k: v.astype(np.float64, copy=True) for k, v in streams.items()})
+    out = []
+    end = -math.inf
+    for p in range(len(imu) - 1):
+        spans = {'imu_t': slice(imu[p], imu[p + 1])}
+        spans.update({k: slice(c[p], c[p + 1]) for k, c in cuts.items()})
+        starts = [float(new[k][sl].min()) for k, sl in spans.items() if sl.stop > sl.start]
+        shift = 0.0 if p == 0 else end + gap - min(starts)
+        if p:
+            back = float(data.imu_t[imu[p] - 1] - data.imu_t[imu[p]])
+            out.append((float(new['imu_t'][imu[p]] + shift), back))
+        for k, sl in spans.items():
+            new[k][sl] += shift
+        end = max(float(new[k][sl].max()) for k, sl in spans.items() if sl.stop > sl.start)
+    return replace(data, **new), out
+
+
 @small_pages()    # its full-length arrays too: see gyro_tdc.data.bag.reader.small_pages
 def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     """
@@ -272,6 +322,9 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
         **({reference_topic: len(data.ref_t) + data.rejected['ref_nonfinite']}
            if data.ref_t is not None else {})}, o.max_loss, warnings)
 
+    restarts: list = []
+    if len(data.imu_t) > 1 and np.any(np.diff(data.imu_t) < -RESTART_BACK_S):
+        data, restarts = _follow_restarts(bag, data, 2.0 * o.max_gap_s + 1.0)
     t, omega = data.imu_t, data.gyro
     rows = np.arange(len(t))          # of data.accel: follows every IMU sample dropped
     same_rows = True                  # rows is still arange: data.accel needs no gather
@@ -332,10 +385,14 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
             + (f'[{temp_t.min():.3f}, {temp_t.max():.3f}] s' if len(temp_t) else 'nothing')
             + (f' vs IMU [{t.min():.3f}, {t.max():.3f}] s' if len(t) else '')
             + f'; rejected {rejected}.')
+    if restarts:     # the first sample of each restarted part in the final stamps
+        restarts = [[int(np.searchsorted(t[keep], at)), back] for at, back in restarts]
     info = {'rejected': rejected, 'warnings': warnings, 'reference': source,
             'frame_id': data.frame_id, 'storage': data.storage, 'topics': data.topics,
             'samples_read': int(len(data.imu_t) + data.rejected['imu_nonfinite']),
             'messages': messages, 'decoded_by_rosbags': data.fallback, **extra}
+    if restarts:
+        info['restarts'] = restarts
     if not keep.all():
         t, temp, omega, omega_ref = t[keep], temp[keep], omega[keep], omega_ref[keep]
         rows = rows[keep]

@@ -17,18 +17,21 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+import math
 
 from gyro_tdc.errors import DatasetError
 import numpy as np
 
 __all__ = ['BagOptions', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
-           'DEFAULT_TEMPERATURE_TOPIC', 'LOG_FORMATS', 'MAX_LOSS_FRACTION']
+           'DEFAULT_TEMPERATURE_TOPIC', 'LOG_FORMATS', 'MAX_LOSS_FRACTION', 'SESSION_MODES']
 
 DEFAULT_IMU_TOPIC = '/imu/data_raw'
 DEFAULT_TEMPERATURE_TOPIC = '/imu/temperature'
 DEFAULT_REFERENCE_TOPIC = '/rate_table/reference'
 #: Default largest fraction of a topic's listed messages that may be unreadable in a bag.
 MAX_LOSS_FRACTION = 0.01
+#: ``--sessions`` values (:mod:`gyro_tdc.data.sessions`, which imports them from here).
+SESSION_MODES = ('auto', 'bag', 'none')
 #: ``--log-format`` values: ``auto`` tells a bag, a PX4 ULog and an ArduPilot DataFlash log apart.
 LOG_FORMATS = ('auto', 'rosbag2', 'ulog', 'dataflash')
 
@@ -69,12 +72,20 @@ class BagOptions:
     allow_onboard_corrected : bool
         Read flight-log data the flight controller already thermally compensated (refused
         otherwise).
+    sessions : str
+        How the runs are cut into sessions, one turn-on offset each
+        (:func:`gyro_tdc.data.sessions.split_sessions`): ``auto`` (a bag, cut at gaps and
+        restarts), ``bag`` or ``none``.
+    session_gap_s : float, s
+        Stamp gap that starts a session; 0: automatic
+        (:func:`gyro_tdc.data.sessions.session_gap`).
 
     Raises
     ------
     DatasetError
-        When ``reference`` is not three finite rates, ``log_format`` is unknown or
-        ``imu_instance`` is not an integer >= 0.
+        When ``reference`` is not three finite rates, ``log_format`` or ``sessions`` is
+        unknown, ``imu_instance`` is not an integer >= 0 or ``session_gap_s`` not a number
+        >= 0.
 
     """
 
@@ -90,6 +101,8 @@ class BagOptions:
     log_format: str = 'auto'
     imu_instance: int = 0
     allow_onboard_corrected: bool = False
+    sessions: str = 'auto'
+    session_gap_s: float = 0.0
 
     def __post_init__(self) -> None:
         """Check the reference rate (held as a tuple of floats), log format and instance."""
@@ -102,6 +115,13 @@ class BagOptions:
                 or self.imu_instance < 0):
             raise DatasetError('Expected `imu_instance` to be an integer >= 0, got '
                                f'{self.imu_instance!r}.')
+        if self.sessions not in SESSION_MODES:
+            raise DatasetError(f'Expected `sessions` to be one of {", ".join(SESSION_MODES)}, '
+                               f'got {self.sessions!r}.')
+        gap = self.session_gap_s
+        if (isinstance(gap, bool) or not isinstance(gap, (int, float))
+                or not (math.isfinite(gap) and gap >= 0)):
+            raise DatasetError(f'Expected `session_gap_s` to be a number >= 0, got {gap!r}.')
 
 
 def _reference(value: object) -> tuple[float, float, float]:

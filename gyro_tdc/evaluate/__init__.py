@@ -24,7 +24,8 @@ from gyro_tdc.base.face import lazy
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'onboard': ['ONBOARD', 'onboard_model'],
     'plots': ['model_description', 'write_plots'],
-    'report': ['format_bag', 'format_coverage', 'format_means', 'format_training',
+    'report': ['format_bag', 'format_coverage', 'format_means', 'format_sessions',
+               'format_training', 'REANCHOR_SPREAD_DPS',
                'is_coverage_line', 'write_csv', 'write_json'],
     'score': ['AUTO_REANCHOR', 'BagEval', 'evaluate', 'load_models', 'mean_scores', 'NamedModel',
               'PX4'],

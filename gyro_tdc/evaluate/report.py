@@ -39,7 +39,8 @@ from numpy.typing import NDArray
 
 __all__ = [
     'AXES', 'csv_columns', 'drift_slope', 'evaluation_json', 'format_allan', 'format_bag',
-    'format_coverage', 'format_means', 'format_paper_table', 'format_summary', 'format_training',
+    'format_coverage', 'format_means', 'format_paper_table', 'format_sessions', 'format_summary',
+    'format_training', 'REANCHOR_SPREAD_DPS',
     'is_coverage_line', 'write_csv', 'write_json',
 ]
 
@@ -487,6 +488,52 @@ def drift_slope(model: Any) -> NDArray[np.float64]:
 def _row3(label: str, values: Sequence[float]) -> str:
     """Format one table row of three per-axis numbers."""
     return f'  {label:<13}' + ''.join(f'{v:>12.4g}' for v in values)
+
+
+#: Turn-on offsets differing by more than this between sessions (deg/s, any axis) make
+#: ``train`` say to re-anchor on the vehicle.
+REANCHOR_SPREAD_DPS = 0.01
+
+
+def format_sessions(result: TrainResult) -> list[str]:
+    """
+    Return the sessions of a training run and their turn-on offsets, one line each.
+
+    Parameters
+    ----------
+    result : TrainResult
+        What training produced (``sessions``, and the offsets in
+        ``model.metrics['sessions']`` when there are several).
+
+    Returns
+    -------
+    list of str
+        How the bags were cut, then each session's offset from the model's (their mean,
+        deg/s), the spread and, above :data:`REANCHOR_SPREAD_DPS` on an axis, the line that
+        says to re-anchor on the vehicle; empty without sessions.
+
+    """
+    split = getattr(result, 'sessions', None)
+    if split is None:
+        return []
+    out = list(split.lines())
+    info = result.model.metrics.get('sessions')
+    if not info:
+        return out
+    out.append("turn-on offset of each session against the model's (their mean), deg/s:")
+    width = max(len(n) for n in info['names'])
+    for name, off, n in zip(info['names'], info['offset_dps'], info['samples']):
+        out.append(f'  {name:<{width}}  ' + '  '.join(f'{v:+10.5f}' for v in off)
+                   + f'   ({n} samples)')
+    spread = info['spread_dps']
+    out.append(f'  {"spread":<{width}}  ' + '  '.join(f'{v:10.5f}' for v in spread)
+               + '   (largest minus smallest)')
+    if max(spread) > REANCHOR_SPREAD_DPS:
+        out.append(f'the turn-on offset changes by up to {max(spread):.3g} deg/s from one '
+                   'power cycle to the next: a model fixes the thermal curve, not the offset '
+                   'of a new power cycle; re-anchor on the vehicle (compensator_node '
+                   'reanchor_on_start, on by default) and score with evaluate --reanchor auto')
+    return out
 
 
 def format_training(result: TrainResult) -> tuple[str, list]:

@@ -23,6 +23,7 @@ See ``doc/internals/identify.md``.
 
 from __future__ import annotations
 
+from dataclasses import replace
 import datetime as _dt
 import math
 from typing import Mapping, Sequence
@@ -183,6 +184,49 @@ class _Blocks:
         return self._mean(d[:, None] * self.run.omega_ref)
 
 
+def _labels(runs: Sequence[Run], sessions: Sequence | None) -> list[int] | None:
+    """Return a 0-based session label per run (in order of appearance), None for one."""
+    if sessions is None:
+        return None
+    sessions = list(sessions)
+    if len(sessions) != len(runs):
+        raise FitError(f'Expected one session label per run ({len(runs)}), got '
+                       f'{len(sessions)}.')
+    index: dict = {}
+    labels = [index.setdefault(s, len(index)) for s in sessions]
+    return labels if len(index) > 1 else None
+
+
+def _block_groups(blocks: Sequence['_Blocks'], labels: Sequence[int] | None
+                  ) -> NDArray[np.int64] | None:
+    """Return the session of every block row (None: one session)."""
+    if labels is None:
+        return None
+    return np.concatenate([np.full(b.y.shape[0], g, dtype=np.int64)
+                           for b, g in zip(blocks, labels)])
+
+
+def _session_residual(r: NDArray[np.float64], groups: NDArray[np.int64],
+                      fitted: NDArray[np.int64], offsets: NDArray[np.float64]
+                      ) -> NDArray[np.float64]:
+    """
+    Return held-out residuals with each session's offset: fitted, or re-anchored.
+
+    ``r`` is the prediction without any offset minus the target; a session with training
+    rows gets its fitted offset, one held out whole has none and is re-anchored to zero
+    mean (as the compensator re-anchors at start-up).
+    """
+    out = r.copy()
+    for grp in np.unique(groups):
+        m = groups == grp
+        j = np.searchsorted(fitted, grp)
+        if j < fitted.size and fitted[j] == grp:
+            out[m] += offsets[j]
+        else:
+            out[m] -= out[m].mean(axis=0)
+    return out
+
+
 def _check_runs(runs: Sequence[Run], ids: Sequence[str],
                 rows: Sequence[NDArray[np.bool_]] | None = None) -> None:
     """Reject data that cannot support a fit, with a message naming the problem."""
@@ -228,11 +272,13 @@ class _Search:
 
     def __init__(self, runs: Sequence[Run], inputs: Sequence[str], t0: float, *, inner: str,
                  n_centers: int, ridge: float, seed: int, scale: bool, n_total: int,
-                 rows: Sequence[NDArray[np.bool_]] | None = None) -> None:
+                 rows: Sequence[NDArray[np.bool_]] | None = None,
+                 labels: Sequence[int] | None = None) -> None:
         block = block_length(n_total, 20_000, at_most=True)
         self.blocks = [_Blocks(r, block, None if rows is None else rows[i])
                        for i, r in enumerate(runs)]
         self.y = np.concatenate([b.y for b in self.blocks])
+        self.groups = _block_groups(self.blocks, labels)
         self.inputs, self.t0, self.scale, self.inner = tuple(inputs), t0, scale, inner
         self.n_centers, self.ridge, self.seed = n_centers, ridge, seed
 
@@ -247,14 +293,15 @@ class _Search:
         return x, sc
 
     def _linear(self, x: NDArray[np.float64], y: NDArray[np.float64],
-                sc: NDArray[np.float64] | None) -> LinearFit:
+                sc: NDArray[np.float64] | None,
+                groups: NDArray[np.int64] | None = None) -> LinearFit:
         return fit_linear(x, y, scale_cols=sc, kind=self.inner, n_centers=self.n_centers,
-                          ridge=self.ridge, seed=self.seed)
+                          ridge=self.ridge, seed=self.seed, groups=groups)
 
     def fit(self, thermal: ThermalState, par: Mapping) -> LinearFit:
         """Return the linear fit on the coarse rows with this front end and parameters."""
         x, sc = self.design(thermal, par)
-        return self._linear(x, self.y, sc)
+        return self._linear(x, self.y, sc, self.groups)
 
     def sse(self, thermal: ThermalState, par: Mapping) -> NDArray[np.float64]:
         """Return the residual sum of squares per axis (3,)."""
@@ -274,12 +321,17 @@ class _Search:
         n = x.shape[0]
         fold = (np.arange(n) * n_segments // n) % n_folds
         resid = np.zeros_like(self.y)
+        g = self.groups
         for k in range(n_folds):
             test = fold == k
             if not test.any() or test.all():
                 continue
-            fit = self._linear(x[~test], self.y[~test], None if sc is None else sc[~test])
-            resid[test] = fit.predict(x[test], None if sc is None else sc[test]) - self.y[test]
+            fit = self._linear(x[~test], self.y[~test], None if sc is None else sc[~test],
+                               None if g is None else g[~test])
+            r = fit.predict(x[test], None if sc is None else sc[test]) - self.y[test]
+            if g is not None:
+                r = _session_residual(r, g[test], np.unique(g[~test]), fit.offsets)
+            resid[test] = r
         steps = np.concatenate([np.diff(b.t) for b in self.blocks])
         dt = float(np.median(steps)) if steps.size else window_s
         w = max(1, int(round(window_s / dt))) if dt > 0 else 1
@@ -408,7 +460,8 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
               max_rows: int = 200_000, seed: int = 0, frame_id: str = 'imu_link',
               sensor_id: str = '', created: Mapping | None = None,
               thermal: str | ThermalState | None = None,
-              rows: Sequence[NDArray[np.bool_]] | None = None) -> CompensationModel:
+              rows: Sequence[NDArray[np.bool_]] | None = None,
+              sessions: Sequence | None = None) -> CompensationModel:
     """
     Identify a compensation model from training runs.
 
@@ -469,6 +522,14 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         fit, the residual, the sample count and the trained range use them only, while the
         filters (thermal state, dT/dt, warm-up) run over every sample of the run, so the
         die temperature evolves through the samples that do not count. None: every sample.
+    sessions : sequence, optional
+        A session label per run (:func:`gyro_tdc.data.split_sessions`): runs with one label
+        share one turn-on offset, and every session has its own, fitted beside one shared
+        thermal curve (one indicator column per session instead of one intercept). The
+        model's ``intercept`` is then the mean of the session offsets (each session weighs
+        the same), so its drift at any temperature is the mean session's; the offsets, as
+        differences from that mean, go to ``metrics['sessions']``. None, or one label:
+        one offset (the model and its id as without the argument).
 
     Returns
     -------
@@ -483,6 +544,7 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
         raise FitError(f'`n_centers` must be at least 1 for an rbf model, got {n_centers}.')
     ids, mode, th = _thermal_choice(ids, thermal, fit_params, params)
     _check_runs(runs, ids, rows)
+    labels = _labels(runs, sessions)
     if t0 is None:
         t0 = estimate_t0(runs[0])
     inputs = input_ids(ids, state=True)
@@ -493,6 +555,7 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     block = block_length(n_all, max_rows, at_most=True)
     blocks = [_Blocks(r, block, None if rows is None else rows[i]) for i, r in enumerate(runs)]
     y = np.concatenate([b.y for b in blocks])
+    groups = _block_groups(blocks, labels)
 
     free = [(eid, name) for eid in inputs for name in EFFECTS[eid].fitted] if fit_params else []
     search_ridge = RIDGE_GRID[1] if ridge == 'auto' else ridge
@@ -511,7 +574,7 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
             inner = 'poly'
         search = _Search(runs, search_inputs, t0, inner=inner, n_centers=n_centers,
                          ridge=search_ridge, seed=seed, scale='scale' in ids, n_total=n_all,
-                         rows=rows)
+                         rows=rows, labels=labels)
         n_rounds = 2 if len(free) + fit_state > 1 else 1
         for _round in range(n_rounds):
             for eid, name in free:
@@ -535,11 +598,18 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     scale_cols = (np.concatenate([b.scale_cols(t0, state=s) for b, s in zip(blocks, states)])
                   if 'scale' in ids else None)
     fit = fit_linear(x, y, scale_cols=scale_cols, kind=kind, n_centers=n_centers, ridge=ridge,
-                     seed=seed)
+                     seed=seed, groups=groups)
+    offsets = fit.offsets
     if refine and kind == 'rbf':
-        fit = refine_rbf(x, y, scale_cols, fit, ridge=fit.ridge, seed=seed)
+        if groups is None:
+            fit = refine_rbf(x, y, scale_cols, fit, ridge=fit.ridge, seed=seed)
+        else:       # refined with the session offsets held: one offset, their mean
+            level = y - (offsets - offsets.mean(axis=0))[groups]
+            fit = refine_rbf(x, level, scale_cols, replace(fit, coef=_with_level(fit)),
+                             ridge=fit.ridge, seed=seed)
+            offsets = offsets - offsets.mean(axis=0) + fit.coef[0]
     f = len(inputs)
-    coef = fit.coef
+    coef = fit.coef if groups is None else _with_level(fit, offsets)
     counted = states if rows is None else [s[m] for s, m in zip(states, rows)]
     lo = min(float(s.min()) for s in counted if s.size)
     hi = max(float(s.max()) for s in counted if s.size)
@@ -575,7 +645,34 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     }
     if thermal_info:
         metrics['thermal'] = thermal_info
+    if groups is not None:
+        metrics['sessions'] = _session_metrics(runs, labels, offsets, rows)
     return model.replace(residual_var=residual_var, metrics=metrics)
+
+
+def _with_level(fit: LinearFit, offsets: NDArray[np.float64] | None = None
+                ) -> NDArray[np.float64]:
+    """Return the coefficients with the constant the mean of the session offsets."""
+    coef = fit.coef.copy()
+    coef[0] = (fit.offsets if offsets is None else offsets).mean(axis=0)
+    return coef
+
+
+def _session_metrics(runs: Sequence[Run], labels: Sequence[int], offsets: NDArray[np.float64],
+                     rows: Sequence[NDArray[np.bool_]] | None) -> dict:
+    """Return the sessions' names, samples and offsets from their mean (deg/s)."""
+    deg = 180.0 / math.pi
+    rel = (offsets - offsets.mean(axis=0)) * deg
+    names: list[list[str]] = [[] for _ in range(offsets.shape[0])]
+    samples = [0] * offsets.shape[0]
+    for i, (r, g) in enumerate(zip(runs, labels)):
+        names[g].append(r.name)
+        samples[g] += len(r) if rows is None else int(np.count_nonzero(rows[i]))
+    spread = rel.max(axis=0) - rel.min(axis=0)
+    return {'count': int(offsets.shape[0]),
+            'names': [', '.join(n) for n in names], 'samples': samples,
+            'offset_dps': [[float(v) for v in o] for o in rel],
+            'spread_dps': [float(v) for v in spread]}
 
 
 def _choose_state(search: _Search, mode: str, par: Mapping, tau_fo: float, seen: Mapping

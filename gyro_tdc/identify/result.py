@@ -51,6 +51,8 @@ class TrainResult:
         ``accel=False``).
     still : gyro_tdc.identify.still_only.StillReport, optional
         With ``train --still-only``: the still time, its coverage and what to record next.
+    sessions : gyro_tdc.data.SessionSplit, optional
+        The sessions the bags were cut into (one turn-on offset each).
 
     """
 
@@ -62,3 +64,4 @@ class TrainResult:
     choice: FeatureChoice | None = None
     accel: AccelFit | None = None
     still: object | None = None
+    sessions: object | None = None

@@ -26,7 +26,7 @@ from dataclasses import replace
 import os
 from typing import Callable, Sequence
 
-from gyro_tdc.data import BagOptions, coverage, load_runs, Run
+from gyro_tdc.data import BagOptions, coverage, load_runs, Run, split_sessions
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.identify.accel import fit_accel
 from gyro_tdc.identify.features import features_for_fit
@@ -85,7 +85,9 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     Parameters
     ----------
     bags : sequence of str or PathLike
-        rosbag2 directories (or folders of them), one run each.
+        rosbag2 directories (or folders of them), one run each, cut into sessions as
+        ``bag.sessions`` says (:func:`gyro_tdc.data.split_sessions`): one turn-on offset per
+        session beside one shared thermal curve.
     out : str or PathLike
         Model file to write.
     options : TrainOptions, optional
@@ -116,11 +118,13 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     bag = replace(BagOptions() if bag is None else bag, accel=bool(o.accel))
     runs: list[Run] = load_runs(bags, bag, log=log)
     names = [r.name for r in runs]
+    split = split_sessions(runs, bag.sessions, bag.session_gap_s)
+    runs = split.runs
     t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
     ids, params, choice = features_for_fit(runs, o.features, t0=t0)
     model = fit_model(runs, features=ids, params=params or None, kind=o.kind, t0=t0,
                       n_centers=o.n_centers, refine=o.refine, ridge=o.ridge, seed=o.seed,
-                      thermal=o.thermal,
+                      thermal=o.thermal, sessions=split.labels,
                       frame_id=data_frame(runs),
                       sensor_id=str(o.sensor_id), created={'command': command, 'bags': names})
     accel_fit = None
@@ -133,4 +137,5 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     cov = coverage(runs, bin_c=o.bin_c)
     path = save_model(model, out)
     return TrainResult(model=model, path=path, coverage=cov, bags=names,
-                       samples=sum(len(r) for r in runs), choice=choice, accel=accel_fit)
+                       samples=sum(len(r) for r in runs), choice=choice, accel=accel_fit,
+                       sessions=split)

@@ -1,0 +1,256 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Sessions: one power cycle each, a bag or the part of a bag between gaps and restarts.
+
+:func:`find_breaks` finds where a run restarts (a stamp gap far above the sample period, a
+device clock that stepped back); :func:`split_sessions` cuts runs there (``--sessions``,
+``--session-gap``). Every session gets its own turn-on offset; see ``doc/internals/data.md``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+from typing import Sequence
+
+from gyro_tdc.data.options import SESSION_MODES
+from gyro_tdc.data.runs import Run
+from gyro_tdc.errors import DatasetError
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['BURST_FACTOR', 'BURST_PAUSES', 'find_breaks', 'GAP_PERIODS', 'Session',
+           'session_gap', 'SESSION_GAP_S', 'SESSION_MODES', 'SessionSplit', 'split_sessions']
+
+# SESSION_MODES (gyro_tdc.data.options): ``auto`` (a bag, cut at gaps and restarts), ``bag``
+# (one per bag), ``none`` (one offset for all the data, as one power cycle).
+#: A stamp gap starts a new session when it is longer than this (s) ...
+SESSION_GAP_S = 600.0
+#: ... and than this many median sample periods ...
+GAP_PERIODS = 100
+#: ... and, in a bursty log (at least this many pauses longer than GAP_PERIODS periods) ...
+BURST_PAUSES = 5
+#: ... than this many times the median of those pauses (the log's own rhythm is no restart).
+BURST_FACTOR = 3.0
+
+
+@dataclass(frozen=True)
+class Session:
+    """
+    One session: a power cycle of the sensor, with its own turn-on offset.
+
+    Parameters
+    ----------
+    name : str
+        The run's name: the bag, or ``BAG@k`` for the k-th session (from 1) of a bag cut
+        into several.
+    bag : str
+        The bag it came from (``'all'`` with ``--sessions none`` and several bags).
+    index : int
+        Its label, 0-based in order: the offset it gets in a fit.
+    start_s, end_s : float, s
+        First and last stamp.
+    samples : int
+        Samples.
+    why : str
+        What started it: ``'bag'``, ``'gap of X s'`` or ``'restart (stamps back by X s)'``.
+
+    """
+
+    name: str
+    bag: str
+    index: int
+    start_s: float
+    end_s: float
+    samples: int
+    why: str = 'bag'
+
+
+@dataclass(frozen=True)
+class SessionSplit:
+    """
+    Runs cut into sessions, with one label per run (runs with one label share an offset).
+
+    Parameters
+    ----------
+    runs : list of Run
+        One per session with ``mode='auto'``; the runs as given otherwise.
+    labels : list of int
+        The session of each run (0-based).
+    sessions : list of Session
+        One per label.
+    mode : str
+        One of :data:`SESSION_MODES`.
+    breaks : list of str
+        Every gap or restart found, in words (also those not cut with ``bag`` / ``none``).
+
+    """
+
+    runs: list
+    labels: list
+    sessions: list
+    mode: str = 'auto'
+    breaks: list = field(default_factory=list)
+
+    @property
+    def count(self) -> int:
+        """Return the number of sessions."""
+        return len(self.sessions)
+
+    def lines(self) -> list[str]:
+        """Return the report: how many sessions, and every break found (cut or not)."""
+        cut = self.mode == 'auto'
+        head = (f'sessions ({self.mode}): {self.count} '
+                + ('(one offset for all the data)' if self.mode == 'none' else
+                   '(one turn-on offset each, a shared thermal curve)'))
+        out = [head]
+        for b in self.breaks:
+            out.append(f'  {b}' + ('' if cut else f' (not cut: --sessions {self.mode})'))
+        return out
+
+
+def _steps(t: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.diff(np.asarray(t, dtype=np.float64))
+
+
+def session_gap(t: NDArray[np.float64], gap_s: float = 0.0) -> float:
+    """
+    Return the stamp gap (s) above which a run starts a new session.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (N,), s
+        Increasing stamps of one run.
+    gap_s : float, s
+        A fixed threshold (``--session-gap``); 0: the automatic rule, the longest of
+        :data:`SESSION_GAP_S`, :data:`GAP_PERIODS` median sample periods and, when the log
+        pauses regularly (:data:`BURST_PAUSES` pauses or more longer than GAP_PERIODS
+        periods), :data:`BURST_FACTOR` times its median pause.
+
+    Returns
+    -------
+    float, s
+        The threshold.
+
+    """
+    if gap_s > 0:
+        return float(gap_s)
+    dt = _steps(t)
+    if dt.size == 0:
+        return math.inf
+    period = float(np.median(dt))
+    gap = max(SESSION_GAP_S, GAP_PERIODS * period)
+    pauses = dt[dt > GAP_PERIODS * period]
+    if pauses.size >= BURST_PAUSES:
+        gap = max(gap, BURST_FACTOR * float(np.median(pauses)))
+    return gap
+
+
+def find_breaks(run: Run, gap_s: float = 0.0) -> list[tuple[int, str]]:
+    """
+    Return where a run starts a new session: (first sample, why) in order.
+
+    A break is a stamp gap above :func:`session_gap`, or a restart that
+    :func:`gyro_tdc.data.dataset.load_run` found (the device clock stepped back;
+    ``run.info['restarts']``: the first sample of each restarted part and the step back, s).
+
+    Parameters
+    ----------
+    run : Run
+        One run.
+    gap_s : float, s
+        ``--session-gap`` (0: automatic, see :func:`session_gap`).
+
+    Returns
+    -------
+    list of (int, str)
+        Sample index and ``'gap of X s'`` / ``'restart (stamps back by X s)'``.
+
+    """
+    out: dict[int, str] = {}
+    if len(run) > 1:
+        limit = session_gap(run.t, gap_s)
+        dt = _steps(run.t)
+        for i in np.flatnonzero(dt > limit).tolist():
+            out[i + 1] = f'gap of {dt[i]:.0f} s'
+    for i, back in run.info.get('restarts', ()):
+        if 0 < int(i) < len(run):
+            out[int(i)] = f'restart (stamps back by {float(back):.0f} s)'
+    return sorted(out.items())
+
+
+def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0
+                   ) -> SessionSplit:
+    """
+    Cut runs into sessions and label them: each session gets its own turn-on offset.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        One run per bag.
+    mode : str
+        ``'auto'``: every bag is a session, cut at every break (:func:`find_breaks`);
+        ``'bag'``: one session per bag, not cut; ``'none'``: one session for everything
+        (one offset, as if the data were one power cycle).
+    gap_s : float, s
+        ``--session-gap`` (0: automatic).
+
+    Returns
+    -------
+    SessionSplit
+        The runs (cut with ``auto``), a label per run, the sessions and the breaks found.
+
+    Raises
+    ------
+    DatasetError
+        For an unknown mode or a negative gap.
+
+    """
+    if mode not in SESSION_MODES:
+        raise DatasetError(f'Expected `sessions` to be one of {", ".join(SESSION_MODES)}, '
+                           f'got {mode!r}.')
+    if not (isinstance(gap_s, (int, float)) and math.isfinite(gap_s) and gap_s >= 0):
+        raise DatasetError(f'Expected `session_gap_s` to be a number >= 0, got {gap_s!r}.')
+    out_runs: list[Run] = []
+    labels: list[int] = []
+    sessions: list[Session] = []
+    breaks: list[str] = []
+    for run in runs:
+        found = find_breaks(run, gap_s)
+        for i, why in found:
+            breaks.append(f'{run.name}: {why} at t = {run.t[i]:.1f} s')
+        if mode != 'auto' or not found:
+            pieces = [(run, 'bag')]
+        else:
+            cuts = [0] + [i for i, _ in found] + [len(run)]
+            whys = ['bag'] + [w for _, w in found]
+            pieces = [(run.slice(a, b, name=f'{run.name}@{k + 1}'), why)
+                      for k, (a, b, why) in enumerate(zip(cuts[:-1], cuts[1:], whys))]
+            for piece, _ in pieces:
+                piece.info.pop('restarts', None)      # indices of the whole run
+        for piece, why in pieces:
+            label = 0 if mode == 'none' else len(sessions)
+            out_runs.append(piece)
+            labels.append(label)
+            if mode != 'none':
+                sessions.append(Session(piece.name, run.name, label, float(piece.t[0]),
+                                        float(piece.t[-1]), len(piece), why))
+    if mode == 'none' and out_runs:
+        name = out_runs[0].name if len(out_runs) == 1 else 'all'
+        sessions.append(Session(name, name, 0, float(out_runs[0].t[0]),
+                                float(out_runs[-1].t[-1]), sum(len(r) for r in out_runs),
+                                'bag'))
+    return SessionSplit(out_runs, labels, sessions, mode, breaks)

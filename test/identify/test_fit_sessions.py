@@ -1,0 +1,92 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""fit_model with sessions: one shared thermal curve, one turn-on offset per session."""
+
+from __future__ import annotations
+
+import math
+
+from gyro_tdc.errors import FitError
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model.compensation import compensate, predict_drift
+import numpy as np
+import pytest
+from synth import synth_run
+
+DEG = math.pi / 180.0
+OFFSETS = ((0.4, -0.3, 0.1), (-0.5, 0.2, 0.45), (0.05, 0.5, -0.35))
+
+
+def _runs(noise=0.0, offsets=OFFSETS[:2], ranges=((-10.0, 30.0), (15.0, 50.0)), **kw):
+    return [synth_run(seed=i, hours=1.0, rate_hz=2.0, t_lo=lo, t_hi=hi, noise_dps=noise,
+                      offset_dps=off, name=f'run{i}', **kw)
+            for i, (off, (lo, hi)) in enumerate(zip(offsets, ranges))]
+
+
+@pytest.mark.parametrize('kind', ['poly', 'rbf'])
+def test_known_offsets_are_recovered_exactly_on_noise_free_data(kind):
+    runs = _runs()
+    m = fit_model(runs, kind=kind, features='dT,dT2', t0=25.0, sessions=[0, 1])
+    info = m.metrics['sessions']
+    off = np.array(OFFSETS[:2])
+    assert info['count'] == 2 and info['names'] == ['run0', 'run1']
+    np.testing.assert_allclose(info['offset_dps'], off - off.mean(axis=0), atol=1e-9)
+    np.testing.assert_allclose(info['spread_dps'], np.abs(off[0] - off[1]), atol=1e-9)
+    # The curve: the drift of the mean session, exactly (b0 + mean offset at T0 = 25 degC).
+    truth = synth_run(hours=1.0, rate_hz=2.0, t_lo=-10.0, t_hi=50.0, noise_dps=0.0,
+                      offset_dps=tuple(off.mean(axis=0)))
+    pred = predict_drift(m, truth.t, truth.temp, truth.omega_ref)
+    np.testing.assert_allclose(pred, truth.omega, atol=1e-9 if kind == 'poly' else 2e-6)
+    assert max(m.metrics['train_rms_dps']) < (1e-9 if kind == 'poly' else 2e-6)
+
+
+def test_one_intercept_bends_the_curve_per_session_offsets_do_not():
+    runs = _runs(noise=0.02)
+    third = synth_run(seed=7, hours=1.0, rate_hz=2.0, t_lo=0.0, t_hi=40.0, noise_dps=0.02,
+                      offset_dps=OFFSETS[2])
+    errors = {}
+    for label, sessions in (('one', None), ('per session', [0, 1])):
+        m = fit_model(runs, kind='poly', features='dT,dT2,dT3', t0=25.0, sessions=sessions)
+        comp = compensate(m, third.t, third.temp, third.omega)
+        head = third.t <= third.t[0] + 600.0
+        comp = comp - comp[head].mean(axis=0)           # re-anchored on its first 10 min
+        errors[label] = np.sqrt(np.mean(comp ** 2, axis=0)) / DEG
+    assert np.all(errors['per session'] < 0.021)        # the noise: 0.02 deg/s
+    assert np.all(errors['one'] > 0.05)                 # bent by the two offsets
+
+
+def test_one_session_label_is_the_model_without_sessions():
+    runs = _runs(noise=0.02)
+    ref = fit_model(runs, kind='rbf', features='dT,dT2', t0=25.0, seed=1)
+    same = fit_model(runs, kind='rbf', features='dT,dT2', t0=25.0, seed=1,
+                     sessions=['a', 'a'])
+    assert same.model_id == ref.model_id and 'sessions' not in same.metrics
+
+
+def test_sessions_with_a_thermal_state_and_still_rows():
+    runs = _runs(noise=0.0, tau_die=300.0)
+    rows = [np.arange(len(r)) % 3 != 0 for r in runs]
+    m = fit_model(runs, kind='poly', features='dT,dT2,lag', t0=25.0, sessions=[0, 1],
+                  rows=rows)
+    off = np.array(OFFSETS[:2])
+    assert m.thermal.tau_s[0] == pytest.approx(300.0, rel=0.02)
+    np.testing.assert_allclose(m.metrics['sessions']['offset_dps'], off - off.mean(axis=0),
+                               atol=2e-3)
+    assert m.metrics['sessions']['samples'] == [int(np.count_nonzero(r)) for r in rows]
+
+
+def test_session_labels_must_match_the_runs():
+    with pytest.raises(FitError, match='one session label per run'):
+        fit_model(_runs(), features='dT', sessions=[0])
