@@ -30,10 +30,11 @@ import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.base import atomic_write
-from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
-                                 effect_listing, finite_float, positive_float, positive_int,
-                                 probability, run_command, UsageError)
-from gyro_tdc.data import load_runs
+from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser,
+                                 bag_options, command_line, effect_listing, finite_float,
+                                 positive_float, positive_int, probability, run_command,
+                                 UsageError)
+from gyro_tdc.data import load_runs, split_sessions
 from gyro_tdc.identify import (ACCEL_EFFECTS, build_model, discover, discovery_runs,
                                format_summary, write_report)
 from gyro_tdc.model import KINDS, normalise_ids, save_model
@@ -83,6 +84,7 @@ def build_parser() -> argparse.ArgumentParser:
                         '(one offset per bag and orientation; candidates among '
                         f'{", ".join(ACCEL_EFFECTS)}; figures in mg) (default: %(default)s)')
     add_bag_options(p)
+    add_session_options(p)
     return p
 
 
@@ -96,8 +98,13 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     accel = args.sensor == 'accel'
     if accel:
         cands = _accel_options(args, base, cands)
-    runs = load_runs(args.bags, bag_options(args, accel=accel),
-                     log=lambda s: print(s, flush=True))
+    bag = bag_options(args, accel=accel)
+    runs = load_runs(args.bags, bag, log=lambda s: print(s, flush=True))
+    bags = [r.name for r in runs]
+    split = split_sessions(runs, bag.sessions, bag.session_gap_s)
+    if split.breaks:            # one offset per run: a bag cut at its restarts (auto)
+        print('\n'.join(split.lines()))
+    runs = split.runs
     if accel:
         n_bags = len(runs)
         runs = discovery_runs(runs)
@@ -125,7 +132,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     if args.out is not None:
         model = build_model(result, runs, kind=args.kind,
                             created={'command': command_line('discover', argv),
-                                     'bags': [r.name for r in runs]})
+                                     'bags': bags})
         model_file = str(save_model(model, args.out))
         print(f'wrote model {model_file} ({model.kind}, features '
               f'{", ".join(model.features)}, model_id {model.model_id})')

@@ -28,8 +28,9 @@ import math
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, non_negative_float,
-                                 read_model, run_command, UsageError)
+from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser,
+                                 bag_options, non_negative_float, read_model, run_command,
+                                 UsageError)
 from gyro_tdc.data import expand_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
                                load_models, model_description, PX4, write_csv, write_json,
@@ -61,11 +62,11 @@ def build_parser() -> argparse.ArgumentParser:
                         'values, or another model file, evaluated too); default: the first '
                         'of exactly two models')
     p.add_argument('--reanchor', type=_reanchor, default=0.0, metavar='S|auto',
-                   help='remove from each model the mean error over the first S s of every bag '
-                        '(the run-to-run bias offset, as the compensator re-anchors at '
-                        'start-up while still); auto: over as long as the compensator takes '
-                        "to know it to its tolerance (0.1 x the model's residual std, 10 to "
-                        '600 s); default 0: off')
+                   help='remove from each model the mean error over the first S s of every '
+                        'session (the turn-on offset of each power cycle, as the compensator '
+                        're-anchors at start-up while still); auto: over as long as the '
+                        "compensator takes to know it to its tolerance (0.1 x the model's "
+                        'residual std, 10 to 600 s); default 0: off')
     p.add_argument('--out-of-range', dest='out_of_range', default=DEFAULT_OUT_OF_RANGE,
                    choices=OUT_OF_RANGE_POLICIES,
                    help="beyond a model's trained range: linear (the correction continues "
@@ -87,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='write a CSV per bag here: time, temperature, raw, reference and '
                         'compensated rates (rad/s)')
     add_bag_options(p)
+    add_session_options(p)
     return p
 
 
@@ -130,7 +132,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                 else (0 if len(specs) == 2 else None))
     bag = bag_options(args)
     auto = args.reanchor == AUTO_REANCHOR
-    options = ('re-anchored: mean error removed over the head of each bag until known to '
+    options = ('re-anchored: mean error removed over the head of each session until known to '
                "the compensator's tolerance" if auto else
                f're-anchored: mean error of the first {args.reanchor:g} s removed'
                if args.reanchor > 0 else 'no re-anchoring')
@@ -164,11 +166,11 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         f'model temperature {_POLICY_WORDS[args.out_of_range]}; --out-of-range '
         f'{"|".join(OUT_OF_RANGE_POLICIES)})')
     if auto:
-        log('models re-anchored (auto): mean error removed over the head of each bag, '
+        log('models re-anchored (auto): mean error removed over the head of each session, '
             "averaged until its standard error is 0.1 x the model's residual std or 600 s "
             '(raw data untouched); per model: samples, seconds, standard error')
     elif args.reanchor > 0:
-        log(f'models re-anchored: mean error over the first {args.reanchor:g} s of each bag '
+        log(f'models re-anchored: mean error over the first {args.reanchor:g} s of each session '
             'removed (raw data untouched)')
     try:
         results = evaluate(args.bags, models, bag=bag, reanchor_s=args.reanchor, log=log,
@@ -188,11 +190,14 @@ def _with_reanchor(each, log):
     """Wrap ``each`` to log every model's automatic re-anchoring first."""
     def wrapped(b: BagEval) -> None:
         for m in b.models:
-            r = m.reanchor
-            log(f'{b.label}: {m.label} re-anchored on {r["samples"]} samples over '
-                f'{r["duration_s"]:.1f} s ({r["reason"]}): shift '
-                + ', '.join(f'{v:+.5f}' for v in r['shift_dps']) + ' deg/s, standard error '
-                + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
+            records = m.reanchor.get('sessions') or [m.reanchor]
+            for k, r in enumerate(records):
+                where = f' session {k + 1}' if len(records) > 1 else ''
+                log(f'{b.label}: {m.label} re-anchored{where} on {r["samples"]} samples over '
+                    f'{r["duration_s"]:.1f} s ({r["reason"]}): shift '
+                    + ', '.join(f'{v:+.5f}' for v in r['shift_dps'])
+                    + ' deg/s, standard error '
+                    + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
         each(b)
     return wrapped
 

@@ -96,6 +96,9 @@ class SessionSplit:
         One of :data:`SESSION_MODES`.
     breaks : list of str
         Every gap or restart found, in words (also those not cut with ``bag`` / ``none``).
+    parts : list of (int, int, int)
+        Per run of ``runs``: the run it was cut from and its samples ``start:stop`` there
+        (to cut per-sample arrays the same way, e.g. a motion veto).
 
     """
 
@@ -104,6 +107,7 @@ class SessionSplit:
     sessions: list
     mode: str = 'auto'
     breaks: list = field(default_factory=list)
+    parts: list = field(default_factory=list)
 
     @property
     def count(self) -> int:
@@ -228,17 +232,20 @@ def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0
     labels: list[int] = []
     sessions: list[Session] = []
     breaks: list[str] = []
-    for run in runs:
+    parts: list[tuple[int, int, int]] = []
+    for j, run in enumerate(runs):
         found = find_breaks(run, gap_s)
         for i, why in found:
             breaks.append(f'{run.name}: {why} at t = {run.t[i]:.1f} s')
         if mode != 'auto' or not found:
             pieces = [(run, 'bag')]
+            parts.append((j, 0, len(run)))
         else:
             cuts = [0] + [i for i, _ in found] + [len(run)]
             whys = ['bag'] + [w for _, w in found]
             pieces = [(run.slice(a, b, name=f'{run.name}@{k + 1}'), why)
                       for k, (a, b, why) in enumerate(zip(cuts[:-1], cuts[1:], whys))]
+            parts.extend((j, a, b) for a, b in zip(cuts[:-1], cuts[1:]))
             for piece, _ in pieces:
                 piece.info.pop('restarts', None)      # indices of the whole run
         for piece, why in pieces:
@@ -253,4 +260,4 @@ def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0
         sessions.append(Session(name, name, 0, float(out_runs[0].t[0]),
                                 float(out_runs[-1].t[-1]), sum(len(r) for r in out_runs),
                                 'bag'))
-    return SessionSplit(out_runs, labels, sessions, mode, breaks)
+    return SessionSplit(out_runs, labels, sessions, mode, breaks, parts)

@@ -31,7 +31,7 @@ import re
 from typing import Callable, Sequence
 
 from gyro_tdc.base import model_path
-from gyro_tdc.data import BagOptions, expand_bags, load_runs, Run
+from gyro_tdc.data import BagOptions, expand_bags, load_runs, Run, split_sessions
 from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
 from gyro_tdc.identify import accel_scores, fit_accel, fit_px4_cubic, PX4_FEATURES
@@ -374,7 +374,7 @@ def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: st
 
 def _reanchored(comp: NDArray[np.float64], run: Run, model: CompensationModel,
                 reanchor_s: float | str) -> tuple[NDArray[np.float64], dict | None]:
-    """Return ``comp`` minus its mean error over the head of the run, and what was done."""
+    """Return ``comp`` minus its mean error over the head of the session, and what was done."""
     if reanchor_s == AUTO_REANCHOR:
         tol = default_tolerance(model.residual_var)
         r = reanchor_shift(run.t, comp - run.omega_ref, tolerance=tol, window=STILL_WINDOW_S,
@@ -390,9 +390,34 @@ def _reanchored(comp: NDArray[np.float64], run: Run, model: CompensationModel,
     return comp, None
 
 
+def _compensated(nm: NamedModel, parts: Sequence[Run], reanchor_s: float | str,
+                 out_of_range: str, max_extrapolation_c: float
+                 ) -> tuple[NDArray[np.float64], dict | None]:
+    """
+    Return a model's compensated rate over the sessions of a run, each re-anchored on its own.
+
+    Each session is compensated from its start (the filters start over, as the compensator
+    does on a new power cycle) and re-anchored over its own head; with several, the
+    re-anchoring record is the first session's with ``sessions``: one record per session.
+    """
+    comps, infos = [], []
+    for part in parts:
+        comp = compensate(nm.model, part.t, part.temp, part.omega,
+                          out_of_range=nm.out_of_range or out_of_range,
+                          max_extrapolation_c=max_extrapolation_c)
+        comp, info = _reanchored(comp, part, nm.model, reanchor_s)
+        comps.append(comp)
+        infos.append(info)
+    if len(parts) == 1:
+        return comps[0], infos[0]
+    info = None if infos[0] is None else dict(infos[0], sessions=infos)
+    return np.concatenate(comps), info
+
+
 def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
                  reanchor_s: float | str = 0.0, out_of_range: str = DEFAULT_OUT_OF_RANGE,
-                 max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> BagEval:
+                 max_extrapolation_c: float = MAX_EXTRAPOLATION_C, sessions: str = 'auto',
+                 session_gap_s: float = 0.0) -> BagEval:
     """
     Score raw data and every model on one run.
 
@@ -410,11 +435,17 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         start-up while the sensor is still); ``'auto'``: over as long as the compensator's
         rule averages (:func:`gyro_tdc.runtime.reanchor.reanchor_shift` with the default windows
         and tolerance, reported in ``ModelEval.reanchor``); the raw data are never
-        re-anchored.
+        re-anchored. A run of several sessions (power cycles) is compensated and
+        re-anchored session by session, each from its own start.
     out_of_range : str
         ``'linear'`` (default), ``'clamp'`` or ``'extrapolate'`` beyond a model's range.
     max_extrapolation_c : float, degC
         Reach of the ``linear`` tangent.
+    sessions : str
+        How the run is cut into sessions (:func:`gyro_tdc.data.split_sessions`: ``auto``
+        at gaps and restarts; ``bag`` or ``none``: one session).
+    session_gap_s : float, s
+        The gap that starts a session (0: automatic).
 
     Returns
     -------
@@ -425,13 +456,11 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     check_policy(out_of_range)
     rate = rate_hz(run.t)
     raw = score(run.omega, run, rate=rate)
+    parts = split_sessions([run], sessions, session_gap_s).runs
     out = []
     for nm in models:
         m = nm.model
-        comp = compensate(m, run.t, run.temp, run.omega,
-                          out_of_range=nm.out_of_range or out_of_range,
-                          max_extrapolation_c=max_extrapolation_c)
-        comp, info = _reanchored(comp, run, m, reanchor_s)
+        comp, info = _compensated(nm, parts, reanchor_s, out_of_range, max_extrapolation_c)
         ev = score(comp, run, label=nm.label, model=nm.name, features=list(m.features),
                    bs_raw=raw.bs, rate=rate)
         ev.reanchor = info
@@ -469,9 +498,9 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
         Models to score.
     bag : BagOptions, optional
         How to read the bags (the accelerometer is read whatever ``bag.accel`` says: its
-        scores need it).
+        scores need it) and cut them into sessions (``sessions``, ``session_gap_s``).
     reanchor_s : float (s) or ``'auto'``
-        Start-up re-anchoring (see :func:`evaluate_run`); 0 = off.
+        Start-up re-anchoring of every session (see :func:`evaluate_run`); 0 = off.
     out_of_range : str
         Out-of-range policy (see :func:`evaluate_run`).
     max_extrapolation_c : float, degC
@@ -489,6 +518,7 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
 
     """
     check_policy(out_of_range)
+    o = BagOptions() if bag is None else bag
     paths = expand_bags(bags)
     results = []
     for path, label in zip(paths, bag_labels(paths)):
@@ -496,7 +526,8 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
         here = [replace(nm, model=onboard_model(nm.name, run)[0]) if nm.name in ONBOARD
                 else nm for nm in models]         # each log's own on-board parameters
         b = evaluate_run(run, here, label=label, reanchor_s=reanchor_s,
-                         out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c)
+                         out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c,
+                         sessions=o.sessions, session_gap_s=o.session_gap_s)
         if each is not None:
             each(b)
         b.release()

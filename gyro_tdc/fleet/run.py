@@ -100,9 +100,15 @@ class SensorOutcome:
     pid: int = 0
 
 
+#: The held-out bags are scored re-anchored, session by session (``evaluate --reanchor
+#: auto``): a model fixes the thermal curve, each power cycle its own turn-on offset.
+HELDOUT_REANCHOR = 'auto'
+
+
 def _key_options(options: TrainOptions, bag: BagOptions) -> dict:
     """Return the options a sensor's resume key hashes: all but the progress bar."""
-    return {'train': asdict(options), 'bag': asdict(replace(bag, progress=False))}
+    return {'train': asdict(options), 'bag': asdict(replace(bag, progress=False)),
+            'heldout_reanchor': HELDOUT_REANCHOR}
 
 
 def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | None = None,
@@ -145,7 +151,7 @@ def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | Non
         model = result.model.replace(sensor_id=spec.sensor_id)
         if spec.test:
             named = NamedModel(f'{spec.sensor_id}.yaml', spec.sensor_id, model)
-            evals = evaluate(list(spec.test), [named], bag=bag)
+            evals = evaluate(list(spec.test), [named], bag=bag, reanchor_s=HELDOUT_REANCHOR)
             out.heldout_bs = [float(v) for v in mean_scores(evals)[1][1]]
         out.train_bs = [float(v) for v in model.metrics.get('train_bs_dps2', [math.nan] * 3)]
         out.drift_poly = drift_polynomial(model).tolist()

@@ -29,7 +29,7 @@ from pathlib import Path
 from typing import Callable, Sequence
 
 from gyro_tdc.data import (BagOptions, Coverage, coverage, load_runs, RATE_THRESHOLD_C_PER_MIN,
-                           read_motion, Run, temperature_rate)
+                           read_motion, Run, split_sessions, temperature_rate)
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.accel import fit_accel
 from gyro_tdc.identify.features import features_for_fit
@@ -356,6 +356,12 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                 moving.append(motion_veto(r.t, rep.t, rep.twist))
     else:
         runs = [replace(r, omega_ref=np.zeros_like(r.omega)) for r in runs]
+    bags = [r.name for r in runs]
+    split = split_sessions(runs, bag.sessions, bag.session_gap_s)
+    if moving is not None:
+        moving = [None if moving[j] is None else np.asarray(moving[j])[a:b]
+                  for j, a, b in split.parts]
+    runs = split.runs
     names = [r.name for r in runs]
     still = find_still(runs, moving=moving, window_s=o.window_s, min_still_s=o.min_still_s)
     rejected: dict = {}
@@ -387,18 +393,18 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     common = {'features': ids, 'params': params or None, 'kind': o.kind, 't0': t0,
               'n_centers': o.n_centers, 'refine': o.refine, 'ridge': o.ridge, 'seed': o.seed,
               'thermal': o.thermal, 'frame_id': str(runs[0].info.get('frame_id') or 'imu_link'),
-              'sensor_id': o.sensor_id,
-              'created': {'command': command, 'bags': names, 'still_only': True}}
+              'sensor_id': o.sensor_id, 'sessions': split.labels,
+              'created': {'command': command, 'bags': bags, 'still_only': True}}
     spans = _stretches(runs, still)
     model = fit_model(runs, rows=rows, **common)
-    means = _stretch_means(model, runs, spans)
+    means = _stretch_means(model, runs, spans, split.labels)
     bad = _outliers(means)
     if bad.any() and not bad.all():
         for (i, a, b), drop in zip(spans, bad):
             if drop:
                 rows[i][a:b] = False
         model = fit_model(runs, rows=rows, **common)
-        means = _stretch_means(model, runs, spans)
+        means = _stretch_means(model, runs, spans, split.labels)
     else:
         bad[:] = False
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
@@ -417,14 +423,23 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         metrics['features'] = choice.to_dict()
     model = model.replace(metrics=metrics)
     path = save_model(model, out)
-    return TrainResult(model=model, path=Path(path), coverage=report.coverage, bags=names,
+    return TrainResult(model=model, path=Path(path), coverage=report.coverage, bags=bags,
                        samples=int(sum(np.count_nonzero(m) for m in rows)), choice=choice,
-                       accel=accel_fit, still=report)
+                       accel=accel_fit, still=report, sessions=split)
 
 
 def _stretch_means(model: CompensationModel, runs: Sequence[Run],
-                   spans: list[tuple[int, int, int]]) -> NDArray[np.float64]:
-    """Return the mean compensated rate (rad/s) of every still stretch (S, 3)."""
+                   spans: list[tuple[int, int, int]], labels: Sequence[int]
+                   ) -> NDArray[np.float64]:
+    """
+    Return the mean compensated rate (rad/s) of every still stretch (S, 3).
+
+    Each run's compensated rate has its session's offset from the model's removed (the
+    fit's ``metrics['sessions']``): a turn-on offset is no slow turn.
+    """
+    info = model.metrics.get('sessions')
+    shift = (np.zeros((max(labels, default=0) + 1, 3)) if info is None
+             else np.asarray(info['offset_dps']) / _DEG)
     comp = [compensate(model, r.t, r.temp, r.omega, out_of_range=DEFAULT_OUT_OF_RANGE)
-            for r in runs]
+            - shift[g] for r, g in zip(runs, labels)]
     return np.array([comp[i][a:b].mean(axis=0) for i, a, b in spans]).reshape(-1, 3)
