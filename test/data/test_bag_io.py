@@ -345,8 +345,13 @@ def test_mixed_frame_ids_fall_back_and_decode_right(tmp_path, storage):
             _temperature(rng, 1, i * 2 * 10**8, frames[i], value=20.0 + i), TEMPERATURE_TYPE))))
     _write_raw(tmp_path / 'bag', storage, {'/imu/data_raw': (IMU_TYPE, imu),
                                            '/imu/temperature': (TEMPERATURE_TYPE, temp)})
-    data = read_bag(tmp_path / 'bag')
+    data = read_bag(tmp_path / 'bag', via='rosbags')
     assert data.fallback['imu'] == 40 and data.fallback['temperature'] == 3
+    # The columnar read blocks the messages otherwise (a lone reading decodes fast).
+    columns = read_bag(tmp_path / 'bag', via='columnar')
+    assert columns.fallback['imu'] == 40 and columns.via == 'columnar'
+    for name in ('imu_t', 'gyro', 'accel', 'temp_t', 'temp_c'):
+        np.testing.assert_array_equal(getattr(columns, name), getattr(data, name))
     assert data.frame_id == 'a'
     np.testing.assert_array_equal(data.gyro, np.array(expected))
     np.testing.assert_allclose(data.imu_t, 1 + np.arange(40) * 0.01, atol=1e-9)

@@ -242,7 +242,8 @@ def decode_joined(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
 
     """
     n = len(lengths)
-    sizes = np.fromiter(lengths, dtype=np.int64, count=n)
+    sizes = (lengths.astype(np.int64, copy=False) if isinstance(lengths, np.ndarray)
+             else np.fromiter(lengths, dtype=np.int64, count=n))
     size = int(sizes[0]) if n else 0
     if n and not np.any(sizes != size):
         try:

@@ -32,7 +32,7 @@ from itertools import islice
 from pathlib import Path, PurePath
 import struct
 import sys
-from typing import Any, Mapping, Sequence
+from typing import Any, Callable, Mapping, Sequence
 
 import apsw
 from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
@@ -85,8 +85,10 @@ class BagData:
     Parameters
     ----------
     imu_t : NDArray[np.float64], shape (N,), s
-        IMU header stamps (the log time where a header stamp is zero), in the order read
-        (log-time order for a topic with one connection; not sorted by header stamp).
+        IMU header stamps (the log time where a header stamp is zero), in bag order (the
+        order rosbags' reader yields the messages of every connection of the topic: log
+        time within a storage file, the files one after the other; not sorted by header
+        stamp).
     gyro : NDArray[np.float64], shape (N, 3), rad/s
         Angular velocity; samples with a NaN or infinite component are rejected.
     accel : NDArray[np.float64], shape (N, 3), m/s^2, or None
@@ -120,6 +122,8 @@ class BagData:
     fallback : dict[str, int]
         Messages per role ('imu', 'temperature', 'reference') decoded one by one with
         rosbags because the fixed-layout numpy decoder did not apply.
+    via : str
+        How the storage was read: 'columnar' or 'rosbags' (see :func:`read_bag`).
 
     """
 
@@ -137,6 +141,7 @@ class BagData:
     storage: str = ''
     path: str = ''
     fallback: dict = field(default_factory=dict, compare=False)
+    via: str = field(default='', compare=False)
 
 
 class _Sink:
@@ -349,15 +354,23 @@ def _reusable(scratch: io.BytesIO) -> io.BytesIO:
     return scratch
 
 
+#: How :func:`read_bag` reads the storage: ``'auto'`` (columnar where it applies, else
+#: rosbags), ``'columnar'`` (refuse a bag it does not apply to) or ``'rosbags'``.
+VIA = ('auto', 'columnar', 'rosbags')
+
+
 def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
              reference_topic='/rate_table/reference', progress=False,
-             accel=True) -> BagData:
+             accel=True, via='auto') -> BagData:
     """
     Read IMU, temperature and reference-rate arrays from a rosbag2 bag, fast.
 
-    The raw CDR bytes are collected in blocks and decoded with numpy (see the module
-    docstring); rosbags' per-message deserialiser is used only where the fixed layout does
-    not apply. Memory is bounded by the output arrays plus one block of raw messages.
+    The storage is read column by column (:mod:`gyro_tdc.data.bag.columnar`: the messages of
+    each wanted topic in bulk, in bag order) where that applies, else through rosbags'
+    reader, the reference, whose raw messages are collected in blocks; either way the blocks
+    are decoded with numpy (see the module docstring), rosbags' per-message deserialiser
+    only where the fixed layout does not hold. A columnar read that meets anything it does
+    not expect gives way to rosbags', which then reads the bag or names what is wrong.
 
     Parameters
     ----------
@@ -377,6 +390,8 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
     accel : bool
         Also extract the linear acceleration (``BagData.accel`` is None when False: the
         trainer does not need it, and skipping it saves 24 bytes per IMU message).
+    via : {'auto', 'columnar', 'rosbags'}
+        How to read the storage (:data:`VIA`); ``BagData.via`` says how it was read.
 
     Returns
     -------
@@ -387,39 +402,48 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
     ------
     DatasetError
         When the path does not exist, is not a rosbag2 directory, cannot be read or is
-        corrupt, or when a topic is missing, empty or of the wrong type.
+        corrupt, or when a topic is missing, empty or of the wrong type (with
+        ``via='columnar'`` also when the columnar read does not apply).
 
     """
+    from gyro_tdc.data.bag import columnar
+
+    if via not in VIA:
+        raise DatasetError(f'Expected `via` to be one of {", ".join(VIA)}, got {via!r}.')
     bag = _resolve(path)
     info: Mapping = {}
+    wanted = [('imu', imu_topic, (IMU_TYPE,), True),
+              ('temperature', temperature_topic, TEMPERATURE_TYPES, True)]
+    if reference_topic is not None:
+        wanted.append(('reference', reference_topic, (REFERENCE_TYPE,), False))
     try:
         info = _metadata(bag)
         storage = str(info.get('storage_identifier', ''))
         check_counts(bag, info)
+        if via != 'rosbags':
+            why = columnar.unfit(info)
+            if why is None:
+                try:
+                    with columnar.open_reader(bag, jazzy()) as reader:
+                        topics, conns = _connections(reader, bag, wanted)
+                        source = columnar.Source(reader, conns, _CHUNK)
+                        with small_pages():
+                            return _collect(source, reader.typestore, bag, storage, topics,
+                                            conns, progress, accel, 'columnar')
+                except columnar.Unfit as err:
+                    why = str(err)
+                except DatasetError:
+                    raise                     # a topic missing or of the wrong type
+                except Exception as err:      # noqa: B902 (whatever it is, rosbags decides)
+                    # Let rosbags read it, or say what is wrong with it.
+                    why = f'{type(err).__name__}: {one_line(err)}'
+            if via == 'columnar':
+                raise DatasetError(f'Cannot read bag {str(bag)!r} column by column: {why}.')
         with AnyReader([bag], default_typestore=jazzy()) as reader:
-            topics = {name: (topic.msgtype or '?', int(topic.msgcount))
-                      for name, topic in reader.topics.items()}
-            wanted = [('imu', imu_topic, (IMU_TYPE,), True),
-                      ('temperature', temperature_topic, TEMPERATURE_TYPES, True)]
-            if reference_topic is not None:
-                wanted.append(('reference', reference_topic, (REFERENCE_TYPE,), False))
-            conns: dict[str, list[Any]] = {}
-            for role, topic, msgtype, required in wanted:
-                if topic not in topics:
-                    if required:
-                        raise DatasetError(
-                            f'Bag {str(bag)!r} has no topic {topic!r} ({role}); topics '
-                            f'present: {_describe(topics)}.')
-                    continue
-                if topics[topic][0] not in msgtype:
-                    expected = ' or '.join(repr(x) for x in msgtype)
-                    raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has type '
-                                       f'{topics[topic][0]!r}, expected {expected}.')
-                if topics[topic][1] == 0 and required:
-                    raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has no messages.')
-                conns[role] = [c for c in reader.connections if c.topic == topic]
+            topics, conns = _connections(reader, bag, wanted)
             with small_pages():
-                return _read_messages(reader, bag, storage, topics, conns, progress, accel)
+                return _collect(_RosbagsSource(reader, conns), reader.typestore, bag,
+                                storage, topics, conns, progress, accel, 'rosbags')
     except ZstdError as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r}: its data are not compressed as '
                            f'metadata.yaml says (compression_format '
@@ -430,198 +454,252 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                            f'{one_line(err)}') from err
 
 
-def _read_messages(reader: AnyReader, bag: Path, storage: str,
-                   topics: dict[str, tuple[str, int]], conns: dict[str, list[Any]],
-                   progress: bool, with_accel: bool = True) -> BagData:
-    """Run the block-wise raw read and decode of ``read_bag``."""
+def _connections(reader: AnyReader, bag: Path, wanted: Sequence[tuple[str, str, tuple, bool]]
+                 ) -> tuple[dict[str, tuple[str, int]], dict[str, list[Any]]]:
+    """Return the bag's topics (name -> (type, count)) and the connections of each role."""
+    topics = {name: (topic.msgtype or '?', int(topic.msgcount))
+              for name, topic in reader.topics.items()}
+    conns: dict[str, list[Any]] = {}
+    for role, topic, msgtype, required in wanted:
+        if topic not in topics:
+            if required:
+                raise DatasetError(f'Bag {str(bag)!r} has no topic {topic!r} ({role}); topics '
+                                   f'present: {_describe(topics)}.')
+            continue
+        if topics[topic][0] not in msgtype:
+            expected = ' or '.join(repr(x) for x in msgtype)
+            raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has type '
+                               f'{topics[topic][0]!r}, expected {expected}.')
+        if topics[topic][1] == 0 and required:
+            raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has no messages.')
+        conns[role] = [c for c in reader.connections if c.topic == topic]
+    return topics, conns
+
+
+class Collector:
+    """
+    Decode blocks of raw messages, role by role, into the columns of a :class:`BagData`.
+
+    A storage reader hands over each role's messages in bag order, in blocks: the IMU
+    topic's (all its connections, the *main* messages) with :meth:`main`, the others with
+    :meth:`other`; blocks of different roles may come in any interleaving. A bare Float
+    temperature reading comes with the number of main messages before it in bag order, and
+    takes the stamp of the last decodable one (resolved in :meth:`result`).
+    """
+
+    def __init__(self, roles: Sequence[str], msgtypes: Mapping[str, str],
+                 expected: Mapping[str, int], typestore: Any, with_accel: bool) -> None:
+        self.roles = list(roles)
+        self.msgtypes = dict(msgtypes)
+        self.floating = self.msgtypes['temperature'] in FLOAT_TYPES
+        self.typestore = typestore
+        self.with_accel = with_accel
+        widths = {'imu': (3, 3) if with_accel else (3,), 'temperature': (1, 1),
+                  'reference': (3,)}
+        self.keep = {'imu': None if with_accel else KEEP[IMU_TYPE][:3], 'temperature': None,
+                     'reference': None}
+        self.sinks = {role: _Sink(expected[role], widths[role]) for role in self.roles}
+        self.frame_id: dict[str, str | None] = {role: None for role in self.roles}
+        self.fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
+        self.undecodable = 0
+        self.n_main = 0
+        # Main messages: global indices of the undecodable ones, and of the zero-stamped
+        # ones whose log time was not at hand (with their sink rows).
+        self.main_bad: list[NDArray[np.int64]] = []
+        self.zero_stamped: list[tuple[NDArray[np.int64], NDArray[np.int64]]] = []
+        self.before: list[NDArray[np.int64]] = []      # Float readings: main messages before
+
+    def _store(self, role: str, dec: Decoded, logs: Sequence[int] | NDArray | None,
+               fetch_logs: Callable[[], NDArray[np.int64]] | None, first: int = -1
+               ) -> NDArray[np.bool_] | None:
+        """Put a decoded block into its sink; return the mask of decodable messages."""
+        sink = self.sinks[role]
+        self.fallback[role] += dec.fallback
+        if self.frame_id[role] is None and dec.frame_id:
+            self.frame_id[role] = dec.frame_id
+        stamp_ns = dec.sec * 1_000_000_000 + dec.nanosec
+        good = None if dec.undecodable is None else ~dec.undecodable
+        zero = stamp_ns == 0
+        if zero.any():
+            if logs is None and fetch_logs is not None:
+                logs = fetch_logs()
+            if logs is not None:
+                stamp_ns[zero] = np.asarray(logs, dtype=np.int64)[zero]
+            else:                          # the main messages' log times, in a second pass
+                if good is not None:
+                    zero &= good
+                pos = np.flatnonzero(zero)
+                rows = pos if good is None else np.cumsum(good)[pos] - 1
+                self.zero_stamped.append((first + pos, sink.n + rows))
+        t = _seconds(stamp_ns)
+        values = dec.values
+        if good is not None:
+            self.undecodable += int(dec.undecodable.sum())
+            t, values = t[good], values[good]
+        sink.add(t, values)
+        return good
+
+    def main(self, buf: bytes | memoryview, lengths: Sequence[int],
+             logs: Sequence[int] | NDArray | None = None,
+             fetch_logs: Callable[[], NDArray[np.int64]] | None = None) -> None:
+        """Decode a block of main messages stored end to end in ``buf``."""
+        if not len(lengths):
+            return
+        dec = decode_joined(buf, lengths, IMU_TYPE, self.typestore, self.keep['imu'])
+        good = self._store('imu', dec, logs, fetch_logs, self.n_main)
+        if good is not None:
+            self.main_bad.append(self.n_main + np.flatnonzero(~good))
+        self.n_main += len(lengths)
+
+    def other(self, role: str, raws: Sequence[bytes], logs: Sequence[int] | NDArray | None,
+              before: NDArray[np.int64] | None = None,
+              fetch_logs: Callable[[], NDArray[np.int64]] | None = None) -> None:
+        """Decode a block of one other role's messages (``before``: see the class)."""
+        if not len(raws):
+            return
+        msgtype = self.msgtypes[role]
+        if role == 'temperature' and self.floating:
+            dec = decode_float(raws, msgtype, self.typestore)
+            self.fallback[role] += dec.fallback
+            ok = np.ones(len(raws), dtype=bool)
+            if dec.undecodable is not None:
+                self.undecodable += int(dec.undecodable.sum())
+                ok = ~dec.undecodable
+            self.before.append(np.asarray(before, dtype=np.int64)[ok])
+            self.sinks[role].add(np.zeros(int(ok.sum())), dec.values[ok])
+            return
+        dec = decode(raws, msgtype, self.typestore, self.keep[role])
+        self._store(role, dec, logs, fetch_logs)
+
+    def result(self, bag: Path, storage: str, topics: dict, via: str,
+               main_logs: Callable[[NDArray[np.int64]], NDArray[np.int64]] | None
+               ) -> BagData:
+        """Return the :class:`BagData` (``main_logs(indices)``: log times of main messages)."""
+        if self.zero_stamped:
+            # Rare (a driver that leaves the header stamp at zero) when the reader did not
+            # hand the log times over: fetch those of the main messages that need them.
+            index = np.concatenate([z[0] for z in self.zero_stamped])
+            rows = np.concatenate([z[1] for z in self.zero_stamped])
+            self.sinks['imu'].t[rows] = _seconds(main_logs(index))
+        before_imu = 0
+        stamped = None
+        if self.floating:
+            sink = self.sinks['temperature']
+            before = (np.concatenate(self.before) if self.before
+                      else np.zeros(0, dtype=np.int64))
+            bad = (np.concatenate(self.main_bad) if self.main_bad
+                   else np.zeros(0, dtype=np.int64))
+            # The last decodable main message before a reading is the one whose sink row is
+            # the number of decodable main messages before it, less one.
+            row = before - np.searchsorted(bad, before, side='left') - 1
+            stamped = row >= 0
+            before_imu = int(np.count_nonzero(~stamped))
+            sink.t[:sink.n] = self.sinks['imu'].t[row.clip(0)]
+        rejected = {'imu_nonfinite': 0, 'temp_nonfinite': 0, 'ref_nonfinite': 0,
+                    'undecodable': self.undecodable, 'temp_before_imu': before_imu}
+        sink = self.sinks['imu']
+        finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
+        rejected['imu_nonfinite'] = int(np.count_nonzero(~finite))
+        imu_t, gyro, *accel = sink.result(finite)
+        sink = self.sinks['temperature']
+        finite = np.isfinite(sink.v[0][:sink.n, 0])
+        if stamped is not None:       # readings before the first IMU message are dropped
+            rejected['temp_nonfinite'] = int(np.count_nonzero(~finite & stamped))
+            finite &= stamped
+        else:
+            rejected['temp_nonfinite'] = int(np.count_nonzero(~finite))
+        temp_t, temp_c, temp_var = sink.result(finite)
+        ref_t = ref = None
+        if 'reference' in self.sinks and self.sinks['reference'].n:
+            sink = self.sinks['reference']
+            finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
+            rejected['ref_nonfinite'] = int(np.count_nonzero(~finite))
+            ref_t, ref = sink.result(finite)
+        return BagData(
+            imu_t=imu_t, gyro=gyro, accel=accel[0] if accel else None,
+            frame_id=self.frame_id['imu'] or '', temp_t=temp_t, temp_c=temp_c[:, 0],
+            temp_var=temp_var[:, 0], ref_t=ref_t, ref=ref, topics=topics, rejected=rejected,
+            storage=storage, path=str(bag), fallback=self.fallback, via=via)
+
+
+def _collect(source: Any, typestore: Any, bag: Path, storage: str,
+             topics: dict[str, tuple[str, int]], conns: dict[str, list[Any]], progress: bool,
+             with_accel: bool, via: str) -> BagData:
+    """Feed ``source``'s blocks to a :class:`Collector` and return the result."""
     from tqdm import tqdm
 
     roles = list(conns)
     msgtypes = {'imu': IMU_TYPE, 'temperature': topics[conns['temperature'][0].topic][0],
                 'reference': REFERENCE_TYPE}
-    # Float temperatures have no stamp: each takes the sink row of the latest IMU message
-    # before it (the node's core.last_t), resolved once every IMU stamp is final.
-    floating = msgtypes['temperature'] in FLOAT_TYPES
-    temp_rows: list[int] = []
-    before_imu = 0
-    last_row = -1                 # sink row of the latest decodable IMU message read
-    last_main = -1                # sink row of the latest decodable main-connection one
-    role_of = {id(c): k for k, role in enumerate(roles) for c in conns[role]}
-    all_conns = [c for role in roles for c in conns[role]]
     expected = {role: sum(int(c.msgcount) for c in conns[role]) for role in roles}
-    widths = {'imu': (3, 3) if with_accel else (3,), 'temperature': (1, 1), 'reference': (3,)}
-    keep = {'imu': None if with_accel else KEEP[IMU_TYPE][:3], 'temperature': None,
-            'reference': None}
-    sinks = {role: _Sink(expected[role], widths[role]) for role in roles}
-    frame_id = {role: None for role in roles}
-    fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
-    undecodable = 0
-    typestore = reader.typestore
-
-    # Main-connection messages whose header stamp is zero: (index among the connection's
-    # messages, row in the IMU sink). Their log times are fetched after the main pass.
-    zero_stamped: list[tuple[NDArray[np.int64], NDArray[np.int64]]] = []
-
-    def decode_into(role: str, dec: Decoded, logs: Sequence[int] | None,
-                    first: int = 0) -> NDArray[np.int64]:
-        """
-        Put one role's decoded messages of a block into its sink (``logs``: log times).
-
-        Returns the sink row of every message (-1: undecodable, not stored).
-        """
-        nonlocal undecodable
-        start = sinks[role].n
-        fallback[role] += dec.fallback
-        if frame_id[role] is None and dec.frame_id:
-            frame_id[role] = dec.frame_id
-        stamp_ns = dec.sec * 1_000_000_000 + dec.nanosec
-        good = None if dec.undecodable is None else ~dec.undecodable
-        zero = stamp_ns == 0
-        if zero.any():
-            if logs is not None:
-                stamp_ns[zero] = np.fromiter(logs, dtype=np.int64, count=len(logs))[zero]
-            else:
-                if good is not None:
-                    zero &= good
-                pos = np.flatnonzero(zero)
-                rows = pos if good is None else np.cumsum(good)[pos] - 1
-                zero_stamped.append((first + pos, sinks[role].n + rows))
-        t = _seconds(stamp_ns)
-        values = dec.values
-        if good is None:
-            rows = start + np.arange(len(t))
-        else:
-            undecodable += int(dec.undecodable.sum())
-            t, values = t[good], values[good]
-            rows = np.where(good, start + np.cumsum(good) - 1, -1)
-        sinks[role].add(t, values)
-        return rows
-
-    def stamp_floats(lengths: list[int], main_rows: NDArray[np.int64] | None,
-                     others: list[tuple[Any, ...]], imu_rows: NDArray[np.int64] | None,
-                     temps: Decoded | None) -> None:
-        """
-        Give a block's Float readings the sink row of the IMU message before each.
-
-        Walks the block's other messages in the order read; ``pos`` (the bytes of main IMU
-        messages written before one) says how many main messages came before it.
-        """
-        nonlocal last_row, last_main, before_imu, undecodable
-        ends = np.cumsum(lengths) if lengths else np.zeros(0, dtype=np.int64)
-        upto = (np.maximum.accumulate(main_rows) if main_rows is not None
-                else np.zeros(0, dtype=np.int64))
-        i_imu = i_temp = 0
-        keep = []
-        for conn, _, _, pos in others:
-            k = int(np.searchsorted(ends, pos, side='right'))
-            if k and upto[k - 1] > last_main:
-                last_main = last_row = int(upto[k - 1])
-            role = roles[role_of[id(conn)]]
-            if role == 'imu':
-                if imu_rows[i_imu] >= 0:
-                    last_row = int(imu_rows[i_imu])
-                i_imu += 1
-            elif role == 'temperature':
-                ok = temps.undecodable is None or not temps.undecodable[i_temp]
-                i_temp += 1
-                keep.append(ok and last_row >= 0)
-                if ok and last_row < 0:
-                    before_imu += 1
-                elif ok:
-                    temp_rows.append(last_row)
-        if len(upto) and upto[-1] > last_main:
-            last_main = last_row = int(upto[-1])
-        if temps is not None:
-            if temps.undecodable is not None:
-                undecodable += int(temps.undecodable.sum())
-            fallback['temperature'] += temps.fallback
-            mask = np.array(keep, dtype=bool)
-            sinks['temperature'].add(np.zeros(int(mask.sum())), temps.values[mask])
-
-    # Hot loop, one list comprehension per block: each message of the main IMU connection
-    # is written into one reused buffer as it arrives (its bytes still in the CPU cache:
-    # cheaper than collecting the messages and joining them later), its length kept, and
-    # nothing else done per message (no log time, no call of ours); any other message
-    # (temperature, reference, another IMU connection) is passed to ``add_other``, which
-    # returns None and so also keeps it out of the list. The buffer is reused only when
-    # nothing holds a view of it any more (see _reusable).
-    main = conns['imu'][0]
-    # read_bag opens one bag: iterate its rosbags Reader directly, without AnyReader's
-    # heapq merge across bags (one generator step less per message).
-    source = reader.readers[0] if len(reader.readers) == 1 else reader
-    gen = source.messages(connections=all_conns)
-    scratch = io.BytesIO()
-    n_main = 0
+    out = Collector(roles, msgtypes, expected, typestore, with_accel)
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
+        source.feed(out, bar.update)
+    return out.result(bag, storage, topics, via, source.main_logs)
+
+
+class _RosbagsSource:
+    """
+    The raw messages of rosbags' reader, in blocks of ``_CHUNK`` (the reference read).
+
+    Hot loop, one list comprehension per block: each main message (of the IMU topic) is
+    written into one reused buffer as it arrives (its bytes still in the CPU cache: cheaper
+    than collecting the messages and joining them later), its length kept, and nothing else
+    done per message (no log time, no call of ours); any other message (temperature,
+    reference) is passed to ``add_other``, which returns None and so also keeps it out of
+    the list. The buffer is reused only when nothing holds a view of it any more (see
+    _reusable).
+    """
+
+    def __init__(self, reader: AnyReader, conns: dict[str, list[Any]]) -> None:
+        # read_bag opens one bag: iterate its rosbags Reader directly, without AnyReader's
+        # heapq merge across bags (one generator step less per message).
+        self.source = reader.readers[0] if len(reader.readers) == 1 else reader
+        self.conns = conns
+        self.mains = list(conns['imu'])
+
+    def feed(self, out: Collector, update: Callable[[int], Any]) -> None:
+        """Hand every block to ``out``."""
+        role_of = {id(c): role for role in out.roles if role != 'imu' for c in self.conns[role]}
+        gen = self.source.messages(connections=[c for r in out.roles for c in self.conns[r]])
+        scratch = io.BytesIO()
+        one = len(self.mains) == 1
+        main = self.mains[0]
+        mains = tuple(self.mains)
         while True:
             others: list[tuple[Any, ...]] = []
             add_other = others.append
             scratch = _reusable(scratch)
-            write = scratch.write
-            if floating:          # also where each other message fell among the main ones
-                tell = scratch.tell
+            write, tell = scratch.write, scratch.tell
+            # Where each other message fell among the main ones (bytes of them before it)
+            # only matters to Float temperatures; the tell() is cheap enough to keep.
+            if one:
                 lengths = [write(raw) for conn, log, raw in islice(gen, _CHUNK)
                            if conn is main or add_other((conn, log, raw, tell()))]
             else:
                 lengths = [write(raw) for conn, log, raw in islice(gen, _CHUNK)
-                           if conn is main or add_other((conn, log, raw))]
-            main_rows = imu_rows = temps = None
+                           if conn in mains or add_other((conn, log, raw, tell()))]
+            first = out.n_main
             if lengths:
                 view = scratch.getbuffer()    # released when the decode returns
-                dec = decode_joined(view, lengths, IMU_TYPE, typestore, keep['imu'])
+                out.main(view, lengths)
                 del view
-                main_rows = decode_into('imu', dec, None, n_main)
-                n_main += len(lengths)
             if others:
-                for k, role in enumerate(roles):
-                    mine = [x for x in others if role_of[id(x[0])] == k]
-                    if not mine:
-                        continue
-                    if floating and role == 'temperature':
-                        temps = decode_float([x[2] for x in mine], msgtypes[role], typestore)
-                        continue
-                    dec = decode([x[2] for x in mine], msgtypes[role], typestore,
-                                 keep[role])
-                    rows = decode_into(role, dec, [x[1] for x in mine])
-                    if role == 'imu':
-                        imu_rows = rows
-            if floating:
-                stamp_floats(lengths, main_rows, others, imu_rows, temps)
+                ends = np.cumsum(lengths) if lengths else np.zeros(0, dtype=np.int64)
+                for role in out.roles[1:]:
+                    mine = [x for x in others if role_of[id(x[0])] == role]
+                    if mine:
+                        before = first + np.searchsorted(ends, [x[3] for x in mine],
+                                                         side='right')
+                        out.other(role, [x[2] for x in mine], [x[1] for x in mine], before)
             done = len(lengths) + len(others)
             if not done:
                 break
-            bar.update(done)
-    if zero_stamped:
-        # Rare (a driver that leaves the header stamp at zero): read the main connection's
-        # log times in a second pass and use them for those messages.
-        logs = np.fromiter((log for _, log, _ in source.messages(connections=[main])),
-                           dtype=np.int64, count=n_main)
-        index = np.concatenate([z[0] for z in zero_stamped])
-        rows = np.concatenate([z[1] for z in zero_stamped])
-        sinks['imu'].t[rows] = _seconds(logs[index])
-    if floating:
-        sink = sinks['temperature']
-        sink.t[:sink.n] = sinks['imu'].t[np.asarray(temp_rows, dtype=np.int64)]
+            update(done)
 
-    rejected = {'imu_nonfinite': 0, 'temp_nonfinite': 0, 'ref_nonfinite': 0,
-                'undecodable': undecodable, 'temp_before_imu': before_imu}
-    sink = sinks['imu']
-    finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
-    rejected['imu_nonfinite'] = int(np.count_nonzero(~finite))
-    imu_t, gyro, *accel = sink.result(finite)
-    sink = sinks['temperature']
-    finite = np.isfinite(sink.v[0][:sink.n, 0])
-    rejected['temp_nonfinite'] = int(np.count_nonzero(~finite))
-    temp_t, temp_c, temp_var = sink.result(finite)
-    ref_t = ref = None
-    if 'reference' in sinks and sinks['reference'].n:
-        sink = sinks['reference']
-        finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
-        rejected['ref_nonfinite'] = int(np.count_nonzero(~finite))
-        ref_t, ref = sink.result(finite)
-    return BagData(
-        imu_t=imu_t, gyro=gyro, accel=accel[0] if accel else None, frame_id=frame_id['imu'] or '',
-        temp_t=temp_t, temp_c=temp_c[:, 0], temp_var=temp_var[:, 0], ref_t=ref_t, ref=ref,
-        topics=topics,
-        rejected=rejected, storage=storage, path=str(bag), fallback=fallback)
+    def main_logs(self, index: NDArray[np.int64]) -> NDArray[np.int64]:
+        """Return the log times of the main messages at ``index`` (a second pass)."""
+        logs = np.fromiter((log for _, log, _ in self.source.messages(connections=self.mains)),
+                           dtype=np.int64)
+        return logs[index]
