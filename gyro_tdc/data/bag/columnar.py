@@ -488,5 +488,6 @@ class _McapBlocks:
             if not mine.size:
                 continue
             pos = where[mine]
-            before = first + mains[pos] if role == 'temperature' else None
+            before = (first + mains[pos] if role == 'temperature' and self.out.floating
+                      else None)
             self.out.other(role, [others[i][1] for i in mine.tolist()], logs[pos], before)

@@ -280,8 +280,9 @@ def check_counts(bag: Path, info: Mapping) -> None:
     Every count (per topic, per file and in total) must be a whole number >= 0, and the
     topics together no more messages than the storage files can hold: each message takes
     at least :func:`min_message_bytes` of its type (at least ``ZSTD_MIN_FRAME_BYTES`` when
-    compressed message by message; a file compressed whole holds at most ``ZSTD_MAX_RATIO``
-    times its size).
+    compressed message by message; a file compressed whole, or an mcap file of compressed
+    chunks, holds at most ``ZSTD_MAX_RATIO`` times its size). The columns are sized by
+    the counts no further than the storage can hold uncompressed, and grow past that.
 
     Parameters
     ----------
@@ -315,7 +316,10 @@ def check_counts(bag: Path, info: Mapping) -> None:
     if size is None:
         return
     mode = str(info.get('compression_mode') or '').lower()
-    room = size * ZSTD_MAX_RATIO if mode == 'file' else size
+    # A storage file compressed whole, or an mcap file whose chunks are (zstd or lz4, which
+    # metadata.yaml does not say), holds more than its size.
+    packed = mode == 'file' or str(info.get('storage_identifier', '')) == 'mcap'
+    room = size * ZSTD_MAX_RATIO if packed else size
     need = 0
     for name, msgtype, count in topics:
         each = ZSTD_MIN_FRAME_BYTES if mode == 'message' else min_message_bytes(msgtype)
@@ -428,8 +432,8 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                         topics, conns = _connections(reader, bag, wanted)
                         source = columnar.Source(reader, conns, _CHUNK)
                         with small_pages():
-                            return _collect(source, reader.typestore, bag, storage, topics,
-                                            conns, progress, accel, 'columnar')
+                            return _collect(source, reader.typestore, bag, info, storage,
+                                            topics, conns, progress, accel, 'columnar')
                 except columnar.Unfit as err:
                     why = str(err)
                 except DatasetError:
@@ -442,7 +446,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
         with AnyReader([bag], default_typestore=jazzy()) as reader:
             topics, conns = _connections(reader, bag, wanted)
             with small_pages():
-                return _collect(_RosbagsSource(reader, conns), reader.typestore, bag,
+                return _collect(_RosbagsSource(reader, conns), reader.typestore, bag, info,
                                 storage, topics, conns, progress, accel, 'rosbags')
     except ZstdError as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r}: its data are not compressed as '
@@ -622,7 +626,7 @@ class Collector:
             storage=storage, path=str(bag), fallback=self.fallback, via=via)
 
 
-def _collect(source: Any, typestore: Any, bag: Path, storage: str,
+def _collect(source: Any, typestore: Any, bag: Path, info: Mapping, storage: str,
              topics: dict[str, tuple[str, int]], conns: dict[str, list[Any]], progress: bool,
              with_accel: bool, via: str) -> BagData:
     """Feed ``source``'s blocks to a :class:`Collector` and return the result."""
@@ -632,6 +636,10 @@ def _collect(source: Any, typestore: Any, bag: Path, storage: str,
     msgtypes = {'imu': IMU_TYPE, 'temperature': topics[conns['temperature'][0].topic][0],
                 'reference': REFERENCE_TYPE}
     expected = {role: sum(int(c.msgcount) for c in conns[role]) for role in roles}
+    size = _storage_bytes(bag, info)
+    if size is not None:             # compressed storage may hold more: the sinks grow
+        expected = {role: min(n, size // min_message_bytes(msgtypes[role]) + 1)
+                    for role, n in expected.items()}
     out = Collector(roles, msgtypes, expected, typestore, with_accel)
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:

@@ -1,0 +1,384 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The columnar storage read against rosbags' reader: the same bytes in the same order."""
+
+from __future__ import annotations
+
+from pathlib import Path
+import shutil
+
+from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE
+from gyro_tdc.data.bag import columnar, reader
+from gyro_tdc.errors import DatasetError
+from hypothesis import given, HealthCheck, settings, strategies as st
+import numpy as np
+import pytest
+from rosbags.highlevel import AnyReader
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
+from rosbags.interfaces import QosTime
+from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
+from rosbags.typesys import get_typestore, Stores
+import yaml
+
+TS = get_typestore(Stores.ROS2_JAZZY)
+STORAGES = ('sqlite3', 'mcap')
+PLUGINS = {'sqlite3': StoragePlugin.SQLITE3, 'mcap': StoragePlugin.MCAP}
+FLOAT_TYPE = 'std_msgs/msg/Float64'
+ARRAYS = ('imu_t', 'gyro', 'accel', 'temp_t', 'temp_c', 'temp_var', 'ref_t', 'ref')
+
+
+def _qos(depth: int) -> list[Qos]:
+    inf = QosTime(0x7FFFFFFF, 0xFFFFFFFF)
+    return [Qos(QosHistory.KEEP_LAST, depth, QosReliability.RELIABLE, QosDurability.VOLATILE,
+                inf, inf, QosLiveliness.AUTOMATIC, inf, False)]
+
+
+def _header(ns: int, frame: str = 'imu_link'):
+    return TS.types['std_msgs/msg/Header'](
+        TS.types['builtin_interfaces/msg/Time'](ns // 10**9, ns % 10**9), frame)
+
+
+def _imu(rng, ns: int, frame: str = 'imu_link') -> bytes:
+    vec, quat = TS.types['geometry_msgs/msg/Vector3'], TS.types['geometry_msgs/msg/Quaternion']
+    msg = TS.types[IMU_TYPE](_header(ns, frame), quat(0.0, 0.0, 0.0, 1.0), np.zeros(9),
+                             vec(*rng.normal(size=3)), np.zeros(9), vec(*rng.normal(size=3)),
+                             np.zeros(9))
+    return bytes(TS.serialize_cdr(msg, IMU_TYPE))
+
+
+def _temperature(rng, ns: int) -> bytes:
+    msg = TS.types[TEMPERATURE_TYPE](_header(ns), 20.0 + rng.normal(), 0.01)
+    return bytes(TS.serialize_cdr(msg, TEMPERATURE_TYPE))
+
+
+def _float(rng, ns: int) -> bytes:
+    return bytes(TS.serialize_cdr(TS.types[FLOAT_TYPE](20.0 + rng.normal()), FLOAT_TYPE))
+
+
+def _reference(rng, ns: int) -> bytes:
+    msg = TS.types[REFERENCE_TYPE](_header(ns), TS.types['geometry_msgs/msg/Vector3'](
+        *rng.normal(size=3)))
+    return bytes(TS.serialize_cdr(msg, REFERENCE_TYPE))
+
+
+def _write(path: Path, storage: str, streams, *, shuffle: bool = False,
+           compression: CompressionMode | None = None, seed: int = 0) -> Path:
+    """
+    Write ``streams``: [(topic, msgtype, qos depth, [(log ns, raw), ...])] with rosbags.
+
+    Two streams of one topic with different QoS depths are two connections of it. Messages
+    are written in time order, or shuffled (rowids and mcap chunks out of time order).
+    """
+    wr = Writer(path, version=9, storage_plugin=PLUGINS[storage])
+    if compression is not None:
+        wr.set_compression(compression, CompressionFormat.ZSTD)
+    items = [(ns, k, raw) for k, (_, _, _, msgs) in enumerate(streams) for ns, raw in msgs]
+    items.sort(key=lambda x: x[0])
+    if shuffle:
+        order = np.random.default_rng(seed).permutation(len(items))
+        items = [items[i] for i in order]
+    with wr:
+        conns = [wr.add_connection(topic, msgtype, typestore=TS,
+                                   offered_qos_profiles=_qos(depth))
+                 for topic, msgtype, depth, _ in streams]
+        for ns, k, raw in items:
+            wr.write(conns[k], ns, raw)
+    return path
+
+
+def _chamber(rng, n: int = 700, *, step: int = 10**7, t0: int = 5 * 10**9, floating=False,
+             reference=False, split_imu=False, ties=False, zero=()):
+    """Streams of a small chamber bag: IMU (one or two connections), temperature, reference."""
+    logs = t0 + np.arange(n) * step
+    if ties:
+        logs[1::7] = logs[0::7][:len(logs[1::7])]       # equal log times
+    imu = [(int(ns), _imu(rng, 0 if i in zero else int(ns) + 3)) for i, ns in enumerate(logs)]
+    make = _float if floating else _temperature
+    temps = [(int(ns) + (0 if ties else 1), make(rng, int(ns) + 1)) for ns in logs[::50]]
+    streams = [('/imu/data_raw', IMU_TYPE, 10, imu[0::2] if split_imu else imu)]
+    if split_imu:
+        streams.append(('/imu/data_raw', IMU_TYPE, 20, imu[1::2]))
+    streams.append(('/imu/temperature', FLOAT_TYPE if floating else TEMPERATURE_TYPE, 10,
+                    temps[0::2] if split_imu else temps))
+    if split_imu:
+        streams.append(('/imu/temperature', FLOAT_TYPE if floating else TEMPERATURE_TYPE, 20,
+                        temps[1::2]))
+    if reference:
+        streams.append(('/rate_table/reference', REFERENCE_TYPE, 10,
+                        [(int(ns) + 2, _reference(rng, int(ns))) for ns in logs[::3]]))
+    return streams
+
+
+class _Tape:
+    """A Collector stand-in recording every message handed over, per role."""
+
+    def __init__(self, roles, floating):
+        self.roles, self.floating = list(roles), floating
+        self.n_main = 0
+        self.got = {role: [] for role in self.roles}
+        self.before = []
+
+    def main(self, buf, lengths, logs=None, fetch_logs=None):
+        logs = fetch_logs() if logs is None else logs
+        ends = np.cumsum(lengths).tolist()
+        for a, b, log in zip([0] + ends[:-1], ends, list(logs)):
+            self.got['imu'].append((int(log), bytes(buf[a:b])))
+        self.n_main += len(lengths)
+
+    def other(self, role, raws, logs, before=None, fetch_logs=None):
+        logs = fetch_logs() if logs is None else logs
+        self.got[role] += [(int(log), bytes(raw)) for log, raw in zip(list(logs), raws)]
+        if before is not None:
+            self.before += [int(x) for x in before]
+
+
+WANTED = [('imu', '/imu/data_raw', (IMU_TYPE,), True),
+          ('temperature', '/imu/temperature', (TEMPERATURE_TYPE, FLOAT_TYPE), True),
+          ('reference', '/rate_table/reference', (REFERENCE_TYPE,), False)]
+
+
+def _tapes(bag: Path, chunk: int = 64):
+    """Return (rosbags' messages per role, Float 'before' counts) and the columnar tape."""
+    with AnyReader([bag], default_typestore=TS) as rd:
+        _, conns = reader._connections(rd, bag, WANTED)
+        role_of = {id(c): role for role, cs in conns.items() for c in cs}
+        want = {role: [] for role in conns}
+        before, n_main = [], 0
+        for conn, log, raw in rd.readers[0].messages(
+                connections=[c for cs in conns.values() for c in cs]):
+            role = role_of[id(conn)]
+            want[role].append((log, bytes(raw)))
+            n_main += role == 'imu'
+            if role == 'temperature':
+                before.append(n_main)
+    with columnar.open_reader(bag, TS) as rd:
+        topics, conns = reader._connections(rd, bag, WANTED)
+        floating = topics['/imu/temperature'][0] == FLOAT_TYPE
+        tape = _Tape(conns, floating)
+        columnar.Source(rd, conns, chunk).feed(tape, lambda n: None)
+    return want, (before if floating else []), tape
+
+
+def _same_tape(bag: Path, chunk: int = 64) -> None:
+    want, before, tape = _tapes(bag, chunk)
+    assert set(tape.got) == set(want)
+    for role in want:
+        assert len(tape.got[role]) == len(want[role]), role
+        assert tape.got[role] == want[role], role
+    assert tape.before == before
+
+
+def _same_data(bag: Path) -> None:
+    """read_bag gives the same arrays, bit for bit, through both reads."""
+    got, ref = read_bag(bag), read_bag(bag, via='rosbags')
+    assert got.via == 'columnar' and ref.via == 'rosbags'
+    for name in ARRAYS:
+        a, b = getattr(got, name), getattr(ref, name)
+        assert (a is None) == (b is None), name
+        if a is not None:
+            assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes(), name
+    assert got.rejected == ref.rejected and got.topics == ref.topics
+    assert got.frame_id == ref.frame_id and got.storage == ref.storage
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+@pytest.mark.parametrize('case', ['plain', 'reference', 'two_connections', 'float', 'ties',
+                                  'zero_stamps', 'float_two_connections'])
+def test_the_columnar_read_hands_over_rosbags_bytes(tmp_path, storage, case, monkeypatch):
+    monkeypatch.setattr(reader, '_CHUNK', 64)        # many blocks and ranges
+    rng = np.random.default_rng(len(case))
+    kw = {'plain': {}, 'reference': {'reference': True}, 'two_connections': {'split_imu': True},
+          'float': {'floating': True}, 'ties': {'ties': True, 'split_imu': True},
+          'zero_stamps': {'zero': {0, 1, 65, 66, 300}},
+          'float_two_connections': {'floating': True, 'split_imu': True}}[case]
+    bag = _write(tmp_path / 'bag', storage, _chamber(rng, **kw))
+    _same_tape(bag)
+    _same_data(bag)
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_out_of_order_writes_keep_rosbags_order(tmp_path, storage, monkeypatch):
+    # Rowids (sqlite3) and an mcap chunk out of time order, equal log times: sqlite3 is read
+    # through its timestamp index in rosbags' order, the mcap chunk sorted as rosbags does.
+    monkeypatch.setattr(reader, '_CHUNK', 64)
+    rng = np.random.default_rng(3)
+    bag = _write(tmp_path / 'bag', storage, _chamber(rng, ties=True, split_imu=True,
+                                                     floating=True), shuffle=True)
+    _same_tape(bag)
+    _same_data(bag)
+
+
+def test_mcap_chunks_overlapping_in_time_go_to_rosbags(tmp_path):
+    # rosbags merges chunks whose time spans overlap message by message: not read columnar.
+    rng = np.random.default_rng(3)
+    bag = _write(tmp_path / 'bag', 'mcap', _chamber(rng, n=9000), shuffle=True)
+    with pytest.raises(columnar.Unfit, match='overlap'):
+        _tapes(bag)
+    got, ref = read_bag(bag), read_bag(bag, via='rosbags')
+    assert got.via == 'rosbags'
+    np.testing.assert_array_equal(got.imu_t, ref.imu_t)
+    np.testing.assert_array_equal(got.temp_c, ref.temp_c)
+
+
+@pytest.mark.parametrize('storage, mode', [('sqlite3', CompressionMode.FILE),
+                                           ('mcap', CompressionMode.FILE),
+                                           ('mcap', CompressionMode.STORAGE)])
+def test_compressed_files_and_chunks_are_read_columnar(tmp_path, storage, mode):
+    rng = np.random.default_rng(4)
+    bag = _write(tmp_path / 'bag', storage, _chamber(rng, reference=True), compression=mode)
+    _same_tape(bag)
+    _same_data(bag)
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_messages_compressed_one_by_one_go_to_rosbags(tmp_path, storage):
+    rng = np.random.default_rng(5)
+    bag = _write(tmp_path / 'bag', storage, _chamber(rng), compression=CompressionMode.MESSAGE)
+    got, plain = read_bag(bag), read_bag(_write(tmp_path / 'plain', storage, _chamber(
+        np.random.default_rng(5))))
+    assert got.via == 'rosbags'
+    np.testing.assert_array_equal(got.gyro, plain.gyro)
+    with pytest.raises(DatasetError, match='column by column: every message compressed'):
+        read_bag(bag, via='columnar')
+
+
+def _several_files(tmp_path: Path, storage: str) -> Path:
+    """Two storage files in one bag (the second earlier in time), as rosbag2 splits them."""
+    rng = np.random.default_rng(6)
+    late = _write(tmp_path / 'late', storage, _chamber(rng, t0=900 * 10**9))
+    early = _write(tmp_path / 'early', storage, _chamber(rng, n=300, t0=10**9))
+    bag = tmp_path / 'bag'
+    shutil.copytree(late, bag)
+    ext = '.db3' if storage == 'sqlite3' else '.mcap'
+    shutil.copy(early / f'early{ext}', bag / f'early{ext}')
+    meta = yaml.safe_load((bag / 'metadata.yaml').read_text())
+    other = yaml.safe_load((early / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    info = meta['rosbag2_bagfile_information']
+    info['relative_file_paths'].append(f'early{ext}')
+    info['files'] += other['files']
+    info['message_count'] += other['message_count']
+    for entry, more in zip(info['topics_with_message_count'],
+                           other['topics_with_message_count']):
+        entry['message_count'] += more['message_count']
+    (bag / 'metadata.yaml').write_text(yaml.safe_dump(meta, sort_keys=False))
+    return bag
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_storage_files_follow_each_other_as_rosbags_reads_them(tmp_path, storage):
+    bag = _several_files(tmp_path, storage)
+    _same_tape(bag)
+    _same_data(bag)
+    assert read_bag(bag).imu_t[0] > 800          # the files in order, not merged by time
+
+
+def _edit(bag: Path, edit) -> Path:
+    meta = bag / 'metadata.yaml'
+    doc = yaml.safe_load(meta.read_text())
+    edit(doc['rosbag2_bagfile_information'])
+    meta.write_text(yaml.safe_dump(doc, sort_keys=False))
+    return bag
+
+
+def _count(value):
+    def edit(info):
+        info['topics_with_message_count'][0]['message_count'] = value
+    return edit
+
+
+def _drop_files(info):
+    info['files'] = []
+    info['message_count'] = 0
+
+
+def _say_file_compressed(info):
+    info['compression_format'] = 'zstd'
+    info['compression_mode'] = 'file'
+
+
+def _rename_type(info):
+    info['topics_with_message_count'][1]['topic_metadata']['type'] = 'std_msgs/msg/String'
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+@pytest.mark.parametrize('edit, outcome', [
+    (_count(1), 'same'),                 # listed low: every message is still read
+    (_count(0), "'/imu/data_raw' in bag"),     # ... has no messages: both say so
+    (_drop_files, 'same'),
+    (_count(10**9), 'holds 1000000000 messages, more than its'),
+    (_say_file_compressed, 'not compressed as metadata.yaml says'),
+    (_rename_type, "has type 'std_msgs/msg/String', expected"),
+])
+def test_hostile_metadata_reads_as_rosbags_does(tmp_path, storage, edit, outcome):
+    rng = np.random.default_rng(7)
+    bag = _edit(_write(tmp_path / 'bag', storage, _chamber(rng)), edit)
+    if outcome == 'same':
+        _same_data(bag)
+        return
+    for via in ('auto', 'rosbags'):
+        with pytest.raises(DatasetError) as info:
+            read_bag(bag, via=via)
+        assert outcome in str(info.value) and '\n' not in str(info.value)
+
+
+@pytest.fixture(scope='module')
+def pristine(tmp_path_factory):
+    rng = np.random.default_rng(8)
+    root = tmp_path_factory.mktemp('pristine')
+    return {s: _write(root / s, s, _chamber(rng, n=300)) for s in STORAGES}
+
+
+@settings(max_examples=12, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(storage=st.sampled_from(STORAGES), where=st.floats(0.0, 1.0),
+       junk=st.binary(min_size=1, max_size=64), cut=st.booleans())
+def test_damaged_storage_is_read_as_rosbags_reads_it_or_refused_in_one_line(
+        tmp_path_factory, pristine, storage, where, junk, cut):
+    bag = tmp_path_factory.mktemp('hurt') / 'bag'
+    shutil.copytree(pristine[storage], bag)
+    (path,) = [p for p in bag.iterdir() if p.suffix in ('.db3', '.mcap')]
+    raw = bytearray(path.read_bytes())
+    at = int(where * (len(raw) - 1))
+    raw = raw[:at] if cut else raw[:at] + junk + raw[at + len(junk):]
+    path.write_bytes(bytes(raw))
+    outcomes = []
+    for via in ('auto', 'rosbags'):
+        try:
+            outcomes.append(read_bag(bag, via=via))
+        except DatasetError as err:
+            assert '\n' not in str(err) and str(bag) in str(err)
+            outcomes.append(None)
+    got, ref = outcomes
+    if got is not None and ref is not None:
+        for name in ARRAYS:
+            a, b = getattr(got, name), getattr(ref, name)
+            assert (a is None) == (b is None)
+            if a is not None:
+                np.testing.assert_array_equal(a, b)
+    if ref is not None:
+        assert got is not None           # what rosbags reads, the columnar read reads too
+
+
+def test_the_count_free_open_lists_rosbags_connections(tmp_path):
+    rng = np.random.default_rng(9)
+    bag = _write(tmp_path / 'bag', 'sqlite3', _chamber(rng, split_imu=True, reference=True))
+    with AnyReader([bag], default_typestore=TS) as a, columnar.open_reader(bag, TS) as b:
+        assert a.topics.keys() == b.topics.keys()
+        for x, y in zip(a.connections, b.connections):
+            assert (x.id, x.topic, x.msgtype, x.digest, x.msgcount, x.ext) == (
+                y.id, y.topic, y.msgtype, y.digest, y.msgcount, y.ext)
+        sa, sb = a.readers[0].storage.storages[0], b.readers[0].storage.storages[0]
+        assert [(c.id, c.topic, c.msgtype, c.digest, c.ext, c.msgdef) for c in sa.connections] \
+            == [(c.id, c.topic, c.msgtype, c.digest, c.ext, c.msgdef) for c in sb.connections]
