@@ -1,7 +1,8 @@
 # gyro_tdc developer entry points. Everything runs from the repository's .venv.
 #
 #   make venv    create/refresh .venv (ROS 2 Jazzy wheels, deps, dev tools, editable gyro_tdc)
-#   make test    run the test suite (own ROS_DOMAIN_ID per run, loopback discovery only)
+#   make test    run the test suite on TEST_WORKERS (3) xdist workers (own ROS_DOMAIN_ID per
+#                worker, loopback discovery only)
 #   make lint    flake8 + pep257 + copyright on gyro_tdc/, test/, bench/, tools/, setup.py (and
 #                flake8 + pep257 on the docs' conf.py and extensions)
 #   make demo    end-to-end demo into out/demo
@@ -33,6 +34,14 @@ LINT_PATHS = $(wildcard gyro_tdc test bench tools setup.py doc/conf.py doc/_ext)
 # parallel runs on one machine do not discover each other's nodes.
 DOMAIN := if [ -z "$${ROS_DOMAIN_ID:-}" ]; then export ROS_DOMAIN_ID=$$(( $$$$ % 101 + 1 )); fi
 
+# `make test` runs the suite on TEST_WORKERS pytest-xdist workers (TEST_WORKERS=0: in one
+# process), one test file per worker at a time (--dist loadfile: a module's fixtures are built
+# once). The run's ROS_DOMAIN_ID is the base: worker gwN takes (base - 1 + 20 (N + 1)) % 101 + 1,
+# never the base, or the next id along that stride that no other live pytest process holds
+# (a lock in /tmp per id, test/conftest.py), so neither two workers nor two runs share one.
+# Tests marked `serial` (their result depends on the load) run with no other test beside them.
+TEST_WORKERS ?= 3
+
 .PHONY: venv test lint demo bench docs rosdoc2 readme-check test-apt-versions clean distclean
 
 venv: $(STAMP)
@@ -47,7 +56,7 @@ $(STAMP): requirements.txt requirements-dev.txt setup.py setup.cfg package.xml
 test: venv
 	@$(DOMAIN); \
 	echo "ROS_DOMAIN_ID=$$ROS_DOMAIN_ID ROS_AUTOMATIC_DISCOVERY_RANGE=$$ROS_AUTOMATIC_DISCOVERY_RANGE"; \
-	rc=0; $(VPY) -m pytest -q test || rc=$$?; \
+	rc=0; $(VPY) -m pytest -q -n $(TEST_WORKERS) --dist loadfile test || rc=$$?; \
 	if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests" >&2; exit 1; fi; \
 	exit $$rc
 

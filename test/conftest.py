@@ -13,16 +13,14 @@
 # limitations under the License.
 
 """
-Shared pytest set-up: DDS isolation for this run and a fresh rclpy context per test.
+Shared pytest set-up: DDS isolation, rclpy contexts, ``serial`` tests, a ``ci`` hypothesis profile.
 
-The environment is set at import time, before any test module can import ``rclpy``:
-discovery stays on loopback and, unless the caller chose one, this run gets its own
-``ROS_DOMAIN_ID`` (1..101, from the process id) so parallel runs do not talk to each other.
-``rclpy`` itself is imported only inside the ``ros_context`` fixture, so pure tests never load
-it. Use ``rosutil.spin_until`` to wait on a condition with a deadline. The tests mirror the
-packages (``test/<package>/test_<module>.py``); shared helpers live in ``test/support/``, which
-is put on ``sys.path`` here, and system suites (lint, packaging, hostile input, docs) in
-``test/system/``.
+At import time, before any test imports ``rclpy``: discovery stays on loopback and each pytest
+process claims a ``ROS_DOMAIN_ID`` in 1..101 (``ros_domain``: a lock in /tmp held while it lives;
+no run takes an id another live one holds unless told to). A plain run keeps the id it is given
+(``make test`` sets one), else the first free one from its pid. xdist worker ``gwN`` of a run on
+id ``base`` takes ``(base - 1 + 20 (N + 1)) % 101 + 1`` (never ``base``), else the next free id
+along that stride. A test marked ``serial`` runs with no other worker's test beside it.
 """
 
 import os
@@ -31,22 +29,90 @@ import sys
 
 sys.path.insert(0, str(Path(__file__).resolve().parent / 'support'))
 
-os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
-if not os.environ.get('ROS_DOMAIN_ID'):
-    os.environ['ROS_DOMAIN_ID'] = str(os.getpid() % 101 + 1)
-
+from hypothesis import settings  # noqa: E402
 import pytest  # noqa: E402
+import ros_domain  # noqa: E402
+from serial_gate import SerialGate  # noqa: E402
+
+os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+_WORKER = os.environ.get('PYTEST_XDIST_WORKER')
+if _WORKER:
+    # The run's id, inherited from the controller, which ran this file first.
+    _BASE = int(os.environ.get('ROS_DOMAIN_ID') or os.getppid() % ros_domain.DOMAINS + 1)
+    _DOMAIN, _CLAIMED = ros_domain.worker_domain(_BASE, _WORKER)
+else:
+    _DOMAIN, _CLAIMED = ros_domain.run_domain(os.environ.get('ROS_DOMAIN_ID'), os.getpid())
+    os.environ['GYRO_TDC_TEST_RUN'] = str(os.getpid())   # names the run's serial gate
+os.environ['ROS_DOMAIN_ID'] = str(_DOMAIN)
+_GATE = SerialGate(os.environ.get('GYRO_TDC_TEST_RUN') or str(os.getppid()))
+
+settings.register_profile('ci', derandomize=True, database=None, deadline=None)
+settings.load_profile('ci')
 
 
 def pytest_configure(config):
-    """Register the ``copyright`` marker (no ament_copyright wheel provides it)."""
+    """Register the ``copyright`` (no ament_copyright wheel provides it) and ``serial`` markers."""
     config.addinivalue_line('markers', 'copyright: marks tests checking for copyright headers')
+    config.addinivalue_line('markers', 'serial: runs alone, no test on another xdist worker '
+                            'beside it (its result depends on the load: losses, rates)')
+
+
+def pytest_unconfigure(config):
+    """Remove this run's serial gate files (the xdist controller or a plain run)."""
+    if not _WORKER:
+        _GATE.remove()
+
+
+def _serial(item):
+    return item is not None and item.get_closest_marker('serial') is not None
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_protocol(item, nextitem):
+    """On an xdist worker, run a ``serial`` test (set-up to tear-down) alone (``serial_gate``)."""
+    if not _WORKER:
+        return (yield)
+    _GATE.enter(_serial(item))
+    try:
+        return (yield)
+    finally:
+        _GATE.leave(_serial(nextitem))
 
 
 def pytest_report_header(config):
     """Show the DDS isolation settings of this run in pytest's header."""
-    return (f"ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']} "
+    line = (f"ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']} "
             f"ROS_AUTOMATIC_DISCOVERY_RANGE={os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE']}")
+    if not _CLAIMED:
+        line += ' (this id is in use by another pytest run on this machine)'
+    if getattr(config.option, 'numprocesses', None):
+        line += '; each xdist worker takes its own id (listed at the end)'
+    return line
+
+
+def pytest_sessionfinish(session):
+    """On an xdist worker, hand the worker's ``ROS_DOMAIN_ID`` to the controller."""
+    if _WORKER and hasattr(session.config, 'workeroutput'):
+        session.config.workeroutput['ros_domain_id'] = (_DOMAIN, _CLAIMED)
+
+
+_WORKER_DOMAINS = {}
+
+
+@pytest.hookimpl(optionalhook=True)
+def pytest_testnodedown(node, error):
+    """Record the ``ROS_DOMAIN_ID`` a finished xdist worker used."""
+    got = getattr(node, 'workeroutput', {}).get('ros_domain_id')
+    if got:
+        _WORKER_DOMAINS[node.gateway.id] = got
+
+
+def pytest_terminal_summary(terminalreporter):
+    """List the ``ROS_DOMAIN_ID`` of each xdist worker."""
+    if _WORKER_DOMAINS:
+        terminalreporter.write_line('ROS_DOMAIN_ID per xdist worker: ' + ', '.join(
+            f'{w}={d}' + ('' if claimed else ' (shared)')
+            for w, (d, claimed) in sorted(_WORKER_DOMAINS.items())))
 
 
 @pytest.fixture

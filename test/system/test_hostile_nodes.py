@@ -361,6 +361,7 @@ def burst(rig, count, reliability, history, depth=None, stall=False):
     return rig.node.core.counts['in']
 
 
+@pytest.mark.serial  # losses depend on the load: not beside other tests
 def test_a_burst_beyond_capacity_keeps_one_output_per_input(models, rig_factory):
     """Best-effort input: what DDS reports lost is a lower bound (its own queue overwrites)."""
     rig = rig_factory(executor_kind='events', model_file=str(models['paper'][0]))
@@ -378,6 +379,7 @@ def test_a_burst_beyond_capacity_keeps_one_output_per_input(models, rig_factory)
                    for s in reports)
 
 
+@pytest.mark.serial  # losses depend on the load: not beside other tests
 def test_reliable_input_counts_every_loss_of_a_keep_last_publisher(models, rig_factory):
     """A held-up compensator: the publisher (keep last 100) drops, DDS reports the drops."""
     rig = rig_factory(executor_kind='events', model_file=str(models['paper'][0]),
@@ -396,6 +398,7 @@ def test_reliable_input_counts_every_loss_of_a_keep_last_publisher(models, rig_f
     assert values(reports[-1])['input lost'] == str(rig.node.inputs.lost)
 
 
+@pytest.mark.serial  # losses depend on the load: not beside other tests
 def test_reliable_input_loses_nothing(rig_factory):
     rig = rig_factory(executor_kind='events', input_reliability='reliable')
     received = burst(rig, 20000, 'reliable', 'keep_all')
