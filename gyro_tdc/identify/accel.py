@@ -33,7 +33,8 @@ from gyro_tdc.identify.linear import fit_linear, LinearFit
 from gyro_tdc.model import (batch_features, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             drift, input_ids, KINDS, MAX_EXTRAPOLATION_C, normalise_ids,
                             resolve_params, STATE_TERMS, THERMAL_EFFECTS)
-from gyro_tdc.signal import block_counts, block_length, block_mean, block_sumsq
+from gyro_tdc.signal import (block_counts, block_length, block_mean, block_sumsq,
+                             has_accelerometer)
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -73,14 +74,30 @@ def constant_axes(values: ArrayLike) -> NDArray[np.bool_]:
         True for the constant axes (also when an axis has no finite reading).
 
     """
-    a = np.asarray(values, dtype=np.float64).reshape(-1, 3)
+    return _constant_axes([np.asarray(values, dtype=np.float64).reshape(-1, 3)])
+
+
+def _finite(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return the finite values of ``v`` (``v`` itself, uncopied, when all are)."""
+    ok = np.isfinite(v)
+    return v if ok.all() else v[ok]
+
+
+def _constant_axes(arrays: Sequence[NDArray[np.float64]]) -> NDArray[np.bool_]:
+    """Return :func:`constant_axes` of the readings of ``arrays`` (N_k, 3) taken together."""
     out = np.ones(3, dtype=bool)
     for i in range(3):
-        v = a[:, i]
-        v = v[np.isfinite(v)]
-        if v.size:
-            lo, hi = float(v.min()), float(v.max())
-            out[i] = lo == hi or bool(np.all((v == lo) | (v == hi)))
+        # Three distinct finite values among the first few: not constant, no full pass.
+        head = np.unique(np.concatenate([_finite(a[:64, i]) for a in arrays]))
+        if head.size > 2:
+            out[i] = False
+            continue
+        cols = [v for v in (_finite(a[:, i]) for a in arrays) if v.size]
+        if not cols:
+            continue
+        lo = min(float(v.min()) for v in cols)
+        hi = max(float(v.max()) for v in cols)
+        out[i] = lo == hi or all(bool(np.all((v == lo) | (v == hi))) for v in cols)
     return out
 
 
@@ -92,11 +109,11 @@ def constant_note(runs: Sequence[Run]) -> str:
     """
     acc = [np.asarray(r.accel, dtype=np.float64).reshape(-1, 3) for r in runs
            if r.accel is not None]
-    if not acc or not constant_axes(np.concatenate(acc)).all():
+    if not acc or not _constant_axes(acc).all():
         return ''
-    first = np.concatenate(acc)
-    ok = np.isfinite(first).all(axis=1)
-    value = ', '.join(f'{v:.6g}' for v in (first[ok][0] if ok.any() else first[0]))
+    rows = [a[np.isfinite(a).all(axis=1)] for a in acc]
+    first = next((x[0] for x in rows if len(x)), None)
+    value = ', '.join(f'{v:.6g}' for v in (np.concatenate(acc)[0] if first is None else first))
     return (f'the accelerometer readings are constant (({value}) m/s^2, never varying '
             'beyond one quantum: a driver filling a fixed value); treated as absent')
 
@@ -158,7 +175,8 @@ class AccelFit:
     note : str
         Why there is no part (empty when there is one).
     static : list of StaticData or None
-        Per run, its still samples (None: no accelerometer data).
+        Per run, its still samples (None: no accelerometer data, or constant readings,
+        whose still samples are not looked for).
     coverage : Coverage, optional
         Temperature coverage of the still data.
     raw_bs, train_bs : NDArray[np.float64], shape (3,), (m/s^2)^2, optional
@@ -308,15 +326,18 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
         n_centers = max(model.n_centers, 1)
     # No prior rate: a model still being judged (a conventional f(dT) leaves degrees per
     # second) would reject still data; the scatter, reference and accelerometer decide.
+    # A constant accelerometer is absent: its still data are not looked for (they could
+    # show no orientation change either).
+    present = [r for r in runs if has_accelerometer(r.accel)]
+    constant = constant_note(present) if present else ''
+    if constant:
+        return AccelFit(None, note=constant, static=[None] * len(runs),
+                        total=sum(len(r) for r in present))
     datas = [static_data(r) for r in runs]
     with_acc = [(r, d) for r, d in zip(runs, datas) if d is not None]
     out = AccelFit(None, static=datas, total=sum(len(r) for r, _ in with_acc))
     if not with_acc:
         out.note = 'no accelerometer data in the bags (all zero: the IMU publishes none)'
-        return out
-    constant = constant_note([r for r, _ in with_acc])
-    if constant:
-        out.note = constant
         return out
     usable = [(r, d) for r, d in with_acc if d.mask.any()]
     if not usable:
