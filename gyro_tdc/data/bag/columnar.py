@@ -39,8 +39,6 @@ from rosbags.rosbag2.storage_sqlite3 import Sqlite3Reader
 
 __all__ = ['open_reader', 'Source', 'unfit', 'Unfit']
 
-#: Bytes of the storage file SQLite may map into memory (pages then read in place).
-MMAP_BYTES = 1 << 40
 # One-byte role codes of the sqlite3 query's order string (Float temperatures).
 _CODES = {'imu': 'm', 'temperature': 't', 'reference': 'r'}
 
@@ -263,7 +261,6 @@ class _Sqlite3Blocks:
 
     def run(self) -> None:
         db, out = self.db, self.out
-        db.execute(f'PRAGMA mmap_size = {MMAP_BYTES}')
         inner = (f'SELECT topic_id, data FROM messages WHERE {self._in()} AND timestamp >= ?1 '
                  'AND timestamp < ?2 ORDER BY timestamp, rowid')
         roles = list(self.ids)
