@@ -50,7 +50,11 @@ $(STAMP): requirements.txt requirements-dev.txt setup.py setup.cfg package.xml
 	@test -x $(VPY) || { echo "creating $(VENV) with $$($(PYTHON) --version)"; \
 		$(PYTHON) -m venv $(VENV); }
 	$(VPY) -m pip install $(PIP_FLAGS) -q -r requirements.txt -r requirements-dev.txt
-	$(VPY) -m pip install $(PIP_FLAGS) -q -e . --no-deps
+	@# gyro_tdc itself, built by the venv's setuptools and wheel (pip's isolated build would
+	@# download setuptools again every time); pip's isolated build if that setuptools is too old.
+	$(VPY) -m pip install $(PIP_FLAGS) -q -e . --no-deps --no-build-isolation --use-pep517 \
+		2>/dev/null || { echo "make venv: building gyro_tdc in pip's isolated environment"; \
+		$(VPY) -m pip install $(PIP_FLAGS) -q -e . --no-deps; }
 	@touch $@
 
 test: venv
