@@ -18,8 +18,10 @@ The compensator's ``/diagnostics`` and its graph guard against chained compensat
 :class:`Diagnostics` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
 (see doc/internals/runtime.md); the node provides ``core``, ``inputs``, ``params``,
 ``model_file``, ``last_reload``, ``learner``, ``learning_values()``,
-``learn_file_warning``, ``motion_values()``, ``_in_topic`` and, set by the IMU callbacks,
-``_last_imu`` (the latest input: an Imu, or its serialized bytes on the ``raw_cdr`` path).
+``learning_problems()``, ``motion_values()``, ``_in_topic`` and, set by the IMU callbacks,
+``_last_imu`` (the latest input: an Imu, or its serialized bytes on the ``raw_cdr`` path);
+this mixin keeps ``backlog`` (:mod:`~gyro_tdc.nodes.compensator_backlog`), whose ``record``
+the IMU callbacks call as ``_record``.
 
 Statuses are named ``<fully qualified node name>: gyro compensation``, diagnostic_updater's
 ``<node name>: <task>`` with its ``use_fqn`` form, so two compensators in two namespaces
@@ -32,6 +34,7 @@ from __future__ import annotations
 import time
 
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from gyro_tdc.nodes.compensator_backlog import Backlog
 from gyro_tdc.runtime import frame_mismatch, health, HealthMark, InputRate, upstream_note
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 from rclpy.serialization import deserialize_message
@@ -64,6 +67,8 @@ class Diagnostics:
         self._last_imu = None
         self._frame_warned: tuple[str, str] | None = None
         self._live_clock = time.monotonic        # wall time for liveness (tests replace it)
+        self.backlog = Backlog(self.params.expected_rate_hz)
+        self._record = self.backlog.record        # the IMU callbacks' one call per sample
         start = self._live_clock()
         self._rates = {'imu': InputRate('imu/data_raw', start, self.params.expected_rate_hz),
                        'temperature': InputRate('imu/temperature', start, None)}
@@ -136,19 +141,21 @@ class Diagnostics:
         values.update(self.motion_values())
         level, message = h.level, h.message
         live = self.liveness()
-        for role, report in live.items():
-            values.update(report.values(role))
-            if report.level > level:
-                level = report.level
-            if report.message:
-                message = (report.message if message in ('compensating',
+        backlog = self.backlog.report(time.perf_counter())
+        reports = [(report.level, report.message, report.values(role))
+                   for role, report in live.items()] + [backlog]
+        for report_level, report_message, report_values in reports:
+            values.update(report_values)
+            level = max(level, report_level)
+            if report_message:
+                message = (report_message if message in ('compensating',
                                                          'waiting for imu/data_raw')
-                           else f'{message}; {report.message}')
+                           else f'{message}; {report_message}')
         if self.learner is not None:
             values.update(self.learning_values())
-            if self.learn_file_warning:       # learn_file refused: kept, learning beside it
+            for problem in self.learning_problems():  # learn_file refused, a save failed
                 level = max(level, DiagnosticStatus.WARN[0])
-                message = f'{message}; learn_file refused (see learn file)'
+                message = f'{message}; {problem}'
         return DiagnosticStatus(
             level=bytes((level,)), name=f'{self.get_fully_qualified_name()}: {TASK}',
             message=message, hardware_id=h.hardware_id,

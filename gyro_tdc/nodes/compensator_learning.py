@@ -16,23 +16,97 @@
 The compensator's learning in the field (``learn: true``, :mod:`gyro_tdc.learn.learner`).
 
 :class:`Learning` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
-(the timer, saving, ``~/learn_save`` and ``~/learn_reset``: doc/internals/runtime.md). The node
-provides ``core``, ``params`` and ``model_file``; this mixin keeps ``learner``.
+(the steady-clock timer, the step and saves on a worker thread, ``~/learn_save`` and
+``~/learn_reset``: doc/internals/runtime.md). The node provides ``core``, ``params`` and
+``model_file``; this mixin keeps ``learner``.
 """
 
 from __future__ import annotations
 
+from array import array
+from dataclasses import replace
+import sys
+from typing import Any
+
+from gyro_tdc.base import Job, LatestJob
 from gyro_tdc.errors import OutputError
 from gyro_tdc.learn import LearnConfig, Learner, LearnFile, open_learn_file
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime import Policy
+from rclpy.clock import Clock, ClockType
 from std_srvs.srv import Trigger
 
-__all__ = ['LEARN_STEP_S', 'Learning']
+__all__ = ['LEARN_LOG_THROTTLE_S', 'LEARN_STEP_S', 'LEARN_WAIT_S', 'Learning',
+           'SWITCH_INTERVAL_S']
 
-#: Period of the learner's timer (learn:=true), s: the IMU callback only appends. Cheap when
-#: no window has ended (one compare); short so that a candidate is ready before its stamp.
+#: Period of the learner's timer (learn:=true), s, on the steady clock: the IMU callback only
+#: appends; the timer hands what it appended to the learner and, when a window has ended
+#: (or a save is due), starts the step on a worker thread.
 LEARN_STEP_S = 0.1
+#: Longest wait of a service call, a model_file install or a policy change for the learner's
+#: step in progress (a save on a slow disk) [s]; a prior then applies when the step ends.
+LEARN_WAIT_S = 10.0
+#: Least time between two log lines of a failing save or step [s] (/diagnostics says it too).
+LEARN_LOG_THROTTLE_S = 60.0
+#: Python's thread switch interval while learning [s]: the worker holds the interpreter lock
+#: at most this long before the IMU callback's thread may take it (the default is 5 ms, 10
+#: samples at 2 kHz for every slice of a fit).
+SWITCH_INTERVAL_S = 5e-4
+
+
+class _Front:
+    """
+    What the message path hands the learner between two steps: appends, nothing else.
+
+    The core sees it as its learner (``buf.extend``, ``add_temperature``, ``observe_motion``,
+    ``config``), so the learner itself is touched by one thread at a time: the executor's
+    while no step runs, the worker's during one.
+    """
+
+    def __init__(self, config: LearnConfig) -> None:
+        self.config = config
+        self.buf = array('d')
+        self.temps: list[tuple[float, float]] = []
+        self.motion: list[tuple[float, bool]] = []
+
+    def add_temperature(self, t: float, temp_c: float) -> None:
+        self.temps.append((t, temp_c))
+
+    def observe_motion(self, t: float, moving: bool) -> None:
+        self.motion.append((t, moving))
+
+    def hand_over(self, learner: Learner) -> None:
+        """Give everything appended so far to ``learner`` (which must be idle)."""
+        if self.buf:
+            learner.buf.extend(self.buf)
+            del self.buf[:]
+        temps, self.temps = self.temps, []
+        for t, temp_c in temps:
+            learner.add_temperature(t, temp_c)
+        motion, self.motion = self.motion, []
+        for t, moving in motion:
+            learner.observe_motion(t, moving)
+
+
+def _step_and_save(learner: Learner, store: LearnFile | None) -> tuple[str, str, list[str]]:
+    """
+    Step ``learner`` and save it to ``store`` when due: the worker thread's job.
+
+    Returns ``(what, text, notes)``: what is '' (stepped), 'saved', 'save failed' or
+    'step failed' (text: why), notes the store's lines worth a warning.
+    """
+    try:
+        learner.step()
+        if store is None or not learner.save_due():
+            return '', '', []
+        try:
+            store.write(learner.state())
+        except OutputError as exc:
+            return 'save failed', str(exc), []
+        learner.saved()
+        return 'saved', str(store.path), list(store.notes)
+    except Exception as exc:  # the worker's edge: a bug must not stop learning silently
+        return 'step failed', f'{type(exc).__name__}: {exc}', []
 
 
 class Learning:
@@ -43,6 +117,11 @@ class Learning:
     learn_store: LearnFile | None = None
     #: One line while learn_file itself is refused (kept; learning goes beside it), else ''.
     learn_file_warning: str = ''
+    #: Why the last save failed ('' once one succeeds), and how many failed.
+    learn_save_error: str = ''
+    learn_save_failures: int = 0
+    #: Steps that raised (a bug; logged throttled), and the last one's error.
+    learn_step_errors: int = 0
 
     def _new_learner(self, policy: Policy) -> Learner:
         """Return a learner from the start (the model in use is the prior)."""
@@ -52,10 +131,15 @@ class Learning:
                                    swap_delay_s=p.learn_swap_delay), prior=self.core.model)
 
     def _start_learning(self, policy: Policy) -> None:
-        """Create the learner, resume learn_file (or the file beside it), services."""
+        """Create the learner, resume learn_file (or the file beside it), services, timer."""
         p = self.params
         self.learner = self._new_learner(policy)
         self._learned_installs = 0
+        self._learn_jobs = LatestJob()
+        self._learn_job: Job | None = None
+        self._learn_prior: tuple[CompensationModel | None] | None = None
+        self._learn_timeout: float | None = None
+        self._learn_values: dict[str, str] = {}
         if p.learn_file:
             log = self.get_logger()
             try:
@@ -81,10 +165,106 @@ class Learning:
         else:
             self.get_logger().warning('learn without learn_file: nothing is kept across '
                                       'restarts')
-        self.core.learner = self.learner
+        self._front = _Front(self.learner.config)
+        self._learn_values = self.learner.diagnostic_values()
+        sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))
+        self.core.learner = self._front
         self.create_service(Trigger, '~/learn_save', self._on_learn_save)
         self.create_service(Trigger, '~/learn_reset', self._on_learn_reset)
-        self.create_timer(LEARN_STEP_S, self._on_learn)
+        # The steady clock: with use_sim_time and no /clock (or a paused bag) learning goes
+        # on; what it learns follows the message stamps anyway.
+        self.create_timer(LEARN_STEP_S, self._on_learn,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    # -- the learner's owner: the worker during a step, else the executor's thread ------
+
+    def _learn_absorb(self) -> bool:
+        """Take the outcome of a finished step; return whether the learner is idle."""
+        job = self._learn_job
+        if job is None:
+            return True
+        if not job.done:
+            return False
+        self._learn_job = None
+        what, text, notes = job.result
+        log = self.get_logger()
+        if what == 'saved':
+            self.learn_save_error = ''
+            for note in notes:
+                log.warning(note)
+        elif what == 'save failed':
+            self._save_failed(text)
+        elif what == 'step failed':
+            self.learn_step_errors += 1
+            log.error(f'learning step failed ({self.learn_step_errors} in total): {text}',
+                      throttle_duration_sec=LEARN_LOG_THROTTLE_S)
+        return True
+
+    def _save_failed(self, why: str) -> None:
+        """Count a failed save, keep its reason for /diagnostics, log it throttled."""
+        self.learn_save_error = why
+        self.learn_save_failures += 1
+        self.get_logger().error(
+            f'cannot save learn_file ({self.learn_save_failures} failed saves): {why}',
+            throttle_duration_sec=LEARN_LOG_THROTTLE_S)
+
+    def _learn_sync(self) -> None:
+        """
+        With the learner idle, on the executor's thread: what waited for it.
+
+        A prior or timeout set during a step, the models it swapped in (scheduled by stamp:
+        :meth:`gyro_tdc.runtime.core.CompensatorCore.schedule`) and the samples, readings
+        and motion reports the message path appended since.
+        """
+        learner, core = self.learner, self.core
+        if self._learn_prior is not None:
+            (model,), self._learn_prior = self._learn_prior, None
+            learner.set_prior(model)
+            core.cancel_scheduled()
+        if self._learn_timeout is not None:
+            learner.config = replace(learner.config, temperature_timeout=self._learn_timeout)
+            self._learn_timeout = None
+        for due, model in learner.take_swaps(core.last_t):
+            core.schedule(model, due)
+        if core.learned_installs != self._learned_installs:
+            self._learned_installs = core.learned_installs
+            self.model_file = 'learned'
+        self._front.hand_over(learner)
+
+    def wait_learning(self, timeout_s: float = LEARN_WAIT_S) -> bool:
+        """
+        Wait for the step in progress and bring the learner up to date; return whether idle.
+
+        Call on the executor's thread; the learner may then be read or changed until the
+        executor runs the learn timer again.
+        """
+        job = self._learn_job
+        if job is not None and not job.wait(timeout_s):
+            return False
+        self._learn_absorb()
+        self._learn_sync()
+        return True
+
+    def learning_caught_up(self) -> bool:
+        """Return whether the learner has stepped over everything the node received."""
+        if not self._learn_absorb():
+            return False
+        self._learn_sync()
+        return self.learner.caught_up()
+
+    def _learn_step_now(self) -> None:
+        """Step the learner on this thread (it is idle) and schedule what it swapped in."""
+        self._learn_sync()
+        self.learner.step()
+        self._learn_sync()
+
+    def set_learn_timeout(self, timeout_s: float) -> None:
+        """Give the learner a new temperature_timeout (from its next step)."""
+        if self.learner is None or timeout_s == self.learner.config.temperature_timeout:
+            return
+        self._learn_timeout = timeout_s
+        if self._learn_job is None:
+            self._learn_sync()
 
     def _new_prior(self, model: CompensationModel | None) -> None:
         """
@@ -92,25 +272,20 @@ class Learning:
 
         A learned model is then swapped in only when it predicts the recent still time better
         than this one; a learned swap not yet installed is older than the file and dropped
-        (:meth:`gyro_tdc.learn.learner.Learner.set_prior`).
+        (:meth:`gyro_tdc.learn.learner.Learner.set_prior`). During a step the prior waits
+        for it (up to :data:`LEARN_WAIT_S`, then it applies when the step ends).
         """
-        if self.learner is not None:
-            self.learner.set_prior(model)
-            self.core.cancel_scheduled()
+        if self.learner is None:
+            return
+        self._learn_prior = (model,)
+        self.core.cancel_scheduled()
+        self.wait_learning()
 
     def _take_learned(self) -> None:
         """Install a model resumed from learn_file at once (on the thread that compensates)."""
         model = self.learner.take_model()
         if model is not None:
             self.core.set_model(model)
-            self.model_file = 'learned'
-
-    def _learn_step(self) -> None:
-        """Step the learner, schedule what it swapped in; note a learned model in use."""
-        core = self.core
-        core.learn_step()
-        if core.learned_installs != self._learned_installs:
-            self._learned_installs = core.learned_installs
             self.model_file = 'learned'
 
     def save_learning(self) -> str:
@@ -123,39 +298,73 @@ class Learning:
         try:
             store.write(self.learner.state())
         except OutputError as exc:
-            self.get_logger().error(f'cannot save learn_file: {exc}')
+            self._save_failed(str(exc))
             return f'failed: {exc}'
         self.learner.saved()
+        self.learn_save_error = ''
         for note in store.notes:
             self.get_logger().warning(note)
         return f'saved {store.path}'
 
     def learning_values(self) -> dict[str, str]:
         """Return the learner's /diagnostics pairs and where its state is written."""
-        values = self.learner.diagnostic_values()
+        if self._learn_job is None:         # idle: read it; during a step, the last figures
+            self._learn_values = self.learner.diagnostic_values()
+        values = dict(self._learn_values)
         store = self.learn_store
         values['learn file'] = (
             'none' if not self.params.learn_file else
             (str(store.path) if store is not None else 'nothing written')
             + (f' ({self.learn_file_warning})' if self.learn_file_warning else ''))
+        values['learn save error'] = self.learn_save_error
+        values['learn save failures'] = str(self.learn_save_failures)
+        values['learn step errors'] = str(self.learn_step_errors)
         return values
 
+    def learning_problems(self) -> list[str]:
+        """Return what /diagnostics warns about the learner ([] when nothing)."""
+        problems = []
+        if self.learn_file_warning:       # learn_file refused: kept, learning beside it
+            problems.append('learn_file refused (see learn file)')
+        if self.learn_save_error:
+            problems.append(f'learn_file not saved ({self.learn_save_failures} failed saves, '
+                            f'see learn save error): {self.learn_save_error}')
+        return problems
+
+    # -- the timer and the services ------------------------------------------------------
+
     def _on_learn(self) -> None:
-        """Timer: learn from the samples gathered since the last tick, save when due."""
-        self._learn_step()
-        if self.params.learn_file and self.learner.save_due():
-            self.save_learning()
+        """Timer: hand the learner what came; start its step on the worker when there is work."""
+        if not self._learn_absorb():
+            return                          # the step in progress: again at the next tick
+        self._learn_sync()
+        learner = self.learner
+        if learner.caught_up():
+            return                          # no window ended: nothing to judge, nothing due
+        store = self.learn_store if self.params.learn_file else None
+        self._learn_job = self._learn_jobs.start(
+            'learning step', 'timer', lambda: _step_and_save(learner, store))
+
+    def _busy(self, response: Any) -> Any:
+        response.success = False
+        response.message = (f'busy: the learning step in progress did not end within '
+                            f'{LEARN_WAIT_S:g} s (a slow disk?); try again')
+        return response
 
     def _on_learn_save(self, request: Trigger.Request, response: Trigger.Response
                        ) -> Trigger.Response:
-        self._learn_step()
+        if not self.wait_learning():
+            return self._busy(response)
+        self._learn_step_now()
         response.message = self.save_learning()
         response.success = response.message.startswith('saved')
         return response
 
     def _on_learn_reset(self, request: Trigger.Request, response: Trigger.Response
                         ) -> Trigger.Response:
-        self._learn_step()
+        if not self.wait_learning():
+            return self._busy(response)
+        self._learn_step_now()
         self.learner.reset()
         self.core.cancel_scheduled()
         self.core.set_model(self.learner.prior)
@@ -167,7 +376,12 @@ class Learning:
 
     def _stop_learning(self) -> None:
         """Save what was learned (the stretch in progress too) before the node goes away."""
-        if self.learner is not None and self.params.learn_file:
-            self.learner.step()
-            self.learner.flush()
-            self.save_learning()
+        if self.learner is None or not self.params.learn_file:
+            return
+        if not self.wait_learning(3 * LEARN_WAIT_S):
+            self.get_logger().error('learning step still running at shutdown: learn_file '
+                                    'keeps its last save')
+            return
+        self.learner.step()
+        self.learner.flush()
+        self.save_learning()

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from dataclasses import replace
 import sys
+from time import perf_counter
 from typing import Any, Callable
 
 from gyro_tdc.base import spec_dataclass
@@ -213,10 +214,7 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
                 if getattr(old, k) != v]
         if said:
             self.core.set_policy(policy)
-            if self.learner is not None and policy.temperature_timeout != \
-                    self.learner.config.temperature_timeout:
-                self.learner.config = replace(self.learner.config,
-                                              temperature_timeout=policy.temperature_timeout)
+            self.set_learn_timeout(policy.temperature_timeout)
             log.info('policy changed, from the next message: ' + ', '.join(said))
             if (old.upstream_correction, old.upstream_policy) != (
                     policy.upstream_correction, policy.upstream_policy):
@@ -230,9 +228,12 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
 
     # -- the hot path -----------------------------------------------------------------
 
-    def _on_imu(self, msg: Imu) -> None:
+    def _on_imu(self, msg: Imu, start: float | None = None) -> None:
+        if start is None:                   # the callback's start on the steady clock
+            start = perf_counter()
         self._last_imu = msg                # its frame_id, read by /diagnostics
         st = msg.header.stamp
+        t = st.sec + st.nanosec * 1e-9
         w = msg.angular_velocity
         cov = msg.angular_velocity_covariance
         if diagonal_marked(cov):
@@ -244,8 +245,7 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
             if msg.linear_acceleration_covariance[0] != -1.0:
                 a = (la.x, la.y, la.z)
         try:
-            wx, wy, wz, var, flags, aout, avar = core.process(
-                st.sec + st.nanosec * 1e-9, w.x, w.y, w.z, a)
+            wx, wy, wz, var, flags, aout, avar = core.process(t, w.x, w.y, w.z, a)
         except Exception as exc:  # the callback edge: never lose the message
             var, flags = self._on_error(exc), PASSTHROUGH
             wx, wy, wz = w.x, w.y, w.z
@@ -274,8 +274,10 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
             acov[4] += avar[1]
             acov[8] += avar[2]
         self._pub.publish(msg)
+        self._record((t, start, perf_counter()))    # the backlog: stamp, start, end
 
     def _on_imu_raw(self, data: bytes) -> None:
+        start = perf_counter()
         found = locate(data)
         if found is None:  # not little-endian plain CDR: the slow, general way
             try:
@@ -283,7 +285,7 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
             except Exception as exc:  # the callback edge: any participant can send bytes
                 self._on_malformed(exc, len(data))
                 return
-            self._on_imu(msg)
+            self._on_imu(msg, start)
             return
         sec, nanosec, base = found
         self._last_imu = data               # its frame_id, read by /diagnostics
@@ -293,14 +295,15 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
         wx, wy, wz = view.angular_velocity()
         core = self.core
         a = view.linear_acceleration() if core.needs_accel else None
+        t = sec + nanosec * 1e-9
         try:
-            wx, wy, wz, var, flags, aout, avar = core.process(
-                sec + nanosec * 1e-9, wx, wy, wz, a)
+            wx, wy, wz, var, flags, aout, avar = core.process(t, wx, wy, wz, a)
         except Exception as exc:  # the callback edge: never lose the message
             var, flags = self._on_error(exc), PASSTHROUGH
             aout, avar = None, (var if a is not None and core.accel_on else None)
         self._pub.publish(view.patched(wx, wy, wz, var, not flags & PASSTHROUGH, aout, avar,
                                        core.policy.base_variance))
+        self._record((t, start, perf_counter()))
 
     def _on_malformed(self, exc: Exception, size: int) -> None:
         """Count a message that is not an Imu (nothing to republish); the stream goes on."""

@@ -127,6 +127,7 @@ class LearnRig:
 
 
 def _values(node):
+    assert node.wait_learning()           # the learner's figures after its step in progress
     return {kv.key: kv.value for kv in node.diagnostic_status().values}
 
 
@@ -156,6 +157,7 @@ def test_learn_save_reset_and_restart_resume(ros_context, tmp_path):
         assert rig.call(rig.save).success
         saved = json.loads(path.read_text())
         assert saved['fit']['features'] == ['dT'] and len(saved['bins']) >= 2
+        assert node.wait_learning()       # the learner is the worker's during a step
         state = json.loads(json.dumps(node.learner.state()))
         assert state == saved
     finally:
@@ -232,10 +234,12 @@ def test_a_slow_constant_turn_reported_by_motion_topic_is_not_still(ros_context,
         w = (0.0, 0.0, 0.005) + 1e-5 * np.random.default_rng(7).standard_normal((n, 3))
         t = rig.stream(1000.0, w, 20.0, report)
         anchor = node.core.anchor         # a learned model swapped in below clears it
+        assert node.wait_learning()
         node.learner.flush()              # the stretch in progress too
         assert rig.call(rig.save).message.startswith('no learn_file')   # steps, schedules
         assert node.core.model_id == node.learner.prior.model_id        # not due yet
         rig.stream(t + 250.0, w[:1], 20.0)   # a sample past the delay: a learned one is due
+        assert node.wait_learning()
         v = _values(node)
         assert v['motion'] == ('moving' if moving else 'not moving')
         assert v['motion reports'] == str(int(n / RATE))
@@ -264,6 +268,7 @@ def test_a_model_file_loaded_while_learning_becomes_the_prior(ros_context, tmp_p
         t = rig.feed(1000.0, 100.0, 20.0, b1, False, 1)
         t = rig.feed(t, 20.0, 20.0, b1, True, 2)
         rig.call(rig.save)                       # steps the learner: b1 learned, in use
+        assert node.wait_learning()
         assert node.model_file == 'learned' and node.learner.fit is not None
         path = tmp_path / 'b2.yaml'
         save_model(learned_model(np.vstack([b2, np.zeros(3)]), ('dT',), 20.0, (0.0, 40.0),
@@ -278,6 +283,7 @@ def test_a_model_file_loaded_while_learning_becomes_the_prior(ros_context, tmp_p
         t = rig.feed(t + 3600.0, 100.0, 20.0, b2, False, 3)
         rig.feed(t, 20.0, 20.0, b2, True, 4)
         rig.call(rig.save)
+        assert node.wait_learning()
         check = node.learner.check
         assert check is not None and check['current_mse'] < 1e-8, check
         # ~/reload of a changed file: the new contents are the prior.
@@ -285,7 +291,7 @@ def test_a_model_file_loaded_while_learning_becomes_the_prior(ros_context, tmp_p
                                  np.full(3, 1e-8)), path)
         reload = rig.io.create_client(Trigger, 'compensator_node/reload')
         spin_until(rig.executor, reload.service_is_ready, 10.0, what='reload service')
-        assert rig.call(reload).success
+        assert rig.call(reload).success and node.wait_learning()
         assert node.core.model_id not in ('', b2_id)
         assert node.learner.prior.model_id == node.core.model_id
     finally:

@@ -169,7 +169,7 @@ class Live:
                 self.imu_pub.publish(imu[k])
             self.spin_until(lambda: len(self.out) >= first + hi - start, 'outputs')
             if self.node.learner is not None:
-                self.spin_until(self.node.learner.caught_up, 'learn timer')
+                self.spin_until(self.node.learning_caught_up, 'learn timer')
         assert len(self.out) == first + stop - start          # one out for every one in
         if self.node.learner is not None:
             assert self.node.learner.diagnostic_values()['learn late swaps'] == '0'

@@ -408,6 +408,52 @@ def test_reliable_input_loses_nothing(rig_factory):
     assert 'lost' not in st.message and values(st)['input reliability'] == 'reliable'
 
 
+def dtdt_model(centres):
+    """Return a valid dTdt model of ``centres`` RBF centres (spread from a fitted one)."""
+    run = synth_run(hours=1.0, rate_hz=2.0, cooling=True, seed=5)
+    base = fit_model([run], features=('dT', 'dT2', 'dTdt'), n_centers=10, fit_params=False)
+    rng = np.random.default_rng(8)
+    pick = rng.integers(0, base.centers.shape[0], centres)
+    return base.replace(
+        centers=base.centers[pick] + 0.01 * rng.standard_normal((centres, 3)),
+        widths=base.widths[pick], weights=base.weights[pick] * (10 / centres))
+
+
+def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path):
+    """
+    A valid 10,000-centre dTdt model at 2 kHz costs about the whole budget per sample.
+
+    The node falls behind (WARN: samples wait over a second in its 2000-sample queue), the
+    queue overwrites its oldest samples (DDS reports none of them): /diagnostics says WARN
+    with the count, and every sample sent either came in or is counted missing, exactly (the
+    stamps are 1 ms apart).
+    """
+    path = save_model(dtdt_model(10_000), tmp_path / 'dtdt10k.yaml')
+    read_model(str(path))                                   # valid: loaded, not refused
+    rig = rig_factory(executor_kind='events', model_file=str(path), temperature_timeout=60.0)
+    rig.temperature(to_ns(T0 - 1.0), 20.0)
+    rig.spin_until(lambda: rig.node.core.temps.received == 1, what='temperature')
+    streamer = Streamer(rig, 2000.0)
+    streamer.start()
+    try:
+        rig.spin_until(lambda: streamer.sent >= 10_000, 30.0, what='5 s of stream')
+    finally:
+        sent = streamer.stop()
+    spin_until_quiet(rig.executor, lambda: rig.node.core.counts['in'], 1.0, 60.0)
+    node = rig.node
+    reports = rig.diag + [node.diagnostic_status()]
+    missing = node.backlog.missing
+    assert node.core.model.centers.shape[0] == 10_000 and node.core.counts['compensated'] > 0
+    assert 0 < missing < sent
+    assert node.core.counts['in'] + missing == sent
+    assert values(reports[-1])['input missing'] == str(missing)
+    warned = [s for s in reports if s.level == DiagnosticStatus.WARN
+              and 'input samples missing by stamp (' in s.message]
+    assert warned and sum(int(s.message.split('input samples missing by stamp (')[1].split()[0])
+                          for s in warned) == missing
+    assert any('falling behind: a sample waited' in s.message for s in reports)
+
+
 # -- 12: re-anchoring across reloads -------------------------------------------------------
 
 
