@@ -99,11 +99,11 @@ def _step_and_save(learner: Learner, store: LearnFile | None) -> tuple[str, str,
         learner.step()
         if store is None or not learner.save_due():
             return '', '', []
+        learner.saved()                 # a failed save is tried again a save period later
         try:
             store.write(learner.state())
         except OutputError as exc:
             return 'save failed', str(exc), []
-        learner.saved()
         return 'saved', str(store.path), list(store.notes)
     except Exception as exc:  # the worker's edge: a bug must not stop learning silently
         return 'step failed', f'{type(exc).__name__}: {exc}', []

@@ -150,6 +150,28 @@ def test_a_stopped_imu_warns_then_errors_and_never_reads_ok(ros_context, nodes):
     assert st.level == DiagnosticStatus.OK, st.message
 
 
+def test_a_stopped_imu_never_reads_ok_while_the_temperature_is_hours_old(ros_context, nodes):
+    """The thermometer died 3 h before; then the IMU stops: no report is OK again."""
+    node = make(ros_context, nodes, expected_rate_hz=100.0)
+    temperature(node, T0 - 10_800)
+    k = 0
+    for _ in range(6):
+        for j in range(k, k + 100):
+            node._on_imu_raw(serialize_message(imu(j, 'imu_link')))
+        k += 100
+        node._live_clock.now += 1.0
+        st = node.diagnostic_status()
+        assert st.level == DiagnosticStatus.WARN and 'temperature stale' in st.message
+    levels = []
+    for _ in range(8):                       # the IMU stops: nothing new is flagged stale
+        node._live_clock.now += 1.0
+        st = node.diagnostic_status()
+        levels.append(st.level)
+        assert float(values(st)['temperature age s']) > 10_800.0
+    assert DiagnosticStatus.OK not in levels, levels
+    assert levels[-1] == DiagnosticStatus.ERROR and 'no imu/data_raw for' in st.message
+
+
 def test_a_slow_imu_warns(ros_context, nodes):
     node = make(ros_context, nodes, expected_rate_hz=200.0)
     k = 0

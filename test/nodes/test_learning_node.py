@@ -378,3 +378,44 @@ def test_a_mode_000_learn_file_is_resumed_and_written_readable(ros_context, tmp_
     mode = stat.S_IMODE(path.stat().st_mode)
     assert mode & 0o600 == 0o600, oct(mode)
     assert json.loads(path.read_text())['bins'] == learned_state['bins']
+
+
+def test_a_failing_save_is_on_diagnostics_and_logged_once_a_minute(ros_context, tmp_path,
+                                                                   capfd):
+    """
+    learn_file's directory becomes unwritable (a file where it was): saves fail, go on.
+
+    Each failed periodic save is counted and its reason shown on /diagnostics (WARN), the log
+    says so at most once a minute (not once a save), and the next good save clears it.
+    """
+    where = tmp_path / 'learn'
+    path = where / 'learned.json'
+    rig = LearnRig(ros_context, learn=True, learn_file=str(path), learn_save_period=1.0)
+    try:
+        node = rig.node
+        t = rig.feed(1000.0, 30.0, 20.0, np.array(BIAS), False, 1)
+        spin_until(rig.executor, node.learning_caught_up, 10.0, what='learning')
+        assert path.is_file() and _values(node)['learn save error'] == ''
+        where.rename(tmp_path / 'moved')
+        where.write_text('not a directory any more\n')
+        for k in range(4):                # four windows, each stepped and saved on its own
+            t = rig.feed(t, 11.0, 20.0, np.array(BIAS), False, 2 + k)
+            spin_until(rig.executor, node.learning_caught_up, 10.0, what='learning')
+        v = _values(node)
+        status = node.diagnostic_status()         # ERROR too: no model learned yet
+        assert status.level >= DiagnosticStatus.WARN
+        assert 'learn_file not saved (' in status.message, status.message
+        assert str(path) in v['learn save error'] and int(v['learn save failures']) >= 3
+        logged = [line for line in capfd.readouterr().err.splitlines()
+                  if 'cannot save learn_file' in line]
+        assert len(logged) == 1, logged
+        where.unlink()                    # the directory is back: the next save succeeds
+        (tmp_path / 'moved').rename(where)
+        rig.feed(t, 11.0, 20.0, np.array(BIAS), False, 9)
+        spin_until(rig.executor, node.learning_caught_up, 10.0, what='learning')
+        v = _values(node)
+        assert v['learn save error'] == '' and 'learn_file not saved' not in \
+            node.diagnostic_status().message
+        assert json.loads(path.read_text())['format'] == FORMAT
+    finally:
+        rig.close()
