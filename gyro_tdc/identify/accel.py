@@ -28,7 +28,7 @@ from typing import Sequence
 from gyro_tdc.data import Coverage, coverage, Run
 from gyro_tdc.errors import FeatureError, FitError
 from gyro_tdc.identify.accel_static import static_bs, static_data
-from gyro_tdc.identify.fit import MIN_SAMPLES, MIN_SPAN_C
+from gyro_tdc.identify.fit import MIN_SAMPLES, MIN_SPAN_C, run_state
 from gyro_tdc.identify.linear import fit_linear, LinearFit
 from gyro_tdc.model import (batch_features, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             drift, input_ids, KINDS, MAX_EXTRAPOLATION_C, normalise_ids,
@@ -354,7 +354,7 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     segs = []          # per segment: block-mean features, force, counts, scatter, stamps...
     lo, hi = math.inf, -math.inf
     for r, d in usable:
-        state = th.temperature(r.t, r.temp)
+        state = run_state(th, r)       # the gyro fit's, not computed again
         x = batch_features(ids, r.t, r.temp, t0=model.t0_c, params=par, state=state)
         acc = np.asarray(r.accel, dtype=np.float64)
         for s in range(d.n_segments):

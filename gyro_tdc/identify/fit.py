@@ -42,7 +42,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
-__all__ = ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'MIN_SAMPLES', 'MIN_SPAN_C',
+__all__ = ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'MIN_SAMPLES', 'MIN_SPAN_C', 'run_state',
            'TAU_BOUNDS', 'THERMAL_CHOICES', 'TWO_NODE_MARGIN']
 
 #: Fewest samples a fit accepts.
@@ -78,6 +78,31 @@ def estimate_t0(run: Run, *, window_s: float = 60.0) -> float:
         raise FitError('Cannot estimate T0 from an empty run.')
     n = max(int(np.searchsorted(run.t, run.t[0] + window_s)), max(len(run) // 100, 1))
     return float(np.median(run.temp[:n]))
+
+
+# The last full-rate thermal states, by run (the run's stamps and temperatures held, so
+# an id is never reused while its entry lives): fit_model's are the accelerometer part's.
+_STATES: dict[int, tuple[NDArray, NDArray, tuple, NDArray[np.float64]]] = {}
+_STATES_KEPT = 8
+
+
+def run_state(thermal: ThermalState, run: Run) -> NDArray[np.float64]:
+    """
+    Return ``thermal.temperature(run.t, run.temp)``, computed once per run and front end.
+
+    The result is read-only (shared by the callers: the fit and the accelerometer part).
+    """
+    key = (thermal.kind, tuple(float(v) for v in thermal.tau_s))
+    hit = _STATES.get(id(run))
+    if hit is not None and hit[0] is run.t and hit[1] is run.temp and hit[2] == key:
+        return hit[3]
+    state = thermal.temperature(run.t, run.temp)
+    state.flags.writeable = False
+    _STATES.pop(id(run), None)
+    _STATES[id(run)] = (run.t, run.temp, key, state)
+    while len(_STATES) > _STATES_KEPT:
+        _STATES.pop(next(iter(_STATES)))
+    return state
 
 
 class _Blocks:
@@ -136,7 +161,7 @@ class _Blocks:
 
     def state(self, thermal: ThermalState) -> NDArray[np.float64]:
         """Return the thermal state at full rate (N,), degC."""
-        return thermal.temperature(self.run.t, self.run.temp)
+        return run_state(thermal, self.run)
 
     def scatter(self, scale: NDArray[np.float64], t0: float,
                 state: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
