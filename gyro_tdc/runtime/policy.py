@@ -77,9 +77,11 @@ PARAMS = (
               'unknown (all zero out, no compensation mark); > 0: the output diagonal is this '
               "plus the model's variance, marked. A -1 in element 0 (no data) stays as it "
               'came [(rad/s)^2].', 0.0, 1.0e3, policy=True, read_only=False),
-    ParamSpec('reanchor_on_start', False, 'Shift the model offset so the compensated rate '
+    ParamSpec('reanchor_on_start', True, 'Shift the model offset so the compensated rate '
               'averages zero once the IMU is still and the mean is known to '
-              'reanchor_tolerance.', policy=True, read_only=False),
+              'reanchor_tolerance: the turn-on offset of this power cycle, which no model '
+              'trained on other power cycles knows. false: keep the model offset (the mean '
+              'of its training sessions).', policy=True, read_only=False),
     ParamSpec('reanchor_tolerance', 0.0, 'Largest standard error of the re-anchoring shift '
               "per axis; 0: auto, 0.1 x the model's residual standard deviation, at least "
               '1e-5 rad/s [rad/s].', 0.0, 10.0, policy=True, read_only=False),

@@ -84,7 +84,7 @@ def test_no_model_is_no_error_when_the_rate_passes_through_as_corrected(rig_fact
 def test_upstream_policy_compensate_corrects_on_top_without_warning(model_file, rig_factory):
     path, model = model_file
     rig = rig_factory(model_file=str(path), upstream_correction='px4',
-                      upstream_policy='compensate')
+                      upstream_policy='compensate', reanchor_on_start=False)
     imu_ns, omega, temp_ns, temp_c = stream()
     rig.feed(imu_ns, omega, temp_ns, temp_c)
     t = imu_ns * 1e-9

@@ -212,7 +212,7 @@ def test_out_of_range(model, mode):
 
 def test_reload_same_model_mid_stream_carries_filters_on(model):
     t, omega, tt, tc = stream(n=4000, rate_hz=10.0, temp_hz=1.0)
-    core = CompensatorCore(Policy(), model)
+    core = CompensatorCore(Policy(reanchor_on_start=False), model)
     half = t.size // 2
     first, _, _ = run_core(core, t[:half], omega[:half], tt[tt <= t[half - 1]],
                            tc[tt <= t[half - 1]])
@@ -223,7 +223,7 @@ def test_reload_same_model_mid_stream_carries_filters_on(model):
     np.testing.assert_allclose(first, ref[:half], rtol=0, atol=1e-12)
     # Warm-up restarts nowhere; the lag filters resume from a 1 s decimated replay.
     np.testing.assert_allclose(second, ref[half:], rtol=0, atol=2e-4 * DEG)
-    unprimed = CompensatorCore(Policy(), model)
+    unprimed = CompensatorCore(Policy(reanchor_on_start=False), model)
     cold, _, _ = run_core(unprimed, t[half:], omega[half:], tt[tt > t[half] - 1.0],
                           tc[tt > t[half] - 1.0])
     assert np.abs(cold - ref[half:]).max() > 10 * np.abs(second - ref[half:]).max()
@@ -244,7 +244,7 @@ def test_reanchor_on_start(model):
     assert np.abs(out[after].mean(axis=0)).max() < 2e-4
     assert np.abs(out[~after].mean(axis=0) - offset).max() < 2e-4
     # Without re-anchoring the offset stays.
-    plain = CompensatorCore(Policy(), model)
+    plain = CompensatorCore(Policy(reanchor_on_start=False), model)
     kept, _, _ = run_core(plain, t, raw, tt, tc)
     np.testing.assert_allclose(kept.mean(axis=0), offset, atol=2e-4)
     assert plain.anchor is None

@@ -36,7 +36,7 @@ def model():
 
 
 def test_health_no_model_is_an_error_until_one_is_loaded(model):
-    core = CompensatorCore(Policy())
+    core = CompensatorCore(Policy(reanchor_on_start=False))
     h = health(core, last_reload='failed: broken.yaml')
     assert (h.level, h.message) == (ERROR, 'no model loaded (failed: broken.yaml)')
     assert h.hardware_id == '' and h.values['model id'] == '' and h.values['model kind'] == ''

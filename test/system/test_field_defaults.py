@@ -94,7 +94,8 @@ def test_linear_batch_equals_streaming_and_the_compensator_core():
         comp = StreamingCompensator(model, out_of_range='linear')
         stream = np.array([comp.step(a, b, w) for a, b, w in zip(t, temp, omega)])
         np.testing.assert_allclose(stream, batch, rtol=1e-9, atol=1e-9, err_msg=name)
-        core = CompensatorCore(Policy(), model)      # the node's default policy: linear
+        # The node's default policy (linear), without its start-up shift: the correction alone.
+        core = CompensatorCore(Policy(reanchor_on_start=False), model)
         out = []
         for a, b, w in zip(t, temp, omega):
             core.add_temperature(a, b)
