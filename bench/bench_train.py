@@ -13,33 +13,30 @@
 # limitations under the License.
 
 """
-Trainer vs bag read: training a 1 h, 1 kHz bag within 1.5x of reading its raw bytes.
+Trainer vs bag read: ``gyro-tdc train BAG`` as a process against reading the bag's bytes.
 
-Writes (once, cached) a bag of 3.6 M ``sensor_msgs/Imu`` messages at 1 kHz and 3,600
-``sensor_msgs/Temperature`` messages at 1 Hz over a realistic chamber cycle (soak, heating
-ramp, hold, cooling ramp) with :func:`gyro_tdc.data.write_bag`, then measures, each stage in
-a fresh interpreter (so its peak RSS is its own), the median of ``--repeat`` runs of:
+Writes (once, cached under /tmp) two 1 h, 1 kHz bags of 3.6 M ``sensor_msgs/Imu`` and 3,600
+``sensor_msgs/Temperature`` messages, each as sqlite3 and as mcap: ``bench``, a chamber
+cycle (soak, heating ramp, hold, cooling ramp) with a constant 1 g accelerometer, and
+``die``, the simulator's ``die_lag`` scenario compressed to 1 h (the die lags the package
+thermometer by 300 s, so ``--features auto`` adds the thermal state, with a still, level
+accelerometer whose part is fitted). Per bag and storage, ``--repeat`` rounds run side by
+side, each stage a fresh process timed from outside (wall clock, its CPU, its peak RSS):
 
-* ``raw``: the physical limit, iterating rosbags' ``AnyReader`` over every message and touching
-  only its raw CDR bytes;
-* ``raw_reader``: the same through rosbags' lower-level ``rosbags.rosbag2.Reader`` (no merge
-  across bags: one generator step less per message), the stricter baseline, since the
-  trainer iterates that reader;
-* ``load``: dataset extraction, :func:`gyro_tdc.data.dataset.load_run` (read, decode, align);
-* ``train``: the ``train`` command end to end (read, fit, coverage, save), through
-  :func:`gyro_tdc.cli.train.main` with its defaults: ``--features auto`` (the discovery
-  gates on 20 Hz block means), the default thermal front end, and the accelerometer part
-  (the bag carries a constant 1 g, so the still test and the accelerometer fit run too);
-* ``train_paper``: the same command with ``--features dT,dT2 --no-accel``, the work the
-  trainer did before the thermal-state and accelerometer defaults (what the restructuring
-  itself costs);
+* ``raw``: a process iterating the bag with rosbags' ``AnyReader.messages()``, touching
+  only the raw bytes (the issue's baseline: what merely reading the bag costs with rosbags);
+* ``storage``: a process reading the bytes of the topics the trainer needs through the
+  columnar read (:mod:`gyro_tdc.data.bag.columnar`), nothing decoded: the storage limit;
+* ``train``: ``python -m gyro_tdc train BAG --out ... --no-progress`` with its defaults
+  (``--features auto``, the thermal state, the accelerometer part), as a user runs it;
 
-and prints seconds, messages per second, CPU time, peak RSS and the ratios load / raw,
-train / raw, train / raw_reader and train_paper / raw (goal <= 1.5).
-``--profile`` adds a cProfile of the train stage (top functions by cumulative time)::
+and prints the medians, ``train / raw`` (goal <= 1.0), ``train / storage``, the peak RSS
+and the model id of every train run. ``--stages`` adds in-process stages of the older
+benchmark (``load``: ``load_run``; ``train_paper``: ``--features dT,dT2 --no-accel``;
+``rosbags``: ``read_bag(via='rosbags')``); ``--profile`` a cProfile of the train stage::
 
-    .venv/bin/python bench/bench_train.py                 # sqlite3, 3 repeats
-    .venv/bin/python bench/bench_train.py --storage mcap --repeat 5 --profile
+    .venv/bin/python bench/bench_train.py                       # both bags, both storages
+    .venv/bin/python bench/bench_train.py --bags die --storage mcap --repeat 5 --profile
 """
 
 import os
@@ -60,7 +57,7 @@ import numpy as np  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 DEG = np.pi / 180.0
-GOAL = 1.5
+GOAL = 1.0
 
 
 def _profile_c(t):
@@ -106,6 +103,34 @@ def make_bag(path, *, minutes=60.0, rate_hz=1000.0, storage='sqlite3', seed=0):
               temp_c=reading, storage=storage)
 
 
+#: The lagging die's chamber profile (1 h): soak, heat 0 -> 50 degC at 150 degC/h, hold, cool to
+#: 20 degC at 180 degC/h, hold; the die lags the package thermometer by ``DIE_TAU_S``.
+DIE_SEGMENTS = ({'kind': 'hold', 'duration_s': 600.0},
+                {'kind': 'ramp', 'to_c': 50.0, 'rate_c_per_h': 150.0},
+                {'kind': 'hold', 'duration_s': 900.0},
+                {'kind': 'ramp', 'to_c': 20.0, 'rate_c_per_h': 180.0},
+                {'kind': 'hold', 'duration_s': 300.0})
+DIE_TAU_S = 300.0
+
+
+def make_die_bag(path, *, rate_hz=1000.0, storage='sqlite3', seed=0):
+    """
+    Write the lagging-die bag: the simulator's ``die_lag`` scenario compressed to 1 h.
+
+    The L3GD20 preset with its drift in the die temperature, the die a first-order lag of
+    the package thermometer (``DIE_TAU_S``), one run of ``DIE_SEGMENTS`` at ``rate_hz``, a
+    still, level accelerometer: ``train --features auto`` adds the thermal state (``lag``).
+    """
+    from gyro_tdc.data import write_bag
+    from gyro_tdc.sim import simulate_scenario
+
+    sim, = simulate_scenario('die_lag', seed=seed, rate_hz=rate_hz, runs=[0], overrides={
+        'profile.segments': [dict(s) for s in DIE_SEGMENTS], 'runs.count': 1,
+        'thermal.tau_die_s': DIE_TAU_S})
+    write_bag(path, imu_t=sim.imu_t, gyro=sim.gyro, accel=sim.accel, temp_t=sim.temp_t,
+              temp_c=sim.temp_c, storage=storage)
+
+
 def _count_raw(reader):
     """Open a rosbags reader and iterate every message, touching its raw bytes only."""
     count = nbytes = 0
@@ -114,15 +139,6 @@ def _count_raw(reader):
             count += 1
             nbytes += len(raw)
     return {'messages': count, 'bytes': nbytes}
-
-
-def _stage_raw(bag):
-    """Raw bytes through rosbags' AnyReader."""
-    from rosbags.highlevel import AnyReader
-    from rosbags.typesys import get_typestore, Stores
-
-    return _count_raw(AnyReader([Path(bag)],
-                                default_typestore=get_typestore(Stores.ROS2_JAZZY)))
 
 
 def _stage_raw_reader(bag):
@@ -179,12 +195,104 @@ def _stage_train_paper(bag):
     return _stage_train(bag, extra=('--features', 'dT,dT2', '--no-accel'))
 
 
-STAGES = {'raw': _stage_raw, 'raw_reader': _stage_raw_reader, 'load': _stage_load,
-          'train': _stage_train, 'train_paper': _stage_train_paper}
+def _stage_rosbags(bag):
+    """read_bag through rosbags' reader (the reference read of the columnar one)."""
+    from gyro_tdc.data.bag.reader import read_bag
+
+    return {'samples': len(read_bag(bag, via='rosbags').imu_t)}
+
+
+STAGES = {'raw_reader': _stage_raw_reader, 'load': _stage_load, 'train_paper':
+          _stage_train_paper, 'rosbags': _stage_rosbags}
+
+# The process stages: each a whole interpreter, as a user or a script would run it.
+_RAW = """
+import sys
+from pathlib import Path
+from rosbags.highlevel import AnyReader
+from rosbags.typesys import get_typestore, Stores
+n = b = 0
+with AnyReader([Path(sys.argv[1])], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as r:
+    for _conn, _stamp, raw in r.messages():
+        n += 1
+        b += len(raw)
+print(n, b)
+"""
+_STORAGE = """
+import sys
+from pathlib import Path
+from gyro_tdc.data.bag import columnar, reader
+from gyro_tdc.data.bag.codec import jazzy
+bag = Path(sys.argv[1])
+wanted = [('imu', '/imu/data_raw', (reader.IMU_TYPE,), True),
+          ('temperature', '/imu/temperature', reader.TEMPERATURE_TYPES, True)]
+class Bytes:
+    n_main = 0
+    floating = False
+    roles = ['imu', 'temperature']
+    nbytes = 0
+    def main(self, buf, lengths, logs=None, fetch_logs=None):
+        self.n_main += len(lengths)
+        self.nbytes += len(buf)
+    def other(self, role, raws, logs, before=None, fetch_logs=None):
+        self.nbytes += sum(map(len, raws))
+out = Bytes()
+with columnar.open_reader(bag, jazzy()) as rd:
+    _, conns = reader._connections(rd, bag, wanted)
+    columnar.Source(rd, conns, reader._CHUNK).feed(out, lambda n: None)
+print(out.n_main, out.nbytes)
+"""
+
+
+# Forks and times the command from a lean interpreter: a child's peak RSS (ru_maxrss)
+# includes the memory of the process it was forked from, which here would be this one's.
+_LAUNCH = """
+import json, os, sys, time
+out, cmd = sys.argv[1], sys.argv[2:]
+t0 = time.perf_counter()
+pid = os.fork()
+if pid == 0:
+    os.execv(cmd[0], cmd)
+_, status, ru = os.wait4(pid, 0)
+with open(out, 'w') as f:
+    json.dump({'seconds': time.perf_counter() - t0, 'cpu': ru.ru_utime + ru.ru_stime,
+               'peak_rss': ru.ru_maxrss * 1024, 'rc': os.waitstatus_to_exitcode(status)}, f)
+"""
+
+
+def _process(cmd, env=None):
+    """Run ``cmd``; return wall seconds, CPU seconds, peak RSS (bytes) and its stdout."""
+    with tempfile.TemporaryDirectory() as tmp:
+        stats = Path(tmp) / 'stats.json'
+        proc = subprocess.run([sys.executable, '-S', '-c', _LAUNCH, str(stats), *cmd],
+                              capture_output=True, text=True, env=env, check=False)
+        r = json.loads(stats.read_text()) if stats.is_file() else {'rc': proc.returncode}
+    if proc.returncode != 0 or r['rc'] != 0:
+        raise RuntimeError(f'{cmd[1:3]} failed ({r["rc"]}):\n{proc.stderr}')
+    return {**r, 'stdout': proc.stdout}
+
+
+def _env():
+    return dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
+
+
+def _run_stage(stage, bag, tmp):
+    """Run one stage of one bag in its own process."""
+    if stage == 'raw':
+        return _process([sys.executable, '-c', _RAW, str(bag)], _env())
+    if stage == 'storage':
+        return _process([sys.executable, '-c', _STORAGE, str(bag)], _env())
+    if stage == 'train':
+        r = _process([sys.executable, '-m', 'gyro_tdc', 'train', str(bag), '--out',
+                      str(Path(tmp) / 'model.yaml'), '--no-progress'], _env())
+        last = r['stdout'].strip().splitlines()[-1]
+        r['model_id'] = last.rsplit('model_id ', 1)[-1].rstrip(')')
+        return r
+    return _run_child(stage, bag)
 
 
 def _child(stage, bag, profile):
-    """Run one stage in this process; print seconds, CPU time, peak RSS and details as JSON."""
+    """Run one in-process stage; print seconds, CPU time, peak RSS and details as JSON."""
     # Import what every stage needs before the clock starts: the stage is timed, not Python.
     import gyro_tdc.cli.train  # noqa: F401
     import rosbags.highlevel  # noqa: F401
@@ -198,79 +306,106 @@ def _child(stage, bag, profile):
 
 
 def _run_child(stage, bag, profile=False):
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
     cmd = [sys.executable, __file__, '--child', stage, '--bag', str(bag)]
     if profile:
         cmd.append('--profile')
-    proc = subprocess.run(cmd, capture_output=True, text=True, env=env, check=False)
+    proc = subprocess.run(cmd, capture_output=True, text=True, env=_env(), check=False)
     if proc.returncode != 0:
         raise RuntimeError(f'stage {stage} failed:\n{proc.stderr}')
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
+MAKERS = {'bench': make_bag, 'die': make_die_bag}
+LABELS = {'raw': "rosbags' raw read (process: AnyReader.messages())",
+          'storage': 'storage read (process: columnar bytes only)',
+          'train': 'gyro-tdc train BAG (process, defaults)',
+          'raw_reader': "rosbags' raw read (rosbag2.Reader, in process)",
+          'load': 'load_run (in process)', 'rosbags': "read_bag(via='rosbags') (in process)",
+          'train_paper': 'train --features dT,dT2 --no-accel (in process)'}
+
+
+def _bag_path(name, storage, minutes, rate_hz):
+    tag = '' if name == 'bench' else f'{name}_'
+    return Path(tempfile.gettempdir()) / (
+        f'gyro_tdc_bench_{tag}{minutes:g}min_{rate_hz:g}hz_{storage}')
+
+
 def main(argv=None):
-    """Build or reuse the bag, time each stage, print the figures."""
+    """Build or reuse the bags, time each stage side by side, print the figures."""
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    p.add_argument('--bag', default=None, help='bag to use or create (default: cached in /tmp)')
-    p.add_argument('--storage', choices=('sqlite3', 'mcap'), default='sqlite3')
-    p.add_argument('--minutes', type=float, default=60.0)
+    p.add_argument('--bags', choices=('bench', 'die', 'both'), default='both')
+    p.add_argument('--storage', choices=('sqlite3', 'mcap', 'both'), default='both')
+    p.add_argument('--minutes', type=float, default=60.0, help='duration of the bench bag')
     p.add_argument('--rate-hz', type=float, default=1000.0)
-    p.add_argument('--repeat', type=int, default=3, help='runs per stage (median reported)')
+    p.add_argument('--repeat', type=int, default=3, help='rounds per bag (medians reported)')
+    p.add_argument('--stages', default='', metavar='A,B',
+                   help=f'in-process stages to add: {", ".join(sorted(STAGES))}')
     p.add_argument('--profile', action='store_true', help='cProfile the train stage once')
-    p.add_argument('--child', choices=sorted(STAGES), help=argparse.SUPPRESS)
+    p.add_argument('--bag', default=None, help=argparse.SUPPRESS)
+    p.add_argument('--child', choices=sorted(STAGES) + ['train'], help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.child:
         _child(args.child, args.bag, args.profile)
         return 0
-
-    bag = Path(args.bag or Path(tempfile.gettempdir()) / (
-        f'gyro_tdc_bench_{args.minutes:g}min_{args.rate_hz:g}hz_{args.storage}'))
-    if not (bag / 'metadata.yaml').is_file():
-        print(f'writing {bag} ({args.minutes:g} min at {args.rate_hz:g} Hz, {args.storage}) ...',
-              flush=True)
-        t0 = time.perf_counter()
-        sys.path.insert(0, str(ROOT))
-        make_bag(bag, minutes=args.minutes, rate_hz=args.rate_hz, storage=args.storage)
-        print(f'  written in {time.perf_counter() - t0:.1f} s', flush=True)
-    size = sum(f.stat().st_size for f in bag.iterdir() if f.is_file())
-    print(f'bag {bag}: {size / 1e6:.0f} MB on disk')
-
-    results = {}
-    for k in range(args.repeat):
-        for stage in ('raw', 'raw_reader', 'load', 'train', 'train_paper'):
-            r = _run_child(stage, bag)
-            results.setdefault(stage, []).append(r)
-            print(f'  run {k + 1}/{args.repeat} {stage:<10} {r["seconds"]:7.2f} s  '
-                  f'CPU {r["cpu"]:7.2f} s  peak RSS {r["peak_rss"] / 1e6:7.0f} MB', flush=True)
-
-    msgs = results['raw'][0]['messages']
-    print(f'\nmedian of {args.repeat} runs, {msgs} messages '
-          f'({results["load"][0]["samples"]} IMU samples):')
-    med = {}
-    for stage, label in (('raw', 'raw-bytes read (AnyReader, rawdata only)'),
-                         ('raw_reader', 'raw-bytes read (rosbag2.Reader, rawdata only)'),
-                         ('load', 'dataset extraction (load_run)'),
-                         ('train', 'training end to end (train CLI: read + fit + save)'),
-                         ('train_paper', 'training, paper model only (dT,dT2 --no-accel)')):
-        s = statistics.median(r['seconds'] for r in results[stage])
-        cpu = statistics.median(r['cpu'] for r in results[stage])
-        rss = statistics.median(r['peak_rss'] for r in results[stage])
-        med[stage] = s
-        print(f'  {label:<52} {s:7.2f} s  {msgs / s / 1e3:7.0f} k msg/s  '
-              f'CPU {cpu:7.2f} s  peak RSS {rss / 1e6:6.0f} MB')
-    print(f'  load / raw  = {med["load"] / med["raw"]:.2f}')
-    for base in ('raw', 'raw_reader'):
-        ratio = med['train'] / med[base]
-        verdict = 'met' if ratio <= GOAL else 'NOT met'
-        print(f'  train / {base:<10} = {ratio:.2f}  (goal <= {GOAL}: {verdict})')
-    ratio = med['train_paper'] / med['raw']
-    verdict = 'met' if ratio <= GOAL else 'NOT met'
-    print(f'  train_paper / raw = {ratio:.2f}  (the work of the first round; goal <= {GOAL}: '
-          f'{verdict})')
-    print(f'  fit and save (train - load) = {med["train"] - med["load"]:.2f} s')
-    if args.profile:
-        print('\ncProfile of the train stage (cumulative):')
-        print(_run_child('train', bag, profile=True)['profile'])
+    extra = [x for x in args.stages.split(',') if x]
+    bad = [x for x in extra if x not in STAGES]
+    if bad:
+        p.error(f'unknown stage(s) {", ".join(bad)}')
+    stages = ['raw', 'storage', 'train'] + extra
+    names = ('bench', 'die') if args.bags == 'both' else (args.bags,)
+    storages = ('sqlite3', 'mcap') if args.storage == 'both' else (args.storage,)
+    sys.path.insert(0, str(ROOT))
+    summary = []
+    for name in names:
+        for storage in storages:
+            minutes = args.minutes if name == 'bench' else 60.0
+            bag = _bag_path(name, storage, minutes, args.rate_hz)
+            if not (bag / 'metadata.yaml').is_file():
+                print(f'writing {bag} ...', flush=True)
+                t0 = time.perf_counter()
+                kw = {'minutes': minutes} if name == 'bench' else {}
+                MAKERS[name](bag, rate_hz=args.rate_hz, storage=storage, **kw)
+                print(f'  written in {time.perf_counter() - t0:.1f} s', flush=True)
+            size = sum(f.stat().st_size for f in bag.iterdir() if f.is_file())
+            print(f'\n{name} bag, {storage}: {bag} ({size / 1e6:.0f} MB)', flush=True)
+            runs = {stage: [] for stage in stages}
+            with tempfile.TemporaryDirectory() as tmp:
+                for k in range(args.repeat):
+                    # Side by side: every stage once per round, the order turned each round.
+                    order = stages if k % 2 == 0 else stages[::-1]
+                    for stage in order:
+                        r = _run_stage(stage, bag, tmp)
+                        runs[stage].append(r)
+                        mid = f'  model_id {r["model_id"]}' if 'model_id' in r else ''
+                        print(f'  round {k + 1}/{args.repeat} {stage:<11} {r["seconds"]:7.2f} s'
+                              f'  CPU {r["cpu"]:6.2f} s  peak RSS {r["peak_rss"] / 1e6:5.0f} MB'
+                              f'{mid}', flush=True)
+            med = {stage: {key: statistics.median(r[key] for r in rs)
+                           for key in ('seconds', 'cpu', 'peak_rss')}
+                   for stage, rs in runs.items()}
+            print(f'median of {args.repeat} rounds ({name}, {storage}):')
+            for stage in stages:
+                m = med[stage]
+                print(f'  {LABELS[stage]:<52} {m["seconds"]:7.2f} s  CPU {m["cpu"]:6.2f} s  '
+                      f'peak RSS {m["peak_rss"] / 1e6:5.0f} MB')
+            raw, store, train = (med[x]['seconds'] for x in ('raw', 'storage', 'train'))
+            ratios = [r['seconds'] / q['seconds'] for r, q in zip(runs['train'], runs['raw'])]
+            ids = sorted({r['model_id'] for r in runs['train']})
+            verdict = 'met' if train / raw <= GOAL else 'NOT met'
+            print(f'  train / raw     = {train / raw:.2f}  (goal <= {GOAL}: {verdict}; per round '
+                  f'{", ".join(f"{x:.2f}" for x in ratios)})')
+            print(f'  train / storage = {train / store:.2f}')
+            print(f'  model id {", ".join(ids)}')
+            summary.append((name, storage, raw, store, train, med['train']['peak_rss'],
+                            ', '.join(ids)))
+            if args.profile:
+                print('\ncProfile of the train stage (cumulative):')
+                print(_run_child('train', bag, profile=True)['profile'])
+    print('\nsummary (medians): bag, storage, raw s, storage s, train s, train / raw, '
+          'train / storage, train peak RSS MB, model id')
+    for name, storage, raw, store, train, rss, ids in summary:
+        print(f'  {name:<5} {storage:<7} {raw:6.2f} {store:6.2f} {train:6.2f}  '
+              f'{train / raw:5.2f}  {train / store:5.2f}  {rss / 1e6:5.0f}  {ids}')
     return 0
 
 
