@@ -23,12 +23,13 @@ Each is checked against a known answer on seeded synthetic data.
 from __future__ import annotations
 
 import math
+import warnings
 
 from gyro_tdc.data.runs import Run
 from gyro_tdc.identify.discover.data import BlockData
 from gyro_tdc.identify.discover.linear import LinearModel
-from gyro_tdc.identify.discover.stats import (ar1, bandwidth, hac_pvalue, make_folds, rel_residual,
-                                              weighted_corr)
+from gyro_tdc.identify.discover.stats import (ar1, bandwidth, hac_pvalue, make_folds, ols_hac,
+                                              rel_residual, weighted_corr)
 import numpy as np
 import pytest
 from synth import synth_run
@@ -126,3 +127,27 @@ def test_hac_pvalue_of_a_present_and_an_absent_curvature(a2, significant):
     p = hac_pvalue(model, coef, model.columns_of('dT2'), lags)
     assert 0.0 <= p <= 1.0
     assert (p < 1e-20) if significant else (p > 0.1)
+
+
+@pytest.mark.parametrize('seed', range(6))
+def test_ols_hac_is_statsmodels_bit_for_bit(seed):
+    # The HAC test's OLS without statsmodels' import: the same numbers, to the last bit,
+    # also for near-collinear columns (rank-deficient designs keep the pseudo-inverse's).
+    from statsmodels.regression.linear_model import OLS
+
+    rng = np.random.default_rng(seed)
+    for _ in range(25):
+        n, k = int(rng.integers(20, 2000)), int(rng.integers(1, 8))
+        lags = int(rng.integers(1, 50))
+        x = rng.normal(size=(n, k))
+        if seed % 2:
+            x[:, -1] = 2.0 * x[:, 0] + 1e-12 * rng.normal(size=n)
+        x = x / np.linalg.norm(x, axis=0)
+        y = rng.normal(size=n) + x @ rng.normal(size=k)
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore')
+            ref = OLS(y, x).fit(cov_type='HAC', cov_kwds={'maxlags': lags,
+                                                          'use_correction': True})
+            params, cov = ols_hac(y, x, lags)
+        assert np.asarray(ref.params).tobytes() == params.tobytes()
+        assert np.asarray(ref.cov_params()).tobytes() == cov.tobytes()
