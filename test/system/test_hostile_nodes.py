@@ -419,6 +419,7 @@ def dtdt_model(centres):
         widths=base.widths[pick], weights=base.weights[pick] * (10 / centres))
 
 
+@pytest.mark.serial        # a full core for 5 s: it would slow the tests beside it
 def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path):
     """
     A valid 10,000-centre dTdt model at 2 kHz costs about the whole budget per sample.
