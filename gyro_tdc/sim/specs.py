@@ -257,7 +257,8 @@ class RunsSpec:
     count : int
         Number of runs.
     bias_offset_dps_std : tuple of 3 float, deg/s
-        Standard deviation of the run-to-run bias offset.
+        Standard deviation of the run-to-run bias offset: the turn-on offset of each power
+        cycle, drawn per run from the seed and the run index.
 
     """
 
