@@ -40,7 +40,9 @@ Sessions and the field defaults, swept: seeded random power cycles, rates, therm
    tolerance of 0.03 instead of 0.1 x the residual std (longer averaging), and a cubic
    fitted with one offset per session, re-anchored by the node's rule (batch).
 
-Prints per family the pass rate, the median and worst ratios per axis and the worst cases
+First the motivating case alone (two power cycles over -10..30 and 15..50 degC, a third at
+0..40 degC: the default training, the same with one intercept, the PX4 cubic). Prints per
+family the pass rate, the median and worst ratios per axis and the worst cases
 with their draws. Run: ``.venv/bin/python bench/bench_sessions.py`` (about 3 minutes;
 ``--cases N --days N --seed S`` to change the sweep).
 """
@@ -118,6 +120,29 @@ def _train_default(runs: list, labels: list):
     t0 = estimate_t0(runs[0])
     ids, params, _ = features_for_fit(runs, 'auto', t0=t0)
     return fit_model(runs, features=ids, params=params or None, t0=t0, sessions=labels)
+
+
+def issue_case() -> dict:
+    """
+    Return the motivating case: -10..30 and 15..50 degC, own offsets, a third at 0..40 degC.
+
+    Two Hz, a 0.01 degC thermometer, no lag, offsets drawn with 0.5 deg/s; BS / floor of the
+    held-out cycle re-anchored (``evaluate --reanchor auto``) for the default training, for
+    the same with one intercept (``--sessions none``) and for the PX4 cubic.
+    """
+    d = {'rate': 2.0, 'offset': 0.5, 'res': 0.01, 'lag': 0.0}
+    runs, noise = [], None
+    for j, (lo, hi, heating) in enumerate(((-10.0, 30.0, True), (15.0, 50.0, True),
+                                           (0.0, 40.0, True))):
+        run, noise = _cycle(f'cycle{j}', lo, hi, heating, d, 11 + j)
+        runs.append(run)
+    floor = (noise / DEG) ** 2
+    out = {}
+    for key, model in (('ours', _train_default(runs[:2], [0, 1])),
+                       ('one_intercept', _train_default(runs[:2], [0, 0])),
+                       ('px4_cubic', fit_px4_cubic(runs[:2]))):
+        out[key] = np.mean(_reanchored(model, runs[2]) ** 2, axis=0) / DEG ** 2 / floor
+    return out
 
 
 def _seconds(err: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -275,6 +300,11 @@ def main(argv: list | None = None) -> int:
     ap.add_argument('--seed', type=int, default=27, help='seed of the draws (default 27)')
     args = ap.parse_args(argv)
     start = time.perf_counter()
+    case = issue_case()
+    print('0. two power cycles over -10..30 and 15..50 degC (own turn-on offsets), a third at '
+          '0..40 degC re-anchored, 2 Hz: BS / floor x y z')
+    for key, v in case.items():
+        print(f'  {key:<18} ' + ' '.join(f'{x:8.3f}' for x in v))
     rng = np.random.default_rng(args.seed)
     cycles = [power_cycles(rng, k) for k in range(args.cases)]
     _report('1. power cycles, held-out cycle re-anchored (evaluate --reanchor auto), BS / floor '
