@@ -24,6 +24,7 @@ from gyro_tdc.data.bag.reader import BagData
 from gyro_tdc.data.runs import Run
 from gyro_tdc.data.sessions import (find_breaks, session_gap, SESSION_GAP_S, split_sessions)
 from gyro_tdc.errors import DatasetError
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 
@@ -139,3 +140,19 @@ def test_a_restart_the_thermometer_does_not_share_is_refused(monkeypatch):
     monkeypatch.setattr(dataset, 'detect_format', lambda *a, **k: 'rosbag2')
     with pytest.raises(DatasetError, match='step back 1 time.*thermometer stamps 0 time'):
         dataset.load_run('fake', replace(BagOptions(), max_loss=1.0))
+
+
+@settings(max_examples=40, deadline=None, derandomize=True)
+@given(steps=st.lists(st.one_of(st.floats(0.01, 2.0), st.floats(500.0, 5000.0)),
+                      min_size=1, max_size=60),
+       gap=st.sampled_from([0.0, 100.0, 1000.0]))
+def test_cutting_keeps_every_sample_once_and_leaves_no_long_gap_inside(steps, gap):
+    run = _run(np.concatenate([[0.0], np.cumsum(steps)]))
+    split = split_sessions([run], gap_s=gap)
+    limit = session_gap(run.t, gap)
+    assert np.array_equal(np.concatenate([r.t for r in split.runs]), run.t)
+    assert split.labels == list(range(split.count)) and len(split.runs) == split.count
+    for piece, (j, a, b) in zip(split.runs, split.parts):
+        assert j == 0 and np.array_equal(piece.t, run.t[a:b])
+        assert not np.any(np.diff(piece.t) > limit)
+    assert split.count == 1 + int(np.count_nonzero(np.diff(run.t) > limit))
