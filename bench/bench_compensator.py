@@ -47,6 +47,15 @@ trials; drops are then compared with the input losses the compensator itself rep
     .venv/bin/python bench/bench_compensator.py --soak                # 10 min at 1 kHz
     .venv/bin/python bench/bench_compensator.py --modes cross --rates 2000,max --hog 2
     .venv/bin/python bench/bench_compensator.py --burst 20000   # losses and what is reported
+
+``--core-old TREE`` instead compares the per-sample cost of ``CompensatorCore.process`` (and
+the 10 Hz ``add_temperature`` between) of another source tree with this one's: fresh
+interpreters, one tree each (its own imports, before or after the redesign's layout), the same
+model files and policy (``reanchor_on_start`` off), runs alternated ABBA; medians of the wall
+time per sample and of the CPU time (``time.process_time``) per million samples, new / old::
+
+    git worktree add /tmp/base 0606780                # the code before the hardening
+    .venv/bin/python bench/bench_compensator.py --core-old /tmp/base --core-repeats 9
 """
 
 import os
@@ -714,6 +723,11 @@ def goals(summary):
             ok = s['2000']['drops'][1] == 0
             print(f'  [{"PASS" if ok else "FAIL"}] cross: compensator drops at 2 kHz '
                   f'{s["2000"]["drops"][1]} (0)')
+    for case, c in summary.get('core', {}).items():
+        ok = min(c['ratio'], c['cpu_ratio'], c['fastest_cpu_ratio']) <= 1.05
+        print(f'  [{"PASS" if ok else "FAIL"}] core {case}: per-sample cost new / old '
+              f'{c["ratio"]:.3f} (wall), {c["cpu_ratio"]:.3f} (CPU), '
+              f'{c["fastest_cpu_ratio"]:.3f} (fastest runs\' CPU) (no slowdown: <= 1.05)')
     if 'soak' in summary:
         s = summary['soak']
         ok = s['drops'] == 0
@@ -732,6 +746,107 @@ def stop_hogs(hogs):
     for hog in hogs:
         hog.kill()
         hog.wait()
+
+
+# -- the core alone: this tree against another (older) one ----------------------------
+
+#: The child of one core run (``python -c``): the tree's own gyro_tdc, whatever its layout.
+CORE_CHILD = r"""
+import gc, json, sys, time
+tree, case, model_file, n = sys.argv[1], sys.argv[2], sys.argv[3], int(sys.argv[4])
+sys.path.insert(0, tree)
+try:
+    from gyro_tdc.runtime import CompensatorCore, Policy          # the current layout
+    from gyro_tdc.model import load_model
+except ImportError:
+    from gyro_tdc.compensation_logic import CompensatorCore, Policy   # before the redesign
+    from gyro_tdc.modelfile import load_model
+import gyro_tdc
+import numpy as np
+assert gyro_tdc.__file__.startswith(tree), gyro_tdc.__file__
+core = CompensatorCore(Policy(reanchor_on_start=False), load_model(model_file))
+rng = np.random.default_rng(0)
+w = (np.array([0.01, -0.02, 0.005]) + 1e-4 * rng.standard_normal((n + 2000, 3))).tolist()
+process, add = core.process, core.add_temperature
+
+
+def run(lo, hi, t0=1.7e9, dt=1e-3):
+    for i in range(lo, hi):
+        t = t0 + i * dt
+        if i % 100 == 0:
+            add(t - 5e-4, 25.0 + 1e-3 * (i // 100))
+        wx, wy, wz = w[i]
+        process(t, wx, wy, wz)
+
+
+run(0, 2000)                              # warm-up: caches, the first temperatures
+gc.collect()
+gc.freeze()                               # as compensator_node's main() does
+c0, w0 = time.process_time(), time.perf_counter()
+run(2000, 2000 + n)
+wall, cpu = time.perf_counter() - w0, time.process_time() - c0
+print(json.dumps({'wall_ns': wall / n * 1e9, 'cpu_s_per_m': cpu / n * 1e6,
+                  'counts': core.counts}))
+"""
+#: Samples per core run: about a second each.
+CORE_SAMPLES = {'static': 300_000, 'dtdt': 40_000}
+
+
+def core_run(tree, case, model_file, samples):
+    """Return one core run's figures (a fresh interpreter on ``tree``)."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    done = subprocess.run([sys.executable, '-c', CORE_CHILD, str(tree), case, str(model_file),
+                           str(samples)], capture_output=True, text=True, env=env,
+                          cwd=str(tree), check=False)
+    if done.returncode != 0:
+        raise SystemExit(f'{tree}: core run failed: {done.stderr.strip()[-600:]}')
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def run_core(args, model_file, tmp):
+    """Alternate the old tree's core and this one's (ABBA); print medians and ratios."""
+    from gyro_tdc.identify import fit_model
+    from gyro_tdc.model.modelfile import save_model
+    from gyro_tdc.sim import simulate_run, to_run
+    run = to_run(simulate_run('demo_fast', seed=0))
+    files = {'static': model_file,
+             'dtdt': save_model(fit_model([run], features=('dT', 'dT2', 'dTdt'),
+                                          n_centers=10, fit_params=False),
+                                Path(tmp) / 'bench_dtdt.yaml')}
+    trees = {'old': Path(args.core_old).resolve(), 'new': ROOT}
+    got = {(c, t): [] for c in files for t in trees}
+    for rep in range(args.core_repeats):
+        for case, path in files.items():
+            order = ('old', 'new') if rep % 2 == 0 else ('new', 'old')
+            for name in order:
+                res = core_run(trees[name], case, path, CORE_SAMPLES[case])
+                got[case, name].append(res)
+                print(f'  core {case:6s} {name} #{rep + 1}: {res["wall_ns"]:8.0f} ns/sample, '
+                      f'CPU {res["cpu_s_per_m"]:6.2f} s per million', flush=True)
+    print(f'\ncore per sample, {args.core_repeats} alternated runs per tree (old: '
+          f'{trees["old"]}; the same model files, reanchor_on_start off):')
+    print(f'  {"case":7s} {"old ns":>8s} {"new ns":>8s} {"new/old":>8s}   {"old CPU s/M":>11s} '
+          f'{"new CPU s/M":>11s} {"new/old":>8s}   {"fastest CPU new/old":>19s}')
+    summary = {}
+    for case in files:
+        old, new = got[case, 'old'], got[case, 'new']
+        if old[0]['counts'] != new[0]['counts']:
+            print(f'  {case}: the trees disagree on the counts: {old[0]["counts"]} vs '
+                  f'{new[0]["counts"]}')
+        row = {}
+        for key in ('wall_ns', 'cpu_s_per_m'):
+            row[key] = (statistics.median(r[key] for r in old),
+                        statistics.median(r[key] for r in new))
+        low = min(r['cpu_s_per_m'] for r in new) / min(r['cpu_s_per_m'] for r in old)
+        print(f'  {case:7s} {row["wall_ns"][0]:8.0f} {row["wall_ns"][1]:8.0f} '
+              f'{row["wall_ns"][1] / row["wall_ns"][0]:8.3f}   {row["cpu_s_per_m"][0]:11.2f} '
+              f'{row["cpu_s_per_m"][1]:11.2f} '
+              f'{row["cpu_s_per_m"][1] / row["cpu_s_per_m"][0]:8.3f}   {low:19.3f}')
+        summary[case] = {'old_ns': row['wall_ns'][0], 'new_ns': row['wall_ns'][1],
+                         'ratio': row['wall_ns'][1] / row['wall_ns'][0],
+                         'cpu_ratio': row['cpu_s_per_m'][1] / row['cpu_s_per_m'][0],
+                         'fastest_cpu_ratio': low}
+    return summary
 
 
 def bench_model(path):
@@ -772,6 +887,11 @@ def main(argv=None):
                         help='best-effort bursts before the reliable one')
     parser.add_argument('--hog', type=int, default=0,
                         help='busy-looping processes competing for the CPU during the trials')
+    parser.add_argument('--core-old', metavar='TREE',
+                        help="instead of the trials: the core's per-sample cost of the source "
+                        "tree TREE (e.g. a git worktree of older code) against this one's")
+    parser.add_argument('--core-repeats', type=int, default=7,
+                        help='alternated core runs per tree and case')
     parser.add_argument('--json', help='write every figure to this JSON file')
     parser.add_argument('--role', choices=('io',) + DUTS, help=argparse.SUPPRESS)
     parser.add_argument('--ns', default='', help=argparse.SUPPRESS)
@@ -800,7 +920,9 @@ def _run(args):
                    'repeats': args.repeats, 'raw_relay': args.raw_relay,
                    'raw_cdr': not args.no_raw_cdr, 'hog': args.hog}
         raw = {}
-        if args.burst:
+        if args.core_old:
+            summary['core'] = run_core(args, model_file, tmp)
+        elif args.burst:
             print(f'burst: {args.burst} messages as fast as one process publishes', flush=True)
             summary['burst'] = run_burst(args, model_file)
         elif args.soak:
