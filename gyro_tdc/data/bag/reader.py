@@ -16,11 +16,11 @@
 """
 Read IMU, temperature and reference-rate arrays from a rosbag2 bag, fast (:func:`read_bag`).
 
-The raw CDR bytes are collected in blocks (the IMU messages written end to end into one
-reused buffer as they arrive) and decoded with the fixed-layout codec of
-:mod:`gyro_tdc.data.bag.codec` (rosbags' per-message deserialiser where the layout does not
-hold) into columns sized by the message counts of ``metadata.yaml``, checked first
-(:func:`check_counts`); memory is bounded by the columns plus one block of raw messages.
+The storage is read column by column (:mod:`gyro_tdc.data.bag.columnar`) or, where that does
+not apply, through rosbags' reader in blocks of raw messages; either way a
+:class:`Collector` decodes the blocks with the fixed-layout codec of
+:mod:`gyro_tdc.data.bag.codec` (rosbags' deserialiser where the layout does not hold) into
+columns sized by the counts of ``metadata.yaml``, checked first (:func:`check_counts`).
 """
 
 from __future__ import annotations
