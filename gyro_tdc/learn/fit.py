@@ -33,7 +33,8 @@ from numpy.typing import NDArray
 
 __all__ = ['BINS_DT2', 'BINS_DT3', 'MAX_DROPS', 'OUTLIER_K', 'SPAN_DT2_C', 'SPAN_DT3_C',
            'SPAN_DT_C', 'fit_points', 'grow_features', 'inliers', 'learned_model',
-           'model_of', 'prediction_mse', 'solve']
+           'model_of', 'predict_windows', 'prediction_mse', 'recent_offset', 'solve',
+           'window_error']
 
 OUTLIER_K = 4.0
 MAX_DROPS = 3
@@ -156,6 +157,9 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
     """
     Return the entries to keep: each against the fit of the others (leave one out).
 
+    The leave-one-out residuals come in closed form from one weighted fit (``r / (1 - h)``,
+    ``h`` the leverage), the same as refitting without each entry.
+
     Parameters
     ----------
     e, wt, feats, t0
@@ -176,28 +180,38 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
         idx = np.flatnonzero(keep)
         if idx.size <= len(feats) + np.unique(e[idx, 6]).size + 2:
             break
-        best = None
-        for i in idx:
-            others = idx[idx != i]
-            if not np.any(e[others, 6] == e[i, 6]):
-                continue              # its session's intercept needs it
-            c, res = solve(e[others], wt[others], feats, t0, session=e[i, 6])
-            x = e[i, 2] - t0
-            pred = c[0] + sum(c[j + 1] * x ** (j + 1) for j in range(len(feats)))
-            loo = float(np.abs(e[i, 3:6] - pred).max())
-            if best is None or loo > best[1]:
-                best = (i, loo, np.abs(res).max(axis=1), wt[others])
-        if best is None:
+        x = _design(e[idx], feats, t0)
+        w = wt[idx]
+        a = np.linalg.pinv((x * w[:, None]).T @ x)
+        coef = a @ ((x * w[:, None]).T @ e[idx, 3:6])
+        res = e[idx, 3:6] - x @ coef
+        h = np.einsum('ij,jk,ik->i', x, a, x) * w
+        alone = h > 1.0 - 1e-9            # alone in its session: its intercept needs it
+        if alone.all():
             break
-        i, loo, r, w = best
+        loo = np.where(alone[:, None], 0.0, res / np.where(alone, 1.0, 1.0 - h)[:, None])
+        k = int(np.argmax(np.abs(loo).max(axis=1)))
+        worst = float(np.abs(loo[k]).max())
+        # The others' residuals in the fit without entry k.
+        others = np.arange(idx.size) != k
+        lev = (x[others] @ a @ x[k]) * w[k]
+        r = np.abs(res[others] + lev[:, None] * loo[k]).max(axis=1)
         order = np.argsort(r)
-        cw = np.cumsum(w[order])
+        cw = np.cumsum(w[others][order])
         mad = float(r[order][np.searchsorted(cw, 0.5 * cw[-1])])
         sigma = max(1.4826 * mad, floor / math.sqrt(max(float(e[:, 1].max()), 1.0)), 1e-12)
-        if loo <= OUTLIER_K * sigma:
+        if worst <= OUTLIER_K * sigma:
             break
-        keep[i] = False
+        keep[idx[k]] = False
     return keep
+
+
+def _design(e: NDArray[np.float64], feats: Sequence[str], t0: float) -> NDArray[np.float64]:
+    """Return the design of :func:`solve`: one column per session, then the powers."""
+    d = e[:, 2] - t0
+    sessions = np.unique(e[:, 6])
+    return np.column_stack([(e[:, 6] == s).astype(np.float64) for s in sessions]
+                           + [d ** (j + 1) for j in range(len(feats))])
 
 
 def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_life_s: float,
@@ -274,8 +288,42 @@ def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationMode
     return model
 
 
+def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float
+                  ) -> list[float] | None:
+    """
+    Return the offset that zeroes a fit's mean residual over the windows stamped after ``since``.
+
+    The fit's shape is kept; its intercept (the session's offset, an average over all of the
+    session's points) becomes that of the newest still time, as re-anchoring does: the
+    offset wanders (random walk, bias instability), the shape does not.
+
+    Parameters
+    ----------
+    fit : dict
+        :func:`fit_points` output.
+    rows : sequence of rows ``(samples, temp, bx, by, bz, t_end)``
+        Still windows of the current session (model temperature, mean raw rate).
+    since : float, s
+        Windows ending after this stamp count.
+
+    Returns
+    -------
+    list of 3 float, rad/s, or None
+        The intercept; None when no window is that recent.
+
+    """
+    r = np.asarray(rows, dtype=np.float64).reshape(-1, 6)
+    r = r[r[:, 5] > since]
+    if not r.shape[0]:
+        return None
+    coef = np.asarray(fit['coef'], dtype=np.float64)
+    d = r[:, 1] - fit['t0_c']
+    shape = sum(coef[j + 1] * d[:, None] ** (j + 1) for j in range(coef.shape[0] - 1))
+    return np.average(r[:, 2:5] - shape, axis=0, weights=r[:, 0]).tolist()
+
+
 def prediction_mse(model: CompensationModel, rows: Sequence[Sequence[float]],
-                   thermal: ThermalState | None) -> float:
+                   thermal: ThermalState | None, since: float | None = None) -> float:
     """
     Return the sample-weighted mean squared error of ``model`` over still windows.
 
@@ -289,6 +337,11 @@ def prediction_mse(model: CompensationModel, rows: Sequence[Sequence[float]],
     thermal : ThermalState or None
         The thermal front end ``temp`` was computed with: a model with the same one is
         evaluated at ``temp`` directly; any other runs its own front end over the windows.
+    since : float, s, optional
+        Judge the shape and the current offset apart: the error is the scatter of the
+        residuals around their mean over the windows stamped after ``since``, plus that
+        mean squared (a model whose offset is the newest still time's is not penalised on
+        older windows for the offset's wander).
 
     Returns
     -------
@@ -297,7 +350,25 @@ def prediction_mse(model: CompensationModel, rows: Sequence[Sequence[float]],
 
     """
     r = np.asarray(rows, dtype=np.float64).reshape(-1, 6)
+    return window_error(r, predict_windows(model, r, thermal), since)
+
+
+def predict_windows(model: CompensationModel, rows: NDArray[np.float64],
+                    thermal: ThermalState | None) -> NDArray[np.float64]:
+    """Return ``model``'s drift at still windows (:func:`prediction_mse`), shape (W, 3)."""
     m = at_state(model) if same_thermal(model.thermal, thermal) else model
-    pred = drift(m, r[:, 5], r[:, 1], out_of_range='linear')
-    err = ((r[:, 2:5] - pred) ** 2).sum(axis=1)
+    return drift(m, rows[:, 5], rows[:, 1], out_of_range='linear')
+
+
+def window_error(r: NDArray[np.float64], pred: NDArray[np.float64],
+                 since: float | None = None) -> float:
+    """Return :func:`prediction_mse` from the windows (W, 6) and a prediction (W, 3)."""
+    res = r[:, 2:5] - pred
+    if since is not None:
+        new = r[:, 5] > since
+        if new.any():
+            mean = np.average(res[new], axis=0, weights=r[new, 0])
+            return float(np.average(((res - mean) ** 2).sum(axis=1), weights=r[:, 0])
+                         + (mean ** 2).sum())
+    err = (res ** 2).sum(axis=1)
     return float(np.average(err, weights=r[:, 0]))

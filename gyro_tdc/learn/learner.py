@@ -31,9 +31,10 @@ from typing import Any, Sequence
 
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, learned_model,
-                                MAX_DROPS, model_of, OUTLIER_K, prediction_mse, SPAN_DT2_C,
-                                SPAN_DT3_C, SPAN_DT_C)
-from gyro_tdc.learn.store import decode_state, encode_state, FORMAT, read_state, write_state
+                                MAX_DROPS, model_of, OUTLIER_K, predict_windows,
+                                recent_offset, SPAN_DT2_C, SPAN_DT3_C, SPAN_DT_C, window_error)
+from gyro_tdc.learn.store import (decode_state, encode_state, FORMAT, read_state, RECENT_ROWS,
+                                  write_state)
 from gyro_tdc.learn.temperature import hold_readings, same_thermal, stream_state
 from gyro_tdc.model import CompensationModel, ThermalState
 from gyro_tdc.signal import MIN_STILL_S, STILL_WINDOW_S, StillWindows, Window
@@ -47,8 +48,26 @@ __all__ = ['BIN_ENTRIES', 'CHECK_STRETCHES', 'FORMAT', 'Learner', 'LearnConfig',
 NAN3 = (math.nan, math.nan, math.nan)
 #: Floats per sample in :attr:`Learner.buf`: stamp, rate (3), acceleration (3).
 SAMPLE = 7
-BIN_ENTRIES = 4
+#: Entries a bin keeps (its newest).
+BIN_ENTRIES = 8
+#: Recent stretches the prediction check and the offset look at ...
 CHECK_STRETCHES = 3
+#: ... and their windows kept, newest first (a day of 10 s windows, what learn_file keeps).
+CHECK_ROWS = RECENT_ROWS
+#: A candidate is swapped in only when its prediction over the recent windows differs from
+#: the current model's by this fraction of the gyro noise floor (RMS, rad/s) or more.
+SWAP_CHANGE = 0.02
+#: The sample period is the median of the stream's first this many intervals.
+PERIOD_STEPS = 64
+#: A gap starts a new session when it is also longer than this many sample periods ...
+GAP_PERIODS = 100
+#: ... and, once the stream pauses regularly (this many pauses over GAP_PERIODS periods) ...
+BURST_PAUSES = 5
+#: ... than this many times the median of its pauses (the batch rule of gyro_tdc.data) ...
+BURST_FACTOR = 3.0
+#: ... but a pause longer than this (s) is always a power-off: it is no part of the rhythm (a
+#: vehicle off every night for hours is not a bursty logger).
+BURST_MAX_S = 3600.0
 
 
 @dataclass(frozen=True)
@@ -70,6 +89,13 @@ class LearnConfig:
         Stamp time between periodic saves.
     commit_s : float, s
         A still stretch longer than this is learned every ``commit_s`` while it goes on.
+    entry_s : float, s
+        A bin's entry gathers one stretch's windows over at most this long (then a new entry
+        begins), so a long stop is learned as many points, each of its hours aged apart.
+    offset_s : float, s
+        The current session's offset is the mean over the newest ``offset_s`` of its still
+        windows of the raw rate minus the fitted shape (the offset wanders: a random walk,
+        bias instability); 0: the fit's intercept of the session.
     max_rate_hz : float, Hz
         The core hands the learner a sample only when its stamp is at least
         ``1 / max_rate_hz`` after the last one handed (by stamp, so a replay at any speed
@@ -77,7 +103,9 @@ class LearnConfig:
         10 s still windows, and the message path stays cheap.
     session_gap_s : float, s
         A gap in the IMU stamps longer than this starts a new session (a power-up: the
-        gyro's turn-on offset changes; each session gets its own intercept in the fit).
+        gyro's turn-on offset changes; each session gets its own intercept in the fit), when
+        it is also longer than :data:`GAP_PERIODS` sample periods and, in a stream that pauses
+        regularly (bursts), than :data:`BURST_FACTOR` times its median pause.
     swap_delay_s : float, s
         An accepted candidate takes effect this long (by stamp) after the sample that let it
         be computed (:meth:`Learner.take_swaps`), so its effective stamp is fixed by the
@@ -92,6 +120,8 @@ class LearnConfig:
     temperature_timeout: float = 5.0
     save_period_s: float = 180.0
     commit_s: float = 300.0
+    entry_s: float = 3600.0
+    offset_s: float = 3600.0
     max_rate_hz: float = 100.0
     session_gap_s: float = 600.0
     swap_delay_s: float = 5.0
@@ -99,9 +129,37 @@ class LearnConfig:
 
 @dataclass
 class _Stretch:
-    """Windows of the current still stretch (:class:`gyro_tdc.signal.Window`, no samples)."""
+    """
+    The current still stretch: its windows not learned yet, its first stamp and samples.
+
+    ``rows`` are :class:`gyro_tdc.signal.Window` without samples; once part of the stretch
+    is learned (``learned``), only the windows since are kept.
+    """
 
     rows: list[Window] = field(default_factory=list)
+    t0: float = math.nan
+    n: int = 0
+    learned: bool = False
+
+    def add(self, win: Window) -> None:
+        """Append a still window."""
+        if not self.rows and not self.learned:
+            self.t0 = win.t0
+        self.rows.append(win)
+        self.n += win.n
+
+    def span(self) -> float:
+        """Return the stretch's duration so far, s (one sample period included)."""
+        if not self.rows:
+            return 0.0
+        d = self.rows[-1].t1 - self.t0
+        return d + d / max(self.n - 1, 1)
+
+    def keep_from(self, j: int) -> None:
+        """Drop the windows before ``j`` (a stretch not learned yet)."""
+        self.rows = self.rows[j:]
+        self.n = sum(r.n for r in self.rows)
+        self.t0 = self.rows[0].t0 if self.rows else math.nan
 
 
 class Learner:
@@ -159,7 +217,15 @@ class Learner:
         self.check: dict | None = None
         self.swaps = 0
         self._stretch = _Stretch()
-        self._done = 0
+        #: The entry group being filled: a stretch, or an ``entry_s`` part of a long one.
+        self.segment = 0
+        self._segment_t0: float | None = None
+        #: The stream's rhythm (session rule): its median sample period, its pauses (the
+        #: newest), and the sessions a gap started, ``(session, gap s)``.
+        self._period: float | None = None
+        self._dts: list[float] = []
+        self._pauses: list[float] = []
+        self._gap_starts: list[tuple[int, float]] = []
         #: Accepted candidates not handed over yet: (effective stamp or None: at once, model).
         self._swaps: list[tuple[float | None, CompensationModel]] = []
         self._trigger: float | None = None    # stamp of the sample that let a refit run
@@ -220,6 +286,9 @@ class Learner:
         self.reset()
         for name, value in values.items():
             setattr(self, name, value)
+        # New entries never merge into saved ones: the next group's id is above them all.
+        self.segment = max([self.stretches] + [int(e[4]) for v in self.bins.values()
+                                               for e in v]) + 1
         if not same_thermal(saved, self.thermal):
             # Binned at another model temperature than the prior's: the set_prior rule.
             self._forget_points()
@@ -248,7 +317,7 @@ class Learner:
         self.bins = {}
         self.recent = []
         self.fit, self.model, self._swaps, self.check = None, self.prior, [], None
-        self._stretch, self._done = _Stretch(), 0
+        self._stretch = _Stretch()
         self.still.drop_window()
         self.thermal_state = None
 
@@ -380,15 +449,71 @@ class Learner:
         if not t.size:
             return False
         temp, self.temps = hold_readings(self.temps, t, self.config.temperature_timeout)
-        # A gap over session_gap_s (before the batch or inside it) starts a new session.
-        gaps = np.flatnonzero(np.diff(t, prepend=t[0] if self.last_t is None else self.last_t)
-                              > self.config.session_gap_s)
+        # A gap longer than the session rule's (before the batch or inside it) starts a new
+        # session.
+        dt = np.diff(t, prepend=t[0] if self.last_t is None else self.last_t)
+        if self._period is None:          # the median of the first PERIOD_STEPS intervals
+            self._dts.extend(dt[dt > 0.0][:PERIOD_STEPS - len(self._dts)].tolist())
+            if len(self._dts) >= PERIOD_STEPS:
+                self._period = float(np.median(self._dts))
+        pause = (GAP_PERIODS * self._period if self._period is not None
+                 else self.config.session_gap_s)
+        pauses = np.flatnonzero(dt > pause).tolist()
         swapped = False
-        for lo, hi in zip(np.r_[0, gaps], np.r_[gaps, t.size]):
+        for lo, hi in zip([0] + pauses, pauses + [t.size]):
             if hi > lo:
+                new = lo in pauses and self._pause(float(dt[lo]))
                 swapped = self._batch(t[lo:hi], w[lo:hi], None if acc is None else acc[lo:hi],
-                                      temp[lo:hi], lo in gaps) or swapped
+                                      temp[lo:hi], new) or swapped
         return swapped
+
+    def session_gap(self) -> float:
+        """
+        Return the stamp gap (s) above which the stream starts a new session now.
+
+        The longest of ``session_gap_s``, :data:`GAP_PERIODS` sample periods and, once the
+        stream has paused :data:`BURST_PAUSES` times for longer than GAP_PERIODS periods,
+        :data:`BURST_FACTOR` times the median of those pauses (the batch rule,
+        :func:`gyro_tdc.data.session_gap`).
+        """
+        gap = self.config.session_gap_s
+        if self._period is not None:
+            gap = max(gap, GAP_PERIODS * self._period)
+        if len(self._pauses) >= BURST_PAUSES:
+            gap = max(gap, min(BURST_FACTOR * float(np.median(self._pauses)), BURST_MAX_S))
+        return gap
+
+    def _pause(self, gap: float) -> bool:
+        """Note a pause of the stream (s); return whether it starts a new session."""
+        if gap > BURST_MAX_S:
+            self._gap_starts = (self._gap_starts + [(self.session + 1, gap)])[-64:]
+            return True
+        self._pauses = (self._pauses + [gap])[-64:]
+        limit = self.session_gap()
+        self._merge_sessions(limit)
+        if gap <= limit:
+            return False
+        self._gap_starts = (self._gap_starts + [(self.session + 1, gap)])[-64:]
+        return True
+
+    def _merge_sessions(self, limit: float) -> None:
+        """Merge into their predecessor the sessions whose gap the rule no longer cuts at."""
+        merge = {s for s, gap in self._gap_starts if gap <= limit and s <= self.session}
+        if not merge:
+            return
+        new, label = {}, 0
+        for k in range(self.session + 1):
+            if k and k not in merge:
+                label += 1
+            new[k] = label
+        for v in self.bins.values():
+            for e in v:
+                e[5] = new.get(int(e[5]), e[5])
+        for r in self.recent:
+            r[1] = new.get(int(r[1]), r[1])
+        self._gap_starts = [(new[s], g) for s, g in self._gap_starts if s not in merge
+                            and s in new]
+        self.session = new[self.session]
 
     def _batch(self, t, w, acc, temp, new_session: bool) -> bool:
         """Process samples of one session: the still test judges the windows they end."""
@@ -431,10 +556,12 @@ class Learner:
         for win in windows:
             self.windows += 1
             self._trigger = win.t_next if win.t_next is not None else t_next
+            if win.why == 'samples':
+                continue                  # a sliver (a burst cut by the grid): no evidence
             if win.why or not math.isfinite(win.temp_c):
                 swapped = self._close(win.thresholds) or swapped
                 continue
-            self._stretch.rows.append(win.light())
+            self._stretch.add(win.light())
             swapped = self._commit() or swapped
         return swapped
 
@@ -445,54 +572,57 @@ class Learner:
         Its windows that ``thresholds`` (default: those in force) refuse are dropped with
         everything before them (unless part of it was learned already).
         """
-        rows, self._stretch = self._stretch.rows, _Stretch()
-        done, self._done = self._done, 0
-        if not rows:
+        st, self._stretch = self._stretch, _Stretch()
+        if not st.rows:
             return False
-        if not done:
-            j, _ = self.still.last_refused(rows, thresholds)
+        if not st.learned:
+            j, _ = self.still.last_refused(st.rows, thresholds)
             if j >= 0:
-                rows = rows[j + 1:]
-            if not rows or self._span(rows) + 1e-9 < self.config.min_still_s:
+                st.keep_from(j + 1)
+            if not st.rows or st.span() + 1e-9 < self.config.min_still_s:
                 return False
-            self.stretches += 1
-        return self._learn(rows[done:], rows)
+            self._new_stretch(st.rows[0].t0)
+        return self._learn(st.rows)
 
-    @staticmethod
-    def _span(rows: list[Window]) -> float:
-        """Return the duration of consecutive windows, s (one sample period included)."""
-        n = sum(r.n for r in rows)
-        return rows[-1].t1 - rows[0].t0 + (rows[-1].t1 - rows[0].t0) / max(n - 1, 1)
+    def _new_stretch(self, t0: float) -> None:
+        """Count a stretch that is learned from now on; its entries form a new group."""
+        self.stretches += 1
+        self.segment = max(self.segment + 1, self.stretches)
+        self._segment_t0 = t0
 
     def _commit(self) -> bool:
         """Learn a long stretch's windows so far (every ``commit_s``) while it goes on."""
-        rows = self._stretch.rows
-        done = self._done
-        if (self._span(rows) < self.config.min_still_s
-                or (done and rows[-1].t1 - rows[done].t0 < self.config.commit_s)):
+        st = self._stretch
+        if not st.learned:
+            if st.span() < self.config.min_still_s:
+                return False
+            self._new_stretch(st.rows[0].t0)
+            st.learned = True
+        elif st.rows[-1].t1 - st.rows[0].t0 < self.config.commit_s:
             return False
-        if not done:
-            self.stretches += 1
-        self._done = len(rows)
-        return self._learn(rows[done:], rows)
+        rows, st.rows = st.rows, []
+        return self._learn(rows)
 
-    def _learn(self, new: list, rows: list) -> bool:
-        """Bin new windows of the current stretch (merged per bin), refit, maybe swap."""
+    def _learn(self, new: list) -> bool:
+        """Bin new windows of the current stretch (merged per bin and group), refit, swap."""
         if not new:
             return False
-        n = sum(r.n for r in new)
-        self.still_s += new[-1].t1 - new[0].t0 + (new[-1].t1 - new[0].t0) / max(n - 1, 1)
+        # Still time: the windows' own (a pause between two bursts is not still time).
+        self.still_s += sum(r.t1 - r.t0 + (r.t1 - r.t0) / max(r.n - 1, 1) for r in new)
+        if self._segment_t0 is None or new[-1].t1 - self._segment_t0 > self.config.entry_s:
+            self.segment += 1             # a long stop: its next hour is a new group
+            self._segment_t0 = new[0].t0
+        sid = self.segment
         groups: dict[int, list] = {}
         for r in new:
             groups.setdefault(int(math.floor(r.temp_c / self.config.bin_c)), []).append(r)
-        sid = self.stretches
         for b, rs in groups.items():
             m = sum(r.n for r in rs)
             entry = [float(rs[-1].t1), float(m), sum(r.temp_c * r.n for r in rs) / m,
                      tuple(sum(r.gyro_mean[a] * r.n for r in rs) / m for a in range(3)), sid,
                      self.session]
             lst = self.bins.setdefault(b, [])
-            if lst and lst[-1][4] == sid:          # the same stretch: one entry per bin
+            if lst and lst[-1][4] == sid:          # the same group: one entry per bin
                 o = lst[-1]
                 tot = o[1] + m
                 entry = [entry[0], tot, (o[2] * o[1] + entry[2] * m) / tot,
@@ -502,13 +632,25 @@ class Learner:
             else:
                 lst.append(entry)
             del lst[:-BIN_ENTRIES]
-        recent = [[r.n, r.temp_c, *r.gyro_mean, r.t1] for r in rows]
-        if self.recent and self.recent[-1][0] == sid:
-            self.recent[-1] = [sid, self.session, recent]
-        else:
-            self.recent.append([sid, self.session, recent])
-        del self.recent[:-CHECK_STRETCHES]
+        self._remember([[r.n, r.temp_c, *r.gyro_mean, r.t1] for r in new])
         return self._refit(new[-1].t1)
+
+    def _remember(self, rows: list) -> None:
+        """Keep new windows for the check and the offset: the newest stretches and rows."""
+        stretch = self.stretches
+        if self.recent and self.recent[-1][0] == stretch:
+            self.recent[-1][2].extend(rows)
+        else:
+            self.recent.append([stretch, self.session, rows])
+        del self.recent[:-CHECK_STRETCHES]
+        total = sum(len(r[2]) for r in self.recent)
+        while total > CHECK_ROWS:
+            first = self.recent[0][2]
+            cut = min(total - CHECK_ROWS, len(first))
+            del first[:cut]
+            total -= cut
+            if not first:
+                del self.recent[0]
 
     # -- the fit ----------------------------------------------------------------------
 
@@ -528,16 +670,33 @@ class Learner:
         floor = float(np.nanmax(np.where(np.isfinite(self.gyro_floor), self.gyro_floor, 0.0)))
         fit = fit_points(e, grow_features(e[:, 2], len(self.bins)), t_now,
                          self.config.half_life_s, floor)
+        rows = np.asarray(self._recent_rows(), dtype=np.float64).reshape(-1, 6)
+        since = t_now - self.config.offset_s
         try:
             cand = model_of(fit, self.thermal)
+            offset = recent_offset(fit, rows, since) if self.config.offset_s > 0 else None
+            if offset is not None:        # the newest still time's offset, the same shape
+                fit['coef'][0] = offset
+                cand = model_of(fit, self.thermal)
         except ModelFileError as exc:     # checked as a model file: never installed
             self.refused, self.refused_why = self.refused + 1, str(exc)
             return False
-        new = self._score(cand)
-        old = None if self.model is None else self._score(self.model)
-        self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old,
-                      'swapped': old is None or new < old}
-        if old is not None and not new < old:
+        anchor = since if self.config.offset_s > 0 else None
+        pred = predict_windows(cand, rows, self.thermal)
+        new = window_error(rows, pred, anchor)
+        old = change = None
+        if self.model is not None:
+            cur = predict_windows(self.model, rows, self.thermal)
+            old = window_error(rows, cur, anchor)
+            change = (float(np.sqrt(np.average(((pred - cur) ** 2).mean(axis=1),
+                                               weights=rows[:, 0])))
+                      if rows.shape[0] else math.inf)
+        # Swapped in when better on the recent still time and different enough to matter:
+        # an RMS change of SWAP_CHANGE noise floors (a long stop refits every few minutes;
+        # each install replays the model's filters).
+        swap = old is None or (new < old and not change < SWAP_CHANGE * floor)
+        self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old, 'swapped': swap}
+        if not swap:
             return False
         trigger = t_now if self._trigger is None else max(self._trigger, t_now)
         self._swaps.append((trigger + self.config.swap_delay_s, cand))
@@ -546,10 +705,9 @@ class Learner:
         self.swaps += 1
         return True
 
-    def _score(self, model: CompensationModel) -> float:
-        """Return the prediction check's error of ``model`` over this session's recent windows."""
-        return prediction_mse(model, [r for s in self.recent if s[1] == self.session
-                                      for r in s[2]], self.thermal)
+    def _recent_rows(self) -> list:
+        """Return this session's recent windows (the check's and the offset's)."""
+        return [r for s in self.recent if s[1] == self.session for r in s[2]]
 
     # -- reporting --------------------------------------------------------------------
 

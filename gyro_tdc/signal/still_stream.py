@@ -22,17 +22,20 @@ reports, verdict); :class:`StreamingStill` adds still stretches. See doc/interna
 from __future__ import annotations
 
 from array import array
+from collections import deque
 from dataclasses import dataclass
 import math
 from typing import NamedTuple, Sequence
 
 from gyro_tdc.signal.still_verdict import (judge_windows, MAX_RATE, MIN_STILL_S,
-                                           MIN_WINDOW_SAMPLES, noise_thresholds, NOISE_WINDOWS,
-                                           REASONS, STILL_WINDOW_S, windows_moving)
+                                           MIN_WINDOW_SAMPLES, NOISE_DOF, noise_thresholds,
+                                           NOISE_WINDOWS, REASONS, STILL_WINDOW_S,
+                                           windows_moving)
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['CUTS', 'MotionReports', 'StillSegment', 'StillWindows', 'StreamingStill', 'Window']
+__all__ = ['CUTS', 'MotionReports', 'NoiseFloor', 'StillSegment', 'StillWindows',
+           'StreamingStill', 'Window']
 
 #: How a stream is cut into windows: ``'grid'``, on ``floor((t - t_first) / window_s)`` (the
 #: batch form's grid; a window is judged when the first sample of the next arrives), or
@@ -146,6 +149,68 @@ class MotionReports:
         return moving
 
 
+class NoiseFloor:
+    """
+    A running noise floor per axis: the lowest standard deviation pooled over windows.
+
+    Each window adds its variance and degrees of freedom (samples - 1); the variance pooled
+    over the newest consecutive windows holding at least :data:`NOISE_DOF` of them is a
+    candidate, and the floor is the lowest candidate so far, at least the quantisation noise
+    ``q / sqrt(12)`` of the finest step seen between two readings (``q``). An axis whose
+    windows never vary has no floor (inf). Pooling makes the floor a property of the noise,
+    not of the window's sample count or of how many windows the stream has had: the lowest
+    single window of ten samples sinks to a sixth of the noise over a day of them.
+    """
+
+    def __init__(self) -> None:
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the windows and the floor."""
+        self.floor = np.full(3, math.inf)
+        self.quantum = np.full(3, math.inf)
+        self._windows: deque[tuple[int, NDArray[np.float64]]] = deque()
+        self._dof = 0
+
+    def add(self, dof: int, var: NDArray[np.float64], step: NDArray[np.float64]) -> None:
+        """Add a window: its degrees of freedom, variance (3,) and finest step (3,; inf)."""
+        self.quantum = np.minimum(self.quantum, step)
+        win = self._windows
+        win.append((dof, var))
+        self._dof += dof
+        while win and self._dof - win[0][0] >= NOISE_DOF:
+            self._dof -= win.popleft()[0]
+        if self._dof < NOISE_DOF:
+            return
+        pooled = sum(d * v for d, v in win) / self._dof
+        q = np.where(np.isfinite(self.quantum), self.quantum, 0.0)
+        cand = np.maximum(np.sqrt(pooled), q / math.sqrt(12.0))
+        cand = np.where(cand > 0.0, cand, math.inf)
+        self.floor = np.minimum(self.floor, cand)
+
+
+#: Samples of a window the finest step between readings is looked for in (its first).
+_STEP_ROWS = 64
+
+
+def _steps(x: NDArray[np.float64]) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+    """
+    Return per column whether it is constant and a finest positive step (inf: none).
+
+    The step is looked for among the first :data:`_STEP_ROWS` readings: on quantised data
+    two neighbouring levels are there; on data that are not, any step found is far below
+    the noise (the floor it bounds is then the pooled variance's).
+    """
+    lo, hi = x.min(axis=0), x.max(axis=0)
+    const = lo == hi
+    step = np.full(x.shape[1], math.inf)
+    if not const.all():
+        d = np.diff(np.sort(x[:_STEP_ROWS], axis=0), axis=0)
+        d = np.where(d > 0.0, d, math.inf).min(axis=0, initial=math.inf)
+        step = np.where(const, math.inf, d)
+    return const, step
+
+
 def _moments(x: NDArray[np.float64], start: NDArray[np.int64], n: NDArray[np.int64]
              ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return per-window means and standard deviations (ddof 1, two passes) of ``x`` (N, 3)."""
@@ -160,8 +225,11 @@ class StillWindows:
     The still test one sample at a time: each window's statistics and verdict as it ends.
 
     The verdict is :func:`judge_windows` against :func:`noise_thresholds` of the running
-    noise floor (the quietest window so far with at least ``min_samples`` finite samples),
-    held below the prior over the first :data:`NOISE_WINDOWS` windows when one is given; a
+    noise floor (:class:`NoiseFloor`: the quietest stretch of windows so far pooled to
+    :data:`NOISE_DOF` degrees of freedom, windows of at least ``min_samples`` finite samples),
+    held below the prior over the first :data:`NOISE_WINDOWS` windows and until a floor is
+    known, when one is given; a window whose readings on an axis never change has a standard
+    deviation of exactly zero there; a
     window is vetoed by a ``moving`` sample flag or a motion report (:meth:`observe_motion`),
     and with a ``rate`` its mean is at most ``max_rate``. Acceleration counts for a window
     when every sample has a finite one and not all are zero (as
@@ -206,8 +274,7 @@ class StillWindows:
     def reset(self, *, prior_std: ArrayLike | None = None) -> None:
         """Forget the floor and the window in progress (motion reports are kept)."""
         self.prior_std = None if prior_std is None else np.asarray(prior_std, float).reshape(3)
-        self.gyro_floor = np.full(3, math.inf)
-        self.accel_floor = np.full(3, math.inf)
+        self.gyro_noise, self.accel_noise = NoiseFloor(), NoiseFloor()
         self.windows_seen = 0
         self.restart()
 
@@ -225,6 +292,24 @@ class StillWindows:
         self._moving = False
 
     @property
+    def gyro_floor(self) -> NDArray[np.float64]:
+        """Return the gyro noise floor, shape (3,), rad/s (inf: none yet)."""
+        return self.gyro_noise.floor
+
+    @gyro_floor.setter
+    def gyro_floor(self, value) -> None:
+        self.gyro_noise.floor = np.asarray(value, dtype=np.float64).reshape(3)
+
+    @property
+    def accel_floor(self) -> NDArray[np.float64]:
+        """Return the accelerometer noise floor, shape (3,), m/s^2 (inf: none yet)."""
+        return self.accel_noise.floor
+
+    @accel_floor.setter
+    def accel_floor(self, value) -> None:
+        self.accel_noise.floor = np.asarray(value, dtype=np.float64).reshape(3)
+
+    @property
     def window_end(self) -> float | None:
         """Return the grid stamp at which the window in progress ends (None: no window)."""
         if self._k is None or self.t_first is None or not self._grid:
@@ -237,7 +322,8 @@ class StillWindows:
 
     def thresholds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return the gyro and accelerometer thresholds in force (fixed or auto)."""
-        early = self.windows_seen < NOISE_WINDOWS
+        early = (self.windows_seen < NOISE_WINDOWS
+                 or not np.isfinite(self.gyro_noise.floor).any())
         return noise_thresholds(self.gyro_floor, self.accel_floor, gyro_std=self.gyro_std,
                                 accel_std=self.accel_std,
                                 prior_std=self.prior_std if early else None)
@@ -420,12 +506,18 @@ class StillWindows:
         t0, t1 = float(rows[0, 0]), float(rows[-1, 0])
         self.windows_seen += 1
         enough = n >= self.min_samples
-        if finite and enough:
-            g = np.asarray(g_std)
-            self.gyro_floor = np.minimum(self.gyro_floor, np.where(g > 0, g, math.inf))
+        if finite:
+            const, step = _steps(rows[:, 1:4])
+            if const.any():           # exactly zero, not the rounding of the mean's
+                g_std = tuple(0.0 if c else v for c, v in zip(const.tolist(), g_std))
+            if enough:
+                self.gyro_noise.add(n - 1, np.asarray(g_std) ** 2, step)
             if a_std is not None:
-                a = np.asarray(a_std)
-                self.accel_floor = np.minimum(self.accel_floor, np.where(a > 0, a, math.inf))
+                const, step = _steps(rows[:, 4:7])
+                if const.any():
+                    a_std = tuple(0.0 if c else v for c, v in zip(const.tolist(), a_std))
+                if enough:
+                    self.accel_noise.add(n - 1, np.asarray(a_std) ** 2, step)
         g_thr, a_thr = self.thresholds()
         moving = self.motion.veto(t0, t1) or flagged
         why = str(judge_windows([g_std], None if a_std is None else [a_std], g_thr, a_thr,

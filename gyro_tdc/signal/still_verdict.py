@@ -27,7 +27,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['has_accelerometer', 'judge_windows', 'MAX_RATE', 'MIN_STILL_S',
-           'MIN_WINDOW_SAMPLES', 'MOTION_EPS', 'motion_veto', 'NOISE_FACTOR', 'NOISE_WINDOWS',
+           'MIN_WINDOW_SAMPLES', 'MOTION_EPS', 'motion_veto', 'NOISE_DOF', 'NOISE_FACTOR',
+           'NOISE_WINDOWS',
            'noise_floor', 'noise_thresholds', 'REASONS', 'STILL_WINDOW_S', 'windows_moving']
 
 #: Default window, s: the shortest still stretch judged (and the re-anchoring window).
@@ -38,6 +39,10 @@ NOISE_FACTOR = 4.0
 NOISE_WINDOWS = 3
 #: Fewest samples per window (the window grows at low rates).
 MIN_WINDOW_SAMPLES = 20
+#: Streaming: the noise floor is the variance pooled over consecutive windows of at least this
+#: many degrees of freedom (one window at 10 Hz and up, six 10 s windows at 1 Hz), so it does
+#: not sink with the sample count or the length of the stream.
+NOISE_DOF = 2 * MIN_WINDOW_SAMPLES
 #: Largest mean compensated rate of a still window, rad/s (a session-to-session offset).
 MAX_RATE = 0.02
 #: Default shortest still stretch kept by :func:`detect_still`, s.

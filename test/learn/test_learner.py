@@ -63,7 +63,7 @@ def test_no_model_day1_then_day2_within_the_noise_floor(days, uninterrupted):
     assert s['features'] == ['dT', 'dT2', 'dT3'] and learner.session == 1
     lo, hi = s['covered_c']
     assert lo < 10.0 and hi > 30.0 and s['still_s'] > 0.45 * 2 * 21600.0
-    assert s['swaps'] > 10 and 'swapped' in s['check']
+    assert s['swaps'] > 10 and s['check'].startswith('candidate')
     # Still time while heating and while cooling both made points (the morning, the stops).
     e = learner.entries()
     assert e.shape[0] > 40 and np.unique(e[:, 6]).tolist() == [0.0, 1.0]

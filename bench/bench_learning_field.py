@@ -1,0 +1,217 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The online learner in the field: multi-day still logs at any rate, and the real recording.
+
+Each scenario is a still log (``test/support/still_logs.py``: a slow temperature, an
+L3GD20-like curve, white noise, bias instability, rate random walk, a turn-on offset per
+power cycle, quantised rate and thermometer) streamed through
+:class:`gyro_tdc.runtime.CompensatorCore` with a :class:`gyro_tdc.learn.Learner` from
+nothing, stepped every second of stamps (as the node's timer in real time). The last day
+is judged: the drift (RMS of 10 min means of the output; the reference is zero) over that
+of a batch fit of the days before (one offset per power cycle, a shared cubic) re-anchored
+at the last day's start by the compensator's rule, and over the raw rate with its last-day
+mean removed. A scenario passes when both ratios are at most 1.05 and 1 on every axis.
+
+1. **Goal**: three days of 1 Hz, 5 -> 25 degC daily cycles (several seeds).
+2. **Sweep** (seeded): rates 1 Hz .. 2 kHz (100 Hz and up as bursts: a logger records
+   seconds out of minutes), thermometer resolution 0.004 .. 1 degC, one or three power
+   cycles with their own turn-on offsets, daily cycles, a slow ramp, cooling only, and a
+   last day reaching beyond the others (partial range); days compressed to 6 h to keep the
+   run short. Prints the pass rate and the worst cases.
+3. **Real recording** (``data/pan_cubesat_tvac``, 25 bursts at 50 Hz, cooling): learned
+   from nothing through the core; the last five bursts judged against a cubic and a line
+   fitted on the others and re-anchored on the first held-out burst, and the raw rate
+   with its held-out mean removed.
+
+Run: ``.venv/bin/python bench/bench_learning_field.py`` (about 3 minutes); ``--goal-seeds
+N``, ``--sweep N`` set the sizes.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from pathlib import Path
+import sys
+import time
+
+ROOT = Path(__file__).resolve().parent.parent
+for p in (ROOT, ROOT / 'test' / 'support'):
+    if str(p) not in sys.path:
+        sys.path.insert(0, str(p))
+
+from gyro_tdc.data.realdata import default_pan_csv, read_pan_cubesat_csv  # noqa: E402
+from gyro_tdc.runtime.reanchor import default_tolerance, reanchor_shift  # noqa: E402
+import numpy as np  # noqa: E402
+from still_logs import DAY, judge, learn_through_core, still_log  # noqa: E402
+
+#: Pass: the learner's last-day drift over the batch fit's, and over the raw rate's.
+VS_BATCH, VS_RAW = 1.05, 1.0
+
+
+def goal_scenarios(seeds: int) -> list[tuple[str, dict]]:
+    """Return the goal: three days at 1 Hz, 5 -> 25 degC daily cycles."""
+    return [(f'goal 1 Hz daily seed {s}', dict(rate_hz=1.0, days=3.0, profile='daily',
+                                               seed=100 + s)) for s in range(seeds)]
+
+
+def sweep_scenarios(n: int, seed: int = 0) -> list[tuple[str, dict]]:
+    """Return ``n`` seeded random scenarios (module docstring)."""
+    rng = np.random.default_rng(seed)
+    out = []
+    for k in range(n):
+        rate = float(rng.choice([1.0, 10.0, 100.0, 1000.0, 2000.0]))
+        res = float(rng.choice([0.004, 0.0625, 0.25, 1.0]))
+        profile = str(rng.choice(['daily', 'ramp', 'cooling', 'widening']))
+        cycles = int(rng.choice([1, 3]))
+        kw = dict(rate_hz=rate, temp_res_c=res, profile=profile, power_cycles=cycles,
+                  seed=1000 + k, day_s=6 * 3600.0, days=3.0)
+        if rate >= 100.0:
+            kw['bursts'] = (2.0, 120.0)
+        if profile in ('ramp', 'cooling'):
+            lo = float(rng.uniform(-5.0, 15.0))
+            kw.update(t_lo=lo, t_hi=lo + float(rng.uniform(8.0, 25.0)))
+        out.append((f'{rate:g} Hz {profile} res {res:g} x{cycles}', kw))
+    return out
+
+
+def run(name: str, kw: dict) -> dict:
+    """Simulate, learn through the core, judge; return the figures."""
+    t0 = time.process_time()
+    log = still_log(**kw)
+    out, passed, learner = learn_through_core(log)
+    res = judge(log, out, passed)
+    s = learner.summary()
+    res.update(name=name, cpu_s=time.process_time() - t0, swaps=s['swaps'],
+               points=s['points'], features=s['features'], session=learner.session,
+               messages=log.t.size)
+    res['ok'] = bool(np.all(res['vs_batch'] <= VS_BATCH) and np.all(res['vs_raw'] <= VS_RAW))
+    return res
+
+
+def _axes(v) -> str:
+    return ' '.join(f'{x:5.2f}' for x in v)
+
+
+def show(r: dict) -> None:
+    """Print one scenario's row."""
+    feats = ','.join(r['features'] or ['-'])
+    print(f'  {r["name"]:<34} {_axes(r["vs_batch"])}   {_axes(r["vs_raw"])}  '
+          f'{"pass" if r["ok"] else "FAIL"}  {r["swaps"]:4d} {r["points"]:4d} '
+          f'{r["session"] + 1:2d}  {feats:<12} {r["cpu_s"]:5.1f}')
+
+
+def header() -> None:
+    """Print the table head."""
+    print(f'  {"scenario":<34} {"learn/batch x y z":<17}   {"learn/raw x y z":<17}  '
+          f'{"":4}  swaps pts sess features     cpu s')
+
+
+def summarise(rows: list[dict], label: str) -> None:
+    """Print the pass rate and the worst cases."""
+    ok = sum(r['ok'] for r in rows)
+    print(f'{label}: {ok}/{len(rows)} pass (learn/batch <= {VS_BATCH} and learn/raw <= '
+          f'{VS_RAW} on every axis)')
+    if rows:
+        wb = max(rows, key=lambda r: float(np.max(r['vs_batch'])))
+        wr = max(rows, key=lambda r: float(np.max(r['vs_raw'])))
+        print(f'  worst learn/batch {float(np.max(wb["vs_batch"])):.3f} ({wb["name"]}); '
+              f'worst learn/raw {float(np.max(wr["vs_raw"])):.3f} ({wr["name"]})')
+
+
+def pan(step_s: float = 1.0) -> dict | None:
+    """Learn the real recording through the core; judge the last five bursts."""
+    try:
+        rec = read_pan_cubesat_csv(default_pan_csv())
+    except Exception as exc:  # the recording is optional for a bench run
+        print(f'real recording: not read ({exc})')
+        return None
+    from still_logs import StillLog
+    t = rec.t - rec.t[0]
+    log = StillLog(t, rec.gyro, None, t, rec.temp_c, np.zeros_like(rec.gyro),
+                   np.zeros(t.size, dtype=np.int64), float(t[-1] / DAY))
+    out, passed, learner = learn_through_core(log, step_s=step_s)
+    burst = np.r_[0, np.cumsum(np.diff(t) > 2.0)]
+    held = burst >= burst.max() - 4
+    tt, temp = t[held], rec.temp_c[held]
+
+    def burst_rms(err):
+        b = burst[held]
+        means = np.array([err[b == k].mean(axis=0) for k in np.unique(b)])
+        return np.sqrt((means ** 2).mean(axis=0))
+
+    res = {'learn': burst_rms(out[held]),
+           'raw': burst_rms(rec.gyro[held] - rec.gyro[held].mean(axis=0))}
+    train = ~held
+    for deg in (1, 3):
+        c = np.polyfit(rec.temp_c[train] - 20.0, rec.gyro[train], deg)
+        pred = sum(c[deg - j] * (temp[:, None] - 20.0) ** j for j in range(deg + 1))
+        comp = rec.gyro[held] - pred
+        first = burst[held] == burst[held].min()
+        resid = np.var(rec.gyro[train] - sum(c[deg - j] * (rec.temp_c[train, None] - 20.0)
+                                             ** j for j in range(deg + 1)), axis=0)
+        shift = reanchor_shift(tt[first], comp[first], tolerance=default_tolerance(resid))
+        res[f'poly{deg}'] = burst_rms(comp - np.asarray(shift.delta))
+    res['summary'] = learner.summary()
+    res['passed'] = float(passed[held].mean())
+    return res
+
+
+def main(argv=None) -> int:
+    """Run the goal, the sweep and the real recording; print the tables."""
+    p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0].strip())
+    p.add_argument('--goal-seeds', type=int, default=1, help='goal scenarios (default 1)')
+    p.add_argument('--sweep', type=int, default=8, help='sweep scenarios (default 8)')
+    p.add_argument('--seed', type=int, default=0, help='sweep seed (default 0)')
+    p.add_argument('--no-pan', action='store_true', help='skip the real recording')
+    args = p.parse_args(argv)
+    if args.goal_seeds < 0 or args.sweep < 0:
+        print('bench_learning_field: error: sizes must be >= 0', file=sys.stderr)
+        return 2
+    t0 = time.time()
+    for label, scen in (('goal', goal_scenarios(args.goal_seeds)),
+                        ('sweep', sweep_scenarios(args.sweep, args.seed))):
+        if not scen:
+            continue
+        print(f'{label}: last day, drift = RMS of 10 min means of the output error')
+        header()
+        rows = []
+        for name, kw in scen:
+            r = run(name, kw)
+            show(r)
+            rows.append(r)
+        summarise(rows, label)
+    if not args.no_pan:
+        r = pan()
+        if r is not None:
+            deg = 180.0 / math.pi
+            print('real recording (PAN CubeSat TVAC, 25 bursts at 50 Hz, cooling), last 5 '
+                  'bursts: RMS of burst means, deg/s, x y z')
+            for k in ('learn', 'raw', 'poly1', 'poly3'):
+                print(f'  {k:<6} ' + ' '.join(f'{v * deg:9.5f}' for v in r[k]))
+            print('  learn/raw ' + _axes(r['learn'] / r['raw']) + '   learn/cubic '
+                  + _axes(r['learn'] / r['poly3']) + '   learn/line '
+                  + _axes(r['learn'] / r['poly1']))
+            s = r['summary']
+            print(f'  learner: {s["points"]} points, {s["still_s"]:.0f} s still, features '
+                  f'{s["features"]}, {s["swaps"]} swaps; held-out passed through '
+                  f'{100 * r["passed"]:.0f} %')
+    print(f'wall {time.time() - t0:.0f} s')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
