@@ -29,7 +29,7 @@ from gyro_tdc.errors import LimitError
 
 __all__ = ['MAX_ACCEL_DRIFT_MPS2', 'MAX_CENTERS', 'MAX_COVERAGE_BINS', 'MAX_DRIFT_RAD_S',
            'MAX_RATE_RAD_S', 'MAX_SIM_SAMPLES', 'MAX_TEMP_LEAD_S', 'MAX_TEMP_RATE_C_S',
-           'MAX_TEMP_SLEW_C_S',
+           'MAX_TEMP_SLEW_C_S', 'RESTART_BACK_S', 'SESSION_GAP_PERIODS', 'SESSION_GAP_S',
            'SIM_BYTES_PER_SAMPLE', 'TEMP_PLAUSIBLE_C', 'TEMP_SLEW_MARGIN_C', 'check_bin_width',
            'check_centers', 'check_sim_samples']
 
@@ -63,6 +63,13 @@ TEMP_SLEW_MARGIN_C = 2.0
 #: reading stamped further ahead (a clock a day off) is refused, or it would stand for the
 #: future in the priming history and the slew check.
 MAX_TEMP_LEAD_S = 12 * 3600.0
+#: A session (one power cycle) ends at a stamp gap longer than this (s) ... (one home for the
+#: dataset's cut and the compensator's re-anchoring)
+SESSION_GAP_S = 600.0
+#: ... and than this many sample periods ...
+SESSION_GAP_PERIODS = 100
+#: ... or where IMU stamps step back by more than this (s): the device's clock restarted.
+RESTART_BACK_S = 1.0
 #: RBF centres a model file may hold.
 MAX_CENTERS = 10_000
 MAX_COVERAGE_BINS = 10_000

@@ -29,7 +29,7 @@ import re
 from typing import Callable, Iterable
 
 from gyro_tdc.base import (MAX_RATE_RAD_S, MAX_TEMP_SLEW_C_S, plausible_temperatures,
-                           TEMP_PLAUSIBLE_C)
+                           RESTART_BACK_S, TEMP_PLAUSIBLE_C)
 from gyro_tdc.data.bag.reader import read_bag, small_pages
 from gyro_tdc.data.dataflash import read_dataflash
 from gyro_tdc.data.flightlog import detect_format, flight_log_data, is_flight_log
@@ -198,8 +198,8 @@ def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: 
     return out
 
 
-#: IMU stamps stepping back by more than this (s) in the bag's order: the device restarted.
-RESTART_BACK_S = 1.0
+# RESTART_BACK_S (gyro_tdc.base.limits): IMU stamps stepping back by more than it in the
+# bag's order, the device restarted.
 
 
 def _parts(t: NDArray[np.float64]) -> list[int]:

@@ -26,6 +26,7 @@ from dataclasses import dataclass, field
 import math
 from typing import Sequence
 
+from gyro_tdc.base import SESSION_GAP_PERIODS, SESSION_GAP_S
 from gyro_tdc.data.options import SESSION_MODES
 from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import DatasetError
@@ -37,10 +38,9 @@ __all__ = ['BURST_FACTOR', 'BURST_PAUSES', 'find_breaks', 'GAP_PERIODS', 'Sessio
 
 # SESSION_MODES (gyro_tdc.data.options): ``auto`` (a bag, cut at gaps and restarts), ``bag``
 # (one per bag), ``none`` (one offset for all the data, as one power cycle).
-#: A stamp gap starts a new session when it is longer than this (s) ...
-SESSION_GAP_S = 600.0
-#: ... and than this many median sample periods ...
-GAP_PERIODS = 100
+# A stamp gap starts a new session when it is longer than SESSION_GAP_S (s) and than
+# GAP_PERIODS median sample periods (gyro_tdc.base.limits, shared with the compensator) ...
+GAP_PERIODS = SESSION_GAP_PERIODS
 #: ... and, in a bursty log (at least this many pauses longer than GAP_PERIODS periods) ...
 BURST_PAUSES = 5
 #: ... than this many times the median of those pauses (the log's own rhythm is no restart).

@@ -28,7 +28,8 @@ import math
 from operator import attrgetter
 from typing import Any, Callable, Sequence
 
-from gyro_tdc.base import MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_RATE_RAD_S, MAX_TEMP_LEAD_S
+from gyro_tdc.base import (MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_RATE_RAD_S, MAX_TEMP_LEAD_S,
+                           RESTART_BACK_S, SESSION_GAP_PERIODS, SESSION_GAP_S)
 from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensator, variance_growth
 from gyro_tdc.runtime.flags import (FLAG_NAMES, IMPLAUSIBLE_INPUT, IMPLAUSIBLE_OUTPUT,
                                     NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
@@ -163,10 +164,24 @@ class StreamState:
 
 @dataclass(slots=True)
 class Reanchoring:
-    """The start-up re-anchoring: the stillness detector and the shift it found (or None)."""
+    """
+    The re-anchoring: the stillness detector, the shift it found (or None), the session.
+
+    ``session`` counts the IMU's power cycles seen (from 1), ``session_t`` the first stamp of
+    the current one, ``session_k`` the ``in`` count at it and ``session_why`` what started it
+    (``'gap of X s'``, ``'restart (stamps back by X s)'``; ``''`` for the first);
+    ``pauses`` and ``paused_s`` the steps over ``SESSION_GAP_S`` that were no break, and their
+    sum (left out of the session's sample period).
+    """
 
     detector: StillnessDetector
     anchor: Anchor | None = None
+    session: int = 1
+    session_t: float | None = None
+    session_k: int = 0
+    session_why: str = ''
+    pauses: int = 0
+    paused_s: float = 0.0
 
 
 @dataclass(slots=True)
@@ -236,7 +251,7 @@ class CompensatorCore:
     model = property(attrgetter('slot.model'), doc='The model in use (None: passing through).')
     model_id = property(attrgetter('slot.model_id'), doc="The model's content id.")
     anchor = property(attrgetter('reanchoring.anchor'),
-                      doc='The start-up re-anchoring shift, or None.')
+                      doc="The current session's re-anchoring shift, or None.")
     flag_counts = property(attrgetter('tally.flags'), doc='Samples per flag bit.')
     accel_counts = property(attrgetter('tally.accel'),
                             doc='Accelerometer samples compensated, passed through, missing.')
@@ -265,6 +280,14 @@ class CompensatorCore:
         counts = tally.counts
         counts['out'] = counts['compensated'] + tally.flags[PASSTHROUGH] + tally.errors
         return counts
+
+    @property
+    def session_note(self) -> str:
+        """Return ``''`` in the first session, else which session it is and what started it."""
+        a = self.reanchoring
+        if a.session <= 1:
+            return ''
+        return f' (session {a.session} from t={a.session_t:.3f} s, after a {a.session_why})'
 
     @property
     def accel_on(self) -> bool:
@@ -605,6 +628,13 @@ class CompensatorCore:
         """
         tally = self.tally
         tally.counts['in'] += 1
+        last = self.stream.t
+        if last is None:                # the first session starts
+            self.reanchoring.session_t, self.reanchoring.session_k = t, tally.counts['in']
+        else:
+            d = t - last                # NaN fails the compares
+            if d > SESSION_GAP_S or d < -RESTART_BACK_S:
+                self._session_break(t, d)
         if t >= self.learning.gate:    # learning: a sample to hand over, or a model due
             self._learning(t, wx, wy, wz, accel)
         if self.upstream_pass:         # the flight controller corrected it: never twice
@@ -817,6 +847,45 @@ class CompensatorCore:
             slot.accel.cache.clear()
         anchoring.anchor = replace(found, delta=tuple(float(v) for v in delta),
                                    se=tuple(float(v) for v in np.asarray(found.se) * np.abs(den)))
+        self._update_needs()
+
+    def _session_break(self, t: float, d: float) -> None:
+        """
+        Start a new session at stamp ``t`` when the step ``d`` from the last one is a break.
+
+        A break is what cuts a dataset's sessions: a pause longer than ``SESSION_GAP_S`` and
+        than ``SESSION_GAP_PERIODS`` sample periods (the session's mean step, its pauses over
+        ``SESSION_GAP_S`` left out), or stamps
+        stepping back by more than ``RESTART_BACK_S`` (the device's clock restarted). The
+        IMU was power-cycled, with a new turn-on offset: with ``reanchor_on_start`` the old
+        shift is dropped and the re-anchoring starts over (a still window, then a new shift).
+        """
+        a = self.reanchoring
+        k = self.tally.counts['in']
+        if d > 0:
+            steps = k - a.session_k - 1 - a.pauses
+            period = ((self.stream.t - a.session_t - a.paused_s) / steps
+                      if steps > 0 and a.session_t is not None else 0.0)
+            if not d > max(SESSION_GAP_S, SESSION_GAP_PERIODS * period):
+                a.pauses += 1
+                a.paused_s += d
+                return
+            why = f'gap of {d:.0f} s'
+        else:
+            why = f'restart (stamps back by {-d:.0f} s)'
+        a.session += 1
+        a.session_t, a.session_k, a.session_why = t, k, why
+        a.pauses, a.paused_s = 0, 0.0
+        if not self.policy.reanchor_on_start:
+            return
+        slot = self.slot
+        if a.anchor is not None and slot.comp is not None:
+            slot.comp.shift_offset(-np.asarray(a.anchor.delta, dtype=np.float64))
+            slot.cache.clear()
+            if slot.accel is not None:
+                slot.accel.cache.clear()
+        a.anchor = None
+        a.detector.reset(residual_var=None if slot.model is None else slot.model.residual_var)
         self._update_needs()
 
     @property

@@ -359,7 +359,7 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         'accelerometer': accel_state(core),
         'reanchor': ('off' if not core.policy.reanchor_on_start else
                      'waiting for stillness' if anchor is None else
-                     f'done at t={anchor.t:.3f} s'),
+                     f'done at t={anchor.t:.3f} s') + core.session_note,
     }
     if core.accel_on:
         values['accelerometer compensated'] = core.accel_counts['compensated']

@@ -26,6 +26,7 @@ from gyro_tdc.model.effects import batch_features, EFFECTS, STATIC_EFFECTS
 from gyro_tdc.runtime.core import CompensatorCore
 from gyro_tdc.runtime.flags import (describe_flags, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
                                     OUT_OF_RANGE, PASSTHROUGH, STALE)
+from gyro_tdc.runtime.health import health
 from gyro_tdc.runtime.policy import PARAMS, Policy
 from gyro_tdc.runtime.priming import prepare
 import numpy as np
@@ -332,3 +333,75 @@ def test_a_scheduled_model_is_installed_at_its_stamp_a_late_one_at_once(model):
     core.cancel_scheduled()
     core.process(float(t[-1]) + 2.0, *omega[-1])
     assert core.model_id == model.model_id and core.learned_installs == 2
+
+
+def _session(model, t0, offset, seed, n=1500, rate_hz=100.0):
+    """Return stamps, raw rates (still, the model's drift plus ``offset``) and temperatures."""
+    t, omega, tt, tc = stream(n=n, rate_hz=rate_hz, seed=seed, t_lo=20.0, t_hi=20.3)
+    t, tt = t - 1000.0 + t0, tt - 1000.0 + t0
+    drift = -compensate(model, t, zoh(t, tt, tc), np.zeros_like(omega))
+    return t, omega - 0.01 + drift + offset, tt, tc
+
+
+@pytest.fixture(scope='module')
+def static_model():
+    return fit_model([synth_run(hours=1.0, rate_hz=2.0, seed=3)], features=('dT', 'dT2'),
+                     n_centers=6)
+
+
+@pytest.mark.parametrize('second_t0', [1000.0 + 15.0 + 3600.0, 10.0])
+def test_a_power_cycle_starts_a_new_reanchoring(static_model, second_t0):
+    """A 1 h pause, or stamps stepping back: the new session's offset is anchored anew."""
+    policy = Policy(reanchor_on_start=True, still_window=5.0)
+    core = CompensatorCore(policy, static_model)
+    off1, off2 = np.array([0.9e-3, -0.5e-3, 0.3e-3]), np.array([-0.7e-3, 0.8e-3, -0.4e-3])
+    t1, raw1, tt1, tc1 = _session(static_model, 1000.0, off1, seed=1)
+    out1, _, _ = run_core(core, t1, raw1, tt1, tc1)
+    first = core.anchor
+    assert first is not None and core.reanchoring.session == 1
+    np.testing.assert_allclose(first.delta, off1, atol=2e-4)
+    assert health(core).values['reanchor'] == f'done at t={first.t:.3f} s'
+    t2, raw2, tt2, tc2 = _session(static_model, second_t0, off2, seed=2)
+    core.add_temperature(tt2[0], tc2[0])
+    core.process(t2[0], *raw2[0])
+    assert core.anchor is None and core.reanchoring.session == 2 and core.needs_accel
+    why = 'gap of 3600 s' if second_t0 > 1000.0 else 'restart (stamps back by 1005 s)'
+    assert health(core).values['reanchor'] == (
+        f'waiting for stillness (session 2 from t={t2[0]:.3f} s, after a {why})')
+    out2, _, _ = run_core(core, t2[1:], raw2[1:], tt2[1:], tc2[1:])
+    second = core.anchor
+    assert second is not None and second.t == pytest.approx(t2[0] + 5.0, abs=0.011)
+    np.testing.assert_allclose(second.delta, off2, atol=2e-4)   # dropped the old shift
+    after = t2[1:] > second.t
+    assert np.abs(out2[after].mean(axis=0)).max() < 2e-4
+    # Before the new anchor the model's own offset (no old shift) is what is left.
+    assert np.abs(out2[~after].mean(axis=0) - off2).max() < 2e-4
+    assert health(core).values['reanchor'].startswith(f'done at t={second.t:.3f} s (session 2')
+
+
+def test_a_short_gap_or_reanchoring_off_keeps_the_session(static_model):
+    off = np.array([0.9e-3, -0.5e-3, 0.3e-3])
+    t1, raw1, tt1, tc1 = _session(static_model, 1000.0, off, seed=1)
+    t2, raw2, tt2, tc2 = _session(static_model, 1000.0 + 15.0 + 590.0, off, seed=2)
+    core = CompensatorCore(Policy(reanchor_on_start=True, still_window=5.0), static_model)
+    run_core(core, t1, raw1, tt1, tc1)
+    anchor = core.anchor
+    out2, _, _ = run_core(core, t2, raw2, tt2, tc2)     # 590 s: the same power cycle
+    assert core.anchor is anchor and core.reanchoring.session == 1
+    assert np.abs(out2.mean(axis=0)).max() < 2e-4
+    # A slow stream (10 s a sample): 100 periods (1000 s) is the gap, 700 s is no break.
+    slow = CompensatorCore(Policy(reanchor_on_start=True, still_window=50.0), static_model)
+    ts, raws, tts, tcs = _session(static_model, 0.0, off, seed=3, n=20, rate_hz=0.1)
+    run_core(slow, ts, raws, tts, tcs)
+    slow.process(ts[-1] + 700.0, *raws[-1])
+    assert slow.reanchoring.session == 1
+    slow.process(ts[-1] + 700.0 + 1100.0, *raws[-1])
+    assert slow.reanchoring.session == 2
+    # reanchor_on_start off: the sessions are counted, nothing is ever shifted.
+    off_core = CompensatorCore(Policy(reanchor_on_start=False), static_model)
+    run_core(off_core, t1, raw1, tt1, tc1)
+    t3, raw3, tt3, tc3 = _session(static_model, 1000.0 + 15.0 + 3600.0, off, seed=2)
+    out3, _, _ = run_core(off_core, t3, raw3, tt3, tc3)
+    assert off_core.anchor is None and off_core.reanchoring.session == 2
+    np.testing.assert_allclose(out3.mean(axis=0), off, atol=2e-4)
+    assert health(off_core).values['reanchor'].startswith('off (session 2')
