@@ -28,8 +28,8 @@ from typing import NamedTuple
 
 import numpy as np
 
-__all__ = ['BASELINE_DRIFT', 'Backlog', 'BacklogReport', 'GAP_PERIODS', 'MIN_STEPS',
-           'PAUSE_S', 'QUEUE_AGE_WARN_S']
+__all__ = ['BASELINE_DRIFT', 'Backlog', 'BacklogReport', 'GAP_PERIODS', 'JUMP_SAMPLES',
+           'MIN_STEPS', 'PAUSE_S', 'QUEUE_AGE_WARN_S', 'STAMP_JUMP_S']
 
 #: A sample that waited longer than this in the input queue (its queue age) means the node
 #: fell behind: WARN [s]. Above ``load_wait``'s default pause (0.1 s) and a garbage
@@ -45,6 +45,12 @@ PAUSE_S = 1.0
 #: How fast the queue-age baseline may rise (an IMU clock and the host's drift apart by
 #: less: crystals by some 50 ppm) [s/s].
 BASELINE_DRIFT = 2e-4
+#: A stamp more than this before or after the newest one starts another stream (a clock
+#: reset, a bag replayed again, a stray stamp, after which the stream is taken up again):
+#: no samples missing, no queue age across it, counted as a stamp jump [s].
+STAMP_JUMP_S = 60.0
+#: ... or more than this many input periods, when longer (a replay of a 5 Hz IMU: 20000 s).
+JUMP_SAMPLES = 100_000
 #: Stamp steps needed to learn the input period when ``expected_rate_hz`` is 0.
 MIN_STEPS = 20
 #: Floats a sample in :attr:`Backlog.samples`: stamp, callback start, callback end.
@@ -65,14 +71,14 @@ class Backlog:
 
     The queue age of a sample is its lag (callback start minus stamp) above the smallest lag
     seen (the baseline: a sample that did not wait), which may rise by
-    :data:`BASELINE_DRIFT` per second and restarts when the stamps step back; so it assumes
-    stamps that advance with the steady clock (live data: a replay slower than real time
-    reads as a growing age, one faster as none). Samples missing are counted from the gaps
-    in the stamps at the input period (``expected_rate_hz``, else the median step of the
-    first :data:`MIN_STEPS` steps): the node's own input queue overwriting its oldest
-    samples while it is behind, the driver or the link dropping; a gap over
-    :data:`PAUSE_S` that the node spent idle and after which the sample came fresh is the
-    IMU pausing (``pauses``).
+    :data:`BASELINE_DRIFT` per second and restarts at a stamp jump (:data:`STAMP_JUMP_S`:
+    another stream); so it assumes stamps that advance with the steady clock (live data: a
+    replay slower than real time reads as a growing age, one faster as none). Samples missing
+    are counted from the gaps in the stamps (after the newest before them: a late stamp is
+    none) at the input period (``expected_rate_hz``, else the median step of the first
+    :data:`MIN_STEPS` steps): the node's own input queue overwriting its oldest samples while
+    it is behind, the driver or the link dropping; a gap over :data:`PAUSE_S` that the node
+    spent idle and after which the sample came fresh is the IMU pausing (``pauses``).
 
     Parameters
     ----------
@@ -91,9 +97,11 @@ class Backlog:
         self.missing = 0
         self.gaps = 0
         self.pauses = 0
-        self._last_stamp: float | None = None
+        self.jumps = 0
+        self._high: float | None = None      # the newest stamp of the stream
+        self._before: tuple | None = None    # (newest stamp, baseline) before a stamp jump
         self._last_end = -math.inf
-        self._base: float | None = None      # the baseline, as u in _ages
+        self._base: float | None = None      # the queue-age baseline, as u in _ages
         self._reported_at: float | None = None
         self._learning: list[float] = []
 
@@ -112,13 +120,9 @@ class Backlog:
         problems = []
         if len(x):
             stamp, start, end = x[:, 0], x[:, 1], x[:, 2]
-            steps = np.diff(stamp, prepend=stamp[0] if self._last_stamp is None
-                            else self._last_stamp)
-            self._last_stamp = float(stamp[-1])
-            age = self._ages(stamp, start, steps)
             idle = start - np.concatenate(([self._last_end], end[:-1]))
             self._last_end = float(end[-1])
-            missing, gaps = self._gaps(steps, age, idle)
+            age, missing, gaps = self._judge(stamp, start, idle)
             dur = end - start
             values['queue age s'] = f'{age[-1]:.4f}'
             values['queue age max s'] = f'{age.max():.4f}'
@@ -142,35 +146,67 @@ class Backlog:
         values['input missing'] = str(self.missing)
         values['input gaps'] = str(self.gaps)
         values['input pauses'] = str(self.pauses)
+        values['input stamp jumps'] = str(self.jumps)
         return BacklogReport(1 if problems else 0, '; '.join(problems), values)
 
-    def _ages(self, stamp: np.ndarray, start: np.ndarray, steps: np.ndarray) -> np.ndarray:
-        """Return each sample's queue age, s, and carry the baseline on."""
+    def _judge(self, stamp: np.ndarray, start: np.ndarray, idle: np.ndarray
+               ) -> tuple[np.ndarray, int, int]:
+        """Return each sample's queue age, s, and the samples missing and gaps counted."""
+        n = len(stamp)
+        age = np.zeros(n)
+        missing = gaps = 0
+        if self.period is None:           # learnt from the first MIN_STEPS steps
+            steps = np.diff(stamp, prepend=stamp[0] if self._high is None else self._high)
+            self._learning.extend(steps[(steps > 0) & (steps < STAMP_JUMP_S)].tolist())
+            if len(self._learning) >= MIN_STEPS:
+                self.period = float(np.median(self._learning))
+                self._learning = []
+        jump = STAMP_JUMP_S if self.period is None else max(STAMP_JUMP_S,
+                                                            JUMP_SAMPLES * self.period)
+        lo = 0
+        while lo < n:
+            if self._high is None:
+                self._high = float(stamp[lo])
+            # The newest stamp before each sample: a late one (a second publisher, a
+            # reordering) is no gap, and the stream's next sample no gap either.
+            newest = np.maximum.accumulate(np.concatenate(([self._high], stamp[lo:])))
+            steps = stamp[lo:] - newest[:-1]
+            far = np.flatnonzero(np.abs(steps) > jump)
+            if far.size and far[0] == 0:
+                back = self._before
+                if back is not None and abs(stamp[lo] - back[0]) <= jump:
+                    # Back to the stream before a stray stamp: take it up where it was.
+                    (self._high, self._base), self._before = back, None
+                else:                         # another stream: both marks start again
+                    self.jumps += 1
+                    self._before = (self._high, self._base)
+                    self._high = self._base = None
+                continue
+            hi = lo + (int(far[0]) if far.size else n - lo)
+            age[lo:hi] = self._ages(newest[1:hi - lo + 1], start[lo:hi])
+            more, count = self._gaps(steps[:hi - lo], age[lo:hi], idle[lo:hi])
+            missing += more
+            gaps += count
+            self._high = float(newest[hi - lo])
+            lo = hi
+        return age, missing, gaps
+
+    def _ages(self, newest: np.ndarray, start: np.ndarray) -> np.ndarray:
+        """Return the queue ages of samples of one stream, s (from the newest stamp seen)."""
         # The baseline may rise by BASELINE_DRIFT a second: in u = lag - drift * start it is
         # a plain running minimum.
-        u = (start - stamp) - BASELINE_DRIFT * start
-        floor = np.empty_like(u)
-        bounds = [0, *np.flatnonzero(steps < 0).tolist(), len(u)]
-        base = math.inf if self._base is None else self._base
-        for lo, hi in zip(bounds[:-1], bounds[1:]):
-            if hi <= lo:
-                continue
-            if steps[lo] < 0:                # stamps stepped back: another stream
-                base = math.inf
-            floor[lo:hi] = np.minimum(np.minimum.accumulate(u[lo:hi]), base)
-            base = float(floor[hi - 1])
-        self._base = base
+        u = (start - newest) - BASELINE_DRIFT * start
+        floor = np.minimum.accumulate(u)
+        if self._base is not None:
+            floor = np.minimum(floor, self._base)
+        self._base = float(floor[-1])
         return u - floor
 
     def _gaps(self, steps: np.ndarray, age: np.ndarray, idle: np.ndarray) -> tuple[int, int]:
-        """Count the samples missing in this report's stamp gaps; return (missing, gaps)."""
-        if self.period is None:
-            self._learning.extend(steps[steps > 0].tolist())
-            if len(self._learning) < MIN_STEPS:
-                return 0, 0
-            self.period = float(np.median(self._learning))
-            self._learning = []
+        """Count the samples missing in the stamp gaps of one stream; return (missing, gaps)."""
         period = self.period
+        if period is None:
+            return 0, 0
         big = np.flatnonzero(steps > GAP_PERIODS * period)
         if not big.size:
             return 0, 0

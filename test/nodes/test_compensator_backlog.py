@@ -17,7 +17,7 @@
 from __future__ import annotations
 
 from gyro_tdc.nodes.compensator_backlog import (Backlog, BASELINE_DRIFT, MIN_STEPS, PAUSE_S,
-                                                QUEUE_AGE_WARN_S)
+                                                QUEUE_AGE_WARN_S, STAMP_JUMP_S)
 import pytest
 
 T0 = 1_700_000_000.0
@@ -81,7 +81,30 @@ def test_a_pause_of_the_imu_is_no_loss_and_stamps_stepping_back_restart_the_base
     r = bl.report(21.0)
     assert r.level == 0, r.message
     assert r.values['input pauses'] == '1' and r.values['input missing'] == '0'
-    assert float(r.values['queue age max s']) < 1e-9
+    assert float(r.values['queue age max s']) < 1e-9 and r.values['input stamp jumps'] == '1'
+
+
+@pytest.mark.parametrize('stray', [-2.0 ** 31, 2.0 ** 31 - 1, T0 - 3.0, T0 + 3600.0])
+def test_one_hostile_stamp_is_a_jump_not_a_loss_nor_an_age(stray):
+    """A sample stamped far before, far after or a little before the stream costs nothing."""
+    bl = Backlog(2000.0)
+    stamps = [T0 + k * P for k in range(50)] + [stray] + [T0 + k * P for k in range(50, 100)]
+    feed(bl, stamps, [10.0 + k * P for k in range(101)])
+    r = bl.report(11.0)
+    assert r.level == 0, r.message
+    assert r.values['input missing'] == '0' and float(r.values['queue age max s']) < 1e-3
+    far = abs(stray - T0) > STAMP_JUMP_S
+    assert r.values['input stamp jumps'] == ('1' if far else '0')   # and back to the stream
+
+
+def test_an_interleaved_second_stream_hides_no_gap_of_the_first():
+    """Another publisher 10 s behind on the topic: the first stream's gap is still counted."""
+    bl = Backlog(2000.0)
+    stamps = []
+    for k in list(range(100)) + list(range(110, 200)):     # 10 samples of the first lost
+        stamps += [T0 + k * P, T0 - 10.0 + k * P]
+    feed(bl, stamps, [10.0 + j * P / 2 for j in range(len(stamps))])
+    assert bl.report(11.0).values['input missing'] == '10'
 
 
 def test_a_stall_longer_than_the_queue_is_a_loss_not_a_pause():
