@@ -628,7 +628,8 @@ class CompensatorCore:
         """
         tally = self.tally
         tally.counts['in'] += 1
-        last = self.stream.t
+        stream = self.stream
+        last = stream.t
         if last is None:                # the first session starts
             self.reanchoring.session_t, self.reanchoring.session_k = t, tally.counts['in']
         else:
@@ -658,7 +659,6 @@ class CompensatorCore:
             if policy.stale_policy == 'passthrough':
                 return self._pass(t, wx, wy, wz, STALE, accel)
             flags = STALE
-        stream = self.stream
         if stream.first is None:
             stream.first = (t, temp)
         if slot.static:
