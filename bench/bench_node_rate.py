@@ -55,7 +55,8 @@ if str(ROOT) not in sys.path:
     sys.path.insert(0, str(ROOT))
 
 T0 = 1_700_000_000.0
-NS = '/bench'
+#: This run's namespace: another run on the domain (or any other /bench node) is not heard.
+NS = f'/bench_{os.getpid()}'
 CASES = ('small', 'dtdt10k', 'learn')
 #: The learn case's stamps: a 5 Hz IMU (a vehicle day replayed far faster than real time).
 LEARN_STEP_S = 0.2
@@ -64,14 +65,14 @@ LEARN_STEP_S = 0.2
 # -- the publisher (a child process) --------------------------------------------------
 
 
-def publisher_main(rate: float, count: int, step: float, learn: bool) -> int:
-    """Publish ``count`` Imu at ``rate`` on a steady schedule once stdin says ``go``."""
+def publisher_main(ns: str, rate: float, count: int, step: float, learn: bool) -> int:
+    """Publish ``count`` Imu at ``rate`` in namespace ``ns`` once stdin says ``go``."""
     import rclpy
     from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import Imu, Temperature
     import numpy as np
     rclpy.init()
-    node = rclpy.create_node('bench_publisher', namespace=NS)
+    node = rclpy.create_node('bench_publisher', namespace=ns)
     qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=100,
                      reliability=ReliabilityPolicy.RELIABLE)
     imu_pub = node.create_publisher(Imu, 'imu/data_raw', qos)
@@ -217,7 +218,7 @@ def run_case(case: str, args, tmp: Path, models: dict) -> dict:
                             env=env, cwd=args.tree or ROOT)   # python -m: cwd first on path
     log: list[str] = []
     threading.Thread(target=lambda: log.extend(node.stdout), daemon=True).start()
-    pub = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), '--publisher',
+    pub = subprocess.Popen([sys.executable, str(Path(__file__).resolve()), '--publisher', NS,
                             str(args.rate), str(count), repr(step), str(int(case == 'learn'))],
                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
     lines: list[str] = []
@@ -321,11 +322,11 @@ def main(argv=None) -> int:
     p.add_argument('--tree', help='run the node of this source tree (e.g. a git worktree of '
                    'older code: its figures without the keys it does not publish)')
     p.add_argument('--repeats', type=int, default=1, help='runs of each case')
-    p.add_argument('--publisher', nargs=4, help=argparse.SUPPRESS)
+    p.add_argument('--publisher', nargs=5, help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.publisher:
-        rate, count, step, learn = args.publisher
-        return publisher_main(float(rate), int(count), float(step), learn == '1')
+        ns, rate, count, step, learn = args.publisher
+        return publisher_main(ns, float(rate), int(count), float(step), learn == '1')
     print(f'bench_node_rate: node of {args.tree or ROOT}, '
           f'{args.rate:g} msg/s for {args.duration:g} s per case, '
           f'{args.hog} CPU hog(s), {os.cpu_count()} CPUs, ROS_DOMAIN_ID '

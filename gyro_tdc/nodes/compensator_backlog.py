@@ -29,7 +29,7 @@ from typing import NamedTuple
 import numpy as np
 
 __all__ = ['BASELINE_DRIFT', 'Backlog', 'BacklogReport', 'GAP_PERIODS', 'JUMP_SAMPLES',
-           'MIN_STEPS', 'PAUSE_S', 'QUEUE_AGE_WARN_S', 'STAMP_JUMP_S']
+           'MIN_STEPS', 'PAUSE_S', 'PERIOD_QUANTILE', 'QUEUE_AGE_WARN_S', 'STAMP_JUMP_S']
 
 #: A sample that waited longer than this in the input queue (its queue age) means the node
 #: fell behind: WARN [s]. Above ``load_wait``'s default pause (0.1 s) and a garbage
@@ -51,8 +51,10 @@ BASELINE_DRIFT = 2e-4
 STAMP_JUMP_S = 60.0
 #: ... or more than this many input periods, when longer (a replay of a 5 Hz IMU: 20000 s).
 JUMP_SAMPLES = 100_000
-#: Stamp steps needed to learn the input period when ``expected_rate_hz`` is 0.
-MIN_STEPS = 20
+#: Stamp steps needed to learn the input period when ``expected_rate_hz`` is 0 ...
+MIN_STEPS = 50
+#: ... and the quantile of them taken for it (one step in ten a single period suffices).
+PERIOD_QUANTILE = 0.1
 #: Floats a sample in :attr:`Backlog.samples`: stamp, callback start, callback end.
 SAMPLE = 3
 
@@ -75,10 +77,11 @@ class Backlog:
     another stream); so it assumes stamps that advance with the steady clock (live data: a
     replay slower than real time reads as a growing age, one faster as none). Samples missing
     are counted from the gaps in the stamps (after the newest before them: a late stamp is
-    none) at the input period (``expected_rate_hz``, else the median step of the first
-    :data:`MIN_STEPS` steps): the node's own input queue overwriting its oldest samples while
-    it is behind, the driver or the link dropping; a gap over :data:`PAUSE_S` that the node
-    spent idle and after which the sample came fresh is the IMU pausing (``pauses``).
+    none) at the input period (``expected_rate_hz``, else the :data:`PERIOD_QUANTILE`
+    quantile of the first :data:`MIN_STEPS` steps): the node's own input queue overwriting
+    its oldest samples while it is behind, the driver or the link dropping; a gap over
+    :data:`PAUSE_S` that the node spent idle and after which the sample came fresh is the
+    IMU pausing (``pauses``).
 
     Parameters
     ----------
@@ -159,7 +162,9 @@ class Backlog:
             steps = np.diff(stamp, prepend=stamp[0] if self._high is None else self._high)
             self._learning.extend(steps[(steps > 0) & (steps < STAMP_JUMP_S)].tolist())
             if len(self._learning) >= MIN_STEPS:
-                self.period = float(np.median(self._learning))
+                # A low quantile, not the median: a node behind from its start already
+                # loses samples, and its steps are then mostly longer than the period.
+                self.period = float(np.quantile(self._learning, PERIOD_QUANTILE))
                 self._learning = []
         jump = STAMP_JUMP_S if self.period is None else max(STAMP_JUMP_S,
                                                             JUMP_SAMPLES * self.period)

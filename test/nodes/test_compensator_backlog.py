@@ -151,6 +151,16 @@ def test_the_period_is_learnt_from_enough_steps_only():
     assert bl.report(3.0).values['input period ms'] == '10 (learnt)'
 
 
+def test_the_period_is_learnt_right_by_a_node_behind_from_its_start():
+    """Three samples in four lost from the first one on: the period is still 0.5 ms."""
+    bl = Backlog()
+    ks = [k for k in range(400) if k % 4 == 0 or k % 20 == 1]
+    feed(bl, [T0 + k * P for k in ks], [3.0 + j * 1e-3 for j in range(len(ks))])
+    r = bl.report(4.0)
+    assert r.values['input period ms'] == '0.5 (learnt)'
+    assert r.values['input missing'] == str(ks[-1] + 1 - len(ks))
+
+
 def test_no_samples_reports_empty_figures():
     r = Backlog().report(1.0)
     assert r.level == 0 and r.values['queue age s'] == '' and r.values['input missing'] == '0'
