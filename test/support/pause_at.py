@@ -144,15 +144,21 @@ class PausingRunner:
                                      stdout=subprocess.PIPE, text=True, env=env, bufsize=1)
         self._sel = selectors.DefaultSelector()
         self._sel.register(self.proc.stdout, selectors.EVENT_READ)
+        self._pending = b''   # read from the pipe, not yet returned as lines
         assert self._line() == 'ready'
 
     def _line(self) -> str:
-        if not self._sel.select(self.timeout_s):
-            raise TimeoutError(f'no answer from the fork server in {self.timeout_s:g} s')
-        line = self.proc.stdout.readline()
-        if not line:
-            raise RuntimeError('the fork server ended')
-        return line.rstrip('\n')
+        # The pipe is read raw: a buffered readline() could take two lines at once (``started``
+        # and ``paused`` of a quick child), and select() would then wait for the second in vain.
+        while b'\n' not in self._pending:
+            if not self._sel.select(self.timeout_s):
+                raise TimeoutError(f'no answer from the fork server in {self.timeout_s:g} s')
+            chunk = os.read(self.proc.stdout.fileno(), 65536)
+            if not chunk:
+                raise RuntimeError('the fork server ended')
+            self._pending += chunk
+        line, self._pending = self._pending.split(b'\n', 1)
+        return line.decode()
 
     def run(self, stop: int, folder: Path, argv: list,
             on_pause: Callable[[int, str], None] | None = None) -> tuple[str | None, int]:
