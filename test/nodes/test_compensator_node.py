@@ -133,6 +133,7 @@ def test_no_temperature_yet_passes_through(models, rig_factory):
     assert values['messages in'] == values['messages out'] == '100'
 
 
+@pytest.mark.serial  # the feed must end before the node's first 1 Hz /diagnostics
 @pytest.mark.parametrize('policy,executor', [('hold', 'events'), ('passthrough', 'single')])
 def test_stale_temperature(models, rig_factory, policy, executor):
     path, model = models['paper']

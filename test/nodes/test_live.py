@@ -16,8 +16,10 @@
 
 from gyro_tdc.base.resources import model_path
 import numpy as np
+import pytest
 
 
+@pytest.mark.serial  # a 5 s window from two processes' start: not beside other tests
 def test_live_stream_is_compensated_across_processes():
     # Imported here: rclpy only loads for the node tests.
     from gyro_tdc.nodes.live import run_live
