@@ -203,7 +203,7 @@ def _stage_rosbags(bag):
 
 
 STAGES = {'raw_reader': _stage_raw_reader, 'load': _stage_load, 'train_paper':
-          _stage_train_paper, 'rosbags': _stage_rosbags}
+          _stage_train_paper, 'rosbags': _stage_rosbags, 'train': _stage_train}
 
 # The process stages: each a whole interpreter, as a user or a script would run it.
 _RAW = """
@@ -339,16 +339,17 @@ def main(argv=None):
     p.add_argument('--rate-hz', type=float, default=1000.0)
     p.add_argument('--repeat', type=int, default=3, help='rounds per bag (medians reported)')
     p.add_argument('--stages', default='', metavar='A,B',
-                   help=f'in-process stages to add: {", ".join(sorted(STAGES))}')
+                   help='in-process stages to add: '
+                        f'{", ".join(sorted(set(STAGES) - {"train"}))}')
     p.add_argument('--profile', action='store_true', help='cProfile the train stage once')
     p.add_argument('--bag', default=None, help=argparse.SUPPRESS)
-    p.add_argument('--child', choices=sorted(STAGES) + ['train'], help=argparse.SUPPRESS)
+    p.add_argument('--child', choices=sorted(STAGES), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
     if args.child:
         _child(args.child, args.bag, args.profile)
         return 0
     extra = [x for x in args.stages.split(',') if x]
-    bad = [x for x in extra if x not in STAGES]
+    bad = [x for x in extra if x not in STAGES or x == 'train']
     if bad:
         p.error(f'unknown stage(s) {", ".join(bad)}')
     stages = ['raw', 'storage', 'train'] + extra
