@@ -724,10 +724,11 @@ def goals(summary):
             print(f'  [{"PASS" if ok else "FAIL"}] cross: compensator drops at 2 kHz '
                   f'{s["2000"]["drops"][1]} (0)')
     for case, c in summary.get('core', {}).items():
-        ok = min(c['ratio'], c['cpu_ratio'], c['fastest_cpu_ratio']) <= 1.05
-        print(f'  [{"PASS" if ok else "FAIL"}] core {case}: per-sample cost new / old '
-              f'{c["ratio"]:.3f} (wall), {c["cpu_ratio"]:.3f} (CPU), '
-              f'{c["fastest_cpu_ratio"]:.3f} (fastest runs\' CPU) (no slowdown: <= 1.05)')
+        # The fastest runs' CPU: what other load on the host can only add to.
+        ok = c['fastest_cpu_ratio'] <= 1.05
+        print(f'  [{"PASS" if ok else "FAIL"}] core {case}: per-sample CPU new / old of the '
+              f'fastest runs {c["fastest_cpu_ratio"]:.3f} (no slowdown: <= 1.05; medians: '
+              f'wall {c["ratio"]:.3f}, CPU {c["cpu_ratio"]:.3f})')
     if 'soak' in summary:
         s = summary['soak']
         ok = s['drops'] == 0
