@@ -291,7 +291,7 @@ def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationMode
 def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float
                   ) -> list[float] | None:
     """
-    Return the offset that zeroes a fit's mean residual over the windows stamped after ``since``.
+    Return the offset that zeroes a fit's mean residual over the newest still windows.
 
     The fit's shape is kept; its intercept (the session's offset, an average over all of the
     session's points) becomes that of the newest still time, as re-anchoring does: the

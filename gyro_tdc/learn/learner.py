@@ -121,7 +121,7 @@ class LearnConfig:
     save_period_s: float = 180.0
     commit_s: float = 300.0
     entry_s: float = 3600.0
-    offset_s: float = 3600.0
+    offset_s: float = 1800.0
     max_rate_hz: float = 100.0
     session_gap_s: float = 600.0
     swap_delay_s: float = 5.0
@@ -226,6 +226,8 @@ class Learner:
         self._dts: list[float] = []
         self._pauses: list[float] = []
         self._gap_starts: list[tuple[int, float]] = []
+        #: A new session whose first stretch is not learned yet (:meth:`_early_offset`).
+        self._fresh = False
         #: Accepted candidates not handed over yet: (effective stamp or None: at once, model).
         self._swaps: list[tuple[float | None, CompensationModel]] = []
         self._trigger: float | None = None    # stamp of the sample that let a refit run
@@ -523,6 +525,7 @@ class Learner:
             # closes was computable at its first sample.
             swapped = self.flush(float(t[0]))
             self.session += 1
+            self._fresh = True            # its offset from its first still windows
             self.still.restart()          # the window grid starts again
             self.thermal_state = None     # after a power-off: steady state at the next reading
         temp, self.thermal_state = stream_state(self.thermal, self.thermal_state, t, temp)
@@ -562,7 +565,10 @@ class Learner:
                 swapped = self._close(win.thresholds) or swapped
                 continue
             self._stretch.add(win.light())
-            swapped = self._commit() or swapped
+            done = self._commit()
+            if not done and self._fresh:
+                done = self._early_offset(win.t1)
+            swapped = done or swapped
         return swapped
 
     def _close(self, thresholds: tuple | None = None) -> bool:
@@ -666,12 +672,38 @@ class Learner:
 
     def _refit(self, t_now: float) -> bool:
         """Fit the point table; swap the candidate in when it predicts recent still time better."""
+        self._fresh = False
         e = self.entries()
-        floor = float(np.nanmax(np.where(np.isfinite(self.gyro_floor), self.gyro_floor, 0.0)))
         fit = fit_points(e, grow_features(e[:, 2], len(self.bins)), t_now,
-                         self.config.half_life_s, floor)
+                         self.config.half_life_s, self._floor())
         rows = np.asarray(self._recent_rows(), dtype=np.float64).reshape(-1, 6)
-        since = t_now - self.config.offset_s
+        return self._offer(fit, rows, t_now)
+
+    def _floor(self) -> float:
+        """Return the largest finite gyro noise floor of the axes, rad/s (0: none yet)."""
+        return float(np.nanmax(np.where(np.isfinite(self.gyro_floor), self.gyro_floor, 0.0)))
+
+    def _early_offset(self, t_now: float) -> bool:
+        """
+        A new session's first still windows: the last fit's shape, their offset, at once.
+
+        Until the session's first stretch is learned (``min_still_s``), its turn-on offset
+        would be the previous session's: each still window gives the shape of the last fit
+        this session's offset (the points are learned with the stretch, as always).
+        """
+        if self.fit is None:
+            return False
+        rows = np.asarray([[r.n, r.temp_c, *r.gyro_mean, r.t1] for r in self._stretch.rows],
+                          dtype=np.float64).reshape(-1, 6)
+        fit = dict(self.fit, coef=[list(c) for c in self.fit['coef']])
+        return self._offer(fit, rows, t_now, since=-math.inf)
+
+    def _offer(self, fit: dict, rows: NDArray[np.float64], t_now: float,
+               since: float | None = None) -> bool:
+        """Give ``fit`` the offset of the newest windows; swap it in when the check says so."""
+        floor = self._floor()
+        if since is None:
+            since = t_now - self.config.offset_s
         try:
             cand = model_of(fit, self.thermal)
             offset = recent_offset(fit, rows, since) if self.config.offset_s > 0 else None
@@ -681,7 +713,7 @@ class Learner:
         except ModelFileError as exc:     # checked as a model file: never installed
             self.refused, self.refused_why = self.refused + 1, str(exc)
             return False
-        anchor = since if self.config.offset_s > 0 else None
+        anchor = since if self.config.offset_s > 0 or since == -math.inf else None
         pred = predict_windows(cand, rows, self.thermal)
         new = window_error(rows, pred, anchor)
         old = change = None
