@@ -685,7 +685,7 @@ class Learner:
 
     def _early_offset(self, t_now: float) -> bool:
         """
-        A new session's first still windows: the last fit's shape, their offset, at once.
+        Give a new session's first still windows the last fit's shape and their offset, at once.
 
         Until the session's first stretch is learned (``min_still_s``), its turn-on offset
         would be the previous session's: each still window gives the shape of the last fit
