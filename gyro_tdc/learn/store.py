@@ -46,8 +46,8 @@ __all__ = ['ALTERNATE_SUFFIX', 'FORMAT', 'LearnerState', 'LearnFile', 'MAX_BYTES
            'open_learn_file', 'read_state', 'write_state']
 
 FORMAT = 'gyro_tdc learn 1'
-#: Largest learn_file read, bytes (checked before reading). A full state (300 bins of 4
-#: entries, three recent stretches of :data:`RECENT_ROWS` windows) takes under 3 MiB.
+#: Largest learn_file read, bytes (checked before reading). A full state (300 bins of 8
+#: entries, three recent stretches of :data:`RECENT_ROWS` windows each) takes under 3 MiB.
 MAX_BYTES = 4 * 1024 * 1024
 #: Deepest nesting of lists and objects read (a learner's state nests 4 deep).
 MAX_DEPTH = 16
