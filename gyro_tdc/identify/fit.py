@@ -27,6 +27,7 @@ from dataclasses import replace
 import datetime as _dt
 import math
 from typing import Mapping, Sequence
+import weakref
 
 from gyro_tdc import __version__
 from gyro_tdc.data import Run
@@ -80,9 +81,9 @@ def estimate_t0(run: Run, *, window_s: float = 60.0) -> float:
     return float(np.median(run.temp[:n]))
 
 
-# The last full-rate thermal states, by run (the run's stamps and temperatures held, so
-# an id is never reused while its entry lives): fit_model's are the accelerometer part's.
-_STATES: dict[int, tuple[NDArray, NDArray, tuple, NDArray[np.float64]]] = {}
+# Full-rate thermal states by run, while the run lives (a weak reference to it: a run
+# dropped drops its state): fit_model's are the accelerometer part's.
+_STATES: dict[int, tuple[weakref.ref, tuple, NDArray[np.float64]]] = {}
 _STATES_KEPT = 8
 
 
@@ -92,14 +93,15 @@ def run_state(thermal: ThermalState, run: Run) -> NDArray[np.float64]:
 
     The result is read-only (shared by the callers: the fit and the accelerometer part).
     """
-    key = (thermal.kind, tuple(float(v) for v in thermal.tau_s))
+    key = (thermal.kind, tuple(float(v) for v in thermal.tau_s), id(run.t), id(run.temp))
     hit = _STATES.get(id(run))
-    if hit is not None and hit[0] is run.t and hit[1] is run.temp and hit[2] == key:
-        return hit[3]
+    if hit is not None and hit[0]() is run and hit[1] == key:
+        return hit[2]
     state = thermal.temperature(run.t, run.temp)
     state.flags.writeable = False
-    _STATES.pop(id(run), None)
-    _STATES[id(run)] = (run.t, run.temp, key, state)
+    rid = id(run)
+    _STATES.pop(rid, None)
+    _STATES[rid] = (weakref.ref(run, lambda _ref, rid=rid: _STATES.pop(rid, None)), key, state)
     while len(_STATES) > _STATES_KEPT:
         _STATES.pop(next(iter(_STATES)))
     return state
