@@ -41,8 +41,8 @@ from gyro_tdc.runtime.reanchor import Anchor, StillnessDetector, Vec3
 from gyro_tdc.runtime.temperature_hold import TemperatureHold
 import numpy as np
 
-__all__ = ['AccelEntry', 'AccelSlot', 'CompensatorCore', 'DriftEntry', 'LearningGate',
-           'ModelSlot', 'Output', 'Reanchoring', 'StreamState', 'Tally']
+__all__ = ['AccelEntry', 'AccelSlot', 'CompensatorCore', 'correction_is_safe', 'DriftEntry',
+           'LearningGate', 'ModelSlot', 'Output', 'Reanchoring', 'StreamState', 'Tally']
 
 #: What :meth:`CompensatorCore.process` returns, a plain tuple (a NamedTuple costs more per
 #: sample than the rest of the static path): ``(wx, wy, wz, variance, flags, accel,
@@ -79,6 +79,22 @@ class DriftEntry:
     #: Variance to add, fresh and stale temperature.
     var: Vec3
     var_stale: Vec3
+    #: Every input the input check lets through (finite, within ``MAX_RATE_RAD_S``) is
+    #: corrected by at most half ``MAX_DRIFT_RAD_S``: the per-sample output check can be skipped.
+    safe: bool = False
+
+
+def correction_is_safe(b: Vec3, d: Vec3) -> bool:
+    """
+    Say whether ``(w - b) / d`` moves every ``|w| <= MAX_RATE_RAD_S`` by under half the limit.
+
+    The correction is ``w (1/d - 1) - b/d``, at most ``MAX_RATE |1/d - 1| + |b/d|`` in size;
+    the half is a margin far above the rounding of either side. NaN or Inf gives False.
+    """
+    for bi, di in zip(b, d):
+        if not di or not _MAX_RATE * abs(1.0 / di - 1.0) + abs(bi / di) <= 0.5 * _MAX_DRIFT:
+            return False            # NaN fails the compare
+    return True
 
 
 @dataclass(frozen=True, slots=True)
@@ -667,9 +683,10 @@ class CompensatorCore:
             e = slot.cache.get(temp) or self._refresh(t, temp)
             ox, oy, oz = (wx - e.bx) / e.dx, (wy - e.by) / e.dy, (wz - e.bz) / e.dz
             # The output check (the entry's variances were checked when it was made): finite
-            # and corrected by a plausible drift on every axis (NaN fails the compares).
+            # and corrected by a plausible drift on every axis (NaN fails the compares). A
+            # safe entry (the usual case) cannot fail it for an input that passed its check.
             m = _MAX_DRIFT
-            if not (abs(ox - wx) <= m and abs(oy - wy) <= m and abs(oz - wz) <= m):
+            if not (e.safe or (abs(ox - wx) <= m and abs(oy - wy) <= m and abs(oz - wz) <= m)):
                 return self._pass(t, wx, wy, wz, IMPLAUSIBLE_OUTPUT, accel)
             var = e.var_stale if flags else e.var
             flags |= e.oor
@@ -732,7 +749,8 @@ class CompensatorCore:
         if not math.isfinite(var[0] + var[1] + var[2] + var_stale[0] + var_stale[1]
                              + var_stale[2]):
             bx = math.nan              # process's output check refuses the entry
-        entry = DriftEntry(bx, by, bz, dx, dy, dz, oor, dist, var, var_stale)
+        entry = DriftEntry(bx, by, bz, dx, dy, dz, oor, dist, var, var_stale,
+                           correction_is_safe((bx, by, bz), (dx, dy, dz)))
         acc = slot.accel
         if len(slot.cache) >= 64:
             slot.cache.clear()

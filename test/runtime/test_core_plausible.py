@@ -19,11 +19,11 @@ from __future__ import annotations
 from dataclasses import replace
 import math
 
-from gyro_tdc.base.limits import MAX_TEMP_LEAD_S
+from gyro_tdc.base.limits import MAX_DRIFT_RAD_S, MAX_RATE_RAD_S, MAX_TEMP_LEAD_S
 from gyro_tdc.identify import fit_model
 from gyro_tdc.learn.learner import Learner
 from gyro_tdc.runtime import flags as F
-from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.core import CompensatorCore, correction_is_safe
 from gyro_tdc.runtime.health import health, OK, WARN
 from gyro_tdc.runtime.policy import Policy
 from hypothesis import given, HealthCheck, settings, strategies as st
@@ -199,3 +199,15 @@ def test_temperature_path_property(models, kind, data, rate):
             assert held is not None and -100.0 <= held[0] <= 200.0
     h = health(core)
     assert h.level in (OK, WARN)
+
+
+@settings(derandomize=True, max_examples=300, deadline=None)
+@given(b=st.floats(allow_nan=True, allow_infinity=True), d=st.floats(allow_nan=True,
+       allow_infinity=True), w=st.floats(-MAX_RATE_RAD_S, MAX_RATE_RAD_S))
+def test_a_safe_cache_entry_never_fails_the_output_check(b, d, w):
+    """The static path skips the output check for a safe entry: it would always pass."""
+    if correction_is_safe((b, 0.0, 0.0), (d, 1.0, 1.0)):
+        for x in (w, MAX_RATE_RAD_S, -MAX_RATE_RAD_S):
+            assert abs((x - b) / d - x) <= MAX_DRIFT_RAD_S
+    else:
+        assert not (math.isfinite(b) and d == 1.0 and abs(b) <= MAX_DRIFT_RAD_S / 2)
