@@ -28,7 +28,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 
-from gyro_tdc.learn.learner import LearnConfig, Learner
+from gyro_tdc.learn.learner import LearnConfig, learned_model, Learner
 from gyro_tdc.runtime import CompensatorCore, PASSTHROUGH, Policy
 from gyro_tdc.runtime.reanchor import default_tolerance, reanchor_shift
 from gyro_tdc.sim.noise import gauss_markov, quantise, random_walk
@@ -256,7 +256,26 @@ def batch_fit(log: StillLog, until_s: float, degree: int = 3):
     def predict(tq, tempq):
         d = np.asarray(tempq) - t0
         return coef[k0 - 1] + sum(coef[k0 + j] * d[:, None] ** (j + 1) for j in range(degree))
-    return predict, resid_var
+    model = learned_model(np.vstack([coef[k0 - 1:k0], coef[k0:]]),
+                          ('dT', 'dT2', 'dT3')[:degree], t0,
+                          (float(tm.min()), float(tm.max())), resid_var)
+    return predict, resid_var, model
+
+
+def through_node(model, log: StillLog, sel: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """Return the output on ``sel`` of a core with ``model`` and ``reanchor_on_start``."""
+    core = CompensatorCore(Policy(reanchor_on_start=True), model)
+    t = log.t[sel]
+    tt, tc = log.temp_t, log.temp_c
+    j = max(int(np.searchsorted(tt, t[0], side='right')) - 1, 0)
+    out = np.empty((t.size, 3))
+    acc = [None] * t.size if log.accel is None else log.accel[sel].tolist()
+    for k, (ts, w, a) in enumerate(zip(t.tolist(), log.gyro[sel].tolist(), acc)):
+        while j < tt.size and tt[j] <= ts:
+            core.add_temperature(float(tt[j]), float(tc[j]))
+            j += 1
+        out[k] = core.process(ts, w[0], w[1], w[2], a)[:3]
+    return out
 
 
 def judge(log: StillLog, out: NDArray[np.float64], passed: NDArray[np.float64] | None = None,
@@ -265,21 +284,26 @@ def judge(log: StillLog, out: NDArray[np.float64], passed: NDArray[np.float64] |
     Score the last day of ``log``: the learner's output beside a batch fit of the days before.
 
     Drift is :func:`block_rms` of the error (the reference is zero). ``batch``: the fit of
-    :func:`batch_fit` on every day but the last, re-anchored at the last day's start by the
-    compensator's rule (``evaluate --reanchor auto``: :func:`reanchor_shift`); ``raw``: the raw
-    rate with its last-day mean removed.
+    :func:`batch_fit` on every day but the last, in a core with the default policy and
+    ``reanchor_on_start`` (the node: the shift from the anchor's stamp on, the fit's own
+    offset before); ``evaluate``: the same fit re-anchored over the whole last day by
+    ``evaluate --reanchor auto``'s rule (:func:`reanchor_shift`: the shift of the day's head
+    applied from its first sample, which no node can); ``raw``: the raw rate with its
+    last-day mean removed.
     """
     last = log.t >= log.t[-1] - log.day_s
     t = log.t[last]
     temp = np.interp(t, log.temp_t, log.temp_c)
-    predict, resid = batch_fit(log, log.t[last][0])
+    predict, resid, model = batch_fit(log, log.t[last][0])
     comp = log.gyro[last] - predict(t, temp)
     shift = reanchor_shift(t, comp, tolerance=default_tolerance(resid)).delta
     batch = comp - np.asarray(shift)
     raw = log.gyro[last] - log.gyro[last].mean(axis=0)
-    res = {'learn': block_rms(t, out[last]), 'batch': block_rms(t, batch),
+    res = {'learn': block_rms(t, out[last]), 'evaluate': block_rms(t, batch),
+           'batch': block_rms(t, through_node(model, log, last)),
            'raw': block_rms(t, raw), 'passed': 0.0 if passed is None else
            float(passed[last].mean())}
     res['vs_batch'] = res['learn'] / res['batch']
+    res['vs_evaluate'] = res['learn'] / res['evaluate']
     res['vs_raw'] = res['learn'] / res['raw']
     return res
