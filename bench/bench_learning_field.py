@@ -26,9 +26,10 @@ with ``reanchor_on_start`` (a node with that model), and over the raw rate with 
 last-day mean removed. A scenario passes when both ratios are at most 1.05 and 1 on every
 axis (``b/raw``: the batch's own worst ratio to the raw rate: above 1 where the last day's
 thermal drift is below the offset's wander, which no online correction removes as well as
-the day's own mean does). ``learn/eval`` is the ratio to the same fit re-anchored as ``evaluate --reanchor auto``
-does (the head's shift applied from the day's first sample, which no node can: on a new
-power cycle it hides the first window's uncorrected turn-on offset).
+the day's own mean does). ``learn/eval`` is the ratio to the same fit re-anchored as
+``evaluate --reanchor auto`` does (the head's shift applied from the day's first sample,
+which no node can: on a new power cycle it hides the first window's uncorrected turn-on
+offset).
 
 1. **Goal**: three days of 1 Hz, 5 -> 25 degC daily cycles (several seeds).
 2. **Sweep** (seeded): rates 1 Hz .. 2 kHz (100 Hz and up as bursts of 2 s every 2 min: a
