@@ -35,6 +35,7 @@ from gyro_tdc.errors import ConfigError
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model.compensation import compensate
 from gyro_tdc.model.modelfile import save_model
+from gyro_tdc.nodes.compensator_backlog import QUEUE_AGE_WARN_S
 from gyro_tdc.nodes.compensator_node import CompensatorNode, read_model
 from gyro_tdc.nodes.executors import make_executor
 import numpy as np
@@ -452,7 +453,11 @@ def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path
               and 'input samples missing by stamp (' in s.message]
     assert warned and sum(int(s.message.split('input samples missing by stamp (')[1].split()[0])
                           for s in warned) == missing
-    assert any('falling behind: a sample waited' in s.message for s in reports)
+    # How far behind depends on the CPU: the WARN is owed when a report measured a sample
+    # waiting longer than the threshold.
+    ages = [float(values(s)['queue age max s']) for s in reports if values(s)['queue age max s']]
+    behind = any('falling behind: a sample waited' in s.message for s in reports)
+    assert behind == (max(ages, default=0.0) > QUEUE_AGE_WARN_S), (ages, behind)
 
 
 # -- 12: re-anchoring across reloads -------------------------------------------------------
