@@ -219,7 +219,7 @@ class Learner:
         self._stretch = _Stretch()
         #: The entry group being filled: a stretch, or an ``entry_s`` part of a long one.
         self.segment = 0
-        self._segment_t0: float | None = None
+        self.segment_t0: float | None = None
         #: The stream's rhythm (session rule): its median sample period, its pauses (the
         #: newest), and the sessions a gap started, ``(session, gap s)``.
         self._period: float | None = None
@@ -288,9 +288,10 @@ class Learner:
         self.reset()
         for name, value in values.items():
             setattr(self, name, value)
-        # New entries never merge into saved ones: the next group's id is above them all.
-        self.segment = max([self.stretches] + [int(e[4]) for v in self.bins.values()
-                                               for e in v]) + 1
+        if 'segment' not in values:       # a file without it: the next group above them all
+            self.segment = max([self.stretches] + [int(e[4]) for v in self.bins.values()
+                                                   for e in v]) + 1
+            self.segment_t0 = None
         if not same_thermal(saved, self.thermal):
             # Binned at another model temperature than the prior's: the set_prior rule.
             self._forget_points()
@@ -594,7 +595,7 @@ class Learner:
         """Count a stretch that is learned from now on; its entries form a new group."""
         self.stretches += 1
         self.segment = max(self.segment + 1, self.stretches)
-        self._segment_t0 = t0
+        self.segment_t0 = t0
 
     def _commit(self) -> bool:
         """Learn a long stretch's windows so far (every ``commit_s``) while it goes on."""
@@ -615,9 +616,9 @@ class Learner:
             return False
         # Still time: the windows' own (a pause between two bursts is not still time).
         self.still_s += sum(r.t1 - r.t0 + (r.t1 - r.t0) / max(r.n - 1, 1) for r in new)
-        if self._segment_t0 is None or new[-1].t1 - self._segment_t0 > self.config.entry_s:
+        if self.segment_t0 is None or new[-1].t1 - self.segment_t0 > self.config.entry_s:
             self.segment += 1             # a long stop: its next hour is a new group
-            self._segment_t0 = new[0].t0
+            self.segment_t0 = new[0].t0
         sid = self.segment
         groups: dict[int, list] = {}
         for r in new:

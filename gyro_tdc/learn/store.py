@@ -63,7 +63,7 @@ _FEATURES = ((), ('dT',), ('dT', 'dT2'), ('dT', 'dT2', 'dT3'))
 _REQUIRED = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 'still_s',
              'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check',
              'swaps')
-_OPTIONAL = ('motion', 'thermal', 'thermal_state', 'config')
+_OPTIONAL = ('motion', 'thermal', 'thermal_state', 'config', 'segment')
 _FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points')
 _CHECK_KEYS = ('t', 'candidate_mse', 'current_mse', 'swapped')
 _CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
@@ -90,6 +90,8 @@ class LearnerState(Protocol):
     motion: list[tuple[float, bool]]
     thermal: ThermalState | None
     thermal_state: tuple[float, list[float]] | None
+    segment: int
+    segment_t0: float | None
     config: Any
 
 
@@ -117,6 +119,7 @@ def encode_state(learner: LearnerState) -> dict[str, Any]:
         'thermal': None if learner.thermal is None else learner.thermal.to_dict(),
         'thermal_state': None if ts is None else [float(ts[0]), [float(v) for v in ts[1]]],
         'config': {k: getattr(learner.config, k) for k in _CONFIG_KEYS},
+        'segment': [learner.segment, learner.segment_t0],
     }
 
 
@@ -406,6 +409,10 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
         'motion': _motion(state.get('motion', [])),
         'thermal_state': _thermal_state(state.get('thermal_state'), thermal),
     }
+    if state.get('segment') is not None:
+        seg = _list(state['segment'], 'segment', 2)
+        values['segment'] = _count(seg[0], 'segment[0] (entry group)')
+        values['segment_t0'] = _stamp(seg[1], 'segment[1] (its first stamp)', optional=True)
     values['last_save_t'] = values['last_t']
     return values, thermal
 
