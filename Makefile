@@ -73,7 +73,7 @@ lint: venv
 	out=$$($(VENV)/bin/ament_pep257 $(LINT_PATHS) 2>&1) || rc=1; \
 	grep -v '^checking ' <<<"$$out" || true; \
 	echo '--- copyright (HEADER.txt)'; \
-	$(VPY) -m pytest -q -p no:cacheprovider test/test_copyright.py || rc=1; \
+	$(VPY) -m pytest -q -p no:cacheprovider test/system/test_copyright.py || rc=1; \
 	exit $$rc
 
 demo: venv
