@@ -29,6 +29,7 @@ import math
 from pathlib import Path
 from typing import Any, Sequence
 
+from gyro_tdc.base import RESTART_BACK_S, SESSION_GAP_PERIODS, SESSION_GAP_S
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, learned_model,
                                 MAX_DROPS, model_of, OUTLIER_K, predict_windows,
@@ -60,7 +61,7 @@ SWAP_CHANGE = 0.02
 #: The sample period is the median of the stream's first this many intervals.
 PERIOD_STEPS = 64
 #: A gap starts a new session when it is also longer than this many sample periods ...
-GAP_PERIODS = 100
+GAP_PERIODS = SESSION_GAP_PERIODS
 #: ... and, once the stream pauses regularly (this many pauses over GAP_PERIODS periods) ...
 BURST_PAUSES = 5
 #: ... than this many times the median of its pauses (the batch rule of gyro_tdc.data) ...
@@ -105,7 +106,8 @@ class LearnConfig:
         A gap in the IMU stamps longer than this starts a new session (a power-up: the
         gyro's turn-on offset changes; each session gets its own intercept in the fit), when
         it is also longer than :data:`GAP_PERIODS` sample periods and, in a stream that pauses
-        regularly (bursts), than :data:`BURST_FACTOR` times its median pause.
+        regularly (bursts), than :data:`BURST_FACTOR` times its median pause; stamps that step
+        back by over ``RESTART_BACK_S`` (a device clock restarted) start one too.
     swap_delay_s : float, s
         An accepted candidate takes effect this long (by stamp) after the sample that let it
         be computed (:meth:`Learner.take_swaps`), so its effective stamp is fixed by the
@@ -123,7 +125,7 @@ class LearnConfig:
     entry_s: float = 3600.0
     offset_s: float = 1800.0
     max_rate_hz: float = 100.0
-    session_gap_s: float = 600.0
+    session_gap_s: float = SESSION_GAP_S
     swap_delay_s: float = 5.0
 
 
@@ -403,8 +405,14 @@ class Learner:
     def caught_up(self) -> bool:
         """Return whether :meth:`step` has nothing to judge until the next sample arrives."""
         buf = self.buf
+        return not buf or self._waiting()
+
+    def _waiting(self) -> bool:
+        """Return whether the window in progress goes on (no sample beyond it, no restart)."""
         wend = self.still.window_end
-        return not buf or (wend is not None and buf[-SAMPLE] < wend)
+        t = self.buf[-SAMPLE]
+        return (wend is not None and t < wend
+                and (self.last_t is None or t >= self.last_t - RESTART_BACK_S))
 
     def save_due(self) -> bool:
         """Return whether ``save_period_s`` of stamp time passed since the last save."""
@@ -435,8 +443,7 @@ class Learner:
 
         """
         buf = self.buf
-        wend = self.still.window_end
-        if not buf or (not force and wend is not None and buf[-SAMPLE] < wend):
+        if not buf or (not force and self._waiting()):
             return False                  # the window in progress has not ended: wait
         # The core holds this array's extend method: empty it in place (call this on the
         # thread that compensates, as the node's timer does).
@@ -461,11 +468,12 @@ class Learner:
                 self._period = float(np.median(self._dts))
         pause = (GAP_PERIODS * self._period if self._period is not None
                  else self.config.session_gap_s)
-        pauses = np.flatnonzero(dt > pause).tolist()
+        back = set(np.flatnonzero(dt < -RESTART_BACK_S).tolist())   # the device restarted
+        pauses = sorted(set(np.flatnonzero(dt > pause).tolist()) | back)
         swapped = False
         for lo, hi in zip([0] + pauses, pauses + [t.size]):
             if hi > lo:
-                new = lo in pauses and self._pause(float(dt[lo]))
+                new = lo in back or (lo in pauses and self._pause(float(dt[lo])))
                 swapped = self._batch(t[lo:hi], w[lo:hi], None if acc is None else acc[lo:hi],
                                       temp[lo:hi], new) or swapped
         return swapped

@@ -125,3 +125,12 @@ def test_the_offset_follows_the_newest_still_time():
     assert run(1800.0) < 2e-5                       # about half the window's walk
     assert run(0.0) > 5e-5                          # the session's average lags
     assert math.isfinite(run(600.0))
+
+
+def test_a_device_clock_restart_is_a_new_session():
+    """Stamps stepping back (the IMU restarted, its clock from zero) start a new session."""
+    learner = Learner(LearnConfig(temperature_timeout=1e9))
+    _bursts(learner, 1000.0, 1, 10.0, burst=200.0)
+    assert learner.session == 0
+    _bursts(learner, 5.0, 1, 10.0, burst=100.0, seed=1)
+    assert learner.session == 1
