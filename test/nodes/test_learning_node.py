@@ -393,9 +393,11 @@ def test_a_failing_save_is_on_diagnostics_and_logged_once_a_minute(ros_context, 
     rig = LearnRig(ros_context, learn=True, learn_file=str(path), learn_save_period=1.0)
     try:
         node = rig.node
-        t = rig.feed(1000.0, 30.0, 20.0, np.array(BIAS), False, 1)
+        t = rig.feed(1000.0, 120.0, 20.0, np.array(BIAS), False, 1)
         spin_until(rig.executor, node.learning_caught_up, 10.0, what='learning')
-        assert path.is_file() and _values(node)['learn save error'] == ''
+        # The periodic save runs on the learner's thread a save period after the step.
+        spin_until(rig.executor, path.is_file, 10.0, what='the first save')
+        assert _values(node)['learn save error'] == ''
         where.rename(tmp_path / 'moved')
         where.write_text('not a directory any more\n')
         for k in range(4):                # four windows, each stepped and saved on its own

@@ -148,7 +148,10 @@ def test_a_malformed_message_a_1e30_reading_and_a_forged_model_in_a_2khz_stream(
     # The 1e30 reading was refused, said so, and changed nothing.
     assert v['temperatures rejected (implausible)'] == '1'
     assert any('temperatures rejected (implausible): 1 ' in s.message for s in reports)
-    assert counts['compensated'] == counts['in']
+    # Every sample compensated, or passed through and counted as such on /diagnostics (under
+    # load a sample may come before its temperature); none goes out unaccounted for.
+    passed = int(v['passed through'])
+    assert counts['compensated'] + passed == counts['in'], (counts, node.core.flag_counts)
     # No output marked compensated is non-finite or beyond the plausible bound.
     marked = 0
     for msg in rig.out:
@@ -157,8 +160,8 @@ def test_a_malformed_message_a_1e30_reading_and_a_forged_model_in_a_2khz_stream(
         if diagonal_marked(msg.angular_velocity_covariance):
             marked += 1
             assert all(abs(x - o) <= MAX_DRIFT_RAD_S for x, o in zip(w, OMEGA))
-    assert marked == len(rig.out)
+    assert marked == counts['compensated'] and marked >= len(rig.out) - passed
     expect = compensate(model, np.array([T0]), np.array([TEMP_C]), np.array([OMEGA]))[0]
     got = np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z)
-                    for m in rig.out])
+                    for m in rig.out if diagonal_marked(m.angular_velocity_covariance)])
     assert np.abs(got - expect).max() < 1e-3          # the good model throughout (+ noise)
