@@ -28,8 +28,14 @@ over the messages (the still test, binning, refits, installs). Then the same at 
 ``compensator_node``'s IMU callback (``raw_cdr``: the serialized message patched and
 published, no subscriber) called directly on the serialized stream, with ``learn`` off and
 on (its learner timer callback run every 100 messages and counted), which is the
-compensator's per-message cost the issue bounds (10 %). Times are this process's CPU time
-(``time.process_time``: other load on the host does not count)::
+compensator's per-message cost the issue bounds (10 %). Last, the cost of one learned-model
+swap on the thread that compensates (:meth:`~gyro_tdc.runtime.core.CompensatorCore.schedule`,
+due at once) in a core whose thermometer history is full (3 h at 1 Hz): a static model
+(``dT, dT2``, what the learner fits) as installed now, beside the replay of the history
+every swap did before (``prepare`` over the full history, then ``install``), and a model
+with time terms (lag, warm-up), which replays at most ``HISTORY_LENGTH`` readings. Times
+are this process's CPU time (``time.process_time``: other load on the host does not
+count)::
 
     .venv/bin/python bench/bench_learning.py                 # ~1 min
     .venv/bin/python bench/bench_learning.py --minutes 20 --trials 5
@@ -167,6 +173,35 @@ def bench_node(stream, trials: int) -> tuple[float, float] | None:
     return statistics.median(plain), statistics.median(learn)
 
 
+def bench_swap(trials: int) -> dict[str, float]:
+    """Return the median CPU s of one swap: static now, static as before, with time terms."""
+    from gyro_tdc.identify import fit_model
+    from gyro_tdc.runtime.priming import prepare
+    sys.path.insert(0, str(ROOT / 'test' / 'support'))
+    from synth import synth_run
+    timed = fit_model([synth_run(hours=1.0, rate_hz=2.0, cooling=True, seed=3)],
+                      features=('dT', 'dT2', 'lag', 'warmup'), n_centers=6, fit_params=False)
+    other = learned_model(np.array([[0.02, 0.0, 0.0], [9e-4, 0, 0], [2e-6, 0, 0]]),
+                          ('dT', 'dT2'), 20.0, (0.0, 60.0), np.full(3, 1e-6))
+    core = CompensatorCore(Policy(reanchor_on_start=False), MODEL)
+    for k in range(3 * 3600):
+        core.add_temperature(k - 0.25, 15.0 + 10.0 * k / 10800.0)
+        core.process(float(k), 0.01, 0.0, 0.0)
+    got: dict[str, list[float]] = {'static now': [], 'static before': [], 'time terms': []}
+    for i in range(trials):
+        for name in ('static now', 'static before', 'time terms'):
+            model = other if i % 2 else MODEL        # a different model every swap
+            c0 = time.process_time()
+            if name == 'static now':
+                core.schedule(model, None)
+            elif name == 'static before':
+                core.install(prepare(model, core.policy, core.priming()))
+            else:
+                core.schedule(timed, None)
+            got[name].append(time.process_time() - c0)
+    return {k: statistics.median(v) for k, v in got.items()}
+
+
 def main(argv=None) -> int:
     """Print plain vs learn per-message cost."""
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0].strip())
@@ -202,11 +237,18 @@ def main(argv=None) -> int:
     node = bench_node(stream, args.trials)
     if node is None:
         print('  (no rclpy here: the node figures are skipped)')
-        return 0
-    np_us, nl_us = node[0] * 1e6, node[1] * 1e6
-    print(f'  {"compensator_node callback, plain":<36}{np_us:>10.3f}')
-    print(f'  {"compensator_node callback, learn":<36}{nl_us:>10.3f}'
-          f'{100 * (nl_us - np_us) / np_us:>+9.1f}%')
+    else:
+        np_us, nl_us = node[0] * 1e6, node[1] * 1e6
+        print(f'  {"compensator_node callback, plain":<36}{np_us:>10.3f}')
+        print(f'  {"compensator_node callback, learn":<36}{nl_us:>10.3f}'
+              f'{100 * (nl_us - np_us) / np_us:>+9.1f}%')
+    swap = bench_swap(max(args.trials, 5))
+    print(f'one learned-model swap on the compensating thread, history full '
+          f'({CompensatorCore.HISTORY_LENGTH} readings), median CPU ms:')
+    print(f'  static model, now (no replay)      {swap["static now"] * 1e3:10.3f}')
+    print(f'  static model, before (replay)      {swap["static before"] * 1e3:10.3f}'
+          f'   ({swap["static before"] / max(swap["static now"], 1e-9):.0f}x)')
+    print(f'  lag + warm-up model (replay)       {swap["time terms"] * 1e3:10.3f}')
     return 0
 
 

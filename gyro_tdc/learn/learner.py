@@ -98,10 +98,10 @@ class LearnConfig:
         windows of the raw rate minus the fitted shape (the offset wanders: a random walk,
         bias instability); 0: the fit's intercept of the session.
     max_rate_hz : float, Hz
-        The core hands the learner a sample only when its stamp is at least
-        ``1 / max_rate_hz`` after the last one handed (by stamp, so a replay at any speed
-        hands the same samples): a 1 kHz IMU is learned from every 10th sample, plenty for
-        10 s still windows, and the message path stays cheap.
+        The core hands the learner at most one sample per ``1 / max_rate_hz`` of stamps
+        (by stamp, so a replay at any speed hands the same samples): from a faster IMU the
+        mean of the samples since the last hand-off (a 1 kHz IMU is learned from means of
+        10, a tenth of the noise variance of one sample), plenty for 10 s still windows.
     session_gap_s : float, s
         A gap in the IMU stamps longer than this starts a new session (a power-up: the
         gyro's turn-on offset changes; each session gets its own intercept in the fit), when

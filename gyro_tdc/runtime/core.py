@@ -22,6 +22,7 @@ rules it follows are in doc/internals/runtime.md.
 
 from __future__ import annotations
 
+from array import array
 from collections import deque
 from dataclasses import dataclass, field, replace
 import math
@@ -42,7 +43,8 @@ from gyro_tdc.runtime.temperature_hold import TemperatureHold
 import numpy as np
 
 __all__ = ['AccelEntry', 'AccelSlot', 'CompensatorCore', 'correction_is_safe', 'DriftEntry',
-           'LearningGate', 'ModelSlot', 'Output', 'Reanchoring', 'StreamState', 'Tally']
+           'LearningGate', 'ModelSlot', 'Output', 'Reanchoring', 'StreamState', 'Tally',
+           'timeless']
 
 #: What :meth:`CompensatorCore.process` returns, a plain tuple (a NamedTuple costs more per
 #: sample than the rest of the static path): ``(wx, wy, wz, variance, flags, accel,
@@ -55,6 +57,8 @@ Output = tuple[float, float, float, Vec3, int, Vec3 | None, Vec3 | None]
 _MAX_RATE = MAX_RATE_RAD_S
 _MAX_DRIFT = MAX_DRIFT_RAD_S
 _MAX_ACCEL_DRIFT = MAX_ACCEL_DRIFT_MPS2
+#: Floats per sample handed to the learner: stamp, rate (3), specific force (3; NaN: none).
+BLOCK_FIELDS = 7
 
 
 @dataclass(frozen=True, slots=True)
@@ -94,6 +98,24 @@ def correction_is_safe(b: Vec3, d: Vec3) -> bool:
     for bi, di in zip(b, d):
         if not di or not _MAX_RATE * abs(1.0 / di - 1.0) + abs(bi / di) <= 0.5 * _MAX_DRIFT:
             return False            # NaN fails the compare
+    return True
+
+
+def timeless(model: CompensationModel) -> bool:
+    """
+    Return whether ``model``'s output depends on the current temperature alone.
+
+    No time terms (warm-up, rates of change, ...: only ``STATIC_EFFECTS``) and no lagged
+    thermal state, in the gyro part and the accelerometer part: such a model has no filter
+    to replay, so installing it reads no thermometer history.
+    """
+    for part in (model, getattr(model, 'accel', None)):
+        if part is None:
+            continue
+        thermal = part.thermal
+        if not set(part.features) <= STATIC_EFFECTS or (
+                thermal is not None and thermal.kind != 'none'):
+            return False
     return True
 
 
@@ -205,14 +227,19 @@ class LearningGate:
     """
     The attached learner and the message path's one compare for all learning work.
 
-    ``extend`` is the learner's buffer's extend (one call a sample), ``next`` the next stamp
-    it takes a sample at (every ``period`` s); ``queue`` the learned models waiting for their
-    effective stamp, ``[stamp, PreparedModel]`` oldest first, ``due`` the first one's stamp;
-    ``gate`` the smaller of ``next`` and ``due``; ``installs`` the learned models installed.
+    ``extend`` is the learner's buffer's extend (one call a hand-off), ``block`` the samples
+    since the last hand-off (:data:`BLOCK_FIELDS` floats each), ``next`` the stamp of the
+    next hand-off (every ``period`` s: the block's mean, :meth:`CompensatorCore._learning`);
+    ``queue`` the learned models waiting for their effective stamp, ``[stamp,
+    PreparedModel]`` oldest first, ``due`` the first one's stamp; ``gate`` the stamp from
+    which :meth:`CompensatorCore.process` calls :meth:`CompensatorCore._learning` (-inf with
+    a learner: every sample joins the block); ``installs`` the learned models installed.
     """
 
     learner: Any = None
     extend: Callable[[tuple], None] | None = None
+    block: array = field(default_factory=lambda: array('d'))
+    block_extend: Callable[[tuple], None] | None = None
     period: float = math.inf
     next: float = math.inf
     queue: deque[tuple[float, PreparedModel]] = field(default_factory=deque)
@@ -328,11 +355,13 @@ class CompensatorCore:
         gate.learner = learner
         gate.extend = None
         gate.next = math.inf
+        del gate.block[:]
+        gate.block_extend = gate.block.extend
         if learner is not None:
             gate.extend = learner.buf.extend
             gate.period = 1.0 / learner.config.max_rate_hz
             gate.next = -math.inf
-        gate.gate = min(gate.next, gate.due)
+        gate.gate = self._gate()
 
     def learn_step(self) -> list:
         """
@@ -365,30 +394,44 @@ class CompensatorCore:
         Made ready now (:func:`prepare`; call it on the thread that compensates); installed
         at once when ``due`` is None or the message path has already passed it (late).
         """
-        prepared = prepare(model, self.policy, self.priming())
+        prepared = prepare(model, self.policy, self.priming(model))
         gate = self.learning
         last_t = self.stream.t
         if due is None or (last_t is not None and due <= last_t):
             gate.queue.clear()
             gate.due = math.inf
-            gate.gate = min(gate.next, gate.due)
+            gate.gate = self._gate()
             gate.installs += 1
             self.install(prepared)
             return
         gate.queue.append((due, prepared))
         gate.due = gate.queue[0][0]
-        gate.gate = min(gate.next, gate.due)
+        gate.gate = self._gate()
 
     def cancel_scheduled(self) -> None:
         """Drop the learned models waiting for their stamp (a model_file or a reset came)."""
         gate = self.learning
         gate.queue.clear()
         gate.due = math.inf
-        gate.gate = min(gate.next, gate.due)
+        gate.gate = self._gate()
+
+    def _gate(self) -> float:
+        """Return the stamp from which :meth:`process` calls :meth:`_learning`."""
+        gate = self.learning
+        return -math.inf if gate.extend is not None else gate.due
 
     def _learning(self, t: float, wx: float, wy: float, wz: float,
                   accel: Sequence[float] | None) -> None:
-        """Install a learned model that is due, hand the learner a sample (``gate`` passed)."""
+        """
+        Install a learned model that is due; add the sample to the learner's block.
+
+        The learner is handed the mean of the samples since the last hand-off (stamp, rate,
+        specific force) at most every ``period`` s of stamps (``max_rate_hz``), by stamp, so
+        a replay at any speed hands the same means: at 1-2 kHz a mean of 10-20 samples (a
+        tenth to a twentieth of the noise variance of one), slower streams sample by sample.
+        A block is closed at a pause in the stamps longer than 1.5 periods (a burst ends, a
+        gap), so no mean spans one. The per-sample work is one ``extend`` of the block.
+        """
         gate = self.learning
         if t >= gate.due:
             queue = gate.queue
@@ -396,23 +439,59 @@ class CompensatorCore:
             while queue and queue[0][0] <= t:
                 prepared = queue.popleft()[1]
             gate.due = queue[0][0] if queue else math.inf
+            gate.gate = self._gate()
             gate.installs += 1
             self.install(prepared)
-        if t >= gate.next:                    # at most max_rate_hz, by stamp
-            gate.next = t + gate.period
-            if accel is None:                 # Learner.observe's layout, one extend
-                gate.extend((t, wx, wy, wz, math.nan, math.nan, math.nan))
+            if gate.extend is None:           # no learner: nothing to hand
+                return
+        if t >= gate.next:                    # a hand-off is due, by stamp
+            extend = gate.extend
+            if extend is None:
+                return
+            block = gate.block
+            last = self.stream.t
+            if block and last is not None and t - last > 1.5 * gate.period:
+                # A pause: the block before it goes alone; this sample starts the next.
+                self._hand_off(block, extend)
             else:
-                ax, ay, az = accel
-                gate.extend((t, wx, wy, wz, ax, ay, az))
-        gate.gate = min(gate.next, gate.due)
+                if accel is None:
+                    block.extend((t, wx, wy, wz, math.nan, math.nan, math.nan))
+                else:
+                    ax, ay, az = accel
+                    block.extend((t, wx, wy, wz, ax, ay, az))
+                self._hand_off(block, extend)
+                gate.next = t + 0.999 * gate.period
+                return
+            gate.next = t + 0.999 * gate.period
+        if accel is None:
+            gate.block_extend((t, wx, wy, wz, math.nan, math.nan, math.nan))
+        else:
+            ax, ay, az = accel
+            gate.block_extend((t, wx, wy, wz, ax, ay, az))
+
+    @staticmethod
+    def _hand_off(block: array, extend: Callable) -> None:
+        """Hand the learner the mean of ``block``'s samples (NaN where one had none); empty it."""
+        n = len(block) // BLOCK_FIELDS
+        if n == 1:
+            extend(block)
+        elif n:
+            extend(tuple(sum(block[i::BLOCK_FIELDS]) / n for i in range(BLOCK_FIELDS)))
+        del block[:]
 
     # -- model ------------------------------------------------------------------------
 
-    def priming(self) -> Priming:
-        """Return a copy of what a new model's filters are replayed over (see :func:`prepare`)."""
+    def priming(self, model: CompensationModel | None = None) -> Priming:
+        """
+        Return a copy of what a new model's filters are replayed over (see :func:`prepare`).
+
+        For a :func:`timeless` ``model`` the copy has no thermometer history: it has no
+        filter to replay (its install costs what a model evaluation does, not a replay of
+        up to ``HISTORY_LENGTH`` readings).
+        """
         stream = self.stream
-        return Priming(stream.first, tuple(stream.history), stream.t, stream.temp)
+        history = () if model is not None and timeless(model) else tuple(stream.history)
+        return Priming(stream.first, history, stream.t, stream.temp)
 
     def set_model(self, model: CompensationModel | None) -> None:
         """
@@ -429,7 +508,7 @@ class CompensatorCore:
             self.slot = ModelSlot(model_id=self.slot.model_id)
             self._update_needs()
             return
-        self.install(prepare(model, self.policy, self.priming()))
+        self.install(prepare(model, self.policy, self.priming(model)))
 
     def install(self, prepared: PreparedModel) -> None:
         """
@@ -449,7 +528,10 @@ class CompensatorCore:
             prepared = prepare(prepared.model, self.policy, prepared.priming)
         model, comp = prepared.model, prepared.comp
         stream = self.stream
-        if stream.first is not None and stream.t is not None:
+        if timeless(model):               # no filter: nothing to replay
+            if stream.t is not None and stream.temp is not None:
+                advance(comp, stream.t, stream.temp)
+        elif stream.first is not None and stream.t is not None:
             state = prepared.replay
             if (state is None or prepared.priming.first != stream.first
                     or prepared.priming.last_t is None or stream.t < prepared.priming.last_t):
@@ -517,7 +599,7 @@ class CompensatorCore:
             gate.queue = deque((due, prepare(p.model, policy, p.priming))
                                for due, p in gate.queue)
             if self.slot.model is not None:
-                self.install(prepare(self.slot.model, policy, self.priming()))
+                self.install(prepare(self.slot.model, policy, self.priming(self.slot.model)))
         self._update_needs()
 
     def _accel_slot(self, model: CompensationModel, comp: StreamingCompensator,
@@ -877,6 +959,10 @@ class CompensatorCore:
         stepping back by more than ``RESTART_BACK_S`` (the device's clock restarted). The
         IMU was power-cycled, with a new turn-on offset: with ``reanchor_on_start`` the old
         shift is dropped and the re-anchoring starts over (a still window, then a new shift).
+        A power cycle restarts the model's time terms too, whatever the policy: the thermal
+        state starts again, settled, at the next temperature, the warm-up and the other
+        feature filters at the next sample (:meth:`StreamingCompensator.reset`); the
+        thermometer history a new model is replayed over starts at the break.
         """
         a = self.reanchoring
         k = self.tally.counts['in']
@@ -894,9 +980,18 @@ class CompensatorCore:
         a.session += 1
         a.session_t, a.session_k, a.session_why = t, k, why
         a.pauses, a.paused_s = 0, 0.0
+        slot = self.slot
+        stream = self.stream
+        stream.first = None               # set again at the session's first compensated sample
+        stream.history.clear()            # the new session's: from the reading held at t
+        held = self.temps.at(t)
+        if held is not None and t - held[1] <= self.policy.temperature_timeout and (
+                d < 0 or held[1] > stream.t):
+            stream.history.append((held[1], held[0]))
+        if slot.comp is not None:
+            slot.comp.reset()             # warm-up and thermal state from the power-on
         if not self.policy.reanchor_on_start:
             return
-        slot = self.slot
         if a.anchor is not None and slot.comp is not None:
             slot.comp.shift_offset(-np.asarray(a.anchor.delta, dtype=np.float64))
             slot.cache.clear()

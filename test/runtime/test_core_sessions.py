@@ -1,0 +1,71 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The core across power cycles: the model's time terms restart with the session."""
+
+from __future__ import annotations
+
+from gyro_tdc.identify import fit_model
+from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.policy import Policy
+import numpy as np
+import pytest
+from synth import synth_run
+
+
+@pytest.fixture(scope='module')
+def timed_model():
+    """A model with warm-up and a lagged thermal state (time terms)."""
+    run = synth_run(hours=1.0, rate_hz=2.0, cooling=True, seed=3)
+    return fit_model([run], features=('dT', 'dT2', 'lag', 'warmup'), n_centers=6,
+                     fit_params=False)
+
+
+def _session(t0, t_lo, t_hi, seed, n=1200, rate_hz=10.0):
+    rng = np.random.default_rng(seed)
+    t = t0 + np.arange(n) / rate_hz
+    tt = t0 - 0.25 + np.arange(0.0, n / rate_hz + 1.0)
+    tc = np.linspace(t_lo, t_hi, tt.size)
+    return t, rng.normal(0.01, 1e-3, (n, 3)), tt, tc
+
+
+def _feed(core, t, omega, tt, tc):
+    out, j = [], 0
+    for i in range(t.size):
+        while j < tt.size and tt[j] <= t[i]:
+            core.add_temperature(tt[j], tc[j])
+            j += 1
+        out.append(core.process(t[i], *omega[i])[:3])
+    return np.asarray(out)
+
+
+@pytest.mark.parametrize('second_t0', [5000.0 + 120.0 + 3600.0, 100.0])
+def test_a_power_cycle_restarts_warmup_and_thermal_state(timed_model, second_t0):
+    """After a gap or a clock restart the output is a fresh core's on the new session."""
+    first = _session(5000.0, 10.0, 40.0, seed=1)
+    second = _session(second_t0, 25.0, 15.0, seed=2)
+    core = CompensatorCore(Policy(reanchor_on_start=False), timed_model)
+    _feed(core, *first)
+    assert core.thermal_progress > 0.0
+    after = _feed(core, *second)
+    assert core.reanchoring.session == 2
+    fresh = _feed(CompensatorCore(Policy(reanchor_on_start=False), timed_model), *second)
+    np.testing.assert_allclose(after, fresh, rtol=0, atol=1e-12)
+    # A model installed after the break is primed over the new session only.
+    core.set_model(timed_model)
+    other = CompensatorCore(Policy(reanchor_on_start=False), timed_model)
+    _feed(other, *second)
+    other.set_model(timed_model)
+    t, w = second[0][-1] + 0.1, second[1][-1]
+    assert core.process(t, *w)[:3] == pytest.approx(other.process(t, *w)[:3], abs=1e-12)
