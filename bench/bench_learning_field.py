@@ -29,14 +29,15 @@ thermal drift is below the offset's wander, which no online correction removes a
 the day's own mean does). ``o/raw`` and ``b/orc``: the oracle (the true simulated curve
 and bias removed, the day's head re-anchored: what any compensation can reach) over the
 raw rate, and the batch fit over the oracle (worst axis). ``learn/eval`` is the ratio to
-the same fit re-anchored as ``evaluate --reanchor auto`` does (the head's shift applied from the day's first sample,
-which no node can: on a new power cycle it hides the first window's uncorrected turn-on
-offset).
+the same fit re-anchored as ``evaluate --reanchor auto`` does (the head's shift applied
+from the day's first sample, which no node can: on a new power cycle it hides the first
+window's uncorrected turn-on offset). Learning from 100 Hz and up: the core hands the
+learner means of the samples of each 10 ms.
 
 1. **Goal**: three days of 1 Hz, 5 -> 25 degC daily cycles (several seeds).
 2. **Sweep** (seeded): rates 1 Hz .. 2 kHz (100 Hz and up as bursts of 2 s every 2 min: a
-   logger records seconds out of minutes; the learner takes at most 100 samples a second of
-   them), thermometer resolution 0.004 .. 1 degC, white noise of a modern gyro (0.005
+   logger records seconds out of minutes; the learner is handed at most 100 means a second
+   of them), thermometer resolution 0.004 .. 1 degC, white noise of a modern gyro (0.005
    deg/s/sqrt(Hz)) or an L3GD20's (0.03), one or three power cycles with their own turn-on
    offsets, daily cycles, a slow ramp, cooling only, and a last day reaching beyond the
    others (partial range); days compressed to 6 h to keep the run short. Prints the pass
