@@ -26,25 +26,20 @@ from dataclasses import dataclass, field
 import math
 from typing import Sequence
 
-from gyro_tdc.base import SESSION_GAP_PERIODS, SESSION_GAP_S
+from gyro_tdc.base import SESSION_GAP_S
 from gyro_tdc.data.options import SESSION_MODES
 from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import DatasetError
-import numpy as np
-from numpy.typing import NDArray
+from gyro_tdc.signal import (break_why, BURST_FACTOR, BURST_PAUSES, gap_breaks, GAP_PERIODS,
+                             session_gap)
 
 __all__ = ['BURST_FACTOR', 'BURST_PAUSES', 'find_breaks', 'GAP_PERIODS', 'Session',
            'session_gap', 'SESSION_GAP_S', 'SESSION_MODES', 'SessionSplit', 'split_sessions']
 
 # SESSION_MODES (gyro_tdc.data.options): ``auto`` (a bag, cut at gaps and restarts), ``bag``
-# (one per bag), ``none`` (one offset for all the data, as one power cycle).
-# A stamp gap starts a new session when it is longer than SESSION_GAP_S (s) and than
-# GAP_PERIODS median sample periods (gyro_tdc.base.limits, shared with the compensator) ...
-GAP_PERIODS = SESSION_GAP_PERIODS
-#: ... and, in a bursty log (at least this many pauses longer than GAP_PERIODS periods) ...
-BURST_PAUSES = 5
-#: ... than this many times the median of those pauses (the log's own rhythm is no restart).
-BURST_FACTOR = 3.0
+# (one per bag), ``none`` (one offset for all the data, as one power cycle). The gap rule
+# (GAP_PERIODS, BURST_PAUSES, BURST_FACTOR, session_gap) is gyro_tdc.signal.sessions', shared
+# with the compensator's core and the learner.
 
 
 @dataclass(frozen=True)
@@ -126,48 +121,11 @@ class SessionSplit:
         return out
 
 
-def _steps(t: NDArray[np.float64]) -> NDArray[np.float64]:
-    return np.diff(np.asarray(t, dtype=np.float64))
-
-
-def session_gap(t: NDArray[np.float64], gap_s: float = 0.0) -> float:
-    """
-    Return the stamp gap (s) above which a run starts a new session.
-
-    Parameters
-    ----------
-    t : NDArray[np.float64], shape (N,), s
-        Increasing stamps of one run.
-    gap_s : float, s
-        A fixed threshold (``--session-gap``); 0: the automatic rule, the longest of
-        :data:`SESSION_GAP_S`, :data:`GAP_PERIODS` median sample periods and, when the log
-        pauses regularly (:data:`BURST_PAUSES` pauses or more longer than GAP_PERIODS
-        periods), :data:`BURST_FACTOR` times its median pause.
-
-    Returns
-    -------
-    float, s
-        The threshold.
-
-    """
-    if gap_s > 0:
-        return float(gap_s)
-    dt = _steps(t)
-    if dt.size == 0:
-        return math.inf
-    period = float(np.median(dt))
-    gap = max(SESSION_GAP_S, GAP_PERIODS * period)
-    pauses = dt[dt > GAP_PERIODS * period]
-    if pauses.size >= BURST_PAUSES:
-        gap = max(gap, BURST_FACTOR * float(np.median(pauses)))
-    return gap
-
-
 def find_breaks(run: Run, gap_s: float = 0.0) -> list[tuple[int, str]]:
     """
     Return where a run starts a new session: (first sample, why) in order.
 
-    A break is a stamp gap above :func:`session_gap`, or a restart that
+    A break is a stamp gap above :func:`gyro_tdc.signal.session_gap`, or a restart that
     :func:`gyro_tdc.data.dataset.load_run` found (the device clock stepped back;
     ``run.info['restarts']``: the first sample of each restarted part and the step back, s).
 
@@ -176,7 +134,7 @@ def find_breaks(run: Run, gap_s: float = 0.0) -> list[tuple[int, str]]:
     run : Run
         One run.
     gap_s : float, s
-        ``--session-gap`` (0: automatic, see :func:`session_gap`).
+        ``--session-gap`` (0: automatic, see :func:`gyro_tdc.signal.session_gap`).
 
     Returns
     -------
@@ -184,15 +142,10 @@ def find_breaks(run: Run, gap_s: float = 0.0) -> list[tuple[int, str]]:
         Sample index and ``'gap of X s'`` / ``'restart (stamps back by X s)'``.
 
     """
-    out: dict[int, str] = {}
-    if len(run) > 1:
-        limit = session_gap(run.t, gap_s)
-        dt = _steps(run.t)
-        for i in np.flatnonzero(dt > limit).tolist():
-            out[i + 1] = f'gap of {dt[i]:.0f} s'
+    out: dict[int, str] = {i: break_why(d) for i, d in gap_breaks(run.t, gap_s)}
     for i, back in run.info.get('restarts', ()):
         if 0 < int(i) < len(run):
-            out[int(i)] = f'restart (stamps back by {float(back):.0f} s)'
+            out[int(i)] = break_why(-float(back))
     return sorted(out.items())
 
 

@@ -29,7 +29,7 @@ import math
 from pathlib import Path
 from typing import Any, Sequence
 
-from gyro_tdc.base import RESTART_BACK_S, SESSION_GAP_PERIODS, SESSION_GAP_S
+from gyro_tdc.base import RESTART_BACK_S, SESSION_GAP_S
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, learned_model,
                                 MAX_DROPS, model_of, OUTLIER_K, predict_windows,
@@ -38,12 +38,14 @@ from gyro_tdc.learn.store import (decode_state, encode_state, FORMAT, read_state
                                   write_state)
 from gyro_tdc.learn.temperature import hold_readings, same_thermal, stream_state
 from gyro_tdc.model import CompensationModel, ThermalState
-from gyro_tdc.signal import MIN_STILL_S, STILL_WINDOW_S, StillWindows, Window
+from gyro_tdc.signal import (BURST_FACTOR, BURST_MAX_S, BURST_PAUSES, GAP_PERIODS, MIN_STILL_S,
+                             SessionRule, STILL_WINDOW_S, StillWindows, Window)
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['BIN_ENTRIES', 'CHECK_STRETCHES', 'FORMAT', 'Learner', 'LearnConfig',
-           'OUTLIER_K', 'SPAN_DT2_C', 'SPAN_DT3_C', 'SPAN_DT_C', 'BINS_DT2', 'BINS_DT3',
+__all__ = ['BIN_ENTRIES', 'BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'CHECK_STRETCHES',
+           'FORMAT', 'GAP_PERIODS', 'Learner', 'LearnConfig', 'OUTLIER_K', 'SPAN_DT2_C',
+           'SPAN_DT3_C', 'SPAN_DT_C', 'BINS_DT2', 'BINS_DT3',
            'MAX_DROPS', 'learned_model']
 
 NAN3 = (math.nan, math.nan, math.nan)
@@ -60,15 +62,8 @@ CHECK_ROWS = RECENT_ROWS
 SWAP_CHANGE = 0.02
 #: The sample period is the median of the stream's first this many intervals.
 PERIOD_STEPS = 64
-#: A gap starts a new session when it is also longer than this many sample periods ...
-GAP_PERIODS = SESSION_GAP_PERIODS
-#: ... and, once the stream pauses regularly (this many pauses over GAP_PERIODS periods) ...
-BURST_PAUSES = 5
-#: ... than this many times the median of its pauses (the batch rule of gyro_tdc.data) ...
-BURST_FACTOR = 3.0
-#: ... but a pause longer than this (s) is always a power-off: it is no part of the rhythm (a
-#: vehicle off every night for hours is not a bursty logger).
-BURST_MAX_S = 3600.0
+#: The session-break rule (GAP_PERIODS, BURST_PAUSES, BURST_FACTOR, BURST_MAX_S) is
+#: gyro_tdc.signal.sessions', shared with the trainer's batch split and the compensator's core.
 
 
 @dataclass(frozen=True)
@@ -226,7 +221,7 @@ class Learner:
         #: newest), and the sessions a gap started, ``(session, gap s)``.
         self._period: float | None = None
         self._dts: list[float] = []
-        self._pauses: list[float] = []
+        self._rule = SessionRule(self.config.session_gap_s)
         self._gap_starts: list[tuple[int, float]] = []
         #: A new session whose first stretch is not learned yet (:meth:`_early_offset`).
         self._fresh = False
@@ -482,30 +477,21 @@ class Learner:
         """
         Return the stamp gap (s) above which the stream starts a new session now.
 
-        The longest of ``session_gap_s``, :data:`GAP_PERIODS` sample periods and, once the
-        stream has paused :data:`BURST_PAUSES` times for longer than GAP_PERIODS periods,
-        :data:`BURST_FACTOR` times the median of those pauses (the batch rule,
-        :func:`gyro_tdc.data.session_gap`).
+        The shared rule (:func:`gyro_tdc.signal.gap_limit`): the longest of
+        ``session_gap_s``, :data:`GAP_PERIODS` sample periods and, once the stream has
+        paused :data:`BURST_PAUSES` times for longer than GAP_PERIODS periods,
+        :data:`BURST_FACTOR` times the median of those pauses (at most BURST_MAX_S).
         """
-        gap = self.config.session_gap_s
-        if self._period is not None:
-            gap = max(gap, GAP_PERIODS * self._period)
-        if len(self._pauses) >= BURST_PAUSES:
-            gap = max(gap, min(BURST_FACTOR * float(np.median(self._pauses)), BURST_MAX_S))
-        return gap
+        return self._rule.limit(self._period or 0.0)
 
     def _pause(self, gap: float) -> bool:
         """Note a pause of the stream (s); return whether it starts a new session."""
-        if gap > BURST_MAX_S:
+        period = self._period or 0.0
+        new = bool(self._rule.judge(gap, period))
+        self._merge_sessions(self._rule.limit(period))
+        if new:
             self._gap_starts = (self._gap_starts + [(self.session + 1, gap)])[-64:]
-            return True
-        self._pauses = (self._pauses + [gap])[-64:]
-        limit = self.session_gap()
-        self._merge_sessions(limit)
-        if gap <= limit:
-            return False
-        self._gap_starts = (self._gap_starts + [(self.session + 1, gap)])[-64:]
-        return True
+        return new
 
     def _merge_sessions(self, limit: float) -> None:
         """Merge into their predecessor the sessions whose gap the rule no longer cuts at."""

@@ -30,7 +30,7 @@ from operator import attrgetter
 from typing import Any, Callable, Sequence
 
 from gyro_tdc.base import (MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_RATE_RAD_S, MAX_TEMP_LEAD_S,
-                           RESTART_BACK_S, SESSION_GAP_PERIODS, SESSION_GAP_S)
+                           RESTART_BACK_S, SESSION_GAP_S)
 from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensator, variance_growth
 from gyro_tdc.runtime.flags import (FLAG_NAMES, IMPLAUSIBLE_INPUT, IMPLAUSIBLE_OUTPUT,
                                     NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
@@ -40,6 +40,7 @@ from gyro_tdc.runtime.priming import (advance, prepare, PREPARED_BY, prepared_fo
                                       Priming, replay, replay_from_first)
 from gyro_tdc.runtime.reanchor import Anchor, StillnessDetector, Vec3
 from gyro_tdc.runtime.temperature_hold import TemperatureHold
+from gyro_tdc.signal import SessionRule
 import numpy as np
 
 __all__ = ['AccelEntry', 'AccelSlot', 'CompensatorCore', 'correction_is_safe', 'DriftEntry',
@@ -220,6 +221,9 @@ class Reanchoring:
     session_why: str = ''
     pauses: int = 0
     paused_s: float = 0.0
+    #: The shared session-break rule (:class:`gyro_tdc.signal.SessionRule`): the stream's
+    #: rhythm over sessions.
+    rule: SessionRule = field(default_factory=SessionRule)
 
 
 @dataclass(slots=True)
@@ -953,9 +957,11 @@ class CompensatorCore:
         """
         Start a new session at stamp ``t`` when the step ``d`` from the last one is a break.
 
-        A break is what cuts a dataset's sessions: a pause longer than ``SESSION_GAP_S`` and
-        than ``SESSION_GAP_PERIODS`` sample periods (the session's mean step, its pauses over
-        ``SESSION_GAP_S`` left out), or stamps
+        A break is what cuts a dataset's sessions, the shared rule
+        (:class:`gyro_tdc.signal.SessionRule`, shown the steps over ``SESSION_GAP_S``): a
+        pause longer than ``SESSION_GAP_S``, than ``SESSION_GAP_PERIODS`` sample periods (the
+        session's mean step, its pauses over ``SESSION_GAP_S`` left out) and, once the stream
+        pauses regularly, than three times its median pause; or stamps
         stepping back by more than ``RESTART_BACK_S`` (the device's clock restarted). The
         IMU was power-cycled, with a new turn-on offset: with ``reanchor_on_start`` the old
         shift is dropped and the re-anchoring starts over (a still window, then a new shift).
@@ -966,17 +972,16 @@ class CompensatorCore:
         """
         a = self.reanchoring
         k = self.tally.counts['in']
+        period = 0.0
         if d > 0:
             steps = k - a.session_k - 1 - a.pauses
             period = ((self.stream.t - a.session_t - a.paused_s) / steps
                       if steps > 0 and a.session_t is not None else 0.0)
-            if not d > max(SESSION_GAP_S, SESSION_GAP_PERIODS * period):
-                a.pauses += 1
-                a.paused_s += d
-                return
-            why = f'gap of {d:.0f} s'
-        else:
-            why = f'restart (stamps back by {-d:.0f} s)'
+        why = a.rule.judge(d, period)
+        if not why:
+            a.pauses += 1
+            a.paused_s += d
+            return
         a.session += 1
         a.session_t, a.session_k, a.session_why = t, k, why
         a.pauses, a.paused_s = 0, 0.0

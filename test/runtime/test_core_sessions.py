@@ -69,3 +69,18 @@ def test_a_power_cycle_restarts_warmup_and_thermal_state(timed_model, second_t0)
     other.set_model(timed_model)
     t, w = second[0][-1] + 0.1, second[1][-1]
     assert core.process(t, *w)[:3] == pytest.approx(other.process(t, *w)[:3], abs=1e-12)
+
+
+def test_a_bursty_logger_is_one_power_cycle_once_its_rhythm_shows():
+    """20 s every 15 min: the shared rule's rhythm; then a 2 h pause is a power cycle."""
+    from gyro_tdc.signal import BURST_PAUSES
+    core = CompensatorCore(Policy(reanchor_on_start=True))
+    one = np.arange(0.0, 20.0, 0.1)
+    t = np.concatenate([k * 920.0 + one for k in range(12)])
+    for ts in t:
+        core.process(float(ts), 0.0, 0.0, 0.0)
+    assert core.reanchoring.session == BURST_PAUSES      # the first four pauses only
+    for ts in t[-1] + 7200.0 + one:
+        core.process(float(ts), 0.0, 0.0, 0.0)
+    assert core.reanchoring.session == BURST_PAUSES + 1
+    assert core.session_note.endswith('after a gap of 7200 s)')

@@ -1,0 +1,138 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The session-break rule (a power cycle in the stamps), in batch and streaming form.
+
+:func:`gap_limit` is the rule, :func:`session_gap` and :func:`gap_breaks` apply it to a
+whole run, :class:`SessionRule` one stamp step at a time; see doc/internals/signal.md.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+from gyro_tdc.base import RESTART_BACK_S, SESSION_GAP_PERIODS, SESSION_GAP_S
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'break_why', 'GAP_PERIODS',
+           'gap_breaks', 'gap_limit', 'PAUSES_KEPT', 'session_gap', 'SessionRule']
+
+#: A pause starts a new session when it is longer than ``gap_s`` and this many periods ...
+GAP_PERIODS = SESSION_GAP_PERIODS
+#: ... and, once the stream pauses regularly (this many pauses over GAP_PERIODS periods) ...
+BURST_PAUSES = 5
+#: ... than this many times the median of its pauses (a bursty logger's rhythm) ...
+BURST_FACTOR = 3.0
+#: ... but a pause longer than this (s) is no part of a rhythm: the burst limit never exceeds
+#: it, and such pauses are not counted in the median (a vehicle off every night is no logger).
+BURST_MAX_S = 3600.0
+#: The streaming form keeps the newest this many pauses.
+PAUSES_KEPT = 64
+
+
+def gap_limit(period: float, pauses: Sequence[float], gap_s: float = SESSION_GAP_S) -> float:
+    """
+    Return the stamp gap (s) above which a stream starts a new session.
+
+    The longest of ``gap_s``, :data:`GAP_PERIODS` sample periods and, with
+    :data:`BURST_PAUSES` or more ``pauses`` (steps over GAP_PERIODS periods, at most
+    :data:`BURST_MAX_S`), :data:`BURST_FACTOR` times their median, at most BURST_MAX_S.
+    """
+    gap = max(gap_s, GAP_PERIODS * period) if period > 0 else gap_s
+    if len(pauses) >= BURST_PAUSES:
+        gap = max(gap, min(BURST_FACTOR * float(np.median(pauses)), BURST_MAX_S))
+    return gap
+
+
+def break_why(d: float) -> str:
+    """Return a break's words: ``'gap of X s'``, or a restart for a step back (``d < 0``)."""
+    return f'gap of {d:.0f} s' if d > 0 else f'restart (stamps back by {-d:.0f} s)'
+
+
+def session_gap(t: NDArray[np.float64], gap_s: float = 0.0) -> float:
+    """
+    Return the gap (s) above which a whole run starts a new session (the batch form).
+
+    ``gap_s`` > 0 is a fixed threshold (``--session-gap``); 0: :func:`gap_limit` with the
+    median step as the period and every step over GAP_PERIODS of them (up to BURST_MAX_S)
+    as the pauses; inf for fewer than two stamps.
+    """
+    if gap_s > 0:
+        return float(gap_s)
+    dt = np.diff(np.asarray(t, dtype=np.float64))
+    if dt.size == 0:
+        return math.inf
+    period = float(np.median(dt))
+    pauses = dt[(dt > GAP_PERIODS * period) & (dt <= BURST_MAX_S)]
+    return gap_limit(period, pauses, SESSION_GAP_S)
+
+
+def gap_breaks(t: NDArray[np.float64], gap_s: float = 0.0) -> list[tuple[int, float]]:
+    """Return the gaps of increasing stamps ``t`` that start a session: (first sample, gap s)."""
+    t = np.asarray(t, dtype=np.float64)
+    if t.size < 2:
+        return []
+    dt = np.diff(t)
+    return [(i + 1, float(dt[i])) for i in np.flatnonzero(dt > session_gap(t, gap_s)).tolist()]
+
+
+class SessionRule:
+    """
+    The same rule one stamp step at a time (the compensator's core, the learner).
+
+    The caller estimates the sample period and shows the steps it judges (at least every
+    step over ``gap_s``); :meth:`judge` keeps the pauses among them (the stream's rhythm,
+    over sessions) and says which step is a break.
+
+    Parameters
+    ----------
+    gap_s : float, s
+        The shortest gap that is a break.
+
+    """
+
+    def __init__(self, gap_s: float = SESSION_GAP_S) -> None:
+        self.gap_s = float(gap_s)
+        self.pauses: list[float] = []
+
+    def reset(self) -> None:
+        """Forget the stream's rhythm."""
+        self.pauses = []
+
+    def limit(self, period: float) -> float:
+        """Return the gap (s) above which a step is a break now (:func:`gap_limit`)."""
+        return gap_limit(period, self.pauses, self.gap_s)
+
+    def judge(self, d: float, period: float) -> str:
+        """
+        Judge a stamp step ``d`` (s) of a stream sampled every ``period`` s.
+
+        Returns
+        -------
+        str
+            ``''``: no break (a pause over GAP_PERIODS periods is kept in the rhythm);
+            else :func:`break_why`: stamps back by over ``RESTART_BACK_S``, or a gap over
+            :meth:`limit` (judged with this pause counted).
+
+        """
+        if d < -RESTART_BACK_S:
+            return break_why(d)
+        if not d > GAP_PERIODS * period:          # NaN: no break
+            return ''
+        if d <= BURST_MAX_S:
+            self.pauses = (self.pauses + [float(d)])[-PAUSES_KEPT:]
+        return break_why(d) if d > self.limit(period) else ''
