@@ -26,13 +26,13 @@ with ``reanchor_on_start`` (a node with that model), and over the raw rate with 
 last-day mean removed. A scenario passes when both ratios are at most 1.05 and 1 on every
 axis (``b/raw``: the batch's own worst ratio to the raw rate: above 1 where the last day's
 thermal drift is below the offset's wander, which no online correction removes as well as
-the day's own mean does). ``o/raw`` and ``b/orc``: the oracle (the true simulated curve
-and bias removed, the day's head re-anchored: what any compensation can reach) over the
-raw rate, and the batch fit over the oracle (worst axis). ``learn/eval`` is the ratio to
-the same fit re-anchored as ``evaluate --reanchor auto`` does (the head's shift applied
-from the day's first sample, which no node can: on a new power cycle it hides the first
-window's uncorrected turn-on offset). Learning from 100 Hz and up: the core hands the
-learner means of the samples of each 10 ms.
+the day's own mean does). ``orc/raw`` and ``learn/orc``: the oracle (the true simulated
+curve and bias removed, the day's head re-anchored: what a perfect model re-anchored
+reaches) over the raw rate, and the learner over the oracle, per axis. ``learn/eval`` is
+the ratio to the same fit re-anchored as ``evaluate --reanchor auto`` does (the head's
+shift applied from the day's first sample, which no node can: on a new power cycle it
+hides the first window's uncorrected turn-on offset). Learning from 100 Hz and up: the
+core hands the learner means of the samples of each 10 ms.
 
 1. **Goal**: three days of 1 Hz, 5 -> 25 degC daily cycles (several seeds).
 2. **Sweep** (seeded): rates 1 Hz .. 2 kHz (100 Hz and up as bursts of 2 s every 2 min: a
@@ -145,15 +145,16 @@ def show(r: dict) -> None:
           f'{_axes(r["vs_raw"])}  '
           f'{"pass" if r["ok"] else "FAIL"}  {float(np.max(r["batch"] / r["raw"])):5.2f} '
           f'{r["swaps"]:4d} {r["points"]:4d} {r["session"] + 1:2d}  {feats:<12} '
-          f'{r["cpu_s"]:5.1f}  {float(np.max(r["oracle"] / r["raw"])):5.2f} '
-          f'{float(np.max(r["batch"] / r["oracle"])):5.2f}')
+          f'{r["cpu_s"]:5.1f}  {_axes(r["oracle"] / r["raw"])}  '
+          f'{_axes(r["learn"] / r["oracle"])}')
 
 
 def header() -> None:
     """Print the table head."""
     print(f'  {"scenario":<42} {"learn/batch x y z":<17}   {"learn/eval x y z":<17}   '
           f'{"learn/raw x y z":<17}  '
-          f'{"":4} b/raw swaps pts sess features     cpu s  o/raw b/orc')
+          f'{"":4} b/raw swaps pts sess features     cpu s  {"orc/raw x y z":<17}  '
+          f'learn/orc x y z')
 
 
 def summarise(rows: list[dict], label: str) -> None:
