@@ -29,7 +29,6 @@ import warnings
 from gyro_tdc.model import rbf_design
 import numpy as np
 from numpy.typing import NDArray
-from scipy.cluster.vq import kmeans2
 from scipy.optimize import least_squares
 
 __all__ = ['fit_linear', 'LinearFit', 'refine_rbf', 'RIDGE_GRID']
@@ -45,6 +44,7 @@ def _place_centers(xn: NDArray[np.float64], k: int, seed: int
     k = min(k, uniq.shape[0])
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
+        from scipy.cluster.vq import kmeans2    # ~0.1 s of imports: only for k-means centres
         centers, _ = kmeans2(xn, k, seed=rng, minit='++')
     centers = np.unique(centers, axis=0)
     k = centers.shape[0]

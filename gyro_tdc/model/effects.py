@@ -24,7 +24,9 @@ catalog. Adding an effect is one entry and its tests. See ``doc/internals/model.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+import functools
 import math
+import os
 from typing import Callable, Mapping, Sequence
 
 from gyro_tdc.errors import FeatureError
@@ -40,6 +42,38 @@ __all__ = [
 
 #: Input holds of :func:`first_order_lag`.
 HOLDS = ('step', 'linear')
+
+
+@functools.lru_cache(maxsize=1)
+def _iir_kernel() -> Callable:
+    """
+    Return ``lfilter(b, a, x, zi) -> (y, zf)`` for 1-D float64 input, scipy's own IIR kernel.
+
+    ``scipy.signal.lfilter`` hands 1-D input with ``len(a) > 1`` straight to the C routine
+    ``scipy.signal._sigtools._linear_filter``; importing ``scipy.signal`` for it costs ~0.6 s
+    a process (it imports scipy.stats). The extension is loaded on its own here, so the
+    result is bit for bit lfilter's; where that fails, lfilter itself is used.
+    """
+    try:
+        from importlib.machinery import EXTENSION_SUFFIXES, ExtensionFileLoader
+        from importlib.util import module_from_spec, spec_from_loader
+        import scipy
+        folder = os.path.join(scipy.__path__[0], 'signal')
+        path = next(os.path.join(folder, '_sigtools' + suffix) for suffix in EXTENSION_SUFFIXES
+                    if os.path.isfile(os.path.join(folder, '_sigtools' + suffix)))
+        loader = ExtensionFileLoader('scipy.signal._sigtools', path)
+        module = module_from_spec(spec_from_loader(loader.name, loader))
+        loader.exec_module(module)
+        kernel = module._linear_filter
+
+        def lfilter(b, a, x, zi):
+            return kernel(np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64),
+                          np.asarray(x, dtype=np.float64), -1, np.asarray(zi, dtype=np.float64))
+        lfilter([1.0, 0.0], [1.0, -0.5], np.ones(2), np.zeros(1))      # it runs, or fall back
+        return lfilter
+    except Exception:                                           # noqa: BLE001 (any failure)
+        from scipy.signal import lfilter as scipy_lfilter
+        return lambda b, a, x, zi: scipy_lfilter(b, a, x, zi=zi)
 
 
 def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str = 'step',
@@ -106,12 +140,12 @@ def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str
     if n == 1:
         return y
     if uniform and hold == 'linear':
-        from scipy.signal import lfilter
+        lfilter = _iir_kernel()
         a = math.exp(-dt / tau)
         c = tau * -math.expm1(-dt / tau) / dt
         # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]
         b0, b1 = 1.0 - c, c - a
-        y[1:], _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=np.array([b1 * u[0] + a * start]))
+        y[1:], _ = lfilter([b0, b1], [1.0, -a], u[1:], np.array([b1 * u[0] + a * start]))
         return y
     step = np.full(n - 1, dt) if uniform else np.maximum(np.diff(t), 0.0)
     a = np.exp(-step / tau)
@@ -124,9 +158,14 @@ def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str
     # y[k] = a_k y[k-1] + b_k as a prefix scan of the affine maps (a, b).
     shift = 1
     m = a.shape[0]
+    spare = np.empty(m)               # the products go to spare pages, not new arrays
     while shift < m:
-        b[shift:] = a[shift:] * b[:-shift] + b[shift:]
-        a[shift:] = a[shift:] * a[:-shift]
+        n = m - shift
+        np.multiply(a[shift:], b[:n], out=spare[:n])
+        np.add(spare[:n], b[shift:], out=b[shift:])
+        spare[:shift] = a[:shift]
+        np.multiply(a[shift:], a[:n], out=spare[shift:])
+        a, spare = spare, a
         shift *= 2
         if shift < m and a[shift - 1:].max() < 1e-17:
             break

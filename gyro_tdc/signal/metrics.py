@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import math
 
-import allantools
 import numpy as np
 from numpy.typing import NDArray
 
@@ -110,6 +109,7 @@ def allan_deviation(omega: NDArray[np.float64], rate_hz: float, *,
     omega = np.asarray(omega, dtype=np.float64) * _DEG
     out_t = None
     cols = []
+    import allantools   # with scipy.stats ~0.35 s: imported when an Allan deviation is asked for
     for ax in range(3):
         t, dev, _err, _n = allantools.oadev(omega[:, ax], rate=float(rate_hz),
                                             data_type='freq', taus=taus)

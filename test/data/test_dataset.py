@@ -265,3 +265,20 @@ def test_load_run_drops_a_thermometer_jump_as_the_node_does(tmp_path):
     run = load_run(tmp_path / 'bag', BagOptions(reference=(0.0, 0.0, 0.0)))
     assert run.info['rejected']['temp_implausible'] == 1
     assert np.abs(run.temp - 20.0).max() < 0.1
+
+
+def test_a_kept_run_of_rows_is_a_slice_and_a_gapped_one_stays_an_index():
+    """load_run keeps one contiguous run of samples as views; the values are the same."""
+    from gyro_tdc.data.dataset import _as_slice
+    x = np.arange(20.0)
+    mask = np.zeros(20, dtype=bool)
+    mask[3:17] = True
+    kept = _as_slice(mask)
+    assert kept == slice(3, 17)
+    assert np.shares_memory(x[kept], x) and np.array_equal(x[kept], x[mask])
+    mask[8] = False
+    assert _as_slice(mask) is mask
+    assert _as_slice(np.array([2, 3, 4])) == slice(2, 5)
+    rows = np.array([2, 4, 3])          # the same span, out of order: not a slice
+    assert _as_slice(rows) is rows
+    assert _as_slice(np.zeros(4, dtype=bool)).dtype == bool

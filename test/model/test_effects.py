@@ -308,3 +308,42 @@ def test_a_new_effect_is_one_catalog_entry(monkeypatch, tmp_path):
     stream = np.array([comp.step(a, b, c) for a, b, c in
                        zip(test.t[:n], test.temp[:n], test.omega[:n])])
     np.testing.assert_allclose(stream, batch, rtol=1e-9, atol=1e-12)
+
+
+def test_the_iir_kernel_is_scipy_lfilter_bit_for_bit_without_importing_scipy_signal():
+    """The uniform linear-hold lag runs scipy's own kernel, loaded without scipy.signal."""
+    import subprocess
+    import sys
+    code = (
+        'import sys, numpy as np\n'
+        'from gyro_tdc.model.effects import first_order_lag\n'
+        'rng = np.random.default_rng(3)\n'
+        'u = np.cumsum(rng.normal(size=5000))\n'
+        'y = first_order_lag(0.01, u, 7.5, hold="linear", y0=u[0] + 0.3)\n'
+        'assert "scipy.signal" not in sys.modules, "scipy.signal was imported"\n'
+        'from scipy.signal import lfilter\n'
+        'import math\n'
+        'a = math.exp(-0.01 / 7.5); c = 7.5 * -math.expm1(-0.01 / 7.5) / 0.01\n'
+        'b0, b1 = 1.0 - c, c - a\n'
+        'ref, _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=np.array([b1 * u[0] + a * (u[0] + 0.3)]))\n'
+        'assert np.array_equal(y[1:], ref), "differs from lfilter"\n'
+        'assert y[0] == u[0] + 0.3\n'
+        'print("ok")\n')
+    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == 'ok'
+
+
+def test_the_step_hold_scan_matches_the_sequential_recursion():
+    """The prefix scan (in place, spare buffer) equals y[k] = a_k y[k-1] + (1 - a_k) u[k]."""
+    rng = np.random.default_rng(5)
+    for n in (2, 3, 17, 1000, 4099):
+        t = np.cumsum(rng.uniform(0.0, 0.2, n))
+        u = rng.normal(size=n)
+        y = first_order_lag(t, u, 0.7)
+        ref = np.empty(n)
+        ref[0] = u[0]
+        for k in range(1, n):
+            a = np.exp(-(t[k] - t[k - 1]) / 0.7)
+            ref[k] = a * ref[k - 1] + (1.0 - a) * u[k]
+        np.testing.assert_allclose(y, ref, rtol=1e-12, atol=1e-12)

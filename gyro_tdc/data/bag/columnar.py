@@ -281,7 +281,10 @@ class _Sqlite3Blocks:
             f'({",".join(str(k) for v in self.ids.values() for k in v)}) '
             'ORDER BY timestamp', "rosbags' query")
         self._check_plan(query, 'the range query', (0, 1))
-        lo, hi = db.execute('SELECT min(timestamp), max(timestamp) FROM messages').fetchone()
+        # Two subqueries: each a single min() or max() that SQLite answers from the timestamp
+        # index; min() and max() in one SELECT scan the whole table (~0.2 s for 1 h at 1 kHz).
+        lo, hi = db.execute('SELECT (SELECT min(timestamp) FROM messages), '
+                            '(SELECT max(timestamp) FROM messages)').fetchone()
         if lo is None:
             return
         span = hi - lo + 1
