@@ -33,7 +33,9 @@ side, each stage a fresh process timed from outside (wall clock, its CPU, its pe
 and prints the medians, ``train / raw`` (goal <= 1.0), ``train / storage``, the peak RSS
 and the model id of every train run. ``--stages`` adds in-process stages of the older
 benchmark (``load``: ``load_run``; ``train_paper``: ``--features dT,dT2 --no-accel``;
-``rosbags``: ``read_bag(via='rosbags')``); ``--profile`` a cProfile of the train stage::
+``rosbags``: ``read_bag(via='rosbags')``; ``mcap_package``: the ``mcap`` PyPI package's
+``iter_messages``, the alternative to rosbags' chunk index for mcap, not a dependency);
+``--profile`` a cProfile of the train stage::
 
     .venv/bin/python bench/bench_train.py                       # both bags, both storages
     .venv/bin/python bench/bench_train.py --bags die --storage mcap --repeat 5 --profile
@@ -202,8 +204,37 @@ def _stage_rosbags(bag):
     return {'samples': len(read_bag(bag, via='rosbags').imu_t)}
 
 
+def _stage_mcap_package(bag):
+    """
+    The trainer's topics' bytes through the ``mcap`` PyPI package (mcap bags only).
+
+    The alternative the columnar read was measured against: ``make_reader(...)
+    .iter_messages(topics=...)`` in log-time order, touching every message's bytes. The
+    package is not a dependency; install it beside the venv to run this stage
+    (``pip install --target DIR mcap==1.6.0`` and ``PYTHONPATH=DIR``).
+    """
+    try:
+        from mcap.reader import make_reader
+    except ImportError:
+        raise SystemExit('bench_train: stage mcap_package needs the mcap package '
+                         '(pip install --target DIR mcap==1.6.0; PYTHONPATH=DIR)') from None
+    files = sorted(Path(bag).glob('*.mcap'))
+    if not files:
+        raise SystemExit(f'bench_train: stage mcap_package: {bag} holds no .mcap file')
+    count = nbytes = 0
+    for f in files:
+        with open(f, 'rb') as stream:
+            reader = make_reader(stream)
+            for _schema, _channel, message in reader.iter_messages(
+                    topics=['/imu/data_raw', '/imu/temperature'], log_time_order=True):
+                count += 1
+                nbytes += len(message.data)
+    return {'messages': count, 'bytes': nbytes}
+
+
 STAGES = {'raw_reader': _stage_raw_reader, 'load': _stage_load, 'train_paper':
-          _stage_train_paper, 'rosbags': _stage_rosbags, 'train': _stage_train}
+          _stage_train_paper, 'rosbags': _stage_rosbags, 'train': _stage_train,
+          'mcap_package': _stage_mcap_package}
 
 # The process stages: each a whole interpreter, as a user or a script would run it.
 _RAW = """
@@ -321,7 +352,8 @@ LABELS = {'raw': "rosbags' raw read (process: AnyReader.messages())",
           'train': 'gyro-tdc train BAG (process, defaults)',
           'raw_reader': "rosbags' raw read (rosbag2.Reader, in process)",
           'load': 'load_run (in process)', 'rosbags': "read_bag(via='rosbags') (in process)",
-          'train_paper': 'train --features dT,dT2 --no-accel (in process)'}
+          'train_paper': 'train --features dT,dT2 --no-accel (in process)',
+          'mcap_package': "the mcap package's iter_messages (in process)"}
 
 
 def _bag_path(name, storage, minutes, rate_hz):
