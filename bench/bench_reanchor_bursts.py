@@ -1,0 +1,250 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Re-anchoring on bursty and continuous streams, swept: seeded random rates, bursts, motion.
+
+Each case is one session streamed through ``CompensatorCore`` with the node's defaults: a
+rate of 1 Hz to 2 kHz (log-uniform), recorded continuously (a quarter of the cases) or as
+bursts of 1-20 s separated by pauses of 5-500 s (one session: below ``SESSION_GAP_S``), a
+thermometer resolving 0.004-1 degC on every sample, a linear drift the model (a line fitted
+on a continuous training run of the same sensor) knows, a turn-on offset of 0-0.5 deg/s it
+does not, white noise of 0.006-0.2 deg/s; in half the cases some of the first bursts (or
+stretches, continuous) move (a rate swing of 8-1000 x the noise on one axis). Judged:
+
+* fired: an anchor was taken (a case has at least 60 s of still time in its bursts);
+* error: the anchor's shift minus the mean noise-free compensated rate over the span it
+  averaged, over the noise floor (per-sample sigma) and over the anchor's own SE; a pass is
+  ``|error| <= 4 max(SE, tolerance)`` on every axis and no false anchor;
+* false anchor: the averaged span overlaps a moving burst.
+
+``--old COMMIT`` runs the re-anchoring of ``gyro_tdc/runtime/reanchor.py`` at that commit
+beside this tree's, on the same cases (the core is this tree's). Run:
+``.venv/bin/python bench/bench_reanchor_bursts.py --cases 60 --old HEAD`` (about 2 minutes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.util
+import math
+from pathlib import Path
+import subprocess
+import sys
+import tempfile
+import time
+
+ROOT = Path(__file__).resolve().parent.parent
+if str(ROOT) not in sys.path:
+    sys.path.insert(0, str(ROOT))
+
+from gyro_tdc.data import Run  # noqa: E402
+from gyro_tdc.identify import fit_model  # noqa: E402
+from gyro_tdc.model import compensate  # noqa: E402
+import gyro_tdc.runtime.core as core_mod  # noqa: E402
+from gyro_tdc.runtime import Policy  # noqa: E402
+import numpy as np  # noqa: E402
+
+DEG = math.pi / 180.0
+#: Samples a case streams at most (so 2 kHz cases hold shorter bursts in all).
+MAX_SAMPLES = 60_000
+#: Still time in bursts a case holds at least, s.
+STILL_S = 60.0
+
+
+def load_old(commit: str):
+    """Return the StillnessDetector of gyro_tdc/runtime/reanchor.py at ``commit``."""
+    src = subprocess.run(['git', '-C', str(ROOT), 'show', f'{commit}:gyro_tdc/runtime/reanchor.py'],
+                         check=True, capture_output=True, text=True).stdout
+    path = Path(tempfile.mkdtemp()) / 'reanchor_old.py'
+    path.write_text(src)
+    spec = importlib.util.spec_from_file_location('reanchor_old', path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod.StillnessDetector
+
+
+def draw(rng: np.random.Generator, k: int) -> dict:
+    """Draw one case."""
+    rate = float(10 ** rng.uniform(0.0, math.log10(2000.0)))
+    continuous = bool(rng.random() < 0.25)
+    burst = float(rng.uniform(1.0, 20.0))
+    pause = float(10 ** rng.uniform(math.log10(5.0), math.log10(500.0)))
+    return {'k': k, 'rate': rate, 'continuous': continuous,
+            'burst_s': math.inf if continuous else burst, 'pause_s': 0.0 if continuous else pause,
+            'res_c': float(10 ** rng.uniform(math.log10(0.004), 0.0)),
+            'offset_dps': float(rng.uniform(-0.5, 0.5)),
+            'sigma': float(10 ** rng.uniform(-4.0, math.log10(3.5e-3))),
+            'slope': float(rng.uniform(-2e-4, 2e-4)),
+            'cool_c_h': float(rng.choice([-1.0, 1.0]) * rng.uniform(0.5, 6.0)),
+            'motion': bool(rng.random() < 0.5),
+            'amp': float(10 ** rng.uniform(math.log10(8.0), 3.0)),
+            'seed': int(rng.integers(1 << 30))}
+
+
+def stamps(d: dict, rng: np.random.Generator):
+    """Return the stamps and the burst number of each sample."""
+    period = 1.0 / d['rate']
+    still_s = max(STILL_S, 3.0 * 10.0)
+    if d['continuous']:
+        n = int(min(MAX_SAMPLES, (still_s + 60.0) * d['rate']))
+        t = 1000.0 + np.arange(n) * period
+        seg = np.floor((t - t[0]) / 10.0).astype(np.int64)     # 10 s stretches
+        return t, seg
+    per = max(1, int(round(d['burst_s'] * d['rate'])))
+    bursts = int(np.clip(math.ceil(still_s / max(d['burst_s'], period)) + 6, 4,
+                         max(4, MAX_SAMPLES // per)))
+    parts, seg = [], []
+    t0 = 1000.0
+    for b in range(bursts):
+        parts.append(t0 + np.arange(per) * period)
+        seg.append(np.full(per, b))
+        t0 = parts[-1][-1] + d['pause_s'] * rng.uniform(0.9, 1.1)
+    return np.concatenate(parts), np.concatenate(seg)
+
+
+def model_for(d: dict):
+    """Fit a line on a continuous training run of the same sensor (no offset)."""
+    rng = np.random.default_rng(d['seed'] + 1)
+    t = np.arange(0.0, 3600.0, 1.0)
+    temp = 15.0 + 20.0 * t / t[-1]
+    tq = np.round(temp / d['res_c']) * d['res_c']
+    om = d['slope'] * (temp - 25.0)[:, None] + rng.normal(0.0, d['sigma'], (t.size, 3))
+    run = Run(t, tq, om, np.zeros_like(om), 'train')
+    return fit_model([run], kind='poly', features=('dT',), t0=25.0)
+
+
+def case(d: dict, detector_cls=None) -> dict:
+    """Stream one case through a core; return what its re-anchoring did."""
+    rng = np.random.default_rng(d['seed'])
+    t, seg = stamps(d, rng)
+    n = t.size
+    temp = 20.0 + d['cool_c_h'] * (t - t[0]) / 3600.0
+    tq = np.round(temp / d['res_c']) * d['res_c']
+    clean = np.full((n, 3), d['offset_dps'] * DEG) + d['slope'] * (temp - 25.0)[:, None]
+    raw = clean + rng.normal(0.0, d['sigma'], (n, 3))
+    moving = np.zeros(n, dtype=bool)
+    if d['motion']:
+        segs = int(seg[-1]) + 1
+        first = min(6, segs - 2)
+        pick = np.flatnonzero(rng.random(first) < 0.5)
+        pick = np.union1d(pick, rng.choice(segs, size=max(1, segs // 10), replace=False))
+        moving = np.isin(seg, pick)
+        axis = int(rng.integers(3))
+        f = rng.uniform(0.05, 0.4) * min(d['rate'], 10.0)
+        raw[moving, axis] += d['amp'] * d['sigma'] * np.sin(2 * math.pi * f * t[moving]
+                                                            + rng.uniform(0, 6.3))
+    model = model_for(d)
+    out_clean = compensate(model, t, tq, clean)
+    saved = core_mod.StillnessDetector
+    if detector_cls is not None:
+        core_mod.StillnessDetector = detector_cls
+    try:
+        core = core_mod.CompensatorCore(Policy(), model)
+    finally:
+        core_mod.StillnessDetector = saved
+    c0 = time.process_time()
+    add_t, proc = core.add_temperature, core.process
+    tl, tql, rl = t.tolist(), tq.tolist(), raw.tolist()
+    for i in range(n):
+        add_t(tl[i], tql[i])
+        w = rl[i]
+        proc(tl[i], w[0], w[1], w[2])
+    cpu = time.process_time() - c0
+    a = core.anchor
+    res = {'fired': a is not None, 'cpu_us': 1e6 * cpu / n, 'n': n, 'false': False,
+           'err_sigma': math.nan, 'err_se': math.nan, 'pass': False, 'anchor': a}
+    if a is None:
+        return res
+    span = (t >= a.t - a.duration_s - 1e-9) & (t <= a.t + 1e-9)
+    target = out_clean[span].mean(axis=0)
+    err = np.abs(np.asarray(a.delta) - target)
+    bound = 4.0 * np.maximum(np.asarray(a.se), np.asarray(a.tolerance))
+    res['false'] = bool(moving[span].any())
+    res['err_sigma'] = float((err / d['sigma']).max())
+    res['err_se'] = float((err / np.asarray(a.se)).max())
+    res['pass'] = bool(np.all(err <= bound)) and not res['false']
+    return res
+
+
+def _fmt(d: dict) -> str:
+    kind = 'continuous' if d['continuous'] else f"bursts {d['burst_s']:.1f} s / {d['pause_s']:.0f} s"
+    return (f"#{d['k']} {d['rate']:.1f} Hz {kind}, res {d['res_c']:.3f} C, sigma "
+            f"{d['sigma'] / DEG:.3f} dps, offset {d['offset_dps']:+.2f} dps"
+            + (f", motion {d['amp']:.0f}x" if d['motion'] else ''))
+
+
+def report(name: str, cases: list, results: list) -> None:
+    """Print pass rates and worst cases of one variant."""
+    fired = [r['fired'] for r in results]
+    cont = [r for d, r in zip(cases, results) if d['continuous']]
+    burst = [r for d, r in zip(cases, results) if not d['continuous']]
+    print(f'\n== {name}')
+    for label, rs in (('continuous', cont), ('bursty', burst), ('all', results)):
+        if not rs:
+            continue
+        print(f'  {label:10s} fired {sum(r["fired"] for r in rs)}/{len(rs)}, pass '
+              f'{sum(r["pass"] for r in rs)}/{len(rs)}, false anchors on motion '
+              f'{sum(r["false"] for r in rs)}/{sum(r["fired"] for r in rs)}')
+    motion = [(d, r) for d, r in zip(cases, results) if d['motion']]
+    print(f'  cases with motion: {len(motion)}, false anchors '
+          f'{sum(r["false"] for _, r in motion)}')
+    errs = [(r['err_sigma'], d, r) for d, r in zip(cases, results) if r['fired']]
+    errs.sort(key=lambda x: -x[0])
+    print('  worst offset errors (|error| / noise sigma, / own SE):')
+    for e, d, r in errs[:5]:
+        a = r['anchor']
+        print(f'    {e:.4f} sigma, {r["err_se"]:.2f} SE ({a.reason}, {a.samples} samples, '
+              f'{a.duration_s:.0f} s{", FALSE" if r["false"] else ""}): {_fmt(d)}')
+    miss = [d for d, f in zip(cases, fired) if not f]
+    print(f'  not fired ({len(miss)}):')
+    for d in miss[:8]:
+        print(f'    {_fmt(d)}')
+    cpu = [r['cpu_us'] for r in results]
+    print(f'  CPU per sample (process + add_temperature): median {np.median(cpu):.2f} us')
+
+
+def main(argv: list | None = None) -> int:
+    """Run the sweep; print pass rates and worst cases."""
+    p = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
+    p.add_argument('--cases', type=int, default=60)
+    p.add_argument('--seed', type=int, default=27)
+    p.add_argument('--old', default=None, metavar='COMMIT',
+                   help='also run the re-anchoring of this commit, alternating')
+    args = p.parse_args(argv)
+    rng = np.random.default_rng(args.seed)
+    cases = [draw(rng, k) for k in range(args.cases)]
+    old_cls = load_old(args.old) if args.old else None
+    new, old = [], []
+    for i, d in enumerate(cases):
+        order = [('new', None), ('old', old_cls)] if old_cls is not None else [('new', None)]
+        if i % 2 and old_cls is not None:
+            order.reverse()
+        for name, cls in order:
+            (new if name == 'new' else old).append(case(d, cls))
+    if old:
+        report(f'old ({args.old})', cases, old)
+        same = sum(1 for d, a, b in zip(cases, old, new) if d['continuous']
+                   and a['anchor'] == b['anchor'])
+        print(f'\n  continuous cases with the identical anchor old and new: {same}/'
+              f'{sum(d["continuous"] for d in cases)}')
+        ratio = [b['cpu_us'] / a['cpu_us'] for a, b in zip(old, new)]
+        print(f'  CPU per sample new/old: median {np.median(ratio):.3f}, '
+              f'min {min(ratio):.3f}')
+    report('new (this tree)', cases, new)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
