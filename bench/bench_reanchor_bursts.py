@@ -52,8 +52,8 @@ if str(ROOT) not in sys.path:
 from gyro_tdc.data import Run  # noqa: E402
 from gyro_tdc.identify import fit_model  # noqa: E402
 from gyro_tdc.model import compensate  # noqa: E402
-import gyro_tdc.runtime.core as core_mod  # noqa: E402
 from gyro_tdc.runtime import Policy  # noqa: E402
+import gyro_tdc.runtime.core as core_mod  # noqa: E402
 import numpy as np  # noqa: E402
 
 DEG = math.pi / 180.0
@@ -65,7 +65,8 @@ STILL_S = 60.0
 
 def load_old(commit: str):
     """Return the StillnessDetector of gyro_tdc/runtime/reanchor.py at ``commit``."""
-    src = subprocess.run(['git', '-C', str(ROOT), 'show', f'{commit}:gyro_tdc/runtime/reanchor.py'],
+    src = subprocess.run(['git', '-C', str(ROOT), 'show',
+                          f'{commit}:gyro_tdc/runtime/reanchor.py'],
                          check=True, capture_output=True, text=True).stdout
     path = Path(tempfile.mkdtemp()) / 'reanchor_old.py'
     path.write_text(src)
@@ -179,7 +180,8 @@ def case(d: dict, detector_cls=None) -> dict:
 
 
 def _fmt(d: dict) -> str:
-    kind = 'continuous' if d['continuous'] else f"bursts {d['burst_s']:.1f} s / {d['pause_s']:.0f} s"
+    kind = ('continuous' if d['continuous']
+            else f"bursts {d['burst_s']:.1f} s / {d['pause_s']:.0f} s")
     return (f"#{d['k']} {d['rate']:.1f} Hz {kind}, res {d['res_c']:.3f} C, sigma "
             f"{d['sigma'] / DEG:.3f} dps, offset {d['offset_dps']:+.2f} dps"
             + (f", motion {d['amp']:.0f}x" if d['motion'] else ''))

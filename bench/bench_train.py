@@ -206,7 +206,7 @@ def _stage_rosbags(bag):
 
 def _stage_mcap_package(bag):
     """
-    The trainer's topics' bytes through the ``mcap`` PyPI package (mcap bags only).
+    Read the trainer's topics' bytes through the ``mcap`` PyPI package (mcap bags only).
 
     The alternative the columnar read was measured against: ``make_reader(...)
     .iter_messages(topics=...)`` in log-time order, touching every message's bytes. The

@@ -325,7 +325,8 @@ def test_the_iir_kernel_is_scipy_lfilter_bit_for_bit_without_importing_scipy_sig
         'import math\n'
         'a = math.exp(-0.01 / 7.5); c = 7.5 * -math.expm1(-0.01 / 7.5) / 0.01\n'
         'b0, b1 = 1.0 - c, c - a\n'
-        'ref, _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=np.array([b1 * u[0] + a * (u[0] + 0.3)]))\n'
+        'zi = np.array([b1 * u[0] + a * (u[0] + 0.3)])\n'
+        'ref, _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=zi)\n'
         'assert np.array_equal(y[1:], ref), "differs from lfilter"\n'
         'assert y[0] == u[0] + 0.3\n'
         'print("ok")\n')

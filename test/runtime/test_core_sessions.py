@@ -26,7 +26,7 @@ from synth import synth_run
 
 @pytest.fixture(scope='module')
 def timed_model():
-    """A model with warm-up and a lagged thermal state (time terms)."""
+    """Return a model with warm-up and a lagged thermal state (time terms)."""
     run = synth_run(hours=1.0, rate_hz=2.0, cooling=True, seed=3)
     return fit_model([run], features=('dT', 'dT2', 'lag', 'warmup'), n_centers=6,
                      fit_params=False)

@@ -40,7 +40,7 @@ def timed_model():
 
 
 def _long_core(model):
-    """A core that has seen 3 h of 1 Hz thermometer (a full history) and IMU samples."""
+    """Return a core that has seen 3 h of 1 Hz thermometer (a full history) and IMU samples."""
     core = CompensatorCore(Policy(reanchor_on_start=False), model)
     w = (0.011, -0.019, 0.006)
     for k in range(3 * 3600):
