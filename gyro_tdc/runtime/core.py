@@ -448,30 +448,24 @@ class CompensatorCore:
             self.install(prepared)
             if gate.extend is None:           # no learner: nothing to hand
                 return
-        if t >= gate.next:                    # a hand-off is due, by stamp
-            extend = gate.extend
-            if extend is None:
-                return
-            block = gate.block
-            last = self.stream.t
-            if block and last is not None and t - last > 1.5 * gate.period:
-                # A pause: the block before it goes alone; this sample starts the next.
-                self._hand_off(block, extend)
-            else:
-                if accel is None:
-                    block.extend((t, wx, wy, wz, math.nan, math.nan, math.nan))
-                else:
-                    ax, ay, az = accel
-                    block.extend((t, wx, wy, wz, ax, ay, az))
-                self._hand_off(block, extend)
-                gate.next = t + 0.999 * gate.period
-                return
-            gate.next = t + 0.999 * gate.period
-        if accel is None:
-            gate.block_extend((t, wx, wy, wz, math.nan, math.nan, math.nan))
+        if accel is None:                     # Learner.observe's layout
+            sample = (t, wx, wy, wz, math.nan, math.nan, math.nan)
         else:
             ax, ay, az = accel
-            gate.block_extend((t, wx, wy, wz, ax, ay, az))
+            sample = (t, wx, wy, wz, ax, ay, az)
+        if t < gate.next:                     # no hand-off due yet, by stamp
+            gate.block_extend(sample)
+            return
+        gate.next = t + 0.999 * gate.period
+        block = gate.block
+        last = self.stream.t
+        if block and last is not None and t - last > 1.5 * gate.period:
+            # A pause: the block before it goes alone; this sample starts the next.
+            self._hand_off(block, gate.extend)
+            gate.block_extend(sample)
+        else:
+            gate.block_extend(sample)
+            self._hand_off(block, gate.extend)
 
     @staticmethod
     def _hand_off(block: array, extend: Callable) -> None:
