@@ -51,7 +51,7 @@ the samples of each 10 ms.
    with its held-out mean removed.
 
 Run: ``.venv/bin/python bench/bench_learning_field.py`` (about 3 minutes); ``--goal-seeds
-N``, ``--sweep N`` set the sizes.
+N``, ``--sweep N`` set the sizes, ``--case TEXT`` keeps the scenarios whose name holds TEXT.
 """
 
 from __future__ import annotations
@@ -228,6 +228,9 @@ def main(argv=None) -> int:
     p.add_argument('--sweep', type=int, default=8, help='sweep scenarios (default 8)')
     p.add_argument('--seed', type=int, default=0, help='sweep seed (default 0)')
     p.add_argument('--no-pan', action='store_true', help='skip the real recording')
+    p.add_argument('--case', default='', metavar='TEXT',
+                   help="run only the goal and sweep scenarios whose name holds TEXT (e.g. "
+                        "'2000 Hz cooling'; the sweep is still drawn with --sweep and --seed)")
     args = p.parse_args(argv)
     if args.goal_seeds < 0 or args.sweep < 0:
         print('bench_learning_field: error: sizes must be >= 0', file=sys.stderr)
@@ -235,6 +238,7 @@ def main(argv=None) -> int:
     t0 = time.time()
     for label, scen in (('goal', goal_scenarios(args.goal_seeds)),
                         ('sweep', sweep_scenarios(args.sweep, args.seed))):
+        scen = [(name, kw) for name, kw in scen if args.case in name]
         if not scen:
             continue
         print(f'{label}: last day, drift = RMS of 10 min means of the output error')
