@@ -229,8 +229,8 @@ def main(argv=None) -> int:
     p.add_argument('--seed', type=int, default=0, help='sweep seed (default 0)')
     p.add_argument('--no-pan', action='store_true', help='skip the real recording')
     p.add_argument('--case', default='', metavar='TEXT',
-                   help="run only the goal and sweep scenarios whose name holds TEXT (e.g. "
-                        "'2000 Hz cooling'; the sweep is still drawn with --sweep and --seed)")
+                   help='run only the goal and sweep scenarios whose name holds TEXT (e.g. '
+                        '"2000 Hz cooling"; the sweep is still drawn with --sweep and --seed)')
     args = p.parse_args(argv)
     if args.goal_seeds < 0 or args.sweep < 0:
         print('bench_learning_field: error: sizes must be >= 0', file=sys.stderr)
