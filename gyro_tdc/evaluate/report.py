@@ -111,7 +111,9 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
         shift_dps, se_dps, tolerance_dps, reason}``; ``accel_bs`` beside ``bs`` in ``raw``
         and each model: the accelerometer BS in (m/s^2)^2, null when not applicable;
         ``bs_over_floor``, ``accel_bs_over_floor``, ``floor`` and ``accel_floor`` only with
-        ``floor`` and ``accel_floor``.
+        ``floor`` and ``accel_floor``; ``constant_axes`` (only when there are any) in a bag:
+        the gyro axes reading their reference exactly (``p_vs_raw`` null there), in a
+        model: the axes it passes through unchanged (constant in its training data).
 
     """
     doc = {'bags': [{
@@ -128,7 +130,9 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
             'adev': {'tau_s': _vec(m.adev_tau_s),
                      'dps': [_vec(row) for row in np.asarray(m.adev_dps)]},
             **({} if m.reanchor is None else {'reanchor': m.reanchor}),
+            **({'constant_axes': list(m.constant_axes)} if m.constant_axes else {}),
         } for m in b.models],
+        **({'constant_axes': list(b.constant_axes)} if b.constant_axes else {}),
     } for b in bags]}
     doc['out_of_range'] = bags[0].out_of_range if bags else DEFAULT_OUT_OF_RANGE
     if floor is not None:
@@ -156,6 +160,36 @@ def _g(v: float, width: int = 11) -> str:
     if not math.isfinite(v):
         return f'{"-":>{width}}'
     return f'{v:>{width}.4g}'
+
+
+#: The BS/BS1 cell of an axis with nothing to score (it reads its reference exactly).
+_CONST = 'const'
+
+
+def _ratio_cells(p: Sequence[float], constant: Sequence[str], width: int = 11) -> str:
+    """Return the BS/BS1 cells of one row, ``const`` on the constant axes."""
+    return ''.join(f'{_CONST:>{width}}' if a in constant else _g(v, width)
+                   for a, v in zip(AXES, p))
+
+
+def _constant_notes(b: BagEval) -> list:
+    """Return the lines naming a bag's constant gyro axes and the models' identity axes."""
+    out = []
+    if b.constant_axes:
+        many = len(b.constant_axes) > 1
+        out.append(f'  note: gyro ax{"es" if many else "is"} {", ".join(b.constant_axes)} '
+                   f'read{"" if many else "s"} the reference rate exactly on every sample '
+                   '(constant: a 2-axis gyro or a dead axis): no error to score, BS/BS1 '
+                   f'{_CONST}')
+    groups: dict = {}
+    for m in b.models:
+        if m.constant_axes:
+            groups.setdefault(tuple(m.constant_axes), []).append(m.label)
+    for axes, labels in groups.items():
+        out.append(f'  note: {", ".join(labels)} pass{"" if len(labels) > 1 else "es"} gyro '
+                   f'ax{"es" if len(axes) > 1 else "is"} {", ".join(axes)} through '
+                   'unchanged (constant in the training data: not fitted)')
+    return out
 
 
 # BagEval.reference (where the reference rate came from) in words.
@@ -218,10 +252,11 @@ def format_summary(b: BagEval, *, floor: Sequence[float] | None = None,
     for m in [b.raw] + list(b.models):
         lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in m.bs) + '  '
                      + ''.join(_g(v) for v in m.rms_dps) + '  '
-                     + ''.join(_g(v) for v in m.p_vs_raw) + _floor_cells(m.bs, floor))
+                     + _ratio_cells(m.p_vs_raw, b.constant_axes) + _floor_cells(m.bs, floor))
     note = _outside_note(b)
     if note:
         lines.append(note)
+    lines += _constant_notes(b)
     lines += _accel_rows(b, w, accel_floor)
     return '\n'.join(lines)
 
@@ -286,16 +321,21 @@ def format_paper_table(b: BagEval, conventional: int, modified: int) -> str:
     """
     from gyro_tdc.signal import p_ratios
     conv, modi = b.models[conventional], b.models[modified]
-    p = p_ratios(b.raw.bs, conv.bs, modi.bs)
+    with np.errstate(divide='ignore', invalid='ignore'):    # a constant axis: 0 / 0
+        p = p_ratios(b.raw.bs, conv.bs, modi.bs)
     lines = [f'  paper table (eq. 31-32), {b.label}: BS1 raw, BS2 {conv.label} '
              f'(conventional), BS3 {modi.label} (modified); BS in (deg/s)^2',
              f'  {"":<7}' + ''.join(f'{h:>11}' for h in ('BS1', 'BS2', 'BS3', 'P1', 'P2'))
              + f'{"P3":>10}']
     for i, a in enumerate(AXES):
         p3 = p['P3'][i]
-        p3s = f'{100.0 * p3:>9.2f}%' if math.isfinite(p3) else f'{"-":>10}'
+        if a in b.constant_axes:
+            ratios = f'{_CONST:>11}{_CONST:>11}{_CONST:>10}'
+        else:
+            ratios = (_g(p['P1'][i]) + _g(p['P2'][i])
+                      + (f'{100.0 * p3:>9.2f}%' if math.isfinite(p3) else f'{"-":>10}'))
         lines.append(f'  {a + "-axis":<7}' + _g(b.raw.bs[i]) + _g(conv.bs[i]) + _g(modi.bs[i])
-                     + _g(p['P1'][i]) + _g(p['P2'][i]) + p3s)
+                     + ratios)
     return '\n'.join(lines)
 
 
@@ -365,9 +405,10 @@ def format_means(results: Sequence[BagEval], *, floor: Sequence[float] | None = 
              + ('' if floor is None else f', BS/fl against the floor {_floor_text(floor)}'),
              f'  {"":<{w}} ' + ''.join(f'{"BS " + a:>11}' for a in AXES) + '  '
              + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES) + _floor_head(floor)]
+    constant = [a for a in AXES if all(a in b.constant_axes for b in results)]
     for label, bs, p in rows:
         lines.append(f'  {label:<{w}} ' + ''.join(_g(v) for v in bs) + '  '
-                     + ''.join(_g(v) for v in p) + _floor_cells(bs, floor))
+                     + _ratio_cells(p, constant) + _floor_cells(bs, floor))
     return '\n'.join(lines)
 
 
@@ -548,7 +589,9 @@ def format_training(result: TrainResult) -> tuple[str, list]:
     Returns
     -------
     text : str
-        Model summary, training BS raw and compensated per axis, coverage.
+        Model summary, the constant gyro axes (one line, when there are any: not fitted,
+        passed through unchanged, their compensated figures the raw ones), training BS raw
+        and compensated per axis, coverage.
     warnings : list of str
         Coverage warnings, and that the thermal state's tau is not identifiable when so.
 
@@ -578,12 +621,15 @@ def format_training(result: TrainResult) -> tuple[str, list]:
     lines = [head, f'TRAINED RANGE {lo:.2f} .. {hi:.2f} degC ({of}); beyond it the compensator '
                    'continues the correction along its tangent (out_of_range: linear) for up '
                    f'to {MAX_EXTRAPOLATION_C:g} degC, then holds it',
-             f'training data: {len(result.bags)} bag(s), {result.samples} samples',
-             'training bias stability BS, (deg/s)^2:',
-             f'  {"":<13}' + ''.join(f'{a:>12}' for a in AXES),
-             _row3('raw', met.get('raw_bs_dps2', [math.nan] * 3)),
-             _row3('compensated', met.get('train_bs_dps2', [math.nan] * 3)),
-             _row3('RMS (deg/s)', met.get('train_rms_dps', [math.nan] * 3))]
+             f'training data: {len(result.bags)} bag(s), {result.samples} samples']
+    constant = result.constant_line() if hasattr(result, 'constant_line') else ''
+    if constant:                # one line: the axes not fitted, passed through unchanged
+        lines.append(constant)
+    lines += ['training bias stability BS, (deg/s)^2:',
+              f'  {"":<13}' + ''.join(f'{a:>12}' for a in AXES),
+              _row3('raw', met.get('raw_bs_dps2', [math.nan] * 3)),
+              _row3('compensated', met.get('train_bs_dps2', [math.nan] * 3)),
+              _row3('RMS (deg/s)', met.get('train_rms_dps', [math.nan] * 3))]
     if np.any(m.scale != 0):
         lines.append(_row3('scale (1/C)', m.scale))
     lines.append(_row3('drift/degC', drift_slope(m)) + '   (deg/s per degC: static drift, '

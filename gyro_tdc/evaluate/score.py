@@ -98,6 +98,9 @@ class ModelEval:
         Accelerometer BS (variance around the run mean over the still samples) after the
         model's accelerometer part (raw: of the raw data); None when not applicable (no
         accelerometer data, a run not static, a model without an accelerometer part).
+    constant_axes : list of str
+        The gyro axes the model does not correct: constant in its training data, passed
+        through unchanged (``model.metrics['constant_axes']``; empty for the raw data).
 
     """
 
@@ -116,6 +119,7 @@ class ModelEval:
     omega: NDArray[np.float64] | None = field(default=None, repr=False)
     reanchor: dict | None = None
     accel_bs: NDArray[np.float64] | None = None
+    constant_axes: list = field(default_factory=list)
 
 
 @dataclass
@@ -147,6 +151,10 @@ class BagEval:
         The out-of-range policy the models were evaluated with (:func:`evaluate_run` sets
         it; ``'clamp'``, what every evaluation did before the policy existed, when a result
         is built by hand).
+    constant_axes : list of str
+        The gyro axes that read exactly their reference rate on every sample (raw BS 0: a
+        constant axis, e.g. the 0 a driver fills in for a 2-axis gyro): there is no error to
+        score, BS/BS1 does not apply there (NaN, not a number to read).
 
     """
 
@@ -160,6 +168,7 @@ class BagEval:
     models: list
     run: Run | None = field(default=None, repr=False)
     out_of_range: str = 'clamp'
+    constant_axes: list = field(default_factory=list)
 
     def release(self) -> None:
         """Drop the sample arrays (keep the scores)."""
@@ -353,8 +362,9 @@ def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: st
     -------
     ModelEval
         BS = mean((omega - omega_ref)^2) per axis in (deg/s)^2 (paper eq. 30), RMS in
-        deg/s, BS / ``bs_raw``, Allan deviation of the error (empty below 4 samples) and its
-        readouts; the rate itself kept in ``omega``.
+        deg/s, BS / ``bs_raw`` (NaN on an axis whose raw BS is 0, without a warning),
+        Allan deviation of the error (empty below 4 samples) and its readouts; the rate
+        itself kept in ``omega``.
 
     """
     err = omega - run.omega_ref
@@ -364,8 +374,11 @@ def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: st
     else:
         tau, adev = np.zeros(0), np.zeros((0, 3))
     nr = noise_readouts(tau, adev)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        p = np.ones(3) if bs_raw is None else bs / bs_raw
+    if bs_raw is None:
+        p = np.ones(3)
+    else:                   # an axis reading its reference exactly (raw BS 0): no ratio
+        bs_raw = np.asarray(bs_raw, dtype=np.float64)
+        p = np.divide(bs, bs_raw, out=np.full(3, math.nan), where=bs_raw > 0)
     return ModelEval(model=model, label=label, features=list(features), bs=bs,
                      rms_dps=rms_dps(err), p_vs_raw=p, adev_tau_s=np.asarray(tau),
                      adev_dps=np.asarray(adev), arw_deg_sqrt_h=nr['arw_deg_sqrt_h'],
@@ -464,6 +477,7 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         ev = score(comp, run, label=nm.label, model=nm.name, features=list(m.features),
                    bs_raw=raw.bs, rate=rate)
         ev.reanchor = info
+        ev.constant_axes = [str(a) for a in m.metrics.get('constant_axes', ())]
         lo, hi = m.temp_range_c
         ev.temp_range_c = (lo, hi)
         temp = model_temperature(m, run.t, run.temp)     # the range is the thermal state's
@@ -478,7 +492,8 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     return BagEval(bag=run.name, label=label or safe_label(run.name), samples=len(run),
                    temperature_c=(float(run.temp.min()), float(run.temp.max())),
                    duration_s=run.duration_s, reference=str(run.info.get('reference', '?')),
-                   raw=raw, models=out, run=run, out_of_range=out_of_range)
+                   raw=raw, models=out, run=run, out_of_range=out_of_range,
+                   constant_axes=[a for a, v in zip('xyz', raw.bs) if not v > 0])
 
 
 def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
@@ -547,13 +562,19 @@ def mean_scores(results: Sequence[BagEval]) -> list:
     Returns
     -------
     list of (str, NDArray[np.float64], NDArray[np.float64])
-        ``(label, mean BS in (deg/s)^2, mean BS/BS1)`` for the raw data, then each model.
+        ``(label, mean BS in (deg/s)^2, mean BS/BS1)`` for the raw data, then each model;
+        BS/BS1 over the bags where it is a number (NaN, without a warning, on an axis
+        reading its reference exactly in every bag).
 
     """
     rows = [('raw', [b.raw for b in results])] + [
         (m.label, [b.models[i] for b in results]) for i, m in enumerate(results[0].models)]
     out = []
     for label, evs in rows:
-        out.append((label, np.mean([e.bs for e in evs], axis=0),
-                    np.mean([e.p_vs_raw for e in evs], axis=0)))
+        p = np.array([e.p_vs_raw for e in evs], dtype=np.float64)
+        ok = np.isfinite(p)
+        n = ok.sum(axis=0)
+        mean_p = np.divide(np.where(ok, p, 0.0).sum(axis=0), n, out=np.full(3, math.nan),
+                           where=n > 0)
+        out.append((label, np.mean([e.bs for e in evs], axis=0), mean_p))
     return out

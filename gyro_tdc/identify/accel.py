@@ -40,7 +40,7 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['ACCEL_EFFECTS', 'AccelFit', 'G0', 'MG', 'MIN_STATIC_FRACTION', 'PX4_FEATURES',
            'accel_features', 'accel_scores', 'compensate_accel', 'constant_axes',
-           'constant_note', 'discovery_runs', 'fit_accel']
+           'constant_axes_of', 'constant_note', 'constant_values', 'discovery_runs', 'fit_accel']
 
 #: Standard gravity, m/s^2 per g.
 G0 = 9.80665
@@ -60,8 +60,8 @@ def constant_axes(values: ArrayLike) -> NDArray[np.bool_]:
 
     An axis is constant when its finite readings take at most two values (two values are
     one quantum apart by definition: the smallest step seen): a driver that fills a fixed
-    value (e.g. exactly ``(0, 0, g)``) or a sensor whose drift stays below its resolution.
-    There is nothing to fit on such an axis.
+    value (e.g. exactly ``(0, 0, g)``, or a gyro axis of a 2-axis part as 0) or a sensor
+    whose drift stays below its resolution. There is nothing to fit on such an axis.
 
     Parameters
     ----------
@@ -74,7 +74,7 @@ def constant_axes(values: ArrayLike) -> NDArray[np.bool_]:
         True for the constant axes (also when an axis has no finite reading).
 
     """
-    return _constant_axes([np.asarray(values, dtype=np.float64).reshape(-1, 3)])
+    return constant_axes_of([values])
 
 
 def _finite(v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -83,12 +83,28 @@ def _finite(v: NDArray[np.float64]) -> NDArray[np.float64]:
     return v if ok.all() else v[ok]
 
 
-def _constant_axes(arrays: Sequence[NDArray[np.float64]]) -> NDArray[np.bool_]:
-    """Return :func:`constant_axes` of the readings of ``arrays`` (N_k, 3) taken together."""
+def constant_axes_of(arrays: Sequence[ArrayLike]) -> NDArray[np.bool_]:
+    """
+    Return :func:`constant_axes` of the readings of several runs taken together.
+
+    Parameters
+    ----------
+    arrays : sequence of ArrayLike, shape (N_k, 3) each
+        The readings of each run (e.g. ``run.omega`` or ``run.accel``; NaN ignored).
+
+    Returns
+    -------
+    NDArray[np.bool_], shape (3,)
+        True for the axes whose finite readings over every run together take at most two
+        values (also when an axis has no finite reading at all).
+
+    """
+    arrays = [np.asarray(a, dtype=np.float64).reshape(-1, 3) for a in arrays]
     out = np.ones(3, dtype=bool)
     for i in range(3):
         # Three distinct finite values among the first few: not constant, no full pass.
-        head = np.unique(np.concatenate([_finite(a[:64, i]) for a in arrays]))
+        head = np.unique(np.concatenate([_finite(a[:64, i]) for a in arrays]
+                                        or [np.zeros(0)]))
         if head.size > 2:
             out[i] = False
             continue
@@ -101,6 +117,22 @@ def _constant_axes(arrays: Sequence[NDArray[np.float64]]) -> NDArray[np.bool_]:
     return out
 
 
+def constant_values(arrays: Sequence[ArrayLike]) -> NDArray[np.float64]:
+    """
+    Return, per axis, the first finite reading of ``arrays`` (NaN for an axis with none).
+
+    What a constant axis reads (:func:`constant_axes_of`), for the report line.
+    """
+    out = np.full(3, np.nan)
+    for a in arrays:
+        a = np.asarray(a, dtype=np.float64).reshape(-1, 3)
+        for i in np.flatnonzero(np.isnan(out)):
+            v = _finite(a[:, i])
+            if v.size:
+                out[i] = v[0]
+    return out
+
+
 def constant_note(runs: Sequence[Run]) -> str:
     """
     Return why the accelerometer of ``runs`` counts as absent ('' when it does not).
@@ -109,11 +141,11 @@ def constant_note(runs: Sequence[Run]) -> str:
     """
     acc = [np.asarray(r.accel, dtype=np.float64).reshape(-1, 3) for r in runs
            if r.accel is not None]
-    if not acc or not _constant_axes(acc).all():
+    if not acc or not constant_axes_of(acc).all():
         return ''
     rows = [a[np.isfinite(a).all(axis=1)] for a in acc]
     first = next((x[0] for x in rows if len(x)), None)
-    value = ', '.join(f'{v:.6g}' for v in (np.concatenate(acc)[0] if first is None else first))
+    value = ', '.join(f'{v:.6g}' for v in (constant_values(acc) if first is None else first))
     return (f'the accelerometer readings are constant (({value}) m/s^2, never varying '
             'beyond one quantum: a driver filling a fixed value); treated as absent')
 

@@ -16,7 +16,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from gyro_tdc.data import Coverage
@@ -53,6 +53,10 @@ class TrainResult:
         With ``train --still-only``: the still time, its coverage and what to record next.
     sessions : gyro_tdc.data.SessionSplit, optional
         The sessions the bags were cut into (one turn-on offset each).
+    constant : dict
+        The gyro axes whose readings never vary beyond one quantum, axis name (``'z'``) ->
+        what they read in rad/s: not fitted, the model passes them through unchanged
+        (``model.metrics['constant_axes']``); empty when every axis varies.
 
     """
 
@@ -65,3 +69,15 @@ class TrainResult:
     accel: AccelFit | None = None
     still: object | None = None
     sessions: object | None = None
+    constant: dict = field(default_factory=dict)
+
+    def constant_line(self) -> str:
+        """Return the one report line naming the constant gyro axes ('' when none)."""
+        if not self.constant:
+            return ''
+        many = len(self.constant) > 1
+        values = ', '.join(f'{v:.6g}' for v in self.constant.values())
+        return (f'gyro ax{"es" if many else "is"} {", ".join(self.constant)}: constant at '
+                f'{values} rad/s (never varying beyond one quantum: a 2-axis gyro or a dead '
+                f'axis); not fitted: the model passes {"them" if many else "it"} through '
+                'unchanged')

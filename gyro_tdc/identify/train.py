@@ -28,14 +28,99 @@ from typing import Callable, Sequence
 
 from gyro_tdc.data import BagOptions, coverage, load_runs, Run, split_sessions
 from gyro_tdc.errors import DatasetError
-from gyro_tdc.identify.accel import fit_accel
+from gyro_tdc.identify.accel import constant_axes_of, constant_values, fit_accel
 from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import estimate_t0, fit_model
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.result import TrainResult
-from gyro_tdc.model import save_model
+from gyro_tdc.model import CompensationModel, save_model
+import numpy as np
+from numpy.typing import NDArray
 
-__all__ = ['data_frame', 'train']
+__all__ = ['constant_gyro_axes', 'data_frame', 'identity_axes', 'train']
+
+#: The axis names, in order.
+AXES = ('x', 'y', 'z')
+_DEG2 = (180.0 / np.pi) ** 2
+
+
+def constant_gyro_axes(runs: Sequence[Run]) -> NDArray[np.bool_]:
+    """
+    Return, per axis, whether the gyro readings of ``runs`` together are constant.
+
+    A constant axis never varies beyond one quantum over every run
+    (:func:`gyro_tdc.identify.accel.constant_axes_of`, the accelerometer's rule): a 2-axis
+    gyro whose driver fills the third axis with a fixed value (e.g. exactly 0), or a dead
+    axis. There is nothing to fit on it.
+
+    Raises
+    ------
+    DatasetError
+        When every axis is constant: there is no gyro to fit.
+
+    """
+    const = constant_axes_of([r.omega for r in runs])
+    if const.all():
+        values = constant_values([r.omega for r in runs])
+        shown = ', '.join(f'{a} {v:.6g}' for a, v in zip(AXES, values))
+        raise DatasetError(f'Expected a gyro to fit: every axis of the angular velocity is '
+                           f'constant in the training bags ({shown} rad/s, never varying '
+                           'beyond one quantum); check that the driver publishes the gyro.')
+    return const
+
+
+def _neutral(runs: Sequence[Run], const: NDArray[np.bool_]) -> list[Run]:
+    """
+    Return the runs with each constant axis reading its reference rate (no error to fit).
+
+    The fit then sees an error of exactly zero there: every coefficient of the axis comes
+    out exactly zero (the model passes the axis through unchanged) and the axis adds exactly
+    nothing to what the axes share (the thermal state's search, the ridge chosen by
+    cross-validation, the feature choice), so the other axes get the model they would get
+    whatever the constant axis read.
+    """
+    if not const.any():
+        return list(runs)
+    out = []
+    for r in runs:
+        omega = np.array(r.omega, dtype=np.float64, copy=True)
+        omega[:, const] = r.omega_ref[:, const]
+        out.append(replace(r, omega=omega))
+    return out
+
+
+def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[np.bool_]
+                  ) -> CompensationModel:
+    """
+    Return ``model`` with its constant axes recorded as passed through unchanged.
+
+    The model's coefficients of those axes are already zero (:func:`_neutral`); here its
+    training figures get the truth of an identity axis: the compensated error is the raw
+    error (``raw_bs_dps2``, ``train_bs_dps2``, ``train_rms_dps`` and the residual variance
+    are its mean square over ``runs``, the data as read), and ``training.constant_axes``
+    names them.
+    """
+    if not const.any():
+        return model
+    n = sum(len(r) for r in runs)
+    ss = sum(np.einsum('ij,ij->j', r.omega - r.omega_ref, r.omega - r.omega_ref) for r in runs)
+    ms = np.where(const, ss / max(n, 1), 0.0)
+    met = dict(model.metrics)
+    resid = np.where(const, ms, model.residual_var)
+    for key in ('raw_bs_dps2', 'train_bs_dps2'):
+        met[key] = [float(v) for v in np.where(const, ms * _DEG2, met[key])]
+    rms = np.where(const, np.sqrt(ms * _DEG2), met['train_rms_dps'])
+    met['train_rms_dps'] = [float(v) for v in rms]
+    met['constant_axes'] = [a for a, c in zip(AXES, const) if c]
+    return model.replace(residual_var=resid, metrics=met)
+
+
+def _constant_readings(runs: Sequence[Run], const: NDArray[np.bool_]) -> dict:
+    """Return axis name -> the reading of each constant axis, rad/s (empty: none)."""
+    if not const.any():
+        return {}
+    values = constant_values([r.omega for r in runs])
+    return {a: float(v) for a, v, c in zip(AXES, values, const) if c}
 
 
 def data_frame(runs: Sequence[Run]) -> str:
@@ -105,13 +190,18 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     -------
     TrainResult
         The model, where it was written, the coverage of the data and, with ``'auto'``, the
-        choice of features (also in ``model.metrics['features']``).
+        choice of features (also in ``model.metrics['features']``). A gyro axis whose
+        readings never vary beyond one quantum (:func:`constant_gyro_axes`) is not fitted:
+        its coefficients are zero, so the model passes it through unchanged
+        (:func:`identity_axes`); ``result.constant`` and ``model.metrics['constant_axes']``
+        name it.
 
     Raises
     ------
     GyroTdcError
-        DatasetError for a bag that cannot be read, FitError for data that cannot be fitted,
-        ModelFileError or OutputError when the model cannot be written.
+        DatasetError for a bag that cannot be read or a gyro constant on every axis,
+        FitError for data that cannot be fitted, ModelFileError or OutputError when the
+        model cannot be written.
 
     """
     o = TrainOptions() if options is None else options
@@ -120,13 +210,16 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     names = [r.name for r in runs]
     split = split_sessions(runs, bag.sessions, bag.session_gap_s)
     runs = split.runs
+    const = constant_gyro_axes(runs)
+    fitted = _neutral(runs, const)
     t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
-    ids, params, choice = features_for_fit(runs, o.features, t0=t0)
-    model = fit_model(runs, features=ids, params=params or None, kind=o.kind, t0=t0,
+    ids, params, choice = features_for_fit(fitted, o.features, t0=t0)
+    model = fit_model(fitted, features=ids, params=params or None, kind=o.kind, t0=t0,
                       n_centers=o.n_centers, refine=o.refine, ridge=o.ridge, seed=o.seed,
                       thermal=o.thermal, sessions=split.labels,
                       frame_id=data_frame(runs),
                       sensor_id=str(o.sensor_id), created={'command': command, 'bags': names})
+    model = identity_axes(model, runs, const)
     accel_fit = None
     if o.accel:
         accel_fit = fit_accel(runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c)
@@ -138,4 +231,4 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     path = save_model(model, out)
     return TrainResult(model=model, path=path, coverage=cov, bags=names,
                        samples=sum(len(r) for r in runs), choice=choice, accel=accel_fit,
-                       sessions=split)
+                       sessions=split, constant=_constant_readings(runs, const))
