@@ -213,9 +213,12 @@ def test_null_names_nothing(tmp_path, name, seed, opts):
     why = {u.effect: u for u in res.unidentifiable}
     assert 'scale' in why and 'zero' in why['scale'].reason
     assert why['scale'].experiment.startswith('Rate-table steps')
-    if name == 'heat-only':          # one heating rate: rate effects cannot be told from bias
-        assert {'dTdt', 'lag'} <= set(why)
-        assert 'heat' in why['lag'].reason and 'cooling' in why['lag'].experiment
+    if name == 'heat-only':
+        # One heating rate after a soak: the start of the ramp is a change of rate, so the
+        # rate effects are scored (and rejected: nothing is hidden), and a note says what
+        # the data cannot test.
+        assert not {'dTdt', 'lag'} & set(why)
+        assert any('only heat and at one rate' in n and 'hysteresis' in n for n in res.notes)
 
 
 def test_null_with_session_offsets_and_bias_excursion(tmp_path):
@@ -245,6 +248,10 @@ def test_unidentifiable_without_soak_or_rate_steps():
     why = {u.effect: u for u in res.unidentifiable}
     assert 'constant' in why['scale'].reason
     assert 'soak' in why['warmup'].reason and 'soak' in why['warmup'].experiment
+    # One rate, no soak: the rate effects are a constant offset during the ramp.
+    for eid in ('dTdt', 'lag'):
+        assert 'one rate' in why[eid].reason and 'no soak' in why[eid].reason
+        assert 'cooling' in why[eid].experiment
     assert res.steps == ()
 
 

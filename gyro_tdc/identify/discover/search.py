@@ -56,6 +56,8 @@ _RATE = tuple(e for e in _SPAN if e not in STATIC_EFFECTS)
 _TIMED = frozenset(NONLINEAR_EFFECTS | {e for e in EFFECTS if 'tau_s' in EFFECTS[e].params})
 #: Search bounds of a time constant the catalog gives no bounds for (the dTdt smoothing), s.
 _SMOOTHING_BOUNDS_S = (1.0, 3600.0)
+#: A soak (the temperature still) counts from this long, s (and three blocks).
+_SOAK_S = 120.0
 
 
 def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
@@ -116,6 +118,53 @@ def _thermal_state(data: BlockData, model: LinearModel) -> ThermalState | None:
     return ThermalState('first_order', (tau,), (prof.interval,), prof.identifiable)
 
 
+def _moving(data: BlockData) -> NDArray[np.bool_]:
+    """Return the blocks whose temperature changes at a measurable rate."""
+    rate = data.rate_cpm
+    max_rate = float(np.max(np.abs(rate))) if rate.size else 0.0
+    return np.abs(rate) > max(0.02, 0.1 * max_rate)
+
+
+def _soak_min_s(data: BlockData) -> float:
+    """Return the shortest soak (s) that counts: 2 minutes and three blocks."""
+    return max(_SOAK_S, 3.0 * data.block_s)
+
+
+def _first_soaks(data: BlockData, moving: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """
+    Return, per run, how long it soaks after power-on before the temperature first moves, s.
+
+    Zero for a run with fewer than four blocks before its first move (one block is no soak).
+    """
+    out = np.zeros(data.n_runs)
+    for r in range(data.n_runs):
+        m = data.run == r
+        tr, mv = data.t_since[m], moving[m]
+        first_move = tr[np.argmax(mv)] if np.any(mv) else tr[-1]
+        if np.count_nonzero(tr < first_move) >= 4:
+            out[r] = first_move
+    return out
+
+
+def _longest_soak(data: BlockData, moving: NDArray[np.bool_]) -> float:
+    """
+    Return the longest soak next to a ramp, s: a stretch of still blocks in a run that moves.
+
+    A change of rate between a ramp and a soak is what a time constant shows in (the die
+    catching up, or starting to lag); a run that never moves, or never stops, has none.
+    """
+    best = 0.0
+    for r in range(data.n_runs):
+        idx = np.flatnonzero(data.run == r)
+        mv = moving[idx]
+        if not np.any(mv) or np.all(mv):
+            continue
+        edges = np.flatnonzero(np.diff(np.concatenate([[1], mv.astype(np.int8), [1]])))
+        for a, b in zip(edges[::2], edges[1::2]):      # still stretches [a, b)
+            best = max(best, float(data.tlast[idx[b - 1]] - data.tfirst[idx[a]]))
+    return best
+
+
 def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
     """
     Decide which candidates this data cannot excite, before any fit.
@@ -126,8 +175,7 @@ def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
     notes: list[str] = []
     span = float(data.temp.max() - data.temp.min())
     rate = data.rate_cpm
-    max_rate = float(np.max(np.abs(rate))) if rate.size else 0.0
-    moving = np.abs(rate) > max(0.02, 0.1 * max_rate)
+    moving = _moving(data)
     heating = bool(np.any(moving & (rate > 0)))
     cooling = bool(np.any(moving & (rate < 0)))
 
@@ -146,12 +194,20 @@ def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
         leg = 'heat' if heating else 'cool'
         r = np.abs(rate[moving])
         q1, q3 = np.percentile(r, [25, 75])
-        if (q3 - q1) < 0.25 * float(np.median(r)):
+        one_rate = (q3 - q1) < 0.25 * float(np.median(r))
+        soak = _longest_soak(data, moving)
+        if one_rate and soak < _soak_min_s(data):
             for eid in _RATE:
-                add(eid, f'the data only {leg} and at one rate (~{np.median(r):.2f} degC/min): '
-                    'a rate-dependent term is then a constant offset during the ramp, '
-                    'confounded with the bias',
+                add(eid, f'the data only {leg} and at one rate (~{np.median(r):.2f} degC/min) '
+                    'with no soak before or after the ramp: a rate-dependent term is then a '
+                    'constant offset during the ramp, confounded with the bias',
                     '; at least two rates, heating and cooling, with soaks between legs')
+        elif one_rate:
+            notes.append(f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min): '
+                         'a lag or dT/dt effect rests on the changes of rate between the ramp '
+                         f'and the soaks (the longest {soak:.0f} s: the approach to equilibrium '
+                         'there shows a time constant); hysteresis between heating and cooling '
+                         'cannot be tested.')
         else:
             notes.append(f'The data only {leg}: hysteresis between heating and cooling cannot '
                          'be tested; a dT/dt or lag effect seen here rests on the change of '
@@ -164,13 +220,7 @@ def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
             add('scale', 'the reference rate is constant on every run, so a sensitivity '
                 'change is indistinguishable from dT')
     # Warm-up: some run must start with a soak (no temperature change) after power-on.
-    soak_ok = False
-    for r in range(data.n_runs):
-        m = data.run == r
-        tr, mv = data.t_since[m], moving[m]
-        first_move = tr[np.argmax(mv)] if np.any(mv) else tr[-1]
-        if first_move >= max(120.0, 3.0 * data.block_s) and np.count_nonzero(tr < first_move) >= 4:
-            soak_ok = True
+    soak_ok = bool(np.any(_first_soaks(data, moving) >= _soak_min_s(data)))
     if not soak_ok:
         add('warmup', 'no run starts with a soak after power-on: a warm-up transient cannot be '
             'told apart from the temperature response and the bias')
