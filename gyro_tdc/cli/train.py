@@ -24,19 +24,22 @@ choice of features, the training report and the coverage; bad input exits 2 with
 from __future__ import annotations
 
 import argparse
+import json
+import math
 import sys
 from typing import Optional, Sequence
 
+from gyro_tdc.base import atomic_write
 from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser,
                                  bag_options, command_line, effect_listing, finite_float,
                                  positive_float, positive_int, run_command)
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.evaluate import format_coverage, format_sessions, format_training
-from gyro_tdc.identify import AUTO, train, train_still_only, TrainOptions
+from gyro_tdc.identify import AUTO, train, train_still_only, TrainOptions, TrainResult
 from gyro_tdc.model import KINDS
 from gyro_tdc.signal import MIN_STILL_S
 
-__all__ = ['add_train_options', 'build_parser', 'main', 'train_options']
+__all__ = ['add_train_options', 'build_parser', 'main', 'train_options', 'training_json']
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -50,6 +53,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='rosbag2 directory (sqlite3 or mcap), or a PX4 .ulg / ArduPilot .bin '
                         'flight log')
     p.add_argument('--out', required=True, metavar='MODEL.yaml', help='model file to write')
+    p.add_argument('--json', metavar='OUT', default=None,
+                   help='also write what training produced as JSON (shape: doc/json.md)')
     p.add_argument('--sensor-id', default='', metavar='ID',
                    help="the recorded sensor's id (e.g. its serial number), written to the "
                         "model's sensor.sensor_id; compensator_node warns when its sensor_id "
@@ -142,6 +147,58 @@ def train_options(args: argparse.Namespace, **more: object) -> TrainOptions:
                         accel=args.accel, **more)
 
 
+def _finite(v: object) -> float | None:
+    """Return ``v`` as a float, None when it is not finite (JSON has no NaN)."""
+    v = float(v)
+    return v if math.isfinite(v) else None
+
+
+def training_json(result: TrainResult, warnings: Sequence[str] = ()) -> dict:
+    """
+    Return what ``train`` produced in the documented JSON shape (doc/json.md).
+
+    Parameters
+    ----------
+    result : TrainResult
+        What :func:`gyro_tdc.identify.train.train` (or ``train_still_only``) returned.
+    warnings : sequence of str
+        The warnings printed (without the ``warning:`` prefix).
+
+    Returns
+    -------
+    dict
+        ``model_file``, ``model_id``, ``kind``, ``features``, ``bags``, ``samples``,
+        ``temp_range_c``, ``raw_bs``, ``train_bs`` (deg/s)^2 and ``train_rms_dps`` per axis,
+        ``constant_axes`` (axis -> its constant reading in rad/s: not fitted, passed through
+        unchanged; empty when none), ``accelerometer`` (``fitted`` and ``note``, null with
+        ``--no-accel``) and ``warnings``.
+
+    """
+    m = result.model
+    met = m.metrics
+    acc = result.accel
+
+    def vec(key: str) -> list:
+        return [_finite(v) for v in met.get(key, [math.nan] * 3)]
+
+    return {
+        'model_file': str(result.path),
+        'model_id': m.model_id,
+        'kind': m.kind,
+        'features': list(m.features),
+        'bags': [str(b) for b in result.bags],
+        'samples': int(result.samples),
+        'temp_range_c': [_finite(v) for v in m.temp_range_c],
+        'raw_bs': vec('raw_bs_dps2'),
+        'train_bs': vec('train_bs_dps2'),
+        'train_rms_dps': vec('train_rms_dps'),
+        'constant_axes': {a: _finite(v) for a, v in getattr(result, 'constant', {}).items()},
+        'accelerometer': None if acc is None else {'fitted': acc.part is not None,
+                                                   'note': acc.note or None},
+        'warnings': list(warnings),
+    }
+
+
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``train`` with parsed arguments; print the report."""
     # Checked before any bag is read: a bad feature id fails at once.
@@ -175,6 +232,9 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     for w in warns:
         print(f'warning: {w}')
     print(f'wrote {result.path} (model_id {result.model.model_id})', flush=True)
+    if args.json is not None:
+        doc = json.dumps(training_json(result, warns), indent=1, allow_nan=False) + '\n'
+        print(f'wrote {atomic_write(args.json, doc, what="JSON file")}', flush=True)
     return 0
 
 
