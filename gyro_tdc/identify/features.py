@@ -100,13 +100,16 @@ class FeatureChoice:
     note: str = ''
 
     def lines(self) -> list[str]:
-        """Return the report: a head line, one line per decision, the features chosen."""
+        """Return the report: a head line, one line per decision, notes, the features chosen."""
         d = self.discovery
         head = (f'features auto: start from {", ".join(self.base)} (the paper\'s f(dT, dT^2)); '
                 + (f'discovery on {len(d.runs)} bag(s): noise floor {d.noise_floor_dps:.3g} '
                    f'deg/s on {d.block_s:g} s block means, held out by '
                    f'{d.settings["folds"]}' if d is not None else self.note))
-        return ([head] + [x.line() for x in self.decisions if x.verdict != 'base']
+        # What the data cannot test (one direction of temperature change): said once.
+        notes = [f'  note: {n}' for n in (d.notes if d is not None else ())
+                 if n.startswith('The data only')]
+        return ([head] + [x.line() for x in self.decisions if x.verdict != 'base'] + notes
                 + [f'features chosen: {", ".join(self.features)}'])
 
     def to_dict(self) -> dict:
