@@ -37,7 +37,7 @@ from gyro_tdc.model import CompensationModel, save_model
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['constant_gyro_axes', 'data_frame', 'identity_axes', 'train']
+__all__ = ['constant_gyro_axes', 'data_frame', 'identity_axes', 'neutral_runs', 'train']
 
 #: The axis names, in order.
 AXES = ('x', 'y', 'z')
@@ -69,7 +69,7 @@ def constant_gyro_axes(runs: Sequence[Run]) -> NDArray[np.bool_]:
     return const
 
 
-def _neutral(runs: Sequence[Run], const: NDArray[np.bool_]) -> list[Run]:
+def neutral_runs(runs: Sequence[Run], const: NDArray[np.bool_]) -> list[Run]:
     """
     Return the runs with each constant axis reading its reference rate (no error to fit).
 
@@ -94,7 +94,7 @@ def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[
     """
     Return ``model`` with its constant axes recorded as passed through unchanged.
 
-    The model's coefficients of those axes are already zero (:func:`_neutral`); here its
+    The model's coefficients of those axes are already zero (:func:`neutral_runs`); here its
     training figures get the truth of an identity axis: the compensated error is the raw
     error (``raw_bs_dps2``, ``train_bs_dps2``, ``train_rms_dps`` and the residual variance
     are its mean square over ``runs``, the data as read), and ``training.constant_axes``
@@ -211,7 +211,7 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     split = split_sessions(runs, bag.sessions, bag.session_gap_s)
     runs = split.runs
     const = constant_gyro_axes(runs)
-    fitted = _neutral(runs, const)
+    fitted = neutral_runs(runs, const)
     t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
     ids, params, choice = features_for_fit(fitted, o.features, t0=t0)
     model = fit_model(fitted, features=ids, params=params or None, kind=o.kind, t0=t0,
