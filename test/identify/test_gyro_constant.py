@@ -37,7 +37,7 @@ from gyro_tdc.evaluate.score import evaluate_run, NamedModel
 from gyro_tdc.identify.accel import constant_axes, constant_axes_of
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.train import train
-from gyro_tdc.model.compensation import compensate
+from gyro_tdc.model.compensation import compensate, StreamingCompensator
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal.metrics import bias_stability
 from hypothesis import given, settings, strategies as st
@@ -236,3 +236,20 @@ def test_evaluate_scores_a_constant_axis_without_warning_or_nan(runs, axes, valu
     assert all(parsed['models'][0]['p_vs_raw'][i] is None for i in axes)
     # Passed through: the compensated constant axis is the raw one (BS equal).
     assert np.array_equal(first.models[0].bs[axes], first.raw.bs[axes])
+
+
+def test_streaming_form_and_session_offsets_of_an_identity_axis(runs, tmp_path):
+    run, held = runs
+    bags = [bag_from_run(_with(r, [0], 0.02, 1e-5, seed=k), tmp_path / f'b{k}')
+            for k, r in enumerate((run, replace(held, name='held')))]
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        res = train(bags, tmp_path / 'm.yaml', OPTIONS)
+    model = load_model(res.path)
+    sessions = model.metrics['sessions']
+    assert sessions['count'] == 2
+    assert [o[0] for o in sessions['offset_dps']] == [0.0, 0.0]
+    assert sessions['spread_dps'][0] == 0.0 and sessions['spread_dps'][1] > 0.0
+    stream = StreamingCompensator(model)
+    drifts = np.array([stream.drift(t, c) for t, c in zip(held.t[::50], held.temp[::50])])
+    assert np.all(drifts[:, 0] == 0.0) and np.all(drifts[:, 1:] != 0.0)
