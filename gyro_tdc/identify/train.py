@@ -37,7 +37,8 @@ from gyro_tdc.model import CompensationModel, save_model
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['constant_gyro_axes', 'data_frame', 'identity_axes', 'neutral_runs', 'train']
+__all__ = ['constant_gyro_axes', 'constant_readings', 'data_frame', 'identity_axes',
+           'neutral_runs', 'train']
 
 #: The axis names, in order.
 AXES = ('x', 'y', 'z')
@@ -89,22 +90,29 @@ def neutral_runs(runs: Sequence[Run], const: NDArray[np.bool_]) -> list[Run]:
     return out
 
 
-def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[np.bool_]
-                  ) -> CompensationModel:
+def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[np.bool_],
+                  rows: Sequence[NDArray[np.bool_]] | None = None) -> CompensationModel:
     """
     Return ``model`` with its constant axes recorded as passed through unchanged.
 
     The model's coefficients of those axes are already zero (:func:`neutral_runs`); here its
     training figures get the truth of an identity axis: the compensated error is the raw
     error (``raw_bs_dps2``, ``train_bs_dps2``, ``train_rms_dps`` and the residual variance
-    are its mean square over ``runs``, the data as read), and ``training.constant_axes``
-    names them.
+    are its mean square over ``runs``, the data as read; over the ``rows`` that count when
+    given, as :func:`gyro_tdc.identify.fit.fit_model` takes them), and
+    ``training.constant_axes`` names them.
     """
     if not const.any():
         return model
-    n = sum(len(r) for r in runs)
-    ss = sum(np.einsum('ij,ij->j', r.omega - r.omega_ref, r.omega - r.omega_ref) for r in runs)
-    ms = np.where(const, ss / max(n, 1), 0.0)
+    ss, n = np.zeros(int(const.sum())), 0
+    for i, r in enumerate(runs):
+        e = r.omega[:, const] - r.omega_ref[:, const]
+        if rows is not None:
+            e = e[np.asarray(rows[i], dtype=bool)]
+        ss += np.einsum('ij,ij->j', e, e)
+        n += len(e)
+    ms = np.zeros(3)
+    ms[const] = ss / max(n, 1)
     met = dict(model.metrics)
     resid = np.where(const, ms, model.residual_var)
     for key in ('raw_bs_dps2', 'train_bs_dps2'):
@@ -115,8 +123,8 @@ def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[
     return model.replace(residual_var=resid, metrics=met)
 
 
-def _constant_readings(runs: Sequence[Run], const: NDArray[np.bool_]) -> dict:
-    """Return axis name -> the reading of each constant axis, rad/s (empty: none)."""
+def constant_readings(runs: Sequence[Run], const: NDArray[np.bool_]) -> dict:
+    """Return axis name -> what each constant axis reads, rad/s (``TrainResult.constant``)."""
     if not const.any():
         return {}
     values = constant_values([r.omega for r in runs])
@@ -231,4 +239,4 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     path = save_model(model, out)
     return TrainResult(model=model, path=path, coverage=cov, bags=names,
                        samples=sum(len(r) for r in runs), choice=choice, accel=accel_fit,
-                       sessions=split, constant=_constant_readings(runs, const))
+                       sessions=split, constant=constant_readings(runs, const))
