@@ -19,20 +19,31 @@ Re-anchoring: average the compensated rate over still windows until its mean is 
 standard error on the windows of the one streaming still test
 (:class:`gyro_tdc.signal.StillWindows`); :func:`reanchor_shift` is the rule on a whole run
 (``evaluate --reanchor auto``). See doc/internals/signal.md.
+
+A bursty stream (one that has paused: a step longer than the window between two samples) may
+hold bursts shorter than the window, and a logger that powers its IMU per burst makes each
+burst a session of its own, which a window never spans. On such a stream a window also ends
+early, at a block boundary once it holds :data:`EARLY_BLOCKS` blocks and
+:data:`~gyro_tdc.signal.MIN_WINDOW_SAMPLES` samples, when the shift averaged so far (the run
+with the window's blocks) is within the tolerance: the window is judged still or not on those
+samples, and a still one gives the anchor (``'precision'``). A continuous stream never pauses:
+its windows, and its anchors, are the span windows alone.
 """
 
 from __future__ import annotations
 
+from array import array
 from dataclasses import dataclass
 import math
 from typing import NamedTuple, Sequence
 
-from gyro_tdc.signal import (NOISE_FACTOR, NOISE_WINDOWS, STILL_WINDOW_S, StillWindows, Window,
-                             windows_moving)
+from gyro_tdc.signal import (MIN_WINDOW_SAMPLES, NOISE_FACTOR, NOISE_WINDOWS, STILL_WINDOW_S,
+                             StillWindows, Window, windows_moving)
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['Anchor', 'BLOCKS_PER_WINDOW', 'BlockStats', 'MAX_BLOCK_S', 'NOISE_FACTOR',
+__all__ = ['Anchor', 'BLOCKS_PER_WINDOW', 'BlockStats', 'EARLY_BLOCKS', 'MAX_BLOCK_S',
+           'NOISE_FACTOR',
            'NOISE_WINDOWS', 'STILL_WINDOW_MAX_S', 'STILL_WINDOW_S', 'Shift',
            'StillnessDetector', 'TOLERANCE_FLOOR', 'TOLERANCE_FRACTION', 'Vec3',
            'block_length', 'default_tolerance', 'max_windows', 'reanchor_shift',
@@ -48,6 +59,9 @@ STILL_WINDOW_MAX_S = 600.0
 BLOCKS_PER_WINDOW = 50
 #: ... each at most this long, s.
 MAX_BLOCK_S = 1.0
+#: A bursty stream's window ends early, once precise, after at least this many whole blocks
+#: (a tenth of a window: 1 s of a 10 s window from 5 Hz up) and MIN_WINDOW_SAMPLES samples.
+EARLY_BLOCKS = 5
 #: Default tolerance: this fraction of the model's residual standard deviation ...
 TOLERANCE_FRACTION = 0.1
 #: ... and at least this, rad/s.
@@ -216,15 +230,51 @@ def _window_end(t: NDArray[np.float64], i0: int, window: float) -> int:
     return i0 + 1 + int(later[0]) if later.size else -1
 
 
+def _early_end(t: NDArray[np.float64], x: NDArray[np.float64], i0: int, i1: int,
+               c: Sequence[float], block_s: float, total: BlockStats,
+               tol: Sequence[float]) -> tuple[int, BlockStats] | None:
+    """
+    Return where the window from ``i0`` ends early (its first sample left out) and the stats.
+
+    The window's samples are ``i0 .. i1 - 1`` (``i1``: the sample that ends it, or the end of
+    the data); at each block boundary after :data:`EARLY_BLOCKS` whole blocks and
+    MIN_WINDOW_SAMPLES samples, ``total`` with those blocks is tested against ``tol``.
+    None: it never is precise early.
+    """
+    tt = t[i0:i1]
+    if tt.size < 2:
+        return None
+    k = np.floor((tt - tt[0]) / block_s)
+    starts = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
+    if starts.size <= EARLY_BLOCKS:
+        return None
+    sums = np.add.reduceat(x[i0:i1] - np.asarray(c), starts, axis=0)
+    counts = np.diff(np.append(starts, tt.size)).astype(np.float64)
+    cs, ca = np.cumsum(sums, axis=0), np.cumsum(sums ** 2, axis=0)
+    cb = np.cumsum(sums * counts[:, None], axis=0)
+    cn, cc = np.cumsum(counts), np.cumsum(counts ** 2)
+    for m in range(EARLY_BLOCKS, starts.size):      # the m whole blocks before starts[m]
+        if cn[m - 1] < MIN_WINDOW_SAMPLES:
+            continue
+        st = total + BlockStats(int(cn[m - 1]), m, tuple(cs[m - 1].tolist()),
+                                tuple(ca[m - 1].tolist()), tuple(cb[m - 1].tolist()),
+                                float(cc[m - 1]))
+        if all(v <= w for v, w in zip(standard_error(st), tol)):
+            return i0 + int(starts[m]), st
+    return None
+
+
 def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
                    tolerance: Sequence[float], window: float = STILL_WINDOW_S,
-                   window_max: float = STILL_WINDOW_MAX_S) -> Shift:
+                   window_max: float = STILL_WINDOW_MAX_S, paused: bool = False) -> Shift:
     """
     Average the head of a run until the shift is known to ``tolerance`` (the node's rule).
 
     The windows, blocks, standard error and stopping rule of :class:`StillnessDetector`,
     applied from the first sample without a stillness test (the run is taken as still at
-    its start, as ``evaluate --reanchor`` does).
+    its start, as ``evaluate --reanchor auto`` does), the early end of a bursty stream's
+    window included (from the first step longer than ``window`` on, or from the start with
+    ``paused``).
 
     Parameters
     ----------
@@ -236,6 +286,9 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
         Largest standard error of the mean, per axis.
     window, window_max : float, s
         Shortest and longest averaging.
+    paused : bool
+        The stream paused before the run (the streaming form remembers a pause over
+        sessions: a logger that powers its IMU per burst).
 
     Returns
     -------
@@ -254,9 +307,20 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
     bs = block_length(window)
     c = tuple(x[0].tolist())
     total = BlockStats()
+    if _early_allowed(tol, window, window_max):
+        long = np.flatnonzero(np.diff(t) > window)
+        first_pause = 0 if paused else (int(long[0]) + 1 if long.size else t.size)
+    else:
+        first_pause = t.size
     i0, last, reason = 0, -1, 'end of data'
     for _ in range(max_windows(window, window_max)):
         i1 = _window_end(t, i0, window) if i0 < t.size else -1
+        if first_pause <= i0 < t.size:
+            early = _early_end(t, x, i0, t.size if i1 < 0 else i1, c, bs, total, tol)
+            if early is not None:
+                j, total = early
+                last, reason = j - 1, 'precision'
+                break
         if i1 < 0:
             break
         total = total + window_stats(t[i0:i1 + 1], x[i0:i1 + 1], c, bs)
@@ -271,6 +335,11 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
         total = window_stats(t, x, c, bs)
     delta = tuple(ci + si / total.n for ci, si in zip(c, total.s))
     return Shift(delta, standard_error(total), total.n, float(t[last] - t[0]), reason)
+
+
+def _early_allowed(tol: Sequence[float], window: float, window_max: float) -> bool:
+    """Return whether a window may end early: a finite tolerance and more than one window."""
+    return all(math.isfinite(v) for v in tol) and max_windows(window, window_max) > 1
 
 
 class _Window(NamedTuple):
@@ -291,7 +360,9 @@ class StillnessDetector:
     The windows and their verdict are :class:`gyro_tdc.signal.StillWindows` (cut ``'span'``:
     a window ends with its first sample ``window`` after its first one); consecutive still
     windows make a run, whose block statistics of the compensated rate give the shift and
-    its standard error.
+    its standard error. Once the stream has paused (a step longer than ``window`` between two
+    samples given, remembered over :meth:`reset`: a new power cycle of a bursty logger), a
+    window that starts after the pause also ends early when precise (module docstring).
 
     Parameters
     ----------
@@ -330,6 +401,11 @@ class StillnessDetector:
         self.still = StillWindows(self.window, cut='span', gyro_std=self.gyro_std,
                                   accel_std=self.accel_std, max_rate=self.max_rate,
                                   min_samples=2)
+        #: The stream has paused (kept over :meth:`reset`) ...
+        self.paused = False
+        #: ... judged from the stamp of the last sample given (None after an anchor: the
+        #: samples that follow are not given until the next reset).
+        self._t_last: float | None = None
         self.reset()
 
     @property
@@ -377,6 +453,29 @@ class StillnessDetector:
         self.still.reset(prior_std=self.noise_prior)
         self._run: list[_Window] = []
         self._c: Vec3 = (0.0, 0.0, 0.0)
+        self._end_window()
+
+    def _end_window(self) -> None:
+        """Forget the early-end sums of the window in progress (the next sample starts one)."""
+        self._w0: float | None = None      # first stamp of the window in progress
+        self._track = False                # its block sums are kept (the stream has paused)
+        self._next_block = math.inf        # stamp from which the next block may start
+        self._block = 0                    # index of the block in progress
+        self._rows = array('d')            # its stamps and compensated rates (4 a sample)
+        self._done = 0                     # samples summed into whole blocks ...
+        self._part = BlockStats()          # ... their statistics, around the run's centre
+        self._early = _early_allowed(self.tolerance, self.window, self.window_max)
+
+    def _begin_window(self, t: float, out: Sequence[float]) -> None:
+        """Start the window in progress at the sample ``t`` (the run's centre with a new run)."""
+        self._w0 = t
+        if not self._run:
+            self._c = (float(out[0]), float(out[1]), float(out[2]))
+        self._track = self.paused and self._early
+        if self._track:
+            self._next_block = t + self.block_s * (1.0 - 1e-9)
+        else:
+            self._next_block = math.inf
 
     def update(self, t: float, raw: Sequence[float], out: Sequence[float],
                accel: Sequence[float] | None, temp_c: float) -> Anchor | None:
@@ -400,8 +499,86 @@ class StillnessDetector:
             The anchor when the averaging just ended, else None.
 
         """
+        last, self._t_last = self._t_last, t
+        if last is not None and t - last > self.window:
+            self.paused = True
+        found = None
+        if t >= self._next_block:          # a block boundary of a tracked window
+            found = self._boundary(t)
+        if self._w0 is None:
+            self._begin_window(t, out)
+        if self._track:
+            self._rows.extend((t, out[0], out[1], out[2]))
         w = self.still.add(t, raw, accel, rate=out, temp_c=temp_c)
+        if w is not None:
+            self._end_window()
+            found = self._judge(w)
+        if found is not None:
+            self._t_last = None
+        return found
+
+    def _boundary(self, t: float) -> Anchor | None:
+        """
+        Start a block at the sample ``t`` (not yet added); end the window early when precise.
+
+        The window ends here (the samples before ``t``) when it holds EARLY_BLOCKS whole
+        blocks and MIN_WINDOW_SAMPLES samples, ``t`` would not end it anyway, and the run with
+        its whole blocks is within the tolerance; it is then judged as any window. The whole
+        blocks are summed when a test is due (every sample before ``t`` is in one).
+        """
+        w0, bs = self._w0, self.block_s
+        k = math.floor((t - w0) / bs)
+        if k == self._block:               # the rounding of the boundary's estimate
+            return None
+        self._block = k
+        self._next_block = w0 + ((k + 1) * bs) * (1.0 - 1e-9)
+        n = len(self._rows) // 4
+        if n < MIN_WINDOW_SAMPLES or k < EARLY_BLOCKS or t - w0 >= self.window:
+            return None
+        if n > self._done:
+            self._part = self._part + self._whole_blocks(self._done, n)
+            self._done = n
+        total = self._part
+        if total.m < EARLY_BLOCKS:
+            return None
+        for r in self._run:
+            total = total + r.stats
+        if not all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
+            return None
+        w = self.still.flush()
+        self._end_window()
         return None if w is None else self._judge(w)
+
+    def _whole_blocks(self, i: int, j: int) -> BlockStats:
+        """Return the block statistics of the buffered samples ``i .. j - 1`` (whole blocks)."""
+        w0, bs, (c0, c1, c2) = self._w0, self.block_s, self._c
+        if j - i <= 8:                     # a few samples (a low rate): no numpy call
+            rows = self._rows
+            out = BlockStats()
+            k_prev, nk, s0, s1, s2 = None, 0, 0.0, 0.0, 0.0
+            for r in range(4 * i, 4 * j + 4, 4):
+                k = math.floor((rows[r] - w0) / bs) if r < 4 * j else None
+                if k != k_prev and nk:
+                    out = out + BlockStats(nk, 1, (s0, s1, s2), (s0 * s0, s1 * s1, s2 * s2),
+                                           (s0 * nk, s1 * nk, s2 * nk), float(nk * nk))
+                    nk, s0, s1, s2 = 0, 0.0, 0.0, 0.0
+                if k is None:
+                    break
+                k_prev = k
+                nk += 1
+                s0 += rows[r + 1] - c0
+                s1 += rows[r + 2] - c1
+                s2 += rows[r + 3] - c2
+            return out
+        new = np.frombuffer(self._rows, dtype=np.float64).reshape(-1, 4)[i:j]
+        kb = np.floor((new[:, 0] - w0) / bs)
+        starts = np.flatnonzero(np.concatenate([[True], kb[1:] != kb[:-1]]))
+        sums = np.add.reduceat(new[:, 1:] - np.asarray(self._c), starts, axis=0)
+        counts = np.diff(np.append(starts, new.shape[0])).astype(np.float64)
+        return BlockStats(new.shape[0], int(starts.size), tuple(sums.sum(axis=0).tolist()),
+                          tuple((sums * sums).sum(axis=0).tolist()),
+                          tuple((sums * counts[:, None]).sum(axis=0).tolist()),
+                          float((counts * counts).sum()))
 
     def _blocks(self, w: Window) -> BlockStats:
         """
