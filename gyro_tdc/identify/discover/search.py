@@ -58,6 +58,10 @@ _TIMED = frozenset(NONLINEAR_EFFECTS | {e for e in EFFECTS if 'tau_s' in EFFECTS
 _SMOOTHING_BOUNDS_S = (1.0, 3600.0)
 #: A soak (the temperature still) counts from this long, s (and three blocks).
 _SOAK_S = 120.0
+#: Candidates with time memory, scored beside the static curve too (:func:`_beside_curve`).
+_MEMORY = tuple(e for e in _CANDIDATES if e not in STATIC_EFFECTS)
+#: The static curve beyond ``dT`` that a time-memory candidate must beat.
+_CURVE = ('dT2', 'dT3')
 
 
 def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
@@ -125,6 +129,19 @@ def _moving(data: BlockData) -> NDArray[np.bool_]:
     return np.abs(rate) > max(0.02, 0.1 * max_rate)
 
 
+def _directions(data: BlockData) -> tuple[bool, bool]:
+    """Return whether the data heat and whether they cool at a measurable rate."""
+    moving = _moving(data)
+    return (bool(np.any(moving & (data.rate_cpm > 0))),
+            bool(np.any(moving & (data.rate_cpm < 0))))
+
+
+def _one_way(data: BlockData) -> bool:
+    """Return True when the data change temperature in one direction only."""
+    heating, cooling = _directions(data)
+    return heating != cooling
+
+
 def _soak_min_s(data: BlockData) -> float:
     """Return the shortest soak (s) that counts: 2 minutes and three blocks."""
     return max(_SOAK_S, 3.0 * data.block_s)
@@ -176,8 +193,7 @@ def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
     span = float(data.temp.max() - data.temp.min())
     rate = data.rate_cpm
     moving = _moving(data)
-    heating = bool(np.any(moving & (rate > 0)))
-    cooling = bool(np.any(moving & (rate < 0)))
+    heating, cooling = _directions(data)
 
     def add(eid: str, reason: str, extra: str = '') -> None:
         exp = EFFECTS[eid].excited_by
@@ -273,11 +289,55 @@ def _noise_lags(data: BlockData, model: LinearModel, todo: Sequence[str], cparam
     return [bandwidth(r[:, a]) for a in range(3)], int(memory)
 
 
+def _curve_model(data: BlockData, model: LinearModel, folds: list
+                 ) -> tuple[tuple[str, ...], LinearModel, float] | None:
+    """
+    Return the static curve ``model`` lacks, the model with it and its held-out mean square.
+
+    None when the model has the whole curve (:data:`_CURVE`).
+    """
+    curve = tuple(e for e in _CURVE if e not in model.effects)
+    if not curve:
+        return None
+    base = LinearModel(data, tuple(e for e in EFFECTS if e in set(model.effects) | set(curve)),
+                       model.params)
+    ho = base.cv_residual(folds)
+    return curve, base, float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
+
+
+def _beside_curve(data: BlockData, curve: tuple, folds: list, eid: str, params: dict) -> float:
+    """
+    Return the held-out gain of a time-memory candidate beside the static curve, (deg/s)^2.
+
+    A candidate with time memory (``lag``, ``dTdt``, ``warmup``) is scored once more against
+    the model plus the static curvature it lacks (``dT2``, ``dT3``: ``curve`` from
+    :func:`_curve_model`), added to both sides, its time constants refitted there. On a run
+    that heats or cools only, the time since power-on and the smoothed rate follow the
+    temperature, so a slow decay or a slow rate term can hold curvature the base polynomial
+    lacks, curvature the final model (an RBF network of the temperature terms) holds anyway;
+    that part is not the candidate's, and off the one direction of ramp it was fitted on it
+    extrapolates wrongly (a cooling cycle after heating-only training).
+    """
+    ids, base, mse_b = curve
+    effects = tuple(e for e in EFFECTS if e in set(base.effects) | {eid})
+    which = [e for e in (eid, 'lag') if e in _TIMED and e in effects]
+    trial = _fit_taus(data, effects, params, which) if which else params
+    ho = LinearModel(data, effects, trial).cv_residual(folds)
+    mse_c = float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
+    return (mse_b - mse_c) * DEG ** 2
+
+
 def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse_m: float,
            mse_ho_m: float, folds: list, eid: str, params: dict, *, lags: Sequence[int],
-           n_cand: int, alpha: float, min_heldout: float, min_effect: float
+           n_cand: int, alpha: float, min_heldout: float, min_effect: float,
+           curve: tuple | None = None
            ) -> tuple[CandidateScore, NDArray[np.float64] | None, dict]:
-    """Score one candidate against ``model``; returns the score, its contribution and params."""
+    """
+    Score one candidate against ``model``; returns the score, its contribution and params.
+
+    With ``curve`` (:func:`_curve_model`) a time-memory candidate must also gain held out
+    beside the static curve (:func:`_beside_curve`), and is credited with the smaller gain.
+    """
     effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
     cand = LinearModel(data, effects, params)
     idx = cand.columns_of(eid)
@@ -315,8 +375,14 @@ def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse
     why = []
     if p >= alpha / max(n_cand, 1):
         why.append(f'p={p:.2g}')
-    if gain <= max(min_heldout * floor ** 2, 0.01 * mse_ho_m * DEG ** 2):
+    limit = max(min_heldout * floor ** 2, 0.01 * mse_ho_m * DEG ** 2)
+    if gain <= limit:
         why.append('no held-out gain')
+    elif curve is not None:
+        beside = _beside_curve(data, curve, folds, eid, params)
+        if beside <= max(min_heldout * floor ** 2, 0.01 * curve[2] * DEG ** 2):
+            why.append(f'no held-out gain beside {"+".join(curve[0])}')
+        gain = min(gain, beside)   # credited only with what the static curve cannot hold
     if eff < min_effect * floor:
         why.append('effect below noise')
     sc = CandidateScore(eid, own, p, gain, eff, gap(data, r), gap(data, ho), not why,
@@ -401,6 +467,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         raise FitError(f'Too few blocks ({data.K}) for the base model '
                        f'({", ".join(base_ids)}); record longer or use a shorter block.')
     unident, notes = _excitation(data, base_ids)
+    one_way = _one_way(data)
     params: dict = {}
     for eid in base_ids:
         if EFFECTS[eid].params:
@@ -426,12 +493,14 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         folds, buffer = make_folds(data, memory, n_folds)
         ho_m = model.cv_residual(folds)
         mse_ho_m = float((data.w[:, None] * ho_m * ho_m).sum() / (3.0 * data.w.sum()))
+        curve = _curve_model(data, model, folds) if set(todo) & set(_MEMORY) else None
         for eid in todo:
             if progress is not None:
                 progress(len(steps), eid)
             sc, contrib, p = _score(data, model, coef_m, sse_m, mse_ho_m, folds, eid,
                                     cparams[eid], lags=lags, n_cand=len(todo), alpha=alpha,
-                                    min_heldout=min_heldout, min_effect=min_effect)
+                                    min_heldout=min_heldout, min_effect=min_effect,
+                                    curve=curve if eid in _MEMORY else None)
             if sc.why_not == 'collinear':
                 if eid not in collinear:
                     collinear.append(eid)
@@ -451,12 +520,18 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
             sc, contrib, _p = item
             if contrib is None or sc.heldout_gain_dps2 <= 0:
                 continue
-            if (sc.heldout_gain_dps2 >= (1.0 - alias_margin) * best.heldout_gain_dps2
-                    and abs(weighted_corr(contrib, contrib_b, data.w)) >= alias_corr):
+            close = sc.heldout_gain_dps2 >= (1.0 - alias_margin) * best.heldout_gain_dps2
+            if close and (abs(weighted_corr(contrib, contrib_b, data.w)) >= alias_corr
+                          or (one_way and {sc.effect, best.effect} == {'lag', 'dTdt'}
+                              and sc.passed)):
                 family.append(item)
         # Among aliases that pass the guard, name the one with the fewest parameters: a
         # lagging die with a linear drift (one time constant) rather than dT/dt (a time
-        # constant and a coefficient per axis), whose columns hold the same curve.
+        # constant and a coefficient per axis), whose columns hold the same curve. On data
+        # that only heat (or only cool) lag and dT/dt are aliases whenever both pass within
+        # the margin: the data hold one sign of the rate, so a dT/dt input of the final model
+        # would be extrapolated on the other ramp direction, while the thermal state stays
+        # inside the trained temperatures (the other direction lags the other way).
         best, contrib_b, p_b = min((x for x in family if x[0].passed),
                                    key=lambda x: _n_params(model, x[0].effect, x[2]))
         aliases = [x[0].effect for x in family if x[0] is not best]
