@@ -88,6 +88,22 @@ def test_shipped_file_applies_under_a_namespace_and_a_new_name(ros_context, tmp_
         s.default for s in PARAMS if s.name == 'stale_policy')
 
 
+def test_the_still_logger_file_overlays_the_shipped_defaults(ros_context, tmp_path):
+    """Given after compensator.yaml, still_logger.yaml turns learning on; the rest stays."""
+    base = shipped('compensator.yaml')
+    overlay = shipped('still_logger.yaml')['/**']['ros__parameters']
+    known = {s.name: s.default for s in PARAMS}
+    assert set(overlay) <= set(known) and overlay['learn'] is True
+    assert known['learn'] is False                          # the node's default stays off
+    names = [s.name for s in PARAMS]
+    with node_process(NODE, *WHERE, '--params-file', str(CONFIG / 'compensator.yaml'),
+                      '--params-file', str(CONFIG / 'still_logger.yaml')) as child:
+        values = read_back(ros_context, names)
+        code, log = interrupt(child)
+    assert code == 0, log
+    assert values == {**base['/**']['ros__parameters'], **overlay}
+
+
 @pytest.mark.parametrize('name', ['driver_sim.yaml', 'driver_iio.yaml'])
 def test_driver_files_are_keyed_for_any_node(name):
     doc = shipped(name)

@@ -39,7 +39,7 @@ ROOT = Path(__file__).resolve().parents[2]
 # The two nodes, and gyro-tdc (the offline commands: `ros2 run gyro_tdc gyro-tdc train ...`).
 EXECUTABLES = ('driver_node', 'compensator_node', 'gyro-tdc')
 GENERIC = ('simulate', 'train', 'evaluate', 'discover', 'demo', 'fleet')   # never installed
-CONFIG_FILES = ('compensator.yaml', 'driver_sim.yaml', 'driver_iio.yaml',
+CONFIG_FILES = ('compensator.yaml', 'still_logger.yaml', 'driver_sim.yaml', 'driver_iio.yaml',
                 'models/l3gd20_modified.yaml', 'scenarios/demo_fast.yaml',
                 'scenarios/l3gd20_paper.yaml')
 MATCHED = 200           # raw/compensated pairs (same stamp) to compare
