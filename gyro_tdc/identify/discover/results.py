@@ -25,6 +25,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from gyro_tdc.base import plain
+from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import ThermalState
 import numpy as np
 from numpy.typing import NDArray
@@ -269,6 +270,14 @@ class DiscoveryResult:
     adev_tau_s: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), repr=False)
     adev_dps: NDArray[np.float64] = field(default_factory=lambda: np.zeros(0), repr=False)
     thermal: ThermalState | None = None
+
+    def __post_init__(self) -> None:
+        """Refuse a discovery without noise: every axis constant, nothing was measured."""
+        if not self.noise_floor_dps > 0:
+            raise DatasetError('Expected readings to discover effects on: every axis reads '
+                               'the same value from one sample to the next in every run (noise '
+                               'floor 0: a constant sensor, e.g. a driver filling a fixed '
+                               'value); check that the driver publishes the sensor.')
 
     @property
     def named(self) -> tuple[str, ...]:

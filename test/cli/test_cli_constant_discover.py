@@ -1,0 +1,76 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The installed ``gyro-tdc discover`` on a sensor constant on every axis: one line, exit 2.
+
+A gyro whose every axis reads a fixed value, and (``--sensor accel``) an accelerometer read
+as exactly ``(0, 0, g)``, leave discovery no noise floor: the command refuses in one line
+(it raised ZeroDivisionError in the summary before), writes no output file, with every
+warning an error.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+import subprocess
+import sys
+
+from gyro_tdc.data import write_bag
+from gyro_tdc.identify.accel import G0
+from gyro_tdc.sim import simulate_scenario
+import numpy as np
+import pytest
+
+#: The console script pip installed beside this interpreter (the real entry point).
+GYRO_TDC = Path(sys.executable).with_name('gyro-tdc')
+
+
+def _cli(*argv):
+    """Run the installed ``gyro-tdc`` with every warning an error; return the process."""
+    env = dict(os.environ, PYTHONWARNINGS='error', OPENBLAS_NUM_THREADS='1')
+    return subprocess.run([str(GYRO_TDC), *map(str, argv)], capture_output=True, text=True,
+                          timeout=300, env=env)
+
+
+@pytest.fixture(scope='module')
+def bags(tmp_path_factory):
+    """Write a dead gyro (every axis fixed) and a gyro with a constant accelerometer."""
+    root = tmp_path_factory.mktemp('const_discover')
+    sim = simulate_scenario('demo_fast', seed=3, rate_hz=2.0)[0]
+    accel = np.zeros_like(sim.accel)
+    accel[:, 2] = G0
+    dead = np.zeros_like(sim.gyro)
+    dead[:, 0] = 0.25                                # a stuck axis, off the reference
+    dead[:, 1] = 0.01
+    write_bag(root / 'dead', imu_t=sim.imu_t, gyro=dead, accel=sim.accel,
+              temp_t=sim.temp_t, temp_c=sim.temp_c)
+    write_bag(root / 'flat_accel', imu_t=sim.imu_t, gyro=sim.gyro, accel=accel,
+              temp_t=sim.temp_t, temp_c=sim.temp_c)
+    return root
+
+
+@pytest.mark.parametrize('bag, extra', [('dead', ('--out', 'm.yaml', '--json', 'd.json')),
+                                        ('flat_accel', ('--sensor', 'accel', '--json', 'd.json'))])
+def test_discover_refuses_a_sensor_constant_on_every_axis(bags, tmp_path, bag, extra):
+    """Exit 2 with one line naming the constant readings; no traceback, no file written."""
+    argv = [a if not a.endswith(('.yaml', '.json')) else tmp_path / a for a in extra]
+    res = _cli('discover', bags / bag, *argv)
+    assert res.returncode == 2, (res.returncode, res.stderr)
+    err = res.stderr.strip().splitlines()
+    assert len(err) == 1 and err[0].startswith('gyro-tdc discover: error: '), res.stderr
+    assert 'every axis' in err[0] and 'noise floor 0' in err[0], err[0]
+    assert 'Traceback' not in res.stderr and 'Warning' not in res.stderr
+    assert not (tmp_path / 'm.yaml').exists() and not (tmp_path / 'd.json').exists()
