@@ -20,14 +20,15 @@ standard error on the windows of the one streaming still test
 (:class:`gyro_tdc.signal.StillWindows`); :func:`reanchor_shift` is the rule on a whole run
 (``evaluate --reanchor auto``). See doc/internals/signal.md.
 
-A bursty stream (one that has paused: a step longer than the window between two samples) may
-hold bursts shorter than the window, and a logger that powers its IMU per burst makes each
-burst a session of its own, which a window never spans. On such a stream a window also ends
-early, at a block boundary once it holds :data:`EARLY_BLOCKS` blocks and
-:data:`~gyro_tdc.signal.MIN_WINDOW_SAMPLES` samples, when the shift averaged so far (the run
-with the window's blocks) is within the tolerance: the window is judged still or not on those
-samples, and a still one gives the anchor (``'precision'``). A continuous stream never pauses:
-its windows, and its anchors, are the span windows alone.
+A window of two samples or more ends at a pause (a step longer than the window between two
+samples): at the end of a burst, without the next burst's first sample. A bursty stream (one
+that has paused) may hold bursts shorter than the window, and a logger that powers its IMU
+per burst makes each burst a session of its own, which a window never spans. On such a
+stream a window also ends early, at a block boundary once it holds :data:`EARLY_BLOCKS`
+whole blocks and :data:`~gyro_tdc.signal.MIN_WINDOW_SAMPLES` samples, when the shift
+averaged so far (the run with the window's blocks) is within the tolerance: the window is
+judged still or not on those samples, and a still one gives the anchor (``'precision'``). A
+continuous stream never pauses: its windows, and its anchors, are the span windows alone.
 """
 
 from __future__ import annotations
@@ -224,10 +225,21 @@ def window_stats(t: NDArray[np.float64], x: NDArray[np.float64], c: Sequence[flo
                       float((counts ** 2).sum()))
 
 
-def _window_end(t: NDArray[np.float64], i0: int, window: float) -> int:
-    """Return the index of the last sample of the window starting at ``i0`` (-1: none)."""
+def _window_end(t: NDArray[np.float64], i0: int, window: float) -> tuple[int, int]:
+    """
+    Return the last sample of the window starting at ``i0`` and the one that ends it (-1: none).
+
+    The span rule (its first sample ``window`` after ``t[i0]``, included), but a window of two
+    samples or more ends before a pause (a step longer than ``window``): without the next
+    burst's first sample.
+    """
     later = np.flatnonzero(t[i0 + 1:] - t[i0] >= window)
-    return i0 + 1 + int(later[0]) if later.size else -1
+    if not later.size:
+        return -1, -1
+    i1 = i0 + 1 + int(later[0])
+    if i1 - i0 >= 2 and t[i1] - t[i1 - 1] > window:
+        return i1 - 1, i1
+    return i1, i1
 
 
 def _early_end(t: NDArray[np.float64], x: NDArray[np.float64], i0: int, i1: int,
@@ -314,9 +326,9 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
         first_pause = t.size
     i0, last, reason = 0, -1, 'end of data'
     for _ in range(max_windows(window, window_max)):
-        i1 = _window_end(t, i0, window) if i0 < t.size else -1
+        i1, ends = _window_end(t, i0, window) if i0 < t.size else (-1, -1)
         if first_pause <= i0 < t.size:
-            early = _early_end(t, x, i0, t.size if i1 < 0 else i1, c, bs, total, tol)
+            early = _early_end(t, x, i0, t.size if ends < 0 else ends, c, bs, total, tol)
             if early is not None:
                 j, total = early
                 last, reason = j - 1, 'precision'
@@ -360,9 +372,9 @@ class StillnessDetector:
     The windows and their verdict are :class:`gyro_tdc.signal.StillWindows` (cut ``'span'``:
     a window ends with its first sample ``window`` after its first one); consecutive still
     windows make a run, whose block statistics of the compensated rate give the shift and
-    its standard error. Once the stream has paused (a step longer than ``window`` between two
-    samples given, remembered over :meth:`reset`: a new power cycle of a bursty logger), a
-    window that starts after the pause also ends early when precise (module docstring).
+    its standard error. A window ends before a pause (a step longer than ``window`` between
+    two samples given); once the stream has paused (remembered over :meth:`reset`: a new power
+    cycle of a bursty logger), a window also ends early when precise (module docstring).
 
     Parameters
     ----------
@@ -458,6 +470,7 @@ class StillnessDetector:
     def _end_window(self) -> None:
         """Forget the early-end sums of the window in progress (the next sample starts one)."""
         self._w0: float | None = None      # first stamp of the window in progress
+        self._n = 0                        # its samples
         self._track = False                # its block sums are kept (the stream has paused)
         self._next_block = math.inf        # stamp from which the next block may start
         self._block = 0                    # index of the block in progress
@@ -500,13 +513,18 @@ class StillnessDetector:
 
         """
         last, self._t_last = self._t_last, t
-        if last is not None and t - last > self.window:
-            self.paused = True
         found = None
+        if last is not None and t - last > self.window:    # a pause
+            self.paused = True
+            if self._n >= 2:               # the window ends before it (the burst's end)
+                w = self.still.flush()
+                self._end_window()
+                found = None if w is None else self._judge(w)
         if t >= self._next_block:          # a block boundary of a tracked window
             found = self._boundary(t)
         if self._w0 is None:
             self._begin_window(t, out)
+        self._n += 1
         if self._track:
             self._rows.extend((t, out[0], out[1], out[2]))
         w = self.still.add(t, raw, accel, rate=out, temp_c=temp_c)

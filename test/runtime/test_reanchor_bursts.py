@@ -56,37 +56,39 @@ def _stream(model, t, temp, raw):
     return core, anchors, out
 
 
-def test_pan_recording_reanchors_across_its_pauses(pan):
-    """The real recording: one power cycle, anchored on its first burst and the next's head."""
+def test_pan_recording_reanchors_on_its_first_burst(pan):
+    """The real recording: one power cycle, anchored on its first 5 s burst, at the pause."""
     rec, model = pan
     raw = rec.gyro + OFFSET
     core, anchors, _ = _stream(model, rec.t, rec.temp_c, raw)
     assert core.reanchoring.session == 1            # 300 s pauses: no power cycle
     assert len(anchors) == 1
     i, _, a = anchors[0]
-    # The window: the first 5 s burst (250 samples) and the next burst's first sample.
-    assert a.reason == 'precision' and a.samples == 251 and i == 250
-    assert a.duration_s == pytest.approx(rec.t[250] - rec.t[0]) and a.duration_s > 300.0
+    # The window: the first burst (250 samples), ended by the pause, judged when the next
+    # burst's first sample comes (i: the shift is in force from the one after it).
+    assert a.reason == 'precision' and a.samples == 250 and i == 250
+    assert rec.t[250] - rec.t[249] > 290.0
+    assert a.t == rec.t[249] and a.duration_s == pytest.approx(rec.t[249] - rec.t[0])
     assert all(s <= v for s, v in zip(a.se, a.tolerance))
     # The shift is the mean of the model's output over those samples, its SE their blocks'.
-    comp = compensate(model, rec.t[:251], rec.temp_c[:251], raw[:251])
+    comp = compensate(model, rec.t[:250], rec.temp_c[:250], raw[:250])
     np.testing.assert_allclose(a.delta, comp.mean(axis=0), rtol=0, atol=1e-12)
     bs = block_length(STILL_WINDOW_S)
-    assert window_stats(rec.t[:251], comp, comp[0], bs).m > 20
-    k = np.floor((rec.t[:251] - rec.t[0]) / bs)
+    assert window_stats(rec.t[:250], comp, comp[0], bs).m > 20
+    k = np.floor((rec.t[:250] - rec.t[0]) / bs)
     means = [comp[k == v].mean(axis=0) for v in np.unique(k)]
     counts = np.array([np.count_nonzero(k == v) for v in np.unique(k)])
     mu = comp.mean(axis=0)
     m = len(means)
-    se = np.sqrt(m / (m - 1) * sum(n ** 2 * (b - mu) ** 2 for n, b in zip(counts, means))) / 251
+    se = np.sqrt(m / (m - 1) * sum(n ** 2 * (b - mu) ** 2 for n, b in zip(counts, means))) / 250
     np.testing.assert_allclose(a.se, se, rtol=1e-9)
-    # The turn-on offset is found within the model's error over the burst and the SE.
-    resid = compensate(model, rec.t[:251], rec.temp_c[:251], rec.gyro[:251]).mean(axis=0)
+    # The turn-on offset is found, up to the model's error over the burst.
+    resid = compensate(model, rec.t[:250], rec.temp_c[:250], rec.gyro[:250]).mean(axis=0)
     np.testing.assert_allclose(np.asarray(a.delta) - OFFSET, resid, rtol=0, atol=1e-12)
     # The batch rule (evaluate --reanchor auto) takes the same samples.
     shift = reanchor_shift(rec.t, compensate(model, rec.t, rec.temp_c, raw),
                            tolerance=a.tolerance)
-    assert (shift.samples, shift.reason) == (251, 'precision')
+    assert (shift.samples, shift.reason) == (250, 'precision')
     np.testing.assert_allclose(shift.delta, a.delta, rtol=0, atol=1e-12)
 
 
@@ -165,16 +167,16 @@ def test_every_burst_a_power_cycle_anchors_within_the_burst(line):
 
 
 def test_bursts_within_a_session_end_their_windows_early_once_paused():
-    """300 s pauses (one session): the first window spans a pause, the next ends mid-burst."""
+    """300 s pauses (one session): windows end at the pause, then early, mid-burst."""
     t, _, raw, _, burst = _bursts(pause_s=300.0, seed=7, turn_on=False)
     det = StillnessDetector(STILL_WINDOW_S, window_max=600.0, tolerance=5e-5)
     found = [det.update(ts, w, w, None, 20.0) for ts, w in zip(t.tolist(), raw.tolist())]
     anchors = [(i, a) for i, a in enumerate(found) if a is not None]
     assert anchors and det.paused
     i, a = anchors[0]
-    # Not precise over the first window (the first burst and the second's first sample):
-    # the next window, after the pause, ends once the two are, inside the second burst.
-    assert a.reason == 'precision' and a.duration_s > 300.0 and a.samples > 251
+    # Not precise over the first window (the first burst, ended by the pause): the next,
+    # after the pause, ends once the two are, inside the second burst.
+    assert a.reason == 'precision' and a.duration_s > 300.0 and a.samples > 250
     assert burst[i] == 1 and burst[i - 1] == 1 and burst[i + 1] == 1
     start = np.flatnonzero(burst == 1)[0]
     assert t[i - 1] - t[start + 1] >= (EARLY_BLOCKS - 1) * block_length(STILL_WINDOW_S)
