@@ -234,3 +234,36 @@ def test_the_batch_rule_takes_the_samples_the_stream_does(shape):
     else:                                          # ended inside a burst
         k = int(np.searchsorted(t, found.t))
         assert t[k] == found.t and t[k + 1] - t[k] < 0.011 and t[k] - t[k - 1] < 0.011
+
+
+def test_a_new_power_cycle_of_2khz_bursts_anchors_in_its_first_burst():
+    """2 s bursts at 2 kHz every 2 min, then a power cycle: its first burst is anchored."""
+    rng = np.random.default_rng(21)
+    sigma = 0.02                                  # per sample (0.03 deg/s/sqrt(Hz) at 2 kHz)
+    one = np.arange(4000) / 2000.0
+    first = np.concatenate([k * 120.0 + one for k in range(6)])
+    t = np.concatenate([first, first[-1] + 3600.0 + np.concatenate(
+        [k * 120.0 + one for k in range(3)])])
+    cycle = np.r_[np.zeros(first.size, int), np.ones(t.size - first.size, int)]
+    temp = np.round((25.0 - 2.0 * (t - t[0]) / 3600.0) / 0.25) * 0.25
+    offsets = np.array([[0.2, -0.3, 0.1], [-0.25, 0.15, 0.3]]) * DEG
+    clean = 2e-4 * (temp - 25.0)[:, None] + offsets[cycle]
+    train_t = np.arange(0.0, 3600.0, 0.01)
+    train_temp = 30.0 - 20.0 * train_t / train_t[-1]
+    om = 2e-4 * (train_temp - 25.0)[:, None] + rng.normal(0.0, sigma, (train_t.size, 3))
+    model = fit_model([Run(train_t, train_temp, om, np.zeros_like(om), 'train')], kind='poly',
+                      features=('dT',), t0=25.0)
+    core, anchors, _ = _stream(model, t, temp, clean + rng.normal(0.0, sigma, clean.shape))
+    assert core.reanchoring.session == 2
+    truth = compensate(model, t, temp, clean)
+    (i1, s1, a1), (i2, s2, a2) = anchors
+    # The first cycle: its first burst, judged at the pause (the stream had not paused).
+    assert s1 == 1 and i1 == 4000 and a1.samples == 4000
+    # The new cycle: within its first burst, after EARLY_BLOCKS blocks.
+    start = first.size
+    assert s2 == 2 and start < i2 < start + 4000 and a2.reason == 'precision'
+    assert a2.samples < 4000 and a2.duration_s < 2.0
+    for i, a in ((i1, a1), (i2, a2)):
+        span = (t >= a.t - a.duration_s) & (t <= a.t)
+        err = np.abs(np.asarray(a.delta) - truth[span].mean(axis=0))
+        assert np.all(err <= 4.0 * np.asarray(a.se)), err / np.asarray(a.se)
