@@ -44,8 +44,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['Anchor', 'BLOCKS_PER_WINDOW', 'BlockStats', 'EARLY_BLOCKS', 'MAX_BLOCK_S',
-           'NOISE_FACTOR',
-           'NOISE_WINDOWS', 'STILL_WINDOW_MAX_S', 'STILL_WINDOW_S', 'Shift',
+           'NOISE_FACTOR', 'NOISE_WINDOWS', 'STILL_WINDOW_MAX_S', 'STILL_WINDOW_S', 'Shift',
            'StillnessDetector', 'TOLERANCE_FLOOR', 'TOLERANCE_FRACTION', 'Vec3',
            'block_length', 'default_tolerance', 'max_windows', 'reanchor_shift',
            'standard_error', 'window_stats', 'windows_moving']
@@ -246,7 +245,7 @@ def _early_end(t: NDArray[np.float64], x: NDArray[np.float64], i0: int, i1: int,
                c: Sequence[float], block_s: float, total: BlockStats,
                tol: Sequence[float]) -> tuple[int, BlockStats] | None:
     """
-    Return where the window from ``i0`` ends early (its first sample left out) and the stats.
+    Return the first sample a window from ``i0`` leaves out when it ends early, and the stats.
 
     The window's samples are ``i0 .. i1 - 1`` (``i1``: the sample that ends it, or the end of
     the data); at each block boundary after :data:`EARLY_BLOCKS` whole blocks and
