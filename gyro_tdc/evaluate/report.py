@@ -112,8 +112,9 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
         and each model: the accelerometer BS in (m/s^2)^2, null when not applicable;
         ``bs_over_floor``, ``accel_bs_over_floor``, ``floor`` and ``accel_floor`` only with
         ``floor`` and ``accel_floor``; ``constant_axes`` (only when there are any) in a bag:
-        the gyro axes reading their reference exactly (``p_vs_raw`` null there), in a
-        model: the axes it passes through unchanged (constant in its training data).
+        the gyro axes constant on it (readings never varying beyond one quantum, or reading
+        their reference exactly; ``p_vs_raw`` null there), in a model: the axes it passes
+        through unchanged (constant in its training data).
 
     """
     doc = {'bags': [{
@@ -175,20 +176,21 @@ def _ratio_cells(p: Sequence[float], constant: Sequence[str], width: int = 11) -
 def _constant_notes(b: BagEval) -> list:
     """Return the lines naming a bag's constant gyro axes and the models' identity axes."""
     out = []
-    if b.constant_axes:
-        many = len(b.constant_axes) > 1
-        out.append(f'  note: gyro ax{"es" if many else "is"} {", ".join(b.constant_axes)} '
-                   f'read{"" if many else "s"} the reference rate exactly on every sample '
-                   '(constant: a 2-axis gyro or a dead axis): no error to score, BS/BS1 '
-                   f'{_CONST}')
-    groups: dict = {}
+    exact = [a for a, v in zip(AXES, b.raw.bs) if a in b.constant_axes and not v > 0]
+    stuck = [a for a in b.constant_axes if a not in exact]
+    for axes, what in ((exact, ('read', 'reads', 'the reference rate exactly on every sample')),
+                       (stuck, ('never vary', 'never varies', 'beyond one quantum'))):
+        if axes:
+            many = len(axes) > 1
+            out.append(f'  note: gyro ax{"es" if many else "is"} {", ".join(axes)} '
+                       f'{what[0] if many else what[1]} {what[2]} (constant: a 2-axis gyro or '
+                       f'a dead axis): no signal to score, BS/BS1 {_CONST}')
     for m in b.models:
         if m.constant_axes:
-            groups.setdefault(tuple(m.constant_axes), []).append(m.label)
-    for axes, labels in groups.items():
-        out.append(f'  note: {", ".join(labels)} pass{"" if len(labels) > 1 else "es"} gyro '
-                   f'ax{"es" if len(axes) > 1 else "is"} {", ".join(axes)} through '
-                   'unchanged (constant in the training data: not fitted)')
+            many = len(m.constant_axes) > 1
+            out.append(f'  note: {m.label} passes gyro ax{"es" if many else "is"} '
+                       f'{", ".join(m.constant_axes)} through unchanged (constant in its '
+                       'training data: not fitted)')
     return out
 
 

@@ -32,9 +32,11 @@ from typing import Callable, Sequence
 
 from gyro_tdc.base import model_path
 from gyro_tdc.data import BagOptions, expand_bags, load_runs, Run, split_sessions
-from gyro_tdc.errors import FitError
+from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
-from gyro_tdc.identify import accel_scores, fit_accel, fit_px4_cubic, PX4_FEATURES
+from gyro_tdc.identify import (accel_scores, constant_axes, constant_gyro_axes, constant_values,
+                               fit_accel, fit_px4_cubic, identity_axes, MIN_SAMPLES,
+                               neutral_runs, PX4_FEATURES)
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             load_model, MAX_EXTRAPOLATION_C, model_temperature)
 from gyro_tdc.runtime import default_tolerance, reanchor_shift, STILL_WINDOW_MAX_S
@@ -45,8 +47,8 @@ from numpy.typing import NDArray
 
 __all__ = [
     'AUTO_REANCHOR', 'BagEval', 'ModelEval', 'NamedModel', 'PX4', 'bag_labels', 'evaluate',
-    'evaluate_run', 'load_models', 'mean_scores', 'model_labels', 'rate_hz', 'safe_label',
-    'score',
+    'evaluate_run', 'held_out_constant', 'load_models', 'mean_scores', 'model_labels',
+    'rate_hz', 'safe_label', 'score',
 ]
 
 #: Model spec of the PX4-style cubic in T fitted on training bags.
@@ -152,9 +154,12 @@ class BagEval:
         it; ``'clamp'``, what every evaluation did before the policy existed, when a result
         is built by hand).
     constant_axes : list of str
-        The gyro axes that read exactly their reference rate on every sample (raw BS 0: a
-        constant axis, e.g. the 0 a driver fills in for a 2-axis gyro): there is no error to
-        score, BS/BS1 does not apply there (NaN, not a number to read).
+        The gyro axes that are constant on this bag by ``train``'s rule (readings never
+        varying beyond one quantum, :func:`gyro_tdc.identify.constant_axes`: a 2-axis gyro's
+        filled-in 0, a dead axis; judged on bags of at least ``MIN_SAMPLES`` = 50 samples, as
+        many as ``train`` fits), or that read exactly their reference rate on every sample
+        (raw BS 0): there is no signal to score, BS/BS1 does not apply there (NaN, not a
+        number to read).
 
     """
 
@@ -311,15 +316,20 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     px4 = None
     if PX4 in specs:
         runs = load_runs(train_bags, _with_accel(bag), log=log)
-        px4 = fit_px4_cubic(runs, created={'bags': [r.name for r in runs]})
+        const = constant_gyro_axes(runs)        # as train: every axis constant is refused
+        px4 = fit_px4_cubic(neutral_runs(runs, const), created={'bags': [r.name for r in runs]})
+        px4 = identity_axes(px4, runs, const)   # a constant axis: not fitted, passed through
         acc = fit_accel(runs, px4, kind='poly', features=PX4_FEATURES)
         if acc.part is not None:          # PX4's TC_A*: a cubic for the accelerometer too
             px4 = px4.replace(accel=acc.part)
         if log is not None:
             lo, hi = px4.temp_range_c
+            axes = px4.metrics.get('constant_axes', [])
             log(f'fitted px4 cubic in T - T0 on {len(runs)} bag(s): T0 = {px4.t0_c:.3f} degC, '
                 f'range {lo:.2f} .. {hi:.2f} degC; accelerometer '
-                + ('cubic too' if acc.part is not None else f'not fitted: {acc.note}'))
+                + ('cubic too' if acc.part is not None else f'not fitted: {acc.note}')
+                + (f'; gyro ax{"es" if len(axes) > 1 else "is"} {", ".join(axes)} constant: '
+                   'not fitted, passed through unchanged' if axes else ''))
     return [NamedModel(s, label, px4 if s == PX4 else files[s],
                        'clamp' if s in ONBOARD else None)
             for s, label in zip(specs, model_labels(specs))]
@@ -463,12 +473,16 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     Returns
     -------
     BagEval
-        Scores, with the arrays kept for plots and export (call ``release()`` after).
+        Scores, with the arrays kept for plots and export (call ``release()`` after); on
+        the constant axes (``BagEval.constant_axes``) every model's BS/BS1 is NaN (every
+        axis constant is scored so; :func:`evaluate` refuses such a bag).
 
     """
     check_policy(out_of_range)
+    const = _constant(run)
     rate = rate_hz(run.t)
     raw = score(run.omega, run, rate=rate)
+    const |= ~(raw.bs > 0)                  # an axis reading its reference exactly
     parts = split_sessions([run], sessions, session_gap_s).runs
     out = []
     for nm in models:
@@ -478,6 +492,7 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
                    bs_raw=raw.bs, rate=rate)
         ev.reanchor = info
         ev.constant_axes = [str(a) for a in m.metrics.get('constant_axes', ())]
+        ev.p_vs_raw[const] = math.nan       # no signal to score there
         lo, hi = m.temp_range_c
         ev.temp_range_c = (lo, hi)
         temp = model_temperature(m, run.t, run.temp)     # the range is the thermal state's
@@ -493,7 +508,38 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
                    temperature_c=(float(run.temp.min()), float(run.temp.max())),
                    duration_s=run.duration_s, reference=str(run.info.get('reference', '?')),
                    raw=raw, models=out, run=run, out_of_range=out_of_range,
-                   constant_axes=[a for a, v in zip('xyz', raw.bs) if not v > 0])
+                   constant_axes=[a for a, c in zip('xyz', const) if c])
+
+
+def _constant(run: Run) -> NDArray[np.bool_]:
+    """Return ``train``'s constant axes of a run of at least as many samples as it fits."""
+    if len(run) < MIN_SAMPLES:          # too few to tell a constant axis from a quiet one
+        return np.zeros(3, dtype=bool)
+    return constant_axes(run.omega)
+
+
+def held_out_constant(run: Run) -> NDArray[np.bool_]:
+    """
+    Return, per axis, whether a held-out run's gyro is constant (``train``'s rule).
+
+    An axis whose readings never vary beyond one quantum
+    (:func:`gyro_tdc.identify.constant_axes`) over a run of at least
+    :data:`gyro_tdc.identify.fit.MIN_SAMPLES` samples (what ``train`` needs) holds no
+    signal to score.
+
+    Raises
+    ------
+    DatasetError
+        When every axis is: there is no gyro to evaluate.
+
+    """
+    const = _constant(run)
+    if const.all():
+        shown = ', '.join(f'{a} {v:.6g}' for a, v in zip('xyz', constant_values([run.omega])))
+        raise DatasetError(f'Expected a gyro to evaluate: every axis of the angular velocity '
+                           f'is constant in {run.name} ({shown} rad/s, never varying beyond '
+                           'one quantum); check that the driver publishes the gyro.')
+    return const
 
 
 def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
@@ -531,6 +577,12 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     list of BagEval
         One per bag, arrays released.
 
+    Raises
+    ------
+    DatasetError
+        A bag that cannot be read, or whose every gyro axis is constant
+        (:func:`held_out_constant`).
+
     """
     check_policy(out_of_range)
     o = BagOptions() if bag is None else bag
@@ -538,6 +590,7 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     results = []
     for path, label in zip(paths, bag_labels(paths)):
         run = load_runs([path], _with_accel(bag), log=log)[0]
+        held_out_constant(run)              # every gyro axis constant: refused
         here = [replace(nm, model=onboard_model(nm.name, run)[0]) if nm.name in ONBOARD
                 else nm for nm in models]         # each log's own on-board parameters
         b = evaluate_run(run, here, label=label, reanchor_s=reanchor_s,
@@ -564,7 +617,7 @@ def mean_scores(results: Sequence[BagEval]) -> list:
     list of (str, NDArray[np.float64], NDArray[np.float64])
         ``(label, mean BS in (deg/s)^2, mean BS/BS1)`` for the raw data, then each model;
         BS/BS1 over the bags where it is a number (NaN, without a warning, on an axis
-        reading its reference exactly in every bag).
+        constant in every bag: :attr:`BagEval.constant_axes`).
 
     """
     rows = [('raw', [b.raw for b in results])] + [

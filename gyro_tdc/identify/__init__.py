@@ -24,7 +24,8 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'accel': ['ACCEL_EFFECTS', 'accel_features', 'accel_scores', 'compensate_accel',
-              'discovery_runs', 'fit_accel', 'MG', 'PX4_FEATURES'],
+              'constant_axes', 'constant_axes_of', 'constant_values', 'discovery_runs',
+              'fit_accel', 'MG', 'PX4_FEATURES'],
     'accel_static': ['static_bs', 'static_data'],
     'discover': ['discover'],
     'discover.model': ['build_model'],
@@ -33,11 +34,13 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'export': ['clamp_cost', 'ExportScore', 'FcExport', 'FIRMWARES', 'fit_export', 'from_params',
                'read_params', 'score_export', 'steady_drift', 'write_params'],
     'features': ['AUTO', 'choose_features', 'FeatureChoice'],
-    'fit': ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'TAU_BOUNDS', 'THERMAL_CHOICES'],
+    'fit': ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'MIN_SAMPLES', 'TAU_BOUNDS',
+            'THERMAL_CHOICES'],
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],
     'options': ['TrainOptions'],
     'result': ['TrainResult'],
     'still_only': ['train_still_only'],
     'tau': ['effective_samples', 'fit_time_constant', 'profile_interval', 'TimeConstantFit'],
-    'train': ['train'],
+    'train': ['constant_gyro_axes', 'constant_readings', 'identity_axes', 'neutral_runs',
+              'train'],
 })
