@@ -36,6 +36,8 @@ from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import fit_model
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.result import TrainResult
+from gyro_tdc.identify.train import (constant_gyro_axes, constant_readings, identity_axes,
+                                     neutral_runs)
 from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             OPERATING_RANGE_C, save_model)
 from gyro_tdc.signal import detect_still, MIN_STILL_S, motion_veto, STILL_WINDOW_S, Stillness
@@ -332,14 +334,18 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     -------
     TrainResult
         As :func:`gyro_tdc.identify.train.train`, with ``still`` the :class:`StillReport`;
-        ``coverage`` and ``samples`` are those of the still time kept.
+        ``coverage`` and ``samples`` are those of the still time kept. A constant gyro axis
+        (:func:`gyro_tdc.identify.train.constant_gyro_axes`) is not fitted: the still test,
+        the feature choice and the fit see it at its reference, the model passes it through
+        (``result.constant``, ``model.metrics['constant_axes']``).
 
     Raises
     ------
     GyroTdcError
-        DatasetError for a bag or motion topic that cannot be read; FitError when no still
-        stretch is found or their temperatures span less than :data:`MIN_STILL_SPAN_C`
-        (with what to record), and as :func:`gyro_tdc.identify.train.train`.
+        DatasetError for a bag or motion topic that cannot be read or a gyro constant on
+        every axis (before any still test); FitError when no still stretch is found or
+        their temperatures span less than :data:`MIN_STILL_SPAN_C` (with what to record),
+        and as :func:`gyro_tdc.identify.train.train`.
 
     """
     o = TrainOptions() if options is None else options
@@ -363,6 +369,10 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                   for j, a, b in split.parts]
     runs = split.runs
     names = [r.name for r in runs]
+    # A constant gyro axis (train's rule; every axis constant refused as train does) is not
+    # fitted: the still test, the feature choice and the fit see it at its reference (0).
+    const = constant_gyro_axes(runs)
+    raw_runs, runs = runs, neutral_runs(runs, const)
     still = find_still(runs, moving=moving, window_s=o.window_s, min_still_s=o.min_still_s)
     rejected: dict = {}
     for st in still:
@@ -407,6 +417,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         means = _stretch_means(model, runs, spans, split.labels)
     else:
         bad[:] = False
+    model = identity_axes(model, raw_runs, const, rows)
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
                          float(runs[i].temp[a:b].mean()), not drop,
                          tuple(float(v) * _DEG for v in mu))
@@ -425,7 +436,8 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     path = save_model(model, out)
     return TrainResult(model=model, path=Path(path), coverage=report.coverage, bags=bags,
                        samples=int(sum(np.count_nonzero(m) for m in rows)), choice=choice,
-                       accel=accel_fit, still=report, sessions=split)
+                       accel=accel_fit, still=report, sessions=split,
+                       constant=constant_readings(raw_runs, const))
 
 
 def _stretch_means(model: CompensationModel, runs: Sequence[Run],
