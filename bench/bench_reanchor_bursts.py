@@ -39,7 +39,7 @@ samples compensated with their session's anchor in force (what the re-anchoring 
 
 ``--old COMMIT`` runs the re-anchoring of ``gyro_tdc/runtime/reanchor.py`` at that commit
 beside this tree's, on the same cases (the core is this tree's). Run:
-``.venv/bin/python bench/bench_reanchor_bursts.py --cases 60 --old HEAD`` (about a minute).
+``.venv/bin/python bench/bench_reanchor_bursts.py --cases 60 --old fd17df7`` (about 10 s).
 """
 
 from __future__ import annotations
