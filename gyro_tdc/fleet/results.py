@@ -54,6 +54,10 @@ class SensorResult:
         Fleet-outlier flags.
     seconds : float, s
         Wall time of the task on its worker (0 when skipped).
+    constant_axes : list of str
+        The gyro axes constant in the sensor's training bags (never varying beyond one
+        quantum): not fitted, its model passes them through; they take no part in the fleet
+        statistics (no slope, curvature or z-score there, never flagged).
 
     """
 
@@ -72,6 +76,15 @@ class SensorResult:
     z_curvature: list | None = None
     flags: list = field(default_factory=list)
     seconds: float = 0.0
+    constant_axes: list = field(default_factory=list)
+
+    def constant_note(self) -> str:
+        """Return the table's note on the constant axes ('' when none)."""
+        if not self.constant_axes:
+            return ''
+        many = len(self.constant_axes) > 1
+        return (f'gyro ax{"es" if many else "is"} {", ".join(self.constant_axes)} constant '
+                '(not fitted, passed through; not in the fleet statistics)')
 
 
 @dataclass

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass, field, replace
 import hashlib
 import json
 import logging
@@ -48,7 +48,7 @@ from gyro_tdc.fleet.results import FleetResult, SensorResult
 from gyro_tdc.fleet.stats import DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics
 from gyro_tdc.fleet.summary import write_summary
 from gyro_tdc.identify import train, TrainOptions
-from gyro_tdc.model import CompensationModel, save_model
+from gyro_tdc.model import CompensationModel, load_model, save_model
 
 __all__ = ['Engine', 'STATE_DIR', 'SensorOutcome', 'check_workers', 'open_engine', 'run_fleet',
            'run_sensor', 'sigterm_as_interrupt', 'worker_version']
@@ -84,6 +84,8 @@ class SensorOutcome:
         Wall time of the task on the worker.
     pid : int
         Process id of the worker.
+    constant_axes : list of str
+        The gyro axes constant in the training bags (the model passes them through).
 
     """
 
@@ -98,6 +100,7 @@ class SensorOutcome:
     temp_range_c: list | None = None
     seconds: float = 0.0
     pid: int = 0
+    constant_axes: list = field(default_factory=list)
 
 
 #: The held-out bags are scored re-anchored, session by session (``evaluate --reanchor
@@ -156,6 +159,7 @@ def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | Non
         out.train_bs = [float(v) for v in model.metrics.get('train_bs_dps2', [math.nan] * 3)]
         out.drift_poly = drift_polynomial(model).tolist()
         out.temp_range_c = [float(v) for v in model.temp_range_c]
+        out.constant_axes = [str(a) for a in model.metrics.get('constant_axes', ())]
         out.model = model
         out.status = 'ok'
     except (GyroTdcError, OSError) as exc:
@@ -296,7 +300,8 @@ def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
         return SensorResult(out.sensor_id, 'ok', model_file=str(model_file), skipped=True,
                             train_bs=state.get('train_bs'), heldout_bs=state.get('heldout_bs'),
                             drift_poly=state.get('drift_poly'),
-                            temp_range_c=state.get('temp_range_c'))
+                            temp_range_c=state.get('temp_range_c'),
+                            constant_axes=_state_constant(state, model_file))
     if out.status != 'ok' or out.model is None:
         with contextlib.suppress(OSError):
             state_file.unlink()       # the model on disk no longer matches these inputs
@@ -308,7 +313,7 @@ def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
                   'model_sha256': hashlib.sha256(model_file.read_bytes()).hexdigest(),
                   'train_bs': out.train_bs, 'heldout_bs': out.heldout_bs,
                   'drift_poly': out.drift_poly, 'temp_range_c': out.temp_range_c,
-                  'seconds': out.seconds}
+                  'constant_axes': out.constant_axes, 'seconds': out.seconds}
         atomic_write(state_file, json.dumps(record) + '\n', what='fleet state file')
     except (GyroTdcError, OSError) as exc:       # this sensor's output only: the others go on
         with contextlib.suppress(OSError):
@@ -316,7 +321,24 @@ def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
         return SensorResult(out.sensor_id, 'failed', error=one_line(exc), seconds=out.seconds)
     return SensorResult(out.sensor_id, 'ok', model_file=str(model_file), train_bs=out.train_bs,
                         heldout_bs=out.heldout_bs, drift_poly=out.drift_poly,
-                        temp_range_c=out.temp_range_c, seconds=out.seconds)
+                        temp_range_c=out.temp_range_c, seconds=out.seconds,
+                        constant_axes=list(out.constant_axes))
+
+
+def _state_constant(state: dict, model_file: Path) -> list:
+    """
+    Return the constant gyro axes of a kept sensor: from its resume state, else its model.
+
+    A state written before the state recorded them names none; the model file it matches
+    (its digest checked) does (``training.constant_axes``).
+    """
+    axes = state.get('constant_axes')
+    if axes is None:
+        try:
+            axes = load_model(model_file).metrics.get('constant_axes', [])
+        except (GyroTdcError, OSError):
+            axes = []
+    return [str(a) for a in axes if a in ('x', 'y', 'z')] if isinstance(axes, list) else []
 
 
 class _NoWorker(FleetError):

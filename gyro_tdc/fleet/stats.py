@@ -19,7 +19,9 @@ The static drift curve of a model (at thermal equilibrium) is fitted with a quad
 temperature; its slope at the fleet's reference temperature (the median middle of the
 trained ranges, where slopes are best determined) and its curvature, per axis, are compared
 with the fleet by a robust z-score ``(v - median) / (1.4826 MAD)``; beyond ``outlier_z`` a
-flag such as ``drift slope on x 6.0σ from the fleet`` is raised.
+flag such as ``drift slope on x 6.0σ from the fleet`` is raised. A sensor's constant axis
+(``SensorResult.constant_axes``: not fitted, its model passes it through, so its drift is
+exactly 0) is no drift to compare: it takes no part in that axis' statistics.
 """
 
 from __future__ import annotations
@@ -110,24 +112,35 @@ def fleet_statistics(sensors: Sequence[SensorResult], *,
     float or None, degC
         The reference temperature of the slopes (the fleet's median of the middle of each
         trained range, where a slope is best determined), None without any trained sensor.
-        z-scores and flags need at least :data:`MIN_FLEET` sensors.
+        z-scores and flags of an axis need at least :data:`MIN_FLEET` sensors fitted on it:
+        a sensor's constant axes (``constant_axes``) get no slope, curvature or z-score
+        (None) and are left out of the axis' median and MAD.
 
     """
     fleet = [s for s in sensors if s.status == 'ok' and s.drift_poly is not None]
     if not fleet:
         return None
     ref = float(np.median([sum(s.temp_range_c) / 2.0 for s in fleet]))
-    for s in fleet:
+    # fitted[i, a]: sensor i's model is fitted on axis a (not an identity axis).
+    fitted = np.array([[a not in (s.constant_axes or ()) for a in AXES] for s in fleet])
+    for s, ok in zip(fleet, fitted):
         c = np.asarray(s.drift_poly, dtype=np.float64)          # (axis, power)
-        s.slope = (c[:, 1] + 2.0 * c[:, 2] * ref).tolist()
-        s.curvature = c[:, 2].tolist()
+        slope, curv = c[:, 1] + 2.0 * c[:, 2] * ref, c[:, 2]
+        s.slope = [float(v) if k else None for v, k in zip(slope, ok)]
+        s.curvature = [float(v) if k else None for v, k in zip(curv, ok)]
     if len(fleet) < MIN_FLEET:
         return ref
     for name, attr, zattr, unit in (('slope', 'slope', 'z_slope', 'deg/s/degC'),
                                     ('curvature', 'curvature', 'z_curvature', 'deg/s/degC^2')):
-        values = np.array([getattr(s, attr) for s in fleet])   # (sensor, axis)
-        z = np.stack([robust_z(values[:, a]) for a in range(3)], axis=1)
-        med = np.median(values, axis=0)
+        values = np.array([[math.nan if v is None else v for v in getattr(s, attr)]
+                           for s in fleet])                    # (sensor, axis)
+        z = np.full(values.shape, math.nan)
+        med = np.full(3, math.nan)
+        for a in range(3):
+            rows = fitted[:, a]
+            if np.count_nonzero(rows) >= MIN_FLEET:
+                z[rows, a] = robust_z(values[rows, a])
+                med[a] = float(np.median(values[rows, a]))
         for i, s in enumerate(fleet):
             setattr(s, zattr, [None if math.isnan(v) else float(v) for v in z[i]])
             for a, axis in enumerate(AXES):

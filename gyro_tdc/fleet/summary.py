@@ -41,8 +41,10 @@ def summary_dict(result: FleetResult) -> dict:
     -------
     dict
         ``{"engine": "dask", "scheduler", "workers", "sensors": [{"sensor_id", "status",
-        "error" (failed only), "model_file", "train_bs", "heldout_bs", "flags"}]}``, BS in
-        (deg/s)^2 per axis x, y, z.
+        "error" (failed only), "model_file", "train_bs", "heldout_bs", "flags",
+        "constant_axes" (only when there are any)}]}``, BS in (deg/s)^2 per axis x, y, z;
+        ``constant_axes``: the gyro axes constant in the training bags (passed through, not
+        in the fleet statistics).
 
     """
     rows = []
@@ -52,18 +54,21 @@ def summary_dict(result: FleetResult) -> dict:
             row['error'] = s.error
         row.update({'model_file': s.model_file, 'train_bs': s.train_bs,
                     'heldout_bs': s.heldout_bs, 'flags': list(s.flags)})
+        if s.constant_axes:
+            row['constant_axes'] = list(s.constant_axes)
         rows.append(row)
     return {'engine': 'dask', 'scheduler': result.scheduler, 'workers': result.workers,
             'sensors': rows}
 
 
 def _csv_text(result: FleetResult) -> str:
-    """Return ``summary.csv``: one row per sensor with BS, drift coefficients and z-scores."""
+    """Return ``summary.csv``: one row per sensor: BS, drift coefficients, z-scores, flags."""
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator='\n')
     per_axis = ('train_bs', 'heldout_bs', 'slope', 'curvature', 'z_slope', 'z_curvature')
     w.writerow(['sensor_id', 'status', 'skipped', 'seconds', 'model_file', 'slope_at_c']
-               + [f'{c}_{a}' for c in per_axis for a in AXES] + ['flags', 'error'])
+               + [f'{c}_{a}' for c in per_axis for a in AXES]
+               + ['flags', 'constant_axes', 'error'])
 
     def cells(values: list | None) -> list:
         return ['' if values is None or values[a] is None else f'{values[a]:.6g}'
@@ -74,7 +79,7 @@ def _csv_text(result: FleetResult) -> str:
         w.writerow([s.sensor_id, s.status, int(s.skipped), f'{s.seconds:.3f}',
                     s.model_file or '', ref if s.slope is not None else '']
                    + [c for name in per_axis for c in cells(getattr(s, name))]
-                   + ['; '.join(s.flags), s.error])
+                   + ['; '.join(s.flags), ' '.join(s.constant_axes), s.error])
     return buf.getvalue()
 
 
@@ -105,7 +110,10 @@ def write_summary(result: FleetResult, out_dir: str | os.PathLike) -> tuple[Path
 
 def format_table(result: FleetResult, *, max_rows: int = 40) -> str:
     """
-    Return the console table: one line per sensor (only failed and flagged ones when many).
+    Return the console table: one line per sensor (when many, the noteworthy ones only).
+
+    With more than ``max_rows`` sensors, only the failed ones, the flagged ones and those
+    with a constant gyro axis are listed.
 
     Parameters
     ----------
@@ -125,20 +133,24 @@ def format_table(result: FleetResult, *, max_rows: int = 40) -> str:
 
     shown = result.sensors
     if len(shown) > max_rows:
-        shown = [s for s in shown if s.status != 'ok' or s.flags]
+        shown = [s for s in shown if s.status != 'ok' or s.flags or s.constant_axes]
     w = max([len(s.sensor_id) for s in shown] + [9])
     lines = [f'{"sensor_id":<{w}}  {"status":<7}  {"train BS x y z (deg/s)^2":<29}  '
              f'{"held-out BS x y z":<29}  flags / error']
     for s in shown:
         status = 'skipped' if s.skipped else s.status
-        note = s.error if s.status != 'ok' else '; '.join(s.flags)
+        note = (s.error if s.status != 'ok'
+                else '; '.join(s.flags + ([s.constant_note()] if s.constant_axes else [])))
         lines.append(f'{s.sensor_id:<{w}}  {status:<7}  {bs(s.train_bs)}  '
                      f'{bs(s.heldout_bs)}  {note}'.rstrip())
     n_ok = sum(s.status == 'ok' for s in result.sensors)
     n_flag = sum(bool(s.flags) for s in result.sensors)
     n_skip = sum(s.skipped for s in result.sensors)
+    n_const = sum(bool(s.constant_axes) for s in result.sensors if s.status == 'ok')
     lines.append(f'{len(result.sensors)} sensors: {n_ok} ok ({n_skip} unchanged, skipped), '
                  f'{len(result.sensors) - n_ok} failed, {n_flag} flagged as fleet outliers '
-                 f'(|z| > {result.outlier_z:g}); {result.workers} Dask worker(s), '
-                 f'{result.seconds:.1f} s')
+                 f'(|z| > {result.outlier_z:g})'
+                 + (f', {n_const} with a constant gyro axis (not in the statistics)'
+                    if n_const else '')
+                 + f'; {result.workers} Dask worker(s), {result.seconds:.1f} s')
     return '\n'.join(lines)
