@@ -382,7 +382,7 @@ def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse
         beside = _beside_curve(data, curve, folds, eid, params)
         if beside <= max(min_heldout * floor ** 2, 0.01 * curve[2] * DEG ** 2):
             why.append(f'no held-out gain beside {"+".join(curve[0])}')
-        gain = min(gain, beside)   # credited only with what the static curve cannot hold
+        gain = beside              # credited with what the static curve cannot hold
     if eff < min_effect * floor:
         why.append('effect below noise')
     sc = CandidateScore(eid, own, p, gain, eff, gap(data, r), gap(data, ho), not why,
