@@ -336,7 +336,7 @@ def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse
     Score one candidate against ``model``; returns the score, its contribution and params.
 
     With ``curve`` (:func:`_curve_model`) a time-memory candidate must also gain held out
-    beside the static curve (:func:`_beside_curve`), and is credited with the smaller gain.
+    beside the static curve (:func:`_beside_curve`), and is ranked by its gain there.
     """
     effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
     cand = LinearModel(data, effects, params)
