@@ -27,21 +27,34 @@ target (or every case named by ``--case``) prints the held-out BS / floor per ax
 * beside them the PX4 cubic, whose figure plus 0.005 is the second bound.
 
 Run: ``.venv/bin/python bench/bench_lag_selection.py`` (seed 27, 12 cases, about 40 s);
-``--seed 5``; ``--case 1,9`` for those cases whatever they score.
+``--seed 5``; ``--case 1,9`` for those cases whatever they score. ``--old COMMIT`` instead
+draws the same cases, trains them by default with this tree and with COMMIT's ``gyro_tdc``
+(``git archive``, in a subprocess), and prints the pass counts and every case whose features
+differ, old and new (about 1 minute per seed)::
+
+    .venv/bin/python bench/bench_lag_selection.py --old 2fd470b --seed 5
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
+import os
 from pathlib import Path
+import subprocess
 import sys
+import tempfile
 import time
 
 ROOT = Path(__file__).resolve().parent.parent
 for p in (ROOT, ROOT / 'bench'):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
+#: Set (by ``--old``) to a tree whose ``gyro_tdc`` is imported instead of this one's.
+OLD_TREE = os.environ.get('BENCH_LAG_SELECTION_TREE')
+if OLD_TREE:
+    sys.path.insert(0, OLD_TREE)
 
 import bench_sessions as bs  # noqa: E402
 from gyro_tdc.identify import estimate_t0, fit_model  # noqa: E402
@@ -103,6 +116,50 @@ def _line(label: str, result: tuple, cubic: np.ndarray) -> str:
             + f'  {"pass" if ok else "FAIL"}  {feats} ({tau})')
 
 
+def _rows(seed: int, cases: int) -> list:
+    """Return every case's draws, default features and held-out BS / floor (plain types)."""
+    out = []
+    for k, d in enumerate(_draw(seed, cases)):
+        out.append({'case': k, 'rate': d['rate'], 'res': d['res'], 'lag': d['lag'],
+                    'heating': d['heating'], 'features': d['features'],
+                    'ours': [float(v) for v in d['ours']], 'pass': bool(d['pass'])})
+    return out
+
+
+def _old_rows(commit: str, seed: int, cases: int) -> list:
+    """Return :func:`_rows` computed with ``commit``'s ``gyro_tdc`` (a subprocess)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        tar = subprocess.run(['git', '-C', str(ROOT), 'archive', commit, 'gyro_tdc'],
+                             check=True, capture_output=True).stdout
+        subprocess.run(['tar', '-x', '-C', tmp], input=tar, check=True)
+        env = dict(os.environ, BENCH_LAG_SELECTION_TREE=tmp)
+        done = subprocess.run([sys.executable, __file__, '--rows', '--seed', str(seed),
+                               '--cases', str(cases)], env=env, check=True,
+                              capture_output=True, text=True)
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def compare(commit: str, seed: int, cases: int) -> int:
+    """Print the pass counts of ``commit`` and this tree, and the cases whose features differ."""
+    old, new = _old_rows(commit, seed, cases), _rows(seed, cases)
+    print(f'family 1, seed {seed}: {commit} {sum(r["pass"] for r in old)}/{cases} pass, '
+          f'this tree {sum(r["pass"] for r in new)}/{cases} pass; cases whose features '
+          'differ (held-out BS / floor x y z):')
+    for a, b in zip(old, new):
+        if a['features'] == b['features']:
+            continue
+        worst_a, worst_b = max(a['ours']), max(b['ours'])
+        how = ('better' if worst_b < worst_a - 1e-3 else
+               'worse' if worst_b > worst_a + 1e-3 else 'same')
+        print(f'  case {a["case"]}: {a["rate"]:g} Hz, {a["res"]:g} degC, lag {a["lag"]:g} s, '
+              f'heating {a["heating"]}')
+        for tag, r in ((commit, a), ('this tree', b)):
+            print(f'    {tag:<10} ' + ' '.join(f'{v:6.3f}' for v in r['ours'])
+                  + f'  {"pass" if r["pass"] else "FAIL"}  {r["features"]}')
+        print(f'    worst axis: {how}')
+    return 0
+
+
 def main(argv: list | None = None) -> int:
     """Draw the cases and print what limits each."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
@@ -110,7 +167,14 @@ def main(argv: list | None = None) -> int:
     ap.add_argument('--cases', type=int, default=12, help='cases drawn (default 12)')
     ap.add_argument('--case', default='', help='comma-separated cases to show whatever they '
                     'score (default: the lagging dies that fail)')
+    ap.add_argument('--old', metavar='COMMIT', help="compare with COMMIT's gyro_tdc instead")
+    ap.add_argument('--rows', action='store_true', help=argparse.SUPPRESS)
     args = ap.parse_args(argv)
+    if args.rows:                     # the subprocess of --old: one JSON line
+        print(json.dumps(_rows(args.seed, args.cases)))
+        return 0
+    if args.old:
+        return compare(args.old, args.seed, args.cases)
     start = time.perf_counter()
     cases = _draw(args.seed, args.cases)
     chosen = ({int(c) for c in args.case.split(',') if c.strip()} if args.case else
