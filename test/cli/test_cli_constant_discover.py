@@ -74,3 +74,23 @@ def test_discover_refuses_a_sensor_constant_on_every_axis(bags, tmp_path, bag, e
     assert 'every axis' in err[0] and 'noise floor 0' in err[0], err[0]
     assert 'Traceback' not in res.stderr and 'Warning' not in res.stderr
     assert not (tmp_path / 'm.yaml').exists() and not (tmp_path / 'd.json').exists()
+
+
+def test_discover_out_passes_a_stuck_axis_through(tmp_path):
+    """``discover --out`` on a gyro with z stuck at 0.25 rad/s: z not fitted, x and y as train."""
+    import yaml
+    sim = simulate_scenario('demo_fast', seed=4, rate_hz=2.0)[0]
+    gyro = sim.gyro.copy()
+    gyro[:, 2] = 0.25
+    write_bag(tmp_path / 'z1', imu_t=sim.imu_t, gyro=gyro, accel=sim.accel,
+              temp_t=sim.temp_t, temp_c=sim.temp_c)
+    res = _cli('discover', tmp_path / 'z1', '--out', tmp_path / 'm.yaml')
+    assert res.returncode == 0, res.stderr
+    assert 'Traceback' not in res.stderr and 'Warning' not in res.stderr
+    doc = yaml.safe_load((tmp_path / 'm.yaml').read_text())
+    assert doc['training']['constant_axes'] == ['z'], doc['training']
+    from gyro_tdc.model import compensate, load_model
+    model = load_model(tmp_path / 'm.yaml')
+    out = compensate(model, sim.imu_t, np.interp(sim.imu_t, sim.temp_t, sim.temp_c), gyro)
+    assert np.array_equal(out[:, 2], gyro[:, 2])          # passed through, bit for bit
+    assert np.std(out[:, 0] - gyro[:, 0]) > 0             # x is corrected

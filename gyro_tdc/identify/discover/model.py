@@ -59,7 +59,9 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
     at start-up, and a rate-table gain error belongs to a separate calibration); then
     :func:`gyro_tdc.identify.fit_model` fits the final effects with the fitted time constants
     and, with ``lag``, the thermal state discovery found (tau with its profile interval): a
-    format 2 model whose every temperature term follows the state.
+    format 2 model whose every temperature term follows the state. A gyro axis whose readings
+    never vary beyond one quantum is passed through, as ``train`` does
+    (:func:`gyro_tdc.identify.train.neutral_runs`, :func:`~gyro_tdc.identify.train.identity_axes`).
 
     Parameters
     ----------
@@ -79,6 +81,7 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
 
     """
     from gyro_tdc.identify.fit import fit_model
+    from gyro_tdc.identify.train import constant_gyro_axes, identity_axes, neutral_runs
 
     if len(runs) != len(result.runs):
         raise FitError(f'Expected the {len(result.runs)} runs discovery analysed, '
@@ -98,8 +101,13 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
     kind = model_kind(features) if kind is None else kind
     thermal = result.thermal if 'lag' in features else None
     params = {k: v for k, v in result.params.items() if k != 'lag'}
-    return fit_model(adjusted, kind=kind, features=features, t0=result.t0_c,
-                     fit_params=False, params=params, created=info, thermal=thermal)
+    # A constant gyro axis (train's rule) is fitted as train fits it: not at all (its
+    # columns exactly zero, passed through), its figures the raw ones.
+    const = constant_gyro_axes(runs)
+    model = fit_model(neutral_runs(adjusted, const), kind=kind, features=features,
+                      t0=result.t0_c, fit_params=False, params=params, created=info,
+                      thermal=thermal)
+    return identity_axes(model, runs, const)
 
 
 def model_features(result: DiscoveryResult, runs: Sequence[Run]) -> tuple[str, ...]:
