@@ -709,6 +709,9 @@ class Learner:
             self.refused, self.refused_why = self.refused + 1, str(exc)
             return False
         anchor = since if self.config.offset_s > 0 or since == -math.inf else None
+        # Whose offset it carries: the newest still time it was taken from (the core keeps
+        # re-anchoring a new power cycle until a model carries that cycle's offset).
+        cand.created['offset_until'] = self._offset_until(rows, since, offset is not None)
         pred = predict_windows(cand, rows, self.thermal)
         new = window_error(rows, pred, anchor)
         old = change = None
@@ -731,6 +734,22 @@ class Learner:
         self.last_update_t = t_now
         self.swaps += 1
         return True
+
+    def _offset_until(self, rows: NDArray[np.float64], since: float, recent: bool
+                      ) -> float | None:
+        """
+        Return the stamp of the newest still time a candidate's offset comes from, or None.
+
+        The newest of ``rows`` after ``since`` when the offset is theirs (``recent``), else
+        the newest entry of the current session (the fit's intercept of its newest session);
+        None when the current session has none (the offset is an older session's).
+        """
+        if recent:
+            new = rows[rows[:, 5] > since, 5]
+            return float(new.max()) if new.size else None
+        e = self.entries()
+        mine = e[e[:, 6] == self.session, 0]
+        return float(mine.max()) if mine.size else None
 
     def _recent_rows(self) -> list:
         """Return this session's recent windows (the check's and the offset's)."""

@@ -156,6 +156,8 @@ class ModelSlot:
     static: bool = False
     cache: dict[float, DriftEntry] = field(default_factory=dict)
     accel: AccelSlot | None = None
+    #: The attached learner's model (:meth:`CompensatorCore.schedule`).
+    learned: bool = False
 
 
 @dataclass(slots=True)
@@ -210,7 +212,10 @@ class Reanchoring:
     the current one, ``session_k`` the ``in`` count at it and ``session_why`` what started it
     (``'gap of X s'``, ``'restart (stamps back by X s)'``; ``''`` for the first);
     ``pauses`` and ``paused_s`` the steps over ``SESSION_GAP_S`` that were no break, and their
-    sum (left out of the session's sample period).
+    sum (left out of the session's sample period). ``learned``: a learned model carrying this
+    session's offset is installed (taken from its own still time), so re-anchoring is done
+    for the session without a shift; ``waiting`` that it still waits for a still window
+    (:meth:`CompensatorCore._update_needs`).
     """
 
     detector: StillnessDetector
@@ -221,6 +226,8 @@ class Reanchoring:
     session_why: str = ''
     pauses: int = 0
     paused_s: float = 0.0
+    learned: bool = False
+    waiting: bool = False
     #: The shared session-break rule (:class:`gyro_tdc.signal.SessionRule`): the stream's
     #: rhythm over sessions.
     rule: SessionRule = field(default_factory=SessionRule)
@@ -250,6 +257,8 @@ class LearningGate:
     due: float = math.inf
     gate: float = math.inf
     installs: int = 0
+    #: Samples in the last hand-off within a run of samples (not cut by a pause).
+    block_n: int = 1
 
 
 class CompensatorCore:
@@ -342,8 +351,9 @@ class CompensatorCore:
         return self.slot.accel is not None
 
     def _update_needs(self) -> None:
-        self.needs_accel = self.slot.accel is not None or (
-            self.policy.reanchor_on_start and self.reanchoring.anchor is None)
+        a = self.reanchoring
+        a.waiting = bool(self.policy.reanchor_on_start and a.anchor is None and not a.learned)
+        self.needs_accel = self.slot.accel is not None or a.waiting
 
     # -- learning ---------------------------------------------------------------------
 
@@ -406,7 +416,7 @@ class CompensatorCore:
             gate.due = math.inf
             gate.gate = self._gate()
             gate.installs += 1
-            self.install(prepared)
+            self.install(prepared, learned=True)
             return
         gate.queue.append((due, prepared))
         gate.due = gate.queue[0][0]
@@ -445,7 +455,7 @@ class CompensatorCore:
             gate.due = queue[0][0] if queue else math.inf
             gate.gate = self._gate()
             gate.installs += 1
-            self.install(prepared)
+            self.install(prepared, learned=True)
             if gate.extend is None:           # no learner: nothing to hand
                 return
         if accel is None:                     # Learner.observe's layout
@@ -465,17 +475,22 @@ class CompensatorCore:
             gate.block_extend(sample)
         else:
             gate.block_extend(sample)
-            self._hand_off(block, gate.extend)
+            gate.block_n = self._hand_off(block, gate.extend)
 
     @staticmethod
-    def _hand_off(block: array, extend: Callable) -> None:
-        """Hand the learner the mean of ``block``'s samples (NaN where one had none); empty it."""
+    def _hand_off(block: array, extend: Callable) -> int:
+        """
+        Hand the learner the mean of ``block``'s samples (NaN where one had none); empty it.
+
+        Returns the number of samples it held.
+        """
         n = len(block) // BLOCK_FIELDS
         if n == 1:
             extend(block)
         elif n:
             extend(tuple(sum(block[i::BLOCK_FIELDS]) / n for i in range(BLOCK_FIELDS)))
         del block[:]
+        return n
 
     # -- model ------------------------------------------------------------------------
 
@@ -508,7 +523,7 @@ class CompensatorCore:
             return
         self.install(prepare(model, self.policy, self.priming(model)))
 
-    def install(self, prepared: PreparedModel) -> None:
+    def install(self, prepared: PreparedModel, learned: bool = False) -> None:
         """
         Swap in a model made ready by :func:`prepare` (call it on the thread that compensates).
 
@@ -516,10 +531,19 @@ class CompensatorCore:
         thermometer samples recorded since, up to the last IMU stamp; a model with the same
         ``model_id`` as the current one keeps the start-up shift, any other clears it.
 
+        A ``learned`` model (the attached learner's, :meth:`schedule`) carries an offset of
+        its own: one taken from this session's still time (its ``created['offset_until']``
+        at or after the session's first stamp) replaces the shift and ends the session's
+        re-anchoring; one of an older session's (a new power cycle the learner has not seen
+        still yet) after a learned model keeps the shift, or the re-anchoring under way (the
+        shift is this session's offset against the older one, which both models share).
+
         Parameters
         ----------
         prepared : PreparedModel
             The model and its primed streaming state.
+        learned : bool
+            The model is the attached learner's.
 
         """
         if not prepared_for(prepared, self.policy):   # read before a policy change
@@ -549,14 +573,28 @@ class CompensatorCore:
         old = self.slot
         anchoring = self.reanchoring
         same = old.model is not None and prepared.model_id == old.model_id
-        if same and anchoring.anchor is not None:
+        learned = learned and self.learning.learner is not None
+        older = learned and old.learned   # a learned model after a learned one
+        if learned and self._session_offset(model):
+            anchoring.anchor = None       # this session's offset: no shift, no re-anchoring
+            anchoring.learned = True
+        elif (same or older) and anchoring.anchor is not None:
             comp.shift_offset(np.asarray(anchoring.anchor.delta, dtype=np.float64))
-        elif not same:
+        elif not same and not older:
             anchoring.anchor = None
-            anchoring.detector.reset(residual_var=model.residual_var)
+            anchoring.learned = False
+            anchoring.detector.reset(residual_var=self._reanchor_var(model) if learned
+                                     else model.residual_var)
         self.slot = ModelSlot(model, prepared.model_id, comp, prepared.var, prepared.scale,
-                              prepared.static, {}, self._accel_slot(model, comp, prepared.static))
+                              prepared.static, {}, self._accel_slot(model, comp, prepared.static),
+                              learned)
         self._update_needs()
+
+    def _session_offset(self, model: CompensationModel) -> bool:
+        """Return whether a learned ``model``'s offset was taken in the current session."""
+        until = model.created.get('offset_until')
+        start = self.reanchoring.session_t
+        return until is not None and start is not None and until >= start
 
     def set_policy(self, policy: Policy) -> None:
         """
@@ -587,8 +625,7 @@ class CompensatorCore:
                 policy.still_window, policy.still_gyro_std, policy.still_max_rate,
                 policy.still_accel_std, window_max=policy.still_window_max,
                 tolerance=policy.reanchor_tolerance)
-            model = self.slot.model
-            detector.reset(residual_var=None if model is None else model.residual_var)
+            detector.reset(residual_var=self._reanchor_var(self.slot.model))
             if self.stream.moving and self.stream.t is not None:
                 detector.observe_motion(self.stream.t, True)
             anchoring.detector = detector
@@ -803,7 +840,12 @@ class CompensatorCore:
                 fc[STALE] += 1
             if flags & OUT_OF_RANGE:
                 fc[OUT_OF_RANGE] += 1
-        elif policy.reanchor_on_start and self.reanchoring.anchor is None:
+                # With a learner, a new power cycle is re-anchored out of range too: the
+                # shift holds only until the learner gives the cycle its own offset.
+                if (flags == OUT_OF_RANGE and self.reanchoring.waiting
+                        and self.learning.extend is not None):
+                    self._still(t, (wx, wy, wz), (ox, oy, oz), accel, temp)
+        elif policy.reanchor_on_start and self.reanchoring.waiting:
             self._still(t, (wx, wy, wz), (ox, oy, oz), accel, temp)
         return ox, oy, oz, var, flags, aout, avar
 
@@ -979,6 +1021,7 @@ class CompensatorCore:
         a.session += 1
         a.session_t, a.session_k, a.session_why = t, k, why
         a.pauses, a.paused_s = 0, 0.0
+        a.learned = False
         slot = self.slot
         stream = self.stream
         stream.first = None               # set again at the session's first compensated sample
@@ -997,8 +1040,33 @@ class CompensatorCore:
             if slot.accel is not None:
                 slot.accel.cache.clear()
         a.anchor = None
-        a.detector.reset(residual_var=None if slot.model is None else slot.model.residual_var)
+        a.detector.reset(residual_var=self._reanchor_var(slot.model))
+        if self.learning.extend is not None:
+            # The break is a pause the detector was not shown (a learned model held this
+            # session's offset, nothing was given to it): a window may end early, within a
+            # burst (runtime.reanchor).
+            a.detector.paused = True
         self._update_needs()
+
+    def _reanchor_var(self, model: CompensationModel | None):
+        """
+        Return the residual variance re-anchoring on ``model`` is reset with, (rad/s)^2.
+
+        The model's (None without one); with a learner, at least the raw rate's noise
+        variance per sample (the learner's noise floor of the means it is handed, times the
+        samples of the last one handed within a run): a learned model's residual variance is
+        that of its points' means (of whole windows), far below one sample's scatter, and as
+        the still threshold's prior and the tolerance's scale it would refuse every window
+        or never be met.
+        """
+        var = None if model is None else np.asarray(model.residual_var, dtype=np.float64)
+        learner = self.learning.learner
+        if learner is None or var is None:
+            return var
+        floor = np.asarray(learner.gyro_floor, dtype=np.float64)
+        if not np.isfinite(floor).all():
+            return var
+        return np.maximum(var, floor ** 2 * max(1, self.learning.block_n))
 
     @property
     def still_windows_rejected(self) -> int:

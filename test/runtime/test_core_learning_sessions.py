@@ -1,0 +1,160 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""A core with a learner: a new power cycle re-anchored at once, learned installs kept."""
+
+from __future__ import annotations
+
+from array import array
+import math
+from pathlib import Path
+import sys
+from types import SimpleNamespace
+
+from gyro_tdc.learn.fit import learned_model
+from gyro_tdc.learn.learner import LearnConfig, Learner
+from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.policy import Policy
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'support'))
+from still_logs import DEG, still_log  # noqa: E402
+
+
+def _stream(log):
+    """Stream ``log`` through a core with a learner from nothing; return outputs and anchors."""
+    policy = Policy()
+    core = CompensatorCore(policy)
+    learner = Learner(LearnConfig(temperature_timeout=policy.temperature_timeout))
+    core.learner = learner
+    out = np.empty((log.t.size, 3))
+    anchors, seen = [], None
+    j, m = 0, log.temp_t.size
+    next_step = float(log.t[0]) + 1.0
+    for k in range(log.t.size):
+        ts = float(log.t[k])
+        while j < m and log.temp_t[j] <= ts:
+            core.add_temperature(float(log.temp_t[j]), float(log.temp_c[j]))
+            j += 1
+        out[k] = core.process(ts, *log.gyro[k].tolist(), log.accel[k].tolist())[:3]
+        if core.anchor is not seen:
+            seen = core.anchor
+            if seen is not None:
+                anchors.append((core.reanchoring.session, ts))
+        if ts >= next_step:
+            core.learn_step()
+            next_step = ts + 1.0
+    return out, anchors, core
+
+
+def test_a_new_power_cycle_of_2khz_bursts_takes_its_offset_in_its_first_burst():
+    """
+    Correct a new power cycle's first bursts to its own offset, learned from nothing.
+
+    2 s bursts at 2 kHz every 2 min, an L3GD20's noise, cooling (the second cycle below the
+    range learned on the first: out of range), two power cycles an hour apart with turn-on
+    offsets of 0.2 deg/s. The learner's models carry the first cycle's offset (no
+    re-anchoring there); the second cycle is re-anchored 1 s into its first burst (before:
+    never: out of range, a tolerance of 1e-5 rad/s, and the detector restarted by every
+    learned install), so its first two bursts (second half of the first, all of the
+    second) are corrected to within a few SE of a burst mean, not left at the old offset;
+    the learner's own offset for the cycle then replaces the shift.
+    """
+    log = still_log(rate_hz=2000.0, days=2.0, day_s=1800.0, profile='cooling', t_lo=10.0,
+                    t_hi=20.0, arw_dps=0.03, power_cycles=2, bursts=(2.0, 120.0), seed=3)
+    out, anchors, core = _stream(log)
+    second = log.session == 1
+    t2, out2 = log.t[second], out[second]
+    burst = np.r_[0, np.cumsum(np.diff(t2) > 2.0)]
+    # The turn-on offsets differ: the first cycle's offset is far off on some axis.
+    change = np.abs(log.truth[second][:4000].mean(axis=0)
+                    - log.truth[log.session == 0][-4000:].mean(axis=0))
+    assert change.max() > 0.1 * DEG
+    # The second cycle anchored within its first burst (1 s in), the first never.
+    assert [s for s, _ in anchors] == [2]
+    assert anchors[0][1] - t2[0] < 1.5
+    # From the anchor on, its first two bursts' output (the reference is zero) is within
+    # 4 SE of a 1 s mean at 2 kHz (0.03 deg/s/sqrt(Hz): 0.03 deg/s) of zero on every
+    # axis, as is the fifth's (the learner's own offset then).
+    se = 0.03 * DEG
+    late = (burst == 0) & (t2 > anchors[0][1])
+    for sel in (late, burst == 1, burst == 4):
+        mean = out2[sel].mean(axis=0)
+        assert np.all(np.abs(mean) < 4 * se), (mean / DEG, change / DEG)
+    # By then a learned model carrying this cycle's offset is in use: the shift dropped.
+    assert core.reanchoring.learned and core.anchor is None
+
+
+class _Learner:
+    """The learner's face the core uses: a buffer, a thermometer, motion, a floor."""
+
+    def __init__(self):
+        self.config = SimpleNamespace(max_rate_hz=100.0)
+        self.buf = array('d')
+        self.gyro_floor = np.full(3, math.inf)
+
+    def add_temperature(self, t, temp_c):
+        pass
+
+    def observe_motion(self, t, moving):
+        pass
+
+
+def _bias(b, until):
+    """Return a learned bias-only model (offset ``b`` rad/s) whose offset is of ``until``."""
+    m = learned_model(np.array([b, [0.0] * 3]), ('dT',), 20.0, (0.0, 40.0), np.full(3, 1e-6))
+    m.created['offset_until'] = until
+    return m
+
+
+def test_a_learned_model_of_this_session_ends_its_reanchoring_an_older_one_keeps_the_shift():
+    """
+    Keep or drop the shift by whose offset a learned install carries; restart at a break.
+
+    A learned model of an older session (before this one's first stamp) after a learned one
+    keeps the shift (the output moves by the two models' difference only); one of this
+    session's still time drops it and ends re-anchoring for the session (no new anchor
+    however long it is still); a power cycle starts re-anchoring again.
+    """
+    rng = np.random.default_rng(1)
+    core = CompensatorCore(Policy(still_window=5.0))
+    core.learner = _Learner()
+    core.add_temperature(0.0, 20.0)
+    a, b1, b2 = np.full(3, 1e-3), np.array([3e-3, -2e-3, 1e-3]), np.array([-1e-3, 2e-3, 0.0])
+
+    def feed(t0, n, offset):
+        t = t0 + np.arange(n) / 100.0
+        out = np.empty((n, 3))
+        for k in range(n):
+            core.add_temperature(float(t[k]), 20.0)
+            w = offset + rng.normal(0.0, 1e-3, 3)
+            out[k] = core.process(float(t[k]), *w.tolist(), (0.0, 0.0, 9.81))[:3]
+        return out
+
+    core.schedule(_bias(a, -1.0), None)           # a learned model from before the stream
+    feed(1.0, 3000, b1)
+    first = core.anchor
+    assert first is not None and np.allclose(first.delta, b1 - a, atol=3e-4)
+    core.schedule(_bias(a + 1e-4, -1.0), None)    # an older session's offset: shift kept
+    out = feed(31.0, 500, b1)
+    assert core.anchor is first
+    assert np.allclose(out.mean(axis=0), b1 - a - 1e-4 - np.asarray(first.delta), atol=2e-4)
+    core.schedule(_bias(b1, 30.0), None)          # this session's offset: shift dropped
+    assert core.anchor is None and core.reanchoring.learned
+    out = feed(36.0, 3000, b1)
+    assert core.anchor is None and not core.needs_accel     # no re-anchoring any more
+    assert np.allclose(out.mean(axis=0), 0.0, atol=2e-4)
+    feed(5000.0, 3000, b2)                        # a power cycle: re-anchored again
+    assert core.reanchoring.session == 2 and core.anchor is not None
+    assert np.allclose(core.anchor.delta, b2 - b1, atol=3e-4)
