@@ -35,8 +35,9 @@ from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentP
                                  positive_float, positive_int, probability, run_command,
                                  UsageError)
 from gyro_tdc.data import load_runs, split_sessions
-from gyro_tdc.identify import (ACCEL_EFFECTS, build_model, discover, discovery_runs,
-                               format_summary, write_report)
+from gyro_tdc.errors import DatasetError
+from gyro_tdc.identify import (ACCEL_EFFECTS, build_model, constant_gyro_axes, constant_note,
+                               discover, discovery_runs, format_summary, write_report)
 from gyro_tdc.model import KINDS, normalise_ids, save_model
 
 __all__ = ['build_parser', 'main']
@@ -105,6 +106,13 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     if split.breaks:            # one offset per run: a bag cut at its restarts (auto)
         print('\n'.join(split.lines()))
     runs = split.runs
+    # A sensor constant on every axis has nothing to discover: refused before the search, in
+    # train's words (a gyro), or in the accelerometer part's.
+    if not accel:
+        constant_gyro_axes(runs)
+    elif constant_note(runs):
+        note = constant_note(runs).split('; treated as absent')[0]
+        raise DatasetError(f'Expected an accelerometer to discover on: {note}.')
     if accel:
         n_bags = len(runs)
         runs = discovery_runs(runs)

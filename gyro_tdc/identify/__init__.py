@@ -24,7 +24,8 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'accel': ['ACCEL_EFFECTS', 'accel_features', 'accel_scores', 'compensate_accel',
-              'constant_axes', 'constant_axes_of', 'constant_values', 'discovery_runs',
+              'constant_axes', 'constant_axes_of', 'constant_note', 'constant_values',
+              'discovery_runs',
               'fit_accel', 'MG', 'PX4_FEATURES'],
     'accel_static': ['static_bs', 'static_data'],
     'discover': ['discover'],
