@@ -52,7 +52,10 @@ the samples of each 10 ms.
    held-out burst's raw mean minus the mean of the N bursts before it (``prevN``, causal).
 
 Run: ``.venv/bin/python bench/bench_learning_field.py`` (about 3 minutes); ``--goal-seeds
-N``, ``--sweep N`` set the sizes, ``--case TEXT`` keeps the scenarios whose name holds TEXT.
+N``, ``--sweep N`` set the sizes, ``--case TEXT`` keeps the scenarios whose name holds TEXT;
+``--pan-study`` prints only what causal offset rules (a line, a slope kept when
+significant, none; the offset of the last N bursts) and the learner's ``offset_s`` reach
+on the recording's burst means (a few seconds).
 """
 
 from __future__ import annotations
@@ -230,6 +233,75 @@ def pan(step_s: float = 1.0) -> dict | None:
     return res
 
 
+def _burst_means(rec):
+    """Return the recording's bursts (index per sample), burst means (deg/s), temperatures."""
+    t = rec.t - rec.t[0]
+    burst = np.r_[0, np.cumsum(np.diff(t) > 2.0)]
+    ks = range(burst.max() + 1)
+    means = np.array([rec.gyro[burst == k].mean(axis=0) for k in ks]) * 180.0 / math.pi
+    return burst, means, np.array([rec.temp_c[burst == k].mean() for k in ks])
+
+
+def _causal(means, temps, k: int, n: int, rule: str) -> np.ndarray:
+    """
+    Predict burst ``k``'s mean from the bursts before it: a line, offset of the last ``n``.
+
+    ``rule``: ``'line'`` (its slope), ``'sig'`` (the slope only when over 2 SE of the
+    between-burst scatter about it), ``'zero'`` (no slope).
+    """
+    x, y = temps[:k] - temps[:k].mean(), means[:k]
+    a = np.c_[np.ones(k), x]
+    c = np.linalg.lstsq(a, y, rcond=None)[0]
+    slope = c[1]
+    if rule == 'zero':
+        slope = np.zeros(3)
+    elif rule == 'sig':
+        se = np.sqrt(((y - a @ c) ** 2).sum(axis=0) / max(k - 2, 1) / (x ** 2).sum())
+        slope = np.where(np.abs(slope) > 2.0 * se, slope, 0.0)
+    off = (y[k - n:] - slope * x[k - n:, None]).mean(axis=0)
+    return off + slope * (temps[k] - temps[:k].mean())
+
+
+def pan_study() -> None:
+    """Print what a causal offset can reach on the recording's burst means (issue 27, z)."""
+    rec = read_pan_cubesat_csv(default_pan_csv())
+    burst, means, temps = _burst_means(rec)
+    nb = means.shape[0]
+    deg = 180.0 / math.pi
+
+    def row(v) -> str:
+        return ' '.join(f'{x:8.5f}' for x in v)
+
+    sd = np.array([rec.gyro[burst == k].std(axis=0) for k in range(nb)]).mean(axis=0) * deg
+    print('real recording, burst means (deg/s, x y z): white-noise SE of one '
+          + row(sd / math.sqrt(np.bincount(burst).mean())))
+    for deg_fit in (1, 2, 3):
+        c = np.polyfit(temps, means, deg_fit)
+        res = means - np.array([np.polyval(c[:, a], temps) for a in range(3)]).T
+        print(f'  sd about a degree-{deg_fit} curve over all {nb}: '
+              + row(res.std(axis=0, ddof=deg_fit + 1)))
+    print(f'  sd of the last five about their mean: {row(means[-5:].std(axis=0))}')
+    for lo in (nb - 5, 8):
+        print(f'  causal rules, RMS error over bursts {lo}..{nb - 1}:')
+        for rule in ('line', 'sig', 'zero'):
+            for n in (1, 2, 3, 6, 9):
+                err = np.array([means[k] - _causal(means, temps, k, n, rule)
+                                for k in range(lo, nb)])
+                print(f'    {rule:<4} offset of the last {n} bursts '
+                      + row(np.sqrt((err ** 2).mean(axis=0))))
+    t = rec.t - rec.t[0]
+    from still_logs import StillLog
+    log = StillLog(t, rec.gyro, None, t, rec.temp_c, np.zeros_like(rec.gyro),
+                   np.zeros(t.size, dtype=np.int64), float(t[-1] / DAY))
+    from gyro_tdc.learn.learner import LearnConfig
+    print('  the learner with offset_s (s), RMS of the last five burst means of its output:')
+    for off in (300.0, 600.0, 900.0, 1200.0, 1800.0, 3600.0, 0.0):
+        out, _, _ = learn_through_core(log, config=LearnConfig(temperature_timeout=5.0,
+                                                               offset_s=off))
+        om = np.array([out[burst == k].mean(axis=0) for k in range(nb - 5, nb)]) * deg
+        print(f'    {off:6.0f} {row(np.sqrt((om ** 2).mean(axis=0)))}')
+
+
 def main(argv=None) -> int:
     """Run the goal, the sweep and the real recording; print the tables."""
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0].strip())
@@ -237,10 +309,15 @@ def main(argv=None) -> int:
     p.add_argument('--sweep', type=int, default=8, help='sweep scenarios (default 8)')
     p.add_argument('--seed', type=int, default=0, help='sweep seed (default 0)')
     p.add_argument('--no-pan', action='store_true', help='skip the real recording')
+    p.add_argument('--pan-study', action='store_true',
+                   help="only the real recording's causal offset rules and offset_s values")
     p.add_argument('--case', default='', metavar='TEXT',
                    help='run only the goal and sweep scenarios whose name holds TEXT (e.g. '
                         '"2000 Hz cooling"; the sweep is still drawn with --sweep and --seed)')
     args = p.parse_args(argv)
+    if args.pan_study:
+        pan_study()
+        return 0
     if args.goal_seeds < 0 or args.sweep < 0:
         print('bench_learning_field: error: sizes must be >= 0', file=sys.stderr)
         return 2
