@@ -54,8 +54,8 @@ the samples of each 10 ms.
 Run: ``.venv/bin/python bench/bench_learning_field.py`` (about 3 minutes); ``--goal-seeds
 N``, ``--sweep N`` set the sizes, ``--case TEXT`` keeps the scenarios whose name holds TEXT;
 ``--pan-study`` prints only what causal offset rules (a line, a slope kept when
-significant, none; the offset of the last N bursts) and the learner's ``offset_s`` reach
-on the recording's burst means (a few seconds).
+significant, none; the offset of the last N bursts) and the learner's ``offset_s`` and
+``swap_delay_s`` reach on the recording's burst means (a few seconds).
 """
 
 from __future__ import annotations
@@ -300,6 +300,14 @@ def pan_study() -> None:
                                                                offset_s=off))
         om = np.array([out[burst == k].mean(axis=0) for k in range(nb - 5, nb)]) * deg
         print(f'    {off:6.0f} {row(np.sqrt((om ** 2).mean(axis=0)))}')
+    # A window ending at a pause is judged at the next burst's first sample; its model takes
+    # effect swap_delay_s later, after that 5 s burst: the offset lags one burst.
+    print('  the learner with swap_delay_s (s), stepped every 0.1 s, the same:')
+    for delay in (5.0, 2.0, 1.0, 0.5):
+        out, _, _ = learn_through_core(log, step_s=0.1, config=LearnConfig(
+            temperature_timeout=5.0, swap_delay_s=delay))
+        om = np.array([out[burst == k].mean(axis=0) for k in range(nb - 5, nb)]) * deg
+        print(f'    {delay:6.1f} {row(np.sqrt((om ** 2).mean(axis=0)))}')
 
 
 def main(argv=None) -> int:
