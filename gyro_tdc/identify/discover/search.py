@@ -37,7 +37,8 @@ from gyro_tdc.identify.discover.stats import (bandwidth, COLLINEAR, DEG, gap, ha
 from gyro_tdc.identify.fit import estimate_t0, MIN_SPAN_C
 from gyro_tdc.identify.tau import effective_samples, fit_time_constant, profile_interval
 from gyro_tdc.model import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, REFERENCE_EFFECTS,
-                            STATIC_EFFECTS, TEMPERATURE_EFFECTS, ThermalState, with_implied)
+                            STATIC_EFFECTS, TEMPERATURE_EFFECTS, THERMAL_EFFECTS, ThermalState,
+                            with_implied)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -213,11 +214,14 @@ def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
         one_rate = (q3 - q1) < 0.25 * float(np.median(r))
         soak = _longest_soak(data, moving)
         if one_rate and soak < _soak_min_s(data):
-            for eid in _RATE:
-                add(eid, f'the data only {leg} and at one rate (~{np.median(r):.2f} degC/min) '
-                    'with no soak before or after the ramp: a rate-dependent term is then a '
-                    'constant offset during the ramp, confounded with the bias',
-                    '; at least two rates, heating and cooling, with soaks between legs')
+            # Scored all the same: a die settled at power-on falls behind at the start of the
+            # ramp, which shows tau; a recording that starts mid-ramp shows nothing, and the
+            # guard then rejects the lag (its profile is flat).
+            notes.append(f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min) '
+                         'with no soak before or after the ramp: a lag or dT/dt effect can '
+                         'only show where the ramp starts from a die settled at power-on; '
+                         'from a recording that starts mid-ramp it is not identifiable, and '
+                         'hysteresis between heating and cooling cannot be tested.')
         elif one_rate:
             notes.append(f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min): '
                          'a lag or dT/dt effect rests on the changes of rate between the ramp '
@@ -380,9 +384,15 @@ def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse
         why.append('no held-out gain')
     elif curve is not None:
         beside = _beside_curve(data, curve, folds, eid, params)
-        if beside <= max(min_heldout * floor ** 2, 0.01 * curve[2] * DEG ** 2):
-            why.append(f'no held-out gain beside {"+".join(curve[0])}')
-        gain = beside              # credited with what the static curve cannot hold
+        if eid in THERMAL_EFFECTS:
+            # The thermal state adds no column that could stand in for curvature; beside
+            # the curve its cubic of a far-lagging state can run away held out. It is
+            # ranked by its gain there when that is a gain.
+            gain = beside if beside > gain else gain
+        else:
+            if beside <= max(min_heldout * floor ** 2, 0.01 * curve[2] * DEG ** 2):
+                why.append(f'no held-out gain beside {"+".join(curve[0])}')
+            gain = beside          # credited with what the static curve cannot hold
     if eff < min_effect * floor:
         why.append('effect below noise')
     sc = CandidateScore(eid, own, p, gain, eff, gap(data, r), gap(data, ho), not why,
