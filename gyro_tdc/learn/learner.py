@@ -712,6 +712,8 @@ class Learner:
         # Whose offset it carries: the newest still time it was taken from (the core keeps
         # re-anchoring a new power cycle until a model carries that cycle's offset).
         cand.created['offset_until'] = self._offset_until(rows, since, offset is not None)
+        # The noise of the samples it is handed (the core's re-anchoring prior at a new one).
+        cand.created['gyro_floor'] = [float(v) for v in self.gyro_floor]
         pred = predict_windows(cand, rows, self.thermal)
         new = window_error(rows, pred, anchor)
         old = change = None

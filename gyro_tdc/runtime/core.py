@@ -1052,19 +1052,21 @@ class CompensatorCore:
         """
         Return the residual variance re-anchoring on ``model`` is reset with, (rad/s)^2.
 
-        The model's (None without one); with a learner, at least the raw rate's noise
-        variance per sample (the learner's noise floor of the means it is handed, times the
-        samples of the last one handed within a run): a learned model's residual variance is
-        that of its points' means (of whole windows), far below one sample's scatter, and as
-        the still threshold's prior and the tolerance's scale it would refuse every window
-        or never be met.
+        The model's (None without one); for a learned model with a learner attached, at
+        least the raw rate's noise variance per sample: the learner's noise floor of the
+        means it is handed (``created['gyro_floor']``) times the samples of the last one
+        handed within a run. A learned model's residual variance is that of its points'
+        means (of whole windows), far below one sample's scatter: as the still threshold's
+        prior and the tolerance's scale it would refuse every window or never be met.
         """
-        var = None if model is None else np.asarray(model.residual_var, dtype=np.float64)
-        learner = self.learning.learner
-        if learner is None or var is None:
+        if model is None:
+            return None
+        var = np.asarray(model.residual_var, dtype=np.float64)
+        floor = model.created.get('gyro_floor') if self.learning.extend is not None else None
+        if floor is None:
             return var
-        floor = np.asarray(learner.gyro_floor, dtype=np.float64)
-        if not np.isfinite(floor).all():
+        floor = np.asarray(floor, dtype=np.float64)
+        if floor.shape != (3,) or not np.isfinite(floor).all():
             return var
         return np.maximum(var, floor ** 2 * max(1, self.learning.block_n))
 

@@ -32,12 +32,48 @@ sys.path.insert(0, str(Path(__file__).resolve().parent.parent / 'support'))
 from still_logs import DEG, still_log  # noqa: E402
 
 
+class _Front:
+    """The node's front of the learner: appends only, handed over before each step."""
+
+    def __init__(self, config):
+        self.config = config
+        self.buf = array('d')
+        self.temps = []
+
+    def add_temperature(self, t, temp_c):
+        self.temps.append((t, temp_c))
+
+    def observe_motion(self, t, moving):
+        pass
+
+    def hand_over(self, learner):
+        learner.buf.extend(self.buf)
+        del self.buf[:]
+        for t, temp_c in self.temps:
+            learner.add_temperature(t, temp_c)
+        self.temps = []
+
+
 def _stream(log):
-    """Stream ``log`` through a core with a learner from nothing; return outputs and anchors."""
+    """
+    Stream ``log`` through a core and a learner from nothing as compensator_node does.
+
+    The core's learner is a front that only appends (no learner attribute but those); the
+    learner is handed its samples and stepped every second of stamps and what it swapped in
+    is scheduled. Returns the outputs, the anchors (session, stamp) and the core.
+    """
     policy = Policy()
     core = CompensatorCore(policy)
     learner = Learner(LearnConfig(temperature_timeout=policy.temperature_timeout))
-    core.learner = learner
+    front = _Front(learner.config)
+    core.learner = front
+
+    def step():
+        front.hand_over(learner)
+        learner.step()
+        for due, model in learner.take_swaps(core.last_t):
+            core.schedule(model, due)
+
     out = np.empty((log.t.size, 3))
     anchors, seen = [], None
     j, m = 0, log.temp_t.size
@@ -53,7 +89,7 @@ def _stream(log):
             if seen is not None:
                 anchors.append((core.reanchoring.session, ts))
         if ts >= next_step:
-            core.learn_step()
+            step()
             next_step = ts + 1.0
     return out, anchors, core
 
