@@ -320,7 +320,9 @@ def _beside_curve(data: BlockData, curve: tuple, folds: list, eid: str, params: 
     temperature, so a slow decay or a slow rate term can hold curvature the base polynomial
     lacks, curvature the final model (an RBF network of the temperature terms) holds anyway;
     that part is not the candidate's, and off the one direction of ramp it was fitted on it
-    extrapolates wrongly (a cooling cycle after heating-only training).
+    extrapolates wrongly (a cooling cycle after heating-only training). :func:`_score`
+    requires ``dTdt`` and ``warmup`` to gain here and ranks them by it; ``lag`` (no column of
+    its own) is ranked by it when it is the larger gain.
     """
     ids, base, mse_b = curve
     effects = tuple(e for e in EFFECTS if e in set(base.effects) | {eid})
