@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Discovery on hidden effects: the figures of the cases ``test/test_discover.py`` asserts.
+Discovery on hidden effects: the figures of the cases ``test/identify/test_discover.py`` asserts.
 
 The same scenarios, calibrations and seeds as the test (imported from it): each hidden effect
 is scaled so that what the datasheet base (bias, dT) cannot absorb has an RMS of ``k`` times
@@ -45,7 +45,7 @@ import sys  # noqa: E402
 import tempfile  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-for p in (ROOT, ROOT / 'test'):
+for p in (ROOT, ROOT / 'test', ROOT / 'test' / 'identify', ROOT / 'test' / 'support'):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
