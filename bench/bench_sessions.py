@@ -376,6 +376,11 @@ def _report(title: str, cases: list, keys: tuple, bound: float, what: str) -> No
               f'by the node\'s rule: {sum(c["oracle_pass"] for c in cases)}/{len(cases)}; ours '
               'fails where the oracle passes: '
               f'{sum(c["oracle_pass"] and not c["pass"] for c in cases)}')
+    for c in cases:
+        if not c['pass']:
+            beside = ' '.join(f'{v:6.3f}' for v in c[keys[1]])
+            print('  fails: ours ' + ' '.join(f'{v:6.3f}' for v in c['ours'])
+                  + f'   {keys[1]} {beside}   features {c.get("features")}')
     order = sorted(cases, key=lambda c: -float(np.max(c['ours'])))
     print('  worst cases (ours per axis; draws):')
     for c in order[:4]:
