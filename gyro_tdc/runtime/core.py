@@ -634,7 +634,8 @@ class CompensatorCore:
             gate.queue = deque((due, prepare(p.model, policy, p.priming))
                                for due, p in gate.queue)
             if self.slot.model is not None:
-                self.install(prepare(self.slot.model, policy, self.priming(self.slot.model)))
+                self.install(prepare(self.slot.model, policy, self.priming(self.slot.model)),
+                             learned=self.slot.learned)
         self._update_needs()
 
     def _accel_slot(self, model: CompensationModel, comp: StreamingCompensator,
