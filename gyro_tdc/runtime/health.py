@@ -358,7 +358,8 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         'passed through as corrected upstream': counts[UPSTREAM],
         'accelerometer': accel_state(core),
         'reanchor': ('off' if not core.policy.reanchor_on_start else
-                     'waiting for stillness' if anchor is None else
+                     'offset from the learner' if anchor is None and core.reanchoring.learned
+                     else 'waiting for stillness' if anchor is None else
                      f'done at t={anchor.t:.3f} s') + core.session_note,
     }
     if core.accel_on:

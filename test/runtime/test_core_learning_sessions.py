@@ -25,6 +25,7 @@ from types import SimpleNamespace
 from gyro_tdc.learn.fit import learned_model
 from gyro_tdc.learn.learner import LearnConfig, Learner
 from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.health import health
 from gyro_tdc.runtime.policy import Policy
 import numpy as np
 
@@ -191,6 +192,8 @@ def test_a_learned_model_of_this_session_ends_its_reanchoring_an_older_one_keeps
     out = feed(36.0, 3000, b1)
     assert core.anchor is None and not core.needs_accel     # no re-anchoring any more
     assert np.allclose(out.mean(axis=0), 0.0, atol=2e-4)
+    assert health(core).values['reanchor'] == 'offset from the learner'
     feed(5000.0, 3000, b2)                        # a power cycle: re-anchored again
     assert core.reanchoring.session == 2 and core.anchor is not None
+    assert health(core).values['reanchor'].startswith('done at t=')
     assert np.allclose(core.anchor.delta, b2 - b1, atol=3e-4)
