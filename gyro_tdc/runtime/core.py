@@ -1027,6 +1027,11 @@ class CompensatorCore:
         stream = self.stream
         stream.first = None               # set again at the session's first compensated sample
         stream.history.clear()            # the new session's: from the reading held at t
+        if d < 0:
+            # The clock restarted: readings stamped beyond what the new session may send
+            # (its first stamp plus the stale timeout) are the old session's; held, they
+            # would be its ``latest`` (a negative temperature age) and could be looked up.
+            self.temps.drop_after(t + self.policy.temperature_timeout)
         held = self.temps.at(t)
         if held is not None and t - held[1] <= self.policy.temperature_timeout and (
                 d < 0 or held[1] > stream.t):

@@ -118,6 +118,21 @@ class TemperatureHold:
         i = bisect.bisect_right(ts, t)
         return (self._c[i - 1], ts[i - 1]) if i else None
 
+    def drop_after(self, t: float) -> int:
+        """
+        Forget the samples stamped after ``t`` (a device clock restarted: the old session's).
+
+        Returns
+        -------
+        int
+            How many were dropped.
+
+        """
+        i = bisect.bisect_right(self._t, t)
+        n = len(self._t) - i
+        del self._t[i:], self._c[i:]
+        return n
+
     @property
     def latest(self) -> tuple[float, float] | None:
         """Return ``(temp_c, stamp)`` of the newest sample, or None."""

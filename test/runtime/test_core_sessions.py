@@ -84,3 +84,18 @@ def test_a_bursty_logger_is_one_power_cycle_once_its_rhythm_shows():
         core.process(float(ts), 0.0, 0.0, 0.0)
     assert core.reanchoring.session == BURST_PAUSES + 1
     assert core.session_note.endswith('after a gap of 7200 s)')
+
+
+def test_a_clock_restart_forgets_the_old_sessions_temperatures(timed_model):
+    """After the stamps step back, the held readings and their age are the new session's."""
+    first = _session(5000.0, 10.0, 40.0, seed=1)
+    second = _session(100.0, 25.0, 15.0, seed=2, n=50)
+    core = CompensatorCore(Policy(reanchor_on_start=False), timed_model)
+    _feed(core, *first)
+    assert core.temps.latest[1] > 5000.0
+    _feed(core, *second)
+    assert core.reanchoring.session == 2
+    temp, stamp = core.temps.latest
+    assert stamp < 110.0 and 15.0 <= temp <= 25.0          # not the old session's 40 degC
+    assert 0.0 <= core.temperature_age() <= 1.0             # it was about -5020 s
+    assert core.temps.at(5120.0)[1] < 110.0                 # no old reading left to look up
