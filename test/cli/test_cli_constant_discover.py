@@ -24,26 +24,13 @@ discovered with that axis passed through.
 
 from __future__ import annotations
 
-import os
-from pathlib import Path
-import subprocess
-import sys
 
 from gyro_tdc.data import write_bag
 from gyro_tdc.identify.accel import G0
 from gyro_tdc.sim import simulate_scenario
 import numpy as np
 import pytest
-
-#: The console script pip installed beside this interpreter (the real entry point).
-GYRO_TDC = Path(sys.executable).with_name('gyro-tdc')
-
-
-def _cli(*argv):
-    """Run the installed ``gyro-tdc`` with every warning an error; return the process."""
-    env = dict(os.environ, PYTHONWARNINGS='error', OPENBLAS_NUM_THREADS='1')
-    return subprocess.run([str(GYRO_TDC), *map(str, argv)], capture_output=True, text=True,
-                          timeout=300, env=env)
+from strict_cli import strict_cli as _cli
 
 
 @pytest.fixture(scope='module')
