@@ -214,11 +214,28 @@ def window_stats(t: NDArray[np.float64], x: NDArray[np.float64], c: Sequence[flo
     t = np.asarray(t, dtype=np.float64)
     if t.size == 0:
         return BlockStats()
-    k = np.floor((t - t[0]) / block_s)
+    return _stats_of(*_block_sums(t, x, c, block_s, float(t[0]))[1:])
+
+
+def _block_sums(t: NDArray[np.float64], x: NDArray[np.float64], c: Sequence[float],
+                block_s: float, origin: float
+                ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return each block's first index, its sum of ``x - c`` and its sample count.
+
+    Blocks of ``block_s`` on the grid from ``origin`` (a window's first stamp), in order;
+    ``t`` not empty.
+    """
+    k = np.floor((t - origin) / block_s)
     starts = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
     sums = np.add.reduceat(np.asarray(x, dtype=np.float64) - np.asarray(c), starts, axis=0)
     counts = np.diff(np.append(starts, t.size)).astype(np.float64)
-    return BlockStats(int(t.size), int(starts.size), tuple(sums.sum(axis=0).tolist()),
+    return starts, sums, counts
+
+
+def _stats_of(sums: NDArray[np.float64], counts: NDArray[np.float64]) -> BlockStats:
+    """Return the block statistics of blocks with these sums and sample counts."""
+    return BlockStats(int(counts.sum()), int(counts.size), tuple(sums.sum(axis=0).tolist()),
                       tuple((sums ** 2).sum(axis=0).tolist()),
                       tuple((sums * counts[:, None]).sum(axis=0).tolist()),
                       float((counts ** 2).sum()))
@@ -255,12 +272,9 @@ def _early_end(t: NDArray[np.float64], x: NDArray[np.float64], i0: int, i1: int,
     tt = t[i0:i1]
     if tt.size < 2:
         return None
-    k = np.floor((tt - tt[0]) / block_s)
-    starts = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
+    starts, sums, counts = _block_sums(tt, x[i0:i1], c, block_s, float(tt[0]))
     if starts.size <= EARLY_BLOCKS:
         return None
-    sums = np.add.reduceat(x[i0:i1] - np.asarray(c), starts, axis=0)
-    counts = np.diff(np.append(starts, tt.size)).astype(np.float64)
     cs, ca = np.cumsum(sums, axis=0), np.cumsum(sums ** 2, axis=0)
     cb = np.cumsum(sums * counts[:, None], axis=0)
     cn, cc = np.cumsum(counts), np.cumsum(counts ** 2)
@@ -588,14 +602,7 @@ class StillnessDetector:
                 s2 += rows[r + 3] - c2
             return out
         new = np.frombuffer(self._rows, dtype=np.float64).reshape(-1, 4)[i:j]
-        kb = np.floor((new[:, 0] - w0) / bs)
-        starts = np.flatnonzero(np.concatenate([[True], kb[1:] != kb[:-1]]))
-        sums = np.add.reduceat(new[:, 1:] - np.asarray(self._c), starts, axis=0)
-        counts = np.diff(np.append(starts, new.shape[0])).astype(np.float64)
-        return BlockStats(new.shape[0], int(starts.size), tuple(sums.sum(axis=0).tolist()),
-                          tuple((sums * sums).sum(axis=0).tolist()),
-                          tuple((sums * counts[:, None]).sum(axis=0).tolist()),
-                          float((counts * counts).sum()))
+        return _stats_of(*_block_sums(new[:, 0], new[:, 1:], self._c, bs, w0)[1:])
 
     def _blocks(self, w: Window) -> BlockStats:
         """
