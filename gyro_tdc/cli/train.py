@@ -192,7 +192,7 @@ def training_json(result: TrainResult, warnings: Sequence[str] = ()) -> dict:
         'raw_bs': vec('raw_bs_dps2'),
         'train_bs': vec('train_bs_dps2'),
         'train_rms_dps': vec('train_rms_dps'),
-        'constant_axes': {a: _finite(v) for a, v in getattr(result, 'constant', {}).items()},
+        'constant_axes': {a: _finite(v) for a, v in result.constant.items()},
         'accelerometer': None if acc is None else {'fitted': acc.part is not None,
                                                    'note': acc.note or None},
         'warnings': list(warnings),

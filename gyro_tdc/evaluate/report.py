@@ -624,7 +624,7 @@ def format_training(result: TrainResult) -> tuple[str, list]:
                    'continues the correction along its tangent (out_of_range: linear) for up '
                    f'to {MAX_EXTRAPOLATION_C:g} degC, then holds it',
              f'training data: {len(result.bags)} bag(s), {result.samples} samples']
-    constant = result.constant_line() if hasattr(result, 'constant_line') else ''
+    constant = result.constant_line()
     if constant:                # one line: the axes not fitted, passed through unchanged
         lines.append(constant)
     lines += ['training bias stability BS, (deg/s)^2:',

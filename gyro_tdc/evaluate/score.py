@@ -32,11 +32,11 @@ from typing import Callable, Sequence
 
 from gyro_tdc.base import model_path
 from gyro_tdc.data import BagOptions, expand_bags, load_runs, Run, split_sessions
-from gyro_tdc.errors import DatasetError, FitError
+from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
-from gyro_tdc.identify import (accel_scores, constant_axes, constant_gyro_axes, constant_values,
-                               fit_accel, fit_px4_cubic, identity_axes, MIN_SAMPLES,
-                               neutral_runs, PX4_FEATURES)
+from gyro_tdc.identify import (accel_scores, all_constant_error, constant_axes,
+                               constant_gyro_axes, fit_accel, fit_px4_cubic, identity_axes,
+                               MIN_SAMPLES, neutral_runs, PX4_FEATURES)
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             load_model, MAX_EXTRAPOLATION_C, model_temperature)
 from gyro_tdc.runtime import default_tolerance, reanchor_shift, STILL_WINDOW_MAX_S
@@ -535,10 +535,7 @@ def held_out_constant(run: Run) -> NDArray[np.bool_]:
     """
     const = _constant(run)
     if const.all():
-        shown = ', '.join(f'{a} {v:.6g}' for a, v in zip('xyz', constant_values([run.omega])))
-        raise DatasetError(f'Expected a gyro to evaluate: every axis of the angular velocity '
-                           f'is constant in {run.name} ({shown} rad/s, never varying beyond '
-                           'one quantum); check that the driver publishes the gyro.')
+        raise all_constant_error([run.omega], 'evaluate', run.name)
     return const
 
 

@@ -37,8 +37,8 @@ from gyro_tdc.model import CompensationModel, save_model
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['constant_gyro_axes', 'constant_readings', 'data_frame', 'identity_axes',
-           'neutral_runs', 'train']
+__all__ = ['all_constant_error', 'constant_gyro_axes', 'constant_readings', 'data_frame',
+           'identity_axes', 'neutral_runs', 'train']
 
 #: The axis names, in order.
 AXES = ('x', 'y', 'z')
@@ -62,12 +62,22 @@ def constant_gyro_axes(runs: Sequence[Run]) -> NDArray[np.bool_]:
     """
     const = constant_axes_of([r.omega for r in runs])
     if const.all():
-        values = constant_values([r.omega for r in runs])
-        shown = ', '.join(f'{a} {v:.6g}' for a, v in zip(AXES, values))
-        raise DatasetError(f'Expected a gyro to fit: every axis of the angular velocity is '
-                           f'constant in the training bags ({shown} rad/s, never varying '
-                           'beyond one quantum); check that the driver publishes the gyro.')
+        raise all_constant_error([r.omega for r in runs], 'fit', 'the training bags')
     return const
+
+
+def all_constant_error(arrays: Sequence[NDArray[np.float64]], to: str,
+                       where: str) -> DatasetError:
+    """
+    Return the one-line error for a gyro constant on every axis (nothing ``to`` do).
+
+    ``arrays`` are the angular velocities read, ``where`` names them (``'the training
+    bags'``); the line shows what each axis reads.
+    """
+    shown = ', '.join(f'{a} {v:.6g}' for a, v in zip(AXES, constant_values(arrays)))
+    return DatasetError(f'Expected a gyro to {to}: every axis of the angular velocity is '
+                        f'constant in {where} ({shown} rad/s, never varying beyond one '
+                        'quantum); check that the driver publishes the gyro.')
 
 
 def neutral_runs(runs: Sequence[Run], const: NDArray[np.bool_]) -> list[Run]:
