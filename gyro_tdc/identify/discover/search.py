@@ -130,16 +130,15 @@ def _moving(data: BlockData) -> NDArray[np.bool_]:
     return np.abs(rate) > max(0.02, 0.1 * max_rate)
 
 
-def _directions(data: BlockData) -> tuple[bool, bool]:
+def _directions(data: BlockData, moving: NDArray[np.bool_]) -> tuple[bool, bool]:
     """Return whether the data heat and whether they cool at a measurable rate."""
-    moving = _moving(data)
     return (bool(np.any(moving & (data.rate_cpm > 0))),
             bool(np.any(moving & (data.rate_cpm < 0))))
 
 
 def _one_way(data: BlockData) -> bool:
     """Return True when the data change temperature in one direction only."""
-    heating, cooling = _directions(data)
+    heating, cooling = _directions(data, _moving(data))
     return heating != cooling
 
 
@@ -194,7 +193,7 @@ def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
     span = float(data.temp.max() - data.temp.min())
     rate = data.rate_cpm
     moving = _moving(data)
-    heating, cooling = _directions(data)
+    heating, cooling = _directions(data, moving)
 
     def add(eid: str, reason: str, extra: str = '') -> None:
         exp = EFFECTS[eid].excited_by
@@ -293,6 +292,11 @@ def _noise_lags(data: BlockData, model: LinearModel, todo: Sequence[str], cparam
     return [bandwidth(r[:, a]) for a in range(3)], int(memory)
 
 
+def _heldout_mse(data: BlockData, ho: NDArray[np.float64]) -> float:
+    """Return the block-weighted mean square of held-out residuals ``ho`` (K, 3) over axes."""
+    return float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
+
+
 def _curve_model(data: BlockData, model: LinearModel, folds: list
                  ) -> tuple[tuple[str, ...], LinearModel, float] | None:
     """
@@ -306,7 +310,7 @@ def _curve_model(data: BlockData, model: LinearModel, folds: list
     base = LinearModel(data, tuple(e for e in EFFECTS if e in set(model.effects) | set(curve)),
                        model.params)
     ho = base.cv_residual(folds)
-    return curve, base, float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
+    return curve, base, _heldout_mse(data, ho)
 
 
 def _beside_curve(data: BlockData, curve: tuple, folds: list, eid: str, params: dict) -> float:
@@ -329,7 +333,7 @@ def _beside_curve(data: BlockData, curve: tuple, folds: list, eid: str, params: 
     which = [e for e in (eid, 'lag') if e in _TIMED and e in effects]
     trial = _fit_taus(data, effects, params, which) if which else params
     ho = LinearModel(data, effects, trial).cv_residual(folds)
-    mse_c = float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
+    mse_c = _heldout_mse(data, ho)
     return (mse_b - mse_c) * DEG ** 2
 
 
@@ -366,7 +370,7 @@ def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse
     sse = float((data.w[:, None] * r * r).sum())
     contrib = pred - model.predict(coef_m)
     ho = cand.cv_residual(folds)
-    mse_ho = float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
+    mse_ho = _heldout_mse(data, ho)
     gain = (mse_ho_m - mse_ho) * DEG ** 2
     eff = math.sqrt(max(sse_m - sse, 0.0) / (3.0 * data.w.sum())) * DEG
     if idx:
@@ -504,7 +508,7 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         lags, memory = _noise_lags(data, model, todo, cparams)
         folds, buffer = make_folds(data, memory, n_folds)
         ho_m = model.cv_residual(folds)
-        mse_ho_m = float((data.w[:, None] * ho_m * ho_m).sum() / (3.0 * data.w.sum()))
+        mse_ho_m = _heldout_mse(data, ho_m)
         curve = _curve_model(data, model, folds) if set(todo) & set(_MEMORY) else None
         for eid in todo:
             if progress is not None:
