@@ -25,12 +25,12 @@ through, its other axes are those fitted with the axis at its reference.
 
 from __future__ import annotations
 
-from dataclasses import replace
 import json
 import re
 import warnings
 
 from bags import bag_from_run
+from constant_axes import axis_sets, quanta, values, with_constant as _with
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.evaluate.report import evaluation_json, format_bag, format_means
 from gyro_tdc.evaluate.score import (evaluate, evaluate_run, held_out_constant, load_models,
@@ -43,18 +43,6 @@ import pytest
 from synth import synth_run
 
 AXES = 'xyz'
-axis_sets = st.sets(st.sampled_from(range(3)), min_size=1, max_size=2).map(sorted)
-values = st.floats(-5.0, 5.0, allow_nan=False)
-quanta = st.one_of(st.just(0.0), st.floats(1e-9, 1e-2))
-
-
-def _with(run, axes, value, quantum, seed=0):
-    """Return ``run`` with ``axes`` reading ``value`` within one quantum."""
-    rng = np.random.default_rng(seed)
-    omega = run.omega.copy()
-    for i in axes:
-        omega[:, i] = value + quantum * rng.integers(0, 2, len(run))
-    return replace(run, omega=omega)
 
 
 @pytest.fixture(scope='module')

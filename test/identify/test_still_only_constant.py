@@ -31,6 +31,7 @@ import tempfile
 import warnings
 
 from bags import bag_from_run
+from constant_axes import axis_sets, quanta, values, with_constant as _with
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
 from gyro_tdc.identify import constant_gyro_axes, train, TrainOptions
@@ -43,9 +44,6 @@ from synth import synth_run
 
 AXES = 'xyz'
 OPTIONS = TrainOptions(features='dT,dT2', n_centers=6)
-axis_sets = st.sets(st.sampled_from(range(3)), min_size=1, max_size=2).map(sorted)
-values = st.floats(-5.0, 5.0, allow_nan=False)
-quanta = st.one_of(st.just(0.0), st.floats(1e-9, 1e-2))
 
 
 @pytest.fixture(scope='module')
@@ -53,15 +51,6 @@ def runs():
     """Return a still training run and a still held-out run, a known drift on every axis."""
     return (synth_run(seed=41, hours=0.5, rate_hz=2.0, noise_dps=0.02),
             synth_run(seed=42, hours=0.5, rate_hz=2.0, noise_dps=0.02, name='held'))
-
-
-def _with(run, axes, value, quantum, seed=0):
-    """Return ``run`` with ``axes`` reading ``value`` within one quantum."""
-    rng = np.random.default_rng(seed)
-    omega = run.omega.copy()
-    for i in axes:
-        omega[:, i] = value + quantum * rng.integers(0, 2, len(run))
-    return replace(run, omega=omega)
 
 
 def _still_only(run, options=OPTIONS):
