@@ -32,7 +32,7 @@ import pytest
 from rclpy.parameter import parameter_value_to_python
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import ReliabilityPolicy
-from rosutil import interrupt, node_process, spin_until
+from rosutil import interrupt, node_process, request_until_answered, spin_until
 import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -64,9 +64,9 @@ def read_back(ros_context, names: list[str], node_name: str = '/mavros/gyro_comp
         client = AsyncParameterClient(node, node_name)
         spin_until(executor, lambda: client.services_are_ready(), 20.0,
                    what=f'parameter services of {node_name}')
-        future = client.get_parameters(names)
-        spin_until(executor, future.done, 10.0, what='get_parameters')
-        values = [parameter_value_to_python(v) for v in future.result().values]
+        answer = request_until_answered(executor, lambda: client.get_parameters(names),
+                                        30.0, what=f'get_parameters of {node_name}')
+        values = [parameter_value_to_python(v) for v in answer.values]
         return dict(zip(names, values))
     finally:
         executor.shutdown()

@@ -101,6 +101,44 @@ def spin_until(executor: Any, predicate: Callable[[], bool], timeout_s: float = 
         executor.spin_once(timeout_sec=min(step_s, remaining))
 
 
+def request_until_answered(executor: Any, send: Callable[[], Any], timeout_s: float = 30.0,
+                           *, resend_s: float = 5.0, what: str = 'the request') -> Any:
+    """
+    Send a service request with ``send()`` and spin until one of its futures is done.
+
+    Across processes, a service can look ready (its request reader is matched) before its
+    response writer has matched this client's reader; the first answer is then lost and its
+    future never completes. So the request is sent again every ``resend_s`` seconds until
+    one answer arrives or ``timeout_s`` passes. Use it only for requests that are safe to
+    repeat (reading parameters, not triggering actions).
+
+    Returns
+    -------
+    object
+        The first completed future's result.
+
+    Raises
+    ------
+    AssertionError
+        If no answer arrived by the deadline.
+
+    """
+    deadline = time.monotonic() + timeout_s
+    futures = []
+    while True:
+        futures.append(send())
+        left = deadline - time.monotonic()
+        try:
+            spin_until(executor, lambda: any(f.done() for f in futures),
+                       max(min(resend_s, left), 1e-3), what=what)
+        except AssertionError:
+            if time.monotonic() >= deadline:
+                raise AssertionError(f'no answer to {what} within {timeout_s:g} s '
+                                     f'({len(futures)} requests sent)') from None
+            continue
+        return next(f for f in futures if f.done()).result()
+
+
 def spin_until_quiet(executor: Any, value: Callable[[], Any], quiet_s: float = 0.5,
                      timeout_s: float = 30.0) -> None:
     """
