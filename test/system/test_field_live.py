@@ -140,7 +140,19 @@ class Live:
                         and self.temp_pub.get_subscription_count() == 0, 'unmatched')
 
     def spin_until(self, predicate, what, timeout_s=30.0):
-        spin_until(self.executor, predicate, timeout_s, what=what)
+        try:
+            spin_until(self.executor, predicate, timeout_s, what=what)
+        except AssertionError as exc:
+            raise AssertionError(f'{exc}; {self.where()}') from None
+
+    def where(self):
+        """Say where a stream stands: what the node took in and sent, what came back."""
+        if self.node is None:
+            return f'no compensator; {len(self.out)} outputs received'
+        counts = self.node.core.counts
+        busy = self.node.learner is not None and self.node._learn_job is not None
+        return (f'the compensator took {counts["in"]} IMU messages in and sent {counts["out"]}, '
+                f'{len(self.out)} outputs received; learner step running: {busy}')
 
     def stream(self, msgs, start=0, stop=None):
         """
