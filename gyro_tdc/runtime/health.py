@@ -181,7 +181,7 @@ def frame_mismatch(model: CompensationModel | None, frame_id: str) -> str:
 
 def upstream_note(policy: Policy) -> str:
     """
-    Say what the compensator does about a declared upstream thermal correction ('' none).
+    Say what the compensator does about a declared upstream correction ('' none).
 
     Parameters
     ----------
@@ -192,14 +192,33 @@ def upstream_note(policy: Policy) -> str:
     -------
     str
         '' when no upstream correction is declared; else one line starting with
-        ``gyro already thermally corrected upstream (<which>)`` and saying whether the raw
-        rate passes through or is compensated on top.
+        ``gyro already thermally corrected upstream (<which>)`` (``gyro already corrected
+        upstream`` for px4_ekf, ``gyro bias removed upstream at start`` for bias_at_start)
+        and saying whether the raw rate passes through or is compensated on top.
 
     """
     which = policy.upstream_correction
     if not which:
         return ''
-    head = f'gyro already thermally corrected upstream ({which})'
+    if which == 'bias_at_start':
+        head = 'gyro bias removed upstream at start (bias_at_start)'
+        if policy.upstream_policy == 'passthrough':
+            return (f'{head}: raw rate passed through, its thermal drift since the start '
+                    'stays (upstream_policy compensate corrects it, re-anchoring takes the '
+                    'removed bias out)')
+        if not policy.reanchor_on_start:
+            return (f'{head}: compensating, but reanchor_on_start is false: the output is '
+                    "off by the model's bias at the start temperature; set it true")
+        return (f'{head}: compensating, re-anchoring takes the removed bias out '
+                '(reanchor_on_start)')
+    if which == 'px4_ekf':
+        head = 'gyro already corrected upstream (px4_ekf: the EKF gyro bias off HIGHRES_IMU)'
+        if policy.upstream_policy == 'passthrough':
+            return (f'{head}: raw rate passed through, not corrected twice (to compensate '
+                    'here instead, take the rate without the EKF bias, e.g. PX4 uXRCE-DDS '
+                    'sensor_gyro, and clear upstream_correction)')
+    else:
+        head = f'gyro already thermally corrected upstream ({which})'
     if policy.upstream_policy == 'passthrough':
         return (f'{head}: raw rate passed through, not corrected twice (to compensate here '
                 'instead, disable the upstream correction, e.g. TC_G_ENABLE=0 or '
