@@ -30,6 +30,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'coverage': ['Coverage', 'coverage', 'RATE_THRESHOLD_C_PER_MIN', 'temperature_rate'],
     'dataflash': ['read_dataflash'],
     'dataset': ['expand_bags', 'load_runs'],
+    'driver_bags': ['DriverInputs', 'normalize_bag'],
     'fields': ['check_number', 'check_vector', 'DEFAULT_TEMPERATURE_FIELDS', 'frd_to_flu',
                'normalize_type', 'reader', 'stamp_kind', 'stamp_seconds', 'unquirk'],
     'flightlog': ['detect_format', 'FlightLog', 'is_flight_log'],
