@@ -41,7 +41,7 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.interfaces import Nodetype
 from rosbags.typesys import get_typestore, Stores
 
-__all__ = ['DriverInputs', 'normalize_bag']
+__all__ = ['DriverInputs', 'field_table', 'normalize_bag']
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'
 _HEADER = 'std_msgs/msg/Header'
@@ -96,7 +96,7 @@ class DriverInputs:
         return self == DriverInputs()
 
 
-def _field_table(typestore: Any) -> Any:
+def field_table(typestore: Any) -> Any:
     """Return ``fields_of(type name)`` over a rosbags typestore (None: not a message)."""
     def fields_of(name: str) -> Mapping[str, str] | None:
         full = name if '/msg/' in name else name.replace('/', '/msg/', 1)
@@ -160,7 +160,7 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
     try:
         with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as bag:
             store = bag.typestore
-            fields_of = _field_table(store)
+            fields_of = field_table(store)
             imu_conn = _connection(bag, imu_topic, inputs.imu_type, '--imu-type')
             temp_conn = _connection(bag, temperature_topic, inputs.temperature_type or None,
                                     '--temperature-type')

@@ -216,3 +216,24 @@ def test_bad_input_parameters_are_one_line_naming_them(args, needles):
     assert errors[0].startswith('compensator_node: error: ')
     for needle in needles:
         assert needle in errors[0], errors[0]
+
+
+def test_a_headerless_type_is_stamped_in_microseconds_and_framed_by_frame_id(monkeypatch):
+    """px4_msgs SensorGyro (not installed here): its field table and a message of its shape."""
+    from types import SimpleNamespace
+    from gyro_tdc.nodes import compensator_inputs as inputs
+    table = {'px4_msgs/msg/SensorGyro': {'timestamp': 'uint64', 'x': 'float', 'y': 'float',
+                                         'z': 'float', 'temperature': 'float'}}
+    monkeypatch.setattr(inputs, '_fields', table.get)
+    params = SimpleNamespace(angular_velocity_field='', stamp_field='timestamp',
+                             frame_id='base_link', input_frame='frd')
+    to_imu = inputs._imu_converter(None, 'px4_msgs/msg/SensorGyro', params)
+    gyro = SimpleNamespace(timestamp=123_456_789_012, x=0.25, y=-0.5, z=0.125,
+                           temperature=40.0)
+    out = to_imu(gyro)
+    assert (out.header.stamp.sec, out.header.stamp.nanosec) == (123_456, 789_012_000)
+    assert out.header.frame_id == 'base_link'
+    assert (out.angular_velocity.x, out.angular_velocity.y, out.angular_velocity.z) == \
+        (0.25, 0.5, -0.125)
+    assert not any(out.angular_velocity_covariance)
+    assert out.orientation_covariance[0] == out.linear_acceleration_covariance[0] == -1.0
