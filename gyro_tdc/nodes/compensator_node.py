@@ -162,15 +162,15 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
         events = SubscriptionEventCallbacks(message_lost=self._on_message_lost)
         # The profiles above are the defaults of the qos_overrides.<resolved topic>.* parameters
         # (read-only: QoS is fixed when an entity is created), which may override them.
-        if reader.fast:
+        if not reader.fast:     # another type: turned into an Imu, then the typed path
+            imu_sub = self.create_subscription(
+                reader.imu_cls, 'imu/data_raw', self._on_imu_other, imu_qos,
+                event_callbacks=events, qos_overriding_options=qos_overrides())
+        else:
             imu_sub = self.create_subscription(
                 Imu, 'imu/data_raw', self._on_imu_raw if p.raw_cdr else self._on_imu,
                 imu_qos, raw=p.raw_cdr, event_callbacks=events,
                 qos_overriding_options=qos_overrides())
-        else:               # another type: turned into an Imu, then the typed path
-            imu_sub = self.create_subscription(
-                reader.imu_cls, 'imu/data_raw', self._on_imu_other, imu_qos,
-                event_callbacks=events, qos_overriding_options=qos_overrides())
         self.inputs.reliability = imu_sub.qos_profile.reliability.name.lower()
         self.create_subscription(
             reader.temperature_cls, 'imu/temperature', self._on_temperature, temp_qos,

@@ -98,7 +98,7 @@ def _imu_builder(frame, cov):
 
 
 def _vector_builder(frame):
-    """Xsens /imu/angular_velocity: Vector3Stamped, the calibrated rate."""
+    """Return what Xsens publishes on /imu/angular_velocity: a Vector3Stamped."""
     def build(ns, w):
         msg = Vector3Stamped()
         _stamp(msg.header, ns)
@@ -123,7 +123,7 @@ def _float_builder(ns, value):
 
 
 def _mip_builder(ns, value):
-    """MipSensorTemperatureStatistics' shape: float32 mean, stamp in a nested header."""
+    """Return MicroStrain's temperature statistics' shape: a float32 under a nested header."""
     msg = DisparityImage()
     _stamp(msg.image.header, ns)
     msg.min_disparity = value
