@@ -17,10 +17,10 @@
 Drivers as they publish: any IMU and thermometer type, read by field, FRD axes turned to FLU.
 
 The probe starts ``compensator_node`` as users start it (a namespace, remaps and a
-parameter file on its command line) and feeds it the same samples in other message types:
-the compensated rates equal those of the ``sensor_msgs/Imu`` + ``sensor_msgs/Temperature``
-run to 1e-9 rad/s. Bad input choices stop the node at start with one line naming the
-parameter.
+parameter file on its command line: in this process through ``cli_args``, and as ``python -m``
+in a child process) and feeds it the same samples in other message types: the compensated
+rates equal those of the ``sensor_msgs/Imu`` + ``sensor_msgs/Temperature`` run to 1e-9 rad/s.
+Bad input choices stop the node at start with one line naming the parameter.
 """
 
 from __future__ import annotations
@@ -237,3 +237,67 @@ def test_a_headerless_type_is_stamped_in_microseconds_and_framed_by_frame_id(mon
         (0.25, 0.5, -0.125)
     assert not any(out.angular_velocity_covariance)
     assert out.orientation_covariance[0] == out.linear_acceleration_covariance[0] == -1.0
+
+
+def test_the_node_run_as_users_run_it_gives_the_same_rates(ros_context, tmp_path, reference):
+    """
+    Run ``python -m gyro_tdc.nodes.compensator_node`` with remaps and a parameter file.
+
+    A FRD Vector3Stamped gyro and a thermometer in a nested field of another type, both at
+    once; the thermometer (held by stamp) is sent first and seen arrived on the child's
+    /diagnostics before the IMU samples follow, one at a time.
+    """
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rosutil import interrupt, node_process
+    path = tmp_path / 'params.yaml'
+    path.write_text(yaml.safe_dump({'/**': {'ros__parameters': {
+        'model_file': MODEL, 'executor': 'single',
+        **INPUTS['frd'][4], **INPUTS['nested_temperature'][4]}}}))
+    imu_ns, w, temp_ns, temp_c = samples()
+    io = rclpy.create_node('driver_probe', context=ros_context)
+    executor = make_executor('single', ros_context)
+    executor.add_node(io)
+    out: list[Imu] = []
+    silent: list[float] = []      # 'temperature silent s' of each of the child's reports
+
+    def on_diagnostics(msg):
+        for status in msg.status:
+            if status.name == '/robot1/gyro_comp: gyro compensation':
+                values = {v.key: v.value for v in status.values}
+                silent.append(float(values['temperature silent s']))
+
+    io.create_subscription(Imu, '/robot1/imu/data_compensated', out.append, RELIABLE)
+    io.create_subscription(DiagnosticArray, '/diagnostics', on_diagnostics, 10)
+    imu_pub = io.create_publisher(Vector3Stamped, '/driver/gyro', RELIABLE)
+    temp_pub = io.create_publisher(PoseWithCovarianceStamped, '/driver/thermometer', RELIABLE)
+    try:
+        with node_process('gyro_tdc.nodes.compensator_node', '-r', '__ns:=/robot1',
+                          '-r', '__node:=gyro_comp', '-r', 'imu/data_raw:=/driver/gyro',
+                          '-r', 'imu/temperature:=/driver/thermometer',
+                          '--params-file', str(path)) as child:
+            spin_until(executor, lambda: imu_pub.get_subscription_count() > 0
+                       and temp_pub.get_subscription_count() > 0
+                       and io.count_publishers('/robot1/imu/data_compensated') > 0, 30.0,
+                       what='the child node')
+            spin_until(executor, lambda: silent, 30.0, what='a first /diagnostics report')
+            for ns, value in zip(temp_ns, temp_c):
+                temp_pub.publish(nested_msg(ns, value))
+            # The report after an arrival shows the thermometer silent for 0 s; a later one
+            # silent for a whole report period says nothing more came in between: all six
+            # (one reliable writer, in order) are held before the first IMU sample.
+            n = len(silent)
+            spin_until(executor, lambda: any(x < 0.5 for x in silent[n:]), 30.0,
+                       what='the thermometer on /diagnostics')
+            first = next(i for i in range(n, len(silent)) if silent[i] < 0.5)
+            spin_until(executor, lambda: any(x >= 0.9 for x in silent[first + 1:]), 30.0,
+                       what='the thermometer quiet on /diagnostics')
+            for k, ns in enumerate(imu_ns):
+                imu_pub.publish(vector_msg(ns, w[k], frd=True))
+                spin_until(executor, lambda: len(out) > k, 10.0, what=f'output {k}')
+            code, log = interrupt(child)
+    finally:
+        executor.shutdown()
+        io.destroy_node()
+    assert code == 0, log
+    np.testing.assert_allclose(rates(out), rates(reference), atol=1e-9, rtol=0)
+    assert [m.header.stamp for m in out] == [m.header.stamp for m in reference]
