@@ -42,6 +42,8 @@ __all__ = ['IMU_TYPE', 'InputReader', 'input_reader', 'message_class']
 
 #: The IMU type of the fast path: compensated in place (raw CDR or typed).
 IMU_TYPE = 'sensor_msgs/msg/Imu'
+#: The range of ``builtin_interfaces/Time.sec`` (int32): a stamp outside is refused.
+_INT32_MIN, _INT32_MAX = -2 ** 31, 2 ** 31 - 1
 
 
 def message_class(name: str, param: str, hint: str = '') -> type:
@@ -146,12 +148,15 @@ def _imu_converter(cls: type, type_name: str, p: Any) -> Callable[[Any], Imu]:
         av = out.angular_velocity
         av.x, av.y, av.z = x, y, z
         s = stamp(msg)
-        h = out.header
         if kind == 'time':
-            h.stamp.sec, h.stamp.nanosec = s.sec, s.nanosec
+            sec, nanosec = s.sec, s.nanosec
         else:
-            h.stamp.sec, micros = divmod(int(s), 1_000_000)
-            h.stamp.nanosec = micros * 1000
+            sec, micros = divmod(int(s), 1_000_000)
+            nanosec = micros * 1000
+        if not (_INT32_MIN <= sec <= _INT32_MAX and 0 <= nanosec < 1_000_000_000):
+            raise ValueError(f'stamp {sec} s {nanosec} ns is not a builtin_interfaces/Time')
+        h = out.header
+        h.stamp.sec, h.stamp.nanosec = sec, nanosec
         h.frame_id = msg.header.frame_id if has_header else frame_id
         out.orientation_covariance[0] = -1.0          # REP 145: no orientation
         out.linear_acceleration_covariance[0] = -1.0  # nor acceleration; rate: unknown (0)

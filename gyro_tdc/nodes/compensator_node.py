@@ -293,7 +293,11 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
         try:
             imu = self._to_imu(msg)
         except Exception as exc:  # the callback edge: a field out of range, a bad stamp
-            self._on_malformed(exc, 0)
+            self.inputs.malformed += 1
+            self.get_logger().warning(
+                f'imu/data_raw message not readable as {self.params.imu_type} (dropped, '
+                f'{self.inputs.malformed} in total): {type(exc).__name__}: {exc}',
+                throttle_duration_sec=5.0)
             return
         self._on_imu(imu, start)
 

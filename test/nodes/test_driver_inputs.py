@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import subprocess
 import sys
+from types import SimpleNamespace
 
 from compensator_rig import rates, RELIABLE
 from geometry_msgs.msg import PoseWithCovarianceStamped, Vector3Stamped
@@ -37,6 +38,7 @@ from gyro_tdc.runtime.flags import PASSTHROUGH
 import numpy as np
 import pytest
 import rclpy
+from rclpy.parameter import Parameter
 from rosutil import spin_until
 from sensor_msgs.msg import Imu, Temperature
 import yaml
@@ -301,3 +303,17 @@ def test_the_node_run_as_users_run_it_gives_the_same_rates(ros_context, tmp_path
     assert code == 0, log
     np.testing.assert_allclose(rates(out), rates(reference), atol=1e-9, rtol=0)
     assert [m.header.stamp for m in out] == [m.header.stamp for m in reference]
+
+
+def test_an_unreadable_message_is_counted_and_the_stream_goes_on(ros_context):
+    """A stamp out of a Time's range (a driver's garbage) is dropped and counted, once each."""
+    node = CompensatorNode(context=ros_context, parameter_overrides=[
+        Parameter(k, value=v) for k, v in INPUTS['vector3stamped'][4].items()])
+    try:
+        bad = vector_msg(T0_NS, (0.1, 0.2, 0.3))
+        bad.header.stamp = SimpleNamespace(sec=2 ** 40, nanosec=0)   # not an int32
+        node._on_imu_other(bad)
+        assert node.inputs.malformed == 1
+        assert node.core.counts['in'] == 0                 # never reached the core
+    finally:
+        node.destroy_node()
