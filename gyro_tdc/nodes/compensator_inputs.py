@@ -138,9 +138,15 @@ def _imu_converter(cls: type, type_name: str, p: Any) -> Callable[[Any], Imu]:
     has_header = fields.get('header') == 'std_msgs/Header'
     frame_id = p.frame_id
     frd = p.input_frame == 'frd'
+    # One Imu, refilled per message: publish() serializes it at once, and the node touches
+    # only the rate and the covariance diagonal, reset here (a new Imu costs more than the
+    # rest of the conversion).
+    out = Imu()
+    out.orientation_covariance[0] = -1.0          # REP 145: no orientation
+    out.linear_acceleration_covariance[0] = -1.0  # nor acceleration; rate: unknown (0)
+    cov = out.angular_velocity_covariance
 
     def to_imu(msg: Any) -> Imu:
-        out = Imu()
         w = rate(msg)
         x, y, z = float(w.x), float(w.y), float(w.z)
         if frd:
@@ -158,8 +164,7 @@ def _imu_converter(cls: type, type_name: str, p: Any) -> Callable[[Any], Imu]:
         h = out.header
         h.stamp.sec, h.stamp.nanosec = sec, nanosec
         h.frame_id = msg.header.frame_id if has_header else frame_id
-        out.orientation_covariance[0] = -1.0          # REP 145: no orientation
-        out.linear_acceleration_covariance[0] = -1.0  # nor acceleration; rate: unknown (0)
+        cov[0] = cov[4] = cov[8] = 0.0
         return out
 
     return to_imu
