@@ -297,6 +297,13 @@ def test_recipe_is_complete(name, setup_kwargs):
                                        'imu/data_compensated'}
     installed = {src: dest for dest, srcs in setup_kwargs['data_files'] for src in srcs}
     assert installed[f'launch/recipes/{name}.launch.xml'] == 'share/gyro_tdc/launch/recipes'
+    # It cites what it was checked against (repository, files, commit or version), and the
+    # drivers page shows how to start it.
+    text = (RECIPES / f'{name}.launch.xml').read_text()
+    cited = re.search(r'Checked against ([\w-]+/[\w.-]+)', text)
+    assert cited and re.search(r'\b[0-9a-f]{7}\b', text), name
+    assert f'recipes/{name}.launch.xml' in (ROOT / 'doc' / 'drivers.md').read_text()
+    assert set(DRIVERS) == {p.name.split('.')[0] for p in RECIPES.glob('*.launch.xml')}
 
 
 @pytest.mark.parametrize('name', sorted(DRIVERS))
