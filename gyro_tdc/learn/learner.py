@@ -38,8 +38,8 @@ from gyro_tdc.learn.store import (decode_state, encode_state, FORMAT, read_state
                                   write_state)
 from gyro_tdc.learn.temperature import hold_readings, same_thermal, stream_state
 from gyro_tdc.model import CompensationModel, ThermalState
-from gyro_tdc.signal import (BURST_FACTOR, BURST_MAX_S, BURST_PAUSES, GAP_PERIODS, MIN_STILL_S,
-                             SessionRule, STILL_WINDOW_S, StillWindows, Window)
+from gyro_tdc.signal import (break_why, BURST_FACTOR, BURST_MAX_S, BURST_PAUSES, GAP_PERIODS,
+                             MIN_STILL_S, SessionTracker, STILL_WINDOW_S, StillWindows, Window)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -205,7 +205,6 @@ class Learner:
         self.stretches = 0
         self.windows = 0
         self.recent: list[list] = []          # [stretch, session, window rows] newest last
-        self.session = 0
         self.fit: dict | None = None          # the learned model in use
         self.model: CompensationModel | None = self.prior
         self.last_update_t: float | None = None
@@ -217,17 +216,25 @@ class Learner:
         #: The entry group being filled: a stretch, or an ``entry_s`` part of a long one.
         self.segment = 0
         self.segment_t0: float | None = None
-        #: The stream's rhythm (session rule): its median sample period, its pauses (the
-        #: newest), and the sessions a gap started, ``(session, gap s)``.
+        #: The stream's median sample period and the steps it is taken from; the session
+        #: (the shared rule, :class:`gyro_tdc.signal.SessionTracker`, from 0).
         self._period: float | None = None
         self._dts: list[float] = []
-        self._rule = SessionRule(self.config.session_gap_s)
-        self._gap_starts: list[tuple[int, float]] = []
+        self.sessions = SessionTracker(self.config.session_gap_s)
         #: A new session whose first stretch is not learned yet (:meth:`_early_offset`).
         self._fresh = False
         #: Accepted candidates not handed over yet: (effective stamp or None: at once, model).
         self._swaps: list[tuple[float | None, CompensationModel]] = []
         self._trigger: float | None = None    # stamp of the sample that let a refit run
+
+    @property
+    def session(self) -> int:
+        """Return the current session (power cycle) of the stream, from 0."""
+        return self.sessions.session
+
+    @session.setter
+    def session(self, value: int) -> None:
+        self.sessions.session = int(value)
 
     @property
     def gyro_floor(self) -> NDArray[np.float64]:
@@ -468,9 +475,10 @@ class Learner:
         swapped = False
         for lo, hi in zip([0] + pauses, pauses + [t.size]):
             if hi > lo:
-                new = lo in back or (lo in pauses and self._pause(float(dt[lo])))
+                d = float(dt[lo])
+                why = break_why(d) if lo in back else (self._pause(d) if lo in pauses else '')
                 swapped = self._batch(t[lo:hi], w[lo:hi], None if acc is None else acc[lo:hi],
-                                      temp[lo:hi], new) or swapped
+                                      temp[lo:hi], why, d) or swapped
         return swapped
 
     def session_gap(self) -> float:
@@ -482,44 +490,38 @@ class Learner:
         paused :data:`BURST_PAUSES` times for longer than GAP_PERIODS periods,
         :data:`BURST_FACTOR` times the median of those pauses (at most BURST_MAX_S).
         """
-        return self._rule.limit(self._period or 0.0)
+        return self.sessions.limit(self._period or 0.0)
 
-    def _pause(self, gap: float) -> bool:
-        """Note a pause of the stream (s); return whether it starts a new session."""
+    def _pause(self, gap: float) -> str:
+        """
+        Judge a pause of the stream (s) by the session rule; return why it is a break or ''.
+
+        Sessions whose gap the rule no longer cuts at (it learned the stream's rhythm since)
+        are merged into their predecessor, their points and recent windows relabelled.
+        """
         period = self._period or 0.0
-        new = bool(self._rule.judge(gap, period))
-        self._merge_sessions(self._rule.limit(period))
-        if new:
-            self._gap_starts = (self._gap_starts + [(self.session + 1, gap)])[-64:]
-        return new
+        why = self.sessions.judge(gap, period)
+        relabel = self.sessions.merges(period)
+        if relabel:
+            for v in self.bins.values():
+                for e in v:
+                    e[5] = relabel.get(int(e[5]), e[5])
+            for r in self.recent:
+                r[1] = relabel.get(int(r[1]), r[1])
+        return why
 
-    def _merge_sessions(self, limit: float) -> None:
-        """Merge into their predecessor the sessions whose gap the rule no longer cuts at."""
-        merge = {s for s, gap in self._gap_starts if gap <= limit and s <= self.session}
-        if not merge:
-            return
-        new, label = {}, 0
-        for k in range(self.session + 1):
-            if k and k not in merge:
-                label += 1
-            new[k] = label
-        for v in self.bins.values():
-            for e in v:
-                e[5] = new.get(int(e[5]), e[5])
-        for r in self.recent:
-            r[1] = new.get(int(r[1]), r[1])
-        self._gap_starts = [(new[s], g) for s, g in self._gap_starts if s not in merge
-                            and s in new]
-        self.session = new[self.session]
+    def _batch(self, t, w, acc, temp, why: str, gap: float) -> bool:
+        """
+        Process samples of one session: the still test judges the windows they end.
 
-    def _batch(self, t, w, acc, temp, new_session: bool) -> bool:
-        """Process samples of one session: the still test judges the windows they end."""
+        ``why`` (not ``''``): they start a new session, after a stamp step of ``gap`` s.
+        """
         swapped = False
-        if new_session:
+        if why:
             # A new session (power-up): its own turn-on offset, learned apart; what it
             # closes was computable at its first sample.
             swapped = self.flush(float(t[0]))
-            self.session += 1
+            self.sessions.start(float(t[0]), why, gap=gap)
             self._fresh = True            # its offset from its first still windows
             self.still.restart()          # the window grid starts again
             self.thermal_state = None     # after a power-off: steady state at the next reading

@@ -40,7 +40,7 @@ from gyro_tdc.runtime.priming import (advance, prepare, PREPARED_BY, prepared_fo
                                       Priming, replay, replay_from_first)
 from gyro_tdc.runtime.reanchor import Anchor, StillnessDetector, Vec3
 from gyro_tdc.runtime.temperature_hold import TemperatureHold
-from gyro_tdc.signal import SessionRule
+from gyro_tdc.signal import SessionTracker
 import numpy as np
 
 __all__ = ['AccelEntry', 'AccelSlot', 'CompensatorCore', 'correction_is_safe', 'DriftEntry',
@@ -208,11 +208,8 @@ class Reanchoring:
     """
     The re-anchoring: the stillness detector, the shift it found (or None), the session.
 
-    ``session`` counts the IMU's power cycles seen (from 1), ``session_t`` the first stamp of
-    the current one, ``session_k`` the ``in`` count at it and ``session_why`` what started it
-    (``'gap of X s'``, ``'restart (stamps back by X s)'``; ``''`` for the first);
-    ``pauses`` and ``paused_s`` the steps over ``SESSION_GAP_S`` that were no break, and their
-    sum (left out of the session's sample period). ``learned``: a learned model carrying this
+    ``sessions`` keeps the IMU's power cycles (``session``, from 1, began at ``session_t``;
+    shown the steps over ``SESSION_GAP_S``). ``learned``: a learned model carrying this
     session's offset is installed (taken from its own still time), so re-anchoring is done
     for the session without a shift; ``waiting`` that it still waits for a still window
     (:meth:`CompensatorCore._update_needs`).
@@ -220,17 +217,20 @@ class Reanchoring:
 
     detector: StillnessDetector
     anchor: Anchor | None = None
-    session: int = 1
-    session_t: float | None = None
-    session_k: int = 0
-    session_why: str = ''
-    pauses: int = 0
-    paused_s: float = 0.0
     learned: bool = False
     waiting: bool = False
-    #: The shared session-break rule (:class:`gyro_tdc.signal.SessionRule`): the stream's
-    #: rhythm over sessions.
-    rule: SessionRule = field(default_factory=SessionRule)
+    #: The IMU's sessions by the shared rule (:class:`gyro_tdc.signal.SessionTracker`).
+    sessions: SessionTracker = field(default_factory=lambda: SessionTracker(first=1))
+
+    @property
+    def session(self) -> int:
+        """Return the IMU's power cycles seen, from 1."""
+        return self.sessions.session
+
+    @property
+    def session_t(self) -> float | None:
+        """Return the current session's first stamp, s."""
+        return self.sessions.t0
 
 
 @dataclass(slots=True)
@@ -343,7 +343,7 @@ class CompensatorCore:
         a = self.reanchoring
         if a.session <= 1:
             return ''
-        return f' (session {a.session} from t={a.session_t:.3f} s, after a {a.session_why})'
+        return f' (session {a.session} from t={a.session_t:.3f} s, after a {a.sessions.why})'
 
     @property
     def accel_on(self) -> bool:
@@ -765,7 +765,7 @@ class CompensatorCore:
         stream = self.stream
         last = stream.t
         if last is None:                # the first session starts
-            self.reanchoring.session_t, self.reanchoring.session_k = t, tally.counts['in']
+            self.reanchoring.sessions.begin(t, tally.counts['in'])
         else:
             d = t - last                # NaN fails the compares
             if d > SESSION_GAP_S or d < -RESTART_BACK_S:
@@ -1009,19 +1009,11 @@ class CompensatorCore:
         """
         a = self.reanchoring
         k = self.tally.counts['in']
-        period = 0.0
-        if d > 0:
-            steps = k - a.session_k - 1 - a.pauses
-            period = ((self.stream.t - a.session_t - a.paused_s) / steps
-                      if steps > 0 and a.session_t is not None else 0.0)
-        why = a.rule.judge(d, period)
+        sessions = a.sessions
+        why = sessions.judge(d, sessions.period(self.stream.t, k) if d > 0 else 0.0)
         if not why:
-            a.pauses += 1
-            a.paused_s += d
             return
-        a.session += 1
-        a.session_t, a.session_k, a.session_why = t, k, why
-        a.pauses, a.paused_s = 0, 0.0
+        sessions.start(t, why, k)
         a.learned = False
         slot = self.slot
         stream = self.stream

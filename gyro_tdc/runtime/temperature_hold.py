@@ -13,22 +13,20 @@
 # limitations under the License.
 
 """
-The compensator's thermometer held by stamp, and its covariance widening (pure).
+The compensator's thermometer held by stamp (pure).
 
 :class:`TemperatureHold` is a zero-order hold by stamp of the readings the plausibility gate
-(:mod:`gyro_tdc.base.plausible`) lets through; :func:`widen_covariance` widens a REP 145
-covariance's diagonal.
+(:mod:`gyro_tdc.base.plausible`) lets through.
 """
 
 from __future__ import annotations
 
 import bisect
 import math
-from typing import Sequence
 
 from gyro_tdc.base import TemperatureGate
 
-__all__ = ['TemperatureHold', 'widen_covariance']
+__all__ = ['TemperatureHold']
 
 
 class TemperatureHold:
@@ -138,28 +136,3 @@ class TemperatureHold:
         """Return ``(temp_c, stamp)`` of the newest sample, or None."""
         return (self._c[-1], self._t[-1]) if self._t else None
 
-
-def widen_covariance(cov: Sequence[float], add: Sequence[float]) -> list[float]:
-    """
-    Return a 3x3 row-major covariance with ``add`` added to its diagonal.
-
-    Parameters
-    ----------
-    cov : sequence of 9 float
-        Input covariance (REP 145: all zeros means unknown).
-    add : sequence of 3 float, (rad/s)^2
-        Variance to add per axis.
-
-    Returns
-    -------
-    list of 9 float
-        The widened covariance; an input with ``cov[0] == -1`` (no data) is returned as is.
-
-    """
-    out = list(cov)
-    if out[0] == -1.0:
-        return out
-    out[0] += add[0]
-    out[4] += add[1]
-    out[8] += add[2]
-    return out

@@ -12,11 +12,11 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The thermometer held by stamp and the covariance widening (pure)."""
+"""The thermometer held by stamp (pure)."""
 
 import math
 
-from gyro_tdc.runtime.temperature_hold import TemperatureHold, widen_covariance
+from gyro_tdc.runtime.temperature_hold import TemperatureHold
 
 
 def test_temperature_hold_by_stamp():
@@ -37,8 +37,3 @@ def test_temperature_hold_by_stamp():
         hold.add(10.0 + k, 30.0 + k)
     assert len(hold) == 4 and hold.at(100.0) == (39.0, 19.0)
 
-
-def test_widen_covariance():
-    assert widen_covariance([0.0] * 9, (1.0, 2.0, 3.0)) == [1, 0, 0, 0, 2, 0, 0, 0, 3]
-    cov = [-1.0] + [0.0] * 8
-    assert widen_covariance(cov, (1.0, 2.0, 3.0)) == cov
