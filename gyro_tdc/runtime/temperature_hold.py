@@ -135,4 +135,3 @@ class TemperatureHold:
     def latest(self) -> tuple[float, float] | None:
         """Return ``(temp_c, stamp)`` of the newest sample, or None."""
         return (self._c[-1], self._t[-1]) if self._t else None
-
