@@ -36,4 +36,3 @@ def test_temperature_hold_by_stamp():
     for k in range(10):
         hold.add(10.0 + k, 30.0 + k)
     assert len(hold) == 4 and hold.at(100.0) == (39.0, 19.0)
-
