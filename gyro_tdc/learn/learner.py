@@ -24,22 +24,22 @@ doc/internals/signal.md for the still test and the learner's use of it.
 from __future__ import annotations
 
 from array import array
-from dataclasses import dataclass, field
 import math
 from pathlib import Path
 from typing import Any, Sequence
 
-from gyro_tdc.base import RESTART_BACK_S, SESSION_GAP_S
+from gyro_tdc.base import RESTART_BACK_S
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, learned_model,
                                 MAX_DROPS, model_of, OUTLIER_K, predict_windows,
                                 recent_offset, SPAN_DT2_C, SPAN_DT3_C, SPAN_DT_C, window_error)
+from gyro_tdc.learn.records import Entry, LearnConfig, OpenStretch, RecentStretch
 from gyro_tdc.learn.store import (decode_state, encode_state, FORMAT, read_state, RECENT_ROWS,
                                   write_state)
 from gyro_tdc.learn.temperature import hold_readings, same_thermal, stream_state
 from gyro_tdc.model import CompensationModel, ThermalState
 from gyro_tdc.signal import (break_why, BURST_FACTOR, BURST_MAX_S, BURST_PAUSES, GAP_PERIODS,
-                             MIN_STILL_S, SessionTracker, STILL_WINDOW_S, StillWindows, Window)
+                             SessionTracker, StillWindows, Window)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -64,99 +64,6 @@ SWAP_CHANGE = 0.02
 PERIOD_STEPS = 64
 #: The session-break rule (GAP_PERIODS, BURST_PAUSES, BURST_FACTOR, BURST_MAX_S) is
 #: gyro_tdc.signal.sessions', shared with the trainer's batch split and the compensator's core.
-
-
-@dataclass(frozen=True)
-class LearnConfig:
-    """
-    Settings of the learner.
-
-    Parameters
-    ----------
-    bin_c : float, degC
-        Temperature bin width.
-    half_life_s : float, s
-        Age (by message stamp) at which an entry weighs half.
-    window_s, min_still_s : float, s
-        Still test window and shortest stretch.
-    temperature_timeout : float, s
-        A thermometer reading older than this (by stamp) gives no temperature.
-    save_period_s : float, s
-        Stamp time between periodic saves.
-    commit_s : float, s
-        A still stretch longer than this is learned every ``commit_s`` while it goes on.
-    entry_s : float, s
-        A bin's entry gathers one stretch's windows over at most this long (then a new entry
-        begins), so a long stop is learned as many points, each of its hours aged apart.
-    offset_s : float, s
-        The current session's offset is the mean over the newest ``offset_s`` of its still
-        windows of the raw rate minus the fitted shape (the offset wanders: a random walk,
-        bias instability); 0: the fit's intercept of the session.
-    max_rate_hz : float, Hz
-        The core hands the learner at most one sample per ``1 / max_rate_hz`` of stamps
-        (by stamp, so a replay at any speed hands the same samples): from a faster IMU the
-        mean of the samples since the last hand-off (a 1 kHz IMU is learned from means of
-        10, a tenth of the noise variance of one sample), plenty for 10 s still windows.
-    session_gap_s : float, s
-        A gap in the IMU stamps longer than this starts a new session (a power-up: the
-        gyro's turn-on offset changes; each session gets its own intercept in the fit), when
-        it is also longer than :data:`GAP_PERIODS` sample periods and, in a stream that pauses
-        regularly (bursts), than :data:`BURST_FACTOR` times its median pause; stamps that step
-        back by over ``RESTART_BACK_S`` (a device clock restarted) start one too.
-    swap_delay_s : float, s
-        An accepted candidate takes effect this long (by stamp) after the sample that let it
-        be computed (:meth:`Learner.take_swaps`), so its effective stamp is fixed by the
-        data, not by when :meth:`Learner.step` happens to run.
-
-    """
-
-    bin_c: float = 1.0
-    half_life_s: float = 86400.0
-    window_s: float = STILL_WINDOW_S
-    min_still_s: float = MIN_STILL_S
-    temperature_timeout: float = 5.0
-    save_period_s: float = 180.0
-    commit_s: float = 300.0
-    entry_s: float = 3600.0
-    offset_s: float = 1800.0
-    max_rate_hz: float = 100.0
-    session_gap_s: float = SESSION_GAP_S
-    swap_delay_s: float = 5.0
-
-
-@dataclass
-class _Stretch:
-    """
-    The current still stretch: its windows not learned yet, its first stamp and samples.
-
-    ``rows`` are :class:`gyro_tdc.signal.Window` without samples; once part of the stretch
-    is learned (``learned``), only the windows since are kept.
-    """
-
-    rows: list[Window] = field(default_factory=list)
-    t0: float = math.nan
-    n: int = 0
-    learned: bool = False
-
-    def add(self, win: Window) -> None:
-        """Append a still window."""
-        if not self.rows and not self.learned:
-            self.t0 = win.t0
-        self.rows.append(win)
-        self.n += win.n
-
-    def span(self) -> float:
-        """Return the stretch's duration so far, s (one sample period included)."""
-        if not self.rows:
-            return 0.0
-        d = self.rows[-1].t1 - self.t0
-        return d + d / max(self.n - 1, 1)
-
-    def keep_from(self, j: int) -> None:
-        """Drop the windows before ``j`` (a stretch not learned yet)."""
-        self.rows = self.rows[j:]
-        self.n = sum(r.n for r in self.rows)
-        self.t0 = self.rows[0].t0 if self.rows else math.nan
 
 
 class Learner:
@@ -199,12 +106,12 @@ class Learner:
 
     def reset(self) -> None:
         """Forget everything learned (points, floor, model); the prior is current again."""
-        self.bins: dict[int, list[list]] = {}
+        self.bins: dict[int, list[Entry]] = {}
         self.still.reset()
         self.still_s = 0.0
         self.stretches = 0
         self.windows = 0
-        self.recent: list[list] = []          # [stretch, session, window rows] newest last
+        self.recent: list[RecentStretch] = []     # newest last
         self.fit: dict | None = None          # the learned model in use
         self.model: CompensationModel | None = self.prior
         self.last_update_t: float | None = None
@@ -212,7 +119,7 @@ class Learner:
         self.last_save_t: float | None = None
         self.check: dict | None = None
         self.swaps = 0
-        self._stretch = _Stretch()
+        self._stretch = OpenStretch()
         #: The entry group being filled: a stretch, or an ``entry_s`` part of a long one.
         self.segment = 0
         self.segment_t0: float | None = None
@@ -293,7 +200,7 @@ class Learner:
         for name, value in values.items():
             setattr(self, name, value)
         if 'segment' not in values:       # a file without it: the next group above them all
-            self.segment = max([self.stretches] + [int(e[4]) for v in self.bins.values()
+            self.segment = max([self.stretches] + [e.group for v in self.bins.values()
                                                    for e in v]) + 1
             self.segment_t0 = None
         if not same_thermal(saved, self.thermal):
@@ -324,7 +231,7 @@ class Learner:
         self.bins = {}
         self.recent = []
         self.fit, self.model, self._swaps, self.check = None, self.prior, [], None
-        self._stretch = _Stretch()
+        self._stretch = OpenStretch()
         self.still.drop_window()
         self.thermal_state = None
 
@@ -505,9 +412,9 @@ class Learner:
         if relabel:
             for v in self.bins.values():
                 for e in v:
-                    e[5] = relabel.get(int(e[5]), e[5])
-            for r in self.recent:
-                r[1] = relabel.get(int(r[1]), r[1])
+                    e.session = relabel.get(e.session, e.session)
+            self.recent = [r._replace(session=relabel.get(r.session, r.session))
+                           for r in self.recent]
         return why
 
     def _batch(self, t, w, acc, temp, why: str, gap: float) -> bool:
@@ -575,7 +482,7 @@ class Learner:
         Its windows that ``thresholds`` (default: those in force) refuse are dropped with
         everything before them (unless part of it was learned already).
         """
-        st, self._stretch = self._stretch, _Stretch()
+        st, self._stretch = self._stretch, OpenStretch()
         if not st.rows:
             return False
         if not st.learned:
@@ -621,17 +528,16 @@ class Learner:
             groups.setdefault(int(math.floor(r.temp_c / self.config.bin_c)), []).append(r)
         for b, rs in groups.items():
             m = sum(r.n for r in rs)
-            entry = [float(rs[-1].t1), float(m), sum(r.temp_c * r.n for r in rs) / m,
-                     tuple(sum(r.gyro_mean[a] * r.n for r in rs) / m for a in range(3)), sid,
-                     self.session]
+            entry = Entry(float(rs[-1].t1), float(m), sum(r.temp_c * r.n for r in rs) / m,
+                          tuple(sum(r.gyro_mean[a] * r.n for r in rs) / m for a in range(3)),
+                          sid, self.session)
             lst = self.bins.setdefault(b, [])
-            if lst and lst[-1][4] == sid:          # the same group: one entry per bin
+            if lst and lst[-1].group == sid:       # the same group: one entry per bin
                 o = lst[-1]
-                tot = o[1] + m
-                entry = [entry[0], tot, (o[2] * o[1] + entry[2] * m) / tot,
-                         tuple((o[3][a] * o[1] + entry[3][a] * m) / tot for a in range(3)),
-                         sid, self.session]
-                lst[-1] = entry
+                tot = o.samples + m
+                lst[-1] = Entry(entry.t_end, tot, (o.temp_c * o.samples + entry.temp_c * m) / tot,
+                                tuple((o.bias[a] * o.samples + entry.bias[a] * m) / tot
+                                      for a in range(3)), sid, self.session)
             else:
                 lst.append(entry)
             del lst[:-BIN_ENTRIES]
@@ -641,14 +547,14 @@ class Learner:
     def _remember(self, rows: list) -> None:
         """Keep new windows for the check and the offset: the newest stretches and rows."""
         stretch = self.stretches
-        if self.recent and self.recent[-1][0] == stretch:
-            self.recent[-1][2].extend(rows)
+        if self.recent and self.recent[-1].stretch == stretch:
+            self.recent[-1].rows.extend(rows)
         else:
-            self.recent.append([stretch, self.session, rows])
+            self.recent.append(RecentStretch(stretch, self.session, rows))
         del self.recent[:-CHECK_STRETCHES]
-        total = sum(len(r[2]) for r in self.recent)
+        total = sum(len(r.rows) for r in self.recent)
         while total > CHECK_ROWS:
-            first = self.recent[0][2]
+            first = self.recent[0].rows
             cut = min(total - CHECK_ROWS, len(first))
             del first[:cut]
             total -= cut
@@ -659,7 +565,8 @@ class Learner:
 
     def entries(self) -> NDArray[np.float64]:
         """Return the point table: rows ``(t_end, samples, temp, bx, by, bz, session)``."""
-        rows = [[e[0], e[1], e[2], *e[3], e[5]] for v in self.bins.values() for e in v]
+        rows = [[e.t_end, e.samples, e.temp_c, *e.bias, e.session]
+                for v in self.bins.values() for e in v]
         return np.asarray(rows, dtype=np.float64).reshape(-1, 7)
 
     def covered_c(self) -> tuple[float, float] | None:
@@ -757,7 +664,7 @@ class Learner:
 
     def _recent_rows(self) -> list:
         """Return this session's recent windows (the check's and the offset's)."""
-        return [r for s in self.recent if s[1] == self.session for r in s[2]]
+        return [r for s in self.recent if s.session == self.session for r in s.rows]
 
     # -- reporting --------------------------------------------------------------------
 

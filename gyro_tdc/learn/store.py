@@ -34,9 +34,10 @@ import re
 import stat
 from typing import Any, Callable, Protocol
 
-from gyro_tdc.base import atomic_write, MAX_RATE_RAD_S, TEMP_PLAUSIBLE_C
+from gyro_tdc.base import atomic_write, FieldChecker, MAX_RATE_RAD_S, shown, TEMP_PLAUSIBLE_C
 from gyro_tdc.errors import FeatureError, LearnFileError, ModelFileError, OutputError
 from gyro_tdc.learn.fit import model_of
+from gyro_tdc.learn.records import Entry, RecentStretch
 from gyro_tdc.model import MAX_PARAM, ThermalState
 import numpy as np
 from numpy.typing import NDArray
@@ -73,7 +74,7 @@ _STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
 class LearnerState(Protocol):
     """What :func:`encode_state` reads of a learner: the attributes a ``learn_file`` keeps."""
 
-    bins: dict[int, list[list]]
+    bins: dict[int, list[Entry]]
     session: int
     gyro_floor: NDArray[np.float64]
     accel_floor: NDArray[np.float64]
@@ -81,7 +82,7 @@ class LearnerState(Protocol):
     still_s: float
     stretches: int
     windows: int
-    recent: list[list]
+    recent: list[RecentStretch]
     fit: dict | None
     last_update_t: float | None
     last_t: float | None
@@ -105,14 +106,16 @@ def encode_state(learner: LearnerState) -> dict[str, Any]:
     ts = learner.thermal_state
     return {
         'format': FORMAT,
-        'bins': {str(k): [list(map(float, e[:3])) + [list(map(float, e[3])), e[4], e[5]]
+        'bins': {str(k): [[float(e.t_end), float(e.samples), float(e.temp_c),
+                           [float(b) for b in e.bias], e.group, e.session]
                           for e in v] for k, v in sorted(learner.bins.items())},
         'session': learner.session,
         'gyro_floor': _floor_out(learner.gyro_floor),
         'accel_floor': _floor_out(learner.accel_floor),
         't_first': learner.t_first, 'still_s': learner.still_s,
         'stretches': learner.stretches, 'windows': learner.windows,
-        'recent': [[s[0], s[1], s[2][-RECENT_ROWS:]] for s in learner.recent],
+        'recent': [[stretch, session, rows[-RECENT_ROWS:]]
+                   for stretch, session, rows in learner.recent],
         'fit': learner.fit, 'last_update_t': learner.last_update_t, 'last_t': learner.last_t,
         'check': learner.check, 'swaps': learner.swaps,
         'motion': [[float(m[0]), bool(m[1])] for m in learner.motion],
@@ -136,31 +139,10 @@ def _bad(name: str, what: str) -> LearnFileError:
     return LearnFileError(f'learner state: field `{name}` {what}')
 
 
-def _got(v: Any) -> str:
-    """Return a short description of a value for a message."""
-    return f'{type(v).__name__} {v!r:.40}' if not isinstance(v, (int, float)) else f'{v!r:.40}'
-
-
-def _number(v: Any, name: str, lo: float = -math.inf, hi: float = math.inf,
-            what: str = 'a number') -> float:
-    """Return ``v`` as a finite float within ``lo .. hi``."""
-    if isinstance(v, bool) or not isinstance(v, (int, float)):
-        raise _bad(name, f'must be {what}, got {_got(v)}')
-    try:
-        f = float(v)
-    except OverflowError:
-        f = math.inf
-    if not (math.isfinite(f) and lo <= f <= hi):
-        raise _bad(name, f'must be {what} (finite, {lo:g} .. {hi:g}), got {_got(v)}')
-    return f
-
-
-def _count(v: Any, name: str, lo: int = 0) -> int:
-    """Return ``v`` as an int within ``lo .. MAX_COUNT`` (an integral float is accepted)."""
-    f = _number(v, name, lo, MAX_COUNT, 'a count')
-    if f != math.floor(f):
-        raise _bad(name, f'must be a whole count, got {_got(v)}')
-    return int(f)
+#: The shared field checks (gyro_tdc.base.fields), worded for a learn_file.
+_CHK = FieldChecker(lambda name, expected, got: _bad(name,
+                                                     f'must be {expected}, got {shown(got)}'))
+_number, _count, _list, _dict = _CHK.number, _CHK.count, _CHK.items, _CHK.keys
 
 
 def _stamp(v: Any, name: str, optional: bool = False) -> float | None:
@@ -173,30 +155,6 @@ def _stamp(v: Any, name: str, optional: bool = False) -> float | None:
 def _temp(v: Any, name: str) -> float:
     """Return a plausible temperature, degC."""
     return _number(v, name, *TEMP_PLAUSIBLE_C, 'a plausible temperature in degC')
-
-
-def _list(v: Any, name: str, n: int | None = None, most: int | None = None) -> list:
-    """Return ``v`` as a list of ``n`` items (or at most ``most``)."""
-    if not isinstance(v, list):
-        raise _bad(name, f'must be a list, got {_got(v)}')
-    if n is not None and len(v) != n:
-        raise _bad(name, f'must hold {n} items, got {len(v)}')
-    if most is not None and len(v) > most:
-        raise _bad(name, f'must hold at most {most} items, got {len(v)}')
-    return v
-
-
-def _dict(v: Any, name: str, keys: tuple[str, ...], optional: tuple[str, ...] = ()) -> dict:
-    """Return ``v`` as a dict with exactly ``keys`` (and maybe ``optional`` ones)."""
-    if not isinstance(v, dict):
-        raise _bad(name, f'must be an object, got {_got(v)}')
-    missing = [k for k in keys if k not in v]
-    extra = sorted(str(k) for k in v if k not in keys and k not in optional)
-    if missing or extra:
-        raise _bad(name, f'must hold {", ".join(keys)}'
-                   + (f'; missing {", ".join(missing)}' if missing else '')
-                   + (f'; unknown {", ".join(extra)}' if extra else ''))
-    return v
 
 
 def _rates(v: Any, name: str, bound: float = MAX_RATE_RAD_S,
@@ -219,15 +177,15 @@ def _floor_in(v: Any, name: str) -> NDArray[np.float64]:
     return out
 
 
-def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[list]]:
+def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry]]:
     """Return the point table: bin -> entries ``[t_end, samples, temp, b, stretch, session]``."""
     if not isinstance(v, dict):
-        raise _bad('bins', f'must be an object (bin -> entries), got {_got(v)}')
+        raise _bad('bins', f'must be an object (bin -> entries), got {shown(v)}')
     lo = hi = None
     if bin_c is not None:
         lo = math.floor(TEMP_PLAUSIBLE_C[0] / bin_c) - 1
         hi = math.floor(TEMP_PLAUSIBLE_C[1] / bin_c) + 1
-    out: dict[int, list[list]] = {}
+    out: dict[int, list[Entry]] = {}
     for key, entries in v.items():
         name = f'bins[{key!r:.20}]'
         if not (isinstance(key, str) and re.fullmatch(r'-?[0-9]{1,9}', key)):
@@ -239,19 +197,20 @@ def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[list]
         for j, e in enumerate(_list(entries, name, most=most)):
             en = f'{name}[{j}]'
             e = _list(e, en, 6)
-            rows.append([_stamp(e[0], f'{en}[0] (t_end)'),
-                         _number(e[1], f'{en}[1] (samples)', 1.0, MAX_COUNT, 'a sample count'),
-                         _temp(e[2], f'{en}[2] (temperature)'),
-                         _rates(e[3], f'{en}[3]'),
-                         _count(e[4], f'{en}[4] (stretch)'),
-                         _count(e[5], f'{en}[5] (session)')])
+            rows.append(Entry(_stamp(e[0], f'{en}[0] (t_end)'),
+                              _number(e[1], f'{en}[1] (samples)', 1.0, MAX_COUNT,
+                                      'a sample count'),
+                              _temp(e[2], f'{en}[2] (temperature)'),
+                              _rates(e[3], f'{en}[3]'),
+                              _count(e[4], f'{en}[4] (stretch)'),
+                              _count(e[5], f'{en}[5] (session)')))
         if not rows:
             raise _bad(name, 'must hold at least one entry')
         out[k] = rows
     return out
 
 
-def _recent(v: Any, most: int | None) -> list[list]:
+def _recent(v: Any, most: int | None) -> list[RecentStretch]:
     """Return the recent stretches: ``[stretch, session, windows]``."""
     out = []
     for i, s in enumerate(_list(v, 'recent', most=most)):
@@ -266,8 +225,8 @@ def _recent(v: Any, most: int | None) -> list[list]:
                          *(_number(r[a], f'{rn}[{a}] (mean rate)', -MAX_RATE_RAD_S,
                                    MAX_RATE_RAD_S, 'a rate in rad/s') for a in (2, 3, 4)),
                          _stamp(r[5], f'{rn}[5] (t_end)')])
-        out.append([_count(s[0], f'{name}[0] (stretch)'), _count(s[1], f'{name}[1] (session)'),
-                    rows])
+        out.append(RecentStretch(_count(s[0], f'{name}[0] (stretch)'),
+                                 _count(s[1], f'{name}[1] (session)'), rows))
     return out
 
 
@@ -305,7 +264,7 @@ def _check(v: Any) -> dict | None:
         return None
     v = _dict(v, 'check', _CHECK_KEYS)
     if not isinstance(v['swapped'], bool):
-        raise _bad('check.swapped', f'must be true or false, got {_got(v["swapped"])}')
+        raise _bad('check.swapped', f'must be true or false, got {shown(v["swapped"])}')
     mse = (0.0, MAX_RATE_RAD_S ** 2 * 3, 'a squared error in (rad/s)^2')
     return {'t': _stamp(v['t'], 'check.t'),
             'candidate_mse': _number(v['candidate_mse'], 'check.candidate_mse', *mse),
@@ -319,7 +278,7 @@ def _thermal(v: Any) -> ThermalState | None:
     if v is None:
         return None
     if not isinstance(v, dict) or not isinstance(v.get('kind'), str):
-        raise _bad('thermal', f'must be a thermal section with a `kind`, got {_got(v)}')
+        raise _bad('thermal', f'must be a thermal section with a `kind`, got {shown(v)}')
     try:
         thermal = ThermalState.from_dict(v)
     except (FeatureError, TypeError, ValueError) as exc:
@@ -348,7 +307,7 @@ def _motion(v: Any) -> list[tuple[float, bool]]:
     for i, m in enumerate(_list(v, 'motion')):
         m = _list(m, f'motion[{i}]', 2)
         if not isinstance(m[1], bool):
-            raise _bad(f'motion[{i}][1]', f'must be true or false, got {_got(m[1])}')
+            raise _bad(f'motion[{i}][1]', f'must be true or false, got {shown(m[1])}')
         out.append((_stamp(m[0], f'motion[{i}][0]'), m[1]))
     out.sort(key=lambda r: r[0])
     return out

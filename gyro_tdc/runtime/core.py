@@ -406,19 +406,19 @@ class CompensatorCore:
         if held is None:
             return self._pass(t, wx, wy, wz, NO_TEMPERATURE, accel)
         temp, t_temp = held
+        policy = self.policy
         flags = 0
-        if t - t_temp > self.policy.temperature_timeout:
-            if self.policy.stale_policy == 'passthrough':
+        if t - t_temp > policy.temperature_timeout:
+            if policy.stale_policy == 'passthrough':
                 return self._pass(t, wx, wy, wz, STALE, accel)
             flags = STALE
         if stream.first is None:
             stream.first = (t, temp)
         if slot.static:
-            # Static features: the drift, and the variance to add, only change when the
-            # temperature does. The output check (the entry's variances were checked when it
-            # was made): finite and corrected by a plausible drift on every axis (NaN fails
-            # the compares); a safe entry cannot fail it for an input that passed its check.
-            e = slot.cache.get(temp) or slot.refresh(t, temp, self.policy)
+            # Static features: the drift and the variance change only with the temperature.
+            # The output check (finite, a plausible drift per axis; NaN fails the compares)
+            # cannot fail for a safe entry and an input that passed its check.
+            e = slot.cache.get(temp) or slot.refresh(t, temp, policy)
             ox, oy, oz = (wx - e.bx) / e.dx, (wy - e.by) / e.dy, (wz - e.bz) / e.dz
             m = _MAX_DRIFT
             if not (e.safe or (abs(ox - wx) <= m and abs(oy - wy) <= m and abs(oz - wz) <= m)):
@@ -434,9 +434,12 @@ class CompensatorCore:
         aout = avar = None
         if slot.accel is not None:
             aout, avar = self._accel(slot.accel, t, temp, accel, flags & STALE)
-        stream.t, stream.temp, stream.flags, stream.distance_c = t, temp, flags, dist
+        stream.t = t
+        stream.temp = temp
+        stream.flags = flags
+        stream.distance_c = dist
         tally.counts['compensated'] += 1
-        if flags or self.reanchoring.waiting:
+        if flags or (policy.reanchor_on_start and self.reanchoring.waiting):
             self._after(t, (wx, wy, wz), (ox, oy, oz), accel, temp, flags)
         return ox, oy, oz, var, flags, aout, avar
 
@@ -484,8 +487,6 @@ class CompensatorCore:
             still = self.policy.reanchor_on_start
         if still and self.reanchoring.waiting:
             self._still(t, raw, out, accel, temp)
-
-    # -- the accelerometer part -------------------------------------------------------
 
     def _accel(self, acc: AccelSlot, t: float, temp: float, accel: Sequence[float] | None,
                flags: int) -> tuple[Vec3 | None, Vec3 | None]:
