@@ -113,6 +113,12 @@ class FieldChecker:
         return [self.number(x, f'{path}[{i}]', lo, hi, what)
                 for i, x in enumerate(self.items(v, path, n))]
 
+    def mapping(self, v: Any, path: str) -> dict:
+        """Return ``v`` as a dict (any keys)."""
+        if not isinstance(v, Mapping):
+            raise self.fail(path, 'a mapping', v)
+        return dict(v)
+
     def keys(self, v: Any, path: str, keys: Sequence[str], optional: Sequence[str] = (),
              exact: bool = True) -> dict:
         """
@@ -121,8 +127,7 @@ class FieldChecker:
         ``exact``: every key must be one of them, and all of ``keys`` must be there; else
         only unknown keys are refused (a document merged over defaults).
         """
-        if not isinstance(v, Mapping):
-            raise self.fail(path, 'a mapping', v)
+        self.mapping(v, path)
         missing = [k for k in keys if k not in v] if exact else []
         extra = sorted(str(k) for k in v if k not in keys and k not in optional)
         if missing or extra:

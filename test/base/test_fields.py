@@ -58,3 +58,9 @@ def test_counts_lists_and_mappings():
         CHK.keys({'z': 2}, 'm', ('a',), exact=False)
     with pytest.raises(Bad, match='`f` must be true or false, got 1'):
         CHK.boolean(1, 'f')
+
+
+def test_a_mapping_of_any_keys():
+    assert CHK.mapping({'x': 1}, 'm') == {'x': 1}
+    with pytest.raises(Bad, match="`m` must be a mapping, got str 'imu'"):
+        CHK.mapping('imu', 'm')
