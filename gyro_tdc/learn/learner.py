@@ -30,10 +30,12 @@ from typing import Any, Sequence
 
 from gyro_tdc.base import RESTART_BACK_S
 from gyro_tdc.errors import ModelFileError
+from gyro_tdc.learn.check import compare, offset_until
 from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, learned_model,
-                                MAX_DROPS, model_of, OUTLIER_K, predict_windows,
-                                recent_offset, SPAN_DT2_C, SPAN_DT3_C, SPAN_DT_C, window_error)
-from gyro_tdc.learn.records import Entry, LearnConfig, OpenStretch, RecentStretch
+                                MAX_DROPS, model_of, OUTLIER_K, recent_offset, SPAN_DT2_C,
+                                SPAN_DT3_C, SPAN_DT_C)
+from gyro_tdc.learn.records import (diagnostic_values, Entry, LearnConfig, OpenStretch,
+                                    RecentStretch, summary)
 from gyro_tdc.learn.store import (decode_state, encode_state, FORMAT, read_state, RECENT_ROWS,
                                   write_state)
 from gyro_tdc.learn.temperature import hold_readings, same_thermal, stream_state
@@ -48,7 +50,6 @@ __all__ = ['BIN_ENTRIES', 'BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'CHECK_
            'SPAN_DT3_C', 'SPAN_DT_C', 'BINS_DT2', 'BINS_DT3',
            'MAX_DROPS', 'learned_model']
 
-NAN3 = (math.nan, math.nan, math.nan)
 #: Floats per sample in :attr:`Learner.buf`: stamp, rate (3), acceleration (3).
 SAMPLE = 7
 #: Entries a bin keeps (its newest).
@@ -57,13 +58,6 @@ BIN_ENTRIES = 8
 CHECK_STRETCHES = 3
 #: ... and their windows kept, newest first (a day of 10 s windows, what learn_file keeps).
 CHECK_ROWS = RECENT_ROWS
-#: A candidate is swapped in only when its prediction over the recent windows differs from
-#: the current model's by this fraction of the gyro noise floor (RMS, rad/s) or more.
-SWAP_CHANGE = 0.02
-#: The sample period is the median of the stream's first this many intervals.
-PERIOD_STEPS = 64
-#: The session-break rule (GAP_PERIODS, BURST_PAUSES, BURST_FACTOR, BURST_MAX_S) is
-#: gyro_tdc.signal.sessions', shared with the trainer's batch split and the compensator's core.
 
 
 class Learner:
@@ -123,10 +117,7 @@ class Learner:
         #: The entry group being filled: a stretch, or an ``entry_s`` part of a long one.
         self.segment = 0
         self.segment_t0: float | None = None
-        #: The stream's median sample period and the steps it is taken from; the session
-        #: (the shared rule, :class:`gyro_tdc.signal.SessionTracker`, from 0).
-        self._period: float | None = None
-        self._dts: list[float] = []
+        #: The session, from 0, and the stream's median period (the shared rule).
         self.sessions = SessionTracker(self.config.session_gap_s)
         #: A new session whose first stretch is not learned yet (:meth:`_early_offset`).
         self._fresh = False
@@ -187,12 +178,8 @@ class Learner:
         """
         Resume from :meth:`state` (a restart: nothing saved is lost).
 
-        Raises
-        ------
-        LearnFileError
-            The state is not one this learner wrote (every field is checked first, the fit's
-            model as a model file's: nothing changes then).
-
+        LearnFileError when it is not a state this learner wrote: every field is checked
+        first (the fit's model as a model file's), so nothing changes then.
         """
         values, saved = decode_state(state, bin_c=self.config.bin_c, bin_entries=BIN_ENTRIES,
                                      stretches=CHECK_STRETCHES)
@@ -241,16 +228,7 @@ class Learner:
         self.saved()
 
     def load(self, path: str | Path) -> bool:
-        """
-        Resume from ``path`` when it exists; return whether it did.
-
-        Raises
-        ------
-        LearnFileError
-            The file is not a learner state (``gyro_tdc.learn.store``: read bounded, a
-            symbolic link refused, every field checked).
-
-        """
+        """Resume from ``path`` when it exists; return whether it did (LearnFileError: bad)."""
         state = read_state(path)
         if state is None:
             return False
@@ -274,10 +252,10 @@ class Learner:
 
     def observe_motion(self, t: float, moving: bool) -> None:
         """
-        Record a motion report (stamp ``t``, s): it holds until the next (module docstring).
+        Record a motion report (stamp ``t``, s): it holds until the next one.
 
-        Reports apply when :meth:`step` judges the windows they cover: one that arrives more
-        than a window late no longer vetoes the windows already judged.
+        It applies when :meth:`step` judges the windows it covers (one a window late no
+        longer vetoes the windows already judged).
         """
         self.still.observe_motion(t, moving)
 
@@ -291,20 +269,10 @@ class Learner:
         """
         Return the models swapped in since the last call (once), oldest first.
 
-        Each comes with the stamp from which it takes effect: ``swap_delay_s`` after the
-        sample that let it be computed (the first sample after the window that ended or
-        extended the still stretch; for a new session its first sample), or None: at once
-        (resumed from a file). Installed at the first message stamped at or after it
-        (:meth:`gyro_tdc.runtime.core.CompensatorCore.schedule`), the output does not
-        depend on when :meth:`step` ran, as long as it ran within ``swap_delay_s`` of stamps.
-
-        Parameters
-        ----------
-        t_seen : float, s, optional
-            The newest stamp the message path has compensated: a model whose stamp is not
-            after it comes late (the step ran too long after the data) and is counted in
-            ``late_swaps``.
-
+        Each with the stamp it takes effect from, ``swap_delay_s`` after the sample that let
+        it be computed (None: at once, resumed from a file), so the output does not depend on
+        when :meth:`step` ran. One stamped at or before ``t_seen`` (s, the newest stamp the
+        message path compensated) comes late and is counted in ``late_swaps``.
         """
         swaps, self._swaps = self._swaps, []
         if t_seen is not None:
@@ -340,16 +308,10 @@ class Learner:
 
     def step(self, force: bool = False) -> bool:
         """
-        Process the samples gathered since the last call; refit after each finished stretch.
+        Process the samples gathered since the last call; return whether a model swapped in.
 
         Until a sample beyond the window in progress has arrived, nothing is done (unless
-        ``force``): the samples are converted once per window.
-
-        Returns
-        -------
-        bool
-            True when a new model was swapped in (:meth:`take_model` gives it).
-
+        ``force``): the samples are converted once per window; each finished stretch refits.
         """
         buf = self.buf
         if not buf or (not force and self._waiting()):
@@ -371,12 +333,8 @@ class Learner:
         # A gap longer than the session rule's (before the batch or inside it) starts a new
         # session.
         dt = np.diff(t, prepend=t[0] if self.last_t is None else self.last_t)
-        if self._period is None:          # the median of the first PERIOD_STEPS intervals
-            self._dts.extend(dt[dt > 0.0][:PERIOD_STEPS - len(self._dts)].tolist())
-            if len(self._dts) >= PERIOD_STEPS:
-                self._period = float(np.median(self._dts))
-        pause = (GAP_PERIODS * self._period if self._period is not None
-                 else self.config.session_gap_s)
+        period = self.sessions.median_period(dt)
+        pause = GAP_PERIODS * period if period is not None else self.config.session_gap_s
         back = set(np.flatnonzero(dt < -RESTART_BACK_S).tolist())   # the device restarted
         pauses = sorted(set(np.flatnonzero(dt > pause).tolist()) | back)
         swapped = False
@@ -389,15 +347,8 @@ class Learner:
         return swapped
 
     def session_gap(self) -> float:
-        """
-        Return the stamp gap (s) above which the stream starts a new session now.
-
-        The shared rule (:func:`gyro_tdc.signal.gap_limit`): the longest of
-        ``session_gap_s``, :data:`GAP_PERIODS` sample periods and, once the stream has
-        paused :data:`BURST_PAUSES` times for longer than GAP_PERIODS periods,
-        :data:`BURST_FACTOR` times the median of those pauses (at most BURST_MAX_S).
-        """
-        return self.sessions.limit(self._period or 0.0)
+        """Return the stamp gap (s) above which the stream starts a new session now."""
+        return self.sessions.limit(self.sessions.median or 0.0)
 
     def _pause(self, gap: float) -> str:
         """
@@ -406,7 +357,7 @@ class Learner:
         Sessions whose gap the rule no longer cuts at (it learned the stream's rhythm since)
         are merged into their predecessor, their points and recent windows relabelled.
         """
-        period = self._period or 0.0
+        period = self.sessions.median or 0.0
         why = self.sessions.judge(gap, period)
         relabel = self.sessions.merges(period)
         if relabel:
@@ -441,8 +392,7 @@ class Learner:
         """
         Judge the window in progress and end the stretch (at shutdown, or a new session).
 
-        ``t_trigger`` (s) is the stamp a candidate computed here counts from (default: the
-        last sample's).
+        A candidate computed here counts from ``t_trigger`` (s; default the last sample's).
         """
         swapped = self.step(force=True)
         trigger = self.last_t if t_trigger is None else t_trigger
@@ -456,8 +406,7 @@ class Learner:
         """
         Take judged windows in order; close and learn the stretches they end.
 
-        A window is known finished at the first sample after it (data, not step timing):
-        its ``t_next``, else ``t_next`` here (the trigger of what it decides).
+        A window is known finished at its ``t_next`` (else the argument's): by data.
         """
         swapped = False
         for win in windows:
@@ -620,22 +569,11 @@ class Learner:
         anchor = since if self.config.offset_s > 0 or since == -math.inf else None
         # Whose offset it carries: the newest still time it was taken from (the core keeps
         # re-anchoring a new power cycle until a model carries that cycle's offset).
-        cand.created['offset_until'] = self._offset_until(rows, since, offset is not None)
+        cand.created['offset_until'] = offset_until(rows, since, offset is not None,
+                                                    self.entries(), self.session)
         # The noise of the samples it is handed (the core's re-anchoring prior at a new one).
         cand.created['gyro_floor'] = [float(v) for v in self.gyro_floor]
-        pred = predict_windows(cand, rows, self.thermal)
-        new = window_error(rows, pred, anchor)
-        old = change = None
-        if self.model is not None:
-            cur = predict_windows(self.model, rows, self.thermal)
-            old = window_error(rows, cur, anchor)
-            change = (float(np.sqrt(np.average(((pred - cur) ** 2).mean(axis=1),
-                                               weights=rows[:, 0])))
-                      if rows.shape[0] else math.inf)
-        # Swapped in when better on the recent still time and different enough to matter:
-        # an RMS change of SWAP_CHANGE noise floors (a long stop refits every few minutes;
-        # each install replays the model's filters).
-        swap = old is None or (new < old and not change < SWAP_CHANGE * floor)
+        new, old, swap = compare(cand, self.model, rows, self.thermal, anchor, floor)
         self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old, 'swapped': swap}
         if not swap:
             return False
@@ -646,22 +584,6 @@ class Learner:
         self.swaps += 1
         return True
 
-    def _offset_until(self, rows: NDArray[np.float64], since: float, recent: bool
-                      ) -> float | None:
-        """
-        Return the stamp of the newest still time a candidate's offset comes from, or None.
-
-        The newest of ``rows`` after ``since`` when the offset is theirs (``recent``), else
-        the newest entry of the current session (the fit's intercept of its newest session);
-        None when the current session has none (the offset is an older session's).
-        """
-        if recent:
-            new = rows[rows[:, 5] > since, 5]
-            return float(new.max()) if new.size else None
-        e = self.entries()
-        mine = e[e[:, 6] == self.session, 0]
-        return float(mine.max()) if mine.size else None
-
     def _recent_rows(self) -> list:
         """Return this session's recent windows (the check's and the offset's)."""
         return [r for s in self.recent if s.session == self.session for r in s.rows]
@@ -670,34 +592,8 @@ class Learner:
 
     def diagnostic_values(self) -> dict[str, str]:
         """Return the learner's /diagnostics key/value pairs (strings)."""
-        s = self.summary()
-        cov = s['covered_c']
-        return {
-            'learn points': str(s['points']),
-            'learn covered degC': 'none' if cov is None else f'{cov[0]:.2f} .. {cov[1]:.2f}',
-            'learn still s': f'{s["still_s"]:.0f}',
-            'learn features': 'none' if s['features'] is None else ', '.join(s['features']),
-            'learn last update stamp s': ('never' if s['last_update_t'] is None
-                                          else f'{s["last_update_t"]:.3f}'),
-            'learn prediction check': s['check'] or 'none yet',
-            'learn session': str(self.session),
-            'learn late swaps': str(self.late_swaps),
-            'learn candidates refused': (f'{self.refused} (last: {self.refused_why})'
-                                         if self.refused else '0'),
-        }
+        return diagnostic_values(self)
 
     def summary(self) -> dict[str, Any]:
         """Return what /diagnostics shows: points, range, still time, last update, check."""
-        cov = self.covered_c()
-        chk = self.check
-        return {
-            'points': int(self.entries().shape[0]), 'bins': len(self.bins),
-            'covered_c': cov, 'still_s': self.still_s, 'stretches': self.stretches,
-            'features': None if self.fit is None else (self.fit['features'] or ['bias']),
-            'last_update_t': self.last_update_t, 'swaps': self.swaps,
-            'check': None if chk is None else (
-                f"candidate {math.sqrt(chk['candidate_mse']):.3g} rad/s vs current "
-                + ('none' if chk['current_mse'] is None
-                   else f"{math.sqrt(chk['current_mse']):.3g} rad/s")
-                + (' -> swapped' if chk['swapped'] else ' -> kept')),
-        }
+        return summary(self)

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-The online learner's records: its settings, the stretch being learned, its points and windows.
+The online learner's records: settings, the stretch being learned, points, windows, report.
 
 :class:`Entry` is one point of the point table (a bin's entry), :class:`RecentStretch` the
 windows of one recent stretch the check and the offset use; ``gyro_tdc.learn.store`` writes
@@ -24,12 +24,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from gyro_tdc.base import SESSION_GAP_S
 from gyro_tdc.signal import MIN_STILL_S, STILL_WINDOW_S, Window
 
-__all__ = ['Entry', 'LearnConfig', 'OpenStretch', 'RecentStretch']
+__all__ = ['diagnostic_values', 'Entry', 'LearnConfig', 'OpenStretch', 'RecentStretch',
+           'summary']
 
 
 @dataclass(slots=True)
@@ -161,3 +162,39 @@ class OpenStretch:
         self.rows = self.rows[j:]
         self.n = sum(r.n for r in self.rows)
         self.t0 = self.rows[0].t0 if self.rows else math.nan
+
+
+def diagnostic_values(learner: Any) -> dict[str, str]:
+    """Return a learner's /diagnostics key/value pairs (strings)."""
+    s = summary(learner)
+    cov = s['covered_c']
+    return {
+        'learn points': str(s['points']),
+        'learn covered degC': 'none' if cov is None else f'{cov[0]:.2f} .. {cov[1]:.2f}',
+        'learn still s': f'{s["still_s"]:.0f}',
+        'learn features': 'none' if s['features'] is None else ', '.join(s['features']),
+        'learn last update stamp s': ('never' if s['last_update_t'] is None
+                                      else f'{s["last_update_t"]:.3f}'),
+        'learn prediction check': s['check'] or 'none yet',
+        'learn session': str(learner.session),
+        'learn late swaps': str(learner.late_swaps),
+        'learn candidates refused': (f'{learner.refused} (last: {learner.refused_why})'
+                                     if learner.refused else '0'),
+    }
+
+
+def summary(learner: Any) -> dict[str, Any]:
+    """Return what a learner's /diagnostics shows: points, range, still time, update, check."""
+    cov = learner.covered_c()
+    chk = learner.check
+    return {
+        'points': int(learner.entries().shape[0]), 'bins': len(learner.bins),
+        'covered_c': cov, 'still_s': learner.still_s, 'stretches': learner.stretches,
+        'features': None if learner.fit is None else (learner.fit['features'] or ['bias']),
+        'last_update_t': learner.last_update_t, 'swaps': learner.swaps,
+        'check': None if chk is None else (
+            f"candidate {math.sqrt(chk['candidate_mse']):.3g} rad/s vs current "
+            + ('none' if chk['current_mse'] is None
+               else f"{math.sqrt(chk['current_mse']):.3g} rad/s")
+            + (' -> swapped' if chk['swapped'] else ' -> kept')),
+    }

@@ -31,8 +31,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'break_why', 'GAP_PERIODS',
-           'gap_breaks', 'gap_limit', 'PAUSES_KEPT', 'session_gap', 'SessionRule',
-           'SessionTracker']
+           'gap_breaks', 'gap_limit', 'PAUSES_KEPT', 'PERIOD_STEPS', 'session_gap',
+           'SessionRule', 'SessionTracker']
 
 #: A pause starts a new session when it is longer than ``gap_s`` and this many periods ...
 GAP_PERIODS = SESSION_GAP_PERIODS
@@ -45,6 +45,8 @@ BURST_FACTOR = 3.0
 BURST_MAX_S = 3600.0
 #: The streaming form keeps the newest this many pauses.
 PAUSES_KEPT = 64
+#: :meth:`SessionTracker.median_period` is the median of the stream's first this many steps.
+PERIOD_STEPS = 64
 
 
 def gap_limit(period: float, pauses: Sequence[float], gap_s: float = SESSION_GAP_S) -> float:
@@ -147,7 +149,8 @@ class SessionTracker:
 
     :meth:`judge` applies :class:`SessionRule` to a stamp step, :meth:`start` begins the
     session a break starts, :meth:`period` is the session's mean sample period (its pauses
-    left out) and :meth:`merges` relabels the sessions whose gap the rule, having learned the
+    left out), :meth:`median_period` the median of the stream's first steps (a stream seen in
+    batches) and :meth:`merges` relabels the sessions whose gap the rule, having learned the
     stream's rhythm since, no longer cuts at.
 
     Parameters
@@ -172,6 +175,17 @@ class SessionTracker:
         self.paused_s = 0.0
         #: The sessions a gap started, ``(session, gap s)``, the newest :data:`PAUSES_KEPT`.
         self.gaps: list[tuple[int, float]] = []
+        #: The median of the stream's first :data:`PERIOD_STEPS` positive steps (None before).
+        self.median: float | None = None
+        self._steps: list[float] = []
+
+    def median_period(self, dt: NDArray[np.float64]) -> float | None:
+        """Take the stream's next steps ``dt`` (s); return the median period once known."""
+        if self.median is None:
+            self._steps.extend(dt[dt > 0.0][:PERIOD_STEPS - len(self._steps)].tolist())
+            if len(self._steps) >= PERIOD_STEPS:
+                self.median = float(np.median(self._steps))
+        return self.median
 
     def begin(self, t: float, k: int = 0) -> None:
         """Note the stream's first sample: stamp ``t`` (s), the ``k``-th counted."""
