@@ -31,13 +31,13 @@ from typing import Any, Sequence
 from gyro_tdc.base import RESTART_BACK_S
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.check import compare, offset_until
+from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT, RECENT_ROWS
 from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, learned_model,
                                 MAX_DROPS, model_of, OUTLIER_K, recent_offset, SPAN_DT2_C,
                                 SPAN_DT3_C, SPAN_DT_C)
 from gyro_tdc.learn.records import (diagnostic_values, Entry, LearnConfig, OpenStretch,
                                     RecentStretch, summary)
-from gyro_tdc.learn.store import (decode_state, encode_state, FORMAT, read_state, RECENT_ROWS,
-                                  write_state)
+from gyro_tdc.learn.store import read_state, write_state
 from gyro_tdc.learn.temperature import hold_readings, same_thermal, stream_state
 from gyro_tdc.model import CompensationModel, ThermalState
 from gyro_tdc.signal import (break_why, BURST_FACTOR, BURST_MAX_S, BURST_PAUSES, GAP_PERIODS,
