@@ -18,7 +18,7 @@ The compensator's decisions, free of rclpy: what to do with each gyro sample.
 :class:`CompensatorCore` turns one raw sample into one output sample, the variance to add to
 its covariance, flags (:mod:`gyro_tdc.runtime.flags`) and the corrected specific force; the
 rules it follows are in doc/internals/runtime.md. Its parts own their state: the held
-thermometer (:mod:`~gyro_tdc.runtime.temperature_hold`), the sessions
+thermometer (:class:`gyro_tdc.signal.TemperatureHold`), the sessions
 (:class:`gyro_tdc.signal.SessionTracker`), the model and its drift
 (:mod:`~gyro_tdc.runtime.drift`), the re-anchoring and the counters
 (:mod:`~gyro_tdc.runtime.state`), the learning hand-off (:mod:`~gyro_tdc.runtime.handoff`).
@@ -45,7 +45,7 @@ from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.priming import (catch_up, prepare, PREPARED_BY, prepared_for, PreparedModel,
                                       Priming)
 from gyro_tdc.runtime.state import detector_for, reanchor_var, Reanchoring, StreamState, Tally
-from gyro_tdc.runtime.temperature_hold import TemperatureHold
+from gyro_tdc.signal import TemperatureHold
 
 __all__ = ['CompensatorCore', 'correction_is_safe', 'Output', 'timeless']
 

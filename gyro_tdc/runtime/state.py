@@ -31,8 +31,7 @@ from gyro_tdc.runtime.drift import ModelSlot
 from gyro_tdc.runtime.flags import FLAG_NAMES
 from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.reanchor import StillnessDetector
-from gyro_tdc.runtime.temperature_hold import TemperatureHold
-from gyro_tdc.signal import SessionTracker
+from gyro_tdc.signal import SessionTracker, TemperatureHold
 import numpy as np
 from numpy.typing import NDArray
 
