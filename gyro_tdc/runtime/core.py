@@ -201,15 +201,6 @@ class CompensatorCore:
         """Drop the learned models waiting for their stamp (a model_file or a reset came)."""
         self.learning.cancel()
 
-    def _learning(self, t: float, wx: float, wy: float, wz: float,
-                  accel: Sequence[float] | None) -> None:
-        """Install a learned model that is due; hand the sample to the learner's block."""
-        gate = self.learning
-        if t >= gate.due:
-            self.install(gate.take_due(t), learned=True)
-        if gate.extend is not None:
-            gate.add(t, wx, wy, wz, accel, self.stream.t)
-
     # -- model ------------------------------------------------------------------------
 
     def priming(self, model: CompensationModel | None = None) -> Priming:
@@ -390,8 +381,12 @@ class CompensatorCore:
             d = t - last                # NaN fails the compares
             if d > SESSION_GAP_S or d < -RESTART_BACK_S:
                 self._session_break(t, d)
-        if t >= self.learning.gate:    # learning: a sample to hand over, or a model due
-            self._learning(t, wx, wy, wz, accel)
+        gate = self.learning
+        if t >= gate.gate:             # learning: a model due, or a sample to hand over
+            if t >= gate.due:
+                self.install(gate.take_due(t), learned=True)
+            if gate.extend is not None:
+                gate.add(t, wx, wy, wz, accel, last)
         if self.upstream_pass:         # the flight controller corrected it: never twice
             return self._pass(t, wx, wy, wz, UPSTREAM, accel)
         slot = self.slot
