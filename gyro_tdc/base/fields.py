@@ -98,7 +98,7 @@ class FieldChecker:
 
     def items(self, v: Any, path: str, n: int | None = None, most: int | None = None,
               kinds: tuple = (list,)) -> list:
-        """Return ``v`` as a list of ``n`` items (or at most ``most``)."""
+        """Return ``v`` as a list of ``n`` items, or of at most ``most``."""
         if not isinstance(v, kinds):
             raise self.fail(path, 'a list', v)
         if n is not None and len(v) != n:

@@ -127,7 +127,7 @@ class Learner:
 
     @property
     def session(self) -> int:
-        """Return the current session (power cycle) of the stream, from 0."""
+        """Return the power cycle the stream is in, from 0."""
         return self.sessions.session
 
     @session.setter
