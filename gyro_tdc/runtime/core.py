@@ -434,8 +434,10 @@ class CompensatorCore:
         stream.flags = flags
         stream.distance_c = dist
         tally.counts['compensated'] += 1
-        if flags or (policy.reanchor_on_start and self.reanchoring.waiting):
-            self._after(t, (wx, wy, wz), (ox, oy, oz), accel, temp, flags)
+        if flags:
+            self._flagged(t, (wx, wy, wz), (ox, oy, oz), accel, temp, flags)
+        elif policy.reanchor_on_start and self.reanchoring.waiting:
+            self._still(t, (wx, wy, wz), (ox, oy, oz), accel, temp)
         return ox, oy, oz, var, flags, aout, avar
 
     def _timed(self, t: float, temp: float, wx: float, wy: float, wz: float, flags: int
@@ -466,22 +468,19 @@ class CompensatorCore:
             return None
         return ox, oy, oz, var, flags, dist
 
-    def _after(self, t: float, raw: Vec3, out: Vec3, accel: Sequence[float] | None,
-               temp: float, flags: int) -> None:
-        """Count a compensated sample's flags; show it to re-anchoring while that waits."""
-        if flags:
-            fc = self.tally.flags
-            if flags & STALE:
-                fc[STALE] += 1
-            if flags & OUT_OF_RANGE:
-                fc[OUT_OF_RANGE] += 1
+    def _flagged(self, t: float, raw: Vec3, out: Vec3, accel: Sequence[float] | None,
+                 temp: float, flags: int) -> None:
+        """Count a compensated sample's flags; re-anchor out of range with a learner."""
+        fc = self.tally.flags
+        if flags & STALE:
+            fc[STALE] += 1
+        if flags & OUT_OF_RANGE:
+            fc[OUT_OF_RANGE] += 1
             # With a learner, a new power cycle is re-anchored out of range too: the shift
             # holds only until the learner gives the cycle its own offset.
-            still = flags == OUT_OF_RANGE and self.learning.extend is not None
-        else:
-            still = self.policy.reanchor_on_start
-        if still and self.reanchoring.waiting:
-            self._still(t, raw, out, accel, temp)
+            if (flags == OUT_OF_RANGE and self.reanchoring.waiting
+                    and self.learning.extend is not None):
+                self._still(t, raw, out, accel, temp)
 
     def _accel(self, acc: AccelSlot, t: float, temp: float, accel: Sequence[float] | None,
                flags: int) -> tuple[Vec3 | None, Vec3 | None]:
