@@ -38,7 +38,7 @@ from gyro_tdc.identify.tau import (effective_samples, fit_time_constant, profile
 from gyro_tdc.model import (batch_features, CompensationModel, EFFECTS, input_ids, KINDS,
                             normalise_ids, REFERENCE_EFFECTS, resolve_params, STATE_TERMS,
                             TEMPERATURE_EFFECTS, THERMAL_EFFECTS, ThermalState, with_implied)
-from gyro_tdc.signal import block_counts, block_length, block_mean, block_sum, block_sumsq
+from gyro_tdc.signal import block_length, block_mean, BlockGrid, Folds, heldout
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
@@ -126,40 +126,21 @@ class _Blocks:
         # same numbers: x - 0 is x, and the block means of zeros are zeros).
         self.has_ref = bool(np.any(run.omega_ref))
         err = run.omega - run.omega_ref if self.has_ref else run.omega
-        self.rows = None if rows is None else np.asarray(rows, dtype=bool)
-        self.keep = None
-        if self.rows is None:
-            self.counts = block_counts(len(run), block)
-            self.ss_raw = np.einsum('ij,ij->j', err, err)
-        else:
-            c = block_sum(self.rows.astype(np.float64), block)
-            self.keep = c > 0
-            self.counts = c[self.keep]
-            e = err[self.rows]
-            self.ss_raw = np.einsum('ij,ij->j', e, e)
+        self.grid = BlockGrid(len(run), block, rows=rows)
+        self.rows, self.counts = self.grid.rows, self.grid.counts
+        e = err if self.rows is None else err[self.rows]
+        self.ss_raw = np.einsum('ij,ij->j', e, e)
         self.y = self._mean(err)
         self.ref = self._mean(run.omega_ref) if self.has_ref else np.zeros(self.y.shape)
-        self.ss_within = self._scatter(err, self.y)
+        self.ss_within = self.grid.scatter(err, self.y)
 
     def _sel(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Return the rows of ``x`` (one per block) of the blocks kept."""
-        return x if self.keep is None else x[self.keep]
+        return self.grid.sel(x)
 
     def _mean(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Return the block means of ``x`` (N, ...) over the rows that count."""
-        if self.rows is None:
-            return block_mean(x, self.block)
-        x = np.asarray(x, dtype=np.float64)
-        shape = (-1,) + (1,) * (x.ndim - 1)
-        sums = block_sum(np.where(self.rows.reshape(shape), x, 0.0), self.block)
-        return sums[self.keep] / self.counts.reshape(shape)
-
-    def _scatter(self, err: NDArray[np.float64], mean: NDArray[np.float64]
-                 ) -> NDArray[np.float64]:
-        """Per block and axis, the sum of squared deviations of ``err`` from ``mean``."""
-        if self.rows is not None:
-            err = np.where(self.rows[:, None], err, 0.0)
-        return self._sel(block_sumsq(err, self.block)) - self.counts[:, None] * mean ** 2
+        return self.grid.mean(x)
 
     def state(self, thermal: ThermalState) -> NDArray[np.float64]:
         """Return the thermal state at full rate (N,), degC."""
@@ -178,7 +159,7 @@ class _Blocks:
         if np.any(scale):
             temp = self.run.temp if state is None else state
             err = err - (temp - t0)[:, None] * self.run.omega_ref * scale
-        return self._scatter(err, self._mean(err))
+        return self.grid.scatter(err, self._mean(err))
 
     def features(self, ids: Sequence[str], t0: float, params: Mapping, *,
                  exact: bool, thermal: ThermalState,
@@ -231,27 +212,6 @@ def _block_groups(blocks: Sequence['_Blocks'], labels: Sequence[int] | None
         return None
     return np.concatenate([np.full(b.y.shape[0], g, dtype=np.int64)
                            for b, g in zip(blocks, labels)])
-
-
-def _session_residual(r: NDArray[np.float64], groups: NDArray[np.int64],
-                      fitted: NDArray[np.int64], offsets: NDArray[np.float64]
-                      ) -> NDArray[np.float64]:
-    """
-    Return held-out residuals with each session's offset: fitted, or re-anchored.
-
-    ``r`` is the prediction without any offset minus the target; a session with training
-    rows gets its fitted offset, one held out whole has none and is re-anchored to zero
-    mean (as the compensator re-anchors at start-up).
-    """
-    out = r.copy()
-    for grp in np.unique(groups):
-        m = groups == grp
-        j = np.searchsorted(fitted, grp)
-        if j < fitted.size and fitted[j] == grp:
-            out[m] += offsets[j]
-        else:
-            out[m] -= out[m].mean(axis=0)
-    return out
 
 
 def _check_runs(runs: Sequence[Run], ids: Sequence[str],
@@ -345,20 +305,20 @@ class _Search:
         the white noise shrinks and the figure measures the drift the model misses.
         """
         x, sc = self.design(thermal, par)
-        n = x.shape[0]
-        fold = (np.arange(n) * n_segments // n) % n_folds
-        resid = np.zeros_like(self.y)
         g = self.groups
-        for k in range(n_folds):
-            test = fold == k
-            if not test.any() or test.all():
-                continue
-            fit = self._linear(x[~test], self.y[~test], None if sc is None else sc[~test],
-                               None if g is None else g[~test])
+
+        def residual(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
+            fit = self._linear(x[train], self.y[train], None if sc is None else sc[train],
+                               None if g is None else g[train])
             r = fit.predict(x[test], None if sc is None else sc[test]) - self.y[test]
-            if g is not None:
-                r = _session_residual(r, g[test], np.unique(g[~test]), fit.offsets)
-            resid[test] = r
+            if g is not None:           # the fitted offset of every session trained on
+                seen, gt = np.unique(g[train]), g[test]
+                for j, grp in enumerate(seen):
+                    r[gt == grp] += fit.offsets[j]
+            return r
+
+        folds = Folds.segments(x.shape[0], n_segments=n_segments, n_folds=n_folds)
+        resid = heldout(residual, folds, self.y.shape, groups=g)
         steps = np.concatenate([np.diff(b.t) for b in self.blocks])
         dt = float(np.median(steps)) if steps.size else window_s
         w = max(1, int(round(window_s / dt))) if dt > 0 else 1

@@ -27,6 +27,7 @@ import math
 import warnings
 
 from gyro_tdc.model import rbf_design
+from gyro_tdc.signal import lstsq, solve_normal, within
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
@@ -74,25 +75,15 @@ def _penalty(p: int, f: int, ridge: float, n: int) -> NDArray[np.float64]:
 def _solve(design: NDArray[np.float64], y: NDArray[np.float64],
            scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """
-    Solve the regularised least squares for all axes.
-
-    Returns the coefficients (P, 3) and the per-axis scale coefficients (3,).
-    """
-    p = design.shape[1]
-    reg = np.diag(pen)[1:]
+    """Return the ridge solution for all axes: coefficients (P, 3) and scale terms (3,)."""
     if scale_cols is None:
-        a = np.vstack([design, reg])
-        b = np.vstack([y, np.zeros((p - 1, 3))])
-        coef = np.linalg.lstsq(a, b, rcond=None)[0]
-        return coef, np.zeros(3)
+        return lstsq(design, y, penalty=pen), np.zeros(3)
+    p = design.shape[1]
     coef = np.empty((p, 3))
     scale = np.empty(3)
+    pen = np.append(pen, 0.0)
     for ax in range(3):
-        a = np.vstack([np.column_stack([design, scale_cols[:, ax]]),
-                       np.column_stack([reg, np.zeros(p - 1)])])
-        b = np.concatenate([y[:, ax], np.zeros(p - 1)])
-        sol = np.linalg.lstsq(a, b, rcond=None)[0]
+        sol = lstsq(np.column_stack([design, scale_cols[:, ax]]), y[:, ax], penalty=pen)
         coef[:, ax], scale[ax] = sol[:p], sol[p]
     return coef, scale
 
@@ -153,10 +144,7 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
                 pen = np.zeros(q)
                 pen[:p] = _penalty(p, f, ridge, n_trs[k]) ** 2
                 a = g + np.diag(pen[live])
-                try:
-                    w = np.linalg.solve(a, b)
-                except np.linalg.LinAlgError:
-                    w = np.linalg.lstsq(a, b, rcond=None)[0]
+                w = solve_normal(a, b)
                 errors[i] += float(w @ (gk @ w)) - 2.0 * float(w @ bk) + yyk
     # The largest ridge within 1 % of the best error: prefer the smoother network.
     # (abs: on noise-free data the expanded error may round to just below zero.)
@@ -255,15 +243,6 @@ def _residual(design: NDArray[np.float64], y: NDArray[np.float64],
     return coef, scale, resid
 
 
-def _within(a: NDArray[np.float64], inverse: NDArray[np.int64], counts: NDArray[np.float64]
-            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return the group means of the rows of ``a`` and ``a`` minus its group's mean."""
-    means = np.zeros((counts.size,) + a.shape[1:])
-    np.add.at(means, inverse, a)
-    means /= counts.reshape((-1,) + (1,) * (a.ndim - 1))
-    return means, a - means[inverse]
-
-
 def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
                scale_cols: NDArray[np.float64] | None = None, kind: str = 'poly',
                n_centers: int = 12, ridge: float | str = 'auto', seed: int = 0,
@@ -319,14 +298,10 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
     design = rbf_design((mean, std, centers, widths), x)
     f = x.shape[1]
     if groups is not None:
-        _, inverse, counts = np.unique(np.asarray(groups), return_inverse=True,
-                                       return_counts=True)
-        inverse = inverse.reshape(-1)
-        counts = counts.astype(np.float64)
-        dmeans, design = _within(design, inverse, counts)
-        ymeans, y = _within(np.asarray(y, dtype=np.float64), inverse, counts)
+        dmeans, design = within(design, groups)
+        ymeans, y = within(np.asarray(y, dtype=np.float64), groups)
         if scale_cols is not None:
-            smeans, scale_cols = _within(scale_cols, inverse, counts)
+            smeans, scale_cols = within(scale_cols, groups)
     if ridge == 'auto':
         ridge = (_choose_ridge(design, y, scale_cols, f) if centers.shape[0]
                  and design.shape[0] >= 40 else RIDGE_GRID[1])

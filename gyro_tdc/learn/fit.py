@@ -28,6 +28,7 @@ from typing import Sequence
 
 from gyro_tdc.learn.temperature import at_state, same_thermal
 from gyro_tdc.model import check_model, CompensationModel, drift, normalise_ids, ThermalState
+from gyro_tdc.signal import hat, lstsq, session_columns
 import numpy as np
 from numpy.typing import NDArray
 
@@ -141,12 +142,8 @@ def solve(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str],
         Residuals.
 
     """
-    d = e[:, 2] - t0
-    sessions = np.unique(e[:, 6])
-    x = np.column_stack([(e[:, 6] == s).astype(np.float64) for s in sessions]
-                        + [d ** (j + 1) for j in range(len(feats))])
-    sw = np.sqrt(wt)[:, None]
-    coef = np.linalg.lstsq(x * sw, e[:, 3:6] * sw, rcond=None)[0]
+    x, sessions = _design(e, feats, t0)
+    coef = lstsq(x, e[:, 3:6], weights=wt)
     k = sessions.size
     i = k - 1 if session is None else int(np.flatnonzero(sessions == session)[0])
     return np.vstack([coef[i:i + 1], coef[k:]]), e[:, 3:6] - x @ coef
@@ -180,12 +177,11 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
         idx = np.flatnonzero(keep)
         if idx.size <= len(feats) + np.unique(e[idx, 6]).size + 2:
             break
-        x = _design(e[idx], feats, t0)
+        x = _design(e[idx], feats, t0)[0]
         w = wt[idx]
-        a = np.linalg.pinv((x * w[:, None]).T @ x)
+        a, h = hat(x, w)
         coef = a @ ((x * w[:, None]).T @ e[idx, 3:6])
         res = e[idx, 3:6] - x @ coef
-        h = np.einsum('ij,jk,ik->i', x, a, x) * w
         alone = h > 1.0 - 1e-9            # alone in its session: its intercept needs it
         if alone.all():
             break
@@ -206,12 +202,12 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
     return keep
 
 
-def _design(e: NDArray[np.float64], feats: Sequence[str], t0: float) -> NDArray[np.float64]:
-    """Return the design of :func:`solve`: one column per session, then the powers."""
+def _design(e: NDArray[np.float64], feats: Sequence[str], t0: float
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return the design of :func:`solve` (one column per session, the powers), the sessions."""
     d = e[:, 2] - t0
-    sessions = np.unique(e[:, 6])
-    return np.column_stack([(e[:, 6] == s).astype(np.float64) for s in sessions]
-                           + [d ** (j + 1) for j in range(len(feats))])
+    cols, sessions = session_columns(e[:, 6])
+    return np.column_stack([cols] + [d ** (j + 1) for j in range(len(feats))]), sessions
 
 
 def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_life_s: float,

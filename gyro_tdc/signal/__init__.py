@@ -15,7 +15,8 @@
 """
 Signal tools on IMU samples.
 
-Block means, noise and accuracy metrics, the one still detector (its verdict, batch and
+Block means, the one estimator (least squares, sessions, blocks, folds), noise and accuracy
+metrics, the one still detector (its verdict, batch and
 streaming forms) and the one session-break rule (batch and streaming).
 """
 
@@ -23,6 +24,8 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'blocks': ['block_counts', 'block_length', 'block_mean', 'block_sum', 'block_sumsq'],
+    'estimator': ['BlockGrid', 'Folds', 'hat', 'heldout', 'lstsq', 'pinv_solve',
+                  'session_columns', 'solve_normal', 'within'],
     'metrics': ['allan_deviation', 'bias_stability', 'noise_readouts', 'p_ratios', 'rms_dps'],
     'sessions': ['BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'break_why', 'GAP_PERIODS',
                  'gap_breaks', 'gap_limit', 'session_gap', 'SessionRule'],

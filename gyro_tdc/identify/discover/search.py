@@ -28,7 +28,7 @@ from typing import Any, Callable, Mapping, Sequence
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.discover.data import BlockData
-from gyro_tdc.identify.discover.linear import LinearModel, lstsq
+from gyro_tdc.identify.discover.linear import LinearModel
 from gyro_tdc.identify.discover.maps import residual_adev, residual_maps
 from gyro_tdc.identify.discover.results import (CandidateScore, DiscoveryResult, Step,
                                                 Unidentifiable)
@@ -39,6 +39,7 @@ from gyro_tdc.identify.tau import effective_samples, fit_time_constant, profile_
 from gyro_tdc.model import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, REFERENCE_EFFECTS,
                             STATIC_EFFECTS, TEMPERATURE_EFFECTS, THERMAL_EFFECTS, ThermalState,
                             with_implied)
+from gyro_tdc.signal import Folds, lstsq
 import numpy as np
 from numpy.typing import NDArray
 
@@ -297,7 +298,7 @@ def _heldout_mse(data: BlockData, ho: NDArray[np.float64]) -> float:
     return float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
 
 
-def _curve_model(data: BlockData, model: LinearModel, folds: list
+def _curve_model(data: BlockData, model: LinearModel, folds: Folds
                  ) -> tuple[tuple[str, ...], LinearModel, float] | None:
     """
     Return the static curve ``model`` lacks, the model with it and its held-out mean square.
@@ -313,7 +314,7 @@ def _curve_model(data: BlockData, model: LinearModel, folds: list
     return curve, base, _heldout_mse(data, ho)
 
 
-def _beside_curve(data: BlockData, curve: tuple, folds: list, eid: str, params: dict) -> float:
+def _beside_curve(data: BlockData, curve: tuple, folds: Folds, eid: str, params: dict) -> float:
     """
     Return the held-out gain of a time-memory candidate beside the static curve, (deg/s)^2.
 
@@ -338,7 +339,7 @@ def _beside_curve(data: BlockData, curve: tuple, folds: list, eid: str, params: 
 
 
 def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse_m: float,
-           mse_ho_m: float, folds: list, eid: str, params: dict, *, lags: Sequence[int],
+           mse_ho_m: float, folds: Folds, eid: str, params: dict, *, lags: Sequence[int],
            n_cand: int, alpha: float, min_heldout: float, min_effect: float,
            curve: tuple | None = None
            ) -> tuple[CandidateScore, NDArray[np.float64] | None, dict]:
@@ -632,7 +633,7 @@ def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateS
             col = data.column(sc.effect, p, state_tau=model.state_tau)
         else:
             continue
-        beta = lstsq(x * data.sw[:, None], col * data.sw)
+        beta = lstsq(x, col, weights=data.w, normalise=True, rcond=1e-12)
         cols[sc.effect] = (col - x @ beta) * data.sw
     ids = list(cols)
     for i in range(len(ids)):
