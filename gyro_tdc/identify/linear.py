@@ -27,7 +27,7 @@ import math
 import warnings
 
 from gyro_tdc.model import rbf_design
-from gyro_tdc.signal import lstsq, solve_normal, within
+from gyro_tdc.signal import fit_columns, solve_normal, within
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
@@ -72,18 +72,18 @@ def _penalty(p: int, f: int, ridge: float, n: int) -> NDArray[np.float64]:
     return pen
 
 
-def _solve(design: NDArray[np.float64], y: NDArray[np.float64],
-           scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
-           ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def _ridge_fit(design: NDArray[np.float64], y: NDArray[np.float64],
+               scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return the ridge solution for all axes: coefficients (P, 3) and scale terms (3,)."""
     if scale_cols is None:
-        return lstsq(design, y, penalty=pen), np.zeros(3)
+        return fit_columns(design, y, penalty=pen), np.zeros(3)
     p = design.shape[1]
     coef = np.empty((p, 3))
     scale = np.empty(3)
     pen = np.append(pen, 0.0)
     for ax in range(3):
-        sol = lstsq(np.column_stack([design, scale_cols[:, ax]]), y[:, ax], penalty=pen)
+        sol = fit_columns(np.column_stack([design, scale_cols[:, ax]]), y[:, ax], penalty=pen)
         coef[:, ax], scale[ax] = sol[:p], sol[p]
     return coef, scale
 
@@ -131,7 +131,7 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
         q = gs.shape[1]
         g_all, b_all = gs.sum(axis=0), bs[:, :, col].sum(axis=0)
         # A column that is zero in every row (the constant, centred per group) has weight 0:
-        # solve without it (else every solve is singular and falls back to lstsq).
+        # solve without it (else every solve is singular and falls back to least squares).
         live = np.flatnonzero(np.diag(g_all) != 0.0)
         sub = np.ix_(live, live)
         for k in range(n_folds):
@@ -236,7 +236,7 @@ def _residual(design: NDArray[np.float64], y: NDArray[np.float64],
               scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Solve the weights and return them with the scale coefficients and the residual."""
-    coef, scale = _solve(design, y, scale_cols, pen)
+    coef, scale = _ridge_fit(design, y, scale_cols, pen)
     resid = design @ coef - y
     if scale_cols is not None:
         resid += scale_cols * scale

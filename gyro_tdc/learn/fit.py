@@ -15,9 +15,10 @@
 """
 The online learner's fit: point table -> weighted, outlier-robust model.
 
-Pure (numpy only). :func:`solve` and :func:`inliers` fit the still-time points (age-weighted,
-one intercept per session, leave-one-out outliers dropped), :func:`grow_features` picks the
-features from the covered span, :func:`prediction_mse` scores a model on still windows and
+Pure (numpy only). :func:`fit_sessions` and :func:`inliers` fit the still-time points
+(age-weighted, one intercept per session, leave-one-out outliers dropped) on the shared
+estimator (:mod:`gyro_tdc.signal.estimator`), :func:`grow_features` picks the features from
+the covered span, :func:`prediction_mse` scores a model on still windows and
 :func:`learned_model` builds it. See ``doc/internals/learn.md``.
 """
 
@@ -28,13 +29,13 @@ from typing import Sequence
 
 from gyro_tdc.learn.temperature import at_state, same_thermal
 from gyro_tdc.model import check_model, CompensationModel, drift, normalise_ids, ThermalState
-from gyro_tdc.signal import hat, lstsq, session_columns
+from gyro_tdc.signal import hat, fit_columns, session_columns
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['BINS_DT2', 'BINS_DT3', 'MAX_DROPS', 'OUTLIER_K', 'SPAN_DT2_C', 'SPAN_DT3_C',
-           'SPAN_DT_C', 'fit_points', 'grow_features', 'inliers', 'learned_model',
-           'model_of', 'predict_windows', 'prediction_mse', 'recent_offset', 'solve',
+           'SPAN_DT_C', 'fit_points', 'fit_sessions', 'grow_features', 'inliers', 'learned_model',
+           'model_of', 'predict_windows', 'prediction_mse', 'recent_offset',
            'window_error']
 
 OUTLIER_K = 4.0
@@ -115,7 +116,7 @@ def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:
     return ()
 
 
-def solve(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
+def fit_sessions(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
           session: float | None = None
           ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
@@ -143,7 +144,7 @@ def solve(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str],
 
     """
     x, sessions = _design(e, feats, t0)
-    coef = lstsq(x, e[:, 3:6], weights=wt)
+    coef = fit_columns(x, e[:, 3:6], weights=wt)
     k = sessions.size
     i = k - 1 if session is None else int(np.flatnonzero(sessions == session)[0])
     return np.vstack([coef[i:i + 1], coef[k:]]), e[:, 3:6] - x @ coef
@@ -160,7 +161,7 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
     Parameters
     ----------
     e, wt, feats, t0
-        As for :func:`solve`.
+        As for :func:`fit_sessions`.
     floor : float, rad/s
         The gyro's noise floor (per sample): the smallest scatter an entry is judged by is
         this over the root of the largest entry's samples.
@@ -204,7 +205,7 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
 
 def _design(e: NDArray[np.float64], feats: Sequence[str], t0: float
             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return the design of :func:`solve` (one column per session, the powers), the sessions."""
+    """Return the design of :func:`fit_sessions` (one column per session, the powers), the sessions."""
     d = e[:, 2] - t0
     cols, sessions = session_columns(e[:, 6])
     return np.column_stack([cols] + [d ** (j + 1) for j in range(len(feats))]), sessions
@@ -218,7 +219,7 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
     Parameters
     ----------
     e : NDArray[np.float64], shape (E, 7)
-        Point table (:func:`solve`), E >= 1.
+        Point table (:func:`fit_sessions`), E >= 1.
     feats : sequence of str
         Features (:func:`grow_features`).
     t_now : float, s
@@ -238,11 +239,11 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
     age = np.maximum(t_now - e[:, 0], 0.0)
     wt = e[:, 1] * 0.5 ** (age / half_life_s)
     t0 = float(np.average(e[:, 2], weights=wt))
-    coef, res = solve(e, wt, feats, t0)
+    coef, res = fit_sessions(e, wt, feats, t0)
     keep = inliers(e, wt, feats, t0, floor)
     if not keep.all():
         e, wt = e[keep], wt[keep]
-        coef, res = solve(e, wt, feats, t0)
+        coef, res = fit_sessions(e, wt, feats, t0)
     resid = np.average(res ** 2, axis=0, weights=wt)
     return {'features': list(feats), 't0_c': t0, 'coef': coef.tolist(),
             'range_c': [float(e[:, 2].min()), float(e[:, 2].max())],

@@ -24,7 +24,7 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'blocks': ['block_counts', 'block_length', 'block_mean', 'block_sum', 'block_sumsq'],
-    'estimator': ['BlockGrid', 'Folds', 'hat', 'heldout', 'lstsq', 'pinv_solve',
+    'estimator': ['BlockGrid', 'fit_columns', 'Folds', 'hat', 'heldout', 'pinv_fit',
                   'session_columns', 'solve_normal', 'within'],
     'metrics': ['allan_deviation', 'bias_stability', 'noise_readouts', 'p_ratios', 'rms_dps'],
     'sessions': ['BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'break_why', 'GAP_PERIODS',

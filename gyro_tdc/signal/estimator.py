@@ -15,8 +15,8 @@
 """
 The one estimator: effect columns, one offset per session, weights, ridge, blocks, folds.
 
-Every fit of effect columns in the package solves here (:func:`lstsq`, :func:`solve_normal`,
-:func:`pinv_solve`, :func:`hat`); sessions get their offsets as indicator columns
+Every fit of effect columns in the package solves here (:func:`fit_columns`, :func:`solve_normal`,
+:func:`pinv_fit`, :func:`hat`); sessions get their offsets as indicator columns
 (:func:`session_columns`) or exactly eliminated (:func:`within`); :class:`BlockGrid` is the
 one block grid and :class:`Folds` the one cross-validation scheme (interleaved contiguous
 segments, or leave one session out), :func:`heldout` its held-out residuals.
@@ -31,11 +31,11 @@ from gyro_tdc.signal.blocks import block_counts, block_sum, block_sumsq
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['BlockGrid', 'Folds', 'hat', 'heldout', 'lstsq', 'pinv_solve', 'session_columns',
+__all__ = ['BlockGrid', 'fit_columns', 'Folds', 'hat', 'heldout', 'pinv_fit', 'session_columns',
            'solve_normal', 'within']
 
 
-def lstsq(x: NDArray[np.float64], y: NDArray[np.float64], *,
+def fit_columns(x: NDArray[np.float64], y: NDArray[np.float64], *,
           weights: NDArray[np.float64] | None = None,
           penalty: NDArray[np.float64] | None = None, normalise: bool = False,
           rcond: float | None = None) -> NDArray[np.float64]:
@@ -97,7 +97,7 @@ def solve_normal(a: NDArray[np.float64], b: NDArray[np.float64], *,
         return np.linalg.lstsq(a, b, rcond=None)[0]
 
 
-def pinv_solve(x: NDArray[np.float64], y: NDArray[np.float64], *, cutoff: float = 1e-15
+def pinv_fit(x: NDArray[np.float64], y: NDArray[np.float64], *, cutoff: float = 1e-15
                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return the least-squares coefficients by an SVD pseudo-inverse, and the pseudo-inverse.

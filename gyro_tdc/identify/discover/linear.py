@@ -26,7 +26,7 @@ from typing import Mapping, Sequence
 
 from gyro_tdc.identify.discover.data import BlockData
 from gyro_tdc.model import input_ids, THERMAL_EFFECTS
-from gyro_tdc.signal import Folds, heldout, lstsq
+from gyro_tdc.signal import fit_columns, Folds, heldout
 import numpy as np
 from numpy.typing import NDArray
 
@@ -91,7 +91,7 @@ class LinearModel:
             y = d.y[:, a]
             if rows is not None:
                 x, y = x[rows], y[rows]
-            coef[:, a] = lstsq(x, y, weights=w, normalise=True, rcond=1e-12)
+            coef[:, a] = fit_columns(x, y, weights=w, normalise=True, rcond=1e-12)
         return coef
 
     def predict(self, coef: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -39,7 +39,7 @@ from gyro_tdc.identify.tau import effective_samples, fit_time_constant, profile_
 from gyro_tdc.model import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, REFERENCE_EFFECTS,
                             STATIC_EFFECTS, TEMPERATURE_EFFECTS, THERMAL_EFFECTS, ThermalState,
                             with_implied)
-from gyro_tdc.signal import Folds, lstsq
+from gyro_tdc.signal import fit_columns, Folds
 import numpy as np
 from numpy.typing import NDArray
 
@@ -633,7 +633,7 @@ def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateS
             col = data.column(sc.effect, p, state_tau=model.state_tau)
         else:
             continue
-        beta = lstsq(x, col, weights=data.w, normalise=True, rcond=1e-12)
+        beta = fit_columns(x, col, weights=data.w, normalise=True, rcond=1e-12)
         cols[sc.effect] = (col - x @ beta) * data.sw
     ids = list(cols)
     for i in range(len(ids)):

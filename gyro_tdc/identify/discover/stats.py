@@ -28,7 +28,7 @@ import math
 from typing import Protocol, Sequence
 import warnings
 
-from gyro_tdc.signal import Folds, lstsq, pinv_solve, solve_normal
+from gyro_tdc.signal import fit_columns, Folds, pinv_fit, solve_normal
 import numpy as np
 from numpy.typing import NDArray
 from scipy.special import fdtrc
@@ -74,7 +74,7 @@ def rel_residual(x: NDArray[np.float64], col: NDArray[np.float64]) -> float:
         return 0.0
     if x.shape[1] == 0:
         return 1.0
-    beta = lstsq(x, col, normalise=True)
+    beta = fit_columns(x, col, normalise=True)
     return float(np.linalg.norm(col - x @ beta)) / nc
 
 
@@ -168,7 +168,7 @@ def ols_hac(y: NDArray[np.float64], x: NDArray[np.float64], maxlags: int
 
     """
     x = np.asarray(x)
-    params, pinv = pinv_solve(x, y)       # statsmodels' pinv_extended
+    params, pinv = pinv_fit(x, y)       # statsmodels' pinv_extended
     bread = np.dot(pinv, np.transpose(pinv))
     xu = x * (y - np.dot(x, params))[:, None]
     weights = 1 - np.arange(maxlags + 1) / (maxlags + 1.0)
