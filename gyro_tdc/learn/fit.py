@@ -29,7 +29,7 @@ from typing import Sequence
 
 from gyro_tdc.learn.temperature import at_state, same_thermal
 from gyro_tdc.model import check_model, CompensationModel, drift, normalise_ids, ThermalState
-from gyro_tdc.signal import hat, fit_columns, session_columns
+from gyro_tdc.signal import fit_columns, hat, session_columns
 import numpy as np
 from numpy.typing import NDArray
 
@@ -117,8 +117,8 @@ def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:
 
 
 def fit_sessions(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
-          session: float | None = None
-          ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+                 session: float | None = None
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Weighted least squares, one intercept per session and a shared shape.
 
@@ -205,7 +205,7 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
 
 def _design(e: NDArray[np.float64], feats: Sequence[str], t0: float
             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return the design of :func:`fit_sessions` (one column per session, the powers), the sessions."""
+    """Return the design of :func:`fit_sessions` (a column per session, the powers), sessions."""
     d = e[:, 2] - t0
     cols, sessions = session_columns(e[:, 6])
     return np.column_stack([cols] + [d ** (j + 1) for j in range(len(feats))]), sessions

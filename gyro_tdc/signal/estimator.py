@@ -36,9 +36,9 @@ __all__ = ['BlockGrid', 'fit_columns', 'Folds', 'hat', 'heldout', 'pinv_fit', 's
 
 
 def fit_columns(x: NDArray[np.float64], y: NDArray[np.float64], *,
-          weights: NDArray[np.float64] | None = None,
-          penalty: NDArray[np.float64] | None = None, normalise: bool = False,
-          rcond: float | None = None) -> NDArray[np.float64]:
+                weights: NDArray[np.float64] | None = None,
+                penalty: NDArray[np.float64] | None = None, normalise: bool = False,
+                rcond: float | None = None) -> NDArray[np.float64]:
     """
     Solve weighted, ridge-penalised linear least squares for the coefficients of ``x``.
 
@@ -98,7 +98,7 @@ def solve_normal(a: NDArray[np.float64], b: NDArray[np.float64], *,
 
 
 def pinv_fit(x: NDArray[np.float64], y: NDArray[np.float64], *, cutoff: float = 1e-15
-               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return the least-squares coefficients by an SVD pseudo-inverse, and the pseudo-inverse.
 
