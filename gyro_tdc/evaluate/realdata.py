@@ -183,14 +183,9 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
             par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name],
                                                n_grid=n_grid).tau
     fit = fit_linear(design(par), y, kind='poly', ridge=ridge)
-    f = len(inputs)
     temp = run.temp[train]
-    return CompensationModel(
-        kind='poly', features=ids, effect_params=par, t0_c=float(t0),
-        input_mean=fit.mean, input_std=fit.std, centers=np.zeros((0, f)),
-        widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=fit.coef[0],
-        linear=fit.coef[1:], scale=np.zeros(3),
-        temp_range_c=(float(temp.min()), float(temp.max())),
+    return CompensationModel.network(
+        'poly', ids, par, t0, fit.norm, fit.coef, temp_range_c=(temp.min(), temp.max()),
         residual_var=np.mean(fit.resid ** 2, axis=0),
         created={'fit': 'gyro_tdc.evaluate.realdata.fit_full_series'})
 

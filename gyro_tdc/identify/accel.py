@@ -441,10 +441,8 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
         'ridge': float(lf.ridge),
         'orientation_changes': [c.to_dict() for c in out.changes],
     }
-    out.part = CompensationModel(
-        kind=kind, features=ids, effect_params=par, t0_c=model.t0_c, input_mean=lf.mean,
-        input_std=lf.std, centers=lf.centers, widths=lf.widths, weights=coef[1 + f:],
-        intercept=coef[0], linear=coef[1:1 + f], scale=np.zeros(3), temp_range_c=span,
+    out.part = CompensationModel.network(
+        kind, ids, par, model.t0_c, lf.norm, coef, temp_range_c=span,
         residual_var=out.train_bs, frame_id=model.frame_id, sensor_id=model.sensor_id,
         metrics=metrics, created={}, thermal=th)
     return out

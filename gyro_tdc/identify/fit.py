@@ -595,7 +595,6 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
             fit = refine_rbf(x, level, scale_cols, replace(fit, coef=_with_level(fit)),
                              ridge=fit.ridge, seed=seed)
             offsets = offsets - offsets.mean(axis=0) + fit.coef[0]
-    f = len(inputs)
     coef = fit.coef if groups is None else _with_level(fit, offsets)
     counted = states if rows is None else [s[m] for s, m in zip(states, rows)]
     lo = min(float(s.min()) for s in counted if s.size)
@@ -605,12 +604,10 @@ def fit_model(runs: Sequence[Run], *, kind: str = 'rbf',
     info = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
             'gyro_tdc_version': __version__}
     info.update(dict(created or {}))
-    model = CompensationModel(
-        kind=kind, features=ids, effect_params=par, t0_c=float(t0),
-        input_mean=fit.mean, input_std=fit.std, centers=fit.centers,
-        widths=fit.widths, weights=coef[1 + f:], intercept=coef[0], linear=coef[1:1 + f],
-        scale=fit.scale, temp_range_c=(lo, hi), residual_var=np.zeros(3),
-        frame_id=frame_id, sensor_id=sensor_id, created=info, thermal=th)
+    model = CompensationModel.network(
+        kind, ids, par, t0, fit.norm, coef, scale=fit.scale, temp_range_c=(lo, hi),
+        residual_var=np.zeros(3), frame_id=frame_id, sensor_id=sensor_id, created=info,
+        thermal=th)
     # Training residual at full rate without a second pass over the samples: the drift
     # moves slowly, so sum((y - b)^2) = within-block scatter + n_B * (block residual)^2.
     # Compensation divides by (1 + s dT): so does the residual.

@@ -191,6 +191,11 @@ class LinearFit:
     ridge: float
     offsets: NDArray[np.float64] | None = None
 
+    @property
+    def norm(self) -> tuple:
+        """Return ``(mean, std, centers, widths)``: the network's inputs and centres."""
+        return (self.mean, self.std, self.centers, self.widths)
+
     def design(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """
         Return the design matrix ``[1, x~, phi(x~)]`` of feature rows ``x``.
@@ -206,7 +211,7 @@ class LinearFit:
             Design matrix (:func:`gyro_tdc.model.compensation.rbf_design`).
 
         """
-        return rbf_design((self.mean, self.std, self.centers, self.widths), x)
+        return rbf_design(self.norm, x)
 
     def predict(self, x: NDArray[np.float64],
                 scale_cols: NDArray[np.float64] | None = None) -> NDArray[np.float64]:

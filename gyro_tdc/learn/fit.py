@@ -79,13 +79,8 @@ def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
     feats, params = tuple(features), {}
     if thermal is not None and thermal.kind != 'none':
         feats, params = normalise_ids(feats + ('lag',)), {'lag': {'tau_s': thermal.tau_total_s}}
-    return CompensationModel(
-        kind='poly', features=feats, effect_params=params, t0_c=float(t0),
-        input_mean=np.zeros(f), input_std=np.ones(f), centers=np.zeros((0, f)),
-        widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=coef[0].copy(),
-        linear=coef[1:].copy(), scale=np.zeros(3),
-        temp_range_c=(float(temp_range[0]), float(temp_range[1])),
-        residual_var=np.asarray(resid_var, dtype=np.float64).reshape(3),
+    return CompensationModel.polynomial(
+        feats, t0, coef, effect_params=params, temp_range_c=temp_range, residual_var=resid_var,
         created={'fit': 'gyro_tdc.learn.learner (online, still time)'}, thermal=thermal)
 
 
