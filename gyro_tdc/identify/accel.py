@@ -28,8 +28,9 @@ from typing import Sequence
 from gyro_tdc.data import Coverage, coverage, Run
 from gyro_tdc.errors import FeatureError, FitError
 from gyro_tdc.identify.accel_static import static_bs, static_data
-from gyro_tdc.identify.fit import MIN_SAMPLES, MIN_SPAN_C, run_state
+from gyro_tdc.identify.fit import MIN_SAMPLES, MIN_SPAN_C
 from gyro_tdc.identify.linear import fit_linear, LinearFit
+from gyro_tdc.identify.runblocks import run_state
 from gyro_tdc.model import (batch_features, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             drift, input_ids, KINDS, MAX_EXTRAPOLATION_C, normalise_ids,
                             resolve_params, STATE_TERMS, THERMAL_EFFECTS)
