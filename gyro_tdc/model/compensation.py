@@ -232,7 +232,7 @@ class CompensationModel:
                 residual_var: NDArray[np.float64], scale: NDArray[np.float64] | None = None,
                 **extra: Any) -> 'CompensationModel':
         """
-        Return the model of a fitted network (the estimator's output, or a model file's).
+        Return the model of fitted network weights: the estimator's output, or a model file's.
 
         ``norm`` is ``(input_mean, input_std, centers, widths)`` and ``coef`` the weights of
         the design ``[1, x~, phi]`` (:func:`rbf_design`), shape (1 + F + K, 3); ``extra``
