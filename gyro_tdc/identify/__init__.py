@@ -39,6 +39,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
             'TAU_BOUNDS', 'THERMAL_CHOICES'],
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],
     'options': ['TrainOptions'],
+    'power_cycles': ['check_sessions', 'session_check_lines'],
     'result': ['TrainResult'],
     'still_only': ['train_still_only'],
     'tau': ['effective_samples', 'fit_time_constant', 'profile_interval', 'TimeConstantFit'],

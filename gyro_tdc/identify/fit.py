@@ -32,6 +32,7 @@ from gyro_tdc import __version__
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
+from gyro_tdc.identify.power_cycles import check_sessions
 from gyro_tdc.identify.runblocks import block_groups, run_state, RunBlocks
 from gyro_tdc.identify.tau import fit_time_constant
 from gyro_tdc.identify.thermal_search import (choose_state, ParamSearch, TAU_BOUNDS,
@@ -200,6 +201,10 @@ class FitOptions:
         lags), ``'auto'`` (two nodes when they lower the cross-validated error by
         :data:`TWO_NODE_MARGIN`), or a fixed :class:`ThermalState`. Default: first order
         with ``lag``, else none.
+    check_sessions : bool
+        With several sessions, hold each out in turn: an axis whose curve does not predict
+        a held-out power cycle (re-anchored) better than its offset alone keeps the offset
+        only (:func:`gyro_tdc.identify.power_cycles.check_sessions`).
 
     """
 
@@ -217,6 +222,7 @@ class FitOptions:
     sensor_id: str = ''
     created: Mapping | None = None
     thermal: str | ThermalState | None = None
+    check_sessions: bool = True
 
 
 def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
@@ -291,6 +297,12 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
             fit = refine_rbf(x, level, scale_cols, replace(fit, coef=_with_level(fit)),
                              ridge=fit.ridge, seed=o.seed)
             offsets = offsets - offsets.mean(axis=0) + fit.coef[0]
+    check = None
+    if groups is not None and o.check_sessions:
+        fit, offsets, check = check_sessions(
+            fit, offsets, x, y, scale_cols, groups, np.concatenate([b.counts for b in blocks]),
+            np.concatenate([b.mean(s) for b, s in zip(blocks, states)]), kind=o.kind,
+            n_centers=o.n_centers, seed=o.seed)
     coef = fit.coef if groups is None else _with_level(fit, offsets)
     counted = states if rows is None else [s[m] for s, m in zip(states, rows)]
     lo = min(float(s.min()) for s in counted if s.size)
@@ -318,6 +330,8 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
         metrics['thermal'] = thermal_info
     if groups is not None:
         metrics['sessions'] = _session_metrics(runs, labels, offsets, rows)
+        if check:
+            metrics['sessions']['heldout'] = check
     return model.replace(residual_var=residual_var, metrics=metrics)
 
 
