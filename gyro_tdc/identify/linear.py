@@ -27,7 +27,7 @@ import math
 import warnings
 
 from gyro_tdc.model import rbf_design
-from gyro_tdc.signal import fit_columns, solve_normal, within
+from gyro_tdc.signal import fit_columns, Folds, solve_normal, within
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
@@ -88,12 +88,12 @@ def _ridge_fit(design: NDArray[np.float64], y: NDArray[np.float64],
     return coef, scale
 
 
-def _segment_sums(d: NDArray[np.float64], y: NDArray[np.float64],
-                  bounds: NDArray[np.int64]) -> tuple[NDArray[np.float64], ...]:
-    """Return per row segment ``d'd`` (S, Q, Q), ``d'y`` (S, Q, M) and ``y'y`` (S, M)."""
+def _fold_sums(d: NDArray[np.float64], y: NDArray[np.float64], folds: Folds
+               ) -> tuple[NDArray[np.float64], ...]:
+    """Return per fold's held-out rows ``d'd`` (F, Q, Q), ``d'y`` (F, Q, M), ``y'y`` (F, M)."""
     gs, bs, ys = [], [], []
-    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-        dj, yj = d[a:b], y[a:b]
+    for test, _train in folds:
+        dj, yj = d[test], y[test]
         gs.append(dj.T @ dj)
         bs.append(dj.T @ yj)
         ys.append(np.einsum('ij,ij->j', yj, yj))
@@ -101,29 +101,27 @@ def _segment_sums(d: NDArray[np.float64], y: NDArray[np.float64],
 
 
 def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
-                  scale_cols: NDArray[np.float64] | None, f: int, *,
-                  n_segments: int = 20, n_folds: int = 5) -> float:
+                  scale_cols: NDArray[np.float64] | None, f: int) -> float:
     """
     Pick the RBF ridge by cross-validation over interleaved contiguous segments.
 
-    Holding out whole segments (5 % of the rows each) tests what matters for a drift model:
-    interpolation across a gap in the temperatures covered, where an under-regularised
-    network wiggles. Everything comes from each segment's Gram matrix, ``d'y`` and ``y'y``
-    (one pass over the rows): a fold's training problem is the total minus its own
-    segments, its held-out error ``|d w - y|^2 = w'Gw - 2 w'b + y'y``, so the grid search
-    costs almost nothing.
+    Holding out whole segments (``Folds.segments``: 5 % of the rows each) tests what matters
+    for a drift model: interpolation across a gap in the temperatures covered, where an
+    under-regularised network wiggles. Everything comes from each fold's Gram matrix,
+    ``d'y`` and ``y'y`` (one pass over the rows): a fold's training problem is the total
+    minus its own, its held-out error ``|d w - y|^2 = w'Gw - 2 w'b + y'y``, so the grid
+    search costs almost nothing.
     """
     n, p = design.shape
-    seg = np.arange(n) * n_segments // n          # segment j is in fold j % n_folds
-    bounds = np.searchsorted(seg, np.arange(n_segments + 1))
-    n_trs = [n - int(np.diff(bounds)[k::n_folds].sum()) for k in range(n_folds)]
+    folds = Folds.segments(n)
+    n_trs = [int(np.count_nonzero(train)) for _test, train in folds]
     # Without scale columns every axis shares the design: its sums are computed once.
-    shared = None if scale_cols is not None else _segment_sums(design, y, bounds)
+    shared = None if scale_cols is not None else _fold_sums(design, y, folds)
     errors = np.zeros(len(RIDGE_GRID))
     for ax in range(3):
         if shared is None:
             d = np.column_stack([design, scale_cols[:, ax]])
-            gs, bs, ys = _segment_sums(d, y[:, ax:ax + 1], bounds)
+            gs, bs, ys = _fold_sums(d, y[:, ax:ax + 1], folds)
             col = 0
         else:
             gs, bs, ys = shared
@@ -134,17 +132,14 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
         # solve without it (else every solve is singular and falls back to least squares).
         live = np.flatnonzero(np.diag(g_all) != 0.0)
         sub = np.ix_(live, live)
-        for k in range(n_folds):
-            gk = gs[k::n_folds].sum(axis=0)[sub]
-            bk = bs[k::n_folds, :, col].sum(axis=0)[live]
-            yyk = float(ys[k::n_folds, col].sum())
+        for k in range(len(folds)):
+            gk, bk, yyk = gs[k][sub], bs[k, live, col], float(ys[k, col])
             g = g_all[sub] - gk
             b = b_all[live] - bk
             for i, ridge in enumerate(RIDGE_GRID):
                 pen = np.zeros(q)
                 pen[:p] = _penalty(p, f, ridge, n_trs[k]) ** 2
-                a = g + np.diag(pen[live])
-                w = solve_normal(a, b)
+                w = solve_normal(g + np.diag(pen[live]), b)
                 errors[i] += float(w @ (gk @ w)) - 2.0 * float(w @ bk) + yyk
     # The largest ridge within 1 % of the best error: prefer the smoother network.
     # (abs: on noise-free data the expanded error may round to just below zero.)
