@@ -87,11 +87,11 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     record : dict or None
         ``folds``, ``blocks``, ``curve_ms_dps2`` and ``offset_ms_dps2`` (held-out mean squares
         per axis, each session re-anchored) and ``offset_only`` (axis names); None when no
-        session overlaps the others' temperatures.
+        session overlaps the others' temperatures or the model has no curve.
 
     """
     folds = _folds(groups, temp)
-    if not len(folds):
+    if not len(folds) or not x.shape[1]:        # no session to judge on, or no curve
         return fit, offsets, None
 
     def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:

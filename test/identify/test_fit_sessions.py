@@ -62,6 +62,8 @@ def test_a_curve_that_carries_across_power_cycles_is_kept_with_its_figures():
                           sessions=[0, 1], check_sessions=False)
     assert 'heldout' not in unchecked.metrics['sessions']
     np.testing.assert_array_equal(unchecked.linear, m.linear)
+    bias = fit_model(_runs(noise=0.02), kind='poly', features='bias', sessions=[0, 1])
+    assert 'heldout' not in bias.metrics['sessions']      # no curve: nothing to judge
 
 
 def test_an_axis_whose_curve_does_not_carry_keeps_the_offset_only():
