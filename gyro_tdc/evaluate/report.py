@@ -31,7 +31,7 @@ from typing import Any, IO, Sequence
 from gyro_tdc.base import atomic_write
 from gyro_tdc.data import Coverage
 from gyro_tdc.evaluate.score import BagEval, mean_scores
-from gyro_tdc.identify import TrainResult
+from gyro_tdc.identify import session_check_lines, TrainResult
 from gyro_tdc.model import (DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OPERATING_RANGE_C,
                             range_shortfall)
 import numpy as np
@@ -576,7 +576,7 @@ def format_sessions(result: TrainResult) -> list[str]:
                    'power cycle to the next: a model fixes the thermal curve, not the offset '
                    'of a new power cycle; re-anchor on the vehicle (compensator_node '
                    'reanchor_on_start, on by default) and score with evaluate --reanchor auto')
-    return out
+    return out + session_check_lines(info.get('heldout'))
 
 
 def format_training(result: TrainResult) -> tuple[str, list]:

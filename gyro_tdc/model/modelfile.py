@@ -257,12 +257,10 @@ def _model_from_dict(d: Mapping, version: int) -> CompensationModel:
     if not isinstance(frame_id, str) or not isinstance(sensor_id, str):
         raise ModelFileError('field `sensor` must hold string `frame_id` and `sensor_id`')
     try:
-        model = CompensationModel(
-            kind=kind, features=ids, effect_params=params, t0_c=_number(d, 't0_c'),
-            input_mean=mean, input_std=std, centers=centers, widths=widths, weights=weights,
-            intercept=intercept, linear=linear, scale=scale,
-            temp_range_c=(float(rng_[0]), float(rng_[1])), residual_var=resid,
-            frame_id=frame_id, sensor_id=sensor_id,
+        model = CompensationModel.network(
+            kind, ids, params, _number(d, 't0_c'), (mean, std, centers, widths),
+            np.vstack([intercept[None, :], linear, weights]), scale=scale,
+            temp_range_c=rng_, residual_var=resid, frame_id=frame_id, sensor_id=sensor_id,
             metrics=_mapping(d, 'training', required=False),
             created=_mapping(d, 'created', required=False), thermal=thermal, accel=accel)
     except FeatureError as exc:

@@ -51,6 +51,27 @@ def test_drift_is_the_normalised_linear_formula():
     np.testing.assert_allclose(drift(model, np.arange(5.0), temp), want, rtol=1e-12)
 
 
+def test_network_constructor_splits_the_design_weights_and_round_trips():
+    model = _hand_model()
+    norm = (model.input_mean, model.input_std, model.centers, model.widths)
+    built = CompensationModel.network('poly', model.features, {}, 25, norm, model.coefficients,
+                                      temp_range_c=[0, 50], residual_var=[1e-6] * 3)
+    assert built == model and built.model_id == model.model_id
+    assert built.coefficients.shape == (3, 3) and isinstance(built.t0_c, float)
+    assert built.temp_range_c == (0.0, 50.0)
+
+
+def test_polynomial_constructor_is_the_cubic_in_raw_powers():
+    coef = np.array([[0.01, 0.0, 0.0], [1e-3, 0.0, 0.0], [1e-4, 0.0, 0.0], [1e-5, 0.0, 0.0]])
+    model = CompensationModel.polynomial(('dT', 'dT2', 'dT3'), 20.0, coef,
+                                         temp_range_c=(0.0, 40.0), residual_var=np.zeros(3))
+    assert model.kind == 'poly' and model.n_centers == 0 and model.effect_params == {}
+    d = np.array([-10.0, 0.0, 15.0])
+    want = 0.01 + 1e-3 * d + 1e-4 * d ** 2 + 1e-5 * d ** 3
+    np.testing.assert_allclose(drift(model, np.arange(3.0), 20.0 + d)[:, 0], want, rtol=1e-12,
+                               atol=1e-15)
+
+
 def test_rbf_design_columns():
     centers = np.array([[0.0], [1.0]])
     x = np.array([[2.0], [4.0]])                       # normalised: 0 and 1 (mean 2, std 2)
