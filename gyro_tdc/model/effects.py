@@ -24,9 +24,7 @@ catalog. Adding an effect is one entry and its tests. See ``doc/internals/model.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import functools
 import math
-import os
 from typing import Callable, Mapping, Sequence
 
 from gyro_tdc.errors import FeatureError
@@ -42,38 +40,6 @@ __all__ = [
 
 #: Input holds of :func:`first_order_lag`.
 HOLDS = ('step', 'linear')
-
-
-@functools.lru_cache(maxsize=1)
-def _iir_kernel() -> Callable:
-    """
-    Return ``lfilter(b, a, x, zi) -> (y, zf)`` for 1-D float64 input, scipy's own IIR kernel.
-
-    ``scipy.signal.lfilter`` hands 1-D input with ``len(a) > 1`` straight to the C routine
-    ``scipy.signal._sigtools._linear_filter``; importing ``scipy.signal`` for it costs ~0.6 s
-    a process (it imports scipy.stats). The extension is loaded on its own here, so the
-    result is bit for bit lfilter's; where that fails, lfilter itself is used.
-    """
-    try:
-        from importlib.machinery import EXTENSION_SUFFIXES, ExtensionFileLoader
-        from importlib.util import module_from_spec, spec_from_loader
-        import scipy
-        folder = os.path.join(scipy.__path__[0], 'signal')
-        path = next(os.path.join(folder, '_sigtools' + suffix) for suffix in EXTENSION_SUFFIXES
-                    if os.path.isfile(os.path.join(folder, '_sigtools' + suffix)))
-        loader = ExtensionFileLoader('scipy.signal._sigtools', path)
-        module = module_from_spec(spec_from_loader(loader.name, loader))
-        loader.exec_module(module)
-        kernel = module._linear_filter
-
-        def lfilter(b, a, x, zi):
-            return kernel(np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64),
-                          np.asarray(x, dtype=np.float64), -1, np.asarray(zi, dtype=np.float64))
-        lfilter([1.0, 0.0], [1.0, -0.5], np.ones(2), np.zeros(1))      # it runs, or fall back
-        return lfilter
-    except Exception:                                           # noqa: BLE001 (any failure)
-        from scipy.signal import lfilter as scipy_lfilter
-        return lambda b, a, x, zi: scipy_lfilter(b, a, x, zi=zi)
 
 
 def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str = 'step',
@@ -140,12 +106,13 @@ def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str
     if n == 1:
         return y
     if uniform and hold == 'linear':
-        lfilter = _iir_kernel()
+        # Public scipy, imported here: the nodes never take this path (no scipy in them).
+        from scipy.signal import lfilter
         a = math.exp(-dt / tau)
         c = tau * -math.expm1(-dt / tau) / dt
         # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]
         b0, b1 = 1.0 - c, c - a
-        y[1:], _ = lfilter([b0, b1], [1.0, -a], u[1:], np.array([b1 * u[0] + a * start]))
+        y[1:], _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=[b1 * u[0] + a * start])
         return y
     step = np.full(n - 1, dt) if uniform else np.maximum(np.diff(t), 0.0)
     a = np.exp(-step / tau)
@@ -187,7 +154,7 @@ class Series:
     t0 : float, degC
         Reference temperature.
     d : NDArray[np.float64], shape (N,), degC
-        The model temperature minus ``t0``: the thermal state's (format 2) or ``temp``'s.
+        The model temperature minus ``t0``: the thermal state's, or ``temp``'s without one.
     t_start : float, s
         Power-on time.
 
@@ -250,7 +217,7 @@ class Effect:
     thermal : bool
         The effect is the thermal front end (``lag``): in a model with a thermal state it
         adds no column and makes every temperature term follow the lagged state; its
-        ``batch``/``stream`` forms are the format-1 additive column.
+        ``batch``/``stream`` forms are the additive column of discovery's search.
 
     """
 
@@ -363,7 +330,7 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in (
            'the die follows the measured temperature with a first-order lag tau_s, and the '
            'drift follows the die: every temperature term is of the lagged state.',
            'the model temperature is the first-order-lagged state (tau_s fitted), no column '
-           'of its own (format 1: the additive column dT of the lagged T)',
+           'of its own (in the additive layout: the column dT of the lagged T)',
            'steps, soaks, heating and cooling', params={'tau_s': 120.0}, fitted=('tau_s',),
            bounds={'tau_s': (1.0, 20000.0)}, thermal=True,
            **_of_lag(lambda temp, lag, tau, t0: lag - t0)),
@@ -437,8 +404,8 @@ def input_ids(ids: Sequence[str], *, state: bool = False) -> tuple[str, ...]:
     ids : sequence of str
         Effect ids.
     state : bool
-        The model has a thermal state (format 2): the ``thermal`` effect (``lag``) is not a
-        column. False: the format-1 layout, ``lag`` an additive column.
+        The model has a thermal state: the ``thermal`` effect (``lag``) is not a column.
+        False: the additive layout of discovery's search, ``lag`` a column of its own.
 
     Returns
     -------
@@ -537,7 +504,7 @@ def batch_features(ids: Sequence[str], t: NDArray[np.float64], temp: NDArray[np.
     state : NDArray[np.float64], shape (N,), degC, optional
         The thermal state (the model temperature, already clamped when the model clamps):
         the temperature terms are of it, and ``lag`` adds no column
-        (``input_ids(ids, state=True)``). None: the format-1 features of ``temp``.
+        (``input_ids(ids, state=True)``). None: the additive layout, features of ``temp``.
 
     Returns
     -------
@@ -579,7 +546,7 @@ class StreamingFeatures:
     params : mapping, optional
         Effect parameters (defaults from the catalog).
     state : bool
-        :meth:`update` receives the thermal state (format 2, see :func:`batch_features`).
+        :meth:`update` receives the thermal state (see :func:`batch_features`).
 
     """
 
