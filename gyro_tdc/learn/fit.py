@@ -64,8 +64,8 @@ def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
     resid_var : NDArray[np.float64], shape (3,)
         Residual variance of the fit.
     thermal : ThermalState, optional
-        The thermal front end the points were binned with (None: a format-1 model of the
-        measured temperature).
+        The thermal front end the points were binned with (None: the measured temperature,
+        a model of kind none).
 
     Returns
     -------
@@ -84,7 +84,8 @@ def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
         linear=coef[1:].copy(), scale=np.zeros(3),
         temp_range_c=(float(temp_range[0]), float(temp_range[1])),
         residual_var=np.asarray(resid_var, dtype=np.float64).reshape(3),
-        created={'fit': 'gyro_tdc.learn.learner (online, still time)'}, thermal=thermal)
+        created={'fit': 'gyro_tdc.learn.learner (online, still time)'},
+        thermal=ThermalState() if thermal is None else thermal)   # the one file format
 
 
 def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:

@@ -31,7 +31,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'fc_tempcal': ['ARDUPILOT_SCALE', 'ARDUPILOT_TREF_C', 'ardupilot_correction',
                    'ArduPilotTempCal', 'onboard_status', 'px4_correction', 'px4_slot',
                    'Px4TempCal'],
-    'modelfile': ['load_model', 'save_model'],
+    'modelfile': ['load_model', 'save_model', 'stored'],
     'out_of_range': ['check_policy', 'DEFAULT_OUT_OF_RANGE', 'MAX_EXTRAPOLATION_C',
                      'OPERATING_RANGE_C', 'OUT_OF_RANGE_POLICIES', 'range_shortfall',
                      'variance_growth'],
