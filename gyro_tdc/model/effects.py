@@ -42,6 +42,46 @@ __all__ = [
 HOLDS = ('step', 'linear')
 
 
+def _doubling_scan(a: float, b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return ``x[k] = a x[k-1] + b[k]`` from ``x[-1] = 0`` by doubling (b is reused)."""
+    m = b.shape[0]
+    spare = np.empty(m)
+    shift, power = 1, a
+    while shift < m and power >= 1e-17:       # older terms weigh less than 1e-17
+        np.multiply(b[:m - shift], power, out=spare[:m - shift])
+        b[shift:] += spare[:m - shift]
+        shift, power = 2 * shift, power * power
+    return b
+
+
+def _constant_scan(a: float, b: NDArray[np.float64], start: float) -> NDArray[np.float64]:
+    """
+    Return ``x[k] = a x[k-1] + b[k]`` from ``x[-1] = start``, for ``0 <= a <= 1``.
+
+    Rows of ``L`` samples, ``a**-L`` at most ~15, are closed sums (one ``cumsum``, the
+    rounding as small as the recursion's); the rows' ends chain by :func:`_doubling_scan`.
+    """
+    m = b.shape[0]
+    decay = -math.log(a) if a > 0.0 else math.inf          # per sample; 0 when a rounds to 1
+    width = m if decay == 0.0 else int(min(m, 2.7 / decay))
+    if width < 16:                            # fast decay: doubling stops after a few passes
+        x = _doubling_scan(a, b.copy())
+        x[:] += start * np.power(a, np.arange(1, m + 1))
+        return x
+    rows = -(-m // width)
+    grid = np.zeros(rows * width)
+    grid[:m] = b
+    grid = grid.reshape(rows, width)
+    k = np.arange(width, dtype=np.float64)
+    grid *= np.power(a, -k)
+    np.cumsum(grid, axis=1, out=grid)
+    grid *= np.power(a, k)                    # each row as if it started from 0
+    ends = _doubling_scan(a ** width, grid[:, -1].copy())
+    ends += start * np.power(a ** width, np.arange(1, rows + 1))
+    grid += np.outer(np.r_[start, ends[:-1]], np.power(a, k + 1.0))
+    return grid.reshape(-1)[:m]
+
+
 def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str = 'step',
                     y0: float | None = None) -> NDArray[np.float64]:
     """
@@ -58,7 +98,7 @@ def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str
       conduction).
 
     Stamps run as a parallel prefix scan in numpy, so irregular stamps cost no Python loop; a
-    uniform grid with the linear hold runs through ``scipy.signal.lfilter``.
+    uniform grid with the linear hold scans with one constant factor.
 
     Parameters
     ----------
@@ -106,13 +146,10 @@ def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str
     if n == 1:
         return y
     if uniform and hold == 'linear':
-        # Public scipy, imported here: the nodes never take this path (no scipy in them).
-        from scipy.signal import lfilter
         a = math.exp(-dt / tau)
         c = tau * -math.expm1(-dt / tau) / dt
-        # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]
-        b0, b1 = 1.0 - c, c - a
-        y[1:], _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=[b1 * u[0] + a * start])
+        # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]: one constant factor.
+        y[1:] = _constant_scan(a, (1.0 - c) * u[1:] + (c - a) * u[:-1], start)
         return y
     step = np.full(n - 1, dt) if uniform else np.maximum(np.diff(t), 0.0)
     a = np.exp(-step / tau)

@@ -310,31 +310,50 @@ def test_a_new_effect_is_one_catalog_entry(monkeypatch, tmp_path):
     np.testing.assert_allclose(stream, batch, rtol=1e-9, atol=1e-12)
 
 
-def test_the_uniform_linear_hold_is_scipy_lfilter_and_the_rest_needs_no_scipy():
-    """The uniform linear-hold lag is public lfilter bit for bit; other lags import no scipy."""
+def test_the_lag_needs_no_scipy_and_the_uniform_linear_hold_equals_lfilter():
+    """No lag imports scipy; the uniform linear hold equals scipy's lfilter to rounding."""
     import subprocess
     import sys
     code = (
-        'import sys, numpy as np\n'
+        'import math, sys, numpy as np\n'
         'from gyro_tdc.model.effects import first_order_lag\n'
         'rng = np.random.default_rng(3)\n'
-        'u = np.cumsum(rng.normal(size=5000))\n'
-        'first_order_lag(np.arange(5000) * 0.01, u, 7.5, hold="linear")\n'
+        'u = np.cumsum(rng.normal(size=50000))\n'
+        'first_order_lag(np.arange(50000) * 0.01, u, 7.5, hold="linear")\n'
         'first_order_lag(0.01, u, 7.5, hold="step")\n'
+        'ys = {tau: first_order_lag(0.01, u, tau, hold="linear", y0=u[0] + 0.3)\n'
+        '      for tau in (0.02, 7.5, 600.0, 1e6)}\n'
         'assert "scipy" not in sys.modules, "scipy was imported"\n'
-        'y = first_order_lag(0.01, u, 7.5, hold="linear", y0=u[0] + 0.3)\n'
         'from scipy.signal import lfilter\n'
-        'import math\n'
-        'a = math.exp(-0.01 / 7.5); c = 7.5 * -math.expm1(-0.01 / 7.5) / 0.01\n'
-        'b0, b1 = 1.0 - c, c - a\n'
-        'zi = np.array([b1 * u[0] + a * (u[0] + 0.3)])\n'
-        'ref, _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=zi)\n'
-        'assert np.array_equal(y[1:], ref), "differs from lfilter"\n'
-        'assert y[0] == u[0] + 0.3\n'
+        'for tau, y in ys.items():\n'
+        '    a = math.exp(-0.01 / tau); c = tau * -math.expm1(-0.01 / tau) / 0.01\n'
+        '    b0, b1 = 1.0 - c, c - a\n'
+        '    zi = np.array([b1 * u[0] + a * (u[0] + 0.3)])\n'
+        '    ref, _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=zi)\n'
+        '    scale = np.abs(u).max()\n'
+        '    assert np.abs(y[1:] - ref).max() <= 1e-13 * scale, (tau, np.abs(y[1:] - ref).max())\n'
+        '    assert y[0] == u[0] + 0.3\n'
         'print("ok")\n')
     out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == 'ok'
+
+
+@pytest.mark.parametrize('tau', [1e-3, 0.05, 0.3, 7.0, 1e3, 1e18])
+def test_the_uniform_linear_hold_matches_the_sequential_recursion(tau):
+    """Every regime of the constant-factor scan (fast decay, rows, no decay) is the recursion."""
+    rng = np.random.default_rng(6)
+    dt = 0.1
+    a = math.exp(-dt / tau)
+    c = tau * -math.expm1(-dt / tau) / dt
+    for n in (2, 3, 17, 1000, 4099):
+        u = rng.normal(size=n)
+        y = first_order_lag(dt, u, tau, hold='linear', y0=0.4)
+        ref = np.empty(n)
+        ref[0] = 0.4
+        for k in range(1, n):
+            ref[k] = a * ref[k - 1] + (1.0 - c) * u[k] + (c - a) * u[k - 1]
+        np.testing.assert_allclose(y, ref, rtol=0, atol=1e-12)
 
 
 def test_the_step_hold_scan_matches_the_sequential_recursion():
