@@ -282,52 +282,14 @@ def _model_from_dict(d: Mapping) -> CompensationModel:
 
 
 def save_model(model: CompensationModel, path: str | os.PathLike) -> Path:
-    """
-    Write a model file atomically (see :func:`gyro_tdc.base.atomicio.atomic_write`).
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The model.
-    path : str or PathLike
-        Destination ``.yaml`` file.
-
-    Returns
-    -------
-    Path
-        The path written.
-
-    Raises
-    ------
-    OutputError
-        When the file cannot be written (nothing is left behind).
-
-    """
+    """Write a model file atomically and return its path (OutputError: nothing is left behind)."""
     text = '# gyro_tdc compensation model (see README "Model file")\n' + yaml.safe_dump(
         model_to_dict(model), sort_keys=False, default_flow_style=None, width=100)
     return atomic_write(Path(path), text, what='model file')
 
 
 def load_model(path: str | os.PathLike) -> CompensationModel:
-    """
-    Read and validate a model file.
-
-    Parameters
-    ----------
-    path : str or PathLike
-        A model ``.yaml`` file.
-
-    Returns
-    -------
-    CompensationModel
-        The model.
-
-    Raises
-    ------
-    ModelFileError
-        One line naming the file and what is wrong with it.
-
-    """
+    """Read and validate a model file (ModelFileError: the file and what is wrong, one line)."""
     path = Path(path)
     data = read_yaml(path, _LIMITS, error=ModelFileError)
     try:
