@@ -92,20 +92,9 @@ def format_coverage(c: Coverage) -> tuple[str, list]:
 
 def is_coverage_line(line: str) -> bool:
     """
-    Return True for a line of :func:`format_coverage` (its table or its warnings).
+    Return True for a line of :func:`format_coverage` (its table or warnings, prefixed or not).
 
     Lets a caller that trains several models on the same bags show the coverage once.
-
-    Parameters
-    ----------
-    line : str
-        One printed line (with or without the ``warning:`` prefix).
-
-    Returns
-    -------
-    bool
-        Whether the line belongs to the coverage report.
-
     """
     text = line.removeprefix('warning: ')
     return text.startswith(('temperature range covered:', 'coverage per ', 'heating (dT/dt',

@@ -299,19 +299,8 @@ def input_ids(ids: Sequence[str], *, state: bool = False) -> tuple[str, ...]:
     """
     Return the ids among ``ids`` that are inputs of the drift network, in layout order.
 
-    Parameters
-    ----------
-    ids : sequence of str
-        Effect ids.
-    state : bool
-        The model has a thermal state: the ``thermal`` effect (``lag``) is not a column.
-        False: the additive layout of discovery's search, ``lag`` a column of its own.
-
-    Returns
-    -------
-    tuple of str
-        The column ids.
-
+    With ``state`` (a thermal state) the ``thermal`` effect (``lag``) is no column; without, it
+    is a column of its own (the additive layout of discovery's search).
     """
     return tuple(i for i in normalise_ids(ids) if EFFECTS[i].is_input
                  and not (state and EFFECTS[i].thermal))
@@ -319,22 +308,10 @@ def input_ids(ids: Sequence[str], *, state: bool = False) -> tuple[str, ...]:
 
 def with_implied(ids: str | Sequence[str]) -> tuple[str, ...]:
     """
-    Return ``ids`` with the terms a thermal state implies: ``dT`` when ``lag`` has no term.
+    Return ``ids`` (catalog order) with ``dT`` added when ``lag`` has no temperature term.
 
-    With a thermal state, ``lag`` only says that the drift follows the lagged state; a model
-    asked for ``lag`` without any temperature term (``dT``, ``dT2``, ``dT3``) is the linear
-    one, ``dT`` of the state.
-
-    Parameters
-    ----------
-    ids : str or sequence of str
-        Effect ids.
-
-    Returns
-    -------
-    tuple of str
-        The ids in catalog order, ``dT`` added when implied.
-
+    With a thermal state ``lag`` only says that the drift follows the lagged state; asked for
+    alone it is the linear model, ``dT`` of the state.
     """
     ids = normalise_ids(ids)
     if THERMAL_EFFECTS & set(ids) and not STATE_TERMS & set(ids):
