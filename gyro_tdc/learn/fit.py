@@ -66,8 +66,8 @@ def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
     resid_var : NDArray[np.float64], shape (3,)
         Residual variance of the fit.
     thermal : ThermalState, optional
-        The thermal front end the points were binned with (None: a format-1 model of the
-        measured temperature).
+        The thermal front end the points were binned with (None: the measured temperature,
+        a model of kind none).
 
     Returns
     -------
@@ -81,7 +81,8 @@ def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
         feats, params = normalise_ids(feats + ('lag',)), {'lag': {'tau_s': thermal.tau_total_s}}
     return CompensationModel.polynomial(
         feats, t0, coef, effect_params=params, temp_range_c=temp_range, residual_var=resid_var,
-        created={'fit': 'gyro_tdc.learn.learner (online, still time)'}, thermal=thermal)
+        created={'fit': 'gyro_tdc.learn.learner (online, still time)'},
+        thermal=ThermalState() if thermal is None else thermal)   # the one file format
 
 
 def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:

@@ -14,14 +14,12 @@
 
 """Tests of gyro_tdc.model.compensation: formulas, streaming, clamping, ids, format 1, state."""
 
-import json
 import math
 from pathlib import Path
 
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model.compensation import (compensate, CompensationModel, drift, model_temperature,
                                          predict_drift, rbf_design, StreamingCompensator, summary)
-from gyro_tdc.model.modelfile import load_model, save_model
 from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 import pytest
@@ -163,30 +161,6 @@ def test_summary_and_properties():
 # ----------------------------------------------------------------------------- formats
 
 DATA = Path(__file__).resolve().parents[1] / 'support' / 'files'
-
-
-def test_a_format_1_lag_model_behaves_exactly_as_before(tmp_path):
-    # model_v1_lag.yaml and its drift were written by gyro_tdc before format 2 (lag as an
-    # additive column, every feature of the clamped measured temperature).
-    model = load_model(DATA / 'model_v1_lag.yaml')
-    want = json.loads((DATA / 'model_v1_lag_drift.json').read_text())
-    assert model.format_version == 1 and model.thermal is None
-    assert model.model_id == want['model_id'] == 'ccb82761db2c'
-    assert model.inputs == ('dT', 'dT2', 'dTdt', 'lag')
-    t, temp = np.array(want['t']), np.array(want['temp'])
-    # The same numbers to the last bits of exp(): another CPU's libm may differ by 1e-18.
-    same = {'rtol': 1e-13, 'atol': 1e-17}
-    np.testing.assert_allclose(drift(model, t, temp), want['drift_clamp'], **same)
-    np.testing.assert_allclose(drift(model, t, temp, clamp=False), want['drift_extrapolate'],
-                               **same)
-    comp = StreamingCompensator(model)
-    np.testing.assert_allclose([comp.drift(a, b) for a, b in zip(t, temp)],
-                               want['stream_clamp'], **same)
-    assert comp.thermal_progress is None and comp.thermal_settled
-    assert summary(model)['format_version'] == 1 and 'thermal' not in summary(model)
-    # Saved again it stays format 1, byte for byte.
-    again = save_model(model, tmp_path / 'again.yaml')
-    assert again.read_text() == (DATA / 'model_v1_lag.yaml').read_text()
 
 
 def test_format_2_state_model_drift_and_range_follow_the_state():

@@ -218,7 +218,7 @@ class BlockData:
         """
         Return the thermal state of run ``r`` at its sample stamps, degC.
 
-        The first-order lag (:func:`gyro_tdc.model.effects.first_order_lag`, settled at the first
+        The first-order lag (:func:`gyro_tdc.model.lag.first_order_lag`, settled at the first
         temperature) runs on the run's regular grid, where the temperature is linear between
         grid points, and is interpolated back to the stamps.
 
