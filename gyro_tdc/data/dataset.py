@@ -304,7 +304,8 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
         if not Path(bag).is_file():
             raise DatasetError(f'Log {str(bag)!r} is not a file.')
         reader = read_ulog if fmt == 'ulog' else read_dataflash
-        log = reader(bag, instance=o.imu_instance, accel=bool(o.accel))
+        log = reader(bag, instance=o.imu_instance, accel=bool(o.accel),
+                     temperature_source=o.temperature_source)
         data, extra = flight_log_data(bag, log, fmt, o)
     rejected = {'imu_nonfinite': data.rejected['imu_nonfinite'],
                 'temp_nonfinite': data.rejected['temp_nonfinite'],

@@ -102,18 +102,19 @@ def test_a_log_without_temperature_is_one_error(tmp_path):
         load_run(path)
 
 
-def test_a_truncated_log_is_refused_unless_the_loss_is_allowed(tmp_path):
+def test_a_log_cut_off_at_its_end_is_read_with_a_warning_that_counts_the_loss(tmp_path):
     imus = [replace(_imus(count=1)[0], accel=None)]          # the last message a gyro one
     whole = write_ulog(tmp_path / 'whole.ulg', px4_topics(imus))
     assert ulog_truncated_bytes(whole) == 0
     cut = tmp_path / 'cut.ulg'
     cut.write_bytes(whole.read_bytes()[:-5])
     assert ulog_truncated_bytes(cut) > 0
-    with pytest.raises(DatasetError, match='ends inside a message.*--allow-loss'):
-        load_run(cut)
-    run = load_run(cut, BagOptions(max_loss=1.0))
-    assert len(run) == len(imus[0].t) - 1
-    assert any('cut short' in w for w in run.info['warnings'])
+    for options in (BagOptions(), BagOptions(max_loss=1.0)):
+        run = load_run(cut, options)
+        assert len(run) == len(imus[0].t) - 1
+        cut_lines = [w for w in run.info['warnings'] if 'cut short' in w]
+        assert len(cut_lines) == 1
+        assert f'last {ulog_truncated_bytes(cut)} bytes' in cut_lines[0]
     head = tmp_path / 'head.ulg'
     head.write_bytes(whole.read_bytes()[:40])
     with pytest.raises(DatasetError, match='head.ulg'):
@@ -157,6 +158,8 @@ def test_damaged_bytes_inside_are_said_on_the_read_line_not_taken_for_a_cut(tmp_
     path = tmp_path / 'damaged.ulg'
     path.write_bytes(bytes(data))
     assert ulog_truncated_bytes(path) == 0
-    run = load_run(path)
+    with pytest.raises(DatasetError, match='damaged bytes inside the log.*--allow-loss'):
+        load_run(path)
+    run = load_run(path, BagOptions(max_loss=1.0))
     assert 0 < len(run) < len(imus[0].t)
     assert 'pyulog found damaged messages (skipped)' in run.info['log']
