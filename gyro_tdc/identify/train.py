@@ -207,10 +207,13 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     Returns
     -------
     TrainResult
-        The model, where it was written, the coverage of the data and, with ``'auto'``, the
-        choice of features (also in ``model.metrics['features']``). A gyro axis whose
-        readings never vary beyond one quantum (:func:`constant_gyro_axes`) is not fitted:
-        its coefficients are zero, so the model passes it through unchanged
+        Data without a reference rate (every run's reference zero) that move longer than
+        :data:`gyro_tdc.identify.still_only.MAX_MOVING_SHARE` of the time are trained on their
+        still stretches only (:func:`gyro_tdc.identify.still_only.train_still_only`, said on
+        ``log``). The model, where it was written, the coverage of the data and, with
+        ``'auto'``, the choice of features (also in ``model.metrics['features']``). A gyro
+        axis whose readings never vary beyond one quantum (:func:`constant_gyro_axes`) is not
+        fitted: its coefficients are zero, so the model passes it through unchanged
         (:func:`identity_axes`); ``result.constant`` and ``model.metrics['constant_axes']``
         name it.
 
@@ -225,6 +228,17 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     o = TrainOptions() if options is None else options
     bag = replace(BagOptions() if bag is None else bag, accel=bool(o.accel))
     runs: list[Run] = load_runs(bags, bag, log=log)
+    if all(r.info.get('reference') == 'zero' for r in runs):
+        # No reference rate: the rate is known (zero) only while still. Motion (a flight, a
+        # drive) would be fitted as drift, so only the still stretches are used.
+        from gyro_tdc.identify.still_only import (MAX_MOVING_SHARE, moving_share,
+                                                  train_still_only)
+        share = moving_share(neutral_runs(runs, constant_gyro_axes(runs)))
+        if share > MAX_MOVING_SHARE:
+            if log is not None:
+                log(f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time: '
+                    'training on the still stretches only (as --still-only)')
+            return train_still_only(bags, out, o, bag, command=command, log=log, runs=runs)
     names = [r.name for r in runs]
     split = split_sessions(runs, bag.sessions, bag.session_gap_s)
     runs = split.runs
@@ -232,6 +246,8 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     fitted = neutral_runs(runs, const)
     t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
     ids, params, choice = features_for_fit(fitted, o.features, t0=t0)
+    from gyro_tdc.identify.still_only import proxy_lag
+    ids = proxy_lag(runs, ids, o, log)
     model = fit_model(fitted, features=ids, params=params or None, kind=o.kind, t0=t0,
                       n_centers=o.n_centers, refine=o.refine, ridge=o.ridge, seed=o.seed,
                       thermal=o.thermal, sessions=split.labels,
