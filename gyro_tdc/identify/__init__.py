@@ -40,7 +40,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],
     'options': ['TrainOptions'],
     'result': ['TrainResult'],
-    'still_only': ['train_still_only'],
+    'still_only': ['find_still', 'MAX_MOVING_SHARE', 'moving_share', 'train_still_only'],
     'tau': ['effective_samples', 'fit_time_constant', 'profile_interval', 'TimeConstantFit'],
     'train': ['all_constant_error', 'constant_gyro_axes', 'constant_readings',
               'identity_axes', 'neutral_runs', 'train'],
