@@ -40,13 +40,13 @@ from gyro_tdc.identify.train import (constant_gyro_axes, constant_readings, iden
                                      neutral_runs)
 from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             normalise_ids, OPERATING_RANGE_C, save_model)
-from gyro_tdc.signal import auto_window, detect_still, motion_veto, Stillness
+from gyro_tdc.signal import auto_window, detect_still, motion_veto, NOISE_FACTOR, Stillness
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['ADVICE_PARK_MIN', 'MAX_MOVING_SHARE', 'MIN_STILL_SPAN_C', 'moving_share',
-           'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'proxy_lag', 'StillReport', 'Stretch',
-           'find_still', 'still_report', 'train_still_only']
+__all__ = ['ADVICE_PARK_MIN', 'find_still', 'MAX_MOVING_SHARE', 'MIN_STILL_SPAN_C',
+           'moving_share', 'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'proxy_lag',
+           'STILL_STD_CEILING', 'still_report', 'StillReport', 'Stretch', 'train_still_only']
 
 #: Smallest temperature span of the still time a model is fitted on, degC.
 MIN_STILL_SPAN_C = 2.0
@@ -55,6 +55,10 @@ MIN_STILL_SPAN_C = 2.0
 OUTLIER_SIGMAS = 5.0
 #: ... and more than this (rad/s, 0.02 deg/s) is dropped as motion (a slow turn).
 OUTLIER_FLOOR_RAD_S = 3.5e-4
+#: A window whose raw rate scatters more than this (rad/s, 2 deg/s, any axis) is never still
+#: for the trainers, whatever the log's quietest window: a log that never stops (a hover)
+#: would otherwise take its own vibration for the noise floor.
+STILL_STD_CEILING = 0.035
 #: Data without a reference rate moving longer than this share of the time are trained on
 #: their still stretches only (``train`` as ``--still-only``): the motion is no drift.
 MAX_MOVING_SHARE = 0.01
@@ -176,7 +180,8 @@ def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None
 
     The auto thresholds take the quietest window as the noise (:mod:`gyro_tdc.signal`); over
     several bags of one sensor the quietest window of any of them is the floor, so a bag
-    that never stops does not look still to itself.
+    that never stops does not look still to itself, and the threshold is never above
+    :data:`STILL_STD_CEILING` (a single log of a hover).
 
     Parameters
     ----------
@@ -199,9 +204,11 @@ def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None
     windows = [auto_window(r.t) if window_s is None else window_s for r in runs]
     first = [detect_still(r.t, r.omega, r.accel, moving=m, window_s=w,
                           min_still_s=min_still_s) for r, m, w in zip(runs, moving, windows)]
-    if len(runs) < 2:
-        return first
     g_floor = np.min([s.gyro_floor for s in first], axis=0)
+    capped = np.minimum(g_floor, STILL_STD_CEILING / NOISE_FACTOR)
+    if len(runs) < 2 and np.array_equal(capped, g_floor):
+        return first
+    g_floor = capped
     a_floors = [s.accel_floor for s in first if s.accel_floor is not None]
     a_floor = np.min(a_floors, axis=0) if a_floors else None
     return [detect_still(r.t, r.omega, r.accel, moving=m, window_s=w,

@@ -63,3 +63,10 @@ def test_a_bad_temperature_source_is_one_line(tmp_path, capsys):
     assert_bad_input(capsys, [PX4_MULTI_RATE, '--out', tmp_path / 'm.yaml',
                               '--temperature-source', 'the moon'],
                      'temperature_source', 'imu, baro or TOPIC.FIELD', entry=train)
+
+
+def test_a_real_log_that_never_stops_is_not_taken_for_still(tmp_path, capsys):
+    from real_logs import PX4_HOVER
+    assert_bad_input(capsys, [PX4_HOVER, '--out', tmp_path / 'm.yaml', '--no-progress',
+                              '--temperature-source', 'baro'],
+                     'no still stretch', 'the IMU moves', entry=train)

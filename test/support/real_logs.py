@@ -37,6 +37,8 @@ PX4_MULTI_RATE = FILES / 'px4_multi_rate.ulg'
 PX4_BARO_ONLY = FILES / 'px4_baro_only.ulg'
 #: pyulog's ``sample_logging_tagged_and_default_params.ulg``: every thermometer reads 0.
 PX4_ZERO_THERMOMETERS = FILES / 'px4_zero_thermometers.ulg'
+#: pyulog's ``sample_appended_multiple.ulg``: 10 s of a hover, never still; baro only.
+PX4_HOVER = FILES / 'px4_hover.ulg'
 #: bols-blue-org/ape's CubeBlack log: three IMUs (IMU, IMU2, IMU3) at 25 Hz with ``T``.
 ARDUPILOT_CUBEBLACK = FILES / 'ardupilot_cubeblack.bin'
 
@@ -95,6 +97,7 @@ def main(src_dir: str) -> None:
     FILES.mkdir(parents=True, exist_ok=True)
     extract_ulog(src / 'sample_log_small.ulg', PX4_MULTI_RATE, seconds=60.0)
     extract_ulog(src / 'sample_appended.ulg', PX4_BARO_ONLY, seconds=15.0)
+    extract_ulog(src / 'sample_appended_multiple.ulg', PX4_HOVER, seconds=15.0)
     extract_ulog(src / 'sample_logging_tagged_and_default_params.ulg',
                  PX4_ZERO_THERMOMETERS, seconds=2.0)
     extract_dataflash(src / 'log_0_2020-5-1-14-53-42.bin', ARDUPILOT_CUBEBLACK,
