@@ -32,12 +32,12 @@ from gyro_tdc.data import (BagOptions, Coverage, coverage, load_runs, RATE_THRES
                            read_motion, Run, split_sessions, temperature_rate)
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.accel import fit_accel
+from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, identity_axes,
+                                    neutral_runs)
 from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import fit_model
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.result import TrainResult
-from gyro_tdc.identify.train import (constant_gyro_axes, constant_readings, identity_axes,
-                                     neutral_runs)
 from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             normalise_ids, OPERATING_RANGE_C, save_model)
 from gyro_tdc.signal import auto_window, detect_still, motion_veto, NOISE_FACTOR, Stillness
@@ -378,7 +378,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     TrainResult
         As :func:`gyro_tdc.identify.train.train`, with ``still`` the :class:`StillReport`;
         ``coverage`` and ``samples`` are those of the still time kept. A constant gyro axis
-        (:func:`gyro_tdc.identify.train.constant_gyro_axes`) is not fitted: the still test,
+        (:func:`gyro_tdc.identify.axes.constant_gyro_axes`) is not fitted: the still test,
         the feature choice and the fit see it at its reference, the model passes it through
         (``result.constant``, ``model.metrics['constant_axes']``).
 

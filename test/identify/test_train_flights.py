@@ -30,7 +30,7 @@ from real_logs import ARDUPILOT_CUBEBLACK
 
 @pytest.fixture(scope='module')
 def board(tmp_path_factory):
-    """Eight power cycles of one board (25 Hz, flights between 10-60 s still stretches)."""
+    """Return eight power cycles of one IMU at 25 Hz, flights between 10-60 s stops."""
     root = tmp_path_factory.mktemp('board')
     days = [flight_day(seed, legs=6) for seed in range(8)]
     paths = [write_dataflash(root / f'day{seed}.bin', [d.imu]) for seed, d in enumerate(days)]
