@@ -163,3 +163,27 @@ def test_damaged_bytes_inside_are_said_on_the_read_line_not_taken_for_a_cut(tmp_
     run = load_run(path, BagOptions(max_loss=1.0))
     assert 0 < len(run) < len(imus[0].t)
     assert 'pyulog found damaged messages (skipped)' in run.info['log']
+
+
+def test_vehicle_imu_is_read_as_a_rate_where_it_is_the_fastest_gyro(tmp_path):
+    from flightlogs import SENSOR_GYRO, Topic, VEHICLE_IMU
+    rng = np.random.default_rng(9)
+    n, dt = 1000, 0.01                        # vehicle_imu at 100 Hz
+    t = 20.0 + np.arange(n) * dt
+    rate = rng.normal(0.0, 0.05, (n, 3)).astype(np.float32).astype(float)
+    us = np.round(t * 1e6).astype(np.uint64)
+    vimu = Topic('vehicle_imu', VEHICLE_IMU, {
+        'timestamp': us, 'timestamp_sample': us, 'delta_angle': rate * dt,
+        'delta_velocity': np.tile([0.0, 0.0, -9.81 * dt], (n, 1)),
+        'delta_angle_dt': np.full(n, 10000), 'delta_velocity_dt': np.full(n, 10000)})
+    slow = us[::100]                          # sensor_gyro at 1 Hz, with the temperature
+    gyro = Topic('sensor_gyro', SENSOR_GYRO, {
+        'timestamp': slow, 'timestamp_sample': slow, 'device_id': 7, 'x': 0.0, 'y': 0.0,
+        'z': 0.0, 'temperature': np.linspace(30.0, 31.0, len(slow))})
+    path = write_ulog(tmp_path / 'vimu.ulg', [gyro, vimu])
+    log = read_ulog(path, accel=True)
+    assert log.source == 'vehicle_imu' and not log.raw
+    np.testing.assert_allclose(log.gyro, rate, rtol=1e-5, atol=1e-9)
+    np.testing.assert_allclose(log.accel, np.tile([0.0, 0.0, -9.81], (n, 1)), rtol=1e-5)
+    assert log.temperature == 'sensor_gyro.temperature' and len(log.temp_t) == len(slow)
+    assert 'vehicle_imu (integrated, calibrated on board) at 100 Hz' in ' '.join(log.notes)

@@ -33,14 +33,17 @@ import numpy as np
 # ULog
 # --------------------------------------------------------------------------------------------
 
-_ULOG_TYPES = {'uint64_t': '<u8', 'uint32_t': '<u4', 'uint8_t': 'u1', 'float': '<f4',
-               'int32_t': '<i4'}
+_ULOG_TYPES = {'uint64_t': '<u8', 'uint32_t': '<u4', 'uint16_t': '<u2', 'uint8_t': 'u1',
+               'float': '<f4', 'int32_t': '<i4'}
 SENSOR_GYRO = [('uint64_t', 'timestamp'), ('uint64_t', 'timestamp_sample'),
                ('uint32_t', 'device_id'), ('float', 'x'), ('float', 'y'), ('float', 'z'),
                ('float', 'temperature'), ('uint32_t', 'error_count')]
 SENSOR_ACCEL = SENSOR_GYRO
 SENSOR_COMBINED = [('uint64_t', 'timestamp'), ('float[3]', 'gyro_rad'),
                    ('uint32_t', 'gyro_integral_dt'), ('float[3]', 'accelerometer_m_s2')]
+VEHICLE_IMU = [('uint64_t', 'timestamp'), ('uint64_t', 'timestamp_sample'),
+               ('float[3]', 'delta_angle'), ('float[3]', 'delta_velocity'),
+               ('uint16_t', 'delta_angle_dt'), ('uint16_t', 'delta_velocity_dt')]
 VEHICLE_IMU_STATUS = [('uint64_t', 'timestamp'), ('uint32_t', 'gyro_device_id'),
                       ('float', 'temperature_gyro')]
 
