@@ -187,3 +187,21 @@ def test_vehicle_imu_is_read_as_a_rate_where_it_is_the_fastest_gyro(tmp_path):
     np.testing.assert_allclose(log.accel, np.tile([0.0, 0.0, -9.81], (n, 1)), rtol=1e-5)
     assert log.temperature == 'sensor_gyro.temperature' and len(log.temp_t) == len(slow)
     assert 'vehicle_imu (integrated, calibrated on board) at 100 Hz' in ' '.join(log.notes)
+
+
+def test_a_slow_thermometer_is_held_over_its_own_period(tmp_path):
+    from flightlogs import SENSOR_GYRO, Topic, VEHICLE_IMU_STATUS
+    n = 3000                                  # 60 s at 50 Hz; the thermometer every 20 s
+    imu = replace(_imus(n=n, count=1)[0], accel=None)
+    us = np.round(imu.t * 1e6).astype(np.uint64)
+    gyro = Topic('sensor_gyro', SENSOR_GYRO, {
+        'timestamp': us, 'timestamp_sample': us, 'device_id': 1, 'x': imu.gyro[:, 0],
+        'y': imu.gyro[:, 1], 'z': imu.gyro[:, 2], 'temperature': np.full(n, np.nan)})
+    slow = us[::1000]
+    status = Topic('vehicle_imu_status', VEHICLE_IMU_STATUS, {
+        'timestamp': slow, 'gyro_device_id': 1,
+        'temperature_gyro': np.linspace(30.0, 35.0, len(slow))})
+    run = load_run(write_ulog(tmp_path / 'slow.ulg', [gyro, status]))
+    assert run.info['temperature'] == 'vehicle_imu_status.temperature_gyro'
+    assert len(run) == int(slow[-1] - slow[0]) // 20000 + 1     # every sample in its span
+    assert run.info['rejected']['no_temperature'] == n - len(run)
