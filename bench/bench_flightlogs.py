@@ -19,7 +19,9 @@ Each case draws one board and eight power cycles of it (``test/support/flightlog
 an IMU rate from 1 Hz to 2 kHz (log-uniform), a turn-on offset per power cycle, a
 thermometer resolution from 0.004 to 1 degC, flights between still stretches of 10-60 s,
 spike glitches, and for half the logs an end cut off inside a message; each log is written
-as a PX4 ULog or an ArduPilot DataFlash log and read back. Printed per test: the pass rate
+as a PX4 ULog (``sensor_gyro`` at full rate, or ``sensor_combined`` at full rate beside a
+1 Hz ``sensor_gyro`` carrying the temperature) or an ArduPilot DataFlash log (``IMU.T``, or
+``IMU.Temp``) and read back. Printed per test: the pass rate
 and the worst cases.
 
 - **read**: every log is read, or refused in one line (a ``GyroTdcError``); any other
@@ -70,18 +72,41 @@ def _case(rng: np.random.Generator) -> dict:
             'resolution_c': float(math.exp(rng.uniform(math.log(0.004), math.log(1.0)))),
             'noise_dps': float(rng.uniform(0.02, 0.2)), 'drift': drift,
             'glitches': int(rng.integers(0, 6)), 'cut': rng.random(8) < 0.5,
-            'format': rng.choice(['ulog', 'dataflash'], size=8)}
+            'format': rng.choice(FORMATS, size=8)}
+
+
+#: How a power cycle is written: PX4 sensor_gyro at full rate; PX4 sensor_combined at full
+#: rate beside sensor_gyro (with the temperature) at 1 Hz; ArduPilot IMU with ``T``; with
+#: ``Temp`` (ArduCopter 3.4).
+FORMATS = ('ulog', 'ulog_multi_rate', 'dataflash', 'dataflash_temp')
+
+
+def _multi_rate(imu) -> list:
+    """Return ULog topics: sensor_combined at the IMU's rate, sensor_gyro at 1 Hz."""
+    from flightlogs import SENSOR_COMBINED, SENSOR_GYRO, Topic
+    us = np.round(np.asarray(imu.t) * 1e6).astype(np.uint64)
+    step = max(1, int(round(1.0 / float(np.median(np.diff(imu.t))))))
+    slow = np.arange(0, len(us), step)
+    return [Topic('sensor_combined', SENSOR_COMBINED, {
+                'timestamp': us, 'gyro_rad': imu.gyro, 'accelerometer_m_s2': imu.accel}),
+            Topic('sensor_gyro', SENSOR_GYRO, {
+                'timestamp': us[slow], 'timestamp_sample': us[slow], 'device_id': 1,
+                'x': imu.gyro[slow, 0], 'y': imu.gyro[slow, 1], 'z': imu.gyro[slow, 2],
+                'temperature': imu.temp[slow]})]
 
 
 def _write(day, path: Path, fmt: str, cut: bool, rng: np.random.Generator) -> Path:
     """Write one power cycle as a log, its end cut off inside a message when ``cut``."""
     from flightlogs import px4_topics, write_dataflash, write_ulog
     from dataclasses import replace
-    imu = replace(day.imu, accel=None) if fmt == 'ulog' else day.imu
     if fmt == 'ulog':
-        path = write_ulog(path.with_suffix('.ulg'), px4_topics([imu]))
+        topics = px4_topics([replace(day.imu, accel=None)])
+        path = write_ulog(path.with_suffix('.ulg'), topics)
+    elif fmt == 'ulog_multi_rate':
+        path = write_ulog(path.with_suffix('.ulg'), _multi_rate(day.imu))
     else:
-        path = write_dataflash(path.with_suffix('.bin'), [imu])
+        path = write_dataflash(path.with_suffix('.bin'), [day.imu],
+                               temp_field='Temp' if fmt == 'dataflash_temp' else 'T')
     if cut:
         data = path.read_bytes()
         path.write_bytes(data[:len(data) - int(rng.integers(1, 20))])
@@ -125,7 +150,9 @@ def run_case(k: int, seed: int, folder: Path) -> dict:
     paths = [_write(d, folder / f'c{k}_{j}', str(c['format'][j]), bool(c['cut'][j]), rng)
              for j, d in enumerate(days)]
     out = {'case': k, **{key: c[key] for key in ('rate_hz', 'legs', 'resolution_c',
-                                                 'noise_dps', 'glitches')}}
+                                                 'noise_dps', 'glitches')},
+           'formats': ' '.join(f'{str(f)}{"(cut)" if cut else ""}'
+                               for f, cut in zip(c['format'], c['cut']))}
     out['read'], out['read_note'] = True, ''
     for p in paths:
         try:
@@ -141,18 +168,15 @@ def run_case(k: int, seed: int, folder: Path) -> dict:
     except Exception:  # noqa: B902
         out['ratio'], out['train_note'] = math.inf, traceback.format_exc(limit=1)[-200:]
     else:
-        comp = []
-        for p in paths[4:]:
+        comp, trimmed = [], []
+        for p, d in zip(paths[4:], days[4:]):
             r = load_run(p)
             comp.append(compensate(result.model, r.t, r.temp, r.omega,
                                    out_of_range=DEFAULT_OUT_OF_RANGE))
-        held = days[4:]
-        # The held-out logs as read (a cut end loses its last samples).
-        trimmed = []
-        for d, cmp_ in zip(held, comp):
-            n = len(cmp_)
-            trimmed.append(type(d)(type(d.imu)(d.imu.t[:n], d.imu.gyro[:n], d.imu.temp[:n]),
-                                   d.still[:n], d.offset, d.drift))
+            # The held-out log's truth on the samples read (a cut end, the thermometer's span).
+            at = np.clip(np.searchsorted(d.imu.t, r.t - 5e-7), 0, len(d.imu.t) - 1)
+            trimmed.append(type(d)(type(d.imu)(d.imu.t[at], d.imu.gyro[at], d.imu.temp[at]),
+                                   d.still[at], d.offset, d.drift))
         raw = still_drift(trimmed)
         out['ratio'] = float(np.max(still_drift(trimmed, comp) / raw))
         out['train_note'] = 'still-only' if result.still is not None else 'all samples'
@@ -179,7 +203,8 @@ def main(argv=None) -> int:
                   f"{r['resolution_c']:.3g} degC, noise {r['noise_dps']:.3f} deg/s, "
                   f"{r['glitches']} glitches | read {'ok' if r['read'] else 'FAIL'} | "
                   f"train {r['train_note'][:40]}, held-out worst axis {ratio} x raw | still "
-                  f"found {r['recall']:.2f}, precision {r['precision']:.3f}", flush=True)
+                  f"found {r['recall']:.2f}, precision {r['precision']:.3f}\n"
+                  f"         logs: {r['formats']}", flush=True)
     n = len(rows)
     read_ok = sum(r['read'] for r in rows)
     harm_ok = sum(r['ratio'] is None or r['ratio'] <= 1.1 for r in rows)
