@@ -41,8 +41,9 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'options': ['TrainOptions'],
     'power_cycles': ['check_sessions', 'session_check_lines'],
     'result': ['TrainResult'],
-    'still_only': ['train_still_only'],
+    'still_only': ['find_still', 'MAX_MOVING_SHARE', 'moving_share', 'train_still_only'],
     'tau': ['effective_samples', 'fit_time_constant', 'profile_interval', 'TimeConstantFit'],
-    'train': ['all_constant_error', 'constant_gyro_axes', 'constant_readings',
-              'identity_axes', 'neutral_runs', 'train'],
+    'axes': ['all_constant_error', 'constant_gyro_axes', 'constant_readings',
+             'identity_axes', 'neutral_runs'],
+    'train': ['train'],
 })

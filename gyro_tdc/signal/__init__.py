@@ -33,8 +33,9 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'still_batch': ['detect_still', 'Stillness'],
     'still_stream': ['MotionReports', 'StillSegment', 'StillWindows', 'StreamingStill',
                      'Window'],
-    'still_verdict': ['has_accelerometer', 'judge_windows', 'MAX_RATE', 'MIN_STILL_S',
+    'still_verdict': ['auto_window', 'has_accelerometer', 'judge_windows', 'MAX_RATE',
+                      'MAX_STILL_SE', 'MIN_STILL_S', 'MIN_STILL_SAMPLES',
                       'MIN_WINDOW_SAMPLES', 'MOTION_EPS', 'motion_veto', 'NOISE_FACTOR',
-                      'noise_floor', 'noise_thresholds', 'NOISE_WINDOWS', 'STILL_WINDOW_S',
-                      'windows_moving'],
+                      'noise_floor', 'noise_thresholds', 'NOISE_WINDOWS', 'SHORT_WINDOW_S',
+                      'STILL_WINDOW_S', 'windows_moving'],
 })
