@@ -21,7 +21,7 @@ import shutil
 import sqlite3
 
 from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE
-from gyro_tdc.data.bag import columnar, metadata, reader
+from gyro_tdc.data.bag import codec, columnar, metadata, reader
 from gyro_tdc.data.bag.blocks import Unfit
 from gyro_tdc.errors import DatasetError
 from hypothesis import given, HealthCheck, settings, strategies as st
@@ -248,6 +248,34 @@ def test_sqlite3_indexes_other_than_rosbag2s_keep_rosbags_order(tmp_path, change
         np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
 
 
+def test_a_sqlite3_file_without_definitions_is_read_with_the_jazzy_types(tmp_path):
+    rng = np.random.default_rng(12)
+    bag = _write(tmp_path / 'bag', 'sqlite3', _chamber(rng, reference=True))
+    (db3,) = bag.glob('*.db3')
+    with sqlite3.connect(db3) as db:
+        db.execute('DELETE FROM message_definitions')
+    db.close()
+    with columnar.open_bag(bag, metadata.load(bag)) as opened:
+        assert opened.files[0].definitions == {}
+        assert opened.typestore is codec.jazzy()
+    _same_data(bag)
+
+
+def test_an_mcap_file_without_a_summary_goes_to_rosbags(tmp_path):
+    # rosbags scans such a file record by record; the columnar read wants the chunk index.
+    rng = np.random.default_rng(13)
+    bag = _write(tmp_path / 'bag', 'mcap', _chamber(rng))
+    (path,) = bag.glob('*.mcap')
+    raw = bytearray(path.read_bytes())
+    raw[-28:-20] = bytes(8)                  # the footer's summary_start
+    path.write_bytes(bytes(raw))
+    with pytest.raises(Unfit, match='without a summary'):
+        _tapes(bag)
+    got, ref = read_bag(bag), read_bag(bag, via='rosbags')
+    assert got.via == 'rosbags'
+    np.testing.assert_array_equal(got.gyro, ref.gyro)
+
+
 def test_mcap_chunks_overlapping_in_time_go_to_rosbags(tmp_path):
     # rosbags merges chunks whose time spans overlap message by message: not read columnar.
     rng = np.random.default_rng(3)
@@ -336,6 +364,14 @@ def _say_file_compressed(info):
     info['compression_mode'] = 'file'
 
 
+def _version(info):
+    info['version'] = 10
+
+
+def _json(info):
+    info['topics_with_message_count'][0]['topic_metadata']['serialization_format'] = 'json'
+
+
 def _rename_type(info):
     info['topics_with_message_count'][1]['topic_metadata']['type'] = 'std_msgs/msg/String'
 
@@ -348,6 +384,8 @@ def _rename_type(info):
     (_count(10**9), 'holds 1000000000 messages, more than its'),
     (_say_file_compressed, 'not compressed as metadata.yaml says'),
     (_rename_type, "has type 'std_msgs/msg/String', expected"),
+    (_version, 'Rosbag2 version 10 not supported'),
+    (_json, "Serialization format {'json'} is not supported"),
 ])
 def test_hostile_metadata_reads_as_rosbags_does(tmp_path, storage, edit, outcome):
     rng = np.random.default_rng(7)
