@@ -25,8 +25,11 @@ per time range walks the same index and returns every role's messages end to end
 
 from __future__ import annotations
 
+import contextlib
 from pathlib import Path
+import queue
 import sqlite3
+import threading
 from typing import Any, Callable, Mapping, Sequence
 
 from gyro_tdc.data.bag.blocks import Pending, split, Unfit
@@ -59,7 +62,9 @@ class Sqlite3File:
     """
 
     def __init__(self, path: Path) -> None:
-        self.db = sqlite3.connect(f'{path.resolve().as_uri()}?mode=ro&immutable=1', uri=True)
+        # Shared with the thread that runs the range queries (see _Ranges).
+        self.db = sqlite3.connect(f'{path.resolve().as_uri()}?mode=ro&immutable=1', uri=True,
+                                  check_same_thread=False)
         try:
             self._open(path)
         except BaseException:
@@ -168,33 +173,66 @@ class _Ranges:
         return query
 
     def run(self) -> None:
-        """Read the file range by range."""
-        db, out = self.db, self.out
+        """
+        Read the file range by range, the queries a range ahead of the decode.
+
+        SQLite runs a query without the interpreter lock, so a second thread runs the next
+        range's query while this one decodes the last: a read that overlaps, on a second
+        core, the storage with the decode. Its answers come in order through a short queue.
+        """
         roles = list(self.ids)
-        floating = out.floating and 'temperature' in self.ids
+        floating = self.out.floating and 'temperature' in self.ids
         query = self._query(roles, floating)
-        # Two subqueries: each a single min() or max() that SQLite answers from the timestamp
-        # index; min() and max() in one SELECT scan the whole table.
-        lo, hi = db.execute('SELECT (SELECT min(timestamp) FROM messages), '
-                            '(SELECT max(timestamp) FROM messages)').fetchone()
-        if lo is None:
-            return
-        span = hi - lo + 1
-        step = max(1, min(span * self.chunk // max(self.expected, 1), span // 16))
-        pending = Pending(out, self.chunk)
-        t = lo
-        while t <= hi:
-            end = min(t + step, hi + 1)
-            row = db.execute(query, (t, end)).fetchone()
-            total = row[0]
-            if total:
+        answers: queue.Queue = queue.Queue(maxsize=2)
+        stop = threading.Event()
+        thread = threading.Thread(target=self._scan, args=(query, answers, stop),
+                                  name='gyro_tdc sqlite3 ranges', daemon=True)
+        thread.start()
+        pending = Pending(self.out, self.chunk)
+        try:
+            while (answer := answers.get()) is not None:
+                if isinstance(answer, BaseException):
+                    raise answer
+                row, t, end = answer
                 self._range(row, roles, t, end, floating, pending)
-                self.update(total)
-                step = int(min(max(step * self.chunk / total, step / 4), step * 4)) or 1
-            else:
-                step *= 2
-            t = end
-        pending.flush()
+                self.update(row[0])
+            pending.flush()
+        finally:
+            stop.set()
+            while thread.is_alive():          # unblock a thread waiting to hand an answer
+                with contextlib.suppress(queue.Empty):
+                    answers.get(timeout=0.05)
+            thread.join()
+
+    def _scan(self, query: str, answers: queue.Queue, stop: threading.Event) -> None:
+        """Run the range query over the file (a thread); hand each non-empty answer over."""
+        def put(item: Any) -> None:
+            while not stop.is_set():
+                with contextlib.suppress(queue.Full):
+                    answers.put(item, timeout=0.05)
+                    return
+        try:
+            # Two subqueries: each a single min() or max() that SQLite answers from the
+            # timestamp index; min() and max() in one SELECT scan the whole table.
+            lo, hi = self.db.execute('SELECT (SELECT min(timestamp) FROM messages), '
+                                     '(SELECT max(timestamp) FROM messages)').fetchone()
+            if lo is not None:
+                span = hi - lo + 1
+                step = max(1, min(span * self.chunk // max(self.expected, 1), span // 16))
+                t = lo
+                while t <= hi and not stop.is_set():
+                    end = min(t + step, hi + 1)
+                    row = self.db.execute(query, (t, end)).fetchone()
+                    if row[0]:
+                        put((row, t, end))
+                        step = int(min(max(step * self.chunk / row[0], step / 4),
+                                       step * 4)) or 1
+                    else:
+                        step *= 2
+                    t = end
+            put(None)
+        except BaseException as err:      # noqa: B902 (handed to the reading thread)
+            put(err)
 
     def _column(self, what: str, role: str, count: int, t: int, end: int
                 ) -> NDArray[np.int64]:
