@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import gc
+import mmap
 from pathlib import Path
 import shutil
 import sys
@@ -225,3 +226,30 @@ def test_views_kept_by_uncollected_cycles_do_not_break_the_next_block(several_ba
     for a, b in zip(cyclic, plain):
         np.testing.assert_array_equal(a.gyro, b.gyro)
         np.testing.assert_array_equal(a.temp_c, b.temp_c)
+
+
+# ------------------------------------------------------------------------------------------
+# The output columns
+# ------------------------------------------------------------------------------------------
+
+def test_large_columns_live_in_an_anonymous_mapping_small_ones_in_numpy():
+    # Large columns are not given numpy's huge-page advice (costly first touch).
+    big = reader._columns(1 << 20, 3)
+    assert big.shape == (1 << 20, 3) and big.dtype == np.float64 and big.flags.writeable
+    base = big
+    while isinstance(base, (np.ndarray, memoryview)):
+        base = base.base if isinstance(base, np.ndarray) else base.obj
+    assert isinstance(base, mmap.mmap)
+    small = reader._columns(10)
+    assert small.shape == (10,) and small.base is None
+
+
+def test_the_sink_grows_past_its_capacity_and_keeps_what_it_had():
+    sink = reader._Sink(4, (1, 2))
+    rows = np.arange(30.0).reshape(10, 3)
+    sink.add(np.arange(3.0), rows[:3])
+    sink.add(np.arange(3.0, 10.0), rows[3:])           # past the capacity of 4
+    t, a, b = sink.result()
+    np.testing.assert_array_equal(t, np.arange(10.0))
+    np.testing.assert_array_equal(a, rows[:, :1])
+    np.testing.assert_array_equal(b, rows[:, 1:])

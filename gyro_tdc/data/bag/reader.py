@@ -29,6 +29,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import io
 from itertools import islice
+import mmap
 from pathlib import Path
 import struct
 import sys
@@ -136,13 +137,29 @@ class BagData:
     via: str = field(default='', compare=False)
 
 
+def _columns(rows: int, width: int = 0) -> NDArray[np.float64]:
+    """
+    Return an uninitialised float64 array of ``rows`` (by ``width``) in ordinary pages.
+
+    numpy asks the kernel to back arrays of 4 MB or more with huge pages; where the kernel
+    then compacts memory to find them on first touch (transparent huge pages on advice,
+    as Ubuntu and Debian ship them), filling the columns costs several times more. An
+    anonymous mapping of the standard ``mmap`` gets the kernel's default pages.
+    """
+    shape = (rows, width) if width else (rows,)
+    size = rows * max(width, 1) * 8
+    if size < 1 << 22:
+        return np.empty(shape)
+    return np.frombuffer(mmap.mmap(-1, size), dtype=np.float64).reshape(shape)
+
+
 class _Sink:
     """Growable, preallocated output columns for one role: times plus value groups."""
 
     def __init__(self, capacity: int, widths: Sequence[int]) -> None:
         self.widths = list(widths)
-        self.t = np.empty(capacity)
-        self.v = [np.empty((capacity, w)) for w in self.widths]
+        self.t = _columns(capacity)
+        self.v = [_columns(capacity, w) for w in self.widths]
         self.n = 0
 
     def add(self, t: NDArray[np.float64], values: NDArray[np.float64]) -> None:
@@ -150,9 +167,10 @@ class _Sink:
         end = self.n + len(t)
         if end > len(self.t):
             cap = max(end, 2 * len(self.t))
-            self.t = np.concatenate([self.t[:self.n], np.empty(cap - self.n)])
-            self.v = [np.concatenate([v[:self.n], np.empty((cap - self.n, v.shape[1]))])
-                      for v in self.v]
+            grown = [_columns(cap)] + [_columns(cap, w) for w in self.widths]
+            for new, old in zip(grown, [self.t] + self.v):
+                new[:self.n] = old[:self.n]
+            self.t, self.v = grown[0], grown[1:]
         self.t[self.n:end] = t
         col = 0
         for v, w in zip(self.v, self.widths):
