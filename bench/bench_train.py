@@ -34,7 +34,7 @@ and prints the medians, ``train / raw`` (goal <= 1.0), ``train / storage``, the 
 and the model id of every train run. ``--stages`` adds in-process stages of the older
 benchmark (``load``: ``load_run``; ``train_paper``: ``--features dT,dT2 --no-accel``;
 ``rosbags``: ``read_bag(via='rosbags')``; ``mcap_package``: the ``mcap`` PyPI package's
-``iter_messages``, the alternative to rosbags' chunk index for mcap, not a dependency);
+``iter_messages``, an alternative to the columnar read of the MCAP format, not a dependency);
 ``--profile`` a cProfile of the train stage::
 
     .venv/bin/python bench/bench_train.py                       # both bags, both storages
