@@ -22,7 +22,7 @@ import sqlite3
 
 from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE
 from gyro_tdc.data.bag import codec, columnar, metadata, reader
-from gyro_tdc.data.bag.blocks import Unfit
+from gyro_tdc.data.bag.storage import Unfit
 from gyro_tdc.errors import DatasetError
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np

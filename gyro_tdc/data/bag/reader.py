@@ -37,9 +37,9 @@ from typing import Any, Callable, Mapping, Sequence
 
 import apsw
 from gyro_tdc.data.bag import columnar, metadata
-from gyro_tdc.data.bag.blocks import Unfit
 from gyro_tdc.data.bag.codec import (decode, decode_float, decode_joined, Decoded, FLOAT_TYPES,
                                      IMU_TYPE, jazzy, KEEP, REFERENCE_TYPE, TEMPERATURE_TYPES)
+from gyro_tdc.data.bag.storage import Unfit
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import NDArray

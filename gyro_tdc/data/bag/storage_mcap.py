@@ -31,8 +31,8 @@ import struct
 import sys
 from typing import Any, Callable, Mapping, NamedTuple
 
-from gyro_tdc.data.bag.blocks import Pending, Unfit
 from gyro_tdc.data.bag.metadata import Entry
+from gyro_tdc.data.bag.storage import Pending, Unfit
 import numpy as np
 
 if sys.version_info >= (3, 14):

@@ -32,8 +32,8 @@ import sqlite3
 import threading
 from typing import Any, Callable, Mapping, Sequence
 
-from gyro_tdc.data.bag.blocks import Pending, split, Unfit
 from gyro_tdc.data.bag.metadata import Entry
+from gyro_tdc.data.bag.storage import Pending, split, Unfit
 import numpy as np
 from numpy.typing import NDArray
 
