@@ -113,8 +113,8 @@ class _Ranges:
     """
     The messages of one file read by time ranges over its timestamp index.
 
-    Each range's query returns, per role, the count, the smallest and largest message and
-    the messages end to end; a role whose messages differ in size has their lengths fetched.
+    Each range's query returns, per role, the count, the shortest message and the messages
+    end to end; a role whose messages differ in size has their lengths fetched.
     The range grows or shrinks to hold about ``chunk`` messages.
     """
 
@@ -155,7 +155,7 @@ class _Ranges:
         cols = []
         for role in roles:
             f = f'FILTER (WHERE {self._in(role)})'
-            cols += [f'count(*) {f}', f'min(length(data)) {f}', f'max(length(data)) {f}',
+            cols += [f'count(*) {f}', f'min(length(data)) {f}',
                      f"CAST(group_concat(data, '') {f} AS BLOB)"]
         if floating:
             case = ' '.join(f'WHEN {self._in(r)} THEN {_CODES[r]!r}' for r in roles)
@@ -248,12 +248,15 @@ class _Ranges:
         out = self.out
         got = {}
         for k, role in enumerate(roles):
-            count, small, large, buf = row[1 + 4 * k:5 + 4 * k]
+            count, small, buf = row[1 + 3 * k:4 + 3 * k]
             if not count:
                 continue
-            lengths = (np.full(count, small, dtype=np.int64) if small == large
+            if buf is None:
+                raise Unfit(f'{role}: no blobs in a range')
+            # None shorter than the shortest: all of that length exactly when they add up.
+            lengths = (np.full(count, small, dtype=np.int64) if count * small == len(buf)
                        else self._column('length(data)', role, count, t, end))
-            if buf is None or len(buf) != int(lengths.sum()):
+            if len(buf) != int(lengths.sum()):
                 raise Unfit(f'{role}: the blobs of a range do not add up')
             got[role] = (count, buf, lengths)
 
