@@ -82,7 +82,7 @@ setup(
         'train': [
             'scipy>=1.11',
             'matplotlib>=3.6',
-            'rosbags>=0.11',
+            'rosbags>=0.11.9,<0.12',   # the public API read_bag is tested against
             'statsmodels>=0.14',
             'AllanTools>=2019.9',
             'tqdm>=4.60',

@@ -34,7 +34,7 @@ and prints the medians, ``train / raw`` (goal <= 1.0), ``train / storage``, the 
 and the model id of every train run. ``--stages`` adds in-process stages of the older
 benchmark (``load``: ``load_run``; ``train_paper``: ``--features dT,dT2 --no-accel``;
 ``rosbags``: ``read_bag(via='rosbags')``; ``mcap_package``: the ``mcap`` PyPI package's
-``iter_messages``, the alternative to rosbags' chunk index for mcap, not a dependency);
+``iter_messages``, an alternative to the columnar read of the MCAP format, not a dependency);
 ``--profile`` a cProfile of the train stage::
 
     .venv/bin/python bench/bench_train.py                       # both bags, both storages
@@ -252,8 +252,7 @@ print(n, b)
 _STORAGE = """
 import sys
 from pathlib import Path
-from gyro_tdc.data.bag import columnar, reader
-from gyro_tdc.data.bag.codec import jazzy
+from gyro_tdc.data.bag import columnar, metadata, reader
 bag = Path(sys.argv[1])
 wanted = [('imu', '/imu/data_raw', (reader.IMU_TYPE,), True),
           ('temperature', '/imu/temperature', reader.TEMPERATURE_TYPES, True)]
@@ -268,9 +267,9 @@ class Bytes:
     def other(self, role, raws, logs, before=None, fetch_logs=None):
         self.nbytes += sum(map(len, raws))
 out = Bytes()
-with columnar.open_reader(bag, jazzy()) as rd:
-    _, conns = reader._connections(rd, bag, wanted)
-    columnar.Source(rd, conns, reader._CHUNK).feed(out, lambda n: None)
+with columnar.open_bag(bag, metadata.load(bag)) as opened:
+    _, conns = reader._connections(opened.topics, opened.conns, bag, wanted)
+    opened.feed(conns, out, lambda n: None, reader._CHUNK)
 print(out.n_main, out.nbytes)
 """
 

@@ -30,7 +30,7 @@ from typing import Callable, Iterable
 
 from gyro_tdc.base import (MAX_RATE_RAD_S, MAX_TEMP_SLEW_C_S, plausible_temperatures,
                            RESTART_BACK_S, TEMP_PLAUSIBLE_C)
-from gyro_tdc.data.bag.reader import read_bag, small_pages
+from gyro_tdc.data.bag.reader import read_bag
 from gyro_tdc.data.dataflash import read_dataflash
 from gyro_tdc.data.flightlog import detect_format, flight_log_data, is_flight_log
 from gyro_tdc.data.options import BagOptions
@@ -251,7 +251,6 @@ def _follow_restarts(bag: object, data: object, gap: float) -> tuple[object, lis
     return replace(data, **new), out
 
 
-@small_pages()    # its full-length arrays too: see gyro_tdc.data.bag.reader.small_pages
 def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     """
     Read one bag into a :class:`~gyro_tdc.data.runs.Run` aligned on the IMU stamps.

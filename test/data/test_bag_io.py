@@ -293,22 +293,10 @@ def test_round_trip_over_several_blocks(tmp_path, storage, monkeypatch):
     assert got.fallback == {'imu': 0, 'temperature': 0, 'reference': 0}
 
 
-def test_read_bag_restores_numpy_page_advice(tmp_path, monkeypatch):
-    # read_bag turns numpy's huge-page advice off while it fills its columns and puts it
-    # back afterwards, also when the read fails half way.
-    calls = []
-    real = pytest.importorskip('numpy._core.multiarray')._set_madvise_hugepage
-
-    def spy(enabled):
-        calls.append(enabled)
-        return real(enabled)
-
-    monkeypatch.setattr('numpy._core.multiarray._set_madvise_hugepage', spy)
-    before = real(True)
-    real(before)
+def test_an_error_of_the_decoder_reaches_the_caller(tmp_path, monkeypatch):
+    # A DatasetError inside the read is the caller's, not a reason to read with rosbags.
     _small_bag(tmp_path / 'bag', 'sqlite3')
     assert len(read_bag(tmp_path / 'bag').gyro) == 300
-    assert calls == [False, before]
 
     def broken(*args, **kwargs):
         raise DatasetError('decoder broke')
@@ -316,8 +304,6 @@ def test_read_bag_restores_numpy_page_advice(tmp_path, monkeypatch):
     monkeypatch.setattr(reader, 'decode_joined', broken)
     with pytest.raises(DatasetError, match='decoder broke'):
         read_bag(tmp_path / 'bag')
-    assert calls == [False, before, False, before]
-    assert real(before) == before
 
 
 def test_write_bag_accepts_scalar_variance_and_no_reference(tmp_path):

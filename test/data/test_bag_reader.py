@@ -17,12 +17,13 @@
 from __future__ import annotations
 
 import gc
+import mmap
 from pathlib import Path
 import shutil
 import sys
 
 from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag
-from gyro_tdc.data.bag import reader
+from gyro_tdc.data.bag import metadata, reader
 from gyro_tdc.errors import DatasetError
 import numpy as np
 import pytest
@@ -105,10 +106,10 @@ def test_count_of_a_file_and_of_the_bag_must_be_whole_numbers(tmp_path, small_ba
 def test_counts_are_checked_against_the_smallest_message_of_each_type(tmp_path, small_bag):
     # Within the storage size for a 4-byte message of another type, impossible for Imu.
     size = (small_bag / 'bag.db3').stat().st_size
-    n = size // reader.min_message_bytes(IMU_TYPE) + 1
+    n = size // metadata.min_message_bytes(IMU_TYPE) + 1
     bag = edited(small_bag, tmp_path / 'bag', imu_count(n))
     _refused(bag, f'holds {n} messages', f'its {size} bytes of storage',
-             f'at least {reader.min_message_bytes(IMU_TYPE)} bytes')
+             f'at least {metadata.min_message_bytes(IMU_TYPE)} bytes')
 
 
 @pytest.mark.parametrize('msgtype', [IMU_TYPE, TEMPERATURE_TYPE, REFERENCE_TYPE])
@@ -122,7 +123,8 @@ def test_min_message_bytes_is_a_lower_bound_of_the_smallest_message(msgtype):
         TEMPERATURE_TYPE: lambda: types[TEMPERATURE_TYPE](header, 0.0, 0.0),
         REFERENCE_TYPE: lambda: types[REFERENCE_TYPE](header, vec)}[msgtype]()
     smallest = len(TS.serialize_cdr(msg, msgtype))
-    assert reader.min_message_bytes(msgtype) <= smallest < reader.min_message_bytes(msgtype) + 8
+    least = metadata.min_message_bytes(msgtype)
+    assert least <= smallest < least + 8
 
 
 @pytest.mark.parametrize('mode', ['message', 'file'])
@@ -156,7 +158,7 @@ def test_genuinely_compressed_bags_pass_the_count_check(tmp_path, mode):
     info = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
     assert info['compression_format'] == 'zstd'
     size = sum((bag / name).stat().st_size for name in info['relative_file_paths'])
-    assert size < N_IMU * reader.min_message_bytes(IMU_TYPE)
+    assert size < N_IMU * metadata.min_message_bytes(IMU_TYPE)
     got, want = read_bag(bag), read_bag(flat)
     np.testing.assert_array_equal(got.gyro, want.gyro)
     np.testing.assert_array_equal(got.temp_c, want.temp_c)
@@ -224,3 +226,30 @@ def test_views_kept_by_uncollected_cycles_do_not_break_the_next_block(several_ba
     for a, b in zip(cyclic, plain):
         np.testing.assert_array_equal(a.gyro, b.gyro)
         np.testing.assert_array_equal(a.temp_c, b.temp_c)
+
+
+# ------------------------------------------------------------------------------------------
+# The output columns
+# ------------------------------------------------------------------------------------------
+
+def test_large_columns_live_in_an_anonymous_mapping_small_ones_in_numpy():
+    # Large columns are not given numpy's huge-page advice (costly first touch).
+    big = reader._columns(1 << 20, 3)
+    assert big.shape == (1 << 20, 3) and big.dtype == np.float64 and big.flags.writeable
+    base = big
+    while isinstance(base, (np.ndarray, memoryview)):
+        base = base.base if isinstance(base, np.ndarray) else base.obj
+    assert isinstance(base, mmap.mmap)
+    small = reader._columns(10)
+    assert small.shape == (10,) and small.base is None
+
+
+def test_the_sink_grows_past_its_capacity_and_keeps_what_it_had():
+    sink = reader._Sink(4, (1, 2))
+    rows = np.arange(30.0).reshape(10, 3)
+    sink.add(np.arange(3.0), rows[:3])
+    sink.add(np.arange(3.0, 10.0), rows[3:])           # past the capacity of 4
+    t, a, b = sink.result()
+    np.testing.assert_array_equal(t, np.arange(10.0))
+    np.testing.assert_array_equal(a, rows[:, :1])
+    np.testing.assert_array_equal(b, rows[:, 1:])

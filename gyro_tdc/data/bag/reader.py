@@ -20,26 +20,26 @@ The storage is read column by column (:mod:`gyro_tdc.data.bag.columnar`) or, whe
 not apply, through rosbags' reader in blocks of raw messages; either way a
 :class:`Collector` decodes the blocks with the fixed-layout codec of
 :mod:`gyro_tdc.data.bag.codec` (rosbags' deserialiser where the layout does not hold) into
-columns sized by the counts of ``metadata.yaml``, checked first (:func:`check_counts`).
+columns sized by the counts of ``metadata.yaml``, checked first
+(:func:`~gyro_tdc.data.bag.metadata.check_counts`).
 """
 
 from __future__ import annotations
 
-import contextlib
 from dataclasses import dataclass, field
 import io
 from itertools import islice
-from pathlib import Path, PurePath
+import mmap
+from pathlib import Path
 import struct
 import sys
 from typing import Any, Callable, Mapping, Sequence
 
 import apsw
-from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
+from gyro_tdc.data.bag import columnar, metadata
 from gyro_tdc.data.bag.codec import (decode, decode_float, decode_joined, Decoded, FLOAT_TYPES,
-                                     IMU_TYPE, jazzy, KEEP, N_DOUBLES, REFERENCE_TYPE,
-                                     TEMPERATURE_TYPES)
-from gyro_tdc.data.imu_cdr import FRAME_ID
+                                     IMU_TYPE, jazzy, KEEP, REFERENCE_TYPE, TEMPERATURE_TYPES)
+from gyro_tdc.data.bag.storage import Unfit
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import NDArray
@@ -53,23 +53,16 @@ if sys.version_info >= (3, 14):
 else:                         # rosbags' own zstd before Python 3.14
     from backports.zstd import ZstdError
 
-__all__ = ['BagData', 'check_counts', 'min_message_bytes', 'read_bag', 'small_pages']
+__all__ = ['BagData', 'Collector', 'read_bag', 'VIA']
 
 # Messages per block when reading: small enough that a block's raw bytes (~5 MB of Imu) are
-# recycled by the allocator, large enough to amortise the per-block checks (1 << 14 read a
-# 1 h, 1 kHz bag ~5 % faster than 1 << 13 or 1 << 15 in bench/bench_train.py).
+# recycled by the allocator, large enough to amortise the per-block checks.
 _CHUNK = 1 << 14
 # rosbags' own errors, plus what its parsers let through on damaged files (found by fuzzing
 # sqlite3 and mcap bags: huge record lengths raise OverflowError from seek, short reads
 # struct.error); zstd's error (data not compressed as metadata.yaml says) is caught apart.
 _READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
                 UnicodeDecodeError, OverflowError, struct.error)
-#: Smallest zstd frame (magic, frame header, one block header): a message compressed on its
-#: own (``compression_mode: message``) takes at least this many bytes.
-ZSTD_MIN_FRAME_BYTES = 9
-#: Largest expansion of zstd (a 4-byte RLE block stands for up to 128 KiB): a storage file
-#: compressed whole (``compression_mode: file``) holds at most this many bytes per byte.
-ZSTD_MAX_RATIO = 32768
 
 
 def _seconds(stamp_ns: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -144,13 +137,29 @@ class BagData:
     via: str = field(default='', compare=False)
 
 
+def _columns(rows: int, width: int = 0) -> NDArray[np.float64]:
+    """
+    Return an uninitialised float64 array of ``rows`` (by ``width``) in ordinary pages.
+
+    numpy asks the kernel to back arrays of 4 MB or more with huge pages; where the kernel
+    then compacts memory to find them on first touch (transparent huge pages on advice,
+    as Ubuntu and Debian ship them), filling the columns costs several times more. An
+    anonymous mapping of the standard ``mmap`` gets the kernel's default pages.
+    """
+    shape = (rows, width) if width else (rows,)
+    size = rows * max(width, 1) * 8
+    if size < 1 << 22:
+        return np.empty(shape)
+    return np.frombuffer(mmap.mmap(-1, size), dtype=np.float64).reshape(shape)
+
+
 class _Sink:
     """Growable, preallocated output columns for one role: times plus value groups."""
 
     def __init__(self, capacity: int, widths: Sequence[int]) -> None:
         self.widths = list(widths)
-        self.t = np.empty(capacity)
-        self.v = [np.empty((capacity, w)) for w in self.widths]
+        self.t = _columns(capacity)
+        self.v = [_columns(capacity, w) for w in self.widths]
         self.n = 0
 
     def add(self, t: NDArray[np.float64], values: NDArray[np.float64]) -> None:
@@ -158,9 +167,10 @@ class _Sink:
         end = self.n + len(t)
         if end > len(self.t):
             cap = max(end, 2 * len(self.t))
-            self.t = np.concatenate([self.t[:self.n], np.empty(cap - self.n)])
-            self.v = [np.concatenate([v[:self.n], np.empty((cap - self.n, v.shape[1]))])
-                      for v in self.v]
+            grown = [_columns(cap)] + [_columns(cap, w) for w in self.widths]
+            for new, old in zip(grown, [self.t] + self.v):
+                new[:self.n] = old[:self.n]
+            self.t, self.v = grown[0], grown[1:]
         self.t[self.n:end] = t
         col = 0
         for v, w in zip(self.v, self.widths):
@@ -176,166 +186,6 @@ class _Sink:
         if self.n < 0.9 * len(self.t):
             return [x.copy() for x in out]
         return out
-
-
-@contextlib.contextmanager
-def small_pages() -> Any:
-    """
-    Turn numpy's transparent-huge-page advice off inside, restoring it after.
-
-    numpy advises the kernel to back every array of 4 MB or more with 2 MB pages. Where
-    transparent huge pages are enabled and defragmented on advice only (``madvise``, as
-    Ubuntu and Debian ship them), the first touch of such a page may stall while the kernel
-    compacts memory to find one; the columns filled block by block here (~200 MB for a 1 h,
-    1 kHz bag) then cost ~0.4 s CPU more than with ordinary pages
-    (``bench/bench_train.py``). The advice is numpy's private switch: where it is missing,
-    nothing changes. A context manager, also usable as a decorator (``load_run``).
-    """
-    try:
-        from numpy._core.multiarray import _set_madvise_hugepage as advise
-    except ImportError:           # numpy 1.x
-        try:
-            from numpy.core.multiarray import _set_madvise_hugepage as advise
-        except ImportError:
-            advise = None
-    if advise is None:
-        yield
-        return
-    previous = advise(False)
-    try:
-        yield
-    finally:
-        advise(previous)
-
-
-def _resolve(path: str | Path) -> Path:
-    """Return the rosbag2 directory of ``path`` or raise DatasetError saying why not."""
-    p = Path(path)
-    if not p.exists():
-        raise DatasetError(f'Bag {str(p)!r} does not exist.')
-    if p.is_file():
-        if p.suffix == '.bag':
-            raise DatasetError(f'Bag {str(p)!r} is a ROS 1 bag; expected a rosbag2 directory '
-                               '(convert it with rosbags-convert).')
-        if p.suffix in ('.db3', '.mcap') and (p.parent / 'metadata.yaml').is_file():
-            return p.parent
-        raise DatasetError(f'Bag {str(p)!r} is a file, not a rosbag2 directory (a folder '
-                           'with metadata.yaml and .db3 or .mcap files).')
-    if not (p / 'metadata.yaml').is_file():
-        found = sorted(x.name for x in p.iterdir())[:5]
-        raise DatasetError(f'Bag {str(p)!r} is not a rosbag2 directory: no metadata.yaml '
-                           f'(found {found or "nothing"}; `ros2 bag reindex` can rebuild it).')
-    return p
-
-
-def _metadata(bag: Path) -> Mapping:
-    """Return the ``rosbag2_bagfile_information`` of metadata.yaml (empty when absent)."""
-    meta_path = bag / 'metadata.yaml'
-    meta = load_yaml(meta_path.read_text(encoding='utf-8'), BAG_METADATA_LIMITS,
-                     source=str(meta_path), error=DatasetError)
-    info = meta.get('rosbag2_bagfile_information') if isinstance(meta, Mapping) else None
-    return info if isinstance(info, Mapping) else {}
-
-
-def min_message_bytes(msgtype: str) -> int:
-    """
-    Return the fewest bytes a serialized message of ``msgtype`` can take.
-
-    The three recorded types are a header (CDR encapsulation, stamp, a ``frame_id`` of at
-    least its NUL) and a run of float64 values; any other type at least its 4-byte CDR
-    encapsulation.
-    """
-    if msgtype in N_DOUBLES:
-        return FRAME_ID + 1 + 8 * N_DOUBLES[msgtype]
-    return 4
-
-
-def _storage_bytes(bag: Path, info: Mapping) -> int | None:
-    """Return the size of the storage files metadata.yaml lists, bytes (None: one is missing)."""
-    names = info.get('relative_file_paths')
-    total = 0
-    for name in names if isinstance(names, list) else []:
-        try:
-            total += (bag / PurePath(str(name)).name).stat().st_size
-        except OSError:
-            return None           # rosbags names the missing file
-    return total
-
-
-def _topic_counts(info: Mapping) -> list[tuple[str, str, Any]]:
-    """Return (name, type, message_count) of every well-formed topic entry of the metadata."""
-    out = []
-    entries = info.get('topics_with_message_count')
-    for entry in entries if isinstance(entries, list) else []:
-        meta = entry.get('topic_metadata') if isinstance(entry, Mapping) else None
-        if isinstance(meta, Mapping) and 'message_count' in entry:
-            out.append((str(meta.get('name')), str(meta.get('type')), entry['message_count']))
-    return out
-
-
-def check_counts(bag: Path, info: Mapping) -> None:
-    """
-    Check that the message counts of a bag's metadata are plausible, before any sizing.
-
-    Every count (per topic, per file and in total) must be a whole number >= 0, and the
-    topics together no more messages than the storage files can hold: each message takes
-    at least :func:`min_message_bytes` of its type (at least ``ZSTD_MIN_FRAME_BYTES`` when
-    compressed message by message; a file compressed whole, or an mcap file of compressed
-    chunks, holds at most ``ZSTD_MAX_RATIO`` times its size). The columns are sized by
-    the counts no further than the storage can hold uncompressed, and grow past that.
-
-    Parameters
-    ----------
-    bag : Path
-        The bag directory.
-    info : Mapping
-        Its ``rosbag2_bagfile_information`` (rosbags reports its topic counts unchecked).
-
-    Raises
-    ------
-    DatasetError
-        One line naming the bag, the count and why it cannot be true (a storage file cut
-        short fails here too).
-
-    """
-    where = f'Cannot read bag {str(bag)!r} (unreadable or corrupt): metadata.yaml'
-    fix = '`ros2 bag reindex` rebuilds metadata.yaml from the storage files'
-    topics = _topic_counts(info)
-    counts = [(f'topic {name!r}', count) for name, _, count in topics]
-    files = info.get('files')
-    counts += [(f'file {f.get("path")!r}', f['message_count'])
-               for f in (files if isinstance(files, list) else [])
-               if isinstance(f, Mapping) and 'message_count' in f]
-    if 'message_count' in info:
-        counts.append(('the bag', info['message_count']))
-    for what, count in counts:
-        if isinstance(count, bool) or not isinstance(count, int) or count < 0:
-            raise DatasetError(f'{where} gives {what} a message_count of {count!r:.40}, not a '
-                               f'whole number >= 0 ({fix}).')
-    size = _storage_bytes(bag, info)
-    if size is None:
-        return
-    mode = str(info.get('compression_mode') or '').lower()
-    # A storage file compressed whole, or an mcap file whose chunks are (zstd or lz4, which
-    # metadata.yaml does not say), holds more than its size.
-    packed = mode == 'file' or str(info.get('storage_identifier', '')) == 'mcap'
-    room = size * ZSTD_MAX_RATIO if packed else size
-    need = 0
-    for name, msgtype, count in topics:
-        each = ZSTD_MIN_FRAME_BYTES if mode == 'message' else min_message_bytes(msgtype)
-        need += count * each
-        if need > room:
-            raise DatasetError(f'{where} says topic {name!r} holds {count} messages, more '
-                               f'than its {size} bytes of storage can hold (a {msgtype} '
-                               f'message takes at least {each} bytes): the storage is '
-                               f'truncated or the metadata wrong ({fix}).')
-
-
-def _describe(topics: dict[str, tuple[str, int]]) -> str:
-    """Return 'name (type, N msgs), ...' for error messages."""
-    if not topics:
-        return 'none'
-    return ', '.join(f'{k} ({t}, {c} msgs)' for k, (t, c) in sorted(topics.items()))
 
 
 def _reusable(scratch: io.BytesIO) -> io.BytesIO:
@@ -410,44 +260,41 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
         ``via='columnar'`` also when the columnar read does not apply).
 
     """
-    from gyro_tdc.data.bag import columnar
-
     if via not in VIA:
         raise DatasetError(f'Expected `via` to be one of {", ".join(VIA)}, got {via!r}.')
-    bag = _resolve(path)
+    bag = metadata.resolve(path)
     info: Mapping = {}
     wanted = [('imu', imu_topic, (IMU_TYPE,), True),
               ('temperature', temperature_topic, TEMPERATURE_TYPES, True)]
     if reference_topic is not None:
         wanted.append(('reference', reference_topic, (REFERENCE_TYPE,), False))
     try:
-        info = _metadata(bag)
-        storage = str(info.get('storage_identifier', ''))
-        check_counts(bag, info)
-        if via != 'rosbags':
-            why = columnar.unfit(info)
-            if why is None:
-                try:
-                    with columnar.open_reader(bag, jazzy()) as reader:
-                        topics, conns = _connections(reader, bag, wanted)
-                        source = columnar.Source(reader, conns, _CHUNK)
-                        with small_pages():
-                            return _collect(source, reader.typestore, bag, info, storage,
-                                            topics, conns, progress, accel, 'columnar')
-                except columnar.Unfit as err:
-                    why = str(err)
-                except DatasetError:
-                    raise                     # a topic missing or of the wrong type
-                except Exception as err:      # noqa: B902 (whatever it is, rosbags decides)
-                    # Let rosbags read it, or say what is wrong with it.
-                    why = f'{type(err).__name__}: {one_line(err)}'
-            if via == 'columnar':
-                raise DatasetError(f'Cannot read bag {str(bag)!r} column by column: {why}.')
+        info = metadata.load(bag)
+        metadata.check_counts(bag, info)
+        why = columnar.unfit(info) if via != 'rosbags' else None
+        if via != 'rosbags' and why is None:
+            try:
+                with columnar.open_bag(bag, info) as opened:
+                    topics, conns = _connections(opened.topics, opened.conns, bag, wanted)
+                    return _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
+                                    opened.main_logs, opened.typestore, bag, info, topics,
+                                    conns, progress, accel, 'columnar')
+            except Unfit as err:
+                why = str(err)
+            except DatasetError:
+                raise                     # a topic missing or of the wrong type
+            except Exception as err:      # noqa: B902 (whatever it is, rosbags decides)
+                # Let rosbags read it, or say what is wrong with it.
+                why = f'{type(err).__name__}: {one_line(err)}'
+        if via == 'columnar':
+            raise DatasetError(f'Cannot read bag {str(bag)!r} column by column: {why}.')
         with AnyReader([bag], default_typestore=jazzy()) as reader:
-            topics, conns = _connections(reader, bag, wanted)
-            with small_pages():
-                return _collect(_RosbagsSource(reader, conns), reader.typestore, bag, info,
-                                storage, topics, conns, progress, accel, 'rosbags')
+            topics, conns = _connections(
+                {name: (t.msgtype or '?', int(t.msgcount)) for name, t in reader.topics.items()},
+                reader.connections, bag, wanted)
+            source = _RosbagsSource(reader, conns)
+            return _collect(source.feed, source.main_logs, reader.typestore, bag, info, topics,
+                            conns, progress, accel, 'rosbags')
     except ZstdError as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r}: its data are not compressed as '
                            f'metadata.yaml says (compression_format '
@@ -458,17 +305,21 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                            f'{one_line(err)}') from err
 
 
-def _connections(reader: AnyReader, bag: Path, wanted: Sequence[tuple[str, str, tuple, bool]]
+def _connections(topics: dict[str, tuple[str, int]], connections: Sequence[Any], bag: Path,
+                 wanted: Sequence[tuple[str, str, tuple, bool]]
                  ) -> tuple[dict[str, tuple[str, int]], dict[str, list[Any]]]:
-    """Return the bag's topics (name -> (type, count)) and the connections of each role."""
-    topics = {name: (topic.msgtype or '?', int(topic.msgcount))
-              for name, topic in reader.topics.items()}
+    """
+    Check the wanted topics; return the bag's topics and the connections of each role.
+
+    ``topics`` maps every topic to (type, count); ``connections`` are rosbags' or those of
+    metadata.yaml (anything with ``topic`` and ``msgcount``).
+    """
     conns: dict[str, list[Any]] = {}
     for role, topic, msgtype, required in wanted:
         if topic not in topics:
             if required:
                 raise DatasetError(f'Bag {str(bag)!r} has no topic {topic!r} ({role}); topics '
-                                   f'present: {_describe(topics)}.')
+                                   f'present: {metadata.describe(topics)}.')
             continue
         if topics[topic][0] not in msgtype:
             expected = ' or '.join(repr(x) for x in msgtype)
@@ -476,7 +327,7 @@ def _connections(reader: AnyReader, bag: Path, wanted: Sequence[tuple[str, str, 
                                f'{topics[topic][0]!r}, expected {expected}.')
         if topics[topic][1] == 0 and required:
             raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has no messages.')
-        conns[role] = [c for c in reader.connections if c.topic == topic]
+        conns[role] = [c for c in connections if c.topic == topic]
     return topics, conns
 
 
@@ -626,25 +477,27 @@ class Collector:
             storage=storage, path=str(bag), fallback=self.fallback, via=via)
 
 
-def _collect(source: Any, typestore: Any, bag: Path, info: Mapping, storage: str,
-             topics: dict[str, tuple[str, int]], conns: dict[str, list[Any]], progress: bool,
-             with_accel: bool, via: str) -> BagData:
-    """Feed ``source``'s blocks to a :class:`Collector` and return the result."""
+def _collect(feed: Callable[[Collector, Callable[[int], Any]], None],
+             main_logs: Callable[[NDArray[np.int64]], NDArray[np.int64]], typestore: Any,
+             bag: Path, info: Mapping, topics: dict[str, tuple[str, int]],
+             conns: dict[str, list[Any]], progress: bool, with_accel: bool, via: str
+             ) -> BagData:
+    """Feed a storage read's blocks (``feed(collector, update)``) to a :class:`Collector`."""
     from tqdm import tqdm
 
     roles = list(conns)
     msgtypes = {'imu': IMU_TYPE, 'temperature': topics[conns['temperature'][0].topic][0],
                 'reference': REFERENCE_TYPE}
     expected = {role: sum(int(c.msgcount) for c in conns[role]) for role in roles}
-    size = _storage_bytes(bag, info)
+    size = metadata.storage_bytes(bag, info)
     if size is not None:             # compressed storage may hold more: the sinks grow
-        expected = {role: min(n, size // min_message_bytes(msgtypes[role]) + 1)
+        expected = {role: min(n, size // metadata.min_message_bytes(msgtypes[role]) + 1)
                     for role, n in expected.items()}
     out = Collector(roles, msgtypes, expected, typestore, with_accel)
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
-        source.feed(out, bar.update)
-    return out.result(bag, storage, topics, via, source.main_logs)
+        feed(out, bar.update)
+    return out.result(bag, str(info.get('storage_identifier', '')), topics, via, main_logs)
 
 
 class _RosbagsSource:

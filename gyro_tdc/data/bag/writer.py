@@ -26,7 +26,7 @@ from __future__ import annotations
 from pathlib import Path
 import shutil
 import sqlite3
-from typing import Callable
+from typing import Any, Callable, NamedTuple, Sequence
 
 from gyro_tdc.data.bag.codec import (encode_checked, IMU_TYPE, jazzy, REFERENCE_TYPE,
                                      TEMPERATURE_TYPE)
@@ -133,28 +133,55 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
         raise DatasetError(f"Expected `storage` to be 'sqlite3' or 'mcap', got {storage!r}.")
     if not isinstance(frame_id, str):
         raise DatasetError(f'Expected `frame_id` to be a str, got {type(frame_id).__name__}.')
-    imu_sec, imu_nsec = _times('imu_t', imu_t)
-    n = len(imu_sec)
-    gyro = _values('gyro', gyro, (n, 3))
-    accel = _values('accel', accel, (n, 3))
-    gcov = _values('gyro_cov', np.zeros(3) if gyro_cov is None else gyro_cov, (3,))
-    acov = _values('accel_cov', np.zeros(3) if accel_cov is None else accel_cov, (3,))
+    streams = [_imu_stream(imu_topic, imu_t, gyro, accel, gyro_cov, accel_cov)]
     temp_sec, temp_nsec = _times('temp_t', temp_t)
     m = len(temp_sec)
     temp_c = _values('temp_c', temp_c, (m,))
     tvar = np.asarray(temp_var, dtype=np.float64)
     tvar = _values('temp_var', np.broadcast_to(tvar, (m,)) if tvar.ndim == 0 else tvar, (m,))
+    streams.append(_Stream(temperature_topic, TEMPERATURE_TYPE, temp_sec, temp_nsec,
+                           lambda idx: np.stack([temp_c[idx], tvar[idx]], axis=1)))
     if (ref_t is None) != (ref is None):
         raise DatasetError('Expected `ref_t` and `ref` to be given together, got only '
                            f"{'ref_t' if ref is None else 'ref'}.")
     if ref_t is not None:
         ref_sec, ref_nsec = _times('ref_t', ref_t)
         ref = _values('ref', ref, (len(ref_sec), 3))
-    else:
-        ref_sec = ref_nsec = np.zeros(0, dtype=np.int64)
-        ref = np.zeros((0, 3))
+        streams.append(_Stream(reference_topic, REFERENCE_TYPE, ref_sec, ref_nsec,
+                               lambda idx: ref[idx]))
+    for topic, msgtype, t_x, msgs in extra:
+        sec_x, nsec_x = _times(f'extra {topic} t', t_x)
+        if len(msgs) != len(sec_x):
+            raise DatasetError(f'Expected as many messages as stamps for {topic!r}, got '
+                               f'{len(msgs)} and {len(sec_x)}.')
+        streams.append(_Stream(topic, msgtype, sec_x, nsec_x,
+                               lambda idx, msgs=msgs: [msgs[i] for i in idx.tolist()], True))
+    names = [x.topic for x in streams]
+    if len(set(names)) != len(names):
+        raise DatasetError(f'Expected distinct topic names, got {names}.')
+    _write(Path(path), storage, frame_id, streams)
 
-    # The float64 blocks of every message, built lazily per chunk below.
+
+class _Stream(NamedTuple):
+    """One topic to write: stamps, and its messages' float64 blocks (or raw messages)."""
+
+    topic: str
+    msgtype: str
+    sec: NDArray[np.int64]
+    nsec: NDArray[np.int64]
+    block: Callable[[NDArray[np.int64]], Any]     # message indices -> blocks or messages
+    raw: bool = False
+
+
+def _imu_stream(topic: str, imu_t: ArrayLike, gyro: ArrayLike, accel: ArrayLike,
+                gyro_cov: ArrayLike | None, accel_cov: ArrayLike | None) -> _Stream:
+    """Return the Imu stream after checking its arrays (REP 145 orientation and covariances)."""
+    imu_sec, imu_nsec = _times('imu_t', imu_t)
+    n = len(imu_sec)
+    gyro = _values('gyro', gyro, (n, 3))
+    accel = _values('accel', accel, (n, 3))
+    gcov = _values('gyro_cov', np.zeros(3) if gyro_cov is None else gyro_cov, (3,))
+    acov = _values('accel_cov', np.zeros(3) if accel_cov is None else accel_cov, (3,))
     imu_const = np.zeros(IMU_DOUBLES)
     orientation = imu_const[field_slice('orientation')]
     orientation[3] = 1.0           # orientation w
@@ -168,34 +195,16 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
         block[:, gyro_cols] = gyro[idx]
         block[:, accel_cols] = accel[idx]
         return block
+    return _Stream(topic, IMU_TYPE, imu_sec, imu_nsec, imu_block)
 
-    topics: list[tuple[str, str, NDArray[np.int64], NDArray[np.int64],
-                       Callable[[NDArray[np.int64]], NDArray[np.float64]]]] = [
-        (imu_topic, IMU_TYPE, imu_sec, imu_nsec, imu_block),
-        (temperature_topic, TEMPERATURE_TYPE, temp_sec, temp_nsec,
-         lambda idx: np.stack([temp_c[idx], tvar[idx]], axis=1)),
-    ]
-    if ref_t is not None:
-        topics.append((reference_topic, REFERENCE_TYPE, ref_sec, ref_nsec, lambda idx: ref[idx]))
-    raw_topics = set()
-    for topic, msgtype, t_x, msgs in extra:
-        sec_x, nsec_x = _times(f'extra {topic} t', t_x)
-        if len(msgs) != len(sec_x):
-            raise DatasetError(f'Expected as many messages as stamps for {topic!r}, got '
-                               f'{len(msgs)} and {len(sec_x)}.')
-        raw_topics.add(len(topics))
-        topics.append((topic, msgtype, sec_x, nsec_x, lambda idx, msgs=msgs: msgs))
-    names = [x[0] for x in topics]
-    if len(set(names)) != len(names):
-        raise DatasetError(f'Expected distinct topic names, got {names}.')
 
-    # Global time order across topics (stable: IMU first on equal stamps).
-    stamps = np.concatenate([x[2] * 1_000_000_000 + x[3] for x in topics])
-    which = np.concatenate([np.full(len(x[2]), k, dtype=np.int64) for k, x in enumerate(topics)])
-    index = np.concatenate([np.arange(len(x[2])) for x in topics])
+def _write(path: Path, storage: str, frame_id: str, streams: Sequence[_Stream]) -> None:
+    """Write the streams' messages in time order across topics (IMU first on equal stamps)."""
+    stamps = np.concatenate([x.sec * 1_000_000_000 + x.nsec for x in streams])
+    which = np.concatenate([np.full(len(x.sec), k, dtype=np.int64)
+                            for k, x in enumerate(streams)])
+    index = np.concatenate([np.arange(len(x.sec)) for x in streams])
     order = np.argsort(stamps, kind='stable')
-
-    path = Path(path)
     if path.exists():
         raise DatasetError(f'Cannot create bag {str(path)!r}: the path exists already '
                            '(write_bag never overwrites).')
@@ -206,23 +215,19 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
         raise DatasetError(f'Cannot create bag {str(path)!r}: {one_line(err)}') from err
     ok = False
     try:
-        conns = [writer.add_connection(name, msgtype, typestore=jazzy(),
-                                       offered_qos_profiles=[_QOS])
-                 for name, msgtype, *_ in topics]
+        conns = [writer.add_connection(x.topic, x.msgtype, typestore=jazzy(),
+                                       offered_qos_profiles=[_QOS]) for x in streams]
         for k0 in range(0, len(order), _WRITE_CHUNK):
             sel = order[k0:k0 + _WRITE_CHUNK]
             sel_which = which[sel]
             payload: list[bytes] = [b''] * len(sel)
-            for k, (_, msgtype, sec, nsec, block) in enumerate(topics):
+            for k, x in enumerate(streams):
                 pos = np.flatnonzero(sel_which == k)
                 if not pos.size:
                     continue
                 idx = index[sel[pos]]
-                if k in raw_topics:
-                    raws = block(idx)
-                    encoded = [raws[i] for i in idx.tolist()]
-                else:
-                    encoded = encode_checked(msgtype, sec[idx], nsec[idx], frame_id, block(idx))
+                encoded = (x.block(idx) if x.raw else encode_checked(
+                    x.msgtype, x.sec[idx], x.nsec[idx], frame_id, x.block(idx)))
                 for p, raw in zip(pos.tolist(), encoded):
                     payload[p] = raw
             write = writer.write

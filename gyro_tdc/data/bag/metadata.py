@@ -1,0 +1,244 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+A rosbag2 directory's ``metadata.yaml``: where the bag is, its topics, and checks of its counts.
+
+The counts size every column of :func:`gyro_tdc.data.bag.reader.read_bag`, so they are checked
+against what the storage files can hold before anything is allocated (:func:`check_counts`).
+:func:`entries` reads the topic entries as rosbags' reader does and refuses, with
+:class:`ValueError`, what rosbags refuses: the columnar read then leaves the bag to rosbags.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path, PurePath
+from typing import Any, Mapping, NamedTuple
+
+from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
+from gyro_tdc.data.bag.codec import N_DOUBLES
+from gyro_tdc.data.imu_cdr import FRAME_ID
+from gyro_tdc.errors import DatasetError
+
+__all__ = ['check_counts', 'describe', 'entries', 'Entry', 'load', 'min_message_bytes',
+           'qos', 'resolve', 'storage_bytes', 'topics_of', 'ZSTD_MAX_RATIO',
+           'ZSTD_MIN_FRAME_BYTES']
+
+#: Smallest zstd frame (magic, frame header, one block header): a message compressed on its
+#: own (``compression_mode: message``) takes at least this many bytes.
+ZSTD_MIN_FRAME_BYTES = 9
+#: Largest expansion of zstd (a 4-byte RLE block stands for up to 128 KiB): a storage file
+#: compressed whole (``compression_mode: file``) holds at most this many bytes per byte.
+ZSTD_MAX_RATIO = 32768
+# The newest metadata version rosbags reads (Jazzy writes 9).
+_VERSION = 9
+
+
+def resolve(path: str | Path) -> Path:
+    """Return the rosbag2 directory of ``path`` or raise DatasetError saying why not."""
+    p = Path(path)
+    if not p.exists():
+        raise DatasetError(f'Bag {str(p)!r} does not exist.')
+    if p.is_file():
+        if p.suffix == '.bag':
+            raise DatasetError(f'Bag {str(p)!r} is a ROS 1 bag; expected a rosbag2 directory '
+                               '(convert it with rosbags-convert).')
+        if p.suffix in ('.db3', '.mcap') and (p.parent / 'metadata.yaml').is_file():
+            return p.parent
+        raise DatasetError(f'Bag {str(p)!r} is a file, not a rosbag2 directory (a folder '
+                           'with metadata.yaml and .db3 or .mcap files).')
+    if not (p / 'metadata.yaml').is_file():
+        found = sorted(x.name for x in p.iterdir())[:5]
+        raise DatasetError(f'Bag {str(p)!r} is not a rosbag2 directory: no metadata.yaml '
+                           f'(found {found or "nothing"}; `ros2 bag reindex` can rebuild it).')
+    return p
+
+
+def load(bag: Path) -> Mapping:
+    """Return the ``rosbag2_bagfile_information`` of metadata.yaml (empty when absent)."""
+    meta_path = bag / 'metadata.yaml'
+    meta = load_yaml(meta_path.read_text(encoding='utf-8'), BAG_METADATA_LIMITS,
+                     source=str(meta_path), error=DatasetError)
+    info = meta.get('rosbag2_bagfile_information') if isinstance(meta, Mapping) else None
+    return info if isinstance(info, Mapping) else {}
+
+
+def min_message_bytes(msgtype: str) -> int:
+    """
+    Return the fewest bytes a serialized message of ``msgtype`` can take.
+
+    The three recorded types are a header (CDR encapsulation, stamp, a ``frame_id`` of at
+    least its NUL) and a run of float64 values; any other type at least its 4-byte CDR
+    encapsulation.
+    """
+    if msgtype in N_DOUBLES:
+        return FRAME_ID + 1 + 8 * N_DOUBLES[msgtype]
+    return 4
+
+
+def storage_bytes(bag: Path, info: Mapping) -> int | None:
+    """Return the size of the storage files metadata.yaml lists, bytes (None: one is missing)."""
+    names = info.get('relative_file_paths')
+    total = 0
+    for name in names if isinstance(names, list) else []:
+        try:
+            total += (bag / PurePath(str(name)).name).stat().st_size
+        except OSError:
+            return None           # rosbags names the missing file
+    return total
+
+
+def _topic_counts(info: Mapping) -> list[tuple[str, str, Any]]:
+    """Return (name, type, message_count) of every well-formed topic entry of the metadata."""
+    out = []
+    found = info.get('topics_with_message_count')
+    for entry in found if isinstance(found, list) else []:
+        meta = entry.get('topic_metadata') if isinstance(entry, Mapping) else None
+        if isinstance(meta, Mapping) and 'message_count' in entry:
+            out.append((str(meta.get('name')), str(meta.get('type')), entry['message_count']))
+    return out
+
+
+def check_counts(bag: Path, info: Mapping) -> None:
+    """
+    Check that the message counts of a bag's metadata are plausible, before any sizing.
+
+    Every count (per topic, per file and in total) must be a whole number >= 0, and the
+    topics together no more messages than the storage files can hold: each message takes
+    at least :func:`min_message_bytes` of its type (at least ``ZSTD_MIN_FRAME_BYTES`` when
+    compressed message by message; a file compressed whole, or an mcap file of compressed
+    chunks, holds at most ``ZSTD_MAX_RATIO`` times its size).
+
+    Parameters
+    ----------
+    bag : Path
+        The bag directory.
+    info : Mapping
+        Its ``rosbag2_bagfile_information`` (rosbags reports its topic counts unchecked).
+
+    Raises
+    ------
+    DatasetError
+        One line naming the bag, the count and why it cannot be true (a storage file cut
+        short fails here too).
+
+    """
+    where = f'Cannot read bag {str(bag)!r} (unreadable or corrupt): metadata.yaml'
+    fix = '`ros2 bag reindex` rebuilds metadata.yaml from the storage files'
+    topics = _topic_counts(info)
+    counts = [(f'topic {name!r}', count) for name, _, count in topics]
+    files = info.get('files')
+    counts += [(f'file {f.get("path")!r}', f['message_count'])
+               for f in (files if isinstance(files, list) else [])
+               if isinstance(f, Mapping) and 'message_count' in f]
+    if 'message_count' in info:
+        counts.append(('the bag', info['message_count']))
+    for what, count in counts:
+        if isinstance(count, bool) or not isinstance(count, int) or count < 0:
+            raise DatasetError(f'{where} gives {what} a message_count of {count!r:.40}, not a '
+                               f'whole number >= 0 ({fix}).')
+    size = storage_bytes(bag, info)
+    if size is None:
+        return
+    mode = str(info.get('compression_mode') or '').lower()
+    # A storage file compressed whole, or an mcap file whose chunks are (zstd or lz4, which
+    # metadata.yaml does not say), holds more than its size.
+    packed = mode == 'file' or str(info.get('storage_identifier', '')) == 'mcap'
+    room = size * ZSTD_MAX_RATIO if packed else size
+    need = 0
+    for name, msgtype, count in topics:
+        each = ZSTD_MIN_FRAME_BYTES if mode == 'message' else min_message_bytes(msgtype)
+        need += count * each
+        if need > room:
+            raise DatasetError(f'{where} says topic {name!r} holds {count} messages, more '
+                               f'than its {size} bytes of storage can hold (a {msgtype} '
+                               f'message takes at least {each} bytes): the storage is '
+                               f'truncated or the metadata wrong ({fix}).')
+
+
+def describe(topics: Mapping[str, tuple[str, int]]) -> str:
+    """Return 'name (type, N msgs), ...' for error messages."""
+    if not topics:
+        return 'none'
+    return ', '.join(f'{k} ({t}, {c} msgs)' for k, (t, c) in sorted(topics.items()))
+
+
+def qos(value: Any) -> Any:
+    """Return offered QoS profiles as plain data (storage files keep them as YAML text)."""
+    if isinstance(value, str):
+        value = load_yaml(value, BAG_METADATA_LIMITS, source='offered_qos_profiles',
+                          error=DatasetError)
+    return value or []
+
+
+class Entry(NamedTuple):
+    """A connection: a topic entry of metadata.yaml, or a topic of one storage file."""
+
+    id: int
+    topic: str
+    msgtype: str
+    msgcount: int
+    fmt: str
+    qos: Any
+    digest: str
+
+    def same(self, other: Entry) -> bool:
+        """Return whether a storage file's connection is this one, as rosbags matches them."""
+        return (self.topic == other.topic and self.msgtype == other.msgtype
+                and self.fmt == other.fmt and qos(self.qos) == qos(other.qos)
+                and (not self.digest or not other.digest or self.digest == other.digest))
+
+
+def entries(bag: Path, info: Mapping) -> list[Entry]:
+    """
+    Return the connections of metadata.yaml, refusing what rosbags' reader refuses.
+
+    Raises
+    ------
+    ValueError
+        A version, storage, compression or serialization rosbags does not read, a missing
+        storage file or a missing key; rosbags' reader then says what is wrong.
+
+    """
+    try:
+        if info['version'] > _VERSION:
+            raise ValueError(f'metadata version {info["version"]!r:.20}')
+        if info['storage_identifier'] not in ('sqlite3', 'mcap'):
+            raise ValueError(f'storage {info["storage_identifier"]!r:.20}')
+        if any(not (bag / PurePath(x).name).exists() for x in info['relative_file_paths']):
+            raise ValueError('a storage file is missing')
+        mode = info.get('compression_mode', '').lower()
+        if mode not in ('', 'none') and info.get('compression_format') != 'zstd':
+            raise ValueError('compression other than zstd')
+        out = [Entry(k + 1, x['topic_metadata']['name'], x['topic_metadata']['type'],
+                     x['message_count'], x['topic_metadata']['serialization_format'],
+                     x['topic_metadata'].get('offered_qos_profiles', []),
+                     x['topic_metadata'].get('type_description_hash', ''))
+               for k, x in enumerate(info['topics_with_message_count'])]
+        _ = (info['duration']['nanoseconds'], info['starting_time']['nanoseconds_since_epoch'],
+             info['message_count'])
+    except (KeyError, TypeError, AttributeError) as err:
+        raise ValueError(f'metadata.yaml: {type(err).__name__} {err}') from err
+    if any(x.fmt != 'cdr' for x in out):
+        raise ValueError('a serialization format other than cdr')
+    return out
+
+
+def topics_of(conns: list[Entry]) -> dict[str, tuple[str, int]]:
+    """Return name -> (type, message count) of connections, as rosbags' ``topics`` has them."""
+    out: dict[str, tuple[str, int]] = {}
+    for c in sorted(conns, key=lambda x: x.topic):
+        msgtype, count = out.get(c.topic, (c.msgtype, 0))
+        out[c.topic] = (msgtype if msgtype == c.msgtype else '?', count + int(c.msgcount))
+    return out

@@ -1,0 +1,352 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+rosbag2's mcap storage read through the documented MCAP format (https://mcap.dev/spec).
+
+The summary section (found through the footer) lists the schemas, the channels and a chunk
+index; each wanted chunk is decompressed once (zstd; lz4 is left to rosbags) and its message
+records found with numpy. rosbags merges the chunks by log time (ties by chunk offset), each
+chunk's messages in a stable sort by log time, those outside the chunk's indexed span
+dropped; when the chunks' spans follow each other in file order, that is the chunks one
+after the other, which is what this reads (anything else is :class:`Unfit`: rosbags reads).
+"""
+
+from __future__ import annotations
+
+from binascii import crc32
+from pathlib import Path
+import struct
+import sys
+from typing import Any, Callable, Mapping, NamedTuple
+
+from gyro_tdc.data.bag.metadata import Entry
+from gyro_tdc.data.bag.storage import Pending, Unfit
+import numpy as np
+
+if sys.version_info >= (3, 14):
+    from compression import zstd
+else:                         # rosbags' own zstd before Python 3.14
+    from backports import zstd
+
+__all__ = ['McapFile']
+
+_MAGIC = b'\x89MCAP0\r\n'
+_FOOTER = b'\x02\x14\x00\x00\x00\x00\x00\x00\x00'     # opcode and length of the footer
+_SCHEMA, _CHANNEL, _MESSAGE, _CHUNK_INDEX, _STATISTICS = 0x03, 0x04, 0x05, 0x08, 0x0B
+_SUMMARY_END = (0x02, 0x0E)                            # footer, summary offset
+
+
+class _Chunk(NamedTuple):
+    """A chunk index record (the fields this read uses)."""
+
+    start: int                 # message_start_time, ns
+    end: int                   # message_end_time, ns
+    offset: int                # chunk_start_offset
+    counts: dict[int, int]     # channel id -> messages, derived as rosbags derives it
+    compression: str
+    compressed_size: int
+    uncompressed_size: int
+
+
+class _Fields:
+    """Little-endian fields read one after the other from a record's bytes."""
+
+    def __init__(self, data: bytes) -> None:
+        self.data, self.pos = data, 0
+
+    def take(self, fmt: str) -> tuple[Any, ...]:
+        out = struct.unpack_from(fmt, self.data, self.pos)
+        self.pos += struct.calcsize(fmt)
+        return out
+
+    def raw(self, size_fmt: str = '<I') -> bytes:
+        (size,) = self.take(size_fmt)
+        if self.pos + size > len(self.data):
+            raise Unfit('an mcap record cut short')
+        self.pos += size
+        return self.data[self.pos - size:self.pos]
+
+    def text(self) -> str:
+        return self.raw().decode()
+
+
+def _chunk_index(f: _Fields) -> _Chunk:
+    """Parse a chunk index record: channel counts from the message index offsets."""
+    start, end, offset, length = f.take('<QQQQ')
+    index = f.raw()
+    offsets = dict(struct.iter_unpack('<HQ', index[:len(index) // 10 * 10]))
+    (index_length,) = f.take('<Q')
+    compression = f.text()
+    compressed, uncompressed = f.take('<QQ')
+    # A message index record is 15 bytes plus 16 per message; its length is the distance to
+    # the next one (the last one's to the end of the chunk's indexes).
+    pairs = sorted((v, k) for k, v in offsets.items())
+    ends = [v for v, _ in pairs[1:]] + [offset + length + index_length]
+    counts = {k: (e - v - 15) // 16 for (v, k), e in zip(pairs, ends) if e - v - 15}
+    return _Chunk(start, end, offset, counts, compression, compressed, uncompressed)
+
+
+def _qos(metadata: bytes) -> str:
+    """Return the offered_qos_profiles of a channel's metadata map ('' when absent)."""
+    f = _Fields(metadata)
+    while f.pos < len(metadata):
+        key, value = f.text(), f.text()
+        if key == 'offered_qos_profiles':
+            return value
+    return ''
+
+
+class McapFile:
+    """
+    One mcap storage file: its connections, message definitions and chunk index.
+
+    Attributes
+    ----------
+    conns : list[Entry]
+        Its channels (``msgcount`` 0: the counts of metadata.yaml are used).
+    definitions : dict[str, tuple[str, str]]
+        Message type -> (encoding, definition text) of the file's schemas.
+
+    """
+
+    def __init__(self, path: Path) -> None:
+        self.bio = path.open('rb')
+        try:
+            self._open()
+        except BaseException:
+            self.bio.close()
+            raise
+
+    def _open(self) -> None:
+        bio = self.bio
+        head = bio.read(9)
+        if head[:8] != _MAGIC or head[8:] != b'\x01':
+            raise Unfit('not an mcap file with a header')
+        if _Fields(self._record(9)).text() != 'ros2':
+            raise Unfit('an mcap profile other than ros2')
+        data_start = bio.tell()
+        size = bio.seek(0, 2)
+        bio.seek(max(size - 37, 0))
+        footer = bio.read(37)
+        if len(footer) != 37 or footer[:9] != _FOOTER or footer[-8:] != _MAGIC:
+            raise Unfit('no mcap footer')
+        (summary,) = struct.unpack_from('<Q', footer, 9)
+        if not data_start <= summary <= size - 37:
+            raise Unfit('an mcap file without a summary')
+        bio.seek(summary)
+        self._summary(bio.read(size - 37 - summary))
+
+    def _record(self, at: int) -> bytes:
+        """Return the body of the record whose uint64 length is at file offset ``at``."""
+        self.bio.seek(at)
+        (size,) = struct.unpack('<Q', self._exact(8))
+        return self._exact(size)
+
+    def _exact(self, size: int) -> bytes:
+        data = self.bio.read(size)
+        if len(data) != size:
+            raise Unfit('an mcap record cut short')
+        return data
+
+    def _summary(self, data: bytes) -> None:
+        """Parse the summary section's schemas, channels and chunk index."""
+        schemas: dict[int, tuple[str, str, str]] = {}
+        self.conns: list[Entry] = []
+        self.definitions: dict[str, tuple[str, str]] = {}
+        self.chunks: list[_Chunk] = []
+        statistics = False
+        f = _Fields(data)
+        while True:
+            if f.pos >= len(data):
+                raise Unfit('an mcap summary cut short')
+            (op,) = f.take('<B')
+            if op in _SUMMARY_END:
+                break
+            rec = _Fields(f.raw('<Q'))
+            if op == _SCHEMA:
+                (key,) = rec.take('<H')
+                schemas[key] = (rec.text(), rec.text(), rec.text())
+            elif op == _CHANNEL:
+                key, schema_id = rec.take('<HH')
+                name, encoding, text = schemas.get(schema_id, ('__schemaless__', '', ''))
+                topic, fmt, meta = rec.text(), rec.text(), rec.raw()
+                if all(c.id != key for c in self.conns):
+                    self.conns.append(Entry(key, topic, name, 0, fmt, _qos(meta), ''))
+                    if schema_id in schemas:
+                        self.definitions.setdefault(name, (encoding, text))
+            elif op == _CHUNK_INDEX:
+                self.chunks.append(_chunk_index(rec))
+            statistics |= op == _STATISTICS
+        if statistics and not schemas:
+            raise Unfit('an mcap summary without schemas')     # rosbags scans the file
+        if not self.chunks:
+            raise Unfit('an mcap file without a chunk index')
+
+    def close(self) -> None:
+        """Close the file."""
+        self.bio.close()
+
+    def feed(self, roles: Mapping[int, str], out: Any, update: Callable[[int], Any], *,
+             chunk: int, expected: int) -> None:
+        """Hand the messages of ``roles`` (channel id -> role) to ``out``, chunk by chunk."""
+        chunks = sorted((c for c in self.chunks if any(c.counts.get(k, 0) for k in roles)),
+                        key=lambda c: c.offset)
+        for a, b in zip(chunks, chunks[1:]):
+            if not (a.offset < b.offset and a.end <= b.start):
+                raise Unfit('mcap chunks overlap in time')
+        reader = _Records(roles, out, update)
+        pending = Pending(out, chunk)
+        for c in chunks:
+            reader.chunk(self._decompress(c), c, pending)
+        pending.flush()
+
+    def _decompress(self, c: _Chunk) -> bytes:
+        """Return a chunk's records, checked against its size and checksum."""
+        self.bio.seek(c.offset + 9 + 24)
+        (crc,) = struct.unpack('<I', self._exact(4))
+        self.bio.seek(c.offset + 9 + 40 + len(c.compression))
+        data = self._exact(c.compressed_size)
+        if c.compression == 'zstd':
+            data = zstd.decompress(data)
+        elif c.compression:           # lz4: rosbags reads it
+            raise Unfit(f'chunk compression {c.compression!r:.20}')
+        if len(data) != c.uncompressed_size or (crc and crc32(data) != crc):
+            raise Unfit('a chunk of the wrong size or checksum')
+        return data
+
+
+class _Records:
+    """The wanted message records of decompressed chunks, handed to a ``Collector``."""
+
+    def __init__(self, roles: Mapping[int, str], out: Any,
+                 update: Callable[[int], Any]) -> None:
+        self.out, self.update = out, update
+        self.codes = {role: k for k, role in enumerate(out.roles)}
+        self.ids = np.full(1 << 16, -1, dtype=np.int8)          # channel id -> role code
+        for cid, role in roles.items():
+            self.ids[cid] = self.codes[role]
+
+    @staticmethod
+    def runs(raw: bytes) -> list[tuple[int, int, int]]:
+        """Return the runs of message records of ``raw``: (start, record size, count)."""
+        size = len(raw)
+        arr = np.frombuffer(raw, dtype=np.uint8)
+        runs = []
+        pos = 0
+        while pos < size:
+            if pos + 9 > size:
+                raise Unfit('a chunk record cut short')
+            length = int.from_bytes(raw[pos + 1:pos + 9], 'little')
+            if raw[pos] != _MESSAGE:
+                pos += 9 + length             # rosbags skips it (even past the end)
+                continue
+            rec = 9 + length
+            if length < 22 or pos + rec > size:
+                raise Unfit('a message record cut short')
+            head = arr[pos:pos + 9]
+            n, w = 1, 64
+            while True:                       # records of the same size and opcode
+                m = min(w, (size - pos) // rec - n)
+                if m <= 0:
+                    break
+                block = arr[pos + n * rec:pos + (n + m) * rec].reshape(m, rec)[:, :9]
+                same = (block == head).all(axis=1)
+                k = m if same.all() else int(np.argmin(same))
+                n += k
+                if k < m:
+                    break
+                w *= 4
+            runs.append((pos, rec, n))
+            pos += n * rec
+        return runs
+
+    def chunk(self, raw: bytes, c: _Chunk, pending: Pending) -> None:
+        """Hand over the wanted messages of one chunk, in rosbags' order."""
+        arr = np.frombuffer(raw, dtype=np.uint8)
+        pieces = []                                        # (rows, role codes, log times)
+        for pos, rec, n in self.runs(raw):
+            rows = arr[pos:pos + n * rec].reshape(n, rec)
+            code = self.ids[rows[:, 9:11].copy().view('<u2').ravel()]
+            logs = rows[:, 15:23].copy().view('<u8').ravel()
+            if logs.size and int(logs.max()) >= 1 << 63:
+                raise Unfit('log times beyond int64')
+            logs = logs.astype(np.int64)
+            keep = (code >= 0) & (logs >= c.start) & (logs <= c.end)
+            if keep.any():
+                pieces.append((rows[keep] if not keep.all() else rows, code[keep], logs[keep]))
+        if not pieces:
+            return
+        codes = np.concatenate([p[1] for p in pieces])
+        logs = np.concatenate([p[2] for p in pieces])
+        self.update(len(codes))
+        if np.any(logs[1:] < logs[:-1]):
+            order = np.argsort(logs, kind='stable')
+            codes, logs = codes[order], logs[order]
+            others = self._sorted(pieces, order, codes, logs, pending)
+        else:
+            others = self._in_order(pieces, pending)
+        if others:
+            self._others(others, codes, logs, pending)
+
+    def _in_order(self, pieces: list[tuple[Any, ...]], pending: Pending
+                  ) -> list[tuple[int, bytes]]:
+        """Hand over the main messages of a chunk in log-time order; return the others."""
+        main = self.codes['imu']
+        others: list[tuple[int, bytes]] = []
+        at = 0
+        for rows, code, log in pieces:
+            is_main = code == main
+            if is_main.any():
+                sel = rows if is_main.all() else rows[is_main]
+                pending.add(np.ascontiguousarray(sel[:, 31:]).tobytes(),
+                            np.full(len(sel), rows.shape[1] - 31, dtype=np.int64),
+                            log[is_main])
+            others += [(at + i, bytes(rows[i, 31:])) for i in np.flatnonzero(~is_main).tolist()]
+            at += len(code)
+        return others
+
+    def _sorted(self, pieces: list[tuple[Any, ...]], order: Any, codes: Any, logs: Any,
+                pending: Pending) -> list[tuple[int, bytes]]:
+        """
+        Hand over the main messages of a chunk sorted by log time; return the others.
+
+        rosbags sorts a chunk stably by log time; ``order`` is that sort, ``codes`` and
+        ``logs`` already sorted. Message by message: rare (a chunk written out of order).
+        """
+        main = self.codes['imu']
+        data = [bytes(r[31:]) for p in pieces for r in p[0]]
+        data = [data[i] for i in order.tolist()]
+        idx = np.flatnonzero(codes == main).tolist()
+        if idx:
+            parts = [data[i] for i in idx]
+            pending.add(b''.join(parts), np.fromiter(map(len, parts), dtype=np.int64,
+                                                     count=len(parts)), logs[idx])
+        return [(i, data[i]) for i in np.flatnonzero(codes != main).tolist()]
+
+    def _others(self, others: list[tuple[int, bytes]], codes: Any, logs: Any,
+                pending: Pending) -> None:
+        """Hand over the other roles' messages of a chunk, after its main ones."""
+        pending.flush()
+        out, main = self.out, self.codes['imu']
+        mains = np.cumsum(codes == main)
+        first = out.n_main - int(mains[-1])
+        where = np.fromiter((i for i, _ in others), dtype=np.int64, count=len(others))
+        for role in out.roles:
+            mine = np.flatnonzero(codes[where] == self.codes[role])
+            if role == 'imu' or not mine.size:
+                continue
+            pos = where[mine]
+            before = first + mains[pos] if role == 'temperature' and out.floating else None
+            out.other(role, [others[i][1] for i in mine.tolist()], logs[pos], before)

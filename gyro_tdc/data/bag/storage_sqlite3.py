@@ -1,0 +1,279 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+rosbag2's sqlite3 storage read through its documented schema with the standard ``sqlite3``.
+
+Tables ``topics`` (id, name, type, serialization_format, offered_qos_profiles and, from
+schema 4, type_description_hash), ``messages`` (id, topic_id, timestamp, data; indexed on
+timestamp), ``schema`` (schema_version) and ``message_definitions`` (schema 4). rosbags
+reads a file's messages ``ORDER BY timestamp`` through that index, ties by rowid; one query
+per time range walks the same index and returns every role's messages end to end
+(``group_concat``).
+"""
+
+from __future__ import annotations
+
+import contextlib
+from pathlib import Path
+import queue
+import sqlite3
+import threading
+from typing import Any, Callable, Mapping, Sequence
+
+from gyro_tdc.data.bag.metadata import Entry
+from gyro_tdc.data.bag.storage import Pending, split, Unfit
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['Sqlite3File']
+
+# One-byte role codes of the range query's order string (Float temperatures).
+_CODES = {'imu': 'm', 'temperature': 't', 'reference': 'r'}
+
+
+class Sqlite3File:
+    """
+    One sqlite3 storage file, opened read-only: its connections and message definitions.
+
+    Parameters
+    ----------
+    path : Path
+        The ``.db3`` file.
+
+    Attributes
+    ----------
+    conns : list[Entry]
+        Its topics (``msgcount`` 0: the counts of metadata.yaml are used, not a table scan).
+    definitions : dict[str, tuple[str, str]]
+        Message type -> (encoding, definition text) of the file's own definitions.
+
+    """
+
+    def __init__(self, path: Path) -> None:
+        # Shared with the thread that runs the range queries (see _Ranges).
+        self.db = sqlite3.connect(f'{path.resolve().as_uri()}?mode=ro&immutable=1', uri=True,
+                                  check_same_thread=False)
+        try:
+            self._open(path)
+        except BaseException:
+            self.db.close()
+            raise
+
+    def _open(self, path: Path) -> None:
+        db = self.db
+        found = db.execute("SELECT count(*) FROM sqlite_master WHERE type = 'table' "
+                           "AND name IN ('messages', 'topics')").fetchone()
+        if found is None or found[0] != 2:
+            raise Unfit(f'{path.name}: no messages and topics tables')
+        if db.execute('PRAGMA table_info(schema)').fetchall():
+            schema = (db.execute('SELECT schema_version FROM schema').fetchone() or (-1,))[0]
+        elif any(x[1] == 'offered_qos_profiles'
+                 for x in db.execute('PRAGMA table_info(topics)').fetchall()):
+            schema = 2
+        else:
+            schema = 1
+        self.definitions: dict[str, tuple[str, str]] = {}
+        if schema >= 4:
+            for name, encoding, text in db.execute(
+                    'SELECT topic_type, encoding, encoded_message_definition '
+                    'FROM message_definitions ORDER BY id'):
+                self.definitions.setdefault(name, (encoding, text))
+        cols = ('id, name, type, serialization_format'
+                + (', offered_qos_profiles' if schema >= 2 else ", ''")
+                + (', type_description_hash' if schema >= 4 else ", ''"))
+        self.conns = [Entry(cid, topic, msgtype, 0, fmt, qos, digest)
+                      for cid, topic, msgtype, fmt, qos, digest
+                      in db.execute(f'SELECT {cols} FROM topics ORDER BY id')]
+        types = {c.msgtype for c in self.conns}
+        self.definitions = {k: v for k, v in self.definitions.items() if k in types}
+
+    def close(self) -> None:
+        """Close the database."""
+        self.db.close()
+
+    def feed(self, roles: Mapping[int, str], out: Any, update: Callable[[int], Any], *,
+             chunk: int, expected: int) -> None:
+        """Hand the messages of ``roles`` (connection id -> role) to ``out``, a range at a time."""
+        _Ranges(self.db, roles, out, update, chunk, expected).run()
+
+
+class _Ranges:
+    """
+    The messages of one file read by time ranges over its timestamp index.
+
+    Each range's query returns, per role, the count, the shortest message and the messages
+    end to end; a role whose messages differ in size has their lengths fetched.
+    The range grows or shrinks to hold about ``chunk`` messages.
+    """
+
+    def __init__(self, db: sqlite3.Connection, roles: Mapping[int, str], out: Any,
+                 update: Callable[[int], Any], chunk: int, expected: int) -> None:
+        self.db, self.out, self.update = db, out, update
+        self.chunk, self.expected = chunk, expected
+        self.ids = {role: sorted(k for k, r in roles.items() if r == role)
+                    for role in out.roles if role in roles.values()}
+
+    def _in(self, role: str | None = None) -> str:
+        ids = (self.ids[role] if role else sorted(k for v in self.ids.values() for k in v))
+        return f'topic_id IN ({",".join(str(int(k)) for k in ids)})'
+
+    def _index(self) -> str:
+        """Return the index on ``messages(timestamp)`` (rosbag2's own), the only one there."""
+        found = [(row[1], [x[2] for x in self.db.execute(
+                  'SELECT * FROM pragma_index_info(?)', (row[1],))])
+                 for row in self.db.execute("PRAGMA index_list('messages')")]
+        found = [(name, cols) for name, cols in found if cols[:1] == ['timestamp']]
+        if len(found) != 1 or found[0][1] != ['timestamp'] or "'" in found[0][0]:
+            raise Unfit(f'indexes on the timestamps {[x[1] for x in found]} (one expected)')
+        return found[0][0]
+
+    def _check_plan(self, query: str, what: str, params: Sequence[int] = ()) -> None:
+        rows = self.db.execute(f'EXPLAIN QUERY PLAN {query}', tuple(params))
+        plan = ' '.join(str(x[-1]) for x in rows)
+        if f'USING INDEX {self.index}' not in plan or 'TEMP B-TREE' in plan:
+            raise Unfit(f'{what} does not walk a timestamp index ({plan})')
+
+    def _query(self, roles: Sequence[str], floating: bool) -> str:
+        """
+        Return the range query (parameters: start, end) after checking its plan.
+
+        The aggregates take the rows in the order of the scan, which walks the timestamp
+        index (``INDEXED BY``: ties by rowid), the order of rosbags' ``ORDER BY timestamp``.
+        """
+        cols = []
+        for role in roles:
+            f = f'FILTER (WHERE {self._in(role)})'
+            cols += [f'count(*) {f}', f'min(length(data)) {f}',
+                     f"CAST(group_concat(data, '') {f} AS BLOB)"]
+        if floating:
+            case = ' '.join(f'WHEN {self._in(r)} THEN {_CODES[r]!r}' for r in roles)
+            cols.append(f"group_concat(CASE {case} END, '')")
+        self.index = self._index()
+        query = (f'SELECT count(*), {", ".join(cols)} FROM messages INDEXED BY '
+                 f"'{self.index}' WHERE {self._in()} AND timestamp >= ?1 AND timestamp < ?2")
+        # rosbags' query of the file, and ours: both in timestamp-index order.
+        self._check_plan(
+            'SELECT topics.id, messages.timestamp, messages.data FROM messages JOIN topics '
+            'ON messages.topic_id = topics.id WHERE topics.id IN '
+            f'({",".join(str(k) for v in self.ids.values() for k in v)}) ORDER BY timestamp',
+            "rosbags' query")
+        self._check_plan(query, 'the range query', (0, 1))
+        return query
+
+    def run(self) -> None:
+        """
+        Read the file range by range, the queries a range ahead of the decode.
+
+        SQLite runs a query without the interpreter lock, so a second thread runs the next
+        range's query while this one decodes the last: a read that overlaps, on a second
+        core, the storage with the decode. Its answers come in order through a short queue.
+        """
+        roles = list(self.ids)
+        floating = self.out.floating and 'temperature' in self.ids
+        query = self._query(roles, floating)
+        answers: queue.Queue = queue.Queue(maxsize=2)
+        stop = threading.Event()
+        thread = threading.Thread(target=self._scan, args=(query, answers, stop),
+                                  name='gyro_tdc sqlite3 ranges', daemon=True)
+        thread.start()
+        pending = Pending(self.out, self.chunk)
+        try:
+            while (answer := answers.get()) is not None:
+                if isinstance(answer, BaseException):
+                    raise answer
+                row, t, end = answer
+                self._range(row, roles, t, end, floating, pending)
+                self.update(row[0])
+            pending.flush()
+        finally:
+            stop.set()
+            while thread.is_alive():          # unblock a thread waiting to hand an answer
+                with contextlib.suppress(queue.Empty):
+                    answers.get(timeout=0.05)
+            thread.join()
+
+    def _scan(self, query: str, answers: queue.Queue, stop: threading.Event) -> None:
+        """Run the range query over the file (a thread); hand each non-empty answer over."""
+        def put(item: Any) -> None:
+            while not stop.is_set():
+                with contextlib.suppress(queue.Full):
+                    answers.put(item, timeout=0.05)
+                    return
+        try:
+            # Two subqueries: each a single min() or max() that SQLite answers from the
+            # timestamp index; min() and max() in one SELECT scan the whole table.
+            lo, hi = self.db.execute('SELECT (SELECT min(timestamp) FROM messages), '
+                                     '(SELECT max(timestamp) FROM messages)').fetchone()
+            if lo is not None:
+                span = hi - lo + 1
+                step = max(1, min(span * self.chunk // max(self.expected, 1), span // 16))
+                t = lo
+                while t <= hi and not stop.is_set():
+                    end = min(t + step, hi + 1)
+                    row = self.db.execute(query, (t, end)).fetchone()
+                    if row[0]:
+                        put((row, t, end))
+                        step = int(min(max(step * self.chunk / row[0], step / 4),
+                                       step * 4)) or 1
+                    else:
+                        step *= 2
+                    t = end
+            put(None)
+        except BaseException as err:      # noqa: B902 (handed to the reading thread)
+            put(err)
+
+    def _column(self, what: str, role: str, count: int, t: int, end: int
+                ) -> NDArray[np.int64]:
+        """Return ``what`` (an SQL expression) of a role's messages of a range, in order."""
+        return np.fromiter((x for (x,) in self.db.execute(
+            f'SELECT {what} FROM messages WHERE {self._in(role)} AND timestamp >= ?1 '
+            'AND timestamp < ?2 ORDER BY timestamp, rowid', (t, end))),
+            dtype=np.int64, count=count)
+
+    def _range(self, row: Sequence[Any], roles: Sequence[str], t: int, end: int,
+               floating: bool, pending: Pending) -> None:
+        """Hand over the messages of one range (``row``: the range query's answer)."""
+        out = self.out
+        got = {}
+        for k, role in enumerate(roles):
+            count, small, buf = row[1 + 3 * k:4 + 3 * k]
+            if not count:
+                continue
+            if buf is None:
+                raise Unfit(f'{role}: no blobs in a range')
+            # None shorter than the shortest: all of that length exactly when they add up.
+            lengths = (np.full(count, small, dtype=np.int64) if count * small == len(buf)
+                       else self._column('length(data)', role, count, t, end))
+            if len(buf) != int(lengths.sum()):
+                raise Unfit(f'{role}: the blobs of a range do not add up')
+            got[role] = (count, buf, lengths)
+
+        def logs(role: str) -> Callable[[], NDArray[np.int64]]:
+            return lambda: self._column('timestamp', role, got[role][0], t, end)
+        if 'imu' in got:
+            pending.add(got['imu'][1], got['imu'][2], logs('imu'))
+        if len(got) == ('imu' in got):
+            return
+        pending.flush()               # the other roles' blocks come after the main ones
+        before = None
+        if floating and 'temperature' in got:
+            codes = np.frombuffer(row[-1].encode('ascii'), dtype=np.uint8)
+            mains = np.cumsum(codes == ord(_CODES['imu']))
+            before = out.n_main - int(mains[-1]) + mains[codes == ord(_CODES['temperature'])]
+        for role in roles:
+            if role != 'imu' and role in got:
+                _, buf, lengths = got[role]
+                out.other(role, split(buf, lengths), None,
+                          before if role == 'temperature' else None, fetch_logs=logs(role))
