@@ -25,11 +25,12 @@ between callbacks, so a node stops the same clean way at any moment (doc/interna
 
 from __future__ import annotations
 
+import contextlib
 import gc
 import signal
 import sys
 import threading
-from typing import Any, Callable
+from typing import Any, Callable, Iterator
 
 from gyro_tdc.errors import GyroTdcError, one_line
 import rclpy
@@ -38,7 +39,8 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-__all__ = ['STARTUP_ERRORS', 'STOP_POLL_S', 'StopSignals', 'make_executor', 'run_node', 'spin']
+__all__ = ['STARTUP_ERRORS', 'STOP_POLL_S', 'StopRequested', 'StopSignals', 'make_executor',
+           'run_node', 'spin']
 
 #: Errors of a node's configuration at start-up, reported in one line by :func:`run_node`:
 #: rclpy's parameter errors (wrong type, out of range, ...) and gyro_tdc's own
@@ -51,21 +53,35 @@ STOP_POLL_S = 0.1
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 
 
+class StopRequested(BaseException):
+    """
+    A stop signal came while a node was being built: abandon it (caught by :func:`run_node`).
+
+    Not a KeyboardInterrupt: CPython makes a process whose KeyboardInterrupt went through
+    code run by ``PyRun_String`` (as extension modules do) exit by SIGINT at the very end,
+    whatever ``main()`` returned. A BaseException: no ``except Exception`` edge swallows it.
+    """
+
+
 class StopSignals:
     """
     Turn SIGINT and SIGTERM into one request to stop, read between callbacks.
 
     rclpy's own handlers shut the context down at once, from another thread, whatever the
     process is doing: a node still being built then fails in ``create_timer`` and a callback
-    running meets destroyed handles. These handlers only record the request; :func:`run_node`
-    ends the spin at the next callback boundary and tears the node down in order. A second
-    signal while the teardown runs (a save on a hung disk) ends the process at once with
-    status 128 + the signal number.
+    running meets destroyed handles. These handlers record the request; :func:`run_node`
+    ends the spin at the next callback boundary and tears the node down in order. Only
+    while a node is being built (:meth:`interrupting`: nothing learned yet, nothing to save)
+    does a signal raise :class:`StopRequested` at once, so that a slow start (the sim back-end
+    simulates its whole run first) does not hold the stop up. A second signal while the
+    teardown runs (a save on a hung disk) ends the process at once with status 128 + the
+    signal number.
     """
 
     def __init__(self) -> None:
         self.signum: int | None = None
         self._previous: dict[int, Any] = {}
+        self._interrupt = False
 
     @property
     def requested(self) -> bool:
@@ -86,7 +102,21 @@ class StopSignals:
             signal.signal(signum, handler)
         self._previous.clear()
 
+    @contextlib.contextmanager
+    def interrupting(self) -> Iterator[None]:
+        """Within the block a stop signal (or one already received) raises StopRequested."""
+        self._interrupt = True
+        try:
+            if self.requested:
+                raise StopRequested(signal.Signals(self.signum).name)
+            yield
+        finally:
+            self._interrupt = False
+
     def _handle(self, signum: int, frame: Any) -> None:
+        if self._interrupt:
+            self.signum = signum
+            raise StopRequested(signal.Signals(signum).name)
         if self.signum is not None:
             raise SystemExit(128 + signum)
         self.signum = signum
@@ -150,8 +180,8 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
     external shutdown as a normal end, then shut the executor down (no callback runs after
     it), destroy the node (which stops its own timers and workers and saves first) and shut
     rclpy down. A stop signal (:class:`StopSignals`, on the main thread) is acted on between
-    callbacks: during start-up the node is built to the end, then torn down without
-    spinning; the exit status is 0 either way. A node that cannot start because of its
+    callbacks; one during start-up abandons the node being built (nothing to save yet). The
+    exit status is 0 either way. A node that cannot start because of its
     configuration (a parameter of the wrong type, out of range or not one of its choices,
     inconsistent topic names: every :data:`STARTUP_ERRORS`) prints one line,
     ``NAME: error: ...``, on stderr and the exit status is 2, with no traceback.
@@ -183,7 +213,8 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
     ex = None
     try:
         try:
-            node = make_node()
+            with stop.interrupting():
+                node = make_node()
         except STARTUP_ERRORS as exc:
             print(f'{name}: error: {one_line(exc)}', file=sys.stderr)
             return 2
@@ -192,7 +223,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
         if freeze_heap:
             gc.freeze()
         spin(ex, stop=lambda: stop.requested, poll_s=STOP_POLL_S)
-    except (KeyboardInterrupt, ExternalShutdownException):
+    except (StopRequested, KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
         try:
