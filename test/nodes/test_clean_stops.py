@@ -21,12 +21,15 @@ tree), the compensator behind a 1 kHz driver with learning off and on, on both e
 while ``~/reload`` and ``~/learn_save`` are called over and over. Every stop exits 0 with
 no traceback and no ``[FATAL]`` line, and a learning node writes learn_file after the
 signal. Four stops per node here; ``bench/bench_clean_stops.py`` runs ten per node per
-signal. Serial: the hog and the node start-ups would slow the tests beside them.
+signal. Serial: the hog and the node start-ups would slow the tests beside them. In process:
+a destroyed node's timer callbacks (which an EventsExecutor may still dispatch) do nothing.
 """
 
 import signal
 
+from fake_iio import l3gd20_files, make_device
 import pytest
+from rclpy.parameter import Parameter
 from stop_stress import CONFIGS, run_series
 
 INT, TERM = signal.SIGINT, signal.SIGTERM
@@ -47,3 +50,35 @@ def test_a_node_stopped_at_random_moments_stops_cleanly(node, tmp_path):
         f'\n--- {stop.line()}\n{stop.output[-4000:]}' for stop in unclean)
     if node == 'compensator':
         assert series.reloads > 0 and series.saves > 0, report
+
+
+def _driver(context, tmp_path):
+    from gyro_tdc.nodes.driver_node import DriverNode
+    make_device(tmp_path, l3gd20_files())
+    return DriverNode(context=context, parameter_overrides=[
+        Parameter('backend', value='iio'), Parameter('iio_root', value=str(tmp_path))])
+
+
+def _compensator(context, tmp_path):
+    from gyro_tdc.nodes.compensator_node import CompensatorNode
+    return CompensatorNode(context=context, parameter_overrides=[
+        Parameter('model_file', value='l3gd20_modified'), Parameter('learn', value=True),
+        Parameter('learn_file', value=str(tmp_path / 'learn.json'))])
+
+
+@pytest.mark.parametrize('make', [_driver, _compensator], ids=['driver', 'compensator'])
+def test_a_destroyed_node_cancels_its_timers_and_its_callbacks_do_nothing(
+        make, ros_context, tmp_path):
+    node = make(ros_context, tmp_path)
+    timers = list(node.timers)
+    assert timers and not any(t.is_canceled() for t in timers)
+    cancelled = []
+    for timer in timers:            # seen just before rclpy destroys each one
+        timer.destroy = lambda t=timer, destroy=timer.destroy: (
+            cancelled.append(t.is_canceled()), destroy())
+    callbacks = [t.callback for t in timers]
+    node.destroy_node()
+    assert cancelled == [True] * len(timers)
+    assert node.stopping
+    for callback in callbacks:      # a queued timer event after destruction: no InvalidHandle
+        callback()
