@@ -82,3 +82,24 @@ def test_a_destroyed_node_cancels_its_timers_and_its_callbacks_do_nothing(
     assert node.stopping
     for callback in callbacks:      # a queued timer event after destruction: no InvalidHandle
         callback()
+
+
+def test_stop_signals_are_one_request_and_a_second_one_ends_at_once():
+    """SIGINT and SIGTERM set one request; during start-up it raises; a second exits 128+N."""
+    from gyro_tdc.nodes.executors import StopRequested, StopSignals
+    before = signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)
+    stop = StopSignals()
+    assert stop.install()
+    try:
+        with pytest.raises(StopRequested, match='SIGTERM'), stop.interrupting():
+            signal.raise_signal(signal.SIGTERM)     # a node being built is abandoned
+        assert stop.requested and stop.signum == signal.SIGTERM
+        stop.signum = None
+        signal.raise_signal(signal.SIGINT)          # running: only recorded
+        assert stop.signum == signal.SIGINT
+        with pytest.raises(SystemExit) as second:
+            signal.raise_signal(signal.SIGTERM)
+        assert second.value.code == 128 + signal.SIGTERM
+    finally:
+        stop.restore()
+    assert (signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)) == before
