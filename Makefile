@@ -2,7 +2,7 @@
 #
 #   make venv    create/refresh .venv (ROS 2 Jazzy wheels, deps, dev tools, editable gyro_tdc)
 #   make test    run the test suite on TEST_WORKERS (3) xdist workers (own ROS_DOMAIN_ID per
-#                worker, loopback discovery only)
+#                worker, loopback discovery only; a test fails after pytest.ini's timeout)
 #   make test-stress  run the whole suite STRESS_RUNS (2) times in a row beside a process that
 #                keeps one core busy (a CPU hog), stopping at the first failing run; the hog is
 #                killed on exit. Finds the tests whose result depends on the load (long)
