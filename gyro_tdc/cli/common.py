@@ -34,15 +34,16 @@ from typing import Callable, NoReturn, Optional, Sequence, TYPE_CHECKING
 from gyro_tdc.cli import PROG
 from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPIC,
                            DEFAULT_TEMPERATURE_TOPIC, GAP_PERIODS, LOG_FORMATS,
-                           MAX_LOSS_FRACTION, SESSION_GAP_S, SESSION_MODES)
+                           MAX_LOSS_FRACTION, SESSION_GAP_S, SESSION_MODES,
+                           TEMPERATURE_SOURCES)
 from gyro_tdc.errors import GyroTdcError, one_line
 
 if TYPE_CHECKING:
     from gyro_tdc.model import CompensationModel
 
 __all__ = [
-    'ArgumentParser', 'UsageError', 'add_bag_options', 'add_session_options', 'bag_options',
-    'command_line',
+    'ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_options',
+    'add_session_options', 'bag_options', 'command_line', 'driver_bags',
     'effect_listing', 'finite_float', 'non_negative_float', 'non_negative_int', 'parse_reference',
     'positive_float',
     'positive_int', 'probability', 'read_model', 'run_command',
@@ -146,8 +147,8 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
 
     ``--imu-topic``, ``--temperature-topic``, ``--reference x,y,z`` (constant, rad/s) and
     ``--reference-topic`` (mutually exclusive with ``--reference``), ``--no-progress``,
-    ``--allow-loss``; for flight logs ``--log-format``, ``--imu-instance`` and
-    ``--allow-onboard-corrected``.
+    ``--allow-loss``; for flight logs ``--log-format``, ``--imu-instance``,
+    ``--allow-onboard-corrected`` and ``--temperature-source``.
 
     Parameters
     ----------
@@ -185,6 +186,12 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
                    help='use flight-log data the flight controller already thermally '
                         'compensated (TC_G_ENABLE=1, INS_TCALn_ENABLE=1) as they are '
                         '(default: refused, as a model of them would compensate twice)')
+    f.add_argument('--temperature-source', default='imu', metavar='SRC',
+                   help=f'the thermometer of a flight log: {" or ".join(TEMPERATURE_SOURCES)} '
+                        "(the barometer's, e.g. PX4 sensor_combined.baro_temp_celcius, "
+                        'ArduPilot BARO.T), or TOPIC.FIELD / MSG.Field (another thermometer '
+                        'of the board); a proxy lags the die, so training adds the thermal '
+                        'state (lag) with --features auto (default: %(default)s)')
     parser.set_defaults(progress=None)
 
 
@@ -229,7 +236,8 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
     BagOptions
         The topics, the reference (``--reference`` parsed, rad/s), ``progress`` (a terminal
         when not given), ``max_loss`` (1.0 with ``--allow-loss``), the flight-log choices
-        (``--log-format``, ``--imu-instance``, ``--allow-onboard-corrected``), the sessions
+        (``--log-format``, ``--imu-instance``, ``--allow-onboard-corrected``,
+        ``--temperature-source``), the sessions
         (``--sessions``, ``--session-gap``, :func:`add_session_options`) and ``more``.
 
     """
@@ -245,7 +253,8 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
         imu_instance=getattr(args, 'imu_instance', 0),
         allow_onboard_corrected=bool(getattr(args, 'allow_onboard_corrected', False)),
         sessions=getattr(args, 'sessions', 'auto'),
-        session_gap_s=float(getattr(args, 'session_gap', 0.0)), **more)
+        session_gap_s=float(getattr(args, 'session_gap', 0.0)),
+        temperature_source=getattr(args, 'temperature_source', 'imu'), **more)
 
 
 # --------------------------------------------------------------------------------------------
@@ -379,3 +388,89 @@ def _error(command: str, message: object) -> None:
     """Print ``gyro-tdc COMMAND: error: MESSAGE`` on one stderr line."""
     sys.stdout.flush()
     print(f'{PROG} {command}: error: {one_line(message)}', file=sys.stderr, flush=True)
+
+
+# --------------------------------------------------------------------------------------------
+# Bags recorded from drivers as they publish (train, evaluate): the node's input parameters
+# --------------------------------------------------------------------------------------------
+
+def add_driver_options(parser: argparse.ArgumentParser) -> None:
+    """
+    Add the options naming a driver's message types and fields, as the node's parameters.
+
+    ``--imu-type``, ``--angular-velocity-field``, ``--stamp-field``, ``--input-frame``,
+    ``--temperature-type``, ``--temperature-field``, ``--temperature-stamp-field`` and
+    ``--temperature-quirk`` (:class:`gyro_tdc.data.DriverInputs`).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The command's parser.
+
+    """
+    from gyro_tdc.base import INPUT_FRAMES, TEMPERATURE_QUIRKS
+    g = parser.add_argument_group("driver message types (as compensator_node's parameters)")
+    g.add_argument('--imu-type', default='sensor_msgs/msg/Imu', metavar='PKG/msg/TYPE',
+                   help='type of the IMU topic, e.g. geometry_msgs/msg/Vector3Stamped or '
+                        'px4_msgs/msg/SensorGyro (default: %(default)s)')
+    g.add_argument('--angular-velocity-field', default='angular_velocity', metavar='PATH',
+                   help="dotted path to its x/y/z rate in rad/s, e.g. vector; '' the message "
+                        'itself (default: %(default)s)')
+    g.add_argument('--stamp-field', default='header.stamp', metavar='PATH',
+                   help='dotted path to its stamp: a builtin_interfaces/Time or an integer in '
+                        'microseconds, e.g. timestamp (default: %(default)s)')
+    g.add_argument('--input-frame', default='flu', choices=INPUT_FRAMES,
+                   help='axes of that rate: flu, or frd (PX4) turned to FLU (default: '
+                        '%(default)s)')
+    g.add_argument('--temperature-type', default='', metavar='PKG/msg/TYPE',
+                   help='type of the temperature topic, checked against the bag (default: '
+                        'as the bag says)')
+    g.add_argument('--temperature-field', default='', metavar='PATH',
+                   help='dotted path to its degC number, e.g. mean_temp (default: '
+                        'temperature, or data for std_msgs Float32/Float64)')
+    g.add_argument('--temperature-stamp-field', default='', metavar='PATH',
+                   help='dotted path to its stamp, e.g. header.header.stamp (default: '
+                        'header.stamp where it has one, else the latest IMU stamp)')
+    g.add_argument('--temperature-quirk', default='', choices=TEMPERATURE_QUIRKS,
+                   help="undo a driver's temperature encoding: bno055_unsigned_byte or "
+                        'sbg_legacy_div256 (default: none)')
+
+
+def driver_bags(args: argparse.Namespace, paths: Sequence[str]) -> list:
+    """
+    Return the bags to read: as given, or rewritten as Imu + Temperature by field.
+
+    With every :func:`add_driver_options` option at its default the paths come back
+    unchanged; otherwise each bag is read by field (:func:`gyro_tdc.data.normalize_bag`)
+    into a temporary directory that lives as long as ``args`` (each bag keeps its name).
+
+    Raises
+    ------
+    GyroTdcError
+        A bad option (one line naming it), a flight log among the paths, or a bag that
+        cannot be read.
+
+    """
+    import tempfile
+    from gyro_tdc.data import DriverInputs, expand_bags, is_flight_log, normalize_bag
+    inputs = DriverInputs(
+        imu_type=args.imu_type, angular_velocity_field=args.angular_velocity_field,
+        stamp_field=args.stamp_field, input_frame=args.input_frame,
+        temperature_type=args.temperature_type, temperature_field=args.temperature_field,
+        temperature_stamp_field=args.temperature_stamp_field,
+        temperature_quirk=args.temperature_quirk)
+    if inputs.plain:
+        return list(paths)
+    tmp = getattr(args, 'driver_bags_dir', None)
+    if tmp is None:
+        tmp = args.driver_bags_dir = tempfile.TemporaryDirectory(prefix='gyro_tdc_driver_')
+    out = []
+    for k, bag in enumerate(expand_bags(paths)):
+        if is_flight_log(bag):
+            raise UsageError(f'--imu-type and the other driver options read rosbag2 bags, '
+                             f'not the flight log {str(bag)!r}')
+        dest = os.path.join(tmp.name, f'{k:03d}', bag.name)
+        os.makedirs(os.path.dirname(dest))
+        out.append(str(normalize_bag(bag, inputs, imu_topic=args.imu_topic,
+                                     temperature_topic=args.temperature_topic, out=dest)))
+    return out

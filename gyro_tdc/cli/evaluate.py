@@ -28,9 +28,9 @@ import math
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser,
-                                 bag_options, non_negative_float, read_model, run_command,
-                                 UsageError)
+from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
+                                 ArgumentParser, bag_options, driver_bags, non_negative_float,
+                                 read_model, run_command, UsageError)
 from gyro_tdc.data import expand_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
                                load_models, model_description, PX4, write_csv, write_json,
@@ -88,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='write a CSV per bag here: time, temperature, raw, reference and '
                         'compensated rates (rad/s)')
     add_bag_options(p)
+    add_driver_options(p)
     add_session_options(p)
     return p
 
@@ -131,6 +132,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     baseline = (specs.index(args.baseline) if args.baseline is not None
                 else (0 if len(specs) == 2 else None))
     bag = bag_options(args)
+    args.bags = driver_bags(args, args.bags)       # a driver's own types, read by field
+    args.train = driver_bags(args, args.train) if args.train else args.train
     auto = args.reanchor == AUTO_REANCHOR
     options = ('re-anchored: mean error removed over the head of each session until known to '
                "the compensator's tolerance" if auto else
@@ -148,6 +151,14 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                     for nm in models]
 
     def each(b: BagEval) -> None:
+        if b.still is not None:
+            s = b.still
+            share = 100.0 * s['still_s'] / s['total_s'] if s['total_s'] > 0 else 0.0
+            log(f'{b.label}: no reference rate and the IMU moves: scored the still stretches '
+                f"only, {s['samples']} samples in {s['stretches']} stretch(es), "
+                f"{s['still_s']:.0f} s of {s['total_s']:.0f} s ({min(share, 100.0):.3g} %); "
+                'raw and models re-anchored on the first still stretch of each of the '
+                f"{s['sessions']} session(s), as the compensator does at start-up")
         bar.write(format_bag(b, baseline, floor=args.floor, accel_floor=args.accel_floor))
         if args.plots is not None:
             bar.stage(f'{b.label}: plots')
@@ -190,6 +201,8 @@ def _with_reanchor(each, log):
     """Wrap ``each`` to log every model's automatic re-anchoring first."""
     def wrapped(b: BagEval) -> None:
         for m in b.models:
+            if m.reanchor is None:         # scored on still stretches: anchored on them
+                continue
             records = m.reanchor.get('sessions') or [m.reanchor]
             for k, r in enumerate(records):
                 where = f' session {k + 1}' if len(records) > 1 else ''
