@@ -201,7 +201,9 @@ def test_a_slow_model_file_never_stalls_compensation(models, rig_factory, via):
     def loader(name):
         if name == slow['name']:
             reading.set()
-            if not release.wait(10.0):  # the test releases it once messages flowed
+            # The test releases it once messages flowed (in a finally): the bound is longer
+            # than the test's own waits before the release (15 s + 15 s), even under load.
+            if not release.wait(60.0):
                 timed_out.set()
         return read_model(name)
 
@@ -443,6 +445,12 @@ def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path
         sent = streamer.stop()
     spin_until_quiet(rig.executor, lambda: rig.node.core.counts['in'], 1.0, 60.0)
     node = rig.node
+    # Each report counts the samples missing since the one before: wait until the timer has
+    # judged every sample and its report has come back (under load the last one was still
+    # in flight, and the sum below came out short).
+    rig.spin_until(lambda: not node.backlog.samples and rig.diag and values(
+        rig.diag[-1])['input missing'] == str(node.backlog.missing), 10.0,
+        what='the report of the last samples received')
     reports = rig.diag + [node.diagnostic_status()]
     missing = node.backlog.missing
     assert node.core.model.centers.shape[0] == 10_000 and node.core.counts['compensated'] > 0
