@@ -22,7 +22,7 @@ Bags recorded from drivers as they publish: any IMU and thermometer type, read b
 :func:`normalize_bag` decodes such a bag with rosbags' typestore (the bag's own message
 definitions) and writes the same samples as ``sensor_msgs/Imu`` + ``sensor_msgs/Temperature``,
 which :func:`~gyro_tdc.data.read_bag` reads as any other bag. The live node reads the same
-fields the same way (:mod:`gyro_tdc.data.fields`), so a model is trained on what it is fed.
+fields the same way (:mod:`gyro_tdc.data.field_paths`), so a model is trained on what it is fed.
 """
 
 from __future__ import annotations
@@ -33,8 +33,8 @@ from typing import Any, Mapping
 
 from gyro_tdc.base import INPUT_FRAMES
 from gyro_tdc.data.bag.writer import write_bag
-from gyro_tdc.data.fields import (check_number, check_vector, DEFAULT_TEMPERATURE_FIELDS,
-                                  normalize_type, reader, stamp_kind, stamp_seconds, unquirk)
+from gyro_tdc.data.field_paths import (check_number, check_vector, DEFAULT_TEMPERATURE_FIELDS,
+                                       normalize_type, reader, stamp_kind, stamp_seconds, unquirk)
 from gyro_tdc.errors import ConfigError, DatasetError, one_line
 import numpy as np
 from rosbags.highlevel import AnyReader, AnyReaderError

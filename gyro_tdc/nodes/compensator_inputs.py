@@ -18,7 +18,7 @@ The compensator's inputs as drivers publish them: message classes by name, field
 
 ``imu_type`` and ``temperature_type`` name any installed ``pkg/msg/Type``; the class is
 loaded with :mod:`importlib` as ``rosidl_runtime_py.utilities.get_message`` does (that
-package has no PyPI wheel). The field paths (:mod:`gyro_tdc.data.fields`) are checked
+package has no PyPI wheel). The field paths (:mod:`gyro_tdc.data.field_paths`) are checked
 against the class's field table at start, so a bad value stops the node with one line
 naming the parameter. A ``sensor_msgs/msg/Imu`` input keeps the node's in-place fast path;
 any other type is turned into a ``sensor_msgs/Imu`` here. See ``doc/drivers.md``.

@@ -20,8 +20,8 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 from gyro_tdc.base import TEMPERATURE_QUIRKS
-from gyro_tdc.data.fields import (check_number, check_vector, frd_to_flu, normalize_type,
-                                  reader, split_path, stamp_kind, stamp_seconds, unquirk)
+from gyro_tdc.data.field_paths import (check_number, check_vector, frd_to_flu, normalize_type,
+                                       reader, split_path, stamp_kind, stamp_seconds, unquirk)
 from gyro_tdc.errors import ConfigError
 import pytest
 
