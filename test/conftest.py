@@ -67,9 +67,13 @@ def _serial(item):
     return item is not None and item.get_closest_marker('serial') is not None
 
 
-@pytest.hookimpl(wrapper=True)
+@pytest.hookimpl(wrapper=True, tryfirst=True)
 def pytest_runtest_protocol(item, nextitem):
-    """On an xdist worker, run a ``serial`` test (set-up to tear-down) alone (``serial_gate``)."""
+    """
+    On an xdist worker, run a ``serial`` test (set-up to tear-down) alone (``serial_gate``).
+
+    The outermost wrapper: the wait at the gate comes before pytest-timeout's timer starts.
+    """
     if not _WORKER:
         return (yield)
     _GATE.enter(_serial(item))

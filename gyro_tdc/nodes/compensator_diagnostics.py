@@ -59,6 +59,10 @@ def _fqn(namespace: str, name: str) -> str:
 class Diagnostics:
     """Report the compensator's health on /diagnostics and in the log (mixin)."""
 
+    #: Set by the node's ``destroy_node``: the report, which queries the ROS graph through
+    #: the node's handle, is then skipped (a timer event may still come after destruction).
+    stopping: bool = False
+
     def _init_diagnostics(self) -> None:
         """Create the /diagnostics publisher and what the reports compare against."""
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
@@ -188,6 +192,8 @@ class Diagnostics:
             self.get_logger().warning(why)
 
     def _on_diagnostics(self) -> None:
+        if self.stopping:
+            return
         arr = DiagnosticArray()
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [self.diagnostic_status()]

@@ -193,7 +193,17 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
             self._start_learning(policy)
 
     def destroy_node(self) -> None:
-        """Save what was learned (the stretch in progress too) before going away."""
+        """
+        Stop the timers, save what was learned (the stretch in progress too), then go away.
+
+        In that order: an executor may still hold a timer event of this node (the
+        EventsExecutor dispatches it even after ``remove_node``); a cancelled timer's, like
+        any report once ``stopping`` is set, does nothing, and the learner's worker has
+        finished before the final save.
+        """
+        self.stopping = True
+        for timer in list(self.timers):
+            timer.cancel()
         self._stop_learning()
         super().destroy_node()
 

@@ -195,6 +195,7 @@ class DriverNode(Node):
 
     def __init__(self, *, source: ImuSource | None = None, **kwargs: Any) -> None:
         super().__init__(kwargs.pop('node_name', 'driver_node'), **kwargs)
+        self.stopping = False         # set by destroy_node: callbacks then do nothing
         self.params = DriverParams(**declare(self, PARAMS))
         p = self.params
         self._backend = BACKENDS[p.backend]
@@ -313,7 +314,7 @@ class DriverNode(Node):
 
     def _on_tick(self) -> None:
         """Publish what the source says is due; errors go to diagnostics."""
-        if self._finished:
+        if self._finished or self.stopping:
             return
         if self._source is None:
             if time.monotonic() >= self._retry_at:
@@ -373,13 +374,24 @@ class DriverNode(Node):
         return st
 
     def _on_diagnostics(self) -> None:
+        if self.stopping:
+            return
         arr = DiagnosticArray()
         arr.header.stamp = self.get_clock().now().to_msg()
         arr.status = [self.diagnostic_status()]
         self._diag_pub.publish(arr)
 
     def destroy_node(self) -> None:
-        """Close the source, then destroy the node."""
+        """
+        Stop the timers, close the source, then destroy the node.
+
+        The timers are cancelled first: an executor may still hold a timer event of this
+        node (the EventsExecutor dispatches it even after ``remove_node``), and a cancelled
+        timer's, like any callback once ``stopping`` is set, does nothing.
+        """
+        self.stopping = True
+        for timer in list(self.timers):
+            timer.cancel()
         if self._source is not None and self._source is not self._injected:
             try:
                 self._source.close()

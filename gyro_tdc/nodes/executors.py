@@ -19,27 +19,107 @@ rclpy's executor, not the arithmetic, bounds a Python node's per-message cost: m
 ``bench/bench_compensator.py``, the EventsExecutor (``events``) moves ~2.9x the messages of a
 SingleThreadedExecutor (``single``) in one process and needs ~1.5x less CPU per message across
 processes; its ``spin()`` is broken in the Jazzy wheels, so :func:`spin` loops on
-``spin_once``.
+``spin_once``. :class:`StopSignals` makes SIGINT and SIGTERM one request to stop, acted on
+between callbacks, so a node stops the same clean way at any moment (doc/internals/nodes.md).
 """
 
 from __future__ import annotations
 
+import contextlib
 import gc
+import signal
 import sys
-from typing import Any, Callable
+import threading
+from typing import Any, Callable, Iterator
 
 from gyro_tdc.errors import GyroTdcError, one_line
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 
-__all__ = ['STARTUP_ERRORS', 'make_executor', 'run_node', 'spin']
+__all__ = ['STARTUP_ERRORS', 'STOP_POLL_S', 'StopRequested', 'StopSignals', 'make_executor',
+           'run_node', 'spin']
 
 #: Errors of a node's configuration at start-up, reported in one line by :func:`run_node`:
 #: rclpy's parameter errors (wrong type, out of range, ...) and gyro_tdc's own
 #: (:class:`~gyro_tdc.errors.ConfigError`: not one of the choices, a topic loop...).
 STARTUP_ERRORS = (GyroTdcError, ParameterException)
+#: Longest wait of one ``spin_once`` of :func:`run_node`, hence the longest delay between a
+#: stop signal and the start of the teardown [s].
+STOP_POLL_S = 0.1
+#: The signals that stop a node: Ctrl-C, and what ``ros2 launch`` and systemd send.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class StopRequested(BaseException):
+    """
+    A stop signal came while a node was being built: abandon it (caught by :func:`run_node`).
+
+    Not a KeyboardInterrupt: CPython makes a process whose KeyboardInterrupt went through
+    code run by ``PyRun_String`` (as extension modules do) exit by SIGINT at the very end,
+    whatever ``main()`` returned. A BaseException: no ``except Exception`` edge swallows it.
+    """
+
+
+class StopSignals:
+    """
+    Turn SIGINT and SIGTERM into one request to stop, read between callbacks.
+
+    rclpy's own handlers shut the context down at once, from another thread, whatever the
+    process is doing: a node still being built then fails in ``create_timer`` and a callback
+    running meets destroyed handles. These handlers record the request; :func:`run_node`
+    ends the spin at the next callback boundary and tears the node down in order. Only
+    while a node is being built (:meth:`interrupting`: nothing learned yet, nothing to save)
+    does a signal raise :class:`StopRequested` at once, so that a slow start (the sim back-end
+    simulates its whole run first) does not hold the stop up. A second signal while the
+    teardown runs (a save on a hung disk) ends the process at once with status 128 + the
+    signal number.
+    """
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self._previous: dict[int, Any] = {}
+        self._interrupt = False
+
+    @property
+    def requested(self) -> bool:
+        """Return whether a stop signal has arrived."""
+        return self.signum is not None
+
+    def install(self) -> bool:
+        """Handle the stop signals here; return False off the main thread (nothing done)."""
+        if threading.current_thread() is not threading.main_thread():
+            return False
+        for signum in STOP_SIGNALS:
+            self._previous[signum] = signal.signal(signum, self._handle)
+        return True
+
+    def restore(self) -> None:
+        """Put back the handlers found by :meth:`install`."""
+        for signum, handler in self._previous.items():
+            signal.signal(signum, handler)
+        self._previous.clear()
+
+    @contextlib.contextmanager
+    def interrupting(self) -> Iterator[None]:
+        """Within the block a stop signal (or one already received) raises StopRequested."""
+        self._interrupt = True
+        try:
+            if self.requested:
+                raise StopRequested(signal.Signals(self.signum).name)
+            yield
+        finally:
+            self._interrupt = False
+
+    def _handle(self, signum: int, frame: Any) -> None:
+        if self._interrupt:
+            self.signum = signum
+            raise StopRequested(signal.Signals(signum).name)
+        if self.signum is not None:
+            raise SystemExit(128 + signum)
+        self.signum = signum
 
 
 def make_executor(kind: str, context: Any = None) -> Any:
@@ -65,9 +145,10 @@ def make_executor(kind: str, context: Any = None) -> Any:
     return SingleThreadedExecutor(context=context)
 
 
-def spin(executor: Any, context: Any = None) -> None:
+def spin(executor: Any, context: Any = None, *, stop: Callable[[], bool] | None = None,
+         poll_s: float = 0.5) -> None:
     """
-    Run ``executor`` until its context shuts down.
+    Run ``executor`` until its context shuts down or ``stop()`` is true.
 
     The loop calls ``spin_once``: in the rclpy 7.1.6 Jazzy wheels
     ``EventsExecutor.spin()`` dispatches nothing at all (neither timers nor
@@ -79,10 +160,14 @@ def spin(executor: Any, context: Any = None) -> None:
         The executor, nodes added.
     context : rclpy.context.Context, optional
         Its context (default: the global one).
+    stop : callable returning bool, optional
+        Checked after every callback and every ``poll_s`` without one.
+    poll_s : float, s
+        Longest wait of one ``spin_once``.
 
     """
-    while rclpy.ok(context=context):
-        executor.spin_once(timeout_sec=0.5)
+    while rclpy.ok(context=context) and not (stop is not None and stop()):
+        executor.spin_once(timeout_sec=poll_s)
 
 
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
@@ -91,12 +176,15 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
     """
     Run one node until shutdown: the ``main()`` of ros2/demos, shared by the nodes.
 
-    Initialise rclpy, build the node inside ``try``, spin it, treat Ctrl-C and an external
-    shutdown as a normal end, then shut the executor down, destroy the node and shut rclpy
-    down. A node that cannot start because of its configuration (a parameter of the wrong
-    type, out of range or not one of its choices, inconsistent topic names: every
-    :data:`STARTUP_ERRORS`) prints one line, ``NAME: error: ...``, on stderr and the exit
-    status is 2, with no traceback.
+    Initialise rclpy, build the node inside ``try``, spin it, treat Ctrl-C, SIGTERM and an
+    external shutdown as a normal end, then shut the executor down (no callback runs after
+    it), destroy the node (which stops its own timers and workers and saves first) and shut
+    rclpy down. A stop signal (:class:`StopSignals`, on the main thread) is acted on between
+    callbacks; one during start-up abandons the node being built (nothing to save yet). The
+    exit status is 0 either way. A node that cannot start because of its
+    configuration (a parameter of the wrong type, out of range or not one of its choices,
+    inconsistent topic names: every :data:`STARTUP_ERRORS`) prints one line,
+    ``NAME: error: ...``, on stderr and the exit status is 2, with no traceback.
 
     Parameters
     ----------
@@ -118,12 +206,15 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
         Exit status: 0, or 2 when the node could not start.
 
     """
-    rclpy.init(args=args)
+    stop = StopSignals()
+    own = stop.install()
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if own else None)
     node = None
     ex = None
     try:
         try:
-            node = make_node()
+            with stop.interrupting():
+                node = make_node()
         except STARTUP_ERRORS as exc:
             print(f'{name}: error: {one_line(exc)}', file=sys.stderr)
             return 2
@@ -131,13 +222,16 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
         ex.add_node(node)
         if freeze_heap:
             gc.freeze()
-        spin(ex)
-    except (KeyboardInterrupt, ExternalShutdownException):
+        spin(ex, stop=lambda: stop.requested, poll_s=STOP_POLL_S)
+    except (StopRequested, KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
-        if ex is not None:
-            ex.shutdown()
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+        try:
+            if ex is not None:
+                ex.shutdown()
+            if node is not None:
+                node.destroy_node()
+            rclpy.try_shutdown()
+        finally:
+            stop.restore()
     return 0

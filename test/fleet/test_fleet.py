@@ -38,6 +38,7 @@ import subprocess
 import sys
 
 from bags import bag_from_run
+from dask_cluster import local_cluster, reaped
 from gyro_tdc.cli.fleet import main
 from gyro_tdc.cli.train import build_parser as train_parser, train_options
 from gyro_tdc.data import BagOptions, write_bag
@@ -51,6 +52,10 @@ import numpy as np
 import pytest
 from synth import synth_run
 import yaml
+
+# Time-bounded: a cluster that never closes fails its test within this bound (each test
+# takes under a minute on a loaded 2-core machine) instead of holding the run.
+pytestmark = pytest.mark.timeout(300)
 
 BASE_A1 = np.array([0.02, -0.015, 0.01])        # deg/s/degC
 GOOD = ('imu-a', 'imu-b', 'imu-c')
@@ -117,8 +122,8 @@ def _options(*extra):
 
 @pytest.fixture(scope='module')
 def engine():
-    """One embedded LocalCluster with two worker processes for the module."""
-    with open_engine(workers=2) as e:
+    """One embedded LocalCluster with two worker processes for the module (reaped after)."""
+    with reaped(), open_engine(workers=2) as e:
         yield e
 
 
@@ -292,13 +297,11 @@ def _one_error_line(capsys) -> str:
 
 
 def test_cli_against_a_scheduler_address(tmp_path, bags, capsys):
-    from distributed import LocalCluster
     _, b = bags
     rows = _rows(bags, GOOD) + [('truncated', [b['truncated'][0]], [])]
     manifest = _manifest(tmp_path / 'fleet.csv', rows)
     out = tmp_path / 'out'
-    with LocalCluster(n_workers=1, processes=True, scheduler_port=0, threads_per_worker=1,
-                      dashboard_address='127.0.0.1:0') as cluster:
+    with local_cluster(n_workers=1) as cluster:
         addr = cluster.scheduler_address
         code = main([str(manifest), '--out', str(out), '--scheduler', addr, '--no-progress',
                      '--centers', '6'])
@@ -321,15 +324,13 @@ def test_cli_against_a_scheduler_address(tmp_path, bags, capsys):
 
 
 def test_cli_refuses_workers_with_another_gyro_tdc(tmp_path, capsys, monkeypatch):
-    from distributed import LocalCluster
     stub = tmp_path / 'stub' / 'gyro_tdc'          # another version, on the worker only
     stub.mkdir(parents=True)
     (stub / '__init__.py').write_text("__version__ = '0.0.0'\n")
     manifest = _manifest(tmp_path / 'fleet.csv', [('imu', [tmp_path / 'b'], [])])
     # Spawned workers start from this process's sys.path; this process has gyro_tdc already.
     monkeypatch.syspath_prepend(str(stub.parent))
-    with LocalCluster(n_workers=1, processes=True, scheduler_port=0, threads_per_worker=1,
-                      dashboard_address='127.0.0.1:0') as cluster:
+    with local_cluster(n_workers=1) as cluster:
         code = main([str(manifest), '--out', str(tmp_path / 'out'),
                      '--scheduler', cluster.scheduler_address])
     assert code == 2
@@ -439,11 +440,9 @@ def _end(child: subprocess.Popen, bound_s: float = 300.0) -> tuple[int, str, lis
 
 
 def test_a_cluster_that_loses_every_worker_ends_fleet_with_one_line(tmp_path, bags):
-    from distributed import LocalCluster
     manifest = _manifest(tmp_path / 'fleet.csv', _rows(bags, GOOD + (OUTLIER,)))
     out = tmp_path / 'out'
-    with LocalCluster(n_workers=1, processes=True, scheduler_port=0, threads_per_worker=1,
-                      dashboard_address='127.0.0.1:0') as cluster:
+    with local_cluster(n_workers=1) as cluster:
         child = _fleet_child([manifest, '--out', out, '--scheduler', cluster.scheduler_address,
                               '--connect-timeout', '2'])
         _wait_for_line(child, 'imu-a: ')
@@ -460,10 +459,11 @@ def test_a_cluster_that_loses_every_worker_ends_fleet_with_one_line(tmp_path, ba
 def test_sigterm_ends_fleet_like_ctrl_c_with_a_summary(tmp_path, bags):
     manifest = _manifest(tmp_path / 'fleet.csv', _rows(bags, GOOD + (OUTLIER,)))
     out = tmp_path / 'out'
-    child = _fleet_child([manifest, '--out', out, '--workers', '1'])
-    _wait_for_line(child, 'imu-a: ')
-    child.send_signal(signal.SIGTERM)
-    code, _, err = _end(child)
+    with reaped():                  # the child's own cluster too, should it outlive the child
+        child = _fleet_child([manifest, '--out', out, '--workers', '1'])
+        _wait_for_line(child, 'imu-a: ')
+        child.send_signal(signal.SIGTERM)
+        code, _, err = _end(child)
     assert code == 130, err
     assert err[-1:] == ['gyro-tdc fleet: error: interrupted'], err
     summary = json.loads((out / 'summary.json').read_text())
@@ -472,10 +472,10 @@ def test_sigterm_ends_fleet_like_ctrl_c_with_a_summary(tmp_path, bags):
     assert summary['sensors'][-1]['error'] == 'not run (fleet interrupted)'
 
 
+@pytest.mark.timeout(120)   # a few seconds; once hung 8 minutes in the cluster's close
 def test_a_scheduler_without_workers_exits_2_after_the_timeout(tmp_path, capsys):
-    from distributed import LocalCluster
     path = _manifest(tmp_path / 'fleet.csv', [('imu', [tmp_path / 'b'], [])])
-    with LocalCluster(n_workers=0, scheduler_port=0, dashboard_address='127.0.0.1:0') as cluster:
+    with local_cluster(n_workers=0) as cluster:
         assert main([str(path), '--out', str(tmp_path / 'out'), '--scheduler',
                      cluster.scheduler_address, '--connect-timeout', '1']) == 2
     assert 'no Dask worker connected within 1 s' in _one_error_line(capsys)

@@ -33,6 +33,7 @@ import subprocess
 import sys
 
 from bags import bag_from_run
+from dask_cluster import reaped
 from gyro_tdc.fleet import (fleet_statistics, FleetResult, format_table, robust_z,
                             SensorResult)
 from gyro_tdc.fleet.manifest import SensorSpec
@@ -182,9 +183,10 @@ def test_fleet_cli_reports_the_constant_sensor_without_flagging_it(bags, tmp_pat
     manifest.write_text('sensor_id,train,test\n' + ''.join(
         f'{sid},{b[sid][0]},{b[sid][1]}\n' for sid in ('imu-a', 'imu-b', 'imu-c', 'imu-z')))
     env = dict(os.environ, OPENBLAS_NUM_THREADS='1', PYTHONWARNINGS='error')
-    res = subprocess.run([str(GYRO_TDC), 'fleet', str(manifest), '--out', str(tmp_path / 'o'),
-                          '--workers', '1', '--no-progress'], capture_output=True, text=True,
-                         timeout=600, env=env)
+    with reaped():                  # its cluster's processes, should they outlive it
+        res = subprocess.run([str(GYRO_TDC), 'fleet', str(manifest), '--out',
+                              str(tmp_path / 'o'), '--workers', '1', '--no-progress'],
+                             capture_output=True, text=True, timeout=300, env=env)
     assert res.returncode == 0, res.stderr
     row = next(x for x in res.stdout.splitlines() if x.startswith('imu-z '))
     assert 'gyro axis z constant (not fitted, passed through' in row, res.stdout

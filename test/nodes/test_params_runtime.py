@@ -22,7 +22,6 @@ compensated under the new policy; ``use_sim_time`` with and without ``/clock``.
 from __future__ import annotations
 
 import threading
-import time
 
 from compensator_rig import to_ns
 from diagnostic_msgs.msg import DiagnosticArray
@@ -167,22 +166,25 @@ def test_sim_time_without_clock_installs_a_slow_model_file_set(rig_factory, mode
     """A model_file slower than load_wait is installed by the poll on the steady clock."""
     other = save_model(fit_model([synth_run(hours=1.0, rate_hz=2.0, seed=6)], features=('dT',),
                                  n_centers=4), tmp_path / 'linear.yaml')
-    reading = threading.Event()
+    reading, release = threading.Event(), threading.Event()
 
     def loader(name):
         if name == str(other):
             reading.set()
-            time.sleep(0.5)             # five times load_wait: answered before it is read
+            release.wait(30.0)          # until the set is answered: slower than load_wait
         return read_model(name)
 
     rig = rig_factory(executor_kind=executor, model_file=model_file, use_sim_time=True,
                       node_kwargs={'loader': loader})
     node = rig.node
     first = node.core.model_id
-    result = param_client(rig)('model_file', str(other))
-    assert result.successful and reading.is_set()
-    assert node.get_clock().now().nanoseconds == 0             # no /clock: time stands at 0
-    assert node.core.model_id == first and node.last_reload == f'loading {other}'
+    try:
+        result = param_client(rig)('model_file', str(other))
+        assert result.successful and reading.is_set()
+        assert node.get_clock().now().nanoseconds == 0         # no /clock: time stands at 0
+        assert node.core.model_id == first and node.last_reload == f'loading {other}'
+    finally:
+        release.set()
     rig.spin_until(lambda: node.last_reload.startswith('loaded'), 10.0, what='installed')
     assert node.core.model_id == read_model(str(other)).model_id != first
     assert node.model_file == str(other)

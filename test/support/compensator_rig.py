@@ -27,7 +27,7 @@ import numpy as np
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rosutil import spin_until
+from rosutil import matched_readers, spin_until
 from sensor_msgs.msg import Imu, Temperature
 
 __all__ = ['RELIABLE', 'Rig', 'rates', 'stamp_s', 'to_ns']
@@ -67,9 +67,10 @@ class Rig:
         self.io.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 10)
         self.executor.add_node(self.node)
         self.executor.add_node(self.io)
+        # Matched on the writers' side, each way: what is published before is lost.
         spin_until(self.executor, lambda: self.imu_pub.get_subscription_count() > 0
-                   and self.node.count_publishers('imu/temperature') > 0
-                   and self.node.count_subscribers('imu/data_compensated') > 0, 10.0,
+                   and self.temp_pub.get_subscription_count() > 0
+                   and matched_readers(self.node, 'imu/data_compensated') > 0, 20.0,
                    what='discovery')
 
     def _on_diag(self, msg):

@@ -29,7 +29,8 @@ import threading
 import time
 from typing import Any, Callable, IO, Iterator, Optional
 
-__all__ = ['Lines', 'interrupt', 'node_process', 'spin_until', 'spin_until_quiet']
+__all__ = ['Lines', 'interrupt', 'matched_readers', 'node_process', 'request_until_answered',
+           'spin_until', 'spin_until_quiet']
 
 
 @contextlib.contextmanager
@@ -52,11 +53,24 @@ def node_process(module: str, *ros_args: str) -> Iterator[subprocess.Popen]:
             child.wait()
 
 
-def interrupt(child: subprocess.Popen, timeout_s: float = 10.0) -> tuple[int, str]:
+def interrupt(child: subprocess.Popen, timeout_s: float = 30.0) -> tuple[int, str]:
     """Send SIGINT (Ctrl-C) to ``child``; return its exit code and everything it printed."""
     child.send_signal(signal.SIGINT)
     code = child.wait(timeout=timeout_s)
     return code, child.stdout.read()
+
+
+def matched_readers(node: Any, topic: str) -> int:
+    """
+    Return how many readers the publishers of ``node`` on ``topic`` have matched.
+
+    What a wait for "the other side is there" needs: the graph (``count_subscribers``) can
+    list a reader before this node's writer has matched it, and a volatile writer drops
+    what it publishes in between. ``topic`` is resolved as the node resolves it.
+    """
+    name = node.resolve_topic_name(topic)
+    return sum(pub.get_subscription_count() for pub in node.publishers
+               if pub.topic_name == name)
 
 
 def spin_until(executor: Any, predicate: Callable[[], bool], timeout_s: float = 10.0, *,

@@ -48,7 +48,7 @@ import numpy as np
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
-from rosutil import spin_until
+from rosutil import matched_readers, spin_until
 from sensor_msgs.msg import Imu, Temperature
 from std_srvs.srv import Trigger
 
@@ -127,7 +127,7 @@ class Live:
         self.spin_until(lambda: self.imu_pub.get_subscription_count() > 0
                         and self.temp_pub.get_subscription_count() > 0
                         and (self.params is not None or self.save.service_is_ready())
-                        and self.node.count_subscribers('imu/data_compensated') > 0,
+                        and matched_readers(self.node, 'imu/data_compensated') > 0,
                         'discovery')
 
     def stop(self):
