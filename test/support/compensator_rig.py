@@ -70,7 +70,8 @@ class Rig:
         # Matched on the writers' side, each way: what is published before is lost.
         spin_until(self.executor, lambda: self.imu_pub.get_subscription_count() > 0
                    and self.temp_pub.get_subscription_count() > 0
-                   and matched_readers(self.node, 'imu/data_compensated') > 0, 20.0,
+                   and matched_readers(self.node, 'imu/data_compensated') > 0
+                   and matched_readers(self.node, '/diagnostics') > 0, 20.0,
                    what='discovery')
 
     def _on_diag(self, msg):
