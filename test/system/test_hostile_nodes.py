@@ -449,8 +449,8 @@ def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path
     # Each report counts the samples missing since the one before: wait until the timer has
     # judged every sample and its report has come back (under load the last one was still
     # in flight, and the sum below came out short).
-    rig.spin_until(lambda: not node.backlog.samples and rig.diag and values(
-        rig.diag[-1])['input missing'] == str(node.backlog.missing), 10.0,
+    rig.spin_until(lambda: not node.diagnostics.backlog.samples and rig.diag and values(
+        rig.diag[-1])['input missing'] == str(node.diagnostics.backlog.missing), 10.0,
         what='the report of the last samples received')
     reports = rig.diag + [node.diagnostic_status()]
     missing = node.diagnostics.backlog.missing
