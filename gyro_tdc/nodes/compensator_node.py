@@ -39,7 +39,7 @@ from gyro_tdc.nodes.compensator_diagnostics import (Diagnostics, DIAGNOSTICS_PER
                                                     TEMPERATURE_MESSAGES)
 from gyro_tdc.nodes.compensator_inputs import input_reader
 from gyro_tdc.nodes.compensator_learning import LEARN_STEP_S, Learning
-from gyro_tdc.nodes.compensator_loading import LOAD_ERRORS, LOAD_POLL_S, ModelLoading, read_model
+from gyro_tdc.nodes.compensator_loading import LOAD_POLL_S, ModelLoading, read_model
 from gyro_tdc.nodes.compensator_motion import MOTION_MESSAGES, MotionInput
 from gyro_tdc.nodes.executors import run_node
 from gyro_tdc.runtime import (CompensatorCore, InputStatus, PARAMS, PASSTHROUGH, Policy,
@@ -56,8 +56,8 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu
 from std_srvs.srv import Trigger
 
-__all__ = ['CompensatorNode', 'CompensatorParams', 'LOAD_ERRORS', 'PARAMS',
-           'TEMPERATURE_MESSAGES', 'main', 'read_model']
+__all__ = ['CompensatorNode', 'CompensatorParams', 'PARAMS', 'TEMPERATURE_MESSAGES', 'main',
+           'read_model']
 
 #: The compensator's parameters, read at start-up; the writable rows are replaced when set.
 CompensatorParams = spec_dataclass(
@@ -402,9 +402,6 @@ class CompensatorNode(Node):
         else:
             t = stamp(msg)
         self.core.add_temperature(t, self.reader.temperature(msg))
-
-    #: The same handler for header-less readings (std_msgs Float32/Float64).
-    _on_float_temperature = _on_temperature
 
     def _on_message_lost(self, info: QoSMessageLostInfo) -> None:
         new = info.total_count - self.inputs.lost
