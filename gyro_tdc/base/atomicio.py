@@ -46,11 +46,8 @@ __all__ = ['atomic_dir', 'atomic_write', 'clean_leftovers']
 Content = Union[str, bytes, Callable[[IO], None]]
 _NAME_MAX = 200     # characters of the target name kept in a temporary name
 _HOST = hashlib.sha256(socket.gethostname().encode('utf-8', 'replace')).hexdigest()[:4]
-# What follows '.NAME.' in a hidden sibling: ours (host, pid, random, kind), the backups of
-# simulate --force before this module swapped (pid), and temporaries without an owner.
+# What follows '.NAME.' in a hidden sibling of ours: host, pid, random, kind.
 _OWNED = re.compile(r'(?P<host>[0-9a-f]{4})-(?P<pid>[0-9]{1,10})-[0-9a-f]{8}\.(?P<kind>tmp|old)')
-_LEGACY_BACKUP = re.compile(r'replaced-(?P<pid>[0-9]{1,10})-[0-9]{1,3}')
-_LEGACY_TMP = re.compile(r'[0-9a-f]{8}\.tmp')
 _RENAME_NOREPLACE, _RENAME_EXCHANGE = 1, 2
 _AT_FDCWD = -100
 _log = logging.getLogger(__name__)
@@ -140,12 +137,11 @@ def clean_leftovers(path: str | os.PathLike) -> list[str]:
 
     A hidden sibling ``.NAME.HOST-PID-RANDOM.tmp`` (a temporary file or staging directory) or
     ``.old`` (the old output during a replacing write) whose process, on this host, no
-    longer exists is removed; an ``.old`` backup, or a ``.NAME.replaced-PID-K`` of an earlier
-    ``simulate --force``, is renamed back to ``path`` first when ``path`` does not exist (the
-    run died between moving the old output aside and moving the new one in). Siblings of
-    running processes are left alone. Temporaries without an owner (``.NAME.RANDOM.tmp``,
-    written by earlier versions) and siblings that cannot be removed are reported on one
-    warning line of the ``gyro_tdc.base.atomicio`` logger.
+    longer exists is removed; an ``.old`` backup is renamed back to ``path`` first when
+    ``path`` does not exist (the run died between moving the old output aside and moving the
+    new one in). Siblings of running processes are left alone. Those of another host and
+    those that cannot be removed are reported on one warning line of the
+    ``gyro_tdc.base.atomicio`` logger.
 
     Parameters
     ----------
@@ -169,19 +165,15 @@ def clean_leftovers(path: str | os.PathLike) -> list[str]:
     for name in names:
         rest = name[len(prefix):]
         owned = _OWNED.fullmatch(rest)
-        legacy = _LEGACY_BACKUP.fullmatch(rest)
-        if owned is not None and owned['host'] != _HOST:
+        if owned is None:
+            continue
+        if owned['host'] != _HOST:
             kept.append(name)           # another host's process: it may be running
             continue
-        match = owned or legacy
-        if match is None:
-            if _LEGACY_TMP.fullmatch(rest):
-                kept.append(name)
-            continue
-        if _alive(int(match['pid'])):
+        if _alive(int(owned['pid'])):
             continue
         leftover = path.parent / name
-        backup = legacy is not None or owned['kind'] == 'old'
+        backup = owned['kind'] == 'old'
         try:
             if (backup and len(path.name) <= _NAME_MAX and not os.path.lexists(path)):
                 os.rename(leftover, path)

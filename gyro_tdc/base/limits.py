@@ -79,25 +79,9 @@ SIM_BYTES_PER_SAMPLE = 350
 
 def check_bin_width(bin_c: float, *, option: str = '--bin') -> float:
     """
-    Return ``bin_c`` when the coverage table it implies is small enough.
+    Return ``bin_c`` (degC) when the coverage table it implies is small enough.
 
-    Parameters
-    ----------
-    bin_c : float, degC
-        Coverage bin width.
-    option : str
-        Option name for the message.
-
-    Returns
-    -------
-    float
-        ``bin_c``.
-
-    Raises
-    ------
-    LimitError
-        When the plausible temperature span would need more than ``MAX_COVERAGE_BINS``.
-
+    LimitError when the plausible temperature span would need more than ``MAX_COVERAGE_BINS``.
     """
     span = TEMP_PLAUSIBLE_C[1] - TEMP_PLAUSIBLE_C[0]
     smallest = span / MAX_COVERAGE_BINS
@@ -110,27 +94,7 @@ def check_bin_width(bin_c: float, *, option: str = '--bin') -> float:
 
 
 def check_centers(n_centers: int, *, option: str = '--centers') -> int:
-    """
-    Return ``n_centers`` when a model file may hold that many RBF centres.
-
-    Parameters
-    ----------
-    n_centers : int
-        RBF centres K.
-    option : str
-        Option name for the message.
-
-    Returns
-    -------
-    int
-        ``n_centers``.
-
-    Raises
-    ------
-    LimitError
-        When ``n_centers`` exceeds ``MAX_CENTERS``.
-
-    """
+    """Return ``n_centers`` when a model file may hold that many RBF centres (else LimitError)."""
     if n_centers > MAX_CENTERS:
         raise LimitError(f'{option} {n_centers}: at most {MAX_CENTERS} RBF centres (the limit '
                          'of a model file)')
@@ -140,27 +104,9 @@ def check_centers(n_centers: int, *, option: str = '--centers') -> int:
 def check_sim_samples(duration_s: float, rate_hz: float, *,
                       option: str = '--rate-hz') -> int:
     """
-    Return the IMU samples of one simulated run when they fit in ``MAX_SIM_SAMPLES``.
+    Return the IMU samples of one simulated run (``duration_s`` at ``rate_hz``).
 
-    Parameters
-    ----------
-    duration_s : float, s
-        Run duration.
-    rate_hz : float, Hz
-        IMU rate.
-    option : str
-        Option name for the message.
-
-    Returns
-    -------
-    int
-        Samples per run.
-
-    Raises
-    ------
-    LimitError
-        When the run would exceed ``MAX_SIM_SAMPLES`` samples.
-
+    LimitError, naming ``option``, when the run would exceed ``MAX_SIM_SAMPLES`` samples.
     """
     n = duration_s * rate_hz
     if not n <= MAX_SIM_SAMPLES:

@@ -163,24 +163,8 @@ def scenario_path(name_or_file: PathLike, *, config: Optional[PathLike] = None) 
     """
     Resolve a scenario name (``config/scenarios/NAME.yaml``) or a scenario file path.
 
-    Parameters
-    ----------
-    name_or_file : str or os.PathLike
-        A shipped scenario name such as ``'ramp'``, or a path to a YAML file. Anything with a
-        ``.yaml``/``.yml`` suffix or a path separator is taken as a path.
-    config : str or os.PathLike, optional
-        Configuration directory to search instead of :func:`config_dir`.
-
-    Returns
-    -------
-    pathlib.Path
-        Path of an existing scenario file.
-
-    Raises
-    ------
-    ScenarioError
-        If the file does not exist or the name is unknown; the message lists the shipped names.
-
+    Anything with a ``.yaml``/``.yml`` suffix or a path separator is a path; names are searched
+    in ``config`` (default :func:`config_dir`). A ScenarioError lists the shipped names.
     """
     return _resolve(name_or_file, kind='scenario', argument='scenario', subdir='scenarios',
                     error=ScenarioError, config=config)
@@ -190,24 +174,8 @@ def model_path(name_or_file: PathLike, *, config: Optional[PathLike] = None) -> 
     """
     Resolve a model name (``config/models/NAME.yaml``) or a model file path.
 
-    Parameters
-    ----------
-    name_or_file : str or os.PathLike
-        A shipped model name, or a path to a YAML model file. Anything with a
-        ``.yaml``/``.yml`` suffix or a path separator is taken as a path.
-    config : str or os.PathLike, optional
-        Configuration directory to search instead of :func:`config_dir`.
-
-    Returns
-    -------
-    pathlib.Path
-        Path of an existing model file.
-
-    Raises
-    ------
-    ModelFileError
-        If the file does not exist or the name is unknown; the message lists the shipped names.
-
+    Anything with a ``.yaml``/``.yml`` suffix or a path separator is a path; names are searched
+    in ``config`` (default :func:`config_dir`). A ModelFileError lists the shipped names.
     """
     return _resolve(name_or_file, kind='model', argument='model', subdir='models',
                     error=ModelFileError, config=config)

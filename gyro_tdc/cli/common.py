@@ -34,7 +34,8 @@ from typing import Callable, NoReturn, Optional, Sequence, TYPE_CHECKING
 from gyro_tdc.cli import PROG
 from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPIC,
                            DEFAULT_TEMPERATURE_TOPIC, GAP_PERIODS, LOG_FORMATS,
-                           MAX_LOSS_FRACTION, SESSION_GAP_S, SESSION_MODES)
+                           MAX_LOSS_FRACTION, SESSION_GAP_S, SESSION_MODES,
+                           TEMPERATURE_SOURCES)
 from gyro_tdc.errors import GyroTdcError, one_line
 
 if TYPE_CHECKING:
@@ -146,8 +147,8 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
 
     ``--imu-topic``, ``--temperature-topic``, ``--reference x,y,z`` (constant, rad/s) and
     ``--reference-topic`` (mutually exclusive with ``--reference``), ``--no-progress``,
-    ``--allow-loss``; for flight logs ``--log-format``, ``--imu-instance`` and
-    ``--allow-onboard-corrected``.
+    ``--allow-loss``; for flight logs ``--log-format``, ``--imu-instance``,
+    ``--allow-onboard-corrected`` and ``--temperature-source``.
 
     Parameters
     ----------
@@ -185,6 +186,12 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
                    help='use flight-log data the flight controller already thermally '
                         'compensated (TC_G_ENABLE=1, INS_TCALn_ENABLE=1) as they are '
                         '(default: refused, as a model of them would compensate twice)')
+    f.add_argument('--temperature-source', default='imu', metavar='SRC',
+                   help=f'the thermometer of a flight log: {" or ".join(TEMPERATURE_SOURCES)} '
+                        "(the barometer's, e.g. PX4 sensor_combined.baro_temp_celcius, "
+                        'ArduPilot BARO.T), or TOPIC.FIELD / MSG.Field (another thermometer '
+                        'of the board); a proxy lags the die, so training adds the thermal '
+                        'state (lag) with --features auto (default: %(default)s)')
     parser.set_defaults(progress=None)
 
 
@@ -229,7 +236,8 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
     BagOptions
         The topics, the reference (``--reference`` parsed, rad/s), ``progress`` (a terminal
         when not given), ``max_loss`` (1.0 with ``--allow-loss``), the flight-log choices
-        (``--log-format``, ``--imu-instance``, ``--allow-onboard-corrected``), the sessions
+        (``--log-format``, ``--imu-instance``, ``--allow-onboard-corrected``,
+        ``--temperature-source``), the sessions
         (``--sessions``, ``--session-gap``, :func:`add_session_options`) and ``more``.
 
     """
@@ -245,7 +253,8 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
         imu_instance=getattr(args, 'imu_instance', 0),
         allow_onboard_corrected=bool(getattr(args, 'allow_onboard_corrected', False)),
         sessions=getattr(args, 'sessions', 'auto'),
-        session_gap_s=float(getattr(args, 'session_gap', 0.0)), **more)
+        session_gap_s=float(getattr(args, 'session_gap', 0.0)),
+        temperature_source=getattr(args, 'temperature_source', 'imu'), **more)
 
 
 # --------------------------------------------------------------------------------------------

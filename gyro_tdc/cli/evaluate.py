@@ -151,6 +151,14 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                     for nm in models]
 
     def each(b: BagEval) -> None:
+        if b.still is not None:
+            s = b.still
+            share = 100.0 * s['still_s'] / s['total_s'] if s['total_s'] > 0 else 0.0
+            log(f'{b.label}: no reference rate and the IMU moves: scored the still stretches '
+                f"only, {s['samples']} samples in {s['stretches']} stretch(es), "
+                f"{s['still_s']:.0f} s of {s['total_s']:.0f} s ({min(share, 100.0):.3g} %); "
+                'raw and models re-anchored on the first still stretch of each of the '
+                f"{s['sessions']} session(s), as the compensator does at start-up")
         bar.write(format_bag(b, baseline, floor=args.floor, accel_floor=args.accel_floor))
         if args.plots is not None:
             bar.stage(f'{b.label}: plots')
@@ -193,6 +201,8 @@ def _with_reanchor(each, log):
     """Wrap ``each`` to log every model's automatic re-anchoring first."""
     def wrapped(b: BagEval) -> None:
         for m in b.models:
+            if m.reanchor is None:         # scored on still stretches: anchored on them
+                continue
             records = m.reanchor.get('sessions') or [m.reanchor]
             for k, r in enumerate(records):
                 where = f' session {k + 1}' if len(records) > 1 else ''

@@ -29,11 +29,12 @@ import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
-                                 non_negative_float, read_model, run_command, UsageError)
+                                 non_negative_float, non_negative_int, read_model, run_command,
+                                 UsageError)
 from gyro_tdc.data import load_runs
 from gyro_tdc.identify import (clamp_cost, fit_export, from_params, read_params, score_export,
                                write_params)
-from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, save_model
+from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, save_model, stored
 import numpy as np
 
 __all__ = ['build_parser', 'main']
@@ -68,10 +69,10 @@ def build_parser() -> argparse.ArgumentParser:
                             'parameters (a Mission Planner / MAVProxy .parm file)')
     p.add_argument('--out', required=True, metavar='FILE',
                    help='parameter file to write (with --model: the model file)')
-    p.add_argument('--instance', type=_count, default=0, metavar='N',
+    p.add_argument('--instance', type=non_negative_int, default=0, metavar='N',
                    help='PX4 calibration slot 0..3 (TC_G<N>) or ArduPilot IMU 0..2 '
                         '(INS_TCAL<N+1>) (default: %(default)s)')
-    p.add_argument('--device-id', type=_count, default=None, metavar='ID',
+    p.add_argument('--device-id', type=non_negative_int, default=None, metavar='ID',
                    help="PX4 TC_Gn_ID: the gyro's device_id (sensor_gyro.device_id, "
                         "CAL_GYRn_ID); default: the model's sensor_id when it is a number, "
                         'else 0 (PX4 then applies the slot to no gyro)')
@@ -84,17 +85,6 @@ def build_parser() -> argparse.ArgumentParser:
                         'default 0: off)')
     add_bag_options(p)
     return p
-
-
-def _count(text: str) -> int:
-    """Parse an integer >= 0 (argparse type)."""
-    try:
-        value = int(text)
-    except ValueError:
-        value = -1
-    if value < 0:
-        raise argparse.ArgumentTypeError(f'expected an integer >= 0, got {text!r}')
-    return value
 
 
 def _device_id(args: argparse.Namespace, model) -> int:
@@ -114,7 +104,7 @@ def _write_model(args: argparse.Namespace) -> int:
     if args.eval or args.reanchor:
         raise UsageError('--eval and --reanchor are for --px4/--ardupilot; evaluate a model '
                          'with gyro-tdc evaluate BAG --model MODEL')
-    model = read_model(args.model)
+    model = stored(read_model(args.model))            # the id printed is the file's
     path = save_model(model, args.out)
     lo, hi = model.temp_range_c
     learned = model.created.get('learn_file')

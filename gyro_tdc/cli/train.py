@@ -38,7 +38,7 @@ from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.evaluate import format_coverage, format_sessions, format_training
 from gyro_tdc.identify import AUTO, train, train_still_only, TrainOptions, TrainResult
 from gyro_tdc.model import KINDS
-from gyro_tdc.signal import MIN_STILL_S
+from gyro_tdc.signal import MAX_STILL_SE, MIN_STILL_S, MIN_STILL_SAMPLES
 
 __all__ = ['add_train_options', 'build_parser', 'main', 'train_options', 'training_json']
 
@@ -71,9 +71,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help='with --still-only: a geometry_msgs/Twist (cmd_vel), TwistStamped or '
                         'nav_msgs/Odometry topic; still only while it reports zero motion '
                         '(rejects slow constant turns the IMU cannot tell from rest)')
-    g.add_argument('--min-still', type=positive_float, default=MIN_STILL_S, metavar='S',
-                   help='with --still-only: shortest still stretch kept, in s (default: '
-                        '%(default)s)')
+    g.add_argument('--min-still', type=positive_float, default=None, metavar='S',
+                   help='training without a reference: shortest still stretch kept, in s '
+                        f'(default: judged by its samples and its noise: {MIN_STILL_S:g} s, '
+                        f'or {MIN_STILL_SAMPLES} samples whose mean rate is known to '
+                        f'{MAX_STILL_SE * 180.0 / math.pi:g} deg/s, e.g. 15 s at 25 Hz)')
     return p
 
 
@@ -224,8 +226,10 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         print('\n'.join(result.accel.lines()))
         fit = result.accel
         if fit.part is not None and fit.coverage is not None:
+            # The accelerometer's still samples against the gyro's: a chamber run is still
+            # throughout for both (its own still test may find a few more or fewer).
             share = fit.samples / max(result.samples, 1)
-            if share >= 0.99:          # a chamber run: still throughout
+            if 0.99 <= share <= 1.0:
                 print(f"accelerometer coverage: the gyro's ({100.0 * share:.4g} % of the "
                       'samples still)')
             else:

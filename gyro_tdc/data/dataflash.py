@@ -16,7 +16,8 @@
 ArduPilot DataFlash (``.bin``) -> one IMU as a :class:`gyro_tdc.data.flightlog.FlightLog`.
 
 pymavlink's ``DFReader`` indexes the records and their FMT formats; the ``IMU`` records (with
-``T``, per instance) and ``PARM`` are decoded here column-wise with numpy.
+``T``, or ``Temp`` in ArduCopter 3.4, per instance), ``BARO`` (a proxy thermometer with
+``--temperature-source baro``) and ``PARM`` are decoded here column-wise with numpy.
 """
 
 from __future__ import annotations
@@ -29,12 +30,12 @@ import sys
 import tempfile
 from typing import Iterator
 
-from gyro_tdc.data.flightlog import FlightLog
+from gyro_tdc.data.flightlog import FlightLog, thermometer
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
 
-__all__ = ['DATAFLASH_TYPES', 'read_dataflash']
+__all__ = ['DATAFLASH_TYPES', 'read_dataflash', 'TEMPERATURE_FIELDS']
 
 #: DataFlash format characters -> numpy dtypes (little-endian, packed).
 DATAFLASH_TYPES = {
@@ -42,6 +43,8 @@ DATAFLASH_TYPES = {
     'f': '<f4', 'd': '<f8', 'n': 'S4', 'N': 'S16', 'Z': 'S64', 'c': '<i2', 'C': '<u2',
     'e': '<i4', 'E': '<u4', 'L': '<i4', 'M': 'u1', 'q': '<i8', 'Q': '<u8', 'g': '<f2',
 }
+#: The temperature field of ``IMU`` and ``BARO`` records: ``T``, or ``Temp`` (ArduCopter 3.4).
+TEMPERATURE_FIELDS = ('T', 'Temp')
 #: Scaled format characters (centi-units; degE7 for ``L``).
 _SCALE = {'c': 0.01, 'C': 0.01, 'e': 0.01, 'E': 0.01, 'L': 1e-7}
 
@@ -100,7 +103,10 @@ def _truncated(reader) -> int:
     for mtype, offs in enumerate(reader.offsets):
         if len(offs) and mtype in reader.formats and offs[-1] > last:
             last, end = int(offs[-1]), int(offs[-1]) + reader.formats[mtype].len
-    return reader.data_len - last if last >= 0 and end > reader.data_len else 0
+    if last < 0:
+        return 0
+    # A record cut short, or the head of one too short for the indexer to see.
+    return reader.data_len - last if end > reader.data_len else reader.data_len - end
 
 
 def _params(reader) -> dict[str, float]:
@@ -115,10 +121,12 @@ def _params(reader) -> dict[str, float]:
     return out
 
 
-def _imu(reader) -> dict[int, dict[str, np.ndarray]]:
-    """Return the IMU records per instance (the ``I`` field, or IMU/IMU2/IMU3 of old logs)."""
+def _imu(reader, kind: str = 'IMU') -> dict[int, dict[str, np.ndarray]]:
+    """Return the records per instance (the ``I`` field, or IMU/IMU2/IMU3 of old logs)."""
     out: dict[int, dict[str, np.ndarray]] = {}
-    for name, base in (('IMU', 0), ('IMU2', 1), ('IMU3', 2)):
+    names = (('IMU', 0), ('IMU2', 1), ('IMU3', 2)) if kind == 'IMU' else (
+        ('BARO', 0), ('BAR2', 1), ('BAR3', 2))
+    for name, base in names:
         mtype = reader.name_to_id.get(name)
         if mtype is None or not len(reader.offsets[mtype]):
             continue
@@ -132,8 +140,31 @@ def _imu(reader) -> dict[int, dict[str, np.ndarray]]:
     return out
 
 
+def _temperature(cols: dict[str, np.ndarray]) -> tuple[str, np.ndarray] | None:
+    """Return (field, degC) of a record type's thermometer, None when it has none."""
+    for name in TEMPERATURE_FIELDS:
+        v = thermometer(cols.get(name))
+        if v is not None:
+            return name, v
+    return None
+
+
+def _inventory(imus: dict, baros: dict) -> str:
+    """Return what each IMU instance of the log carries, in words (for a refusal)."""
+    parts = []
+    for i, d in sorted(imus.items()):
+        t = np.asarray(d['TimeUS'], dtype=np.float64) * 1e-6
+        rate = (len(t) - 1) / float(t.max() - t.min()) if len(t) > 1 and t.max() > t.min() else 0
+        temp = _temperature(d)
+        parts.append(f'{i}: {len(t)} samples at {rate:.3g} Hz, temperature '
+                     + (f'IMU.{temp[0]}' if temp else 'none'))
+    baro = [i for i, d in sorted(baros.items()) if _temperature(d) is not None]
+    return '; '.join(parts) + (f'; barometer temperature: BARO instance '
+                               f'{", ".join(map(str, baro))}' if baro else '')
+
+
 def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
-                   accel: bool = False) -> FlightLog:
+                   accel: bool = False, temperature_source: str = 'imu') -> FlightLog:
     """
     Read one IMU of an ArduPilot DataFlash log.
 
@@ -145,6 +176,9 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
         IMU instance (0-based, the ``I`` field).
     accel : bool
         Also read ``AccX..Z``.
+    temperature_source : str
+        ``'imu'`` (``IMU.T`` / ``IMU.Temp``), ``'baro'`` (``BARO.T`` / ``BARO.Temp``, a
+        proxy) or ``'MSG.Field'`` (another thermometer of the board, a proxy).
 
     Returns
     -------
@@ -172,7 +206,15 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     try:
         params = _params(reader)
         imus = _imu(reader)
+        baros = _imu(reader, 'BARO')
         cut = _truncated(reader)
+        other = None
+        if temperature_source not in ('imu', 'baro'):
+            msg, _, fld = temperature_source.partition('.')
+            mtype = reader.name_to_id.get(msg)
+            if mtype is not None and len(reader.offsets[mtype]):
+                other = _records(reader, mtype)
+                other = (other.get('TimeUS'), thermometer(other.get(fld)))
     except (KeyError, ValueError, TypeError, UnicodeDecodeError) as exc:
         raise DatasetError(f'Log {str(p)!r}: a record cannot be decoded ({exc}).') from None
     finally:
@@ -182,11 +224,35 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
         raise DatasetError(f'Log {str(p)!r} has no IMU records.')
     if instance not in imus:
         raise DatasetError(f'Log {str(p)!r}: IMU has no instance {instance} (it has '
-                           f'{", ".join(map(str, sorted(imus)))}; --imu-instance N).')
+                           f'{", ".join(map(str, sorted(imus)))}; what each carries: '
+                           f'{_inventory(imus, baros)}; --imu-instance N).')
     d = imus[instance]
     t = np.asarray(d['TimeUS'], dtype=np.float64) * 1e-6
     gyro = np.column_stack([np.asarray(d[k], dtype=np.float64) for k in ('GyrX', 'GyrY', 'GyrZ')])
-    temp = (np.asarray(d['T'], dtype=np.float64) if 'T' in d else np.full(len(t), np.nan))
+    temp_t, name = None, ''
+    if temperature_source == 'imu':
+        found = _temperature(d)
+        temp = found[1] if found else np.full(len(t), np.nan)
+        name = f'IMU.{found[0]}' if found else ''
+        if found is None and len(imus) > 1:
+            raise DatasetError(f'Log {str(p)!r}: IMU instance {instance} carries no '
+                               f'temperature (what each instance carries: '
+                               f'{_inventory(imus, baros)}; --imu-instance N, or '
+                               '--temperature-source baro).')
+    else:
+        if temperature_source == 'baro':
+            src = baros.get(instance, baros.get(0)) if baros else None
+            found = None if src is None else _temperature(src)
+            got = None if found is None else (src['TimeUS'], found[1])
+            name = '' if found is None else f'BARO.{found[0]}'
+        else:
+            got, name = other, temperature_source
+        if got is None or got[0] is None or got[1] is None:
+            raise DatasetError(f'Log {str(p)!r}: no usable thermometer for '
+                               f'--temperature-source {temperature_source} (what each IMU '
+                               f'instance carries: {_inventory(imus, baros)}).')
+        temp_t = np.asarray(got[0], dtype=np.float64) * 1e-6
+        temp = got[1]
     acc = None
     if accel and all(k in d for k in ('AccX', 'AccY', 'AccZ')):
         acc = np.column_stack([np.asarray(d[k], dtype=np.float64)
@@ -194,7 +260,13 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     active, words = onboard_status(params, 'ardupilot', instance=instance)
     skipped = chatter.getvalue().count('\n')
     notes = [f'pymavlink skipped damaged bytes ({skipped} reports)'] if skipped else []
+    if name:
+        notes.append(f'temperature from {name}'
+                     + (" (a proxy of the IMU's)" if temperature_source != 'imu' else ''))
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
                      firmware='ardupilot', source='IMU', instance=int(instance),
                      instances=tuple(sorted(imus)), raw=False, compensated=active,
-                     onboard=words, truncated_bytes=cut, notes=notes)
+                     onboard=words, truncated_bytes=cut, notes=notes, temp_t=temp_t,
+                     temperature=name, proxy=temperature_source != 'imu',
+                     damaged=bool(skipped), damage=f'pymavlink skipped {skipped} damaged '
+                     'headers' if skipped else '')

@@ -41,7 +41,12 @@ from gyro_tdc.signal import has_accelerometer
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['align_temperature', 'describe_read', 'expand_bags', 'load_run', 'load_runs']
+__all__ = ['align_temperature', 'describe_read', 'expand_bags', 'FLIGHT_LOG_GAP_PERIODS',
+           'load_run', 'load_runs']
+
+#: A flight log's thermometer is trusted up to this many of its own sample periods away
+#: (at least ``BagOptions.max_gap_s``).
+FLIGHT_LOG_GAP_PERIODS = 2.5
 
 
 def _vector(name: str, a: ArrayLike) -> NDArray[np.float64]:
@@ -304,7 +309,8 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
         if not Path(bag).is_file():
             raise DatasetError(f'Log {str(bag)!r} is not a file.')
         reader = read_ulog if fmt == 'ulog' else read_dataflash
-        log = reader(bag, instance=o.imu_instance, accel=bool(o.accel))
+        log = reader(bag, instance=o.imu_instance, accel=bool(o.accel),
+                     temperature_source=o.temperature_source)
         data, extra = flight_log_data(bag, log, fmt, o)
     rejected = {'imu_nonfinite': data.rejected['imu_nonfinite'],
                 'temp_nonfinite': data.rejected['temp_nonfinite'],
@@ -350,7 +356,12 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
         rejected['duplicate_stamps'] = int(np.count_nonzero(~first))
         t, omega, rows = t[first], omega[first], rows[first]
 
-    temp, keep, counts = align_temperature(t, temp_t, temp_c, max_gap_s=o.max_gap_s,
+    gap = o.max_gap_s
+    if extra and len(temp_t) > 1:
+        # A flight log's thermometer runs at its own rate (PX4 logs sensor_gyro, the
+        # barometer at 1 Hz or less): a gap is one of several of its periods.
+        gap = max(gap, FLIGHT_LOG_GAP_PERIODS * float(np.median(np.diff(np.sort(temp_t)))))
+    temp, keep, counts = align_temperature(t, temp_t, temp_c, max_gap_s=gap,
                                            return_counts=True)
     rejected['temp_nonfinite'] += counts['nonfinite']
     rejected['temp_duplicate_stamps'] = counts['duplicates']

@@ -33,7 +33,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['DATAFLASH_MAGIC', 'describe_log', 'detect_format', 'flight_log_data', 'FlightLog',
-           'is_flight_log', 'ULOG_MAGIC']
+           'is_flight_log', 'thermometer', 'ULOG_MAGIC']
 
 #: A ULog starts with these 7 bytes (then the version byte).
 ULOG_MAGIC = b'ULog\x01\x125'
@@ -53,8 +53,8 @@ class FlightLog:
         Sample stamps (the log's boot clock).
     gyro : NDArray[np.float64], shape (N, 3), rad/s
         Angular rate.
-    temp_c : NDArray[np.float64], shape (N,), degC
-        The IMU's temperature at each sample (NaN where the log has none).
+    temp_c : NDArray[np.float64], shape (N,) or (M,), degC
+        The temperature at each sample (NaN where the log has none), or at ``temp_t``.
     accel : NDArray[np.float64], shape (N, 3), m/s^2, or None
         Specific force at each sample; None when not read or absent.
     params : dict[str, float]
@@ -79,6 +79,17 @@ class FlightLog:
         Bytes after the last whole message (a log cut short), 0 when none.
     notes : list of str
         Further facts for the reader's line (e.g. the temperature's source).
+    temp_t : NDArray[np.float64], shape (M,), s, or None
+        The thermometer's own stamps (its rate, e.g. 1 Hz beside a 200 Hz gyro); None:
+        ``temp_c`` is on ``imu_t``.
+    temperature : str
+        The thermometer read (``IMU.T``, ``sensor_gyro.temperature``, ``BARO.Temp``...).
+    proxy : bool
+        True: the thermometer is not the IMU's own (``--temperature-source``).
+    damaged : bool
+        True: the reader skipped damaged bytes inside the log (not at its end).
+    damage : str
+        What was skipped, in words.
 
     """
 
@@ -97,6 +108,27 @@ class FlightLog:
     device_id: int = 0
     truncated_bytes: int = 0
     notes: list = field(default_factory=list)
+    temp_t: NDArray[np.float64] | None = None
+    temperature: str = ''
+    proxy: bool = False
+    damaged: bool = False
+    damage: str = ''
+
+
+def thermometer(values: object) -> NDArray[np.float64] | None:
+    """
+    Return a thermometer's readings as float64, None when it is no thermometer.
+
+    A field that is missing, reads NaN throughout or a constant 0 (a driver that fills the
+    field without a sensor behind it) is no thermometer; NaN readings of a real one stay.
+    """
+    if values is None:
+        return None
+    v = np.asarray(values, dtype=np.float64).reshape(-1)
+    finite = v[np.isfinite(v)]
+    if finite.size == 0 or not np.any(finite != 0.0):
+        return None
+    return v
 
 
 def is_flight_log(path: str | os.PathLike) -> bool:
@@ -178,7 +210,8 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
     fmt : str
         ``'ulog'`` or ``'dataflash'`` (see :func:`detect_format`).
     options : BagOptions
-        ``imu_instance``, ``accel``, ``max_loss`` (a log cut short is refused below 1.0) and
+        ``imu_instance``, ``accel``, ``max_loss`` (damaged bytes inside the log are refused
+        below 1.0; a log cut off at its end is read with a warning) and
         ``allow_onboard_corrected``.
 
     Returns
@@ -187,24 +220,28 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
         The arrays (the temperature on the IMU stamps, no reference), and the run's extra
         ``info``: ``log_format``, ``log`` (what was read, in words), ``firmware``,
         ``source``, ``instance``, ``raw``, ``onboard_compensated``, ``params`` (the
-        thermal-calibration ones) and ``warnings``.
+        thermal-calibration ones), ``temperature`` (the thermometer read),
+        ``temperature_proxy`` and ``warnings``.
 
     Raises
     ------
     DatasetError
-        The log has no temperature, is cut short (unless ``max_loss`` is 1.0) or was
-        compensated on board (unless allowed).
+        The log has no temperature, holds damaged bytes (unless ``max_loss`` is 1.0) or
+        was compensated on board (unless allowed).
 
     """
     p = Path(path)
     warnings: list[str] = []
-    if log.truncated_bytes:
-        note = (f'the log ends inside a message ({log.truncated_bytes} bytes after the last '
-                'whole one: cut short)')
+    if log.damaged:
+        note = f'damaged bytes inside the log ({log.damage or "skipped by the reader"})'
         if options.max_loss < 1.0:
             raise DatasetError(f'Log {str(p)!r}: {note}; --allow-loss reads the whole '
-                               'messages before the cut.')
+                               'messages around them.')
         warnings.append(note)
+    if log.truncated_bytes:
+        # Every SD-card log whose power goes ends so: the whole messages before are read.
+        warnings.append(f'the log ends inside a message (cut short: the last '
+                        f'{log.truncated_bytes} bytes, less than one message, are lost)')
     if log.compensated and not options.allow_onboard_corrected:
         raise DatasetError(
             f'Log {str(p)!r}: the {log.source} data were already thermally compensated on '
@@ -214,11 +251,12 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
     ok = np.isfinite(log.gyro).all(axis=1)
     gyro_t, gyro = log.imu_t[ok], log.gyro[ok]
     accel = None if log.accel is None else log.accel[ok]
-    warm = np.isfinite(log.temp_c)
+    temp_t = log.imu_t if log.temp_t is None else np.asarray(log.temp_t, dtype=np.float64)
+    warm = np.isfinite(log.temp_c) & np.isfinite(temp_t)
     if not warm.any():
         raise DatasetError(f'Log {str(p)!r}: {log.source} instance {log.instance} carries no '
                            'temperature; a drift model needs the IMU temperature.')
-    data = BagData(imu_t=gyro_t, gyro=gyro, accel=accel, frame_id='', temp_t=log.imu_t[warm],
+    data = BagData(imu_t=gyro_t, gyro=gyro, accel=accel, frame_id='', temp_t=temp_t[warm],
                    temp_c=log.temp_c[warm], temp_var=np.zeros(int(warm.sum())), ref_t=None,
                    ref=None, topics={}, storage=fmt, path=str(p),
                    rejected={'imu_nonfinite': int(np.count_nonzero(~ok)),
@@ -229,5 +267,6 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
     info = {'log_format': fmt, 'log': describe_log(log), 'firmware': log.firmware,
             'source': log.source, 'instance': log.instance, 'device_id': log.device_id,
             'raw': log.raw, 'onboard_compensated': log.compensated, 'params': keep,
+            'temperature': log.temperature, 'temperature_proxy': log.proxy,
             'warnings': warnings}
     return data, info

@@ -18,12 +18,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
+import re
 
 from gyro_tdc.errors import DatasetError
 import numpy as np
 
 __all__ = ['BagOptions', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
-           'DEFAULT_TEMPERATURE_TOPIC', 'LOG_FORMATS', 'MAX_LOSS_FRACTION', 'SESSION_MODES']
+           'DEFAULT_TEMPERATURE_TOPIC', 'LOG_FORMATS', 'MAX_LOSS_FRACTION', 'SESSION_MODES',
+           'TEMPERATURE_SOURCES']
 
 DEFAULT_IMU_TOPIC = '/imu/data_raw'
 DEFAULT_TEMPERATURE_TOPIC = '/imu/temperature'
@@ -34,6 +36,8 @@ MAX_LOSS_FRACTION = 0.01
 SESSION_MODES = ('auto', 'bag', 'none')
 #: ``--log-format`` values: ``auto`` tells a bag, a PX4 ULog and an ArduPilot DataFlash log apart.
 LOG_FORMATS = ('auto', 'rosbag2', 'ulog', 'dataflash')
+#: ``--temperature-source`` names (beside ``TOPIC.FIELD``): the IMU's own, the barometer's.
+TEMPERATURE_SOURCES = ('imu', 'baro')
 
 
 @dataclass(frozen=True)
@@ -79,13 +83,17 @@ class BagOptions:
     session_gap_s : float, s
         Stamp gap that starts a session; 0: automatic
         (:func:`gyro_tdc.data.sessions.session_gap`).
+    temperature_source : str
+        The thermometer of a flight-controller log: ``'imu'`` (the IMU's own), ``'baro'``
+        (the barometer's, a proxy) or ``'TOPIC.FIELD'`` / ``'MSG.Field'`` (another
+        thermometer of the board, a proxy).
 
     Raises
     ------
     DatasetError
         When ``reference`` is not three finite rates, ``log_format`` or ``sessions`` is
-        unknown, ``imu_instance`` is not an integer >= 0 or ``session_gap_s`` not a number
-        >= 0.
+        unknown, ``imu_instance`` is not an integer >= 0, ``session_gap_s`` not a number
+        >= 0 or ``temperature_source`` none of its forms.
 
     """
 
@@ -103,6 +111,7 @@ class BagOptions:
     allow_onboard_corrected: bool = False
     sessions: str = 'auto'
     session_gap_s: float = 0.0
+    temperature_source: str = 'imu'
 
     def __post_init__(self) -> None:
         """Check the reference rate (held as a tuple of floats), log format and instance."""
@@ -122,6 +131,11 @@ class BagOptions:
         if (isinstance(gap, bool) or not isinstance(gap, (int, float))
                 or not (math.isfinite(gap) and gap >= 0)):
             raise DatasetError(f'Expected `session_gap_s` to be a number >= 0, got {gap!r}.')
+        src = self.temperature_source
+        if not (isinstance(src, str) and (src in TEMPERATURE_SOURCES
+                                          or re.fullmatch(r'\w+\.\w+', src))):
+            raise DatasetError('Expected `temperature_source` to be imu, baro or TOPIC.FIELD '
+                               f'(e.g. sensor_baro.temperature, BARO.Temp), got {src!r}.')
 
 
 def _reference(value: object) -> tuple[float, float, float]:

@@ -15,8 +15,12 @@
 """
 PX4 ULog (``.ulg``) -> one IMU as a :class:`gyro_tdc.data.flightlog.FlightLog` (via pyulog).
 
-``sensor_gyro`` (raw, with its ``temperature``, per multi-id instance) where the log has it,
-else ``sensor_combined`` (corrected on board) with the temperature of ``vehicle_imu_status``.
+The gyro is the highest-rate one the log has for the instance: ``sensor_gyro`` (raw) where it
+is logged at full rate, else ``sensor_combined`` or ``vehicle_imu`` (calibrated on board).
+The temperature is the IMU's own thermometer wherever the log has it (``sensor_gyro``,
+``vehicle_imu_status``, ``sensor_accel``), on its own stamps, or a proxy the user names
+(``--temperature-source baro``: ``sensor_combined.baro_temp_celcius``, ``vehicle_air_data``,
+``sensor_baro``).
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ import os
 from pathlib import Path
 import struct
 
-from gyro_tdc.data.flightlog import FlightLog
+from gyro_tdc.data.flightlog import FlightLog, thermometer
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
@@ -36,7 +40,17 @@ from numpy.typing import NDArray
 
 __all__ = ['read_ulog', 'ulog_truncated_bytes']
 
-_TOPICS = ['sensor_gyro', 'sensor_accel', 'sensor_combined', 'vehicle_imu_status']
+_TOPICS = ['sensor_gyro', 'sensor_accel', 'sensor_combined', 'vehicle_imu',
+           'vehicle_imu_status', 'sensor_baro', 'vehicle_air_data']
+#: The IMU's own thermometers, in the order they are tried: (topic, field).
+_IMU_THERMOMETERS = (('sensor_gyro', 'temperature'), ('vehicle_imu_status', 'temperature_gyro'),
+                     ('vehicle_imu_status', 'temperature_accel'),
+                     ('sensor_accel', 'temperature'))
+#: The barometer's thermometers (``--temperature-source baro``), in the order they are tried.
+_BARO_THERMOMETERS = (('sensor_combined', 'baro_temp_celcius'),
+                      ('vehicle_air_data', 'baro_temp_celcius'), ('sensor_baro', 'temperature'))
+#: ``sensor_gyro`` counts as logged at full rate at this fraction of the fastest gyro's rate.
+FULL_RATE_FRACTION = 0.5
 _HEADER_BYTES = 16
 #: ULog message types (FLAG_BITS, FORMAT, INFO, INFO_MULTIPLE, PARAMETER, PARAMETER_DEFAULT,
 #: ADD_LOGGED, REMOVE_LOGGED, DATA, LOGGING, LOGGING_TAGGED, DROPOUT, SYNC).
@@ -96,7 +110,87 @@ def _on(t: NDArray[np.float64], t_src: NDArray[np.float64],
     return np.column_stack(cols)
 
 
-def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False) -> FlightLog:
+def _rate(d: dict | None) -> float:
+    """Return a topic's mean sample rate, Hz (0 with fewer than two samples)."""
+    if d is None or len(d['timestamp']) < 2:
+        return 0.0
+    t = _seconds(d)
+    span = float(t.max() - t.min())
+    return (len(t) - 1) / span if span > 0 else 0.0
+
+
+def _delta_rate(d: dict, what: str) -> NDArray[np.float64]:
+    """Return ``vehicle_imu``'s integrated ``delta_angle``/``delta_velocity`` as a rate."""
+    dt = np.asarray(d[f'{what}_dt'], dtype=np.float64) * 1e-6
+    with np.errstate(invalid='ignore', divide='ignore'):
+        return _xyz(d, tuple(f'{what}[{i}]' for i in range(3))) / dt[:, None]
+
+
+def _gyros(topics: dict, instance: int) -> dict[str, dict]:
+    """Return the gyro topics of an instance that hold rates: name -> columns."""
+    out = {}
+    g = topics.get('sensor_gyro', {}).get(instance)
+    if g is not None and all(k in g for k in ('x', 'y', 'z')):
+        out['sensor_gyro'] = g
+    c = topics.get('sensor_combined', {}).get(instance)
+    if c is not None and 'gyro_rad[0]' in c:
+        out['sensor_combined'] = c
+    v = topics.get('vehicle_imu', {}).get(instance)
+    if v is not None and 'delta_angle[0]' in v and 'delta_angle_dt' in v:
+        out['vehicle_imu'] = v
+    return out
+
+
+def _pick_gyro(gyros: dict[str, dict]) -> str:
+    """Return the gyro to read: ``sensor_gyro`` at full rate, else the fastest one."""
+    rates = {k: _rate(d) for k, d in gyros.items()}
+    best = max(rates.values())
+    if 'sensor_gyro' in rates and rates['sensor_gyro'] >= FULL_RATE_FRACTION * best:
+        return 'sensor_gyro'
+    return max((k for k in rates if k != 'sensor_gyro'), key=lambda k: rates[k])
+
+
+def _inventory(topics: dict) -> str:
+    """Return what each instance of the log carries, in words (for a refusal)."""
+    ids = sorted({i for name in ('sensor_gyro', 'sensor_combined', 'vehicle_imu',
+                                 'vehicle_imu_status', 'sensor_accel')
+                  for i in topics.get(name, {})})
+    parts = []
+    for i in ids:
+        has = [f'{k} {_rate(d):.3g} Hz' for k, d in _gyros(topics, i).items()]
+        temps = [f'{tp}.{f}' for tp, f in _IMU_THERMOMETERS
+                 if thermometer(topics.get(tp, {}).get(i, {}).get(f)) is not None]
+        has.append('temperature: ' + (', '.join(temps) if temps else 'none'))
+        parts.append(f'{i}: ' + ', '.join(has))
+    baro = [f'{tp}.{f}' for tp, f in _BARO_THERMOMETERS
+            if thermometer(topics.get(tp, {}).get(0, {}).get(f)) is not None]
+    return ('; '.join(parts) or 'no IMU') + ('; barometer temperature: '
+                                             + ', '.join(baro) if baro else '')
+
+
+def _thermometer(topics: dict, instance: int, source: str
+                 ) -> tuple[str, NDArray[np.float64], NDArray[np.float64]] | None:
+    """Return (name, stamps s, degC) of the thermometer ``source`` asks for, None if none."""
+    if source == 'imu':
+        cands = [(tp, f, instance) for tp, f in _IMU_THERMOMETERS]
+    elif source == 'baro':
+        cands = [(tp, f, 0) for tp, f in _BARO_THERMOMETERS]
+    else:
+        tp, _, f = source.partition('.')
+        cands = [(tp, f, instance), (tp, f, 0)]
+    for tp, f, i in cands:
+        d = topics.get(tp, {}).get(i)
+        if d is None or f not in d:
+            continue
+        v = thermometer(d[f])
+        if v is not None:
+            name = f'{tp}.{f}' + (f' instance {i}' if i else '')
+            return name, _seconds(d), v
+    return None
+
+
+def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False,
+              temperature_source: str = 'imu') -> FlightLog:
     """
     Read one IMU of a PX4 ULog.
 
@@ -105,21 +199,22 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     path : str or PathLike
         The ``.ulg`` file.
     instance : int
-        ``sensor_gyro`` multi-id instance (0-based).
+        Multi-id instance of the IMU (0-based).
     accel : bool
-        Also read ``sensor_accel`` of the same instance, interpolated onto the gyro stamps.
+        Also read the accelerometer of the same instance, on the gyro stamps.
+    temperature_source : str
+        ``'imu'`` (the IMU's own thermometer), ``'baro'`` or ``'TOPIC.FIELD'`` (a proxy).
 
     Returns
     -------
     FlightLog
-        ``raw`` with ``sensor_gyro``; ``compensated`` when only ``sensor_combined`` exists
-        and ``TC_G_ENABLE`` is 1.
+        ``raw`` with ``sensor_gyro``; ``compensated`` when the gyro read is calibrated on
+        board and ``TC_G_ENABLE`` is 1; ``temp_t`` the thermometer's own stamps.
 
     Raises
     ------
     DatasetError
-        The file is no ULog pyulog can parse, has neither ``sensor_gyro`` nor
-        ``sensor_combined``, or not the instance asked for.
+        The file is no ULog pyulog can parse, has no gyro, or not the instance asked for.
 
     """
     from pyulog import ULog
@@ -141,52 +236,71 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
         topics.setdefault(d.name, {})[int(d.multi_id)] = d.data
     active, words = onboard_status(params, 'px4')
     notes: list[str] = []
-    if ulog.file_corruption or chatter.getvalue():
+    damaged = bool(ulog.file_corruption)
+    if damaged or chatter.getvalue():
         notes.append('pyulog found damaged messages (skipped)')
-    if 'sensor_gyro' in topics:
-        found = topics['sensor_gyro']
-        source, raw, compensated = 'sensor_gyro', True, False
-    elif 'sensor_combined' in topics:
-        found = topics['sensor_combined']
-        source, raw, compensated = 'sensor_combined', False, active
-        notes.append('no sensor_gyro in the log: sensor_combined (rotated, calibrated on '
-                     'board) is all there is')
-    else:
+    found = {i for name in ('sensor_gyro', 'sensor_combined', 'vehicle_imu')
+             for i in topics.get(name, {})}
+    if not found:
         what = ', '.join(sorted({d.name for d in ulog.data_list})) or 'no logged topic'
         raise DatasetError(f'Log {str(p)!r} has neither sensor_gyro nor sensor_combined '
-                           f'(it has {what}).')
-    if instance not in found:
-        raise DatasetError(f'Log {str(p)!r}: {source} has no instance {instance} (it has '
-                           f'{", ".join(map(str, sorted(found)))}; --imu-instance N).')
-    d = found[instance]
+                           f'nor vehicle_imu (it has {what}).')
+    gyros = _gyros(topics, instance)
+    if not gyros:
+        kind = next(k for k in ('sensor_gyro', 'sensor_combined', 'vehicle_imu') if k in topics)
+        raise DatasetError(f'Log {str(p)!r}: {kind} has no instance {instance} (it has '
+                           f'{", ".join(map(str, sorted(topics[kind])))}; what each instance '
+                           f'carries: {_inventory(topics)}; --imu-instance N).')
+    source = _pick_gyro(gyros)
+    d = gyros[source]
     t = _seconds(d)
+    raw = source == 'sensor_gyro'
+    compensated = active and not raw
+    device = 0
     if raw:
         gyro = _xyz(d, ('x', 'y', 'z'))
-        temp = np.asarray(d.get('temperature', np.full(len(t), np.nan)), dtype=np.float64)
         device = int(d['device_id'][0]) if 'device_id' in d and len(t) else 0
         acc_topic, acc_names = topics.get('sensor_accel', {}).get(instance), ('x', 'y', 'z')
-        if not np.isfinite(temp).any() and acc_topic is not None and 'temperature' in acc_topic:
-            temp = _on(t, _seconds(acc_topic),
-                       np.asarray(acc_topic['temperature'], dtype=np.float64)[:, None])[:, 0]
-            notes.append('temperature from sensor_accel of the same instance')
-    else:
+    elif source == 'sensor_combined':
         gyro = _xyz(d, tuple(f'gyro_rad[{i}]' for i in range(3)))
-        device = 0
-        temp = np.full(len(t), np.nan)
-        status = topics.get('vehicle_imu_status', {}).get(instance)
-        if status is not None:
-            for name in ('temperature_gyro', 'temperature_accel'):
-                if name in status:
-                    temp = _on(t, _seconds(status),
-                               np.asarray(status[name], dtype=np.float64)[:, None])[:, 0]
-                    notes.append(f'temperature from vehicle_imu_status.{name}')
-                    break
         acc_topic, acc_names = d, tuple(f'accelerometer_m_s2[{i}]' for i in range(3))
+        if 'sensor_gyro' in gyros:
+            notes.append(f'sensor_gyro at {_rate(gyros["sensor_gyro"]):.3g} Hz beside '
+                         f'sensor_combined (rotated, calibrated on board) at {_rate(d):.3g} '
+                         'Hz: the faster one is read')
+        else:
+            notes.append('no sensor_gyro in the log: sensor_combined (rotated, calibrated on '
+                         'board) is all there is')
+    else:
+        gyro = _delta_rate(d, 'delta_angle')
+        acc_topic, acc_names = None, ()
+        notes.append(f'vehicle_imu (integrated, calibrated on board) at {_rate(d):.3g} Hz is '
+                     'the fastest gyro')
+    therm = _thermometer(topics, instance, temperature_source)
+    if therm is None:
+        if temperature_source == 'imu':
+            baro = _thermometer(topics, instance, 'baro') is not None
+            raise DatasetError(
+                f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
+                "thermometer reads other than a constant 0 or NaN; the log's instances: "
+                f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
+                                            "barometer's as a proxy." if baro else '.'))
+        raise DatasetError(f'Log {str(p)!r}: no usable thermometer for --temperature-source '
+                           f"{temperature_source} (the log's instances: "
+                           f'{_inventory(topics)}).')
+    name, temp_t, temp = therm
+    proxy = temperature_source != 'imu'
+    notes.append(f'temperature from {name}' + (" (a proxy of the IMU's)" if proxy else ''))
     acc = None
-    if accel and acc_topic is not None and all(n in acc_topic for n in acc_names):
-        acc = (_xyz(acc_topic, acc_names) if acc_topic is d
-               else _on(t, _seconds(acc_topic), _xyz(acc_topic, acc_names)))
+    if accel:
+        if source == 'vehicle_imu' and 'delta_velocity[0]' in d and 'delta_velocity_dt' in d:
+            acc = _delta_rate(d, 'delta_velocity')
+        elif acc_topic is not None and all(n in acc_topic for n in acc_names):
+            acc = (_xyz(acc_topic, acc_names) if acc_topic is d
+                   else _on(t, _seconds(acc_topic), _xyz(acc_topic, acc_names)))
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
                      firmware='px4', source=source, instance=int(instance),
                      instances=tuple(sorted(found)), raw=raw, compensated=compensated,
-                     onboard=words, device_id=device, truncated_bytes=cut, notes=notes)
+                     onboard=words, device_id=device, truncated_bytes=cut, notes=notes,
+                     temp_t=temp_t, temperature=name, proxy=proxy, damaged=damaged,
+                     damage='pyulog resynchronised past damaged messages' if damaged else '')

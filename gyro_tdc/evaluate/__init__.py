@@ -24,9 +24,9 @@ from gyro_tdc.base.face import lazy
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'onboard': ['ONBOARD', 'onboard_model'],
     'plots': ['model_description', 'write_plots'],
-    'report': ['format_bag', 'format_coverage', 'format_means', 'format_sessions',
-               'format_training', 'REANCHOR_SPREAD_DPS',
-               'is_coverage_line', 'write_csv', 'write_json'],
+    'report': ['format_bag', 'format_means', 'write_csv', 'write_json'],
     'score': ['AUTO_REANCHOR', 'BagEval', 'evaluate', 'load_models', 'mean_scores', 'NamedModel',
               'PX4'],
+    'training_report': ['format_coverage', 'format_sessions', 'format_training',
+                        'is_coverage_line', 'REANCHOR_SPREAD_DPS'],
 })

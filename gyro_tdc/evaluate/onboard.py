@@ -42,14 +42,9 @@ _RESIDUAL_VAR = 1e-8
 def _cubic(t0: float, intercept, linear, lo: float, hi: float, created: dict
            ) -> CompensationModel:
     """Return ``intercept + linear . (d, d^2, d^3)``, ``d = T - t0``, valid on ``[lo, hi]``."""
-    return CompensationModel(
-        kind='poly', features=('dT', 'dT2', 'dT3'), effect_params={}, t0_c=float(t0),
-        input_mean=np.zeros(3), input_std=np.ones(3), centers=np.zeros((0, 3)),
-        widths=np.zeros(0), weights=np.zeros((0, 3)),
-        intercept=np.asarray(intercept, dtype=np.float64),
-        linear=np.asarray(linear, dtype=np.float64), scale=np.zeros(3),
-        temp_range_c=(float(lo), float(hi)), residual_var=np.full(3, _RESIDUAL_VAR),
-        created=created)
+    coef = np.vstack([np.reshape(intercept, (1, 3)), np.reshape(linear, (3, 3))])
+    return CompensationModel.polynomial(('dT', 'dT2', 'dT3'), t0, coef, temp_range_c=(lo, hi),
+                                        residual_var=np.full(3, _RESIDUAL_VAR), created=created)
 
 
 def onboard_model(spec: str, run: Run) -> tuple[CompensationModel, str]:

@@ -36,7 +36,7 @@ from gyro_tdc.evaluate.score import score
 from gyro_tdc.identify import estimate_t0, fit_linear, fit_model, fit_time_constant
 from gyro_tdc.model import (batch_features, compensate, CompensationModel, EFFECTS, input_ids,
                             normalise_ids, resolve_params)
-from gyro_tdc.signal import bias_stability
+from gyro_tdc.signal import bias_stability, Folds
 import numpy as np
 from numpy.typing import NDArray
 
@@ -183,14 +183,9 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
             par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name],
                                                n_grid=n_grid).tau
     fit = fit_linear(design(par), y, kind='poly', ridge=ridge)
-    f = len(inputs)
     temp = run.temp[train]
-    return CompensationModel(
-        kind='poly', features=ids, effect_params=par, t0_c=float(t0),
-        input_mean=fit.mean, input_std=fit.std, centers=np.zeros((0, f)),
-        widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=fit.coef[0],
-        linear=fit.coef[1:], scale=np.zeros(3),
-        temp_range_c=(float(temp.min()), float(temp.max())),
+    return CompensationModel.network(
+        'poly', ids, par, t0, fit.norm, fit.coef, temp_range_c=(temp.min(), temp.max()),
         residual_var=np.mean(fit.resid ** 2, axis=0),
         created={'fit': 'gyro_tdc.evaluate.realdata.fit_full_series'})
 
@@ -241,9 +236,11 @@ def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
     folds = []
     # Held-out rows and rates of every fold, pooled per group for the summaries.
     pooled: dict[str, list] = {g: [] for g in GROUPS}
-    for i, held_bursts in enumerate(_blocks(n_bursts, n_blocks)):
-        held = np.isin(burst, held_bursts)
-        train = ~held
+    blocks = _blocks(n_bursts, n_blocks)
+    block_of = np.repeat(np.arange(len(blocks)), [len(b) for b in blocks])[burst]
+    # Leave one block of bursts out: a block is a session of the estimator's folds.
+    for i, (held, train) in enumerate(Folds.sessions(block_of)):
+        held_bursts = blocks[i]
         idx = np.flatnonzero(held)
         position = 'end' if held_bursts[0] == 0 or held_bursts[-1] == n_bursts - 1 \
             else 'interior'
@@ -293,7 +290,7 @@ def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
             for base in ('raw', 'bias'):
                 if base in bs_of:
                     row[f'p_vs_{base}'] = (bs_of[spec.name] / bs_of[base]).tolist()
-    sizes = sorted({len(b) for b in _blocks(n_bursts, n_blocks)})
+    sizes = sorted({len(b) for b in blocks})
     name = 'leave_one_burst_out' if n_blocks == n_bursts else 'leave_one_block_out'
     return {'name': name, 'n_blocks': n_blocks, 'bursts_per_block': sizes, 'folds': folds,
             'summary': summary}

@@ -35,8 +35,9 @@ from gyro_tdc.data import BagOptions, expand_bags, load_runs, Run, split_session
 from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
 from gyro_tdc.identify import (accel_scores, all_constant_error, constant_axes,
-                               constant_gyro_axes, fit_accel, fit_px4_cubic, identity_axes,
-                               MIN_SAMPLES, neutral_runs, PX4_FEATURES)
+                               constant_gyro_axes, find_still, fit_accel, fit_px4_cubic,
+                               identity_axes, MAX_MOVING_SHARE, MIN_SAMPLES, moving_share,
+                               neutral_runs, PX4_FEATURES)
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             load_model, MAX_EXTRAPOLATION_C, model_temperature)
 from gyro_tdc.runtime import default_tolerance, reanchor_shift, STILL_WINDOW_MAX_S
@@ -48,7 +49,7 @@ from numpy.typing import NDArray
 __all__ = [
     'AUTO_REANCHOR', 'BagEval', 'ModelEval', 'NamedModel', 'PX4', 'bag_labels', 'evaluate',
     'evaluate_run', 'held_out_constant', 'load_models', 'mean_scores', 'model_labels',
-    'rate_hz', 'safe_label', 'score',
+    'rate_hz', 'safe_label', 'score', 'still_rows',
 ]
 
 #: Model spec of the PX4-style cubic in T fitted on training bags.
@@ -160,6 +161,11 @@ class BagEval:
         many as ``train`` fits), or that read exactly their reference rate on every sample
         (raw BS 0): there is no signal to score, BS/BS1 does not apply there (NaN, not a
         number to read).
+    still : dict or None
+        Data without a reference that move (:func:`still_rows`): only the still stretches
+        were scored, raw and models alike each session re-anchored on its first still
+        stretch (as the compensator does at start-up); ``samples``, ``stretches``,
+        ``still_s``, ``total_s``, ``sessions``. None: every sample was scored.
 
     """
 
@@ -174,6 +180,7 @@ class BagEval:
     run: Run | None = field(default=None, repr=False)
     out_of_range: str = 'clamp'
     constant_axes: list = field(default_factory=list)
+    still: dict | None = None
 
     def release(self) -> None:
         """Drop the sample arrays (keep the scores)."""
@@ -440,7 +447,8 @@ def _compensated(nm: NamedModel, parts: Sequence[Run], reanchor_s: float | str,
 def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
                  reanchor_s: float | str = 0.0, out_of_range: str = DEFAULT_OUT_OF_RANGE,
                  max_extrapolation_c: float = MAX_EXTRAPOLATION_C, sessions: str = 'auto',
-                 session_gap_s: float = 0.0) -> BagEval:
+                 session_gap_s: float = 0.0, still: NDArray[np.bool_] | None = None
+                 ) -> BagEval:
     """
     Score raw data and every model on one run.
 
@@ -469,6 +477,11 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         at gaps and restarts; ``bag`` or ``none``: one session).
     session_gap_s : float, s
         The gap that starts a session (0: automatic).
+    still : NDArray[np.bool_], shape (N,), optional
+        Score these samples only (the still stretches of data without a reference,
+        :func:`still_rows`): every model compensates the whole run, then raw and models
+        alike are re-anchored per session on its first still stretch (``reanchor_s`` is not
+        used) and scored on the still samples (no Allan deviation across the gaps).
 
     Returns
     -------
@@ -481,15 +494,28 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     check_policy(out_of_range)
     const = _constant(run)
     rate = rate_hz(run.t)
-    raw = score(run.omega, run, rate=rate)
-    const |= ~(raw.bs > 0)                  # an axis reading its reference exactly
     parts = split_sessions([run], sessions, session_gap_s).runs
+    whole, summary = run, None
+    if still is not None:
+        bounds = np.cumsum([0] + [len(p) for p in parts])
+        summary = _still_summary(run, still, bounds)
+        scored = whole = _rows_of(run, still)
+        raw = score(_anchor_first_still(run.omega, still, bounds)[still], scored,
+                    allan=False)
+        reanchor_s = 0.0
+    else:
+        raw = score(run.omega, run, rate=rate)
+    const |= ~(raw.bs > 0)                  # an axis reading its reference exactly
     out = []
     for nm in models:
         m = nm.model
         comp, info = _compensated(nm, parts, reanchor_s, out_of_range, max_extrapolation_c)
-        ev = score(comp, run, label=nm.label, model=nm.name, features=list(m.features),
-                   bs_raw=raw.bs, rate=rate)
+        if still is not None:
+            ev = score(_anchor_first_still(comp, still, bounds)[still], scored, label=nm.label,
+                       model=nm.name, features=list(m.features), bs_raw=raw.bs, allan=False)
+        else:
+            ev = score(comp, run, label=nm.label, model=nm.name, features=list(m.features),
+                       bs_raw=raw.bs, rate=rate)
         ev.reanchor = info
         ev.constant_axes = [str(a) for a in m.metrics.get('constant_axes', ())]
         ev.p_vs_raw[const] = math.nan       # no signal to score there
@@ -504,11 +530,65 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
                                            max_extrapolation_c=max_extrapolation_c)
     for ev, bs in zip(out, per_model):
         ev.accel_bs = bs
-    return BagEval(bag=run.name, label=label or safe_label(run.name), samples=len(run),
+    return BagEval(bag=run.name, label=label or safe_label(run.name),
+                   samples=len(run) if still is None else int(np.count_nonzero(still)),
                    temperature_c=(float(run.temp.min()), float(run.temp.max())),
                    duration_s=run.duration_s, reference=str(run.info.get('reference', '?')),
-                   raw=raw, models=out, run=run, out_of_range=out_of_range,
-                   constant_axes=[a for a, c in zip('xyz', const) if c])
+                   raw=raw, models=out, run=whole, out_of_range=out_of_range,
+                   constant_axes=[a for a, c in zip('xyz', const) if c], still=summary)
+
+
+def still_rows(run: Run) -> NDArray[np.bool_] | None:
+    """
+    Return the samples to score of a run without a reference that moves, None for all.
+
+    A run whose reference rate is zero only because it has none (a flight log, a bag
+    without the reference topic) is known to be at rest only while still: where it moves
+    longer than :data:`gyro_tdc.identify.MAX_MOVING_SHARE` of the time, only its still
+    stretches (the trainers' still test with its defaults) are scored; its motion is no
+    drift.
+    """
+    if run.info.get('reference') != 'zero' or moving_share([run]) <= MAX_MOVING_SHARE:
+        return None
+    return find_still([run])[0].mask
+
+
+def _rows_of(run: Run, m: NDArray[np.bool_]) -> Run:
+    """Return the samples ``m`` of a run as a run (with gaps)."""
+    return Run(run.t[m], run.temp[m], run.omega[m], run.omega_ref[m], run.name,
+               dict(run.info), None if run.accel is None else run.accel[m])
+
+
+def _first_still(still: NDArray[np.bool_], a: int, b: int) -> slice | None:
+    """Return the first still stretch within samples ``a:b``, None when there is none."""
+    idx = np.flatnonzero(still[a:b])
+    if not idx.size:
+        return None
+    i = a + int(idx[0])
+    rest = np.flatnonzero(~still[i:b])
+    return slice(i, b if not rest.size else i + int(rest[0]))
+
+
+def _anchor_first_still(x: NDArray[np.float64], still: NDArray[np.bool_],
+                        bounds: NDArray[np.int64]) -> NDArray[np.float64]:
+    """Return ``x`` less, per session, its mean over the session's first still stretch."""
+    out = np.array(x, dtype=np.float64, copy=True)
+    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
+        head = _first_still(still, a, b)
+        if head is not None:
+            out[a:b] -= out[head].mean(axis=0)
+    return out
+
+
+def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]) -> dict:
+    """Return how much of a run the still-only scoring covers."""
+    edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
+    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    dt = float(np.median(np.diff(run.t))) if len(run) > 1 else 0.0
+    still_s = float(sum(run.t[b - 1] - run.t[a] + dt for a, b in zip(starts, stops)))
+    return {'samples': int(np.count_nonzero(still)), 'stretches': int(starts.size),
+            'still_s': still_s, 'total_s': float(run.duration_s),
+            'sessions': int(len(bounds) - 1)}
 
 
 def _constant(run: Run) -> NDArray[np.bool_]:
@@ -572,13 +652,15 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     Returns
     -------
     list of BagEval
-        One per bag, arrays released.
+        One per bag, arrays released; a bag without a reference that moves is scored on its
+        still stretches only (:func:`still_rows`, ``BagEval.still``).
 
     Raises
     ------
-    DatasetError
-        A bag that cannot be read, or whose every gyro axis is constant
-        (:func:`held_out_constant`).
+    GyroTdcError
+        DatasetError for a bag that cannot be read, or whose every gyro axis is constant
+        (:func:`held_out_constant`); FitError for a bag without a reference and without
+        a still stretch.
 
     """
     check_policy(out_of_range)
@@ -590,9 +672,13 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
         held_out_constant(run)              # every gyro axis constant: refused
         here = [replace(nm, model=onboard_model(nm.name, run)[0]) if nm.name in ONBOARD
                 else nm for nm in models]         # each log's own on-board parameters
+        still = still_rows(run)
+        if still is not None and not still.any():
+            raise FitError(f'{run.name}: no reference rate and no still stretch to score '
+                           '(the IMU moves throughout; its motion is no drift).')
         b = evaluate_run(run, here, label=label, reanchor_s=reanchor_s,
                          out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c,
-                         sessions=o.sessions, session_gap_s=o.session_gap_s)
+                         sessions=o.sessions, session_gap_s=o.session_gap_s, still=still)
         if each is not None:
             each(b)
         b.release()

@@ -68,26 +68,10 @@ class SensorSpec:
 
 def check_sensor_id(text: str, where: str = 'sensor_id') -> str:
     """
-    Return ``text`` when it can name the model file ``<sensor_id>.yaml``, else raise.
+    Return ``text`` when it can name the model file ``<sensor_id>.yaml``.
 
-    Parameters
-    ----------
-    text : str
-        Candidate sensor id.
-    where : str
-        Where it came from, for the message.
-
-    Returns
-    -------
-    str
-        ``text``.
-
-    Raises
-    ------
-    FleetError
-        When it is empty, longer than 128 characters or holds other characters than
-        letters, digits, ``.``, ``_`` and ``-`` (or starts with ``.``, ``_`` or ``-``).
-
+    1-128 letters, digits, ``.``, ``_`` or ``-``, starting with a letter or digit; else a
+    FleetError naming ``where``.
     """
     if not _SENSOR_ID.fullmatch(text):
         raise FleetError(f'{where}: {text!r} cannot be a file name; expected 1-128 letters, '

@@ -48,7 +48,7 @@ from gyro_tdc.fleet.results import FleetResult, SensorResult
 from gyro_tdc.fleet.stats import DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics
 from gyro_tdc.fleet.summary import write_summary
 from gyro_tdc.identify import train, TrainOptions
-from gyro_tdc.model import CompensationModel, load_model, save_model
+from gyro_tdc.model import CompensationModel, save_model
 
 __all__ = ['Engine', 'STATE_DIR', 'SensorOutcome', 'check_workers', 'open_engine', 'run_fleet',
            'run_sensor', 'sigterm_as_interrupt', 'worker_version']
@@ -286,7 +286,8 @@ def _read_state(path: Path, model_file: Path) -> dict | None:
         digest = hashlib.sha256(model_file.read_bytes()).hexdigest()
     except (OSError, ValueError):
         return None
-    if not isinstance(state, dict) or state.get('format') != STATE_FORMAT:
+    if (not isinstance(state, dict) or state.get('format') != STATE_FORMAT
+            or not isinstance(state.get('constant_axes'), list)):
         return None
     return state if state.get('model_sha256') == digest else None
 
@@ -301,7 +302,8 @@ def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
                             train_bs=state.get('train_bs'), heldout_bs=state.get('heldout_bs'),
                             drift_poly=state.get('drift_poly'),
                             temp_range_c=state.get('temp_range_c'),
-                            constant_axes=_state_constant(state, model_file))
+                            constant_axes=[str(a) for a in state['constant_axes']
+                                           if a in ('x', 'y', 'z')])
     if out.status != 'ok' or out.model is None:
         with contextlib.suppress(OSError):
             state_file.unlink()       # the model on disk no longer matches these inputs
@@ -323,22 +325,6 @@ def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
                         heldout_bs=out.heldout_bs, drift_poly=out.drift_poly,
                         temp_range_c=out.temp_range_c, seconds=out.seconds,
                         constant_axes=list(out.constant_axes))
-
-
-def _state_constant(state: dict, model_file: Path) -> list:
-    """
-    Return the constant gyro axes of a kept sensor: from its resume state, else its model.
-
-    A state written before the state recorded them names none; the model file it matches
-    (its digest checked) does (``training.constant_axes``).
-    """
-    axes = state.get('constant_axes')
-    if axes is None:
-        try:
-            axes = load_model(model_file).metrics.get('constant_axes', [])
-        except (GyroTdcError, OSError):
-            axes = []
-    return [str(a) for a in axes if a in ('x', 'y', 'z')] if isinstance(axes, list) else []
 
 
 class _NoWorker(FleetError):

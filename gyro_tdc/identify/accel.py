@@ -28,8 +28,9 @@ from typing import Sequence
 from gyro_tdc.data import Coverage, coverage, Run
 from gyro_tdc.errors import FeatureError, FitError
 from gyro_tdc.identify.accel_static import static_bs, static_data
-from gyro_tdc.identify.fit import MIN_SAMPLES, MIN_SPAN_C, run_state
+from gyro_tdc.identify.fit import MIN_SAMPLES, MIN_SPAN_C
 from gyro_tdc.identify.linear import fit_linear, LinearFit
+from gyro_tdc.identify.runblocks import run_state
 from gyro_tdc.model import (batch_features, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             drift, input_ids, KINDS, MAX_EXTRAPOLATION_C, normalise_ids,
                             resolve_params, STATE_TERMS, THERMAL_EFFECTS)
@@ -307,6 +308,51 @@ def _reference_design(lf: LinearFit, f: int) -> NDArray[np.float64]:
     return lf.design(np.zeros((1, f)))[0]
 
 
+def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tuple[str, ...],
+                    par: dict, block: int) -> tuple[list[dict], tuple[float, float]]:
+    """Return per still segment its block means, and the range of the model temperature."""
+    th = model.thermal
+    segs = []
+    lo, hi = math.inf, -math.inf
+    for r, d in usable:
+        state = run_state(th, r)       # the gyro fit's, not computed again
+        x = batch_features(ids, r.t, r.temp, t0=model.t0_c, params=par, state=state)
+        acc = np.asarray(r.accel, dtype=np.float64)
+        for s in range(d.n_segments):
+            idx = np.flatnonzero(d.segment == s)
+            if idx.size == 0:
+                continue
+            # A contiguous segment (a chamber run: all of it) is a view, not a copy.
+            sel = slice(idx[0], idx[-1] + 1) if idx[-1] - idx[0] + 1 == idx.size else idx
+            ya, cnt, within = _force_blocks(acc, sel, idx.size, block)
+            lo = min(lo, float(state[sel].min()))
+            hi = max(hi, float(state[sel].max()))
+            segs.append({'x': block_mean(x[sel], block), 'y': ya, 'n': cnt, 'within': within,
+                         't': block_mean(r.t[sel], block),
+                         'temp': block_mean(r.temp[sel], block)})
+    return segs, (lo, hi)
+
+
+def _sums_of_squares(segs: Sequence[dict], lf: LinearFit, coef: NDArray[np.float64],
+                     offsets: NDArray[np.float64]
+                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return the full-rate sums of squares of the fit's residual and of the raw force (3,).
+
+    From the blocks: the scatter within each block plus each block's count times its
+    squared residual (the drift is constant within a block); raw around each segment's mean.
+    """
+    ss = np.zeros(3)
+    ss_raw = np.zeros(3)
+    for g, sg in enumerate(segs):
+        n = sg['n'][:, None]
+        e = sg['y'] - (lf.design(sg['x']) @ coef + offsets[g])
+        ss += sg['within'].sum(axis=0) + (n * e ** 2).sum(axis=0)
+        mean = (n * sg['y']).sum(axis=0) / n.sum()
+        ss_raw += sg['within'].sum(axis=0) + (n * (sg['y'] - mean) ** 2).sum(axis=0)
+    return ss, ss_raw
+
+
 def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
               features: str | Sequence[str] | None = None, kind: str | None = None,
               n_centers: int | None = None, ridge: float | str = 'auto', seed: int = 0,
@@ -382,27 +428,9 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     inputs = input_ids(ids, state=True)
     f = len(inputs)
     n_static = sum(int(d.mask.sum()) for _, d in usable)
-    block = block_length(n_static, max_rows, at_most=True)
-    segs = []          # per segment: block-mean features, force, counts, scatter, stamps...
-    lo, hi = math.inf, -math.inf
-    for r, d in usable:
-        state = run_state(th, r)       # the gyro fit's, not computed again
-        x = batch_features(ids, r.t, r.temp, t0=model.t0_c, params=par, state=state)
-        acc = np.asarray(r.accel, dtype=np.float64)
-        for s in range(d.n_segments):
-            idx = np.flatnonzero(d.segment == s)
-            if idx.size == 0:
-                continue
-            # A contiguous segment (a chamber run: all of it) is a view, not a copy.
-            sel = slice(idx[0], idx[-1] + 1) if idx[-1] - idx[0] + 1 == idx.size else idx
-            ya, cnt, within = _force_blocks(acc, sel, idx.size, block)
-            lo = min(lo, float(state[sel].min()))
-            hi = max(hi, float(state[sel].max()))
-            segs.append({'x': block_mean(x[sel], block), 'y': ya, 'n': cnt, 'within': within,
-                         't': block_mean(r.t[sel], block),
-                         'temp': block_mean(r.temp[sel], block)})
+    segs, span = _segment_blocks(usable, model, ids, par,
+                                 block_length(n_static, max_rows, at_most=True))
     g0 = len(segs)
-    span = (lo, hi)
     out.samples = n_static
     # Coverage of the still data from its block means (the minutes per bin are the same).
     out.coverage = coverage([Run(sg['t'], sg['temp'], np.zeros((sg['t'].size, 3)),
@@ -421,16 +449,7 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     coef = lf.coef.copy()
     coef[0] = -(_reference_design(lf, f)[1:] @ coef[1:])     # zero at the reference point
     offsets = lf.offsets - coef[0]                             # c_g: the still force at T0
-    # Sums of squares at full rate from the blocks: the scatter within each block plus each
-    # block's count times its squared residual (the drift is constant within a block).
-    ss = np.zeros(3)
-    ss_raw = np.zeros(3)
-    for g, sg in enumerate(segs):
-        n = sg['n'][:, None]
-        e = sg['y'] - (lf.design(sg['x']) @ coef + offsets[g])
-        ss += sg['within'].sum(axis=0) + (n * e ** 2).sum(axis=0)
-        mean = (n * sg['y']).sum(axis=0) / n.sum()
-        ss_raw += sg['within'].sum(axis=0) + (n * (sg['y'] - mean) ** 2).sum(axis=0)
+    ss, ss_raw = _sums_of_squares(segs, lf, coef, offsets)
     out.raw_bs = ss_raw / n_static
     out.train_bs = ss / n_static
     metrics = {
@@ -441,10 +460,8 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
         'ridge': float(lf.ridge),
         'orientation_changes': [c.to_dict() for c in out.changes],
     }
-    out.part = CompensationModel(
-        kind=kind, features=ids, effect_params=par, t0_c=model.t0_c, input_mean=lf.mean,
-        input_std=lf.std, centers=lf.centers, widths=lf.widths, weights=coef[1 + f:],
-        intercept=coef[0], linear=coef[1:1 + f], scale=np.zeros(3), temp_range_c=span,
+    out.part = CompensationModel.network(
+        kind, ids, par, model.t0_c, lf.norm, coef, temp_range_c=span,
         residual_var=out.train_bs, frame_id=model.frame_id, sensor_id=model.sensor_id,
         metrics=metrics, created={}, thermal=th)
     return out

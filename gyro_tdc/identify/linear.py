@@ -27,6 +27,7 @@ import math
 import warnings
 
 from gyro_tdc.model import rbf_design
+from gyro_tdc.signal import fit_columns, Folds, solve_normal, within
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import least_squares
@@ -71,38 +72,28 @@ def _penalty(p: int, f: int, ridge: float, n: int) -> NDArray[np.float64]:
     return pen
 
 
-def _solve(design: NDArray[np.float64], y: NDArray[np.float64],
-           scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
-           ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """
-    Solve the regularised least squares for all axes.
-
-    Returns the coefficients (P, 3) and the per-axis scale coefficients (3,).
-    """
-    p = design.shape[1]
-    reg = np.diag(pen)[1:]
+def _ridge_fit(design: NDArray[np.float64], y: NDArray[np.float64],
+               scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
+               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return the ridge solution for all axes: coefficients (P, 3) and scale terms (3,)."""
     if scale_cols is None:
-        a = np.vstack([design, reg])
-        b = np.vstack([y, np.zeros((p - 1, 3))])
-        coef = np.linalg.lstsq(a, b, rcond=None)[0]
-        return coef, np.zeros(3)
+        return fit_columns(design, y, penalty=pen), np.zeros(3)
+    p = design.shape[1]
     coef = np.empty((p, 3))
     scale = np.empty(3)
+    pen = np.append(pen, 0.0)
     for ax in range(3):
-        a = np.vstack([np.column_stack([design, scale_cols[:, ax]]),
-                       np.column_stack([reg, np.zeros(p - 1)])])
-        b = np.concatenate([y[:, ax], np.zeros(p - 1)])
-        sol = np.linalg.lstsq(a, b, rcond=None)[0]
+        sol = fit_columns(np.column_stack([design, scale_cols[:, ax]]), y[:, ax], penalty=pen)
         coef[:, ax], scale[ax] = sol[:p], sol[p]
     return coef, scale
 
 
-def _segment_sums(d: NDArray[np.float64], y: NDArray[np.float64],
-                  bounds: NDArray[np.int64]) -> tuple[NDArray[np.float64], ...]:
-    """Return per row segment ``d'd`` (S, Q, Q), ``d'y`` (S, Q, M) and ``y'y`` (S, M)."""
+def _fold_sums(d: NDArray[np.float64], y: NDArray[np.float64], folds: Folds
+               ) -> tuple[NDArray[np.float64], ...]:
+    """Return per fold's held-out rows ``d'd`` (F, Q, Q), ``d'y`` (F, Q, M), ``y'y`` (F, M)."""
     gs, bs, ys = [], [], []
-    for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-        dj, yj = d[a:b], y[a:b]
+    for test, _train in folds:
+        dj, yj = d[test], y[test]
         gs.append(dj.T @ dj)
         bs.append(dj.T @ yj)
         ys.append(np.einsum('ij,ij->j', yj, yj))
@@ -110,29 +101,27 @@ def _segment_sums(d: NDArray[np.float64], y: NDArray[np.float64],
 
 
 def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
-                  scale_cols: NDArray[np.float64] | None, f: int, *,
-                  n_segments: int = 20, n_folds: int = 5) -> float:
+                  scale_cols: NDArray[np.float64] | None, f: int) -> float:
     """
     Pick the RBF ridge by cross-validation over interleaved contiguous segments.
 
-    Holding out whole segments (5 % of the rows each) tests what matters for a drift model:
-    interpolation across a gap in the temperatures covered, where an under-regularised
-    network wiggles. Everything comes from each segment's Gram matrix, ``d'y`` and ``y'y``
-    (one pass over the rows): a fold's training problem is the total minus its own
-    segments, its held-out error ``|d w - y|^2 = w'Gw - 2 w'b + y'y``, so the grid search
-    costs almost nothing.
+    Holding out whole segments (``Folds.segments``: 5 % of the rows each) tests what matters
+    for a drift model: interpolation across a gap in the temperatures covered, where an
+    under-regularised network wiggles. Everything comes from each fold's Gram matrix,
+    ``d'y`` and ``y'y`` (one pass over the rows): a fold's training problem is the total
+    minus its own, its held-out error ``|d w - y|^2 = w'Gw - 2 w'b + y'y``, so the grid
+    search costs almost nothing.
     """
     n, p = design.shape
-    seg = np.arange(n) * n_segments // n          # segment j is in fold j % n_folds
-    bounds = np.searchsorted(seg, np.arange(n_segments + 1))
-    n_trs = [n - int(np.diff(bounds)[k::n_folds].sum()) for k in range(n_folds)]
+    folds = Folds.segments(n)
+    n_trs = [int(np.count_nonzero(train)) for _test, train in folds]
     # Without scale columns every axis shares the design: its sums are computed once.
-    shared = None if scale_cols is not None else _segment_sums(design, y, bounds)
+    shared = None if scale_cols is not None else _fold_sums(design, y, folds)
     errors = np.zeros(len(RIDGE_GRID))
     for ax in range(3):
         if shared is None:
             d = np.column_stack([design, scale_cols[:, ax]])
-            gs, bs, ys = _segment_sums(d, y[:, ax:ax + 1], bounds)
+            gs, bs, ys = _fold_sums(d, y[:, ax:ax + 1], folds)
             col = 0
         else:
             gs, bs, ys = shared
@@ -140,23 +129,17 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
         q = gs.shape[1]
         g_all, b_all = gs.sum(axis=0), bs[:, :, col].sum(axis=0)
         # A column that is zero in every row (the constant, centred per group) has weight 0:
-        # solve without it (else every solve is singular and falls back to lstsq).
+        # solve without it (else every solve is singular and falls back to least squares).
         live = np.flatnonzero(np.diag(g_all) != 0.0)
         sub = np.ix_(live, live)
-        for k in range(n_folds):
-            gk = gs[k::n_folds].sum(axis=0)[sub]
-            bk = bs[k::n_folds, :, col].sum(axis=0)[live]
-            yyk = float(ys[k::n_folds, col].sum())
+        for k in range(len(folds)):
+            gk, bk, yyk = gs[k][sub], bs[k, live, col], float(ys[k, col])
             g = g_all[sub] - gk
             b = b_all[live] - bk
             for i, ridge in enumerate(RIDGE_GRID):
                 pen = np.zeros(q)
                 pen[:p] = _penalty(p, f, ridge, n_trs[k]) ** 2
-                a = g + np.diag(pen[live])
-                try:
-                    w = np.linalg.solve(a, b)
-                except np.linalg.LinAlgError:
-                    w = np.linalg.lstsq(a, b, rcond=None)[0]
+                w = solve_normal(g + np.diag(pen[live]), b)
                 errors[i] += float(w @ (gk @ w)) - 2.0 * float(w @ bk) + yyk
     # The largest ridge within 1 % of the best error: prefer the smoother network.
     # (abs: on noise-free data the expanded error may round to just below zero.)
@@ -203,6 +186,11 @@ class LinearFit:
     ridge: float
     offsets: NDArray[np.float64] | None = None
 
+    @property
+    def norm(self) -> tuple:
+        """Return ``(mean, std, centers, widths)``: the network's inputs and centres."""
+        return (self.mean, self.std, self.centers, self.widths)
+
     def design(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """
         Return the design matrix ``[1, x~, phi(x~)]`` of feature rows ``x``.
@@ -218,7 +206,7 @@ class LinearFit:
             Design matrix (:func:`gyro_tdc.model.compensation.rbf_design`).
 
         """
-        return rbf_design((self.mean, self.std, self.centers, self.widths), x)
+        return rbf_design(self.norm, x)
 
     def predict(self, x: NDArray[np.float64],
                 scale_cols: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
@@ -248,20 +236,11 @@ def _residual(design: NDArray[np.float64], y: NDArray[np.float64],
               scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
               ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Solve the weights and return them with the scale coefficients and the residual."""
-    coef, scale = _solve(design, y, scale_cols, pen)
+    coef, scale = _ridge_fit(design, y, scale_cols, pen)
     resid = design @ coef - y
     if scale_cols is not None:
         resid += scale_cols * scale
     return coef, scale, resid
-
-
-def _within(a: NDArray[np.float64], inverse: NDArray[np.int64], counts: NDArray[np.float64]
-            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return the group means of the rows of ``a`` and ``a`` minus its group's mean."""
-    means = np.zeros((counts.size,) + a.shape[1:])
-    np.add.at(means, inverse, a)
-    means /= counts.reshape((-1,) + (1,) * (a.ndim - 1))
-    return means, a - means[inverse]
 
 
 def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
@@ -319,14 +298,10 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
     design = rbf_design((mean, std, centers, widths), x)
     f = x.shape[1]
     if groups is not None:
-        _, inverse, counts = np.unique(np.asarray(groups), return_inverse=True,
-                                       return_counts=True)
-        inverse = inverse.reshape(-1)
-        counts = counts.astype(np.float64)
-        dmeans, design = _within(design, inverse, counts)
-        ymeans, y = _within(np.asarray(y, dtype=np.float64), inverse, counts)
+        dmeans, design = within(design, groups)
+        ymeans, y = within(np.asarray(y, dtype=np.float64), groups)
         if scale_cols is not None:
-            smeans, scale_cols = _within(scale_cols, inverse, counts)
+            smeans, scale_cols = within(scale_cols, groups)
     if ridge == 'auto':
         ridge = (_choose_ridge(design, y, scale_cols, f) if centers.shape[0]
                  and design.shape[0] >= 40 else RIDGE_GRID[1])

@@ -24,7 +24,6 @@ from gyro_tdc.errors import FitError
 from gyro_tdc.identify.features import AUTO
 from gyro_tdc.identify.fit import THERMAL_CHOICES
 from gyro_tdc.model import KINDS, normalise_ids
-from gyro_tdc.signal import MIN_STILL_S, STILL_WINDOW_S
 
 __all__ = ['TrainOptions']
 
@@ -66,8 +65,10 @@ class TrainOptions:
         (default); False skips both.
     sensor_id : str
         The sensor's id, written to the model's ``sensor.sensor_id``.
-    window_s, min_still_s : float, s
-        ``train_still_only``: still-test window and shortest still stretch kept.
+    window_s, min_still_s : float or None, s
+        The still test of training without a reference: window and shortest still stretch
+        kept; None (default): the window by the rate (:func:`gyro_tdc.signal.auto_window`),
+        a stretch judged by its samples and its noise (:func:`gyro_tdc.signal.detect_still`).
 
     Raises
     ------
@@ -88,8 +89,8 @@ class TrainOptions:
     bin_c: float = 5.0
     accel: bool = True
     sensor_id: str = ''
-    window_s: float = STILL_WINDOW_S
-    min_still_s: float = MIN_STILL_S
+    window_s: float | None = None
+    min_still_s: float | None = None
 
     def __post_init__(self) -> None:
         """Normalise the features and check every choice."""

@@ -32,20 +32,21 @@ from gyro_tdc.data import (BagOptions, Coverage, coverage, load_runs, RATE_THRES
                            read_motion, Run, split_sessions, temperature_rate)
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.accel import fit_accel
+from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, identity_axes,
+                                    neutral_runs)
 from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import fit_model
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.result import TrainResult
-from gyro_tdc.identify.train import (constant_gyro_axes, constant_readings, identity_axes,
-                                     neutral_runs)
 from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
-                            OPERATING_RANGE_C, save_model)
-from gyro_tdc.signal import detect_still, MIN_STILL_S, motion_veto, STILL_WINDOW_S, Stillness
+                            normalise_ids, OPERATING_RANGE_C, save_model)
+from gyro_tdc.signal import auto_window, detect_still, motion_veto, NOISE_FACTOR, Stillness
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['ADVICE_PARK_MIN', 'MIN_STILL_SPAN_C', 'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS',
-           'StillReport', 'Stretch', 'find_still', 'still_report', 'train_still_only']
+__all__ = ['ADVICE_PARK_MIN', 'find_still', 'MAX_MOVING_SHARE', 'MIN_STILL_SPAN_C',
+           'moving_share', 'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'proxy_lag',
+           'STILL_STD_CEILING', 'still_report', 'StillReport', 'Stretch', 'train_still_only']
 
 #: Smallest temperature span of the still time a model is fitted on, degC.
 MIN_STILL_SPAN_C = 2.0
@@ -54,6 +55,13 @@ MIN_STILL_SPAN_C = 2.0
 OUTLIER_SIGMAS = 5.0
 #: ... and more than this (rad/s, 0.02 deg/s) is dropped as motion (a slow turn).
 OUTLIER_FLOOR_RAD_S = 3.5e-4
+#: A window whose raw rate scatters more than this (rad/s, 2 deg/s, any axis) is never still
+#: for the trainers, whatever the log's quietest window: a log that never stops (a hover)
+#: would otherwise take its own vibration for the noise floor.
+STILL_STD_CEILING = 0.035
+#: Data without a reference rate moving longer than this share of the time are trained on
+#: their still stretches only (``train`` as ``--still-only``): the motion is no drift.
+MAX_MOVING_SHARE = 0.01
 #: The advice asks for still stretches of this many minutes.
 ADVICE_PARK_MIN = 20
 #: A bin (or direction) with less still time than this is named in the advice, min.
@@ -165,14 +173,15 @@ class StillReport:
 
 
 def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None] | None = None,
-               window_s: float = STILL_WINDOW_S, min_still_s: float = MIN_STILL_S
+               window_s: float | None = None, min_still_s: float | None = None
                ) -> list[Stillness]:
     """
     Find the still samples of runs of one sensor, with one noise floor for them all.
 
     The auto thresholds take the quietest window as the noise (:mod:`gyro_tdc.signal`); over
     several bags of one sensor the quietest window of any of them is the floor, so a bag
-    that never stops does not look still to itself.
+    that never stops does not look still to itself, and the threshold is never above
+    :data:`STILL_STD_CEILING` (a single log of a hover).
 
     Parameters
     ----------
@@ -180,8 +189,10 @@ def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None
         The runs (raw rate, and the accelerometer when read).
     moving : sequence of (NDArray[np.bool_] or None), optional
         Per run, the samples a motion report vetoes (:func:`gyro_tdc.signal.motion_veto`).
-    window_s, min_still_s : float, s
-        Window length and shortest still stretch (:func:`gyro_tdc.signal.detect_still`).
+    window_s, min_still_s : float or None, s
+        Window length and shortest still stretch (:func:`gyro_tdc.signal.detect_still`);
+        None: the window by each run's rate (:func:`gyro_tdc.signal.auto_window`), the
+        stretch judged by its samples and its noise.
 
     Returns
     -------
@@ -190,16 +201,48 @@ def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None
 
     """
     moving = [None] * len(runs) if moving is None else list(moving)
-    first = [detect_still(r.t, r.omega, r.accel, moving=m, window_s=window_s,
-                          min_still_s=min_still_s) for r, m in zip(runs, moving)]
-    if len(runs) < 2:
-        return first
+    windows = [auto_window(r.t) if window_s is None else window_s for r in runs]
+    first = [detect_still(r.t, r.omega, r.accel, moving=m, window_s=w,
+                          min_still_s=min_still_s) for r, m, w in zip(runs, moving, windows)]
     g_floor = np.min([s.gyro_floor for s in first], axis=0)
+    capped = np.minimum(g_floor, STILL_STD_CEILING / NOISE_FACTOR)
+    if len(runs) < 2 and np.array_equal(capped, g_floor):
+        return first
+    g_floor = capped
     a_floors = [s.accel_floor for s in first if s.accel_floor is not None]
     a_floor = np.min(a_floors, axis=0) if a_floors else None
-    return [detect_still(r.t, r.omega, r.accel, moving=m, window_s=window_s,
+    return [detect_still(r.t, r.omega, r.accel, moving=m, window_s=w,
                          min_still_s=min_still_s, gyro_floor=g_floor, accel_floor=a_floor)
-            for r, m in zip(runs, moving)]
+            for r, m, w in zip(runs, moving, windows)]
+
+
+def moving_share(runs: Sequence[Run]) -> float:
+    """
+    Return the share of the samples of ``runs`` in windows the still test finds moving.
+
+    Windows refused for their gyro or accelerometer scatter count (a flight, a drive); those
+    refused for too few samples or non-finite values do not.
+    """
+    still = find_still(runs, min_still_s=0.0)
+    moving = sum(int(st.counts[np.isin(st.why, ('gyro', 'accel'))].sum()) for st in still)
+    total = sum(len(r) for r in runs)
+    return moving / total if total else 0.0
+
+
+def proxy_lag(runs: Sequence[Run], ids: tuple, options: TrainOptions,
+              log: Callable[[str], None] | None = None) -> tuple:
+    """
+    Return the features with the thermal state (``lag``) added when a proxy is the thermometer.
+
+    A barometer (``--temperature-source``) sits on the board beside the IMU and lags its
+    die: with ``--features auto`` the thermal state is on by default for it.
+    """
+    if not options.auto or 'lag' in ids or not any(
+            r.info.get('temperature_proxy') for r in runs):
+        return ids
+    if log is not None:
+        log("features: lag added (the thermometer is a proxy of the IMU's, which lags it)")
+    return normalise_ids(tuple(ids) + ('lag',))
 
 
 def _rows(run: Run, m: NDArray[np.bool_]) -> Run:
@@ -335,7 +378,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     TrainResult
         As :func:`gyro_tdc.identify.train.train`, with ``still`` the :class:`StillReport`;
         ``coverage`` and ``samples`` are those of the still time kept. A constant gyro axis
-        (:func:`gyro_tdc.identify.train.constant_gyro_axes`) is not fitted: the still test,
+        (:func:`gyro_tdc.identify.axes.constant_gyro_axes`) is not fitted: the still test,
         the feature choice and the fit see it at its reference, the model passes it through
         (``result.constant``, ``model.metrics['constant_axes']``).
 
@@ -381,9 +424,20 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     rows = [st.mask.copy() for st in still]
     if not any(m.any() for m in rows):
         why = '; '.join(sorted({st.reason for st in still if st.reason}))
-        raise FitError(f'--still-only: no still stretch of {o.min_still_s:g} s or more in '
+        least = 'long enough' if o.min_still_s is None else f'of {o.min_still_s:g} s or more'
+        raise FitError(f'--still-only: no still stretch {least} in '
                        f'{len(runs)} bag(s) ({why}): park the vehicle for '
                        f'{ADVICE_PARK_MIN} min with the IMU on, and record it.')
+    labels = list(split.labels)
+    whole_runs, whole_rows = list(runs), list(rows)     # the report covers every bag
+    if not all(m.any() for m in rows):
+        # A session without still time has no offset to fit: it is left out of the fit.
+        keep = [i for i, m in enumerate(rows) if m.any()]
+        runs, raw_runs = [runs[i] for i in keep], [raw_runs[i] for i in keep]
+        rows, still = [rows[i] for i in keep], [still[i] for i in keep]
+        names = [names[i] for i in keep]
+        relabel = {g: k for k, g in enumerate(dict.fromkeys(labels[i] for i in keep))}
+        labels = [relabel[labels[i]] for i in keep]
     temps = np.concatenate([r.temp[m] for r, m in zip(runs, rows)])
     span = float(temps.max() - temps.min())
     if span < MIN_STILL_SPAN_C:
@@ -400,21 +454,22 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     subs = ([_rows(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
             if o.auto else [])            # the still rows, for the choice of features
     ids, params, choice = features_for_fit(subs, o.features, t0=t0)
+    ids = proxy_lag(runs, ids, o, log)
     common = {'features': ids, 'params': params or None, 'kind': o.kind, 't0': t0,
               'n_centers': o.n_centers, 'refine': o.refine, 'ridge': o.ridge, 'seed': o.seed,
               'thermal': o.thermal, 'frame_id': str(runs[0].info.get('frame_id') or 'imu_link'),
-              'sensor_id': o.sensor_id, 'sessions': split.labels,
+              'sensor_id': o.sensor_id, 'sessions': labels,
               'created': {'command': command, 'bags': bags, 'still_only': True}}
     spans = _stretches(runs, still)
     model = fit_model(runs, rows=rows, **common)
-    means = _stretch_means(model, runs, spans, split.labels)
+    means = _stretch_means(model, runs, spans, labels)
     bad = _outliers(means)
     if bad.any() and not bad.all():
         for (i, a, b), drop in zip(spans, bad):
             if drop:
                 rows[i][a:b] = False
         model = fit_model(runs, rows=rows, **common)
-        means = _stretch_means(model, runs, spans, split.labels)
+        means = _stretch_means(model, runs, spans, labels)
     else:
         bad[:] = False
     model = identity_axes(model, raw_runs, const, rows)
@@ -422,7 +477,8 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                          float(runs[i].temp[a:b].mean()), not drop,
                          tuple(float(v) * _DEG for v in mu))
                  for (i, a, b), drop, mu in zip(spans, bad, means)]
-    report = still_report(runs, rows, stretches, bin_c=o.bin_c, motion_topic=bag.motion_topic,
+    report = still_report(whole_runs, whole_rows, stretches, bin_c=o.bin_c,
+                          motion_topic=bag.motion_topic,
                           rejected=rejected)
     accel_fit = None
     if o.accel:

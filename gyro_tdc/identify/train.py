@@ -28,117 +28,18 @@ from typing import Callable, Sequence
 
 from gyro_tdc.data import BagOptions, coverage, load_runs, Run, split_sessions
 from gyro_tdc.errors import DatasetError
-from gyro_tdc.identify.accel import constant_axes_of, constant_values, fit_accel
+from gyro_tdc.identify.accel import fit_accel
+from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, identity_axes,
+                                    neutral_runs)
 from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import estimate_t0, fit_model
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.result import TrainResult
-from gyro_tdc.model import CompensationModel, save_model
-import numpy as np
-from numpy.typing import NDArray
+from gyro_tdc.identify.still_only import (MAX_MOVING_SHARE, moving_share, proxy_lag,
+                                          train_still_only)
+from gyro_tdc.model import save_model
 
-__all__ = ['all_constant_error', 'constant_gyro_axes', 'constant_readings', 'data_frame',
-           'identity_axes', 'neutral_runs', 'train']
-
-#: The axis names, in order.
-AXES = ('x', 'y', 'z')
-_DEG2 = (180.0 / np.pi) ** 2
-
-
-def constant_gyro_axes(runs: Sequence[Run]) -> NDArray[np.bool_]:
-    """
-    Return, per axis, whether the gyro readings of ``runs`` together are constant.
-
-    A constant axis never varies beyond one quantum over every run
-    (:func:`gyro_tdc.identify.accel.constant_axes_of`, the accelerometer's rule): a 2-axis
-    gyro whose driver fills the third axis with a fixed value (e.g. exactly 0), or a dead
-    axis. There is nothing to fit on it.
-
-    Raises
-    ------
-    DatasetError
-        When every axis is constant: there is no gyro to fit.
-
-    """
-    const = constant_axes_of([r.omega for r in runs])
-    if const.all():
-        raise all_constant_error([r.omega for r in runs], 'fit', 'the training bags')
-    return const
-
-
-def all_constant_error(arrays: Sequence[NDArray[np.float64]], to: str,
-                       where: str) -> DatasetError:
-    """
-    Return the one-line error for a gyro constant on every axis (nothing ``to`` do).
-
-    ``arrays`` are the angular velocities read, ``where`` names them (``'the training
-    bags'``); the line shows what each axis reads.
-    """
-    shown = ', '.join(f'{a} {v:.6g}' for a, v in zip(AXES, constant_values(arrays)))
-    return DatasetError(f'Expected a gyro to {to}: every axis of the angular velocity is '
-                        f'constant in {where} ({shown} rad/s, never varying beyond one '
-                        'quantum); check that the driver publishes the gyro.')
-
-
-def neutral_runs(runs: Sequence[Run], const: NDArray[np.bool_]) -> list[Run]:
-    """
-    Return the runs with each constant axis reading its reference rate (no error to fit).
-
-    The fit then sees an error of exactly zero there: every coefficient of the axis comes
-    out exactly zero (the model passes the axis through unchanged) and the axis adds exactly
-    nothing to what the axes share (the thermal state's search, the ridge chosen by
-    cross-validation, the feature choice), so the other axes get the model they would get
-    whatever the constant axis read.
-    """
-    if not const.any():
-        return list(runs)
-    out = []
-    for r in runs:
-        omega = np.array(r.omega, dtype=np.float64, copy=True)
-        omega[:, const] = r.omega_ref[:, const]
-        out.append(replace(r, omega=omega))
-    return out
-
-
-def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[np.bool_],
-                  rows: Sequence[NDArray[np.bool_]] | None = None) -> CompensationModel:
-    """
-    Return ``model`` with its constant axes recorded as passed through unchanged.
-
-    The model's coefficients of those axes are already zero (:func:`neutral_runs`); here its
-    training figures get the truth of an identity axis: the compensated error is the raw
-    error (``raw_bs_dps2``, ``train_bs_dps2``, ``train_rms_dps`` and the residual variance
-    are its mean square over ``runs``, the data as read; over the ``rows`` that count when
-    given, as :func:`gyro_tdc.identify.fit.fit_model` takes them), and
-    ``training.constant_axes`` names them.
-    """
-    if not const.any():
-        return model
-    ss, n = np.zeros(int(const.sum())), 0
-    for i, r in enumerate(runs):
-        e = r.omega[:, const] - r.omega_ref[:, const]
-        if rows is not None:
-            e = e[np.asarray(rows[i], dtype=bool)]
-        ss += np.einsum('ij,ij->j', e, e)
-        n += len(e)
-    ms = np.zeros(3)
-    ms[const] = ss / max(n, 1)
-    met = dict(model.metrics)
-    resid = np.where(const, ms, model.residual_var)
-    for key in ('raw_bs_dps2', 'train_bs_dps2'):
-        met[key] = [float(v) for v in np.where(const, ms * _DEG2, met[key])]
-    rms = np.where(const, np.sqrt(ms * _DEG2), met['train_rms_dps'])
-    met['train_rms_dps'] = [float(v) for v in rms]
-    met['constant_axes'] = [a for a, c in zip(AXES, const) if c]
-    return model.replace(residual_var=resid, metrics=met)
-
-
-def constant_readings(runs: Sequence[Run], const: NDArray[np.bool_]) -> dict:
-    """Return axis name -> what each constant axis reads, rad/s (``TrainResult.constant``)."""
-    if not const.any():
-        return {}
-    values = constant_values([r.omega for r in runs])
-    return {a: float(v) for a, v, c in zip(AXES, values, const) if c}
+__all__ = ['data_frame', 'train']
 
 
 def data_frame(runs: Sequence[Run]) -> str:
@@ -207,11 +108,16 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     Returns
     -------
     TrainResult
-        The model, where it was written, the coverage of the data and, with ``'auto'``, the
-        choice of features (also in ``model.metrics['features']``). A gyro axis whose
-        readings never vary beyond one quantum (:func:`constant_gyro_axes`) is not fitted:
-        its coefficients are zero, so the model passes it through unchanged
-        (:func:`identity_axes`); ``result.constant`` and ``model.metrics['constant_axes']``
+        Data without a reference rate (every run's reference zero) that move longer than
+        :data:`gyro_tdc.identify.still_only.MAX_MOVING_SHARE` of the time are trained on their
+        still stretches only (:func:`gyro_tdc.identify.still_only.train_still_only`, said on
+        ``log``). The model, where it was written, the coverage of the data and, with
+        ``'auto'``, the choice of features (also in ``model.metrics['features']``). A gyro
+        axis whose readings never vary beyond one quantum
+        (:func:`~gyro_tdc.identify.axes.constant_gyro_axes`) is not fitted: its
+        coefficients are zero, so the model passes it through unchanged
+        (:func:`~gyro_tdc.identify.axes.identity_axes`); ``result.constant`` and
+        ``model.metrics['constant_axes']``
         name it.
 
     Raises
@@ -225,6 +131,15 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     o = TrainOptions() if options is None else options
     bag = replace(BagOptions() if bag is None else bag, accel=bool(o.accel))
     runs: list[Run] = load_runs(bags, bag, log=log)
+    if all(r.info.get('reference') == 'zero' for r in runs):
+        # No reference rate: the rate is known (zero) only while still. Motion (a flight, a
+        # drive) would be fitted as drift, so only the still stretches are used.
+        share = moving_share(neutral_runs(runs, constant_gyro_axes(runs)))
+        if share > MAX_MOVING_SHARE:
+            if log is not None:
+                log(f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time: '
+                    'training on the still stretches only (as --still-only)')
+            return train_still_only(bags, out, o, bag, command=command, log=log, runs=runs)
     names = [r.name for r in runs]
     split = split_sessions(runs, bag.sessions, bag.session_gap_s)
     runs = split.runs
@@ -232,6 +147,7 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     fitted = neutral_runs(runs, const)
     t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
     ids, params, choice = features_for_fit(fitted, o.features, t0=t0)
+    ids = proxy_lag(runs, ids, o, log)
     model = fit_model(fitted, features=ids, params=params or None, kind=o.kind, t0=t0,
                       n_centers=o.n_centers, refine=o.refine, ridge=o.ridge, seed=o.seed,
                       thermal=o.thermal, sessions=split.labels,

@@ -15,9 +15,10 @@
 """
 The online learner's fit: point table -> weighted, outlier-robust model.
 
-Pure (numpy only). :func:`solve` and :func:`inliers` fit the still-time points (age-weighted,
-one intercept per session, leave-one-out outliers dropped), :func:`grow_features` picks the
-features from the covered span, :func:`prediction_mse` scores a model on still windows and
+Pure (numpy only). :func:`fit_sessions` and :func:`inliers` fit the still-time points
+(age-weighted, one intercept per session, leave-one-out outliers dropped) on the shared
+estimator (:mod:`gyro_tdc.signal.estimator`), :func:`grow_features` picks the features from
+the covered span, :func:`prediction_mse` scores a model on still windows and
 :func:`learned_model` builds it. See ``doc/internals/learn.md``.
 """
 
@@ -28,12 +29,13 @@ from typing import Sequence
 
 from gyro_tdc.learn.temperature import at_state, same_thermal
 from gyro_tdc.model import check_model, CompensationModel, drift, normalise_ids, ThermalState
+from gyro_tdc.signal import fit_columns, hat, session_columns
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['BINS_DT2', 'BINS_DT3', 'MAX_DROPS', 'OUTLIER_K', 'SPAN_DT2_C', 'SPAN_DT3_C',
-           'SPAN_DT_C', 'fit_points', 'grow_features', 'inliers', 'learned_model',
-           'model_of', 'predict_windows', 'prediction_mse', 'recent_offset', 'solve',
+           'SPAN_DT_C', 'fit_points', 'fit_sessions', 'grow_features', 'inliers', 'learned_model',
+           'model_of', 'predict_windows', 'prediction_mse', 'recent_offset',
            'window_error']
 
 OUTLIER_K = 4.0
@@ -64,8 +66,8 @@ def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
     resid_var : NDArray[np.float64], shape (3,)
         Residual variance of the fit.
     thermal : ThermalState, optional
-        The thermal front end the points were binned with (None: a format-1 model of the
-        measured temperature).
+        The thermal front end the points were binned with (None: the measured temperature,
+        a model of kind none).
 
     Returns
     -------
@@ -77,14 +79,10 @@ def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
     feats, params = tuple(features), {}
     if thermal is not None and thermal.kind != 'none':
         feats, params = normalise_ids(feats + ('lag',)), {'lag': {'tau_s': thermal.tau_total_s}}
-    return CompensationModel(
-        kind='poly', features=feats, effect_params=params, t0_c=float(t0),
-        input_mean=np.zeros(f), input_std=np.ones(f), centers=np.zeros((0, f)),
-        widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=coef[0].copy(),
-        linear=coef[1:].copy(), scale=np.zeros(3),
-        temp_range_c=(float(temp_range[0]), float(temp_range[1])),
-        residual_var=np.asarray(resid_var, dtype=np.float64).reshape(3),
-        created={'fit': 'gyro_tdc.learn.learner (online, still time)'}, thermal=thermal)
+    return CompensationModel.polynomial(
+        feats, t0, coef, effect_params=params, temp_range_c=temp_range, residual_var=resid_var,
+        created={'fit': 'gyro_tdc.learn.learner (online, still time)'},
+        thermal=ThermalState() if thermal is None else thermal)   # the one file format
 
 
 def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:
@@ -114,9 +112,9 @@ def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:
     return ()
 
 
-def solve(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
-          session: float | None = None
-          ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def fit_sessions(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
+                 session: float | None = None
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Weighted least squares, one intercept per session and a shared shape.
 
@@ -141,12 +139,8 @@ def solve(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str],
         Residuals.
 
     """
-    d = e[:, 2] - t0
-    sessions = np.unique(e[:, 6])
-    x = np.column_stack([(e[:, 6] == s).astype(np.float64) for s in sessions]
-                        + [d ** (j + 1) for j in range(len(feats))])
-    sw = np.sqrt(wt)[:, None]
-    coef = np.linalg.lstsq(x * sw, e[:, 3:6] * sw, rcond=None)[0]
+    x, sessions = _design(e, feats, t0)
+    coef = fit_columns(x, e[:, 3:6], weights=wt)
     k = sessions.size
     i = k - 1 if session is None else int(np.flatnonzero(sessions == session)[0])
     return np.vstack([coef[i:i + 1], coef[k:]]), e[:, 3:6] - x @ coef
@@ -163,7 +157,7 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
     Parameters
     ----------
     e, wt, feats, t0
-        As for :func:`solve`.
+        As for :func:`fit_sessions`.
     floor : float, rad/s
         The gyro's noise floor (per sample): the smallest scatter an entry is judged by is
         this over the root of the largest entry's samples.
@@ -180,12 +174,11 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
         idx = np.flatnonzero(keep)
         if idx.size <= len(feats) + np.unique(e[idx, 6]).size + 2:
             break
-        x = _design(e[idx], feats, t0)
+        x = _design(e[idx], feats, t0)[0]
         w = wt[idx]
-        a = np.linalg.pinv((x * w[:, None]).T @ x)
+        a, h = hat(x, w)
         coef = a @ ((x * w[:, None]).T @ e[idx, 3:6])
         res = e[idx, 3:6] - x @ coef
-        h = np.einsum('ij,jk,ik->i', x, a, x) * w
         alone = h > 1.0 - 1e-9            # alone in its session: its intercept needs it
         if alone.all():
             break
@@ -206,12 +199,12 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
     return keep
 
 
-def _design(e: NDArray[np.float64], feats: Sequence[str], t0: float) -> NDArray[np.float64]:
-    """Return the design of :func:`solve`: one column per session, then the powers."""
+def _design(e: NDArray[np.float64], feats: Sequence[str], t0: float
+            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return the design of :func:`fit_sessions` (a column per session, the powers), sessions."""
     d = e[:, 2] - t0
-    sessions = np.unique(e[:, 6])
-    return np.column_stack([(e[:, 6] == s).astype(np.float64) for s in sessions]
-                           + [d ** (j + 1) for j in range(len(feats))])
+    cols, sessions = session_columns(e[:, 6])
+    return np.column_stack([cols] + [d ** (j + 1) for j in range(len(feats))]), sessions
 
 
 def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_life_s: float,
@@ -222,7 +215,7 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
     Parameters
     ----------
     e : NDArray[np.float64], shape (E, 7)
-        Point table (:func:`solve`), E >= 1.
+        Point table (:func:`fit_sessions`), E >= 1.
     feats : sequence of str
         Features (:func:`grow_features`).
     t_now : float, s
@@ -242,11 +235,11 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
     age = np.maximum(t_now - e[:, 0], 0.0)
     wt = e[:, 1] * 0.5 ** (age / half_life_s)
     t0 = float(np.average(e[:, 2], weights=wt))
-    coef, res = solve(e, wt, feats, t0)
+    coef, res = fit_sessions(e, wt, feats, t0)
     keep = inliers(e, wt, feats, t0, floor)
     if not keep.all():
         e, wt = e[keep], wt[keep]
-        coef, res = solve(e, wt, feats, t0)
+        coef, res = fit_sessions(e, wt, feats, t0)
     resid = np.average(res ** 2, axis=0, weights=wt)
     return {'features': list(feats), 't0_c': t0, 'coef': coef.tolist(),
             'range_c': [float(e[:, 2].min()), float(e[:, 2].max())],

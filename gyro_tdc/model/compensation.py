@@ -195,13 +195,9 @@ class CompensationModel:
         """
         Return a short content hash of every field but ``created``.
 
-        Covers the fitted parameters, ``temp_range_c``, ``residual_var``, the sensor ids,
-        the training metrics, (format 2) the format and the thermal front end, and the
-        accelerometer part when there is one (its own id), so no
-        field a compensator or a reader relies on can be edited under the old id. Numbers
-        are hashed as float64 bytes (or exact JSON), so the id survives a YAML round trip
-        and does not depend on numpy's ``repr``; a format-1 model keeps the id it always
-        had.
+        Every field a compensator or a reader relies on (the accelerometer part by its own
+        id) is covered; numbers are hashed as float64 bytes, so the id survives a YAML round
+        trip.
         """
         h = hashlib.sha256()
         head = [self.kind, list(self.features), self.effect_params, self.frame_id,
@@ -225,6 +221,49 @@ class CompensationModel:
         from dataclasses import replace
         return replace(self, **changes)
 
+    @property
+    def coefficients(self) -> NDArray[np.float64]:
+        """Return intercept, linear tail and RBF weights stacked, (1 + F + K, 3)."""
+        return np.vstack([self.intercept[None, :], self.linear, self.weights])
+
+    @classmethod
+    def network(cls, kind: str, features: tuple[str, ...], effect_params: dict, t0_c: float,
+                norm: tuple, coef: NDArray[np.float64], *, temp_range_c: tuple[float, float],
+                residual_var: NDArray[np.float64], scale: NDArray[np.float64] | None = None,
+                **extra: Any) -> 'CompensationModel':
+        """
+        Return the model of fitted network weights: the estimator's output, or a model file's.
+
+        ``norm`` is ``(input_mean, input_std, centers, widths)`` and ``coef`` the weights of
+        the design ``[1, x~, phi]`` (:func:`rbf_design`), shape (1 + F + K, 3); ``extra``
+        holds the remaining fields (sensor ids, metrics, created, thermal, accel).
+        """
+        mean, std, centers, widths = norm
+        f = len(mean)
+        coef = np.array(coef, dtype=np.float64)
+        return cls(kind=kind, features=tuple(features), effect_params=effect_params,
+                   t0_c=float(t0_c), input_mean=mean, input_std=std, centers=centers,
+                   widths=widths, weights=coef[1 + f:], intercept=coef[0],
+                   linear=coef[1:1 + f], scale=np.zeros(3) if scale is None else scale,
+                   temp_range_c=(float(temp_range_c[0]), float(temp_range_c[1])),
+                   residual_var=np.asarray(residual_var, dtype=np.float64).reshape(3),
+                   **extra)
+
+    @classmethod
+    def polynomial(cls, features: tuple[str, ...], t0_c: float, coef: NDArray[np.float64], *,
+                   temp_range_c: tuple[float, float], residual_var: NDArray[np.float64],
+                   effect_params: dict | None = None, **extra: Any) -> 'CompensationModel':
+        """
+        Return a ``poly`` model of raw features: ``coef`` is the intercept, then one row each.
+
+        No input normalisation (mean 0, deviation 1): the flight controllers' cubics and the
+        learner's fits are written in the powers of ``T - T0`` themselves.
+        """
+        f = np.shape(coef)[0] - 1
+        norm = (np.zeros(f), np.ones(f), np.zeros((0, f)), np.zeros(0))
+        return cls.network('poly', features, effect_params or {}, t0_c, norm, coef,
+                           temp_range_c=temp_range_c, residual_var=residual_var, **extra)
+
 
 def _canonical_json(value: Any) -> str:
     """Return one canonical JSON text of plain data (sorted keys, exact floats)."""
@@ -235,20 +274,10 @@ def _canonical_json(value: Any) -> str:
 def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
                ) -> NDArray[np.float64]:
     """
-    Build the design matrix ``[1, x~, phi_1(x~) ... phi_K(x~)]`` of feature rows ``x``.
+    Build the design matrix ``[1, x~, phi_1(x~) ... phi_K(x~)]`` (N, 1 + F + K) of rows ``x``.
 
-    Parameters
-    ----------
-    model_or_norm : CompensationModel or tuple
-        A model, or ``(input_mean, input_std, centers, widths)``.
-    x : NDArray[np.float64], shape (N, F)
-        Raw feature rows.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N, 1 + F + K)
-        Design matrix.
-
+    ``model_or_norm`` is a model or ``(input_mean, input_std, centers, widths)``; ``x`` the
+    raw feature rows (N, F).
     """
     if isinstance(model_or_norm, CompensationModel):
         m = model_or_norm
@@ -274,34 +303,15 @@ def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
     return out
 
 
-def _coef(model: CompensationModel) -> NDArray[np.float64]:
-    """Stack intercept, linear tail and RBF weights as a (1 + F + K, 3) matrix."""
-    return np.vstack([model.intercept[None, :], model.linear, model.weights])
-
-
 def model_temperature(model: CompensationModel, t: NDArray[np.float64],
                       temp: NDArray[np.float64], *, clamp: bool = False
                       ) -> NDArray[np.float64]:
     """
     Return the model temperature over one run: the thermal state, or ``temp`` (format 1).
 
-    Parameters
-    ----------
-    model : CompensationModel
-        The model.
-    t : NDArray[np.float64], shape (N,), s
-        Stamps of one continuous run.
-    temp : NDArray[np.float64], shape (N,), degC
-        Measured temperature at each stamp.
-    clamp : bool
-        Clamp it to the model's valid range ``temp_range_c``.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N,), degC
-        The temperature every temperature term of the model is evaluated at (compare it
-        with ``temp_range_c`` to know what lies outside the trained range).
-
+    ``t`` (N,) are the stamps of one continuous run, s, ``temp`` (N,) the measured
+    temperature, degC; ``clamp`` clips the result to ``temp_range_c``. Every temperature
+    term of the model is evaluated at it (N,), degC.
     """
     temp = np.asarray(temp, dtype=np.float64)
     if model.thermal is not None:
@@ -343,7 +353,7 @@ def _drift_of(model: CompensationModel, x: NDArray[np.float64], chunk: int,
               d: NDArray[np.float64] | None = None, reach: NDArray[np.float64] | None = None
               ) -> NDArray[np.float64]:
     """Evaluate ``b(x)`` over feature rows in chunks, plus the tangent times ``reach``."""
-    coef = _coef(model)
+    coef = model.coefficients
     out = np.empty((x.shape[0], 3))
     tangent = None if reach is None or not np.any(reach) else Tangent(model)
     for i in range(0, x.shape[0], chunk):
@@ -397,31 +407,9 @@ def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[n
                out_of_range: str | None = None,
                max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> NDArray[np.float64]:
     """
-    Remove the modelled drift from a run: ``(omega - b) / (1 + s dT)``.
+    Remove the modelled drift from a run: ``(omega - b) / (1 + s dT)``, rad/s (N, 3).
 
-    Parameters
-    ----------
-    model : CompensationModel
-        The model.
-    t : NDArray[np.float64], shape (N,), s
-        Stamps of one continuous run.
-    temp : NDArray[np.float64], shape (N,), degC
-        Measured temperature at each stamp.
-    omega : NDArray[np.float64], shape (N, 3), rad/s
-        Raw gyro output.
-    clamp : bool
-        Clamp the model temperature to the model's valid range first (default); ignored
-        when ``out_of_range`` is given.
-    out_of_range : str, optional
-        ``'linear'``, ``'clamp'`` or ``'extrapolate'`` (:mod:`gyro_tdc.model.out_of_range`).
-    max_extrapolation_c : float, degC
-        Reach of the ``linear`` tangent beyond the range, after which it holds.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N, 3), rad/s
-        Compensated rate.
-
+    ``omega`` is the raw gyro output (N, 3), rad/s; the other arguments are :func:`drift`'s.
     """
     x, d, reach = _features(model, t, temp, _policy(clamp, out_of_range), max_extrapolation_c)
     b = _drift_of(model, x, 200_000, d, reach)
@@ -434,31 +422,10 @@ def predict_drift(model: CompensationModel, t: NDArray[np.float64],
                   clamp: bool = False, out_of_range: str | None = None,
                   max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> NDArray[np.float64]:
     """
-    Simulate the raw output for a true rate: ``(1 + s dT) omega_ref + b``.
+    Simulate the raw output for a true rate: ``(1 + s dT) omega_ref + b``, rad/s (N, 3).
 
-    Parameters
-    ----------
-    model : CompensationModel
-        The model.
-    t : NDArray[np.float64], shape (N,), s
-        Stamps of one continuous run.
-    temp : NDArray[np.float64], shape (N,), degC
-        Measured temperature at each stamp.
-    omega_ref : NDArray[np.float64], shape (N, 3), rad/s
-        True (reference) rate.
-    clamp : bool
-        Clamp the model temperature to the model's valid range first (default: no);
-        ignored when ``out_of_range`` is given.
-    out_of_range : str, optional
-        ``'linear'``, ``'clamp'`` or ``'extrapolate'`` (:mod:`gyro_tdc.model.out_of_range`).
-    max_extrapolation_c : float, degC
-        Reach of the ``linear`` tangent beyond the range, after which it holds.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N, 3), rad/s
-        Predicted raw gyro output.
-
+    ``omega_ref`` is the true (reference) rate (N, 3), rad/s; the other arguments are
+    :func:`drift`'s, but the model temperature is not clamped by default.
     """
     x, d, reach = _features(model, t, temp, _policy(clamp, out_of_range), max_extrapolation_c)
     b = _drift_of(model, x, 200_000, d, reach)
@@ -499,7 +466,7 @@ class StreamingCompensator:
         self.features = StreamingFeatures(model.features, t0=model.t0_c,
                                           params=model.effect_params,
                                           state=model.thermal is not None)
-        self._coef = _coef(model)
+        self._coef = model.coefficients
         self._mean = model.input_mean
         self._std = model.input_std
         self._centers = model.centers
@@ -551,25 +518,12 @@ class StreamingCompensator:
 
     def drift(self, t: float, temp: float) -> NDArray[np.float64]:
         """
-        Advance the state and filters to ``t``; return the drift b (3,), rad/s.
+        Advance the state and filters to stamp ``t`` (s) at ``temp`` (degC); return b (3,).
 
-        Parameters
-        ----------
-        t : float, s
-            Stamp.
-        temp : float, degC
-            Measured temperature at ``t``.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (3,), rad/s
-            The drift (plus the re-anchoring offset). ``in_range`` tells whether the model
-            temperature was inside ``temp_range_c``, ``range_distance_c`` how far outside it
-            was (degC, negative below, 0 inside); ``model_temp`` is the model temperature
-            the correction stands for (clamped when the policy clamps, the range end plus
-            the tangent's reach with ``linear``) and ``dt_c`` that minus T0, the ``dT`` of
-            the scale term.
-
+        The drift in rad/s plus the re-anchoring offset. After the call ``in_range`` tells
+        whether the model temperature was inside ``temp_range_c``, ``range_distance_c`` how far
+        outside (degC, negative below), ``model_temp`` the temperature the correction
+        stands for and ``dt_c`` that minus T0 (the ``dT`` of the scale term).
         """
         s = temp if self.thermal is None else self.thermal.update(t, temp)
         reach = 0.0

@@ -24,153 +24,20 @@ catalog. Adding an effect is one entry and its tests. See ``doc/internals/model.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import functools
 import math
-import os
 from typing import Callable, Mapping, Sequence
 
 from gyro_tdc.errors import FeatureError
+from gyro_tdc.model.lag import first_order_lag
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 __all__ = [
     'EFFECT_IDS', 'EFFECTS', 'Effect', 'INPUT_ORDER', 'NONLINEAR_EFFECTS', 'REFERENCE_EFFECTS',
     'STATE_TERMS', 'STATIC_EFFECTS', 'Series', 'StreamStep', 'StreamingFeatures',
-    'TEMPERATURE_EFFECTS', 'THERMAL_EFFECTS', 'batch_features', 'first_order_lag', 'input_ids',
-    'normalise_ids', 'resolve_params', 'with_implied',
+    'TEMPERATURE_EFFECTS', 'THERMAL_EFFECTS', 'batch_features', 'input_ids', 'normalise_ids',
+    'resolve_params', 'with_implied',
 ]
-
-#: Input holds of :func:`first_order_lag`.
-HOLDS = ('step', 'linear')
-
-
-@functools.lru_cache(maxsize=1)
-def _iir_kernel() -> Callable:
-    """
-    Return ``lfilter(b, a, x, zi) -> (y, zf)`` for 1-D float64 input, scipy's own IIR kernel.
-
-    ``scipy.signal.lfilter`` hands 1-D input with ``len(a) > 1`` straight to the C routine
-    ``scipy.signal._sigtools._linear_filter``; importing ``scipy.signal`` for it costs ~0.6 s
-    a process (it imports scipy.stats). The extension is loaded on its own here, so the
-    result is bit for bit lfilter's; where that fails, lfilter itself is used.
-    """
-    try:
-        from importlib.machinery import EXTENSION_SUFFIXES, ExtensionFileLoader
-        from importlib.util import module_from_spec, spec_from_loader
-        import scipy
-        folder = os.path.join(scipy.__path__[0], 'signal')
-        path = next(os.path.join(folder, '_sigtools' + suffix) for suffix in EXTENSION_SUFFIXES
-                    if os.path.isfile(os.path.join(folder, '_sigtools' + suffix)))
-        loader = ExtensionFileLoader('scipy.signal._sigtools', path)
-        module = module_from_spec(spec_from_loader(loader.name, loader))
-        loader.exec_module(module)
-        kernel = module._linear_filter
-
-        def lfilter(b, a, x, zi):
-            return kernel(np.asarray(b, dtype=np.float64), np.asarray(a, dtype=np.float64),
-                          np.asarray(x, dtype=np.float64), -1, np.asarray(zi, dtype=np.float64))
-        lfilter([1.0, 0.0], [1.0, -0.5], np.ones(2), np.zeros(1))      # it runs, or fall back
-        return lfilter
-    except Exception:                                           # noqa: BLE001 (any failure)
-        from scipy.signal import lfilter as scipy_lfilter
-        return lambda b, a, x, zi: scipy_lfilter(b, a, x, zi=zi)
-
-
-def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str = 'step',
-                    y0: float | None = None) -> NDArray[np.float64]:
-    """
-    Filter ``u`` through the first-order lag ``tau dy/dt = u - y``.
-
-    With ``a_k = exp(-(t[k] - t[k-1]) / tau)`` the two input holds are
-
-    * ``'step'``: ``u`` jumps to ``u[k]`` just after ``t[k-1]`` and holds,
-      ``y[k] = a_k y[k-1] + (1 - a_k) u[k]``; exactly what :class:`StreamingFeatures` does one
-      sample at a time (a feature can only use samples already received);
-    * ``'linear'``: ``u`` is linear between samples (first-order hold),
-      ``y[k] = a_k y[k-1] + (1 - c_k) u[k] + (c_k - a_k) u[k-1]`` with
-      ``c_k = tau (1 - a_k) / (t[k] - t[k-1])``; exact for ramps (the simulator's heat
-      conduction).
-
-    Stamps run as a parallel prefix scan in numpy, so irregular stamps cost no Python loop; a
-    uniform grid with the linear hold runs through ``scipy.signal.lfilter``.
-
-    Parameters
-    ----------
-    t : NDArray[np.float64], shape (N,), s, or float
-        Stamps, non-decreasing (a stamp before the previous one counts as no time step); or
-        the step of a uniform grid ``k * t``, > 0.
-    u : ArrayLike, shape (N,)
-        Input signal.
-    tau : float, s
-        Time constant, >= 0; 0 returns a copy of ``u``.
-    hold : {'step', 'linear'}
-        How ``u`` behaves between samples.
-    y0 : float, optional
-        Initial output; ``u[0]`` (settled) when None.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N,)
-        The lagged signal.
-
-    """
-    u = np.asarray(u, dtype=np.float64)
-    if u.ndim != 1:
-        raise ValueError(f'Expected `u` to have shape (N,), got {u.shape}.')
-    if not (math.isfinite(tau) and tau >= 0.0):
-        raise ValueError(f'Expected `tau` to be a finite number >= 0, got {tau!r}.')
-    if hold not in HOLDS:
-        raise ValueError(f'Expected `hold` to be one of {", ".join(HOLDS)}, got {hold!r}.')
-    uniform = np.ndim(t) == 0
-    if uniform:
-        dt = float(t)
-        if not (math.isfinite(dt) and dt > 0.0):
-            raise ValueError(f'Expected the uniform step `t` (dt) to be a finite number > 0, '
-                             f'got {t!r}.')
-    else:
-        t = np.asarray(t, dtype=np.float64)
-        if t.shape != u.shape:
-            raise ValueError(f'Expected `t` of shape {u.shape} like `u`, got {t.shape}.')
-    n = u.shape[0]
-    if tau == 0.0 or n == 0:
-        return u.copy()
-    start = u[0] if y0 is None else float(y0)
-    y = np.empty(n)
-    y[0] = start
-    if n == 1:
-        return y
-    if uniform and hold == 'linear':
-        lfilter = _iir_kernel()
-        a = math.exp(-dt / tau)
-        c = tau * -math.expm1(-dt / tau) / dt
-        # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]
-        b0, b1 = 1.0 - c, c - a
-        y[1:], _ = lfilter([b0, b1], [1.0, -a], u[1:], np.array([b1 * u[0] + a * start]))
-        return y
-    step = np.full(n - 1, dt) if uniform else np.maximum(np.diff(t), 0.0)
-    a = np.exp(-step / tau)
-    if hold == 'step':
-        b = (1.0 - a) * u[1:]
-    else:
-        with np.errstate(divide='ignore', invalid='ignore'):
-            c = np.where(step > 0.0, tau * -np.expm1(-step / tau) / step, 1.0)
-        b = (1.0 - c) * u[1:] + (c - a) * u[:-1]
-    # y[k] = a_k y[k-1] + b_k as a prefix scan of the affine maps (a, b).
-    shift = 1
-    m = a.shape[0]
-    spare = np.empty(m)               # the products go to spare pages, not new arrays
-    while shift < m:
-        n = m - shift
-        np.multiply(a[shift:], b[:n], out=spare[:n])
-        np.add(spare[:n], b[shift:], out=b[shift:])
-        spare[:shift] = a[:shift]
-        np.multiply(a[shift:], a[:n], out=spare[shift:])
-        a, spare = spare, a
-        shift *= 2
-        if shift < m and a[shift - 1:].max() < 1e-17:
-            break
-    y[1:] = a * start + b
-    return y
 
 
 @dataclass(frozen=True)
@@ -187,7 +54,7 @@ class Series:
     t0 : float, degC
         Reference temperature.
     d : NDArray[np.float64], shape (N,), degC
-        The model temperature minus ``t0``: the thermal state's (format 2) or ``temp``'s.
+        The model temperature minus ``t0``: the thermal state's, or ``temp``'s without one.
     t_start : float, s
         Power-on time.
 
@@ -250,7 +117,7 @@ class Effect:
     thermal : bool
         The effect is the thermal front end (``lag``): in a model with a thermal state it
         adds no column and makes every temperature term follow the lagged state; its
-        ``batch``/``stream`` forms are the format-1 additive column.
+        ``batch``/``stream`` forms are the additive column of discovery's search.
 
     """
 
@@ -363,7 +230,7 @@ EFFECTS: dict[str, Effect] = {e.id: e for e in (
            'the die follows the measured temperature with a first-order lag tau_s, and the '
            'drift follows the die: every temperature term is of the lagged state.',
            'the model temperature is the first-order-lagged state (tau_s fitted), no column '
-           'of its own (format 1: the additive column dT of the lagged T)',
+           'of its own (in the additive layout: the column dT of the lagged T)',
            'steps, soaks, heating and cooling', params={'tau_s': 120.0}, fitted=('tau_s',),
            bounds={'tau_s': (1.0, 20000.0)}, thermal=True,
            **_of_lag(lambda temp, lag, tau, t0: lag - t0)),
@@ -432,19 +299,8 @@ def input_ids(ids: Sequence[str], *, state: bool = False) -> tuple[str, ...]:
     """
     Return the ids among ``ids`` that are inputs of the drift network, in layout order.
 
-    Parameters
-    ----------
-    ids : sequence of str
-        Effect ids.
-    state : bool
-        The model has a thermal state (format 2): the ``thermal`` effect (``lag``) is not a
-        column. False: the format-1 layout, ``lag`` an additive column.
-
-    Returns
-    -------
-    tuple of str
-        The column ids.
-
+    With ``state`` (a thermal state) the ``thermal`` effect (``lag``) is no column; without, it
+    is a column of its own (the additive layout of discovery's search).
     """
     return tuple(i for i in normalise_ids(ids) if EFFECTS[i].is_input
                  and not (state and EFFECTS[i].thermal))
@@ -452,22 +308,10 @@ def input_ids(ids: Sequence[str], *, state: bool = False) -> tuple[str, ...]:
 
 def with_implied(ids: str | Sequence[str]) -> tuple[str, ...]:
     """
-    Return ``ids`` with the terms a thermal state implies: ``dT`` when ``lag`` has no term.
+    Return ``ids`` (catalog order) with ``dT`` added when ``lag`` has no temperature term.
 
-    With a thermal state, ``lag`` only says that the drift follows the lagged state; a model
-    asked for ``lag`` without any temperature term (``dT``, ``dT2``, ``dT3``) is the linear
-    one, ``dT`` of the state.
-
-    Parameters
-    ----------
-    ids : str or sequence of str
-        Effect ids.
-
-    Returns
-    -------
-    tuple of str
-        The ids in catalog order, ``dT`` added when implied.
-
+    With a thermal state ``lag`` only says that the drift follows the lagged state; asked for
+    alone it is the linear model, ``dT`` of the state.
     """
     ids = normalise_ids(ids)
     if THERMAL_EFFECTS & set(ids) and not STATE_TERMS & set(ids):
@@ -537,7 +381,7 @@ def batch_features(ids: Sequence[str], t: NDArray[np.float64], temp: NDArray[np.
     state : NDArray[np.float64], shape (N,), degC, optional
         The thermal state (the model temperature, already clamped when the model clamps):
         the temperature terms are of it, and ``lag`` adds no column
-        (``input_ids(ids, state=True)``). None: the format-1 features of ``temp``.
+        (``input_ids(ids, state=True)``). None: the additive layout, features of ``temp``.
 
     Returns
     -------
@@ -579,7 +423,7 @@ class StreamingFeatures:
     params : mapping, optional
         Effect parameters (defaults from the catalog).
     state : bool
-        :meth:`update` receives the thermal state (format 2, see :func:`batch_features`).
+        :meth:`update` receives the thermal state (see :func:`batch_features`).
 
     """
 

@@ -117,22 +117,10 @@ def px4_enabled(params: Mapping[str, float], sensor: str = 'gyro') -> bool:
 
 def px4_slot(params: Mapping[str, float], device_id: int, sensor: str = 'gyro') -> int | None:
     """
-    Return the PX4 calibration slot whose ``TC_Gn_ID`` is ``device_id`` (None: none is).
+    Return the PX4 calibration slot whose ``TC_Gn_ID`` (``TC_An_ID``) is ``device_id``, or None.
 
-    Parameters
-    ----------
-    params : mapping of str to float
-        The log's parameters.
-    device_id : int
-        ``device_id`` of the ``sensor_gyro`` / ``sensor_accel`` instance.
-    sensor : str
-        ``'gyro'`` or ``'accel'``.
-
-    Returns
-    -------
-    int or None
-        The slot, as the firmware maps a device to its calibration.
-
+    ``device_id`` is that of the ``sensor_gyro`` / ``sensor_accel`` instance; the slot is the
+    one the firmware maps that device to.
     """
     for slot in range(PX4_SLOTS):
         got = params.get(px4_name(sensor, slot, 'ID'))

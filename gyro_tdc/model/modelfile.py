@@ -15,37 +15,35 @@
 """
 The versioned YAML model file: save, load, validate.
 
-:func:`save_model` writes format 2 (format 1 files still load and keep their meaning);
-:func:`load_model` reads with the safe loader under hard limits (size, depth, no aliases,
-nodes, centres), checks every field, the ``model_id`` content hash and what the model
-computes (:mod:`gyro_tdc.model.validate`), and reports a bad field in one line. The format,
-field by field: ``doc/internals/model.md``.
+One format, :data:`FORMAT_VERSION`. :func:`load_model` reads with the safe loader under hard
+limits, checks every field, the ``model_id`` content hash and what the model computes
+(:mod:`gyro_tdc.model.validate`), and names a bad field in one line. The format, field by
+field: ``doc/internals/model.md``.
 """
 
 from __future__ import annotations
 
-import math
+from dataclasses import replace
 import os
 from pathlib import Path
 from typing import Any, Mapping
 
-from gyro_tdc.base import atomic_write, MAX_CENTERS, plain, read_yaml, YamlLimits
+from gyro_tdc.base import (atomic_write, FieldChecker, MAX_CENTERS, plain, read_yaml, shown,
+                           YamlLimits)
 from gyro_tdc.errors import FeatureError, ModelFileError
 from gyro_tdc.model.compensation import CompensationModel, KINDS
-from gyro_tdc.model.effects import input_ids, normalise_ids, resolve_params
+from gyro_tdc.model.effects import input_ids, normalise_ids, resolve_params, STATE_TERMS
 from gyro_tdc.model.thermal_state import ThermalState
 from gyro_tdc.model.validate import check_model
 import numpy as np
 import yaml
 
 __all__ = ['FORMAT_VERSION', 'MAX_MODEL_BYTES', 'MAX_MODEL_DEPTH',
-           'MAX_MODEL_NODES', 'SUPPORTED_VERSIONS', 'load_model', 'model_from_dict',
-           'model_to_dict', 'save_model']
+           'MAX_MODEL_NODES', 'load_model', 'model_from_dict',
+           'model_to_dict', 'save_model', 'stored']
 
-#: The format new models are written in.
+#: The model-file format, written and read.
 FORMAT_VERSION = 2
-#: The formats :func:`load_model` reads.
-SUPPORTED_VERSIONS = (1, 2)
 MAX_MODEL_BYTES = 4 * 1024 * 1024
 MAX_MODEL_DEPTH = 32
 MAX_MODEL_NODES = 250_000
@@ -53,17 +51,35 @@ _LIMITS = YamlLimits('model file', max_bytes=MAX_MODEL_BYTES, max_depth=MAX_MODE
                      max_nodes=MAX_MODEL_NODES, aliases=False)
 
 
+def stored(model: CompensationModel) -> CompensationModel:
+    """
+    Return the model as its file holds it: with a thermal front end (kind none when absent).
+
+    A model without one (the learner's before a prior) computes the same with kind none when
+    its terms are of the temperature alone or ``warmup``; ``lag`` or ``dTdt`` of the clamped
+    measured temperature has no file form.
+    """
+    if model.thermal is not None:
+        return model
+    other = sorted(set(model.inputs) - STATE_TERMS - {'warmup'})
+    if other:
+        raise ModelFileError(f'a model without a thermal front end is stored with kind none, '
+                             f'which changes {", ".join(other)}: fit it with a thermal front '
+                             'end')
+    return replace(model, thermal=ThermalState())
+
+
 def model_to_dict(model: CompensationModel) -> dict:
-    """Return the model as a dict of plain types, in file order (its own format version)."""
+    """Return the model (see :func:`stored`) as a dict of plain types, in file order."""
+    model = stored(model)
     d = {
-        'format_version': model.format_version,
+        'format_version': FORMAT_VERSION,
         'kind': model.kind,
         'model_id': model.model_id,
         'features': list(model.features),
         'effect_params': plain(model.effect_params),
     }
-    if model.thermal is not None:
-        d['thermal'] = model.thermal.to_dict()
+    d['thermal'] = model.thermal.to_dict()
     d.update({
         't0_c': float(model.t0_c),
         'temp_range_c': [float(v) for v in model.temp_range_c],
@@ -94,26 +110,29 @@ def _accel_to_dict(part: CompensationModel) -> dict:
             for k, v in model_to_dict(part).items() if k not in _SHARED}
 
 
-def _accel_from_dict(d: Mapping, version: int) -> CompensationModel | None:
+def _accel_from_dict(d: Mapping) -> CompensationModel | None:
     """Read the optional ``accel`` section of a model file (None when absent)."""
     if d.get('accel') is None:
         return None
-    if version == 1:
-        raise ModelFileError('field `accel` belongs to format_version 2, not 1')
     sec = _mapping(d, 'accel')
     bad = sorted(set(sec) & (set(_SHARED) | {'residual_var_rad2_s2'}))
     if bad:
         raise ModelFileError(f'field `accel`: {bad} belong to the model, not to its '
                              'accelerometer part')
-    sub = dict(sec, format_version=version, thermal=d.get('thermal'), t0_c=d.get('t0_c'),
+    sub = dict(sec, format_version=FORMAT_VERSION, thermal=d.get('thermal'), t0_c=d.get('t0_c'),
                sensor=d.get('sensor'), scale=[0.0, 0.0, 0.0])
     if 'residual_var_m2_s4' not in sub:
         raise ModelFileError('field `accel`: missing field `residual_var_m2_s4`')
     sub['residual_var_rad2_s2'] = sub.pop('residual_var_m2_s4')
     try:
-        return _model_from_dict(sub, version)
+        return _model_from_dict(sub)
     except ModelFileError as exc:
         raise ModelFileError(f'field `accel`: {exc}') from None
+
+
+#: The shared field checks (gyro_tdc.base.fields), worded for a model file.
+_CHK = FieldChecker(lambda key, expected, got: ModelFileError(
+    f'field `{key}` must be {expected}, got {shown(got)}'))
 
 
 def _array(d: Mapping, key: str, shape: tuple, *, positive: bool = False) -> np.ndarray:
@@ -140,10 +159,7 @@ def _number(d: Mapping, key: str) -> float:
     """Read ``d[key]`` as a finite float."""
     if key not in d:
         raise ModelFileError(f'missing field `{key}`')
-    v = d[key]
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise ModelFileError(f'field `{key}` must be a finite number, got {v!r}')
-    return float(v)
+    return _CHK.number(d[key], key, what='a finite number')
 
 
 def _mapping(d: Mapping, key: str, *, required: bool = True) -> dict:
@@ -155,9 +171,7 @@ def _mapping(d: Mapping, key: str, *, required: bool = True) -> dict:
     v = d[key]
     if v is None and not required:
         return {}
-    if not isinstance(v, Mapping):
-        raise ModelFileError(f'field `{key}` must be a mapping, got {type(v).__name__}')
-    return dict(v)
+    return _CHK.mapping(v, key)
 
 
 def model_from_dict(d: Any) -> CompensationModel:
@@ -183,21 +197,20 @@ def model_from_dict(d: Any) -> CompensationModel:
     if not isinstance(d, Mapping):
         raise ModelFileError(f'expected a mapping at the top level, got {type(d).__name__}')
     version = d.get('format_version')
-    if type(version) is not int or version not in SUPPORTED_VERSIONS:   # not 1.0, not true
+    if type(version) is not int or version != FORMAT_VERSION:       # not 2.0, not true
         note = '' if type(version) is int else f' (a {type(version).__name__}, not an integer)'
-        raise ModelFileError(f'field `format_version` must be '
-                             f'{" or ".join(map(str, SUPPORTED_VERSIONS))} (the versions this '
-                             f'gyro_tdc reads), got {version!r}{note}')
+        raise ModelFileError(f'field `format_version` must be {FORMAT_VERSION} (the format '
+                             f'this gyro_tdc reads), got {version!r}{note}')
     try:
-        model = _model_from_dict(d, version)
+        model = _model_from_dict(d)
         check_model(model)
     except ModelFileError as exc:
         raise ModelFileError(f'format_version {version} model: {exc}') from None
     return model
 
 
-def _model_from_dict(d: Mapping, version: int) -> CompensationModel:
-    """Build and validate a model of a known format version (see :func:`model_from_dict`)."""
+def _model_from_dict(d: Mapping) -> CompensationModel:
+    """Build and validate a model of the current format (see :func:`model_from_dict`)."""
     mid = d.get('model_id')
     if 'model_id' not in d:
         raise ModelFileError('missing field `model_id` (the content hash every model file '
@@ -218,16 +231,11 @@ def _model_from_dict(d: Mapping, version: int) -> CompensationModel:
     if list(ids) != feats:
         raise ModelFileError(f'field `features` must list each id once in catalog order '
                              f'({", ".join(ids)}), got {feats!r}')
-    thermal = None
-    if version == 1:
-        if 'thermal' in d:
-            raise ModelFileError('field `thermal` belongs to format_version 2, not 1')
-    else:
-        try:
-            thermal = ThermalState.from_dict(_mapping(d, 'thermal'))
-        except FeatureError as exc:
-            raise ModelFileError(f'field `thermal`: {exc}') from None
-    f = len(input_ids(ids, state=thermal is not None))
+    try:
+        thermal = ThermalState.from_dict(_mapping(d, 'thermal'))
+    except FeatureError as exc:
+        raise ModelFileError(f'field `thermal`: {exc}') from None
+    f = len(input_ids(ids, state=True))
     rows = d.get('centers')
     if isinstance(rows, list) and len(rows) > MAX_CENTERS:
         raise ModelFileError(f'field `centers` has {len(rows)} rows, more than the limit of '
@@ -250,19 +258,17 @@ def _model_from_dict(d: Mapping, version: int) -> CompensationModel:
     rng_ = _array(d, 'temp_range_c', (2,))
     if rng_[0] > rng_[1]:
         raise ModelFileError(f'field `temp_range_c` must be [min, max], got {rng_.tolist()}')
-    accel = _accel_from_dict(d, version)
+    accel = _accel_from_dict(d)
     sensor = _mapping(d, 'sensor', required=False)
     frame_id = sensor.get('frame_id', 'imu_link')
     sensor_id = sensor.get('sensor_id', '')
     if not isinstance(frame_id, str) or not isinstance(sensor_id, str):
         raise ModelFileError('field `sensor` must hold string `frame_id` and `sensor_id`')
     try:
-        model = CompensationModel(
-            kind=kind, features=ids, effect_params=params, t0_c=_number(d, 't0_c'),
-            input_mean=mean, input_std=std, centers=centers, widths=widths, weights=weights,
-            intercept=intercept, linear=linear, scale=scale,
-            temp_range_c=(float(rng_[0]), float(rng_[1])), residual_var=resid,
-            frame_id=frame_id, sensor_id=sensor_id,
+        model = CompensationModel.network(
+            kind, ids, params, _number(d, 't0_c'), (mean, std, centers, widths),
+            np.vstack([intercept[None, :], linear, weights]), scale=scale,
+            temp_range_c=rng_, residual_var=resid, frame_id=frame_id, sensor_id=sensor_id,
             metrics=_mapping(d, 'training', required=False),
             created=_mapping(d, 'created', required=False), thermal=thermal, accel=accel)
     except FeatureError as exc:
@@ -274,52 +280,14 @@ def _model_from_dict(d: Mapping, version: int) -> CompensationModel:
 
 
 def save_model(model: CompensationModel, path: str | os.PathLike) -> Path:
-    """
-    Write a model file atomically (see :func:`gyro_tdc.base.atomicio.atomic_write`).
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The model.
-    path : str or PathLike
-        Destination ``.yaml`` file.
-
-    Returns
-    -------
-    Path
-        The path written.
-
-    Raises
-    ------
-    OutputError
-        When the file cannot be written (nothing is left behind).
-
-    """
+    """Write a model file atomically and return its path (OutputError: nothing is left behind)."""
     text = '# gyro_tdc compensation model (see README "Model file")\n' + yaml.safe_dump(
         model_to_dict(model), sort_keys=False, default_flow_style=None, width=100)
     return atomic_write(Path(path), text, what='model file')
 
 
 def load_model(path: str | os.PathLike) -> CompensationModel:
-    """
-    Read and validate a model file.
-
-    Parameters
-    ----------
-    path : str or PathLike
-        A model ``.yaml`` file.
-
-    Returns
-    -------
-    CompensationModel
-        The model.
-
-    Raises
-    ------
-    ModelFileError
-        One line naming the file and what is wrong with it.
-
-    """
+    """Read and validate a model file (ModelFileError: the file and what is wrong, one line)."""
     path = Path(path)
     data = read_yaml(path, _LIMITS, error=ModelFileError)
     try:

@@ -28,7 +28,7 @@ import math
 from typing import Any, Mapping
 
 from gyro_tdc.errors import FeatureError
-from gyro_tdc.model.effects import first_order_lag
+from gyro_tdc.model.lag import first_order_lag
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 

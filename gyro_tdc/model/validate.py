@@ -184,7 +184,7 @@ def drift_grid(m: CompensationModel, *, ext: float = MAX_EXTRAPOLATION_C,
 
     Model temperatures from the range's low end minus ``ext`` to its high end plus ``ext``,
     with the dynamic inputs over what they plausibly take (``dTdt`` within
-    +-``MAX_TEMP_RATE_C_S``, ``warmup`` 0 .. 1, a format-1 ``lag`` column over the range), in
+    +-``MAX_TEMP_RATE_C_S``, ``warmup`` 0 .. 1, an additive ``lag`` column over the range), in
     every combination; and every RBF centre's own point (its dynamic coordinates, at the
     temperatures where the temperature terms reach it), so a narrow peak between grid
     points is seen too.

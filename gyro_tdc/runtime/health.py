@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 from types import MappingProxyType
-from typing import Mapping, NamedTuple, TYPE_CHECKING
+from typing import Any, Mapping, NamedTuple, TYPE_CHECKING
 
 from gyro_tdc.base import MAX_TEMP_SLEW_C_S, TEMP_PLAUSIBLE_C
 from gyro_tdc.model import SETTLE_TAUS
@@ -269,9 +269,30 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     """
     since = since or HealthMark()
     inputs = inputs or InputStatus()
-    model = core.model
     counts = core.flag_counts
     new = {bit: counts[bit] - since.flags.get(bit, 0) for bit in counts}
+    level, problems = _problems(core, since, new, inputs, last_reload, sensor_id, frame_id)
+    if problems:
+        message = '; '.join(problems)
+    elif core.counts['in'] == 0:
+        message = 'waiting for imu/data_raw'
+    else:
+        message = 'compensating'
+    if new[PASSTHROUGH]:
+        message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
+    values = _values(core, inputs, model_file, last_reload, frame_id)
+    return Health(level, message, sensor_id or frame_id,
+                  {k: str(v) for k, v in values.items()},
+                  HealthMark(dict(counts), core.temps.rejected, core.errors, inputs.lost,
+                             inputs.already_compensated, inputs.malformed,
+                             core.temps.implausible))
+
+
+def _problems(core: CompensatorCore, since: HealthMark, new: dict[int, int],
+              inputs: InputStatus, last_reload: str, sensor_id: str, frame_id: str
+              ) -> tuple[int, list[str]]:
+    """Return the level and the problems of :func:`health` (``new``: flags since ``since``)."""
+    model = core.model
     rejected = core.temps.rejected - since.temps_rejected
     implausible = core.temps.implausible - since.temps_implausible
     errors = core.errors - since.errors
@@ -333,14 +354,15 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         level = ERROR
         problems.append(f'compensation failed on {errors} samples, passed through: '
                         f'{core.last_error}')
-    if problems:
-        message = '; '.join(problems)
-    elif core.counts['in'] == 0:
-        message = 'waiting for imu/data_raw'
-    else:
-        message = 'compensating'
-    if new[PASSTHROUGH]:
-        message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
+    return level, problems
+
+
+def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_reload: str,
+            frame_id: str) -> dict[str, Any]:
+    """Return :func:`health`'s key/value pairs (not yet strings)."""
+    model = core.model
+    counts = core.flag_counts
+    upstream = upstream_note(core.policy)
     anchor = core.anchor
     age = core.temperature_age()
     flags = core.last_flags
@@ -397,8 +419,4 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         values['reanchor tolerance dps'] = ','.join(f'{math.degrees(v):.5f}'
                                                     for v in anchor.tolerance)
         values['reanchor stopped on'] = anchor.reason or 'one window'
-    return Health(level, message, sensor_id or frame_id,
-                  {k: str(v) for k, v in values.items()},
-                  HealthMark(dict(counts), core.temps.rejected, core.errors, inputs.lost,
-                             inputs.already_compensated, inputs.malformed,
-                             core.temps.implausible))
+    return values

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 from gyro_tdc.base import INPUT_FRAMES, ParamSpec, spec_dataclass, TEMPERATURE_QUIRKS
 from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES
-from gyro_tdc.runtime.reanchor import STILL_WINDOW_MAX_S
+from gyro_tdc.runtime.blockstats import STILL_WINDOW_MAX_S
 from gyro_tdc.signal import MOTION_EPS, STILL_WINDOW_S
 
 __all__ = ['MOTION_TYPES', 'PARAMS', 'Policy', 'TEMPERATURE_TYPES', 'UPSTREAM_CORRECTIONS',

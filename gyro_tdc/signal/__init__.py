@@ -15,22 +15,27 @@
 """
 Signal tools on IMU samples.
 
-Block means, noise and accuracy metrics, the one still detector (its verdict, batch and
-streaming forms) and the one session-break rule (batch and streaming).
+Block means, the one estimator (least squares, sessions, blocks, folds), noise and accuracy
+metrics, the one still detector (its verdict, batch and streaming forms), the one
+session-break rule (batch and streaming) and the thermometer held by stamp.
 """
 
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'blocks': ['block_counts', 'block_length', 'block_mean', 'block_sum', 'block_sumsq'],
+    'estimator': ['BlockGrid', 'fit_columns', 'Folds', 'hat', 'heldout', 'pinv_fit',
+                  'session_columns', 'solve_normal', 'within'],
+    'hold': ['hold_readings', 'TemperatureHold'],
     'metrics': ['allan_deviation', 'bias_stability', 'noise_readouts', 'p_ratios', 'rms_dps'],
     'sessions': ['BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'break_why', 'GAP_PERIODS',
-                 'gap_breaks', 'gap_limit', 'session_gap', 'SessionRule'],
+                 'gap_breaks', 'gap_limit', 'session_gap', 'SessionRule', 'SessionTracker'],
     'still_batch': ['detect_still', 'Stillness'],
     'still_stream': ['MotionReports', 'StillSegment', 'StillWindows', 'StreamingStill',
                      'Window'],
-    'still_verdict': ['has_accelerometer', 'judge_windows', 'MAX_RATE', 'MIN_STILL_S',
+    'still_verdict': ['auto_window', 'has_accelerometer', 'judge_windows', 'MAX_RATE',
+                      'MAX_STILL_SE', 'MIN_STILL_S', 'MIN_STILL_SAMPLES',
                       'MIN_WINDOW_SAMPLES', 'MOTION_EPS', 'motion_veto', 'NOISE_FACTOR',
-                      'noise_floor', 'noise_thresholds', 'NOISE_WINDOWS', 'STILL_WINDOW_S',
-                      'windows_moving'],
+                      'noise_floor', 'noise_thresholds', 'NOISE_WINDOWS', 'SHORT_WINDOW_S',
+                      'STILL_WINDOW_S', 'windows_moving'],
 })

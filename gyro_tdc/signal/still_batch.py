@@ -24,7 +24,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 
-from gyro_tdc.signal.still_verdict import (has_accelerometer, judge_windows, MAX_RATE, MIN_STILL_S,
+from gyro_tdc.signal.still_verdict import (has_accelerometer, judge_windows, MAX_RATE,
+                                           MAX_STILL_SE, MIN_STILL_S, MIN_STILL_SAMPLES,
                                            MIN_WINDOW_SAMPLES, noise_floor, noise_thresholds,
                                            REASONS, STILL_WINDOW_S)
 import numpy as np
@@ -147,9 +148,22 @@ def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
     return mean + c, np.sqrt(var)
 
 
+def _long_enough(g: NDArray[np.float64], duration: float, min_still_s: float | None) -> bool:
+    """Return whether a still stretch (its raw rate, its duration in s) is kept."""
+    if min_still_s is not None:
+        return duration + 1e-9 >= min_still_s
+    if duration + 1e-9 >= MIN_STILL_S:
+        return True
+    n = g.shape[0]
+    if n < MIN_STILL_SAMPLES:
+        return False
+    se = np.nanstd(g, axis=0, ddof=1) / math.sqrt(n)
+    return bool(np.all(se <= MAX_STILL_SE))
+
+
 def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, *,
                  rate: ArrayLike | None = None, moving: ArrayLike | None = None,
-                 window_s: float = STILL_WINDOW_S, min_still_s: float = MIN_STILL_S,
+                 window_s: float = STILL_WINDOW_S, min_still_s: float | None = MIN_STILL_S,
                  gyro_std: float = 0.0, accel_std: float = 0.0, max_rate: float = MAX_RATE,
                  gyro_floor: ArrayLike | None = None,
                  accel_floor: ArrayLike | None = None) -> Stillness:
@@ -171,8 +185,11 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
         Samples a motion report vetoes (:func:`motion_veto`, a non-zero reference).
     window_s : float, s
         Window length (at least :data:`MIN_WINDOW_SAMPLES` sample periods).
-    min_still_s : float, s
+    min_still_s : float or None, s
         Shortest stretch of consecutive still windows kept (0 keeps every still window).
+        None: judged by its samples and its noise -- a stretch of :data:`MIN_STILL_S` or
+        more, or one of at least :data:`MIN_STILL_SAMPLES` samples whose mean rate has a
+        standard error of at most :data:`MAX_STILL_SE` on every axis.
     gyro_std, accel_std : float
         Fixed thresholds, rad/s and m/s^2; 0: auto (:func:`noise_thresholds`).
     max_rate : float, rad/s
@@ -257,7 +274,7 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     for a, b in zip(first_w.tolist(), stop_w.tolist()):
         i0, i1 = int(starts[a]), int(ends[b - 1])
         dur = float(t[i1 - 1] - t[i0]) + dt
-        if dur + 1e-9 < min_still_s:
+        if not _long_enough(g[i0:i1], dur, min_still_s):
             why[a:b] = 'brief'
             continue
         segments.append((i0, i1))
@@ -273,7 +290,10 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
             reason = 'every window is vetoed by a motion report'
         elif rej.get('brief'):
             reason = (f'no still stretch of {min_still_s:g} s or more (the longest still '
-                      'stretch is shorter)')
+                      'stretch is shorter)' if min_still_s is not None else
+                      f'no still stretch of {MIN_STILL_S:g} s or of {MIN_STILL_SAMPLES} '
+                      f'samples with a mean known to {MAX_STILL_SE * 180.0 / math.pi:g} deg/s '
+                      '(the still stretches are shorter or noisier)')
         else:
             reason = 'no still window (the IMU moves)'
     return Stillness(mask, tuple(segments), window, starts, counts, why, g_mean, g_std, a_mean,

@@ -26,10 +26,10 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['has_accelerometer', 'judge_windows', 'MAX_RATE', 'MIN_STILL_S',
-           'MIN_WINDOW_SAMPLES', 'MOTION_EPS', 'motion_veto', 'NOISE_DOF', 'NOISE_FACTOR',
-           'NOISE_WINDOWS',
-           'noise_floor', 'noise_thresholds', 'REASONS', 'STILL_WINDOW_S', 'windows_moving']
+__all__ = ['auto_window', 'has_accelerometer', 'judge_windows', 'MAX_RATE', 'MAX_STILL_SE',
+           'MIN_STILL_S', 'MIN_STILL_SAMPLES', 'MIN_WINDOW_SAMPLES', 'MOTION_EPS',
+           'motion_veto', 'NOISE_DOF', 'NOISE_FACTOR', 'NOISE_WINDOWS', 'noise_floor',
+           'noise_thresholds', 'REASONS', 'SHORT_WINDOW_S', 'STILL_WINDOW_S', 'windows_moving']
 
 #: Default window, s: the shortest still stretch judged (and the re-anchoring window).
 STILL_WINDOW_S = 10.0
@@ -47,11 +47,35 @@ NOISE_DOF = 2 * MIN_WINDOW_SAMPLES
 MAX_RATE = 0.02
 #: Default shortest still stretch kept by :func:`detect_still`, s.
 MIN_STILL_S = 60.0
+#: Auto still test (``min_still_s=None``): a shorter stretch is kept when it holds at least
+#: this many samples ...
+MIN_STILL_SAMPLES = 250
+#: ... and the standard error of its mean rate is at most this, rad/s (0.01 deg/s), on every
+#: axis: a 15 s stretch at 25 Hz of a quiet MEMS gyro, or 2 s at 1 kHz.
+MAX_STILL_SE = 1.75e-4
+#: Auto window of the trainers (``window_s=None``): this long, s, or
+#: :data:`MIN_WINDOW_SAMPLES` sample periods, at most :data:`STILL_WINDOW_S`, so that a
+#: short stretch of a fast log holds whole windows.
+SHORT_WINDOW_S = 2.5
 #: A motion report above this (m/s or rad/s, any component) is motion.
 MOTION_EPS = 1e-6
 
 #: Why a window is not still (``''`` when it is), in the order they are checked.
 REASONS = ('samples', 'non-finite', 'motion', 'gyro', 'accel', 'rate', 'brief')
+
+
+def auto_window(t: ArrayLike) -> float:
+    """
+    Return the trainers' auto still window for stamps ``t``, s (:data:`SHORT_WINDOW_S`).
+
+    Short at high rates (a 15 s still stretch between flights holds whole windows), at least
+    :data:`MIN_WINDOW_SAMPLES` sample periods, and never longer than :data:`STILL_WINDOW_S`
+    unless the rate asks for it.
+    """
+    t = np.asarray(t, dtype=np.float64)
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    return max(min(STILL_WINDOW_S, SHORT_WINDOW_S), MIN_WINDOW_SAMPLES * dt) if dt > 0 else (
+        STILL_WINDOW_S)
 
 
 def has_accelerometer(accel: ArrayLike | None) -> bool:

@@ -125,27 +125,10 @@ class Scenario:
     def from_dict(cls, data: Mapping[str, Any], *, name: Optional[str] = None,
                   source: str = '<dict>') -> 'Scenario':
         """
-        Validate a scenario mapping and build the scenario.
+        Validate a scenario mapping (as read from YAML) and build the scenario.
 
-        Parameters
-        ----------
-        data : Mapping
-            Scenario as read from YAML (see the module docstring for the schema).
-        name : str, optional
-            Name used when ``data`` has none (e.g. the file stem).
-        source : str
-            Where ``data`` came from, for error messages.
-
-        Returns
-        -------
-        Scenario
-            The validated scenario.
-
-        Raises
-        ------
-        ScenarioError
-            Naming the first bad field, what was expected and what was received.
-
+        ``name`` is used when ``data`` has none, ``source`` names it in a ScenarioError (the first
+        bad field, what was expected and what was received).
         """
         return cls(**validate(data, name=name, source=source))
 

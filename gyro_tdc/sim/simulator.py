@@ -26,7 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 import os
-from typing import Any, Mapping, Optional, Sequence, Union
+from typing import Any, Callable, Mapping, Optional, Sequence, Union
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import ScenarioError
@@ -34,6 +34,7 @@ from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim.noise import gauss_markov, quantise, random_walk, white_noise
 from gyro_tdc.sim.scenario import load_scenario, Scenario
 from gyro_tdc.sim.schema import DEG
+from gyro_tdc.sim.specs import GyroSpec, NoiseSpec, ThermometerSpec
 from gyro_tdc.sim.thermal import simulate_thermal, ThermalHistory
 from gyro_tdc.sim.vehicle import heated_profile, plan_legs, vehicle_motion, VehicleMotion
 import numpy as np
@@ -243,6 +244,75 @@ def _vec(values: Sequence[float], factor: float = 1.0) -> NDArray[np.float64]:
     return np.asarray(values, dtype=np.float64) * factor
 
 
+def _coefficients(g: GyroSpec, on: Mapping[str, bool], offset: NDArray[np.float64]
+                  ) -> dict[str, NDArray[np.float64]]:
+    """Return each effect's coefficients in rad/s units, zero when the effect is off."""
+    def coef(effect: str, values: Sequence[float], factor: float) -> NDArray[np.float64]:
+        return _vec(values, factor) if on[effect] else np.zeros(3)
+
+    return {
+        'bias': coef('bias', g.bias_dps, DEG) + (offset if on['bias'] else 0.0),
+        'dT': coef('dT', g.dT_dps_per_c, DEG),
+        'dT2': coef('dT2', g.dT2_dps_per_c2, DEG),
+        'dT3': coef('dT3', g.dT3_dps_per_c3, DEG),
+        'dTdt': coef('dTdt', g.dTdt_dps_per_c_per_s, DEG),
+        'scale': coef('scale', g.scale_ppm_per_c, 1e-6),
+        'warmup': coef('warmup', g.warmup_dps, DEG),
+    }
+
+
+def _drift(g: GyroSpec, on: Mapping[str, bool], coefficients: Mapping[str, NDArray[np.float64]],
+           imu_t: NDArray[np.float64], d_t: NDArray[np.float64],
+           die_rate: NDArray[np.float64], omega_ref: NDArray[np.float64]
+           ) -> NDArray[np.float64]:
+    """Return the gyro drift (N, 3), rad/s, of the die temperature, its rate and the rate."""
+    poly = np.stack((d_t, d_t * d_t, d_t * d_t * d_t), axis=1)            # (N, 3 powers)
+    weights = np.stack((coefficients['dT'], coefficients['dT2'], coefficients['dT3']))
+    drift = poly @ weights                                                # (N, 3 axes)
+    drift += coefficients['bias']
+    if on['dTdt']:
+        drift += die_rate[:, np.newaxis] * coefficients['dTdt']
+    if on['warmup']:
+        since = imu_t - g.power_on_s
+        drift += np.exp(-np.maximum(since, 0.0) / g.warmup_tau_s)[:, np.newaxis] \
+            * coefficients['warmup']
+    if on['scale']:
+        drift += omega_ref * (d_t[:, np.newaxis] * coefficients['scale'])
+    return drift
+
+
+def _add_noise(gyro: NDArray[np.float64], nz: NoiseSpec,
+               rng: Callable[[str], np.random.Generator], rate: float) -> NDArray[np.float64]:
+    """Add the enabled noise processes to ``gyro`` in place; return the white noise std."""
+    white_std = _vec(nz.arw_dps_per_rt_hz, DEG) * math.sqrt(rate) if nz.enabled else np.zeros(3)
+    if not nz.enabled:
+        return white_std
+    n, dt = gyro.shape[0], 1.0 / rate
+    if np.any(white_std > 0.0):
+        gyro += white_noise(rng('white'), n, density=_vec(nz.arw_dps_per_rt_hz, DEG),
+                            rate_hz=rate)
+    if np.any(_vec(nz.bias_instability_dps) > 0.0):
+        gyro += gauss_markov(rng('bias_instability'), n,
+                             sigma=_vec(nz.bias_instability_dps, DEG),
+                             tau_s=nz.bias_instability_tau_s, dt=dt)
+    if np.any(_vec(nz.rrw_dps_per_rt_s) > 0.0):
+        gyro += random_walk(rng('rrw'), n, k=_vec(nz.rrw_dps_per_rt_s, DEG), dt=dt)
+    return white_std
+
+
+def _thermometer(th: ThermometerSpec, thermal: ThermalHistory, duration: float,
+                 rng: np.random.Generator
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], float]:
+    """Return the thermometer's stamps, readings (degC) and reading variance, at its rate."""
+    temp_t = _stamps(duration, th.rate_hz)
+    temp_c = thermal.at('thermometer_c', temp_t) + th.offset_c
+    if th.noise_c > 0.0:
+        temp_c += rng.standard_normal(temp_t.size) * th.noise_c
+    if th.resolution_c > 0.0:
+        temp_c = np.round(temp_c / th.resolution_c) * th.resolution_c
+    return temp_t, temp_c, th.noise_c ** 2 + th.resolution_c ** 2 / 12.0
+
+
 def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
                  rate_hz: Optional[float] = None) -> SimRun:
     """
@@ -278,7 +348,6 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
                             f'{sc.name!r}, got {run_index!r}.')
     run_index = int(run_index)
     rate = _check_rate(rate_hz, sc.imu_rate_hz)
-    dt = 1.0 / rate
     streams = dict(zip(_STREAMS, np.random.SeedSequence(seed, spawn_key=(run_index,))
                        .spawn(len(_STREAMS))))
 
@@ -303,26 +372,12 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
         tau_die_s=tau_die, thermometer_location=sc.thermometer.location,
         thermometer_tau_s=sc.thermometer.tau_s)
     imu_t = _stamps(duration, rate)
-    n = imu_t.size
     die = thermal.at('die_c', imu_t)
     die_rate = thermal.at('die_rate_c_per_s', imu_t)
     d_t = die - g.t_ref_c
 
-    # Coefficients in rad/s units, zero when the effect is off.
     offset = rng('offset').standard_normal(3) * _vec(sc.runs.bias_offset_dps_std, DEG)
-
-    def coef(effect: str, values: Sequence[float], factor: float) -> NDArray[np.float64]:
-        return _vec(values, factor) if on[effect] else np.zeros(3)
-
-    coefficients = {
-        'bias': coef('bias', g.bias_dps, DEG) + (offset if on['bias'] else 0.0),
-        'dT': coef('dT', g.dT_dps_per_c, DEG),
-        'dT2': coef('dT2', g.dT2_dps_per_c2, DEG),
-        'dT3': coef('dT3', g.dT3_dps_per_c3, DEG),
-        'dTdt': coef('dTdt', g.dTdt_dps_per_c_per_s, DEG),
-        'scale': coef('scale', g.scale_ppm_per_c, 1e-6),
-        'warmup': coef('warmup', g.warmup_dps, DEG),
-    }
+    coefficients = _coefficients(g, on, offset)
 
     # Deterministic part: drift (error) and output = reference + drift.
     ref_t, ref = sc.rate_table.arrays()
@@ -335,33 +390,9 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
         motion = vehicle_motion(sc.vehicle, legs, imu_t, vehicle_rng,
                                 gravity_mps2=sc.accel.gravity_mps2, heating=heating)
         ref_t, ref, omega_ref = imu_t, motion.rate, motion.rate
-    poly = np.stack((d_t, d_t * d_t, d_t * d_t * d_t), axis=1)            # (N, 3 powers)
-    weights = np.stack((coefficients['dT'], coefficients['dT2'], coefficients['dT3']))
-    drift = poly @ weights                                                # (N, 3 axes)
-    drift += coefficients['bias']
-    if on['dTdt']:
-        drift += die_rate[:, np.newaxis] * coefficients['dTdt']
-    if on['warmup']:
-        since = imu_t - g.power_on_s
-        drift += np.exp(-np.maximum(since, 0.0) / g.warmup_tau_s)[:, np.newaxis] \
-            * coefficients['warmup']
-    if on['scale']:
-        drift += omega_ref * (d_t[:, np.newaxis] * coefficients['scale'])
+    drift = _drift(g, on, coefficients, imu_t, d_t, die_rate, omega_ref)
     gyro = omega_ref + drift
-
-    # Stochastic part.
-    nz = sc.noise
-    white_std = _vec(nz.arw_dps_per_rt_hz, DEG) * math.sqrt(rate) if nz.enabled else np.zeros(3)
-    if nz.enabled:
-        if np.any(white_std > 0.0):
-            gyro += white_noise(rng('white'), n, density=_vec(nz.arw_dps_per_rt_hz, DEG),
-                                rate_hz=rate)
-        if np.any(_vec(nz.bias_instability_dps) > 0.0):
-            gyro += gauss_markov(rng('bias_instability'), n,
-                                 sigma=_vec(nz.bias_instability_dps, DEG),
-                                 tau_s=nz.bias_instability_tau_s, dt=dt)
-        if np.any(_vec(nz.rrw_dps_per_rt_s) > 0.0):
-            gyro += random_walk(rng('rrw'), n, k=_vec(nz.rrw_dps_per_rt_s, DEG), dt=dt)
+    white_std = _add_noise(gyro, sc.noise, rng, rate)
     step = g.sensitivity_mdps_per_digit * 1e-3 * DEG if g.quantise else 0.0
     quantise(gyro, step, limit=g.range_dps * DEG)
 
@@ -369,15 +400,8 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
                          force=None if motion is None else motion.force)
     accel = acc.pop('accel')
 
-    # Thermometer at its own rate.
     th = sc.thermometer
-    temp_t = _stamps(duration, th.rate_hz)
-    temp_c = thermal.at('thermometer_c', temp_t) + th.offset_c
-    if th.noise_c > 0.0:
-        temp_c += rng('thermometer').standard_normal(temp_t.size) * th.noise_c
-    if th.resolution_c > 0.0:
-        temp_c = np.round(temp_c / th.resolution_c) * th.resolution_c
-    temp_var = th.noise_c ** 2 + th.resolution_c ** 2 / 12.0
+    temp_t, temp_c, temp_var = _thermometer(th, thermal, duration, rng('thermometer'))
 
     truth = SimTruth(
         die_c=die, die_rate_c_per_s=die_rate, package_c=thermal.at('package_c', imu_t),

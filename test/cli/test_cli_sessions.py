@@ -79,6 +79,12 @@ def test_train_cuts_at_the_gap_prints_the_offsets_and_says_to_reanchor(bags, tmp
     assert lines[at + 3].split()[0] == 'spread'
     assert 'the turn-on offset changes by up to 0.9' in text
     assert 're-anchor on the vehicle' in text
+    at = next(i for i, x in enumerate(lines) if x.startswith('the curve held out on each'))
+    assert '(2 sessions,' in lines[at] and lines[at + 1].split()[0] == 'curve'
+    assert lines[at + 2].split()[:2] == ['offset', 'only']
+    curve, offset = (np.array(lines[at + k].split()[-3:], dtype=float) for k in (1, 2))
+    assert np.all(curve < offset)           # the shared curve carries: kept on every axis
+    assert 'keeps the offset only' not in text
     info = load_model(out).metrics['sessions']
     assert info['count'] == 2 and info['names'] == [f'{bags[0]}@1', f'{bags[0]}@2']
 

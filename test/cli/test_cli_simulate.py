@@ -167,16 +167,16 @@ def test_next_run_puts_back_a_bag_lost_by_a_kill_and_removes_leftovers(tmp_path,
     out = folder / 'bags'
     assert main(['--scenario', scenario, '--out', out, '--seed', '1']) == 0
     old = _digest(out)
-    # What earlier versions left after a kill -9 during the writing: the old bag moved aside
-    # and a half-written new one.
-    out.rename(folder / f'.bags.replaced-{dead}-0')
+    # What a kill -9 during a replacing write leaves: the old bag moved aside and a
+    # half-written new one.
+    out.rename(folder / f'.bags.{_HOST}-{dead}-00000000.old')
     staging = folder / f'.bags.{_HOST}-{dead}-0123abcd.tmp'
     staging.mkdir()
     (staging / 'bags.db3').write_bytes(b'x' * 1000)
     running = folder / f'.bags.{_HOST}-{os.getpid()}-89abcdef.tmp'     # a live owner
     running.mkdir()
-    unknown = folder / '.bags.0123abcd.tmp'
-    unknown.mkdir()
+    unknown = folder / f'.bags.{"eeee" if _HOST == "ffff" else "ffff"}-1-0123abcd.tmp'
+    unknown.mkdir()                                                  # another host's
     other = folder / '.bagsX.ffff-1-00000000.tmp'
     other.mkdir()
     # Without --force: the bag is back, so it exists.

@@ -94,10 +94,19 @@ def test_bad_logs_are_one_line_and_exit_2(session, tmp_path, capsys):
     assert_bad_input(capsys, [cold, *out], 'IMU instance 0 carries no temperature')
     logs = [write_ulog(tmp_path / 'short.ulg', px4_topics([imu])),
             write_dataflash(tmp_path / 'short.bin', [imu])]
-    for path in logs:
+    for path in logs:       # cut off at the end: read with a warning, then judged as any log
         cut = tmp_path / f'cut{path.suffix}'
         cut.write_bytes(path.read_bytes()[:-3])
-        assert_bad_input(capsys, [cut, *out], 'ends inside a message', '--allow-loss')
+        assert train([str(cut), *out]) == 2
+        said = capsys.readouterr()
+        assert 'ends inside a message (cut short' in said.out
+        assert 'Temperature span too small' in said.err and 'Traceback' not in said.err
+    for path in logs:       # damaged inside: refused without --allow-loss
+        data = bytearray(path.read_bytes())
+        data[len(data) // 2:len(data) // 2 + 40] = bytes(40)
+        bad = tmp_path / f'damaged{path.suffix}'
+        bad.write_bytes(bytes(data))
+        assert_bad_input(capsys, [bad, *out], 'damaged bytes inside the log', '--allow-loss')
     assert_bad_input(capsys, [logs[0], '--log-format', 'dataflash', *out], 'short.ulg')
     assert_bad_input(capsys, [logs[0], '--imu-instance', '1', *out],
                      'sensor_gyro has no instance 1', '--imu-instance')

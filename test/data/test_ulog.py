@@ -102,18 +102,19 @@ def test_a_log_without_temperature_is_one_error(tmp_path):
         load_run(path)
 
 
-def test_a_truncated_log_is_refused_unless_the_loss_is_allowed(tmp_path):
+def test_a_log_cut_off_at_its_end_is_read_with_a_warning_that_counts_the_loss(tmp_path):
     imus = [replace(_imus(count=1)[0], accel=None)]          # the last message a gyro one
     whole = write_ulog(tmp_path / 'whole.ulg', px4_topics(imus))
     assert ulog_truncated_bytes(whole) == 0
     cut = tmp_path / 'cut.ulg'
     cut.write_bytes(whole.read_bytes()[:-5])
     assert ulog_truncated_bytes(cut) > 0
-    with pytest.raises(DatasetError, match='ends inside a message.*--allow-loss'):
-        load_run(cut)
-    run = load_run(cut, BagOptions(max_loss=1.0))
-    assert len(run) == len(imus[0].t) - 1
-    assert any('cut short' in w for w in run.info['warnings'])
+    for options in (BagOptions(), BagOptions(max_loss=1.0)):
+        run = load_run(cut, options)
+        assert len(run) == len(imus[0].t) - 1
+        cut_lines = [w for w in run.info['warnings'] if 'cut short' in w]
+        assert len(cut_lines) == 1
+        assert f'last {ulog_truncated_bytes(cut)} bytes' in cut_lines[0]
     head = tmp_path / 'head.ulg'
     head.write_bytes(whole.read_bytes()[:40])
     with pytest.raises(DatasetError, match='head.ulg'):
@@ -157,6 +158,50 @@ def test_damaged_bytes_inside_are_said_on_the_read_line_not_taken_for_a_cut(tmp_
     path = tmp_path / 'damaged.ulg'
     path.write_bytes(bytes(data))
     assert ulog_truncated_bytes(path) == 0
-    run = load_run(path)
+    with pytest.raises(DatasetError, match='damaged bytes inside the log.*--allow-loss'):
+        load_run(path)
+    run = load_run(path, BagOptions(max_loss=1.0))
     assert 0 < len(run) < len(imus[0].t)
     assert 'pyulog found damaged messages (skipped)' in run.info['log']
+
+
+def test_vehicle_imu_is_read_as_a_rate_where_it_is_the_fastest_gyro(tmp_path):
+    from flightlogs import SENSOR_GYRO, Topic, VEHICLE_IMU
+    rng = np.random.default_rng(9)
+    n, dt = 1000, 0.01                        # vehicle_imu at 100 Hz
+    t = 20.0 + np.arange(n) * dt
+    rate = rng.normal(0.0, 0.05, (n, 3)).astype(np.float32).astype(float)
+    us = np.round(t * 1e6).astype(np.uint64)
+    vimu = Topic('vehicle_imu', VEHICLE_IMU, {
+        'timestamp': us, 'timestamp_sample': us, 'delta_angle': rate * dt,
+        'delta_velocity': np.tile([0.0, 0.0, -9.81 * dt], (n, 1)),
+        'delta_angle_dt': np.full(n, 10000), 'delta_velocity_dt': np.full(n, 10000)})
+    slow = us[::100]                          # sensor_gyro at 1 Hz, with the temperature
+    gyro = Topic('sensor_gyro', SENSOR_GYRO, {
+        'timestamp': slow, 'timestamp_sample': slow, 'device_id': 7, 'x': 0.0, 'y': 0.0,
+        'z': 0.0, 'temperature': np.linspace(30.0, 31.0, len(slow))})
+    path = write_ulog(tmp_path / 'vimu.ulg', [gyro, vimu])
+    log = read_ulog(path, accel=True)
+    assert log.source == 'vehicle_imu' and not log.raw
+    np.testing.assert_allclose(log.gyro, rate, rtol=1e-5, atol=1e-9)
+    np.testing.assert_allclose(log.accel, np.tile([0.0, 0.0, -9.81], (n, 1)), rtol=1e-5)
+    assert log.temperature == 'sensor_gyro.temperature' and len(log.temp_t) == len(slow)
+    assert 'vehicle_imu (integrated, calibrated on board) at 100 Hz' in ' '.join(log.notes)
+
+
+def test_a_slow_thermometer_is_held_over_its_own_period(tmp_path):
+    from flightlogs import SENSOR_GYRO, Topic, VEHICLE_IMU_STATUS
+    n = 3000                                  # 60 s at 50 Hz; the thermometer every 20 s
+    imu = replace(_imus(n=n, count=1)[0], accel=None)
+    us = np.round(imu.t * 1e6).astype(np.uint64)
+    gyro = Topic('sensor_gyro', SENSOR_GYRO, {
+        'timestamp': us, 'timestamp_sample': us, 'device_id': 1, 'x': imu.gyro[:, 0],
+        'y': imu.gyro[:, 1], 'z': imu.gyro[:, 2], 'temperature': np.full(n, np.nan)})
+    slow = us[::1000]
+    status = Topic('vehicle_imu_status', VEHICLE_IMU_STATUS, {
+        'timestamp': slow, 'gyro_device_id': 1,
+        'temperature_gyro': np.linspace(30.0, 35.0, len(slow))})
+    run = load_run(write_ulog(tmp_path / 'slow.ulg', [gyro, status]))
+    assert run.info['temperature'] == 'vehicle_imu_status.temperature_gyro'
+    assert len(run) == int(slow[-1] - slow[0]) // 20000 + 1     # every sample in its span
+    assert run.info['rejected']['no_temperature'] == n - len(run)

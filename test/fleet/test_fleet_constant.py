@@ -37,7 +37,7 @@ from dask_cluster import reaped
 from gyro_tdc.fleet import (fleet_statistics, FleetResult, format_table, robust_z,
                             SensorResult)
 from gyro_tdc.fleet.manifest import SensorSpec
-from gyro_tdc.fleet.run import _record, _state_constant, run_sensor
+from gyro_tdc.fleet.run import _read_state, _record, run_sensor, SensorOutcome
 from gyro_tdc.fleet.summary import summary_dict
 from gyro_tdc.identify import TrainOptions
 from gyro_tdc.model import load_model
@@ -156,7 +156,7 @@ def bags(tmp_path_factory):
 
 
 def test_the_sensor_task_and_its_resume_state_keep_the_constant_axes(bags, tmp_path):
-    """run_sensor names them; the state records them; an older state reads the model's."""
+    """run_sensor names them; the state records them; a state without them is not resumed."""
     _, b = bags
     spec = SensorSpec('imu-z', (str(b['imu-z'][0]),), (str(b['imu-z'][1]),))
     out = run_sensor(spec, TrainOptions(n_centers=6))
@@ -170,10 +170,14 @@ def test_the_sensor_task_and_its_resume_state_keep_the_constant_axes(bags, tmp_p
     assert state['constant_axes'] == ['z']
     model_file = tmp_path / 'imu-z.yaml'
     assert load_model(model_file).metrics['constant_axes'] == ['z']
-    del state['constant_axes']                      # a state written before they were kept
-    assert _state_constant(state, model_file) == ['z']
-    assert _state_constant({'constant_axes': ['y']}, model_file) == ['y']
-    assert _state_constant({}, tmp_path / 'missing.yaml') == []
+    state_file = tmp_path / '.fleet' / 'imu-z.json'
+    assert _read_state(state_file, model_file)['constant_axes'] == ['z']
+    skipped = SensorOutcome('imu-z', 'skipped', key=out.key)
+    assert _record(skipped, tmp_path, tmp_path / '.fleet',
+                   _read_state(state_file, model_file)).constant_axes == ['z']
+    del state['constant_axes']
+    state_file.write_text(json.dumps(state))
+    assert _read_state(state_file, model_file) is None     # retrained, not resumed
 
 
 def test_fleet_cli_reports_the_constant_sensor_without_flagging_it(bags, tmp_path):

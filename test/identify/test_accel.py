@@ -145,11 +145,10 @@ def test_bad_accel_sections_are_named(chamber, edit, match):
         model_from_dict(d)
 
 
-def test_format_1_refuses_an_accel_section(chamber):
-    d = model_to_dict(chamber['px4'])        # no lag: the same layout in format 1
-    d['format_version'] = 1
+def test_an_accel_section_needs_the_thermal_section(chamber):
+    d = model_to_dict(chamber['px4'])
     d.pop('thermal')
-    with pytest.raises(ModelFileError, match='accel.*format_version 2'):
+    with pytest.raises(ModelFileError, match='missing field `thermal`'):
         model_from_dict(d)
 
 

@@ -26,6 +26,7 @@ import math
 import warnings
 
 from gyro_tdc.data.runs import Run
+from gyro_tdc.identify.discover import discover, DiscoverOptions
 from gyro_tdc.identify.discover.data import BlockData
 from gyro_tdc.identify.discover.linear import LinearModel
 from gyro_tdc.identify.discover.stats import (ar1, bandwidth, hac_pvalue, make_folds, ols_hac,
@@ -81,6 +82,18 @@ def test_folds_one_run_blocked_with_buffer_and_several_runs_leave_one_out():
     assert buffer == 0 and len(folds) == 2
     for r, (test, train) in enumerate(folds):
         assert np.array_equal(test, two.run == r) and np.array_equal(train, two.run != r)
+
+
+def test_discover_options_are_the_keywords_and_a_keyword_overrides_them():
+    run = synth_run(seed=4, hours=0.5, rate_hz=2.0)
+    opts = DiscoverOptions(candidates='dT2,dT3', allan=False, max_steps=1)
+    res = discover([run], opts)
+    same = discover([run], candidates=('dT2', 'dT3'), allan=False, max_steps=1)
+    assert res.final_effects == same.final_effects == ('bias', 'dT', 'dT2')
+    assert res.gap_dps == same.gap_dps and res.heldout_gap_dps == same.heldout_gap_dps
+    none = discover([run], opts, max_steps=0)
+    assert none.final_effects == ('bias', 'dT') and not none.steps
+    assert none.candidates[0].effect == 'dT2' and none.candidates[0].passed
 
 
 def test_ar1_and_bandwidth_see_the_memory_of_the_noise():

@@ -18,7 +18,8 @@ import math
 
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify import (estimate_t0, fit_linear, fit_model, fit_px4_cubic,
-                               fit_time_constant, LinearFit, RIDGE_GRID, TimeConstantFit)
+                               fit_time_constant, FitOptions, LinearFit, RIDGE_GRID,
+                               TimeConstantFit)
 from gyro_tdc.model.compensation import compensate, predict_drift
 from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
@@ -39,6 +40,20 @@ def test_known_drift_recovered_to_noise_floor_on_held_out_run(seed):
         bs = _bs(model, test)
         assert np.all(bs < 1.1 * floor), (kind, bs, floor)
     assert np.all(bias_stability(test.omega, test.omega_ref) > 10 * floor)
+
+
+def test_fit_options_are_the_keywords_and_a_keyword_overrides_them():
+    run = synth_run(seed=2, hours=0.5)
+    opts = FitOptions(kind='poly', features=('dT', 'dT2', 'dT3'), sensor_id='s1')
+    model = fit_model([run], opts)
+    assert model.model_id == fit_model([run], kind='poly', features='dT,dT2,dT3',
+                                       sensor_id='s1').model_id
+    assert model.kind == 'poly' and model.sensor_id == 's1'
+    other = fit_model([run], opts, sensor_id='s2')
+    assert other.sensor_id == 's2' and other.model_id != model.model_id
+    assert opts.sensor_id == 's1'        # the options object is not changed
+    with pytest.raises(FitError, match='Unknown model kind'):
+        fit_model([run], opts, kind='spline')
 
 
 def test_modified_beats_conventional_only_when_dt2_present():

@@ -52,6 +52,39 @@ def test_known_offsets_are_recovered_exactly_on_noise_free_data(kind):
     assert max(m.metrics['train_rms_dps']) < (1e-9 if kind == 'poly' else 2e-6)
 
 
+def test_a_curve_that_carries_across_power_cycles_is_kept_with_its_figures():
+    m = fit_model(_runs(noise=0.02), kind='poly', features='dT,dT2', t0=25.0, sessions=[0, 1])
+    check = m.metrics['sessions']['heldout']
+    assert check['folds'] == 2 and check['offset_only'] == []
+    assert all(c < o for c, o in zip(check['curve_ms_dps2'], check['offset_ms_dps2']))
+    assert np.all(m.linear != 0.0)
+    unchecked = fit_model(_runs(noise=0.02), kind='poly', features='dT,dT2', t0=25.0,
+                          sessions=[0, 1], check_sessions=False)
+    assert 'heldout' not in unchecked.metrics['sessions']
+    np.testing.assert_array_equal(unchecked.linear, m.linear)
+    bias = fit_model(_runs(noise=0.02), kind='poly', features='bias', sessions=[0, 1])
+    assert 'heldout' not in bias.metrics['sessions']      # no curve: nothing to judge
+
+
+def test_an_axis_whose_curve_does_not_carry_keeps_the_offset_only():
+    # x: the slope flips from one power cycle to the next (no curve carries); y, z: shared.
+    runs = [synth_run(seed=i, hours=1.0, rate_hz=2.0, t_lo=0.0, t_hi=40.0, noise_dps=0.02,
+                      a1=(a, -0.015, 0.01), a2=(0.0, 1.5e-4, -1e-4), offset_dps=OFFSETS[i],
+                      name=f'run{i}') for i, a in enumerate((0.02, -0.02))]
+    m = fit_model(runs, kind='poly', features='dT,dT2', t0=20.0, sessions=[0, 1])
+    check = m.metrics['sessions']['heldout']
+    assert check['offset_only'] == ['x']
+    assert check['curve_ms_dps2'][0] >= check['offset_ms_dps2'][0]
+    np.testing.assert_array_equal(m.linear[:, 0], 0.0)
+    assert np.all(m.linear[:, 1:] != 0.0) and m.scale[0] == 0.0
+    # The offset of each session on x is its mean; the model's, their mean.
+    means = [float(np.mean(r.omega[:, 0] - r.omega_ref[:, 0])) for r in runs]
+    assert m.intercept[0] == pytest.approx(np.mean(means), rel=1e-3)
+    # The training residual on x is the scatter around each session's mean.
+    var = np.mean([np.var(r.omega[:, 0]) for r in runs])
+    assert m.residual_var[0] == pytest.approx(var, rel=0.02)
+
+
 def test_one_intercept_bends_the_curve_per_session_offsets_do_not():
     runs = _runs(noise=0.02)
     third = synth_run(seed=7, hours=1.0, rate_hz=2.0, t_lo=0.0, t_hi=40.0, noise_dps=0.02,

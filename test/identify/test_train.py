@@ -20,7 +20,7 @@ from bags import bag_from_run
 from gyro_tdc.base.limits import MAX_CENTERS
 from gyro_tdc.data.options import BagOptions
 from gyro_tdc.errors import DatasetError, FeatureError, FitError, LimitError
-from gyro_tdc.evaluate.report import format_training
+from gyro_tdc.evaluate.training_report import format_training
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.train import train
 from gyro_tdc.model.compensation import compensate

@@ -16,10 +16,10 @@
 
 from __future__ import annotations
 
-from gyro_tdc.learn.fit import (fit_points, grow_features, inliers, learned_model, model_of,
-                                prediction_mse, solve)
+from gyro_tdc.learn.fit import (fit_points, fit_sessions, grow_features, inliers, learned_model,
+                                model_of, prediction_mse)
 from gyro_tdc.model.compensation import drift
-from gyro_tdc.model.modelfile import model_from_dict, model_to_dict
+from gyro_tdc.model.modelfile import model_from_dict, model_to_dict, stored
 from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 import pytest
@@ -46,9 +46,9 @@ def test_growth_rule():
 def test_sessions_share_the_shape_and_an_outlier_goes():
     e = np.vstack([_table(np.arange(10.0, 30.0, 2.0)),
                    _table(np.arange(15.0, 35.0, 2.5), session=1.0, shift=3e-3)])
-    coef, res = solve(e, e[:, 1], ('dT', 'dT2'), 20.0)
+    coef, res = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0)
     np.testing.assert_allclose(coef[:, 0], [0.013, 1e-3, 2e-5], rtol=1e-9)
-    coef0, _ = solve(e, e[:, 1], ('dT', 'dT2'), 20.0, session=0.0)
+    coef0, _ = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0, session=0.0)
     assert coef0[0, 0] == pytest.approx(0.01)
     assert np.abs(res).max() < 1e-12
     e[4, 3] += 0.05                         # one entry far off
@@ -68,12 +68,12 @@ def test_learned_models_carry_the_thermal_section(thermal):
     fit = {'features': [], 't0_c': 20.0, 'coef': [[0.01, 0.0, 0.0]], 'range_c': [19.0, 21.0],
            'resid_var': [1e-8] * 3, 'points': 1}
     m = model_of(fit, thermal)
-    assert m.thermal == thermal and m.format_version == (1 if thermal is None else 2)
+    assert m.thermal == (thermal or ThermalState()) and m.format_version == 2
     lagged = thermal is not None and thermal.kind != 'none'
     assert m.features == (('dT', 'lag') if lagged else ('dT',))
     if lagged:
         assert m.effect_params == {'lag': {'tau_s': 300.0}}
-    assert model_from_dict(model_to_dict(m)) == m          # a model file like any other
+    assert model_from_dict(model_to_dict(m)) == m == stored(m)    # a model file like any other
     t = np.arange(0.0, 100.0)
     np.testing.assert_allclose(drift(m, t, np.full(100, 20.0)), [[0.01, 0.0, 0.0]] * 100)
 

@@ -14,14 +14,12 @@
 
 """Tests of gyro_tdc.model.compensation: formulas, streaming, clamping, ids, format 1, state."""
 
-import json
 import math
 from pathlib import Path
 
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model.compensation import (compensate, CompensationModel, drift, model_temperature,
                                          predict_drift, rbf_design, StreamingCompensator, summary)
-from gyro_tdc.model.modelfile import load_model, save_model
 from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 import pytest
@@ -49,6 +47,27 @@ def test_drift_is_the_normalised_linear_formula():
     want = (model.intercept + (d / 10.0)[:, None] * model.linear[0]
             + ((d ** 2 - 100.0) / 50.0)[:, None] * model.linear[1])
     np.testing.assert_allclose(drift(model, np.arange(5.0), temp), want, rtol=1e-12)
+
+
+def test_network_constructor_splits_the_design_weights_and_round_trips():
+    model = _hand_model()
+    norm = (model.input_mean, model.input_std, model.centers, model.widths)
+    built = CompensationModel.network('poly', model.features, {}, 25, norm, model.coefficients,
+                                      temp_range_c=[0, 50], residual_var=[1e-6] * 3)
+    assert built == model and built.model_id == model.model_id
+    assert built.coefficients.shape == (3, 3) and isinstance(built.t0_c, float)
+    assert built.temp_range_c == (0.0, 50.0)
+
+
+def test_polynomial_constructor_is_the_cubic_in_raw_powers():
+    coef = np.array([[0.01, 0.0, 0.0], [1e-3, 0.0, 0.0], [1e-4, 0.0, 0.0], [1e-5, 0.0, 0.0]])
+    model = CompensationModel.polynomial(('dT', 'dT2', 'dT3'), 20.0, coef,
+                                         temp_range_c=(0.0, 40.0), residual_var=np.zeros(3))
+    assert model.kind == 'poly' and model.n_centers == 0 and model.effect_params == {}
+    d = np.array([-10.0, 0.0, 15.0])
+    want = 0.01 + 1e-3 * d + 1e-4 * d ** 2 + 1e-5 * d ** 3
+    np.testing.assert_allclose(drift(model, np.arange(3.0), 20.0 + d)[:, 0], want, rtol=1e-12,
+                               atol=1e-15)
 
 
 def test_rbf_design_columns():
@@ -142,30 +161,6 @@ def test_summary_and_properties():
 # ----------------------------------------------------------------------------- formats
 
 DATA = Path(__file__).resolve().parents[1] / 'support' / 'files'
-
-
-def test_a_format_1_lag_model_behaves_exactly_as_before(tmp_path):
-    # model_v1_lag.yaml and its drift were written by gyro_tdc before format 2 (lag as an
-    # additive column, every feature of the clamped measured temperature).
-    model = load_model(DATA / 'model_v1_lag.yaml')
-    want = json.loads((DATA / 'model_v1_lag_drift.json').read_text())
-    assert model.format_version == 1 and model.thermal is None
-    assert model.model_id == want['model_id'] == 'ccb82761db2c'
-    assert model.inputs == ('dT', 'dT2', 'dTdt', 'lag')
-    t, temp = np.array(want['t']), np.array(want['temp'])
-    # The same numbers to the last bits of exp(): another CPU's libm may differ by 1e-18.
-    same = {'rtol': 1e-13, 'atol': 1e-17}
-    np.testing.assert_allclose(drift(model, t, temp), want['drift_clamp'], **same)
-    np.testing.assert_allclose(drift(model, t, temp, clamp=False), want['drift_extrapolate'],
-                               **same)
-    comp = StreamingCompensator(model)
-    np.testing.assert_allclose([comp.drift(a, b) for a, b in zip(t, temp)],
-                               want['stream_clamp'], **same)
-    assert comp.thermal_progress is None and comp.thermal_settled
-    assert summary(model)['format_version'] == 1 and 'thermal' not in summary(model)
-    # Saved again it stays format 1, byte for byte.
-    again = save_model(model, tmp_path / 'again.yaml')
-    assert again.read_text() == (DATA / 'model_v1_lag.yaml').read_text()
 
 
 def test_format_2_state_model_drift_and_range_follow_the_state():

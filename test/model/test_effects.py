@@ -13,7 +13,7 @@
 # limitations under the License.
 
 
-"""Effect library: ids, parameters, flags, batch == streaming for every entry, one lag."""
+"""Effect library: ids, parameters, flags, batch == streaming for every entry."""
 
 import math
 
@@ -21,11 +21,12 @@ from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import FeatureError
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model.compensation import compensate, StreamingCompensator
-from gyro_tdc.model.effects import (batch_features, Effect, EFFECT_IDS, EFFECTS, first_order_lag,
+from gyro_tdc.model.effects import (batch_features, Effect, EFFECT_IDS, EFFECTS,
                                     input_ids, INPUT_ORDER, NONLINEAR_EFFECTS, normalise_ids,
                                     REFERENCE_EFFECTS, resolve_params, STATE_TERMS, STATIC_EFFECTS,
                                     StreamingFeatures, TEMPERATURE_EFFECTS, THERMAL_EFFECTS,
                                     with_implied)
+from gyro_tdc.model.lag import first_order_lag
 from gyro_tdc.model.modelfile import load_model, save_model
 from gyro_tdc.model.thermal_state import ThermalState
 from gyro_tdc.signal.metrics import bias_stability
@@ -187,83 +188,6 @@ def test_streaming_reset_starts_a_new_run():
     np.testing.assert_array_equal(first, again)
 
 
-def test_first_order_lag_matches_step_response():
-    t = np.arange(0.0, 50.0, 0.01)
-    u = np.where(t > 0, 1.0, 0.0)
-    u[0] = 0.0
-    y = first_order_lag(t, u, 5.0)
-    i = np.searchsorted(t, 5.0)
-    assert y[i] == pytest.approx(1 - np.exp(-1), abs=2e-3)
-    assert y[-1] == pytest.approx(1.0, abs=1e-4)
-
-
-def _lag_loop(t, u, tau, hold, y0=None):
-    """Run the recursion of first_order_lag as a plain loop."""
-    y = np.empty(u.size)
-    y[0] = u[0] if y0 is None else y0
-    for k in range(1, u.size):
-        h = max(t[k] - t[k - 1], 0.0)
-        a = math.exp(-h / tau)
-        if hold == 'step':
-            y[k] = a * y[k - 1] + (1.0 - a) * u[k]
-        else:
-            c = tau * (1.0 - a) / h if h > 0 else 1.0
-            y[k] = a * y[k - 1] + (1.0 - c) * u[k] + (c - a) * u[k - 1]
-    return y
-
-
-@pytest.mark.parametrize('hold', ['step', 'linear'])
-@pytest.mark.parametrize('y0', [None, -3.0])
-def test_first_order_lag_scan_equals_the_recursion_on_irregular_stamps(hold, y0):
-    t, u = _irregular(4, 3000)
-    t[50:55] = t[50]
-    for tau in (0.01, 2.0, 500.0):
-        np.testing.assert_allclose(first_order_lag(t, u, tau, hold=hold, y0=y0),
-                                   _lag_loop(t, u, tau, hold, y0), rtol=1e-11, atol=1e-9)
-
-
-def test_linear_hold_on_a_uniform_step_equals_the_same_on_its_stamps():
-    t, u = _irregular(5, 2000)
-    step = 0.25
-    stamps = np.arange(u.size) * step
-    np.testing.assert_allclose(first_order_lag(step, u, 30.0, hold='linear'),
-                               first_order_lag(stamps, u, 30.0, hold='linear'),
-                               rtol=1e-12, atol=1e-10)
-    np.testing.assert_allclose(first_order_lag(step, u, 30.0),
-                               first_order_lag(stamps, u, 30.0), rtol=1e-12, atol=1e-10)
-
-
-def test_lag_is_exact_for_a_ramp():
-    dt, tau, rate = 0.5, 37.0, 0.02
-    t = np.arange(2000) * dt
-    y = first_order_lag(dt, rate * t, tau, hold='linear')
-    exact = rate * (t - tau * (1.0 - np.exp(-t / tau)))
-    np.testing.assert_allclose(y, exact, atol=1e-10)
-    np.testing.assert_allclose(first_order_lag(t, rate * t, tau, hold='linear'), exact,
-                               atol=1e-10)
-
-
-def test_lag_with_zero_tau_passes_through_and_starts_settled():
-    u = np.array([1.0, 2.0, 5.0])
-    np.testing.assert_array_equal(first_order_lag(1.0, u, 0.0, hold='linear'), u)
-    assert first_order_lag(1.0, u, 10.0, hold='linear')[0] == 1.0
-    assert first_order_lag(1.0, u, 10.0, hold='linear', y0=-3.0)[0] == -3.0
-    assert first_order_lag(np.arange(3.0), u, 10.0, y0=-3.0)[0] == -3.0
-    assert first_order_lag(np.zeros(0), np.zeros(0), 10.0).shape == (0,)
-
-
-@pytest.mark.parametrize('args, kwargs, name', [
-    ((0.0, np.zeros(3), 1.0), {}, 'dt'),
-    ((1.0, np.zeros(3), -1.0), {}, 'tau'),
-    ((1.0, np.zeros(3), math.nan), {}, 'tau'),
-    ((np.arange(2.0), np.zeros(3), 1.0), {}, '`t` of shape'),
-    ((1.0, np.zeros((3, 2)), 1.0), {}, '`u` to have shape'),
-    ((1.0, np.zeros(3), 1.0), {'hold': 'cubic'}, 'hold')])
-def test_lag_rejects_bad_arguments(args, kwargs, name):
-    with pytest.raises(ValueError, match=name):
-        first_order_lag(*args, **kwargs)
-
-
 def test_dtdt_feature_is_the_smoothed_derivative():
     t = np.arange(0.0, 3000.0, 0.5)
     temp = 10.0 + 0.01 * t  # 0.01 degC/s ramp
@@ -308,43 +232,3 @@ def test_a_new_effect_is_one_catalog_entry(monkeypatch, tmp_path):
     stream = np.array([comp.step(a, b, c) for a, b, c in
                        zip(test.t[:n], test.temp[:n], test.omega[:n])])
     np.testing.assert_allclose(stream, batch, rtol=1e-9, atol=1e-12)
-
-
-def test_the_iir_kernel_is_scipy_lfilter_bit_for_bit_without_importing_scipy_signal():
-    """The uniform linear-hold lag runs scipy's own kernel, loaded without scipy.signal."""
-    import subprocess
-    import sys
-    code = (
-        'import sys, numpy as np\n'
-        'from gyro_tdc.model.effects import first_order_lag\n'
-        'rng = np.random.default_rng(3)\n'
-        'u = np.cumsum(rng.normal(size=5000))\n'
-        'y = first_order_lag(0.01, u, 7.5, hold="linear", y0=u[0] + 0.3)\n'
-        'assert "scipy.signal" not in sys.modules, "scipy.signal was imported"\n'
-        'from scipy.signal import lfilter\n'
-        'import math\n'
-        'a = math.exp(-0.01 / 7.5); c = 7.5 * -math.expm1(-0.01 / 7.5) / 0.01\n'
-        'b0, b1 = 1.0 - c, c - a\n'
-        'zi = np.array([b1 * u[0] + a * (u[0] + 0.3)])\n'
-        'ref, _ = lfilter([b0, b1], [1.0, -a], u[1:], zi=zi)\n'
-        'assert np.array_equal(y[1:], ref), "differs from lfilter"\n'
-        'assert y[0] == u[0] + 0.3\n'
-        'print("ok")\n')
-    out = subprocess.run([sys.executable, '-c', code], capture_output=True, text=True, timeout=120)
-    assert out.returncode == 0, out.stderr
-    assert out.stdout.strip() == 'ok'
-
-
-def test_the_step_hold_scan_matches_the_sequential_recursion():
-    """The prefix scan (in place, spare buffer) equals y[k] = a_k y[k-1] + (1 - a_k) u[k]."""
-    rng = np.random.default_rng(5)
-    for n in (2, 3, 17, 1000, 4099):
-        t = np.cumsum(rng.uniform(0.0, 0.2, n))
-        u = rng.normal(size=n)
-        y = first_order_lag(t, u, 0.7)
-        ref = np.empty(n)
-        ref[0] = u[0]
-        for k in range(1, n):
-            a = np.exp(-(t[k] - t[k - 1]) / 0.7)
-            ref[k] = a * ref[k - 1] + (1.0 - a) * u[k]
-        np.testing.assert_allclose(y, ref, rtol=1e-12, atol=1e-12)

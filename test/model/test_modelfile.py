@@ -16,8 +16,9 @@
 
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.identify import fit_model
-from gyro_tdc.model.compensation import compensate
-from gyro_tdc.model.modelfile import load_model, model_to_dict, save_model
+from gyro_tdc.model.compensation import compensate, drift
+from gyro_tdc.model.modelfile import load_model, model_to_dict, save_model, stored
+from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 import pytest
 from synth import synth_run
@@ -42,6 +43,25 @@ def test_round_trip_is_exact(tmp_path, kind):
     assert back.metrics == m.metrics and back.created['gyro_tdc_version']
 
 
+def test_a_model_without_a_thermal_front_end_is_stored_with_kind_none(tmp_path):
+    run = synth_run(seed=23, hours=0.3)
+    m = fit_model([run], kind='poly', features='dT,dT2,warmup').replace(thermal=None)
+    back = load_model(save_model(m, tmp_path / 'm.yaml'))
+    assert back.thermal == ThermalState() and back == stored(m) and back.format_version == 2
+    assert yaml.safe_load((tmp_path / 'm.yaml').read_text())['format_version'] == 2
+    for clamp in (True, False):
+        np.testing.assert_array_equal(drift(back, run.t, run.temp + 15.0, clamp=clamp),
+                                      drift(m, run.t, run.temp + 15.0, clamp=clamp))
+
+
+def test_an_additive_lag_column_has_no_file_form(tmp_path, model):
+    additive = model.replace(thermal=None, effect_params={'lag': {'tau_s': 50.0}})
+    assert additive.inputs == ('dT', 'dT2', 'lag')
+    with pytest.raises(ModelFileError, match='without a thermal front end .* changes lag'):
+        save_model(additive, tmp_path / 'm.yaml')
+    assert not (tmp_path / 'm.yaml').exists()
+
+
 def test_file_has_every_documented_field(tmp_path, model):
     data = yaml.safe_load(save_model(model, tmp_path / 'm.yaml').read_text())
     for key in ('format_version', 'kind', 'model_id', 'features', 'effect_params', 't0_c',
@@ -63,8 +83,11 @@ def _broken(model, **edit):
 
 
 @pytest.mark.parametrize('edit, message', [
-    ({'format_version': 3}, r'`format_version` must be 1 or 2 \(the versions this gyro_tdc '
-                            r'reads\), got 3'),
+    ({'format_version': 3}, r'`format_version` must be 2 \(the format this gyro_tdc reads\), '
+                            r'got 3'),
+    ({'format_version': 1}, r'`format_version` must be 2 \(the format this gyro_tdc reads\), '
+                            r'got 1'),
+    ({'thermal': KeyError}, r'missing field `thermal`'),
     ({'kind': 'mlp'}, r'`kind` must be one of rbf, poly'),
     ({'features': ['dT', 'dT9']}, r"Unknown effect id\(s\) 'dT9'"),
     ({'features': 'dT'}, r'`features` must be a list'),

@@ -359,8 +359,8 @@ def _broken(model, **edit):
 
 
 @pytest.mark.parametrize('edit, message', [
-    ({'format_version': 3}, r'`format_version` must be 1 or 2 \(the versions this gyro_tdc '
-                            r'reads\), got 3'),
+    ({'format_version': 3}, r'`format_version` must be 2 \(the format this gyro_tdc reads\), '
+                            r'got 3'),
     ({'thermal': None}, r'format_version 2 model: field `thermal` must be a mapping'),
     ({'thermal': {'kind': 'first_order', 'tau_s': []}},
      r'format_version 2 model: field `thermal`: `tau_s` must hold 1 time constant'),
@@ -380,12 +380,12 @@ def test_format_2_errors_name_the_version_and_the_field(tmp_path, lag_model, edi
     assert str(path) in str(info.value) and '\n' not in str(info.value)
 
 
-def test_a_format_1_file_with_a_thermal_section_is_refused(tmp_path, lag_model):
+def test_a_format_1_file_is_refused(tmp_path, lag_model):
     d = _broken(lag_model, format_version=1)
     path = tmp_path / 'bad.yaml'
     path.write_text(yaml.safe_dump(d))
-    with pytest.raises(ModelFileError, match='format_version 1 model: field `thermal` belongs '
-                       'to format_version 2'):
+    with pytest.raises(ModelFileError, match=r'`format_version` must be 2 \(the format this '
+                       r'gyro_tdc reads\), got 1'):
         load_model(path)
 
 
@@ -403,7 +403,7 @@ def test_hand_built_models_default_to_format_1():
 
 def test_training_report_prints_tau_with_its_interval_or_that_it_is_not_pinned():
     from gyro_tdc.data.coverage import coverage
-    from gyro_tdc.evaluate.report import format_training
+    from gyro_tdc.evaluate.training_report import format_training
     from gyro_tdc.identify.result import TrainResult
 
     ramp = lag_run(seed=3, tau_die=300.0, segments=(('ramp', 60.0, 20.0),), start_c=-10.0,

@@ -74,7 +74,6 @@ _MAKERS = {
     'handmade': lambda: model_to_dict(handmade()),
     'shipped': lambda: yaml.safe_load((config_dir() / 'models' /
                                        'l3gd20_modified.yaml').read_text()),
-    'format 1 lag': lambda: yaml.safe_load((SUPPORT / 'model_v1_lag.yaml').read_text()),
 }
 
 
@@ -185,9 +184,9 @@ def test_a_narrow_peak_between_grid_points_is_seen_at_its_centre():
         model_from_dict(model_to_dict(peaked))
 
 
-@pytest.mark.parametrize('path', sorted((config_dir() / 'models').glob('*.yaml')) +
-                         [SUPPORT / 'model_v1_lag.yaml'], ids=lambda p: p.name)
-def test_shipped_and_kept_models_still_load(path):
+@pytest.mark.parametrize('path', sorted((config_dir() / 'models').glob('*.yaml')),
+                         ids=lambda p: p.name)
+def test_shipped_models_load(path):
     assert load_model(path).model_id
 
 

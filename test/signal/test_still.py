@@ -343,3 +343,31 @@ def test_windows_moving_holds_each_report_until_the_next():
     # Before the first report: no veto; [2, 4) moving.
     assert got.tolist() == [False, False, True, True, False, False]
     assert not windows_moving([0.0], [9.0], [], []).any()
+
+
+def test_the_auto_still_test_judges_a_stretch_by_its_samples_and_its_noise():
+    from gyro_tdc.signal import auto_window, MAX_STILL_SE, MIN_STILL_SAMPLES
+    rng = np.random.default_rng(7)
+    rate = 25.0
+    t = np.arange(int(95 * rate)) / rate
+    gyro = rng.normal(0.0, 0.05 * DEG, (t.size, 3))
+    moves = (t >= 15.0) & (t < 80.0)          # still 15 s, flying 65 s, still 15 s
+    gyro[moves] += rng.normal(0.0, 20.0 * DEG, (int(moves.sum()), 3))
+    window = auto_window(t)
+    assert window == pytest.approx(2.5)
+    auto = detect_still(t, gyro, window_s=window, min_still_s=None)
+    assert len(auto.segments) == 2
+    assert all(b - a >= MIN_STILL_SAMPLES for a, b in auto.segments)   # 15 s: 375 samples
+    assert 25.0 <= auto.still_s <= 30.0
+    assert not auto.mask[moves].any()
+    fixed = detect_still(t, gyro, window_s=window, min_still_s=60.0)
+    assert fixed.segments == () and 'no still stretch of 60 s' in fixed.reason
+    # The same stretches with 20 times the noise: their means are not known well enough.
+    noisy = gyro.copy()
+    noisy[~moves] *= 20.0
+    se = 20.0 * 0.05 * DEG / math.sqrt(375)
+    assert se > MAX_STILL_SE
+    loud = detect_still(t, noisy, window_s=window, min_still_s=None)
+    assert loud.segments == () and 'samples with a mean known to' in loud.reason
+    # At 1 Hz the window holds 20 samples and a stretch needs 60 s (as before).
+    assert auto_window(np.arange(100.0)) == pytest.approx(20.0)

@@ -33,14 +33,17 @@ import numpy as np
 # ULog
 # --------------------------------------------------------------------------------------------
 
-_ULOG_TYPES = {'uint64_t': '<u8', 'uint32_t': '<u4', 'uint8_t': 'u1', 'float': '<f4',
-               'int32_t': '<i4'}
+_ULOG_TYPES = {'uint64_t': '<u8', 'uint32_t': '<u4', 'uint16_t': '<u2', 'uint8_t': 'u1',
+               'float': '<f4', 'int32_t': '<i4'}
 SENSOR_GYRO = [('uint64_t', 'timestamp'), ('uint64_t', 'timestamp_sample'),
                ('uint32_t', 'device_id'), ('float', 'x'), ('float', 'y'), ('float', 'z'),
                ('float', 'temperature'), ('uint32_t', 'error_count')]
 SENSOR_ACCEL = SENSOR_GYRO
 SENSOR_COMBINED = [('uint64_t', 'timestamp'), ('float[3]', 'gyro_rad'),
                    ('uint32_t', 'gyro_integral_dt'), ('float[3]', 'accelerometer_m_s2')]
+VEHICLE_IMU = [('uint64_t', 'timestamp'), ('uint64_t', 'timestamp_sample'),
+               ('float[3]', 'delta_angle'), ('float[3]', 'delta_velocity'),
+               ('uint16_t', 'delta_angle_dt'), ('uint16_t', 'delta_velocity_dt')]
 VEHICLE_IMU_STATUS = [('uint64_t', 'timestamp'), ('uint32_t', 'gyro_device_id'),
                       ('float', 'temperature_gyro')]
 
@@ -209,13 +212,15 @@ def _fmt_record(mtype: int, name: str, fmt: str, columns: str) -> bytes:
 
 
 def write_dataflash(path: Path, imus: list, params: dict | None = None, *,
-                    temperature: bool = True) -> Path:
+                    temperature: bool = True, temp_field: str = 'T') -> Path:
     """
     Write an ArduPilot DataFlash log: FMT records, PARM, then IMU records of every instance.
 
-    ``temperature=False`` uses an IMU format without ``T``.
+    ``temperature=False`` uses an IMU format without ``T``; ``temp_field='Temp'`` names it as
+    ArduCopter 3.4 does.
     """
     name, fmt, cols = IMU_FORMAT if temperature else IMU_FORMAT_NO_T
+    cols = cols.replace(',T,', f',{temp_field},')
     out = [_fmt_record(0x80, 'FMT', 'BBnNZ', 'Type,Length,Name,Format,Columns'),
            _fmt_record(64, *PARM_FORMAT), _fmt_record(65, name, fmt, cols)]
     if params:
@@ -230,7 +235,7 @@ def write_dataflash(path: Path, imus: list, params: dict | None = None, *,
         recs.append(_df_records(65, fmt, cols, {
             'TimeUS': _us(imu.t), 'I': np.full(len(imu.t), k), 'GyrX': imu.gyro[:, 0],
             'GyrY': imu.gyro[:, 1], 'GyrZ': imu.gyro[:, 2], 'AccX': acc[:, 0],
-            'AccY': acc[:, 1], 'AccZ': acc[:, 2], 'T': imu.temp, 'GH': 1, 'AH': 1}))
+            'AccY': acc[:, 1], 'AccZ': acc[:, 2], temp_field: imu.temp, 'GH': 1, 'AH': 1}))
     if recs:
         both = np.concatenate(recs)
         both = both[np.argsort(both['body']['TimeUS'], kind='stable')]
@@ -263,3 +268,83 @@ def bag_from_imu(imu: Imu, path: Path) -> Path:
     acc = imu.accel if imu.accel is not None else np.zeros((len(t), 3))
     write_bag(path, imu_t=t, gyro=imu.gyro, accel=acc, temp_t=t, temp_c=imu.temp)
     return path
+
+
+# --------------------------------------------------------------------------------------------
+# Flight-controller-like logs: flights between still stretches (tests and bench/)
+# --------------------------------------------------------------------------------------------
+
+@dataclass
+class FlightDay:
+    """One simulated power cycle of a flight controller and where it was truly still."""
+
+    imu: Imu
+    still: np.ndarray            # (N,) bool: truly still samples
+    offset: np.ndarray           # (3,) rad/s: this power cycle's turn-on offset
+    drift: np.ndarray            # (2, 3): rad/s per degC and per degC^2 about 35 degC
+
+
+def flight_day(seed: int, *, rate_hz: float = 25.0, still_s: tuple = (10.0, 60.0),
+               flight_s: tuple = (20.0, 120.0), legs: int = 8, t_start: float = 20.0,
+               t_end: float = 50.0, tau_s: float = 400.0, resolution_c: float = 0.0625,
+               noise_dps: float = 0.05, drift: np.ndarray | None = None,
+               glitches: int = 0) -> FlightDay:
+    """
+    Return a flight log's IMU: still stretches and flights in turn while the board warms.
+
+    The gyro reads ``offset + drift(T) + noise`` while still, plus the vehicle's rotation
+    (tens of deg/s) and vibration in flight; the thermometer is quantised to
+    ``resolution_c``; ``glitches`` single samples read a spike. Each seed is its own power
+    cycle (its own turn-on offset); ``drift`` (2, 3) is the board's (shared across seeds).
+    """
+    rng = np.random.default_rng(seed)
+    dt = 1.0 / rate_hz
+    parts, still = [], []
+    for k in range(legs):
+        n_still = max(2, int(rng.uniform(*still_s) * rate_hz))
+        n_fly = max(2, int(rng.uniform(*flight_s) * rate_hz))
+        parts += [n_still, n_fly] if k < legs - 1 else [n_still]
+        still += [True, False] if k < legs - 1 else [True]
+    n = int(sum(parts))
+    t = 100.0 + np.arange(n) * dt
+    is_still = np.repeat(np.array(still), parts)
+    temp_true = t_end + (t_start - t_end) * np.exp(-(t - t[0]) / tau_s)
+    temp = np.round(temp_true / resolution_c) * resolution_c
+    d = np.array([[0.004, -0.002, 0.003], [3e-5, 4e-5, -2e-5]]) if drift is None else drift
+    d = np.radians(d)
+    dT = (temp_true - 35.0)[:, None]
+    offset = np.radians(rng.normal(0.0, 0.1, 3))
+    noise = np.radians(noise_dps)
+    gyro = offset + dT * d[0] + dT ** 2 * d[1] + rng.normal(0.0, noise, (n, 3))
+    accel = np.array([0.0, 0.0, -9.81]) + rng.normal(0.0, 0.02, (n, 3))
+    fly = ~is_still
+    m = int(fly.sum())
+    if m:
+        # Smooth manoeuvres (a random walk low-passed) and motor vibration.
+        steps = rng.normal(0.0, 1.0, (m, 3)).cumsum(axis=0) * np.radians(2.0) * np.sqrt(dt)
+        gyro[fly] += steps - steps.mean(axis=0) + rng.normal(0.0, np.radians(3.0), (m, 3))
+        accel[fly] += rng.normal(0.0, 1.5, (m, 3))
+    if glitches:
+        at = rng.choice(n, size=glitches, replace=False)
+        gyro[at] += rng.choice([-1.0, 1.0], size=(glitches, 3)) * 3.0
+    f32 = lambda a: np.asarray(a, dtype=np.float32).astype(np.float64)  # noqa: E731
+    imu = Imu(t=np.round(t * 1e6) * 1e-6, gyro=f32(gyro), temp=f32(temp), accel=f32(accel))
+    return FlightDay(imu, is_still, offset, d)
+
+
+def still_drift(days: list, corrected: list | None = None) -> np.ndarray:
+    """
+    Return the within-log drift of still stretches per axis, rad/s (3,).
+
+    Per log, the mean rate of each truly still stretch less the log's mean of them (its
+    power cycle's offset re-anchored away); the RMS of those over every log. ``corrected``
+    gives per log the rate to judge instead of the raw one.
+    """
+    dev = []
+    for k, day in enumerate(days):
+        rate = day.imu.gyro if corrected is None else corrected[k]
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], day.still.astype(np.int8), [0]])))
+        means = np.array([rate[a:b].mean(axis=0) for a, b in zip(edges[::2], edges[1::2])])
+        if len(means) > 1:
+            dev.append(means - means.mean(axis=0))
+    return np.sqrt(np.mean(np.concatenate(dev) ** 2, axis=0))

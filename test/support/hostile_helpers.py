@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 from gyro_tdc.model.compensation import CompensationModel
+from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 
 
@@ -31,7 +32,7 @@ def small_model(k: int = 4, **changes) -> CompensationModel:
         linear=rng.normal(scale=1e-3, size=(2, 3)), scale=np.zeros(3),
         temp_range_c=(-10.0, 50.0), residual_var=np.full(3, 1e-8), frame_id='imu_link',
         sensor_id='unit-7', metrics={'samples': 1000, 'runs': ['/bags/run1']},
-        created={'utc': '2026-01-01T00:00:00+00:00', 'command': 'test'})
+        created={'utc': '2026-01-01T00:00:00+00:00', 'command': 'test'}, thermal=ThermalState())
     return m.replace(**changes) if changes else m
 
 

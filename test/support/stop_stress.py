@@ -229,8 +229,8 @@ class Poker:
                         sent = time.monotonic()
                         future = save.call_async(Trigger.Request())
                         future.add_done_callback(
-                            lambda f, sent=sent: f.result().success
-                            and self._saved.append(sent))
+                            lambda f, sent=sent: not f.cancelled() and f.result() is not None
+                            and f.result().success and self._saved.append(sent))
                 executor.spin_once(timeout_sec=0.02)
         finally:
             executor.shutdown()

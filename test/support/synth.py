@@ -19,7 +19,7 @@ from __future__ import annotations
 import math
 
 from gyro_tdc.data.runs import Run
-from gyro_tdc.model.effects import first_order_lag
+from gyro_tdc.model.lag import first_order_lag
 import numpy as np
 
 DEG = math.pi / 180.0

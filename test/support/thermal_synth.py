@@ -28,7 +28,7 @@ import math
 from typing import Sequence
 
 from gyro_tdc.data.runs import Run
-from gyro_tdc.model.effects import first_order_lag
+from gyro_tdc.model.lag import first_order_lag
 import numpy as np
 
 DEG = math.pi / 180.0

@@ -191,15 +191,16 @@ def test_file_without_model_id_is_refused(tmp_path):
 
 
 # --------------------------------------------------------------------------------------------
-# Item 15: format_version must be the integer 1
+# Item 15: format_version must be the integer 2
 # --------------------------------------------------------------------------------------------
 
-@pytest.mark.parametrize('text', ['1.0', 'true', "'1'"])
-def test_format_version_must_be_the_integer_one(tmp_path, text):
+@pytest.mark.parametrize('text', ['2.0', 'true', "'2'", '1'])
+def test_format_version_must_be_the_integer_two(tmp_path, text):
     path = save_model(small_model(), tmp_path / 'm.yaml')
-    body = path.read_text().replace('format_version: 1\n', f'format_version: {text}\n')
+    body = path.read_text().replace('format_version: 2\n', f'format_version: {text}\n')
+    assert body != path.read_text()
     path.write_text(body)
-    with pytest.raises(ModelFileError, match='`format_version` must be 1'):
+    with pytest.raises(ModelFileError, match='`format_version` must be 2'):
         load_model(path)
 
 

@@ -27,8 +27,8 @@ from gyro_tdc.identify.discover.model import build_model, model_features, model_
 from gyro_tdc.identify.discover.report import write_report
 from gyro_tdc.identify.discover.results import (BinMap, CandidateScore, DiscoveryResult,
                                                 format_summary, Step, Unidentifiable)
-from gyro_tdc.identify.discover.search import discover
+from gyro_tdc.identify.discover.search import discover, DiscoverOptions
 
-__all__ = ['BinMap', 'CandidateScore', 'DiscoveryResult', 'Step', 'Unidentifiable',
-           'build_model', 'discover', 'format_summary', 'model_features', 'model_kind',
-           'write_report']
+__all__ = ['BinMap', 'CandidateScore', 'DiscoverOptions', 'DiscoveryResult', 'Step',
+           'Unidentifiable', 'build_model', 'discover', 'format_summary', 'model_features',
+           'model_kind', 'write_report']

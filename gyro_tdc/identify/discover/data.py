@@ -23,14 +23,14 @@ See ``doc/internals/identify.md``.
 from __future__ import annotations
 
 import math
-from typing import Callable, Mapping, Sequence
+from typing import Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.discover.stats import COLLINEAR, rel_residual
 from gyro_tdc.model import (batch_features, EFFECTS, first_order_lag, input_ids, STATE_TERMS,
                             STATIC_EFFECTS)
-from gyro_tdc.signal import block_counts, block_sum
+from gyro_tdc.signal import BlockGrid
 import numpy as np
 from numpy.typing import NDArray
 
@@ -42,23 +42,53 @@ _STATIC = input_ids(STATIC_EFFECTS)
 _STATE = input_ids(STATE_TERMS)
 
 
-def _per_segment(blocks: Callable[[int, int], NDArray[np.float64]], bounds: NDArray[np.int64],
-                 per: int) -> NDArray[np.float64]:
+def _block_noise(y: NDArray[np.float64], first: NDArray[np.int64], cnt: NDArray[np.float64]
+                 ) -> NDArray[np.float64]:
     """
-    Return ``blocks(a, b)`` of every segment ``a:b`` of ``bounds``, concatenated.
+    Return per block and axis the noise of a block mean, per-sample equivalent (NaN: unknown).
 
-    ``blocks`` reduces a segment's rows in blocks of ``per`` (a shorter last block kept, as
-    :mod:`gyro_tdc.signal.blocks` does); a tail shorter than half a block then joins the block
-    before it.
+    The second difference of the block's thirds (a linear drift cancels); thirds of blocks
+    of varying length are a labelled sum (bincount), not a blocking.
     """
-    out = []
-    for a, b in zip(bounds[:-1], bounds[1:]):
-        s = blocks(int(a), int(b))
-        m = b - a
-        if m > per and 0 < (m % per) * 2 < per:
-            s = np.concatenate([s[:-2], s[-2:-1] + s[-1:]])
-        out.append(s)
-    return np.concatenate(out)
+    nb = cnt.shape[0]
+    ids = np.repeat(np.arange(nb), cnt.astype(np.int64))
+    pos = np.arange(y.shape[0]) - first[ids]
+    third = np.minimum(3 * pos // cnt[ids].astype(np.int64), 2)
+    key = ids * 3 + third
+    c3 = np.bincount(key, minlength=3 * nb).reshape(nb, 3)
+    ok = np.all(c3 > 0, axis=1)
+    nz = []
+    with np.errstate(invalid='ignore', divide='ignore'):
+        for a in range(3):
+            m3 = np.bincount(key, weights=y[:, a], minlength=3 * nb).reshape(nb, 3) / c3
+            dd = (m3[:, 0] - 2.0 * m3[:, 1] + m3[:, 2]) / np.sqrt(
+                1.0 / c3[:, 0] + 4.0 / c3[:, 1] + 1.0 / c3[:, 2])
+            nz.append(np.where(ok, dd, np.nan))
+    return np.column_stack(nz)
+
+
+def _noise_floor(noise: NDArray[np.float64], white: Sequence[NDArray[np.float64]]
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return the per-sample noise per axis (robust, of the block noises) and the white noise.
+
+    The white noise comes from first differences inside segments; it stands in for an axis
+    whose blocks are too short for thirds.
+    """
+    sig = np.empty(3)
+    for a in range(3):
+        v = noise[:, a][np.isfinite(noise[:, a])]
+        sig[a] = 1.4826 * np.median(np.abs(v - np.median(v))) if v.size >= 3 else np.nan
+    wd = np.concatenate(white) if white else np.zeros((0, 3))
+    if wd.shape[0] >= 3:
+        wsig = 1.4826 * np.median(np.abs(wd - np.median(wd, axis=0)), axis=0) / math.sqrt(2)
+    else:
+        wsig = np.full(3, np.nan)
+    sig = np.where(np.isfinite(sig), sig, wsig)
+    if not np.all(np.isfinite(sig)):
+        raise FitError('Cannot estimate the noise floor: blocks too short; '
+                       'use a longer `block_s` or more samples per run.')
+    return sig, wsig
 
 
 class BlockData:
@@ -94,46 +124,22 @@ class BlockData:
             med = float(np.median(dt)) if n > 1 else self.block_s
             per = max(1, int(round(self.block_s / med)))
             breaks = np.flatnonzero(dt > max(20.0 * med, 0.5 * self.block_s)) + 1
-            bounds = np.concatenate([[0], breaks, [n]])
-            cnt = _per_segment(lambda a, b: block_counts(b - a, per), bounds, per)
+            grid = BlockGrid(n, per, bounds=np.concatenate([[0], breaks, [n]]),
+                             merge_tail=True)
+            cnt = grid.counts
             nb = cnt.shape[0]
-            ids = np.repeat(np.arange(nb), cnt.astype(np.int64))
             span += n * med
-
-            def bmean(v: NDArray[np.float64], bounds=bounds, per=per, cnt=cnt
-                      ) -> NDArray[np.float64]:
-                sums = _per_segment(lambda a, b: block_sum(v[a:b], per), bounds, per)
-                return sums / cnt.reshape((-1,) + (1,) * (v.ndim - 1))
-
             y = np.asarray(run.omega, dtype=np.float64) - run.omega_ref
             x = batch_features(_STATIC, t, run.temp, t0=self.t0)
-            parts['run'].append(np.full(nb, r))
-            parts['n'].append(cnt)
-            parts['t'].append(bmean(t))
             last = np.cumsum(cnt).astype(np.int64) - 1
             first = last - cnt.astype(np.int64) + 1
-            parts['tfirst'].append(t[first])
-            parts['tlast'].append(t[last])
-            parts['temp'].append(bmean(run.temp))
-            parts['y'].append(bmean(y))
-            parts['ref'].append(bmean(run.omega_ref))
-            parts['dtref'].append(bmean(x[:, :1] * run.omega_ref))
-            parts['static'].append(bmean(x))
-            # Noise: second difference of block thirds (linear drift cancels), per sample std.
-            # Thirds of blocks of varying length: a labelled sum (bincount), not a blocking.
-            pos = np.arange(n) - first[ids]
-            third = np.minimum(3 * pos // cnt[ids].astype(np.int64), 2)
-            key = ids * 3 + third
-            c3 = np.bincount(key, minlength=3 * nb).reshape(nb, 3)
-            ok = np.all(c3 > 0, axis=1)
-            with np.errstate(invalid='ignore', divide='ignore'):
-                nz = []
-                for a in range(3):
-                    m3 = np.bincount(key, weights=y[:, a], minlength=3 * nb).reshape(nb, 3) / c3
-                    dd = (m3[:, 0] - 2.0 * m3[:, 1] + m3[:, 2]) / np.sqrt(
-                        1.0 / c3[:, 0] + 4.0 / c3[:, 1] + 1.0 / c3[:, 2])
-                    nz.append(np.where(ok, dd, np.nan))
-            parts['noise'].append(np.column_stack(nz))
+            for key, v in (('run', np.full(nb, r)), ('n', cnt), ('t', grid.mean(t)),
+                           ('tfirst', t[first]), ('tlast', t[last]),
+                           ('temp', grid.mean(run.temp)), ('y', grid.mean(y)),
+                           ('ref', grid.mean(run.omega_ref)),
+                           ('dtref', grid.mean(x[:, :1] * run.omega_ref)),
+                           ('static', grid.mean(x)), ('noise', _block_noise(y, first, cnt))):
+                parts[key].append(v)
             # White noise from first differences inside segments.
             inside = np.ones(max(n - 1, 0), dtype=bool)
             inside[breaks - 1] = False
@@ -145,7 +151,7 @@ class BlockData:
             temp_g = np.interp(tg, t, run.temp)
             lo = np.searchsorted(tg, t[first], side='left')
             hi = np.searchsorted(tg, t[last], side='right')
-            self.grids.append((tg, temp_g, lo, hi, bmean(t), start, start + nb))
+            self.grids.append((tg, temp_g, lo, hi, parts['t'][-1], start, start + nb))
             # The reference rate on the grid, held from the last sample (a step schedule).
             held = np.clip(np.searchsorted(t, tg, side='right') - 1, 0, n - 1)
             self._ref_grid.append(np.asarray(run.omega_ref, dtype=np.float64)[held])
@@ -158,33 +164,14 @@ class BlockData:
         self.w = self.n / self.n.mean()
         self.block_eff_s = span / self.K     # mean duration of a block
         self.sw = np.sqrt(self.w)
-        self.t = cat['t']
-        self.tfirst = cat['tfirst']
-        self.tlast = cat['tlast']
-        self.temp = cat['temp']
-        self.y = cat['y']
-        self.ref = cat['ref']
-        self.dtref = cat['dtref']
+        for key in ('t', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref'):
+            setattr(self, key, cat[key])
         self.static = {eid: cat['static'][:, j] for j, eid in enumerate(_STATIC)}
         self.n_runs = n_runs
         self.t_since = self.t - np.array([runs[r].t[0] for r in self.run])
         self.offsets = np.zeros((self.K, n_runs))
         self.offsets[np.arange(self.K), self.run] = 1.0
-
-        noise = cat['noise']
-        sig = np.empty(3)
-        for a in range(3):
-            v = noise[:, a][np.isfinite(noise[:, a])]
-            sig[a] = 1.4826 * np.median(np.abs(v - np.median(v))) if v.size >= 3 else np.nan
-        wd = np.concatenate(white) if white else np.zeros((0, 3))
-        if wd.shape[0] >= 3:
-            wsig = 1.4826 * np.median(np.abs(wd - np.median(wd, axis=0)), axis=0) / math.sqrt(2)
-        else:
-            wsig = np.full(3, np.nan)
-        sig = np.where(np.isfinite(sig), sig, wsig)
-        if not np.all(np.isfinite(sig)):
-            raise FitError('Cannot estimate the noise floor: blocks too short; '
-                           'use a longer `block_s` or more samples per run.')
+        sig, wsig = _noise_floor(cat['noise'], white)
         self.sigma = sig                            # per-sample equivalent, rad/s
         self.floor_axes = sig / math.sqrt(self.n.mean())   # on the block scale, rad/s
         self.floor = float(np.sqrt(np.mean(self.floor_axes ** 2)))
@@ -231,7 +218,7 @@ class BlockData:
         """
         Return the thermal state of run ``r`` at its sample stamps, degC.
 
-        The first-order lag (:func:`gyro_tdc.model.effects.first_order_lag`, settled at the first
+        The first-order lag (:func:`gyro_tdc.model.lag.first_order_lag`, settled at the first
         temperature) runs on the run's regular grid, where the temperature is linear between
         grid points, and is interpolated back to the stamps.
 

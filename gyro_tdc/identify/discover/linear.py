@@ -26,10 +26,11 @@ from typing import Mapping, Sequence
 
 from gyro_tdc.identify.discover.data import BlockData
 from gyro_tdc.model import input_ids, THERMAL_EFFECTS
+from gyro_tdc.signal import fit_columns, Folds, heldout
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['LinearModel', 'lstsq']
+__all__ = ['LinearModel']
 
 
 class LinearModel:
@@ -84,13 +85,13 @@ class LinearModel:
         """Return the coefficients (p, 3) fitted on ``rows`` (all by default)."""
         d = self.data
         coef = np.zeros((self.p, 3))
-        sw = d.sw if rows is None else d.sw[rows]
+        w = d.w if rows is None else d.w[rows]
         for a in range(3):
             x = self.design(a)
             y = d.y[:, a]
             if rows is not None:
                 x, y = x[rows], y[rows]
-            coef[:, a] = lstsq(x * sw[:, None], y * sw)
+            coef[:, a] = fit_columns(x, y, weights=w, normalise=True, rcond=1e-12)
         return coef
 
     def predict(self, coef: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -106,37 +107,16 @@ class LinearModel:
         r = self.residual()
         return float((self.data.w[:, None] * r * r).sum())
 
-    def cv_residual(self, folds: Sequence[tuple]) -> NDArray[np.float64]:
+    def cv_residual(self, folds: Folds) -> NDArray[np.float64]:
         """
         Return held-out residuals (K, 3): each block predicted by a fit without its fold.
 
         A run with no block in the training rows (leave-one-run-out) has no fitted offset;
-        its held-out residual is re-anchored to zero mean, as the compensator re-anchors its
-        offset at start-up.
+        its held-out residual is re-anchored to zero mean (:func:`gyro_tdc.signal.heldout`).
         """
         d = self.data
-        out = np.empty((d.K, 3))
-        for test, train in folds:
-            coef = self.fit(train)
-            pred = self.predict(coef)
-            r = d.y[test] - pred[test]
-            runs_test = d.run[test]
-            seen = np.unique(d.run[train])
-            for rr in np.unique(runs_test):
-                if rr not in seen:
-                    m = runs_test == rr
-                    w = d.w[test][m]
-                    r[m] -= (w[:, None] * r[m]).sum(axis=0) / w.sum()
-            out[test] = r
-        return out
 
+        def residual(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
+            return d.y[test] - self.predict(self.fit(train))[test]
 
-def lstsq(x: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Least squares with column scaling (zero columns get a zero coefficient)."""
-    # Not gyro_tdc.identify.fit_linear: that fits the drift network (inputs normalised to zero
-    # mean, an intercept, an optional ridge); this solves discovery's design as it stands,
-    # one offset column per run and weighted rows, unpenalised, every column only rescaled.
-    scale = np.linalg.norm(x, axis=0)
-    scale[scale == 0] = 1.0
-    beta = np.linalg.lstsq(x / scale, y, rcond=1e-12)[0]
-    return beta / scale
+        return heldout(residual, folds, (d.K, 3), groups=d.run, weights=d.w)

@@ -61,7 +61,7 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
     and, with ``lag``, the thermal state discovery found (tau with its profile interval): a
     format 2 model whose every temperature term follows the state. A gyro axis whose readings
     never vary beyond one quantum is passed through, as ``train`` does
-    (:func:`gyro_tdc.identify.train.neutral_runs`, :func:`~gyro_tdc.identify.train.identity_axes`).
+    (:func:`gyro_tdc.identify.axes.neutral_runs`, :func:`~gyro_tdc.identify.axes.identity_axes`).
 
     Parameters
     ----------
@@ -81,7 +81,7 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
 
     """
     from gyro_tdc.identify.fit import fit_model
-    from gyro_tdc.identify.train import constant_gyro_axes, identity_axes, neutral_runs
+    from gyro_tdc.identify.axes import constant_gyro_axes, identity_axes, neutral_runs
 
     if len(runs) != len(result.runs):
         raise FitError(f'Expected the {len(result.runs)} runs discovery analysed, '

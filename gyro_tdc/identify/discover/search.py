@@ -22,34 +22,32 @@ data cannot excite are reported before any fit. See ``doc/internals/identify.md`
 
 from __future__ import annotations
 
+from dataclasses import dataclass, replace
 import math
 from typing import Any, Callable, Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.discover.data import BlockData
-from gyro_tdc.identify.discover.linear import LinearModel, lstsq
+from gyro_tdc.identify.discover.excitation import excitation, one_way
+from gyro_tdc.identify.discover.linear import LinearModel
 from gyro_tdc.identify.discover.maps import residual_adev, residual_maps
 from gyro_tdc.identify.discover.results import (CandidateScore, DiscoveryResult, Step,
                                                 Unidentifiable)
 from gyro_tdc.identify.discover.stats import (bandwidth, COLLINEAR, DEG, gap, hac_pvalue,
                                               make_folds, rel_residual, weighted_corr)
-from gyro_tdc.identify.fit import estimate_t0, MIN_SPAN_C
+from gyro_tdc.identify.fit import estimate_t0
 from gyro_tdc.identify.tau import effective_samples, fit_time_constant, profile_interval
-from gyro_tdc.model import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, REFERENCE_EFFECTS,
-                            STATIC_EFFECTS, TEMPERATURE_EFFECTS, THERMAL_EFFECTS, ThermalState,
-                            with_implied)
+from gyro_tdc.model import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, STATIC_EFFECTS,
+                            THERMAL_EFFECTS, ThermalState, with_implied)
+from gyro_tdc.signal import fit_columns, Folds
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['discover']
+__all__ = ['discover', 'DiscoverOptions']
 
 #: Candidate order (catalog order without ``bias``).
 _CANDIDATES = tuple(e for e in EFFECTS if e != 'bias')
-#: Effects a temperature span excites (``scale`` needs rate-table steps too: its own test).
-_SPAN = tuple(e for e in EFFECTS if e in TEMPERATURE_EFFECTS and e not in REFERENCE_EFFECTS)
-#: Of those, the ones with time memory: excited by how the temperature changes.
-_RATE = tuple(e for e in _SPAN if e not in STATIC_EFFECTS)
 #: Effects whose time constant the search fits: the catalog's fitted ones (the thermal state,
 #: warm-up) and the smoothing of ``dTdt``, whose best value is the sensor's (the die's own
 #: rate of change, or a slower gradient); it is recorded in the result's parameters, which
@@ -57,8 +55,6 @@ _RATE = tuple(e for e in _SPAN if e not in STATIC_EFFECTS)
 _TIMED = frozenset(NONLINEAR_EFFECTS | {e for e in EFFECTS if 'tau_s' in EFFECTS[e].params})
 #: Search bounds of a time constant the catalog gives no bounds for (the dTdt smoothing), s.
 _SMOOTHING_BOUNDS_S = (1.0, 3600.0)
-#: A soak (the temperature still) counts from this long, s (and three blocks).
-_SOAK_S = 120.0
 #: Candidates with time memory, scored beside the static curve too (:func:`_beside_curve`).
 _MEMORY = tuple(e for e in _CANDIDATES if e not in STATIC_EFFECTS)
 #: The static curve beyond ``dT`` that a time-memory candidate must beat.
@@ -123,131 +119,6 @@ def _thermal_state(data: BlockData, model: LinearModel) -> ThermalState | None:
     return ThermalState('first_order', (tau,), (prof.interval,), prof.identifiable)
 
 
-def _moving(data: BlockData) -> NDArray[np.bool_]:
-    """Return the blocks whose temperature changes at a measurable rate."""
-    rate = data.rate_cpm
-    max_rate = float(np.max(np.abs(rate))) if rate.size else 0.0
-    return np.abs(rate) > max(0.02, 0.1 * max_rate)
-
-
-def _directions(data: BlockData, moving: NDArray[np.bool_]) -> tuple[bool, bool]:
-    """Return whether the data heat and whether they cool at a measurable rate."""
-    return (bool(np.any(moving & (data.rate_cpm > 0))),
-            bool(np.any(moving & (data.rate_cpm < 0))))
-
-
-def _one_way(data: BlockData) -> bool:
-    """Return True when the data change temperature in one direction only."""
-    heating, cooling = _directions(data, _moving(data))
-    return heating != cooling
-
-
-def _soak_min_s(data: BlockData) -> float:
-    """Return the shortest soak (s) that counts: 2 minutes and three blocks."""
-    return max(_SOAK_S, 3.0 * data.block_s)
-
-
-def _first_soaks(data: BlockData, moving: NDArray[np.bool_]) -> NDArray[np.float64]:
-    """
-    Return, per run, how long it soaks after power-on before the temperature first moves, s.
-
-    Zero for a run with fewer than four blocks before its first move (one block is no soak).
-    """
-    out = np.zeros(data.n_runs)
-    for r in range(data.n_runs):
-        m = data.run == r
-        tr, mv = data.t_since[m], moving[m]
-        first_move = tr[np.argmax(mv)] if np.any(mv) else tr[-1]
-        if np.count_nonzero(tr < first_move) >= 4:
-            out[r] = first_move
-    return out
-
-
-def _longest_soak(data: BlockData, moving: NDArray[np.bool_]) -> float:
-    """
-    Return the longest soak next to a ramp, s: a stretch of still blocks in a run that moves.
-
-    A change of rate between a ramp and a soak is what a time constant shows in (the die
-    catching up, or starting to lag); a run that never moves, or never stops, has none.
-    """
-    best = 0.0
-    for r in range(data.n_runs):
-        idx = np.flatnonzero(data.run == r)
-        mv = moving[idx]
-        if not np.any(mv) or np.all(mv):
-            continue
-        edges = np.flatnonzero(np.diff(np.concatenate([[1], mv.astype(np.int8), [1]])))
-        for a, b in zip(edges[::2], edges[1::2]):      # still stretches [a, b)
-            best = max(best, float(data.tlast[idx[b - 1]] - data.tfirst[idx[a]]))
-    return best
-
-
-def _excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
-    """
-    Decide which candidates this data cannot excite, before any fit.
-
-    Returns ``{effect: Unidentifiable}`` and a list of notes about the data.
-    """
-    out: dict[str, Unidentifiable] = {}
-    notes: list[str] = []
-    span = float(data.temp.max() - data.temp.min())
-    rate = data.rate_cpm
-    moving = _moving(data)
-    heating, cooling = _directions(data, moving)
-
-    def add(eid: str, reason: str, extra: str = '') -> None:
-        exp = EFFECTS[eid].excited_by
-        out[eid] = Unidentifiable(eid, reason, exp[0].upper() + exp[1:] + extra + '.')
-
-    if span < MIN_SPAN_C:
-        for eid in _SPAN:
-            add(eid, f'the temperature spans only {span:.2f} degC', ', of at least 10 degC')
-    if not np.any(moving):
-        for eid in _RATE:
-            if eid not in out:
-                add(eid, 'the temperature never changes at a measurable rate')
-    elif heating != cooling:
-        leg = 'heat' if heating else 'cool'
-        r = np.abs(rate[moving])
-        q1, q3 = np.percentile(r, [25, 75])
-        one_rate = (q3 - q1) < 0.25 * float(np.median(r))
-        soak = _longest_soak(data, moving)
-        if one_rate and soak < _soak_min_s(data):
-            # Scored all the same: a die settled at power-on falls behind at the start of the
-            # ramp, which shows tau; a recording that starts mid-ramp shows nothing, and the
-            # guard then rejects the lag (its profile is flat).
-            notes.append(f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min) '
-                         'with no soak before or after the ramp: a lag or dT/dt effect can '
-                         'only show where the ramp starts from a die settled at power-on; '
-                         'from a recording that starts mid-ramp it is not identifiable, and '
-                         'hysteresis between heating and cooling cannot be tested.')
-        elif one_rate:
-            notes.append(f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min): '
-                         'a lag or dT/dt effect rests on the changes of rate between the ramp '
-                         f'and the soaks (the longest {soak:.0f} s: the approach to equilibrium '
-                         'there shows a time constant); hysteresis between heating and cooling '
-                         'cannot be tested.')
-        else:
-            notes.append(f'The data only {leg}: hysteresis between heating and cooling cannot '
-                         'be tested; a dT/dt or lag effect seen here rests on the change of '
-                         f'the {leg}ing rate alone.')
-    if not np.any(data.scale_axes):
-        if not np.any(np.abs(data.ref) > 1e-12):
-            add('scale', 'the reference rate is zero on every run: a sensitivity change has '
-                'nothing to scale')
-        else:
-            add('scale', 'the reference rate is constant on every run, so a sensitivity '
-                'change is indistinguishable from dT')
-    # Warm-up: some run must start with a soak (no temperature change) after power-on.
-    soak_ok = bool(np.any(_first_soaks(data, moving) >= _soak_min_s(data)))
-    if not soak_ok:
-        add('warmup', 'no run starts with a soak after power-on: a warm-up transient cannot be '
-            'told apart from the temperature response and the bias')
-    for eid in base:
-        out.pop(eid, None)
-    return out, notes
-
-
 def _candidate_params(data: BlockData, model: LinearModel, eid: str) -> dict:
     """
     Return the model's parameters plus those of candidate ``eid`` (its tau fitted).
@@ -297,7 +168,7 @@ def _heldout_mse(data: BlockData, ho: NDArray[np.float64]) -> float:
     return float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
 
 
-def _curve_model(data: BlockData, model: LinearModel, folds: list
+def _curve_model(data: BlockData, model: LinearModel, folds: Folds
                  ) -> tuple[tuple[str, ...], LinearModel, float] | None:
     """
     Return the static curve ``model`` lacks, the model with it and its held-out mean square.
@@ -313,20 +184,17 @@ def _curve_model(data: BlockData, model: LinearModel, folds: list
     return curve, base, _heldout_mse(data, ho)
 
 
-def _beside_curve(data: BlockData, curve: tuple, folds: list, eid: str, params: dict) -> float:
+def _beside_curve(data: BlockData, curve: tuple, folds: Folds, eid: str, params: dict) -> float:
     """
     Return the held-out gain of a time-memory candidate beside the static curve, (deg/s)^2.
 
-    A candidate with time memory (``lag``, ``dTdt``, ``warmup``) is scored once more against
-    the model plus the static curvature it lacks (``dT2``, ``dT3``: ``curve`` from
-    :func:`_curve_model`), added to both sides, its time constants refitted there. On a run
-    that heats or cools only, the time since power-on and the smoothed rate follow the
-    temperature, so a slow decay or a slow rate term can hold curvature the base polynomial
-    lacks, curvature the final model (an RBF network of the temperature terms) holds anyway;
-    that part is not the candidate's, and off the one direction of ramp it was fitted on it
-    extrapolates wrongly (a cooling cycle after heating-only training). :func:`_score`
-    requires ``dTdt`` and ``warmup`` to gain here and ranks them by it; ``lag`` (no column of
-    its own) is ranked by it when it is the larger gain.
+    A candidate with time memory (``lag``, ``dTdt``, ``warmup``) is scored once more with
+    the static curvature the model lacks (``curve`` from :func:`_curve_model`) on both
+    sides, its time constants refitted there: on a run that heats or cools only, a slow
+    decay or rate term can hold curvature the final RBF network holds anyway, and it
+    extrapolates wrongly off the one ramp direction it was fitted on. :func:`_score`
+    requires ``dTdt`` and ``warmup`` to gain here and ranks them by it; ``lag`` (no column
+    of its own) is ranked by it when it is the larger gain.
     """
     ids, base, mse_b = curve
     effects = tuple(e for e in EFFECTS if e in set(base.effects) | {eid})
@@ -338,7 +206,7 @@ def _beside_curve(data: BlockData, curve: tuple, folds: list, eid: str, params: 
 
 
 def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse_m: float,
-           mse_ho_m: float, folds: list, eid: str, params: dict, *, lags: Sequence[int],
+           mse_ho_m: float, folds: Folds, eid: str, params: dict, *, lags: Sequence[int],
            n_cand: int, alpha: float, min_heldout: float, min_effect: float,
            curve: tuple | None = None
            ) -> tuple[CandidateScore, NDArray[np.float64] | None, dict]:
@@ -406,19 +274,13 @@ def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse
     return sc, contrib, params
 
 
-def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
-             candidates: str | Sequence[str] | None = None, block_s: float = 10.0,
-             t0: float | None = None, alpha: float = 0.01, min_heldout: float = 0.1,
-             min_effect: float = 0.6, alias_margin: float = 0.25, alias_corr: float = 0.9,
-             max_steps: int = 6, n_folds: int = 5, allan: bool = True,
-             progress: Callable[[int, str], None] | None = None) -> DiscoveryResult:
+@dataclass(frozen=True)
+class DiscoverOptions:
     """
-    Find the effects a drift model is missing, one step at a time.
+    What :func:`discover` starts from, which candidates it tries and its false-discovery guard.
 
     Parameters
     ----------
-    runs : sequence of Run
-        Measured runs (each a continuous recording from power-on; filters restart per run).
     base : str or sequence of str
         Effects of the starting model (``'bias,dT'``: eq. 18's conventional model); ``bias``
         is always included, as one offset per run.
@@ -441,13 +303,55 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
     max_steps : int
         Most effects added.
     n_folds : int
-        Cross-validation folds for a single run (see :func:`make_folds`; several runs: leave one
+        Cross-validation folds for a single run (:func:`make_folds`; several runs: leave one
         run out).
     allan : bool
         Compute the Allan deviation of the residual before and after each step.
+
+    """
+
+    base: str | Sequence[str] = ('bias', 'dT')
+    candidates: str | Sequence[str] | None = None
+    block_s: float = 10.0
+    t0: float | None = None
+    alpha: float = 0.01
+    min_heldout: float = 0.1
+    min_effect: float = 0.6
+    alias_margin: float = 0.25
+    alias_corr: float = 0.9
+    max_steps: int = 6
+    n_folds: int = 5
+    allan: bool = True
+
+
+@dataclass
+class _Round:
+    """One round of scoring: the current model's fit, folds, held-out residual and scores."""
+
+    coef: NDArray[np.float64]
+    resid: NDArray[np.float64]
+    folds: Folds
+    buffer: int
+    heldout: NDArray[np.float64]
+    results: list
+
+
+def discover(runs: Sequence[Run], options: DiscoverOptions | None = None, *,
+             progress: Callable[[int, str], None] | None = None, **kw: Any) -> DiscoveryResult:
+    """
+    Find the effects a drift model is missing, one step at a time.
+
+    Parameters
+    ----------
+    runs : sequence of Run
+        Measured runs (each a continuous recording from power-on; filters restart per run).
+    options : DiscoverOptions, optional
+        Base, candidates and guard; ``**kw`` are its fields, for a call that sets a few.
     progress : callable, optional
         Called as ``progress(step, effect_id)`` before each candidate is scored (``step``
         counts the effects named so far, from 0), e.g. to drive a progress bar.
+    **kw
+        Fields of :class:`DiscoverOptions`.
 
     Returns
     -------
@@ -462,16 +366,165 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
         When an effect id is unknown.
 
     """
+    o = replace(options or DiscoverOptions(), **kw)
     runs = list(runs)
-    _check(runs, block_s)
-    base_ids = with_implied(tuple(normalise_ids(base)) + ('bias',))
-    if candidates is None:
+    _check(runs, o.block_s)
+    base_ids = with_implied(tuple(normalise_ids(o.base)) + ('bias',))
+    if o.candidates is None:
         cand_ids = tuple(e for e in _CANDIDATES if e not in base_ids)
     else:
-        cand_ids = tuple(e for e in normalise_ids(candidates) if e not in base_ids and e != 'bias')
-    if t0 is None:
-        t0 = estimate_t0(runs[0])
-    data = BlockData(runs, block_s=block_s, t0=t0)
+        cand_ids = tuple(e for e in normalise_ids(o.candidates)
+                         if e not in base_ids and e != 'bias')
+    t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
+    data = BlockData(runs, block_s=o.block_s, t0=t0)
+    _check_blocks(data, base_ids, o.block_s)
+    unident, notes = excitation(data, base_ids)
+    params = {eid: dict(EFFECTS[eid].params) for eid in base_ids if EFFECTS[eid].params}
+    nonlin = [e for e in base_ids if e in _TIMED]
+    if nonlin:
+        params = _fit_taus(data, base_ids, params, nonlin)
+    model = LinearModel(data, base_ids, params)
+    steps: list[Step] = []
+    collinear: list[str] = []
+    adev: tuple | None = None
+    while True:
+        todo = [e for e in cand_ids if e not in model.effects and e not in unident]
+        rnd = _score_round(data, model, todo, o, collinear, progress, len(steps))
+        if not steps:           # the first round: the base model
+            notes += _confounded(data, model, [x[0] for x in rnd.results], model.params)
+        passing = [x for x in rnd.results if x[0].passed]
+        if not passing or len(steps) >= o.max_steps:
+            break
+        step, model, after = _add_best(data, model, rnd, passing, o, adev)
+        adev = after
+        steps.append(step)
+    return _result(data, model, rnd, steps, unident, collinear, notes, cand_ids, base_ids,
+                   o, adev)
+
+
+def _score_round(data: BlockData, model: LinearModel, todo: Sequence[str], o: DiscoverOptions,
+                 collinear: list, progress: Callable[[int, str], None] | None, step: int
+                 ) -> _Round:
+    """Score every candidate of ``todo`` against ``model``; collinear ones go to the list."""
+    coef_m = model.fit()
+    r_m = data.y - model.predict(coef_m)
+    sse_m = float((data.w[:, None] * r_m * r_m).sum())
+    cparams = {eid: _candidate_params(data, model, eid) for eid in todo}
+    lags, memory = _noise_lags(data, model, todo, cparams)
+    folds, buffer = make_folds(data, memory, o.n_folds)
+    ho_m = model.cv_residual(folds)
+    mse_ho_m = _heldout_mse(data, ho_m)
+    curve = _curve_model(data, model, folds) if set(todo) & set(_MEMORY) else None
+    results = []
+    for eid in todo:
+        if progress is not None:
+            progress(step, eid)
+        item = _score(data, model, coef_m, sse_m, mse_ho_m, folds, eid, cparams[eid],
+                      lags=lags, n_cand=len(todo), alpha=o.alpha, min_heldout=o.min_heldout,
+                      min_effect=o.min_effect, curve=curve if eid in _MEMORY else None)
+        if item[0].why_not == 'collinear':
+            if eid not in collinear:
+                collinear.append(eid)
+            continue
+        results.append(item)
+    results.sort(key=lambda x: (not x[0].passed, -x[0].heldout_gain_dps2))
+    return _Round(coef_m, r_m, folds, buffer, ho_m, results)
+
+
+def _add_best(data: BlockData, model: LinearModel, rnd: _Round, passing: list,
+              o: DiscoverOptions, adev: tuple) -> tuple[Step, LinearModel, tuple]:
+    """
+    Add the best passing candidate (of its aliases, the one with the fewest parameters).
+
+    Among aliases that pass the guard, the one with the fewest parameters is named: a
+    lagging die with a linear drift (one time constant) rather than dT/dt (a time constant
+    and a coefficient per axis), whose columns hold the same curve. On data that only heat
+    (or only cool) lag and dT/dt are aliases whenever both pass within the margin: a dT/dt
+    input would be extrapolated on the other ramp direction, while the thermal state stays
+    inside the trained temperatures. Returns the step, the new model and its Allan deviation.
+    """
+    best, contrib_b, _p = passing[0]
+    family = [passing[0]]
+    one = one_way(data)
+    for item in rnd.results[1:]:
+        sc, contrib, _p = item
+        if contrib is None or sc.heldout_gain_dps2 <= 0:
+            continue
+        close = sc.heldout_gain_dps2 >= (1.0 - o.alias_margin) * best.heldout_gain_dps2
+        if close and (abs(weighted_corr(contrib, contrib_b, data.w)) >= o.alias_corr
+                      or (one and {sc.effect, best.effect} == {'lag', 'dTdt'} and sc.passed)):
+            family.append(item)
+    best, contrib_b, p_b = min((x for x in family if x[0].passed),
+                               key=lambda x: _n_params(model, x[0].effect, x[2]))
+    new_effects = tuple(e for e in EFFECTS if e in set(model.effects) | {best.effect})
+    new_params = {k: dict(v) for k, v in p_b.items()}
+    refit = [e for e in new_effects if e in _TIMED]
+    if len(refit) > 1:
+        new_params = _fit_taus(data, new_effects, new_params, refit)
+    new_model = LinearModel(data, new_effects, new_params)
+    coef_n = new_model.fit()
+    r_n = data.y - new_model.predict(coef_n)
+    ho_n = new_model.cv_residual(rnd.folds)
+    if o.allan:
+        before = adev or residual_adev(data, model, rnd.coef)
+        after = residual_adev(data, new_model, coef_n)
+    else:
+        before = after = (np.zeros(0), np.zeros(0))
+    idx = new_model.columns_of(best.effect)
+    unit = 1.0 if best.effect == 'scale' else DEG
+    step = Step(
+        effect=best.effect, aliases=tuple(x[0].effect for x in family if x[0] is not best),
+        description=EFFECTS[best.effect].description,
+        params=dict(new_params.get(best.effect, {})) if best.effect in _TIMED else {},
+        coef_dps=coef_n[idx] * unit,
+        gap_before_dps=gap(data, rnd.resid), gap_after_dps=gap(data, r_n),
+        heldout_gap_before_dps=gap(data, rnd.heldout), heldout_gap_after_dps=gap(data, ho_n),
+        candidates=tuple(x[0] for x in rnd.results), maps_before=residual_maps(data, rnd.resid),
+        maps_after=residual_maps(data, r_n),
+        adev_tau_s=before[0], adev_before_dps=before[1], adev_after_dps=after[1],
+        best=best, thermal=_thermal_state(data, new_model))
+    return step, new_model, after if o.allan else ()
+
+
+def _result(data: BlockData, model: LinearModel, rnd: _Round, steps: list, unident: dict,
+            collinear: list, notes: list, cand_ids: tuple, base_ids: tuple,
+            o: DiscoverOptions, adev: tuple | None) -> DiscoveryResult:
+    """Return the result of the last round: the final model's gaps, maps and the record."""
+    effects = model.effects
+    r = data.y - model.predict(rnd.coef)
+    for eid in collinear:
+        if eid not in effects and eid not in unident:
+            unident[eid] = Unidentifiable(
+                eid, 'on this data its feature is a combination of the effects of the model '
+                f'({", ".join(effects)})', EFFECTS[eid].excited_by[0].upper()
+                + EFFECTS[eid].excited_by[1:] + '.')
+    thermal = steps[-1].thermal if steps else _thermal_state(data, model)
+    if o.allan:
+        adev = adev or residual_adev(data, model, rnd.coef)
+    else:
+        adev = (np.zeros(0), np.zeros(0))
+    return DiscoveryResult(
+        base_effects=base_ids, final_effects=effects,
+        params={k: dict(v) for k, v in model.params.items() if k in effects and k in _TIMED},
+        noise_floor_dps=data.floor * DEG, noise_floor_axes_dps=data.floor_axes * DEG,
+        white_noise_dps=data.white * DEG, block_s=float(o.block_s), t0_c=float(data.t0),
+        steps=tuple(steps),
+        unidentifiable=tuple(unident[e] for e in EFFECTS if e in unident and e in cand_ids),
+        candidates=tuple(x[0] for x in rnd.results), maps=residual_maps(data, r),
+        gap_dps=gap(data, r), heldout_gap_dps=gap(data, rnd.heldout),
+        coef=_coef_dict(data, model, rnd.coef), runs=tuple(x.name for x in data.runs),
+        blocks=data.K, notes=tuple(notes),
+        settings={'alpha': o.alpha, 'min_heldout': o.min_heldout, 'min_effect': o.min_effect,
+                  'alias_margin': o.alias_margin, 'alias_corr': o.alias_corr,
+                  'folds': 'leave-one-run-out' if data.n_runs >= 2 else
+                  f'{len(rnd.folds)} blocked folds, buffer {rnd.buffer} blocks',
+                  'block_s': float(o.block_s),
+                  'block_mean_s': float(data.block_eff_s)},
+        adev_tau_s=adev[0], adev_dps=adev[1], thermal=thermal)
+
+
+def _check_blocks(data: BlockData, base_ids: tuple[str, ...], block_s: float) -> None:
+    """Refuse block data too short for the base model, or a base it cannot excite."""
     if data.K < 8:
         raise FitError(f'Too few blocks to analyse: {data.K} blocks of {block_s:g} s '
                        '(need at least 8); record longer or use a shorter block.')
@@ -482,139 +535,6 @@ def discover(runs: Sequence[Run], *, base: str | Sequence[str] = ('bias', 'dT'),
     if data.K <= p_base + 2:
         raise FitError(f'Too few blocks ({data.K}) for the base model '
                        f'({", ".join(base_ids)}); record longer or use a shorter block.')
-    unident, notes = _excitation(data, base_ids)
-    one_way = _one_way(data)
-    params: dict = {}
-    for eid in base_ids:
-        if EFFECTS[eid].params:
-            params[eid] = dict(EFFECTS[eid].params)
-    nonlin = [e for e in base_ids if e in _TIMED]
-    if nonlin:
-        params = _fit_taus(data, base_ids, params, nonlin)
-    effects = base_ids
-    model = LinearModel(data, effects, params)
-    steps: list[Step] = []
-    collinear: list[str] = []
-    scores: tuple[CandidateScore, ...] = ()
-    adev_cache: tuple | None = None
-    first_round = True
-    while True:
-        coef_m = model.fit()
-        r_m = data.y - model.predict(coef_m)
-        sse_m = float((data.w[:, None] * r_m * r_m).sum())
-        todo = [e for e in cand_ids if e not in effects and e not in unident]
-        results = []
-        cparams = {eid: _candidate_params(data, model, eid) for eid in todo}
-        lags, memory = _noise_lags(data, model, todo, cparams)
-        folds, buffer = make_folds(data, memory, n_folds)
-        ho_m = model.cv_residual(folds)
-        mse_ho_m = _heldout_mse(data, ho_m)
-        curve = _curve_model(data, model, folds) if set(todo) & set(_MEMORY) else None
-        for eid in todo:
-            if progress is not None:
-                progress(len(steps), eid)
-            sc, contrib, p = _score(data, model, coef_m, sse_m, mse_ho_m, folds, eid,
-                                    cparams[eid], lags=lags, n_cand=len(todo), alpha=alpha,
-                                    min_heldout=min_heldout, min_effect=min_effect,
-                                    curve=curve if eid in _MEMORY else None)
-            if sc.why_not == 'collinear':
-                if eid not in collinear:
-                    collinear.append(eid)
-                continue
-            results.append((sc, contrib, p))
-        results.sort(key=lambda x: (not x[0].passed, -x[0].heldout_gain_dps2))
-        scores = tuple(x[0] for x in results)
-        if not steps and first_round:
-            notes += _confounded(data, model, scores, params)
-            first_round = False
-        passing = [x for x in results if x[0].passed]
-        if not passing or len(steps) >= max_steps:
-            break
-        best, contrib_b, p_b = passing[0]
-        family = [passing[0]]
-        for item in results[1:]:
-            sc, contrib, _p = item
-            if contrib is None or sc.heldout_gain_dps2 <= 0:
-                continue
-            close = sc.heldout_gain_dps2 >= (1.0 - alias_margin) * best.heldout_gain_dps2
-            if close and (abs(weighted_corr(contrib, contrib_b, data.w)) >= alias_corr
-                          or (one_way and {sc.effect, best.effect} == {'lag', 'dTdt'}
-                              and sc.passed)):
-                family.append(item)
-        # Among aliases that pass the guard, name the one with the fewest parameters: a
-        # lagging die with a linear drift (one time constant) rather than dT/dt (a time
-        # constant and a coefficient per axis), whose columns hold the same curve. On data
-        # that only heat (or only cool) lag and dT/dt are aliases whenever both pass within
-        # the margin: the data hold one sign of the rate, so a dT/dt input of the final model
-        # would be extrapolated on the other ramp direction, while the thermal state stays
-        # inside the trained temperatures (the other direction lags the other way).
-        best, contrib_b, p_b = min((x for x in family if x[0].passed),
-                                   key=lambda x: _n_params(model, x[0].effect, x[2]))
-        aliases = [x[0].effect for x in family if x[0] is not best]
-        new_effects = tuple(e for e in EFFECTS if e in set(effects) | {best.effect})
-        new_params = {k: dict(v) for k, v in p_b.items()}
-        refit = [e for e in new_effects if e in _TIMED]
-        if len(refit) > 1:
-            new_params = _fit_taus(data, new_effects, new_params, refit)
-        new_model = LinearModel(data, new_effects, new_params)
-        coef_n = new_model.fit()
-        r_n = data.y - new_model.predict(coef_n)
-        ho_n = new_model.cv_residual(folds)
-        if allan:
-            before = adev_cache or residual_adev(data, model, coef_m)
-            after = residual_adev(data, new_model, coef_n)
-            adev_cache = after
-        else:
-            before = after = (np.zeros(0), np.zeros(0))
-        thermal = _thermal_state(data, new_model)
-        idx = new_model.columns_of(best.effect)
-        unit = 1.0 if best.effect == 'scale' else DEG
-        steps.append(Step(
-            effect=best.effect, aliases=tuple(aliases),
-            description=EFFECTS[best.effect].description,
-            params=(dict(new_params.get(best.effect, {}))
-                    if best.effect in _TIMED else {}),
-            coef_dps=coef_n[idx] * unit,
-            gap_before_dps=gap(data, r_m), gap_after_dps=gap(data, r_n),
-            heldout_gap_before_dps=gap(data, ho_m), heldout_gap_after_dps=gap(data, ho_n),
-            candidates=scores, maps_before=residual_maps(data, r_m),
-            maps_after=residual_maps(data, r_n),
-            adev_tau_s=before[0], adev_before_dps=before[1], adev_after_dps=after[1],
-            best=best, thermal=thermal))
-        effects, params, model = new_effects, new_params, new_model
-
-    coef = model.fit()
-    r = data.y - model.predict(coef)
-    ho = model.cv_residual(folds)
-    for eid in collinear:
-        if eid not in effects and eid not in unident:
-            unident[eid] = Unidentifiable(
-                eid, 'on this data its feature is a combination of the effects of the model '
-                f'({", ".join(effects)})', EFFECTS[eid].excited_by[0].upper()
-                + EFFECTS[eid].excited_by[1:] + '.')
-    final_coef = _coef_dict(data, model, coef)
-    thermal = steps[-1].thermal if steps else _thermal_state(data, model)
-    if allan:
-        adev = adev_cache or residual_adev(data, model, coef)
-    else:
-        adev = (np.zeros(0), np.zeros(0))
-    return DiscoveryResult(
-        base_effects=base_ids, final_effects=effects,
-        params={k: dict(v) for k, v in params.items() if k in effects and k in _TIMED},
-        noise_floor_dps=data.floor * DEG, noise_floor_axes_dps=data.floor_axes * DEG,
-        white_noise_dps=data.white * DEG, block_s=float(block_s), t0_c=float(t0),
-        steps=tuple(steps),
-        unidentifiable=tuple(unident[e] for e in EFFECTS if e in unident and e in cand_ids),
-        candidates=scores, maps=residual_maps(data, r), gap_dps=gap(data, r),
-        heldout_gap_dps=gap(data, ho), coef=final_coef, runs=tuple(x.name for x in runs),
-        blocks=data.K, notes=tuple(notes),
-        settings={'alpha': alpha, 'min_heldout': min_heldout, 'min_effect': min_effect,
-                  'alias_margin': alias_margin, 'alias_corr': alias_corr,
-                  'folds': 'leave-one-run-out' if data.n_runs >= 2 else
-                  f'{len(folds)} blocked folds, buffer {buffer} blocks',
-                  'block_s': float(block_s),
-                  'block_mean_s': float(data.block_eff_s)},
-        adev_tau_s=adev[0], adev_dps=adev[1], thermal=thermal)
 
 
 def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateScore],
@@ -632,7 +552,7 @@ def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateS
             col = data.column(sc.effect, p, state_tau=model.state_tau)
         else:
             continue
-        beta = lstsq(x * data.sw[:, None], col * data.sw)
+        beta = fit_columns(x, col, weights=data.w, normalise=True, rcond=1e-12)
         cols[sc.effect] = (col - x @ beta) * data.sw
     ids = list(cols)
     for i in range(len(ids)):

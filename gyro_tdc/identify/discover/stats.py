@@ -28,6 +28,7 @@ import math
 from typing import Protocol, Sequence
 import warnings
 
+from gyro_tdc.signal import fit_columns, Folds, pinv_fit, solve_normal
 import numpy as np
 from numpy.typing import NDArray
 from scipy.special import fdtrc
@@ -73,10 +74,8 @@ def rel_residual(x: NDArray[np.float64], col: NDArray[np.float64]) -> float:
         return 0.0
     if x.shape[1] == 0:
         return 1.0
-    scale = np.linalg.norm(x, axis=0)
-    scale[scale == 0] = 1.0
-    beta = np.linalg.lstsq(x / scale, col, rcond=None)[0]
-    return float(np.linalg.norm(col - (x / scale) @ beta)) / nc
+    beta = fit_columns(x, col, normalise=True)
+    return float(np.linalg.norm(col - x @ beta)) / nc
 
 
 def gap(data: Blocks, r: NDArray[np.float64]) -> float:
@@ -84,9 +83,9 @@ def gap(data: Blocks, r: NDArray[np.float64]) -> float:
     return float(np.sqrt((data.w[:, None] * r * r).sum() / (3.0 * data.w.sum()))) * DEG
 
 
-def make_folds(data: Blocks, memory: int, n_folds: int = 5) -> tuple[list[tuple], int]:
+def make_folds(data: Blocks, memory: int, n_folds: int = 5) -> tuple[Folds, int]:
     """
-    Return cross-validation folds as ``(test, train)`` row masks, and the buffer used.
+    Return the cross-validation folds and the buffer used.
 
     Several runs: leave one run out. One run: blocked cross-validation over up to
     ``4 n_folds`` contiguous segments dealt round-robin into ``n_folds`` folds (so every fold
@@ -96,21 +95,12 @@ def make_folds(data: Blocks, memory: int, n_folds: int = 5) -> tuple[list[tuple]
     noise cannot leak from the training rows into the held-out ones.
     """
     if data.n_runs >= 2:
-        return [(data.run == r, data.run != r) for r in range(data.n_runs)], 0
+        return Folds.sessions(data.run), 0
     k = data.K
     n_seg = int(min(4 * n_folds, max(k // 3, 2)))
-    nf = min(n_folds, n_seg)
-    seg = np.minimum(np.arange(k) * n_seg // k, n_seg - 1)
     buffer = int(max(0, min(memory, k // n_seg)))
-    out = []
-    for f in range(nf):
-        test = seg % nf == f
-        near = np.convolve(test.astype(float), np.ones(2 * buffer + 1), mode='same') > 0.5
-        train = ~near
-        if np.count_nonzero(train) < max(4, k // 10):
-            train = ~test
-        out.append((test, train))
-    return out, buffer
+    return Folds.segments(k, n_segments=n_seg, n_folds=min(n_folds, n_seg), buffer=buffer,
+                          min_train=max(4, k // 10)), buffer
 
 
 def ar1(r: NDArray[np.float64]) -> float:
@@ -178,13 +168,8 @@ def ols_hac(y: NDArray[np.float64], x: NDArray[np.float64], maxlags: int
 
     """
     x = np.asarray(x)
-    u, s, vt = np.linalg.svd(x.conjugate(), False)     # statsmodels' pinv_extended
-    cutoff = 1e-15 * np.maximum.reduce(s)
-    for i in range(min(u.shape[0], vt.shape[1])):
-        s[i] = 1.0 / s[i] if s[i] > cutoff else 0.0
-    pinv = np.dot(np.transpose(vt), np.multiply(s[:, np.newaxis], np.transpose(u)))
+    params, pinv = pinv_fit(x, y)       # statsmodels' pinv_extended
     bread = np.dot(pinv, np.transpose(pinv))
-    params = np.dot(pinv, y)
     xu = x * (y - np.dot(x, params))[:, None]
     weights = 1 - np.arange(maxlags + 1) / (maxlags + 1.0)
     meat = weights[0] * np.dot(xu.T, xu)
@@ -228,7 +213,7 @@ def hac_pvalue(model: Design, coef: NDArray[np.float64], cand: Sequence[int],
         b = params[sel]
         v = cov[np.ix_(sel, sel)]
         try:
-            f = float(b @ np.linalg.solve(v, b)) / len(sel)
+            f = float(b @ solve_normal(v, b, fallback=False)) / len(sel)
         except np.linalg.LinAlgError:
             continue
         dof = max(min(1.5 * d.K / lags[a], d.K - xs.shape[1]), 1.0)

@@ -1,0 +1,142 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Do no harm across power cycles: the thermal curve validated on held-out sessions.
+
+:func:`check_sessions` holds each session out in turn (the estimator's
+:meth:`gyro_tdc.signal.Folds.sessions`), fits the curve on the others and scores it on the
+held-out session re-anchored, as the compensator re-anchors at start-up, against its offset
+alone. An axis whose curve does not predict a held-out power cycle better keeps the offset
+only; :func:`session_check_lines` says so with the figures.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+import math
+
+from gyro_tdc.identify.linear import fit_linear, LinearFit
+from gyro_tdc.signal import Folds, heldout, within
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['check_sessions', 'session_check_lines']
+
+_AXES = ('x', 'y', 'z')
+_DEG2 = (180.0 / math.pi) ** 2
+
+
+def _folds(groups: NDArray[np.int64], temp: NDArray[np.float64]) -> Folds:
+    """
+    Return leave-one-session-out folds scored inside the others' temperatures only.
+
+    Outside the training sessions' range the model is clamped or extrapolated, which says
+    nothing of how its curve carries from one power cycle to the next.
+    """
+    tests, trains = [], []
+    for test, train in Folds.sessions(groups):
+        inside = test & (temp >= temp[train].min()) & (temp <= temp[train].max())
+        if np.count_nonzero(inside) >= 2:
+            tests.append(inside)
+            trains.append(train)
+    return Folds(tuple(tests), tuple(trains))
+
+
+def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
+                   y: NDArray[np.float64], scale_cols: NDArray[np.float64] | None,
+                   groups: NDArray[np.int64], counts: NDArray[np.float64],
+                   temp: NDArray[np.float64], *, kind: str, n_centers: int, seed: int
+                   ) -> tuple[LinearFit, NDArray[np.float64], dict | None]:
+    """
+    Validate the curve on held-out sessions; keep the offset only where it does no better.
+
+    Parameters
+    ----------
+    fit : LinearFit
+        The fit on every session (``groups``: ``coef[0]`` zero, ``offsets`` per session).
+    offsets : NDArray[np.float64], shape (G, 3), rad/s
+        The session offsets of ``fit`` (after refinement, when refined).
+    x, y, scale_cols, groups
+        The block rows of the fit: features (K, F), target (K, 3), scale columns (K, 3) or
+        None, session of each row (K,).
+    counts : NDArray[np.float64], shape (K,)
+        Samples per block (the weights of the held-out means).
+    temp : NDArray[np.float64], shape (K,), degC
+        Block-mean model temperature.
+    kind, n_centers, seed
+        As the fit's (its ridge is kept).
+
+    Returns
+    -------
+    fit : LinearFit
+        ``fit`` with the curve, scale term and residual of the offset-only axes replaced.
+    offsets : NDArray[np.float64], shape (G, 3)
+        Offsets, each session's mean on the offset-only axes.
+    record : dict or None
+        ``folds``, ``blocks``, ``curve_ms_dps2`` and ``offset_ms_dps2`` (held-out mean squares
+        per axis, each session re-anchored) and ``offset_only`` (axis names); None when no
+        session overlaps the others' temperatures or the model has no curve.
+
+    """
+    folds = _folds(groups, temp)
+    if not len(folds) or not x.shape[1]:        # no session to judge on, or no curve
+        return fit, offsets, None
+
+    def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
+        f = fit_linear(x[train], y[train], kind=kind, n_centers=n_centers, ridge=fit.ridge,
+                       seed=seed, groups=groups[train],
+                       scale_cols=None if scale_cols is None else scale_cols[train])
+        return f.predict(x[test], None if scale_cols is None else scale_cols[test]) - y[test]
+
+    shape, scored = y.shape, np.any(np.stack(folds.test), axis=0)
+    w = counts[scored][:, None]
+
+    def mean_square(r: NDArray[np.float64]) -> NDArray[np.float64]:
+        return (w * r[scored] ** 2).sum(axis=0) / w.sum()
+
+    ms_curve = mean_square(heldout(curve, folds, shape, groups=groups, weights=counts))
+    ms_offset = mean_square(heldout(lambda test, train: -y[test], folds, shape,
+                                    groups=groups, weights=counts))
+    drop = np.flatnonzero(~(ms_curve < ms_offset))
+    record = {'folds': len(folds), 'blocks': int(np.count_nonzero(scored)),
+              'curve_ms_dps2': [float(v) for v in ms_curve * _DEG2],
+              'offset_ms_dps2': [float(v) for v in ms_offset * _DEG2],
+              'offset_only': [_AXES[a] for a in drop]}
+    if not drop.size:
+        return fit, offsets, record
+    means, centred = within(y, groups)
+    coef, scale, resid = fit.coef.copy(), fit.scale.copy(), fit.resid.copy()
+    offsets = offsets.copy()
+    coef[:, drop], scale[drop] = 0.0, 0.0
+    offsets[:, drop] = means[:, drop]
+    resid[:, drop] = -centred[:, drop]
+    return replace(fit, coef=coef, scale=scale, resid=resid,
+                   sse=float((resid ** 2).sum())), offsets, record
+
+
+def session_check_lines(record: dict | None) -> list[str]:
+    """Return the report lines of a held-out session check (empty without one)."""
+    if not record:
+        return []
+    out = [f"the curve held out on each power cycle ({record['folds']} sessions, "
+           f"{record['blocks']} blocks inside the others' temperatures, re-anchored), "
+           'mean square, (deg/s)^2:',
+           '  curve        ' + '  '.join(f'{v:10.3g}' for v in record['curve_ms_dps2']),
+           '  offset only  ' + '  '.join(f'{v:10.3g}' for v in record['offset_ms_dps2'])]
+    if record['offset_only']:
+        out.append(f"axes {', '.join(record['offset_only'])}: the curve does not predict a "
+                   'held-out power cycle better than its offset alone; the model keeps the '
+                   'offset only there (re-anchoring still applies)')
+    return out

@@ -1,0 +1,349 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The one estimator: effect columns, one offset per session, weights, ridge, blocks, folds.
+
+Every fit of effect columns in the package solves here (:func:`fit_columns`, :func:`solve_normal`,
+:func:`pinv_fit`, :func:`hat`); sessions get their offsets as indicator columns
+(:func:`session_columns`) or exactly eliminated (:func:`within`); :class:`BlockGrid` is the
+one block grid and :class:`Folds` the one cross-validation scheme (interleaved contiguous
+segments, or leave one session out), :func:`heldout` its held-out residuals.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, Sequence
+
+from gyro_tdc.signal.blocks import block_counts, block_sum, block_sumsq
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+__all__ = ['BlockGrid', 'fit_columns', 'Folds', 'hat', 'heldout', 'pinv_fit', 'session_columns',
+           'solve_normal', 'within']
+
+
+def fit_columns(x: NDArray[np.float64], y: NDArray[np.float64], *,
+                weights: NDArray[np.float64] | None = None,
+                penalty: NDArray[np.float64] | None = None, normalise: bool = False,
+                rcond: float | None = None) -> NDArray[np.float64]:
+    """
+    Solve weighted, ridge-penalised linear least squares for the coefficients of ``x``.
+
+    Parameters
+    ----------
+    x : NDArray[np.float64], shape (N, P)
+        Design: effect columns (and session indicators).
+    y : NDArray[np.float64], shape (N,) or (N, M)
+        Targets.
+    weights : NDArray[np.float64], shape (N,), optional
+        Row weights (rows and targets are multiplied by their square roots).
+    penalty : NDArray[np.float64], shape (P,), optional
+        Square root of the ridge per column: a row ``penalty[j] e_j`` (target 0) is added
+        for every non-zero entry.
+    normalise : bool
+        Solve on columns scaled to unit norm (a zero column keeps a zero coefficient).
+    rcond : float, optional
+        Relative cut-off of small singular values (numpy's default when None).
+
+    Returns
+    -------
+    NDArray[np.float64], shape (P,) or (P, M)
+        Coefficients.
+
+    """
+    if weights is not None:
+        sw = np.sqrt(weights)
+        x = x * sw[:, None]
+        y = y * (sw[:, None] if y.ndim == 2 else sw)
+    if penalty is not None:
+        pen = np.asarray(penalty, dtype=np.float64)
+        rows = np.diag(pen)[pen != 0.0]
+        x = np.vstack([x, rows])
+        y = np.concatenate([y, np.zeros((rows.shape[0],) + y.shape[1:])])
+    if not normalise:
+        return np.linalg.lstsq(x, y, rcond=rcond)[0]
+    scale = np.linalg.norm(x, axis=0)
+    scale[scale == 0] = 1.0
+    beta = np.linalg.lstsq(x / scale, y, rcond=rcond)[0]
+    return beta / (scale[:, None] if beta.ndim == 2 else scale)
+
+
+def solve_normal(a: NDArray[np.float64], b: NDArray[np.float64], *,
+                 fallback: bool = True) -> NDArray[np.float64]:
+    """
+    Solve normal equations ``a w = b`` (a Gram matrix plus its ridge).
+
+    A singular ``a`` is solved by least squares with ``fallback``, else raises
+    ``numpy.linalg.LinAlgError``.
+    """
+    try:
+        return np.linalg.solve(a, b)
+    except np.linalg.LinAlgError:
+        if not fallback:
+            raise
+        return np.linalg.lstsq(a, b, rcond=None)[0]
+
+
+def pinv_fit(x: NDArray[np.float64], y: NDArray[np.float64], *, cutoff: float = 1e-15
+             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return the least-squares coefficients by an SVD pseudo-inverse, and the pseudo-inverse.
+
+    Singular values below ``cutoff`` times the largest are dropped (statsmodels'
+    ``pinv_extended``, operation for operation, so a HAC covariance built on it matches).
+    """
+    u, s, vt = np.linalg.svd(x.conjugate(), False)
+    cut = cutoff * np.maximum.reduce(s)
+    for i in range(min(u.shape[0], vt.shape[1])):
+        s[i] = 1.0 / s[i] if s[i] > cut else 0.0
+    pinv = np.dot(np.transpose(vt), np.multiply(s[:, np.newaxis], np.transpose(u)))
+    return np.dot(pinv, y), pinv
+
+
+def hat(x: NDArray[np.float64], w: NDArray[np.float64]
+        ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return ``A = pinv(x' W x)`` and the leverage of every row of a weighted fit.
+
+    The coefficients are ``A x' W y``; a row's leave-one-out residual is ``r / (1 - h)``.
+    """
+    a = np.linalg.pinv((x * w[:, None]).T @ x)
+    return a, np.einsum('ij,jk,ik->i', x, a, x) * w
+
+
+def session_columns(groups: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.int64]]:
+    """
+    Return one indicator column per session (in sorted label order) and the labels.
+
+    Parameters
+    ----------
+    groups : ArrayLike, shape (N,)
+        Session label of every row.
+
+    Returns
+    -------
+    columns : NDArray[np.float64], shape (N, G)
+    labels : NDArray, shape (G,)
+
+    """
+    g = np.asarray(groups)
+    labels = np.unique(g)
+    return np.column_stack([(g == s).astype(np.float64) for s in labels]), labels
+
+
+def within(a: NDArray[np.float64], groups: ArrayLike
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return the session means of the rows of ``a`` and ``a`` minus its session's mean.
+
+    Fitting the centred columns to the centred target solves the regression with one
+    offset per session exactly, without its indicator columns.
+    """
+    _, inverse, counts = np.unique(np.asarray(groups), return_inverse=True,
+                                   return_counts=True)
+    inverse = inverse.reshape(-1)
+    counts = counts.astype(np.float64)
+    means = np.zeros((counts.size,) + a.shape[1:])
+    np.add.at(means, inverse, a)
+    means /= counts.reshape((-1,) + (1,) * (a.ndim - 1))
+    return means, a - means[inverse]
+
+
+class BlockGrid:
+    """
+    Consecutive rows cut into blocks: the one block grid of the fits.
+
+    Each segment (``bounds``) is cut into blocks of ``per`` rows, the last one shorter; with
+    ``merge_tail`` a tail shorter than half a block joins the block before it. With ``rows``
+    only those rows count: blocks without any are dropped.
+
+    Parameters
+    ----------
+    n : int
+        Number of rows.
+    per : int
+        Rows per block, >= 1.
+    bounds : NDArray[np.int64], optional
+        Segment edges ``[0, ..., n]`` (default one segment).
+    merge_tail : bool
+        Join a short segment tail to the block before it.
+    rows : NDArray[np.bool_], shape (n,), optional
+        The rows that count.
+
+    """
+
+    def __init__(self, n: int, per: int, *, bounds: NDArray[np.int64] | None = None,
+                 merge_tail: bool = False, rows: NDArray[np.bool_] | None = None) -> None:
+        self.n, self.per, self.merge_tail = int(n), int(per), merge_tail
+        self.bounds = np.array([0, n]) if bounds is None else np.asarray(bounds)
+        self.rows = None if rows is None else np.asarray(rows, dtype=bool)
+        self.keep = None
+        if self.rows is None:
+            self.counts = self._segments(lambda a, b: block_counts(b - a, self.per))
+        else:
+            c = self.sum(self.rows.astype(np.float64), masked=False)
+            self.keep = c > 0
+            self.counts = c[self.keep]
+
+    def _segments(self, blocks: Callable[[int, int], NDArray[np.float64]]
+                  ) -> NDArray[np.float64]:
+        """Return ``blocks(a, b)`` of every segment, short tails merged, concatenated."""
+        if self.bounds.size == 2 and not self.merge_tail:
+            return blocks(int(self.bounds[0]), int(self.bounds[1]))
+        out, per = [], self.per
+        for a, b in zip(self.bounds[:-1], self.bounds[1:]):
+            s = blocks(int(a), int(b))
+            m = b - a
+            if self.merge_tail and m > per and 0 < (m % per) * 2 < per:
+                s = np.concatenate([s[:-2], s[-2:-1] + s[-1:]])
+            out.append(s)
+        return np.concatenate(out)
+
+    def sel(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return the rows of a per-block array (one per block) of the blocks kept."""
+        return x if self.keep is None else x[self.keep]
+
+    def _masked(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return ``x`` with the rows that do not count zeroed."""
+        shape = (-1,) + (1,) * (x.ndim - 1)
+        return np.where(self.rows.reshape(shape), x, 0.0)
+
+    def sum(self, x: ArrayLike, *, masked: bool = True) -> NDArray[np.float64]:
+        """Return the block sums of ``x`` (N, ...) over the rows that count."""
+        x = np.asarray(x, dtype=np.float64)
+        if masked and self.rows is not None:
+            x = self._masked(x)
+        s = self._segments(lambda a, b: block_sum(x[a:b], self.per))
+        return self.sel(s) if masked else s
+
+    def mean(self, x: ArrayLike) -> NDArray[np.float64]:
+        """Return the block means of ``x`` (N, ...) over the rows that count."""
+        x = np.asarray(x, dtype=np.float64)
+        return self.sum(x) / self.counts.reshape((-1,) + (1,) * (x.ndim - 1))
+
+    def sumsq(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return the block sums of ``x * x`` (N, M) over the rows that count."""
+        if self.rows is not None:
+            x = self._masked(x)
+        return self.sel(self._segments(lambda a, b: block_sumsq(x[a:b], self.per)))
+
+    def scatter(self, x: NDArray[np.float64], mean: NDArray[np.float64]
+                ) -> NDArray[np.float64]:
+        """Return per block the sum of squared deviations of ``x`` (N, M) from ``mean``."""
+        return self.sumsq(x) - self.counts[:, None] * mean ** 2
+
+
+@dataclass(frozen=True)
+class Folds:
+    """
+    Cross-validation folds: per fold, the held-out rows and the training rows.
+
+    Build them with :meth:`segments` (interleaved contiguous segments, an optional buffer
+    around each held-out one) or :meth:`sessions` (leave one session out).
+    """
+
+    test: tuple[NDArray[np.bool_], ...]
+    train: tuple[NDArray[np.bool_], ...]
+
+    def __iter__(self):
+        """Iterate over ``(test, train)`` pairs."""
+        return iter(zip(self.test, self.train))
+
+    def __len__(self) -> int:
+        """Return the number of folds."""
+        return len(self.test)
+
+    @classmethod
+    def segments(cls, n: int, *, n_segments: int = 20, n_folds: int = 5, buffer: int = 0,
+                 min_train: int = 0) -> 'Folds':
+        """
+        Return folds of ``n_segments`` contiguous segments dealt round-robin into ``n_folds``.
+
+        Every fold is predicted by interpolation; ``buffer`` rows on each side of a held-out
+        segment are left out of training (h-block), unless that leaves fewer than
+        ``min_train`` rows. A fold with no held-out row, or nothing to train on, is skipped.
+        """
+        seg = np.minimum(np.arange(n) * n_segments // n, n_segments - 1)
+        tests, trains = [], []
+        for f in range(n_folds):
+            test = seg % n_folds == f
+            if not test.any() or test.all():
+                continue
+            train = ~test
+            if buffer:
+                near = np.convolve(test.astype(float), np.ones(2 * buffer + 1),
+                                   mode='same') > 0.5
+                if np.count_nonzero(~near) >= min_train:
+                    train = ~near
+            tests.append(test)
+            trains.append(train)
+        return cls(tuple(tests), tuple(trains))
+
+    @classmethod
+    def sessions(cls, groups: ArrayLike) -> 'Folds':
+        """Return one fold per session: that session held out, the others trained on."""
+        g = np.asarray(groups)
+        labels = np.unique(g)
+        return cls(tuple(g == s for s in labels), tuple(g != s for s in labels))
+
+
+def heldout(residual: Callable[[NDArray[np.bool_], NDArray[np.bool_]], NDArray[np.float64]],
+            folds: Folds | Sequence[tuple], shape: tuple[int, ...], *,
+            groups: ArrayLike | None = None, weights: NDArray[np.float64] | None = None
+            ) -> NDArray[np.float64]:
+    """
+    Return held-out residuals: every row's from the fit without its fold.
+
+    ``residual(test, train)`` fits on ``train`` and returns the residuals of the ``test``
+    rows. A session with no training row has no fitted offset: its residuals are
+    re-anchored to zero (weighted) mean, as the compensator re-anchors at start-up.
+
+    Parameters
+    ----------
+    residual : callable
+        ``residual(test, train) -> NDArray, shape (T, M)``.
+    folds : Folds or sequence of (test, train)
+        Row masks.
+    shape : tuple of int
+        Shape of the output, ``(N, M)``.
+    groups : ArrayLike, shape (N,), optional
+        Session of every row.
+    weights : NDArray[np.float64], shape (N,), optional
+        Row weights of the re-anchoring mean.
+
+    Returns
+    -------
+    NDArray[np.float64], shape (N, M)
+        Held-out residuals; rows in no fold are zero.
+
+    """
+    out = np.zeros(shape)
+    g = None if groups is None else np.asarray(groups)
+    for test, train in folds:
+        r = residual(test, train)
+        if g is not None:
+            g_test, seen = g[test], np.unique(g[train])
+            for s in np.unique(g_test):
+                if s in seen:
+                    continue
+                m = g_test == s
+                if weights is None:
+                    r[m] -= r[m].mean(axis=0)
+                else:
+                    w = weights[test][m]
+                    r[m] -= (w[:, None] * r[m]).sum(axis=0) / w.sum()
+        out[test] = r
+    return out

@@ -1,0 +1,129 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Real flight-controller logs no one on the project wrote (test/support/files/flightlogs)."""
+
+from __future__ import annotations
+
+from flightlogs import Imu, write_dataflash
+from gyro_tdc.data import BagOptions
+from gyro_tdc.data.dataflash import read_dataflash
+from gyro_tdc.data.dataset import describe_read, load_run
+from gyro_tdc.data.ulog import read_ulog
+from gyro_tdc.errors import DatasetError
+import numpy as np
+import pytest
+from real_logs import (ARDUPILOT_CUBEBLACK, PX4_BARO_ONLY, PX4_MULTI_RATE,
+                       PX4_ZERO_THERMOMETERS)
+
+
+def _rate_hz(t):
+    """Return the median sample rate of stamps, Hz."""
+    return 1.0 / float(np.median(np.diff(t)))
+
+
+def test_px4_sensor_gyro_at_1_hz_beside_sensor_combined_gives_the_200_hz_gyro():
+    log = read_ulog(PX4_MULTI_RATE)
+    assert log.source == 'sensor_combined' and not log.raw
+    assert _rate_hz(log.imu_t) == pytest.approx(200.0, rel=0.05)
+    assert _rate_hz(log.temp_t) == pytest.approx(1.0, rel=0.05)
+    assert log.temperature == 'sensor_gyro.temperature' and not log.proxy
+    assert 40.0 < np.nanmin(log.temp_c) and np.nanmax(log.temp_c) < 40.5
+    assert log.instances == (0, 1, 2)
+    run = load_run(PX4_MULTI_RATE)
+    assert len(run) > 1000         # not the six 1 Hz samples of sensor_gyro
+    assert _rate_hz(run.t) == pytest.approx(200.0, rel=0.05)
+    line = describe_read(PX4_MULTI_RATE, run, '/r')
+    assert 'sensor_gyro at 1 Hz beside sensor_combined' in line
+    assert 'temperature from sensor_gyro.temperature' in line
+    # Instance 1 has no sensor_combined: its own sensor_gyro (the fastest it has) is read.
+    other = read_ulog(PX4_MULTI_RATE, instance=1)
+    assert other.source in ('sensor_gyro', 'vehicle_imu')
+    assert 28.0 < np.nanmin(other.temp_c) < 29.0        # that IMU's own thermometer
+
+
+def test_px4_barometer_as_a_proxy_where_it_is_the_only_thermometer():
+    with pytest.raises(DatasetError, match=r'sensor_combined instance 0 carries no '
+                                           r'temperature.*baro_temp_celcius.*'
+                                           '--temperature-source baro'):
+        load_run(PX4_BARO_ONLY)
+    run = load_run(PX4_BARO_ONLY, BagOptions(temperature_source='baro'))
+    assert run.info['temperature'] == 'sensor_combined.baro_temp_celcius'
+    assert run.info['temperature_proxy']
+    assert 40.0 < run.temp.min() < run.temp.max() < 42.0
+    assert "(a proxy of the IMU's)" in run.info['log']
+    named = load_run(PX4_MULTI_RATE, BagOptions(temperature_source='sensor_baro.temperature'))
+    assert named.info['temperature'] == 'sensor_baro.temperature'
+    with pytest.raises(DatasetError, match='no usable thermometer for --temperature-source '
+                                           'sensor_baro.nothing'):
+        load_run(PX4_MULTI_RATE, BagOptions(temperature_source='sensor_baro.nothing'))
+
+
+def test_px4_thermometers_that_read_a_constant_zero_are_no_thermometers():
+    with pytest.raises(DatasetError) as err:
+        load_run(PX4_ZERO_THERMOMETERS)
+    text = str(err.value)
+    assert 'carries no temperature' in text and 'constant 0' in text
+    # One line names every instance and what it carries; no barometer to propose.
+    assert '0: sensor_gyro 1 Hz, sensor_combined 188 Hz' in text
+    assert '2: sensor_gyro 1 Hz, vehicle_imu 2 Hz, temperature: none' in text
+    assert '--temperature-source baro' not in text and '\n' not in text
+    with pytest.raises(DatasetError, match='no usable thermometer'):
+        load_run(PX4_ZERO_THERMOMETERS, BagOptions(temperature_source='baro'))
+
+
+def test_ardupilot_cubeblack_three_imus_at_25_hz_and_the_barometer():
+    for k in (0, 2):
+        log = read_dataflash(ARDUPILOT_CUBEBLACK, instance=k)
+        assert log.instances == (0, 1, 2) and log.temperature == 'IMU.T'
+        assert _rate_hz(log.imu_t) == pytest.approx(25.0, rel=0.05)
+        assert 35.0 < log.temp_c.min() < log.temp_c.max() < 60.0
+    # IMU2 of this board logs T as a constant 0: no thermometer; the line says what each has.
+    with pytest.raises(DatasetError, match=r'IMU instance 1 carries no temperature \(what '
+                                           r'each instance carries: 0: 2055 samples at '
+                                           r'24.5 Hz, temperature IMU.T; 1: 2055 samples at '
+                                           r'24.5 Hz, temperature none; 2: .*BARO instance '
+                                           r'0, 1; --imu-instance N, or --temperature-source '
+                                           r'baro\)'):
+        load_run(ARDUPILOT_CUBEBLACK, BagOptions(imu_instance=1))
+    run = load_run(ARDUPILOT_CUBEBLACK, BagOptions(imu_instance=1, temperature_source='baro'))
+    assert run.info['temperature'] == 'BARO.Temp' and run.info['temperature_proxy']
+    with pytest.raises(DatasetError, match=r'IMU has no instance 3 \(it has 0, 1, 2; what '
+                                           r'each carries: 0: 2055 samples at 24.5 Hz, '
+                                           r'temperature IMU.T'):
+        load_run(ARDUPILOT_CUBEBLACK, BagOptions(imu_instance=3))
+
+
+def test_a_real_log_cut_off_inside_a_record_is_read_with_a_warning(tmp_path):
+    whole = ARDUPILOT_CUBEBLACK.read_bytes()
+    cut = tmp_path / 'cut.bin'
+    cut.write_bytes(whole[:len(whole) * 2 // 3 + 7])
+    run = load_run(cut)
+    assert 0 < len(run) < len(load_run(ARDUPILOT_CUBEBLACK))
+    assert any('ends inside a message' in w for w in run.info['warnings'])
+
+
+def test_arducopter_3_4_names_the_imu_temperature_temp(tmp_path):
+    n = 200
+    imu = Imu(t=10.0 + 0.04 * np.arange(n), gyro=np.zeros((n, 3)),
+              temp=np.linspace(30.0, 33.0, n))
+    path = write_dataflash(tmp_path / 'ac34.bin', [imu, imu], temp_field='Temp')
+    log = read_dataflash(path)
+    assert log.temperature == 'IMU.Temp'
+    np.testing.assert_allclose(log.temp_c, imu.temp, rtol=1e-6)
+    cold = write_dataflash(tmp_path / 'cold.bin', [imu, imu], temperature=False)
+    with pytest.raises(DatasetError, match=r'IMU instance 1 carries no temperature \(what '
+                                           r'each instance carries: 0: 200 samples at 25 Hz, '
+                                           r'temperature none; 1:'):
+        load_run(cold, BagOptions(imu_instance=1))

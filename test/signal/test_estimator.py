@@ -1,0 +1,144 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The one estimator: known coefficients recovered, sessions, blocks and folds as specified."""
+
+from gyro_tdc.signal.blocks import block_mean
+from gyro_tdc.signal.estimator import (BlockGrid, fit_columns, Folds, hat, heldout, pinv_fit,
+                                       session_columns, solve_normal, within)
+import numpy as np
+import pytest
+
+
+def _data(seed=0, n=200):
+    rng = np.random.default_rng(seed)
+    x = np.column_stack([np.ones(n), rng.normal(size=n), rng.normal(size=n)])
+    coef = np.array([[0.5, -1.0], [2.0, 0.25], [-0.75, 3.0]])
+    return x, coef, x @ coef, rng
+
+
+def test_fit_columns_recovers_known_coefficients_with_weights_and_scaling():
+    x, coef, y, rng = _data()
+    np.testing.assert_allclose(fit_columns(x, y), coef, rtol=1e-12)
+    w = rng.uniform(0.1, 3.0, size=x.shape[0])
+    np.testing.assert_allclose(fit_columns(x, y, weights=w), coef, rtol=1e-12)
+    scaled = x * np.array([1e6, 1.0, 1e-6])          # badly scaled columns, and a zero one
+    got = fit_columns(np.column_stack([scaled, np.zeros(x.shape[0])]), y[:, 0],
+                      normalise=True, rcond=1e-12)
+    np.testing.assert_allclose(got[:3] * [1e6, 1.0, 1e-6], coef[:, 0], rtol=1e-9)
+    assert got[3] == 0.0
+
+
+def test_weights_are_rows_repeated_and_the_penalty_is_a_ridge():
+    x, _, y, rng = _data(1, 60)
+    y = y + rng.normal(size=y.shape)
+    w = rng.integers(1, 4, size=x.shape[0]).astype(float)
+    rep = np.repeat(np.arange(x.shape[0]), w.astype(int))
+    np.testing.assert_allclose(fit_columns(x, y, weights=w), fit_columns(x[rep], y[rep]),
+                               rtol=1e-10)
+    pen = np.array([0.0, 3.0, 3.0])                  # no penalty on the constant
+    ridge = np.linalg.solve(x.T @ x + np.diag(pen ** 2), x.T @ y)
+    np.testing.assert_allclose(fit_columns(x, y, penalty=pen), ridge, rtol=1e-10)
+    np.testing.assert_allclose(solve_normal(x.T @ x + np.diag(pen ** 2), x.T @ y), ridge,
+                               rtol=1e-10)
+
+
+def test_a_singular_system_falls_back_or_raises_as_asked():
+    a = np.array([[1.0, 1.0], [1.0, 1.0]])
+    np.testing.assert_allclose(solve_normal(a, np.array([2.0, 2.0])), [1.0, 1.0])
+    with pytest.raises(np.linalg.LinAlgError):
+        solve_normal(a, np.array([2.0, 2.0]), fallback=False)
+
+
+def test_pinv_fit_and_the_leverage_give_the_leave_one_out_residuals():
+    x, _, y, rng = _data(2, 40)
+    y = y[:, 0] + rng.normal(size=x.shape[0])
+    params, pinv = pinv_fit(x, y)
+    np.testing.assert_allclose(params, fit_columns(x, y), rtol=1e-10)
+    assert pinv.shape == (3, 40)
+    w = rng.uniform(0.5, 2.0, size=x.shape[0])
+    a, h = hat(x, w)
+    r = y - x @ (a @ ((x * w[:, None]).T @ y))
+    keep = np.arange(x.shape[0]) != 7
+    refit = fit_columns(x[keep], y[keep], weights=w[keep])
+    assert r[7] / (1.0 - h[7]) == pytest.approx(y[7] - x[7] @ refit, rel=1e-9)
+
+
+def test_one_offset_per_session_as_columns_or_eliminated_is_one_regression():
+    x, coef, _, rng = _data(3, 90)
+    groups = np.repeat([5, 2, 9], 30)
+    offsets = np.array([1.0, -2.0, 0.5])                 # for labels 2, 5, 9 (sorted)
+    cols, labels = session_columns(groups)
+    assert labels.tolist() == [2, 5, 9] and cols.shape == (90, 3)
+    y = x[:, 1:] @ coef[1:, 0] + cols @ offsets + 0.01 * rng.normal(size=90)
+    full = fit_columns(np.column_stack([cols, x[:, 1:]]), y)
+    xm, xc = within(x[:, 1:], groups)
+    ym, yc = within(y, groups)
+    slope = fit_columns(xc, yc)
+    np.testing.assert_allclose(slope, full[3:], rtol=1e-10)
+    np.testing.assert_allclose(ym - xm @ slope, full[:3], rtol=1e-10)
+    np.testing.assert_allclose(full[:3], offsets, atol=0.01)
+
+
+def test_block_grid_is_block_mean_and_merges_short_tails_of_segments():
+    a = np.arange(23.0)[:, None] * [1.0, -2.0]
+    grid = BlockGrid(23, 5)
+    np.testing.assert_array_equal(grid.mean(a), block_mean(a, 5))
+    assert grid.counts.tolist() == [5, 5, 5, 5, 3]
+    seg = BlockGrid(23, 5, bounds=np.array([0, 11, 23]), merge_tail=True)
+    # Segment 0..11: blocks 5, 6 (a tail of 1 joins); 11..23: 5, 5, 2 (2 < 2.5 joins too).
+    assert seg.counts.tolist() == [5, 6, 5, 7]
+    np.testing.assert_allclose(seg.mean(a)[:, 0], [2.0, 7.5, 13.0, 19.0])
+    rows = np.arange(23) % 7 != 0
+    rows[5:10] = False                                # the second block has no row
+    masked = BlockGrid(23, 5, rows=rows)
+    assert masked.counts.tolist() == [4, 4, 5, 2]
+    np.testing.assert_allclose(masked.mean(a[:, 0]), [2.5, 11.5, 17.0, 21.0])
+    np.testing.assert_allclose(masked.scatter(a, masked.mean(a))[:, 0],
+                               [5.0, 5.0, 10.0, 2.0])
+
+
+def test_folds_segments_interleave_and_sessions_leave_one_out():
+    folds = Folds.segments(100, n_segments=20, n_folds=5)
+    assert len(folds) == 5
+    cover = sum(t.astype(int) for t, _ in folds)
+    assert np.all(cover == 1)
+    test, train = next(iter(folds))
+    assert np.flatnonzero(test)[:5].tolist() == [0, 1, 2, 3, 4] and test[25] and not test[5]
+    assert np.array_equal(train, ~test)
+    buffered = Folds.segments(100, n_segments=20, n_folds=5, buffer=2)
+    for t, tr in buffered:
+        ti, ri = np.flatnonzero(t), np.flatnonzero(tr)
+        assert np.min(np.abs(ti[:, None] - ri[None, :])) > 2
+    groups = np.array([3, 3, 1, 1, 1, 7])
+    loso = Folds.sessions(groups)
+    assert [t.tolist() for t, _ in loso][0] == [False, False, True, True, True, False]
+    assert all(np.array_equal(tr, ~t) for t, tr in loso)
+
+
+def test_heldout_reanchors_a_session_seen_nowhere_in_training():
+    y = np.array([[1.0], [3.0], [10.0], [14.0]])
+    groups = np.array([0, 0, 1, 1])
+    w = np.array([1.0, 3.0, 1.0, 1.0])
+
+    def residual(test, train):
+        return y[test] - y[train].mean()       # a 'fit' that predicts the training mean
+
+    out = heldout(residual, Folds.sessions(groups), (4, 1), groups=groups, weights=w)
+    # Each held-out session re-anchored to zero (weighted) mean: only its own scatter is left.
+    np.testing.assert_allclose(out[:, 0], [-1.5, 0.5, -2.0, 2.0])
+    plain = heldout(residual, Folds.sessions(groups), (4, 1), groups=groups)
+    np.testing.assert_allclose(plain[:, 0], [-1.0, 1.0, -2.0, 2.0])
+    none = heldout(residual, Folds.sessions(groups), (4, 1))
+    np.testing.assert_allclose(none[:, 0], [-11.0, -9.0, 8.0, 12.0])
