@@ -365,6 +365,7 @@ class Learning:
         return response
 
     def on_save(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """Write learn_file now (``~/learn_save``), the stretch in progress stepped first."""
         if not self.wait():
             return self._busy(response)
         self._step_now()
@@ -373,6 +374,7 @@ class Learning:
         return response
 
     def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """Forget what was learned (``~/learn_reset``): back to the prior, or no model."""
         if not self.wait():
             return self._busy(response)
         self._step_now()

@@ -317,7 +317,7 @@ class CompensatorNode(Node):
         Compensate one serialized Imu and publish it: the one step of every IMU input.
 
         The rates and the covariance diagonals are patched in a copy of the bytes
-        (:meth:`gyro_tdc.data.ImuView.patched`, the REP 145 widening), every other byte as
+        (:meth:`gyro_tdc.data.imu_cdr.ImuView.patched`, the REP 145 rule), every other byte as
         it came; bytes that are not little-endian plain CDR are deserialised and serialized
         again first. ``start``: the callback's start on the steady clock, for the backlog.
         """
