@@ -134,7 +134,7 @@ def run_node(stream, learn: bool, model_file: str, context) -> float:
             m.temperature = c
             temps.append(m)
         on_imu, on_temp = node._on_imu_raw, node._on_temperature
-        on_learn = node._on_learn if learn else None
+        on_learn = node.learning.on_timer if learn else None
         j, m = 0, len(tt)
         gc.collect()
         t0 = time.process_time()

@@ -13,15 +13,12 @@
 # limitations under the License.
 
 """
-The compensator's ``/diagnostics`` and its graph guard against chained compensators.
+The compensator's ``/diagnostics`` status and its graph guard against chained compensators.
 
-:class:`Diagnostics` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
-(see doc/internals/runtime.md); the node provides ``core``, ``inputs``, ``params``,
-``model_file``, ``last_reload``, ``learner``, ``learning_values()``,
-``learning_problems()``, ``motion_values()``, ``_in_topic`` and, set by the IMU callbacks,
-``_last_imu`` (the latest input: an Imu, or its serialized bytes on the ``raw_cdr`` path);
-this mixin keeps ``backlog`` (:mod:`~gyro_tdc.nodes.compensator_backlog`), whose ``record``
-the IMU callbacks call as ``_record``.
+:class:`Diagnostics` is a part of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`:
+it keeps ``backlog`` (:mod:`~gyro_tdc.nodes.compensator_backlog`, whose ``record`` the IMU
+callback calls), the input rates and what the last report said, and builds the status from
+the core and the node's other parts; the node publishes it.
 
 Statuses are named ``<fully qualified node name>: gyro compensation``, diagnostic_updater's
 ``<node name>: <task>`` with its ``use_fqn`` form, so two compensators in two namespaces
@@ -32,13 +29,17 @@ monotonic clock, never on ROS time.
 from __future__ import annotations
 
 import time
+from typing import Any, Callable
 
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from gyro_tdc.nodes.compensator_backlog import Backlog
-from gyro_tdc.runtime import frame_mismatch, health, HealthMark, InputRate, upstream_note
+from gyro_tdc.nodes.compensator_loading import ModelLoading
+from gyro_tdc.nodes.compensator_motion import MotionInput
+from gyro_tdc.runtime import (CompensatorCore, frame_mismatch, health, HealthMark, InputRate,
+                              InputStatus)
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import Imu, Temperature
+from rclpy.node import Node
+from sensor_msgs.msg import Temperature
 from std_msgs.msg import Float32, Float64
 
 __all__ = ['DIAGNOSTICS_PERIOD_S', 'Diagnostics', 'TEMPERATURE_MESSAGES']
@@ -57,31 +58,51 @@ def _fqn(namespace: str, name: str) -> str:
 
 
 class Diagnostics:
-    """Report the compensator's health on /diagnostics and in the log (mixin)."""
+    """
+    Judge the compensator's health for /diagnostics and say what changed in the log.
 
-    #: Set by the node's ``destroy_node``: the report, which queries the ROS graph through
-    #: the node's handle, is then skipped (a timer event may still come after destruction).
-    stopping: bool = False
+    Parameters
+    ----------
+    graph : rclpy.node.Node
+        The node: its name, logger and ROS graph queries.
+    core : CompensatorCore
+        The core judged.
+    inputs : InputStatus
+        The input counters the IMU callback keeps.
+    params : callable
+        ``params() -> CompensatorParams``, the current parameters.
+    in_topic : str
+        ``imu/data_raw`` resolved (whose publishers are checked).
+    loading, motion : ModelLoading, MotionInput
+        The node's parts whose state the status shows.
+    frame_id : callable
+        ``frame_id() -> str``: the latest input's ``header.frame_id`` ('' before one).
+    temperatures_ignored : callable
+        ``temperatures_ignored() -> int``: readings dropped before the first IMU message.
 
-    def _init_diagnostics(self) -> None:
-        """Create the /diagnostics publisher and what the reports compare against."""
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+    """
+
+    def __init__(self, graph: Node, core: CompensatorCore, inputs: InputStatus,
+                 params: Callable[[], Any], in_topic: str, *, loading: ModelLoading,
+                 motion: MotionInput, frame_id: Callable[[], str],
+                 temperatures_ignored: Callable[[], int]) -> None:
+        self.graph, self.core, self.inputs, self.params = graph, core, inputs, params
+        self.in_topic, self.loading, self.motion = in_topic, loading, motion
+        self.frame_id, self.temperatures_ignored = frame_id, temperatures_ignored
+        self.log = graph.get_logger()
+        #: The node's learning part, set when ``learn`` is on.
+        self.learning = None
         self._seen = HealthMark()
         self._reported_anchor = None
-        self._last_imu = None
         self._frame_warned: tuple[str, str] | None = None
-        self._live_clock = time.monotonic        # wall time for liveness (tests replace it)
-        self.backlog = Backlog(self.params.expected_rate_hz)
-        self._record = self.backlog.record        # the IMU callbacks' one call per sample
-        start = self._live_clock()
-        self._rates = {'imu': InputRate('imu/data_raw', start, self.params.expected_rate_hz),
+        self.live_clock = time.monotonic          # wall time for liveness (tests replace it)
+        p = params()
+        self.backlog = Backlog(p.expected_rate_hz)
+        start = self.live_clock()
+        self._rates = {'imu': InputRate('imu/data_raw', start, p.expected_rate_hz),
                        'temperature': InputRate('imu/temperature', start, None)}
-        if self.params.motion_topic:
-            self._rates['motion'] = InputRate(self.params.motion_topic, start, None)
-        note = upstream_note(self.core.policy)     # never twice: said once at start-up
-        if note:
-            log = self.get_logger()
-            (log.warning if self.core.upstream_pass else log.info)(note)
+        if p.motion_topic:
+            self._rates['motion'] = InputRate(p.motion_topic, start, None)
 
     def upstream_compensators(self) -> tuple[str, ...]:
         """
@@ -91,10 +112,10 @@ class Diagnostics:
         subscribes a temperature topic (any ``temperature_type``) besides publishing Imu on
         our input: the graph shows a compensator's interface whatever its name or remaps.
         """
-        me = self.get_fully_qualified_name()
+        me = self.graph.get_fully_qualified_name()
         found = set()
         try:
-            publishers = self.get_publishers_info_by_topic(self._in_topic)
+            publishers = self.graph.get_publishers_info_by_topic(self.in_topic)
         except _rclpy.RCLError:  # the graph cannot say now: ask again at the next report
             return self.inputs.upstream
         for info in publishers:
@@ -105,8 +126,8 @@ class Diagnostics:
                 continue
             who = (info.node_name, info.node_namespace)
             try:
-                services = self.get_service_names_and_types_by_node(*who)
-                subs = self.get_subscriber_names_and_types_by_node(*who)
+                services = self.graph.get_service_names_and_types_by_node(*who)
+                subs = self.graph.get_subscriber_names_and_types_by_node(*who)
             except _rclpy.RCLError:  # it left between the queries (NodeNameNonExistentError)
                 continue
             if any(n == f'{fqn}/reload' and 'std_srvs/srv/Trigger' in t for n, t in services) \
@@ -114,21 +135,21 @@ class Diagnostics:
                 found.add(fqn)
         return tuple(sorted(found))
 
-    def diagnostic_status(self) -> DiagnosticStatus:
+    def status(self) -> DiagnosticStatus:
         """Return the compensator's DiagnosticStatus (and log a new re-anchoring)."""
         upstream = self.upstream_compensators()
         if upstream and upstream != self.inputs.upstream:
-            self.get_logger().warning(
-                f'imu/data_raw ({self._in_topic}) is published by gyro_tdc compensator '
+            self.log.warning(
+                f'imu/data_raw ({self.in_topic}) is published by gyro_tdc compensator '
                 f'{", ".join(upstream)}: chained compensators remove the drift twice')
         self.inputs.upstream = upstream
-        frame = self.data_frame_id()
-        h = health(self.core, self._seen, model_file=self.model_file,
-                   sensor_id=self.params.sensor_id, frame_id=frame,
-                   last_reload=self.last_reload, inputs=self.inputs)
+        frame = self.frame_id()
+        h = health(self.core, self._seen, model_file=self.loading.model_file,
+                   sensor_id=self.params().sensor_id, frame_id=frame,
+                   last_reload=self.loading.last_reload, inputs=self.inputs)
         self._warn_frame(frame)
         if h.mark.already_compensated > self._seen.already_compensated:
-            self.get_logger().warning(
+            self.log.warning(
                 f'{h.mark.already_compensated - self._seen.already_compensated} imu/data_raw '
                 'samples were already compensated by gyro_tdc: the model is applied twice',
                 throttle_duration_sec=10.0)
@@ -136,13 +157,13 @@ class Diagnostics:
         anchor = self.core.anchor
         if anchor is not None and anchor is not self._reported_anchor:
             self._reported_anchor = anchor
-            self.get_logger().info(
+            self.log.info(
                 f're-anchored after {anchor.samples} still samples over '
                 f'{anchor.duration_s:.1f} s at {anchor.temp_c:.2f} degC: offset shift '
                 f'{h.values["reanchor shift dps"]} deg/s, standard error '
                 f'{h.values["reanchor se dps"]} deg/s ({h.values["reanchor stopped on"]})')
         values = dict(h.values)
-        values.update(self.motion_values())
+        values.update(self.motion.values())
         level, message = h.level, h.message
         live = self.liveness()
         backlog = self.backlog.report(time.perf_counter())
@@ -155,33 +176,24 @@ class Diagnostics:
                 message = (report_message if message in ('compensating',
                                                          'waiting for imu/data_raw')
                            else f'{message}; {report_message}')
-        if self.learner is not None:
-            values.update(self.learning_values())
-            for problem in self.learning_problems():  # learn_file refused, a save failed
+        if self.learning is not None:
+            values.update(self.learning.values())
+            for problem in self.learning.problems():  # learn_file refused, a save failed
                 level = max(level, DiagnosticStatus.WARN[0])
                 message = f'{message}; {problem}'
         return DiagnosticStatus(
-            level=bytes((level,)), name=f'{self.get_fully_qualified_name()}: {TASK}',
+            level=bytes((level,)), name=f'{self.graph.get_fully_qualified_name()}: {TASK}',
             message=message, hardware_id=h.hardware_id,
             values=[KeyValue(key=k, value=v) for k, v in values.items()])
 
     def liveness(self) -> dict:
         """Judge each input's arrivals now (monotonic clock): role -> RateReport."""
-        now = self._live_clock()
+        now = self.live_clock()
         core = self.core
         counts = {'imu': core.counts['in'],
-                  'temperature': core.temps.received + self.temperatures_ignored,
-                  'motion': core.motion_reports + getattr(self, 'motion_ignored', 0)}
+                  'temperature': core.temps.received + self.temperatures_ignored(),
+                  'motion': core.motion_reports + self.motion.ignored}
         return {role: rate.run(now, counts[role]) for role, rate in self._rates.items()}
-
-    def data_frame_id(self) -> str:
-        """Return ``header.frame_id`` of the latest imu/data_raw message ('' before one)."""
-        last = self._last_imu
-        if last is None:
-            return ''
-        if isinstance(last, (bytes, bytearray, memoryview)):     # raw_cdr: once a report
-            last = deserialize_message(bytes(last), Imu)
-        return last.header.frame_id
 
     def _warn_frame(self, frame: str) -> None:
         """Log a frame mismatch once per model and data frame (/diagnostics warns throughout)."""
@@ -189,12 +201,4 @@ class Diagnostics:
         why = frame_mismatch(model, frame)
         if why and self._frame_warned != (model.model_id, frame):
             self._frame_warned = (model.model_id, frame)
-            self.get_logger().warning(why)
-
-    def _on_diagnostics(self) -> None:
-        if self.stopping:
-            return
-        arr = DiagnosticArray()
-        arr.header.stamp = self.get_clock().now().to_msg()
-        arr.status = [self.diagnostic_status()]
-        self._diag_pub.publish(arr)
+            self.log.warning(why)

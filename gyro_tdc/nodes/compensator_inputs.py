@@ -20,7 +20,7 @@ The compensator's inputs as drivers publish them: message classes by name, field
 loaded with :mod:`importlib` as ``rosidl_runtime_py.utilities.get_message`` does (that
 package has no PyPI wheel). The field paths (:mod:`gyro_tdc.data.field_paths`) are checked
 against the class's field table at start, so a bad value stops the node with one line
-naming the parameter. A ``sensor_msgs/msg/Imu`` input keeps the node's in-place fast path;
+naming the parameter. A ``sensor_msgs/msg/Imu`` input goes to the node's step as it is;
 any other type is turned into a ``sensor_msgs/Imu`` here. See ``doc/drivers.md``.
 """
 
@@ -40,7 +40,7 @@ from sensor_msgs.msg import Imu
 
 __all__ = ['IMU_TYPE', 'InputReader', 'input_reader', 'message_class']
 
-#: The IMU type of the fast path: compensated in place (raw CDR or typed).
+#: The IMU type compensated as it comes (raw CDR or deserialised).
 IMU_TYPE = 'sensor_msgs/msg/Imu'
 #: The range of ``builtin_interfaces/Time.sec`` (int32): a stamp outside is refused.
 _INT32_MIN, _INT32_MAX = -2 ** 31, 2 ** 31 - 1
@@ -110,7 +110,7 @@ class InputReader:
     imu_cls, temperature_cls : type
         The subscriptions' message classes.
     fast : bool
-        The IMU input is a ``sensor_msgs/Imu`` (the in-place path).
+        The IMU input is a ``sensor_msgs/Imu`` (compensated as it comes).
     to_imu : callable or None
         ``to_imu(msg) -> Imu`` for any other IMU type: rate turned to FLU, stamp, header.
     temperature : callable

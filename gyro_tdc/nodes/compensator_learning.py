@@ -15,10 +15,10 @@
 """
 The compensator's learning in the field (``learn: true``, :mod:`gyro_tdc.learn.learner`).
 
-:class:`Learning` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
+:class:`Learning` is a part of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
 (the steady-clock timer, the step and saves on a worker thread, ``~/learn_save`` and
-``~/learn_reset``: doc/internals/runtime.md). The node provides ``core``, ``params`` and
-``model_file``; this mixin keeps ``learner``.
+``~/learn_reset``: doc/internals/runtime.md). It keeps ``learner``; the node creates the
+timer and the services and routes them here.
 """
 
 from __future__ import annotations
@@ -26,14 +26,13 @@ from __future__ import annotations
 from array import array
 from dataclasses import replace
 import sys
-from typing import Any
+from typing import Any, Callable
 
 from gyro_tdc.base import Job, LatestJob
 from gyro_tdc.errors import OutputError
 from gyro_tdc.learn import LearnConfig, Learner, LearnFile, open_learn_file
 from gyro_tdc.model import CompensationModel
-from gyro_tdc.runtime import Policy
-from rclpy.clock import Clock, ClockType
+from gyro_tdc.runtime import CompensatorCore, Policy
 from std_srvs.srv import Trigger
 
 __all__ = ['LEARN_LOG_THROTTLE_S', 'LEARN_STEP_S', 'LEARN_WAIT_S', 'Learning',
@@ -110,9 +109,29 @@ def _step_and_save(learner: Learner, store: LearnFile | None) -> tuple[str, str,
 
 
 class Learning:
-    """Learn the bias vs temperature from still time while compensating (mixin)."""
+    """
+    Learn the bias vs temperature from still time while compensating.
 
-    learner: Learner | None = None
+    Creates the learner (the model in use is its prior), resumes ``learn_file`` (or the file
+    beside it) and becomes the core's learner front.
+
+    Parameters
+    ----------
+    core : CompensatorCore
+        The core that compensates (its model is the prior; learned models go to it).
+    params : CompensatorParams
+        The node's parameters at start (``learn_file``, ``learn_save_period``,
+        ``learn_swap_delay``).
+    policy : Policy
+        The policy at start (``temperature_timeout``).
+    log : rclpy logger
+        Where saves, failures and resumes are said.
+    on_learned : callable
+        Called when a learned model is installed (the node's ``model_file`` becomes
+        'learned').
+
+    """
+
     #: Where the learner's state is written (None: nowhere).
     learn_store: LearnFile | None = None
     #: One line while learn_file itself is refused (kept; learning goes beside it), else ''.
@@ -123,6 +142,24 @@ class Learning:
     #: Steps that raised (a bug; logged throttled), and the last one's error.
     learn_step_errors: int = 0
 
+    def __init__(self, core: CompensatorCore, params: Any, policy: Policy, log: Any,
+                 on_learned: Callable[[], None]) -> None:
+        self.core, self.params, self.log, self.on_learned = core, params, log, on_learned
+        self.learner = self._new_learner(policy)
+        self._learned_installs = 0
+        self._learn_jobs = LatestJob()
+        self.job: Job | None = None
+        self._learn_prior: tuple[CompensationModel | None] | None = None
+        self._learn_timeout: float | None = None
+        if params.learn_file:
+            self._open(params.learn_file, policy)
+        else:
+            log.warning('learn without learn_file: nothing is kept across restarts')
+        self._front = _Front(self.learner.config)
+        self._learn_values = self.learner.diagnostic_values()
+        sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))
+        core.learner = self._front
+
     def _new_learner(self, policy: Policy) -> Learner:
         """Return a learner from the start (the model in use is the prior)."""
         p = self.params
@@ -130,64 +167,42 @@ class Learning:
                                    save_period_s=p.learn_save_period,
                                    swap_delay_s=p.learn_swap_delay), prior=self.core.model)
 
-    def _start_learning(self, policy: Policy) -> None:
-        """Create the learner, resume learn_file (or the file beside it), services, timer."""
-        p = self.params
-        self.learner = self._new_learner(policy)
-        self._learned_installs = 0
-        self._learn_jobs = LatestJob()
-        self._learn_job: Job | None = None
-        self._learn_prior: tuple[CompensationModel | None] | None = None
-        self._learn_timeout: float | None = None
-        self._learn_values: dict[str, str] = {}
-        if p.learn_file:
-            log = self.get_logger()
-            try:
-                opened = open_learn_file(p.learn_file, self.learner.load_state)
-            except Exception as exc:  # the start-up edge: no file content stops the node
-                self.learner = self._new_learner(policy)
-                opened = None
-                self.learn_file_warning = (f'learn_file {p.learn_file!r} not used '
-                                           f'({type(exc).__name__}: {exc}): learning from '
-                                           'the start, nothing is kept across restarts')
-            else:
-                self.learn_store = opened.file
-                self.learn_file_warning = opened.warning
-                for note in opened.notes:
-                    log.warning(note)
-            if self.learn_file_warning:
-                log.warning(self.learn_file_warning)
-            if opened is not None and opened.resumed:
-                self._take_learned()
-                s = self.learner.summary()
-                log.info(f'resumed learning from {opened.file.path}: {s["points"]} points, '
-                         f'{s["still_s"]:.0f} s still')
+    def _open(self, path: str, policy: Policy) -> None:
+        """Resume ``learn_file`` (or the file used beside it); a file refused is said once."""
+        log = self.log
+        try:
+            opened = open_learn_file(path, self.learner.load_state)
+        except Exception as exc:  # the start-up edge: no file content stops the node
+            self.learner = self._new_learner(policy)
+            opened = None
+            self.learn_file_warning = (f'learn_file {path!r} not used '
+                                       f'({type(exc).__name__}: {exc}): learning from '
+                                       'the start, nothing is kept across restarts')
         else:
-            self.get_logger().warning('learn without learn_file: nothing is kept across '
-                                      'restarts')
-        self._front = _Front(self.learner.config)
-        self._learn_values = self.learner.diagnostic_values()
-        sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))
-        self.core.learner = self._front
-        self.create_service(Trigger, '~/learn_save', self._on_learn_save)
-        self.create_service(Trigger, '~/learn_reset', self._on_learn_reset)
-        # The steady clock: with use_sim_time and no /clock (or a paused bag) learning goes
-        # on; what it learns follows the message stamps anyway.
-        self.create_timer(LEARN_STEP_S, self._on_learn,
-                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+            self.learn_store = opened.file
+            self.learn_file_warning = opened.warning
+            for note in opened.notes:
+                log.warning(note)
+        if self.learn_file_warning:
+            log.warning(self.learn_file_warning)
+        if opened is not None and opened.resumed:
+            self._take_learned()
+            s = self.learner.summary()
+            log.info(f'resumed learning from {opened.file.path}: {s["points"]} points, '
+                     f'{s["still_s"]:.0f} s still')
 
     # -- the learner's owner: the worker during a step, else the executor's thread ------
 
-    def _learn_absorb(self) -> bool:
+    def _absorb(self) -> bool:
         """Take the outcome of a finished step; return whether the learner is idle."""
-        job = self._learn_job
+        job = self.job
         if job is None:
             return True
         if not job.done:
             return False
-        self._learn_job = None
+        self.job = None
         what, text, notes = job.result
-        log = self.get_logger()
+        log = self.log
         if what == 'saved':
             self.learn_save_error = ''
             for note in notes:
@@ -204,11 +219,11 @@ class Learning:
         """Count a failed save, keep its reason for /diagnostics, log it throttled."""
         self.learn_save_error = why
         self.learn_save_failures += 1
-        self.get_logger().error(
+        self.log.error(
             f'cannot save learn_file ({self.learn_save_failures} failed saves): {why}',
             throttle_duration_sec=LEARN_LOG_THROTTLE_S)
 
-    def _learn_sync(self) -> None:
+    def _sync(self) -> None:
         """
         With the learner idle, on the executor's thread: what waited for it.
 
@@ -228,45 +243,45 @@ class Learning:
             core.schedule(model, due)
         if core.learned_installs != self._learned_installs:
             self._learned_installs = core.learned_installs
-            self.model_file = 'learned'
+            self.on_learned()
         self._front.hand_over(learner)
 
-    def wait_learning(self, timeout_s: float = LEARN_WAIT_S) -> bool:
+    def wait(self, timeout_s: float = LEARN_WAIT_S) -> bool:
         """
         Wait for the step in progress and bring the learner up to date; return whether idle.
 
         Call on the executor's thread; the learner may then be read or changed until the
         executor runs the learn timer again.
         """
-        job = self._learn_job
+        job = self.job
         if job is not None and not job.wait(timeout_s):
             return False
-        self._learn_absorb()
-        self._learn_sync()
+        self._absorb()
+        self._sync()
         return True
 
-    def learning_caught_up(self) -> bool:
+    def caught_up(self) -> bool:
         """Return whether the learner has stepped over everything the node received."""
-        if not self._learn_absorb():
+        if not self._absorb():
             return False
-        self._learn_sync()
+        self._sync()
         return self.learner.caught_up()
 
-    def _learn_step_now(self) -> None:
+    def _step_now(self) -> None:
         """Step the learner on this thread (it is idle) and schedule what it swapped in."""
-        self._learn_sync()
+        self._sync()
         self.learner.step()
-        self._learn_sync()
+        self._sync()
 
-    def set_learn_timeout(self, timeout_s: float) -> None:
+    def set_timeout(self, timeout_s: float) -> None:
         """Give the learner a new temperature_timeout (from its next step)."""
-        if self.learner is None or timeout_s == self.learner.config.temperature_timeout:
+        if timeout_s == self.learner.config.temperature_timeout:
             return
         self._learn_timeout = timeout_s
-        if self._learn_job is None:
-            self._learn_sync()
+        if self.job is None:
+            self._sync()
 
-    def _new_prior(self, model: CompensationModel | None) -> None:
+    def new_prior(self, model: CompensationModel | None) -> None:
         """
         Make a model loaded from ``model_file`` the learner's prior and current model.
 
@@ -275,20 +290,18 @@ class Learning:
         (:meth:`gyro_tdc.learn.learner.Learner.set_prior`). During a step the prior waits
         for it (up to :data:`LEARN_WAIT_S`, then it applies when the step ends).
         """
-        if self.learner is None:
-            return
         self._learn_prior = (model,)
         self.core.cancel_scheduled()
-        self.wait_learning()
+        self.wait()
 
     def _take_learned(self) -> None:
         """Install a model resumed from learn_file at once (on the thread that compensates)."""
         model = self.learner.take_model()
         if model is not None:
             self.core.set_model(model)
-            self.model_file = 'learned'
+            self.on_learned()
 
-    def save_learning(self) -> str:
+    def save_now(self) -> str:
         """Write learn_file (or the file used instead) now; return what happened (one line)."""
         if not self.params.learn_file:
             return 'no learn_file'
@@ -303,12 +316,12 @@ class Learning:
         self.learner.saved()
         self.learn_save_error = ''
         for note in store.notes:
-            self.get_logger().warning(note)
+            self.log.warning(note)
         return f'saved {store.path}'
 
-    def learning_values(self) -> dict[str, str]:
+    def values(self) -> dict[str, str]:
         """Return the learner's /diagnostics pairs and where its state is written."""
-        if self._learn_job is None:         # idle: read it; during a step, the last figures
+        if self.job is None:         # idle: read it; during a step, the last figures
             self._learn_values = self.learner.diagnostic_values()
         values = dict(self._learn_values)
         store = self.learn_store
@@ -321,7 +334,7 @@ class Learning:
         values['learn step errors'] = str(self.learn_step_errors)
         return values
 
-    def learning_problems(self) -> list[str]:
+    def problems(self) -> list[str]:
         """Return what /diagnostics warns about the learner ([] when nothing)."""
         problems = []
         if self.learn_file_warning:       # learn_file refused: kept, learning beside it
@@ -333,16 +346,16 @@ class Learning:
 
     # -- the timer and the services ------------------------------------------------------
 
-    def _on_learn(self) -> None:
+    def on_timer(self) -> None:
         """Timer: hand the learner what came; start its step on the worker when there is work."""
-        if not self._learn_absorb():
+        if not self._absorb():
             return                          # the step in progress: again at the next tick
-        self._learn_sync()
+        self._sync()
         learner = self.learner
         if learner.caught_up():
             return                          # no window ended: nothing to judge, nothing due
         store = self.learn_store if self.params.learn_file else None
-        self._learn_job = self._learn_jobs.start(
+        self.job = self._learn_jobs.start(
             'learning step', 'timer', lambda: _step_and_save(learner, store))
 
     def _busy(self, response: Any) -> Any:
@@ -351,20 +364,20 @@ class Learning:
                             f'{LEARN_WAIT_S:g} s (a slow disk?); try again')
         return response
 
-    def _on_learn_save(self, request: Trigger.Request, response: Trigger.Response
-                       ) -> Trigger.Response:
-        if not self.wait_learning():
+    def on_save(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """Write learn_file now (``~/learn_save``), the stretch in progress stepped first."""
+        if not self.wait():
             return self._busy(response)
-        self._learn_step_now()
-        response.message = self.save_learning()
+        self._step_now()
+        response.message = self.save_now()
         response.success = response.message.startswith('saved')
         return response
 
-    def _on_learn_reset(self, request: Trigger.Request, response: Trigger.Response
-                        ) -> Trigger.Response:
-        if not self.wait_learning():
+    def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        """Forget what was learned (``~/learn_reset``): back to the prior, or no model."""
+        if not self.wait():
             return self._busy(response)
-        self._learn_step_now()
+        self._step_now()
         self.learner.reset()
         self.core.cancel_scheduled()
         self.core.set_model(self.learner.prior)
@@ -374,14 +387,14 @@ class Learning:
                             'learning reset: no model until the next still stretch')
         return response
 
-    def _stop_learning(self) -> None:
+    def stop(self) -> None:
         """Save what was learned (the stretch in progress too) before the node goes away."""
-        if self.learner is None or not self.params.learn_file:
+        if not self.params.learn_file:
             return
-        if not self.wait_learning(3 * LEARN_WAIT_S):
-            self.get_logger().error('learning step still running at shutdown: learn_file '
-                                    'keeps its last save')
+        if not self.wait(3 * LEARN_WAIT_S):
+            self.log.error('learning step still running at shutdown: learn_file '
+                           'keeps its last save')
             return
         self.learner.step()
         self.learner.flush()
-        self.save_learning()
+        self.save_now()

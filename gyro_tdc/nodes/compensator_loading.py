@@ -15,10 +15,10 @@
 """
 The compensator's model loading, off the message path: start-up, parameter set, ``~/reload``.
 
-:class:`ModelLoading` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
-(how a file is read, primed and swapped in: doc/internals/runtime.md). The node provides
-``core``, ``params`` and :meth:`_new_prior`; this mixin keeps ``model_file``, ``last_reload``
-and its jobs.
+:class:`ModelLoading` is a part of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
+(how a file is read, primed and swapped in: doc/internals/runtime.md): it keeps ``model_file``,
+``last_reload`` and its jobs; the node registers its parameter callbacks, its poll timer and
+its ``~/reload`` service.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ from gyro_tdc.base import Job, LatestJob
 from gyro_tdc.errors import GyroTdcError, one_line
 from gyro_tdc.learn import read_model as read_any_model
 from gyro_tdc.model import CompensationModel
-from gyro_tdc.runtime import prepare, PreparedModel, sensor_mismatch
+from gyro_tdc.runtime import CompensatorCore, prepare, PreparedModel, sensor_mismatch
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
@@ -74,27 +74,60 @@ def read_model(name_or_file: str) -> CompensationModel:
 
 
 class ModelLoading:
-    """Load, check and install model files without holding up the IMU callback (mixin)."""
+    """
+    Load, check and install model files without holding up the IMU callback.
 
-    def _init_loading(self, loader: Callable[[str], CompensationModel] | None) -> None:
-        """Set up the loading state and load ``model_file`` (at start: no learner yet)."""
+    Parameters
+    ----------
+    core : CompensatorCore
+        The core the models are installed in.
+    params : callable
+        ``params() -> CompensatorParams``, the node's current parameters (``model_file``
+        at start, ``load_wait``, ``sensor_id``).
+    log : rclpy logger
+        Where installs and refusals are said.
+    loader : callable, optional
+        ``loader(name) -> CompensationModel`` (default :func:`read_model`).
+    model_file : callable
+        ``model_file() -> str``: the parameter's value now.
+    set_model_file : callable
+        ``set_model_file(name)``: set the parameter (to name the model in use again).
+    on_model : callable
+        ``on_model(model)`` after every install or clear (the learner's new prior).
+
+    """
+
+    def __init__(self, core: CompensatorCore, params: Callable[[], Any], log: Any,
+                 loader: Callable[[str], CompensationModel] | None, *,
+                 model_file: Callable[[], str], set_model_file: Callable[[str], Any],
+                 on_model: Callable[[CompensationModel | None], None]) -> None:
+        self.core = core
+        self.params = params
+        self.log = log
         self._read = loader or read_model
+        self._param_value = model_file
+        self._set_param = set_model_file
+        self.on_model = on_model
+        #: The model in use: a file name, 'learned' or '' (none).
         self.model_file = ''
         self.last_reload = 'none'
         self._jobs = LatestJob()
         self._pending: dict[str, Job] = {}
         self._reverting: str | None = None
-        name = self.params.model_file
+
+    def load_at_start(self) -> None:
+        """Load ``model_file`` on this thread (at start: nothing to hold up yet)."""
+        name = self.params().model_file
         if not name:
-            self.get_logger().warning('no model_file: passing the raw rate through')
+            self.log.warning('no model_file: passing the raw rate through')
             return
         prepared, error = self._load_work(name, self.core.priming())()
         if prepared is not None:
             self._install(name, prepared)
         else:
             self.last_reload = f'failed: {error}'
-            self.get_logger().error(f'cannot load model_file {name!r}: {error}; '
-                                    'passing the raw rate through')
+            self.log.error(f'cannot load model_file {name!r}: {error}; '
+                           'passing the raw rate through')
 
     def _load_work(self, name: str, priming: Any
                    ) -> Callable[[], tuple[PreparedModel | None, str]]:
@@ -119,7 +152,7 @@ class ModelLoading:
 
     def _claim(self, job: Job) -> bool:
         """Wait up to ``load_wait`` for ``job``; return whether it finished and is ours."""
-        return job.wait(self.params.load_wait) and self._jobs.claim(job) is not None
+        return job.wait(self.params().load_wait) and self._jobs.claim(job) is not None
 
     def _install(self, name: str, prepared: PreparedModel) -> None:
         """Swap the model in (one assignment inside the core), log it, tell the learner."""
@@ -128,18 +161,18 @@ class ModelLoading:
         model = prepared.model
         self.last_reload = f'loaded {prepared.model_id}'
         lo, hi = model.temp_range_c
-        self.get_logger().info(
+        self.log.info(
             f'model {prepared.model_id} from {name!r}: {model.kind}, features '
             f'{",".join(model.features)}, valid {lo:.1f}..{hi:.1f} degC')
-        mismatch = sensor_mismatch(model, self.params.sensor_id)
+        mismatch = sensor_mismatch(model, self.params().sensor_id)
         if mismatch:
-            self.get_logger().warning(mismatch)
-        self._new_prior(model)
+            self.log.warning(mismatch)
+        self.on_model(model)
 
     def _refuse(self, name: str, error: str) -> None:
         self.last_reload = f'rejected: {error}'
         kept = self.core.model_id or 'no model'
-        self.get_logger().error(f'model {name!r} rejected, keeping {kept}: {error}')
+        self.log.error(f'model {name!r} rejected, keeping {kept}: {error}')
 
     def _finish(self, job: Job) -> tuple[bool, str]:
         """Install a finished job's model, or report why not; return (success, message)."""
@@ -170,13 +203,13 @@ class ModelLoading:
             self.core.set_model(None)
             self.model_file = ''
             self.last_reload = 'no model'
-            self._new_prior(None)
+            self.on_model(None)
             return True, 'no model: passing the raw rate through'
         job = Job(name, 'load')
         job.result = self._load_work(name, self.core.priming())()
         return self._finish(job)
 
-    def _on_load_poll(self) -> None:
+    def on_poll(self) -> None:
         """Install (or refuse) a model finished in the background."""
         if self._jobs.pending is None:
             return
@@ -184,16 +217,15 @@ class ModelLoading:
         if job is None:
             return
         ok, _ = self._finish(job)
-        if not ok and job.origin == 'parameter' and \
-                self.get_parameter('model_file').value == job.name:
+        if not ok and job.origin == 'parameter' and self._param_value() == job.name:
             # The set was accepted before the file was read: name the model in use again.
             self._reverting = self.model_file
             try:
-                self.set_parameters([Parameter('model_file', value=self.model_file)])
+                self._set_param(self.model_file)
             finally:
                 self._reverting = None
 
-    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+    def on_set(self, params: list[Parameter]) -> SetParametersResult:
         """Check a new ``model_file`` by reading it; a file slower than ``load_wait`` reads on."""
         for param in params:
             if param.name != 'model_file':
@@ -206,7 +238,7 @@ class ModelLoading:
                 continue
             job = self._start_load(name, 'parameter')
             if not self._claim(job):
-                continue  # slower than load_wait: installed (or refused) by _on_load_poll
+                continue  # slower than load_wait: installed (or refused) by on_poll
             prepared, error = job.result
             if prepared is None:
                 self._refuse(name, error)
@@ -214,8 +246,8 @@ class ModelLoading:
             self._pending[name] = job
         return SetParametersResult(successful=True)
 
-    def _on_parameters_set(self, params: list[Parameter]) -> None:
-        """Install the model read by :meth:`_on_set_parameters`."""
+    def on_parameters_set(self, params: list[Parameter]) -> None:
+        """Install the model read by :meth:`on_set`."""
         for param in params:
             if param.name == 'model_file':
                 name = param.value
@@ -226,9 +258,10 @@ class ModelLoading:
                     self.load('')
         self._pending.clear()
 
-    def _on_reload(self, request: Trigger.Request, response: Trigger.Response
-                   ) -> Trigger.Response:
-        name = self.get_parameter('model_file').value
+    def on_reload(self, request: Trigger.Request, response: Trigger.Response
+                  ) -> Trigger.Response:
+        """Read ``model_file`` again (``~/reload``); one slower than ``load_wait`` reads on."""
+        name = self._param_value()
         if not name:
             response.success, response.message = self.load('')
             return response

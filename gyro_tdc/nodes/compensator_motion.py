@@ -15,8 +15,9 @@
 """
 The compensator's motion input (``motion_topic``): a veto on stillness for moving vehicles.
 
-:class:`MotionInput` is a mixin of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`
-(see doc/internals/runtime.md); the node provides ``core`` and ``params``.
+:class:`MotionInput` is a part of :class:`~gyro_tdc.nodes.compensator_node.CompensatorNode`:
+the node subscribes ``motion_topic`` with :meth:`MotionInput.qos` and hands each report to
+:meth:`MotionInput.on_motion`, which passes it to the core by stamp.
 """
 
 from __future__ import annotations
@@ -24,9 +25,9 @@ from __future__ import annotations
 from typing import Any
 
 from geometry_msgs.msg import Twist, TwistStamped
+from gyro_tdc.runtime import CompensatorCore
 from nav_msgs.msg import Odometry
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.qos_overriding_options import QoSOverridingOptions
 
 __all__ = ['MOTION_MESSAGES', 'MotionInput']
 
@@ -35,25 +36,34 @@ MOTION_MESSAGES = {'twist': Twist, 'twist_stamped': TwistStamped, 'odometry': Od
 
 
 class MotionInput:
-    """Take outside motion reports and pass them to the core by stamp (mixin)."""
+    """
+    Take outside motion reports and pass them to the core by stamp.
 
-    def _init_motion(self) -> None:
-        """Subscribe ``motion_topic`` (when set) with ``input_reliability``'s QoS (overridable)."""
-        p = self.params
-        self.motion_ignored = 0     # bare Twists before the first IMU message
-        if not p.motion_topic:
-            return
-        reliable = p.input_reliability == 'reliable'
-        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
-                         reliability=(ReliabilityPolicy.RELIABLE if reliable
-                                      else ReliabilityPolicy.BEST_EFFORT),
-                         durability=DurabilityPolicy.VOLATILE)
-        cls = MOTION_MESSAGES[p.motion_type]
-        self.create_subscription(  # qos above: the default of its qos_overrides parameters
-            cls, p.motion_topic, self._on_motion, qos,
-            qos_overriding_options=QoSOverridingOptions.with_default_policies())
+    Parameters
+    ----------
+    core : CompensatorCore
+        The core the reports go to.
+    topic : str
+        ``motion_topic`` ('' when there is none: no reports, no /diagnostics pairs).
 
-    def _on_motion(self, msg: Any) -> None:
+    """
+
+    def __init__(self, core: CompensatorCore, topic: str) -> None:
+        self.core = core
+        self.topic = topic
+        #: Reports without a stamp before the first IMU message (nothing to stamp them with).
+        self.ignored = 0
+
+    @staticmethod
+    def qos(reliability: str, depth: int) -> QoSProfile:
+        """Return the subscription's QoS: ``input_reliability``, keep last ``depth``."""
+        return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=depth,
+                          reliability=(ReliabilityPolicy.RELIABLE if reliability == 'reliable'
+                                       else ReliabilityPolicy.BEST_EFFORT),
+                          durability=DurabilityPolicy.VOLATILE)
+
+    def on_motion(self, msg: Any) -> None:
+        """Hand one Twist, TwistStamped or Odometry to the core at its stamp (or the latest)."""
         if isinstance(msg, Twist):
             twist, st = msg, None
         else:
@@ -64,16 +74,16 @@ class MotionInput:
         else:                       # no stamp: the latest IMU stamp received
             t = self.core.last_t
             if t is None:
-                self.motion_ignored += 1
+                self.ignored += 1
                 return
         lin, ang = twist.linear, twist.angular
         self.core.motion(t, (lin.x, lin.y, lin.z, ang.x, ang.y, ang.z))
 
-    def motion_values(self) -> dict[str, str]:
+    def values(self) -> dict[str, str]:
         """Return the motion input's /diagnostics key/value pairs (none without a topic)."""
-        if not self.params.motion_topic:
+        if not self.topic:
             return {}
         core = self.core
         state = {None: 'no report yet', True: 'moving', False: 'not moving'}[core.moving]
         return {'motion': state, 'motion reports': str(core.motion_reports),
-                'motion reports ignored': str(self.motion_ignored)}
+                'motion reports ignored': str(self.ignored)}

@@ -29,17 +29,18 @@ import sys
 from time import perf_counter
 from typing import Any, Callable
 
+from diagnostic_msgs.msg import DiagnosticArray
 from gyro_tdc.base import spec_dataclass
-from gyro_tdc.data import diagonal_marked, ImuView, locate, mark_diagonal, mark_unknown
+from gyro_tdc.data import ImuView, locate
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.nodes._params import declare, print_help
 from gyro_tdc.nodes.compensator_diagnostics import (Diagnostics, DIAGNOSTICS_PERIOD_S,
                                                     TEMPERATURE_MESSAGES)
 from gyro_tdc.nodes.compensator_inputs import input_reader
-from gyro_tdc.nodes.compensator_learning import Learning
-from gyro_tdc.nodes.compensator_loading import LOAD_ERRORS, LOAD_POLL_S, ModelLoading, read_model
-from gyro_tdc.nodes.compensator_motion import MotionInput
+from gyro_tdc.nodes.compensator_learning import LEARN_STEP_S, Learning
+from gyro_tdc.nodes.compensator_loading import LOAD_POLL_S, ModelLoading, read_model
+from gyro_tdc.nodes.compensator_motion import MOTION_MESSAGES, MotionInput
 from gyro_tdc.nodes.executors import run_node
 from gyro_tdc.runtime import (CompensatorCore, InputStatus, PARAMS, PASSTHROUGH, Policy,
                               sensor_mismatch, upstream_note)
@@ -51,12 +52,12 @@ from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
                        ReliabilityPolicy)
 from rclpy.qos_overriding_options import QoSOverridingOptions
-from rclpy.serialization import deserialize_message
+from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu
 from std_srvs.srv import Trigger
 
-__all__ = ['CompensatorNode', 'CompensatorParams', 'LOAD_ERRORS', 'PARAMS',
-           'TEMPERATURE_MESSAGES', 'main', 'read_model']
+__all__ = ['CompensatorNode', 'CompensatorParams', 'PARAMS', 'TEMPERATURE_MESSAGES', 'main',
+           'read_model']
 
 #: The compensator's parameters, read at start-up; the writable rows are replaced when set.
 CompensatorParams = spec_dataclass(
@@ -79,15 +80,33 @@ def qos_overrides() -> QoSOverridingOptions:
     return QoSOverridingOptions.with_default_policies()
 
 
-class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
+def imu_qos(p: Any) -> QoSProfile:
+    """Return the imu/data_raw subscription's QoS (the default of its qos_overrides)."""
+    if p.input_reliability == 'reliable':
+        # Keep all: nothing is overwritten here. A keep-all publisher is held back by
+        # flow control; a keep-last one drops its oldest unacknowledged samples, which
+        # the next accepted sample reveals as a sequence gap the message-lost event counts.
+        # Bounded by the RMW's limits (Fast DDS: 5000).
+        return QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=p.queue_depth,
+                          reliability=ReliabilityPolicy.RELIABLE,
+                          durability=DurabilityPolicy.VOLATILE)
+    # REP 2003 sensor data, deep: the freshest queue_depth samples when behind. DDS
+    # does not report the oldest ones this queue overwrites (only transport gaps).
+    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
+                      reliability=ReliabilityPolicy.BEST_EFFORT,
+                      durability=DurabilityPolicy.VOLATILE)
+
+
+class CompensatorNode(Node):
     """
     Remove the temperature drift of a gyro, one output message per input message.
 
-    Model loading (:mod:`~gyro_tdc.nodes.compensator_loading`), learning
-    (:mod:`~gyro_tdc.nodes.compensator_learning`), the motion input
-    (:mod:`~gyro_tdc.nodes.compensator_motion`) and /diagnostics
-    (:mod:`~gyro_tdc.nodes.compensator_diagnostics`) come from mixins; this class wires
-    the topics and converts messages on the hot path.
+    The node wires the topics, timers, services and parameter callbacks to its parts:
+    ``loading`` (:class:`~gyro_tdc.nodes.compensator_loading.ModelLoading`), ``learning``
+    (:class:`~gyro_tdc.nodes.compensator_learning.Learning`, None unless ``learn``),
+    ``motion`` (:class:`~gyro_tdc.nodes.compensator_motion.MotionInput`) and ``diagnostics``
+    (:class:`~gyro_tdc.nodes.compensator_diagnostics.Diagnostics`). Every IMU input, raw CDR,
+    deserialised or read by field, goes through one step on the serialized message.
 
     Parameters
     ----------
@@ -105,22 +124,21 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
 
     """
 
+    #: Set by :meth:`destroy_node`: a timer event that still comes then does nothing.
+    stopping = False
+
     def __init__(self, *, loader: Callable[[str], CompensationModel] | None = None,
                  **kwargs: Any) -> None:
         super().__init__(kwargs.pop('node_name', 'compensator_node'), **kwargs)
-        self.params = CompensatorParams(**declare(self, PARAMS))
-        p = self.params
-        self.reader = reader = input_reader(p)     # the input types and fields, checked
-        self._temperature_value = reader.temperature
-        self._temperature_stamp = reader.temperature_stamp
-        self._to_imu = reader.to_imu
+        self.params = p = CompensatorParams(**declare(self, PARAMS))
+        self.reader = input_reader(p)     # the input types and fields, checked
         try:
             policy = p.policy()
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
-        self._in_topic = self.resolve_topic_name('imu/data_raw')
+        in_topic = self.resolve_topic_name('imu/data_raw')
         out_topic = self.resolve_topic_name('imu/data_compensated')
-        if self._in_topic == out_topic:
+        if in_topic == out_topic:
             raise ConfigError(f'imu/data_raw and imu/data_compensated both resolve to '
                               f'{out_topic}: the compensator would compensate its own output '
                               'in a loop; remap one of them')
@@ -132,65 +150,80 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
                     f'{name} is deprecated (kept for one release): it seeds the defaults of '
                     'the qos_overrides.<topic>.subscription|publisher.* parameters, which '
                     'override it; set those instead')
-        self.temperatures_ignored = 0  # std_msgs readings before the first IMU message
-        self.learner = None
-        self._init_loading(loader)
+        self.temperatures_ignored = 0  # readings without a stamp before the first IMU message
+        self._last_imu: bytes | None = None    # the latest input, for its frame_id
+        self.learning: Learning | None = None
+        self.loading = ModelLoading(
+            self.core, lambda: self.params, self.get_logger(), loader,
+            model_file=lambda: self.get_parameter('model_file').value,
+            set_model_file=lambda name: self.set_parameters([Parameter('model_file',
+                                                                       value=name)]),
+            on_model=self._new_prior)
+        self.loading.load_at_start()
+        self.motion = MotionInput(self.core, p.motion_topic)
+        self.diagnostics = Diagnostics(
+            self, self.core, self.inputs, lambda: self.params, in_topic,
+            loading=self.loading, motion=self.motion, frame_id=self._frame_id,
+            temperatures_ignored=lambda: self.temperatures_ignored)
+        self._record = self.diagnostics.backlog.record    # the IMU step's one call per sample
+        self._say_upstream(policy)                        # said once at start-up
+        self._wire(p)
+        if p.learn:
+            self.learning = Learning(self.core, p, policy, self.get_logger(), self._learned)
+            self.diagnostics.learning = self.learning
+            self.create_service(Trigger, '~/learn_save', self.learning.on_save)
+            self.create_service(Trigger, '~/learn_reset', self.learning.on_reset)
+            # The steady clock: with use_sim_time and no /clock (or a paused bag) learning
+            # goes on; what it learns follows the message stamps anyway.
+            self.create_timer(LEARN_STEP_S, self.learning.on_timer,
+                              clock=Clock(clock_type=ClockType.STEADY_TIME))
 
+    def _wire(self, p: Any) -> None:
+        """Create the publishers, subscriptions, timers, services and parameter callbacks."""
         self._pub = self.create_publisher(Imu, 'imu/data_compensated', QoSProfile(
             history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
             reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE),
             qos_overriding_options=qos_overrides())
-        if p.input_reliability == 'reliable':
-            # Keep all: nothing is overwritten here. A keep-all publisher is held back by
-            # flow control; a keep-last one drops its oldest unacknowledged samples, which
-            # the next accepted sample reveals as a sequence gap the message-lost event
-            # counts (76-99 % of them measured). Bounded by the RMW's limits (Fast DDS: 5000).
-            imu_qos = QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=p.queue_depth,
-                                 reliability=ReliabilityPolicy.RELIABLE,
-                                 durability=DurabilityPolicy.VOLATILE)
-        else:
-            # REP 2003 sensor data, deep: the freshest queue_depth samples when behind. DDS
-            # does not report the oldest ones this queue overwrites (only transport gaps).
-            imu_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
-                                 reliability=ReliabilityPolicy.BEST_EFFORT,
-                                 durability=DurabilityPolicy.VOLATILE)
-        # As deep as the IMU queue: a simulated run streamed faster than real time sends
-        # one temperature per IMU sample, and a lost temperature makes the next ones stale.
-        temp_qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
-                              reliability=qos_profile_sensor_data.reliability,
-                              durability=qos_profile_sensor_data.durability)
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         events = SubscriptionEventCallbacks(message_lost=self._on_message_lost)
-        # The profiles above are the defaults of the qos_overrides.<resolved topic>.* parameters
+        # The profiles are the defaults of the qos_overrides.<resolved topic>.* parameters
         # (read-only: QoS is fixed when an entity is created), which may override them.
-        if not reader.fast:     # another type: turned into an Imu, then the typed path
+        reader = self.reader
+        if not reader.fast:     # another type: turned into an Imu, then the one step
             imu_sub = self.create_subscription(
-                reader.imu_cls, 'imu/data_raw', self._on_imu_other, imu_qos,
+                reader.imu_cls, 'imu/data_raw', self._on_imu_other, imu_qos(p),
                 event_callbacks=events, qos_overriding_options=qos_overrides())
         else:
             imu_sub = self.create_subscription(
                 Imu, 'imu/data_raw', self._on_imu_raw if p.raw_cdr else self._on_imu,
-                imu_qos, raw=p.raw_cdr, event_callbacks=events,
+                imu_qos(p), raw=p.raw_cdr, event_callbacks=events,
                 qos_overriding_options=qos_overrides())
         self.inputs.reliability = imu_sub.qos_profile.reliability.name.lower()
+        # As deep as the IMU queue: a simulated run streamed faster than real time sends
+        # one temperature per IMU sample, and a lost temperature makes the next ones stale.
         self.create_subscription(
-            reader.temperature_cls, 'imu/temperature', self._on_temperature, temp_qos,
+            reader.temperature_cls, 'imu/temperature', self._on_temperature, QoSProfile(
+                history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
+                reliability=qos_profile_sensor_data.reliability,
+                durability=qos_profile_sensor_data.durability),
             qos_overriding_options=qos_overrides())
-        self._init_motion()
-        self._init_diagnostics()
-        self.create_service(Trigger, '~/reload', self._on_reload)
+        if p.motion_topic:
+            self.create_subscription(
+                MOTION_MESSAGES[p.motion_type], p.motion_topic, self.motion.on_motion,
+                MotionInput.qos(p.input_reliability, p.queue_depth),
+                qos_overriding_options=qos_overrides())
+        self.create_service(Trigger, '~/reload', self.loading.on_reload)
         # rclpy calls the callbacks added last first: the policy check runs before
         # model_file's (which reads the file), the policy swap after the model install.
         self.add_post_set_parameters_callback(self._on_policy_set)
-        self.add_on_set_parameters_callback(self._on_set_parameters)
-        self.add_post_set_parameters_callback(self._on_parameters_set)
+        self.add_on_set_parameters_callback(self.loading.on_set)
+        self.add_post_set_parameters_callback(self.loading.on_parameters_set)
         self.add_on_set_parameters_callback(self._on_set_policy)
         # The steady clock: with use_sim_time and no /clock (or a paused bag) the reports and
         # the model poll go on; every decision on the data follows the message stamps anyway.
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diagnostics, clock=steady)
-        self.create_timer(LOAD_POLL_S, self._on_load_poll, clock=steady)
-        if p.learn:
-            self._start_learning(policy)
+        self.create_timer(LOAD_POLL_S, self.loading.on_poll, clock=steady)
 
     def destroy_node(self) -> None:
         """
@@ -204,8 +237,42 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
         self.stopping = True
         for timer in list(self.timers):
             timer.cancel()
-        self._stop_learning()
+        if self.learning is not None:
+            self.learning.stop()
         super().destroy_node()
+
+    def diagnostic_status(self) -> Any:
+        """Return the compensator's DiagnosticStatus now (and log what changed)."""
+        return self.diagnostics.status()
+
+    def _on_diagnostics(self) -> None:
+        if self.stopping:
+            return
+        arr = DiagnosticArray()
+        arr.header.stamp = self.get_clock().now().to_msg()
+        arr.status = [self.diagnostics.status()]
+        self._diag_pub.publish(arr)
+
+    def _frame_id(self) -> str:
+        """Return ``header.frame_id`` of the latest imu/data_raw message ('' before one)."""
+        last = self._last_imu
+        return '' if last is None else deserialize_message(last, Imu).header.frame_id
+
+    def _new_prior(self, model: CompensationModel | None) -> None:
+        """Make a model loaded from ``model_file`` (or none) the learner's prior."""
+        if self.learning is not None:
+            self.learning.new_prior(model)
+
+    def _learned(self) -> None:
+        """Name the model in use after the learner installed one."""
+        self.loading.model_file = 'learned'
+
+    def _say_upstream(self, policy: Policy) -> None:
+        """Log what upstream_correction does with the input (a warning when it passes it)."""
+        note = upstream_note(policy)
+        if note:
+            log = self.get_logger()
+            (log.warning if self.core.upstream_pass else log.info)(note)
 
     # -- run-time parameter changes ----------------------------------------------------
 
@@ -226,104 +293,46 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
         if not changes and not live:
             return
         self.params = replace(self.params, **changes, **live)
-        log = self.get_logger()
         old = self.core.policy
         policy = replace(old, **changes)
         said = [f'{k} {getattr(old, k)!r} -> {v!r}' for k, v in changes.items()
                 if getattr(old, k) != v]
         if said:
             self.core.set_policy(policy)
-            self.set_learn_timeout(policy.temperature_timeout)
-            log.info('policy changed, from the next message: ' + ', '.join(said))
+            if self.learning is not None:
+                self.learning.set_timeout(policy.temperature_timeout)
+            self.get_logger().info('policy changed, from the next message: ' + ', '.join(said))
             if (old.upstream_correction, old.upstream_policy) != (
                     policy.upstream_correction, policy.upstream_policy):
-                note = upstream_note(policy)
-                if note:
-                    (log.warning if self.core.upstream_pass else log.info)(note)
+                self._say_upstream(policy)
         if 'sensor_id' in live and self.core.model is not None:
             mismatch = sensor_mismatch(self.core.model, self.params.sensor_id)
             if mismatch:
-                log.warning(mismatch)
+                self.get_logger().warning(mismatch)
 
     # -- the hot path -----------------------------------------------------------------
 
-    def _on_imu(self, msg: Imu, start: float | None = None) -> None:
-        if start is None:                   # the callback's start on the steady clock
+    def _compensate(self, data: bytes, start: float | None = None) -> None:
+        """
+        Compensate one serialized Imu and publish it: the one step of every IMU input.
+
+        The rates and the covariance diagonals are patched in a copy of the bytes
+        (:meth:`gyro_tdc.data.imu_cdr.ImuView.patched`, the REP 145 rule), every other byte as
+        it came; bytes that are not little-endian plain CDR are deserialised and serialized
+        again first. ``start``: the callback's start on the steady clock, for the backlog.
+        """
+        if start is None:
             start = perf_counter()
-        self._last_imu = msg                # its frame_id, read by /diagnostics
-        st = msg.header.stamp
-        t = st.sec + st.nanosec * 1e-9
-        w = msg.angular_velocity
-        cov = msg.angular_velocity_covariance
-        if diagonal_marked(cov):
-            self.inputs.already_compensated += 1
-        core = self.core
-        a = None
-        if core.needs_accel:
-            la = msg.linear_acceleration
-            if msg.linear_acceleration_covariance[0] != -1.0:
-                a = (la.x, la.y, la.z)
-        try:
-            wx, wy, wz, var, flags, aout, avar = core.process(t, w.x, w.y, w.z, a)
-        except Exception as exc:  # the callback edge: never lose the message
-            var, flags = self._on_error(exc), PASSTHROUGH
-            wx, wy, wz = w.x, w.y, w.z
-            aout, avar = None, (var if a is not None and core.accel_on else None)
-        w.x, w.y, w.z = wx, wy, wz
-        # REP 145: -1 in element 0 is no data (left as it came); all zero is unknown, which
-        # stays unknown (marked with negative zeros, still all == 0) unless base_variance
-        # gives unknown input a base (ImuView.patched, the same rule).
-        if cov[0] != -1.0:
-            base = core.policy.base_variance
-            if cov[0] != 0.0 or any(cov):
-                base = 0.0
-            elif base <= 0.0:
-                base = None
-            if base is not None:
-                cov[0] += base + var[0]
-                cov[4] += base + var[1]
-                cov[8] += base + var[2]
-                if not flags & PASSTHROUGH:
-                    mark_diagonal(cov)
-            elif not flags & PASSTHROUGH:
-                mark_unknown(cov)
-        if aout is not None:
-            la.x, la.y, la.z = aout
-        if avar is not None:
-            acov = msg.linear_acceleration_covariance
-            acov[0] += avar[0]
-            acov[4] += avar[1]
-            acov[8] += avar[2]
-        self._pub.publish(msg)
-        self._record((t, start, perf_counter()))    # the backlog: stamp, start, end
-
-    def _on_imu_other(self, msg: Any) -> None:
-        """Turn an ``imu_type`` message into an Imu (FLU, stamped) and compensate that."""
-        start = perf_counter()
-        try:
-            imu = self._to_imu(msg)
-        except Exception as exc:  # the callback edge: a field out of range, a bad stamp
-            self.inputs.malformed += 1
-            self.get_logger().warning(
-                f'imu/data_raw message not readable as {self.params.imu_type} (dropped, '
-                f'{self.inputs.malformed} in total): {type(exc).__name__}: {exc}',
-                throttle_duration_sec=5.0)
-            return
-        self._on_imu(imu, start)
-
-    def _on_imu_raw(self, data: bytes) -> None:
-        start = perf_counter()
         found = locate(data)
         if found is None:  # not little-endian plain CDR: the slow, general way
             try:
-                msg = deserialize_message(data, Imu)
+                data = serialize_message(deserialize_message(data, Imu))
             except Exception as exc:  # the callback edge: any participant can send bytes
                 self._on_malformed(exc, len(data))
                 return
-            self._on_imu(msg, start)
-            return
+            found = locate(data)
         sec, nanosec, base = found
-        self._last_imu = data               # its frame_id, read by /diagnostics
+        self._last_imu = data
         view = ImuView(data, base)
         if view.marked():
             self.inputs.already_compensated += 1
@@ -338,7 +347,30 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
             aout, avar = None, (var if a is not None and core.accel_on else None)
         self._pub.publish(view.patched(wx, wy, wz, var, not flags & PASSTHROUGH, aout, avar,
                                        core.policy.base_variance))
-        self._record((t, start, perf_counter()))
+        self._record((t, start, perf_counter()))    # the backlog: stamp, start, end
+
+    #: The ``raw_cdr`` subscription's callback: the bytes as they came.
+    _on_imu_raw = _compensate
+
+    def _on_imu(self, msg: Imu, start: float | None = None) -> None:
+        """Compensate a deserialised Imu: serialized again, then the one step."""
+        if start is None:
+            start = perf_counter()
+        self._compensate(serialize_message(msg), start)
+
+    def _on_imu_other(self, msg: Any) -> None:
+        """Turn an ``imu_type`` message into an Imu (FLU, stamped) and compensate that."""
+        start = perf_counter()
+        try:
+            imu = self.reader.to_imu(msg)
+        except Exception as exc:  # the callback edge: a field out of range, a bad stamp
+            self.inputs.malformed += 1
+            self.get_logger().warning(
+                f'imu/data_raw message not readable as {self.params.imu_type} (dropped, '
+                f'{self.inputs.malformed} in total): {type(exc).__name__}: {exc}',
+                throttle_duration_sec=5.0)
+            return
+        self._compensate(serialize_message(imu), start)
 
     def _on_malformed(self, exc: Exception, size: int) -> None:
         """Count a message that is not an Imu (nothing to republish); the stream goes on."""
@@ -361,7 +393,7 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
         Field, stamp and quirk come from the node's ``reader`` (``input_reader``); a reading
         without a stamp before the first IMU message is ignored (``temperatures_ignored``).
         """
-        stamp = self._temperature_stamp
+        stamp = self.reader.temperature_stamp
         if stamp is None:
             t = self.core.last_t
             if t is None:  # before the first IMU message there is no stamp to give it
@@ -369,10 +401,7 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
                 return
         else:
             t = stamp(msg)
-        self.core.add_temperature(t, self._temperature_value(msg))
-
-    #: The same handler for header-less readings (std_msgs Float32/Float64).
-    _on_float_temperature = _on_temperature
+        self.core.add_temperature(t, self.reader.temperature(msg))
 
     def _on_message_lost(self, info: QoSMessageLostInfo) -> None:
         new = info.total_count - self.inputs.lost

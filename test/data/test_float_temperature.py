@@ -86,7 +86,7 @@ def _node_order(path):
 
 def _mirror_node(messages):
     """
-    Stamp Float readings as CompensatorNode._on_float_temperature does.
+    Stamp Float readings as CompensatorNode._on_temperature does.
 
     The stamp of the latest IMU message received (its header, seconds as the node computes
     them); readings before any IMU message are ignored.
@@ -182,7 +182,7 @@ def test_the_node_stamps_the_readings_as_the_reader_does(ros_context, tmp_path):
                 if topic == '/imu/data_raw':
                     node._on_imu_raw(raw)
                 else:
-                    node._on_float_temperature(deserialize_message(raw, cls))
+                    node._on_temperature(deserialize_message(raw, cls))
             assert node.temperatures_ignored == 1
         finally:
             node.destroy_node()

@@ -195,7 +195,7 @@ def test_sensor_id_match_is_quiet_and_mismatch_warns(ros_context, model, tmp_pat
     try:
         status = node.diagnostic_status()
         assert 'not for this IMU' not in status.message
-        ok, _ = node.load(str(other))           # another sensor's model swapped in
+        ok, _ = node.loading.load(str(other))           # another sensor's model swapped in
         assert ok
         status = node.diagnostic_status()
         assert status.level == bytes((WARN,)) and 'not for this IMU' in status.message

@@ -56,7 +56,7 @@ def make(ros_context, nodes, namespace='/mavros', **params):
     node = CompensatorNode(context=ros_context, namespace=namespace, parameter_overrides=[
         Parameter(k, value=v) for k, v in params.items()])
     nodes.append(node)
-    node._live_clock = FakeClock(node._live_clock())
+    node.diagnostics.live_clock = FakeClock(node.diagnostics.live_clock())
     return node
 
 
@@ -91,7 +91,7 @@ def second(node, k, n=100, raw=True, frame='base_link'):
     for j in range(k, k + n):
         msg = imu(j, frame)
         node._on_imu_raw(serialize_message(msg)) if raw else node._on_imu(msg)
-    node._live_clock.now += 1.0
+    node.diagnostics.live_clock.now += 1.0
     return node.diagnostic_status()
 
 
@@ -136,7 +136,7 @@ def test_a_stopped_imu_warns_then_errors_and_never_reads_ok(ros_context, nodes):
     levels = []
     for s in range(8):
         temperature(node, T0 + 8 + s)
-        node._live_clock.now += 1.0
+        node.diagnostics.live_clock.now += 1.0
         st = node.diagnostic_status()
         levels.append(st.level)
     assert levels[0] == DiagnosticStatus.WARN
@@ -159,12 +159,12 @@ def test_a_stopped_imu_never_reads_ok_while_the_temperature_is_hours_old(ros_con
         for j in range(k, k + 100):
             node._on_imu_raw(serialize_message(imu(j, 'imu_link')))
         k += 100
-        node._live_clock.now += 1.0
+        node.diagnostics.live_clock.now += 1.0
         st = node.diagnostic_status()
         assert st.level == DiagnosticStatus.WARN and 'temperature stale' in st.message
     levels = []
     for _ in range(8):                       # the IMU stops: nothing new is flagged stale
-        node._live_clock.now += 1.0
+        node.diagnostics.live_clock.now += 1.0
         st = node.diagnostic_status()
         levels.append(st.level)
         assert float(values(st)['temperature age s']) > 10_800.0
@@ -184,7 +184,7 @@ def test_a_slow_imu_warns(ros_context, nodes):
 def test_a_model_in_another_frame_warns_while_it_lasts_logged_once(ros_context, nodes):
     node = make(ros_context, nodes, expected_rate_hz=100.0)
     log = Log()
-    node.get_logger = lambda: log
+    node.diagnostics.log = log
     assert node.core.model.frame_id == 'imu_link'
     k = 0
     for _ in range(3):
@@ -199,8 +199,8 @@ def test_a_model_in_another_frame_warns_while_it_lasts_logged_once(ros_context, 
 
 def test_the_published_status_reports_a_silent_imu(rig_factory):
     rig = rig_factory(model_file='l3gd20_modified', expected_rate_hz=100.0)
-    clock = FakeClock(rig.node._live_clock())
-    rig.node._live_clock = clock
+    clock = FakeClock(rig.node.diagnostics.live_clock())
+    rig.node.diagnostics.live_clock = clock
     rig.feed([T0 * 10 ** 9 + k * 10 ** 7 for k in range(50)], [(0.0, 0.0, 0.0)] * 50)
     rig.node.diagnostic_status()                       # a report sees the messages
     clock.now += 30.0                                  # then 30 s without one

@@ -30,7 +30,7 @@ def test_model_file_may_be_a_learn_file(rig_factory, tmp_path):
     learner.save(path)
     rig = rig_factory(model_file=str(path))
     assert rig.node.core.model_id == learner.model.model_id
-    assert rig.node.last_reload == f'loaded {learner.model.model_id}'
+    assert rig.node.loading.last_reload == f'loaded {learner.model.model_id}'
     t0 = 1_700_000_000.0
     n = 200
     imu_ns = np.array([to_ns(t0 + k / 50.0) for k in range(n)])
@@ -49,5 +49,5 @@ def test_a_learn_file_without_a_model_passes_through_with_the_reason(rig_factory
     Learner().save(path)
     rig = rig_factory(model_file=str(path))
     assert rig.node.core.model is None
-    assert rig.node.last_reload.startswith('failed:')
-    assert 'no accepted model yet' in rig.node.last_reload
+    assert rig.node.loading.last_reload.startswith('failed:')
+    assert 'no accepted model yet' in rig.node.loading.last_reload

@@ -127,7 +127,7 @@ class LearnRig:
 
 
 def _values(node):
-    assert node.wait_learning()           # the learner's figures after its step in progress
+    assert node.learning.wait()           # the learner's figures after its step in progress
     return {kv.key: kv.value for kv in node.diagnostic_status().values}
 
 
@@ -137,7 +137,7 @@ def test_learn_save_reset_and_restart_resume(ros_context, tmp_path):
     rig = LearnRig(ros_context, learn=True, learn_file=str(path))
     try:
         node = rig.node
-        assert node.core.model is None and node.learner is not None
+        assert node.core.model is None and node.learning.learner is not None
         t = rig.feed(1000.0, 100.0, 20.0, bias, False, 1)
         t = rig.feed(t, 20.0, 20.0, bias, True, 2)
         r = rig.call(rig.save)
@@ -157,8 +157,8 @@ def test_learn_save_reset_and_restart_resume(ros_context, tmp_path):
         assert rig.call(rig.save).success
         saved = json.loads(path.read_text())
         assert saved['fit']['features'] == ['dT'] and len(saved['bins']) >= 2
-        assert node.wait_learning()       # the learner is the worker's during a step
-        state = json.loads(json.dumps(node.learner.state()))
+        assert node.learning.wait()       # the learner is the worker's during a step
+        state = json.loads(json.dumps(node.learning.learner.state()))
         assert state == saved
     finally:
         rig.close()            # destroy_node saves again: the window in progress judged too
@@ -170,7 +170,7 @@ def test_learn_save_reset_and_restart_resume(ros_context, tmp_path):
     rig = LearnRig(ros_context, learn=True, learn_file=str(path))
     try:
         node = rig.node
-        assert json.loads(json.dumps(node.learner.state())) == saved
+        assert json.loads(json.dumps(node.learning.learner.state())) == saved
         assert node.core.model is not None
         np.testing.assert_allclose(node.core.model.linear[0, 0], 1e-3, rtol=0.05)
         r = rig.call(rig.reset)
@@ -230,30 +230,30 @@ def test_a_slow_constant_turn_reported_by_motion_topic_is_not_still(ros_context,
         early = motion_type == 'twist'   # a bare Twist before any IMU stamp: ignored, counted
         if early:
             rig.motion_pub.publish(_motion(cls, 0.0, 1.0, 1.0))
-            spin_until(rig.executor, lambda: node.motion_ignored == 1, 10.0, what='ignored')
+            spin_until(rig.executor, lambda: node.motion.ignored == 1, 10.0, what='ignored')
         w = (0.0, 0.0, 0.005) + 1e-5 * np.random.default_rng(7).standard_normal((n, 3))
         t = rig.stream(1000.0, w, 20.0, report)
         anchor = node.core.anchor         # a learned model swapped in below clears it
-        assert node.wait_learning()
-        node.learner.flush()              # the stretch in progress too
+        assert node.learning.wait()
+        node.learning.learner.flush()              # the stretch in progress too
         assert rig.call(rig.save).message.startswith('no learn_file')   # steps, schedules
-        assert node.core.model_id == node.learner.prior.model_id        # not due yet
+        assert node.core.model_id == node.learning.learner.prior.model_id        # not due yet
         rig.stream(t + 250.0, w[:1], 20.0)   # a sample past the delay: a learned one is due
-        assert node.wait_learning()
+        assert node.learning.wait()
         v = _values(node)
         assert v['motion'] == ('moving' if moving else 'not moving')
         assert v['motion reports'] == str(int(n / RATE))
         assert v['motion reports ignored'] == ('1' if early else '0')
-        s = node.learner.summary()
+        s = node.learning.learner.summary()
         if moving:
             assert anchor is None and node.core.still_windows_rejected > 0
             assert s['points'] == 0 and s['still_s'] == 0.0
-            assert node.core.model_id == node.learner.prior.model_id   # nothing swapped in
+            assert node.core.model_id == node.learning.learner.prior.model_id  # none swapped in
         else:             # the same data, reported still: a false stillness, by design here
             assert anchor is not None
             np.testing.assert_allclose(anchor.delta, (0.0, 0.0, 0.005), atol=3e-5)
             assert s['points'] >= 1 and s['still_s'] >= 60.0
-            assert node.core.model_id != node.learner.prior.model_id   # the turn, learned
+            assert node.core.model_id != node.learning.learner.prior.model_id   # the turn, learned
     finally:
         rig.close()
 
@@ -268,32 +268,33 @@ def test_a_model_file_loaded_while_learning_becomes_the_prior(ros_context, tmp_p
         t = rig.feed(1000.0, 100.0, 20.0, b1, False, 1)
         t = rig.feed(t, 20.0, 20.0, b1, True, 2)
         rig.call(rig.save)                       # steps the learner: b1 learned, in use
-        assert node.wait_learning()
-        assert node.model_file == 'learned' and node.learner.fit is not None
+        assert node.learning.wait()
+        assert node.loading.model_file == 'learned' and node.learning.learner.fit is not None
         path = tmp_path / 'b2.yaml'
         save_model(learned_model(np.vstack([b2, np.zeros(3)]), ('dT',), 20.0, (0.0, 40.0),
                                  np.full(3, 1e-8)), path)
         result = node.set_parameters([Parameter('model_file', value=str(path))])[0]
         assert result.successful
         b2_id = node.core.model_id
-        assert node.model_file == str(path) and node.learner.prior.model_id == b2_id
-        assert node.learner.model is node.learner.prior and node.learner.fit is None
+        learner = node.learning.learner
+        assert node.loading.model_file == str(path) and learner.prior.model_id == b2_id
+        assert learner.model is learner.prior and learner.fit is None
         # The next power-up (a new session) is still at b2: the file predicts it, so the
         # check compares the candidate with the file's model (not the old learned b1).
         t = rig.feed(t + 3600.0, 100.0, 20.0, b2, False, 3)
         rig.feed(t, 20.0, 20.0, b2, True, 4)
         rig.call(rig.save)
-        assert node.wait_learning()
-        check = node.learner.check
+        assert node.learning.wait()
+        check = node.learning.learner.check
         assert check is not None and check['current_mse'] < 1e-8, check
         # ~/reload of a changed file: the new contents are the prior.
         save_model(learned_model(np.vstack([b1, np.zeros(3)]), ('dT',), 20.0, (0.0, 40.0),
                                  np.full(3, 1e-8)), path)
         reload = rig.io.create_client(Trigger, 'compensator_node/reload')
         spin_until(rig.executor, reload.service_is_ready, 10.0, what='reload service')
-        assert rig.call(reload).success and node.wait_learning()
+        assert rig.call(reload).success and node.learning.wait()
         assert node.core.model_id not in ('', b2_id)
-        assert node.learner.prior.model_id == node.core.model_id
+        assert node.learning.learner.prior.model_id == node.core.model_id
     finally:
         rig.close()
 
@@ -338,7 +339,7 @@ def test_a_learn_file_the_node_cannot_use_is_kept_and_learning_goes_beside_it(
     rig = LearnRig(ros_context, learn=True, learn_file=str(path))
     try:
         node = rig.node
-        assert node.core.model is None and node.learner.summary()['points'] == 0
+        assert node.core.model is None and node.learning.learner.summary()['points'] == 0
         t = rig.feed(1000.0, 100.0, 20.0, np.array(BIAS), False, 1, paced=True)
         rig.feed(t, 20.0, 20.0, np.array(BIAS), True, 2, paced=True)
         assert all(math.isfinite(m.angular_velocity.x) for m in rig.out)
@@ -357,8 +358,8 @@ def test_a_learn_file_the_node_cannot_use_is_kept_and_learning_goes_beside_it(
     rig = LearnRig(ros_context, learn=True, learn_file=str(path))
     try:                                  # restarted: resumes from the file beside it
         node = rig.node
-        assert node.learner.summary()['points'] == 1 and node.core.model is not None
-        assert node.learn_store.path == alt
+        assert node.learning.learner.summary()['points'] == 1 and node.core.model is not None
+        assert node.learning.learn_store.path == alt
     finally:
         rig.close()
     assert watched.read_bytes() == before
@@ -372,7 +373,8 @@ def test_a_mode_000_learn_file_is_resumed_and_written_readable(ros_context, tmp_
     os.chmod(path, 0)
     rig = LearnRig(ros_context, learn=True, learn_file=str(path))
     try:
-        assert rig.node.learner.summary()['points'] == 2 and rig.node.core.model is not None
+        learner = rig.node.learning.learner
+        assert learner.summary()['points'] == 2 and rig.node.core.model is not None
     finally:
         rig.close()
     mode = stat.S_IMODE(path.stat().st_mode)
@@ -394,7 +396,7 @@ def test_a_failing_save_is_on_diagnostics_and_logged_once_a_minute(ros_context, 
     try:
         node = rig.node
         t = rig.feed(1000.0, 120.0, 20.0, np.array(BIAS), False, 1)
-        spin_until(rig.executor, node.learning_caught_up, 10.0, what='learning')
+        spin_until(rig.executor, node.learning.caught_up, 10.0, what='learning')
         # The periodic save runs on the learner's thread a save period after the step.
         spin_until(rig.executor, path.is_file, 10.0, what='the first save')
         assert _values(node)['learn save error'] == ''
@@ -402,7 +404,7 @@ def test_a_failing_save_is_on_diagnostics_and_logged_once_a_minute(ros_context, 
         where.write_text('not a directory any more\n')
         for k in range(4):                # four windows, each stepped and saved on its own
             t = rig.feed(t, 11.0, 20.0, np.array(BIAS), False, 2 + k)
-            spin_until(rig.executor, node.learning_caught_up, 10.0, what='learning')
+            spin_until(rig.executor, node.learning.caught_up, 10.0, what='learning')
         v = _values(node)
         status = node.diagnostic_status()         # ERROR too: no model learned yet
         assert status.level >= DiagnosticStatus.WARN
@@ -414,7 +416,7 @@ def test_a_failing_save_is_on_diagnostics_and_logged_once_a_minute(ros_context, 
         where.unlink()                    # the directory is back: the next save succeeds
         (tmp_path / 'moved').rename(where)
         rig.feed(t, 11.0, 20.0, np.array(BIAS), False, 9)
-        spin_until(rig.executor, node.learning_caught_up, 10.0, what='learning')
+        spin_until(rig.executor, node.learning.caught_up, 10.0, what='learning')
         v = _values(node)
         assert v['learn save error'] == '' and 'learn_file not saved' not in \
             node.diagnostic_status().message

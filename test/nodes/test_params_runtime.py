@@ -182,9 +182,9 @@ def test_sim_time_without_clock_installs_a_slow_model_file_set(rig_factory, mode
         result = param_client(rig)('model_file', str(other))
         assert result.successful and reading.is_set()
         assert node.get_clock().now().nanoseconds == 0         # no /clock: time stands at 0
-        assert node.core.model_id == first and node.last_reload == f'loading {other}'
+        assert node.core.model_id == first and node.loading.last_reload == f'loading {other}'
     finally:
         release.set()
-    rig.spin_until(lambda: node.last_reload.startswith('loaded'), 10.0, what='installed')
+    rig.spin_until(lambda: node.loading.last_reload.startswith('loaded'), 10.0, what='installed')
     assert node.core.model_id == read_model(str(other)).model_id != first
-    assert node.model_file == str(other)
+    assert node.loading.model_file == str(other)

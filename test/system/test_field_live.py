@@ -150,7 +150,7 @@ class Live:
         if self.node is None:
             return f'no compensator; {len(self.out)} outputs received'
         counts = self.node.core.counts
-        busy = self.node.learner is not None and self.node._learn_job is not None
+        busy = self.node.learning is not None and self.node.learning.job is not None
         return (f'the compensator took {counts["in"]} IMU messages in and sent {counts["out"]}, '
                 f'{len(self.out)} outputs received; learner step running: {busy}')
 
@@ -180,11 +180,11 @@ class Live:
                     j += 1
                 self.imu_pub.publish(imu[k])
             self.spin_until(lambda: len(self.out) >= first + hi - start, 'outputs')
-            if self.node.learner is not None:
-                self.spin_until(self.node.learning_caught_up, 'learn timer')
+            if self.node.learning is not None:
+                self.spin_until(self.node.learning.caught_up, 'learn timer')
         assert len(self.out) == first + stop - start          # one out for every one in
-        if self.node.learner is not None:
-            assert self.node.learner.diagnostic_values()['learn late swaps'] == '0'
+        if self.node.learning is not None:
+            assert self.node.learning.learner.diagnostic_values()['learn late swaps'] == '0'
         return self.out[first:]
 
     def close(self):
@@ -224,7 +224,7 @@ def test_learn_on_the_vehicle_through_a_live_node_and_restart(days, ros_context,
         live.stop()
         saved = json.loads(path.read_text())
         live.start()                     # resumes learn_file: nothing lost
-        assert json.loads(json.dumps(live.node.learner.state())) == saved
+        assert json.loads(json.dumps(live.node.learning.learner.state())) == saved
         assert saved['bins'] and live.node.core.model is not None
         out2, ok2 = rates(live.stream(day2, start=half))
     finally:
@@ -253,7 +253,7 @@ def test_still_only_model_of_day1_streams_day2_through_a_live_node(days, ros_con
         Parameter('model_file', value=str(model_file)),
         Parameter('reanchor_on_start', value=True)])
     try:
-        assert live.node.core.model is not None and live.node.learner is None
+        assert live.node.core.model is not None and live.node.learning is None
         out, ok = rates(live.stream(serialised(d2, 0.0)))
         anchored = live.node.core.anchor is not None
     finally:

@@ -136,8 +136,9 @@ def test_a_malformed_message_a_1e30_reading_and_a_forged_model_in_a_2khz_stream(
     reports = rig.diag + [status]
     v = values(status)
     # It kept running, on the good model: the forged file was refused (at once, or when read).
-    assert node.core.model_id == model.model_id and node.model_file == str(good)
-    assert node.last_reload.startswith('rejected: ') and str(evil) in node.last_reload
+    assert node.core.model_id == model.model_id and node.loading.model_file == str(good)
+    last_reload = node.loading.last_reload
+    assert last_reload.startswith('rejected: ') and str(evil) in last_reload
     assert any('model file refused' in s.message for s in reports)
     # Every input came out or is counted on /diagnostics.
     counts = node.core.counts

@@ -229,10 +229,10 @@ def test_a_slow_model_file_never_stalls_compensation(models, rig_factory, via):
         n0 = len(rig.out)
         rig.spin_until(lambda: len(rig.out) >= n0 + 1000, 15.0,
                        what='1000 outputs while the file is being read')
-        assert rig.node.last_reload == f'loading {target}'
+        assert rig.node.loading.last_reload == f'loading {target}'
         assert rig.node.core.model_id == model_a.model_id
         release.set()
-        rig.spin_until(lambda: rig.node.last_reload.startswith('loaded'), what='swap')
+        rig.spin_until(lambda: rig.node.loading.last_reload.startswith('loaded'), what='swap')
         swapped_at = rig.node.core.counts['out']  # samples compensated before the swap
         n1 = len(rig.out)
         rig.spin_until(lambda: len(rig.out) >= n1 + 200, what='200 outputs after the swap')
@@ -313,9 +313,10 @@ def test_chained_compensators_are_reported(models, ros_context):
             msg.angular_velocity_covariance[8] = 1e-6
             pub.publish(msg)
         spin_until(executor, lambda: len(out) == 100, what='100 outputs of the chain')
-        spin_until(executor, lambda: second.upstream_compensators() == ('/compensator_node',),
+        upstream = second.diagnostics.upstream_compensators
+        spin_until(executor, lambda: upstream() == ('/compensator_node',),
                    what='the graph shows the first compensator upstream')
-        assert first.upstream_compensators() == ()
+        assert first.diagnostics.upstream_compensators() == ()
         # The 1 Hz timer may have reported the marked samples already: look at every report.
         reports = [s for s in diag if s.name.startswith('/second')]
         st = second.diagnostic_status()
@@ -448,11 +449,11 @@ def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path
     # Each report counts the samples missing since the one before: wait until the timer has
     # judged every sample and its report has come back (under load the last one was still
     # in flight, and the sum below came out short).
-    rig.spin_until(lambda: not node.backlog.samples and rig.diag and values(
-        rig.diag[-1])['input missing'] == str(node.backlog.missing), 10.0,
+    rig.spin_until(lambda: not node.diagnostics.backlog.samples and rig.diag and values(
+        rig.diag[-1])['input missing'] == str(node.diagnostics.backlog.missing), 10.0,
         what='the report of the last samples received')
     reports = rig.diag + [node.diagnostic_status()]
-    missing = node.backlog.missing
+    missing = node.diagnostics.backlog.missing
     assert node.core.model.centers.shape[0] == 10_000 and node.core.counts['compensated'] > 0
     assert missing < sent
     assert node.core.counts['in'] + missing == sent
@@ -583,8 +584,8 @@ def test_a_newer_request_wins_over_a_file_still_being_read(models, rig_factory):
     assert set_model_file(rig, '').successful  # newer: no model
     release.set()
     rig.spin_until(finished.is_set, what='the slow read finished')
-    spin_until_quiet(rig.executor, lambda: rig.node.last_reload, 0.3)
-    assert rig.node.core.model is None and rig.node.last_reload == 'no model'
+    spin_until_quiet(rig.executor, lambda: rig.node.loading.last_reload, 0.3)
+    assert rig.node.core.model is None and rig.node.loading.last_reload == 'no model'
 
 
 # -- malformed CDR on imu/data_raw ----------------------------------------------------------
