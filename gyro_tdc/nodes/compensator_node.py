@@ -71,9 +71,6 @@ POLICY_NAMES = frozenset(s.name for s in PARAMS if s.policy)
 LIVE_NAMES = frozenset(s.name for s in PARAMS if not s.read_only and not s.policy) - {
     'model_file'}
 
-#: The deprecated QoS parameters, aliases of the ``qos_overrides.`` ones for one release.
-DEPRECATED_QOS = ('input_reliability', 'queue_depth')
-
 
 def qos_overrides() -> QoSOverridingOptions:
     """Return the options of one entity's qos_overrides parameters: history, depth, reliability."""
@@ -144,12 +141,6 @@ class CompensatorNode(Node):
                               'in a loop; remap one of them')
         self.core = CompensatorCore(policy)
         self.inputs = InputStatus(p.input_reliability)
-        for name in DEPRECATED_QOS:
-            if getattr(p, name) != next(s.default for s in PARAMS if s.name == name):
-                self.get_logger().warning(
-                    f'{name} is deprecated (kept for one release): it seeds the defaults of '
-                    'the qos_overrides.<topic>.subscription|publisher.* parameters, which '
-                    'override it; set those instead')
         self.temperatures_ignored = 0  # readings without a stamp before the first IMU message
         self._last_imu: bytes | None = None    # the latest input, for its frame_id
         self.learning: Learning | None = None

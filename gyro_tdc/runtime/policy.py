@@ -102,10 +102,10 @@ PARAMS = (
     ParamSpec('still_accel_std', 0.0, 'Largest per-axis standard deviation of the '
               'acceleration over a still window, when the IMU has one; 0: auto, 4 x the '
               'quietest window so far [m/s^2].', 0.0, 100.0, policy=True, read_only=False),
-    ParamSpec('queue_depth', 2000, 'Deprecated (kept for one release; use qos_overrides.'
-              '<topic>.<subscription|publisher>.depth): seeds the depth of the imu/data_raw, '
-              'imu/temperature and motion_topic subscriptions and of the imu/data_compensated '
-              'publisher, which those qos_overrides parameters can still override. Read at '
+    ParamSpec('queue_depth', 2000, 'Depth of the imu/data_raw, imu/temperature and '
+              'motion_topic subscriptions and of the imu/data_compensated publisher: the '
+              'default of their qos_overrides.<topic>.<subscription|publisher>.depth '
+              'parameters, which set one entity alone. Read at '
               "start: a subscription's QoS is fixed when it is created [messages].", 1,
               1000000),
     ParamSpec('input_reliability', 'best_effort', 'QoS of the imu/data_raw subscription: '
@@ -113,9 +113,8 @@ PARAMS = (
               'when behind; DDS does not report what this queue overwrites) or reliable (keep '
               "all: a keep-last publisher's drops are reported, and a reliable keep-all "
               'publisher is held back by flow control instead of losing messages). '
-              'Deprecated (kept for one release; use qos_overrides.<imu topic>.subscription.'
-              'reliability and .history): seeds those defaults, which the qos_overrides '
-              "parameters can still override. Read at start: a subscription's QoS is fixed "
+              'The default of qos_overrides.<imu topic>.subscription.reliability and '
+              ".history, which override it. Read at start: a subscription's QoS is fixed "
               'when it is created.', choices=('best_effort', 'reliable')),
     ParamSpec('load_wait', 0.1, 'Longest time a model_file set or ~/reload waits for the new '
               'file to be read and checked before answering: the IMU path pauses at most this '
