@@ -74,6 +74,7 @@ from field_day import feed, stream  # noqa: E402
 from gyro_tdc.data import Run, split_sessions  # noqa: E402
 from gyro_tdc.data.realdata import default_pan_csv, read_pan_cubesat_csv  # noqa: E402
 from gyro_tdc.identify import estimate_t0, fit_model, fit_px4_cubic  # noqa: E402
+from gyro_tdc.identify.crossval import validate_curve  # noqa: E402
 from gyro_tdc.identify.features import features_for_fit  # noqa: E402
 from gyro_tdc.learn import Learner  # noqa: E402
 from gyro_tdc.model import compensate, DEFAULT_OUT_OF_RANGE  # noqa: E402
@@ -102,6 +103,8 @@ ANCHOR_BOUND = 0.9
 TIGHT_FRACTION = 0.03
 DAY_S = 86400.0
 GAP_S = 600.0
+#: Validate the trained curve across sessions as ``train`` does (off: ``--no-held-out``).
+HELD_OUT = True
 
 
 def _gyro(lag: float, curvature: float = 1.0) -> dict:
@@ -129,10 +132,16 @@ def _cycle(name: str, lo: float, hi: float, heating: bool, d: dict, seed: int):
 
 
 def _train_default(runs: list, labels: list):
-    """Fit as ``train`` does by default: T0 of the first run, features auto, sessions."""
+    """
+    Fit as ``train`` does by default: T0 of the first run, features auto, sessions.
+
+    Then validated across the sessions as ``train`` does (curve or offset only per axis,
+    re-anchoring recorded); ``--no-held-out`` skips that (the trainer before it).
+    """
     t0 = estimate_t0(runs[0])
     ids, params, _ = features_for_fit(runs, 'auto', t0=t0)
-    return fit_model(runs, features=ids, params=params or None, t0=t0, sessions=labels)
+    model = fit_model(runs, features=ids, params=params or None, t0=t0, sessions=labels)
+    return validate_curve(model, runs, labels)[0] if HELD_OUT else model
 
 
 def issue_case() -> dict:
@@ -337,7 +346,8 @@ def real_recording(held_bursts: int = 5) -> dict | None:
         c = compensate(m, t, rec.temp_c, rec.gyro, out_of_range=DEFAULT_OUT_OF_RANGE)
         simple += [burst_rms(c[held]), burst_rms(c[held] - c[head].mean(axis=0))]
     best = np.min(simple, axis=0)
-    res = {'best_dps': best, 'features': ','.join(ours.features)}
+    res = {'best_dps': best, 'features': ','.join(ours.features),
+           'held_out': ours.metrics.get('held_out')}
     out, _, _ = stream(ours, t, rec.gyro, None, t, rec.temp_c, Policy())
     res['ours'] = burst_rms(out[held]) / best
     out, _, _ = stream(ours, t, rec.gyro, None, t, rec.temp_c, Policy(reanchor_on_start=False))
@@ -400,7 +410,11 @@ def main(argv: list | None = None) -> int:
     ap.add_argument('--logger-rate', type=float, default=1.0,
                     help='IMU rate of the family 2 loggers, Hz (default 1)')
     ap.add_argument('--seed', type=int, default=27, help='seed of the draws (default 27)')
+    ap.add_argument('--no-held-out', action='store_true',
+                    help='train without the leave-one-session-out validation (as before it)')
     args = ap.parse_args(argv)
+    global HELD_OUT
+    HELD_OUT = not args.no_held_out
     start = time.perf_counter()
     case = issue_case()
     print('0. two power cycles over -10..30 and 15..50 degC (own turn-on offsets), a third at '
@@ -429,6 +443,10 @@ def main(argv: list | None = None) -> int:
               f'simple anchor ({" ".join(f"{v:.5f}" for v in real["best_dps"])} deg/s) x y z')
         for key in ('ours', 'ours_no_reanchor', 'ours_learn', 'raw_mean_removed', 'floor'):
             print(f'  {key:<18} ' + ' '.join(f'{v:8.3f}' for v in real[key]))
+        rec = real['held_out']
+        if rec:
+            print(f'  held out: curve kept {rec["curve"]}, re-anchored {rec["reanchor"]}, '
+                  f'smallest start-up shift {rec["reanchor_min_dps"]} deg/s')
     print(f'\n{time.perf_counter() - start:.0f} s')
     return 0
 

@@ -170,8 +170,9 @@ def training_json(result: TrainResult, warnings: Sequence[str] = ()) -> dict:
         ``model_file``, ``model_id``, ``kind``, ``features``, ``bags``, ``samples``,
         ``temp_range_c``, ``raw_bs``, ``train_bs`` (deg/s)^2 and ``train_rms_dps`` per axis,
         ``constant_axes`` (axis -> its constant reading in rad/s: not fitted, passed through
-        unchanged; empty when none), ``accelerometer`` (``fitted`` and ``note``, null with
-        ``--no-accel``) and ``warnings``.
+        unchanged; empty when none), ``held_out`` (leave-one-session-out figures and what
+        each axis keeps, ``model.metrics['held_out']``), ``accelerometer`` (``fitted`` and
+        ``note``, null with ``--no-accel``) and ``warnings``.
 
     """
     m = result.model
@@ -193,6 +194,7 @@ def training_json(result: TrainResult, warnings: Sequence[str] = ()) -> dict:
         'train_bs': vec('train_bs_dps2'),
         'train_rms_dps': vec('train_rms_dps'),
         'constant_axes': {a: _finite(v) for a, v in result.constant.items()},
+        'held_out': met.get('held_out'),
         'accelerometer': None if acc is None else {'fitted': acc.part is not None,
                                                    'note': acc.note or None},
         'warnings': list(warnings),

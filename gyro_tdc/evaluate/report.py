@@ -593,7 +593,8 @@ def format_training(result: TrainResult) -> tuple[str, list]:
     text : str
         Model summary, the constant gyro axes (one line, when there are any: not fitted,
         passed through unchanged, their compensated figures the raw ones), training BS raw
-        and compensated per axis, coverage.
+        and compensated per axis, the held-out figures across sessions and what each axis
+        keeps (curve or offset only, re-anchoring), coverage.
     warnings : list of str
         Coverage warnings, and that the thermal state's tau is not identifiable when so.
 
@@ -636,6 +637,9 @@ def format_training(result: TrainResult) -> tuple[str, list]:
         lines.append(_row3('scale (1/C)', m.scale))
     lines.append(_row3('drift/degC', drift_slope(m)) + '   (deg/s per degC: static drift, '
                  'mean slope over the range)')
+    held = getattr(result, 'held_out', None)
+    if held is not None:        # leave one session out: curve or offset only, per axis
+        lines += held.lines()
     table, warns = format_coverage(result.coverage)
     lines.append(table)
     short = range_shortfall((lo, hi))

@@ -28,6 +28,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
               'discovery_runs',
               'fit_accel', 'MG', 'PX4_FEATURES'],
     'accel_static': ['static_bs', 'static_data'],
+    'crossval': ['HeldOut', 'validate_curve'],
     'discover': ['discover'],
     'discover.model': ['build_model'],
     'discover.report': ['write_report'],

@@ -57,6 +57,9 @@ class TrainResult:
         The gyro axes whose readings never vary beyond one quantum, axis name (``'z'``) ->
         what they read in rad/s: not fitted, the model passes them through unchanged
         (``model.metrics['constant_axes']``); empty when every axis varies.
+    held_out : gyro_tdc.identify.crossval.HeldOut, optional
+        Leave-one-session-out figures and what each axis keeps (curve or offset only,
+        re-anchoring); ``model.metrics['held_out']``.
 
     """
 
@@ -70,6 +73,7 @@ class TrainResult:
     still: object | None = None
     sessions: object | None = None
     constant: dict = field(default_factory=dict)
+    held_out: object | None = None
 
     def constant_line(self) -> str:
         """Return the one report line naming the constant gyro axes ('' when none)."""

@@ -32,6 +32,7 @@ from gyro_tdc.data import (BagOptions, Coverage, coverage, load_runs, RATE_THRES
                            read_motion, Run, split_sessions, temperature_rate)
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.accel import fit_accel
+from gyro_tdc.identify.crossval import validate_curve
 from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import fit_model
 from gyro_tdc.identify.options import TrainOptions
@@ -418,6 +419,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     else:
         bad[:] = False
     model = identity_axes(model, raw_runs, const, rows)
+    model, held = validate_curve(model, runs, split.labels, options=o, rows=rows, constant=const)
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
                          float(runs[i].temp[a:b].mean()), not drop,
                          tuple(float(v) * _DEG for v in mu))
@@ -437,7 +439,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     return TrainResult(model=model, path=Path(path), coverage=report.coverage, bags=bags,
                        samples=int(sum(np.count_nonzero(m) for m in rows)), choice=choice,
                        accel=accel_fit, still=report, sessions=split,
-                       constant=constant_readings(raw_runs, const))
+                       constant=constant_readings(raw_runs, const), held_out=held)
 
 
 def _stretch_means(model: CompensationModel, runs: Sequence[Run],

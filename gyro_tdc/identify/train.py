@@ -29,6 +29,7 @@ from typing import Callable, Sequence
 from gyro_tdc.data import BagOptions, coverage, load_runs, Run, split_sessions
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.identify.accel import constant_axes_of, constant_values, fit_accel
+from gyro_tdc.identify.crossval import validate_curve
 from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import estimate_t0, fit_model
 from gyro_tdc.identify.options import TrainOptions
@@ -212,7 +213,9 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         readings never vary beyond one quantum (:func:`constant_gyro_axes`) is not fitted:
         its coefficients are zero, so the model passes it through unchanged
         (:func:`identity_axes`); ``result.constant`` and ``model.metrics['constant_axes']``
-        name it.
+        name it. Each axis keeps its thermal curve only where it predicts held-out sessions
+        better than its offset alone (:func:`gyro_tdc.identify.crossval.validate_curve`,
+        ``result.held_out``).
 
     Raises
     ------
@@ -238,6 +241,7 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                       frame_id=data_frame(runs),
                       sensor_id=str(o.sensor_id), created={'command': command, 'bags': names})
     model = identity_axes(model, runs, const)
+    model, held = validate_curve(model, fitted, split.labels, options=o, constant=const)
     accel_fit = None
     if o.accel:
         accel_fit = fit_accel(runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c)
@@ -249,4 +253,4 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     path = save_model(model, out)
     return TrainResult(model=model, path=path, coverage=cov, bags=names,
                        samples=sum(len(r) for r in runs), choice=choice, accel=accel_fit,
-                       sessions=split, constant=constant_readings(runs, const))
+                       sessions=split, constant=constant_readings(runs, const), held_out=held)

@@ -31,7 +31,8 @@ from typing import Any, Callable, Sequence
 
 from gyro_tdc.base import (MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_RATE_RAD_S, MAX_TEMP_LEAD_S,
                            RESTART_BACK_S, SESSION_GAP_S)
-from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensator, variance_growth
+from gyro_tdc.model import (CompensationModel, gated_shift, STATIC_EFFECTS,
+                            StreamingCompensator, variance_growth)
 from gyro_tdc.runtime.flags import (FLAG_NAMES, IMPLAUSIBLE_INPUT, IMPLAUSIBLE_OUTPUT,
                                     NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
                                     OUT_OF_RANGE, PASSTHROUGH, STALE, UPSTREAM)
@@ -981,7 +982,8 @@ class CompensatorCore:
             den = np.asarray((e.dx, e.dy, e.dz))
         else:
             den = 1.0 + slot.comp.dt_c * slot.scale
-        delta = np.asarray(found.delta) * den
+        # The axes the model's held-out record does not re-anchor (gyro_tdc.model.no_harm).
+        delta = gated_shift(slot.model, np.asarray(found.delta) * den)
         slot.comp.shift_offset(delta)
         slot.cache.clear()
         if slot.accel is not None:
