@@ -37,7 +37,7 @@ from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, l
 from gyro_tdc.learn.store import (decode_state, encode_state, FORMAT, read_state, RECENT_ROWS,
                                   write_state)
 from gyro_tdc.learn.temperature import hold_readings, same_thermal, stream_state
-from gyro_tdc.model import CompensationModel, ThermalState
+from gyro_tdc.model import CompensationModel, learned_coef, ThermalState
 from gyro_tdc.signal import (BURST_FACTOR, BURST_MAX_S, BURST_PAUSES, GAP_PERIODS, MIN_STILL_S,
                              SessionRule, STILL_WINDOW_S, StillWindows, Window)
 import numpy as np
@@ -699,6 +699,7 @@ class Learner:
         floor = self._floor()
         if since is None:
             since = t_now - self.config.offset_s
+        fit['coef'] = learned_coef(fit['coef'], self.prior)    # the prior's offset-only axes
         try:
             cand = model_of(fit, self.thermal)
             offset = recent_offset(fit, rows, since) if self.config.offset_s > 0 else None

@@ -158,6 +158,24 @@ def test_growth_bias_then_dt_then_dt2():
     assert learner.fit['features'] == ['dT', 'dT2']
 
 
+def test_the_priors_offset_only_axes_stay_offset_only():
+    """What train found to do harm across power cycles (y's curve) the learner never installs."""
+    prior = learned_model(np.zeros((2, 3)), ('dT',), 20.2, (0.0, 40.0), np.full(3, 1e-6))
+    prior = prior.replace(metrics={'held_out': {'curve': [True, False, True]}})
+    learner = Learner(LearnConfig(temperature_timeout=1e9), prior=prior)
+    t = 0.0
+    for i, temp in enumerate((20.2, 21.7, 23.4, 25.0)):
+        t = _still(learner, t, 120.0, [0.01 + 1e-3 * (temp - 20.2), 1e-3 * (temp - 20.2),
+                                       0.005], temp, seed=i + 1)
+    assert learner.fit['features'] == ['dT']
+    assert learner.fit['coef'][1][0] == pytest.approx(1e-3, rel=0.05)
+    m = learner.model
+    assert m.linear[0, 1] == 0.0 and m.linear[0, 0] == pytest.approx(1e-3, rel=0.05)
+    # y compensates a constant: the offset of the newest still time (its last stretches).
+    recent = np.mean([1e-3 * (temp - 20.2) for temp in (21.7, 23.4, 25.0)])
+    assert m.intercept[1] == pytest.approx(recent, abs=3e-4)
+
+
 def test_a_better_prior_is_kept_and_an_outlier_is_dropped():
     truth = learned_model(np.array([[0.01, 0.0, 0.0], [1e-3, 0.0, 0.0]]), ('dT',), 20.0,
                           (0.0, 40.0), np.zeros(3))
