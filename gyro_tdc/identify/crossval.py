@@ -40,10 +40,10 @@ from gyro_tdc.signal import STILL_WINDOW_S
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['BLOCK_S', 'HeldOut', 'MAX_ANCHORS', 'validate_curve']
+__all__ = ['BLOCK_S', 'block_length', 'HeldOut', 'MAX_ANCHORS', 'validate_curve']
 
-#: Errors are judged on means over blocks of this long (within a still stretch or a burst):
-#: the drift, not the white noise.
+#: Errors are judged on means over blocks of this long (within a still stretch or a burst;
+#: an eighth of a shorter session): the drift, not the white noise.
 BLOCK_S = 60.0
 #: Start-up anchors tried within one session at most (the anchor error of one session).
 MAX_ANCHORS = 200
@@ -93,6 +93,7 @@ class HeldOut:
     anchor_error_dps: tuple = _NAN3
     reanchor_min_dps: tuple = (0.0, 0.0, 0.0)
     constant: tuple = field(default=(False, False, False))
+    wins: tuple = (0, 0, 0)
 
     @property
     def validated(self) -> bool:
@@ -108,6 +109,7 @@ class HeldOut:
                 'validated': self.validated, 'block_s': BLOCK_S,
                 'curve_ms_dps2': vec(self.curve_ms), 'offset_ms_dps2': vec(self.offset_ms),
                 'curve': [bool(v) for v in self.curve],
+                'curve_wins': [int(v) for v in self.wins],
                 'reanchored_ms_dps2': vec(self.reanchored_ms), 'kept_ms_dps2': vec(self.kept_ms),
                 'reanchor': [bool(v) for v in self.reanchor],
                 'anchor_error_dps': vec(self.anchor_error_dps),
@@ -122,8 +124,9 @@ class HeldOut:
         live = [a for a, c in zip(_AXES, self.constant) if not c]
         if not self.validated:
             out = [f'thermal curve NOT validated across power cycles: {self.sessions} '
-                   f'session(s), {self.held_out} held out (leave-one-session-out needs two); '
-                   f'the curve is kept on every axis ({", ".join(live)})']
+                   f'session(s), {self.held_out} held out (a session is held out where the '
+                   "others' temperature range overlaps it; two are needed); the curve is kept "
+                   f'on every axis ({", ".join(live)})']
             if any(v > 0 for v in self.reanchor_min_dps):
                 err = ' '.join(f'{v:.3g}' for v in self.anchor_error_dps)
                 least = ' '.join(f'{v:.3g}' for v in self.reanchor_min_dps)
@@ -134,30 +137,38 @@ class HeldOut:
             return out
         out = [f'held out across power cycles: each of {self.held_out} sessions predicted by '
                'the model fitted on the others, within their temperature range; RMS of '
-               f'{BLOCK_S:g} s means, deg/s:',
+               f'means over blocks of up to {BLOCK_S:g} s, deg/s:',
                f'  {"":<13}' + ''.join(f'{a:>12}' for a in _AXES),
                row('curve', self.curve_ms), row('offset only', self.offset_ms),
                row('re-anchored', self.reanchored_ms), row('not', self.kept_ms)]
-        for a, c, keep, re in zip(_AXES, self.constant, self.curve, self.reanchor):
+        for a, c, keep, re, won in zip(_AXES, self.constant, self.curve, self.reanchor,
+                                       self.wins):
             if c:
                 continue
             what = ('curve kept (it predicts held-out power cycles better than its offset '
-                    'alone)' if keep else 'OFFSET ONLY: its curve does not predict held-out '
-                    'power cycles better than a constant, so its curve terms are zeroed')
+                    'alone' if keep else 'OFFSET ONLY: its curve does not predict held-out '
+                    'power cycles better than a constant, so its curve terms are zeroed (')
+            what += f'better in {won} of {self.held_out} sessions)'
             how = ('re-anchored at start-up' if re else 'NOT re-anchored (re-anchoring did '
                    "worse held out than the model's offset)")
             out.append(f'axis {a}: {what}; {how}')
         return out
 
 
-def _block_ss(t: NDArray[np.float64], e: NDArray[np.float64]
+def block_length(t: NDArray[np.float64]) -> float:
+    """Return the block of a held-out session: :data:`BLOCK_S`, or an eighth of a short one."""
+    span = float(t[-1] - t[0]) if t.size else 0.0
+    return min(BLOCK_S, max(span / 8.0, 1e-9))
+
+
+def _block_ss(t: NDArray[np.float64], e: NDArray[np.float64], block: float
               ) -> tuple[NDArray[np.float64], float]:
     """Return the sample-weighted sum of squared block means of ``e`` and its weight."""
     if t.size == 0:
         return np.zeros(3), 0.0
     seg = np.r_[0, np.cumsum(np.diff(t) > STILL_WINDOW_S)]
     first = np.r_[0, np.flatnonzero(np.diff(seg)) + 1]
-    blk = np.floor((t - t[first][seg]) / BLOCK_S).astype(np.int64)
+    blk = np.floor((t - t[first][seg]) / block).astype(np.int64)
     key = seg * (int(blk.max()) + 1) + blk
     _, inv, cnt = np.unique(key, return_inverse=True, return_counts=True)
     inv = inv.reshape(-1)
@@ -250,11 +261,13 @@ def validate_curve(model: CompensationModel, runs: Sequence[Run], labels: Sequen
 
     Each session is held out in turn: the model's form is refitted on the others (features,
     thermal state and T0 of ``model``, one offset per session) and predicts it within the
-    others' temperature range. The curve is judged against the offset alone with the held-out session's own mean removed (its
-    offset re-estimated as its mean: what is left is the drift within the power cycle);
-    re-anchoring (the node's rule from the session's first sample) against the model's
-    offset. With one session nothing is validated: the curve is kept, and the anchors taken
-    throughout the session give the smallest shift the node takes.
+    others' temperature range. The curve is judged against the offset alone with the
+    held-out session's own mean removed (its offset re-estimated as its mean: what is left
+    is the drift within the power cycle), pooled and session by session
+    (:func:`gyro_tdc.model.no_harm.curve_kept`); re-anchoring (the node's rule from the
+    session's first sample) against the model's offset. With one session nothing is
+    validated: the curve is kept, and the anchors taken throughout the session give the
+    smallest shift the node takes.
 
     Parameters
     ----------
@@ -296,6 +309,7 @@ def validate_curve(model: CompensationModel, runs: Sequence[Run], labels: Sequen
         return _record(model, held, levels, labels), held
     ss = {k: np.zeros(3) for k in ('curve', 'offset', 're_c', 'kept_c', 're_o', 'kept_o')}
     weight = 0.0
+    per: list = []
     for g in groups:
         train = [i for i, v in enumerate(labels) if v != g]
         test = [i for i, v in enumerate(labels) if v == g]
@@ -314,19 +328,26 @@ def validate_curve(model: CompensationModel, runs: Sequence[Run], labels: Sequen
         shift_c, shift_o = _shift(t0, c0, m.residual_var), _shift(t0, r0 - level, var_o)
         mean_c = np.concatenate([c for _, c, _ in pieces]).mean(axis=0)
         mean_r = np.concatenate([r for _, _, r in pieces]).mean(axis=0)
+        block = max(block_length(t) for t, _, _ in pieces)
+        mine = {k: np.zeros(3) for k in ss}
         for t, c, r in pieces:
             for key, e in (('curve', c - mean_c), ('offset', r - mean_r),
                            ('re_c', c - shift_c), ('kept_c', c),
                            ('re_o', r - level - shift_o), ('kept_o', r - level)):
-                s, n = _block_ss(t, e)
-                ss[key] += s
+                s, n = _block_ss(t, e, block)
+                mine[key] += s
             weight += n           # the same blocks for every key
+        for key in ss:
+            ss[key] += mine[key]
+        per.append((mine['curve'], mine['offset']))
         held.held_out += 1
     if held.held_out:
         ms = {k: v / max(weight, 1.0) * _DEG ** 2 for k, v in ss.items()}
-        keep = curve_kept(ms['curve'], ms['offset']) | const
+        held.wins = tuple(int(v) for v in np.sum([c < o for c, o in per], axis=0))
         held.curve_ms = tuple(float(v) for v in ms['curve'])
         held.offset_ms = tuple(float(v) for v in ms['offset'])
+    if held.validated:          # one session held out decides nothing
+        keep = curve_kept(ms['curve'], ms['offset'], per) | const
         held.curve = tuple(bool(v) for v in keep)
         re = np.where(keep, ms['re_c'], ms['re_o'])
         kept = np.where(keep, ms['kept_c'], ms['kept_o'])

@@ -34,37 +34,56 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['CURVE_MARGIN', 'curve_kept', 'gated_shift', 'HELD_OUT_KEY', 'learned_coef',
-           'offset_only', 'REANCHOR_SIGNIFICANCE', 'reanchor_rule']
+           'offset_only', 'REANCHOR_SIGNIFICANCE', 'reanchor_rule', 'LOSS_SHARE']
 
 #: The model's ``metrics`` key of the held-out figures and decisions.
 HELD_OUT_KEY = 'held_out'
 #: A curve is kept on an axis when its held-out mean square is below this times the offset's.
 CURVE_MARGIN = 1.0
+#: A held-out session where the curve's mean square exceeds the offset's by more than this
+#: share of the sessions' median offset figure is a loss (a tie within it is none).
+LOSS_SHARE = 0.1
 #: With one session, a start-up shift is taken on an axis only beyond this many times the
 #: anchor error seen within the training session (a smaller one is that session's wander).
 REANCHOR_SIGNIFICANCE = 2.0
 
 
 def curve_kept(curve_ms: Sequence[float], offset_ms: Sequence[float],
-               margin: float = CURVE_MARGIN) -> NDArray[np.bool_]:
+               sessions: Sequence | None = None, margin: float = CURVE_MARGIN
+               ) -> NDArray[np.bool_]:
     """
     Return, per axis, whether the curve predicted held-out power cycles better than its offset.
+
+    Pooled over the held-out sessions the curve must do better than the offset alone, and
+    it must lose in no session (worse than the offset by more than :data:`LOSS_SHARE` of the
+    sessions' median offset figure): a curve that beats the offset in some power cycles and
+    loses in others does not carry; it fits the cycles it was fitted on.
 
     Parameters
     ----------
     curve_ms, offset_ms : sequence of 3 float
         Held-out mean squares with the curve and with the offset alone (any one unit).
+    sessions : sequence of (curve_ms, offset_ms) pairs, optional
+        The same per held-out session, shape (S, 2, 3).
     margin : float
-        The curve is kept where ``curve_ms < margin * offset_ms``.
+        The pooled test is ``curve_ms < margin * offset_ms``.
 
     Returns
     -------
     NDArray[np.bool_], shape (3,)
+        A NaN figure, or no drift within the held-out sessions (``offset_ms`` 0), judges
+        nothing: the curve is kept.
 
     """
     c = np.asarray(curve_ms, dtype=np.float64).reshape(3)
     o = np.asarray(offset_ms, dtype=np.float64).reshape(3)
-    return ~(c >= margin * o)             # a NaN figure (nothing held out) keeps the curve
+    judged = o > 0
+    keep = ~((c >= margin * o) & judged)
+    if sessions is not None and len(sessions):
+        per = np.asarray(sessions, dtype=np.float64).reshape(-1, 2, 3)
+        lost = per[:, 0] - per[:, 1] > LOSS_SHARE * np.median(per[:, 1], axis=0)
+        keep &= ~(lost.any(axis=0) & judged)
+    return keep
 
 
 def offset_only(model: CompensationModel, axes: Sequence[bool], *,

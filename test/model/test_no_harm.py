@@ -39,6 +39,12 @@ def test_curve_kept_only_where_it_beats_the_offset():
                                   [True, False, True])
     np.testing.assert_array_equal(curve_kept([1.0, 1.9, 3.0], [2.0, 2.0, 2.0], margin=0.9),
                                   [True, False, False])
+    # Better pooled, but it loses one session by far: it does not carry (x); a tie within
+    # a tenth of the median session is no loss (y); no drift to judge keeps it (z).
+    per = [([0.1, 1.0, 0.0], [1.0, 1.0, 0.0]), ([0.1, 1.05, 0.0], [1.0, 1.0, 0.0]),
+           ([1.0, 0.5, 0.0], [0.2, 1.0, 0.0])]
+    np.testing.assert_array_equal(curve_kept([0.4, 0.85, 0.0], [0.73, 1.0, 0.0], per),
+                                  [False, True, True])
 
 
 def test_offset_only_compensates_a_constant_on_those_axes():
