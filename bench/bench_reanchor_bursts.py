@@ -63,6 +63,7 @@ from gyro_tdc.identify import fit_model  # noqa: E402
 from gyro_tdc.model import compensate  # noqa: E402
 from gyro_tdc.runtime import Policy  # noqa: E402
 import gyro_tdc.runtime.core as core_mod  # noqa: E402
+import gyro_tdc.runtime.state as state_mod  # noqa: E402
 import numpy as np  # noqa: E402
 
 DEG = math.pi / 180.0
@@ -165,13 +166,13 @@ def case(d: dict, detector_cls=None) -> dict:
                                                             + rng.uniform(0, 6.3))
     model = model_for(d)
     out_clean = compensate(model, t, tq, clean)
-    saved = core_mod.StillnessDetector
+    saved = state_mod.StillnessDetector     # the core's detector is built in runtime.state
     if detector_cls is not None:
-        core_mod.StillnessDetector = detector_cls
+        state_mod.StillnessDetector = detector_cls
     try:
         core = core_mod.CompensatorCore(Policy(), model)
     finally:
-        core_mod.StillnessDetector = saved
+        state_mod.StillnessDetector = saved
     add_t, proc = core.add_temperature, core.process
     tl, tql, rl = t.tolist(), tq.tolist(), raw.tolist()
     anchors, covered, prev = [], np.zeros(n, dtype=bool), None

@@ -19,7 +19,8 @@ A node is a module of :mod:`gyro_tdc.nodes` with a ``main`` and a ``PARAMS`` tab
 :class:`gyro_tdc.base.paramspec.ParamSpec` rows. Its section gives the module docstring, the
 topics and services its node class creates (read from the ``create_publisher``,
 ``create_subscription`` and ``create_service`` calls of the class and its mixins, with the
-condition each call is made under) and the parameter table (name, type, default, unit,
+condition each call is made under; a type ``x.<name>_cls`` is a class loaded by the
+``<name>_type`` parameter) and the parameter table (name, type, default, unit,
 range or choices, whether it can be set at run time, meaning).
 """
 
@@ -114,6 +115,9 @@ class _Resolver:
             return self.types(self.assigned[expr.id])
         if isinstance(expr, ast.Name) and expr.id in self.namespace:
             return literal(ros_type(self.namespace[expr.id]))
+        if isinstance(expr, ast.Attribute) and expr.attr.endswith('_cls'):
+            # A class loaded at run time by name: ``reader.imu_cls`` from ``imu_type``.
+            return f'any installed type (by {literal(expr.attr[:-4] + "_type")})'
         if (isinstance(expr, ast.Subscript) and isinstance(expr.value, ast.Name)
                 and isinstance(self.namespace.get(expr.value.id), dict)):
             table = self.namespace[expr.value.id]

@@ -15,8 +15,8 @@
 """
 The base every package stands on.
 
-Atomic writes, bounded YAML, plain types, limits, shipped resources, parameter specs and
-the latest-job worker.
+Atomic writes, bounded YAML, plain types, limits, shipped resources, parameter specs, the
+one field checker and the latest-job worker.
 """
 
 from gyro_tdc.base.face import lazy
@@ -24,13 +24,15 @@ from gyro_tdc.base.face import lazy
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'atomicio': ['atomic_dir', 'atomic_write', 'clean_leftovers'],
     'face': ['lazy'],
+    'fields': ['FieldChecker', 'is_number', 'shown'],
     'limits': ['check_bin_width', 'check_centers', 'check_sim_samples',
                'MAX_ACCEL_DRIFT_MPS2', 'MAX_CENTERS', 'MAX_DRIFT_RAD_S', 'MAX_RATE_RAD_S',
                'MAX_TEMP_LEAD_S', 'MAX_TEMP_RATE_C_S', 'MAX_TEMP_SLEW_C_S', 'RESTART_BACK_S',
                'SESSION_GAP_PERIODS', 'SESSION_GAP_S', 'TEMP_PLAUSIBLE_C', 'TEMP_SLEW_MARGIN_C'],
     'plain': ['plain'],
     'plausible': ['plausible_temperatures', 'temperature_ok', 'TemperatureGate'],
-    'paramspec': ['format_help', 'help_requested', 'ParamSpec', 'spec_dataclass'],
+    'paramspec': ['format_help', 'help_requested', 'INPUT_FRAMES', 'ParamSpec', 'spec_dataclass',
+                  'TEMPERATURE_QUIRKS'],
     'resources': ['config_dir', 'model_path', 'scenario_names', 'scenario_path'],
     'worker': ['Job', 'LatestJob'],
     'yamlio': ['BAG_METADATA_LIMITS', 'load_yaml', 'read_yaml', 'SCENARIO_LIMITS', 'YamlLimits'],

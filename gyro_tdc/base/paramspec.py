@@ -28,10 +28,20 @@ import re
 import textwrap
 from typing import Any, Callable, Mapping, Sequence
 
-__all__ = ['ParamSpec', 'format_help', 'help_requested', 'spec_dataclass']
+__all__ = ['format_help', 'help_requested', 'INPUT_FRAMES', 'ParamSpec', 'spec_dataclass',
+           'TEMPERATURE_QUIRKS']
 
 #: Width of the ``--help`` text [columns].
 HELP_WIDTH = 79
+
+#: Axes of a driver's gyro (``input_frame``, ``--input-frame``): REP 103's FLU (x forward,
+#: y left, z up) or PX4's FRD (z down), turned to FLU. Here because the compensator's table
+#: (runtime) and the bag reader (data) both offer them.
+INPUT_FRAMES = ('flu', 'frd')
+#: Temperature encodings of drivers, undone before use (``temperature_quirk``; '' none):
+#: the BNO055's register read as an unsigned byte (flynneva/bno055: below 0 degC it reads
+#: 256 + T) and the SBG legacy IMU log's temperature divided by 256 (sbg_ros2_driver).
+TEMPERATURE_QUIRKS = ('', 'bno055_unsigned_byte', 'sbg_legacy_div256')
 
 
 @dataclass(frozen=True)

@@ -41,8 +41,8 @@ if TYPE_CHECKING:
     from gyro_tdc.model import CompensationModel
 
 __all__ = [
-    'ArgumentParser', 'UsageError', 'add_bag_options', 'add_session_options', 'bag_options',
-    'command_line',
+    'ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_options',
+    'add_session_options', 'bag_options', 'command_line', 'driver_bags',
     'effect_listing', 'finite_float', 'non_negative_float', 'non_negative_int', 'parse_reference',
     'positive_float',
     'positive_int', 'probability', 'read_model', 'run_command',
@@ -379,3 +379,89 @@ def _error(command: str, message: object) -> None:
     """Print ``gyro-tdc COMMAND: error: MESSAGE`` on one stderr line."""
     sys.stdout.flush()
     print(f'{PROG} {command}: error: {one_line(message)}', file=sys.stderr, flush=True)
+
+
+# --------------------------------------------------------------------------------------------
+# Bags recorded from drivers as they publish (train, evaluate): the node's input parameters
+# --------------------------------------------------------------------------------------------
+
+def add_driver_options(parser: argparse.ArgumentParser) -> None:
+    """
+    Add the options naming a driver's message types and fields, as the node's parameters.
+
+    ``--imu-type``, ``--angular-velocity-field``, ``--stamp-field``, ``--input-frame``,
+    ``--temperature-type``, ``--temperature-field``, ``--temperature-stamp-field`` and
+    ``--temperature-quirk`` (:class:`gyro_tdc.data.DriverInputs`).
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The command's parser.
+
+    """
+    from gyro_tdc.base import INPUT_FRAMES, TEMPERATURE_QUIRKS
+    g = parser.add_argument_group("driver message types (as compensator_node's parameters)")
+    g.add_argument('--imu-type', default='sensor_msgs/msg/Imu', metavar='PKG/msg/TYPE',
+                   help='type of the IMU topic, e.g. geometry_msgs/msg/Vector3Stamped or '
+                        'px4_msgs/msg/SensorGyro (default: %(default)s)')
+    g.add_argument('--angular-velocity-field', default='angular_velocity', metavar='PATH',
+                   help="dotted path to its x/y/z rate in rad/s, e.g. vector; '' the message "
+                        'itself (default: %(default)s)')
+    g.add_argument('--stamp-field', default='header.stamp', metavar='PATH',
+                   help='dotted path to its stamp: a builtin_interfaces/Time or an integer in '
+                        'microseconds, e.g. timestamp (default: %(default)s)')
+    g.add_argument('--input-frame', default='flu', choices=INPUT_FRAMES,
+                   help='axes of that rate: flu, or frd (PX4) turned to FLU (default: '
+                        '%(default)s)')
+    g.add_argument('--temperature-type', default='', metavar='PKG/msg/TYPE',
+                   help='type of the temperature topic, checked against the bag (default: '
+                        'as the bag says)')
+    g.add_argument('--temperature-field', default='', metavar='PATH',
+                   help='dotted path to its degC number, e.g. mean_temp (default: '
+                        'temperature, or data for std_msgs Float32/Float64)')
+    g.add_argument('--temperature-stamp-field', default='', metavar='PATH',
+                   help='dotted path to its stamp, e.g. header.header.stamp (default: '
+                        'header.stamp where it has one, else the latest IMU stamp)')
+    g.add_argument('--temperature-quirk', default='', choices=TEMPERATURE_QUIRKS,
+                   help="undo a driver's temperature encoding: bno055_unsigned_byte or "
+                        'sbg_legacy_div256 (default: none)')
+
+
+def driver_bags(args: argparse.Namespace, paths: Sequence[str]) -> list:
+    """
+    Return the bags to read: as given, or rewritten as Imu + Temperature by field.
+
+    With every :func:`add_driver_options` option at its default the paths come back
+    unchanged; otherwise each bag is read by field (:func:`gyro_tdc.data.normalize_bag`)
+    into a temporary directory that lives as long as ``args`` (each bag keeps its name).
+
+    Raises
+    ------
+    GyroTdcError
+        A bad option (one line naming it), a flight log among the paths, or a bag that
+        cannot be read.
+
+    """
+    import tempfile
+    from gyro_tdc.data import DriverInputs, expand_bags, is_flight_log, normalize_bag
+    inputs = DriverInputs(
+        imu_type=args.imu_type, angular_velocity_field=args.angular_velocity_field,
+        stamp_field=args.stamp_field, input_frame=args.input_frame,
+        temperature_type=args.temperature_type, temperature_field=args.temperature_field,
+        temperature_stamp_field=args.temperature_stamp_field,
+        temperature_quirk=args.temperature_quirk)
+    if inputs.plain:
+        return list(paths)
+    tmp = getattr(args, 'driver_bags_dir', None)
+    if tmp is None:
+        tmp = args.driver_bags_dir = tempfile.TemporaryDirectory(prefix='gyro_tdc_driver_')
+    out = []
+    for k, bag in enumerate(expand_bags(paths)):
+        if is_flight_log(bag):
+            raise UsageError(f'--imu-type and the other driver options read rosbag2 bags, '
+                             f'not the flight log {str(bag)!r}')
+        dest = os.path.join(tmp.name, f'{k:03d}', bag.name)
+        os.makedirs(os.path.dirname(dest))
+        out.append(str(normalize_bag(bag, inputs, imu_topic=args.imu_topic,
+                                     temperature_topic=args.temperature_topic, out=dest)))
+    return out

@@ -28,9 +28,9 @@ import math
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser,
-                                 bag_options, non_negative_float, read_model, run_command,
-                                 UsageError)
+from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
+                                 ArgumentParser, bag_options, driver_bags, non_negative_float,
+                                 read_model, run_command, UsageError)
 from gyro_tdc.data import expand_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
                                load_models, model_description, PX4, write_csv, write_json,
@@ -88,6 +88,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help='write a CSV per bag here: time, temperature, raw, reference and '
                         'compensated rates (rad/s)')
     add_bag_options(p)
+    add_driver_options(p)
     add_session_options(p)
     return p
 
@@ -131,6 +132,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     baseline = (specs.index(args.baseline) if args.baseline is not None
                 else (0 if len(specs) == 2 else None))
     bag = bag_options(args)
+    args.bags = driver_bags(args, args.bags)       # a driver's own types, read by field
+    args.train = driver_bags(args, args.train) if args.train else args.train
     auto = args.reanchor == AUTO_REANCHOR
     options = ('re-anchored: mean error removed over the head of each session until known to '
                "the compensator's tolerance" if auto else

@@ -30,9 +30,10 @@ import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.base import atomic_write
-from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser,
-                                 bag_options, command_line, effect_listing, finite_float,
-                                 positive_float, positive_int, run_command)
+from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
+                                 ArgumentParser, bag_options, command_line, driver_bags,
+                                 effect_listing, finite_float, positive_float, positive_int,
+                                 run_command)
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.evaluate import format_coverage, format_sessions, format_training
 from gyro_tdc.identify import AUTO, train, train_still_only, TrainOptions, TrainResult
@@ -114,6 +115,7 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
                         "accelerometer offset's change with temperature on still data when "
                         'the bags have accelerometer data)')
     add_bag_options(p)
+    add_driver_options(p)
     add_session_options(p)
 
 
@@ -208,6 +210,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     if args.motion_topic and not args.still_only:
         raise GyroTdcError('--motion-topic: only with --still-only.')
     bag = bag_options(args, motion_topic=args.motion_topic)
+    args.bags = driver_bags(args, args.bags)       # a driver's own types, read by field
     fit = train_still_only if args.still_only else train     # still: no reference is read
     result = fit(args.bags, args.out, options, bag, command=command_line('train', argv),
                  log=lambda line: print(line, flush=True))

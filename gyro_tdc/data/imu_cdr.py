@@ -27,7 +27,7 @@ import functools
 import struct
 from typing import Sequence
 
-from gyro_tdc.data.mark import cov_marked, MARK
+from gyro_tdc.data.mark import cov_marked, MARK, UNKNOWN_MARK
 from gyro_tdc.errors import DatasetError
 import numpy as np
 from numpy.typing import ArrayLike
@@ -371,7 +371,7 @@ class ImuView:
         var : tuple of 3 float, (rad/s)^2
             Added to the covariance diagonal unless its first element is -1 (REP 145: no
             data) or the covariance is all zero (unknown) and ``base_variance`` is not > 0:
-            unknown stays unknown, unmarked.
+            unknown stays unknown (with ``mark``, its diagonal zeros made -0.0).
         mark : bool
             Also write :mod:`gyro_tdc.data.mark`'s mark into the diagonal (when all three
             entries are positive and finite).
@@ -408,6 +408,8 @@ class ImuView:
                 _U16_INTO(buf, c, _MARK16)   # (3x faster than bytearray slice assignment)
                 _U16_INTO(buf, c + 32, _MARK16)
                 _U16_INTO(buf, c + 64, _MARK16)
+        elif mark and b is None:             # unknown stays unknown: -0.0 diagonal marks it
+            buf[c:c + 8] = buf[c + 32:c + 40] = buf[c + 64:c + 72] = UNKNOWN_MARK
         if accel is not None:
             _VEC3.pack_into(buf, base + LINEAR_ACCELERATION, *accel)
         if accel_var is not None:

@@ -17,19 +17,25 @@ The gyro_tdc compensation mark: how a compensated Imu says that a model was appl
 
 Pure (struct only). The mark lives in the lowest mantissa bits of the three diagonal
 entries of ``angular_velocity_covariance`` (a relative change under 1.5e-11), so a chained or
-looped compensator can warn instead of removing the drift twice.
+looped compensator can warn instead of removing the drift twice. An all-zero covariance
+(REP 145: unknown) is marked by the sign of its three diagonal zeros (``-0.0 == 0.0``: still
+all zero to every reader), so no covariance is invented.
 See ``doc/internals/data.md``.
 """
 
 from __future__ import annotations
 
+import math
 import struct
 from typing import MutableSequence, Sequence
 
-__all__ = ['MARK', 'cov_marked', 'diagonal_marked', 'is_marked', 'mark', 'mark_diagonal']
+__all__ = ['MARK', 'cov_marked', 'diagonal_marked', 'is_marked', 'mark', 'mark_diagonal',
+           'mark_unknown', 'UNKNOWN_MARK']
 
 #: The two low-order bytes (little-endian float64) written into each marked variance.
 MARK = b'TG'
+#: The little-endian float64 -0.0: each diagonal entry of a marked unknown covariance.
+UNKNOWN_MARK = struct.pack('<d', -0.0)
 _F64 = struct.Struct('<d')
 
 
@@ -60,8 +66,11 @@ def is_marked(value: float) -> bool:
 
 def cov_marked(data: bytes, offset: int) -> bool:
     """Return whether the serialized covariance at ``offset`` carries the mark on its diagonal."""
-    return (data[offset:offset + 2] == MARK and data[offset + 32:offset + 34] == MARK
-            and data[offset + 64:offset + 66] == MARK)
+    if data[offset:offset + 2] == MARK:
+        return data[offset + 32:offset + 34] == MARK and data[offset + 64:offset + 66] == MARK
+    return (data[offset:offset + 8] == UNKNOWN_MARK
+            and data[offset + 32:offset + 40] == UNKNOWN_MARK
+            and data[offset + 64:offset + 72] == UNKNOWN_MARK)
 
 
 def mark_diagonal(cov: MutableSequence[float]) -> None:
@@ -70,6 +79,24 @@ def mark_diagonal(cov: MutableSequence[float]) -> None:
         cov[0], cov[4], cov[8] = mark(cov[0]), mark(cov[4]), mark(cov[8])
 
 
+def mark_unknown(cov: MutableSequence[float]) -> None:
+    """
+    Mark an all-zero (REP 145: unknown) row-major 3x3 covariance in place: -0.0 diagonal.
+
+    Every entry still equals 0.0, so the covariance stays unknown to every reader; only the
+    sign bits say that a compensator applied a model. Anything else is left unchanged.
+    """
+    if not any(cov):
+        cov[0] = cov[4] = cov[8] = -0.0
+
+
+def _negative_zero(value: float) -> bool:
+    return bool(value == 0.0) and math.copysign(1.0, value) < 0.0
+
+
 def diagonal_marked(cov: Sequence[float]) -> bool:
-    """Return whether entries 0, 4 and 8 of a row-major 3x3 covariance carry the mark."""
-    return is_marked(cov[0]) and is_marked(cov[4]) and is_marked(cov[8])
+    """Return whether entries 0, 4 and 8 of a row-major 3x3 covariance carry a mark."""
+    if is_marked(cov[0]):
+        return is_marked(cov[4]) and is_marked(cov[8])
+    return (_negative_zero(cov[0]) and _negative_zero(cov[4]) and _negative_zero(cov[8])
+            and not any(cov[i] for i in (1, 2, 3, 5, 6, 7)))

@@ -27,8 +27,9 @@ from pathlib import Path
 
 from gyro_tdc.base import model_path
 from gyro_tdc.errors import ModelFileError
+from gyro_tdc.learn.codec import decode_state, FORMAT
 from gyro_tdc.learn.fit import model_of
-from gyro_tdc.learn.store import decode_state, FORMAT, LearnFile
+from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, load_model
 
 __all__ = ['is_learn_file', 'model_from_file', 'read_model']

@@ -24,22 +24,24 @@ doc/internals/signal.md for the still test and the learner's use of it.
 from __future__ import annotations
 
 from array import array
-from dataclasses import dataclass, field
 import math
 from pathlib import Path
 from typing import Any, Sequence
 
-from gyro_tdc.base import RESTART_BACK_S, SESSION_GAP_S
+from gyro_tdc.base import RESTART_BACK_S
 from gyro_tdc.errors import ModelFileError
+from gyro_tdc.learn.check import compare, offset_until
+from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT, RECENT_ROWS
 from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, learned_model,
-                                MAX_DROPS, model_of, OUTLIER_K, predict_windows,
-                                recent_offset, SPAN_DT2_C, SPAN_DT3_C, SPAN_DT_C, window_error)
-from gyro_tdc.learn.store import (decode_state, encode_state, FORMAT, read_state, RECENT_ROWS,
-                                  write_state)
+                                MAX_DROPS, model_of, OUTLIER_K, recent_offset, SPAN_DT2_C,
+                                SPAN_DT3_C, SPAN_DT_C)
+from gyro_tdc.learn.records import (diagnostic_values, Entry, LearnConfig, OpenStretch,
+                                    RecentStretch, summary)
+from gyro_tdc.learn.store import read_state, write_state
 from gyro_tdc.learn.temperature import hold_readings, same_thermal, stream_state
 from gyro_tdc.model import CompensationModel, learned_coef, ThermalState
-from gyro_tdc.signal import (BURST_FACTOR, BURST_MAX_S, BURST_PAUSES, GAP_PERIODS, MIN_STILL_S,
-                             SessionRule, STILL_WINDOW_S, StillWindows, Window)
+from gyro_tdc.signal import (break_why, BURST_FACTOR, BURST_MAX_S, BURST_PAUSES, GAP_PERIODS,
+                             SessionTracker, StillWindows, Window)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -48,7 +50,6 @@ __all__ = ['BIN_ENTRIES', 'BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'CHECK_
            'SPAN_DT3_C', 'SPAN_DT_C', 'BINS_DT2', 'BINS_DT3',
            'MAX_DROPS', 'learned_model']
 
-NAN3 = (math.nan, math.nan, math.nan)
 #: Floats per sample in :attr:`Learner.buf`: stamp, rate (3), acceleration (3).
 SAMPLE = 7
 #: Entries a bin keeps (its newest).
@@ -57,106 +58,6 @@ BIN_ENTRIES = 8
 CHECK_STRETCHES = 3
 #: ... and their windows kept, newest first (a day of 10 s windows, what learn_file keeps).
 CHECK_ROWS = RECENT_ROWS
-#: A candidate is swapped in only when its prediction over the recent windows differs from
-#: the current model's by this fraction of the gyro noise floor (RMS, rad/s) or more.
-SWAP_CHANGE = 0.02
-#: The sample period is the median of the stream's first this many intervals.
-PERIOD_STEPS = 64
-#: The session-break rule (GAP_PERIODS, BURST_PAUSES, BURST_FACTOR, BURST_MAX_S) is
-#: gyro_tdc.signal.sessions', shared with the trainer's batch split and the compensator's core.
-
-
-@dataclass(frozen=True)
-class LearnConfig:
-    """
-    Settings of the learner.
-
-    Parameters
-    ----------
-    bin_c : float, degC
-        Temperature bin width.
-    half_life_s : float, s
-        Age (by message stamp) at which an entry weighs half.
-    window_s, min_still_s : float, s
-        Still test window and shortest stretch.
-    temperature_timeout : float, s
-        A thermometer reading older than this (by stamp) gives no temperature.
-    save_period_s : float, s
-        Stamp time between periodic saves.
-    commit_s : float, s
-        A still stretch longer than this is learned every ``commit_s`` while it goes on.
-    entry_s : float, s
-        A bin's entry gathers one stretch's windows over at most this long (then a new entry
-        begins), so a long stop is learned as many points, each of its hours aged apart.
-    offset_s : float, s
-        The current session's offset is the mean over the newest ``offset_s`` of its still
-        windows of the raw rate minus the fitted shape (the offset wanders: a random walk,
-        bias instability); 0: the fit's intercept of the session.
-    max_rate_hz : float, Hz
-        The core hands the learner at most one sample per ``1 / max_rate_hz`` of stamps
-        (by stamp, so a replay at any speed hands the same samples): from a faster IMU the
-        mean of the samples since the last hand-off (a 1 kHz IMU is learned from means of
-        10, a tenth of the noise variance of one sample), plenty for 10 s still windows.
-    session_gap_s : float, s
-        A gap in the IMU stamps longer than this starts a new session (a power-up: the
-        gyro's turn-on offset changes; each session gets its own intercept in the fit), when
-        it is also longer than :data:`GAP_PERIODS` sample periods and, in a stream that pauses
-        regularly (bursts), than :data:`BURST_FACTOR` times its median pause; stamps that step
-        back by over ``RESTART_BACK_S`` (a device clock restarted) start one too.
-    swap_delay_s : float, s
-        An accepted candidate takes effect this long (by stamp) after the sample that let it
-        be computed (:meth:`Learner.take_swaps`), so its effective stamp is fixed by the
-        data, not by when :meth:`Learner.step` happens to run.
-
-    """
-
-    bin_c: float = 1.0
-    half_life_s: float = 86400.0
-    window_s: float = STILL_WINDOW_S
-    min_still_s: float = MIN_STILL_S
-    temperature_timeout: float = 5.0
-    save_period_s: float = 180.0
-    commit_s: float = 300.0
-    entry_s: float = 3600.0
-    offset_s: float = 1800.0
-    max_rate_hz: float = 100.0
-    session_gap_s: float = SESSION_GAP_S
-    swap_delay_s: float = 5.0
-
-
-@dataclass
-class _Stretch:
-    """
-    The current still stretch: its windows not learned yet, its first stamp and samples.
-
-    ``rows`` are :class:`gyro_tdc.signal.Window` without samples; once part of the stretch
-    is learned (``learned``), only the windows since are kept.
-    """
-
-    rows: list[Window] = field(default_factory=list)
-    t0: float = math.nan
-    n: int = 0
-    learned: bool = False
-
-    def add(self, win: Window) -> None:
-        """Append a still window."""
-        if not self.rows and not self.learned:
-            self.t0 = win.t0
-        self.rows.append(win)
-        self.n += win.n
-
-    def span(self) -> float:
-        """Return the stretch's duration so far, s (one sample period included)."""
-        if not self.rows:
-            return 0.0
-        d = self.rows[-1].t1 - self.t0
-        return d + d / max(self.n - 1, 1)
-
-    def keep_from(self, j: int) -> None:
-        """Drop the windows before ``j`` (a stretch not learned yet)."""
-        self.rows = self.rows[j:]
-        self.n = sum(r.n for r in self.rows)
-        self.t0 = self.rows[0].t0 if self.rows else math.nan
 
 
 class Learner:
@@ -199,13 +100,12 @@ class Learner:
 
     def reset(self) -> None:
         """Forget everything learned (points, floor, model); the prior is current again."""
-        self.bins: dict[int, list[list]] = {}
+        self.bins: dict[int, list[Entry]] = {}
         self.still.reset()
         self.still_s = 0.0
         self.stretches = 0
         self.windows = 0
-        self.recent: list[list] = []          # [stretch, session, window rows] newest last
-        self.session = 0
+        self.recent: list[RecentStretch] = []     # newest last
         self.fit: dict | None = None          # the learned model in use
         self.model: CompensationModel | None = self.prior
         self.last_update_t: float | None = None
@@ -213,21 +113,26 @@ class Learner:
         self.last_save_t: float | None = None
         self.check: dict | None = None
         self.swaps = 0
-        self._stretch = _Stretch()
+        self._stretch = OpenStretch()
         #: The entry group being filled: a stretch, or an ``entry_s`` part of a long one.
         self.segment = 0
         self.segment_t0: float | None = None
-        #: The stream's rhythm (session rule): its median sample period, its pauses (the
-        #: newest), and the sessions a gap started, ``(session, gap s)``.
-        self._period: float | None = None
-        self._dts: list[float] = []
-        self._rule = SessionRule(self.config.session_gap_s)
-        self._gap_starts: list[tuple[int, float]] = []
+        #: The session, from 0, and the stream's median period (the shared rule).
+        self.sessions = SessionTracker(self.config.session_gap_s)
         #: A new session whose first stretch is not learned yet (:meth:`_early_offset`).
         self._fresh = False
         #: Accepted candidates not handed over yet: (effective stamp or None: at once, model).
         self._swaps: list[tuple[float | None, CompensationModel]] = []
         self._trigger: float | None = None    # stamp of the sample that let a refit run
+
+    @property
+    def session(self) -> int:
+        """Return the power cycle the stream is in, from 0."""
+        return self.sessions.session
+
+    @session.setter
+    def session(self, value: int) -> None:
+        self.sessions.session = int(value)
 
     @property
     def gyro_floor(self) -> NDArray[np.float64]:
@@ -273,12 +178,8 @@ class Learner:
         """
         Resume from :meth:`state` (a restart: nothing saved is lost).
 
-        Raises
-        ------
-        LearnFileError
-            The state is not one this learner wrote (every field is checked first, the fit's
-            model as a model file's: nothing changes then).
-
+        LearnFileError when it is not a state this learner wrote: every field is checked
+        first (the fit's model as a model file's), so nothing changes then.
         """
         values, saved = decode_state(state, bin_c=self.config.bin_c, bin_entries=BIN_ENTRIES,
                                      stretches=CHECK_STRETCHES)
@@ -286,7 +187,7 @@ class Learner:
         for name, value in values.items():
             setattr(self, name, value)
         if 'segment' not in values:       # a file without it: the next group above them all
-            self.segment = max([self.stretches] + [int(e[4]) for v in self.bins.values()
+            self.segment = max([self.stretches] + [e.group for v in self.bins.values()
                                                    for e in v]) + 1
             self.segment_t0 = None
         if not same_thermal(saved, self.thermal):
@@ -317,7 +218,7 @@ class Learner:
         self.bins = {}
         self.recent = []
         self.fit, self.model, self._swaps, self.check = None, self.prior, [], None
-        self._stretch = _Stretch()
+        self._stretch = OpenStretch()
         self.still.drop_window()
         self.thermal_state = None
 
@@ -327,16 +228,7 @@ class Learner:
         self.saved()
 
     def load(self, path: str | Path) -> bool:
-        """
-        Resume from ``path`` when it exists; return whether it did.
-
-        Raises
-        ------
-        LearnFileError
-            The file is not a learner state (``gyro_tdc.learn.store``: read bounded, a
-            symbolic link refused, every field checked).
-
-        """
+        """Resume from ``path`` when it exists; return whether it did (LearnFileError: bad)."""
         state = read_state(path)
         if state is None:
             return False
@@ -360,10 +252,10 @@ class Learner:
 
     def observe_motion(self, t: float, moving: bool) -> None:
         """
-        Record a motion report (stamp ``t``, s): it holds until the next (module docstring).
+        Record a motion report (stamp ``t``, s): it holds until the next one.
 
-        Reports apply when :meth:`step` judges the windows they cover: one that arrives more
-        than a window late no longer vetoes the windows already judged.
+        It applies when :meth:`step` judges the windows it covers (one a window late no
+        longer vetoes the windows already judged).
         """
         self.still.observe_motion(t, moving)
 
@@ -377,20 +269,10 @@ class Learner:
         """
         Return the models swapped in since the last call (once), oldest first.
 
-        Each comes with the stamp from which it takes effect: ``swap_delay_s`` after the
-        sample that let it be computed (the first sample after the window that ended or
-        extended the still stretch; for a new session its first sample), or None: at once
-        (resumed from a file). Installed at the first message stamped at or after it
-        (:meth:`gyro_tdc.runtime.core.CompensatorCore.schedule`), the output does not
-        depend on when :meth:`step` ran, as long as it ran within ``swap_delay_s`` of stamps.
-
-        Parameters
-        ----------
-        t_seen : float, s, optional
-            The newest stamp the message path has compensated: a model whose stamp is not
-            after it comes late (the step ran too long after the data) and is counted in
-            ``late_swaps``.
-
+        Each with the stamp it takes effect from, ``swap_delay_s`` after the sample that let
+        it be computed (None: at once, resumed from a file), so the output does not depend on
+        when :meth:`step` ran. One stamped at or before ``t_seen`` (s, the newest stamp the
+        message path compensated) comes late and is counted in ``late_swaps``.
         """
         swaps, self._swaps = self._swaps, []
         if t_seen is not None:
@@ -426,16 +308,10 @@ class Learner:
 
     def step(self, force: bool = False) -> bool:
         """
-        Process the samples gathered since the last call; refit after each finished stretch.
+        Process the samples gathered since the last call; return whether a model swapped in.
 
         Until a sample beyond the window in progress has arrived, nothing is done (unless
-        ``force``): the samples are converted once per window.
-
-        Returns
-        -------
-        bool
-            True when a new model was swapped in (:meth:`take_model` gives it).
-
+        ``force``): the samples are converted once per window; each finished stretch refits.
         """
         buf = self.buf
         if not buf or (not force and self._waiting()):
@@ -457,69 +333,53 @@ class Learner:
         # A gap longer than the session rule's (before the batch or inside it) starts a new
         # session.
         dt = np.diff(t, prepend=t[0] if self.last_t is None else self.last_t)
-        if self._period is None:          # the median of the first PERIOD_STEPS intervals
-            self._dts.extend(dt[dt > 0.0][:PERIOD_STEPS - len(self._dts)].tolist())
-            if len(self._dts) >= PERIOD_STEPS:
-                self._period = float(np.median(self._dts))
-        pause = (GAP_PERIODS * self._period if self._period is not None
-                 else self.config.session_gap_s)
+        period = self.sessions.median_period(dt)
+        pause = GAP_PERIODS * period if period is not None else self.config.session_gap_s
         back = set(np.flatnonzero(dt < -RESTART_BACK_S).tolist())   # the device restarted
         pauses = sorted(set(np.flatnonzero(dt > pause).tolist()) | back)
         swapped = False
         for lo, hi in zip([0] + pauses, pauses + [t.size]):
             if hi > lo:
-                new = lo in back or (lo in pauses and self._pause(float(dt[lo])))
+                d = float(dt[lo])
+                why = break_why(d) if lo in back else (self._pause(d) if lo in pauses else '')
                 swapped = self._batch(t[lo:hi], w[lo:hi], None if acc is None else acc[lo:hi],
-                                      temp[lo:hi], new) or swapped
+                                      temp[lo:hi], why, d) or swapped
         return swapped
 
     def session_gap(self) -> float:
+        """Return the stamp gap (s) above which the stream starts a new session now."""
+        return self.sessions.limit(self.sessions.median or 0.0)
+
+    def _pause(self, gap: float) -> str:
         """
-        Return the stamp gap (s) above which the stream starts a new session now.
+        Judge a pause of the stream (s) by the session rule; return why it is a break or ''.
 
-        The shared rule (:func:`gyro_tdc.signal.gap_limit`): the longest of
-        ``session_gap_s``, :data:`GAP_PERIODS` sample periods and, once the stream has
-        paused :data:`BURST_PAUSES` times for longer than GAP_PERIODS periods,
-        :data:`BURST_FACTOR` times the median of those pauses (at most BURST_MAX_S).
+        Sessions whose gap the rule no longer cuts at (it learned the stream's rhythm since)
+        are merged into their predecessor, their points and recent windows relabelled.
         """
-        return self._rule.limit(self._period or 0.0)
+        period = self.sessions.median or 0.0
+        why = self.sessions.judge(gap, period)
+        relabel = self.sessions.merges(period)
+        if relabel:
+            for v in self.bins.values():
+                for e in v:
+                    e.session = relabel.get(e.session, e.session)
+            self.recent = [r._replace(session=relabel.get(r.session, r.session))
+                           for r in self.recent]
+        return why
 
-    def _pause(self, gap: float) -> bool:
-        """Note a pause of the stream (s); return whether it starts a new session."""
-        period = self._period or 0.0
-        new = bool(self._rule.judge(gap, period))
-        self._merge_sessions(self._rule.limit(period))
-        if new:
-            self._gap_starts = (self._gap_starts + [(self.session + 1, gap)])[-64:]
-        return new
+    def _batch(self, t, w, acc, temp, why: str, gap: float) -> bool:
+        """
+        Process samples of one session: the still test judges the windows they end.
 
-    def _merge_sessions(self, limit: float) -> None:
-        """Merge into their predecessor the sessions whose gap the rule no longer cuts at."""
-        merge = {s for s, gap in self._gap_starts if gap <= limit and s <= self.session}
-        if not merge:
-            return
-        new, label = {}, 0
-        for k in range(self.session + 1):
-            if k and k not in merge:
-                label += 1
-            new[k] = label
-        for v in self.bins.values():
-            for e in v:
-                e[5] = new.get(int(e[5]), e[5])
-        for r in self.recent:
-            r[1] = new.get(int(r[1]), r[1])
-        self._gap_starts = [(new[s], g) for s, g in self._gap_starts if s not in merge
-                            and s in new]
-        self.session = new[self.session]
-
-    def _batch(self, t, w, acc, temp, new_session: bool) -> bool:
-        """Process samples of one session: the still test judges the windows they end."""
+        ``why`` (not ``''``): they start a new session, after a stamp step of ``gap`` s.
+        """
         swapped = False
-        if new_session:
+        if why:
             # A new session (power-up): its own turn-on offset, learned apart; what it
             # closes was computable at its first sample.
             swapped = self.flush(float(t[0]))
-            self.session += 1
+            self.sessions.start(float(t[0]), why, gap=gap)
             self._fresh = True            # its offset from its first still windows
             self.still.restart()          # the window grid starts again
             self.thermal_state = None     # after a power-off: steady state at the next reading
@@ -532,8 +392,7 @@ class Learner:
         """
         Judge the window in progress and end the stretch (at shutdown, or a new session).
 
-        ``t_trigger`` (s) is the stamp a candidate computed here counts from (default: the
-        last sample's).
+        A candidate computed here counts from ``t_trigger`` (s; default the last sample's).
         """
         swapped = self.step(force=True)
         trigger = self.last_t if t_trigger is None else t_trigger
@@ -547,8 +406,7 @@ class Learner:
         """
         Take judged windows in order; close and learn the stretches they end.
 
-        A window is known finished at the first sample after it (data, not step timing):
-        its ``t_next``, else ``t_next`` here (the trigger of what it decides).
+        A window is known finished at its ``t_next`` (else the argument's): by data.
         """
         swapped = False
         for win in windows:
@@ -573,7 +431,7 @@ class Learner:
         Its windows that ``thresholds`` (default: those in force) refuse are dropped with
         everything before them (unless part of it was learned already).
         """
-        st, self._stretch = self._stretch, _Stretch()
+        st, self._stretch = self._stretch, OpenStretch()
         if not st.rows:
             return False
         if not st.learned:
@@ -619,17 +477,16 @@ class Learner:
             groups.setdefault(int(math.floor(r.temp_c / self.config.bin_c)), []).append(r)
         for b, rs in groups.items():
             m = sum(r.n for r in rs)
-            entry = [float(rs[-1].t1), float(m), sum(r.temp_c * r.n for r in rs) / m,
-                     tuple(sum(r.gyro_mean[a] * r.n for r in rs) / m for a in range(3)), sid,
-                     self.session]
+            entry = Entry(float(rs[-1].t1), float(m), sum(r.temp_c * r.n for r in rs) / m,
+                          tuple(sum(r.gyro_mean[a] * r.n for r in rs) / m for a in range(3)),
+                          sid, self.session)
             lst = self.bins.setdefault(b, [])
-            if lst and lst[-1][4] == sid:          # the same group: one entry per bin
+            if lst and lst[-1].group == sid:       # the same group: one entry per bin
                 o = lst[-1]
-                tot = o[1] + m
-                entry = [entry[0], tot, (o[2] * o[1] + entry[2] * m) / tot,
-                         tuple((o[3][a] * o[1] + entry[3][a] * m) / tot for a in range(3)),
-                         sid, self.session]
-                lst[-1] = entry
+                tot = o.samples + m
+                lst[-1] = Entry(entry.t_end, tot, (o.temp_c * o.samples + entry.temp_c * m) / tot,
+                                tuple((o.bias[a] * o.samples + entry.bias[a] * m) / tot
+                                      for a in range(3)), sid, self.session)
             else:
                 lst.append(entry)
             del lst[:-BIN_ENTRIES]
@@ -639,14 +496,14 @@ class Learner:
     def _remember(self, rows: list) -> None:
         """Keep new windows for the check and the offset: the newest stretches and rows."""
         stretch = self.stretches
-        if self.recent and self.recent[-1][0] == stretch:
-            self.recent[-1][2].extend(rows)
+        if self.recent and self.recent[-1].stretch == stretch:
+            self.recent[-1].rows.extend(rows)
         else:
-            self.recent.append([stretch, self.session, rows])
+            self.recent.append(RecentStretch(stretch, self.session, rows))
         del self.recent[:-CHECK_STRETCHES]
-        total = sum(len(r[2]) for r in self.recent)
+        total = sum(len(r.rows) for r in self.recent)
         while total > CHECK_ROWS:
-            first = self.recent[0][2]
+            first = self.recent[0].rows
             cut = min(total - CHECK_ROWS, len(first))
             del first[:cut]
             total -= cut
@@ -657,7 +514,8 @@ class Learner:
 
     def entries(self) -> NDArray[np.float64]:
         """Return the point table: rows ``(t_end, samples, temp, bx, by, bz, session)``."""
-        rows = [[e[0], e[1], e[2], *e[3], e[5]] for v in self.bins.values() for e in v]
+        rows = [[e.t_end, e.samples, e.temp_c, *e.bias, e.session]
+                for v in self.bins.values() for e in v]
         return np.asarray(rows, dtype=np.float64).reshape(-1, 7)
 
     def covered_c(self) -> tuple[float, float] | None:
@@ -712,22 +570,11 @@ class Learner:
         anchor = since if self.config.offset_s > 0 or since == -math.inf else None
         # Whose offset it carries: the newest still time it was taken from (the core keeps
         # re-anchoring a new power cycle until a model carries that cycle's offset).
-        cand.created['offset_until'] = self._offset_until(rows, since, offset is not None)
+        cand.created['offset_until'] = offset_until(rows, since, offset is not None,
+                                                    self.entries(), self.session)
         # The noise of the samples it is handed (the core's re-anchoring prior at a new one).
         cand.created['gyro_floor'] = [float(v) for v in self.gyro_floor]
-        pred = predict_windows(cand, rows, self.thermal)
-        new = window_error(rows, pred, anchor)
-        old = change = None
-        if self.model is not None:
-            cur = predict_windows(self.model, rows, self.thermal)
-            old = window_error(rows, cur, anchor)
-            change = (float(np.sqrt(np.average(((pred - cur) ** 2).mean(axis=1),
-                                               weights=rows[:, 0])))
-                      if rows.shape[0] else math.inf)
-        # Swapped in when better on the recent still time and different enough to matter:
-        # an RMS change of SWAP_CHANGE noise floors (a long stop refits every few minutes;
-        # each install replays the model's filters).
-        swap = old is None or (new < old and not change < SWAP_CHANGE * floor)
+        new, old, swap = compare(cand, self.model, rows, self.thermal, anchor, floor)
         self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old, 'swapped': swap}
         if not swap:
             return False
@@ -738,58 +585,16 @@ class Learner:
         self.swaps += 1
         return True
 
-    def _offset_until(self, rows: NDArray[np.float64], since: float, recent: bool
-                      ) -> float | None:
-        """
-        Return the stamp of the newest still time a candidate's offset comes from, or None.
-
-        The newest of ``rows`` after ``since`` when the offset is theirs (``recent``), else
-        the newest entry of the current session (the fit's intercept of its newest session);
-        None when the current session has none (the offset is an older session's).
-        """
-        if recent:
-            new = rows[rows[:, 5] > since, 5]
-            return float(new.max()) if new.size else None
-        e = self.entries()
-        mine = e[e[:, 6] == self.session, 0]
-        return float(mine.max()) if mine.size else None
-
     def _recent_rows(self) -> list:
         """Return this session's recent windows (the check's and the offset's)."""
-        return [r for s in self.recent if s[1] == self.session for r in s[2]]
+        return [r for s in self.recent if s.session == self.session for r in s.rows]
 
     # -- reporting --------------------------------------------------------------------
 
     def diagnostic_values(self) -> dict[str, str]:
         """Return the learner's /diagnostics key/value pairs (strings)."""
-        s = self.summary()
-        cov = s['covered_c']
-        return {
-            'learn points': str(s['points']),
-            'learn covered degC': 'none' if cov is None else f'{cov[0]:.2f} .. {cov[1]:.2f}',
-            'learn still s': f'{s["still_s"]:.0f}',
-            'learn features': 'none' if s['features'] is None else ', '.join(s['features']),
-            'learn last update stamp s': ('never' if s['last_update_t'] is None
-                                          else f'{s["last_update_t"]:.3f}'),
-            'learn prediction check': s['check'] or 'none yet',
-            'learn session': str(self.session),
-            'learn late swaps': str(self.late_swaps),
-            'learn candidates refused': (f'{self.refused} (last: {self.refused_why})'
-                                         if self.refused else '0'),
-        }
+        return diagnostic_values(self)
 
     def summary(self) -> dict[str, Any]:
         """Return what /diagnostics shows: points, range, still time, last update, check."""
-        cov = self.covered_c()
-        chk = self.check
-        return {
-            'points': int(self.entries().shape[0]), 'bins': len(self.bins),
-            'covered_c': cov, 'still_s': self.still_s, 'stretches': self.stretches,
-            'features': None if self.fit is None else (self.fit['features'] or ['bias']),
-            'last_update_t': self.last_update_t, 'swaps': self.swaps,
-            'check': None if chk is None else (
-                f"candidate {math.sqrt(chk['candidate_mse']):.3g} rad/s vs current "
-                + ('none' if chk['current_mse'] is None
-                   else f"{math.sqrt(chk['current_mse']):.3g} rad/s")
-                + (' -> swapped' if chk['swapped'] else ' -> kept')),
-        }
+        return summary(self)

@@ -15,7 +15,8 @@
 """
 The online learner's model temperature: held thermometer, streamed thermal state.
 
-Pure (numpy only). :func:`hold_readings` holds the thermometer by stamp, :func:`stream_state`
+Pure (numpy only). :func:`hold_readings` holds the thermometer by stamp (the one hold,
+:class:`gyro_tdc.signal.TemperatureHold`), :func:`stream_state`
 runs the prior's thermal front end over batches of any size, :func:`same_thermal` compares
 two front ends and :func:`at_state` makes a lagged model take the state as its input.
 See ``doc/internals/learn.md``.
@@ -25,9 +26,9 @@ from __future__ import annotations
 
 from dataclasses import replace
 import math
-from typing import Sequence
 
 from gyro_tdc.model import CompensationModel, first_order_lag, THERMAL_EFFECTS, ThermalState
+from gyro_tdc.signal import hold_readings
 import numpy as np
 from numpy.typing import NDArray
 
@@ -35,42 +36,6 @@ __all__ = ['ThermalCarry', 'at_state', 'hold_readings', 'same_thermal', 'stream_
 
 #: The state carried between batches: the last stamp and one value per node.
 ThermalCarry = tuple[float, list[float]]
-
-
-def hold_readings(readings: Sequence[tuple[float, float]], t: NDArray[np.float64],
-                  timeout: float) -> tuple[NDArray[np.float64], list[tuple[float, float]]]:
-    """
-    Hold the thermometer by stamp: the newest reading at or before each stamp.
-
-    Parameters
-    ----------
-    readings : sequence of (float, float)
-        Thermometer readings ``(stamp s, degC)``, any order.
-    t : NDArray[np.float64], shape (N,), s
-        Sample stamps, N >= 1.
-    timeout : float, s
-        A reading older than this gives NaN.
-
-    Returns
-    -------
-    held : NDArray[np.float64], shape (N,), degC
-        The held reading (NaN before the first and after a timeout).
-    keep : list of (float, float)
-        The readings still needed: the newest at or before ``t[-1]`` and all after it.
-
-    """
-    if not readings:
-        return np.full(t.size, math.nan), []
-    tt = np.array([x[0] for x in readings])
-    tc = np.array([x[1] for x in readings])
-    order = np.argsort(tt, kind='stable')
-    tt, tc = tt[order], tc[order]
-    i = np.searchsorted(tt, t, side='right') - 1
-    j = np.clip(i, 0, None)
-    out = np.where(i >= 0, tc[j], math.nan)
-    out[(i >= 0) & (t - tt[j] > timeout)] = math.nan
-    keep = max(int(i[-1]), 0)
-    return out, list(zip(tt[keep:].tolist(), tc[keep:].tolist()))
 
 
 def stream_state(thermal: ThermalState | None, carry: ThermalCarry | None,

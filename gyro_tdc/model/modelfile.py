@@ -24,12 +24,12 @@ field by field: ``doc/internals/model.md``.
 
 from __future__ import annotations
 
-import math
 import os
 from pathlib import Path
 from typing import Any, Mapping
 
-from gyro_tdc.base import atomic_write, MAX_CENTERS, plain, read_yaml, YamlLimits
+from gyro_tdc.base import (atomic_write, FieldChecker, MAX_CENTERS, plain, read_yaml, shown,
+                           YamlLimits)
 from gyro_tdc.errors import FeatureError, ModelFileError
 from gyro_tdc.model.compensation import CompensationModel, KINDS
 from gyro_tdc.model.effects import input_ids, normalise_ids, resolve_params
@@ -116,6 +116,11 @@ def _accel_from_dict(d: Mapping, version: int) -> CompensationModel | None:
         raise ModelFileError(f'field `accel`: {exc}') from None
 
 
+#: The shared field checks (gyro_tdc.base.fields), worded for a model file.
+_CHK = FieldChecker(lambda key, expected, got: ModelFileError(
+    f'field `{key}` must be {expected}, got {shown(got)}'))
+
+
 def _array(d: Mapping, key: str, shape: tuple, *, positive: bool = False) -> np.ndarray:
     """Read ``d[key]`` as a finite float array of ``shape`` (``-1`` matches any length)."""
     if key not in d:
@@ -140,10 +145,7 @@ def _number(d: Mapping, key: str) -> float:
     """Read ``d[key]`` as a finite float."""
     if key not in d:
         raise ModelFileError(f'missing field `{key}`')
-    v = d[key]
-    if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
-        raise ModelFileError(f'field `{key}` must be a finite number, got {v!r}')
-    return float(v)
+    return _CHK.number(d[key], key, what='a finite number')
 
 
 def _mapping(d: Mapping, key: str, *, required: bool = True) -> dict:
@@ -155,9 +157,7 @@ def _mapping(d: Mapping, key: str, *, required: bool = True) -> dict:
     v = d[key]
     if v is None and not required:
         return {}
-    if not isinstance(v, Mapping):
-        raise ModelFileError(f'field `{key}` must be a mapping, got {type(v).__name__}')
-    return dict(v)
+    return _CHK.mapping(v, key)
 
 
 def model_from_dict(d: Any) -> CompensationModel:

@@ -15,8 +15,9 @@
 """
 The compensator node: raw Imu in, drift-compensated Imu out, one for one, in order.
 
-Subscribes ``imu/data_raw`` and ``imu/temperature``, publishes ``imu/data_compensated``
-(every field copied but the corrected rates and widened covariances) and ``/diagnostics``.
+Subscribes ``imu/data_raw`` and ``imu/temperature`` (any message types, read by field:
+``imu_type``, ``temperature_type``), publishes ``imu/data_compensated`` (every field copied
+but the corrected rates and widened covariances) and ``/diagnostics``.
 Every decision lives in :mod:`gyro_tdc.runtime`; this module converts. Topics, loading,
 learning, motion and guards: ``doc/internals/nodes.md``.
 """
@@ -29,12 +30,13 @@ from time import perf_counter
 from typing import Any, Callable
 
 from gyro_tdc.base import spec_dataclass
-from gyro_tdc.data import diagonal_marked, ImuView, locate, mark_diagonal
+from gyro_tdc.data import diagonal_marked, ImuView, locate, mark_diagonal, mark_unknown
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.nodes._params import declare, print_help
 from gyro_tdc.nodes.compensator_diagnostics import (Diagnostics, DIAGNOSTICS_PERIOD_S,
                                                     TEMPERATURE_MESSAGES)
+from gyro_tdc.nodes.compensator_inputs import input_reader
 from gyro_tdc.nodes.compensator_learning import Learning
 from gyro_tdc.nodes.compensator_loading import LOAD_ERRORS, LOAD_POLL_S, ModelLoading, read_model
 from gyro_tdc.nodes.compensator_motion import MotionInput
@@ -50,8 +52,7 @@ from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data,
                        ReliabilityPolicy)
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.serialization import deserialize_message
-from sensor_msgs.msg import Imu, Temperature
-from std_msgs.msg import Float32, Float64
+from sensor_msgs.msg import Imu
 from std_srvs.srv import Trigger
 
 __all__ = ['CompensatorNode', 'CompensatorParams', 'LOAD_ERRORS', 'PARAMS',
@@ -109,6 +110,10 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
         super().__init__(kwargs.pop('node_name', 'compensator_node'), **kwargs)
         self.params = CompensatorParams(**declare(self, PARAMS))
         p = self.params
+        self.reader = reader = input_reader(p)     # the input types and fields, checked
+        self._temperature_value = reader.temperature
+        self._temperature_stamp = reader.temperature_stamp
+        self._to_imu = reader.to_imu
         try:
             policy = p.policy()
         except ValueError as exc:
@@ -157,14 +162,18 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
         events = SubscriptionEventCallbacks(message_lost=self._on_message_lost)
         # The profiles above are the defaults of the qos_overrides.<resolved topic>.* parameters
         # (read-only: QoS is fixed when an entity is created), which may override them.
-        imu_sub = self.create_subscription(
-            Imu, 'imu/data_raw', self._on_imu_raw if p.raw_cdr else self._on_imu, imu_qos,
-            raw=p.raw_cdr, event_callbacks=events, qos_overriding_options=qos_overrides())
+        if not reader.fast:     # another type: turned into an Imu, then the typed path
+            imu_sub = self.create_subscription(
+                reader.imu_cls, 'imu/data_raw', self._on_imu_other, imu_qos,
+                event_callbacks=events, qos_overriding_options=qos_overrides())
+        else:
+            imu_sub = self.create_subscription(
+                Imu, 'imu/data_raw', self._on_imu_raw if p.raw_cdr else self._on_imu,
+                imu_qos, raw=p.raw_cdr, event_callbacks=events,
+                qos_overriding_options=qos_overrides())
         self.inputs.reliability = imu_sub.qos_profile.reliability.name.lower()
-        stamped = TEMPERATURE_MESSAGES[p.temperature_type] is Temperature
         self.create_subscription(
-            TEMPERATURE_MESSAGES[p.temperature_type], 'imu/temperature',
-            self._on_temperature if stamped else self._on_float_temperature, temp_qos,
+            reader.temperature_cls, 'imu/temperature', self._on_temperature, temp_qos,
             qos_overriding_options=qos_overrides())
         self._init_motion()
         self._init_diagnostics()
@@ -252,8 +261,8 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
             aout, avar = None, (var if a is not None and core.accel_on else None)
         w.x, w.y, w.z = wx, wy, wz
         # REP 145: -1 in element 0 is no data (left as it came); all zero is unknown, which
-        # stays unknown (unmarked: the mark says a known variance was widened) unless
-        # base_variance gives unknown input a base (ImuView.patched, the same rule).
+        # stays unknown (marked with negative zeros, still all == 0) unless base_variance
+        # gives unknown input a base (ImuView.patched, the same rule).
         if cov[0] != -1.0:
             base = core.policy.base_variance
             if cov[0] != 0.0 or any(cov):
@@ -266,6 +275,8 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
                 cov[8] += base + var[2]
                 if not flags & PASSTHROUGH:
                     mark_diagonal(cov)
+            elif not flags & PASSTHROUGH:
+                mark_unknown(cov)
         if aout is not None:
             la.x, la.y, la.z = aout
         if avar is not None:
@@ -275,6 +286,20 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
             acov[8] += avar[2]
         self._pub.publish(msg)
         self._record((t, start, perf_counter()))    # the backlog: stamp, start, end
+
+    def _on_imu_other(self, msg: Any) -> None:
+        """Turn an ``imu_type`` message into an Imu (FLU, stamped) and compensate that."""
+        start = perf_counter()
+        try:
+            imu = self._to_imu(msg)
+        except Exception as exc:  # the callback edge: a field out of range, a bad stamp
+            self.inputs.malformed += 1
+            self.get_logger().warning(
+                f'imu/data_raw message not readable as {self.params.imu_type} (dropped, '
+                f'{self.inputs.malformed} in total): {type(exc).__name__}: {exc}',
+                throttle_duration_sec=5.0)
+            return
+        self._on_imu(imu, start)
 
     def _on_imu_raw(self, data: bytes) -> None:
         start = perf_counter()
@@ -319,17 +344,25 @@ class CompensatorNode(ModelLoading, Learning, MotionInput, Diagnostics, Node):
                                 f'{self.core.last_error}', throttle_duration_sec=1.0)
         return var
 
-    def _on_temperature(self, msg: Temperature) -> None:
-        st = msg.header.stamp
-        self.core.add_temperature(st.sec + st.nanosec * 1e-9, msg.temperature)
+    def _on_temperature(self, msg: Any) -> None:
+        """
+        Take a reading at its own stamp, or at the latest IMU stamp when it has none.
 
-    def _on_float_temperature(self, msg: Float32 | Float64) -> None:
-        """Take a reading without a header at the stamp of the latest IMU message received."""
-        t = self.core.last_t
-        if t is None:  # before the first IMU message there is no stamp to give it
-            self.temperatures_ignored += 1
-            return
-        self.core.add_temperature(t, msg.data)
+        Field, stamp and quirk come from the node's ``reader`` (``input_reader``); a reading
+        without a stamp before the first IMU message is ignored (``temperatures_ignored``).
+        """
+        stamp = self._temperature_stamp
+        if stamp is None:
+            t = self.core.last_t
+            if t is None:  # before the first IMU message there is no stamp to give it
+                self.temperatures_ignored += 1
+                return
+        else:
+            t = stamp(msg)
+        self.core.add_temperature(t, self._temperature_value(msg))
+
+    #: The same handler for header-less readings (std_msgs Float32/Float64).
+    _on_float_temperature = _on_temperature
 
     def _on_message_lost(self, info: QoSMessageLostInfo) -> None:
         new = info.total_count - self.inputs.lost

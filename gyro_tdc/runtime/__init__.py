@@ -15,13 +15,14 @@
 """
 The runtime core of the compensator, free of rclpy.
 
-The per-sample decisions, the policy table, health and flags, the held thermometer,
-priming and re-anchoring.
+The per-sample decisions through the core's parts (the model's drift, the state, the learning
+hand-off), the policy table, health and flags, priming and re-anchoring.
 """
 
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
+    'blockstats': ['default_tolerance', 'STILL_WINDOW_MAX_S'],
     'core': ['CompensatorCore'],
     'flags': ['PASSTHROUGH', 'UPSTREAM'],
     'health': ['frame_mismatch', 'health', 'HealthMark', 'InputStatus', 'sensor_mismatch',
@@ -30,5 +31,5 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'policy': ['PARAMS', 'Policy', 'TEMPERATURE_TYPES', 'UPSTREAM_CORRECTIONS',
                'UPSTREAM_POLICIES'],
     'priming': ['prepare', 'PreparedModel'],
-    'reanchor': ['default_tolerance', 'reanchor_shift', 'STILL_WINDOW_MAX_S', 'windows_moving'],
+    'reanchor': ['reanchor_shift', 'windows_moving'],
 })

@@ -23,7 +23,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 import math
 from types import MappingProxyType
-from typing import Mapping, NamedTuple, TYPE_CHECKING
+from typing import Any, Mapping, NamedTuple, TYPE_CHECKING
 
 from gyro_tdc.base import MAX_TEMP_SLEW_C_S, TEMP_PLAUSIBLE_C
 from gyro_tdc.model import SETTLE_TAUS
@@ -181,7 +181,7 @@ def frame_mismatch(model: CompensationModel | None, frame_id: str) -> str:
 
 def upstream_note(policy: Policy) -> str:
     """
-    Say what the compensator does about a declared upstream thermal correction ('' none).
+    Say what the compensator does about a declared upstream correction ('' none).
 
     Parameters
     ----------
@@ -192,14 +192,33 @@ def upstream_note(policy: Policy) -> str:
     -------
     str
         '' when no upstream correction is declared; else one line starting with
-        ``gyro already thermally corrected upstream (<which>)`` and saying whether the raw
-        rate passes through or is compensated on top.
+        ``gyro already thermally corrected upstream (<which>)`` (``gyro already corrected
+        upstream`` for px4_ekf, ``gyro bias removed upstream at start`` for bias_at_start)
+        and saying whether the raw rate passes through or is compensated on top.
 
     """
     which = policy.upstream_correction
     if not which:
         return ''
-    head = f'gyro already thermally corrected upstream ({which})'
+    if which == 'bias_at_start':
+        head = 'gyro bias removed upstream at start (bias_at_start)'
+        if policy.upstream_policy == 'passthrough':
+            return (f'{head}: raw rate passed through, its thermal drift since the start '
+                    'stays (upstream_policy compensate corrects it, re-anchoring takes the '
+                    'removed bias out)')
+        if not policy.reanchor_on_start:
+            return (f'{head}: compensating, but reanchor_on_start is false: the output is '
+                    "off by the model's bias at the start temperature; set it true")
+        return (f'{head}: compensating, re-anchoring takes the removed bias out '
+                '(reanchor_on_start)')
+    if which == 'px4_ekf':
+        head = 'gyro already corrected upstream (px4_ekf: the EKF gyro bias off HIGHRES_IMU)'
+        if policy.upstream_policy == 'passthrough':
+            return (f'{head}: raw rate passed through, not corrected twice (to compensate '
+                    'here instead, take the rate without the EKF bias, e.g. PX4 uXRCE-DDS '
+                    'sensor_gyro, and clear upstream_correction)')
+    else:
+        head = f'gyro already thermally corrected upstream ({which})'
     if policy.upstream_policy == 'passthrough':
         return (f'{head}: raw rate passed through, not corrected twice (to compensate here '
                 'instead, disable the upstream correction, e.g. TC_G_ENABLE=0 or '
@@ -250,9 +269,30 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     """
     since = since or HealthMark()
     inputs = inputs or InputStatus()
-    model = core.model
     counts = core.flag_counts
     new = {bit: counts[bit] - since.flags.get(bit, 0) for bit in counts}
+    level, problems = _problems(core, since, new, inputs, last_reload, sensor_id, frame_id)
+    if problems:
+        message = '; '.join(problems)
+    elif core.counts['in'] == 0:
+        message = 'waiting for imu/data_raw'
+    else:
+        message = 'compensating'
+    if new[PASSTHROUGH]:
+        message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
+    values = _values(core, inputs, model_file, last_reload, frame_id)
+    return Health(level, message, sensor_id or frame_id,
+                  {k: str(v) for k, v in values.items()},
+                  HealthMark(dict(counts), core.temps.rejected, core.errors, inputs.lost,
+                             inputs.already_compensated, inputs.malformed,
+                             core.temps.implausible))
+
+
+def _problems(core: CompensatorCore, since: HealthMark, new: dict[int, int],
+              inputs: InputStatus, last_reload: str, sensor_id: str, frame_id: str
+              ) -> tuple[int, list[str]]:
+    """Return the level and the problems of :func:`health` (``new``: flags since ``since``)."""
+    model = core.model
     rejected = core.temps.rejected - since.temps_rejected
     implausible = core.temps.implausible - since.temps_implausible
     errors = core.errors - since.errors
@@ -314,14 +354,15 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         level = ERROR
         problems.append(f'compensation failed on {errors} samples, passed through: '
                         f'{core.last_error}')
-    if problems:
-        message = '; '.join(problems)
-    elif core.counts['in'] == 0:
-        message = 'waiting for imu/data_raw'
-    else:
-        message = 'compensating'
-    if new[PASSTHROUGH]:
-        message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
+    return level, problems
+
+
+def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_reload: str,
+            frame_id: str) -> dict[str, Any]:
+    """Return :func:`health`'s key/value pairs (not yet strings)."""
+    model = core.model
+    counts = core.flag_counts
+    upstream = upstream_note(core.policy)
     anchor = core.anchor
     age = core.temperature_age()
     flags = core.last_flags
@@ -378,8 +419,4 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
         values['reanchor tolerance dps'] = ','.join(f'{math.degrees(v):.5f}'
                                                     for v in anchor.tolerance)
         values['reanchor stopped on'] = anchor.reason or 'one window'
-    return Health(level, message, sensor_id or frame_id,
-                  {k: str(v) for k, v in values.items()},
-                  HealthMark(dict(counts), core.temps.rejected, core.errors, inputs.lost,
-                             inputs.already_compensated, inputs.malformed,
-                             core.temps.implausible))
+    return values

@@ -23,16 +23,17 @@ restart.
 
 from __future__ import annotations
 
-from gyro_tdc.base import ParamSpec, spec_dataclass
+from gyro_tdc.base import INPUT_FRAMES, ParamSpec, spec_dataclass, TEMPERATURE_QUIRKS
 from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES
-from gyro_tdc.runtime.reanchor import STILL_WINDOW_MAX_S
+from gyro_tdc.runtime.blockstats import STILL_WINDOW_MAX_S
 from gyro_tdc.signal import MOTION_EPS, STILL_WINDOW_S
 
 __all__ = ['MOTION_TYPES', 'PARAMS', 'Policy', 'TEMPERATURE_TYPES', 'UPSTREAM_CORRECTIONS',
            'UPSTREAM_POLICIES']
 
 
-#: Message types the compensator's ``imu/temperature`` input accepts (``temperature_type``).
+#: The usual thermometer types (``temperature_type`` takes any installed message type; these
+#: three have a default ``temperature_field``).
 TEMPERATURE_TYPES = ('sensor_msgs/msg/Temperature', 'std_msgs/msg/Float32',
                      'std_msgs/msg/Float64')
 
@@ -40,9 +41,11 @@ TEMPERATURE_TYPES = ('sensor_msgs/msg/Temperature', 'std_msgs/msg/Float32',
 #: geometry_msgs/TwistStamped, nav_msgs/Odometry.
 MOTION_TYPES = ('twist', 'twist_stamped', 'odometry')
 
-#: Upstream thermal corrections the compensator can be told about (``upstream_correction``;
-#: '' none), and what it does then (``upstream_policy``).
-UPSTREAM_CORRECTIONS = ('', 'px4', 'ardupilot', 'other')
+#: Upstream corrections the compensator can be told about (``upstream_correction``; '' none):
+#: thermal ones (px4 TC_G_ENABLE, ardupilot INS_TCALn, other), PX4's EKF gyro bias taken off
+#: the MAVLink HIGHRES_IMU rate (px4_ekf), and a gyro bias a driver removes at start
+#: (bias_at_start: Xsens, UM7 zero_gyros, Phidgets); and what it does then (``upstream_policy``).
+UPSTREAM_CORRECTIONS = ('', 'px4', 'ardupilot', 'other', 'px4_ekf', 'bias_at_start')
 UPSTREAM_POLICIES = ('passthrough', 'compensate')
 
 #: The compensator's parameters (the node declares them; ``policy`` rows build :class:`Policy`).
@@ -127,10 +130,44 @@ PARAMS = (
               'start: main() builds the executor before spinning.',
               choices=('events', 'single')),
     ParamSpec('temperature_type', TEMPERATURE_TYPES[0], 'Message type of imu/temperature: '
-              'sensor_msgs/msg/Temperature (stamped), or std_msgs/msg/Float32 or Float64 (degC, '
-              'no stamp: each reading takes the stamp of the latest IMU message received; '
-              'readings before the first IMU message are ignored). Read at start: a '
-              "subscription's type is fixed when it is created.", choices=TEMPERATURE_TYPES),
+              'any installed pkg/msg/Type, e.g. sensor_msgs/msg/Temperature (stamped), '
+              "std_msgs/msg/Float32 or Float64, or a driver's own type with "
+              "temperature_field. Read at start: a subscription's type is fixed when it is "
+              'created.'),
+    ParamSpec('temperature_field', '', 'Dotted path to the temperature (a number, degC) in '
+              'a temperature_type message, e.g. mean_temp (MicroStrain). Empty: temperature '
+              'for sensor_msgs/msg/Temperature, data for std_msgs Float32/Float64. Read at '
+              'start.'),
+    ParamSpec('temperature_stamp_field', '', 'Dotted path to the stamp of a temperature_type '
+              "message: a builtin_interfaces/Time (e.g. header.header.stamp, MicroStrain's "
+              'nested header) or an integer in microseconds. Empty: header.stamp where the '
+              'type has a header, else each reading takes the stamp of the latest IMU '
+              'message received (readings before the first IMU message are ignored). Read at '
+              'start.'),
+    ParamSpec('temperature_quirk', '', "Undo a driver's temperature encoding: "
+              'bno055_unsigned_byte (flynneva/bno055 reads the register unsigned: below 0 '
+              "degC it publishes 256 + T) or sbg_legacy_div256 (sbg_ros2_driver's legacy IMU "
+              'log publishes T / 256). Empty: none. Read at start.',
+              choices=TEMPERATURE_QUIRKS),
+    ParamSpec('imu_type', 'sensor_msgs/msg/Imu', 'Message type of imu/data_raw: '
+              'sensor_msgs/msg/Imu (compensated in place, the fast path), or any installed '
+              'pkg/msg/Type holding an x/y/z rate in rad/s, e.g. geometry_msgs/msg/'
+              'Vector3Stamped (Xsens /imu/angular_velocity) or px4_msgs/msg/SensorGyro; the '
+              'output is a sensor_msgs/Imu either way. Read at start.'),
+    ParamSpec('angular_velocity_field', 'angular_velocity', 'Dotted path to the x/y/z rate '
+              '(rad/s) in an imu_type message, e.g. vector for geometry_msgs/msg/'
+              "Vector3Stamped; empty: the message itself (px4_msgs SensorGyro's x, y, z). "
+              'Read at start.'),
+    ParamSpec('stamp_field', 'header.stamp', 'Dotted path to the stamp of an imu_type '
+              "message: a builtin_interfaces/Time, or an integer in microseconds (px4_msgs' "
+              'timestamp). Read at start.'),
+    ParamSpec('input_frame', INPUT_FRAMES[0], 'Axes of the imu_type rate: flu (REP 103) or '
+              'frd (PX4: forward, right, down), turned to FLU (y and z negated). A '
+              'sensor_msgs/msg/Imu input is FLU (REP 145). Read at start.',
+              choices=INPUT_FRAMES),
+    ParamSpec('frame_id', 'imu_link', 'header.frame_id of the output when the imu_type has '
+              'no header (px4_msgs SensorGyro); an input header is copied unchanged. Read at '
+              'start.'),
     ParamSpec('sensor_id', '', "This IMU's id: when set and the model's sensor.sensor_id "
               'differs, the node warns in the log and on /diagnostics (WARN) for as long as '
               'that model is in use (a model trained on another sensor, or the shipped '
@@ -140,8 +177,12 @@ PARAMS = (
               'when slower or faster, ERROR when none came over its window); 0: learnt from '
               'the arrivals of the first 5 s, then only slowing is judged. Read at start: the '
               'check is built then [Hz].', 0.0, 1.0e6),
-    ParamSpec('upstream_correction', '', 'A thermal correction known to be active upstream of '
-              'imu/data_raw: px4 (TC_G_ENABLE=1), ardupilot (INS_TCALn_ENABLE=1) or other. '
+    ParamSpec('upstream_correction', '', 'A correction known to be active upstream of '
+              'imu/data_raw: px4 (TC_G_ENABLE=1), ardupilot (INS_TCALn_ENABLE=1), other '
+              '(a factory thermal calibration), px4_ekf (the EKF gyro bias estimate taken '
+              'off MAVLink HIGHRES_IMU, even with TC_G_ENABLE=0) or bias_at_start (the driver '
+              'removes a gyro bias at start: Xsens, UM7 zero_gyros, Phidgets; with '
+              'upstream_policy compensate, re-anchoring takes it out). '
               'Set: the node warns in the log and on /diagnostics (WARN) and, with '
               'upstream_policy passthrough, passes the rate through instead of correcting it '
               'twice. Empty: none known.', choices=UPSTREAM_CORRECTIONS, policy=True,

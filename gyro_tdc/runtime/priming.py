@@ -15,7 +15,7 @@
 """
 A model made ready to install off the compensating thread: its feature filters primed (pure).
 
-:func:`prepare` runs in a worker, :func:`replay` carries it on at install (see
+:func:`prepare` runs in a worker, :func:`catch_up` carries it on at install (see
 doc/internals/runtime.md).
 """
 
@@ -25,13 +25,13 @@ import math
 from typing import Iterable, NamedTuple
 
 from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensator
-from gyro_tdc.runtime.flags import OUT_OF_RANGE, STALE
+from gyro_tdc.runtime.blockstats import Vec3
+from gyro_tdc.runtime.drift import timeless, variance_table
 from gyro_tdc.runtime.policy import Policy
-from gyro_tdc.runtime.reanchor import Vec3
 import numpy as np
 
-__all__ = ['PREPARED_BY', 'PreparedModel', 'Priming', 'Replay', 'advance', 'prepare',
-           'prepared_for', 'replay', 'replay_from_first']
+__all__ = ['PREPARED_BY', 'PreparedModel', 'Priming', 'Replay', 'advance', 'catch_up',
+           'prepare', 'prepared_for', 'replay', 'replay_from_first']
 
 #: The Policy fields :func:`prepare` builds a model's compensator and variance tables from.
 PREPARED_BY = ('out_of_range', 'max_extrapolation_c', 'stale_variance', 'out_of_range_variance')
@@ -137,15 +137,7 @@ def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> Prepa
     state = None
     if priming.first is not None and priming.last_t is not None:
         state = replay_from_first(comp, priming.first, priming.history, priming.last_t)
-    resid = tuple(float(v) for v in np.asarray(model.residual_var, dtype=np.float64))
-    p = policy
-    var = {
-        0: resid,
-        STALE: tuple(v + p.stale_variance for v in resid),
-        OUT_OF_RANGE: tuple(v + p.out_of_range_variance for v in resid),
-        STALE | OUT_OF_RANGE: tuple(v + p.stale_variance + p.out_of_range_variance
-                                    for v in resid),
-    }
+    var = variance_table(model.residual_var, policy)
     return PreparedModel(model, model.model_id, comp, var,
                          np.asarray(model.scale, dtype=np.float64),
                          set(model.features) <= STATIC_EFFECTS, priming, state, policy)
@@ -155,3 +147,38 @@ def prepared_for(prepared: PreparedModel, policy: Policy) -> bool:
     """Return whether ``prepared`` was made with what ``policy`` says of :data:`PREPARED_BY`."""
     made = prepared.policy
     return made is None or all(getattr(made, f) == getattr(policy, f) for f in PREPARED_BY)
+
+
+def catch_up(prepared: PreparedModel, priming: Priming, policy: Policy) -> StreamingCompensator:
+    """
+    Carry ``prepared``'s replay on to the stream's last IMU stamp; return its compensator.
+
+    ``priming`` is where the stream is now (the history in full). The replay :func:`prepare`
+    did is carried on over the thermometer samples recorded since; when the stream moved in a
+    way its copy did not see (a new session, stamps back), it is replayed from the first
+    compensated sample here. A :func:`timeless` model is only advanced to the last stamp.
+    """
+    model, comp = prepared.model, prepared.comp
+    first, history, last_t, last_temp = priming
+    if timeless(model):               # no filter: nothing to replay
+        if last_t is not None and last_temp is not None:
+            advance(comp, last_t, last_temp)
+        return comp
+    if first is None or last_t is None:
+        return comp
+    state = prepared.replay
+    if (state is None or prepared.priming.first != first
+            or prepared.priming.last_t is None or last_t < prepared.priming.last_t):
+        comp = StreamingCompensator(model, out_of_range=policy.out_of_range,
+                                    max_extrapolation_c=policy.max_extrapolation_c)
+        state = replay_from_first(comp, first, history, last_t)
+    else:
+        tail = []
+        for entry in reversed(history):
+            if entry[0] <= state.t_seen:
+                break
+            tail.append(entry)
+        state = replay(comp, reversed(tail), last_t, state)
+    if last_t > state.t_prev:
+        advance(comp, last_t, state.temp_prev if last_temp is None else last_temp)
+    return comp

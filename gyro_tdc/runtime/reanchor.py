@@ -34,10 +34,15 @@ continuous stream never pauses: its windows, and its anchors, are the span windo
 from __future__ import annotations
 
 from array import array
-from dataclasses import dataclass
 import math
 from typing import NamedTuple, Sequence
 
+from gyro_tdc.runtime.blockstats import (Anchor, block_length, block_sums, BLOCKS_PER_WINDOW,
+                                         BlockStats, default_tolerance, early_allowed,
+                                         EARLY_BLOCKS, MAX_BLOCK_S, max_windows, Shift,
+                                         standard_error, stats_of, STILL_WINDOW_MAX_S,
+                                         TOLERANCE_FLOOR, TOLERANCE_FRACTION, Vec3,
+                                         window_stats)
 from gyro_tdc.signal import (MIN_WINDOW_SAMPLES, NOISE_FACTOR, NOISE_WINDOWS, STILL_WINDOW_S,
                              StillWindows, Window, windows_moving)
 import numpy as np
@@ -49,196 +54,7 @@ __all__ = ['Anchor', 'BLOCKS_PER_WINDOW', 'BlockStats', 'EARLY_BLOCKS', 'MAX_BLO
            'block_length', 'default_tolerance', 'max_windows', 'reanchor_shift',
            'standard_error', 'window_stats', 'windows_moving']
 
-Vec3 = tuple[float, float, float]
-
-# STILL_WINDOW_S (the default shortest averaging, the stillness window), NOISE_FACTOR and
-# NOISE_WINDOWS come from gyro_tdc.signal, the home of the still test.
-#: Default longest averaging, s.
-STILL_WINDOW_MAX_S = 600.0
-#: Blocks per window in the block-means standard error ...
-BLOCKS_PER_WINDOW = 50
-#: ... each at most this long, s.
-MAX_BLOCK_S = 1.0
-#: A bursty stream's window ends early, once precise, after at least this many whole blocks
-#: (a tenth of a window: 1 s of a 10 s window from 5 Hz up) and MIN_WINDOW_SAMPLES samples.
-EARLY_BLOCKS = 5
-#: Default tolerance: this fraction of the model's residual standard deviation ...
-TOLERANCE_FRACTION = 0.1
-#: ... and at least this, rad/s.
-TOLERANCE_FLOOR = 1e-5
-
 _INF3 = (math.inf, math.inf, math.inf)
-
-
-@dataclass(frozen=True)
-class Anchor:
-    """
-    The result of re-anchoring: the offset shift that zeroes the compensated rate.
-
-    Parameters
-    ----------
-    t : float, s
-        Stamp of the last sample averaged.
-    delta : tuple of 3 float, rad/s
-        Shift added to the model's drift.
-    samples : int
-        Samples averaged.
-    gyro_std : tuple of 3 float, rad/s
-        Standard deviation of the raw rate within the still windows (RMS over them).
-    temp_c : float, degC
-        Temperature at the end.
-    duration_s : float, s
-        Stamp of the last sample averaged minus that of the first.
-    se : tuple of 3 float, rad/s
-        Standard error of ``delta`` (block means; see the module docstring).
-    tolerance : tuple of 3 float, rad/s
-        The tolerance the SE was held to.
-    reason : str
-        ``'precision'`` (SE within the tolerance), ``'longest'`` (``window_max`` reached)
-        or ``'end of data'`` (:func:`reanchor_shift` only); ``''`` for a single window.
-
-    """
-
-    t: float
-    delta: Vec3
-    samples: int
-    gyro_std: Vec3
-    temp_c: float
-    duration_s: float = 0.0
-    se: Vec3 = _INF3
-    tolerance: Vec3 = _INF3
-    reason: str = ''
-
-
-class BlockStats(NamedTuple):
-    """
-    Sums over blocks of ``x - c`` (``c`` a constant of the run) for the block-means SE.
-
-    ``n`` samples, ``m`` non-empty blocks, ``s`` the sum, ``a`` the sum of squared block
-    sums, ``b`` the sum of block sums times block counts (per axis), ``c2`` the sum of
-    squared block counts. Window statistics add up.
-    """
-
-    n: int = 0
-    m: int = 0
-    s: Vec3 = (0.0, 0.0, 0.0)
-    a: Vec3 = (0.0, 0.0, 0.0)
-    b: Vec3 = (0.0, 0.0, 0.0)
-    c2: float = 0.0
-
-    def __add__(self, other: object) -> 'BlockStats':
-        """Return the statistics of two sets of blocks together."""
-        if not isinstance(other, BlockStats):
-            return NotImplemented
-        return BlockStats(self.n + other.n, self.m + other.m,
-                          tuple(u + v for u, v in zip(self.s, other.s)),
-                          tuple(u + v for u, v in zip(self.a, other.a)),
-                          tuple(u + v for u, v in zip(self.b, other.b)),
-                          self.c2 + other.c2)
-
-
-class Shift(NamedTuple):
-    """What :func:`reanchor_shift` found: the mean and its precision over the head of a run."""
-
-    delta: Vec3
-    se: Vec3
-    samples: int
-    duration_s: float
-    reason: str
-
-
-def block_length(window: float) -> float:
-    """Return the block length (s) of the block-means SE for a stillness window (s)."""
-    return min(MAX_BLOCK_S, float(window) / BLOCKS_PER_WINDOW)
-
-
-def max_windows(window: float, window_max: float) -> int:
-    """Return how many windows the averaging may hold: ``window_max / window``, at least 1."""
-    return max(1, int(float(window_max) / float(window) + 1e-9))
-
-
-def default_tolerance(residual_var: Sequence[float]) -> Vec3:
-    """
-    Return the default re-anchoring tolerance from a model's residual variance.
-
-    Parameters
-    ----------
-    residual_var : sequence of 3 float, (rad/s)^2
-        The model's residual variance per axis.
-
-    Returns
-    -------
-    tuple of 3 float, rad/s
-        ``max(TOLERANCE_FRACTION * sqrt(residual_var), TOLERANCE_FLOOR)`` per axis.
-
-    """
-    return tuple(max(TOLERANCE_FRACTION * math.sqrt(max(float(v), 0.0)), TOLERANCE_FLOOR)
-                 for v in residual_var)
-
-
-def standard_error(st: BlockStats) -> Vec3:
-    """
-    Return the standard error of the mean from block statistics (inf below two blocks).
-
-    ``SE^2 = m / (m - 1) * sum_k (S_k - n_k mu)^2 / N^2`` with ``mu = S / N``, expanded
-    over the running sums so a stream needs no block history.
-    """
-    if st.m < 2 or st.n == 0:
-        return _INF3
-    n = float(st.n)
-    k = st.m / (st.m - 1.0)
-    out = []
-    for s, a, b in zip(st.s, st.a, st.b):
-        mu = s / n
-        out.append(math.sqrt(max(k * (a - 2.0 * mu * b + mu * mu * st.c2), 0.0)) / n)
-    return tuple(out)
-
-
-def window_stats(t: NDArray[np.float64], x: NDArray[np.float64], c: Sequence[float],
-                 block_s: float) -> BlockStats:
-    """
-    Return the block statistics of one window (batch form of the streaming sums).
-
-    Parameters
-    ----------
-    t : NDArray[np.float64], shape (N,), s
-        Stamps of the window's samples (blocks start at ``t[0]``).
-    x : NDArray[np.float64], shape (N, 3)
-        The values averaged (the compensated rate, or its error).
-    c : sequence of 3 float
-        The run's centring constant.
-    block_s : float, s
-        Block length.
-
-    """
-    t = np.asarray(t, dtype=np.float64)
-    if t.size == 0:
-        return BlockStats()
-    return _stats_of(*_block_sums(t, x, c, block_s, float(t[0]))[1:])
-
-
-def _block_sums(t: NDArray[np.float64], x: NDArray[np.float64], c: Sequence[float],
-                block_s: float, origin: float
-                ) -> tuple[NDArray[np.int64], NDArray[np.float64], NDArray[np.float64]]:
-    """
-    Return each block's first index, its sum of ``x - c`` and its sample count.
-
-    Blocks of ``block_s`` on the grid from ``origin`` (a window's first stamp), in order;
-    ``t`` not empty.
-    """
-    k = np.floor((t - origin) / block_s)
-    starts = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
-    sums = np.add.reduceat(np.asarray(x, dtype=np.float64) - np.asarray(c), starts, axis=0)
-    counts = np.diff(np.append(starts, t.size)).astype(np.float64)
-    return starts, sums, counts
-
-
-def _stats_of(sums: NDArray[np.float64], counts: NDArray[np.float64]) -> BlockStats:
-    """Return the block statistics of blocks with these sums and sample counts."""
-    return BlockStats(int(counts.sum()), int(counts.size), tuple(sums.sum(axis=0).tolist()),
-                      tuple((sums ** 2).sum(axis=0).tolist()),
-                      tuple((sums * counts[:, None]).sum(axis=0).tolist()),
-                      float((counts ** 2).sum()))
 
 
 def _window_end(t: NDArray[np.float64], i0: int, window: float) -> tuple[int, int]:
@@ -272,7 +88,7 @@ def _early_end(t: NDArray[np.float64], x: NDArray[np.float64], i0: int, i1: int,
     tt = t[i0:i1]
     if tt.size < 2:
         return None
-    starts, sums, counts = _block_sums(tt, x[i0:i1], c, block_s, float(tt[0]))
+    starts, sums, counts = block_sums(tt, x[i0:i1], c, block_s, float(tt[0]))
     if starts.size <= EARLY_BLOCKS:
         return None
     cs, ca = np.cumsum(sums, axis=0), np.cumsum(sums ** 2, axis=0)
@@ -332,7 +148,7 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
     bs = block_length(window)
     c = tuple(x[0].tolist())
     total = BlockStats()
-    if _early_allowed(tol, window, window_max):
+    if early_allowed(tol, window, window_max):
         long = np.flatnonzero(np.diff(t) > window)
         first_pause = 0 if paused else (int(long[0]) + 1 if long.size else t.size)
     else:
@@ -360,11 +176,6 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
         total = window_stats(t, x, c, bs)
     delta = tuple(ci + si / total.n for ci, si in zip(c, total.s))
     return Shift(delta, standard_error(total), total.n, float(t[last] - t[0]), reason)
-
-
-def _early_allowed(tol: Sequence[float], window: float, window_max: float) -> bool:
-    """Return whether a window may end early: a finite tolerance and more than one window."""
-    return all(math.isfinite(v) for v in tol) and max_windows(window, window_max) > 1
 
 
 class _Window(NamedTuple):
@@ -490,7 +301,7 @@ class StillnessDetector:
         self._rows = array('d')            # its stamps and compensated rates (4 a sample)
         self._done = 0                     # samples summed into whole blocks ...
         self._part = BlockStats()          # ... their statistics, around the run's centre
-        self._early = _early_allowed(self.tolerance, self.window, self.window_max)
+        self._early = early_allowed(self.tolerance, self.window, self.window_max)
 
     def _begin_window(self, t: float, out: Sequence[float]) -> None:
         """Start the window in progress at the sample ``t`` (the run's centre with a new run)."""
@@ -602,7 +413,7 @@ class StillnessDetector:
                 s2 += rows[r + 3] - c2
             return out
         new = np.frombuffer(self._rows, dtype=np.float64).reshape(-1, 4)[i:j]
-        return _stats_of(*_block_sums(new[:, 0], new[:, 1:], self._c, bs, w0)[1:])
+        return stats_of(*block_sums(new[:, 0], new[:, 1:], self._c, bs, w0)[1:])
 
     def _blocks(self, w: Window) -> BlockStats:
         """

@@ -16,16 +16,18 @@
 Signal tools on IMU samples.
 
 Block means, noise and accuracy metrics, the one still detector (its verdict, batch and
-streaming forms) and the one session-break rule (batch and streaming).
+streaming forms), the one session-break rule (batch and streaming) and the thermometer held
+by stamp.
 """
 
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'blocks': ['block_counts', 'block_length', 'block_mean', 'block_sum', 'block_sumsq'],
+    'hold': ['hold_readings', 'TemperatureHold'],
     'metrics': ['allan_deviation', 'bias_stability', 'noise_readouts', 'p_ratios', 'rms_dps'],
     'sessions': ['BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'break_why', 'GAP_PERIODS',
-                 'gap_breaks', 'gap_limit', 'session_gap', 'SessionRule'],
+                 'gap_breaks', 'gap_limit', 'session_gap', 'SessionRule', 'SessionTracker'],
     'still_batch': ['detect_still', 'Stillness'],
     'still_stream': ['MotionReports', 'StillSegment', 'StillWindows', 'StreamingStill',
                      'Window'],

@@ -16,7 +16,9 @@
 The session-break rule (a power cycle in the stamps), in batch and streaming form.
 
 :func:`gap_limit` is the rule, :func:`session_gap` and :func:`gap_breaks` apply it to a
-whole run, :class:`SessionRule` one stamp step at a time; see doc/internals/signal.md.
+whole run, :class:`SessionRule` one stamp step at a time and :class:`SessionTracker` keeps
+the session a stream is in (the compensator's core and the learner); see
+doc/internals/signal.md.
 """
 
 from __future__ import annotations
@@ -29,7 +31,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'break_why', 'GAP_PERIODS',
-           'gap_breaks', 'gap_limit', 'PAUSES_KEPT', 'session_gap', 'SessionRule']
+           'gap_breaks', 'gap_limit', 'PAUSES_KEPT', 'PERIOD_STEPS', 'session_gap',
+           'SessionRule', 'SessionTracker']
 
 #: A pause starts a new session when it is longer than ``gap_s`` and this many periods ...
 GAP_PERIODS = SESSION_GAP_PERIODS
@@ -42,6 +45,8 @@ BURST_FACTOR = 3.0
 BURST_MAX_S = 3600.0
 #: The streaming form keeps the newest this many pauses.
 PAUSES_KEPT = 64
+#: :meth:`SessionTracker.median_period` is the median of the stream's first this many steps.
+PERIOD_STEPS = 64
 
 
 def gap_limit(period: float, pauses: Sequence[float], gap_s: float = SESSION_GAP_S) -> float:
@@ -136,3 +141,117 @@ class SessionRule:
         if d <= BURST_MAX_S:
             self.pauses = (self.pauses + [float(d)])[-PAUSES_KEPT:]
         return break_why(d) if d > self.limit(period) else ''
+
+
+class SessionTracker:
+    """
+    The session one stream is in: the rule, the current session and the breaks that began them.
+
+    :meth:`judge` applies :class:`SessionRule` to a stamp step, :meth:`start` begins the
+    session a break starts, :meth:`period` is the session's mean sample period (its pauses
+    left out), :meth:`median_period` the median of the stream's first steps (a stream seen in
+    batches) and :meth:`merges` relabels the sessions whose gap the rule, having learned the
+    stream's rhythm since, no longer cuts at.
+
+    Parameters
+    ----------
+    gap_s : float, s
+        The shortest gap that is a break.
+    first : int
+        The first session's number.
+
+    """
+
+    def __init__(self, gap_s: float = SESSION_GAP_S, first: int = 0) -> None:
+        self.rule = SessionRule(gap_s)
+        self.session = int(first)
+        #: The current session's first stamp (None before any), the sample count at it and
+        #: what started it (``''`` for the first).
+        self.t0: float | None = None
+        self.k0 = 0
+        self.why = ''
+        #: The steps judged since the session started that were no break, and their sum.
+        self.pauses = 0
+        self.paused_s = 0.0
+        #: The sessions a gap started, ``(session, gap s)``, the newest :data:`PAUSES_KEPT`.
+        self.gaps: list[tuple[int, float]] = []
+        #: The median of the stream's first :data:`PERIOD_STEPS` positive steps (None before).
+        self.median: float | None = None
+        self._steps: list[float] = []
+
+    def median_period(self, dt: NDArray[np.float64]) -> float | None:
+        """Take the stream's next steps ``dt`` (s); return the median period once known."""
+        if self.median is None:
+            self._steps.extend(dt[dt > 0.0][:PERIOD_STEPS - len(self._steps)].tolist())
+            if len(self._steps) >= PERIOD_STEPS:
+                self.median = float(np.median(self._steps))
+        return self.median
+
+    def begin(self, t: float, k: int = 0) -> None:
+        """Note the stream's first sample: stamp ``t`` (s), the ``k``-th counted."""
+        self.t0, self.k0 = t, k
+
+    def period(self, t_last: float | None, k: int) -> float:
+        """
+        Return the session's mean sample period, s (0: unknown).
+
+        ``t_last`` is the last stamp before the step judged and ``k`` the count of the
+        sample after it; the pauses judged in the session are left out.
+        """
+        steps = k - self.k0 - 1 - self.pauses
+        if steps <= 0 or self.t0 is None or t_last is None:
+            return 0.0
+        return (t_last - self.t0 - self.paused_s) / steps
+
+    def limit(self, period: float) -> float:
+        """Return the gap (s) above which a step is a break now (:func:`gap_limit`)."""
+        return self.rule.limit(period)
+
+    def judge(self, d: float, period: float) -> str:
+        """
+        Judge a stamp step ``d`` (s) of a stream sampled every ``period`` s.
+
+        Returns :meth:`SessionRule.judge`'s words (``''``: no break); a step that is no
+        break counts as a pause of the session.
+        """
+        why = self.rule.judge(d, period)
+        if not why:
+            self.pauses += 1
+            self.paused_s += d
+        return why
+
+    def start(self, t: float, why: str, k: int = 0, gap: float = 0.0) -> int:
+        """
+        Begin a new session at stamp ``t`` (the ``k``-th sample) after ``why``; return it.
+
+        ``gap`` > 0 (s) is the gap that started it: :meth:`merges` may take it back.
+        """
+        self.session += 1
+        self.t0, self.k0, self.why = t, k, why
+        self.pauses, self.paused_s = 0, 0.0
+        if gap > 0:
+            self.gaps = (self.gaps + [(self.session, float(gap))])[-PAUSES_KEPT:]
+        return self.session
+
+    def merges(self, period: float) -> dict[int, int] | None:
+        """
+        Merge the sessions whose gap is no break under the rule now; return the relabelling.
+
+        Returns
+        -------
+        dict of int to int, or None
+            The new label of every session up to the current one (None: nothing merged).
+
+        """
+        limit = self.rule.limit(period)
+        merge = {s for s, gap in self.gaps if gap <= limit and s <= self.session}
+        if not merge:
+            return None
+        new, label = {}, 0
+        for k in range(self.session + 1):
+            if k and k not in merge:
+                label += 1
+            new[k] = label
+        self.gaps = [(new[s], g) for s, g in self.gaps if s not in merge and s in new]
+        self.session = new[self.session]
+        return new

@@ -28,7 +28,7 @@ import copy
 import math
 from typing import Any, Mapping, Optional
 
-from gyro_tdc.base import plain
+from gyro_tdc.base import FieldChecker, is_number, plain
 from gyro_tdc.errors import ScenarioError
 from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim import chamber
@@ -126,10 +126,11 @@ def merge(base: Mapping, top: Mapping) -> dict:
 
 
 class _Checker:
-    """Field checks that raise one ScenarioError naming the field."""
+    """Field checks that raise one ScenarioError naming the field (base.FieldChecker's)."""
 
     def __init__(self, source: str) -> None:
         self.source = source
+        self.fields = FieldChecker(self.fail)
 
     def fail(self, path: str, expected: str, got: Any) -> ScenarioError:
         shown = repr(got)
@@ -137,19 +138,13 @@ class _Checker:
             shown = shown[:77] + '...'
         return ScenarioError(f'{self.source}: `{path}`: expected {expected}, got {shown}.')
 
-    @staticmethod
-    def _is_num(x: Any) -> bool:
-        return (isinstance(x, (int, float, np.integer, np.floating))
-                and not isinstance(x, bool) and math.isfinite(float(x)))
+    _is_num = staticmethod(is_number)
 
     def num(self, path: str, x: Any, *, low: Optional[float] = None,
             strict: bool = False) -> float:
-        if not self._is_num(x):
-            raise self.fail(path, 'a finite number' + self._bound(low, strict), x)
-        x = float(x)
-        if low is not None and (x <= low if strict else x < low):
-            raise self.fail(path, 'a number' + self._bound(low, strict), x)
-        return x
+        if low is None:
+            return self.fields.number(x, path, what='a finite number')
+        return self.fields.above(x, path, low, strict, what='a finite number')
 
     @staticmethod
     def _bound(low: Optional[float], strict: bool) -> str:
@@ -172,9 +167,7 @@ class _Checker:
         return (values[0], values[1], values[2])
 
     def boolean(self, path: str, x: Any) -> bool:
-        if not isinstance(x, bool):
-            raise self.fail(path, 'true or false', x)
-        return x
+        return self.fields.boolean(x, path)
 
     def mapping(self, path: str, x: Any, allowed: tuple[str, ...]) -> dict:
         if not isinstance(x, Mapping):

@@ -19,7 +19,8 @@ from __future__ import annotations
 import math
 
 from gyro_tdc.data.imu_cdr import ImuView, locate
-from gyro_tdc.data.mark import cov_marked, diagonal_marked, is_marked, MARK, mark, mark_diagonal
+from gyro_tdc.data.mark import (cov_marked, diagonal_marked, is_marked, MARK, mark, mark_diagonal,
+                                mark_unknown)
 import numpy as np
 import pytest
 from rosbags.typesys import get_typestore, Stores
@@ -83,3 +84,32 @@ def test_imu_view_marks_only_what_it_may(cov0, marks):
         np.testing.assert_allclose(msg.angular_velocity_covariance[[0, 4, 8]],
                                    np.array([1e-6, 2e-6, 3e-6]) + 1e-7, rtol=2.0 ** -36)
         assert cov_marked(out, base + 8 * 16) and out.count(MARK) >= 3
+
+
+def test_an_unknown_covariance_is_marked_by_the_sign_of_its_zeros():
+    """REP 145 unknown (all zero) stays all zero to every reader, yet carries the mark."""
+    cov = [0.0] * 9
+    mark_unknown(cov)
+    assert cov == [0.0] * 9 and diagonal_marked(cov)      # -0.0 == 0.0: nothing invented
+    assert [math.copysign(1.0, v) for v in cov] == [-1, 1, 1, 1, -1, 1, 1, 1, -1]
+    assert not diagonal_marked([0.0] * 9)                  # a driver's plain zeros
+    known = [1e-6, 0.0, 0.0, 0.0, 1e-6, 0.0, 0.0, 0.0, 1e-6]
+    mark_unknown(known)
+    assert known[0] == 1e-6 and not diagonal_marked(known)    # only all zero is marked so
+    # Serialized: the patch writes the same zeros, and a relay (deserialise, serialise)
+    # keeps them.
+    store = get_typestore(Stores.ROS2_JAZZY)
+    data, _ = imu_bytes(0.0)
+    data = bytearray(data)
+    _, _, base = locate(bytes(data))
+    for k in (4, 8):
+        data[base + 8 * 16 + 8 * k:base + 8 * 16 + 8 * k + 8] = bytes(8)
+    view = ImuView(bytes(data), base)
+    out = view.patched(0.5, 0.6, 0.7, (1e-7,) * 3, mark=True)
+    assert ImuView(out, base).marked() and not ImuView(
+        view.patched(0.5, 0.6, 0.7, (1e-7,) * 3), base).marked()
+    msg = store.deserialize_cdr(out, 'sensor_msgs/msg/Imu')
+    assert not any(msg.angular_velocity_covariance)
+    assert diagonal_marked(msg.angular_velocity_covariance)
+    again = bytes(store.serialize_cdr(msg, 'sensor_msgs/msg/Imu'))
+    assert again == out and cov_marked(again, base + 8 * 16)

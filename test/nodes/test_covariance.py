@@ -17,11 +17,13 @@ REP 145 covariances through compensator_node: known, unknown (all zero) and no d
 
 Both input paths (``raw_cdr`` true: the serialized bytes patched; false: the message
 deserialised) give the same output: a known covariance is widened by the model's variance and
-marked; an unknown one stays all zero and unmarked unless ``base_variance`` gives it a base;
--1 stays as it came.
+marked; an unknown one stays all zero (marked by negative zeros) unless ``base_variance`` gives
+it a base; -1 stays as it came.
 """
 
 from __future__ import annotations
+
+import math
 
 from gyro_tdc.data.mark import diagonal_marked, mark
 import pytest
@@ -66,7 +68,10 @@ def test_unknown_stays_unknown_unless_a_base_variance_is_given(rig_factory, raw_
                                 if k in (0, 4, 8) else 0.0 for k in range(9))
         assert diagonal_marked(unknown)
     else:
-        assert unknown == UNKNOWN and not diagonal_marked(unknown)
+        # Unknown stays unknown (every entry == 0.0, no variance invented) and is marked by
+        # the sign of its diagonal zeros, so a second compensator still sees the first.
+        assert unknown == UNKNOWN and diagonal_marked(unknown)
+        assert [math.copysign(1.0, unknown[k]) for k in (0, 4, 8)] == [-1.0] * 3
     assert no_data == NO_DATA and not diagonal_marked(no_data)
     assert rig.node.core.counts['compensated'] == 3       # compensated all the same
 

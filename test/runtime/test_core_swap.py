@@ -18,7 +18,6 @@ from __future__ import annotations
 
 from gyro_tdc.identify import fit_model
 from gyro_tdc.learn.learner import learned_model
-from gyro_tdc.runtime import core as core_mod
 from gyro_tdc.runtime import priming as priming_mod
 from gyro_tdc.runtime.core import CompensatorCore, timeless
 from gyro_tdc.runtime.policy import Policy
@@ -59,7 +58,6 @@ def _count_advances(monkeypatch):
         calls[0] += 1
         real(comp, t, temp)
     monkeypatch.setattr(priming_mod, 'advance', counting)
-    monkeypatch.setattr(core_mod, 'advance', counting)
     return calls
 
 

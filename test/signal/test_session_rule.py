@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from gyro_tdc.base import SESSION_GAP_S
 from gyro_tdc.signal import (BURST_MAX_S, BURST_PAUSES, gap_breaks, gap_limit, session_gap,
-                             SessionRule)
+                             SessionRule, SessionTracker)
 import numpy as np
 
 
@@ -67,3 +67,29 @@ def test_a_restart_and_a_nan_step():
     assert rule.judge(-0.5, 0.01) == ''                         # within RESTART_BACK_S
     assert rule.judge(float('nan'), 0.01) == ''
     assert rule.judge(3600.5, 0.01) == 'gap of 3600 s' and rule.pauses == []
+
+
+def test_the_tracker_counts_sessions_and_their_mean_period():
+    tracker = SessionTracker(first=1)
+    tracker.begin(0.0, 1)
+    # 101 samples at 0.1 s, then a 700 s step: a break (over SESSION_GAP_S).
+    assert tracker.period(10.0, 102) == 0.1
+    assert tracker.judge(700.0, tracker.period(10.0, 102)) == 'gap of 700 s'
+    assert tracker.start(710.0, 'gap of 700 s', 102) == 2
+    assert (tracker.t0, tracker.k0, tracker.pauses) == (710.0, 102, 0)
+    # A pause judged no break is left out of the session's mean period.
+    assert tracker.judge(-0.5, 0.1) == '' and tracker.pauses == 1
+    assert tracker.period(720.5, 204) == (720.5 - 710.0 + 0.5) / (204 - 102 - 1 - 1)
+
+
+def test_the_tracker_merges_sessions_once_the_rhythm_shows():
+    tracker = SessionTracker()
+    for k in range(BURST_PAUSES):
+        why = tracker.judge(900.0, 0.1)
+        relabel = tracker.merges(0.1)
+        if why:
+            tracker.start(920.0 * (k + 1), why, gap=900.0)
+    # The first pauses broke; the fifth shows the rhythm and merges them all back.
+    assert relabel == {k: 0 for k in range(BURST_PAUSES)}
+    assert tracker.session == 0 and tracker.gaps == []
+    assert tracker.judge(7200.0, 0.1) == 'gap of 7200 s'

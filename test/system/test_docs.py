@@ -146,6 +146,8 @@ def test_node_topics_come_from_the_node_classes(reference):
     assert entries[('subscribes', 'imu/data_raw')] == 'sensor_msgs/msg/Imu'
     assert entries[('publishes', 'imu/data_compensated')] == 'sensor_msgs/msg/Imu'
     assert entries[('service', '~/reload')] == 'std_srvs/srv/Trigger'
+    # A class loaded by name at run time: the parameter that names it.
+    assert entries[('subscribes', 'imu/temperature')] == 'any installed type (by temperature_type)'
     # A mixin's subscription, its topic a parameter, its type chosen by another.
     motion = entries[('subscribes', 'parameter motion_topic')]
     assert 'nav_msgs/msg/Odometry' in motion and 'motion_type' in motion

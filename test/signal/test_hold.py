@@ -12,11 +12,12 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The thermometer held by stamp and the covariance widening (pure)."""
+"""The thermometer held by stamp (pure)."""
 
 import math
 
-from gyro_tdc.runtime.temperature_hold import TemperatureHold, widen_covariance
+from gyro_tdc.signal import TemperatureHold
+import numpy as np
 
 
 def test_temperature_hold_by_stamp():
@@ -38,7 +39,16 @@ def test_temperature_hold_by_stamp():
     assert len(hold) == 4 and hold.at(100.0) == (39.0, 19.0)
 
 
-def test_widen_covariance():
-    assert widen_covariance([0.0] * 9, (1.0, 2.0, 3.0)) == [1, 0, 0, 0, 2, 0, 0, 0, 3]
-    cov = [-1.0] + [0.0] * 8
-    assert widen_covariance(cov, (1.0, 2.0, 3.0)) == cov
+def test_the_batch_form_holds_as_the_streaming_form():
+    hold = TemperatureHold(capacity=None, gate=False)
+    for t, c in ((2.0, 21.0), (0.0, 20.0), (10.0, 22.0), (6.0, math.nan)):
+        hold.add(t, c)
+    stamps = np.array([-1.0, 0.0, 1.5, 2.0, 6.5, 8.0, 11.0, 16.0])
+    held = hold.held(stamps, 5.0)
+    for s, h in zip(stamps, held):
+        one = hold.at(s)
+        want = math.nan if one is None or s - one[1] > 5.0 else one[0]
+        np.testing.assert_equal(h, want)
+    assert np.isnan(held[4])                     # a NaN reading is held as no temperature
+    hold.forget_before(8.0)
+    assert hold.readings[1:] == [(10.0, 22.0)] and hold.readings[0][0] == 6.0

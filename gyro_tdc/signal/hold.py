@@ -13,11 +13,12 @@
 # limitations under the License.
 
 """
-The compensator's thermometer held by stamp, and its covariance widening (pure).
+The thermometer held by stamp: the newest reading at or before a stamp, within a timeout.
 
-:class:`TemperatureHold` is a zero-order hold by stamp of the readings the plausibility gate
-(:mod:`gyro_tdc.base.plausible`) lets through; :func:`widen_covariance` widens a REP 145
-covariance's diagonal.
+:class:`TemperatureHold` is the one zero-order hold: one stamp at a time
+(:meth:`~TemperatureHold.at`, the compensator's core) or a batch of stamps
+(:meth:`~TemperatureHold.held`, :func:`hold_readings`, the learner), behind the plausibility
+gate (:mod:`gyro_tdc.base.plausible`) where the readings are raw.
 """
 
 from __future__ import annotations
@@ -27,8 +28,10 @@ import math
 from typing import Sequence
 
 from gyro_tdc.base import TemperatureGate
+import numpy as np
+from numpy.typing import NDArray
 
-__all__ = ['TemperatureHold', 'widen_covariance']
+__all__ = ['hold_readings', 'TemperatureHold']
 
 
 class TemperatureHold:
@@ -42,19 +45,23 @@ class TemperatureHold:
 
     Parameters
     ----------
-    capacity : int
-        Thermometer samples kept (enough to cover reordering between the two topics).
+    capacity : int or None
+        Thermometer samples kept (enough to cover reordering between the two topics; None:
+        all until :meth:`forget_before`).
+    gate : bool
+        Check each reading (finite, plausible); False holds every reading as it is (readings
+        checked upstream; a NaN reading is held as NaN: no temperature).
 
     """
 
-    def __init__(self, capacity: int = 256) -> None:
+    def __init__(self, capacity: int | None = 256, gate: bool = True) -> None:
         self._t: list[float] = []
         self._c: list[float] = []
-        self._capacity = int(capacity)
+        self._capacity = capacity
         self.received = 0
         self.rejected = 0
         self.implausible = 0
-        self._gate = TemperatureGate()
+        self._gate = TemperatureGate() if gate else None
 
     def __len__(self) -> int:
         """Return the number of samples held."""
@@ -81,12 +88,13 @@ class TemperatureHold:
 
         """
         self.received += 1
-        if not (math.isfinite(t) and math.isfinite(temp_c)):
-            self.rejected += 1
-            return False
-        if t > not_after or not self._gate.accept(t, temp_c):
-            self.implausible += 1
-            return False
+        if self._gate is not None:
+            if not (math.isfinite(t) and math.isfinite(temp_c)):
+                self.rejected += 1
+                return False
+            if t > not_after or not self._gate.accept(t, temp_c):
+                self.implausible += 1
+                return False
         if not self._t or t > self._t[-1]:
             self._t.append(t)
             self._c.append(temp_c)
@@ -97,7 +105,7 @@ class TemperatureHold:
             else:
                 self._t.insert(i, t)
                 self._c.insert(i, temp_c)
-        if len(self._t) > self._capacity:
+        if self._capacity is not None and len(self._t) > self._capacity:
             del self._t[:len(self._t) - self._capacity]
             del self._c[:len(self._c) - self._capacity]
         return True
@@ -138,28 +146,44 @@ class TemperatureHold:
         """Return ``(temp_c, stamp)`` of the newest sample, or None."""
         return (self._c[-1], self._t[-1]) if self._t else None
 
+    def held(self, t: NDArray[np.float64], timeout: float) -> NDArray[np.float64]:
+        """
+        Return the reading held at each of the stamps ``t`` (s), degC.
 
-def widen_covariance(cov: Sequence[float], add: Sequence[float]) -> list[float]:
-    """
-    Return a 3x3 row-major covariance with ``add`` added to its diagonal.
-
-    Parameters
-    ----------
-    cov : sequence of 9 float
-        Input covariance (REP 145: all zeros means unknown).
-    add : sequence of 3 float, (rad/s)^2
-        Variance to add per axis.
-
-    Returns
-    -------
-    list of 9 float
-        The widened covariance; an input with ``cov[0] == -1`` (no data) is returned as is.
-
-    """
-    out = list(cov)
-    if out[0] == -1.0:
+        NaN before the first reading and where the held one is older than ``timeout`` (s).
+        """
+        t = np.asarray(t, dtype=np.float64)
+        if not self._t:
+            return np.full(t.size, math.nan)
+        tt, tc = np.asarray(self._t), np.asarray(self._c)
+        i = np.searchsorted(tt, t, side='right') - 1
+        j = np.clip(i, 0, None)
+        out = np.where(i >= 0, tc[j], math.nan)
+        out[(i >= 0) & (t - tt[j] > timeout)] = math.nan
         return out
-    out[0] += add[0]
-    out[4] += add[1]
-    out[8] += add[2]
-    return out
+
+    def forget_before(self, t: float) -> None:
+        """Forget the readings no stamp from ``t`` (s) on needs: all before the one held at it."""
+        keep = max(bisect.bisect_right(self._t, t) - 1, 0)
+        del self._t[:keep], self._c[:keep]
+
+    @property
+    def readings(self) -> list[tuple[float, float]]:
+        """Return the readings held, ``(stamp s, degC)`` in stamp order."""
+        return list(zip(self._t, self._c))
+
+
+def hold_readings(readings: Sequence[tuple[float, float]], t: NDArray[np.float64],
+                  timeout: float) -> tuple[NDArray[np.float64], list[tuple[float, float]]]:
+    """
+    Hold readings ``(stamp s, degC)`` (any order, unchecked) at the stamps ``t`` (N >= 1).
+
+    Returns the held reading per stamp (NaN before the first and after ``timeout`` s) and the
+    readings still needed: the newest at or before ``t[-1]`` and all after it.
+    """
+    hold = TemperatureHold(None, gate=False)
+    for stamp, temp_c in readings:
+        hold.add(stamp, temp_c)
+    held = hold.held(t, timeout)
+    hold.forget_before(float(t[-1]))
+    return held, hold.readings

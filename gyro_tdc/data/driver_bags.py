@@ -1,0 +1,226 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+
+"""
+Bags recorded from drivers as they publish: any IMU and thermometer type, read by field.
+
+:class:`DriverInputs` holds the compensator's input choices (``--imu-type``,
+``--angular-velocity-field``, ``--stamp-field``, ``--input-frame``, ``--temperature-type``,
+``--temperature-field``, ``--temperature-stamp-field``, ``--temperature-quirk``);
+:func:`normalize_bag` decodes such a bag with rosbags' typestore (the bag's own message
+definitions) and writes the same samples as ``sensor_msgs/Imu`` + ``sensor_msgs/Temperature``,
+which :func:`~gyro_tdc.data.read_bag` reads as any other bag. The live node reads the same
+fields the same way (:mod:`gyro_tdc.data.fields`), so a model is trained on what it is fed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping
+
+from gyro_tdc.base import INPUT_FRAMES
+from gyro_tdc.data.bag.writer import write_bag
+from gyro_tdc.data.fields import (check_number, check_vector, DEFAULT_TEMPERATURE_FIELDS,
+                                  normalize_type, reader, stamp_kind, stamp_seconds, unquirk)
+from gyro_tdc.errors import ConfigError, DatasetError, one_line
+import numpy as np
+from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.interfaces import Nodetype
+from rosbags.typesys import get_typestore, Stores
+
+__all__ = ['DriverInputs', 'field_table', 'normalize_bag']
+
+IMU_TYPE = 'sensor_msgs/msg/Imu'
+_HEADER = 'std_msgs/msg/Header'
+
+
+@dataclass(frozen=True)
+class DriverInputs:
+    """
+    How a driver's bag holds the gyro and the thermometer (defaults: Imu + Temperature).
+
+    Parameters
+    ----------
+    imu_type, angular_velocity_field, stamp_field, input_frame : str
+        The IMU topic's type, the dotted path to its x/y/z rate (rad/s; '' the message
+        itself), to its stamp (a Time or an integer in microseconds), and its axes
+        (``flu`` or ``frd``).
+    temperature_type : str
+        The thermometer topic's type ('' as the bag says: Temperature, Float32, Float64).
+    temperature_field, temperature_stamp_field, temperature_quirk : str
+        Dotted path to the degC number ('' the type's usual one), to its stamp ('' its
+        ``header.stamp``, else the latest IMU stamp), and the driver's encoding to undo.
+
+    Raises
+    ------
+    ConfigError
+        An unknown ``input_frame`` or ``temperature_quirk``, or a malformed type name.
+
+    """
+
+    imu_type: str = IMU_TYPE
+    angular_velocity_field: str = 'angular_velocity'
+    stamp_field: str = 'header.stamp'
+    input_frame: str = 'flu'
+    temperature_type: str = ''
+    temperature_field: str = ''
+    temperature_stamp_field: str = ''
+    temperature_quirk: str = ''
+
+    def __post_init__(self) -> None:
+        """Check the choices and spell the type names ``pkg/msg/Type``."""
+        if self.input_frame not in INPUT_FRAMES:
+            raise ConfigError(f'input_frame: expected one of {", ".join(INPUT_FRAMES)}, got '
+                              f'{self.input_frame!r}.')
+        unquirk(self.temperature_quirk)      # raises on an unknown one
+        object.__setattr__(self, 'imu_type', normalize_type(self.imu_type))
+        if self.temperature_type:
+            object.__setattr__(self, 'temperature_type', normalize_type(self.temperature_type))
+
+    @property
+    def plain(self) -> bool:
+        """Return whether the bag is read as it is (every choice at its default)."""
+        return self == DriverInputs()
+
+
+def field_table(typestore: Any) -> Any:
+    """Return ``fields_of(type name)`` over a rosbags typestore (None: not a message)."""
+    def fields_of(name: str) -> Mapping[str, str] | None:
+        full = name if '/msg/' in name else name.replace('/', '/msg/', 1)
+        if full not in typestore.fielddefs:
+            return None
+        out = {}
+        for fname, (kind, desc) in typestore.fielddefs[full][1]:
+            if kind == Nodetype.BASE:
+                out[fname] = desc[0]
+            elif kind == Nodetype.NAME:
+                out[fname] = desc
+            else:
+                out[fname] = 'array'
+        return out
+    return fields_of
+
+
+def _connection(reader_: AnyReader, topic: str, want: str | None, option: str) -> Any:
+    conns = [c for c in reader_.connections if c.topic == topic]
+    if not conns:
+        raise DatasetError(f'bag has no topic {topic!r} (topics: '
+                           f'{", ".join(sorted({c.topic for c in reader_.connections}))}).')
+    got = conns[0].msgtype
+    if want is not None and got != want:
+        raise DatasetError(f'{option}: topic {topic!r} holds {got}, not {want}.')
+    return conns[0]
+
+
+def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
+                  temperature_topic: str, out: str | Path) -> Path:
+    """
+    Write a bag's gyro and thermometer, read by field, as a plain Imu + Temperature bag.
+
+    Parameters
+    ----------
+    path : str or Path
+        The rosbag2 bag recorded from the driver.
+    inputs : DriverInputs
+        How its topics hold the rate and the temperature.
+    imu_topic, temperature_topic : str
+        The topics to read; the new bag has them under the same names.
+    out : str or Path
+        The bag directory to create.
+
+    Returns
+    -------
+    Path
+        ``out``: rates in FLU, header stamps from the chosen stamp fields (a header-less
+        reading takes the stamp of the latest IMU message logged before it; readings before
+        the first one are dropped), temperatures with the quirk undone.
+
+    Raises
+    ------
+    ConfigError
+        A field path is missing or of the wrong kind (the message names the option).
+    DatasetError
+        The bag cannot be read, lacks a topic or holds another type than declared.
+
+    """
+    path = Path(path)
+    try:
+        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as bag:
+            store = bag.typestore
+            fields_of = field_table(store)
+            imu_conn = _connection(bag, imu_topic, inputs.imu_type, '--imu-type')
+            temp_conn = _connection(bag, temperature_topic, inputs.temperature_type or None,
+                                    '--temperature-type')
+            imu_name, temp_name = imu_conn.msgtype, temp_conn.msgtype
+            check_vector(imu_name, inputs.angular_velocity_field, fields_of,
+                         '--angular-velocity-field')
+            kind = stamp_kind(imu_name, inputs.stamp_field, fields_of, '--stamp-field')
+            t_path = inputs.temperature_field or DEFAULT_TEMPERATURE_FIELDS.get(temp_name, '')
+            if not t_path:
+                raise ConfigError(f'--temperature-field: {temp_name} has no default '
+                                  'temperature field; give the dotted path to its degC number.')
+            check_number(temp_name, t_path, fields_of, '--temperature-field')
+            ts_path = inputs.temperature_stamp_field
+            if not ts_path and (fields_of(temp_name) or {}).get('header') == _HEADER:
+                ts_path = 'header.stamp'
+            ts_kind = (stamp_kind(temp_name, ts_path, fields_of, '--temperature-stamp-field')
+                       if ts_path else None)
+            rate, stamp = reader(inputs.angular_velocity_field), reader(inputs.stamp_field)
+            value, tstamp = reader(t_path), reader(ts_path) if ts_path else None
+            fix = unquirk(inputs.temperature_quirk)
+            imu_t: list[float] = []
+            gyro: list[tuple[float, float, float]] = []
+            accel: list[tuple[float, float, float]] = []
+            temp_t: list[float] = []
+            temp_c: list[float] = []
+            frame_id, gyro_cov, accel_cov = 'imu_link', None, (-1.0, 0.0, 0.0)
+            is_imu = imu_name == IMU_TYPE
+            for conn, _, raw in bag.messages(connections=[imu_conn, temp_conn]):
+                msg = store.deserialize_cdr(raw, conn.msgtype)
+                if conn is imu_conn:
+                    w = rate(msg)
+                    imu_t.append(stamp_seconds(kind, stamp(msg)))
+                    g = (float(w.x), float(w.y), float(w.z))
+                    gyro.append((g[0], -g[1], -g[2]) if inputs.input_frame == 'frd' else g)
+                    if len(imu_t) == 1 and hasattr(msg, 'header'):
+                        frame_id = msg.header.frame_id
+                    if is_imu:
+                        a = msg.linear_acceleration
+                        accel.append((a.x, a.y, a.z))
+                        if len(imu_t) == 1:
+                            gyro_cov = tuple(msg.angular_velocity_covariance[[0, 4, 8]])
+                            accel_cov = tuple(msg.linear_acceleration_covariance[[0, 4, 8]])
+                    continue
+                if tstamp is not None:
+                    t = stamp_seconds(ts_kind, tstamp(msg))
+                elif imu_t:
+                    t = imu_t[-1]
+                else:
+                    continue                 # no IMU stamp to give it yet
+                c = float(value(msg))
+                temp_t.append(t)
+                temp_c.append(fix(c) if fix else c)
+    except AnyReaderError as exc:
+        raise DatasetError(f'cannot read bag {str(path)!r}: {one_line(exc)}') from None
+    if not imu_t:
+        raise DatasetError(f'bag {str(path)!r} has no message on {imu_topic!r}.')
+    order = np.argsort(temp_t, kind='stable')
+    write_bag(out, imu_t=np.array(imu_t), gyro=np.array(gyro),
+              accel=np.array(accel) if accel else np.zeros((len(imu_t), 3)),
+              temp_t=np.array(temp_t)[order], temp_c=np.array(temp_c)[order],
+              frame_id=frame_id, imu_topic=imu_topic, temperature_topic=temperature_topic,
+              gyro_cov=gyro_cov, accel_cov=accel_cov)
+    return Path(out)

@@ -1,0 +1,213 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+
+"""
+Driver messages read by field: dotted paths, their checks, stamps, FRD axes, quirks (pure).
+
+A driver publishes its gyro and thermometer in its own message types; the compensator and
+the bag reader name the fields to read with a dotted path (``vector``, ``header.stamp``).
+The checks walk a type's field table (``fields_of``: rclpy's
+``get_fields_and_field_types()`` or a rosbags typestore's) so that a bad path is refused
+once, at start, naming the parameter. See ``doc/drivers.md``.
+"""
+
+from __future__ import annotations
+
+from operator import attrgetter
+import re
+from typing import Any, Callable, Mapping
+
+from gyro_tdc.base import TEMPERATURE_QUIRKS
+from gyro_tdc.errors import ConfigError
+
+__all__ = ['check_number', 'check_vector', 'DEFAULT_TEMPERATURE_FIELDS', 'FieldsOf',
+           'frd_to_flu', 'normalize_type', 'reader', 'split_path', 'stamp_kind',
+           'stamp_seconds', 'unquirk']
+
+#: The usual number field of the common thermometer types (``temperature_field`` empty).
+DEFAULT_TEMPERATURE_FIELDS = {'sensor_msgs/msg/Temperature': 'temperature',
+                              'std_msgs/msg/Float32': 'data', 'std_msgs/msg/Float64': 'data'}
+
+_FLOATS = frozenset({'float', 'double', 'float32', 'float64', 'long double'})
+_INTEGERS = frozenset({'int8', 'uint8', 'int16', 'uint16', 'int32', 'uint32', 'int64',
+                       'uint64', 'octet', 'byte', 'char'})
+_TIME = 'builtin_interfaces/Time'
+_NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]*\Z')
+
+#: A type's field table: field name -> type name (None: not a message type).
+FieldsOf = Callable[[str], 'Mapping[str, str] | None']
+
+
+def normalize_type(name: str) -> str:
+    """
+    Return a message type name as ``pkg/msg/Type`` (``pkg/Type`` is accepted too).
+
+    Raises
+    ------
+    ConfigError
+        When ``name`` is not ``pkg/msg/Type`` or ``pkg/Type``.
+
+    """
+    parts = name.split('/')
+    if len(parts) == 2:
+        parts.insert(1, 'msg')
+    if len(parts) != 3 or parts[1] != 'msg' or not all(_NAME.match(p) for p in parts):
+        raise ConfigError(f'Expected a message type pkg/msg/Type, got {name!r}.')
+    return '/'.join(parts)
+
+
+def _short(type_name: str) -> str:
+    """Return ``pkg/Type`` for ``pkg/msg/Type`` (rclpy's spelling in field tables)."""
+    return type_name.replace('/msg/', '/')
+
+
+def split_path(path: str, param: str) -> tuple[str, ...]:
+    """
+    Return the field names of a dotted path ('' is the message itself).
+
+    Raises
+    ------
+    ConfigError
+        When a part is not a field name; the message names ``param``.
+
+    """
+    parts = tuple(path.split('.')) if path else ()
+    for part in parts:
+        if not _NAME.match(part):
+            raise ConfigError(f'{param}: expected a dotted path of field names (e.g. '
+                              f'header.stamp), got {path!r}.')
+    return parts
+
+
+def _walk(type_name: str, path: str, fields_of: FieldsOf, param: str) -> str:
+    """Return the type name at ``path`` in ``type_name``, or raise ConfigError naming it."""
+    here = type_name
+    for name in split_path(path, param):
+        fields = fields_of(here)
+        if fields is None:
+            raise ConfigError(f'{param}: {here} in {type_name} is not a message, it has no '
+                              f'field {name!r} (path {path!r}).')
+        if name not in fields:
+            raise ConfigError(f'{param}: {here} has no field {name!r} (path {path!r} in '
+                              f'{type_name}; its fields: {", ".join(fields)}).')
+        here = fields[name]
+    return here
+
+
+def check_number(type_name: str, path: str, fields_of: FieldsOf, param: str) -> None:
+    """
+    Check that ``path`` in ``type_name`` is a number (float or integer).
+
+    Raises
+    ------
+    ConfigError
+        When the path is missing or leads to something else; the message names ``param``.
+
+    """
+    leaf = _walk(type_name, path, fields_of, param)
+    if leaf not in _FLOATS and leaf not in _INTEGERS:
+        raise ConfigError(f'{param}: {path!r} in {type_name} is {leaf}, not a number.')
+
+
+def check_vector(type_name: str, path: str, fields_of: FieldsOf, param: str) -> None:
+    """
+    Check that ``path`` in ``type_name`` holds numeric ``x``, ``y`` and ``z`` fields.
+
+    Raises
+    ------
+    ConfigError
+        When it does not; the message names ``param``.
+
+    """
+    leaf = _walk(type_name, path, fields_of, param)
+    fields = fields_of(leaf)
+    where = repr(path) if path else 'the message itself'
+    if fields is None or not all(fields.get(k) in _FLOATS or fields.get(k) in _INTEGERS
+                                 for k in 'xyz'):
+        raise ConfigError(f'{param}: {where} in {type_name} is {leaf}, not an x/y/z '
+                          'vector of numbers.')
+
+
+def stamp_kind(type_name: str, path: str, fields_of: FieldsOf, param: str) -> str:
+    """
+    Return how ``path`` in ``type_name`` stamps a message: ``'time'`` or ``'micros'``.
+
+    ``'time'`` is a ``builtin_interfaces/Time``; ``'micros'`` an integer count of
+    microseconds (``px4_msgs``' ``timestamp``).
+
+    Raises
+    ------
+    ConfigError
+        When the path is missing or neither; the message names ``param``.
+
+    """
+    leaf = _walk(type_name, path, fields_of, param)
+    if _short(leaf) == _TIME:
+        return 'time'
+    if leaf in _INTEGERS:
+        return 'micros'
+    raise ConfigError(f'{param}: {path!r} in {type_name} is {leaf}, neither a '
+                      'builtin_interfaces/Time nor an integer in microseconds.')
+
+
+def reader(path: str) -> Callable[[Any], Any]:
+    """Return a function reading a dotted path from a message ('' the message itself)."""
+    if not path:
+        return lambda msg: msg
+    return attrgetter(path)
+
+
+def stamp_seconds(kind: str, value: Any) -> float:
+    """Return a stamp read at a ``stamp_kind`` path in seconds."""
+    if kind == 'time':
+        return value.sec + value.nanosec * 1e-9
+    return value * 1e-6
+
+
+def frd_to_flu(x: float, y: float, z: float) -> tuple[float, float, float]:
+    """Return a vector of FRD axes (x forward, y right, z down) in FLU axes (REP 103)."""
+    return x, -y, -z
+
+
+def unquirk(kind: str) -> Callable[[float], float] | None:
+    """
+    Return the function that undoes a driver's temperature encoding (None for '').
+
+    Parameters
+    ----------
+    kind : str
+        One of :data:`TEMPERATURE_QUIRKS`.
+
+    Returns
+    -------
+    callable or None
+        ``bno055_unsigned_byte``: a reading of 128 or more is ``256 + T`` with T below 0
+        (the chip's range is -40..85 degC), so 256 is taken off; ``sbg_legacy_div256``: the
+        reading is T / 256, so it is multiplied by 256.
+
+    Raises
+    ------
+    ConfigError
+        When ``kind`` is not one of :data:`TEMPERATURE_QUIRKS`.
+
+    """
+    if kind == '':
+        return None
+    if kind == 'bno055_unsigned_byte':
+        return lambda t: t - 256.0 if t >= 128.0 else t
+    if kind == 'sbg_legacy_div256':
+        return lambda t: t * 256.0
+    raise ConfigError(f'Expected temperature_quirk to be one of '
+                      f'{", ".join(map(repr, TEMPERATURE_QUIRKS))}, got {kind!r}.')

@@ -1,0 +1,360 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The learner's state as plain types and back: :func:`encode_state`, :func:`decode_state` (pure).
+
+:func:`encode_state` turns a learner (any :class:`LearnerState`) into the dict its ``save``
+writes (tagged :data:`FORMAT`); :func:`decode_state` checks every field of such a dict
+(:class:`gyro_tdc.base.FieldChecker`) and gives back the attribute values it restores. The
+rules: ``doc/internals/learn.md``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import Any, Protocol
+
+from gyro_tdc.base import FieldChecker, MAX_RATE_RAD_S, shown, TEMP_PLAUSIBLE_C
+from gyro_tdc.errors import FeatureError, LearnFileError, ModelFileError
+from gyro_tdc.learn.fit import model_of
+from gyro_tdc.learn.records import Entry, RecentStretch
+from gyro_tdc.model import MAX_PARAM, ThermalState
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['decode_state', 'encode_state', 'FORMAT', 'LearnerState', 'MAX_COUNT', 'MAX_STAMP_S',
+           'RECENT_ROWS']
+
+FORMAT = 'gyro_tdc learn 1'
+#: Windows of one recent stretch kept in the file (its newest): a day of 10 s windows.
+RECENT_ROWS = 8640
+#: Largest stamp magnitude, s (an unsigned 32-bit second count).
+MAX_STAMP_S = 2.0 ** 32
+#: Largest count (sessions, stretches, windows, swaps, samples of an entry).
+MAX_COUNT = 2 ** 53
+_FEATURES = ((), ('dT',), ('dT', 'dT2'), ('dT', 'dT2', 'dT3'))
+_REQUIRED = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 'still_s',
+             'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check',
+             'swaps')
+_OPTIONAL = ('motion', 'thermal', 'thermal_state', 'config', 'segment')
+_FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points')
+_CHECK_KEYS = ('t', 'candidate_mse', 'current_mse', 'swapped')
+_CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
+
+
+class LearnerState(Protocol):
+    """What :func:`encode_state` reads of a learner: the attributes a ``learn_file`` keeps."""
+
+    bins: dict[int, list[Entry]]
+    session: int
+    gyro_floor: NDArray[np.float64]
+    accel_floor: NDArray[np.float64]
+    t_first: float | None
+    still_s: float
+    stretches: int
+    windows: int
+    recent: list[RecentStretch]
+    fit: dict | None
+    last_update_t: float | None
+    last_t: float | None
+    check: dict | None
+    swaps: int
+    motion: list[tuple[float, bool]]
+    thermal: ThermalState | None
+    thermal_state: tuple[float, list[float]] | None
+    segment: int
+    segment_t0: float | None
+    config: Any
+
+
+def encode_state(learner: LearnerState) -> dict[str, Any]:
+    """
+    Return the persistent state of ``learner`` as plain types (what ``save`` writes).
+
+    A noise floor not known yet (infinite) is ``None``; a recent stretch keeps its newest
+    :data:`RECENT_ROWS` windows.
+    """
+    ts = learner.thermal_state
+    return {
+        'format': FORMAT,
+        'bins': {str(k): [[float(e.t_end), float(e.samples), float(e.temp_c),
+                           [float(b) for b in e.bias], e.group, e.session]
+                          for e in v] for k, v in sorted(learner.bins.items())},
+        'session': learner.session,
+        'gyro_floor': _floor_out(learner.gyro_floor),
+        'accel_floor': _floor_out(learner.accel_floor),
+        't_first': learner.t_first, 'still_s': learner.still_s,
+        'stretches': learner.stretches, 'windows': learner.windows,
+        'recent': [[stretch, session, rows[-RECENT_ROWS:]]
+                   for stretch, session, rows in learner.recent],
+        'fit': learner.fit, 'last_update_t': learner.last_update_t, 'last_t': learner.last_t,
+        'check': learner.check, 'swaps': learner.swaps,
+        'motion': [[float(m[0]), bool(m[1])] for m in learner.motion],
+        'thermal': None if learner.thermal is None else learner.thermal.to_dict(),
+        'thermal_state': None if ts is None else [float(ts[0]), [float(v) for v in ts[1]]],
+        'config': {k: getattr(learner.config, k) for k in _CONFIG_KEYS},
+        'segment': [learner.segment, learner.segment_t0],
+    }
+
+
+def _floor_out(floor: NDArray[np.float64]) -> list[float | None]:
+    """Return a noise floor as plain types: None where it is not known yet (infinite)."""
+    return [float(v) if math.isfinite(v) else None for v in floor]
+
+
+# -- decoding: every field checked, by name ------------------------------------------------
+
+
+def _bad(name: str, what: str) -> LearnFileError:
+    """Return the error for field ``name``."""
+    return LearnFileError(f'learner state: field `{name}` {what}')
+
+
+#: The shared field checks (gyro_tdc.base.fields), worded for a learn_file.
+_CHK = FieldChecker(lambda name, expected, got: _bad(name,
+                                                     f'must be {expected}, got {shown(got)}'))
+_number, _count, _list, _dict = _CHK.number, _CHK.count, _CHK.items, _CHK.keys
+
+
+def _stamp(v: Any, name: str, optional: bool = False) -> float | None:
+    """Return a stamp, s (None when ``optional`` and null)."""
+    if v is None and optional:
+        return None
+    return _number(v, name, -MAX_STAMP_S, MAX_STAMP_S, 'a stamp in s')
+
+
+def _temp(v: Any, name: str) -> float:
+    """Return a plausible temperature, degC."""
+    return _number(v, name, *TEMP_PLAUSIBLE_C, 'a plausible temperature in degC')
+
+
+def _rates(v: Any, name: str, bound: float = MAX_RATE_RAD_S,
+           what: str = 'a rate in rad/s') -> tuple[float, float, float]:
+    """Return three numbers within +-``bound`` (plausible rates, rad/s)."""
+    x, y, z = (_number(r, f'{name}[{i}]', -bound, bound, what)
+               for i, r in enumerate(_list(v, name, 3)))
+    return x, y, z
+
+
+def _floor_in(v: Any, name: str) -> NDArray[np.float64]:
+    """Return a noise floor: positive, or infinite (null, or Infinity in older files)."""
+    out = np.full(3, math.inf)
+    for i, f in enumerate(_list(v, name, 3)):
+        if f is None or (isinstance(f, float) and f == math.inf):
+            continue
+        out[i] = _number(f, f'{name}[{i}]', 0.0, 1e6, 'a noise floor (positive or null)')
+        if not out[i] > 0.0:
+            raise _bad(f'{name}[{i}]', f'must be positive or null, got {f!r}')
+    return out
+
+
+def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry]]:
+    """Return the point table: bin -> entries ``[t_end, samples, temp, b, stretch, session]``."""
+    if not isinstance(v, dict):
+        raise _bad('bins', f'must be an object (bin -> entries), got {shown(v)}')
+    lo = hi = None
+    if bin_c is not None:
+        lo = math.floor(TEMP_PLAUSIBLE_C[0] / bin_c) - 1
+        hi = math.floor(TEMP_PLAUSIBLE_C[1] / bin_c) + 1
+    out: dict[int, list[Entry]] = {}
+    for key, entries in v.items():
+        name = f'bins[{key!r:.20}]'
+        if not (isinstance(key, str) and re.fullmatch(r'-?[0-9]{1,9}', key)):
+            raise _bad(name, 'must be keyed by a bin number')
+        k = int(key)
+        if lo is not None and not lo <= k <= hi:
+            raise _bad(name, f'must be a bin of a plausible temperature ({lo} .. {hi})')
+        rows = []
+        for j, e in enumerate(_list(entries, name, most=most)):
+            en = f'{name}[{j}]'
+            e = _list(e, en, 6)
+            rows.append(Entry(_stamp(e[0], f'{en}[0] (t_end)'),
+                              _number(e[1], f'{en}[1] (samples)', 1.0, MAX_COUNT,
+                                      'a sample count'),
+                              _temp(e[2], f'{en}[2] (temperature)'),
+                              _rates(e[3], f'{en}[3]'),
+                              _count(e[4], f'{en}[4] (stretch)'),
+                              _count(e[5], f'{en}[5] (session)')))
+        if not rows:
+            raise _bad(name, 'must hold at least one entry')
+        out[k] = rows
+    return out
+
+
+def _recent(v: Any, most: int | None) -> list[RecentStretch]:
+    """Return the recent stretches: ``[stretch, session, windows]``."""
+    out = []
+    for i, s in enumerate(_list(v, 'recent', most=most)):
+        name = f'recent[{i}]'
+        s = _list(s, name, 3)
+        rows = []
+        for j, r in enumerate(_list(s[2], f'{name}[2]', most=RECENT_ROWS)):
+            rn = f'{name}[2][{j}]'
+            r = _list(r, rn, 6)
+            rows.append([_number(r[0], f'{rn}[0] (samples)', 1.0, MAX_COUNT, 'a sample count'),
+                         _temp(r[1], f'{rn}[1] (temperature)'),
+                         *(_number(r[a], f'{rn}[{a}] (mean rate)', -MAX_RATE_RAD_S,
+                                   MAX_RATE_RAD_S, 'a rate in rad/s') for a in (2, 3, 4)),
+                         _stamp(r[5], f'{rn}[5] (t_end)')])
+        out.append(RecentStretch(_count(s[0], f'{name}[0] (stretch)'),
+                                 _count(s[1], f'{name}[1] (session)'), rows))
+    return out
+
+
+def _fit(v: Any, thermal: ThermalState | None) -> dict | None:
+    """Return the fit record, its model checked like a model file's (None: no fit)."""
+    if v is None:
+        return None
+    v = _dict(v, 'fit', _FIT_KEYS)
+    feats = _list(v['features'], 'fit.features')
+    if tuple(feats) not in _FEATURES:
+        raise _bad('fit.features', f'must be one of {", ".join(map(str, _FEATURES))}, '
+                   f'got {feats!r:.60}')
+    coef = [list(_rates(row, f'fit.coef[{i}]', MAX_PARAM, 'a coefficient'))
+            for i, row in enumerate(_list(v['coef'], 'fit.coef', 1 + len(feats)))]
+    rng = [_temp(t, f'fit.range_c[{i}]') for i, t in enumerate(_list(v['range_c'],
+                                                                     'fit.range_c', 2))]
+    if not rng[0] <= rng[1]:
+        raise _bad('fit.range_c', f'must be [low, high], got {rng}')
+    fit = {'features': list(feats), 't0_c': _temp(v['t0_c'], 'fit.t0_c'), 'coef': coef,
+           'range_c': rng,
+           'resid_var': [_number(r, f'fit.resid_var[{i}]', 0.0, MAX_RATE_RAD_S ** 2,
+                                 'a variance in (rad/s)^2')
+                         for i, r in enumerate(_list(v['resid_var'], 'fit.resid_var', 3))],
+           'points': _count(v['points'], 'fit.points', 1)}
+    try:
+        model_of(fit, thermal)
+    except ModelFileError as exc:
+        raise _bad('fit', f'gives a model refused as a model file would be: {exc}') from None
+    return fit
+
+
+def _check(v: Any) -> dict | None:
+    """Return the last prediction check (None: none yet)."""
+    if v is None:
+        return None
+    v = _dict(v, 'check', _CHECK_KEYS)
+    if not isinstance(v['swapped'], bool):
+        raise _bad('check.swapped', f'must be true or false, got {shown(v["swapped"])}')
+    mse = (0.0, MAX_RATE_RAD_S ** 2 * 3, 'a squared error in (rad/s)^2')
+    return {'t': _stamp(v['t'], 'check.t'),
+            'candidate_mse': _number(v['candidate_mse'], 'check.candidate_mse', *mse),
+            'current_mse': (None if v['current_mse'] is None
+                            else _number(v['current_mse'], 'check.current_mse', *mse)),
+            'swapped': v['swapped']}
+
+
+def _thermal(v: Any) -> ThermalState | None:
+    """Return the thermal section the points were binned with (None: the thermometer)."""
+    if v is None:
+        return None
+    if not isinstance(v, dict) or not isinstance(v.get('kind'), str):
+        raise _bad('thermal', f'must be a thermal section with a `kind`, got {shown(v)}')
+    try:
+        thermal = ThermalState.from_dict(v)
+    except (FeatureError, TypeError, ValueError) as exc:
+        raise _bad('thermal', str(exc)) from None
+    for i, tau in enumerate(thermal.tau_s):
+        _number(tau, f'thermal.tau_s[{i}]', 1e-3, 1e8, 'a time constant in s')
+    return thermal
+
+
+def _thermal_state(v: Any, thermal: ThermalState | None) -> tuple[float, list[float]] | None:
+    """Return the carried thermal state: (stamp, one value per node of ``thermal``)."""
+    if v is None:
+        return None
+    nodes = 0 if thermal is None else len(thermal.tau_s)
+    if not nodes:
+        raise _bad('thermal_state', 'must be null without a thermal section with a lag')
+    v = _list(v, 'thermal_state', 2)
+    return (_stamp(v[0], 'thermal_state[0]'),
+            [_temp(x, f'thermal_state[1][{i}]')
+             for i, x in enumerate(_list(v[1], 'thermal_state[1]', nodes))])
+
+
+def _motion(v: Any) -> list[tuple[float, bool]]:
+    """Return the motion reports (stamp, moving), in stamp order."""
+    out = []
+    for i, m in enumerate(_list(v, 'motion')):
+        m = _list(m, f'motion[{i}]', 2)
+        if not isinstance(m[1], bool):
+            raise _bad(f'motion[{i}][1]', f'must be true or false, got {shown(m[1])}')
+        out.append((_stamp(m[0], f'motion[{i}][0]'), m[1]))
+    out.sort(key=lambda r: r[0])
+    return out
+
+
+def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | None = None,
+                 stretches: int | None = None
+                 ) -> tuple[dict[str, Any], ThermalState | None]:
+    """
+    Check every field of a state :func:`encode_state` made; return what it restores.
+
+    Parameters
+    ----------
+    state : Any
+        The state, as read from a ``learn_file``.
+    bin_c : float, degC, optional
+        The learner's bin width: bins outside the plausible temperatures are refused.
+    bin_entries, stretches : int, optional
+        Most entries a bin and most recent stretches the learner keeps.
+
+    Returns
+    -------
+    values : dict
+        The learner's attribute values by name (``last_save_t`` is the saved ``last_t``).
+    thermal : ThermalState or None
+        The thermal section the points were binned with (None: the thermometer).
+
+    Raises
+    ------
+    LearnFileError
+        The state is not one a learner wrote: one line naming the field, what it must be and
+        what it holds (NaN or infinite values, negative counts, wrong shapes, implausible
+        temperatures or rates, a fit whose model a model file could not hold).
+
+    """
+    if not isinstance(state, dict) or state.get('format') != FORMAT:
+        raise LearnFileError(f'not a learner state ({FORMAT!r} expected)')
+    _dict(state, 'state', _REQUIRED, _OPTIONAL)
+    if state.get('config') is not None:
+        for k, x in _dict(state['config'], 'config', _CONFIG_KEYS).items():
+            _number(x, f'config.{k}', 0.0)
+    thermal = _thermal(state.get('thermal'))
+    values = {
+        'bins': _bins(state['bins'], bin_c, bin_entries),
+        'gyro_floor': _floor_in(state['gyro_floor'], 'gyro_floor'),
+        'accel_floor': _floor_in(state['accel_floor'], 'accel_floor'),
+        't_first': _stamp(state['t_first'], 't_first', optional=True),
+        'session': _count(state['session'], 'session'),
+        'still_s': _number(state['still_s'], 'still_s', 0.0, MAX_COUNT, 'a duration in s'),
+        'stretches': _count(state['stretches'], 'stretches'),
+        'windows': _count(state['windows'], 'windows'),
+        'recent': _recent(state['recent'], stretches),
+        'fit': _fit(state['fit'], thermal),
+        'last_update_t': _stamp(state['last_update_t'], 'last_update_t', optional=True),
+        'last_t': _stamp(state['last_t'], 'last_t', optional=True),
+        'check': _check(state['check']),
+        'swaps': _count(state['swaps'], 'swaps'),
+        'motion': _motion(state.get('motion', [])),
+        'thermal_state': _thermal_state(state.get('thermal_state'), thermal),
+    }
+    if state.get('segment') is not None:
+        seg = _list(state['segment'], 'segment', 2)
+        values['segment'] = _count(seg[0], 'segment[0] (entry group)')
+        values['segment_t0'] = _stamp(seg[1], 'segment[1] (its first stamp)', optional=True)
+    values['last_save_t'] = values['last_t']
+    return values, thermal

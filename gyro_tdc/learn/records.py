@@ -1,0 +1,200 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The online learner's records: settings, the stretch being learned, points, windows, report.
+
+:class:`Entry` is one point of the point table (a bin's entry), :class:`RecentStretch` the
+windows of one recent stretch the check and the offset use; ``gyro_tdc.learn.store`` writes
+both to the learn_file as plain lists.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+from typing import Any, NamedTuple
+
+from gyro_tdc.base import SESSION_GAP_S
+from gyro_tdc.signal import MIN_STILL_S, STILL_WINDOW_S, Window
+
+__all__ = ['diagnostic_values', 'Entry', 'LearnConfig', 'OpenStretch', 'RecentStretch',
+           'summary']
+
+
+@dataclass(slots=True)
+class Entry:
+    """
+    One point of the learner's table: the mean of a bin's still windows in one entry group.
+
+    Parameters
+    ----------
+    t_end : float, s
+        Stamp of its newest window's end (its age).
+    samples : float
+        Samples it averages (its weight).
+    temp_c : float, degC
+        Mean model temperature.
+    bias : tuple of 3 float, rad/s
+        Mean raw rate.
+    group : int
+        Its entry group (a stretch, or an ``entry_s`` part of a long one).
+    session : int
+        The session (power cycle) it was learned in.
+
+    """
+
+    t_end: float
+    samples: float
+    temp_c: float
+    bias: tuple[float, float, float]
+    group: int
+    session: int
+
+
+class RecentStretch(NamedTuple):
+    """A recent stretch: its number, session and windows ``[n, temp, bx, by, bz, t_end]``."""
+
+    stretch: int
+    session: int
+    rows: list
+
+
+@dataclass(frozen=True)
+class LearnConfig:
+    """
+    Settings of the learner.
+
+    Parameters
+    ----------
+    bin_c : float, degC
+        Temperature bin width.
+    half_life_s : float, s
+        Age (by message stamp) at which an entry weighs half.
+    window_s, min_still_s : float, s
+        Still test window and shortest stretch.
+    temperature_timeout : float, s
+        A thermometer reading older than this (by stamp) gives no temperature.
+    save_period_s : float, s
+        Stamp time between periodic saves.
+    commit_s : float, s
+        A still stretch longer than this is learned every ``commit_s`` while it goes on.
+    entry_s : float, s
+        A bin's entry gathers one stretch's windows over at most this long (then a new entry
+        begins), so a long stop is learned as many points, each of its hours aged apart.
+    offset_s : float, s
+        The current session's offset is the mean over the newest ``offset_s`` of its still
+        windows of the raw rate minus the fitted shape (the offset wanders: a random walk,
+        bias instability); 0: the fit's intercept of the session.
+    max_rate_hz : float, Hz
+        The core hands the learner at most one sample per ``1 / max_rate_hz`` of stamps
+        (by stamp, so a replay at any speed hands the same samples): from a faster IMU the
+        mean of the samples since the last hand-off (a 1 kHz IMU is learned from means of
+        10, a tenth of the noise variance of one sample), plenty for 10 s still windows.
+    session_gap_s : float, s
+        A gap in the IMU stamps longer than this starts a new session (a power-up: the
+        gyro's turn-on offset changes; each session gets its own intercept in the fit), when
+        it is also longer than :data:`GAP_PERIODS` sample periods and, in a stream that pauses
+        regularly (bursts), than :data:`BURST_FACTOR` times its median pause; stamps that step
+        back by over ``RESTART_BACK_S`` (a device clock restarted) start one too.
+    swap_delay_s : float, s
+        An accepted candidate takes effect this long (by stamp) after the sample that let it
+        be computed (:meth:`Learner.take_swaps`), so its effective stamp is fixed by the
+        data, not by when :meth:`Learner.step` happens to run.
+
+    """
+
+    bin_c: float = 1.0
+    half_life_s: float = 86400.0
+    window_s: float = STILL_WINDOW_S
+    min_still_s: float = MIN_STILL_S
+    temperature_timeout: float = 5.0
+    save_period_s: float = 180.0
+    commit_s: float = 300.0
+    entry_s: float = 3600.0
+    offset_s: float = 1800.0
+    max_rate_hz: float = 100.0
+    session_gap_s: float = SESSION_GAP_S
+    swap_delay_s: float = 5.0
+
+
+@dataclass
+class OpenStretch:
+    """
+    The current still stretch: its windows not learned yet, its first stamp and samples.
+
+    ``rows`` are :class:`gyro_tdc.signal.Window` without samples; once part of the stretch
+    is learned (``learned``), only the windows since are kept.
+    """
+
+    rows: list[Window] = field(default_factory=list)
+    t0: float = math.nan
+    n: int = 0
+    learned: bool = False
+
+    def add(self, win: Window) -> None:
+        """Append a still window."""
+        if not self.rows and not self.learned:
+            self.t0 = win.t0
+        self.rows.append(win)
+        self.n += win.n
+
+    def span(self) -> float:
+        """Return the stretch's duration so far, s (one sample period included)."""
+        if not self.rows:
+            return 0.0
+        d = self.rows[-1].t1 - self.t0
+        return d + d / max(self.n - 1, 1)
+
+    def keep_from(self, j: int) -> None:
+        """Drop the windows before ``j`` (a stretch not learned yet)."""
+        self.rows = self.rows[j:]
+        self.n = sum(r.n for r in self.rows)
+        self.t0 = self.rows[0].t0 if self.rows else math.nan
+
+
+def diagnostic_values(learner: Any) -> dict[str, str]:
+    """Return a learner's /diagnostics key/value pairs (strings)."""
+    s = summary(learner)
+    cov = s['covered_c']
+    return {
+        'learn points': str(s['points']),
+        'learn covered degC': 'none' if cov is None else f'{cov[0]:.2f} .. {cov[1]:.2f}',
+        'learn still s': f'{s["still_s"]:.0f}',
+        'learn features': 'none' if s['features'] is None else ', '.join(s['features']),
+        'learn last update stamp s': ('never' if s['last_update_t'] is None
+                                      else f'{s["last_update_t"]:.3f}'),
+        'learn prediction check': s['check'] or 'none yet',
+        'learn session': str(learner.session),
+        'learn late swaps': str(learner.late_swaps),
+        'learn candidates refused': (f'{learner.refused} (last: {learner.refused_why})'
+                                     if learner.refused else '0'),
+    }
+
+
+def summary(learner: Any) -> dict[str, Any]:
+    """Return what a learner's /diagnostics shows: points, range, still time, update, check."""
+    cov = learner.covered_c()
+    chk = learner.check
+    return {
+        'points': int(learner.entries().shape[0]), 'bins': len(learner.bins),
+        'covered_c': cov, 'still_s': learner.still_s, 'stretches': learner.stretches,
+        'features': None if learner.fit is None else (learner.fit['features'] or ['bias']),
+        'last_update_t': learner.last_update_t, 'swaps': learner.swaps,
+        'check': None if chk is None else (
+            f"candidate {math.sqrt(chk['candidate_mse']):.3g} rad/s vs current "
+            + ('none' if chk['current_mse'] is None
+               else f"{math.sqrt(chk['current_mse']):.3g} rad/s")
+            + (' -> swapped' if chk['swapped'] else ' -> kept')),
+    }
