@@ -72,6 +72,11 @@ def test_still_only_passes_the_stuck_axis_through(bags, tmp_path):
     assert json.loads(doc.read_text())['constant_axes'] == {'z': STUCK}
     m = load_model(model)
     assert m.metrics['constant_axes'] == ['z'] and m.metrics['still']['stretches'] >= 1
+    # Held out across the two bags (power cycles): the stuck axis is not judged, kept as is.
+    held = json.loads(doc.read_text())['held_out']
+    assert held == m.metrics['held_out'] and held['sessions'] == 2
+    assert held['curve'][2] is True and held['reanchor'][2] is True
+    assert not any(x.startswith('axis z:') for x in res.stdout.splitlines())
     assert not np.any(m.weights[:, 2]) and not np.any(m.linear[:, 2]) and m.intercept[2] == 0
 
 

@@ -65,6 +65,12 @@ def test_train_saves_the_model_it_returns(bags, tmp_path):
     text, warns = format_training(result)
     assert text.startswith('model: poly f(dT, dT2), T0 = ')
     assert 'training data: 2 bag(s)' in text and warns == []
+    # Two bags, two power cycles with one curve: validated across them, every curve kept.
+    held = result.held_out
+    assert held.validated and held.curve == (True, True, True) and held.wins == (2, 2, 2)
+    assert result.model.metrics['held_out']['curve'] == [True, True, True]
+    assert 'held out across power cycles: each of 2 sessions' in text
+    assert 'axis x: curve kept' in text and 'OFFSET ONLY' not in text
 
 
 def test_the_options_reach_the_model(bags, tmp_path):
