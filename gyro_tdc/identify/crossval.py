@@ -34,7 +34,7 @@ from gyro_tdc.identify.fit import fit_model
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.model import (compensate, CompensationModel, curve_kept, DEFAULT_OUT_OF_RANGE,
                             HELD_OUT_KEY, model_temperature, offset_only,
-                            REANCHOR_SIGNIFICANCE)
+                            reanchor_kept, REANCHOR_SIGNIFICANCE)
 from gyro_tdc.runtime import default_tolerance, reanchor_shift, STILL_WINDOW_MAX_S
 from gyro_tdc.signal import STILL_WINDOW_S
 import numpy as np
@@ -150,7 +150,7 @@ class HeldOut:
                     'power cycles better than a constant, so its curve terms are zeroed (')
             what += f'better in {won} of {self.held_out} sessions)'
             how = ('re-anchored at start-up' if re else 'NOT re-anchored (re-anchoring did '
-                   "worse held out than the model's offset)")
+                   "worse held out than the model's offset, in every session)")
             out.append(f'axis {a}: {what}; {how}')
         return out
 
@@ -310,6 +310,7 @@ def validate_curve(model: CompensationModel, runs: Sequence[Run], labels: Sequen
     ss = {k: np.zeros(3) for k in ('curve', 'offset', 're_c', 'kept_c', 're_o', 'kept_o')}
     weight = 0.0
     per: list = []
+    anchors: list = []
     for g in groups:
         train = [i for i, v in enumerate(labels) if v != g]
         test = [i for i, v in enumerate(labels) if v == g]
@@ -340,6 +341,7 @@ def validate_curve(model: CompensationModel, runs: Sequence[Run], labels: Sequen
         for key in ss:
             ss[key] += mine[key]
         per.append((mine['curve'], mine['offset']))
+        anchors.append(mine)
         held.held_out += 1
     if held.held_out:
         ms = {k: v / max(weight, 1.0) * _DEG ** 2 for k, v in ss.items()}
@@ -353,7 +355,9 @@ def validate_curve(model: CompensationModel, runs: Sequence[Run], labels: Sequen
         kept = np.where(keep, ms['kept_c'], ms['kept_o'])
         held.reanchored_ms = tuple(float(v) for v in re)
         held.kept_ms = tuple(float(v) for v in kept)
-        held.reanchor = tuple(bool(v) for v in (~(re > kept) | const))
+        each = [(np.where(keep, a['re_c'], a['re_o']), np.where(keep, a['kept_c'], a['kept_o']))
+                for a in anchors]
+        held.reanchor = tuple(bool(v) for v in (reanchor_kept(re, kept, each) | const))
     return _record(model, held, levels, labels), held
 
 

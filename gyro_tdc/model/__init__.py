@@ -33,7 +33,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
                    'Px4TempCal'],
     'modelfile': ['load_model', 'save_model'],
     'no_harm': ['CURVE_MARGIN', 'curve_kept', 'gated_shift', 'HELD_OUT_KEY', 'learned_coef',
-                'offset_only', 'REANCHOR_SIGNIFICANCE', 'reanchor_rule'],
+                'offset_only', 'REANCHOR_SIGNIFICANCE', 'reanchor_kept', 'reanchor_rule'],
     'out_of_range': ['check_policy', 'DEFAULT_OUT_OF_RANGE', 'MAX_EXTRAPOLATION_C',
                      'OPERATING_RANGE_C', 'OUT_OF_RANGE_POLICIES', 'range_shortfall',
                      'variance_growth'],

@@ -34,7 +34,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['CURVE_MARGIN', 'curve_kept', 'gated_shift', 'HELD_OUT_KEY', 'learned_coef',
-           'offset_only', 'REANCHOR_SIGNIFICANCE', 'reanchor_rule', 'LOSS_SHARE']
+           'LOSS_SHARE', 'offset_only', 'REANCHOR_SIGNIFICANCE', 'reanchor_kept',
+           'reanchor_rule']
 
 #: The model's ``metrics`` key of the held-out figures and decisions.
 HELD_OUT_KEY = 'held_out'
@@ -84,6 +85,37 @@ def curve_kept(curve_ms: Sequence[float], offset_ms: Sequence[float],
         lost = per[:, 0] - per[:, 1] > LOSS_SHARE * np.median(per[:, 1], axis=0)
         keep &= ~(lost.any(axis=0) & judged)
     return keep
+
+
+def reanchor_kept(reanchored_ms: Sequence[float], kept_ms: Sequence[float],
+                  sessions: Sequence | None = None) -> NDArray[np.bool_]:
+    """
+    Return, per axis, whether start-up re-anchoring stays on (the default), held out.
+
+    It is turned off only where it did worse than the model's offset pooled over the held-out
+    sessions and in every one of them (by more than :data:`LOSS_SHARE` of their median
+    figure without it): a turn-on offset that varies from one power cycle to the next makes
+    re-anchoring win some, and one cycle's noise must not turn it off.
+
+    Parameters
+    ----------
+    reanchored_ms, kept_ms : sequence of 3 float
+        Held-out mean squares re-anchored and with the model's offset.
+    sessions : sequence of (reanchored_ms, kept_ms) pairs, optional
+        The same per held-out session, shape (S, 2, 3).
+
+    Returns
+    -------
+    NDArray[np.bool_], shape (3,)
+
+    """
+    r = np.asarray(reanchored_ms, dtype=np.float64).reshape(3)
+    k = np.asarray(kept_ms, dtype=np.float64).reshape(3)
+    worse = r > k
+    if sessions is not None and len(sessions):
+        per = np.asarray(sessions, dtype=np.float64).reshape(-1, 2, 3)
+        worse &= (per[:, 0] - per[:, 1] > LOSS_SHARE * np.median(per[:, 1], axis=0)).all(axis=0)
+    return ~worse
 
 
 def offset_only(model: CompensationModel, axes: Sequence[bool], *,

@@ -21,7 +21,7 @@ import math
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model import compensate, load_model, save_model
 from gyro_tdc.model.no_harm import (curve_kept, gated_shift, HELD_OUT_KEY, learned_coef,
-                                    offset_only, reanchor_rule)
+                                    offset_only, reanchor_kept, reanchor_rule)
 from gyro_tdc.runtime import CompensatorCore, Policy
 import numpy as np
 from synth import synth_run
@@ -45,6 +45,15 @@ def test_curve_kept_only_where_it_beats_the_offset():
            ([1.0, 0.5, 0.0], [0.2, 1.0, 0.0])]
     np.testing.assert_array_equal(curve_kept([0.4, 0.85, 0.0], [0.73, 1.0, 0.0], per),
                                   [False, True, True])
+
+
+def test_reanchoring_is_turned_off_only_where_it_lost_every_session():
+    # x: worse pooled and in both sessions; y: worse pooled, better in one; z: better.
+    per = [([2.0, 3.0, 0.5], [1.0, 0.5, 1.0]), ([2.0, 0.4, 0.5], [1.0, 0.5, 1.0])]
+    np.testing.assert_array_equal(reanchor_kept([2.0, 1.7, 0.5], [1.0, 0.5, 1.0], per),
+                                  [False, True, True])
+    np.testing.assert_array_equal(reanchor_kept([2.0, 1.7, 0.5], [1.0, 0.5, 1.0]),
+                                  [False, False, True])
 
 
 def test_offset_only_compensates_a_constant_on_those_axes():
