@@ -251,6 +251,74 @@ def _follow_restarts(bag: object, data: object, gap: float) -> tuple[object, lis
     return replace(data, **new), out
 
 
+def _read_source(bag: str | os.PathLike, o: BagOptions, *,
+                 read_reference: bool) -> tuple[object, dict]:
+    """Read a rosbag2 bag, or a flight-controller log (one IMU, no reference topic)."""
+    fmt = detect_format(bag, o.log_format)
+    if fmt == 'rosbag2':
+        return read_bag(bag, imu_topic=o.imu_topic, temperature_topic=o.temperature_topic,
+                        reference_topic=o.reference_topic if read_reference else None,
+                        progress=o.progress, accel=bool(o.accel)), {}
+    if not Path(bag).is_file():
+        raise DatasetError(f'Log {str(bag)!r} is not a file.')
+    reader = read_ulog if fmt == 'ulog' else read_dataflash
+    log = reader(bag, instance=o.imu_instance, accel=bool(o.accel),
+                 temperature_source=o.temperature_source)
+    return flight_log_data(bag, log, fmt, o)
+
+
+def _gate_imu(data: object, rejected: dict[str, int]) -> tuple[NDArray, NDArray, NDArray, bool]:
+    """
+    Drop implausible rates, sort by stamp and keep the first sample of each stamp.
+
+    Returns stamps, rates, their rows in ``data.accel`` and whether those are all, in order.
+    """
+    t, omega = data.imu_t, data.gyro
+    rows = np.arange(len(t))          # of data.accel: follows every IMU sample dropped
+    same_rows = True                  # rows is still arange: data.accel needs no gather
+    plausible = np.abs(omega) <= MAX_RATE_RAD_S     # rows column by column: 3x faster
+    plausible = plausible[:, 0] & plausible[:, 1] & plausible[:, 2]
+    if not plausible.all():
+        rejected['imu_implausible'] = int(np.count_nonzero(~plausible))
+        t, omega, rows = t[plausible], omega[plausible], rows[plausible]
+        same_rows = False
+    steps = np.diff(t)
+    if np.any(steps <= 0):
+        rejected['out_of_order'] = int(np.count_nonzero(steps < 0))
+        order = np.argsort(t, kind='stable')
+        t, omega, rows = t[order], omega[order], rows[order]
+        same_rows = False
+        first = np.ones(len(t), dtype=bool)
+        first[1:] = np.diff(t) > 0
+        rejected['duplicate_stamps'] = int(np.count_nonzero(~first))
+        t, omega, rows = t[first], omega[first], rows[first]
+    return t, omega, rows, same_rows
+
+
+def _reference_rates(data: object, const: NDArray | None, t: NDArray, shape: tuple,
+                     keep: NDArray[np.bool_], rejected: dict[str, int]) -> tuple[str, NDArray]:
+    """
+    Return the reference source and rate per IMU stamp: constant, held from a topic or zero.
+
+    Drops a topic's implausible rates and clears ``keep`` before its first message (counted).
+    """
+    if const is not None:
+        omega_ref = np.empty(shape)
+        omega_ref[:] = const
+        return 'constant', omega_ref
+    if data.ref_t is None:
+        return 'zero', np.zeros(shape)
+    plausible = np.all(np.abs(data.ref) <= MAX_RATE_RAD_S, axis=1)
+    rejected['ref_implausible'] = int(np.count_nonzero(~plausible))
+    order = np.argsort(data.ref_t[plausible], kind='stable')
+    ref_t, ref = data.ref_t[plausible][order], data.ref[plausible][order]
+    held = np.searchsorted(ref_t, t, side='right') - 1
+    has_ref = held >= 0
+    rejected['no_reference'] = int(np.count_nonzero(keep & ~has_ref))
+    keep &= has_ref
+    return 'topic', ref[held.clip(0)]
+
+
 def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     """
     Read one bag into a :class:`~gyro_tdc.data.runs.Run` aligned on the IMU stamps.
@@ -295,22 +363,8 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
 
     """
     o = BagOptions() if options is None else options
-    imu_topic, temperature_topic, reference_topic = (o.imu_topic, o.temperature_topic,
-                                                     o.reference_topic)
     const = None if o.reference is None else np.asarray(o.reference, dtype=np.float64)
-    fmt = detect_format(bag, o.log_format)
-    extra: dict = {}
-    if fmt == 'rosbag2':
-        data = read_bag(bag, imu_topic=imu_topic, temperature_topic=temperature_topic,
-                        reference_topic=None if const is not None else reference_topic,
-                        progress=o.progress, accel=bool(o.accel))
-    else:                             # a flight-controller log: one IMU, no reference topic
-        if not Path(bag).is_file():
-            raise DatasetError(f'Log {str(bag)!r} is not a file.')
-        reader = read_ulog if fmt == 'ulog' else read_dataflash
-        log = reader(bag, instance=o.imu_instance, accel=bool(o.accel),
-                     temperature_source=o.temperature_source)
-        data, extra = flight_log_data(bag, log, fmt, o)
+    data, extra = _read_source(bag, o, read_reference=const is None)
     rejected = {'imu_nonfinite': data.rejected['imu_nonfinite'],
                 'temp_nonfinite': data.rejected['temp_nonfinite'],
                 'ref_nonfinite': data.rejected['ref_nonfinite'],
@@ -321,39 +375,21 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
                 'no_temperature': 0, 'no_reference': 0}
     warnings: list[str] = list(extra.pop('warnings', ()))
     messages = {} if extra else _check_counts(bag, data, {
-        imu_topic: len(data.imu_t) + data.rejected['imu_nonfinite'],
-        temperature_topic: (len(data.temp_t) + data.rejected['temp_nonfinite']
-                            + data.rejected.get('temp_before_imu', 0)),
-        **({reference_topic: len(data.ref_t) + data.rejected['ref_nonfinite']}
+        o.imu_topic: len(data.imu_t) + data.rejected['imu_nonfinite'],
+        o.temperature_topic: (len(data.temp_t) + data.rejected['temp_nonfinite']
+                              + data.rejected.get('temp_before_imu', 0)),
+        **({o.reference_topic: len(data.ref_t) + data.rejected['ref_nonfinite']}
            if data.ref_t is not None else {})}, o.max_loss, warnings)
 
     restarts: list = []
     if len(data.imu_t) > 1 and np.any(np.diff(data.imu_t) < -RESTART_BACK_S):
         data, restarts = _follow_restarts(bag, data, 2.0 * o.max_gap_s + 1.0)
-    t, omega = data.imu_t, data.gyro
-    rows = np.arange(len(t))          # of data.accel: follows every IMU sample dropped
-    same_rows = True                  # rows is still arange: data.accel needs no gather
-    plausible = np.abs(omega) <= MAX_RATE_RAD_S     # rows column by column: 3x faster
-    plausible = plausible[:, 0] & plausible[:, 1] & plausible[:, 2]
-    if not plausible.all():
-        rejected['imu_implausible'] = int(np.count_nonzero(~plausible))
-        t, omega, rows = t[plausible], omega[plausible], rows[plausible]
-        same_rows = False
+    t, omega, rows, same_rows = _gate_imu(data, rejected)
     temp_t, temp_c = data.temp_t, data.temp_c
     plausible = plausible_temperatures(temp_t, temp_c)     # the node's and driver's gate
     if not plausible.all():
         rejected['temp_implausible'] = int(np.count_nonzero(~plausible))
         temp_t, temp_c = temp_t[plausible], temp_c[plausible]
-    steps = np.diff(t)
-    if np.any(steps <= 0):
-        rejected['out_of_order'] = int(np.count_nonzero(steps < 0))
-        order = np.argsort(t, kind='stable')
-        t, omega, rows = t[order], omega[order], rows[order]
-        same_rows = False
-        first = np.ones(len(t), dtype=bool)
-        first[1:] = np.diff(t) > 0
-        rejected['duplicate_stamps'] = int(np.count_nonzero(~first))
-        t, omega, rows = t[first], omega[first], rows[first]
 
     gap = o.max_gap_s
     if extra and len(temp_t) > 1:
@@ -365,28 +401,11 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     rejected['temp_nonfinite'] += counts['nonfinite']
     rejected['temp_duplicate_stamps'] = counts['duplicates']
     if counts['conflicting']:
-        warnings.append(f'{temperature_topic}: {counts["conflicting"]} stamp(s) carry '
+        warnings.append(f'{o.temperature_topic}: {counts["conflicting"]} stamp(s) carry '
                         'conflicting temperature readings; kept the last reading of each')
     rejected['no_temperature'] = int(np.count_nonzero(~keep))
 
-    if const is not None:
-        source = 'constant'
-        omega_ref = np.empty(omega.shape)
-        omega_ref[:] = const
-    elif data.ref_t is not None:
-        source = 'topic'
-        plausible = np.all(np.abs(data.ref) <= MAX_RATE_RAD_S, axis=1)
-        rejected['ref_implausible'] = int(np.count_nonzero(~plausible))
-        order = np.argsort(data.ref_t[plausible], kind='stable')
-        ref_t, ref = data.ref_t[plausible][order], data.ref[plausible][order]
-        held = np.searchsorted(ref_t, t, side='right') - 1
-        has_ref = held >= 0
-        rejected['no_reference'] = int(np.count_nonzero(keep & ~has_ref))
-        keep &= has_ref
-        omega_ref = ref[held.clip(0)]
-    else:
-        source = 'zero'
-        omega_ref = np.zeros(omega.shape)
+    source, omega_ref = _reference_rates(data, const, t, omega.shape, keep, rejected)
 
     if not np.any(keep):
         raise DatasetError(
