@@ -394,15 +394,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     o = TrainOptions() if options is None else options
     bag = BagOptions() if bag is None else bag
     if runs is None:
-        said = None if log is None else (lambda line: log(line.replace(
-            'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
-        runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
-                         log=said)
-        if bag.motion_topic:
-            moving = []
-            for r in runs:
-                rep = read_motion(r.name, bag.motion_topic)
-                moving.append(motion_veto(r.t, rep.t, rep.twist))
+        runs, moving = _load_still_runs(bags, bag, o, log, moving)
     else:
         runs = [replace(r, omega_ref=np.zeros_like(r.omega)) for r in runs]
     bags = [r.name for r in runs]
@@ -438,19 +430,8 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         names = [names[i] for i in keep]
         relabel = {g: k for k, g in enumerate(dict.fromkeys(labels[i] for i in keep))}
         labels = [relabel[labels[i]] for i in keep]
-    temps = np.concatenate([r.temp[m] for r, m in zip(runs, rows)])
-    span = float(temps.max() - temps.min())
-    if span < MIN_STILL_SPAN_C:
-        raise FitError(f'--still-only: the still time spans {span:.2f} degC only '
-                       f'({temps.min():.1f} .. {temps.max():.1f} degC; need at least '
-                       f'{MIN_STILL_SPAN_C:g} degC): record stops at other temperatures '
-                       '(a cold morning, right after a long drive).')
-    t0 = o.t0
-    if t0 is None:
-        i = next(k for k, m in enumerate(rows) if m.any())
-        first = np.flatnonzero(rows[i])
-        head = first[runs[i].t[first] <= runs[i].t[first[0]] + 60.0]
-        t0 = float(np.median(runs[i].temp[head]))
+    _check_still_span(runs, rows)
+    t0 = _first_still_temperature(runs, rows) if o.t0 is None else o.t0
     subs = ([_rows(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
             if o.auto else [])            # the still rows, for the choice of features
     ids, params, choice = features_for_fit(subs, o.features, t0=t0)
@@ -461,17 +442,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
               'sensor_id': o.sensor_id, 'sessions': labels,
               'created': {'command': command, 'bags': bags, 'still_only': True}}
     spans = _stretches(runs, still)
-    model = fit_model(runs, rows=rows, **common)
-    means = _stretch_means(model, runs, spans, labels)
-    bad = _outliers(means)
-    if bad.any() and not bad.all():
-        for (i, a, b), drop in zip(spans, bad):
-            if drop:
-                rows[i][a:b] = False
-        model = fit_model(runs, rows=rows, **common)
-        means = _stretch_means(model, runs, spans, labels)
-    else:
-        bad[:] = False
+    model, means, bad = _fit_without_outliers(runs, rows, spans, labels, common)
     model = identity_axes(model, raw_runs, const, rows)
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
                          float(runs[i].temp[a:b].mean()), not drop,
@@ -494,6 +465,65 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                        samples=int(sum(np.count_nonzero(m) for m in rows)), choice=choice,
                        accel=accel_fit, still=report, sessions=split,
                        constant=constant_readings(raw_runs, const))
+
+
+def _load_still_runs(bags: Sequence[str | os.PathLike], bag: BagOptions, o: TrainOptions,
+                     log: Callable[[str], None] | None,
+                     moving: Sequence[NDArray[np.bool_] | None] | None
+                     ) -> tuple[list[Run], Sequence[NDArray[np.bool_] | None] | None]:
+    """Read the bags with a zero reference rate, and the motion veto of ``bag.motion_topic``."""
+    said = None if log is None else (lambda line: log(line.replace(
+        'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
+    runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
+                     log=said)
+    if bag.motion_topic:
+        moving = []
+        for r in runs:
+            rep = read_motion(r.name, bag.motion_topic)
+            moving.append(motion_veto(r.t, rep.t, rep.twist))
+    return runs, moving
+
+
+def _check_still_span(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]]) -> None:
+    """Raise FitError, saying what to record, when the still time spans too few degrees."""
+    temps = np.concatenate([r.temp[m] for r, m in zip(runs, rows)])
+    span = float(temps.max() - temps.min())
+    if span < MIN_STILL_SPAN_C:
+        raise FitError(f'--still-only: the still time spans {span:.2f} degC only '
+                       f'({temps.min():.1f} .. {temps.max():.1f} degC; need at least '
+                       f'{MIN_STILL_SPAN_C:g} degC): record stops at other temperatures '
+                       '(a cold morning, right after a long drive).')
+
+
+def _first_still_temperature(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]]) -> float:
+    """Return the median temperature of the first minute of the first still stretch."""
+    i = next(k for k, m in enumerate(rows) if m.any())
+    first = np.flatnonzero(rows[i])
+    head = first[runs[i].t[first] <= runs[i].t[first[0]] + 60.0]
+    return float(np.median(runs[i].temp[head]))
+
+
+def _fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
+                          spans: list[tuple[int, int, int]], labels: list[int], common: dict
+                          ) -> tuple[CompensationModel, NDArray[np.float64], NDArray[np.bool_]]:
+    """
+    Fit, then refit without the outlying stretches unless all or none are outliers.
+
+    Clears the outlying stretches in ``rows`` (in place); returns the model, the mean
+    compensated rate per stretch (S, 3) and which stretches were dropped.
+    """
+    model = fit_model(runs, rows=rows, **common)
+    means = _stretch_means(model, runs, spans, labels)
+    bad = _outliers(means)
+    if bad.any() and not bad.all():
+        for (i, a, b), drop in zip(spans, bad):
+            if drop:
+                rows[i][a:b] = False
+        model = fit_model(runs, rows=rows, **common)
+        means = _stretch_means(model, runs, spans, labels)
+    else:
+        bad[:] = False
+    return model, means, bad
 
 
 def _stretch_means(model: CompensationModel, runs: Sequence[Run],
