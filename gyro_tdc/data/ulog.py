@@ -189,6 +189,29 @@ def _thermometer(topics: dict, instance: int, source: str
     return None
 
 
+def _required_thermometer(p: Path, topics: dict[str, dict[int, dict]], instance: int,
+                          temperature_source: str, source: str
+                          ) -> tuple[str, NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return :func:`_thermometer`'s ``(name, stamps, degC)`` or raise DatasetError saying why not.
+
+    Without the IMU's own thermometer the message names the barometer proxy when there is one.
+    """
+    therm = _thermometer(topics, instance, temperature_source)
+    if therm is None:
+        if temperature_source == 'imu':
+            baro = _thermometer(topics, instance, 'baro') is not None
+            raise DatasetError(
+                f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
+                "thermometer reads other than a constant 0 or NaN; the log's instances: "
+                f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
+                                            "barometer's as a proxy." if baro else '.'))
+        raise DatasetError(f'Log {str(p)!r}: no usable thermometer for --temperature-source '
+                           f"{temperature_source} (the log's instances: "
+                           f'{_inventory(topics)}).')
+    return therm
+
+
 def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False,
               temperature_source: str = 'imu') -> FlightLog:
     """
@@ -276,19 +299,7 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
         acc_topic, acc_names = None, ()
         notes.append(f'vehicle_imu (integrated, calibrated on board) at {_rate(d):.3g} Hz is '
                      'the fastest gyro')
-    therm = _thermometer(topics, instance, temperature_source)
-    if therm is None:
-        if temperature_source == 'imu':
-            baro = _thermometer(topics, instance, 'baro') is not None
-            raise DatasetError(
-                f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
-                "thermometer reads other than a constant 0 or NaN; the log's instances: "
-                f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
-                                            "barometer's as a proxy." if baro else '.'))
-        raise DatasetError(f'Log {str(p)!r}: no usable thermometer for --temperature-source '
-                           f"{temperature_source} (the log's instances: "
-                           f'{_inventory(topics)}).')
-    name, temp_t, temp = therm
+    name, temp_t, temp = _required_thermometer(p, topics, instance, temperature_source, source)
     proxy = temperature_source != 'imu'
     notes.append(f'temperature from {name}' + (" (a proxy of the IMU's)" if proxy else ''))
     acc = None
