@@ -161,6 +161,46 @@ def _long_enough(g: NDArray[np.float64], duration: float, min_still_s: float | N
     return bool(np.all(se <= MAX_STILL_SE))
 
 
+def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
+                     starts: NDArray[np.int64], why: NDArray[np.str_], dt: float,
+                     min_still_s: float | None) -> tuple[list, list]:
+    """
+    Return the kept stretches of consecutive still windows and their durations.
+
+    A stretch is a half-open sample range ``(start, stop)``; its duration, s, spans its
+    stamps plus one sample period ``dt``. The windows of a stretch too short to keep
+    (:func:`_long_enough`) are marked ``'brief'`` in ``why``, in place.
+    """
+    n = t.shape[0]
+    ends = np.append(starts[1:], n)
+    edges = np.diff(np.concatenate([[0], (why == '').astype(np.int8), [0]]))
+    first_w, stop_w = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    segments, durations = [], []
+    for a, b in zip(first_w.tolist(), stop_w.tolist()):
+        i0, i1 = int(starts[a]), int(ends[b - 1])
+        dur = float(t[i1 - 1] - t[i0]) + dt
+        if not _long_enough(g[i0:i1], dur, min_still_s):
+            why[a:b] = 'brief'
+            continue
+        segments.append((i0, i1))
+        durations.append(dur)
+    return segments, durations
+
+
+def _no_still_reason(why: NDArray[np.str_], min_still_s: float | None) -> str:
+    """Return why a run has no still stretch, from the verdicts ``why`` of its windows."""
+    rej = {r: int(np.count_nonzero(why == r)) for r in REASONS if np.any(why == r)}
+    if rej.get('motion', 0) == why.size:
+        return 'every window is vetoed by a motion report'
+    if rej.get('brief'):
+        return (f'no still stretch of {min_still_s:g} s or more (the longest still '
+                'stretch is shorter)' if min_still_s is not None else
+                f'no still stretch of {MIN_STILL_S:g} s or of {MIN_STILL_SAMPLES} '
+                f'samples with a mean known to {MAX_STILL_SE * 180.0 / math.pi:g} deg/s '
+                '(the still stretches are shorter or noisier)')
+    return 'no still window (the IMU moves)'
+
+
 def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, *,
                  rate: ArrayLike | None = None, moving: ArrayLike | None = None,
                  window_s: float = STILL_WINDOW_S, min_still_s: float | None = MIN_STILL_S,
@@ -265,37 +305,12 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
                         moving=vetoed)
     why[bad] = 'non-finite'
     why[counts < max(3, MIN_WINDOW_SAMPLES // 2)] = 'samples'
-    # Stretches of consecutive still windows; the short ones are dropped.
-    still_w = why == ''
-    ends = np.append(starts[1:], n)
-    edges = np.diff(np.concatenate([[0], still_w.astype(np.int8), [0]]))
-    first_w, stop_w = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
-    segments, durations = [], []
-    for a, b in zip(first_w.tolist(), stop_w.tolist()):
-        i0, i1 = int(starts[a]), int(ends[b - 1])
-        dur = float(t[i1 - 1] - t[i0]) + dt
-        if not _long_enough(g[i0:i1], dur, min_still_s):
-            why[a:b] = 'brief'
-            continue
-        segments.append((i0, i1))
-        durations.append(dur)
+    segments, durations = _still_stretches(t, g, starts, why, dt, min_still_s)
     mask = np.zeros(n, dtype=bool)
     for i0, i1 in segments:
         mask[i0:i1] = True
     mask &= finite
-    reason = ''
-    if not segments:
-        rej = {r: int(np.count_nonzero(why == r)) for r in REASONS if np.any(why == r)}
-        if rej.get('motion', 0) == starts.size:
-            reason = 'every window is vetoed by a motion report'
-        elif rej.get('brief'):
-            reason = (f'no still stretch of {min_still_s:g} s or more (the longest still '
-                      'stretch is shorter)' if min_still_s is not None else
-                      f'no still stretch of {MIN_STILL_S:g} s or of {MIN_STILL_SAMPLES} '
-                      f'samples with a mean known to {MAX_STILL_SE * 180.0 / math.pi:g} deg/s '
-                      '(the still stretches are shorter or noisier)')
-        else:
-            reason = 'no still window (the IMU moves)'
+    reason = '' if segments else _no_still_reason(why, min_still_s)
     return Stillness(mask, tuple(segments), window, starts, counts, why, g_mean, g_std, a_mean,
                      a_std, g_thr, None if acc is None else a_thr, np.asarray(durations),
                      g_floor, a_floor, reason)

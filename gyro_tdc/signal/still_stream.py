@@ -16,21 +16,21 @@
 The streaming form of the still test: windows judged one sample (or one chunk) at a time.
 
 :class:`StillWindows` is the one streaming detector (windows, running noise floor, motion
-reports, verdict); :class:`StreamingStill` adds still stretches. See doc/internals/signal.md.
+reports, verdict); :class:`StreamingStill` adds still stretches. The floor and the reports
+themselves live in :mod:`gyro_tdc.signal.still_running`. See doc/internals/signal.md.
 """
 
 from __future__ import annotations
 
 from array import array
-from collections import deque
 from dataclasses import dataclass
 import math
 from typing import NamedTuple, Sequence
 
+from gyro_tdc.signal.still_running import MotionReports, NoiseFloor
 from gyro_tdc.signal.still_verdict import (judge_windows, MAX_RATE, MIN_STILL_S,
-                                           MIN_WINDOW_SAMPLES, NOISE_DOF, noise_thresholds,
-                                           NOISE_WINDOWS, REASONS, STILL_WINDOW_S,
-                                           windows_moving)
+                                           MIN_WINDOW_SAMPLES, noise_thresholds,
+                                           NOISE_WINDOWS, REASONS, STILL_WINDOW_S)
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -115,80 +115,6 @@ class Window(NamedTuple):
         return self.samples[:, 10]
 
 
-class MotionReports:
-    """
-    Outside motion reports (``cmd_vel``, odometry): each holds from its stamp to the next.
-
-    A window that overlaps a moving interval is vetoed (:func:`windows_moving`; before the
-    first report nothing is). Reports are kept from the one held at the window in progress on.
-    """
-
-    def __init__(self) -> None:
-        #: Reports (stamp, moving), in stamp order.
-        self.reports: list[tuple[float, bool]] = []
-
-    def add(self, t: float, moving: bool) -> None:
-        """Record a report (a non-finite stamp is ignored)."""
-        t = float(t)
-        if not math.isfinite(t):
-            return
-        rep = (t, bool(moving))
-        self.reports.append(rep)
-        if len(self.reports) > 1 and t < self.reports[-2][0]:     # out of order
-            self.reports.sort(key=lambda r: r[0])
-
-    def veto(self, t0: float, t1: float) -> bool:
-        """Return whether ``[t0, t1]`` overlaps motion; drop reports before the one held at t1."""
-        mo = self.reports
-        if not mo:
-            return False
-        mt = [r[0] for r in mo]
-        moving = bool(windows_moving([t0], [t1], mt, [r[1] for r in mo])[0])
-        held = max(int(np.searchsorted(mt, t1, side='right')) - 1, 0)
-        del mo[:held]
-        return moving
-
-
-class NoiseFloor:
-    """
-    A running noise floor per axis: the lowest standard deviation pooled over windows.
-
-    Each window adds its variance and degrees of freedom (samples - 1); the variance pooled
-    over the newest consecutive windows holding at least :data:`NOISE_DOF` of them is a
-    candidate, and the floor is the lowest candidate so far, at least the quantisation noise
-    ``q / sqrt(12)`` of the finest step seen between two readings (``q``). An axis whose
-    windows never vary has no floor (inf). Pooling makes the floor a property of the noise,
-    not of the window's sample count or of how many windows the stream has had: the lowest
-    single window of ten samples sinks to a sixth of the noise over a day of them.
-    """
-
-    def __init__(self) -> None:
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget the windows and the floor."""
-        self.floor = np.full(3, math.inf)
-        self.quantum = np.full(3, math.inf)
-        self._windows: deque[tuple[int, NDArray[np.float64]]] = deque()
-        self._dof = 0
-
-    def add(self, dof: int, var: NDArray[np.float64], step: NDArray[np.float64]) -> None:
-        """Add a window: its degrees of freedom, variance (3,) and finest step (3,; inf)."""
-        self.quantum = np.minimum(self.quantum, step)
-        win = self._windows
-        win.append((dof, var))
-        self._dof += dof
-        while win and self._dof - win[0][0] >= NOISE_DOF:
-            self._dof -= win.popleft()[0]
-        if self._dof < NOISE_DOF:
-            return
-        pooled = sum(d * v for d, v in win) / self._dof
-        q = np.where(np.isfinite(self.quantum), self.quantum, 0.0)
-        cand = np.maximum(np.sqrt(pooled), q / math.sqrt(12.0))
-        cand = np.where(cand > 0.0, cand, math.inf)
-        self.floor = np.minimum(self.floor, cand)
-
-
 #: Samples of a window the finest step between readings is looked for in (its first).
 _STEP_ROWS = 64
 
@@ -226,10 +152,10 @@ class StillWindows:
 
     The verdict is :func:`judge_windows` against :func:`noise_thresholds` of the running
     noise floor (:class:`NoiseFloor`: the quietest stretch of windows so far pooled to
-    :data:`NOISE_DOF` degrees of freedom, windows of at least ``min_samples`` finite samples),
-    held below the prior over the first :data:`NOISE_WINDOWS` windows and until a floor is
-    known, when one is given; a window whose readings on an axis never change has a standard
-    deviation of exactly zero there; a
+    :data:`~gyro_tdc.signal.still_verdict.NOISE_DOF` degrees of freedom, windows of at least
+    ``min_samples`` finite samples), held below the prior over the first
+    :data:`NOISE_WINDOWS` windows and until a floor is known, when one is given; a window
+    whose readings on an axis never change has a standard deviation of exactly zero there; a
     window is vetoed by a ``moving`` sample flag or a motion report (:meth:`observe_motion`),
     and with a ``rate`` its mean is at most ``max_rate``. Acceleration counts for a window
     when every sample has a finite one and not all are zero (as
