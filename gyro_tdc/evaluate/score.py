@@ -18,7 +18,9 @@ The evaluation core: score compensation models on held-out runs, in the paper's 
 :func:`score` gives BS, BS/BS1, RMS and the Allan deviation of the error per axis;
 :func:`evaluate_run` scores every :class:`NamedModel` on one run (a :class:`BagEval` of
 :class:`ModelEval`) and :func:`evaluate` does so for bags, one in memory at a time, with
-the out-of-range policy and re-anchoring of the compensator. See ``doc/internals/evaluate.md``.
+the out-of-range policy and re-anchoring of the compensator. The models and labels are
+:mod:`gyro_tdc.evaluate.models`' (their names are re-exported here). See
+``doc/internals/evaluate.md``.
 """
 
 from __future__ import annotations
@@ -26,20 +28,17 @@ from __future__ import annotations
 from dataclasses import dataclass, field, replace
 import math
 import os
-from pathlib import Path
-import re
 from typing import Callable, Sequence
 
-from gyro_tdc.base import model_path
 from gyro_tdc.data import BagOptions, expand_bags, load_runs, Run, split_sessions
 from gyro_tdc.errors import FitError
+from gyro_tdc.evaluate.models import (bag_labels, load_models, model_labels, NamedModel, PX4,
+                                      safe_label, with_accel)
 from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
-from gyro_tdc.identify import (accel_scores, all_constant_error, constant_axes,
-                               constant_gyro_axes, find_still, fit_accel, fit_px4_cubic,
-                               identity_axes, MAX_MOVING_SHARE, MIN_SAMPLES, moving_share,
-                               neutral_runs, PX4_FEATURES)
+from gyro_tdc.identify import (accel_scores, all_constant_error, constant_axes, find_still,
+                               MAX_MOVING_SHARE, MIN_SAMPLES, moving_share)
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
-                            load_model, MAX_EXTRAPOLATION_C, model_temperature)
+                            MAX_EXTRAPOLATION_C, model_temperature)
 from gyro_tdc.runtime import default_tolerance, reanchor_shift, STILL_WINDOW_MAX_S
 from gyro_tdc.signal import (allan_deviation, bias_stability, noise_readouts, rms_dps,
                              STILL_WINDOW_S)
@@ -52,8 +51,6 @@ __all__ = [
     'rate_hz', 'safe_label', 'score', 'still_rows',
 ]
 
-#: Model spec of the PX4-style cubic in T fitted on training bags.
-PX4 = 'px4'
 #: ``reanchor_s`` value for the compensator's precision-driven rule.
 AUTO_REANCHOR = 'auto'
 
@@ -188,158 +185,6 @@ class BagEval:
         self.raw.omega = None
         for m in self.models:
             m.omega = None
-
-
-@dataclass(frozen=True)
-class NamedModel:
-    """
-    A model with the name it was given on the command line.
-
-    Parameters
-    ----------
-    name : str
-        A model file path as given, or ``px4``.
-    label : str
-        Short unique label (tables, CSV columns, legends).
-    model : CompensationModel
-        The model.
-    out_of_range : str, optional
-        The model's own out-of-range policy (a flight controller's clamp), overriding the
-        evaluation's.
-
-    """
-
-    name: str
-    label: str
-    model: CompensationModel
-    out_of_range: str | None = None
-
-
-# --------------------------------------------------------------------------------------------
-# Labels
-# --------------------------------------------------------------------------------------------
-
-def safe_label(text: str) -> str:
-    """Return ``text`` reduced to a file-name and CSV-header safe label."""
-    stem = Path(str(text).rstrip('/\\')).name
-    for suffix in ('.yaml', '.yml'):
-        if stem.endswith(suffix):
-            stem = stem[:-len(suffix)]
-    return re.sub(r'[^A-Za-z0-9_.-]+', '_', stem).strip('_.') or 'unnamed'
-
-
-def model_labels(names: Sequence[str]) -> list:
-    """Return short labels for model specs, made unique with a numeric suffix."""
-    out: list = []
-    for name in names:
-        base = PX4 if name == PX4 else safe_label(name)
-        if base == 'raw':
-            base = 'raw_model'
-        label, k = base, 2
-        while label in out:
-            label, k = f'{base}_{k}', k + 1
-        out.append(label)
-    return out
-
-
-def bag_labels(paths: Sequence[str | os.PathLike]) -> list:
-    """Return unique file-name labels for bag paths (parent folder added on clashes)."""
-    base = [safe_label(str(p)) for p in paths]
-    out = []
-    for p, b in zip(paths, base):
-        if base.count(b) > 1:
-            b = safe_label(f'{Path(p).parent.name}_{b}')
-        label, k = b, 2
-        while label in out:
-            label, k = f'{b}_{k}', k + 1
-        out.append(label)
-    return out
-
-
-# --------------------------------------------------------------------------------------------
-# Models
-# --------------------------------------------------------------------------------------------
-
-def _with_accel(bag: BagOptions | None) -> BagOptions:
-    """Return ``bag`` (default :class:`~gyro_tdc.data.BagOptions`) reading the accelerometer."""
-    return replace(BagOptions() if bag is None else bag, accel=True)
-
-
-def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None,
-                bag: BagOptions | None = None,
-                log: Callable[[str], None] | None = None,
-                held_out: Sequence[str | os.PathLike] | None = None,
-                loader: Callable[[str], CompensationModel] | None = None) -> list:
-    """
-    Load model files and fit the ``px4`` baseline when asked.
-
-    Parameters
-    ----------
-    specs : sequence of str
-        Model file paths (or shipped model names), ``px4``, or ``px4-onboard`` /
-        ``ardupilot-onboard`` (:mod:`gyro_tdc.evaluate.onboard`).
-    train_bags : sequence of str, optional
-        Bags the ``px4`` cubic is fitted on (required with ``px4``, used only by it).
-    bag : BagOptions, optional
-        How to read the training bags (the accelerometer is read whatever ``bag.accel``
-        says: the cubic gets an accelerometer part too).
-    log : callable, optional
-        Receives progress lines.
-    held_out : sequence of str or PathLike, optional
-        The held-out logs: ``px4-onboard`` / ``ardupilot-onboard`` are built from the
-        parameters of the first here (and rebuilt from each log's own by :func:`evaluate`).
-    loader : callable, optional
-        Reads one model spec (default: a model file or shipped name; the CLI's also takes a
-        learn_file, :func:`gyro_tdc.learn.read_model`).
-
-    Returns
-    -------
-    list of NamedModel
-        In the order of ``specs``, labelled by :func:`model_labels`.
-
-    Raises
-    ------
-    FitError
-        ``px4`` without training bags.
-    ModelFileError
-        A model file is missing or malformed.
-
-    """
-    if PX4 in specs and not train_bags:
-        raise FitError('The px4 baseline needs training bags to fit its cubic on.')
-    if loader is None:
-        def loader(spec: str) -> CompensationModel:
-            return load_model(model_path(spec))
-    files = {s: loader(s) for s in specs if s != PX4 and s not in ONBOARD}
-    if any(s in ONBOARD for s in specs):
-        if not held_out:
-            raise FitError('The on-board models need the held-out logs they are read from.')
-        first = load_runs([expand_bags(held_out)[0]], _with_accel(bag))[0]
-        for s in specs:
-            if s in ONBOARD and s not in files:
-                files[s], line = onboard_model(s, first)
-                if log is not None:
-                    log(line)
-    px4 = None
-    if PX4 in specs:
-        runs = load_runs(train_bags, _with_accel(bag), log=log)
-        const = constant_gyro_axes(runs)        # as train: every axis constant is refused
-        px4 = fit_px4_cubic(neutral_runs(runs, const), created={'bags': [r.name for r in runs]})
-        px4 = identity_axes(px4, runs, const)   # a constant axis: not fitted, passed through
-        acc = fit_accel(runs, px4, kind='poly', features=PX4_FEATURES)
-        if acc.part is not None:          # PX4's TC_A*: a cubic for the accelerometer too
-            px4 = px4.replace(accel=acc.part)
-        if log is not None:
-            lo, hi = px4.temp_range_c
-            axes = px4.metrics.get('constant_axes', [])
-            log(f'fitted px4 cubic in T - T0 on {len(runs)} bag(s): T0 = {px4.t0_c:.3f} degC, '
-                f'range {lo:.2f} .. {hi:.2f} degC; accelerometer '
-                + ('cubic too' if acc.part is not None else f'not fitted: {acc.note}')
-                + (f'; gyro ax{"es" if len(axes) > 1 else "is"} {", ".join(axes)} constant: '
-                   'not fitted, passed through unchanged' if axes else ''))
-    return [NamedModel(s, label, px4 if s == PX4 else files[s],
-                       'clamp' if s in ONBOARD else None)
-            for s, label in zip(specs, model_labels(specs))]
 
 
 # --------------------------------------------------------------------------------------------
@@ -668,7 +513,7 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     paths = expand_bags(bags)
     results = []
     for path, label in zip(paths, bag_labels(paths)):
-        run = load_runs([path], _with_accel(bag), log=log)[0]
+        run = load_runs([path], with_accel(bag), log=log)[0]
         held_out_constant(run)              # every gyro axis constant: refused
         here = [replace(nm, model=onboard_model(nm.name, run)[0]) if nm.name in ONBOARD
                 else nm for nm in models]         # each log's own on-board parameters
