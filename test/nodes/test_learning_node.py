@@ -262,7 +262,9 @@ def test_a_model_file_loaded_while_learning_becomes_the_prior(ros_context, tmp_p
     """A model_file set (or ~/reload) at run time is the model a learned one must beat."""
     b1 = np.array([0.01, -0.02, 0.005])
     b2 = b1 + [0.01, 0.0, 0.0]
-    rig = LearnRig(ros_context, learn=True)
+    # The set and ~/reload answer once the file is installed (a busy machine can read it
+    # slower than the default 0.1 s load_wait; then it would install after the answer).
+    rig = LearnRig(ros_context, learn=True, load_wait=10.0)
     try:
         node = rig.node
         t = rig.feed(1000.0, 100.0, 20.0, b1, False, 1)
