@@ -107,7 +107,8 @@ def test_an_invalid_value_is_refused_with_a_reason_and_nothing_changes(
 
 
 def test_a_model_file_and_a_policy_set_together_apply_both(rig_factory, model_file):
-    rig = rig_factory(temperature_timeout=2.0)
+    # load_wait: the set answers once the file is installed, however busy the machine.
+    rig = rig_factory(temperature_timeout=2.0, load_wait=10.0)
     client = AsyncParameterClient(rig.io, 'compensator_node')
     spin_until(rig.executor, lambda: client.services_are_ready(), 10.0)
     future = client.set_parameters_atomically([
