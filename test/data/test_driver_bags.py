@@ -25,38 +25,14 @@ the arrays of the same samples written as Imu + Temperature.
 
 from __future__ import annotations
 
+from driver_msgs import driver_typestore
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data import DriverInputs, normalize_bag, read_bag, write_bag
 from gyro_tdc.errors import ConfigError, DatasetError
 import numpy as np
 import pytest
 from rosbags.rosbag2 import Writer
-from rosbags.typesys import get_types_from_msg, get_typestore, Stores
 
-SENSOR_GYRO = """
-uint64 timestamp
-uint64 timestamp_sample
-uint32 device_id
-float32 x
-float32 y
-float32 z
-float32 temperature
-uint32 error_count
-uint8[3] clip_counter
-uint8 samples
-uint8 ORB_QUEUE_LENGTH = 8
-"""
-MIP_HEADER = """
-std_msgs/Header header
-uint8 event_source
-uint64 reference_timestamp
-"""
-TEMPERATURE_STATISTICS = """
-microstrain_inertial_msgs/MipHeader header
-float32 min_temp
-float32 max_temp
-float32 mean_temp
-"""
 GYRO_TYPE = 'px4_msgs/msg/SensorGyro'
 STATS_TYPE = 'microstrain_inertial_msgs/msg/MipSensorTemperatureStatistics'
 OPTIONS = dict(imu_type=GYRO_TYPE, angular_velocity_field='', stamp_field='timestamp',
@@ -79,11 +55,7 @@ def samples(n=4000, rate_hz=100.0, seed=3):
 
 def driver_bag(path, n=4000):
     """Write what a PX4 + MicroStrain pair would record: FRD SensorGyro, nested temperature."""
-    store = get_typestore(Stores.ROS2_JAZZY)
-    for text, name in ((SENSOR_GYRO, GYRO_TYPE),
-                       (MIP_HEADER, 'microstrain_inertial_msgs/msg/MipHeader'),
-                       (TEMPERATURE_STATISTICS, STATS_TYPE)):
-        store.register(get_types_from_msg(text, name))
+    store = driver_typestore()
     Gyro, Stats = store.types[GYRO_TYPE], store.types[STATS_TYPE]
     MipHeader = store.types['microstrain_inertial_msgs/msg/MipHeader']
     Header = store.types['std_msgs/msg/Header']

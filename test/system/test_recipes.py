@@ -36,6 +36,7 @@ import re
 import xml.etree.ElementTree as ET
 
 from compensator_rig import stamp_s
+from driver_msgs import DRIVER_MSGS, driver_typestore
 from geometry_msgs.msg import QuaternionStamped, Vector3Stamped
 from gyro_tdc.data import check_number, check_vector, diagonal_marked, stamp_kind
 from gyro_tdc.nodes.compensator_node import CompensatorNode
@@ -205,34 +206,6 @@ DRIVERS = {
                   compensates=True, unknown_cov=True),
 }
 
-#: The drivers' own message definitions the recipes name (from their .msg files, cited in the
-#: recipes), to check the recipes' field paths against the real types.
-DRIVER_MSGS = {
-    'px4_msgs/msg/SensorGyro': """
-uint64 timestamp
-uint64 timestamp_sample
-uint32 device_id
-float32 x
-float32 y
-float32 z
-float32 temperature
-uint32 error_count
-uint8[3] clip_counter
-uint8 samples
-""",
-    'microstrain_inertial_msgs/msg/MipHeader': """
-std_msgs/Header header
-uint8 event_source
-uint64 reference_timestamp
-""",
-    'microstrain_inertial_msgs/msg/MipSensorTemperatureStatistics': """
-microstrain_inertial_msgs/MipHeader header
-float32 min_temp
-float32 max_temp
-float32 mean_temp
-""",
-}
-
 
 def recipe(name: str) -> ET.Element:
     return ET.parse(RECIPES / f'{name}.launch.xml').getroot()
@@ -311,11 +284,7 @@ def test_recipe_fields_hold_in_the_drivers_types(name):
     """Each recipe's type and field parameters are valid for the driver's own definitions."""
     from gyro_tdc.data.driver_bags import field_table
     from gyro_tdc.nodes.compensator_inputs import message_class
-    from rosbags.typesys import get_types_from_msg, get_typestore, Stores
-    store = get_typestore(Stores.ROS2_JAZZY)
-    for type_name, text in DRIVER_MSGS.items():
-        store.register(get_types_from_msg(text, type_name))
-    fields_of = field_table(store)
+    fields_of = field_table(driver_typestore())
     p = {s.name: s.default for s in PARAMS}
     p.update(node_settings(recipe(name), model_file=MODEL)['params'])
     for which in ('imu_type', 'temperature_type'):
