@@ -239,8 +239,13 @@ class Poker:
 
 
 def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
-               poker: Poker | None) -> Stop:
-    """Start ``config``'s node, signal it ``delay_s`` after its handlers are in, judge the end."""
+               poker: Poker | None, save_first: bool = False) -> Stop:
+    """
+    Start ``config``'s node, signal it ``delay_s`` after its handlers are in, judge the end.
+
+    With ``save_first`` and no ``~/learn_save`` answered yet in the series, the moment is
+    drawn after the first one is: the series then covers a stop after a save for certain.
+    """
     name = signal.Signals(signum).name
     stop = Stop(config, name, delay_s)
     extra: dict[str, str] = {}
@@ -267,6 +272,10 @@ def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
             time.sleep(0.005)   # polling /proc: the child's state, with a deadline
         started = time.monotonic()
         stop.ready_s = started - launched
+        if save_first and poker is not None and poker.saves == 0:
+            deadline = time.monotonic() + READY_S
+            while poker.saves == 0 and child.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.01)    # polling the poker's count, with a deadline
         time.sleep(delay_s)     # the random moment itself
         signalled = time.monotonic()
         signalled_ns = time.time_ns()
@@ -310,7 +319,7 @@ def run_series(node: str, signals: list[int], *, seed: int, workdir: Path,
     moment uniformly in ``[0, max_delay_s]`` s after the child installed its signal handlers
     (start-up, model load and the sim back-end's start included). The compensator runs
     behind a 1 kHz simulated driver, with :class:`Poker` calling ``~/reload`` and
-    ``~/learn_save``.
+    ``~/learn_save``; its last learning stop waits for a first answered save if none was yet.
 
     Parameters
     ----------
@@ -345,6 +354,8 @@ def run_series(node: str, signals: list[int], *, seed: int, workdir: Path,
         if node == 'compensator':
             stack.enter_context(stream())
             poker = stack.enter_context(Poker())
-        stops = [_stop_once(config, signum, delay, workdir, poker)
-                 for signum, (config, delay) in zip(signals, draws)]
+        last_learn = max((i for i, (config, _) in enumerate(draws) if config.learn),
+                         default=-1)
+        stops = [_stop_once(config, signum, delay, workdir, poker, save_first=i == last_learn)
+                 for i, (signum, (config, delay)) in enumerate(zip(signals, draws))]
     return Series(stops, poker.reloads if poker else 0, poker.saves if poker else 0)
