@@ -28,6 +28,7 @@ import math
 import os
 from typing import Any, Callable, Mapping, Optional, Sequence, Union
 
+from gyro_tdc.base import is_number
 from gyro_tdc.data import Run
 from gyro_tdc.errors import ScenarioError
 from gyro_tdc.model import EFFECT_IDS
@@ -228,8 +229,7 @@ def _check_seed(seed: Any) -> int:
 def _check_rate(rate_hz: Any, default: float) -> float:
     if rate_hz is None:
         return default
-    if (isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float, np.number))
-            or not math.isfinite(float(rate_hz)) or float(rate_hz) <= 0.0):
+    if not is_number(rate_hz) or float(rate_hz) <= 0.0:
         raise ScenarioError(f'Expected `rate_hz` to be a finite number > 0, got {rate_hz!r}.')
     return float(rate_hz)
 
