@@ -329,12 +329,7 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
         if section in top and not isinstance(top[section], Mapping):
             raise chk.fail(section, 'a mapping', top[section])
     merged = merge(DEFAULTS, PRESETS[sensor] if sensor else {})
-    merged = merge(merged, top)
-    if 'rate_table' in top:
-        merged['rate_table'] = plain(copy.deepcopy(top['rate_table']), str_keys=False)
-    if isinstance(top.get('profile'), Mapping) and 'segments' in top['profile']:
-        merged['profile']['segments'] = plain(copy.deepcopy(top['profile']['segments']),
-                                              str_keys=False)
+    merged = merge(merged, top)        # lists (rate_table, segments) replace, never merge
 
     the_name = merged.get('name') or name or 'scenario'
     if not isinstance(the_name, str):
