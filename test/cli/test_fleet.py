@@ -48,7 +48,7 @@ GYRO_TDC = Path(sys.executable).with_name('gyro-tdc')
 
 @pytest.fixture(scope='module')
 def bags(tmp_path_factory):
-    """The fleet's bags, written once for this module."""
+    """Write the fleet's bags once for this module."""
     return make_bags(tmp_path_factory.mktemp('fleet_bags'))
 
 
@@ -210,7 +210,7 @@ def test_a_scheduler_without_workers_exits_2_after_the_timeout(tmp_path, capsys)
 
 @pytest.fixture(scope='module')
 def constant_bags(tmp_path_factory):
-    """Three ordinary sensors and one whose z axis is stuck."""
+    """Write three ordinary sensors and one whose z axis is stuck, once for this module."""
     return make_constant_bags(tmp_path_factory.mktemp('fleet_const'))
 
 

@@ -54,7 +54,7 @@ pytestmark = pytest.mark.timeout(300)
 
 @pytest.fixture(scope='module')
 def bags(tmp_path_factory):
-    """The fleet's bags, written once for this module."""
+    """Write the fleet's bags once for this module."""
     return make_bags(tmp_path_factory.mktemp('fleet_bags'))
 
 
@@ -183,7 +183,7 @@ def test_a_full_disk_reports_the_model_write_error(tmp_path, bags, engine, monke
 
 @pytest.fixture(scope='module')
 def constant_bags(tmp_path_factory):
-    """Three ordinary sensors and one whose z axis is stuck."""
+    """Write three ordinary sensors and one whose z axis is stuck, once for this module."""
     return make_constant_bags(tmp_path_factory.mktemp('fleet_const'))
 
 
