@@ -124,14 +124,8 @@ class _Checker:
             return self.fields.number(x, path, what='a finite number')
         return self.fields.above(x, path, low, strict, what='a finite number')
 
-    @staticmethod
-    def _bound(low: Optional[float], strict: bool) -> str:
-        if low is None:
-            return ''
-        return f' {">" if strict else ">="} {low:g}'
-
     def axis(self, path: str, x: Any, *, low: Optional[float] = None) -> Vec3:
-        expected = 'a number or a list of 3 numbers' + self._bound(low, False)
+        expected = 'a number or a list of 3 numbers' + ('' if low is None else f' >= {low:g}')
         if self._is_num(x):
             v = float(x)
             values = [v, v, v]
@@ -143,9 +137,6 @@ class _Checker:
         if low is not None and min(values) < low:
             raise self.fail(path, expected, x)
         return (values[0], values[1], values[2])
-
-    def boolean(self, path: str, x: Any) -> bool:
-        return self.fields.boolean(x, path)
 
     def mapping(self, path: str, x: Any, allowed: tuple[str, ...]) -> dict:
         if not isinstance(x, Mapping):
@@ -164,7 +155,7 @@ class _Checker:
         if kind in ('axis', 'axis_nonneg'):
             return self.axis(path, x, low=0.0 if kind == 'axis_nonneg' else None)
         if kind == 'bool':
-            return self.boolean(path, x)
+            return self.fields.boolean(x, path)
         if kind == 'count':
             if not isinstance(x, int) or isinstance(x, bool) or x < 1:
                 raise self.fail(path, 'an integer >= 1', x)
@@ -203,7 +194,7 @@ class _Checker:
                 if k not in EFFECT_IDS:
                     raise self.fail(f'{path}.{k}', 'an effect id (' + ', '.join(EFFECT_IDS)
                                     + ')', k)
-                out[k] = self.boolean(f'{path}.{k}', v)
+                out[k] = self.fields.boolean(v, f'{path}.{k}')
             return out
         raise self.fail(path, 'a list of effect ids or a mapping id -> bool', x)
 
