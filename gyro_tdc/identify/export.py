@@ -23,7 +23,7 @@ its clamp costs. See ``doc/flight_controllers.md``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 import os
 from pathlib import Path
@@ -59,26 +59,11 @@ _INT32, _REAL32 = 6, 9
 def steady_drift(model: CompensationModel, temps: ArrayLike, *,
                  out_of_range: str = 'clamp') -> NDArray[np.float64]:
     """
-    Return a model's steady-state drift at each temperature, shape (N, 3).
+    Return the drift b(T) (N, 3) a model subtracts held long at each temperature ``temps``.
 
-    Held long at a temperature, the thermal state equals it, dT/dt is 0 and the warm-up has
-    decayed: each temperature is held for :data:`_SETTLED_S` (twice, the second value kept)
-    after one settling sample, so the batch features are exactly their settled values.
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The model (gyro in rad/s; an accelerometer part in m/s^2).
-    temps : ArrayLike, shape (N,), degC
-        Temperatures.
-    out_of_range : str
-        Beyond the trained range: ``'clamp'``, ``'linear'`` or ``'extrapolate'``.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N, 3)
-        The drift b(T) the model would subtract at steady state.
-
+    The thermal state then equals it, dT/dt is 0 and the warm-up has decayed: each
+    temperature is held for :data:`_SETTLED_S` (twice, the second value kept) after one
+    settling sample, so the batch features are exactly their settled values.
     """
     temps = np.asarray(temps, dtype=np.float64).reshape(-1)
     if temps.size == 0:
@@ -193,13 +178,10 @@ def fit_export(model: CompensationModel, firmware: str, *, instance: int = 0,
     gyro = steady_drift(model, grid)
     acc = None if model.accel is None else steady_drift(model.accel, grid)
     notes: list[str] = []
-    if firmware == 'px4':
-        exp = _px4(gyro, acc, grid, instance, int(device_id), notes)
-    else:
-        exp = _ardupilot(gyro, acc, grid, instance, notes)
-    fc = exp.correction(grid)
-    return FcExport(exp.firmware, exp.params, exp.gyro, exp.gyro_offset, exp.accel, (lo, hi),
-                    rms_dps(fc - gyro), notes)
+    exp = (_px4(gyro, acc, grid, instance, int(device_id), notes) if firmware == 'px4' else
+           _ardupilot(gyro, acc, grid, instance, notes))
+    return replace(exp, range_c=(lo, hi), fit_rms_dps=rms_dps(exp.correction(grid) - gyro),
+                   notes=notes)
 
 
 def _px4(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None, grid: NDArray[np.float64],
@@ -208,16 +190,12 @@ def _px4(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None, grid: NDArr
     lo, hi = float(grid[0]), float(grid[-1])
     tref = float(_f32(0.5 * (lo + hi)))
     tmin, tmax = (float(v) for v in _f32([lo, hi]))
-    cals = {}
-    params: dict = {'TC_G_ENABLE': 1}
+    cals, params = {}, {'TC_G_ENABLE': 1}
     for sensor, y in (('gyro', gyro), ('accel', acc)):
-        if y is None:
-            continue
-        cal = Px4TempCal(_f32(_cubic(grid - tref, y)), tref, tmin, tmax, device_id)
-        cals[sensor] = cal
-        if sensor == 'accel':
-            params['TC_A_ENABLE'] = 1
-        params.update(cal.to_params(sensor, slot))
+        if y is not None:
+            cals[sensor] = Px4TempCal(_f32(_cubic(grid - tref, y)), tref, tmin, tmax, device_id)
+            params.update({'TC_A_ENABLE': 1} if sensor == 'accel' else {})
+            params.update(cals[sensor].to_params(sensor, slot))
     if not device_id:
         notes.append(f'TC_G{slot}_ID is 0: PX4 applies a slot only to the gyro whose device_id '
                      'it holds; pass --device-id (sensor_gyro.device_id in a ULog, or '
@@ -237,9 +215,7 @@ def _ardupilot(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None,
                      f'accept ({AP_LIMITS_C[0]:g} .. {AP_LIMITS_C[1]:g} degC)')
     n = imu + 1
     caltemp = float(_f32(min(max(AP_TREF_C, lo), hi)))
-    params: dict = {f'INS_TCAL{n}_ENABLE': 1}
-    cals = {}
-    offset = np.zeros(3)
+    params, cals, offset = {f'INS_TCAL{n}_ENABLE': 1}, {}, np.zeros(3)
     for sensor, y in (('gyro', gyro), ('accel', acc)):
         if y is None:          # ENABLE applies to both: no accelerometer part is zeros
             cals[sensor] = ArduPilotTempCal(np.zeros((3, 3)), tmin, tmax, caltemp)
@@ -247,8 +223,7 @@ def _ardupilot(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None,
                          f'{n}_ACC* are written as 0 (no accelerometer correction)')
             continue
         coef = _cubic(grid - AP_TREF_C, y)
-        cal = ArduPilotTempCal(_f32(coef[1:] * AP_SCALE), tmin, tmax, caltemp)
-        cals[sensor] = cal
+        cals[sensor] = cal = ArduPilotTempCal(_f32(coef[1:] * AP_SCALE), tmin, tmax, caltemp)
         if sensor == 'gyro':
             # The firmware subtracts p(T) - p(CALTEMP) and INS_GYROFFS: the offsets are the
             # cubic's value at CALTEMP, constant included.
@@ -258,8 +233,7 @@ def _ardupilot(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None,
                    if 'ACC' in k})
     params[f'INS_GYR{n}_CALTEMP'] = caltemp
     stem = 'INS_GYR' if imu == 0 else f'INS_GYR{n}'
-    for i, axis in enumerate('XYZ'):
-        params[f'{stem}OFFS_{axis}'] = float(offset[i])
+    params.update({f'{stem}OFFS_{axis}': float(offset[i]) for i, axis in enumerate('XYZ')})
     notes.append(f'INS_GYR{n}_CALTEMP and {stem}OFFS_* carry the constant; a gyro calibration '
                  'at boot (INS_GYR_CAL=1) replaces both with what it measures then')
     return FcExport('ardupilot', params, cals['gyro'], offset,

@@ -207,17 +207,14 @@ def choose_features(runs: Sequence[Run], *, t0: float | None = None,
         if s.aliases:
             why += f'; the data cannot tell it from {", ".join(s.aliases)}'
         decisions.append(Decision(s.effect, 'added', why))
-    for c in res.candidates:
-        decisions.append(Decision(c.effect, 'rejected', f'{c.why_not} (held-out gain '
-                                  f'{c.heldout_gain_dps2:+.2g} (deg/s)^2, HAC p '
-                                  f'{c.p_value:.2g})'))
-    for u in res.unidentifiable:
-        decisions.append(Decision(u.effect, 'unidentifiable', f'{u.reason}'))
+    decisions += [Decision(c.effect, 'rejected', f'{c.why_not} (held-out gain '
+                           f'{c.heldout_gain_dps2:+.2g} (deg/s)^2, HAC p {c.p_value:.2g})')
+                  for c in res.candidates]
+    decisions += [Decision(u.effect, 'unidentifiable', f'{u.reason}') for u in res.unidentifiable]
+    seen = {x.effect for x in decisions}          # every catalog effect gets its line
+    decisions += [Decision(e, 'rejected', 'not tested') for e in EFFECTS
+                  if e != 'bias' and e not in seen]
     features = tuple(e for e in res.final_effects if e != 'bias')
-    seen = {x.effect for x in decisions}
-    for eid in EFFECTS:                  # every catalog effect gets its line
-        if eid != 'bias' and eid not in seen:
-            decisions.append(Decision(eid, 'rejected', 'not tested'))
     return FeatureChoice(base_ids, features, tuple(decisions), discovery=res)
 
 
@@ -251,8 +248,7 @@ def features_for_fit(runs: Sequence[Run], features: str | tuple[str, ...], *, t0
     # Data the search cannot analyse keep the base, and fit_model then says what is wrong
     # with them (span, samples) as it does for named features.
     choice = choose_features(runs, t0=t0)
-    params: dict = {}
-    if choice.discovery is not None:
-        params = {k: v for k, v in choice.discovery.params.items()
-                  if k in choice.features and not EFFECTS[k].fitted}
-    return choice.features, params, choice
+    d = choice.discovery
+    return choice.features, {} if d is None else {
+        k: v for k, v in d.params.items() if k in choice.features and not EFFECTS[k].fitted
+    }, choice

@@ -72,20 +72,23 @@ def _penalty(p: int, f: int, ridge: float, n: int) -> NDArray[np.float64]:
     return pen
 
 
-def _ridge_fit(design: NDArray[np.float64], y: NDArray[np.float64],
-               scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
-               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return the ridge solution for all axes: coefficients (P, 3) and scale terms (3,)."""
+def _solve(design: NDArray[np.float64], y: NDArray[np.float64],
+           scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Return the ridge solution for all axes: coefficients (P, 3), scale (3,), residual."""
     if scale_cols is None:
-        return fit_columns(design, y, penalty=pen), np.zeros(3)
-    p = design.shape[1]
-    coef = np.empty((p, 3))
-    scale = np.empty(3)
-    pen = np.append(pen, 0.0)
-    for ax in range(3):
-        sol = fit_columns(np.column_stack([design, scale_cols[:, ax]]), y[:, ax], penalty=pen)
-        coef[:, ax], scale[ax] = sol[:p], sol[p]
-    return coef, scale
+        coef, scale = fit_columns(design, y, penalty=pen), np.zeros(3)
+    else:
+        p = design.shape[1]
+        coef, scale, pen = np.empty((p, 3)), np.empty(3), np.append(pen, 0.0)
+        for ax in range(3):
+            sol = fit_columns(np.column_stack([design, scale_cols[:, ax]]), y[:, ax],
+                              penalty=pen)
+            coef[:, ax], scale[ax] = sol[:p], sol[p]
+    resid = design @ coef - y
+    if scale_cols is not None:
+        resid += scale_cols * scale
+    return coef, scale, resid
 
 
 def _fold_sums(d: NDArray[np.float64], y: NDArray[np.float64], folds: Folds
@@ -192,55 +195,16 @@ class LinearFit:
         return (self.mean, self.std, self.centers, self.widths)
 
     def design(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """
-        Return the design matrix ``[1, x~, phi(x~)]`` of feature rows ``x``.
-
-        Parameters
-        ----------
-        x : NDArray[np.float64], shape (N, F)
-            Raw feature rows.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (N, 1 + F + K)
-            Design matrix (:func:`gyro_tdc.model.compensation.rbf_design`).
-
-        """
+        """Return the design matrix ``[1, x~, phi(x~)]`` (N, 1 + F + K) of feature rows ``x``."""
         return rbf_design(self.norm, x)
 
     def predict(self, x: NDArray[np.float64],
                 scale_cols: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
-        """
-        Return the fitted drift at feature rows ``x``.
-
-        Parameters
-        ----------
-        x : NDArray[np.float64], shape (N, F)
-            Raw feature rows.
-        scale_cols : NDArray[np.float64], shape (N, 3), optional
-            ``dT * omega_ref`` per axis, when the fit has a ``scale`` term.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (N, 3)
-            Predicted drift per axis.
-
-        """
+        """Return the fitted drift (N, 3) at feature rows ``x`` (and ``dT omega_ref``)."""
         out = self.design(x) @ self.coef
         if scale_cols is not None:
             out += scale_cols * self.scale
         return out
-
-
-def _residual(design: NDArray[np.float64], y: NDArray[np.float64],
-              scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
-              ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Solve the weights and return them with the scale coefficients and the residual."""
-    coef, scale = _ridge_fit(design, y, scale_cols, pen)
-    resid = design @ coef - y
-    if scale_cols is not None:
-        resid += scale_cols * scale
-    return coef, scale, resid
 
 
 def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
@@ -306,7 +270,7 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
         ridge = (_choose_ridge(design, y, scale_cols, f) if centers.shape[0]
                  and design.shape[0] >= 40 else RIDGE_GRID[1])
     pen = _penalty(design.shape[1], f, ridge, design.shape[0])
-    coef, scale, resid = _residual(design, y, scale_cols, pen)
+    coef, scale, resid = _solve(design, y, scale_cols, pen)
     offsets = None
     if groups is not None:          # the centred constant column is zero: no w0
         coef[0] = 0.0
@@ -337,7 +301,7 @@ def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
     def resid(theta: NDArray[np.float64]) -> NDArray[np.float64]:
         centers, widths = unpack(theta)
         d = rbf_design((mean, std, centers, widths), xs)
-        return _residual(d, ys, ss, _penalty(d.shape[1], f, ridge, d.shape[0]))[2].ravel()
+        return _solve(d, ys, ss, _penalty(d.shape[1], f, ridge, d.shape[0]))[2].ravel()
 
     theta0 = np.concatenate([fit.centers.ravel(), np.log(fit.widths)])
     sol = least_squares(resid, theta0, method='trf', max_nfev=20, x_scale='jac')
@@ -346,6 +310,6 @@ def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
     centers, widths = unpack(sol.x)
     design = rbf_design((mean, std, centers, widths), x)
     pen = _penalty(design.shape[1], f, ridge, design.shape[0])
-    coef, scale, r = _residual(design, y, scale_cols, pen)
+    coef, scale, r = _solve(design, y, scale_cols, pen)
     return replace(fit, centers=centers, widths=widths, coef=coef, scale=scale, resid=r,
                    sse=float((r ** 2).sum()))

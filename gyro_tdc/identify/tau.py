@@ -102,13 +102,8 @@ def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float]
                        f'got {bounds!r}.')
     if n_grid < 1:
         raise FitError(f'Expected `n_grid` >= 1, got {n_grid!r}.')
-    if log:
-        def objective(v: float) -> float:
-            return sse(math.exp(v))
-        grid = np.linspace(math.log(lo), math.log(hi), n_grid)
-    else:
-        objective = sse
-        grid = np.linspace(lo, hi, n_grid)
+    objective = (lambda v: sse(math.exp(v))) if log else sse
+    grid = np.linspace(math.log(lo), math.log(hi), n_grid) if log else np.linspace(lo, hi, n_grid)
     vals = np.array([objective(g) for g in grid], dtype=np.float64)
     i = int(np.argmin(vals))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
