@@ -17,7 +17,7 @@
 
 Parses the arguments into one :class:`~gyro_tdc.identify.TrainOptions` and one
 :class:`~gyro_tdc.data.BagOptions`, runs :func:`gyro_tdc.identify.train.train` (or, with
-``--still-only``, :func:`gyro_tdc.identify.still_only.train_still_only`) and prints the
+``--still-only``, :func:`gyro_tdc.identify.train.train_still_only`) and prints the
 choice of features, the training report and the coverage; bad input exits 2 with one line.
 """
 

@@ -78,26 +78,11 @@ class FcExport:
     """
     A model's drift in one firmware's form: the parameters, and what the firmware subtracts.
 
-    Parameters
-    ----------
-    firmware : str
-        ``'px4'`` or ``'ardupilot'``.
-    params : dict
-        ``{name: value}`` in file order (ints are MAVLink INT32, floats REAL32).
-    gyro : Px4TempCal or ArduPilotTempCal
-        The gyro calibration as the firmware reads it.
-    gyro_offset : NDArray[np.float64], shape (3,), rad/s
-        ArduPilot's static offsets (``INS_GYROFFS``) taken at CALTEMP; zeros for PX4 (X0 holds
-        the constant).
-    accel : Px4TempCal or ArduPilotTempCal, optional
-        The accelerometer calibration (None: the model has no accelerometer part).
-    range_c : tuple of float, degC
-        TMIN, TMAX.
-    fit_rms_dps : NDArray[np.float64], shape (3,), deg/s
-        RMS over the grid of the firmware's form minus the model's steady-state drift.
-    notes : list of str
-        What the user must know (device id, clamp range, offsets).
-
+    ``params`` in file order (ints are MAVLink INT32, floats REAL32); ``gyro`` and ``accel``
+    (None without an accelerometer part) the calibrations as the firmware reads them;
+    ``gyro_offset`` ArduPilot's ``INS_GYROFFS`` at CALTEMP, rad/s (zeros for PX4, whose X0 holds
+    the constant); ``range_c`` TMIN, TMAX; ``fit_rms_dps`` the form minus the model's steady
+    drift over the grid; ``notes`` what the user must know.
     """
 
     firmware: str
@@ -129,40 +114,15 @@ def _cubic(d: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64
 def fit_export(model: CompensationModel, firmware: str, *, instance: int = 0,
                device_id: int = 0, points: int = GRID_POINTS) -> FcExport:
     """
-    Fit the model's steady-state drift over its trained range in a firmware's exact form.
+    Fit the model's steady-state drift over its trained range in a firmware's exact cubic.
 
-    The grid is uniform in temperature over ``model.temp_range_c``, so the cubic weighs every
-    degree alike whatever the time the recording spent there. PX4: ``X0..X3`` about
-    ``TREF`` (the middle of the range), clamped to ``TMIN..TMAX`` (the range).
-    ArduPilot: the cubic about 35 degC without its constant, stored x1e6, clamped to the
-    range; the constant goes to ``INS_GYROFFS`` at ``INS_GYRn_CALTEMP`` (35 degC, or the
-    range end nearest it). Values are rounded to float32 as the firmware stores them.
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The model (its accelerometer part, when it has one, is exported too).
-    firmware : str
-        ``'px4'`` or ``'ardupilot'``.
-    instance : int
-        PX4 calibration slot 0..3 (``TC_G<instance>``) or ArduPilot IMU 0..2
-        (``INS_TCAL<instance + 1>``).
-    device_id : int
-        PX4 ``TC_Gn_ID``: the ``device_id`` of the gyro (PX4 applies a slot to that device
-        only); not used by ArduPilot.
-    points : int
-        Grid points (>= 8).
-
-    Returns
-    -------
-    FcExport
-        The parameters and the corrections as the firmware applies them.
-
-    Raises
-    ------
-    FitError
-        An unknown firmware, a slot out of range, or a range too narrow to fit.
-
+    The grid is uniform in temperature (``points`` >= 8), so every degree weighs alike whatever
+    the time spent there. PX4: ``X0..X3`` about ``TREF`` (the middle of the range), clamped to
+    the range; ``device_id`` is ``TC_Gn_ID`` (PX4 applies a slot to that gyro only). ArduPilot:
+    the cubic about 35 degC without its constant, x1e6, clamped to the range, the constant in
+    ``INS_GYROFFS`` at ``INS_GYRn_CALTEMP``. Values are rounded to float32 as stored;
+    ``instance`` is the PX4 slot 0..3 or the ArduPilot IMU 0..2. FitError for an unknown firmware,
+    a slot out of range or a range narrower than 1 degC.
     """
     if firmware not in FIRMWARES:
         raise FitError(f'Expected `firmware` to be one of {", ".join(FIRMWARES)}, '
@@ -254,27 +214,11 @@ def _value_text(value: float | int) -> str:
 def write_params(export: FcExport, path: str | os.PathLike, *, header: Sequence[str] = ()
                  ) -> Path:
     """
-    Write the parameters as the firmware's ground station loads them.
+    Write the parameters atomically as the firmware's ground station loads them.
 
-    PX4: a QGroundControl ``.params`` file, ``#`` comment lines then tab-separated
-    ``vehicle-id component-id name value type`` (1, 1, type 6 INT32 or 9 REAL32), as
-    ``Tools/process_sensor_caldata.py`` writes it. ArduPilot: ``NAME VALUE`` lines (Mission
-    Planner, MAVProxy ``param load``) after ``#`` comments.
-
-    Parameters
-    ----------
-    export : FcExport
-        The export.
-    path : str or PathLike
-        Output file (written atomically).
-    header : sequence of str
-        Comment lines (without ``#``) to put first.
-
-    Returns
-    -------
-    Path
-        The file written.
-
+    PX4: a QGroundControl ``.params`` file (tab-separated ``1 1 name value type``, as
+    ``Tools/process_sensor_caldata.py`` writes it); ArduPilot: ``NAME VALUE`` lines (Mission
+    Planner, MAVProxy). ``header`` lines go first as ``#`` comments.
     """
     lines = [f'# {h}'.rstrip() for h in header]
     if export.firmware == 'px4':
@@ -289,23 +233,9 @@ def write_params(export: FcExport, path: str | os.PathLike, *, header: Sequence[
 
 def read_params(path: str | os.PathLike) -> dict:
     """
-    Read a ``.params`` (tab-separated, QGroundControl) or ``.parm`` (``NAME VALUE``) file.
+    Read a ``.params`` or ``.parm`` file into ``{name: value}`` (int for INT32 / integral values).
 
-    Parameters
-    ----------
-    path : str or PathLike
-        The file.
-
-    Returns
-    -------
-    dict
-        ``{name: value}`` (int for INT32 / integral values, else float).
-
-    Raises
-    ------
-    ModelFileError
-        A line is neither a comment nor a parameter.
-
+    ModelFileError names a line that is neither a comment nor a parameter.
     """
     out: dict = {}
     for k, line in enumerate(Path(path).read_text().splitlines(), 1):
@@ -354,19 +284,8 @@ class ExportScore:
     """
     One held-out run scored raw, with the full model and with forms as the firmware applies them.
 
-    Parameters
-    ----------
-    name : str
-        The run.
-    samples : int
-        Samples scored.
-    outside_fraction : float
-        Fraction of samples whose temperature lies outside TMIN..TMAX (clamped there).
-    bs : dict of str to NDArray[np.float64], shape (3,), (deg/s)^2
-        BS per axis of ``raw``, ``model`` and every form by its label.
-    rms_dps : dict of str to NDArray[np.float64], shape (3,), deg/s
-        RMS per axis, same keys.
-
+    ``bs`` (deg/s)^2 and ``rms_dps`` per axis by label (``raw``, ``model``, each form);
+    ``outside_fraction`` the samples outside TMIN..TMAX (clamped there).
     """
 
     name: str
@@ -394,30 +313,12 @@ def _head_removed(comp: NDArray[np.float64], run: Run, reanchor_s: float
 def score_export(model: CompensationModel, forms: dict, runs: Sequence[Run], *,
                  reanchor_s: float = 0.0, out_of_range: str = DEFAULT_OUT_OF_RANGE) -> list:
     """
-    Score held-out runs raw, with the full model and with each firmware form.
+    Score held-out runs raw, with the full model and with each firmware form (label -> form).
 
     A form is applied as the firmware applies it: the raw rate minus its correction at the
-    measured temperature (its formula, clamp and reference; no thermal state).
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The full model (evaluated with ``out_of_range``, as the compensator node does).
-    forms : dict of str to FcExport
-        Label -> form (e.g. ``{'px4': ..., 'px4 script': ...}``).
-    runs : sequence of Run
-        Held-out runs.
-    reanchor_s : float, s
-        When > 0, the model's and every form's mean error over the first ``reanchor_s`` s of
-        each run is removed (the offset a gyro calibration at boot takes); raw never.
-    out_of_range : str
-        The full model's policy beyond its range.
-
-    Returns
-    -------
-    list of ExportScore
-        One per run.
-
+    measured temperature (its formula, clamp and reference; no thermal state). With
+    ``reanchor_s`` > 0 the model's and every form's mean error over the first ``reanchor_s`` s of
+    each run is removed (the offset a gyro calibration at boot takes); raw never.
     """
     out = []
     for run in runs:
@@ -440,23 +341,8 @@ def clamp_cost(model: CompensationModel, export: FcExport, *, beyond_c: Sequence
     """
     Say where the firmware's clamp costs: the model's drift beyond TMIN/TMAX vs the held one.
 
-    Parameters
-    ----------
-    model : CompensationModel
-        The full model (beyond its range as ``out_of_range`` continues it).
-    export : FcExport
-        The firmware form (held at its value at TMIN / TMAX beyond them).
-    beyond_c : sequence of float, degC
-        Distances beyond each end.
-    out_of_range : str
-        How the full model continues beyond its range (the compensator's policy).
-
-    Returns
-    -------
-    list of dict
-        Per end and distance: ``temp_c``, ``model_dps`` and ``form_dps`` (drift per axis,
-        deg/s) and ``gap_dps`` (the largest axis difference).
-
+    Per end and distance ``beyond_c``: ``temp_c``, ``model_dps`` (the model continued by
+    ``out_of_range``, as the compensator does), ``form_dps`` and ``gap_dps`` (largest axis gap).
     """
     lo, hi = export.range_c
     temps = [lo - d for d in beyond_c] + [hi + d for d in beyond_c]

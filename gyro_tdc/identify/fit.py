@@ -143,49 +143,18 @@ class FitOptions:
     """
     How :func:`fit_model` fits: the model's form, its parameters and what it records.
 
-    Parameters
-    ----------
-    kind : str
-        ``'rbf'`` or ``'poly'``.
-    features : str or sequence of str
-        Effect ids (``'dT,dT2'`` is the paper's modified model; ``bias`` is implied). With
-        ``lag`` (or a lagged ``thermal``) the model temperature is the thermal state, the
-        estimated die temperature: every temperature term, the RBF inputs, the scale term
-        and the valid range follow it.
-    t0 : float, optional, degC
-        Reference temperature; default: :func:`estimate_t0` of the first run.
-    n_centers : int
-        RBF centres K (``rbf`` only).
-    refine : bool
-        Refine centres and widths by nonlinear least squares.
-    fit_params : bool
-        Fit the effect parameters marked as fitted in the catalog (warm-up tau) and the
-        thermal state's time constants (variable projection, with a 95 % profile
-        interval). False: take them from ``params`` (``lag.tau_s`` is then the first-order
-        state's time constant) or the catalog defaults.
-    params : mapping, optional
-        Starting or fixed effect parameters.
-    ridge : float or 'auto'
-        Relative ridge on the RBF weights (the constant and linear tail are not shrunk);
-        ``'auto'`` picks it by cross-validation over interleaved contiguous segments.
-    max_rows : int
-        Rows of the linear solve; longer data are block-averaged down to this.
-    seed : int
-        Seed of the centre placement.
-    frame_id, sensor_id : str
-        Recorded in the model.
-    created : mapping, optional
-        Extra creation info (command line, bag names).
-    thermal : str or ThermalState, optional
-        The thermal front end: ``'none'``, ``'first_order'``, ``'two_node'`` (two cascaded
-        lags), ``'auto'`` (two nodes when they lower the cross-validated error by
-        :data:`TWO_NODE_MARGIN`), or a fixed :class:`ThermalState`. Default: first order
-        with ``lag``, else none.
-    check_sessions : bool
-        With several sessions, hold each out in turn: an axis whose curve does not predict
-        a held-out power cycle (re-anchored) better than its offset alone keeps the offset
-        only (:func:`gyro_tdc.identify.power_cycles.check_sessions`).
-
+    ``kind`` ``'rbf'`` (``n_centers`` centres, ``seed`` placing them, ``refine`` by nonlinear
+    least squares) or ``'poly'``; ``features`` the effect ids (``bias`` implied; with ``lag`` every
+    temperature term, the RBF inputs, the scale term and the range follow the thermal state);
+    ``t0`` the reference (default :func:`estimate_t0` of the first run). ``fit_params`` fits the
+    catalog's fitted parameters (warm-up tau) and the state's time constants by variable
+    projection with a 95 % profile interval, else takes them from ``params`` or the catalog.
+    ``ridge`` is relative, on the RBF weights only (``'auto'``: cross-validated); longer data
+    than ``max_rows`` are block-averaged. ``thermal``: ``'none'``, ``'first_order'``,
+    ``'two_node'``, ``'auto'`` (two nodes when they lower the cross-validated error by
+    :data:`TWO_NODE_MARGIN`) or a fixed :class:`ThermalState` (default: first order with
+    ``lag``). ``check_sessions``: an axis whose curve does not predict a held-out power cycle
+    better than its offset keeps the offset only (:mod:`gyro_tdc.identify.power_cycles`).
     """
 
     kind: str = 'rbf'
@@ -209,36 +178,14 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
               rows: Sequence[NDArray[np.bool_]] | None = None,
               sessions: Sequence | None = None, **kw: Any) -> CompensationModel:
     """
-    Identify a compensation model from training runs.
+    Identify a compensation model from training runs (``options``, or its fields as ``**kw``).
 
-    The time constants are searched on coarse blocks with a polynomial in the state (for
-    an ``rbf`` model its terms and every power of the state up to the cube: a flexible
-    network of a slowly lagged state can fit any function of time and would pin nothing);
-    the model is then fitted at the time constants found on the shared estimator.
-
-    Parameters
-    ----------
-    runs : sequence of Run
-        Training runs (each a continuous recording; filters restart per run).
-    options : FitOptions, optional
-        How to fit; ``**kw`` are its fields, for a call that sets a few
-        (``fit_model(runs, kind='poly')``).
-    rows : sequence of NDArray[np.bool_], shape (N,) each, optional
-        Per run, the samples that count (e.g. the still ones): the fit, the residual, the
-        sample count and the trained range use them only, while the filters run over every
-        sample. None: every sample.
-    sessions : sequence, optional
-        A session label per run: every session gets its own turn-on offset beside one
-        shared curve; the model's ``intercept`` is their mean and ``metrics['sessions']``
-        holds them. None, or one label: one offset (the model as without the argument).
-    **kw
-        Fields of :class:`FitOptions`.
-
-    Returns
-    -------
-    CompensationModel
-        The fitted model (``model.thermal`` holds the front end).
-
+    The time constants are searched on coarse blocks with a polynomial in the state (an RBF
+    network of a slowly lagged state fits any function of time and pins nothing), then the model
+    is fitted at them on the shared estimator. ``rows`` (a mask per run) are the samples that
+    count (the still ones): the fit, residual, sample count and range use them while the filters
+    run over every sample. ``sessions`` (a label per run) give every session its own turn-on
+    offset beside one curve: the intercept is their mean, ``metrics['sessions']`` holds them.
     """
     o = replace(options or FitOptions(), **kw)
     ids = normalise_ids(o.features)

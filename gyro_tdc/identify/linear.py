@@ -72,9 +72,9 @@ def _penalty(p: int, f: int, ridge: float, n: int) -> NDArray[np.float64]:
     return pen
 
 
-def _solve(design: NDArray[np.float64], y: NDArray[np.float64],
-           scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
-           ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+def _fit_weights(design: NDArray[np.float64], y: NDArray[np.float64],
+                 scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Return the ridge solution for all axes: coefficients (P, 3), scale (3,), residual."""
     if scale_cols is None:
         coef, scale = fit_columns(design, y, penalty=pen), np.zeros(3)
@@ -155,27 +155,11 @@ class LinearFit:
     """
     A drift network fitted by :func:`fit_linear`: normalisation, centres and weights.
 
-    Parameters
-    ----------
-    mean, std : NDArray[np.float64], shape (F,)
-        Input normalisation, ``x~ = (x - mean) / std``.
-    centers : NDArray[np.float64], shape (K, F)
-        RBF centres in normalised units (K = 0 for ``poly``).
-    widths : NDArray[np.float64], shape (K,)
-        RBF widths in normalised units.
-    coef : NDArray[np.float64], shape (1 + F + K, 3)
-        Weights of the design columns ``[1, x~, phi]`` per axis.
-    scale : NDArray[np.float64], shape (3,)
-        Per-axis coefficients of the ``scale_cols`` (zeros without them).
-    sse : float
-        Sum of squared residuals over rows and axes.
-    resid : NDArray[np.float64], shape (N, 3)
-        Residuals ``prediction - y`` of the fitted rows.
-    ridge : float
-        Relative ridge penalty used on the RBF weights.
-    offsets : NDArray[np.float64], shape (G, 3), optional
-        With ``groups``: the constant of each group (``coef[0]`` is then zero).
-
+    Inputs are normalised as ``(x - mean) / std``; ``centers`` (K, F) and ``widths`` (K,) are in
+    normalised units (K = 0 for ``poly``); ``coef`` (1 + F + K, 3) weighs ``[1, x~, phi]``,
+    ``scale`` (3,) the ``scale_cols``; ``resid`` is prediction minus target, ``sse`` its sum of
+    squares; with ``groups``, ``coef[0]`` is zero and ``offsets`` (G, 3) holds each group's
+    constant in the order of ``np.unique(groups)``.
     """
 
     mean: NDArray[np.float64]
@@ -212,44 +196,15 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
                n_centers: int = 12, ridge: float | str = 'auto', seed: int = 0,
                groups: NDArray[np.int64] | None = None) -> LinearFit:
     """
-    Fit the drift network on one feature matrix by regularised linear least squares.
+    Fit the drift network on one feature matrix (N, F) to the target (N, 3) by ridge regression.
 
-    The inputs are normalised to zero mean and unit deviation; for ``rbf`` the centres are
-    placed by k-means on the normalised rows (each width the mean distance to the two nearest
-    other centres); then the weights of ``[1, x~, phi(x~)]`` (and of ``scale_cols``) are
-    solved with no penalty on the constant, a tiny one on the linear tail (conditioning
-    only) and the relative ``ridge`` on the RBF weights.
-
-    Parameters
-    ----------
-    x : NDArray[np.float64], shape (N, F)
-        Feature rows (effect columns, :func:`gyro_tdc.model.effects.batch_features`).
-    y : NDArray[np.float64], shape (N, 3)
-        Drift target per axis.
-    scale_cols : NDArray[np.float64], shape (N, 3), optional
-        ``dT * omega_ref`` per axis: fits the per-axis ``scale`` coefficient too.
-    kind : str
-        ``'poly'`` (linear in the features) or ``'rbf'``.
-    n_centers : int
-        RBF centres K (``rbf`` only; fewer when the rows have fewer distinct values).
-    ridge : float or 'auto'
-        Relative ridge on the RBF weights; ``'auto'`` picks it from :data:`RIDGE_GRID` by
-        cross-validation over interleaved contiguous segments (``rbf`` with at least 40
-        rows), else uses ``RIDGE_GRID[1]``.
-    seed : int
-        Seed of the centre placement.
-    groups : NDArray[np.int64], shape (N,), optional
-        A label per row: each group gets its own constant instead of the common ``w0``
-        (the within-group problem is solved exactly: design columns and target centred per
-        group), e.g. one offset per accelerometer orientation.
-
-    Returns
-    -------
-    LinearFit
-        Normalisation, centres, weights, residuals and the ridge used (with ``groups``,
-        ``coef[0]`` is zero and ``offsets`` holds the constant of each group, in the order
-        of ``np.unique(groups)``).
-
+    For ``rbf`` the centres are placed by k-means on the normalised rows (each width the mean
+    distance to the two nearest other centres); the weights of ``[1, x~, phi(x~)]`` (and of
+    ``scale_cols``, ``dT * omega_ref`` per axis) get no penalty on the constant, a tiny one on the
+    linear tail (conditioning only) and the relative ``ridge`` on the RBF weights (``'auto'``:
+    chosen from :data:`RIDGE_GRID` by cross-validation over interleaved contiguous segments, for
+    ``rbf`` with at least 40 rows). ``groups`` give each group its own constant (the
+    within-group problem solved exactly, e.g. one offset per session or orientation).
     """
     mean = x.mean(axis=0) if x.shape[1] else np.zeros(0)
     std = x.std(axis=0) if x.shape[1] else np.ones(0)
@@ -270,7 +225,7 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
         ridge = (_choose_ridge(design, y, scale_cols, f) if centers.shape[0]
                  and design.shape[0] >= 40 else RIDGE_GRID[1])
     pen = _penalty(design.shape[1], f, ridge, design.shape[0])
-    coef, scale, resid = _solve(design, y, scale_cols, pen)
+    coef, scale, resid = _fit_weights(design, y, scale_cols, pen)
     offsets = None
     if groups is not None:          # the centred constant column is zero: no w0
         coef[0] = 0.0
@@ -301,7 +256,7 @@ def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
     def resid(theta: NDArray[np.float64]) -> NDArray[np.float64]:
         centers, widths = unpack(theta)
         d = rbf_design((mean, std, centers, widths), xs)
-        return _solve(d, ys, ss, _penalty(d.shape[1], f, ridge, d.shape[0]))[2].ravel()
+        return _fit_weights(d, ys, ss, _penalty(d.shape[1], f, ridge, d.shape[0]))[2].ravel()
 
     theta0 = np.concatenate([fit.centers.ravel(), np.log(fit.widths)])
     sol = least_squares(resid, theta0, method='trf', max_nfev=20, x_scale='jac')
@@ -310,6 +265,6 @@ def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
     centers, widths = unpack(sol.x)
     design = rbf_design((mean, std, centers, widths), x)
     pen = _penalty(design.shape[1], f, ridge, design.shape[0])
-    coef, scale, r = _solve(design, y, scale_cols, pen)
+    coef, scale, r = _fit_weights(design, y, scale_cols, pen)
     return replace(fit, centers=centers, widths=widths, coef=coef, scale=scale, resid=r,
                    sse=float((r ** 2).sum()))

@@ -65,23 +65,7 @@ _DEG = 180.0 / math.pi
 
 @dataclass(frozen=True)
 class Stretch:
-    """
-    One still stretch of a bag.
-
-    Parameters
-    ----------
-    bag : str
-        The bag.
-    t0_s, t1_s : float, s
-        First and last stamp.
-    temp_c : float, degC
-        Mean measured temperature.
-    kept : bool
-        False when dropped as an outlier of the fit.
-    offset_dps : tuple of 3 float, deg/s
-        Mean compensated rate of the stretch under the final model.
-
-    """
+    """One still stretch of a bag: stamps, mean temperature, kept, mean rate left (deg/s)."""
 
     bag: str
     t0_s: float
@@ -101,24 +85,9 @@ class StillReport:
     """
     What the still time of ``train --still-only`` covered, and what to record next.
 
-    Parameters
-    ----------
-    total_s : float, s
-        Duration of the bags.
-    still_s : float, s
-        Still time kept (outliers excluded).
-    stretches : list of Stretch
-        Every still stretch found, kept or dropped.
-    coverage : Coverage
-        Temperature bins and heating/cooling minutes of the still time kept (the direction
-        from the temperature over the whole bag).
-    motion_topic : str
-        The motion veto's topic, or empty.
-    rejected : dict
-        Windows refused per test (:data:`gyro_tdc.signal.REASONS`), over all bags.
-    advice : list of str
-        What to record next.
-
+    ``total_s`` the bags' duration, ``still_s`` the still time kept; ``stretches`` every still
+    stretch found; ``coverage`` the still time's bins and heating/cooling minutes (the direction
+    from the temperature over the whole bag); ``rejected`` windows refused per test.
     """
 
     total_s: float
@@ -172,27 +141,11 @@ def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None
     """
     Find the still samples of runs of one sensor, with one noise floor for them all.
 
-    The auto thresholds take the quietest window as the noise (:mod:`gyro_tdc.signal`); over
-    several bags of one sensor the quietest window of any of them is the floor, so a bag
-    that never stops does not look still to itself, and the threshold is never above
-    :data:`STILL_STD_CEILING` (a single log of a hover).
-
-    Parameters
-    ----------
-    runs : sequence of Run
-        The runs (raw rate, and the accelerometer when read).
-    moving : sequence of (NDArray[np.bool_] or None), optional
-        Per run, the samples a motion report vetoes (:func:`gyro_tdc.signal.motion_veto`).
-    window_s, min_still_s : float or None, s
-        Window length and shortest still stretch (:func:`gyro_tdc.signal.detect_still`);
-        None: the window by each run's rate (:func:`gyro_tdc.signal.auto_window`), the
-        stretch judged by its samples and its noise.
-
-    Returns
-    -------
-    list of Stillness
-        One per run.
-
+    The quietest window of any run is the floor, so a bag that never stops does not look still
+    to itself, and the threshold is never above :data:`STILL_STD_CEILING` (a log of a hover).
+    ``moving`` is a motion veto per run; ``window_s`` and ``min_still_s`` as
+    :func:`gyro_tdc.signal.detect_still` (None: by each run's rate, a stretch judged by its
+    samples and its noise).
     """
     moving = [None] * len(runs) if moving is None else list(moving)
     windows = [auto_window(r.t) if window_s is None else window_s for r in runs]
@@ -260,28 +213,10 @@ def still_report(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
                  stretches: list, *, bin_c: float, motion_topic: str = '',
                  rejected: dict | None = None) -> StillReport:
     """
-    Measure the still time kept and say what to record next.
+    Measure the still time kept (``rows`` of ``runs``) and say what to record next.
 
-    Parameters
-    ----------
-    runs : sequence of Run
-        The whole runs.
-    rows : sequence of NDArray[np.bool_]
-        Their still samples kept.
-    stretches : list of Stretch
-        Every stretch found.
-    bin_c : float, degC
-        Coverage bin width.
-    motion_topic : str
-        The motion veto's topic, or empty.
-    rejected : dict, optional
-        Windows refused per test.
-
-    Returns
-    -------
-    StillReport
-        Still time, coverage, heating/cooling minutes and advice.
-
+    ``stretches`` are every stretch found, ``bin_c`` the coverage bins, degC; the report carries
+    the motion veto's topic and the windows refused per test.
     """
     subs = [rows_of(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
     cov = coverage(subs, bin_c=bin_c)
