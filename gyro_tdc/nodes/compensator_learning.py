@@ -26,13 +26,13 @@ from __future__ import annotations
 from array import array
 from dataclasses import replace
 import sys
-from typing import Any, Callable
+from typing import Any
 
 from gyro_tdc.base import Job, LatestJob
 from gyro_tdc.errors import OutputError
 from gyro_tdc.learn import LearnConfig, Learner, LearnFile, open_learn_file
 from gyro_tdc.model import CompensationModel
-from gyro_tdc.runtime import CompensatorCore, Policy
+from gyro_tdc.runtime import Policy
 from std_srvs.srv import Trigger
 
 __all__ = ['LEARN_LOG_THROTTLE_S', 'LEARN_STEP_S', 'LEARN_WAIT_S', 'Learning',
@@ -110,26 +110,10 @@ def _step_and_save(learner: Learner, store: LearnFile | None) -> tuple[str, str,
 
 class Learning:
     """
-    Learn the bias vs temperature from still time while compensating.
+    Learn the bias vs temperature from still time while the compensator ``node`` runs.
 
     Creates the learner (the model in use is its prior), resumes ``learn_file`` (or the file
     beside it) and becomes the core's learner front.
-
-    Parameters
-    ----------
-    core : CompensatorCore
-        The core that compensates (its model is the prior; learned models go to it).
-    params : CompensatorParams
-        The node's parameters at start (``learn_file``, ``learn_save_period``,
-        ``learn_swap_delay``).
-    policy : Policy
-        The policy at start (``temperature_timeout``).
-    log : rclpy logger
-        Where saves, failures and resumes are said.
-    on_learned : callable
-        Called when a learned model is installed (the node's ``model_file`` becomes
-        'learned').
-
     """
 
     #: Where the learner's state is written (None: nowhere).
@@ -142,23 +126,28 @@ class Learning:
     #: Steps that raised (a bug; logged throttled), and the last one's error.
     learn_step_errors: int = 0
 
-    def __init__(self, core: CompensatorCore, params: Any, policy: Policy, log: Any,
-                 on_learned: Callable[[], None]) -> None:
-        self.core, self.params, self.log, self.on_learned = core, params, log, on_learned
+    def __init__(self, node: Any) -> None:
+        self.node, self.core, self.params = node, node.core, node.params
+        self.log = log = node.get_logger()
+        policy = node.core.policy
         self.learner = self._new_learner(policy)
         self._learned_installs = 0
         self._learn_jobs = LatestJob()
         self.job: Job | None = None
         self._learn_prior: tuple[CompensationModel | None] | None = None
         self._learn_timeout: float | None = None
-        if params.learn_file:
-            self._open(params.learn_file, policy)
+        if node.params.learn_file:
+            self._open(node.params.learn_file, policy)
         else:
             log.warning('learn without learn_file: nothing is kept across restarts')
         self._front = _Front(self.learner.config)
         self._learn_values = self.learner.diagnostic_values()
         sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))
-        core.learner = self._front
+        node.core.learner = self._front
+
+    def on_learned(self) -> None:
+        """Name the model in use after a learned one was installed."""
+        self.node.loading.model_file = 'learned'
 
     def _new_learner(self, policy: Policy) -> Learner:
         """Return a learner from the start (the model in use is the prior)."""
