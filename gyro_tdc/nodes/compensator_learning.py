@@ -99,13 +99,18 @@ def _step_and_save(learner: Learner, store: LearnFile | None) -> tuple[str, str,
         if store is None or not learner.save_due():
             return '', '', []
         learner.saved()                 # a failed save is tried again a save period later
-        try:
-            store.write(learner.state())
-        except OutputError as exc:
-            return 'save failed', str(exc), []
-        return 'saved', str(store.path), list(store.notes)
+        return _write(learner, store)
     except Exception as exc:  # the worker's edge: a bug must not stop learning silently
         return 'step failed', f'{type(exc).__name__}: {exc}', []
+
+
+def _write(learner: Learner, store: LearnFile) -> tuple[str, str, list[str]]:
+    """Write ``learner``'s state to ``store``: ('saved', path, notes) or ('save failed', why)."""
+    try:
+        store.write(learner.state())
+    except OutputError as exc:
+        return 'save failed', str(exc), []
+    return 'saved', str(store.path), list(store.notes)
 
 
 class Learning:
@@ -190,27 +195,25 @@ class Learning:
         if not job.done:
             return False
         self.job = None
-        what, text, notes = job.result
+        self._take(*job.result)
+        return True
+
+    def _take(self, what: str, text: str, notes: list[str]) -> None:
+        """Take the outcome of a step or save: clear or count a save error, log notes."""
         log = self.log
         if what == 'saved':
             self.learn_save_error = ''
             for note in notes:
                 log.warning(note)
-        elif what == 'save failed':
-            self._save_failed(text)
+        elif what == 'save failed':     # kept for /diagnostics, logged throttled
+            self.learn_save_error = text
+            self.learn_save_failures += 1
+            log.error(f'cannot save learn_file ({self.learn_save_failures} failed saves): '
+                      f'{text}', throttle_duration_sec=LEARN_LOG_THROTTLE_S)
         elif what == 'step failed':
             self.learn_step_errors += 1
             log.error(f'learning step failed ({self.learn_step_errors} in total): {text}',
                       throttle_duration_sec=LEARN_LOG_THROTTLE_S)
-        return True
-
-    def _save_failed(self, why: str) -> None:
-        """Count a failed save, keep its reason for /diagnostics, log it throttled."""
-        self.learn_save_error = why
-        self.learn_save_failures += 1
-        self.log.error(
-            f'cannot save learn_file ({self.learn_save_failures} failed saves): {why}',
-            throttle_duration_sec=LEARN_LOG_THROTTLE_S)
 
     def _sync(self) -> None:
         """
@@ -242,8 +245,7 @@ class Learning:
         Call on the executor's thread; the learner may then be read or changed until the
         executor runs the learn timer again.
         """
-        job = self.job
-        if job is not None and not job.wait(timeout_s):
+        if self.job is not None and not self.job.wait(timeout_s):
             return False
         self._absorb()
         self._sync()
@@ -297,16 +299,11 @@ class Learning:
         store = self.learn_store
         if store is None:
             return f'failed: nothing is written ({self.learn_file_warning})'
-        try:
-            store.write(self.learner.state())
-        except OutputError as exc:
-            self._save_failed(str(exc))
-            return f'failed: {exc}'
-        self.learner.saved()
-        self.learn_save_error = ''
-        for note in store.notes:
-            self.log.warning(note)
-        return f'saved {store.path}'
+        what, text, notes = _write(self.learner, store)
+        if what == 'saved':
+            self.learner.saved()
+        self._take(what, text, notes)
+        return f'saved {store.path}' if what == 'saved' else f'failed: {text}'
 
     def values(self) -> dict[str, str]:
         """Return the learner's /diagnostics pairs and where its state is written."""
