@@ -32,7 +32,6 @@ from gyro_tdc.base import Job, LatestJob
 from gyro_tdc.errors import OutputError
 from gyro_tdc.learn import LearnConfig, Learner, LearnFile, open_learn_file
 from gyro_tdc.model import CompensationModel
-from gyro_tdc.runtime import Policy
 from std_srvs.srv import Trigger
 
 __all__ = ['LEARN_LOG_THROTTLE_S', 'LEARN_STEP_S', 'LEARN_WAIT_S', 'Learning',
@@ -134,15 +133,14 @@ class Learning:
     def __init__(self, node: Any) -> None:
         self.node, self.core, self.params = node, node.core, node.params
         self.log = log = node.get_logger()
-        policy = node.core.policy
-        self.learner = self._new_learner(policy)
+        self.learner = self._new_learner()
         self._learned_installs = 0
         self._learn_jobs = LatestJob()
         self.job: Job | None = None
         self._learn_prior: tuple[CompensationModel | None] | None = None
         self._learn_timeout: float | None = None
         if node.params.learn_file:
-            self._open(node.params.learn_file, policy)
+            self._open(node.params.learn_file)
         else:
             log.warning('learn without learn_file: nothing is kept across restarts')
         self._front = _Front(self.learner.config)
@@ -154,20 +152,20 @@ class Learning:
         """Name the model in use after a learned one was installed."""
         self.node.loading.model_file = 'learned'
 
-    def _new_learner(self, policy: Policy) -> Learner:
+    def _new_learner(self) -> Learner:
         """Return a learner from the start (the model in use is the prior)."""
         p = self.params
-        return Learner(LearnConfig(temperature_timeout=policy.temperature_timeout,
+        return Learner(LearnConfig(temperature_timeout=self.core.policy.temperature_timeout,
                                    save_period_s=p.learn_save_period,
                                    swap_delay_s=p.learn_swap_delay), prior=self.core.model)
 
-    def _open(self, path: str, policy: Policy) -> None:
+    def _open(self, path: str) -> None:
         """Resume ``learn_file`` (or the file used beside it); a file refused is said once."""
         log = self.log
         try:
             opened = open_learn_file(path, self.learner.load_state)
         except Exception as exc:  # the start-up edge: no file content stops the node
-            self.learner = self._new_learner(policy)
+            self.learner = self._new_learner()
             opened = None
             self.learn_file_warning = (f'learn_file {path!r} not used '
                                        f'({type(exc).__name__}: {exc}): learning from '
