@@ -146,13 +146,16 @@ class CompensatorCore:
 
         ``upstream_pass``: the gyro is declared thermally corrected upstream and passes
         through (never corrected twice); ``needs_accel``: the model has an accelerometer part
-        or re-anchoring waits for a still window (the node reads the force per message).
+        or re-anchoring waits for a still window (the node reads the force per message);
+        ``pass_var``: the variance a sample passed through raw adds, per axis.
         """
         a, policy = self.reanchoring, self.policy
         a.waiting = bool(policy.reanchor_on_start and a.anchor is None and not a.learned)
         self.needs_accel = self.slot.accel is not None or a.waiting
         self.upstream_pass = bool(policy.upstream_correction) and (
             policy.upstream_policy == 'passthrough')
+        v = policy.passthrough_variance
+        self.pass_var = (v, v, v)
 
     # -- learning ---------------------------------------------------------------------
 
@@ -498,10 +501,9 @@ class CompensatorCore:
             self.stream.accel_flags = why
             self.tally.accel['compensated'] += 1
             return out, var
-        v = self.policy.passthrough_variance
         self.stream.accel_flags = why | PASSTHROUGH
         self.tally.accel['passed through'] += 1
-        return None, (v, v, v)
+        return None, self.pass_var
 
     def _pass(self, t: float, wx: float, wy: float, wz: float, why: int,
               accel: Sequence[float] | None = None) -> Output:
@@ -516,16 +518,14 @@ class CompensatorCore:
         stream.flags = flags
         if math.isfinite(t):
             stream.t = t
-        var = self.policy.passthrough_variance
-        return wx, wy, wz, (var, var, var), flags, aout, avar
+        return wx, wy, wz, self.pass_var, flags, aout, avar
 
     def fail(self, exc: Exception) -> Vec3:
         """Count a sample whose compensation raised ``exc`` (sent raw); return its variance."""
         tally = self.tally
         tally.errors += 1
         tally.last_error = f'{type(exc).__name__}: {exc}'
-        var = self.policy.passthrough_variance
-        return var, var, var
+        return self.pass_var
 
     def _still(self, t: float, raw: Vec3, out: Vec3, accel: Sequence[float] | None,
                temp: float) -> None:
