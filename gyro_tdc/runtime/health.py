@@ -308,19 +308,22 @@ def _problems(core: CompensatorCore, since: HealthMark, new: dict[int, int],
               for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE, IMPLAUSIBLE_INPUT,
                           IMPLAUSIBLE_OUTPUT) if new[bit]]
     lo, hi = TEMP_PLAUSIBLE_C
-    counted = (  # (new since the last report, what it says)
-        (temps.rejected - since.temps_rejected, 'non-finite temperature ({} samples rejected)'),
-        (temps.implausible - since.temps_implausible,
-         'temperatures rejected (implausible): {} (outside ' f'{lo:g}..{hi:g} degC, faster than '
-         f'{MAX_TEMP_SLEW_C_S:g} degC/s from the last good one, or stamped too far ahead of the '
-         'IMU; the last good one is held)'),
-        (inputs.lost - since.lost, 'input messages lost ({}, reported by DDS; at least that '
-                                   'many)'),
-        (inputs.malformed - since.malformed, 'malformed input messages dropped ({}: not a '
-                                             'serialized sensor_msgs/Imu)'),
-        (inputs.already_compensated - since.already_compensated, 'input already compensated '
-         'by gyro_tdc ({} samples): the model is applied twice'))
-    found += [(WARN, text.replace('{}', str(n), 1)) for n, text in counted if n]
+    rejected = temps.rejected - since.temps_rejected
+    implausible = temps.implausible - since.temps_implausible
+    lost = inputs.lost - since.lost
+    malformed = inputs.malformed - since.malformed
+    marked = inputs.already_compensated - since.already_compensated
+    found += [(WARN, text) for count, text in (
+        (rejected, f'non-finite temperature ({rejected} samples rejected)'),
+        (implausible, f'temperatures rejected (implausible): {implausible} (outside {lo:g}..'
+                      f'{hi:g} degC, faster than {MAX_TEMP_SLEW_C_S:g} degC/s from the last '
+                      'good one, or stamped too far ahead of the IMU; the last good one is '
+                      'held)'),
+        (lost, f'input messages lost ({lost}, reported by DDS; at least that many)'),
+        (malformed, f'malformed input messages dropped ({malformed}: not a serialized '
+                    'sensor_msgs/Imu)'),
+        (marked, f'input already compensated by gyro_tdc ({marked} samples): the model is '
+                 'applied twice')) if count]
     if inputs.upstream:
         found.append((WARN, f'imu/data_raw is published by gyro_tdc compensator '
                             f'{", ".join(inputs.upstream)}: chained compensators apply the '
