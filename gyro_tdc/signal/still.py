@@ -489,13 +489,10 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     dt = float(np.median(np.diff(t))) if n > 1 else 1.0
     window = max(float(window_s), MIN_WINDOW_SAMPLES * dt)
     if n < 3:
-        e = np.zeros(0, dtype=np.int64)
-        z = np.zeros((0, 3))
+        e, z, inf = np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.full(3, math.inf)
+        za, infa = (None, None) if acc is None else (z, inf)
         return Stillness(np.zeros(n, dtype=bool), (), window, e, e, np.zeros(0, dtype='<U10'),
-                         z, z, None if acc is None else z, None if acc is None else z,
-                         np.full(3, math.inf), None if acc is None else np.full(3, math.inf),
-                         np.zeros(0), np.full(3, math.inf),
-                         None if acc is None else np.full(3, math.inf),
+                         z, z, za, za, inf, infa, np.zeros(0), inf, infa,
                          'too few samples to judge stillness')
     k = np.subtract(t, t[0])           # window index floor((t - t0) / window), in place
     k /= window
