@@ -24,7 +24,7 @@ See ``doc/internals/base.md``.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 import ctypes
 import errno
 import functools
@@ -99,24 +99,18 @@ def _unused(path: Path) -> None:
 
 def _unlink(path: Path) -> None:
     """Remove ``path`` if it exists (cleanup: errors are ignored)."""
-    try:
+    with suppress(OSError):
         os.unlink(path)
-    except OSError:
-        pass
 
 
 def _sync_dir(directory: Path) -> None:
     """Flush a directory entry to disk (best effort)."""
-    try:
+    with suppress(OSError):
         fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
 
 def _target(path: Path) -> Path:
@@ -269,10 +263,8 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
         try:
             if old is not None:
                 if (old.st_uid, old.st_gid) != (os.geteuid(), os.getegid()):
-                    try:
+                    with suppress(OSError):     # not permitted: ours, as with open()
                         os.fchown(fd, old.st_uid, old.st_gid)
-                    except OSError:
-                        pass        # not permitted: the new file is ours, as with open()
                 os.fchmod(fd, stat.S_IMODE(old.st_mode))
             stream = (os.fdopen(fd, 'wb') if binary
                       else os.fdopen(fd, 'w', encoding=encoding, newline=newline))
