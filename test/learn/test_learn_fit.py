@@ -19,7 +19,7 @@ from __future__ import annotations
 from gyro_tdc.learn.fit import (fit_points, fit_sessions, grow_features, inliers, learned_model,
                                 model_of, prediction_mse)
 from gyro_tdc.model.compensation import drift
-from gyro_tdc.model.modelfile import model_from_dict, model_to_dict
+from gyro_tdc.model.modelfile import model_from_dict, model_to_dict, stored
 from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 import pytest
@@ -73,7 +73,7 @@ def test_learned_models_carry_the_thermal_section(thermal):
     assert m.features == (('dT', 'lag') if lagged else ('dT',))
     if lagged:
         assert m.effect_params == {'lag': {'tau_s': 300.0}}
-    assert model_from_dict(model_to_dict(m)) == m                 # a model file like any other
+    assert model_from_dict(model_to_dict(m)) == m == stored(m)    # a model file like any other
     t = np.arange(0.0, 100.0)
     np.testing.assert_allclose(drift(m, t, np.full(100, 20.0)), [[0.01, 0.0, 0.0]] * 100)
 

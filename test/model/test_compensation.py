@@ -12,12 +12,11 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.model.compensation: formulas, streaming, clamping, ids, one format, state."""
+"""Tests of gyro_tdc.model.compensation: formulas, streaming, clamping, ids, format 1, state."""
 
 import math
 from pathlib import Path
 
-from gyro_tdc.errors import FeatureError
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model.compensation import (compensate, CompensationModel, drift, model_temperature,
                                          predict_drift, rbf_design, StreamingCompensator, summary)
@@ -181,17 +180,15 @@ def test_format_2_state_model_drift_and_range_follow_the_state():
     assert s['format_version'] == 2 and s['thermal']['tau_s'] == [50.0]
 
 
-def test_a_model_without_lag_has_the_state_kind_none_and_no_other_format():
-    # A static model: the state is the measured temperature.
+def test_format_2_without_lag_matches_the_format_1_numbers():
+    # A static model: the state is the measured temperature, only the format differs.
     run = synth_run(seed=3, hours=0.2)
     model = fit_model([run], features='dT,dT2', n_centers=5)
     assert model.thermal == ThermalState() and model.format_version == 2
-    assert _hand_model().thermal == ThermalState() == _hand_model(thermal=ThermalState()).thermal
-    np.testing.assert_array_equal(
-        compensate(model, run.t, run.temp, run.omega),
-        compensate(model.replace(thermal=ThermalState()), run.t, run.temp, run.omega))
-    with pytest.raises(FeatureError, match='`thermal` must be a ThermalState'):
-        model.replace(thermal=None)
+    legacy = model.replace(thermal=None)
+    np.testing.assert_array_equal(compensate(model, run.t, run.temp, run.omega),
+                                  compensate(legacy, run.t, run.temp, run.omega))
+    assert legacy.model_id != model.model_id
 
 
 def test_linear_policy_continues_the_hand_model_along_its_tangent():

@@ -389,17 +389,16 @@ def test_a_format_1_file_is_refused(tmp_path, lag_model):
         load_model(path)
 
 
-def test_hand_built_models_default_to_the_state_kind_none():
-    fields = dict(
+def test_hand_built_models_default_to_format_1():
+    m = CompensationModel(
         kind='poly', features=('dT', 'lag'), effect_params={'lag': {'tau_s': 50.0}},
-        t0_c=20.0, input_mean=np.zeros(1), input_std=np.ones(1), centers=np.zeros((0, 1)),
+        t0_c=20.0, input_mean=np.zeros(2), input_std=np.ones(2), centers=np.zeros((0, 2)),
         widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=np.zeros(3),
-        linear=np.ones((1, 3)), scale=np.zeros(3), temp_range_c=(0.0, 40.0),
+        linear=np.ones((2, 3)), scale=np.zeros(3), temp_range_c=(0.0, 40.0),
         residual_var=np.zeros(3))
+    assert m.format_version == 1 and m.inputs == ('dT', 'lag')
     with pytest.raises(FeatureError, match='thermal kind'):
-        CompensationModel(**fields)
-    m = CompensationModel(**fields, thermal=ThermalState('first_order', (50.0,)))
-    assert m.format_version == 2 and m.inputs == ('dT',)
+        m.replace(thermal=ThermalState())
 
 
 def test_training_report_prints_tau_with_its_interval_or_that_it_is_not_pinned():

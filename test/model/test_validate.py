@@ -35,6 +35,7 @@ from gyro_tdc.model.compensation import (compensate, CompensationModel, drift,
                                          StreamingCompensator)
 from gyro_tdc.model.modelfile import load_model, model_from_dict, model_to_dict, save_model
 from gyro_tdc.model.out_of_range import MAX_EXTRAPOLATION_C
+from gyro_tdc.model.thermal_state import ThermalState
 from gyro_tdc.model.validate import drift_grid
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
@@ -55,7 +56,8 @@ def handmade() -> CompensationModel:
     coef = np.vstack([[0.01, 0.0, -0.02], rng.normal(scale=1e-2, size=(2, 3)), weights])
     accel = CompensationModel.network('rbf', ('dT', 'dT2'), {}, 20.0, norm, coef,
                                       temp_range_c=(-10.0, 50.0),
-                                      residual_var=np.full(3, 1e-4), sensor_id='unit-7')
+                                      residual_var=np.full(3, 1e-4), sensor_id='unit-7',
+                                      thermal=ThermalState())
     norm = (np.array([10.0, 300.0, 0.0, 0.3]), np.array([20.0, 400.0, 0.01, 0.3]),
             rng.normal(size=(4, 4)), rng.uniform(0.3, 1.0, 4))
     weights = rng.normal(scale=1e-3, size=(4, 3))
@@ -64,7 +66,7 @@ def handmade() -> CompensationModel:
         'rbf', ('dT', 'dT2', 'dTdt', 'scale', 'warmup'),
         {'dTdt': {'tau_s': 60.0}, 'warmup': {'tau_s': 300.0}}, 20.0, norm, coef,
         scale=np.array([2e-4, -1e-4, 0.0]), temp_range_c=(-10.0, 50.0),
-        residual_var=np.full(3, 1e-8), sensor_id='unit-7', accel=accel)
+        residual_var=np.full(3, 1e-8), sensor_id='unit-7', thermal=ThermalState(), accel=accel)
 
 
 _MAKERS = {

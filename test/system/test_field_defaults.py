@@ -79,7 +79,8 @@ def _models():
     static = fit_model([run], features='dT,dT2,scale', n_centers=8)
     lag = fit_model([run], features='dT,dT2,lag,dTdt', n_centers=8)
     cubic = fit_model([run], kind='poly', features='dT,dT2,dT3')
-    return {'static rbf + scale': static, 'lag rbf + dTdt': lag, 'cubic poly': cubic}
+    return {'static rbf + scale': static, 'lag rbf + dTdt': lag, 'cubic poly': cubic,
+            'format 1': cubic.replace(thermal=None)}
 
 
 def test_linear_batch_equals_streaming_and_the_compensator_core():
