@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from gyro_tdc.base import SESSION_GAP_S
 from gyro_tdc.signal import (BURST_MAX_S, BURST_PAUSES, gap_breaks, gap_limit, session_gap,
-                             SessionRule, SessionTracker)
+                             SessionTracker)
 import numpy as np
 
 
@@ -50,23 +50,24 @@ def test_batch_and_streaming_agree_on_a_bursty_log_and_a_night_off():
     batch = [i for i, _ in gap_breaks(t)]
     night = int(np.flatnonzero(np.diff(t) > 7000.0)[0]) + 1
     assert batch == [night]                                     # the rhythm is no restart
-    rule = SessionRule()
+    rule = SessionTracker()
     stream = _stream(t, rule)
     # Streaming cannot know the rhythm before it has seen it: the first pauses break.
     assert stream[-1] == night
     assert len(stream) == BURST_PAUSES - 1 + 1
     # A stream of steady 900 s pauses from the start: the same after the rule has its rhythm.
-    again = SessionRule()
-    again.pauses = list(rule.pauses)
+    again = SessionTracker()
+    again.rhythm = list(rule.rhythm)
     assert _stream(_bursts(12, 900.0), again) == []
 
 
 def test_a_restart_and_a_nan_step():
-    rule = SessionRule()
+    rule = SessionTracker()
     assert rule.judge(-5.0, 0.01) == 'restart (stamps back by 5 s)'
     assert rule.judge(-0.5, 0.01) == ''                         # within RESTART_BACK_S
     assert rule.judge(float('nan'), 0.01) == ''
-    assert rule.judge(3600.5, 0.01) == 'gap of 3600 s' and rule.pauses == []
+    assert rule.judge(3600.5, 0.01) == 'gap of 3600 s' and rule.rhythm == []
+    assert rule.pauses == 2                                     # the two steps no break
 
 
 def test_the_tracker_counts_sessions_and_their_mean_period():
