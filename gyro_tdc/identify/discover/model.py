@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""From a discovery to a compensation model file: which effects, which kind, fitted how."""
+"""What discovery may fit (never motion), and from a discovery to a compensation model file."""
 
 from __future__ import annotations
 
@@ -20,11 +20,52 @@ from typing import Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
+from gyro_tdc.identify.axes import constant_gyro_axes, neutral_runs
 from gyro_tdc.identify.discover.results import DiscoveryResult
+from gyro_tdc.identify.still_only import find_still, MAX_MOVING_SHARE, moving_share
 from gyro_tdc.model import TEMPERATURE_EFFECTS
 import numpy as np
 
-__all__ = ['build_model', 'model_features', 'model_kind']
+__all__ = ['build_model', 'model_features', 'model_kind', 'still_only_runs']
+
+
+def still_only_runs(runs: Sequence[Run]) -> tuple[list[Run], str | None]:
+    """
+    Return what discovery may fit of runs without a reference: the still samples only.
+
+    Runs with no reference rate (a flight log) that move longer than ``train``'s
+    :data:`~gyro_tdc.identify.still_only.MAX_MOVING_SHARE` are known to be at rest only
+    while still: each keeps its still stretches (``train``'s still test, one noise floor for
+    all, a constant axis at its reference), one offset per session as before; a session
+    without still time is left out. Returns the runs and a line saying what was kept (None
+    when every sample is kept). Motion is never fitted as drift.
+
+    Raises
+    ------
+    FitError
+        When no session holds a still stretch: nothing could be fitted but the motion.
+    """
+    if not runs or any(r.info.get('reference') != 'zero' for r in runs):
+        return list(runs), None
+    fitted = neutral_runs(runs, constant_gyro_axes(runs))
+    share = moving_share(fitted)
+    if share <= MAX_MOVING_SHARE:
+        return list(runs), None
+    masks = [st.mask for st in find_still(fitted)]
+    kept = [Run(r.t[m], r.temp[m], r.omega[m], r.omega_ref[m], r.name, dict(r.info))
+            for r, m in zip(runs, masks) if np.count_nonzero(m) >= 16]
+    if not kept:
+        raise FitError(f'no reference rate and the IMU moves {100.0 * share:.3g} % of the '
+                       'time, with no still stretch to discover on (its motion is no drift): '
+                       'record the vehicle parked with the IMU on.')
+    still_s = sum(np.count_nonzero(m) * float(np.median(np.diff(r.t)))
+                  for r, m in zip(runs, masks) if len(r) > 1)
+    total_s = sum(r.duration_s for r in runs)
+    pct = min(100.0 * still_s / total_s, 100.0) if total_s > 0 else 0.0
+    return kept, (f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time: '
+                  f'discovering on the still stretches only ({still_s:.0f} s of '
+                  f'{total_s:.0f} s, {pct:.3g} %; {len(kept)} of {len(runs)} session(s)); '
+                  'the motion is no drift')
 
 
 def model_kind(effects: Sequence[str]) -> str:
