@@ -36,7 +36,7 @@ from numpy.typing import NDArray
 
 __all__ = [
     'AXES', 'csv_columns', 'evaluation_json', 'format_allan', 'format_bag', 'format_means',
-    'format_paper_table', 'format_summary', 'write_csv', 'write_json',
+    'format_paper_table', 'format_still', 'format_summary', 'write_csv', 'write_json',
 ]
 
 AXES = ('x', 'y', 'z')
@@ -79,6 +79,13 @@ def _scores(m: Any, floor: Sequence[float] | None, accel_floor: Sequence[float] 
     return out
 
 
+def _still_json(still: dict) -> dict:
+    """Return the still-only record of a bag: what was scored, in all and per session."""
+    keys = ('samples', 'stretches', 'still_s', 'total_s', 'share')
+    return {**{k: still[k] for k in keys},
+            'sessions': [{k: p[k] for k in keys} for p in still['per_session']]}
+
+
 def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = None,
                     accel_floor: Sequence[float] | None = None) -> dict:
     """
@@ -109,7 +116,10 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
         ``floor`` and ``accel_floor``; ``constant_axes`` (only when there are any) in a bag:
         the gyro axes constant on it (readings never varying beyond one quantum, or reading
         their reference exactly; ``p_vs_raw`` null there), in a model: the axes it passes
-        through unchanged (constant in its training data).
+        through unchanged (constant in its training data); ``still`` (only for a bag without
+        a reference that moves, scored on its still stretches): ``samples``, ``stretches``,
+        ``still_s``, ``total_s``, ``share`` (at most 1) and ``sessions``, the same per
+        session.
 
     """
     doc = {'bags': [{
@@ -129,6 +139,7 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
             **({'constant_axes': list(m.constant_axes)} if m.constant_axes else {}),
         } for m in b.models],
         **({'constant_axes': list(b.constant_axes)} if b.constant_axes else {}),
+        **({} if b.still is None else {'still': _still_json(b.still)}),
     } for b in bags]}
     doc['out_of_range'] = bags[0].out_of_range if bags else DEFAULT_OUT_OF_RANGE
     if floor is not None:
@@ -212,6 +223,24 @@ def _floor_cells(bs: NDArray[np.float64] | None, floor: Sequence[float] | None) 
         return ''
     v = np.full(3, math.nan) if bs is None else np.asarray(bs) / np.asarray(floor)
     return '  ' + ''.join(_g(x) for x in v)
+
+
+def format_still(b: BagEval) -> list:
+    """Return the lines saying what of a bag without a reference was scored (none: all)."""
+    s = b.still
+    if s is None:
+        return []
+
+    def what(p: dict) -> str:
+        return (f"{p['samples']} samples in {p['stretches']} stretch(es), {p['still_s']:.0f} s "
+                f"of {p['total_s']:.0f} s ({100.0 * p['share']:.3g} %)")
+
+    lines = [f'{b.label}: no reference rate and the IMU moves: scored the still stretches '
+             f'only, {what(s)}; raw and models re-anchored on the first still stretch of each '
+             f"of the {s['sessions']} session(s), as the compensator does at start-up"]
+    if s['sessions'] > 1:
+        lines += [f'  session {k}: {what(p)}' for k, p in enumerate(s['per_session'], 1)]
+    return lines
 
 
 def format_summary(b: BagEval, *, floor: Sequence[float] | None = None,

@@ -162,7 +162,8 @@ class BagEval:
         Data without a reference that move (:func:`still_rows`): only the still stretches
         were scored, raw and models alike each session re-anchored on its first still
         stretch (as the compensator does at start-up); ``samples``, ``stretches``,
-        ``still_s``, ``total_s``, ``sessions``. None: every sample was scored.
+        ``still_s``, ``total_s``, ``share`` (at most 1), ``sessions`` (their number) and
+        ``per_session`` (the same five per session). None: every sample was scored.
 
     """
 
@@ -426,14 +427,22 @@ def _anchor_first_still(x: NDArray[np.float64], still: NDArray[np.bool_],
 
 
 def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]) -> dict:
-    """Return how much of a run the still-only scoring covers."""
-    edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
-    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    """Return how much of a run the still-only scoring covers, in all and per session."""
     dt = float(np.median(np.diff(run.t))) if len(run) > 1 else 0.0
-    still_s = float(sum(run.t[b - 1] - run.t[a] + dt for a, b in zip(starts, stops)))
-    return {'samples': int(np.count_nonzero(still)), 'stretches': int(starts.size),
-            'still_s': still_s, 'total_s': float(run.duration_s),
-            'sessions': int(len(bounds) - 1)}
+
+    def part(a: int, b: int) -> dict:
+        edges = np.diff(np.concatenate([[0], still[a:b].astype(np.int8), [0]]))
+        starts, stops = np.flatnonzero(edges == 1) + a, np.flatnonzero(edges == -1) + a
+        still_s = float(sum(run.t[j - 1] - run.t[i] + dt for i, j in zip(starts, stops)))
+        total_s = float(run.t[b - 1] - run.t[a] + dt) if b > a else 0.0
+        return {'samples': int(np.count_nonzero(still[a:b])), 'stretches': int(starts.size),
+                'still_s': still_s, 'total_s': total_s,
+                'share': min(still_s / total_s, 1.0) if total_s > 0 else 0.0}
+
+    per = [part(a, b) for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist())]
+    whole = {k: sum(p[k] for p in per) for k in ('samples', 'stretches', 'still_s', 'total_s')}
+    share = min(whole['still_s'] / whole['total_s'], 1.0) if whole['total_s'] > 0 else 0.0
+    return {**whole, 'share': share, 'sessions': len(per), 'per_session': per}
 
 
 def _constant(run: Run) -> NDArray[np.bool_]:

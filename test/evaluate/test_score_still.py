@@ -72,3 +72,35 @@ def test_evaluate_scores_still_only_where_the_data_move_and_all_otherwise(logs, 
     path = write_dataflash(tmp_path / 'flying.bin', [flying.imu])
     with pytest.raises(FitError, match='no reference rate and no still stretch to score'):
         evaluate([path], [nm])
+
+
+def test_two_power_cycles_in_one_log_are_scored_and_reported_per_session(logs, tmp_path):
+    from flightlogs import Imu
+    from gyro_tdc.evaluate.report import evaluation_json, format_still
+
+    days, _paths, nm = logs
+    a, b = days[0].imu, days[1].imu
+    shift = a.t[-1] - b.t[0] + 1800.0                  # half an hour off between them
+    imu = Imu(np.concatenate([a.t, b.t + shift]), np.vstack([a.gyro, b.gyro]),
+              np.concatenate([a.temp, b.temp]), np.vstack([a.accel, b.accel]))
+    path = write_dataflash(tmp_path / 'two.bin', [imu])
+    got = evaluate([path], [nm])[0]
+    s = got.still
+    assert s['sessions'] == 2 and len(s['per_session']) == 2
+    for key in ('samples', 'stretches'):
+        assert sum(p[key] for p in s['per_session']) == s[key] > 0
+    assert s['samples'] == got.samples
+    for p in s['per_session'] + [s]:
+        assert 0.0 < p['still_s'] <= p['total_s'] and 0.0 < p['share'] <= 1.0
+        np.testing.assert_allclose(p['share'], p['still_s'] / p['total_s'])
+    doc = evaluation_json([got])['bags'][0]['still']
+    assert [x['stretches'] for x in doc['sessions']] == [
+        p['stretches'] for p in s['per_session']]
+    assert doc['share'] == s['share'] and doc['samples'] == got.samples
+    lines = format_still(got)
+    assert len(lines) == 3 and 'scored the still stretches only' in lines[0]
+    assert lines[1].startswith('  session 1: ') and lines[2].startswith('  session 2: ')
+    pct = [float(x.split(' %)')[0].rsplit('(', 1)[1]) for x in lines]
+    assert all(0.0 < v <= 100.0 for v in pct)
+    assert evaluation_json(evaluate([_paths[2]], [nm]))['bags'][0]['still']['sessions'][0][
+        'samples'] > 0
