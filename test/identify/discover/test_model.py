@@ -16,17 +16,13 @@
 
 from __future__ import annotations
 
-import json
-
 from flightlogs import flight_day, write_dataflash
-from gyro_tdc.cli.discover import main as discover_cli
 from gyro_tdc.data import load_runs
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.discover import discover
 from gyro_tdc.identify.discover.model import still_only_runs
 import numpy as np
 import pytest
-from real_logs import ARDUPILOT_CUBEBLACK, PX4_HOVER
 
 
 @pytest.fixture(scope='module')
@@ -85,25 +81,3 @@ def test_data_with_a_reference_or_without_motion_are_kept_whole(flights, tmp_pat
     run = load_runs([write_dataflash(tmp_path / 'flying.bin', [flying.imu])])
     with pytest.raises(FitError, match='no still stretch to discover on'):
         still_only_runs(run)
-
-
-def test_the_cli_says_what_it_kept_and_writes_a_model_of_the_still_time(flights, tmp_path,
-                                                                          capsys):
-    _days, paths = flights
-    out, doc = tmp_path / 'm.yaml', tmp_path / 'd.json'
-    assert discover_cli([str(p) for p in paths] + ['--out', str(out), '--json', str(doc),
-                                                   '--max-steps', '1', '--no-progress']) == 0
-    text = capsys.readouterr().out
-    assert 'discovering on the still stretches only' in text
-    assert json.loads(doc.read_text())['noise_floor_dps'] < 0.01
-    assert out.exists()
-
-
-@pytest.mark.parametrize('argv, words', [
-    ([str(ARDUPILOT_CUBEBLACK)], 'on the still stretches only'),
-    ([str(PX4_HOVER), '--temperature-source', 'baro'], 'no still stretch to discover on'),
-])
-def test_real_flight_logs_are_refused_in_one_line_about_stillness(argv, words, capsys):
-    assert discover_cli(argv + ['--no-progress']) == 2
-    err = capsys.readouterr().err.strip()
-    assert len(err.splitlines()) == 1 and words in err and 'Traceback' not in err
