@@ -13,9 +13,10 @@
 # limitations under the License.
 
 """
-Discovery on hidden effects: the figures of the cases ``test/identify/discover/test_search.py`` asserts.
+Discovery on hidden effects: the figures of the cases the discovery tests assert.
 
-The same scenarios, calibrations and seeds as the test (imported from it): each hidden effect
+The same scenarios, calibrations and seeds as ``test/identify/discover/test_search.py``
+(imported from ``test/support/discover_cases.py``): each hidden effect
 is scaled so that what the datasheet base (bias, dT) cannot absorb has an RMS of ``k`` times
 the per-sample noise standard deviation, written to a bag and read back; the table gives what
 discovery named (aliases in brackets), the gap before and after in its own noise floors, in

@@ -13,8 +13,7 @@
 # limitations under the License.
 
 """
-``gyro-tdc discover``: its JSON, model file and report; bad input, constant sensors and
-flight logs in one line.
+``gyro-tdc discover``: its JSON, model file and report; bad input in one line.
 
 A gyro whose every axis reads a fixed value, and (``--sensor accel``) an accelerometer read
 as exactly ``(0, 0, g)``, leave discovery nothing to find: the command refuses in one line

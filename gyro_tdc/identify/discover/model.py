@@ -44,6 +44,7 @@ def still_only_runs(runs: Sequence[Run]) -> tuple[list[Run], str | None]:
     ------
     FitError
         When no session holds a still stretch: nothing could be fitted but the motion.
+
     """
     if not runs or any(r.info.get('reference') != 'zero' for r in runs):
         return list(runs), None

@@ -27,7 +27,7 @@ from synth import synth_run
 
 @pytest.fixture(scope='module')
 def found():
-    """A discovery that names the curvature of a synthetic run (dT2 hidden)."""
+    """Return a discovery that names the curvature of a synthetic run (dT2 hidden)."""
     return discover([synth_run(seed=4, hours=0.5, rate_hz=2.0)], candidates='dT2,dT3',
                     allan=False, max_steps=1)
 
