@@ -341,27 +341,23 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     const = _constant(run)
     rate = rate_hz(run.t)
     parts = split_sessions([run], sessions, session_gap_s).runs
-    whole, summary = run, None
+    whole, summary, kw = run, None, {'rate': rate}
+    bounds = np.cumsum([0] + [len(p) for p in parts])
+
+    def pick(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return what is scored of a rate: the still samples, each session anchored."""
+        return x if still is None else _anchor_first_still(x, still, bounds)[still]
     if still is not None:
-        bounds = np.cumsum([0] + [len(p) for p in parts])
         summary = _still_summary(run, still, bounds)
-        scored = whole = _rows_of(run, still)
-        raw = score(_anchor_first_still(run.omega, still, bounds)[still], scored,
-                    allan=False)
-        reanchor_s = 0.0
-    else:
-        raw = score(run.omega, run, rate=rate)
+        whole, kw, reanchor_s = _rows_of(run, still), {'allan': False}, 0.0
+    raw = score(pick(run.omega), whole, **kw)
     const |= ~(raw.bs > 0)                  # an axis reading its reference exactly
     out = []
     for nm in models:
         m = nm.model
         comp, info = _compensated(nm, parts, reanchor_s, out_of_range, max_extrapolation_c)
-        if still is not None:
-            ev = score(_anchor_first_still(comp, still, bounds)[still], scored, label=nm.label,
-                       model=nm.name, features=list(m.features), bs_raw=raw.bs, allan=False)
-        else:
-            ev = score(comp, run, label=nm.label, model=nm.name, features=list(m.features),
-                       bs_raw=raw.bs, rate=rate)
+        ev = score(pick(comp), whole, label=nm.label, model=nm.name, features=list(m.features),
+                   bs_raw=raw.bs, **kw)
         ev.reanchor = info
         ev.constant_axes = [str(a) for a in m.metrics.get('constant_axes', ())]
         ev.p_vs_raw[const] = math.nan       # no signal to score there
