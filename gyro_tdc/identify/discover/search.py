@@ -372,11 +372,8 @@ def discover(runs: Sequence[Run], options: DiscoverOptions | None = None, *,
     runs = list(runs)
     _check(runs, o.block_s)
     base_ids = with_implied(tuple(normalise_ids(o.base)) + ('bias',))
-    if o.candidates is None:
-        cand_ids = tuple(e for e in _CANDIDATES if e not in base_ids)
-    else:
-        cand_ids = tuple(e for e in normalise_ids(o.candidates)
-                         if e not in base_ids and e != 'bias')
+    pool = _CANDIDATES if o.candidates is None else normalise_ids(o.candidates)
+    cand_ids = tuple(e for e in pool if e not in base_ids and e != 'bias')
     t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
     data = BlockData(runs, block_s=o.block_s, t0=t0)
     _check_blocks(data, base_ids, o.block_s)
