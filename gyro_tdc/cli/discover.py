@@ -67,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--out', default=None, metavar='MODEL.yaml',
                    help='write a model file of the discovered effects (compensator_node loads '
                         'it)')
-    p.add_argument('--kind', default=None, choices=KINDS,
+    p.add_argument('--kind', default='poly', choices=KINDS,
                    help='model of --out: poly (linear in the features of the model '
                         'temperature, what discovery validated; with lag every temperature '
                         'term is of the lagged state) or rbf (default: poly)')

@@ -26,7 +26,7 @@ from gyro_tdc.identify.still_only import find_still, MAX_MOVING_SHARE, moving_sh
 from gyro_tdc.model import TEMPERATURE_EFFECTS
 import numpy as np
 
-__all__ = ['build_model', 'model_features', 'model_kind', 'still_only_runs']
+__all__ = ['build_model', 'model_features', 'still_only_runs']
 
 
 def still_only_runs(runs: Sequence[Run]) -> tuple[list[Run], str | None]:
@@ -69,29 +69,7 @@ def still_only_runs(runs: Sequence[Run]) -> tuple[list[Run], str | None]:
                   'the motion is no drift')
 
 
-def model_kind(effects: Sequence[str]) -> str:
-    """
-    Return the model kind that holds what discovery fitted for ``effects``: ``'poly'``.
-
-    ``poly`` is exactly the linear model discovery validated, with ``lag`` too: the thermal
-    state makes every temperature term a power of the lagged temperature, which a ``poly``
-    model of format 2 holds as it is (the kind is kept a function for callers that choose).
-
-    Parameters
-    ----------
-    effects : sequence of str
-        Effect ids.
-
-    Returns
-    -------
-    str
-        ``'poly'``.
-
-    """
-    return 'poly'
-
-
-def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | None = None,
+def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'poly',
                 created: Mapping | None = None):
     """
     Fit the compensation model of the discovered effects, ready for ``save_model``.
@@ -112,7 +90,8 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
     runs : sequence of Run
         The same runs.
     kind : str, optional
-        ``'poly'`` or ``'rbf'``; default :func:`model_kind` of the final effects.
+        ``'poly'`` (default: exactly the linear model discovery validated; with ``lag``
+        every temperature term is a power of the lagged state) or ``'rbf'``.
     created : mapping, optional
         Extra creation info (command line, bags).
 
@@ -140,7 +119,6 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
                          'noise_floor_dps': result.noise_floor_dps,
                          'gain_removed': [float(g) for g in gain]}}
     info.update(dict(created or {}))
-    kind = model_kind(features) if kind is None else kind
     thermal = result.thermal if 'lag' in features else None
     params = {k: v for k, v in result.params.items() if k != 'lag'}
     # A constant gyro axis (train's rule) is fitted as train fits it: not at all (its
