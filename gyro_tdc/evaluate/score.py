@@ -401,14 +401,11 @@ def _rows_of(run: Run, m: NDArray[np.bool_]) -> Run:
                dict(run.info), None if run.accel is None else run.accel[m])
 
 
-def _first_still(still: NDArray[np.bool_], a: int, b: int) -> slice | None:
-    """Return the first still stretch within samples ``a:b``, None when there is none."""
-    idx = np.flatnonzero(still[a:b])
-    if not idx.size:
-        return None
-    i = a + int(idx[0])
-    rest = np.flatnonzero(~still[i:b])
-    return slice(i, b if not rest.size else i + int(rest[0]))
+def _stretches(still: NDArray[np.bool_], a: int, b: int
+               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Return the starts and stops of the still stretches within samples ``a:b``."""
+    edges = np.diff(np.concatenate([[0], still[a:b].astype(np.int8), [0]]))
+    return np.flatnonzero(edges == 1) + a, np.flatnonzero(edges == -1) + a
 
 
 def _anchor_first_still(x: NDArray[np.float64], still: NDArray[np.bool_],
@@ -416,9 +413,9 @@ def _anchor_first_still(x: NDArray[np.float64], still: NDArray[np.bool_],
     """Return ``x`` less, per session, its mean over the session's first still stretch."""
     out = np.array(x, dtype=np.float64, copy=True)
     for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-        head = _first_still(still, a, b)
-        if head is not None:
-            out[a:b] -= out[head].mean(axis=0)
+        starts, stops = _stretches(still, a, b)
+        if starts.size:
+            out[a:b] -= out[starts[0]:stops[0]].mean(axis=0)
     return out
 
 
@@ -427,8 +424,7 @@ def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]
     dt = float(np.median(np.diff(run.t))) if len(run) > 1 else 0.0
 
     def part(a: int, b: int) -> dict:
-        edges = np.diff(np.concatenate([[0], still[a:b].astype(np.int8), [0]]))
-        starts, stops = np.flatnonzero(edges == 1) + a, np.flatnonzero(edges == -1) + a
+        starts, stops = _stretches(still, a, b)
         still_s = float(sum(run.t[j - 1] - run.t[i] + dt for i, j in zip(starts, stops)))
         total_s = float(run.t[b - 1] - run.t[a] + dt) if b > a else 0.0
         return {'samples': int(np.count_nonzero(still[a:b])), 'stretches': int(starts.size),
