@@ -22,7 +22,7 @@ from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.axes import constant_gyro_axes, neutral_runs
 from gyro_tdc.identify.discover.results import DiscoveryResult
-from gyro_tdc.identify.still_only import find_still, MAX_MOVING_SHARE, moving_share
+from gyro_tdc.identify.still_only import find_still, MAX_MOVING_SHARE, moving_share, rows_of
 from gyro_tdc.model import TEMPERATURE_EFFECTS
 import numpy as np
 
@@ -53,8 +53,7 @@ def still_only_runs(runs: Sequence[Run]) -> tuple[list[Run], str | None]:
     if share <= MAX_MOVING_SHARE:
         return list(runs), None
     masks = [st.mask for st in find_still(fitted)]
-    kept = [Run(r.t[m], r.temp[m], r.omega[m], r.omega_ref[m], r.name, dict(r.info))
-            for r, m in zip(runs, masks) if np.count_nonzero(m) >= 16]
+    kept = [rows_of(r, m) for r, m in zip(runs, masks) if np.count_nonzero(m) >= 16]
     if not kept:
         raise FitError(f'no reference rate and the IMU moves {100.0 * share:.3g} % of the '
                        'time, with no still stretch to discover on (its motion is no drift): '

@@ -12,28 +12,18 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The ImuSource protocol: pacing and stamps of the simulated and the polled back-ends."""
+"""The simulated back-end: the ImuSource protocol, pacing, stamps, implausible readings."""
 
 from __future__ import annotations
 
 from fake_iio import l3gd20_files, make_device
 from gyro_tdc.sim.stream import SimStream
 from gyro_tdc.sources import IioSource, ImuSample, ImuSource, SimSource, SourceExhausted
-from gyro_tdc.sources.base import PolledSource
+from manual_clock import Wall
 import numpy as np
 import pytest
 
 ORIGIN_NS = 1_700_000_000_123_456_789
-
-
-class Wall:
-    """A monotonic clock the test moves by hand."""
-
-    def __init__(self, t: float = 100.0) -> None:
-        self.t = t
-
-    def __call__(self) -> float:
-        return self.t
 
 
 def sim(wall: Wall, **kwargs) -> SimSource:
@@ -116,18 +106,6 @@ def test_sim_refuses_bad_pacing():
         SimSource('rate_steps', rate_hz=2.0, time_scale=-1.0)
     with pytest.raises(ValueError, match='max_batch'):
         SimSource('rate_steps', rate_hz=2.0, max_batch=0)
-
-
-def test_polled_source_yields_one_reading_per_tick_stamped_in_ns(tmp_path):
-    clock = Wall(12.25)
-    src = IioSource(make_device(tmp_path, l3gd20_files()), clock=clock)
-    assert isinstance(src, PolledSource)
-    first = list(src.pending())
-    clock.t = 12.5
-    second = list(src.pending())
-    assert [s.t for s in first + second] == [12.25, 12.5]
-    assert src.stamp_ns(1.23e-7) == 123 and src.stamp_ns(3.0000000004) == 3_000_000_000
-    assert src.stamp_ns(12.5) == 12_500_000_000
 
 
 def test_sim_source_never_hands_out_an_implausible_reading():

@@ -27,7 +27,7 @@ from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Twist
 from gyro_tdc.learn.learner import FORMAT, learned_model
 from gyro_tdc.model.modelfile import save_model
-from gyro_tdc.nodes.compensator_motion import MOTION_MESSAGES
+from gyro_tdc.nodes.compensator_inputs import MOTION_MESSAGES
 from gyro_tdc.nodes.compensator_node import CompensatorNode
 from gyro_tdc.nodes.executors import make_executor
 from learn_states import BIAS, hostile_files, learned, plain_state

@@ -229,7 +229,7 @@ def test_a_headerless_type_is_stamped_in_microseconds_and_framed_by_frame_id(mon
     monkeypatch.setattr(inputs, '_fields', table.get)
     params = SimpleNamespace(angular_velocity_field='', stamp_field='timestamp',
                              frame_id='base_link', input_frame='frd')
-    to_imu = inputs._imu_converter(None, 'px4_msgs/msg/SensorGyro', params)
+    to_imu = inputs._imu_converter('px4_msgs/msg/SensorGyro', params)
     gyro = SimpleNamespace(timestamp=123_456_789_012, x=0.25, y=-0.5, z=0.125,
                            temperature=40.0)
     out = to_imu(gyro)

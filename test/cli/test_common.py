@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.cli.common: argparse types, --reference, run_command's exit codes."""
+"""Tests of gyro_tdc.cli.common: argparse types, --reference, exit codes, --help lists."""
 
 from __future__ import annotations
 
@@ -20,11 +20,14 @@ import argparse
 import math
 from pathlib import Path
 
+from gyro_tdc.base.resources import scenario_names
 from gyro_tdc.cli import COMMANDS, load_main
 from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
-                                 finite_float, non_negative_float, parse_reference, positive_float,
-                                 positive_int, probability, run_command, UsageError)
+                                 finite_float, non_negative_float, non_negative_int,
+                                 parse_reference, positive_float, positive_int, probability,
+                                 run_command, UsageError)
 from gyro_tdc.errors import DatasetError, one_line
+from gyro_tdc.model.effects import EFFECTS
 import pytest
 
 
@@ -38,6 +41,7 @@ import pytest
     (probability, {'0.01': 0.01, '0.5': 0.5}, ['0', '1', '1.5'],
      'expected a number between 0 and 1'),
     (positive_int, {'1': 1, '12': 12}, ['0', '-3', '1.5', 'x'], 'expected an integer >= 1'),
+    (non_negative_int, {'0': 0, '3': 3}, ['-1', '1.5', 'x'], 'expected an integer >= 0'),
 ])
 def test_argparse_types(parse, good, bad, message):
     for text, value in good.items():
@@ -130,3 +134,29 @@ def test_one_line_and_command_line():
     assert one_line(KeyError()) == 'KeyError'
     assert command_line('train', ['my bag', '--out', 'm.yaml']) == \
         "gyro-tdc train 'my bag' --out m.yaml"
+
+
+# ---- gyro-tdc <command> --help: one program name, and the lists a newcomer needs ----------
+
+def _help(capsys, name):
+    assert load_main(name)(['--help']) == 0
+    return capsys.readouterr().out
+
+
+@pytest.mark.parametrize('name', sorted(COMMANDS))
+def test_every_command_names_itself_gyro_tdc(capsys, name):
+    assert _help(capsys, name).startswith(f'usage: gyro-tdc {name} ')
+
+
+@pytest.mark.parametrize('name', ['train', 'discover'])
+def test_train_and_discover_list_the_effect_ids(capsys, name):
+    tail = _help(capsys, name).split('\neffect ids', 1)[1]
+    for eid, effect in EFFECTS.items():
+        assert f'\n  {eid} ' in tail, eid
+        assert effect.excited_by.split()[0] in tail
+
+
+def test_simulate_lists_the_scenarios(capsys):
+    tail = _help(capsys, 'simulate').split('\nshipped scenarios', 1)[1]
+    assert [line.split(':')[0].strip() for line in tail.splitlines()
+            if line.startswith('  ') and not line.startswith('      ')] == scenario_names()

@@ -12,13 +12,8 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-A constant gyro axis (a 2-axis gyro's filled-in 0, a dead axis) is not fitted: identity.
 
-The model passes it through unchanged; the other axes' columns are bit for bit those of the
-same training with the axis at its reference (any constant: the same), and as accurate held
-out as a training on the axis' real signal; every axis constant is refused; no warning.
-"""
+"""Tests of gyro_tdc.identify.axes: constant gyro and accelerometer axes pass through unfitted."""
 
 from __future__ import annotations
 
@@ -27,14 +22,19 @@ import json
 import math
 from pathlib import Path
 import shutil
+import subprocess
+import sys
 import tempfile
 import warnings
 
 from bags import bag_from_run
+from gyro_tdc.cli.train import main as train_main
+from gyro_tdc.data import write_bag
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.evaluate.report import evaluation_json, format_bag, format_means
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
-from gyro_tdc.identify.accel import constant_axes, constant_axes_of
+from gyro_tdc.identify.accel import G0
+from gyro_tdc.identify.axes import constant_axes, constant_axes_of
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.train import train
 from gyro_tdc.model.compensation import compensate, StreamingCompensator
@@ -44,6 +44,7 @@ from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 from synth import synth_run
+
 
 AXES = 'xyz'
 OPTIONS = TrainOptions(features='dT,dT2', n_centers=6)
@@ -253,3 +254,57 @@ def test_streaming_form_and_session_offsets_of_an_identity_axis(runs, tmp_path):
     stream = StreamingCompensator(model)
     drifts = np.array([stream.drift(t, c) for t, c in zip(held.t[::50], held.temp[::50])])
     assert np.all(drifts[:, 0] == 0.0) and np.all(drifts[:, 1:] != 0.0)
+
+
+def _bag(path, run, accel):
+    write_bag(path, imu_t=run.t + 100.0, gyro=run.omega, accel=accel,
+              temp_t=run.t[::5] + 100.0, temp_c=run.temp[::5])
+    return path
+
+
+@pytest.fixture(scope='module')
+def bags(tmp_path_factory):
+    """Two still runs whose accelerometer reads exactly (0, 0, g) throughout."""
+    d = tmp_path_factory.mktemp('const')
+    out = []
+    for i in range(2):
+        run = synth_run(seed=10 + i, hours=0.5, rate_hz=5.0)
+        acc = np.zeros((len(run), 3))
+        acc[:, 2] = G0
+        out.append(_bag(d / f'run{i + 1}', run, acc))
+    return out
+
+
+def test_constant_axes_by_quantum():
+    rng = np.random.default_rng(0)
+    q = 0.0383                                  # one LSB
+    a = np.zeros((500, 3))
+    a[:, 0] = q * rng.integers(0, 2, 500)        # toggles between two adjacent values
+    a[:, 1] = q * rng.integers(0, 3, 500)        # spans two quanta: varies
+    a[:, 2] = G0
+    a[7] = np.nan
+    assert constant_axes(a).tolist() == [True, False, True]
+    assert constant_axes(rng.standard_normal((50, 3))).tolist() == [False] * 3
+
+
+def test_train_reports_the_accelerometer_constant_and_fits_no_part(bags, tmp_path, capsys):
+    out = tmp_path / 'model.yaml'
+    assert train_main([str(bags[0]), '--out', str(out), '--features', 'dT,dT2',
+                       '--no-progress']) == 0
+    text = capsys.readouterr().out
+    line = [x for x in text.splitlines() if x.startswith('accelerometer')]
+    assert len(line) == 1 and 'constant' in line[0] and 'not fitted' in line[0], text
+    assert '2.2e-24' not in text and 'e-2' not in line[0]
+    assert load_model(out).accel is None
+
+
+def test_evaluate_prints_no_warning_and_no_accelerometer_rows(bags, tmp_path):
+    model = tmp_path / 'model.yaml'
+    assert train_main([str(bags[0]), '--out', str(model), '--features', 'dT,dT2',
+                       '--no-progress']) == 0
+    res = subprocess.run([sys.executable, '-W', 'error::RuntimeWarning', '-m', 'gyro_tdc',
+                          'evaluate', str(bags[1]), '--model', str(model)],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    assert 'Warning' not in res.stderr and 'Traceback' not in res.stderr, res.stderr
+    assert 'aBS' not in res.stdout and 'BS x' in res.stdout

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-``--features auto`` on a lagging die trained on one direction of ramp (issue 27).
+Tests of gyro_tdc.identify.features: ``--features auto`` on a lagging die, one ramp direction.
 
 Power cycles of the simulator's L3GD20 (cubic drift in the die temperature, the die 90 s
 behind the package thermometer unless said), each a 5 min soak, a 1 degC/min ramp and a
