@@ -13,9 +13,10 @@
 # limitations under the License.
 
 """
-Discovery on hidden effects: the figures of the cases ``test/identify/test_discover.py`` asserts.
+Discovery on hidden effects: the figures of the cases the discovery tests assert.
 
-The same scenarios, calibrations and seeds as the test (imported from it): each hidden effect
+The same scenarios, calibrations and seeds as ``test/identify/discover/test_search.py``
+(imported from ``test/support/discover_cases.py``): each hidden effect
 is scaled so that what the datasheet base (bias, dT) cannot absorb has an RMS of ``k`` times
 the per-sample noise standard deviation, written to a bag and read back; the table gives what
 discovery named (aliases in brackets), the gap before and after in its own noise floors, in
@@ -26,7 +27,7 @@ non-thermal bump), where discovery must name nothing::
     .venv/bin/python bench/bench_discover_hidden.py      # ~10 s
 
 ``--sweep`` runs, instead of the table, the seed sweep outside the suite at 2 Hz: every
-effect at ``k = 0.25`` on new seeds (found: :func:`test_discover.check_found` holds), the
+effect at ``k = 0.25`` on new seeds (found: :func:`discover_cases.check_found` holds), the
 test's null scenarios on new seeds (at 2 Hz its first two are the same scenario) and the
 multi-session null (offsets and a bump) on new seeds (named nothing), and prints the counts;
 ``--seeds E,N,S`` sets the seeds per effect, per null scenario and of the multi-session null
@@ -45,7 +46,7 @@ import sys  # noqa: E402
 import tempfile  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-for p in (ROOT, ROOT / 'test', ROOT / 'test' / 'identify', ROOT / 'test' / 'support'):
+for p in (ROOT, ROOT / 'test', ROOT / 'test' / 'support'):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
@@ -56,7 +57,7 @@ LABELS = {'dT2': 'ΔT²', 'lag': 'thermometer-to-die lag, heat + cool',
 
 def _run(sc: dict, seed: int, folder: Path, excursion_dps: float = 0.0):
     """Write the runs of ``sc`` as bags and run discovery on them."""
-    from test_discover import write_runs
+    from discover_cases import write_runs
 
     from gyro_tdc.data.dataset import load_runs
     from gyro_tdc.identify.discover import discover
@@ -68,7 +69,7 @@ def _run(sc: dict, seed: int, folder: Path, excursion_dps: float = 0.0):
 
 def _session_null(seed: int, folder: Path):
     """Run the test's multi-session null: 3 sessions with offsets and a non-thermal bump."""
-    from test_discover import scenario
+    from discover_cases import scenario
 
     sc = scenario(['bias', 'dT'], rate_hz=2.0, runs=3, offset_dps=0.05)
     return _run(sc, seed, folder, excursion_dps=0.03)
@@ -93,8 +94,8 @@ def _gap(res, held: bool = False) -> str:
 
 
 def _null_row(tmp: Path) -> str:
-    """Return the table row of the test's null cases (test_null_* of test_discover.py)."""
-    from test_discover import NULLS, scenario
+    """Return the table row of the test's null cases (test_null_* of test_search.py)."""
+    from discover_cases import NULLS, scenario
 
     res = [_run(scenario(['bias', 'dT'], **opts), seed, tmp / f'null{seed}')
            for _name, seed, opts in NULLS]
@@ -107,7 +108,7 @@ def _null_row(tmp: Path) -> str:
 
 def sweep(effect_seeds: int, null_seeds: int, session_seeds: int) -> int:
     """Run the seed sweep at 2 Hz and print how many runs found the effect / named nothing."""
-    from test_discover import calibrate, CASES, check_found, NULLS, scenario
+    from discover_cases import calibrate, CASES, check_found, NULLS, scenario
 
     quarter = {next(iter(h)): (k, opts) for name, h, k, _s, opts in CASES
                if name.endswith('-quarter')}
@@ -163,7 +164,7 @@ def _seeds(text: str) -> tuple:
 
 def main(argv=None) -> int:
     """Run the cases and print the table (or, with ``--sweep``, the seed sweep)."""
-    from test_discover import calibrate, CASES, scenario
+    from discover_cases import calibrate, CASES, scenario
 
     p = argparse.ArgumentParser(description=__doc__.split('\n\n')[0].strip())
     p.add_argument('--sweep', action='store_true', help='run the seed sweep instead')

@@ -35,9 +35,10 @@ from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentP
                                  positive_float, positive_int, probability, run_command,
                                  UsageError)
 from gyro_tdc.data import load_runs, split_sessions
-from gyro_tdc.errors import DatasetError
+from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.identify import (ACCEL_EFFECTS, build_model, constant_gyro_axes, constant_note,
-                               discover, discovery_runs, format_summary, write_report)
+                               discover, discovery_runs, format_summary, still_only_runs,
+                               write_report)
 from gyro_tdc.model import KINDS, normalise_ids, save_model
 
 __all__ = ['build_parser', 'main']
@@ -66,7 +67,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--out', default=None, metavar='MODEL.yaml',
                    help='write a model file of the discovered effects (compensator_node loads '
                         'it)')
-    p.add_argument('--kind', default=None, choices=KINDS,
+    p.add_argument('--kind', default='poly', choices=KINDS,
                    help='model of --out: poly (linear in the features of the model '
                         'temperature, what discovery validated; with lag every temperature '
                         'term is of the lagged state) or rbf (default: poly)')
@@ -113,6 +114,11 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     elif constant_note(runs):
         note = constant_note(runs).split('; treated as absent')[0]
         raise DatasetError(f'Expected an accelerometer to discover on: {note}.')
+    still = None
+    if not accel:           # no reference and moving: the still stretches only, never motion
+        runs, still = still_only_runs(runs)
+        if still is not None:
+            print(still)
     if accel:
         n_bags = len(runs)
         runs = discovery_runs(runs)
@@ -131,6 +137,11 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         result = discover(runs, base=base, candidates=cands, block_s=args.block_s,
                           t0=args.t0, alpha=args.alpha, max_steps=args.max_steps,
                           progress=None if bar is None else progress)
+    except FitError as err:
+        if still is None:
+            raise
+        raise FitError(f'on the still stretches only (no reference rate, the IMU moves): '
+                       f'{err}') from None
     finally:
         if bar is not None:
             bar.close()

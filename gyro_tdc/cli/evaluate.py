@@ -33,8 +33,8 @@ from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_sessio
                                  read_model, run_command, UsageError)
 from gyro_tdc.data import expand_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
-                               load_models, model_description, PX4, write_csv, write_json,
-                               write_plots)
+                               format_still, load_models, model_description, PX4, write_csv,
+                               write_json, write_plots)
 from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES
 
 __all__ = ['build_parser', 'main']
@@ -151,14 +151,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                     for nm in models]
 
     def each(b: BagEval) -> None:
-        if b.still is not None:
-            s = b.still
-            share = 100.0 * s['still_s'] / s['total_s'] if s['total_s'] > 0 else 0.0
-            log(f'{b.label}: no reference rate and the IMU moves: scored the still stretches '
-                f"only, {s['samples']} samples in {s['stretches']} stretch(es), "
-                f"{s['still_s']:.0f} s of {s['total_s']:.0f} s ({min(share, 100.0):.3g} %); "
-                'raw and models re-anchored on the first still stretch of each of the '
-                f"{s['sessions']} session(s), as the compensator does at start-up")
+        for line in format_still(b):
+            log(line)
         bar.write(format_bag(b, baseline, floor=args.floor, accel_floor=args.accel_floor))
         if args.plots is not None:
             bar.stage(f'{b.label}: plots')

@@ -25,7 +25,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'models': ['load_models', 'NamedModel', 'PX4'],
     'onboard': ['ONBOARD', 'onboard_model'],
     'plots': ['model_description', 'write_plots'],
-    'report': ['format_bag', 'format_means', 'write_csv', 'write_json'],
+    'report': ['format_bag', 'format_means', 'format_still', 'write_csv', 'write_json'],
     'score': ['AUTO_REANCHOR', 'BagEval', 'evaluate', 'mean_scores'],
     'training_report': ['format_coverage', 'format_sessions', 'format_training',
                         'is_coverage_line', 'REANCHOR_SPREAD_DPS'],

@@ -92,10 +92,20 @@ def model_description(name: str, kind: str, features: Sequence[str], *,
     return f'{Path(name).name}: {kind} f({", ".join(shown) or "bias"})'
 
 
-def _save(fig: Any, path: Path) -> None:
-    """Write a matplotlib figure as a PNG, atomically."""
+def _figure(**kw: Any) -> Any:
+    """Return a matplotlib figure on the Agg canvas (no display needed)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+    fig = Figure(constrained_layout=True, **kw)
+    FigureCanvasAgg(fig)
+    return fig
+
+
+def _save(fig: Any, path: Path) -> Path:
+    """Write a matplotlib figure as a PNG, atomically; return the path."""
     atomic_write(path, lambda fh: fig.savefig(fh, dpi=90, format='png'), binary=True,
                  what='plot')
+    return path
 
 
 def _zoom_limits(curves: Sequence[NDArray[np.float64]]) -> tuple[float, float] | None:
@@ -149,8 +159,6 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
 
     """
     import matplotlib
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
 
     run = b.run
     if run is None:
@@ -180,11 +188,10 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
     written = []
     with matplotlib.rc_context(_FONTS):
         written.append(_plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles,
-                                        head, block, reanchor_s, FigureCanvasAgg, Figure))
-        written.append(_plot_residual_vs_temperature(b, out, run, th, temp, raw_err, model_err,
-                                                     legends, head, _bmean, FigureCanvasAgg,
-                                                     Figure))
-        written.append(_plot_allan(b, out, legends, styles, head, FigureCanvasAgg, Figure))
+                                        head, block, reanchor_s))
+        written.append(_plot_residual_vs_temperature(b, out, run, temp, raw_err, model_err,
+                                                     legends, head, _bmean))
+        written.append(_plot_allan(b, out, legends, styles, head))
     return written
 
 
@@ -206,10 +213,9 @@ def _flag_spans(ax: Any, th: NDArray[np.float64], temp: NDArray[np.float64], b: 
 
 
 def _plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head, block,
-                     reanchor_s, canvas, figure_cls) -> Path:
+                     reanchor_s) -> Path:
     """Write ``<label>_timeseries.png``: full scale, zoomed models, temperature."""
-    fig = figure_cls(figsize=(15, 11.5), constrained_layout=True)
-    canvas(fig)
+    fig = _figure(figsize=(15, 11.5))
     grid = fig.add_gridspec(4, 2, height_ratios=[1, 1, 1, 0.8])
     first = fig.add_subplot(grid[0, 0])
     left = [first] + [fig.add_subplot(grid[k, 0], sharex=first) for k in (1, 2)]
@@ -250,13 +256,11 @@ def _plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head
     bottom.set_xlabel('time since the start of the bag (h)')
     bottom.grid(True, alpha=0.3)
     fig.suptitle(f'Rate error vs time (left: {block}-sample means)\n{head}')
-    path = out / f'{b.label}_timeseries.png'
-    _save(fig, path)
-    return path
+    return _save(fig, out / f'{b.label}_timeseries.png')
 
 
-def _plot_residual_vs_temperature(b, out, run, th, temp, raw_err, model_err, legends, head,
-                                  bmean, canvas, figure_cls) -> Path:
+def _plot_residual_vs_temperature(b, out, run, temp, raw_err, model_err, legends, head,
+                                  bmean) -> Path:
     """Write ``<label>_residual_vs_temperature.png``: one row per series, heating/cooling."""
     rate = bmean(temperature_rate(run.t, run.temp))
     x = RATE_THRESHOLD_C_PER_MIN
@@ -264,8 +268,7 @@ def _plot_residual_vs_temperature(b, out, run, th, temp, raw_err, model_err, leg
               (f'cooling (< -{x:g} degC/min)', rate < -x, 'tab:blue'),
               ('steady', np.abs(rate) <= x, 'tab:gray')]
     series = [raw_err] + list(model_err)
-    fig = figure_cls(figsize=(14, 2.9 * len(series) + 1.0), constrained_layout=True)
-    canvas(fig)
+    fig = _figure(figsize=(14, 2.9 * len(series) + 1.0))
     axs = np.atleast_2d(fig.subplots(len(series), 3, squeeze=False))
     for r, e in enumerate(series):
         for k, a in enumerate(AXES):
@@ -281,15 +284,12 @@ def _plot_residual_vs_temperature(b, out, run, th, temp, raw_err, model_err, leg
                 ax.set_xlabel('temperature (degC)')
     axs[0, 0].legend(loc='best', markerscale=3)
     fig.suptitle(f'Rate error vs temperature, by heating and cooling\n{head}')
-    path = out / f'{b.label}_residual_vs_temperature.png'
-    _save(fig, path)
-    return path
+    return _save(fig, out / f'{b.label}_residual_vs_temperature.png')
 
 
-def _plot_allan(b, out, legends, styles, head, canvas, figure_cls) -> Path:
+def _plot_allan(b, out, legends, styles, head) -> Path:
     """Write ``<label>_allan.png``: Allan deviation per axis, raw and every model."""
-    fig = figure_cls(figsize=(15, 5.2), constrained_layout=True)
-    canvas(fig)
+    fig = _figure(figsize=(15, 5.2))
     axs = fig.subplots(1, 3, sharey=True)
     for k, a in enumerate(AXES):
         for i, m in enumerate([b.raw] + list(b.models)):
@@ -303,6 +303,4 @@ def _plot_allan(b, out, legends, styles, head, canvas, figure_cls) -> Path:
     axs[0].set_ylabel('Allan deviation of the rate error (deg/s)')
     axs[0].legend(loc='best')
     fig.suptitle(f'Allan deviation\n{head}')
-    path = out / f'{b.label}_allan.png'
-    _save(fig, path)
-    return path
+    return _save(fig, out / f'{b.label}_allan.png')

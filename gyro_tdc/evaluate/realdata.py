@@ -22,7 +22,7 @@ interior and end blocks apart. The choices and why: ``doc/internals/evaluate.md`
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 import json
 import math
 from pathlib import Path
@@ -81,10 +81,8 @@ class HoldoutModel:
 
     def to_dict(self) -> dict:
         """Return the plain-type description written to the JSON."""
-        return {'name': self.name, 'description': self.description, 'kind': self.kind,
-                'features': list(self.features),
-                'n_centers': self.n_centers if self.kind == 'rbf' else 0,
-                'full_series': self.full_series}
+        return {**asdict(self), 'features': list(self.features),
+                'n_centers': self.n_centers if self.kind == 'rbf' else 0}
 
 
 HOLDOUT_MODELS: tuple[HoldoutModel, ...] = (
@@ -202,12 +200,6 @@ def _fit(spec: HoldoutModel, run: Run, train: NDArray[np.bool_], t0: float
                      n_centers=spec.n_centers, seed=0)
 
 
-def _blocks(n_bursts: int, n_blocks: int) -> list[NDArray[np.int64]]:
-    """Split ``0..n_bursts-1`` into ``n_blocks`` contiguous blocks of near-equal size."""
-    return [np.asarray(b, dtype=np.int64)
-            for b in np.array_split(np.arange(n_bursts), n_blocks)]
-
-
 def _rows(run: Run, idx: NDArray[np.int64], name: str) -> Run:
     """Return the rows ``idx`` (increasing) of a run as a run of their own."""
     return Run(run.t[idx], run.temp[idx], run.omega[idx], run.omega_ref[idx], name)
@@ -236,7 +228,7 @@ def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
     folds = []
     # Held-out rows and rates of every fold, pooled per group for the summaries.
     pooled: dict[str, list] = {g: [] for g in GROUPS}
-    blocks = _blocks(n_bursts, n_blocks)
+    blocks = np.array_split(np.arange(n_bursts, dtype=np.int64), n_blocks)
     block_of = np.repeat(np.arange(len(blocks)), [len(b) for b in blocks])[burst]
     # Leave one block of bursts out: a block is a session of the estimator's folds.
     for i, (held, train) in enumerate(Folds.sessions(block_of)):
@@ -415,17 +407,11 @@ def _f3(values: Sequence[float], fmt: str) -> str:
 def _model_rows(models: Mapping[str, Any], names: Sequence[str], *, unclamped: bool,
                 ratios: bool) -> list[str]:
     """Format one row per model: BS, RMS and floor ratio per axis (x y z)."""
-    rows = []
-    for name in names:
-        m = models[name]
-        bs = m['bs_unclamped'] if unclamped else m['bs']
-        ratio = m['floor_ratio_unclamped'] if unclamped else m['floor_ratio']
-        line = (f'  {name:<13}{_f3(bs, "10.3e")} | {_f3(np.sqrt(bs), "7.4f")} | '
-                f'{_f3(ratio, "9.2f")}')
-        if ratios and 'p_vs_bias' in m and not unclamped:
-            line += f' | {_f3(m["p_vs_bias"], "7.3f")}'
-        rows.append(line)
-    return rows
+    u = '_unclamped' if unclamped else ''
+    return [f'  {n:<13}{_f3(m["bs" + u], "10.3e")} | {_f3(np.sqrt(m["bs" + u]), "7.4f")} | '
+            f'{_f3(m["floor_ratio" + u], "9.2f")}'
+            + (f' | {_f3(m["p_vs_bias"], "7.3f")}' if ratios and 'p_vs_bias' in m and not u
+               else '') for n, m in ((n, models[n]) for n in names)]
 
 
 def _fitted(models: Mapping[str, Any]) -> str:
@@ -438,12 +424,9 @@ def _fitted(models: Mapping[str, Any]) -> str:
 
 def _head(ratios: bool) -> str:
     """Return the column header matching :func:`_model_rows`."""
-    line = ('  ' + 'model'.ljust(13) + ' '.join(f'{"BS " + a:>10}' for a in 'xyz') + ' | '
-            + ' '.join(f'{"RMS " + a:>7}' for a in 'xyz') + ' | '
-            + ' '.join(f'{"ratio " + a:>9}' for a in 'xyz'))
-    if ratios:
-        line += ' | ' + ' '.join(f'{"/bias " + a:>7}' for a in 'xyz')
-    return line
+    cols = [('BS', 10), ('RMS', 7), ('ratio', 9)] + ([('/bias', 7)] if ratios else [])
+    return '  ' + 'model'.ljust(13) + ' | '.join(
+        ' '.join(f'{n + " " + a:>{w}}' for a in 'xyz') for n, w in cols)
 
 
 def format_holdout(result: Mapping[str, Any]) -> str:

@@ -28,7 +28,7 @@ import os
 from pathlib import Path
 from typing import Any, IO, Sequence
 
-from gyro_tdc.base import atomic_write
+from gyro_tdc.base import atomic_write, plain
 from gyro_tdc.evaluate.score import BagEval, mean_scores
 from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C
 import numpy as np
@@ -36,47 +36,36 @@ from numpy.typing import NDArray
 
 __all__ = [
     'AXES', 'csv_columns', 'evaluation_json', 'format_allan', 'format_bag', 'format_means',
-    'format_paper_table', 'format_summary', 'write_csv', 'write_json',
+    'format_paper_table', 'format_still', 'format_summary', 'write_csv', 'write_json',
 ]
 
 AXES = ('x', 'y', 'z')
-_DEG = 180.0 / math.pi
 
 
 # --------------------------------------------------------------------------------------------
 # JSON
 # --------------------------------------------------------------------------------------------
 
-def _finite(v: float) -> float | None:
-    """Return ``v`` as a float, or None when it is NaN or infinite (JSON has neither)."""
-    v = float(v)
-    return v if math.isfinite(v) else None
-
-
-def _vec(a: NDArray[np.float64]) -> list:
-    """Return a (3,) array as a list of JSON-safe floats."""
-    return [_finite(v) for v in np.asarray(a, dtype=np.float64).ravel()]
-
-
-def _vec_or_null(a: NDArray[np.float64] | None) -> list | None:
-    """Return :func:`_vec` of ``a``, or None when there is none (not applicable)."""
-    return None if a is None else _vec(a)
-
-
-def _over(bs: NDArray[np.float64] | None, floor: Sequence[float] | None) -> dict:
-    """Return ``{'...over_floor': BS / floor}`` when a floor is given, else ``{}``."""
-    if floor is None:
-        return {}
-    return {'over_floor': None if bs is None else _vec(np.asarray(bs) / np.asarray(floor))}
+def _vec(a: NDArray[np.float64] | None) -> list | None:
+    """Return an array as a list of JSON-safe floats (NaN and inf as null); None stays None."""
+    return None if a is None else plain(np.asarray(a, dtype=np.float64), nan_to_none=True)
 
 
 def _scores(m: Any, floor: Sequence[float] | None, accel_floor: Sequence[float] | None) -> dict:
     """Return the ``bs`` and ``accel_bs`` keys of one entry, each with its ratio to a floor."""
-    out = {'bs': _vec(m.bs)}
-    out.update({f'bs_{k}': v for k, v in _over(m.bs, floor).items()})
-    out['accel_bs'] = _vec_or_null(m.accel_bs)
-    out.update({f'accel_bs_{k}': v for k, v in _over(m.accel_bs, accel_floor).items()})
+    out = {}
+    for key, bs, fl in (('bs', m.bs, floor), ('accel_bs', m.accel_bs, accel_floor)):
+        out[key] = _vec(bs)
+        if fl is not None:
+            out[f'{key}_over_floor'] = None if bs is None else _vec(np.divide(bs, fl))
     return out
+
+
+def _still_json(still: dict) -> dict:
+    """Return the still-only record of a bag: what was scored, in all and per session."""
+    keys = ('samples', 'stretches', 'still_s', 'total_s', 'share')
+    return {**{k: still[k] for k in keys},
+            'sessions': [{k: p[k] for k in keys} for p in still['per_session']]}
 
 
 def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = None,
@@ -109,13 +98,16 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
         ``floor`` and ``accel_floor``; ``constant_axes`` (only when there are any) in a bag:
         the gyro axes constant on it (readings never varying beyond one quantum, or reading
         their reference exactly; ``p_vs_raw`` null there), in a model: the axes it passes
-        through unchanged (constant in its training data).
+        through unchanged (constant in its training data); ``still`` (only for a bag without
+        a reference that moves, scored on its still stretches): ``samples``, ``stretches``,
+        ``still_s``, ``total_s``, ``share`` (at most 1) and ``sessions``, the same per
+        session.
 
     """
     doc = {'bags': [{
         'bag': b.bag,
         'samples': int(b.samples),
-        'temperature_c': [_finite(b.temperature_c[0]), _finite(b.temperature_c[1])],
+        'temperature_c': _vec(b.temperature_c),
         'raw': {**_scores(b.raw, floor, accel_floor), 'rms_dps': _vec(b.raw.rms_dps)},
         'models': [{
             'model': m.model,
@@ -129,6 +121,7 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
             **({'constant_axes': list(m.constant_axes)} if m.constant_axes else {}),
         } for m in b.models],
         **({'constant_axes': list(b.constant_axes)} if b.constant_axes else {}),
+        **({} if b.still is None else {'still': _still_json(b.still)}),
     } for b in bags]}
     doc['out_of_range'] = bags[0].out_of_range if bags else DEFAULT_OUT_OF_RANGE
     if floor is not None:
@@ -201,17 +194,41 @@ def _floor_text(floor: Sequence[float]) -> str:
     return f'{f[0]:.4g}' if f[0] == f[1] == f[2] else ', '.join(f'{v:.4g}' for v in f)
 
 
-def _floor_head(floor: Sequence[float] | None, what: str = 'BS') -> str:
-    """Return the column headers of the ratio to a floor ('' without a floor)."""
-    return '' if floor is None else '  ' + ''.join(f'{what + "/fl " + a:>11}' for a in AXES)
+def _head(w: int, *names: str) -> str:
+    """Return a table's header: a label column ``w`` wide, then ``NAME x y z`` per name."""
+    return f'  {"":<{w}} ' + '  '.join(''.join(f'{n + " " + a:>11}' for a in AXES)
+                                       for n in names)
 
 
-def _floor_cells(bs: NDArray[np.float64] | None, floor: Sequence[float] | None) -> str:
-    """Return the cells of BS / floor ('' without a floor, - where there is no BS)."""
+def _row(label: str, w: int, *groups: Any) -> str:
+    """Return a table row: the label, then per group its three cells (or a ready string)."""
+    return f'  {label:<{w}} ' + '  '.join(g if isinstance(g, str) else ''.join(_g(v) for v in g)
+                                          for g in groups)
+
+
+def _per_floor(bs: NDArray[np.float64] | None, floor: Sequence[float] | None) -> list:
+    """Return ``[BS / floor]`` (NaN where there is no BS) with a floor, else ``[]``."""
     if floor is None:
-        return ''
-    v = np.full(3, math.nan) if bs is None else np.asarray(bs) / np.asarray(floor)
-    return '  ' + ''.join(_g(x) for x in v)
+        return []
+    return [np.full(3, math.nan) if bs is None else np.asarray(bs) / np.asarray(floor)]
+
+
+def format_still(b: BagEval) -> list:
+    """Return the lines saying what of a bag without a reference was scored (none: all)."""
+    s = b.still
+    if s is None:
+        return []
+
+    def what(p: dict) -> str:
+        return (f"{p['samples']} samples in {p['stretches']} stretch(es), {p['still_s']:.0f} s "
+                f"of {p['total_s']:.0f} s ({100.0 * p['share']:.3g} %)")
+
+    lines = [f'{b.label}: no reference rate and the IMU moves: scored the still stretches '
+             f'only, {what(s)}; raw and models re-anchored on the first still stretch of each '
+             f"of the {s['sessions']} session(s), as the compensator does at start-up"]
+    if s['sessions'] > 1:
+        lines += [f'  session {k}: {what(p)}' for k, p in enumerate(s['per_session'], 1)]
+    return lines
 
 
 def format_summary(b: BagEval, *, floor: Sequence[float] | None = None,
@@ -239,17 +256,12 @@ def format_summary(b: BagEval, *, floor: Sequence[float] | None = None,
     lines = [f'bag {b.bag}: {b.samples} samples over {b.duration_s / 3600.0:.2f} h, '
              f'temperature {lo:.2f} .. {hi:.2f} degC, {reference}']
     w = max([len(m.label) for m in b.models] + [12])
-    head = (f'  {"":<{w}} ' + ''.join(f'{"BS " + a:>11}' for a in AXES) + '  '
-            + ''.join(f'{"RMS " + a:>11}' for a in AXES) + '  '
-            + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES) + _floor_head(floor))
     lines += ['  BS in (deg/s)^2 (paper eq. 30), RMS in deg/s, BS/BS1 against the raw data'
               + ('' if floor is None else
                  f', BS/fl against the floor {_floor_text(floor)} (deg/s)^2 (--floor)'),
-              head]
-    for m in [b.raw] + list(b.models):
-        lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in m.bs) + '  '
-                     + ''.join(_g(v) for v in m.rms_dps) + '  '
-                     + _ratio_cells(m.p_vs_raw, b.constant_axes) + _floor_cells(m.bs, floor))
+              _head(w, 'BS', 'RMS', 'BS/BS1', *(['BS/fl'] if floor else []))]
+    lines += [_row(m.label, w, m.bs, m.rms_dps, _ratio_cells(m.p_vs_raw, b.constant_axes),
+                   *_per_floor(m.bs, floor)) for m in [b.raw] + list(b.models)]
     note = _outside_note(b)
     if note:
         lines.append(note)
@@ -267,15 +279,12 @@ def _accel_rows(b: BagEval, w: int, accel_floor: Sequence[float] | None = None) 
              + ('' if accel_floor is None else
                 f', aBS/fl against the floor {_floor_text(accel_floor)} (m/s^2)^2 '
                 '(--accel-floor)') + '; - : no accelerometer part',
-             f'  {"":<{w}} ' + ''.join(f'{"aBS " + a:>11}' for a in AXES) + '  '
-             + ''.join(f'{"aBS/BS1 " + a:>11}' for a in AXES) + _floor_head(accel_floor, 'aBS')]
+             _head(w, 'aBS', 'aBS/BS1', *(['aBS/fl'] if accel_floor else []))]
     for m in [b.raw] + list(b.models):
         bs = np.full(3, math.nan) if m.accel_bs is None else np.asarray(m.accel_bs)
         with np.errstate(divide='ignore', invalid='ignore'):    # a constant axis: 0 / 0
             ratio = bs / np.asarray(b.raw.accel_bs)
-        lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in bs) + '  '
-                     + ''.join(_g(v) for v in ratio)
-                     + _floor_cells(m.accel_bs, accel_floor))
+        lines.append(_row(m.label, w, bs, ratio, *_per_floor(m.accel_bs, accel_floor)))
     return lines
 
 
@@ -341,11 +350,9 @@ def format_allan(b: BagEval) -> str:
     w = max([len(m.label) for m in b.models] + [12])
     lines = ['  Allan deviation: angle random walk ARW in deg/sqrt(h), bias instability BI '
              'in deg/h',
-             f'  {"":<{w}} ' + ''.join(f'{"ARW " + a:>11}' for a in AXES)
-             + '  ' + ''.join(f'{"BI " + a:>11}' for a in AXES)]
-    for m in [b.raw] + list(b.models):
-        lines.append(f'  {m.label:<{w}} ' + ''.join(_g(v) for v in m.arw_deg_sqrt_h) + '  '
-                     + ''.join(_g(v) for v in m.bias_instability_deg_h))
+             _head(w, 'ARW', 'BI')]
+    lines += [_row(m.label, w, m.arw_deg_sqrt_h, m.bias_instability_deg_h)
+              for m in [b.raw] + list(b.models)]
     return '\n'.join(lines)
 
 
@@ -400,12 +407,10 @@ def format_means(results: Sequence[BagEval], *, floor: Sequence[float] | None = 
     w = max([len(label) for label, _, _ in rows[1:]] + [12])
     lines = [f'mean over {len(results)} bags: BS in (deg/s)^2 and BS/BS1'
              + ('' if floor is None else f', BS/fl against the floor {_floor_text(floor)}'),
-             f'  {"":<{w}} ' + ''.join(f'{"BS " + a:>11}' for a in AXES) + '  '
-             + ''.join(f'{"BS/BS1 " + a:>11}' for a in AXES) + _floor_head(floor)]
+             _head(w, 'BS', 'BS/BS1', *(['BS/fl'] if floor else []))]
     constant = [a for a in AXES if all(a in b.constant_axes for b in results)]
-    for label, bs, p in rows:
-        lines.append(f'  {label:<{w}} ' + ''.join(_g(v) for v in bs) + '  '
-                     + _ratio_cells(p, constant) + _floor_cells(bs, floor))
+    lines += [_row(label, w, bs, _ratio_cells(p, constant), *_per_floor(bs, floor))
+              for label, bs, p in rows]
     return '\n'.join(lines)
 
 

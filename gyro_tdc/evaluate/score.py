@@ -162,7 +162,8 @@ class BagEval:
         Data without a reference that move (:func:`still_rows`): only the still stretches
         were scored, raw and models alike each session re-anchored on its first still
         stretch (as the compensator does at start-up); ``samples``, ``stretches``,
-        ``still_s``, ``total_s``, ``sessions``. None: every sample was scored.
+        ``still_s``, ``total_s``, ``share`` (at most 1), ``sessions`` (their number) and
+        ``per_session`` (the same five per session). None: every sample was scored.
 
     """
 
@@ -340,27 +341,23 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     const = _constant(run)
     rate = rate_hz(run.t)
     parts = split_sessions([run], sessions, session_gap_s).runs
-    whole, summary = run, None
+    whole, summary, kw = run, None, {'rate': rate}
+    bounds = np.cumsum([0] + [len(p) for p in parts])
+
+    def pick(x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return what is scored of a rate: the still samples, each session anchored."""
+        return x if still is None else _anchor_first_still(x, still, bounds)[still]
     if still is not None:
-        bounds = np.cumsum([0] + [len(p) for p in parts])
         summary = _still_summary(run, still, bounds)
-        scored = whole = _rows_of(run, still)
-        raw = score(_anchor_first_still(run.omega, still, bounds)[still], scored,
-                    allan=False)
-        reanchor_s = 0.0
-    else:
-        raw = score(run.omega, run, rate=rate)
+        whole, kw, reanchor_s = _rows_of(run, still), {'allan': False}, 0.0
+    raw = score(pick(run.omega), whole, **kw)
     const |= ~(raw.bs > 0)                  # an axis reading its reference exactly
     out = []
     for nm in models:
         m = nm.model
         comp, info = _compensated(nm, parts, reanchor_s, out_of_range, max_extrapolation_c)
-        if still is not None:
-            ev = score(_anchor_first_still(comp, still, bounds)[still], scored, label=nm.label,
-                       model=nm.name, features=list(m.features), bs_raw=raw.bs, allan=False)
-        else:
-            ev = score(comp, run, label=nm.label, model=nm.name, features=list(m.features),
-                       bs_raw=raw.bs, rate=rate)
+        ev = score(pick(comp), whole, label=nm.label, model=nm.name, features=list(m.features),
+                   bs_raw=raw.bs, **kw)
         ev.reanchor = info
         ev.constant_axes = [str(a) for a in m.metrics.get('constant_axes', ())]
         ev.p_vs_raw[const] = math.nan       # no signal to score there
@@ -404,14 +401,11 @@ def _rows_of(run: Run, m: NDArray[np.bool_]) -> Run:
                dict(run.info), None if run.accel is None else run.accel[m])
 
 
-def _first_still(still: NDArray[np.bool_], a: int, b: int) -> slice | None:
-    """Return the first still stretch within samples ``a:b``, None when there is none."""
-    idx = np.flatnonzero(still[a:b])
-    if not idx.size:
-        return None
-    i = a + int(idx[0])
-    rest = np.flatnonzero(~still[i:b])
-    return slice(i, b if not rest.size else i + int(rest[0]))
+def _stretches(still: NDArray[np.bool_], a: int, b: int
+               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Return the starts and stops of the still stretches within samples ``a:b``."""
+    edges = np.diff(np.concatenate([[0], still[a:b].astype(np.int8), [0]]))
+    return np.flatnonzero(edges == 1) + a, np.flatnonzero(edges == -1) + a
 
 
 def _anchor_first_still(x: NDArray[np.float64], still: NDArray[np.bool_],
@@ -419,21 +413,28 @@ def _anchor_first_still(x: NDArray[np.float64], still: NDArray[np.bool_],
     """Return ``x`` less, per session, its mean over the session's first still stretch."""
     out = np.array(x, dtype=np.float64, copy=True)
     for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-        head = _first_still(still, a, b)
-        if head is not None:
-            out[a:b] -= out[head].mean(axis=0)
+        starts, stops = _stretches(still, a, b)
+        if starts.size:
+            out[a:b] -= out[starts[0]:stops[0]].mean(axis=0)
     return out
 
 
 def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]) -> dict:
-    """Return how much of a run the still-only scoring covers."""
-    edges = np.diff(np.concatenate([[0], still.astype(np.int8), [0]]))
-    starts, stops = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    """Return how much of a run the still-only scoring covers, in all and per session."""
     dt = float(np.median(np.diff(run.t))) if len(run) > 1 else 0.0
-    still_s = float(sum(run.t[b - 1] - run.t[a] + dt for a, b in zip(starts, stops)))
-    return {'samples': int(np.count_nonzero(still)), 'stretches': int(starts.size),
-            'still_s': still_s, 'total_s': float(run.duration_s),
-            'sessions': int(len(bounds) - 1)}
+
+    def part(a: int, b: int) -> dict:
+        starts, stops = _stretches(still, a, b)
+        still_s = float(sum(run.t[j - 1] - run.t[i] + dt for i, j in zip(starts, stops)))
+        total_s = float(run.t[b - 1] - run.t[a] + dt) if b > a else 0.0
+        return {'samples': int(np.count_nonzero(still[a:b])), 'stretches': int(starts.size),
+                'still_s': still_s, 'total_s': total_s,
+                'share': min(still_s / total_s, 1.0) if total_s > 0 else 0.0}
+
+    per = [part(a, b) for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist())]
+    whole = {k: sum(p[k] for p in per) for k in ('samples', 'stretches', 'still_s', 'total_s')}
+    share = min(whole['still_s'] / whole['total_s'], 1.0) if whole['total_s'] > 0 else 0.0
+    return {**whole, 'share': share, 'sessions': len(per), 'per_session': per}
 
 
 def _constant(run: Run) -> NDArray[np.bool_]:

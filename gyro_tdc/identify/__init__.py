@@ -29,7 +29,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
              'constant_note', 'constant_readings', 'constant_values', 'identity_axes',
              'neutral_runs'],
     'discover': ['discover'],
-    'discover.model': ['build_model'],
+    'discover.model': ['build_model', 'still_only_runs'],
     'discover.report': ['write_report'],
     'discover.results': ['format_summary'],
     'export': ['clamp_cost', 'ExportScore', 'FcExport', 'FIRMWARES', 'fit_export', 'from_params',

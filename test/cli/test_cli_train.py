@@ -17,7 +17,7 @@
 
 Bags are written in ``tmp_path`` with :func:`gyro_tdc.data.write_bag` from the exact synthetic
 runs of ``synth.py`` or from the simulator. The helpers here are shared with
-``test_cli_evaluate.py``.
+``test_evaluate.py``.
 """
 
 from __future__ import annotations

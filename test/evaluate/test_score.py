@@ -12,22 +12,43 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.evaluate.score: scores against hand-computed BS, models, labels, bags."""
+"""
+Tests of gyro_tdc.evaluate.score: hand-computed scores, constant axes, still-only scoring.
+
+Scores against hand-computed BS, re-anchoring, bags one at a time. A held-out gyro axis
+constant by ``train``'s rule (readings never varying beyond one quantum, at any value) has
+BS/BS1 NaN for every model (``const`` on the console, null in JSON), the other axes' figures
+those of the same bag without it, no warning; a bag constant on every axis is refused in one
+line. Data without a reference that move are scored on their still stretches only, each
+session re-anchored, and the record says how much, in all and per session.
+"""
 
 from __future__ import annotations
 
+import json
 import math
+import re
+import warnings
 
+from bags import bag_from_run
+from constant_axes import axis_sets, quanta, values, with_constant as _with
+from flightlogs import flight_day, write_dataflash
 from gyro_tdc.data import write_bag
 from gyro_tdc.data.dataset import load_run
 from gyro_tdc.data.runs import Run
-from gyro_tdc.errors import FitError, ModelFileError
-from gyro_tdc.evaluate.score import (bag_labels, evaluate, evaluate_run, load_models, mean_scores,
-                                     model_labels, NamedModel, PX4, rate_hz, safe_label, score)
+from gyro_tdc.errors import DatasetError, FitError
+from gyro_tdc.evaluate.report import evaluation_json, format_bag, format_means
+from gyro_tdc.evaluate.score import (evaluate, evaluate_run, held_out_constant, mean_scores,
+                                     NamedModel, rate_hz, score, still_rows)
+from gyro_tdc.identify import fit_model, MIN_SAMPLES
+from gyro_tdc.identify.options import TrainOptions
+from gyro_tdc.identify.train import train_still_only
 from gyro_tdc.model.compensation import CompensationModel
 from gyro_tdc.runtime.reanchor import reanchor_shift
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
+from synth import synth_run
 
 DEG = math.pi / 180.0
 # Error patterns in deg/s, one column per axis; their BS (mean square) by hand:
@@ -35,6 +56,7 @@ DEG = math.pi / 180.0
 ERR_DPS = np.array([[3, 1, 0], [-3, 1, 0], [3, 1, 0], [-3, 1, 0],
                     [3, -1, 0], [-3, -1, 0], [3, -1, 0], [-3, -1, 4]], dtype=float)
 BS_HAND = np.array([9.0, 1.0, 2.0])
+AXES = 'xyz'
 
 
 def _run(err_dps, *, temp=None, ref_dps=(10.0, 0.0, -5.0), rate=10.0, name='bags/run7'):
@@ -167,25 +189,6 @@ def test_reanchor_auto_is_the_compensators_rule():
     np.testing.assert_allclose(ev.bs, np.mean((err - head) ** 2, axis=0), rtol=1e-9)
 
 
-def test_labels_are_safe_and_unique():
-    assert safe_label('models/My Model.yaml') == 'My_Model'
-    assert safe_label('bags/run1/') == 'run1'
-    assert safe_label('...') == 'unnamed'
-    assert model_labels(['a/m.yaml', 'b/m.yaml', PX4, 'raw.yaml', 'b/m.yml']) == \
-        ['m', 'm_2', 'px4', 'raw_model', 'm_3']
-    assert bag_labels(['x/run1', 'y/run1', 'z/run2']) == ['x_run1', 'y_run1', 'run2']
-
-
-def test_load_models(tmp_path):
-    models = load_models(['l3gd20_modified'])
-    assert [(m.name, m.label) for m in models] == [('l3gd20_modified', 'l3gd20_modified')]
-    assert isinstance(models[0].model, CompensationModel)
-    with pytest.raises(FitError, match='px4 baseline needs training bags'):
-        load_models([PX4])
-    with pytest.raises(ModelFileError):
-        load_models([str(tmp_path / 'missing.yaml')])
-
-
 def test_mean_scores_average_bs_and_ratios_per_bag():
     m = NamedModel('m', 'm', _linear_model([0, 0, 0], [0, 0, 0]))
     a = evaluate_run(_run(ERR_DPS), [m])
@@ -228,3 +231,164 @@ def test_evaluate_bags_one_at_a_time_equals_evaluate_run(tmp_path):
         np.testing.assert_array_equal(b.models[0].bs, want.models[0].bs)
         np.testing.assert_array_equal(b.raw.bs, want.raw.bs)
         assert b.models[0].bs.max() < 1e-3 < b.raw.bs.min()   # the drift is removed
+
+
+@pytest.fixture(scope='module')
+def runs():
+    """Return a training run and a held-out run with a known drift on every axis."""
+    return (synth_run(seed=31, hours=0.5, rate_hz=2.0, noise_dps=0.02),
+            synth_run(seed=32, hours=0.5, rate_hz=2.0, noise_dps=0.02, name='held'))
+
+
+@pytest.fixture(scope='module')
+def model(runs):
+    """Return a model fitted on every axis' real signal (no identity axis)."""
+    return fit_model([runs[0]], kind='poly', features=('dT', 'dT2'), t0=25.0)
+
+
+@given(axes=axis_sets, value=values, quantum=quanta, seed=st.integers(0, 1000))
+@settings(max_examples=20)
+def test_a_held_out_constant_axis_is_flagged_whatever_it_reads(runs, model, axes, value,
+                                                               quantum, seed):
+    """Flag the axes, NaN their ratios, keep the other axes' figures, warn nowhere."""
+    _, held = runs
+    stuck = _with(held, axes, value, quantum, seed)
+    named = [NamedModel('m.yaml', 'm', model), NamedModel('n.yaml', 'n', model)]
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        b = evaluate_run(stuck, named, label='h')
+        anchored = evaluate_run(stuck, named, label='h', reanchor_s='auto')
+        text, means = format_bag(anchored, 0), format_means([b, anchored])
+        doc = json.dumps(evaluation_json([b, anchored]), allow_nan=False)
+    ref = evaluate_run(held, named, label='h')
+    names = [AXES[i] for i in axes]
+    others = [i for i in range(3) if i not in axes]
+    assert b.constant_axes == names and ref.constant_axes == []
+    assert held_out_constant(stuck).tolist() == [i in axes for i in range(3)]
+    for ev, ev_ref in zip(b.models, ref.models):
+        assert ev.constant_axes == []               # the model fits them: not its doing
+        assert np.all(np.isnan(ev.p_vs_raw[axes]))
+        assert np.array_equal(ev.p_vs_raw[others], ev_ref.p_vs_raw[others])
+        assert np.array_equal(ev.bs[others], ev_ref.bs[others])
+        assert np.all(np.isfinite(ev.bs)) and np.all(np.isfinite(ev.rms_dps))
+    assert not re.search(r'\bnan\b|\binf\b', text + means, re.I), text
+    rows = [r.split() for r in text.splitlines() if r.split()[:1] in (['raw'], ['m'], ['n'])]
+    assert all([r[7 + i] == 'const' for i in range(3)] == [i in axes for i in range(3)]
+               for r in rows[:3]), text
+    for i in axes:                          # at the reference (0): raw BS 0
+        exact = not b.raw.bs[i] > 0
+        assert re.search(r'reads? the reference rate exactly' if exact
+                         else r'never var(y|ies) beyond one quantum', text), text
+    assert anchored.constant_axes == names
+    assert all(np.all(np.isnan(ev.p_vs_raw[axes])) for ev in anchored.models)
+    parsed = json.loads(doc)['bags'][0]
+    assert parsed['constant_axes'] == names
+    assert all(m['p_vs_raw'][i] is None for m in parsed['models'] for i in axes)
+    assert all(m['p_vs_raw'][i] is not None for m in parsed['models'] for i in others)
+
+
+def test_a_short_run_is_not_judged_constant_by_its_readings(runs, model):
+    """Below the samples train needs, two values per axis are a quiet axis, not a constant."""
+    _, held = runs
+    stuck = _with(held, [0], 0.1, 1e-4)
+    b = evaluate_run(stuck.slice(0, MIN_SAMPLES - 1), [NamedModel('m.yaml', 'm', model)])
+    assert b.constant_axes == [] and np.all(np.isfinite(b.models[0].p_vs_raw))
+    assert evaluate_run(stuck.slice(0, MIN_SAMPLES),
+                        [NamedModel('m.yaml', 'm', model)]).constant_axes == ['x']
+
+
+def test_a_bag_constant_on_every_axis_is_refused_in_one_line(runs, model, tmp_path):
+    """Refuse in evaluate (one line naming the bag); evaluate_run scores it without NaN text."""
+    _, held = runs
+    dead = _with(held, [0, 1, 2], 0.01, 0.0)
+    bag = bag_from_run(dead, tmp_path / 'dead')
+    named = [NamedModel('m.yaml', 'm', model)]
+    with pytest.raises(DatasetError) as err:
+        evaluate([bag], named)
+    text = str(err.value)
+    assert '\n' not in text and 'every axis' in text and str(bag) in text
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        b = evaluate_run(dead, named)
+        out = format_bag(b) + format_means([b])
+    assert b.constant_axes == list(AXES) and not re.search(r'\bnan\b', out, re.I)
+
+
+@pytest.fixture(scope='module')
+def logs(tmp_path_factory):
+    """Three power cycles with flights; a model trained on the first two."""
+    root = tmp_path_factory.mktemp('logs')
+    days = [flight_day(seed, legs=5) for seed in range(3)]
+    paths = [write_dataflash(root / f'day{k}.bin', [d.imu]) for k, d in enumerate(days)]
+    model = train_still_only(paths[:2], root / 'm.yaml', TrainOptions()).model
+    return days, paths, NamedModel('m.yaml', 'm', model)
+
+
+def test_a_flight_log_is_scored_on_its_still_stretches_only(logs):
+    days, paths, nm = logs
+    run = load_run(paths[2])
+    still = still_rows(run)
+    assert still is not None and 0 < still.sum() < len(run)
+    assert np.all(days[2].still[still])              # nothing of a flight is scored
+    assert still.sum() > 0.6 * days[2].still.sum()
+    b = evaluate_run(run, [nm], still=still)
+    assert b.samples == int(still.sum()) == len(b.raw.omega)
+    assert b.still['stretches'] >= 4 and b.still['sessions'] == 1
+    assert 0.0 < b.still['still_s'] < b.still['total_s']
+    # Re-anchored on the first still stretch: it averages to zero there, raw and model.
+    first = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8)])) == -1)
+    n_first = int(first[0]) - int(np.flatnonzero(still)[0]) if first.size else int(still.sum())
+    np.testing.assert_allclose(b.raw.omega[:n_first].mean(axis=0), 0.0, atol=1e-12)
+    np.testing.assert_allclose(b.models[0].omega[:n_first].mean(axis=0), 0.0, atol=1e-12)
+    # The flights would be hundreds of (deg/s)^2; the still stretches are the drift and noise.
+    whole = evaluate_run(run, [nm])
+    assert np.all(whole.raw.bs > 100.0 * b.raw.bs)
+    assert np.all(b.raw.bs < 0.02)
+    assert np.all(b.models[0].p_vs_raw < 0.9)       # the model removes drift held out
+    assert b.raw.adev_dps.size == 0                 # no Allan deviation across the gaps
+
+
+def test_evaluate_scores_still_only_where_the_data_move_and_all_otherwise(logs, tmp_path):
+    days, paths, nm = logs
+    got = evaluate([paths[2]], [nm])
+    assert got[0].still is not None and got[0].samples < len(days[2].imu.t)
+    quiet = flight_day(7, legs=1, still_s=(200.0, 200.0))
+    path = write_dataflash(tmp_path / 'quiet.bin', [quiet.imu])
+    got = evaluate([path], [nm])
+    assert got[0].still is None and got[0].samples == len(quiet.imu.t)
+    flying = flight_day(8, legs=2, still_s=(5.0, 6.0), flight_s=(200.0, 200.0))
+    path = write_dataflash(tmp_path / 'flying.bin', [flying.imu])
+    with pytest.raises(FitError, match='no reference rate and no still stretch to score'):
+        evaluate([path], [nm])
+
+
+def test_two_power_cycles_in_one_log_are_scored_and_reported_per_session(logs, tmp_path):
+    from flightlogs import Imu
+    from gyro_tdc.evaluate.report import evaluation_json, format_still
+
+    days, _paths, nm = logs
+    a, b = days[0].imu, days[1].imu
+    shift = a.t[-1] - b.t[0] + 1800.0                  # half an hour off between them
+    imu = Imu(np.concatenate([a.t, b.t + shift]), np.vstack([a.gyro, b.gyro]),
+              np.concatenate([a.temp, b.temp]), np.vstack([a.accel, b.accel]))
+    path = write_dataflash(tmp_path / 'two.bin', [imu])
+    got = evaluate([path], [nm])[0]
+    s = got.still
+    assert s['sessions'] == 2 and len(s['per_session']) == 2
+    for key in ('samples', 'stretches'):
+        assert sum(p[key] for p in s['per_session']) == s[key] > 0
+    assert s['samples'] == got.samples
+    for p in s['per_session'] + [s]:
+        assert 0.0 < p['still_s'] <= p['total_s'] and 0.0 < p['share'] <= 1.0
+        np.testing.assert_allclose(p['share'], p['still_s'] / p['total_s'])
+    doc = evaluation_json([got])['bags'][0]['still']
+    assert [x['stretches'] for x in doc['sessions']] == [
+        p['stretches'] for p in s['per_session']]
+    assert doc['share'] == s['share'] and doc['samples'] == got.samples
+    lines = format_still(got)
+    assert len(lines) == 3 and 'scored the still stretches only' in lines[0]
+    assert lines[1].startswith('  session 1: ') and lines[2].startswith('  session 2: ')
+    pct = [float(x.split(' %)')[0].rsplit('(', 1)[1]) for x in lines]
+    assert all(0.0 < v <= 100.0 for v in pct)
+    assert evaluation_json(evaluate([_paths[2]], [nm]))['bags'][0]['still']['sessions'][0][
+        'samples'] > 0

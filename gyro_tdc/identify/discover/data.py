@@ -13,11 +13,13 @@
 # limitations under the License.
 
 """
-The measured runs on the block grid: block means, the noise floor and the effect columns.
+The measured runs on the block grid, and what they can excite before any fit.
 
 :class:`BlockData` holds the block means of every run, the noise floor left in a block mean
-and the effect columns, of the thermal state too (:meth:`BlockData.state_columns`).
-See ``doc/internals/identify.md``.
+and the effect columns, of the thermal state too (:meth:`BlockData.state_columns`);
+:func:`excitation` names the candidates the runs cannot excite (spans, rates, directions,
+soaks) and :func:`one_way` tells data that only heat or only cool. See
+``doc/internals/identify.md``.
 """
 
 from __future__ import annotations
@@ -27,19 +29,41 @@ from typing import Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.discover.stats import COLLINEAR, rel_residual
-from gyro_tdc.model import (batch_features, EFFECTS, first_order_lag, input_ids, STATE_TERMS,
-                            STATIC_EFFECTS)
-from gyro_tdc.signal import BlockGrid
+from gyro_tdc.identify.discover.results import Unidentifiable
+from gyro_tdc.identify.fit import MIN_SPAN_C
+from gyro_tdc.model import (batch_features, EFFECTS, first_order_lag, input_ids,
+                            REFERENCE_EFFECTS, STATE_TERMS, STATIC_EFFECTS, TEMPERATURE_EFFECTS)
+from gyro_tdc.signal import BlockGrid, fit_columns
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['BlockData']
+__all__ = ['BlockData', 'COLLINEAR', 'directions', 'excitation', 'moving_blocks', 'one_way',
+           'rel_residual']
 
+#: Relative norm below which a column is taken as spanned by the others.
+COLLINEAR = 1e-3
 #: Effects whose block-mean column is the mean of their full-rate feature (no filter state).
 _STATIC = input_ids(STATIC_EFFECTS)
 #: The temperature terms, which follow the thermal state when the model has one.
 _STATE = input_ids(STATE_TERMS)
+#: Effects a temperature span excites (``scale`` needs rate-table steps too: its own test).
+_SPAN = tuple(e for e in EFFECTS if e in TEMPERATURE_EFFECTS and e not in REFERENCE_EFFECTS)
+#: Of those, the ones with time memory: excited by how the temperature changes.
+_RATE = tuple(e for e in _SPAN if e not in STATIC_EFFECTS)
+#: A soak (the temperature still) counts from this long, s (and three blocks).
+_SOAK_S = 120.0
+
+
+def rel_residual(x: NDArray[np.float64], col: NDArray[np.float64]) -> float:
+    """Return ``|col - projection on span(x)| / |col - mean|`` (0: col is in the span)."""
+    c = col - col.mean()
+    nc = float(np.linalg.norm(c))
+    if nc == 0.0:
+        return 0.0
+    if x.shape[1] == 0:
+        return 1.0
+    beta = fit_columns(x, col, normalise=True)
+    return float(np.linalg.norm(col - x @ beta)) / nc
 
 
 def _block_noise(y: NDArray[np.float64], first: NDArray[np.int64], cnt: NDArray[np.float64]
@@ -320,3 +344,128 @@ class BlockData:
             self._cache.clear()
         self._cache[key] = out
         return out
+
+
+def moving_blocks(data: BlockData) -> NDArray[np.bool_]:
+    """Return the blocks whose temperature changes at a measurable rate."""
+    rate = data.rate_cpm
+    max_rate = float(np.max(np.abs(rate))) if rate.size else 0.0
+    return np.abs(rate) > max(0.02, 0.1 * max_rate)
+
+
+def directions(data: BlockData, moving: NDArray[np.bool_]) -> tuple[bool, bool]:
+    """Return whether the data heat and whether they cool at a measurable rate."""
+    return (bool(np.any(moving & (data.rate_cpm > 0))),
+            bool(np.any(moving & (data.rate_cpm < 0))))
+
+
+def one_way(data: BlockData) -> bool:
+    """Return True when the data change temperature in one direction only."""
+    heating, cooling = directions(data, moving_blocks(data))
+    return heating != cooling
+
+
+def _soak_min_s(data: BlockData) -> float:
+    """Return the shortest soak (s) that counts: 2 minutes and three blocks."""
+    return max(_SOAK_S, 3.0 * data.block_s)
+
+
+def _first_soaks(data: BlockData, moving: NDArray[np.bool_]) -> NDArray[np.float64]:
+    """
+    Return, per run, how long it soaks after power-on before the temperature first moves, s.
+
+    Zero for a run with fewer than four blocks before its first move (one block is no soak).
+    """
+    out = np.zeros(data.n_runs)
+    for r in range(data.n_runs):
+        m = data.run == r
+        tr, mv = data.t_since[m], moving[m]
+        first_move = tr[np.argmax(mv)] if np.any(mv) else tr[-1]
+        if np.count_nonzero(tr < first_move) >= 4:
+            out[r] = first_move
+    return out
+
+
+def _longest_soak(data: BlockData, moving: NDArray[np.bool_]) -> float:
+    """
+    Return the longest soak next to a ramp, s: a stretch of still blocks in a run that moves.
+
+    A change of rate between a ramp and a soak is what a time constant shows in (the die
+    catching up, or starting to lag); a run that never moves, or never stops, has none.
+    """
+    best = 0.0
+    for r in range(data.n_runs):
+        idx = np.flatnonzero(data.run == r)
+        mv = moving[idx]
+        if not np.any(mv) or np.all(mv):
+            continue
+        edges = np.flatnonzero(np.diff(np.concatenate([[1], mv.astype(np.int8), [1]])))
+        for a, b in zip(edges[::2], edges[1::2]):      # still stretches [a, b)
+            best = max(best, float(data.tlast[idx[b - 1]] - data.tfirst[idx[a]]))
+    return best
+
+
+def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
+    """
+    Decide which candidates this data cannot excite, before any fit.
+
+    Returns ``{effect: Unidentifiable}`` and a list of notes about the data.
+    """
+    out: dict[str, Unidentifiable] = {}
+    notes: list[str] = []
+    span = float(data.temp.max() - data.temp.min())
+    rate = data.rate_cpm
+    moving = moving_blocks(data)
+    heating, cooling = directions(data, moving)
+
+    def add(eid: str, reason: str, extra: str = '') -> None:
+        exp = EFFECTS[eid].excited_by
+        out[eid] = Unidentifiable(eid, reason, exp[0].upper() + exp[1:] + extra + '.')
+
+    if span < MIN_SPAN_C:
+        for eid in _SPAN:
+            add(eid, f'the temperature spans only {span:.2f} degC', ', of at least 10 degC')
+    if not np.any(moving):
+        for eid in _RATE:
+            if eid not in out:
+                add(eid, 'the temperature never changes at a measurable rate')
+    elif heating != cooling:
+        leg = 'heat' if heating else 'cool'
+        r = np.abs(rate[moving])
+        q1, q3 = np.percentile(r, [25, 75])
+        one_rate = (q3 - q1) < 0.25 * float(np.median(r))
+        soak = _longest_soak(data, moving)
+        if one_rate and soak < _soak_min_s(data):
+            # Scored all the same: a die settled at power-on falls behind at the start of the
+            # ramp, which shows tau; a recording that starts mid-ramp shows nothing, and the
+            # guard then rejects the lag (its profile is flat).
+            notes.append(f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min) '
+                         'with no soak before or after the ramp: a lag or dT/dt effect can '
+                         'only show where the ramp starts from a die settled at power-on; '
+                         'from a recording that starts mid-ramp it is not identifiable, and '
+                         'hysteresis between heating and cooling cannot be tested.')
+        elif one_rate:
+            notes.append(f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min): '
+                         'a lag or dT/dt effect rests on the changes of rate between the ramp '
+                         f'and the soaks (the longest {soak:.0f} s: the approach to equilibrium '
+                         'there shows a time constant); hysteresis between heating and cooling '
+                         'cannot be tested.')
+        else:
+            notes.append(f'The data only {leg}: hysteresis between heating and cooling cannot '
+                         'be tested; a dT/dt or lag effect seen here rests on the change of '
+                         f'the {leg}ing rate alone.')
+    if not np.any(data.scale_axes):
+        if not np.any(np.abs(data.ref) > 1e-12):
+            add('scale', 'the reference rate is zero on every run: a sensitivity change has '
+                'nothing to scale')
+        else:
+            add('scale', 'the reference rate is constant on every run, so a sensitivity '
+                'change is indistinguishable from dT')
+    # Warm-up: some run must start with a soak (no temperature change) after power-on.
+    soak_ok = bool(np.any(_first_soaks(data, moving) >= _soak_min_s(data)))
+    if not soak_ok:
+        add('warmup', 'no run starts with a soak after power-on: a warm-up transient cannot be '
+            'told apart from the temperature response and the bias')
+    for eid in base:
+        out.pop(eid, None)
+    return out, notes

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""From a discovery to a compensation model file: which effects, which kind, fitted how."""
+"""What discovery may fit (never motion), and from a discovery to a compensation model file."""
 
 from __future__ import annotations
 
@@ -20,36 +20,55 @@ from typing import Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
+from gyro_tdc.identify.axes import constant_gyro_axes, neutral_runs
 from gyro_tdc.identify.discover.results import DiscoveryResult
+from gyro_tdc.identify.still_only import find_still, MAX_MOVING_SHARE, moving_share, rows_of
 from gyro_tdc.model import TEMPERATURE_EFFECTS
 import numpy as np
 
-__all__ = ['build_model', 'model_features', 'model_kind']
+__all__ = ['build_model', 'model_features', 'still_only_runs']
 
 
-def model_kind(effects: Sequence[str]) -> str:
+def still_only_runs(runs: Sequence[Run]) -> tuple[list[Run], str | None]:
     """
-    Return the model kind that holds what discovery fitted for ``effects``: ``'poly'``.
+    Return what discovery may fit of runs without a reference: the still samples only.
 
-    ``poly`` is exactly the linear model discovery validated, with ``lag`` too: the thermal
-    state makes every temperature term a power of the lagged temperature, which a ``poly``
-    model of format 2 holds as it is (the kind is kept a function for callers that choose).
+    Runs with no reference rate (a flight log) that move longer than ``train``'s
+    :data:`~gyro_tdc.identify.still_only.MAX_MOVING_SHARE` are known to be at rest only
+    while still: each keeps its still stretches (``train``'s still test, one noise floor for
+    all, a constant axis at its reference), one offset per session as before; a session
+    without still time is left out. Returns the runs and a line saying what was kept (None
+    when every sample is kept). Motion is never fitted as drift.
 
-    Parameters
-    ----------
-    effects : sequence of str
-        Effect ids.
-
-    Returns
-    -------
-    str
-        ``'poly'``.
+    Raises
+    ------
+    FitError
+        When no session holds a still stretch: nothing could be fitted but the motion.
 
     """
-    return 'poly'
+    if not runs or any(r.info.get('reference') != 'zero' for r in runs):
+        return list(runs), None
+    fitted = neutral_runs(runs, constant_gyro_axes(runs))
+    share = moving_share(fitted)
+    if share <= MAX_MOVING_SHARE:
+        return list(runs), None
+    masks = [st.mask for st in find_still(fitted)]
+    kept = [rows_of(r, m) for r, m in zip(runs, masks) if np.count_nonzero(m) >= 16]
+    if not kept:
+        raise FitError(f'no reference rate and the IMU moves {100.0 * share:.3g} % of the '
+                       'time, with no still stretch to discover on (its motion is no drift): '
+                       'record the vehicle parked with the IMU on.')
+    still_s = sum(np.count_nonzero(m) * float(np.median(np.diff(r.t)))
+                  for r, m in zip(runs, masks) if len(r) > 1)
+    total_s = sum(r.duration_s for r in runs)
+    pct = min(100.0 * still_s / total_s, 100.0) if total_s > 0 else 0.0
+    return kept, (f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time: '
+                  f'discovering on the still stretches only ({still_s:.0f} s of '
+                  f'{total_s:.0f} s, {pct:.3g} %; {len(kept)} of {len(runs)} session(s)); '
+                  'the motion is no drift')
 
 
-def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | None = None,
+def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'poly',
                 created: Mapping | None = None):
     """
     Fit the compensation model of the discovered effects, ready for ``save_model``.
@@ -70,7 +89,8 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
     runs : sequence of Run
         The same runs.
     kind : str, optional
-        ``'poly'`` or ``'rbf'``; default :func:`model_kind` of the final effects.
+        ``'poly'`` (default: exactly the linear model discovery validated; with ``lag``
+        every temperature term is a power of the lagged state) or ``'rbf'``.
     created : mapping, optional
         Extra creation info (command line, bags).
 
@@ -98,7 +118,6 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str | Non
                          'noise_floor_dps': result.noise_floor_dps,
                          'gain_removed': [float(g) for g in gain]}}
     info.update(dict(created or {}))
-    kind = model_kind(features) if kind is None else kind
     thermal = result.thermal if 'lag' in features else None
     params = {k: v for k, v in result.params.items() if k != 'lag'}
     # A constant gyro axis (train's rule) is fitted as train fits it: not at all (its

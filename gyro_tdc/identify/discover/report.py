@@ -12,23 +12,168 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The discovery report: ``report.md`` with PNG residual maps and the Allan deviation plot."""
+"""
+Where the model and the measurement disagree, and the discovery report that shows it.
+
+:func:`residual_maps` bins the block-mean residual by temperature, dT/dt, reference rate and
+time since power-on and flags the bins noise cannot explain; :func:`residual_adev` is the
+Allan deviation of the full-rate residual of the longest run; :func:`write_report` writes
+``report.md`` with PNG residual maps and the Allan deviation plot.
+"""
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Any, Sequence
 
 from gyro_tdc.base import atomic_write
+from gyro_tdc.identify.discover.data import BlockData
+from gyro_tdc.identify.discover.linear import ar1, DEG, LinearModel
 from gyro_tdc.identify.discover.results import BinMap, DiscoveryResult
-from gyro_tdc.model import ThermalState
+from gyro_tdc.model import batch_features, ThermalState
 import numpy as np
+from numpy.typing import NDArray
 
-__all__ = ['write_report']
-
+__all__ = ['residual_adev', 'residual_maps', 'write_report']
 
 _AXES = ('x', 'y', 'z')
 _COLORS = ('tab:blue', 'tab:orange', 'tab:green')
+
+
+def residual_maps(data: BlockData, r: NDArray[np.float64]) -> tuple[BinMap, ...]:
+    """Bin the residual by temperature, dT/dt, reference rate and time since start."""
+    floor = data.floor_axes * DEG
+    infl = np.empty(3)
+    for a in range(3):
+        # AR(1) of the noise from first differences (slow disagreements cancel there).
+        rho = 1.0 + 2.0 * ar1(np.diff(r[:, a])) if data.K > 3 else 0.0
+        rho = min(max(rho, 0.0), 0.9)
+        infl[a] = math.sqrt((1.0 + rho) / (1.0 - rho))
+    rd = r * DEG
+
+    def binmap(name: str, label: str, keys: NDArray[np.int64], nb: int,
+               centers: NDArray[np.float64], labels: tuple[str, ...] = ()) -> BinMap:
+        mean = np.full((nb, 3), np.nan)
+        se = np.full((nb, 3), np.nan)
+        count = np.zeros((nb, 3), dtype=np.int64)
+        for a in range(3):
+            k = keys[:, a] if keys.ndim == 2 else keys
+            ok = k >= 0
+            wsum = np.bincount(k[ok], weights=data.w[ok], minlength=nb)
+            s = np.bincount(k[ok], weights=data.w[ok] * rd[ok, a], minlength=nb)
+            count[:, a] = np.bincount(k[ok], minlength=nb)
+            has = wsum > 0
+            mean[has, a] = s[has] / wsum[has]
+            se[has, a] = floor[a] * infl[a] / np.sqrt(wsum[has])
+        flagged = np.nan_to_num(np.abs(mean)) > 3.0 * np.nan_to_num(se, nan=np.inf)
+        return BinMap(name, label, centers, mean, se, count, flagged, labels)
+
+    out = []
+    # Temperature: up to 10 equal-width bins.
+    lo, hi = float(data.temp.min()), float(data.temp.max())
+    nb = 10 if hi - lo > 1e-6 else 1
+    edges = np.linspace(lo, hi, nb + 1)
+    k = np.clip(np.searchsorted(edges, data.temp, side='right') - 1, 0, nb - 1)
+    cen = np.repeat(((edges[:-1] + edges[1:]) / 2.0)[:, None], 3, axis=1)
+    out.append(binmap('temperature', 'temperature (degC)', k, nb, cen))
+    # dT/dt: cooling fast/slow, still, heating slow/fast.
+    rate = data.rate_cpm
+    thr = max(0.02, 0.1 * float(np.max(np.abs(rate))))
+    k = np.full(data.K, 2, dtype=np.int64)
+    for sign, (slow, fast) in ((1, (3, 4)), (-1, (1, 0))):
+        m = sign * rate > thr
+        if np.any(m):
+            med = float(np.median(sign * rate[m]))
+            k[m & (sign * rate <= med)] = slow
+            k[m & (sign * rate > med)] = fast
+    cen = np.array([rate[k == i].mean() if np.any(k == i) else np.nan for i in range(5)])
+    out.append(binmap('dTdt', 'dT/dt (degC/min)', k, 5, np.repeat(cen[:, None], 3, axis=1),
+                      ('cooling fast', 'cooling slow', 'still', 'heating slow',
+                       'heating fast')))
+    # Reference rate: each axis by its own rate, up to 8 levels or quantile bins.
+    if np.any(np.abs(data.ref) > 1e-12):
+        nb = 8
+        keys = np.full((data.K, 3), -1, dtype=np.int64)
+        cen = np.full((nb, 3), np.nan)
+        for a in range(3):
+            v = data.ref[:, a] * DEG
+            levels = np.unique(np.round(v, 6))
+            if levels.size <= nb:
+                keys[:, a] = np.searchsorted(levels, np.round(v, 6))
+            else:
+                edges = np.unique(np.quantile(v, np.linspace(0, 1, nb + 1)))
+                keys[:, a] = np.clip(np.searchsorted(edges, v, side='right') - 1, 0,
+                                     edges.size - 2)
+            for i in range(nb):
+                if np.any(keys[:, a] == i):
+                    cen[i, a] = v[keys[:, a] == i].mean()
+        out.append(binmap('reference', 'reference rate (deg/s)', keys, nb, cen))
+    # Time since the start of each run, log-like bins (warm-up shows at the start).
+    tmax = float(data.t_since.max()) / 60.0
+    edges = [0.0, 1.0, 2.0, 5.0, 10.0, 20.0, 40.0, 80.0, 160.0, 320.0, 640.0, 1280.0]
+    edges = [e for e in edges if e < tmax] + [tmax + 1e-9]
+    edges = np.asarray(edges)
+    nb = edges.size - 1
+    tm = data.t_since / 60.0
+    k = np.clip(np.searchsorted(edges, tm, side='right') - 1, 0, nb - 1)
+    cen = np.array([tm[k == i].mean() if np.any(k == i) else np.nan for i in range(nb)])
+    out.append(binmap('time', 'time since start (min)', k, nb,
+                      np.repeat(cen[:, None], 3, axis=1)))
+    return tuple(out)
+
+
+def _full_rate_residual(data: BlockData, model: LinearModel, coef: NDArray[np.float64]
+                        ) -> tuple[NDArray[np.float64], float]:
+    """Return the full-rate residual of the longest contiguous stretch of the longest run."""
+    r = int(np.argmax([len(x) for x in data.runs]))
+    run = data.runs[r]
+    dt = np.diff(run.t)
+    med = float(np.median(dt)) if dt.size else 1.0
+    breaks = np.flatnonzero(dt > 1.5 * med + 1e-9) + 1
+    bounds = np.concatenate([[0], breaks, [len(run)]])
+    i = int(np.argmax(np.diff(bounds)))
+    sl = slice(int(bounds[i]), int(bounds[i + 1]))
+    # The temperature terms follow the thermal state when the model has one.
+    state = None if model.state_tau is None else data.state(r, model.state_tau)
+    x = batch_features(model.effects, run.t, run.temp, t0=data.t0, params=model.params,
+                       state=state)
+    d = (run.temp if state is None else state) - data.t0
+    y = run.omega - run.omega_ref
+    n = len(run)
+    pred = np.zeros((n, 3))
+    nr = data.n_runs
+    for a in range(3):
+        c = coef[:, a]
+        pred[:, a] = c[r] + x @ c[nr:nr + x.shape[1]]
+        j = nr + x.shape[1]
+        for lab in model.axis_labels:
+            if lab == 'gain':
+                pred[:, a] += c[j] * run.omega_ref[:, a] * data.gain_axes[a]
+            else:
+                pred[:, a] += c[j] * d * run.omega_ref[:, a] * data.scale_axes[a]
+            j += 1
+    return (y - pred)[sl], 1.0 / med
+
+
+def residual_adev(data: BlockData, model: LinearModel, coef: NDArray[np.float64]
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Return Allan deviation (taus, RMS over axes in deg/s) of the full-rate residual."""
+    from gyro_tdc.signal import allan_deviation
+
+    res, rate = _full_rate_residual(data, model, coef)
+    if res.shape[0] < 16:
+        return np.zeros(0), np.zeros(0)
+    taus, dev = allan_deviation(res, rate)
+    return np.asarray(taus), np.sqrt(np.mean(np.asarray(dev) ** 2, axis=1))
+
+
+def _figure(**kw: Any) -> Any:
+    """Return a matplotlib figure on the Agg canvas (no display needed)."""
+    import matplotlib
+    matplotlib.use('Agg')
+    from matplotlib.figure import Figure
+    return Figure(constrained_layout=True, **kw)
 
 
 def _save(fig: Any, path: Path) -> None:
@@ -37,14 +182,21 @@ def _save(fig: Any, path: Path) -> None:
                  what='plot')
 
 
+def _table(head: Sequence[str], rows: Sequence[Sequence[Any]]) -> list[str]:
+    """Return a markdown table (its lines, then an empty one)."""
+    return ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)] + [
+        '| ' + ' | '.join(str(c) for c in r) + ' |' for r in rows] + ['']
+
+
+def _par(params: dict, unit: str = '') -> str:
+    """Return fitted parameters as ``k = v`` (``-`` when there are none)."""
+    return ', '.join(f'{k} = {v:.4g}{unit}' for k, v in params.items()) or '-'
+
+
 def _plot_maps(maps_rows: Sequence[tuple[str, Sequence[BinMap]]], path: Path) -> None:
     """Plot rows of residual maps (one row per model state) into one PNG."""
-    import matplotlib
-    matplotlib.use('Agg')
-    from matplotlib.figure import Figure
-
     ncol = max(len(m) for _t, m in maps_rows)
-    fig = Figure(figsize=(4.0 * ncol, 3.0 * len(maps_rows)), constrained_layout=True)
+    fig = _figure(figsize=(4.0 * ncol, 3.0 * len(maps_rows)))
     axes = fig.subplots(len(maps_rows), ncol, squeeze=False)
     for i, (title, maps) in enumerate(maps_rows):
         for j in range(ncol):
@@ -76,10 +228,6 @@ def _plot_maps(maps_rows: Sequence[tuple[str, Sequence[BinMap]]], path: Path) ->
 
 def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
     """Plot the Allan deviation of the residual before and after each step."""
-    import matplotlib
-    matplotlib.use('Agg')
-    from matplotlib.figure import Figure
-
     curves = []
     for i, s in enumerate(result.steps):
         if s.adev_tau_s.size == 0:
@@ -91,7 +239,7 @@ def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
         curves.append((', '.join(result.final_effects), result.adev_tau_s, result.adev_dps))
     if not curves:
         return False
-    fig = Figure(figsize=(6.0, 4.2), constrained_layout=True)
+    fig = _figure(figsize=(6.0, 4.2))
     ax = fig.subplots()
     for label, tau, dev in curves:
         ax.loglog(tau, dev, marker='.', label=label)
@@ -155,17 +303,14 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
         md += ['**No missing effect found**: no candidate is significant (HAC), gains on '
                'held-out data and exceeds the noise at once.', '']
     else:
-        md += ['| step | effect | aliases | parameters | HAC p | held-out gain (deg/s)^2 | '
-               'gap before -> after (deg/s) | held-out gap before -> after (deg/s) |',
-               '|---|---|---|---|---|---|---|---|']
-        for i, s in enumerate(result.steps, 1):
-            par = ', '.join(f'{k} = {v:.4g}' for k, v in s.params.items()) or '-'
-            b = s.best
-            md.append(f'| {i} | `{s.effect}` | {", ".join(s.aliases) or "-"} | {par} | '
-                      f'{b.p_value:.2g} | {b.heldout_gain_dps2:.3g} | '
-                      f'{s.gap_before_dps:.4g} -> {s.gap_after_dps:.4g} | '
-                      f'{s.heldout_gap_before_dps:.4g} -> {s.heldout_gap_after_dps:.4g} |')
-        md.append('')
+        md += _table(('step', 'effect', 'aliases', 'parameters', 'HAC p',
+                      'held-out gain (deg/s)^2', 'gap before -> after (deg/s)',
+                      'held-out gap before -> after (deg/s)'), [
+            (i, f'`{s.effect}`', ', '.join(s.aliases) or '-', _par(s.params),
+             f'{s.best.p_value:.2g}', f'{s.best.heldout_gain_dps2:.3g}',
+             f'{s.gap_before_dps:.4g} -> {s.gap_after_dps:.4g}',
+             f'{s.heldout_gap_before_dps:.4g} -> {s.heldout_gap_after_dps:.4g}')
+            for i, s in enumerate(result.steps, 1)])
     for i, s in enumerate(result.steps, 1):
         name = f'step{i}_maps.png'
         _plot_maps([('before', s.maps_before), (f'after + {s.effect}', s.maps_after)],
@@ -174,14 +319,13 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
         if s.thermal is not None:
             md += [_thermal_line(s.thermal), '']
         md += ['Coefficients per axis (deg/s per feature unit; 1/degC for scale): '
-               + ', '.join(f'{v:.4g}' for v in np.ravel(s.coef_dps)), '',
-               '| candidate | parameters | HAC p | held-out gain (deg/s)^2 | effect RMS (deg/s) '
-               '| verdict |', '|---|---|---|---|---|---|']
-        for c in s.candidates:
-            par = ', '.join(f'{k} = {v:.4g}' for k, v in c.params.items()) or '-'
-            md.append(f'| `{c.effect}` | {par} | {c.p_value:.2g} | {c.heldout_gain_dps2:.3g} | '
-                      f'{c.effect_rms_dps:.3g} | {"passes" if c.passed else c.why_not} |')
-        md += ['', f'![residual maps, step {i}]({name})', '']
+               + ', '.join(f'{v:.4g}' for v in np.ravel(s.coef_dps)), '']
+        md += _table(('candidate', 'parameters', 'HAC p', 'held-out gain (deg/s)^2',
+                      'effect RMS (deg/s)', 'verdict'), [
+            (f'`{c.effect}`', _par(c.params), f'{c.p_value:.2g}', f'{c.heldout_gain_dps2:.3g}',
+             f'{c.effect_rms_dps:.3g}', 'passes' if c.passed else c.why_not)
+            for c in s.candidates])
+        md += [f'![residual maps, step {i}]({name})', '']
     md += ['## Final model', '',
            f'Effects: **{", ".join(result.final_effects)}**; gap {result.gap_dps:.4g} deg/s = '
            f'{result.gap_dps / result.noise_floor_dps:.2f} x the noise floor (held-out '
@@ -190,24 +334,20 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
         md += [_thermal_line(result.thermal), '']
     if result.params:
         md += ['Fitted time constants: ' + '; '.join(
-            f'{e}: ' + ', '.join(f'{k} = {v:.4g} s' for k, v in p.items())
-            for e, p in result.params.items()), '']
+            f'{e}: {_par(p, " s")}' for e, p in result.params.items()), '']
     if result.candidates:
-        md += ['| remaining candidate | HAC p | held-out gain (deg/s)^2 | effect RMS (deg/s) | '
-               'why not |', '|---|---|---|---|---|']
-        for c in result.candidates:
-            md.append(f'| `{c.effect}` | {c.p_value:.2g} | {c.heldout_gain_dps2:.3g} | '
-                      f'{c.effect_rms_dps:.3g} | {c.why_not} |')
-        md.append('')
+        md += _table(('remaining candidate', 'HAC p', 'held-out gain (deg/s)^2',
+                      'effect RMS (deg/s)', 'why not'), [
+            (f'`{c.effect}`', f'{c.p_value:.2g}', f'{c.heldout_gain_dps2:.3g}',
+             f'{c.effect_rms_dps:.3g}', c.why_not) for c in result.candidates])
     _plot_maps([('final model', result.maps)], out / 'final_maps.png')
     md += ['![residual maps, final model](final_maps.png)', '']
     if _plot_allan(result, out / 'allan.png'):
         md += ['![Allan deviation of the residual](allan.png)', '']
     if result.unidentifiable:
-        md += ['## Not identifiable from this data', '', '| effect | why | experiment |',
-               '|---|---|---|']
-        md += [f'| `{u.effect}` | {u.reason} | {u.experiment} |' for u in result.unidentifiable]
-        md.append('')
+        md += ['## Not identifiable from this data', ''] + _table(
+            ('effect', 'why', 'experiment'),
+            [(f'`{u.effect}`', u.reason, u.experiment) for u in result.unidentifiable])
     if result.notes:
         md += ['## Notes', ''] + [f'- {n}' for n in result.notes] + ['']
     path = out / 'report.md'

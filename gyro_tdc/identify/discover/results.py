@@ -306,26 +306,23 @@ class DiscoveryResult:
             ``tau_interval_s``, ``identifiable``) when the final model has a thermal state.
 
         """
-        steps = []
-        for s in self.steps:
-            b = s.best
-            steps.append({
-                'effect': s.effect, 'aliases': list(s.aliases), 'description': s.description,
-                'gap_before_dps': float(s.gap_before_dps), 'gap_after_dps': float(s.gap_after_dps),
-                'heldout_gap_before_dps': float(s.heldout_gap_before_dps),
-                'heldout_gap_after_dps': float(s.heldout_gap_after_dps),
-                'params': plain(s.params, nan_to_none=True),
-                'coef_dps': plain(s.coef_dps, nan_to_none=True),
-                'p_value': None if b is None else float(b.p_value),
-                'heldout_gain_dps2': None if b is None else float(b.heldout_gain_dps2),
-                'effect_rms_dps': None if b is None else float(b.effect_rms_dps),
-                'flagged_bins_before': int(sum(m.n_flagged for m in s.maps_before)),
-                'flagged_bins_after': int(sum(m.n_flagged for m in s.maps_after)),
-                'adev': {'tau_s': plain(s.adev_tau_s, nan_to_none=True),
-                         'before_dps': plain(s.adev_before_dps, nan_to_none=True),
-                         'after_dps': plain(s.adev_after_dps, nan_to_none=True)},
-                'thermal': None if s.thermal is None else s.thermal.to_dict(),
-            })
+        def pl(v: object) -> object:
+            return plain(v, nan_to_none=True)
+
+        steps = [{
+            'effect': s.effect, 'aliases': list(s.aliases), 'description': s.description,
+            'gap_before_dps': float(s.gap_before_dps), 'gap_after_dps': float(s.gap_after_dps),
+            'heldout_gap_before_dps': float(s.heldout_gap_before_dps),
+            'heldout_gap_after_dps': float(s.heldout_gap_after_dps),
+            'params': pl(s.params), 'coef_dps': pl(s.coef_dps),
+            **{k: None if s.best is None else float(getattr(s.best, k))
+               for k in ('p_value', 'heldout_gain_dps2', 'effect_rms_dps')},
+            'flagged_bins_before': int(sum(m.n_flagged for m in s.maps_before)),
+            'flagged_bins_after': int(sum(m.n_flagged for m in s.maps_after)),
+            'adev': {'tau_s': pl(s.adev_tau_s), 'before_dps': pl(s.adev_before_dps),
+                     'after_dps': pl(s.adev_after_dps)},
+            'thermal': None if s.thermal is None else s.thermal.to_dict(),
+        } for s in self.steps]
         doc = {
             'base_effects': list(self.base_effects),
             'noise_floor_dps': float(self.noise_floor_dps),

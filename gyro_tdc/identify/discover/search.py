@@ -28,14 +28,13 @@ from typing import Any, Callable, Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.discover.data import BlockData
-from gyro_tdc.identify.discover.excitation import excitation, one_way
-from gyro_tdc.identify.discover.linear import LinearModel
-from gyro_tdc.identify.discover.maps import residual_adev, residual_maps
+from gyro_tdc.identify.discover.data import (BlockData, COLLINEAR, excitation, one_way,
+                                             rel_residual)
+from gyro_tdc.identify.discover.linear import (bandwidth, DEG, gap, hac_pvalue, LinearModel,
+                                               make_folds, weighted_corr)
+from gyro_tdc.identify.discover.report import residual_adev, residual_maps
 from gyro_tdc.identify.discover.results import (CandidateScore, DiscoveryResult, Step,
                                                 Unidentifiable)
-from gyro_tdc.identify.discover.stats import (bandwidth, COLLINEAR, DEG, gap, hac_pvalue,
-                                              make_folds, rel_residual, weighted_corr)
 from gyro_tdc.identify.fit import estimate_t0
 from gyro_tdc.identify.tau import effective_samples, fit_time_constant, profile_interval
 from gyro_tdc.model import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, STATIC_EFFECTS,
@@ -61,6 +60,17 @@ _MEMORY = tuple(e for e in _CANDIDATES if e not in STATIC_EFFECTS)
 _CURVE = ('dT2', 'dT3')
 
 
+def _effects(*groups: Sequence[str]) -> tuple[str, ...]:
+    """Return the effects of ``groups`` together, in catalog order."""
+    ids = set().union(*groups)
+    return tuple(e for e in EFFECTS if e in ids)
+
+
+def _copy(params: Mapping) -> dict:
+    """Return a copy of ``{effect: {param: value}}`` whose inner dicts can be changed."""
+    return {k: dict(v) for k, v in params.items()}
+
+
 def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
     """Return the search bounds of an effect's time constant, s."""
     lo, hi = EFFECTS[eid].bounds.get('tau_s', _SMOOTHING_BOUNDS_S)
@@ -81,10 +91,10 @@ def _fit_taus(data: BlockData, effects: Sequence[str], params: dict, which: Sequ
     :func:`gyro_tdc.identify.fit_time_constant` searches a log-spaced grid for the basin and
     refines it with a bounded Brent search.
     """
-    params = {k: dict(v) for k, v in params.items()}
+    params = _copy(params)
     for eid in which:
         def sse(tau: float, eid: str = eid) -> float:
-            trial = {k: dict(v) for k, v in params.items()}
+            trial = _copy(params)
             trial.setdefault(eid, {})['tau_s'] = tau
             return LinearModel(data, effects, trial).sse()
 
@@ -109,7 +119,7 @@ def _thermal_state(data: BlockData, model: LinearModel) -> ThermalState | None:
     lo, hi = _tau_bounds(data, 'lag')
 
     def sse(v: float) -> NDArray[np.float64]:
-        trial = {k: dict(val) for k, val in model.params.items()}
+        trial = _copy(model.params)
         trial['lag']['tau_s'] = v
         r = LinearModel(data, model.effects, trial).residual()
         return (data.w[:, None] * r * r).sum(axis=0)
@@ -126,8 +136,8 @@ def _candidate_params(data: BlockData, model: LinearModel, eid: str) -> dict:
     With the thermal state in the model (or as the candidate) its tau is refitted with the
     candidate: a curvature named after ``lag`` moves the state's time constant.
     """
-    params = {k: dict(v) for k, v in model.params.items()}
-    effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
+    params = _copy(model.params)
+    effects = _effects(model.effects, {eid})
     which = [e for e in (eid, 'lag') if e in _TIMED and e in effects]
     if eid in _TIMED or 'lag' in model.effects:
         for e in which:
@@ -138,8 +148,7 @@ def _candidate_params(data: BlockData, model: LinearModel, eid: str) -> dict:
 
 def _n_params(model: LinearModel, eid: str, params: Mapping) -> int:
     """Return the parameters candidate ``eid`` adds to ``model``: coefficients and taus."""
-    effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
-    cand = LinearModel(model.data, effects, params)
+    cand = LinearModel(model.data, _effects(model.effects, {eid}), params)
     return (cand.p - model.p) * 3 + (eid in _TIMED)
 
 
@@ -152,12 +161,9 @@ def _noise_lags(data: BlockData, model: LinearModel, todo: Sequence[str], cparam
     (each with its fitted time constant), so that a second effect not yet in the model does
     not pass for long-memory noise and hide the first.
     """
-    params = {k: dict(v) for k, v in model.params.items()}
-    for eid in todo:
-        if eid in _TIMED:
-            params[eid] = dict(cparams[eid][eid])
-    effects = tuple(e for e in EFFECTS if e in set(model.effects) | set(todo))
-    rich = LinearModel(data, effects, params)
+    params = _copy(model.params)
+    params.update({eid: dict(cparams[eid][eid]) for eid in todo if eid in _TIMED})
+    rich = LinearModel(data, _effects(model.effects, todo), params)
     r = (data.y - rich.predict(rich.fit())) * data.sw[:, None]
     memory = max(bandwidth(r[:, a], floor=False) for a in range(3))
     return [bandwidth(r[:, a]) for a in range(3)], int(memory)
@@ -178,10 +184,8 @@ def _curve_model(data: BlockData, model: LinearModel, folds: Folds
     curve = tuple(e for e in _CURVE if e not in model.effects)
     if not curve:
         return None
-    base = LinearModel(data, tuple(e for e in EFFECTS if e in set(model.effects) | set(curve)),
-                       model.params)
-    ho = base.cv_residual(folds)
-    return curve, base, _heldout_mse(data, ho)
+    base = LinearModel(data, _effects(model.effects, curve), model.params)
+    return curve, base, _heldout_mse(data, base.cv_residual(folds))
 
 
 def _beside_curve(data: BlockData, curve: tuple, folds: Folds, eid: str, params: dict) -> float:
@@ -197,11 +201,10 @@ def _beside_curve(data: BlockData, curve: tuple, folds: Folds, eid: str, params:
     of its own) is ranked by it when it is the larger gain.
     """
     ids, base, mse_b = curve
-    effects = tuple(e for e in EFFECTS if e in set(base.effects) | {eid})
+    effects = _effects(base.effects, {eid})
     which = [e for e in (eid, 'lag') if e in _TIMED and e in effects]
     trial = _fit_taus(data, effects, params, which) if which else params
-    ho = LinearModel(data, effects, trial).cv_residual(folds)
-    mse_c = _heldout_mse(data, ho)
+    mse_c = _heldout_mse(data, LinearModel(data, effects, trial).cv_residual(folds))
     return (mse_b - mse_c) * DEG ** 2
 
 
@@ -216,8 +219,7 @@ def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse
     With ``curve`` (:func:`_curve_model`) a time-memory candidate must also gain held out
     beside the static curve (:func:`_beside_curve`), and is ranked by its gain there.
     """
-    effects = tuple(e for e in EFFECTS if e in set(model.effects) | {eid})
-    cand = LinearModel(data, effects, params)
+    cand = LinearModel(data, _effects(model.effects, {eid}), params)
     idx = cand.columns_of(eid)
     own = dict(params[eid]) if eid in _TIMED else {}
     # Is it spanned by the current model (per axis)? (The thermal state has no column of
@@ -370,11 +372,8 @@ def discover(runs: Sequence[Run], options: DiscoverOptions | None = None, *,
     runs = list(runs)
     _check(runs, o.block_s)
     base_ids = with_implied(tuple(normalise_ids(o.base)) + ('bias',))
-    if o.candidates is None:
-        cand_ids = tuple(e for e in _CANDIDATES if e not in base_ids)
-    else:
-        cand_ids = tuple(e for e in normalise_ids(o.candidates)
-                         if e not in base_ids and e != 'bias')
+    pool = _CANDIDATES if o.candidates is None else normalise_ids(o.candidates)
+    cand_ids = tuple(e for e in pool if e not in base_ids and e != 'bias')
     t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
     data = BlockData(runs, block_s=o.block_s, t0=t0)
     _check_blocks(data, base_ids, o.block_s)
@@ -456,8 +455,8 @@ def _add_best(data: BlockData, model: LinearModel, rnd: _Round, passing: list,
             family.append(item)
     best, contrib_b, p_b = min((x for x in family if x[0].passed),
                                key=lambda x: _n_params(model, x[0].effect, x[2]))
-    new_effects = tuple(e for e in EFFECTS if e in set(model.effects) | {best.effect})
-    new_params = {k: dict(v) for k, v in p_b.items()}
+    new_effects = _effects(model.effects, {best.effect})
+    new_params = _copy(p_b)
     refit = [e for e in new_effects if e in _TIMED]
     if len(refit) > 1:
         new_params = _fit_taus(data, new_effects, new_params, refit)
@@ -547,7 +546,7 @@ def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateS
         if sc.effect == 'lag':          # what the state changes: its dT minus the measured
             col = data.state_columns(sc.params['tau_s'])['dT'] - data.static['dT']
         elif EFFECTS[sc.effect].is_input:
-            p = {k: dict(v) for k, v in params.items()}
+            p = _copy(params)
             p.update({sc.effect: dict(sc.params)} if sc.params else {})
             col = data.column(sc.effect, p, state_tau=model.state_tau)
         else:

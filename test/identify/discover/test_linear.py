@@ -13,11 +13,10 @@
 # limitations under the License.
 
 """
-The parts of discovery on their own: block grid, folds, noise memory and the HAC test.
+The linear model's statistics on their own: folds, noise memory and the HAC test.
 
-:mod:`gyro_tdc.identify.discover.data` groups samples into blocks per contiguous segment;
-:mod:`gyro_tdc.identify.discover.stats` holds the statistics the false-discovery guard is built on.
-Each is checked against a known answer on seeded synthetic data.
+:mod:`gyro_tdc.identify.discover.linear` holds the statistics the false-discovery guard is
+built on; each is checked against a known answer on seeded synthetic data.
 """
 
 from __future__ import annotations
@@ -25,41 +24,12 @@ from __future__ import annotations
 import math
 import warnings
 
-from gyro_tdc.data.runs import Run
-from gyro_tdc.identify.discover import discover, DiscoverOptions
-from gyro_tdc.identify.discover.data import BlockData
-from gyro_tdc.identify.discover.linear import LinearModel
-from gyro_tdc.identify.discover.stats import (ar1, bandwidth, hac_pvalue, make_folds, ols_hac,
-                                              rel_residual, weighted_corr)
+from gyro_tdc.identify.discover.data import BlockData, rel_residual
+from gyro_tdc.identify.discover.linear import (ar1, bandwidth, hac_pvalue, LinearModel,
+                                               make_folds, ols_hac, weighted_corr)
 import numpy as np
 import pytest
 from synth import synth_run
-
-
-def gapped_run(seed: int = 0) -> Run:
-    """Return a 1 Hz run of 125 samples, a 100 s gap, then 103 samples."""
-    rng = np.random.default_rng(seed)
-    t = np.concatenate([np.arange(125.0), 225.0 + np.arange(103.0)])
-    temp = 20.0 + 0.01 * t
-    omega = rng.normal(0.0, 1e-3, size=(t.size, 3))
-    return Run(t, temp, omega, np.zeros((t.size, 3)), 'gapped')
-
-
-def test_blocks_follow_segments_and_short_tails_join():
-    run = gapped_run()
-    data = BlockData([run], block_s=10.0, t0=20.0)
-    # Segment 1: 12 blocks of 10 and a tail of 5 (half a block: its own block).
-    # Segment 2: 10 blocks, the tail of 3 joins the last one (13 samples).
-    expected = [10] * 12 + [5] + [10] * 9 + [13]
-    assert data.n.tolist() == expected
-    edges = np.concatenate([[0], np.cumsum(expected)])
-    for k, (a, b) in enumerate(zip(edges[:-1], edges[1:])):
-        assert data.tfirst[k] == run.t[a] and data.tlast[k] == run.t[b - 1]
-        np.testing.assert_allclose(data.y[k], run.omega[a:b].mean(axis=0), rtol=1e-12)
-    np.testing.assert_allclose(data.column('dT2', {}),
-                               [((run.temp[a:b] - 20.0) ** 2).mean()
-                                for a, b in zip(edges[:-1], edges[1:])], rtol=1e-12)
-    assert data.tfirst[13] == 225.0   # no block spans the gap
 
 
 def test_folds_one_run_blocked_with_buffer_and_several_runs_leave_one_out():
@@ -82,18 +52,6 @@ def test_folds_one_run_blocked_with_buffer_and_several_runs_leave_one_out():
     assert buffer == 0 and len(folds) == 2
     for r, (test, train) in enumerate(folds):
         assert np.array_equal(test, two.run == r) and np.array_equal(train, two.run != r)
-
-
-def test_discover_options_are_the_keywords_and_a_keyword_overrides_them():
-    run = synth_run(seed=4, hours=0.5, rate_hz=2.0)
-    opts = DiscoverOptions(candidates='dT2,dT3', allan=False, max_steps=1)
-    res = discover([run], opts)
-    same = discover([run], candidates=('dT2', 'dT3'), allan=False, max_steps=1)
-    assert res.final_effects == same.final_effects == ('bias', 'dT', 'dT2')
-    assert res.gap_dps == same.gap_dps and res.heldout_gap_dps == same.heldout_gap_dps
-    none = discover([run], opts, max_steps=0)
-    assert none.final_effects == ('bias', 'dT') and not none.steps
-    assert none.candidates[0].effect == 'dT2' and none.candidates[0].passed
 
 
 def test_ar1_and_bandwidth_see_the_memory_of_the_noise():

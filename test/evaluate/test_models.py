@@ -1,0 +1,99 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+Tests of gyro_tdc.evaluate.models: labels, model files and the ``px4`` baseline.
+
+Labels are file-name safe and unique; ``load_models`` reads model files and shipped names and
+refuses ``px4`` without training bags. The ``px4`` cubic does not fit a constant training
+axis: it passes it through, its other axes are those fitted with the axis at its reference;
+training bags constant on every axis are refused in one line.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+from bags import bag_from_run
+from constant_axes import quanta, values, with_constant as _with
+from gyro_tdc.errors import DatasetError, FitError, ModelFileError
+from gyro_tdc.evaluate.models import bag_labels, load_models, model_labels, PX4, safe_label
+from gyro_tdc.model import compensate
+from gyro_tdc.model.compensation import CompensationModel
+from hypothesis import given, settings
+import numpy as np
+import pytest
+from synth import synth_run
+
+
+@pytest.fixture(scope='module')
+def runs():
+    """Return a training run and a held-out run with a known drift on every axis."""
+    return (synth_run(seed=31, hours=0.5, rate_hz=2.0, noise_dps=0.02),
+            synth_run(seed=32, hours=0.5, rate_hz=2.0, noise_dps=0.02, name='held'))
+
+
+def test_labels_are_safe_and_unique():
+    assert safe_label('models/My Model.yaml') == 'My_Model'
+    assert safe_label('bags/run1/') == 'run1'
+    assert safe_label('...') == 'unnamed'
+    assert model_labels(['a/m.yaml', 'b/m.yaml', PX4, 'raw.yaml', 'b/m.yml']) == \
+        ['m', 'm_2', 'px4', 'raw_model', 'm_3']
+    assert bag_labels(['x/run1', 'y/run1', 'z/run2']) == ['x_run1', 'y_run1', 'run2']
+
+
+def test_load_models(tmp_path):
+    models = load_models(['l3gd20_modified'])
+    assert [(m.name, m.label) for m in models] == [('l3gd20_modified', 'l3gd20_modified')]
+    assert isinstance(models[0].model, CompensationModel)
+    with pytest.raises(FitError, match='px4 baseline needs training bags'):
+        load_models([PX4])
+    with pytest.raises(ModelFileError):
+        load_models([str(tmp_path / 'missing.yaml')])
+
+
+@given(value=values, quantum=quanta)
+@settings(max_examples=6)
+def test_px4_passes_a_constant_training_axis_through(runs, tmp_path_factory, value, quantum):
+    """Fit the cubic on the other axes only (as with the axis at its reference); log it."""
+    train_run, held = runs
+    stuck = _with(train_run, [2], value, quantum)
+    folder = tmp_path_factory.mktemp('px4')
+    bag = bag_from_run(stuck, folder / 'train')
+    lines = []
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        px4 = load_models([PX4], train_bags=[bag], log=lines.append)[0].model
+    assert px4.metrics['constant_axes'] == ['z']
+    assert not np.any(px4.linear[:, 2]) and px4.intercept[2] == 0.0
+    comp = compensate(px4, held.t, held.temp, held.omega)
+    assert np.array_equal(comp[:, 2], held.omega[:, 2])
+    # The other axes: the cubic fitted on the same bag read back with z at its reference.
+    read = load_models([PX4], train_bags=[bag_from_run(_with(train_run, [2], 0.0, 0.0),
+                                                       folder / 'ref')])[0].model
+    np.testing.assert_array_equal(px4.linear[:, :2], read.linear[:, :2])
+    np.testing.assert_array_equal(px4.intercept[:2], read.intercept[:2])
+    np.testing.assert_array_equal(px4.residual_var[:2], read.residual_var[:2])
+    assert any('gyro axis z constant: not fitted' in x for x in lines), lines
+    # Training figures of the identity axis are its raw ones.
+    raw = np.degrees(np.sqrt(np.mean((stuck.omega[:, 2] - stuck.omega_ref[:, 2]) ** 2)))
+    assert px4.metrics['train_rms_dps'][2] == pytest.approx(raw, rel=1e-6, abs=1e-12)
+
+
+def test_px4_refuses_training_bags_constant_on_every_axis(runs, tmp_path):
+    """Refuse, in one line, a px4 baseline with no gyro to fit."""
+    bag = bag_from_run(_with(runs[0], [0, 1, 2], 0.0, 1e-4), tmp_path / 'dead')
+    with pytest.raises(DatasetError) as err:
+        load_models([PX4], train_bags=[bag])
+    assert '\n' not in str(err.value) and 'every axis' in str(err.value)
