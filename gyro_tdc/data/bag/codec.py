@@ -182,13 +182,12 @@ def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype,
                     keep: Sequence[int] | None) -> Decoded | None:
     """Decode ``n`` messages of layout ``dt`` stored end to end in ``buf`` (see decode_fast)."""
     rec = np.frombuffer(buf, dtype=dt)
-    # Encapsulation (word 0) and frame id length equal to the first message's, as raw
-    # 32-bit words (itemsize is always a multiple of 4); then the frame id bytes.
+    # Encapsulation (word 0), frame id length, frame id and its padding equal to the first
+    # message's, compared as raw 32-bit words column by column (one strided pass each).
     words = np.frombuffer(buf, dtype=np.uint32).reshape(n, dt.itemsize // 4)
     frame = rec['frame']
-    k = imu_cdr.FRAME_ID_LENGTH // 4
-    if (np.any(words[:, 0] != words[0, 0]) or np.any(words[:, k] != words[0, k])
-            or np.any(frame != frame[0]) or frame[0, -1] != 0):
+    cols = [0, *range(imu_cdr.FRAME_ID_LENGTH // 4, dt.fields['data'][1] // 4)]
+    if frame[0, -1] != 0 or any(np.any(words[:, k] != words[0, k]) for k in cols):
         return None
     try:
         frame_id = frame[0, :-1].tobytes().decode('utf-8')
