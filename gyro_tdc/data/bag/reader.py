@@ -27,7 +27,6 @@ columns sized by the counts of ``metadata.yaml``, checked first
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import io
 from itertools import islice
 import mmap
 from pathlib import Path
@@ -188,26 +187,6 @@ class _Sink:
         return out
 
 
-def _reusable(scratch: io.BytesIO) -> io.BytesIO:
-    """
-    Return ``scratch`` rewound for the next block, or a fresh buffer when it is still exported.
-
-    The decode of a block reads the buffer through a view, and arrays made from it; when the
-    decode returns they are gone, unless something else still holds them: a sampling
-    profiler that took the thread's frames (Dask's worker samples every running task's stack
-    every 10 ms) or a reference cycle not yet collected keeps a returned frame, with its
-    locals, alive. Writing into a BytesIO with a live view raises ``BufferError: Existing
-    exports of data: object cannot be re-sized``; the empty write probes for that, and the
-    held buffer is left to its holder.
-    """
-    scratch.seek(0)
-    try:
-        scratch.write(b'')
-    except BufferError:
-        return io.BytesIO()
-    return scratch
-
-
 #: How :func:`read_bag` reads the storage: ``'auto'`` (columnar where it applies, else
 #: rosbags), ``'columnar'`` (refuse a bag it does not apply to) or ``'rosbags'``.
 VIA = ('auto', 'columnar', 'rosbags')
@@ -277,8 +256,8 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                 with columnar.open_bag(bag, info) as opened:
                     topics, conns = _connections(opened.topics, opened.conns, bag, wanted)
                     return _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
-                                    opened.main_logs, opened.typestore, bag, info, topics,
-                                    conns, progress, accel, 'columnar')
+                                    opened.typestore, bag, info, topics, conns, progress,
+                                    accel, 'columnar')
             except Unfit as err:
                 why = str(err)
             except DatasetError:
@@ -292,9 +271,11 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
             topics, conns = _connections(
                 {name: (t.msgtype or '?', int(t.msgcount)) for name, t in reader.topics.items()},
                 reader.connections, bag, wanted)
-            source = _RosbagsSource(reader, conns)
-            return _collect(source.feed, source.main_logs, reader.typestore, bag, info, topics,
-                            conns, progress, accel, 'rosbags')
+            # One bag: its rosbags Reader directly, without AnyReader's merge across bags.
+            source = reader.readers[0] if len(reader.readers) == 1 else reader
+            return _collect(lambda out, update: _rosbags_feed(source, conns, out, update),
+                            reader.typestore, bag, info, topics, conns, progress, accel,
+                            'rosbags')
     except ZstdError as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r}: its data are not compressed as '
                            f'metadata.yaml says (compression_format '
@@ -358,15 +339,11 @@ class Collector:
         self.fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
         self.undecodable = 0
         self.n_main = 0
-        # Main messages: global indices of the undecodable ones, and of the zero-stamped
-        # ones whose log time was not at hand (with their sink rows).
-        self.main_bad: list[NDArray[np.int64]] = []
-        self.zero_stamped: list[tuple[NDArray[np.int64], NDArray[np.int64]]] = []
+        self.main_bad: list[NDArray[np.int64]] = []    # main messages undecodable
         self.before: list[NDArray[np.int64]] = []      # Float readings: main messages before
 
     def _store(self, role: str, dec: Decoded, logs: Sequence[int] | NDArray | None,
-               fetch_logs: Callable[[], NDArray[np.int64]] | None, first: int = -1
-               ) -> NDArray[np.bool_] | None:
+               fetch_logs: Callable[[], NDArray[np.int64]] | None) -> NDArray[np.bool_] | None:
         """Put a decoded block into its sink; return the mask of decodable messages."""
         sink = self.sinks[role]
         self.fallback[role] += dec.fallback
@@ -375,17 +352,9 @@ class Collector:
         stamp_ns = dec.sec * 1_000_000_000 + dec.nanosec
         good = None if dec.undecodable is None else ~dec.undecodable
         zero = stamp_ns == 0
-        if zero.any():
-            if logs is None and fetch_logs is not None:
-                logs = fetch_logs()
-            if logs is not None:
-                stamp_ns[zero] = np.asarray(logs, dtype=np.int64)[zero]
-            else:                          # the main messages' log times, in a second pass
-                if good is not None:
-                    zero &= good
-                pos = np.flatnonzero(zero)
-                rows = pos if good is None else np.cumsum(good)[pos] - 1
-                self.zero_stamped.append((first + pos, sink.n + rows))
+        if zero.any():                     # a zero header stamp: the log time instead
+            logs = fetch_logs() if logs is None else logs
+            stamp_ns[zero] = np.asarray(logs, dtype=np.int64)[zero]
         t = _seconds(stamp_ns)
         values = dec.values
         if good is not None:
@@ -401,7 +370,7 @@ class Collector:
         if not len(lengths):
             return
         dec = decode_joined(buf, lengths, IMU_TYPE, self.typestore, self.keep['imu'])
-        good = self._store('imu', dec, logs, fetch_logs, self.n_main)
+        good = self._store('imu', dec, logs, fetch_logs)
         if good is not None:
             self.main_bad.append(self.n_main + np.flatnonzero(~good))
         self.n_main += len(lengths)
@@ -426,16 +395,8 @@ class Collector:
         dec = decode(raws, msgtype, self.typestore, self.keep[role])
         self._store(role, dec, logs, fetch_logs)
 
-    def result(self, bag: Path, storage: str, topics: dict, via: str,
-               main_logs: Callable[[NDArray[np.int64]], NDArray[np.int64]] | None
-               ) -> BagData:
-        """Return the :class:`BagData` (``main_logs(indices)``: log times of main messages)."""
-        if self.zero_stamped:
-            # Rare (a driver that leaves the header stamp at zero) when the reader did not
-            # hand the log times over: fetch those of the main messages that need them.
-            index = np.concatenate([z[0] for z in self.zero_stamped])
-            rows = np.concatenate([z[1] for z in self.zero_stamped])
-            self.sinks['imu'].t[rows] = _seconds(main_logs(index))
+    def result(self, bag: Path, storage: str, topics: dict, via: str) -> BagData:
+        """Return the :class:`BagData`."""
         before_imu = 0
         stamped = None
         if self.floating:
@@ -477,8 +438,7 @@ class Collector:
             storage=storage, path=str(bag), fallback=self.fallback, via=via)
 
 
-def _collect(feed: Callable[[Collector, Callable[[int], Any]], None],
-             main_logs: Callable[[NDArray[np.int64]], NDArray[np.int64]], typestore: Any,
+def _collect(feed: Callable[[Collector, Callable[[int], Any]], None], typestore: Any,
              bag: Path, info: Mapping, topics: dict[str, tuple[str, int]],
              conns: dict[str, list[Any]], progress: bool, with_accel: bool, via: str
              ) -> BagData:
@@ -497,70 +457,24 @@ def _collect(feed: Callable[[Collector, Callable[[int], Any]], None],
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
         feed(out, bar.update)
-    return out.result(bag, str(info.get('storage_identifier', '')), topics, via, main_logs)
+    return out.result(bag, str(info.get('storage_identifier', '')), topics, via)
 
 
-class _RosbagsSource:
-    """
-    The raw messages of rosbags' reader, in blocks of ``_CHUNK`` (the reference read).
-
-    Hot loop, one list comprehension per block: each main message (of the IMU topic) is
-    written into one reused buffer as it arrives (its bytes still in the CPU cache: cheaper
-    than collecting the messages and joining them later), its length kept, and nothing else
-    done per message (no log time, no call of ours); any other message (temperature,
-    reference) is passed to ``add_other``, which returns None and so also keeps it out of
-    the list. The buffer is reused only when nothing holds a view of it any more (see
-    _reusable).
-    """
-
-    def __init__(self, reader: AnyReader, conns: dict[str, list[Any]]) -> None:
-        # read_bag opens one bag: iterate its rosbags Reader directly, without AnyReader's
-        # heapq merge across bags (one generator step less per message).
-        self.source = reader.readers[0] if len(reader.readers) == 1 else reader
-        self.conns = conns
-        self.mains = list(conns['imu'])
-
-    def feed(self, out: Collector, update: Callable[[int], Any]) -> None:
-        """Hand every block to ``out``."""
-        role_of = {id(c): role for role in out.roles if role != 'imu' for c in self.conns[role]}
-        gen = self.source.messages(connections=[c for r in out.roles for c in self.conns[r]])
-        scratch = io.BytesIO()
-        one = len(self.mains) == 1
-        main = self.mains[0]
-        mains = tuple(self.mains)
-        while True:
-            others: list[tuple[Any, ...]] = []
-            add_other = others.append
-            scratch = _reusable(scratch)
-            write, tell = scratch.write, scratch.tell
-            # Where each other message fell among the main ones (bytes of them before it)
-            # only matters to Float temperatures; the tell() is cheap enough to keep.
-            if one:
-                lengths = [write(raw) for conn, log, raw in islice(gen, _CHUNK)
-                           if conn is main or add_other((conn, log, raw, tell()))]
-            else:
-                lengths = [write(raw) for conn, log, raw in islice(gen, _CHUNK)
-                           if conn in mains or add_other((conn, log, raw, tell()))]
-            first = out.n_main
-            if lengths:
-                view = scratch.getbuffer()    # released when the decode returns
-                out.main(view, lengths)
-                del view
-            if others:
-                ends = np.cumsum(lengths) if lengths else np.zeros(0, dtype=np.int64)
-                for role in out.roles[1:]:
-                    mine = [x for x in others if role_of[id(x[0])] == role]
-                    if mine:
-                        before = first + np.searchsorted(ends, [x[3] for x in mine],
-                                                         side='right')
-                        out.other(role, [x[2] for x in mine], [x[1] for x in mine], before)
-            done = len(lengths) + len(others)
-            if not done:
-                break
-            update(done)
-
-    def main_logs(self, index: NDArray[np.int64]) -> NDArray[np.int64]:
-        """Return the log times of the main messages at ``index`` (a second pass)."""
-        logs = np.fromiter((log for _, log, _ in self.source.messages(connections=self.mains)),
-                           dtype=np.int64)
-        return logs[index]
+def _rosbags_feed(source: Any, conns: dict[str, list[Any]], out: Collector,
+                  update: Callable[[int], Any]) -> None:
+    """Hand rosbags' raw messages to ``out`` in blocks of ``_CHUNK`` (the reference read)."""
+    role_of = {id(c): role for role in out.roles for c in conns[role]}
+    gen = source.messages(connections=[c for r in out.roles for c in conns[r]])
+    while block := list(islice(gen, _CHUNK)):
+        roles = [role_of[id(conn)] for conn, _, _ in block]
+        first = out.n_main
+        mains = np.cumsum([r == 'imu' for r in roles])    # main messages up to each one
+        for role in out.roles:
+            mine = [k for k, r in enumerate(roles) if r == role]
+            raws = [block[k][2] for k in mine]
+            logs = np.array([block[k][1] for k in mine], dtype=np.int64)
+            if role == 'imu' and mine:
+                out.main(b''.join(raws), [len(x) for x in raws], logs)
+            elif mine:
+                out.other(role, raws, logs, first + mains[mine])
+        update(len(block))
