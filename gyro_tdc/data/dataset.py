@@ -500,7 +500,7 @@ def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
         out.append(p)
     seen: dict[Path, Path] = {}
     for p in out:
-        real = p.resolve()
+        real = Path(os.path.realpath(p))
         if p.is_file() and p.suffix in ('.db3', '.mcap'):
             real = real.parent          # a bag's storage file names the bag
         if real in seen:

@@ -117,8 +117,8 @@ def test_fixed_layout_decodes_every_field_like_rosbags(msgtype, frame_id, little
         assert rec['frame'][i].tobytes() == frame
         np.testing.assert_array_equal(rec['data'][i], row)
 
-    dec = codec.decode_fast(raws, msgtype)
-    assert dec is not None and dec.fallback == 0 and dec.frame_id == frame_id
+    dec = codec.decode(raws, msgtype, TS)
+    assert dec.fallback == 0 and dec.frame_id == frame_id
     keep = list(codec.KEEP[msgtype])
     for i, raw in enumerate(raws):
         sec, nsec, _, row = _fields(msgtype, TS.deserialize_cdr(raw, msgtype))
@@ -145,14 +145,14 @@ def test_fixed_layout_encodes_like_rosbags(msgtype, frame_id):
 def test_fast_decoder_refuses_mixed_layouts():
     rng = np.random.default_rng(3)
     same_len = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('imu0', 'imu1')]
-    assert codec.decode_fast(same_len, IMU_TYPE) is None
+    assert codec.decode(same_len, IMU_TYPE, TS).fallback == len(same_len)
     other_len = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('a', 'bcd')]
-    assert codec.decode_fast(other_len, IMU_TYPE) is None
+    assert codec.decode(other_len, IMU_TYPE, TS).fallback == len(other_len)
     mixed_endian = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE, little_endian=le))
                     for le in (True, False)]
-    assert codec.decode_fast(mixed_endian, IMU_TYPE) is None
+    assert codec.decode(mixed_endian, IMU_TYPE, TS).fallback == len(mixed_endian)
     trailing = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE)) + b'\0\0' for _ in range(2)]
-    assert codec.decode_fast(trailing, IMU_TYPE) is None
+    assert codec.decode(trailing, IMU_TYPE, TS).fallback == len(trailing)
     # ...and the rosbags fallback decodes all of them right.
     for raws in (same_len, other_len, mixed_endian, trailing):
         dec = codec.decode(raws, IMU_TYPE, TS)

@@ -241,7 +241,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
     """
     if via not in VIA:
         raise DatasetError(f'Expected `via` to be one of {", ".join(VIA)}, got {via!r}.')
-    bag = metadata.resolve(path)
+    bag = metadata.bag_dir(path)
     info: Mapping = {}
     wanted = [('imu', imu_topic, (IMU_TYPE,), True),
               ('temperature', temperature_topic, TEMPERATURE_TYPES, True)]
