@@ -345,6 +345,7 @@ class Collector:
     def _store(self, role: str, dec: Decoded, logs: Sequence[int] | NDArray | None,
                fetch_logs: Callable[[], NDArray[np.int64]] | None) -> NDArray[np.bool_] | None:
         """Put a decoded block into its sink; return the mask of decodable messages."""
+        floating = role == 'temperature' and self.floating      # stamped in result()
         sink = self.sinks[role]
         self.fallback[role] += dec.fallback
         if self.frame_id[role] is None and dec.frame_id:
@@ -352,7 +353,7 @@ class Collector:
         stamp_ns = dec.sec * 1_000_000_000 + dec.nanosec
         good = None if dec.undecodable is None else ~dec.undecodable
         zero = stamp_ns == 0
-        if zero.any():                     # a zero header stamp: the log time instead
+        if zero.any() and not floating:    # a zero header stamp: the log time instead
             logs = fetch_logs() if logs is None else logs
             stamp_ns[zero] = np.asarray(logs, dtype=np.int64)[zero]
         t = _seconds(stamp_ns)
@@ -381,19 +382,13 @@ class Collector:
         """Decode a block of one other role's messages (``before``: see the class)."""
         if not len(raws):
             return
-        msgtype = self.msgtypes[role]
-        if role == 'temperature' and self.floating:
-            dec = decode_float(raws, msgtype, self.typestore)
-            self.fallback[role] += dec.fallback
-            ok = np.ones(len(raws), dtype=bool)
-            if dec.undecodable is not None:
-                self.undecodable += int(dec.undecodable.sum())
-                ok = ~dec.undecodable
-            self.before.append(np.asarray(before, dtype=np.int64)[ok])
-            self.sinks[role].add(np.zeros(int(ok.sum())), dec.values[ok])
-            return
-        dec = decode(raws, msgtype, self.typestore, self.keep[role])
-        self._store(role, dec, logs, fetch_logs)
+        floating = role == 'temperature' and self.floating
+        dec = (decode_float(raws, self.msgtypes[role], self.typestore) if floating else
+               decode(raws, self.msgtypes[role], self.typestore, self.keep[role]))
+        good = self._store(role, dec, logs, fetch_logs)
+        if floating:
+            before = np.asarray(before, dtype=np.int64)
+            self.before.append(before if good is None else before[good])
 
     def result(self, bag: Path, storage: str, topics: dict, via: str) -> BagData:
         """Return the :class:`BagData`."""
@@ -411,26 +406,21 @@ class Collector:
             stamped = row >= 0
             before_imu = int(np.count_nonzero(~stamped))
             sink.t[:sink.n] = self.sinks['imu'].t[row.clip(0)]
-        rejected = {'imu_nonfinite': 0, 'temp_nonfinite': 0, 'ref_nonfinite': 0,
-                    'undecodable': self.undecodable, 'temp_before_imu': before_imu}
-        sink = self.sinks['imu']
-        finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
-        rejected['imu_nonfinite'] = int(np.count_nonzero(~finite))
-        imu_t, gyro, *accel = sink.result(finite)
-        sink = self.sinks['temperature']
-        finite = np.isfinite(sink.v[0][:sink.n, 0])
-        if stamped is not None:       # readings before the first IMU message are dropped
-            rejected['temp_nonfinite'] = int(np.count_nonzero(~finite & stamped))
-            finite &= stamped
-        else:
-            rejected['temp_nonfinite'] = int(np.count_nonzero(~finite))
-        temp_t, temp_c, temp_var = sink.result(finite)
-        ref_t = ref = None
-        if 'reference' in self.sinks and self.sinks['reference'].n:
-            sink = self.sinks['reference']
-            finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
-            rejected['ref_nonfinite'] = int(np.count_nonzero(~finite))
-            ref_t, ref = sink.result(finite)
+        rejected = {'undecodable': self.undecodable, 'temp_before_imu': before_imu}
+        out: dict[str, list] = {'reference': [None, None]}
+        for role, key in (('imu', 'imu_nonfinite'), ('temperature', 'temp_nonfinite'),
+                          ('reference', 'ref_nonfinite')):
+            sink = self.sinks.get(role)
+            finite = (np.isfinite(sink.v[0][:sink.n]).all(axis=1) if sink
+                      else np.zeros(0, dtype=bool))
+            # Float readings before the first IMU message are dropped, not counted here.
+            keep = finite & stamped if role == 'temperature' and stamped is not None else None
+            rejected[key] = int(np.count_nonzero(~finite if keep is None else ~finite & stamped))
+            if sink is not None and (sink.n or role != 'reference'):    # no empty reference
+                out[role] = sink.result(finite if keep is None else keep)
+        imu_t, gyro, *accel = out['imu']
+        temp_t, temp_c, temp_var = out['temperature']
+        ref_t, ref = out['reference']
         return BagData(
             imu_t=imu_t, gyro=gyro, accel=accel[0] if accel else None,
             frame_id=self.frame_id['imu'] or '', temp_t=temp_t, temp_c=temp_c[:, 0],
