@@ -427,17 +427,20 @@ def main(argv=None):
             print(f'  train / raw     = {train / raw:.2f}  (goal <= {GOAL}: {verdict}; per round '
                   f'{", ".join(f"{x:.2f}" for x in ratios)})')
             print(f'  train / storage = {train / store:.2f}')
+            # On a loaded machine (other processes on the cores) the wall clock of a
+            # two-thread train suffers more than the one-thread raw read: CPU beside it.
+            print(f'  train CPU / raw CPU = {med["train"]["cpu"] / med["raw"]["cpu"]:.2f}')
             print(f'  model id {", ".join(ids)}')
             summary.append((name, storage, raw, store, train, med['train']['peak_rss'],
-                            ', '.join(ids)))
+                            ', '.join(ids), med['train']['cpu'] / med['raw']['cpu']))
             if args.profile:
                 print('\ncProfile of the train stage (cumulative):')
                 print(_run_child('train', bag, profile=True)['profile'])
     print('\nsummary (medians): bag, storage, raw s, storage s, train s, train / raw, '
-          'train / storage, train peak RSS MB, model id')
-    for name, storage, raw, store, train, rss, ids in summary:
+          'train / storage, train CPU / raw CPU, train peak RSS MB, model id')
+    for name, storage, raw, store, train, rss, ids, cpu in summary:
         print(f'  {name:<5} {storage:<7} {raw:6.2f} {store:6.2f} {train:6.2f}  '
-              f'{train / raw:5.2f}  {train / store:5.2f}  {rss / 1e6:5.0f}  {ids}')
+              f'{train / raw:5.2f}  {train / store:5.2f}  {cpu:5.2f}  {rss / 1e6:5.0f}  {ids}')
     return 0
 
 
