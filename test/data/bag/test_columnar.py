@@ -18,185 +18,19 @@ from __future__ import annotations
 
 from pathlib import Path
 import shutil
-import sqlite3
 
+from columnar_tape import (_chamber, _same_data, _same_tape, _tapes, _topics, _write, ARRAYS,
+                           STORAGES, TS)
 from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE
-from gyro_tdc.data.bag import codec, columnar, metadata, reader
+from gyro_tdc.data.bag import columnar, metadata, reader
 from gyro_tdc.data.bag.storage import Unfit
 from gyro_tdc.errors import DatasetError
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
-from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability
-from rosbags.interfaces import QosTime
-from rosbags.rosbag2 import CompressionFormat, CompressionMode, StoragePlugin, Writer
-from rosbags.typesys import get_typestore, Stores
+from rosbags.rosbag2 import CompressionMode
 import yaml
-
-TS = get_typestore(Stores.ROS2_JAZZY)
-STORAGES = ('sqlite3', 'mcap')
-PLUGINS = {'sqlite3': StoragePlugin.SQLITE3, 'mcap': StoragePlugin.MCAP}
-FLOAT_TYPE = 'std_msgs/msg/Float64'
-ARRAYS = ('imu_t', 'gyro', 'accel', 'temp_t', 'temp_c', 'temp_var', 'ref_t', 'ref')
-
-
-def _qos(depth: int) -> list[Qos]:
-    inf = QosTime(0x7FFFFFFF, 0xFFFFFFFF)
-    return [Qos(QosHistory.KEEP_LAST, depth, QosReliability.RELIABLE, QosDurability.VOLATILE,
-                inf, inf, QosLiveliness.AUTOMATIC, inf, False)]
-
-
-def _header(ns: int, frame: str = 'imu_link'):
-    return TS.types['std_msgs/msg/Header'](
-        TS.types['builtin_interfaces/msg/Time'](ns // 10**9, ns % 10**9), frame)
-
-
-def _imu(rng, ns: int, frame: str = 'imu_link') -> bytes:
-    vec, quat = TS.types['geometry_msgs/msg/Vector3'], TS.types['geometry_msgs/msg/Quaternion']
-    msg = TS.types[IMU_TYPE](_header(ns, frame), quat(0.0, 0.0, 0.0, 1.0), np.zeros(9),
-                             vec(*rng.normal(size=3)), np.zeros(9), vec(*rng.normal(size=3)),
-                             np.zeros(9))
-    return bytes(TS.serialize_cdr(msg, IMU_TYPE))
-
-
-def _temperature(rng, ns: int) -> bytes:
-    msg = TS.types[TEMPERATURE_TYPE](_header(ns), 20.0 + rng.normal(), 0.01)
-    return bytes(TS.serialize_cdr(msg, TEMPERATURE_TYPE))
-
-
-def _float(rng, ns: int) -> bytes:
-    return bytes(TS.serialize_cdr(TS.types[FLOAT_TYPE](20.0 + rng.normal()), FLOAT_TYPE))
-
-
-def _reference(rng, ns: int) -> bytes:
-    msg = TS.types[REFERENCE_TYPE](_header(ns), TS.types['geometry_msgs/msg/Vector3'](
-        *rng.normal(size=3)))
-    return bytes(TS.serialize_cdr(msg, REFERENCE_TYPE))
-
-
-def _write(path: Path, storage: str, streams, *, shuffle: bool = False,
-           compression: CompressionMode | None = None, seed: int = 0) -> Path:
-    """
-    Write ``streams``: [(topic, msgtype, qos depth, [(log ns, raw), ...])] with rosbags.
-
-    Two streams of one topic with different QoS depths are two connections of it. Messages
-    are written in time order, or shuffled (rowids and mcap chunks out of time order).
-    """
-    wr = Writer(path, version=9, storage_plugin=PLUGINS[storage])
-    if compression is not None:
-        wr.set_compression(compression, CompressionFormat.ZSTD)
-    items = [(ns, k, raw) for k, (_, _, _, msgs) in enumerate(streams) for ns, raw in msgs]
-    items.sort(key=lambda x: x[0])
-    if shuffle:
-        order = np.random.default_rng(seed).permutation(len(items))
-        items = [items[i] for i in order]
-    with wr:
-        conns = [wr.add_connection(topic, msgtype, typestore=TS,
-                                   offered_qos_profiles=_qos(depth))
-                 for topic, msgtype, depth, _ in streams]
-        for ns, k, raw in items:
-            wr.write(conns[k], ns, raw)
-    return path
-
-
-def _chamber(rng, n: int = 700, *, step: int = 10**7, t0: int = 5 * 10**9, floating=False,
-             reference=False, split_imu=False, ties=False, zero=()):
-    """Streams of a small chamber bag: IMU (one or two connections), temperature, reference."""
-    logs = t0 + np.arange(n) * step
-    if ties:
-        logs[1::7] = logs[0::7][:len(logs[1::7])]       # equal log times
-    imu = [(int(ns), _imu(rng, 0 if i in zero else int(ns) + 3)) for i, ns in enumerate(logs)]
-    make = _float if floating else _temperature
-    temps = [(int(ns) + (0 if ties else 1), make(rng, int(ns) + 1)) for ns in logs[::50]]
-    streams = [('/imu/data_raw', IMU_TYPE, 10, imu[0::2] if split_imu else imu)]
-    if split_imu:
-        streams.append(('/imu/data_raw', IMU_TYPE, 20, imu[1::2]))
-    streams.append(('/imu/temperature', FLOAT_TYPE if floating else TEMPERATURE_TYPE, 10,
-                    temps[0::2] if split_imu else temps))
-    if split_imu:
-        streams.append(('/imu/temperature', FLOAT_TYPE if floating else TEMPERATURE_TYPE, 20,
-                        temps[1::2]))
-    if reference:
-        streams.append(('/rate_table/reference', REFERENCE_TYPE, 10,
-                        [(int(ns) + 2, _reference(rng, int(ns))) for ns in logs[::3]]))
-    return streams
-
-
-class _Tape:
-    """A Collector stand-in recording every message handed over, per role."""
-
-    def __init__(self, roles, floating):
-        self.roles, self.floating = list(roles), floating
-        self.n_main = 0
-        self.got = {role: [] for role in self.roles}
-        self.before = []
-
-    def main(self, buf, lengths, logs=None, fetch_logs=None):
-        logs = fetch_logs() if logs is None else logs
-        ends = np.cumsum(lengths).tolist()
-        for a, b, log in zip([0] + ends[:-1], ends, list(logs)):
-            self.got['imu'].append((int(log), bytes(buf[a:b])))
-        self.n_main += len(lengths)
-
-    def other(self, role, raws, logs, before=None, fetch_logs=None):
-        logs = fetch_logs() if logs is None else logs
-        self.got[role] += [(int(log), bytes(raw)) for log, raw in zip(list(logs), raws)]
-        if before is not None:
-            self.before += [int(x) for x in before]
-
-
-WANTED = [('imu', '/imu/data_raw', (IMU_TYPE,), True),
-          ('temperature', '/imu/temperature', (TEMPERATURE_TYPE, FLOAT_TYPE), True),
-          ('reference', '/rate_table/reference', (REFERENCE_TYPE,), False)]
-
-
-def _topics(rd: AnyReader) -> dict[str, tuple[str, int]]:
-    return {name: (t.msgtype or '?', t.msgcount) for name, t in rd.topics.items()}
-
-
-def _tapes(bag: Path, chunk: int = 64):
-    """Return (rosbags' messages per role, Float 'before' counts) and the columnar tape."""
-    with AnyReader([bag], default_typestore=TS) as rd:
-        _, conns = reader._connections(_topics(rd), rd.connections, bag, WANTED)
-        role_of = {id(c): role for role, cs in conns.items() for c in cs}
-        want = {role: [] for role in conns}
-        before, n_main = [], 0
-        for conn, log, raw in rd.readers[0].messages(
-                connections=[c for cs in conns.values() for c in cs]):
-            role = role_of[id(conn)]
-            want[role].append((log, bytes(raw)))
-            n_main += role == 'imu'
-            if role == 'temperature':
-                before.append(n_main)
-    with columnar.open_bag(bag, metadata.load(bag)) as opened:
-        topics, conns = reader._connections(opened.topics, opened.conns, bag, WANTED)
-        floating = topics['/imu/temperature'][0] == FLOAT_TYPE
-        tape = _Tape(conns, floating)
-        opened.feed(conns, tape, lambda n: None, chunk)
-    return want, (before if floating else []), tape
-
-
-def _same_tape(bag: Path, chunk: int = 64) -> None:
-    want, before, tape = _tapes(bag, chunk)
-    assert set(tape.got) == set(want)
-    for role in want:
-        assert len(tape.got[role]) == len(want[role]), role
-        assert tape.got[role] == want[role], role
-    assert tape.before == before
-
-
-def _same_data(bag: Path) -> None:
-    """read_bag gives the same arrays, bit for bit, through both reads."""
-    got, ref = read_bag(bag), read_bag(bag, via='rosbags')
-    assert got.via == 'columnar' and ref.via == 'rosbags'
-    for name in ARRAYS:
-        a, b = getattr(got, name), getattr(ref, name)
-        assert (a is None) == (b is None), name
-        if a is not None:
-            assert a.dtype == b.dtype and a.shape == b.shape and a.tobytes() == b.tobytes(), name
-    assert got.rejected == ref.rejected and got.topics == ref.topics
-    assert got.frame_id == ref.frame_id and got.storage == ref.storage
 
 
 @pytest.mark.parametrize('storage', STORAGES)
@@ -224,68 +58,6 @@ def test_out_of_order_writes_keep_rosbags_order(tmp_path, storage, monkeypatch):
                                                      floating=True), shuffle=True)
     _same_tape(bag)
     _same_data(bag)
-
-
-@pytest.mark.parametrize('change, via', [
-    ('DROP INDEX timestamp_idx', 'rosbags'),
-    ('CREATE INDEX size_idx ON messages (length(data))', 'columnar'),
-    ('CREATE INDEX topic_idx ON messages (topic_id)', 'rosbags'),
-    ('CREATE INDEX pair_idx ON messages (timestamp, topic_id)', 'rosbags'),
-])
-def test_sqlite3_indexes_other_than_rosbag2s_keep_rosbags_order(tmp_path, change, via):
-    # The range query walks rosbag2's timestamp index and nothing else; without it, or
-    # beside another index rosbags' query might walk (ties in another order), rosbags reads.
-    rng = np.random.default_rng(11)
-    bag = _write(tmp_path / 'bag', 'sqlite3', _chamber(rng, ties=True, split_imu=True,
-                                                       floating=True), shuffle=True)
-    (db3,) = bag.glob('*.db3')
-    with sqlite3.connect(db3) as db:
-        db.execute(change)
-    db.close()
-    got, ref = read_bag(bag), read_bag(bag, via='rosbags')
-    assert got.via == via
-    for name in ARRAYS:
-        np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
-
-
-def test_a_sqlite3_file_without_definitions_is_read_with_the_jazzy_types(tmp_path):
-    rng = np.random.default_rng(12)
-    bag = _write(tmp_path / 'bag', 'sqlite3', _chamber(rng, reference=True))
-    (db3,) = bag.glob('*.db3')
-    with sqlite3.connect(db3) as db:
-        db.execute('DELETE FROM message_definitions')
-    db.close()
-    with columnar.open_bag(bag, metadata.load(bag)) as opened:
-        assert opened.files[0].definitions == {}
-        assert opened.typestore is codec.jazzy()
-    _same_data(bag)
-
-
-def test_an_mcap_file_without_a_summary_goes_to_rosbags(tmp_path):
-    # rosbags scans such a file record by record; the columnar read wants the chunk index.
-    rng = np.random.default_rng(13)
-    bag = _write(tmp_path / 'bag', 'mcap', _chamber(rng))
-    (path,) = bag.glob('*.mcap')
-    raw = bytearray(path.read_bytes())
-    raw[-28:-20] = bytes(8)                  # the footer's summary_start
-    path.write_bytes(bytes(raw))
-    with pytest.raises(Unfit, match='without a summary'):
-        _tapes(bag)
-    got, ref = read_bag(bag), read_bag(bag, via='rosbags')
-    assert got.via == 'rosbags'
-    np.testing.assert_array_equal(got.gyro, ref.gyro)
-
-
-def test_mcap_chunks_overlapping_in_time_go_to_rosbags(tmp_path):
-    # rosbags merges chunks whose time spans overlap message by message: not read columnar.
-    rng = np.random.default_rng(3)
-    bag = _write(tmp_path / 'bag', 'mcap', _chamber(rng, n=9000), shuffle=True)
-    with pytest.raises(Unfit, match='overlap'):
-        _tapes(bag)
-    got, ref = read_bag(bag), read_bag(bag, via='rosbags')
-    assert got.via == 'rosbags'
-    np.testing.assert_array_equal(got.imu_t, ref.imu_t)
-    np.testing.assert_array_equal(got.temp_c, ref.temp_c)
 
 
 @pytest.mark.parametrize('storage, mode', [('sqlite3', CompressionMode.FILE),
