@@ -429,10 +429,13 @@ def _as_slice(index: NDArray) -> slice | NDArray:
     Indexing by a slice gives views instead of copies of the full-length columns (~1 s for a
     1 h, 1 kHz bag); the values are the same either way.
     """
-    rows = np.flatnonzero(index) if index.dtype == bool else index
-    if len(rows) and int(rows[-1]) - int(rows[0]) + 1 == len(rows) and (
-            index.dtype == bool or np.all(np.diff(rows) == 1)):
-        return slice(int(rows[0]), int(rows[-1]) + 1)
+    if index.dtype == bool:          # one run: its first True and the count of them
+        n = int(np.count_nonzero(index))
+        a = int(np.argmax(index))
+        return slice(a, a + n) if n and index[a:a + n].all() else index
+    if len(index) and int(index[-1]) - int(index[0]) + 1 == len(index) and np.all(
+            np.diff(index) == 1):
+        return slice(int(index[0]), int(index[-1]) + 1)
     return index
 
 
