@@ -52,7 +52,7 @@ if sys.version_info >= (3, 14):
 else:                         # rosbags' own zstd before Python 3.14
     from backports.zstd import ZstdError
 
-__all__ = ['BagData', 'Collector', 'read_bag', 'VIA']
+__all__ = ['BagData', 'Collector', 'READ_ERRORS', 'read_bag', 'VIA']
 
 # Messages per block when reading: small enough that a block's raw bytes (~5 MB of Imu) are
 # recycled by the allocator, large enough to amortise the per-block checks.
@@ -60,8 +60,8 @@ _CHUNK = 1 << 14
 # rosbags' own errors, plus what its parsers let through on damaged files (found by fuzzing
 # sqlite3 and mcap bags: huge record lengths raise OverflowError from seek, short reads
 # struct.error); zstd's error (data not compressed as metadata.yaml says) is caught apart.
-_READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
-                UnicodeDecodeError, OverflowError, struct.error)
+READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
+               UnicodeDecodeError, OverflowError, struct.error)
 
 
 def _seconds(stamp_ns: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -281,7 +281,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                            f'metadata.yaml says (compression_format '
                            f'{info.get("compression_format")!r:.20}, compression_mode '
                            f'{info.get("compression_mode")!r:.20}): {one_line(err)}') from err
-    except _READ_ERRORS as err:
+    except READ_ERRORS as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r} (unreadable or corrupt): '
                            f'{one_line(err)}') from err
 
