@@ -35,10 +35,12 @@ and the model id of every train run. ``--stages`` adds in-process stages of the 
 benchmark (``load``: ``load_run``; ``train_paper``: ``--features dT,dT2 --no-accel``;
 ``rosbags``: ``read_bag(via='rosbags')``; ``mcap_package``: the ``mcap`` PyPI package's
 ``iter_messages``, an alternative to the columnar read of the MCAP format, not a dependency);
-``--profile`` a cProfile of the train stage::
+``--profile`` a cProfile of the train stage; ``--baseline DIR`` runs another checkout's train
+(``baseline``) in the same rounds, for before/after figures side by side::
 
     .venv/bin/python bench/bench_train.py                       # both bags, both storages
     .venv/bin/python bench/bench_train.py --bags die --storage mcap --repeat 5 --profile
+    .venv/bin/python bench/bench_train.py --bags die --storage sqlite3 --baseline ../main
 """
 
 import os
