@@ -98,6 +98,8 @@ def to_msg(msgtype: str, sec: int, nanosec: int, frame_id: str,
 
 def from_msg(msgtype: str, msg: Any) -> tuple[int, int, str, list[float]]:
     """Return (sec, nanosec, frame_id, float64 block) of a deserialised message."""
+    if msgtype in FLOAT_TYPES:    # no header: the value and an unknown (0) variance
+        return 0, 0, '', [float(msg.data), 0.0]
     stamp = msg.header.stamp
     if msgtype == IMU_TYPE:   # the fields in wire order (gyro_tdc.data.imu_cdr.IMU_FIELDS)
         o, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
@@ -242,7 +244,7 @@ def decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any,
     for i, raw in enumerate(raws):
         try:
             s, ns, fid, row = from_msg(msgtype, typestore.deserialize_cdr(raw, msgtype))
-        except (SerdeError, AttributeError):
+        except (SerdeError, AttributeError, TypeError, ValueError):
             bad[i] = True
             continue
         sec[i], nsec[i] = s, ns
@@ -305,11 +307,4 @@ def decode_float(raws: Sequence[bytes], msgtype: str, typestore: Any) -> Decoded
         if same:
             values[:, 0] = value
             return Decoded(zeros, zeros.copy(), '', values, 0)
-    bad = np.zeros(n, dtype=bool)
-    for i, raw in enumerate(raws):
-        try:
-            values[i, 0] = float(typestore.deserialize_cdr(raw, msgtype).data)
-        except (SerdeError, AttributeError, TypeError, ValueError):
-            bad[i] = True
-            values[i, 0] = np.nan
-    return Decoded(zeros, zeros.copy(), '', values, n, bad if bad.any() else None)
+    return decode_slow(raws, msgtype, typestore, (0, 1))
