@@ -158,6 +158,29 @@ def measure(kind: str, bag: Path, subset: int) -> dict:
     return {'seconds': seconds, 'cpu': cpu, 'messages': messages, 'rss_mb': rss_mb}
 
 
+def _decode_blocks(repeats: int, n: int = 16384) -> int:
+    """Time ``decode_joined`` of one block as the trainer reads it (gyro only); print it."""
+    from gyro_tdc.data.bag import codec
+    from gyro_tdc.data.imu_cdr import encode
+    import numpy as np
+
+    rng = np.random.default_rng(0)
+    raws = encode(np.arange(n) + 1_700_000_000, np.arange(n) * 1000, 'imu_link',
+                  rng.normal(size=(n, 37)))
+    buf, lengths = b''.join(raws), np.full(n, len(raws[0]))
+    keep, ts = codec.KEEP[codec.IMU_TYPE][:3], codec.jazzy()
+    times = []
+    for _ in range(repeats):
+        t0 = time.process_time()
+        dec = codec.decode_joined(buf, lengths, codec.IMU_TYPE, ts, keep)
+        times.append(time.process_time() - t0)
+    assert dec.fallback == 0
+    print(f'decode of a {n}-message Imu block: median {statistics.median(times) * 1e3:.2f} ms, '
+          f'min {min(times) * 1e3:.2f} ms CPU over {repeats} runs '
+          f'({statistics.median(times) / n * 1e9:.0f} ns per message)')
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     """
     Write (once) the bag, run every measurement and print the table.
@@ -184,8 +207,13 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--subset', type=int, default=20000)
     parser.add_argument('--only', default=','.join(MEASURES),
                         help=f'comma-separated subset of {",".join(MEASURES)}')
+    parser.add_argument('--decode-blocks', type=int, default=0, metavar='N',
+                        help='instead: time the fixed-layout decode of one 16,384-message '
+                             'Imu block (seeded) N times, in this process')
     parser.add_argument('--child', choices=MEASURES + ('write',), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.decode_blocks > 0:
+        return _decode_blocks(args.decode_blocks)
 
     bag = args.bag or (Path(tempfile.gettempdir()) / 'gyro_tdc_bench' /
                        f'imu_{args.duration_s:g}s_{args.rate_hz:g}hz_{args.storage}')

@@ -35,10 +35,12 @@ and the model id of every train run. ``--stages`` adds in-process stages of the 
 benchmark (``load``: ``load_run``; ``train_paper``: ``--features dT,dT2 --no-accel``;
 ``rosbags``: ``read_bag(via='rosbags')``; ``mcap_package``: the ``mcap`` PyPI package's
 ``iter_messages``, an alternative to the columnar read of the MCAP format, not a dependency);
-``--profile`` a cProfile of the train stage::
+``--profile`` a cProfile of the train stage; ``--baseline DIR`` runs another checkout's train
+(``baseline``) in the same rounds, for before/after figures side by side::
 
     .venv/bin/python bench/bench_train.py                       # both bags, both storages
     .venv/bin/python bench/bench_train.py --bags die --storage mcap --repeat 5 --profile
+    .venv/bin/python bench/bench_train.py --bags die --storage sqlite3 --baseline ../main
 """
 
 import os
@@ -302,8 +304,12 @@ def _process(cmd, env=None):
     return {**r, 'stdout': proc.stdout}
 
 
-def _env():
-    return dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get('PYTHONPATH', ''))
+def _env(root=ROOT):
+    return dict(os.environ, PYTHONPATH=str(root) + os.pathsep + os.environ.get('PYTHONPATH', ''))
+
+
+#: ``--baseline DIR``: another checkout whose train runs beside this one's (stage 'baseline').
+BASELINE = []
 
 
 def _run_stage(stage, bag, tmp):
@@ -312,9 +318,10 @@ def _run_stage(stage, bag, tmp):
         return _process([sys.executable, '-c', _RAW, str(bag)], _env())
     if stage == 'storage':
         return _process([sys.executable, '-c', _STORAGE, str(bag)], _env())
-    if stage == 'train':
+    if stage in ('train', 'baseline'):
         r = _process([sys.executable, '-m', 'gyro_tdc', 'train', str(bag), '--out',
-                      str(Path(tmp) / 'model.yaml'), '--no-progress'], _env())
+                      str(Path(tmp) / 'model.yaml'), '--no-progress'],
+                     _env(BASELINE[0] if stage == 'baseline' else ROOT))
         last = r['stdout'].strip().splitlines()[-1]
         r['model_id'] = last.rsplit('model_id ', 1)[-1].rstrip(')')
         return r
@@ -349,6 +356,7 @@ MAKERS = {'bench': make_bag, 'die': make_die_bag}
 LABELS = {'raw': "rosbags' raw read (process: AnyReader.messages())",
           'storage': 'storage read (process: columnar bytes only)',
           'train': 'gyro-tdc train BAG (process, defaults)',
+          'baseline': 'gyro-tdc train BAG, the --baseline checkout',
           'raw_reader': "rosbags' raw read (rosbag2.Reader, in process)",
           'load': 'load_run (in process)', 'rosbags': "read_bag(via='rosbags') (in process)",
           'train_paper': 'train --features dT,dT2 --no-accel (in process)',
@@ -373,6 +381,8 @@ def main(argv=None):
                    help='in-process stages to add: '
                         f'{", ".join(sorted(set(STAGES) - {"train"}))}')
     p.add_argument('--profile', action='store_true', help='cProfile the train stage once')
+    p.add_argument('--baseline', metavar='DIR', default=None,
+                   help="also run DIR's gyro-tdc train side by side (e.g. the main checkout)")
     p.add_argument('--bag', default=None, help=argparse.SUPPRESS)
     p.add_argument('--child', choices=sorted(STAGES), help=argparse.SUPPRESS)
     args = p.parse_args(argv)
@@ -383,7 +393,8 @@ def main(argv=None):
     bad = [x for x in extra if x not in STAGES or x == 'train']
     if bad:
         p.error(f'unknown stage(s) {", ".join(bad)}')
-    stages = ['raw', 'storage', 'train'] + extra
+    stages = ['raw', 'storage', 'train'] + (['baseline'] if args.baseline else []) + extra
+    BASELINE[:] = [Path(args.baseline).resolve()] if args.baseline else []
     names = ('bench', 'die') if args.bags == 'both' else (args.bags,)
     storages = ('sqlite3', 'mcap') if args.storage == 'both' else (args.storage,)
     sys.path.insert(0, str(ROOT))
@@ -427,17 +438,26 @@ def main(argv=None):
             print(f'  train / raw     = {train / raw:.2f}  (goal <= {GOAL}: {verdict}; per round '
                   f'{", ".join(f"{x:.2f}" for x in ratios)})')
             print(f'  train / storage = {train / store:.2f}')
+            # On a loaded machine (other processes on the cores) the wall clock of a
+            # two-thread train suffers more than the one-thread raw read: CPU beside it.
+            print(f'  train CPU / raw CPU = {med["train"]["cpu"] / med["raw"]["cpu"]:.2f}')
+            if args.baseline:
+                base = med['baseline']
+                cpu = med['train']['cpu'] / base['cpu']
+                print(f'  baseline ({args.baseline}) / raw = {base["seconds"] / raw:.2f}, '
+                      f'CPU {base["cpu"] / med["raw"]["cpu"]:.2f}; train / baseline = '
+                      f'{train / base["seconds"]:.2f}, CPU {cpu:.2f}')
             print(f'  model id {", ".join(ids)}')
             summary.append((name, storage, raw, store, train, med['train']['peak_rss'],
-                            ', '.join(ids)))
+                            ', '.join(ids), med['train']['cpu'] / med['raw']['cpu']))
             if args.profile:
                 print('\ncProfile of the train stage (cumulative):')
                 print(_run_child('train', bag, profile=True)['profile'])
     print('\nsummary (medians): bag, storage, raw s, storage s, train s, train / raw, '
-          'train / storage, train peak RSS MB, model id')
-    for name, storage, raw, store, train, rss, ids in summary:
+          'train / storage, train CPU / raw CPU, train peak RSS MB, model id')
+    for name, storage, raw, store, train, rss, ids, cpu in summary:
         print(f'  {name:<5} {storage:<7} {raw:6.2f} {store:6.2f} {train:6.2f}  '
-              f'{train / raw:5.2f}  {train / store:5.2f}  {rss / 1e6:5.0f}  {ids}')
+              f'{train / raw:5.2f}  {train / store:5.2f}  {cpu:5.2f}  {rss / 1e6:5.0f}  {ids}')
     return 0
 
 

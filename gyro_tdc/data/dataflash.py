@@ -260,13 +260,9 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     active, words = onboard_status(params, 'ardupilot', instance=instance)
     skipped = chatter.getvalue().count('\n')
     notes = [f'pymavlink skipped damaged bytes ({skipped} reports)'] if skipped else []
-    if name:
-        notes.append(f'temperature from {name}'
-                     + (" (a proxy of the IMU's)" if temperature_source != 'imu' else ''))
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
                      firmware='ardupilot', source='IMU', instance=int(instance),
                      instances=tuple(sorted(imus)), raw=False, compensated=active,
                      onboard=words, truncated_bytes=cut, notes=notes, temp_t=temp_t,
                      temperature=name, proxy=temperature_source != 'imu',
-                     damaged=bool(skipped), damage=f'pymavlink skipped {skipped} damaged '
-                     'headers' if skipped else '')
+                     damage=f'pymavlink skipped {skipped} damaged headers' if skipped else '')

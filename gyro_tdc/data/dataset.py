@@ -63,11 +63,9 @@ def _interp_sorted(imu_t: NDArray[np.float64], tt: NDArray[np.float64],
     """
     Interpolate onto sorted IMU stamps, working on the knots rather than on every sample.
 
-    The usual case (millions of sorted IMU stamps, thousands of thermometer samples): one
-    ``np.interp`` pass, then the invalid stretches -- before and after the thermometer's
+    One ``np.interp`` pass, then the invalid stretches -- before and after the thermometer's
     span, and the middle of every segment longer than ``2 * gap`` -- are located among the
-    IMU stamps by binary search per knot instead of being tested per sample. Gives the same
-    result as the general path of :func:`align_temperature`.
+    IMU stamps by binary search per knot instead of being tested per sample.
     """
     n = len(imu_t)
     temp = np.interp(imu_t, tt, tc)
@@ -159,20 +157,15 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
             counts['conflicting'] = int(np.unique(tt[differ]).size)
             tt, tc = tt[last], tc[last]
 
-    m = len(tt)
-    if m < 2:
-        valid = imu_t == tt[0] if m else np.zeros(imu_t.shape, dtype=bool)
-        temp = np.where(valid, tc[0] if m else np.nan, np.nan)
-    elif len(imu_t) > 1 and np.all(imu_t[1:] >= imu_t[:-1]):
+    if len(tt) < 2:
+        valid = imu_t == tt[0] if len(tt) else np.zeros(imu_t.shape, dtype=bool)
+        temp = np.where(valid, tc[0] if len(tt) else np.nan, np.nan)
+    elif np.all(imu_t[1:] >= imu_t[:-1]):
         temp, valid = _interp_sorted(imu_t, tt, tc, gap)
-    else:
-        # Segment [tt[j], tt[j + 1]] of every IMU stamp; outside the span d0 or d1 is < 0.
-        j = (np.searchsorted(tt, imu_t, side='right') - 1).clip(0, m - 2)
-        d0 = imu_t - tt[j]
-        d1 = tt[j + 1] - imu_t
-        valid = (d0 >= 0) & (d1 >= 0) & (np.minimum(d0, d1) <= gap)
-        slope = np.diff(tc) / np.diff(tt)
-        temp = np.where(valid, tc[j] + slope[j] * d0, np.nan)
+    else:                                       # IMU stamps in any order: sorted and back
+        order = np.argsort(imu_t, kind='stable')
+        temp, valid = np.empty(len(imu_t)), np.empty(len(imu_t), dtype=bool)
+        temp[order], valid[order] = _interp_sorted(imu_t[order], tt, tc, gap)
     if return_counts:
         return temp, valid, counts
     return temp, valid
@@ -365,14 +358,7 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     o = BagOptions() if options is None else options
     const = None if o.reference is None else np.asarray(o.reference, dtype=np.float64)
     data, extra = _read_source(bag, o, read_reference=const is None)
-    rejected = {'imu_nonfinite': data.rejected['imu_nonfinite'],
-                'temp_nonfinite': data.rejected['temp_nonfinite'],
-                'ref_nonfinite': data.rejected['ref_nonfinite'],
-                'undecodable': data.rejected['undecodable'],
-                'temp_before_imu': data.rejected.get('temp_before_imu', 0),
-                'imu_implausible': 0, 'temp_implausible': 0, 'ref_implausible': 0,
-                'duplicate_stamps': 0, 'temp_duplicate_stamps': 0, 'out_of_order': 0,
-                'no_temperature': 0, 'no_reference': 0}
+    rejected = {k: data.rejected.get(k, 0) for k in _DROPPED}
     warnings: list[str] = list(extra.pop('warnings', ()))
     messages = {} if extra else _check_counts(bag, data, {
         o.imu_topic: len(data.imu_t) + data.rejected['imu_nonfinite'],
@@ -443,10 +429,13 @@ def _as_slice(index: NDArray) -> slice | NDArray:
     Indexing by a slice gives views instead of copies of the full-length columns (~1 s for a
     1 h, 1 kHz bag); the values are the same either way.
     """
-    rows = np.flatnonzero(index) if index.dtype == bool else index
-    if len(rows) and int(rows[-1]) - int(rows[0]) + 1 == len(rows) and (
-            index.dtype == bool or np.all(np.diff(rows) == 1)):
-        return slice(int(rows[0]), int(rows[-1]) + 1)
+    if index.dtype == bool:          # one run: its first True and the count of them
+        n = int(np.count_nonzero(index))
+        a = int(np.argmax(index))
+        return slice(a, a + n) if n and index[a:a + n].all() else index
+    if len(index) and int(index[-1]) - int(index[0]) + 1 == len(index) and np.all(
+            np.diff(index) == 1):
+        return slice(int(index[0]), int(index[-1]) + 1)
     return index
 
 
@@ -500,7 +489,7 @@ def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
         out.append(p)
     seen: dict[Path, Path] = {}
     for p in out:
-        real = p.resolve()
+        real = Path(os.path.realpath(p))
         if p.is_file() and p.suffix in ('.db3', '.mcap'):
             real = real.parent          # a bag's storage file names the bag
         if real in seen:
@@ -516,6 +505,7 @@ _DROPPED = {
     'temp_nonfinite': 'temperature readings that are NaN or infinite',
     'ref_nonfinite': 'reference messages that are NaN or infinite',
     'undecodable': 'messages that could not be decoded',
+    'temp_before_imu': 'Float temperature readings before the first IMU message',
     'imu_implausible': f'IMU samples above {MAX_RATE_RAD_S:g} rad/s',
     'temp_implausible': (f'temperature readings outside {TEMP_PLAUSIBLE_C[0]:g} .. '
                          f'{TEMP_PLAUSIBLE_C[1]:g} degC or jumping faster than '

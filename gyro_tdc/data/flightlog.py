@@ -86,10 +86,9 @@ class FlightLog:
         The thermometer read (``IMU.T``, ``sensor_gyro.temperature``, ``BARO.Temp``...).
     proxy : bool
         True: the thermometer is not the IMU's own (``--temperature-source``).
-    damaged : bool
-        True: the reader skipped damaged bytes inside the log (not at its end).
     damage : str
-        What was skipped, in words.
+        What the reader skipped of damaged bytes inside the log (not at its end), in words;
+        '' when nothing was.
 
     """
 
@@ -111,7 +110,6 @@ class FlightLog:
     temp_t: NDArray[np.float64] | None = None
     temperature: str = ''
     proxy: bool = False
-    damaged: bool = False
     damage: str = ''
 
 
@@ -191,8 +189,9 @@ def describe_log(log: FlightLog) -> str:
             'corrected on board (thermal compensation included)' if log.compensated else
             'calibrated on board (no thermal compensation active)')
     return (f'{kind}, {log.source} instance {log.instance} of {len(log.instances)}{dev}: '
-            f'{data}; {log.onboard}'
-            + ''.join(f'; {n}' for n in log.notes))
+            f'{data}; {log.onboard}' + ''.join(f'; {n}' for n in log.notes)
+            + (f'; temperature from {log.temperature}' if log.temperature else '')
+            + (" (a proxy of the IMU's)" if log.temperature and log.proxy else ''))
 
 
 def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
@@ -232,8 +231,8 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
     """
     p = Path(path)
     warnings: list[str] = []
-    if log.damaged:
-        note = f'damaged bytes inside the log ({log.damage or "skipped by the reader"})'
+    if log.damage:
+        note = f'damaged bytes inside the log ({log.damage})'
         if options.max_loss < 1.0:
             raise DatasetError(f'Log {str(p)!r}: {note}; --allow-loss reads the whole '
                                'messages around them.')

@@ -23,7 +23,7 @@ import re
 from gyro_tdc.errors import DatasetError
 import numpy as np
 
-__all__ = ['BagOptions', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
+__all__ = ['BagOptions', 'check_sessions', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
            'DEFAULT_TEMPERATURE_TOPIC', 'LOG_FORMATS', 'MAX_LOSS_FRACTION', 'SESSION_MODES',
            'TEMPERATURE_SOURCES']
 
@@ -124,18 +124,22 @@ class BagOptions:
                 or self.imu_instance < 0):
             raise DatasetError('Expected `imu_instance` to be an integer >= 0, got '
                                f'{self.imu_instance!r}.')
-        if self.sessions not in SESSION_MODES:
-            raise DatasetError(f'Expected `sessions` to be one of {", ".join(SESSION_MODES)}, '
-                               f'got {self.sessions!r}.')
-        gap = self.session_gap_s
-        if (isinstance(gap, bool) or not isinstance(gap, (int, float))
-                or not (math.isfinite(gap) and gap >= 0)):
-            raise DatasetError(f'Expected `session_gap_s` to be a number >= 0, got {gap!r}.')
+        check_sessions(self.sessions, self.session_gap_s)
         src = self.temperature_source
         if not (isinstance(src, str) and (src in TEMPERATURE_SOURCES
                                           or re.fullmatch(r'\w+\.\w+', src))):
             raise DatasetError('Expected `temperature_source` to be imu, baro or TOPIC.FIELD '
                                f'(e.g. sensor_baro.temperature, BARO.Temp), got {src!r}.')
+
+
+def check_sessions(mode: str, gap: float) -> None:
+    """Raise DatasetError unless ``mode`` is one of SESSION_MODES and ``gap`` a number >= 0."""
+    if mode not in SESSION_MODES:
+        raise DatasetError(f'Expected `sessions` to be one of {", ".join(SESSION_MODES)}, '
+                           f'got {mode!r}.')
+    if (isinstance(gap, bool) or not isinstance(gap, (int, float))
+            or not (math.isfinite(gap) and gap >= 0)):
+        raise DatasetError(f'Expected `session_gap_s` to be a number >= 0, got {gap!r}.')
 
 
 def _reference(value: object) -> tuple[float, float, float]:

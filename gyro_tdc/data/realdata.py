@@ -22,6 +22,7 @@ chamber, converted as the authors' analysis script does. See ``doc/internals/dat
 from __future__ import annotations
 
 from dataclasses import dataclass
+import os
 from pathlib import Path
 
 from gyro_tdc.data.bag.writer import write_bag
@@ -75,7 +76,7 @@ class PanCubesat:
 
 def default_pan_csv() -> Path:
     """Return the recording's CSV path: ``data/pan_cubesat_tvac`` in the repository."""
-    root = Path(__file__).resolve().parents[2]
+    root = Path(os.path.realpath(__file__)).parents[2]
     return root / 'data' / 'pan_cubesat_tvac' / 'TVCtest3_7_20.csv'
 
 

@@ -23,13 +23,11 @@ device clock that stepped back); :func:`split_sessions` cuts runs there (``--ses
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import math
 from typing import Sequence
 
 from gyro_tdc.base import SESSION_GAP_S
-from gyro_tdc.data.options import SESSION_MODES
+from gyro_tdc.data.options import check_sessions, SESSION_MODES
 from gyro_tdc.data.runs import Run
-from gyro_tdc.errors import DatasetError
 from gyro_tdc.signal import (break_why, BURST_FACTOR, BURST_PAUSES, gap_breaks, GAP_PERIODS,
                              session_gap)
 
@@ -176,11 +174,7 @@ def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0
         For an unknown mode or a negative gap.
 
     """
-    if mode not in SESSION_MODES:
-        raise DatasetError(f'Expected `sessions` to be one of {", ".join(SESSION_MODES)}, '
-                           f'got {mode!r}.')
-    if not (isinstance(gap_s, (int, float)) and math.isfinite(gap_s) and gap_s >= 0):
-        raise DatasetError(f'Expected `session_gap_s` to be a number >= 0, got {gap_s!r}.')
+    check_sessions(mode, gap_s)
     out_runs: list[Run] = []
     labels: list[int] = []
     sessions: list[Session] = []

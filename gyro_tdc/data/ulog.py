@@ -300,8 +300,6 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
         notes.append(f'vehicle_imu (integrated, calibrated on board) at {_rate(d):.3g} Hz is '
                      'the fastest gyro')
     name, temp_t, temp = _required_thermometer(p, topics, instance, temperature_source, source)
-    proxy = temperature_source != 'imu'
-    notes.append(f'temperature from {name}' + (" (a proxy of the IMU's)" if proxy else ''))
     acc = None
     if accel:
         if source == 'vehicle_imu' and 'delta_velocity[0]' in d and 'delta_velocity_dt' in d:
@@ -313,5 +311,5 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
                      firmware='px4', source=source, instance=int(instance),
                      instances=tuple(sorted(found)), raw=raw, compensated=compensated,
                      onboard=words, device_id=device, truncated_bytes=cut, notes=notes,
-                     temp_t=temp_t, temperature=name, proxy=proxy, damaged=damaged,
+                     temp_t=temp_t, temperature=name, proxy=temperature_source != 'imu',
                      damage='pyulog resynchronised past damaged messages' if damaged else '')

@@ -101,13 +101,6 @@ def test_bad_choices_are_named(kw, needle):
         split_sessions([_run([0.0, 1.0])], **kw)
 
 
-@pytest.mark.parametrize('kw, needle', [({'sessions': 'x'}, '`sessions`'),
-                                        ({'session_gap_s': float('nan')}, '`session_gap_s`')])
-def test_bag_options_check_the_session_fields(kw, needle):
-    with pytest.raises(DatasetError, match=needle):
-        BagOptions(**kw)
-
-
 def _data(imu_t, temp_t):
     n, m = len(imu_t), len(temp_t)
     return BagData(np.asarray(imu_t, float), np.zeros((n, 3)), None, 'imu_link',

@@ -17,7 +17,7 @@
 The fixed-layout numpy CDR codec of the three recorded message types, checked against rosbags.
 
 Imu, Temperature and Vector3Stamped blocks are encoded (:func:`encode_checked`) and decoded
-(:func:`decode_fast`) as numpy structured arrays; every fast path checks itself against
+(:func:`decode`) as numpy structured arrays; every fast path checks itself against
 rosbags' serialiser and falls back to it (:func:`decode_slow`). Temperatures published as a
 bare ``std_msgs/msg/Float32`` or ``Float64`` (no header) are decoded by
 :func:`decode_float`. See ``doc/internals/data.md``.
@@ -26,7 +26,7 @@ bare ``std_msgs/msg/Float32`` or ``Float64`` (no header) are decoded by
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any, Sequence
 
 from gyro_tdc.data import imu_cdr
 from gyro_tdc.data.imu_cdr import field_slice, IMU_DOUBLES, IMU_FIELDS, layout_of
@@ -37,7 +37,7 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import get_typestore, Stores
 
 __all__ = ['Decoded', 'FLOAT_TYPES', 'IMU_TYPE', 'KEEP', 'N_DOUBLES', 'REFERENCE_TYPE',
-           'TEMPERATURE_TYPE', 'TEMPERATURE_TYPES', 'decode', 'decode_fast', 'decode_float',
+           'TEMPERATURE_TYPE', 'TEMPERATURE_TYPES', 'decode', 'decode_float',
            'decode_joined', 'decode_slow', 'encode_checked', 'from_msg', 'jazzy', 'to_msg']
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'
@@ -98,6 +98,8 @@ def to_msg(msgtype: str, sec: int, nanosec: int, frame_id: str,
 
 def from_msg(msgtype: str, msg: Any) -> tuple[int, int, str, list[float]]:
     """Return (sec, nanosec, frame_id, float64 block) of a deserialised message."""
+    if msgtype in FLOAT_TYPES:    # no header: the value and an unknown (0) variance
+        return 0, 0, '', [float(msg.data), 0.0]
     stamp = msg.header.stamp
     if msgtype == IMU_TYPE:   # the fields in wire order (gyro_tdc.data.imu_cdr.IMU_FIELDS)
         o, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
@@ -143,52 +145,21 @@ class Decoded:
     undecodable: NDArray[np.bool_] | None = None
 
 
-def decode_fast(raws: Sequence[bytes], msgtype: str,
-                keep: Sequence[int] | None = None) -> Decoded | None:
-    """
-    Decode a block of raw CDR messages at once with numpy, or return None.
-
-    None means the block does not share one fixed layout (lengths, encapsulation, frame id
-    length or bytes differ) or a sampled message disagrees with rosbags' deserialiser.
-
-    Parameters
-    ----------
-    raws : Sequence[bytes]
-        Raw CDR messages of one message type.
-    msgtype : str
-        The message type.
-    keep : sequence of int, optional
-        Columns of the float64 block to return (default ``KEEP[msgtype]``).
-
-    Returns
-    -------
-    Decoded or None
-        The decoded block, or None when the caller must fall back.
-
-    """
-    n = len(raws)
-    try:
-        dt = layout_of(raws[0], N_DOUBLES[msgtype]).dtype
-    except DatasetError:
-        return None
-    lengths = np.fromiter(map(len, raws), dtype=np.int64, count=n)
-    if np.any(lengths != dt.itemsize):
-        return None
-    return _decode_records(b''.join(raws), n, dt, raws.__getitem__, msgtype, keep)
-
-
-def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype,
-                    message: Callable[[int], bytes], msgtype: str,
+def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype, msgtype: str,
                     keep: Sequence[int] | None) -> Decoded | None:
-    """Decode ``n`` messages of layout ``dt`` stored end to end in ``buf`` (see decode_fast)."""
+    """
+    Decode ``n`` messages of layout ``dt`` stored end to end in ``buf``, or return None.
+
+    None: the messages do not share one fixed layout (encapsulation, frame id) or a sampled
+    message disagrees with rosbags' deserialiser.
+    """
     rec = np.frombuffer(buf, dtype=dt)
-    # Encapsulation (word 0) and frame id length equal to the first message's, as raw
-    # 32-bit words (itemsize is always a multiple of 4); then the frame id bytes.
+    # Encapsulation (word 0), frame id length, frame id and its padding equal to the first
+    # message's, compared as raw 32-bit words column by column (one strided pass each).
     words = np.frombuffer(buf, dtype=np.uint32).reshape(n, dt.itemsize // 4)
     frame = rec['frame']
-    k = imu_cdr.FRAME_ID_LENGTH // 4
-    if (np.any(words[:, 0] != words[0, 0]) or np.any(words[:, k] != words[0, k])
-            or np.any(frame != frame[0]) or frame[0, -1] != 0):
+    cols = [0, *range(imu_cdr.FRAME_ID_LENGTH // 4, dt.fields['data'][1] // 4)]
+    if frame[0, -1] != 0 or any(np.any(words[:, k] != words[0, k]) for k in cols):
         return None
     try:
         frame_id = frame[0, :-1].tobytes().decode('utf-8')
@@ -199,7 +170,8 @@ def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype,
     ts = jazzy()
     for i in sorted({0, n // 2, n - 1}):
         try:
-            sec, nsec, fid, row = from_msg(msgtype, ts.deserialize_cdr(message(i), msgtype))
+            raw = bytes(buf[i * dt.itemsize:(i + 1) * dt.itemsize])
+            sec, nsec, fid, row = from_msg(msgtype, ts.deserialize_cdr(raw, msgtype))
         except (SerdeError, AttributeError, DatasetError):
             return None
         if (sec != rec['sec'][i] or nsec != rec['nanosec'][i] or fid != frame_id
@@ -215,11 +187,11 @@ def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype,
 def decode_joined(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
                   typestore: Any, keep: Sequence[int] | None = None) -> Decoded:
     """
-    Decode a block of messages already stored end to end, as :func:`decode` does.
+    Decode a block of messages stored end to end: numpy where they share one fixed layout.
 
-    The reader writes each message into one reused buffer as it arrives (while its bytes
-    are still in the CPU cache), which costs less than collecting the messages and joining
-    them afterwards; this decodes that buffer with the same checks and the same fallback.
+    The storage reads hand their blocks over so (no message copied on its own); where the
+    layout does not hold, or a sampled message disagrees with rosbags, rosbags decodes the
+    block message by message (``fallback`` counts them).
 
     Parameters
     ----------
@@ -251,8 +223,7 @@ def decode_joined(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
         except DatasetError:
             dt = None
         if dt is not None and dt.itemsize == size:
-            dec = _decode_records(buf[:n * size], n, dt,
-                                  lambda i: bytes(buf[i * size:(i + 1) * size]), msgtype, keep)
+            dec = _decode_records(buf[:n * size], n, dt, msgtype, keep)
             if dec is not None:
                 return dec
     ends = np.cumsum(sizes).tolist()
@@ -273,7 +244,7 @@ def decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any,
     for i, raw in enumerate(raws):
         try:
             s, ns, fid, row = from_msg(msgtype, typestore.deserialize_cdr(raw, msgtype))
-        except (SerdeError, AttributeError):
+        except (SerdeError, AttributeError, TypeError, ValueError):
             bad[i] = True
             continue
         sec[i], nsec[i] = s, ns
@@ -286,8 +257,7 @@ def decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any,
 def decode(raws: Sequence[bytes], msgtype: str, typestore: Any,
            keep: Sequence[int] | None = None) -> Decoded:
     """Decode a block with the numpy fast path, falling back to rosbags when needed."""
-    return (decode_fast(raws, msgtype, keep)
-            or decode_slow(raws, msgtype, typestore, keep))
+    return decode_joined(b''.join(raws), [len(x) for x in raws], msgtype, typestore, keep)
 
 
 # CDR little-endian encapsulation (plain CDR, no options): the fast path of decode_float.
@@ -337,11 +307,4 @@ def decode_float(raws: Sequence[bytes], msgtype: str, typestore: Any) -> Decoded
         if same:
             values[:, 0] = value
             return Decoded(zeros, zeros.copy(), '', values, 0)
-    bad = np.zeros(n, dtype=bool)
-    for i, raw in enumerate(raws):
-        try:
-            values[i, 0] = float(typestore.deserialize_cdr(raw, msgtype).data)
-        except (SerdeError, AttributeError, TypeError, ValueError):
-            bad[i] = True
-            values[i, 0] = np.nan
-    return Decoded(zeros, zeros.copy(), '', values, n, bad if bad.any() else None)
+    return decode_slow(raws, msgtype, typestore, (0, 1))

@@ -139,10 +139,6 @@ class Bag:
             if roles:
                 f.feed(roles, out, update, chunk=max(int(chunk), 1), expected=expected)
 
-    def main_logs(self, index: Any) -> Any:
-        """Never needed: every block comes with its log times at hand."""
-        raise Unfit('log times asked for after the read')
-
 
 @contextmanager
 def open_bag(bag: Path, info: Mapping) -> Iterator[Bag]:

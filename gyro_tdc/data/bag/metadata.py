@@ -32,7 +32,7 @@ from gyro_tdc.data.imu_cdr import FRAME_ID
 from gyro_tdc.errors import DatasetError
 
 __all__ = ['check_counts', 'describe', 'entries', 'Entry', 'load', 'min_message_bytes',
-           'qos', 'resolve', 'storage_bytes', 'topics_of', 'ZSTD_MAX_RATIO',
+           'qos', 'bag_dir', 'storage_bytes', 'topics_of', 'ZSTD_MAX_RATIO',
            'ZSTD_MIN_FRAME_BYTES']
 
 #: Smallest zstd frame (magic, frame header, one block header): a message compressed on its
@@ -45,7 +45,7 @@ ZSTD_MAX_RATIO = 32768
 _VERSION = 9
 
 
-def resolve(path: str | Path) -> Path:
+def bag_dir(path: str | Path) -> Path:
     """Return the rosbag2 directory of ``path`` or raise DatasetError saying why not."""
     p = Path(path)
     if not p.exists():

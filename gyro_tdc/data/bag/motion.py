@@ -26,14 +26,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Sequence
 
-import apsw
 from gyro_tdc.data.bag.codec import jazzy
+from gyro_tdc.data.bag.reader import READ_ERRORS
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
-from rosbags.highlevel import AnyReader, AnyReaderError
-from rosbags.rosbag2 import ReaderError
-from rosbags.serde import SerdeError
+from rosbags.highlevel import AnyReader
 
 __all__ = ['MOTION_TYPES', 'MotionReports', 'ODOMETRY_TYPE', 'TWIST_STAMPED_TYPE',
            'TWIST_TYPE', 'encode_twists', 'read_motion']
@@ -43,7 +41,6 @@ TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
 ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
 #: Message types a motion topic may have.
 MOTION_TYPES = (TWIST_TYPE, TWIST_STAMPED_TYPE, ODOMETRY_TYPE)
-_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, KeyError)
 
 
 @dataclass(frozen=True)
@@ -126,7 +123,7 @@ def read_motion(path: str | Path, topic: str) -> MotionReports:
                 tw = _twist_of(msgtype, msg)
                 rows.append((tw.linear.x, tw.linear.y, tw.linear.z,
                              tw.angular.x, tw.angular.y, tw.angular.z))
-    except _ERRORS as err:
+    except (*READ_ERRORS, KeyError) as err:
         raise DatasetError(f'Cannot read motion topic {topic!r} of bag {str(bag)!r}: '
                            f'{one_line(err)}') from err
     if not stamps:

@@ -27,7 +27,6 @@ columns sized by the counts of ``metadata.yaml``, checked first
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-import io
 from itertools import islice
 import mmap
 from pathlib import Path
@@ -53,7 +52,7 @@ if sys.version_info >= (3, 14):
 else:                         # rosbags' own zstd before Python 3.14
     from backports.zstd import ZstdError
 
-__all__ = ['BagData', 'Collector', 'read_bag', 'VIA']
+__all__ = ['BagData', 'Collector', 'READ_ERRORS', 'read_bag', 'VIA']
 
 # Messages per block when reading: small enough that a block's raw bytes (~5 MB of Imu) are
 # recycled by the allocator, large enough to amortise the per-block checks.
@@ -61,8 +60,8 @@ _CHUNK = 1 << 14
 # rosbags' own errors, plus what its parsers let through on damaged files (found by fuzzing
 # sqlite3 and mcap bags: huge record lengths raise OverflowError from seek, short reads
 # struct.error); zstd's error (data not compressed as metadata.yaml says) is caught apart.
-_READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
-                UnicodeDecodeError, OverflowError, struct.error)
+READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
+               UnicodeDecodeError, OverflowError, struct.error)
 
 
 def _seconds(stamp_ns: NDArray[np.int64]) -> NDArray[np.float64]:
@@ -188,26 +187,6 @@ class _Sink:
         return out
 
 
-def _reusable(scratch: io.BytesIO) -> io.BytesIO:
-    """
-    Return ``scratch`` rewound for the next block, or a fresh buffer when it is still exported.
-
-    The decode of a block reads the buffer through a view, and arrays made from it; when the
-    decode returns they are gone, unless something else still holds them: a sampling
-    profiler that took the thread's frames (Dask's worker samples every running task's stack
-    every 10 ms) or a reference cycle not yet collected keeps a returned frame, with its
-    locals, alive. Writing into a BytesIO with a live view raises ``BufferError: Existing
-    exports of data: object cannot be re-sized``; the empty write probes for that, and the
-    held buffer is left to its holder.
-    """
-    scratch.seek(0)
-    try:
-        scratch.write(b'')
-    except BufferError:
-        return io.BytesIO()
-    return scratch
-
-
 #: How :func:`read_bag` reads the storage: ``'auto'`` (columnar where it applies, else
 #: rosbags), ``'columnar'`` (refuse a bag it does not apply to) or ``'rosbags'``.
 VIA = ('auto', 'columnar', 'rosbags')
@@ -262,7 +241,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
     """
     if via not in VIA:
         raise DatasetError(f'Expected `via` to be one of {", ".join(VIA)}, got {via!r}.')
-    bag = metadata.resolve(path)
+    bag = metadata.bag_dir(path)
     info: Mapping = {}
     wanted = [('imu', imu_topic, (IMU_TYPE,), True),
               ('temperature', temperature_topic, TEMPERATURE_TYPES, True)]
@@ -277,8 +256,8 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                 with columnar.open_bag(bag, info) as opened:
                     topics, conns = _connections(opened.topics, opened.conns, bag, wanted)
                     return _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
-                                    opened.main_logs, opened.typestore, bag, info, topics,
-                                    conns, progress, accel, 'columnar')
+                                    opened.typestore, bag, info, topics, conns, progress,
+                                    accel, 'columnar')
             except Unfit as err:
                 why = str(err)
             except DatasetError:
@@ -292,15 +271,17 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
             topics, conns = _connections(
                 {name: (t.msgtype or '?', int(t.msgcount)) for name, t in reader.topics.items()},
                 reader.connections, bag, wanted)
-            source = _RosbagsSource(reader, conns)
-            return _collect(source.feed, source.main_logs, reader.typestore, bag, info, topics,
-                            conns, progress, accel, 'rosbags')
+            # One bag: its rosbags Reader directly, without AnyReader's merge across bags.
+            source = reader.readers[0] if len(reader.readers) == 1 else reader
+            return _collect(lambda out, update: _rosbags_feed(source, conns, out, update),
+                            reader.typestore, bag, info, topics, conns, progress, accel,
+                            'rosbags')
     except ZstdError as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r}: its data are not compressed as '
                            f'metadata.yaml says (compression_format '
                            f'{info.get("compression_format")!r:.20}, compression_mode '
                            f'{info.get("compression_mode")!r:.20}): {one_line(err)}') from err
-    except _READ_ERRORS as err:
+    except READ_ERRORS as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r} (unreadable or corrupt): '
                            f'{one_line(err)}') from err
 
@@ -358,16 +339,13 @@ class Collector:
         self.fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
         self.undecodable = 0
         self.n_main = 0
-        # Main messages: global indices of the undecodable ones, and of the zero-stamped
-        # ones whose log time was not at hand (with their sink rows).
-        self.main_bad: list[NDArray[np.int64]] = []
-        self.zero_stamped: list[tuple[NDArray[np.int64], NDArray[np.int64]]] = []
+        self.main_bad: list[NDArray[np.int64]] = []    # main messages undecodable
         self.before: list[NDArray[np.int64]] = []      # Float readings: main messages before
 
     def _store(self, role: str, dec: Decoded, logs: Sequence[int] | NDArray | None,
-               fetch_logs: Callable[[], NDArray[np.int64]] | None, first: int = -1
-               ) -> NDArray[np.bool_] | None:
+               fetch_logs: Callable[[], NDArray[np.int64]] | None) -> NDArray[np.bool_] | None:
         """Put a decoded block into its sink; return the mask of decodable messages."""
+        floating = role == 'temperature' and self.floating      # stamped in result()
         sink = self.sinks[role]
         self.fallback[role] += dec.fallback
         if self.frame_id[role] is None and dec.frame_id:
@@ -375,17 +353,9 @@ class Collector:
         stamp_ns = dec.sec * 1_000_000_000 + dec.nanosec
         good = None if dec.undecodable is None else ~dec.undecodable
         zero = stamp_ns == 0
-        if zero.any():
-            if logs is None and fetch_logs is not None:
-                logs = fetch_logs()
-            if logs is not None:
-                stamp_ns[zero] = np.asarray(logs, dtype=np.int64)[zero]
-            else:                          # the main messages' log times, in a second pass
-                if good is not None:
-                    zero &= good
-                pos = np.flatnonzero(zero)
-                rows = pos if good is None else np.cumsum(good)[pos] - 1
-                self.zero_stamped.append((first + pos, sink.n + rows))
+        if zero.any() and not floating:    # a zero header stamp: the log time instead
+            logs = fetch_logs() if logs is None else logs
+            stamp_ns[zero] = np.asarray(logs, dtype=np.int64)[zero]
         t = _seconds(stamp_ns)
         values = dec.values
         if good is not None:
@@ -401,7 +371,7 @@ class Collector:
         if not len(lengths):
             return
         dec = decode_joined(buf, lengths, IMU_TYPE, self.typestore, self.keep['imu'])
-        good = self._store('imu', dec, logs, fetch_logs, self.n_main)
+        good = self._store('imu', dec, logs, fetch_logs)
         if good is not None:
             self.main_bad.append(self.n_main + np.flatnonzero(~good))
         self.n_main += len(lengths)
@@ -412,30 +382,16 @@ class Collector:
         """Decode a block of one other role's messages (``before``: see the class)."""
         if not len(raws):
             return
-        msgtype = self.msgtypes[role]
-        if role == 'temperature' and self.floating:
-            dec = decode_float(raws, msgtype, self.typestore)
-            self.fallback[role] += dec.fallback
-            ok = np.ones(len(raws), dtype=bool)
-            if dec.undecodable is not None:
-                self.undecodable += int(dec.undecodable.sum())
-                ok = ~dec.undecodable
-            self.before.append(np.asarray(before, dtype=np.int64)[ok])
-            self.sinks[role].add(np.zeros(int(ok.sum())), dec.values[ok])
-            return
-        dec = decode(raws, msgtype, self.typestore, self.keep[role])
-        self._store(role, dec, logs, fetch_logs)
+        floating = role == 'temperature' and self.floating
+        dec = (decode_float(raws, self.msgtypes[role], self.typestore) if floating else
+               decode(raws, self.msgtypes[role], self.typestore, self.keep[role]))
+        good = self._store(role, dec, logs, fetch_logs)
+        if floating:
+            before = np.asarray(before, dtype=np.int64)
+            self.before.append(before if good is None else before[good])
 
-    def result(self, bag: Path, storage: str, topics: dict, via: str,
-               main_logs: Callable[[NDArray[np.int64]], NDArray[np.int64]] | None
-               ) -> BagData:
-        """Return the :class:`BagData` (``main_logs(indices)``: log times of main messages)."""
-        if self.zero_stamped:
-            # Rare (a driver that leaves the header stamp at zero) when the reader did not
-            # hand the log times over: fetch those of the main messages that need them.
-            index = np.concatenate([z[0] for z in self.zero_stamped])
-            rows = np.concatenate([z[1] for z in self.zero_stamped])
-            self.sinks['imu'].t[rows] = _seconds(main_logs(index))
+    def result(self, bag: Path, storage: str, topics: dict, via: str) -> BagData:
+        """Return the :class:`BagData`."""
         before_imu = 0
         stamped = None
         if self.floating:
@@ -450,26 +406,21 @@ class Collector:
             stamped = row >= 0
             before_imu = int(np.count_nonzero(~stamped))
             sink.t[:sink.n] = self.sinks['imu'].t[row.clip(0)]
-        rejected = {'imu_nonfinite': 0, 'temp_nonfinite': 0, 'ref_nonfinite': 0,
-                    'undecodable': self.undecodable, 'temp_before_imu': before_imu}
-        sink = self.sinks['imu']
-        finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
-        rejected['imu_nonfinite'] = int(np.count_nonzero(~finite))
-        imu_t, gyro, *accel = sink.result(finite)
-        sink = self.sinks['temperature']
-        finite = np.isfinite(sink.v[0][:sink.n, 0])
-        if stamped is not None:       # readings before the first IMU message are dropped
-            rejected['temp_nonfinite'] = int(np.count_nonzero(~finite & stamped))
-            finite &= stamped
-        else:
-            rejected['temp_nonfinite'] = int(np.count_nonzero(~finite))
-        temp_t, temp_c, temp_var = sink.result(finite)
-        ref_t = ref = None
-        if 'reference' in self.sinks and self.sinks['reference'].n:
-            sink = self.sinks['reference']
-            finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1)
-            rejected['ref_nonfinite'] = int(np.count_nonzero(~finite))
-            ref_t, ref = sink.result(finite)
+        rejected = {'undecodable': self.undecodable, 'temp_before_imu': before_imu}
+        out: dict[str, list] = {'reference': [None, None]}
+        for role, key in (('imu', 'imu_nonfinite'), ('temperature', 'temp_nonfinite'),
+                          ('reference', 'ref_nonfinite')):
+            sink = self.sinks.get(role)
+            finite = (np.isfinite(sink.v[0][:sink.n]).all(axis=1) if sink
+                      else np.zeros(0, dtype=bool))
+            # Float readings before the first IMU message are dropped, not counted here.
+            keep = finite & stamped if role == 'temperature' and stamped is not None else None
+            rejected[key] = int(np.count_nonzero(~finite if keep is None else ~finite & stamped))
+            if sink is not None and (sink.n or role != 'reference'):    # no empty reference
+                out[role] = sink.result(finite if keep is None else keep)
+        imu_t, gyro, *accel = out['imu']
+        temp_t, temp_c, temp_var = out['temperature']
+        ref_t, ref = out['reference']
         return BagData(
             imu_t=imu_t, gyro=gyro, accel=accel[0] if accel else None,
             frame_id=self.frame_id['imu'] or '', temp_t=temp_t, temp_c=temp_c[:, 0],
@@ -477,8 +428,7 @@ class Collector:
             storage=storage, path=str(bag), fallback=self.fallback, via=via)
 
 
-def _collect(feed: Callable[[Collector, Callable[[int], Any]], None],
-             main_logs: Callable[[NDArray[np.int64]], NDArray[np.int64]], typestore: Any,
+def _collect(feed: Callable[[Collector, Callable[[int], Any]], None], typestore: Any,
              bag: Path, info: Mapping, topics: dict[str, tuple[str, int]],
              conns: dict[str, list[Any]], progress: bool, with_accel: bool, via: str
              ) -> BagData:
@@ -497,70 +447,24 @@ def _collect(feed: Callable[[Collector, Callable[[int], Any]], None],
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
         feed(out, bar.update)
-    return out.result(bag, str(info.get('storage_identifier', '')), topics, via, main_logs)
+    return out.result(bag, str(info.get('storage_identifier', '')), topics, via)
 
 
-class _RosbagsSource:
-    """
-    The raw messages of rosbags' reader, in blocks of ``_CHUNK`` (the reference read).
-
-    Hot loop, one list comprehension per block: each main message (of the IMU topic) is
-    written into one reused buffer as it arrives (its bytes still in the CPU cache: cheaper
-    than collecting the messages and joining them later), its length kept, and nothing else
-    done per message (no log time, no call of ours); any other message (temperature,
-    reference) is passed to ``add_other``, which returns None and so also keeps it out of
-    the list. The buffer is reused only when nothing holds a view of it any more (see
-    _reusable).
-    """
-
-    def __init__(self, reader: AnyReader, conns: dict[str, list[Any]]) -> None:
-        # read_bag opens one bag: iterate its rosbags Reader directly, without AnyReader's
-        # heapq merge across bags (one generator step less per message).
-        self.source = reader.readers[0] if len(reader.readers) == 1 else reader
-        self.conns = conns
-        self.mains = list(conns['imu'])
-
-    def feed(self, out: Collector, update: Callable[[int], Any]) -> None:
-        """Hand every block to ``out``."""
-        role_of = {id(c): role for role in out.roles if role != 'imu' for c in self.conns[role]}
-        gen = self.source.messages(connections=[c for r in out.roles for c in self.conns[r]])
-        scratch = io.BytesIO()
-        one = len(self.mains) == 1
-        main = self.mains[0]
-        mains = tuple(self.mains)
-        while True:
-            others: list[tuple[Any, ...]] = []
-            add_other = others.append
-            scratch = _reusable(scratch)
-            write, tell = scratch.write, scratch.tell
-            # Where each other message fell among the main ones (bytes of them before it)
-            # only matters to Float temperatures; the tell() is cheap enough to keep.
-            if one:
-                lengths = [write(raw) for conn, log, raw in islice(gen, _CHUNK)
-                           if conn is main or add_other((conn, log, raw, tell()))]
-            else:
-                lengths = [write(raw) for conn, log, raw in islice(gen, _CHUNK)
-                           if conn in mains or add_other((conn, log, raw, tell()))]
-            first = out.n_main
-            if lengths:
-                view = scratch.getbuffer()    # released when the decode returns
-                out.main(view, lengths)
-                del view
-            if others:
-                ends = np.cumsum(lengths) if lengths else np.zeros(0, dtype=np.int64)
-                for role in out.roles[1:]:
-                    mine = [x for x in others if role_of[id(x[0])] == role]
-                    if mine:
-                        before = first + np.searchsorted(ends, [x[3] for x in mine],
-                                                         side='right')
-                        out.other(role, [x[2] for x in mine], [x[1] for x in mine], before)
-            done = len(lengths) + len(others)
-            if not done:
-                break
-            update(done)
-
-    def main_logs(self, index: NDArray[np.int64]) -> NDArray[np.int64]:
-        """Return the log times of the main messages at ``index`` (a second pass)."""
-        logs = np.fromiter((log for _, log, _ in self.source.messages(connections=self.mains)),
-                           dtype=np.int64)
-        return logs[index]
+def _rosbags_feed(source: Any, conns: dict[str, list[Any]], out: Collector,
+                  update: Callable[[int], Any]) -> None:
+    """Hand rosbags' raw messages to ``out`` in blocks of ``_CHUNK`` (the reference read)."""
+    role_of = {id(c): role for role in out.roles for c in conns[role]}
+    gen = source.messages(connections=[c for r in out.roles for c in conns[r]])
+    while block := list(islice(gen, _CHUNK)):
+        roles = [role_of[id(conn)] for conn, _, _ in block]
+        first = out.n_main
+        mains = np.cumsum([r == 'imu' for r in roles])    # main messages up to each one
+        for role in out.roles:
+            mine = [k for k, r in enumerate(roles) if r == role]
+            raws = [block[k][2] for k in mine]
+            logs = np.array([block[k][1] for k in mine], dtype=np.int64)
+            if role == 'imu' and mine:
+                out.main(b''.join(raws), [len(x) for x in raws], logs)
+            elif mine:
+                out.other(role, raws, logs, first + mains[mine])
+        update(len(block))

@@ -63,7 +63,7 @@ class Sqlite3File:
 
     def __init__(self, path: Path) -> None:
         # Shared with the thread that runs the range queries (see _Ranges).
-        self.db = sqlite3.connect(f'{path.resolve().as_uri()}?mode=ro&immutable=1', uri=True,
+        self.db = sqlite3.connect(f'{path.absolute().as_uri()}?mode=ro&immutable=1', uri=True,
                                   check_same_thread=False)
         try:
             self._open(path)

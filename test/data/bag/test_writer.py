@@ -12,183 +12,22 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.data (codec, writer, reader): round trips, the codec, bad bags."""
+"""Tests of gyro_tdc.data.bag.writer: write_bag round trips through read_bag, bad bags."""
 
 from __future__ import annotations
 
 import ast
-import io
 from pathlib import Path
 
+from bag_msgs import _imu, _small_bag, _temperature, _write_raw, STORAGES, TS
 from gyro_tdc import data as bagio
 from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag
-from gyro_tdc.data.bag import codec, reader
-from gyro_tdc.data.imu_cdr import encode, Layout
+from gyro_tdc.data.bag import reader
 from gyro_tdc.errors import DatasetError
 import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
-from rosbags.rosbag2 import StoragePlugin, Writer
-from rosbags.typesys import get_typestore, Stores
-
-TS = get_typestore(Stores.ROS2_JAZZY)
-STORAGES = ('sqlite3', 'mcap')
-PLUGINS = {'sqlite3': StoragePlugin.SQLITE3, 'mcap': StoragePlugin.MCAP}
-# Frame ids of every length mod 8 (the float64 block is aligned to 8 after the string).
-FRAME_IDS = ('', 'a', 'ab', 'abc', 'imu', 'imu_', 'imu_l', 'imu_li', 'imu_lin', 'imu_link',
-             'imu_link0', 'base_link/imu_12', 'caf\u00e9')
-
-
-def _header(sec, nsec, frame_id):
-    return TS.types['std_msgs/msg/Header'](TS.types['builtin_interfaces/msg/Time'](sec, nsec),
-                                           frame_id)
-
-
-def _imu(rng, sec=1, nsec=2, frame_id='imu_link', gyro=None):
-    vec = TS.types['geometry_msgs/msg/Vector3']
-    g = rng.normal(size=3) if gyro is None else gyro
-    quat = TS.types['geometry_msgs/msg/Quaternion']
-    return TS.types[IMU_TYPE](
-        _header(sec, nsec, frame_id), quat(*rng.normal(size=4)),
-        rng.normal(size=9), vec(*g), rng.normal(size=9), vec(*rng.normal(size=3)),
-        rng.normal(size=9))
-
-
-def _temperature(rng, sec=1, nsec=2, frame_id='imu_link', value=None):
-    return TS.types[TEMPERATURE_TYPE](_header(sec, nsec, frame_id),
-                                      rng.normal() if value is None else value, rng.random())
-
-
-def _vector3(rng, sec=1, nsec=2, frame_id='imu_link'):
-    return TS.types[REFERENCE_TYPE](_header(sec, nsec, frame_id),
-                                    TS.types['geometry_msgs/msg/Vector3'](*rng.normal(size=3)))
-
-
-MAKERS = {IMU_TYPE: _imu, TEMPERATURE_TYPE: _temperature, REFERENCE_TYPE: _vector3}
-
-
-def _fields(msgtype, msg):
-    """Flatten every field of a message for comparisons."""
-    return codec.from_msg(msgtype, msg)
-
-
-def _write_raw(path, storage, topics):
-    """Write {topic: (msgtype, [(log_ns, bytes), ...])} with rosbags' writer, time ordered."""
-    with Writer(path, version=9, storage_plugin=PLUGINS[storage]) as writer:
-        conns = {name: writer.add_connection(name, msgtype, typestore=TS)
-                 for name, (msgtype, _) in topics.items()}
-        items = sorted((ns, name, raw) for name, (_, msgs) in topics.items()
-                       for ns, raw in msgs)
-        for ns, name, raw in items:
-            writer.write(conns[name], ns, raw)
-
-
-def _small_bag(path, storage, *, n=300, frame_id='imu_link', seed=1, **kw):
-    rng = np.random.default_rng(seed)
-    data = dict(imu_t=100.0 + np.arange(n) * 0.01, gyro=rng.normal(size=(n, 3)),
-                accel=rng.normal(size=(n, 3)), temp_t=100.0 + np.arange(n // 100 + 1) * 1.0,
-                temp_c=20.0 + rng.normal(size=n // 100 + 1))
-    data.update(kw)
-    write_bag(path, storage=storage, frame_id=frame_id, **data)
-    return data
-
-
-# ------------------------------------------------------------------------------------------
-# The fixed-layout codec equals rosbags' serialiser
-# ------------------------------------------------------------------------------------------
-
-@pytest.mark.parametrize('msgtype', [IMU_TYPE, TEMPERATURE_TYPE, REFERENCE_TYPE])
-@pytest.mark.parametrize('frame_id', FRAME_IDS)
-@pytest.mark.parametrize('little_endian', [True, False])
-def test_fixed_layout_decodes_every_field_like_rosbags(msgtype, frame_id, little_endian):
-    rng = np.random.default_rng(len(frame_id))
-    msgs = [MAKERS[msgtype](rng, sec=int(rng.integers(0, 2**31)),
-                            nsec=int(rng.integers(0, 10**9)), frame_id=frame_id)
-            for _ in range(7)]
-    raws = [bytes(TS.serialize_cdr(m, msgtype, little_endian=little_endian)) for m in msgs]
-    frame = frame_id.encode() + b'\0'
-    dt = Layout(len(frame), codec.N_DOUBLES[msgtype], big_endian=not little_endian).dtype
-    assert dt.itemsize == len(raws[0])
-    rec = np.frombuffer(b''.join(raws), dtype=dt)
-    for i, raw in enumerate(raws):
-        sec, nsec, fid, row = _fields(msgtype, TS.deserialize_cdr(raw, msgtype))
-        assert (rec['sec'][i], rec['nanosec'][i]) == (sec, nsec)
-        assert rec['strlen'][i] == len(frame)
-        assert rec['frame'][i].tobytes() == frame
-        np.testing.assert_array_equal(rec['data'][i], row)
-
-    dec = codec.decode_fast(raws, msgtype)
-    assert dec is not None and dec.fallback == 0 and dec.frame_id == frame_id
-    keep = list(codec.KEEP[msgtype])
-    for i, raw in enumerate(raws):
-        sec, nsec, _, row = _fields(msgtype, TS.deserialize_cdr(raw, msgtype))
-        assert (dec.sec[i], dec.nanosec[i]) == (sec, nsec)
-        np.testing.assert_array_equal(dec.values[i], np.asarray(row)[keep])
-
-
-@pytest.mark.parametrize('msgtype', [IMU_TYPE, TEMPERATURE_TYPE, REFERENCE_TYPE])
-@pytest.mark.parametrize('frame_id', FRAME_IDS)
-def test_fixed_layout_encodes_like_rosbags(msgtype, frame_id):
-    rng = np.random.default_rng(7)
-    n = 5
-    sec = rng.integers(0, 2**31, size=n)
-    nsec = rng.integers(0, 10**9, size=n)
-    data = rng.normal(size=(n, codec.N_DOUBLES[msgtype]))
-    data[1, 0] = np.nan
-    data[2, -1] = -np.inf
-    encoded = encode(sec, nsec, frame_id, data)
-    for i in range(n):
-        msg = codec.to_msg(msgtype, sec[i], nsec[i], frame_id, data[i])
-        assert encoded[i] == bytes(TS.serialize_cdr(msg, msgtype))
-
-
-def test_fast_decoder_refuses_mixed_layouts():
-    rng = np.random.default_rng(3)
-    same_len = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('imu0', 'imu1')]
-    assert codec.decode_fast(same_len, IMU_TYPE) is None
-    other_len = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('a', 'bcd')]
-    assert codec.decode_fast(other_len, IMU_TYPE) is None
-    mixed_endian = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE, little_endian=le))
-                    for le in (True, False)]
-    assert codec.decode_fast(mixed_endian, IMU_TYPE) is None
-    trailing = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE)) + b'\0\0' for _ in range(2)]
-    assert codec.decode_fast(trailing, IMU_TYPE) is None
-    # ...and the rosbags fallback decodes all of them right.
-    for raws in (same_len, other_len, mixed_endian, trailing):
-        dec = codec.decode(raws, IMU_TYPE, TS)
-        assert dec.fallback == len(raws)
-        for i, raw in enumerate(raws):
-            row = np.asarray(_fields(IMU_TYPE, TS.deserialize_cdr(raw, IMU_TYPE))[3])
-            np.testing.assert_array_equal(dec.values[i], row[list(codec.KEEP[IMU_TYPE])])
-
-
-def _same_decoded(a, b):
-    assert (a.frame_id, a.fallback) == (b.frame_id, b.fallback)
-    for x, y in ((a.sec, b.sec), (a.nanosec, b.nanosec), (a.values, b.values)):
-        np.testing.assert_array_equal(x, y)
-    assert (a.undecodable is None) == (b.undecodable is None)
-
-
-def test_decode_joined_equals_decode_on_one_reused_buffer():
-    # The reader's path: messages written end to end into one BytesIO reused from block to
-    # block (a longer block first, so stale bytes follow the shorter one), decoded from a
-    # view of it: the same result as decode() on the list, fast path and fallback alike.
-    rng = np.random.default_rng(5)
-    uniform = [bytes(TS.serialize_cdr(_imu(rng, sec=i + 1, nsec=7 * i), IMU_TYPE))
-               for i in range(9)]
-    mixed = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('a', 'bcd')]
-    trailing = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE)) + b'\0\0' for _ in range(2)]
-    scratch = io.BytesIO()
-    for raws in (uniform + uniform, uniform, mixed, trailing):
-        scratch.seek(0)
-        lengths = [scratch.write(raw) for raw in raws]
-        view = scratch.getbuffer()
-        dec = codec.decode_joined(view, lengths, IMU_TYPE, TS)
-        del view
-        _same_decoded(dec, codec.decode(raws, IMU_TYPE, TS))
-        assert dec.fallback == (0 if raws[0] is uniform[0] else len(raws))
-    scratch.seek(0)
-    scratch.write(b'')            # nothing returned still holds the buffer
+from rosbags.rosbag2 import Writer
 
 
 # ------------------------------------------------------------------------------------------

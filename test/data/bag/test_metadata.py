@@ -12,18 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The bag reader: lying metadata refused in one line, and its reused buffer never stuck."""
+"""Tests of gyro_tdc.data.bag.metadata: counts that lie are refused in one line."""
 
 from __future__ import annotations
 
-import gc
-import mmap
 from pathlib import Path
 import shutil
-import sys
 
 from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag
-from gyro_tdc.data.bag import metadata, reader
+from gyro_tdc.data.bag import metadata
 from gyro_tdc.errors import DatasetError
 import numpy as np
 import pytest
@@ -162,94 +159,3 @@ def test_genuinely_compressed_bags_pass_the_count_check(tmp_path, mode):
     got, want = read_bag(bag), read_bag(flat)
     np.testing.assert_array_equal(got.gyro, want.gyro)
     np.testing.assert_array_equal(got.temp_c, want.temp_c)
-
-
-# ------------------------------------------------------------------------------------------
-# The reused decode buffer in a long-lived process
-# ------------------------------------------------------------------------------------------
-
-@pytest.fixture()
-def several_bags(tmp_path, monkeypatch):
-    """Three bags of 600 IMU messages, read through rosbags in blocks of 64 (ten each)."""
-    monkeypatch.setattr(reader, '_CHUNK', 64)
-    return [_write(tmp_path / f'bag{k}', seed=k) for k in range(3)]
-
-
-def _read_all(bags):
-    # The reused buffer is the rosbags read's (the columnar read has none).
-    return [read_bag(b, via='rosbags') for b in bags]
-
-
-def test_a_profiler_holding_the_decode_frames_does_not_break_the_next_block(several_bags):
-    # A sampling profiler (Dask's worker samples the stack of every running task every
-    # 10 ms) holds the frames it took; a frame of the decode kept after it returned keeps
-    # its views of the reader's buffer, which the next block must not be written into.
-    plain = _read_all(several_bags)
-    held = []
-
-    def sample(frame, event, arg):
-        if event == 'return' and frame.f_code.co_name in ('decode_joined', '_decode_records'):
-            held.append(frame)
-    sys.setprofile(sample)
-    try:
-        profiled = _read_all(several_bags)
-    finally:
-        sys.setprofile(None)
-    assert len(held) >= 3 * 2 * (N_IMU // 64)
-    for a, b in zip(profiled, plain):
-        np.testing.assert_array_equal(a.gyro, b.gyro)
-        np.testing.assert_array_equal(a.imu_t, b.imu_t)
-        np.testing.assert_array_equal(a.accel, b.accel)
-
-
-def test_views_kept_by_uncollected_cycles_do_not_break_the_next_block(several_bags,
-                                                                      monkeypatch):
-    plain = _read_all(several_bags)
-    decode_joined = reader.decode_joined
-    cycles = []
-
-    def decode_in_a_cycle(buf, *args, **kwargs):
-        dec = decode_joined(buf, *args, **kwargs)
-        cycle = [buf]
-        cycle.append(cycle)                 # garbage only the cyclic collector frees
-        cycles.append(id(cycle))
-        return dec
-    monkeypatch.setattr(reader, 'decode_joined', decode_in_a_cycle)
-    was_enabled = gc.isenabled()
-    gc.disable()
-    try:
-        cyclic = _read_all(several_bags)
-    finally:
-        if was_enabled:
-            gc.enable()
-    assert len(cycles) == 3 * -(-N_IMU // 64)
-    for a, b in zip(cyclic, plain):
-        np.testing.assert_array_equal(a.gyro, b.gyro)
-        np.testing.assert_array_equal(a.temp_c, b.temp_c)
-
-
-# ------------------------------------------------------------------------------------------
-# The output columns
-# ------------------------------------------------------------------------------------------
-
-def test_large_columns_live_in_an_anonymous_mapping_small_ones_in_numpy():
-    # Large columns are not given numpy's huge-page advice (costly first touch).
-    big = reader._columns(1 << 20, 3)
-    assert big.shape == (1 << 20, 3) and big.dtype == np.float64 and big.flags.writeable
-    base = big
-    while isinstance(base, (np.ndarray, memoryview)):
-        base = base.base if isinstance(base, np.ndarray) else base.obj
-    assert isinstance(base, mmap.mmap)
-    small = reader._columns(10)
-    assert small.shape == (10,) and small.base is None
-
-
-def test_the_sink_grows_past_its_capacity_and_keeps_what_it_had():
-    sink = reader._Sink(4, (1, 2))
-    rows = np.arange(30.0).reshape(10, 3)
-    sink.add(np.arange(3.0), rows[:3])
-    sink.add(np.arange(3.0, 10.0), rows[3:])           # past the capacity of 4
-    t, a, b = sink.result()
-    np.testing.assert_array_equal(t, np.arange(10.0))
-    np.testing.assert_array_equal(a, rows[:, :1])
-    np.testing.assert_array_equal(b, rows[:, 1:])

@@ -13,9 +13,10 @@
 # limitations under the License.
 
 """
-Bags whose temperature topic is std_msgs Float32 / Float64, read as the node reads them live.
+Tests of gyro_tdc.data.bag.reader: blocks, output columns, Float temperature topics.
 
-A reading without a header takes the stamp of the latest IMU message received before it, in
+Bags whose temperature topic is std_msgs Float32 / Float64 are read as the node reads them
+live: a reading without a header takes the stamp of the latest IMU message received before it, in
 the bag's log-time order: the reader's stamps are checked against the compensator node's own
 callbacks fed the bag's messages in that order, the Run against a sensor_msgs/Temperature
 bag stamped that way, and ``train`` on both gives the same model.
@@ -23,8 +24,13 @@ bag stamped that way, and ``train`` on both gives the same model.
 
 from __future__ import annotations
 
+import gc
+import mmap
+from pathlib import Path
+import sys
+
 from gyro_tdc.cli.train import main as train_main
-from gyro_tdc.data import IMU_TYPE, read_bag, TEMPERATURE_TYPE
+from gyro_tdc.data import IMU_TYPE, read_bag, TEMPERATURE_TYPE, write_bag
 from gyro_tdc.data.bag import codec, reader as bag_reader
 from gyro_tdc.data.dataset import load_run
 from gyro_tdc.errors import DatasetError
@@ -39,6 +45,15 @@ from synth import synth_run
 TS = get_typestore(Stores.ROS2_JAZZY)
 FLOATS = ('std_msgs/msg/Float32', 'std_msgs/msg/Float64')
 PLUGINS = {'sqlite3': StoragePlugin.SQLITE3, 'mcap': StoragePlugin.MCAP}
+N_IMU = 600
+
+
+def _write_plain(path: Path, *, seed: int = 1, n: int = N_IMU) -> Path:
+    rng = np.random.default_rng(seed)
+    t = 100.0 + np.arange(n) * 0.01
+    write_bag(path, imu_t=t, gyro=rng.normal(size=(n, 3)), accel=rng.normal(size=(n, 3)),
+              temp_t=t[::100], temp_c=20.0 + rng.normal(size=len(t[::100])))
+    return path
 
 
 def _imu_raw(ns, gyro, frame_id='imu_link'):
@@ -242,3 +257,94 @@ def test_a_temperature_topic_of_another_type_is_refused(tmp_path):
                                            r"'sensor_msgs/msg/Temperature' or "
                                            r"'std_msgs/msg/Float32' or 'std_msgs/msg/Float64'"):
         read_bag(bag, temperature_topic='/imu/data_raw')
+
+
+# ------------------------------------------------------------------------------------------
+# The reused decode buffer in a long-lived process
+# ------------------------------------------------------------------------------------------
+
+@pytest.fixture()
+def several_bags(tmp_path, monkeypatch):
+    """Three bags of 600 IMU messages, read through rosbags in blocks of 64 (ten each)."""
+    monkeypatch.setattr(bag_reader, '_CHUNK', 64)
+    return [_write_plain(tmp_path / f'bag{k}', seed=k) for k in range(3)]
+
+
+def _read_all(bags):
+    # The reused buffer is the rosbags read's (the columnar read has none).
+    return [read_bag(b, via='rosbags') for b in bags]
+
+
+def test_a_profiler_holding_the_decode_frames_does_not_break_the_next_block(several_bags):
+    # A sampling profiler (Dask's worker samples the stack of every running task every
+    # 10 ms) holds the frames it took; a frame of the decode kept after it returned keeps
+    # its views of the reader's buffer, which the next block must not be written into.
+    plain = _read_all(several_bags)
+    held = []
+
+    def sample(frame, event, arg):
+        if event == 'return' and frame.f_code.co_name in ('decode_joined', '_decode_records'):
+            held.append(frame)
+    sys.setprofile(sample)
+    try:
+        profiled = _read_all(several_bags)
+    finally:
+        sys.setprofile(None)
+    assert len(held) >= 3 * 2 * (N_IMU // 64)
+    for a, b in zip(profiled, plain):
+        np.testing.assert_array_equal(a.gyro, b.gyro)
+        np.testing.assert_array_equal(a.imu_t, b.imu_t)
+        np.testing.assert_array_equal(a.accel, b.accel)
+
+
+def test_views_kept_by_uncollected_cycles_do_not_break_the_next_block(several_bags,
+                                                                      monkeypatch):
+    plain = _read_all(several_bags)
+    decode_joined = bag_reader.decode_joined
+    cycles = []
+
+    def decode_in_a_cycle(buf, *args, **kwargs):
+        dec = decode_joined(buf, *args, **kwargs)
+        cycle = [buf]
+        cycle.append(cycle)                 # garbage only the cyclic collector frees
+        cycles.append(id(cycle))
+        return dec
+    monkeypatch.setattr(bag_reader, 'decode_joined', decode_in_a_cycle)
+    was_enabled = gc.isenabled()
+    gc.disable()
+    try:
+        cyclic = _read_all(several_bags)
+    finally:
+        if was_enabled:
+            gc.enable()
+    assert len(cycles) == 3 * -(-N_IMU // 64)
+    for a, b in zip(cyclic, plain):
+        np.testing.assert_array_equal(a.gyro, b.gyro)
+        np.testing.assert_array_equal(a.temp_c, b.temp_c)
+
+
+# ------------------------------------------------------------------------------------------
+# The output columns
+# ------------------------------------------------------------------------------------------
+
+def test_large_columns_live_in_an_anonymous_mapping_small_ones_in_numpy():
+    # Large columns are not given numpy's huge-page advice (costly first touch).
+    big = bag_reader._columns(1 << 20, 3)
+    assert big.shape == (1 << 20, 3) and big.dtype == np.float64 and big.flags.writeable
+    base = big
+    while isinstance(base, (np.ndarray, memoryview)):
+        base = base.base if isinstance(base, np.ndarray) else base.obj
+    assert isinstance(base, mmap.mmap)
+    small = bag_reader._columns(10)
+    assert small.shape == (10,) and small.base is None
+
+
+def test_the_sink_grows_past_its_capacity_and_keeps_what_it_had():
+    sink = bag_reader._Sink(4, (1, 2))
+    rows = np.arange(30.0).reshape(10, 3)
+    sink.add(np.arange(3.0), rows[:3])
+    sink.add(np.arange(3.0, 10.0), rows[3:])           # past the capacity of 4
+    t, a, b = sink.result()
+    np.testing.assert_array_equal(t, np.arange(10.0))
+    np.testing.assert_array_equal(a, rows[:, :1])
+    np.testing.assert_array_equal(b, rows[:, 1:])

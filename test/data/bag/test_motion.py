@@ -1,0 +1,53 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Tests of gyro_tdc.data.bag.motion: a cmd_vel Twist stream written, read back and refused."""
+
+from __future__ import annotations
+
+from gyro_tdc.data import encode_twists, read_motion, TWIST_TYPE, write_bag
+from gyro_tdc.errors import DatasetError
+import numpy as np
+import pytest
+
+
+def _bag(path, storage, twist, t):
+    n = 50
+    write_bag(path, imu_t=np.arange(n) * 0.1, gyro=np.zeros((n, 3)), accel=np.zeros((n, 3)),
+              temp_t=[0.0, 4.9], temp_c=[20.0, 21.0], storage=storage,
+              extra=[('/cmd_vel', TWIST_TYPE, t, encode_twists(twist))])
+    return path
+
+
+@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
+def test_twists_read_back_in_time_order_with_their_log_times(tmp_path, storage):
+    rng = np.random.default_rng(2)
+    twist = rng.normal(size=(7, 6))
+    t = np.array([0.5, 0.1, 0.3, 0.2, 0.9, 0.7, 0.8])
+    got = read_motion(_bag(tmp_path / 'bag', storage, twist, t), '/cmd_vel')
+    order = np.argsort(t, kind='stable')
+    assert got.topic == '/cmd_vel' and got.msgtype == TWIST_TYPE
+    np.testing.assert_allclose(got.t, t[order], atol=1e-9)
+    np.testing.assert_array_equal(got.twist, twist[order])
+
+
+def test_a_missing_or_mistyped_motion_topic_is_one_line(tmp_path):
+    bag = _bag(tmp_path / 'bag', 'sqlite3', np.zeros((1, 6)), [0.0])
+    with pytest.raises(DatasetError, match="no motion topic '/odom'; topics present: .*/cmd_vel"):
+        read_motion(bag, '/odom')
+    with pytest.raises(DatasetError, match="'/imu/temperature' .* has type 'sensor_msgs/msg/"
+                                           "Temperature', expected one of"):
+        read_motion(bag, '/imu/temperature')
+    with pytest.raises(DatasetError, match='Cannot read motion topic'):
+        read_motion(tmp_path / 'nothing', '/cmd_vel')

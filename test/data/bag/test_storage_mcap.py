@@ -1,0 +1,50 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""Tests of gyro_tdc.data.bag.storage_mcap: what the MCAP read leaves to rosbags."""
+
+from __future__ import annotations
+
+from columnar_tape import _chamber, _tapes, _write
+from gyro_tdc.data import read_bag
+from gyro_tdc.data.bag.storage import Unfit
+import numpy as np
+import pytest
+
+
+def test_an_mcap_file_without_a_summary_goes_to_rosbags(tmp_path):
+    # rosbags scans such a file record by record; the columnar read wants the chunk index.
+    rng = np.random.default_rng(13)
+    bag = _write(tmp_path / 'bag', 'mcap', _chamber(rng))
+    (path,) = bag.glob('*.mcap')
+    raw = bytearray(path.read_bytes())
+    raw[-28:-20] = bytes(8)                  # the footer's summary_start
+    path.write_bytes(bytes(raw))
+    with pytest.raises(Unfit, match='without a summary'):
+        _tapes(bag)
+    got, ref = read_bag(bag), read_bag(bag, via='rosbags')
+    assert got.via == 'rosbags'
+    np.testing.assert_array_equal(got.gyro, ref.gyro)
+
+
+def test_mcap_chunks_overlapping_in_time_go_to_rosbags(tmp_path):
+    # rosbags merges chunks whose time spans overlap message by message: not read columnar.
+    rng = np.random.default_rng(3)
+    bag = _write(tmp_path / 'bag', 'mcap', _chamber(rng, n=9000), shuffle=True)
+    with pytest.raises(Unfit, match='overlap'):
+        _tapes(bag)
+    got, ref = read_bag(bag), read_bag(bag, via='rosbags')
+    assert got.via == 'rosbags'
+    np.testing.assert_array_equal(got.imu_t, ref.imu_t)
+    np.testing.assert_array_equal(got.temp_c, ref.temp_c)
