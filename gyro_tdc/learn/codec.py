@@ -29,7 +29,7 @@ from typing import Any, Protocol
 
 from gyro_tdc.base import FieldChecker, MAX_RATE_RAD_S, shown, TEMP_PLAUSIBLE_C
 from gyro_tdc.errors import FeatureError, LearnFileError, ModelFileError
-from gyro_tdc.learn.fit import model_of
+from gyro_tdc.learn.fit import AXES, model_of
 from gyro_tdc.learn.records import Entry, RecentStretch
 from gyro_tdc.model import MAX_PARAM, ThermalState
 import numpy as np
@@ -50,7 +50,8 @@ _REQUIRED = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first'
              'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check',
              'swaps')
 _OPTIONAL = ('motion', 'thermal', 'thermal_state', 'config', 'segment')
-_FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points')
+_FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points', 'held_out')
+_HELD_KEYS = ('sessions', 'folds', 'points', 'curve_ms_dps2', 'offset_ms_dps2', 'offset_only')
 _CHECK_KEYS = ('t', 'candidate_mse', 'current_mse', 'swapped')
 _CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
 
@@ -234,12 +235,29 @@ def _fit(v: Any, thermal: ThermalState | None) -> dict | None:
            'resid_var': [_number(r, f'fit.resid_var[{i}]', 0.0, MAX_RATE_RAD_S ** 2,
                                  'a variance in (rad/s)^2')
                          for i, r in enumerate(_list(v['resid_var'], 'fit.resid_var', 3))],
-           'points': _count(v['points'], 'fit.points', 1)}
+           'points': _count(v['points'], 'fit.points', 1),
+           'held_out': _held_out(v['held_out'], bool(feats))}
     try:
         model_of(fit, thermal)
     except ModelFileError as exc:
         raise _bad('fit', f'gives a model refused as a model file would be: {exc}') from None
     return fit
+
+
+def _held_out(v: Any, curve: bool) -> dict | None:
+    """Return the fit's held-out record (None: the fit has no curve)."""
+    if v is None and not curve:
+        return None
+    v = _dict(v, 'fit.held_out', _HELD_KEYS)
+    out = {k: _count(v[k], f'fit.held_out.{k}') for k in _HELD_KEYS[:3]}
+    for k in _HELD_KEYS[3:5]:
+        out[k] = None if v[k] is None and not out['folds'] else _CHK.numbers(
+            v[k], f'fit.held_out.{k}', 3, 0.0, MAX_PARAM, 'a mean square in (deg/s)^2')
+    axes = _list(v['offset_only'], 'fit.held_out.offset_only', most=3)
+    if not set(axes) <= set(AXES) or len(set(axes)) < len(axes):
+        raise _bad('fit.held_out.offset_only', f'must be distinct axis names, got {axes!r:.40}')
+    out['offset_only'] = axes
+    return out
 
 
 def _check(v: Any) -> dict | None:

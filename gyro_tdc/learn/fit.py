@@ -29,13 +29,13 @@ from typing import Sequence
 
 from gyro_tdc.learn.temperature import at_state, same_thermal
 from gyro_tdc.model import check_model, CompensationModel, drift, normalise_ids, ThermalState
-from gyro_tdc.signal import fit_columns, hat, session_columns
+from gyro_tdc.signal import fit_columns, Folds, hat, heldout, session_columns
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['BINS_DT2', 'BINS_DT3', 'MAX_DROPS', 'OUTLIER_K', 'SPAN_DT2_C', 'SPAN_DT3_C',
            'SPAN_DT_C', 'fit_points', 'fit_sessions', 'grow_features', 'inliers', 'learned_model',
-           'model_of', 'predict_windows', 'prediction_mse', 'recent_offset',
+           'held_out', 'model_of', 'predict_windows', 'prediction_mse', 'recent_offset',
            'window_error']
 
 OUTLIER_K = 4.0
@@ -45,6 +45,8 @@ SPAN_DT2_C = 8.0
 BINS_DT2 = 5
 SPAN_DT3_C = 15.0
 BINS_DT3 = 10
+AXES = ('x', 'y', 'z')
+_DEG2 = (180.0 / math.pi) ** 2
 
 
 def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
@@ -240,10 +242,65 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
     if not keep.all():
         e, wt = e[keep], wt[keep]
         coef, res = fit_sessions(e, wt, feats, t0)
+    record = held_out(e, wt, feats, t0)
+    flat = [AXES.index(a) for a in record['offset_only']] if record else []
+    if flat:                              # those axes: one offset per session, no curve
+        c0, r0 = fit_sessions(e, wt, (), t0)
+        coef[0, flat], coef[1:, flat], res[:, flat] = c0[0, flat], 0.0, r0[:, flat]
     resid = np.average(res ** 2, axis=0, weights=wt)
     return {'features': list(feats), 't0_c': t0, 'coef': coef.tolist(),
             'range_c': [float(e[:, 2].min()), float(e[:, 2].max())],
-            'resid_var': resid.tolist(), 'points': int(e.shape[0])}
+            'resid_var': resid.tolist(), 'points': int(e.shape[0]), 'held_out': record}
+
+
+def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str],
+             t0: float) -> dict | None:
+    """
+    Judge the curve on each power cycle held out against its offset alone (the trainer's rule).
+
+    Each session is held out in turn inside the others' temperatures (the estimator's
+    :meth:`~gyro_tdc.signal.Folds.sessions`), the curve fitted on the others, and its
+    residuals and the raw rate's re-anchored (:func:`~gyro_tdc.signal.heldout`), as the node
+    re-anchors a new power cycle. Where the curve's weighted mean square is not below the
+    offset's, the axis keeps the offset only. Without a fold (one session, or none
+    overlapping another's temperatures) nothing is judged and the curve is kept: it is the
+    only evidence, the prediction check still guards it and each power-up is re-anchored.
+
+    Returns
+    -------
+    dict or None
+        ``sessions``, ``folds``, ``points`` (scored), ``curve_ms_dps2`` and
+        ``offset_ms_dps2`` (per axis, (deg/s)^2; None without a fold) and ``offset_only``
+        (axis names); None without a curve.
+
+    """
+    if not feats:
+        return None
+    g, y = e[:, 6], e[:, 3:6]
+    folds = Folds.sessions(g, e[:, 2])
+    rec = {'sessions': int(np.unique(g).size), 'folds': len(folds), 'points': 0,
+           'curve_ms_dps2': None, 'offset_ms_dps2': None, 'offset_only': []}
+    if not len(folds):
+        return rec
+
+    def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
+        coef = fit_sessions(e[train], wt[train], feats, t0)[0]
+        return y[test] - _shape(coef, e[test, 2] - t0)
+
+    scored = np.any(np.stack(folds.test), axis=0)
+    w = wt[scored][:, None]
+    ms = [(w * heldout(f, folds, y.shape, groups=g, weights=wt)[scored] ** 2).sum(axis=0)
+          / w.sum() * _DEG2 for f in (curve, lambda test, train: y[test])]
+    rec.update(points=int(np.count_nonzero(scored)), curve_ms_dps2=ms[0].tolist(),
+               offset_ms_dps2=ms[1].tolist(),
+               offset_only=[AXES[a] for a in np.flatnonzero(~(ms[0] < ms[1]))])
+    return rec
+
+
+def _shape(coef: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return the curve of an intercept-then-powers table at ``d = temp - t0``, (N, 3)."""
+    return sum((coef[j + 1] * d[:, None] ** (j + 1) for j in range(coef.shape[0] - 1)),
+               np.zeros((d.size, 3)))
 
 
 def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationModel:
@@ -278,6 +335,7 @@ def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationMode
     model = learned_model(coef, feats, fit['t0_c'], tuple(fit['range_c']),
                           np.asarray(fit['resid_var']), thermal)
     check_model(model)
+    model.created['held_out'] = fit.get('held_out')
     return model
 
 
@@ -309,9 +367,7 @@ def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float
     r = r[r[:, 5] > since]
     if not r.shape[0]:
         return None
-    coef = np.asarray(fit['coef'], dtype=np.float64)
-    d = r[:, 1] - fit['t0_c']
-    shape = sum(coef[j + 1] * d[:, None] ** (j + 1) for j in range(coef.shape[0] - 1))
+    shape = _shape(np.asarray(fit['coef'], dtype=np.float64), r[:, 1] - fit['t0_c'])
     return np.average(r[:, 2:5] - shape, axis=0, weights=r[:, 0]).tolist()
 
 

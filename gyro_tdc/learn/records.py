@@ -176,11 +176,29 @@ def diagnostic_values(learner: Any) -> dict[str, str]:
         'learn last update stamp s': ('never' if s['last_update_t'] is None
                                       else f'{s["last_update_t"]:.3f}'),
         'learn prediction check': s['check'] or 'none yet',
+        'learn held out': held_out_line(learner.fit),
         'learn session': str(learner.session),
         'learn late swaps': str(learner.late_swaps),
         'learn candidates refused': (f'{learner.refused} (last: {learner.refused_why})'
                                      if learner.refused else '0'),
     }
+
+
+def held_out_line(fit: dict | None) -> str:
+    """Return what the held-out power cycles said of a learned fit's curve (one line)."""
+    rec = None if fit is None else fit.get('held_out')
+    if rec is None:
+        return 'no curve' if fit is not None else 'no learned model yet'
+    if not rec['folds']:
+        return (f"not judged ({rec['sessions']} session(s), no other power cycle over the "
+                'same temperatures): the curve is kept, each power-up re-anchored')
+    figs = ', '.join(f'{a} {c:.3g} vs {o:.3g}' for a, c, o in zip(
+        'xyz', rec['curve_ms_dps2'], rec['offset_ms_dps2']))
+    only = ', '.join(rec['offset_only'])
+    return (f"curve vs offset only, held out on {rec['folds']} of {rec['sessions']} power "
+            f"cycles ({rec['points']} points), mean square (deg/s)^2: {figs}; "
+            + (f'offset only on {only} (the curve does not beat it held out)' if only
+               else 'the curve is kept on every axis'))
 
 
 def summary(learner: Any) -> dict[str, Any]:
@@ -192,6 +210,7 @@ def summary(learner: Any) -> dict[str, Any]:
         'covered_c': cov, 'still_s': learner.still_s, 'stretches': learner.stretches,
         'features': None if learner.fit is None else (learner.fit['features'] or ['bias']),
         'last_update_t': learner.last_update_t, 'swaps': learner.swaps,
+        'held_out': None if learner.fit is None else learner.fit.get('held_out'),
         'check': None if chk is None else (
             f"candidate {math.sqrt(chk['candidate_mse']):.3g} rad/s vs current "
             + ('none' if chk['current_mse'] is None

@@ -293,11 +293,27 @@ class Folds:
         return cls(tuple(tests), tuple(trains))
 
     @classmethod
-    def sessions(cls, groups: ArrayLike) -> 'Folds':
-        """Return one fold per session: that session held out, the others trained on."""
+    def sessions(cls, groups: ArrayLike, temp: ArrayLike | None = None) -> 'Folds':
+        """
+        Return one fold per session: that session held out, the others trained on.
+
+        With ``temp`` (one per row) a session is scored only inside the others' range of it
+        (outside it a model is clamped or extrapolated, which says nothing of how its curve
+        carries to another power cycle); a fold with fewer than two such rows is skipped.
+        """
         g = np.asarray(groups)
-        labels = np.unique(g)
-        return cls(tuple(g == s for s in labels), tuple(g != s for s in labels))
+        tests, trains = [], []
+        for s in np.unique(g):
+            test, train = g == s, g != s
+            if temp is not None:
+                x = np.asarray(temp)
+                lo, hi = x[train].min(initial=np.inf), x[train].max(initial=-np.inf)
+                test &= (x >= lo) & (x <= hi)
+                if np.count_nonzero(test) < 2:
+                    continue
+            tests.append(test)
+            trains.append(train)
+        return cls(tuple(tests), tuple(trains))
 
 
 def heldout(residual: Callable[[NDArray[np.bool_], NDArray[np.bool_]], NDArray[np.float64]],
