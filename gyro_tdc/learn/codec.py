@@ -15,7 +15,7 @@
 """
 The learner's state as plain types and back: :func:`encode_state`, :func:`decode_state` (pure).
 
-:func:`encode_state` turns a learner (any :class:`LearnerState`) into the dict its ``save``
+:func:`encode_state` turns a :class:`~gyro_tdc.learn.learner.Learner` into the dict its ``save``
 writes (tagged :data:`FORMAT`); :func:`decode_state` checks every field of such a dict
 (:class:`gyro_tdc.base.FieldChecker`) and gives back the attribute values it restores. The
 rules: ``doc/internals/learn.md``.
@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any, Protocol
+from typing import Any
 
 from gyro_tdc.base import FieldChecker, MAX_RATE_RAD_S, shown, TEMP_PLAUSIBLE_C
 from gyro_tdc.errors import FeatureError, LearnFileError, ModelFileError
@@ -35,8 +35,7 @@ from gyro_tdc.model import MAX_PARAM, ThermalState
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['decode_state', 'encode_state', 'FORMAT', 'LearnerState', 'MAX_COUNT', 'MAX_STAMP_S',
-           'RECENT_ROWS']
+__all__ = ['decode_state', 'encode_state', 'FORMAT', 'MAX_COUNT', 'MAX_STAMP_S', 'RECENT_ROWS']
 
 FORMAT = 'gyro_tdc learn 1'
 #: Windows of one recent stretch kept in the file (its newest): a day of 10 s windows.
@@ -46,42 +45,16 @@ MAX_STAMP_S = 2.0 ** 32
 #: Largest count (sessions, stretches, windows, swaps, samples of an entry).
 MAX_COUNT = 2 ** 53
 _FEATURES = ((), ('dT',), ('dT', 'dT2'), ('dT', 'dT2', 'dT3'))
-_REQUIRED = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 'still_s',
-             'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check',
-             'swaps')
-_OPTIONAL = ('motion', 'thermal', 'thermal_state', 'config', 'segment')
+_KEYS = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 'still_s',
+         'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check', 'swaps',
+         'motion', 'thermal', 'thermal_state', 'config', 'segment')
 _FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points', 'held_out')
 _HELD_KEYS = ('sessions', 'folds', 'points', 'curve_ms_dps2', 'offset_ms_dps2', 'offset_only')
 _CHECK_KEYS = ('t', 'candidate_mse', 'current_mse', 'swapped')
 _CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
 
 
-class LearnerState(Protocol):
-    """What :func:`encode_state` reads of a learner: the attributes a ``learn_file`` keeps."""
-
-    bins: dict[int, list[Entry]]
-    session: int
-    gyro_floor: NDArray[np.float64]
-    accel_floor: NDArray[np.float64]
-    t_first: float | None
-    still_s: float
-    stretches: int
-    windows: int
-    recent: list[RecentStretch]
-    fit: dict | None
-    last_update_t: float | None
-    last_t: float | None
-    check: dict | None
-    swaps: int
-    motion: list[tuple[float, bool]]
-    thermal: ThermalState | None
-    thermal_state: tuple[float, list[float]] | None
-    segment: int
-    segment_t0: float | None
-    config: Any
-
-
-def encode_state(learner: LearnerState) -> dict[str, Any]:
+def encode_state(learner: Any) -> dict[str, Any]:
     """
     Return the persistent state of ``learner`` as plain types (what ``save`` writes).
 
@@ -95,9 +68,9 @@ def encode_state(learner: LearnerState) -> dict[str, Any]:
                            [float(b) for b in e.bias], e.group, e.session]
                           for e in v] for k, v in sorted(learner.bins.items())},
         'session': learner.session,
-        'gyro_floor': _floor_out(learner.gyro_floor),
-        'accel_floor': _floor_out(learner.accel_floor),
-        't_first': learner.t_first, 'still_s': learner.still_s,
+        'gyro_floor': _floor_out(learner.still.gyro_floor),
+        'accel_floor': _floor_out(learner.still.accel_floor),
+        't_first': learner.still.t_first, 'still_s': learner.still_s,
         'stretches': learner.stretches, 'windows': learner.windows,
         'recent': [[stretch, session, rows[-RECENT_ROWS:]]
                    for stretch, session, rows in learner.recent],
@@ -151,10 +124,10 @@ def _rates(v: Any, name: str, bound: float = MAX_RATE_RAD_S,
 
 
 def _floor_in(v: Any, name: str) -> NDArray[np.float64]:
-    """Return a noise floor: positive, or infinite (null, or Infinity in older files)."""
+    """Return a noise floor: positive, or infinite (null: not known yet)."""
     out = np.full(3, math.inf)
     for i, f in enumerate(_list(v, name, 3)):
-        if f is None or (isinstance(f, float) and f == math.inf):
+        if f is None:
             continue
         out[i] = _number(f, f'{name}[{i}]', 0.0, 1e6, 'a noise floor (positive or null)')
         if not out[i] > 0.0:
@@ -347,11 +320,10 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
     """
     if not isinstance(state, dict) or state.get('format') != FORMAT:
         raise LearnFileError(f'not a learner state ({FORMAT!r} expected)')
-    _dict(state, 'state', _REQUIRED, _OPTIONAL)
-    if state.get('config') is not None:
-        for k, x in _dict(state['config'], 'config', _CONFIG_KEYS).items():
-            _number(x, f'config.{k}', 0.0)
-    thermal = _thermal(state.get('thermal'))
+    _dict(state, 'state', _KEYS)
+    for k, x in _dict(state['config'], 'config', _CONFIG_KEYS).items():
+        _number(x, f'config.{k}', 0.0)
+    thermal = _thermal(state['thermal'])
     values = {
         'bins': _bins(state['bins'], bin_c, bin_entries),
         'gyro_floor': _floor_in(state['gyro_floor'], 'gyro_floor'),
@@ -367,12 +339,11 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
         'last_t': _stamp(state['last_t'], 'last_t', optional=True),
         'check': _check(state['check']),
         'swaps': _count(state['swaps'], 'swaps'),
-        'motion': _motion(state.get('motion', [])),
-        'thermal_state': _thermal_state(state.get('thermal_state'), thermal),
+        'motion': _motion(state['motion']),
+        'thermal_state': _thermal_state(state['thermal_state'], thermal),
     }
-    if state.get('segment') is not None:
-        seg = _list(state['segment'], 'segment', 2)
-        values['segment'] = _count(seg[0], 'segment[0] (entry group)')
-        values['segment_t0'] = _stamp(seg[1], 'segment[1] (its first stamp)', optional=True)
+    seg = _list(state['segment'], 'segment', 2)
+    values['segment'] = _count(seg[0], 'segment[0] (entry group)')
+    values['segment_t0'] = _stamp(seg[1], 'segment[1] (its first stamp)', optional=True)
     values['last_save_t'] = values['last_t']
     return values, thermal

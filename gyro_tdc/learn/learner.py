@@ -30,25 +30,19 @@ from typing import Any, Sequence
 
 from gyro_tdc.base import RESTART_BACK_S
 from gyro_tdc.errors import ModelFileError
-from gyro_tdc.learn.check import compare, offset_until
 from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT, RECENT_ROWS
-from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, learned_model,
-                                MAX_DROPS, model_of, OUTLIER_K, recent_offset, SPAN_DT2_C,
-                                SPAN_DT3_C, SPAN_DT_C)
+from gyro_tdc.learn.fit import (compare, fit_points, grow_features, learned_model, model_of,
+                                offset_until, recent_offset, same_thermal, stream_state)
 from gyro_tdc.learn.records import (diagnostic_values, Entry, LearnConfig, OpenStretch,
                                     RecentStretch, summary)
-from gyro_tdc.learn.store import read_state, write_state
-from gyro_tdc.learn.temperature import hold_readings, same_thermal, stream_state
+from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
-from gyro_tdc.signal import (break_why, BURST_FACTOR, BURST_MAX_S, BURST_PAUSES, GAP_PERIODS,
-                             SessionTracker, StillWindows, Window)
+from gyro_tdc.signal import (break_why, GAP_PERIODS, hold_readings, SessionTracker, StillWindows,
+                             Window)
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['BIN_ENTRIES', 'BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'CHECK_STRETCHES',
-           'FORMAT', 'GAP_PERIODS', 'Learner', 'LearnConfig', 'OUTLIER_K', 'SPAN_DT2_C',
-           'SPAN_DT3_C', 'SPAN_DT_C', 'BINS_DT2', 'BINS_DT3',
-           'MAX_DROPS', 'learned_model']
+__all__ = ['BIN_ENTRIES', 'CHECK_STRETCHES', 'FORMAT', 'Learner', 'LearnConfig', 'learned_model']
 
 #: Floats per sample in :attr:`Learner.buf`: stamp, rate (3), acceleration (3).
 SAMPLE = 7
@@ -130,45 +124,10 @@ class Learner:
         """Return the power cycle the stream is in, from 0."""
         return self.sessions.session
 
-    @session.setter
-    def session(self, value: int) -> None:
-        self.sessions.session = int(value)
-
-    @property
-    def gyro_floor(self) -> NDArray[np.float64]:
-        """Return the gyro noise floor, shape (3,), rad/s (the still test's)."""
-        return self.still.gyro_floor
-
-    @gyro_floor.setter
-    def gyro_floor(self, value) -> None:
-        self.still.gyro_floor = np.asarray(value, dtype=np.float64)
-
-    @property
-    def accel_floor(self) -> NDArray[np.float64]:
-        """Return the accelerometer noise floor, shape (3,), m/s^2."""
-        return self.still.accel_floor
-
-    @accel_floor.setter
-    def accel_floor(self, value) -> None:
-        self.still.accel_floor = np.asarray(value, dtype=np.float64)
-
-    @property
-    def t_first(self) -> float | None:
-        """Return the first stamp of the session: the origin of the window grid, s."""
-        return self.still.t_first
-
-    @t_first.setter
-    def t_first(self, value: float | None) -> None:
-        self.still.t_first = value
-
     @property
     def motion(self) -> list[tuple[float, bool]]:
         """Return the motion reports (stamp, moving), from the one held at the window on."""
         return self.still.motion.reports
-
-    @motion.setter
-    def motion(self, value) -> None:
-        self.still.motion.reports = list(value)
 
     def state(self) -> dict[str, Any]:
         """Return the persistent state as plain types (what :meth:`save` writes)."""
@@ -184,12 +143,12 @@ class Learner:
         values, saved = decode_state(state, bin_c=self.config.bin_c, bin_entries=BIN_ENTRIES,
                                      stretches=CHECK_STRETCHES)
         self.reset()
+        still = self.still
+        still.gyro_floor, still.accel_floor = values.pop('gyro_floor'), values.pop('accel_floor')
+        still.t_first, still.motion.reports = values.pop('t_first'), values.pop('motion')
+        self.sessions.session = values.pop('session')
         for name, value in values.items():
             setattr(self, name, value)
-        if 'segment' not in values:       # a file without it: the next group above them all
-            self.segment = max([self.stretches] + [e.group for v in self.bins.values()
-                                                   for e in v]) + 1
-            self.segment_t0 = None
         if not same_thermal(saved, self.thermal):
             # Binned at another model temperature than the prior's: the set_prior rule.
             self._forget_points()
@@ -224,12 +183,12 @@ class Learner:
 
     def save(self, path: str | Path) -> None:
         """Write the state (model and point table) to ``path`` atomically (JSON)."""
-        write_state(path, self.state())
+        LearnFile(path).write(self.state())
         self.saved()
 
     def load(self, path: str | Path) -> bool:
         """Resume from ``path`` when it exists; return whether it did (LearnFileError: bad)."""
-        state = read_state(path)
+        state = LearnFile(path).read()
         if state is None:
             return False
         self.load_state(state)
@@ -534,7 +493,8 @@ class Learner:
 
     def _floor(self) -> float:
         """Return the largest finite gyro noise floor of the axes, rad/s (0: none yet)."""
-        return float(np.nanmax(np.where(np.isfinite(self.gyro_floor), self.gyro_floor, 0.0)))
+        floor = self.still.gyro_floor
+        return float(np.nanmax(np.where(np.isfinite(floor), floor, 0.0)))
 
     def _early_offset(self, t_now: float) -> bool:
         """
@@ -572,7 +532,7 @@ class Learner:
         cand.created['offset_until'] = offset_until(rows, since, offset is not None,
                                                     self.entries(), self.session)
         # The noise of the samples it is handed (the core's re-anchoring prior at a new one).
-        cand.created['gyro_floor'] = [float(v) for v in self.gyro_floor]
+        cand.created['gyro_floor'] = [float(v) for v in self.still.gyro_floor]
         new, old, swap = compare(cand, self.model, rows, self.thermal, anchor, floor)
         self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old, 'swapped': swap}
         if not swap:

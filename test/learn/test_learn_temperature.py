@@ -18,10 +18,10 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.learn.fit import learned_model
-from gyro_tdc.learn.temperature import at_state, hold_readings, same_thermal, stream_state
+from gyro_tdc.learn.fit import at_state, learned_model, same_thermal, stream_state
 from gyro_tdc.model.compensation import drift
 from gyro_tdc.model.thermal_state import ThermalState
+from gyro_tdc.signal import hold_readings
 import numpy as np
 import pytest
 
