@@ -33,8 +33,8 @@ from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT, RECENT_ROWS
 from gyro_tdc.learn.fit import (compare, fit_points, grow_features, learned_model, model_of,
                                 offset_until, recent_offset, same_thermal, stream_state)
-from gyro_tdc.learn.records import (diagnostic_values, Entry, LearnConfig, OpenStretch,
-                                    RecentStretch, summary)
+from gyro_tdc.learn.records import (Entry, held_out_line, LearnConfig, OpenStretch,
+                                    RecentStretch)
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
 from gyro_tdc.signal import (break_why, GAP_PERIODS, hold_readings, SessionTracker, StillWindows,
@@ -52,6 +52,14 @@ BIN_ENTRIES = 8
 CHECK_STRETCHES = 3
 #: ... and their windows kept, newest first (a day of 10 s windows, what learn_file keeps).
 CHECK_ROWS = RECENT_ROWS
+_NO_ACCEL = (math.nan,) * 3
+
+
+def _pool(parts: list) -> tuple[float, float, tuple[float, float, float]]:
+    """Return the samples, mean temperature and mean rate of ``(samples, temp, rate)`` parts."""
+    m = sum(p[0] for p in parts)
+    return (m, sum(p[0] * p[1] for p in parts) / m,
+            tuple(sum(p[0] * p[2][a] for p in parts) / m for a in range(3)))
 
 
 class Learner:
@@ -199,11 +207,8 @@ class Learner:
     def observe(self, t: float, wx: float, wy: float, wz: float,
                 accel: Sequence[float] | None = None) -> None:
         """Record one raw IMU sample (the only per-message work: one ``extend``)."""
-        if accel is None:
-            self.buf.extend((t, wx, wy, wz, math.nan, math.nan, math.nan))
-        else:
-            ax, ay, az = accel
-            self.buf.extend((t, wx, wy, wz, ax, ay, az))
+        ax, ay, az = _NO_ACCEL if accel is None else accel
+        self.buf.extend((t, wx, wy, wz, ax, ay, az))
 
     def add_temperature(self, t: float, temp_c: float) -> None:
         """Record one thermometer reading."""
@@ -435,19 +440,12 @@ class Learner:
         for r in new:
             groups.setdefault(int(math.floor(r.temp_c / self.config.bin_c)), []).append(r)
         for b, rs in groups.items():
-            m = sum(r.n for r in rs)
-            entry = Entry(float(rs[-1].t1), float(m), sum(r.temp_c * r.n for r in rs) / m,
-                          tuple(sum(r.gyro_mean[a] * r.n for r in rs) / m for a in range(3)),
-                          sid, self.session)
+            m, temp, bias = _pool([(r.n, r.temp_c, r.gyro_mean) for r in rs])
             lst = self.bins.setdefault(b, [])
             if lst and lst[-1].group == sid:       # the same group: one entry per bin
-                o = lst[-1]
-                tot = o.samples + m
-                lst[-1] = Entry(entry.t_end, tot, (o.temp_c * o.samples + entry.temp_c * m) / tot,
-                                tuple((o.bias[a] * o.samples + entry.bias[a] * m) / tot
-                                      for a in range(3)), sid, self.session)
-            else:
-                lst.append(entry)
+                o = lst.pop()
+                m, temp, bias = _pool([(o.samples, o.temp_c, o.bias), (m, temp, bias)])
+            lst.append(Entry(float(rs[-1].t1), float(m), temp, bias, sid, self.session))
             del lst[:-BIN_ENTRIES]
         self._remember([[r.n, r.temp_c, *r.gyro_mean, r.t1] for r in new])
         return self._refit(new[-1].t1)
@@ -552,8 +550,35 @@ class Learner:
 
     def diagnostic_values(self) -> dict[str, str]:
         """Return the learner's /diagnostics key/value pairs (strings)."""
-        return diagnostic_values(self)
+        s = self.summary()
+        cov = s['covered_c']
+        return {
+            'learn points': str(s['points']),
+            'learn covered degC': 'none' if cov is None else f'{cov[0]:.2f} .. {cov[1]:.2f}',
+            'learn still s': f'{s["still_s"]:.0f}',
+            'learn features': 'none' if s['features'] is None else ', '.join(s['features']),
+            'learn last update stamp s': ('never' if s['last_update_t'] is None
+                                          else f'{s["last_update_t"]:.3f}'),
+            'learn prediction check': s['check'] or 'none yet',
+            'learn held out': held_out_line(self.fit),
+            'learn session': str(self.session),
+            'learn late swaps': str(self.late_swaps),
+            'learn candidates refused': (f'{self.refused} (last: {self.refused_why})'
+                                         if self.refused else '0'),
+        }
 
     def summary(self) -> dict[str, Any]:
         """Return what /diagnostics shows: points, range, still time, last update, check."""
-        return summary(self)
+        chk = self.check
+        return {
+            'points': int(self.entries().shape[0]), 'bins': len(self.bins),
+            'covered_c': self.covered_c(), 'still_s': self.still_s,
+            'stretches': self.stretches, 'last_update_t': self.last_update_t,
+            'features': None if self.fit is None else (self.fit['features'] or ['bias']),
+            'held_out': None if self.fit is None else self.fit.get('held_out'),
+            'swaps': self.swaps, 'check': None if chk is None else (
+                f"candidate {math.sqrt(chk['candidate_mse']):.3g} rad/s vs current "
+                + ('none' if chk['current_mse'] is None
+                   else f"{math.sqrt(chk['current_mse']):.3g} rad/s")
+                + (' -> swapped' if chk['swapped'] else ' -> kept')),
+        }
