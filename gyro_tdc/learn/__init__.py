@@ -23,5 +23,6 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'learner': ['LearnConfig', 'Learner'],
+    'records': ['held_out_line'],
     'store': ['is_learn_file', 'LearnFile', 'model_from_file', 'open_learn_file', 'read_model'],
 })

@@ -52,6 +52,7 @@ _FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points', 'held
 _HELD_KEYS = ('sessions', 'folds', 'points', 'curve_ms_dps2', 'offset_ms_dps2', 'offset_only')
 _CHECK_KEYS = ('t', 'candidate_mse', 'current_mse', 'swapped')
 _CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
+_RATE = (-MAX_RATE_RAD_S, MAX_RATE_RAD_S, 'a rate in rad/s')
 
 
 def encode_state(learner: Any) -> dict[str, Any]:
@@ -115,14 +116,6 @@ def _temp(v: Any, name: str) -> float:
     return _number(v, name, *TEMP_PLAUSIBLE_C, 'a plausible temperature in degC')
 
 
-def _rates(v: Any, name: str, bound: float = MAX_RATE_RAD_S,
-           what: str = 'a rate in rad/s') -> tuple[float, float, float]:
-    """Return three numbers within +-``bound`` (plausible rates, rad/s)."""
-    x, y, z = (_number(r, f'{name}[{i}]', -bound, bound, what)
-               for i, r in enumerate(_list(v, name, 3)))
-    return x, y, z
-
-
 def _floor_in(v: Any, name: str) -> NDArray[np.float64]:
     """Return a noise floor: positive, or infinite (null: not known yet)."""
     out = np.full(3, math.inf)
@@ -159,7 +152,7 @@ def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry
                               _number(e[1], f'{en}[1] (samples)', 1.0, MAX_COUNT,
                                       'a sample count'),
                               _temp(e[2], f'{en}[2] (temperature)'),
-                              _rates(e[3], f'{en}[3]'),
+                              tuple(_CHK.numbers(e[3], f'{en}[3]', 3, *_RATE)),
                               _count(e[4], f'{en}[4] (stretch)'),
                               _count(e[5], f'{en}[5] (session)')))
         if not rows:
@@ -180,8 +173,7 @@ def _recent(v: Any, most: int | None) -> list[RecentStretch]:
             r = _list(r, rn, 6)
             rows.append([_number(r[0], f'{rn}[0] (samples)', 1.0, MAX_COUNT, 'a sample count'),
                          _temp(r[1], f'{rn}[1] (temperature)'),
-                         *(_number(r[a], f'{rn}[{a}] (mean rate)', -MAX_RATE_RAD_S,
-                                   MAX_RATE_RAD_S, 'a rate in rad/s') for a in (2, 3, 4)),
+                         *(_number(r[a], f'{rn}[{a}] (mean rate)', *_RATE) for a in (2, 3, 4)),
                          _stamp(r[5], f'{rn}[5] (t_end)')])
         out.append(RecentStretch(_count(s[0], f'{name}[0] (stretch)'),
                                  _count(s[1], f'{name}[1] (session)'), rows))
@@ -197,7 +189,7 @@ def _fit(v: Any, thermal: ThermalState | None) -> dict | None:
     if tuple(feats) not in _FEATURES:
         raise _bad('fit.features', f'must be one of {", ".join(map(str, _FEATURES))}, '
                    f'got {feats!r:.60}')
-    coef = [list(_rates(row, f'fit.coef[{i}]', MAX_PARAM, 'a coefficient'))
+    coef = [_CHK.numbers(row, f'fit.coef[{i}]', 3, -MAX_PARAM, MAX_PARAM, 'a coefficient')
             for i, row in enumerate(_list(v['coef'], 'fit.coef', 1 + len(feats)))]
     rng = [_temp(t, f'fit.range_c[{i}]') for i, t in enumerate(_list(v['range_c'],
                                                                      'fit.range_c', 2))]
@@ -328,20 +320,16 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
         'bins': _bins(state['bins'], bin_c, bin_entries),
         'gyro_floor': _floor_in(state['gyro_floor'], 'gyro_floor'),
         'accel_floor': _floor_in(state['accel_floor'], 'accel_floor'),
-        't_first': _stamp(state['t_first'], 't_first', optional=True),
-        'session': _count(state['session'], 'session'),
         'still_s': _number(state['still_s'], 'still_s', 0.0, MAX_COUNT, 'a duration in s'),
-        'stretches': _count(state['stretches'], 'stretches'),
-        'windows': _count(state['windows'], 'windows'),
         'recent': _recent(state['recent'], stretches),
         'fit': _fit(state['fit'], thermal),
-        'last_update_t': _stamp(state['last_update_t'], 'last_update_t', optional=True),
-        'last_t': _stamp(state['last_t'], 'last_t', optional=True),
         'check': _check(state['check']),
-        'swaps': _count(state['swaps'], 'swaps'),
         'motion': _motion(state['motion']),
         'thermal_state': _thermal_state(state['thermal_state'], thermal),
     }
+    values.update({k: _count(state[k], k) for k in ('session', 'stretches', 'windows', 'swaps')})
+    values.update({k: _stamp(state[k], k, optional=True)
+                   for k in ('t_first', 'last_update_t', 'last_t')})
     seg = _list(state['segment'], 'segment', 2)
     values['segment'] = _count(seg[0], 'segment[0] (entry group)')
     values['segment_t0'] = _stamp(seg[1], 'segment[1] (its first stamp)', optional=True)

@@ -12,10 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-The learner's arithmetic (:mod:`gyro_tdc.learn.fit`): the fit, the held-out rule, the check
-and the model temperature.
-"""
+"""The learner's arithmetic (``learn.fit``): fit, held-out rule, check, model temperature."""
 
 from __future__ import annotations
 
