@@ -32,7 +32,7 @@ from typing import Sequence
 
 from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag, normalise_ids,
                             THERMAL_EFFECTS, ThermalState)
-from gyro_tdc.signal import fit_columns, Folds, hat, heldout, session_columns
+from gyro_tdc.signal import fit_columns, Folds, hat, heldout, session_columns, within
 import numpy as np
 from numpy.typing import NDArray
 
@@ -285,6 +285,7 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     if not feats:
         return None
     g, y = e[:, 6], e[:, 3:6]
+    x = np.column_stack([(e[:, 2] - t0) ** (j + 1) for j in range(len(feats))])
     folds = Folds.sessions(g, e[:, 2])
     rec = {'sessions': int(np.unique(g).size), 'folds': len(folds), 'points': 0,
            'curve_ms_dps2': None, 'offset_ms_dps2': None, 'offset_only': []}
@@ -292,8 +293,9 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
         return rec
 
     def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
-        coef = fit_sessions(e[train], wt[train], feats, t0)[0]
-        return y[test] - _shape(coef, e[test, 2] - t0)
+        # The shared shape with one offset per training session, the offsets eliminated.
+        xc, yc = (within(v[train], g[train], wt[train])[1] for v in (x, y))
+        return y[test] - x[test] @ fit_columns(xc, yc, weights=wt[train])
 
     scored = np.any(np.stack(folds.test), axis=0)
     w = wt[scored][:, None]

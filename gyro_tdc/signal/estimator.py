@@ -144,21 +144,28 @@ def session_columns(groups: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.
     return np.column_stack([(g == s).astype(np.float64) for s in labels]), labels
 
 
-def within(a: NDArray[np.float64], groups: ArrayLike
+def within(a: NDArray[np.float64], groups: ArrayLike,
+           weights: NDArray[np.float64] | None = None
            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return the session means of the rows of ``a`` and ``a`` minus its session's mean.
 
     Fitting the centred columns to the centred target solves the regression with one
-    offset per session exactly, without its indicator columns.
+    offset per session exactly, without its indicator columns; with row ``weights`` the
+    means are weighted, for the weighted regression.
     """
     _, inverse, counts = np.unique(np.asarray(groups), return_inverse=True,
                                    return_counts=True)
     inverse = inverse.reshape(-1)
     counts = counts.astype(np.float64)
     means = np.zeros((counts.size,) + a.shape[1:])
-    np.add.at(means, inverse, a)
-    means /= counts.reshape((-1,) + (1,) * (a.ndim - 1))
+    shape = (-1,) + (1,) * (a.ndim - 1)
+    if weights is None:
+        np.add.at(means, inverse, a)
+    else:
+        np.add.at(means, inverse, a * weights.reshape(shape))
+        counts = np.bincount(inverse, weights=weights, minlength=counts.size)
+    means /= counts.reshape(shape)
     return means, a - means[inverse]
 
 
