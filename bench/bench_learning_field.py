@@ -51,6 +51,15 @@ the samples of each 10 ms.
    with its held-out mean removed (``raw``: that mean is no online method's), and each
    held-out burst's raw mean minus the mean of the N bursts before it (``prevN``, causal).
 
+4. **Curves that do and do not carry** (``--carry N``, seeded): three power cycles a board,
+   turn-on offsets 0.05 .. 1 deg/s, rates 1 Hz .. 2 kHz, thermometer resolution 0.004 ..
+   1 degC, the four profiles (cooling only and partial ranges among them); every other board
+   scales the simulated curve by a factor drawn per power cycle and axis in -1.5 .. 1.5, so
+   its curve does not carry. A carrying board passes as in the sweep; one that does not
+   passes when the learner does no harm, learn/raw at most :data:`NO_HARM` on every axis
+   (``flat:`` names the axes the learner keeps offset-only). Prints both pass rates and the
+   worst cases.
+
 Run: ``.venv/bin/python bench/bench_learning_field.py`` (about 3 minutes); ``--goal-seeds
 N``, ``--sweep N`` set the sizes, ``--case TEXT`` keeps the scenarios whose name holds TEXT;
 ``--pan-study`` prints only what causal offset rules (a line, a slope kept when
