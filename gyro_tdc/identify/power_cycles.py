@@ -38,22 +38,6 @@ _AXES = ('x', 'y', 'z')
 _DEG2 = (180.0 / math.pi) ** 2
 
 
-def _folds(groups: NDArray[np.int64], temp: NDArray[np.float64]) -> Folds:
-    """
-    Return leave-one-session-out folds scored inside the others' temperatures only.
-
-    Outside the training sessions' range the model is clamped or extrapolated, which says
-    nothing of how its curve carries from one power cycle to the next.
-    """
-    tests, trains = [], []
-    for test, train in Folds.sessions(groups):
-        inside = test & (temp >= temp[train].min()) & (temp <= temp[train].max())
-        if np.count_nonzero(inside) >= 2:
-            tests.append(inside)
-            trains.append(train)
-    return Folds(tuple(tests), tuple(trains))
-
-
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
                    y: NDArray[np.float64], scale_cols: NDArray[np.float64] | None,
                    groups: NDArray[np.int64], counts: NDArray[np.float64],
@@ -90,7 +74,7 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
         session overlaps the others' temperatures or the model has no curve.
 
     """
-    folds = _folds(groups, temp)
+    folds = Folds.sessions(groups, temp)
     if not len(folds) or not x.shape[1]:        # no session to judge on, or no curve
         return fit, offsets, None
 

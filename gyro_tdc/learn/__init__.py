@@ -22,7 +22,7 @@ as a model.
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
-    'learned': ['is_learn_file', 'model_from_file', 'read_model'],
     'learner': ['LearnConfig', 'Learner'],
-    'store': ['LearnFile', 'open_learn_file'],
+    'records': ['held_out_line'],
+    'store': ['is_learn_file', 'LearnFile', 'model_from_file', 'open_learn_file', 'read_model'],
 })

@@ -15,7 +15,7 @@
 """
 The learner's state as plain types and back: :func:`encode_state`, :func:`decode_state` (pure).
 
-:func:`encode_state` turns a learner (any :class:`LearnerState`) into the dict its ``save``
+:func:`encode_state` turns a :class:`~gyro_tdc.learn.learner.Learner` into the dict its ``save``
 writes (tagged :data:`FORMAT`); :func:`decode_state` checks every field of such a dict
 (:class:`gyro_tdc.base.FieldChecker`) and gives back the attribute values it restores. The
 rules: ``doc/internals/learn.md``.
@@ -25,18 +25,17 @@ from __future__ import annotations
 
 import math
 import re
-from typing import Any, Protocol
+from typing import Any
 
 from gyro_tdc.base import FieldChecker, MAX_RATE_RAD_S, shown, TEMP_PLAUSIBLE_C
 from gyro_tdc.errors import FeatureError, LearnFileError, ModelFileError
-from gyro_tdc.learn.fit import model_of
+from gyro_tdc.learn.fit import AXES, model_of
 from gyro_tdc.learn.records import Entry, RecentStretch
 from gyro_tdc.model import MAX_PARAM, ThermalState
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['decode_state', 'encode_state', 'FORMAT', 'LearnerState', 'MAX_COUNT', 'MAX_STAMP_S',
-           'RECENT_ROWS']
+__all__ = ['decode_state', 'encode_state', 'FORMAT', 'MAX_COUNT', 'MAX_STAMP_S', 'RECENT_ROWS']
 
 FORMAT = 'gyro_tdc learn 1'
 #: Windows of one recent stretch kept in the file (its newest): a day of 10 s windows.
@@ -46,41 +45,17 @@ MAX_STAMP_S = 2.0 ** 32
 #: Largest count (sessions, stretches, windows, swaps, samples of an entry).
 MAX_COUNT = 2 ** 53
 _FEATURES = ((), ('dT',), ('dT', 'dT2'), ('dT', 'dT2', 'dT3'))
-_REQUIRED = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 'still_s',
-             'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check',
-             'swaps')
-_OPTIONAL = ('motion', 'thermal', 'thermal_state', 'config', 'segment')
-_FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points')
+_KEYS = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 'still_s',
+         'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check', 'swaps',
+         'motion', 'thermal', 'thermal_state', 'config', 'segment')
+_FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points', 'held_out')
+_HELD_KEYS = ('sessions', 'folds', 'points', 'curve_ms_dps2', 'offset_ms_dps2', 'offset_only')
 _CHECK_KEYS = ('t', 'candidate_mse', 'current_mse', 'swapped')
 _CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
+_RATE = (-MAX_RATE_RAD_S, MAX_RATE_RAD_S, 'a rate in rad/s')
 
 
-class LearnerState(Protocol):
-    """What :func:`encode_state` reads of a learner: the attributes a ``learn_file`` keeps."""
-
-    bins: dict[int, list[Entry]]
-    session: int
-    gyro_floor: NDArray[np.float64]
-    accel_floor: NDArray[np.float64]
-    t_first: float | None
-    still_s: float
-    stretches: int
-    windows: int
-    recent: list[RecentStretch]
-    fit: dict | None
-    last_update_t: float | None
-    last_t: float | None
-    check: dict | None
-    swaps: int
-    motion: list[tuple[float, bool]]
-    thermal: ThermalState | None
-    thermal_state: tuple[float, list[float]] | None
-    segment: int
-    segment_t0: float | None
-    config: Any
-
-
-def encode_state(learner: LearnerState) -> dict[str, Any]:
+def encode_state(learner: Any) -> dict[str, Any]:
     """
     Return the persistent state of ``learner`` as plain types (what ``save`` writes).
 
@@ -94,9 +69,9 @@ def encode_state(learner: LearnerState) -> dict[str, Any]:
                            [float(b) for b in e.bias], e.group, e.session]
                           for e in v] for k, v in sorted(learner.bins.items())},
         'session': learner.session,
-        'gyro_floor': _floor_out(learner.gyro_floor),
-        'accel_floor': _floor_out(learner.accel_floor),
-        't_first': learner.t_first, 'still_s': learner.still_s,
+        'gyro_floor': _floor_out(learner.still.gyro_floor),
+        'accel_floor': _floor_out(learner.still.accel_floor),
+        't_first': learner.still.t_first, 'still_s': learner.still_s,
         'stretches': learner.stretches, 'windows': learner.windows,
         'recent': [[stretch, session, rows[-RECENT_ROWS:]]
                    for stretch, session, rows in learner.recent],
@@ -141,19 +116,11 @@ def _temp(v: Any, name: str) -> float:
     return _number(v, name, *TEMP_PLAUSIBLE_C, 'a plausible temperature in degC')
 
 
-def _rates(v: Any, name: str, bound: float = MAX_RATE_RAD_S,
-           what: str = 'a rate in rad/s') -> tuple[float, float, float]:
-    """Return three numbers within +-``bound`` (plausible rates, rad/s)."""
-    x, y, z = (_number(r, f'{name}[{i}]', -bound, bound, what)
-               for i, r in enumerate(_list(v, name, 3)))
-    return x, y, z
-
-
 def _floor_in(v: Any, name: str) -> NDArray[np.float64]:
-    """Return a noise floor: positive, or infinite (null, or Infinity in older files)."""
+    """Return a noise floor: positive, or infinite (null: not known yet)."""
     out = np.full(3, math.inf)
     for i, f in enumerate(_list(v, name, 3)):
-        if f is None or (isinstance(f, float) and f == math.inf):
+        if f is None:
             continue
         out[i] = _number(f, f'{name}[{i}]', 0.0, 1e6, 'a noise floor (positive or null)')
         if not out[i] > 0.0:
@@ -185,7 +152,7 @@ def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry
                               _number(e[1], f'{en}[1] (samples)', 1.0, MAX_COUNT,
                                       'a sample count'),
                               _temp(e[2], f'{en}[2] (temperature)'),
-                              _rates(e[3], f'{en}[3]'),
+                              tuple(_CHK.numbers(e[3], f'{en}[3]', 3, *_RATE)),
                               _count(e[4], f'{en}[4] (stretch)'),
                               _count(e[5], f'{en}[5] (session)')))
         if not rows:
@@ -206,8 +173,7 @@ def _recent(v: Any, most: int | None) -> list[RecentStretch]:
             r = _list(r, rn, 6)
             rows.append([_number(r[0], f'{rn}[0] (samples)', 1.0, MAX_COUNT, 'a sample count'),
                          _temp(r[1], f'{rn}[1] (temperature)'),
-                         *(_number(r[a], f'{rn}[{a}] (mean rate)', -MAX_RATE_RAD_S,
-                                   MAX_RATE_RAD_S, 'a rate in rad/s') for a in (2, 3, 4)),
+                         *(_number(r[a], f'{rn}[{a}] (mean rate)', *_RATE) for a in (2, 3, 4)),
                          _stamp(r[5], f'{rn}[5] (t_end)')])
         out.append(RecentStretch(_count(s[0], f'{name}[0] (stretch)'),
                                  _count(s[1], f'{name}[1] (session)'), rows))
@@ -223,7 +189,7 @@ def _fit(v: Any, thermal: ThermalState | None) -> dict | None:
     if tuple(feats) not in _FEATURES:
         raise _bad('fit.features', f'must be one of {", ".join(map(str, _FEATURES))}, '
                    f'got {feats!r:.60}')
-    coef = [list(_rates(row, f'fit.coef[{i}]', MAX_PARAM, 'a coefficient'))
+    coef = [_CHK.numbers(row, f'fit.coef[{i}]', 3, -MAX_PARAM, MAX_PARAM, 'a coefficient')
             for i, row in enumerate(_list(v['coef'], 'fit.coef', 1 + len(feats)))]
     rng = [_temp(t, f'fit.range_c[{i}]') for i, t in enumerate(_list(v['range_c'],
                                                                      'fit.range_c', 2))]
@@ -234,12 +200,29 @@ def _fit(v: Any, thermal: ThermalState | None) -> dict | None:
            'resid_var': [_number(r, f'fit.resid_var[{i}]', 0.0, MAX_RATE_RAD_S ** 2,
                                  'a variance in (rad/s)^2')
                          for i, r in enumerate(_list(v['resid_var'], 'fit.resid_var', 3))],
-           'points': _count(v['points'], 'fit.points', 1)}
+           'points': _count(v['points'], 'fit.points', 1),
+           'held_out': _held_out(v['held_out'], bool(feats))}
     try:
         model_of(fit, thermal)
     except ModelFileError as exc:
         raise _bad('fit', f'gives a model refused as a model file would be: {exc}') from None
     return fit
+
+
+def _held_out(v: Any, curve: bool) -> dict | None:
+    """Return the fit's held-out record (None: the fit has no curve)."""
+    if v is None and not curve:
+        return None
+    v = _dict(v, 'fit.held_out', _HELD_KEYS)
+    out = {k: _count(v[k], f'fit.held_out.{k}') for k in _HELD_KEYS[:3]}
+    for k in _HELD_KEYS[3:5]:
+        out[k] = None if v[k] is None and not out['folds'] else _CHK.numbers(
+            v[k], f'fit.held_out.{k}', 3, 0.0, MAX_PARAM, 'a mean square in (deg/s)^2')
+    axes = _list(v['offset_only'], 'fit.held_out.offset_only', most=3)
+    if not set(axes) <= set(AXES) or len(set(axes)) < len(axes):
+        raise _bad('fit.held_out.offset_only', f'must be distinct axis names, got {axes!r:.40}')
+    out['offset_only'] = axes
+    return out
 
 
 def _check(v: Any) -> dict | None:
@@ -329,32 +312,26 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
     """
     if not isinstance(state, dict) or state.get('format') != FORMAT:
         raise LearnFileError(f'not a learner state ({FORMAT!r} expected)')
-    _dict(state, 'state', _REQUIRED, _OPTIONAL)
-    if state.get('config') is not None:
-        for k, x in _dict(state['config'], 'config', _CONFIG_KEYS).items():
-            _number(x, f'config.{k}', 0.0)
-    thermal = _thermal(state.get('thermal'))
+    _dict(state, 'state', _KEYS)
+    for k, x in _dict(state['config'], 'config', _CONFIG_KEYS).items():
+        _number(x, f'config.{k}', 0.0)
+    thermal = _thermal(state['thermal'])
     values = {
         'bins': _bins(state['bins'], bin_c, bin_entries),
         'gyro_floor': _floor_in(state['gyro_floor'], 'gyro_floor'),
         'accel_floor': _floor_in(state['accel_floor'], 'accel_floor'),
-        't_first': _stamp(state['t_first'], 't_first', optional=True),
-        'session': _count(state['session'], 'session'),
         'still_s': _number(state['still_s'], 'still_s', 0.0, MAX_COUNT, 'a duration in s'),
-        'stretches': _count(state['stretches'], 'stretches'),
-        'windows': _count(state['windows'], 'windows'),
         'recent': _recent(state['recent'], stretches),
         'fit': _fit(state['fit'], thermal),
-        'last_update_t': _stamp(state['last_update_t'], 'last_update_t', optional=True),
-        'last_t': _stamp(state['last_t'], 'last_t', optional=True),
         'check': _check(state['check']),
-        'swaps': _count(state['swaps'], 'swaps'),
-        'motion': _motion(state.get('motion', [])),
-        'thermal_state': _thermal_state(state.get('thermal_state'), thermal),
+        'motion': _motion(state['motion']),
+        'thermal_state': _thermal_state(state['thermal_state'], thermal),
     }
-    if state.get('segment') is not None:
-        seg = _list(state['segment'], 'segment', 2)
-        values['segment'] = _count(seg[0], 'segment[0] (entry group)')
-        values['segment_t0'] = _stamp(seg[1], 'segment[1] (its first stamp)', optional=True)
+    values.update({k: _count(state[k], k) for k in ('session', 'stretches', 'windows', 'swaps')})
+    values.update({k: _stamp(state[k], k, optional=True)
+                   for k in ('t_first', 'last_update_t', 'last_t')})
+    seg = _list(state['segment'], 'segment', 2)
+    values['segment'] = _count(seg[0], 'segment[0] (entry group)')
+    values['segment_t0'] = _stamp(seg[1], 'segment[1] (its first stamp)', optional=True)
     values['last_save_t'] = values['last_t']
     return values, thermal

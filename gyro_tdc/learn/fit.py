@@ -13,30 +13,33 @@
 # limitations under the License.
 
 """
-The online learner's fit: point table -> weighted, outlier-robust model.
+The online learner's arithmetic: its fit, its prediction check, its model temperature.
 
-Pure (numpy only). :func:`fit_sessions` and :func:`inliers` fit the still-time points
-(age-weighted, one intercept per session, leave-one-out outliers dropped) on the shared
-estimator (:mod:`gyro_tdc.signal.estimator`), :func:`grow_features` picks the features from
-the covered span, :func:`prediction_mse` scores a model on still windows and
-:func:`learned_model` builds it. See ``doc/internals/learn.md``.
+Pure (numpy only). :func:`fit_points` fits the still-time points (age-weighted, one intercept
+per session, leave-one-out outliers dropped: :func:`inliers`) on the shared estimator
+(:mod:`gyro_tdc.signal.estimator`), with the features :func:`grow_features` allows and the
+curve kept per axis only where it beats its offset on held-out power cycles
+(:func:`held_out`); :func:`compare` decides a swap on the recent still windows;
+:func:`stream_state` runs the prior's thermal front end over batches. See
+``doc/internals/learn.md``.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 from typing import Sequence
 
-from gyro_tdc.learn.temperature import at_state, same_thermal
-from gyro_tdc.model import check_model, CompensationModel, drift, normalise_ids, ThermalState
-from gyro_tdc.signal import fit_columns, hat, session_columns
+from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag, normalise_ids,
+                            THERMAL_EFFECTS, ThermalState)
+from gyro_tdc.signal import fit_columns, Folds, hat, heldout, session_columns, within
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['BINS_DT2', 'BINS_DT3', 'MAX_DROPS', 'OUTLIER_K', 'SPAN_DT2_C', 'SPAN_DT3_C',
-           'SPAN_DT_C', 'fit_points', 'fit_sessions', 'grow_features', 'inliers', 'learned_model',
-           'model_of', 'predict_windows', 'prediction_mse', 'recent_offset',
-           'window_error']
+__all__ = ['AXES', 'at_state', 'BINS_DT2', 'BINS_DT3', 'compare', 'fit_points', 'fit_sessions',
+           'grow_features', 'held_out', 'inliers', 'learned_model', 'MAX_DROPS', 'model_of',
+           'offset_until', 'OUTLIER_K', 'prediction_mse', 'recent_offset', 'same_thermal',
+           'SPAN_DT2_C', 'SPAN_DT3_C', 'SPAN_DT_C', 'stream_state', 'SWAP_CHANGE', 'ThermalCarry']
 
 OUTLIER_K = 4.0
 MAX_DROPS = 3
@@ -45,6 +48,13 @@ SPAN_DT2_C = 8.0
 BINS_DT2 = 5
 SPAN_DT3_C = 15.0
 BINS_DT3 = 10
+AXES = ('x', 'y', 'z')
+_DEG2 = (180.0 / math.pi) ** 2
+#: A candidate is swapped in only when its prediction over the recent windows differs from
+#: the current model's by this fraction of the gyro noise floor (RMS, rad/s) or more.
+SWAP_CHANGE = 0.02
+#: The thermal state carried between batches: the last stamp and one value per node.
+ThermalCarry = tuple[float, list[float]]
 
 
 def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
@@ -240,10 +250,67 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
     if not keep.all():
         e, wt = e[keep], wt[keep]
         coef, res = fit_sessions(e, wt, feats, t0)
+    record = held_out(e, wt, feats, t0)
+    flat = [AXES.index(a) for a in record['offset_only']] if record else []
+    if flat:                              # those axes: one offset per session, no curve
+        c0, r0 = fit_sessions(e, wt, (), t0)
+        coef[0, flat], coef[1:, flat], res[:, flat] = c0[0, flat], 0.0, r0[:, flat]
     resid = np.average(res ** 2, axis=0, weights=wt)
     return {'features': list(feats), 't0_c': t0, 'coef': coef.tolist(),
             'range_c': [float(e[:, 2].min()), float(e[:, 2].max())],
-            'resid_var': resid.tolist(), 'points': int(e.shape[0])}
+            'resid_var': resid.tolist(), 'points': int(e.shape[0]), 'held_out': record}
+
+
+def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str],
+             t0: float) -> dict | None:
+    """
+    Judge the curve on each power cycle held out against its offset alone (the trainer's rule).
+
+    Each session is held out in turn inside the others' temperatures (the estimator's
+    :meth:`~gyro_tdc.signal.Folds.sessions`), the curve fitted on the others, and its
+    residuals and the raw rate's re-anchored (:func:`~gyro_tdc.signal.heldout`), as the node
+    re-anchors a new power cycle. Where the curve's weighted mean square is not below the
+    offset's, the axis keeps the offset only. Without a fold (one session, or none
+    overlapping another's temperatures) nothing is judged and the curve is kept: it is the
+    only evidence, the prediction check still guards it and each power-up is re-anchored.
+
+    Returns
+    -------
+    dict or None
+        ``sessions``, ``folds``, ``points`` (scored), ``curve_ms_dps2`` and
+        ``offset_ms_dps2`` (per axis, (deg/s)^2; None without a fold) and ``offset_only``
+        (axis names); None without a curve.
+
+    """
+    if not feats:
+        return None
+    g, y = e[:, 6], e[:, 3:6]
+    x = np.column_stack([(e[:, 2] - t0) ** (j + 1) for j in range(len(feats))])
+    folds = Folds.sessions(g, e[:, 2])
+    rec = {'sessions': int(np.unique(g).size), 'folds': len(folds), 'points': 0,
+           'curve_ms_dps2': None, 'offset_ms_dps2': None, 'offset_only': []}
+    if not len(folds):
+        return rec
+
+    def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
+        # The shared shape with one offset per training session, the offsets eliminated.
+        xc, yc = (within(v[train], g[train], wt[train])[1] for v in (x, y))
+        return y[test] - x[test] @ fit_columns(xc, yc, weights=wt[train])
+
+    scored = np.any(np.stack(folds.test), axis=0)
+    w = wt[scored][:, None]
+    ms = [(w * heldout(f, folds, y.shape, groups=g, weights=wt)[scored] ** 2).sum(axis=0)
+          / w.sum() * _DEG2 for f in (curve, lambda test, train: y[test])]
+    rec.update(points=int(np.count_nonzero(scored)), curve_ms_dps2=ms[0].tolist(),
+               offset_ms_dps2=ms[1].tolist(),
+               offset_only=[AXES[a] for a in np.flatnonzero(~(ms[0] < ms[1]))])
+    return rec
+
+
+def _shape(coef: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return the curve of an intercept-then-powers table at ``d = temp - t0``, (N, 3)."""
+    return sum((coef[j + 1] * d[:, None] ** (j + 1) for j in range(coef.shape[0] - 1)),
+               np.zeros((d.size, 3)))
 
 
 def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationModel:
@@ -278,6 +345,7 @@ def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationMode
     model = learned_model(coef, feats, fit['t0_c'], tuple(fit['range_c']),
                           np.asarray(fit['resid_var']), thermal)
     check_model(model)
+    model.created['held_out'] = fit.get('held_out')
     return model
 
 
@@ -309,9 +377,7 @@ def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float
     r = r[r[:, 5] > since]
     if not r.shape[0]:
         return None
-    coef = np.asarray(fit['coef'], dtype=np.float64)
-    d = r[:, 1] - fit['t0_c']
-    shape = sum(coef[j + 1] * d[:, None] ** (j + 1) for j in range(coef.shape[0] - 1))
+    shape = _shape(np.asarray(fit['coef'], dtype=np.float64), r[:, 1] - fit['t0_c'])
     return np.average(r[:, 2:5] - shape, axis=0, weights=r[:, 0]).tolist()
 
 
@@ -365,3 +431,100 @@ def window_error(r: NDArray[np.float64], pred: NDArray[np.float64],
                          + (mean ** 2).sum())
     err = (res ** 2).sum(axis=1)
     return float(np.average(err, weights=r[:, 0]))
+
+
+def compare(cand: CompensationModel, current: CompensationModel | None,
+            rows: NDArray[np.float64], thermal: ThermalState | None, anchor: float | None,
+            floor: float) -> tuple[float, float | None, bool]:
+    """
+    Return the candidate's and the current model's error on ``rows`` and whether to swap.
+
+    ``rows`` are windows ``[n, temp, bx, by, bz, t_end]``, ``anchor`` the stamp the error's
+    offset is taken after (:func:`gyro_tdc.learn.fit.window_error`). A candidate is swapped
+    in when better on the recent still time and different enough to matter: an RMS change
+    of :data:`SWAP_CHANGE` noise floors ``floor`` (rad/s; a long stop refits every few
+    minutes, each install replays the model's filters); always without a current model.
+    """
+    pred = predict_windows(cand, rows, thermal)
+    new = window_error(rows, pred, anchor)
+    if current is None:
+        return new, None, True
+    cur = predict_windows(current, rows, thermal)
+    old = window_error(rows, cur, anchor)
+    change = (float(np.sqrt(np.average(((pred - cur) ** 2).mean(axis=1), weights=rows[:, 0])))
+              if rows.shape[0] else math.inf)
+    return new, old, new < old and not change < SWAP_CHANGE * floor
+
+
+def offset_until(rows: NDArray[np.float64], since: float, recent: bool,
+                 entries: NDArray[np.float64], session: int) -> float | None:
+    """
+    Return the stamp of the newest still time a candidate's offset comes from, or None.
+
+    The newest of ``rows`` after ``since`` when the offset is theirs (``recent``), else the
+    newest of the point table's ``entries`` (rows ``t_end, ..., session``) of ``session``
+    (the fit's intercept of its newest session); None when it has none (the offset is an
+    older session's).
+    """
+    if recent:
+        new = rows[rows[:, 5] > since, 5]
+        return float(new.max()) if new.size else None
+    mine = entries[entries[:, 6] == session, 0]
+    return float(mine.max()) if mine.size else None
+
+
+def stream_state(thermal: ThermalState | None, carry: ThermalCarry | None,
+                 t: NDArray[np.float64], temp: NDArray[np.float64]
+                 ) -> tuple[NDArray[np.float64], ThermalCarry | None]:
+    """
+    Return the model temperature of a batch of samples and the state to carry on.
+
+    Parameters
+    ----------
+    thermal : ThermalState or None
+        The front end (None or kind ``none``: the model temperature is ``temp``).
+    carry : ThermalCarry or None
+        The state after the previous batch; None starts settled at the first finite
+        ``temp`` (steady state).
+    t : NDArray[np.float64], shape (N,), s
+        Stamps.
+    temp : NDArray[np.float64], shape (N,), degC
+        Held measured temperature; NaN samples give NaN and do not advance the state.
+
+    Returns
+    -------
+    state : NDArray[np.float64], shape (N,), degC
+        The model temperature (``temp`` itself without a lag).
+    carry : ThermalCarry or None
+        The state after the last finite sample.
+
+    """
+    ok = np.isfinite(temp)
+    if thermal is None or thermal.kind == 'none' or not ok.any():
+        return temp, carry
+    tt, x = t[ok], temp[ok]
+    t_prev, ys = carry or (float(tt[0]), [float(x[0])] * len(thermal.tau_s))
+    new = []
+    for tau, y0 in zip(thermal.tau_s, ys):        # cascaded nodes, from the carried state on
+        x = first_order_lag(np.r_[t_prev, tt], np.r_[y0, x], tau, y0=y0)[1:]
+        new.append(float(x[-1]))
+    out = np.full(t.size, math.nan)
+    out[ok] = x
+    return out, (max(float(tt[-1]), t_prev), new)
+
+
+def same_thermal(a: ThermalState | None, b: ThermalState | None) -> bool:
+    """Return whether two thermal sections give the same model temperature (None = none)."""
+    ka = 'none' if a is None else a.kind
+    kb = 'none' if b is None else b.kind
+    return ka == kb and (ka == 'none' or a.tau_s == b.tau_s)
+
+
+def at_state(model: CompensationModel) -> CompensationModel:
+    """Return ``model`` taking the model temperature as its input (its lag switched off)."""
+    if model.thermal is None or model.thermal.kind == 'none':
+        return model
+    return replace(model, features=tuple(f for f in model.features if f not in THERMAL_EFFECTS),
+                   effect_params={k: v for k, v in model.effect_params.items()
+                                  if k not in THERMAL_EFFECTS},
+                   thermal=ThermalState('none'), accel=None)

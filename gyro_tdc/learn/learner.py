@@ -30,25 +30,19 @@ from typing import Any, Sequence
 
 from gyro_tdc.base import RESTART_BACK_S
 from gyro_tdc.errors import ModelFileError
-from gyro_tdc.learn.check import compare, offset_until
 from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT, RECENT_ROWS
-from gyro_tdc.learn.fit import (BINS_DT2, BINS_DT3, fit_points, grow_features, learned_model,
-                                MAX_DROPS, model_of, OUTLIER_K, recent_offset, SPAN_DT2_C,
-                                SPAN_DT3_C, SPAN_DT_C)
-from gyro_tdc.learn.records import (diagnostic_values, Entry, LearnConfig, OpenStretch,
-                                    RecentStretch, summary)
-from gyro_tdc.learn.store import read_state, write_state
-from gyro_tdc.learn.temperature import hold_readings, same_thermal, stream_state
+from gyro_tdc.learn.fit import (compare, fit_points, grow_features, learned_model, model_of,
+                                offset_until, recent_offset, same_thermal, stream_state)
+from gyro_tdc.learn.records import (Entry, held_out_line, LearnConfig, OpenStretch,
+                                    RecentStretch)
+from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
-from gyro_tdc.signal import (break_why, BURST_FACTOR, BURST_MAX_S, BURST_PAUSES, GAP_PERIODS,
-                             SessionTracker, StillWindows, Window)
+from gyro_tdc.signal import (break_why, GAP_PERIODS, hold_readings, SessionTracker, StillWindows,
+                             Window)
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['BIN_ENTRIES', 'BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'CHECK_STRETCHES',
-           'FORMAT', 'GAP_PERIODS', 'Learner', 'LearnConfig', 'OUTLIER_K', 'SPAN_DT2_C',
-           'SPAN_DT3_C', 'SPAN_DT_C', 'BINS_DT2', 'BINS_DT3',
-           'MAX_DROPS', 'learned_model']
+__all__ = ['BIN_ENTRIES', 'CHECK_STRETCHES', 'FORMAT', 'Learner', 'LearnConfig', 'learned_model']
 
 #: Floats per sample in :attr:`Learner.buf`: stamp, rate (3), acceleration (3).
 SAMPLE = 7
@@ -58,6 +52,14 @@ BIN_ENTRIES = 8
 CHECK_STRETCHES = 3
 #: ... and their windows kept, newest first (a day of 10 s windows, what learn_file keeps).
 CHECK_ROWS = RECENT_ROWS
+_NO_ACCEL = (math.nan,) * 3
+
+
+def _pool(parts: list) -> tuple[float, float, tuple[float, float, float]]:
+    """Return the samples, mean temperature and mean rate of ``(samples, temp, rate)`` parts."""
+    m = sum(p[0] for p in parts)
+    return (m, sum(p[0] * p[1] for p in parts) / m,
+            tuple(sum(p[0] * p[2][a] for p in parts) / m for a in range(3)))
 
 
 class Learner:
@@ -130,45 +132,10 @@ class Learner:
         """Return the power cycle the stream is in, from 0."""
         return self.sessions.session
 
-    @session.setter
-    def session(self, value: int) -> None:
-        self.sessions.session = int(value)
-
-    @property
-    def gyro_floor(self) -> NDArray[np.float64]:
-        """Return the gyro noise floor, shape (3,), rad/s (the still test's)."""
-        return self.still.gyro_floor
-
-    @gyro_floor.setter
-    def gyro_floor(self, value) -> None:
-        self.still.gyro_floor = np.asarray(value, dtype=np.float64)
-
-    @property
-    def accel_floor(self) -> NDArray[np.float64]:
-        """Return the accelerometer noise floor, shape (3,), m/s^2."""
-        return self.still.accel_floor
-
-    @accel_floor.setter
-    def accel_floor(self, value) -> None:
-        self.still.accel_floor = np.asarray(value, dtype=np.float64)
-
-    @property
-    def t_first(self) -> float | None:
-        """Return the first stamp of the session: the origin of the window grid, s."""
-        return self.still.t_first
-
-    @t_first.setter
-    def t_first(self, value: float | None) -> None:
-        self.still.t_first = value
-
     @property
     def motion(self) -> list[tuple[float, bool]]:
         """Return the motion reports (stamp, moving), from the one held at the window on."""
         return self.still.motion.reports
-
-    @motion.setter
-    def motion(self, value) -> None:
-        self.still.motion.reports = list(value)
 
     def state(self) -> dict[str, Any]:
         """Return the persistent state as plain types (what :meth:`save` writes)."""
@@ -184,12 +151,12 @@ class Learner:
         values, saved = decode_state(state, bin_c=self.config.bin_c, bin_entries=BIN_ENTRIES,
                                      stretches=CHECK_STRETCHES)
         self.reset()
+        still = self.still
+        still.gyro_floor, still.accel_floor = values.pop('gyro_floor'), values.pop('accel_floor')
+        still.t_first, still.motion.reports = values.pop('t_first'), values.pop('motion')
+        self.sessions.session = values.pop('session')
         for name, value in values.items():
             setattr(self, name, value)
-        if 'segment' not in values:       # a file without it: the next group above them all
-            self.segment = max([self.stretches] + [e.group for v in self.bins.values()
-                                                   for e in v]) + 1
-            self.segment_t0 = None
         if not same_thermal(saved, self.thermal):
             # Binned at another model temperature than the prior's: the set_prior rule.
             self._forget_points()
@@ -224,12 +191,12 @@ class Learner:
 
     def save(self, path: str | Path) -> None:
         """Write the state (model and point table) to ``path`` atomically (JSON)."""
-        write_state(path, self.state())
+        LearnFile(path).write(self.state())
         self.saved()
 
     def load(self, path: str | Path) -> bool:
         """Resume from ``path`` when it exists; return whether it did (LearnFileError: bad)."""
-        state = read_state(path)
+        state = LearnFile(path).read()
         if state is None:
             return False
         self.load_state(state)
@@ -240,11 +207,8 @@ class Learner:
     def observe(self, t: float, wx: float, wy: float, wz: float,
                 accel: Sequence[float] | None = None) -> None:
         """Record one raw IMU sample (the only per-message work: one ``extend``)."""
-        if accel is None:
-            self.buf.extend((t, wx, wy, wz, math.nan, math.nan, math.nan))
-        else:
-            ax, ay, az = accel
-            self.buf.extend((t, wx, wy, wz, ax, ay, az))
+        ax, ay, az = _NO_ACCEL if accel is None else accel
+        self.buf.extend((t, wx, wy, wz, ax, ay, az))
 
     def add_temperature(self, t: float, temp_c: float) -> None:
         """Record one thermometer reading."""
@@ -476,19 +440,12 @@ class Learner:
         for r in new:
             groups.setdefault(int(math.floor(r.temp_c / self.config.bin_c)), []).append(r)
         for b, rs in groups.items():
-            m = sum(r.n for r in rs)
-            entry = Entry(float(rs[-1].t1), float(m), sum(r.temp_c * r.n for r in rs) / m,
-                          tuple(sum(r.gyro_mean[a] * r.n for r in rs) / m for a in range(3)),
-                          sid, self.session)
+            m, temp, bias = _pool([(r.n, r.temp_c, r.gyro_mean) for r in rs])
             lst = self.bins.setdefault(b, [])
             if lst and lst[-1].group == sid:       # the same group: one entry per bin
-                o = lst[-1]
-                tot = o.samples + m
-                lst[-1] = Entry(entry.t_end, tot, (o.temp_c * o.samples + entry.temp_c * m) / tot,
-                                tuple((o.bias[a] * o.samples + entry.bias[a] * m) / tot
-                                      for a in range(3)), sid, self.session)
-            else:
-                lst.append(entry)
+                o = lst.pop()
+                m, temp, bias = _pool([(o.samples, o.temp_c, o.bias), (m, temp, bias)])
+            lst.append(Entry(float(rs[-1].t1), float(m), temp, bias, sid, self.session))
             del lst[:-BIN_ENTRIES]
         self._remember([[r.n, r.temp_c, *r.gyro_mean, r.t1] for r in new])
         return self._refit(new[-1].t1)
@@ -534,7 +491,8 @@ class Learner:
 
     def _floor(self) -> float:
         """Return the largest finite gyro noise floor of the axes, rad/s (0: none yet)."""
-        return float(np.nanmax(np.where(np.isfinite(self.gyro_floor), self.gyro_floor, 0.0)))
+        floor = self.still.gyro_floor
+        return float(np.nanmax(np.where(np.isfinite(floor), floor, 0.0)))
 
     def _early_offset(self, t_now: float) -> bool:
         """
@@ -572,7 +530,7 @@ class Learner:
         cand.created['offset_until'] = offset_until(rows, since, offset is not None,
                                                     self.entries(), self.session)
         # The noise of the samples it is handed (the core's re-anchoring prior at a new one).
-        cand.created['gyro_floor'] = [float(v) for v in self.gyro_floor]
+        cand.created['gyro_floor'] = [float(v) for v in self.still.gyro_floor]
         new, old, swap = compare(cand, self.model, rows, self.thermal, anchor, floor)
         self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old, 'swapped': swap}
         if not swap:
@@ -592,8 +550,35 @@ class Learner:
 
     def diagnostic_values(self) -> dict[str, str]:
         """Return the learner's /diagnostics key/value pairs (strings)."""
-        return diagnostic_values(self)
+        s = self.summary()
+        cov = s['covered_c']
+        return {
+            'learn points': str(s['points']),
+            'learn covered degC': 'none' if cov is None else f'{cov[0]:.2f} .. {cov[1]:.2f}',
+            'learn still s': f'{s["still_s"]:.0f}',
+            'learn features': 'none' if s['features'] is None else ', '.join(s['features']),
+            'learn last update stamp s': ('never' if s['last_update_t'] is None
+                                          else f'{s["last_update_t"]:.3f}'),
+            'learn prediction check': s['check'] or 'none yet',
+            'learn held out': held_out_line(self.fit),
+            'learn session': str(self.session),
+            'learn late swaps': str(self.late_swaps),
+            'learn candidates refused': (f'{self.refused} (last: {self.refused_why})'
+                                         if self.refused else '0'),
+        }
 
     def summary(self) -> dict[str, Any]:
         """Return what /diagnostics shows: points, range, still time, last update, check."""
-        return summary(self)
+        chk = self.check
+        return {
+            'points': int(self.entries().shape[0]), 'bins': len(self.bins),
+            'covered_c': self.covered_c(), 'still_s': self.still_s,
+            'stretches': self.stretches, 'last_update_t': self.last_update_t,
+            'features': None if self.fit is None else (self.fit['features'] or ['bias']),
+            'held_out': None if self.fit is None else self.fit.get('held_out'),
+            'swaps': self.swaps, 'check': None if chk is None else (
+                f"candidate {math.sqrt(chk['candidate_mse']):.3g} rad/s vs current "
+                + ('none' if chk['current_mse'] is None
+                   else f"{math.sqrt(chk['current_mse']):.3g} rad/s")
+                + (' -> swapped' if chk['swapped'] else ' -> kept')),
+        }

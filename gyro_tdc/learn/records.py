@@ -24,13 +24,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import Any, NamedTuple
+from typing import NamedTuple
 
 from gyro_tdc.base import SESSION_GAP_S
 from gyro_tdc.signal import MIN_STILL_S, STILL_WINDOW_S, Window
 
-__all__ = ['diagnostic_values', 'Entry', 'LearnConfig', 'OpenStretch', 'RecentStretch',
-           'summary']
+__all__ = ['Entry', 'held_out_line', 'LearnConfig', 'OpenStretch', 'RecentStretch']
 
 
 @dataclass(slots=True)
@@ -164,37 +163,18 @@ class OpenStretch:
         self.t0 = self.rows[0].t0 if self.rows else math.nan
 
 
-def diagnostic_values(learner: Any) -> dict[str, str]:
-    """Return a learner's /diagnostics key/value pairs (strings)."""
-    s = summary(learner)
-    cov = s['covered_c']
-    return {
-        'learn points': str(s['points']),
-        'learn covered degC': 'none' if cov is None else f'{cov[0]:.2f} .. {cov[1]:.2f}',
-        'learn still s': f'{s["still_s"]:.0f}',
-        'learn features': 'none' if s['features'] is None else ', '.join(s['features']),
-        'learn last update stamp s': ('never' if s['last_update_t'] is None
-                                      else f'{s["last_update_t"]:.3f}'),
-        'learn prediction check': s['check'] or 'none yet',
-        'learn session': str(learner.session),
-        'learn late swaps': str(learner.late_swaps),
-        'learn candidates refused': (f'{learner.refused} (last: {learner.refused_why})'
-                                     if learner.refused else '0'),
-    }
-
-
-def summary(learner: Any) -> dict[str, Any]:
-    """Return what a learner's /diagnostics shows: points, range, still time, update, check."""
-    cov = learner.covered_c()
-    chk = learner.check
-    return {
-        'points': int(learner.entries().shape[0]), 'bins': len(learner.bins),
-        'covered_c': cov, 'still_s': learner.still_s, 'stretches': learner.stretches,
-        'features': None if learner.fit is None else (learner.fit['features'] or ['bias']),
-        'last_update_t': learner.last_update_t, 'swaps': learner.swaps,
-        'check': None if chk is None else (
-            f"candidate {math.sqrt(chk['candidate_mse']):.3g} rad/s vs current "
-            + ('none' if chk['current_mse'] is None
-               else f"{math.sqrt(chk['current_mse']):.3g} rad/s")
-            + (' -> swapped' if chk['swapped'] else ' -> kept')),
-    }
+def held_out_line(fit: dict | None) -> str:
+    """Return what the held-out power cycles said of a learned fit's curve (one line)."""
+    rec = None if fit is None else fit.get('held_out')
+    if rec is None:
+        return 'no curve' if fit is not None else 'no learned model yet'
+    if not rec['folds']:
+        return (f"not judged ({rec['sessions']} session(s), no other power cycle over the "
+                'same temperatures): the curve is kept, each power-up re-anchored')
+    figs = ', '.join(f'{a} {c:.3g} vs {o:.3g}' for a, c, o in zip(
+        'xyz', rec['curve_ms_dps2'], rec['offset_ms_dps2']))
+    only = ', '.join(rec['offset_only'])
+    return (f"curve vs offset only, held out on {rec['folds']} of {rec['sessions']} power "
+            f"cycles ({rec['points']} points), mean square (deg/s)^2: {figs}; "
+            + (f'offset only on {only} (the curve does not beat it held out)' if only
+               else 'the curve is kept on every axis'))

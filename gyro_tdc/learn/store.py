@@ -17,7 +17,9 @@ The learner's ``learn_file``: the state (:mod:`gyro_tdc.learn.codec`) read and w
 
 :class:`LearnFile` reads (bounded) and writes (atomically, never over a file that is not a
 learner state, never through a symbolic link) one file, and :func:`open_learn_file` picks
-the file a node learns into. The rules: ``doc/internals/learn.md``.
+the file a node learns into. A learned model is a model: :func:`model_from_file` gives a
+learn_file's current model and :func:`read_model` takes a model file, a shipped model's name
+or a learn_file alike. The rules: ``doc/internals/learn.md``.
 """
 
 from __future__ import annotations
@@ -30,14 +32,15 @@ import re
 import stat
 from typing import Any, Callable
 
-from gyro_tdc.base import atomic_write
-from gyro_tdc.errors import LearnFileError, OutputError
-from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT, LearnerState, RECENT_ROWS
+from gyro_tdc.base import atomic_write, model_path
+from gyro_tdc.errors import LearnFileError, ModelFileError, OutputError
+from gyro_tdc.learn.codec import decode_state, FORMAT
+from gyro_tdc.learn.fit import model_of
+from gyro_tdc.model import CompensationModel, load_model
 import numpy as np
 
-__all__ = ['ALTERNATE_SUFFIX', 'decode_state', 'dumps', 'encode_state', 'FORMAT',
-           'LearnerState', 'LearnFile', 'MAX_BYTES', 'MAX_DEPTH', 'Opened', 'RECENT_ROWS',
-           'alternate_path', 'open_learn_file', 'read_state', 'write_state']
+__all__ = ['ALTERNATE_SUFFIX', 'alternate_path', 'dumps', 'is_learn_file', 'LearnFile',
+           'MAX_BYTES', 'MAX_DEPTH', 'model_from_file', 'Opened', 'open_learn_file', 'read_model']
 
 #: Largest learn_file read, bytes (checked before reading). A full state (300 bins of 8
 #: entries, three recent stretches of :data:`RECENT_ROWS` windows each) takes under 3 MiB.
@@ -46,6 +49,8 @@ MAX_BYTES = 4 * 1024 * 1024
 MAX_DEPTH = 16
 #: Added to a refused learn_file's name for the file learned into instead.
 ALTERNATE_SUFFIX = '.gyro_tdc-learn.json'
+#: Bytes read to tell a learn_file from a model file (its ``format`` is on the second line).
+_HEAD = 512
 _STRING = re.compile(r'"(?:[^"\\]|\\.)*"', re.DOTALL)
 
 
@@ -325,19 +330,77 @@ def open_learn_file(path: str | os.PathLike, load: Callable[[Any], None]) -> Ope
                   tuple(main.notes + alt.notes))
 
 
-def write_state(path: str | os.PathLike, state: dict[str, Any]) -> None:
-    """Write ``state`` to ``path`` atomically (:meth:`LearnFile.write`; raises OutputError)."""
-    LearnFile(path).write(state)
+def is_learn_file(path: str | os.PathLike) -> bool:
+    """Return whether ``path`` is a regular file that starts as a learn_file does."""
+    p = Path(path)
+    try:
+        if not p.is_file():
+            return False
+        with open(p, 'rb') as stream:
+            head = stream.read(_HEAD)
+    except OSError:
+        return False
+    text = head.decode('utf-8', 'replace').lstrip()
+    return text.startswith('{') and f'"{FORMAT}"' in text
 
 
-def read_state(path: str | os.PathLike) -> Any:
+def model_from_file(path: str | os.PathLike) -> CompensationModel:
     """
-    Return the JSON document in ``path``, or None when there is no such file.
+    Return the current learned model of a learn_file.
+
+    The file is read as the node resumes it (bounded, every field checked) but never
+    written. The model is the one the learner would install on resuming: its fit (the
+    newest session's offset, the shared shape) with the thermal section it was binned at.
+
+    Parameters
+    ----------
+    path : str or PathLike
+        The learn_file.
+
+    Returns
+    -------
+    CompensationModel
+        The learned model (``created`` names the file and its last update).
 
     Raises
     ------
+    ModelFileError
+        The file is missing or holds no accepted model yet (one line: what it holds).
     LearnFileError
-        The file cannot be a learner state (:meth:`LearnFile.read`).
+        The file is not a learner state.
 
     """
-    return LearnFile(path).read()
+    p = Path(path)
+    doc = LearnFile(p).read(fix_mode=False)
+    if doc is None:
+        raise ModelFileError(f'learn_file {str(p)!r} does not exist')
+    values, thermal = decode_state(doc)
+    fit = values['fit']
+    if fit is None:
+        points = sum(len(v) for v in values['bins'].values())
+        raise ModelFileError(
+            f'learn_file {str(p)!r} holds no accepted model yet ({points} points in '
+            f'{len(values["bins"])} bins, {values["still_s"]:.0f} s still): learn longer, or '
+            'give a model file')
+    model = model_of(fit, thermal)
+    created = dict(model.created)
+    created.update({'learn_file': str(p), 'last_update_stamp_s': values['last_update_t'],
+                    'sessions': values['session'] + 1, 'points': fit['points']})
+    return model.replace(created=created)
+
+
+def read_model(spec: str | os.PathLike) -> CompensationModel:
+    """
+    Return the model of a model file, of a shipped model's name or of a learn_file.
+
+    Raises
+    ------
+    ModelFileError
+        No such file or name, a malformed model file, or a learn_file without a model.
+    LearnFileError
+        A file that starts as a learn_file but is not a learner state.
+
+    """
+    if is_learn_file(spec):
+        return model_from_file(spec)
+    return load_model(model_path(spec))

@@ -30,7 +30,7 @@ from typing import Any
 
 from gyro_tdc.base import Job, LatestJob
 from gyro_tdc.errors import OutputError
-from gyro_tdc.learn import LearnConfig, Learner, LearnFile, open_learn_file
+from gyro_tdc.learn import held_out_line, LearnConfig, Learner, LearnFile, open_learn_file
 from gyro_tdc.model import CompensationModel
 from std_srvs.srv import Trigger
 
@@ -135,6 +135,8 @@ class Learning:
         self.log = log = node.get_logger()
         self.learner = self._new_learner()
         self._learned_installs = 0
+        #: The axes the learned model keeps offset-only, as last logged.
+        self._offset_only: list[str] = []
         self._learn_jobs = LatestJob()
         self.job: Job | None = None
         self._learn_prior: tuple[CompensationModel | None] | None = None
@@ -234,6 +236,10 @@ class Learning:
         if core.learned_installs != self._learned_installs:
             self._learned_installs = core.learned_installs
             self.on_learned()
+        flat = ((learner.fit or {}).get('held_out') or {}).get('offset_only', [])
+        if flat != self._offset_only:         # said when the offset-only axes change
+            self._offset_only = flat
+            self.log.info(f'learning, held out: {held_out_line(learner.fit)}')
         self._front.hand_over(learner)
 
     def wait(self, timeout_s: float = LEARN_WAIT_S) -> bool:

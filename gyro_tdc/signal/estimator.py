@@ -144,21 +144,28 @@ def session_columns(groups: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.
     return np.column_stack([(g == s).astype(np.float64) for s in labels]), labels
 
 
-def within(a: NDArray[np.float64], groups: ArrayLike
+def within(a: NDArray[np.float64], groups: ArrayLike,
+           weights: NDArray[np.float64] | None = None
            ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return the session means of the rows of ``a`` and ``a`` minus its session's mean.
 
     Fitting the centred columns to the centred target solves the regression with one
-    offset per session exactly, without its indicator columns.
+    offset per session exactly, without its indicator columns; with row ``weights`` the
+    means are weighted, for the weighted regression.
     """
     _, inverse, counts = np.unique(np.asarray(groups), return_inverse=True,
                                    return_counts=True)
     inverse = inverse.reshape(-1)
     counts = counts.astype(np.float64)
     means = np.zeros((counts.size,) + a.shape[1:])
-    np.add.at(means, inverse, a)
-    means /= counts.reshape((-1,) + (1,) * (a.ndim - 1))
+    shape = (-1,) + (1,) * (a.ndim - 1)
+    if weights is None:
+        np.add.at(means, inverse, a)
+    else:
+        np.add.at(means, inverse, a * weights.reshape(shape))
+        counts = np.bincount(inverse, weights=weights, minlength=counts.size)
+    means /= counts.reshape(shape)
     return means, a - means[inverse]
 
 
@@ -293,11 +300,27 @@ class Folds:
         return cls(tuple(tests), tuple(trains))
 
     @classmethod
-    def sessions(cls, groups: ArrayLike) -> 'Folds':
-        """Return one fold per session: that session held out, the others trained on."""
+    def sessions(cls, groups: ArrayLike, temp: ArrayLike | None = None) -> 'Folds':
+        """
+        Return one fold per session: that session held out, the others trained on.
+
+        With ``temp`` (one per row) a session is scored only inside the others' range of it
+        (outside it a model is clamped or extrapolated, which says nothing of how its curve
+        carries to another power cycle); a fold with fewer than two such rows is skipped.
+        """
         g = np.asarray(groups)
-        labels = np.unique(g)
-        return cls(tuple(g == s for s in labels), tuple(g != s for s in labels))
+        tests, trains = [], []
+        for s in np.unique(g):
+            test, train = g == s, g != s
+            if temp is not None:
+                x = np.asarray(temp)
+                lo, hi = x[train].min(initial=np.inf), x[train].max(initial=-np.inf)
+                test &= (x >= lo) & (x <= hi)
+                if np.count_nonzero(test) < 2:
+                    continue
+            tests.append(test)
+            trains.append(train)
+        return cls(tuple(tests), tuple(trains))
 
 
 def heldout(residual: Callable[[NDArray[np.bool_], NDArray[np.bool_]], NDArray[np.float64]],

@@ -12,21 +12,38 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Online learning: vehicle day 1 then day 2, restart, growth, swap check."""
+"""
+The online learner (:mod:`gyro_tdc.learn.learner`).
+
+Vehicle day 1 then day 2, a restart, growth and the swap check; the step cadence (stamp-
+scheduled swaps: stepped every 1, 10 or 100 s with ``swap_delay_s`` = 120 s the output is bit
+for bit the same, beyond the delay the same learned state with the swaps counted late); slow
+still logs (1 Hz, power cycles, bursts, a wandering offset; days compressed to 3 h,
+``bench/bench_learning_field.py`` runs the three-day logs and the sweep); a trained model as
+the prior on a still 1 Hz logger (``config/still_logger.yaml``, one draw of
+``bench/bench_sessions.py`` family 2); and the held-out rule: a curve that does not carry
+across power cycles is not installed.
+"""
 
 from __future__ import annotations
 
 import json
 import math
 
+from gyro_tdc.data import Run, split_sessions
+from gyro_tdc.identify import estimate_t0, fit_model
+from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.learn.learner import LearnConfig, learned_model, Learner
-from gyro_tdc.model.compensation import drift
+from gyro_tdc.model import compensate, drift
 from gyro_tdc.model.thermal_state import ThermalState
 from gyro_tdc.runtime import CompensatorCore, Policy
-from gyro_tdc.sim import simulate_run
-from learning_days import BOUND, day_offset, DEG2, floor_ratio, stream
+from gyro_tdc.signal import block_mean
+from gyro_tdc.sim import load_scenario, simulate_run
+from gyro_tdc.sim.simulator import to_run
+from learning_days import BOUND, day_offset, DEG2, floor_ratio, GAP_S, stream
 import numpy as np
 import pytest
+from still_logs import DEG, judge, learn_through_core, still_log
 from thermal_synth import lag_run, OTHER
 
 
@@ -357,3 +374,283 @@ def test_a_gap_inside_one_step_starts_a_new_session():
     e = learner.entries()
     assert sorted(set(e[:, 6].tolist())) == [0.0, 1.0]
     np.testing.assert_allclose(learner.model.intercept, [0.02] * 3, atol=3e-5)
+
+
+# -- the step cadence ----------------------------------------------------------------------
+
+
+CADENCE_HZ = 2.0
+DELAY_S = 120.0
+
+
+@pytest.fixture(scope='module')
+def cadence_days():
+    """Vehicle day 1 (seed 1) and day 2 (seed 2, hotter) at 2 Hz."""
+    d1 = simulate_run('vehicle_day1', seed=1, rate_hz=CADENCE_HZ)
+    d2 = simulate_run('vehicle_day2', seed=2, rate_hz=CADENCE_HZ)
+    return d1, d2, d1.imu_t[-1] + GAP_S - d2.imu_t[0]
+
+
+def _cadence_run(cadence_days, every_s, delay_s=DELAY_S):
+    """Stream both days, stepping every ``every_s`` of stamps; outputs, swaps, learner, core."""
+    d1, d2, off = cadence_days
+    core = CompensatorCore(Policy())
+    learner = Learner(LearnConfig(swap_delay_s=delay_s))
+    core.learner = learner
+    every = int(round(every_s * CADENCE_HZ))
+    accepted = []
+    outs = [stream(core, learner, d, shift, poll=every, accepted=accepted)
+            for d, shift in ((d1, 0.0), (d2, off))]
+    accepted += [(due, model.model_id) for due, model in core.learn_step()]
+    learner.flush()
+    return outs, accepted, learner, core
+
+
+@pytest.fixture(scope='module')
+def cadence_runs(cadence_days):
+    """Run the stream stepped every 1, 10, 100 and 600 s of stamps."""
+    return {s: _cadence_run(cadence_days, s) for s in (1.0, 10.0, 100.0, 600.0)}
+
+
+def _cadence_state(learner):
+    return json.dumps(learner.state(), sort_keys=True)
+
+
+def test_step_cadence_within_the_delay_gives_the_same_output_bit_for_bit(cadence_runs):
+    ref_outs, ref_acc, ref_l, ref_core = cadence_runs[1.0]
+    assert len(ref_acc) > 10 and ref_l.late_swaps == 0
+    assert ref_core.learned_installs == len([a for a in ref_acc if a[0] is not None])
+    assert ref_outs[1][1].all()                # learned on day 1: day 2 compensated throughout
+    for s in (10.0, 100.0):
+        outs, acc, learner, core = cadence_runs[s]
+        assert learner.late_swaps == 0, s
+        assert acc == ref_acc, s                 # the same candidates, the same stamps
+        for (out, ok), (ref, ref_ok) in zip(outs, ref_outs):
+            assert np.array_equal(ok, ref_ok) and np.array_equal(out, ref), s
+        assert _cadence_state(learner) == _cadence_state(ref_l), s
+        assert core.learned_installs == ref_core.learned_installs
+
+
+def test_step_cadence_beyond_the_delay_learns_the_same_and_counts_late_swaps(cadence_runs):
+    ref_outs, ref_acc, ref_l, _ = cadence_runs[1.0]
+    outs, acc, learner, core = cadence_runs[600.0]
+    assert acc == ref_acc and _cadence_state(learner) == _cadence_state(ref_l)
+    assert learner.late_swaps > 0
+    assert learner.diagnostic_values()['learn late swaps'] == str(learner.late_swaps)
+    assert not np.array_equal(outs[1][0], ref_outs[1][0])   # late: the output moved
+
+
+def test_effective_stamp_is_the_trigger_plus_the_delay(cadence_days, cadence_runs):
+    """Each swap takes effect swap_delay_s after the sample that let it be computed."""
+    _, acc5, _, _ = _cadence_run(cadence_days, 1.0, delay_s=5.0)
+    acc120 = cadence_runs[1.0][1]
+    assert [a[1] for a in acc5] == [a[1] for a in acc120]
+    assert np.allclose([a[0] + 115.0 for a in acc5], [a[0] for a in acc120])
+
+
+# -- slow still logs ----------------------------------------------------------------------
+
+
+FIELD_DAY_S = 3 * 3600.0
+
+
+def test_a_1hz_still_log_is_learned_throughout():
+    """Every window of a motionless 1 Hz logger is still: learned to the end, beats batch."""
+    log = still_log(rate_hz=1.0, days=2.0, day_s=FIELD_DAY_S, seed=5)
+    out, passed, learner = learn_through_core(log)
+    s = learner.summary()
+    span = log.t[-1] - log.t[0]
+    assert s['still_s'] > 0.98 * span and s['last_update_t'] > log.t[-1] - 900.0
+    assert s['features'] == ['dT', 'dT2', 'dT3'] and learner.session == 0
+    r = judge(log, out, passed)
+    assert r['passed'] == 0.0
+    assert np.all(r['vs_raw'] < 0.1), r['vs_raw']
+    assert np.all(r['vs_batch'] <= 1.05), r['vs_batch']
+
+
+def _learn_directly(log, chunk_s=10.0):
+    """Feed a log to a learner alone (no core), stepped every ``chunk_s`` of stamps."""
+    learner = Learner(LearnConfig(temperature_timeout=5.0))
+    j = 0
+    edges = np.searchsorted(log.t, np.arange(log.t[0], log.t[-1] + chunk_s, chunk_s))
+    for a, b in zip(edges[:-1], edges[1:]):
+        while j < log.temp_t.size and log.temp_t[j] <= log.t[max(b - 1, a)]:
+            learner.add_temperature(float(log.temp_t[j]), float(log.temp_c[j]))
+            j += 1
+        for k in range(a, b):
+            learner.observe(float(log.t[k]), *log.gyro[k].tolist())
+        learner.step()
+    return learner
+
+
+def test_each_power_cycle_gets_its_own_offset():
+    """Three power cycles an hour apart, each its turn-on offset: the last one re-learned."""
+    log = still_log(rate_hz=1.0, days=3.0, day_s=FIELD_DAY_S / 2, seed=6, power_cycles=3,
+                    turn_on_dps=0.3, accel=False)
+    learner = _learn_directly(log)
+    assert learner.session == 2
+    assert sorted(np.unique(learner.entries()[:, 6]).tolist()) == [0.0, 1.0, 2.0]
+    last = log.session == 2
+    jump = np.abs(log.truth[last][0] - log.truth[log.session == 1][-1])
+    assert jump.max() > 0.1 * DEG                    # the offsets differ by tenths of deg/s
+    end = last & (log.t > log.t[-1] - 1800.0)
+    temp = np.interp(log.t[end], log.temp_t, log.temp_c)
+    err = log.truth[end] - drift(learner.model, log.t[end], temp)
+    assert np.abs(err.mean(axis=0)).max() < 0.003 * DEG
+
+
+def _bursts(learner, t0, n, period, rate=10.0, burst=5.0, bias=(0.01, -0.02, 0.005),
+            temp=20.0, seed=0):
+    rng = np.random.default_rng(seed)
+    for k in range(n):
+        t = t0 + k * period + np.arange(int(burst * rate)) / rate
+        learner.add_temperature(t[0], temp + 0.01 * k)
+        for ti, w in zip(t.tolist(), (np.asarray(bias) + 1e-4 * rng.standard_normal(
+                (t.size, 3))).tolist()):
+            learner.observe(ti, *w)
+        learner.step()
+    return t0 + n * period
+
+
+def test_a_burst_logger_is_one_power_cycle_and_a_night_off_another():
+    """Pauses of 15 min, the logger's rhythm, are no restarts; a 3 h pause is."""
+    learner = Learner(LearnConfig(temperature_timeout=1e9))
+    t = _bursts(learner, 0.0, 12, 900.0)
+    assert learner.session == 0                       # merged once the rhythm is known
+    assert 2600.0 < learner.session_gap() <= 2700.0   # 3 x the median pause
+    _bursts(learner, t + 3 * 3600.0, 3, 900.0, seed=1)
+    assert learner.session == 1
+
+
+def test_grid_slivers_do_not_break_a_stretch():
+    """Bursts that the 10 s grid cuts into a sliver and the rest are one still stretch."""
+    learner = Learner(LearnConfig(temperature_timeout=1e9))
+    _bursts(learner, 0.0, 12, 305.0, rate=50.0, burst=5.0)
+    learner.flush()
+    assert learner.stretches == 1 and 55.0 < learner.still_s < 60.1   # the bursts' time
+
+
+def test_the_offset_follows_the_newest_still_time():
+    """A bias walking away at constant temperature: the model's offset is the newest."""
+    def run(offset_s):
+        learner = Learner(LearnConfig(temperature_timeout=1e9, offset_s=offset_s))
+        rng = np.random.default_rng(3)
+        t = np.arange(0.0, 8 * 3600.0)
+        bias = 0.01 + 2e-5 * t / 3600.0               # 2e-5 rad/s an hour
+        learner.add_temperature(0.0, 20.0)
+        for k in range(0, t.size, 600):
+            sl = slice(k, k + 600)
+            for ti, b, w in zip(t[sl].tolist(), bias[sl].tolist(),
+                                (5e-4 * rng.standard_normal((600, 3))).tolist()):
+                learner.observe(ti, b + w[0], b + w[1], b + w[2])
+            learner.step()
+        return float(np.abs(learner.model.intercept - bias[-1]).max())
+    assert run(1800.0) < 2e-5                       # about half the window's walk
+    assert run(0.0) > 5e-5                          # the session's average lags
+    assert math.isfinite(run(600.0))
+
+
+def test_a_device_clock_restart_is_a_new_session():
+    """Stamps stepping back (the IMU restarted, its clock from zero) start a new session."""
+    learner = Learner(LearnConfig(temperature_timeout=1e9))
+    _bursts(learner, 1000.0, 1, 10.0, burst=200.0)
+    assert learner.session == 0
+    _bursts(learner, 5.0, 1, 10.0, burst=100.0, seed=1)
+    assert learner.session == 1
+
+
+# -- a trained prior ----------------------------------------------------------------------
+
+
+PRIOR_DEG = math.pi / 180.0
+PRIOR_DAY_S = 86400.0
+PRIOR_GAP_S = 600.0
+DRAW = {'offset': 0.2, 'res': 0.004, 'lo': 6.3, 'hi': 23.7, 'amp': 2.5, 'curvature': 0.91,
+        'tau_pkg': 1513.0, 'bi': 0.0037, 'rrw': 4.1e-05}
+
+
+def _prior_day(k: int, seed: int):
+    """Simulate day ``k`` (0-based): one power cycle, the trend and the daily cycle."""
+    d = DRAW
+    t = np.arange(0.0, PRIOR_DAY_S + 1.0, 3600.0)
+    tg = t + k * PRIOR_DAY_S
+    temp = (d['lo'] + (d['hi'] - d['lo']) * tg / (3 * PRIOR_DAY_S)
+            + d['amp'] * np.sin(2.0 * np.pi * tg / PRIOR_DAY_S - np.pi / 2.0))
+    c = d['curvature']
+    sc = {'format_version': 1, 'name': f'day{k + 1}', 'sensor': 'l3gd20', 'imu_rate_hz': 1.0,
+          'duration_s': PRIOR_DAY_S - PRIOR_GAP_S,
+          'profile': {'start_c': float(temp[0]), 'segments': [
+              {'kind': 'points', 't_s': t.tolist(), 'temp_c': temp.tolist()}]},
+          'thermal': {'tau_package_s': d['tau_pkg']},
+          'thermometer': {'location': 'package', 'rate_hz': 1.0, 'resolution_c': d['res']},
+          'gyro': {'effects': ['bias', 'dT', 'dT2', 'dT3'],
+                   'dT2_dps_per_c2': [c * v for v in (8.0e-4, 6.0e-4, -2.5e-4)],
+                   'dT3_dps_per_c3': [c * v for v in (4.0e-6, -3.0e-6, 2.0e-6)]},
+          'noise': {'arw_dps_per_rt_hz': [0.03] * 3, 'bias_instability_dps': [d['bi']] * 3,
+                    'bias_instability_tau_s': [100.0, 1000.0, 10000.0],
+                    'rrw_dps_per_rt_s': [d['rrw']] * 3},
+          'runs': {'count': 1, 'bias_offset_dps_std': d['offset']}}
+    return simulate_run(load_scenario(sc), seed=seed)
+
+
+def _prior_drift(err: np.ndarray) -> np.ndarray:
+    """Return the RMS of 10 min means of ``err`` (rad/s, 1 Hz) in deg/s, per axis."""
+    return np.sqrt(np.mean(block_mean(err, 600) ** 2, axis=0)) / PRIOR_DEG
+
+
+def _prior_stream(core: CompensatorCore, sim) -> np.ndarray:
+    """Feed day 3 to ``core`` as the node does; its learner stepped every 100 messages."""
+    out = np.empty_like(sim.gyro)
+    tt, tc = sim.temp_t.tolist(), sim.temp_c.tolist()
+    j = 0
+    for k, (t, w, a) in enumerate(zip(sim.imu_t.tolist(), sim.gyro.tolist(),
+                                      sim.accel.tolist())):
+        while j < len(tt) and tt[j] <= t:
+            core.add_temperature(tt[j], tc[j])
+            j += 1
+        out[k] = core.process(t, w[0], w[1], w[2], a)[:3]
+        if core.learner is not None and k % 100 == 99:
+            core.learn_step()
+    return out
+
+
+@pytest.fixture(scope='module')
+def logger():
+    """Return (trained model, day-3 simulation, day-3 run, best simple anchor per axis)."""
+    sims = [_prior_day(j, 25000 + j) for j in range(3)]
+    days = [to_run(s) for s in sims]
+    joined = Run(np.concatenate([r.t + PRIOR_DAY_S * i for i, r in enumerate(days[:2])]),
+                 np.concatenate([r.temp for r in days[:2]]),
+                 np.concatenate([r.omega for r in days[:2]]),
+                 np.concatenate([r.omega_ref for r in days[:2]]), 'days1-2')
+    split = split_sessions([joined])
+    assert split.count == 2                     # the 10 min gap cuts the bag
+    t0 = estimate_t0(split.runs[0])
+    ids, params, _ = features_for_fit(split.runs, 'auto', t0=t0)
+    ours = fit_model(split.runs, features=ids, params=params or None, t0=t0,
+                     sessions=split.labels)
+    held = days[2]
+    head = held.t <= held.t[0] + 600.0
+    simple = []
+    for feats in ('dT', 'dT,dT2,dT3'):
+        m = fit_model(split.runs, kind='poly', features=feats, t0=t0)
+        c = compensate(m, held.t, held.temp, held.omega, out_of_range='linear')
+        simple += [_prior_drift(c), _prior_drift(c - c[head].mean(axis=0))]
+    return ours, sims[2], held, np.min(simple, axis=0)
+
+
+def test_learning_on_a_trained_prior_beats_every_simple_anchor(logger):
+    """With learn:=true the node tracks day 3 beyond the trained range; without, it cannot."""
+    ours, sim, held, best = logger
+    plain = _prior_drift(_prior_stream(CompensatorCore(Policy(), ours), sim)
+                         - held.omega_ref) / best
+    core = CompensatorCore(Policy(), ours)
+    core.learner = Learner(prior=ours)
+    learned = _prior_drift(_prior_stream(core, sim) - held.omega_ref) / best
+    s = core.learner.summary()
+    # Measured: plain 0.66 / 2.77 / 0.12, learned 0.22 / 0.59 / 0.06 of the best of four
+    # simple anchors (the learner's model is day 3's own: features dT, 15.5-23.4 degC).
+    assert np.max(plain) > 1.5, plain
+    assert np.all(learned <= 0.9), learned
+    assert np.all(learned <= plain + 0.05), (learned, plain)
+    assert s['swaps'] > 10 and s['features'][:1] == ['dT'], s

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The learner's learn_file: state encoded, decoded, written and read (pure)."""
+"""The learn_file (``learn.store``): read bounded, written atomically, its model a model."""
 
 from __future__ import annotations
 
@@ -27,13 +27,16 @@ import shutil
 import stat
 import tempfile
 
+from gyro_tdc.errors import LearnFileError, ModelFileError
+from gyro_tdc.learn import is_learn_file, model_from_file, read_model
 from gyro_tdc.learn import learner as learning
+from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT
 from gyro_tdc.learn.learner import LearnConfig, Learner
-from gyro_tdc.learn.store import decode_state, encode_state, FORMAT, read_state, write_state
-from gyro_tdc.model.compensation import drift
-from gyro_tdc.model.thermal_state import ThermalState
+from gyro_tdc.learn.store import LearnFile
+from gyro_tdc.model import drift
+from gyro_tdc.model.modelfile import load_model, save_model
 from hypothesis import given, HealthCheck, settings, strategies as st
-from learn_states import hostile_files, HOSTILE_NAMES, learned, plain_state, with_field
+from learn_states import hostile_files, HOSTILE_NAMES, learned, plain_state
 import numpy as np
 import pytest
 
@@ -57,17 +60,18 @@ def test_state_round_trips_through_a_file(tmp_path, base):
     assert state['format'] == FORMAT and len(state['bins']) == 2 and state['fit'] is not None
     assert state == learner.state()
     path = tmp_path / 'learn.json'
-    write_state(path, state)
-    assert read_state(path) == json.loads(json.dumps(state))
-    values, thermal = decode_state(read_state(path))
+    LearnFile(path).write(state)
+    assert LearnFile(path).read() == json.loads(json.dumps(state))
+    values, thermal = decode_state(LearnFile(path).read())
     assert thermal is None
     for name, value in values.items():
+        owner = learner.still if name in ('gyro_floor', 'accel_floor', 't_first') else learner
         if name == 'last_save_t':
             assert value == learner.last_t
         elif isinstance(value, np.ndarray):
-            np.testing.assert_array_equal(value, getattr(learner, name))
+            np.testing.assert_array_equal(value, getattr(owner, name))
         else:
-            assert value == getattr(learner, name), name
+            assert value == getattr(owner, name), name
     again = _fresh()
     assert again.load(path) and again.state() == json.loads(json.dumps(state))
     assert again.take_model() is not None         # the learned model is current at once
@@ -75,7 +79,7 @@ def test_state_round_trips_through_a_file(tmp_path, base):
 
 def test_the_file_is_strict_json_and_an_unknown_floor_is_null(tmp_path):
     learner = _fresh()                             # nothing learned: the floors are unknown
-    assert np.all(np.isinf(learner.gyro_floor))
+    assert np.all(np.isinf(learner.still.gyro_floor))
     path = tmp_path / 'learn.json'
     learner.save(path)
     text = path.read_text()
@@ -83,25 +87,19 @@ def test_the_file_is_strict_json_and_an_unknown_floor_is_null(tmp_path):
     doc = json.loads(text, parse_constant=lambda c: pytest.fail(f'non-JSON constant {c}'))
     assert doc['gyro_floor'] == [None] * 3
     again = _fresh()
-    assert again.load(path) and np.all(np.isinf(again.gyro_floor))
-    # A file of an earlier version (Infinity for an unknown floor) still reads.
+    assert again.load(path) and np.all(np.isinf(again.still.gyro_floor))
+    # Infinity is no JSON a learner writes (0.1.0 is the first release): refused, named.
     path.write_text(json.dumps({**doc, 'gyro_floor': [math.inf] * 3}))
-    assert _fresh().load(path)
-
-
-def test_thermal_section_is_kept():
-    thermal = ThermalState('first_order', (120.0,))
-    values, got = decode_state({**encode_state(learned(temps=(20.0,))),
-                                'thermal': thermal.to_dict()})
-    assert got == thermal and values['session'] == 0
+    with pytest.raises(LearnFileError, match=r'`gyro_floor\[0\]`'):
+        _fresh().load(path)
 
 
 def test_bad_states_and_files_are_refused(tmp_path):
-    assert read_state(tmp_path / 'missing.json') is None
+    assert LearnFile(tmp_path / 'missing.json').read() is None
     bad = tmp_path / 'bad.json'
     bad.write_text('{"format": ')
     with pytest.raises(ValueError, match='not JSON'):
-        read_state(bad)
+        LearnFile(bad).read()
     for state in ({'format': 'gyro_tdc learn 0'}, [FORMAT], None):
         with pytest.raises(ValueError, match='not a learner state'):
             decode_state(state)
@@ -130,37 +128,6 @@ def test_a_file_that_is_not_a_learner_state_is_refused_in_one_line(tmp_path, bas
         learner.load(path)
     assert '\n' not in str(err.value)
     assert learner.state() == before and learner.take_model() is None
-
-
-@pytest.mark.parametrize('keys,value,field', [
-    (('fit', 'coef', 0, 0), math.nan, 'fit.coef[0][0]'),
-    (('fit', 'coef', 1, 2), math.inf, 'fit.coef[1][2]'),
-    (('fit', 't0_c'), 1e308, 'fit.t0_c'),
-    (('fit', 'coef', 0, 1), 1e6, 'fit'),               # bounded, but a drift of 1e6 rad/s
-    (('fit', 'resid_var'), [1e-8, 1e-8], 'fit.resid_var'),
-    (('session',), -1, 'session'),
-    (('stretches',), 2.5, 'stretches'),
-    (('still_s',), math.nan, 'still_s'),
-    (('check', 'candidate_mse'), -1.0, 'check.candidate_mse'),
-    (('recent', 0, 2, 0, 1), 1e30, 'recent[0][2][0][1] (temperature)'),
-    (('motion', 0, 1), 'yes', 'motion[0][1]'),
-    (('thermal_state',), [0.0, [20.0]], 'thermal_state'),
-])
-def test_every_field_is_checked_and_named(base, keys, value, field):
-    """Refuse NaN or Inf anywhere, negative counts, wrong shapes, naming the field."""
-    _, state = base
-    with pytest.raises(ValueError, match=re.escape(f'field `{field}`')):
-        _fresh().load_state(with_field(state, keys, value))
-
-
-def test_a_fit_holding_nan_is_not_loaded(base):
-    """A learn_file whose fit holds NaN: refused, not a model emitting NaN for every sample."""
-    _, state = base
-    nan = with_field(state, ('fit', 'coef', 0), [math.nan, 0.0, 0.0])
-    learner = _fresh()
-    with pytest.raises(ValueError, match='field `fit.coef'):
-        learner.load_state(nan)
-    assert learner.take_model() is None
 
 
 def test_a_file_over_the_size_limit_is_refused_before_it_is_read(tmp_path, base,
@@ -209,7 +176,7 @@ def test_save_replaces_an_older_learner_state(tmp_path, base):
     path = tmp_path / 'learn.json'
     _fresh().save(path)
     learner.save(path)
-    assert read_state(path) == plain_state(learner)
+    assert LearnFile(path).read() == plain_state(learner)
 
 
 def test_a_symbolic_link_is_neither_read_nor_written_through(tmp_path, base):
@@ -433,3 +400,53 @@ def test_well_formed_states_with_wild_values_load_finite_or_are_refused(tmp_path
     _, state = base
     doc = data.draw(_typed_states(state))
     _load_bytes(tmp_path_factory.mktemp('typed'), json.dumps(doc).encode())
+
+
+# -- a learned model is a model ------------------------------------------------------------
+
+
+@pytest.fixture(scope='module')
+def learner():
+    return learned()
+
+
+def test_the_file_gives_the_learners_model(learner, tmp_path):
+    path = tmp_path / 'learn.json'
+    learner.save(path)
+    assert is_learn_file(path)
+    model = model_from_file(path)
+    assert model.model_id == learner.model.model_id
+    t, temp = np.arange(5.0), np.linspace(15.0, 30.0, 5)
+    np.testing.assert_array_equal(drift(model, t, temp), drift(learner.model, t, temp))
+    assert model.created['learn_file'] == str(path) and model.created['points'] == 2
+    # A model file written from it reads back as the same model.
+    again = load_model(save_model(model, tmp_path / 'm.yaml'))
+    assert again.model_id == model.model_id
+
+
+def test_read_model_takes_model_files_and_learn_files(learner, tmp_path):
+    yaml_path = save_model(learner.model, tmp_path / 'model.yaml')
+    assert not is_learn_file(yaml_path)
+    assert read_model(str(yaml_path)).model_id == learner.model.model_id
+    learner.save(tmp_path / 'l.json')
+    assert read_model(str(tmp_path / 'l.json')).model_id == learner.model.model_id
+    assert read_model('l3gd20_modified').kind        # a shipped name still resolves
+
+
+def test_no_accepted_model_yet_is_one_line(tmp_path):
+    path = tmp_path / 'empty.json'
+    Learner().save(path)
+    with pytest.raises(ModelFileError, match='no accepted model yet') as err:
+        read_model(str(path))
+    assert '\n' not in str(err.value)
+
+
+def test_a_broken_learn_file_is_refused_and_left_as_it_is(learner, tmp_path):
+    path = tmp_path / 'bad.json'
+    learner.save(path)
+    text = path.read_text().replace('"session": 0', '"session": -3')
+    path.write_text(text)
+    os.chmod(path, 0o400)
+    with pytest.raises(LearnFileError, match='session'):
+        read_model(str(path))
+    assert stat.S_IMODE(os.stat(path).st_mode) == 0o400 and path.read_text() == text

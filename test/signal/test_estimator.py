@@ -125,6 +125,12 @@ def test_folds_segments_interleave_and_sessions_leave_one_out():
     loso = Folds.sessions(groups)
     assert [t.tolist() for t, _ in loso][0] == [False, False, True, True, True, False]
     assert all(np.array_equal(tr, ~t) for t, tr in loso)
+    # Scored inside the others' temperatures only; a fold with under two such rows skipped.
+    temp = np.array([10.0, 30.0, 12.0, 20.0, 40.0, 25.0])
+    inside = Folds.sessions(groups, temp)
+    assert [t.tolist() for t in inside.test] == [[False, False, True, True, False, False]]
+    assert np.array_equal(inside.train[0], groups != 1)
+    assert not len(Folds.sessions(np.zeros(4), np.arange(4.0)))      # one session: none
 
 
 def test_heldout_reanchors_a_session_seen_nowhere_in_training():

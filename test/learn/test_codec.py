@@ -1,0 +1,93 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The learner's state as plain types and back (``learn.codec``), every field checked."""
+
+from __future__ import annotations
+
+import math
+import re
+
+from gyro_tdc.learn.codec import decode_state, encode_state
+from gyro_tdc.learn.learner import LearnConfig, Learner
+from gyro_tdc.model.thermal_state import ThermalState
+from learn_states import learned, plain_state, with_field
+import pytest
+
+
+@pytest.fixture(scope='module')
+def base():
+    """Return a learner that learned two still stretches, and its state as a file holds it."""
+    learner = learned()
+    return learner, plain_state(learner)
+
+
+def _fresh():
+    return Learner(LearnConfig(temperature_timeout=1e9))
+
+
+def test_the_held_out_record_round_trips(base):
+    learner, state = base
+    held = state['fit']['held_out']
+    assert held == learner.fit['held_out'] and held['sessions'] == 1 and held['folds'] == 0
+    values, _ = decode_state(state)
+    assert values['fit']['held_out'] == held
+    judged = {**held, 'folds': 2, 'points': 5, 'curve_ms_dps2': [1e-4, 2e-4, 3e-4],
+              'offset_ms_dps2': [2e-4, 1e-4, 3e-4], 'offset_only': ['y', 'z']}
+    values, _ = decode_state(with_field(state, ('fit', 'held_out'), judged))
+    assert values['fit']['held_out'] == judged
+
+
+def test_thermal_section_is_kept():
+    thermal = ThermalState('first_order', (120.0,))
+    values, got = decode_state({**encode_state(learned(temps=(20.0,))),
+                                'thermal': thermal.to_dict()})
+    assert got == thermal and values['session'] == 0
+
+
+@pytest.mark.parametrize('keys,value,field', [
+    (('fit', 'coef', 0, 0), math.nan, 'fit.coef[0][0]'),
+    (('fit', 'coef', 1, 2), math.inf, 'fit.coef[1][2]'),
+    (('fit', 't0_c'), 1e308, 'fit.t0_c'),
+    (('fit', 'coef', 0, 1), 1e6, 'fit'),               # bounded, but a drift of 1e6 rad/s
+    (('fit', 'resid_var'), [1e-8, 1e-8], 'fit.resid_var'),
+    (('session',), -1, 'session'),
+    (('stretches',), 2.5, 'stretches'),
+    (('still_s',), math.nan, 'still_s'),
+    (('check', 'candidate_mse'), -1.0, 'check.candidate_mse'),
+    (('recent', 0, 2, 0, 1), 1e30, 'recent[0][2][0][1] (temperature)'),
+    (('motion', 0, 1), 'yes', 'motion[0][1]'),
+    (('thermal_state',), [0.0, [20.0]], 'thermal_state'),
+    (('fit', 'held_out'), None, 'fit.held_out'),
+    (('fit', 'held_out', 'folds'), -1, 'fit.held_out.folds'),
+    (('fit', 'held_out', 'curve_ms_dps2'), [1.0, math.nan, 0.0],
+     'fit.held_out.curve_ms_dps2[1]'),
+    (('fit', 'held_out', 'offset_only'), ['x', 'w'], 'fit.held_out.offset_only'),
+    (('fit', 'held_out', 'offset_only'), ['x', 'x'], 'fit.held_out.offset_only'),
+])
+def test_every_field_is_checked_and_named(base, keys, value, field):
+    """Refuse NaN or Inf anywhere, negative counts, wrong shapes, naming the field."""
+    _, state = base
+    with pytest.raises(ValueError, match=re.escape(f'field `{field}`')):
+        _fresh().load_state(with_field(state, keys, value))
+
+
+def test_a_fit_holding_nan_is_not_loaded(base):
+    """A learn_file whose fit holds NaN: refused, not a model emitting NaN for every sample."""
+    _, state = base
+    nan = with_field(state, ('fit', 'coef', 0), [math.nan, 0.0, 0.0])
+    learner = _fresh()
+    with pytest.raises(ValueError, match='field `fit.coef'):
+        learner.load_state(nan)
+    assert learner.take_model() is None

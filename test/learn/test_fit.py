@@ -1,0 +1,210 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The learner's arithmetic (``learn.fit``): fit, held-out rule, check, model temperature."""
+
+from __future__ import annotations
+
+import math
+
+from gyro_tdc.learn.fit import (at_state, fit_points, fit_sessions, grow_features, held_out,
+                                inliers, learned_model, model_of, prediction_mse, same_thermal,
+                                stream_state)
+from gyro_tdc.model.compensation import drift
+from gyro_tdc.model.modelfile import model_from_dict, model_to_dict, stored
+from gyro_tdc.model.thermal_state import ThermalState
+from gyro_tdc.signal import hold_readings
+import numpy as np
+import pytest
+
+
+def _table(temps, session=0.0, shift=0.0):
+    """Point-table rows of a drift 0.01 + 1e-3 dT + 2e-5 dT^2 about 20 degC (x axis)."""
+    d = np.asarray(temps, dtype=np.float64) - 20.0
+    b = 0.01 + shift + 1e-3 * d + 2e-5 * d ** 2
+    z = np.zeros_like(d)
+    return np.column_stack([np.arange(d.size) * 100.0, np.full(d.size, 500.0), d + 20.0,
+                            b, z, z, np.full(d.size, session)])
+
+
+def test_growth_rule():
+    assert grow_features(np.array([]), 0) == ()
+    assert grow_features(np.array([20.0, 21.5]), 2) == ()
+    assert grow_features(np.array([20.0, 22.0]), 2) == ('dT',)
+    assert grow_features(np.arange(20.0, 29.0), 4) == ('dT',)
+    assert grow_features(np.arange(20.0, 29.0), 5) == ('dT', 'dT2')
+    assert grow_features(np.arange(20.0, 36.0), 10) == ('dT', 'dT2', 'dT3')
+
+
+def test_sessions_share_the_shape_and_an_outlier_goes():
+    e = np.vstack([_table(np.arange(10.0, 30.0, 2.0)),
+                   _table(np.arange(15.0, 35.0, 2.5), session=1.0, shift=3e-3)])
+    coef, res = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0)
+    np.testing.assert_allclose(coef[:, 0], [0.013, 1e-3, 2e-5], rtol=1e-9)
+    coef0, _ = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0, session=0.0)
+    assert coef0[0, 0] == pytest.approx(0.01)
+    assert np.abs(res).max() < 1e-12
+    e[4, 3] += 0.05                         # one entry far off
+    keep = inliers(e, e[:, 1], ('dT', 'dT2'), 20.0, 1e-3)
+    assert keep.tolist() == [i != 4 for i in range(e.shape[0])]
+    fit = fit_points(e, ('dT', 'dT2'), e[:, 0].max(), 86400.0, 1e-3)
+    assert fit['points'] == e.shape[0] - 1
+    temps = np.array([12.0, 20.0, 33.0])          # the newest session's intercept
+    want = 0.013 + 1e-3 * (temps - 20.0) + 2e-5 * (temps - 20.0) ** 2
+    got = drift(model_of(fit), np.zeros(3), temps, clamp=False)[:, 0]
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize('thermal', [None, ThermalState('none'),
+                                     ThermalState('first_order', (300.0,))])
+def test_learned_models_carry_the_thermal_section(thermal):
+    fit = {'features': [], 't0_c': 20.0, 'coef': [[0.01, 0.0, 0.0]], 'range_c': [19.0, 21.0],
+           'resid_var': [1e-8] * 3, 'points': 1}
+    m = model_of(fit, thermal)
+    assert m.thermal == (thermal or ThermalState()) and m.format_version == 2
+    lagged = thermal is not None and thermal.kind != 'none'
+    assert m.features == (('dT', 'lag') if lagged else ('dT',))
+    if lagged:
+        assert m.effect_params == {'lag': {'tau_s': 300.0}}
+    assert model_from_dict(model_to_dict(m)) == m == stored(m)    # a model file like any other
+    t = np.arange(0.0, 100.0)
+    np.testing.assert_allclose(drift(m, t, np.full(100, 20.0)), [[0.01, 0.0, 0.0]] * 100)
+
+
+def test_prediction_check_evaluates_at_the_windows_model_temperature():
+    fo = ThermalState('first_order', (300.0,))
+    m = learned_model(np.array([[0.01, 0, 0], [1e-3, 0, 0]]), ('dT',), 20.0, (0.0, 40.0),
+                      np.zeros(3), fo)
+    # Windows at model temperatures 15 and 25 degC whose means the model predicts exactly.
+    rows = [[100.0, 15.0, 0.005, 0.0, 0.0, 10.0], [100.0, 25.0, 0.015, 0.0, 0.0, 110.0]]
+    assert prediction_mse(m, rows, fo) == pytest.approx(0.0, abs=1e-20)
+    # Taken as thermometer readings, the lag runs over them: not exact.
+    assert prediction_mse(m, rows, None) > 1e-6
+
+
+def _cycles(slopes, temps=np.arange(10.0, 30.0, 2.0), seed=0):
+    """Point table of one power cycle per row of ``slopes`` (rad/s/degC per axis)."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for s, slope in enumerate(slopes):
+        d = temps - 20.0
+        b = 0.01 * s + np.outer(d, slope) + 1e-6 * rng.standard_normal((d.size, 3))
+        rows.append(np.column_stack([1e4 * s + np.arange(d.size) * 100.0,
+                                     np.full(d.size, 500.0), temps, b, np.full(d.size, s)]))
+    return np.vstack(rows)
+
+
+def test_a_curve_that_carries_across_power_cycles_is_kept():
+    e = _cycles([(1e-3, -5e-4, 2e-4)] * 3)
+    fit = fit_points(e, ('dT',), e[:, 0].max(), 86400.0, 1e-3)
+    rec = fit['held_out']
+    assert rec['sessions'] == 3 and rec['folds'] == 3 and rec['points'] == e.shape[0]
+    assert rec['offset_only'] == []
+    assert all(c < 1e-3 * o for c, o in zip(rec['curve_ms_dps2'], rec['offset_ms_dps2']))
+    np.testing.assert_allclose(fit['coef'][1], [1e-3, -5e-4, 2e-4], rtol=1e-3)
+
+
+def test_an_axis_whose_curve_does_not_carry_keeps_the_offset_only():
+    # x turns over from one power cycle to the next, y carries, z has no curve at all.
+    e = _cycles([(1e-3, 5e-4, 0.0), (-1e-3, 5e-4, 0.0), (1e-3, 5e-4, 0.0), (-1e-3, 5e-4, 0.0)])
+    fit = fit_points(e, ('dT', 'dT2'), e[:, 0].max(), 86400.0, 1e-3)
+    rec = fit['held_out']
+    assert rec['folds'] == 4 and 'x' in rec['offset_only'] and 'y' not in rec['offset_only']
+    c, o = rec['curve_ms_dps2'], rec['offset_ms_dps2']
+    assert c[0] >= o[0] and c[1] < o[1]
+    coef = np.asarray(fit['coef'])
+    assert np.all(coef[1:, 0] == 0.0) and coef[1, 1] == pytest.approx(5e-4, rel=1e-3)
+    newest = e[e[:, 6] == 3.0]        # x: the newest cycle's mean (offsets are 0.01 apart)
+    assert coef[0, 0] == pytest.approx(newest[:, 3].mean(), abs=1e-4)
+    model = model_of(fit)
+    assert model.created['held_out'] == rec
+    out = drift(model, np.zeros(2), np.array([12.0, 28.0]), clamp=False)
+    assert out[0, 0] == out[1, 0] and out[0, 1] != out[1, 1]
+
+
+def test_too_few_power_cycles_to_judge_keep_the_curve():
+    one = _cycles([(1e-3, 0.0, 0.0)])
+    rec = fit_points(one, ('dT',), one[:, 0].max(), 86400.0, 1e-3)['held_out']
+    assert rec == {'sessions': 1, 'folds': 0, 'points': 0, 'curve_ms_dps2': None,
+                   'offset_ms_dps2': None, 'offset_only': []}
+    apart = np.vstack([_cycles([(1e-3, 0.0, 0.0)], temps=np.arange(0.0, 10.0)),
+                       _cycles([(0.0, 0.0, 0.0)] * 2, temps=np.arange(30.0, 40.0))[10:]])
+    fit = fit_points(apart, ('dT',), apart[:, 0].max(), 86400.0, 1e-3)
+    assert fit['held_out']['folds'] == 0 and fit['coef'][1][0] != 0.0   # no overlap: kept
+    assert held_out(one, one[:, 1], (), 20.0) is None                      # no curve: none
+
+
+# -- the model temperature ----------------------------------------------------------------
+
+
+LAGS = (ThermalState('first_order', (120.0,)), ThermalState('two_node', (30.0, 200.0)))
+
+
+@pytest.mark.parametrize('thermal', LAGS)
+def test_stream_state_in_any_batches_is_the_streaming_and_batch_state(thermal):
+    rng = np.random.default_rng(4)
+    t = np.cumsum(rng.uniform(0.005, 2.0, 3000))
+    temp = 20.0 + 10.0 * np.sin(t / 500.0) + rng.normal(0.0, 0.01, t.size)
+    stream = thermal.stream()
+    want = np.array([stream.update(a, b) for a, b in zip(t.tolist(), temp.tolist())])
+    np.testing.assert_allclose(thermal.temperature(t, temp), want, rtol=0, atol=1e-9)
+    cuts = np.sort(rng.choice(np.arange(1, t.size), 40, replace=False))
+    carry, got = None, []
+    for lo, hi in zip(np.r_[0, cuts], np.r_[cuts, t.size]):
+        s, carry = stream_state(thermal, carry, t[lo:hi], temp[lo:hi])
+        got.append(s)
+    np.testing.assert_allclose(np.concatenate(got), want, rtol=0, atol=1e-9)
+    assert carry[0] == t[-1] and len(carry[1]) == len(thermal.tau_s)
+
+
+def test_stream_state_skips_missing_temperatures_and_passes_without_a_lag():
+    thermal = LAGS[0]
+    t = np.arange(10.0)
+    temp = np.array([20.0, 21, math.nan, math.nan, 22, 22, 22, math.nan, 23, 23])
+    s, carry = stream_state(thermal, None, t, temp)
+    ok = np.isfinite(temp)
+    assert np.isnan(s[~ok]).all()
+    np.testing.assert_allclose(s[ok], thermal.temperature(t[ok], temp[ok]))
+    assert carry[0] == 9.0
+    for none in (None, ThermalState('none')):
+        s, c = stream_state(none, None, t, temp)
+        assert s is temp and c is None
+    s, c = stream_state(thermal, carry, t[:2], np.full(2, math.nan))
+    assert np.isnan(s).all() and c == carry
+
+
+def test_hold_readings_by_stamp_with_a_timeout():
+    readings = [(2.0, 21.0), (0.0, 20.0), (10.0, 22.0)]
+    held, keep = hold_readings(readings, np.array([-1.0, 0.0, 1.5, 2.0, 8.0, 11.0]), 5.0)
+    np.testing.assert_array_equal(held, [math.nan, 20.0, 20.0, 21.0, math.nan, 22.0])
+    assert keep == [(10.0, 22.0)]
+    held, keep = hold_readings([], np.array([1.0]), 5.0)
+    assert np.isnan(held).all() and keep == []
+
+
+def test_same_thermal_and_the_model_at_its_state():
+    fo = LAGS[0]
+    assert same_thermal(None, ThermalState('none')) and same_thermal(None, None)
+    assert same_thermal(fo, ThermalState('first_order', (120.0,), ((100.0, 150.0),), True))
+    assert not same_thermal(fo, None) and not same_thermal(fo, LAGS[1])
+    assert not same_thermal(fo, ThermalState('first_order', (121.0,)))
+    m = learned_model(np.array([[0.01, 0, 0], [1e-3, 0, 0], [1e-5, 0, 0]]), ('dT', 'dT2'),
+                      20.0, (0.0, 40.0), np.zeros(3), fo)
+    t = np.arange(0.0, 2000.0, 1.0)
+    temp = 20.0 + 0.01 * t
+    flat = at_state(m)
+    assert flat.thermal.kind == 'none' and 'lag' not in flat.features
+    np.testing.assert_allclose(drift(flat, t, fo.temperature(t, temp)), drift(m, t, temp),
+                               rtol=0, atol=1e-15)
+    assert at_state(flat) is flat
