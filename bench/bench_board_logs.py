@@ -29,9 +29,9 @@ Four logs are trained exactly as a user runs it (``python -m gyro_tdc train --st
 <4 logs> --out model.yaml``, defaults; then default ``train``); the eight others are
 compensated by the model and their still stretches scored: per axis the within-log drift of
 the still stretches (``flightlogs.still_drift``: each stretch's mean less the log's mean of
-them, so each log re-anchored as the node does) over raw's. ``--still-only`` passes at
-<= 1.05 x on every axis, default ``train`` at <= 1.1 x or a one-line refusal about
-stillness.
+them, so each log re-anchored as the node does; a spike's sample left out) over raw's.
+``--still-only`` passes at <= 1.05 x on every axis, default ``train`` at <= 1.1 x or a
+one-line refusal about stillness.
 
 ::
 
@@ -133,10 +133,10 @@ def held_out_ratio(model_path: Path, days: list, paths: list) -> np.ndarray:
     for p, d in zip(paths, days):
         r = load_run(p)
         comp.append(compensate(model, r.t, r.temp, r.omega, out_of_range=DEFAULT_OUT_OF_RANGE))
-        # The held-out log's truth on the samples read (a cut end).
+        # The held-out log's truth on the samples read (a cut end); a spike is no drift.
         at = np.clip(np.searchsorted(d.imu.t, r.t - 5e-7), 0, len(d.imu.t) - 1)
         trimmed.append(type(d)(type(d.imu)(d.imu.t[at], d.imu.gyro[at], d.imu.temp[at]),
-                               d.still[at], d.offset, d.drift))
+                               d.still[at] & ~d.glitch[at], d.offset, d.drift))
     return still_drift(trimmed, comp) / still_drift(trimmed)
 
 

@@ -282,6 +282,7 @@ class FlightDay:
     still: np.ndarray            # (N,) bool: truly still samples
     offset: np.ndarray           # (3,) rad/s: this power cycle's turn-on offset
     drift: np.ndarray            # (2, 3): rad/s per degC and per degC^2 about 35 degC
+    glitch: np.ndarray | None = None     # (N,) bool: the samples that read a spike
 
 
 def flight_day(seed: int, *, rate_hz: float = 25.0, still_s: tuple = (10.0, 60.0),
@@ -335,12 +336,14 @@ def flight_day(seed: int, *, rate_hz: float = 25.0, still_s: tuple = (10.0, 60.0
         steps = rng.normal(0.0, 1.0, (m, 3)).cumsum(axis=0) * np.radians(2.0) * np.sqrt(dt)
         gyro[fly] += steps - steps.mean(axis=0) + rng.normal(0.0, np.radians(3.0), (m, 3))
         accel[fly] += rng.normal(0.0, 1.5, (m, 3))
+    glitch = np.zeros(n, dtype=bool)
     if glitches:
         at = rng.choice(n, size=glitches, replace=False)
         gyro[at] += rng.choice([-1.0, 1.0], size=(glitches, 3)) * 3.0
+        glitch[at] = True
     f32 = lambda a: np.asarray(a, dtype=np.float32).astype(np.float64)  # noqa: E731
     imu = Imu(t=np.round(t * 1e6) * 1e-6, gyro=f32(gyro), temp=f32(temp), accel=f32(accel))
-    return FlightDay(imu, is_still, offset, d)
+    return FlightDay(imu, is_still, offset, d, glitch)
 
 
 def still_drift(days: list, corrected: list | None = None) -> np.ndarray:
