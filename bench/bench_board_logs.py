@@ -175,7 +175,7 @@ def _summary(rows: list, name: str, bound: float) -> list[str]:
            f'one-line refusal: {len(ok_ref)} of {len(refused)} refused)']
     if fitted:
         ratios = np.array([r[name] for r in fitted])
-        out.append(f'  median per axis (x, y, z): '
+        out.append('  median per axis (x, y, z): '
                    + ' / '.join(f'{v:.3f}' for v in np.median(ratios, axis=0))
                    + f' over {len(fitted)} fitted; board of the issue: '
                    + ' / '.join(f'{v:.3f}' for v in np.median(
