@@ -20,7 +20,8 @@ from __future__ import annotations
 import math
 
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify import estimate_t0, fit_model, fit_px4_cubic, FitOptions
+from gyro_tdc.identify import (estimate_t0, fit_model, fit_px4_cubic, FitOptions,
+                               session_check_lines)
 from gyro_tdc.model.compensation import compensate, predict_drift
 from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
@@ -205,6 +206,23 @@ def test_an_axis_whose_curve_does_not_carry_keeps_the_offset_only():
     # The training residual on x is the scatter around each session's mean.
     var = np.mean([np.var(r.omega[:, 0]) for r in runs])
     assert m.residual_var[0] == pytest.approx(var, rel=0.02)
+
+
+def test_a_curve_that_misses_one_held_out_power_cycle_keeps_the_offset_only():
+    # x: three power cycles share a slope, the fourth flips: the curve wins on the pooled
+    # held-out mean square but predicts that power cycle worse; y, z carry on every one.
+    runs = [synth_run(seed=i, hours=1.0, rate_hz=2.0, t_lo=0.0, t_hi=40.0, noise_dps=0.02,
+                      a1=(a, -0.015, 0.01), a2=(0.0, 1.5e-4, -1e-4), offset_dps=OFFSETS[i % 3],
+                      name=f'run{i}') for i, a in enumerate((0.03, 0.025, 0.02, -0.01))]
+    m = fit_model(runs, kind='poly', features='dT,dT2', t0=20.0, sessions=[0, 1, 2, 3])
+    check = m.metrics['sessions']['heldout']
+    assert check['curve_ms_dps2'][0] < check['offset_ms_dps2'][0]
+    assert check['worse_folds'] == [1, 0, 0] and check['offset_only'] == ['x']
+    np.testing.assert_array_equal(m.linear[:, 0], 0.0)
+    assert np.all(m.linear[:, 1:] != 0.0)
+    lines = session_check_lines(check)
+    assert '  power cycles predicted worse by the curve: 1  0  0' in lines
+    assert lines[-1].startswith('axes x: the curve does not predict every held-out power')
 
 
 def test_one_intercept_bends_the_curve_per_session_offsets_do_not():

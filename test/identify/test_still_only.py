@@ -235,3 +235,38 @@ def test_cli_still_time_with_too_small_a_span_says_what_to_record(tmp_path, caps
     assert train_main([str(bag), '--still-only', '--out', str(tmp_path / 'f.yaml')]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and 'the still time spans' in err[0] and 'record stops' in err[0]
+
+
+# ------------------------------------------------------------------ logs of one board (issue 34)
+
+def _board_bench():
+    spec = importlib.util.spec_from_file_location('bench_board_logs',
+                                                  ROOT / 'bench' / 'bench_board_logs.py')
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    return bench
+
+
+@pytest.mark.parametrize('case', [0])
+def test_cli_still_only_on_four_logs_of_a_board_does_no_harm_on_eight_more(case, tmp_path):
+    """Four 25 Hz DataFlash logs trained as a user does; <= 1.05x raw on eight held out."""
+    bench = _board_bench()
+    c = bench.draw_case(0, case)
+    assert c['board'] and c['rate_hz'] == 25.0
+    days, paths = bench.write_case(c, tmp_path)
+    model = tmp_path / 'still.yaml'
+    code, err = bench.cli_train(paths[:4], model, '--still-only')
+    assert code == 0, err
+    ratio = bench.held_out_ratio(model, days[4:], paths[4:])
+    assert np.all(ratio <= bench.BOUND_STILL), ratio
+    assert np.min(ratio) < 0.99, ratio                  # and a curve that carries is learnt
+    check = load_model(model).metrics['sessions']['heldout']
+    assert 'x' in check['offset_only'], check           # the x curve does not carry
+    assert ratio[0] == pytest.approx(1.0, abs=1e-9)
+    code, err = bench.cli_train(paths[:4], tmp_path / 'train.yaml')
+    if code:
+        lines = err.strip().splitlines()
+        assert code == 2 and len(lines) == 1 and 'still' in lines[0], err
+    else:
+        ratio = bench.held_out_ratio(tmp_path / 'train.yaml', days[4:], paths[4:])
+        assert np.all(ratio <= bench.BOUND_TRAIN), ratio

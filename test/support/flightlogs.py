@@ -282,13 +282,15 @@ class FlightDay:
     still: np.ndarray            # (N,) bool: truly still samples
     offset: np.ndarray           # (3,) rad/s: this power cycle's turn-on offset
     drift: np.ndarray            # (2, 3): rad/s per degC and per degC^2 about 35 degC
+    glitch: np.ndarray | None = None     # (N,) bool: the samples that read a spike
 
 
 def flight_day(seed: int, *, rate_hz: float = 25.0, still_s: tuple = (10.0, 60.0),
                flight_s: tuple = (20.0, 120.0), legs: int = 8, t_start: float = 20.0,
                t_end: float = 50.0, tau_s: float = 400.0, resolution_c: float = 0.0625,
                noise_dps: float = 0.05, drift: np.ndarray | None = None,
-               glitches: int = 0) -> FlightDay:
+               glitches: int = 0, drift_sd: np.ndarray | None = None,
+               boot_calibrated: bool = False) -> FlightDay:
     """
     Return a flight log's IMU: still stretches and flights in turn while the board warms.
 
@@ -296,6 +298,10 @@ def flight_day(seed: int, *, rate_hz: float = 25.0, still_s: tuple = (10.0, 60.0
     (tens of deg/s) and vibration in flight; the thermometer is quantised to
     ``resolution_c``; ``glitches`` single samples read a spike. Each seed is its own power
     cycle (its own turn-on offset); ``drift`` (2, 3) is the board's (shared across seeds).
+    ``drift_sd`` (2, 3): this power cycle's drift departs from the board's by a normal draw of
+    that spread per term and axis (a curve that does not carry from one power cycle to the
+    next); ``boot_calibrated``: the offset is the one that zeroes the rate at boot, as a
+    flight controller's gyro calibration does, within 0.01 deg/s. ``t_start > t_end`` cools.
     """
     rng = np.random.default_rng(seed)
     dt = 1.0 / rate_hz
@@ -311,9 +317,15 @@ def flight_day(seed: int, *, rate_hz: float = 25.0, still_s: tuple = (10.0, 60.0
     temp_true = t_end + (t_start - t_end) * np.exp(-(t - t[0]) / tau_s)
     temp = np.round(temp_true / resolution_c) * resolution_c
     d = np.array([[0.004, -0.002, 0.003], [3e-5, 4e-5, -2e-5]]) if drift is None else drift
-    d = np.radians(d)
     dT = (temp_true - 35.0)[:, None]
     offset = np.radians(rng.normal(0.0, 0.1, 3))
+    if drift_sd is not None or boot_calibrated:     # a second stream: the seeds above stay
+        cycle = np.random.default_rng([seed, 1])
+        if drift_sd is not None:
+            d = d + cycle.normal(0.0, 1.0, (2, 3)) * np.asarray(drift_sd)
+        if boot_calibrated:
+            offset = -np.radians(dT[0] * d[0] + dT[0] ** 2 * d[1] + cycle.normal(0.0, 0.01, 3))
+    d = np.radians(d)
     noise = np.radians(noise_dps)
     gyro = offset + dT * d[0] + dT ** 2 * d[1] + rng.normal(0.0, noise, (n, 3))
     accel = np.array([0.0, 0.0, -9.81]) + rng.normal(0.0, 0.02, (n, 3))
@@ -324,12 +336,14 @@ def flight_day(seed: int, *, rate_hz: float = 25.0, still_s: tuple = (10.0, 60.0
         steps = rng.normal(0.0, 1.0, (m, 3)).cumsum(axis=0) * np.radians(2.0) * np.sqrt(dt)
         gyro[fly] += steps - steps.mean(axis=0) + rng.normal(0.0, np.radians(3.0), (m, 3))
         accel[fly] += rng.normal(0.0, 1.5, (m, 3))
+    glitch = np.zeros(n, dtype=bool)
     if glitches:
         at = rng.choice(n, size=glitches, replace=False)
         gyro[at] += rng.choice([-1.0, 1.0], size=(glitches, 3)) * 3.0
+        glitch[at] = True
     f32 = lambda a: np.asarray(a, dtype=np.float32).astype(np.float64)  # noqa: E731
     imu = Imu(t=np.round(t * 1e6) * 1e-6, gyro=f32(gyro), temp=f32(temp), accel=f32(accel))
-    return FlightDay(imu, is_still, offset, d)
+    return FlightDay(imu, is_still, offset, d, glitch)
 
 
 def still_drift(days: list, corrected: list | None = None) -> np.ndarray:
