@@ -75,11 +75,11 @@ from gyro_tdc.data import Run, split_sessions  # noqa: E402
 from gyro_tdc.data.realdata import default_pan_csv, read_pan_cubesat_csv  # noqa: E402
 from gyro_tdc.identify import estimate_t0, fit_model, fit_px4_cubic  # noqa: E402
 from gyro_tdc.identify.features import features_for_fit  # noqa: E402
+from gyro_tdc.identify.power_cycles import reanchor_rule  # noqa: E402
 from gyro_tdc.learn import Learner  # noqa: E402
 from gyro_tdc.model import compensate, DEFAULT_OUT_OF_RANGE  # noqa: E402
-from gyro_tdc.runtime import (CompensatorCore, default_tolerance, Policy,  # noqa: E402
-                              reanchor_shift,
-                              STILL_WINDOW_MAX_S)
+from gyro_tdc.runtime import (CompensatorCore, default_tolerance, gated_shift,  # noqa: E402
+                              Policy, reanchor_shift, STILL_WINDOW_MAX_S)
 from gyro_tdc.signal import block_mean, STILL_WINDOW_S  # noqa: E402
 from gyro_tdc.sim import load_scenario, simulate_run  # noqa: E402
 from gyro_tdc.sim.simulator import to_run  # noqa: E402
@@ -129,10 +129,18 @@ def _cycle(name: str, lo: float, hi: float, heating: bool, d: dict, seed: int):
 
 
 def _train_default(runs: list, labels: list):
-    """Fit as ``train`` does by default: T0 of the first run, features auto, sessions."""
+    """
+    Fit as ``train`` does by default: T0 of the first run, features auto, sessions.
+
+    Then, as ``train``, the start-up shift the node takes per axis decided on the sessions
+    (:func:`gyro_tdc.identify.power_cycles.reanchor_rule`).
+    """
     t0 = estimate_t0(runs[0])
     ids, params, _ = features_for_fit(runs, 'auto', t0=t0)
-    return fit_model(runs, features=ids, params=params or None, t0=t0, sessions=labels)
+    model = fit_model(runs, features=ids, params=params or None, t0=t0, sessions=labels)
+    return reanchor_rule(model, runs, labels, lambda others, g: fit_model(
+        others, features=model.features, params=model.effect_params, fit_params=False,
+        t0=t0, thermal=model.thermal, sessions=g))
 
 
 def issue_case() -> dict:
@@ -169,7 +177,7 @@ def _reanchored(model, run: Run) -> np.ndarray:
     c = compensate(model, run.t, run.temp, run.omega, out_of_range=DEFAULT_OUT_OF_RANGE)
     r = reanchor_shift(run.t, c - run.omega_ref, tolerance=default_tolerance(
         model.residual_var), window=STILL_WINDOW_S, window_max=STILL_WINDOW_MAX_S)
-    return c - np.asarray(r.delta) - run.omega_ref
+    return c - gated_shift(model, r.delta) - run.omega_ref
 
 
 def power_cycles(rng: np.random.Generator, k: int) -> dict:

@@ -174,8 +174,10 @@ def training_json(result: TrainResult, warnings: Sequence[str] = ()) -> dict:
         ``model_file``, ``model_id``, ``kind``, ``features``, ``bags``, ``samples``,
         ``temp_range_c``, ``raw_bs``, ``train_bs`` (deg/s)^2 and ``train_rms_dps`` per axis,
         ``constant_axes`` (axis -> its constant reading in rad/s: not fitted, passed through
-        unchanged; empty when none), ``accelerometer`` (``fitted`` and ``note``, null with
-        ``--no-accel``) and ``warnings``.
+        unchanged; empty when none), ``reanchor`` (how large a start-up shift the node takes
+        per axis and the figures it was decided on, ``model.metrics['reanchor']``; null
+        without), ``accelerometer`` (``fitted`` and ``note``, null with ``--no-accel``) and
+        ``warnings``.
 
     """
     m = result.model
@@ -197,6 +199,7 @@ def training_json(result: TrainResult, warnings: Sequence[str] = ()) -> dict:
         'train_bs': vec('train_bs_dps2'),
         'train_rms_dps': vec('train_rms_dps'),
         'constant_axes': {a: _finite(v) for a, v in result.constant.items()},
+        'reanchor': met.get('reanchor'),
         'accelerometer': None if acc is None else {'fitted': acc.part is not None,
                                                    'note': acc.note or None},
         'warnings': list(warnings),

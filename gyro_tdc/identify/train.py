@@ -34,6 +34,7 @@ from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, ident
 from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import estimate_t0, fit_model
 from gyro_tdc.identify.options import TrainOptions
+from gyro_tdc.identify.power_cycles import reanchor_rule
 from gyro_tdc.identify.result import TrainResult
 from gyro_tdc.identify.still_only import (MAX_MOVING_SHARE, moving_share, proxy_lag,
                                           train_still_only)
@@ -118,7 +119,9 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         coefficients are zero, so the model passes it through unchanged
         (:func:`~gyro_tdc.identify.axes.identity_axes`); ``result.constant`` and
         ``model.metrics['constant_axes']``
-        name it.
+        name it. How large a start-up shift the node takes per axis is decided on the
+        sessions (:func:`~gyro_tdc.identify.power_cycles.reanchor_rule`,
+        ``model.metrics['reanchor']``).
 
     Raises
     ------
@@ -154,6 +157,14 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                       frame_id=data_frame(runs),
                       sensor_id=str(o.sensor_id), created={'command': command, 'bags': names})
     model = identity_axes(model, runs, const)
+
+    def refit(others: list, labels: list):
+        return fit_model(others, features=model.features, params=model.effect_params,
+                         fit_params=False, kind=o.kind, t0=t0, n_centers=o.n_centers,
+                         refine=o.refine, ridge=o.ridge, seed=o.seed, thermal=model.thermal,
+                         sessions=labels)
+
+    model = reanchor_rule(model, fitted, split.labels, refit)
     accel_fit = None
     if o.accel:
         accel_fit = fit_accel(runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c)
