@@ -41,11 +41,11 @@ from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit
 from gyro_tdc.model import compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, model_temperature
 from gyro_tdc.runtime import default_tolerance, REANCHOR_KEY, reanchor_shift, STILL_WINDOW_MAX_S
-from gyro_tdc.signal import Folds, heldout, STILL_WINDOW_S, within
+from gyro_tdc.signal import block_mean, Folds, heldout, STILL_WINDOW_S, within
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['check_sessions', 'MAX_ANCHORS', 'reanchor_lines', 'reanchor_rule',
+__all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'reanchor_lines', 'reanchor_rule',
            'session_check_lines', 'SIGNIFICANCE']
 
 _AXES = ('x', 'y', 'z')
@@ -56,6 +56,8 @@ _DEG2 = _DEG ** 2
 SIGNIFICANCE = 2.0
 #: Start-up anchors tried over the training data at most (evenly picked).
 MAX_ANCHORS = 100
+#: Rows per run the anchors are taken on at most (longer runs are block-averaged).
+MAX_ROWS = 50_000
 
 
 def _folds(groups: NDArray[np.int64], temp: NDArray[np.float64]) -> Folds:
@@ -172,14 +174,22 @@ def _anchor(t: NDArray[np.float64], e: NDArray[np.float64], var: NDArray[np.floa
 
 def _sessions(model: CompensationModel, runs: Sequence[Run], labels: Sequence[int],
               lo: float = -math.inf, hi: float = math.inf) -> dict:
-    """Return per session label its runs' (stamps, error) inside ``lo .. hi`` model degC."""
+    """
+    Return per session label its runs' (stamps, error) inside ``lo .. hi`` model degC.
+
+    A run longer than :data:`MAX_ROWS` is averaged over blocks of consecutive samples first:
+    an anchor is a mean, and a block mean's scatter keeps its standard error.
+    """
     out: dict = {}
     for run, g in zip(runs, labels):
-        c = compensate(model, run.t, run.temp, run.omega, out_of_range=DEFAULT_OUT_OF_RANGE)
-        temp = model_temperature(model, run.t, run.temp)
-        keep = (temp >= lo) & (temp <= hi)
+        k = -(-len(run) // MAX_ROWS)
+        t, temp, omega, ref = (block_mean(a, k) for a in (run.t, run.temp, run.omega,
+                                                           run.omega_ref))
+        c = compensate(model, t, temp, omega, out_of_range=DEFAULT_OUT_OF_RANGE)
+        mt = model_temperature(model, t, temp)
+        keep = (mt >= lo) & (mt <= hi)
         if np.count_nonzero(keep) >= 2:
-            out.setdefault(int(g), []).append((run.t[keep], (c - run.omega_ref)[keep]))
+            out.setdefault(int(g), []).append((t[keep], (c - ref)[keep]))
     return out
 
 
