@@ -129,7 +129,7 @@ def _rule_case(k: int, d: dict) -> np.ndarray:
 
 def rule(cases: int) -> None:
     """Sweep the start-up shift rule over rates, layouts, jitter and offsets; print it."""
-    print(f'\nthe start-up shift rule, {cases} draws: RMS of the held-out sessions\' mean '
+    print(f"\nthe start-up shift rule, {cases} draws: RMS of the held-out sessions' mean "
           'error, mdeg/s x y z, median (worst)')
     rng = np.random.default_rng(7)
     rows = []

@@ -38,8 +38,9 @@ bursts), passes when it fired and every anchor passed; ``anchored`` is the share
 samples compensated with their session's anchor in force (what the re-anchoring covered).
 
 ``--rule`` trains with ``train``'s start-up shift rule: an axis within the model's gate is
-not shifted and is judged unshifted. ``--old COMMIT`` runs the re-anchoring of ``gyro_tdc/runtime/reanchor.py`` at that commit
-beside this tree's, on the same cases (the core is this tree's). Run:
+not shifted and is judged unshifted. ``--old COMMIT`` runs the re-anchoring of
+``gyro_tdc/runtime/reanchor.py`` at that commit beside this tree's, on the same cases (the
+core is this tree's). Run:
 ``.venv/bin/python bench/bench_reanchor_bursts.py --cases 60 --old fd17df7`` (about 10 s).
 """
 
@@ -278,7 +279,7 @@ def report(name: str, cases: list, results: list) -> None:
     print(f'  not fired ({len(miss)}):')
     for d, r in miss[:8]:
         print(f'    {_fmt(d)} ({r["sessions"]} sessions)')
-    print(f'  anchor axes within the model\'s gate (not shifted): '
+    print("  anchor axes within the model's gate (not shifted): "
           f'{sum(j["gated"] for j, _, _ in js)} of {3 * len(js)}')
     print(f'  CPU per sample (process + add_temperature): median '
           f'{np.median([r["cpu_us"] for r in results]):.2f} us')

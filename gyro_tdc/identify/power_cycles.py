@@ -183,8 +183,8 @@ def _sessions(model: CompensationModel, runs: Sequence[Run], labels: Sequence[in
     out: dict = {}
     for run, g in zip(runs, labels):
         k = -(-len(run) // MAX_ROWS)
-        t, temp, omega, ref = (block_mean(a, k) for a in (run.t, run.temp, run.omega,
-                                                           run.omega_ref))
+        t, temp, omega, ref = (block_mean(a, k)
+                               for a in (run.t, run.temp, run.omega, run.omega_ref))
         c = compensate(model, t, temp, omega, out_of_range=DEFAULT_OUT_OF_RANGE)
         mt = model_temperature(model, t, temp)
         keep = (mt >= lo) & (mt <= hi)
@@ -298,13 +298,13 @@ def reanchor_lines(record: dict | None) -> list[str]:
     out = [f'start-up anchors taken throughout the training data err by (RMS, deg/s) {row}']
     if 'always_dps' in record:
         out += [f"held out on {record['held_out']} power cycles (each predicted by the model "
-                "fitted on the others, re-anchored at its start), RMS of their mean error, deg/s:",
+                'fitted on the others, re-anchored at its start), RMS of their mean error, deg/s:',
                 *(f'  {k:<22}' + '  '.join(f'{v:10.3g}' for v in record[f'{k.split()[0]}_dps'])
                   for k in ('always (any shift)', 'gated (beyond the gate)', 'never'))]
     for a, v, e in zip(_AXES, record['min_shift_dps'], record['anchor_error_dps']):
         if v > 0:
             out.append(f'axis {a}: the node re-anchors only beyond {v:.3g} deg/s '
-                       f'({SIGNIFICANCE:g} x its anchors\' error: a smaller start-up shift is no '
+                       f"({SIGNIFICANCE:g} x its anchors' error: a smaller start-up shift is no "
                        'evidence of a turn-on offset)')
         else:
             out.append(f'axis {a}: the node re-anchors any start-up shift')
