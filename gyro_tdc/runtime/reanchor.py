@@ -271,6 +271,12 @@ class StillnessDetector:
         self.reset()
 
     @property
+    def default_rule(self) -> bool:
+        """Return whether the anchors are the trainer's (default windows, auto tolerance)."""
+        return (self.fixed_tolerance <= 0 and self.window == STILL_WINDOW_S
+                and self.window_max == STILL_WINDOW_MAX_S)
+
+    @property
     def motion(self) -> list[tuple[float, bool]]:
         """Return the motion reports (stamp, moving) from the one held at the window on."""
         return self.still.motion.reports

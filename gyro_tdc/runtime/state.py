@@ -185,12 +185,15 @@ class Reanchoring:
         """
         Shift ``slot``'s model offset by the shift ``found`` at ``temp``; keep it.
 
-        An axis whose shift is within the model's gate (:func:`gated_shift`: no evidence of a
-        turn-on offset, as its training found held out) is not shifted.
+        With the default averaging, an axis whose shift is within the model's gate
+        (:func:`gated_shift`: no evidence of a turn-on offset, as its training measured
+        anchors of that averaging) is not shifted.
         """
         # The compensated rate is divided by 1 + s dT: the drift shift is the mean times it.
         den = slot.scale_at(temp)
-        delta = gated_shift(slot.model, np.asarray(found.delta) * den)
+        delta = np.asarray(found.delta) * den
+        if self.detector.default_rule:
+            delta = gated_shift(slot.model, delta)
         slot.comp.shift_offset(delta)
         slot.clear()
         self.anchor = replace(found, delta=tuple(float(v) for v in delta),

@@ -179,8 +179,8 @@ def test_the_core_takes_no_shift_within_the_models_gate():
     raw = (rng.normal(0.0, 1e-4, (t.size, 3)) + offset
            + compensate_zero(model, t, np.full(t.size, 25.0)))
 
-    def anchor(m):
-        core = CompensatorCore(Policy(still_window=5.0), m)
+    def anchor(m, **policy):
+        core = CompensatorCore(Policy(**policy), m)
         for k in range(t.size):
             if k % 100 == 0:
                 core.add_temperature(t[k], 25.0)
@@ -189,9 +189,13 @@ def test_the_core_takes_no_shift_within_the_models_gate():
 
     free = anchor(model)
     np.testing.assert_allclose(free.delta, offset, atol=1e-4)
-    held = anchor(_gated(model, [0.1, 0.01, 0.1]))           # x and z within their gate
+    gated = _gated(model, [0.1, 0.01, 0.1])                  # x and z within their gate
+    held = anchor(gated)
     assert held.delta[0] == held.delta[2] == 0.0
     assert held.delta[1] == pytest.approx(free.delta[1], abs=1e-12)
+    # Another averaging than the one the trainer measured: its gate does not apply.
+    for policy in ({'reanchor_tolerance': 1e-5}, {'still_window': 5.0}):
+        np.testing.assert_allclose(anchor(gated, **policy).delta, offset, atol=1e-4)
 
 
 def compensate_zero(model, t, temp):
