@@ -35,7 +35,7 @@ import sys
 import time
 
 ROOT = Path(__file__).resolve().parent.parent
-for p in (ROOT, ROOT / 'test'):
+for p in (ROOT, ROOT / 'test' / 'support'):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 

@@ -24,7 +24,7 @@ See ``doc/internals/base.md``.
 
 from __future__ import annotations
 
-from contextlib import contextmanager
+from contextlib import contextmanager, suppress
 import ctypes
 import errno
 import functools
@@ -69,38 +69,48 @@ def _temp_name(directory: Path, name: str, kind: str = 'tmp') -> Path:
                         f'.{kind}')
 
 
-def _create_temp(directory: Path, name: str) -> tuple[int, Path]:
-    """Create a new temporary file (mode 0666 & ~umask) and return its descriptor and path."""
-    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, 'O_CLOEXEC', 0)
+def _fresh(directory: Path, name: str, make: Callable[[Path], object], kind: str = 'tmp'
+           ) -> tuple[object, Path]:
+    """
+    Return ``make(tmp)`` for the first unused hidden name ``tmp`` beside ``name``, and it.
+
+    ``make`` raises FileExistsError when the name is taken; after 100 tries this does.
+    """
     for _ in range(100):
-        tmp = _temp_name(directory, name)
+        tmp = _temp_name(directory, name, kind)
         try:
-            return os.open(tmp, flags, 0o666), tmp
+            return make(tmp), tmp
         except FileExistsError:
             continue
     raise FileExistsError(f'no free temporary name beside {name!r}')
 
 
+def _create_temp(directory: Path, name: str) -> tuple[int, Path]:
+    """Create a new temporary file (mode 0666 & ~umask) and return its descriptor and path."""
+    flags = os.O_WRONLY | os.O_CREAT | os.O_EXCL | getattr(os, 'O_CLOEXEC', 0)
+    return _fresh(directory, name, lambda tmp: os.open(tmp, flags, 0o666))
+
+
+def _unused(path: Path) -> None:
+    """Raise FileExistsError when something is at ``path``."""
+    if os.path.lexists(path):
+        raise FileExistsError(errno.EEXIST, 'it exists already', str(path))
+
+
 def _unlink(path: Path) -> None:
     """Remove ``path`` if it exists (cleanup: errors are ignored)."""
-    try:
+    with suppress(OSError):
         os.unlink(path)
-    except OSError:
-        pass
 
 
 def _sync_dir(directory: Path) -> None:
     """Flush a directory entry to disk (best effort)."""
-    try:
+    with suppress(OSError):
         fd = os.open(directory, os.O_RDONLY)
-    except OSError:
-        return
-    try:
-        os.fsync(fd)
-    except OSError:
-        pass
-    finally:
-        os.close(fd)
+        try:
+            os.fsync(fd)
+        finally:
+            os.close(fd)
 
 
 def _target(path: Path) -> Path:
@@ -253,10 +263,8 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
         try:
             if old is not None:
                 if (old.st_uid, old.st_gid) != (os.geteuid(), os.getegid()):
-                    try:
+                    with suppress(OSError):     # not permitted: ours, as with open()
                         os.fchown(fd, old.st_uid, old.st_gid)
-                    except OSError:
-                        pass        # not permitted: the new file is ours, as with open()
                 os.fchmod(fd, stat.S_IMODE(old.st_mode))
             stream = (os.fdopen(fd, 'wb') if binary
                       else os.fdopen(fd, 'w', encoding=encoding, newline=newline))
@@ -321,18 +329,12 @@ def _move_in(new: Path, path: Path, replace: bool) -> None:
     """
     if not (replace and os.path.lexists(path)):
         if not _renameat2(new, path, _RENAME_NOREPLACE):
-            if os.path.lexists(path):
-                raise FileExistsError(errno.EEXIST, 'it exists already')
+            _unused(path)
             os.rename(new, path)
         return
     if _renameat2(new, path, _RENAME_EXCHANGE):
         return              # ``new`` now names the old tree, removed with the staging dir
-    for _ in range(100):
-        backup = _temp_name(path.parent, path.name, 'old')
-        if not os.path.lexists(backup):
-            break
-    else:
-        raise FileExistsError(f'no free temporary name beside {path.name!r}')
+    _, backup = _fresh(path.parent, path.name, _unused, 'old')
     os.rename(path, backup)
     try:
         os.rename(new, path)
@@ -383,15 +385,7 @@ def atomic_dir(path: str | os.PathLike, *, what: str = 'directory',
         raise OutputError(f'cannot write {what} {str(path)!r}: it exists already')
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        for _ in range(100):
-            staging = _temp_name(path.parent, path.name)
-            try:
-                os.mkdir(staging, 0o700)
-                break
-            except FileExistsError:
-                continue
-        else:
-            raise FileExistsError(f'no free temporary name beside {path.name!r}')
+        _, staging = _fresh(path.parent, path.name, lambda tmp: os.mkdir(tmp, 0o700))
     except OSError as exc:
         raise _fail(what, path, exc) from None
     inner = staging / path.name

@@ -87,6 +87,11 @@ def config_dir() -> Path:
     return found
 
 
+def _dir(config: Optional[PathLike], kind: str) -> Path:
+    """Return the directory of the shipped ``kind`` files (``config/<kind>s``)."""
+    return (Path(config) if config is not None else config_dir()) / f'{kind}s'
+
+
 def _names(directory: Path) -> list[str]:
     if not directory.is_dir():
         return []
@@ -94,22 +99,22 @@ def _names(directory: Path) -> list[str]:
                   if p.is_file() and p.suffix in YAML_SUFFIXES)
 
 
-def _resolve(name_or_file: PathLike, *, kind: str, argument: str, subdir: str,
-             error: type[GyroTdcError], config: Optional[PathLike]) -> Path:
+def _resolve(name_or_file: PathLike, kind: str, error: type[GyroTdcError],
+             config: Optional[PathLike]) -> Path:
     if not isinstance(name_or_file, (str, os.PathLike)):
-        raise error(f'`{argument}` must be a {kind} name or a file path, '
+        raise error(f'`{kind}` must be a {kind} name or a file path, '
                     f'got {type(name_or_file).__name__}: {name_or_file!r}')
     text = os.fspath(name_or_file)
     if not text:
-        raise error(f'`{argument}` must be a {kind} name or a file path, got an empty string')
+        raise error(f'`{kind}` must be a {kind} name or a file path, got an empty string')
     path = Path(text).expanduser()
     looks_like_file = (path.suffix in YAML_SUFFIXES or os.sep in text or '/' in text
                        or (os.altsep is not None and os.altsep in text))
     if looks_like_file:
         if path.is_file():
             return path
-        raise error(f'`{argument}`: {kind} file {text!r} does not exist or is not a file')
-    directory = (Path(config) if config is not None else config_dir()) / subdir
+        raise error(f'`{kind}`: {kind} file {text!r} does not exist or is not a file')
+    directory = _dir(config, kind)
     for suffix in YAML_SUFFIXES:
         candidate = directory / f'{text}{suffix}'
         if candidate.is_file():
@@ -119,7 +124,7 @@ def _resolve(name_or_file: PathLike, *, kind: str, argument: str, subdir: str,
         return path
     names = _names(directory)
     available = ', '.join(names) if names else '<none>'
-    raise error(f'`{argument}`: unknown {kind} {text!r}; expected a YAML file path or one of '
+    raise error(f'`{kind}`: unknown {kind} {text!r}; expected a YAML file path or one of '
                 f'the shipped {kind}s in {directory}: {available}')
 
 
@@ -138,7 +143,7 @@ def scenario_names(*, config: Optional[PathLike] = None) -> list[str]:
         Stems of ``config/scenarios/*.yaml``.
 
     """
-    return _names((Path(config) if config is not None else config_dir()) / 'scenarios')
+    return _names(_dir(config, 'scenario'))
 
 
 def model_names(*, config: Optional[PathLike] = None) -> list[str]:
@@ -156,7 +161,7 @@ def model_names(*, config: Optional[PathLike] = None) -> list[str]:
         Stems of ``config/models/*.yaml``.
 
     """
-    return _names((Path(config) if config is not None else config_dir()) / 'models')
+    return _names(_dir(config, 'model'))
 
 
 def scenario_path(name_or_file: PathLike, *, config: Optional[PathLike] = None) -> Path:
@@ -166,8 +171,7 @@ def scenario_path(name_or_file: PathLike, *, config: Optional[PathLike] = None) 
     Anything with a ``.yaml``/``.yml`` suffix or a path separator is a path; names are searched
     in ``config`` (default :func:`config_dir`). A ScenarioError lists the shipped names.
     """
-    return _resolve(name_or_file, kind='scenario', argument='scenario', subdir='scenarios',
-                    error=ScenarioError, config=config)
+    return _resolve(name_or_file, 'scenario', ScenarioError, config)
 
 
 def model_path(name_or_file: PathLike, *, config: Optional[PathLike] = None) -> Path:
@@ -177,5 +181,4 @@ def model_path(name_or_file: PathLike, *, config: Optional[PathLike] = None) -> 
     Anything with a ``.yaml``/``.yml`` suffix or a path separator is a path; names are searched
     in ``config`` (default :func:`config_dir`). A ModelFileError lists the shipped names.
     """
-    return _resolve(name_or_file, kind='model', argument='model', subdir='models',
-                    error=ModelFileError, config=config)
+    return _resolve(name_or_file, 'model', ModelFileError, config)

@@ -22,6 +22,7 @@ line naming the file, the line and the limit. See ``doc/internals/base.md``.
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 import os
 from pathlib import Path
 from typing import Any
@@ -36,6 +37,7 @@ _OPEN = (yaml.MappingStartEvent, yaml.SequenceStartEvent)
 _CLOSE = (yaml.MappingEndEvent, yaml.SequenceEndEvent)
 
 
+@dataclass(frozen=True)
 class YamlLimits:
     """
     Hard limits of one kind of YAML file.
@@ -55,20 +57,11 @@ class YamlLimits:
 
     """
 
-    __slots__ = ('what', 'max_bytes', 'max_depth', 'max_nodes', 'aliases')
-
-    def __init__(self, what: str, *, max_bytes: int, max_depth: int, max_nodes: int,
-                 aliases: bool) -> None:
-        self.what = what
-        self.max_bytes = int(max_bytes)
-        self.max_depth = int(max_depth)
-        self.max_nodes = int(max_nodes)
-        self.aliases = bool(aliases)
-
-    def __repr__(self) -> str:
-        return (f'YamlLimits({self.what!r}, max_bytes={self.max_bytes}, '
-                f'max_depth={self.max_depth}, max_nodes={self.max_nodes}, '
-                f'aliases={self.aliases})')
+    what: str
+    max_bytes: int = field(kw_only=True)
+    max_depth: int = field(kw_only=True)
+    max_nodes: int = field(kw_only=True)
+    aliases: bool = field(kw_only=True)
 
 
 # Scenario files and rosbag2 metadata.yaml may use anchors and aliases; their expansion is
@@ -88,6 +81,10 @@ def _line(event: Any) -> str:
 def _check_events(text: str, limits: YamlLimits, source: str,
                   error: type[GyroTdcError]) -> None:
     """Walk the event stream once and raise ``error`` at the first limit exceeded."""
+    def refuse(mark: str, event: Any) -> None:
+        if not limits.aliases:
+            raise error(f'{source}: YAML {mark}{event.anchor}{_line(event)}: anchors and '
+                        f'aliases are not allowed in a {limits.what}')
     depth = 0
     total = 0
     sizes: dict[str, int] = {}          # anchor -> expanded size of its node
@@ -99,9 +96,8 @@ def _check_events(text: str, limits: YamlLimits, source: str,
             if depth > limits.max_depth:
                 raise error(f'{source}: nesting deeper than {limits.max_depth} levels'
                             f'{_line(event)} (the limit of a {limits.what})')
-            if event.anchor is not None and not limits.aliases:
-                raise error(f'{source}: YAML anchor &{event.anchor}{_line(event)}: '
-                            f'anchors and aliases are not allowed in a {limits.what}')
+            if event.anchor is not None:
+                refuse('anchor &', event)
             open_.append([event.anchor, 1])
             total += 1
         elif kind in _CLOSE:
@@ -114,17 +110,13 @@ def _check_events(text: str, limits: YamlLimits, source: str,
             continue
         elif kind is yaml.ScalarEvent:
             if event.anchor is not None:
-                if not limits.aliases:
-                    raise error(f'{source}: YAML anchor &{event.anchor}{_line(event)}: '
-                                f'anchors and aliases are not allowed in a {limits.what}')
+                refuse('anchor &', event)
                 sizes[event.anchor] = 1
             total += 1
             if open_:
                 open_[-1][1] += 1
         elif kind is yaml.AliasEvent:
-            if not limits.aliases:
-                raise error(f'{source}: YAML alias *{event.anchor}{_line(event)}: '
-                            f'anchors and aliases are not allowed in a {limits.what}')
+            refuse('alias *', event)
             if any(frame[0] == event.anchor for frame in open_):
                 raise error(f'{source}: recursive YAML alias *{event.anchor}{_line(event)}')
             size = sizes.get(event.anchor, 1)

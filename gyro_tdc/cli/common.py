@@ -261,66 +261,30 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
 # argparse types: a bad value becomes one line naming the option (exit 2)
 # --------------------------------------------------------------------------------------------
 
-def _number(text: str) -> float:
-    """Return ``text`` as a float, NaN when it is not a number."""
-    try:
-        return float(text)
-    except ValueError:
-        return math.nan
+def _argtype(name: str, convert: Callable[[str], object], ok: Callable[[object], bool],
+             expected: str) -> Callable[[str], object]:
+    """Return an argparse type: ``convert`` the text, refuse what is not ``ok`` in one line."""
+    def parse(text: str) -> object:
+        try:
+            value = convert(text)
+        except ValueError:
+            value = None
+        if value is None or not ok(value):
+            raise argparse.ArgumentTypeError(f'expected {expected}, got {text!r}')
+        return value
+    parse.__name__ = parse.__qualname__ = name
+    parse.__doc__ = f'Parse {expected} (argparse type).'
+    return parse
 
 
-def finite_float(text: str) -> float:
-    """Parse a finite number (argparse type)."""
-    v = _number(text)
-    if not math.isfinite(v):
-        raise argparse.ArgumentTypeError(f'expected a finite number, got {text!r}')
-    return v
-
-
-def positive_float(text: str) -> float:
-    """Parse a finite number > 0 (argparse type)."""
-    v = finite_float(text)
-    if v <= 0:
-        raise argparse.ArgumentTypeError(f'expected a number > 0, got {text!r}')
-    return v
-
-
-def non_negative_float(text: str) -> float:
-    """Parse a finite number >= 0 (argparse type)."""
-    v = _number(text)
-    if not (math.isfinite(v) and v >= 0):
-        raise argparse.ArgumentTypeError(f'expected a number >= 0, got {text!r}')
-    return v
-
-
-def probability(text: str) -> float:
-    """Parse a number in (0, 1) (argparse type)."""
-    v = finite_float(text)
-    if not 0.0 < v < 1.0:
-        raise argparse.ArgumentTypeError(f'expected a number between 0 and 1, got {text!r}')
-    return v
-
-
-def positive_int(text: str) -> int:
-    """Parse an integer >= 1 (argparse type)."""
-    try:
-        v = int(text)
-    except ValueError:
-        v = 0
-    if v < 1:
-        raise argparse.ArgumentTypeError(f'expected an integer >= 1, got {text!r}')
-    return v
-
-
-def non_negative_int(text: str) -> int:
-    """Parse an integer >= 0 (argparse type)."""
-    try:
-        v = int(text)
-    except ValueError:
-        v = -1
-    if v < 0:
-        raise argparse.ArgumentTypeError(f'expected an integer >= 0, got {text!r}')
-    return v
+finite_float = _argtype('finite_float', float, math.isfinite, 'a finite number')
+positive_float = _argtype('positive_float', finite_float, lambda v: v > 0, 'a number > 0')
+non_negative_float = _argtype('non_negative_float', float,
+                              lambda v: math.isfinite(v) and v >= 0, 'a number >= 0')
+probability = _argtype('probability', finite_float, lambda v: 0.0 < v < 1.0,
+                       'a number between 0 and 1')
+positive_int = _argtype('positive_int', int, lambda v: v >= 1, 'an integer >= 1')
+non_negative_int = _argtype('non_negative_int', int, lambda v: v >= 0, 'an integer >= 0')
 
 
 def read_model(spec: str) -> 'CompensationModel':
@@ -451,14 +415,11 @@ def driver_bags(args: argparse.Namespace, paths: Sequence[str]) -> list:
         cannot be read.
 
     """
+    from dataclasses import fields
     import tempfile
     from gyro_tdc.data import DriverInputs, expand_bags, is_flight_log, normalize_bag
-    inputs = DriverInputs(
-        imu_type=args.imu_type, angular_velocity_field=args.angular_velocity_field,
-        stamp_field=args.stamp_field, input_frame=args.input_frame,
-        temperature_type=args.temperature_type, temperature_field=args.temperature_field,
-        temperature_stamp_field=args.temperature_stamp_field,
-        temperature_quirk=args.temperature_quirk)
+    # Every option of add_driver_options is the DriverInputs field of its name.
+    inputs = DriverInputs(**{f.name: getattr(args, f.name) for f in fields(DriverInputs)})
     if inputs.plain:
         return list(paths)
     tmp = getattr(args, 'driver_bags_dir', None)

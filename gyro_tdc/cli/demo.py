@@ -115,32 +115,34 @@ class _Steps:
         print(f'\n[{self.n}/{self.total}] {STEPS[self.n - 1]}  '
               f'(t = {time.monotonic() - self.start:.0f} s)', flush=True)
 
-    def run(self, command: str, argv: Sequence[str],
-            fn: Callable[[list[str]], int]) -> None:
-        """Print ``$ gyro-tdc COMMAND ARGV`` and run the command's ``main``."""
+    def run(self, command: str, argv: Sequence[str], fn: Callable[[list[str]], int],
+            covered: str = '') -> None:
+        """
+        Print ``$ gyro-tdc COMMAND ARGV`` and run the command's ``main``.
+
+        With ``covered`` (a bag whose coverage report was printed before), the command's
+        coverage lines are left out and one line says so.
+        """
         print(f'$ {PROG} {command} {shlex.join(argv)}', flush=True)
-        rc = fn(list(argv))
+        if not covered:
+            rc = fn(list(argv))
+        else:
+            buffer = io.StringIO()
+            with contextlib.redirect_stdout(buffer):
+                rc = fn(list(argv))
+            lines = buffer.getvalue().splitlines()
+            kept = [line for line in lines if not is_coverage_line(line)]
+            if len(kept) < len(lines):
+                kept.append(f'(coverage of {covered}: as printed above)')
+            print('\n'.join(kept), flush=True)
         if rc != 0:
             raise GyroTdcError(f'step {self.n} ({command}) failed with exit code {rc}')
 
     def train(self, argv: Sequence[str], fn: Callable[[list[str]], int]) -> None:
         """Run ``train``; a bag's coverage report is printed only the first time."""
         bag = str(argv[0])
-        if bag not in self.covered:
-            self.covered.add(bag)
-            self.run('train', argv, fn)
-            return
-        print(f'$ {PROG} train {shlex.join(argv)}', flush=True)
-        buffer = io.StringIO()
-        with contextlib.redirect_stdout(buffer):
-            rc = fn(list(argv))
-        lines = buffer.getvalue().splitlines()
-        kept = [line for line in lines if not is_coverage_line(line)]
-        if len(kept) < len(lines):
-            kept.append(f'(coverage of {bag}: as printed above)')
-        print('\n'.join(kept), flush=True)
-        if rc != 0:
-            raise GyroTdcError(f'step {self.n} (train) failed with exit code {rc}')
+        self.run('train', argv, fn, covered=bag if bag in self.covered else '')
+        self.covered.add(bag)
 
 
 def prepare_out(out: Path) -> None:

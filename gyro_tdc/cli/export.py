@@ -122,8 +122,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``export`` with parsed arguments."""
     if args.model is not None:
         return _write_model(args)
-    firmware = 'px4' if args.px4 is not None else 'ardupilot'
-    spec = args.px4 if args.px4 is not None else args.ardupilot
+    firmware, spec = ('px4', args.px4) if args.px4 is not None else ('ardupilot', args.ardupilot)
     slots = 4 if firmware == 'px4' else 3
     if args.instance >= slots:
         raise UsageError(f'--instance {args.instance}: {firmware} has '
@@ -139,10 +138,9 @@ def _run(args: argparse.Namespace, argv: list) -> int:
           f'{lo:.2f} .. {hi:.2f} degC: its {state} fitted on a uniform temperature grid')
     fitted = fit_export(model, firmware, instance=args.instance,
                         device_id=_device_id(args, model) if firmware == 'px4' else 0)
-    title = ('Sensor thermal compensation parameters' if firmware == 'px4' else
-             'IMU temperature calibration')
     path = write_params(fitted, args.out, header=[
-        f'{title} from gyro_tdc model {model.model_id}',
+        ('Sensor thermal compensation parameters' if firmware == 'px4' else
+         'IMU temperature calibration') + f' from gyro_tdc model {model.model_id}',
         f'{command_line("export", argv)}',
         f'fitted over {lo:.2f} .. {hi:.2f} degC; clamped there by the firmware'])
     form = from_params(read_params(path), firmware, instance=args.instance)
@@ -157,12 +155,11 @@ def _run(args: argparse.Namespace, argv: list) -> int:
               f'offsets at CALTEMP {g.caltemp:.2f} degC')
     print('form minus model over the range (RMS, deg/s): ' + _axes(fitted.fit_rms_dps))
     print(f'wrote {path} ({len(fitted.params)} parameters; {_LOAD[firmware]})')
-    for note in fitted.notes:
-        print(f'note: {note}')
+    print(''.join(f'note: {note}\n' for note in fitted.notes), end='')
     print(f'clamp: outside TMIN..TMAX the firmware holds the correction, the model continues '
           f'({DEFAULT_OUT_OF_RANGE}, as the compensator node); largest axis gap:')
-    for c in clamp_cost(model, form):
-        print(f'  at {c["temp_c"]:7.2f} degC: {c["gap_dps"]:.4f} deg/s')
+    print('\n'.join(f'  at {c["temp_c"]:7.2f} degC: {c["gap_dps"]:.4f} deg/s'
+                    for c in clamp_cost(model, form)))
     if args.eval:
         _evaluate(args, model, form, firmware)
     return 0

@@ -17,7 +17,7 @@
 
 Parses the arguments into one :class:`~gyro_tdc.identify.TrainOptions` and one
 :class:`~gyro_tdc.data.BagOptions`, runs :func:`gyro_tdc.identify.train.train` (or, with
-``--still-only``, :func:`gyro_tdc.identify.still_only.train_still_only`) and prints the
+``--still-only``, :func:`gyro_tdc.identify.train.train_still_only`) and prints the
 choice of features, the training report and the coverage; bad input exits 2 with one line.
 """
 
@@ -80,19 +80,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def add_train_options(p: argparse.ArgumentParser) -> None:
-    """
-    Add every option of ``train`` but the bags and ``--out`` (model and bag options).
-
-    Commands that train (``fleet``) share the options and defaults through this function;
-    :func:`train_options` and :func:`gyro_tdc.cli.common.bag_options` turn the parsed
-    arguments into the options of :func:`gyro_tdc.identify.train.train`.
-
-    Parameters
-    ----------
-    p : argparse.ArgumentParser
-        The command's parser.
-
-    """
+    """Add every option of ``train`` but the bags and ``--out`` (``fleet`` shares them)."""
     p.add_argument('--features', default=AUTO, metavar='IDS',
                    help='auto, or comma-separated effect ids (default: %(default)s: the '
                         "paper's modified model dT,dT2 plus what discovery finds the data "
@@ -123,87 +111,50 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
 
 def train_options(args: argparse.Namespace, **more: object) -> TrainOptions:
     """
-    Return the training options from arguments parsed with :func:`add_train_options`.
+    Return the training options of arguments parsed with :func:`add_train_options`.
 
-    Parameters
-    ----------
-    args : argparse.Namespace
-        Parsed arguments.
-    **more
-        Further :class:`~gyro_tdc.identify.TrainOptions` fields the command sets itself
-        (``sensor_id``, ``min_still_s``).
-
-    Returns
-    -------
-    TrainOptions
-        ``features``, ``kind``, ``n_centers``, ``refine``, ``t0``, ``seed``, ``bin_c``,
-        ``accel`` and ``more``.
-
-    Raises
-    ------
-    GyroTdcError
-        FeatureError when ``--features`` names an unknown effect (and the checks of
-        :class:`~gyro_tdc.identify.TrainOptions`).
-
+    ``more`` are the fields the command sets itself (``sensor_id``, ``min_still_s``); a bad
+    choice (an unknown effect id) fails here, before any bag is read.
     """
     return TrainOptions(features=args.features, kind=args.kind, n_centers=args.centers,
                         refine=args.refine, t0=args.t0, seed=args.seed, bin_c=args.bin_c,
                         accel=args.accel, **more)
 
 
-def _finite(v: object) -> float | None:
-    """Return ``v`` as a float, None when it is not finite (JSON has no NaN)."""
-    v = float(v)
-    return v if math.isfinite(v) else None
-
-
 def training_json(result: TrainResult, warnings: Sequence[str] = ()) -> dict:
     """
     Return what ``train`` produced in the documented JSON shape (doc/json.md).
 
-    Parameters
-    ----------
-    result : TrainResult
-        What :func:`gyro_tdc.identify.train.train` (or ``train_still_only``) returned.
-    warnings : sequence of str
-        The warnings printed (without the ``warning:`` prefix).
-
-    Returns
-    -------
-    dict
-        ``model_file``, ``model_id``, ``kind``, ``features``, ``bags``, ``samples``,
-        ``temp_range_c``, ``raw_bs``, ``train_bs`` (deg/s)^2 and ``train_rms_dps`` per axis,
-        ``constant_axes`` (axis -> its constant reading in rad/s: not fitted, passed through
-        unchanged; empty when none), ``reanchor`` (how large a start-up shift the node takes
-        per axis and the figures it was decided on, ``model.metrics['reanchor']``; null
-        without), ``accelerometer`` (``fitted`` and ``note``, null with ``--no-accel``) and
-        ``warnings``.
-
+    Model file and id, kind, features, bags, samples, range, raw and training BS (deg/s)^2
+    and RMS per axis, the constant axes (axis -> reading, rad/s), ``reanchor`` (the start-up
+    shift the node takes per axis and its figures, ``model.metrics['reanchor']``), the
+    accelerometer part (``fitted``, ``note``; null with ``--no-accel``) and the ``warnings``
+    printed.
     """
-    m = result.model
-    met = m.metrics
-    acc = result.accel
+    m, acc = result.model, result.accel
+
+    def num(v: object) -> float | None:
+        v = float(v)
+        return v if math.isfinite(v) else None      # JSON has no NaN
 
     def vec(key: str) -> list:
-        return [_finite(v) for v in met.get(key, [math.nan] * 3)]
+        return [num(v) for v in m.metrics.get(key, [math.nan] * 3)]
 
-    return {
-        'model_file': str(result.path),
-        'model_id': m.model_id,
-        'kind': m.kind,
-        'features': list(m.features),
-        'bags': [str(b) for b in result.bags],
-        'samples': int(result.samples),
-        'temp_range_c': [_finite(v) for v in m.temp_range_c],
-        'raw_bs': vec('raw_bs_dps2'),
-        'train_bs': vec('train_bs_dps2'),
-        'train_rms_dps': vec('train_rms_dps'),
-        'constant_axes': {a: _finite(v) for a, v in result.constant.items()},
-        'reanchor': met.get('reanchor'),
-        'accelerometer': None if acc is None else {'fitted': acc.part is not None,
-                                                   'note': acc.note or None},
-        'warnings': list(warnings),
-    }
+    return {'model_file': str(result.path), 'model_id': m.model_id, 'kind': m.kind,
+            'features': list(m.features), 'bags': [str(b) for b in result.bags],
+            'samples': int(result.samples), 'temp_range_c': [num(v) for v in m.temp_range_c],
+            'raw_bs': vec('raw_bs_dps2'), 'train_bs': vec('train_bs_dps2'),
+            'train_rms_dps': vec('train_rms_dps'),
+            'constant_axes': {a: num(v) for a, v in result.constant.items()},
+            'reanchor': m.metrics.get('reanchor'),
+            'accelerometer': None if acc is None else {'fitted': acc.part is not None,
+                                                       'note': acc.note or None},
+            'warnings': list(warnings)}
+
+
+def _lines(part: object) -> list:
+    """Return the report lines of a part of the result (none when it is None)."""
+    return [] if part is None else part.lines()
 
 
 def _run(args: argparse.Namespace, argv: list) -> int:
@@ -217,28 +168,21 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     fit = train_still_only if args.still_only else train     # still: no reference is read
     result = fit(args.bags, args.out, options, bag, command=command_line('train', argv),
                  log=lambda line: print(line, flush=True))
-    if result.choice is not None:
-        print('\n'.join(result.choice.lines()))
-    for line in format_sessions(result):
-        print(line)
     text, warns = format_training(result)
-    print(text)
-    if result.still is not None:
-        print('\n'.join(result.still.lines()))
-    if result.accel is not None:
-        print('\n'.join(result.accel.lines()))
-        fit = result.accel
-        if fit.part is not None and fit.coverage is not None:
-            # The accelerometer's still samples against the gyro's: a chamber run is still
-            # throughout for both (its own still test may find a few more or fewer).
-            share = fit.samples / max(result.samples, 1)
-            if 0.99 <= share <= 1.0:
-                print(f"accelerometer coverage: the gyro's ({100.0 * share:.4g} % of the "
-                      'samples still)')
-            else:
-                table, accel_warns = format_coverage(fit.coverage)
-                print('accelerometer coverage (still data):\n' + table)
-                warns = list(warns) + [f'accelerometer: {w}' for w in accel_warns]
+    print('\n'.join([*_lines(result.choice), *format_sessions(result), text,
+                     *_lines(result.still), *_lines(result.accel)]))
+    acc = result.accel
+    if acc is not None and acc.part is not None and acc.coverage is not None:
+        # The accelerometer's still samples against the gyro's: a chamber run is still
+        # throughout for both (its own still test may find a few more or fewer).
+        share = acc.samples / max(result.samples, 1)
+        if 0.99 <= share <= 1.0:
+            print(f"accelerometer coverage: the gyro's ({100.0 * share:.4g} % of the "
+                  'samples still)')
+        else:
+            table, accel_warns = format_coverage(acc.coverage)
+            print('accelerometer coverage (still data):\n' + table)
+            warns = list(warns) + [f'accelerometer: {w}' for w in accel_warns]
     for w in warns:
         print(f'warning: {w}')
     print(f'wrote {result.path} (model_id {result.model.model_id})', flush=True)

@@ -161,12 +161,8 @@ def _fingerprint(bag: str) -> list:
 
 def _plain_options(options: dict) -> dict:
     """Return the training options that change a model, as JSON-able plain values."""
-    out = {}
-    for k, v in sorted(options.items()):
-        if k == 'progress':
-            continue
-        out[k] = list(v) if isinstance(v, (tuple, list)) else v
-    return out
+    return {k: list(v) if isinstance(v, (tuple, list)) else v
+            for k, v in sorted(options.items()) if k != 'progress'}
 
 
 def input_key(spec: SensorSpec, options: dict) -> str:

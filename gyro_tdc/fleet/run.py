@@ -55,6 +55,8 @@ __all__ = ['Engine', 'STATE_DIR', 'SensorOutcome', 'check_workers', 'open_engine
 
 STATE_DIR = '.fleet'         # DIR/.fleet/<sensor_id>.json: the resume state of each sensor
 STATE_FORMAT = 1
+#: A sensor's figures, as its task returns them, its resume state keeps and its summary shows.
+_FIGURES = ('train_bs', 'heldout_bs', 'drift_poly', 'temp_range_c', 'constant_axes')
 
 
 @dataclass
@@ -298,33 +300,28 @@ def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
     model_file = out_dir / f'{out.sensor_id}.yaml'
     state_file = state_dir / f'{out.sensor_id}.json'
     if out.status == 'skipped' and state is not None:
+        figures = {k: state.get(k) for k in _FIGURES}
+        figures['constant_axes'] = [str(a) for a in state['constant_axes'] if a in ('x', 'y', 'z')]
         return SensorResult(out.sensor_id, 'ok', model_file=str(model_file), skipped=True,
-                            train_bs=state.get('train_bs'), heldout_bs=state.get('heldout_bs'),
-                            drift_poly=state.get('drift_poly'),
-                            temp_range_c=state.get('temp_range_c'),
-                            constant_axes=[str(a) for a in state['constant_axes']
-                                           if a in ('x', 'y', 'z')])
+                            **figures)
     if out.status != 'ok' or out.model is None:
         with contextlib.suppress(OSError):
             state_file.unlink()       # the model on disk no longer matches these inputs
         return SensorResult(out.sensor_id, 'failed', error=out.error or 'unknown failure',
                             seconds=out.seconds)
+    figures = {k: getattr(out, k) for k in _FIGURES}
     try:
         save_model(out.model, model_file)
         record = {'format': STATE_FORMAT, 'key': out.key,
                   'model_sha256': hashlib.sha256(model_file.read_bytes()).hexdigest(),
-                  'train_bs': out.train_bs, 'heldout_bs': out.heldout_bs,
-                  'drift_poly': out.drift_poly, 'temp_range_c': out.temp_range_c,
-                  'constant_axes': out.constant_axes, 'seconds': out.seconds}
+                  **figures, 'seconds': out.seconds}
         atomic_write(state_file, json.dumps(record) + '\n', what='fleet state file')
     except (GyroTdcError, OSError) as exc:       # this sensor's output only: the others go on
         with contextlib.suppress(OSError):
             state_file.unlink()
         return SensorResult(out.sensor_id, 'failed', error=one_line(exc), seconds=out.seconds)
-    return SensorResult(out.sensor_id, 'ok', model_file=str(model_file), train_bs=out.train_bs,
-                        heldout_bs=out.heldout_bs, drift_poly=out.drift_poly,
-                        temp_range_c=out.temp_range_c, seconds=out.seconds,
-                        constant_axes=list(out.constant_axes))
+    return SensorResult(out.sensor_id, 'ok', model_file=str(model_file), seconds=out.seconds,
+                        **dict(figures, constant_axes=list(out.constant_axes)))
 
 
 class _NoWorker(FleetError):

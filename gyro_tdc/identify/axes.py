@@ -12,11 +12,14 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
-Constant gyro axes: found, held at their reference for a fit, passed through by the model.
 
-A 2-axis gyro whose driver fills the third axis with a fixed value, or a dead axis, has
-nothing to fit; every trainer (chamber, still-only, discovery) and the evaluation use these.
+"""
+Constant axes: the one rule, held at their reference for a fit, passed through by the model.
+
+An axis is constant when its finite readings take at most two values (one quantum apart by
+definition): a driver filling a fixed value (a 2-axis gyro's third axis, ``(0, 0, g)``), a
+dead axis, or a drift below the resolution. Nothing can be fitted on it; every trainer
+(chamber, still-only, discovery, the accelerometer part) and the evaluation use this module.
 """
 
 from __future__ import annotations
@@ -26,34 +29,79 @@ from typing import Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import DatasetError
-from gyro_tdc.identify.accel import constant_axes_of, constant_values
 from gyro_tdc.model import CompensationModel
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['all_constant_error', 'AXES', 'constant_gyro_axes', 'constant_readings',
-           'identity_axes', 'neutral_runs']
+__all__ = ['all_constant_error', 'AXES', 'constant_axes', 'constant_axes_of', 'constant_gyro_axes',
+           'constant_note', 'constant_readings', 'constant_values', 'identity_axes',
+           'neutral_runs']
 
 #: The axis names, in order.
 AXES = ('x', 'y', 'z')
 _DEG2 = (180.0 / np.pi) ** 2
 
 
+def _finite(v: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return the finite values of ``v`` (``v`` itself, uncopied, when all are)."""
+    ok = np.isfinite(v)
+    return v if ok.all() else v[ok]
+
+
+def constant_axes_of(arrays: Sequence[ArrayLike]) -> NDArray[np.bool_]:
+    """
+    Return per axis whether the finite readings (N_k, 3) of every run together are constant.
+
+    True also for an axis without any finite reading.
+    """
+    arrays = [np.asarray(a, dtype=np.float64).reshape(-1, 3) for a in arrays]
+    out = np.ones(3, dtype=bool)
+    for i in range(3):
+        # Three distinct finite values among the first few: not constant, no full pass.
+        head = np.unique(np.concatenate([_finite(a[:64, i]) for a in arrays]
+                                        or [np.zeros(0)]))
+        if head.size > 2:
+            out[i] = False
+            continue
+        cols = [v for v in (_finite(a[:, i]) for a in arrays) if v.size]
+        if cols:
+            lo = min(float(v.min()) for v in cols)
+            hi = max(float(v.max()) for v in cols)
+            out[i] = lo == hi or all(bool(np.all((v == lo) | (v == hi))) for v in cols)
+    return out
+
+
+def constant_axes(values: ArrayLike) -> NDArray[np.bool_]:
+    """Return per axis whether the readings (N, 3) of one run are constant (NaN ignored)."""
+    return constant_axes_of([values])
+
+
+def constant_values(arrays: Sequence[ArrayLike]) -> NDArray[np.float64]:
+    """Return per axis the first finite reading of ``arrays`` (NaN for an axis with none)."""
+    out = np.full(3, np.nan)
+    for a in arrays:
+        a = np.asarray(a, dtype=np.float64).reshape(-1, 3)
+        for i in np.flatnonzero(np.isnan(out)):
+            v = _finite(a[:, i])
+            if v.size:
+                out[i] = v[0]
+    return out
+
+
+def constant_note(runs: Sequence[Run]) -> str:
+    """Return why the accelerometer of ``runs`` counts as absent: every axis constant ('')."""
+    acc = [np.asarray(r.accel, dtype=np.float64).reshape(-1, 3) for r in runs
+           if r.accel is not None]
+    if not acc or not constant_axes_of(acc).all():
+        return ''
+    first = next((x[0] for x in (a[np.isfinite(a).all(axis=1)] for a in acc) if len(x)), None)
+    value = ', '.join(f'{v:.6g}' for v in (constant_values(acc) if first is None else first))
+    return (f'the accelerometer readings are constant (({value}) m/s^2, never varying '
+            'beyond one quantum: a driver filling a fixed value); treated as absent')
+
+
 def constant_gyro_axes(runs: Sequence[Run]) -> NDArray[np.bool_]:
-    """
-    Return, per axis, whether the gyro readings of ``runs`` together are constant.
-
-    A constant axis never varies beyond one quantum over every run
-    (:func:`gyro_tdc.identify.accel.constant_axes_of`, the accelerometer's rule): a 2-axis
-    gyro whose driver fills the third axis with a fixed value (e.g. exactly 0), or a dead
-    axis. There is nothing to fit on it.
-
-    Raises
-    ------
-    DatasetError
-        When every axis is constant: there is no gyro to fit.
-
-    """
+    """Return the constant gyro axes of ``runs``; DatasetError when every axis is constant."""
     const = constant_axes_of([r.omega for r in runs])
     if const.all():
         raise all_constant_error([r.omega for r in runs], 'fit', 'the training bags')
@@ -62,12 +110,7 @@ def constant_gyro_axes(runs: Sequence[Run]) -> NDArray[np.bool_]:
 
 def all_constant_error(arrays: Sequence[NDArray[np.float64]], to: str,
                        where: str) -> DatasetError:
-    """
-    Return the one-line error for a gyro constant on every axis (nothing ``to`` do).
-
-    ``arrays`` are the angular velocities read, ``where`` names them (``'the training
-    bags'``); the line shows what each axis reads.
-    """
+    """Return the one-line error for a gyro constant on every axis (nothing ``to`` do)."""
     shown = ', '.join(f'{a} {v:.6g}' for a, v in zip(AXES, constant_values(arrays)))
     return DatasetError(f'Expected a gyro to {to}: every axis of the angular velocity is '
                         f'constant in {where} ({shown} rad/s, never varying beyond one '
@@ -78,11 +121,9 @@ def neutral_runs(runs: Sequence[Run], const: NDArray[np.bool_]) -> list[Run]:
     """
     Return the runs with each constant axis reading its reference rate (no error to fit).
 
-    The fit then sees an error of exactly zero there: every coefficient of the axis comes
-    out exactly zero (the model passes the axis through unchanged) and the axis adds exactly
-    nothing to what the axes share (the thermal state's search, the ridge chosen by
-    cross-validation, the feature choice), so the other axes get the model they would get
-    whatever the constant axis read.
+    Every coefficient of such an axis then comes out exactly zero (the model passes it
+    through) and it adds nothing to what the axes share (the thermal state's search, the
+    ridge, the feature choice): the other axes get the model they get without it.
     """
     if not const.any():
         return list(runs)
@@ -99,12 +140,8 @@ def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[
     """
     Return ``model`` with its constant axes recorded as passed through unchanged.
 
-    The model's coefficients of those axes are already zero (:func:`neutral_runs`); here its
-    training figures get the truth of an identity axis: the compensated error is the raw
-    error (``raw_bs_dps2``, ``train_bs_dps2``, ``train_rms_dps`` and the residual variance
-    are its mean square over ``runs``, the data as read; over the ``rows`` that count when
-    given, as :func:`gyro_tdc.identify.fit.fit_model` takes them), and
-    ``training.constant_axes`` names them.
+    Their training figures (BS, RMS, residual variance) are the raw error's mean square over
+    ``runs`` as read (over ``rows`` when given); ``training.constant_axes`` names them.
     """
     if not const.any():
         return model
@@ -118,18 +155,15 @@ def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[
     ms = np.zeros(3)
     ms[const] = ss / max(n, 1)
     met = dict(model.metrics)
-    resid = np.where(const, ms, model.residual_var)
     for key in ('raw_bs_dps2', 'train_bs_dps2'):
         met[key] = [float(v) for v in np.where(const, ms * _DEG2, met[key])]
-    rms = np.where(const, np.sqrt(ms * _DEG2), met['train_rms_dps'])
-    met['train_rms_dps'] = [float(v) for v in rms]
+    met['train_rms_dps'] = [float(v) for v in np.where(const, np.sqrt(ms * _DEG2),
+                                                       met['train_rms_dps'])]
     met['constant_axes'] = [a for a, c in zip(AXES, const) if c]
-    return model.replace(residual_var=resid, metrics=met)
+    return model.replace(residual_var=np.where(const, ms, model.residual_var), metrics=met)
 
 
 def constant_readings(runs: Sequence[Run], const: NDArray[np.bool_]) -> dict:
     """Return axis name -> what each constant axis reads, rad/s (``TrainResult.constant``)."""
-    if not const.any():
-        return {}
-    values = constant_values([r.omega for r in runs])
+    values = constant_values([r.omega for r in runs]) if const.any() else ()
     return {a: float(v) for a, v, c in zip(AXES, values, const) if c}

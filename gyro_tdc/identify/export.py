@@ -23,7 +23,7 @@ its clamp costs. See ``doc/flight_controllers.md``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 import math
 import os
 from pathlib import Path
@@ -59,26 +59,11 @@ _INT32, _REAL32 = 6, 9
 def steady_drift(model: CompensationModel, temps: ArrayLike, *,
                  out_of_range: str = 'clamp') -> NDArray[np.float64]:
     """
-    Return a model's steady-state drift at each temperature, shape (N, 3).
+    Return the drift b(T) (N, 3) a model subtracts held long at each temperature ``temps``.
 
-    Held long at a temperature, the thermal state equals it, dT/dt is 0 and the warm-up has
-    decayed: each temperature is held for :data:`_SETTLED_S` (twice, the second value kept)
-    after one settling sample, so the batch features are exactly their settled values.
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The model (gyro in rad/s; an accelerometer part in m/s^2).
-    temps : ArrayLike, shape (N,), degC
-        Temperatures.
-    out_of_range : str
-        Beyond the trained range: ``'clamp'``, ``'linear'`` or ``'extrapolate'``.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N, 3)
-        The drift b(T) the model would subtract at steady state.
-
+    The thermal state then equals it, dT/dt is 0 and the warm-up has decayed: each
+    temperature is held for :data:`_SETTLED_S` (twice, the second value kept) after one
+    settling sample, so the batch features are exactly their settled values.
     """
     temps = np.asarray(temps, dtype=np.float64).reshape(-1)
     if temps.size == 0:
@@ -93,26 +78,11 @@ class FcExport:
     """
     A model's drift in one firmware's form: the parameters, and what the firmware subtracts.
 
-    Parameters
-    ----------
-    firmware : str
-        ``'px4'`` or ``'ardupilot'``.
-    params : dict
-        ``{name: value}`` in file order (ints are MAVLink INT32, floats REAL32).
-    gyro : Px4TempCal or ArduPilotTempCal
-        The gyro calibration as the firmware reads it.
-    gyro_offset : NDArray[np.float64], shape (3,), rad/s
-        ArduPilot's static offsets (``INS_GYROFFS``) taken at CALTEMP; zeros for PX4 (X0 holds
-        the constant).
-    accel : Px4TempCal or ArduPilotTempCal, optional
-        The accelerometer calibration (None: the model has no accelerometer part).
-    range_c : tuple of float, degC
-        TMIN, TMAX.
-    fit_rms_dps : NDArray[np.float64], shape (3,), deg/s
-        RMS over the grid of the firmware's form minus the model's steady-state drift.
-    notes : list of str
-        What the user must know (device id, clamp range, offsets).
-
+    ``params`` in file order (ints are MAVLink INT32, floats REAL32); ``gyro`` and ``accel``
+    (None without an accelerometer part) the calibrations as the firmware reads them;
+    ``gyro_offset`` ArduPilot's ``INS_GYROFFS`` at CALTEMP, rad/s (zeros for PX4, whose X0 holds
+    the constant); ``range_c`` TMIN, TMAX; ``fit_rms_dps`` the form minus the model's steady
+    drift over the grid; ``notes`` what the user must know.
     """
 
     firmware: str
@@ -144,40 +114,15 @@ def _cubic(d: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64
 def fit_export(model: CompensationModel, firmware: str, *, instance: int = 0,
                device_id: int = 0, points: int = GRID_POINTS) -> FcExport:
     """
-    Fit the model's steady-state drift over its trained range in a firmware's exact form.
+    Fit the model's steady-state drift over its trained range in a firmware's exact cubic.
 
-    The grid is uniform in temperature over ``model.temp_range_c``, so the cubic weighs every
-    degree alike whatever the time the recording spent there. PX4: ``X0..X3`` about
-    ``TREF`` (the middle of the range), clamped to ``TMIN..TMAX`` (the range).
-    ArduPilot: the cubic about 35 degC without its constant, stored x1e6, clamped to the
-    range; the constant goes to ``INS_GYROFFS`` at ``INS_GYRn_CALTEMP`` (35 degC, or the
-    range end nearest it). Values are rounded to float32 as the firmware stores them.
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The model (its accelerometer part, when it has one, is exported too).
-    firmware : str
-        ``'px4'`` or ``'ardupilot'``.
-    instance : int
-        PX4 calibration slot 0..3 (``TC_G<instance>``) or ArduPilot IMU 0..2
-        (``INS_TCAL<instance + 1>``).
-    device_id : int
-        PX4 ``TC_Gn_ID``: the ``device_id`` of the gyro (PX4 applies a slot to that device
-        only); not used by ArduPilot.
-    points : int
-        Grid points (>= 8).
-
-    Returns
-    -------
-    FcExport
-        The parameters and the corrections as the firmware applies them.
-
-    Raises
-    ------
-    FitError
-        An unknown firmware, a slot out of range, or a range too narrow to fit.
-
+    The grid is uniform in temperature (``points`` >= 8), so every degree weighs alike whatever
+    the time spent there. PX4: ``X0..X3`` about ``TREF`` (the middle of the range), clamped to
+    the range; ``device_id`` is ``TC_Gn_ID`` (PX4 applies a slot to that gyro only). ArduPilot:
+    the cubic about 35 degC without its constant, x1e6, clamped to the range, the constant in
+    ``INS_GYROFFS`` at ``INS_GYRn_CALTEMP``. Values are rounded to float32 as stored;
+    ``instance`` is the PX4 slot 0..3 or the ArduPilot IMU 0..2. FitError for an unknown firmware,
+    a slot out of range or a range narrower than 1 degC.
     """
     if firmware not in FIRMWARES:
         raise FitError(f'Expected `firmware` to be one of {", ".join(FIRMWARES)}, '
@@ -193,13 +138,10 @@ def fit_export(model: CompensationModel, firmware: str, *, instance: int = 0,
     gyro = steady_drift(model, grid)
     acc = None if model.accel is None else steady_drift(model.accel, grid)
     notes: list[str] = []
-    if firmware == 'px4':
-        exp = _px4(gyro, acc, grid, instance, int(device_id), notes)
-    else:
-        exp = _ardupilot(gyro, acc, grid, instance, notes)
-    fc = exp.correction(grid)
-    return FcExport(exp.firmware, exp.params, exp.gyro, exp.gyro_offset, exp.accel, (lo, hi),
-                    rms_dps(fc - gyro), notes)
+    exp = (_px4(gyro, acc, grid, instance, int(device_id), notes) if firmware == 'px4' else
+           _ardupilot(gyro, acc, grid, instance, notes))
+    return replace(exp, range_c=(lo, hi), fit_rms_dps=rms_dps(exp.correction(grid) - gyro),
+                   notes=notes)
 
 
 def _px4(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None, grid: NDArray[np.float64],
@@ -208,16 +150,12 @@ def _px4(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None, grid: NDArr
     lo, hi = float(grid[0]), float(grid[-1])
     tref = float(_f32(0.5 * (lo + hi)))
     tmin, tmax = (float(v) for v in _f32([lo, hi]))
-    cals = {}
-    params: dict = {'TC_G_ENABLE': 1}
+    cals, params = {}, {'TC_G_ENABLE': 1}
     for sensor, y in (('gyro', gyro), ('accel', acc)):
-        if y is None:
-            continue
-        cal = Px4TempCal(_f32(_cubic(grid - tref, y)), tref, tmin, tmax, device_id)
-        cals[sensor] = cal
-        if sensor == 'accel':
-            params['TC_A_ENABLE'] = 1
-        params.update(cal.to_params(sensor, slot))
+        if y is not None:
+            cals[sensor] = Px4TempCal(_f32(_cubic(grid - tref, y)), tref, tmin, tmax, device_id)
+            params.update({'TC_A_ENABLE': 1} if sensor == 'accel' else {})
+            params.update(cals[sensor].to_params(sensor, slot))
     if not device_id:
         notes.append(f'TC_G{slot}_ID is 0: PX4 applies a slot only to the gyro whose device_id '
                      'it holds; pass --device-id (sensor_gyro.device_id in a ULog, or '
@@ -237,9 +175,7 @@ def _ardupilot(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None,
                      f'accept ({AP_LIMITS_C[0]:g} .. {AP_LIMITS_C[1]:g} degC)')
     n = imu + 1
     caltemp = float(_f32(min(max(AP_TREF_C, lo), hi)))
-    params: dict = {f'INS_TCAL{n}_ENABLE': 1}
-    cals = {}
-    offset = np.zeros(3)
+    params, cals, offset = {f'INS_TCAL{n}_ENABLE': 1}, {}, np.zeros(3)
     for sensor, y in (('gyro', gyro), ('accel', acc)):
         if y is None:          # ENABLE applies to both: no accelerometer part is zeros
             cals[sensor] = ArduPilotTempCal(np.zeros((3, 3)), tmin, tmax, caltemp)
@@ -247,8 +183,7 @@ def _ardupilot(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None,
                          f'{n}_ACC* are written as 0 (no accelerometer correction)')
             continue
         coef = _cubic(grid - AP_TREF_C, y)
-        cal = ArduPilotTempCal(_f32(coef[1:] * AP_SCALE), tmin, tmax, caltemp)
-        cals[sensor] = cal
+        cals[sensor] = cal = ArduPilotTempCal(_f32(coef[1:] * AP_SCALE), tmin, tmax, caltemp)
         if sensor == 'gyro':
             # The firmware subtracts p(T) - p(CALTEMP) and INS_GYROFFS: the offsets are the
             # cubic's value at CALTEMP, constant included.
@@ -258,8 +193,7 @@ def _ardupilot(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None,
                    if 'ACC' in k})
     params[f'INS_GYR{n}_CALTEMP'] = caltemp
     stem = 'INS_GYR' if imu == 0 else f'INS_GYR{n}'
-    for i, axis in enumerate('XYZ'):
-        params[f'{stem}OFFS_{axis}'] = float(offset[i])
+    params.update({f'{stem}OFFS_{axis}': float(offset[i]) for i, axis in enumerate('XYZ')})
     notes.append(f'INS_GYR{n}_CALTEMP and {stem}OFFS_* carry the constant; a gyro calibration '
                  'at boot (INS_GYR_CAL=1) replaces both with what it measures then')
     return FcExport('ardupilot', params, cals['gyro'], offset,
@@ -280,27 +214,11 @@ def _value_text(value: float | int) -> str:
 def write_params(export: FcExport, path: str | os.PathLike, *, header: Sequence[str] = ()
                  ) -> Path:
     """
-    Write the parameters as the firmware's ground station loads them.
+    Write the parameters atomically as the firmware's ground station loads them.
 
-    PX4: a QGroundControl ``.params`` file, ``#`` comment lines then tab-separated
-    ``vehicle-id component-id name value type`` (1, 1, type 6 INT32 or 9 REAL32), as
-    ``Tools/process_sensor_caldata.py`` writes it. ArduPilot: ``NAME VALUE`` lines (Mission
-    Planner, MAVProxy ``param load``) after ``#`` comments.
-
-    Parameters
-    ----------
-    export : FcExport
-        The export.
-    path : str or PathLike
-        Output file (written atomically).
-    header : sequence of str
-        Comment lines (without ``#``) to put first.
-
-    Returns
-    -------
-    Path
-        The file written.
-
+    PX4: a QGroundControl ``.params`` file (tab-separated ``1 1 name value type``, as
+    ``Tools/process_sensor_caldata.py`` writes it); ArduPilot: ``NAME VALUE`` lines (Mission
+    Planner, MAVProxy). ``header`` lines go first as ``#`` comments.
     """
     lines = [f'# {h}'.rstrip() for h in header]
     if export.firmware == 'px4':
@@ -315,23 +233,9 @@ def write_params(export: FcExport, path: str | os.PathLike, *, header: Sequence[
 
 def read_params(path: str | os.PathLike) -> dict:
     """
-    Read a ``.params`` (tab-separated, QGroundControl) or ``.parm`` (``NAME VALUE``) file.
+    Read a ``.params`` or ``.parm`` file into ``{name: value}`` (int for INT32 / integral values).
 
-    Parameters
-    ----------
-    path : str or PathLike
-        The file.
-
-    Returns
-    -------
-    dict
-        ``{name: value}`` (int for INT32 / integral values, else float).
-
-    Raises
-    ------
-    ModelFileError
-        A line is neither a comment nor a parameter.
-
+    ModelFileError names a line that is neither a comment nor a parameter.
     """
     out: dict = {}
     for k, line in enumerate(Path(path).read_text().splitlines(), 1):
@@ -380,19 +284,8 @@ class ExportScore:
     """
     One held-out run scored raw, with the full model and with forms as the firmware applies them.
 
-    Parameters
-    ----------
-    name : str
-        The run.
-    samples : int
-        Samples scored.
-    outside_fraction : float
-        Fraction of samples whose temperature lies outside TMIN..TMAX (clamped there).
-    bs : dict of str to NDArray[np.float64], shape (3,), (deg/s)^2
-        BS per axis of ``raw``, ``model`` and every form by its label.
-    rms_dps : dict of str to NDArray[np.float64], shape (3,), deg/s
-        RMS per axis, same keys.
-
+    ``bs`` (deg/s)^2 and ``rms_dps`` per axis by label (``raw``, ``model``, each form);
+    ``outside_fraction`` the samples outside TMIN..TMAX (clamped there).
     """
 
     name: str
@@ -420,30 +313,12 @@ def _head_removed(comp: NDArray[np.float64], run: Run, reanchor_s: float
 def score_export(model: CompensationModel, forms: dict, runs: Sequence[Run], *,
                  reanchor_s: float = 0.0, out_of_range: str = DEFAULT_OUT_OF_RANGE) -> list:
     """
-    Score held-out runs raw, with the full model and with each firmware form.
+    Score held-out runs raw, with the full model and with each firmware form (label -> form).
 
     A form is applied as the firmware applies it: the raw rate minus its correction at the
-    measured temperature (its formula, clamp and reference; no thermal state).
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The full model (evaluated with ``out_of_range``, as the compensator node does).
-    forms : dict of str to FcExport
-        Label -> form (e.g. ``{'px4': ..., 'px4 script': ...}``).
-    runs : sequence of Run
-        Held-out runs.
-    reanchor_s : float, s
-        When > 0, the model's and every form's mean error over the first ``reanchor_s`` s of
-        each run is removed (the offset a gyro calibration at boot takes); raw never.
-    out_of_range : str
-        The full model's policy beyond its range.
-
-    Returns
-    -------
-    list of ExportScore
-        One per run.
-
+    measured temperature (its formula, clamp and reference; no thermal state). With
+    ``reanchor_s`` > 0 the model's and every form's mean error over the first ``reanchor_s`` s of
+    each run is removed (the offset a gyro calibration at boot takes); raw never.
     """
     out = []
     for run in runs:
@@ -466,23 +341,8 @@ def clamp_cost(model: CompensationModel, export: FcExport, *, beyond_c: Sequence
     """
     Say where the firmware's clamp costs: the model's drift beyond TMIN/TMAX vs the held one.
 
-    Parameters
-    ----------
-    model : CompensationModel
-        The full model (beyond its range as ``out_of_range`` continues it).
-    export : FcExport
-        The firmware form (held at its value at TMIN / TMAX beyond them).
-    beyond_c : sequence of float, degC
-        Distances beyond each end.
-    out_of_range : str
-        How the full model continues beyond its range (the compensator's policy).
-
-    Returns
-    -------
-    list of dict
-        Per end and distance: ``temp_c``, ``model_dps`` and ``form_dps`` (drift per axis,
-        deg/s) and ``gap_dps`` (the largest axis difference).
-
+    Per end and distance ``beyond_c``: ``temp_c``, ``model_dps`` (the model continued by
+    ``out_of_range``, as the compensator does), ``form_dps`` and ``gap_dps`` (largest axis gap).
     """
     lo, hi = export.range_c
     temps = [lo - d for d in beyond_c] + [hi + d for d in beyond_c]

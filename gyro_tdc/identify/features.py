@@ -46,19 +46,7 @@ SEARCH_RATE_HZ = 20.0
 
 @dataclass(frozen=True)
 class Decision:
-    """
-    One effect of the automatic choice: added, rejected or not identifiable, and why.
-
-    Parameters
-    ----------
-    effect : str
-        Effect id.
-    verdict : str
-        ``'base'``, ``'added'``, ``'rejected'`` or ``'unidentifiable'``.
-    why : str
-        The evidence (added), the test that failed (rejected) or what the data lack.
-
-    """
+    """One effect of the automatic choice: base, added, rejected or unidentifiable, and why."""
 
     effect: str
     verdict: str
@@ -77,20 +65,9 @@ class FeatureChoice:
     """
     What ``features='auto'`` chose, and why.
 
-    Parameters
-    ----------
-    base : tuple of str
-        The starting model's effects (:data:`AUTO_BASE`).
-    features : tuple of str
-        The chosen effects (the model's features), catalog order.
-    decisions : tuple of Decision
-        One per effect considered: the base, then those added in order, then those rejected
-        and those the data cannot excite.
-    discovery : DiscoveryResult, optional
-        The search behind the choice (None when the data were too short for it).
-    note : str
-        Why no search ran, or empty.
-
+    ``base`` the starting model, ``features`` the chosen effects (catalog order), ``decisions`` one
+    per effect considered (the base, those added in order, rejected, not identifiable);
+    ``discovery`` the search behind it (None when the data were too short, ``note`` says why).
     """
 
     base: tuple[str, ...]
@@ -159,30 +136,10 @@ def choose_features(runs: Sequence[Run], *, t0: float | None = None,
     Choose the features of a model from the data: the paper's base plus what they support.
 
     :func:`gyro_tdc.identify.discover.discover` starts from ``bias`` and ``base`` and adds,
-    one at a time, the catalog effect its false-discovery guard accepts (held-out gain, HAC test,
-    effect size): the thermal state (``lag``: every temperature term then follows the
-    lagged state), ``dTdt``, ``warmup``, ``dT3``, ``scale`` when the reference rate excites
-    it. The base is kept whatever the data say (it is the paper's model). Data too short
-    for the search keep the base, with a note. Runs faster than :data:`SEARCH_RATE_HZ` are
-    averaged down to it first (the search works on block means of ``block_s``).
-
-    Parameters
-    ----------
-    runs : sequence of Run
-        Training runs.
-    t0 : float, optional, degC
-        Reference temperature (default :func:`gyro_tdc.identify.estimate_t0` of the first
-        run).
-    base : sequence of str
-        The starting model (default :data:`AUTO_BASE`).
-    block_s : float, s
-        Block length of the search.
-
-    Returns
-    -------
-    FeatureChoice
-        The features, with one decision per effect considered.
-
+    one at a time, the catalog effect its false-discovery guard accepts (held-out gain, HAC
+    test, effect size). The base is kept whatever the data say; data too short for the search
+    keep it, with a note. Runs faster than :data:`SEARCH_RATE_HZ` are averaged down first (the
+    search works on block means of ``block_s``).
     """
     base_ids = tuple(e for e in normalise_ids(base) if e != 'bias')
     decisions = [Decision(e, 'base', "the paper's model") for e in base_ids]
@@ -207,17 +164,14 @@ def choose_features(runs: Sequence[Run], *, t0: float | None = None,
         if s.aliases:
             why += f'; the data cannot tell it from {", ".join(s.aliases)}'
         decisions.append(Decision(s.effect, 'added', why))
-    for c in res.candidates:
-        decisions.append(Decision(c.effect, 'rejected', f'{c.why_not} (held-out gain '
-                                  f'{c.heldout_gain_dps2:+.2g} (deg/s)^2, HAC p '
-                                  f'{c.p_value:.2g})'))
-    for u in res.unidentifiable:
-        decisions.append(Decision(u.effect, 'unidentifiable', f'{u.reason}'))
+    decisions += [Decision(c.effect, 'rejected', f'{c.why_not} (held-out gain '
+                           f'{c.heldout_gain_dps2:+.2g} (deg/s)^2, HAC p {c.p_value:.2g})')
+                  for c in res.candidates]
+    decisions += [Decision(u.effect, 'unidentifiable', f'{u.reason}') for u in res.unidentifiable]
+    seen = {x.effect for x in decisions}          # every catalog effect gets its line
+    decisions += [Decision(e, 'rejected', 'not tested') for e in EFFECTS
+                  if e != 'bias' and e not in seen]
     features = tuple(e for e in res.final_effects if e != 'bias')
-    seen = {x.effect for x in decisions}
-    for eid in EFFECTS:                  # every catalog effect gets its line
-        if eid != 'bias' and eid not in seen:
-            decisions.append(Decision(eid, 'rejected', 'not tested'))
     return FeatureChoice(base_ids, features, tuple(decisions), discovery=res)
 
 
@@ -226,33 +180,15 @@ def features_for_fit(runs: Sequence[Run], features: str | tuple[str, ...], *, t0
     """
     Return the features a fit takes, their fixed parameters and the choice behind them.
 
-    Parameters
-    ----------
-    runs : sequence of Run
-        The runs the features are chosen on (with ``'auto'``).
-    features : str or tuple of str
-        ``'auto'`` or effect ids (as :class:`gyro_tdc.identify.options.TrainOptions` holds
-        them).
-    t0 : float, optional, degC
-        Reference temperature of the search.
-
-    Returns
-    -------
-    ids : tuple of str
-        The features.
-    params : dict
-        The time constants discovery found that ``fit_model`` does not search itself.
-    choice : FeatureChoice or None
-        What ``'auto'`` chose and why; None for named features.
-
+    ``features`` is ``'auto'`` (chosen on ``runs``; the parameters are the time constants
+    discovery found that ``fit_model`` does not search itself) or effect ids (no choice: None).
     """
     if features != AUTO:
         return normalise_ids(features), {}, None
     # Data the search cannot analyse keep the base, and fit_model then says what is wrong
     # with them (span, samples) as it does for named features.
     choice = choose_features(runs, t0=t0)
-    params: dict = {}
-    if choice.discovery is not None:
-        params = {k: v for k, v in choice.discovery.params.items()
-                  if k in choice.features and not EFFECTS[k].fitted}
-    return choice.features, params, choice
+    d = choice.discovery
+    return choice.features, {} if d is None else {
+        k: v for k, v in d.params.items() if k in choice.features and not EFFECTS[k].fitted
+    }, choice

@@ -13,12 +13,11 @@
 # limitations under the License.
 
 """
-Identification of the compensation model from thermal runs.
+Identification of the compensation model from thermal runs (section 3.2 of the paper).
 
-:func:`fit_model` follows section 3.2 of the paper with modern refinements: normalised
-effect features, k-means RBF centres, regularised least squares, optional refinement, and
-the thermal state's time constants by variable projection with a profile interval.
-See ``doc/internals/identify.md``.
+:func:`fit_model`: normalised effect features, k-means RBF centres, regularised least squares
+on the shared estimator, optional refinement, and the thermal state's time constants by
+variable projection with a profile interval. See ``doc/internals/identify.md``.
 """
 
 from __future__ import annotations
@@ -33,10 +32,9 @@ from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
 from gyro_tdc.identify.power_cycles import check_sessions
-from gyro_tdc.identify.runblocks import block_groups, run_state, RunBlocks
 from gyro_tdc.identify.tau import fit_time_constant
-from gyro_tdc.identify.thermal_search import (choose_state, ParamSearch, TAU_BOUNDS,
-                                              TWO_NODE_MARGIN)
+from gyro_tdc.identify.thermal_search import (block_groups, choose_state, ParamSearch, run_state,
+                                              RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
 from gyro_tdc.model import (CompensationModel, EFFECTS, input_ids, KINDS, normalise_ids,
                             REFERENCE_EFFECTS, resolve_params, STATE_TERMS, TEMPERATURE_EFFECTS,
                             THERMAL_EFFECTS, ThermalState, with_implied)
@@ -45,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'FitOptions', 'MIN_SAMPLES', 'MIN_SPAN_C',
-           'run_state', 'TAU_BOUNDS', 'THERMAL_CHOICES', 'TWO_NODE_MARGIN']
+           'run_state', 'span', 'TAU_BOUNDS', 'THERMAL_CHOICES', 'TWO_NODE_MARGIN']
 
 #: Fewest samples a fit accepts.
 MIN_SAMPLES = 50
@@ -53,29 +51,23 @@ MIN_SAMPLES = 50
 MIN_SPAN_C = 0.5
 #: Values of ``fit_model(thermal=...)`` besides a fixed :class:`ThermalState`.
 THERMAL_CHOICES = ('none', 'first_order', 'two_node', 'auto')
+#: The effect that makes the model temperature a lagged state (``lag``, the one thermal id).
+(_LAG,) = THERMAL_EFFECTS
+_DEG = 180.0 / math.pi
 
 
 def estimate_t0(run: Run, *, window_s: float = 60.0) -> float:
-    """
-    Estimate the reference temperature T0: the stable initial temperature of a run.
-
-    Parameters
-    ----------
-    run : Run
-        A run.
-    window_s : float, s
-        Length of the initial window averaged (at least the first 1 % of samples are used).
-
-    Returns
-    -------
-    float, degC
-        Median temperature over the initial window.
-
-    """
+    """Return the reference temperature T0: the median over the first ``window_s`` (>= 1 %)."""
     if len(run) == 0:
         raise FitError('Cannot estimate T0 from an empty run.')
     n = max(int(np.searchsorted(run.t, run.t[0] + window_s)), max(len(run) // 100, 1))
     return float(np.median(run.temp[:n]))
+
+
+def span(arrays: Sequence[NDArray[np.float64]]) -> tuple[float, float]:
+    """Return the smallest and the largest value of the non-empty ``arrays``."""
+    arrays = [a for a in arrays if a.size]
+    return min(float(a.min()) for a in arrays), max(float(a.max()) for a in arrays)
 
 
 def _labels(runs: Sequence[Run], sessions: Sequence | None) -> list[int] | None:
@@ -92,15 +84,15 @@ def _labels(runs: Sequence[Run], sessions: Sequence | None) -> list[int] | None:
 
 
 def _check_runs(runs: Sequence[Run], ids: Sequence[str],
-                rows: Sequence[NDArray[np.bool_]] | None = None) -> None:
+                rows: Sequence[NDArray[np.bool_]] | None) -> None:
     """Reject data that cannot support a fit, with a message naming the problem."""
     if not runs:
         raise FitError('No training runs given.')
     if rows is not None and (len(rows) != len(runs) or any(
             np.shape(m) != (len(r),) for r, m in zip(runs, rows))):
         raise FitError('Expected `rows` to hold one boolean mask of shape (N,) per run.')
-    n = sum(len(r) for r in runs) if rows is None else int(sum(np.count_nonzero(m)
-                                                               for m in rows))
+    n = sum(len(r) if rows is None else int(np.count_nonzero(rows[i]))
+            for i, r in enumerate(runs))
     if n < MIN_SAMPLES:
         raise FitError(f'Too few samples to fit: {n} (need at least {MIN_SAMPLES}).')
     for r in runs:
@@ -110,9 +102,7 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
             if x.size and not (np.isfinite(x.min()) and np.isfinite(x.max())):
                 raise FitError(f'Run {r.name!r} has non-finite values in `{key}`.')
     if TEMPERATURE_EFFECTS & set(ids):
-        temps = [r.temp if rows is None else r.temp[rows[i]] for i, r in enumerate(runs)]
-        lo = min(float(x.min()) for x in temps if x.size)
-        hi = max(float(x.max()) for x in temps if x.size)
+        lo, hi = span([r.temp if rows is None else r.temp[rows[i]] for i, r in enumerate(runs)])
         if hi - lo < MIN_SPAN_C:
             raise FitError(f'Temperature span too small to fit: {hi - lo:.3f} degC '
                            f'(need at least {MIN_SPAN_C} degC).')
@@ -122,40 +112,30 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
                        'data); every training run has omega_ref = 0.')
 
 
-#: The effect that makes the model temperature a lagged state (``lag``, the one thermal id).
-(_LAG,) = THERMAL_EFFECTS
-
-
 def _thermal_choice(ids: tuple[str, ...], thermal: str | ThermalState | None,
                     fit_params: bool, params: Mapping | None
                     ) -> tuple[tuple[str, ...], str, ThermalState | None]:
     """Return the effect ids, the thermal search mode and the fixed front end (or None)."""
-    lagged = _LAG in ids
-    if isinstance(thermal, ThermalState):
-        if thermal.kind == 'none':
-            if lagged:
-                raise FitError('`lag` makes the model temperature a lagged state; a thermal '
-                               "front end of kind 'none' contradicts it.")
-            return ids, 'fixed', thermal
-        return with_implied(ids + (_LAG,)), 'fixed', thermal
+    lagged, fixed = _LAG in ids, isinstance(thermal, ThermalState)
     if thermal is None:
         thermal = 'first_order' if lagged else 'none'
-    if thermal not in THERMAL_CHOICES:
+    if not fixed and thermal not in THERMAL_CHOICES:
         raise FitError(f'Unknown thermal front end {thermal!r}; expected one of '
                        f'{", ".join(THERMAL_CHOICES)} or a ThermalState.')
-    if thermal == 'none':
+    if (thermal.kind if fixed else thermal) == 'none':
         if lagged:
-            raise FitError("`lag` makes the model temperature a lagged state; thermal='none' "
+            what = "a thermal front end of kind 'none'" if fixed else "thermal='none'"
+            raise FitError(f'`lag` makes the model temperature a lagged state; {what} '
                            'contradicts it.')
-        return ids, 'fixed', ThermalState()
+        return ids, 'fixed', thermal if fixed else ThermalState()
     ids = with_implied(ids + (_LAG,))
-    if not fit_params:
-        if thermal == 'two_node':
-            raise FitError("thermal='two_node' with fit_params=False needs the time constants: "
-                           'pass a ThermalState.')
-        tau = resolve_params((_LAG,), params)[_LAG]['tau_s']
-        return ids, 'fixed', ThermalState('first_order', (tau,))
-    return ids, thermal, None
+    if fixed or fit_params:
+        return ids, 'fixed' if fixed else thermal, thermal if fixed else None
+    if thermal == 'two_node':
+        raise FitError("thermal='two_node' with fit_params=False needs the time constants: "
+                       'pass a ThermalState.')
+    return ids, 'fixed', ThermalState('first_order', (resolve_params((_LAG,), params)[_LAG]
+                                                      ['tau_s'],))
 
 
 @dataclass(frozen=True)
@@ -163,49 +143,18 @@ class FitOptions:
     """
     How :func:`fit_model` fits: the model's form, its parameters and what it records.
 
-    Parameters
-    ----------
-    kind : str
-        ``'rbf'`` or ``'poly'``.
-    features : str or sequence of str
-        Effect ids (``'dT,dT2'`` is the paper's modified model; ``bias`` is implied). With
-        ``lag`` (or a lagged ``thermal``) the model temperature is the thermal state, the
-        estimated die temperature: every temperature term, the RBF inputs, the scale term
-        and the valid range follow it.
-    t0 : float, optional, degC
-        Reference temperature; default: :func:`estimate_t0` of the first run.
-    n_centers : int
-        RBF centres K (``rbf`` only).
-    refine : bool
-        Refine centres and widths by nonlinear least squares.
-    fit_params : bool
-        Fit the effect parameters marked as fitted in the catalog (warm-up tau) and the
-        thermal state's time constants (variable projection, with a 95 % profile
-        interval). False: take them from ``params`` (``lag.tau_s`` is then the first-order
-        state's time constant) or the catalog defaults.
-    params : mapping, optional
-        Starting or fixed effect parameters.
-    ridge : float or 'auto'
-        Relative ridge on the RBF weights (the constant and linear tail are not shrunk);
-        ``'auto'`` picks it by cross-validation over interleaved contiguous segments.
-    max_rows : int
-        Rows of the linear solve; longer data are block-averaged down to this.
-    seed : int
-        Seed of the centre placement.
-    frame_id, sensor_id : str
-        Recorded in the model.
-    created : mapping, optional
-        Extra creation info (command line, bag names).
-    thermal : str or ThermalState, optional
-        The thermal front end: ``'none'``, ``'first_order'``, ``'two_node'`` (two cascaded
-        lags), ``'auto'`` (two nodes when they lower the cross-validated error by
-        :data:`TWO_NODE_MARGIN`), or a fixed :class:`ThermalState`. Default: first order
-        with ``lag``, else none.
-    check_sessions : bool
-        With several sessions, hold each out in turn: an axis whose curve does not predict
-        a held-out power cycle (re-anchored) better than its offset alone keeps the offset
-        only (:func:`gyro_tdc.identify.power_cycles.check_sessions`).
-
+    ``kind`` ``'rbf'`` (``n_centers`` centres, ``seed`` placing them, ``refine`` by nonlinear
+    least squares) or ``'poly'``; ``features`` the effect ids (``bias`` implied; with ``lag`` every
+    temperature term, the RBF inputs, the scale term and the range follow the thermal state);
+    ``t0`` the reference (default :func:`estimate_t0` of the first run). ``fit_params`` fits the
+    catalog's fitted parameters (warm-up tau) and the state's time constants by variable
+    projection with a 95 % profile interval, else takes them from ``params`` or the catalog.
+    ``ridge`` is relative, on the RBF weights only (``'auto'``: cross-validated); longer data
+    than ``max_rows`` are block-averaged. ``thermal``: ``'none'``, ``'first_order'``,
+    ``'two_node'``, ``'auto'`` (two nodes when they lower the cross-validated error by
+    :data:`TWO_NODE_MARGIN`) or a fixed :class:`ThermalState` (default: first order with
+    ``lag``). ``check_sessions``: an axis whose curve does not predict a held-out power cycle
+    better than its offset keeps the offset only (:mod:`gyro_tdc.identify.power_cycles`).
     """
 
     kind: str = 'rbf'
@@ -229,36 +178,14 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
               rows: Sequence[NDArray[np.bool_]] | None = None,
               sessions: Sequence | None = None, **kw: Any) -> CompensationModel:
     """
-    Identify a compensation model from training runs.
+    Identify a compensation model from training runs (``options``, or its fields as ``**kw``).
 
-    The time constants are searched on coarse blocks with a polynomial in the state (for
-    an ``rbf`` model its terms and every power of the state up to the cube: a flexible
-    network of a slowly lagged state can fit any function of time and would pin nothing);
-    the model is then fitted at the time constants found on the shared estimator.
-
-    Parameters
-    ----------
-    runs : sequence of Run
-        Training runs (each a continuous recording; filters restart per run).
-    options : FitOptions, optional
-        How to fit; ``**kw`` are its fields, for a call that sets a few
-        (``fit_model(runs, kind='poly')``).
-    rows : sequence of NDArray[np.bool_], shape (N,) each, optional
-        Per run, the samples that count (e.g. the still ones): the fit, the residual, the
-        sample count and the trained range use them only, while the filters run over every
-        sample. None: every sample.
-    sessions : sequence, optional
-        A session label per run: every session gets its own turn-on offset beside one
-        shared curve; the model's ``intercept`` is their mean and ``metrics['sessions']``
-        holds them. None, or one label: one offset (the model as without the argument).
-    **kw
-        Fields of :class:`FitOptions`.
-
-    Returns
-    -------
-    CompensationModel
-        The fitted model (``model.thermal`` holds the front end).
-
+    The time constants are searched on coarse blocks with a polynomial in the state (an RBF
+    network of a slowly lagged state fits any function of time and pins nothing), then the model
+    is fitted at them on the shared estimator. ``rows`` (a mask per run) are the samples that
+    count (the still ones): the fit, residual, sample count and range use them while the filters
+    run over every sample. ``sessions`` (a label per run) give every session its own turn-on
+    offset beside one curve: the intercept is their mean, ``metrics['sessions']`` holds them.
     """
     o = replace(options or FitOptions(), **kw)
     ids = normalise_ids(o.features)
@@ -281,7 +208,7 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     groups = block_groups(blocks, labels)
     th, thermal_info = _search(runs, o, ids, inputs, t0, par, mode, th, rows, labels)
 
-    states = [b.state(th) for b in blocks]
+    states = [run_state(th, r) for r in runs]
     x = np.concatenate([b.features(inputs, t0, par, exact=True, thermal=th, state=s)
                         for b, s in zip(blocks, states)])
     scale_cols = (np.concatenate([b.scale_cols(t0, state=s) for b, s in zip(blocks, states)])
@@ -304,35 +231,28 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
             np.concatenate([b.mean(s) for b, s in zip(blocks, states)]), kind=o.kind,
             n_centers=o.n_centers, seed=o.seed)
     coef = fit.coef if groups is None else _with_level(fit, offsets)
-    counted = states if rows is None else [s[m] for s, m in zip(states, rows)]
-    lo = min(float(s.min()) for s in counted if s.size)
-    hi = max(float(s.max()) for s in counted if s.size)
     if th.kind != 'none':
         par[_LAG] = {'tau_s': th.tau_total_s}
-    info = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
-            'gyro_tdc_version': __version__}
-    info.update(dict(o.created or {}))
-    model = CompensationModel.network(
-        o.kind, ids, par, t0, fit.norm, coef, scale=fit.scale, temp_range_c=(lo, hi),
-        residual_var=np.zeros(3), frame_id=o.frame_id, sensor_id=o.sensor_id, created=info,
-        thermal=th)
+    created = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
+               'gyro_tdc_version': __version__, **(o.created or {})}
     residual_var = _residual_var(blocks, states, fit, t0, n_total)
-    deg2 = (180.0 / math.pi) ** 2
-    metrics = {
-        'samples': int(n_total),
-        'runs': [r.name for r in runs],
-        'train_bs_dps2': [float(v) for v in residual_var * deg2],
-        'train_rms_dps': [float(v) for v in np.sqrt(residual_var * deg2)],
-        'raw_bs_dps2': [float(v) for v in sum(b.ss_raw for b in blocks) / n_total * deg2],
-        'ridge': fit.ridge,
-    }
+    deg2 = _DEG ** 2
+    metrics = {'samples': int(n_total), 'runs': [r.name for r in runs],
+               'train_bs_dps2': [float(v) for v in residual_var * deg2],
+               'train_rms_dps': [float(v) for v in np.sqrt(residual_var * deg2)],
+               'raw_bs_dps2': [float(v) for v in sum(b.ss_raw for b in blocks) / n_total * deg2],
+               'ridge': fit.ridge}
     if thermal_info:
         metrics['thermal'] = thermal_info
     if groups is not None:
         metrics['sessions'] = _session_metrics(runs, labels, offsets, rows)
         if check:
             metrics['sessions']['heldout'] = check
-    return model.replace(residual_var=residual_var, metrics=metrics)
+    return CompensationModel.network(
+        o.kind, ids, par, t0, fit.norm, coef, scale=fit.scale,
+        temp_range_c=span(states if rows is None else [s[m] for s, m in zip(states, rows)]),
+        residual_var=residual_var, frame_id=o.frame_id, sensor_id=o.sensor_id, created=created,
+        thermal=th, metrics=metrics)
 
 
 def _search(runs: Sequence[Run], o: FitOptions, ids: tuple[str, ...], inputs: tuple[str, ...],
@@ -408,37 +328,17 @@ def _with_level(fit: LinearFit, offsets: NDArray[np.float64] | None = None
 def _session_metrics(runs: Sequence[Run], labels: Sequence[int], offsets: NDArray[np.float64],
                      rows: Sequence[NDArray[np.bool_]] | None) -> dict:
     """Return the sessions' names, samples and offsets from their mean (deg/s)."""
-    deg = 180.0 / math.pi
-    rel = (offsets - offsets.mean(axis=0)) * deg
+    rel = (offsets - offsets.mean(axis=0)) * _DEG
     names: list[list[str]] = [[] for _ in range(offsets.shape[0])]
     samples = [0] * offsets.shape[0]
     for i, (r, g) in enumerate(zip(runs, labels)):
         names[g].append(r.name)
         samples[g] += len(r) if rows is None else int(np.count_nonzero(rows[i]))
-    spread = rel.max(axis=0) - rel.min(axis=0)
-    return {'count': int(offsets.shape[0]),
-            'names': [', '.join(n) for n in names], 'samples': samples,
-            'offset_dps': [[float(v) for v in o] for o in rel],
-            'spread_dps': [float(v) for v in spread]}
+    return {'count': int(offsets.shape[0]), 'names': [', '.join(n) for n in names],
+            'samples': samples, 'offset_dps': [[float(v) for v in o] for o in rel],
+            'spread_dps': [float(v) for v in rel.max(axis=0) - rel.min(axis=0)]}
 
 
 def fit_px4_cubic(runs: Sequence[Run], *, t0: float | None = None, **kw) -> CompensationModel:
-    """
-    Fit the PX4-style baseline: a cubic in T - T0 per axis, clamped to the trained range.
-
-    Parameters
-    ----------
-    runs : sequence of Run
-        Training runs.
-    t0 : float, optional, degC
-        Reference temperature (default :func:`estimate_t0` of the first run).
-    **kw
-        Passed to :func:`fit_model`.
-
-    Returns
-    -------
-    CompensationModel
-        A ``poly`` model with features ``dT, dT2, dT3``.
-
-    """
+    """Fit the PX4-style baseline: a ``poly`` cubic in T - T0 per axis (``fit_model`` ``**kw``)."""
     return fit_model(runs, kind='poly', features=('dT', 'dT2', 'dT3'), t0=t0, **kw)

@@ -72,20 +72,23 @@ def _penalty(p: int, f: int, ridge: float, n: int) -> NDArray[np.float64]:
     return pen
 
 
-def _ridge_fit(design: NDArray[np.float64], y: NDArray[np.float64],
-               scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
-               ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return the ridge solution for all axes: coefficients (P, 3) and scale terms (3,)."""
+def _fit_weights(design: NDArray[np.float64], y: NDArray[np.float64],
+                 scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """Return the ridge solution for all axes: coefficients (P, 3), scale (3,), residual."""
     if scale_cols is None:
-        return fit_columns(design, y, penalty=pen), np.zeros(3)
-    p = design.shape[1]
-    coef = np.empty((p, 3))
-    scale = np.empty(3)
-    pen = np.append(pen, 0.0)
-    for ax in range(3):
-        sol = fit_columns(np.column_stack([design, scale_cols[:, ax]]), y[:, ax], penalty=pen)
-        coef[:, ax], scale[ax] = sol[:p], sol[p]
-    return coef, scale
+        coef, scale = fit_columns(design, y, penalty=pen), np.zeros(3)
+    else:
+        p = design.shape[1]
+        coef, scale, pen = np.empty((p, 3)), np.empty(3), np.append(pen, 0.0)
+        for ax in range(3):
+            sol = fit_columns(np.column_stack([design, scale_cols[:, ax]]), y[:, ax],
+                              penalty=pen)
+            coef[:, ax], scale[ax] = sol[:p], sol[p]
+    resid = design @ coef - y
+    if scale_cols is not None:
+        resid += scale_cols * scale
+    return coef, scale, resid
 
 
 def _fold_sums(d: NDArray[np.float64], y: NDArray[np.float64], folds: Folds
@@ -152,27 +155,11 @@ class LinearFit:
     """
     A drift network fitted by :func:`fit_linear`: normalisation, centres and weights.
 
-    Parameters
-    ----------
-    mean, std : NDArray[np.float64], shape (F,)
-        Input normalisation, ``x~ = (x - mean) / std``.
-    centers : NDArray[np.float64], shape (K, F)
-        RBF centres in normalised units (K = 0 for ``poly``).
-    widths : NDArray[np.float64], shape (K,)
-        RBF widths in normalised units.
-    coef : NDArray[np.float64], shape (1 + F + K, 3)
-        Weights of the design columns ``[1, x~, phi]`` per axis.
-    scale : NDArray[np.float64], shape (3,)
-        Per-axis coefficients of the ``scale_cols`` (zeros without them).
-    sse : float
-        Sum of squared residuals over rows and axes.
-    resid : NDArray[np.float64], shape (N, 3)
-        Residuals ``prediction - y`` of the fitted rows.
-    ridge : float
-        Relative ridge penalty used on the RBF weights.
-    offsets : NDArray[np.float64], shape (G, 3), optional
-        With ``groups``: the constant of each group (``coef[0]`` is then zero).
-
+    Inputs are normalised as ``(x - mean) / std``; ``centers`` (K, F) and ``widths`` (K,) are in
+    normalised units (K = 0 for ``poly``); ``coef`` (1 + F + K, 3) weighs ``[1, x~, phi]``,
+    ``scale`` (3,) the ``scale_cols``; ``resid`` is prediction minus target, ``sse`` its sum of
+    squares; with ``groups``, ``coef[0]`` is zero and ``offsets`` (G, 3) holds each group's
+    constant in the order of ``np.unique(groups)``.
     """
 
     mean: NDArray[np.float64]
@@ -192,55 +179,16 @@ class LinearFit:
         return (self.mean, self.std, self.centers, self.widths)
 
     def design(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """
-        Return the design matrix ``[1, x~, phi(x~)]`` of feature rows ``x``.
-
-        Parameters
-        ----------
-        x : NDArray[np.float64], shape (N, F)
-            Raw feature rows.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (N, 1 + F + K)
-            Design matrix (:func:`gyro_tdc.model.compensation.rbf_design`).
-
-        """
+        """Return the design matrix ``[1, x~, phi(x~)]`` (N, 1 + F + K) of feature rows ``x``."""
         return rbf_design(self.norm, x)
 
     def predict(self, x: NDArray[np.float64],
                 scale_cols: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
-        """
-        Return the fitted drift at feature rows ``x``.
-
-        Parameters
-        ----------
-        x : NDArray[np.float64], shape (N, F)
-            Raw feature rows.
-        scale_cols : NDArray[np.float64], shape (N, 3), optional
-            ``dT * omega_ref`` per axis, when the fit has a ``scale`` term.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (N, 3)
-            Predicted drift per axis.
-
-        """
+        """Return the fitted drift (N, 3) at feature rows ``x`` (and ``dT omega_ref``)."""
         out = self.design(x) @ self.coef
         if scale_cols is not None:
             out += scale_cols * self.scale
         return out
-
-
-def _residual(design: NDArray[np.float64], y: NDArray[np.float64],
-              scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
-              ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """Solve the weights and return them with the scale coefficients and the residual."""
-    coef, scale = _ridge_fit(design, y, scale_cols, pen)
-    resid = design @ coef - y
-    if scale_cols is not None:
-        resid += scale_cols * scale
-    return coef, scale, resid
 
 
 def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
@@ -248,44 +196,15 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
                n_centers: int = 12, ridge: float | str = 'auto', seed: int = 0,
                groups: NDArray[np.int64] | None = None) -> LinearFit:
     """
-    Fit the drift network on one feature matrix by regularised linear least squares.
+    Fit the drift network on one feature matrix (N, F) to the target (N, 3) by ridge regression.
 
-    The inputs are normalised to zero mean and unit deviation; for ``rbf`` the centres are
-    placed by k-means on the normalised rows (each width the mean distance to the two nearest
-    other centres); then the weights of ``[1, x~, phi(x~)]`` (and of ``scale_cols``) are
-    solved with no penalty on the constant, a tiny one on the linear tail (conditioning
-    only) and the relative ``ridge`` on the RBF weights.
-
-    Parameters
-    ----------
-    x : NDArray[np.float64], shape (N, F)
-        Feature rows (effect columns, :func:`gyro_tdc.model.effects.batch_features`).
-    y : NDArray[np.float64], shape (N, 3)
-        Drift target per axis.
-    scale_cols : NDArray[np.float64], shape (N, 3), optional
-        ``dT * omega_ref`` per axis: fits the per-axis ``scale`` coefficient too.
-    kind : str
-        ``'poly'`` (linear in the features) or ``'rbf'``.
-    n_centers : int
-        RBF centres K (``rbf`` only; fewer when the rows have fewer distinct values).
-    ridge : float or 'auto'
-        Relative ridge on the RBF weights; ``'auto'`` picks it from :data:`RIDGE_GRID` by
-        cross-validation over interleaved contiguous segments (``rbf`` with at least 40
-        rows), else uses ``RIDGE_GRID[1]``.
-    seed : int
-        Seed of the centre placement.
-    groups : NDArray[np.int64], shape (N,), optional
-        A label per row: each group gets its own constant instead of the common ``w0``
-        (the within-group problem is solved exactly: design columns and target centred per
-        group), e.g. one offset per accelerometer orientation.
-
-    Returns
-    -------
-    LinearFit
-        Normalisation, centres, weights, residuals and the ridge used (with ``groups``,
-        ``coef[0]`` is zero and ``offsets`` holds the constant of each group, in the order
-        of ``np.unique(groups)``).
-
+    For ``rbf`` the centres are placed by k-means on the normalised rows (each width the mean
+    distance to the two nearest other centres); the weights of ``[1, x~, phi(x~)]`` (and of
+    ``scale_cols``, ``dT * omega_ref`` per axis) get no penalty on the constant, a tiny one on the
+    linear tail (conditioning only) and the relative ``ridge`` on the RBF weights (``'auto'``:
+    chosen from :data:`RIDGE_GRID` by cross-validation over interleaved contiguous segments, for
+    ``rbf`` with at least 40 rows). ``groups`` give each group its own constant (the
+    within-group problem solved exactly, e.g. one offset per session or orientation).
     """
     mean = x.mean(axis=0) if x.shape[1] else np.zeros(0)
     std = x.std(axis=0) if x.shape[1] else np.ones(0)
@@ -306,7 +225,7 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
         ridge = (_choose_ridge(design, y, scale_cols, f) if centers.shape[0]
                  and design.shape[0] >= 40 else RIDGE_GRID[1])
     pen = _penalty(design.shape[1], f, ridge, design.shape[0])
-    coef, scale, resid = _residual(design, y, scale_cols, pen)
+    coef, scale, resid = _fit_weights(design, y, scale_cols, pen)
     offsets = None
     if groups is not None:          # the centred constant column is zero: no w0
         coef[0] = 0.0
@@ -337,7 +256,7 @@ def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
     def resid(theta: NDArray[np.float64]) -> NDArray[np.float64]:
         centers, widths = unpack(theta)
         d = rbf_design((mean, std, centers, widths), xs)
-        return _residual(d, ys, ss, _penalty(d.shape[1], f, ridge, d.shape[0]))[2].ravel()
+        return _fit_weights(d, ys, ss, _penalty(d.shape[1], f, ridge, d.shape[0]))[2].ravel()
 
     theta0 = np.concatenate([fit.centers.ravel(), np.log(fit.widths)])
     sol = least_squares(resid, theta0, method='trf', max_nfev=20, x_scale='jac')
@@ -346,6 +265,6 @@ def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
     centers, widths = unpack(sol.x)
     design = rbf_design((mean, std, centers, widths), x)
     pen = _penalty(design.shape[1], f, ridge, design.shape[0])
-    coef, scale, r = _residual(design, y, scale_cols, pen)
+    coef, scale, r = _fit_weights(design, y, scale_cols, pen)
     return replace(fit, centers=centers, widths=widths, coef=coef, scale=scale, resid=r,
                    sse=float((r ** 2).sum()))

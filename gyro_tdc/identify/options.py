@@ -12,70 +12,41 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The choices of a training run, checked once (:class:`TrainOptions`)."""
+
+"""The choices of a training run, checked once (:class:`TrainOptions`), and what it produced."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
+from pathlib import Path
 
 from gyro_tdc.base import check_bin_width, check_centers
+from gyro_tdc.data import Coverage
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.features import AUTO
+from gyro_tdc.identify.accel import AccelFit
+from gyro_tdc.identify.features import AUTO, FeatureChoice
 from gyro_tdc.identify.fit import THERMAL_CHOICES
-from gyro_tdc.model import KINDS, normalise_ids
+from gyro_tdc.model import CompensationModel, KINDS, normalise_ids
 
-__all__ = ['TrainOptions']
+__all__ = ['TrainOptions', 'TrainResult']
 
 
 @dataclass(frozen=True)
 class TrainOptions:
     """
-    How to train a model: features, network, reference temperature, coverage bins, parts.
+    How to train a model, checked when built so that a bad choice fails before any bag is read.
 
-    Checked when built, so that a bad choice fails before any bag is read.
-
-    Parameters
-    ----------
-    features : str or tuple of str
-        ``'auto'`` (default: the paper's ``dT,dT2`` plus what
-        :func:`gyro_tdc.identify.features.choose_features` finds the data support) or effect
-        ids (``'dT,dT2'`` or a sequence: exactly that model); held as ``'auto'`` or the ids
-        in catalog order.
-    kind : str
-        ``'rbf'`` or ``'poly'``.
-    n_centers : int
-        RBF centres K.
-    refine : bool
-        Refine centres and widths by nonlinear least squares.
-    t0 : float, optional, degC
-        Reference temperature; default the stable initial temperature of the first bag (with
-        ``train_still_only``: of the first still stretch).
-    seed : int
-        Seed of the centre placement.
-    ridge : float or 'auto'
-        Relative ridge penalty on the RBF weights (:func:`gyro_tdc.identify.fit.fit_model`).
-    thermal : str, optional
-        The thermal front end (:data:`gyro_tdc.identify.fit.THERMAL_CHOICES`); default as
-        ``fit_model``: first order with ``lag``, else none.
-    bin_c : float, degC
-        Width of the coverage bins.
-    accel : bool
-        Read the accelerometer and fit the model's accelerometer part on its still data
-        (default); False skips both.
-    sensor_id : str
-        The sensor's id, written to the model's ``sensor.sensor_id``.
-    window_s, min_still_s : float or None, s
-        The still test of training without a reference: window and shortest still stretch
-        kept; None (default): the window by the rate (:func:`gyro_tdc.signal.auto_window`),
-        a stretch judged by its samples and its noise (:func:`gyro_tdc.signal.detect_still`).
-
-    Raises
-    ------
-    GyroTdcError
-        FeatureError for an unknown effect id, FitError for a bad ``kind``, ``ridge`` or
-        ``thermal``, and the size checks of ``n_centers`` and ``bin_c``.
-
+    ``features`` is ``'auto'`` (the paper's ``dT,dT2`` plus what
+    :func:`~gyro_tdc.identify.features.choose_features` finds the data support) or effect ids
+    (held in catalog order); ``kind``, ``n_centers``, ``refine``, ``t0``, ``seed``, ``ridge``
+    and ``thermal`` are those of :class:`~gyro_tdc.identify.fit.FitOptions` (``t0`` by default
+    the stable initial temperature of the first bag, with ``--still-only`` of the first still
+    stretch); ``bin_c`` the coverage bins, degC; ``accel`` reads the accelerometer and fits its
+    part; ``sensor_id`` goes to the model. ``window_s`` and ``min_still_s``: the still test of
+    training without a reference (None: the window by the rate, a stretch judged by its
+    samples and its noise, :func:`gyro_tdc.signal.detect_still`). FeatureError for an unknown
+    effect id, FitError for a bad ``kind``, ``ridge`` or ``thermal``.
     """
 
     features: str | tuple[str, ...] = AUTO
@@ -113,3 +84,45 @@ class TrainOptions:
     def auto(self) -> bool:
         """Return True when the data choose the features (``features='auto'``)."""
         return self.features == AUTO
+
+    def fit_kw(self) -> dict:
+        """Return the fields ``fit_model`` shares (kind, centres, refine, ridge, seed, ...)."""
+        return {'kind': self.kind, 'n_centers': self.n_centers, 'refine': self.refine,
+                'ridge': self.ridge, 'seed': self.seed, 'thermal': self.thermal,
+                'sensor_id': str(self.sensor_id)}
+
+
+@dataclass
+class TrainResult:
+    """
+    What :func:`gyro_tdc.identify.train.train` (or ``train_still_only``) produced.
+
+    The model as saved and where; the coverage of the training data (of the still time kept
+    with ``--still-only``), the bags and samples; the choice of ``features='auto'``; the
+    accelerometer part's fit (None with ``accel=False``); with ``--still-only`` the
+    :class:`~gyro_tdc.identify.still_only.StillReport`; the sessions
+    (:class:`gyro_tdc.data.SessionSplit`); ``constant``: axis name -> reading (rad/s) of the
+    gyro axes never varying beyond one quantum, passed through unchanged.
+    """
+
+    model: CompensationModel
+    path: Path
+    coverage: Coverage
+    bags: list
+    samples: int
+    choice: FeatureChoice | None = None
+    accel: AccelFit | None = None
+    still: object | None = None
+    sessions: object | None = None
+    constant: dict = field(default_factory=dict)
+
+    def constant_line(self) -> str:
+        """Return the one report line naming the constant gyro axes ('' when none)."""
+        if not self.constant:
+            return ''
+        many = len(self.constant) > 1
+        values = ', '.join(f'{v:.6g}' for v in self.constant.values())
+        return (f'gyro ax{"es" if many else "is"} {", ".join(self.constant)}: constant at '
+                f'{values} rad/s (never varying beyond one quantum: a 2-axis gyro or a dead '
+                f'axis); not fitted: the model passes {"them" if many else "it"} through '
+                'unchanged')

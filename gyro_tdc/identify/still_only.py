@@ -13,40 +13,34 @@
 # limitations under the License.
 
 """
-Training from ordinary operation: only the still stretches count (``train --still-only``).
+The still time of ordinary operation: found, judged, reported (``train --still-only``).
 
-:func:`train_still_only` finds the still stretches of every bag, fits the model on them
-while the thermal state runs over every sample, drops still stretches that look like slow
-turns, and reports what to record next (:class:`StillReport`); ``doc/internals/identify.md``.
+:func:`find_still` finds the still stretches of every bag with one noise floor;
+:func:`fit_without_outliers` fits on them and drops those that look like slow turns;
+:func:`still_report` says what the still time covered and what to record next
+(:class:`StillReport`). The trainer is :func:`gyro_tdc.identify.train.train_still_only`.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 import math
-import os
-from pathlib import Path
 from typing import Callable, Sequence
 
-from gyro_tdc.data import (BagOptions, Coverage, coverage, load_runs, RATE_THRESHOLD_C_PER_MIN,
-                           read_motion, Run, split_sessions, temperature_rate)
+from gyro_tdc.data import Coverage, coverage, RATE_THRESHOLD_C_PER_MIN, Run, temperature_rate
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.accel import fit_accel
-from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, identity_axes,
-                                    neutral_runs)
-from gyro_tdc.identify.features import features_for_fit
-from gyro_tdc.identify.fit import fit_model
+from gyro_tdc.identify.fit import fit_model, span
 from gyro_tdc.identify.options import TrainOptions
-from gyro_tdc.identify.result import TrainResult
-from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
-                            normalise_ids, OPERATING_RANGE_C, save_model)
-from gyro_tdc.signal import auto_window, detect_still, motion_veto, NOISE_FACTOR, Stillness
+from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, normalise_ids,
+                            OPERATING_RANGE_C)
+from gyro_tdc.signal import auto_window, detect_still, NOISE_FACTOR, Stillness
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['ADVICE_PARK_MIN', 'find_still', 'MAX_MOVING_SHARE', 'MIN_STILL_SPAN_C',
-           'moving_share', 'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'proxy_lag',
-           'STILL_STD_CEILING', 'still_report', 'StillReport', 'Stretch', 'train_still_only']
+__all__ = ['ADVICE_PARK_MIN', 'check_still_span', 'find_still', 'first_still_temperature',
+           'fit_without_outliers', 'MAX_MOVING_SHARE', 'MIN_STILL_SPAN_C', 'moving_share',
+           'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'proxy_lag', 'rows_of', 'STILL_STD_CEILING',
+           'still_report', 'StillReport', 'Stretch']
 
 #: Smallest temperature span of the still time a model is fitted on, degC.
 MIN_STILL_SPAN_C = 2.0
@@ -71,23 +65,7 @@ _DEG = 180.0 / math.pi
 
 @dataclass(frozen=True)
 class Stretch:
-    """
-    One still stretch of a bag.
-
-    Parameters
-    ----------
-    bag : str
-        The bag.
-    t0_s, t1_s : float, s
-        First and last stamp.
-    temp_c : float, degC
-        Mean measured temperature.
-    kept : bool
-        False when dropped as an outlier of the fit.
-    offset_dps : tuple of 3 float, deg/s
-        Mean compensated rate of the stretch under the final model.
-
-    """
+    """One still stretch of a bag: stamps, mean temperature, kept, mean rate left (deg/s)."""
 
     bag: str
     t0_s: float
@@ -107,24 +85,9 @@ class StillReport:
     """
     What the still time of ``train --still-only`` covered, and what to record next.
 
-    Parameters
-    ----------
-    total_s : float, s
-        Duration of the bags.
-    still_s : float, s
-        Still time kept (outliers excluded).
-    stretches : list of Stretch
-        Every still stretch found, kept or dropped.
-    coverage : Coverage
-        Temperature bins and heating/cooling minutes of the still time kept (the direction
-        from the temperature over the whole bag).
-    motion_topic : str
-        The motion veto's topic, or empty.
-    rejected : dict
-        Windows refused per test (:data:`gyro_tdc.signal.REASONS`), over all bags.
-    advice : list of str
-        What to record next.
-
+    ``total_s`` the bags' duration, ``still_s`` the still time kept; ``stretches`` every still
+    stretch found; ``coverage`` the still time's bins and heating/cooling minutes (the direction
+    from the temperature over the whole bag); ``rejected`` windows refused per test.
     """
 
     total_s: float
@@ -178,27 +141,11 @@ def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None
     """
     Find the still samples of runs of one sensor, with one noise floor for them all.
 
-    The auto thresholds take the quietest window as the noise (:mod:`gyro_tdc.signal`); over
-    several bags of one sensor the quietest window of any of them is the floor, so a bag
-    that never stops does not look still to itself, and the threshold is never above
-    :data:`STILL_STD_CEILING` (a single log of a hover).
-
-    Parameters
-    ----------
-    runs : sequence of Run
-        The runs (raw rate, and the accelerometer when read).
-    moving : sequence of (NDArray[np.bool_] or None), optional
-        Per run, the samples a motion report vetoes (:func:`gyro_tdc.signal.motion_veto`).
-    window_s, min_still_s : float or None, s
-        Window length and shortest still stretch (:func:`gyro_tdc.signal.detect_still`);
-        None: the window by each run's rate (:func:`gyro_tdc.signal.auto_window`), the
-        stretch judged by its samples and its noise.
-
-    Returns
-    -------
-    list of Stillness
-        One per run.
-
+    The quietest window of any run is the floor, so a bag that never stops does not look still
+    to itself, and the threshold is never above :data:`STILL_STD_CEILING` (a log of a hover).
+    ``moving`` is a motion veto per run; ``window_s`` and ``min_still_s`` as
+    :func:`gyro_tdc.signal.detect_still` (None: by each run's rate, a stretch judged by its
+    samples and its noise).
     """
     moving = [None] * len(runs) if moving is None else list(moving)
     windows = [auto_window(r.t) if window_s is None else window_s for r in runs]
@@ -245,15 +192,10 @@ def proxy_lag(runs: Sequence[Run], ids: tuple, options: TrainOptions,
     return normalise_ids(tuple(ids) + ('lag',))
 
 
-def _rows(run: Run, m: NDArray[np.bool_]) -> Run:
+def rows_of(run: Run, m: NDArray[np.bool_]) -> Run:
     """Return the samples ``m`` of a run as a run (with gaps)."""
     return Run(run.t[m], run.temp[m], run.omega[m], run.omega_ref[m], run.name,
                dict(run.info), None if run.accel is None else run.accel[m])
-
-
-def _stretches(runs: Sequence[Run], still: Sequence[Stillness]) -> list[tuple[int, int, int]]:
-    """Return (run, start, stop) of every still stretch."""
-    return [(i, a, b) for i, st in enumerate(still) for a, b in st.segments]
 
 
 def _outliers(means: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -271,30 +213,12 @@ def still_report(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
                  stretches: list, *, bin_c: float, motion_topic: str = '',
                  rejected: dict | None = None) -> StillReport:
     """
-    Measure the still time kept and say what to record next.
+    Measure the still time kept (``rows`` of ``runs``) and say what to record next.
 
-    Parameters
-    ----------
-    runs : sequence of Run
-        The whole runs.
-    rows : sequence of NDArray[np.bool_]
-        Their still samples kept.
-    stretches : list of Stretch
-        Every stretch found.
-    bin_c : float, degC
-        Coverage bin width.
-    motion_topic : str
-        The motion veto's topic, or empty.
-    rejected : dict, optional
-        Windows refused per test.
-
-    Returns
-    -------
-    StillReport
-        Still time, coverage, heating/cooling minutes and advice.
-
+    ``stretches`` are every stretch found, ``bin_c`` the coverage bins, degC; the report carries
+    the motion veto's topic and the windows refused per test.
     """
-    subs = [_rows(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
+    subs = [rows_of(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
     cov = coverage(subs, bin_c=bin_c)
     # The direction from the temperature over the whole bag (the drives in between count).
     minutes, rate = [], []
@@ -341,161 +265,17 @@ def _advice(cov: Coverage) -> list[str]:
     return out
 
 
-def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
-                     options: TrainOptions | None = None, bag: BagOptions | None = None, *,
-                     command: str = '', log: Callable[[str], None] | None = None,
-                     runs: Sequence[Run] | None = None,
-                     moving: Sequence[NDArray[np.bool_] | None] | None = None
-                     ) -> TrainResult:
-    """
-    Fit a model on the still stretches of bags recorded in ordinary operation.
-
-    Parameters
-    ----------
-    bags : sequence of str or PathLike
-        rosbag2 directories (or folders of them), one run each.
-    out : str or PathLike
-        Model file to write.
-    options : TrainOptions, optional
-        As :func:`gyro_tdc.identify.train.train` (``t0`` defaults to the temperature at the
-        start of the first still stretch), with the still test's ``window_s`` and
-        ``min_still_s``.
-    bag : BagOptions, optional
-        How to read the bags; no reference is read (the rate is zero while still), and
-        ``motion_topic`` (a ``Twist``, ``TwistStamped`` or ``Odometry`` topic) vetoes
-        stillness while it reports motion.
-    command : str
-        Command line recorded in the model's ``created``.
-    log : callable, optional
-        Receives one line per bag read.
-    runs : sequence of Run, optional
-        Runs already loaded (``bags`` then only names them); for tests and scripts.
-    moving : sequence of (NDArray[np.bool_] or None), optional
-        With ``runs``: the motion veto per run.
-
-    Returns
-    -------
-    TrainResult
-        As :func:`gyro_tdc.identify.train.train`, with ``still`` the :class:`StillReport`;
-        ``coverage`` and ``samples`` are those of the still time kept. A constant gyro axis
-        (:func:`gyro_tdc.identify.axes.constant_gyro_axes`) is not fitted: the still test,
-        the feature choice and the fit see it at its reference, the model passes it through
-        (``result.constant``, ``model.metrics['constant_axes']``).
-
-    Raises
-    ------
-    GyroTdcError
-        DatasetError for a bag or motion topic that cannot be read or a gyro constant on
-        every axis (before any still test); FitError when no still stretch is found or
-        their temperatures span less than :data:`MIN_STILL_SPAN_C` (with what to record),
-        and as :func:`gyro_tdc.identify.train.train`.
-
-    """
-    o = TrainOptions() if options is None else options
-    bag = BagOptions() if bag is None else bag
-    if runs is None:
-        runs, moving = _load_still_runs(bags, bag, o, log, moving)
-    else:
-        runs = [replace(r, omega_ref=np.zeros_like(r.omega)) for r in runs]
-    bags = [r.name for r in runs]
-    split = split_sessions(runs, bag.sessions, bag.session_gap_s)
-    if moving is not None:
-        moving = [None if moving[j] is None else np.asarray(moving[j])[a:b]
-                  for j, a, b in split.parts]
-    runs = split.runs
-    names = [r.name for r in runs]
-    # A constant gyro axis (train's rule; every axis constant refused as train does) is not
-    # fitted: the still test, the feature choice and the fit see it at its reference (0).
-    const = constant_gyro_axes(runs)
-    raw_runs, runs = runs, neutral_runs(runs, const)
-    still = find_still(runs, moving=moving, window_s=o.window_s, min_still_s=o.min_still_s)
-    rejected: dict = {}
-    for st in still:
-        for k, v in st.rejected().items():
-            rejected[k] = rejected.get(k, 0) + v
-    rows = [st.mask.copy() for st in still]
-    if not any(m.any() for m in rows):
-        why = '; '.join(sorted({st.reason for st in still if st.reason}))
-        least = 'long enough' if o.min_still_s is None else f'of {o.min_still_s:g} s or more'
-        raise FitError(f'--still-only: no still stretch {least} in '
-                       f'{len(runs)} bag(s) ({why}): park the vehicle for '
-                       f'{ADVICE_PARK_MIN} min with the IMU on, and record it.')
-    labels = list(split.labels)
-    whole_runs, whole_rows = list(runs), list(rows)     # the report covers every bag
-    if not all(m.any() for m in rows):
-        # A session without still time has no offset to fit: it is left out of the fit.
-        keep = [i for i, m in enumerate(rows) if m.any()]
-        runs, raw_runs = [runs[i] for i in keep], [raw_runs[i] for i in keep]
-        rows, still = [rows[i] for i in keep], [still[i] for i in keep]
-        names = [names[i] for i in keep]
-        relabel = {g: k for k, g in enumerate(dict.fromkeys(labels[i] for i in keep))}
-        labels = [relabel[labels[i]] for i in keep]
-    _check_still_span(runs, rows)
-    t0 = _first_still_temperature(runs, rows) if o.t0 is None else o.t0
-    subs = ([_rows(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
-            if o.auto else [])            # the still rows, for the choice of features
-    ids, params, choice = features_for_fit(subs, o.features, t0=t0)
-    ids = proxy_lag(runs, ids, o, log)
-    common = {'features': ids, 'params': params or None, 'kind': o.kind, 't0': t0,
-              'n_centers': o.n_centers, 'refine': o.refine, 'ridge': o.ridge, 'seed': o.seed,
-              'thermal': o.thermal, 'frame_id': str(runs[0].info.get('frame_id') or 'imu_link'),
-              'sensor_id': o.sensor_id, 'sessions': labels,
-              'created': {'command': command, 'bags': bags, 'still_only': True}}
-    spans = _stretches(runs, still)
-    model, means, bad = _fit_without_outliers(runs, rows, spans, labels, common)
-    model = identity_axes(model, raw_runs, const, rows)
-    stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
-                         float(runs[i].temp[a:b].mean()), not drop,
-                         tuple(float(v) * _DEG for v in mu))
-                 for (i, a, b), drop, mu in zip(spans, bad, means)]
-    report = still_report(whole_runs, whole_rows, stretches, bin_c=o.bin_c,
-                          motion_topic=bag.motion_topic,
-                          rejected=rejected)
-    accel_fit = None
-    if o.accel:
-        accel_fit = fit_accel(runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c)
-        if accel_fit.part is not None:
-            model = model.replace(accel=accel_fit.part)
-    metrics = {**model.metrics, 'still': report.to_dict()}
-    if choice is not None:
-        metrics['features'] = choice.to_dict()
-    model = model.replace(metrics=metrics)
-    path = save_model(model, out)
-    return TrainResult(model=model, path=Path(path), coverage=report.coverage, bags=bags,
-                       samples=int(sum(np.count_nonzero(m) for m in rows)), choice=choice,
-                       accel=accel_fit, still=report, sessions=split,
-                       constant=constant_readings(raw_runs, const))
-
-
-def _load_still_runs(bags: Sequence[str | os.PathLike], bag: BagOptions, o: TrainOptions,
-                     log: Callable[[str], None] | None,
-                     moving: Sequence[NDArray[np.bool_] | None] | None
-                     ) -> tuple[list[Run], Sequence[NDArray[np.bool_] | None] | None]:
-    """Read the bags with a zero reference rate, and the motion veto of ``bag.motion_topic``."""
-    said = None if log is None else (lambda line: log(line.replace(
-        'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
-    runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
-                     log=said)
-    if bag.motion_topic:
-        moving = []
-        for r in runs:
-            rep = read_motion(r.name, bag.motion_topic)
-            moving.append(motion_veto(r.t, rep.t, rep.twist))
-    return runs, moving
-
-
-def _check_still_span(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]]) -> None:
+def check_still_span(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]]) -> None:
     """Raise FitError, saying what to record, when the still time spans too few degrees."""
-    temps = np.concatenate([r.temp[m] for r, m in zip(runs, rows)])
-    span = float(temps.max() - temps.min())
-    if span < MIN_STILL_SPAN_C:
-        raise FitError(f'--still-only: the still time spans {span:.2f} degC only '
-                       f'({temps.min():.1f} .. {temps.max():.1f} degC; need at least '
+    lo, hi = span([r.temp[m] for r, m in zip(runs, rows)])
+    if hi - lo < MIN_STILL_SPAN_C:
+        raise FitError(f'--still-only: the still time spans {hi - lo:.2f} degC only '
+                       f'({lo:.1f} .. {hi:.1f} degC; need at least '
                        f'{MIN_STILL_SPAN_C:g} degC): record stops at other temperatures '
                        '(a cold morning, right after a long drive).')
 
 
-def _first_still_temperature(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]]) -> float:
+def first_still_temperature(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]]) -> float:
     """Return the median temperature of the first minute of the first still stretch."""
     i = next(k for k, m in enumerate(rows) if m.any())
     first = np.flatnonzero(rows[i])
@@ -503,9 +283,9 @@ def _first_still_temperature(runs: Sequence[Run], rows: Sequence[NDArray[np.bool
     return float(np.median(runs[i].temp[head]))
 
 
-def _fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
-                          spans: list[tuple[int, int, int]], labels: list[int], common: dict
-                          ) -> tuple[CompensationModel, NDArray[np.float64], NDArray[np.bool_]]:
+def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
+                         spans: list[tuple[int, int, int]], labels: list[int], common: dict
+                         ) -> tuple[CompensationModel, NDArray[np.float64], NDArray[np.bool_]]:
     """
     Fit, then refit without the outlying stretches unless all or none are outliers.
 

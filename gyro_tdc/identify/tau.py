@@ -42,21 +42,7 @@ MAX_TAU_RATIO = 3.0
 
 @dataclass(frozen=True, eq=False)
 class TimeConstantFit:
-    """
-    A time constant chosen by :func:`fit_time_constant`, with its residual profile.
-
-    Parameters
-    ----------
-    tau : float, s
-        The best time constant found.
-    sse : float
-        The objective at ``tau``.
-    grid_tau : NDArray[np.float64], shape (G,), s
-        Time constants of the search grid, increasing.
-    grid_sse : NDArray[np.float64], shape (G,)
-        The objective at each grid point (the profile, e.g. for an interval on ``tau``).
-
-    """
+    """The best ``tau`` of :func:`fit_time_constant`, its objective, and the grid profile."""
 
     tau: float
     sse: float
@@ -68,32 +54,12 @@ def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float]
                       n_grid: int = 13, log: bool = True, xatol: float = 1e-3
                       ) -> TimeConstantFit:
     """
-    Minimise ``sse(tau)`` over a bounded range: a grid, then a bounded Brent search.
+    Minimise ``sse(tau)`` over ``bounds``: a grid, then a bounded Brent search.
 
-    The grid (log-spaced by default) finds the basin; :func:`scipy.optimize.minimize_scalar`
-    (``method='bounded'``) then searches between the neighbours of the best grid point, and
-    its answer is kept when it is no worse than that grid point.
-
-    Parameters
-    ----------
-    sse : callable
-        ``sse(tau) -> float``, the objective (e.g. the least-squares residual with the linear
-        weights re-solved at every trial: variable projection).
-    bounds : tuple of float, s
-        ``(lo, hi)``, ``0 < lo <= hi`` (``0 <= lo`` when ``log`` is False).
-    n_grid : int
-        Grid points, >= 1.
-    log : bool
-        Grid and search in ``log(tau)`` (True) or in ``tau``.
-    xatol : float
-        Absolute tolerance of the bounded search, in the search variable (``log(tau)``
-        when ``log``).
-
-    Returns
-    -------
-    TimeConstantFit
-        The best ``tau``, its objective and the grid profile.
-
+    The grid (``n_grid`` points, in ``log(tau)`` when ``log``) finds the basin;
+    :func:`scipy.optimize.minimize_scalar` then searches between the neighbours of the best grid
+    point (``xatol`` in the search variable), and its answer is kept when it is no worse.
+    FitError for bounds that are not ``0 < lo <= hi`` (``0 <=`` without ``log``) or ``n_grid < 1``.
     """
     lo, hi = (float(v) for v in bounds)
     if not (math.isfinite(lo) and math.isfinite(hi) and (lo > 0.0 if log else lo >= 0.0)
@@ -102,13 +68,8 @@ def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float]
                        f'got {bounds!r}.')
     if n_grid < 1:
         raise FitError(f'Expected `n_grid` >= 1, got {n_grid!r}.')
-    if log:
-        def objective(v: float) -> float:
-            return sse(math.exp(v))
-        grid = np.linspace(math.log(lo), math.log(hi), n_grid)
-    else:
-        objective = sse
-        grid = np.linspace(lo, hi, n_grid)
+    objective = (lambda v: sse(math.exp(v))) if log else sse
+    grid = np.linspace(math.log(lo), math.log(hi), n_grid) if log else np.linspace(lo, hi, n_grid)
     vals = np.array([objective(g) for g in grid], dtype=np.float64)
     i = int(np.argmin(vals))
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
@@ -126,27 +87,11 @@ def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float]
 def effective_samples(resid: NDArray[np.float64], *, min_batches: int = 32
                       ) -> NDArray[np.float64]:
     """
-    Return, per column, the number of independent samples a correlated residual is worth.
+    Return per column the number of independent samples a correlated residual is worth (1..N).
 
-    A residual with memory (slow noise, or drift the model misses) carries less information
-    than its length: ``n_eff = n / inflation`` with the variance inflation of its mean taken
-    as the larger of the AR(1) value ``(1 + rho) / (1 - rho)`` (``rho`` the lag-1
-    autocorrelation, ``n_eff = n (1 - rho) / (1 + rho)``) and the batch-means values
-    ``m var(mean of m rows) / var(row)`` for ``m = 2, 4, ...`` while at least
-    ``min_batches`` batches remain (memory longer than one lag).
-
-    Parameters
-    ----------
-    resid : NDArray[np.float64], shape (N,) or (N, A)
-        Residual rows in time order.
-    min_batches : int
-        Fewest batches a batch-means value is taken from.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (A,)
-        ``n_eff`` per column, between 1 and N.
-
+    ``n / inflation``, the variance inflation of the mean being the larger of the AR(1) value
+    ``(1 + rho) / (1 - rho)`` and the batch-means values ``m var(mean of m rows) / var(row)`` for
+    ``m = 2, 4, ...`` while ``min_batches`` batches remain (memory longer than one lag).
     """
     r = np.asarray(resid, dtype=np.float64)
     r = r.reshape(r.shape[0], -1)
@@ -171,25 +116,9 @@ class TauProfile:
     """
     The profile of a fit over one time constant, and the interval it gives.
 
-    Parameters
-    ----------
-    tau : float, s
-        The best time constant.
-    interval : tuple of float, s
-        ``(lo, hi)``: every evaluated ``tau`` whose statistic is within ``level`` (the
-        hull, ends resolved by bisection).
-    identifiable : bool
-        False when the interval reaches a search bound or ``hi / lo > max_ratio``.
-    grid_tau : NDArray[np.float64], shape (G,), s
-        Every evaluated time constant, increasing.
-    stat : NDArray[np.float64], shape (G,)
-        The profile statistic at each: ``sum_a n_eff_a ln(SSE_a(tau) / SSE_a(tau_best))``,
-        0 at the best point.
-    n_eff : NDArray[np.float64], shape (A,)
-        Effective samples per residual column (:func:`effective_samples`).
-    bounds : tuple of float, s
-        The search bounds.
-
+    ``interval`` is the hull of every evaluated ``tau`` within the level; ``identifiable`` is
+    False when it reaches a search bound or ``hi / lo > max_ratio``; ``stat`` is
+    ``sum_a n_eff_a ln(SSE_a(tau) / SSE_a(tau_best))`` at each ``grid_tau``.
     """
 
     tau: float
@@ -218,41 +147,13 @@ def profile_interval(sse: Callable[[float], NDArray[np.float64]], tau: float,
     """
     Return the profile-likelihood interval of a time constant fitted by variable projection.
 
-    With Gaussian residuals of unknown variance per column, ``-2 ln L = sum_a n_a ln SSE_a``
-    once the linear weights are re-solved (the profile over them); the 95 % interval is
+    With Gaussian residuals of unknown variance per column the 95 % interval is
     ``{tau : sum_a n_eff_a ln(SSE_a(tau) / SSE_a(tau_best)) <= level}``, ``n_eff`` counting the
-    residual's memory. From ``tau`` the profile is walked outwards in ``log tau`` with
-    doubling steps (from ``step``) until the statistic exceeds ``level`` or a bound is
-    reached, and each end is bisected ``bisections`` times; points already ``evaluated``
-    (e.g. the search grid) join the profile, and the interval is the hull of every point
-    within the level (a flat or multi-modal profile widens it).
-
-    Parameters
-    ----------
-    sse : callable
-        ``sse(tau) -> NDArray (A,)``: the residual sum of squares per column at ``tau``.
-    tau : float, s
-        The best time constant (a minimum of ``sum(sse(tau))``).
-    bounds : tuple of float, s
-        The search bounds ``(lo, hi)``, ``0 < lo <= tau <= hi``.
-    n_eff : NDArray[np.float64], shape (A,)
-        Effective samples per column (:func:`effective_samples` of the residual at ``tau``).
-    evaluated : mapping, optional
-        ``{tau: sse per column}`` already known (no re-evaluation).
-    level : float
-        Threshold of the statistic (:data:`PROFILE_LEVEL`: 95 %).
-    max_ratio : float
-        Widest ``hi / lo`` that still counts as identifiable.
-    step : float
-        First step of the walk, in ``log tau``.
-    bisections : int
-        Bisections of each end.
-
-    Returns
-    -------
-    TauProfile
-        The interval, whether it pins ``tau``, and the profile.
-
+    residual's memory. From ``tau`` the profile is walked outwards in ``log tau`` with doubling
+    steps (from ``step``) until the statistic exceeds ``level`` or a bound is reached, and each
+    end is bisected ``bisections`` times; points already ``evaluated`` join the profile, and the
+    interval is the hull of every point within the level (a flat or multi-modal profile widens
+    it).
     """
     lo_b, hi_b = (float(v) for v in bounds)
     if not (0.0 < lo_b <= tau <= hi_b):

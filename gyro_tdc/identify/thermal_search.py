@@ -13,41 +13,133 @@
 # limitations under the License.
 
 """
-The nonlinear-parameter search of the trainer: time constants by variable projection.
+The trainer's runs on the block grid, and the time constants searched on them.
 
-:class:`ParamSearch` re-solves the linear weights (:func:`gyro_tdc.identify.fit_linear`) on
-coarse blocks at every trial time constant; :func:`choose_state` picks the thermal front
-end (first order, or two nodes when they lower the cross-validated error) with its profile
-intervals.
+:class:`RunBlocks` reduces one run to block means (over the rows that count) on
+:class:`gyro_tdc.signal.BlockGrid`; :func:`run_state` holds each run's full-rate thermal state
+once for the gyro fit and the accelerometer part. :class:`ParamSearch` re-solves the linear
+weights on coarse blocks at every trial time constant (variable projection);
+:func:`choose_state` picks the thermal front end with its profile intervals.
 """
 
 from __future__ import annotations
 
 import math
 from typing import Mapping, Sequence
+import weakref
 
 from gyro_tdc.data import Run
 from gyro_tdc.identify.linear import fit_linear, LinearFit
-from gyro_tdc.identify.runblocks import block_groups, RunBlocks
 from gyro_tdc.identify.tau import (effective_samples, fit_time_constant, profile_interval,
                                    TauProfile, TimeConstantFit)
-from gyro_tdc.model import EFFECTS, ThermalState
-from gyro_tdc.signal import block_length, block_mean, Folds, heldout
+from gyro_tdc.model import batch_features, EFFECTS, ThermalState
+from gyro_tdc.signal import block_length, block_mean, BlockGrid, Folds, heldout
 import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
-__all__ = ['choose_state', 'ParamSearch', 'TAU_BOUNDS', 'TWO_NODE_MARGIN']
+__all__ = ['block_groups', 'choose_state', 'ParamSearch', 'run_state', 'RunBlocks', 'TAU_BOUNDS',
+           'TWO_NODE_MARGIN']
 
 #: Relative cross-validated error a two-node state must save over first order to be kept.
 TWO_NODE_MARGIN = 0.05
 #: Search bounds of the thermal state's time constants, s (the ``lag`` effect's bounds).
 TAU_BOUNDS: tuple[float, float] = tuple(EFFECTS['lag'].bounds['tau_s'])
 
+# Full-rate thermal states by run, while the run lives (a weak reference: a run dropped drops
+# its state): fit_model's are the accelerometer part's.
+_STATES: dict[int, tuple[weakref.ref, tuple, NDArray[np.float64]]] = {}
+_STATES_KEPT = 8
+
+
+def run_state(thermal: ThermalState, run: Run) -> NDArray[np.float64]:
+    """Return ``thermal.temperature(run.t, run.temp)``, once per run and front end (read-only)."""
+    key = (thermal.kind, tuple(float(v) for v in thermal.tau_s), id(run.t), id(run.temp))
+    rid = id(run)
+    hit = _STATES.get(rid)
+    if hit is not None and hit[0]() is run and hit[1] == key:
+        return hit[2]
+    state = thermal.temperature(run.t, run.temp)
+    state.flags.writeable = False
+    _STATES.pop(rid, None)
+    _STATES[rid] = (weakref.ref(run, lambda _ref, rid=rid: _STATES.pop(rid, None)), key, state)
+    while len(_STATES) > _STATES_KEPT:
+        _STATES.pop(next(iter(_STATES)))
+    return state
+
+
+class RunBlocks:
+    """
+    Block means of one run: stamps, temperature, drift target and reference rate.
+
+    With ``rows`` (the samples that count, e.g. the still ones) every mean but the stamps' and
+    the temperature's is over those rows only and blocks without any are dropped; the filters
+    (thermal state, dT/dt, warm-up) still run over every sample.
+    """
+
+    def __init__(self, run: Run, block: int, rows: NDArray[np.bool_] | None = None) -> None:
+        self.run, self.block = run, block
+        self.t, self.temp = block_mean(run.t, block), block_mean(run.temp, block)
+        # No reference rate (a chamber run): x - 0 is x and the means of zeros are zeros.
+        self.has_ref = bool(np.any(run.omega_ref))
+        err = self._err()
+        self.grid = BlockGrid(len(run), block, rows=rows)
+        self.rows, self.counts = self.grid.rows, self.grid.counts
+        e = err if self.rows is None else err[self.rows]
+        self.ss_raw = np.einsum('ij,ij->j', e, e)
+        self.y = self.mean(err)
+        self.ref = self.mean(run.omega_ref) if self.has_ref else np.zeros(self.y.shape)
+        self.ss_within = self.grid.scatter(err, self.y)
+
+    def _err(self) -> NDArray[np.float64]:
+        return self.run.omega - self.run.omega_ref if self.has_ref else self.run.omega
+
+    def mean(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return the block means of ``x`` (N, ...) over the rows that count."""
+        return self.grid.mean(x)
+
+    def scatter(self, scale: NDArray[np.float64], t0: float,
+                state: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+        """Return per block the squared deviations of the error less ``scale dT omega_ref``."""
+        err = self._err()
+        if np.any(scale):
+            temp = self.run.temp if state is None else state
+            err = err - (temp - t0)[:, None] * self.run.omega_ref * scale
+        return self.grid.scatter(err, self.mean(err))
+
+    def features(self, ids: Sequence[str], t0: float, params: Mapping, *, exact: bool,
+                 thermal: ThermalState, state: NDArray[np.float64] | None = None
+                 ) -> NDArray[np.float64]:
+        """Return block-mean features: ``exact`` from full rate, else from the block means."""
+        if exact and self.block > 1:
+            s = run_state(thermal, self.run) if state is None else state
+            return self.mean(batch_features(ids, self.run.t, self.run.temp, t0=t0,
+                                            params=params, state=s))
+        return self.grid.sel(batch_features(ids, self.t, self.temp, t0=t0, params=params,
+                                            state=thermal.temperature(self.t, self.temp)))
+
+    def scale_cols(self, t0: float, state: NDArray[np.float64] | None = None,
+                   thermal: ThermalState | None = None) -> NDArray[np.float64]:
+        """Return block means of ``dT * omega_ref`` (N, 3): exact, or with ``thermal`` coarse."""
+        if thermal is not None:
+            dt = self.grid.sel(thermal.temperature(self.t, self.temp)) - t0
+            return dt[:, None] * self.ref
+        d = (self.run.temp if state is None else state) - t0
+        return self.mean(d[:, None] * self.run.omega_ref)
+
+
+def block_groups(blocks: Sequence[RunBlocks], labels: Sequence[int] | None
+                 ) -> NDArray[np.int64] | None:
+    """Return the session of every block row (None: one session)."""
+    if labels is None:
+        return None
+    return np.concatenate([np.full(b.y.shape[0], g, dtype=np.int64)
+                           for b, g in zip(blocks, labels)])
+
 
 class ParamSearch:
     """
-    The nonlinear-parameter search of :func:`fit_model`, on coarse blocks (<= 20k rows).
+    The nonlinear-parameter search of ``fit_model``, on coarse blocks (<= 20k rows).
 
     ``sse(thermal, params)`` is the residual sum of squares per axis with the linear weights
     re-solved (variable projection) by ``fit_linear(kind=inner)`` on the ``inputs``.
@@ -68,16 +160,13 @@ class ParamSearch:
     def design(self, thermal: ThermalState, par: Mapping
                ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
         """Return the coarse feature rows and scale columns of a front end."""
-        lagged = thermal.kind != 'none'
         x = np.concatenate([b.features(self.inputs, self.t0, par, exact=False, thermal=thermal)
                             for b in self.blocks])
-        sc = (np.concatenate([b.scale_cols(self.t0, thermal=thermal if lagged else None)
-                              for b in self.blocks]) if self.scale else None)
-        return x, sc
+        lagged = thermal if thermal.kind != 'none' else None
+        return x, (np.concatenate([b.scale_cols(self.t0, thermal=lagged) for b in self.blocks])
+                   if self.scale else None)
 
-    def _linear(self, x: NDArray[np.float64], y: NDArray[np.float64],
-                sc: NDArray[np.float64] | None,
-                groups: NDArray[np.int64] | None = None) -> LinearFit:
+    def _linear(self, x, y, sc, groups) -> LinearFit:
         return fit_linear(x, y, scale_cols=sc, kind=self.inner, n_centers=self.n_centers,
                           ridge=self.ridge, seed=self.seed, groups=groups)
 
@@ -96,9 +185,9 @@ class ParamSearch:
         """
         Return the cross-validated SSE of the slow error.
 
-        Each row is predicted by a fit without its fold (interleaved contiguous segments);
-        the out-of-fold residuals are averaged over ``window_s`` windows before squaring, so
-        the white noise shrinks and the figure measures the drift the model misses.
+        Each row is predicted by a fit without its fold (interleaved contiguous segments); the
+        out-of-fold residuals are averaged over ``window_s`` windows before squaring, so the
+        white noise shrinks and the figure measures the drift the model misses.
         """
         x, sc = self.design(thermal, par)
         g = self.groups
@@ -108,9 +197,8 @@ class ParamSearch:
                                None if g is None else g[train])
             r = fit.predict(x[test], None if sc is None else sc[test]) - self.y[test]
             if g is not None:           # the fitted offset of every session trained on
-                seen, gt = np.unique(g[train]), g[test]
-                for j, grp in enumerate(seen):
-                    r[gt == grp] += fit.offsets[j]
+                for j, grp in enumerate(np.unique(g[train])):
+                    r[g[test] == grp] += fit.offsets[j]
             return r
 
         folds = Folds.segments(x.shape[0], n_segments=n_segments, n_folds=n_folds)
@@ -120,10 +208,7 @@ class ParamSearch:
         w = max(1, int(round(window_s / dt))) if dt > 0 else 1
         return float((block_mean(resid, w) ** 2).sum())
 
-    # -- thermal state ---------------------------------------------------------------
-
-    def first_order(self, par: Mapping, bounds: tuple[float, float]
-                    ) -> tuple[float, dict]:
+    def first_order(self, par: Mapping, bounds: tuple[float, float]) -> tuple[float, dict]:
         """Search the first-order time constant; return it and every point evaluated."""
         seen: dict[float, NDArray[np.float64]] = {}
 
@@ -138,36 +223,34 @@ class ParamSearch:
         """
         Return the profile interval of time constant ``i``.
 
-        With two nodes the other time constant is re-fitted at every point (a full profile,
-        not a conditional one), kept on its side: the larger one for ``i = 0``, the smaller
-        for ``i = 1`` (the cascade commutes, so only the order names the nodes).
+        With two nodes the other time constant is re-fitted at every point (a full profile),
+        kept on its side: the larger one for ``i = 0``, the smaller for ``i = 1`` (the
+        cascade commutes, so only the order names the nodes).
         """
-        if len(taus) == 1:
-            def sse(v: float) -> NDArray[np.float64]:
+        one = len(taus) == 1
+        other = taus[1 - i] if not one else 0.0
+
+        def pair(v: float, w: float) -> ThermalState:
+            return ThermalState('two_node', (v, w) if i == 0 else (w, v))
+
+        def sse(v: float) -> NDArray[np.float64]:
+            if one:
                 return self.sse(ThermalState('first_order', (v,)), par)
-        else:
-            other = taus[1 - i]
-
-            def pair(v: float, w: float) -> ThermalState:
-                return ThermalState('two_node', (v, w) if i == 0 else (w, v))
-
-            def sse(v: float) -> NDArray[np.float64]:
-                lo, hi = max(bounds[0], other / 3.0), min(bounds[1], other * 3.0)
-                lo, hi = (max(lo, v), hi) if i == 0 else (lo, min(hi, v))
-                if lo >= hi:
-                    w = lo if i == 0 else hi
-                else:
-                    res = minimize_scalar(
-                        lambda u: float(self.sse(pair(v, math.exp(u)), par).sum()),
-                        bounds=(math.log(lo), math.log(hi)), method='bounded',
-                        options={'xatol': 0.02})
-                    w = math.exp(res.x)
-                return self.sse(pair(v, w), par)
+            lo, hi = max(bounds[0], other / 3.0), min(bounds[1], other * 3.0)
+            lo, hi = (max(lo, v), hi) if i == 0 else (lo, min(hi, v))
+            if lo >= hi:
+                w = lo if i == 0 else hi
+            else:
+                w = math.exp(minimize_scalar(
+                    lambda u: float(self.sse(pair(v, math.exp(u)), par).sum()),
+                    bounds=(math.log(lo), math.log(hi)), method='bounded',
+                    options={'xatol': 0.02}).x)
+            return self.sse(pair(v, w), par)
 
         n_eff = effective_samples(self.fit(ThermalState(
-            'first_order' if len(taus) == 1 else 'two_node', taus), par).resid)
+            'first_order' if one else 'two_node', taus), par).resid)
         return profile_interval(sse, taus[i], bounds, n_eff, evaluated=seen,
-                                bisections=8 if len(taus) == 1 else 5)
+                                bisections=8 if one else 5)
 
     def two_node(self, par: Mapping, tau_fo: float, bounds: tuple[float, float]
                  ) -> tuple[float, float]:
@@ -178,27 +261,18 @@ class ParamSearch:
         search; for each split the total ``a + b`` is searched within a factor 4 of the
         first-order time constant.
         """
-        lo, hi = bounds
-        span = (max(lo, tau_fo / 4.0), min(hi, tau_fo * 4.0))
+        span = (max(bounds[0], tau_fo / 4.0), min(bounds[1], tau_fo * 4.0))
         memo: dict[float, TimeConstantFit] = {}
 
         def best_total(q: float) -> TimeConstantFit:
             if q not in memo:
-                def objective(total: float) -> float:
-                    return float(self.sse(ThermalState(
-                        'two_node', (q * total, (1.0 - q) * total)), par).sum())
-                memo[q] = fit_time_constant(objective, span, n_grid=7, xatol=0.01)
+                memo[q] = fit_time_constant(lambda total: float(self.sse(ThermalState(
+                    'two_node', (q * total, (1.0 - q) * total)), par).sum()), span, n_grid=7,
+                    xatol=0.01)
             return memo[q]
 
-        lq = np.linspace(math.log(0.01), math.log(0.5), 7)
-        vals = [best_total(math.exp(v)).sse for v in lq]
-        i = int(np.argmin(vals))
-        a, b = lq[max(i - 1, 0)], lq[min(i + 1, lq.size - 1)]
-        best_q = math.exp(lq[i])
-        res = minimize_scalar(lambda v: best_total(math.exp(v)).sse, bounds=(a, b),
-                              method='bounded', options={'xatol': 0.05})
-        if res.fun < vals[i]:
-            best_q = math.exp(res.x)
+        best_q = fit_time_constant(lambda q: best_total(q).sse, (0.01, 0.5), n_grid=7,
+                                   xatol=0.05).tau
         total = best_total(best_q).tau
         return best_q * total, (1.0 - best_q) * total
 

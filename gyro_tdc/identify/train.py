@@ -12,61 +12,54 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+
 """
 Training: bags in, a fitted and saved compensation model out, with the coverage of the data.
 
-:func:`train` takes the bags, a :class:`~gyro_tdc.identify.options.TrainOptions` and a
-:class:`~gyro_tdc.data.BagOptions`; the command line is :mod:`gyro_tdc.cli.train`. How the
-features, the accelerometer part and the coverage come about: ``doc/internals/identify.md``.
+:func:`train` fits a chamber's (or any referenced) bags; :func:`train_still_only` the still
+stretches of bags recorded in ordinary operation (``train --still-only``, and ``train`` on
+moving data without a reference). Both cut the bags into sessions, pass constant gyro axes
+through, choose the features, fit on the shared estimator, add the accelerometer part and
+save; the command line is :mod:`gyro_tdc.cli.train`. See ``doc/internals/identify.md``.
 """
 
 from __future__ import annotations
 
 from dataclasses import replace
 import os
+from pathlib import Path
 from typing import Callable, Sequence
 
-from gyro_tdc.data import BagOptions, coverage, load_runs, Run, split_sessions
-from gyro_tdc.errors import DatasetError
+from gyro_tdc.data import (BagOptions, coverage, load_runs, read_motion, Run, split_sessions)
+from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.identify.accel import fit_accel
 from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, identity_axes,
                                     neutral_runs)
 from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import estimate_t0, fit_model
-from gyro_tdc.identify.options import TrainOptions
+from gyro_tdc.identify.options import TrainOptions, TrainResult
 from gyro_tdc.identify.power_cycles import reanchor_rule
-from gyro_tdc.identify.result import TrainResult
-from gyro_tdc.identify.still_only import (MAX_MOVING_SHARE, moving_share, proxy_lag,
-                                          train_still_only)
+from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, check_still_span, find_still,
+                                          first_still_temperature, fit_without_outliers,
+                                          MAX_MOVING_SHARE, moving_share, proxy_lag, rows_of,
+                                          still_report, Stretch)
 from gyro_tdc.model import save_model
+from gyro_tdc.signal import motion_veto
+import numpy as np
+from numpy.typing import NDArray
 
-__all__ = ['data_frame', 'train']
+__all__ = ['data_frame', 'train', 'train_still_only']
+
+_DEG = 180.0 / np.pi
+Log = Callable[[str], None] | None
 
 
 def data_frame(runs: Sequence[Run]) -> str:
     """
-    Return the frame the training data were recorded in, for the model's ``sensor.frame_id``.
+    Return the one frame the runs were recorded in (``run.info['frame_id']``), '' for none.
 
-    The frame is the ``header.frame_id`` of the IMU messages each run was read from
-    (``run.info['frame_id']``); the compensator warns when its input is in another one.
-
-    Parameters
-    ----------
-    runs : sequence of Run
-        The training runs.
-
-    Returns
-    -------
-    str
-        Their one frame; '' when none of them names one (a flight log, a frame-less bag):
-        the model then claims none and the compensator checks nothing.
-
-    Raises
-    ------
-    DatasetError
-        When the runs were recorded in different frames: a model corrects per axis, in one
-        frame.
-
+    The model's ``sensor.frame_id``: the compensator warns when its input is in another one.
+    DatasetError when the runs were recorded in different frames (a model corrects per axis).
     """
     frames: dict[str, str] = {}
     for run in runs:
@@ -81,62 +74,52 @@ def data_frame(runs: Sequence[Run]) -> str:
     return next(iter(frames), '')
 
 
+def _features(o: TrainOptions, on: Sequence[Run], runs: Sequence[Run], t0: float, log: Log
+              ) -> tuple[dict, object]:
+    """Return the ``fit_model`` keywords of the features chosen on ``on``, and the choice."""
+    ids, params, choice = features_for_fit(on, o.features, t0=t0)
+    return {**o.fit_kw(), 'features': proxy_lag(runs, ids, o, log), 'params': params or None,
+            't0': t0}, choice
+
+
+def _finish(model, o: TrainOptions, out: str | os.PathLike, accel_runs: Sequence[Run], choice,
+            metrics: dict, **result) -> TrainResult:
+    """Add the accelerometer part and the training records, save, return the result."""
+    accel_fit = None
+    if o.accel:
+        accel_fit = fit_accel(accel_runs, model, n_centers=o.n_centers, seed=o.seed,
+                              bin_c=o.bin_c)
+        if accel_fit.part is not None:
+            model = model.replace(accel=accel_fit.part)
+    metrics = {**model.metrics, **metrics}
+    if choice is not None:
+        metrics['features'] = choice.to_dict()
+    model = model.replace(metrics=metrics)
+    return TrainResult(model=model, path=Path(save_model(model, out)), choice=choice,
+                       accel=accel_fit, **result)
+
+
 def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
           options: TrainOptions | None = None, bag: BagOptions | None = None, *,
-          command: str = '', log: Callable[[str], None] | None = None) -> TrainResult:
+          command: str = '', log: Log = None) -> TrainResult:
     """
-    Load bags, fit a compensation model and save it.
+    Load bags (one run each, cut into sessions as ``bag.sessions`` says), fit a model, save it.
 
-    Parameters
-    ----------
-    bags : sequence of str or PathLike
-        rosbag2 directories (or folders of them), one run each, cut into sessions as
-        ``bag.sessions`` says (:func:`gyro_tdc.data.split_sessions`): one turn-on offset per
-        session beside one shared thermal curve.
-    out : str or PathLike
-        Model file to write.
-    options : TrainOptions, optional
-        Features, network, reference temperature, coverage bins, accelerometer part, sensor
-        id (default :class:`~gyro_tdc.identify.options.TrainOptions`).
-    bag : BagOptions, optional
-        How to read the bags (default :class:`~gyro_tdc.data.BagOptions`); the accelerometer
-        is read when ``options.accel`` says so.
-    command : str
-        Command line recorded in the model's ``created``.
-    log : callable, optional
-        Receives one line per bag read.
-
-    Returns
-    -------
-    TrainResult
-        Data without a reference rate (every run's reference zero) that move longer than
-        :data:`gyro_tdc.identify.still_only.MAX_MOVING_SHARE` of the time are trained on their
-        still stretches only (:func:`gyro_tdc.identify.still_only.train_still_only`, said on
-        ``log``). The model, where it was written, the coverage of the data and, with
-        ``'auto'``, the choice of features (also in ``model.metrics['features']``). A gyro
-        axis whose readings never vary beyond one quantum
-        (:func:`~gyro_tdc.identify.axes.constant_gyro_axes`) is not fitted: its
-        coefficients are zero, so the model passes it through unchanged
-        (:func:`~gyro_tdc.identify.axes.identity_axes`); ``result.constant`` and
-        ``model.metrics['constant_axes']``
-        name it. How large a start-up shift the node takes per axis is decided on the
-        sessions (:func:`~gyro_tdc.identify.power_cycles.reanchor_rule`,
-        ``model.metrics['reanchor']``).
-
-    Raises
-    ------
+    Every session gets its own turn-on offset beside one shared thermal curve. Data without a
+    reference rate that move longer than :data:`~gyro_tdc.identify.still_only.MAX_MOVING_SHARE`
+    of the time are trained on their still stretches only (:func:`train_still_only`, said on
+    ``log``): motion is no drift. A constant gyro axis is not fitted: the model passes it
+    through (``result.constant``, ``model.metrics['constant_axes']``). The start-up shift the
+    node takes per axis is decided on the sessions
+    (:func:`~gyro_tdc.identify.power_cycles.reanchor_rule`, ``model.metrics['reanchor']``).
     GyroTdcError
-        DatasetError for a bag that cannot be read or a gyro constant on every axis,
-        FitError for data that cannot be fitted, ModelFileError or OutputError when the
-        model cannot be written.
-
+    (DatasetError, FitError, ModelFileError, OutputError) for what cannot be read, fitted or
+    written.
     """
     o = TrainOptions() if options is None else options
     bag = replace(BagOptions() if bag is None else bag, accel=bool(o.accel))
     runs: list[Run] = load_runs(bags, bag, log=log)
     if all(r.info.get('reference') == 'zero' for r in runs):
-        # No reference rate: the rate is known (zero) only while still. Motion (a flight, a
-        # drive) would be fitted as drift, so only the still stretches are used.
         share = moving_share(neutral_runs(runs, constant_gyro_axes(runs)))
         if share > MAX_MOVING_SHARE:
             if log is not None:
@@ -148,32 +131,106 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     runs = split.runs
     const = constant_gyro_axes(runs)
     fitted = neutral_runs(runs, const)
-    t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
-    ids, params, choice = features_for_fit(fitted, o.features, t0=t0)
-    ids = proxy_lag(runs, ids, o, log)
-    model = fit_model(fitted, features=ids, params=params or None, kind=o.kind, t0=t0,
-                      n_centers=o.n_centers, refine=o.refine, ridge=o.ridge, seed=o.seed,
-                      thermal=o.thermal, sessions=split.labels,
-                      frame_id=data_frame(runs),
-                      sensor_id=str(o.sensor_id), created={'command': command, 'bags': names})
-    model = identity_axes(model, runs, const)
+    kw, choice = _features(o, fitted, runs, estimate_t0(runs[0]) if o.t0 is None else o.t0, log)
+    model = fit_model(fitted, sessions=split.labels, frame_id=data_frame(runs),
+                      created={'command': command, 'bags': names}, **kw)
+    # The start-up shift the node takes per axis, decided on the sessions (each refitted
+    # without the others at the model's features, parameters and thermal state).
+    form = {**kw, 'features': model.features, 'params': model.effect_params,
+            'fit_params': False, 'thermal': model.thermal}
+    model = reanchor_rule(identity_axes(model, runs, const), fitted, split.labels,
+                          lambda others, g: fit_model(others, sessions=g, **form))
+    return _finish(model, o, out, runs, choice, {},
+                   coverage=coverage(runs, bin_c=o.bin_c), bags=names,
+                   samples=sum(len(r) for r in runs), sessions=split,
+                   constant=constant_readings(runs, const))
 
-    def refit(others: list, labels: list):
-        return fit_model(others, features=model.features, params=model.effect_params,
-                         fit_params=False, kind=o.kind, t0=t0, n_centers=o.n_centers,
-                         refine=o.refine, ridge=o.ridge, seed=o.seed, thermal=model.thermal,
-                         sessions=labels)
 
-    model = reanchor_rule(model, fitted, split.labels, refit)
-    accel_fit = None
-    if o.accel:
-        accel_fit = fit_accel(runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c)
-        if accel_fit.part is not None:
-            model = model.replace(accel=accel_fit.part)
-    if choice is not None:
-        model = model.replace(metrics={**model.metrics, 'features': choice.to_dict()})
-    cov = coverage(runs, bin_c=o.bin_c)
-    path = save_model(model, out)
-    return TrainResult(model=model, path=path, coverage=cov, bags=names,
-                       samples=sum(len(r) for r in runs), choice=choice, accel=accel_fit,
-                       sessions=split, constant=constant_readings(runs, const))
+def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
+                     options: TrainOptions | None = None, bag: BagOptions | None = None, *,
+                     command: str = '', log: Log = None, runs: Sequence[Run] | None = None,
+                     moving: Sequence[NDArray[np.bool_] | None] | None = None) -> TrainResult:
+    """
+    Fit a model on the still stretches of bags recorded in ordinary operation.
+
+    As :func:`train`, with no reference read (the rate is zero while still) and
+    ``bag.motion_topic`` (a Twist, TwistStamped or Odometry topic) vetoing stillness while it
+    reports motion; ``runs`` (and their ``moving`` veto) are runs already loaded. The thermal
+    state runs over every sample; stretches that look like slow turns are dropped; ``t0``
+    defaults to the temperature at the start of the first still stretch; ``result.still`` is
+    the :class:`~gyro_tdc.identify.still_only.StillReport` and ``coverage`` and ``samples``
+    those of the still time kept. FitError when no still stretch is found or their
+    temperatures span less than ``MIN_STILL_SPAN_C`` (saying what to record).
+    """
+    o = TrainOptions() if options is None else options
+    bag = BagOptions() if bag is None else bag
+    if runs is None:
+        runs, moving = _load_still_runs(bags, bag, o, log, moving)
+    else:
+        runs = [replace(r, omega_ref=np.zeros_like(r.omega)) for r in runs]
+    bags = [r.name for r in runs]
+    split = split_sessions(runs, bag.sessions, bag.session_gap_s)
+    if moving is not None:
+        moving = [None if moving[j] is None else np.asarray(moving[j])[a:b]
+                  for j, a, b in split.parts]
+    runs, labels = split.runs, list(split.labels)
+    names = [r.name for r in runs]
+    # A constant gyro axis is not fitted: the still test, the choice and the fit see it at 0.
+    const = constant_gyro_axes(runs)
+    raw_runs, runs = runs, neutral_runs(runs, const)
+    still = find_still(runs, moving=moving, window_s=o.window_s, min_still_s=o.min_still_s)
+    rejected: dict = {}
+    for st in still:
+        for k, v in st.rejected().items():
+            rejected[k] = rejected.get(k, 0) + v
+    rows = [st.mask.copy() for st in still]
+    if not any(m.any() for m in rows):
+        why = '; '.join(sorted({st.reason for st in still if st.reason}))
+        least = 'long enough' if o.min_still_s is None else f'of {o.min_still_s:g} s or more'
+        raise FitError(f'--still-only: no still stretch {least} in '
+                       f'{len(runs)} bag(s) ({why}): park the vehicle for '
+                       f'{ADVICE_PARK_MIN} min with the IMU on, and record it.')
+    whole_runs, whole_rows = list(runs), list(rows)     # the report covers every bag
+    if not all(m.any() for m in rows):
+        # A session without still time has no offset to fit: it is left out of the fit.
+        keep = [i for i, m in enumerate(rows) if m.any()]
+        runs, raw_runs, rows, still, names = ([x[i] for i in keep] for x in (
+            runs, raw_runs, rows, still, names))
+        relabel = {g: k for k, g in enumerate(dict.fromkeys(labels[i] for i in keep))}
+        labels = [relabel[labels[i]] for i in keep]
+    check_still_span(runs, rows)
+    t0 = first_still_temperature(runs, rows) if o.t0 is None else o.t0
+    subs = ([rows_of(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
+            if o.auto else [])            # the still rows, for the choice of features
+    kw, choice = _features(o, subs, runs, t0, log)
+    kw.update(frame_id=str(runs[0].info.get('frame_id') or 'imu_link'), sessions=labels,
+              created={'command': command, 'bags': bags, 'still_only': True})
+    spans = [(i, a, b) for i, st in enumerate(still) for a, b in st.segments]
+    model, means, bad = fit_without_outliers(runs, rows, spans, labels, kw)
+    model = identity_axes(model, raw_runs, const, rows)
+    stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
+                         float(runs[i].temp[a:b].mean()), not drop,
+                         tuple(float(v) * _DEG for v in mu))
+                 for (i, a, b), drop, mu in zip(spans, bad, means)]
+    report = still_report(whole_runs, whole_rows, stretches, bin_c=o.bin_c,
+                          motion_topic=bag.motion_topic, rejected=rejected)
+    return _finish(model, o, out, runs, choice, {'still': report.to_dict()},
+                   coverage=report.coverage, bags=bags,
+                   samples=int(sum(np.count_nonzero(m) for m in rows)), still=report,
+                   sessions=split, constant=constant_readings(raw_runs, const))
+
+
+def _load_still_runs(bags: Sequence[str | os.PathLike], bag: BagOptions, o: TrainOptions,
+                     log: Log, moving: Sequence[NDArray[np.bool_] | None] | None
+                     ) -> tuple[list[Run], Sequence[NDArray[np.bool_] | None] | None]:
+    """Read the bags with a zero reference rate, and the motion veto of ``bag.motion_topic``."""
+    said = None if log is None else (lambda line: log(line.replace(
+        'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
+    runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
+                     log=said)
+    if bag.motion_topic:
+        moving = []
+        for r in runs:
+            rep = read_motion(r.name, bag.motion_topic)
+            moving.append(motion_veto(r.t, rep.t, rep.twist))
+    return runs, moving

@@ -322,22 +322,19 @@ def model_temperature(model: CompensationModel, t: NDArray[np.float64],
     return temp
 
 
-def _policy(clamp: bool, out_of_range: str | None) -> str:
-    """Return the out-of-range policy: ``out_of_range`` when given, else from ``clamp``."""
-    if out_of_range is None:
-        return 'clamp' if clamp else 'extrapolate'
-    return check_policy(out_of_range)
-
-
-def _features(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
-              policy: str, max_c: float
-              ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+def _drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
+           clamp: bool, out_of_range: str | None, max_c: float, chunk: int = 200_000
+           ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
-    Return the feature rows of one run, their model temperature minus T0 and the reach.
+    Return the drift b (N, 3) over one run and the ``dT`` (N,) of its scale term.
 
-    The rows are evaluated at the model temperature :func:`gyro_tdc.model.out_of_range.split`
-    gives for ``policy``; the reach is how far the ``linear`` tangent continues from there.
+    The features are evaluated at the model temperature
+    :func:`gyro_tdc.model.out_of_range.split` gives for the policy (``out_of_range``, else
+    ``clamp`` or ``extrapolate``), in chunks of rows; the ``linear`` tangent continues from
+    there by the reach, which ``dT`` includes.
     """
+    policy = check_policy(out_of_range) if out_of_range is not None else (
+        'clamp' if clamp else 'extrapolate')
     temp = np.asarray(temp, dtype=np.float64)
     lo, hi = model.temp_range_c
     s, reach = split(model_temperature(model, t, temp), lo, hi, policy, max_c)
@@ -346,16 +343,10 @@ def _features(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np
     else:
         x = batch_features(model.features, t, temp, t0=model.t0_c,
                            params=model.effect_params, state=s)
-    return x, s - model.t0_c, reach
-
-
-def _drift_of(model: CompensationModel, x: NDArray[np.float64], chunk: int,
-              d: NDArray[np.float64] | None = None, reach: NDArray[np.float64] | None = None
-              ) -> NDArray[np.float64]:
-    """Evaluate ``b(x)`` over feature rows in chunks, plus the tangent times ``reach``."""
+    d = s - model.t0_c
     coef = model.coefficients
     out = np.empty((x.shape[0], 3))
-    tangent = None if reach is None or not np.any(reach) else Tangent(model)
+    tangent = Tangent(model) if np.any(reach) else None
     for i in range(0, x.shape[0], chunk):
         design = rbf_design(model, x[i:i + chunk])
         out[i:i + chunk] = design @ coef
@@ -364,7 +355,7 @@ def _drift_of(model: CompensationModel, x: NDArray[np.float64], chunk: int,
             k = np.flatnonzero(r)
             if k.size:
                 out[i + k] += r[k, None] * tangent.slope(design[k], d[i:i + chunk][k])
-    return out
+    return out, d + reach
 
 
 def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64], *,
@@ -398,8 +389,7 @@ def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.flo
         The drift per axis.
 
     """
-    x, d, reach = _features(model, t, temp, _policy(clamp, out_of_range), max_extrapolation_c)
-    return _drift_of(model, x, chunk, d, reach)
+    return _drift(model, t, temp, clamp, out_of_range, max_extrapolation_c, chunk)[0]
 
 
 def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
@@ -411,9 +401,7 @@ def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[n
 
     ``omega`` is the raw gyro output (N, 3), rad/s; the other arguments are :func:`drift`'s.
     """
-    x, d, reach = _features(model, t, temp, _policy(clamp, out_of_range), max_extrapolation_c)
-    b = _drift_of(model, x, 200_000, d, reach)
-    d = d + reach
+    b, d = _drift(model, t, temp, clamp, out_of_range, max_extrapolation_c)
     return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + d[:, None] * model.scale[None, :])
 
 
@@ -427,9 +415,7 @@ def predict_drift(model: CompensationModel, t: NDArray[np.float64],
     ``omega_ref`` is the true (reference) rate (N, 3), rad/s; the other arguments are
     :func:`drift`'s, but the model temperature is not clamped by default.
     """
-    x, d, reach = _features(model, t, temp, _policy(clamp, out_of_range), max_extrapolation_c)
-    b = _drift_of(model, x, 200_000, d, reach)
-    d = d + reach
+    b, d = _drift(model, t, temp, clamp, out_of_range, max_extrapolation_c)
     return (1.0 + d[:, None] * model.scale[None, :]) * np.asarray(omega_ref) + b
 
 

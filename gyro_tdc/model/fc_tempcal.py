@@ -62,6 +62,14 @@ def _sensor(sensor: str) -> str:
     return sensor
 
 
+def _shaped(cal: object, name: str, shape: tuple[int, int]) -> None:
+    """Store ``cal.<name>`` as a float array, checked to have ``shape``."""
+    a = np.asarray(getattr(cal, name), dtype=np.float64)
+    if a.shape != shape:
+        raise ValueError(f'Expected `{name}` to have shape {shape}, got {a.shape}.')
+    object.__setattr__(cal, name, a)
+
+
 def _temps(temp_c: ArrayLike) -> NDArray[np.float64]:
     """Return ``temp_c`` as a 1-D float64 array."""
     t = np.asarray(temp_c, dtype=np.float64)
@@ -153,10 +161,7 @@ class Px4TempCal:
 
     def __post_init__(self) -> None:
         """Check the coefficient shape."""
-        x = np.asarray(self.x, dtype=np.float64)
-        if x.shape != (4, 3):
-            raise ValueError(f'Expected `x` to have shape (4, 3), got {x.shape}.')
-        object.__setattr__(self, 'x', x)
+        _shaped(self, 'x', (4, 3))
 
     @classmethod
     def from_params(cls, params: Mapping[str, float], sensor: str = 'gyro',
@@ -171,14 +176,9 @@ class Px4TempCal:
 
     def to_params(self, sensor: str = 'gyro', slot: int = 0) -> dict[str, float]:
         """Return this slot as ``{name: value}`` (the order of :func:`px4_names`)."""
-        out: dict[str, float] = {px4_name(sensor, slot, 'ID'): int(self.device_id)}
-        for k in (3, 2, 1, 0):
-            for i in range(3):
-                out[px4_name(sensor, slot, f'X{k}', i)] = float(self.x[k, i])
-        out[px4_name(sensor, slot, 'TREF')] = float(self.tref)
-        out[px4_name(sensor, slot, 'TMIN')] = float(self.tmin)
-        out[px4_name(sensor, slot, 'TMAX')] = float(self.tmax)
-        return out
+        values = ([int(self.device_id)] + [float(v) for v in self.x[::-1].ravel()]
+                  + [float(self.tref), float(self.tmin), float(self.tmax)])
+        return dict(zip(px4_names(sensor, slot), values))
 
     def offset(self, temp_c: ArrayLike) -> NDArray[np.float64]:
         """Return the offset PX4 subtracts at ``temp_c``, shape (N, 3) (the clamp applied)."""
@@ -268,10 +268,7 @@ class ArduPilotTempCal:
 
     def __post_init__(self) -> None:
         """Check the coefficient shape."""
-        c = np.asarray(self.coeff, dtype=np.float64)
-        if c.shape != (3, 3):
-            raise ValueError(f'Expected `coeff` to have shape (3, 3), got {c.shape}.')
-        object.__setattr__(self, 'coeff', c)
+        _shaped(self, 'coeff', (3, 3))
 
     @classmethod
     def from_params(cls, params: Mapping[str, float], sensor: str = 'gyro',

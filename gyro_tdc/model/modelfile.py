@@ -78,9 +78,7 @@ def model_to_dict(model: CompensationModel) -> dict:
         'model_id': model.model_id,
         'features': list(model.features),
         'effect_params': plain(model.effect_params),
-    }
-    d['thermal'] = model.thermal.to_dict()
-    d.update({
+        'thermal': model.thermal.to_dict(),
         't0_c': float(model.t0_c),
         'temp_range_c': [float(v) for v in model.temp_range_c],
         'normalization': {'mean': plain(model.input_mean), 'std': plain(model.input_std)},
@@ -94,7 +92,7 @@ def model_to_dict(model: CompensationModel) -> dict:
         'sensor': {'frame_id': model.frame_id, 'sensor_id': model.sensor_id},
         'training': plain(model.metrics),
         'created': plain(model.created),
-    })
+    }
     if model.accel is not None:
         d['accel'] = _accel_to_dict(model.accel)
     return d

@@ -145,22 +145,21 @@ def _check_part(m: CompensationModel, bound: float, unit: str, resid: str) -> No
                                  f'{bound:g} {unit}')
 
 
+def _refuse(bad: NDArray[np.bool_], arr: NDArray[np.float64], name: str, must: str) -> None:
+    """Refuse the first entry of ``arr`` where ``bad``: field ``name`` must be ``must``."""
+    if bad.any():
+        idx = tuple(int(i) for i in np.argwhere(bad)[0])
+        raise ModelFileError(f'field `{name}` must be {must}, got {arr[idx]:.3g} at {list(idx)}')
+
+
 def _at_least(arr: NDArray[np.float64], floor: float, name: str, why: str) -> None:
     """Refuse an entry of ``arr`` below ``floor``."""
-    low = ~(arr >= floor)
-    if low.any():
-        idx = tuple(int(i) for i in np.argwhere(low)[0])
-        raise ModelFileError(f'field `{name}` must be at least {floor:g} ({why}), got '
-                             f'{arr[idx]:.3g} at {list(idx)}')
+    _refuse(~(arr >= floor), arr, name, f'at least {floor:g} ({why})')
 
 
 def _at_most(arr: NDArray[np.float64], limit: float, name: str, unit: str) -> None:
     """Refuse an entry of ``arr`` whose magnitude exceeds ``limit``."""
-    big = ~(np.abs(arr) <= limit)
-    if big.any():
-        idx = tuple(int(i) for i in np.argwhere(big)[0])
-        raise ModelFileError(f'field `{name}` must be within +-{limit:g}{unit}, got '
-                             f'{arr[idx]:.3g} at {list(idx)}')
+    _refuse(~(np.abs(arr) <= limit), arr, name, f'within +-{limit:g}{unit}')
 
 
 def _check_taus(m: CompensationModel) -> None:

@@ -118,8 +118,8 @@ class Backlog:
         del self.samples[:len(x) * SAMPLE]
         elapsed = None if self._reported_at is None else now - self._reported_at
         self._reported_at = now
-        values = {'queue age s': '', 'queue age max s': '', 'callback median us': '',
-                  'callback max us': '', 'callback load %': ''}
+        values = dict.fromkeys(('queue age s', 'queue age max s', 'callback median us',
+                                'callback max us', 'callback load %'), '')
         problems = []
         if len(x):
             stamp, start, end = x[:, 0], x[:, 1], x[:, 2]
@@ -146,10 +146,8 @@ class Backlog:
         values['input period ms'] = (
             'learning' if self.period is None else
             f'{self.period * 1e3:.4g} ({"expected_rate_hz" if self.expected else "learnt"})')
-        values['input missing'] = str(self.missing)
-        values['input gaps'] = str(self.gaps)
-        values['input pauses'] = str(self.pauses)
-        values['input stamp jumps'] = str(self.jumps)
+        values.update({'input missing': str(self.missing), 'input gaps': str(self.gaps),
+                       'input pauses': str(self.pauses), 'input stamp jumps': str(self.jumps)})
         return BacklogReport(1 if problems else 0, '; '.join(problems), values)
 
     def _judge(self, stamp: np.ndarray, start: np.ndarray, idle: np.ndarray

@@ -16,12 +16,11 @@
 """
 The compensator's inputs as drivers publish them: message classes by name, fields by path.
 
-``imu_type`` and ``temperature_type`` name any installed ``pkg/msg/Type``; the class is
-loaded with :mod:`importlib` as ``rosidl_runtime_py.utilities.get_message`` does (that
-package has no PyPI wheel). The field paths (:mod:`gyro_tdc.data.field_paths`) are checked
-against the class's field table at start, so a bad value stops the node with one line
-naming the parameter. A ``sensor_msgs/msg/Imu`` input goes to the node's step as it is;
-any other type is turned into a ``sensor_msgs/Imu`` here. See ``doc/drivers.md``.
+``imu_type`` and ``temperature_type`` name any installed ``pkg/msg/Type``, loaded with
+:mod:`importlib` as ``rosidl_runtime_py.utilities.get_message`` does (no PyPI wheel); the
+field paths (:mod:`gyro_tdc.data.field_paths`) are checked at start, so a bad value stops
+the node with one line naming the parameter. A non-Imu IMU type is turned into a
+``sensor_msgs/Imu`` here (``doc/drivers.md``). :class:`MotionInput` reads ``motion_topic``.
 """
 
 from __future__ import annotations
@@ -31,18 +30,20 @@ import functools
 import importlib
 from typing import Any, Callable, Mapping
 
+from geometry_msgs.msg import Twist, TwistStamped
 from gyro_tdc.data import (check_number, check_vector, DEFAULT_TEMPERATURE_FIELDS,
                            frd_to_flu, normalize_type, reader, stamp_kind, stamp_seconds,
                            unquirk)
 from gyro_tdc.errors import ConfigError
-from gyro_tdc.runtime import TEMPERATURE_TYPES
+from gyro_tdc.runtime import CompensatorCore, TEMPERATURE_TYPES
+from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 
-__all__ = ['IMU_TYPE', 'InputReader', 'input_reader', 'message_class']
+__all__ = ['IMU_TYPE', 'InputReader', 'input_reader', 'message_class', 'MOTION_MESSAGES',
+           'MotionInput']
 
-#: The IMU type compensated as it comes (raw CDR or deserialised).
 IMU_TYPE = 'sensor_msgs/msg/Imu'
-#: The range of ``builtin_interfaces/Time.sec`` (int32): a stamp outside is refused.
+MOTION_MESSAGES = {'twist': Twist, 'twist_stamped': TwistStamped, 'odometry': Odometry}
 _INT32_MIN, _INT32_MAX = -2 ** 31, 2 ** 31 - 1
 
 
@@ -50,35 +51,15 @@ def message_class(name: str, param: str, hint: str = '') -> type:
     """
     Return the message class of ``pkg/msg/Type`` (or ``pkg/Type``), imported at run time.
 
-    Parameters
-    ----------
-    name : str
-        The type's name.
-    param : str
-        The parameter that names it (first word of an error).
-    hint : str
-        Examples added to an error (e.g. the usual types).
-
-    Returns
-    -------
-    type
-        The message class.
-
-    Raises
-    ------
-    ConfigError
-        When the name is malformed, the package is not installed or holds no such message;
-        the message names ``param``.
-
+    A malformed name, a package not installed or without that message is a ConfigError
+    naming ``param`` (``hint``: examples added to it).
     """
     hint = f' (e.g. {hint})' if hint else ''
     try:
-        full = normalize_type(name)
+        pkg, _, cls_name = normalize_type(name).split('/')
+        module = importlib.import_module(f'{pkg}.msg')
     except ConfigError as exc:
         raise ConfigError(f'{param}: {exc}{hint}') from None
-    pkg, _, cls_name = full.split('/')
-    try:
-        module = importlib.import_module(f'{pkg}.msg')
     except ImportError:
         raise ConfigError(f'{param}: no installed message package {pkg!r} (for {name!r}; '
                           f'source its workspace or install it){hint}') from None
@@ -94,30 +75,23 @@ def _fields(type_name: str) -> Mapping[str, str] | None:
     if '/' not in type_name or '<' in type_name or '[' in type_name:
         return None
     try:
-        cls = message_class(type_name, 'type')
+        return dict(message_class(type_name, 'type').get_fields_and_field_types())
     except ConfigError:
         return None
-    return dict(cls.get_fields_and_field_types())
+
+
+def _has_header(type_name: str) -> bool:
+    return (_fields(type_name) or {}).get('header') == 'std_msgs/Header'
 
 
 @dataclass(frozen=True)
 class InputReader:
     """
-    How the node reads its two inputs: classes, and converters for non-Imu types.
+    How the node reads its two inputs: the subscriptions' classes and the converters.
 
-    Parameters
-    ----------
-    imu_cls, temperature_cls : type
-        The subscriptions' message classes.
-    fast : bool
-        The IMU input is a ``sensor_msgs/Imu`` (compensated as it comes).
-    to_imu : callable or None
-        ``to_imu(msg) -> Imu`` for any other IMU type: rate turned to FLU, stamp, header.
-    temperature : callable
-        ``temperature(msg) -> float`` (degC, the quirk undone).
-    temperature_stamp : callable or None
-        ``temperature_stamp(msg) -> float`` (s); None: the latest IMU stamp is taken.
-
+    ``fast``: the IMU input is a ``sensor_msgs/Imu``; else ``to_imu(msg) -> Imu`` (FLU,
+    stamped). ``temperature(msg)`` is degC (quirk undone), ``temperature_stamp(msg)`` s
+    (None: the latest IMU stamp is taken).
     """
 
     imu_cls: type
@@ -128,31 +102,22 @@ class InputReader:
     temperature_stamp: Callable[[Any], float] | None
 
 
-def _imu_converter(cls: type, type_name: str, p: Any) -> Callable[[Any], Imu]:
+def _imu_converter(type_name: str, p: Any) -> Callable[[Any], Imu]:
     """Return ``to_imu(msg)`` for an imu_type other than sensor_msgs/Imu."""
     check_vector(type_name, p.angular_velocity_field, _fields, 'angular_velocity_field')
     kind = stamp_kind(type_name, p.stamp_field, _fields, 'stamp_field')
-    rate = reader(p.angular_velocity_field)
-    stamp = reader(p.stamp_field)
-    fields = _fields(type_name) or {}
-    has_header = fields.get('header') == 'std_msgs/Header'
-    frame_id = p.frame_id
-    frd = p.input_frame == 'frd'
-    # One Imu, refilled per message: publish() serializes it at once, and the node touches
-    # only the rate and the covariance diagonal, reset here (a new Imu costs more than the
-    # rest of the conversion).
+    rate, stamp = reader(p.angular_velocity_field), reader(p.stamp_field)
+    has_header, frame_id, frd = _has_header(type_name), p.frame_id, p.input_frame == 'frd'
+    # One Imu, refilled per message: publish() serializes it at once (a new Imu costs more
+    # than the rest of the conversion). REP 145: no orientation, no acceleration.
     out = Imu()
-    out.orientation_covariance[0] = -1.0          # REP 145: no orientation
-    out.linear_acceleration_covariance[0] = -1.0  # nor acceleration; rate: unknown (0)
-    cov = out.angular_velocity_covariance
+    out.orientation_covariance[0] = out.linear_acceleration_covariance[0] = -1.0
+    cov, av, h = out.angular_velocity_covariance, out.angular_velocity, out.header
 
     def to_imu(msg: Any) -> Imu:
         w = rate(msg)
         x, y, z = float(w.x), float(w.y), float(w.z)
-        if frd:
-            x, y, z = frd_to_flu(x, y, z)
-        av = out.angular_velocity
-        av.x, av.y, av.z = x, y, z
+        av.x, av.y, av.z = frd_to_flu(x, y, z) if frd else (x, y, z)
         s = stamp(msg)
         if kind == 'time':
             sec, nanosec = s.sec, s.nanosec
@@ -161,7 +126,6 @@ def _imu_converter(cls: type, type_name: str, p: Any) -> Callable[[Any], Imu]:
             nanosec = micros * 1000
         if not (_INT32_MIN <= sec <= _INT32_MAX and 0 <= nanosec < 1_000_000_000):
             raise ValueError(f'stamp {sec} s {nanosec} ns is not a builtin_interfaces/Time')
-        h = out.header
         h.stamp.sec, h.stamp.nanosec = sec, nanosec
         h.frame_id = msg.header.frame_id if has_header else frame_id
         cov[0] = cov[4] = cov[8] = 0.0
@@ -174,40 +138,22 @@ def input_reader(p: Any) -> InputReader:
     """
     Build the node's :class:`InputReader` from its parameters, checking every choice.
 
-    Parameters
-    ----------
-    p : CompensatorParams
-        The parameters read at start (``imu_type``, ``angular_velocity_field``,
-        ``stamp_field``, ``input_frame``, ``frame_id``, ``temperature_type``,
-        ``temperature_field``, ``temperature_stamp_field``, ``temperature_quirk``).
-
-    Returns
-    -------
-    InputReader
-        The classes and converters.
-
-    Raises
-    ------
-    ConfigError
-        One line naming the parameter: an unknown type, a missing field, a field that is not
-        a number (temperature), an x/y/z vector (rate) or a stamp.
-
+    A ConfigError names the parameter: an unknown type, a missing field, a field that is not
+    a number (temperature), an x/y/z vector (rate) or a stamp.
     """
     imu_cls = message_class(p.imu_type, 'imu_type',
                             f'{IMU_TYPE}, geometry_msgs/msg/Vector3Stamped')
     imu_name = normalize_type(p.imu_type)
     fast = imu_name == IMU_TYPE
-    if fast:
-        if (p.angular_velocity_field, p.stamp_field) != ('angular_velocity', 'header.stamp'):
-            raise ConfigError('angular_velocity_field, stamp_field: a sensor_msgs/msg/Imu '
-                              'input is read at angular_velocity and header.stamp, got '
-                              f'{p.angular_velocity_field!r} and {p.stamp_field!r}.')
-        if p.input_frame != 'flu':
-            raise ConfigError('input_frame: a sensor_msgs/msg/Imu input is FLU (REP 145), '
-                              f'got {p.input_frame!r}; frd is for other imu_type messages.')
-        to_imu = None
-    else:
-        to_imu = _imu_converter(imu_cls, imu_name, p)
+    if fast and (p.angular_velocity_field, p.stamp_field) != ('angular_velocity',
+                                                              'header.stamp'):
+        raise ConfigError('angular_velocity_field, stamp_field: a sensor_msgs/msg/Imu '
+                          'input is read at angular_velocity and header.stamp, got '
+                          f'{p.angular_velocity_field!r} and {p.stamp_field!r}.')
+    if fast and p.input_frame != 'flu':
+        raise ConfigError('input_frame: a sensor_msgs/msg/Imu input is FLU (REP 145), '
+                          f'got {p.input_frame!r}; frd is for other imu_type messages.')
+    to_imu = None if fast else _imu_converter(imu_name, p)
     temp_cls = message_class(p.temperature_type, 'temperature_type',
                              ', '.join(TEMPERATURE_TYPES))
     temp_name = normalize_type(p.temperature_type)
@@ -216,18 +162,13 @@ def input_reader(p: Any) -> InputReader:
         raise ConfigError(f'temperature_field: {temp_name} has no default temperature field; '
                           'set the dotted path to its degC number (e.g. mean_temp).')
     check_number(temp_name, path, _fields, 'temperature_field')
-    get = reader(path)
-    fix = unquirk(p.temperature_quirk)
-    if fix is None:
-        def temperature(msg: Any) -> float:
-            return float(get(msg))
-    else:
-        def temperature(msg: Any) -> float:
-            return fix(float(get(msg)))
-    stamp_path = p.temperature_stamp_field
-    if not stamp_path and (_fields(temp_name) or {}).get('header') == 'std_msgs/Header':
-        stamp_path = 'header.stamp'
-    temp_stamp: Callable[[Any], float] | None = None
+    get, fix = reader(path), unquirk(p.temperature_quirk) or float
+
+    def temperature(msg: Any) -> float:
+        return fix(float(get(msg)))
+
+    stamp_path = p.temperature_stamp_field or ('header.stamp' if _has_header(temp_name) else '')
+    temp_stamp = None
     if stamp_path:
         kind = stamp_kind(temp_name, stamp_path, _fields, 'temperature_stamp_field')
         get_stamp = reader(stamp_path)
@@ -235,3 +176,39 @@ def input_reader(p: Any) -> InputReader:
         def temp_stamp(msg: Any) -> float:  # noqa: F811 (None above: no stamp)
             return stamp_seconds(kind, get_stamp(msg))
     return InputReader(imu_cls, temp_cls, fast, to_imu, temperature, temp_stamp)
+
+
+class MotionInput:
+    """
+    Take outside motion reports (``motion_topic``) and pass them to the core by stamp.
+
+    While one says motion no sample is still. ``topic`` '' means none: no /diagnostics pairs.
+    """
+
+    def __init__(self, core: CompensatorCore, topic: str) -> None:
+        self.core, self.topic = core, topic
+        #: Reports without a stamp before the first IMU message (nothing to stamp them with).
+        self.ignored = 0
+
+    def on_motion(self, msg: Any) -> None:
+        """Hand one Twist, TwistStamped or Odometry to the core at its stamp (or the latest)."""
+        if isinstance(msg, Twist):
+            twist, st = msg, None
+        else:
+            twist = msg.twist.twist if isinstance(msg, Odometry) else msg.twist
+            st = msg.header.stamp
+        t = st.sec + st.nanosec * 1e-9 if st is not None and (st.sec or st.nanosec) else (
+            self.core.last_t)                # no stamp: the latest IMU stamp received
+        if t is None:
+            self.ignored += 1
+            return
+        lin, ang = twist.linear, twist.angular
+        self.core.motion(t, (lin.x, lin.y, lin.z, ang.x, ang.y, ang.z))
+
+    def values(self) -> dict[str, str]:
+        """Return the motion input's /diagnostics key/value pairs (none without a topic)."""
+        if not self.topic:
+            return {}
+        state = {None: 'no report yet', True: 'moving', False: 'not moving'}[self.core.moving]
+        return {'motion': state, 'motion reports': str(self.core.motion_reports),
+                'motion reports ignored': str(self.ignored)}

@@ -26,13 +26,12 @@ from __future__ import annotations
 from array import array
 from dataclasses import replace
 import sys
-from typing import Any, Callable
+from typing import Any
 
 from gyro_tdc.base import Job, LatestJob
 from gyro_tdc.errors import OutputError
 from gyro_tdc.learn import LearnConfig, Learner, LearnFile, open_learn_file
 from gyro_tdc.model import CompensationModel
-from gyro_tdc.runtime import CompensatorCore, Policy
 from std_srvs.srv import Trigger
 
 __all__ = ['LEARN_LOG_THROTTLE_S', 'LEARN_STEP_S', 'LEARN_WAIT_S', 'Learning',
@@ -99,37 +98,26 @@ def _step_and_save(learner: Learner, store: LearnFile | None) -> tuple[str, str,
         if store is None or not learner.save_due():
             return '', '', []
         learner.saved()                 # a failed save is tried again a save period later
-        try:
-            store.write(learner.state())
-        except OutputError as exc:
-            return 'save failed', str(exc), []
-        return 'saved', str(store.path), list(store.notes)
+        return _write(learner, store)
     except Exception as exc:  # the worker's edge: a bug must not stop learning silently
         return 'step failed', f'{type(exc).__name__}: {exc}', []
 
 
+def _write(learner: Learner, store: LearnFile) -> tuple[str, str, list[str]]:
+    """Write ``learner``'s state to ``store``: ('saved', path, notes) or ('save failed', why)."""
+    try:
+        store.write(learner.state())
+    except OutputError as exc:
+        return 'save failed', str(exc), []
+    return 'saved', str(store.path), list(store.notes)
+
+
 class Learning:
     """
-    Learn the bias vs temperature from still time while compensating.
+    Learn the bias vs temperature from still time while the compensator ``node`` runs.
 
     Creates the learner (the model in use is its prior), resumes ``learn_file`` (or the file
     beside it) and becomes the core's learner front.
-
-    Parameters
-    ----------
-    core : CompensatorCore
-        The core that compensates (its model is the prior; learned models go to it).
-    params : CompensatorParams
-        The node's parameters at start (``learn_file``, ``learn_save_period``,
-        ``learn_swap_delay``).
-    policy : Policy
-        The policy at start (``temperature_timeout``).
-    log : rclpy logger
-        Where saves, failures and resumes are said.
-    on_learned : callable
-        Called when a learned model is installed (the node's ``model_file`` becomes
-        'learned').
-
     """
 
     #: Where the learner's state is written (None: nowhere).
@@ -142,38 +130,42 @@ class Learning:
     #: Steps that raised (a bug; logged throttled), and the last one's error.
     learn_step_errors: int = 0
 
-    def __init__(self, core: CompensatorCore, params: Any, policy: Policy, log: Any,
-                 on_learned: Callable[[], None]) -> None:
-        self.core, self.params, self.log, self.on_learned = core, params, log, on_learned
-        self.learner = self._new_learner(policy)
+    def __init__(self, node: Any) -> None:
+        self.node, self.core, self.params = node, node.core, node.params
+        self.log = log = node.get_logger()
+        self.learner = self._new_learner()
         self._learned_installs = 0
         self._learn_jobs = LatestJob()
         self.job: Job | None = None
         self._learn_prior: tuple[CompensationModel | None] | None = None
         self._learn_timeout: float | None = None
-        if params.learn_file:
-            self._open(params.learn_file, policy)
+        if node.params.learn_file:
+            self._open(node.params.learn_file)
         else:
             log.warning('learn without learn_file: nothing is kept across restarts')
         self._front = _Front(self.learner.config)
         self._learn_values = self.learner.diagnostic_values()
         sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))
-        core.learner = self._front
+        node.core.learner = self._front
 
-    def _new_learner(self, policy: Policy) -> Learner:
+    def on_learned(self) -> None:
+        """Name the model in use after a learned one was installed."""
+        self.node.loading.model_file = 'learned'
+
+    def _new_learner(self) -> Learner:
         """Return a learner from the start (the model in use is the prior)."""
         p = self.params
-        return Learner(LearnConfig(temperature_timeout=policy.temperature_timeout,
+        return Learner(LearnConfig(temperature_timeout=self.core.policy.temperature_timeout,
                                    save_period_s=p.learn_save_period,
                                    swap_delay_s=p.learn_swap_delay), prior=self.core.model)
 
-    def _open(self, path: str, policy: Policy) -> None:
+    def _open(self, path: str) -> None:
         """Resume ``learn_file`` (or the file used beside it); a file refused is said once."""
         log = self.log
         try:
             opened = open_learn_file(path, self.learner.load_state)
         except Exception as exc:  # the start-up edge: no file content stops the node
-            self.learner = self._new_learner(policy)
+            self.learner = self._new_learner()
             opened = None
             self.learn_file_warning = (f'learn_file {path!r} not used '
                                        f'({type(exc).__name__}: {exc}): learning from '
@@ -201,27 +193,25 @@ class Learning:
         if not job.done:
             return False
         self.job = None
-        what, text, notes = job.result
+        self._take(*job.result)
+        return True
+
+    def _take(self, what: str, text: str, notes: list[str]) -> None:
+        """Take the outcome of a step or save: clear or count a save error, log notes."""
         log = self.log
         if what == 'saved':
             self.learn_save_error = ''
             for note in notes:
                 log.warning(note)
-        elif what == 'save failed':
-            self._save_failed(text)
+        elif what == 'save failed':     # kept for /diagnostics, logged throttled
+            self.learn_save_error = text
+            self.learn_save_failures += 1
+            log.error(f'cannot save learn_file ({self.learn_save_failures} failed saves): '
+                      f'{text}', throttle_duration_sec=LEARN_LOG_THROTTLE_S)
         elif what == 'step failed':
             self.learn_step_errors += 1
             log.error(f'learning step failed ({self.learn_step_errors} in total): {text}',
                       throttle_duration_sec=LEARN_LOG_THROTTLE_S)
-        return True
-
-    def _save_failed(self, why: str) -> None:
-        """Count a failed save, keep its reason for /diagnostics, log it throttled."""
-        self.learn_save_error = why
-        self.learn_save_failures += 1
-        self.log.error(
-            f'cannot save learn_file ({self.learn_save_failures} failed saves): {why}',
-            throttle_duration_sec=LEARN_LOG_THROTTLE_S)
 
     def _sync(self) -> None:
         """
@@ -253,8 +243,7 @@ class Learning:
         Call on the executor's thread; the learner may then be read or changed until the
         executor runs the learn timer again.
         """
-        job = self.job
-        if job is not None and not job.wait(timeout_s):
+        if self.job is not None and not self.job.wait(timeout_s):
             return False
         self._absorb()
         self._sync()
@@ -308,16 +297,11 @@ class Learning:
         store = self.learn_store
         if store is None:
             return f'failed: nothing is written ({self.learn_file_warning})'
-        try:
-            store.write(self.learner.state())
-        except OutputError as exc:
-            self._save_failed(str(exc))
-            return f'failed: {exc}'
-        self.learner.saved()
-        self.learn_save_error = ''
-        for note in store.notes:
-            self.log.warning(note)
-        return f'saved {store.path}'
+        what, text, notes = _write(self.learner, store)
+        if what == 'saved':
+            self.learner.saved()
+        self._take(what, text, notes)
+        return f'saved {store.path}' if what == 'saved' else f'failed: {text}'
 
     def values(self) -> dict[str, str]:
         """Return the learner's /diagnostics pairs and where its state is written."""

@@ -29,7 +29,7 @@ from gyro_tdc.base import Job, LatestJob
 from gyro_tdc.errors import GyroTdcError, one_line
 from gyro_tdc.learn import read_model as read_any_model
 from gyro_tdc.model import CompensationModel
-from gyro_tdc.runtime import CompensatorCore, prepare, PreparedModel, sensor_mismatch
+from gyro_tdc.runtime import prepare, PreparedModel, sensor_mismatch
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.parameter import Parameter
 from std_srvs.srv import Trigger
@@ -45,69 +45,23 @@ LOAD_ERRORS = (GyroTdcError, RecursionError, MemoryError)
 LOAD_POLL_S = 0.02
 
 
-def read_model(name_or_file: str) -> CompensationModel:
-    """
-    Resolve and load a model file (or a learn_file's learned model).
-
-    Parameters
-    ----------
-    name_or_file : str
-        A path, the name of a model shipped in ``config/models``, or a learn_file (its
-        current learned model, :func:`gyro_tdc.learn.read_model`).
-
-    Returns
-    -------
-    CompensationModel
-        The validated model.
-
-    Raises
-    ------
-    ModelFileError
-        The file is missing, malformed, inconsistent or beyond one of the model loader's
-        limits (size, nesting, aliases, centres; one-line reason), or a learn_file holds
-        no accepted model yet.
-    LearnFileError
-        A learn_file that is not a learner state.
-
-    """
-    return read_any_model(name_or_file)
+#: Resolve and load a model file: a path, a model shipped in ``config/models`` or a learn_file's
+#: current learned model (:func:`gyro_tdc.learn.read_model`); a ModelFileError or
+#: LearnFileError says why not in one line.
+read_model = read_any_model
 
 
 class ModelLoading:
     """
-    Load, check and install model files without holding up the IMU callback.
+    Load, check and install the compensator ``node``'s model files off the IMU callback.
 
-    Parameters
-    ----------
-    core : CompensatorCore
-        The core the models are installed in.
-    params : callable
-        ``params() -> CompensatorParams``, the node's current parameters (``model_file``
-        at start, ``load_wait``, ``sensor_id``).
-    log : rclpy logger
-        Where installs and refusals are said.
-    loader : callable, optional
-        ``loader(name) -> CompensationModel`` (default :func:`read_model`).
-    model_file : callable
-        ``model_file() -> str``: the parameter's value now.
-    set_model_file : callable
-        ``set_model_file(name)``: set the parameter (to name the model in use again).
-    on_model : callable
-        ``on_model(model)`` after every install or clear (the learner's new prior).
-
+    ``loader(name) -> CompensationModel`` reads one (default :func:`read_model`). Every
+    install or clear makes the model the learner's new prior.
     """
 
-    def __init__(self, core: CompensatorCore, params: Callable[[], Any], log: Any,
-                 loader: Callable[[str], CompensationModel] | None, *,
-                 model_file: Callable[[], str], set_model_file: Callable[[str], Any],
-                 on_model: Callable[[CompensationModel | None], None]) -> None:
-        self.core = core
-        self.params = params
-        self.log = log
+    def __init__(self, node: Any, loader: Callable[[str], CompensationModel] | None) -> None:
+        self.node, self.core, self.log = node, node.core, node.get_logger()
         self._read = loader or read_model
-        self._param_value = model_file
-        self._set_param = set_model_file
-        self.on_model = on_model
         #: The model in use: a file name, 'learned' or '' (none).
         self.model_file = ''
         self.last_reload = 'none'
@@ -115,13 +69,21 @@ class ModelLoading:
         self._pending: dict[str, Job] = {}
         self._reverting: str | None = None
 
+    def _param_value(self) -> str:
+        return self.node.get_parameter('model_file').value
+
+    def on_model(self, model: CompensationModel | None) -> None:
+        """Make a model loaded from ``model_file`` (or none) the learner's prior."""
+        if self.node.learning is not None:
+            self.node.learning.new_prior(model)
+
     def load_at_start(self) -> None:
         """Load ``model_file`` on this thread (at start: nothing to hold up yet)."""
-        name = self.params().model_file
+        name = self.node.params.model_file
         if not name:
             self.log.warning('no model_file: passing the raw rate through')
             return
-        prepared, error = self._load_work(name, self.core.priming())()
+        prepared, error = self._load_work(name)()
         if prepared is not None:
             self._install(name, prepared)
         else:
@@ -129,10 +91,9 @@ class ModelLoading:
             self.log.error(f'cannot load model_file {name!r}: {error}; '
                            'passing the raw rate through')
 
-    def _load_work(self, name: str, priming: Any
-                   ) -> Callable[[], tuple[PreparedModel | None, str]]:
+    def _load_work(self, name: str) -> Callable[[], tuple[PreparedModel | None, str]]:
         """Return the job that reads, checks and primes ``name``: (prepared, '') or (None, why)."""
-        read, policy = self._read, self.core.policy
+        read, policy, priming = self._read, self.core.policy, self.core.priming()
 
         def work() -> tuple[PreparedModel | None, str]:
             try:
@@ -148,11 +109,11 @@ class ModelLoading:
     def _start_load(self, name: str, origin: str) -> Job:
         """Read ``name`` in a worker thread (a newer request makes an older one stale)."""
         self.last_reload = f'loading {name}'
-        return self._jobs.start(name, origin, self._load_work(name, self.core.priming()))
+        return self._jobs.start(name, origin, self._load_work(name))
 
     def _claim(self, job: Job) -> bool:
         """Wait up to ``load_wait`` for ``job``; return whether it finished and is ours."""
-        return job.wait(self.params().load_wait) and self._jobs.claim(job) is not None
+        return job.wait(self.node.params.load_wait) and self._jobs.claim(job) is not None
 
     def _install(self, name: str, prepared: PreparedModel) -> None:
         """Swap the model in (one assignment inside the core), log it, tell the learner."""
@@ -164,7 +125,7 @@ class ModelLoading:
         self.log.info(
             f'model {prepared.model_id} from {name!r}: {model.kind}, features '
             f'{",".join(model.features)}, valid {lo:.1f}..{hi:.1f} degC')
-        mismatch = sensor_mismatch(model, self.params().sensor_id)
+        mismatch = sensor_mismatch(model, self.node.params.sensor_id)
         if mismatch:
             self.log.warning(mismatch)
         self.on_model(model)
@@ -184,20 +145,7 @@ class ModelLoading:
         return True, f'loaded model {prepared.model_id} from {job.name}'
 
     def load(self, name: str) -> tuple[bool, str]:
-        """
-        Load ``name`` now and install it; on failure keep the current model.
-
-        Parameters
-        ----------
-        name : str
-            Model file path or shipped model name ('' to pass through).
-
-        Returns
-        -------
-        tuple of (bool, str)
-            Success and a one-line message.
-
-        """
+        """Load ``name`` ('' for none) now and install it, or keep the model; (success, why)."""
         self._jobs.drop()  # this request is newer than any file still being read
         if not name:
             self.core.set_model(None)
@@ -206,7 +154,7 @@ class ModelLoading:
             self.on_model(None)
             return True, 'no model: passing the raw rate through'
         job = Job(name, 'load')
-        job.result = self._load_work(name, self.core.priming())()
+        job.result = self._load_work(name)()
         return self._finish(job)
 
     def on_poll(self) -> None:
@@ -221,7 +169,7 @@ class ModelLoading:
             # The set was accepted before the file was read: name the model in use again.
             self._reverting = self.model_file
             try:
-                self._set_param(self.model_file)
+                self.node.set_parameters([Parameter('model_file', value=self.model_file)])
             finally:
                 self._reverting = None
 

@@ -12,6 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
+
 """
 The compensator node: raw Imu in, drift-compensated Imu out, one for one, in order.
 
@@ -37,10 +38,9 @@ from gyro_tdc.model import CompensationModel
 from gyro_tdc.nodes._params import declare, print_help
 from gyro_tdc.nodes.compensator_diagnostics import (Diagnostics, DIAGNOSTICS_PERIOD_S,
                                                     TEMPERATURE_MESSAGES)
-from gyro_tdc.nodes.compensator_inputs import input_reader
+from gyro_tdc.nodes.compensator_inputs import input_reader, MOTION_MESSAGES, MotionInput
 from gyro_tdc.nodes.compensator_learning import LEARN_STEP_S, Learning
 from gyro_tdc.nodes.compensator_loading import LOAD_POLL_S, ModelLoading, read_model
-from gyro_tdc.nodes.compensator_motion import MOTION_MESSAGES, MotionInput
 from gyro_tdc.nodes.executors import run_node
 from gyro_tdc.runtime import (CompensatorCore, InputStatus, PARAMS, PASSTHROUGH, Policy,
                               sensor_mismatch, upstream_note)
@@ -49,8 +49,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
-                       ReliabilityPolicy)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu
@@ -59,14 +58,11 @@ from std_srvs.srv import Trigger
 __all__ = ['CompensatorNode', 'CompensatorParams', 'PARAMS', 'TEMPERATURE_MESSAGES', 'main',
            'read_model']
 
-#: The compensator's parameters, read at start-up; the writable rows are replaced when set.
 CompensatorParams = spec_dataclass(
     'CompensatorParams', PARAMS, "The compensator's parameters (rows of ``PARAMS``).",
     module=__name__, methods={'policy': lambda self: Policy(
         **{s.name: getattr(self, s.name) for s in PARAMS if s.policy})})
 
-#: The rows a running node takes from a parameter set: the policies (a new Policy swapped in
-#: between two messages) and the others read where they are used; ``model_file`` is loading's.
 POLICY_NAMES = frozenset(s.name for s in PARAMS if s.policy)
 LIVE_NAMES = frozenset(s.name for s in PARAMS if not s.read_only and not s.policy) - {
     'model_file'}
@@ -77,48 +73,32 @@ def qos_overrides() -> QoSOverridingOptions:
     return QoSOverridingOptions.with_default_policies()
 
 
-def imu_qos(p: Any) -> QoSProfile:
-    """Return the imu/data_raw subscription's QoS (the default of its qos_overrides)."""
-    if p.input_reliability == 'reliable':
-        # Keep all: nothing is overwritten here. A keep-all publisher is held back by
-        # flow control; a keep-last one drops its oldest unacknowledged samples, which
-        # the next accepted sample reveals as a sequence gap the message-lost event counts.
-        # Bounded by the RMW's limits (Fast DDS: 5000).
-        return QoSProfile(history=HistoryPolicy.KEEP_ALL, depth=p.queue_depth,
-                          reliability=ReliabilityPolicy.RELIABLE,
-                          durability=DurabilityPolicy.VOLATILE)
-    # REP 2003 sensor data, deep: the freshest queue_depth samples when behind. DDS
-    # does not report the oldest ones this queue overwrites (only transport gaps).
-    return QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
-                      reliability=ReliabilityPolicy.BEST_EFFORT,
-                      durability=DurabilityPolicy.VOLATILE)
+def qos(depth: int, reliable: bool, keep_all: bool = False) -> QoSProfile:
+    """
+    Return a volatile QoS profile: keep last ``depth`` (or all), reliable or best effort.
+
+    imu/data_raw is keep-all when reliable: a keep-all publisher is held back by flow
+    control, a keep-last one drops its oldest unacknowledged samples, which the next sample
+    reveals as a sequence gap the message-lost event counts (bounded by the RMW's limits,
+    Fast DDS: 5000). Best effort it is REP 2003 sensor data, deep: the freshest ``depth``
+    samples when behind (DDS does not report the ones this queue overwrites).
+    """
+    return QoSProfile(history=HistoryPolicy.KEEP_ALL if keep_all else HistoryPolicy.KEEP_LAST,
+                      depth=depth, durability=DurabilityPolicy.VOLATILE,
+                      reliability=ReliabilityPolicy.RELIABLE if reliable
+                      else ReliabilityPolicy.BEST_EFFORT)
 
 
 class CompensatorNode(Node):
     """
     Remove the temperature drift of a gyro, one output message per input message.
 
-    The node wires the topics, timers, services and parameter callbacks to its parts:
-    ``loading`` (:class:`~gyro_tdc.nodes.compensator_loading.ModelLoading`), ``learning``
-    (:class:`~gyro_tdc.nodes.compensator_learning.Learning`, None unless ``learn``),
-    ``motion`` (:class:`~gyro_tdc.nodes.compensator_motion.MotionInput`) and ``diagnostics``
-    (:class:`~gyro_tdc.nodes.compensator_diagnostics.Diagnostics`). Every IMU input, raw CDR,
-    deserialised or read by field, goes through one step on the serialized message.
-
-    Parameters
-    ----------
-    loader : callable, optional
-        Reads a model file: ``loader(name) -> CompensationModel`` (default
-        :func:`read_model`); tests inject a slow one.
-    **kwargs
-        Forwarded to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``...).
-
-    Raises
-    ------
-    ConfigError
-        A parameter is invalid, or ``imu/data_raw`` and ``imu/data_compensated`` resolve to
-        the same topic.
-
+    The node wires topics, timers, services and parameter callbacks to its parts
+    ``loading``, ``learning`` (None unless ``learn``), ``motion`` and ``diagnostics``. Every
+    IMU input, raw CDR, deserialised or read by field, goes through :meth:`_compensate`.
+    ``loader(name) -> CompensationModel`` reads a model file (default :func:`read_model`;
+    tests inject a slow one); ``kwargs`` go to :class:`rclpy.node.Node`. A ConfigError: a
+    parameter is invalid, or the input and output resolve to the same topic.
     """
 
     #: Set by :meth:`destroy_node`: a timer event that still comes then does nothing.
@@ -133,9 +113,9 @@ class CompensatorNode(Node):
             policy = p.policy()
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
-        in_topic = self.resolve_topic_name('imu/data_raw')
+        self.in_topic = self.resolve_topic_name('imu/data_raw')
         out_topic = self.resolve_topic_name('imu/data_compensated')
-        if in_topic == out_topic:
+        if self.in_topic == out_topic:
             raise ConfigError(f'imu/data_raw and imu/data_compensated both resolve to '
                               f'{out_topic}: the compensator would compensate its own output '
                               'in a loop; remap one of them')
@@ -144,65 +124,39 @@ class CompensatorNode(Node):
         self.temperatures_ignored = 0  # readings without a stamp before the first IMU message
         self._last_imu: bytes | None = None    # the latest input, for its frame_id
         self.learning: Learning | None = None
-        self.loading = ModelLoading(
-            self.core, lambda: self.params, self.get_logger(), loader,
-            model_file=lambda: self.get_parameter('model_file').value,
-            set_model_file=lambda name: self.set_parameters([Parameter('model_file',
-                                                                       value=name)]),
-            on_model=self._new_prior)
+        self.loading = ModelLoading(self, loader)
         self.loading.load_at_start()
         self.motion = MotionInput(self.core, p.motion_topic)
-        self.diagnostics = Diagnostics(
-            self, self.core, self.inputs, lambda: self.params, in_topic,
-            loading=self.loading, motion=self.motion, frame_id=self._frame_id,
-            temperatures_ignored=lambda: self.temperatures_ignored)
+        self.diagnostics = Diagnostics(self)
         self._record = self.diagnostics.backlog.record    # the IMU step's one call per sample
         self._say_upstream(policy)                        # said once at start-up
         self._wire(p)
-        if p.learn:
-            self.learning = Learning(self.core, p, policy, self.get_logger(), self._learned)
-            self.diagnostics.learning = self.learning
-            self.create_service(Trigger, '~/learn_save', self.learning.on_save)
-            self.create_service(Trigger, '~/learn_reset', self.learning.on_reset)
-            # The steady clock: with use_sim_time and no /clock (or a paused bag) learning
-            # goes on; what it learns follows the message stamps anyway.
-            self.create_timer(LEARN_STEP_S, self.learning.on_timer,
-                              clock=Clock(clock_type=ClockType.STEADY_TIME))
 
     def _wire(self, p: Any) -> None:
         """Create the publishers, subscriptions, timers, services and parameter callbacks."""
-        self._pub = self.create_publisher(Imu, 'imu/data_compensated', QoSProfile(
-            history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
-            reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.VOLATILE),
-            qos_overriding_options=qos_overrides())
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-        events = SubscriptionEventCallbacks(message_lost=self._on_message_lost)
+        reliable, depth, opts = p.input_reliability == 'reliable', p.queue_depth, {
+            'qos_overriding_options': qos_overrides()}
         # The profiles are the defaults of the qos_overrides.<resolved topic>.* parameters
         # (read-only: QoS is fixed when an entity is created), which may override them.
-        reader = self.reader
+        self._pub = self.create_publisher(Imu, 'imu/data_compensated', qos(depth, True), **opts)
+        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+        reader, imu_qos = self.reader, qos(depth, reliable, keep_all=reliable)
+        events = SubscriptionEventCallbacks(message_lost=self._on_message_lost)
         if not reader.fast:     # another type: turned into an Imu, then the one step
-            imu_sub = self.create_subscription(
-                reader.imu_cls, 'imu/data_raw', self._on_imu_other, imu_qos(p),
-                event_callbacks=events, qos_overriding_options=qos_overrides())
+            imu_sub = self.create_subscription(reader.imu_cls, 'imu/data_raw', self._on_imu_other,
+                                               imu_qos, event_callbacks=events, **opts)
         else:
             imu_sub = self.create_subscription(
-                Imu, 'imu/data_raw', self._on_imu_raw if p.raw_cdr else self._on_imu,
-                imu_qos(p), raw=p.raw_cdr, event_callbacks=events,
-                qos_overriding_options=qos_overrides())
+                Imu, 'imu/data_raw', self._on_imu_raw if p.raw_cdr else self._on_imu, imu_qos,
+                raw=p.raw_cdr, event_callbacks=events, **opts)
         self.inputs.reliability = imu_sub.qos_profile.reliability.name.lower()
-        # As deep as the IMU queue: a simulated run streamed faster than real time sends
-        # one temperature per IMU sample, and a lost temperature makes the next ones stale.
-        self.create_subscription(
-            reader.temperature_cls, 'imu/temperature', self._on_temperature, QoSProfile(
-                history=HistoryPolicy.KEEP_LAST, depth=p.queue_depth,
-                reliability=qos_profile_sensor_data.reliability,
-                durability=qos_profile_sensor_data.durability),
-            qos_overriding_options=qos_overrides())
+        # As deep as the IMU queue, best effort: a simulated run streamed faster than real time
+        # sends one temperature per IMU sample, and a lost one makes the next ones stale.
+        self.create_subscription(reader.temperature_cls, 'imu/temperature',
+                                 self._on_temperature, qos(depth, False), **opts)
         if p.motion_topic:
-            self.create_subscription(
-                MOTION_MESSAGES[p.motion_type], p.motion_topic, self.motion.on_motion,
-                MotionInput.qos(p.input_reliability, p.queue_depth),
-                qos_overriding_options=qos_overrides())
+            self.create_subscription(MOTION_MESSAGES[p.motion_type], p.motion_topic,
+                                     self.motion.on_motion, qos(depth, reliable), **opts)
         self.create_service(Trigger, '~/reload', self.loading.on_reload)
         # rclpy calls the callbacks added last first: the policy check runs before
         # model_file's (which reads the file), the policy swap after the model install.
@@ -210,11 +164,16 @@ class CompensatorNode(Node):
         self.add_on_set_parameters_callback(self.loading.on_set)
         self.add_post_set_parameters_callback(self.loading.on_parameters_set)
         self.add_on_set_parameters_callback(self._on_set_policy)
-        # The steady clock: with use_sim_time and no /clock (or a paused bag) the reports and
-        # the model poll go on; every decision on the data follows the message stamps anyway.
+        # The steady clock: with use_sim_time and no /clock (or a paused bag) the reports, the
+        # model poll and learning go on; every decision follows the message stamps anyway.
         steady = Clock(clock_type=ClockType.STEADY_TIME)
         self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diagnostics, clock=steady)
         self.create_timer(LOAD_POLL_S, self.loading.on_poll, clock=steady)
+        if p.learn:
+            self.learning = self.diagnostics.learning = Learning(self)
+            self.create_service(Trigger, '~/learn_save', self.learning.on_save)
+            self.create_service(Trigger, '~/learn_reset', self.learning.on_reset)
+            self.create_timer(LEARN_STEP_S, self.learning.on_timer, clock=steady)
 
     def destroy_node(self) -> None:
         """
@@ -244,19 +203,10 @@ class CompensatorNode(Node):
         arr.status = [self.diagnostics.status()]
         self._diag_pub.publish(arr)
 
-    def _frame_id(self) -> str:
+    def frame_id(self) -> str:
         """Return ``header.frame_id`` of the latest imu/data_raw message ('' before one)."""
         last = self._last_imu
         return '' if last is None else deserialize_message(last, Imu).header.frame_id
-
-    def _new_prior(self, model: CompensationModel | None) -> None:
-        """Make a model loaded from ``model_file`` (or none) the learner's prior."""
-        if self.learning is not None:
-            self.learning.new_prior(model)
-
-    def _learned(self) -> None:
-        """Name the model in use after the learner installed one."""
-        self.loading.model_file = 'learned'
 
     def _say_upstream(self, policy: Policy) -> None:
         """Log what upstream_correction does with the input (a warning when it passes it)."""
@@ -269,12 +219,11 @@ class CompensatorNode(Node):
 
     def _on_set_policy(self, params: list[Parameter]) -> SetParametersResult:
         """Check a set of policy parameters (ROS checked types and ranges): refuse with why."""
-        changes = {q.name: q.value for q in params if q.name in POLICY_NAMES}
-        if changes:
-            try:
-                replace(self.core.policy, **changes)
-            except (TypeError, ValueError) as exc:   # Policy's own check: choices, signs
-                return SetParametersResult(successful=False, reason=str(exc))
+        try:   # Policy's own check: choices, signs
+            replace(self.core.policy, **{q.name: q.value for q in params
+                                         if q.name in POLICY_NAMES})
+        except (TypeError, ValueError) as exc:
+            return SetParametersResult(successful=False, reason=str(exc))
         return SetParametersResult(successful=True)
 
     def _on_policy_set(self, params: list[Parameter]) -> None:
@@ -288,18 +237,18 @@ class CompensatorNode(Node):
         policy = replace(old, **changes)
         said = [f'{k} {getattr(old, k)!r} -> {v!r}' for k, v in changes.items()
                 if getattr(old, k) != v]
+        log = self.get_logger()
         if said:
             self.core.set_policy(policy)
             if self.learning is not None:
                 self.learning.set_timeout(policy.temperature_timeout)
-            self.get_logger().info('policy changed, from the next message: ' + ', '.join(said))
+            log.info('policy changed, from the next message: ' + ', '.join(said))
             if (old.upstream_correction, old.upstream_policy) != (
                     policy.upstream_correction, policy.upstream_policy):
                 self._say_upstream(policy)
-        if 'sensor_id' in live and self.core.model is not None:
-            mismatch = sensor_mismatch(self.core.model, self.params.sensor_id)
-            if mismatch:
-                self.get_logger().warning(mismatch)
+        mismatch = 'sensor_id' in live and sensor_mismatch(self.core.model, self.params.sensor_id)
+        if mismatch:
+            log.warning(mismatch)
 
     # -- the hot path -----------------------------------------------------------------
 
@@ -319,8 +268,8 @@ class CompensatorNode(Node):
             try:
                 data = serialize_message(deserialize_message(data, Imu))
             except Exception as exc:  # the callback edge: any participant can send bytes
-                self._on_malformed(exc, len(data))
-                return
+                return self._malformed(f'malformed imu/data_raw message dropped ({len(data)} '
+                                       'bytes', exc)
             found = locate(data)
         sec, nanosec, base = found
         self._last_imu = data
@@ -334,8 +283,10 @@ class CompensatorNode(Node):
         try:
             wx, wy, wz, var, flags, aout, avar = core.process(t, wx, wy, wz, a)
         except Exception as exc:  # the callback edge: never lose the message
-            var, flags = self._on_error(exc), PASSTHROUGH
+            var, flags = core.fail(exc), PASSTHROUGH
             aout, avar = None, (var if a is not None and core.accel_on else None)
+            self.get_logger().error(f'compensation failed, raw rate passed through: '
+                                    f'{core.last_error}', throttle_duration_sec=1.0)
         self._pub.publish(view.patched(wx, wy, wz, var, not flags & PASSTHROUGH, aout, avar,
                                        core.policy.base_variance))
         self._record((t, start, perf_counter()))    # the backlog: stamp, start, end
@@ -345,9 +296,7 @@ class CompensatorNode(Node):
 
     def _on_imu(self, msg: Imu, start: float | None = None) -> None:
         """Compensate a deserialised Imu: serialized again, then the one step."""
-        if start is None:
-            start = perf_counter()
-        self._compensate(serialize_message(msg), start)
+        self._compensate(serialize_message(msg), perf_counter() if start is None else start)
 
     def _on_imu_other(self, msg: Any) -> None:
         """Turn an ``imu_type`` message into an Imu (FLU, stamped) and compensate that."""
@@ -355,43 +304,28 @@ class CompensatorNode(Node):
         try:
             imu = self.reader.to_imu(msg)
         except Exception as exc:  # the callback edge: a field out of range, a bad stamp
-            self.inputs.malformed += 1
-            self.get_logger().warning(
-                f'imu/data_raw message not readable as {self.params.imu_type} (dropped, '
-                f'{self.inputs.malformed} in total): {type(exc).__name__}: {exc}',
-                throttle_duration_sec=5.0)
-            return
+            return self._malformed('imu/data_raw message not readable as '
+                                   f'{self.params.imu_type} (dropped', exc)
         self._compensate(serialize_message(imu), start)
 
-    def _on_malformed(self, exc: Exception, size: int) -> None:
-        """Count a message that is not an Imu (nothing to republish); the stream goes on."""
+    def _malformed(self, what: str, exc: Exception) -> None:
+        """Count an input that is not an Imu (nothing to republish); the stream goes on."""
         self.inputs.malformed += 1
-        self.get_logger().warning(
-            f'malformed imu/data_raw message dropped ({size} bytes, {self.inputs.malformed} '
-            f'in total): {type(exc).__name__}: {exc}', throttle_duration_sec=5.0)
-
-    def _on_error(self, exc: Exception) -> tuple[float, float, float]:
-        """Count an unexpected compensation failure; the raw sample goes out flagged."""
-        var = self.core.fail(exc)
-        self.get_logger().error(f'compensation failed, raw rate passed through: '
-                                f'{self.core.last_error}', throttle_duration_sec=1.0)
-        return var
+        self.get_logger().warning(f'{what}, {self.inputs.malformed} in total): '
+                                  f'{type(exc).__name__}: {exc}', throttle_duration_sec=5.0)
 
     def _on_temperature(self, msg: Any) -> None:
         """
         Take a reading at its own stamp, or at the latest IMU stamp when it has none.
 
-        Field, stamp and quirk come from the node's ``reader`` (``input_reader``); a reading
-        without a stamp before the first IMU message is ignored (``temperatures_ignored``).
+        A reading without a stamp before the first IMU message is ignored
+        (``temperatures_ignored``).
         """
         stamp = self.reader.temperature_stamp
-        if stamp is None:
-            t = self.core.last_t
-            if t is None:  # before the first IMU message there is no stamp to give it
-                self.temperatures_ignored += 1
-                return
-        else:
-            t = stamp(msg)
+        t = self.core.last_t if stamp is None else stamp(msg)
+        if t is None:  # before the first IMU message there is no stamp to give it
+            self.temperatures_ignored += 1
+            return
         self.core.add_temperature(t, self.reader.temperature(msg))
 
     def _on_message_lost(self, info: QoSMessageLostInfo) -> None:
@@ -412,8 +346,8 @@ def main(args: list[str] | None = None) -> int:
             'qos_overrides.<topic>.subscription|publisher.reliability|history|depth '
             'parameters, <topic> as resolved.')):
         return 0
-    # gc.freeze(): keep the ~30k start-up objects (numpy, the model...) out of the cyclic
-    # collector's full passes, which otherwise stall the callback for ~10 ms now and then (p99).
+    # gc.freeze(): keep the start-up objects (numpy, the model...) out of the cyclic
+    # collector's full passes, which otherwise stall the callback now and then (p99).
     return run_node(CompensatorNode, args, executor=lambda node: node.params.executor,
                     freeze_heap=True, name='compensator_node')
 

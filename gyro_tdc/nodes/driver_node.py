@@ -87,6 +87,11 @@ def stamp_from_ns(ns: int) -> Time:
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
+def _diagonal(v: float) -> list[float]:
+    """Return a row-major 3x3 covariance with ``v`` on its diagonal."""
+    return [v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v]
+
+
 def _open_sim(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
     """Open the simulator; a scenario it cannot load, or a run too large, is a ConfigError."""
     from gyro_tdc.base import check_sim_samples
@@ -149,55 +154,19 @@ BACKENDS = {
 }
 
 
-def open_source(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
-    """
-    Open the back-end named by the parameters.
-
-    Parameters
-    ----------
-    p : DriverParams
-        Parameters.
-    clock_ns : callable returning int, ns
-        The node clock, which stamps the samples.
-
-    Returns
-    -------
-    ImuSource
-        The opened source.
-
-    Raises
-    ------
-    DeviceError
-        The device cannot be opened.
-
-    """
-    return BACKENDS[p.backend].open(p, clock_ns)
-
-
 class DriverNode(Node):
     """
     Publish a gyro's samples as sensor_msgs/Imu and sensor_msgs/Temperature.
 
-    Parameters
-    ----------
-    source : ImuSource, optional
-        Use this back-end instead of opening the one the parameters name (tests).
-    **kwargs
-        Forwarded to :class:`rclpy.node.Node` (``context``, ``parameter_overrides``...).
-
-    Raises
-    ------
-    ConfigError
-        A parameter is not one of its choices, or a back-end that is not retried (the
-        simulator) cannot be opened: an unknown scenario names the shipped ones.
-
+    ``source``: use this back-end instead of opening the one the parameters name (tests);
+    ``kwargs`` go to :class:`rclpy.node.Node`. A ConfigError: a parameter is not one of its
+    choices, or a back-end that is not retried (the simulator) cannot be opened.
     """
 
     def __init__(self, *, source: ImuSource | None = None, **kwargs: Any) -> None:
         super().__init__(kwargs.pop('node_name', 'driver_node'), **kwargs)
         self.stopping = False         # set by destroy_node: callbacks then do nothing
-        self.params = DriverParams(**declare(self, PARAMS))
-        p = self.params
+        self.params = p = DriverParams(**declare(self, PARAMS))
         self._backend = BACKENDS[p.backend]
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.qos_depth,
                          reliability=ReliabilityPolicy.RELIABLE)
@@ -206,42 +175,28 @@ class DriverNode(Node):
         self._ref_pub = (self.create_publisher(Vector3Stamped, 'rate_table/reference', qos)
                          if self._backend.reference else None)
         self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
-
-        self._injected = source
-        self._source: ImuSource | None = None
+        self._injected, self._source = source, None
         self._backoff = Backoff(p.retry_initial, p.retry_max)
-        self._retry_at = 0.0
-        self._state = 'starting'
-        self._last_error = ''
-        self._errors = 0
-        self._published = 0
-        self._temps = 0
+        self._retry_at, self._state, self._last_error, self._device = 0.0, 'starting', '', ''
+        self._errors = self._published = self._temps = 0
         self._temps_rejected = 0      # implausible readings the source dropped, as last logged
-        self._device = ''
-        self._finished = False
-
-        # The message templates: constant fields filled once.
+        # The message templates: constant fields filled once (REP 145: no orientation).
         self._imu = Imu()
         self._imu.header.frame_id = p.frame_id
         self._imu.orientation_covariance[0] = -1.0
-        for i in (0, 4, 8):
-            self._imu.angular_velocity_covariance[i] = p.angular_velocity_variance
-        self._temp = Temperature()
+        self._imu.angular_velocity_covariance = _diagonal(p.angular_velocity_variance)
+        self._temp = Temperature(variance=p.temperature_variance)
         self._temp.header.frame_id = p.frame_id
-        self._temp.variance = p.temperature_variance
-
         try:
             self._try_open(fatal=not self._backend.retry)
         except ConfigError:
             self.destroy_node()
             raise
         self._timer = self.create_timer(1.0 / getattr(p, self._backend.tick_hz), self._on_tick)
-        self._diag_timer = self.create_timer(1.0, self._on_diagnostics)
+        self.create_timer(1.0, self._on_diagnostics)
         self.get_logger().info(
             f'{p.backend} back-end, {self._device or "no device yet"}, publishing '
             f'imu/data_raw and imu/temperature in frame {p.frame_id!r}')
-
-    # -- source management ------------------------------------------------------------
 
     def _now_ns(self) -> int:
         return self.get_clock().now().nanoseconds
@@ -249,63 +204,56 @@ class DriverNode(Node):
     def _try_open(self, *, fatal: bool = False) -> None:
         """Open (or reopen) the source; on failure schedule the next attempt, or raise."""
         try:
-            src = self._injected if self._injected is not None else open_source(
+            src = self._injected if self._injected is not None else self._backend.open(
                 self.params, self._now_ns)
         except DeviceError as exc:
             if fatal:
                 raise ConfigError(one_line(exc)) from None
-            self._fail(exc)
-            return
-        self._source = src
-        self._device = src.name
-        self._state = 'running'
-        cov = self._imu.linear_acceleration_covariance
-        for i in range(9):
-            cov[i] = 0.0
-        if src.has_accel:
-            for i in (0, 4, 8):
-                cov[i] = self.params.linear_acceleration_variance
-        else:
-            cov[0] = -1.0  # REP 145: no acceleration data
+            return self._fail(exc)
+        self._source, self._device, self._state = src, src.name, 'running'
+        # REP 145: -1 first, no acceleration data.
+        self._imu.linear_acceleration_covariance = (
+            _diagonal(self.params.linear_acceleration_variance) if src.has_accel
+            else [-1.0] + [0.0] * 8)
         self.get_logger().info(f'opened {self._device}')
 
-    def _fail(self, exc: DeviceError) -> None:
-        """Record a device error, drop the source and schedule a retry with backoff."""
-        self._errors += 1
-        self._last_error = str(exc)
+    def _close(self) -> None:
+        """Close and drop the source (an injected one is the caller's)."""
         if self._source is not None and self._source is not self._injected:
             try:
                 self._source.close()
             except DeviceError:
                 pass
         self._source = None
+
+    def _fail(self, exc: DeviceError) -> None:
+        """Record a device error, drop the source and schedule a retry with backoff."""
+        self._errors += 1
+        self._last_error = str(exc)
+        self._close()
         delay = self._backoff.next_delay()
         self._retry_at = time.monotonic() + delay
         self._state = 'error'
         self.get_logger().warning(f'device error: {exc} (retry in {delay:.2f} s)')
 
-    # -- publishing -------------------------------------------------------------------
-
     def _publish(self, src: ImuSource, sample: ImuSample) -> None:
         """Fill the message templates from one checked sample and publish them."""
-        stamp = src.stamp_ns(sample.t)
+        ns = src.stamp_ns(sample.t)
+        stamp = stamp_from_ns(ns)
         if sample.ref is not None and self._ref_pub is not None:
             ref = Vector3Stamped()
-            ref.header.frame_id = self.params.frame_id
-            ref.header.stamp = stamp_from_ns(stamp)
+            ref.header.frame_id, ref.header.stamp = self.params.frame_id, stamp
             ref.vector.x, ref.vector.y, ref.vector.z = sample.ref
             self._ref_pub.publish(ref)
         msg = self._imu
-        msg.header.stamp = stamp_from_ns(stamp)
-        w = sample.omega
-        msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = w
+        msg.header.stamp = stamp
+        msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = sample.omega
         if sample.accel is not None:
-            a = sample.accel
-            msg.linear_acceleration.x, msg.linear_acceleration.y = a[0], a[1]
-            msg.linear_acceleration.z = a[2]
+            a = msg.linear_acceleration
+            a.x, a.y, a.z = sample.accel
         if sample.temp_c is not None:
-            self._temp.header.stamp = stamp_from_ns(
-                stamp if sample.temp_t is None else src.stamp_ns(sample.temp_t))
+            self._temp.header.stamp = (stamp if sample.temp_t is None
+                                       else stamp_from_ns(src.stamp_ns(sample.temp_t)))
             self._temp.temperature = sample.temp_c
             self._temp_pub.publish(self._temp)
             self._temps += 1
@@ -314,14 +262,13 @@ class DriverNode(Node):
 
     def _on_tick(self) -> None:
         """Publish what the source says is due; errors go to diagnostics."""
-        if self._finished or self.stopping:
+        if self._state == 'finished' or self.stopping:
             return
-        if self._source is None:
-            if time.monotonic() >= self._retry_at:
-                self._try_open()
-            if self._source is None:
-                return
+        if self._source is None and time.monotonic() >= self._retry_at:
+            self._try_open()
         src = self._source
+        if src is None:
+            return
         try:
             for sample in src.pending():
                 self._publish(src, check_sample(sample))
@@ -336,42 +283,32 @@ class DriverNode(Node):
                 self._backoff.reset()
                 self.get_logger().info(f'{self._device} reads again')
         except SourceExhausted as exc:
-            self._finished = True
-            self._state = 'finished'
-            self._last_error = ''
+            self._state, self._last_error = 'finished', ''
             self._timer.cancel()
             self.get_logger().info(f'{exc}; {self._published} samples published')
         except DeviceError as exc:
             self._fail(exc)
 
-    # -- diagnostics ------------------------------------------------------------------
-
     def diagnostic_status(self) -> DiagnosticStatus:
         """Return the driver's current DiagnosticStatus."""
-        p = self.params
-        st = DiagnosticStatus()
-        st.name = f'{self.get_name()}: gyro driver'
-        st.hardware_id = self._device or self._backend.hardware_id(p)
-        if self._state == 'error':
-            st.level = DiagnosticStatus.ERROR
+        p, state = self.params, self._state
+        if state == 'error':
             retry = max(self._retry_at - time.monotonic(), 0.0)
-            st.message = f'device error, retry in {retry:.1f} s: {self._last_error}'
-        elif self._state == 'finished':
-            st.level = DiagnosticStatus.OK
-            st.message = 'scenario finished'
+            level, message = (DiagnosticStatus.ERROR,
+                              f'device error, retry in {retry:.1f} s: {self._last_error}')
         else:
-            st.level = DiagnosticStatus.OK
-            st.message = 'publishing'
+            level = DiagnosticStatus.OK
+            message = 'scenario finished' if state == 'finished' else 'publishing'
         values = {
-            'backend': p.backend, 'device': self._device, 'state': self._state,
+            'backend': p.backend, 'device': self._device, 'state': state,
             'imu messages': self._published, 'temperature messages': self._temps,
             'errors': self._errors, 'last error': self._last_error,
             'temperatures rejected (implausible)': self._temps_rejected,
-        }
-        for name in self._backend.diagnostics:
-            values[name] = getattr(p, name)
-        st.values = [KeyValue(key=k, value=str(v)) for k, v in values.items()]
-        return st
+            **{name: getattr(p, name) for name in self._backend.diagnostics}}
+        return DiagnosticStatus(
+            level=level, name=f'{self.get_name()}: gyro driver', message=message,
+            hardware_id=self._device or self._backend.hardware_id(p),
+            values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
 
     def _on_diagnostics(self) -> None:
         if self.stopping:
@@ -392,12 +329,7 @@ class DriverNode(Node):
         self.stopping = True
         for timer in list(self.timers):
             timer.cancel()
-        if self._source is not None and self._source is not self._injected:
-            try:
-                self._source.close()
-            except DeviceError:
-                pass
-        self._source = None
+        self._close()
         super().destroy_node()
 
 

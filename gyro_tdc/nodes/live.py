@@ -167,10 +167,12 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
                 last, quiet = len(node.comp), time.monotonic()
         elapsed = time.monotonic() - start
         stamps = sorted(set(node.raw) & set(node.comp))
-        raw = np.array([node.raw[s] for s in stamps]).reshape(-1, 3)
-        comp = np.array([node.comp[s] for s in stamps]).reshape(-1, 3)
         ref = np.radians(np.asarray(reference_dps, dtype=float))
-        nan3 = (math.nan,) * 3
+
+        def bs(rates: dict) -> tuple[float, float, float]:
+            """Return the bias stability of the messages both streams have, (deg/s)^2."""
+            w = np.array([rates[s] for s in stamps]).reshape(-1, 3)
+            return tuple(bias_stability(w, ref).tolist()) if stamps else (math.nan,) * 3
         temps = node.temps or [math.nan]
         lo = max(min(node.raw, default=0), min(node.comp, default=0))
         hi = min(max(node.raw, default=-1), max(node.comp, default=-1))
@@ -179,8 +181,7 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
             compensated_in_window=sum(1 for s in node.comp if lo <= s <= hi),
             raw_received=len(node.raw), compensated_received=len(node.comp),
             matched=len(stamps),
-            bs_raw_dps2=tuple(bias_stability(raw, ref).tolist()) if stamps else nan3,
-            bs_compensated_dps2=tuple(bias_stability(comp, ref).tolist()) if stamps else nan3,
+            bs_raw_dps2=bs(node.raw), bs_compensated_dps2=bs(node.comp),
             temperature_c=(float(min(temps)), float(max(temps))), seconds=elapsed)
     finally:
         for p in procs:

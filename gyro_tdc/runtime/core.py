@@ -33,10 +33,10 @@ from typing import Sequence
 
 from gyro_tdc.base import (MAX_DRIFT_RAD_S, MAX_RATE_RAD_S, MAX_TEMP_LEAD_S, RESTART_BACK_S,
                            SESSION_GAP_S)
-from gyro_tdc.model import CompensationModel, variance_growth
+from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime.blockstats import Vec3
-from gyro_tdc.runtime.drift import (accel_slot, AccelSlot, correction_is_safe, ModelSlot,
-                                    timeless)
+from gyro_tdc.runtime.drift import (accel_slot, correction_is_safe, growth, ModelSlot,
+                                    timeless, widen)
 from gyro_tdc.runtime.flags import (IMPLAUSIBLE_INPUT, IMPLAUSIBLE_OUTPUT, NO_ACCEL_DATA,
                                     NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
                                     PASSTHROUGH, STALE, UPSTREAM)
@@ -90,13 +90,6 @@ class CompensatorCore:
         self.tally = Tally()
         self.reanchoring = Reanchoring(detector_for(policy))
         self.learning = LearningGate()
-        #: The gyro is declared thermally corrected upstream and is to pass through (never
-        #: corrected twice): :meth:`process`'s one check for it.
-        self.upstream_pass = bool(policy.upstream_correction) and (
-            policy.upstream_policy == 'passthrough')
-        #: :meth:`process` uses the sample's specific force: the model has an accelerometer
-        #: part, or re-anchoring waits for a still window (the node reads it per message).
-        self.needs_accel = False
         self._update_needs()
         if model is not None:
             self.set_model(model)
@@ -148,9 +141,21 @@ class CompensatorCore:
         return self.slot.accel is not None
 
     def _update_needs(self) -> None:
-        a = self.reanchoring
-        a.waiting = bool(self.policy.reanchor_on_start and a.anchor is None and not a.learned)
+        """
+        Work out :meth:`process`'s one-compare checks from the policy, model and anchor.
+
+        ``upstream_pass``: the gyro is declared thermally corrected upstream and passes
+        through (never corrected twice); ``needs_accel``: the model has an accelerometer part
+        or re-anchoring waits for a still window (the node reads the force per message);
+        ``pass_var``: the variance a sample passed through raw adds, per axis.
+        """
+        a, policy = self.reanchoring, self.policy
+        a.waiting = bool(policy.reanchor_on_start and a.anchor is None and not a.learned)
         self.needs_accel = self.slot.accel is not None or a.waiting
+        self.upstream_pass = bool(policy.upstream_correction) and (
+            policy.upstream_policy == 'passthrough')
+        v = policy.passthrough_variance
+        self.pass_var = (v, v, v)
 
     # -- learning ---------------------------------------------------------------------
 
@@ -269,8 +274,6 @@ class CompensatorCore:
         :meth:`Reanchoring.rethreshold`.
         """
         old, self.policy = self.policy, policy
-        self.upstream_pass = bool(policy.upstream_correction) and (
-            policy.upstream_policy == 'passthrough')
         self.reanchoring.rethreshold(old, policy, self._reanchor_var(self.slot.model),
                                      self.stream.t if self.stream.moving else None)
         if any(getattr(old, f) != getattr(policy, f) for f in PREPARED_BY):
@@ -428,7 +431,11 @@ class CompensatorCore:
             ox, oy, oz, var, flags, dist = out
         aout = avar = None
         if slot.accel is not None:
-            aout, avar = self._accel(slot.accel, t, temp, accel, flags & STALE)
+            if accel is None:
+                aout, avar = self._accel_pass(None, 0)
+            else:
+                aout, avar, aflags = slot.accel.correct(t, temp, accel, flags & STALE, policy)
+                aout, avar = self._accel_pass(accel, aflags, aout, avar)
         stream.t = t
         stream.temp = temp
         stream.flags = flags
@@ -456,11 +463,7 @@ class CompensatorCore:
             var = slot.var[flags]
         else:
             flags |= OUT_OF_RANGE
-            policy = self.policy
-            more = variance_growth(policy.out_of_range_variance, dist, policy.out_of_range)
-            var = slot.var[flags]
-            if more:       # linear: the added variance grows with the distance
-                var = (var[0] + more, var[1] + more, var[2] + more)
+            var = widen(slot.var[flags], growth(dist, self.policy))
         ox, oy, oz = out.tolist()
         m = _MAX_DRIFT
         if not (abs(ox - wx) <= m and abs(oy - wy) <= m and abs(oz - wz) <= m
@@ -482,14 +485,6 @@ class CompensatorCore:
                     and self.learning.extend is not None):
                 self._still(t, raw, out, accel, temp)
 
-    def _accel(self, acc: AccelSlot, t: float, temp: float, accel: Sequence[float] | None,
-               flags: int) -> tuple[Vec3 | None, Vec3 | None]:
-        """Correct one sample's specific force (``flags``: ``STALE`` or 0); return it, var."""
-        if accel is None:
-            return self._accel_pass(None, 0)
-        out, var, aflags = acc.correct(t, temp, accel, flags, self.policy)
-        return self._accel_pass(accel, aflags, out, var)
-
     def _accel_pass(self, accel: Sequence[float] | None, why: int, out: Vec3 | None = None,
                     var: Vec3 | None = None) -> tuple[Vec3 | None, Vec3 | None]:
         """
@@ -506,10 +501,9 @@ class CompensatorCore:
             self.stream.accel_flags = why
             self.tally.accel['compensated'] += 1
             return out, var
-        v = self.policy.passthrough_variance
         self.stream.accel_flags = why | PASSTHROUGH
         self.tally.accel['passed through'] += 1
-        return None, (v, v, v)
+        return None, self.pass_var
 
     def _pass(self, t: float, wx: float, wy: float, wz: float, why: int,
               accel: Sequence[float] | None = None) -> Output:
@@ -524,16 +518,14 @@ class CompensatorCore:
         stream.flags = flags
         if math.isfinite(t):
             stream.t = t
-        var = self.policy.passthrough_variance
-        return wx, wy, wz, (var, var, var), flags, aout, avar
+        return wx, wy, wz, self.pass_var, flags, aout, avar
 
     def fail(self, exc: Exception) -> Vec3:
         """Count a sample whose compensation raised ``exc`` (sent raw); return its variance."""
         tally = self.tally
         tally.errors += 1
         tally.last_error = f'{type(exc).__name__}: {exc}'
-        var = self.policy.passthrough_variance
-        return var, var, var
+        return self.pass_var
 
     def _still(self, t: float, raw: Vec3, out: Vec3, accel: Sequence[float] | None,
                temp: float) -> None:

@@ -41,7 +41,7 @@ _MAX_DRIFT = MAX_DRIFT_RAD_S
 _MAX_ACCEL_DRIFT = MAX_ACCEL_DRIFT_MPS2
 
 __all__ = ['accel_slot', 'AccelEntry', 'AccelSlot', 'correction_is_safe', 'DriftEntry',
-           'ModelSlot', 'timeless', 'variance_table']
+           'ModelSlot', 'timeless', 'variance_table', 'widen']
 
 #: A static model's cache holds the drift at this many temperatures at most.
 CACHE_SIZE = 64
@@ -105,6 +105,17 @@ def timeless(model: CompensationModel) -> bool:
     return True
 
 
+def growth(dist: float, policy: Policy) -> float:
+    """Return the variance added ``dist`` degC out of the model's range (``linear`` grows)."""
+    return (variance_growth(policy.out_of_range_variance, dist, policy.out_of_range)
+            if dist else 0.0)
+
+
+def widen(var: Vec3, more: float) -> Vec3:
+    """Return ``var`` with ``more`` added on each axis (the out-of-range growth)."""
+    return (var[0] + more, var[1] + more, var[2] + more) if more else var
+
+
 @dataclass(frozen=True, slots=True)
 class AccelEntry:
     """A static accelerometer part's drift at one temperature: ``a - b``, and its flag."""
@@ -131,11 +142,8 @@ class AccelSlot:
         """Evaluate a static part at one temperature and keep it."""
         acomp = self.comp
         bx, by, bz = acomp.drift(t, temp).tolist()
-        dist = acomp.range_distance_c
-        entry = AccelEntry(bx, by, bz, 0 if acomp.in_range else OUT_OF_RANGE,
-                           variance_growth(policy.out_of_range_variance, dist,
-                                           policy.out_of_range) if dist else 0.0)
-        self.cache[temp] = entry
+        self.cache[temp] = entry = AccelEntry(bx, by, bz, 0 if acomp.in_range else OUT_OF_RANGE,
+                                              growth(acomp.range_distance_c, policy))
         return entry
 
     def correct(self, t: float, temp: float, accel: Sequence[float], flags: int,
@@ -158,14 +166,10 @@ class AccelSlot:
             acomp = self.comp          # no scale term: step() is a - b (saves numpy ops)
             bx, by, bz = acomp.drift(t, temp).tolist()
             out = (ax - bx, ay - by, az - bz)
-            if acomp.in_range:
-                more = 0.0
-            else:
+            more = growth(acomp.range_distance_c, policy)
+            if not acomp.in_range:
                 flags |= OUT_OF_RANGE
-                more = variance_growth(policy.out_of_range_variance,
-                                       acomp.range_distance_c, policy.out_of_range)
-        var = self.var[flags]
-        var = (var[0] + more, var[1] + more, var[2] + more) if more else var
+        var = widen(self.var[flags], more)
         if not (abs(out[0] - ax) <= _MAX_ACCEL_DRIFT and abs(out[1] - ay) <= _MAX_ACCEL_DRIFT
                 and abs(out[2] - az) <= _MAX_ACCEL_DRIFT
                 and math.isfinite(var[0] + var[1] + var[2])):
@@ -185,15 +189,11 @@ def accel_slot(model: CompensationModel, comp: StreamingCompensator, static: boo
 
 def variance_table(residual_var: Sequence[float], policy: Policy) -> dict[int, Vec3]:
     """Return the variance to add per flags (0, ``STALE``, ``OUT_OF_RANGE``, both)."""
-    resid = tuple(float(v) for v in np.asarray(residual_var, dtype=np.float64))
-    p = policy
-    return {
-        0: resid,
-        STALE: tuple(v + p.stale_variance for v in resid),
-        OUT_OF_RANGE: tuple(v + p.out_of_range_variance for v in resid),
-        STALE | OUT_OF_RANGE: tuple(v + p.stale_variance + p.out_of_range_variance
-                                    for v in resid),
-    }
+    resid = np.asarray(residual_var, dtype=np.float64).tolist()
+    stale, oor = policy.stale_variance, policy.out_of_range_variance
+    return {0: tuple(resid), STALE: tuple(v + stale for v in resid),
+            OUT_OF_RANGE: tuple(v + oor for v in resid),
+            STALE | OUT_OF_RANGE: tuple(v + stale + oor for v in resid)}
 
 
 @dataclass(slots=True)
@@ -229,24 +229,19 @@ class ModelSlot:
         bx, by, bz = comp.drift(t, temp).tolist()
         dx, dy, dz = (1.0 + comp.dt_c * self.scale).tolist()
         dist = comp.range_distance_c
-        more = (variance_growth(policy.out_of_range_variance, dist, policy.out_of_range)
-                if dist else 0.0)
+        more = growth(dist, policy)
         oor = 0 if comp.in_range else OUT_OF_RANGE
-        var, var_stale = self.var[oor], self.var[oor | STALE]
-        if more:           # linear: the added variance grows with the distance
-            var = (var[0] + more, var[1] + more, var[2] + more)
-            var_stale = (var_stale[0] + more, var_stale[1] + more, var_stale[2] + more)
+        var, var_stale = widen(self.var[oor], more), widen(self.var[oor | STALE], more)
         if not math.isfinite(var[0] + var[1] + var[2] + var_stale[0] + var_stale[1]
                              + var_stale[2]):
             bx = math.nan              # process's output check refuses the entry
         entry = DriftEntry(bx, by, bz, dx, dy, dz, oor, dist, var, var_stale,
                            correction_is_safe((bx, by, bz), (dx, dy, dz)))
-        acc = self.accel
         if len(self.cache) >= CACHE_SIZE:
             self.clear()
         self.cache[temp] = entry
-        if acc is not None and acc.static:
-            acc.refresh(t, temp, policy)
+        if self.accel is not None and self.accel.static:
+            self.accel.refresh(t, temp, policy)
         return entry
 
     def scale_at(self, temp: float) -> NDArray[np.float64]:

@@ -33,6 +33,7 @@ __all__ = ['BLOCK_FIELDS', 'hand_off', 'LearningGate']
 
 #: Floats per sample handed to the learner: stamp, rate (3), specific force (3; NaN: none).
 BLOCK_FIELDS = 7
+_NAN3 = (math.nan, math.nan, math.nan)
 
 
 def hand_off(block: array, extend: Callable) -> int:
@@ -127,11 +128,7 @@ class LearningGate:
         A block is closed at a pause in the stamps longer than 1.5 periods (a burst ends, a
         gap), so no mean spans one. The per-sample work is one ``extend`` of the block.
         """
-        if accel is None:                     # Learner.observe's layout
-            sample = (t, wx, wy, wz, math.nan, math.nan, math.nan)
-        else:
-            ax, ay, az = accel
-            sample = (t, wx, wy, wz, ax, ay, az)
+        sample = (t, wx, wy, wz, *(_NAN3 if accel is None else accel))  # Learner.observe's
         if t < self.next:                     # no hand-off due yet, by stamp
             self.block_extend(sample)
             return

@@ -292,69 +292,47 @@ def _problems(core: CompensatorCore, since: HealthMark, new: dict[int, int],
               inputs: InputStatus, last_reload: str, sensor_id: str, frame_id: str
               ) -> tuple[int, list[str]]:
     """Return the level and the problems of :func:`health` (``new``: flags since ``since``)."""
-    model = core.model
-    rejected = core.temps.rejected - since.temps_rejected
-    implausible = core.temps.implausible - since.temps_implausible
-    errors = core.errors - since.errors
-    problems = []
-    level = OK
+    model, temps = core.model, core.temps
+    found = []                            # (level, problem)
     upstream = upstream_note(core.policy)
     if upstream and core.upstream_pass:
-        level = WARN
-        problems.append(upstream)
+        found.append((WARN, upstream))
     if model is None and not core.upstream_pass:
-        level = ERROR
-        problems.append(f'no model loaded ({last_reload})')
+        found.append((ERROR, f'no model loaded ({last_reload})'))
     elif last_reload.startswith('rejected: '):
-        level = WARN
-        problems.append(f'model file refused, keeping {model.model_id}: '
-                        f'{last_reload[len("rejected: "):]}')
-    mismatch = sensor_mismatch(model, sensor_id)
-    if mismatch:
-        level = max(level, WARN)
-        problems.append(mismatch)
-    mismatch = frame_mismatch(model, frame_id)
-    if mismatch:
-        level = max(level, WARN)
-        problems.append(mismatch)
-    for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE, IMPLAUSIBLE_INPUT,
-                IMPLAUSIBLE_OUTPUT):
-        if new[bit]:
-            level = max(level, WARN)
-            problems.append(f'{describe_flags(bit)} ({new[bit]} samples)')
-    if rejected:
-        level = max(level, WARN)
-        problems.append(f'non-finite temperature ({rejected} samples rejected)')
-    if implausible:
-        level = max(level, WARN)
-        problems.append(f'temperatures rejected (implausible): {implausible} (outside '
-                        f'{TEMP_PLAUSIBLE_C[0]:g}..{TEMP_PLAUSIBLE_C[1]:g} degC, faster than '
-                        f'{MAX_TEMP_SLEW_C_S:g} degC/s from the last good one, or stamped '
-                        'too far ahead of the IMU; the last good one is held)')
+        found.append((WARN, f'model file refused, keeping {model.model_id}: '
+                            f'{last_reload[len("rejected: "):]}'))
+    found += [(WARN, why) for why in (sensor_mismatch(model, sensor_id),
+                                      frame_mismatch(model, frame_id)) if why]
+    found += [(WARN, f'{describe_flags(bit)} ({new[bit]} samples)')
+              for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE, IMPLAUSIBLE_INPUT,
+                          IMPLAUSIBLE_OUTPUT) if new[bit]]
+    lo, hi = TEMP_PLAUSIBLE_C
+    rejected = temps.rejected - since.temps_rejected
+    implausible = temps.implausible - since.temps_implausible
     lost = inputs.lost - since.lost
-    if lost:
-        level = max(level, WARN)
-        problems.append(f'input messages lost ({lost}, reported by DDS; at least that many)')
     malformed = inputs.malformed - since.malformed
-    if malformed:
-        level = max(level, WARN)
-        problems.append(f'malformed input messages dropped ({malformed}: not a serialized '
-                        'sensor_msgs/Imu)')
     marked = inputs.already_compensated - since.already_compensated
-    if marked:
-        level = max(level, WARN)
-        problems.append(f'input already compensated by gyro_tdc ({marked} samples): the '
-                        'model is applied twice')
+    found += [(WARN, text) for count, text in (
+        (rejected, f'non-finite temperature ({rejected} samples rejected)'),
+        (implausible, f'temperatures rejected (implausible): {implausible} (outside {lo:g}..'
+                      f'{hi:g} degC, faster than {MAX_TEMP_SLEW_C_S:g} degC/s from the last '
+                      'good one, or stamped too far ahead of the IMU; the last good one is '
+                      'held)'),
+        (lost, f'input messages lost ({lost}, reported by DDS; at least that many)'),
+        (malformed, f'malformed input messages dropped ({malformed}: not a serialized '
+                    'sensor_msgs/Imu)'),
+        (marked, f'input already compensated by gyro_tdc ({marked} samples): the model is '
+                 'applied twice')) if count]
     if inputs.upstream:
-        level = max(level, WARN)
-        problems.append(f'imu/data_raw is published by gyro_tdc compensator '
-                        f'{", ".join(inputs.upstream)}: chained compensators apply the drift '
-                        'model twice')
+        found.append((WARN, f'imu/data_raw is published by gyro_tdc compensator '
+                            f'{", ".join(inputs.upstream)}: chained compensators apply the '
+                            'drift model twice'))
+    errors = core.errors - since.errors
     if errors:
-        level = ERROR
-        problems.append(f'compensation failed on {errors} samples, passed through: '
-                        f'{core.last_error}')
-    return level, problems
+        found.append((ERROR, f'compensation failed on {errors} samples, passed through: '
+                             f'{core.last_error}'))
+    return max((level for level, _ in found), default=OK), [why for _, why in found]
 
 
 def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_reload: str,

@@ -112,7 +112,6 @@ class InputRate:
         self.tolerance = tolerance
         self.window_s = window_s
         self.learn_s = learn_s
-        self._start = start
         self._samples: deque[tuple[float, int]] = deque()
         self._first: tuple[float, int] | None = None
         self._count = 0

@@ -99,11 +99,20 @@ def replay(comp: StreamingCompensator, history: Iterable[tuple[float, float]], u
     return Replay(t_prev, temp_prev, t_seen)
 
 
-def replay_from_first(comp: StreamingCompensator, first: tuple[float, float],
-                      history: Iterable[tuple[float, float]], until: float) -> Replay:
-    """Start ``comp`` at the first compensated sample and replay the history up to ``until``."""
+def replay_from_first(model: CompensationModel, policy: Policy,
+                      first: tuple[float, float] | None, history: Iterable[tuple[float, float]],
+                      until: float | None) -> tuple[StreamingCompensator, Replay | None]:
+    """
+    Return a new compensator of ``model``, started at ``first`` and replayed up to ``until``.
+
+    ``first`` is the first compensated sample; without it (or ``until``) nothing is replayed.
+    """
+    comp = StreamingCompensator(model, out_of_range=policy.out_of_range,
+                                max_extrapolation_c=policy.max_extrapolation_c)
+    if first is None or until is None:
+        return comp, None
     advance(comp, *first)
-    return replay(comp, history, until, Replay(first[0], first[1], -math.inf))
+    return comp, replay(comp, history, until, Replay(first[0], first[1], -math.inf))
 
 
 def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> PreparedModel:
@@ -132,11 +141,8 @@ def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> Prepa
         The model, its primed compensator and its tables.
 
     """
-    comp = StreamingCompensator(model, out_of_range=policy.out_of_range,
-                                max_extrapolation_c=policy.max_extrapolation_c)
-    state = None
-    if priming.first is not None and priming.last_t is not None:
-        state = replay_from_first(comp, priming.first, priming.history, priming.last_t)
+    comp, state = replay_from_first(model, policy, priming.first, priming.history,
+                                    priming.last_t)
     var = variance_table(model.residual_var, policy)
     return PreparedModel(model, model.model_id, comp, var,
                          np.asarray(model.scale, dtype=np.float64),
@@ -169,9 +175,7 @@ def catch_up(prepared: PreparedModel, priming: Priming, policy: Policy) -> Strea
     state = prepared.replay
     if (state is None or prepared.priming.first != first
             or prepared.priming.last_t is None or last_t < prepared.priming.last_t):
-        comp = StreamingCompensator(model, out_of_range=policy.out_of_range,
-                                    max_extrapolation_c=policy.max_extrapolation_c)
-        state = replay_from_first(comp, first, history, last_t)
+        comp, state = replay_from_first(model, policy, first, history, last_t)
     else:
         tail = []
         for entry in reversed(history):

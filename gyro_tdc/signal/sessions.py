@@ -16,8 +16,8 @@
 The session-break rule (a power cycle in the stamps), in batch and streaming form.
 
 :func:`gap_limit` is the rule, :func:`session_gap` and :func:`gap_breaks` apply it to a
-whole run, :class:`SessionRule` one stamp step at a time and :class:`SessionTracker` keeps
-the session a stream is in (the compensator's core and the learner); see
+whole run (the batch session cutter) and :class:`SessionTracker` one stamp step at a time,
+keeping the session a stream is in (the compensator's core and the learner); see
 doc/internals/signal.md.
 """
 
@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 
 __all__ = ['BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'break_why', 'GAP_PERIODS',
            'gap_breaks', 'gap_limit', 'PAUSES_KEPT', 'PERIOD_STEPS', 'session_gap',
-           'SessionRule', 'SessionTracker']
+           'SessionTracker']
 
 #: A pause starts a new session when it is longer than ``gap_s`` and this many periods ...
 GAP_PERIODS = SESSION_GAP_PERIODS
@@ -95,59 +95,13 @@ def gap_breaks(t: NDArray[np.float64], gap_s: float = 0.0) -> list[tuple[int, fl
     return [(i + 1, float(dt[i])) for i in np.flatnonzero(dt > session_gap(t, gap_s)).tolist()]
 
 
-class SessionRule:
-    """
-    The same rule one stamp step at a time (the compensator's core, the learner).
-
-    The caller estimates the sample period and shows the steps it judges (at least every
-    step over ``gap_s``); :meth:`judge` keeps the pauses among them (the stream's rhythm,
-    over sessions) and says which step is a break.
-
-    Parameters
-    ----------
-    gap_s : float, s
-        The shortest gap that is a break.
-
-    """
-
-    def __init__(self, gap_s: float = SESSION_GAP_S) -> None:
-        self.gap_s = float(gap_s)
-        self.pauses: list[float] = []
-
-    def reset(self) -> None:
-        """Forget the stream's rhythm."""
-        self.pauses = []
-
-    def limit(self, period: float) -> float:
-        """Return the gap (s) above which a step is a break now (:func:`gap_limit`)."""
-        return gap_limit(period, self.pauses, self.gap_s)
-
-    def judge(self, d: float, period: float) -> str:
-        """
-        Judge a stamp step ``d`` (s) of a stream sampled every ``period`` s.
-
-        Returns
-        -------
-        str
-            ``''``: no break (a pause over GAP_PERIODS periods is kept in the rhythm);
-            else :func:`break_why`: stamps back by over ``RESTART_BACK_S``, or a gap over
-            :meth:`limit` (judged with this pause counted).
-
-        """
-        if d < -RESTART_BACK_S:
-            return break_why(d)
-        if not d > GAP_PERIODS * period:          # NaN: no break
-            return ''
-        if d <= BURST_MAX_S:
-            self.pauses = (self.pauses + [float(d)])[-PAUSES_KEPT:]
-        return break_why(d) if d > self.limit(period) else ''
-
-
 class SessionTracker:
     """
     The session one stream is in: the rule, the current session and the breaks that began them.
 
-    :meth:`judge` applies :class:`SessionRule` to a stamp step, :meth:`start` begins the
+    The caller estimates the sample period and shows the steps it judges (at least every
+    step over ``gap_s``); :meth:`judge` keeps the pauses among them (the stream's rhythm,
+    over sessions, in :attr:`rhythm`) and says which step is a break, :meth:`start` begins the
     session a break starts, :meth:`period` is the session's mean sample period (its pauses
     left out), :meth:`median_period` the median of the stream's first steps (a stream seen in
     batches) and :meth:`merges` relabels the sessions whose gap the rule, having learned the
@@ -163,7 +117,10 @@ class SessionTracker:
     """
 
     def __init__(self, gap_s: float = SESSION_GAP_S, first: int = 0) -> None:
-        self.rule = SessionRule(gap_s)
+        self.gap_s = float(gap_s)
+        #: The stream's pauses over GAP_PERIODS periods (at most BURST_MAX_S), the newest
+        #: :data:`PAUSES_KEPT`: its rhythm, kept over sessions.
+        self.rhythm: list[float] = []
         self.session = int(first)
         #: The current session's first stamp (None before any), the sample count at it and
         #: what started it (``''`` for the first).
@@ -205,16 +162,28 @@ class SessionTracker:
 
     def limit(self, period: float) -> float:
         """Return the gap (s) above which a step is a break now (:func:`gap_limit`)."""
-        return self.rule.limit(period)
+        return gap_limit(period, self.rhythm, self.gap_s)
 
     def judge(self, d: float, period: float) -> str:
         """
         Judge a stamp step ``d`` (s) of a stream sampled every ``period`` s.
 
-        Returns :meth:`SessionRule.judge`'s words (``''``: no break); a step that is no
-        break counts as a pause of the session.
+        Returns
+        -------
+        str
+            ``''``: no break (a pause over GAP_PERIODS periods is kept in the rhythm, and
+            the step counts as a pause of the session); else :func:`break_why`: stamps back
+            by over ``RESTART_BACK_S``, or a gap over :meth:`limit` (judged with this pause
+            counted).
+
         """
-        why = self.rule.judge(d, period)
+        if d < -RESTART_BACK_S:
+            return break_why(d)
+        why = ''
+        if d > GAP_PERIODS * period:          # NaN: no break
+            if d <= BURST_MAX_S:
+                self.rhythm = (self.rhythm + [float(d)])[-PAUSES_KEPT:]
+            why = break_why(d) if d > self.limit(period) else ''
         if not why:
             self.pauses += 1
             self.paused_s += d
@@ -243,7 +212,7 @@ class SessionTracker:
             The new label of every session up to the current one (None: nothing merged).
 
         """
-        limit = self.rule.limit(period)
+        limit = self.limit(period)
         merge = {s for s, gap in self.gaps if gap <= limit and s <= self.session}
         if not merge:
             return None

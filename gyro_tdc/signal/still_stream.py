@@ -16,8 +16,8 @@
 The streaming form of the still test: windows judged one sample (or one chunk) at a time.
 
 :class:`StillWindows` is the one streaming detector (windows, running noise floor, motion
-reports, verdict); :class:`StreamingStill` adds still stretches. The floor and the reports
-themselves live in :mod:`gyro_tdc.signal.still_running`. See doc/internals/signal.md.
+reports, verdict); :class:`StreamingStill` adds still stretches. The rule, the floor and the
+reports themselves live in :mod:`gyro_tdc.signal.still`. See doc/internals/signal.md.
 """
 
 from __future__ import annotations
@@ -27,15 +27,13 @@ from dataclasses import dataclass
 import math
 from typing import NamedTuple, Sequence
 
-from gyro_tdc.signal.still_running import MotionReports, NoiseFloor
-from gyro_tdc.signal.still_verdict import (judge_windows, MAX_RATE, MIN_STILL_S,
-                                           MIN_WINDOW_SAMPLES, noise_thresholds,
-                                           NOISE_WINDOWS, REASONS, STILL_WINDOW_S)
+from gyro_tdc.signal.still import (judge_windows, MAX_RATE, MIN_JUDGED, MIN_STILL_S,
+                                   MotionReports, noise_thresholds, NOISE_WINDOWS, NoiseFloor,
+                                   REASONS, STILL_WINDOW_S)
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['CUTS', 'MotionReports', 'NoiseFloor', 'StillSegment', 'StillWindows',
-           'StreamingStill', 'Window']
+__all__ = ['CUTS', 'StillSegment', 'StillWindows', 'StreamingStill', 'Window']
 
 #: How a stream is cut into windows: ``'grid'``, on ``floor((t - t_first) / window_s)`` (the
 #: batch form's grid; a window is judged when the first sample of the next arrives), or
@@ -152,7 +150,7 @@ class StillWindows:
 
     The verdict is :func:`judge_windows` against :func:`noise_thresholds` of the running
     noise floor (:class:`NoiseFloor`: the quietest stretch of windows so far pooled to
-    :data:`~gyro_tdc.signal.still_verdict.NOISE_DOF` degrees of freedom, windows of at least
+    :data:`~gyro_tdc.signal.still.NOISE_DOF` degrees of freedom, windows of at least
     ``min_samples`` finite samples), held below the prior over the first
     :data:`NOISE_WINDOWS` windows and until a floor is known, when one is given; a window
     whose readings on an axis never change has a standard deviation of exactly zero there; a
@@ -180,7 +178,7 @@ class StillWindows:
 
     def __init__(self, window_s: float = STILL_WINDOW_S, *, cut: str = 'grid',
                  gyro_std: float = 0.0, accel_std: float = 0.0, max_rate: float = MAX_RATE,
-                 min_samples: int = max(3, MIN_WINDOW_SAMPLES // 2),
+                 min_samples: int = MIN_JUDGED,
                  prior_std: ArrayLike | None = None) -> None:
         if not (math.isfinite(window_s) and window_s > 0.0):
             raise ValueError(f'Expected `window_s` > 0, got {window_s!r}.')
@@ -431,28 +429,22 @@ class StillWindows:
         """Lower the floor, take the verdict of one window."""
         t0, t1 = float(rows[0, 0]), float(rows[-1, 0])
         self.windows_seen += 1
-        enough = n >= self.min_samples
-        if finite:
-            const, step = _steps(rows[:, 1:4])
+        stds = [g_std, a_std]
+        for i, noise in enumerate((self.gyro_noise, self.accel_noise)):
+            if not finite or stds[i] is None:
+                continue
+            const, step = _steps(rows[:, 1 + 3 * i:4 + 3 * i])
             if const.any():           # exactly zero, not the rounding of the mean's
-                g_std = tuple(0.0 if c else v for c, v in zip(const.tolist(), g_std))
-            if enough:
-                self.gyro_noise.add(n - 1, np.asarray(g_std) ** 2, step)
-            if a_std is not None:
-                const, step = _steps(rows[:, 4:7])
-                if const.any():
-                    a_std = tuple(0.0 if c else v for c, v in zip(const.tolist(), a_std))
-                if enough:
-                    self.accel_noise.add(n - 1, np.asarray(a_std) ** 2, step)
+                stds[i] = tuple(0.0 if c else v for c, v in zip(const.tolist(), stds[i]))
+            if n >= self.min_samples:
+                noise.add(n - 1, np.asarray(stds[i]) ** 2, step)
+        g_std, a_std = stds
         g_thr, a_thr = self.thresholds()
         moving = self.motion.veto(t0, t1) or flagged
         why = str(judge_windows([g_std], None if a_std is None else [a_std], g_thr, a_thr,
                                 mean_rate=None if r_mean is None else [r_mean],
-                                max_rate=self.max_rate, moving=[moving])[0])
-        if not finite:
-            why = 'non-finite'
-        if not enough:
-            why = 'samples'
+                                max_rate=self.max_rate, moving=[moving], counts=[n],
+                                min_samples=self.min_samples, finite=[finite])[0])
         return Window(t0, t1, n, g_mean, g_std, a_std, r_mean, temp, moving, why,
                       (tuple(g_thr.tolist()), tuple(a_thr.tolist())), t_next, rows)
 

@@ -31,28 +31,8 @@ from gyro_tdc.sim.stream import SimStream
 from gyro_tdc.sim.thermal import simulate_thermal, ThermalHistory
 from gyro_tdc.sim.vehicle import CMD_VEL_TOPIC, TRUTH_TOPIC
 
-__all__ = [
-    'CMD_VEL_TOPIC',
-    'EFFECT_IDS',
-    'PRESETS',
-    'Profile',
-    'Scenario',
-    'SimRun',
-    'SimStream',
-    'SimTruth',
-    'StaircasePlan',
-    'ThermalHistory',
-    'TRUTH_TOPIC',
-    'heat_conduction_time_s',
-    'list_scenarios',
-    'load_scenario',
-    'max_temperature_step_c',
-    'nice_ceil',
-    'nice_floor',
-    'scenario_dir',
-    'simulate_run',
-    'simulate_scenario',
-    'simulate_thermal',
-    'staircase_plan',
-    'to_run',
-]
+__all__ = ['CMD_VEL_TOPIC', 'EFFECT_IDS', 'PRESETS', 'Profile', 'Scenario', 'SimRun', 'SimStream',
+           'SimTruth', 'StaircasePlan', 'ThermalHistory', 'TRUTH_TOPIC', 'heat_conduction_time_s',
+           'list_scenarios', 'load_scenario', 'max_temperature_step_c', 'nice_ceil', 'nice_floor',
+           'scenario_dir', 'simulate_run', 'simulate_scenario', 'simulate_thermal',
+           'staircase_plan', 'to_run']

@@ -29,20 +29,9 @@ from typing import Callable, Sequence, Tuple
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = [
-    'Profile',
-    'StaircasePlan',
-    'heat_conduction_time_s',
-    'hold_segment',
-    'max_temperature_step_c',
-    'nice_ceil',
-    'nice_floor',
-    'points_segment',
-    'ramp_segment',
-    'staircase_plan',
-    'staircase_segment',
-    'step_segment',
-]
+__all__ = ['Profile', 'StaircasePlan', 'heat_conduction_time_s', 'hold_segment',
+           'max_temperature_step_c', 'nice_ceil', 'nice_floor', 'points_segment', 'ramp_segment',
+           'staircase_plan', 'staircase_segment', 'step_segment']
 
 
 # --------------------------------------------------------------------------------------------
@@ -358,14 +347,10 @@ class Profile:
             Temperatures.
 
         """
-        t = np.asarray(t, dtype=np.float64)
-        tb, yb = self.t, self.temp_c
-        i = np.clip(np.searchsorted(tb, t, side='right') - 1, 0, tb.size - 1)
-        j = np.minimum(i + 1, tb.size - 1)
-        dt = tb[j] - tb[i]
-        frac = np.where(dt > 0.0, (t - tb[i]) / np.where(dt > 0.0, dt, 1.0), 0.0)
-        frac = np.clip(frac, 0.0, 1.0)
-        return yb[i] + frac * (yb[j] - yb[i])
+        t, i, j, dt = self._bracket(t)
+        frac = np.clip(np.where(dt > 0.0, (t - self.t[i]) / np.where(dt > 0.0, dt, 1.0), 0.0),
+                       0.0, 1.0)
+        return self.temp_c[i] + frac * (self.temp_c[j] - self.temp_c[i])
 
     def slope(self, t: ArrayLike) -> NDArray[np.float64]:
         """
@@ -382,13 +367,18 @@ class Profile:
             Slope, 0 outside the profile.
 
         """
+        t, i, j, dt = self._bracket(t)
+        inside = (dt > 0.0) & (t >= self.t[0]) & (t < self.t[-1])
+        return np.where(inside, (self.temp_c[j] - self.temp_c[i]) / np.where(dt > 0.0, dt, 1.0),
+                        0.0)
+
+    def _bracket(self, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.intp],
+                                              NDArray[np.intp], NDArray[np.float64]]:
+        """Return ``t`` as an array, the breakpoints before and after it and their spacing."""
         t = np.asarray(t, dtype=np.float64)
-        tb, yb = self.t, self.temp_c
-        i = np.clip(np.searchsorted(tb, t, side='right') - 1, 0, tb.size - 1)
-        j = np.minimum(i + 1, tb.size - 1)
-        dt = tb[j] - tb[i]
-        inside = (dt > 0.0) & (t >= tb[0]) & (t < tb[-1])
-        return np.where(inside, (yb[j] - yb[i]) / np.where(dt > 0.0, dt, 1.0), 0.0)
+        i = np.clip(np.searchsorted(self.t, t, side='right') - 1, 0, self.t.size - 1)
+        j = np.minimum(i + 1, self.t.size - 1)
+        return t, i, j, self.t[j] - self.t[i]
 
 
 def _positive(name: str, value: float) -> float:
@@ -414,10 +404,7 @@ def hold_segment(duration_s: float) -> Segment:
 
     """
     duration_s = _positive('duration_s', duration_s)
-
-    def segment(t0: float, temp0: float):
-        return np.array([t0 + duration_s]), np.array([temp0])
-    return segment
+    return lambda t0, temp0: (np.array([t0 + duration_s]), np.array([temp0]))
 
 
 def ramp_segment(to_c: float, rate_c_per_h: float) -> Segment:
@@ -510,10 +497,7 @@ def step_segment(to_c: float) -> Segment:
 
     """
     to_c = float(to_c)
-
-    def segment(t0: float, temp0: float):
-        return np.array([t0]), np.array([to_c])
-    return segment
+    return lambda t0, temp0: (np.array([t0]), np.array([to_c]))
 
 
 def points_segment(t_s: ArrayLike, temp_c: ArrayLike) -> Segment:
@@ -541,7 +525,4 @@ def points_segment(t_s: ArrayLike, temp_c: ArrayLike) -> Segment:
                          f'and {temps.shape}.')
     if t_rel[0] != 0.0 or np.any(np.diff(t_rel) < 0.0):
         raise ValueError('Expected `t_s` to start at 0 and never decrease.')
-
-    def segment(t0: float, temp0: float):
-        return t0 + t_rel, temps.copy()
-    return segment
+    return lambda t0, temp0: (t0 + t_rel, temps.copy())

@@ -40,22 +40,9 @@ from gyro_tdc.sim.specs import (AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsS
 from gyro_tdc.sim.vehicle import VehicleSpec
 import yaml
 
-__all__ = [
-    'DEG',
-    'EFFECT_IDS',
-    'FORMAT_VERSION',
-    'AccelSpec',
-    'GyroSpec',
-    'NoiseSpec',
-    'RateTable',
-    'RunsSpec',
-    'Scenario',
-    'ThermalSpec',
-    'ThermometerSpec',
-    'list_scenarios',
-    'load_scenario',
-    'scenario_dir',
-]
+__all__ = ['DEG', 'EFFECT_IDS', 'FORMAT_VERSION', 'AccelSpec', 'GyroSpec', 'NoiseSpec',
+           'RateTable', 'RunsSpec', 'Scenario', 'ThermalSpec', 'ThermometerSpec', 'list_scenarios',
+           'load_scenario', 'scenario_dir']
 
 PathLike = Union[str, 'os.PathLike[str]']
 
@@ -211,8 +198,13 @@ def scenario_dir() -> Path:
 
     """
     from gyro_tdc.base import config_dir
+    return _as_scenario_error(config_dir) / 'scenarios'
+
+
+def _as_scenario_error(call: Any, *args: Any) -> Any:
+    """Return ``call(*args)``; a resource error becomes a ScenarioError (one message)."""
     try:
-        return config_dir() / 'scenarios'
+        return call(*args)
     except ScenarioError:
         raise
     except GyroTdcError as exc:
@@ -230,10 +222,7 @@ def list_scenarios() -> list[str]:
 
     """
     from gyro_tdc.base import scenario_names
-    try:
-        return scenario_names()
-    except GyroTdcError as exc:
-        raise ScenarioError(str(exc)) from exc
+    return _as_scenario_error(scenario_names)
 
 
 def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) -> Scenario:
@@ -262,12 +251,7 @@ def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) ->
     if isinstance(name_or_path, Mapping):
         return Scenario.from_dict(name_or_path)
     from gyro_tdc.base import scenario_path
-    try:
-        path = scenario_path(name_or_path)
-    except ScenarioError:
-        raise
-    except GyroTdcError as exc:
-        raise ScenarioError(str(exc)) from exc
+    path = _as_scenario_error(scenario_path, name_or_path)
     try:
         text = path.read_text(encoding='utf-8')
     except (OSError, UnicodeDecodeError) as exc:

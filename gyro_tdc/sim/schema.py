@@ -43,74 +43,52 @@ __all__ = ['DEFAULTS', 'DEG', 'FORMAT_VERSION', 'merge', 'validate']
 FORMAT_VERSION = 1
 DEG = math.pi / 180.0
 
-DEFAULTS: dict = {
-    'format_version': FORMAT_VERSION,
-    'name': None,
-    'description': '',
-    'sensor': None,
-    'imu_rate_hz': 100.0,
-    'duration_s': None,
-    'profile': {'start_c': 25.0, 'segments': []},
-    'thermal': {'tau_air_s': 0.0, 'tau_package_s': 0.0, 'tau_die_s': 0.0,
-                'internal_step_s': 0.1},
-    'thermometer': {'location': 'package', 'rate_hz': 1.0, 'resolution_c': 0.0,
-                    'noise_c': 0.0, 'tau_s': 0.0, 'offset_c': 0.0},
-    'gyro': {
-        'effects': {k: k in ('bias', 'dT', 'dT2') for k in EFFECT_IDS},
-        't_ref_c': 25.0,
-        'bias_dps': 0.0,
-        'dT_dps_per_c': 0.0,
-        'dT2_dps_per_c2': 0.0,
-        'dT3_dps_per_c3': 0.0,
-        'dTdt_dps_per_c_per_s': 0.0,
-        'scale_ppm_per_c': 0.0,
-        'warmup_dps': 0.0,
-        'warmup_tau_s': 300.0,
-        'power_on_s': 0.0,
-        'sensitivity_mdps_per_digit': 0.0,
-        'range_dps': 0.0,
-        'quantise': True,
-    },
-    'noise': {'enabled': True, 'arw_dps_per_rt_hz': 0.0, 'bias_instability_dps': 0.0,
-              'bias_instability_tau_s': [10.0, 100.0, 1000.0], 'rrw_dps_per_rt_s': 0.0},
-    'accel': {'gravity_mps2': 9.80665, 'noise_mps2_per_rt_hz': 0.0, 'tilt_deg': [0.0, 0.0],
-              'tilt_std_deg': 0.0, 'bias_mg': 0.0, 'dT_mg_per_c': 0.0, 'dT2_mg_per_c2': 0.0,
-              'sensitivity_mg_per_digit': 0.0, 'range_g': 0.0, 'reorient_at_s': 0.0,
-              'reorient_tilt_deg': [0.0, 0.0]},
-    'rate_table': [],
-    'runs': {'count': 1, 'bias_offset_dps_std': 0.0},
+# Each section's fields as (kind, default). Kinds: 'num' any finite number, 'pos' > 0, 'nonneg'
+# >= 0, 'axis' per-axis number, 'axis_nonneg' per-axis >= 0, 'bool', 'count' int >= 1, 'taus' list
+# of numbers > 0, 'tilt' roll and pitch in degrees (a list of 2 numbers, each within +-180),
+# 'location' package or die, 'effects' the effect switches.
+_SECTIONS: dict[str, dict[str, tuple[str, Any]]] = {
+    'thermal': {'tau_air_s': ('nonneg', 0.0), 'tau_package_s': ('nonneg', 0.0),
+                'tau_die_s': ('nonneg', 0.0), 'internal_step_s': ('pos', 0.1)},
+    'thermometer': {'location': ('location', 'package'), 'rate_hz': ('pos', 1.0),
+                    'resolution_c': ('nonneg', 0.0), 'noise_c': ('nonneg', 0.0),
+                    'tau_s': ('nonneg', 0.0), 'offset_c': ('num', 0.0)},
+    'gyro': {'effects': ('effects', {k: k in ('bias', 'dT', 'dT2') for k in EFFECT_IDS}),
+             't_ref_c': ('num', 25.0), 'bias_dps': ('axis', 0.0), 'dT_dps_per_c': ('axis', 0.0),
+             'dT2_dps_per_c2': ('axis', 0.0), 'dT3_dps_per_c3': ('axis', 0.0),
+             'dTdt_dps_per_c_per_s': ('axis', 0.0), 'scale_ppm_per_c': ('axis', 0.0),
+             'warmup_dps': ('axis', 0.0), 'warmup_tau_s': ('pos', 300.0),
+             'power_on_s': ('num', 0.0), 'sensitivity_mdps_per_digit': ('nonneg', 0.0),
+             'range_dps': ('nonneg', 0.0), 'quantise': ('bool', True)},
+    'noise': {'enabled': ('bool', True), 'arw_dps_per_rt_hz': ('axis_nonneg', 0.0),
+              'bias_instability_dps': ('axis_nonneg', 0.0),
+              'bias_instability_tau_s': ('taus', [10.0, 100.0, 1000.0]),
+              'rrw_dps_per_rt_s': ('axis_nonneg', 0.0)},
+    'accel': {'gravity_mps2': ('num', 9.80665), 'noise_mps2_per_rt_hz': ('axis_nonneg', 0.0),
+              'tilt_deg': ('tilt', [0.0, 0.0]), 'tilt_std_deg': ('nonneg', 0.0),
+              'bias_mg': ('axis', 0.0), 'dT_mg_per_c': ('axis', 0.0),
+              'dT2_mg_per_c2': ('axis', 0.0), 'sensitivity_mg_per_digit': ('nonneg', 0.0),
+              'range_g': ('nonneg', 0.0), 'reorient_at_s': ('nonneg', 0.0),
+              'reorient_tilt_deg': ('tilt', [0.0, 0.0])},
+    'runs': {'count': ('count', 1), 'bias_offset_dps_std': ('axis_nonneg', 0.0)},
 }
-
-# Field kinds: 'num' any finite number, 'pos' > 0, 'nonneg' >= 0, 'axis' per-axis number,
-# 'axis_nonneg' per-axis >= 0, 'bool', 'str', 'count' int >= 1, 'taus' list of numbers > 0,
-# 'tilt' roll and pitch in degrees (a list of 2 numbers, each within +-180).
-_SECTIONS: dict[str, dict[str, str]] = {
-    'thermal': {'tau_air_s': 'nonneg', 'tau_package_s': 'nonneg', 'tau_die_s': 'nonneg',
-                'internal_step_s': 'pos'},
-    'thermometer': {'location': 'location', 'rate_hz': 'pos', 'resolution_c': 'nonneg',
-                    'noise_c': 'nonneg', 'tau_s': 'nonneg', 'offset_c': 'num'},
-    'gyro': {'effects': 'effects', 't_ref_c': 'num', 'bias_dps': 'axis',
-             'dT_dps_per_c': 'axis', 'dT2_dps_per_c2': 'axis', 'dT3_dps_per_c3': 'axis',
-             'dTdt_dps_per_c_per_s': 'axis', 'scale_ppm_per_c': 'axis', 'warmup_dps': 'axis',
-             'warmup_tau_s': 'pos', 'power_on_s': 'num', 'sensitivity_mdps_per_digit': 'nonneg',
-             'range_dps': 'nonneg', 'quantise': 'bool'},
-    'noise': {'enabled': 'bool', 'arw_dps_per_rt_hz': 'axis_nonneg',
-              'bias_instability_dps': 'axis_nonneg', 'bias_instability_tau_s': 'taus',
-              'rrw_dps_per_rt_s': 'axis_nonneg'},
-    'accel': {'gravity_mps2': 'num', 'noise_mps2_per_rt_hz': 'axis_nonneg', 'tilt_deg': 'tilt',
-              'tilt_std_deg': 'nonneg', 'bias_mg': 'axis', 'dT_mg_per_c': 'axis',
-              'dT2_mg_per_c2': 'axis', 'sensitivity_mg_per_digit': 'nonneg',
-              'range_g': 'nonneg', 'reorient_at_s': 'nonneg', 'reorient_tilt_deg': 'tilt'},
-    'runs': {'count': 'count', 'bias_offset_dps_std': 'axis_nonneg'},
+_DEFAULT = {s: {k: d for k, (_, d) in f.items()} for s, f in _SECTIONS.items()}
+DEFAULTS: dict = {
+    'format_version': FORMAT_VERSION, 'name': None, 'description': '', 'sensor': None,
+    'imu_rate_hz': 100.0, 'duration_s': None, 'profile': {'start_c': 25.0, 'segments': []},
+    **{s: d for s, d in _DEFAULT.items() if s != 'runs'}, 'rate_table': [],
+    'runs': _DEFAULT['runs'],
 }
 _TOP = ('format_version', 'name', 'description', 'sensor', 'imu_rate_hz', 'duration_s',
         'profile', 'rate_table') + tuple(_SECTIONS) + ('vehicle',)
-_SEGMENTS: dict[str, tuple[str, ...]] = {
-    'hold': ('duration_s',),
-    'ramp': ('to_c', 'rate_c_per_h'),
-    'staircase': ('to_c', 'step_c', 'hold_s'),
-    'step': ('to_c',),
-    'points': ('t_s', 'temp_c'),
+# Each segment kind: its builder and its fields, 'temp' >= -273.15 or 'pos' > 0 ('points' has
+# its own checks).
+_SEGMENTS: dict[str, tuple[Any, dict[str, str]]] = {
+    'hold': (chamber.hold_segment, {'duration_s': 'pos'}),
+    'ramp': (chamber.ramp_segment, {'to_c': 'temp', 'rate_c_per_h': 'pos'}),
+    'staircase': (chamber.staircase_segment, {'to_c': 'temp', 'step_c': 'pos', 'hold_s': 'pos'}),
+    'step': (chamber.step_segment, {'to_c': 'temp'}),
+    'points': (chamber.points_segment, {'t_s': 'list', 'temp_c': 'list'}),
 }
 
 
@@ -146,14 +124,8 @@ class _Checker:
             return self.fields.number(x, path, what='a finite number')
         return self.fields.above(x, path, low, strict, what='a finite number')
 
-    @staticmethod
-    def _bound(low: Optional[float], strict: bool) -> str:
-        if low is None:
-            return ''
-        return f' {">" if strict else ">="} {low:g}'
-
     def axis(self, path: str, x: Any, *, low: Optional[float] = None) -> Vec3:
-        expected = 'a number or a list of 3 numbers' + self._bound(low, False)
+        expected = 'a number or a list of 3 numbers' + ('' if low is None else f' >= {low:g}')
         if self._is_num(x):
             v = float(x)
             values = [v, v, v]
@@ -165,9 +137,6 @@ class _Checker:
         if low is not None and min(values) < low:
             raise self.fail(path, expected, x)
         return (values[0], values[1], values[2])
-
-    def boolean(self, path: str, x: Any) -> bool:
-        return self.fields.boolean(x, path)
 
     def mapping(self, path: str, x: Any, allowed: tuple[str, ...]) -> dict:
         if not isinstance(x, Mapping):
@@ -181,18 +150,12 @@ class _Checker:
 
     def field(self, section: str, key: str, kind: str, x: Any) -> Any:
         path = f'{section}.{key}'
-        if kind == 'num':
-            return self.num(path, x)
-        if kind == 'pos':
-            return self.num(path, x, low=0.0, strict=True)
-        if kind == 'nonneg':
-            return self.num(path, x, low=0.0)
-        if kind == 'axis':
-            return self.axis(path, x)
-        if kind == 'axis_nonneg':
-            return self.axis(path, x, low=0.0)
+        if kind in ('num', 'pos', 'nonneg'):
+            return self.num(path, x, low=None if kind == 'num' else 0.0, strict=kind == 'pos')
+        if kind in ('axis', 'axis_nonneg'):
+            return self.axis(path, x, low=0.0 if kind == 'axis_nonneg' else None)
         if kind == 'bool':
-            return self.boolean(path, x)
+            return self.fields.boolean(x, path)
         if kind == 'count':
             if not isinstance(x, int) or isinstance(x, bool) or x < 1:
                 raise self.fail(path, 'an integer >= 1', x)
@@ -231,12 +194,12 @@ class _Checker:
                 if k not in EFFECT_IDS:
                     raise self.fail(f'{path}.{k}', 'an effect id (' + ', '.join(EFFECT_IDS)
                                     + ')', k)
-                out[k] = self.boolean(f'{path}.{k}', v)
+                out[k] = self.fields.boolean(v, f'{path}.{k}')
             return out
         raise self.fail(path, 'a list of effect ids or a mapping id -> bool', x)
 
 
-def _profile(chk: _Checker, raw: Any) -> tuple[chamber.Profile, dict]:
+def _profile(chk: _Checker, raw: Any) -> chamber.Profile:
     prof = chk.mapping('profile', raw, ('start_c', 'segments'))
     start = chk.num('profile.start_c', prof.get('start_c'), low=-273.15)
     segments = prof.get('segments')
@@ -250,26 +213,15 @@ def _profile(chk: _Checker, raw: Any) -> tuple[chamber.Profile, dict]:
             raise chk.fail(f'{where}.kind' if isinstance(seg, Mapping) else where,
                            'a segment kind (' + ', '.join(_SEGMENTS) + ')', got)
         kind = seg['kind']
-        fields = _SEGMENTS[kind]
-        chk.mapping(where, seg, ('kind',) + fields)
+        make, fields = _SEGMENTS[kind]
+        chk.mapping(where, seg, ('kind',) + tuple(fields))
         for key in fields:
             if key not in seg:
                 raise chk.fail(f'{where}.{key}', f'a value (required by kind {kind!r})', None)
-        if kind == 'hold':
-            built.append(chamber.hold_segment(
-                chk.num(f'{where}.duration_s', seg['duration_s'], low=0.0, strict=True)))
-        elif kind == 'ramp':
-            built.append(chamber.ramp_segment(
-                chk.num(f'{where}.to_c', seg['to_c'], low=-273.15),
-                chk.num(f'{where}.rate_c_per_h', seg['rate_c_per_h'], low=0.0, strict=True)))
-        elif kind == 'staircase':
-            built.append(chamber.staircase_segment(
-                chk.num(f'{where}.to_c', seg['to_c'], low=-273.15),
-                chk.num(f'{where}.step_c', seg['step_c'], low=0.0, strict=True),
-                chk.num(f'{where}.hold_s', seg['hold_s'], low=0.0, strict=True)))
-        elif kind == 'step':
-            built.append(chamber.step_segment(
-                chk.num(f'{where}.to_c', seg['to_c'], low=-273.15)))
+        if kind != 'points':
+            built.append(make(*(chk.num(f'{where}.{key}', seg[key],
+                                        low=-273.15 if bound == 'temp' else 0.0,
+                                        strict=bound == 'pos') for key, bound in fields.items())))
         else:
             ts, temps = seg['t_s'], seg['temp_c']
             for key, arr in (('t_s', ts), ('temp_c', temps)):
@@ -285,12 +237,12 @@ def _profile(chk: _Checker, raw: Any) -> tuple[chamber.Profile, dict]:
                                ts)
             if min(temps) < -273.15:
                 raise chk.fail(f'{where}.temp_c', 'temperatures >= -273.15', temps)
-            built.append(chamber.points_segment(t_arr, np.asarray(temps, dtype=np.float64)))
+            built.append(make(t_arr, np.asarray(temps, dtype=np.float64)))
     profile = chamber.Profile.from_segments(start, built)
     if profile.duration_s <= 0.0:
         raise chk.fail('profile.segments', 'segments lasting longer than 0 s in total',
                        segments)
-    return profile, prof
+    return profile
 
 
 def _rate_table(chk: _Checker, raw: Any) -> RateTable:
@@ -368,12 +320,7 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
         if section in top and not isinstance(top[section], Mapping):
             raise chk.fail(section, 'a mapping', top[section])
     merged = merge(DEFAULTS, PRESETS[sensor] if sensor else {})
-    merged = merge(merged, top)
-    if 'rate_table' in top:
-        merged['rate_table'] = plain(copy.deepcopy(top['rate_table']), str_keys=False)
-    if isinstance(top.get('profile'), Mapping) and 'segments' in top['profile']:
-        merged['profile']['segments'] = plain(copy.deepcopy(top['profile']['segments']),
-                                              str_keys=False)
+    merged = merge(merged, top)        # lists (rate_table, segments) replace, never merge
 
     the_name = merged.get('name') or name or 'scenario'
     if not isinstance(the_name, str):
@@ -388,10 +335,10 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
     for section, fields in _SECTIONS.items():
         body = chk.mapping(section, merged[section], tuple(fields))
         values[section] = {key: chk.field(section, key, kind, body.get(key))
-                           for key, kind in fields.items()}
+                           for key, (kind, _) in fields.items()}
     merged['gyro']['effects'] = dict(values['gyro']['effects'])
 
-    profile, _ = _profile(chk, merged['profile'])
+    profile = _profile(chk, merged['profile'])
     duration = merged.get('duration_s')
     duration = profile.duration_s if duration is None else chk.num(
         'duration_s', duration, low=0.0, strict=True)

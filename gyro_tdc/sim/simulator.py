@@ -28,6 +28,7 @@ import math
 import os
 from typing import Any, Callable, Mapping, Optional, Sequence, Union
 
+from gyro_tdc.base import is_number
 from gyro_tdc.data import Run
 from gyro_tdc.errors import ScenarioError
 from gyro_tdc.model import EFFECT_IDS
@@ -228,8 +229,7 @@ def _check_seed(seed: Any) -> int:
 def _check_rate(rate_hz: Any, default: float) -> float:
     if rate_hz is None:
         return default
-    if (isinstance(rate_hz, bool) or not isinstance(rate_hz, (int, float, np.number))
-            or not math.isfinite(float(rate_hz)) or float(rate_hz) <= 0.0):
+    if not is_number(rate_hz) or float(rate_hz) <= 0.0:
         raise ScenarioError(f'Expected `rate_hz` to be a finite number > 0, got {rate_hz!r}.')
     return float(rate_hz)
 
@@ -244,21 +244,19 @@ def _vec(values: Sequence[float], factor: float = 1.0) -> NDArray[np.float64]:
     return np.asarray(values, dtype=np.float64) * factor
 
 
+#: Each gyro effect's coefficient field and its factor to rad/s units.
+_GYRO_FIELDS = (('bias', 'bias_dps', DEG), ('dT', 'dT_dps_per_c', DEG),
+                ('dT2', 'dT2_dps_per_c2', DEG), ('dT3', 'dT3_dps_per_c3', DEG),
+                ('dTdt', 'dTdt_dps_per_c_per_s', DEG), ('scale', 'scale_ppm_per_c', 1e-6),
+                ('warmup', 'warmup_dps', DEG))
+
+
 def _coefficients(g: GyroSpec, on: Mapping[str, bool], offset: NDArray[np.float64]
                   ) -> dict[str, NDArray[np.float64]]:
     """Return each effect's coefficients in rad/s units, zero when the effect is off."""
-    def coef(effect: str, values: Sequence[float], factor: float) -> NDArray[np.float64]:
-        return _vec(values, factor) if on[effect] else np.zeros(3)
-
-    return {
-        'bias': coef('bias', g.bias_dps, DEG) + (offset if on['bias'] else 0.0),
-        'dT': coef('dT', g.dT_dps_per_c, DEG),
-        'dT2': coef('dT2', g.dT2_dps_per_c2, DEG),
-        'dT3': coef('dT3', g.dT3_dps_per_c3, DEG),
-        'dTdt': coef('dTdt', g.dTdt_dps_per_c_per_s, DEG),
-        'scale': coef('scale', g.scale_ppm_per_c, 1e-6),
-        'warmup': coef('warmup', g.warmup_dps, DEG),
-    }
+    out = {e: _vec(getattr(g, name), k) if on[e] else np.zeros(3) for e, name, k in _GYRO_FIELDS}
+    out['bias'] = out['bias'] + (offset if on['bias'] else 0.0)
+    return out
 
 
 def _drift(g: GyroSpec, on: Mapping[str, bool], coefficients: Mapping[str, NDArray[np.float64]],

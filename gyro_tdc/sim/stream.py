@@ -107,9 +107,7 @@ class SimStream:
                  rate_hz: Optional[float] = None) -> None:
         self.run: SimRun = simulate_run(scenario, seed=seed, run_index=run_index,
                                         rate_hz=rate_hz)
-        self._i_imu = 0
-        self._i_temp = 0
-        self._i_ref = 0
+        self._i = (0, 0, 0)      # the next IMU, thermometer and reference rows
         self._position = -math.inf
 
     @property
@@ -125,8 +123,11 @@ class SimStream:
     @property
     def done(self) -> bool:
         """Return True once every sample was handed out."""
-        return (self._i_imu >= self.run.imu_t.size and self._i_temp >= self.run.temp_t.size
-                and self._i_ref >= self.run.ref_t.size)
+        return all(i >= t.size for i, t in zip(self._i, self._stamps()))
+
+    def _stamps(self) -> tuple[NDArray[np.float64], ...]:
+        """Return the stamps of the IMU, the thermometer and the reference."""
+        return self.run.imu_t, self.run.temp_t, self.run.ref_t
 
     @property
     def temp_var(self) -> float:
@@ -157,13 +158,12 @@ class SimStream:
         if math.isnan(t):
             raise ScenarioError('Expected `t` to be a time in seconds, got nan.')
         run = self.run
-        j_imu = max(self._i_imu, int(np.searchsorted(run.imu_t, t, side='right')))
-        j_temp = max(self._i_temp, int(np.searchsorted(run.temp_t, t, side='right')))
-        j_ref = max(self._i_ref, int(np.searchsorted(run.ref_t, t, side='right')))
-        imu = ImuChunk(run.imu_t[self._i_imu:j_imu], run.gyro[self._i_imu:j_imu],
-                       run.accel[self._i_imu:j_imu])
-        temp = TempChunk(run.temp_t[self._i_temp:j_temp], run.temp_c[self._i_temp:j_temp])
-        ref = RefChunk(run.ref_t[self._i_ref:j_ref], run.ref[self._i_ref:j_ref])
-        self._i_imu, self._i_temp, self._i_ref = j_imu, j_temp, j_ref
+        (i0, i1, i2), self._i = self._i, tuple(
+            max(i, int(np.searchsorted(ts, t, side='right')))
+            for i, ts in zip(self._i, self._stamps()))
+        j0, j1, j2 = self._i
+        imu = ImuChunk(run.imu_t[i0:j0], run.gyro[i0:j0], run.accel[i0:j0])
+        temp = TempChunk(run.temp_t[i1:j1], run.temp_c[i1:j1])
+        ref = RefChunk(run.ref_t[i2:j2], run.ref[i2:j2])
         self._position = max(self._position, t)
         return imu, temp, ref

@@ -134,13 +134,13 @@ def simulate_thermal(profile: Profile, *, duration_s: float, dt: float = 0.1,
     if t[-1] < duration_s:
         t = np.append(t, t[-1] + dt)
     setpoint = profile.value(t)
-    setpoint_rate = profile.slope(t)
-    air = first_order_lag(dt, setpoint, tau_air_s, hold='linear')
-    air_rate = _rate(setpoint, air, tau_air_s, setpoint_rate)
-    package = first_order_lag(dt, air, tau_package_s, hold='linear')
-    package_rate = _rate(air, package, tau_package_s, air_rate)
-    die = first_order_lag(dt, package, tau_die_s, hold='linear')
-    die_rate = _rate(package, die, tau_die_s, package_rate)
+    # Each node lags the one before: setpoint -> air -> package -> die, with its rate.
+    nodes, rate = [setpoint], profile.slope(t)
+    for tau in (tau_air_s, tau_package_s, tau_die_s):
+        nodes.append(first_order_lag(dt, nodes[-1], tau, hold='linear'))
+        rate = _rate(nodes[-2], nodes[-1], tau, rate)
+    _, air, package, die = nodes
+    die_rate = rate
     source = package if thermometer_location == 'package' else die
     thermometer = first_order_lag(dt, source, thermometer_tau_s, hold='linear')
     return ThermalHistory(t=t, setpoint_c=setpoint, air_c=air, package_c=package, die_c=die,

@@ -42,31 +42,20 @@ TRUTH_TOPIC = '/truth/angular_velocity'
 CMD_VEL_TOPIC = '/cmd_vel'
 _DEG = math.pi / 180.0
 
-#: Defaults of the ``vehicle:`` section (units in the keys).
-VEHICLE_DEFAULTS: dict = {
-    'start_parked_s': 1800.0,
-    'drive_s': [600.0, 1800.0],
-    'park_s': [600.0, 3000.0],
-    'slope_deg': 4.0,
-    'slope_change_s': 10.0,
-    'speed_mps': 10.0,
-    'accel_mps2': 1.5,
-    'straight_s': [5.0, 60.0],
-    'turn_s': [3.0, 20.0],
-    'turn_rate_dps': [2.0, 20.0],
-    'vibration_dps': 0.5,
-    'vibration_mps2': 0.8,
-    'self_heating_c': 10.0,
-    'self_heating_tau_s': 900.0,
-    'cmd_vel_rate_hz': 5.0,
+# Each field of the ``vehicle:`` section (units in the keys) as (kind, default). Kinds: 'nonneg'
+# >= 0, 'pos' > 0, 'num' any number, 'range' [low, high] with 0 <= low <= high, 'prange' the
+# same with low > 0.
+_FIELDS: dict[str, tuple[str, Any]] = {
+    'start_parked_s': ('nonneg', 1800.0), 'drive_s': ('prange', [600.0, 1800.0]),
+    'park_s': ('prange', [600.0, 3000.0]), 'slope_deg': ('nonneg', 4.0),
+    'slope_change_s': ('pos', 10.0), 'speed_mps': ('pos', 10.0), 'accel_mps2': ('pos', 1.5),
+    'straight_s': ('prange', [5.0, 60.0]), 'turn_s': ('prange', [3.0, 20.0]),
+    'turn_rate_dps': ('range', [2.0, 20.0]), 'vibration_dps': ('nonneg', 0.5),
+    'vibration_mps2': ('nonneg', 0.8), 'self_heating_c': ('num', 10.0),
+    'self_heating_tau_s': ('pos', 900.0), 'cmd_vel_rate_hz': ('nonneg', 5.0),
 }
-# Field kinds: 'nonneg' >= 0, 'pos' > 0, 'range' [low, high] with 0 <= low <= high,
-# 'prange' the same with low > 0.
-_KINDS = {'start_parked_s': 'nonneg', 'drive_s': 'prange', 'park_s': 'prange',
-          'slope_deg': 'nonneg', 'slope_change_s': 'pos', 'speed_mps': 'pos',
-          'accel_mps2': 'pos', 'straight_s': 'prange', 'turn_s': 'prange',
-          'turn_rate_dps': 'range', 'vibration_dps': 'nonneg', 'vibration_mps2': 'nonneg',
-          'self_heating_c': 'num', 'self_heating_tau_s': 'pos', 'cmd_vel_rate_hz': 'nonneg'}
+#: Defaults of the ``vehicle:`` section.
+VEHICLE_DEFAULTS: dict = {key: default for key, (_, default) in _FIELDS.items()}
 #: Grid step of the heated set point, s (the self-heating moves over minutes).
 _HEAT_STEP_S = 5.0
 #: Ramp of a turn's yaw rate in and out, s.
@@ -129,7 +118,7 @@ def vehicle_spec(chk: Any, raw: Any) -> VehicleSpec:
     """
     body = dict(VEHICLE_DEFAULTS, **chk.mapping('vehicle', raw, tuple(VEHICLE_DEFAULTS)))
     out: dict[str, Any] = {}
-    for key, kind in _KINDS.items():
+    for key, (kind, _) in _FIELDS.items():
         path, x = f'vehicle.{key}', body[key]
         if kind in ('range', 'prange'):
             ok = (isinstance(x, (list, tuple)) and len(x) == 2
@@ -378,11 +367,8 @@ def vehicle_motion(spec: VehicleSpec, legs: tuple[Leg, ...], imu_t: NDArray[np.f
     for prev, leg in zip((None,) + legs[:-1], legs):
         if leg.kind != 'drive':
             continue
-        k_vt, k_vv, k_yt, k_yv = _drive_profile(spec, leg, rng)
-        vt += k_vt
-        vv += k_vv
-        yt += k_yt
-        yv += k_yv
+        for knots, more in zip((vt, vv, yt, yv), _drive_profile(spec, leg, rng)):
+            knots += more
         d = leg.t1_s - leg.t0_s
         c = min(change, 0.5 * d)
         r0, p0 = (prev.roll_deg, prev.pitch_deg) if prev is not None else (0.0, 0.0)

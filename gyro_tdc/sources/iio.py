@@ -50,15 +50,10 @@ def _stat(path: Path) -> os.stat_result | None:
                           f'{exc.strerror or exc}.') from None
 
 
-def _exists(path: Path) -> bool:
-    """Return whether ``path`` exists; raise DeviceError when it cannot be checked."""
-    return _stat(path) is not None
-
-
-def _is_dir(path: Path) -> bool:
-    """Return whether ``path`` is a directory; raise DeviceError when it cannot be checked."""
+def _exists(path: Path, *, directory: bool = False) -> bool:
+    """Return whether ``path`` exists (as a directory); raise DeviceError when it cannot say."""
     st = _stat(path)
-    return st is not None and stat.S_ISDIR(st.st_mode)
+    return st is not None and (not directory or stat.S_ISDIR(st.st_mode))
 
 
 def _read_text(path: Path) -> str:
@@ -67,7 +62,7 @@ def _read_text(path: Path) -> str:
         with open(path, 'rb') as stream:
             data = stream.read(128)
     except FileNotFoundError:
-        if not _is_dir(path.parent):
+        if not _exists(path.parent, directory=True):
             raise DeviceError(
                 f'IIO device directory {str(path.parent)!r} disappeared '
                 f'(while reading {path.name!r}).') from None
@@ -81,13 +76,10 @@ def _read_number(path: Path) -> float:
     """Return the finite number held by one sysfs file, or raise DeviceError."""
     text = _read_text(path)
     try:
-        value = float(int(text))
+        value = float(text)
     except ValueError:
-        try:
-            value = float(text)
-        except ValueError:
-            raise DeviceError(
-                f'IIO file {str(path)!r} holds {text[:32]!r}, expected a number.') from None
+        raise DeviceError(f'IIO file {str(path)!r} holds {text[:32]!r}, expected a number.'
+                          ) from None
     if not math.isfinite(value):
         raise DeviceError(f'IIO file {str(path)!r} holds {text[:32]!r}, expected a finite number.')
     return value
@@ -218,12 +210,11 @@ class IioSource(PolledSource):
                  read_temperature: bool = True, require_temperature: bool = False,
                  temp_every: int = 1, rescale_every: int = 100,
                  clock: Callable[[], float] = time.monotonic) -> None:
-        if int(temp_every) < 1:
-            raise ValueError(f'Expected `temp_every` >= 1, got {temp_every!r}.')
-        if int(rescale_every) < 1:
-            raise ValueError(f'Expected `rescale_every` >= 1, got {rescale_every!r}.')
+        for name, every in (('temp_every', temp_every), ('rescale_every', rescale_every)):
+            if int(every) < 1:
+                raise ValueError(f'Expected `{name}` >= 1, got {every!r}.')
         self.device_dir = Path(device_dir)
-        if not _is_dir(self.device_dir):
+        if not _exists(self.device_dir, directory=True):
             raise DeviceError(f'IIO device directory {str(self.device_dir)!r} does not exist.')
         name_file = self.device_dir / 'name'
         self.name = _read_text(name_file) if _exists(name_file) else self.device_dir.name
@@ -285,20 +276,16 @@ class IioSource(PolledSource):
         return tuple(channels)
 
     def _temperature(self, *, required: bool) -> _Channel | None:
-        processed = self._file('in_temp_input')
-        raw = self._file('in_temp_raw')
+        raw, processed = self._file('in_temp_raw'), self._file('in_temp_input')
+        scale_file, offset_file = self._file('in_temp_scale'), self._file('in_temp_offset')
         if _exists(raw):
-            scale_file = self._file('in_temp_scale')
             if not _exists(scale_file):
                 raise DeviceError(f'IIO file {str(scale_file)!r} is missing '
                                   '(needed to convert in_temp_raw).')
-            offset_file = self._file('in_temp_offset')
-            channel = _Channel(raw, scale_file=scale_file,
-                               offset_file=offset_file if _exists(offset_file) else None,
-                               factor=1.0 / 1000.0)
+            channel = _Channel(raw, scale_file=scale_file, factor=1.0 / 1000.0,
+                               offset_file=offset_file if _exists(offset_file) else None)
         elif _exists(processed):
-            channel = _Channel(processed, scale_file=None, offset_file=None,
-                               factor=1.0 / 1000.0)
+            channel = _Channel(processed, scale_file=None, offset_file=None, factor=1.0 / 1000.0)
         else:
             if required:
                 raise DeviceError(f'IIO file {str(raw)!r} is missing '
@@ -341,13 +328,9 @@ class IioSource(PolledSource):
         """
         if self._count and self._count % self._rescale_every == 0:
             self.rescale()
-        g = self._gyro
         t = self._clock()
-        omega: Vec3 = (g[0].read(), g[1].read(), g[2].read())
-        accel: Vec3 | None = None
-        if self._accel is not None:
-            a = self._accel
-            accel = (a[0].read(), a[1].read(), a[2].read())
+        omega: Vec3 = tuple(c.read() for c in self._gyro)
+        accel = None if self._accel is None else tuple(c.read() for c in self._accel)
         temp_c = None
         if self._temp is not None and self._count % self._temp_every == 0:
             temp_c = self._temp.read()

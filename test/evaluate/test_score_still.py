@@ -21,7 +21,7 @@ from gyro_tdc.data.dataset import load_run
 from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.score import evaluate, evaluate_run, NamedModel, still_rows
 from gyro_tdc.identify.options import TrainOptions
-from gyro_tdc.identify.still_only import train_still_only
+from gyro_tdc.identify.train import train_still_only
 import numpy as np
 import pytest
 

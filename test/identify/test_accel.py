@@ -245,23 +245,6 @@ def test_accel_features(chamber):
     assert unlagged.thermal == ThermalState()
 
 
-def test_fit_linear_groups_is_the_regression_with_one_constant_per_group():
-    rng = np.random.default_rng(7)
-    n = 400
-    x = rng.uniform(-10.0, 10.0, (n, 2))
-    groups = np.repeat([5, 2, 9], [100, 150, 150])
-    const = {5: [1.0, 2.0, 3.0], 2: [-4.0, 0.0, 1.0], 9: [0.5, 0.5, 0.5]}
-    y = (np.array([const[g] for g in groups]) + x @ np.array([[0.3, -0.2, 0.1], [0.05, 0.0, 2.0]])
-         + rng.standard_normal((n, 3)) * 0.01)
-    fit = fit_linear(x, y, kind='poly', groups=groups)
-    dummies = (groups[:, None] == np.array([2, 5, 9])[None, :]).astype(float)
-    sol = np.linalg.lstsq(np.column_stack([dummies, x]), y, rcond=None)[0]
-    design = fit.design(x)
-    np.testing.assert_allclose(fit.coef[0], 0.0)
-    np.testing.assert_allclose(design[:, 1:] @ fit.coef[1:] + fit.offsets[np.searchsorted(
-        [2, 5, 9], groups)], np.column_stack([dummies, x]) @ sol, atol=1e-6)
-
-
 def test_discovery_runs_are_the_still_segments_in_mg(chamber):
     runs = discovery_runs(chamber['runs'])
     assert len(runs) == 2 and np.all(runs[0].omega_ref == 0)

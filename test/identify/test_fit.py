@@ -12,14 +12,15 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Identification: a known drift is recovered; conventional vs modified; lag tau; errors."""
+
+"""Tests of gyro_tdc.identify.fit: a known drift recovered, checks, metrics, session offsets."""
+
+from __future__ import annotations
 
 import math
 
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify import (estimate_t0, fit_linear, fit_model, fit_px4_cubic,
-                               fit_time_constant, FitOptions, LinearFit, RIDGE_GRID,
-                               TimeConstantFit)
+from gyro_tdc.identify import estimate_t0, fit_model, fit_px4_cubic, FitOptions
 from gyro_tdc.model.compensation import compensate, predict_drift
 from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
@@ -146,86 +147,101 @@ def test_training_metrics_equal_the_full_rate_residual(features):
                                bias_stability(run.omega, run.omega_ref), rtol=1e-9)
 
 
-def test_fit_linear_recovers_a_linear_law_and_its_scale_term():
-    rng = np.random.default_rng(2)
-    x = rng.uniform(-20.0, 30.0, size=(400, 2))
-    w = np.array([[0.1, -0.2, 0.3], [0.01, 0.02, -0.03], [1e-3, 0.0, 2e-3]])
-    cols = rng.normal(size=(400, 3))
-    s = np.array([1e-3, -2e-3, 5e-4])
-    y = np.column_stack([np.ones(400), x]) @ w + cols * s
-    fit = fit_linear(x, y, scale_cols=cols, kind='poly', ridge=1e-12)
-    assert isinstance(fit, LinearFit) and fit.centers.shape == (0, 2)
-    np.testing.assert_allclose(fit.scale, s, atol=1e-9)
-    np.testing.assert_allclose(fit.predict(x, cols), y, atol=1e-9)
-    np.testing.assert_allclose(fit.resid, fit.predict(x, cols) - y, atol=1e-12)
-    assert fit.sse == pytest.approx(float((fit.resid ** 2).sum()))
-    assert fit.design(x).shape == (400, 3) and fit.coef.shape == (3, 3)
+DEG = math.pi / 180.0
+OFFSETS = ((0.4, -0.3, 0.1), (-0.5, 0.2, 0.45), (0.05, 0.5, -0.35))
 
 
-def test_fit_linear_rbf_auto_ridge_is_from_the_grid_and_beats_poly_on_a_bump():
-    x = np.linspace(-1.0, 1.0, 300)[:, None]
-    y = np.repeat(np.exp(-(x / 0.3) ** 2), 3, axis=1)
-    rbf = fit_linear(x, y, kind='rbf', n_centers=8, ridge='auto', seed=0)
-    poly = fit_linear(x, y, kind='poly')
-    assert rbf.ridge in RIDGE_GRID and rbf.centers.shape[0] >= 2
-    assert rbf.sse < 0.01 * poly.sse
-    assert fit_linear(x, y, kind='rbf', n_centers=8, seed=0).sse == rbf.sse  # seeded
+def _runs(noise=0.0, offsets=OFFSETS[:2], ranges=((-10.0, 30.0), (15.0, 50.0)), **kw):
+    return [synth_run(seed=i, hours=1.0, rate_hz=2.0, t_lo=lo, t_hi=hi, noise_dps=noise,
+                      offset_dps=off, name=f'run{i}', **kw)
+            for i, (off, (lo, hi)) in enumerate(zip(offsets, ranges))]
 
 
-def test_fit_time_constant_finds_the_minimum_and_keeps_the_profile():
-    calls = []
-
-    def sse(tau):
-        calls.append(tau)
-        return (math.log(tau) - math.log(173.0)) ** 2 + 2.0
-
-    res = fit_time_constant(sse, (1.0, 20000.0), n_grid=13)
-    assert isinstance(res, TimeConstantFit)
-    assert res.tau == pytest.approx(173.0, rel=2e-3) and res.sse == pytest.approx(2.0)
-    assert res.grid_tau.shape == res.grid_sse.shape == (13,)
-    np.testing.assert_allclose(res.grid_tau[[0, -1]], [1.0, 20000.0])
-    np.testing.assert_allclose(res.grid_sse, [sse(v) for v in res.grid_tau])
-    assert res.sse <= res.grid_sse.min()
-    assert all(1.0 <= c <= 20000.0 for c in calls)
-    lin = fit_time_constant(lambda tau: (tau - 7.3) ** 2, (0.0, 20.0), n_grid=5, log=False,
-                            xatol=1e-6)
-    assert lin.tau == pytest.approx(7.3, abs=1e-4)
-    np.testing.assert_allclose(lin.grid_tau, [0.0, 5.0, 10.0, 15.0, 20.0])
+@pytest.mark.parametrize('kind', ['poly', 'rbf'])
+def test_known_offsets_are_recovered_exactly_on_noise_free_data(kind):
+    runs = _runs()
+    m = fit_model(runs, kind=kind, features='dT,dT2', t0=25.0, sessions=[0, 1])
+    info = m.metrics['sessions']
+    off = np.array(OFFSETS[:2])
+    assert info['count'] == 2 and info['names'] == ['run0', 'run1']
+    np.testing.assert_allclose(info['offset_dps'], off - off.mean(axis=0), atol=1e-9)
+    np.testing.assert_allclose(info['spread_dps'], np.abs(off[0] - off[1]), atol=1e-9)
+    # The curve: the drift of the mean session, exactly (b0 + mean offset at T0 = 25 degC).
+    truth = synth_run(hours=1.0, rate_hz=2.0, t_lo=-10.0, t_hi=50.0, noise_dps=0.0,
+                      offset_dps=tuple(off.mean(axis=0)))
+    pred = predict_drift(m, truth.t, truth.temp, truth.omega_ref)
+    np.testing.assert_allclose(pred, truth.omega, atol=1e-9 if kind == 'poly' else 2e-6)
+    assert max(m.metrics['train_rms_dps']) < (1e-9 if kind == 'poly' else 2e-6)
 
 
-def test_fit_time_constant_keeps_the_grid_point_at_an_edge_and_on_a_single_point():
-    res = fit_time_constant(lambda tau: tau, (2.0, 50.0), n_grid=6)
-    assert res.tau == pytest.approx(2.0, rel=1e-3)
-    one = fit_time_constant(lambda tau: 1.0, (30.0, 30.0), n_grid=1)
-    assert one.tau == pytest.approx(30.0) and one.grid_tau.shape == (1,)
+def test_a_curve_that_carries_across_power_cycles_is_kept_with_its_figures():
+    m = fit_model(_runs(noise=0.02), kind='poly', features='dT,dT2', t0=25.0, sessions=[0, 1])
+    check = m.metrics['sessions']['heldout']
+    assert check['folds'] == 2 and check['offset_only'] == []
+    assert all(c < o for c, o in zip(check['curve_ms_dps2'], check['offset_ms_dps2']))
+    assert np.all(m.linear != 0.0)
+    unchecked = fit_model(_runs(noise=0.02), kind='poly', features='dT,dT2', t0=25.0,
+                          sessions=[0, 1], check_sessions=False)
+    assert 'heldout' not in unchecked.metrics['sessions']
+    np.testing.assert_array_equal(unchecked.linear, m.linear)
+    bias = fit_model(_runs(noise=0.02), kind='poly', features='bias', sessions=[0, 1])
+    assert 'heldout' not in bias.metrics['sessions']      # no curve: nothing to judge
 
 
-@pytest.mark.parametrize('bounds, n_grid, log', [((0.0, 10.0), 5, True), ((5.0, 1.0), 5, True),
-                                                 ((-1.0, 1.0), 5, False),
-                                                 ((1.0, math.inf), 5, True),
-                                                 ((1.0, 2.0), 0, True)])
-def test_fit_time_constant_rejects_bad_bounds(bounds, n_grid, log):
-    with pytest.raises(FitError, match='bounds|n_grid'):
-        fit_time_constant(lambda tau: tau, bounds, n_grid=n_grid, log=log)
+def test_an_axis_whose_curve_does_not_carry_keeps_the_offset_only():
+    # x: the slope flips from one power cycle to the next (no curve carries); y, z: shared.
+    runs = [synth_run(seed=i, hours=1.0, rate_hz=2.0, t_lo=0.0, t_hi=40.0, noise_dps=0.02,
+                      a1=(a, -0.015, 0.01), a2=(0.0, 1.5e-4, -1e-4), offset_dps=OFFSETS[i],
+                      name=f'run{i}') for i, a in enumerate((0.02, -0.02))]
+    m = fit_model(runs, kind='poly', features='dT,dT2', t0=20.0, sessions=[0, 1])
+    check = m.metrics['sessions']['heldout']
+    assert check['offset_only'] == ['x']
+    assert check['curve_ms_dps2'][0] >= check['offset_ms_dps2'][0]
+    np.testing.assert_array_equal(m.linear[:, 0], 0.0)
+    assert np.all(m.linear[:, 1:] != 0.0) and m.scale[0] == 0.0
+    # The offset of each session on x is its mean; the model's, their mean.
+    means = [float(np.mean(r.omega[:, 0] - r.omega_ref[:, 0])) for r in runs]
+    assert m.intercept[0] == pytest.approx(np.mean(means), rel=1e-3)
+    # The training residual on x is the scatter around each session's mean.
+    var = np.mean([np.var(r.omega[:, 0]) for r in runs])
+    assert m.residual_var[0] == pytest.approx(var, rel=0.02)
 
 
-@pytest.mark.parametrize('n_grid, xatol', [(13, 1e-3), (14, 0.01), (25, 1e-3)])
-def test_fit_time_constant_equals_the_grid_then_brent_search_it_replaced(n_grid, xatol):
-    # The search formerly written inline in fitting (13 points), discover (14, xatol 0.01)
-    # and realdata_eval (25): log grid, bounded Brent between the best point's neighbours.
-    from scipy.optimize import minimize_scalar
-    rng = np.random.default_rng(n_grid)
-    bumps = rng.normal(size=8) * 0.05
+def test_one_intercept_bends_the_curve_per_session_offsets_do_not():
+    runs = _runs(noise=0.02)
+    third = synth_run(seed=7, hours=1.0, rate_hz=2.0, t_lo=0.0, t_hi=40.0, noise_dps=0.02,
+                      offset_dps=OFFSETS[2])
+    errors = {}
+    for label, sessions in (('one', None), ('per session', [0, 1])):
+        m = fit_model(runs, kind='poly', features='dT,dT2,dT3', t0=25.0, sessions=sessions)
+        comp = compensate(m, third.t, third.temp, third.omega)
+        head = third.t <= third.t[0] + 600.0
+        comp = comp - comp[head].mean(axis=0)           # re-anchored on its first 10 min
+        errors[label] = np.sqrt(np.mean(comp ** 2, axis=0)) / DEG
+    assert np.all(errors['per session'] < 0.021)        # the noise: 0.02 deg/s
+    assert np.all(errors['one'] > 0.05)                 # bent by the two offsets
 
-    def sse_log(v):
-        return (v - 5.1) ** 2 + float(bumps @ np.sin(np.arange(1, 9) * v))
 
-    grid = np.linspace(math.log(1.0), math.log(20000.0), n_grid)
-    vals = [sse_log(g) for g in grid]
-    i = int(np.argmin(vals))
-    best = minimize_scalar(sse_log, bounds=(grid[max(i - 1, 0)], grid[min(i + 1, n_grid - 1)]),
-                           method='bounded', options={'xatol': xatol})
-    want = float(math.exp(best.x if best.fun <= vals[i] else grid[i]))
-    got = fit_time_constant(lambda tau: sse_log(math.log(tau)), (1.0, 20000.0), n_grid=n_grid,
-                            xatol=xatol)
-    assert got.tau == pytest.approx(want, rel=1e-9)
+def test_one_session_label_is_the_model_without_sessions():
+    runs = _runs(noise=0.02)
+    ref = fit_model(runs, kind='rbf', features='dT,dT2', t0=25.0, seed=1)
+    same = fit_model(runs, kind='rbf', features='dT,dT2', t0=25.0, seed=1,
+                     sessions=['a', 'a'])
+    assert same.model_id == ref.model_id and 'sessions' not in same.metrics
+
+
+def test_sessions_with_a_thermal_state_and_still_rows():
+    runs = _runs(noise=0.0, tau_die=300.0)
+    rows = [np.arange(len(r)) % 3 != 0 for r in runs]
+    m = fit_model(runs, kind='poly', features='dT,dT2,lag', t0=25.0, sessions=[0, 1],
+                  rows=rows)
+    off = np.array(OFFSETS[:2])
+    assert m.thermal.tau_s[0] == pytest.approx(300.0, rel=0.02)
+    np.testing.assert_allclose(m.metrics['sessions']['offset_dps'], off - off.mean(axis=0),
+                               atol=2e-3)
+    assert m.metrics['sessions']['samples'] == [int(np.count_nonzero(r)) for r in rows]
+
+
+def test_session_labels_must_match_the_runs():
+    with pytest.raises(FitError, match='one session label per run'):
+        fit_model(_runs(), features='dT', sessions=[0])

@@ -12,22 +12,37 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.identify.train: bags in, a saved model and the coverage of the data out."""
+
+"""Tests of gyro_tdc.identify.train: chamber, still-only, flight logs, frames, constant axes."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+from pathlib import Path
+import shutil
+import tempfile
+import warnings
+
 from bags import bag_from_run
-from gyro_tdc.base.limits import MAX_CENTERS
+from constant_axes import axis_sets, quanta, values, with_constant as _with
+from flightlogs import flight_day, still_drift, write_dataflash
+from gyro_tdc.data.bag.writer import write_bag
+from gyro_tdc.data.dataset import load_run
 from gyro_tdc.data.options import BagOptions
-from gyro_tdc.errors import DatasetError, FeatureError, FitError, LimitError
+from gyro_tdc.errors import DatasetError, FitError
+from gyro_tdc.evaluate.score import evaluate_run, NamedModel
 from gyro_tdc.evaluate.training_report import format_training
+from gyro_tdc.identify import constant_gyro_axes
 from gyro_tdc.identify.options import TrainOptions
-from gyro_tdc.identify.train import train
-from gyro_tdc.model.compensation import compensate
+from gyro_tdc.identify.still_only import moving_share, proxy_lag
+from gyro_tdc.identify.train import train, train_still_only
+from gyro_tdc.model import compensate, DEFAULT_OUT_OF_RANGE
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal.metrics import bias_stability
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
+from real_logs import ARDUPILOT_CUBEBLACK
 from synth import synth_run
 
 
@@ -83,19 +98,202 @@ def test_the_options_reach_the_model(bags, tmp_path):
     assert not (tmp_path / 'n.yaml').exists()
 
 
-def test_options_are_checked_when_built():
-    assert TrainOptions().auto and TrainOptions(features=' auto ').features == 'auto'
-    assert TrainOptions(features='dT2, dT').features == ('dT', 'dT2')     # catalog order
-    assert TrainOptions(features=['lag', 'dT']).features == ('dT', 'lag')
-    with pytest.raises(FeatureError, match='bogus'):
-        TrainOptions(features='dT,bogus')
-    with pytest.raises(FitError, match="Expected `kind` to be one of rbf, poly, got 'spline'"):
-        TrainOptions(kind='spline')
-    with pytest.raises(FitError, match='ridge'):
-        TrainOptions(ridge=-1.0)
-    with pytest.raises(FitError, match='thermal'):
-        TrainOptions(thermal='third_order')
-    with pytest.raises(LimitError, match='centres'):
-        TrainOptions(n_centers=MAX_CENTERS + 1)
-    with pytest.raises(LimitError, match='bin'):
-        TrainOptions(bin_c=0.0)
+@pytest.fixture(scope='module')
+def board(tmp_path_factory):
+    """Return eight power cycles of one IMU at 25 Hz, flights between 10-60 s stops."""
+    root = tmp_path_factory.mktemp('board')
+    days = [flight_day(seed, legs=6) for seed in range(8)]
+    paths = [write_dataflash(root / f'day{seed}.bin', [d.imu]) for seed, d in enumerate(days)]
+    return days, paths
+
+
+def _held_out_ratio(model, days, paths):
+    """Return the within-log drift of still stretches, compensated over raw, per axis."""
+    comp = []
+    for path in paths:
+        r = load_run(path)
+        comp.append(compensate(model, r.t, r.temp, r.omega, out_of_range=DEFAULT_OUT_OF_RANGE))
+    return still_drift(days, comp) / still_drift(days)
+
+
+def test_default_train_on_logs_with_flights_fits_only_the_still_stretches(board, tmp_path):
+    days, paths = board
+    lines = []
+    result = train(paths[:4], tmp_path / 'm.yaml', TrainOptions(), log=lines.append)
+    assert any('no reference rate and the IMU moves' in line
+               and 'training on the still stretches only' in line for line in lines)
+    assert result.still is not None
+    still_s = result.still.still_s
+    truly = sum(d.still.sum() for d in days[:4]) / 25.0
+    assert 0.6 * truly < still_s <= truly * 1.01     # the 10-60 s stretches are found
+    assert 0.0 < still_s / result.still.total_s < 1.0
+    ratio = _held_out_ratio(result.model, days[4:], paths[4:])
+    assert np.all(ratio <= 1.1), ratio              # no harm held out on any axis
+    assert np.all(ratio < 0.5), ratio               # and the drift is learnt
+    # The same model as --still-only with its defaults.
+    same = train_still_only(paths[:4], tmp_path / 's.yaml', TrainOptions())
+    np.testing.assert_allclose(_held_out_ratio(same.model, days[4:], paths[4:]), ratio)
+
+
+def test_still_only_with_a_log_without_still_time_among_three_or_more(board, tmp_path):
+    days, paths = board
+    flying = flight_day(99, legs=2, still_s=(0.5, 1.0), flight_s=(300.0, 300.0))
+    moving = write_dataflash(tmp_path / 'flying.bin', [flying.imu])
+    result = train_still_only([paths[0], moving, paths[1], paths[2]], tmp_path / 'm.yaml',
+                              TrainOptions(min_still_s=20.0))
+    assert len(result.model.metrics['sessions']['offset_dps']) == 3
+    assert result.still.total_s > sum(d.imu.t[-1] - d.imu.t[0] for d in days[:3])
+    ratio = _held_out_ratio(result.model, days[4:], paths[4:])
+    assert np.all(ratio <= 1.1), ratio
+
+
+def test_moving_share_tells_a_flight_log_from_a_still_one(board):
+    days, paths = board
+    run = load_run(paths[0])
+    share = moving_share([run])
+    assert 0.3 < share < 1.0 - days[0].still.mean() + 0.05
+    still = flight_day(5, legs=1, still_s=(300.0, 300.0))
+    assert moving_share([load_run(write_dataflash(paths[0].parent / 'still.bin',
+                                                  [still.imu]))]) == 0.0
+
+
+def test_a_real_flight_log_with_too_little_still_time_is_refused_in_one_line(tmp_path):
+    with pytest.raises(FitError, match=r'--still-only: the still time spans 0\.\d+ degC only'):
+        train([ARDUPILOT_CUBEBLACK], tmp_path / 'm.yaml', TrainOptions())
+
+
+def test_a_proxy_thermometer_turns_the_thermal_state_on_with_auto_features(board):
+    days, paths = board
+    run = load_run(paths[0])
+    proxied = type(run)(run.t, run.temp, run.omega, run.omega_ref, run.name,
+                        {**run.info, 'temperature_proxy': True}, run.accel)
+    said = []
+    assert proxy_lag([proxied], ('dT', 'dT2'), TrainOptions(), said.append) == (
+        'dT', 'dT2', 'lag')
+    assert said and 'proxy' in said[0]
+    assert proxy_lag([run], ('dT', 'dT2'), TrainOptions()) == ('dT', 'dT2')
+    assert proxy_lag([proxied], ('dT',), TrainOptions(features='dT')) == ('dT',)
+
+
+OPTIONS = TrainOptions(features='dT,dT2', kind='poly')
+
+
+def bag(path, frame_id, seed=21):
+    run = synth_run(seed=seed, hours=1.0, cooling=True)
+    write_bag(path, imu_t=run.t + 100.0, gyro=run.omega, accel=np.zeros((len(run), 3)),
+              temp_t=run.t[::2] + 100.0, temp_c=run.temp[::2], frame_id=frame_id)
+    return path
+
+
+@pytest.mark.parametrize('frame_id', ['base_link', 'imu_link'])
+def test_the_model_takes_the_frame_of_the_bag(tmp_path, frame_id):
+    result = train([bag(tmp_path / 'run', frame_id)], tmp_path / 'm.yaml', OPTIONS)
+    assert result.model.frame_id == frame_id
+    assert load_model(result.path).frame_id == frame_id          # written to the file
+
+
+def test_data_without_a_frame_make_a_model_that_claims_none(tmp_path):
+    result = train([bag(tmp_path / 'run', '')], tmp_path / 'm.yaml', OPTIONS)
+    assert result.model.frame_id == '' and load_model(result.path).frame_id == ''
+
+
+def test_bags_in_two_frames_are_refused(tmp_path):
+    bags = [bag(tmp_path / 'a', 'imu_link'), bag(tmp_path / 'b', 'base_link', seed=22)]
+    with pytest.raises(DatasetError, match="2 frames .*'imu_link'.*'base_link'"):
+        train(bags, tmp_path / 'm.yaml', OPTIONS)
+    assert not (tmp_path / 'm.yaml').exists()
+    # A frame-less bag beside a framed one is no conflict: the model takes the one frame.
+    ok = train([tmp_path / 'a', bag(tmp_path / 'c', '', seed=23)], tmp_path / 'n.yaml', OPTIONS)
+    assert ok.model.frame_id == 'imu_link'
+
+
+AXES = 'xyz'
+STILL_OPTIONS = TrainOptions(features='dT,dT2', n_centers=6)
+
+
+@pytest.fixture(scope='module')
+def runs():
+    """Return a still training run and a still held-out run, a known drift on every axis."""
+    return (synth_run(seed=41, hours=0.5, rate_hz=2.0, noise_dps=0.02),
+            synth_run(seed=42, hours=0.5, rate_hz=2.0, noise_dps=0.02, name='held'))
+
+
+def _still_only(run, options=STILL_OPTIONS):
+    """Train --still-only on ``run`` in a temporary folder; return the result."""
+    folder = Path(tempfile.mkdtemp())
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter('error')
+            return train_still_only([run.name], folder / 'm.yaml', options, runs=[run])
+    finally:
+        shutil.rmtree(folder)
+
+
+def _columns(model, keep):
+    """Return the coefficients of the axes ``keep`` and what every axis shares."""
+    return (model.intercept[keep], model.linear[:, keep], model.weights[:, keep],
+            model.scale[keep], model.residual_var[keep], model.centers, model.widths,
+            model.input_mean, model.input_std, model.temp_range_c, model.t0_c)
+
+
+@given(axes=axis_sets, value=values, quantum=quanta, seed=st.integers(0, 1000))
+@settings(max_examples=12)
+def test_still_only_passes_a_constant_axis_through(runs, axes, value, quantum, seed):
+    """Zero columns on the constant axes, the others as with them at their reference."""
+    run, held = runs
+    res = _still_only(_with(run, axes, value, quantum, seed))
+    ref = _still_only(_with(run, axes, 0.0, 0.0))
+    m = res.model
+    names = [AXES[i] for i in axes]
+    others = [i for i in range(3) if i not in axes]
+    assert list(res.constant) == names and m.metrics['constant_axes'] == names
+    assert res.constant[names[0]] == pytest.approx(value, abs=quantum + 1e-12)
+    assert 'not fitted' in res.constant_line() and res.still is not None
+    assert not np.any(m.intercept[axes]) and not np.any(m.linear[:, axes])
+    assert not np.any(m.weights[:, axes]) and not np.any(m.scale[axes])
+    for a, b in zip(_columns(m, others), _columns(ref.model, others)):
+        np.testing.assert_array_equal(a, b)
+    stuck = _with(held, axes, value, quantum, seed)
+    comp = compensate(m, stuck.t, stuck.temp, stuck.omega)
+    assert np.array_equal(comp[:, axes], stuck.omega[:, axes])        # bit for bit
+    # Its training figures: the raw ones (the reference is 0 while still).
+    raw = np.degrees(_with(run, axes, value, quantum, seed).omega[:, axes]) ** 2
+    for k, i in enumerate(axes):
+        want = raw[:, k].mean()
+        assert m.metrics['train_bs_dps2'][i] == pytest.approx(want, rel=1e-9, abs=1e-300)
+        assert m.metrics['raw_bs_dps2'][i] == m.metrics['train_bs_dps2'][i]
+    assert all(np.isfinite(m.metrics[k]).all() for k in ('train_bs_dps2', 'train_rms_dps'))
+
+
+def test_the_other_axes_are_as_accurate_as_with_the_real_signal(runs):
+    """Held out, x and y compensate within 2 % of a still-only training on z's signal."""
+    run, held = runs
+    real = _still_only(run).model
+    stuck = _still_only(_with(run, [2], 0.25, 1e-4)).model
+    named = [NamedModel('real', 'real', real), NamedModel('stuck', 'stuck', stuck)]
+    b = evaluate_run(held, named)
+    np.testing.assert_allclose(b.models[1].bs[:2], b.models[0].bs[:2], rtol=0.02)
+    assert np.all(b.models[1].bs[:2] < 0.05 * b.raw.bs[:2])
+
+
+def test_auto_features_keep_the_identity(runs):
+    """Choose features on the other axes only; the constant axis stays zero."""
+    run, _ = runs
+    res = _still_only(_with(run, [1], -0.3, 1e-5), replace(STILL_OPTIONS, features='auto'))
+    assert res.choice is not None and res.model.metrics['constant_axes'] == ['y']
+    assert not np.any(res.model.linear[:, 1]) and not np.any(res.model.weights[:, 1])
+
+
+def test_a_gyro_constant_on_every_axis_is_refused_with_trains_line(runs, tmp_path):
+    """Refuse in one line, the line train gives on the same bag; write nothing."""
+    dead = _with(runs[0], [0, 1, 2], 0.01, 1e-4)
+    bag = bag_from_run(dead, tmp_path / 'dead')
+    with pytest.raises(DatasetError) as still:
+        train_still_only([bag], tmp_path / 'a.yaml', STILL_OPTIONS)
+    with pytest.raises(DatasetError) as chamber:
+        train([bag], tmp_path / 'b.yaml', STILL_OPTIONS)
+    assert str(still.value) == str(chamber.value)
+    assert '\n' not in str(still.value) and 'every axis' in str(still.value)
+    assert not (tmp_path / 'a.yaml').exists()
+    with pytest.raises(DatasetError):
+        constant_gyro_axes([dead])

@@ -28,16 +28,13 @@ from synth import synth_run
 DEG = math.pi / 180.0
 
 
-def _hand_model(**kw):
+def _hand_model(features=('dT', 'dT2'), effect_params=None, **kw):
     """Poly f(dT, dT2): drift = b + a1 (T - 25) / 10 + a2 ((T - 25)^2 - 100) / 50, rad/s."""
-    m = dict(kind='poly', features=('dT', 'dT2'), effect_params={}, t0_c=25.0,
-             input_mean=np.array([0.0, 100.0]), input_std=np.array([10.0, 50.0]),
-             centers=np.zeros((0, 2)), widths=np.zeros(0), weights=np.zeros((0, 3)),
-             intercept=np.array([0.01, -0.02, 0.03]),
-             linear=np.array([[0.001, 0.002, -0.003], [0.0004, 0.0, 0.0001]]),
-             scale=np.zeros(3), temp_range_c=(0.0, 50.0), residual_var=np.full(3, 1e-6))
-    m.update(kw)
-    return CompensationModel(**m)
+    norm = (np.array([0.0, 100.0]), np.array([10.0, 50.0]), np.zeros((0, 2)), np.zeros(0))
+    coef = [[0.01, -0.02, 0.03], [0.001, 0.002, -0.003], [0.0004, 0.0, 0.0001]]
+    return CompensationModel.network('poly', features, effect_params or {}, 25.0, norm, coef,
+                                     temp_range_c=(0.0, 50.0), residual_var=np.full(3, 1e-6),
+                                     **kw)
 
 
 def test_drift_is_the_normalised_linear_formula():

@@ -50,24 +50,23 @@ _ID = re.compile(r"(field `accel`: )?field `model_id` '[^']*' does not match the
 def handmade() -> CompensationModel:
     """Return a format-2 model with dTdt, warmup, a scale term and an accelerometer part."""
     rng = np.random.default_rng(7)
-    th = ThermalState()
-    accel = CompensationModel(
-        kind='rbf', features=('dT', 'dT2'), effect_params={}, t0_c=20.0,
-        input_mean=np.array([10.0, 300.0]), input_std=np.array([20.0, 400.0]),
-        centers=rng.normal(size=(3, 2)), widths=rng.uniform(0.3, 1.0, 3),
-        weights=rng.normal(scale=1e-2, size=(3, 3)), intercept=np.array([0.01, 0.0, -0.02]),
-        linear=rng.normal(scale=1e-2, size=(2, 3)), scale=np.zeros(3),
-        temp_range_c=(-10.0, 50.0), residual_var=np.full(3, 1e-4), sensor_id='unit-7',
-        thermal=th)
-    return CompensationModel(
-        kind='rbf', features=('dT', 'dT2', 'dTdt', 'scale', 'warmup'),
-        effect_params={'dTdt': {'tau_s': 60.0}, 'warmup': {'tau_s': 300.0}}, t0_c=20.0,
-        input_mean=np.array([10.0, 300.0, 0.0, 0.3]),
-        input_std=np.array([20.0, 400.0, 0.01, 0.3]), centers=rng.normal(size=(4, 4)),
-        widths=rng.uniform(0.3, 1.0, 4), weights=rng.normal(scale=1e-3, size=(4, 3)),
-        intercept=np.array([1e-3, -2e-3, 5e-4]), linear=rng.normal(scale=1e-4, size=(4, 3)),
+    norm = (np.array([10.0, 300.0]), np.array([20.0, 400.0]), rng.normal(size=(3, 2)),
+            rng.uniform(0.3, 1.0, 3))
+    weights = rng.normal(scale=1e-2, size=(3, 3))
+    coef = np.vstack([[0.01, 0.0, -0.02], rng.normal(scale=1e-2, size=(2, 3)), weights])
+    accel = CompensationModel.network('rbf', ('dT', 'dT2'), {}, 20.0, norm, coef,
+                                      temp_range_c=(-10.0, 50.0),
+                                      residual_var=np.full(3, 1e-4), sensor_id='unit-7',
+                                      thermal=ThermalState())
+    norm = (np.array([10.0, 300.0, 0.0, 0.3]), np.array([20.0, 400.0, 0.01, 0.3]),
+            rng.normal(size=(4, 4)), rng.uniform(0.3, 1.0, 4))
+    weights = rng.normal(scale=1e-3, size=(4, 3))
+    coef = np.vstack([[1e-3, -2e-3, 5e-4], rng.normal(scale=1e-4, size=(4, 3)), weights])
+    return CompensationModel.network(
+        'rbf', ('dT', 'dT2', 'dTdt', 'scale', 'warmup'),
+        {'dTdt': {'tau_s': 60.0}, 'warmup': {'tau_s': 300.0}}, 20.0, norm, coef,
         scale=np.array([2e-4, -1e-4, 0.0]), temp_range_c=(-10.0, 50.0),
-        residual_var=np.full(3, 1e-8), sensor_id='unit-7', thermal=th, accel=accel)
+        residual_var=np.full(3, 1e-8), sensor_id='unit-7', thermal=ThermalState(), accel=accel)
 
 
 _MAKERS = {

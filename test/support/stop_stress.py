@@ -15,7 +15,7 @@
 """
 Stop node processes at random moments under a 1 kHz stream and a CPU hog (issue 36).
 
-Used by ``test/nodes/test_clean_stops.py`` (a few stops) and ``bench/bench_clean_stops.py``
+Used by ``test/nodes/test_executors.py`` (a few stops) and ``bench/bench_clean_stops.py``
 (ten per node per signal). A stop is *clean* when the process exits 0 within the deadline and
 prints no ``Traceback`` and no ``[FATAL]`` line; with ``learn: true`` and a ``learn_file``,
 a node that answered ``~/learn_save`` before the signal must also have written the file

@@ -39,7 +39,7 @@ from pathlib import Path
 
 from compensator_rig import RELIABLE
 from gyro_tdc.data.imu_cdr import encode, field_slice, IMU_DOUBLES, Layout
-from gyro_tdc.identify.still_only import train_still_only
+from gyro_tdc.identify.train import train_still_only
 from gyro_tdc.nodes.compensator_node import CompensatorNode
 from gyro_tdc.nodes.executors import make_executor
 from gyro_tdc.sim import simulate_run, to_run
