@@ -37,8 +37,10 @@ A case fires when one of its sessions anchors (it has at least 60 s of still tim
 bursts), passes when it fired and every anchor passed; ``anchored`` is the share of its
 samples compensated with their session's anchor in force (what the re-anchoring covered).
 
-``--old COMMIT`` runs the re-anchoring of ``gyro_tdc/runtime/reanchor.py`` at that commit
-beside this tree's, on the same cases (the core is this tree's). Run:
+``--rule`` trains with ``train``'s start-up shift rule: an axis within the model's gate is
+not shifted and is judged unshifted. ``--old COMMIT`` runs the re-anchoring of
+``gyro_tdc/runtime/reanchor.py`` at that commit beside this tree's, on the same cases (the
+core is this tree's). Run:
 ``.venv/bin/python bench/bench_reanchor_bursts.py --cases 60 --old fd17df7`` (about 10 s).
 """
 
@@ -59,7 +61,7 @@ if str(ROOT) not in sys.path:
 
 from gyro_tdc.base import SESSION_GAP_S  # noqa: E402
 from gyro_tdc.data import Run  # noqa: E402
-from gyro_tdc.identify import fit_model  # noqa: E402
+from gyro_tdc.identify import fit_model, reanchor_rule  # noqa: E402
 from gyro_tdc.model import compensate  # noqa: E402
 from gyro_tdc.runtime import Policy  # noqa: E402
 import gyro_tdc.runtime.core as core_mod  # noqa: E402
@@ -129,18 +131,19 @@ def stamps(d: dict, rng: np.random.Generator):
     return np.concatenate(parts), np.concatenate(seg)
 
 
-def model_for(d: dict):
-    """Fit a line on a continuous training run of the same sensor (no offset)."""
+def model_for(d: dict, rule: bool = False):
+    """Fit a line on a continuous training run of the same sensor (no offset); gated: rule."""
     rng = np.random.default_rng(d['seed'] + 1)
     t = np.arange(0.0, 3600.0, 1.0)
     temp = 15.0 + 20.0 * t / t[-1]
     tq = np.round(temp / d['res_c']) * d['res_c']
     om = d['slope'] * (temp - 25.0)[:, None] + rng.normal(0.0, d['sigma'], (t.size, 3))
     run = Run(t, tq, om, np.zeros_like(om), 'train')
-    return fit_model([run], kind='poly', features=('dT',), t0=25.0)
+    model = fit_model([run], kind='poly', features=('dT',), t0=25.0)
+    return reanchor_rule(model, [run], [0], None) if rule else model
 
 
-def case(d: dict, detector_cls=None) -> dict:
+def case(d: dict, detector_cls=None, rule: bool = False) -> dict:
     """Stream one case through a core; return what its re-anchoring did."""
     rng = np.random.default_rng(d['seed'])
     t, seg = stamps(d, rng)
@@ -164,7 +167,7 @@ def case(d: dict, detector_cls=None) -> dict:
         f = rng.uniform(0.05, 0.4) * min(d['rate'], 10.0)
         raw[moving, axis] += d['amp'] * d['sigma'] * np.sin(2 * math.pi * f * t[moving]
                                                             + rng.uniform(0, 6.3))
-    model = model_for(d)
+    model = model_for(d, rule)
     out_clean = compensate(model, t, tq, clean)
     saved = state_mod.StillnessDetector     # the core's detector is built in runtime.state
     if detector_cls is not None:
@@ -192,9 +195,12 @@ def case(d: dict, detector_cls=None) -> dict:
     judged = []
     for a, session, i in anchors:
         span = (t >= a.t - a.duration_s - 1e-9) & (t <= a.t + 1e-9)
+        # With the rule an axis within the model's gate is not shifted (delta 0): so judged.
         err = np.abs(np.asarray(a.delta) - out_clean[span].mean(axis=0))
+        gated = np.asarray(a.delta) == 0.0
         bound = 4.0 * np.maximum(np.asarray(a.se), np.asarray(a.tolerance))
         judged.append({'anchor': a, 'session': session, 'moving': int(moving[span].sum()),
+                       'gated': int(gated.sum()),
                        'err_sigma': float((err / d['sigma']).max()),
                        'err_se': float((err / np.asarray(a.se)).max()),
                        'pass': bool(np.all(err <= bound))})
@@ -273,6 +279,8 @@ def report(name: str, cases: list, results: list) -> None:
     print(f'  not fired ({len(miss)}):')
     for d, r in miss[:8]:
         print(f'    {_fmt(d)} ({r["sessions"]} sessions)')
+    print("  anchor axes within the model's gate (not shifted): "
+          f'{sum(j["gated"] for j, _, _ in js)} of {3 * len(js)}')
     print(f'  CPU per sample (process + add_temperature): median '
           f'{np.median([r["cpu_us"] for r in results]):.2f} us')
 
@@ -284,6 +292,8 @@ def main(argv: list | None = None) -> int:
     p.add_argument('--seed', type=int, default=27)
     p.add_argument('--old', default=None, metavar='COMMIT',
                    help='also run the re-anchoring of this commit, alternating')
+    p.add_argument('--rule', action='store_true',
+                   help="train with train's start-up shift rule (the model's gate)")
     args = p.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     cases = [draw(rng, k, args.seed) for k in range(args.cases)]
@@ -294,7 +304,7 @@ def main(argv: list | None = None) -> int:
         if i % 2 and old_cls is not None:
             order.reverse()
         for name, cls in order:
-            (new if name == 'new' else old).append(case(d, cls))
+            (new if name == 'new' else old).append(case(d, cls, args.rule))
     names, tables = ['new (this tree)'], [rates(cases, new)]
     if old:
         names.insert(0, f'old ({args.old})')

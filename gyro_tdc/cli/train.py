@@ -126,8 +126,10 @@ def training_json(result: TrainResult, warnings: Sequence[str] = ()) -> dict:
     Return what ``train`` produced in the documented JSON shape (doc/json.md).
 
     Model file and id, kind, features, bags, samples, range, raw and training BS (deg/s)^2
-    and RMS per axis, the constant axes (axis -> reading, rad/s), the accelerometer part
-    (``fitted``, ``note``; null with ``--no-accel``) and the ``warnings`` printed.
+    and RMS per axis, the constant axes (axis -> reading, rad/s), ``reanchor`` (the start-up
+    shift the node takes per axis and its figures, ``model.metrics['reanchor']``), the
+    accelerometer part (``fitted``, ``note``; null with ``--no-accel``) and the ``warnings``
+    printed.
     """
     m, acc = result.model, result.accel
 
@@ -144,6 +146,7 @@ def training_json(result: TrainResult, warnings: Sequence[str] = ()) -> dict:
             'raw_bs': vec('raw_bs_dps2'), 'train_bs': vec('train_bs_dps2'),
             'train_rms_dps': vec('train_rms_dps'),
             'constant_axes': {a: num(v) for a, v in result.constant.items()},
+            'reanchor': m.metrics.get('reanchor'),
             'accelerometer': None if acc is None else {'fitted': acc.part is not None,
                                                        'note': acc.note or None},
             'warnings': list(warnings)}

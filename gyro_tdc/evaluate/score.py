@@ -39,7 +39,7 @@ from gyro_tdc.identify import (accel_scores, all_constant_error, constant_axes, 
                                MAX_MOVING_SHARE, MIN_SAMPLES, moving_share)
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             MAX_EXTRAPOLATION_C, model_temperature)
-from gyro_tdc.runtime import default_tolerance, reanchor_shift, STILL_WINDOW_MAX_S
+from gyro_tdc.runtime import default_tolerance, gated_shift, reanchor_shift, STILL_WINDOW_MAX_S
 from gyro_tdc.signal import (allan_deviation, bias_stability, noise_readouts, rms_dps,
                              STILL_WINDOW_S)
 import numpy as np
@@ -255,10 +255,10 @@ def _reanchored(comp: NDArray[np.float64], run: Run, model: CompensationModel,
         tol = default_tolerance(model.residual_var)
         r = reanchor_shift(run.t, comp - run.omega_ref, tolerance=tol, window=STILL_WINDOW_S,
                            window_max=STILL_WINDOW_MAX_S)
-        deg = np.degrees
-        return comp - np.asarray(r.delta), {
+        deg, delta = np.degrees, gated_shift(model, r.delta)      # the model's gate, as the node
+        return comp - delta, {
             'samples': int(r.samples), 'duration_s': float(r.duration_s),
-            'shift_dps': deg(r.delta).tolist(), 'se_dps': deg(r.se).tolist(),
+            'shift_dps': deg(delta).tolist(), 'se_dps': deg(r.se).tolist(),
             'tolerance_dps': deg(tol).tolist(), 'reason': r.reason}
     if reanchor_s > 0:
         head = run.t <= run.t[0] + reanchor_s

@@ -25,7 +25,7 @@ from typing import Any, Sequence
 
 from gyro_tdc.data import Coverage
 from gyro_tdc.evaluate.report import AXES
-from gyro_tdc.identify import session_check_lines, TrainResult
+from gyro_tdc.identify import reanchor_lines, session_check_lines, TrainResult
 from gyro_tdc.model import MAX_EXTRAPOLATION_C, OPERATING_RANGE_C, range_shortfall
 import numpy as np
 from numpy.typing import NDArray
@@ -162,7 +162,9 @@ def format_sessions(result: TrainResult) -> list[str]:
     list of str
         How the bags were cut, then each session's offset from the model's (their mean,
         deg/s), the spread and, above :data:`REANCHOR_SPREAD_DPS` on an axis, the line that
-        says to re-anchor on the vehicle; empty without sessions.
+        says to re-anchor on the vehicle, then how large a start-up shift the node takes
+        per axis (:func:`~gyro_tdc.identify.power_cycles.reanchor_lines`); empty without
+        sessions.
 
     """
     split = getattr(result, 'sessions', None)
@@ -170,8 +172,9 @@ def format_sessions(result: TrainResult) -> list[str]:
         return []
     out = list(split.lines())
     info = result.model.metrics.get('sessions')
+    anchors = reanchor_lines(result.model.metrics.get('reanchor'))
     if not info:
-        return out
+        return out + anchors
     out.append("turn-on offset of each session against the model's (their mean), deg/s:")
     width = max(len(n) for n in info['names'])
     for name, off, n in zip(info['names'], info['offset_dps'], info['samples']):
@@ -185,7 +188,7 @@ def format_sessions(result: TrainResult) -> list[str]:
                    'power cycle to the next: a model fixes the thermal curve, not the offset '
                    'of a new power cycle; re-anchor on the vehicle (compensator_node '
                    'reanchor_on_start, on by default) and score with evaluate --reanchor auto')
-    return out + session_check_lines(info.get('heldout'))
+    return out + session_check_lines(info.get('heldout')) + anchors
 
 
 def format_training(result: TrainResult) -> tuple[str, list]:

@@ -38,6 +38,7 @@ from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, ident
 from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.identify.fit import estimate_t0, fit_model
 from gyro_tdc.identify.options import TrainOptions, TrainResult
+from gyro_tdc.identify.power_cycles import reanchor_rule
 from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, check_still_span, find_still,
                                           first_still_temperature, fit_without_outliers,
                                           MAX_MOVING_SHARE, moving_share, proxy_lag, rows_of,
@@ -108,7 +109,10 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     reference rate that move longer than :data:`~gyro_tdc.identify.still_only.MAX_MOVING_SHARE`
     of the time are trained on their still stretches only (:func:`train_still_only`, said on
     ``log``): motion is no drift. A constant gyro axis is not fitted: the model passes it
-    through (``result.constant``, ``model.metrics['constant_axes']``). GyroTdcError
+    through (``result.constant``, ``model.metrics['constant_axes']``). The start-up shift the
+    node takes per axis is decided on the sessions
+    (:func:`~gyro_tdc.identify.power_cycles.reanchor_rule`, ``model.metrics['reanchor']``).
+    GyroTdcError
     (DatasetError, FitError, ModelFileError, OutputError) for what cannot be read, fitted or
     written.
     """
@@ -130,7 +134,13 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     kw, choice = _features(o, fitted, runs, estimate_t0(runs[0]) if o.t0 is None else o.t0, log)
     model = fit_model(fitted, sessions=split.labels, frame_id=data_frame(runs),
                       created={'command': command, 'bags': names}, **kw)
-    return _finish(identity_axes(model, runs, const), o, out, runs, choice, {},
+    # The start-up shift the node takes per axis, decided on the sessions (each refitted
+    # without the others at the model's features, parameters and thermal state).
+    form = {**kw, 'features': model.features, 'params': model.effect_params,
+            'fit_params': False, 'thermal': model.thermal}
+    model = reanchor_rule(identity_axes(model, runs, const), fitted, split.labels,
+                          lambda others, g: fit_model(others, sessions=g, **form))
+    return _finish(model, o, out, runs, choice, {},
                    coverage=coverage(runs, bin_c=o.bin_c), bags=names,
                    samples=sum(len(r) for r in runs), sessions=split,
                    constant=constant_readings(runs, const))

@@ -83,8 +83,11 @@ PARAMS = (
     ParamSpec('reanchor_on_start', True, 'Shift the model offset so the compensated rate '
               'averages zero once the IMU is still and the mean is known to '
               'reanchor_tolerance: the turn-on offset of this power cycle, which no model '
-              'trained on other power cycles knows. false: keep the model offset (the mean '
-              'of its training sessions).', policy=True, read_only=False),
+              'trained on other power cycles knows; with the default still_window, '
+              'still_window_max and reanchor_tolerance, on an axis only beyond the gate its '
+              "training found (the model's reanchor min_shift_dps; none: any shift). false: "
+              'keep the model offset (the mean of its training sessions).', policy=True,
+              read_only=False),
     ParamSpec('reanchor_tolerance', 0.0, 'Largest standard error of the re-anchoring shift '
               "per axis; 0: auto, 0.1 x the model's residual standard deviation, at least "
               '1e-5 rad/s [rad/s].', 0.0, 10.0, policy=True, read_only=False),

@@ -18,7 +18,8 @@ Re-anchoring: average the compensated rate over still windows until its mean is 
 :class:`StillnessDetector` (the compensator's start-up re-anchoring) stacks the block-means
 standard error on the windows of the one streaming still test
 (:class:`gyro_tdc.signal.StillWindows`); :func:`reanchor_shift` is the rule on a whole run
-(``evaluate --reanchor auto``). See doc/internals/signal.md.
+(``evaluate --reanchor auto``). :func:`gated_shift` keeps, per axis, the shift the model's
+training found worth taking (:data:`REANCHOR_KEY`). See doc/internals/signal.md.
 
 A window of two samples or more ends at a pause (a step longer than the window between two
 samples): at the end of a burst, without the next burst's first sample. A bursty stream (one
@@ -48,13 +49,38 @@ from gyro_tdc.signal import (MIN_WINDOW_SAMPLES, NOISE_FACTOR, NOISE_WINDOWS, ST
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['Anchor', 'BLOCKS_PER_WINDOW', 'BlockStats', 'EARLY_BLOCKS', 'MAX_BLOCK_S',
-           'NOISE_FACTOR', 'NOISE_WINDOWS', 'STILL_WINDOW_MAX_S', 'STILL_WINDOW_S', 'Shift',
-           'StillnessDetector', 'TOLERANCE_FLOOR', 'TOLERANCE_FRACTION', 'Vec3',
-           'block_length', 'default_tolerance', 'max_windows', 'reanchor_shift',
-           'standard_error', 'window_stats', 'windows_moving']
+__all__ = ['Anchor', 'BLOCKS_PER_WINDOW', 'BlockStats', 'EARLY_BLOCKS', 'gated_shift',
+           'MAX_BLOCK_S', 'NOISE_FACTOR', 'NOISE_WINDOWS', 'REANCHOR_KEY', 'shift_gate',
+           'STILL_WINDOW_MAX_S', 'STILL_WINDOW_S', 'Shift', 'StillnessDetector',
+           'TOLERANCE_FLOOR', 'TOLERANCE_FRACTION', 'Vec3', 'block_length',
+           'default_tolerance', 'max_windows', 'reanchor_shift', 'standard_error',
+           'window_stats', 'windows_moving']
 
 _INF3 = (math.inf, math.inf, math.inf)
+#: The ``model.metrics`` key of the trainer's re-anchoring decision
+#: (:func:`gyro_tdc.identify.power_cycles.reanchor_rule`): ``min_shift_dps`` per axis.
+REANCHOR_KEY = 'reanchor'
+
+
+def shift_gate(model) -> NDArray[np.float64]:
+    """
+    Return the smallest start-up shift the node takes per axis, rad/s (0: any).
+
+    The model's training decision (``metrics[REANCHOR_KEY]['min_shift_dps']``); zeros for a
+    model without it (a learned model, a fitted one not from ``train``) or with a bad one.
+    """
+    rec = None if model is None else model.metrics.get(REANCHOR_KEY)
+    try:
+        gate = np.radians(np.asarray(rec['min_shift_dps'], dtype=np.float64).reshape(3))
+    except (KeyError, TypeError, ValueError):
+        return np.zeros(3)
+    return np.where(gate >= 0.0, gate, 0.0)          # NaN: any shift
+
+
+def gated_shift(model, delta: Sequence[float]) -> NDArray[np.float64]:
+    """Return the start-up shift ``delta`` (rad/s) with the axes below the model's gate zeroed."""
+    d = np.asarray(delta, dtype=np.float64).reshape(3)
+    return np.where(np.abs(d) > shift_gate(model), d, 0.0)
 
 
 def _window_end(t: NDArray[np.float64], i0: int, window: float) -> tuple[int, int]:
@@ -243,6 +269,12 @@ class StillnessDetector:
         #: samples that follow are not given until the next reset).
         self._t_last: float | None = None
         self.reset()
+
+    @property
+    def default_rule(self) -> bool:
+        """Return whether the anchors are the trainer's (default windows, auto tolerance)."""
+        return (self.fixed_tolerance <= 0 and self.window == STILL_WINDOW_S
+                and self.window_max == STILL_WINDOW_MAX_S)
 
     @property
     def motion(self) -> list[tuple[float, bool]]:

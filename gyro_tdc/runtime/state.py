@@ -30,7 +30,7 @@ from gyro_tdc.runtime.blockstats import Anchor
 from gyro_tdc.runtime.drift import ModelSlot
 from gyro_tdc.runtime.flags import FLAG_NAMES
 from gyro_tdc.runtime.policy import Policy
-from gyro_tdc.runtime.reanchor import StillnessDetector
+from gyro_tdc.runtime.reanchor import gated_shift, StillnessDetector
 from gyro_tdc.signal import SessionTracker, TemperatureHold
 import numpy as np
 from numpy.typing import NDArray
@@ -182,10 +182,18 @@ class Reanchoring:
         self.detector = detector
 
     def take(self, found: Anchor, slot: ModelSlot, temp: float) -> None:
-        """Shift ``slot``'s model offset by the shift ``found`` at ``temp``; keep it."""
+        """
+        Shift ``slot``'s model offset by the shift ``found`` at ``temp``; keep it.
+
+        With the default averaging, an axis whose shift is within the model's gate
+        (:func:`gated_shift`: no evidence of a turn-on offset, as its training measured
+        anchors of that averaging) is not shifted.
+        """
         # The compensated rate is divided by 1 + s dT: the drift shift is the mean times it.
         den = slot.scale_at(temp)
         delta = np.asarray(found.delta) * den
+        if self.detector.default_rule:
+            delta = gated_shift(slot.model, delta)
         slot.comp.shift_offset(delta)
         slot.clear()
         self.anchor = replace(found, delta=tuple(float(v) for v in delta),

@@ -12,17 +12,22 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The stillness test (no rclpy): still, moving, shaken and slowly turning windows."""
+"""The stillness test (no rclpy): still, moving, shaken and slowly turning windows; the gate."""
 
 from __future__ import annotations
 
 import math
 
-from gyro_tdc.runtime.reanchor import (block_length, default_tolerance, max_windows,
-                                       reanchor_shift, standard_error, StillnessDetector,
-                                       window_stats)
+from gyro_tdc.identify import fit_model
+from gyro_tdc.model import compensate
+from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.policy import Policy
+from gyro_tdc.runtime.reanchor import (block_length, default_tolerance, gated_shift,
+                                       max_windows, REANCHOR_KEY, reanchor_shift, shift_gate,
+                                       standard_error, StillnessDetector, window_stats)
 import numpy as np
 import pytest
+from synth import synth_run
 
 
 def test_stillness_detector():
@@ -145,3 +150,54 @@ def test_anchor_is_the_streams_own_sums_bit_for_bit():
         s = [u + v for u, v in zip(s, [u + v for u, v in zip(ws, bs)])]
     assert found.samples == n
     assert found.delta == tuple(ci + si / n for ci, si in zip(c, s))
+
+
+def _gated(model, gate_dps):
+    """Return ``model`` carrying the trainer's gate (deg/s per axis)."""
+    return model.replace(metrics={**model.metrics, REANCHOR_KEY: {'min_shift_dps': gate_dps}})
+
+
+def test_the_gate_is_the_models_and_any_shift_without_one():
+    model = fit_model([synth_run(hours=0.5, rate_hz=2.0, seed=2)], kind='poly', features='dT')
+    assert shift_gate(None).tolist() == shift_gate(model).tolist() == [0.0, 0.0, 0.0]
+    gated = _gated(model, [0.1, 0.0, float('nan')])
+    np.testing.assert_allclose(shift_gate(gated), [math.radians(0.1), 0.0, 0.0])
+    np.testing.assert_allclose(gated_shift(gated, [1e-3, 1e-3, -1e-3]), [0.0, 1e-3, -1e-3])
+    np.testing.assert_allclose(gated_shift(gated, [3e-3, 0.0, 0.0]), [3e-3, 0.0, 0.0])
+    for bad in ({}, {'min_shift_dps': [0.1, 0.2]}, {'min_shift_dps': 'x'}, [1, 2, 3]):
+        broken = model.replace(metrics={REANCHOR_KEY: bad})
+        assert shift_gate(broken).tolist() == [0.0, 0.0, 0.0]
+
+
+def test_the_core_takes_no_shift_within_the_models_gate():
+    """A start-up shift below an axis's gate is no evidence of a turn-on offset: not taken."""
+    model = fit_model([synth_run(hours=0.5, rate_hz=2.0, seed=2, noise_dps=0.01)],
+                      kind='poly', features='dT')
+    rng = np.random.default_rng(4)
+    t = 100.0 + np.arange(2000) / 100.0
+    offset = np.array([0.9e-3, -0.5e-3, 0.3e-3])          # rad/s: 0.052, -0.029, 0.017 deg/s
+    raw = (rng.normal(0.0, 1e-4, (t.size, 3)) + offset
+           + compensate_zero(model, t, np.full(t.size, 25.0)))
+
+    def anchor(m, **policy):
+        core = CompensatorCore(Policy(**policy), m)
+        for k in range(t.size):
+            if k % 100 == 0:
+                core.add_temperature(t[k], 25.0)
+            core.process(t[k], *raw[k])
+        return core.anchor
+
+    free = anchor(model)
+    np.testing.assert_allclose(free.delta, offset, atol=1e-4)
+    gated = _gated(model, [0.1, 0.01, 0.1])                  # x and z within their gate
+    held = anchor(gated)
+    assert held.delta[0] == held.delta[2] == 0.0
+    assert held.delta[1] == pytest.approx(free.delta[1], abs=1e-12)
+    # Another averaging than the one the trainer measured: its gate does not apply.
+    for policy in ({'reanchor_tolerance': 1e-5}, {'still_window': 5.0}):
+        np.testing.assert_allclose(anchor(gated, **policy).delta, offset, atol=1e-4)
+
+
+def compensate_zero(model, t, temp):
+    """Return the model's drift (rad/s) along ``temp``: what the sensor adds to a zero rate."""
+    return -compensate(model, t, temp, np.zeros((t.size, 3)))

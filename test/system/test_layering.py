@@ -50,7 +50,7 @@ LAYERS: dict[str, frozenset] = {k: frozenset(v.split()) for k, v in {
     'signal': 'base',
     'data': 'base errors model signal',
     'model': 'base errors',
-    'identify': 'gyro_tdc base data errors model signal',
+    'identify': 'gyro_tdc base data errors model runtime signal',
     'runtime': 'base model signal',
     'learn': 'base errors model signal',
     'evaluate': 'base data errors identify model runtime signal',

@@ -1,0 +1,105 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""The start-up shift rule: the gate of one session's anchors, held-out sessions' choice."""
+
+from __future__ import annotations
+
+import json
+
+from bags import bag_from_run
+from gyro_tdc.cli.train import main as train_main
+from gyro_tdc.data import Run
+from gyro_tdc.identify import fit_model, reanchor_lines, reanchor_rule
+from gyro_tdc.model import load_model
+import numpy as np
+import pytest
+from synth import synth_run
+
+
+def _bursts(seed: int, jitter_dps: float, offset_dps=(0.0, 0.0, 0.0), hours: float = 2.0,
+            **kw) -> Run:
+    """Return a 10 Hz run kept in 5 s bursts every 300 s, each burst its own jitter."""
+    r = synth_run(seed=seed, hours=hours, rate_hz=10.0, t_lo=15.0, t_hi=30.0, noise_dps=0.02,
+                  offset_dps=offset_dps, **kw)
+    rng = np.random.default_rng(seed)
+    burst = (r.t // 300.0).astype(int)
+    omega = r.omega + np.radians(rng.normal(0.0, jitter_dps, (burst.max() + 1, 3)))[burst]
+    keep = r.t % 300.0 < 5.0
+    return Run(r.t[keep], r.temp[keep], omega[keep], r.omega_ref[keep], f'b{seed}')
+
+
+def _rule(runs, labels):
+    """Fit a poly dT, dT2 with one offset per session and apply the rule (refit alike)."""
+    def fit(rr, gg):
+        return fit_model(rr, kind='poly', features='dT,dT2', t0=20.0, sessions=gg)
+    return reanchor_rule(fit(runs, labels), runs, labels, fit)
+
+
+def test_one_session_of_jittering_bursts_gates_at_twice_its_anchors_error():
+    model = _rule([_bursts(1, 0.006)], [0])
+    rec = model.metrics['reanchor']
+    assert (rec['sessions'], rec['held_out']) == (1, 0) and 'always_dps' not in rec
+    err = np.array(rec['anchor_error_dps'])
+    # An anchor (a burst's mean, or two) errs by the jitter and the noise's SE.
+    assert np.all((err > 0.003) & (err < 0.01)), err
+    np.testing.assert_allclose(rec['min_shift_dps'], 2.0 * err)
+    lines = reanchor_lines(rec)
+    assert lines[0].startswith('start-up anchors taken throughout the training data err by')
+    assert all(x.startswith(f'axis {a}: the node re-anchors only beyond')
+               for a, x in zip('xyz', lines[1:]))
+    # Without jitter the anchors err by the noise alone: a smaller gate.
+    quiet = np.array(_rule([_bursts(1, 0.0)], [0]).metrics['reanchor']['anchor_error_dps'])
+    assert np.all(quiet < 0.75 * err), (quiet, err)
+
+
+def test_turn_on_offsets_held_out_keep_any_shift():
+    rng = np.random.default_rng(3)
+    runs = [synth_run(seed=20 + i, hours=0.5, rate_hz=2.0, t_lo=0.0, t_hi=40.0,
+                      noise_dps=0.02, offset_dps=tuple(rng.normal(0.0, 0.3, 3)),
+                      cooling=bool(i % 2)) for i in range(4)]
+    rec = _rule(runs, [0, 1, 2, 3]).metrics['reanchor']
+    assert (rec['sessions'], rec['held_out']) == (4, 4)
+    always, never = np.array(rec['always_dps']), np.array(rec['never_dps'])
+    assert np.all(always < never / 20.0), (always, never)
+    assert rec['min_shift_dps'] == [0.0, 0.0, 0.0]
+    lines = reanchor_lines(rec)
+    assert lines[1].startswith('held out on 4 power cycles')
+    assert [x.split()[0] for x in lines[2:5]] == ['always', 'gated', 'never']
+    assert lines[-1] == 'axis z: the node re-anchors any start-up shift'
+
+
+def test_without_turn_on_offsets_the_gate_is_kept_where_it_did_better():
+    runs = [_bursts(30 + i, 0.004, hours=1.5, cooling=bool(i % 2)) for i in range(4)]
+    rec = _rule(runs, [0, 1, 2, 3]).metrics['reanchor']
+    assert rec['held_out'] == 4
+    always, gated = np.array(rec['always_dps']), np.array(rec['gated_dps'])
+    gate = 2.0 * np.array(rec['anchor_error_dps'])
+    np.testing.assert_allclose(rec['min_shift_dps'], np.where(gated < always, gate, 0.0))
+    # Re-anchoring on one jittering burst does worse than the model's offset held out.
+    assert np.all(np.array(rec['never_dps']) < always), rec
+    assert any(v > 0 for v in rec['min_shift_dps'])
+
+
+def test_train_reports_the_rule_in_text_and_json(tmp_path, capsys):
+    bag = bag_from_run(_bursts(5, 0.004), tmp_path / 'bursts')
+    out, js = tmp_path / 'm.yaml', tmp_path / 'm.json'
+    assert train_main([str(bag), '--out', str(out), '--features', 'dT,dT2', '--kind', 'poly',
+                       '--json', str(js), '--no-progress']) == 0
+    text = capsys.readouterr().out
+    assert 'start-up anchors taken throughout the training data err by' in text
+    assert 'axis y: the node re-anchors only beyond' in text
+    rec = json.loads(js.read_text())['reanchor']
+    assert rec == load_model(out).metrics['reanchor']
+    assert rec['min_shift_dps'] == pytest.approx(2.0 * np.array(rec['anchor_error_dps']))
