@@ -16,7 +16,7 @@
 ``python -m gyro_tdc evaluate``: held-out scores, the paper's tables, JSON, plots, CSV, errors.
 
 Bags are written in ``tmp_path`` from ``synth.py`` runs and from the simulator (helpers in
-``test_cli_train.py``); models come from ``train``'s ``main``.
+``test/cli/test_train.py``); models come from ``train``'s ``main``.
 """
 
 from __future__ import annotations
