@@ -34,7 +34,7 @@ from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, c
 from gyro_tdc.data import load_runs
 from gyro_tdc.identify import (clamp_cost, fit_export, from_params, read_params, score_export,
                                write_params)
-from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, save_model, stored
+from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, save_model
 import numpy as np
 
 __all__ = ['build_parser', 'main']
@@ -104,7 +104,7 @@ def _write_model(args: argparse.Namespace) -> int:
     if args.eval or args.reanchor:
         raise UsageError('--eval and --reanchor are for --px4/--ardupilot; evaluate a model '
                          'with gyro-tdc evaluate BAG --model MODEL')
-    model = stored(read_model(args.model))            # the id printed is the file's
+    model = read_model(args.model)
     path = save_model(model, args.out)
     lo, hi = model.temp_range_c
     learned = model.created.get('learn_file')

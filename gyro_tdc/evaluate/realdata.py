@@ -34,13 +34,13 @@ from gyro_tdc.data import default_pan_csv, PanCubesat, read_pan_cubesat_csv, Run
 from gyro_tdc.errors import FitError, GyroTdcError
 from gyro_tdc.evaluate.score import score
 from gyro_tdc.identify import estimate_t0, fit_linear, fit_model, fit_time_constant
-from gyro_tdc.model import (batch_features, compensate, CompensationModel, EFFECTS, input_ids,
-                            normalise_ids, resolve_params)
+from gyro_tdc.model import (batch_features, compensate, CompensationModel, EFFECTS,
+                            normalise_ids, rbf_design, resolve_params)
 from gyro_tdc.signal import bias_stability, Folds
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['HOLDOUT_MODELS', 'HoldoutModel', 'burst_holdout', 'burst_index',
+__all__ = ['FullSeriesModel', 'HOLDOUT_MODELS', 'HoldoutModel', 'burst_holdout', 'burst_index',
            'fit_full_series', 'format_holdout', 'pan_holdout', 'POSITIONS', 'run_tool']
 
 _DEG = 180.0 / math.pi
@@ -123,11 +123,37 @@ def burst_index(t: NDArray[np.float64], *, gap_s: float = 2.0) -> NDArray[np.int
     return np.concatenate([[0], np.cumsum(np.diff(t) > gap_s)]).astype(np.int64)
 
 
+@dataclass(frozen=True)
+class FullSeriesModel:
+    """
+    The comparator's own ``poly`` model: every feature of the measured temperature.
+
+    Its ``lag`` is a column of its own (the lagged measured temperature beside ``dT``), a form
+    a model file has no place for (there ``lag`` makes the thermal state every term is of),
+    so the comparator evaluates it itself, the filters run over the whole recording.
+    """
+
+    features: tuple[str, ...]
+    effect_params: dict
+    t0_c: float
+    norm: tuple
+    coef: NDArray[np.float64]
+    temp_range_c: tuple[float, float]
+
+    def compensate(self, t: NDArray[np.float64], temp: NDArray[np.float64],
+                   omega: NDArray[np.float64], *, clamp: bool = True) -> NDArray[np.float64]:
+        """Return ``omega - b`` (N, 3), rad/s, the features of the temperature clamped or not."""
+        temp = np.asarray(temp, dtype=np.float64)
+        s = np.clip(temp, *self.temp_range_c) if clamp else temp
+        x = batch_features(self.features, t, s, t0=self.t0_c, params=self.effect_params)
+        return np.asarray(omega, dtype=np.float64) - rbf_design(self.norm, x) @ self.coef
+
+
 def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[str],
                     t0: float, params: Mapping[str, Mapping[str, float]] | None = None,
-                    ridge: float = 1e-6, n_grid: int = 25) -> CompensationModel:
+                    ridge: float = 1e-6, n_grid: int = 25) -> FullSeriesModel:
     """
-    Fit a ``poly`` model on some rows, the features computed on the whole run.
+    Fit the comparator's ``poly`` model on some rows, the features computed on the whole run.
 
     The effect parameters marked as fitted in the catalog (the ``lag`` time constant) are
     chosen on the training rows: a log grid over the catalog bounds, then a bounded 1-D
@@ -153,8 +179,8 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
 
     Returns
     -------
-    CompensationModel
-        A ``poly`` model; its ``temp_range_c`` is the range of the training rows.
+    FullSeriesModel
+        Its ``temp_range_c`` is the range of the training rows.
 
     """
     train = np.asarray(train, dtype=bool)
@@ -163,14 +189,13 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
     if np.count_nonzero(train) < 2:
         raise FitError(f'Expected at least 2 training rows, got {np.count_nonzero(train)}.')
     ids = normalise_ids(features)
-    inputs = input_ids(ids)
     par = resolve_params(ids, params)
     y = (run.omega - run.omega_ref)[train]
 
     def design(p: Mapping) -> NDArray[np.float64]:
-        return batch_features(inputs, run.t, run.temp, t0=t0, params=p)[train]
+        return batch_features(ids, run.t, run.temp, t0=t0, params=p)[train]
 
-    for eid in inputs:
+    for eid in ids:
         for name in EFFECTS[eid].fitted:
 
             def sse(tau: float, eid: str = eid, name: str = name) -> float:
@@ -182,14 +207,13 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
                                                n_grid=n_grid).tau
     fit = fit_linear(design(par), y, kind='poly', ridge=ridge)
     temp = run.temp[train]
-    return CompensationModel.network(
-        'poly', ids, par, t0, fit.norm, fit.coef, temp_range_c=(temp.min(), temp.max()),
-        residual_var=np.mean(fit.resid ** 2, axis=0),
-        created={'fit': 'gyro_tdc.evaluate.realdata.fit_full_series'})
+    return FullSeriesModel(ids, par, float(t0), fit.norm,
+                           np.ascontiguousarray(fit.coef, dtype=np.float64),
+                           (float(temp.min()), float(temp.max())))
 
 
 def _fit(spec: HoldoutModel, run: Run, train: NDArray[np.bool_], t0: float
-         ) -> CompensationModel:
+         ) -> CompensationModel | FullSeriesModel:
     """Fit one compared model on the training rows."""
     if spec.full_series:
         return fit_full_series(run, train, features=spec.features, t0=t0)
@@ -198,6 +222,14 @@ def _fit(spec: HoldoutModel, run: Run, train: NDArray[np.bool_], t0: float
               f'{run.name}[train]')
     return fit_model([sub], kind=spec.kind, features=spec.features, t0=t0,
                      n_centers=spec.n_centers, seed=0)
+
+
+def _compensated(model: CompensationModel | FullSeriesModel, run: Run, clamp: bool
+                 ) -> NDArray[np.float64]:
+    """Return the whole run compensated by a compared model (clamped or not)."""
+    if isinstance(model, FullSeriesModel):
+        return model.compensate(run.t, run.temp, run.omega, clamp=clamp)
+    return compensate(model, run.t, run.temp, run.omega, clamp=clamp)
 
 
 def _rows(run: Run, idx: NDArray[np.int64], name: str) -> Run:
@@ -253,9 +285,8 @@ def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
                 extra = {}
             else:
                 model = _fit(spec, run, train, t0)
-                rates[spec.name] = tuple(
-                    compensate(model, run.t, run.temp, run.omega, clamp=c)[held]
-                    for c in (True, False))
+                rates[spec.name] = tuple(_compensated(model, run, c)[held]
+                                         for c in (True, False))
                 extra = {'effect_params': {k: dict(v) for k, v in model.effect_params.items()}}
             fold['models'][spec.name] = {**_scored(rates[spec.name], held_run, floor)[0],
                                          **extra}

@@ -235,8 +235,6 @@ def accel_features(model: CompensationModel, features: str | Sequence[str] | Non
     :data:`ACCEL_EFFECTS` otherwise; ``lag`` follows the thermal state either way (a
     FeatureError for a foreign id, or ``lag`` with an unlagged state).
     """
-    if model.thermal is None:
-        raise FeatureError('an accelerometer part needs a format-2 model (a thermal front end)')
     lagged = model.thermal.kind != 'none'
     if features is None:
         ids = normalise_ids(('dT', 'dT2') + tuple(e for e in model.features

@@ -522,7 +522,7 @@ def same_thermal(a: ThermalState | None, b: ThermalState | None) -> bool:
 
 def at_state(model: CompensationModel) -> CompensationModel:
     """Return ``model`` taking the model temperature as its input (its lag switched off)."""
-    if model.thermal is None or model.thermal.kind == 'none':
+    if model.thermal.kind == 'none':
         return model
     return replace(model, features=tuple(f for f in model.features if f not in THERMAL_EFFECTS),
                    effect_params={k: v for k, v in model.effect_params.items()

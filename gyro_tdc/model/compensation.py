@@ -37,10 +37,12 @@ from gyro_tdc.model.thermal_state import SETTLE_TAUS, ThermalState
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['CompensationModel', 'StreamingCompensator', 'compensate', 'drift',
-           'model_temperature', 'predict_drift', 'rbf_design']
+__all__ = ['CompensationModel', 'FORMAT_VERSION', 'StreamingCompensator', 'compensate',
+           'drift', 'model_temperature', 'predict_drift', 'rbf_design']
 
 KINDS = ('rbf', 'poly')
+#: The model-file format every model is (:mod:`gyro_tdc.model.modelfile` writes and reads it).
+FORMAT_VERSION = 2
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,12 +89,11 @@ class CompensationModel:
         Training metrics (plain types).
     created : dict
         Creation info (UTC time, gyro_tdc version, command, data).
-    thermal : ThermalState, optional
-        The thermal front end (format 2; kind ``none`` when the model has no ``lag``, else
-        ``first_order`` or ``two_node``). None: a format-1 model (the layout before the
-        thermal state, see the module docstring); what old files load as.
+    thermal : ThermalState
+        The thermal front end: kind ``none`` (the default) when the model has no ``lag``,
+        else ``first_order`` or ``two_node``.
     accel : CompensationModel, optional
-        The accelerometer part (format 2 only): the same thermal front end and T0, output
+        The accelerometer part: the same thermal front end and T0, output
         in m/s^2, ``residual_var`` in (m/s^2)^2, ``scale`` zero, zero at T0
         (:mod:`gyro_tdc.identify`). None: the model compensates the gyro only.
 
@@ -116,19 +117,16 @@ class CompensationModel:
     sensor_id: str = ''
     metrics: dict = field(default_factory=dict, compare=False)
     created: dict = field(default_factory=dict, compare=False)
-    thermal: ThermalState | None = None
+    thermal: ThermalState = ThermalState()
     accel: 'CompensationModel | None' = None
 
     def __post_init__(self) -> None:
         """Check that the thermal front end agrees with the features."""
         th = self.thermal
+        if not isinstance(th, ThermalState):
+            raise FeatureError(f'`thermal` must be a ThermalState, got {type(th).__name__}')
         if self.accel is not None:
             self._check_accel()
-        if th is None:
-            return
-        if not isinstance(th, ThermalState):
-            raise FeatureError(f'`thermal` must be a ThermalState or None, got '
-                               f'{type(th).__name__}')
         lagged = bool(THERMAL_EFFECTS & set(self.features))
         if lagged != (th.kind != 'none'):
             raise FeatureError(f'thermal kind {th.kind!r} does not match the features '
@@ -146,9 +144,6 @@ class CompensationModel:
         if not isinstance(a, CompensationModel):
             raise FeatureError(f'`accel` must be a CompensationModel or None, got '
                                f'{type(a).__name__}')
-        if self.thermal is None:
-            raise FeatureError('an accelerometer part needs a format-2 model (a thermal '
-                               'front end)')
         if a.accel is not None:
             raise FeatureError('an accelerometer part cannot hold an accelerometer part')
         if a.thermal != self.thermal or a.t0_c != self.t0_c:
@@ -159,8 +154,8 @@ class CompensationModel:
 
     @property
     def format_version(self) -> int:
-        """Return the model-file format: 2 with a thermal front end, 1 without."""
-        return 1 if self.thermal is None else 2
+        """Return the model-file format (:data:`FORMAT_VERSION`, the one there is)."""
+        return FORMAT_VERSION
 
     def __eq__(self, other: object) -> bool:
         """Compare every fitted field exactly (arrays element-wise)."""
@@ -183,7 +178,7 @@ class CompensationModel:
     @property
     def inputs(self) -> tuple[str, ...]:
         """Return the ids of the network inputs, in feature-matrix column order."""
-        return input_ids(self.features, state=self.thermal is not None)
+        return input_ids(self.features, state=True)
 
     @property
     def n_centers(self) -> int:
@@ -201,10 +196,8 @@ class CompensationModel:
         """
         h = hashlib.sha256()
         head = [self.kind, list(self.features), self.effect_params, self.frame_id,
-                self.sensor_id, self.metrics]
-        if self.thermal is not None:
-            head.append({'format_version': self.format_version,
-                         'thermal': self.thermal.to_dict()})
+                self.sensor_id, self.metrics,
+                {'format_version': FORMAT_VERSION, 'thermal': self.thermal.to_dict()}]
         if self.accel is not None:          # a gyro-only model keeps the id it had
             head.append({'accel': self.accel.model_id})
         h.update(_canonical_json(head).encode())
@@ -307,15 +300,13 @@ def model_temperature(model: CompensationModel, t: NDArray[np.float64],
                       temp: NDArray[np.float64], *, clamp: bool = False
                       ) -> NDArray[np.float64]:
     """
-    Return the model temperature over one run: the thermal state, or ``temp`` (format 1).
+    Return the model temperature over one run: the thermal state of the measured ``temp``.
 
     ``t`` (N,) are the stamps of one continuous run, s, ``temp`` (N,) the measured
     temperature, degC; ``clamp`` clips the result to ``temp_range_c``. Every temperature
     term of the model is evaluated at it (N,), degC.
     """
-    temp = np.asarray(temp, dtype=np.float64)
-    if model.thermal is not None:
-        temp = model.thermal.temperature(t, temp)
+    temp = model.thermal.temperature(t, np.asarray(temp, dtype=np.float64))
     if clamp:
         lo, hi = model.temp_range_c
         return np.clip(temp, lo, hi)
@@ -338,11 +329,8 @@ def _drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.fl
     temp = np.asarray(temp, dtype=np.float64)
     lo, hi = model.temp_range_c
     s, reach = split(model_temperature(model, t, temp), lo, hi, policy, max_c)
-    if model.thermal is None:        # format 1: every feature of the (clamped) measured T
-        x = batch_features(model.features, t, s, t0=model.t0_c, params=model.effect_params)
-    else:
-        x = batch_features(model.features, t, temp, t0=model.t0_c,
-                           params=model.effect_params, state=s)
+    x = batch_features(model.features, t, temp, t0=model.t0_c, params=model.effect_params,
+                       state=s)
     d = s - model.t0_c
     coef = model.coefficients
     out = np.empty((x.shape[0], 3))
@@ -448,10 +436,9 @@ class StreamingCompensator:
         self.clamp = out_of_range == 'clamp'
         self.max_extrapolation_c = float(max_extrapolation_c)
         self._tangent = Tangent(model) if self.policy == 'linear' else None
-        self.thermal = None if model.thermal is None else model.thermal.stream()
+        self.thermal = model.thermal.stream()
         self.features = StreamingFeatures(model.features, t0=model.t0_c,
-                                          params=model.effect_params,
-                                          state=model.thermal is not None)
+                                          params=model.effect_params, state=True)
         self._coef = model.coefficients
         self._mean = model.input_mean
         self._std = model.input_std
@@ -474,8 +461,7 @@ class StreamingCompensator:
     def reset(self) -> None:
         """Restart the thermal state and the feature filters (a new run)."""
         self.features.reset()
-        if self.thermal is not None:
-            self.thermal.reset()
+        self.thermal.reset()
         self.model_temp = None
         if self.accel is not None:
             self.accel.reset()
@@ -485,12 +471,10 @@ class StreamingCompensator:
         """
         Return the stamp time since the first sample, in the state's time constants.
 
-        None when the model has no lagged state (format 1, or kind ``none``).
+        None when the model has no lagged state (kind ``none``).
         """
         th = self.thermal
-        if th is None or th.thermal.kind == 'none':
-            return None
-        return th.progress
+        return None if th.thermal.kind == 'none' else th.progress
 
     @property
     def thermal_settled(self) -> bool:
@@ -511,7 +495,7 @@ class StreamingCompensator:
         outside (degC, negative below), ``model_temp`` the temperature the correction
         stands for and ``dt_c`` that minus T0 (the ``dT`` of the scale term).
         """
-        s = temp if self.thermal is None else self.thermal.update(t, temp)
+        s = self.thermal.update(t, temp)
         reach = 0.0
         if self._lo <= s <= self._hi:
             self.in_range = True
@@ -520,10 +504,7 @@ class StreamingCompensator:
             self.in_range = False
             self.range_distance_c = s - min(max(s, self._lo), self._hi)
             s, reach = split(s, self._lo, self._hi, self.policy, self.max_extrapolation_c)
-        if self.thermal is None:          # format 1: every feature of the (clamped) T
-            x = self.features.update(t, s)
-        else:
-            x = self.features.update(t, temp, s)
+        x = self.features.update(t, temp, s)
         xn = (x - self._mean) / self._std
         row = np.empty(1 + self._f + self._centers.shape[0])
         row[0] = 1.0
@@ -570,9 +551,7 @@ def summary(model: CompensationModel) -> Mapping[str, Any]:
            'temp_range_c': [float(v) for v in model.temp_range_c],
            'effect_params': model.effect_params,
            'residual_std_dps': [math.degrees(math.sqrt(v)) for v in model.residual_var],
-           'format_version': model.format_version}
-    if model.thermal is not None:
-        out['thermal'] = model.thermal.to_dict()
+           'format_version': FORMAT_VERSION, 'thermal': model.thermal.to_dict()}
     if model.accel is not None:
         a = model.accel
         out['accel'] = {'model_id': a.model_id, 'kind': a.kind, 'features': list(a.features),

@@ -23,7 +23,6 @@ field: ``doc/internals/model.md``.
 
 from __future__ import annotations
 
-from dataclasses import replace
 import os
 from pathlib import Path
 from typing import Any, Mapping
@@ -31,8 +30,8 @@ from typing import Any, Mapping
 from gyro_tdc.base import (atomic_write, FieldChecker, MAX_CENTERS, plain, read_yaml, shown,
                            YamlLimits)
 from gyro_tdc.errors import FeatureError, ModelFileError
-from gyro_tdc.model.compensation import CompensationModel, KINDS
-from gyro_tdc.model.effects import input_ids, normalise_ids, resolve_params, STATE_TERMS
+from gyro_tdc.model.compensation import CompensationModel, FORMAT_VERSION, KINDS
+from gyro_tdc.model.effects import input_ids, normalise_ids, resolve_params
 from gyro_tdc.model.thermal_state import ThermalState
 from gyro_tdc.model.validate import check_model
 import numpy as np
@@ -40,10 +39,8 @@ import yaml
 
 __all__ = ['FORMAT_VERSION', 'MAX_MODEL_BYTES', 'MAX_MODEL_DEPTH',
            'MAX_MODEL_NODES', 'load_model', 'model_from_dict',
-           'model_to_dict', 'save_model', 'stored']
+           'model_to_dict', 'save_model']
 
-#: The model-file format, written and read.
-FORMAT_VERSION = 2
 MAX_MODEL_BYTES = 4 * 1024 * 1024
 MAX_MODEL_DEPTH = 32
 MAX_MODEL_NODES = 250_000
@@ -51,27 +48,8 @@ _LIMITS = YamlLimits('model file', max_bytes=MAX_MODEL_BYTES, max_depth=MAX_MODE
                      max_nodes=MAX_MODEL_NODES, aliases=False)
 
 
-def stored(model: CompensationModel) -> CompensationModel:
-    """
-    Return the model as its file holds it: with a thermal front end (kind none when absent).
-
-    A model without one (the learner's before a prior) computes the same with kind none when
-    its terms are of the temperature alone or ``warmup``; ``lag`` or ``dTdt`` of the clamped
-    measured temperature has no file form.
-    """
-    if model.thermal is not None:
-        return model
-    other = sorted(set(model.inputs) - STATE_TERMS - {'warmup'})
-    if other:
-        raise ModelFileError(f'a model without a thermal front end is stored with kind none, '
-                             f'which changes {", ".join(other)}: fit it with a thermal front '
-                             'end')
-    return replace(model, thermal=ThermalState())
-
-
 def model_to_dict(model: CompensationModel) -> dict:
-    """Return the model (see :func:`stored`) as a dict of plain types, in file order."""
-    model = stored(model)
+    """Return the model as a dict of plain types, in file order."""
     d = {
         'format_version': FORMAT_VERSION,
         'kind': model.kind,

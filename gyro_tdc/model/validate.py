@@ -167,8 +167,7 @@ def _check_taus(m: CompensationModel) -> None:
     lo, hi = TAU_BOUNDS_S
     taus = [(f'effect_params.{eid}.{k}', v) for eid, p in m.effect_params.items()
             for k, v in p.items()]
-    if m.thermal is not None:
-        taus += [(f'thermal.tau_s[{i}]', v) for i, v in enumerate(m.thermal.tau_s)]
+    taus += [(f'thermal.tau_s[{i}]', v) for i, v in enumerate(m.thermal.tau_s)]
     for name, v in taus:
         if not lo <= v <= hi:
             raise ModelFileError(f'field `{name}` must lie within {lo:g} .. {hi:g} s, got '

@@ -226,7 +226,7 @@ def test_full_series_fit_equals_fit_model_on_static_features():
         ours = fit_full_series(run, train, features=feats, t0=23.8)
         core = fit_model([sub], kind='poly', features=feats, t0=23.8)
         assert ours.temp_range_c == core.temp_range_c
-        np.testing.assert_allclose(compensate(ours, run.t, run.temp, run.omega),
+        np.testing.assert_allclose(ours.compensate(run.t, run.temp, run.omega),
                                    compensate(core, run.t, run.temp, run.omega),
                                    rtol=0, atol=1e-12)
 

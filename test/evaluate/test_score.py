@@ -69,12 +69,9 @@ def _run(err_dps, *, temp=None, ref_dps=(10.0, 0.0, -5.0), rate=10.0, name='bags
 
 def _linear_model(intercept_dps, slope_dps_per_c, *, t0=25.0, lo=-40.0, hi=85.0):
     """Return a poly f(dT) model: drift = intercept + slope * (T - t0), deg/s."""
-    return CompensationModel(
-        kind='poly', features=('dT',), effect_params={}, t0_c=t0, input_mean=np.zeros(1),
-        input_std=np.ones(1), centers=np.zeros((0, 1)), widths=np.zeros(0),
-        weights=np.zeros((0, 3)), intercept=np.asarray(intercept_dps, dtype=float) * DEG,
-        linear=np.asarray([slope_dps_per_c], dtype=float) * DEG, scale=np.zeros(3),
-        temp_range_c=(lo, hi), residual_var=np.zeros(3))
+    coef = np.array([intercept_dps, slope_dps_per_c], dtype=float) * DEG
+    return CompensationModel.polynomial(('dT',), t0, coef, temp_range_c=(lo, hi),
+                                        residual_var=np.zeros(3))
 
 
 def test_score_is_the_hand_computed_bias_stability():

@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""Tests of gyro_tdc.model.compensation: formulas, streaming, clamping, ids, format 1, state."""
+"""Tests of gyro_tdc.model.compensation: formulas, streaming, clamping, ids, thermal state."""
 
 import math
 from pathlib import Path
@@ -20,6 +20,7 @@ from pathlib import Path
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model.compensation import (compensate, CompensationModel, drift, model_temperature,
                                          predict_drift, rbf_design, StreamingCompensator, summary)
+from gyro_tdc.model.effects import batch_features
 from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 import pytest
@@ -180,15 +181,16 @@ def test_format_2_state_model_drift_and_range_follow_the_state():
     assert s['format_version'] == 2 and s['thermal']['tau_s'] == [50.0]
 
 
-def test_format_2_without_lag_matches_the_format_1_numbers():
-    # A static model: the state is the measured temperature, only the format differs.
+def test_kind_none_evaluates_every_term_of_the_measured_temperature():
+    # A static model: the state is the measured temperature, each term of it (clamped).
     run = synth_run(seed=3, hours=0.2)
     model = fit_model([run], features='dT,dT2', n_centers=5)
     assert model.thermal == ThermalState() and model.format_version == 2
-    legacy = model.replace(thermal=None)
+    np.testing.assert_array_equal(model_temperature(model, run.t, run.temp), run.temp)
+    s = np.clip(run.temp, *model.temp_range_c)
+    x = batch_features(model.features, run.t, s, t0=model.t0_c, params=model.effect_params)
     np.testing.assert_array_equal(compensate(model, run.t, run.temp, run.omega),
-                                  compensate(legacy, run.t, run.temp, run.omega))
-    assert legacy.model_id != model.model_id
+                                  run.omega - rbf_design(model, x) @ model.coefficients)
 
 
 def test_linear_policy_continues_the_hand_model_along_its_tangent():

@@ -14,10 +14,10 @@
 
 """Model file: exact round trip, and every malformed file rejected naming its field."""
 
-from gyro_tdc.errors import ModelFileError
+from gyro_tdc.errors import FeatureError, ModelFileError
 from gyro_tdc.identify import fit_model
-from gyro_tdc.model.compensation import compensate, drift
-from gyro_tdc.model.modelfile import load_model, model_to_dict, save_model, stored
+from gyro_tdc.model.compensation import compensate, CompensationModel, drift
+from gyro_tdc.model.modelfile import load_model, model_to_dict, save_model
 from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 import pytest
@@ -43,23 +43,27 @@ def test_round_trip_is_exact(tmp_path, kind):
     assert back.metrics == m.metrics and back.created['gyro_tdc_version']
 
 
-def test_a_model_without_a_thermal_front_end_is_stored_with_kind_none(tmp_path):
+def test_a_model_built_without_a_thermal_front_end_is_saved_with_kind_none(tmp_path):
+    # The shape of a flight controller's cubic or the learner's fit before it has a prior.
     run = synth_run(seed=23, hours=0.3)
-    m = fit_model([run], kind='poly', features='dT,dT2,warmup').replace(thermal=None)
+    coef = np.array([[0.01, -0.02, 0.0], [1e-3, 2e-4, 0.0], [1e-5, 0.0, -2e-5]])
+    m = CompensationModel.polynomial(('dT', 'dT2'), 20.0, coef, temp_range_c=(15.0, 35.0),
+                                     residual_var=np.full(3, 1e-8))
     back = load_model(save_model(m, tmp_path / 'm.yaml'))
-    assert back.thermal == ThermalState() and back == stored(m) and back.format_version == 2
-    assert yaml.safe_load((tmp_path / 'm.yaml').read_text())['format_version'] == 2
+    assert back.thermal == ThermalState() and back == m and back.model_id == m.model_id
+    data = yaml.safe_load((tmp_path / 'm.yaml').read_text())
+    assert data['format_version'] == 2 and data['thermal']['kind'] == 'none'
     for clamp in (True, False):
         np.testing.assert_array_equal(drift(back, run.t, run.temp + 15.0, clamp=clamp),
                                       drift(m, run.t, run.temp + 15.0, clamp=clamp))
 
 
-def test_an_additive_lag_column_has_no_file_form(tmp_path, model):
-    additive = model.replace(thermal=None, effect_params={'lag': {'tau_s': 50.0}})
-    assert additive.inputs == ('dT', 'dT2', 'lag')
-    with pytest.raises(ModelFileError, match='without a thermal front end .* changes lag'):
-        save_model(additive, tmp_path / 'm.yaml')
-    assert not (tmp_path / 'm.yaml').exists()
+def test_a_model_cannot_be_built_without_a_thermal_front_end(model):
+    # `lag` is the lagged state every term is of; an additive lag column has no model form.
+    with pytest.raises(FeatureError, match='`thermal` must be a ThermalState, got NoneType'):
+        model.replace(thermal=None)
+    with pytest.raises(FeatureError, match="thermal kind 'none' does not match the features"):
+        model.replace(thermal=ThermalState())
 
 
 def test_file_has_every_documented_field(tmp_path, model):

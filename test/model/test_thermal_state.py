@@ -389,16 +389,17 @@ def test_a_format_1_file_is_refused(tmp_path, lag_model):
         load_model(path)
 
 
-def test_hand_built_models_default_to_format_1():
-    m = CompensationModel(
-        kind='poly', features=('dT', 'lag'), effect_params={'lag': {'tau_s': 50.0}},
-        t0_c=20.0, input_mean=np.zeros(2), input_std=np.ones(2), centers=np.zeros((0, 2)),
-        widths=np.zeros(0), weights=np.zeros((0, 3)), intercept=np.zeros(3),
-        linear=np.ones((2, 3)), scale=np.zeros(3), temp_range_c=(0.0, 40.0),
-        residual_var=np.zeros(3))
-    assert m.format_version == 1 and m.inputs == ('dT', 'lag')
+def test_hand_built_models_have_kind_none_and_lag_needs_a_lagged_state():
+    coef = np.vstack([np.zeros(3), np.ones(3)])
+    m = CompensationModel.polynomial(('dT',), 20.0, coef, temp_range_c=(0.0, 40.0),
+                                     residual_var=np.zeros(3))
+    assert m.thermal == ThermalState() and m.format_version == 2 and m.inputs == ('dT',)
     with pytest.raises(FeatureError, match='thermal kind'):
-        m.replace(thermal=ThermalState())
+        CompensationModel.polynomial(('dT', 'lag'), 20.0, coef, temp_range_c=(0.0, 40.0),
+                                     residual_var=np.zeros(3),
+                                     effect_params={'lag': {'tau_s': 50.0}})
+    with pytest.raises(FeatureError, match='`thermal` must be a ThermalState, got NoneType'):
+        m.replace(thermal=None)
 
 
 def test_training_report_prints_tau_with_its_interval_or_that_it_is_not_pinned():

@@ -17,22 +17,21 @@
 from __future__ import annotations
 
 from gyro_tdc.model.compensation import CompensationModel
-from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 
 
 def small_model(k: int = 4, **changes) -> CompensationModel:
     """Return a small hand-made RBF model (no fitting), seeded."""
     rng = np.random.default_rng(5)
-    m = CompensationModel(
-        kind='rbf', features=('dT', 'dT2'), effect_params={}, t0_c=20.0,
-        input_mean=np.array([10.0, 300.0]), input_std=np.array([20.0, 400.0]),
-        centers=rng.normal(size=(k, 2)), widths=rng.uniform(0.2, 1.0, k),
-        weights=rng.normal(scale=1e-3, size=(k, 3)), intercept=np.array([1e-3, -2e-3, 5e-4]),
-        linear=rng.normal(scale=1e-3, size=(2, 3)), scale=np.zeros(3),
-        temp_range_c=(-10.0, 50.0), residual_var=np.full(3, 1e-8), frame_id='imu_link',
-        sensor_id='unit-7', metrics={'samples': 1000, 'runs': ['/bags/run1']},
-        created={'utc': '2026-01-01T00:00:00+00:00', 'command': 'test'}, thermal=ThermalState())
+    centers, widths = rng.normal(size=(k, 2)), rng.uniform(0.2, 1.0, k)
+    weights, linear = rng.normal(scale=1e-3, size=(k, 3)), rng.normal(scale=1e-3, size=(2, 3))
+    norm = (np.array([10.0, 300.0]), np.array([20.0, 400.0]), centers, widths)
+    coef = np.vstack([[1e-3, -2e-3, 5e-4], linear, weights])
+    m = CompensationModel.network(
+        'rbf', ('dT', 'dT2'), {}, 20.0, norm, coef, temp_range_c=(-10.0, 50.0),
+        residual_var=np.full(3, 1e-8), frame_id='imu_link', sensor_id='unit-7',
+        metrics={'samples': 1000, 'runs': ['/bags/run1']},
+        created={'utc': '2026-01-01T00:00:00+00:00', 'command': 'test'})
     return m.replace(**changes) if changes else m
 
 

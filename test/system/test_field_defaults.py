@@ -79,8 +79,7 @@ def _models():
     static = fit_model([run], features='dT,dT2,scale', n_centers=8)
     lag = fit_model([run], features='dT,dT2,lag,dTdt', n_centers=8)
     cubic = fit_model([run], kind='poly', features='dT,dT2,dT3')
-    return {'static rbf + scale': static, 'lag rbf + dTdt': lag, 'cubic poly': cubic,
-            'format 1': cubic.replace(thermal=None)}
+    return {'static rbf + scale': static, 'lag rbf + dTdt': lag, 'cubic poly': cubic}
 
 
 def test_linear_batch_equals_streaming_and_the_compensator_core():
@@ -154,11 +153,8 @@ def test_linear_widens_the_covariance_with_the_distance_and_reports_it():
 
 def _still_model(residual_std):
     """Return a model with no drift (range 0..50 degC) and this residual std, rad/s."""
-    return CompensationModel(
-        kind='poly', features=('dT',), effect_params={}, t0_c=25.0, input_mean=np.zeros(1),
-        input_std=np.ones(1), centers=np.zeros((0, 1)), widths=np.zeros(0),
-        weights=np.zeros((0, 3)), intercept=np.zeros(3), linear=np.zeros((1, 3)),
-        scale=np.zeros(3), temp_range_c=(0.0, 50.0), residual_var=np.full(3, residual_std ** 2))
+    return CompensationModel.polynomial(('dT',), 25.0, np.zeros((2, 3)), temp_range_c=(0.0, 50.0),
+                                        residual_var=np.full(3, residual_std ** 2))
 
 
 def _ar1(rng, n, dt, tau, sd_1s):
