@@ -132,7 +132,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     model = read_model(spec)
     lo, hi = model.temp_range_c
     state = ('steady-state drift vs temperature (the thermal state settled)'
-             if model.thermal is not None and model.thermal.kind != 'none' else
+             if model.thermal.kind != 'none' else
              'drift vs temperature')
     print(f'model {spec} ({model.model_id}, {model.kind} {",".join(model.features)}), trained '
           f'{lo:.2f} .. {hi:.2f} degC: its {state} fitted on a uniform temperature grid')

@@ -98,9 +98,7 @@ def timeless(model: CompensationModel) -> bool:
     for part in (model, getattr(model, 'accel', None)):
         if part is None:
             continue
-        thermal = part.thermal
-        if not set(part.features) <= STATIC_EFFECTS or (
-                thermal is not None and thermal.kind != 'none'):
+        if not set(part.features) <= STATIC_EFFECTS or part.thermal.kind != 'none':
             return False
     return True
 
