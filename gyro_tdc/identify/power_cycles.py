@@ -167,28 +167,34 @@ def _anchor(t: NDArray[np.float64], e: NDArray[np.float64], var: NDArray[np.floa
 
 
 def _sessions(model: CompensationModel, runs: Sequence[Run], labels: Sequence[int],
-              lo: float = -math.inf, hi: float = math.inf) -> dict:
+              lo: float = -math.inf, hi: float = math.inf, rows: Sequence | None = None) -> dict:
     """
     Return per session label its runs' (stamps, error) inside ``lo .. hi`` model degC.
 
-    A run longer than :data:`MAX_ROWS` is averaged over blocks of consecutive samples first:
-    an anchor is a mean, and a block mean's scatter keeps its standard error.
+    ``rows`` (a mask per run, or None: every sample) keeps the still rows only, compensated
+    over every sample (the thermal state runs through the motion). A run longer than
+    :data:`MAX_ROWS` is averaged over blocks of consecutive samples first: an anchor is a
+    mean, and a block mean's scatter keeps its standard error.
     """
     out: dict = {}
-    for run, g in zip(runs, labels):
-        k = -(-len(run) // MAX_ROWS)
-        t, temp, omega, ref = (block_mean(a, k)
-                               for a in (run.t, run.temp, run.omega, run.omega_ref))
+    for i, (run, g) in enumerate(zip(runs, labels)):
+        arrays = (run.t, run.temp, run.omega, run.omega_ref)
+        if rows is None:                  # block means first: a long run stays cheap
+            k = -(-len(run) // MAX_ROWS)
+            (t, temp, omega, ref), m, k = (block_mean(a, k) for a in arrays), slice(None), 1
+        else:
+            (t, temp, omega, ref), m = arrays, np.asarray(rows[i], dtype=bool)
+            k = max(1, -(-np.count_nonzero(m) // MAX_ROWS))
         c = compensate(model, t, temp, omega, out_of_range=DEFAULT_OUT_OF_RANGE)
-        mt = model_temperature(model, t, temp)
+        t, e, mt = (block_mean(a[m], k) for a in (t, c - ref, model_temperature(model, t, temp)))
         keep = (mt >= lo) & (mt <= hi)
         if np.count_nonzero(keep) >= 2:
-            out.setdefault(int(g), []).append((t[keep], (c - ref)[keep]))
+            out.setdefault(int(g), []).append((t[keep], e[keep]))
     return out
 
 
-def _anchor_error(model: CompensationModel, runs: Sequence[Run], labels: Sequence[int]
-                  ) -> NDArray[np.float64]:
+def _anchor_error(model: CompensationModel, runs: Sequence[Run], labels: Sequence[int],
+                  rows: Sequence | None = None) -> NDArray[np.float64]:
     """
     Return the RMS error (rad/s) of start-up anchors taken throughout the training data.
 
@@ -196,7 +202,7 @@ def _anchor_error(model: CompensationModel, runs: Sequence[Run], labels: Sequenc
     one every longest averaging within it, each against its session's mean error.
     """
     errs = []
-    for parts in _sessions(model, runs, labels).values():
+    for parts in _sessions(model, runs, labels, rows=rows).values():
         level = np.concatenate([e for _, e in parts]).mean(axis=0)
         for t, e in parts:
             pause = np.flatnonzero(np.diff(t) > STILL_WINDOW_S) + 1
@@ -212,20 +218,27 @@ def _anchor_error(model: CompensationModel, runs: Sequence[Run], labels: Sequenc
 
 
 def _held_out(model: CompensationModel, runs: Sequence[Run], labels: NDArray[np.int64],
-              gate: NDArray[np.float64], refit) -> tuple[int, NDArray[np.float64]]:
+              gate: NDArray[np.float64], refit, rows: Sequence | None = None
+              ) -> tuple[int, NDArray[np.float64]]:
     """
     Return the sessions held out and the mean square of their mean errors (3 choices, 3 axes).
 
     Each session predicted by ``refit`` on the others, inside their temperature range, and
-    re-anchored at its start by the node's rule: any shift, beyond ``gate``, none.
+    re-anchored at its start by the node's rule: any shift, beyond ``gate``, none; ``rows``
+    (a mask per run) keeps the still rows only, in the refit (``rows=``) and the scoring.
     """
     ss, n_all, held = np.zeros((3, 3)), 0.0, 0
     for test, train in Folds.sessions(labels):
+        def pick(items: Sequence, on: NDArray[np.bool_]) -> list:
+            return [v for v, k in zip(items, on) if k]
+
+        kw = {} if rows is None else {'rows': pick(rows, train)}
         try:
-            m = refit([r for r, k in zip(runs, train) if k], labels[train].tolist())
+            m = refit(pick(runs, train), labels[train].tolist(), **kw)
         except FitError:
             continue                      # too little left without this session
-        parts = _sessions(m, [r for r, k in zip(runs, test) if k], labels[test], *m.temp_range_c)
+        parts = _sessions(m, pick(runs, test), labels[test], *m.temp_range_c,
+                          rows=None if rows is None else pick(rows, test))
         if not parts:
             continue
         (session,) = parts.values()
@@ -240,7 +253,8 @@ def _held_out(model: CompensationModel, runs: Sequence[Run], labels: NDArray[np.
 
 
 def reanchor_rule(model: CompensationModel, runs: Sequence[Run], labels: Sequence[int],
-                  refit: Callable[[list, list], CompensationModel]) -> CompensationModel:
+                  refit: Callable[..., CompensationModel], rows: Sequence | None = None
+                  ) -> CompensationModel:
     """
     Decide per axis the smallest start-up shift the node takes; record it in the model.
 
@@ -254,7 +268,10 @@ def reanchor_rule(model: CompensationModel, runs: Sequence[Run], labels: Sequenc
         Session label per run.
     refit : callable
         ``refit(runs, labels)``: ``model``'s form fitted on other runs (a held-out session's
-        others).
+        others); with ``rows``, ``refit(runs, labels, rows=masks)``.
+    rows : sequence of bool arrays, optional
+        The samples of each run the model was fitted on (``train --still-only``: the still
+        rows); None: every sample.
 
     Returns
     -------
@@ -269,11 +286,11 @@ def reanchor_rule(model: CompensationModel, runs: Sequence[Run], labels: Sequenc
 
     """
     labels = np.asarray(labels, dtype=np.int64)
-    gate = SIGNIFICANCE * _anchor_error(model, runs, labels)
+    gate = SIGNIFICANCE * _anchor_error(model, runs, labels, rows)
     rec = {'sessions': int(np.unique(labels).size), 'held_out': 0,
            'anchor_error_dps': (gate / SIGNIFICANCE * _DEG).tolist()}
     if rec['sessions'] >= 2:
-        held, ms = _held_out(model, runs, labels, gate, refit)
+        held, ms = _held_out(model, runs, labels, gate, refit, rows)
         rec['held_out'] = held
         if held >= 2:
             rms = np.sqrt(ms) * _DEG
