@@ -18,9 +18,9 @@
 from __future__ import annotations
 
 from dataclasses import replace
+import json
 from pathlib import Path
 import shutil
-import json
 import tempfile
 import warnings
 
