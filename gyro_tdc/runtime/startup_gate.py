@@ -88,7 +88,7 @@ def _anchor_error(model: CompensationModel, runs: Sequence, labels: Sequence[int
     """
     Return the RMS error (rad/s) of start-up anchors taken throughout the training data.
 
-    One anchor from each burst or still stretch (after a pause over the still window) and
+    One anchor from each burst, still stretch or point (after a pause over the still window) and
     one every longest averaging within it, each against its session's mean error.
     """
     errs = []
@@ -98,7 +98,7 @@ def _anchor_error(model: CompensationModel, runs: Sequence, labels: Sequence[int
             pause = np.flatnonzero(np.diff(t) > STILL_WINDOW_S) + 1
             for a, b in zip(np.r_[0, pause], np.r_[pause, t.size]):
                 for j in np.unique(np.searchsorted(t[a:b], np.arange(
-                        t[a], t[b - 1], STILL_WINDOW_MAX_S)) + a):
+                        t[a], max(t[b - 1], t[a] + 1.0), STILL_WINDOW_MAX_S)) + a):
                     errs.append((t, e, int(j), bool(pause.size and j >= pause[0]), level))
     if len(errs) > MAX_ANCHORS:
         errs = [errs[i] for i in np.linspace(0, len(errs) - 1, MAX_ANCHORS).round().astype(int)]
