@@ -41,8 +41,8 @@ from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit
 from gyro_tdc.model import CompensationModel
-from gyro_tdc.runtime.startup_gate import MAX_ANCHORS, MAX_ROWS, SIGNIFICANCE
-from gyro_tdc.runtime.startup_gate import reanchor_rule as _rule
+from gyro_tdc.runtime import MAX_ANCHORS, MAX_ROWS, SIGNIFICANCE
+from gyro_tdc.runtime import reanchor_rule as _rule
 from gyro_tdc.signal import Folds, heldout, within
 import numpy as np
 from numpy.typing import NDArray

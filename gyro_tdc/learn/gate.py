@@ -30,8 +30,7 @@ from typing import Callable
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.fit import at_state, model_of
 from gyro_tdc.model import CompensationModel, ThermalState
-from gyro_tdc.runtime.reanchor import REANCHOR_KEY
-from gyro_tdc.runtime.startup_gate import reanchor_rule
+from gyro_tdc.runtime import REANCHOR_KEY, reanchor_rule
 import numpy as np
 from numpy.typing import NDArray
 
