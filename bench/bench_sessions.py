@@ -352,9 +352,10 @@ def real_recording(held_bursts: int = 5) -> dict | None:
     out, _, _ = stream(ours, t, rec.gyro, None, t, rec.temp_c, Policy(reanchor_on_start=False))
     res['ours_no_reanchor'] = burst_rms(out[held]) / best
     core = CompensatorCore(Policy(), ours)
-    core.learner = Learner(prior=ours)
+    core.learner = learner = Learner(prior=ours)
     out, _ = feed(core, t, rec.gyro, None, t, rec.temp_c)
     res['ours_learn'] = burst_rms(out[held]) / best
+    res['learned_gate_dps'] = learner.model.metrics.get('reanchor', {}).get('min_shift_dps')
     raw = rec.gyro[held] - rec.gyro[held].mean(axis=0)
     res['raw_mean_removed'] = burst_rms(raw) / best
     # Ours anchored as the best simple anchor is: on the first two held-out bursts.
@@ -445,6 +446,9 @@ def main(argv: list | None = None) -> int:
             print(f'  {key:<23} ' + ' '.join(f'{v:8.3f}' for v in real[key]))
         print('  the start-up shift the node takes (the trained gate), deg/s: beyond '
               + ' '.join(f'{v:.4f}' for v in real['gate_dps']))
+        if real['learned_gate_dps'] is not None:
+            print("  with learn:=true, the learned model's gate (its points), deg/s: beyond "
+                  + ' '.join(f'{v:.4f}' for v in real['learned_gate_dps']))
     print(f'\n{time.perf_counter() - start:.0f} s')
     return 0
 

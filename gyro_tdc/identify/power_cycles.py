@@ -21,11 +21,12 @@ held-out session re-anchored, as the compensator re-anchors at start-up, against
 alone. An axis whose curve does not predict every held-out power cycle better keeps the
 offset only; :func:`session_check_lines` says so with the figures.
 
-:func:`reanchor_rule` decides the same way, per axis, how large a start-up shift the node
-takes (the gate :func:`gyro_tdc.runtime.reanchor.gated_shift` applies): any, or only one
-beyond :data:`SIGNIFICANCE` times the error of anchors taken throughout the training data
-(a smaller one is no evidence of a turn-on offset: short bursts that jitter around the
-model). With two sessions or more the choice is the one that did better held out;
+:func:`reanchor_rule` (the rule of :mod:`gyro_tdc.runtime.startup_gate`, which the learner
+shares) decides the same way, per axis, how large a start-up shift the node takes (the gate
+:func:`gyro_tdc.runtime.reanchor.gated_shift` applies): any, or only one beyond
+:data:`SIGNIFICANCE` times the error of anchors taken throughout the training data (a
+smaller one is no evidence of a turn-on offset: short bursts that jitter around the model).
+With two sessions or more the choice is the one that did better held out;
 :func:`reanchor_lines` reports it.
 """
 
@@ -39,9 +40,10 @@ from typing import Callable, Sequence
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit
-from gyro_tdc.model import compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, model_temperature
-from gyro_tdc.runtime import default_tolerance, REANCHOR_KEY, reanchor_shift, STILL_WINDOW_MAX_S
-from gyro_tdc.signal import block_mean, Folds, heldout, STILL_WINDOW_S, within
+from gyro_tdc.model import CompensationModel
+from gyro_tdc.runtime import MAX_ANCHORS, MAX_ROWS, SIGNIFICANCE
+from gyro_tdc.runtime import reanchor_rule as _rule
+from gyro_tdc.signal import Folds, heldout, within
 import numpy as np
 from numpy.typing import NDArray
 
@@ -51,13 +53,6 @@ __all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'reanchor_lines', 'reanc
 _AXES = ('x', 'y', 'z')
 _DEG = 180.0 / math.pi
 _DEG2 = _DEG ** 2
-#: A gated node takes a start-up shift on an axis only beyond this many times the RMS error
-#: of start-up anchors taken throughout the training data.
-SIGNIFICANCE = 2.0
-#: Start-up anchors tried over the training data at most (evenly picked).
-MAX_ANCHORS = 100
-#: Rows per run the anchors are taken on at most (longer runs are block-averaged).
-MAX_ROWS = 50_000
 
 
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
@@ -158,130 +153,22 @@ def session_check_lines(record: dict | None) -> list[str]:
     return out
 
 
-def _anchor(t: NDArray[np.float64], e: NDArray[np.float64], var: NDArray[np.float64],
-            paused: bool = False) -> NDArray[np.float64]:
-    """Return the node's start-up shift of the error ``e`` (rad/s) from its first sample on."""
-    end = int(np.searchsorted(t, t[0] + STILL_WINDOW_MAX_S + 2.0 * STILL_WINDOW_S, 'right'))
-    return np.asarray(reanchor_shift(t[:end], e[:end], tolerance=default_tolerance(var),
-                                     paused=paused).delta)
-
-
-def _sessions(model: CompensationModel, runs: Sequence[Run], labels: Sequence[int],
-              lo: float = -math.inf, hi: float = math.inf) -> dict:
-    """
-    Return per session label its runs' (stamps, error) inside ``lo .. hi`` model degC.
-
-    A run longer than :data:`MAX_ROWS` is averaged over blocks of consecutive samples first:
-    an anchor is a mean, and a block mean's scatter keeps its standard error.
-    """
-    out: dict = {}
-    for run, g in zip(runs, labels):
-        k = -(-len(run) // MAX_ROWS)
-        t, temp, omega, ref = (block_mean(a, k)
-                               for a in (run.t, run.temp, run.omega, run.omega_ref))
-        c = compensate(model, t, temp, omega, out_of_range=DEFAULT_OUT_OF_RANGE)
-        mt = model_temperature(model, t, temp)
-        keep = (mt >= lo) & (mt <= hi)
-        if np.count_nonzero(keep) >= 2:
-            out.setdefault(int(g), []).append((t[keep], (c - ref)[keep]))
-    return out
-
-
-def _anchor_error(model: CompensationModel, runs: Sequence[Run], labels: Sequence[int]
-                  ) -> NDArray[np.float64]:
-    """
-    Return the RMS error (rad/s) of start-up anchors taken throughout the training data.
-
-    One anchor from each burst or still stretch (after a pause over the still window) and
-    one every longest averaging within it, each against its session's mean error.
-    """
-    errs = []
-    for parts in _sessions(model, runs, labels).values():
-        level = np.concatenate([e for _, e in parts]).mean(axis=0)
-        for t, e in parts:
-            pause = np.flatnonzero(np.diff(t) > STILL_WINDOW_S) + 1
-            for a, b in zip(np.r_[0, pause], np.r_[pause, t.size]):
-                for j in np.unique(np.searchsorted(t[a:b], np.arange(
-                        t[a], t[b - 1], STILL_WINDOW_MAX_S)) + a):
-                    errs.append((t, e, int(j), bool(pause.size and j >= pause[0]), level))
-    if len(errs) > MAX_ANCHORS:
-        errs = [errs[i] for i in np.linspace(0, len(errs) - 1, MAX_ANCHORS).round().astype(int)]
-    d = [_anchor(t[j:], e[j:], model.residual_var, paused) - level
-         for t, e, j, paused, level in errs if t.size - j >= 2]
-    return np.sqrt(np.mean(np.square(d), axis=0)) if d else np.zeros(3)
-
-
-def _held_out(model: CompensationModel, runs: Sequence[Run], labels: NDArray[np.int64],
-              gate: NDArray[np.float64], refit) -> tuple[int, NDArray[np.float64]]:
-    """
-    Return the sessions held out and the mean square of their mean errors (3 choices, 3 axes).
-
-    Each session predicted by ``refit`` on the others, inside their temperature range, and
-    re-anchored at its start by the node's rule: any shift, beyond ``gate``, none.
-    """
-    ss, n_all, held = np.zeros((3, 3)), 0.0, 0
-    for test, train in Folds.sessions(labels):
-        try:
-            m = refit([r for r, k in zip(runs, train) if k], labels[train].tolist())
-        except FitError:
-            continue                      # too little left without this session
-        parts = _sessions(m, [r for r, k in zip(runs, test) if k], labels[test], *m.temp_range_c)
-        if not parts:
-            continue
-        (session,) = parts.values()
-        e_all = np.concatenate([e for _, e in session])
-        mean, n = e_all.mean(axis=0), e_all.shape[0]
-        s = _anchor(*session[0], m.residual_var)
-        for i, shift in enumerate((s, np.where(np.abs(s) > gate, s, 0.0), np.zeros(3))):
-            ss[i] += n * (mean - shift) ** 2
-        n_all += n
-        held += 1
-    return held, ss / max(n_all, 1.0)
-
-
 def reanchor_rule(model: CompensationModel, runs: Sequence[Run], labels: Sequence[int],
-                  refit: Callable[[list, list], CompensationModel]) -> CompensationModel:
+                  refit: Callable[..., CompensationModel], rows: Sequence | None = None
+                  ) -> CompensationModel:
     """
     Decide per axis the smallest start-up shift the node takes; record it in the model.
 
-    Parameters
-    ----------
-    model : CompensationModel
-        The model fitted on ``runs``.
-    runs : sequence of Run
-        Its training runs (constant axes neutral).
-    labels : sequence of int
-        Session label per run.
-    refit : callable
-        ``refit(runs, labels)``: ``model``'s form fitted on other runs (a held-out session's
-        others).
-
-    Returns
-    -------
-    CompensationModel
-        ``model`` with ``metrics['reanchor']``: ``anchor_error_dps`` (RMS error of start-up
-        anchors taken throughout the data), ``min_shift_dps`` (0: any shift), ``sessions``,
-        ``held_out`` and, with two held out or more, ``always_dps``, ``gated_dps`` and
-        ``never_dps`` (RMS over the held-out sessions of their mean error re-anchored with
-        any shift, beyond the gate, never). Held out, the gate is kept on an axis where it
-        did better than any shift; without, it is kept (one session cannot show that a
-        shift within the anchors' own error is a turn-on offset).
-
+    :func:`gyro_tdc.runtime.startup_gate.reanchor_rule` (its parameters and record), with
+    ``refit`` raising FitError where too little is left without a held-out session.
     """
-    labels = np.asarray(labels, dtype=np.int64)
-    gate = SIGNIFICANCE * _anchor_error(model, runs, labels)
-    rec = {'sessions': int(np.unique(labels).size), 'held_out': 0,
-           'anchor_error_dps': (gate / SIGNIFICANCE * _DEG).tolist()}
-    if rec['sessions'] >= 2:
-        held, ms = _held_out(model, runs, labels, gate, refit)
-        rec['held_out'] = held
-        if held >= 2:
-            rms = np.sqrt(ms) * _DEG
-            rec.update(always_dps=rms[0].tolist(), gated_dps=rms[1].tolist(),
-                       never_dps=rms[2].tolist())
-            gate = np.where(ms[1] < ms[0], gate, 0.0)
-    rec['min_shift_dps'] = (gate * _DEG).tolist()
-    return model.replace(metrics={**model.metrics, REANCHOR_KEY: rec})
+    def fitted(*args: object, **kw: object) -> CompensationModel | None:
+        try:
+            return refit(*args, **kw)
+        except FitError:
+            return None
+
+    return _rule(model, runs, labels, fitted, rows)
 
 
 def reanchor_lines(record: dict | None) -> list[str]:

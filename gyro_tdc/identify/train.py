@@ -99,6 +99,23 @@ def _finish(model, o: TrainOptions, out: str | os.PathLike, accel_runs: Sequence
                        accel=accel_fit, **result)
 
 
+def _gate(model, kw: dict, runs: Sequence[Run], labels: Sequence[int],
+          rows: Sequence[NDArray[np.bool_]] | None = None):
+    """
+    Return ``model`` with the start-up shift the node takes per axis, decided on the sessions.
+
+    Each session is refitted without the others at the model's features, parameters and
+    thermal state (on ``rows`` of each run when given: the still rows).
+    """
+    form = {**kw, 'features': model.features, 'params': model.effect_params,
+            'fit_params': False, 'thermal': model.thermal}
+
+    def refit(others: list, g: list, **rows_kw) -> object:
+        return fit_model(others, **{**form, 'sessions': g, **rows_kw})
+
+    return reanchor_rule(model, runs, labels, refit, rows)
+
+
 def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
           options: TrainOptions | None = None, bag: BagOptions | None = None, *,
           command: str = '', log: Log = None) -> TrainResult:
@@ -134,12 +151,7 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     kw, choice = _features(o, fitted, runs, estimate_t0(runs[0]) if o.t0 is None else o.t0, log)
     model = fit_model(fitted, sessions=split.labels, frame_id=data_frame(runs),
                       created={'command': command, 'bags': names}, **kw)
-    # The start-up shift the node takes per axis, decided on the sessions (each refitted
-    # without the others at the model's features, parameters and thermal state).
-    form = {**kw, 'features': model.features, 'params': model.effect_params,
-            'fit_params': False, 'thermal': model.thermal}
-    model = reanchor_rule(identity_axes(model, runs, const), fitted, split.labels,
-                          lambda others, g: fit_model(others, sessions=g, **form))
+    model = _gate(identity_axes(model, runs, const), kw, fitted, split.labels)
     return _finish(model, o, out, runs, choice, {},
                    coverage=coverage(runs, bin_c=o.bin_c), bags=names,
                    samples=sum(len(r) for r in runs), sessions=split,
@@ -159,8 +171,9 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     state runs over every sample; stretches that look like slow turns are dropped; ``t0``
     defaults to the temperature at the start of the first still stretch; ``result.still`` is
     the :class:`~gyro_tdc.identify.still_only.StillReport` and ``coverage`` and ``samples``
-    those of the still time kept. FitError when no still stretch is found or their
-    temperatures span less than ``MIN_STILL_SPAN_C`` (saying what to record).
+    those of the still time kept; the start-up shift the node takes per axis is decided on
+    the sessions' still rows, as :func:`train` decides it. FitError when no still stretch is
+    found or their temperatures span less than ``MIN_STILL_SPAN_C`` (saying what to record).
     """
     o = TrainOptions() if options is None else options
     bag = BagOptions() if bag is None else bag
@@ -207,7 +220,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
               created={'command': command, 'bags': bags, 'still_only': True})
     spans = [(i, a, b) for i, st in enumerate(still) for a, b in st.segments]
     model, means, bad = fit_without_outliers(runs, rows, spans, labels, kw)
-    model = identity_axes(model, raw_runs, const, rows)
+    model = _gate(identity_axes(model, raw_runs, const, rows), kw, runs, labels, rows)
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
                          float(runs[i].temp[a:b].mean()), not drop,
                          tuple(float(v) * _DEG for v in mu))

@@ -49,6 +49,8 @@ _KEYS = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 's
          'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check', 'swaps',
          'motion', 'thermal', 'thermal_state', 'config', 'segment')
 _FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points', 'held_out')
+_GATE_KEYS = ('sessions', 'held_out', 'anchor_error_dps', 'min_shift_dps')
+_GATE_HELD = ('always_dps', 'gated_dps', 'never_dps')
 _HELD_KEYS = ('sessions', 'folds', 'points', 'curve_ms_dps2', 'offset_ms_dps2', 'offset_only')
 _CHECK_KEYS = ('t', 'candidate_mse', 'current_mse', 'swapped')
 _CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
@@ -184,7 +186,7 @@ def _fit(v: Any, thermal: ThermalState | None) -> dict | None:
     """Return the fit record, its model checked like a model file's (None: no fit)."""
     if v is None:
         return None
-    v = _dict(v, 'fit', _FIT_KEYS)
+    v = _dict(v, 'fit', _FIT_KEYS, optional=('reanchor',))
     feats = _list(v['features'], 'fit.features')
     if tuple(feats) not in _FEATURES:
         raise _bad('fit.features', f'must be one of {", ".join(map(str, _FEATURES))}, '
@@ -202,11 +204,23 @@ def _fit(v: Any, thermal: ThermalState | None) -> dict | None:
                          for i, r in enumerate(_list(v['resid_var'], 'fit.resid_var', 3))],
            'points': _count(v['points'], 'fit.points', 1),
            'held_out': _held_out(v['held_out'], bool(feats))}
+    if v.get('reanchor') is not None:
+        fit['reanchor'] = _gate(v['reanchor'])
     try:
         model_of(fit, thermal)
     except ModelFileError as exc:
         raise _bad('fit', f'gives a model refused as a model file would be: {exc}') from None
     return fit
+
+
+def _gate(v: Any) -> dict:
+    """Return the fit's start-up shift gate (:func:`gyro_tdc.learn.gate.learned_gate`)."""
+    v = _dict(v, 'fit.reanchor', _GATE_KEYS, optional=_GATE_HELD)
+    out = {k: _count(v[k], f'fit.reanchor.{k}') for k in _GATE_KEYS[:2]}
+    for k in _GATE_KEYS[2:] + _GATE_HELD:
+        if k in v:
+            out[k] = _CHK.numbers(v[k], f'fit.reanchor.{k}', 3, 0.0, MAX_PARAM, 'a rate in deg/s')
+    return out
 
 
 def _held_out(v: Any, curve: bool) -> dict | None:

@@ -324,7 +324,8 @@ def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationMode
     Parameters
     ----------
     fit : dict
-        :func:`fit_points` output.
+        :func:`fit_points` output (with ``reanchor``, the start-up shift gate of
+        :func:`gyro_tdc.learn.gate.learned_gate`, in ``metrics['reanchor']``).
     thermal : ThermalState, optional
         The thermal front end the points were binned with.
 
@@ -346,6 +347,8 @@ def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationMode
                           np.asarray(fit['resid_var']), thermal)
     check_model(model)
     model.created['held_out'] = fit.get('held_out')
+    if fit.get('reanchor'):               # the start-up shift gate (learn.gate)
+        model = model.replace(metrics={**model.metrics, 'reanchor': fit['reanchor']})
     return model
 
 

@@ -33,6 +33,7 @@ from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT, RECENT_ROWS
 from gyro_tdc.learn.fit import (compare, fit_points, grow_features, learned_model, model_of,
                                 offset_until, recent_offset, same_thermal, stream_state)
+from gyro_tdc.learn.gate import learned_gate
 from gyro_tdc.learn.records import (Entry, held_out_line, LearnConfig, OpenStretch,
                                     RecentStretch)
 from gyro_tdc.learn.store import LearnFile
@@ -535,6 +536,11 @@ class Learner:
         self.check = {'t': t_now, 'candidate_mse': new, 'current_mse': old, 'swapped': swap}
         if not swap:
             return False
+        # The start-up shift the node takes on it: the trainer's rule on the points (learn.gate).
+        fit['reanchor'] = learned_gate(cand, self.entries(), lambda sub: fit_points(
+            sub, grow_features(sub[:, 2], np.unique(sub[:, 2] // self.config.bin_c).size),
+            t_now, self.config.half_life_s, floor), self.thermal)
+        cand = cand.replace(metrics={**cand.metrics, 'reanchor': fit['reanchor']})
         trigger = t_now if self._trigger is None else max(self._trigger, t_now)
         self._swaps.append((trigger + self.config.swap_delay_s, cand))
         self.fit, self.model = fit, cand

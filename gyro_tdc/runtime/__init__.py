@@ -32,4 +32,5 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
                'UPSTREAM_POLICIES'],
     'priming': ['prepare', 'PreparedModel'],
     'reanchor': ['gated_shift', 'REANCHOR_KEY', 'reanchor_shift', 'shift_gate', 'windows_moving'],
+    'startup_gate': ['MAX_ANCHORS', 'MAX_ROWS', 'reanchor_rule', 'SIGNIFICANCE'],
 })

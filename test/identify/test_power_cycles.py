@@ -16,12 +16,14 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 import json
 
 from bags import bag_from_run
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data import Run
 from gyro_tdc.identify import fit_model, reanchor_lines, reanchor_rule
+from gyro_tdc.identify.still_only import rows_of
 from gyro_tdc.model import load_model
 import numpy as np
 import pytest
@@ -90,6 +92,37 @@ def test_without_turn_on_offsets_the_gate_is_kept_where_it_did_better():
     # Re-anchoring on one jittering burst does worse than the model's offset held out.
     assert np.all(np.array(rec['never_dps']) < always), rec
     assert any(v > 0 for v in rec['min_shift_dps'])
+
+
+def test_the_still_rows_alone_decide_the_gate():
+    """Motion between the still rows (``rows``) is neither an anchor nor in the refits."""
+    rng = np.random.default_rng(4)
+    runs, moved, rows = [], [], []
+    for i in range(3):
+        r = synth_run(seed=40 + i, hours=0.5, rate_hz=2.0, t_lo=0.0, t_hi=40.0,
+                      noise_dps=0.02, cooling=bool(i % 2))
+        m = r.t % 600.0 < 300.0
+        omega = r.omega.copy()
+        omega[~m] += np.radians(rng.normal(0.0, 30.0, (np.count_nonzero(~m), 3)))
+        runs.append(r)
+        moved.append(replace(r, omega=omega))
+        rows.append(m)
+
+    def fit(rr, gg, rows=None):
+        return fit_model(rr, kind='poly', features='dT,dT2', t0=20.0, sessions=gg, rows=rows)
+
+    labels = [0, 1, 2]
+    gated = reanchor_rule(fit(moved, labels, rows), moved, labels, fit, rows)
+    rec = gated.metrics['reanchor']
+    still = [rows_of(r, m) for r, m in zip(runs, rows)]
+    ref = reanchor_rule(fit(still, labels), still, labels, fit).metrics['reanchor']
+    assert rec['held_out'] == ref['held_out'] == 3
+    for key in ('anchor_error_dps', 'min_shift_dps', 'always_dps', 'gated_dps', 'never_dps'):
+        np.testing.assert_allclose(rec[key], ref[key], rtol=1e-6, atol=1e-12, err_msg=key)
+    # Without the rows the motion is taken for the anchors' error.
+    wild = reanchor_rule(fit(moved, labels, rows), moved, labels, fit).metrics['reanchor']
+    assert np.all(np.array(wild['anchor_error_dps'])
+                  > 10.0 * np.array(rec['anchor_error_dps'])), (wild, rec)
 
 
 def test_train_reports_the_rule_in_text_and_json(tmp_path, capsys):

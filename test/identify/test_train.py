@@ -18,6 +18,7 @@
 from __future__ import annotations
 
 from dataclasses import replace
+import json
 from pathlib import Path
 import shutil
 import tempfile
@@ -26,6 +27,7 @@ import warnings
 from bags import bag_from_run
 from constant_axes import axis_sets, quanta, values, with_constant as _with
 from flightlogs import flight_day, still_drift, write_dataflash
+from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data.bag.writer import write_bag
 from gyro_tdc.data.dataset import load_run
 from gyro_tdc.data.options import BagOptions
@@ -133,6 +135,27 @@ def test_default_train_on_logs_with_flights_fits_only_the_still_stretches(board,
     # The same model as --still-only with its defaults.
     same = train_still_only(paths[:4], tmp_path / 's.yaml', TrainOptions())
     np.testing.assert_allclose(_held_out_ratio(same.model, days[4:], paths[4:]), ratio)
+
+
+def test_still_only_carries_the_start_up_shift_gate_of_its_still_rows(board, tmp_path, capsys):
+    days, paths = board
+    out, js = tmp_path / 'm.yaml', tmp_path / 'm.json'
+    assert train_main([*map(str, paths[:4]), '--still-only', '--out', str(out),
+                       '--json', str(js), '--no-progress']) == 0
+    text = capsys.readouterr().out
+    assert 'start-up anchors taken throughout the training data err by' in text
+    assert 'held out on 4 power cycles' in text
+    rec = json.loads(js.read_text())['reanchor']
+    assert rec == load_model(out).metrics['reanchor']
+    assert (rec['sessions'], rec['held_out']) == (4, 4)
+    gate = 2.0 * np.array(rec['anchor_error_dps'])
+    # The flights are no anchors: still stretches of one board err by millidegrees per s.
+    assert np.all((gate > 0.0) & (gate < 0.05)), rec
+    np.testing.assert_allclose(rec['min_shift_dps'], np.where(
+        np.array(rec['gated_dps']) < np.array(rec['always_dps']), gate, 0.0))
+    for a in 'xyz':
+        assert sum(line.startswith(f'axis {a}: the node re-anchors')
+                   for line in text.splitlines()) == 1
 
 
 def test_still_only_with_a_log_without_still_time_among_three_or_more(board, tmp_path):

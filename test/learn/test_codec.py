@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+import copy
 import math
 import re
 
@@ -23,6 +24,7 @@ from gyro_tdc.learn.codec import decode_state, encode_state
 from gyro_tdc.learn.learner import LearnConfig, Learner
 from gyro_tdc.model.thermal_state import ThermalState
 from learn_states import learned, plain_state, with_field
+import numpy as np
 import pytest
 
 
@@ -47,6 +49,22 @@ def test_the_held_out_record_round_trips(base):
               'offset_ms_dps2': [2e-4, 1e-4, 3e-4], 'offset_only': ['y', 'z']}
     values, _ = decode_state(with_field(state, ('fit', 'held_out'), judged))
     assert values['fit']['held_out'] == judged
+
+
+def test_the_start_up_shift_gate_round_trips(base):
+    learner, state = base
+    gate = state['fit']['reanchor']
+    assert gate == learner.fit['reanchor'] == learner.model.metrics['reanchor']
+    assert gate['sessions'] == 1 and gate['held_out'] == 0       # one power cycle: kept
+    assert gate['min_shift_dps'] == pytest.approx(2.0 * np.array(gate['anchor_error_dps']))
+    values, _ = decode_state(state)
+    assert values['fit']['reanchor'] == gate
+    # A learn file written before the gate: the model takes any shift, as it did.
+    old = copy.deepcopy(state)
+    del old['fit']['reanchor']
+    fresh = _fresh()
+    fresh.load_state(old)
+    assert 'reanchor' not in fresh.model.metrics
 
 
 def test_thermal_section_is_kept():
@@ -75,6 +93,9 @@ def test_thermal_section_is_kept():
      'fit.held_out.curve_ms_dps2[1]'),
     (('fit', 'held_out', 'offset_only'), ['x', 'w'], 'fit.held_out.offset_only'),
     (('fit', 'held_out', 'offset_only'), ['x', 'x'], 'fit.held_out.offset_only'),
+    (('fit', 'reanchor', 'min_shift_dps'), [0.0, -1.0, 0.0], 'fit.reanchor.min_shift_dps[1]'),
+    (('fit', 'reanchor', 'held_out'), 1.5, 'fit.reanchor.held_out'),
+    (('fit', 'reanchor', 'gate'), 1.0, 'fit.reanchor'),
 ])
 def test_every_field_is_checked_and_named(base, keys, value, field):
     """Refuse NaN or Inf anywhere, negative counts, wrong shapes, naming the field."""

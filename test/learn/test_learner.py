@@ -34,6 +34,7 @@ from gyro_tdc.data import Run, split_sessions
 from gyro_tdc.identify import estimate_t0, fit_model
 from gyro_tdc.identify.features import features_for_fit
 from gyro_tdc.learn.learner import LearnConfig, learned_model, Learner
+from gyro_tdc.learn.store import model_from_file
 from gyro_tdc.model import compensate, drift
 from gyro_tdc.model.thermal_state import ThermalState
 from gyro_tdc.runtime import CompensatorCore, Policy
@@ -497,6 +498,28 @@ def test_each_power_cycle_gets_its_own_offset():
     temp = np.interp(log.t[end], log.temp_t, log.temp_c)
     err = log.truth[end] - drift(learner.model, log.t[end], temp)
     assert np.abs(err.mean(axis=0)).max() < 0.003 * DEG
+
+
+@pytest.mark.parametrize('turn_on_dps', [0.3, 0.0])
+def test_the_learned_model_carries_the_start_up_shift_gate_of_its_points(turn_on_dps, tmp_path):
+    """Three power cycles: any shift where they have their own offsets, else the gate."""
+    log = still_log(rate_hz=1.0, days=3.0, day_s=FIELD_DAY_S / 2, seed=6, power_cycles=3,
+                    turn_on_dps=turn_on_dps, accel=False)
+    learner = _learn_directly(log)
+    rec = learner.model.metrics['reanchor']
+    assert rec == learner.fit['reanchor']
+    assert (rec['sessions'], rec['held_out']) == (3, 3)
+    always, gated, never = (np.array(rec[k]) for k in ('always_dps', 'gated_dps', 'never_dps'))
+    gate = 2.0 * np.array(rec['anchor_error_dps'])
+    assert np.all((gate > 0.001) & (gate < 0.01)), rec      # still means of one gyro
+    np.testing.assert_allclose(rec['min_shift_dps'], np.where(gated < always, gate, 0.0))
+    if turn_on_dps:                   # held out, not re-anchoring misses tenths of deg/s
+        assert np.all(never > 20.0 * always) and rec['min_shift_dps'] == [0.0, 0.0, 0.0]
+    else:                             # a shift within the anchors' error is no offset
+        assert np.all(gated < always) and np.all(np.array(rec['min_shift_dps']) > 0.0)
+    # The learn file keeps it: the model it gives carries the same gate.
+    learner.save(tmp_path / 'learn.json')
+    assert model_from_file(tmp_path / 'learn.json').metrics['reanchor'] == rec
 
 
 def _bursts(learner, t0, n, period, rate=10.0, burst=5.0, bias=(0.01, -0.02, 0.005),

@@ -52,7 +52,7 @@ LAYERS: dict[str, frozenset] = {k: frozenset(v.split()) for k, v in {
     'model': 'base errors',
     'identify': 'gyro_tdc base data errors model runtime signal',
     'runtime': 'base model signal',
-    'learn': 'base errors model signal',
+    'learn': 'base errors model runtime signal',
     'evaluate': 'base data errors identify model runtime signal',
     'sim': 'base data errors model',
     'sources': 'base errors sim',

@@ -1,0 +1,107 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+The start-up shift gate of a learned model: the trainer's rule on the learner's still data.
+
+:func:`learned_gate` applies :func:`gyro_tdc.runtime.startup_gate.reanchor_rule` to the point
+table: each power cycle (the table's session) a run of its points in time order, a held-out
+power cycle predicted by the learner's fit of the others' points. With one power cycle the
+gate is kept, as the trainer keeps it: one cycle cannot show that a shift within its
+anchors' error is a turn-on offset.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+from gyro_tdc.errors import ModelFileError
+from gyro_tdc.learn.fit import at_state, model_of
+from gyro_tdc.model import CompensationModel, ThermalState
+from gyro_tdc.runtime import REANCHOR_KEY, reanchor_rule
+import numpy as np
+from numpy.typing import NDArray
+
+__all__ = ['learned_gate', 'PointRun', 'point_runs']
+
+
+@dataclass(frozen=True)
+class PointRun:
+    """One power cycle's rows of the point table, as a run of still means (rad/s, degC)."""
+
+    rows: NDArray[np.float64]
+
+    @property
+    def t(self) -> NDArray[np.float64]:
+        """Return the stamps (the points' ends)."""
+        return self.rows[:, 0]
+
+    @property
+    def temp(self) -> NDArray[np.float64]:
+        """Return the model temperatures."""
+        return self.rows[:, 2]
+
+    @property
+    def omega(self) -> NDArray[np.float64]:
+        """Return the still means (N, 3)."""
+        return self.rows[:, 3:6]
+
+    @property
+    def omega_ref(self) -> NDArray[np.float64]:
+        """Return the reference rate: zero while still."""
+        return np.zeros((len(self), 3))
+
+    def __len__(self) -> int:
+        """Return the number of points."""
+        return self.rows.shape[0]
+
+
+def point_runs(e: NDArray[np.float64]) -> tuple[list[PointRun], list[int]]:
+    """Return the point table (E, 7) as one run per session, in time order, and the labels."""
+    runs, labels = [], []
+    for g in np.unique(e[:, 6]):
+        p = e[e[:, 6] == g]
+        runs.append(PointRun(p[np.argsort(p[:, 0], kind='stable')]))
+        labels.append(int(g))
+    return runs, labels
+
+
+def learned_gate(model: CompensationModel, e: NDArray[np.float64],
+                 fit_table: Callable[[NDArray[np.float64]], dict],
+                 thermal: ThermalState | None) -> dict:
+    """
+    Return the start-up shift record of a learned model (``metrics['reanchor']``).
+
+    Parameters
+    ----------
+    model : CompensationModel
+        The learned model (its temperature is the points' model temperature).
+    e : NDArray[np.float64], shape (E, 7)
+        The point table it was fitted on (:meth:`gyro_tdc.learn.Learner.entries`).
+    fit_table : callable
+        The learner's fit of a point table (a held-out power cycle's others), a fit record.
+    thermal : ThermalState or None
+        The thermal front end the points were binned with.
+
+    """
+    runs, labels = point_runs(e)
+
+    def refit(others: list, g: list) -> CompensationModel | None:
+        try:
+            return at_state(model_of(fit_table(np.vstack([r.rows for r in others])), thermal))
+        except (ModelFileError, ValueError, np.linalg.LinAlgError):
+            return None                   # too little left without this power cycle
+
+    return reanchor_rule(at_state(model), runs, labels, refit).metrics[REANCHOR_KEY]
