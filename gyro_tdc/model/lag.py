@@ -115,10 +115,10 @@ def _varying_scan(a: NDArray[np.float64], b: NDArray[np.float64],
     prod = np.cumprod(a, axis=1)
     gap = prod[:, -1] < 1e-30
     gap_b = b[gap]
-    with np.errstate(divide='ignore', invalid='ignore', over='ignore'):
+    with np.errstate(all='ignore'):          # the gap rows, redone below, may overflow
         b /= prod
-    np.cumsum(b, axis=1, out=b)
-    b *= prod                                   # each row as if it started from 0
+        np.cumsum(b, axis=1, out=b)
+        b *= prod                               # each row as if it started from 0
     if gap.any():
         prod[gap], b[gap] = _affine_scan(a[gap], gap_b)
     ends_a, ends = _affine_scan(prod[:, -1].copy(), b[:, -1].copy())
