@@ -96,21 +96,21 @@ def _affine_scan(a: NDArray[np.float64],
     return a, b
 
 
-def _row_width(m: int, decay: float) -> int:
-    """Return the row width of :func:`_varying_scan`: rows decay by ~e**-8 on average."""
-    return m if decay <= 0.0 else max(16, int(min(m, 8.0 * m / decay)))
+def _rows(m: int, decay: float) -> tuple[int, int]:
+    """Return ``(rows, width)`` for :func:`_varying_scan`: rows decay by ~e**-8 on average."""
+    width = m if decay <= 0.0 else max(16, int(min(m, 8.0 * m / decay)))
+    rows = -(-m // width)
+    return rows, -(-m // rows)
 
 
-def _varying_scan(a: NDArray[np.float64], b: NDArray[np.float64],
-                  start: float) -> NDArray[np.float64]:
+def _varying_scan(a: NDArray[np.float64], b: NDArray[np.float64], start: float) -> None:
     """
-    Return ``x[k] = a[k] x[k-1] + b[k]`` from ``x[-1] = start`` over rows, for ``0 <= a <= 1``.
+    Turn ``b`` into ``x[k] = a[k] x[k-1] + b[k]`` from ``x[-1] = start``, for ``0 <= a <= 1``.
 
-    ``a`` and ``b`` are the samples laid in rows (``a`` padded with 1, ``b`` with 0); ``b``
-    is reused. Each row is a closed sum against its running product ``P``,
-    ``x = P cumsum(b / P)``, with the rounding of the recursion; a row whose product falls
-    below 1e-30 (a gap, a fast decay) runs :func:`_affine_scan` instead. The rows' ends chain
-    by :func:`_affine_scan`.
+    ``a`` and ``b`` are the samples laid in rows (``a`` padded with 1, ``b`` with 0). Each
+    row is a closed sum against its running product ``P``, ``x = P cumsum(b / P)``, with the
+    rounding of the recursion; a row whose product falls below 1e-30 (a gap, a fast decay)
+    runs :func:`_affine_scan` instead. The rows' ends chain by :func:`_affine_scan`.
     """
     prod = np.cumprod(a, axis=1)
     gap = prod[:, -1] < 1e-30
@@ -125,7 +125,6 @@ def _varying_scan(a: NDArray[np.float64], b: NDArray[np.float64],
     ends += start * ends_a
     prod *= np.r_[start, ends[:-1]][:, None]
     b += prod
-    return b.reshape(-1)
 
 
 def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str = 'step',
@@ -187,30 +186,35 @@ def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str
     if tau == 0.0 or n == 0:
         return u.copy()
     start = u[0] if y0 is None else float(y0)
-    y = np.empty(n)
-    y[0] = start
     if n == 1:
-        return y
+        return np.full(1, start)
     if uniform and hold == 'linear':
+        y = np.empty(n)
+        y[0] = start
         a = math.exp(-dt / tau)
         c = tau * -math.expm1(-dt / tau) / dt
         # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]: one constant factor.
         y[1:] = _constant_scan(a, (1.0 - c) * u[1:] + (c - a) * u[:-1], start)
         return y
     m = n - 1
-    step = np.full(m, dt) if uniform else np.maximum(np.diff(t), 0.0)
-    width = _row_width(m, float(step.sum()) / tau)
-    rows = -(-m // width)
+    if uniform:
+        step = np.full(m, dt)
+    else:
+        step = np.diff(t)
+        np.maximum(step, 0.0, out=step)
+    rows, width = _rows(m, float(step.sum()) / tau)
     a = np.ones((rows, width))
-    b = np.zeros((rows, width))
-    av, bv = a.reshape(-1)[:m], b.reshape(-1)[:m]
+    y = np.zeros(1 + rows * width)      # y[1:] holds b, then the output, in rows
+    y[0] = start
+    av, bv = a.reshape(-1)[:m], y[1:n]
     np.exp(np.divide(step, -tau, out=av), out=av)
     if hold == 'step':
-        np.multiply(1.0 - av, u[1:], out=bv)
+        np.subtract(1.0, av, out=bv)
+        bv *= u[1:]
     else:
         with np.errstate(divide='ignore', invalid='ignore'):
             c = np.where(step > 0.0, tau * -np.expm1(-step / tau) / step, 1.0)
         bv[:] = (1.0 - c) * u[1:] + (c - av) * u[:-1]
     # y[k] = a_k y[k-1] + b_k: closed sums in rows, chained by a short prefix scan.
-    y[1:] = _varying_scan(a, b, start)[:m]
-    return y
+    _varying_scan(a, y[1:].reshape(rows, width), start)
+    return y[:n]
