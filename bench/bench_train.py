@@ -292,12 +292,12 @@ with open(out, 'w') as f:
 """
 
 
-def _process(cmd, env=None):
-    """Run ``cmd``; return wall seconds, CPU seconds, peak RSS (bytes) and its stdout."""
+def _process(cmd, env=None, cwd=None):
+    """Run ``cmd`` (in ``cwd``); return wall seconds, CPU seconds, peak RSS (bytes), stdout."""
     with tempfile.TemporaryDirectory() as tmp:
         stats = Path(tmp) / 'stats.json'
         proc = subprocess.run([sys.executable, '-S', '-c', _LAUNCH, str(stats), *cmd],
-                              capture_output=True, text=True, env=env, check=False)
+                              capture_output=True, text=True, env=env, cwd=cwd, check=False)
         r = json.loads(stats.read_text()) if stats.is_file() else {'rc': proc.returncode}
     if proc.returncode != 0 or r['rc'] != 0:
         raise RuntimeError(f'{cmd[1:3]} failed ({r["rc"]}):\n{proc.stderr}')
@@ -319,9 +319,10 @@ def _run_stage(stage, bag, tmp):
     if stage == 'storage':
         return _process([sys.executable, '-c', _STORAGE, str(bag)], _env())
     if stage in ('train', 'baseline'):
+        root = BASELINE[0] if stage == 'baseline' else ROOT
+        # In the checkout: ``-m`` puts the working directory first on sys.path.
         r = _process([sys.executable, '-m', 'gyro_tdc', 'train', str(bag), '--out',
-                      str(Path(tmp) / 'model.yaml'), '--no-progress'],
-                     _env(BASELINE[0] if stage == 'baseline' else ROOT))
+                      str(Path(tmp) / 'model.yaml'), '--no-progress'], _env(root), cwd=root)
         last = r['stdout'].strip().splitlines()[-1]
         r['model_id'] = last.rsplit('model_id ', 1)[-1].rstrip(')')
         return r

@@ -72,6 +72,61 @@ def _constant_scan(a: float, b: NDArray[np.float64], start: float) -> NDArray[np
     return grid.reshape(-1)[:m]
 
 
+def _affine_scan(a: NDArray[np.float64],
+                 b: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return ``(A, x)`` along the last axis: ``A[k] = a[0] ... a[k]``, ``x[k] = a[k] x[k-1] + b[k]``.
+
+    ``x`` starts from 0: a prefix scan of the affine maps by doubling (``a`` and ``b`` are
+    reused) that stops once the older maps weigh less than 1e-17.
+    """
+    m = a.shape[-1]
+    spare = np.empty_like(a)
+    shift = 1
+    while shift < m:
+        n = m - shift
+        np.multiply(a[..., shift:], b[..., :n], out=spare[..., :n])
+        np.add(spare[..., :n], b[..., shift:], out=b[..., shift:])
+        spare[..., :shift] = a[..., :shift]
+        np.multiply(a[..., shift:], a[..., :n], out=spare[..., shift:])
+        a, spare = spare, a
+        shift *= 2
+        if shift < m and a[..., shift - 1:].max() < 1e-17:
+            break
+    return a, b
+
+
+def _rows(m: int, decay: float) -> tuple[int, int]:
+    """Return ``(rows, width)`` for :func:`_varying_scan`: rows decay by ~e**-8 on average."""
+    width = m if decay <= 0.0 else max(16, int(min(m, 8.0 * m / decay)))
+    rows = -(-m // width)
+    return rows, -(-m // rows)
+
+
+def _varying_scan(a: NDArray[np.float64], b: NDArray[np.float64], start: float) -> None:
+    """
+    Turn ``b`` into ``x[k] = a[k] x[k-1] + b[k]`` from ``x[-1] = start``, for ``0 <= a <= 1``.
+
+    ``a`` and ``b`` are the samples laid in rows (``a`` padded with 1, ``b`` with 0). Each
+    row is a closed sum against its running product ``P``, ``x = P cumsum(b / P)``, with the
+    rounding of the recursion; a row whose product falls below 1e-30 (a gap, a fast decay)
+    runs :func:`_affine_scan` instead. The rows' ends chain by :func:`_affine_scan`.
+    """
+    prod = np.cumprod(a, axis=1)
+    gap = prod[:, -1] < 1e-30
+    gap_b = b[gap]
+    with np.errstate(all='ignore'):          # the gap rows, redone below, may overflow
+        b /= prod
+        np.cumsum(b, axis=1, out=b)
+        b *= prod                               # each row as if it started from 0
+    if gap.any():
+        prod[gap], b[gap] = _affine_scan(a[gap], gap_b)
+    ends_a, ends = _affine_scan(prod[:, -1].copy(), b[:, -1].copy())
+    ends += start * ends_a
+    prod *= np.r_[start, ends[:-1]][:, None]
+    b += prod
+
+
 def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str = 'step',
                     y0: float | None = None) -> NDArray[np.float64]:
     """
@@ -131,37 +186,35 @@ def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str
     if tau == 0.0 or n == 0:
         return u.copy()
     start = u[0] if y0 is None else float(y0)
-    y = np.empty(n)
-    y[0] = start
     if n == 1:
-        return y
+        return np.full(1, start)
     if uniform and hold == 'linear':
+        y = np.empty(n)
+        y[0] = start
         a = math.exp(-dt / tau)
         c = tau * -math.expm1(-dt / tau) / dt
         # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]: one constant factor.
         y[1:] = _constant_scan(a, (1.0 - c) * u[1:] + (c - a) * u[:-1], start)
         return y
-    step = np.full(n - 1, dt) if uniform else np.maximum(np.diff(t), 0.0)
-    a = np.exp(-step / tau)
+    m = n - 1
+    if uniform:
+        step = np.full(m, dt)
+    else:
+        step = np.diff(t)
+        np.maximum(step, 0.0, out=step)
+    rows, width = _rows(m, float(step.sum()) / tau)
+    a = np.ones((rows, width))
+    y = np.zeros(1 + rows * width)      # y[1:] holds b, then the output, in rows
+    y[0] = start
+    av, bv = a.reshape(-1)[:m], y[1:n]
+    np.exp(np.divide(step, -tau, out=av), out=av)
     if hold == 'step':
-        b = (1.0 - a) * u[1:]
+        np.subtract(1.0, av, out=bv)
+        bv *= u[1:]
     else:
         with np.errstate(divide='ignore', invalid='ignore'):
             c = np.where(step > 0.0, tau * -np.expm1(-step / tau) / step, 1.0)
-        b = (1.0 - c) * u[1:] + (c - a) * u[:-1]
-    # y[k] = a_k y[k-1] + b_k as a prefix scan of the affine maps (a, b).
-    shift = 1
-    m = a.shape[0]
-    spare = np.empty(m)               # the products go to spare pages, not new arrays
-    while shift < m:
-        n = m - shift
-        np.multiply(a[shift:], b[:n], out=spare[:n])
-        np.add(spare[:n], b[shift:], out=b[shift:])
-        spare[:shift] = a[:shift]
-        np.multiply(a[shift:], a[:n], out=spare[shift:])
-        a, spare = spare, a
-        shift *= 2
-        if shift < m and a[shift - 1:].max() < 1e-17:
-            break
-    y[1:] = a * start + b
-    return y
+        bv[:] = (1.0 - c) * u[1:] + (c - av) * u[:-1]
+    # y[k] = a_k y[k-1] + b_k: closed sums in rows, chained by a short prefix scan.
+    _varying_scan(a, y[1:].reshape(rows, width), start)
+    return y[:n]
