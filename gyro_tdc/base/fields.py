@@ -129,7 +129,9 @@ class FieldChecker:
         """
         self.mapping(v, path)
         missing = [k for k in keys if k not in v] if exact else []
-        extra = sorted(str(k) for k in v if k not in keys and k not in optional)
+        # A key that is not printable is shown quoted: the message stays one line.
+        extra = sorted(str(k) if str(k).isprintable() else repr(str(k))
+                       for k in v if k not in keys and k not in optional)
         if missing or extra:
             raise self.fail(path, 'a mapping of ' + ', '.join(keys)
                             + (f'; missing {", ".join(missing)}' if missing else '')

@@ -60,6 +60,13 @@ def test_counts_lists_and_mappings():
         CHK.boolean(1, 'f')
 
 
+def test_an_unknown_key_that_is_not_printable_keeps_the_message_one_line():
+    with pytest.raises(Bad) as err:
+        CHK.keys({'a\nb': None}, 'm', ('a',))
+    assert '\n' not in str(err.value)
+    assert "unknown 'a\\nb'" in str(err.value)
+
+
 def test_a_mapping_of_any_keys():
     assert CHK.mapping({'x': 1}, 'm') == {'x': 1}
     with pytest.raises(Bad, match="`m` must be a mapping, got str 'imu'"):
