@@ -21,9 +21,8 @@ import math
 import re
 
 from gyro_tdc.learn.codec import decode_state, encode_state
-from gyro_tdc.learn.learner import LearnConfig, Learner
 from gyro_tdc.model.thermal_state import ThermalState
-from learn_states import learned, plain_state, with_field
+from learn_states import fresh_learner, learned, plain_state, with_field
 import numpy as np
 import pytest
 
@@ -33,10 +32,6 @@ def base():
     """Return a learner that learned two still stretches, and its state as a file holds it."""
     learner = learned()
     return learner, plain_state(learner)
-
-
-def _fresh():
-    return Learner(LearnConfig(temperature_timeout=1e9))
 
 
 def test_the_held_out_record_round_trips(base):
@@ -62,7 +57,7 @@ def test_the_start_up_shift_gate_round_trips(base):
     # A learn file written before the gate: the model takes any shift, as it did.
     old = copy.deepcopy(state)
     del old['fit']['reanchor']
-    fresh = _fresh()
+    fresh = fresh_learner()
     fresh.load_state(old)
     assert 'reanchor' not in fresh.model.metrics
 
@@ -101,14 +96,14 @@ def test_every_field_is_checked_and_named(base, keys, value, field):
     """Refuse NaN or Inf anywhere, negative counts, wrong shapes, naming the field."""
     _, state = base
     with pytest.raises(ValueError, match=re.escape(f'field `{field}`')):
-        _fresh().load_state(with_field(state, keys, value))
+        fresh_learner().load_state(with_field(state, keys, value))
 
 
 def test_a_fit_holding_nan_is_not_loaded(base):
     """A learn_file whose fit holds NaN: refused, not a model emitting NaN for every sample."""
     _, state = base
     nan = with_field(state, ('fit', 'coef', 0), [math.nan, 0.0, 0.0])
-    learner = _fresh()
+    learner = fresh_learner()
     with pytest.raises(ValueError, match='field `fit.coef'):
         learner.load_state(nan)
     assert learner.take_model() is None

@@ -31,12 +31,12 @@ from gyro_tdc.errors import LearnFileError, ModelFileError
 from gyro_tdc.learn import is_learn_file, model_from_file, read_model
 from gyro_tdc.learn import learner as learning
 from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT
-from gyro_tdc.learn.learner import LearnConfig, Learner
+from gyro_tdc.learn.learner import Learner
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import drift
 from gyro_tdc.model.modelfile import load_model, save_model
 from hypothesis import given, HealthCheck, settings, strategies as st
-from learn_states import hostile_files, HOSTILE_NAMES, learned, plain_state
+from learn_states import fresh_learner, hostile_files, HOSTILE_NAMES, learned, plain_state
 import numpy as np
 import pytest
 
@@ -48,10 +48,6 @@ def base():
     """Return a learner that learned two still stretches, and its state as a file holds it."""
     learner = learned()
     return learner, plain_state(learner)
-
-
-def _fresh():
-    return Learner(LearnConfig(temperature_timeout=1e9))
 
 
 def test_state_round_trips_through_a_file(tmp_path, base):
@@ -72,13 +68,13 @@ def test_state_round_trips_through_a_file(tmp_path, base):
             np.testing.assert_array_equal(value, getattr(owner, name))
         else:
             assert value == getattr(owner, name), name
-    again = _fresh()
+    again = fresh_learner()
     assert again.load(path) and again.state() == json.loads(json.dumps(state))
     assert again.take_model() is not None         # the learned model is current at once
 
 
 def test_the_file_is_strict_json_and_an_unknown_floor_is_null(tmp_path):
-    learner = _fresh()                             # nothing learned: the floors are unknown
+    learner = fresh_learner()                             # nothing learned: the floors are unknown
     assert np.all(np.isinf(learner.still.gyro_floor))
     path = tmp_path / 'learn.json'
     learner.save(path)
@@ -86,12 +82,12 @@ def test_the_file_is_strict_json_and_an_unknown_floor_is_null(tmp_path):
     assert 'Infinity' not in text and 'NaN' not in text
     doc = json.loads(text, parse_constant=lambda c: pytest.fail(f'non-JSON constant {c}'))
     assert doc['gyro_floor'] == [None] * 3
-    again = _fresh()
+    again = fresh_learner()
     assert again.load(path) and np.all(np.isinf(again.still.gyro_floor))
     # Infinity is no JSON a learner writes (0.1.0 is the first release): refused, named.
     path.write_text(json.dumps({**doc, 'gyro_floor': [math.inf] * 3}))
     with pytest.raises(LearnFileError, match=r'`gyro_floor\[0\]`'):
-        _fresh().load(path)
+        fresh_learner().load(path)
 
 
 def test_bad_states_and_files_are_refused(tmp_path):
@@ -122,7 +118,7 @@ def test_a_file_that_is_not_a_learner_state_is_refused_in_one_line(tmp_path, bas
     _, state = base
     path = tmp_path / 'learn.json'
     path.write_bytes(hostile_files(state)[name])
-    learner = _fresh()
+    learner = fresh_learner()
     before = learner.state()
     with pytest.raises(ValueError) as err:
         learner.load(path)
@@ -141,7 +137,7 @@ def test_a_file_over_the_size_limit_is_refused_before_it_is_read(tmp_path, base,
     calls = []
     monkeypatch.setattr(json, 'loads', lambda *a, **k: calls.append(a) or {})
     with pytest.raises(ValueError, match='4194304-byte'):
-        _fresh().load(path)
+        fresh_learner().load(path)
     assert not calls
 
 
@@ -153,7 +149,7 @@ def test_the_saved_state_stays_under_the_size_limit(tmp_path, base):
     path = tmp_path / 'learn.json'
     learner.save(path)
     assert path.stat().st_size < 4 * 1024 * 1024
-    again = _fresh()
+    again = fresh_learner()
     assert again.load(path)
     assert [len(s[2]) for s in again.recent] == [8640] * 3
 
@@ -174,7 +170,7 @@ def test_save_never_overwrites_a_file_that_is_not_a_learner_state(tmp_path, base
 def test_save_replaces_an_older_learner_state(tmp_path, base):
     learner, _ = base
     path = tmp_path / 'learn.json'
-    _fresh().save(path)
+    fresh_learner().save(path)
     learner.save(path)
     assert LearnFile(path).read() == plain_state(learner)
 
@@ -191,7 +187,7 @@ def test_a_symbolic_link_is_neither_read_nor_written_through(tmp_path, base):
         learner.save(link)
     assert target.read_bytes() == content and link.is_symlink()
     with pytest.raises(ValueError, match='symbolic link'):
-        _fresh().load(link)
+        fresh_learner().load(link)
     # Not even to a learner state, nor dangling (a new file would appear at its target).
     good = tmp_path / 'good.json'
     good.write_text(json.dumps(state))
@@ -201,7 +197,7 @@ def test_a_symbolic_link_is_neither_read_nor_written_through(tmp_path, base):
         with pytest.raises(Exception, match='symbolic link'):
             learner.save(link)
         with pytest.raises(ValueError, match='symbolic link'):
-            _fresh().load(link)
+            fresh_learner().load(link)
     assert good.read_text() == json.dumps(state) and not (tmp_path / 'nowhere').exists()
 
 
@@ -225,18 +221,18 @@ def test_learning_survives_a_restart_from_a_mode_000_file(base):
     directory = Path(tempfile.mkdtemp(prefix='gyro_tdc-learn-'))
     try:
         path = directory / 'learn.json'
-        _fresh().load(path)                       # everything imported before the switch
+        fresh_learner().load(path)                       # everything imported before the switch
         with _as_nobody(directory):
             learner.save(path)
             os.chmod(path, 0)
-            resumed = _fresh()
+            resumed = fresh_learner()
             assert resumed.load(path), 'the saved state was not resumed'
             assert plain_state(resumed) == state
             os.chmod(path, 0)
             resumed.save(path)                    # the node's save at shutdown
             mode = stat.S_IMODE(path.stat().st_mode)
             assert mode & 0o600 == 0o600, oct(mode)
-            assert _fresh().load(path)
+            assert fresh_learner().load(path)
     finally:
         shutil.rmtree(directory)
 
@@ -317,7 +313,7 @@ def _check_loaded(learner):
 def _load_bytes(directory, data):
     path = directory / 'learn.json'
     path.write_bytes(data)
-    learner = _fresh()
+    learner = fresh_learner()
     before = learner.state()
     try:
         learner.load(path)

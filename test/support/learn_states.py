@@ -50,6 +50,11 @@ def learned(temps=(20.2, 23.4), rate_hz=100.0):
     return learner
 
 
+def fresh_learner():
+    """Return a learner that has learned nothing (thermometer readings never go stale)."""
+    return Learner(LearnConfig(temperature_timeout=1e9))
+
+
 def plain_state(learner):
     """Return ``learner``'s state as it reads back from a file (plain JSON types)."""
     return json.loads(json.dumps(learner.state()))
