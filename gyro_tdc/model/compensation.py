@@ -23,7 +23,7 @@ time. The equations and the model temperature: ``doc/internals/model.md``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 import hashlib
 import json
 import math
@@ -161,17 +161,10 @@ class CompensationModel:
         """Compare every fitted field exactly (arrays element-wise)."""
         if not isinstance(other, CompensationModel):
             return NotImplemented
-        for f in fields(self):
-            if not f.compare:
-                continue
-            a, b = getattr(self, f.name), getattr(other, f.name)
-            if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
-                a, b = np.asarray(a), np.asarray(b)
-                if a.shape != b.shape or not np.array_equal(a, b):
-                    return False
-            elif a != b:
-                return False
-        return True
+        pairs = [(getattr(self, f.name), getattr(other, f.name))
+                 for f in fields(self) if f.compare]
+        return all(np.array_equal(a, b) if isinstance(a, np.ndarray) or isinstance(b, np.ndarray)
+                   else a == b for a, b in pairs)
 
     __hash__ = object.__hash__
 
@@ -211,7 +204,6 @@ class CompensationModel:
 
     def replace(self, **changes: Any) -> 'CompensationModel':
         """Return a copy with some fields changed."""
-        from dataclasses import replace
         return replace(self, **changes)
 
     @property
@@ -307,10 +299,7 @@ def model_temperature(model: CompensationModel, t: NDArray[np.float64],
     term of the model is evaluated at it (N,), degC.
     """
     temp = model.thermal.temperature(t, np.asarray(temp, dtype=np.float64))
-    if clamp:
-        lo, hi = model.temp_range_c
-        return np.clip(temp, lo, hi)
-    return temp
+    return np.clip(temp, *model.temp_range_c) if clamp else temp
 
 
 def _drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
@@ -433,16 +422,13 @@ class StreamingCompensator:
                  max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> None:
         self.model = model
         self.policy = check_policy(out_of_range)
-        self.clamp = out_of_range == 'clamp'
         self.max_extrapolation_c = float(max_extrapolation_c)
         self._tangent = Tangent(model) if self.policy == 'linear' else None
         self.thermal = model.thermal.stream()
         self.features = StreamingFeatures(model.features, t0=model.t0_c,
                                           params=model.effect_params, state=True)
         self._coef = model.coefficients
-        self._mean = model.input_mean
-        self._std = model.input_std
-        self._centers = model.centers
+        self._mean, self._std, self._centers = model.input_mean, model.input_std, model.centers
         self._inv2w2 = 1.0 / (2.0 * model.widths ** 2)
         self._f = len(model.inputs)
         self._lo, self._hi = model.temp_range_c
@@ -496,12 +482,9 @@ class StreamingCompensator:
         stands for and ``dt_c`` that minus T0 (the ``dT`` of the scale term).
         """
         s = self.thermal.update(t, temp)
-        reach = 0.0
-        if self._lo <= s <= self._hi:
-            self.in_range = True
-            self.range_distance_c = 0.0
-        else:
-            self.in_range = False
+        self.in_range = bool(self._lo <= s <= self._hi)
+        reach = self.range_distance_c = 0.0
+        if not self.in_range:
             self.range_distance_c = s - min(max(s, self._lo), self._hi)
             s, reach = split(s, self._lo, self._hi, self.policy, self.max_extrapolation_c)
         x = self.features.update(t, temp, s)
