@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, fields, replace
 import hashlib
 import json
 import math
-from typing import Any, Mapping
+from typing import Any, ClassVar, Mapping
 
 from gyro_tdc.base import plain
 from gyro_tdc.errors import FeatureError
@@ -152,10 +152,8 @@ class CompensationModel:
         if np.any(a.scale != 0):
             raise FeatureError('the accelerometer part has no scale term (scale must be 0)')
 
-    @property
-    def format_version(self) -> int:
-        """Return the model-file format (:data:`FORMAT_VERSION`, the one there is)."""
-        return FORMAT_VERSION
+    #: The model-file format (:data:`FORMAT_VERSION`, the one there is).
+    format_version: ClassVar[int] = FORMAT_VERSION
 
     def __eq__(self, other: object) -> bool:
         """Compare every fitted field exactly (arrays element-wise)."""
@@ -193,7 +191,9 @@ class CompensationModel:
                 {'format_version': FORMAT_VERSION, 'thermal': self.thermal.to_dict()}]
         if self.accel is not None:          # a gyro-only model keeps the id it had
             head.append({'accel': self.accel.model_id})
-        h.update(_canonical_json(head).encode())
+        # One canonical JSON text of plain data (sorted keys, exact floats).
+        h.update(json.dumps(plain(head), sort_keys=True, separators=(',', ':'),
+                            default=repr).encode())
         for arr in (self.t0_c, self.temp_range_c, self.input_mean, self.input_std, self.centers,
                     self.widths, self.weights, self.intercept, self.linear, self.scale,
                     self.residual_var):
@@ -248,12 +248,6 @@ class CompensationModel:
         norm = (np.zeros(f), np.ones(f), np.zeros((0, f)), np.zeros(0))
         return cls.network('poly', features, effect_params or {}, t0_c, norm, coef,
                            temp_range_c=temp_range_c, residual_var=residual_var, **extra)
-
-
-def _canonical_json(value: Any) -> str:
-    """Return one canonical JSON text of plain data (sorted keys, exact floats)."""
-    return json.dumps(plain(value), sort_keys=True, separators=(',', ':'),
-                      default=repr)
 
 
 def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
