@@ -200,8 +200,7 @@ def _warmup() -> dict:
 
         def step(t: float, dt_s: float, temp: float, d: float, first: bool) -> float:
             nonlocal start
-            if first:
-                start = t
+            start = t if first else start
             return math.exp(-(t - start) / tau)
         return step
     return {'batch': batch, 'stream': stream}
@@ -467,13 +466,9 @@ class StreamingFeatures:
         dt_s = 0.0 if first else max(t - self._t_prev, 0.0)
         self._t_prev = t if first else max(t, self._t_prev)
         out = np.empty(len(self._steps))
-        if self.state:
-            if state is None:
-                raise ValueError('Expected the thermal `state` (features built with '
-                                 'state=True).')
-            d = state - self.t0
-        else:
-            d = temp - self.t0
+        if self.state and state is None:
+            raise ValueError('Expected the thermal `state` (features built with state=True).')
+        d = (state if self.state else temp) - self.t0
         for j, step in enumerate(self._steps):
             out[j] = step(t, dt_s, temp, d, first)
         return out
