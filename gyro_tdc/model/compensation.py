@@ -312,8 +312,7 @@ def _drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.fl
     temp = np.asarray(temp, dtype=np.float64)
     lo, hi = model.temp_range_c
     s, reach = split(model_temperature(model, t, temp), lo, hi, policy, max_c)
-    x = batch_features(model.features, t, temp, t0=model.t0_c, params=model.effect_params,
-                       state=s)
+    x = batch_features(model.features, t, temp, t0=model.t0_c, params=model.effect_params, state=s)
     d = s - model.t0_c
     coef = model.coefficients
     out = np.empty((x.shape[0], 3))

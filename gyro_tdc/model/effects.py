@@ -259,14 +259,12 @@ NONLINEAR_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if 
 #: Effects identifiable only from data that span a range of temperatures.
 TEMPERATURE_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.needs_span)
 #: Effects identifiable only with a non-zero reference rate.
-REFERENCE_EFFECTS: frozenset[str] = frozenset(
-    e.id for e in EFFECTS.values() if e.needs_reference)
+REFERENCE_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.needs_reference)
 #: The thermal front end (``lag``): with a thermal state, no column; the state follows it.
 THERMAL_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.thermal)
 #: The temperature terms (static inputs: ``dT``, ``dT2``, ``dT3``): of the state when there
 #: is one.
-STATE_TERMS: frozenset[str] = frozenset(
-    e.id for e in EFFECTS.values() if e.static and e.is_input)
+STATE_TERMS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.static and e.is_input)
 
 
 def normalise_ids(ids: str | Sequence[str]) -> tuple[str, ...]:
@@ -438,11 +436,9 @@ class StreamingFeatures:
     def reset(self) -> None:
         """Forget the filter states (a new run starts with the next sample)."""
         self._t_prev: float | None = None
-        self._steps = [EFFECTS[eid].stream(self.params.get(eid, {}), self.t0)
-                       for eid in self.ids]
+        self._steps = [EFFECTS[eid].stream(self.params.get(eid, {}), self.t0) for eid in self.ids]
 
-    def update(self, t: float, temp: float, state: float | None = None
-               ) -> NDArray[np.float64]:
+    def update(self, t: float, temp: float, state: float | None = None) -> NDArray[np.float64]:
         """
         Advance to stamp ``t`` with temperature ``temp`` and return the feature vector.
 

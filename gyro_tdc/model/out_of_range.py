@@ -164,8 +164,7 @@ class Tangent:
         """
         return self.slope(row[None, :], np.array([d], dtype=np.float64))[0]
 
-    def slope(self, design: NDArray[np.float64], d: NDArray[np.float64]
-              ) -> NDArray[np.float64]:
+    def slope(self, design: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
         """
         Return db/dS per axis at design rows whose temperature terms are at ``d``.
 

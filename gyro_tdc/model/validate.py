@@ -273,8 +273,7 @@ def _roots(eid: str, v: NDArray[np.float64], t0: float, span: tuple[float, float
     return out
 
 
-def _drifts(m: CompensationModel, bound: float
-            ) -> Iterator[tuple[Any, NDArray[np.float64]]]:
+def _drifts(m: CompensationModel, bound: float) -> Iterator[tuple[Any, NDArray[np.float64]]]:
     """
     Yield (row describer, drift) blocks: the grid, then the linear tangents' far ends.
 

@@ -236,8 +236,7 @@ class StillWindows:
 
     def thresholds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return the gyro and accelerometer thresholds in force (fixed or auto)."""
-        early = (self.windows_seen < NOISE_WINDOWS
-                 or not np.isfinite(self.gyro_noise.floor).any())
+        early = (self.windows_seen < NOISE_WINDOWS or not np.isfinite(self.gyro_noise.floor).any())
         return noise_thresholds(self.gyro_floor, self.accel_floor, gyro_std=self.gyro_std,
                                 accel_std=self.accel_std,
                                 prior_std=self.prior_std if early else None)
@@ -553,8 +552,7 @@ class StreamingStill:
             self.rejected['brief'] += len(st)
             return None
         g_mean = tuple(sum(w.gyro_mean[i] * w.n for w in st) / n for i in range(3))
-        g_std = tuple(math.sqrt(sum(w.gyro_std[i] ** 2 for w in st) / len(st))
-                      for i in range(3))
+        g_std = tuple(math.sqrt(sum(w.gyro_std[i] ** 2 for w in st) / len(st)) for i in range(3))
         r_mean = None
         if all(w.rate_mean is not None for w in st):
             r_mean = tuple(sum(w.rate_mean[i] * w.n for w in st) / n for i in range(3))
