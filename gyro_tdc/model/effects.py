@@ -461,10 +461,7 @@ class StreamingFeatures:
         first = self._t_prev is None
         dt_s = 0.0 if first else max(t - self._t_prev, 0.0)
         self._t_prev = t if first else max(t, self._t_prev)
-        out = np.empty(len(self._steps))
         if self.state and state is None:
             raise ValueError('Expected the thermal `state` (features built with state=True).')
         d = (state if self.state else temp) - self.t0
-        for j, step in enumerate(self._steps):
-            out[j] = step(t, dt_s, temp, d, first)
-        return out
+        return np.array([step(t, dt_s, temp, d, first) for step in self._steps], dtype=np.float64)

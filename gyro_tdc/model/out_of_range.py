@@ -148,7 +148,7 @@ class Tangent:
 
     def slope_one(self, row: NDArray[np.float64], d: float) -> NDArray[np.float64]:
         """
-        Return db/dS at one design row: :meth:`slope` of one row (the streaming form).
+        Return db/dS at one design row (the streaming form of :meth:`slope`, same maths).
 
         Parameters
         ----------
@@ -162,7 +162,18 @@ class Tangent:
         NDArray[np.float64], shape (3,), rad/s per degC
 
         """
-        return self.slope(row[None, :], np.array([d], dtype=np.float64))[0]
+        h = SLOPE_STEP_C
+        g = np.zeros(self._f)
+        for j, step in self._terms:
+            g[j] = (step(0.0, 0.0, 0.0, d + h, False)
+                    - step(0.0, 0.0, 0.0, d - h, False)) / (2.0 * h)
+        g /= self._std
+        out = g @ self._linear
+        if self._centers.shape[0]:
+            f = self._f
+            proj = row[1:1 + f] @ g - self._centers @ g
+            out += (-row[1 + f:] * proj * self._inv_w2) @ self._weights
+        return out
 
     def slope(self, design: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
         """
