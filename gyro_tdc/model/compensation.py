@@ -452,8 +452,7 @@ class StreamingCompensator:
 
         None when the model has no lagged state (kind ``none``).
         """
-        th = self.thermal
-        return None if th.thermal.kind == 'none' else th.progress
+        return None if self.thermal.thermal.kind == 'none' else self.thermal.progress
 
     @property
     def thermal_settled(self) -> bool:

@@ -265,10 +265,6 @@ class NoiseFloor:
     """
 
     def __init__(self) -> None:
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget the windows and the floor."""
         self.floor = np.full(3, math.inf)
         self.quantum = np.full(3, math.inf)
         self._windows: deque[tuple[int, NDArray[np.float64]]] = deque()
