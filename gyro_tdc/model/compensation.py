@@ -23,11 +23,11 @@ time. The equations and the model temperature: ``doc/internals/model.md``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 import hashlib
 import json
 import math
-from typing import Any, Mapping
+from typing import Any, ClassVar, Mapping
 
 from gyro_tdc.base import plain
 from gyro_tdc.errors import FeatureError
@@ -152,26 +152,17 @@ class CompensationModel:
         if np.any(a.scale != 0):
             raise FeatureError('the accelerometer part has no scale term (scale must be 0)')
 
-    @property
-    def format_version(self) -> int:
-        """Return the model-file format (:data:`FORMAT_VERSION`, the one there is)."""
-        return FORMAT_VERSION
+    #: The model-file format (:data:`FORMAT_VERSION`, the one there is).
+    format_version: ClassVar[int] = FORMAT_VERSION
 
     def __eq__(self, other: object) -> bool:
         """Compare every fitted field exactly (arrays element-wise)."""
         if not isinstance(other, CompensationModel):
             return NotImplemented
-        for f in fields(self):
-            if not f.compare:
-                continue
-            a, b = getattr(self, f.name), getattr(other, f.name)
-            if isinstance(a, np.ndarray) or isinstance(b, np.ndarray):
-                a, b = np.asarray(a), np.asarray(b)
-                if a.shape != b.shape or not np.array_equal(a, b):
-                    return False
-            elif a != b:
-                return False
-        return True
+        pairs = [(getattr(self, f.name), getattr(other, f.name))
+                 for f in fields(self) if f.compare]
+        return all(np.array_equal(a, b) if isinstance(a, np.ndarray) or isinstance(b, np.ndarray)
+                   else a == b for a, b in pairs)
 
     __hash__ = object.__hash__
 
@@ -200,7 +191,9 @@ class CompensationModel:
                 {'format_version': FORMAT_VERSION, 'thermal': self.thermal.to_dict()}]
         if self.accel is not None:          # a gyro-only model keeps the id it had
             head.append({'accel': self.accel.model_id})
-        h.update(_canonical_json(head).encode())
+        # One canonical JSON text of plain data (sorted keys, exact floats).
+        h.update(json.dumps(plain(head), sort_keys=True, separators=(',', ':'),
+                            default=repr).encode())
         for arr in (self.t0_c, self.temp_range_c, self.input_mean, self.input_std, self.centers,
                     self.widths, self.weights, self.intercept, self.linear, self.scale,
                     self.residual_var):
@@ -211,7 +204,6 @@ class CompensationModel:
 
     def replace(self, **changes: Any) -> 'CompensationModel':
         """Return a copy with some fields changed."""
-        from dataclasses import replace
         return replace(self, **changes)
 
     @property
@@ -258,12 +250,6 @@ class CompensationModel:
                            temp_range_c=temp_range_c, residual_var=residual_var, **extra)
 
 
-def _canonical_json(value: Any) -> str:
-    """Return one canonical JSON text of plain data (sorted keys, exact floats)."""
-    return json.dumps(plain(value), sort_keys=True, separators=(',', ':'),
-                      default=repr)
-
-
 def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
                ) -> NDArray[np.float64]:
     """
@@ -307,10 +293,7 @@ def model_temperature(model: CompensationModel, t: NDArray[np.float64],
     term of the model is evaluated at it (N,), degC.
     """
     temp = model.thermal.temperature(t, np.asarray(temp, dtype=np.float64))
-    if clamp:
-        lo, hi = model.temp_range_c
-        return np.clip(temp, lo, hi)
-    return temp
+    return np.clip(temp, *model.temp_range_c) if clamp else temp
 
 
 def _drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
@@ -329,8 +312,7 @@ def _drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.fl
     temp = np.asarray(temp, dtype=np.float64)
     lo, hi = model.temp_range_c
     s, reach = split(model_temperature(model, t, temp), lo, hi, policy, max_c)
-    x = batch_features(model.features, t, temp, t0=model.t0_c, params=model.effect_params,
-                       state=s)
+    x = batch_features(model.features, t, temp, t0=model.t0_c, params=model.effect_params, state=s)
     d = s - model.t0_c
     coef = model.coefficients
     out = np.empty((x.shape[0], 3))
@@ -433,16 +415,13 @@ class StreamingCompensator:
                  max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> None:
         self.model = model
         self.policy = check_policy(out_of_range)
-        self.clamp = out_of_range == 'clamp'
         self.max_extrapolation_c = float(max_extrapolation_c)
         self._tangent = Tangent(model) if self.policy == 'linear' else None
         self.thermal = model.thermal.stream()
         self.features = StreamingFeatures(model.features, t0=model.t0_c,
                                           params=model.effect_params, state=True)
         self._coef = model.coefficients
-        self._mean = model.input_mean
-        self._std = model.input_std
-        self._centers = model.centers
+        self._mean, self._std, self._centers = model.input_mean, model.input_std, model.centers
         self._inv2w2 = 1.0 / (2.0 * model.widths ** 2)
         self._f = len(model.inputs)
         self._lo, self._hi = model.temp_range_c
@@ -473,8 +452,7 @@ class StreamingCompensator:
 
         None when the model has no lagged state (kind ``none``).
         """
-        th = self.thermal
-        return None if th.thermal.kind == 'none' else th.progress
+        return None if self.thermal.thermal.kind == 'none' else self.thermal.progress
 
     @property
     def thermal_settled(self) -> bool:
@@ -496,12 +474,9 @@ class StreamingCompensator:
         stands for and ``dt_c`` that minus T0 (the ``dT`` of the scale term).
         """
         s = self.thermal.update(t, temp)
-        reach = 0.0
-        if self._lo <= s <= self._hi:
-            self.in_range = True
-            self.range_distance_c = 0.0
-        else:
-            self.in_range = False
+        self.in_range = bool(self._lo <= s <= self._hi)
+        reach = self.range_distance_c = 0.0
+        if not self.in_range:
             self.range_distance_c = s - min(max(s, self._lo), self._hi)
             s, reach = split(s, self._lo, self._hi, self.policy, self.max_extrapolation_c)
         x = self.features.update(t, temp, s)

@@ -200,8 +200,7 @@ def _warmup() -> dict:
 
         def step(t: float, dt_s: float, temp: float, d: float, first: bool) -> float:
             nonlocal start
-            if first:
-                start = t
+            start = t if first else start
             return math.exp(-(t - start) / tau)
         return step
     return {'batch': batch, 'stream': stream}
@@ -260,14 +259,12 @@ NONLINEAR_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if 
 #: Effects identifiable only from data that span a range of temperatures.
 TEMPERATURE_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.needs_span)
 #: Effects identifiable only with a non-zero reference rate.
-REFERENCE_EFFECTS: frozenset[str] = frozenset(
-    e.id for e in EFFECTS.values() if e.needs_reference)
+REFERENCE_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.needs_reference)
 #: The thermal front end (``lag``): with a thermal state, no column; the state follows it.
 THERMAL_EFFECTS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.thermal)
 #: The temperature terms (static inputs: ``dT``, ``dT2``, ``dT3``): of the state when there
 #: is one.
-STATE_TERMS: frozenset[str] = frozenset(
-    e.id for e in EFFECTS.values() if e.static and e.is_input)
+STATE_TERMS: frozenset[str] = frozenset(e.id for e in EFFECTS.values() if e.static and e.is_input)
 
 
 def normalise_ids(ids: str | Sequence[str]) -> tuple[str, ...]:
@@ -439,11 +436,9 @@ class StreamingFeatures:
     def reset(self) -> None:
         """Forget the filter states (a new run starts with the next sample)."""
         self._t_prev: float | None = None
-        self._steps = [EFFECTS[eid].stream(self.params.get(eid, {}), self.t0)
-                       for eid in self.ids]
+        self._steps = [EFFECTS[eid].stream(self.params.get(eid, {}), self.t0) for eid in self.ids]
 
-    def update(self, t: float, temp: float, state: float | None = None
-               ) -> NDArray[np.float64]:
+    def update(self, t: float, temp: float, state: float | None = None) -> NDArray[np.float64]:
         """
         Advance to stamp ``t`` with temperature ``temp`` and return the feature vector.
 
@@ -466,14 +461,7 @@ class StreamingFeatures:
         first = self._t_prev is None
         dt_s = 0.0 if first else max(t - self._t_prev, 0.0)
         self._t_prev = t if first else max(t, self._t_prev)
-        out = np.empty(len(self._steps))
-        if self.state:
-            if state is None:
-                raise ValueError('Expected the thermal `state` (features built with '
-                                 'state=True).')
-            d = state - self.t0
-        else:
-            d = temp - self.t0
-        for j, step in enumerate(self._steps):
-            out[j] = step(t, dt_s, temp, d, first)
-        return out
+        if self.state and state is None:
+            raise ValueError('Expected the thermal `state` (features built with state=True).')
+        d = (state if self.state else temp) - self.t0
+        return np.array([step(t, dt_s, temp, d, first) for step in self._steps], dtype=np.float64)

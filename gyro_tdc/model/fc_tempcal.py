@@ -47,9 +47,8 @@ ARDUPILOT_SCALE = 1.0e6
 PX4_DEFAULTS = {'TREF': 25.0, 'TMIN': 0.0, 'TMAX': 100.0}
 #: ArduPilot's parameter defaults (CALTEMP -300: never calibrated; clipped to TMIN).
 ARDUPILOT_DEFAULTS = {'TMIN': 0.0, 'TMAX': 70.0, 'CALTEMP': -300.0}
-#: PX4 has calibration slots 0..3 (``TC_G0`` .. ``TC_G3``); ArduPilot IMUs 0..2.
+#: PX4 has calibration slots 0..3 (``TC_G0`` .. ``TC_G3``).
 PX4_SLOTS = 4
-ARDUPILOT_INSTANCES = 3
 
 _PX4_LETTER = {'gyro': 'G', 'accel': 'A'}
 _AP_WORD = {'gyro': 'GYR', 'accel': 'ACC'}
@@ -68,6 +67,11 @@ def _shaped(cal: object, name: str, shape: tuple[int, int]) -> None:
     if a.shape != shape:
         raise ValueError(f'Expected `{name}` to have shape {shape}, got {a.shape}.')
     object.__setattr__(cal, name, a)
+
+
+def _enabled(params: Mapping[str, float], name: str) -> bool:
+    """Return True when the switch ``name`` is 1 in ``params`` (absent: off)."""
+    return int(params.get(name, 0) or 0) == 1
 
 
 def _temps(temp_c: ArrayLike) -> NDArray[np.float64]:
@@ -120,7 +124,7 @@ def px4_names(sensor: str, slot: int) -> list[str]:
 
 def px4_enabled(params: Mapping[str, float], sensor: str = 'gyro') -> bool:
     """Return True when ``TC_G_ENABLE`` (or ``TC_A_ENABLE``) is 1 in ``params``."""
-    return int(params.get(px4_name(sensor), 0) or 0) == 1
+    return _enabled(params, px4_name(sensor))
 
 
 def px4_slot(params: Mapping[str, float], device_id: int, sensor: str = 'gyro') -> int | None:
@@ -241,7 +245,7 @@ def ardupilot_caltemp_name(instance: int, sensor: str = 'gyro') -> str:
 
 def ardupilot_enabled(params: Mapping[str, float], instance: int = 0) -> bool:
     """Return True when ``INS_TCALn_ENABLE`` is 1 (2 is learning: nothing is applied)."""
-    return int(params.get(ardupilot_name(instance), 0) or 0) == 1
+    return _enabled(params, ardupilot_name(instance))
 
 
 @dataclass(frozen=True)
@@ -276,21 +280,17 @@ class ArduPilotTempCal:
         """Read IMU ``instance`` from ``params`` (missing ones take ArduPilot's defaults)."""
         c = np.array([[float(params.get(ardupilot_coeff_name(instance, k, i, sensor), 0.0))
                        for i in range(3)] for k in (1, 2, 3)])
-        return cls(c, float(params.get(ardupilot_name(instance, 'TMIN'),
-                                       ARDUPILOT_DEFAULTS['TMIN'])),
-                   float(params.get(ardupilot_name(instance, 'TMAX'),
-                                    ARDUPILOT_DEFAULTS['TMAX'])),
-                   float(params.get(ardupilot_caltemp_name(instance, sensor),
-                                    ARDUPILOT_DEFAULTS['CALTEMP'])))
+        names = (ardupilot_name(instance, 'TMIN'), ardupilot_name(instance, 'TMAX'),
+                 ardupilot_caltemp_name(instance, sensor))      # ARDUPILOT_DEFAULTS' order
+        return cls(c, *(float(params.get(name, v))
+                        for name, v in zip(names, ARDUPILOT_DEFAULTS.values())))
 
     def to_params(self, sensor: str = 'gyro', instance: int = 0) -> dict[str, float]:
         """Return TMIN, TMAX and the coefficients as ``{name: value}`` (not ENABLE)."""
-        out = {ardupilot_name(instance, 'TMIN'): float(self.tmin),
-               ardupilot_name(instance, 'TMAX'): float(self.tmax)}
-        for k in (1, 2, 3):
-            for i in range(3):
-                out[ardupilot_coeff_name(instance, k, i, sensor)] = float(self.coeff[k - 1, i])
-        return out
+        return {ardupilot_name(instance, 'TMIN'): float(self.tmin),
+                ardupilot_name(instance, 'TMAX'): float(self.tmax),
+                **{ardupilot_coeff_name(instance, k, i, sensor): float(self.coeff[k - 1, i])
+                   for k in (1, 2, 3) for i in range(3)}}
 
     def poly(self, temp_c: ArrayLike) -> NDArray[np.float64]:
         """Return ``p(clip(T) - 35)``, shape (N, 3), in the sensor's unit."""
@@ -365,14 +365,10 @@ def onboard_status(params: Mapping[str, float], firmware: str, *, instance: int 
         An unknown ``firmware``.
 
     """
-    if firmware == 'px4':
-        name = px4_name(sensor)
-        active = px4_enabled(params, sensor)
-    elif firmware == 'ardupilot':
-        name = ardupilot_name(instance)
-        active = ardupilot_enabled(params, instance)
-    else:
+    if firmware not in ('px4', 'ardupilot'):
         raise ValueError(f"Expected `firmware` to be 'px4' or 'ardupilot', got {firmware!r}.")
+    name = px4_name(sensor) if firmware == 'px4' else ardupilot_name(instance)
+    active = _enabled(params, name)
     if name not in params:
         return False, f'{name} not in the log: no on-board thermal compensation known'
     value = params[name]

@@ -197,11 +197,7 @@ def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str
         y[1:] = _constant_scan(a, (1.0 - c) * u[1:] + (c - a) * u[:-1], start)
         return y
     m = n - 1
-    if uniform:
-        step = np.full(m, dt)
-    else:
-        step = np.diff(t)
-        np.maximum(step, 0.0, out=step)
+    step = np.full(m, dt) if uniform else np.maximum(np.diff(t), 0.0)
     rows, width = _rows(m, float(step.sum()) / tau)
     a = np.ones((rows, width))
     y = np.zeros(1 + rows * width)      # y[1:] holds b, then the output, in rows

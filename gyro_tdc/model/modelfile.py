@@ -71,19 +71,14 @@ def model_to_dict(model: CompensationModel) -> dict:
         'training': plain(model.metrics),
         'created': plain(model.created),
     }
-    if model.accel is not None:
-        d['accel'] = _accel_to_dict(model.accel)
+    if model.accel is not None:     # the part's fields but those it shares, in m/s^2
+        d['accel'] = {('residual_var_m2_s4' if k == 'residual_var_rad2_s2' else k): v
+                      for k, v in model_to_dict(model.accel).items() if k not in _SHARED}
     return d
 
 
 #: Fields of the model an ``accel`` part shares (not repeated in its section).
 _SHARED = ('format_version', 'thermal', 't0_c', 'sensor', 'created', 'scale')
-
-
-def _accel_to_dict(part: CompensationModel) -> dict:
-    """Return the ``accel`` section: the part's fields but those it shares, in m/s^2."""
-    return {('residual_var_m2_s4' if k == 'residual_var_rad2_s2' else k): v
-            for k, v in model_to_dict(part).items() if k not in _SHARED}
 
 
 def _accel_from_dict(d: Mapping) -> CompensationModel | None:
@@ -111,12 +106,17 @@ _CHK = FieldChecker(lambda key, expected, got: ModelFileError(
     f'field `{key}` must be {expected}, got {shown(got)}'))
 
 
-def _array(d: Mapping, key: str, shape: tuple, *, positive: bool = False) -> np.ndarray:
-    """Read ``d[key]`` as a finite float array of ``shape`` (``-1`` matches any length)."""
+def _get(d: Mapping, key: str) -> Any:
+    """Return ``d[key]``, or refuse the missing field."""
     if key not in d:
         raise ModelFileError(f'missing field `{key}`')
+    return d[key]
+
+
+def _array(d: Mapping, key: str, shape: tuple, *, positive: bool = False) -> np.ndarray:
+    """Read ``d[key]`` as a finite float array of ``shape`` (``-1`` matches any length)."""
     try:
-        arr = np.asarray(d[key], dtype=np.float64)
+        arr = np.asarray(_get(d, key), dtype=np.float64)
     except (TypeError, ValueError):
         raise ModelFileError(f'field `{key}` must be numbers, got {d[key]!r:.60}') from None
     if len(shape) == 2 and arr.size == 0:
@@ -131,23 +131,11 @@ def _array(d: Mapping, key: str, shape: tuple, *, positive: bool = False) -> np.
     return arr
 
 
-def _number(d: Mapping, key: str) -> float:
-    """Read ``d[key]`` as a finite float."""
-    if key not in d:
-        raise ModelFileError(f'missing field `{key}`')
-    return _CHK.number(d[key], key, what='a finite number')
-
-
 def _mapping(d: Mapping, key: str, *, required: bool = True) -> dict:
-    """Read ``d[key]`` as a mapping (empty when optional and absent)."""
-    if key not in d:
-        if required:
-            raise ModelFileError(f'missing field `{key}`')
+    """Read ``d[key]`` as a mapping (empty when optional and absent or null)."""
+    if not required and d.get(key) is None:
         return {}
-    v = d[key]
-    if v is None and not required:
-        return {}
-    return _CHK.mapping(v, key)
+    return _CHK.mapping(_get(d, key), key)
 
 
 def model_from_dict(d: Any) -> CompensationModel:
@@ -242,9 +230,10 @@ def _model_from_dict(d: Mapping) -> CompensationModel:
         raise ModelFileError('field `sensor` must hold string `frame_id` and `sensor_id`')
     try:
         model = CompensationModel.network(
-            kind, ids, params, _number(d, 't0_c'), (mean, std, centers, widths),
-            np.vstack([intercept[None, :], linear, weights]), scale=scale,
-            temp_range_c=rng_, residual_var=resid, frame_id=frame_id, sensor_id=sensor_id,
+            kind, ids, params, _CHK.number(_get(d, 't0_c'), 't0_c', what='a finite number'),
+            (mean, std, centers, widths), np.vstack([intercept[None, :], linear, weights]),
+            scale=scale, temp_range_c=rng_, residual_var=resid, frame_id=frame_id,
+            sensor_id=sensor_id,
             metrics=_mapping(d, 'training', required=False),
             created=_mapping(d, 'created', required=False), thermal=thermal, accel=accel)
     except FeatureError as exc:

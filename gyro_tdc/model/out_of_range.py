@@ -89,19 +89,12 @@ def split(s: Any, lo: float, hi: float, policy: str,
         ``linear``: ``s - s_eval`` limited to ``+-max_c``; otherwise 0.
 
     """
-    if isinstance(s, np.ndarray):
-        if policy == 'extrapolate':
-            return s, np.zeros_like(s)
-        inside = np.clip(s, lo, hi)
-        if policy == 'clamp':
-            return inside, np.zeros_like(s)
-        return inside, np.clip(s - inside, -max_c, max_c)
-    if policy == 'extrapolate':
-        return s, 0.0
-    inside = min(max(s, lo), hi)
-    if policy == 'clamp':
-        return inside, 0.0
-    return inside, max(min(s - inside, max_c), -max_c)
+    arr = isinstance(s, np.ndarray)
+    inside = s if policy == 'extrapolate' else np.clip(s, lo, hi) if arr else min(max(s, lo), hi)
+    if policy != 'linear':
+        return inside, np.zeros_like(s) if arr else 0.0
+    reach = s - inside
+    return inside, np.clip(reach, -max_c, max_c) if arr else max(min(reach, max_c), -max_c)
 
 
 def added_variance(base: float, distance_c: float, policy: str) -> float:
@@ -148,11 +141,10 @@ class Tangent:
         self._terms = [(j, EFFECTS[eid].stream({}, t0)) for j, eid in enumerate(inputs)
                        if eid in STATE_TERMS]
         self._f = len(inputs)
-        self._std = np.asarray(model.input_std, dtype=np.float64)
-        self._linear = np.asarray(model.linear, dtype=np.float64)
-        self._centers = np.asarray(model.centers, dtype=np.float64)
+        self._std, self._linear, self._centers, self._weights = (
+            np.asarray(v, dtype=np.float64)
+            for v in (model.input_std, model.linear, model.centers, model.weights))
         self._inv_w2 = 1.0 / np.asarray(model.widths, dtype=np.float64) ** 2
-        self._weights = np.asarray(model.weights, dtype=np.float64)
 
     def slope_one(self, row: NDArray[np.float64], d: float) -> NDArray[np.float64]:
         """
@@ -183,8 +175,7 @@ class Tangent:
             out += (-row[1 + f:] * proj * self._inv_w2) @ self._weights
         return out
 
-    def slope(self, design: NDArray[np.float64], d: NDArray[np.float64]
-              ) -> NDArray[np.float64]:
+    def slope(self, design: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
         """
         Return db/dS per axis at design rows whose temperature terms are at ``d``.
 

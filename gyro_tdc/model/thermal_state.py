@@ -222,10 +222,8 @@ class StreamingThermalState:
 
     def reset(self) -> None:
         """Forget the state (a new run starts, settled, at the next sample)."""
-        self._y: list[float] = []
-        self._t_first: float | None = None
-        self._t_prev: float | None = None
-        self.value: float | None = None
+        self._y: list[float] = []         # per node; stamps of the first and latest sample
+        self._t_first = self._t_prev = self.value = None
 
     def update(self, t: float, temp: float) -> float:
         """

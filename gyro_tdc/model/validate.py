@@ -239,11 +239,10 @@ def drift_grid(m: CompensationModel, *, ext: float = MAX_EXTRAPOLATION_C,
                 s = np.concatenate([s, np.clip(d + t0, lo - ext, hi + ext)])
                 dyn = np.vstack([dyn, at])
     x = np.empty((s.size, len(inputs)))
+    x[:, dyn_cols] = dyn
     for j, eid in enumerate(inputs):
         if j not in dyn_cols:
             x[:, j] = EFFECTS[eid].stream({}, t0)(0.0, 0.0, 0.0, s - t0, False)
-    for k, j in enumerate(dyn_cols):
-        x[:, j] = dyn[:, k]
     return x, s
 
 
@@ -273,8 +272,7 @@ def _roots(eid: str, v: NDArray[np.float64], t0: float, span: tuple[float, float
     return out
 
 
-def _drifts(m: CompensationModel, bound: float
-            ) -> Iterator[tuple[Any, NDArray[np.float64]]]:
+def _drifts(m: CompensationModel, bound: float) -> Iterator[tuple[Any, NDArray[np.float64]]]:
     """
     Yield (row describer, drift) blocks: the grid, then the linear tangents' far ends.
 
@@ -288,7 +286,7 @@ def _drifts(m: CompensationModel, bound: float
     lo, hi = m.temp_range_c
     ext = MAX_EXTRAPOLATION_C
     x, s = drift_grid(m, own=())
-    coef = np.vstack([m.intercept[None, :], m.linear, m.weights])
+    coef = m.coefficients
     dyn_cols = _dynamic(m.inputs)
 
     def describe(xs: NDArray[np.float64], ss: NDArray[np.float64], note: str = '') -> Any:

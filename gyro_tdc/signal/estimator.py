@@ -154,8 +154,7 @@ def within(a: NDArray[np.float64], groups: ArrayLike,
     offset per session exactly, without its indicator columns; with row ``weights`` the
     means are weighted, for the weighted regression.
     """
-    _, inverse, counts = np.unique(np.asarray(groups), return_inverse=True,
-                                   return_counts=True)
+    _, inverse, counts = np.unique(np.asarray(groups), return_inverse=True, return_counts=True)
     inverse = inverse.reshape(-1)
     counts = counts.astype(np.float64)
     means = np.zeros((counts.size,) + a.shape[1:])
@@ -205,8 +204,7 @@ class BlockGrid:
             self.keep = c > 0
             self.counts = c[self.keep]
 
-    def _segments(self, blocks: Callable[[int, int], NDArray[np.float64]]
-                  ) -> NDArray[np.float64]:
+    def _segments(self, blocks: Callable[[int, int], NDArray[np.float64]]) -> NDArray[np.float64]:
         """Return ``blocks(a, b)`` of every segment, short tails merged, concatenated."""
         if self.bounds.size == 2 and not self.merge_tail:
             return blocks(int(self.bounds[0]), int(self.bounds[1]))
@@ -247,8 +245,7 @@ class BlockGrid:
             x = self._masked(x)
         return self.sel(self._segments(lambda a, b: block_sumsq(x[a:b], self.per)))
 
-    def scatter(self, x: NDArray[np.float64], mean: NDArray[np.float64]
-                ) -> NDArray[np.float64]:
+    def scatter(self, x: NDArray[np.float64], mean: NDArray[np.float64]) -> NDArray[np.float64]:
         """Return per block the sum of squared deviations of ``x`` (N, M) from ``mean``."""
         return self.sumsq(x) - self.counts[:, None] * mean ** 2
 
@@ -291,8 +288,7 @@ class Folds:
                 continue
             train = ~test
             if buffer:
-                near = np.convolve(test.astype(float), np.ones(2 * buffer + 1),
-                                   mode='same') > 0.5
+                near = np.convolve(test.astype(float), np.ones(2 * buffer + 1), mode='same') > 0.5
                 if np.count_nonzero(~near) >= min_train:
                     train = ~near
             tests.append(test)

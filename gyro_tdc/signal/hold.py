@@ -55,12 +55,10 @@ class TemperatureHold:
     """
 
     def __init__(self, capacity: int | None = 256, gate: bool = True) -> None:
-        self._t: list[float] = []
+        self._t: list[float] = []      # stamps, increasing, and their readings
         self._c: list[float] = []
         self._capacity = capacity
-        self.received = 0
-        self.rejected = 0
-        self.implausible = 0
+        self.received = self.rejected = self.implausible = 0
         self._gate = TemperatureGate() if gate else None
 
     def __len__(self) -> int:
@@ -95,19 +93,14 @@ class TemperatureHold:
             if t > not_after or not self._gate.accept(t, temp_c):
                 self.implausible += 1
                 return False
-        if not self._t or t > self._t[-1]:
-            self._t.append(t)
-            self._c.append(temp_c)
+        i = bisect.bisect_right(self._t, t)
+        if i and self._t[i - 1] == t:
+            self._c[i - 1] = temp_c
         else:
-            i = bisect.bisect_right(self._t, t)
-            if i and self._t[i - 1] == t:
-                self._c[i - 1] = temp_c
-            else:
-                self._t.insert(i, t)
-                self._c.insert(i, temp_c)
+            self._t.insert(i, t)
+            self._c.insert(i, temp_c)
         if self._capacity is not None and len(self._t) > self._capacity:
-            del self._t[:len(self._t) - self._capacity]
-            del self._c[:len(self._c) - self._capacity]
+            del self._t[:len(self._t) - self._capacity], self._c[:len(self._c) - self._capacity]
         return True
 
     def at(self, t: float) -> tuple[float, float] | None:

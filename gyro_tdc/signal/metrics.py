@@ -107,17 +107,11 @@ def allan_deviation(omega: NDArray[np.float64], rate_hz: float, *,
 
     """
     omega = np.asarray(omega, dtype=np.float64) * _DEG
-    out_t = None
-    cols = []
     import allantools   # with scipy.stats ~0.35 s: imported when an Allan deviation is asked for
-    for ax in range(3):
-        t, dev, _err, _n = allantools.oadev(omega[:, ax], rate=float(rate_hz),
-                                            data_type='freq', taus=taus)
-        if out_t is None:
-            out_t = np.asarray(t)
-        cols.append(np.asarray(dev)[:out_t.shape[0]])
-    m = min(c.shape[0] for c in cols)
-    return out_t[:m], np.column_stack([c[:m] for c in cols])
+    runs = [allantools.oadev(omega[:, ax], rate=float(rate_hz), data_type='freq', taus=taus)[:2]
+            for ax in range(3)]                 # (taus, deviation) per axis
+    m = min(len(runs[0][0]), *(len(dev) for _, dev in runs))
+    return np.asarray(runs[0][0])[:m], np.column_stack([np.asarray(d)[:m] for _, d in runs])
 
 
 def noise_readouts(taus: NDArray[np.float64], adev: NDArray[np.float64]

@@ -26,6 +26,7 @@ from __future__ import annotations
 from collections import deque
 from dataclasses import dataclass
 import math
+from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -92,19 +93,13 @@ def has_accelerometer(accel: ArrayLike | None) -> bool:
     A driver without an accelerometer publishes zeros with
     ``linear_acceleration_covariance[0] = -1`` (REP 145).
     """
-    if accel is None:
-        return False
-    a = np.asarray(accel, dtype=np.float64)
-    if a.ndim != 2 or a.shape[0] == 0:
-        return False
+    a = None if accel is None else np.asarray(accel, dtype=np.float64)
     # In chunks, stopping at the first finite non-zero row: a real accelerometer answers at
     # once, without a pass (and copies) over a long run.
     step = 1 << 16
-    for i in range(0, a.shape[0], step):
-        c = a[i:i + step]
-        if np.any(np.isfinite(c).all(axis=1) & (c != 0.0).any(axis=1)):
-            return True
-    return False
+    return a is not None and a.ndim == 2 and any(
+        np.any(np.isfinite(c).all(axis=1) & (c != 0.0).any(axis=1))
+        for c in (a[i:i + step] for i in range(0, a.shape[0], step)))
 
 
 def noise_floor(std: ArrayLike, ok: ArrayLike | None = None) -> NDArray[np.float64]:
@@ -115,14 +110,10 @@ def noise_floor(std: ArrayLike, ok: ArrayLike | None = None) -> NDArray[np.float
     (default all); inf where no window qualifies.
     """
     s = np.asarray(std, dtype=np.float64).reshape(-1, 3)
-    use = np.ones(s.shape[0], dtype=bool) if ok is None else np.asarray(ok, dtype=bool)
-    out = np.full(3, math.inf)
-    for a in range(3):
-        v = s[use, a]
-        v = v[np.isfinite(v) & (v > 0.0)]
-        if v.size:
-            out[a] = float(v.min())
-    return out
+    use = np.isfinite(s) & (s > 0.0)
+    if ok is not None:
+        use &= np.asarray(ok, dtype=bool)[:, None]
+    return np.where(use, s, math.inf).min(axis=0, initial=math.inf)
 
 
 def noise_thresholds(gyro_floor: ArrayLike, accel_floor: ArrayLike | None = None, *,
@@ -137,19 +128,14 @@ def noise_thresholds(gyro_floor: ArrayLike, accel_floor: ArrayLike | None = None
     deviation) holds the auto gyro threshold below NOISE_FACTOR times it (the streaming form,
     over its first :data:`NOISE_WINDOWS` windows, so a first window that moves is not the floor).
     """
-    if gyro_std > 0:
-        g = np.full(3, float(gyro_std))
-    else:
-        g = NOISE_FACTOR * np.asarray(gyro_floor, dtype=np.float64)
-        if prior_std is not None:
-            g = np.minimum(g, NOISE_FACTOR * np.asarray(prior_std, dtype=np.float64))
-    if accel_std > 0:
-        a = np.full(3, float(accel_std))
-    elif accel_floor is None:
-        a = np.full(3, math.inf)
-    else:
-        a = NOISE_FACTOR * np.asarray(accel_floor, dtype=np.float64)
-    return g, a
+    def thr(fixed: float, floor: ArrayLike | None) -> NDArray[np.float64]:
+        if fixed > 0:
+            return np.full(3, float(fixed))
+        return np.full(3, math.inf) if floor is None else NOISE_FACTOR * np.asarray(floor, float)
+    g = thr(gyro_std, gyro_floor)
+    if not gyro_std > 0 and prior_std is not None:
+        g = np.minimum(g, NOISE_FACTOR * np.asarray(prior_std, dtype=np.float64))
+    return g, thr(accel_std, accel_floor)
 
 
 def judge_windows(gyro_std: ArrayLike, accel_std: ArrayLike | None, gyro_thr: ArrayLike,
@@ -166,25 +152,22 @@ def judge_windows(gyro_std: ArrayLike, accel_std: ArrayLike | None, gyro_thr: Ar
     accelerometer), or a mean compensated rate (``mean_rate``, with a prior) over ``max_rate``.
     Returns ``''`` for a still window, else the first failed test of :data:`REASONS`.
     """
-    g = np.asarray(gyro_std, dtype=np.float64).reshape(-1, 3)
-    w = g.shape[0]
+    def over(x: ArrayLike, limit: ArrayLike) -> NDArray[np.bool_]:
+        return ~np.all(np.asarray(x, dtype=np.float64).reshape(-1, 3) <= limit, axis=1)
+
+    def given(v: ArrayLike | None, test: Callable) -> NDArray[np.bool_] | None:
+        return None if v is None else test(v)
+    w = np.asarray(gyro_std).reshape(-1, 3).shape[0]
+    checks = [('samples', given(counts, lambda c: np.asarray(c).reshape(w) < min_samples)),
+              ('non-finite', given(finite, lambda f: ~np.asarray(f, dtype=bool).reshape(w))),
+              ('motion', given(moving, lambda m: np.asarray(m, dtype=bool).reshape(w))),
+              ('gyro', over(gyro_std, np.asarray(gyro_thr))),
+              ('accel', given(accel_std, lambda a: over(a, np.asarray(accel_thr)))),
+              ('rate', given(mean_rate, lambda m: over(np.abs(np.asarray(m, float)), max_rate)))]
     why = np.full(w, '', dtype='<U10')
-    checks = []
-    if counts is not None:
-        checks.append(('samples', np.asarray(counts).reshape(w) < min_samples))
-    if finite is not None:
-        checks.append(('non-finite', ~np.asarray(finite, dtype=bool).reshape(w)))
-    if moving is not None:
-        checks.append(('motion', np.asarray(moving, dtype=bool).reshape(w)))
-    checks.append(('gyro', ~np.all(g <= np.asarray(gyro_thr), axis=1)))
-    if accel_std is not None:
-        a = np.asarray(accel_std, dtype=np.float64).reshape(-1, 3)
-        checks.append(('accel', ~np.all(a <= np.asarray(accel_thr), axis=1)))
-    if mean_rate is not None:
-        m = np.asarray(mean_rate, dtype=np.float64).reshape(-1, 3)
-        checks.append(('rate', ~np.all(np.abs(m) <= max_rate, axis=1)))
     for name, bad in reversed(checks):      # the first failed test wins
-        why[bad] = name
+        if bad is not None:
+            why[bad] = name
     return why
 
 
@@ -251,13 +234,10 @@ class MotionReports:
 
     def add(self, t: float, moving: bool) -> None:
         """Record a report (a non-finite stamp is ignored)."""
-        t = float(t)
-        if not math.isfinite(t):
-            return
-        rep = (t, bool(moving))
-        self.reports.append(rep)
-        if len(self.reports) > 1 and t < self.reports[-2][0]:     # out of order
-            self.reports.sort(key=lambda r: r[0])
+        if math.isfinite(t := float(t)):
+            self.reports.append((t, bool(moving)))
+            if len(self.reports) > 1 and t < self.reports[-2][0]:     # out of order
+                self.reports.sort(key=lambda r: r[0])
 
     def veto(self, t0: float, t1: float) -> bool:
         """Return whether ``[t0, t1]`` overlaps motion; drop reports before the one held at t1."""
@@ -285,10 +265,6 @@ class NoiseFloor:
     """
 
     def __init__(self) -> None:
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget the windows and the floor."""
         self.floor = np.full(3, math.inf)
         self.quantum = np.full(3, math.inf)
         self._windows: deque[tuple[int, NDArray[np.float64]]] = deque()
@@ -358,8 +334,12 @@ class Stillness:
 
     def rejected(self) -> dict[str, int]:
         """Return the number of windows each test refused (reasons with a count only)."""
-        return {r: int(np.count_nonzero(self.why == r)) for r in REASONS
-                if np.any(self.why == r)}
+        return _refusals(self.why)
+
+
+def _refusals(why: NDArray[np.str_]) -> dict[str, int]:
+    """Return how many windows each test refused, from their verdicts (refusing ones only)."""
+    return {r: int(np.count_nonzero(why == r)) for r in REASONS if np.any(why == r)}
 
 
 #: Rows per pass of :func:`_window_stats` (its temporaries stay small: a few MB).
@@ -443,7 +423,7 @@ def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
 
 def _no_still_reason(why: NDArray[np.str_], min_still_s: float | None) -> str:
     """Return why a run has no still stretch, from the verdicts ``why`` of its windows."""
-    rej = {r: int(np.count_nonzero(why == r)) for r in REASONS if np.any(why == r)}
+    rej = _refusals(why)
     if rej.get('motion', 0) == why.size:
         return 'every window is vetoed by a motion report'
     if rej.get('brief'):
@@ -482,8 +462,7 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     if t.ndim != 1 or g.shape != (n, 3):
         raise ValueError(f'Expected `t` of shape (N,) and `gyro` of shape (N, 3), got '
                          f'{t.shape} and {g.shape}.')
-    use_accel = has_accelerometer(accel)
-    acc = np.asarray(accel, dtype=np.float64) if use_accel else None
+    acc = np.asarray(accel, dtype=np.float64) if has_accelerometer(accel) else None
     if acc is not None and acc.shape != (n, 3):
         raise ValueError(f'Expected `accel` of shape {(n, 3)}, got {acc.shape}.')
     dt = float(np.median(np.diff(t))) if n > 1 else 1.0
@@ -511,23 +490,18 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     bad = np.logical_or.reduceat(~finite, starts)
     zeroed = None if finite.all() else finite      # non-finite rows count as zeros
     g_mean, g_std = _window_stats(g, starts, fc, zeroed)
-    a_mean = a_std = None
-    if acc is not None:
-        a_mean, a_std = _window_stats(acc, starts, fc, zeroed)
+    a_mean, a_std = (None, None) if acc is None else _window_stats(acc, starts, fc, zeroed)
     usable = (counts >= MIN_JUDGED) & ~bad
     vetoed = (np.zeros(starts.size, dtype=bool) if moving is None else
               np.logical_or.reduceat(np.asarray(moving, dtype=bool), starts))
     may = usable & ~vetoed
     g_floor = noise_floor(g_std, may) if gyro_floor is None else np.asarray(gyro_floor, float)
-    a_floor = None
-    if a_std is not None:
-        a_floor = (noise_floor(a_std, may) if accel_floor is None
-                   else np.asarray(accel_floor, float))
+    a_floor = (None if a_std is None else noise_floor(a_std, may) if accel_floor is None
+               else np.asarray(accel_floor, float))
     g_thr, a_thr = noise_thresholds(g_floor, a_floor, gyro_std=gyro_std, accel_std=accel_std)
-    mean_rate = None
-    if rate is not None:
-        r = np.asarray(rate, dtype=np.float64)
-        mean_rate, _ = _window_stats(np.where(np.isfinite(r), r, np.inf), starts, fc)
+    r = None if rate is None else np.asarray(rate, dtype=np.float64)
+    mean_rate = None if r is None else _window_stats(np.where(np.isfinite(r), r, np.inf),
+                                                     starts, fc)[0]
     why = judge_windows(g_std, a_std, g_thr, a_thr, mean_rate=mean_rate, max_rate=max_rate,
                         moving=vetoed, counts=counts, finite=~bad)
     segments, durations = _still_stretches(t, g, starts, why, dt, min_still_s)

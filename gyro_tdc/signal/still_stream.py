@@ -25,7 +25,7 @@ from __future__ import annotations
 from array import array
 from dataclasses import dataclass
 import math
-from typing import NamedTuple, Sequence
+from typing import Any, NamedTuple, Sequence
 
 from gyro_tdc.signal.still import (judge_windows, MAX_RATE, MIN_JUDGED, MIN_STILL_S,
                                    MotionReports, noise_thresholds, NOISE_WINDOWS, NoiseFloor,
@@ -144,6 +144,13 @@ def _moments(x: NDArray[np.float64], start: NDArray[np.int64], n: NDArray[np.int
     return mean, np.sqrt(var)
 
 
+def _floor(noise: str, doc: str) -> property:
+    """Return a property reading and setting the ``floor`` (3,) of the NoiseFloor ``noise``."""
+    def put(self: Any, value: ArrayLike) -> None:
+        getattr(self, noise).floor = np.asarray(value, dtype=np.float64).reshape(3)
+    return property(lambda self: getattr(self, noise).floor, put, doc=doc)
+
+
 class StillWindows:
     """
     The still test one sample at a time: each window's statistics and verdict as it ends.
@@ -184,12 +191,9 @@ class StillWindows:
             raise ValueError(f'Expected `window_s` > 0, got {window_s!r}.')
         if cut not in CUTS:
             raise ValueError(f'Expected `cut` in {CUTS}, got {cut!r}.')
-        self.window_s = float(window_s)
-        self.cut = cut
-        self._grid = cut == 'grid'
+        self.window_s, self.cut, self._grid = float(window_s), cut, cut == 'grid'
         self.gyro_std, self.accel_std = float(gyro_std), float(accel_std)
-        self.max_rate = float(max_rate)
-        self.min_samples = int(min_samples)
+        self.max_rate, self.min_samples = float(max_rate), int(min_samples)
         self.motion = MotionReports()
         self.reset(prior_std=prior_std)
 
@@ -215,23 +219,9 @@ class StillWindows:
         self._t0 = math.nan
         self._moving = False
 
-    @property
-    def gyro_floor(self) -> NDArray[np.float64]:
-        """Return the gyro noise floor, shape (3,), rad/s (inf: none yet)."""
-        return self.gyro_noise.floor
-
-    @gyro_floor.setter
-    def gyro_floor(self, value) -> None:
-        self.gyro_noise.floor = np.asarray(value, dtype=np.float64).reshape(3)
-
-    @property
-    def accel_floor(self) -> NDArray[np.float64]:
-        """Return the accelerometer noise floor, shape (3,), m/s^2 (inf: none yet)."""
-        return self.accel_noise.floor
-
-    @accel_floor.setter
-    def accel_floor(self, value) -> None:
-        self.accel_noise.floor = np.asarray(value, dtype=np.float64).reshape(3)
+    gyro_floor = _floor('gyro_noise', 'Gyro noise floor, shape (3,), rad/s (inf: none yet).')
+    accel_floor = _floor('accel_noise',
+                         'Accelerometer noise floor, shape (3,), m/s^2 (inf: none yet).')
 
     @property
     def window_end(self) -> float | None:
@@ -246,8 +236,7 @@ class StillWindows:
 
     def thresholds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return the gyro and accelerometer thresholds in force (fixed or auto)."""
-        early = (self.windows_seen < NOISE_WINDOWS
-                 or not np.isfinite(self.gyro_noise.floor).any())
+        early = (self.windows_seen < NOISE_WINDOWS or not np.isfinite(self.gyro_noise.floor).any())
         return noise_thresholds(self.gyro_floor, self.accel_floor, gyro_std=self.gyro_std,
                                 accel_std=self.accel_std,
                                 prior_std=self.prior_std if early else None)
@@ -309,10 +298,8 @@ class StillWindows:
         buf = self._buf
         if not buf and self._chunk is None:
             self._t0 = t
-        if accel is None:
-            accel = _NAN3
-        if rate is None:
-            rate = _NAN3
+        accel = _NAN3 if accel is None else accel
+        rate = _NAN3 if rate is None else rate
         buf.extend((t, raw[0], raw[1], raw[2], accel[0], accel[1], accel[2], rate[0], rate[1],
                     rate[2], temp_c))
         if moving:
@@ -373,25 +360,20 @@ class StillWindows:
 
     def flush(self) -> Window | None:
         """Judge the window in progress (at shutdown, or a new session); None when empty."""
-        x = self._take()
         self._k = None
-        if x is None:
-            return None
-        return self._finish(x, np.zeros(1, dtype=np.int64), [None])[0]
+        return self._end(None)
 
     def _take(self) -> NDArray[np.float64] | None:
         """Return the samples of the window in progress, shape (n, 11), and empty it (None)."""
         parts = [p for p in (self._chunk, np.frombuffer(self._buf).reshape(-1, _COLS)
                              if self._buf else None) if p is not None]
-        self._buf = array('d')
-        self._chunk = None
-        if not parts:
-            return None
-        return parts[0] if len(parts) == 1 else np.concatenate(parts)
+        self._buf, self._chunk = array('d'), None
+        return None if not parts else parts[0] if len(parts) == 1 else np.concatenate(parts)
 
-    def _end(self, t_next: float | None) -> Window:
-        """Judge the window in progress (it ends before the sample at ``t_next``)."""
-        return self._finish(self._take(), np.zeros(1, dtype=np.int64), [t_next])[0]
+    def _end(self, t_next: float | None) -> Window | None:
+        """Judge the window in progress (it ends before the sample at ``t_next``; None: empty)."""
+        x = self._take()
+        return None if x is None else self._finish(x, np.zeros(1, dtype=np.int64), [t_next])[0]
 
     def _finish(self, x: NDArray[np.float64], start: NDArray[np.int64],
                 t_next: list) -> list[Window]:
@@ -522,7 +504,6 @@ class StreamingStill:
         """Forget everything (noise floor included); the next sample starts the grid."""
         self.windows.reset(prior_std=self.windows.prior_std)
         self.rejected = {r: 0 for r in REASONS}
-        self.last_why: str | None = None
         self._stretch: list[Window] = []
 
     def update(self, t: float, raw: ArrayLike, accel: ArrayLike | None = None, *,
@@ -548,7 +529,6 @@ class StreamingStill:
 
     def _take(self, w: Window) -> StillSegment | None:
         """Extend the stretch with a judged window, or end it."""
-        self.last_why = w.why
         if w.why:
             self.rejected[w.why] += 1
             return self._close()
@@ -572,8 +552,7 @@ class StreamingStill:
             self.rejected['brief'] += len(st)
             return None
         g_mean = tuple(sum(w.gyro_mean[i] * w.n for w in st) / n for i in range(3))
-        g_std = tuple(math.sqrt(sum(w.gyro_std[i] ** 2 for w in st) / len(st))
-                      for i in range(3))
+        g_std = tuple(math.sqrt(sum(w.gyro_std[i] ** 2 for w in st) / len(st)) for i in range(3))
         r_mean = None
         if all(w.rate_mean is not None for w in st):
             r_mean = tuple(sum(w.rate_mean[i] * w.n for w in st) / n for i in range(3))
