@@ -340,12 +340,13 @@ def real_recording(held_bursts: int = 5) -> dict | None:
         return np.sqrt(np.mean(means ** 2, axis=0)) / DEG
 
     t0 = estimate_t0(train)
-    simple = []
+    plain, anchored = [], []
     for feats in ('dT', 'dT,dT2,dT3'):
         m = fit_model([train], kind='poly', features=feats, t0=t0)
         c = compensate(m, t, rec.temp_c, rec.gyro, out_of_range=DEFAULT_OUT_OF_RANGE)
-        simple += [burst_rms(c[held]), burst_rms(c[held] - c[head].mean(axis=0))]
-    best = np.min(simple, axis=0)
+        plain.append(burst_rms(c[held]))
+        anchored.append(burst_rms(c[held] - c[head].mean(axis=0)))
+    best = np.min(plain + anchored, axis=0)
     res = {'best_dps': best, 'features': ','.join(ours.features)}
     out, _, _ = stream(ours, t, rec.gyro, None, t, rec.temp_c, Policy())
     res['ours'] = burst_rms(out[held]) / best
@@ -361,6 +362,9 @@ def real_recording(held_bursts: int = 5) -> dict | None:
     # Ours anchored as the best simple anchor is: on the first two held-out bursts.
     c = compensate(ours, t, rec.temp_c, rec.gyro, out_of_range=DEFAULT_OUT_OF_RANGE)
     res['ours_anchored_on_2_held'] = burst_rms(c[held] - c[head].mean(axis=0)) / best
+    # Like for like: ours against the simple fits that see no held-out burst, as the node
+    # sees none (the best simple anchor is anchored on two of the bursts it scores).
+    res['ours_vs_best_unanchored'] = res['ours'] * best / np.min(plain, axis=0)
     res['gate_dps'] = ours.metrics['reanchor']['min_shift_dps']
     se2 = [np.var(rec.gyro[held][burst[held] == k], axis=0, ddof=1)
            / np.count_nonzero(burst[held] == k) for k in np.unique(burst[held])]
@@ -442,8 +446,8 @@ def main(argv: list | None = None) -> int:
               f'held out, trained features {real["features"]}: RMS of burst means / best '
               f'simple anchor ({" ".join(f"{v:.5f}" for v in real["best_dps"])} deg/s) x y z')
         for key in ('ours', 'ours_no_reanchor', 'ours_learn', 'ours_anchored_on_2_held',
-                    'raw_mean_removed', 'floor'):
-            print(f'  {key:<23} ' + ' '.join(f'{v:8.3f}' for v in real[key]))
+                    'raw_mean_removed', 'floor', 'ours_vs_best_unanchored'):
+            print(f'  {key:<25} ' + ' '.join(f'{v:8.3f}' for v in real[key]))
         print('  the start-up shift the node takes (the trained gate), deg/s: beyond '
               + ' '.join(f'{v:.4f}' for v in real['gate_dps']))
         if real['learned_gate_dps'] is not None:
