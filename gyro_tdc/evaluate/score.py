@@ -36,7 +36,7 @@ from gyro_tdc.evaluate.models import (bag_labels, load_models, model_labels, Nam
                                       safe_label, with_accel)
 from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
 from gyro_tdc.identify import (accel_scores, all_constant_error, constant_axes, find_still,
-                               MAX_MOVING_SHARE, MIN_SAMPLES, moving_share)
+                               MAX_MOVING_SHARE, MIN_SAMPLES, moving_share, rows_of)
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             MAX_EXTRAPOLATION_C, model_temperature)
 from gyro_tdc.runtime import default_tolerance, gated_shift, reanchor_shift, STILL_WINDOW_MAX_S
@@ -349,7 +349,7 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         return x if still is None else _anchor_first_still(x, still, bounds)[still]
     if still is not None:
         summary = _still_summary(run, still, bounds)
-        whole, kw, reanchor_s = _rows_of(run, still), {'allan': False}, 0.0
+        whole, kw, reanchor_s = rows_of(run, still), {'allan': False}, 0.0
     raw = score(pick(run.omega), whole, **kw)
     const |= ~(raw.bs > 0)                  # an axis reading its reference exactly
     out = []
@@ -393,12 +393,6 @@ def still_rows(run: Run) -> NDArray[np.bool_] | None:
     if run.info.get('reference') != 'zero' or moving_share([run]) <= MAX_MOVING_SHARE:
         return None
     return find_still([run])[0].mask
-
-
-def _rows_of(run: Run, m: NDArray[np.bool_]) -> Run:
-    """Return the samples ``m`` of a run as a run (with gaps)."""
-    return Run(run.t[m], run.temp[m], run.omega[m], run.omega_ref[m], run.name,
-               dict(run.info), None if run.accel is None else run.accel[m])
 
 
 def _stretches(still: NDArray[np.bool_], a: int, b: int

@@ -133,11 +133,6 @@ class Learner:
         """Return the power cycle the stream is in, from 0."""
         return self.sessions.session
 
-    @property
-    def motion(self) -> list[tuple[float, bool]]:
-        """Return the motion reports (stamp, moving), from the one held at the window on."""
-        return self.still.motion.reports
-
     def state(self) -> dict[str, Any]:
         """Return the persistent state as plain types (what :meth:`save` writes)."""
         return encode_state(self)
@@ -286,12 +281,10 @@ class Learner:
         m = len(buf) // SAMPLE * SAMPLE
         x = np.array(buf[:m], dtype=np.float64).reshape(-1, SAMPLE)
         del buf[:m]
-        t, w, acc = x[:, 0], x[:, 1:4], x[:, 4:7]
-        if not np.isfinite(acc).all():
+        ok = np.isfinite(x[:, 0])
+        t, w, acc = x[ok, 0], x[ok, 1:4], x[ok, 4:7]
+        if not np.isfinite(x[:, 4:7]).all():
             acc = None                    # missing or not three values: the gyro alone
-        ok = np.isfinite(t)
-        t, w = t[ok], w[ok]
-        acc = None if acc is None else acc[ok]
         if not t.size:
             return False
         temp, self.temps = hold_readings(self.temps, t, self.config.temperature_timeout)
