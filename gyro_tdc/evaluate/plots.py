@@ -185,14 +185,12 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
     styles = [_RAW_STYLE] + [_style(i, len(th), n_models) for i in range(n_models)]
     models_text = ', '.join(Path(str(m.model)).name for m in b.models) or 'none'
     head = f'{b.bag}: models {models_text}' + (f'; {options}' if options else '')
-    written = []
     with matplotlib.rc_context(_FONTS):
-        written.append(_plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles,
-                                        head, block, reanchor_s))
-        written.append(_plot_residual_vs_temperature(b, out, run, temp, raw_err, model_err,
-                                                     legends, head, _bmean))
-        written.append(_plot_allan(b, out, legends, styles, head))
-    return written
+        return [_plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head,
+                                 block, reanchor_s),
+                _plot_residual_vs_temperature(b, out, run, temp, raw_err, model_err, legends,
+                                              head, _bmean),
+                _plot_allan(b, out, legends, styles, head)]
 
 
 def _flag_spans(ax: Any, th: NDArray[np.float64], temp: NDArray[np.float64], b: BagEval,

@@ -339,9 +339,8 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     """
     check_policy(out_of_range)
     const = _constant(run)
-    rate = rate_hz(run.t)
     parts = split_sessions([run], sessions, session_gap_s).runs
-    whole, summary, kw = run, None, {'rate': rate}
+    whole, summary, kw = run, None, {'rate': rate_hz(run.t)}
     bounds = np.cumsum([0] + [len(p) for p in parts])
 
     def pick(x: NDArray[np.float64]) -> NDArray[np.float64]:

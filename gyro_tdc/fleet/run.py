@@ -330,14 +330,6 @@ def sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
-def _worker_count(engine: Engine) -> int:
-    """Return the workers connected to the engine's scheduler (0 when it cannot be asked)."""
-    try:
-        return len(engine.client.nthreads())
-    except (OSError, TimeoutError):
-        return 0
-
-
 def _completed(futures: list, engine: Engine) -> Iterator[object]:
     """
     Yield the futures as they finish; raise _NoWorker when the cluster lost every worker.
@@ -356,7 +348,11 @@ def _completed(futures: list, engine: Engine) -> Iterator[object]:
         now = time.monotonic()
         if now >= next_check:
             next_check = now + min(1.0, engine.timeout_s / 4.0)
-            if _worker_count(engine):
+            try:                          # the workers connected (none when it cannot be asked)
+                workers = len(engine.client.nthreads())
+            except (OSError, TimeoutError):
+                workers = 0
+            if workers:
                 idle_since = None
             elif idle_since is None:
                 idle_since = now

@@ -244,14 +244,12 @@ def _check(v: Any) -> dict | None:
     if v is None:
         return None
     v = _dict(v, 'check', _CHECK_KEYS)
-    if not isinstance(v['swapped'], bool):
-        raise _bad('check.swapped', f'must be true or false, got {shown(v["swapped"])}')
     mse = (0.0, MAX_RATE_RAD_S ** 2 * 3, 'a squared error in (rad/s)^2')
     return {'t': _stamp(v['t'], 'check.t'),
             'candidate_mse': _number(v['candidate_mse'], 'check.candidate_mse', *mse),
             'current_mse': (None if v['current_mse'] is None
                             else _number(v['current_mse'], 'check.current_mse', *mse)),
-            'swapped': v['swapped']}
+            'swapped': _CHK.boolean(v['swapped'], 'check.swapped')}
 
 
 def _thermal(v: Any) -> ThermalState | None:
@@ -287,9 +285,7 @@ def _motion(v: Any) -> list[tuple[float, bool]]:
     out = []
     for i, m in enumerate(_list(v, 'motion')):
         m = _list(m, f'motion[{i}]', 2)
-        if not isinstance(m[1], bool):
-            raise _bad(f'motion[{i}][1]', f'must be true or false, got {shown(m[1])}')
-        out.append((_stamp(m[0], f'motion[{i}][0]'), m[1]))
+        out.append((_stamp(m[0], f'motion[{i}][0]'), _CHK.boolean(m[1], f'motion[{i}][1]')))
     out.sort(key=lambda r: r[0])
     return out
 

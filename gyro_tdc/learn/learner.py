@@ -192,11 +192,7 @@ class Learner:
 
     def load(self, path: str | Path) -> bool:
         """Resume from ``path`` when it exists; return whether it did (LearnFileError: bad)."""
-        state = LearnFile(path).read()
-        if state is None:
-            return False
-        self.load_state(state)
-        return True
+        return LearnFile(path).resume(self.load_state)
 
     # -- the message path -------------------------------------------------------------
 
@@ -303,10 +299,6 @@ class Learner:
                 swapped = self._batch(t[lo:hi], w[lo:hi], None if acc is None else acc[lo:hi],
                                       temp[lo:hi], why, d) or swapped
         return swapped
-
-    def session_gap(self) -> float:
-        """Return the stamp gap (s) above which the stream starts a new session now."""
-        return self.sessions.limit(self.sessions.median or 0.0)
 
     def _pause(self, gap: float) -> str:
         """
