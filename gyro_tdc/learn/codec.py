@@ -79,7 +79,7 @@ def encode_state(learner: Any) -> dict[str, Any]:
                    for stretch, session, rows in learner.recent],
         'fit': learner.fit, 'last_update_t': learner.last_update_t, 'last_t': learner.last_t,
         'check': learner.check, 'swaps': learner.swaps,
-        'motion': [[float(m[0]), bool(m[1])] for m in learner.still.motion.reports],
+        'motion': [[float(m[0]), bool(m[1])] for m in learner.motion],
         'thermal': None if learner.thermal is None else learner.thermal.to_dict(),
         'thermal_state': None if ts is None else [float(ts[0]), [float(v) for v in ts[1]]],
         'config': {k: getattr(learner.config, k) for k in _CONFIG_KEYS},

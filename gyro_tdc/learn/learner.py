@@ -133,6 +133,11 @@ class Learner:
         """Return the power cycle the stream is in, from 0."""
         return self.sessions.session
 
+    @property
+    def motion(self) -> list[tuple[float, bool]]:
+        """Return the motion reports (stamp, moving), from the one held at the window on."""
+        return self.still.motion.reports
+
     def state(self) -> dict[str, Any]:
         """Return the persistent state as plain types (what :meth:`save` writes)."""
         return encode_state(self)
