@@ -103,8 +103,7 @@ def _figure(**kw: Any) -> Any:
 
 def _save(fig: Any, path: Path) -> Path:
     """Write a matplotlib figure as a PNG, atomically; return the path."""
-    atomic_write(path, lambda fh: fig.savefig(fh, dpi=90, format='png'), binary=True,
-                 what='plot')
+    atomic_write(path, lambda fh: fig.savefig(fh, dpi=90, format='png'), binary=True, what='plot')
     return path
 
 
@@ -243,8 +242,7 @@ def _plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head
         right[k].axhline(0.0, color='0.3', lw=0.8)
         for ax in (left[k], right[k]):
             ax.grid(True, alpha=0.3)
-            _flag_spans(ax, th, temp, b, legends, labelled=(ax is left[0]),
-                        reanchor_s=reanchor_s)
+            _flag_spans(ax, th, temp, b, legends, labelled=(ax is left[0]), reanchor_s=reanchor_s)
     left[0].set_title('raw and compensated, full scale')
     right[0].set_title(f'zoom: compensated only, {zoom_s:.3g} s means, scaled to the models '
                        f'within {_ZOOM_BS_FACTOR:g}x of the best BS')

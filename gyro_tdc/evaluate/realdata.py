@@ -203,8 +203,7 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
                 trial[eid][name] = tau
                 return fit_linear(design(trial), y, kind='poly', ridge=ridge).sse
 
-            par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name],
-                                               n_grid=n_grid).tau
+            par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name], n_grid=n_grid).tau
     fit = fit_linear(design(par), y, kind='poly', ridge=ridge)
     temp = run.temp[train]
     return FullSeriesModel(ids, par, float(t0), fit.norm,
@@ -258,8 +257,7 @@ def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
     for i, (held, train) in enumerate(Folds.sessions(block_of)):
         held_bursts = blocks[i]
         idx = np.flatnonzero(held)
-        position = 'end' if held_bursts[0] == 0 or held_bursts[-1] == n_bursts - 1 \
-            else 'interior'
+        position = 'end' if held_bursts[0] == 0 or held_bursts[-1] == n_bursts - 1 else 'interior'
         floor = floor_of(idx)
         held_run = rows_of(run, idx)
         t_lo, t_hi = float(run.temp[train].min()), float(run.temp[train].max())
@@ -277,11 +275,9 @@ def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
                 extra = {}
             else:
                 model = _fit(spec, run, train, t0)
-                rates[spec.name] = tuple(_compensated(model, run, c)[held]
-                                         for c in (True, False))
+                rates[spec.name] = tuple(_compensated(model, run, c)[held] for c in (True, False))
                 extra = {'effect_params': {k: dict(v) for k, v in model.effect_params.items()}}
-            fold['models'][spec.name] = {**_scored(rates[spec.name], held_run, floor)[0],
-                                         **extra}
+            fold['models'][spec.name] = {**_scored(rates[spec.name], held_run, floor)[0], **extra}
         for g in (position, 'all'):
             pooled[g].append((idx, rates))
         folds.append(fold)
@@ -297,8 +293,7 @@ def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
                       'floor_bs_dps2': floor.tolist(), 'models': {}}
         bs_of = {}
         for spec in models:
-            rate = tuple(np.concatenate([x[1][spec.name][c] for x in pooled[g]])
-                         for c in (0, 1))
+            rate = tuple(np.concatenate([x[1][spec.name][c] for x in pooled[g]]) for c in (0, 1))
             summary[g]['models'][spec.name], bs_of[spec.name] = _scored(rate, group_run, floor)
         for spec in models:
             row = summary[g]['models'][spec.name]

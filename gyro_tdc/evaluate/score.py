@@ -45,11 +45,9 @@ from gyro_tdc.signal import (allan_deviation, bias_stability, noise_readouts, rm
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = [
-    'AUTO_REANCHOR', 'BagEval', 'ModelEval', 'NamedModel', 'PX4', 'bag_labels', 'evaluate',
-    'evaluate_run', 'held_out_constant', 'load_models', 'mean_scores', 'model_labels',
-    'rate_hz', 'safe_label', 'score', 'still_rows',
-]
+__all__ = ['AUTO_REANCHOR', 'BagEval', 'ModelEval', 'NamedModel', 'PX4', 'bag_labels', 'evaluate',
+           'evaluate_run', 'held_out_constant', 'load_models', 'mean_scores', 'model_labels',
+           'rate_hz', 'safe_label', 'score', 'still_rows']
 
 #: ``reanchor_s`` value for the compensator's precision-driven rule.
 AUTO_REANCHOR = 'auto'
@@ -363,8 +361,7 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         lo, hi = m.temp_range_c
         ev.temp_range_c = (lo, hi)
         temp = model_temperature(m, run.t, run.temp)     # the range is the thermal state's
-        ev.outside_fraction = float(np.count_nonzero((temp < lo) | (temp > hi))
-                                    / max(len(run), 1))
+        ev.outside_fraction = float(np.count_nonzero((temp < lo) | (temp > hi)) / max(len(run), 1))
         out.append(ev)
     raw.accel_bs, per_model = accel_scores(run, [nm.model for nm in models],
                                            out_of_range=out_of_range,

@@ -455,8 +455,7 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
                 futures[fut] = spec.sensor_id
             for fut in _completed(list(futures), engine):
                 sid = futures[fut]
-                outcome = (fut.result() if fut.status == 'finished'
-                           else _future_failure(sid, fut))
+                outcome = (fut.result() if fut.status == 'finished' else _future_failure(sid, fut))
                 fut.release()
                 res = _record(outcome, out, state_dir, states[sid])
                 if res.status != 'ok' and outcome.status == 'ok':

@@ -34,8 +34,7 @@ from gyro_tdc.model import CompensationModel, drift
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['DEFAULT_OUTLIER_Z', 'MIN_FLEET', 'drift_polynomial', 'fleet_statistics',
-           'robust_z']
+__all__ = ['DEFAULT_OUTLIER_Z', 'MIN_FLEET', 'drift_polynomial', 'fleet_statistics', 'robust_z']
 
 DEFAULT_OUTLIER_Z = 3.5      # Iglewicz and Hoaglin's cut-off for the modified z-score
 MIN_FLEET = 3                # fewer trained sensors: no z-scores, no flags

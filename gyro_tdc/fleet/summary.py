@@ -100,8 +100,7 @@ def write_summary(result: FleetResult, out_dir: str | os.PathLike) -> tuple[Path
     js = atomic_write(d / 'summary.json',
                       json.dumps(summary_dict(result), indent=1, ensure_ascii=False) + '\n',
                       what='fleet summary')
-    return js, atomic_write(d / 'summary.csv', _csv_text(result), what='fleet summary',
-                            newline='')
+    return js, atomic_write(d / 'summary.csv', _csv_text(result), what='fleet summary', newline='')
 
 
 def format_table(result: FleetResult, *, max_rows: int = 40) -> str:

@@ -351,8 +351,7 @@ def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationMode
     return model
 
 
-def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float
-                  ) -> list[float] | None:
+def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float) -> list[float] | None:
     """
     Return the offset that zeroes a fit's mean residual over the newest still windows.
 

@@ -34,8 +34,7 @@ from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT, RECENT_ROWS
 from gyro_tdc.learn.fit import (compare, fit_points, grow_features, learned_model, model_of,
                                 offset_until, recent_offset, same_thermal, stream_state)
 from gyro_tdc.learn.gate import learned_gate
-from gyro_tdc.learn.records import (Entry, held_out_line, LearnConfig, OpenStretch,
-                                    RecentStretch)
+from gyro_tdc.learn.records import Entry, held_out_line, LearnConfig, OpenStretch, RecentStretch
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
 from gyro_tdc.signal import (break_why, GAP_PERIODS, hold_readings, SessionTracker, StillWindows,

@@ -183,8 +183,7 @@ class LearnFile:
         except RecursionError:
             raise LearnFileError(f'{p}: not a learner state (nested too deep)') from None
         except ValueError as exc:
-            raise LearnFileError(f'{p}: not JSON ({" ".join(str(exc).split())[:120]})'
-                                 ) from None
+            raise LearnFileError(f'{p}: not JSON ({" ".join(str(exc).split())[:120]})') from None
         self._mine = _signature(st)
         return doc
 
