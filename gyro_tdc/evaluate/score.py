@@ -147,8 +147,7 @@ class BagEval:
         The data (kept only while plots and CSVs are written).
     out_of_range : str
         The out-of-range policy the models were evaluated with (:func:`evaluate_run` sets
-        it; ``'clamp'``, what every evaluation did before the policy existed, when a result
-        is built by hand).
+        it; ``'clamp'`` when a result is built by hand).
     constant_axes : list of str
         The gyro axes that are constant on this bag by ``train``'s rule (readings never
         varying beyond one quantum, :func:`gyro_tdc.identify.constant_axes`: a 2-axis gyro's
