@@ -74,11 +74,16 @@ class NamedModel:
 
 def safe_label(text: str) -> str:
     """Return ``text`` reduced to a file-name and CSV-header safe label."""
-    stem = Path(str(text).rstrip('/\\')).name
-    for suffix in ('.yaml', '.yml'):
-        if stem.endswith(suffix):
-            stem = stem[:-len(suffix)]
+    stem = Path(str(text).rstrip('/\\')).name.removesuffix('.yaml').removesuffix('.yml')
     return re.sub(r'[^A-Za-z0-9_.-]+', '_', stem).strip('_.') or 'unnamed'
+
+
+def _unique(base: str, taken: list) -> str:
+    """Return ``base``, or ``base_2``, ``base_3``... when it is taken."""
+    label, k = base, 2
+    while label in taken:
+        label, k = f'{base}_{k}', k + 1
+    return label
 
 
 def model_labels(names: Sequence[str]) -> list:
@@ -86,26 +91,17 @@ def model_labels(names: Sequence[str]) -> list:
     out: list = []
     for name in names:
         base = PX4 if name == PX4 else safe_label(name)
-        if base == 'raw':
-            base = 'raw_model'
-        label, k = base, 2
-        while label in out:
-            label, k = f'{base}_{k}', k + 1
-        out.append(label)
+        out.append(_unique('raw_model' if base == 'raw' else base, out))
     return out
 
 
 def bag_labels(paths: Sequence[str | os.PathLike]) -> list:
     """Return unique file-name labels for bag paths (parent folder added on clashes)."""
     base = [safe_label(str(p)) for p in paths]
-    out = []
+    out: list = []
     for p, b in zip(paths, base):
-        if base.count(b) > 1:
-            b = safe_label(f'{Path(p).parent.name}_{b}')
-        label, k = b, 2
-        while label in out:
-            label, k = f'{b}_{k}', k + 1
-        out.append(label)
+        out.append(_unique(safe_label(f'{Path(p).parent.name}_{b}') if base.count(b) > 1
+                           else b, out))
     return out
 
 
@@ -160,9 +156,7 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     """
     if PX4 in specs and not train_bags:
         raise FitError('The px4 baseline needs training bags to fit its cubic on.')
-    if loader is None:
-        def loader(spec: str) -> CompensationModel:
-            return load_model(model_path(spec))
+    loader = loader or (lambda spec: load_model(model_path(spec)))
     files = {s: loader(s) for s in specs if s != PX4 and s not in ONBOARD}
     if any(s in ONBOARD for s in specs):
         if not held_out:

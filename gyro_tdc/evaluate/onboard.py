@@ -39,8 +39,7 @@ ONBOARD = {PX4_ONBOARD: 'px4', ARDUPILOT_ONBOARD: 'ardupilot'}
 _RESIDUAL_VAR = 1e-8
 
 
-def _cubic(t0: float, intercept, linear, lo: float, hi: float, created: dict
-           ) -> CompensationModel:
+def _cubic(t0: float, intercept, linear, lo: float, hi: float, created: dict) -> CompensationModel:
     """Return ``intercept + linear . (d, d^2, d^3)``, ``d = T - t0``, valid on ``[lo, hi]``."""
     coef = np.vstack([np.reshape(intercept, (1, 3)), np.reshape(linear, (3, 3))])
     return CompensationModel.polynomial(('dT', 'dT2', 'dT3'), t0, coef, temp_range_c=(lo, hi),

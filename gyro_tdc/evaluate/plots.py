@@ -103,8 +103,7 @@ def _figure(**kw: Any) -> Any:
 
 def _save(fig: Any, path: Path) -> Path:
     """Write a matplotlib figure as a PNG, atomically; return the path."""
-    atomic_write(path, lambda fh: fig.savefig(fh, dpi=90, format='png'), binary=True,
-                 what='plot')
+    atomic_write(path, lambda fh: fig.savefig(fh, dpi=90, format='png'), binary=True, what='plot')
     return path
 
 
@@ -185,14 +184,12 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
     styles = [_RAW_STYLE] + [_style(i, len(th), n_models) for i in range(n_models)]
     models_text = ', '.join(Path(str(m.model)).name for m in b.models) or 'none'
     head = f'{b.bag}: models {models_text}' + (f'; {options}' if options else '')
-    written = []
     with matplotlib.rc_context(_FONTS):
-        written.append(_plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles,
-                                        head, block, reanchor_s))
-        written.append(_plot_residual_vs_temperature(b, out, run, temp, raw_err, model_err,
-                                                     legends, head, _bmean))
-        written.append(_plot_allan(b, out, legends, styles, head))
-    return written
+        return [_plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head,
+                                 block, reanchor_s),
+                _plot_residual_vs_temperature(b, out, run, temp, raw_err, model_err, legends,
+                                              head, _bmean),
+                _plot_allan(b, out, legends, styles, head)]
 
 
 def _flag_spans(ax: Any, th: NDArray[np.float64], temp: NDArray[np.float64], b: BagEval,
@@ -245,8 +242,7 @@ def _plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head
         right[k].axhline(0.0, color='0.3', lw=0.8)
         for ax in (left[k], right[k]):
             ax.grid(True, alpha=0.3)
-            _flag_spans(ax, th, temp, b, legends, labelled=(ax is left[0]),
-                        reanchor_s=reanchor_s)
+            _flag_spans(ax, th, temp, b, legends, labelled=(ax is left[0]), reanchor_s=reanchor_s)
     left[0].set_title('raw and compensated, full scale')
     right[0].set_title(f'zoom: compensated only, {zoom_s:.3g} s means, scaled to the models '
                        f'within {_ZOOM_BS_FACTOR:g}x of the best BS')

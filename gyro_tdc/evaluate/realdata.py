@@ -33,7 +33,7 @@ from gyro_tdc.base import atomic_write
 from gyro_tdc.data import default_pan_csv, PanCubesat, read_pan_cubesat_csv, Run
 from gyro_tdc.errors import FitError, GyroTdcError
 from gyro_tdc.evaluate.score import score
-from gyro_tdc.identify import estimate_t0, fit_linear, fit_model, fit_time_constant
+from gyro_tdc.identify import estimate_t0, fit_linear, fit_model, fit_time_constant, rows_of
 from gyro_tdc.model import (batch_features, compensate, CompensationModel, EFFECTS,
                             normalise_ids, rbf_design, resolve_params)
 from gyro_tdc.signal import bias_stability, Folds
@@ -203,8 +203,7 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
                 trial[eid][name] = tau
                 return fit_linear(design(trial), y, kind='poly', ridge=ridge).sse
 
-            par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name],
-                                               n_grid=n_grid).tau
+            par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name], n_grid=n_grid).tau
     fit = fit_linear(design(par), y, kind='poly', ridge=ridge)
     temp = run.temp[train]
     return FullSeriesModel(ids, par, float(t0), fit.norm,
@@ -217,10 +216,7 @@ def _fit(spec: HoldoutModel, run: Run, train: NDArray[np.bool_], t0: float
     """Fit one compared model on the training rows."""
     if spec.full_series:
         return fit_full_series(run, train, features=spec.features, t0=t0)
-    idx = np.flatnonzero(train)
-    sub = Run(run.t[idx], run.temp[idx], run.omega[idx], run.omega_ref[idx],
-              f'{run.name}[train]')
-    return fit_model([sub], kind=spec.kind, features=spec.features, t0=t0,
+    return fit_model([rows_of(run, train)], kind=spec.kind, features=spec.features, t0=t0,
                      n_centers=spec.n_centers, seed=0)
 
 
@@ -230,11 +226,6 @@ def _compensated(model: CompensationModel | FullSeriesModel, run: Run, clamp: bo
     if isinstance(model, FullSeriesModel):
         return model.compensate(run.t, run.temp, run.omega, clamp=clamp)
     return compensate(model, run.t, run.temp, run.omega, clamp=clamp)
-
-
-def _rows(run: Run, idx: NDArray[np.int64], name: str) -> Run:
-    """Return the rows ``idx`` (increasing) of a run as a run of their own."""
-    return Run(run.t[idx], run.temp[idx], run.omega[idx], run.omega_ref[idx], name)
 
 
 def _scored(omega: tuple[NDArray[np.float64], NDArray[np.float64]], held: Run,
@@ -266,10 +257,9 @@ def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
     for i, (held, train) in enumerate(Folds.sessions(block_of)):
         held_bursts = blocks[i]
         idx = np.flatnonzero(held)
-        position = 'end' if held_bursts[0] == 0 or held_bursts[-1] == n_bursts - 1 \
-            else 'interior'
+        position = 'end' if held_bursts[0] == 0 or held_bursts[-1] == n_bursts - 1 else 'interior'
         floor = floor_of(idx)
-        held_run = _rows(run, idx, f'{run.name}[block {i}]')
+        held_run = rows_of(run, idx)
         t_lo, t_hi = float(run.temp[train].min()), float(run.temp[train].max())
         temp_h = run.temp[held]
         fold = {'block': i, 'bursts': [int(held_bursts[0]), int(held_bursts[-1])],
@@ -285,11 +275,9 @@ def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
                 extra = {}
             else:
                 model = _fit(spec, run, train, t0)
-                rates[spec.name] = tuple(_compensated(model, run, c)[held]
-                                         for c in (True, False))
+                rates[spec.name] = tuple(_compensated(model, run, c)[held] for c in (True, False))
                 extra = {'effect_params': {k: dict(v) for k, v in model.effect_params.items()}}
-            fold['models'][spec.name] = {**_scored(rates[spec.name], held_run, floor)[0],
-                                         **extra}
+            fold['models'][spec.name] = {**_scored(rates[spec.name], held_run, floor)[0], **extra}
         for g in (position, 'all'):
             pooled[g].append((idx, rates))
         folds.append(fold)
@@ -300,13 +288,12 @@ def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
             continue
         idx = np.concatenate([x[0] for x in pooled[g]])
         floor = floor_of(idx)
-        group_run = _rows(run, idx, f'{run.name}[{g}]')
+        group_run = rows_of(run, idx)
         summary[g] = {'folds': len(pooled[g]), 'samples': len(idx),
                       'floor_bs_dps2': floor.tolist(), 'models': {}}
         bs_of = {}
         for spec in models:
-            rate = tuple(np.concatenate([x[1][spec.name][c] for x in pooled[g]])
-                         for c in (0, 1))
+            rate = tuple(np.concatenate([x[1][spec.name][c] for x in pooled[g]]) for c in (0, 1))
             summary[g]['models'][spec.name], bs_of[spec.name] = _scored(rate, group_run, floor)
         for spec in models:
             row = summary[g]['models'][spec.name]

@@ -34,10 +34,8 @@ from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = [
-    'AXES', 'csv_columns', 'evaluation_json', 'format_allan', 'format_bag', 'format_means',
-    'format_paper_table', 'format_still', 'format_summary', 'write_csv', 'write_json',
-]
+__all__ = ['AXES', 'csv_columns', 'evaluation_json', 'format_allan', 'format_bag', 'format_means',
+           'format_paper_table', 'format_still', 'format_summary', 'write_csv', 'write_json']
 
 AXES = ('x', 'y', 'z')
 
@@ -136,8 +134,7 @@ def write_json(bags: Sequence[BagEval], path: str | os.PathLike, *,
                accel_floor: Sequence[float] | None = None) -> Path:
     """Write :func:`evaluation_json` to ``path`` atomically (parents created); return it."""
     doc = evaluation_json(bags, floor=floor, accel_floor=accel_floor)
-    return atomic_write(path, json.dumps(doc, indent=1, allow_nan=False) + '\n',
-                        what='JSON file')
+    return atomic_write(path, json.dumps(doc, indent=1, allow_nan=False) + '\n', what='JSON file')
 
 
 # --------------------------------------------------------------------------------------------

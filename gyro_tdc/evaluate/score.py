@@ -36,7 +36,7 @@ from gyro_tdc.evaluate.models import (bag_labels, load_models, model_labels, Nam
                                       safe_label, with_accel)
 from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
 from gyro_tdc.identify import (accel_scores, all_constant_error, constant_axes, find_still,
-                               MAX_MOVING_SHARE, MIN_SAMPLES, moving_share)
+                               MAX_MOVING_SHARE, MIN_SAMPLES, moving_share, rows_of)
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             MAX_EXTRAPOLATION_C, model_temperature)
 from gyro_tdc.runtime import default_tolerance, gated_shift, reanchor_shift, STILL_WINDOW_MAX_S
@@ -45,11 +45,9 @@ from gyro_tdc.signal import (allan_deviation, bias_stability, noise_readouts, rm
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = [
-    'AUTO_REANCHOR', 'BagEval', 'ModelEval', 'NamedModel', 'PX4', 'bag_labels', 'evaluate',
-    'evaluate_run', 'held_out_constant', 'load_models', 'mean_scores', 'model_labels',
-    'rate_hz', 'safe_label', 'score', 'still_rows',
-]
+__all__ = ['AUTO_REANCHOR', 'BagEval', 'ModelEval', 'NamedModel', 'PX4', 'bag_labels', 'evaluate',
+           'evaluate_run', 'held_out_constant', 'load_models', 'mean_scores', 'model_labels',
+           'rate_hz', 'safe_label', 'score', 'still_rows']
 
 #: ``reanchor_s`` value for the compensator's precision-driven rule.
 AUTO_REANCHOR = 'auto'
@@ -149,8 +147,7 @@ class BagEval:
         The data (kept only while plots and CSVs are written).
     out_of_range : str
         The out-of-range policy the models were evaluated with (:func:`evaluate_run` sets
-        it; ``'clamp'``, what every evaluation did before the policy existed, when a result
-        is built by hand).
+        it; ``'clamp'`` when a result is built by hand).
     constant_axes : list of str
         The gyro axes that are constant on this bag by ``train``'s rule (readings never
         varying beyond one quantum, :func:`gyro_tdc.identify.constant_axes`: a 2-axis gyro's
@@ -339,9 +336,8 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     """
     check_policy(out_of_range)
     const = _constant(run)
-    rate = rate_hz(run.t)
     parts = split_sessions([run], sessions, session_gap_s).runs
-    whole, summary, kw = run, None, {'rate': rate}
+    whole, summary, kw = run, None, {'rate': rate_hz(run.t)}
     bounds = np.cumsum([0] + [len(p) for p in parts])
 
     def pick(x: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -349,7 +345,7 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         return x if still is None else _anchor_first_still(x, still, bounds)[still]
     if still is not None:
         summary = _still_summary(run, still, bounds)
-        whole, kw, reanchor_s = _rows_of(run, still), {'allan': False}, 0.0
+        whole, kw, reanchor_s = rows_of(run, still), {'allan': False}, 0.0
     raw = score(pick(run.omega), whole, **kw)
     const |= ~(raw.bs > 0)                  # an axis reading its reference exactly
     out = []
@@ -364,8 +360,7 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         lo, hi = m.temp_range_c
         ev.temp_range_c = (lo, hi)
         temp = model_temperature(m, run.t, run.temp)     # the range is the thermal state's
-        ev.outside_fraction = float(np.count_nonzero((temp < lo) | (temp > hi))
-                                    / max(len(run), 1))
+        ev.outside_fraction = float(np.count_nonzero((temp < lo) | (temp > hi)) / max(len(run), 1))
         out.append(ev)
     raw.accel_bs, per_model = accel_scores(run, [nm.model for nm in models],
                                            out_of_range=out_of_range,
@@ -393,12 +388,6 @@ def still_rows(run: Run) -> NDArray[np.bool_] | None:
     if run.info.get('reference') != 'zero' or moving_share([run]) <= MAX_MOVING_SHARE:
         return None
     return find_still([run])[0].mask
-
-
-def _rows_of(run: Run, m: NDArray[np.bool_]) -> Run:
-    """Return the samples ``m`` of a run as a run (with gaps)."""
-    return Run(run.t[m], run.temp[m], run.omega[m], run.omega_ref[m], run.name,
-               dict(run.info), None if run.accel is None else run.accel[m])
 
 
 def _stretches(still: NDArray[np.bool_], a: int, b: int

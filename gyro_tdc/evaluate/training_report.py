@@ -67,8 +67,7 @@ def format_coverage(c: Coverage) -> tuple[str, list]:
     minutes = np.asarray(c.minutes, dtype=np.float64)
     if minutes.size:
         least, most = int(np.argmin(minutes)), int(np.argmax(minutes))
-        thin = (f'{len(c.sparse)} thin (named in the warning below)' if c.sparse
-                else 'none thin')
+        thin = (f'{len(c.sparse)} thin (named in the warning below)' if c.sparse else 'none thin')
         lines.append(f'coverage per {c.bin_c:g} degC bin: {minutes.size} bins '
                      f'{c.edges[0]:g} .. {c.edges[-1]:g} degC; minutes per bin '
                      f'{minutes[least]:.1f} ({_bin_name(c, least)}) .. {minutes[most]:.1f} '

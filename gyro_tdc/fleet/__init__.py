@@ -21,17 +21,14 @@ an unchanged sensor is skipped when resuming. Never imports rclpy.
 The manifest, the statistics and resuming: ``doc/internals/fleet.md``.
 """
 
-from gyro_tdc.fleet.manifest import check_sensor_id, input_key, read_manifest, SensorSpec
-from gyro_tdc.fleet.results import FleetResult, SensorResult
-from gyro_tdc.fleet.run import (Engine, open_engine, run_fleet, run_sensor, SensorOutcome,
-                                sigterm_as_interrupt)
-from gyro_tdc.fleet.stats import (DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics, MIN_FLEET,
-                                  robust_z)
-from gyro_tdc.fleet.summary import format_table, summary_dict, write_summary
+from gyro_tdc.base.face import lazy
 
-__all__ = [
-    'DEFAULT_OUTLIER_Z', 'Engine', 'FleetResult', 'MIN_FLEET', 'SensorOutcome', 'SensorResult',
-    'SensorSpec', 'check_sensor_id', 'drift_polynomial', 'fleet_statistics', 'format_table',
-    'input_key', 'open_engine', 'read_manifest', 'robust_z', 'run_fleet', 'run_sensor',
-    'sigterm_as_interrupt', 'summary_dict', 'write_summary',
-]
+__all__, __getattr__, __dir__ = lazy(__name__, {
+    'manifest': ['check_sensor_id', 'input_key', 'read_manifest', 'SensorSpec'],
+    'results': ['FleetResult', 'SensorResult'],
+    'run': ['Engine', 'open_engine', 'run_fleet', 'run_sensor', 'SensorOutcome',
+            'sigterm_as_interrupt'],
+    'stats': ['DEFAULT_OUTLIER_Z', 'drift_polynomial', 'fleet_statistics', 'MIN_FLEET',
+              'robust_z'],
+    'summary': ['format_table', 'summary_dict', 'write_summary'],
+})

@@ -34,8 +34,7 @@ import re
 from gyro_tdc import __version__
 from gyro_tdc.errors import FleetError
 
-__all__ = ['COLUMNS', 'KEY_FORMAT', 'SensorSpec', 'check_sensor_id', 'input_key',
-           'read_manifest']
+__all__ = ['COLUMNS', 'KEY_FORMAT', 'SensorSpec', 'check_sensor_id', 'input_key', 'read_manifest']
 
 COLUMNS = ('sensor_id', 'train', 'test')
 KEY_FORMAT = 1               # bump when the key's recipe changes: every sensor retrains

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, replace
 import hashlib
 import json
 import logging
@@ -60,49 +60,29 @@ _FIGURES = ('train_bs', 'heldout_bs', 'drift_poly', 'temp_range_c', 'constant_ax
 
 
 @dataclass
-class SensorOutcome:
+class SensorOutcome(SensorResult):
     """
-    What one sensor task returned (computed on a worker).
+    What one sensor task returned (computed on a worker): its figures as a summary line has them.
+
+    ``status`` is ``'ok'`` (trained), ``'skipped'`` (inputs unchanged) or ``'failed'``
+    (``error`` says why); ``seconds`` is the task's wall time on the worker, ``train_bs``,
+    ``heldout_bs``, ``drift_poly`` (:func:`drift_polynomial` as nested lists),
+    ``temp_range_c`` and ``constant_axes`` the model's (``heldout_bs`` None without test bags).
 
     Parameters
     ----------
-    sensor_id : str
-        The sensor.
-    status : str
-        ``'ok'`` (trained), ``'skipped'`` (inputs unchanged) or ``'failed'``.
     key : str
         Input key (:func:`input_key`); empty when it could not be computed.
-    error : str
-        One-line reason when failed.
     model : CompensationModel or None
         The trained model (``sensor_id`` set) when ok.
-    train_bs, heldout_bs : list of 3 float or None, (deg/s)^2
-        Training BS of the model; mean BS over the test bags (None without test bags).
-    drift_poly : list or None, deg/s per degC^k
-        :func:`drift_polynomial` as nested lists.
-    temp_range_c : list of 2 float or None, degC
-        The model's trained temperature range.
-    seconds : float, s
-        Wall time of the task on the worker.
     pid : int
         Process id of the worker.
-    constant_axes : list of str
-        The gyro axes constant in the training bags (the model passes them through).
 
     """
 
-    sensor_id: str
-    status: str
     key: str = ''
-    error: str = ''
     model: CompensationModel | None = None
-    train_bs: list | None = None
-    heldout_bs: list | None = None
-    drift_poly: list | None = None
-    temp_range_c: list | None = None
-    seconds: float = 0.0
     pid: int = 0
-    constant_axes: list = field(default_factory=list)
 
 
 #: The held-out bags are scored re-anchored, session by session (``evaluate --reanchor
@@ -350,14 +330,6 @@ def sigterm_as_interrupt() -> Iterator[None]:
         signal.signal(signal.SIGTERM, previous)
 
 
-def _worker_count(engine: Engine) -> int:
-    """Return the workers connected to the engine's scheduler (0 when it cannot be asked)."""
-    try:
-        return len(engine.client.nthreads())
-    except (OSError, TimeoutError):
-        return 0
-
-
 def _completed(futures: list, engine: Engine) -> Iterator[object]:
     """
     Yield the futures as they finish; raise _NoWorker when the cluster lost every worker.
@@ -376,7 +348,11 @@ def _completed(futures: list, engine: Engine) -> Iterator[object]:
         now = time.monotonic()
         if now >= next_check:
             next_check = now + min(1.0, engine.timeout_s / 4.0)
-            if _worker_count(engine):
+            try:                          # the workers connected (none when it cannot be asked)
+                workers = len(engine.client.nthreads())
+            except (OSError, TimeoutError):
+                workers = 0
+            if workers:
                 idle_since = None
             elif idle_since is None:
                 idle_since = now
@@ -479,8 +455,7 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
                 futures[fut] = spec.sensor_id
             for fut in _completed(list(futures), engine):
                 sid = futures[fut]
-                outcome = (fut.result() if fut.status == 'finished'
-                           else _future_failure(sid, fut))
+                outcome = (fut.result() if fut.status == 'finished' else _future_failure(sid, fut))
                 fut.release()
                 res = _record(outcome, out, state_dir, states[sid])
                 if res.status != 'ok' and outcome.status == 'ok':

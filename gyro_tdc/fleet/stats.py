@@ -34,8 +34,7 @@ from gyro_tdc.model import CompensationModel, drift
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['DEFAULT_OUTLIER_Z', 'MIN_FLEET', 'drift_polynomial', 'fleet_statistics',
-           'robust_z']
+__all__ = ['DEFAULT_OUTLIER_Z', 'MIN_FLEET', 'drift_polynomial', 'fleet_statistics', 'robust_z']
 
 DEFAULT_OUTLIER_Z = 3.5      # Iglewicz and Hoaglin's cut-off for the modified z-score
 MIN_FLEET = 3                # fewer trained sensors: no z-scores, no flags
@@ -130,9 +129,8 @@ def fleet_statistics(sensors: Sequence[SensorResult], *,
         s.curvature = [float(v) if k else None for v, k in zip(curv, ok)]
     if len(fleet) < MIN_FLEET:
         return ref
-    for name, attr, zattr, unit in (('slope', 'slope', 'z_slope', 'deg/s/degC'),
-                                    ('curvature', 'curvature', 'z_curvature', 'deg/s/degC^2')):
-        values = np.array([[math.nan if v is None else v for v in getattr(s, attr)]
+    for name, unit in (('slope', 'deg/s/degC'), ('curvature', 'deg/s/degC^2')):
+        values = np.array([[math.nan if v is None else v for v in getattr(s, name)]
                            for s in fleet])                    # (sensor, axis)
         z = np.full(values.shape, math.nan)
         med = np.full(3, math.nan)
@@ -142,7 +140,7 @@ def fleet_statistics(sensors: Sequence[SensorResult], *,
                 z[rows, a] = robust_z(values[rows, a])
                 med[a] = float(np.median(values[rows, a]))
         for i, s in enumerate(fleet):
-            setattr(s, zattr, [None if math.isnan(v) else float(v) for v in z[i]])
+            setattr(s, f'z_{name}', [None if math.isnan(v) else float(v) for v in z[i]])
             for a, axis in enumerate(AXES):
                 if abs(z[i, a]) > outlier_z:
                     s.flags.append(f'drift {name} on {axis} {abs(z[i, a]):.1f}σ from the '

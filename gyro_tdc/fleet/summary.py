@@ -47,16 +47,12 @@ def summary_dict(result: FleetResult) -> dict:
         in the fleet statistics).
 
     """
-    rows = []
-    for s in result.sensors:
-        row: dict = {'sensor_id': s.sensor_id, 'status': s.status}
-        if s.status != 'ok':
-            row['error'] = s.error
-        row.update({'model_file': s.model_file, 'train_bs': s.train_bs,
-                    'heldout_bs': s.heldout_bs, 'flags': list(s.flags)})
-        if s.constant_axes:
-            row['constant_axes'] = list(s.constant_axes)
-        rows.append(row)
+    rows = [{'sensor_id': s.sensor_id, 'status': s.status,
+             **({'error': s.error} if s.status != 'ok' else {}),
+             'model_file': s.model_file, 'train_bs': s.train_bs, 'heldout_bs': s.heldout_bs,
+             'flags': list(s.flags),
+             **({'constant_axes': list(s.constant_axes)} if s.constant_axes else {})}
+            for s in result.sensors]
     return {'engine': 'dask', 'scheduler': result.scheduler, 'workers': result.workers,
             'sensors': rows}
 
@@ -104,8 +100,7 @@ def write_summary(result: FleetResult, out_dir: str | os.PathLike) -> tuple[Path
     js = atomic_write(d / 'summary.json',
                       json.dumps(summary_dict(result), indent=1, ensure_ascii=False) + '\n',
                       what='fleet summary')
-    return js, atomic_write(d / 'summary.csv', _csv_text(result), what='fleet summary',
-                            newline='')
+    return js, atomic_write(d / 'summary.csv', _csv_text(result), what='fleet summary', newline='')
 
 
 def format_table(result: FleetResult, *, max_rows: int = 40) -> str:

@@ -40,7 +40,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],
     'options': ['TrainOptions', 'TrainResult'],
     'power_cycles': ['check_sessions', 'reanchor_lines', 'reanchor_rule', 'session_check_lines'],
-    'still_only': ['find_still', 'MAX_MOVING_SHARE', 'moving_share'],
+    'still_only': ['find_still', 'MAX_MOVING_SHARE', 'moving_share', 'rows_of'],
     'tau': ['effective_samples', 'fit_time_constant', 'profile_interval', 'TimeConstantFit'],
     'train': ['train', 'train_still_only'],
 })

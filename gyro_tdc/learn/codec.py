@@ -55,6 +55,7 @@ _HELD_KEYS = ('sessions', 'folds', 'points', 'curve_ms_dps2', 'offset_ms_dps2', 
 _CHECK_KEYS = ('t', 'candidate_mse', 'current_mse', 'swapped')
 _CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
 _RATE = (-MAX_RATE_RAD_S, MAX_RATE_RAD_S, 'a rate in rad/s')
+_TEMP = (*TEMP_PLAUSIBLE_C, 'a plausible temperature in degC')
 
 
 def encode_state(learner: Any) -> dict[str, Any]:
@@ -115,7 +116,7 @@ def _stamp(v: Any, name: str, optional: bool = False) -> float | None:
 
 def _temp(v: Any, name: str) -> float:
     """Return a plausible temperature, degC."""
-    return _number(v, name, *TEMP_PLAUSIBLE_C, 'a plausible temperature in degC')
+    return _number(v, name, *_TEMP)
 
 
 def _floor_in(v: Any, name: str) -> NDArray[np.float64]:
@@ -193,15 +194,13 @@ def _fit(v: Any, thermal: ThermalState | None) -> dict | None:
                    f'got {feats!r:.60}')
     coef = [_CHK.numbers(row, f'fit.coef[{i}]', 3, -MAX_PARAM, MAX_PARAM, 'a coefficient')
             for i, row in enumerate(_list(v['coef'], 'fit.coef', 1 + len(feats)))]
-    rng = [_temp(t, f'fit.range_c[{i}]') for i, t in enumerate(_list(v['range_c'],
-                                                                     'fit.range_c', 2))]
+    rng = _CHK.numbers(v['range_c'], 'fit.range_c', 2, *_TEMP)
     if not rng[0] <= rng[1]:
         raise _bad('fit.range_c', f'must be [low, high], got {rng}')
     fit = {'features': list(feats), 't0_c': _temp(v['t0_c'], 'fit.t0_c'), 'coef': coef,
            'range_c': rng,
-           'resid_var': [_number(r, f'fit.resid_var[{i}]', 0.0, MAX_RATE_RAD_S ** 2,
-                                 'a variance in (rad/s)^2')
-                         for i, r in enumerate(_list(v['resid_var'], 'fit.resid_var', 3))],
+           'resid_var': _CHK.numbers(v['resid_var'], 'fit.resid_var', 3, 0.0,
+                                     MAX_RATE_RAD_S ** 2, 'a variance in (rad/s)^2'),
            'points': _count(v['points'], 'fit.points', 1),
            'held_out': _held_out(v['held_out'], bool(feats))}
     if v.get('reanchor') is not None:
@@ -244,14 +243,12 @@ def _check(v: Any) -> dict | None:
     if v is None:
         return None
     v = _dict(v, 'check', _CHECK_KEYS)
-    if not isinstance(v['swapped'], bool):
-        raise _bad('check.swapped', f'must be true or false, got {shown(v["swapped"])}')
     mse = (0.0, MAX_RATE_RAD_S ** 2 * 3, 'a squared error in (rad/s)^2')
     return {'t': _stamp(v['t'], 'check.t'),
             'candidate_mse': _number(v['candidate_mse'], 'check.candidate_mse', *mse),
             'current_mse': (None if v['current_mse'] is None
                             else _number(v['current_mse'], 'check.current_mse', *mse)),
-            'swapped': v['swapped']}
+            'swapped': _CHK.boolean(v['swapped'], 'check.swapped')}
 
 
 def _thermal(v: Any) -> ThermalState | None:
@@ -278,8 +275,7 @@ def _thermal_state(v: Any, thermal: ThermalState | None) -> tuple[float, list[fl
         raise _bad('thermal_state', 'must be null without a thermal section with a lag')
     v = _list(v, 'thermal_state', 2)
     return (_stamp(v[0], 'thermal_state[0]'),
-            [_temp(x, f'thermal_state[1][{i}]')
-             for i, x in enumerate(_list(v[1], 'thermal_state[1]', nodes))])
+            _CHK.numbers(v[1], 'thermal_state[1]', nodes, *_TEMP))
 
 
 def _motion(v: Any) -> list[tuple[float, bool]]:
@@ -287,9 +283,7 @@ def _motion(v: Any) -> list[tuple[float, bool]]:
     out = []
     for i, m in enumerate(_list(v, 'motion')):
         m = _list(m, f'motion[{i}]', 2)
-        if not isinstance(m[1], bool):
-            raise _bad(f'motion[{i}][1]', f'must be true or false, got {shown(m[1])}')
-        out.append((_stamp(m[0], f'motion[{i}][0]'), m[1]))
+        out.append((_stamp(m[0], f'motion[{i}][0]'), _CHK.boolean(m[1], f'motion[{i}][1]')))
     out.sort(key=lambda r: r[0])
     return out
 

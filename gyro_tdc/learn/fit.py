@@ -113,12 +113,11 @@ def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:
 
     """
     span = float(temps.max() - temps.min()) if temps.size else 0.0
-    if span >= SPAN_DT3_C and bins >= BINS_DT3:
-        return ('dT', 'dT2', 'dT3')
-    if span >= SPAN_DT2_C and bins >= BINS_DT2:
-        return ('dT', 'dT2')
-    if span >= SPAN_DT_C and bins >= 2:
-        return ('dT',)
+    for feats, least_c, least_bins in ((('dT', 'dT2', 'dT3'), SPAN_DT3_C, BINS_DT3),
+                                       (('dT', 'dT2'), SPAN_DT2_C, BINS_DT2),
+                                       (('dT',), SPAN_DT_C, 2)):
+        if span >= least_c and bins >= least_bins:
+            return feats
     return ()
 
 
@@ -352,8 +351,7 @@ def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationMode
     return model
 
 
-def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float
-                  ) -> list[float] | None:
+def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float) -> list[float] | None:
     """
     Return the offset that zeroes a fit's mean residual over the newest still windows.
 

@@ -24,7 +24,6 @@ anchors' error is a turn-on offset.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Callable
 
 from gyro_tdc.errors import ModelFileError
@@ -34,48 +33,22 @@ from gyro_tdc.runtime import REANCHOR_KEY, reanchor_rule
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['learned_gate', 'PointRun', 'point_runs']
+__all__ = ['learned_gate', 'PointRun']
 
 
-@dataclass(frozen=True)
 class PointRun:
     """One power cycle's rows of the point table, as a run of still means (rad/s, degC)."""
 
-    rows: NDArray[np.float64]
-
-    @property
-    def t(self) -> NDArray[np.float64]:
-        """Return the stamps (the points' ends)."""
-        return self.rows[:, 0]
-
-    @property
-    def temp(self) -> NDArray[np.float64]:
-        """Return the model temperatures."""
-        return self.rows[:, 2]
-
-    @property
-    def omega(self) -> NDArray[np.float64]:
-        """Return the still means (N, 3)."""
-        return self.rows[:, 3:6]
-
-    @property
-    def omega_ref(self) -> NDArray[np.float64]:
-        """Return the reference rate: zero while still."""
-        return np.zeros((len(self), 3))
+    def __init__(self, rows: NDArray[np.float64]) -> None:
+        self.rows = rows
+        #: Stamps (the points' ends), model temperatures and still means (N, 3).
+        self.t, self.temp, self.omega = rows[:, 0], rows[:, 2], rows[:, 3:6]
+        #: The reference rate: zero while still.
+        self.omega_ref = np.zeros_like(self.omega)
 
     def __len__(self) -> int:
         """Return the number of points."""
         return self.rows.shape[0]
-
-
-def point_runs(e: NDArray[np.float64]) -> tuple[list[PointRun], list[int]]:
-    """Return the point table (E, 7) as one run per session, in time order, and the labels."""
-    runs, labels = [], []
-    for g in np.unique(e[:, 6]):
-        p = e[e[:, 6] == g]
-        runs.append(PointRun(p[np.argsort(p[:, 0], kind='stable')]))
-        labels.append(int(g))
-    return runs, labels
 
 
 def learned_gate(model: CompensationModel, e: NDArray[np.float64],
@@ -96,7 +69,9 @@ def learned_gate(model: CompensationModel, e: NDArray[np.float64],
         The thermal front end the points were binned with.
 
     """
-    runs, labels = point_runs(e)
+    labels = np.unique(e[:, 6])         # one run per power cycle, in time order
+    runs = [PointRun(p[np.argsort(p[:, 0], kind='stable')])
+            for p in (e[e[:, 6] == g] for g in labels)]
 
     def refit(others: list, g: list) -> CompensationModel | None:
         try:
@@ -104,4 +79,5 @@ def learned_gate(model: CompensationModel, e: NDArray[np.float64],
         except (ModelFileError, ValueError, np.linalg.LinAlgError):
             return None                   # too little left without this power cycle
 
-    return reanchor_rule(at_state(model), runs, labels, refit).metrics[REANCHOR_KEY]
+    rule = reanchor_rule(at_state(model), runs, labels.astype(int).tolist(), refit)
+    return rule.metrics[REANCHOR_KEY]

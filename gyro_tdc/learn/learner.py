@@ -34,8 +34,7 @@ from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT, RECENT_ROWS
 from gyro_tdc.learn.fit import (compare, fit_points, grow_features, learned_model, model_of,
                                 offset_until, recent_offset, same_thermal, stream_state)
 from gyro_tdc.learn.gate import learned_gate
-from gyro_tdc.learn.records import (Entry, held_out_line, LearnConfig, OpenStretch,
-                                    RecentStretch)
+from gyro_tdc.learn.records import Entry, held_out_line, LearnConfig, OpenStretch, RecentStretch
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
 from gyro_tdc.signal import (break_why, GAP_PERIODS, hold_readings, SessionTracker, StillWindows,
@@ -197,11 +196,7 @@ class Learner:
 
     def load(self, path: str | Path) -> bool:
         """Resume from ``path`` when it exists; return whether it did (LearnFileError: bad)."""
-        state = LearnFile(path).read()
-        if state is None:
-            return False
-        self.load_state(state)
-        return True
+        return LearnFile(path).resume(self.load_state)
 
     # -- the message path -------------------------------------------------------------
 
@@ -286,12 +281,10 @@ class Learner:
         m = len(buf) // SAMPLE * SAMPLE
         x = np.array(buf[:m], dtype=np.float64).reshape(-1, SAMPLE)
         del buf[:m]
-        t, w, acc = x[:, 0], x[:, 1:4], x[:, 4:7]
-        if not np.isfinite(acc).all():
+        ok = np.isfinite(x[:, 0])
+        t, w, acc = x[ok, 0], x[ok, 1:4], x[ok, 4:7]
+        if not np.isfinite(x[:, 4:7]).all():
             acc = None                    # missing or not three values: the gyro alone
-        ok = np.isfinite(t)
-        t, w = t[ok], w[ok]
-        acc = None if acc is None else acc[ok]
         if not t.size:
             return False
         temp, self.temps = hold_readings(self.temps, t, self.config.temperature_timeout)
@@ -310,10 +303,6 @@ class Learner:
                 swapped = self._batch(t[lo:hi], w[lo:hi], None if acc is None else acc[lo:hi],
                                       temp[lo:hi], why, d) or swapped
         return swapped
-
-    def session_gap(self) -> float:
-        """Return the stamp gap (s) above which the stream starts a new session now."""
-        return self.sessions.limit(self.sessions.median or 0.0)
 
     def _pause(self, gap: float) -> str:
         """

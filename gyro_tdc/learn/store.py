@@ -89,19 +89,6 @@ def _signature(st: os.stat_result) -> tuple[int, int, int, int]:
     return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
 
 
-def _owner_rw(path: Path, st: os.stat_result) -> str:
-    """Give the owner read and write permission when it lacks them; return a note (or '')."""
-    mode = stat.S_IMODE(st.st_mode)
-    if mode & 0o600 == 0o600:
-        return ''
-    try:
-        os.chmod(path, mode | 0o600)        # a regular file: the caller checked (lstat)
-    except OSError:
-        return ''
-    return (f'learn_file {str(path)!r} had mode {mode:04o}: set to {mode | 0o600:04o} (the '
-            'node must read at start-up what it writes)')
-
-
 class LearnFile:
     """
     One learn_file: read bounded, written only over a learner state this node read or wrote.
@@ -118,6 +105,19 @@ class LearnFile:
         #: Lines worth a warning from the last read or write (a mode given back to the owner).
         self.notes: list[str] = []
         self._mine: tuple[int, int, int, int] | None = None
+
+    def _owner_rw(self, st: os.stat_result) -> bool:
+        """Give the owner read and write permission when it lacks them (a note); return if so."""
+        mode = stat.S_IMODE(st.st_mode)
+        if mode & 0o600 == 0o600:
+            return False
+        try:
+            os.chmod(self.path, mode | 0o600)   # a regular file: the caller checked (lstat)
+        except OSError:
+            return False
+        self.notes.append(f'learn_file {str(self.path)!r} had mode {mode:04o}: set to '
+                          f'{mode | 0o600:04o} (the node must read at start-up what it writes)')
+        return True
 
     def read(self, *, fix_mode: bool = True) -> Any:
         """
@@ -156,9 +156,7 @@ class LearnFile:
             raise LearnFileError(f'{p}: {st.st_size} bytes, more than the {MAX_BYTES}-byte '
                                  '(4 MiB) limit of a learn_file')
         if fix_mode and st.st_uid == os.geteuid():
-            note = _owner_rw(p, st)
-            if note:
-                self.notes.append(note)
+            self._owner_rw(st)
         flags = (os.O_RDONLY | getattr(os, 'O_NOFOLLOW', 0) | getattr(os, 'O_NONBLOCK', 0)
                  | getattr(os, 'O_CLOEXEC', 0))
         try:
@@ -185,8 +183,7 @@ class LearnFile:
         except RecursionError:
             raise LearnFileError(f'{p}: not a learner state (nested too deep)') from None
         except ValueError as exc:
-            raise LearnFileError(f'{p}: not JSON ({" ".join(str(exc).split())[:120]})'
-                                 ) from None
+            raise LearnFileError(f'{p}: not JSON ({" ".join(str(exc).split())[:120]})') from None
         self._mine = _signature(st)
         return doc
 
@@ -251,9 +248,7 @@ class LearnFile:
         self.notes = []
         try:
             st = os.lstat(p)
-            note = _owner_rw(p, st)
-            if note:
-                self.notes.append(note)
+            if self._owner_rw(st):
                 st = os.lstat(p)
             self._mine = _signature(st)
         except OSError:
