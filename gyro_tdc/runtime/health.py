@@ -283,7 +283,7 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     values = _values(core, inputs, model_file, last_reload, frame_id)
     return Health(level, message, sensor_id or frame_id,
                   {k: str(v) for k, v in values.items()},
-                  HealthMark(dict(counts), core.temps.rejected, core.errors, inputs.lost,
+                  HealthMark(dict(counts), core.temps.rejected, core.tally.errors, inputs.lost,
                              inputs.already_compensated, inputs.malformed,
                              core.temps.implausible))
 
@@ -328,7 +328,7 @@ def _problems(core: CompensatorCore, since: HealthMark, new: dict[int, int],
         found.append((WARN, f'imu/data_raw is published by gyro_tdc compensator '
                             f'{", ".join(inputs.upstream)}: chained compensators apply the '
                             'drift model twice'))
-    errors = core.errors - since.errors
+    errors = core.tally.errors - since.errors
     if errors:
         found.append((ERROR, f'compensation failed on {errors} samples, passed through: '
                              f'{core.last_error}'))
@@ -344,6 +344,9 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
     anchor = core.anchor
     age = core.temperature_age()
     flags = core.last_flags
+    a = core.reanchoring
+    session = (f' (session {a.session} from t={a.session_t:.3f} s, after a {a.sessions.why})'
+               if a.session > 1 else '')
     values = {
         'compensation active': (model is not None and core.counts['compensated'] > 0
                                 and not flags & PASSTHROUGH),
@@ -355,11 +358,11 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
         'model range degC': '{:.2f}..{:.2f}'.format(*model.temp_range_c)
         if model is not None else '',
         'last reload': last_reload,
-        'temperature degC': f'{core.last_temp:.3f}' if core.last_temp is not None else '',
+        'temperature degC': f'{core.stream.temp:.3f}' if core.stream.temp is not None else '',
         'temperature age s': f'{age:.3f}' if age is not None else '',
         'temperature stale': bool(flags & STALE), 'in range': not flags & OUT_OF_RANGE,
         'out of range policy': core.policy.out_of_range,
-        'range distance degC': f'{core.last_distance_c:+.2f}',
+        'range distance degC': f'{core.stream.distance_c:+.2f}',
         'messages in': core.counts['in'], 'messages out': core.counts['out'],
         'compensated': core.counts['compensated'], 'passed through': counts[PASSTHROUGH],
         'no temperature yet': counts[NO_TEMPERATURE], 'stale': counts[STALE],
@@ -368,7 +371,7 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
         'implausible output': counts[IMPLAUSIBLE_OUTPUT],
         'temperatures rejected': core.temps.rejected,
         'temperatures rejected (implausible)': core.temps.implausible,
-        'errors': core.errors, 'last error': core.last_error,
+        'errors': core.tally.errors, 'last error': core.last_error,
         'input reliability': inputs.reliability, 'input lost': inputs.lost,
         'input malformed': inputs.malformed,
         'already compensated': inputs.already_compensated,
@@ -377,15 +380,14 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
         'passed through as corrected upstream': counts[UPSTREAM],
         'accelerometer': accel_state(core),
         'reanchor': ('off' if not core.policy.reanchor_on_start else
-                     'offset from the learner' if anchor is None and core.reanchoring.learned
+                     'offset from the learner' if anchor is None and a.learned
                      else 'waiting for stillness' if anchor is None else
-                     f'done at t={anchor.t:.3f} s') + core.session_note,
+                     f'done at t={anchor.t:.3f} s') + session,
     }
     if core.accel_on:
-        values['accelerometer compensated'] = core.accel_counts['compensated']
-        values['accelerometer passed through'] = core.accel_counts['passed through']
-        values['accelerometer missing'] = core.accel_counts['missing']
-    settling = core.thermal_progress       # the lagged state's start-up assumption (3 tau)
+        values.update((f'accelerometer {k}', v) for k, v in core.tally.accel.items())
+    comp = core.slot.comp                 # the lagged state's start-up assumption (3 tau)
+    settling = None if comp is None else comp.thermal_progress
     if settling is not None:
         values['thermal state'] = (f'settling ({settling:.1f} of {SETTLE_TAUS:g} tau)'
                                    if settling < SETTLE_TAUS else 'settled')

@@ -276,16 +276,6 @@ class StillnessDetector:
         return (self.fixed_tolerance <= 0 and self.window == STILL_WINDOW_S
                 and self.window_max == STILL_WINDOW_MAX_S)
 
-    @property
-    def motion(self) -> list[tuple[float, bool]]:
-        """Return the motion reports (stamp, moving) from the one held at the window on."""
-        return self.still.motion.reports
-
-    @property
-    def windows_seen(self) -> int:
-        """Return the windows judged since :meth:`reset`."""
-        return self.still.windows_seen
-
     def observe_motion(self, t: float, moving: bool) -> None:
         """
         Record a motion report: from stamp ``t`` until the next report, moving or not.
@@ -409,8 +399,9 @@ class StillnessDetector:
         n = len(self._rows) // 4
         if n < MIN_WINDOW_SAMPLES or k < EARLY_BLOCKS or t - w0 >= self.window:
             return None
-        if n > self._done:
-            self._part = self._part + self._whole_blocks(self._done, n)
+        if n > self._done:             # the whole blocks not yet summed
+            new = np.frombuffer(self._rows, dtype=np.float64).reshape(-1, 4)[self._done:n]
+            self._part += stats_of(*block_sums(new[:, 0], new[:, 1:], self._c, bs, w0)[1:])
             self._done = n
         total = self._part
         if total.m < EARLY_BLOCKS:
@@ -422,30 +413,6 @@ class StillnessDetector:
         w = self.still.flush()
         self._end_window()
         return None if w is None else self._judge(w)
-
-    def _whole_blocks(self, i: int, j: int) -> BlockStats:
-        """Return the block statistics of the buffered samples ``i .. j - 1`` (whole blocks)."""
-        w0, bs, (c0, c1, c2) = self._w0, self.block_s, self._c
-        if j - i <= 8:                     # a few samples (a low rate): no numpy call
-            rows = self._rows
-            out = BlockStats()
-            k_prev, nk, s0, s1, s2 = None, 0, 0.0, 0.0, 0.0
-            for r in range(4 * i, 4 * j + 4, 4):
-                k = math.floor((rows[r] - w0) / bs) if r < 4 * j else None
-                if k != k_prev and nk:
-                    out = out + BlockStats(nk, 1, (s0, s1, s2), (s0 * s0, s1 * s1, s2 * s2),
-                                           (s0 * nk, s1 * nk, s2 * nk), float(nk * nk))
-                    nk, s0, s1, s2 = 0, 0.0, 0.0, 0.0
-                if k is None:
-                    break
-                k_prev = k
-                nk += 1
-                s0 += rows[r + 1] - c0
-                s1 += rows[r + 2] - c1
-                s2 += rows[r + 3] - c2
-            return out
-        new = np.frombuffer(self._rows, dtype=np.float64).reshape(-1, 4)[i:j]
-        return stats_of(*block_sums(new[:, 0], new[:, 1:], self._c, bs, w0)[1:])
 
     def _blocks(self, w: Window) -> BlockStats:
         """

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from gyro_tdc.identify import fit_model
 from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.health import health
 from gyro_tdc.runtime.policy import Policy
 import numpy as np
 import pytest
@@ -57,7 +58,7 @@ def test_a_power_cycle_restarts_warmup_and_thermal_state(timed_model, second_t0)
     second = _session(second_t0, 25.0, 15.0, seed=2)
     core = CompensatorCore(Policy(reanchor_on_start=False), timed_model)
     _feed(core, *first)
-    assert core.thermal_progress > 0.0
+    assert core.slot.comp.thermal_progress > 0.0
     after = _feed(core, *second)
     assert core.reanchoring.session == 2
     fresh = _feed(CompensatorCore(Policy(reanchor_on_start=False), timed_model), *second)
@@ -83,7 +84,7 @@ def test_a_bursty_logger_is_one_power_cycle_once_its_rhythm_shows():
     for ts in t[-1] + 7200.0 + one:
         core.process(float(ts), 0.0, 0.0, 0.0)
     assert core.reanchoring.session == BURST_PAUSES + 1
-    assert core.session_note.endswith('after a gap of 7200 s)')
+    assert health(core).values['reanchor'].endswith('after a gap of 7200 s)')
 
 
 def test_a_clock_restart_forgets_the_old_sessions_temperatures(timed_model):
