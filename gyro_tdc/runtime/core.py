@@ -299,29 +299,19 @@ class CompensatorCore:
 
         ``t`` is its stamp (s; the latest IMU stamp for a bare Twist), ``components`` its
         linear and angular velocity (m/s, rad/s): motion when any is above
-        ``motion_threshold`` in magnitude or not finite.
+        ``motion_threshold`` in magnitude or not finite. From ``t`` until the next report, no
+        sample is still while a report says motion, for re-anchoring and the learner alike.
         """
         eps = self.policy.motion_threshold
         moving = not all(math.isfinite(v) and abs(v) <= eps for v in components)
-        self.observe_motion(t, moving)
-        return moving
-
-    def observe_motion(self, t: float, moving: bool) -> None:
-        """
-        Record that the vehicle is moving (or not) from stamp ``t`` until the next report.
-
-        While a report says motion, no sample is still, for re-anchoring and the learner
-        alike. Only changes are passed on (a report holds until the next one).
-        """
         self.tally.motion_reports += 1
         stream = self.stream
-        if moving == stream.moving:
-            return
-        stream.moving = moving
-        self.reanchoring.detector.observe_motion(t, moving)
-        learner = self.learning.learner
-        if learner is not None:
-            learner.observe_motion(t, moving)
+        if moving != stream.moving:          # only changes are passed on
+            stream.moving = moving
+            self.reanchoring.detector.observe_motion(t, moving)
+            if self.learning.learner is not None:
+                self.learning.learner.observe_motion(t, moving)
+        return moving
 
     def process(self, t: float, wx: float, wy: float, wz: float,
                 accel: Sequence[float] | None = None) -> Output:

@@ -27,18 +27,14 @@ from dataclasses import dataclass, field
 import math
 from typing import Sequence
 
-from gyro_tdc.base import MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_RATE_RAD_S
+from gyro_tdc.base import (MAX_ACCEL_DRIFT_MPS2 as _MAX_ACCEL_DRIFT,
+                           MAX_DRIFT_RAD_S as _MAX_DRIFT, MAX_RATE_RAD_S as _MAX_RATE)
 from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensator, variance_growth
 from gyro_tdc.runtime.blockstats import Vec3
 from gyro_tdc.runtime.flags import IMPLAUSIBLE_OUTPUT, NON_FINITE, OUT_OF_RANGE, STALE
 from gyro_tdc.runtime.policy import Policy
 import numpy as np
 from numpy.typing import NDArray
-
-#: The plausibility bounds of the message path (gyro_tdc.base.limits), as module constants.
-_MAX_RATE = MAX_RATE_RAD_S
-_MAX_DRIFT = MAX_DRIFT_RAD_S
-_MAX_ACCEL_DRIFT = MAX_ACCEL_DRIFT_MPS2
 
 __all__ = ['accel_slot', 'AccelEntry', 'AccelSlot', 'correction_is_safe', 'DriftEntry',
            'ModelSlot', 'timeless', 'variance_table', 'widen']
@@ -189,9 +185,8 @@ def variance_table(residual_var: Sequence[float], policy: Policy) -> dict[int, V
     """Return the variance to add per flags (0, ``STALE``, ``OUT_OF_RANGE``, both)."""
     resid = np.asarray(residual_var, dtype=np.float64).tolist()
     stale, oor = policy.stale_variance, policy.out_of_range_variance
-    return {0: tuple(resid), STALE: tuple(v + stale for v in resid),
-            OUT_OF_RANGE: tuple(v + oor for v in resid),
-            STALE | OUT_OF_RANGE: tuple(v + stale + oor for v in resid)}
+    return {f: tuple(v + (stale if f & STALE else 0.0) + (oor if f & OUT_OF_RANGE else 0.0)
+                     for v in resid) for f in (0, STALE, OUT_OF_RANGE, STALE | OUT_OF_RANGE)}
 
 
 @dataclass(slots=True)

@@ -344,9 +344,9 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
     anchor = core.anchor
     age = core.temperature_age()
     flags = core.last_flags
-    a = core.reanchoring
-    session = (f' (session {a.session} from t={a.session_t:.3f} s, after a {a.sessions.why})'
-               if a.session > 1 else '')
+    k = core.reanchoring.sessions
+    session = (f' (session {k.session} from t={k.t0:.3f} s, after a {k.why})'
+               if k.session > 1 else '')
     values = {
         'compensation active': (model is not None and core.counts['compensated'] > 0
                                 and not flags & PASSTHROUGH),
@@ -380,7 +380,7 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
         'passed through as corrected upstream': counts[UPSTREAM],
         'accelerometer': accel_state(core),
         'reanchor': ('off' if not core.policy.reanchor_on_start else
-                     'offset from the learner' if anchor is None and a.learned
+                     'offset from the learner' if anchor is None and core.reanchoring.learned
                      else 'waiting for stillness' if anchor is None else
                      f'done at t={anchor.t:.3f} s') + session,
     }
@@ -392,11 +392,11 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
         values['thermal state'] = (f'settling ({settling:.1f} of {SETTLE_TAUS:g} tau)'
                                    if settling < SETTLE_TAUS else 'settled')
     if anchor is not None:
-        values['reanchor shift dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.delta)
-        values['reanchor samples'] = anchor.samples
-        values['reanchor duration s'] = f'{anchor.duration_s:.3f}'
-        values['reanchor se dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.se)
-        values['reanchor tolerance dps'] = ','.join(f'{math.degrees(v):.5f}'
-                                                    for v in anchor.tolerance)
-        values['reanchor stopped on'] = anchor.reason or 'one window'
+        def dps(v: tuple[float, ...]) -> str:
+            return ','.join(f'{math.degrees(x):.5f}' for x in v)
+        values.update({'reanchor shift dps': dps(anchor.delta), 'reanchor samples': anchor.samples,
+                       'reanchor duration s': f'{anchor.duration_s:.3f}',
+                       'reanchor se dps': dps(anchor.se),
+                       'reanchor tolerance dps': dps(anchor.tolerance),
+                       'reanchor stopped on': anchor.reason or 'one window'})
     return values

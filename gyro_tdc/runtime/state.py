@@ -130,16 +130,6 @@ class Reanchoring:
     #: The IMU's sessions by the shared rule (:class:`gyro_tdc.signal.SessionTracker`).
     sessions: SessionTracker = field(default_factory=lambda: SessionTracker(first=1))
 
-    @property
-    def session(self) -> int:
-        """Return the IMU's power cycles seen, from 1."""
-        return self.sessions.session
-
-    @property
-    def session_t(self) -> float | None:
-        """Return the current session's first stamp, s."""
-        return self.sessions.t0
-
     def on_install(self, comp: StreamingCompensator, model: CompensationModel, same: bool,
                    learned: bool, older: bool, residual_var: NDArray[np.float64]) -> None:
         """
