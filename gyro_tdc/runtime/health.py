@@ -200,9 +200,10 @@ def upstream_note(policy: Policy) -> str:
     which = policy.upstream_correction
     if not which:
         return ''
+    passthrough = policy.upstream_policy == 'passthrough'
     if which == 'bias_at_start':
         head = 'gyro bias removed upstream at start (bias_at_start)'
-        if policy.upstream_policy == 'passthrough':
+        if passthrough:
             return (f'{head}: raw rate passed through, its thermal drift since the start '
                     'stays (upstream_policy compensate corrects it, re-anchoring takes the '
                     'removed bias out)')
@@ -213,16 +214,15 @@ def upstream_note(policy: Policy) -> str:
                 '(reanchor_on_start)')
     if which == 'px4_ekf':
         head = 'gyro already corrected upstream (px4_ekf: the EKF gyro bias off HIGHRES_IMU)'
-        if policy.upstream_policy == 'passthrough':
-            return (f'{head}: raw rate passed through, not corrected twice (to compensate '
-                    'here instead, take the rate without the EKF bias, e.g. PX4 uXRCE-DDS '
-                    'sensor_gyro, and clear upstream_correction)')
+        instead = ('take the rate without the EKF bias, e.g. PX4 uXRCE-DDS sensor_gyro, and '
+                   'clear upstream_correction')
     else:
         head = f'gyro already thermally corrected upstream ({which})'
-    if policy.upstream_policy == 'passthrough':
+        instead = ('disable the upstream correction, e.g. TC_G_ENABLE=0 or INS_TCALn_ENABLE=0, '
+                   'and clear upstream_correction')
+    if passthrough:
         return (f'{head}: raw rate passed through, not corrected twice (to compensate here '
-                'instead, disable the upstream correction, e.g. TC_G_ENABLE=0 or '
-                'INS_TCALn_ENABLE=0, and clear upstream_correction)')
+                f'instead, {instead})')
     return (f'{head}: compensating on top of it (upstream_policy compensate: the model must '
             'be trained on the already corrected rate)')
 
@@ -272,17 +272,12 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     counts = core.flag_counts
     new = {bit: counts[bit] - since.flags.get(bit, 0) for bit in counts}
     level, problems = _problems(core, since, new, inputs, last_reload, sensor_id, frame_id)
-    if problems:
-        message = '; '.join(problems)
-    elif core.counts['in'] == 0:
-        message = 'waiting for imu/data_raw'
-    else:
-        message = 'compensating'
+    message = '; '.join(problems) or ('compensating' if core.counts['in'] else
+                                      'waiting for imu/data_raw')
     if new[PASSTHROUGH]:
         message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
     values = _values(core, inputs, model_file, last_reload, frame_id)
-    return Health(level, message, sensor_id or frame_id,
-                  {k: str(v) for k, v in values.items()},
+    return Health(level, message, sensor_id or frame_id, {k: str(v) for k, v in values.items()},
                   HealthMark(dict(counts), core.temps.rejected, core.tally.errors, inputs.lost,
                              inputs.already_compensated, inputs.malformed,
                              core.temps.implausible))
