@@ -40,19 +40,16 @@ from typing import NamedTuple, Sequence
 
 from gyro_tdc.runtime.blockstats import (Anchor, block_length, block_sums, BLOCKS_PER_WINDOW,
                                          BlockStats, default_tolerance, early_allowed,
-                                         EARLY_BLOCKS, MAX_BLOCK_S, max_windows, Shift,
-                                         standard_error, stats_of, STILL_WINDOW_MAX_S,
-                                         TOLERANCE_FLOOR, TOLERANCE_FRACTION, Vec3,
+                                         EARLY_BLOCKS, max_windows, Shift, standard_error,
+                                         stats_of, STILL_WINDOW_MAX_S, TOLERANCE_FRACTION, Vec3,
                                          window_stats)
-from gyro_tdc.signal import (MIN_WINDOW_SAMPLES, NOISE_FACTOR, NOISE_WINDOWS, STILL_WINDOW_S,
-                             StillWindows, Window, windows_moving)
+from gyro_tdc.signal import (MIN_WINDOW_SAMPLES, STILL_WINDOW_S, StillWindows, Window,
+                             windows_moving)
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['Anchor', 'BLOCKS_PER_WINDOW', 'BlockStats', 'EARLY_BLOCKS', 'gated_shift',
-           'MAX_BLOCK_S', 'NOISE_FACTOR', 'NOISE_WINDOWS', 'REANCHOR_KEY', 'shift_gate',
-           'STILL_WINDOW_MAX_S', 'STILL_WINDOW_S', 'Shift', 'StillnessDetector',
-           'TOLERANCE_FLOOR', 'TOLERANCE_FRACTION', 'Vec3', 'block_length',
+__all__ = ['BLOCKS_PER_WINDOW', 'EARLY_BLOCKS', 'gated_shift', 'REANCHOR_KEY', 'shift_gate',
+           'STILL_WINDOW_S', 'StillnessDetector', 'TOLERANCE_FRACTION', 'block_length',
            'default_tolerance', 'max_windows', 'reanchor_shift', 'standard_error',
            'window_stats', 'windows_moving']
 
@@ -249,9 +246,6 @@ class StillnessDetector:
                  accel_std: float = 0.0, *, window_max: float | None = None,
                  tolerance: float | None = None) -> None:
         self.window = float(window)
-        self.gyro_std = float(gyro_std)
-        self.max_rate = float(max_rate)
-        self.accel_std = float(accel_std)
         self.window_max = self.window if window_max is None else float(window_max)
         self.fixed_tolerance = float(tolerance or 0.0)
         self.block_s = block_length(self.window)
@@ -260,8 +254,8 @@ class StillnessDetector:
                                 else _INF3)
         self.noise_prior: Vec3 | None = None
         #: The one streaming still test; re-anchoring windows hold at least two samples.
-        self.still = StillWindows(self.window, cut='span', gyro_std=self.gyro_std,
-                                  accel_std=self.accel_std, max_rate=self.max_rate,
+        self.still = StillWindows(self.window, cut='span', gyro_std=float(gyro_std),
+                                  accel_std=float(accel_std), max_rate=float(max_rate),
                                   min_samples=2)
         #: The stream has paused (kept over :meth:`reset`) ...
         self.paused = False
@@ -331,10 +325,7 @@ class StillnessDetector:
         if not self._run:
             self._c = (float(out[0]), float(out[1]), float(out[2]))
         self._track = self.paused and self._early
-        if self._track:
-            self._next_block = t + self.block_s * (1.0 - 1e-9)
-        else:
-            self._next_block = math.inf
+        self._next_block = t + self.block_s * (1.0 - 1e-9) if self._track else math.inf
 
     def update(self, t: float, raw: Sequence[float], out: Sequence[float],
                accel: Sequence[float] | None, temp_c: float) -> Anchor | None:
@@ -363,9 +354,7 @@ class StillnessDetector:
         if last is not None and t - last > self.window:    # a pause
             self.paused = True
             if self._n >= 2:               # the window ends before it (the burst's end)
-                w = self.still.flush()
-                self._end_window()
-                found = None if w is None else self._judge(w)
+                found = self._flush()
         if t >= self._next_block:          # a block boundary of a tracked window
             found = self._boundary(t)
         if self._w0 is None:
@@ -403,13 +392,15 @@ class StillnessDetector:
             new = np.frombuffer(self._rows, dtype=np.float64).reshape(-1, 4)[self._done:n]
             self._part += stats_of(*block_sums(new[:, 0], new[:, 1:], self._c, bs, w0)[1:])
             self._done = n
-        total = self._part
-        if total.m < EARLY_BLOCKS:
+        if self._part.m < EARLY_BLOCKS:
             return None
-        for r in self._run:
-            total = total + r.stats
+        total = sum((r.stats for r in self._run), self._part)
         if not all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
             return None
+        return self._flush()
+
+    def _flush(self) -> Anchor | None:
+        """End the window in progress here and judge it."""
         w = self.still.flush()
         self._end_window()
         return None if w is None else self._judge(w)
@@ -457,9 +448,7 @@ class StillnessDetector:
             del run[:j + 1]
             self.windows_rejected += 1
             return None
-        total = BlockStats()
-        for r in run:
-            total = total + r.stats
+        total = sum((r.stats for r in run), BlockStats())
         se = standard_error(total)
         if all(s <= v for s, v in zip(se, self.tolerance)):
             reason = 'precision'
