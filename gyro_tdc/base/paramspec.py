@@ -105,12 +105,10 @@ class ParamSpec:
             if value not in self.choices:
                 raise ValueError(f'Expected `{self.name}` '
                                  f'{" or ".join(map(repr, self.choices))}, got {value!r}.')
-        elif type(self.default) is float and self.lo is not None:
-            if self.lo > 0:
-                if not (math.isfinite(value) and value > 0.0):
-                    raise ValueError(f'Expected `{self.name}` > 0 {self.unit}, got {value!r}.')
-            elif not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f'Expected `{self.name}` >= 0, got {value!r}.')
+        elif type(self.default) is float and self.lo is not None and not (
+                math.isfinite(value) and (value > 0.0 if self.lo > 0 else value >= 0.0)):
+            raise ValueError(f'Expected `{self.name}` > 0 {self.unit}, got {value!r}.'
+                             if self.lo > 0 else f'Expected `{self.name}` >= 0, got {value!r}.')
 
 
 def spec_dataclass(name: str, specs: Sequence[ParamSpec], summary: str, *, module: str,
