@@ -147,8 +147,7 @@ def spec_dataclass(name: str, specs: Sequence[ParamSpec], summary: str, *, modul
     cls = make_dataclass(name, [(s.name, type(s.default), field(default=s.default))
                                 for s in specs], frozen=True, namespace=namespace)
     cls.__module__ = module
-    rows = ''.join(f'{s.name} : {type(s.default).__name__}\n    {s.description}\n'
-                   for s in specs)
+    rows = ''.join(f'{s.name} : {type(s.default).__name__}\n    {s.description}\n' for s in specs)
     cls.__doc__ = f'{summary}\n\nParameters\n----------\n{rows}'
     return cls
 

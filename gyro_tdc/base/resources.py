@@ -93,8 +93,7 @@ def _dir(config: Optional[PathLike], kind: str) -> Path:
 def _names(directory: Path) -> list[str]:
     if not directory.is_dir():
         return []
-    return sorted(p.stem for p in directory.iterdir()
-                  if p.is_file() and p.suffix in YAML_SUFFIXES)
+    return sorted(p.stem for p in directory.iterdir() if p.is_file() and p.suffix in YAML_SUFFIXES)
 
 
 def _resolve(name_or_file: PathLike, kind: str, error: type[GyroTdcError],

@@ -259,8 +259,7 @@ class CompensatorCore:
                                      self.stream.t if self.stream.moving else None)
         if any(getattr(old, f) != getattr(policy, f) for f in PREPARED_BY):
             gate = self.learning
-            gate.queue = deque((due, prepare(p.model, policy, p.priming))
-                               for due, p in gate.queue)
+            gate.queue = deque((due, prepare(p.model, policy, p.priming)) for due, p in gate.queue)
             if self.slot.model is not None:
                 self.install(prepare(self.slot.model, policy, self.priming(self.slot.model)),
                              learned=self.slot.learned)

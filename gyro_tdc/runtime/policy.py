@@ -34,8 +34,7 @@ __all__ = ['MOTION_TYPES', 'PARAMS', 'Policy', 'TEMPERATURE_TYPES', 'UPSTREAM_CO
 
 #: The usual thermometer types (``temperature_type`` takes any installed message type; these
 #: three have a default ``temperature_field``).
-TEMPERATURE_TYPES = ('sensor_msgs/msg/Temperature', 'std_msgs/msg/Float32',
-                     'std_msgs/msg/Float64')
+TEMPERATURE_TYPES = ('sensor_msgs/msg/Temperature', 'std_msgs/msg/Float32', 'std_msgs/msg/Float64')
 
 #: Message types of the compensator's ``motion_topic`` (``motion_type``): geometry_msgs/Twist,
 #: geometry_msgs/TwistStamped, nav_msgs/Odometry.

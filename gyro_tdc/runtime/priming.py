@@ -142,8 +142,7 @@ def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> Prepa
         The model, its primed compensator and its tables.
 
     """
-    comp, state = replay_from_first(model, policy, priming.first, priming.history,
-                                    priming.last_t)
+    comp, state = replay_from_first(model, policy, priming.first, priming.history, priming.last_t)
     return PreparedModel(model, model.model_id, comp, variance_table(model.residual_var, policy),
                          np.asarray(model.scale, dtype=np.float64),
                          set(model.features) <= STATIC_EFFECTS, priming, state, policy)

@@ -250,8 +250,7 @@ class StillnessDetector:
         self.fixed_tolerance = float(tolerance or 0.0)
         self.block_s = block_length(self.window)
         self.windows_rejected = 0
-        self.tolerance: Vec3 = ((self.fixed_tolerance,) * 3 if self.fixed_tolerance > 0
-                                else _INF3)
+        self.tolerance: Vec3 = (self.fixed_tolerance,) * 3 if self.fixed_tolerance > 0 else _INF3
         self.noise_prior: Vec3 | None = None
         #: The one streaming still test; re-anchoring windows hold at least two samples.
         self.still = StillWindows(self.window, cut='span', gyro_std=float(gyro_std),
@@ -460,8 +459,7 @@ class StillnessDetector:
             reason = ''
         t = w.t1
         delta = tuple(ci + si / total.n for ci, si in zip(self._c, total.s))
-        g_rms = tuple(math.sqrt(sum(r.gyro_std[i] ** 2 for r in run) / len(run))
-                      for i in range(3))
+        g_rms = tuple(math.sqrt(sum(r.gyro_std[i] ** 2 for r in run) / len(run)) for i in range(3))
         anchor = Anchor(t, delta, total.n, g_rms, temp_c, t - run[0].t_start, se,
                         self.tolerance, reason)
         self._run = []
