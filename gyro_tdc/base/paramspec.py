@@ -231,8 +231,7 @@ def format_help(prog: str, summary: str, specs: Sequence[ParamSpec], *,
         lines += [_fill(plain), '']
     lines.append('parameters (name: type, default, unit; meaning):')
     for spec in specs:
-        default = _value_text(spec.default, spec.default)
-        facts = [type(spec.default).__name__, f'default {default}']
+        facts = [type(spec.default).__name__, f'default {_value_text(spec.default, spec.default)}']
         if spec.unit:
             facts.append(spec.unit)
         if spec.choices:

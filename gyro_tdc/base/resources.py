@@ -48,15 +48,11 @@ def _checkout_config_dir() -> Optional[Path]:
 def _share_config_dir() -> Optional[Path]:
     try:
         from ament_index_python.packages import get_package_share_directory
-    except ImportError:
-        return None
-    try:
-        share = Path(get_package_share_directory(PACKAGE))
-    except (LookupError, ValueError, OSError):
+        found = Path(get_package_share_directory(PACKAGE)) / 'config'
+    except (ImportError, LookupError, ValueError, OSError):
         # PackageNotFoundError is a KeyError; an unset AMENT_PREFIX_PATH raises OSError.
         return None
-    candidate = share / 'config'
-    return candidate if candidate.is_dir() else None
+    return found if found.is_dir() else None
 
 
 def config_dir() -> Path:

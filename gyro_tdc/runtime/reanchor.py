@@ -205,11 +205,9 @@ class _Window(NamedTuple):
     """One still window of the current run."""
 
     t_start: float
-    t_end: float
     stats: BlockStats
     gyro_std: Vec3
     accel_std: Vec3 | None
-    temp_c: float
 
 
 class StillnessDetector:
@@ -440,8 +438,7 @@ class StillnessDetector:
             self._run = []          # motion before the tolerance was met: start over
             return None
         run = self._run
-        temp_c = float(w.temp[-1])
-        run.append(_Window(w.t0, w.t1, self._blocks(w), w.gyro_std, w.accel_std, temp_c))
+        run.append(_Window(w.t0, self._blocks(w), w.gyro_std, w.accel_std))
         j, _ = self.still.last_refused(run, w.thresholds)
         if j >= 0:
             del run[:j + 1]
@@ -457,10 +454,8 @@ class StillnessDetector:
             return None
         if len(run) == 1 and self.window_max <= self.window:
             reason = ''
-        t = w.t1
         delta = tuple(ci + si / total.n for ci, si in zip(self._c, total.s))
         g_rms = tuple(math.sqrt(sum(r.gyro_std[i] ** 2 for r in run) / len(run)) for i in range(3))
-        anchor = Anchor(t, delta, total.n, g_rms, temp_c, t - run[0].t_start, se,
-                        self.tolerance, reason)
         self._run = []
-        return anchor
+        return Anchor(w.t1, delta, total.n, g_rms, float(w.temp[-1]), w.t1 - run[0].t_start, se,
+                      self.tolerance, reason)
