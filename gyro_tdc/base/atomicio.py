@@ -376,10 +376,7 @@ def atomic_dir(path: str | os.PathLike, *, what: str = 'directory',
         yield inner
         _move_in(inner, path, replace)
     except OSError as exc:
-        shutil.rmtree(staging, ignore_errors=True)
         raise _fail(what, path, exc) from None
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-    shutil.rmtree(staging, ignore_errors=True)      # empty, or the replaced tree
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)  # empty, the replaced tree, or a failure's
     _sync_dir(path.parent)
