@@ -263,11 +263,10 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
             stream.flush()
             os.fsync(stream.fileno())
         os.replace(tmp, target)
-    except OSError as exc:
+    except BaseException as exc:
         _unlink(tmp)
-        raise _fail(what, path, exc) from None
-    except BaseException:
-        _unlink(tmp)
+        if isinstance(exc, OSError):
+            raise _fail(what, path, exc) from None
         raise
     _sync_dir(target.parent)
     return path
