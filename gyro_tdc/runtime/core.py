@@ -174,14 +174,12 @@ class CompensatorCore:
         at once when ``due`` is None or the message path has already passed it (late).
         """
         prepared = prepare(model, self.policy, self.priming(model))
-        gate = self.learning
-        last_t = self.stream.t
-        if due is None or (last_t is not None and due <= last_t):
-            gate.cancel()
-            gate.installs += 1
-            self.install(prepared, learned=True)
-            return
-        gate.enqueue(due, prepared)
+        gate, last_t = self.learning, self.stream.t
+        if due is not None and (last_t is None or due > last_t):
+            return gate.enqueue(due, prepared)
+        gate.cancel()
+        gate.installs += 1
+        self.install(prepared, learned=True)
 
     def cancel_scheduled(self) -> None:
         """Drop the learned models waiting for their stamp (a model_file or a reset came)."""
