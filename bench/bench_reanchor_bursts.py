@@ -189,7 +189,7 @@ def case(d: dict, detector_cls=None, rule: bool = False) -> dict:
         if a is not None:
             covered[i] = a is prev         # output with the anchor already in force
             if a is not prev:
-                anchors.append((a, ra.session, i))
+                anchors.append((a, ra.sessions.session, i))
         prev = a
     cpu = time.process_time() - c0
     judged = []
@@ -205,7 +205,7 @@ def case(d: dict, detector_cls=None, rule: bool = False) -> dict:
                        'err_se': float((err / np.asarray(a.se)).max()),
                        'pass': bool(np.all(err <= bound))})
     return {'fired': bool(anchors), 'cpu_us': 1e6 * cpu / n, 'n': n, 'anchors': judged,
-            'sessions': ra.session, 'anchored': float(covered.mean()),
+            'sessions': ra.sessions.session, 'anchored': float(covered.mean()),
             'pass': bool(judged) and all(j['pass'] for j in judged),
             'key': [(j['anchor'].t, j['anchor'].delta, j['anchor'].samples) for j in judged]}
 

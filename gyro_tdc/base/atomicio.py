@@ -63,21 +63,17 @@ def _fail(what: str, path: Path, exc: OSError) -> OutputError:
     return OutputError(f'cannot write {what} {str(path)!r}: {_describe(exc)}')
 
 
-def _temp_name(directory: Path, name: str, kind: str = 'tmp') -> Path:
-    """Return an unused hidden name beside ``name``, owned by this process (not created)."""
-    return directory / (f'.{name[:_NAME_MAX]}.{_HOST}-{os.getpid()}-{secrets.token_hex(4)}'
-                        f'.{kind}')
-
-
 def _fresh(directory: Path, name: str, make: Callable[[Path], object], kind: str = 'tmp'
            ) -> tuple[object, Path]:
     """
     Return ``make(tmp)`` for the first unused hidden name ``tmp`` beside ``name``, and it.
 
-    ``make`` raises FileExistsError when the name is taken; after 100 tries this does.
+    The name is owned by this process (host, pid, random); ``make`` raises FileExistsError
+    when it is taken; after 100 tries this does.
     """
     for _ in range(100):
-        tmp = _temp_name(directory, name, kind)
+        tmp = directory / (f'.{name[:_NAME_MAX]}.{_HOST}-{os.getpid()}-'
+                           f'{secrets.token_hex(4)}.{kind}')
         try:
             return make(tmp), tmp
         except FileExistsError:
@@ -113,13 +109,6 @@ def _sync_dir(directory: Path) -> None:
             os.close(fd)
 
 
-def _target(path: Path) -> Path:
-    """Return the file to replace: ``path``, or the final target when it is a symlink."""
-    if os.path.islink(path):
-        return Path(os.path.realpath(path))
-    return path
-
-
 def _alive(pid: int) -> bool:
     """Return True unless process ``pid`` certainly does not exist (this one counts as alive)."""
     if pid <= 0 or pid == os.getpid():
@@ -129,16 +118,8 @@ def _alive(pid: int) -> bool:
     except ProcessLookupError:
         return False
     except (OSError, OverflowError):
-        return True         # another user's process, or a number no process can have
+        pass                # another user's process, or a number no process can have
     return True
-
-
-def _remove(path: Path) -> None:
-    """Remove a file, link or directory tree (raises OSError)."""
-    if os.path.isdir(path) and not os.path.islink(path):
-        shutil.rmtree(path)
-    else:
-        os.unlink(path)
 
 
 def clean_leftovers(path: str | os.PathLike) -> list[str]:
@@ -190,7 +171,10 @@ def clean_leftovers(path: str | os.PathLike) -> list[str]:
                 done.append(f'restored {str(path)!r} from {name!r} (a run was killed while '
                             'replacing it)')
                 continue
-            _remove(leftover)
+            if os.path.isdir(leftover) and not os.path.islink(leftover):
+                shutil.rmtree(leftover)
+            else:
+                os.unlink(leftover)
             done.append(f'removed {name!r} (left by a killed run)')
         except OSError as exc:
             kept.append(f'{name} ({_describe(exc)})')
@@ -243,7 +227,7 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
 
     """
     path = Path(path)
-    target = _target(path) if follow_symlinks else path
+    target = Path(os.path.realpath(path)) if follow_symlinks and os.path.islink(path) else path
     if target.is_dir() and (follow_symlinks or not os.path.islink(target)):
         raise OutputError(f'cannot access {what} {str(path)!r} for writing: it is a directory')
     clean_leftovers(target)
@@ -279,11 +263,10 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
             stream.flush()
             os.fsync(stream.fileno())
         os.replace(tmp, target)
-    except OSError as exc:
+    except BaseException as exc:
         _unlink(tmp)
-        raise _fail(what, path, exc) from None
-    except BaseException:
-        _unlink(tmp)
+        if isinstance(exc, OSError):
+            raise _fail(what, path, exc) from None
         raise
     _sync_dir(target.parent)
     return path
@@ -296,8 +279,7 @@ def _renameat2_func() -> Callable | None:
         func = ctypes.CDLL(None, use_errno=True).renameat2
     except (AttributeError, OSError):
         return None
-    func.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p,
-                     ctypes.c_uint]
+    func.argtypes = [ctypes.c_int, ctypes.c_char_p, ctypes.c_int, ctypes.c_char_p, ctypes.c_uint]
     func.restype = ctypes.c_int
     return func
 
@@ -393,10 +375,7 @@ def atomic_dir(path: str | os.PathLike, *, what: str = 'directory',
         yield inner
         _move_in(inner, path, replace)
     except OSError as exc:
-        shutil.rmtree(staging, ignore_errors=True)
         raise _fail(what, path, exc) from None
-    except BaseException:
-        shutil.rmtree(staging, ignore_errors=True)
-        raise
-    shutil.rmtree(staging, ignore_errors=True)      # empty, or the replaced tree
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)  # empty, the replaced tree, or a failure's
     _sync_dir(path.parent)

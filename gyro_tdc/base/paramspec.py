@@ -105,12 +105,10 @@ class ParamSpec:
             if value not in self.choices:
                 raise ValueError(f'Expected `{self.name}` '
                                  f'{" or ".join(map(repr, self.choices))}, got {value!r}.')
-        elif type(self.default) is float and self.lo is not None:
-            if self.lo > 0:
-                if not (math.isfinite(value) and value > 0.0):
-                    raise ValueError(f'Expected `{self.name}` > 0 {self.unit}, got {value!r}.')
-            elif not (math.isfinite(value) and value >= 0.0):
-                raise ValueError(f'Expected `{self.name}` >= 0, got {value!r}.')
+        elif type(self.default) is float and self.lo is not None and not (
+                math.isfinite(value) and (value > 0.0 if self.lo > 0 else value >= 0.0)):
+            raise ValueError(f'Expected `{self.name}` > 0 {self.unit}, got {value!r}.'
+                             if self.lo > 0 else f'Expected `{self.name}` >= 0, got {value!r}.')
 
 
 def spec_dataclass(name: str, specs: Sequence[ParamSpec], summary: str, *, module: str,
@@ -149,8 +147,7 @@ def spec_dataclass(name: str, specs: Sequence[ParamSpec], summary: str, *, modul
     cls = make_dataclass(name, [(s.name, type(s.default), field(default=s.default))
                                 for s in specs], frozen=True, namespace=namespace)
     cls.__module__ = module
-    rows = ''.join(f'{s.name} : {type(s.default).__name__}\n    {s.description}\n'
-                   for s in specs)
+    rows = ''.join(f'{s.name} : {type(s.default).__name__}\n    {s.description}\n' for s in specs)
     cls.__doc__ = f'{summary}\n\nParameters\n----------\n{rows}'
     return cls
 
@@ -234,8 +231,7 @@ def format_help(prog: str, summary: str, specs: Sequence[ParamSpec], *,
         lines += [_fill(plain), '']
     lines.append('parameters (name: type, default, unit; meaning):')
     for spec in specs:
-        default = _value_text(spec.default, spec.default)
-        facts = [type(spec.default).__name__, f'default {default}']
+        facts = [type(spec.default).__name__, f'default {_value_text(spec.default, spec.default)}']
         if spec.unit:
             facts.append(spec.unit)
         if spec.choices:

@@ -75,8 +75,7 @@ class TemperatureGate:
 
     def accept(self, t: float, c: float) -> bool:
         """Return whether reading ``c`` (degC) at ``t`` (s) passes; remember it when it does."""
-        last = self.last
-        if temperature_ok(None, None, t, c) if last is None else temperature_ok(*last, t, c):
+        if temperature_ok(*(self.last or (None, None)), t, c):
             self.last = (t, c)
             return True
         self.rejected += 1
@@ -101,8 +100,7 @@ def plausible_temperatures(t: NDArray[np.float64], c: NDArray[np.float64]
         True where the reading is plausible, in the order of the input.
 
     """
-    t = np.asarray(t, dtype=np.float64)
-    c = np.asarray(c, dtype=np.float64)
+    t, c = np.asarray(t, dtype=np.float64), np.asarray(c, dtype=np.float64)
     order = np.argsort(t, kind='stable')
     ts, cs = t[order], c[order]
     ok = (cs >= _LO) & (cs <= _HI) & np.isfinite(ts)
@@ -111,8 +109,7 @@ def plausible_temperatures(t: NDArray[np.float64], c: NDArray[np.float64]
     step_ok = np.abs(np.diff(ci)) <= TEMP_SLEW_MARGIN_C + MAX_TEMP_SLEW_C_S * np.abs(np.diff(ti))
     bad = np.flatnonzero(~step_ok)          # reading k + 1 jumps from reading k
     keep = np.ones(idx.size, dtype=bool)
-    n = idx.size
-    b = 0
+    n, b = idx.size, 0
     while b < bad.size:
         ref = int(bad[b])                   # accepted; the next reading jumps from it
         i = ref + 1

@@ -40,25 +40,19 @@ PathLike = Union[str, 'os.PathLike[str]']
 
 def _checkout_config_dir() -> Optional[Path]:
     root = Path(__file__).resolve().parents[2]
-    candidate = root / 'config'
+    found = root / 'config'
     # package.xml beside config/ tells a checkout from an unrelated site-packages/config.
-    if candidate.is_dir() and (root / 'package.xml').is_file():
-        return candidate
-    return None
+    return found if found.is_dir() and (root / 'package.xml').is_file() else None
 
 
 def _share_config_dir() -> Optional[Path]:
     try:
         from ament_index_python.packages import get_package_share_directory
-    except ImportError:
-        return None
-    try:
-        share = Path(get_package_share_directory(PACKAGE))
-    except (LookupError, ValueError, OSError):
+        found = Path(get_package_share_directory(PACKAGE)) / 'config'
+    except (ImportError, LookupError, ValueError, OSError):
         # PackageNotFoundError is a KeyError; an unset AMENT_PREFIX_PATH raises OSError.
         return None
-    candidate = share / 'config'
-    return candidate if candidate.is_dir() else None
+    return found if found.is_dir() else None
 
 
 def config_dir() -> Path:
@@ -95,8 +89,7 @@ def _dir(config: Optional[PathLike], kind: str) -> Path:
 def _names(directory: Path) -> list[str]:
     if not directory.is_dir():
         return []
-    return sorted(p.stem for p in directory.iterdir()
-                  if p.is_file() and p.suffix in YAML_SUFFIXES)
+    return sorted(p.stem for p in directory.iterdir() if p.is_file() and p.suffix in YAML_SUFFIXES)
 
 
 def _resolve(name_or_file: PathLike, kind: str, error: type[GyroTdcError],
@@ -108,9 +101,7 @@ def _resolve(name_or_file: PathLike, kind: str, error: type[GyroTdcError],
     if not text:
         raise error(f'`{kind}` must be a {kind} name or a file path, got an empty string')
     path = Path(text).expanduser()
-    looks_like_file = (path.suffix in YAML_SUFFIXES or os.sep in text or '/' in text
-                       or (os.altsep is not None and os.altsep in text))
-    if looks_like_file:
+    if path.suffix in YAML_SUFFIXES or any(c and c in text for c in (os.sep, '/', os.altsep)):
         if path.is_file():
             return path
         raise error(f'`{kind}`: {kind} file {text!r} does not exist or is not a file')
@@ -122,8 +113,7 @@ def _resolve(name_or_file: PathLike, kind: str, error: type[GyroTdcError],
     if path.is_file():
         # A bare file name in the working directory that is not a shipped name.
         return path
-    names = _names(directory)
-    available = ', '.join(names) if names else '<none>'
+    available = ', '.join(_names(directory)) or '<none>'
     raise error(f'`{kind}`: unknown {kind} {text!r}; expected a YAML file path or one of '
                 f'the shipped {kind}s in {directory}: {available}')
 

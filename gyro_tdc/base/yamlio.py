@@ -81,50 +81,38 @@ def _line(event: Any) -> str:
 def _check_events(text: str, limits: YamlLimits, source: str,
                   error: type[GyroTdcError]) -> None:
     """Walk the event stream once and raise ``error`` at the first limit exceeded."""
-    def refuse(mark: str, event: Any) -> None:
-        if not limits.aliases:
-            raise error(f'{source}: YAML {mark}{event.anchor}{_line(event)}: anchors and '
-                        f'aliases are not allowed in a {limits.what}')
-    depth = 0
     total = 0
     sizes: dict[str, int] = {}          # anchor -> expanded size of its node
     open_: list[list] = []              # per open collection: [anchor, expanded size]
     for event in yaml.parse(text, Loader=_LOADER):
         kind = type(event)
-        if kind in _OPEN:
-            depth += 1
-            if depth > limits.max_depth:
-                raise error(f'{source}: nesting deeper than {limits.max_depth} levels'
-                            f'{_line(event)} (the limit of a {limits.what})')
-            if event.anchor is not None:
-                refuse('anchor &', event)
-            open_.append([event.anchor, 1])
-            total += 1
-        elif kind in _CLOSE:
+        if kind in _CLOSE:
             anchor, size = open_.pop()
-            depth -= 1
             if anchor is not None:
                 sizes[anchor] = size
             if open_:
                 open_[-1][1] += size
             continue
-        elif kind is yaml.ScalarEvent:
-            if event.anchor is not None:
-                refuse('anchor &', event)
+        if kind not in _OPEN and kind not in (yaml.ScalarEvent, yaml.AliasEvent):
+            continue
+        alias = kind is yaml.AliasEvent
+        if kind in _OPEN and len(open_) >= limits.max_depth:
+            raise error(f'{source}: nesting deeper than {limits.max_depth} levels'
+                        f'{_line(event)} (the limit of a {limits.what})')
+        if event.anchor is not None and not limits.aliases:
+            raise error(f'{source}: YAML {"alias *" if alias else "anchor &"}{event.anchor}'
+                        f'{_line(event)}: anchors and aliases are not allowed in a {limits.what}')
+        if alias and any(frame[0] == event.anchor for frame in open_):
+            raise error(f'{source}: recursive YAML alias *{event.anchor}{_line(event)}')
+        size = sizes.get(event.anchor, 1) if alias else 1
+        total += size
+        if kind in _OPEN:
+            open_.append([event.anchor, 1])
+        else:
+            if event.anchor is not None and not alias:
                 sizes[event.anchor] = 1
-            total += 1
-            if open_:
-                open_[-1][1] += 1
-        elif kind is yaml.AliasEvent:
-            refuse('alias *', event)
-            if any(frame[0] == event.anchor for frame in open_):
-                raise error(f'{source}: recursive YAML alias *{event.anchor}{_line(event)}')
-            size = sizes.get(event.anchor, 1)
-            total += size
             if open_:
                 open_[-1][1] += size
-        else:
-            continue
         if total > limits.max_nodes:
             raise error(f'{source}: more than {limits.max_nodes} YAML nodes'
                         + (' (aliases expanded)' if limits.aliases else '')

@@ -31,6 +31,6 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'policy': ['PARAMS', 'Policy', 'TEMPERATURE_TYPES', 'UPSTREAM_CORRECTIONS',
                'UPSTREAM_POLICIES'],
     'priming': ['prepare', 'PreparedModel'],
-    'reanchor': ['gated_shift', 'REANCHOR_KEY', 'reanchor_shift', 'shift_gate', 'windows_moving'],
+    'reanchor': ['gated_shift', 'REANCHOR_KEY', 'reanchor_shift', 'shift_gate'],
     'startup_gate': ['MAX_ANCHORS', 'MAX_ROWS', 'reanchor_rule', 'SIGNIFICANCE'],
 })

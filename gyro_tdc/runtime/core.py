@@ -31,8 +31,8 @@ import math
 from operator import attrgetter
 from typing import Sequence
 
-from gyro_tdc.base import (MAX_DRIFT_RAD_S, MAX_RATE_RAD_S, MAX_TEMP_LEAD_S, RESTART_BACK_S,
-                           SESSION_GAP_S)
+from gyro_tdc.base import (MAX_DRIFT_RAD_S as _MAX_DRIFT, MAX_RATE_RAD_S as _MAX_RATE,
+                           MAX_TEMP_LEAD_S, RESTART_BACK_S, SESSION_GAP_S)
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime.blockstats import Vec3
 from gyro_tdc.runtime.drift import (accel_slot, correction_is_safe, growth, ModelSlot,
@@ -55,10 +55,6 @@ __all__ = ['CompensatorCore', 'correction_is_safe', 'Output', 'timeless']
 #: message's as it is), ``accel_variance`` what to add to the linear_acceleration_covariance
 #: diagonal, (m/s^2)^2 (None: leave it).
 Output = tuple[float, float, float, Vec3, int, Vec3 | None, Vec3 | None]
-
-#: The plausibility bounds of the message path (gyro_tdc.base.limits), as module constants.
-_MAX_RATE = MAX_RATE_RAD_S
-_MAX_DRIFT = MAX_DRIFT_RAD_S
 
 
 class CompensatorCore:
@@ -99,18 +95,11 @@ class CompensatorCore:
     anchor = property(attrgetter('reanchoring.anchor'),
                       doc="The current session's re-anchoring shift, or None.")
     flag_counts = property(attrgetter('tally.flags'), doc='Samples per flag bit.')
-    accel_counts = property(attrgetter('tally.accel'),
-                            doc='Accelerometer samples compensated, passed through, missing.')
-    errors = property(attrgetter('tally.errors'), doc='Samples whose compensation raised.')
     last_error = property(attrgetter('tally.last_error'), doc='The last of those errors.')
     motion_reports = property(attrgetter('tally.motion_reports'),
                               doc='Outside motion reports received.')
     last_t = property(attrgetter('stream.t'), doc='The last IMU stamp, s (None before any).')
-    last_temp = property(attrgetter('stream.temp'),
-                         doc='The temperature used for the last compensated sample, degC.')
     last_flags = property(attrgetter('stream.flags'), doc="The last sample's flags.")
-    last_distance_c = property(attrgetter('stream.distance_c'),
-                               doc="The last sample's distance from the model's range, degC.")
     accel_flags = property(attrgetter('stream.accel_flags'), doc=(
         "The last sample's accelerometer flags (``PASSTHROUGH`` with why; ``NO_ACCEL_DATA``: "
         'the sample had none); -1 before any.'))
@@ -126,14 +115,6 @@ class CompensatorCore:
         counts = tally.counts
         counts['out'] = counts['compensated'] + tally.flags[PASSTHROUGH] + tally.errors
         return counts
-
-    @property
-    def session_note(self) -> str:
-        """Return ``''`` in the first session, else which session it is and what started it."""
-        a = self.reanchoring
-        if a.session <= 1:
-            return ''
-        return f' (session {a.session} from t={a.session_t:.3f} s, after a {a.sessions.why})'
 
     @property
     def accel_on(self) -> bool:
@@ -193,14 +174,12 @@ class CompensatorCore:
         at once when ``due`` is None or the message path has already passed it (late).
         """
         prepared = prepare(model, self.policy, self.priming(model))
-        gate = self.learning
-        last_t = self.stream.t
-        if due is None or (last_t is not None and due <= last_t):
-            gate.cancel()
-            gate.installs += 1
-            self.install(prepared, learned=True)
-            return
-        gate.enqueue(due, prepared)
+        gate, last_t = self.learning, self.stream.t
+        if due is not None and (last_t is None or due > last_t):
+            return gate.enqueue(due, prepared)
+        gate.cancel()
+        gate.installs += 1
+        self.install(prepared, learned=True)
 
     def cancel_scheduled(self) -> None:
         """Drop the learned models waiting for their stamp (a model_file or a reset came)."""
@@ -278,8 +257,7 @@ class CompensatorCore:
                                      self.stream.t if self.stream.moving else None)
         if any(getattr(old, f) != getattr(policy, f) for f in PREPARED_BY):
             gate = self.learning
-            gate.queue = deque((due, prepare(p.model, policy, p.priming))
-                               for due, p in gate.queue)
+            gate.queue = deque((due, prepare(p.model, policy, p.priming)) for due, p in gate.queue)
             if self.slot.model is not None:
                 self.install(prepare(self.slot.model, policy, self.priming(self.slot.model)),
                              learned=self.slot.learned)
@@ -318,29 +296,19 @@ class CompensatorCore:
 
         ``t`` is its stamp (s; the latest IMU stamp for a bare Twist), ``components`` its
         linear and angular velocity (m/s, rad/s): motion when any is above
-        ``motion_threshold`` in magnitude or not finite.
+        ``motion_threshold`` in magnitude or not finite. From ``t`` until the next report, no
+        sample is still while a report says motion, for re-anchoring and the learner alike.
         """
         eps = self.policy.motion_threshold
         moving = not all(math.isfinite(v) and abs(v) <= eps for v in components)
-        self.observe_motion(t, moving)
-        return moving
-
-    def observe_motion(self, t: float, moving: bool) -> None:
-        """
-        Record that the vehicle is moving (or not) from stamp ``t`` until the next report.
-
-        While a report says motion, no sample is still, for re-anchoring and the learner
-        alike. Only changes are passed on (a report holds until the next one).
-        """
         self.tally.motion_reports += 1
         stream = self.stream
-        if moving == stream.moving:
-            return
-        stream.moving = moving
-        self.reanchoring.detector.observe_motion(t, moving)
-        learner = self.learning.learner
-        if learner is not None:
-            learner.observe_motion(t, moving)
+        if moving != stream.moving:          # only changes are passed on
+            stream.moving = moving
+            self.reanchoring.detector.observe_motion(t, moving)
+            if self.learning.learner is not None:
+                self.learning.learner.observe_motion(t, moving)
+        return moving
 
     def process(self, t: float, wx: float, wy: float, wz: float,
                 accel: Sequence[float] | None = None) -> Output:
@@ -565,16 +533,8 @@ class CompensatorCore:
         gate = self.learning
         return reanchor_var(model, gate.extend is not None, gate.block_n)
 
-    @property
-    def still_windows_rejected(self) -> int:
-        """Return how many windows were judged not still while waiting to re-anchor."""
-        return self.reanchoring.detector.windows_rejected
-
-    @property
-    def thermal_progress(self) -> float | None:
-        """Return the time since the first sample in the model's state tau (None: no lag)."""
-        comp = self.slot.comp
-        return None if comp is None else comp.thermal_progress
+    still_windows_rejected = property(attrgetter('reanchoring.detector.windows_rejected'), doc=(
+        'How many windows were judged not still while waiting to re-anchor.'))
 
     def temperature_age(self) -> float | None:
         """Return the last IMU stamp minus the newest thermometer stamp, s (None if unknown)."""

@@ -27,18 +27,14 @@ from dataclasses import dataclass, field
 import math
 from typing import Sequence
 
-from gyro_tdc.base import MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_RATE_RAD_S
+from gyro_tdc.base import (MAX_ACCEL_DRIFT_MPS2 as _MAX_ACCEL_DRIFT,
+                           MAX_DRIFT_RAD_S as _MAX_DRIFT, MAX_RATE_RAD_S as _MAX_RATE)
 from gyro_tdc.model import CompensationModel, STATIC_EFFECTS, StreamingCompensator, variance_growth
 from gyro_tdc.runtime.blockstats import Vec3
 from gyro_tdc.runtime.flags import IMPLAUSIBLE_OUTPUT, NON_FINITE, OUT_OF_RANGE, STALE
 from gyro_tdc.runtime.policy import Policy
 import numpy as np
 from numpy.typing import NDArray
-
-#: The plausibility bounds of the message path (gyro_tdc.base.limits), as module constants.
-_MAX_RATE = MAX_RATE_RAD_S
-_MAX_DRIFT = MAX_DRIFT_RAD_S
-_MAX_ACCEL_DRIFT = MAX_ACCEL_DRIFT_MPS2
 
 __all__ = ['accel_slot', 'AccelEntry', 'AccelSlot', 'correction_is_safe', 'DriftEntry',
            'ModelSlot', 'timeless', 'variance_table', 'widen']
@@ -95,12 +91,8 @@ def timeless(model: CompensationModel) -> bool:
     thermal state, in the gyro part and the accelerometer part: such a model has no filter
     to replay, so installing it reads no thermometer history.
     """
-    for part in (model, getattr(model, 'accel', None)):
-        if part is None:
-            continue
-        if not set(part.features) <= STATIC_EFFECTS or part.thermal.kind != 'none':
-            return False
-    return True
+    return all(set(part.features) <= STATIC_EFFECTS and part.thermal.kind == 'none'
+               for part in (model, getattr(model, 'accel', None)) if part is not None)
 
 
 def growth(dist: float, policy: Policy) -> float:
@@ -137,11 +129,13 @@ class AccelSlot:
     cache: dict[float, AccelEntry] = field(default_factory=dict)
 
     def refresh(self, t: float, temp: float, policy: Policy) -> AccelEntry:
-        """Evaluate a static part at one temperature and keep it."""
-        acomp = self.comp
+        """Evaluate the part at one temperature; keep it when static."""
+        acomp = self.comp              # no scale term: the output is a - b
         bx, by, bz = acomp.drift(t, temp).tolist()
-        self.cache[temp] = entry = AccelEntry(bx, by, bz, 0 if acomp.in_range else OUT_OF_RANGE,
-                                              growth(acomp.range_distance_c, policy))
+        entry = AccelEntry(bx, by, bz, 0 if acomp.in_range else OUT_OF_RANGE,
+                           growth(acomp.range_distance_c, policy))
+        if self.static:
+            self.cache[temp] = entry
         return entry
 
     def correct(self, t: float, temp: float, accel: Sequence[float], flags: int,
@@ -155,22 +149,12 @@ class AccelSlot:
         ax, ay, az = accel
         if not (math.isfinite(ax) and math.isfinite(ay) and math.isfinite(az)):
             return None, None, NON_FINITE
-        if self.static:
-            e = self.cache.get(temp) or self.refresh(t, temp, policy)
-            out = (ax - e.bx, ay - e.by, az - e.bz)
-            flags |= e.oor
-            more = e.growth
-        else:
-            acomp = self.comp          # no scale term: step() is a - b (saves numpy ops)
-            bx, by, bz = acomp.drift(t, temp).tolist()
-            out = (ax - bx, ay - by, az - bz)
-            more = growth(acomp.range_distance_c, policy)
-            if not acomp.in_range:
-                flags |= OUT_OF_RANGE
-        var = widen(self.var[flags], more)
+        e = self.cache.get(temp) or self.refresh(t, temp, policy)   # the cache: static only
+        out = (ax - e.bx, ay - e.by, az - e.bz)
+        flags |= e.oor
+        var = widen(self.var[flags], e.growth)
         if not (abs(out[0] - ax) <= _MAX_ACCEL_DRIFT and abs(out[1] - ay) <= _MAX_ACCEL_DRIFT
-                and abs(out[2] - az) <= _MAX_ACCEL_DRIFT
-                and math.isfinite(var[0] + var[1] + var[2])):
+                and abs(out[2] - az) <= _MAX_ACCEL_DRIFT and math.isfinite(sum(var))):
             return None, None, IMPLAUSIBLE_OUTPUT
         return out, var, flags
 
@@ -189,9 +173,8 @@ def variance_table(residual_var: Sequence[float], policy: Policy) -> dict[int, V
     """Return the variance to add per flags (0, ``STALE``, ``OUT_OF_RANGE``, both)."""
     resid = np.asarray(residual_var, dtype=np.float64).tolist()
     stale, oor = policy.stale_variance, policy.out_of_range_variance
-    return {0: tuple(resid), STALE: tuple(v + stale for v in resid),
-            OUT_OF_RANGE: tuple(v + oor for v in resid),
-            STALE | OUT_OF_RANGE: tuple(v + stale + oor for v in resid)}
+    return {f: tuple(v + (stale if f & STALE else 0.0) + (oor if f & OUT_OF_RANGE else 0.0)
+                     for v in resid) for f in (0, STALE, OUT_OF_RANGE, STALE | OUT_OF_RANGE)}
 
 
 @dataclass(slots=True)
@@ -230,8 +213,7 @@ class ModelSlot:
         more = growth(dist, policy)
         oor = 0 if comp.in_range else OUT_OF_RANGE
         var, var_stale = widen(self.var[oor], more), widen(self.var[oor | STALE], more)
-        if not math.isfinite(var[0] + var[1] + var[2] + var_stale[0] + var_stale[1]
-                             + var_stale[2]):
+        if not math.isfinite(sum(var) + sum(var_stale)):
             bx = math.nan              # process's output check refuses the entry
         entry = DriftEntry(bx, by, bz, dx, dy, dz, oor, dist, var, var_stale,
                            correction_is_safe((bx, by, bz), (dx, dy, dz)))

@@ -200,9 +200,10 @@ def upstream_note(policy: Policy) -> str:
     which = policy.upstream_correction
     if not which:
         return ''
+    passthrough = policy.upstream_policy == 'passthrough'
     if which == 'bias_at_start':
         head = 'gyro bias removed upstream at start (bias_at_start)'
-        if policy.upstream_policy == 'passthrough':
+        if passthrough:
             return (f'{head}: raw rate passed through, its thermal drift since the start '
                     'stays (upstream_policy compensate corrects it, re-anchoring takes the '
                     'removed bias out)')
@@ -213,16 +214,15 @@ def upstream_note(policy: Policy) -> str:
                 '(reanchor_on_start)')
     if which == 'px4_ekf':
         head = 'gyro already corrected upstream (px4_ekf: the EKF gyro bias off HIGHRES_IMU)'
-        if policy.upstream_policy == 'passthrough':
-            return (f'{head}: raw rate passed through, not corrected twice (to compensate '
-                    'here instead, take the rate without the EKF bias, e.g. PX4 uXRCE-DDS '
-                    'sensor_gyro, and clear upstream_correction)')
+        instead = ('take the rate without the EKF bias, e.g. PX4 uXRCE-DDS sensor_gyro, and '
+                   'clear upstream_correction')
     else:
         head = f'gyro already thermally corrected upstream ({which})'
-    if policy.upstream_policy == 'passthrough':
+        instead = ('disable the upstream correction, e.g. TC_G_ENABLE=0 or INS_TCALn_ENABLE=0, '
+                   'and clear upstream_correction')
+    if passthrough:
         return (f'{head}: raw rate passed through, not corrected twice (to compensate here '
-                'instead, disable the upstream correction, e.g. TC_G_ENABLE=0 or '
-                'INS_TCALn_ENABLE=0, and clear upstream_correction)')
+                f'instead, {instead})')
     return (f'{head}: compensating on top of it (upstream_policy compensate: the model must '
             'be trained on the already corrected rate)')
 
@@ -272,18 +272,13 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     counts = core.flag_counts
     new = {bit: counts[bit] - since.flags.get(bit, 0) for bit in counts}
     level, problems = _problems(core, since, new, inputs, last_reload, sensor_id, frame_id)
-    if problems:
-        message = '; '.join(problems)
-    elif core.counts['in'] == 0:
-        message = 'waiting for imu/data_raw'
-    else:
-        message = 'compensating'
+    message = '; '.join(problems) or ('compensating' if core.counts['in'] else
+                                      'waiting for imu/data_raw')
     if new[PASSTHROUGH]:
         message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
     values = _values(core, inputs, model_file, last_reload, frame_id)
-    return Health(level, message, sensor_id or frame_id,
-                  {k: str(v) for k, v in values.items()},
-                  HealthMark(dict(counts), core.temps.rejected, core.errors, inputs.lost,
+    return Health(level, message, sensor_id or frame_id, {k: str(v) for k, v in values.items()},
+                  HealthMark(dict(counts), core.temps.rejected, core.tally.errors, inputs.lost,
                              inputs.already_compensated, inputs.malformed,
                              core.temps.implausible))
 
@@ -328,7 +323,7 @@ def _problems(core: CompensatorCore, since: HealthMark, new: dict[int, int],
         found.append((WARN, f'imu/data_raw is published by gyro_tdc compensator '
                             f'{", ".join(inputs.upstream)}: chained compensators apply the '
                             'drift model twice'))
-    errors = core.errors - since.errors
+    errors = core.tally.errors - since.errors
     if errors:
         found.append((ERROR, f'compensation failed on {errors} samples, passed through: '
                              f'{core.last_error}'))
@@ -344,6 +339,9 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
     anchor = core.anchor
     age = core.temperature_age()
     flags = core.last_flags
+    k = core.reanchoring.sessions
+    session = (f' (session {k.session} from t={k.t0:.3f} s, after a {k.why})'
+               if k.session > 1 else '')
     values = {
         'compensation active': (model is not None and core.counts['compensated'] > 0
                                 and not flags & PASSTHROUGH),
@@ -355,11 +353,11 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
         'model range degC': '{:.2f}..{:.2f}'.format(*model.temp_range_c)
         if model is not None else '',
         'last reload': last_reload,
-        'temperature degC': f'{core.last_temp:.3f}' if core.last_temp is not None else '',
+        'temperature degC': f'{core.stream.temp:.3f}' if core.stream.temp is not None else '',
         'temperature age s': f'{age:.3f}' if age is not None else '',
         'temperature stale': bool(flags & STALE), 'in range': not flags & OUT_OF_RANGE,
         'out of range policy': core.policy.out_of_range,
-        'range distance degC': f'{core.last_distance_c:+.2f}',
+        'range distance degC': f'{core.stream.distance_c:+.2f}',
         'messages in': core.counts['in'], 'messages out': core.counts['out'],
         'compensated': core.counts['compensated'], 'passed through': counts[PASSTHROUGH],
         'no temperature yet': counts[NO_TEMPERATURE], 'stale': counts[STALE],
@@ -368,7 +366,7 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
         'implausible output': counts[IMPLAUSIBLE_OUTPUT],
         'temperatures rejected': core.temps.rejected,
         'temperatures rejected (implausible)': core.temps.implausible,
-        'errors': core.errors, 'last error': core.last_error,
+        'errors': core.tally.errors, 'last error': core.last_error,
         'input reliability': inputs.reliability, 'input lost': inputs.lost,
         'input malformed': inputs.malformed,
         'already compensated': inputs.already_compensated,
@@ -379,22 +377,21 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
         'reanchor': ('off' if not core.policy.reanchor_on_start else
                      'offset from the learner' if anchor is None and core.reanchoring.learned
                      else 'waiting for stillness' if anchor is None else
-                     f'done at t={anchor.t:.3f} s') + core.session_note,
+                     f'done at t={anchor.t:.3f} s') + session,
     }
     if core.accel_on:
-        values['accelerometer compensated'] = core.accel_counts['compensated']
-        values['accelerometer passed through'] = core.accel_counts['passed through']
-        values['accelerometer missing'] = core.accel_counts['missing']
-    settling = core.thermal_progress       # the lagged state's start-up assumption (3 tau)
+        values.update((f'accelerometer {k}', v) for k, v in core.tally.accel.items())
+    comp = core.slot.comp                 # the lagged state's start-up assumption (3 tau)
+    settling = None if comp is None else comp.thermal_progress
     if settling is not None:
         values['thermal state'] = (f'settling ({settling:.1f} of {SETTLE_TAUS:g} tau)'
                                    if settling < SETTLE_TAUS else 'settled')
     if anchor is not None:
-        values['reanchor shift dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.delta)
-        values['reanchor samples'] = anchor.samples
-        values['reanchor duration s'] = f'{anchor.duration_s:.3f}'
-        values['reanchor se dps'] = ','.join(f'{math.degrees(v):.5f}' for v in anchor.se)
-        values['reanchor tolerance dps'] = ','.join(f'{math.degrees(v):.5f}'
-                                                    for v in anchor.tolerance)
-        values['reanchor stopped on'] = anchor.reason or 'one window'
+        def dps(v: tuple[float, ...]) -> str:
+            return ','.join(f'{math.degrees(x):.5f}' for x in v)
+        values.update({'reanchor shift dps': dps(anchor.delta), 'reanchor samples': anchor.samples,
+                       'reanchor duration s': f'{anchor.duration_s:.3f}',
+                       'reanchor se dps': dps(anchor.se),
+                       'reanchor tolerance dps': dps(anchor.tolerance),
+                       'reanchor stopped on': anchor.reason or 'one window'})
     return values

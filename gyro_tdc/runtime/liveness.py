@@ -119,9 +119,7 @@ class InputRate:
 
     def window(self) -> float:
         """Return the window [s]: ``window_s``, or longer to hold ``MIN_EVENTS`` messages."""
-        if self.expected:
-            return max(self.window_s, MIN_EVENTS / self.expected)
-        return self.window_s
+        return max(self.window_s, MIN_EVENTS / self.expected) if self.expected else self.window_s
 
     def run(self, now: float, count: int) -> RateReport:
         """
@@ -172,13 +170,11 @@ class InputRate:
         elif self.expected and hz is not None and span >= MIN_WINDOW_S:
             lo = self.expected * (1.0 - self.tolerance)
             hi = self.max_hz * (1.0 + self.tolerance)
-            if hz < lo:
-                level = WARN
-                message = (f'{self.name} too slow: {hz:.2f} Hz over {span:.1f} s, expected '
-                           f'{self.expected:.2f} Hz (at least {lo:.2f})')
-            elif hz > hi:
-                level = WARN
-                message = (f'{self.name} too fast: {hz:.2f} Hz over {span:.1f} s, expected '
-                           f'{self.expected:.2f} Hz (at most {hi:.2f})')
+            if not lo <= hz <= hi:
+                slow = hz < lo
+                level, message = WARN, (
+                    f'{self.name} too {"slow" if slow else "fast"}: {hz:.2f} Hz over {span:.1f} '
+                    f's, expected {self.expected:.2f} Hz (at {"least" if slow else "most"} '
+                    f'{lo if slow else hi:.2f})')
         return RateReport(level, message, hz, events, span, silent,
                           self.expected if self.judged else None)

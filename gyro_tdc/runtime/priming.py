@@ -21,6 +21,7 @@ doc/internals/runtime.md).
 
 from __future__ import annotations
 
+from itertools import takewhile
 import math
 from typing import Iterable, NamedTuple
 
@@ -141,10 +142,8 @@ def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> Prepa
         The model, its primed compensator and its tables.
 
     """
-    comp, state = replay_from_first(model, policy, priming.first, priming.history,
-                                    priming.last_t)
-    var = variance_table(model.residual_var, policy)
-    return PreparedModel(model, model.model_id, comp, var,
+    comp, state = replay_from_first(model, policy, priming.first, priming.history, priming.last_t)
+    return PreparedModel(model, model.model_id, comp, variance_table(model.residual_var, policy),
                          np.asarray(model.scale, dtype=np.float64),
                          set(model.features) <= STATIC_EFFECTS, priming, state, policy)
 
@@ -177,11 +176,8 @@ def catch_up(prepared: PreparedModel, priming: Priming, policy: Policy) -> Strea
             or prepared.priming.last_t is None or last_t < prepared.priming.last_t):
         comp, state = replay_from_first(model, policy, first, history, last_t)
     else:
-        tail = []
-        for entry in reversed(history):
-            if entry[0] <= state.t_seen:
-                break
-            tail.append(entry)
+        seen = state.t_seen           # the samples recorded since, from the newest back
+        tail = list(takewhile(lambda entry: entry[0] > seen, reversed(history)))
         state = replay(comp, reversed(tail), last_t, state)
     if last_t > state.t_prev:
         advance(comp, last_t, state.temp_prev if last_temp is None else last_temp)

@@ -40,21 +40,16 @@ from typing import NamedTuple, Sequence
 
 from gyro_tdc.runtime.blockstats import (Anchor, block_length, block_sums, BLOCKS_PER_WINDOW,
                                          BlockStats, default_tolerance, early_allowed,
-                                         EARLY_BLOCKS, MAX_BLOCK_S, max_windows, Shift,
-                                         standard_error, stats_of, STILL_WINDOW_MAX_S,
-                                         TOLERANCE_FLOOR, TOLERANCE_FRACTION, Vec3,
+                                         EARLY_BLOCKS, max_windows, Shift, standard_error,
+                                         stats_of, STILL_WINDOW_MAX_S, TOLERANCE_FRACTION, Vec3,
                                          window_stats)
-from gyro_tdc.signal import (MIN_WINDOW_SAMPLES, NOISE_FACTOR, NOISE_WINDOWS, STILL_WINDOW_S,
-                             StillWindows, Window, windows_moving)
+from gyro_tdc.signal import MIN_WINDOW_SAMPLES, STILL_WINDOW_S, StillWindows, Window
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['Anchor', 'BLOCKS_PER_WINDOW', 'BlockStats', 'EARLY_BLOCKS', 'gated_shift',
-           'MAX_BLOCK_S', 'NOISE_FACTOR', 'NOISE_WINDOWS', 'REANCHOR_KEY', 'shift_gate',
-           'STILL_WINDOW_MAX_S', 'STILL_WINDOW_S', 'Shift', 'StillnessDetector',
-           'TOLERANCE_FLOOR', 'TOLERANCE_FRACTION', 'Vec3', 'block_length',
-           'default_tolerance', 'max_windows', 'reanchor_shift', 'standard_error',
-           'window_stats', 'windows_moving']
+__all__ = ['BLOCKS_PER_WINDOW', 'EARLY_BLOCKS', 'gated_shift', 'REANCHOR_KEY', 'shift_gate',
+           'STILL_WINDOW_S', 'StillnessDetector', 'TOLERANCE_FRACTION', 'block_length',
+           'default_tolerance', 'max_windows', 'reanchor_shift', 'standard_error', 'window_stats']
 
 _INF3 = (math.inf, math.inf, math.inf)
 #: The ``model.metrics`` key of the trainer's re-anchoring decision
@@ -208,11 +203,9 @@ class _Window(NamedTuple):
     """One still window of the current run."""
 
     t_start: float
-    t_end: float
     stats: BlockStats
     gyro_std: Vec3
     accel_std: Vec3 | None
-    temp_c: float
 
 
 class StillnessDetector:
@@ -249,19 +242,15 @@ class StillnessDetector:
                  accel_std: float = 0.0, *, window_max: float | None = None,
                  tolerance: float | None = None) -> None:
         self.window = float(window)
-        self.gyro_std = float(gyro_std)
-        self.max_rate = float(max_rate)
-        self.accel_std = float(accel_std)
         self.window_max = self.window if window_max is None else float(window_max)
         self.fixed_tolerance = float(tolerance or 0.0)
         self.block_s = block_length(self.window)
         self.windows_rejected = 0
-        self.tolerance: Vec3 = ((self.fixed_tolerance,) * 3 if self.fixed_tolerance > 0
-                                else _INF3)
+        self.tolerance: Vec3 = (self.fixed_tolerance,) * 3 if self.fixed_tolerance > 0 else _INF3
         self.noise_prior: Vec3 | None = None
         #: The one streaming still test; re-anchoring windows hold at least two samples.
-        self.still = StillWindows(self.window, cut='span', gyro_std=self.gyro_std,
-                                  accel_std=self.accel_std, max_rate=self.max_rate,
+        self.still = StillWindows(self.window, cut='span', gyro_std=float(gyro_std),
+                                  accel_std=float(accel_std), max_rate=float(max_rate),
                                   min_samples=2)
         #: The stream has paused (kept over :meth:`reset`) ...
         self.paused = False
@@ -275,16 +264,6 @@ class StillnessDetector:
         """Return whether the anchors are the trainer's (default windows, auto tolerance)."""
         return (self.fixed_tolerance <= 0 and self.window == STILL_WINDOW_S
                 and self.window_max == STILL_WINDOW_MAX_S)
-
-    @property
-    def motion(self) -> list[tuple[float, bool]]:
-        """Return the motion reports (stamp, moving) from the one held at the window on."""
-        return self.still.motion.reports
-
-    @property
-    def windows_seen(self) -> int:
-        """Return the windows judged since :meth:`reset`."""
-        return self.still.windows_seen
 
     def observe_motion(self, t: float, moving: bool) -> None:
         """
@@ -341,10 +320,7 @@ class StillnessDetector:
         if not self._run:
             self._c = (float(out[0]), float(out[1]), float(out[2]))
         self._track = self.paused and self._early
-        if self._track:
-            self._next_block = t + self.block_s * (1.0 - 1e-9)
-        else:
-            self._next_block = math.inf
+        self._next_block = t + self.block_s * (1.0 - 1e-9) if self._track else math.inf
 
     def update(self, t: float, raw: Sequence[float], out: Sequence[float],
                accel: Sequence[float] | None, temp_c: float) -> Anchor | None:
@@ -373,9 +349,7 @@ class StillnessDetector:
         if last is not None and t - last > self.window:    # a pause
             self.paused = True
             if self._n >= 2:               # the window ends before it (the burst's end)
-                w = self.still.flush()
-                self._end_window()
-                found = None if w is None else self._judge(w)
+                found = self._flush()
         if t >= self._next_block:          # a block boundary of a tracked window
             found = self._boundary(t)
         if self._w0 is None:
@@ -409,43 +383,22 @@ class StillnessDetector:
         n = len(self._rows) // 4
         if n < MIN_WINDOW_SAMPLES or k < EARLY_BLOCKS or t - w0 >= self.window:
             return None
-        if n > self._done:
-            self._part = self._part + self._whole_blocks(self._done, n)
+        if n > self._done:             # the whole blocks not yet summed
+            new = np.frombuffer(self._rows, dtype=np.float64).reshape(-1, 4)[self._done:n]
+            self._part += stats_of(*block_sums(new[:, 0], new[:, 1:], self._c, bs, w0)[1:])
             self._done = n
-        total = self._part
-        if total.m < EARLY_BLOCKS:
+        if self._part.m < EARLY_BLOCKS:
             return None
-        for r in self._run:
-            total = total + r.stats
+        total = sum((r.stats for r in self._run), self._part)
         if not all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
             return None
+        return self._flush()
+
+    def _flush(self) -> Anchor | None:
+        """End the window in progress here and judge it."""
         w = self.still.flush()
         self._end_window()
         return None if w is None else self._judge(w)
-
-    def _whole_blocks(self, i: int, j: int) -> BlockStats:
-        """Return the block statistics of the buffered samples ``i .. j - 1`` (whole blocks)."""
-        w0, bs, (c0, c1, c2) = self._w0, self.block_s, self._c
-        if j - i <= 8:                     # a few samples (a low rate): no numpy call
-            rows = self._rows
-            out = BlockStats()
-            k_prev, nk, s0, s1, s2 = None, 0, 0.0, 0.0, 0.0
-            for r in range(4 * i, 4 * j + 4, 4):
-                k = math.floor((rows[r] - w0) / bs) if r < 4 * j else None
-                if k != k_prev and nk:
-                    out = out + BlockStats(nk, 1, (s0, s1, s2), (s0 * s0, s1 * s1, s2 * s2),
-                                           (s0 * nk, s1 * nk, s2 * nk), float(nk * nk))
-                    nk, s0, s1, s2 = 0, 0.0, 0.0, 0.0
-                if k is None:
-                    break
-                k_prev = k
-                nk += 1
-                s0 += rows[r + 1] - c0
-                s1 += rows[r + 2] - c1
-                s2 += rows[r + 3] - c2
-            return out
-        new = np.frombuffer(self._rows, dtype=np.float64).reshape(-1, 4)[i:j]
-        return stats_of(*block_sums(new[:, 0], new[:, 1:], self._c, bs, w0)[1:])
 
     def _blocks(self, w: Window) -> BlockStats:
         """
@@ -483,16 +436,13 @@ class StillnessDetector:
             self._run = []          # motion before the tolerance was met: start over
             return None
         run = self._run
-        temp_c = float(w.temp[-1])
-        run.append(_Window(w.t0, w.t1, self._blocks(w), w.gyro_std, w.accel_std, temp_c))
+        run.append(_Window(w.t0, self._blocks(w), w.gyro_std, w.accel_std))
         j, _ = self.still.last_refused(run, w.thresholds)
         if j >= 0:
             del run[:j + 1]
             self.windows_rejected += 1
             return None
-        total = BlockStats()
-        for r in run:
-            total = total + r.stats
+        total = sum((r.stats for r in run), BlockStats())
         se = standard_error(total)
         if all(s <= v for s, v in zip(se, self.tolerance)):
             reason = 'precision'
@@ -502,11 +452,8 @@ class StillnessDetector:
             return None
         if len(run) == 1 and self.window_max <= self.window:
             reason = ''
-        t = w.t1
         delta = tuple(ci + si / total.n for ci, si in zip(self._c, total.s))
-        g_rms = tuple(math.sqrt(sum(r.gyro_std[i] ** 2 for r in run) / len(run))
-                      for i in range(3))
-        anchor = Anchor(t, delta, total.n, g_rms, temp_c, t - run[0].t_start, se,
-                        self.tolerance, reason)
+        g_rms = tuple(math.sqrt(sum(r.gyro_std[i] ** 2 for r in run) / len(run)) for i in range(3))
         self._run = []
-        return anchor
+        return Anchor(w.t1, delta, total.n, g_rms, float(w.temp[-1]), w.t1 - run[0].t_start, se,
+                      self.tolerance, reason)

@@ -26,6 +26,7 @@ did better than any shift. One rule for what ``train`` fits
 
 from __future__ import annotations
 
+from itertools import compress
 import math
 from typing import Callable, Sequence
 
@@ -119,15 +120,12 @@ def _held_out(model: CompensationModel, runs: Sequence, labels: NDArray[np.int64
     """
     ss, n_all, held = np.zeros((3, 3)), 0.0, 0
     for test, train in Folds.sessions(labels):
-        def pick(items: Sequence, on: NDArray[np.bool_]) -> list:
-            return [v for v, k in zip(items, on) if k]
-
-        kw = {} if rows is None else {'rows': pick(rows, train)}
-        m = refit(pick(runs, train), labels[train].tolist(), **kw)
+        kw = {} if rows is None else {'rows': list(compress(rows, train))}
+        m = refit(list(compress(runs, train)), labels[train].tolist(), **kw)
         if m is None:
             continue                      # too little left without this session
-        parts = _sessions(m, pick(runs, test), labels[test], *m.temp_range_c,
-                          rows=None if rows is None else pick(rows, test))
+        parts = _sessions(m, list(compress(runs, test)), labels[test], *m.temp_range_c,
+                          rows=None if rows is None else list(compress(rows, test)))
         if not parts:
             continue
         (session,) = parts.values()

@@ -35,8 +35,7 @@ from gyro_tdc.signal import SessionTracker, TemperatureHold
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['detector_for', 'Reanchoring', 'reanchor_var', 'STILL_FIELDS', 'StreamState',
-           'Tally']
+__all__ = ['detector_for', 'Reanchoring', 'reanchor_var', 'STILL_FIELDS', 'StreamState', 'Tally']
 
 #: The Policy fields the stillness detector is built from.
 STILL_FIELDS = ('still_window', 'still_gyro_std', 'still_max_rate', 'still_accel_std',
@@ -61,8 +60,7 @@ class Tally:
     is not counted per sample: :attr:`CompensatorCore.counts` works it out when read.
     """
 
-    counts: dict[str, int] = field(default_factory=lambda: {
-        'in': 0, 'out': 0, 'compensated': 0})
+    counts: dict[str, int] = field(default_factory=lambda: {'in': 0, 'out': 0, 'compensated': 0})
     flags: dict[int, int] = field(default_factory=lambda: dict.fromkeys(FLAG_NAMES, 0))
     accel: dict[str, int] = field(default_factory=lambda: {
         'compensated': 0, 'passed through': 0, 'missing': 0})
@@ -129,16 +127,6 @@ class Reanchoring:
     waiting: bool = False
     #: The IMU's sessions by the shared rule (:class:`gyro_tdc.signal.SessionTracker`).
     sessions: SessionTracker = field(default_factory=lambda: SessionTracker(first=1))
-
-    @property
-    def session(self) -> int:
-        """Return the IMU's power cycles seen, from 1."""
-        return self.sessions.session
-
-    @property
-    def session_t(self) -> float | None:
-        """Return the current session's first stamp, s."""
-        return self.sessions.t0
 
     def on_install(self, comp: StreamingCompensator, model: CompensationModel, same: bool,
                    learned: bool, older: bool, residual_var: NDArray[np.float64]) -> None:

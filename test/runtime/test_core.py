@@ -358,13 +358,13 @@ def test_a_power_cycle_starts_a_new_reanchoring(static_model, second_t0):
     t1, raw1, tt1, tc1 = _session(static_model, 1000.0, off1, seed=1)
     out1, _, _ = run_core(core, t1, raw1, tt1, tc1)
     first = core.anchor
-    assert first is not None and core.reanchoring.session == 1
+    assert first is not None and core.reanchoring.sessions.session == 1
     np.testing.assert_allclose(first.delta, off1, atol=2e-4)
     assert health(core).values['reanchor'] == f'done at t={first.t:.3f} s'
     t2, raw2, tt2, tc2 = _session(static_model, second_t0, off2, seed=2)
     core.add_temperature(tt2[0], tc2[0])
     core.process(t2[0], *raw2[0])
-    assert core.anchor is None and core.reanchoring.session == 2 and core.needs_accel
+    assert core.anchor is None and core.reanchoring.sessions.session == 2 and core.needs_accel
     why = 'gap of 3600 s' if second_t0 > 1000.0 else 'restart (stamps back by 1005 s)'
     assert health(core).values['reanchor'] == (
         f'waiting for stillness (session 2 from t={t2[0]:.3f} s, after a {why})')
@@ -387,21 +387,21 @@ def test_a_short_gap_or_reanchoring_off_keeps_the_session(static_model):
     run_core(core, t1, raw1, tt1, tc1)
     anchor = core.anchor
     out2, _, _ = run_core(core, t2, raw2, tt2, tc2)     # 590 s: the same power cycle
-    assert core.anchor is anchor and core.reanchoring.session == 1
+    assert core.anchor is anchor and core.reanchoring.sessions.session == 1
     assert np.abs(out2.mean(axis=0)).max() < 2e-4
     # A slow stream (10 s a sample): 100 periods (1000 s) is the gap, 700 s is no break.
     slow = CompensatorCore(Policy(reanchor_on_start=True, still_window=50.0), static_model)
     ts, raws, tts, tcs = _session(static_model, 0.0, off, seed=3, n=20, rate_hz=0.1)
     run_core(slow, ts, raws, tts, tcs)
     slow.process(ts[-1] + 700.0, *raws[-1])
-    assert slow.reanchoring.session == 1
+    assert slow.reanchoring.sessions.session == 1
     slow.process(ts[-1] + 700.0 + 1100.0, *raws[-1])
-    assert slow.reanchoring.session == 2
+    assert slow.reanchoring.sessions.session == 2
     # reanchor_on_start off: the sessions are counted, nothing is ever shifted.
     off_core = CompensatorCore(Policy(reanchor_on_start=False), static_model)
     run_core(off_core, t1, raw1, tt1, tc1)
     t3, raw3, tt3, tc3 = _session(static_model, 1000.0 + 15.0 + 3600.0, off, seed=2)
     out3, _, _ = run_core(off_core, t3, raw3, tt3, tc3)
-    assert off_core.anchor is None and off_core.reanchoring.session == 2
+    assert off_core.anchor is None and off_core.reanchoring.sessions.session == 2
     np.testing.assert_allclose(out3.mean(axis=0), off, atol=2e-4)
     assert health(off_core).values['reanchor'].startswith('off (session 2')

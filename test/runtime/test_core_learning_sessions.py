@@ -88,7 +88,7 @@ def _stream(log):
         if core.anchor is not seen:
             seen = core.anchor
             if seen is not None:
-                anchors.append((core.reanchoring.session, ts))
+                anchors.append((core.reanchoring.sessions.session, ts))
         if ts >= next_step:
             step()
             next_step = ts + 1.0
@@ -194,6 +194,6 @@ def test_a_learned_model_of_this_session_ends_its_reanchoring_an_older_one_keeps
     assert np.allclose(out.mean(axis=0), 0.0, atol=2e-4)
     assert health(core).values['reanchor'] == 'offset from the learner'
     feed(5000.0, 3000, b2)                        # a power cycle: re-anchored again
-    assert core.reanchoring.session == 2 and core.anchor is not None
+    assert core.reanchoring.sessions.session == 2 and core.anchor is not None
     assert health(core).values['reanchor'].startswith('done at t=')
     assert np.allclose(core.anchor.delta, b2 - b1, atol=3e-4)

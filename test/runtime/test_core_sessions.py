@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from gyro_tdc.identify import fit_model
 from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.health import health
 from gyro_tdc.runtime.policy import Policy
 import numpy as np
 import pytest
@@ -57,9 +58,9 @@ def test_a_power_cycle_restarts_warmup_and_thermal_state(timed_model, second_t0)
     second = _session(second_t0, 25.0, 15.0, seed=2)
     core = CompensatorCore(Policy(reanchor_on_start=False), timed_model)
     _feed(core, *first)
-    assert core.thermal_progress > 0.0
+    assert core.slot.comp.thermal_progress > 0.0
     after = _feed(core, *second)
-    assert core.reanchoring.session == 2
+    assert core.reanchoring.sessions.session == 2
     fresh = _feed(CompensatorCore(Policy(reanchor_on_start=False), timed_model), *second)
     np.testing.assert_allclose(after, fresh, rtol=0, atol=1e-12)
     # A model installed after the break is primed over the new session only.
@@ -79,11 +80,11 @@ def test_a_bursty_logger_is_one_power_cycle_once_its_rhythm_shows():
     t = np.concatenate([k * 920.0 + one for k in range(12)])
     for ts in t:
         core.process(float(ts), 0.0, 0.0, 0.0)
-    assert core.reanchoring.session == BURST_PAUSES      # the first four pauses only
+    assert core.reanchoring.sessions.session == BURST_PAUSES      # the first four pauses only
     for ts in t[-1] + 7200.0 + one:
         core.process(float(ts), 0.0, 0.0, 0.0)
-    assert core.reanchoring.session == BURST_PAUSES + 1
-    assert core.session_note.endswith('after a gap of 7200 s)')
+    assert core.reanchoring.sessions.session == BURST_PAUSES + 1
+    assert health(core).values['reanchor'].endswith('after a gap of 7200 s)')
 
 
 def test_a_clock_restart_forgets_the_old_sessions_temperatures(timed_model):
@@ -94,7 +95,7 @@ def test_a_clock_restart_forgets_the_old_sessions_temperatures(timed_model):
     _feed(core, *first)
     assert core.temps.latest[1] > 5000.0
     _feed(core, *second)
-    assert core.reanchoring.session == 2
+    assert core.reanchoring.sessions.session == 2
     temp, stamp = core.temps.latest
     assert stamp < 110.0 and 15.0 <= temp <= 25.0          # not the old session's 40 degC
     assert 0.0 <= core.temperature_age() <= 1.0             # it was about -5020 s

@@ -96,7 +96,7 @@ def test_a_changed_stillness_threshold_makes_a_new_detector_until_anchored(model
     core.set_policy(replace(core.policy, still_window=2.0, still_max_rate=0.01))
     detector = core.reanchoring.detector
     assert detector is not before
-    assert (detector.window, detector.max_rate) == (2.0, 0.01)
+    assert (detector.window, detector.still.max_rate) == (2.0, 0.01)
 
 
 def test_upstream_passthrough_can_be_turned_on_and_off(model):

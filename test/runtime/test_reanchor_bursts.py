@@ -51,7 +51,7 @@ def _stream(model, t, temp, raw):
         out[i] = core.process(ts, *w)[:3]
         a = core.anchor
         if a is not None and a is not prev:
-            anchors.append((i, core.reanchoring.session, a))
+            anchors.append((i, core.reanchoring.sessions.session, a))
         prev = a
     return core, anchors, out
 
@@ -61,7 +61,7 @@ def test_pan_recording_reanchors_on_its_first_burst(pan):
     rec, model = pan
     raw = rec.gyro + OFFSET
     core, anchors, _ = _stream(model, rec.t, rec.temp_c, raw)
-    assert core.reanchoring.session == 1            # 300 s pauses: no power cycle
+    assert core.reanchoring.sessions.session == 1            # 300 s pauses: no power cycle
     assert len(anchors) == 1
     i, _, a = anchors[0]
     # The window: the first burst (250 samples), ended by the pause, judged when the next
@@ -148,7 +148,7 @@ def test_every_burst_a_power_cycle_anchors_within_the_burst(line):
     t, temp, raw, clean, burst = _bursts(pause_s=4000.0)
     core, anchors, out = _stream(line, t, temp, raw)
     truth = compensate(line, t, temp, clean)
-    assert core.reanchoring.session == 6
+    assert core.reanchoring.sessions.session == 6
     sessions = [s for _, s, _ in anchors]
     # The first burst: the stream has not paused yet, its window would span 10 s.
     assert sessions == [2, 3, 4, 5, 6]
@@ -254,7 +254,7 @@ def test_a_new_power_cycle_of_2khz_bursts_anchors_in_its_first_burst():
     model = fit_model([Run(train_t, train_temp, om, np.zeros_like(om), 'train')], kind='poly',
                       features=('dT',), t0=25.0)
     core, anchors, _ = _stream(model, t, temp, clean + rng.normal(0.0, sigma, clean.shape))
-    assert core.reanchoring.session == 2
+    assert core.reanchoring.sessions.session == 2
     truth = compensate(model, t, temp, clean)
     (i1, s1, a1), (i2, s2, a2) = anchors
     # The first cycle: its first burst, judged at the pause (the stream had not paused).

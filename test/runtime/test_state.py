@@ -83,7 +83,7 @@ def test_rethreshold_keeps_the_detector_unless_a_still_threshold_changed():
 
 def test_sessions_count_from_one():
     r = Reanchoring(detector_for(Policy()))
-    assert r.session == 1 and r.session_t is None
+    assert r.sessions.session == 1 and r.sessions.t0 is None
 
 
 class _Model:
