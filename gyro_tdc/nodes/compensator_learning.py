@@ -149,16 +149,12 @@ class Learning:
         sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))
         node.core.learner = self._front
 
-    def on_learned(self) -> None:
-        """Name the model in use after a learned one was installed."""
-        self.node.loading.model_file = 'learned'
-
     def _new_learner(self) -> Learner:
         """Return a learner from the start (the model in use is the prior)."""
-        p = self.params
         return Learner(LearnConfig(temperature_timeout=self.core.policy.temperature_timeout,
-                                   save_period_s=p.learn_save_period,
-                                   swap_delay_s=p.learn_swap_delay), prior=self.core.model)
+                                   save_period_s=self.params.learn_save_period,
+                                   swap_delay_s=self.params.learn_swap_delay),
+                       prior=self.core.model)
 
     def _open(self, path: str) -> None:
         """Resume ``learn_file`` (or the file used beside it); a file refused is said once."""
@@ -167,19 +163,19 @@ class Learning:
             opened = open_learn_file(path, self.learner.load_state)
         except Exception as exc:  # the start-up edge: no file content stops the node
             self.learner = self._new_learner()
-            opened = None
             self.learn_file_warning = (f'learn_file {path!r} not used '
                                        f'({type(exc).__name__}: {exc}): learning from '
                                        'the start, nothing is kept across restarts')
-        else:
-            self.learn_store = opened.file
-            self.learn_file_warning = opened.warning
-            for note in opened.notes:
-                log.warning(note)
-        if self.learn_file_warning:
-            log.warning(self.learn_file_warning)
-        if opened is not None and opened.resumed:
-            self._take_learned()
+            return log.warning(self.learn_file_warning)
+        self.learn_store, self.learn_file_warning = opened.file, opened.warning
+        for line in [*opened.notes, opened.warning]:
+            if line:
+                log.warning(line)
+        if opened.resumed:
+            model = self.learner.take_model()   # installed at once, on this thread
+            if model is not None:
+                self.core.set_model(model)
+                self.node.loading.model_file = 'learned'
             s = self.learner.summary()
             log.info(f'resumed learning from {opened.file.path}: {s["points"]} points, '
                      f'{s["still_s"]:.0f} s still')
@@ -234,7 +230,7 @@ class Learning:
             core.schedule(model, due)
         if core.learned_installs != self._learned_installs:
             self._learned_installs = core.learned_installs
-            self.on_learned()
+            self.node.loading.model_file = 'learned'    # the model in use
         flat = ((learner.fit or {}).get('held_out') or {}).get('offset_only', [])
         if flat != self._offset_only:         # said when the offset-only axes change
             self._offset_only = flat
@@ -274,13 +270,6 @@ class Learning:
         self._learn_prior = (model,)
         self.core.cancel_scheduled()
         self.wait()
-
-    def _take_learned(self) -> None:
-        """Install a model resumed from learn_file at once (on the thread that compensates)."""
-        model = self.learner.take_model()
-        if model is not None:
-            self.core.set_model(model)
-            self.on_learned()
 
     def save_now(self) -> str:
         """Write learn_file (or the file used instead) now; return what happened (one line)."""

@@ -29,7 +29,7 @@ from typing import Any, Callable
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Vector3Stamped
+from geometry_msgs.msg import Vector3, Vector3Stamped
 from gyro_tdc.base import ParamSpec, spec_dataclass
 from gyro_tdc.errors import ConfigError, DeviceError, GyroTdcError, one_line
 from gyro_tdc.nodes._params import declare, print_help
@@ -37,6 +37,7 @@ from gyro_tdc.nodes.executors import run_node, ShellNode
 from gyro_tdc.sources import Backoff, check_sample, ImuSample, ImuSource, SourceExhausted
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
+from std_msgs.msg import Header
 
 PARAMS = (
     ParamSpec('backend', 'sim', 'Where samples come from: the simulator or a Linux IIO device.',
@@ -86,6 +87,10 @@ def stamp_from_ns(ns: int) -> Time:
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
+#: REP 145: a covariance that starts with -1 says the message carries no such data.
+NO_DATA = [-1.0] + [0.0] * 8
+
+
 def _diagonal(v: float) -> list[float]:
     """Return a row-major 3x3 covariance with ``v`` on its diagonal."""
     return [v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v]
@@ -98,8 +103,7 @@ def _open_sim(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
     from gyro_tdc.sources import SimSource
     try:
         scenario = load_scenario(p.scenario)
-        rate = p.sim_rate_hz or scenario.imu_rate_hz
-        check_sim_samples(scenario.duration_s, rate,
+        check_sim_samples(scenario.duration_s, p.sim_rate_hz or scenario.imu_rate_hz,
                           option='sim_rate_hz' if p.sim_rate_hz else 'imu_rate_hz')
     except (GyroTdcError, ValueError) as exc:
         raise ConfigError(one_line(exc)) from None
@@ -178,12 +182,10 @@ class DriverNode(ShellNode):
         self._errors = self._published = self._temps = 0
         self._temps_rejected = 0      # implausible readings the source dropped, as last logged
         # The message templates: constant fields filled once (REP 145: no orientation).
-        self._imu = Imu()
-        self._imu.header.frame_id = p.frame_id
-        self._imu.orientation_covariance[0] = -1.0
-        self._imu.angular_velocity_covariance = _diagonal(p.angular_velocity_variance)
-        self._temp = Temperature(variance=p.temperature_variance)
-        self._temp.header.frame_id = p.frame_id
+        self._imu = Imu(header=Header(frame_id=p.frame_id), orientation_covariance=NO_DATA,
+                        angular_velocity_covariance=_diagonal(p.angular_velocity_variance))
+        self._temp = Temperature(header=Header(frame_id=p.frame_id),
+                                 variance=p.temperature_variance)
         try:
             self._try_open(fatal=not self._backend.retry)
         except ConfigError:
@@ -205,10 +207,9 @@ class DriverNode(ShellNode):
                 raise ConfigError(one_line(exc)) from None
             return self._fail(exc)
         self._source, self._device, self._state = src, src.name, 'running'
-        # REP 145: -1 first, no acceleration data.
         self._imu.linear_acceleration_covariance = (
             _diagonal(self.params.linear_acceleration_variance) if src.has_accel
-            else [-1.0] + [0.0] * 8)
+            else NO_DATA)
         self.get_logger().info(f'opened {self._device}')
 
     def release(self) -> None:
@@ -234,15 +235,14 @@ class DriverNode(ShellNode):
         """Fill the message templates from one checked sample and publish them."""
         stamp = stamp_from_ns(src.stamp_ns(sample.t))
         if sample.ref is not None and self._ref_pub is not None:
-            ref = Vector3Stamped()
-            ref.header.frame_id, ref.header.stamp = self.params.frame_id, stamp
-            ref.vector.x, ref.vector.y, ref.vector.z = sample.ref
-            self._ref_pub.publish(ref)
+            self._ref_pub.publish(Vector3Stamped(
+                header=Header(frame_id=self.params.frame_id, stamp=stamp),
+                vector=Vector3(**dict(zip('xyz', sample.ref)))))
         msg = self._imu
         msg.header.stamp = stamp
-        msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = sample.omega
+        w, a = msg.angular_velocity, msg.linear_acceleration
+        w.x, w.y, w.z = sample.omega
         if sample.accel is not None:
-            a = msg.linear_acceleration
             a.x, a.y, a.z = sample.accel
         if sample.temp_c is not None:
             self._temp.header.stamp = (stamp if sample.temp_t is None
@@ -285,13 +285,12 @@ class DriverNode(ShellNode):
     def diagnostic_status(self) -> DiagnosticStatus:
         """Return the driver's current DiagnosticStatus."""
         p, state = self.params, self._state
+        level, message = DiagnosticStatus.OK, {'finished': 'scenario finished'}.get(
+            state, 'publishing')
         if state == 'error':
             retry = max(self._retry_at - time.monotonic(), 0.0)
-            level, message = (DiagnosticStatus.ERROR,
-                              f'device error, retry in {retry:.1f} s: {self._last_error}')
-        else:
-            level = DiagnosticStatus.OK
-            message = 'scenario finished' if state == 'finished' else 'publishing'
+            level = DiagnosticStatus.ERROR
+            message = f'device error, retry in {retry:.1f} s: {self._last_error}'
         values = {
             'backend': p.backend, 'device': self._device, 'state': state,
             'imu messages': self._published, 'temperature messages': self._temps,
