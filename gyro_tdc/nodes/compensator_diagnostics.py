@@ -34,15 +34,11 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from gyro_tdc.nodes.compensator_backlog import Backlog
-from gyro_tdc.runtime import frame_mismatch, health, HealthMark, InputRate
+from gyro_tdc.runtime import frame_mismatch, health, HealthMark, InputRate, TEMPERATURE_TYPES
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-from sensor_msgs.msg import Temperature
-from std_msgs.msg import Float32, Float64
 
-__all__ = ['DIAGNOSTICS_PERIOD_S', 'Diagnostics', 'TEMPERATURE_MESSAGES']
+__all__ = ['DIAGNOSTICS_PERIOD_S', 'Diagnostics']
 
-TEMPERATURE_MESSAGES = {'sensor_msgs/msg/Temperature': Temperature,
-                        'std_msgs/msg/Float32': Float32, 'std_msgs/msg/Float64': Float64}
 DIAGNOSTICS_PERIOD_S = 1.0
 TASK = 'gyro compensation'
 
@@ -91,7 +87,7 @@ class Diagnostics:
             except _rclpy.RCLError:  # it left between the queries (NodeNameNonExistentError)
                 continue
             if any(n == f'{fqn}/reload' and 'std_srvs/srv/Trigger' in t for n, t in services) \
-                    and any(TEMPERATURE_MESSAGES.keys() & set(t) for _, t in subs):
+                    and any(set(TEMPERATURE_TYPES) & set(t) for _, t in subs):
                 found.add(fqn)
         return tuple(sorted(found))
 

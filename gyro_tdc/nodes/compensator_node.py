@@ -35,9 +35,9 @@ from gyro_tdc.data import ImuView, locate
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.nodes._params import declare, print_help
-from gyro_tdc.nodes.compensator_diagnostics import (Diagnostics, DIAGNOSTICS_PERIOD_S,
-                                                    TEMPERATURE_MESSAGES)
-from gyro_tdc.nodes.compensator_inputs import input_reader, MOTION_MESSAGES, MotionInput
+from gyro_tdc.nodes.compensator_diagnostics import Diagnostics, DIAGNOSTICS_PERIOD_S
+from gyro_tdc.nodes.compensator_inputs import (input_reader, MOTION_MESSAGES, MotionInput,
+                                               TEMPERATURE_MESSAGES)
 from gyro_tdc.nodes.compensator_learning import LEARN_STEP_S, Learning
 from gyro_tdc.nodes.compensator_loading import LOAD_POLL_S, ModelLoading, read_model
 from gyro_tdc.nodes.executors import run_node, ShellNode
