@@ -164,9 +164,11 @@ def check_sample(sample: ImuSample) -> ImuSample:
     """
     for name, size in (('t', 1), ('omega', 3), ('accel', 3), ('temp_c', 1)):
         value = getattr(sample, name)
+        if value is None and name in ('accel', 'temp_c'):
+            continue                      # not read with this sample
         values = (value,) if size == 1 else value
-        if (value is not None or name == 't') and (len(values) != size or not all(
-                isinstance(v, (int, float)) and math.isfinite(v) for v in values)):
+        if len(values) != size or not all(
+                isinstance(v, (int, float)) and math.isfinite(v) for v in values):
             raise DeviceError(f'Sample field `{name}` holds {values!r}, expected finite numbers.')
     return sample
 
