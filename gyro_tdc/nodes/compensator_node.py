@@ -57,8 +57,7 @@ __all__ = ['CompensatorNode', 'CompensatorParams', 'PARAMS', 'TEMPERATURE_MESSAG
 
 CompensatorParams = spec_dataclass(
     'CompensatorParams', PARAMS, "The compensator's parameters (rows of ``PARAMS``).",
-    module=__name__, methods={'policy': lambda self: Policy(
-        **{s.name: getattr(self, s.name) for s in PARAMS if s.policy})})
+    module=__name__)
 
 POLICY_NAMES = frozenset(s.name for s in PARAMS if s.policy)
 LIVE_NAMES = frozenset(s.name for s in PARAMS if not s.read_only and not s.policy) - {
@@ -99,7 +98,7 @@ class CompensatorNode(ShellNode):
         self.params = p = CompensatorParams(**declare(self, PARAMS))
         self.reader = input_reader(p)     # the input types and fields, checked
         try:
-            policy = p.policy()
+            policy = Policy(**{name: getattr(p, name) for name in POLICY_NAMES})
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         self.in_topic = self.resolve_topic_name('imu/data_raw')
@@ -117,6 +116,8 @@ class CompensatorNode(ShellNode):
         self.loading.load_at_start()
         self.motion = MotionInput(self.core, p.motion_topic)
         self.diagnostics = Diagnostics(self)
+        #: The compensator's DiagnosticStatus now (and what changed logged).
+        self.diagnostic_status = self.diagnostics.status
         self._record = self.diagnostics.backlog.record    # the IMU step's one call per sample
         self._say_upstream(policy)                        # said once at start-up
         self._wire(p)
@@ -167,10 +168,6 @@ class CompensatorNode(ShellNode):
         """Save what was learned (the stretch in progress too), the learner's worker done."""
         if self.learning is not None:
             self.learning.stop()
-
-    def diagnostic_status(self) -> Any:
-        """Return the compensator's DiagnosticStatus now (and log what changed)."""
-        return self.diagnostics.status()
 
     def frame_id(self) -> str:
         """Return ``header.frame_id`` of the latest imu/data_raw message ('' before one)."""
