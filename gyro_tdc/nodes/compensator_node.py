@@ -40,7 +40,7 @@ from gyro_tdc.nodes.compensator_inputs import (input_reader, MOTION_MESSAGES, Mo
                                                TEMPERATURE_MESSAGES)
 from gyro_tdc.nodes.compensator_learning import LEARN_STEP_S, Learning
 from gyro_tdc.nodes.compensator_loading import LOAD_POLL_S, ModelLoading, read_model
-from gyro_tdc.nodes.executors import run_node, ShellNode
+from gyro_tdc.nodes.executors import run_node, ShellNode, trigger
 from gyro_tdc.runtime import (CompensatorCore, InputStatus, PARAMS, PASSTHROUGH, Policy,
                               sensor_mismatch, upstream_note)
 from rcl_interfaces.msg import SetParametersResult
@@ -51,6 +51,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.qos_overriding_options import QoSOverridingOptions
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu
+from std_srvs.srv import Trigger
 
 __all__ = ['CompensatorNode', 'CompensatorParams', 'PARAMS', 'TEMPERATURE_MESSAGES', 'main',
            'read_model']
@@ -130,14 +131,15 @@ class CompensatorNode(ShellNode):
         # The profiles are the defaults of the qos_overrides.<resolved topic>.* parameters
         # (read-only: QoS is fixed when an entity is created), which may override them.
         self._pub = self.create_publisher(Imu, 'imu/data_compensated', qos(depth, True), **opts)
-        reader, fast = self.reader, self.reader.fast
+        reader, imu_qos = self.reader, qos(depth, reliable, keep_all=reliable)
         events = SubscriptionEventCallbacks(message_lost=self._on_message_lost)
-        # Another type is turned into an Imu, then the one step.
-        imu_sub = self.create_subscription(
-            Imu if fast else reader.imu_cls, 'imu/data_raw',
-            (self._on_imu_raw if p.raw_cdr else self._on_imu) if fast else self._on_imu_other,
-            qos(depth, reliable, keep_all=reliable), raw=fast and p.raw_cdr,
-            event_callbacks=events, **opts)
+        if not reader.fast:     # another type: turned into an Imu, then the one step
+            imu_sub = self.create_subscription(reader.imu_cls, 'imu/data_raw', self._on_imu_other,
+                                               imu_qos, event_callbacks=events, **opts)
+        else:
+            imu_sub = self.create_subscription(
+                Imu, 'imu/data_raw', self._on_imu_raw if p.raw_cdr else self._on_imu, imu_qos,
+                raw=p.raw_cdr, event_callbacks=events, **opts)
         self.inputs.reliability = imu_sub.qos_profile.reliability.name.lower()
         # As deep as the IMU queue, best effort: a simulated run streamed faster than real time
         # sends one temperature per IMU sample, and a lost one makes the next ones stale.
@@ -146,7 +148,7 @@ class CompensatorNode(ShellNode):
         if p.motion_topic:
             self.create_subscription(MOTION_MESSAGES[p.motion_type], p.motion_topic,
                                      self.motion.on_motion, qos(depth, reliable), **opts)
-        self.create_trigger('~/reload', self.loading.reload)
+        self.create_service(Trigger, '~/reload', trigger(self.loading.reload))
         # rclpy calls the callbacks added last first: the policy check runs before
         # model_file's (which reads the file), the policy swap after the model install.
         self.add_post_set_parameters_callback(self._on_policy_set)
@@ -160,8 +162,8 @@ class CompensatorNode(ShellNode):
         self.create_timer(LOAD_POLL_S, self.loading.on_poll, clock=steady)
         if p.learn:
             self.learning = self.diagnostics.learning = Learning(self)
-            self.create_trigger('~/learn_save', self.learning.save_service)
-            self.create_trigger('~/learn_reset', self.learning.reset)
+            self.create_service(Trigger, '~/learn_save', trigger(self.learning.save_service))
+            self.create_service(Trigger, '~/learn_reset', trigger(self.learning.reset))
             self.create_timer(LEARN_STEP_S, self.learning.on_timer, clock=steady)
 
     def release(self) -> None:

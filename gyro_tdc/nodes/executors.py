@@ -42,7 +42,7 @@ from rclpy.signals import SignalHandlerOptions
 from std_srvs.srv import Trigger
 
 __all__ = ['ShellNode', 'STARTUP_ERRORS', 'STOP_POLL_S', 'StopRequested', 'StopSignals',
-           'make_executor', 'run_node', 'spin']
+           'make_executor', 'run_node', 'spin', 'trigger']
 
 #: Errors of a node's configuration at start-up, reported in one line by :func:`run_node`:
 #: rclpy's parameter errors (wrong type, out of range, ...) and gyro_tdc's own
@@ -79,14 +79,6 @@ class ShellNode(Node):
                 pub.publish(arr)
         self.create_timer(period_s, publish, **timer)
 
-    def create_trigger(self, name: str, act: Callable[[], tuple[bool, str]]) -> None:
-        """Serve ``name`` (std_srvs/Trigger): each call answers ``act()``: (success, message)."""
-
-        def serve(request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
-            response.success, response.message = act()
-            return response
-        self.create_service(Trigger, name, serve)
-
     def release(self) -> None:
         """Close what the node holds, its timers cancelled (nothing here)."""
 
@@ -97,6 +89,15 @@ class ShellNode(Node):
             timer.cancel()
         self.release()
         super().destroy_node()
+
+
+def trigger(act: Callable[[], tuple[bool, str]]) -> Callable[[Any, Any], Any]:
+    """Return a std_srvs/Trigger service callback: each call is answered ``act()``'s pair."""
+
+    def serve(request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        response.success, response.message = act()
+        return response
+    return serve
 
 
 class StopRequested(BaseException):
