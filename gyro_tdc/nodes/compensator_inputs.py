@@ -32,8 +32,8 @@ from typing import Any, Callable, Mapping
 
 from geometry_msgs.msg import Twist, TwistStamped
 from gyro_tdc.data import (check_number, check_vector, DEFAULT_TEMPERATURE_FIELDS,
-                           frd_to_flu, IMU_TYPE, normalize_type, reader, stamp_kind,
-                           stamp_seconds, unquirk)
+                           frd_to_flu, normalize_type, reader, stamp_kind, stamp_seconds,
+                           unquirk)
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.runtime import CompensatorCore, TEMPERATURE_TYPES
 from nav_msgs.msg import Odometry
@@ -42,6 +42,7 @@ from sensor_msgs.msg import Imu
 __all__ = ['IMU_TYPE', 'InputReader', 'input_reader', 'message_class', 'MOTION_MESSAGES',
            'MotionInput', 'TEMPERATURE_MESSAGES']
 
+IMU_TYPE = 'sensor_msgs/msg/Imu'  # (gyro_tdc.data's would load rosbags)
 MOTION_MESSAGES = {'twist': Twist, 'twist_stamped': TwistStamped, 'odometry': Odometry}
 _INT32_MIN, _INT32_MAX = -2 ** 31, 2 ** 31 - 1
 
