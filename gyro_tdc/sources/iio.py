@@ -112,15 +112,13 @@ def find_iio_device(name: str, *, root: str | os.PathLike = DEFAULT_IIO_ROOT) ->
                           f'{exc.strerror or exc}.') from None
     seen = []
     for entry in entries:
-        name_file = entry / 'name'
         try:
-            if not _exists(name_file):
+            if not _exists(entry / 'name'):
                 continue
-            found = _read_text(name_file)
+            found = _read_text(entry / 'name')
         except DeviceError as exc:
             # An unreadable device that may not be the wanted one: skip it, say so.
-            why = str(exc).rsplit(': ', 1)[-1].rstrip('.')
-            seen.append(f'{entry.name} unreadable ({why})')
+            seen.append(f'{entry.name} unreadable ({str(exc).rsplit(": ", 1)[-1].rstrip(".")})')
             continue
         seen.append(found)
         if found == name:
