@@ -97,10 +97,8 @@ class Backlog:
         self.record = self.samples.extend
         self.expected = expected_rate_hz > 0
         self.period: float | None = 1.0 / expected_rate_hz if self.expected else None
-        self.missing = 0
-        self.gaps = 0
-        self.pauses = 0
-        self.jumps = 0
+        #: Samples missing, gaps, IMU pauses and stamp jumps counted so far.
+        self.missing = self.gaps = self.pauses = self.jumps = 0
         self._high: float | None = None      # the newest stamp of the stream
         self._before: tuple | None = None    # (newest stamp, baseline) before a stamp jump
         self._last_end = -math.inf

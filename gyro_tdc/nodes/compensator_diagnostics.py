@@ -34,15 +34,11 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from gyro_tdc.nodes.compensator_backlog import Backlog
-from gyro_tdc.runtime import frame_mismatch, health, HealthMark, InputRate
+from gyro_tdc.runtime import frame_mismatch, health, HealthMark, InputRate, TEMPERATURE_TYPES
 from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
-from sensor_msgs.msg import Temperature
-from std_msgs.msg import Float32, Float64
 
-__all__ = ['DIAGNOSTICS_PERIOD_S', 'Diagnostics', 'TEMPERATURE_MESSAGES']
+__all__ = ['DIAGNOSTICS_PERIOD_S', 'Diagnostics']
 
-TEMPERATURE_MESSAGES = {'sensor_msgs/msg/Temperature': Temperature,
-                        'std_msgs/msg/Float32': Float32, 'std_msgs/msg/Float64': Float64}
 DIAGNOSTICS_PERIOD_S = 1.0
 TASK = 'gyro compensation'
 
@@ -73,18 +69,16 @@ class Diagnostics:
         subscribes a temperature topic (any ``temperature_type``) besides publishing Imu on
         our input: the graph shows a compensator's interface whatever its name or remaps.
         """
-        graph = self.node
-        me = graph.get_fully_qualified_name()
-        found = set()
+        graph, found = self.node, set()
         try:
             publishers = graph.get_publishers_info_by_topic(graph.in_topic)
         except _rclpy.RCLError:  # the graph cannot say now: ask again at the next report
             return self.inputs.upstream
         for info in publishers:
-            if not info.node_namespace.startswith('/'):
-                continue  # a writer whose node is not discovered yet: next time
             fqn = f'{info.node_namespace.rstrip("/")}/{info.node_name}'
-            if fqn == me or fqn in found:
+            # A writer whose node is not discovered yet (no namespace): next time.
+            if not info.node_namespace.startswith('/') or fqn in found or (
+                    fqn == graph.get_fully_qualified_name()):
                 continue
             who = (info.node_name, info.node_namespace)
             try:
@@ -93,7 +87,7 @@ class Diagnostics:
             except _rclpy.RCLError:  # it left between the queries (NodeNameNonExistentError)
                 continue
             if any(n == f'{fqn}/reload' and 'std_srvs/srv/Trigger' in t for n, t in services) \
-                    and any(TEMPERATURE_MESSAGES.keys() & set(t) for _, t in subs):
+                    and any(set(TEMPERATURE_TYPES) & set(t) for _, t in subs):
                 found.add(fqn)
         return tuple(sorted(found))
 
@@ -125,9 +119,7 @@ class Diagnostics:
                      f'{anchor.duration_s:.1f} s at {anchor.temp_c:.2f} degC: offset shift '
                      f'{h.values["reanchor shift dps"]} deg/s, standard error '
                      f'{h.values["reanchor se dps"]} deg/s ({h.values["reanchor stopped on"]})')
-        values = dict(h.values)
-        values.update(node.motion.values())
-        level, message = h.level, h.message
+        values, level, message = {**h.values, **node.motion.values()}, h.level, h.message
         reports = [(r.level, r.message, r.values(role)) for role, r in self.liveness().items()]
         for report_level, report_message, report_values in reports + [
                 self.backlog.report(time.perf_counter())]:
@@ -137,10 +129,9 @@ class Diagnostics:
                 message = (report_message if message in ('compensating',
                                                          'waiting for imu/data_raw')
                            else f'{message}; {report_message}')
-        learning = node.learning
-        if learning is not None:
-            values.update(learning.values())
-            for problem in learning.problems():  # learn_file refused, a save failed
+        if node.learning is not None:
+            values.update(node.learning.values())
+            for problem in node.learning.problems():  # learn_file refused, a save failed
                 level = max(level, DiagnosticStatus.WARN[0])
                 message = f'{message}; {problem}'
         return DiagnosticStatus(

@@ -40,9 +40,9 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 
 __all__ = ['IMU_TYPE', 'InputReader', 'input_reader', 'message_class', 'MOTION_MESSAGES',
-           'MotionInput']
+           'MotionInput', 'TEMPERATURE_MESSAGES']
 
-IMU_TYPE = 'sensor_msgs/msg/Imu'
+IMU_TYPE = 'sensor_msgs/msg/Imu'  # (gyro_tdc.data's would load rosbags)
 MOTION_MESSAGES = {'twist': Twist, 'twist_stamped': TwistStamped, 'odometry': Odometry}
 _INT32_MIN, _INT32_MAX = -2 ** 31, 2 ** 31 - 1
 
@@ -67,6 +67,11 @@ def message_class(name: str, param: str, hint: str = '') -> type:
     if cls is None or not callable(getattr(cls, 'get_fields_and_field_types', None)):
         raise ConfigError(f'{param}: {pkg} has no message {cls_name!r} (for {name!r}){hint}.')
     return cls
+
+
+#: The temperature types the node knows (any other is read by field), loaded by name.
+TEMPERATURE_MESSAGES = {name: message_class(name, 'temperature_type')
+                        for name in TEMPERATURE_TYPES}
 
 
 @functools.lru_cache(maxsize=256)
@@ -118,12 +123,8 @@ def _imu_converter(type_name: str, p: Any) -> Callable[[Any], Imu]:
         w = rate(msg)
         x, y, z = float(w.x), float(w.y), float(w.z)
         av.x, av.y, av.z = frd_to_flu(x, y, z) if frd else (x, y, z)
-        s = stamp(msg)
-        if kind == 'time':
-            sec, nanosec = s.sec, s.nanosec
-        else:
-            sec, micros = divmod(int(s), 1_000_000)
-            nanosec = micros * 1000
+        s = stamp(msg)    # a builtin_interfaces/Time, or microseconds
+        sec, nanosec = (s.sec, s.nanosec) if kind == 'time' else divmod(int(s) * 1000, 10 ** 9)
         if not (_INT32_MIN <= sec <= _INT32_MAX and 0 <= nanosec < 1_000_000_000):
             raise ValueError(f'stamp {sec} s {nanosec} ns is not a builtin_interfaces/Time')
         h.stamp.sec, h.stamp.nanosec = sec, nanosec

@@ -32,7 +32,6 @@ from gyro_tdc.base import Job, LatestJob
 from gyro_tdc.errors import OutputError
 from gyro_tdc.learn import held_out_line, LearnConfig, Learner, LearnFile, open_learn_file
 from gyro_tdc.model import CompensationModel
-from std_srvs.srv import Trigger
 
 __all__ = ['LEARN_LOG_THROTTLE_S', 'LEARN_STEP_S', 'LEARN_WAIT_S', 'Learning',
            'SWITCH_INTERVAL_S']
@@ -50,6 +49,9 @@ LEARN_LOG_THROTTLE_S = 60.0
 #: at most this long before the IMU callback's thread may take it (the default is 5 ms, 10
 #: samples at 2 kHz for every slice of a fit).
 SWITCH_INTERVAL_S = 5e-4
+#: A learning service's answer while the step in progress does not end in time.
+BUSY = (f'busy: the learning step in progress did not end within {LEARN_WAIT_S:g} s (a slow '
+        'disk?); try again')
 
 
 class _Front:
@@ -75,15 +77,12 @@ class _Front:
 
     def hand_over(self, learner: Learner) -> None:
         """Give everything appended so far to ``learner`` (which must be idle)."""
-        if self.buf:
-            learner.buf.extend(self.buf)
-            del self.buf[:]
-        temps, self.temps = self.temps, []
-        for t, temp_c in temps:
+        learner.buf.extend(self.buf)
+        for t, temp_c in self.temps:
             learner.add_temperature(t, temp_c)
-        motion, self.motion = self.motion, []
-        for t, moving in motion:
+        for t, moving in self.motion:
             learner.observe_motion(t, moving)
+        del self.buf[:], self.temps[:], self.motion[:]
 
 
 def _step_and_save(learner: Learner, store: LearnFile | None) -> tuple[str, str, list[str]]:
@@ -150,16 +149,12 @@ class Learning:
         sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))
         node.core.learner = self._front
 
-    def on_learned(self) -> None:
-        """Name the model in use after a learned one was installed."""
-        self.node.loading.model_file = 'learned'
-
     def _new_learner(self) -> Learner:
         """Return a learner from the start (the model in use is the prior)."""
-        p = self.params
         return Learner(LearnConfig(temperature_timeout=self.core.policy.temperature_timeout,
-                                   save_period_s=p.learn_save_period,
-                                   swap_delay_s=p.learn_swap_delay), prior=self.core.model)
+                                   save_period_s=self.params.learn_save_period,
+                                   swap_delay_s=self.params.learn_swap_delay),
+                       prior=self.core.model)
 
     def _open(self, path: str) -> None:
         """Resume ``learn_file`` (or the file used beside it); a file refused is said once."""
@@ -168,34 +163,34 @@ class Learning:
             opened = open_learn_file(path, self.learner.load_state)
         except Exception as exc:  # the start-up edge: no file content stops the node
             self.learner = self._new_learner()
-            opened = None
             self.learn_file_warning = (f'learn_file {path!r} not used '
                                        f'({type(exc).__name__}: {exc}): learning from '
                                        'the start, nothing is kept across restarts')
-        else:
-            self.learn_store = opened.file
-            self.learn_file_warning = opened.warning
-            for note in opened.notes:
-                log.warning(note)
-        if self.learn_file_warning:
-            log.warning(self.learn_file_warning)
-        if opened is not None and opened.resumed:
-            self._take_learned()
+            return log.warning(self.learn_file_warning)
+        self.learn_store, self.learn_file_warning = opened.file, opened.warning
+        for line in [*opened.notes, opened.warning]:
+            if line:
+                log.warning(line)
+        if opened.resumed:
+            model = self.learner.take_model()   # installed at once, on this thread
+            if model is not None:
+                self.core.set_model(model)
+                self.node.loading.model_file = 'learned'
             s = self.learner.summary()
             log.info(f'resumed learning from {opened.file.path}: {s["points"]} points, '
                      f'{s["still_s"]:.0f} s still')
 
     # -- the learner's owner: the worker during a step, else the executor's thread ------
 
-    def _absorb(self) -> bool:
-        """Take the outcome of a finished step; return whether the learner is idle."""
+    def _settle(self) -> bool:
+        """Take a finished step's outcome and bring the learner up to date; return whether idle."""
         job = self.job
-        if job is None:
-            return True
-        if not job.done:
-            return False
-        self.job = None
-        self._take(*job.result)
+        if job is not None:
+            if not job.done:
+                return False
+            self.job = None
+            self._take(*job.result)
+        self._sync()
         return True
 
     def _take(self, what: str, text: str, notes: list[str]) -> None:
@@ -235,7 +230,7 @@ class Learning:
             core.schedule(model, due)
         if core.learned_installs != self._learned_installs:
             self._learned_installs = core.learned_installs
-            self.on_learned()
+            self.node.loading.model_file = 'learned'    # the model in use
         flat = ((learner.fit or {}).get('held_out') or {}).get('offset_only', [])
         if flat != self._offset_only:         # said when the offset-only axes change
             self._offset_only = flat
@@ -249,24 +244,11 @@ class Learning:
         Call on the executor's thread; the learner may then be read or changed until the
         executor runs the learn timer again.
         """
-        if self.job is not None and not self.job.wait(timeout_s):
-            return False
-        self._absorb()
-        self._sync()
-        return True
+        return (self.job is None or self.job.wait(timeout_s)) and self._settle()
 
     def caught_up(self) -> bool:
         """Return whether the learner has stepped over everything the node received."""
-        if not self._absorb():
-            return False
-        self._sync()
-        return self.learner.caught_up()
-
-    def _step_now(self) -> None:
-        """Step the learner on this thread (it is idle) and schedule what it swapped in."""
-        self._sync()
-        self.learner.step()
-        self._sync()
+        return self._settle() and self.learner.caught_up()
 
     def set_timeout(self, timeout_s: float) -> None:
         """Give the learner a new temperature_timeout (from its next step)."""
@@ -289,13 +271,6 @@ class Learning:
         self.core.cancel_scheduled()
         self.wait()
 
-    def _take_learned(self) -> None:
-        """Install a model resumed from learn_file at once (on the thread that compensates)."""
-        model = self.learner.take_model()
-        if model is not None:
-            self.core.set_model(model)
-            self.on_learned()
-
     def save_now(self) -> str:
         """Write learn_file (or the file used instead) now; return what happened (one line)."""
         if not self.params.learn_file:
@@ -313,16 +288,14 @@ class Learning:
         """Return the learner's /diagnostics pairs and where its state is written."""
         if self.job is None:         # idle: read it; during a step, the last figures
             self._learn_values = self.learner.diagnostic_values()
-        values = dict(self._learn_values)
-        store = self.learn_store
-        values['learn file'] = (
-            'none' if not self.params.learn_file else
+        store, warning = self.learn_store, self.learn_file_warning
+        where = 'none' if not self.params.learn_file else (
             (str(store.path) if store is not None else 'nothing written')
-            + (f' ({self.learn_file_warning})' if self.learn_file_warning else ''))
-        values['learn save error'] = self.learn_save_error
-        values['learn save failures'] = str(self.learn_save_failures)
-        values['learn step errors'] = str(self.learn_step_errors)
-        return values
+            + (f' ({warning})' if warning else ''))
+        return {**self._learn_values, 'learn file': where,
+                'learn save error': self.learn_save_error,
+                'learn save failures': str(self.learn_save_failures),
+                'learn step errors': str(self.learn_step_errors)}
 
     def problems(self) -> list[str]:
         """Return what /diagnostics warns about the learner ([] when nothing)."""
@@ -338,44 +311,38 @@ class Learning:
 
     def on_timer(self) -> None:
         """Timer: hand the learner what came; start its step on the worker when there is work."""
-        if not self._absorb():
-            return                          # the step in progress: again at the next tick
-        self._sync()
+        # A step in progress: again at the next tick; no window ended: nothing to do.
+        if not self._settle() or self.learner.caught_up():
+            return
         learner = self.learner
-        if learner.caught_up():
-            return                          # no window ended: nothing to judge, nothing due
         store = self.learn_store if self.params.learn_file else None
         self.job = self._learn_jobs.start(
             'learning step', 'timer', lambda: _step_and_save(learner, store))
 
-    def _busy(self, response: Any) -> Any:
-        response.success = False
-        response.message = (f'busy: the learning step in progress did not end within '
-                            f'{LEARN_WAIT_S:g} s (a slow disk?); try again')
-        return response
+    def _step_now(self) -> bool:
+        """Wait for the step in progress, then step over what came here; return whether done."""
+        if not self.wait():
+            return False
+        self.learner.step()
+        self._sync()        # schedule what the step swapped in
+        return True
 
-    def on_save(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+    def save_service(self) -> tuple[bool, str]:
         """Write learn_file now (``~/learn_save``), the stretch in progress stepped first."""
-        if not self.wait():
-            return self._busy(response)
-        self._step_now()
-        response.message = self.save_now()
-        response.success = response.message.startswith('saved')
-        return response
+        if not self._step_now():
+            return False, BUSY
+        message = self.save_now()
+        return message.startswith('saved'), message
 
-    def on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+    def reset(self) -> tuple[bool, str]:
         """Forget what was learned (``~/learn_reset``): back to the prior, or no model."""
-        if not self.wait():
-            return self._busy(response)
-        self._step_now()
+        if not self._step_now():
+            return False, BUSY
         self.learner.reset()
         self.core.cancel_scheduled()
         self.core.set_model(self.learner.prior)
-        response.success = True
-        response.message = ('learning reset: back to the prior'
-                            if self.learner.prior is not None else
-                            'learning reset: no model until the next still stretch')
-        return response
+        return True, ('learning reset: back to the prior' if self.learner.prior is not None
+                      else 'learning reset: no model until the next still stretch')
 
     def stop(self) -> None:
         """Save what was learned (the stretch in progress too) before the node goes away."""

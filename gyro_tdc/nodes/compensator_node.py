@@ -30,24 +30,22 @@ import sys
 from time import perf_counter
 from typing import Any, Callable
 
-from diagnostic_msgs.msg import DiagnosticArray
 from gyro_tdc.base import spec_dataclass
 from gyro_tdc.data import ImuView, locate
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.nodes._params import declare, print_help
-from gyro_tdc.nodes.compensator_diagnostics import (Diagnostics, DIAGNOSTICS_PERIOD_S,
-                                                    TEMPERATURE_MESSAGES)
-from gyro_tdc.nodes.compensator_inputs import input_reader, MOTION_MESSAGES, MotionInput
+from gyro_tdc.nodes.compensator_diagnostics import Diagnostics, DIAGNOSTICS_PERIOD_S
+from gyro_tdc.nodes.compensator_inputs import (input_reader, MOTION_MESSAGES, MotionInput,
+                                               TEMPERATURE_MESSAGES)
 from gyro_tdc.nodes.compensator_learning import LEARN_STEP_S, Learning
 from gyro_tdc.nodes.compensator_loading import LOAD_POLL_S, ModelLoading, read_model
-from gyro_tdc.nodes.executors import run_node
+from gyro_tdc.nodes.executors import run_node, ShellNode, trigger
 from gyro_tdc.runtime import (CompensatorCore, InputStatus, PARAMS, PASSTHROUGH, Policy,
                               sensor_mismatch, upstream_note)
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import QoSMessageLostInfo, SubscriptionEventCallbacks
-from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.qos_overriding_options import QoSOverridingOptions
@@ -60,17 +58,11 @@ __all__ = ['CompensatorNode', 'CompensatorParams', 'PARAMS', 'TEMPERATURE_MESSAG
 
 CompensatorParams = spec_dataclass(
     'CompensatorParams', PARAMS, "The compensator's parameters (rows of ``PARAMS``).",
-    module=__name__, methods={'policy': lambda self: Policy(
-        **{s.name: getattr(self, s.name) for s in PARAMS if s.policy})})
+    module=__name__)
 
 POLICY_NAMES = frozenset(s.name for s in PARAMS if s.policy)
 LIVE_NAMES = frozenset(s.name for s in PARAMS if not s.read_only and not s.policy) - {
     'model_file'}
-
-
-def qos_overrides() -> QoSOverridingOptions:
-    """Return the options of one entity's qos_overrides parameters: history, depth, reliability."""
-    return QoSOverridingOptions.with_default_policies()
 
 
 def qos(depth: int, reliable: bool, keep_all: bool = False) -> QoSProfile:
@@ -89,7 +81,7 @@ def qos(depth: int, reliable: bool, keep_all: bool = False) -> QoSProfile:
                       else ReliabilityPolicy.BEST_EFFORT)
 
 
-class CompensatorNode(Node):
+class CompensatorNode(ShellNode):
     """
     Remove the temperature drift of a gyro, one output message per input message.
 
@@ -101,16 +93,13 @@ class CompensatorNode(Node):
     parameter is invalid, or the input and output resolve to the same topic.
     """
 
-    #: Set by :meth:`destroy_node`: a timer event that still comes then does nothing.
-    stopping = False
-
     def __init__(self, *, loader: Callable[[str], CompensationModel] | None = None,
                  **kwargs: Any) -> None:
         super().__init__(kwargs.pop('node_name', 'compensator_node'), **kwargs)
         self.params = p = CompensatorParams(**declare(self, PARAMS))
         self.reader = input_reader(p)     # the input types and fields, checked
         try:
-            policy = p.policy()
+            policy = Policy(**{name: getattr(p, name) for name in POLICY_NAMES})
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         self.in_topic = self.resolve_topic_name('imu/data_raw')
@@ -128,18 +117,20 @@ class CompensatorNode(Node):
         self.loading.load_at_start()
         self.motion = MotionInput(self.core, p.motion_topic)
         self.diagnostics = Diagnostics(self)
+        #: The compensator's DiagnosticStatus now (and what changed logged).
+        self.diagnostic_status = self.diagnostics.status
         self._record = self.diagnostics.backlog.record    # the IMU step's one call per sample
         self._say_upstream(policy)                        # said once at start-up
         self._wire(p)
 
     def _wire(self, p: Any) -> None:
         """Create the publishers, subscriptions, timers, services and parameter callbacks."""
+        # Every entity's qos_overrides parameters: history, depth, reliability.
         reliable, depth, opts = p.input_reliability == 'reliable', p.queue_depth, {
-            'qos_overriding_options': qos_overrides()}
+            'qos_overriding_options': QoSOverridingOptions.with_default_policies()}
         # The profiles are the defaults of the qos_overrides.<resolved topic>.* parameters
         # (read-only: QoS is fixed when an entity is created), which may override them.
         self._pub = self.create_publisher(Imu, 'imu/data_compensated', qos(depth, True), **opts)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         reader, imu_qos = self.reader, qos(depth, reliable, keep_all=reliable)
         events = SubscriptionEventCallbacks(message_lost=self._on_message_lost)
         if not reader.fast:     # another type: turned into an Imu, then the one step
@@ -157,7 +148,7 @@ class CompensatorNode(Node):
         if p.motion_topic:
             self.create_subscription(MOTION_MESSAGES[p.motion_type], p.motion_topic,
                                      self.motion.on_motion, qos(depth, reliable), **opts)
-        self.create_service(Trigger, '~/reload', self.loading.on_reload)
+        self.create_service(Trigger, '~/reload', trigger(self.loading.reload))
         # rclpy calls the callbacks added last first: the policy check runs before
         # model_file's (which reads the file), the policy swap after the model install.
         self.add_post_set_parameters_callback(self._on_policy_set)
@@ -167,41 +158,18 @@ class CompensatorNode(Node):
         # The steady clock: with use_sim_time and no /clock (or a paused bag) the reports, the
         # model poll and learning go on; every decision follows the message stamps anyway.
         steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(DIAGNOSTICS_PERIOD_S, self._on_diagnostics, clock=steady)
+        self.report_diagnostics(DIAGNOSTICS_PERIOD_S, clock=steady)
         self.create_timer(LOAD_POLL_S, self.loading.on_poll, clock=steady)
         if p.learn:
             self.learning = self.diagnostics.learning = Learning(self)
-            self.create_service(Trigger, '~/learn_save', self.learning.on_save)
-            self.create_service(Trigger, '~/learn_reset', self.learning.on_reset)
+            self.create_service(Trigger, '~/learn_save', trigger(self.learning.save_service))
+            self.create_service(Trigger, '~/learn_reset', trigger(self.learning.reset))
             self.create_timer(LEARN_STEP_S, self.learning.on_timer, clock=steady)
 
-    def destroy_node(self) -> None:
-        """
-        Stop the timers, save what was learned (the stretch in progress too), then go away.
-
-        In that order: an executor may still hold a timer event of this node (the
-        EventsExecutor dispatches it even after ``remove_node``); a cancelled timer's, like
-        any report once ``stopping`` is set, does nothing, and the learner's worker has
-        finished before the final save.
-        """
-        self.stopping = True
-        for timer in list(self.timers):
-            timer.cancel()
+    def release(self) -> None:
+        """Save what was learned (the stretch in progress too), the learner's worker done."""
         if self.learning is not None:
             self.learning.stop()
-        super().destroy_node()
-
-    def diagnostic_status(self) -> Any:
-        """Return the compensator's DiagnosticStatus now (and log what changed)."""
-        return self.diagnostics.status()
-
-    def _on_diagnostics(self) -> None:
-        if self.stopping:
-            return
-        arr = DiagnosticArray()
-        arr.header.stamp = self.get_clock().now().to_msg()
-        arr.status = [self.diagnostics.status()]
-        self._diag_pub.publish(arr)
 
     def frame_id(self) -> str:
         """Return ``header.frame_id`` of the latest imu/data_raw message ('' before one)."""

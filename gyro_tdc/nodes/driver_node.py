@@ -28,16 +28,16 @@ import time
 from typing import Any, Callable
 
 from builtin_interfaces.msg import Time
-from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
-from geometry_msgs.msg import Vector3Stamped
+from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
+from geometry_msgs.msg import Vector3, Vector3Stamped
 from gyro_tdc.base import ParamSpec, spec_dataclass
 from gyro_tdc.errors import ConfigError, DeviceError, GyroTdcError, one_line
 from gyro_tdc.nodes._params import declare, print_help
-from gyro_tdc.nodes.executors import run_node
+from gyro_tdc.nodes.executors import run_node, ShellNode
 from gyro_tdc.sources import Backoff, check_sample, ImuSample, ImuSource, SourceExhausted
-from rclpy.node import Node
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
+from std_msgs.msg import Header
 
 PARAMS = (
     ParamSpec('backend', 'sim', 'Where samples come from: the simulator or a Linux IIO device.',
@@ -87,6 +87,10 @@ def stamp_from_ns(ns: int) -> Time:
     return Time(sec=ns // 1_000_000_000, nanosec=ns % 1_000_000_000)
 
 
+#: REP 145: a covariance that starts with -1 says the message carries no such data.
+NO_DATA = [-1.0] + [0.0] * 8
+
+
 def _diagonal(v: float) -> list[float]:
     """Return a row-major 3x3 covariance with ``v`` on its diagonal."""
     return [v, 0.0, 0.0, 0.0, v, 0.0, 0.0, 0.0, v]
@@ -99,8 +103,7 @@ def _open_sim(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
     from gyro_tdc.sources import SimSource
     try:
         scenario = load_scenario(p.scenario)
-        rate = p.sim_rate_hz or scenario.imu_rate_hz
-        check_sim_samples(scenario.duration_s, rate,
+        check_sim_samples(scenario.duration_s, p.sim_rate_hz or scenario.imu_rate_hz,
                           option='sim_rate_hz' if p.sim_rate_hz else 'imu_rate_hz')
     except (GyroTdcError, ValueError) as exc:
         raise ConfigError(one_line(exc)) from None
@@ -154,7 +157,7 @@ BACKENDS = {
 }
 
 
-class DriverNode(Node):
+class DriverNode(ShellNode):
     """
     Publish a gyro's samples as sensor_msgs/Imu and sensor_msgs/Temperature.
 
@@ -165,7 +168,6 @@ class DriverNode(Node):
 
     def __init__(self, *, source: ImuSource | None = None, **kwargs: Any) -> None:
         super().__init__(kwargs.pop('node_name', 'driver_node'), **kwargs)
-        self.stopping = False         # set by destroy_node: callbacks then do nothing
         self.params = p = DriverParams(**declare(self, PARAMS))
         self._backend = BACKENDS[p.backend]
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.qos_depth,
@@ -174,50 +176,43 @@ class DriverNode(Node):
         self._temp_pub = self.create_publisher(Temperature, 'imu/temperature', qos)
         self._ref_pub = (self.create_publisher(Vector3Stamped, 'rate_table/reference', qos)
                          if self._backend.reference else None)
-        self._diag_pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
         self._injected, self._source = source, None
         self._backoff = Backoff(p.retry_initial, p.retry_max)
         self._retry_at, self._state, self._last_error, self._device = 0.0, 'starting', '', ''
         self._errors = self._published = self._temps = 0
         self._temps_rejected = 0      # implausible readings the source dropped, as last logged
         # The message templates: constant fields filled once (REP 145: no orientation).
-        self._imu = Imu()
-        self._imu.header.frame_id = p.frame_id
-        self._imu.orientation_covariance[0] = -1.0
-        self._imu.angular_velocity_covariance = _diagonal(p.angular_velocity_variance)
-        self._temp = Temperature(variance=p.temperature_variance)
-        self._temp.header.frame_id = p.frame_id
+        self._imu = Imu(header=Header(frame_id=p.frame_id), orientation_covariance=NO_DATA,
+                        angular_velocity_covariance=_diagonal(p.angular_velocity_variance))
+        self._temp = Temperature(header=Header(frame_id=p.frame_id),
+                                 variance=p.temperature_variance)
         try:
             self._try_open(fatal=not self._backend.retry)
         except ConfigError:
             self.destroy_node()
             raise
         self._timer = self.create_timer(1.0 / getattr(p, self._backend.tick_hz), self._on_tick)
-        self.create_timer(1.0, self._on_diagnostics)
+        self.report_diagnostics(1.0)
         self.get_logger().info(
             f'{p.backend} back-end, {self._device or "no device yet"}, publishing '
             f'imu/data_raw and imu/temperature in frame {p.frame_id!r}')
-
-    def _now_ns(self) -> int:
-        return self.get_clock().now().nanoseconds
 
     def _try_open(self, *, fatal: bool = False) -> None:
         """Open (or reopen) the source; on failure schedule the next attempt, or raise."""
         try:
             src = self._injected if self._injected is not None else self._backend.open(
-                self.params, self._now_ns)
+                self.params, lambda: self.get_clock().now().nanoseconds)
         except DeviceError as exc:
             if fatal:
                 raise ConfigError(one_line(exc)) from None
             return self._fail(exc)
         self._source, self._device, self._state = src, src.name, 'running'
-        # REP 145: -1 first, no acceleration data.
         self._imu.linear_acceleration_covariance = (
             _diagonal(self.params.linear_acceleration_variance) if src.has_accel
-            else [-1.0] + [0.0] * 8)
+            else NO_DATA)
         self.get_logger().info(f'opened {self._device}')
 
-    def _close(self) -> None:
+    def release(self) -> None:
         """Close and drop the source (an injected one is the caller's)."""
         if self._source is not None and self._source is not self._injected:
             try:
@@ -230,7 +225,7 @@ class DriverNode(Node):
         """Record a device error, drop the source and schedule a retry with backoff."""
         self._errors += 1
         self._last_error = str(exc)
-        self._close()
+        self.release()
         delay = self._backoff.next_delay()
         self._retry_at = time.monotonic() + delay
         self._state = 'error'
@@ -238,18 +233,16 @@ class DriverNode(Node):
 
     def _publish(self, src: ImuSource, sample: ImuSample) -> None:
         """Fill the message templates from one checked sample and publish them."""
-        ns = src.stamp_ns(sample.t)
-        stamp = stamp_from_ns(ns)
+        stamp = stamp_from_ns(src.stamp_ns(sample.t))
         if sample.ref is not None and self._ref_pub is not None:
-            ref = Vector3Stamped()
-            ref.header.frame_id, ref.header.stamp = self.params.frame_id, stamp
-            ref.vector.x, ref.vector.y, ref.vector.z = sample.ref
-            self._ref_pub.publish(ref)
+            self._ref_pub.publish(Vector3Stamped(
+                header=Header(frame_id=self.params.frame_id, stamp=stamp),
+                vector=Vector3(**dict(zip('xyz', sample.ref)))))
         msg = self._imu
         msg.header.stamp = stamp
-        msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = sample.omega
+        w, a = msg.angular_velocity, msg.linear_acceleration
+        w.x, w.y, w.z = sample.omega
         if sample.accel is not None:
-            a = msg.linear_acceleration
             a.x, a.y, a.z = sample.accel
         if sample.temp_c is not None:
             self._temp.header.stamp = (stamp if sample.temp_t is None
@@ -292,13 +285,12 @@ class DriverNode(Node):
     def diagnostic_status(self) -> DiagnosticStatus:
         """Return the driver's current DiagnosticStatus."""
         p, state = self.params, self._state
+        level, message = DiagnosticStatus.OK, {'finished': 'scenario finished'}.get(
+            state, 'publishing')
         if state == 'error':
             retry = max(self._retry_at - time.monotonic(), 0.0)
-            level, message = (DiagnosticStatus.ERROR,
-                              f'device error, retry in {retry:.1f} s: {self._last_error}')
-        else:
-            level = DiagnosticStatus.OK
-            message = 'scenario finished' if state == 'finished' else 'publishing'
+            level = DiagnosticStatus.ERROR
+            message = f'device error, retry in {retry:.1f} s: {self._last_error}'
         values = {
             'backend': p.backend, 'device': self._device, 'state': state,
             'imu messages': self._published, 'temperature messages': self._temps,
@@ -309,28 +301,6 @@ class DriverNode(Node):
             level=level, name=f'{self.get_name()}: gyro driver', message=message,
             hardware_id=self._device or self._backend.hardware_id(p),
             values=[KeyValue(key=k, value=str(v)) for k, v in values.items()])
-
-    def _on_diagnostics(self) -> None:
-        if self.stopping:
-            return
-        arr = DiagnosticArray()
-        arr.header.stamp = self.get_clock().now().to_msg()
-        arr.status = [self.diagnostic_status()]
-        self._diag_pub.publish(arr)
-
-    def destroy_node(self) -> None:
-        """
-        Stop the timers, close the source, then destroy the node.
-
-        The timers are cancelled first: an executor may still hold a timer event of this
-        node (the EventsExecutor dispatches it even after ``remove_node``), and a cancelled
-        timer's, like any callback once ``stopping`` is set, does nothing.
-        """
-        self.stopping = True
-        for timer in list(self.timers):
-            timer.cancel()
-        self._close()
-        super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> int:

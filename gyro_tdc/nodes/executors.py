@@ -32,15 +32,17 @@ import sys
 import threading
 from typing import Any, Callable, Iterator
 
+from diagnostic_msgs.msg import DiagnosticArray
 from gyro_tdc.errors import GyroTdcError, one_line
 import rclpy
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
+from std_srvs.srv import Trigger
 
-__all__ = ['STARTUP_ERRORS', 'STOP_POLL_S', 'StopRequested', 'StopSignals', 'make_executor',
-           'run_node', 'spin']
+__all__ = ['ShellNode', 'STARTUP_ERRORS', 'STOP_POLL_S', 'StopRequested', 'StopSignals',
+           'make_executor', 'run_node', 'spin', 'trigger']
 
 #: Errors of a node's configuration at start-up, reported in one line by :func:`run_node`:
 #: rclpy's parameter errors (wrong type, out of range, ...) and gyro_tdc's own
@@ -51,6 +53,51 @@ STARTUP_ERRORS = (GyroTdcError, ParameterException)
 STOP_POLL_S = 0.1
 #: The signals that stop a node: Ctrl-C, and what ``ros2 launch`` and systemd send.
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+
+
+class ShellNode(Node):
+    """
+    What both nodes share: ``/diagnostics`` from their ``diagnostic_status()``, a clean stop.
+
+    :meth:`destroy_node` cancels the timers first: an executor may still hold a timer event
+    of this node (the EventsExecutor dispatches it even after ``remove_node``); a cancelled
+    timer's, like any report once ``stopping`` is set, does nothing. Then :meth:`release`
+    lets the node close what it holds (a device, a learner to save).
+    """
+
+    #: Set by :meth:`destroy_node`: a timer event that still comes then does nothing.
+    stopping = False
+
+    def report_diagnostics(self, period_s: float, **timer: Any) -> None:
+        """Publish ``diagnostic_status()`` on ``/diagnostics`` every ``period_s``."""
+        pub = self.create_publisher(DiagnosticArray, '/diagnostics', 10)
+
+        def publish() -> None:
+            if not self.stopping:
+                arr = DiagnosticArray(status=[self.diagnostic_status()])
+                arr.header.stamp = self.get_clock().now().to_msg()
+                pub.publish(arr)
+        self.create_timer(period_s, publish, **timer)
+
+    def release(self) -> None:
+        """Close what the node holds, its timers cancelled (nothing here)."""
+
+    def destroy_node(self) -> None:
+        """Stop the timers, :meth:`release`, then destroy the node."""
+        self.stopping = True
+        for timer in list(self.timers):
+            timer.cancel()
+        self.release()
+        super().destroy_node()
+
+
+def trigger(act: Callable[[], tuple[bool, str]]) -> Callable[[Any, Any], Any]:
+    """Return a std_srvs/Trigger service callback: each call is answered ``act()``'s pair."""
+
+    def serve(request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        response.success, response.message = act()
+        return response
+    return serve
 
 
 class StopRequested(BaseException):

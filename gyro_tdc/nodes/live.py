@@ -24,6 +24,7 @@ both on the messages they have in common (matched by header stamp).
 from __future__ import annotations
 
 from dataclasses import dataclass
+import functools
 import math
 import os
 from pathlib import Path
@@ -52,21 +53,19 @@ class MonitorNode(Node):
         super().__init__('gyro_tdc_monitor', **kwargs)
         qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5000,
                          reliability=ReliabilityPolicy.RELIABLE)
+        #: Rates (x, y, z) by header stamp [ns]: raw and compensated.
         self.raw: dict[int, tuple[float, float, float]] = {}
         self.comp: dict[int, tuple[float, float, float]] = {}
         self.temps: list[float] = []
-        self.create_subscription(Imu, 'imu/data_raw', self._store(self.raw), qos)
-        self.create_subscription(Imu, 'imu/data_compensated', self._store(self.comp), qos)
+        for topic, into in (('imu/data_raw', self.raw), ('imu/data_compensated', self.comp)):
+            self.create_subscription(Imu, topic, functools.partial(self._store, into), qos)
         self.create_subscription(Temperature, 'imu/temperature',
                                  lambda m: self.temps.append(m.temperature), qos)
 
     @staticmethod
-    def _store(into: dict):
-        def callback(msg: Imu) -> None:
-            stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-            w = msg.angular_velocity
-            into[stamp] = (w.x, w.y, w.z)
-        return callback
+    def _store(into: dict, msg: Imu) -> None:
+        w = msg.angular_velocity
+        into[msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec] = (w.x, w.y, w.z)
 
 
 @dataclass(frozen=True)
@@ -99,11 +98,8 @@ class LiveResult:
 
 
 def _node_cmd(module: str, params_file: Path, overrides: dict) -> list[str]:
-    cmd = [sys.executable, '-m', f'gyro_tdc.nodes.{module}', '--ros-args',
-           '--params-file', str(params_file)]
-    for key, value in overrides.items():
-        cmd += ['-p', f'{key}:={value}']
-    return cmd
+    return [sys.executable, '-m', f'gyro_tdc.nodes.{module}', '--ros-args', '--params-file',
+            str(params_file), *(a for k, v in overrides.items() for a in ('-p', f'{k}:={v}'))]
 
 
 def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed: int = 7,
@@ -180,8 +176,7 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
             raw_in_window=sum(1 for s in node.raw if lo <= s <= hi),
             compensated_in_window=sum(1 for s in node.comp if lo <= s <= hi),
             raw_received=len(node.raw), compensated_received=len(node.comp),
-            matched=len(stamps),
-            bs_raw_dps2=bs(node.raw), bs_compensated_dps2=bs(node.comp),
+            matched=len(stamps), bs_raw_dps2=bs(node.raw), bs_compensated_dps2=bs(node.comp),
             temperature_c=(float(min(temps)), float(max(temps))), seconds=elapsed)
     finally:
         for p in procs:

@@ -18,19 +18,13 @@ Driver back-ends: where raw gyro samples come from.
 Every back-end satisfies :class:`ImuSource`: ``read()`` returns the next
 :class:`ImuSample` or raises :class:`gyro_tdc.errors.DeviceError`; ``close()``
 releases it. Nothing here imports rclpy; ``gyro_tdc.nodes.driver_node`` turns
-samples into messages.
+samples into messages. The face imports a module when one of its names is asked for.
 """
 
-from gyro_tdc.sources.base import Backoff, check_sample, ImuSample, ImuSource, SourceExhausted
-from gyro_tdc.sources.iio import find_iio_device, IioSource
+from gyro_tdc.base.face import lazy
 
-__all__ = ['Backoff', 'IioSource', 'ImuSample', 'ImuSource', 'SimSource', 'SourceExhausted',
-           'check_sample', 'find_iio_device']
-
-
-def __getattr__(name: str):
-    """Import :class:`SimSource` lazily (it pulls in the simulator)."""
-    if name == 'SimSource':
-        from gyro_tdc.sources.sim import SimSource
-        return SimSource
-    raise AttributeError(f'module {__name__!r} has no attribute {name!r}')
+__all__, __getattr__, __dir__ = lazy(__name__, {
+    'base': ['Backoff', 'check_sample', 'ImuSample', 'ImuSource', 'SourceExhausted'],
+    'iio': ['find_iio_device', 'IioSource'],
+    'sim': ['SimSource'],      # it pulls in the simulator
+})

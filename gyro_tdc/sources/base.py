@@ -100,11 +100,9 @@ class ImuSource(Protocol):
             The device vanished or returned something that is not a number.
 
         """
-        ...
 
     def stamp_ns(self, t: float) -> int:
         """Return the ROS stamp, ns on the node clock, of source time ``t`` (s)."""
-        ...
 
     def read(self) -> ImuSample:
         """
@@ -121,11 +119,9 @@ class ImuSource(Protocol):
             The device vanished or returned something that is not a number.
 
         """
-        ...
 
     def close(self) -> None:
         """Release the device."""
-        ...
 
 
 class PolledSource:
@@ -166,13 +162,12 @@ def check_sample(sample: ImuSample) -> ImuSample:
         Some value is NaN or infinite (the driver never publishes garbage).
 
     """
-    fields = [('t', (sample.t,)), ('omega', sample.omega)]
-    if sample.accel is not None:
-        fields.append(('accel', sample.accel))
-    if sample.temp_c is not None:
-        fields.append(('temp_c', (sample.temp_c,)))
-    for name, values in fields:
-        if len(values) != (1 if name in ('t', 'temp_c') else 3) or not all(
+    for name, size in (('t', 1), ('omega', 3), ('accel', 3), ('temp_c', 1)):
+        value = getattr(sample, name)
+        if value is None and name in ('accel', 'temp_c'):
+            continue                      # not read with this sample
+        values = (value,) if size == 1 else value
+        if len(values) != size or not all(
                 isinstance(v, (int, float)) and math.isfinite(v) for v in values):
             raise DeviceError(f'Sample field `{name}` holds {values!r}, expected finite numbers.')
     return sample

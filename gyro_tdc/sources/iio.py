@@ -24,6 +24,8 @@ plausibility gate (:mod:`gyro_tdc.base.plausible`) refuses is dropped and counte
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+import functools
 import math
 import os
 from pathlib import Path
@@ -39,21 +41,16 @@ DEFAULT_IIO_ROOT = '/sys/bus/iio/devices'
 _AXES = ('x', 'y', 'z')
 
 
-def _stat(path: Path) -> os.stat_result | None:
-    """Return ``os.stat(path)``, None when it does not exist, or raise DeviceError."""
+def _exists(path: Path, *, directory: bool = False) -> bool:
+    """Return whether ``path`` exists (as a directory); raise DeviceError when it cannot say."""
     try:
-        return os.stat(path)
+        mode = os.stat(path).st_mode
     except (FileNotFoundError, NotADirectoryError):
-        return None
+        return False
     except OSError as exc:       # PermissionError (an unreadable directory), EIO...
         raise DeviceError(f'Cannot access IIO path {str(path)!r}: '
                           f'{exc.strerror or exc}.') from None
-
-
-def _exists(path: Path, *, directory: bool = False) -> bool:
-    """Return whether ``path`` exists (as a directory); raise DeviceError when it cannot say."""
-    st = _stat(path)
-    return st is not None and (not directory or stat.S_ISDIR(st.st_mode))
+    return not directory or stat.S_ISDIR(mode)
 
 
 def _read_text(path: Path) -> str:
@@ -115,15 +112,13 @@ def find_iio_device(name: str, *, root: str | os.PathLike = DEFAULT_IIO_ROOT) ->
                           f'{exc.strerror or exc}.') from None
     seen = []
     for entry in entries:
-        name_file = entry / 'name'
         try:
-            if not _exists(name_file):
+            if not _exists(entry / 'name'):
                 continue
-            found = _read_text(name_file)
+            found = _read_text(entry / 'name')
         except DeviceError as exc:
             # An unreadable device that may not be the wanted one: skip it, say so.
-            why = str(exc).rsplit(': ', 1)[-1].rstrip('.')
-            seen.append(f'{entry.name} unreadable ({why})')
+            seen.append(f'{entry.name} unreadable ({str(exc).rsplit(": ", 1)[-1].rstrip(".")})')
             continue
         seen.append(found)
         if found == name:
@@ -132,6 +127,7 @@ def find_iio_device(name: str, *, root: str | os.PathLike = DEFAULT_IIO_ROOT) ->
                       f'(found: {", ".join(seen) or "none"}).')
 
 
+@dataclass(slots=True)
 class _Channel:
     """
     One scaled channel: ``(raw + offset) * scale * factor``.
@@ -140,33 +136,21 @@ class _Channel:
     factor folds the unit (1 for rad/s and m/s^2, 1/1000 for milli-degrees Celsius).
     """
 
-    __slots__ = ('path', 'scale_file', 'offset_file', 'factor', 'offset', 'scale')
+    path: Path
+    scale_file: Path | None = None
+    offset_file: Path | None = None
+    factor: float = 1.0
+    scale: float = 1.0
+    offset: float = 0.0
 
-    def __init__(self, path: Path, *, scale_file: Path | None, offset_file: Path | None,
-                 factor: float = 1.0, scale: float = 1.0, offset: float = 0.0) -> None:
-        self.path = path
-        self.scale_file = scale_file
-        self.offset_file = offset_file
-        self.factor = factor
-        self.scale = scale * factor
-        self.offset = offset
-
-    def refresh(self, cache: dict) -> None:
-        """Re-read the scale and offset files (``cache``: values read this refresh)."""
-        if self.scale_file is not None:
-            self.scale = _cached(cache, self.scale_file) * self.factor
+    def refresh(self, read: Callable[[Path], float]) -> None:
+        """Re-read the scale and offset files with ``read`` (shared files: read once)."""
+        self.scale = self.factor * (1.0 if self.scale_file is None else read(self.scale_file))
         if self.offset_file is not None:
-            self.offset = _cached(cache, self.offset_file)
+            self.offset = read(self.offset_file)
 
     def read(self) -> float:
         return (_read_number(self.path) + self.offset) * self.scale
-
-
-def _cached(cache: dict, path: Path) -> float:
-    """Return the number in ``path``, read once per ``cache`` (shared scale files)."""
-    if path not in cache:
-        cache[path] = _read_number(path)
-    return cache[path]
 
 
 class IioSource(PolledSource):
@@ -229,32 +213,19 @@ class IioSource(PolledSource):
         if require_temperature and self._temp is None:
             raise DeviceError(f'IIO device {str(self.device_dir)!r} has no thermometer '
                               '(in_temp_raw or in_temp_input), and one is required.')
-        self._channels = (self._gyro + (self._accel or ())
-                          + ((self._temp,) if self._temp is not None else ()))
-
-    @property
-    def has_accel(self) -> bool:
-        """Return whether samples carry acceleration."""
-        return self._accel is not None
-
-    @property
-    def has_temperature(self) -> bool:
-        """Return whether samples carry temperature."""
-        return self._temp is not None
-
-    def _file(self, name: str) -> Path:
-        return self.device_dir / name
+        self._channels = tuple(c for c in (*self._gyro, *(self._accel or ()), self._temp) if c)
+        #: Whether samples carry acceleration, and temperature.
+        self.has_accel, self.has_temperature = self._accel is not None, self._temp is not None
 
     def _shared_or_own(self, kind: str, axis: str, what: str) -> Path | None:
         """Return the file ``in_<kind>_<axis>_<what>``, else ``in_<kind>_<what>``, or None."""
         for name in (f'in_{kind}_{axis}_{what}', f'in_{kind}_{what}'):
-            path = self._file(name)
-            if _exists(path):
-                return path
+            if _exists(self.device_dir / name):
+                return self.device_dir / name
         return None
 
     def _vector(self, kind: str, *, required: bool) -> tuple[_Channel, ...] | None:
-        raws = [self._file(f'in_{kind}_{axis}_raw') for axis in _AXES]
+        raws = [self.device_dir / f'in_{kind}_{axis}_raw' for axis in _AXES]
         present = [_exists(path) for path in raws]
         if not any(present) and not required:
             return None
@@ -262,36 +233,33 @@ class IioSource(PolledSource):
             if not ok:
                 raise DeviceError(f'IIO file {str(path)!r} is missing.')
         channels = []
-        cache: dict = {}
+        read = functools.cache(_read_number)
         for axis, path in zip(_AXES, raws):
             scale_file = self._shared_or_own(kind, axis, 'scale')
             if scale_file is None:
-                raise DeviceError(f'IIO file {str(self._file(f"in_{kind}_scale"))!r} is '
+                raise DeviceError(f'IIO file {str(self.device_dir / f"in_{kind}_scale")!r} is '
                                   f'missing (nor is there in_{kind}_{axis}_scale).')
-            channel = _Channel(path, scale_file=scale_file,
-                               offset_file=self._shared_or_own(kind, axis, 'offset'))
-            channel.refresh(cache)
-            _read_number(path)
-            channels.append(channel)
+            channels.append(_Channel(path, scale_file, self._shared_or_own(kind, axis, 'offset')))
+            channels[-1].refresh(read)
+            channels[-1].read()
         return tuple(channels)
 
     def _temperature(self, *, required: bool) -> _Channel | None:
-        raw, processed = self._file('in_temp_raw'), self._file('in_temp_input')
-        scale_file, offset_file = self._file('in_temp_scale'), self._file('in_temp_offset')
+        raw, processed, scale_file, offset_file = (
+            self.device_dir / f'in_temp_{what}' for what in ('raw', 'input', 'scale', 'offset'))
         if _exists(raw):
             if not _exists(scale_file):
                 raise DeviceError(f'IIO file {str(scale_file)!r} is missing '
                                   '(needed to convert in_temp_raw).')
-            channel = _Channel(raw, scale_file=scale_file, factor=1.0 / 1000.0,
-                               offset_file=offset_file if _exists(offset_file) else None)
+            channel = _Channel(raw, scale_file, offset_file if _exists(offset_file) else None,
+                               factor=1.0 / 1000.0)
         elif _exists(processed):
-            channel = _Channel(processed, scale_file=None, offset_file=None, factor=1.0 / 1000.0)
+            channel = _Channel(processed, factor=1.0 / 1000.0)
+        elif required:
+            raise DeviceError(f'IIO file {str(raw)!r} is missing (nor is there in_temp_input).')
         else:
-            if required:
-                raise DeviceError(f'IIO file {str(raw)!r} is missing '
-                                  '(nor is there in_temp_input).')
             return None
-        channel.refresh({})
+        channel.refresh(_read_number)
         channel.read()
         return channel
 
@@ -305,9 +273,9 @@ class IioSource(PolledSource):
             A scale or offset file vanished, is unreadable or not a finite number.
 
         """
-        cache: dict = {}
+        read = functools.cache(_read_number)
         for channel in self._channels:
-            channel.refresh(cache)
+            channel.refresh(read)
 
     def read(self) -> ImuSample:
         """

@@ -83,12 +83,8 @@ class SimSource:
                                      rate_hz=rate_hz or None)
         except (GyroTdcError, ValueError) as exc:
             raise DeviceError(f'Cannot simulate scenario {scenario!r}: {exc}') from None
-        run = self._stream.run
-        self.name = f'sim:{run.name}'
-        self.rate_hz = float(run.rate_hz)
-        self.temp_var = float(run.temp_var)
-        self.moving = bool(run.moving)
-        self.truth = run.truth
+        self.name = f'sim:{self._stream.run.name}'
+        self._moving = bool(self._stream.run.moving)
         self._chunk_s = float(chunk_s)
         self._scenario = scenario
         self.time_scale = float(time_scale)
@@ -99,13 +95,7 @@ class SimSource:
         self._imu: deque[tuple[float, tuple, tuple]] = deque()
         self._temps: deque[tuple[float, float]] = deque()
         self._refs: deque[tuple[float, tuple]] = deque()
-        self.skipped_temperatures = 0
         self._temp_gate = TemperatureGate()
-
-    @property
-    def run(self) -> Any:
-        """Return the simulated run being streamed (a gyro_tdc.sim.SimRun)."""
-        return self._stream.run
 
     def _fill(self) -> None:
         """Pull the next chunk of the stream until an IMU sample is buffered or it is done."""
@@ -115,7 +105,7 @@ class SimSource:
             self._imu.extend(zip(imu.t.tolist(), map(tuple, imu.gyro.tolist()),
                                  map(tuple, imu.accel.tolist())))
             self._temps.extend(zip(temp.t.tolist(), temp.temp_c.tolist()))
-            if self.moving:
+            if self._moving:
                 self._refs.extend(zip(ref.t.tolist(), map(tuple, ref.ref.tolist())))
 
     def _peek_t(self) -> float | None:
@@ -154,11 +144,9 @@ class SimSource:
                  else sim0 + (now - wall0) * self.time_scale)
         for _ in range(self.max_batch):
             t_next = self._peek_t()
-            if t_next is None:
-                self.read()  # raises SourceExhausted
-            if t_next > limit:
+            if t_next is not None and t_next > limit:
                 return
-            yield self.read()
+            yield self.read()  # raises SourceExhausted at the end of the run
 
     def stamp_ns(self, t: float) -> int:
         """Return the node-clock stamp, ns, of simulated time ``t``: shifted, not scaled."""
@@ -180,24 +168,16 @@ class SimSource:
             The run is over.
 
         """
-        if not self._imu:
-            self._fill()
-            if not self._imu:
-                raise SourceExhausted(f'{self.name} finished')
+        if self._peek_t() is None:
+            raise SourceExhausted(f'{self.name} finished')
         t, gyro, accel = self._imu.popleft()
         temp_c = temp_t = ref = None
-        temps = self._temps
-        gate = self._temp_gate
-        while temps and temps[0][0] <= t:
-            reading = temps.popleft()
-            if not gate.accept(*reading):
-                continue                  # implausible: never published (counted)
-            if temp_t is not None:
-                self.skipped_temperatures += 1
-            temp_t, temp_c = reading
-        refs = self._refs
-        while refs and refs[0][0] <= t:
-            ref = refs.popleft()[1]
+        while self._temps and self._temps[0][0] <= t:
+            reading = self._temps.popleft()
+            if self._temp_gate.accept(*reading):  # implausible: never published (counted)
+                temp_t, temp_c = reading
+        while self._refs and self._refs[0][0] <= t:
+            ref = self._refs.popleft()[1]
         return ImuSample(t, gyro, accel, temp_c, temp_t, ref)
 
     @property
@@ -207,6 +187,5 @@ class SimSource:
 
     def close(self) -> None:
         """Drop the buffered samples."""
-        self._imu.clear()
-        self._temps.clear()
-        self._refs.clear()
+        for buffered in (self._imu, self._temps, self._refs):
+            buffered.clear()
