@@ -32,9 +32,9 @@ from gyro_tdc.sim.chamber import Profile
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['CMD_VEL_TOPIC', 'Leg', 'TRUTH_TOPIC', 'VEHICLE_DEFAULTS', 'VehicleMotion',
-           'VehicleSpec', 'gravity_in_sensor', 'heated_profile', 'plan_legs', 'vehicle_motion',
-           'vehicle_spec']
+__all__ = ['CMD_VEL_TOPIC', 'Leg', 'TRUTH_TOPIC', 'VEHICLE_DEFAULTS', 'VEHICLE_FIELDS',
+           'VehicleMotion', 'VehicleSpec', 'gravity_in_sensor', 'heated_profile', 'plan_legs',
+           'vehicle_motion']
 
 #: Topic of the true body rate in simulated vehicle bags (evaluation only, never trained on).
 TRUTH_TOPIC = '/truth/angular_velocity'
@@ -42,10 +42,9 @@ TRUTH_TOPIC = '/truth/angular_velocity'
 CMD_VEL_TOPIC = '/cmd_vel'
 _DEG = math.pi / 180.0
 
-# Each field of the ``vehicle:`` section (units in the keys) as (kind, default). Kinds: 'nonneg'
-# >= 0, 'pos' > 0, 'num' any number, 'range' [low, high] with 0 <= low <= high, 'prange' the
-# same with low > 0.
-_FIELDS: dict[str, tuple[str, Any]] = {
+# Each field of the ``vehicle:`` section (units in the keys) as (kind, default), checked by the
+# scenario schema: 'range' is [low, high] with 0 <= low <= high, 'prange' the same with low > 0.
+VEHICLE_FIELDS: dict[str, tuple[str, Any]] = {
     'start_parked_s': ('nonneg', 1800.0), 'drive_s': ('prange', [600.0, 1800.0]),
     'park_s': ('prange', [600.0, 3000.0]), 'slope_deg': ('nonneg', 4.0),
     'slope_change_s': ('pos', 10.0), 'speed_mps': ('pos', 10.0), 'accel_mps2': ('pos', 1.5),
@@ -55,7 +54,7 @@ _FIELDS: dict[str, tuple[str, Any]] = {
     'self_heating_tau_s': ('pos', 900.0), 'cmd_vel_rate_hz': ('nonneg', 5.0),
 }
 #: Defaults of the ``vehicle:`` section.
-VEHICLE_DEFAULTS: dict = {key: default for key, (_, default) in _FIELDS.items()}
+VEHICLE_DEFAULTS: dict = {key: default for key, (_, default) in VEHICLE_FIELDS.items()}
 #: Grid step of the heated set point, s (the self-heating moves over minutes).
 _HEAT_STEP_S = 5.0
 #: Ramp of a turn's yaw rate in and out, s.
@@ -91,48 +90,6 @@ class VehicleSpec:
         """Return the section as plain YAML-safe types."""
         return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
                 for f in fields(self)}
-
-
-def vehicle_spec(chk: Any, raw: Any) -> VehicleSpec:
-    """
-    Validate a ``vehicle:`` mapping over :data:`VEHICLE_DEFAULTS`.
-
-    Parameters
-    ----------
-    chk : object
-        The scenario schema's field checker (``mapping``, ``num`` and ``fail`` methods, one
-        ScenarioError naming the field).
-    raw : Any
-        The section as read.
-
-    Returns
-    -------
-    VehicleSpec
-        The typed section.
-
-    Raises
-    ------
-    ScenarioError
-        Naming the first bad field.
-
-    """
-    body = dict(VEHICLE_DEFAULTS, **chk.mapping('vehicle', raw, tuple(VEHICLE_DEFAULTS)))
-    out: dict[str, Any] = {}
-    for key, (kind, _) in _FIELDS.items():
-        path, x = f'vehicle.{key}', body[key]
-        if kind in ('range', 'prange'):
-            ok = (isinstance(x, (list, tuple)) and len(x) == 2
-                  and all(chk._is_num(e) for e in x))
-            lo, hi = (float(x[0]), float(x[1])) if ok else (0.0, 0.0)
-            if not ok or lo < 0.0 or hi < lo or (kind == 'prange' and lo <= 0.0):
-                low = '0 < low' if kind == 'prange' else '0 <= low'
-                raise chk.fail(path, f'[low, high] with {low} <= high', x)
-            out[key] = (lo, hi)
-        elif kind == 'num':
-            out[key] = chk.num(path, x)
-        else:
-            out[key] = chk.num(path, x, low=0.0, strict=kind == 'pos')
-    return VehicleSpec(**out)
 
 
 @dataclass(frozen=True)
