@@ -33,7 +33,7 @@ import time
 from typing import Callable, Optional, Sequence
 
 from gyro_tdc.base import atomic_dir, check_sim_samples, clean_leftovers, scenario_names
-from gyro_tdc.cli.common import ArgumentParser, run_command
+from gyro_tdc.cli.common import ArgumentParser, progress, run_command
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.sim import CMD_VEL_TOPIC, load_scenario, SimRun, simulate_run, TRUTH_TOPIC
 import numpy as np
@@ -230,9 +230,8 @@ def _simulate_runs(sc, paths, shown, storage, seed, rate_hz, log, progress=False
 
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``simulate`` with parsed arguments (one summary line per run)."""
-    progress = sys.stderr.isatty() if args.progress is None else args.progress
     simulate(args.scenario, args.out, storage=args.storage, seed=args.seed,
-             rate_hz=args.rate_hz, force=args.force, progress=progress)
+             rate_hz=args.rate_hz, force=args.force, progress=progress(args))
     return 0
 
 

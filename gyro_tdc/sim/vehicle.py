@@ -135,26 +135,18 @@ def plan_legs(spec: VehicleSpec, duration_s: float, rng: np.random.Generator
         In time order, covering ``[0, duration_s]`` (the last one cut at the end).
 
     """
-    legs = []
-
     def slope() -> tuple[float, float]:
         r, p = rng.standard_normal(2) * spec.slope_deg
         return float(r), float(p)
 
-    t = 0.0
     roll, pitch = slope()
-    legs.append(Leg('park', 0.0, min(spec.start_parked_s, duration_s), roll, pitch))
-    t = legs[-1].t1_s
-    while t < duration_s:
-        d = float(rng.uniform(*spec.drive_s))
-        roll, pitch = slope()
-        legs.append(Leg('drive', t, min(t + d, duration_s), roll, pitch))
-        t = legs[-1].t1_s
-        if t >= duration_s:
-            break
-        p = float(rng.uniform(*spec.park_s))
-        legs.append(Leg('park', t, min(t + p, duration_s), roll, pitch))
-        t = legs[-1].t1_s
+    legs = [Leg('park', 0.0, min(spec.start_parked_s, duration_s), roll, pitch)]
+    while legs[-1].t1_s < duration_s:     # a drive to a new slope, a stop on it, and so on
+        t, driving = legs[-1].t1_s, legs[-1].kind == 'park'
+        d = float(rng.uniform(*(spec.drive_s if driving else spec.park_s)))
+        if driving:
+            roll, pitch = slope()
+        legs.append(Leg('drive' if driving else 'park', t, min(t + d, duration_s), roll, pitch))
     return tuple(legs)
 
 
