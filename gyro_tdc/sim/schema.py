@@ -69,6 +69,8 @@ _SECTIONS: dict[str, dict[str, tuple[str, Any]]] = {
               'reorient_tilt_deg': ('tilt', [0.0, 0.0])},
     'runs': {'count': ('count', 1), 'bias_offset_dps_std': ('axis_nonneg', 0.0)},
 }
+_SPECS = {'thermal': ThermalSpec, 'thermometer': ThermometerSpec, 'gyro': GyroSpec,
+          'noise': NoiseSpec, 'accel': AccelSpec, 'runs': RunsSpec}
 _DEFAULT = {s: {k: d for k, (_, d) in f.items()} for s, f in _SECTIONS.items()}
 DEFAULTS: dict = {
     'format_version': FORMAT_VERSION, 'name': None, 'description': '', 'sensor': None,
@@ -140,8 +142,9 @@ class _Checker(FieldChecker):
             raise self.fail(path, f'[low, high] with {low} <= high', x)
         return lo, hi
 
-    def choice(self, path: str, x: Any, ok: bool, expected: str) -> Any:
-        if not ok:
+    def choice(self, path: str, x: Any, ok: bool | type, expected: str) -> Any:
+        """Return ``x`` when ``ok`` (or an instance of the type ``ok``), else fail."""
+        if not (isinstance(x, ok) if isinstance(ok, type) else ok):
             raise self.fail(path, expected, x)
         return x
 
@@ -315,18 +318,15 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
     merged = merge(DEFAULTS, PRESETS[sensor] if sensor else {})
     merged = merge(merged, top)        # lists (rate_table, segments) replace, never merge
 
-    the_name = merged.get('name') or name or 'scenario'
-    if not isinstance(the_name, str):
-        raise chk.fail('name', 'a string', the_name)
-    merged['name'] = the_name
-    description = merged.get('description') or ''
-    if not isinstance(description, str):
-        raise chk.fail('description', 'a string', description)
+    the_name = merged['name'] = chk.choice('name', merged.get('name') or name or 'scenario',
+                                           str, 'a string')
+    description = chk.choice('description', merged.get('description') or '', str, 'a string')
     rate = chk.num('imu_rate_hz', merged.get('imu_rate_hz'), low=0.0, strict=True)
 
     values = {section: chk.section(section, merged[section], fields)
               for section, fields in _SECTIONS.items()}
-    merged['gyro']['effects'] = dict(values['gyro']['effects'])
+    effects = merged['gyro']['effects'] = dict(values['gyro']['effects'])
+    values['gyro']['effects'] = tuple(k for k in EFFECT_IDS if effects[k])
 
     profile = _profile(chk, merged['profile'])
     duration = merged.get('duration_s')
@@ -341,21 +341,12 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
                        thermometer_rate)
 
     # Optional vehicle day (gyro_tdc.sim.vehicle): normalised over its defaults when present.
-    vehicle = None
-    if merged.get('vehicle') is not None:
-        vehicle = VehicleSpec(**chk.section('vehicle', merged['vehicle'], VEHICLE_FIELDS))
+    vehicle = merged.pop('vehicle', None)
+    if vehicle is not None:
+        vehicle = VehicleSpec(**chk.section('vehicle', vehicle, VEHICLE_FIELDS))
         merged['vehicle'] = vehicle.to_dict()
-    else:
-        merged.pop('vehicle', None)
-
-    gyro_vals = dict(values['gyro'])
-    effects = gyro_vals.pop('effects')
-    gyro = GyroSpec(effects=tuple(k for k in EFFECT_IDS if effects[k]), **gyro_vals)
-    return dict(
-        name=the_name, description=description, source=source, sensor=sensor,
-        imu_rate_hz=rate, duration_s=duration, profile=profile,
-        thermal=ThermalSpec(**values['thermal']),
-        thermometer=ThermometerSpec(**values['thermometer']),
-        gyro=gyro, noise=NoiseSpec(**values['noise']), accel=AccelSpec(**values['accel']),
-        rate_table=_rate_table(chk, merged.get('rate_table')),
-        runs=RunsSpec(**values['runs']), data=merged, vehicle=vehicle)
+    return dict(name=the_name, description=description, source=source, sensor=sensor,
+                imu_rate_hz=rate, duration_s=duration, profile=profile,
+                **{section: spec(**values[section]) for section, spec in _SPECS.items()},
+                rate_table=_rate_table(chk, merged.get('rate_table')), data=merged,
+                vehicle=vehicle)
