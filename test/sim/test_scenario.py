@@ -111,7 +111,7 @@ def test_load_scenario_from_file_names_the_file(tmp_path):
     sc = load_scenario(path)
     assert sc.name == 'my_run' and sc.source == 'my_run.yaml'
     path.write_text('profile: {start_c: 20.0\n  segments: [\n')
-    with pytest.raises(ScenarioError, match=r'my_run\.yaml: not valid YAML at line'):
+    with pytest.raises(ScenarioError, match=r'my_run\.yaml: malformed YAML at line'):
         load_scenario(str(path))
     path.write_text(yaml.safe_dump(dict(MINIMAL, gyro={'bias_dps': 'x'})))
     with pytest.raises(ScenarioError, match=r'my_run\.yaml: `gyro\.bias_dps`'):
