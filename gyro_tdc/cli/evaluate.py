@@ -152,18 +152,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                     for nm in models]
 
     def each(b: BagEval) -> None:
-        for m in b.models if auto else ():
-            if m.reanchor is None:         # scored on still stretches: anchored on them
-                continue
-            records = m.reanchor.get('sessions') or [m.reanchor]
-            for k, r in enumerate(records):
-                where = f' session {k + 1}' if len(records) > 1 else ''
-                log(f'{b.label}: {m.label} re-anchored{where} on {r["samples"]} samples over '
-                    f'{r["duration_s"]:.1f} s ({r["reason"]}): shift '
-                    + ', '.join(f'{v:+.5f}' for v in r['shift_dps'])
-                    + ' deg/s, standard error '
-                    + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
-        for line in format_still(b):
+        for line in [*(_reanchor_lines(b) if auto else ()), *format_still(b)]:
             log(line)
         log(format_bag(b, baseline, floor=args.floor, accel_floor=args.accel_floor))
         if args.plots is not None:
@@ -200,6 +189,23 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     if len(results) > 1:
         print(format_means(results, floor=args.floor))
     return 0
+
+
+def _reanchor_lines(b: BagEval) -> list[str]:
+    """Return what the automatic re-anchoring did for each model on a bag (each session)."""
+    lines = []
+    for m in b.models:
+        if m.reanchor is None:         # scored on still stretches: anchored on them
+            continue
+        records = m.reanchor.get('sessions') or [m.reanchor]
+        for k, r in enumerate(records):
+            where = f' session {k + 1}' if len(records) > 1 else ''
+            lines.append(f'{b.label}: {m.label} re-anchored{where} on {r["samples"]} samples '
+                         f'over {r["duration_s"]:.1f} s ({r["reason"]}): shift '
+                         + ', '.join(f'{v:+.5f}' for v in r['shift_dps'])
+                         + ' deg/s, standard error '
+                         + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
+    return lines
 
 
 def _state_tau(model) -> float | None:

@@ -33,8 +33,8 @@ from gyro_tdc.errors import ScenarioError
 from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim import chamber
 from gyro_tdc.sim.presets import PRESETS
-from gyro_tdc.sim.specs import (AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsSpec, ThermalSpec,
-                                ThermometerSpec, Vec3)
+from gyro_tdc.sim.specs import (AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsSpec,
+                                section_fields, ThermalSpec, ThermometerSpec, Vec3)
 from gyro_tdc.sim.vehicle import VEHICLE_FIELDS, VehicleSpec
 import numpy as np
 
@@ -43,34 +43,10 @@ __all__ = ['DEFAULTS', 'DEG', 'FORMAT_VERSION', 'merge', 'validate']
 FORMAT_VERSION = 1
 DEG = math.pi / 180.0
 
-# Each section's fields as (kind, default); each kind is a check of _KINDS.
-_SECTIONS: dict[str, dict[str, tuple[str, Any]]] = {
-    'thermal': {'tau_air_s': ('nonneg', 0.0), 'tau_package_s': ('nonneg', 0.0),
-                'tau_die_s': ('nonneg', 0.0), 'internal_step_s': ('pos', 0.1)},
-    'thermometer': {'location': ('location', 'package'), 'rate_hz': ('pos', 1.0),
-                    'resolution_c': ('nonneg', 0.0), 'noise_c': ('nonneg', 0.0),
-                    'tau_s': ('nonneg', 0.0), 'offset_c': ('num', 0.0)},
-    'gyro': {'effects': ('effects', {k: k in ('bias', 'dT', 'dT2') for k in EFFECT_IDS}),
-             't_ref_c': ('num', 25.0), 'bias_dps': ('axis', 0.0), 'dT_dps_per_c': ('axis', 0.0),
-             'dT2_dps_per_c2': ('axis', 0.0), 'dT3_dps_per_c3': ('axis', 0.0),
-             'dTdt_dps_per_c_per_s': ('axis', 0.0), 'scale_ppm_per_c': ('axis', 0.0),
-             'warmup_dps': ('axis', 0.0), 'warmup_tau_s': ('pos', 300.0),
-             'power_on_s': ('num', 0.0), 'sensitivity_mdps_per_digit': ('nonneg', 0.0),
-             'range_dps': ('nonneg', 0.0), 'quantise': ('bool', True)},
-    'noise': {'enabled': ('bool', True), 'arw_dps_per_rt_hz': ('axis_nonneg', 0.0),
-              'bias_instability_dps': ('axis_nonneg', 0.0),
-              'bias_instability_tau_s': ('taus', [10.0, 100.0, 1000.0]),
-              'rrw_dps_per_rt_s': ('axis_nonneg', 0.0)},
-    'accel': {'gravity_mps2': ('num', 9.80665), 'noise_mps2_per_rt_hz': ('axis_nonneg', 0.0),
-              'tilt_deg': ('tilt', [0.0, 0.0]), 'tilt_std_deg': ('nonneg', 0.0),
-              'bias_mg': ('axis', 0.0), 'dT_mg_per_c': ('axis', 0.0),
-              'dT2_mg_per_c2': ('axis', 0.0), 'sensitivity_mg_per_digit': ('nonneg', 0.0),
-              'range_g': ('nonneg', 0.0), 'reorient_at_s': ('nonneg', 0.0),
-              'reorient_tilt_deg': ('tilt', [0.0, 0.0])},
-    'runs': {'count': ('count', 1), 'bias_offset_dps_std': ('axis_nonneg', 0.0)},
-}
+# Each section's type, its fields' (kind, default) on the type; each kind is a check of _KINDS.
 _SPECS = {'thermal': ThermalSpec, 'thermometer': ThermometerSpec, 'gyro': GyroSpec,
           'noise': NoiseSpec, 'accel': AccelSpec, 'runs': RunsSpec}
+_SECTIONS = {section: section_fields(spec) for section, spec in _SPECS.items()}
 _DEFAULT = {s: {k: d for k, (_, d) in f.items()} for s, f in _SECTIONS.items()}
 DEFAULTS: dict = {
     'format_version': FORMAT_VERSION, 'name': None, 'description': '', 'sensor': None,

@@ -25,10 +25,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 import math
-from typing import Any
 
 from gyro_tdc.model import first_order_lag
 from gyro_tdc.sim.chamber import Profile
+from gyro_tdc.sim.specs import section_fields, spec_field
 import numpy as np
 from numpy.typing import NDArray
 
@@ -42,19 +42,6 @@ TRUTH_TOPIC = '/truth/angular_velocity'
 CMD_VEL_TOPIC = '/cmd_vel'
 _DEG = math.pi / 180.0
 
-# Each field of the ``vehicle:`` section (units in the keys) as (kind, default), checked by the
-# scenario schema: 'range' is [low, high] with 0 <= low <= high, 'prange' the same with low > 0.
-VEHICLE_FIELDS: dict[str, tuple[str, Any]] = {
-    'start_parked_s': ('nonneg', 1800.0), 'drive_s': ('prange', [600.0, 1800.0]),
-    'park_s': ('prange', [600.0, 3000.0]), 'slope_deg': ('nonneg', 4.0),
-    'slope_change_s': ('pos', 10.0), 'speed_mps': ('pos', 10.0), 'accel_mps2': ('pos', 1.5),
-    'straight_s': ('prange', [5.0, 60.0]), 'turn_s': ('prange', [3.0, 20.0]),
-    'turn_rate_dps': ('range', [2.0, 20.0]), 'vibration_dps': ('nonneg', 0.5),
-    'vibration_mps2': ('nonneg', 0.8), 'self_heating_c': ('num', 10.0),
-    'self_heating_tau_s': ('pos', 900.0), 'cmd_vel_rate_hz': ('nonneg', 5.0),
-}
-#: Defaults of the ``vehicle:`` section.
-VEHICLE_DEFAULTS: dict = {key: default for key, (_, default) in VEHICLE_FIELDS.items()}
 #: Grid step of the heated set point, s (the self-heating moves over minutes).
 _HEAT_STEP_S = 5.0
 #: Ramp of a turn's yaw rate in and out, s.
@@ -67,29 +54,36 @@ class VehicleSpec:
     The ``vehicle:`` section of a scenario (see the module docstring for every field).
 
     Durations in s, rates in deg/s, slopes in deg, speeds in m/s, accelerations in m/s^2,
-    temperatures in degC, ranges as ``(low, high)``.
+    temperatures in degC, ranges as ``(low, high)``. Each field carries the kind the scenario
+    schema checks and its default: 'range' is [low, high] with 0 <= low <= high, 'prange' the
+    same with low > 0.
     """
 
-    start_parked_s: float
-    drive_s: tuple[float, float]
-    park_s: tuple[float, float]
-    slope_deg: float
-    slope_change_s: float
-    speed_mps: float
-    accel_mps2: float
-    straight_s: tuple[float, float]
-    turn_s: tuple[float, float]
-    turn_rate_dps: tuple[float, float]
-    vibration_dps: float
-    vibration_mps2: float
-    self_heating_c: float
-    self_heating_tau_s: float
-    cmd_vel_rate_hz: float
+    start_parked_s: float = spec_field('nonneg', 1800.0)
+    drive_s: tuple[float, float] = spec_field('prange', [600.0, 1800.0])
+    park_s: tuple[float, float] = spec_field('prange', [600.0, 3000.0])
+    slope_deg: float = spec_field('nonneg', 4.0)
+    slope_change_s: float = spec_field('pos', 10.0)
+    speed_mps: float = spec_field('pos', 10.0)
+    accel_mps2: float = spec_field('pos', 1.5)
+    straight_s: tuple[float, float] = spec_field('prange', [5.0, 60.0])
+    turn_s: tuple[float, float] = spec_field('prange', [3.0, 20.0])
+    turn_rate_dps: tuple[float, float] = spec_field('range', [2.0, 20.0])
+    vibration_dps: float = spec_field('nonneg', 0.5)
+    vibration_mps2: float = spec_field('nonneg', 0.8)
+    self_heating_c: float = spec_field('num', 10.0)
+    self_heating_tau_s: float = spec_field('pos', 900.0)
+    cmd_vel_rate_hz: float = spec_field('nonneg', 5.0)
 
     def to_dict(self) -> dict:
         """Return the section as plain YAML-safe types."""
         return {f.name: (list(v) if isinstance(v := getattr(self, f.name), tuple) else v)
                 for f in fields(self)}
+
+
+#: Each field of the ``vehicle:`` section as (kind, default), and the defaults alone.
+VEHICLE_FIELDS = section_fields(VehicleSpec)
+VEHICLE_DEFAULTS: dict = {key: default for key, (_, default) in VEHICLE_FIELDS.items()}
 
 
 @dataclass(frozen=True)
