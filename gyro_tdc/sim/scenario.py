@@ -30,7 +30,8 @@ import os
 from pathlib import Path
 from typing import Any, Mapping, Optional, Union
 
-from gyro_tdc.base import plain, read_yaml, SCENARIO_LIMITS
+from gyro_tdc.base import (config_dir, plain, read_yaml, SCENARIO_LIMITS, scenario_names,
+                           scenario_path)
 from gyro_tdc.errors import GyroTdcError, ScenarioError
 from gyro_tdc.sim import chamber
 from gyro_tdc.sim.schema import merge, validate
@@ -193,7 +194,6 @@ def scenario_dir() -> Path:
         If the configuration directory cannot be found.
 
     """
-    from gyro_tdc.base import config_dir
     return _as_scenario_error(config_dir) / 'scenarios'
 
 
@@ -217,7 +217,6 @@ def list_scenarios() -> list[str]:
         Stems of ``config/scenarios/*.yaml``.
 
     """
-    from gyro_tdc.base import scenario_names
     return _as_scenario_error(scenario_names)
 
 
@@ -246,7 +245,6 @@ def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) ->
         return name_or_path
     if isinstance(name_or_path, Mapping):
         return Scenario.from_dict(name_or_path)
-    from gyro_tdc.base import scenario_path
     path = _as_scenario_error(scenario_path, name_or_path)
     data = read_yaml(path, SCENARIO_LIMITS, error=ScenarioError)
     return Scenario.from_dict({} if data is None else data, name=path.stem, source=path.name)
