@@ -29,6 +29,7 @@ import os
 import re
 import shlex
 import sys
+import textwrap
 from typing import Callable, NoReturn, Optional, Sequence, TYPE_CHECKING
 
 from gyro_tdc.cli import PROG
@@ -41,12 +42,11 @@ from gyro_tdc.errors import GyroTdcError, one_line
 if TYPE_CHECKING:
     from gyro_tdc.model import CompensationModel
 
-__all__ = [
-    'ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_options',
-    'add_session_options', 'bag_options', 'comma_floats', 'command_line', 'driver_bags',
-    'effect_listing', 'finite_float', 'non_negative_float', 'non_negative_int', 'parse_reference',
-    'positive_float', 'positive_int', 'probability', 'progress', 'read_model', 'run_command',
-]
+__all__ = ['ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_options',
+           'add_session_options', 'bag_options', 'comma_floats', 'command_line', 'driver_bags',
+           'effect_listing', 'finite_float', 'key_listing', 'non_negative_float',
+           'non_negative_int', 'parse_reference', 'positive_float', 'positive_int', 'probability',
+           'progress', 'read_model', 'run_command']
 
 _DEG = math.pi / 180.0
 _UNITS = {'': 1.0, 'rad/s': 1.0, 'rads': 1.0, 'deg/s': _DEG, 'dps': _DEG}
@@ -91,18 +91,20 @@ def effect_listing(width: int = 92) -> str:
         One entry per effect of :data:`gyro_tdc.model.effects.EFFECTS`, in catalog order.
 
     """
-    import textwrap
-
     from gyro_tdc.model import EFFECTS
+    texts = {eid: f'{e.description.rstrip(".")}. Excited by {e.excited_by}.'
+             for eid, e in EFFECTS.items()}
+    head = 'effect ids (for --features, --base, --candidates; bias is always in the model):'
+    return '\n'.join([head, *key_listing(texts, width)])
 
-    lines = ['effect ids (for --features, --base, --candidates; bias is always in the model):']
-    w = max(len(k) for k in EFFECTS)
-    for eid, effect in EFFECTS.items():
-        text = ' '.join(f'{effect.description.rstrip(".")}. Excited by {effect.excited_by}.'
-                        .split())
-        lines += textwrap.wrap(text, width, initial_indent=f'  {eid:<{w}}  ',
-                               subsequent_indent=' ' * (w + 4))
-    return '\n'.join(lines)
+
+def key_listing(items: dict[str, str], width: int = 92) -> list[str]:
+    """Return ``KEY  TEXT`` help lines: the keys aligned, each text wrapped beside its key."""
+    w = max(map(len, items))
+    return [line for key, text in items.items()
+            for line in textwrap.wrap(' '.join(text.split()), width,
+                                      initial_indent=f'  {key:<{w}}  ',
+                                      subsequent_indent=' ' * (w + 4))]
 
 
 def parse_reference(text: str) -> tuple[float, float, float]:

@@ -37,7 +37,7 @@ from typing import Sequence
 
 from gyro_tdc.base import atomic_write, model_path
 from gyro_tdc.cli import load_main, PROG
-from gyro_tdc.cli.common import ArgumentParser, positive_float, run_command
+from gyro_tdc.cli.common import ArgumentParser, key_listing, positive_float, run_command
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.evaluate import is_coverage_line
 
@@ -93,11 +93,7 @@ def _description() -> str:
         lines += textwrap.wrap(title, 92, initial_indent=f'  {i}. ', subsequent_indent='     ')
     lines += ['', 'Writes into --out (a folder an earlier demo wrote is cleared first; any '
               'other existing folder is refused):']
-    width = max(len(k) for k in OUTPUTS)
-    for k, v in OUTPUTS.items():
-        lines += textwrap.wrap(v, 92, initial_indent=f'  {k:<{width}}  ',
-                               subsequent_indent=' ' * (width + 4))
-    return '\n'.join(lines)
+    return '\n'.join(lines + key_listing(OUTPUTS))
 
 
 def _run_step(n: int, command: str, argv: Sequence[str], covered: set) -> None:
