@@ -69,10 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
                         'residual std, 10 to 600 s); default 0: off')
     p.add_argument('--out-of-range', dest='out_of_range', default=DEFAULT_OUT_OF_RANGE,
                    choices=OUT_OF_RANGE_POLICIES,
-                   help="beyond a model's trained range: linear (the correction continues "
-                        f'along its tangent at the range end, held beyond '
-                        f'{MAX_EXTRAPOLATION_C:g} degC, as the compensator node by default), '
-                        'clamp, or extrapolate (default: %(default)s)')
+                   help=f"beyond a model's trained range: linear ({_POLICY_WORDS['linear']}, "
+                        'as the compensator node by default), clamp, or extrapolate (default: '
+                        '%(default)s)')
     p.add_argument('--floor', type=_floor, default=None, metavar='X,Y,Z|V',
                    help='a known white-noise floor of the gyro per axis in (deg/s)^2 (one '
                         'value: all axes), e.g. ARW^2 x rate from the simulator or a '

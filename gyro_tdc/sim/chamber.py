@@ -62,13 +62,10 @@ def max_temperature_step_c(*, sensitivity_dps: float, alpha_dps_per_c: float,
         The bound of eq. 20 (0.125 degC for the L3GD20).
 
     """
-    for name, value in (('sensitivity_dps', sensitivity_dps),
-                        ('alpha_dps_per_c', alpha_dps_per_c),
-                        ('beta_dps_per_c', beta_dps_per_c)):
+    _positive('sensitivity_dps', sensitivity_dps)
+    for name, value in (('alpha_dps_per_c', alpha_dps_per_c), ('beta_dps_per_c', beta_dps_per_c)):
         if not math.isfinite(value):
             raise ValueError(f'Expected `{name}` to be finite, got {value!r}.')
-    if sensitivity_dps <= 0.0:
-        raise ValueError(f'Expected `sensitivity_dps` > 0, got {sensitivity_dps!r}.')
     total = abs(alpha_dps_per_c) + abs(beta_dps_per_c)
     if total <= 0.0:
         raise ValueError('Expected |`alpha_dps_per_c`| + |`beta_dps_per_c`| > 0, got 0.')
