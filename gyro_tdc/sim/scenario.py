@@ -169,11 +169,6 @@ class Scenario:
                 node[last] = plain(value, str_keys=False)
         return self.from_dict(data, name=self.name, source=self.source)
 
-    @property
-    def effects(self) -> tuple[str, ...]:
-        """Return the enabled effect ids."""
-        return self.gyro.effects
-
 
 # --------------------------------------------------------------------------------------------
 # Files

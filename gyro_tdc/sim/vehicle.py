@@ -239,10 +239,7 @@ class VehicleMotion:
 def _drive_profile(spec: VehicleSpec, leg: Leg, rng: np.random.Generator
                    ) -> tuple[list[float], list[float], list[float], list[float]]:
     """Return the knots (t, speed) and (t, yaw rate rad/s) of one drive."""
-    d = leg.t1_s - leg.t0_s
-    ramp = spec.speed_mps / spec.accel_mps2
-    if 2.0 * ramp > d:
-        ramp = 0.5 * d
+    ramp = min(spec.speed_mps / spec.accel_mps2, 0.5 * (leg.t1_s - leg.t0_s))
     vmax = spec.accel_mps2 * ramp
     vt = [leg.t0_s, leg.t0_s + ramp, leg.t1_s - ramp, leg.t1_s]
     vv = [0.0, vmax, vmax, 0.0]
@@ -306,14 +303,12 @@ def vehicle_motion(spec: VehicleSpec, legs: tuple[Leg, ...], imu_t: NDArray[np.f
     t = np.asarray(imu_t, dtype=np.float64)
     vt, vv, yt, yv = [0.0], [0.0], [0.0], [0.0]
     at, ar, ap = [0.0], [legs[0].roll_deg], [legs[0].pitch_deg]
-    change = spec.slope_change_s
     for prev, leg in zip((None,) + legs[:-1], legs):
         if leg.kind != 'drive':
             continue
         for knots, more in zip((vt, vv, yt, yv), _drive_profile(spec, leg, rng)):
             knots += more
-        d = leg.t1_s - leg.t0_s
-        c = min(change, 0.5 * d)
+        c = min(spec.slope_change_s, 0.5 * (leg.t1_s - leg.t0_s))
         r0, p0 = (prev.roll_deg, prev.pitch_deg) if prev is not None else (0.0, 0.0)
         at += [leg.t0_s, leg.t0_s + c, leg.t1_s - c, leg.t1_s]
         ar += [r0, 0.0, 0.0, leg.roll_deg]
