@@ -267,18 +267,15 @@ def _node_lines(model_stem: str) -> list[str]:
 
 def _live(model: Path, seconds: float, report: Path) -> None:
     """Run the live driver -> compensator step and explain its counts."""
-    for line in _node_lines(model.stem):
-        print(line)
+    print('\n'.join(_node_lines(model.stem)))
     print(f'(run here as two processes for {seconds:g} s; the compensator starts first, the '
           'driver once the compensator publishes)', flush=True)
     from gyro_tdc.nodes import run_live
     result = run_live(model, scenario='demo_fast', seed=7, sim_rate_hz=10.0, time_scale=50.0,
                       seconds=seconds)
-    for line in result.lines():
-        print(line)
-    for line in live_counts_explained(result.raw_received, result.compensated_received,
-                                      result.raw_in_window, result.compensated_in_window):
-        print(line)
+    print('\n'.join([*result.lines(), *live_counts_explained(
+        result.raw_received, result.compensated_received, result.raw_in_window,
+        result.compensated_in_window)]))
     atomic_write(report / 'live.json', json.dumps(result.__dict__, indent=1) + '\n',
                  what='JSON file')
 
