@@ -130,8 +130,7 @@ class _Checker(FieldChecker):
         for key in x:
             if key not in allowed:
                 where = f'{path}.{key}' if path else str(key)
-                raise self.fail(where, 'a known key (one of ' + ', '.join(allowed) + ')',
-                                key)
+                raise self.fail(where, 'a known key (one of ' + ', '.join(allowed) + ')', key)
         return dict(x)
 
     def section(self, path: str, x: Any, fields: Mapping[str, tuple[str, Any]]) -> dict:
@@ -217,8 +216,7 @@ def _profile(chk: _Checker, raw: Any) -> chamber.Profile:
             *(_KINDS[bound](chk, f'{where}.{key}', seg[key]) for key, bound in fields.items())))
     profile = chamber.Profile.from_segments(start, built)
     if profile.duration_s <= 0.0:
-        raise chk.fail('profile.segments', 'segments lasting longer than 0 s in total',
-                       segments)
+        raise chk.fail('profile.segments', 'segments lasting longer than 0 s in total', segments)
     return profile
 
 

@@ -284,8 +284,7 @@ def _add_noise(gyro: NDArray[np.float64], nz: NoiseSpec,
         return white_std
     n, dt = gyro.shape[0], 1.0 / rate
     if np.any(white_std > 0.0):
-        gyro += white_noise(rng('white'), n, density=_vec(nz.arw_dps_per_rt_hz, DEG),
-                            rate_hz=rate)
+        gyro += white_noise(rng('white'), n, density=_vec(nz.arw_dps_per_rt_hz, DEG), rate_hz=rate)
     if np.any(_vec(nz.bias_instability_dps) > 0.0):
         gyro += gauss_markov(rng('bias_instability'), n,
                              sigma=_vec(nz.bias_instability_dps, DEG),

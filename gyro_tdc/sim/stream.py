@@ -105,8 +105,7 @@ class SimStream:
 
     def __init__(self, scenario: ScenarioLike, seed: int = 0, run_index: int = 0, *,
                  rate_hz: Optional[float] = None) -> None:
-        self.run: SimRun = simulate_run(scenario, seed=seed, run_index=run_index,
-                                        rate_hz=rate_hz)
+        self.run: SimRun = simulate_run(scenario, seed=seed, run_index=run_index, rate_hz=rate_hz)
         self._stamps = (self.run.imu_t, self.run.temp_t, self.run.ref_t)
         self._i = (0, 0, 0)      # the next IMU, thermometer and reference rows
         self._position = -math.inf
