@@ -94,9 +94,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _reanchor(text: str) -> float | str:
     """Parse ``--reanchor``: ``auto`` or a number of seconds >= 0 (argparse type)."""
-    if text.strip().lower() == AUTO_REANCHOR:
-        return AUTO_REANCHOR
-    return non_negative_float(text)
+    return AUTO_REANCHOR if text.strip().lower() == AUTO_REANCHOR else non_negative_float(text)
 
 
 def _floor(text: str) -> tuple[float, float, float]:
