@@ -75,9 +75,7 @@ def one_line(text: object) -> str:
 
     """
     out = ' '.join(str(text).split())
-    if not out and isinstance(text, BaseException):
-        return type(text).__name__
-    return out
+    return type(text).__name__ if not out and isinstance(text, BaseException) else out
 
 
 class ConfigError(GyroTdcError, ValueError):

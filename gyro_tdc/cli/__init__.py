@@ -22,9 +22,8 @@ they run, so the listing works while one is broken. See ``doc/internals/cli.md``
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 import importlib
-from typing import Callable, Optional, Sequence
+from typing import Callable, NamedTuple, Optional, Sequence
 
 __all__ = ['COMMANDS', 'Command', 'CommandUnavailable', 'PROG', 'format_help', 'load_main']
 
@@ -32,46 +31,23 @@ __all__ = ['COMMANDS', 'Command', 'CommandUnavailable', 'PROG', 'format_help', '
 PROG = 'gyro-tdc'
 
 
-@dataclass(frozen=True)
-class Command:
-    """
-    One sub-command: its name, the module that implements it and a one-line help.
-
-    Parameters
-    ----------
-    name : str
-        Name typed on the command line (``gyro-tdc NAME``).
-    module : str
-        Dotted path of the module holding ``main(argv=None) -> int``.
-    help : str
-        One-line description shown by ``gyro-tdc --help``.
-
-    """
+class Command(NamedTuple):
+    """One sub-command: its name, the module holding ``main(argv=None) -> int``, its help line."""
 
     name: str
     module: str
     help: str
 
 
-COMMANDS: dict[str, Command] = {
-    c.name: c for c in (
-        Command('simulate', 'gyro_tdc.cli.simulate',
-                'simulate a thermal-chamber run of a gyro and write it to a rosbag2 bag'),
-        Command('train', 'gyro_tdc.cli.train',
-                'identify a compensation model from recorded bags and save it as YAML'),
-        Command('evaluate', 'gyro_tdc.cli.evaluate',
-                'score models on held-out bags (bias stability, RMS, Allan deviation)'),
-        Command('discover', 'gyro_tdc.cli.discover',
-                'find which thermal effect a model is still missing'),
-        Command('demo', 'gyro_tdc.cli.demo',
-                'the whole pipeline on simulated data, then the two nodes live'),
-        Command('fleet', 'gyro_tdc.cli.fleet',
-                'calibrate many IMUs from a manifest on Dask, with fleet-outlier flags'),
-        Command('export', 'gyro_tdc.cli.export',
-                'write a model as PX4 or ArduPilot thermal-calibration parameters, or a '
-                "learn_file's learned model as a model file"),
-    )
-}
+COMMANDS: dict[str, Command] = {n: Command(n, f'gyro_tdc.cli.{n}', text) for n, text in (
+    ('simulate', 'simulate a thermal-chamber run of a gyro and write it to a rosbag2 bag'),
+    ('train', 'identify a compensation model from recorded bags and save it as YAML'),
+    ('evaluate', 'score models on held-out bags (bias stability, RMS, Allan deviation)'),
+    ('discover', 'find which thermal effect a model is still missing'),
+    ('demo', 'the whole pipeline on simulated data, then the two nodes live'),
+    ('fleet', 'calibrate many IMUs from a manifest on Dask, with fleet-outlier flags'),
+    ('export', 'write a model as PX4 or ArduPilot thermal-calibration parameters, or a '
+               "learn_file's learned model as a model file"))}
 
 
 class CommandUnavailable(LookupError):
@@ -93,14 +69,9 @@ def format_help(prog: str = PROG) -> str:
         Multi-line help text ending with a newline.
 
     """
-    width = max(len(name) for name in COMMANDS)
-    lines = [
-        f'usage: {prog} <command> [args...]',
-        '',
-        'Temperature drift compensation for MEMS gyroscopes.',
-        '',
-        'commands:',
-    ]
+    width = max(map(len, COMMANDS))
+    lines = [f'usage: {prog} <command> [args...]', '',
+             'Temperature drift compensation for MEMS gyroscopes.', '', 'commands:']
     lines += [f'  {c.name:<{width}}  {c.help}' for c in COMMANDS.values()]
     lines += ['', f'Run "{prog} <command> --help" for the options of a command '
               f'("python -m gyro_tdc" works the same as "{prog}").']

@@ -29,6 +29,7 @@ import os
 import re
 import shlex
 import sys
+import textwrap
 from typing import Callable, NoReturn, Optional, Sequence, TYPE_CHECKING
 
 from gyro_tdc.cli import PROG
@@ -41,13 +42,11 @@ from gyro_tdc.errors import GyroTdcError, one_line
 if TYPE_CHECKING:
     from gyro_tdc.model import CompensationModel
 
-__all__ = [
-    'ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_options',
-    'add_session_options', 'bag_options', 'command_line', 'driver_bags',
-    'effect_listing', 'finite_float', 'non_negative_float', 'non_negative_int', 'parse_reference',
-    'positive_float',
-    'positive_int', 'probability', 'read_model', 'run_command',
-]
+__all__ = ['ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_options',
+           'add_session_options', 'bag_options', 'comma_floats', 'command_line', 'driver_bags',
+           'effect_listing', 'finite_float', 'key_listing', 'non_negative_float',
+           'non_negative_int', 'parse_reference', 'positive_float', 'positive_int', 'probability',
+           'progress', 'read_model', 'run_command']
 
 _DEG = math.pi / 180.0
 _UNITS = {'': 1.0, 'rad/s': 1.0, 'rads': 1.0, 'deg/s': _DEG, 'dps': _DEG}
@@ -92,18 +91,20 @@ def effect_listing(width: int = 92) -> str:
         One entry per effect of :data:`gyro_tdc.model.effects.EFFECTS`, in catalog order.
 
     """
-    import textwrap
-
     from gyro_tdc.model import EFFECTS
+    texts = {eid: f'{e.description.rstrip(".")}. Excited by {e.excited_by}.'
+             for eid, e in EFFECTS.items()}
+    head = 'effect ids (for --features, --base, --candidates; bias is always in the model):'
+    return '\n'.join([head, *key_listing(texts, width)])
 
-    lines = ['effect ids (for --features, --base, --candidates; bias is always in the model):']
-    w = max(len(k) for k in EFFECTS)
-    for eid, effect in EFFECTS.items():
-        text = ' '.join(f'{effect.description.rstrip(".")}. Excited by {effect.excited_by}.'
-                        .split())
-        lines += textwrap.wrap(text, width, initial_indent=f'  {eid:<{w}}  ',
-                               subsequent_indent=' ' * (w + 4))
-    return '\n'.join(lines)
+
+def key_listing(items: dict[str, str], width: int = 92) -> list[str]:
+    """Return ``KEY  TEXT`` help lines: the keys aligned, each text wrapped beside its key."""
+    w = max(map(len, items))
+    return [line for key, text in items.items()
+            for line in textwrap.wrap(' '.join(text.split()), width,
+                                      initial_indent=f'  {key:<{w}}  ',
+                                      subsequent_indent=' ' * (w + 4))]
 
 
 def parse_reference(text: str) -> tuple[float, float, float]:
@@ -128,17 +129,20 @@ def parse_reference(text: str) -> tuple[float, float, float]:
 
     """
     m = re.fullmatch(r'\s*(.*?)\s*(rad/s|rads|deg/s|dps)?\s*', str(text))
-    body, unit = (m.group(1), m.group(2) or '') if m else ('', '')
-    parts = [p.strip() for p in body.split(',')]
-    try:
-        values = [float(p) for p in parts]
-    except ValueError:
-        values = []
+    values = comma_floats(m.group(1)) if m else []
     if len(values) != 3 or not all(math.isfinite(v) for v in values):
         raise UsageError(f'--reference: expected three finite rates x,y,z in rad/s (or with a '
                          f'deg/s suffix, e.g. 10,5,20dps), got {text!r}')
-    k = _UNITS[unit]
+    k = _UNITS[m.group(2) or '']
     return (values[0] * k, values[1] * k, values[2] * k)
+
+
+def comma_floats(text: str) -> list[float]:
+    """Return the comma-separated numbers of ``text``; [] when one is not a number."""
+    try:
+        return [float(p) for p in str(text).split(',')]
+    except ValueError:
+        return []
 
 
 def add_bag_options(parser: argparse.ArgumentParser) -> None:
@@ -241,20 +245,20 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
         (``--sessions``, ``--session-gap``, :func:`add_session_options`) and ``more``.
 
     """
-    progress = args.progress
-    if progress is None:
-        progress = sys.stderr.isatty()
     return BagOptions(
         imu_topic=args.imu_topic, temperature_topic=args.temperature_topic,
         reference=None if args.reference is None else parse_reference(args.reference),
-        reference_topic=args.reference_topic, progress=bool(progress),
-        max_loss=1.0 if getattr(args, 'allow_loss', False) else MAX_LOSS_FRACTION,
-        log_format=getattr(args, 'log_format', 'auto'),
-        imu_instance=getattr(args, 'imu_instance', 0),
-        allow_onboard_corrected=bool(getattr(args, 'allow_onboard_corrected', False)),
+        reference_topic=args.reference_topic, progress=progress(args),
+        max_loss=1.0 if args.allow_loss else MAX_LOSS_FRACTION, log_format=args.log_format,
+        imu_instance=args.imu_instance, allow_onboard_corrected=args.allow_onboard_corrected,
         sessions=getattr(args, 'sessions', 'auto'),
         session_gap_s=float(getattr(args, 'session_gap', 0.0)),
-        temperature_source=getattr(args, 'temperature_source', 'imu'), **more)
+        temperature_source=args.temperature_source, **more)
+
+
+def progress(args: argparse.Namespace) -> bool:
+    """Return whether to show progress bars: ``--no-progress`` given, else a terminal."""
+    return sys.stderr.isatty() if args.progress is None else bool(args.progress)
 
 
 # --------------------------------------------------------------------------------------------

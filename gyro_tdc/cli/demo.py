@@ -33,11 +33,11 @@ import shutil
 import sys
 import textwrap
 import time
-from typing import Callable, Sequence
+from typing import Sequence
 
 from gyro_tdc.base import atomic_write, model_path
-from gyro_tdc.cli import PROG
-from gyro_tdc.cli.common import ArgumentParser, positive_float, run_command
+from gyro_tdc.cli import load_main, PROG
+from gyro_tdc.cli.common import ArgumentParser, key_listing, positive_float, run_command
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.evaluate import is_coverage_line
 
@@ -93,56 +93,30 @@ def _description() -> str:
         lines += textwrap.wrap(title, 92, initial_indent=f'  {i}. ', subsequent_indent='     ')
     lines += ['', 'Writes into --out (a folder an earlier demo wrote is cleared first; any '
               'other existing folder is refused):']
-    width = max(len(k) for k in OUTPUTS)
-    for k, v in OUTPUTS.items():
-        lines += textwrap.wrap(v, 92, initial_indent=f'  {k:<{width}}  ',
-                               subsequent_indent=' ' * (width + 4))
-    return '\n'.join(lines)
+    return '\n'.join(lines + key_listing(OUTPUTS))
 
 
-class _Steps:
-    """Print numbered steps and the commands they run."""
+def _run_step(n: int, command: str, argv: Sequence[str], covered: set) -> None:
+    """
+    Print ``$ gyro-tdc COMMAND ARGV`` and run the command's ``main`` (step ``n``).
 
-    def __init__(self, total: int) -> None:
-        self.total = total
-        self.n = 0
-        self.start = time.monotonic()
-        self.covered: set[str] = set()     # bags whose coverage was printed
-
-    def begin(self) -> None:
-        """Start the next step of :data:`STEPS`: print its number, title and the time."""
-        self.n += 1
-        print(f'\n[{self.n}/{self.total}] {STEPS[self.n - 1]}  '
-              f'(t = {time.monotonic() - self.start:.0f} s)', flush=True)
-
-    def run(self, command: str, argv: Sequence[str], fn: Callable[[list[str]], int],
-            covered: str = '') -> None:
-        """
-        Print ``$ gyro-tdc COMMAND ARGV`` and run the command's ``main``.
-
-        With ``covered`` (a bag whose coverage report was printed before), the command's
-        coverage lines are left out and one line says so.
-        """
-        print(f'$ {PROG} {command} {shlex.join(argv)}', flush=True)
-        if not covered:
-            rc = fn(list(argv))
-        else:
-            buffer = io.StringIO()
-            with contextlib.redirect_stdout(buffer):
-                rc = fn(list(argv))
-            lines = buffer.getvalue().splitlines()
-            kept = [line for line in lines if not is_coverage_line(line)]
-            if len(kept) < len(lines):
-                kept.append(f'(coverage of {covered}: as printed above)')
-            print('\n'.join(kept), flush=True)
-        if rc != 0:
-            raise GyroTdcError(f'step {self.n} ({command}) failed with exit code {rc}')
-
-    def train(self, argv: Sequence[str], fn: Callable[[list[str]], int]) -> None:
-        """Run ``train``; a bag's coverage report is printed only the first time."""
-        bag = str(argv[0])
-        self.run('train', argv, fn, covered=bag if bag in self.covered else '')
-        self.covered.add(bag)
+    ``train`` prints a bag's coverage report only the first time (``covered`` holds the bags
+    printed): later, its coverage lines are left out and one line says so.
+    """
+    print(f'$ {PROG} {command} {shlex.join(argv)}', flush=True)
+    bag = str(argv[0]) if command == 'train' else None
+    seen, buffer = bag in covered, io.StringIO()
+    with contextlib.redirect_stdout(buffer) if seen else contextlib.nullcontext():
+        rc = load_main(command)(list(argv))
+    if seen:
+        lines = buffer.getvalue().splitlines()
+        kept = [line for line in lines if not is_coverage_line(line)]
+        if len(kept) < len(lines):
+            kept.append(f'(coverage of {bag}: as printed above)')
+        print('\n'.join(kept), flush=True)
+    covered.add(bag)
+    if rc != 0:
+        raise GyroTdcError(f'step {n} ({command}) failed with exit code {rc}')
 
 
 def prepare_out(out: Path) -> None:
@@ -198,68 +172,68 @@ def run_demo(out: Path, *, live_seconds: float = 20.0, skip_live: bool = False) 
         has printed its own error line).
 
     """
-    from gyro_tdc.cli import discover, evaluate, simulate, train
-
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     out = Path(out)
     prepare_out(out)
     bags, models, report = out / 'bags', out / 'models', out / 'report'
     for d in (bags, models, report):
         d.mkdir(parents=True, exist_ok=True)
-    l3 = bags / 'l3gd20_paper'
-    lag = bags / 'lag_heat_cool'
-    steps = _Steps(total=len(STEPS) - (1 if skip_live else 0))
-
-    steps.begin()
-    steps.run('simulate', ['--scenario', 'l3gd20_paper', '--out', str(l3), '--seed', '1',
-                           '--no-progress'], simulate.main)
-    steps.begin()
-    for name, kind, feats in (('conventional', 'poly', 'dT'), ('modified', 'poly', 'dT,dT2'),
-                              ('modified_rbf', 'rbf', 'dT,dT2')):
-        steps.train([str(l3 / 'run1'), '--features', feats, '--kind', kind,
-                     '--out', str(models / f'{name}.yaml'), '--no-progress'], train.main)
+    l3, lag = bags / 'l3gd20_paper', bags / 'lag_heat_cool'
     held_out = [str(l3 / f'run{i}') for i in range(2, 6)]
-    steps.begin()
-    steps.run('evaluate', held_out + ['--model', str(models / 'conventional.yaml'),
+
+    def train(bag: Path, name: str, opts: list[str]) -> tuple[str, list[str]]:
+        return 'train', [str(bag), *opts, '--out', str(models / f'{name}.yaml'), '--no-progress']
+
+    plan = [   # one entry per step of STEPS but the live one: the commands it runs
+        [('simulate', ['--scenario', 'l3gd20_paper', '--out', str(l3), '--seed', '1',
+                       '--no-progress'])],
+        [train(l3 / 'run1', name, ['--features', feats, '--kind', kind])
+         for name, kind, feats in (('conventional', 'poly', 'dT'),
+                                   ('modified', 'poly', 'dT,dT2'),
+                                   ('modified_rbf', 'rbf', 'dT,dT2'))],
+        [('evaluate', held_out + ['--model', str(models / 'conventional.yaml'),
+                                  '--model', str(models / 'modified.yaml'),
+                                  '--json', str(report / 'paper_tables.json'), '--no-progress'])],
+        [('evaluate', held_out[:1] + ['--model', str(models / 'modified_rbf.yaml'),
                                       '--model', str(models / 'modified.yaml'),
-                                      '--json', str(report / 'paper_tables.json'),
-                                      '--no-progress'], evaluate.main)
-    steps.begin()
-    steps.run('evaluate', held_out[:1] + ['--model', str(models / 'modified_rbf.yaml'),
-                                          '--model', str(models / 'modified.yaml'),
-                                          '--model', 'px4', '--train', str(l3 / 'run1'),
-                                          '--reanchor', '300',
-                                          '--json', str(report / 'comparison.json'),
-                                          '--plots', str(report / 'evaluate'), '--no-progress'],
-              evaluate.main)
-    steps.begin()
-    steps.run('simulate', ['--scenario', 'lag_heat_cool', '--out', str(lag), '--seed', '3',
-                           '--no-progress'], simulate.main)
-    steps.begin()
-    steps.run('discover', [str(lag / 'run1'), str(lag / 'run2'), '--base', 'bias,dT',
-                           '--json', str(report / 'discovery.json'),
-                           '--report', str(report / 'discovery'),
-                           '--out', str(models / 'discovered.yaml')], discover.main)
-    _print_discovery(report / 'discovery.json')
-    steps.begin()
-    for name, feats in (('datasheet', 'dT'), ('modified_lag_run', 'dT,dT2'),
-                        ('default_lag_run', None)):
-        opts = [] if feats is None else ['--features', feats, '--kind', 'poly']
-        steps.train([str(lag / 'run1'), *opts, '--out', str(models / f'{name}.yaml'),
-                     '--no-progress'], train.main)
-    steps.begin()
-    steps.run('evaluate', [str(lag / 'run2'), '--model', str(models / 'datasheet.yaml'),
-                           '--model', str(models / 'modified_lag_run.yaml'), '--model', 'px4',
-                           '--train', str(lag / 'run1'),
-                           '--model', str(models / 'default_lag_run.yaml'),
-                           '--model', str(models / 'discovered.yaml'),
-                           '--json', str(report / 'lag_comparison.json'),
-                           '--plots', str(report / 'evaluate_lag'), '--no-progress'],
-              evaluate.main)
+                                      '--model', 'px4', '--train', str(l3 / 'run1'),
+                                      '--reanchor', '300',
+                                      '--json', str(report / 'comparison.json'),
+                                      '--plots', str(report / 'evaluate'), '--no-progress'])],
+        [('simulate', ['--scenario', 'lag_heat_cool', '--out', str(lag), '--seed', '3',
+                       '--no-progress'])],
+        [('discover', [str(lag / 'run1'), str(lag / 'run2'), '--base', 'bias,dT',
+                       '--json', str(report / 'discovery.json'),
+                       '--report', str(report / 'discovery'),
+                       '--out', str(models / 'discovered.yaml')])],
+        [train(lag / 'run1', name, opts)
+         for name, opts in (('datasheet', ['--features', 'dT', '--kind', 'poly']),
+                            ('modified_lag_run', ['--features', 'dT,dT2', '--kind', 'poly']),
+                            ('default_lag_run', []))],
+        [('evaluate', [str(lag / 'run2'), '--model', str(models / 'datasheet.yaml'),
+                       '--model', str(models / 'modified_lag_run.yaml'), '--model', 'px4',
+                       '--train', str(lag / 'run1'),
+                       '--model', str(models / 'default_lag_run.yaml'),
+                       '--model', str(models / 'discovered.yaml'),
+                       '--json', str(report / 'lag_comparison.json'),
+                       '--plots', str(report / 'evaluate_lag'), '--no-progress'])],
+    ]
+    start, covered, total = time.monotonic(), set(), len(STEPS) - (1 if skip_live else 0)
+
+    def begin(n: int) -> None:
+        print(f'\n[{n}/{total}] {STEPS[n - 1]}  (t = {time.monotonic() - start:.0f} s)',
+              flush=True)
+
+    for n, commands in enumerate(plan, 1):
+        begin(n)
+        for command, argv in commands:
+            _run_step(n, command, argv, covered)
+        if command == 'discover':
+            _print_discovery(report / 'discovery.json')
     if not skip_live:
-        steps.begin()
+        begin(len(STEPS))
         _live(model_path(DEFAULT_MODEL), live_seconds, report)
-    print(f'\ndemo finished in {time.monotonic() - steps.start:.0f} s; everything is in {out} '
+    print(f'\ndemo finished in {time.monotonic() - start:.0f} s; everything is in {out} '
           f'(report: {report})')
     return 0
 
@@ -293,18 +267,15 @@ def _node_lines(model_stem: str) -> list[str]:
 
 def _live(model: Path, seconds: float, report: Path) -> None:
     """Run the live driver -> compensator step and explain its counts."""
-    for line in _node_lines(model.stem):
-        print(line)
+    print('\n'.join(_node_lines(model.stem)))
     print(f'(run here as two processes for {seconds:g} s; the compensator starts first, the '
           'driver once the compensator publishes)', flush=True)
     from gyro_tdc.nodes import run_live
     result = run_live(model, scenario='demo_fast', seed=7, sim_rate_hz=10.0, time_scale=50.0,
                       seconds=seconds)
-    for line in result.lines():
-        print(line)
-    for line in live_counts_explained(result.raw_received, result.compensated_received,
-                                      result.raw_in_window, result.compensated_in_window):
-        print(line)
+    print('\n'.join([*result.lines(), *live_counts_explained(
+        result.raw_received, result.compensated_received, result.raw_in_window,
+        result.compensated_in_window)]))
     atomic_write(report / 'live.json', json.dumps(result.__dict__, indent=1) + '\n',
                  what='JSON file')
 

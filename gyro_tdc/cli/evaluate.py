@@ -29,8 +29,8 @@ import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
-                                 ArgumentParser, bag_options, driver_bags, non_negative_float,
-                                 read_model, run_command, UsageError)
+                                 ArgumentParser, bag_options, comma_floats, driver_bags,
+                                 non_negative_float, read_model, run_command, UsageError)
 from gyro_tdc.data import expand_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
                                format_still, load_models, model_description, PX4, write_csv,
@@ -69,10 +69,9 @@ def build_parser() -> argparse.ArgumentParser:
                         'residual std, 10 to 600 s); default 0: off')
     p.add_argument('--out-of-range', dest='out_of_range', default=DEFAULT_OUT_OF_RANGE,
                    choices=OUT_OF_RANGE_POLICIES,
-                   help="beyond a model's trained range: linear (the correction continues "
-                        f'along its tangent at the range end, held beyond '
-                        f'{MAX_EXTRAPOLATION_C:g} degC, as the compensator node by default), '
-                        'clamp, or extrapolate (default: %(default)s)')
+                   help=f"beyond a model's trained range: linear ({_POLICY_WORDS['linear']}, "
+                        'as the compensator node by default), clamp, or extrapolate (default: '
+                        '%(default)s)')
     p.add_argument('--floor', type=_floor, default=None, metavar='X,Y,Z|V',
                    help='a known white-noise floor of the gyro per axis in (deg/s)^2 (one '
                         'value: all axes), e.g. ARW^2 x rate from the simulator or a '
@@ -95,18 +94,12 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _reanchor(text: str) -> float | str:
     """Parse ``--reanchor``: ``auto`` or a number of seconds >= 0 (argparse type)."""
-    if text.strip().lower() == AUTO_REANCHOR:
-        return AUTO_REANCHOR
-    return non_negative_float(text)
+    return AUTO_REANCHOR if text.strip().lower() == AUTO_REANCHOR else non_negative_float(text)
 
 
 def _floor(text: str) -> tuple[float, float, float]:
     """Parse ``--floor``: one number > 0 for every axis, or three x,y,z (argparse type)."""
-    parts = [q.strip() for q in str(text).split(',')]
-    try:
-        values = [float(q) for q in parts]
-    except ValueError:
-        values = []
+    values = comma_floats(text)
     if len(values) not in (1, 3) or not all(math.isfinite(v) and v > 0 for v in values):
         raise argparse.ArgumentTypeError(
             f'expected one number > 0 or three x,y,z (a variance per axis), got {text!r}')
@@ -139,10 +132,15 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                "the compensator's tolerance" if auto else
                f're-anchored: mean error of the first {args.reanchor:g} s removed'
                if args.reanchor > 0 else 'no re-anchoring')
-    bar = _Progress(len(expand_bags(args.bags)), enabled=bag.progress)
+    from tqdm import tqdm
+    bar = tqdm(total=len(expand_bags(args.bags)), unit='bag', desc='evaluate', file=sys.stderr,
+               leave=False, disable=not bag.progress)
 
-    def log(line: str) -> None:
-        bar.write(line)
+    def log(line: str) -> None:     # on stdout, above the bar when there is one
+        if bar.disable:
+            print(line, flush=True)
+        else:
+            bar.write(line, file=sys.stdout)
 
     models = load_models(specs, train_bags=args.train, bag=bag, log=log, held_out=args.bags,
                          loader=read_model)
@@ -151,18 +149,18 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                     for nm in models]
 
     def each(b: BagEval) -> None:
-        for line in format_still(b):
+        for line in [*(_reanchor_lines(b) if auto else ()), *format_still(b)]:
             log(line)
-        bar.write(format_bag(b, baseline, floor=args.floor, accel_floor=args.accel_floor))
+        log(format_bag(b, baseline, floor=args.floor, accel_floor=args.accel_floor))
         if args.plots is not None:
-            bar.stage(f'{b.label}: plots')
+            bar.set_postfix_str(f'{b.label}: plots')
             for f in write_plots(b, args.plots, descriptions=descriptions, options=options,
                                  reanchor_s=0.0 if auto else args.reanchor):
                 log(f'wrote {f}')
         if args.export is not None:
-            bar.stage(f'{b.label}: CSV')
+            bar.set_postfix_str(f'{b.label}: CSV')
             log(f'wrote {write_csv(b, args.export)}')
-        bar.done_one()
+        bar.update(1)
 
     for nm, text in zip(models, descriptions):
         lo, hi = nm.model.temp_range_c
@@ -179,8 +177,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
             'removed (raw data untouched)')
     try:
         results = evaluate(args.bags, models, bag=bag, reanchor_s=args.reanchor, log=log,
-                           each=_with_reanchor(each, log) if auto else each,
-                           out_of_range=args.out_of_range)
+                           each=each, out_of_range=args.out_of_range)
     finally:
         bar.close()
     if args.json is not None:
@@ -191,61 +188,27 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     return 0
 
 
-def _with_reanchor(each, log):
-    """Wrap ``each`` to log every model's automatic re-anchoring first."""
-    def wrapped(b: BagEval) -> None:
-        for m in b.models:
-            if m.reanchor is None:         # scored on still stretches: anchored on them
-                continue
-            records = m.reanchor.get('sessions') or [m.reanchor]
-            for k, r in enumerate(records):
-                where = f' session {k + 1}' if len(records) > 1 else ''
-                log(f'{b.label}: {m.label} re-anchored{where} on {r["samples"]} samples over '
-                    f'{r["duration_s"]:.1f} s ({r["reason"]}): shift '
-                    + ', '.join(f'{v:+.5f}' for v in r['shift_dps'])
-                    + ' deg/s, standard error '
-                    + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
-        each(b)
-    return wrapped
+def _reanchor_lines(b: BagEval) -> list[str]:
+    """Return what the automatic re-anchoring did for each model on a bag (each session)."""
+    lines = []
+    for m in b.models:
+        if m.reanchor is None:         # scored on still stretches: anchored on them
+            continue
+        records = m.reanchor.get('sessions') or [m.reanchor]
+        for k, r in enumerate(records):
+            where = f' session {k + 1}' if len(records) > 1 else ''
+            lines.append(f'{b.label}: {m.label} re-anchored{where} on {r["samples"]} samples '
+                         f'over {r["duration_s"]:.1f} s ({r["reason"]}): shift '
+                         + ', '.join(f'{v:+.5f}' for v in r['shift_dps'])
+                         + ' deg/s, standard error '
+                         + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
+    return lines
 
 
 def _state_tau(model) -> float | None:
     """Return the total tau of a model's thermal state in s (None without a state)."""
     th = getattr(model, 'thermal', None)
     return None if th is None or th.kind == 'none' else float(th.tau_total_s)
-
-
-class _Progress:
-    """A progress bar over the bags on stderr (tqdm), lines printed above it on stdout."""
-
-    def __init__(self, total: int, *, enabled: bool) -> None:
-        self.bar = None
-        if enabled:
-            from tqdm import tqdm
-            self.bar = tqdm(total=total, unit='bag', desc='evaluate', file=sys.stderr,
-                            leave=False)
-
-    def write(self, text: str) -> None:
-        """Print ``text`` on stdout (above the bar when there is one)."""
-        if self.bar is None:
-            print(text, flush=True)
-        else:
-            self.bar.write(text, file=sys.stdout)
-
-    def stage(self, what: str) -> None:
-        """Say what the bar is waiting for."""
-        if self.bar is not None:
-            self.bar.set_postfix_str(what)
-
-    def done_one(self) -> None:
-        """Count one bag done."""
-        if self.bar is not None:
-            self.bar.update(1)
-
-    def close(self) -> None:
-        """Remove the bar."""
-        if self.bar is not None:
-            self.bar.close()
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

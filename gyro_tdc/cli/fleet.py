@@ -76,16 +76,15 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     out = Path(args.out)
     if out.exists() and not out.is_dir():
         raise UsageError(f'--out: {str(out)!r} exists and is not a folder')
-    progress = bag.progress
     workers = min(args.workers or os.cpu_count() or 1, len(specs))   # no idle processes
     with sigterm_as_interrupt(), open_engine(workers=workers, scheduler=args.scheduler,
                                              timeout_s=args.connect_timeout) as engine:
         print(f'fleet: {len(specs)} sensor(s) on {engine.workers} Dask worker(s) '
               f'({engine.scheduler}) -> {out}', flush=True)
         result = run_fleet(specs, out, options, engine, bag=bag, force=args.force,
-                           outlier_z=args.outlier_z, progress=progress,
+                           outlier_z=args.outlier_z, progress=bag.progress,
                            command=command_line('fleet', argv),
-                           log=None if progress else (lambda line: print(line, flush=True)))
+                           log=None if bag.progress else (lambda line: print(line, flush=True)))
     print(format_table(result))
     print(f'wrote {out / "summary.json"} and {out / "summary.csv"}', flush=True)
     return 1 if result.failed else 0

@@ -33,7 +33,7 @@ import time
 from typing import Callable, Optional, Sequence
 
 from gyro_tdc.base import atomic_dir, check_sim_samples, clean_leftovers, scenario_names
-from gyro_tdc.cli.common import ArgumentParser, run_command
+from gyro_tdc.cli.common import ArgumentParser, progress, run_command
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.sim import CMD_VEL_TOPIC, load_scenario, SimRun, simulate_run, TRUTH_TOPIC
 import numpy as np
@@ -104,15 +104,11 @@ def _is_bag(path: Path) -> bool:
 
 def _check_replaceable(out: Path) -> None:
     """Raise unless ``out`` is a bag or a folder of ``runN`` bags (what simulate writes)."""
-    if _is_bag(out):
-        return
-    if out.is_dir() and not out.is_symlink():
-        entries = list(out.iterdir())
-        if entries and all(e.name.startswith('run') and e.name[3:].isdigit() and _is_bag(e)
-                           for e in entries):
-            return
-    raise GyroTdcError(f'--out: {str(out)!r} exists and is not a bag or a folder of run bags '
-                       'written by simulate; --force replaces only those. Choose a new path.')
+    entries = list(out.iterdir()) if out.is_dir() and not out.is_symlink() else []
+    if not (_is_bag(out) or entries and all(e.name.startswith('run') and e.name[3:].isdigit()
+                                            and _is_bag(e) for e in entries)):
+        raise GyroTdcError(f'--out: {str(out)!r} exists and is not a bag or a folder of run bags '
+                           'written by simulate; --force replaces only those. Choose a new path.')
 
 
 def _summary(run: SimRun, path: Path, seconds: float) -> str:
@@ -189,50 +185,40 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
     # output stays at its path until the new one is complete, then the two are swapped; a
     # run killed at any point leaves the old or the new output there, never neither.
     names = [f'run{i + 1}' for i in range(sc.runs.count)] if sc.runs.count > 1 else ['']
+    from gyro_tdc.data import encode_twists, TWIST_TYPE, write_bag
+    from tqdm import tqdm
+    bar = tqdm(total=len(names), unit='run', desc='simulate', file=sys.stderr,
+               disable=not progress or len(names) < 2, leave=False)
+    log = log if bar.disable else bar.write     # summary lines above the bar
     with atomic_dir(out_path, what='bag', replace=force) as build:
         if sc.runs.count > 1:
             build.mkdir()
-        _simulate_runs(sc, [build / n for n in names], [out_path / n for n in names],
-                       storage, seed, rate_hz, log, progress)
+        for index, name in enumerate(names):
+            start = time.perf_counter()
+            run = simulate_run(sc, seed=seed, run_index=index, rate_hz=rate_hz)
+            accel_var = (np.asarray(sc.accel.noise_mps2_per_rt_hz) ** 2) * run.rate_hz
+            ref_topic, extra = '/rate_table/reference', []
+            ref_t, ref = (run.ref_t, run.ref) if run.moving else (None, None)
+            if run.vehicle is not None:      # no rate table: the true rate, for evaluation only
+                ref_topic, ref_t, ref = TRUTH_TOPIC, run.imu_t, run.ref
+                if run.vehicle.cmd_t.size:
+                    extra = [(CMD_VEL_TOPIC, TWIST_TYPE, run.vehicle.cmd_t,
+                              encode_twists(run.vehicle.cmd))]
+            write_bag(build / name, imu_t=run.imu_t, gyro=run.gyro, accel=run.accel,
+                      temp_t=run.temp_t, temp_c=run.temp_c, temp_var=run.temp_var, ref_t=ref_t,
+                      ref=ref, storage=storage, frame_id='imu_link', imu_topic='/imu/data_raw',
+                      temperature_topic='/imu/temperature', reference_topic=ref_topic,
+                      gyro_cov=run.truth.noise_std ** 2, accel_cov=accel_var, extra=extra)
+            log(_summary(run, out_path / name, time.perf_counter() - start))
+            bar.update(1)
+        bar.close()
     return [out_path / n for n in names]
-
-
-def _simulate_runs(sc, paths, shown, storage, seed, rate_hz, log, progress=False) -> None:
-    """Simulate run k of ``sc`` into ``paths[k]`` (logged as ``shown[k]``)."""
-    from gyro_tdc.data import write_bag
-    from gyro_tdc.data import encode_twists, TWIST_TYPE
-    from tqdm import tqdm
-
-    bar = tqdm(total=len(paths), unit='run', desc='simulate', file=sys.stderr,
-               disable=not progress or len(paths) < 2, leave=False)
-    if not bar.disable:
-        log = bar.write     # summary lines above the bar
-    for index, (path, name) in enumerate(zip(paths, shown)):
-        start = time.perf_counter()
-        run = simulate_run(sc, seed=seed, run_index=index, rate_hz=rate_hz)
-        accel_var = (np.asarray(sc.accel.noise_mps2_per_rt_hz) ** 2) * run.rate_hz
-        ref_topic, extra = '/rate_table/reference', []
-        ref_t, ref = (run.ref_t, run.ref) if run.moving else (None, None)
-        if run.vehicle is not None:      # no rate table: the true rate, for evaluation only
-            ref_topic, ref_t, ref = TRUTH_TOPIC, run.imu_t, run.ref
-            if run.vehicle.cmd_t.size:
-                extra = [(CMD_VEL_TOPIC, TWIST_TYPE, run.vehicle.cmd_t,
-                          encode_twists(run.vehicle.cmd))]
-        write_bag(path, imu_t=run.imu_t, gyro=run.gyro, accel=run.accel, temp_t=run.temp_t,
-                  temp_c=run.temp_c, temp_var=run.temp_var, ref_t=ref_t, ref=ref,
-                  storage=storage, frame_id='imu_link', imu_topic='/imu/data_raw',
-                  temperature_topic='/imu/temperature', reference_topic=ref_topic,
-                  gyro_cov=run.truth.noise_std ** 2, accel_cov=accel_var, extra=extra)
-        log(_summary(run, name, time.perf_counter() - start))
-        bar.update(1)
-    bar.close()
 
 
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``simulate`` with parsed arguments (one summary line per run)."""
-    progress = sys.stderr.isatty() if args.progress is None else args.progress
     simulate(args.scenario, args.out, storage=args.storage, seed=args.seed,
-             rate_hz=args.rate_hz, force=args.force, progress=progress)
+             rate_hz=args.rate_hz, force=args.force, progress=progress(args))
     return 0
 
 

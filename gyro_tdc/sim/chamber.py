@@ -62,13 +62,10 @@ def max_temperature_step_c(*, sensitivity_dps: float, alpha_dps_per_c: float,
         The bound of eq. 20 (0.125 degC for the L3GD20).
 
     """
-    for name, value in (('sensitivity_dps', sensitivity_dps),
-                        ('alpha_dps_per_c', alpha_dps_per_c),
-                        ('beta_dps_per_c', beta_dps_per_c)):
+    _positive('sensitivity_dps', sensitivity_dps)
+    for name, value in (('alpha_dps_per_c', alpha_dps_per_c), ('beta_dps_per_c', beta_dps_per_c)):
         if not math.isfinite(value):
             raise ValueError(f'Expected `{name}` to be finite, got {value!r}.')
-    if sensitivity_dps <= 0.0:
-        raise ValueError(f'Expected `sensitivity_dps` > 0, got {sensitivity_dps!r}.')
     total = abs(alpha_dps_per_c) + abs(beta_dps_per_c)
     if total <= 0.0:
         raise ValueError('Expected |`alpha_dps_per_c`| + |`beta_dps_per_c`| > 0, got 0.')
@@ -109,16 +106,13 @@ def heat_conduction_time_s(*, specific_heat_kj_per_kg_k: float, density_kg_per_m
               ('density_kg_per_m3', density_kg_per_m3), ('length_m', length_m),
               ('conductivity_w_per_m_k', conductivity_w_per_m_k))
     for name, value in values:
-        if not (math.isfinite(value) and value > 0.0):
-            raise ValueError(f'Expected `{name}` to be a finite number > 0, got {value!r}.')
+        _positive(name, value)
     return float(specific_heat_kj_per_kg_k * density_kg_per_m3 * length_m ** 2
                  / conductivity_w_per_m_k)
 
 
 def _nice(x: float, name: str, up: bool) -> float:
-    if not (math.isfinite(x) and x > 0.0):
-        raise ValueError(f'Expected `{name}` to be a finite number > 0, got {x!r}.')
-    exponent = math.floor(math.log10(x))
+    exponent = math.floor(math.log10(_positive(name, x)))
     candidates = [m * 10.0 ** e for e in (exponent - 1, exponent, exponent + 1)
                   for m in (1.0, 2.0, 5.0)]
     # A relative tolerance so that 0.1 or 20 map onto themselves despite rounding.
@@ -382,10 +376,10 @@ class Profile:
 
 
 def _positive(name: str, value: float) -> float:
-    value = float(value)
+    """Return ``value`` as a float; a ValueError naming it unless it is finite and > 0."""
     if not (math.isfinite(value) and value > 0.0):
         raise ValueError(f'Expected `{name}` to be a finite number > 0, got {value!r}.')
-    return value
+    return float(value)
 
 
 def hold_segment(duration_s: float) -> Segment:
@@ -403,7 +397,7 @@ def hold_segment(duration_s: float) -> Segment:
         Segment for :meth:`Profile.from_segments`.
 
     """
-    duration_s = _positive('duration_s', duration_s)
+    duration_s = _positive('duration_s', float(duration_s))
     return lambda t0, temp0: (np.array([t0 + duration_s]), np.array([temp0]))
 
 
@@ -424,7 +418,7 @@ def ramp_segment(to_c: float, rate_c_per_h: float) -> Segment:
         Segment for :meth:`Profile.from_segments`.
 
     """
-    rate = _positive('rate_c_per_h', rate_c_per_h) / 3600.0
+    rate = _positive('rate_c_per_h', float(rate_c_per_h)) / 3600.0
     to_c = float(to_c)
 
     def segment(t0: float, temp0: float):
@@ -458,8 +452,8 @@ def staircase_segment(to_c: float, step_c: float, hold_s: float) -> Segment:
         Segment for :meth:`Profile.from_segments`.
 
     """
-    step = _positive('step_c', step_c)
-    hold = _positive('hold_s', hold_s)
+    step = _positive('step_c', float(step_c))
+    hold = _positive('hold_s', float(hold_s))
     to_c = float(to_c)
 
     def segment(t0: float, temp0: float):

@@ -30,19 +30,16 @@ import os
 from pathlib import Path
 from typing import Any, Mapping, Optional, Union
 
-from gyro_tdc.base import load_yaml, plain, SCENARIO_LIMITS
+from gyro_tdc.base import (config_dir, plain, read_yaml, SCENARIO_LIMITS, scenario_names,
+                           scenario_path)
 from gyro_tdc.errors import GyroTdcError, ScenarioError
-from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim import chamber
-from gyro_tdc.sim.schema import DEG, FORMAT_VERSION, merge, validate
+from gyro_tdc.sim.schema import merge, validate
 from gyro_tdc.sim.specs import (AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsSpec, ThermalSpec,
                                 ThermometerSpec)
 from gyro_tdc.sim.vehicle import VehicleSpec
-import yaml
 
-__all__ = ['DEG', 'EFFECT_IDS', 'FORMAT_VERSION', 'AccelSpec', 'GyroSpec', 'NoiseSpec',
-           'RateTable', 'RunsSpec', 'Scenario', 'ThermalSpec', 'ThermometerSpec', 'list_scenarios',
-           'load_scenario', 'scenario_dir']
+__all__ = ['Scenario', 'list_scenarios', 'load_scenario', 'scenario_dir']
 
 PathLike = Union[str, 'os.PathLike[str]']
 
@@ -172,11 +169,6 @@ class Scenario:
                 node[last] = plain(value, str_keys=False)
         return self.from_dict(data, name=self.name, source=self.source)
 
-    @property
-    def effects(self) -> tuple[str, ...]:
-        """Return the enabled effect ids."""
-        return self.gyro.effects
-
 
 # --------------------------------------------------------------------------------------------
 # Files
@@ -197,7 +189,6 @@ def scenario_dir() -> Path:
         If the configuration directory cannot be found.
 
     """
-    from gyro_tdc.base import config_dir
     return _as_scenario_error(config_dir) / 'scenarios'
 
 
@@ -221,7 +212,6 @@ def list_scenarios() -> list[str]:
         Stems of ``config/scenarios/*.yaml``.
 
     """
-    from gyro_tdc.base import scenario_names
     return _as_scenario_error(scenario_names)
 
 
@@ -250,18 +240,6 @@ def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) ->
         return name_or_path
     if isinstance(name_or_path, Mapping):
         return Scenario.from_dict(name_or_path)
-    from gyro_tdc.base import scenario_path
     path = _as_scenario_error(scenario_path, name_or_path)
-    try:
-        text = path.read_text(encoding='utf-8')
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f'Cannot read scenario file {str(path)!r}: {exc}') from exc
-    try:
-        data = load_yaml(text, SCENARIO_LIMITS, source=path.name, error=ScenarioError)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, 'problem_mark', None)
-        where = f' at line {mark.line + 1}, column {mark.column + 1}' if mark else ''
-        problem = getattr(exc, 'problem', None) or type(exc).__name__
-        raise ScenarioError(f'{path.name}: not valid YAML{where}: {problem}') from exc
-    return Scenario.from_dict(data if data is not None else {}, name=path.stem,
-                              source=path.name)
+    data = read_yaml(path, SCENARIO_LIMITS, error=ScenarioError)
+    return Scenario.from_dict({} if data is None else data, name=path.stem, source=path.name)

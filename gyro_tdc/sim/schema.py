@@ -26,16 +26,16 @@ from __future__ import annotations
 
 import copy
 import math
-from typing import Any, Mapping, Optional
+from typing import Any, Callable, Mapping, Optional
 
 from gyro_tdc.base import FieldChecker, is_number, plain
 from gyro_tdc.errors import ScenarioError
 from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim import chamber
 from gyro_tdc.sim.presets import PRESETS
-from gyro_tdc.sim.specs import (AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsSpec, ThermalSpec,
-                                ThermometerSpec, Vec3)
-from gyro_tdc.sim.vehicle import vehicle_spec
+from gyro_tdc.sim.specs import (AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsSpec,
+                                section_fields, ThermalSpec, ThermometerSpec, Vec3)
+from gyro_tdc.sim.vehicle import VEHICLE_FIELDS, VehicleSpec
 import numpy as np
 
 __all__ = ['DEFAULTS', 'DEG', 'FORMAT_VERSION', 'merge', 'validate']
@@ -43,35 +43,10 @@ __all__ = ['DEFAULTS', 'DEG', 'FORMAT_VERSION', 'merge', 'validate']
 FORMAT_VERSION = 1
 DEG = math.pi / 180.0
 
-# Each section's fields as (kind, default). Kinds: 'num' any finite number, 'pos' > 0, 'nonneg'
-# >= 0, 'axis' per-axis number, 'axis_nonneg' per-axis >= 0, 'bool', 'count' int >= 1, 'taus' list
-# of numbers > 0, 'tilt' roll and pitch in degrees (a list of 2 numbers, each within +-180),
-# 'location' package or die, 'effects' the effect switches.
-_SECTIONS: dict[str, dict[str, tuple[str, Any]]] = {
-    'thermal': {'tau_air_s': ('nonneg', 0.0), 'tau_package_s': ('nonneg', 0.0),
-                'tau_die_s': ('nonneg', 0.0), 'internal_step_s': ('pos', 0.1)},
-    'thermometer': {'location': ('location', 'package'), 'rate_hz': ('pos', 1.0),
-                    'resolution_c': ('nonneg', 0.0), 'noise_c': ('nonneg', 0.0),
-                    'tau_s': ('nonneg', 0.0), 'offset_c': ('num', 0.0)},
-    'gyro': {'effects': ('effects', {k: k in ('bias', 'dT', 'dT2') for k in EFFECT_IDS}),
-             't_ref_c': ('num', 25.0), 'bias_dps': ('axis', 0.0), 'dT_dps_per_c': ('axis', 0.0),
-             'dT2_dps_per_c2': ('axis', 0.0), 'dT3_dps_per_c3': ('axis', 0.0),
-             'dTdt_dps_per_c_per_s': ('axis', 0.0), 'scale_ppm_per_c': ('axis', 0.0),
-             'warmup_dps': ('axis', 0.0), 'warmup_tau_s': ('pos', 300.0),
-             'power_on_s': ('num', 0.0), 'sensitivity_mdps_per_digit': ('nonneg', 0.0),
-             'range_dps': ('nonneg', 0.0), 'quantise': ('bool', True)},
-    'noise': {'enabled': ('bool', True), 'arw_dps_per_rt_hz': ('axis_nonneg', 0.0),
-              'bias_instability_dps': ('axis_nonneg', 0.0),
-              'bias_instability_tau_s': ('taus', [10.0, 100.0, 1000.0]),
-              'rrw_dps_per_rt_s': ('axis_nonneg', 0.0)},
-    'accel': {'gravity_mps2': ('num', 9.80665), 'noise_mps2_per_rt_hz': ('axis_nonneg', 0.0),
-              'tilt_deg': ('tilt', [0.0, 0.0]), 'tilt_std_deg': ('nonneg', 0.0),
-              'bias_mg': ('axis', 0.0), 'dT_mg_per_c': ('axis', 0.0),
-              'dT2_mg_per_c2': ('axis', 0.0), 'sensitivity_mg_per_digit': ('nonneg', 0.0),
-              'range_g': ('nonneg', 0.0), 'reorient_at_s': ('nonneg', 0.0),
-              'reorient_tilt_deg': ('tilt', [0.0, 0.0])},
-    'runs': {'count': ('count', 1), 'bias_offset_dps_std': ('axis_nonneg', 0.0)},
-}
+# Each section's type, its fields' (kind, default) on the type; each kind is a check of _KINDS.
+_SPECS = {'thermal': ThermalSpec, 'thermometer': ThermometerSpec, 'gyro': GyroSpec,
+          'noise': NoiseSpec, 'accel': AccelSpec, 'runs': RunsSpec}
+_SECTIONS = {section: section_fields(spec) for section, spec in _SPECS.items()}
 _DEFAULT = {s: {k: d for k, (_, d) in f.items()} for s, f in _SECTIONS.items()}
 DEFAULTS: dict = {
     'format_version': FORMAT_VERSION, 'name': None, 'description': '', 'sensor': None,
@@ -81,8 +56,7 @@ DEFAULTS: dict = {
 }
 _TOP = ('format_version', 'name', 'description', 'sensor', 'imu_rate_hz', 'duration_s',
         'profile', 'rate_table') + tuple(_SECTIONS) + ('vehicle',)
-# Each segment kind: its builder and its fields, 'temp' >= -273.15 or 'pos' > 0 ('points' has
-# its own checks).
+# Each segment kind: its builder and its fields' kinds ('points' has its own checks).
 _SEGMENTS: dict[str, tuple[Any, dict[str, str]]] = {
     'hold': (chamber.hold_segment, {'duration_s': 'pos'}),
     'ramp': (chamber.ramp_segment, {'to_c': 'temp', 'rate_c_per_h': 'pos'}),
@@ -103,40 +77,52 @@ def merge(base: Mapping, top: Mapping) -> dict:
     return out
 
 
-class _Checker:
-    """Field checks that raise one ScenarioError naming the field (base.FieldChecker's)."""
+class _Checker(FieldChecker):
+    """The scenario's field kinds on base's FieldChecker: one ScenarioError naming the field."""
 
     def __init__(self, source: str) -> None:
+        super().__init__(self._error)
         self.source = source
-        self.fields = FieldChecker(self.fail)
 
-    def fail(self, path: str, expected: str, got: Any) -> ScenarioError:
+    def _error(self, path: str, expected: str, got: Any) -> ScenarioError:
         shown = repr(got)
         if len(shown) > 80:
             shown = shown[:77] + '...'
         return ScenarioError(f'{self.source}: `{path}`: expected {expected}, got {shown}.')
 
-    _is_num = staticmethod(is_number)
-
     def num(self, path: str, x: Any, *, low: Optional[float] = None,
             strict: bool = False) -> float:
         if low is None:
-            return self.fields.number(x, path, what='a finite number')
-        return self.fields.above(x, path, low, strict, what='a finite number')
+            return self.number(x, path, what='a finite number')
+        return self.above(x, path, low, strict, what='a finite number')
+
+    def seq(self, path: str, x: Any, expected: str, n: Optional[int] = None,
+            ok: Callable[[float], bool] = lambda v: True) -> tuple[float, ...]:
+        """Return a non-empty list of (``n``) numbers, each ``ok``, as a tuple of floats."""
+        if (not isinstance(x, (list, tuple)) or not x or (n is not None and len(x) != n)
+                or not all(is_number(e) and ok(float(e)) for e in x)):
+            raise self.fail(path, expected, x)
+        return tuple(float(e) for e in x)
 
     def axis(self, path: str, x: Any, *, low: Optional[float] = None) -> Vec3:
         expected = 'a number or a list of 3 numbers' + ('' if low is None else f' >= {low:g}')
-        if self._is_num(x):
-            v = float(x)
-            values = [v, v, v]
-        elif (isinstance(x, (list, tuple)) and len(x) == 3
-              and all(self._is_num(e) for e in x)):
-            values = [float(e) for e in x]
-        else:
-            raise self.fail(path, expected, x)
+        values = (float(x),) * 3 if is_number(x) else self.seq(path, x, expected, 3)
         if low is not None and min(values) < low:
             raise self.fail(path, expected, x)
-        return (values[0], values[1], values[2])
+        return values
+
+    def range(self, path: str, x: Any, positive: bool) -> tuple[float, float]:
+        low = '0 < low' if positive else '0 <= low'
+        lo, hi = self.seq(path, x, f'[low, high] with {low} <= high', 2)
+        if lo < 0.0 or hi < lo or (positive and lo <= 0.0):
+            raise self.fail(path, f'[low, high] with {low} <= high', x)
+        return lo, hi
+
+    def choice(self, path: str, x: Any, ok: bool | type, expected: str) -> Any:
+        """Return ``x`` when ``ok`` (or an instance of the type ``ok``), else fail."""
+        if not (isinstance(x, ok) if isinstance(ok, type) else ok):
+            raise self.fail(path, expected, x)
+        return x
 
     def mapping(self, path: str, x: Any, allowed: tuple[str, ...]) -> dict:
         if not isinstance(x, Mapping):
@@ -144,40 +130,14 @@ class _Checker:
         for key in x:
             if key not in allowed:
                 where = f'{path}.{key}' if path else str(key)
-                raise self.fail(where, 'a known key (one of ' + ', '.join(allowed) + ')',
-                                key)
+                raise self.fail(where, 'a known key (one of ' + ', '.join(allowed) + ')', key)
         return dict(x)
 
-    def field(self, section: str, key: str, kind: str, x: Any) -> Any:
-        path = f'{section}.{key}'
-        if kind in ('num', 'pos', 'nonneg'):
-            return self.num(path, x, low=None if kind == 'num' else 0.0, strict=kind == 'pos')
-        if kind in ('axis', 'axis_nonneg'):
-            return self.axis(path, x, low=0.0 if kind == 'axis_nonneg' else None)
-        if kind == 'bool':
-            return self.fields.boolean(x, path)
-        if kind == 'count':
-            if not isinstance(x, int) or isinstance(x, bool) or x < 1:
-                raise self.fail(path, 'an integer >= 1', x)
-            return x
-        if kind == 'location':
-            if x not in ('package', 'die'):
-                raise self.fail(path, "'package' or 'die'", x)
-            return x
-        if kind == 'taus':
-            if (not isinstance(x, (list, tuple)) or not x
-                    or not all(self._is_num(e) and float(e) > 0.0 for e in x)):
-                raise self.fail(path, 'a non-empty list of numbers > 0', x)
-            return tuple(float(e) for e in x)
-        if kind == 'effects':
-            return self.effects(path, x)
-        if kind == 'tilt':
-            if (not isinstance(x, (list, tuple)) or len(x) != 2
-                    or not all(self._is_num(e) and abs(float(e)) <= 180.0 for e in x)):
-                raise self.fail(path, 'roll and pitch in degrees, a list of 2 numbers within '
-                                '+-180', x)
-            return (float(x[0]), float(x[1]))
-        raise AssertionError(kind)  # pragma: no cover - schema table is static
+    def section(self, path: str, x: Any, fields: Mapping[str, tuple[str, Any]]) -> dict:
+        """Return a section's fields checked by kind (missing ones at their defaults)."""
+        body = self.mapping(path, x, tuple(fields))
+        return {key: _KINDS[kind](self, f'{path}.{key}', body.get(key, default))
+                for key, (kind, default) in fields.items()}
 
     def effects(self, path: str, x: Any) -> dict[str, bool]:
         if isinstance(x, (list, tuple)):
@@ -186,17 +146,51 @@ class _Checker:
                     raise self.fail(path, 'effect ids from ' + ', '.join(EFFECT_IDS), e)
             return {k: k in x for k in EFFECT_IDS}
         if isinstance(x, Mapping):
-            out = {}
             for k in EFFECT_IDS:
                 if k not in x:
                     raise self.fail(f'{path}.{k}', 'true or false', None)
+            out = {}
             for k, v in x.items():
                 if k not in EFFECT_IDS:
                     raise self.fail(f'{path}.{k}', 'an effect id (' + ', '.join(EFFECT_IDS)
                                     + ')', k)
-                out[k] = self.fields.boolean(v, f'{path}.{k}')
+                out[k] = self.boolean(v, f'{path}.{k}')
             return out
         raise self.fail(path, 'a list of effect ids or a mapping id -> bool', x)
+
+
+# Each field kind of the sections, the segments and the vehicle: its check (checker, path, x).
+_KINDS: dict[str, Callable[[_Checker, str, Any], Any]] = {
+    'num': lambda c, p, x: c.num(p, x),
+    'pos': lambda c, p, x: c.num(p, x, low=0.0, strict=True),
+    'nonneg': lambda c, p, x: c.num(p, x, low=0.0),
+    'temp': lambda c, p, x: c.num(p, x, low=-273.15),
+    'axis': lambda c, p, x: c.axis(p, x),
+    'axis_nonneg': lambda c, p, x: c.axis(p, x, low=0.0),
+    'bool': lambda c, p, x: c.boolean(x, p),
+    'count': lambda c, p, x: c.choice(p, x, isinstance(x, int) and not isinstance(x, bool)
+                                      and x >= 1, 'an integer >= 1'),
+    'location': lambda c, p, x: c.choice(p, x, x in ('package', 'die'), "'package' or 'die'"),
+    'taus': lambda c, p, x: c.seq(p, x, 'a non-empty list of numbers > 0', ok=lambda v: v > 0.0),
+    'tilt': lambda c, p, x: c.seq(p, x, 'roll and pitch in degrees, a list of 2 numbers within '
+                                  '+-180', 2, lambda v: abs(v) <= 180.0),
+    'effects': lambda c, p, x: c.effects(p, x),
+    'range': lambda c, p, x: c.range(p, x, positive=False),
+    'prange': lambda c, p, x: c.range(p, x, positive=True),
+}
+
+
+def _points(chk: _Checker, where: str, seg: Mapping) -> chamber.Segment:
+    """Return the segment of a ``points`` entry, its two lists checked."""
+    ts, temps = (chk.seq(f'{where}.{key}', seg[key], 'a non-empty list of numbers')
+                 for key in ('t_s', 'temp_c'))
+    if len(ts) != len(temps):
+        raise chk.fail(f'{where}.temp_c', f'{len(ts)} values (as many as t_s)', seg['temp_c'])
+    if ts[0] != 0.0 or any(b < a for a, b in zip(ts, ts[1:])):
+        raise chk.fail(f'{where}.t_s', 'times starting at 0 and never decreasing', seg['t_s'])
+    if min(temps) < -273.15:
+        raise chk.fail(f'{where}.temp_c', 'temperatures >= -273.15', seg['temp_c'])
+    return chamber.points_segment(np.asarray(ts), np.asarray(temps))
 
 
 def _profile(chk: _Checker, raw: Any) -> chamber.Profile:
@@ -218,36 +212,16 @@ def _profile(chk: _Checker, raw: Any) -> chamber.Profile:
         for key in fields:
             if key not in seg:
                 raise chk.fail(f'{where}.{key}', f'a value (required by kind {kind!r})', None)
-        if kind != 'points':
-            built.append(make(*(chk.num(f'{where}.{key}', seg[key],
-                                        low=-273.15 if bound == 'temp' else 0.0,
-                                        strict=bound == 'pos') for key, bound in fields.items())))
-        else:
-            ts, temps = seg['t_s'], seg['temp_c']
-            for key, arr in (('t_s', ts), ('temp_c', temps)):
-                if not isinstance(arr, (list, tuple)) or not arr or not all(
-                        chk._is_num(e) for e in arr):
-                    raise chk.fail(f'{where}.{key}', 'a non-empty list of numbers', arr)
-            if len(ts) != len(temps):
-                raise chk.fail(f'{where}.temp_c', f'{len(ts)} values (as many as t_s)',
-                               temps)
-            t_arr = np.asarray(ts, dtype=np.float64)
-            if t_arr[0] != 0.0 or np.any(np.diff(t_arr) < 0.0):
-                raise chk.fail(f'{where}.t_s', 'times starting at 0 and never decreasing',
-                               ts)
-            if min(temps) < -273.15:
-                raise chk.fail(f'{where}.temp_c', 'temperatures >= -273.15', temps)
-            built.append(make(t_arr, np.asarray(temps, dtype=np.float64)))
+        built.append(_points(chk, where, seg) if kind == 'points' else make(
+            *(_KINDS[bound](chk, f'{where}.{key}', seg[key]) for key, bound in fields.items())))
     profile = chamber.Profile.from_segments(start, built)
     if profile.duration_s <= 0.0:
-        raise chk.fail('profile.segments', 'segments lasting longer than 0 s in total',
-                       segments)
+        raise chk.fail('profile.segments', 'segments lasting longer than 0 s in total', segments)
     return profile
 
 
 def _rate_table(chk: _Checker, raw: Any) -> RateTable:
-    if raw is None:
-        raw = []
+    raw = [] if raw is None else raw
     if not isinstance(raw, (list, tuple)):
         raise chk.fail('rate_table', 'a list of {t_s, rate_dps | rate_rad_s} entries', raw)
     times: list[float] = []
@@ -259,15 +233,11 @@ def _rate_table(chk: _Checker, raw: Any) -> RateTable:
         if times and t <= times[-1]:
             raise chk.fail(f'{where}.t_s', f'a time after {times[-1]:g} s (strictly '
                            'increasing)', t)
-        has_dps, has_rad = 'rate_dps' in entry, 'rate_rad_s' in entry
-        if has_dps == has_rad:
+        if ('rate_dps' in entry) == ('rate_rad_s' in entry):
             raise chk.fail(where, 'exactly one of rate_dps or rate_rad_s', entry)
-        if has_dps:
-            rate = tuple(v * DEG for v in chk.axis(f'{where}.rate_dps', entry['rate_dps']))
-        else:
-            rate = chk.axis(f'{where}.rate_rad_s', entry['rate_rad_s'])
+        key, factor = ('rate_dps', DEG) if 'rate_dps' in entry else ('rate_rad_s', 1.0)
         times.append(t)
-        rates.append((rate[0], rate[1], rate[2]))
+        rates.append(tuple(v * factor for v in chk.axis(f'{where}.{key}', entry[key])))
     if not times or times[0] > 0.0:
         times.insert(0, 0.0)
         rates.insert(0, (0.0, 0.0, 0.0))
@@ -322,21 +292,15 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
     merged = merge(DEFAULTS, PRESETS[sensor] if sensor else {})
     merged = merge(merged, top)        # lists (rate_table, segments) replace, never merge
 
-    the_name = merged.get('name') or name or 'scenario'
-    if not isinstance(the_name, str):
-        raise chk.fail('name', 'a string', the_name)
-    merged['name'] = the_name
-    description = merged.get('description') or ''
-    if not isinstance(description, str):
-        raise chk.fail('description', 'a string', description)
+    the_name = merged['name'] = chk.choice('name', merged.get('name') or name or 'scenario',
+                                           str, 'a string')
+    description = chk.choice('description', merged.get('description') or '', str, 'a string')
     rate = chk.num('imu_rate_hz', merged.get('imu_rate_hz'), low=0.0, strict=True)
 
-    values: dict[str, dict[str, Any]] = {}
-    for section, fields in _SECTIONS.items():
-        body = chk.mapping(section, merged[section], tuple(fields))
-        values[section] = {key: chk.field(section, key, kind, body.get(key))
-                           for key, (kind, _) in fields.items()}
-    merged['gyro']['effects'] = dict(values['gyro']['effects'])
+    values = {section: chk.section(section, merged[section], fields)
+              for section, fields in _SECTIONS.items()}
+    effects = merged['gyro']['effects'] = dict(values['gyro']['effects'])
+    values['gyro']['effects'] = tuple(k for k in EFFECT_IDS if effects[k])
 
     profile = _profile(chk, merged['profile'])
     duration = merged.get('duration_s')
@@ -351,21 +315,12 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
                        thermometer_rate)
 
     # Optional vehicle day (gyro_tdc.sim.vehicle): normalised over its defaults when present.
-    vehicle = None
-    if merged.get('vehicle') is not None:
-        vehicle = vehicle_spec(chk, merged['vehicle'])
+    vehicle = merged.pop('vehicle', None)
+    if vehicle is not None:
+        vehicle = VehicleSpec(**chk.section('vehicle', vehicle, VEHICLE_FIELDS))
         merged['vehicle'] = vehicle.to_dict()
-    else:
-        merged.pop('vehicle', None)
-
-    gyro_vals = dict(values['gyro'])
-    effects = gyro_vals.pop('effects')
-    gyro = GyroSpec(effects=tuple(k for k in EFFECT_IDS if effects[k]), **gyro_vals)
-    return dict(
-        name=the_name, description=description, source=source, sensor=sensor,
-        imu_rate_hz=rate, duration_s=duration, profile=profile,
-        thermal=ThermalSpec(**values['thermal']),
-        thermometer=ThermometerSpec(**values['thermometer']),
-        gyro=gyro, noise=NoiseSpec(**values['noise']), accel=AccelSpec(**values['accel']),
-        rate_table=_rate_table(chk, merged.get('rate_table')),
-        runs=RunsSpec(**values['runs']), data=merged, vehicle=vehicle)
+    return dict(name=the_name, description=description, source=source, sensor=sensor,
+                imu_rate_hz=rate, duration_s=duration, profile=profile,
+                **{section: spec(**values[section]) for section, spec in _SPECS.items()},
+                rate_table=_rate_table(chk, merged.get('rate_table')), data=merged,
+                vehicle=vehicle)

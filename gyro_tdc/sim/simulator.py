@@ -216,22 +216,19 @@ class SimRun:
             Reference rate.
 
         """
-        idx = np.clip(np.searchsorted(self.ref_t, t, side='right') - 1, 0, self.ref_t.size - 1)
-        return self.ref[idx]
+        return _held(self.ref_t, self.ref, t)
 
 
-def _check_seed(seed: Any) -> int:
-    if isinstance(seed, bool) or not isinstance(seed, (int, np.integer)) or seed < 0:
-        raise ScenarioError(f'Expected `seed` to be an integer >= 0, got {seed!r}.')
-    return int(seed)
+def _whole(x: Any, end: float, message: str) -> int:
+    """Return ``x`` as an int in ``0 .. end - 1``; else raise ``ScenarioError(message)``."""
+    if isinstance(x, bool) or not isinstance(x, (int, np.integer)) or not 0 <= x < end:
+        raise ScenarioError(message)
+    return int(x)
 
 
-def _check_rate(rate_hz: Any, default: float) -> float:
-    if rate_hz is None:
-        return default
-    if not is_number(rate_hz) or float(rate_hz) <= 0.0:
-        raise ScenarioError(f'Expected `rate_hz` to be a finite number > 0, got {rate_hz!r}.')
-    return float(rate_hz)
+def _held(t_points: NDArray[np.float64], values: NDArray, t: NDArray[np.float64]) -> NDArray:
+    """Return ``values`` held (zero-order) at times ``t``; the first before ``t_points[0]``."""
+    return values[np.clip(np.searchsorted(t_points, t, side='right') - 1, 0, t_points.size - 1)]
 
 
 def _stamps(duration: float, rate: float) -> NDArray[np.float64]:
@@ -287,8 +284,7 @@ def _add_noise(gyro: NDArray[np.float64], nz: NoiseSpec,
         return white_std
     n, dt = gyro.shape[0], 1.0 / rate
     if np.any(white_std > 0.0):
-        gyro += white_noise(rng('white'), n, density=_vec(nz.arw_dps_per_rt_hz, DEG),
-                            rate_hz=rate)
+        gyro += white_noise(rng('white'), n, density=_vec(nz.arw_dps_per_rt_hz, DEG), rate_hz=rate)
     if np.any(_vec(nz.bias_instability_dps) > 0.0):
         gyro += gauss_markov(rng('bias_instability'), n,
                              sigma=_vec(nz.bias_instability_dps, DEG),
@@ -339,13 +335,12 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
 
     """
     sc = load_scenario(scenario)
-    seed = _check_seed(seed)
-    if (isinstance(run_index, bool) or not isinstance(run_index, (int, np.integer))
-            or not 0 <= run_index < sc.runs.count):
-        raise ScenarioError(f'Expected `run_index` in [0, {sc.runs.count}) for scenario '
-                            f'{sc.name!r}, got {run_index!r}.')
-    run_index = int(run_index)
-    rate = _check_rate(rate_hz, sc.imu_rate_hz)
+    seed = _whole(seed, math.inf, f'Expected `seed` to be an integer >= 0, got {seed!r}.')
+    run_index = _whole(run_index, sc.runs.count, f'Expected `run_index` in [0, '
+                       f'{sc.runs.count}) for scenario {sc.name!r}, got {run_index!r}.')
+    if rate_hz is not None and (not is_number(rate_hz) or float(rate_hz) <= 0.0):
+        raise ScenarioError(f'Expected `rate_hz` to be a finite number > 0, got {rate_hz!r}.')
+    rate = sc.imu_rate_hz if rate_hz is None else float(rate_hz)
     streams = dict(zip(_STREAMS, np.random.SeedSequence(seed, spawn_key=(run_index,))
                        .spawn(len(_STREAMS))))
 
@@ -381,8 +376,7 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     ref_t, ref = sc.rate_table.arrays()
     keep = ref_t < duration
     ref_t, ref = ref_t[keep], ref[keep]
-    idx = np.searchsorted(ref_t, imu_t, side='right') - 1
-    omega_ref = ref[idx]
+    omega_ref = _held(ref_t, ref, imu_t)
     motion = None
     if legs is not None:     # the vehicle's true body rate replaces the rate table
         motion = vehicle_motion(sc.vehicle, legs, imu_t, vehicle_rng,
@@ -545,9 +539,8 @@ def to_run(simrun: SimRun) -> Run:
         ``source='sim'``; ``accel`` the accelerometer output.
 
     """
-    idx = np.clip(np.searchsorted(simrun.temp_t, simrun.imu_t, side='right') - 1, 0,
-                  simrun.temp_t.size - 1)
-    return Run(t=simrun.imu_t, temp=simrun.temp_c[idx], omega=simrun.gyro,
+    return Run(t=simrun.imu_t, temp=_held(simrun.temp_t, simrun.temp_c, simrun.imu_t),
+               omega=simrun.gyro,
                omega_ref=simrun.ref_at(simrun.imu_t), name=simrun.name,
                info={'source': 'sim', 'scenario': simrun.scenario, 'seed': simrun.seed,
                      'run_index': simrun.run_index, 'truth': simrun.truth},

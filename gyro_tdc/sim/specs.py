@@ -22,15 +22,31 @@ from :class:`gyro_tdc.sim.scenario.Scenario`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field, fields, MISSING
+from typing import Any
 
+from gyro_tdc.model import EFFECT_IDS
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['AccelSpec', 'GyroSpec', 'NoiseSpec', 'RateTable', 'RunsSpec', 'ThermalSpec',
-           'ThermometerSpec', 'Vec3']
+           'ThermometerSpec', 'Vec3', 'section_fields', 'spec_field']
 
 Vec3 = tuple[float, float, float]
+
+
+def spec_field(kind: str, default: Any, value: Any = MISSING) -> Any:
+    """
+    Return a section field: the schema checks it as ``kind``, ``default`` when a scenario omits it.
+
+    ``value`` is the dataclass default, for a section built in code without a scenario.
+    """
+    return field(default=value, metadata={'kind': kind, 'default': default})
+
+
+def section_fields(spec: type) -> dict[str, tuple[str, Any]]:
+    """Return a section's fields as name -> (kind, scenario default), in order."""
+    return {f.name: (f.metadata['kind'], f.metadata['default']) for f in fields(spec)}
 
 
 @dataclass(frozen=True)
@@ -47,10 +63,10 @@ class ThermalSpec:
 
     """
 
-    tau_air_s: float
-    tau_package_s: float
-    tau_die_s: float
-    internal_step_s: float
+    tau_air_s: float = spec_field('nonneg', 0.0)
+    tau_package_s: float = spec_field('nonneg', 0.0)
+    tau_die_s: float = spec_field('nonneg', 0.0)
+    internal_step_s: float = spec_field('pos', 0.1)
 
 
 @dataclass(frozen=True)
@@ -75,12 +91,12 @@ class ThermometerSpec:
 
     """
 
-    location: str
-    rate_hz: float
-    resolution_c: float
-    noise_c: float
-    tau_s: float
-    offset_c: float
+    location: str = spec_field('location', 'package')
+    rate_hz: float = spec_field('pos', 1.0)
+    resolution_c: float = spec_field('nonneg', 0.0)
+    noise_c: float = spec_field('nonneg', 0.0)
+    tau_s: float = spec_field('nonneg', 0.0)
+    offset_c: float = spec_field('num', 0.0)
 
 
 @dataclass(frozen=True)
@@ -115,20 +131,21 @@ class GyroSpec:
 
     """
 
-    effects: tuple[str, ...]
-    t_ref_c: float
-    bias_dps: Vec3
-    dT_dps_per_c: Vec3
-    dT2_dps_per_c2: Vec3
-    dT3_dps_per_c3: Vec3
-    dTdt_dps_per_c_per_s: Vec3
-    scale_ppm_per_c: Vec3
-    warmup_dps: Vec3
-    warmup_tau_s: float
-    power_on_s: float
-    sensitivity_mdps_per_digit: float
-    range_dps: float
-    quantise: bool
+    effects: tuple[str, ...] = spec_field('effects',
+                                          {k: k in ('bias', 'dT', 'dT2') for k in EFFECT_IDS})
+    t_ref_c: float = spec_field('num', 25.0)
+    bias_dps: Vec3 = spec_field('axis', 0.0)
+    dT_dps_per_c: Vec3 = spec_field('axis', 0.0)
+    dT2_dps_per_c2: Vec3 = spec_field('axis', 0.0)
+    dT3_dps_per_c3: Vec3 = spec_field('axis', 0.0)
+    dTdt_dps_per_c_per_s: Vec3 = spec_field('axis', 0.0)
+    scale_ppm_per_c: Vec3 = spec_field('axis', 0.0)
+    warmup_dps: Vec3 = spec_field('axis', 0.0)
+    warmup_tau_s: float = spec_field('pos', 300.0)
+    power_on_s: float = spec_field('num', 0.0)
+    sensitivity_mdps_per_digit: float = spec_field('nonneg', 0.0)
+    range_dps: float = spec_field('nonneg', 0.0)
+    quantise: bool = spec_field('bool', True)
 
 
 @dataclass(frozen=True)
@@ -151,11 +168,11 @@ class NoiseSpec:
 
     """
 
-    enabled: bool
-    arw_dps_per_rt_hz: Vec3
-    bias_instability_dps: Vec3
-    bias_instability_tau_s: tuple[float, ...]
-    rrw_dps_per_rt_s: Vec3
+    enabled: bool = spec_field('bool', True)
+    arw_dps_per_rt_hz: Vec3 = spec_field('axis_nonneg', 0.0)
+    bias_instability_dps: Vec3 = spec_field('axis_nonneg', 0.0)
+    bias_instability_tau_s: tuple[float, ...] = spec_field('taus', [10.0, 100.0, 1000.0])
+    rrw_dps_per_rt_s: Vec3 = spec_field('axis_nonneg', 0.0)
 
 
 @dataclass(frozen=True)
@@ -201,17 +218,17 @@ class AccelSpec:
 
     """
 
-    gravity_mps2: float
-    noise_mps2_per_rt_hz: Vec3
-    tilt_deg: tuple[float, float] = (0.0, 0.0)
-    tilt_std_deg: float = 0.0
-    bias_mg: Vec3 = (0.0, 0.0, 0.0)
-    dT_mg_per_c: Vec3 = (0.0, 0.0, 0.0)
-    dT2_mg_per_c2: Vec3 = (0.0, 0.0, 0.0)
-    sensitivity_mg_per_digit: float = 0.0
-    range_g: float = 0.0
-    reorient_at_s: float = 0.0
-    reorient_tilt_deg: tuple[float, float] = (0.0, 0.0)
+    gravity_mps2: float = spec_field('num', 9.80665)
+    noise_mps2_per_rt_hz: Vec3 = spec_field('axis_nonneg', 0.0)
+    tilt_deg: tuple[float, float] = spec_field('tilt', [0.0, 0.0], (0.0, 0.0))
+    tilt_std_deg: float = spec_field('nonneg', 0.0, 0.0)
+    bias_mg: Vec3 = spec_field('axis', 0.0, (0.0, 0.0, 0.0))
+    dT_mg_per_c: Vec3 = spec_field('axis', 0.0, (0.0, 0.0, 0.0))
+    dT2_mg_per_c2: Vec3 = spec_field('axis', 0.0, (0.0, 0.0, 0.0))
+    sensitivity_mg_per_digit: float = spec_field('nonneg', 0.0, 0.0)
+    range_g: float = spec_field('nonneg', 0.0, 0.0)
+    reorient_at_s: float = spec_field('nonneg', 0.0, 0.0)
+    reorient_tilt_deg: tuple[float, float] = spec_field('tilt', [0.0, 0.0], (0.0, 0.0))
 
     @property
     def thermal(self) -> bool:
@@ -262,5 +279,5 @@ class RunsSpec:
 
     """
 
-    count: int
-    bias_offset_dps_std: Vec3
+    count: int = spec_field('count', 1)
+    bias_offset_dps_std: Vec3 = spec_field('axis_nonneg', 0.0)

@@ -105,8 +105,8 @@ class SimStream:
 
     def __init__(self, scenario: ScenarioLike, seed: int = 0, run_index: int = 0, *,
                  rate_hz: Optional[float] = None) -> None:
-        self.run: SimRun = simulate_run(scenario, seed=seed, run_index=run_index,
-                                        rate_hz=rate_hz)
+        self.run: SimRun = simulate_run(scenario, seed=seed, run_index=run_index, rate_hz=rate_hz)
+        self._stamps = (self.run.imu_t, self.run.temp_t, self.run.ref_t)
         self._i = (0, 0, 0)      # the next IMU, thermometer and reference rows
         self._position = -math.inf
 
@@ -118,21 +118,12 @@ class SimStream:
     @property
     def t_end(self) -> float:
         """Return the last stamp of any stream."""
-        return float(max(self.run.imu_t[-1], self.run.temp_t[-1], self.run.ref_t[-1]))
+        return float(max(t[-1] for t in self._stamps))
 
     @property
     def done(self) -> bool:
         """Return True once every sample was handed out."""
-        return all(i >= t.size for i, t in zip(self._i, self._stamps()))
-
-    def _stamps(self) -> tuple[NDArray[np.float64], ...]:
-        """Return the stamps of the IMU, the thermometer and the reference."""
-        return self.run.imu_t, self.run.temp_t, self.run.ref_t
-
-    @property
-    def temp_var(self) -> float:
-        """Return the thermometer variance, degC^2."""
-        return self.run.temp_var
+        return all(i >= t.size for i, t in zip(self._i, self._stamps))
 
     def next_until(self, t: float) -> tuple[ImuChunk, TempChunk, RefChunk]:
         """
@@ -160,7 +151,7 @@ class SimStream:
         run = self.run
         (i0, i1, i2), self._i = self._i, tuple(
             max(i, int(np.searchsorted(ts, t, side='right')))
-            for i, ts in zip(self._i, self._stamps()))
+            for i, ts in zip(self._i, self._stamps))
         j0, j1, j2 = self._i
         imu = ImuChunk(run.imu_t[i0:j0], run.gyro[i0:j0], run.accel[i0:j0])
         temp = TempChunk(run.temp_t[i1:j1], run.temp_c[i1:j1])

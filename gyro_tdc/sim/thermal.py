@@ -85,12 +85,6 @@ class ThermalHistory:
         return np.interp(np.asarray(t, dtype=np.float64), self.t, getattr(self, name))
 
 
-def _rate(u: NDArray[np.float64], y: NDArray[np.float64], tau: float,
-          upstream: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Return dy/dt of a lag stage: exact (u - y)/tau, or the input's rate when tau = 0."""
-    return (u - y) / tau if tau > 0.0 else upstream
-
-
 def simulate_thermal(profile: Profile, *, duration_s: float, dt: float = 0.1,
                      tau_air_s: float = 0.0, tau_package_s: float = 0.0,
                      tau_die_s: float = 0.0, thermometer_location: str = 'package',
@@ -134,14 +128,14 @@ def simulate_thermal(profile: Profile, *, duration_s: float, dt: float = 0.1,
     if t[-1] < duration_s:
         t = np.append(t, t[-1] + dt)
     setpoint = profile.value(t)
-    # Each node lags the one before: setpoint -> air -> package -> die, with its rate.
+    # Each node lags the one before: setpoint -> air -> package -> die, with its rate: exact
+    # (u - y) / tau, or the input's rate when tau = 0.
     nodes, rate = [setpoint], profile.slope(t)
     for tau in (tau_air_s, tau_package_s, tau_die_s):
         nodes.append(first_order_lag(dt, nodes[-1], tau, hold='linear'))
-        rate = _rate(nodes[-2], nodes[-1], tau, rate)
+        rate = (nodes[-2] - nodes[-1]) / tau if tau > 0.0 else rate
     _, air, package, die = nodes
-    die_rate = rate
     source = package if thermometer_location == 'package' else die
     thermometer = first_order_lag(dt, source, thermometer_tau_s, hold='linear')
     return ThermalHistory(t=t, setpoint_c=setpoint, air_c=air, package_c=package, die_c=die,
-                          die_rate_c_per_s=die_rate, thermometer_c=thermometer)
+                          die_rate_c_per_s=rate, thermometer_c=thermometer)

@@ -25,16 +25,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass, fields
 import math
-from typing import Any
 
 from gyro_tdc.model import first_order_lag
 from gyro_tdc.sim.chamber import Profile
+from gyro_tdc.sim.specs import section_fields, spec_field
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['CMD_VEL_TOPIC', 'Leg', 'TRUTH_TOPIC', 'VEHICLE_DEFAULTS', 'VehicleMotion',
-           'VehicleSpec', 'gravity_in_sensor', 'heated_profile', 'plan_legs', 'vehicle_motion',
-           'vehicle_spec']
+__all__ = ['CMD_VEL_TOPIC', 'Leg', 'TRUTH_TOPIC', 'VEHICLE_DEFAULTS', 'VEHICLE_FIELDS',
+           'VehicleMotion', 'VehicleSpec', 'gravity_in_sensor', 'heated_profile', 'plan_legs',
+           'vehicle_motion']
 
 #: Topic of the true body rate in simulated vehicle bags (evaluation only, never trained on).
 TRUTH_TOPIC = '/truth/angular_velocity'
@@ -42,20 +42,6 @@ TRUTH_TOPIC = '/truth/angular_velocity'
 CMD_VEL_TOPIC = '/cmd_vel'
 _DEG = math.pi / 180.0
 
-# Each field of the ``vehicle:`` section (units in the keys) as (kind, default). Kinds: 'nonneg'
-# >= 0, 'pos' > 0, 'num' any number, 'range' [low, high] with 0 <= low <= high, 'prange' the
-# same with low > 0.
-_FIELDS: dict[str, tuple[str, Any]] = {
-    'start_parked_s': ('nonneg', 1800.0), 'drive_s': ('prange', [600.0, 1800.0]),
-    'park_s': ('prange', [600.0, 3000.0]), 'slope_deg': ('nonneg', 4.0),
-    'slope_change_s': ('pos', 10.0), 'speed_mps': ('pos', 10.0), 'accel_mps2': ('pos', 1.5),
-    'straight_s': ('prange', [5.0, 60.0]), 'turn_s': ('prange', [3.0, 20.0]),
-    'turn_rate_dps': ('range', [2.0, 20.0]), 'vibration_dps': ('nonneg', 0.5),
-    'vibration_mps2': ('nonneg', 0.8), 'self_heating_c': ('num', 10.0),
-    'self_heating_tau_s': ('pos', 900.0), 'cmd_vel_rate_hz': ('nonneg', 5.0),
-}
-#: Defaults of the ``vehicle:`` section.
-VEHICLE_DEFAULTS: dict = {key: default for key, (_, default) in _FIELDS.items()}
 #: Grid step of the heated set point, s (the self-heating moves over minutes).
 _HEAT_STEP_S = 5.0
 #: Ramp of a turn's yaw rate in and out, s.
@@ -68,24 +54,26 @@ class VehicleSpec:
     The ``vehicle:`` section of a scenario (see the module docstring for every field).
 
     Durations in s, rates in deg/s, slopes in deg, speeds in m/s, accelerations in m/s^2,
-    temperatures in degC, ranges as ``(low, high)``.
+    temperatures in degC, ranges as ``(low, high)``. Each field carries the kind the scenario
+    schema checks and its default: 'range' is [low, high] with 0 <= low <= high, 'prange' the
+    same with low > 0.
     """
 
-    start_parked_s: float
-    drive_s: tuple[float, float]
-    park_s: tuple[float, float]
-    slope_deg: float
-    slope_change_s: float
-    speed_mps: float
-    accel_mps2: float
-    straight_s: tuple[float, float]
-    turn_s: tuple[float, float]
-    turn_rate_dps: tuple[float, float]
-    vibration_dps: float
-    vibration_mps2: float
-    self_heating_c: float
-    self_heating_tau_s: float
-    cmd_vel_rate_hz: float
+    start_parked_s: float = spec_field('nonneg', 1800.0)
+    drive_s: tuple[float, float] = spec_field('prange', [600.0, 1800.0])
+    park_s: tuple[float, float] = spec_field('prange', [600.0, 3000.0])
+    slope_deg: float = spec_field('nonneg', 4.0)
+    slope_change_s: float = spec_field('pos', 10.0)
+    speed_mps: float = spec_field('pos', 10.0)
+    accel_mps2: float = spec_field('pos', 1.5)
+    straight_s: tuple[float, float] = spec_field('prange', [5.0, 60.0])
+    turn_s: tuple[float, float] = spec_field('prange', [3.0, 20.0])
+    turn_rate_dps: tuple[float, float] = spec_field('range', [2.0, 20.0])
+    vibration_dps: float = spec_field('nonneg', 0.5)
+    vibration_mps2: float = spec_field('nonneg', 0.8)
+    self_heating_c: float = spec_field('num', 10.0)
+    self_heating_tau_s: float = spec_field('pos', 900.0)
+    cmd_vel_rate_hz: float = spec_field('nonneg', 5.0)
 
     def to_dict(self) -> dict:
         """Return the section as plain YAML-safe types."""
@@ -93,46 +81,9 @@ class VehicleSpec:
                 for f in fields(self)}
 
 
-def vehicle_spec(chk: Any, raw: Any) -> VehicleSpec:
-    """
-    Validate a ``vehicle:`` mapping over :data:`VEHICLE_DEFAULTS`.
-
-    Parameters
-    ----------
-    chk : object
-        The scenario schema's field checker (``mapping``, ``num`` and ``fail`` methods, one
-        ScenarioError naming the field).
-    raw : Any
-        The section as read.
-
-    Returns
-    -------
-    VehicleSpec
-        The typed section.
-
-    Raises
-    ------
-    ScenarioError
-        Naming the first bad field.
-
-    """
-    body = dict(VEHICLE_DEFAULTS, **chk.mapping('vehicle', raw, tuple(VEHICLE_DEFAULTS)))
-    out: dict[str, Any] = {}
-    for key, (kind, _) in _FIELDS.items():
-        path, x = f'vehicle.{key}', body[key]
-        if kind in ('range', 'prange'):
-            ok = (isinstance(x, (list, tuple)) and len(x) == 2
-                  and all(chk._is_num(e) for e in x))
-            lo, hi = (float(x[0]), float(x[1])) if ok else (0.0, 0.0)
-            if not ok or lo < 0.0 or hi < lo or (kind == 'prange' and lo <= 0.0):
-                low = '0 < low' if kind == 'prange' else '0 <= low'
-                raise chk.fail(path, f'[low, high] with {low} <= high', x)
-            out[key] = (lo, hi)
-        elif kind == 'num':
-            out[key] = chk.num(path, x)
-        else:
-            out[key] = chk.num(path, x, low=0.0, strict=kind == 'pos')
-    return VehicleSpec(**out)
+#: Each field of the ``vehicle:`` section as (kind, default), and the defaults alone.
+VEHICLE_FIELDS = section_fields(VehicleSpec)
+VEHICLE_DEFAULTS: dict = {key: default for key, (_, default) in VEHICLE_FIELDS.items()}
 
 
 @dataclass(frozen=True)
@@ -178,26 +129,18 @@ def plan_legs(spec: VehicleSpec, duration_s: float, rng: np.random.Generator
         In time order, covering ``[0, duration_s]`` (the last one cut at the end).
 
     """
-    legs = []
-
     def slope() -> tuple[float, float]:
         r, p = rng.standard_normal(2) * spec.slope_deg
         return float(r), float(p)
 
-    t = 0.0
     roll, pitch = slope()
-    legs.append(Leg('park', 0.0, min(spec.start_parked_s, duration_s), roll, pitch))
-    t = legs[-1].t1_s
-    while t < duration_s:
-        d = float(rng.uniform(*spec.drive_s))
-        roll, pitch = slope()
-        legs.append(Leg('drive', t, min(t + d, duration_s), roll, pitch))
-        t = legs[-1].t1_s
-        if t >= duration_s:
-            break
-        p = float(rng.uniform(*spec.park_s))
-        legs.append(Leg('park', t, min(t + p, duration_s), roll, pitch))
-        t = legs[-1].t1_s
+    legs = [Leg('park', 0.0, min(spec.start_parked_s, duration_s), roll, pitch)]
+    while legs[-1].t1_s < duration_s:     # a drive to a new slope, a stop on it, and so on
+        t, driving = legs[-1].t1_s, legs[-1].kind == 'park'
+        d = float(rng.uniform(*(spec.drive_s if driving else spec.park_s)))
+        if driving:
+            roll, pitch = slope()
+        legs.append(Leg('drive' if driving else 'park', t, min(t + d, duration_s), roll, pitch))
     return tuple(legs)
 
 
@@ -296,10 +239,7 @@ class VehicleMotion:
 def _drive_profile(spec: VehicleSpec, leg: Leg, rng: np.random.Generator
                    ) -> tuple[list[float], list[float], list[float], list[float]]:
     """Return the knots (t, speed) and (t, yaw rate rad/s) of one drive."""
-    d = leg.t1_s - leg.t0_s
-    ramp = spec.speed_mps / spec.accel_mps2
-    if 2.0 * ramp > d:
-        ramp = 0.5 * d
+    ramp = min(spec.speed_mps / spec.accel_mps2, 0.5 * (leg.t1_s - leg.t0_s))
     vmax = spec.accel_mps2 * ramp
     vt = [leg.t0_s, leg.t0_s + ramp, leg.t1_s - ramp, leg.t1_s]
     vv = [0.0, vmax, vmax, 0.0]
@@ -363,14 +303,12 @@ def vehicle_motion(spec: VehicleSpec, legs: tuple[Leg, ...], imu_t: NDArray[np.f
     t = np.asarray(imu_t, dtype=np.float64)
     vt, vv, yt, yv = [0.0], [0.0], [0.0], [0.0]
     at, ar, ap = [0.0], [legs[0].roll_deg], [legs[0].pitch_deg]
-    change = spec.slope_change_s
     for prev, leg in zip((None,) + legs[:-1], legs):
         if leg.kind != 'drive':
             continue
         for knots, more in zip((vt, vv, yt, yv), _drive_profile(spec, leg, rng)):
             knots += more
-        d = leg.t1_s - leg.t0_s
-        c = min(change, 0.5 * d)
+        c = min(spec.slope_change_s, 0.5 * (leg.t1_s - leg.t0_s))
         r0, p0 = (prev.roll_deg, prev.pitch_deg) if prev is not None else (0.0, 0.0)
         at += [leg.t0_s, leg.t0_s + c, leg.t1_s - c, leg.t1_s]
         ar += [r0, 0.0, 0.0, leg.roll_deg]

@@ -144,7 +144,7 @@ def test_bad_scenario_file_exit_2_naming_the_field(tmp_path, capsys):
     assert '`gyro.dT_dps_per_c`' in _one_error_line(capsys)
     path.write_text('profile: [unclosed\n')
     assert main(['--scenario', str(path), '--out', str(tmp_path / 'o')]) == 2
-    assert 'not valid YAML' in _one_error_line(capsys)
+    assert 'malformed YAML' in _one_error_line(capsys)
 
 
 def test_existing_output_is_not_overwritten(tmp_path, tiny_file, capsys):

@@ -54,7 +54,7 @@ def test_every_shipped_scenario_loads_and_simulates(name):
 def test_l3gd20_paper_scenario():
     sc = load_scenario('l3gd20_paper')
     assert sc.runs.count == 5 and sc.sensor == 'l3gd20'
-    assert sc.effects == ('bias', 'dT', 'dT2')
+    assert sc.gyro.effects == ('bias', 'dT', 'dT2')
     assert sc.thermometer.location == 'package' and sc.thermometer.rate_hz == 1.0
     assert sc.thermometer.resolution_c == 0.03 and sc.imu_rate_hz == 10.0
     assert sc.gyro.sensitivity_mdps_per_digit == 8.75 and sc.gyro.t_ref_c == 25.0
@@ -75,7 +75,7 @@ def test_five_paper_runs_differ_by_small_bias_offsets():
 
 def test_i3g4250d_paper_reference_rates():
     sc = load_scenario('i3g4250d_paper')
-    assert sc.rate_table.moving and 'scale' in sc.effects and sc.runs.count == 5
+    assert sc.rate_table.moving and 'scale' in sc.gyro.effects and sc.runs.count == 5
     t, rate = sc.rate_table.arrays()
     np.testing.assert_allclose(t, [0.0])
     np.testing.assert_allclose(rate, [[10.0 * DEG, 5.0 * DEG, 20.0 * DEG]])
@@ -89,7 +89,7 @@ def test_i3g4250d_paper_reference_rates():
                                           ('warmup', 'warmup')])
 def test_each_dynamic_scenario_holds_its_effect(name, effect):
     sc = load_scenario(name)
-    assert effect in sc.effects and sc.runs.count >= 2
+    assert effect in sc.gyro.effects and sc.runs.count >= 2
     if effect == 'lag':
         assert sc.thermal.tau_die_s > 0.0 and sc.thermometer.location == 'package'
     if effect == 'scale':
@@ -111,7 +111,7 @@ def test_load_scenario_from_file_names_the_file(tmp_path):
     sc = load_scenario(path)
     assert sc.name == 'my_run' and sc.source == 'my_run.yaml'
     path.write_text('profile: {start_c: 20.0\n  segments: [\n')
-    with pytest.raises(ScenarioError, match=r'my_run\.yaml: not valid YAML at line'):
+    with pytest.raises(ScenarioError, match=r'my_run\.yaml: malformed YAML at line'):
         load_scenario(str(path))
     path.write_text(yaml.safe_dump(dict(MINIMAL, gyro={'bias_dps': 'x'})))
     with pytest.raises(ScenarioError, match=r'my_run\.yaml: `gyro\.bias_dps`'):
@@ -128,12 +128,12 @@ def test_overrides_set_dotted_paths_and_revalidate():
     changed = sc.with_overrides({'gyro.effects.dT3': True, 'noise.enabled': False,
                                  'gyro.dT2_dps_per_c2': [1e-3, 0.0, 0.0],
                                  'runs': {'count': 2}, 'imu_rate_hz': 20.0})
-    assert changed.effects == ('bias', 'dT', 'dT2', 'dT3')
+    assert changed.gyro.effects == ('bias', 'dT', 'dT2', 'dT3')
     assert changed.gyro.dT2_dps_per_c2 == (1e-3, 0.0, 0.0)
     assert changed.runs.count == 2
     assert changed.runs.bias_offset_dps_std == sc.runs.bias_offset_dps_std
     assert not changed.noise.enabled and changed.imu_rate_hz == 20.0
-    assert sc.effects == ('bias', 'dT', 'dT2') and sc.noise.enabled    # original unchanged
+    assert sc.gyro.effects == ('bias', 'dT', 'dT2') and sc.noise.enabled    # original unchanged
     with pytest.raises(ScenarioError, match=re.escape('`gyro.dT2_dps_per_c2`')):
         sc.with_overrides({'gyro.dT2_dps_per_c2': 'lots'})
     with pytest.raises(ScenarioError, match='dotted path'):

@@ -86,9 +86,9 @@ def test_scenario_must_be_a_mapping():
 
 def test_effects_as_list_means_exactly_those():
     sc = Scenario.from_dict(dict(MINIMAL, sensor='l3gd20', gyro={'effects': ['dT3']}))
-    assert sc.effects == ('dT3',)
+    assert sc.gyro.effects == ('dT3',)
     default = Scenario.from_dict(MINIMAL)
-    assert default.effects == ('bias', 'dT', 'dT2')
+    assert default.gyro.effects == ('bias', 'dT', 'dT2')
 
 
 def test_defaults_fill_every_section_and_the_preset_overrides_them():

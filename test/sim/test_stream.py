@@ -46,7 +46,7 @@ def test_chunks_concatenate_to_the_batch_run(scenario):
     np.testing.assert_array_equal(np.concatenate([c.temp_c for c in temp]), batch.temp_c)
     np.testing.assert_array_equal(np.concatenate([c.t for c in ref]), batch.ref_t)
     np.testing.assert_array_equal(np.concatenate([c.ref for c in ref]), batch.ref)
-    assert stream.temp_var == batch.temp_var
+    assert stream.run.temp_var == batch.temp_var
 
 
 def test_going_back_in_time_returns_nothing(scenario):
