@@ -74,7 +74,6 @@ def _labels(runs: Sequence[Run], sessions: Sequence | None) -> list[int] | None:
     """Return a 0-based session label per run (in order of appearance), None for one."""
     if sessions is None:
         return None
-    sessions = list(sessions)
     if len(sessions) != len(runs):
         raise FitError(f'Expected one session label per run ({len(runs)}), got '
                        f'{len(sessions)}.')
@@ -224,18 +223,18 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
             fit = refine_rbf(x, level, scale_cols, replace(fit, coef=_with_level(fit)),
                              ridge=fit.ridge, seed=o.seed)
             offsets = offsets - offsets.mean(axis=0) + fit.coef[0]
-    check = None
+    check, counts = None, np.concatenate([b.counts for b in blocks])
+    bstate = np.concatenate([b.mean(s) for b, s in zip(blocks, states)])
     if groups is not None and o.check_sessions:
-        fit, offsets, check = check_sessions(
-            fit, offsets, x, y, scale_cols, groups, np.concatenate([b.counts for b in blocks]),
-            np.concatenate([b.mean(s) for b, s in zip(blocks, states)]), kind=o.kind,
-            n_centers=o.n_centers, seed=o.seed)
+        fit, offsets, check = check_sessions(fit, offsets, x, y, scale_cols, groups, counts,
+                                             bstate, kind=o.kind, n_centers=o.n_centers,
+                                             seed=o.seed)
     coef = fit.coef if groups is None else _with_level(fit, offsets)
     if th.kind != 'none':
         par[_LAG] = {'tau_s': th.tau_total_s}
     created = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
                'gyro_tdc_version': __version__, **(o.created or {})}
-    residual_var = _residual_var(blocks, states, fit, t0, n_total)
+    residual_var = _residual_var(blocks, states, counts, bstate, fit, t0, n_total)
     deg2 = _DEG ** 2
     metrics = {'samples': int(n_total), 'runs': [r.name for r in runs],
                'train_bs_dps2': [float(v) for v in residual_var * deg2],
@@ -300,7 +299,8 @@ def _search(runs: Sequence[Run], o: FitOptions, ids: tuple[str, ...], inputs: tu
 
 
 def _residual_var(blocks: Sequence[RunBlocks], states: Sequence[NDArray[np.float64]],
-                  fit: LinearFit, t0: float, n_total: int) -> NDArray[np.float64]:
+                  counts: NDArray[np.float64], bstate: NDArray[np.float64], fit: LinearFit,
+                  t0: float, n_total: int) -> NDArray[np.float64]:
     """
     Return the training residual variance per axis at full rate, from the blocks.
 
@@ -308,10 +308,8 @@ def _residual_var(blocks: Sequence[RunBlocks], states: Sequence[NDArray[np.float
     block's count times its squared residual; compensation divides by ``(1 + s dT)``, so
     does the residual.
     """
-    counts = np.concatenate([b.counts for b in blocks])
     within = np.concatenate([b.scatter(fit.scale, t0, state=s) if np.any(fit.scale)
                              else b.ss_within for b, s in zip(blocks, states)])
-    bstate = np.concatenate([b.mean(s) for b, s in zip(blocks, states)])
     gain = 1.0 + (bstate - t0)[:, None] * fit.scale
     ss = ((within + counts[:, None] * fit.resid ** 2) / gain ** 2).sum(axis=0)
     return np.maximum(ss, 0.0) / n_total

@@ -84,7 +84,7 @@ class RunBlocks:
         self.has_ref = bool(np.any(run.omega_ref))
         err = self._err()
         self.grid = BlockGrid(len(run), block, rows=rows)
-        self.rows, self.counts = self.grid.rows, self.grid.counts
+        self.rows, self.counts, self.mean = self.grid.rows, self.grid.counts, self.grid.mean
         e = err if self.rows is None else err[self.rows]
         self.ss_raw = np.einsum('ij,ij->j', e, e)
         self.y = self.mean(err)
@@ -93,10 +93,6 @@ class RunBlocks:
 
     def _err(self) -> NDArray[np.float64]:
         return self.run.omega - self.run.omega_ref if self.has_ref else self.run.omega
-
-    def mean(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Return the block means of ``x`` (N, ...) over the rows that count."""
-        return self.grid.mean(x)
 
     def scatter(self, scale: NDArray[np.float64], t0: float,
                 state: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
@@ -131,10 +127,8 @@ class RunBlocks:
 def block_groups(blocks: Sequence[RunBlocks], labels: Sequence[int] | None
                  ) -> NDArray[np.int64] | None:
     """Return the session of every block row (None: one session)."""
-    if labels is None:
-        return None
-    return np.concatenate([np.full(b.y.shape[0], g, dtype=np.int64)
-                           for b, g in zip(blocks, labels)])
+    return None if labels is None else np.concatenate(
+        [np.full(b.y.shape[0], g, dtype=np.int64) for b, g in zip(blocks, labels)])
 
 
 class ParamSearch:

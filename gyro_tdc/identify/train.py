@@ -25,6 +25,7 @@ save; the command line is :mod:`gyro_tdc.cli.train`. See ``doc/internals/identif
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import replace
 import os
 from pathlib import Path
@@ -177,8 +178,14 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     """
     o = TrainOptions() if options is None else options
     bag = BagOptions() if bag is None else bag
-    if runs is None:
-        runs, moving = _load_still_runs(bags, bag, o, log, moving)
+    if runs is None:    # no reference read (the rate is zero while still); the motion veto
+        said = None if log is None else (lambda line: log(line.replace(
+            'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
+        runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
+                         log=said)
+        if bag.motion_topic:
+            reps = [read_motion(r.name, bag.motion_topic) for r in runs]
+            moving = [motion_veto(r.t, rep.t, rep.twist) for r, rep in zip(runs, reps)]
     else:
         runs = [replace(r, omega_ref=np.zeros_like(r.omega)) for r in runs]
     bags = [r.name for r in runs]
@@ -192,10 +199,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     const = constant_gyro_axes(runs)
     raw_runs, runs = runs, neutral_runs(runs, const)
     still = find_still(runs, moving=moving, window_s=o.window_s, min_still_s=o.min_still_s)
-    rejected: dict = {}
-    for st in still:
-        for k, v in st.rejected().items():
-            rejected[k] = rejected.get(k, 0) + v
+    rejected = dict(sum((Counter(st.rejected()) for st in still), Counter()))
     rows = [st.mask.copy() for st in still]
     if not any(m.any() for m in rows):
         why = '; '.join(sorted({st.reason for st in still if st.reason}))
@@ -231,19 +235,3 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                    coverage=report.coverage, bags=bags,
                    samples=int(sum(np.count_nonzero(m) for m in rows)), still=report,
                    sessions=split, constant=constant_readings(raw_runs, const))
-
-
-def _load_still_runs(bags: Sequence[str | os.PathLike], bag: BagOptions, o: TrainOptions,
-                     log: Log, moving: Sequence[NDArray[np.bool_] | None] | None
-                     ) -> tuple[list[Run], Sequence[NDArray[np.bool_] | None] | None]:
-    """Read the bags with a zero reference rate, and the motion veto of ``bag.motion_topic``."""
-    said = None if log is None else (lambda line: log(line.replace(
-        'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
-    runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
-                     log=said)
-    if bag.motion_topic:
-        moving = []
-        for r in runs:
-            rep = read_motion(r.name, bag.motion_topic)
-            moving.append(motion_veto(r.t, rep.t, rep.twist))
-    return runs, moving
