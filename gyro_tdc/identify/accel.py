@@ -439,9 +439,8 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     out.raw_bs, out.train_bs = ss_raw / n_static, ss / n_static
     metrics = {
         'samples': int(n_static), 'runs': [r.name for r, _ in usable], 'segments': len(segs),
-        'raw_bs_m2_s4': [float(v) for v in out.raw_bs],
-        'train_bs_m2_s4': [float(v) for v in out.train_bs],
-        'train_rms_mg': [float(v) for v in np.sqrt(out.train_bs) / MG],
+        'raw_bs_m2_s4': out.raw_bs.tolist(), 'train_bs_m2_s4': out.train_bs.tolist(),
+        'train_rms_mg': (np.sqrt(out.train_bs) / MG).tolist(),
         'ridge': float(lf.ridge), 'orientation_changes': [c.to_dict() for c in out.changes]}
     out.part = CompensationModel.network(
         kind, ids, par, model.t0_c, lf.norm, coef, temp_range_c=span,

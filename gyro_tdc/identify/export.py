@@ -113,7 +113,7 @@ def _cubic(d: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64
 
 
 def check_instance(firmware: str, instance: object, name: str = '`instance`') -> None:
-    """FitError unless ``instance`` is a PX4 slot 0..3 or an ArduPilot IMU 0..2 (``name``)."""
+    """Raise FitError unless ``instance`` is a PX4 slot 0..3 or an ArduPilot IMU 0..2."""
     if not (isinstance(instance, int) and 0 <= instance < (4 if firmware == 'px4' else 3)):
         raise FitError(f'{name} {instance!r}: {firmware} has '
                        f'{"slots 0..3" if firmware == "px4" else "IMUs 0..2"}')

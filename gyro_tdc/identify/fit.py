@@ -237,9 +237,9 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     residual_var = _residual_var(blocks, states, counts, bstate, fit, t0, n_total)
     deg2 = _DEG ** 2
     metrics = {'samples': int(n_total), 'runs': [r.name for r in runs],
-               'train_bs_dps2': [float(v) for v in residual_var * deg2],
-               'train_rms_dps': [float(v) for v in np.sqrt(residual_var * deg2)],
-               'raw_bs_dps2': [float(v) for v in sum(b.ss_raw for b in blocks) / n_total * deg2],
+               'train_bs_dps2': (residual_var * deg2).tolist(),
+               'train_rms_dps': np.sqrt(residual_var * deg2).tolist(),
+               'raw_bs_dps2': (sum(b.ss_raw for b in blocks) / n_total * deg2).tolist(),
                'ridge': fit.ridge}
     if thermal_info:
         metrics['thermal'] = thermal_info
@@ -333,8 +333,8 @@ def _session_metrics(runs: Sequence[Run], labels: Sequence[int], offsets: NDArra
         names[g].append(r.name)
         samples[g] += len(r) if rows is None else int(np.count_nonzero(rows[i]))
     return {'count': int(offsets.shape[0]), 'names': [', '.join(n) for n in names],
-            'samples': samples, 'offset_dps': [[float(v) for v in o] for o in rel],
-            'spread_dps': [float(v) for v in rel.max(axis=0) - rel.min(axis=0)]}
+            'samples': samples, 'offset_dps': rel.tolist(),
+            'spread_dps': (rel.max(axis=0) - rel.min(axis=0)).tolist()}
 
 
 def fit_px4_cubic(runs: Sequence[Run], *, t0: float | None = None, **kw) -> CompensationModel:

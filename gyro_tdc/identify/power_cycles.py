@@ -108,9 +108,8 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
         w = counts[m][:, None]
         return (w * r[m] ** 2).sum(axis=0) / w.sum()
 
-    r_curve = heldout(curve, folds, shape, groups=groups, weights=counts)
-    r_offset = heldout(lambda test, train: -y[test], folds, shape, groups=groups,
-                       weights=counts)
+    r_curve, r_offset = (heldout(f, folds, shape, groups=groups, weights=counts)
+                         for f in (curve, lambda test, train: -y[test]))
     ms_curve, ms_offset = mean_square(r_curve, scored), mean_square(r_offset, scored)
     # Every held-out power cycle must be predicted better: a curve that misses one of a few
     # power cycles is as likely to miss the next one.
@@ -118,15 +117,13 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
                    axis=0)
     drop = np.flatnonzero(~(ms_curve < ms_offset) | (worse > 0))
     record = {'folds': len(folds), 'blocks': int(np.count_nonzero(scored)),
-              'curve_ms_dps2': [float(v) for v in ms_curve * _DEG2],
-              'offset_ms_dps2': [float(v) for v in ms_offset * _DEG2],
-              'worse_folds': [int(v) for v in worse],
+              'curve_ms_dps2': (ms_curve * _DEG2).tolist(),
+              'offset_ms_dps2': (ms_offset * _DEG2).tolist(), 'worse_folds': worse.tolist(),
               'offset_only': [_AXES[a] for a in drop]}
     if not drop.size:
         return fit, offsets, record
     means, centred = within(y, groups)
-    coef, scale, resid = fit.coef.copy(), fit.scale.copy(), fit.resid.copy()
-    offsets = offsets.copy()
+    coef, scale, resid, offsets = (a.copy() for a in (fit.coef, fit.scale, fit.resid, offsets))
     coef[:, drop], scale[drop] = 0.0, 0.0
     offsets[:, drop] = means[:, drop]
     resid[:, drop] = -centred[:, drop]

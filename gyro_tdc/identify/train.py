@@ -86,16 +86,12 @@ def _features(o: TrainOptions, on: Sequence[Run], runs: Sequence[Run], t0: float
 def _finish(model, o: TrainOptions, out: str | os.PathLike, accel_runs: Sequence[Run], choice,
             metrics: dict, **result) -> TrainResult:
     """Add the accelerometer part and the training records, save, return the result."""
-    accel_fit = None
-    if o.accel:
-        accel_fit = fit_accel(accel_runs, model, n_centers=o.n_centers, seed=o.seed,
-                              bin_c=o.bin_c)
-        if accel_fit.part is not None:
-            model = model.replace(accel=accel_fit.part)
-    metrics = {**model.metrics, **metrics}
+    accel_fit = (fit_accel(accel_runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c)
+                 if o.accel else None)
     if choice is not None:
-        metrics['features'] = choice.to_dict()
-    model = model.replace(metrics=metrics)
+        metrics = {**metrics, 'features': choice.to_dict()}
+    model = model.replace(accel=None if accel_fit is None else accel_fit.part,
+                          metrics={**model.metrics, **metrics})
     return TrainResult(model=model, path=Path(save_model(model, out)), choice=choice,
                        accel=accel_fit, **result)
 
