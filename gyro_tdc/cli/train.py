@@ -176,8 +176,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
             table, accel_warns = format_coverage(acc.coverage)
             print('accelerometer coverage (still data):\n' + table)
             warns = list(warns) + [f'accelerometer: {w}' for w in accel_warns]
-    for w in warns:
-        print(f'warning: {w}')
+    print(''.join(f'warning: {w}\n' for w in warns), end='')
     print(f'wrote {result.path} (model_id {result.model.model_id})', flush=True)
     if args.json is not None:
         doc = json.dumps(training_json(result, warns), indent=1, allow_nan=False) + '\n'

@@ -141,7 +141,7 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
     if not has_accelerometer(run.accel):
         return None
     (acc, t), n = (np.asarray(x, dtype=np.float64) for x in (run.accel, run.t)), len(run)
-    moves = np.asarray(run.omega_ref) != 0.0      # rows column by column: 3x faster
+    moves = np.asarray(run.omega_ref) != 0.0      # OR-ed column by column below: no axis reduction
     rate = None if model is None else compensate(
         model, t, run.temp, run.omega, out_of_range=DEFAULT_OUT_OF_RANGE) - run.omega_ref
     # The one still test: every still window counts, the segments set the shortest stretch.
