@@ -33,7 +33,7 @@ from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
 from gyro_tdc.identify.power_cycles import check_sessions
 from gyro_tdc.identify.tau import fit_time_constant
-from gyro_tdc.identify.thermal_search import (block_groups, choose_state, ParamSearch, run_state,
+from gyro_tdc.identify.thermal_search import (choose_state, ParamSearch, run_blocks, run_state,
                                               RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
 from gyro_tdc.model import (CompensationModel, EFFECTS, input_ids, KINDS, normalise_ids,
                             REFERENCE_EFFECTS, resolve_params, STATE_TERMS, TEMPERATURE_EFFECTS,
@@ -202,9 +202,7 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     rows = None if rows is None else [np.asarray(m, dtype=bool) for m in rows]
     n_total = n_all if rows is None else int(sum(np.count_nonzero(m) for m in rows))
     block = block_length(n_all, o.max_rows, at_most=True)
-    blocks = [RunBlocks(r, block, None if rows is None else rows[i]) for i, r in enumerate(runs)]
-    y = np.concatenate([b.y for b in blocks])
-    groups = block_groups(blocks, labels)
+    blocks, y, groups = run_blocks(runs, block, rows, labels)
     th, thermal_info = _search(runs, o, ids, inputs, t0, par, mode, th, rows, labels)
 
     states = [run_state(th, r) for r in runs]
