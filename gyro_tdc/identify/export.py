@@ -228,9 +228,9 @@ def write_params(export: FcExport, path: str | os.PathLike, *, header: Sequence[
     lines = [f'# {h}'.rstrip() for h in header]
     if export.firmware == 'px4':
         lines += ['#', '# Vehicle-Id Component-Id Name Value Type']
-        for name, value in export.params.items():
-            kind = _INT32 if isinstance(value, int) else _REAL32
-            lines.append(f'1\t1\t{name}\t{_value_text(value)}\t{kind}')
+        lines += [f'1\t1\t{name}\t{_value_text(value)}\t'
+                  f'{_INT32 if isinstance(value, int) else _REAL32}'
+                  for name, value in export.params.items()]
     else:
         lines += [f'{name} {_value_text(value)}' for name, value in export.params.items()]
     return atomic_write(path, '\n'.join(lines) + '\n', what='parameter file')

@@ -39,6 +39,7 @@ from typing import Callable, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
+from gyro_tdc.identify.axes import AXES
 from gyro_tdc.identify.linear import fit_linear, LinearFit
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime import MAX_ANCHORS, MAX_ROWS, SIGNIFICANCE
@@ -50,9 +51,7 @@ from numpy.typing import NDArray
 __all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'reanchor_lines', 'reanchor_rule',
            'session_check_lines', 'SIGNIFICANCE']
 
-_AXES = ('x', 'y', 'z')
-_DEG = 180.0 / math.pi
-_DEG2 = _DEG ** 2
+_DEG2 = (180.0 / math.pi) ** 2
 
 
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
@@ -119,7 +118,7 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     record = {'folds': len(folds), 'blocks': int(np.count_nonzero(scored)),
               'curve_ms_dps2': (ms_curve * _DEG2).tolist(),
               'offset_ms_dps2': (ms_offset * _DEG2).tolist(), 'worse_folds': worse.tolist(),
-              'offset_only': [_AXES[a] for a in drop]}
+              'offset_only': [AXES[a] for a in drop]}
     if not drop.size:
         return fit, offsets, record
     means, centred = within(y, groups)
@@ -179,7 +178,7 @@ def reanchor_lines(record: dict | None) -> list[str]:
                 'fitted on the others, re-anchored at its start), RMS of their mean error, deg/s:',
                 *(f'  {k:<22}' + '  '.join(f'{v:10.3g}' for v in record[f'{k.split()[0]}_dps'])
                   for k in ('always (any shift)', 'gated (beyond the gate)', 'never'))]
-    for a, v, e in zip(_AXES, record['min_shift_dps'], record['anchor_error_dps']):
+    for a, v, e in zip(AXES, record['min_shift_dps'], record['anchor_error_dps']):
         if v > 0:
             out.append(f'axis {a}: the node re-anchors only beyond {v:.3g} deg/s '
                        f"({SIGNIFICANCE:g} x its anchors' error: a smaller start-up shift is no "

@@ -106,11 +106,8 @@ def _gate(model, kw: dict, runs: Sequence[Run], labels: Sequence[int],
     """
     form = {**kw, 'features': model.features, 'params': model.effect_params,
             'fit_params': False, 'thermal': model.thermal}
-
-    def refit(others: list, g: list, **rows_kw) -> object:
-        return fit_model(others, **{**form, 'sessions': g, **rows_kw})
-
-    return reanchor_rule(model, runs, labels, refit, rows)
+    return reanchor_rule(model, runs, labels, lambda others, g, **rows_kw: fit_model(
+        others, **{**form, 'sessions': g, **rows_kw}), rows)
 
 
 def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
