@@ -32,8 +32,8 @@ from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, c
                                  non_negative_float, non_negative_int, read_model, run_command,
                                  UsageError)
 from gyro_tdc.data import load_runs
-from gyro_tdc.identify import (clamp_cost, fit_export, from_params, read_params, score_export,
-                               write_params)
+from gyro_tdc.identify import (check_instance, clamp_cost, fit_export, from_params, read_params,
+                               score_export, write_params)
 from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, save_model
 import numpy as np
 
@@ -87,14 +87,6 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
-def _device_id(args: argparse.Namespace, model) -> int:
-    """Return the PX4 device id: ``--device-id``, or the model's numeric sensor_id, or 0."""
-    if args.device_id is not None:
-        return int(args.device_id)
-    sid = str(model.sensor_id).strip()
-    return int(sid) if sid.isdigit() else 0
-
-
 def _axes(values) -> str:
     return ' '.join(f'{v:10.3e}' for v in values)
 
@@ -123,21 +115,20 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     if args.model is not None:
         return _write_model(args)
     firmware, spec = ('px4', args.px4) if args.px4 is not None else ('ardupilot', args.ardupilot)
-    slots = 4 if firmware == 'px4' else 3
-    if args.instance >= slots:
-        raise UsageError(f'--instance {args.instance}: {firmware} has '
-                         f'{"slots 0..3" if slots == 4 else "IMUs 0..2"}')
+    check_instance(firmware, args.instance, '--instance')
     if args.reanchor and not args.eval:
         raise UsageError('--reanchor is only used with --eval BAG...')
     model = read_model(spec)
     lo, hi = model.temp_range_c
     state = ('steady-state drift vs temperature (the thermal state settled)'
-             if model.thermal.kind != 'none' else
-             'drift vs temperature')
+             if model.thermal.kind != 'none' else 'drift vs temperature')
     print(f'model {spec} ({model.model_id}, {model.kind} {",".join(model.features)}), trained '
           f'{lo:.2f} .. {hi:.2f} degC: its {state} fitted on a uniform temperature grid')
+    # PX4 TC_Gn_ID: --device-id, or the model's numeric sensor_id, or 0.
+    sid = str(model.sensor_id).strip()
+    device_id = args.device_id if args.device_id is not None else int(sid) if sid.isdigit() else 0
     fitted = fit_export(model, firmware, instance=args.instance,
-                        device_id=_device_id(args, model) if firmware == 'px4' else 0)
+                        device_id=device_id if firmware == 'px4' else 0)
     path = write_params(fitted, args.out, header=[
         ('Sensor thermal compensation parameters' if firmware == 'px4' else
          'IMU temperature calibration') + f' from gyro_tdc model {model.model_id}',
@@ -174,17 +165,17 @@ def _evaluate(args: argparse.Namespace, model, form, firmware: str) -> None:
           f'firmware does (raw minus its correction at the measured temperature, clamped)'
           + how)
     scores = score_export(model, {firmware: form}, runs, reanchor_s=args.reanchor)
+    labels = ('raw', 'model', firmware)
     for s in scores:
         print(f'{s.name}: {s.samples} samples, {100 * s.outside_fraction:.1f} % outside '
               'TMIN..TMAX')
-        for label in ('raw', 'model', firmware):
+        for label in labels:
             print(f'  {label:<10} BS {_axes(s.bs[label])}   RMS {_axes(s.rms_dps[label])}')
         print(f"  {firmware} keeps {100 * s.kept(firmware):.2f} % of the full model's "
               f'improvement over raw (BS {firmware}/model '
               f'{np.mean(s.bs[firmware]) / np.mean(s.bs["model"]):.2f})')
     if len(scores) > 1:
-        mean = {k: float(np.mean([np.mean(s.bs[k]) for s in scores]))
-                for k in ('raw', 'model', firmware)}
+        mean = {k: float(np.mean([np.mean(s.bs[k]) for s in scores])) for k in labels}
         kept = (mean['raw'] - mean[firmware]) / (mean['raw'] - mean['model'])
         print(f'mean over {len(scores)} bags: {firmware} keeps {100 * kept:.2f} % '
               f'(BS raw {mean["raw"]:.3e}, model {mean["model"]:.3e}, {firmware} '

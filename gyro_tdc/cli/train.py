@@ -29,7 +29,7 @@ import math
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.base import atomic_write
+from gyro_tdc.base import atomic_write, plain
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
                                  ArgumentParser, bag_options, command_line, driver_bags,
                                  effect_listing, finite_float, positive_float, positive_int,
@@ -132,24 +132,17 @@ def training_json(result: TrainResult, warnings: Sequence[str] = ()) -> dict:
     printed.
     """
     m, acc = result.model, result.accel
-
-    def num(v: object) -> float | None:
-        v = float(v)
-        return v if math.isfinite(v) else None      # JSON has no NaN
-
-    def vec(key: str) -> list:
-        return [num(v) for v in m.metrics.get(key, [math.nan] * 3)]
-
-    return {'model_file': str(result.path), 'model_id': m.model_id, 'kind': m.kind,
-            'features': list(m.features), 'bags': [str(b) for b in result.bags],
-            'samples': int(result.samples), 'temp_range_c': [num(v) for v in m.temp_range_c],
-            'raw_bs': vec('raw_bs_dps2'), 'train_bs': vec('train_bs_dps2'),
-            'train_rms_dps': vec('train_rms_dps'),
-            'constant_axes': {a: num(v) for a, v in result.constant.items()},
-            'reanchor': m.metrics.get('reanchor'),
-            'accelerometer': None if acc is None else {'fitted': acc.part is not None,
-                                                       'note': acc.note or None},
-            'warnings': list(warnings)}
+    nan3 = [math.nan] * 3
+    return plain({'model_file': str(result.path), 'model_id': m.model_id, 'kind': m.kind,
+                  'features': list(m.features), 'bags': [str(b) for b in result.bags],
+                  'samples': int(result.samples), 'temp_range_c': m.temp_range_c,
+                  **{k: m.metrics.get(key, nan3) for k, key in (
+                      ('raw_bs', 'raw_bs_dps2'), ('train_bs', 'train_bs_dps2'),
+                      ('train_rms_dps', 'train_rms_dps'))},
+                  'constant_axes': result.constant, 'reanchor': m.metrics.get('reanchor'),
+                  'accelerometer': None if acc is None else {'fitted': acc.part is not None,
+                                                             'note': acc.note or None},
+                  'warnings': list(warnings)}, nan_to_none=True)     # JSON has no NaN
 
 
 def _lines(part: object) -> list:
@@ -183,8 +176,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
             table, accel_warns = format_coverage(acc.coverage)
             print('accelerometer coverage (still data):\n' + table)
             warns = list(warns) + [f'accelerometer: {w}' for w in accel_warns]
-    for w in warns:
-        print(f'warning: {w}')
+    print(''.join(f'warning: {w}\n' for w in warns), end='')
     print(f'wrote {result.path} (model_id {result.model.model_id})', flush=True)
     if args.json is not None:
         doc = json.dumps(training_json(result, warns), indent=1, allow_nan=False) + '\n'

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import math
 from typing import Sequence
 
+from gyro_tdc.base import plain
 from gyro_tdc.data import Coverage, coverage, Run
 from gyro_tdc.errors import FeatureError, FitError
 from gyro_tdc.identify.axes import constant_note
@@ -90,9 +91,8 @@ class OrientationChange:
 
     def to_dict(self) -> dict:
         """Return the change as plain types."""
-        return {'run': self.run, 't_s': float(self.t_s), 'angle_deg': float(self.angle_deg),
-                'before_mps2': [float(v) for v in self.before],
-                'after_mps2': [float(v) for v in self.after]}
+        return plain({'run': self.run, 't_s': float(self.t_s), 'angle_deg': float(self.angle_deg),
+                      'before_mps2': self.before, 'after_mps2': self.after})
 
 
 @dataclass(frozen=True, eq=False)
@@ -140,10 +140,8 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
     """
     if not has_accelerometer(run.accel):
         return None
-    acc = np.asarray(run.accel, dtype=np.float64)
-    t = np.asarray(run.t, dtype=np.float64)
-    n = len(run)
-    moves = np.asarray(run.omega_ref) != 0.0      # rows column by column: 3x faster
+    (acc, t), n = (np.asarray(x, dtype=np.float64) for x in (run.accel, run.t)), len(run)
+    moves = np.asarray(run.omega_ref) != 0.0      # OR-ed column by column below: no axis reduction
     rate = None if model is None else compensate(
         model, t, run.temp, run.omega, out_of_range=DEFAULT_OUT_OF_RANGE) - run.omega_ref
     # The one still test: every still window counts, the segments set the shortest stretch.
@@ -156,10 +154,7 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
 
     if st.reason == 'too few samples to judge stillness':
         return none(st.reason)
-    starts, counts = st.starts, st.counts.astype(np.float64)
-    a_mean = st.accel_mean
-    finite = np.isfinite(acc)
-    finite = finite[:, 0] & finite[:, 1] & finite[:, 2]
+    starts, counts, a_mean = st.starts, st.counts.astype(np.float64), st.accel_mean
     still = st.still_windows
     if not np.any(still):
         usable = ~np.isin(st.why, ('samples', 'non-finite'))
@@ -167,10 +162,8 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
                     if np.all((st.why == 'motion') | ~usable) else
                     'no still window (the IMU moves)')
     # Orientation segments over the still windows.
-    seg_of = np.full(starts.size, -1, dtype=np.int64)
-    changes: list[OrientationChange] = []
+    seg_of, changes, steps = np.full(starts.size, -1, dtype=np.int64), [], []
     seg, prev = -1, -1
-    steps: list[NDArray[np.float64]] = []
     var_mean = st.accel_std ** 2 / counts[:, None]    # variance of each window's mean, per axis
     for j in np.flatnonzero(still).tolist():
         new = prev < 0 or j - prev - 1 > MAX_GAP_WINDOWS
@@ -196,11 +189,12 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
     ends = np.append(starts[1:], n)
     keep_ids = [s for s in range(seg + 1) for w in [np.flatnonzero(seg_of == s)]
                 if t[ends[w[-1]] - 1] - t[starts[w[0]]] >= min_segment_s or seg == 0]
-    remap = np.full(seg + 1, -1, dtype=np.int64)
+    remap = np.full(seg + 2, -1, dtype=np.int64)        # remap[-1]: not still, stays -1
     remap[keep_ids] = np.arange(len(keep_ids))
-    seg_of = np.where(seg_of >= 0, remap[np.maximum(seg_of, 0)], -1)
+    seg_of = remap[seg_of]
     per_sample = np.repeat(seg_of, counts.astype(np.int64))
-    mask = (per_sample >= 0) & finite
+    finite = np.isfinite(acc)
+    mask = (per_sample >= 0) & finite[:, 0] & finite[:, 1] & finite[:, 2]
     return StaticData(run.name, mask, np.where(mask, per_sample, -1), len(keep_ids),
                       tuple(changes), st.window_s, '' if mask.any() else
                       'no still stretch long enough')
@@ -445,9 +439,8 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     out.raw_bs, out.train_bs = ss_raw / n_static, ss / n_static
     metrics = {
         'samples': int(n_static), 'runs': [r.name for r, _ in usable], 'segments': len(segs),
-        'raw_bs_m2_s4': [float(v) for v in out.raw_bs],
-        'train_bs_m2_s4': [float(v) for v in out.train_bs],
-        'train_rms_mg': [float(v) for v in np.sqrt(out.train_bs) / MG],
+        'raw_bs_m2_s4': out.raw_bs.tolist(), 'train_bs_m2_s4': out.train_bs.tolist(),
+        'train_rms_mg': (np.sqrt(out.train_bs) / MG).tolist(),
         'ridge': float(lf.ridge), 'orientation_changes': [c.to_dict() for c in out.changes]}
     out.part = CompensationModel.network(
         kind, ids, par, model.t0_c, lf.norm, coef, temp_range_c=span,

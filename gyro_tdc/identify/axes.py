@@ -155,10 +155,10 @@ def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[
     ms = np.zeros(3)
     ms[const] = ss / max(n, 1)
     met = dict(model.metrics)
-    for key in ('raw_bs_dps2', 'train_bs_dps2'):
-        met[key] = [float(v) for v in np.where(const, ms * _DEG2, met[key])]
-    met['train_rms_dps'] = [float(v) for v in np.where(const, np.sqrt(ms * _DEG2),
-                                                       met['train_rms_dps'])]
+    dps2 = ms * _DEG2
+    for key, v in (('raw_bs_dps2', dps2), ('train_bs_dps2', dps2),
+                   ('train_rms_dps', np.sqrt(dps2))):
+        met[key] = np.where(const, v, met[key]).tolist()
     met['constant_axes'] = [a for a, c in zip(AXES, const) if c]
     return model.replace(residual_var=np.where(const, ms, model.residual_var), metrics=met)
 

@@ -38,8 +38,9 @@ from gyro_tdc.signal import bias_stability, rms_dps
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['ExportScore', 'FIRMWARES', 'FcExport', 'GRID_POINTS', 'clamp_cost', 'fit_export',
-           'from_params', 'read_params', 'score_export', 'steady_drift', 'write_params']
+__all__ = ['check_instance', 'ExportScore', 'FIRMWARES', 'FcExport', 'GRID_POINTS', 'clamp_cost',
+           'fit_export', 'from_params', 'read_params', 'score_export', 'steady_drift',
+           'write_params']
 
 #: The flight-controller firmwares an export targets.
 FIRMWARES = ('px4', 'ardupilot')
@@ -111,6 +112,13 @@ def _cubic(d: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64
     return coef
 
 
+def check_instance(firmware: str, instance: object, name: str = '`instance`') -> None:
+    """Raise FitError unless ``instance`` is a PX4 slot 0..3 or an ArduPilot IMU 0..2."""
+    if not (isinstance(instance, int) and 0 <= instance < (4 if firmware == 'px4' else 3)):
+        raise FitError(f'{name} {instance!r}: {firmware} has '
+                       f'{"slots 0..3" if firmware == "px4" else "IMUs 0..2"}')
+
+
 def fit_export(model: CompensationModel, firmware: str, *, instance: int = 0,
                device_id: int = 0, points: int = GRID_POINTS) -> FcExport:
     """
@@ -127,9 +135,7 @@ def fit_export(model: CompensationModel, firmware: str, *, instance: int = 0,
     if firmware not in FIRMWARES:
         raise FitError(f'Expected `firmware` to be one of {", ".join(FIRMWARES)}, '
                        f'got {firmware!r}.')
-    slots = 4 if firmware == 'px4' else 3
-    if not (isinstance(instance, int) and 0 <= instance < slots):
-        raise FitError(f'Expected `instance` 0..{slots - 1} for {firmware}, got {instance!r}.')
+    check_instance(firmware, instance)
     lo, hi = (float(v) for v in model.temp_range_c)
     if not (math.isfinite(lo) and math.isfinite(hi) and hi - lo >= 1.0):
         raise FitError(f'the model range {lo:g} .. {hi:g} degC is too narrow for a cubic in '
@@ -138,8 +144,8 @@ def fit_export(model: CompensationModel, firmware: str, *, instance: int = 0,
     gyro = steady_drift(model, grid)
     acc = None if model.accel is None else steady_drift(model.accel, grid)
     notes: list[str] = []
-    exp = (_px4(gyro, acc, grid, instance, int(device_id), notes) if firmware == 'px4' else
-           _ardupilot(gyro, acc, grid, instance, notes))
+    exp = (_px4 if firmware == 'px4' else _ardupilot)(gyro, acc, grid, instance, int(device_id),
+                                                      notes)
     return replace(exp, range_c=(lo, hi), fit_rms_dps=rms_dps(exp.correction(grid) - gyro),
                    notes=notes)
 
@@ -147,13 +153,12 @@ def fit_export(model: CompensationModel, firmware: str, *, instance: int = 0,
 def _px4(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None, grid: NDArray[np.float64],
          slot: int, device_id: int, notes: list) -> FcExport:
     """Return the PX4 form: a cubic about the middle of the range, per sensor."""
-    lo, hi = float(grid[0]), float(grid[-1])
-    tref = float(_f32(0.5 * (lo + hi)))
-    tmin, tmax = (float(v) for v in _f32([lo, hi]))
+    tref = float(_f32(0.5 * (grid[0] + grid[-1])))
     cals, params = {}, {'TC_G_ENABLE': 1}
     for sensor, y in (('gyro', gyro), ('accel', acc)):
         if y is not None:
-            cals[sensor] = Px4TempCal(_f32(_cubic(grid - tref, y)), tref, tmin, tmax, device_id)
+            cals[sensor] = Px4TempCal(_f32(_cubic(grid - tref, y)), tref,
+                                      *_f32(grid[[0, -1]]).tolist(), device_id)
             params.update({'TC_A_ENABLE': 1} if sensor == 'accel' else {})
             params.update(cals[sensor].to_params(sensor, slot))
     if not device_id:
@@ -166,10 +171,10 @@ def _px4(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None, grid: NDArr
 
 
 def _ardupilot(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None,
-               grid: NDArray[np.float64], imu: int, notes: list) -> FcExport:
+               grid: NDArray[np.float64], imu: int, _device_id: int, notes: list) -> FcExport:
     """Return the ArduPilot form: the cubic about 35 degC without constant, x1e6."""
     lo, hi = float(grid[0]), float(grid[-1])
-    tmin, tmax = (float(v) for v in _f32([lo, hi]))
+    tmin, tmax = _f32([lo, hi]).tolist()
     if lo < AP_LIMITS_C[0] or hi > AP_LIMITS_C[1]:
         notes.append(f'the range {lo:.1f} .. {hi:.1f} degC exceeds what INS_TCALn_TMIN/TMAX '
                      f'accept ({AP_LIMITS_C[0]:g} .. {AP_LIMITS_C[1]:g} degC)')
@@ -223,9 +228,9 @@ def write_params(export: FcExport, path: str | os.PathLike, *, header: Sequence[
     lines = [f'# {h}'.rstrip() for h in header]
     if export.firmware == 'px4':
         lines += ['#', '# Vehicle-Id Component-Id Name Value Type']
-        for name, value in export.params.items():
-            kind = _INT32 if isinstance(value, int) else _REAL32
-            lines.append(f'1\t1\t{name}\t{_value_text(value)}\t{kind}')
+        lines += [f'1\t1\t{name}\t{_value_text(value)}\t'
+                  f'{_INT32 if isinstance(value, int) else _REAL32}'
+                  for name, value in export.params.items()]
     else:
         lines += [f'{name} {_value_text(value)}' for name, value in export.params.items()]
     return atomic_write(path, '\n'.join(lines) + '\n', what='parameter file')
@@ -262,17 +267,14 @@ def read_params(path: str | os.PathLike) -> dict:
 def from_params(params: dict, firmware: str, *, instance: int = 0) -> FcExport:
     """Return the export a firmware reads from ``params``: REAL32 values rounded to float32."""
     params = {k: v if isinstance(v, int) else float(np.float32(v)) for k, v in params.items()}
-    if firmware == 'px4':
-        gyro = Px4TempCal.from_params(params, 'gyro', instance)
-        accel = (Px4TempCal.from_params(params, 'accel', instance)
-                 if f'TC_A{instance}_X0_0' in params else None)
-        return FcExport('px4', dict(params), gyro, np.zeros(3), accel, (gyro.tmin, gyro.tmax))
-    gyro = ArduPilotTempCal.from_params(params, 'gyro', instance)
+    px4 = firmware == 'px4'
+    cal = Px4TempCal if px4 else ArduPilotTempCal
+    gyro = cal.from_params(params, 'gyro', instance)
+    accel = (cal.from_params(params, 'accel', instance)
+             if not px4 or f'TC_A{instance}_X0_0' in params else None)
     stem = 'INS_GYR' if instance == 0 else f'INS_GYR{instance + 1}'
-    offset = np.array([float(params.get(f'{stem}OFFS_{a}', 0.0)) for a in 'XYZ'])
-    return FcExport('ardupilot', dict(params), gyro, offset,
-                    ArduPilotTempCal.from_params(params, 'accel', instance),
-                    (gyro.tmin, gyro.tmax))
+    offset = np.array([0.0 if px4 else float(params.get(f'{stem}OFFS_{a}', 0.0)) for a in 'XYZ'])
+    return FcExport(firmware, dict(params), gyro, offset, accel, (gyro.tmin, gyro.tmax))
 
 
 # --------------------------------------------------------------------------------------------

@@ -21,7 +21,7 @@ or rejected with its reason (:class:`FeatureChoice`); ``doc/internals/identify.m
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from typing import Sequence
 
 from gyro_tdc.data import Run
@@ -93,8 +93,7 @@ class FeatureChoice:
         """Return the choice as plain types (the model's ``training`` metrics)."""
         d = self.discovery
         out = {'mode': AUTO, 'base': list(self.base), 'chosen': list(self.features),
-               'decisions': [{'effect': x.effect, 'verdict': x.verdict, 'why': x.why}
-                             for x in self.decisions]}
+               'decisions': [asdict(x) for x in self.decisions]}
         if d is not None:
             out['discovery'] = {
                 'noise_floor_dps': float(d.noise_floor_dps), 'gap_dps': float(d.gap_dps),

@@ -33,7 +33,7 @@ from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
 from gyro_tdc.identify.power_cycles import check_sessions
 from gyro_tdc.identify.tau import fit_time_constant
-from gyro_tdc.identify.thermal_search import (block_groups, choose_state, ParamSearch, run_state,
+from gyro_tdc.identify.thermal_search import (choose_state, ParamSearch, run_blocks, run_state,
                                               RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
 from gyro_tdc.model import (CompensationModel, EFFECTS, input_ids, KINDS, normalise_ids,
                             REFERENCE_EFFECTS, resolve_params, STATE_TERMS, TEMPERATURE_EFFECTS,
@@ -74,7 +74,6 @@ def _labels(runs: Sequence[Run], sessions: Sequence | None) -> list[int] | None:
     """Return a 0-based session label per run (in order of appearance), None for one."""
     if sessions is None:
         return None
-    sessions = list(sessions)
     if len(sessions) != len(runs):
         raise FitError(f'Expected one session label per run ({len(runs)}), got '
                        f'{len(sessions)}.')
@@ -203,9 +202,7 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     rows = None if rows is None else [np.asarray(m, dtype=bool) for m in rows]
     n_total = n_all if rows is None else int(sum(np.count_nonzero(m) for m in rows))
     block = block_length(n_all, o.max_rows, at_most=True)
-    blocks = [RunBlocks(r, block, None if rows is None else rows[i]) for i, r in enumerate(runs)]
-    y = np.concatenate([b.y for b in blocks])
-    groups = block_groups(blocks, labels)
+    blocks, y, groups = run_blocks(runs, block, rows, labels)
     th, thermal_info = _search(runs, o, ids, inputs, t0, par, mode, th, rows, labels)
 
     states = [run_state(th, r) for r in runs]
@@ -224,23 +221,23 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
             fit = refine_rbf(x, level, scale_cols, replace(fit, coef=_with_level(fit)),
                              ridge=fit.ridge, seed=o.seed)
             offsets = offsets - offsets.mean(axis=0) + fit.coef[0]
-    check = None
+    check, counts = None, np.concatenate([b.counts for b in blocks])
+    bstate = np.concatenate([b.mean(s) for b, s in zip(blocks, states)])
     if groups is not None and o.check_sessions:
-        fit, offsets, check = check_sessions(
-            fit, offsets, x, y, scale_cols, groups, np.concatenate([b.counts for b in blocks]),
-            np.concatenate([b.mean(s) for b, s in zip(blocks, states)]), kind=o.kind,
-            n_centers=o.n_centers, seed=o.seed)
+        fit, offsets, check = check_sessions(fit, offsets, x, y, scale_cols, groups, counts,
+                                             bstate, kind=o.kind, n_centers=o.n_centers,
+                                             seed=o.seed)
     coef = fit.coef if groups is None else _with_level(fit, offsets)
     if th.kind != 'none':
         par[_LAG] = {'tau_s': th.tau_total_s}
     created = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
                'gyro_tdc_version': __version__, **(o.created or {})}
-    residual_var = _residual_var(blocks, states, fit, t0, n_total)
+    residual_var = _residual_var(blocks, states, counts, bstate, fit, t0, n_total)
     deg2 = _DEG ** 2
     metrics = {'samples': int(n_total), 'runs': [r.name for r in runs],
-               'train_bs_dps2': [float(v) for v in residual_var * deg2],
-               'train_rms_dps': [float(v) for v in np.sqrt(residual_var * deg2)],
-               'raw_bs_dps2': [float(v) for v in sum(b.ss_raw for b in blocks) / n_total * deg2],
+               'train_bs_dps2': (residual_var * deg2).tolist(),
+               'train_rms_dps': np.sqrt(residual_var * deg2).tolist(),
+               'raw_bs_dps2': (sum(b.ss_raw for b in blocks) / n_total * deg2).tolist(),
                'ridge': fit.ridge}
     if thermal_info:
         metrics['thermal'] = thermal_info
@@ -300,7 +297,8 @@ def _search(runs: Sequence[Run], o: FitOptions, ids: tuple[str, ...], inputs: tu
 
 
 def _residual_var(blocks: Sequence[RunBlocks], states: Sequence[NDArray[np.float64]],
-                  fit: LinearFit, t0: float, n_total: int) -> NDArray[np.float64]:
+                  counts: NDArray[np.float64], bstate: NDArray[np.float64], fit: LinearFit,
+                  t0: float, n_total: int) -> NDArray[np.float64]:
     """
     Return the training residual variance per axis at full rate, from the blocks.
 
@@ -308,10 +306,8 @@ def _residual_var(blocks: Sequence[RunBlocks], states: Sequence[NDArray[np.float
     block's count times its squared residual; compensation divides by ``(1 + s dT)``, so
     does the residual.
     """
-    counts = np.concatenate([b.counts for b in blocks])
     within = np.concatenate([b.scatter(fit.scale, t0, state=s) if np.any(fit.scale)
                              else b.ss_within for b, s in zip(blocks, states)])
-    bstate = np.concatenate([b.mean(s) for b, s in zip(blocks, states)])
     gain = 1.0 + (bstate - t0)[:, None] * fit.scale
     ss = ((within + counts[:, None] * fit.resid ** 2) / gain ** 2).sum(axis=0)
     return np.maximum(ss, 0.0) / n_total
@@ -335,8 +331,8 @@ def _session_metrics(runs: Sequence[Run], labels: Sequence[int], offsets: NDArra
         names[g].append(r.name)
         samples[g] += len(r) if rows is None else int(np.count_nonzero(rows[i]))
     return {'count': int(offsets.shape[0]), 'names': [', '.join(n) for n in names],
-            'samples': samples, 'offset_dps': [[float(v) for v in o] for o in rel],
-            'spread_dps': [float(v) for v in rel.max(axis=0) - rel.min(axis=0)]}
+            'samples': samples, 'offset_dps': rel.tolist(),
+            'spread_dps': (rel.max(axis=0) - rel.min(axis=0)).tolist()}
 
 
 def fit_px4_cubic(runs: Sequence[Run], *, t0: float | None = None, **kw) -> CompensationModel:

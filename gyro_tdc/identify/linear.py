@@ -45,7 +45,7 @@ def _place_centers(xn: NDArray[np.float64], k: int, seed: int
     k = min(k, uniq.shape[0])
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
-        from scipy.cluster.vq import kmeans2    # ~0.1 s of imports: only for k-means centres
+        from scipy.cluster.vq import kmeans2    # a costly import: only k-means needs it
         centers, _ = kmeans2(xn, k, seed=rng, minit='++')
     centers = np.unique(centers, axis=0)
     k = centers.shape[0]
@@ -54,8 +54,7 @@ def _place_centers(xn: NDArray[np.float64], k: int, seed: int
     d = np.sqrt(((centers[:, None, :] - centers[None, :, :]) ** 2).sum(axis=2))
     np.fill_diagonal(d, np.inf)
     nn = np.sort(d, axis=1)[:, :min(2, k - 1)]
-    widths = np.maximum(nn.mean(axis=1), 1e-3)
-    return centers, widths
+    return centers, np.maximum(nn.mean(axis=1), 1e-3)
 
 
 #: Relative penalty on the linear tail (conditioning only: the tail is the physics).

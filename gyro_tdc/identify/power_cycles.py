@@ -39,6 +39,7 @@ from typing import Callable, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
+from gyro_tdc.identify.axes import AXES
 from gyro_tdc.identify.linear import fit_linear, LinearFit
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime import MAX_ANCHORS, MAX_ROWS, SIGNIFICANCE
@@ -50,9 +51,7 @@ from numpy.typing import NDArray
 __all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'reanchor_lines', 'reanchor_rule',
            'session_check_lines', 'SIGNIFICANCE']
 
-_AXES = ('x', 'y', 'z')
-_DEG = 180.0 / math.pi
-_DEG2 = _DEG ** 2
+_DEG2 = (180.0 / math.pi) ** 2
 
 
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
@@ -108,9 +107,8 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
         w = counts[m][:, None]
         return (w * r[m] ** 2).sum(axis=0) / w.sum()
 
-    r_curve = heldout(curve, folds, shape, groups=groups, weights=counts)
-    r_offset = heldout(lambda test, train: -y[test], folds, shape, groups=groups,
-                       weights=counts)
+    r_curve, r_offset = (heldout(f, folds, shape, groups=groups, weights=counts)
+                         for f in (curve, lambda test, train: -y[test]))
     ms_curve, ms_offset = mean_square(r_curve, scored), mean_square(r_offset, scored)
     # Every held-out power cycle must be predicted better: a curve that misses one of a few
     # power cycles is as likely to miss the next one.
@@ -118,15 +116,13 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
                    axis=0)
     drop = np.flatnonzero(~(ms_curve < ms_offset) | (worse > 0))
     record = {'folds': len(folds), 'blocks': int(np.count_nonzero(scored)),
-              'curve_ms_dps2': [float(v) for v in ms_curve * _DEG2],
-              'offset_ms_dps2': [float(v) for v in ms_offset * _DEG2],
-              'worse_folds': [int(v) for v in worse],
-              'offset_only': [_AXES[a] for a in drop]}
+              'curve_ms_dps2': (ms_curve * _DEG2).tolist(),
+              'offset_ms_dps2': (ms_offset * _DEG2).tolist(), 'worse_folds': worse.tolist(),
+              'offset_only': [AXES[a] for a in drop]}
     if not drop.size:
         return fit, offsets, record
     means, centred = within(y, groups)
-    coef, scale, resid = fit.coef.copy(), fit.scale.copy(), fit.resid.copy()
-    offsets = offsets.copy()
+    coef, scale, resid, offsets = (a.copy() for a in (fit.coef, fit.scale, fit.resid, offsets))
     coef[:, drop], scale[drop] = 0.0, 0.0
     offsets[:, drop] = means[:, drop]
     resid[:, drop] = -centred[:, drop]
@@ -182,7 +178,7 @@ def reanchor_lines(record: dict | None) -> list[str]:
                 'fitted on the others, re-anchored at its start), RMS of their mean error, deg/s:',
                 *(f'  {k:<22}' + '  '.join(f'{v:10.3g}' for v in record[f'{k.split()[0]}_dps'])
                   for k in ('always (any shift)', 'gated (beyond the gate)', 'never'))]
-    for a, v, e in zip(_AXES, record['min_shift_dps'], record['anchor_error_dps']):
+    for a, v, e in zip(AXES, record['min_shift_dps'], record['anchor_error_dps']):
         if v > 0:
             out.append(f'axis {a}: the node re-anchors only beyond {v:.3g} deg/s '
                        f"({SIGNIFICANCE:g} x its anchors' error: a smaller start-up shift is no "

@@ -124,10 +124,9 @@ class StillReport:
 
     def to_dict(self) -> dict:
         """Return the report as plain types (the model's ``training`` metrics)."""
-        cov = self.coverage
+        cov, kept = self.coverage, len([s for s in self.stretches if s.kept])
         return {'still_s': float(self.still_s), 'total_s': float(self.total_s),
-                'stretches': len([s for s in self.stretches if s.kept]),
-                'dropped': len([s for s in self.stretches if not s.kept]),
+                'stretches': kept, 'dropped': len(self.stretches) - kept,
                 'bin_c': float(cov.bin_c), 'edges_c': [float(v) for v in cov.edges],
                 'minutes': [float(v) for v in cov.minutes],
                 'heating_min': float(cov.heating_min), 'cooling_min': float(cov.cooling_min),
@@ -149,18 +148,18 @@ def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None
     """
     moving = [None] * len(runs) if moving is None else list(moving)
     windows = [auto_window(r.t) if window_s is None else window_s for r in runs]
-    first = [detect_still(r.t, r.omega, r.accel, moving=m, window_s=w,
-                          min_still_s=min_still_s) for r, m, w in zip(runs, moving, windows)]
+
+    def judge(**floors: object) -> list[Stillness]:
+        return [detect_still(r.t, r.omega, r.accel, moving=m, window_s=w, min_still_s=min_still_s,
+                             **floors) for r, m, w in zip(runs, moving, windows)]
+
+    first = judge()
     g_floor = np.min([s.gyro_floor for s in first], axis=0)
     capped = np.minimum(g_floor, STILL_STD_CEILING / NOISE_FACTOR)
     if len(runs) < 2 and np.array_equal(capped, g_floor):
         return first
-    g_floor = capped
     a_floors = [s.accel_floor for s in first if s.accel_floor is not None]
-    a_floor = np.min(a_floors, axis=0) if a_floors else None
-    return [detect_still(r.t, r.omega, r.accel, moving=m, window_s=w,
-                         min_still_s=min_still_s, gyro_floor=g_floor, accel_floor=a_floor)
-            for r, m, w in zip(runs, moving, windows)]
+    return judge(gyro_floor=capped, accel_floor=np.min(a_floors, axis=0) if a_floors else None)
 
 
 def moving_share(runs: Sequence[Run]) -> float:
@@ -202,10 +201,8 @@ def _outliers(means: NDArray[np.float64]) -> NDArray[np.bool_]:
     """Return the stretches whose mean (S, 3, rad/s) departs from the others' (robust)."""
     if means.shape[0] < 4:
         return np.zeros(means.shape[0], dtype=bool)
-    med = np.median(means, axis=0)
-    dev = np.abs(means - med)
-    scale = 1.4826 * np.median(dev, axis=0)
-    limit = np.maximum(OUTLIER_SIGMAS * scale, OUTLIER_FLOOR_RAD_S)
+    dev = np.abs(means - np.median(means, axis=0))
+    limit = np.maximum(OUTLIER_SIGMAS * (1.4826 * np.median(dev, axis=0)), OUTLIER_FLOOR_RAD_S)
     return np.any(dev > limit, axis=1)
 
 
@@ -232,11 +229,9 @@ def still_report(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
     cov = replace(cov, heating_min=float(mins[rate_c > thr].sum()),
                   cooling_min=float(mins[rate_c < -thr].sum()),
                   steady_min=float(mins[np.abs(rate_c) <= thr].sum()))
-    total = float(sum(r.duration_s for r in runs))
     still_s = float(sum(s.t1_s - s.t0_s for s in stretches if s.kept))
-    report = StillReport(total, still_s, list(stretches), cov, motion_topic, dict(rejected or {}))
-    report.advice = _advice(cov)
-    return report
+    return StillReport(float(sum(r.duration_s for r in runs)), still_s, list(stretches), cov,
+                       motion_topic, dict(rejected or {}), _advice(cov))
 
 
 def _advice(cov: Coverage) -> list[str]:

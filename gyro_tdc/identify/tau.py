@@ -186,13 +186,9 @@ def profile_interval(sse: Callable[[float], NDArray[np.float64]], tau: float,
             if u == bound:
                 break
             d *= 2.0
-        if outside is not None:
-            for _ in range(bisections):
-                mid = 0.5 * (inside + outside)
-                if stat(math.exp(mid)) > level:
-                    outside = mid
-                else:
-                    inside = mid
+        for _ in range(bisections if outside is not None else 0):
+            mid = 0.5 * (inside + outside)
+            inside, outside = (inside, mid) if stat(math.exp(mid)) > level else (mid, outside)
         ends.append(inside)
     grid = np.array(sorted(pts))
     st = np.array([stat(v) for v in grid])

@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.optimize import minimize_scalar
 
-__all__ = ['block_groups', 'choose_state', 'ParamSearch', 'run_state', 'RunBlocks', 'TAU_BOUNDS',
+__all__ = ['choose_state', 'ParamSearch', 'run_blocks', 'run_state', 'RunBlocks', 'TAU_BOUNDS',
            'TWO_NODE_MARGIN']
 
 #: Relative cross-validated error a two-node state must save over first order to be kept.
@@ -84,7 +84,7 @@ class RunBlocks:
         self.has_ref = bool(np.any(run.omega_ref))
         err = self._err()
         self.grid = BlockGrid(len(run), block, rows=rows)
-        self.rows, self.counts = self.grid.rows, self.grid.counts
+        self.rows, self.counts, self.mean = self.grid.rows, self.grid.counts, self.grid.mean
         e = err if self.rows is None else err[self.rows]
         self.ss_raw = np.einsum('ij,ij->j', e, e)
         self.y = self.mean(err)
@@ -93,10 +93,6 @@ class RunBlocks:
 
     def _err(self) -> NDArray[np.float64]:
         return self.run.omega - self.run.omega_ref if self.has_ref else self.run.omega
-
-    def mean(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Return the block means of ``x`` (N, ...) over the rows that count."""
-        return self.grid.mean(x)
 
     def scatter(self, scale: NDArray[np.float64], t0: float,
                 state: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
@@ -128,13 +124,18 @@ class RunBlocks:
         return self.mean(d[:, None] * self.run.omega_ref)
 
 
-def block_groups(blocks: Sequence[RunBlocks], labels: Sequence[int] | None
-                 ) -> NDArray[np.int64] | None:
-    """Return the session of every block row (None: one session)."""
-    if labels is None:
-        return None
-    return np.concatenate([np.full(b.y.shape[0], g, dtype=np.int64)
-                           for b, g in zip(blocks, labels)])
+def run_blocks(runs: Sequence[Run], block: int, rows: Sequence[NDArray[np.bool_]] | None,
+               labels: Sequence[int] | None) -> tuple[list[RunBlocks], NDArray[np.float64],
+                                                      NDArray[np.int64] | None]:
+    """
+    Return the runs' blocks, their stacked drift target and the session of every block row.
+
+    Each run's blocks are over its ``rows`` when given; the sessions are None for one session.
+    """
+    blocks = [RunBlocks(r, block, None if rows is None else rows[i]) for i, r in enumerate(runs)]
+    groups = None if labels is None else np.concatenate(
+        [np.full(b.y.shape[0], g, dtype=np.int64) for b, g in zip(blocks, labels)])
+    return blocks, np.concatenate([b.y for b in blocks]), groups
 
 
 class ParamSearch:
@@ -149,11 +150,8 @@ class ParamSearch:
                  n_centers: int, ridge: float, seed: int, scale: bool, n_total: int,
                  rows: Sequence[NDArray[np.bool_]] | None = None,
                  labels: Sequence[int] | None = None) -> None:
-        block = block_length(n_total, 20_000, at_most=True)
-        self.blocks = [RunBlocks(r, block, None if rows is None else rows[i])
-                       for i, r in enumerate(runs)]
-        self.y = np.concatenate([b.y for b in self.blocks])
-        self.groups = block_groups(self.blocks, labels)
+        self.blocks, self.y, self.groups = run_blocks(
+            runs, block_length(n_total, 20_000, at_most=True), rows, labels)
         self.inputs, self.t0, self.scale, self.inner = tuple(inputs), t0, scale, inner
         self.n_centers, self.ridge, self.seed = n_centers, ridge, seed
 

@@ -25,6 +25,7 @@ save; the command line is :mod:`gyro_tdc.cli.train`. See ``doc/internals/identif
 
 from __future__ import annotations
 
+from collections import Counter
 from dataclasses import replace
 import os
 from pathlib import Path
@@ -85,16 +86,12 @@ def _features(o: TrainOptions, on: Sequence[Run], runs: Sequence[Run], t0: float
 def _finish(model, o: TrainOptions, out: str | os.PathLike, accel_runs: Sequence[Run], choice,
             metrics: dict, **result) -> TrainResult:
     """Add the accelerometer part and the training records, save, return the result."""
-    accel_fit = None
-    if o.accel:
-        accel_fit = fit_accel(accel_runs, model, n_centers=o.n_centers, seed=o.seed,
-                              bin_c=o.bin_c)
-        if accel_fit.part is not None:
-            model = model.replace(accel=accel_fit.part)
-    metrics = {**model.metrics, **metrics}
+    accel_fit = (fit_accel(accel_runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c)
+                 if o.accel else None)
     if choice is not None:
-        metrics['features'] = choice.to_dict()
-    model = model.replace(metrics=metrics)
+        metrics = {**metrics, 'features': choice.to_dict()}
+    model = model.replace(accel=None if accel_fit is None else accel_fit.part,
+                          metrics={**model.metrics, **metrics})
     return TrainResult(model=model, path=Path(save_model(model, out)), choice=choice,
                        accel=accel_fit, **result)
 
@@ -109,11 +106,8 @@ def _gate(model, kw: dict, runs: Sequence[Run], labels: Sequence[int],
     """
     form = {**kw, 'features': model.features, 'params': model.effect_params,
             'fit_params': False, 'thermal': model.thermal}
-
-    def refit(others: list, g: list, **rows_kw) -> object:
-        return fit_model(others, **{**form, 'sessions': g, **rows_kw})
-
-    return reanchor_rule(model, runs, labels, refit, rows)
+    return reanchor_rule(model, runs, labels, lambda others, g, **rows_kw: fit_model(
+        others, **{**form, 'sessions': g, **rows_kw}), rows)
 
 
 def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
@@ -177,8 +171,14 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     """
     o = TrainOptions() if options is None else options
     bag = BagOptions() if bag is None else bag
-    if runs is None:
-        runs, moving = _load_still_runs(bags, bag, o, log, moving)
+    if runs is None:    # no reference read (the rate is zero while still); the motion veto
+        said = None if log is None else (lambda line: log(line.replace(
+            'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
+        runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
+                         log=said)
+        if bag.motion_topic:
+            reps = [read_motion(r.name, bag.motion_topic) for r in runs]
+            moving = [motion_veto(r.t, rep.t, rep.twist) for r, rep in zip(runs, reps)]
     else:
         runs = [replace(r, omega_ref=np.zeros_like(r.omega)) for r in runs]
     bags = [r.name for r in runs]
@@ -192,10 +192,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     const = constant_gyro_axes(runs)
     raw_runs, runs = runs, neutral_runs(runs, const)
     still = find_still(runs, moving=moving, window_s=o.window_s, min_still_s=o.min_still_s)
-    rejected: dict = {}
-    for st in still:
-        for k, v in st.rejected().items():
-            rejected[k] = rejected.get(k, 0) + v
+    rejected = dict(sum((Counter(st.rejected()) for st in still), Counter()))
     rows = [st.mask.copy() for st in still]
     if not any(m.any() for m in rows):
         why = '; '.join(sorted({st.reason for st in still if st.reason}))
@@ -231,19 +228,3 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                    coverage=report.coverage, bags=bags,
                    samples=int(sum(np.count_nonzero(m) for m in rows)), still=report,
                    sessions=split, constant=constant_readings(raw_runs, const))
-
-
-def _load_still_runs(bags: Sequence[str | os.PathLike], bag: BagOptions, o: TrainOptions,
-                     log: Log, moving: Sequence[NDArray[np.bool_] | None] | None
-                     ) -> tuple[list[Run], Sequence[NDArray[np.bool_] | None] | None]:
-    """Read the bags with a zero reference rate, and the motion veto of ``bag.motion_topic``."""
-    said = None if log is None else (lambda line: log(line.replace(
-        'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
-    runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
-                     log=said)
-    if bag.motion_topic:
-        moving = []
-        for r in runs:
-            rep = read_motion(r.name, bag.motion_topic)
-            moving.append(motion_veto(r.t, rep.t, rep.twist))
-    return runs, moving
