@@ -33,7 +33,7 @@ from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, c
                                  UsageError)
 from gyro_tdc.data import load_runs
 from gyro_tdc.identify import (check_instance, clamp_cost, fit_export, from_params, read_params,
-                               score_export, write_params)
+                               score_export, share_kept, write_params)
 from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, save_model
 import numpy as np
 
@@ -176,7 +176,7 @@ def _evaluate(args: argparse.Namespace, model, form, firmware: str) -> None:
               f'{np.mean(s.bs[firmware]) / np.mean(s.bs["model"]):.2f})')
     if len(scores) > 1:
         mean = {k: float(np.mean([np.mean(s.bs[k]) for s in scores])) for k in labels}
-        kept = (mean['raw'] - mean[firmware]) / (mean['raw'] - mean['model'])
+        kept = share_kept(mean['raw'], mean['model'], mean[firmware])
         print(f'mean over {len(scores)} bags: {firmware} keeps {100 * kept:.2f} % '
               f'(BS raw {mean["raw"]:.3e}, model {mean["model"]:.3e}, {firmware} '
               f'{mean[firmware]:.3e})')

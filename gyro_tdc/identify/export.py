@@ -39,8 +39,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['check_instance', 'ExportScore', 'FIRMWARES', 'FcExport', 'GRID_POINTS', 'clamp_cost',
-           'fit_export', 'from_params', 'read_params', 'score_export', 'steady_drift',
-           'write_params']
+           'fit_export', 'from_params', 'read_params', 'score_export', 'share_kept',
+           'steady_drift', 'write_params']
 
 #: The flight-controller firmwares an export targets.
 FIRMWARES = ('px4', 'ardupilot')
@@ -298,9 +298,13 @@ class ExportScore:
 
     def kept(self, label: str) -> float:
         """Return the share of the full model's BS improvement (axes' mean) ``label`` keeps."""
-        raw, full = float(np.mean(self.bs['raw'])), float(np.mean(self.bs['model']))
-        gain = raw - full
-        return (raw - float(np.mean(self.bs[label]))) / gain if gain > 0 else math.nan
+        return share_kept(*(float(np.mean(self.bs[k])) for k in ('raw', 'model', label)))
+
+
+def share_kept(raw: float, full: float, part: float) -> float:
+    """Return the share of the improvement ``raw - full`` that ``part`` keeps (NaN: no gain)."""
+    gain = raw - full
+    return (raw - part) / gain if gain > 0 else math.nan
 
 
 def _head_removed(comp: NDArray[np.float64], run: Run, reanchor_s: float

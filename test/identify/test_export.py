@@ -16,6 +16,8 @@
 
 from __future__ import annotations
 
+import math
+
 from fc_scripts import ardupilot_script, heating_leg, px4_script
 from gyro_tdc.errors import FitError, ModelFileError
 from gyro_tdc.identify import fit_model
@@ -125,3 +127,10 @@ def test_bad_input_is_refused(static, tmp_path):
     bad.write_text('INS_TCAL1_ENABLE 1\nthis is not a parameter line\n')
     with pytest.raises(ModelFileError, match='bad.parm:2'):
         read_params(bad)
+
+
+def test_share_kept_is_nan_without_a_gain_and_the_share_otherwise():
+    from gyro_tdc.identify import share_kept
+    assert math.isnan(share_kept(2.0, 2.0, 1.0))      # a model no better than raw: no share
+    assert math.isnan(share_kept(1.0, 2.0, 1.5))      # a model worse than raw
+    assert share_kept(4.0, 2.0, 3.0) == pytest.approx(0.5)
