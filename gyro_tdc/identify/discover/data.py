@@ -25,7 +25,7 @@ soaks) and :func:`one_way` tells data that only heat or only cool. See
 from __future__ import annotations
 
 import math
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['BlockData', 'COLLINEAR', 'directions', 'excitation', 'moving_blocks', 'one_way',
-           'rel_residual']
+           'rel_residual', 'unidentifiable']
 
 #: Relative norm below which a column is taken as spanned by the others.
 COLLINEAR = 1e-3
@@ -52,6 +52,12 @@ _SPAN = tuple(e for e in EFFECTS if e in TEMPERATURE_EFFECTS and e not in REFERE
 _RATE = tuple(e for e in _SPAN if e not in STATIC_EFFECTS)
 #: A soak (the temperature still) counts from this long, s (and three blocks).
 _SOAK_S = 120.0
+
+
+def unidentifiable(eid: str, reason: str, extra: str = '') -> Unidentifiable:
+    """Return ``eid`` as not identifiable for ``reason``, with the experiment that excites it."""
+    exp = EFFECTS[eid].excited_by
+    return Unidentifiable(eid, reason, exp[0].upper() + exp[1:] + extra + '.')
 
 
 def rel_residual(x: NDArray[np.float64], col: NDArray[np.float64]) -> float:
@@ -132,24 +138,23 @@ class BlockData:
         self.runs = list(runs)
         self.t0 = float(t0)
         self.block_s = float(block_s)
-        n_runs = len(runs)
         parts: dict[str, list] = {k: [] for k in (
             'run', 'n', 't', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref', 'static',
             'noise')}
+        #: Per run: its regular grid, the temperature and the reference rate there, the
+        #: grid span of each block, the block times and the run's rows of the blocks.
         self.grids: list[tuple] = []
-        self._ref_grid: list[NDArray[np.float64]] = []
         white = []
         span = 0.0
         start = 0
-        for r, run in enumerate(runs):
+        for r, run in enumerate(self.runs):
             t = np.asarray(run.t, dtype=np.float64)
             n = t.shape[0]
             dt = np.diff(t)
             med = float(np.median(dt)) if n > 1 else self.block_s
-            per = max(1, int(round(self.block_s / med)))
             breaks = np.flatnonzero(dt > max(20.0 * med, 0.5 * self.block_s)) + 1
-            grid = BlockGrid(n, per, bounds=np.concatenate([[0], breaks, [n]]),
-                             merge_tail=True)
+            grid = BlockGrid(n, max(1, int(round(self.block_s / med))),
+                             bounds=np.concatenate([[0], breaks, [n]]), merge_tail=True)
             cnt = grid.counts
             nb = cnt.shape[0]
             span += n * med
@@ -168,17 +173,17 @@ class BlockData:
             inside = np.ones(max(n - 1, 0), dtype=bool)
             inside[breaks - 1] = False
             white.append(np.diff(y, axis=0)[inside])
-            # Regular grid for the filtered features.
+            # Regular grid for the filtered features; the reference rate held on it from the
+            # last sample (a step schedule).
             step = min(max(med, self.block_s / 10.0), 1.0) if self.block_s > med else med
             tg = t[0] + np.arange(int(math.floor((t[-1] - t[0]) / step)) + 2) * step
             tg = tg[tg <= t[-1] + step]
-            temp_g = np.interp(tg, t, run.temp)
-            lo = np.searchsorted(tg, t[first], side='left')
-            hi = np.searchsorted(tg, t[last], side='right')
-            self.grids.append((tg, temp_g, lo, hi, parts['t'][-1], start, start + nb))
-            # The reference rate on the grid, held from the last sample (a step schedule).
             held = np.clip(np.searchsorted(t, tg, side='right') - 1, 0, n - 1)
-            self._ref_grid.append(np.asarray(run.omega_ref, dtype=np.float64)[held])
+            self.grids.append((tg, np.interp(tg, t, run.temp),
+                               np.asarray(run.omega_ref, dtype=np.float64)[held],
+                               np.searchsorted(tg, t[first], side='left'),
+                               np.searchsorted(tg, t[last], side='right'), parts['t'][-1],
+                               start, start + nb))
             start += nb
 
         cat = {k: np.concatenate(v) for k, v in parts.items()}
@@ -191,52 +196,51 @@ class BlockData:
         for key in ('t', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref'):
             setattr(self, key, cat[key])
         self.static = {eid: cat['static'][:, j] for j, eid in enumerate(_STATIC)}
-        self.n_runs = n_runs
-        self.t_since = self.t - np.array([runs[r].t[0] for r in self.run])
-        self.offsets = np.zeros((self.K, n_runs))
-        self.offsets[np.arange(self.K), self.run] = 1.0
-        sig, wsig = _noise_floor(cat['noise'], white)
-        self.sigma = sig                            # per-sample equivalent, rad/s
+        self.n_runs = len(self.runs)
+        self.t_since = self.t - np.array([self.runs[r].t[0] for r in self.run])
+        self.offsets = np.eye(self.n_runs)[self.run]
+        sig, wsig = _noise_floor(cat['noise'], white)      # per-sample equivalent, rad/s
         self.floor_axes = sig / math.sqrt(self.n.mean())   # on the block scale, rad/s
         self.floor = float(np.sqrt(np.mean(self.floor_axes ** 2)))
         self.white = float(np.sqrt(np.mean(np.nan_to_num(wsig) ** 2)))
-        self.rate_cpm = self._rate_cpm()
         self._cache: dict = {}
-        self._state_cache: dict = {}
-        self.gain_axes = self._gain_axes()
-        self.scale_axes = np.array([np.any(np.abs(self.ref[:, a]) > 1e-12) and rel_residual(
+        self.rate_cpm = self._grid_means(lambda tg, temp_g, _ref: batch_features(
+            ('dTdt',), tg, temp_g, t0=self.t0, params={'dTdt': {'tau_s': 60.0}}) * 60.0)[0]
+        # The axes whose reference rate the run offsets alone (gain), or with dT (scale),
+        # do not explain.
+        moves = [np.any(np.abs(self.ref[:, a]) > 1e-12) for a in range(3)]
+        self.gain_axes = np.array([moves[a] and rel_residual(self.offsets, self.ref[:, a])
+                                   > COLLINEAR for a in range(3)])
+        self.scale_axes = np.array([moves[a] and rel_residual(
             np.hstack([self.offsets, self.static['dT'][:, None], self.ref[:, a:a + 1]]),
             self.dtref[:, a]) > COLLINEAR for a in range(3)])
 
-    def _rate_cpm(self) -> NDArray[np.float64]:
-        """Return the smoothed dT/dt of each block, degC/min (60 s first-order smoothing)."""
-        out = np.empty(self.K)
-        for tg, temp_g, lo, hi, tb, a, b in self.grids:
-            f = batch_features(('dTdt',), tg, temp_g, t0=self.t0,
-                               params={'dTdt': {'tau_s': 60.0}})[:, 0] * 60.0
-            out[a:b] = self._grid_mean(tg, f, lo, hi, tb)
+    def _grid_means(self, f: Callable[..., NDArray[np.float64]]) -> NDArray[np.float64]:
+        """
+        Return ``f(grid, temperature, reference)`` (points, m) of every run, block means (m, K).
+
+        A block's mean is over the grid points inside its span (interpolated when none falls
+        inside); each row of the result is contiguous.
+        """
+        out = None
+        for tg, temp_g, ref_g, lo, hi, tb, a, b in self.grids:
+            fg = f(tg, temp_g, ref_g)
+            out = np.empty((fg.shape[1], self.K)) if out is None else out
+            cnt = hi - lo
+            has = cnt > 0
+            for k in range(fg.shape[1]):
+                cs = np.concatenate([[0.0], np.cumsum(fg[:, k])])
+                out[k, a:b] = np.interp(tb, tg, fg[:, k])
+                out[k, a:b][has] = (cs[hi[has]] - cs[lo[has]]) / cnt[has]
         return out
 
-    @staticmethod
-    def _grid_mean(tg: NDArray[np.float64], f: NDArray[np.float64], lo: NDArray[np.int64],
-                   hi: NDArray[np.int64], tb: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Average grid values over each block's span (interpolate when none falls inside)."""
-        cs = np.concatenate([[0.0], np.cumsum(f)])
-        cnt = hi - lo
-        out = np.interp(tb, tg, f)
-        has = cnt > 0
-        out[has] = (cs[hi[has]] - cs[lo[has]]) / cnt[has]
-        return out
-
-    def _gain_axes(self) -> NDArray[np.bool_]:
-        """Return the axes whose reference rate is not explained by the run offsets alone."""
-        out = np.zeros(3, dtype=bool)
-        for a in range(3):
-            col = self.ref[:, a]
-            if not np.any(np.abs(col) > 1e-12):
-                continue
-            out[a] = rel_residual(self.offsets, col) > COLLINEAR
-        return out
+    def _memo(self, key: tuple, make: Callable[[], object]) -> object:
+        """Return ``make()`` cached under ``key`` (the cache is cleared when it grows large)."""
+        if key not in self._cache:
+            if len(self._cache) > 768:
+                self._cache.clear()
+            self._cache[key] = make()
+        return self._cache[key]
 
     def state(self, r: int, tau: float) -> NDArray[np.float64]:
         """
@@ -286,25 +290,18 @@ class BlockData:
             ``(s - T0) omega_ref`` (the ``scale`` term).
 
         """
-        key = round(float(tau), 9)
-        if key in self._state_cache:
-            return self._state_cache[key]
-        x = np.empty((self.K, len(_STATE)))
-        dtref = np.empty((self.K, 3))
-        j = _STATE.index('dT')
-        for (tg, temp_g, lo, hi, tb, a, b), ref_g in zip(self.grids, self._ref_grid):
-            xg = batch_features(_STATE, tg, temp_g, t0=self.t0,
-                                state=self._grid_state(tg, temp_g, tau))
-            for k in range(len(_STATE)):
-                x[a:b, k] = self._grid_mean(tg, xg[:, k], lo, hi, tb)
-            for k in range(3):
-                dtref[a:b, k] = self._grid_mean(tg, xg[:, j] * ref_g[:, k], lo, hi, tb)
-        out = {eid: x[:, k] for k, eid in enumerate(_STATE)}
-        out['dtref'] = dtref
-        if len(self._state_cache) > 256:
-            self._state_cache.clear()
-        self._state_cache[key] = out
-        return out
+        def make() -> dict[str, NDArray[np.float64]]:
+            def f(tg: NDArray[np.float64], temp_g: NDArray[np.float64], ref_g: NDArray[np.float64]
+                  ) -> NDArray[np.float64]:
+                xg = batch_features(_STATE, tg, temp_g, t0=self.t0,
+                                    state=self._grid_state(tg, temp_g, tau))
+                return np.hstack([xg, xg[:, _STATE.index('dT')][:, None] * ref_g])
+
+            x = self._grid_means(f)
+            return {**{eid: x[k] for k, eid in enumerate(_STATE)},
+                    'dtref': np.ascontiguousarray(x[len(_STATE):].T)}
+
+        return self._memo(('state', round(float(tau), 9)), make)
 
     def column(self, eid: str, params: Mapping[str, Mapping[str, float]], *,
                state_tau: float | None = None) -> NDArray[np.float64]:
@@ -332,18 +329,9 @@ class BlockData:
         if eid in self.static:
             return self.static[eid]
         tau = float(params.get(eid, {}).get('tau_s', EFFECTS[eid].params['tau_s']))
-        key = (eid, round(tau, 9))
-        if key in self._cache:
-            return self._cache[key]
-        out = np.empty(self.K)
-        for tg, temp_g, lo, hi, tb, a, b in self.grids:
-            f = batch_features((eid,), tg, temp_g, t0=self.t0,
-                               params={eid: {'tau_s': tau}})[:, 0]
-            out[a:b] = self._grid_mean(tg, f, lo, hi, tb)
-        if len(self._cache) > 512:
-            self._cache.clear()
-        self._cache[key] = out
-        return out
+        return self._memo((eid, round(tau, 9)), lambda: self._grid_means(
+            lambda tg, temp_g, _ref: batch_features((eid,), tg, temp_g, t0=self.t0,
+                                                    params={eid: {'tau_s': tau}}))[0])
 
 
 def moving_blocks(data: BlockData) -> NDArray[np.bool_]:
@@ -419,8 +407,7 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
     heating, cooling = directions(data, moving)
 
     def add(eid: str, reason: str, extra: str = '') -> None:
-        exp = EFFECTS[eid].excited_by
-        out[eid] = Unidentifiable(eid, reason, exp[0].upper() + exp[1:] + extra + '.')
+        out[eid] = unidentifiable(eid, reason, extra)
 
     if span < MIN_SPAN_C:
         for eid in _SPAN:
