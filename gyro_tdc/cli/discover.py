@@ -106,24 +106,22 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     split = split_sessions(runs, bag.sessions, bag.session_gap_s)
     if split.breaks:            # one offset per run: a bag cut at its restarts (auto)
         print('\n'.join(split.lines()))
-    runs = split.runs
+    runs, still = split.runs, None
     # A sensor constant on every axis has nothing to discover: refused before the search, in
     # train's words (a gyro), or in the accelerometer part's.
-    if not accel:
-        constant_gyro_axes(runs)
-    elif constant_note(runs):
-        note = constant_note(runs).split('; treated as absent')[0]
-        raise DatasetError(f'Expected an accelerometer to discover on: {note}.')
-    still = None
-    if not accel:           # no reference and moving: the still stretches only, never motion
-        runs, still = still_only_runs(runs)
-        if still is not None:
-            print(still)
     if accel:
-        n_bags = len(runs)
-        runs = discovery_runs(runs)
+        note = constant_note(runs)
+        if note:
+            raise DatasetError('Expected an accelerometer to discover on: '
+                               f'{note.split("; treated as absent")[0]}.')
+        n_bags, runs = len(runs), discovery_runs(runs)
         print(f'accelerometer: the still data of {n_bags} bag(s) as {len(runs)} run(s) (one '
               'offset per bag and orientation); figures in mg (1 mg = 9.80665e-3 m/s^2)')
+    else:
+        constant_gyro_axes(runs)
+        runs, still = still_only_runs(runs)     # no reference and moving: the still stretches
+        if still is not None:
+            print(still)
     bar = None
     if sys.stderr.isatty():
         from tqdm import tqdm
