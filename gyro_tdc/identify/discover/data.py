@@ -15,11 +15,10 @@
 """
 The measured runs on the block grid, and what they can excite before any fit.
 
-:class:`BlockData` holds the block means of every run, the noise floor left in a block mean
-and the effect columns, of the thermal state too (:meth:`BlockData.state_columns`);
-:func:`excitation` names the candidates the runs cannot excite (spans, rates, directions,
-soaks) and :func:`one_way` tells data that only heat or only cool. See
-``doc/internals/identify.md``.
+:class:`BlockData` holds the block means of every run, the noise floor left in a block mean,
+the effect columns, of the thermal state too (:meth:`BlockData.state_columns`), and which
+blocks heat or cool; :func:`excitation` names the candidates the runs cannot excite (spans,
+rates, directions, soaks). See ``doc/internals/identify.md``.
 """
 
 from __future__ import annotations
@@ -37,8 +36,7 @@ from gyro_tdc.signal import BlockGrid, fit_columns
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['BlockData', 'COLLINEAR', 'directions', 'excitation', 'moving_blocks', 'one_way',
-           'rel_residual', 'unidentifiable']
+__all__ = ['BlockData', 'COLLINEAR', 'excitation', 'rel_residual', 'unidentifiable']
 
 #: Relative norm below which a column is taken as spanned by the others.
 COLLINEAR = 1e-3
@@ -105,15 +103,13 @@ def _noise_floor(noise: NDArray[np.float64], white: Sequence[NDArray[np.float64]
     The white noise comes from first differences inside segments; it stands in for an axis
     whose blocks are too short for thirds.
     """
-    sig = np.empty(3)
-    for a in range(3):
-        v = noise[:, a][np.isfinite(noise[:, a])]
-        sig[a] = 1.4826 * np.median(np.abs(v - np.median(v))) if v.size >= 3 else np.nan
-    wd = np.concatenate(white) if white else np.zeros((0, 3))
-    if wd.shape[0] >= 3:
-        wsig = 1.4826 * np.median(np.abs(wd - np.median(wd, axis=0)), axis=0) / math.sqrt(2)
-    else:
-        wsig = np.full(3, np.nan)
+    def mad(v: NDArray[np.float64]) -> NDArray[np.float64]:
+        return 1.4826 * np.median(np.abs(v - np.median(v, axis=0)), axis=0)
+
+    finite = [noise[:, a][np.isfinite(noise[:, a])] for a in range(3)]
+    sig = np.array([mad(v) if v.size >= 3 else np.nan for v in finite])
+    wd = np.concatenate(white)
+    wsig = mad(wd) / math.sqrt(2) if wd.shape[0] >= 3 else np.full(3, np.nan)
     sig = np.where(np.isfinite(sig), sig, wsig)
     if not np.all(np.isfinite(sig)):
         raise FitError('Cannot estimate the noise floor: blocks too short; '
@@ -206,6 +202,11 @@ class BlockData:
         self._cache: dict = {}
         self.rate_cpm = self._grid_means(lambda tg, temp_g, _ref: batch_features(
             ('dTdt',), tg, temp_g, t0=self.t0, params={'dTdt': {'tau_s': 60.0}}) * 60.0)[0]
+        #: The blocks whose temperature changes at a measurable rate, and whether the data
+        #: heat and whether they cool there.
+        self.moving = np.abs(self.rate_cpm) > max(0.02, 0.1 * float(np.max(np.abs(self.rate_cpm))))
+        self.heating = bool(np.any(self.moving & (self.rate_cpm > 0)))
+        self.cooling = bool(np.any(self.moving & (self.rate_cpm < 0)))
         # The axes whose reference rate the run offsets alone (gain), or with dT (scale),
         # do not explain.
         moves = [np.any(np.abs(self.ref[:, a]) > 1e-12) for a in range(3)]
@@ -334,31 +335,7 @@ class BlockData:
                                                     params={eid: {'tau_s': tau}}))[0])
 
 
-def moving_blocks(data: BlockData) -> NDArray[np.bool_]:
-    """Return the blocks whose temperature changes at a measurable rate."""
-    rate = data.rate_cpm
-    max_rate = float(np.max(np.abs(rate))) if rate.size else 0.0
-    return np.abs(rate) > max(0.02, 0.1 * max_rate)
-
-
-def directions(data: BlockData, moving: NDArray[np.bool_]) -> tuple[bool, bool]:
-    """Return whether the data heat and whether they cool at a measurable rate."""
-    return (bool(np.any(moving & (data.rate_cpm > 0))),
-            bool(np.any(moving & (data.rate_cpm < 0))))
-
-
-def one_way(data: BlockData) -> bool:
-    """Return True when the data change temperature in one direction only."""
-    heating, cooling = directions(data, moving_blocks(data))
-    return heating != cooling
-
-
-def _soak_min_s(data: BlockData) -> float:
-    """Return the shortest soak (s) that counts: 2 minutes and three blocks."""
-    return max(_SOAK_S, 3.0 * data.block_s)
-
-
-def _first_soaks(data: BlockData, moving: NDArray[np.bool_]) -> NDArray[np.float64]:
+def _first_soaks(data: BlockData) -> NDArray[np.float64]:
     """
     Return, per run, how long it soaks after power-on before the temperature first moves, s.
 
@@ -366,15 +343,13 @@ def _first_soaks(data: BlockData, moving: NDArray[np.bool_]) -> NDArray[np.float
     """
     out = np.zeros(data.n_runs)
     for r in range(data.n_runs):
-        m = data.run == r
-        tr, mv = data.t_since[m], moving[m]
+        tr, mv = data.t_since[data.run == r], data.moving[data.run == r]
         first_move = tr[np.argmax(mv)] if np.any(mv) else tr[-1]
-        if np.count_nonzero(tr < first_move) >= 4:
-            out[r] = first_move
+        out[r] = first_move if np.count_nonzero(tr < first_move) >= 4 else 0.0
     return out
 
 
-def _longest_soak(data: BlockData, moving: NDArray[np.bool_]) -> float:
+def _longest_soak(data: BlockData) -> float:
     """
     Return the longest soak next to a ramp, s: a stretch of still blocks in a run that moves.
 
@@ -384,7 +359,7 @@ def _longest_soak(data: BlockData, moving: NDArray[np.bool_]) -> float:
     best = 0.0
     for r in range(data.n_runs):
         idx = np.flatnonzero(data.run == r)
-        mv = moving[idx]
+        mv = data.moving[idx]
         if not np.any(mv) or np.all(mv):
             continue
         edges = np.flatnonzero(np.diff(np.concatenate([[1], mv.astype(np.int8), [1]])))
@@ -402,9 +377,8 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
     out: dict[str, Unidentifiable] = {}
     notes: list[str] = []
     span = float(data.temp.max() - data.temp.min())
-    rate = data.rate_cpm
-    moving = moving_blocks(data)
-    heating, cooling = directions(data, moving)
+    moving = data.moving
+    soak_min = max(_SOAK_S, 3.0 * data.block_s)    # 2 minutes and three blocks
 
     def add(eid: str, reason: str, extra: str = '') -> None:
         out[eid] = unidentifiable(eid, reason, extra)
@@ -416,13 +390,13 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
         for eid in _RATE:
             if eid not in out:
                 add(eid, 'the temperature never changes at a measurable rate')
-    elif heating != cooling:
-        leg = 'heat' if heating else 'cool'
-        r = np.abs(rate[moving])
+    elif data.heating != data.cooling:
+        leg = 'heat' if data.heating else 'cool'
+        r = np.abs(data.rate_cpm[moving])
         q1, q3 = np.percentile(r, [25, 75])
         one_rate = (q3 - q1) < 0.25 * float(np.median(r))
-        soak = _longest_soak(data, moving)
-        if one_rate and soak < _soak_min_s(data):
+        soak = _longest_soak(data)
+        if one_rate and soak < soak_min:
             # Scored all the same: a die settled at power-on falls behind at the start of the
             # ramp, which shows tau; a recording that starts mid-ramp shows nothing, and the
             # guard then rejects the lag (its profile is flat).
@@ -449,8 +423,7 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
             add('scale', 'the reference rate is constant on every run, so a sensitivity '
                 'change is indistinguishable from dT')
     # Warm-up: some run must start with a soak (no temperature change) after power-on.
-    soak_ok = bool(np.any(_first_soaks(data, moving) >= _soak_min_s(data)))
-    if not soak_ok:
+    if not np.any(_first_soaks(data) >= soak_min):
         add('warmup', 'no run starts with a soak after power-on: a warm-up transient cannot be '
             'told apart from the temperature response and the bias')
     for eid in base:

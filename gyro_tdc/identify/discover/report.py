@@ -90,10 +90,9 @@ def residual_maps(data: BlockData, r: NDArray[np.float64]) -> tuple[BinMap, ...]
                   (edges[:-1] + edges[1:]) / 2.0)]
     # dT/dt: cooling fast/slow, still, heating slow/fast.
     rate = data.rate_cpm
-    thr = max(0.02, 0.1 * float(np.max(np.abs(rate))))
     k = np.full(data.K, 2, dtype=np.int64)
     for sign, (slow, fast) in ((1, (3, 4)), (-1, (1, 0))):
-        m = sign * rate > thr
+        m = data.moving & (sign * rate > 0)
         if np.any(m):
             med = float(np.median(sign * rate[m]))
             k[m & (sign * rate <= med)] = slow

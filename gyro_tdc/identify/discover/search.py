@@ -29,8 +29,8 @@ from typing import Any, Callable, Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.discover.data import (BlockData, COLLINEAR, excitation, one_way,
-                                             rel_residual, unidentifiable)
+from gyro_tdc.identify.discover.data import (BlockData, COLLINEAR, excitation, rel_residual,
+                                             unidentifiable)
 from gyro_tdc.identify.discover.linear import (bandwidth, corr, DEG, gap, hac_pvalue, LinearModel,
                                                make_folds, mse, weighted_corr, wsse)
 from gyro_tdc.identify.discover.report import residual_adev, residual_maps
@@ -421,7 +421,7 @@ def _add_best(data: BlockData, model: LinearModel, rnd: _Round, passing: list,
     """
     best, contrib_b, _p = passing[0]
     family = [passing[0]]
-    one = one_way(data)
+    one = data.heating != data.cooling      # data that only heat, or only cool
     for item in rnd.results[1:]:
         sc, contrib, _p = item
         if (contrib is not None and sc.heldout_gain_dps2 > 0
