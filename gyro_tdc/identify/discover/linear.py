@@ -222,20 +222,16 @@ class LinearModel:
         cols = [data.offsets] + [data.column(e, self.params, state_tau=self.state_tau)[:, None]
                                  for e in self.inputs]
         self.common = np.hstack(cols)
-        ax = []
-        self.axis_labels = []
-        if np.any(data.gain_axes):
-            ax.append(data.ref * data.gain_axes[None, :])
-            self.axis_labels.append('gain')
-        if 'scale' in self.effects:      # only on axes whose rate steps can separate it
-            dtref = (data.dtref if self.state_tau is None
-                     else data.state_columns(self.state_tau)['dtref'])
-            ax.append(dtref * data.scale_axes[None, :])
-            self.axis_labels.append('scale')
-        if extra is not None:            # a per-axis column of its own (the J test)
-            ax.append(np.asarray(extra, dtype=np.float64))
-            self.axis_labels.append('extra')
-        self.axis = np.stack(ax, axis=2) if ax else np.zeros((data.K, 3, 0))
+        # Per-axis columns: the rate table's gain, scale only on axes whose rate steps can
+        # separate it, and a column of its own (the J test).
+        ax = {'gain': data.ref * data.gain_axes[None, :] if np.any(data.gain_axes) else None,
+              'scale': (data.dtref if self.state_tau is None else data.state_columns(
+                  self.state_tau)['dtref']) * data.scale_axes[None, :]
+              if 'scale' in self.effects else None,
+              'extra': None if extra is None else np.asarray(extra, dtype=np.float64)}
+        ax = {k: v for k, v in ax.items() if v is not None}
+        self.axis_labels = list(ax)
+        self.axis = np.stack(list(ax.values()), axis=2) if ax else np.zeros((data.K, 3, 0))
         self.p = self.common.shape[1] + self.axis.shape[2]
 
     def columns_of(self, eid: str) -> list[int]:
@@ -279,8 +275,5 @@ class LinearModel:
         its held-out residual is re-anchored to zero mean (:func:`gyro_tdc.signal.heldout`).
         """
         d = self.data
-
-        def residual(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
-            return d.y[test] - self.predict(self.fit(train))[test]
-
-        return heldout(residual, folds, (d.K, 3), groups=d.run, weights=d.w)
+        return heldout(lambda test, train: d.y[test] - self.predict(self.fit(train))[test],
+                       folds, (d.K, 3), groups=d.run, weights=d.w)
