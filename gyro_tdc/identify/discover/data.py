@@ -396,25 +396,23 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
         q1, q3 = np.percentile(r, [25, 75])
         one_rate = (q3 - q1) < 0.25 * float(np.median(r))
         soak = _longest_soak(data)
+        one = f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min)'
+        hysteresis = 'hysteresis between heating and cooling cannot be tested'
         if one_rate and soak < soak_min:
             # Scored all the same: a die settled at power-on falls behind at the start of the
             # ramp, which shows tau; a recording that starts mid-ramp shows nothing, and the
             # guard then rejects the lag (its profile is flat).
-            notes.append(f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min) '
-                         'with no soak before or after the ramp: a lag or dT/dt effect can '
-                         'only show where the ramp starts from a die settled at power-on; '
+            notes.append(f'{one} with no soak before or after the ramp: a lag or dT/dt effect '
+                         'can only show where the ramp starts from a die settled at power-on; '
                          'from a recording that starts mid-ramp it is not identifiable, and '
-                         'hysteresis between heating and cooling cannot be tested.')
+                         f'{hysteresis}.')
         elif one_rate:
-            notes.append(f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min): '
-                         'a lag or dT/dt effect rests on the changes of rate between the ramp '
-                         f'and the soaks (the longest {soak:.0f} s: the approach to equilibrium '
-                         'there shows a time constant); hysteresis between heating and cooling '
-                         'cannot be tested.')
+            notes.append(f'{one}: a lag or dT/dt effect rests on the changes of rate between the '
+                         f'ramp and the soaks (the longest {soak:.0f} s: the approach to '
+                         f'equilibrium there shows a time constant); {hysteresis}.')
         else:
-            notes.append(f'The data only {leg}: hysteresis between heating and cooling cannot '
-                         'be tested; a dT/dt or lag effect seen here rests on the change of '
-                         f'the {leg}ing rate alone.')
+            notes.append(f'The data only {leg}: {hysteresis}; a dT/dt or lag effect seen here '
+                         f'rests on the change of the {leg}ing rate alone.')
     if not np.any(data.scale_axes):
         if not np.any(np.abs(data.ref) > 1e-12):
             add('scale', 'the reference rate is zero on every run: a sensitivity change has '

@@ -213,16 +213,13 @@ def _plot_maps(maps_rows: Sequence[tuple[str, Sequence[BinMap]]], path: Path) ->
 
 def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
     """Plot the Allan deviation of the residual before and after each step."""
-    curves = []
-    for i, s in enumerate(result.steps):
-        if s.adev_tau_s.size == 0:
-            continue
-        if i == 0:
-            curves.append((', '.join(result.base_effects), s.adev_tau_s, s.adev_before_dps))
-        curves.append((f'+ {s.effect}', s.adev_tau_s, s.adev_after_dps))
-    if not curves and result.adev_tau_s.size:
-        curves.append((', '.join(result.final_effects), result.adev_tau_s, result.adev_dps))
-    if not curves:
+    s = result.steps
+    if s and s[0].adev_tau_s.size:      # every step has its Allan deviation, or none does
+        curves = [(', '.join(result.base_effects), s[0].adev_tau_s, s[0].adev_before_dps)] + [
+            (f'+ {x.effect}', x.adev_tau_s, x.adev_after_dps) for x in s]
+    elif result.adev_tau_s.size:
+        curves = [(', '.join(result.final_effects), result.adev_tau_s, result.adev_dps)]
+    else:
         return False
     fig = _figure(figsize=(6.0, 4.2))
     ax = fig.subplots()

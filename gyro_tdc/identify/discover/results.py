@@ -365,9 +365,9 @@ def format_summary(result: DiscoveryResult) -> str:
     for i, s in enumerate(result.steps, 1):
         par = ', '.join(f'{k} = {v:.4g}' for k, v in s.params.items())
         b = s.best
-        lines.append(f'step {i}: add {s.effect}' + (f' ({par})' if par else '')
-                     + (f'; aliases: {", ".join(s.aliases)}' if s.aliases else ''))
-        lines.append(f'  {s.description}')
+        lines += [f'step {i}: add {s.effect}' + (f' ({par})' if par else '')
+                  + (f'; aliases: {", ".join(s.aliases)}' if s.aliases else ''),
+                  f'  {s.description}']
         if b is not None:
             lines.append(f'  evidence: HAC p = {b.p_value:.2g}, held-out gain '
                          f'{b.heldout_gain_dps2:.3g} (deg/s)^2, effect RMS '
@@ -381,16 +381,12 @@ def format_summary(result: DiscoveryResult) -> str:
                  f'(held-out {result.heldout_gap_dps:.4g})')
     if result.thermal is not None:
         lines.append(f'final {result.thermal.describe()}')
-    if result.candidates:
-        lines.append('remaining candidates (none passed):')
-        for c in result.candidates:
-            lines.append(f'  {c.effect:7s} p = {c.p_value:.2g}, held-out gain '
-                         f'{c.heldout_gain_dps2:+.2g} (deg/s)^2, effect {c.effect_rms_dps:.2g} '
-                         f'deg/s: {c.why_not}')
-    for u in result.unidentifiable:
-        lines.append(f'unidentifiable: {u.effect}: {u.reason}. Experiment: {u.experiment}')
-    for n in result.notes:
-        lines.append(f'note: {n}')
+    lines += ['remaining candidates (none passed):'] if result.candidates else []
+    lines += [f'  {c.effect:7s} p = {c.p_value:.2g}, held-out gain {c.heldout_gain_dps2:+.2g} '
+              f'(deg/s)^2, effect {c.effect_rms_dps:.2g} deg/s: {c.why_not}'
+              for c in result.candidates]
+    lines += [f'unidentifiable: {u.effect}: {u.reason}. Experiment: {u.experiment}'
+              for u in result.unidentifiable] + [f'note: {n}' for n in result.notes]
     gain = np.asarray(result.coef.get('gain', np.zeros(3)))
     if np.any(gain != 0):
         lines.append('constant scale-factor error vs the reference (not thermal, not in the '
