@@ -158,17 +158,14 @@ class BlockData:
             x = batch_features(_STATIC, t, run.temp, t0=self.t0)
             last = np.cumsum(cnt).astype(np.int64) - 1
             first = last - cnt.astype(np.int64) + 1
-            for key, v in (('run', np.full(nb, r)), ('n', cnt), ('t', grid.mean(t)),
-                           ('tfirst', t[first]), ('tlast', t[last]),
+            for key, v in (('run', np.full(nb, r, dtype=np.int64)), ('n', cnt),
+                           ('t', grid.mean(t)), ('tfirst', t[first]), ('tlast', t[last]),
                            ('temp', grid.mean(run.temp)), ('y', grid.mean(y)),
                            ('ref', grid.mean(run.omega_ref)),
                            ('dtref', grid.mean(x[:, :1] * run.omega_ref)),
                            ('static', grid.mean(x)), ('noise', _block_noise(y, first, cnt))):
                 parts[key].append(v)
-            # White noise from first differences inside segments.
-            inside = np.ones(max(n - 1, 0), dtype=bool)
-            inside[breaks - 1] = False
-            white.append(np.diff(y, axis=0)[inside])
+            white.append(np.delete(np.diff(y, axis=0), breaks - 1, axis=0))  # inside segments
             # Regular grid for the filtered features; the reference rate held on it from the
             # last sample (a step schedule).
             step = min(max(med, self.block_s / 10.0), 1.0) if self.block_s > med else med
@@ -183,14 +180,12 @@ class BlockData:
             start += nb
 
         cat = {k: np.concatenate(v) for k, v in parts.items()}
-        self.run = cat['run'].astype(np.int64)
-        self.n = cat['n']
+        for key in ('run', 'n', 't', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref'):
+            setattr(self, key, cat[key])
         self.K = int(self.n.shape[0])
         self.w = self.n / self.n.mean()
         self.block_eff_s = span / self.K     # mean duration of a block
         self.sw = np.sqrt(self.w)
-        for key in ('t', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref'):
-            setattr(self, key, cat[key])
         self.static = {eid: cat['static'][:, j] for j, eid in enumerate(_STATIC)}
         self.n_runs = len(self.runs)
         self.t_since = self.t - np.array([self.runs[r].t[0] for r in self.run])
