@@ -83,11 +83,9 @@ def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
     lo, hi = EFFECTS[eid].bounds.get('tau_s', _SMOOTHING_BOUNDS_S)
     longest = max(r.duration_s for r in data.runs)
     grid_step = max(float(g[0][1] - g[0][0]) if g[0].size > 1 else 1.0 for g in data.grids)
-    lo = max(lo, 2.0 * grid_step)
-    if eid == 'warmup':
-        lo = max(lo, 3.0 * data.block_s)   # shorter decays are a dummy for the first block
-    hi = min(hi, max(2.0 * longest, 4.0 * lo))
-    return lo, hi
+    # A warm-up shorter than three blocks is a dummy for the first block.
+    lo = max(lo, 2.0 * grid_step, 3.0 * data.block_s if eid == 'warmup' else 0.0)
+    return lo, min(hi, max(2.0 * longest, 4.0 * lo))
 
 
 def _fit_taus(data: BlockData, effects: Sequence[str], params: Mapping, which: Sequence[str]
@@ -173,33 +171,19 @@ def _noise_lags(data: BlockData, model: LinearModel, todo: Sequence[str], cparam
     return [bandwidth(r[:, a]) for a in range(3)], int(memory)
 
 
-def _curve_model(data: BlockData, model: LinearModel, folds: Folds
-                 ) -> tuple[tuple[str, ...], LinearModel, float] | None:
-    """
-    Return the static curve ``model`` lacks, the model with it and its held-out mean square.
-
-    None when the model has the whole curve (:data:`_CURVE`).
-    """
-    curve = tuple(e for e in _CURVE if e not in model.effects)
-    if not curve:
-        return None
-    base = LinearModel(data, _effects(model.effects, curve), model.params)
-    return curve, base, mse(data, base.cv_residual(folds))
-
-
 def _beside_curve(data: BlockData, curve: tuple, folds: Folds, eid: str, params: dict) -> float:
     """
     Return the held-out gain of a time-memory candidate beside the static curve, (deg/s)^2.
 
     A candidate with time memory (``lag``, ``dTdt``, ``warmup``) is scored once more with
-    the static curvature the model lacks (``curve`` from :func:`_curve_model`) on both
+    the static curvature the model lacks (``curve`` from :func:`_score_round`) on both
     sides, its time constants refitted there: on a run that heats or cools only, a slow
     decay or rate term can hold curvature the final RBF network holds anyway, and it
     extrapolates wrongly off the one ramp direction it was fitted on. :func:`_score`
     requires ``dTdt`` and ``warmup`` to gain here and ranks them by it; ``lag`` (no column
     of its own) is ranked by it when it is the larger gain.
     """
-    effects = _effects(curve[1].effects, {eid})
+    effects = _effects(curve[1], {eid})
     trial = _fit_taus(data, effects, params, _timed(eid, effects))
     return (curve[2] - mse(data, LinearModel(data, effects, trial).cv_residual(folds))) * DEG ** 2
 
@@ -222,7 +206,7 @@ def _score(data: BlockData, model: LinearModel, rnd: _Round, eid: str, params: d
     """
     Score one candidate against ``model`` (fitted in ``rnd``): its score, contribution, params.
 
-    With ``curve`` (:func:`_curve_model`) a time-memory candidate must also gain held out
+    With ``curve`` (:func:`_score_round`) a time-memory candidate must also gain held out
     beside the static curve (:func:`_beside_curve`), and is ranked by its gain there.
     """
     cand = LinearModel(data, _effects(model.effects, {eid}), params)
@@ -367,9 +351,7 @@ def discover(runs: Sequence[Run], options: DiscoverOptions | None = None, *,
     params = {eid: dict(EFFECTS[eid].params) for eid in base_ids if EFFECTS[eid].params}
     model = LinearModel(data, base_ids,
                         _fit_taus(data, base_ids, params, [e for e in base_ids if e in _TIMED]))
-    steps: list[Step] = []
-    collinear: list[str] = []
-    adev: tuple | None = None
+    steps, collinear, adev = [], [], None
     while True:
         todo = [e for e in cand_ids if e not in model.effects and e not in unident]
         rnd = _score_round(data, model, todo, o, collinear, progress, len(steps))
@@ -393,7 +375,14 @@ def _score_round(data: BlockData, model: LinearModel, todo: Sequence[str], o: Di
     lags, memory = _noise_lags(data, model, todo, cparams)
     folds, buffer = make_folds(data, memory, o.n_folds)
     rnd = _Round(coef, data.y - model.predict(coef), folds, buffer, model.cv_residual(folds), [])
-    curve = _curve_model(data, model, folds) if set(todo) & set(_MEMORY) else None
+    # The static curve the model lacks (of :data:`_CURVE`), beside which a time-memory
+    # candidate is scored too: its effects and held-out mean square.
+    missing = tuple(e for e in _CURVE if e not in model.effects)
+    curve = None
+    if missing and set(todo) & set(_MEMORY):
+        effects = _effects(model.effects, missing)
+        curve = (missing, effects,
+                 mse(data, LinearModel(data, effects, model.params).cv_residual(folds)))
     for eid in todo:
         if progress is not None:
             progress(step, eid)
