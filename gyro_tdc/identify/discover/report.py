@@ -32,6 +32,7 @@ from gyro_tdc.identify.discover.data import BlockData
 from gyro_tdc.identify.discover.linear import ar1, DEG, LinearModel
 from gyro_tdc.identify.discover.results import BinMap, DiscoveryResult
 from gyro_tdc.model import batch_features, ThermalState
+from gyro_tdc.signal import allan_deviation
 import numpy as np
 from numpy.typing import NDArray
 
@@ -147,8 +148,6 @@ def _full_rate_residual(data: BlockData, model: LinearModel, coef: NDArray[np.fl
 def residual_adev(data: BlockData, model: LinearModel, coef: NDArray[np.float64]
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return Allan deviation (taus, RMS over axes in deg/s) of the full-rate residual."""
-    from gyro_tdc.signal import allan_deviation
-
     res, rate = _full_rate_residual(data, model, coef)
     if res.shape[0] < 16:
         return np.zeros(0), np.zeros(0)

@@ -454,21 +454,19 @@ def _result(data: BlockData, model: LinearModel, rnd: _Round, steps: list, unide
     adev = (adev or residual_adev(data, model, rnd.coef)) if o.allan else _NO_ADEV
     folds = ('leave-one-run-out' if data.n_runs >= 2
              else f'{len(rnd.folds)} blocked folds, buffer {rnd.buffer} blocks')
+    settings = {k: getattr(o, k) for k in ('alpha', 'min_heldout', 'min_effect', 'alias_margin',
+                                           'alias_corr')}
+    settings.update(folds=folds, block_s=float(o.block_s), block_mean_s=float(data.block_eff_s))
     return DiscoveryResult(
         base_effects=base_ids, final_effects=effects,
         params={k: dict(v) for k, v in model.params.items() if k in effects and k in _TIMED},
         noise_floor_dps=data.floor * DEG, noise_floor_axes_dps=data.floor_axes * DEG,
         white_noise_dps=data.white * DEG, block_s=float(o.block_s), t0_c=float(data.t0),
-        steps=tuple(steps),
+        steps=tuple(steps), notes=tuple(notes), settings=settings, blocks=data.K,
         unidentifiable=tuple(unident[e] for e in EFFECTS if e in unident and e in cand_ids),
         candidates=tuple(x[0] for x in rnd.results), maps=residual_maps(data, rnd.resid),
         gap_dps=gap(data, rnd.resid), heldout_gap_dps=gap(data, rnd.heldout),
         coef=_coef_dict(data, model, rnd.coef), runs=tuple(x.name for x in data.runs),
-        blocks=data.K, notes=tuple(notes),
-        settings={**{k: getattr(o, k) for k in ('alpha', 'min_heldout', 'min_effect',
-                                                'alias_margin', 'alias_corr')},
-                  'folds': folds, 'block_s': float(o.block_s),
-                  'block_mean_s': float(data.block_eff_s)},
         adev_tau_s=adev[0], adev_dps=adev[1],
         thermal=steps[-1].thermal if steps else _thermal_state(data, model))
 
