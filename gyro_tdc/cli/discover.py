@@ -30,10 +30,9 @@ import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.base import atomic_write
-from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser,
-                                 bag_options, command_line, effect_listing, finite_float,
-                                 positive_float, positive_int, probability, run_command,
-                                 UsageError)
+from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser, bag_options,
+                                 command_line, effect_listing, finite_float, positive_float,
+                                 positive_int, probability, run_command, UsageError)
 from gyro_tdc.data import load_runs, split_sessions
 from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.identify import (ACCEL_EFFECTS, build_model, constant_gyro_axes, constant_note,
@@ -128,9 +127,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         bar.update(1)
 
     try:
-        result = discover(runs, base=base, candidates=cands, block_s=args.block_s,
-                          t0=args.t0, alpha=args.alpha, max_steps=args.max_steps,
-                          progress=progress)
+        result = discover(runs, base=base, candidates=cands, block_s=args.block_s, t0=args.t0,
+                          alpha=args.alpha, max_steps=args.max_steps, progress=progress)
     except FitError as err:
         if still is None:
             raise

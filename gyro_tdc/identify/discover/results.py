@@ -352,13 +352,11 @@ def format_summary(result: DiscoveryResult) -> str:
     grid = (f'{result.blocks} blocks of {result.block_s:g} s' if held >= 0.9 * result.block_s
             else f'{result.blocks} blocks on a {result.block_s:g} s grid holding {held:.3g} s '
                  'of data each on average (gaps in the recording)')
-    lines = [
-        f'discover: {len(result.runs)} run(s), {grid}, T0 = {result.t0_c:.2f} degC',
-        f'base model: {", ".join(result.base_effects)}  '
-        f'(one offset per run; cross-validation: {result.settings["folds"]})',
-        f'noise floor: {result.noise_floor_dps:.3g} deg/s on those block means (white noise '
-        f'{result.white_noise_dps:.3g} deg/s per sample); gaps are RMS of block means',
-    ]
+    lines = [f'discover: {len(result.runs)} run(s), {grid}, T0 = {result.t0_c:.2f} degC',
+             f'base model: {", ".join(result.base_effects)}  '
+             f'(one offset per run; cross-validation: {result.settings["folds"]})',
+             f'noise floor: {result.noise_floor_dps:.3g} deg/s on those block means (white '
+             f'noise {result.white_noise_dps:.3g} deg/s per sample); gaps are RMS of block means']
     if not result.steps:
         lines.append('no missing effect found: no candidate is significant, gains on held-out '
                      'data and exceeds the noise')
