@@ -379,12 +379,11 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
         out[eid] = unidentifiable(eid, reason, extra)
 
     if span < MIN_SPAN_C:
-        for eid in _SPAN:
-            add(eid, f'the temperature spans only {span:.2f} degC', ', of at least 10 degC')
+        out.update({e: unidentifiable(e, f'the temperature spans only {span:.2f} degC',
+                                      ', of at least 10 degC') for e in _SPAN})
     if not np.any(moving):
-        for eid in _RATE:
-            if eid not in out:
-                add(eid, 'the temperature never changes at a measurable rate')
+        out.update({e: unidentifiable(e, 'the temperature never changes at a measurable rate')
+                    for e in _RATE if e not in out})
     elif data.heating != data.cooling:
         leg = 'heat' if data.heating else 'cool'
         r = np.abs(data.rate_cpm[moving])
@@ -419,6 +418,4 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
     if not np.any(_first_soaks(data) >= soak_min):
         add('warmup', 'no run starts with a soak after power-on: a warm-up transient cannot be '
             'told apart from the temperature response and the bias')
-    for eid in base:
-        out.pop(eid, None)
-    return out, notes
+    return {e: u for e, u in out.items() if e not in base}, notes
