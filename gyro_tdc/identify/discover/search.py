@@ -243,15 +243,14 @@ def _score(data: BlockData, model: LinearModel, rnd: _Round, eid: str, params: d
         why.append('no held-out gain')
     elif curve is not None:
         beside = _beside_curve(data, curve, rnd.folds, eid, params)
-        if eid in THERMAL_EFFECTS:
-            # The thermal state adds no column that could stand in for curvature; beside
-            # the curve its cubic of a far-lagging state can run away held out. It is
-            # ranked by its gain there when that is a gain.
-            gain = beside if beside > gain else gain
-        else:
-            if beside <= max(o.min_heldout * floor ** 2, 0.01 * curve[2] * DEG ** 2):
-                why.append(f'no held-out gain beside {"+".join(curve[0])}')
-            gain = beside          # credited with what the static curve cannot hold
+        if eid not in THERMAL_EFFECTS and beside <= max(o.min_heldout * floor ** 2,
+                                                        0.01 * curve[2] * DEG ** 2):
+            why.append(f'no held-out gain beside {"+".join(curve[0])}')
+        # A candidate is credited with what the static curve cannot hold. The thermal state
+        # adds no column that could stand in for curvature; beside the curve its cubic of a
+        # far-lagging state can run away held out: it is ranked by its gain there when that
+        # is a gain.
+        gain = beside if eid not in THERMAL_EFFECTS else max(gain, beside)
     if eff < o.min_effect * floor:
         why.append('effect below noise')
     sc = CandidateScore(eid, own, p, gain, eff, gap(data, r), gap(data, ho), not why,
