@@ -23,6 +23,7 @@ rates, directions, soaks). See ``doc/internals/identify.md``.
 
 from __future__ import annotations
 
+from collections import defaultdict
 import math
 from typing import Callable, Mapping, Sequence
 
@@ -134,9 +135,7 @@ class BlockData:
         self.runs = list(runs)
         self.t0 = float(t0)
         self.block_s = float(block_s)
-        parts: dict[str, list] = {k: [] for k in (
-            'run', 'n', 't', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref', 'static',
-            'noise')}
+        parts: dict[str, list] = defaultdict(list)
         #: Per run: its regular grid, the temperature and the reference rate there, the
         #: grid span of each block, the block times and the run's rows of the blocks.
         self.grids: list[tuple] = []
