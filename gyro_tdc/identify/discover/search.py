@@ -88,8 +88,7 @@ def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
     return lo, min(hi, max(2.0 * longest, 4.0 * lo))
 
 
-def _fit_taus(data: BlockData, effects: Sequence[str], params: Mapping, which: Sequence[str]
-              ) -> dict:
+def _fit_taus(data: BlockData, effects: Sequence[str], params: dict, which: Sequence[str]) -> dict:
     """
     Fit the time constants of ``which`` by a bounded 1-D search on the residual each.
 
