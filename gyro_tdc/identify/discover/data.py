@@ -329,37 +329,27 @@ class BlockData:
                                                     params={eid: {'tau_s': tau}}))[0])
 
 
-def _first_soaks(data: BlockData) -> NDArray[np.float64]:
+def _soaks(data: BlockData) -> tuple[NDArray[np.float64], float]:
     """
-    Return, per run, how long it soaks after power-on before the temperature first moves, s.
+    Return per run its soak after power-on, and the longest soak next to a ramp, s.
 
-    Zero for a run with fewer than four blocks before its first move (one block is no soak).
+    The soak after power-on is the time before the temperature first moves, zero for a run
+    with fewer than four blocks before its first move (one block is no soak). A soak next to
+    a ramp is a stretch of still blocks in a run that moves: a change of rate between a ramp
+    and a soak is what a time constant shows in (the die catching up, or starting to lag);
+    a run that never moves, or never stops, has none.
     """
-    out = np.zeros(data.n_runs)
-    for r in range(data.n_runs):
-        tr, mv = data.t_since[data.run == r], data.moving[data.run == r]
-        first_move = tr[np.argmax(mv)] if np.any(mv) else tr[-1]
-        out[r] = first_move if np.count_nonzero(tr < first_move) >= 4 else 0.0
-    return out
-
-
-def _longest_soak(data: BlockData) -> float:
-    """
-    Return the longest soak next to a ramp, s: a stretch of still blocks in a run that moves.
-
-    A change of rate between a ramp and a soak is what a time constant shows in (the die
-    catching up, or starting to lag); a run that never moves, or never stops, has none.
-    """
-    best = 0.0
+    first, longest = np.zeros(data.n_runs), 0.0
     for r in range(data.n_runs):
         idx = np.flatnonzero(data.run == r)
-        mv = data.moving[idx]
-        if not np.any(mv) or np.all(mv):
-            continue
-        edges = np.flatnonzero(np.diff(np.concatenate([[1], mv.astype(np.int8), [1]])))
-        for a, b in zip(edges[::2], edges[1::2]):      # still stretches [a, b)
-            best = max(best, float(data.tlast[idx[b - 1]] - data.tfirst[idx[a]]))
-    return best
+        tr, mv = data.t_since[idx], data.moving[idx]
+        first_move = tr[np.argmax(mv)] if np.any(mv) else tr[-1]
+        first[r] = first_move if np.count_nonzero(tr < first_move) >= 4 else 0.0
+        if np.any(mv) and not np.all(mv):
+            edges = np.flatnonzero(np.diff(np.concatenate([[1], mv.astype(np.int8), [1]])))
+            for a, b in zip(edges[::2], edges[1::2]):      # still stretches [a, b)
+                longest = max(longest, float(data.tlast[idx[b - 1]] - data.tfirst[idx[a]]))
+    return first, longest
 
 
 def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
@@ -373,6 +363,7 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
     span = float(data.temp.max() - data.temp.min())
     moving = data.moving
     soak_min = max(_SOAK_S, 3.0 * data.block_s)    # 2 minutes and three blocks
+    first_soaks, soak = _soaks(data)
 
     def add(eid: str, reason: str, extra: str = '') -> None:
         out[eid] = unidentifiable(eid, reason, extra)
@@ -388,7 +379,6 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
         r = np.abs(data.rate_cpm[moving])
         q1, q3 = np.percentile(r, [25, 75])
         one_rate = (q3 - q1) < 0.25 * float(np.median(r))
-        soak = _longest_soak(data)
         one = f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min)'
         hysteresis = 'hysteresis between heating and cooling cannot be tested'
         if one_rate and soak < soak_min:
@@ -414,7 +404,7 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
             add('scale', 'the reference rate is constant on every run, so a sensitivity '
                 'change is indistinguishable from dT')
     # Warm-up: some run must start with a soak (no temperature change) after power-on.
-    if not np.any(_first_soaks(data) >= soak_min):
+    if not np.any(first_soaks >= soak_min):
         add('warmup', 'no run starts with a soak after power-on: a warm-up transient cannot be '
             'told apart from the temperature response and the bias')
     return {e: u for e, u in out.items() if e not in base}, notes
