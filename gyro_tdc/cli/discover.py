@@ -30,10 +30,9 @@ import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.base import atomic_write
-from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser,
-                                 bag_options, command_line, effect_listing, finite_float,
-                                 positive_float, positive_int, probability, run_command,
-                                 UsageError)
+from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser, bag_options,
+                                 command_line, effect_listing, finite_float, positive_float,
+                                 positive_int, probability, run_command, UsageError)
 from gyro_tdc.data import load_runs, split_sessions
 from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.identify import (ACCEL_EFFECTS, build_model, constant_gyro_axes, constant_note,
@@ -48,42 +47,39 @@ def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``discover``."""
     p = ArgumentParser(
         prog='python -m gyro_tdc discover',
-        description='Fit the drift model with the base effects to measured bags, show where '
-                    'it disagrees with them, name the missing effect, add it and repeat '
-                    'until the residual is noise.')
-    p.add_argument('bags', nargs='+', metavar='BAG',
-                   help='rosbag2 directory (sqlite3 or mcap), or a PX4 .ulg / ArduPilot .bin '
-                        'flight log')
+        description='Fit the drift model with the base effects to measured bags, show where it '
+                    'disagrees with them, name the missing effect, add it and repeat until the '
+                    'residual is noise.')
+    p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap), '
+                   'or a PX4 .ulg / ArduPilot .bin flight log')
     p.help_tail = effect_listing     # --help ends with the effect ids
     p.add_argument('--base', default='bias,dT', metavar='IDS',
                    help='effects of the starting model (default: %(default)s, the conventional '
                         'model of eq. 18; bias is always included, one offset per bag)')
-    p.add_argument('--candidates', default=None, metavar='IDS',
+    p.add_argument('--candidates', metavar='IDS',
                    help='effects to try (default: every catalog effect not in --base)')
-    p.add_argument('--json', dest='json_out', default=None, metavar='OUT',
+    p.add_argument('--json', dest='json_out', metavar='OUT',
                    help='write the machine-readable result to OUT (shape: doc/json.md)')
-    p.add_argument('--report', default=None, metavar='DIR',
+    p.add_argument('--report', metavar='DIR',
                    help='write report.md with PNG residual maps and Allan deviation to DIR')
-    p.add_argument('--out', default=None, metavar='MODEL.yaml',
-                   help='write a model file of the discovered effects (compensator_node loads '
-                        'it)')
+    p.add_argument('--out', metavar='MODEL.yaml', help='write a model file of the discovered '
+                   'effects (compensator_node loads it)')
     p.add_argument('--kind', default='poly', choices=KINDS,
-                   help='model of --out: poly (linear in the features of the model '
-                        'temperature, what discovery validated; with lag every temperature '
-                        'term is of the lagged state) or rbf (default: poly)')
+                   help='model of --out: poly (linear in the features of the model temperature, '
+                        'what discovery validated; with lag every temperature term is of the '
+                        'lagged state) or rbf (default: poly)')
     p.add_argument('--block-s', type=positive_float, default=10.0, metavar='S',
                    help='block length in s; gaps and the noise floor are RMS of block means '
                         '(default: %(default)s)')
-    p.add_argument('--t0', type=finite_float, default=None, metavar='C',
-                   help='reference temperature T0 in degC (default: the stable initial '
-                        'temperature of the first bag)')
+    p.add_argument('--t0', type=finite_float, metavar='C', help='reference temperature T0 in '
+                   'degC (default: the stable initial temperature of the first bag)')
     p.add_argument('--alpha', type=probability, default=0.01, metavar='P',
                    help='family-wise significance level per step (default: %(default)s)')
     p.add_argument('--max-steps', type=positive_int, default=6, metavar='N',
                    help='most effects to add (default: %(default)s)')
     p.add_argument('--sensor', choices=('gyro', 'accel'), default='gyro',
-                   help='gyro, or accel: search the accelerometer offset on the still data '
-                        '(one offset per bag and orientation; candidates among '
+                   help='gyro, or accel: search the accelerometer offset on the still data (one '
+                        'offset per bag and orientation; candidates among '
                         f'{", ".join(ACCEL_EFFECTS)}; figures in mg) (default: %(default)s)')
     add_bag_options(p)
     add_session_options(p)
@@ -106,62 +102,53 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     split = split_sessions(runs, bag.sessions, bag.session_gap_s)
     if split.breaks:            # one offset per run: a bag cut at its restarts (auto)
         print('\n'.join(split.lines()))
-    runs = split.runs
+    runs, still = split.runs, None
     # A sensor constant on every axis has nothing to discover: refused before the search, in
     # train's words (a gyro), or in the accelerometer part's.
-    if not accel:
-        constant_gyro_axes(runs)
-    elif constant_note(runs):
-        note = constant_note(runs).split('; treated as absent')[0]
-        raise DatasetError(f'Expected an accelerometer to discover on: {note}.')
-    still = None
-    if not accel:           # no reference and moving: the still stretches only, never motion
-        runs, still = still_only_runs(runs)
-        if still is not None:
-            print(still)
     if accel:
-        n_bags = len(runs)
-        runs = discovery_runs(runs)
+        note = constant_note(runs)
+        if note:
+            raise DatasetError('Expected an accelerometer to discover on: '
+                               f'{note.split("; treated as absent")[0]}.')
+        n_bags, runs = len(runs), discovery_runs(runs)
         print(f'accelerometer: the still data of {n_bags} bag(s) as {len(runs)} run(s) (one '
               'offset per bag and orientation); figures in mg (1 mg = 9.80665e-3 m/s^2)')
-    bar = None
-    if sys.stderr.isatty():
-        from tqdm import tqdm
-        bar = tqdm(unit='candidate', desc='discover', file=sys.stderr, leave=False)
+    else:
+        constant_gyro_axes(runs)
+        runs, still = still_only_runs(runs)     # no reference and moving: the still stretches
+        if still is not None:
+            print(still)
+    from tqdm import tqdm
+    bar = tqdm(unit='candidate', desc='discover', file=sys.stderr, leave=False,
+               disable=not sys.stderr.isatty())
 
     def progress(step: int, eid: str) -> None:
         bar.set_postfix_str(f'step {step + 1}: scoring {eid}')
         bar.update(1)
 
     try:
-        result = discover(runs, base=base, candidates=cands, block_s=args.block_s,
-                          t0=args.t0, alpha=args.alpha, max_steps=args.max_steps,
-                          progress=None if bar is None else progress)
+        result = discover(runs, base=base, candidates=cands, block_s=args.block_s, t0=args.t0,
+                          alpha=args.alpha, max_steps=args.max_steps, progress=progress)
     except FitError as err:
         if still is None:
             raise
         raise FitError(f'on the still stretches only (no reference rate, the IMU moves): '
                        f'{err}') from None
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     text = format_summary(result)
     sys.stdout.write(text.replace('deg/s', 'mg') if accel else text)
     model_file = None
     if args.out is not None:
-        model = build_model(result, runs, kind=args.kind,
-                            created={'command': command_line('discover', argv),
-                                     'bags': bags})
+        model = build_model(result, runs, kind=args.kind, created={
+            'command': command_line('discover', argv), 'bags': bags})
         model_file = str(save_model(model, args.out))
         print(f'wrote model {model_file} ({model.kind}, features '
               f'{", ".join(model.features)}, model_id {model.model_id})')
     if args.report is not None:
-        path = write_report(result, args.report)
-        print(f'wrote report {path}')
+        print(f'wrote report {write_report(result, args.report)}')
     if args.json_out is not None:
-        doc = result.to_json(model_file)
-        if accel:
-            doc.update({'sensor': 'accel', 'unit': 'mg'})
+        doc = {**result.to_json(model_file), **(dict(sensor='accel', unit='mg') if accel else {})}
         atomic_write(args.json_out, json.dumps(doc, indent=1) + '\n', what='JSON file')
         print(f'wrote {args.json_out}')
     return 0

@@ -15,17 +15,17 @@
 """
 The measured runs on the block grid, and what they can excite before any fit.
 
-:class:`BlockData` holds the block means of every run, the noise floor left in a block mean
-and the effect columns, of the thermal state too (:meth:`BlockData.state_columns`);
-:func:`excitation` names the candidates the runs cannot excite (spans, rates, directions,
-soaks) and :func:`one_way` tells data that only heat or only cool. See
-``doc/internals/identify.md``.
+:class:`BlockData` holds the block means of every run, the noise floor left in a block mean,
+the effect columns, of the thermal state too (:meth:`BlockData.state_columns`), and which
+blocks heat or cool; :func:`excitation` names the candidates the runs cannot excite (spans,
+rates, directions, soaks). See ``doc/internals/identify.md``.
 """
 
 from __future__ import annotations
 
+from collections import defaultdict
 import math
-from typing import Mapping, Sequence
+from typing import Callable, Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
@@ -37,8 +37,7 @@ from gyro_tdc.signal import BlockGrid, fit_columns
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['BlockData', 'COLLINEAR', 'directions', 'excitation', 'moving_blocks', 'one_way',
-           'rel_residual']
+__all__ = ['BlockData', 'COLLINEAR', 'excitation', 'rel_residual', 'unidentifiable']
 
 #: Relative norm below which a column is taken as spanned by the others.
 COLLINEAR = 1e-3
@@ -52,6 +51,12 @@ _SPAN = tuple(e for e in EFFECTS if e in TEMPERATURE_EFFECTS and e not in REFERE
 _RATE = tuple(e for e in _SPAN if e not in STATIC_EFFECTS)
 #: A soak (the temperature still) counts from this long, s (and three blocks).
 _SOAK_S = 120.0
+
+
+def unidentifiable(eid: str, reason: str, extra: str = '') -> Unidentifiable:
+    """Return ``eid`` as not identifiable for ``reason``, with the experiment that excites it."""
+    exp = EFFECTS[eid].excited_by
+    return Unidentifiable(eid, reason, exp[0].upper() + exp[1:] + extra + '.')
 
 
 def rel_residual(x: NDArray[np.float64], col: NDArray[np.float64]) -> float:
@@ -99,15 +104,13 @@ def _noise_floor(noise: NDArray[np.float64], white: Sequence[NDArray[np.float64]
     The white noise comes from first differences inside segments; it stands in for an axis
     whose blocks are too short for thirds.
     """
-    sig = np.empty(3)
-    for a in range(3):
-        v = noise[:, a][np.isfinite(noise[:, a])]
-        sig[a] = 1.4826 * np.median(np.abs(v - np.median(v))) if v.size >= 3 else np.nan
-    wd = np.concatenate(white) if white else np.zeros((0, 3))
-    if wd.shape[0] >= 3:
-        wsig = 1.4826 * np.median(np.abs(wd - np.median(wd, axis=0)), axis=0) / math.sqrt(2)
-    else:
-        wsig = np.full(3, np.nan)
+    def mad(v: NDArray[np.float64]) -> NDArray[np.float64]:
+        return 1.4826 * np.median(np.abs(v - np.median(v, axis=0)), axis=0)
+
+    finite = [noise[:, a][np.isfinite(noise[:, a])] for a in range(3)]
+    sig = np.array([mad(v) if v.size >= 3 else np.nan for v in finite])
+    wd = np.concatenate(white)
+    wsig = mad(wd) / math.sqrt(2) if wd.shape[0] >= 3 else np.full(3, np.nan)
     sig = np.where(np.isfinite(sig), sig, wsig)
     if not np.all(np.isfinite(sig)):
         raise FitError('Cannot estimate the noise floor: blocks too short; '
@@ -132,24 +135,21 @@ class BlockData:
         self.runs = list(runs)
         self.t0 = float(t0)
         self.block_s = float(block_s)
-        n_runs = len(runs)
-        parts: dict[str, list] = {k: [] for k in (
-            'run', 'n', 't', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref', 'static',
-            'noise')}
+        parts: dict[str, list] = defaultdict(list)
+        #: Per run: its regular grid, the temperature and the reference rate there, the
+        #: grid span of each block, the block times and the run's rows of the blocks.
         self.grids: list[tuple] = []
-        self._ref_grid: list[NDArray[np.float64]] = []
         white = []
         span = 0.0
         start = 0
-        for r, run in enumerate(runs):
+        for r, run in enumerate(self.runs):
             t = np.asarray(run.t, dtype=np.float64)
             n = t.shape[0]
             dt = np.diff(t)
             med = float(np.median(dt)) if n > 1 else self.block_s
-            per = max(1, int(round(self.block_s / med)))
             breaks = np.flatnonzero(dt > max(20.0 * med, 0.5 * self.block_s)) + 1
-            grid = BlockGrid(n, per, bounds=np.concatenate([[0], breaks, [n]]),
-                             merge_tail=True)
+            grid = BlockGrid(n, max(1, int(round(self.block_s / med))),
+                             bounds=np.concatenate([[0], breaks, [n]]), merge_tail=True)
             cnt = grid.counts
             nb = cnt.shape[0]
             span += n * med
@@ -157,86 +157,85 @@ class BlockData:
             x = batch_features(_STATIC, t, run.temp, t0=self.t0)
             last = np.cumsum(cnt).astype(np.int64) - 1
             first = last - cnt.astype(np.int64) + 1
-            for key, v in (('run', np.full(nb, r)), ('n', cnt), ('t', grid.mean(t)),
-                           ('tfirst', t[first]), ('tlast', t[last]),
+            for key, v in (('run', np.full(nb, r, dtype=np.int64)), ('n', cnt),
+                           ('t', grid.mean(t)), ('tfirst', t[first]), ('tlast', t[last]),
                            ('temp', grid.mean(run.temp)), ('y', grid.mean(y)),
                            ('ref', grid.mean(run.omega_ref)),
                            ('dtref', grid.mean(x[:, :1] * run.omega_ref)),
                            ('static', grid.mean(x)), ('noise', _block_noise(y, first, cnt))):
                 parts[key].append(v)
-            # White noise from first differences inside segments.
-            inside = np.ones(max(n - 1, 0), dtype=bool)
-            inside[breaks - 1] = False
-            white.append(np.diff(y, axis=0)[inside])
-            # Regular grid for the filtered features.
+            white.append(np.delete(np.diff(y, axis=0), breaks - 1, axis=0))  # inside segments
+            # Regular grid for the filtered features; the reference rate held on it from the
+            # last sample (a step schedule).
             step = min(max(med, self.block_s / 10.0), 1.0) if self.block_s > med else med
             tg = t[0] + np.arange(int(math.floor((t[-1] - t[0]) / step)) + 2) * step
             tg = tg[tg <= t[-1] + step]
-            temp_g = np.interp(tg, t, run.temp)
-            lo = np.searchsorted(tg, t[first], side='left')
-            hi = np.searchsorted(tg, t[last], side='right')
-            self.grids.append((tg, temp_g, lo, hi, parts['t'][-1], start, start + nb))
-            # The reference rate on the grid, held from the last sample (a step schedule).
             held = np.clip(np.searchsorted(t, tg, side='right') - 1, 0, n - 1)
-            self._ref_grid.append(np.asarray(run.omega_ref, dtype=np.float64)[held])
+            self.grids.append((tg, np.interp(tg, t, run.temp),
+                               np.asarray(run.omega_ref, dtype=np.float64)[held],
+                               np.searchsorted(tg, t[first], side='left'),
+                               np.searchsorted(tg, t[last], side='right'), parts['t'][-1],
+                               start, start + nb))
             start += nb
 
         cat = {k: np.concatenate(v) for k, v in parts.items()}
-        self.run = cat['run'].astype(np.int64)
-        self.n = cat['n']
+        for key in ('run', 'n', 't', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref'):
+            setattr(self, key, cat[key])
         self.K = int(self.n.shape[0])
         self.w = self.n / self.n.mean()
         self.block_eff_s = span / self.K     # mean duration of a block
         self.sw = np.sqrt(self.w)
-        for key in ('t', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref'):
-            setattr(self, key, cat[key])
         self.static = {eid: cat['static'][:, j] for j, eid in enumerate(_STATIC)}
-        self.n_runs = n_runs
-        self.t_since = self.t - np.array([runs[r].t[0] for r in self.run])
-        self.offsets = np.zeros((self.K, n_runs))
-        self.offsets[np.arange(self.K), self.run] = 1.0
-        sig, wsig = _noise_floor(cat['noise'], white)
-        self.sigma = sig                            # per-sample equivalent, rad/s
+        self.n_runs = len(self.runs)
+        self.t_since = self.t - np.array([self.runs[r].t[0] for r in self.run])
+        self.offsets = np.eye(self.n_runs)[self.run]
+        sig, wsig = _noise_floor(cat['noise'], white)      # per-sample equivalent, rad/s
         self.floor_axes = sig / math.sqrt(self.n.mean())   # on the block scale, rad/s
         self.floor = float(np.sqrt(np.mean(self.floor_axes ** 2)))
         self.white = float(np.sqrt(np.mean(np.nan_to_num(wsig) ** 2)))
-        self.rate_cpm = self._rate_cpm()
         self._cache: dict = {}
-        self._state_cache: dict = {}
-        self.gain_axes = self._gain_axes()
-        self.scale_axes = np.array([np.any(np.abs(self.ref[:, a]) > 1e-12) and rel_residual(
+        self.rate_cpm = self._grid_means(lambda tg, temp_g, _ref: batch_features(
+            ('dTdt',), tg, temp_g, t0=self.t0, params={'dTdt': {'tau_s': 60.0}}) * 60.0)[0]
+        #: The blocks whose temperature changes at a measurable rate, and whether the data
+        #: heat and whether they cool there.
+        self.moving = np.abs(self.rate_cpm) > max(0.02, 0.1 * float(np.max(np.abs(self.rate_cpm))))
+        self.heating = bool(np.any(self.moving & (self.rate_cpm > 0)))
+        self.cooling = bool(np.any(self.moving & (self.rate_cpm < 0)))
+        # The axes whose reference rate the run offsets alone (gain), or with dT (scale),
+        # do not explain.
+        moves = [np.any(np.abs(self.ref[:, a]) > 1e-12) for a in range(3)]
+        self.gain_axes = np.array([moves[a] and rel_residual(self.offsets, self.ref[:, a])
+                                   > COLLINEAR for a in range(3)])
+        self.scale_axes = np.array([moves[a] and rel_residual(
             np.hstack([self.offsets, self.static['dT'][:, None], self.ref[:, a:a + 1]]),
             self.dtref[:, a]) > COLLINEAR for a in range(3)])
 
-    def _rate_cpm(self) -> NDArray[np.float64]:
-        """Return the smoothed dT/dt of each block, degC/min (60 s first-order smoothing)."""
-        out = np.empty(self.K)
-        for tg, temp_g, lo, hi, tb, a, b in self.grids:
-            f = batch_features(('dTdt',), tg, temp_g, t0=self.t0,
-                               params={'dTdt': {'tau_s': 60.0}})[:, 0] * 60.0
-            out[a:b] = self._grid_mean(tg, f, lo, hi, tb)
+    def _grid_means(self, f: Callable[..., NDArray[np.float64]]) -> NDArray[np.float64]:
+        """
+        Return ``f(grid, temperature, reference)`` (points, m) of every run, block means (m, K).
+
+        A block's mean is over the grid points inside its span (interpolated when none falls
+        inside); each row of the result is contiguous.
+        """
+        out = None
+        for tg, temp_g, ref_g, lo, hi, tb, a, b in self.grids:
+            fg = f(tg, temp_g, ref_g)
+            out = np.empty((fg.shape[1], self.K)) if out is None else out
+            cnt = hi - lo
+            has = cnt > 0
+            for k in range(fg.shape[1]):
+                cs = np.concatenate([[0.0], np.cumsum(fg[:, k])])
+                out[k, a:b] = np.interp(tb, tg, fg[:, k])
+                out[k, a:b][has] = (cs[hi[has]] - cs[lo[has]]) / cnt[has]
         return out
 
-    @staticmethod
-    def _grid_mean(tg: NDArray[np.float64], f: NDArray[np.float64], lo: NDArray[np.int64],
-                   hi: NDArray[np.int64], tb: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Average grid values over each block's span (interpolate when none falls inside)."""
-        cs = np.concatenate([[0.0], np.cumsum(f)])
-        cnt = hi - lo
-        out = np.interp(tb, tg, f)
-        has = cnt > 0
-        out[has] = (cs[hi[has]] - cs[lo[has]]) / cnt[has]
-        return out
-
-    def _gain_axes(self) -> NDArray[np.bool_]:
-        """Return the axes whose reference rate is not explained by the run offsets alone."""
-        out = np.zeros(3, dtype=bool)
-        for a in range(3):
-            col = self.ref[:, a]
-            if not np.any(np.abs(col) > 1e-12):
-                continue
-            out[a] = rel_residual(self.offsets, col) > COLLINEAR
-        return out
+    def _memo(self, key: tuple, make: Callable[[], object]) -> object:
+        """Return ``make()`` cached under ``key`` (the cache is cleared when it grows large)."""
+        if key not in self._cache:
+            if len(self._cache) > 768:
+                self._cache.clear()
+            self._cache[key] = make()
+        return self._cache[key]
 
     def state(self, r: int, tau: float) -> NDArray[np.float64]:
         """
@@ -286,25 +285,18 @@ class BlockData:
             ``(s - T0) omega_ref`` (the ``scale`` term).
 
         """
-        key = round(float(tau), 9)
-        if key in self._state_cache:
-            return self._state_cache[key]
-        x = np.empty((self.K, len(_STATE)))
-        dtref = np.empty((self.K, 3))
-        j = _STATE.index('dT')
-        for (tg, temp_g, lo, hi, tb, a, b), ref_g in zip(self.grids, self._ref_grid):
-            xg = batch_features(_STATE, tg, temp_g, t0=self.t0,
-                                state=self._grid_state(tg, temp_g, tau))
-            for k in range(len(_STATE)):
-                x[a:b, k] = self._grid_mean(tg, xg[:, k], lo, hi, tb)
-            for k in range(3):
-                dtref[a:b, k] = self._grid_mean(tg, xg[:, j] * ref_g[:, k], lo, hi, tb)
-        out = {eid: x[:, k] for k, eid in enumerate(_STATE)}
-        out['dtref'] = dtref
-        if len(self._state_cache) > 256:
-            self._state_cache.clear()
-        self._state_cache[key] = out
-        return out
+        def make() -> dict[str, NDArray[np.float64]]:
+            def f(tg: NDArray[np.float64], temp_g: NDArray[np.float64], ref_g: NDArray[np.float64]
+                  ) -> NDArray[np.float64]:
+                xg = batch_features(_STATE, tg, temp_g, t0=self.t0,
+                                    state=self._grid_state(tg, temp_g, tau))
+                return np.hstack([xg, xg[:, _STATE.index('dT')][:, None] * ref_g])
+
+            x = self._grid_means(f)
+            return {**{eid: x[k] for k, eid in enumerate(_STATE)},
+                    'dtref': np.ascontiguousarray(x[len(_STATE):].T)}
+
+        return self._memo(('state', round(float(tau), 9)), make)
 
     def column(self, eid: str, params: Mapping[str, Mapping[str, float]], *,
                state_tau: float | None = None) -> NDArray[np.float64]:
@@ -332,77 +324,32 @@ class BlockData:
         if eid in self.static:
             return self.static[eid]
         tau = float(params.get(eid, {}).get('tau_s', EFFECTS[eid].params['tau_s']))
-        key = (eid, round(tau, 9))
-        if key in self._cache:
-            return self._cache[key]
-        out = np.empty(self.K)
-        for tg, temp_g, lo, hi, tb, a, b in self.grids:
-            f = batch_features((eid,), tg, temp_g, t0=self.t0,
-                               params={eid: {'tau_s': tau}})[:, 0]
-            out[a:b] = self._grid_mean(tg, f, lo, hi, tb)
-        if len(self._cache) > 512:
-            self._cache.clear()
-        self._cache[key] = out
-        return out
+        return self._memo((eid, round(tau, 9)), lambda: self._grid_means(
+            lambda tg, temp_g, _ref: batch_features((eid,), tg, temp_g, t0=self.t0,
+                                                    params={eid: {'tau_s': tau}}))[0])
 
 
-def moving_blocks(data: BlockData) -> NDArray[np.bool_]:
-    """Return the blocks whose temperature changes at a measurable rate."""
-    rate = data.rate_cpm
-    max_rate = float(np.max(np.abs(rate))) if rate.size else 0.0
-    return np.abs(rate) > max(0.02, 0.1 * max_rate)
-
-
-def directions(data: BlockData, moving: NDArray[np.bool_]) -> tuple[bool, bool]:
-    """Return whether the data heat and whether they cool at a measurable rate."""
-    return (bool(np.any(moving & (data.rate_cpm > 0))),
-            bool(np.any(moving & (data.rate_cpm < 0))))
-
-
-def one_way(data: BlockData) -> bool:
-    """Return True when the data change temperature in one direction only."""
-    heating, cooling = directions(data, moving_blocks(data))
-    return heating != cooling
-
-
-def _soak_min_s(data: BlockData) -> float:
-    """Return the shortest soak (s) that counts: 2 minutes and three blocks."""
-    return max(_SOAK_S, 3.0 * data.block_s)
-
-
-def _first_soaks(data: BlockData, moving: NDArray[np.bool_]) -> NDArray[np.float64]:
+def _soaks(data: BlockData) -> tuple[NDArray[np.float64], float]:
     """
-    Return, per run, how long it soaks after power-on before the temperature first moves, s.
+    Return per run its soak after power-on, and the longest soak next to a ramp, s.
 
-    Zero for a run with fewer than four blocks before its first move (one block is no soak).
+    The soak after power-on is the time before the temperature first moves, zero for a run
+    with fewer than four blocks before its first move (one block is no soak). A soak next to
+    a ramp is a stretch of still blocks in a run that moves: a change of rate between a ramp
+    and a soak is what a time constant shows in (the die catching up, or starting to lag);
+    a run that never moves, or never stops, has none.
     """
-    out = np.zeros(data.n_runs)
-    for r in range(data.n_runs):
-        m = data.run == r
-        tr, mv = data.t_since[m], moving[m]
-        first_move = tr[np.argmax(mv)] if np.any(mv) else tr[-1]
-        if np.count_nonzero(tr < first_move) >= 4:
-            out[r] = first_move
-    return out
-
-
-def _longest_soak(data: BlockData, moving: NDArray[np.bool_]) -> float:
-    """
-    Return the longest soak next to a ramp, s: a stretch of still blocks in a run that moves.
-
-    A change of rate between a ramp and a soak is what a time constant shows in (the die
-    catching up, or starting to lag); a run that never moves, or never stops, has none.
-    """
-    best = 0.0
+    first, longest = np.zeros(data.n_runs), 0.0
     for r in range(data.n_runs):
         idx = np.flatnonzero(data.run == r)
-        mv = moving[idx]
-        if not np.any(mv) or np.all(mv):
-            continue
-        edges = np.flatnonzero(np.diff(np.concatenate([[1], mv.astype(np.int8), [1]])))
-        for a, b in zip(edges[::2], edges[1::2]):      # still stretches [a, b)
-            best = max(best, float(data.tlast[idx[b - 1]] - data.tfirst[idx[a]]))
-    return best
+        tr, mv = data.t_since[idx], data.moving[idx]
+        first_move = tr[np.argmax(mv)] if np.any(mv) else tr[-1]
+        first[r] = first_move if np.count_nonzero(tr < first_move) >= 4 else 0.0
+        if np.any(mv) and not np.all(mv):
+            edges = np.flatnonzero(np.diff(np.concatenate([[1], mv.astype(np.int8), [1]])))
+            for a, b in zip(edges[::2], edges[1::2]):      # still stretches [a, b)
+                longest = max(longest, float(data.tlast[idx[b - 1]] - data.tfirst[idx[a]]))
+    return first, longest
 
 
 def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
@@ -414,46 +361,41 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
     out: dict[str, Unidentifiable] = {}
     notes: list[str] = []
     span = float(data.temp.max() - data.temp.min())
-    rate = data.rate_cpm
-    moving = moving_blocks(data)
-    heating, cooling = directions(data, moving)
+    moving = data.moving
+    soak_min = max(_SOAK_S, 3.0 * data.block_s)    # 2 minutes and three blocks
+    first_soaks, soak = _soaks(data)
 
     def add(eid: str, reason: str, extra: str = '') -> None:
-        exp = EFFECTS[eid].excited_by
-        out[eid] = Unidentifiable(eid, reason, exp[0].upper() + exp[1:] + extra + '.')
+        out[eid] = unidentifiable(eid, reason, extra)
 
     if span < MIN_SPAN_C:
-        for eid in _SPAN:
-            add(eid, f'the temperature spans only {span:.2f} degC', ', of at least 10 degC')
+        out.update({e: unidentifiable(e, f'the temperature spans only {span:.2f} degC',
+                                      ', of at least 10 degC') for e in _SPAN})
     if not np.any(moving):
-        for eid in _RATE:
-            if eid not in out:
-                add(eid, 'the temperature never changes at a measurable rate')
-    elif heating != cooling:
-        leg = 'heat' if heating else 'cool'
-        r = np.abs(rate[moving])
+        out.update({e: unidentifiable(e, 'the temperature never changes at a measurable rate')
+                    for e in _RATE if e not in out})
+    elif data.heating != data.cooling:
+        leg = 'heat' if data.heating else 'cool'
+        r = np.abs(data.rate_cpm[moving])
         q1, q3 = np.percentile(r, [25, 75])
         one_rate = (q3 - q1) < 0.25 * float(np.median(r))
-        soak = _longest_soak(data, moving)
-        if one_rate and soak < _soak_min_s(data):
+        one = f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min)'
+        hysteresis = 'hysteresis between heating and cooling cannot be tested'
+        if one_rate and soak < soak_min:
             # Scored all the same: a die settled at power-on falls behind at the start of the
             # ramp, which shows tau; a recording that starts mid-ramp shows nothing, and the
             # guard then rejects the lag (its profile is flat).
-            notes.append(f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min) '
-                         'with no soak before or after the ramp: a lag or dT/dt effect can '
-                         'only show where the ramp starts from a die settled at power-on; '
+            notes.append(f'{one} with no soak before or after the ramp: a lag or dT/dt effect '
+                         'can only show where the ramp starts from a die settled at power-on; '
                          'from a recording that starts mid-ramp it is not identifiable, and '
-                         'hysteresis between heating and cooling cannot be tested.')
+                         f'{hysteresis}.')
         elif one_rate:
-            notes.append(f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min): '
-                         'a lag or dT/dt effect rests on the changes of rate between the ramp '
-                         f'and the soaks (the longest {soak:.0f} s: the approach to equilibrium '
-                         'there shows a time constant); hysteresis between heating and cooling '
-                         'cannot be tested.')
+            notes.append(f'{one}: a lag or dT/dt effect rests on the changes of rate between the '
+                         f'ramp and the soaks (the longest {soak:.0f} s: the approach to '
+                         f'equilibrium there shows a time constant); {hysteresis}.')
         else:
-            notes.append(f'The data only {leg}: hysteresis between heating and cooling cannot '
-                         'be tested; a dT/dt or lag effect seen here rests on the change of '
-                         f'the {leg}ing rate alone.')
+            notes.append(f'The data only {leg}: {hysteresis}; a dT/dt or lag effect seen here '
+                         f'rests on the change of the {leg}ing rate alone.')
     if not np.any(data.scale_axes):
         if not np.any(np.abs(data.ref) > 1e-12):
             add('scale', 'the reference rate is zero on every run: a sensitivity change has '
@@ -462,10 +404,7 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
             add('scale', 'the reference rate is constant on every run, so a sensitivity '
                 'change is indistinguishable from dT')
     # Warm-up: some run must start with a soak (no temperature change) after power-on.
-    soak_ok = bool(np.any(_first_soaks(data, moving) >= _soak_min_s(data)))
-    if not soak_ok:
+    if not np.any(first_soaks >= soak_min):
         add('warmup', 'no run starts with a soak after power-on: a warm-up transient cannot be '
             'told apart from the temperature response and the bias')
-    for eid in base:
-        out.pop(eid, None)
-    return out, notes
+    return {e: u for e, u in out.items() if e not in base}, notes

@@ -35,16 +35,26 @@ import numpy as np
 from numpy.typing import NDArray
 from scipy.special import fdtrc
 
-__all__ = ['ar1', 'bandwidth', 'DEG', 'gap', 'hac_pvalue', 'LinearModel', 'make_folds',
-           'ols_hac', 'weighted_corr']
+__all__ = ['ar1', 'bandwidth', 'corr', 'DEG', 'gap', 'hac_pvalue', 'LinearModel', 'make_folds',
+           'mse', 'ols_hac', 'weighted_corr', 'wsse']
 
 #: rad/s to deg/s.
 DEG = 180.0 / math.pi
 
 
+def wsse(data: BlockData, r: NDArray[np.float64]) -> float:
+    """Return the block-weighted sum of squares of a residual (K, 3) over blocks and axes."""
+    return float((data.w[:, None] * r * r).sum())
+
+
+def mse(data: BlockData, r: NDArray[np.float64]) -> float:
+    """Return the block-weighted mean square of a residual (K, 3) over blocks and axes."""
+    return float(wsse(data, r) / (3.0 * data.w.sum()))
+
+
 def gap(data: BlockData, r: NDArray[np.float64]) -> float:
     """Return the weighted RMS over blocks and axes of a residual (K, 3), in deg/s."""
-    return float(np.sqrt((data.w[:, None] * r * r).sum() / (3.0 * data.w.sum()))) * DEG
+    return math.sqrt(mse(data, r)) * DEG
 
 
 def make_folds(data: BlockData, memory: int, n_folds: int = 5) -> tuple[Folds, int]:
@@ -162,22 +172,17 @@ def hac_pvalue(model: LinearModel, coef: NDArray[np.float64], cand: Sequence[int
     ps = []
     for a in range(3):
         x = model.design(a) * d.sw[:, None]
-        y = d.y[:, a] * d.sw
         keep = np.linalg.norm(x, axis=0) > 0
-        idx = [i for i in cand if keep[i]]
-        if not idx:
+        sel = [int(np.count_nonzero(keep[:i])) for i in cand if keep[i]]
+        if not sel:
             continue
-        xs = x[:, keep]
-        xs = xs / np.linalg.norm(xs, axis=0)
-        pos = np.cumsum(keep) - 1
-        sel = [int(pos[i]) for i in idx]
+        xs = x[:, keep] / np.linalg.norm(x[:, keep], axis=0)
         with warnings.catch_warnings():
             warnings.simplefilter('ignore')   # near-collinear columns: the F test says so
-            params, cov = ols_hac(y, xs, int(lags[a]))
-        b = params[sel]
-        v = cov[np.ix_(sel, sel)]
+            params, cov = ols_hac(d.y[:, a] * d.sw, xs, int(lags[a]))
         try:
-            f = float(b @ solve_normal(v, b, fallback=False)) / len(sel)
+            f = float(params[sel] @ solve_normal(cov[np.ix_(sel, sel)], params[sel],
+                                                 fallback=False)) / len(sel)
         except np.linalg.LinAlgError:
             continue
         dof = max(min(1.5 * d.K / lags[a], d.K - xs.shape[1]), 1.0)
@@ -187,13 +192,17 @@ def hac_pvalue(model: LinearModel, coef: NDArray[np.float64], cand: Sequence[int
     return min(1.0, 3.0 * min(ps)) if ps else 1.0
 
 
+def corr(a: NDArray[np.float64], b: NDArray[np.float64]) -> float:
+    """Return the correlation (about zero) of two arrays, flattened (0 when one is zero)."""
+    a, b = a.ravel(), b.ravel()
+    den = float(np.linalg.norm(a) * np.linalg.norm(b))
+    return float(a @ b) / den if den > 0 else 0.0
+
+
 def weighted_corr(a: NDArray[np.float64], b: NDArray[np.float64],
                   w: NDArray[np.float64]) -> float:
     """Return the weighted correlation of two (K, 3) contributions, flattened."""
-    wa = (a * np.sqrt(w)[:, None]).ravel()
-    wb = (b * np.sqrt(w)[:, None]).ravel()
-    den = float(np.linalg.norm(wa) * np.linalg.norm(wb))
-    return float(wa @ wb) / den if den > 0 else 0.0
+    return corr(a * np.sqrt(w)[:, None], b * np.sqrt(w)[:, None])
 
 
 class LinearModel:
@@ -213,20 +222,16 @@ class LinearModel:
         cols = [data.offsets] + [data.column(e, self.params, state_tau=self.state_tau)[:, None]
                                  for e in self.inputs]
         self.common = np.hstack(cols)
-        ax = []
-        self.axis_labels = []
-        if np.any(data.gain_axes):
-            ax.append(data.ref * data.gain_axes[None, :])
-            self.axis_labels.append('gain')
-        if 'scale' in self.effects:      # only on axes whose rate steps can separate it
-            dtref = (data.dtref if self.state_tau is None
-                     else data.state_columns(self.state_tau)['dtref'])
-            ax.append(dtref * data.scale_axes[None, :])
-            self.axis_labels.append('scale')
-        if extra is not None:            # a per-axis column of its own (the J test)
-            ax.append(np.asarray(extra, dtype=np.float64))
-            self.axis_labels.append('extra')
-        self.axis = np.stack(ax, axis=2) if ax else np.zeros((data.K, 3, 0))
+        # Per-axis columns: the rate table's gain, scale only on axes whose rate steps can
+        # separate it, and a column of its own (the J test).
+        ax = {'gain': data.ref * data.gain_axes[None, :] if np.any(data.gain_axes) else None,
+              'scale': (data.dtref if self.state_tau is None else data.state_columns(
+                  self.state_tau)['dtref']) * data.scale_axes[None, :]
+              if 'scale' in self.effects else None,
+              'extra': None if extra is None else np.asarray(extra, dtype=np.float64)}
+        ax = {k: v for k, v in ax.items() if v is not None}
+        self.axis_labels = list(ax)
+        self.axis = np.stack(list(ax.values()), axis=2) if ax else np.zeros((data.K, 3, 0))
         self.p = self.common.shape[1] + self.axis.shape[2]
 
     def columns_of(self, eid: str) -> list[int]:
@@ -246,16 +251,9 @@ class LinearModel:
 
     def fit(self, rows: NDArray[np.bool_] | None = None) -> NDArray[np.float64]:
         """Return the coefficients (p, 3) fitted on ``rows`` (all by default)."""
-        d = self.data
-        coef = np.zeros((self.p, 3))
-        w = d.w if rows is None else d.w[rows]
-        for a in range(3):
-            x = self.design(a)
-            y = d.y[:, a]
-            if rows is not None:
-                x, y = x[rows], y[rows]
-            coef[:, a] = fit_columns(x, y, weights=w, normalise=True, rcond=1e-12)
-        return coef
+        d, rows = self.data, slice(None) if rows is None else rows
+        return np.column_stack([fit_columns(self.design(a)[rows], d.y[rows, a], weights=d.w[rows],
+                                            normalise=True, rcond=1e-12) for a in range(3)])
 
     def predict(self, coef: NDArray[np.float64]) -> NDArray[np.float64]:
         """Return the simulated block means (K, 3)."""
@@ -267,8 +265,7 @@ class LinearModel:
 
     def sse(self) -> float:
         """Return the weighted sum of squared residuals over blocks and axes."""
-        r = self.residual()
-        return float((self.data.w[:, None] * r * r).sum())
+        return wsse(self.data, self.residual())
 
     def cv_residual(self, folds: Folds) -> NDArray[np.float64]:
         """
@@ -278,8 +275,5 @@ class LinearModel:
         its held-out residual is re-anchored to zero mean (:func:`gyro_tdc.signal.heldout`).
         """
         d = self.data
-
-        def residual(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
-            return d.y[test] - self.predict(self.fit(train))[test]
-
-        return heldout(residual, folds, (d.K, 3), groups=d.run, weights=d.w)
+        return heldout(lambda test, train: d.y[test] - self.predict(self.fit(train))[test],
+                       folds, (d.K, 3), groups=d.run, weights=d.w)

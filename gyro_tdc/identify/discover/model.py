@@ -20,8 +20,9 @@ from typing import Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.axes import constant_gyro_axes, neutral_runs
+from gyro_tdc.identify.axes import constant_gyro_axes, identity_axes, neutral_runs
 from gyro_tdc.identify.discover.results import DiscoveryResult
+from gyro_tdc.identify.fit import fit_model, MIN_SPAN_C
 from gyro_tdc.identify.still_only import find_still, MAX_MOVING_SHARE, moving_share, rows_of
 from gyro_tdc.model import TEMPERATURE_EFFECTS
 import numpy as np
@@ -54,16 +55,15 @@ def still_only_runs(runs: Sequence[Run]) -> tuple[list[Run], str | None]:
         return list(runs), None
     masks = [st.mask for st in find_still(fitted)]
     kept = [rows_of(r, m) for r, m in zip(runs, masks) if np.count_nonzero(m) >= 16]
+    moves = f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time'
     if not kept:
-        raise FitError(f'no reference rate and the IMU moves {100.0 * share:.3g} % of the '
-                       'time, with no still stretch to discover on (its motion is no drift): '
-                       'record the vehicle parked with the IMU on.')
+        raise FitError(f'{moves}, with no still stretch to discover on (its motion is no '
+                       'drift): record the vehicle parked with the IMU on.')
     still_s = sum(np.count_nonzero(m) * float(np.median(np.diff(r.t)))
                   for r, m in zip(runs, masks) if len(r) > 1)
     total_s = sum(r.duration_s for r in runs)
     pct = min(100.0 * still_s / total_s, 100.0) if total_s > 0 else 0.0
-    return kept, (f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time: '
-                  f'discovering on the still stretches only ({still_s:.0f} s of '
+    return kept, (f'{moves}: discovering on the still stretches only ({still_s:.0f} s of '
                   f'{total_s:.0f} s, {pct:.3g} %; {len(kept)} of {len(runs)} session(s)); '
                   'the motion is no drift')
 
@@ -100,32 +100,26 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'po
         The fitted model.
 
     """
-    from gyro_tdc.identify.fit import fit_model
-    from gyro_tdc.identify.axes import constant_gyro_axes, identity_axes, neutral_runs
-
     if len(runs) != len(result.runs):
         raise FitError(f'Expected the {len(result.runs)} runs discovery analysed, '
                        f'got {len(runs)}.')
     off = np.asarray(result.coef['offsets'])
     mean_off = off.mean(axis=0)
     gain = np.asarray(result.coef['gain'])
-    adjusted = []
-    for r, run in enumerate(runs):
-        omega = run.omega - (off[r] - mean_off)[None, :] - gain[None, :] * run.omega_ref
-        adjusted.append(Run(run.t, run.temp, omega, run.omega_ref, run.name, dict(run.info)))
+    adjusted = [Run(run.t, run.temp, run.omega - (off[r] - mean_off)[None, :]
+                    - gain[None, :] * run.omega_ref, run.omega_ref, run.name, dict(run.info))
+                for r, run in enumerate(runs)]
     features = model_features(result, runs)
     info = {'discover': {'final_effects': list(result.final_effects),
                          'noise_floor_dps': result.noise_floor_dps,
-                         'gain_removed': [float(g) for g in gain]}}
-    info.update(dict(created or {}))
-    thermal = result.thermal if 'lag' in features else None
-    params = {k: v for k, v in result.params.items() if k != 'lag'}
+                         'gain_removed': [float(g) for g in gain]}, **dict(created or {})}
     # A constant gyro axis (train's rule) is fitted as train fits it: not at all (its
     # columns exactly zero, passed through), its figures the raw ones.
     const = constant_gyro_axes(runs)
     model = fit_model(neutral_runs(adjusted, const), kind=kind, features=features,
-                      t0=result.t0_c, fit_params=False, params=params, created=info,
-                      thermal=thermal)
+                      t0=result.t0_c, fit_params=False, created=info,
+                      params={k: v for k, v in result.params.items() if k != 'lag'},
+                      thermal=result.thermal if 'lag' in features else None)
     return identity_axes(model, runs, const)
 
 
@@ -150,10 +144,6 @@ def model_features(result: DiscoveryResult, runs: Sequence[Run]) -> tuple[str, .
         Effect ids, catalog order.
 
     """
-    from gyro_tdc.identify.fit import MIN_SPAN_C
-
-    lo = min(float(np.min(r.temp)) for r in runs)
-    hi = max(float(np.max(r.temp)) for r in runs)
-    if hi - lo >= MIN_SPAN_C:
-        return tuple(result.final_effects)
-    return tuple(e for e in result.final_effects if e not in TEMPERATURE_EFFECTS)
+    span = max(float(np.max(r.temp)) for r in runs) - min(float(np.min(r.temp)) for r in runs)
+    return tuple(e for e in result.final_effects
+                 if span >= MIN_SPAN_C or e not in TEMPERATURE_EFFECTS)

@@ -32,6 +32,7 @@ from gyro_tdc.identify.discover.data import BlockData
 from gyro_tdc.identify.discover.linear import ar1, DEG, LinearModel
 from gyro_tdc.identify.discover.results import BinMap, DiscoveryResult
 from gyro_tdc.model import batch_features, ThermalState
+from gyro_tdc.signal import allan_deviation
 import numpy as np
 from numpy.typing import NDArray
 
@@ -41,85 +42,81 @@ _AXES = ('x', 'y', 'z')
 _COLORS = ('tab:blue', 'tab:orange', 'tab:green')
 
 
+#: Edges of the time-since-start bins, min (log-like: a warm-up shows at the start).
+_TIME_EDGES_MIN = (0.0, 1.0, 2.0, 5.0, 10.0, 20.0, 40.0, 80.0, 160.0, 320.0, 640.0, 1280.0)
+
+
+def _bins(v: NDArray[np.float64], edges: NDArray[np.float64]) -> NDArray[np.int64]:
+    """Return the bin of each value between ``edges`` (values beyond the ends in the end bins)."""
+    return np.clip(np.searchsorted(edges, v, side='right') - 1, 0, edges.size - 2)
+
+
+def _centers(v: NDArray[np.float64], k: NDArray[np.int64], nb: int) -> NDArray[np.float64]:
+    """Return the mean of ``v`` in each of the ``nb`` bins ``k`` (NaN in an empty bin)."""
+    return np.array([v[k == i].mean() if np.any(k == i) else np.nan for i in range(nb)])
+
+
 def residual_maps(data: BlockData, r: NDArray[np.float64]) -> tuple[BinMap, ...]:
     """Bin the residual by temperature, dT/dt, reference rate and time since start."""
     floor = data.floor_axes * DEG
-    infl = np.empty(3)
-    for a in range(3):
-        # AR(1) of the noise from first differences (slow disagreements cancel there).
-        rho = 1.0 + 2.0 * ar1(np.diff(r[:, a])) if data.K > 3 else 0.0
-        rho = min(max(rho, 0.0), 0.9)
-        infl[a] = math.sqrt((1.0 + rho) / (1.0 - rho))
+    # AR(1) of the noise from first differences (slow disagreements cancel there).
+    rho = [min(max(1.0 + 2.0 * ar1(np.diff(r[:, a])) if data.K > 3 else 0.0, 0.0), 0.9)
+           for a in range(3)]
+    infl = np.array([math.sqrt((1.0 + x) / (1.0 - x)) for x in rho])
     rd = r * DEG
 
-    def binmap(name: str, label: str, keys: NDArray[np.int64], nb: int,
-               centers: NDArray[np.float64], labels: tuple[str, ...] = ()) -> BinMap:
+    def binmap(name: str, label: str, keys: NDArray[np.int64], centers: NDArray[np.float64],
+               labels: tuple[str, ...] = ()) -> BinMap:
+        nb = centers.shape[0]
         mean = np.full((nb, 3), np.nan)
         se = np.full((nb, 3), np.nan)
         count = np.zeros((nb, 3), dtype=np.int64)
         for a in range(3):
             k = keys[:, a] if keys.ndim == 2 else keys
-            ok = k >= 0
-            wsum = np.bincount(k[ok], weights=data.w[ok], minlength=nb)
-            s = np.bincount(k[ok], weights=data.w[ok] * rd[ok, a], minlength=nb)
-            count[:, a] = np.bincount(k[ok], minlength=nb)
+            wsum = np.bincount(k, weights=data.w, minlength=nb)
+            s = np.bincount(k, weights=data.w * rd[:, a], minlength=nb)
+            count[:, a] = np.bincount(k, minlength=nb)
             has = wsum > 0
             mean[has, a] = s[has] / wsum[has]
             se[has, a] = floor[a] * infl[a] / np.sqrt(wsum[has])
         flagged = np.nan_to_num(np.abs(mean)) > 3.0 * np.nan_to_num(se, nan=np.inf)
+        if centers.ndim == 1:
+            centers = np.repeat(centers[:, None], 3, axis=1)
         return BinMap(name, label, centers, mean, se, count, flagged, labels)
 
-    out = []
     # Temperature: up to 10 equal-width bins.
     lo, hi = float(data.temp.min()), float(data.temp.max())
-    nb = 10 if hi - lo > 1e-6 else 1
-    edges = np.linspace(lo, hi, nb + 1)
-    k = np.clip(np.searchsorted(edges, data.temp, side='right') - 1, 0, nb - 1)
-    cen = np.repeat(((edges[:-1] + edges[1:]) / 2.0)[:, None], 3, axis=1)
-    out.append(binmap('temperature', 'temperature (degC)', k, nb, cen))
+    edges = np.linspace(lo, hi, (10 if hi - lo > 1e-6 else 1) + 1)
+    out = [binmap('temperature', 'temperature (degC)', _bins(data.temp, edges),
+                  (edges[:-1] + edges[1:]) / 2.0)]
     # dT/dt: cooling fast/slow, still, heating slow/fast.
     rate = data.rate_cpm
-    thr = max(0.02, 0.1 * float(np.max(np.abs(rate))))
     k = np.full(data.K, 2, dtype=np.int64)
     for sign, (slow, fast) in ((1, (3, 4)), (-1, (1, 0))):
-        m = sign * rate > thr
+        m = data.moving & (sign * rate > 0)
         if np.any(m):
             med = float(np.median(sign * rate[m]))
             k[m & (sign * rate <= med)] = slow
             k[m & (sign * rate > med)] = fast
-    cen = np.array([rate[k == i].mean() if np.any(k == i) else np.nan for i in range(5)])
-    out.append(binmap('dTdt', 'dT/dt (degC/min)', k, 5, np.repeat(cen[:, None], 3, axis=1),
-                      ('cooling fast', 'cooling slow', 'still', 'heating slow',
-                       'heating fast')))
+    out.append(binmap('dTdt', 'dT/dt (degC/min)', k, _centers(rate, k, 5),
+                      ('cooling fast', 'cooling slow', 'still', 'heating slow', 'heating fast')))
     # Reference rate: each axis by its own rate, up to 8 levels or quantile bins.
     if np.any(np.abs(data.ref) > 1e-12):
-        nb = 8
-        keys = np.full((data.K, 3), -1, dtype=np.int64)
-        cen = np.full((nb, 3), np.nan)
+        keys = np.empty((data.K, 3), dtype=np.int64)
+        cen = np.empty((8, 3))
         for a in range(3):
             v = data.ref[:, a] * DEG
             levels = np.unique(np.round(v, 6))
-            if levels.size <= nb:
-                keys[:, a] = np.searchsorted(levels, np.round(v, 6))
-            else:
-                edges = np.unique(np.quantile(v, np.linspace(0, 1, nb + 1)))
-                keys[:, a] = np.clip(np.searchsorted(edges, v, side='right') - 1, 0,
-                                     edges.size - 2)
-            for i in range(nb):
-                if np.any(keys[:, a] == i):
-                    cen[i, a] = v[keys[:, a] == i].mean()
-        out.append(binmap('reference', 'reference rate (deg/s)', keys, nb, cen))
-    # Time since the start of each run, log-like bins (warm-up shows at the start).
+            keys[:, a] = (np.searchsorted(levels, np.round(v, 6)) if levels.size <= 8
+                          else _bins(v, np.unique(np.quantile(v, np.linspace(0, 1, 9)))))
+            cen[:, a] = _centers(v, keys[:, a], 8)
+        out.append(binmap('reference', 'reference rate (deg/s)', keys, cen))
+    # Time since the start of each run.
     tmax = float(data.t_since.max()) / 60.0
-    edges = [0.0, 1.0, 2.0, 5.0, 10.0, 20.0, 40.0, 80.0, 160.0, 320.0, 640.0, 1280.0]
-    edges = [e for e in edges if e < tmax] + [tmax + 1e-9]
-    edges = np.asarray(edges)
-    nb = edges.size - 1
+    edges = np.asarray([e for e in _TIME_EDGES_MIN if e < tmax] + [tmax + 1e-9])
     tm = data.t_since / 60.0
-    k = np.clip(np.searchsorted(edges, tm, side='right') - 1, 0, nb - 1)
-    cen = np.array([tm[k == i].mean() if np.any(k == i) else np.nan for i in range(nb)])
-    out.append(binmap('time', 'time since start (min)', k, nb,
-                      np.repeat(cen[:, None], 3, axis=1)))
+    k = _bins(tm, edges)
+    out.append(binmap('time', 'time since start (min)', k, _centers(tm, k, edges.size - 1)))
     return tuple(out)
 
 
@@ -130,37 +127,27 @@ def _full_rate_residual(data: BlockData, model: LinearModel, coef: NDArray[np.fl
     run = data.runs[r]
     dt = np.diff(run.t)
     med = float(np.median(dt)) if dt.size else 1.0
-    breaks = np.flatnonzero(dt > 1.5 * med + 1e-9) + 1
-    bounds = np.concatenate([[0], breaks, [len(run)]])
+    bounds = np.concatenate([[0], np.flatnonzero(dt > 1.5 * med + 1e-9) + 1, [len(run)]])
     i = int(np.argmax(np.diff(bounds)))
-    sl = slice(int(bounds[i]), int(bounds[i + 1]))
     # The temperature terms follow the thermal state when the model has one.
     state = None if model.state_tau is None else data.state(r, model.state_tau)
     x = batch_features(model.effects, run.t, run.temp, t0=data.t0, params=model.params,
                        state=state)
     d = (run.temp if state is None else state) - data.t0
-    y = run.omega - run.omega_ref
-    n = len(run)
-    pred = np.zeros((n, 3))
-    nr = data.n_runs
+    nr, m = data.n_runs, x.shape[1]
+    pred = np.zeros((len(run), 3))
     for a in range(3):
-        c = coef[:, a]
-        pred[:, a] = c[r] + x @ c[nr:nr + x.shape[1]]
-        j = nr + x.shape[1]
-        for lab in model.axis_labels:
-            if lab == 'gain':
-                pred[:, a] += c[j] * run.omega_ref[:, a] * data.gain_axes[a]
-            else:
-                pred[:, a] += c[j] * d * run.omega_ref[:, a] * data.scale_axes[a]
-            j += 1
-    return (y - pred)[sl], 1.0 / med
+        c, ref = coef[:, a], run.omega_ref[:, a]
+        pred[:, a] = c[r] + x @ c[nr:nr + m]
+        for j, lab in enumerate(model.axis_labels, nr + m):
+            pred[:, a] += (c[j] * ref * data.gain_axes[a] if lab == 'gain'
+                           else c[j] * d * ref * data.scale_axes[a])
+    return (run.omega - run.omega_ref - pred)[bounds[i]:bounds[i + 1]], 1.0 / med
 
 
 def residual_adev(data: BlockData, model: LinearModel, coef: NDArray[np.float64]
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Return Allan deviation (taus, RMS over axes in deg/s) of the full-rate residual."""
-    from gyro_tdc.signal import allan_deviation
-
     res, rate = _full_rate_residual(data, model, coef)
     if res.shape[0] < 16:
         return np.zeros(0), np.zeros(0)
@@ -199,12 +186,9 @@ def _plot_maps(maps_rows: Sequence[tuple[str, Sequence[BinMap]]], path: Path) ->
     fig = _figure(figsize=(4.0 * ncol, 3.0 * len(maps_rows)))
     axes = fig.subplots(len(maps_rows), ncol, squeeze=False)
     for i, (title, maps) in enumerate(maps_rows):
-        for j in range(ncol):
-            ax = axes[i][j]
-            if j >= len(maps):
-                ax.set_visible(False)
-                continue
-            m = maps[j]
+        for ax in axes[i][len(maps):]:
+            ax.set_visible(False)
+        for j, (ax, m) in enumerate(zip(axes[i], maps)):
             for a in range(3):
                 x, y, e = m.centers[:, a], m.mean_dps[:, a], m.se_dps[:, a]
                 ok = np.isfinite(x) & np.isfinite(y)
@@ -228,16 +212,13 @@ def _plot_maps(maps_rows: Sequence[tuple[str, Sequence[BinMap]]], path: Path) ->
 
 def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
     """Plot the Allan deviation of the residual before and after each step."""
-    curves = []
-    for i, s in enumerate(result.steps):
-        if s.adev_tau_s.size == 0:
-            continue
-        if i == 0:
-            curves.append((', '.join(result.base_effects), s.adev_tau_s, s.adev_before_dps))
-        curves.append((f'+ {s.effect}', s.adev_tau_s, s.adev_after_dps))
-    if not curves and result.adev_tau_s.size:
-        curves.append((', '.join(result.final_effects), result.adev_tau_s, result.adev_dps))
-    if not curves:
+    s = result.steps
+    if s and s[0].adev_tau_s.size:      # every step has its Allan deviation, or none does
+        curves = [(', '.join(result.base_effects), s[0].adev_tau_s, s[0].adev_before_dps)] + [
+            (f'+ {x.effect}', x.adev_tau_s, x.adev_after_dps) for x in s]
+    elif result.adev_tau_s.size:
+        curves = [(', '.join(result.final_effects), result.adev_tau_s, result.adev_dps)]
+    else:
         return False
     fig = _figure(figsize=(6.0, 4.2))
     ax = fig.subplots()

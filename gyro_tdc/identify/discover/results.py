@@ -22,7 +22,7 @@ What discovery found: steps, candidate scores, residual maps, and their JSON and
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 
 from gyro_tdc.base import plain
 from gyro_tdc.errors import DatasetError
@@ -323,15 +323,11 @@ class DiscoveryResult:
                      'after_dps': pl(s.adev_after_dps)},
             'thermal': None if s.thermal is None else s.thermal.to_dict(),
         } for s in self.steps]
-        doc = {
-            'base_effects': list(self.base_effects),
-            'noise_floor_dps': float(self.noise_floor_dps),
-            'steps': steps,
-            'final_effects': list(self.final_effects),
-            'unidentifiable': [{'effect': u.effect, 'reason': u.reason,
-                                'experiment': u.experiment} for u in self.unidentifiable],
-            'model_file': None if model_file is None else str(model_file),
-        }
+        doc = {'base_effects': list(self.base_effects),
+               'noise_floor_dps': float(self.noise_floor_dps), 'steps': steps,
+               'final_effects': list(self.final_effects),
+               'unidentifiable': [asdict(u) for u in self.unidentifiable],
+               'model_file': None if model_file is None else str(model_file)}
         if self.thermal is not None:        # the final thermal state, when there is one
             doc['thermal'] = self.thermal.to_dict()
         return doc
@@ -356,22 +352,20 @@ def format_summary(result: DiscoveryResult) -> str:
     grid = (f'{result.blocks} blocks of {result.block_s:g} s' if held >= 0.9 * result.block_s
             else f'{result.blocks} blocks on a {result.block_s:g} s grid holding {held:.3g} s '
                  'of data each on average (gaps in the recording)')
-    lines = [
-        f'discover: {len(result.runs)} run(s), {grid}, T0 = {result.t0_c:.2f} degC',
-        f'base model: {", ".join(result.base_effects)}  '
-        f'(one offset per run; cross-validation: {result.settings["folds"]})',
-        f'noise floor: {result.noise_floor_dps:.3g} deg/s on those block means (white noise '
-        f'{result.white_noise_dps:.3g} deg/s per sample); gaps are RMS of block means',
-    ]
+    lines = [f'discover: {len(result.runs)} run(s), {grid}, T0 = {result.t0_c:.2f} degC',
+             f'base model: {", ".join(result.base_effects)}  '
+             f'(one offset per run; cross-validation: {result.settings["folds"]})',
+             f'noise floor: {result.noise_floor_dps:.3g} deg/s on those block means (white '
+             f'noise {result.white_noise_dps:.3g} deg/s per sample); gaps are RMS of block means']
     if not result.steps:
         lines.append('no missing effect found: no candidate is significant, gains on held-out '
                      'data and exceeds the noise')
     for i, s in enumerate(result.steps, 1):
         par = ', '.join(f'{k} = {v:.4g}' for k, v in s.params.items())
         b = s.best
-        lines.append(f'step {i}: add {s.effect}' + (f' ({par})' if par else '')
-                     + (f'; aliases: {", ".join(s.aliases)}' if s.aliases else ''))
-        lines.append(f'  {s.description}')
+        lines += [f'step {i}: add {s.effect}' + (f' ({par})' if par else '')
+                  + (f'; aliases: {", ".join(s.aliases)}' if s.aliases else ''),
+                  f'  {s.description}']
         if b is not None:
             lines.append(f'  evidence: HAC p = {b.p_value:.2g}, held-out gain '
                          f'{b.heldout_gain_dps2:.3g} (deg/s)^2, effect RMS '
@@ -385,16 +379,12 @@ def format_summary(result: DiscoveryResult) -> str:
                  f'(held-out {result.heldout_gap_dps:.4g})')
     if result.thermal is not None:
         lines.append(f'final {result.thermal.describe()}')
-    if result.candidates:
-        lines.append('remaining candidates (none passed):')
-        for c in result.candidates:
-            lines.append(f'  {c.effect:7s} p = {c.p_value:.2g}, held-out gain '
-                         f'{c.heldout_gain_dps2:+.2g} (deg/s)^2, effect {c.effect_rms_dps:.2g} '
-                         f'deg/s: {c.why_not}')
-    for u in result.unidentifiable:
-        lines.append(f'unidentifiable: {u.effect}: {u.reason}. Experiment: {u.experiment}')
-    for n in result.notes:
-        lines.append(f'note: {n}')
+    lines += ['remaining candidates (none passed):'] if result.candidates else []
+    lines += [f'  {c.effect:7s} p = {c.p_value:.2g}, held-out gain {c.heldout_gain_dps2:+.2g} '
+              f'(deg/s)^2, effect {c.effect_rms_dps:.2g} deg/s: {c.why_not}'
+              for c in result.candidates]
+    lines += [f'unidentifiable: {u.effect}: {u.reason}. Experiment: {u.experiment}'
+              for u in result.unidentifiable] + [f'note: {n}' for n in result.notes]
     gain = np.asarray(result.coef.get('gain', np.zeros(3)))
     if np.any(gain != 0):
         lines.append('constant scale-factor error vs the reference (not thermal, not in the '

@@ -23,18 +23,18 @@ data cannot excite are reported before any fit. See ``doc/internals/identify.md`
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from itertools import combinations
 import math
 from typing import Any, Callable, Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.discover.data import (BlockData, COLLINEAR, excitation, one_way,
-                                             rel_residual)
-from gyro_tdc.identify.discover.linear import (bandwidth, DEG, gap, hac_pvalue, LinearModel,
-                                               make_folds, weighted_corr)
+from gyro_tdc.identify.discover.data import (BlockData, COLLINEAR, excitation, rel_residual,
+                                             unidentifiable)
+from gyro_tdc.identify.discover.linear import (bandwidth, corr, DEG, gap, hac_pvalue, LinearModel,
+                                               make_folds, mse, weighted_corr, wsse)
 from gyro_tdc.identify.discover.report import residual_adev, residual_maps
-from gyro_tdc.identify.discover.results import (CandidateScore, DiscoveryResult, Step,
-                                                Unidentifiable)
+from gyro_tdc.identify.discover.results import CandidateScore, DiscoveryResult, Step
 from gyro_tdc.identify.fit import estimate_t0
 from gyro_tdc.identify.tau import effective_samples, fit_time_constant, profile_interval
 from gyro_tdc.model import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, STATIC_EFFECTS,
@@ -58,6 +58,8 @@ _SMOOTHING_BOUNDS_S = (1.0, 3600.0)
 _MEMORY = tuple(e for e in _CANDIDATES if e not in STATIC_EFFECTS)
 #: The static curve beyond ``dT`` that a time-memory candidate must beat.
 _CURVE = ('dT2', 'dT3')
+#: The Allan deviation of a search without it (``allan=False``).
+_NO_ADEV = (np.zeros(0), np.zeros(0))
 
 
 def _effects(*groups: Sequence[str]) -> tuple[str, ...]:
@@ -71,35 +73,41 @@ def _copy(params: Mapping) -> dict:
     return {k: dict(v) for k, v in params.items()}
 
 
+def _timed(eid: str, effects: Sequence[str]) -> list[str]:
+    """Return the time constants fitted with candidate ``eid``: its own and the state's."""
+    return list(dict.fromkeys(e for e in (eid, 'lag') if e in _TIMED and e in effects))
+
+
 def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
     """Return the search bounds of an effect's time constant, s."""
     lo, hi = EFFECTS[eid].bounds.get('tau_s', _SMOOTHING_BOUNDS_S)
     longest = max(r.duration_s for r in data.runs)
     grid_step = max(float(g[0][1] - g[0][0]) if g[0].size > 1 else 1.0 for g in data.grids)
-    lo = max(lo, 2.0 * grid_step)
-    if eid == 'warmup':
-        lo = max(lo, 3.0 * data.block_s)   # shorter decays are a dummy for the first block
-    hi = min(hi, max(2.0 * longest, 4.0 * lo))
-    return lo, hi
+    # A warm-up shorter than three blocks is a dummy for the first block.
+    lo = max(lo, 2.0 * grid_step, 3.0 * data.block_s if eid == 'warmup' else 0.0)
+    return lo, min(hi, max(2.0 * longest, 4.0 * lo))
 
 
 def _fit_taus(data: BlockData, effects: Sequence[str], params: dict, which: Sequence[str]) -> dict:
     """
     Fit the time constants of ``which`` by a bounded 1-D search on the residual each.
 
-    The linear coefficients are re-solved at every trial (variable projection);
+    An effect of ``which`` without parameters starts from the catalog's. The linear
+    coefficients are re-solved at every trial (variable projection);
     :func:`gyro_tdc.identify.fit_time_constant` searches a log-spaced grid for the basin and
     refines it with a bounded Brent search.
     """
     params = _copy(params)
     for eid in which:
+        params.setdefault(eid, dict(EFFECTS[eid].params))
+    for eid in which:
         def sse(tau: float, eid: str = eid) -> float:
             trial = _copy(params)
-            trial.setdefault(eid, {})['tau_s'] = tau
+            trial[eid]['tau_s'] = tau
             return LinearModel(data, effects, trial).sse()
 
-        fit = fit_time_constant(sse, _tau_bounds(data, eid), n_grid=14, xatol=0.01)
-        params.setdefault(eid, {})['tau_s'] = fit.tau
+        params[eid]['tau_s'] = fit_time_constant(sse, _tau_bounds(data, eid), n_grid=14,
+                                                 xatol=0.01).tau
     return params
 
 
@@ -136,14 +144,8 @@ def _candidate_params(data: BlockData, model: LinearModel, eid: str) -> dict:
     With the thermal state in the model (or as the candidate) its tau is refitted with the
     candidate: a curvature named after ``lag`` moves the state's time constant.
     """
-    params = _copy(model.params)
     effects = _effects(model.effects, {eid})
-    which = [e for e in (eid, 'lag') if e in _TIMED and e in effects]
-    if eid in _TIMED or 'lag' in model.effects:
-        for e in which:
-            params.setdefault(e, dict(EFFECTS[e].params))
-        params = _fit_taus(data, effects, params, list(dict.fromkeys(which)))
-    return params
+    return _fit_taus(data, effects, model.params, _timed(eid, effects))
 
 
 def _n_params(model: LinearModel, eid: str, params: Mapping) -> int:
@@ -163,29 +165,9 @@ def _noise_lags(data: BlockData, model: LinearModel, todo: Sequence[str], cparam
     """
     params = _copy(model.params)
     params.update({eid: dict(cparams[eid][eid]) for eid in todo if eid in _TIMED})
-    rich = LinearModel(data, _effects(model.effects, todo), params)
-    r = (data.y - rich.predict(rich.fit())) * data.sw[:, None]
+    r = LinearModel(data, _effects(model.effects, todo), params).residual() * data.sw[:, None]
     memory = max(bandwidth(r[:, a], floor=False) for a in range(3))
     return [bandwidth(r[:, a]) for a in range(3)], int(memory)
-
-
-def _heldout_mse(data: BlockData, ho: NDArray[np.float64]) -> float:
-    """Return the block-weighted mean square of held-out residuals ``ho`` (K, 3) over axes."""
-    return float((data.w[:, None] * ho * ho).sum() / (3.0 * data.w.sum()))
-
-
-def _curve_model(data: BlockData, model: LinearModel, folds: Folds
-                 ) -> tuple[tuple[str, ...], LinearModel, float] | None:
-    """
-    Return the static curve ``model`` lacks, the model with it and its held-out mean square.
-
-    None when the model has the whole curve (:data:`_CURVE`).
-    """
-    curve = tuple(e for e in _CURVE if e not in model.effects)
-    if not curve:
-        return None
-    base = LinearModel(data, _effects(model.effects, curve), model.params)
-    return curve, base, _heldout_mse(data, base.cv_residual(folds))
 
 
 def _beside_curve(data: BlockData, curve: tuple, folds: Folds, eid: str, params: dict) -> float:
@@ -193,30 +175,37 @@ def _beside_curve(data: BlockData, curve: tuple, folds: Folds, eid: str, params:
     Return the held-out gain of a time-memory candidate beside the static curve, (deg/s)^2.
 
     A candidate with time memory (``lag``, ``dTdt``, ``warmup``) is scored once more with
-    the static curvature the model lacks (``curve`` from :func:`_curve_model`) on both
+    the static curvature the model lacks (``curve`` from :func:`_score_round`) on both
     sides, its time constants refitted there: on a run that heats or cools only, a slow
     decay or rate term can hold curvature the final RBF network holds anyway, and it
     extrapolates wrongly off the one ramp direction it was fitted on. :func:`_score`
     requires ``dTdt`` and ``warmup`` to gain here and ranks them by it; ``lag`` (no column
     of its own) is ranked by it when it is the larger gain.
     """
-    ids, base, mse_b = curve
-    effects = _effects(base.effects, {eid})
-    which = [e for e in (eid, 'lag') if e in _TIMED and e in effects]
-    trial = _fit_taus(data, effects, params, which) if which else params
-    mse_c = _heldout_mse(data, LinearModel(data, effects, trial).cv_residual(folds))
-    return (mse_b - mse_c) * DEG ** 2
+    effects = _effects(curve[1], {eid})
+    trial = _fit_taus(data, effects, params, _timed(eid, effects))
+    return (curve[2] - mse(data, LinearModel(data, effects, trial).cv_residual(folds))) * DEG ** 2
 
 
-def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse_m: float,
-           mse_ho_m: float, folds: Folds, eid: str, params: dict, *, lags: Sequence[int],
-           n_cand: int, alpha: float, min_heldout: float, min_effect: float,
-           curve: tuple | None = None
+@dataclass
+class _Round:
+    """One round of scoring: the current model's fit, folds, held-out residual and scores."""
+
+    coef: NDArray[np.float64]
+    resid: NDArray[np.float64]
+    folds: Folds
+    buffer: int
+    heldout: NDArray[np.float64]
+    results: list
+
+
+def _score(data: BlockData, model: LinearModel, rnd: _Round, eid: str, params: dict,
+           o: DiscoverOptions, lags: Sequence[int], n_cand: int, curve: tuple | None
            ) -> tuple[CandidateScore, NDArray[np.float64] | None, dict]:
     """
-    Score one candidate against ``model``; returns the score, its contribution and params.
+    Score one candidate against ``model`` (fitted in ``rnd``): its score, contribution, params.
 
-    With ``curve`` (:func:`_curve_model`) a time-memory candidate must also gain held out
+    With ``curve`` (:func:`_score_round`) a time-memory candidate must also gain held out
     beside the static curve (:func:`_beside_curve`), and is ranked by its gain there.
     """
     cand = LinearModel(data, _effects(model.effects, {eid}), params)
@@ -227,22 +216,18 @@ def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse
     rel = []
     for a in range(3):
         xa = cand.design(a) * data.sw[:, None]
-        for i in idx:
-            if np.linalg.norm(xa[:, i]) > 0:
-                rel.append(rel_residual(np.delete(xa, idx, axis=1), xa[:, i]))
+        rel += [rel_residual(np.delete(xa, idx, axis=1), xa[:, i]) for i in idx
+                if np.linalg.norm(xa[:, i]) > 0]
     if idx and (not rel or max(rel) < COLLINEAR):
-        sc = CandidateScore(eid, own, 1.0, 0.0, 0.0, math.nan, math.nan, False,
-                            'collinear', np.zeros((len(idx), 3)))
-        return sc, None, params
+        return CandidateScore(eid, own, 1.0, 0.0, 0.0, math.nan, math.nan, False, 'collinear',
+                              np.zeros((len(idx), 3))), None, params
     coef = cand.fit()
     pred = cand.predict(coef)
     r = data.y - pred
-    sse = float((data.w[:, None] * r * r).sum())
-    contrib = pred - model.predict(coef_m)
-    ho = cand.cv_residual(folds)
-    mse_ho = _heldout_mse(data, ho)
-    gain = (mse_ho_m - mse_ho) * DEG ** 2
-    eff = math.sqrt(max(sse_m - sse, 0.0) / (3.0 * data.w.sum())) * DEG
+    ho = cand.cv_residual(rnd.folds)
+    mse_m = mse(data, rnd.heldout)
+    gain = (mse_m - mse(data, ho)) * DEG ** 2
+    eff = math.sqrt(max(wsse(data, rnd.resid) - wsse(data, r), 0.0) / (3.0 * data.w.sum())) * DEG
     if idx:
         p = hac_pvalue(cand, coef, idx, lags)
     else:
@@ -252,28 +237,24 @@ def _score(data: BlockData, model: LinearModel, coef_m: NDArray[np.float64], sse
         aug = LinearModel(data, model.effects, model.params, extra=pred)
         p = hac_pvalue(aug, aug.fit(), aug.columns_of('extra'), lags)
     floor = data.floor * DEG
-    why = []
-    if p >= alpha / max(n_cand, 1):
-        why.append(f'p={p:.2g}')
-    limit = max(min_heldout * floor ** 2, 0.01 * mse_ho_m * DEG ** 2)
-    if gain <= limit:
+    why = [f'p={p:.2g}'] if p >= o.alpha / max(n_cand, 1) else []
+    if gain <= max(o.min_heldout * floor ** 2, 0.01 * mse_m * DEG ** 2):
         why.append('no held-out gain')
     elif curve is not None:
-        beside = _beside_curve(data, curve, folds, eid, params)
-        if eid in THERMAL_EFFECTS:
-            # The thermal state adds no column that could stand in for curvature; beside
-            # the curve its cubic of a far-lagging state can run away held out. It is
-            # ranked by its gain there when that is a gain.
-            gain = beside if beside > gain else gain
-        else:
-            if beside <= max(min_heldout * floor ** 2, 0.01 * curve[2] * DEG ** 2):
-                why.append(f'no held-out gain beside {"+".join(curve[0])}')
-            gain = beside          # credited with what the static curve cannot hold
-    if eff < min_effect * floor:
+        beside = _beside_curve(data, curve, rnd.folds, eid, params)
+        if eid not in THERMAL_EFFECTS and beside <= max(o.min_heldout * floor ** 2,
+                                                        0.01 * curve[2] * DEG ** 2):
+            why.append(f'no held-out gain beside {"+".join(curve[0])}')
+        # A candidate is credited with what the static curve cannot hold. The thermal state
+        # adds no column that could stand in for curvature; beside the curve its cubic of a
+        # far-lagging state can run away held out: it is ranked by its gain there when that
+        # is a gain.
+        gain = beside if eid not in THERMAL_EFFECTS else max(gain, beside)
+    if eff < o.min_effect * floor:
         why.append('effect below noise')
     sc = CandidateScore(eid, own, p, gain, eff, gap(data, r), gap(data, ho), not why,
                         ', '.join(why), coef[idx])
-    return sc, contrib, params
+    return sc, pred - model.predict(rnd.coef), params
 
 
 @dataclass(frozen=True)
@@ -326,18 +307,6 @@ class DiscoverOptions:
     allan: bool = True
 
 
-@dataclass
-class _Round:
-    """One round of scoring: the current model's fit, folds, held-out residual and scores."""
-
-    coef: NDArray[np.float64]
-    resid: NDArray[np.float64]
-    folds: Folds
-    buffer: int
-    heldout: NDArray[np.float64]
-    results: list
-
-
 def discover(runs: Sequence[Run], options: DiscoverOptions | None = None, *,
              progress: Callable[[int, str], None] | None = None, **kw: Any) -> DiscoveryResult:
     """
@@ -374,28 +343,22 @@ def discover(runs: Sequence[Run], options: DiscoverOptions | None = None, *,
     base_ids = with_implied(tuple(normalise_ids(o.base)) + ('bias',))
     pool = _CANDIDATES if o.candidates is None else normalise_ids(o.candidates)
     cand_ids = tuple(e for e in pool if e not in base_ids and e != 'bias')
-    t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
-    data = BlockData(runs, block_s=o.block_s, t0=t0)
+    data = BlockData(runs, block_s=o.block_s, t0=estimate_t0(runs[0]) if o.t0 is None else o.t0)
     _check_blocks(data, base_ids, o.block_s)
     unident, notes = excitation(data, base_ids)
     params = {eid: dict(EFFECTS[eid].params) for eid in base_ids if EFFECTS[eid].params}
-    nonlin = [e for e in base_ids if e in _TIMED]
-    if nonlin:
-        params = _fit_taus(data, base_ids, params, nonlin)
-    model = LinearModel(data, base_ids, params)
-    steps: list[Step] = []
-    collinear: list[str] = []
-    adev: tuple | None = None
+    model = LinearModel(data, base_ids,
+                        _fit_taus(data, base_ids, params, [e for e in base_ids if e in _TIMED]))
+    steps, collinear, adev = [], [], None
     while True:
         todo = [e for e in cand_ids if e not in model.effects and e not in unident]
         rnd = _score_round(data, model, todo, o, collinear, progress, len(steps))
         if not steps:           # the first round: the base model
-            notes += _confounded(data, model, [x[0] for x in rnd.results], model.params)
+            notes += _confounded(data, model, [x[0] for x in rnd.results])
         passing = [x for x in rnd.results if x[0].passed]
         if not passing or len(steps) >= o.max_steps:
             break
-        step, model, after = _add_best(data, model, rnd, passing, o, adev)
-        adev = after
+        step, model, adev = _add_best(data, model, rnd, passing, o, adev)
         steps.append(step)
     return _result(data, model, rnd, steps, unident, collinear, notes, cand_ids, base_ids,
                    o, adev)
@@ -405,33 +368,34 @@ def _score_round(data: BlockData, model: LinearModel, todo: Sequence[str], o: Di
                  collinear: list, progress: Callable[[int, str], None] | None, step: int
                  ) -> _Round:
     """Score every candidate of ``todo`` against ``model``; collinear ones go to the list."""
-    coef_m = model.fit()
-    r_m = data.y - model.predict(coef_m)
-    sse_m = float((data.w[:, None] * r_m * r_m).sum())
+    coef = model.fit()
     cparams = {eid: _candidate_params(data, model, eid) for eid in todo}
     lags, memory = _noise_lags(data, model, todo, cparams)
     folds, buffer = make_folds(data, memory, o.n_folds)
-    ho_m = model.cv_residual(folds)
-    mse_ho_m = _heldout_mse(data, ho_m)
-    curve = _curve_model(data, model, folds) if set(todo) & set(_MEMORY) else None
-    results = []
+    rnd = _Round(coef, data.y - model.predict(coef), folds, buffer, model.cv_residual(folds), [])
+    # The static curve the model lacks (of :data:`_CURVE`), beside which a time-memory
+    # candidate is scored too: its effects and held-out mean square.
+    missing = tuple(e for e in _CURVE if e not in model.effects)
+    curve = None
+    if missing and set(todo) & set(_MEMORY):
+        effects = _effects(model.effects, missing)
+        curve = (missing, effects,
+                 mse(data, LinearModel(data, effects, model.params).cv_residual(folds)))
     for eid in todo:
         if progress is not None:
             progress(step, eid)
-        item = _score(data, model, coef_m, sse_m, mse_ho_m, folds, eid, cparams[eid],
-                      lags=lags, n_cand=len(todo), alpha=o.alpha, min_heldout=o.min_heldout,
-                      min_effect=o.min_effect, curve=curve if eid in _MEMORY else None)
-        if item[0].why_not == 'collinear':
-            if eid not in collinear:
-                collinear.append(eid)
-            continue
-        results.append(item)
-    results.sort(key=lambda x: (not x[0].passed, -x[0].heldout_gain_dps2))
-    return _Round(coef_m, r_m, folds, buffer, ho_m, results)
+        item = _score(data, model, rnd, eid, cparams[eid], o, lags, len(todo),
+                      curve if eid in _MEMORY else None)
+        if item[0].why_not != 'collinear':
+            rnd.results.append(item)
+        elif eid not in collinear:
+            collinear.append(eid)
+    rnd.results.sort(key=lambda x: (not x[0].passed, -x[0].heldout_gain_dps2))
+    return rnd
 
 
 def _add_best(data: BlockData, model: LinearModel, rnd: _Round, passing: list,
-              o: DiscoverOptions, adev: tuple) -> tuple[Step, LinearModel, tuple]:
+              o: DiscoverOptions, adev: tuple | None) -> tuple[Step, LinearModel, tuple]:
     """
     Add the best passing candidate (of its aliases, the one with the fewest parameters).
 
@@ -444,82 +408,65 @@ def _add_best(data: BlockData, model: LinearModel, rnd: _Round, passing: list,
     """
     best, contrib_b, _p = passing[0]
     family = [passing[0]]
-    one = one_way(data)
+    one = data.heating != data.cooling      # data that only heat, or only cool
     for item in rnd.results[1:]:
         sc, contrib, _p = item
-        if contrib is None or sc.heldout_gain_dps2 <= 0:
-            continue
-        close = sc.heldout_gain_dps2 >= (1.0 - o.alias_margin) * best.heldout_gain_dps2
-        if close and (abs(weighted_corr(contrib, contrib_b, data.w)) >= o.alias_corr
-                      or (one and {sc.effect, best.effect} == {'lag', 'dTdt'} and sc.passed)):
+        if (contrib is not None and sc.heldout_gain_dps2 > 0
+                and sc.heldout_gain_dps2 >= (1.0 - o.alias_margin) * best.heldout_gain_dps2
+                and (abs(weighted_corr(contrib, contrib_b, data.w)) >= o.alias_corr
+                     or (one and {sc.effect, best.effect} == {'lag', 'dTdt'} and sc.passed))):
             family.append(item)
-    best, contrib_b, p_b = min((x for x in family if x[0].passed),
-                               key=lambda x: _n_params(model, x[0].effect, x[2]))
-    new_effects = _effects(model.effects, {best.effect})
-    new_params = _copy(p_b)
-    refit = [e for e in new_effects if e in _TIMED]
-    if len(refit) > 1:
-        new_params = _fit_taus(data, new_effects, new_params, refit)
-    new_model = LinearModel(data, new_effects, new_params)
-    coef_n = new_model.fit()
-    r_n = data.y - new_model.predict(coef_n)
-    ho_n = new_model.cv_residual(rnd.folds)
-    if o.allan:
-        before = adev or residual_adev(data, model, rnd.coef)
-        after = residual_adev(data, new_model, coef_n)
-    else:
-        before = after = (np.zeros(0), np.zeros(0))
-    idx = new_model.columns_of(best.effect)
-    unit = 1.0 if best.effect == 'scale' else DEG
+    best, _c, p_b = min((x for x in family if x[0].passed),
+                        key=lambda x: _n_params(model, x[0].effect, x[2]))
+    effects = _effects(model.effects, {best.effect})
+    refit = [e for e in effects if e in _TIMED]
+    new = LinearModel(data, effects,
+                      _fit_taus(data, effects, p_b, refit) if len(refit) > 1 else p_b)
+    coef = new.fit()
+    r_n = data.y - new.predict(coef)
+    before, after = ((adev or residual_adev(data, model, rnd.coef),
+                      residual_adev(data, new, coef)) if o.allan else (_NO_ADEV, _NO_ADEV))
     step = Step(
         effect=best.effect, aliases=tuple(x[0].effect for x in family if x[0] is not best),
         description=EFFECTS[best.effect].description,
-        params=dict(new_params.get(best.effect, {})) if best.effect in _TIMED else {},
-        coef_dps=coef_n[idx] * unit,
+        params=dict(new.params.get(best.effect, {})) if best.effect in _TIMED else {},
+        coef_dps=coef[new.columns_of(best.effect)] * (1.0 if best.effect == 'scale' else DEG),
         gap_before_dps=gap(data, rnd.resid), gap_after_dps=gap(data, r_n),
-        heldout_gap_before_dps=gap(data, rnd.heldout), heldout_gap_after_dps=gap(data, ho_n),
+        heldout_gap_before_dps=gap(data, rnd.heldout),
+        heldout_gap_after_dps=gap(data, new.cv_residual(rnd.folds)),
         candidates=tuple(x[0] for x in rnd.results), maps_before=residual_maps(data, rnd.resid),
-        maps_after=residual_maps(data, r_n),
-        adev_tau_s=before[0], adev_before_dps=before[1], adev_after_dps=after[1],
-        best=best, thermal=_thermal_state(data, new_model))
-    return step, new_model, after if o.allan else ()
+        maps_after=residual_maps(data, r_n), adev_tau_s=before[0], adev_before_dps=before[1],
+        adev_after_dps=after[1], best=best, thermal=_thermal_state(data, new))
+    return step, new, after
 
 
 def _result(data: BlockData, model: LinearModel, rnd: _Round, steps: list, unident: dict,
             collinear: list, notes: list, cand_ids: tuple, base_ids: tuple,
             o: DiscoverOptions, adev: tuple | None) -> DiscoveryResult:
-    """Return the result of the last round: the final model's gaps, maps and the record."""
+    """Return the result of the last round (the final model's): gaps, maps and the record."""
     effects = model.effects
-    r = data.y - model.predict(rnd.coef)
     for eid in collinear:
         if eid not in effects and eid not in unident:
-            unident[eid] = Unidentifiable(
-                eid, 'on this data its feature is a combination of the effects of the model '
-                f'({", ".join(effects)})', EFFECTS[eid].excited_by[0].upper()
-                + EFFECTS[eid].excited_by[1:] + '.')
-    thermal = steps[-1].thermal if steps else _thermal_state(data, model)
-    if o.allan:
-        adev = adev or residual_adev(data, model, rnd.coef)
-    else:
-        adev = (np.zeros(0), np.zeros(0))
+            unident[eid] = unidentifiable(eid, 'on this data its feature is a combination of '
+                                          f'the effects of the model ({", ".join(effects)})')
+    adev = (adev or residual_adev(data, model, rnd.coef)) if o.allan else _NO_ADEV
+    folds = ('leave-one-run-out' if data.n_runs >= 2
+             else f'{len(rnd.folds)} blocked folds, buffer {rnd.buffer} blocks')
+    settings = {k: getattr(o, k) for k in ('alpha', 'min_heldout', 'min_effect', 'alias_margin',
+                                           'alias_corr')}
+    settings.update(folds=folds, block_s=float(o.block_s), block_mean_s=float(data.block_eff_s))
     return DiscoveryResult(
         base_effects=base_ids, final_effects=effects,
         params={k: dict(v) for k, v in model.params.items() if k in effects and k in _TIMED},
         noise_floor_dps=data.floor * DEG, noise_floor_axes_dps=data.floor_axes * DEG,
         white_noise_dps=data.white * DEG, block_s=float(o.block_s), t0_c=float(data.t0),
-        steps=tuple(steps),
+        steps=tuple(steps), notes=tuple(notes), settings=settings, blocks=data.K,
         unidentifiable=tuple(unident[e] for e in EFFECTS if e in unident and e in cand_ids),
-        candidates=tuple(x[0] for x in rnd.results), maps=residual_maps(data, r),
-        gap_dps=gap(data, r), heldout_gap_dps=gap(data, rnd.heldout),
+        candidates=tuple(x[0] for x in rnd.results), maps=residual_maps(data, rnd.resid),
+        gap_dps=gap(data, rnd.resid), heldout_gap_dps=gap(data, rnd.heldout),
         coef=_coef_dict(data, model, rnd.coef), runs=tuple(x.name for x in data.runs),
-        blocks=data.K, notes=tuple(notes),
-        settings={'alpha': o.alpha, 'min_heldout': o.min_heldout, 'min_effect': o.min_effect,
-                  'alias_margin': o.alias_margin, 'alias_corr': o.alias_corr,
-                  'folds': 'leave-one-run-out' if data.n_runs >= 2 else
-                  f'{len(rnd.folds)} blocked folds, buffer {rnd.buffer} blocks',
-                  'block_s': float(o.block_s),
-                  'block_mean_s': float(data.block_eff_s)},
-        adev_tau_s=adev[0], adev_dps=adev[1], thermal=thermal)
+        adev_tau_s=adev[0], adev_dps=adev[1],
+        thermal=steps[-1].thermal if steps else _thermal_state(data, model))
 
 
 def _check_blocks(data: BlockData, base_ids: tuple[str, ...], block_s: float) -> None:
@@ -530,55 +477,42 @@ def _check_blocks(data: BlockData, base_ids: tuple[str, ...], block_s: float) ->
     if 'scale' in base_ids and not np.any(np.abs(data.ref) > 1e-12):
         raise FitError('Effect `scale` in the base model needs a non-zero reference rate '
                        '(rate-table data); every run has omega_ref = 0.')
-    p_base = len(base_ids) - 1 + data.n_runs + 2
-    if data.K <= p_base + 2:
+    if data.K <= len(base_ids) - 1 + data.n_runs + 2 + 2:     # the base's parameters, and 2
         raise FitError(f'Too few blocks ({data.K}) for the base model '
                        f'({", ".join(base_ids)}); record longer or use a shorter block.')
 
 
-def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateScore],
-                params: dict) -> list[str]:
+def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateScore]
+                ) -> list[str]:
     """Return notes on candidate pairs whose columns are strongly correlated on this data."""
-    notes = []
-    x = model.common
-    cols = {}
+    x, cols, notes = model.common, {}, []
     for sc in scores:
         if sc.effect == 'lag':          # what the state changes: its dT minus the measured
             col = data.state_columns(sc.params['tau_s'])['dT'] - data.static['dT']
         elif EFFECTS[sc.effect].is_input:
-            p = _copy(params)
-            p.update({sc.effect: dict(sc.params)} if sc.params else {})
-            col = data.column(sc.effect, p, state_tau=model.state_tau)
+            col = data.column(sc.effect, {sc.effect: sc.params}, state_tau=model.state_tau)
         else:
             continue
         beta = fit_columns(x, col, weights=data.w, normalise=True, rcond=1e-12)
         cols[sc.effect] = (col - x @ beta) * data.sw
-    ids = list(cols)
-    for i in range(len(ids)):
-        for j in range(i + 1, len(ids)):
-            a, b = cols[ids[i]], cols[ids[j]]
-            den = float(np.linalg.norm(a) * np.linalg.norm(b))
-            c = float(a @ b) / den if den > 0 else 0.0
-            if abs(c) >= 0.7:
-                how = ('confounded on this data: it cannot tell them apart' if abs(c) >= 0.95
-                       else 'partly confounded on this data')
-                notes.append(f'{ids[i]} and {ids[j]} are {how} '
-                             f'(correlation {c:+.2f} after removing the effects of the model).')
+    for (a, col_a), (b, col_b) in combinations(cols.items(), 2):
+        c = corr(col_a, col_b)
+        if abs(c) >= 0.7:
+            how = ('confounded on this data: it cannot tell them apart' if abs(c) >= 0.95
+                   else 'partly confounded on this data')
+            notes.append(f'{a} and {b} are {how} '
+                         f'(correlation {c:+.2f} after removing the effects of the model).')
     return notes
 
 
 def _coef_dict(data: BlockData, model: LinearModel, coef: NDArray[np.float64]) -> dict:
     """Return the final coefficients by name (SI units)."""
-    nr = data.n_runs
-    out: dict[str, Any] = {'offsets': coef[:nr].copy()}
-    for i, lab in enumerate(model.labels[nr:]):
-        out[lab] = coef[nr + i].copy()
-    j = model.common.shape[1]
-    out['gain'] = np.zeros(3)
-    out['scale'] = np.zeros(3)
-    for lab in model.axis_labels:
-        out[lab] = coef[j] * (data.gain_axes if lab == 'gain' else data.scale_axes)
-        j += 1
+    nr, j = data.n_runs, model.common.shape[1]
+    out: dict[str, Any] = {'offsets': coef[:nr].copy(), **{
+        lab: coef[nr + i].copy() for i, lab in enumerate(model.labels[nr:])},
+        'gain': np.zeros(3), 'scale': np.zeros(3)}
+    out.update({lab: coef[j + i] * (data.gain_axes if lab == 'gain' else data.scale_axes)
+                for i, lab in enumerate(model.axis_labels)})
     return out
 
 
