@@ -15,11 +15,10 @@
 """
 Executors for the nodes: which one, how to spin it, and the Jazzy ``main()`` loop.
 
-rclpy's executor, not the arithmetic, bounds a Python node's per-message cost: measured with
-``bench/bench_compensator.py``, the EventsExecutor (``events``) moves ~2.9x the messages of a
-SingleThreadedExecutor (``single``) in one process and needs ~1.5x less CPU per message across
-processes; its ``spin()`` is broken in the Jazzy wheels, so :func:`spin` loops on
-``spin_once``. :class:`StopSignals` makes SIGINT and SIGTERM one request to stop, acted on
+rclpy's executor, not the arithmetic, bounds a Python node's per-message cost: the
+EventsExecutor (``events``) moves more messages than the SingleThreadedExecutor (``single``;
+figures in doc/benchmarks.md); its ``spin()`` is broken in the Jazzy wheels, so :func:`spin`
+loops on ``spin_once``. :class:`StopSignals` makes SIGINT and SIGTERM one request to stop, acted on
 between callbacks, so a node stops the same clean way at any moment (doc/internals/nodes.md).
 """
 
