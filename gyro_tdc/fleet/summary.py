@@ -69,7 +69,7 @@ def _csv_text(result: FleetResult) -> str:
 
 
 def write_summary(result: FleetResult, out_dir: str | os.PathLike) -> tuple[Path, Path]:
-    """Write ``summary.json`` and ``summary.csv`` into ``out_dir`` atomically; return both paths."""
+    """Write ``summary.json`` and ``summary.csv`` into ``out_dir`` atomically; return the paths."""
     d = Path(out_dir)
     js = atomic_write(d / 'summary.json',
                       json.dumps(summary_dict(result), indent=1, ensure_ascii=False) + '\n',
