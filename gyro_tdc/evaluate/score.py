@@ -283,8 +283,8 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     label : str
         Short label of the run (default from its name).
     reanchor_s : float (s) or ``'auto'``
-        Remove each session's mean model error over its first seconds, as the compensator
-        re-anchors at start-up; ``'auto'``: the compensator's rule
+        > 0: remove each session's mean model error over its first ``reanchor_s`` seconds,
+        as the compensator re-anchors at start-up; ``'auto'``: the compensator's rule
         (:func:`gyro_tdc.runtime.reanchor.reanchor_shift`). Raw data are never re-anchored.
     out_of_range, max_extrapolation_c : str, float (degC)
         The policy beyond a model's range and the reach of the ``linear`` tangent.
