@@ -150,9 +150,10 @@ def reanchor_rule(model: CompensationModel, runs: Sequence, labels: Sequence[int
     form on other runs (None when too little is left); ``rows`` the samples fitted on (None:
     all). Returns ``model`` with ``metrics['reanchor']``: ``anchor_error_dps`` (RMS error of
     start-up anchors), ``min_shift_dps`` (0: any shift), ``sessions``, ``held_out`` and, with
-    two sessions held out or more, ``always_dps``, ``gated_dps``, ``never_dps``. The gate is
-    kept on an axis where, held out, it did better than any shift, and without a held-out
-    session (one session cannot show that a shift within the anchors' error is an offset).
+    two sessions held out or more, ``always_dps``, ``gated_dps``, ``never_dps`` (held-out RMS
+    of the mean error re-anchored with any shift, beyond the gate, never). The gate is kept
+    on an axis where, held out, it did better than any shift, and without a held-out session
+    (one session cannot show that a shift within the anchors' error is a turn-on offset).
     """
     labels = np.asarray(labels, dtype=np.int64)
     gate = SIGNIFICANCE * _anchor_error(model, runs, labels, rows)
