@@ -332,33 +332,15 @@ def atomic_dir(path: str | os.PathLike, *, what: str = 'directory',
     """
     Build a new directory out of sight and move it into place only when complete.
 
-    Yields a path that does not exist yet, inside a hidden staging directory beside
-    ``path``; the caller creates it (``mkdir``, a bag writer...). When the block ends
-    normally it is renamed to ``path``; when it raises, the staging directory and all it
-    holds are removed and the exception propagates (an ``OSError`` as
-    :class:`~gyro_tdc.errors.OutputError` naming ``path``). Leftovers of killed runs beside
-    ``path`` are removed first (:func:`clean_leftovers`).
-
-    Parameters
-    ----------
-    path : str or PathLike
-        The directory to create; must not exist unless ``replace``.
-    what : str
-        What the directory is, for messages (``'bag'``...).
-    replace : bool
-        Replace an existing ``path``: it stays there, complete, until the new tree is
-        complete, then the two are swapped and the old one is removed (the caller checks
-        that ``path`` is something it may replace).
-
-    Yields
-    ------
-    Path
-        Where to build the directory.
+    The yielded path lies in a hidden staging directory beside ``path`` (leftovers of killed
+    runs removed first); the caller creates it. On an exception the staging tree is removed.
+    ``path`` must not exist unless ``replace`` (then swapped once the new tree is complete);
+    ``what`` names the directory in messages (``'bag'``...).
 
     Raises
     ------
     OutputError
-        When ``path`` exists already (without ``replace``) or cannot be created.
+        ``path`` exists (without ``replace``) or cannot be created; any ``OSError``.
 
     """
     path = Path(path)

@@ -115,28 +115,11 @@ def spec_dataclass(name: str, specs: Sequence[ParamSpec], summary: str, *, modul
                    check: bool = False,
                    methods: Mapping[str, Callable[..., Any]] | None = None) -> type:
     """
-    Build the frozen dataclass of a parameter table: one field per row, default included.
+    Build the frozen dataclass ``name`` of a parameter table: one field per row, in order.
 
-    Parameters
-    ----------
-    name : str
-        Class name.
-    specs : sequence of ParamSpec
-        The rows, in field order.
-    summary : str
-        First line of the docstring; a numpydoc ``Parameters`` section follows from the rows.
-    module : str
-        Module the class belongs to (``__name__`` of the caller).
-    check : bool
-        Check every value with :meth:`ParamSpec.check` on construction.
-    methods : mapping of str to callable, optional
-        Methods to add to the class.
-
-    Returns
-    -------
-    type
-        The dataclass.
-
+    ``summary`` is the docstring's first line; a numpydoc ``Parameters`` section follows from
+    the rows. ``module`` is the caller's ``__name__``; ``check`` checks every value with
+    :meth:`ParamSpec.check` on construction; ``methods`` are added to the class.
     """
     namespace = dict(methods or {})
     if check:
@@ -154,22 +137,10 @@ def spec_dataclass(name: str, specs: Sequence[ParamSpec], summary: str, *, modul
 
 def help_requested(argv: Sequence[str]) -> bool:
     """
-    Say whether a node's command line asks for ``--help`` (or ``-h``).
+    Say whether a node's command line ``argv`` (program first) asks for ``-h``/``--help``.
 
-    Only the node's own arguments count: everything between ``--ros-args`` and the next
-    ``--`` (or the end) belongs to ROS (``-p name:=value``...), and ``argv[0]`` is the
-    program.
-
-    Parameters
-    ----------
-    argv : sequence of str
-        The command line, program first (``sys.argv``).
-
-    Returns
-    -------
-    bool
-        True when ``-h`` or ``--help`` is among the node's own arguments.
-
+    Only the node's own arguments count: from ``--ros-args`` to the next ``--`` (or the end)
+    the arguments belong to ROS.
     """
     in_ros = False
     for arg in list(argv)[1:]:
@@ -202,25 +173,19 @@ def format_help(prog: str, summary: str, specs: Sequence[ParamSpec], *,
     """
     Return a node's ``--help`` text: usage, summary and one entry per parameter.
 
-    Each entry gives the name, type, default and unit, the choices or the range, whether it
-    can be set at run time, and the description.
+    Each entry gives name, type, default, unit, choices or range, whether it can be set at
+    run time, and the description; lines are at most 79 columns but for long words.
 
     Parameters
     ----------
     prog : str
         Executable name.
     summary : str
-        What the node does: paragraphs separated by a blank line (reST ``literals`` and
-        roles such as :mod:`x` are printed plain).
+        Paragraphs separated by a blank line (reST literals and roles are printed plain).
     specs : sequence of ParamSpec
         The node's parameter table.
     epilog : str
         A closing paragraph (parameter files...).
-
-    Returns
-    -------
-    str
-        The text, lines at most 79 columns but for long words.
 
     """
     lines = [_fill(f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]... '

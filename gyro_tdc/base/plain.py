@@ -34,21 +34,9 @@ def plain(value: Any, *, nan_to_none: bool = False, str_keys: bool = True) -> An
     """
     Return ``value`` with numpy values and tuples turned into plain Python types.
 
-    Parameters
-    ----------
-    value : Any
-        Arrays become (nested) lists, numpy scalars their Python value, tuples lists,
-        mappings dicts; anything else is returned as it is.
-    nan_to_none : bool
-        Write a NaN or infinite float as None (JSON has no NaN).
-    str_keys : bool
-        Turn mapping keys into str (JSON object keys); False keeps them.
-
-    Returns
-    -------
-    Any
-        The plain value.
-
+    Arrays become (nested) lists, numpy scalars their Python value, tuples lists, mappings
+    dicts; anything else is returned as it is. ``nan_to_none`` writes a NaN or infinite
+    float as None (JSON has no NaN); ``str_keys`` turns mapping keys into str.
     """
     if isinstance(value, np.ndarray):
         return plain(value.tolist(), nan_to_none=nan_to_none, str_keys=str_keys)

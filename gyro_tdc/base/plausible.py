@@ -36,21 +36,11 @@ _LO, _HI = TEMP_PLAUSIBLE_C
 
 def temperature_ok(t_prev: float | None, c_prev: float | None, t: float, c: float) -> bool:
     """
-    Return whether reading ``c`` at ``t`` is plausible after the plausible ``c_prev``.
+    Return whether reading ``c`` (degC) at ``t`` (s) is plausible after ``c_prev`` at ``t_prev``.
 
-    Parameters
-    ----------
-    t_prev, c_prev : float or None, s and degC
-        The last plausible reading (None: none yet, the range alone decides).
-    t, c : float, s and degC
-        The reading.
-
-    Returns
-    -------
-    bool
-        False for a non-finite stamp or reading, one outside ``TEMP_PLAUSIBLE_C``, or one
-        further from ``c_prev`` than ``TEMP_SLEW_MARGIN_C + MAX_TEMP_SLEW_C_S * |t - t_prev|``.
-
+    False for a non-finite stamp or reading, one outside ``TEMP_PLAUSIBLE_C``, or one further
+    from ``c_prev`` than ``TEMP_SLEW_MARGIN_C + MAX_TEMP_SLEW_C_S * |t - t_prev|``
+    (``c_prev`` None: no plausible reading yet, the range alone decides).
     """
     if not (_LO <= c <= _HI and math.isfinite(t)):      # NaN fails the compare
         return False

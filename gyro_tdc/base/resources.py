@@ -59,11 +59,8 @@ def config_dir() -> Path:
     """
     Return the directory holding gyro_tdc's shipped configuration files.
 
-    Returns
-    -------
-    pathlib.Path
-        ``<checkout>/config`` in a source checkout or editable install, otherwise
-        ``<prefix>/share/gyro_tdc/config`` found through the ament index.
+    ``<checkout>/config`` in a source checkout or editable install, otherwise
+    ``<prefix>/share/gyro_tdc/config`` through the ament index.
 
     Raises
     ------

@@ -76,20 +76,10 @@ class LatestJob:
 
     def start(self, name: str, origin: str, work: Callable[[], T]) -> Job[T]:
         """
-        Run ``work()`` in a new daemon thread; any earlier job becomes stale.
+        Run ``work()`` in a new daemon thread and return its :class:`Job`; earlier jobs go stale.
 
-        Parameters
-        ----------
-        name, origin : str
-            See :class:`Job`.
-        work : callable
-            Returns the job's result; it must not raise (catch at the caller's edge).
-
-        Returns
-        -------
-        Job
-            The job; its ``result`` is set before it is done.
-
+        ``name`` and ``origin`` are those of :class:`Job`; ``work`` must not raise (catch at
+        the caller's edge). The job's ``result`` is set before it is done.
         """
         job: Job[T] = Job(name, origin)
 

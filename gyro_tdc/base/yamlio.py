@@ -130,31 +130,14 @@ def _malformed(exc: yaml.YAMLError, source: str, error: type[GyroTdcError]) -> G
 def load_yaml(text: str, limits: YamlLimits, *, source: str = '<string>',
               error: type[GyroTdcError] = GyroTdcError) -> Any:
     """
-    Parse one YAML document within ``limits`` (safe types only).
-
-    Parameters
-    ----------
-    text : str
-        The document.
-    limits : YamlLimits
-        Size, depth, node-count and alias limits.
-    source : str
-        Name of the document in messages (e.g. the file path).
-    error : type
-        The :class:`~gyro_tdc.errors.GyroTdcError` subclass to raise.
-
-    Returns
-    -------
-    Any
-        The parsed document (None when empty).
+    Parse one YAML document ``text`` within ``limits`` (safe types only); None when empty.
 
     Raises
     ------
     GyroTdcError
-        As ``error``: a limit exceeded, in one line naming ``source``.
+        As ``error`` (a subclass), in one line naming ``source``: a limit exceeded.
     yaml.YAMLError
-        When the text is not valid YAML (the caller words the message; :func:`read_yaml`
-        turns it into ``error``).
+        Invalid YAML (the caller words it; :func:`read_yaml` raises ``error``).
 
     """
     size = len(text.encode('utf-8', errors='surrogatepass'))
@@ -168,28 +151,11 @@ def load_yaml(text: str, limits: YamlLimits, *, source: str = '<string>',
 def read_yaml(path: str | os.PathLike, limits: YamlLimits, *,
               error: type[GyroTdcError] = GyroTdcError) -> Any:
     """
-    Read and parse a YAML file within ``limits``; the size is checked before reading.
+    Read and parse a YAML file within ``limits``, the size checked before reading.
 
-    Parameters
-    ----------
-    path : str or PathLike
-        The file.
-    limits : YamlLimits
-        Size, depth, node-count and alias limits.
-    error : type
-        The :class:`~gyro_tdc.errors.GyroTdcError` subclass to raise.
-
-    Returns
-    -------
-    Any
-        The parsed document (None when empty).
-
-    Raises
-    ------
-    GyroTdcError
-        As ``error``, in one line naming the file: unreadable, not UTF-8, too large,
-        malformed, or over a limit.
-
+    Returns the document (None when empty). Raises ``error`` (a
+    :class:`~gyro_tdc.errors.GyroTdcError` subclass) in one line naming the file: unreadable,
+    not UTF-8, too large, malformed, or over a limit.
     """
     path = Path(path)
     try:

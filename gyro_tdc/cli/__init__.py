@@ -80,17 +80,9 @@ def format_help(prog: str = PROG) -> str:
 
 def load_main(name: str) -> Callable[[Optional[Sequence[str]]], Optional[int]]:
     """
-    Import the module of command ``name`` and return its ``main`` function.
+    Import the module of command ``name`` (a key of ``COMMANDS``); return its ``main(argv)``.
 
-    Parameters
-    ----------
-    name : str
-        A key of ``COMMANDS``.
-
-    Returns
-    -------
-    callable
-        ``main(argv) -> int`` of the command module.
+    An ``ImportError`` raised by a module the command itself imports propagates unchanged.
 
     Raises
     ------
@@ -98,7 +90,6 @@ def load_main(name: str) -> Callable[[Optional[Sequence[str]]], Optional[int]]:
         If ``name`` is not a registered command.
     CommandUnavailable
         If the command's module (or its ``main``) does not exist in this installation.
-        An ``ImportError`` raised by a module the command itself imports propagates unchanged.
 
     """
     command = COMMANDS[name]

@@ -111,16 +111,7 @@ def parse_reference(text: str) -> tuple[float, float, float]:
     """
     Parse ``--reference x,y,z``: a constant reference rate, rad/s unless a unit follows.
 
-    Parameters
-    ----------
-    text : str
-        Three comma-separated numbers, optionally followed by a unit: ``rad/s`` (default)
-        or ``deg/s`` / ``dps``; e.g. ``0,0,0``, ``10,5,20dps``, ``0.1,0,0 rad/s``.
-
-    Returns
-    -------
-    tuple of 3 float, rad/s
-        The rate about x, y and z.
+    E.g. ``0,0,0``, ``10,5,20dps``, ``0.1,0,0 rad/s`` (units ``rad/s``, ``deg/s``, ``dps``).
 
     Raises
     ------
@@ -227,23 +218,10 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
     """
     Return how to read the bags, from arguments parsed with :func:`add_bag_options`.
 
-    Parameters
-    ----------
-    args : argparse.Namespace
-        Arguments parsed by a parser set up with :func:`add_bag_options`.
-    **more
-        Further :class:`~gyro_tdc.data.BagOptions` fields the command sets itself
-        (``accel``, ``motion_topic``).
-
-    Returns
-    -------
-    BagOptions
-        The topics, the reference (``--reference`` parsed, rad/s), ``progress`` (a terminal
-        when not given), ``max_loss`` (1.0 with ``--allow-loss``), the flight-log choices
-        (``--log-format``, ``--imu-instance``, ``--allow-onboard-corrected``,
-        ``--temperature-source``), the sessions
-        (``--sessions``, ``--session-gap``, :func:`add_session_options`) and ``more``.
-
+    The topics, the reference (rad/s), ``progress`` (a terminal when not given),
+    ``max_loss`` (1.0 with ``--allow-loss``), the flight-log choices, the sessions
+    (:func:`add_session_options`) and ``more``: :class:`~gyro_tdc.data.BagOptions` fields
+    the command sets itself (``accel``, ``motion_topic``).
     """
     return BagOptions(
         imu_topic=args.imu_topic, temperature_topic=args.temperature_topic,

@@ -123,17 +123,8 @@ def prepare_out(out: Path) -> None:
     """
     Clear ``out`` when an earlier demo wrote it; refuse any other existing content.
 
-    Parameters
-    ----------
-    out : Path
-        The demo's output folder: created when missing, cleared when it holds :data:`MARKER`
-        (an earlier demo), used as is when empty; then marked.
-
-    Raises
-    ------
-    GyroTdcError
-        When ``out`` is a file or a symlink, or a non-empty folder without the marker.
-
+    Created when missing, cleared when it holds :data:`MARKER`, used as is when empty; then
+    marked. Raises GyroTdcError for a file, a symlink or a non-empty folder without marker.
     """
     if out.is_symlink() or (out.exists() and not out.is_dir()):
         raise GyroTdcError(f'--out: {str(out)!r} exists and is not a folder; choose another')
@@ -283,20 +274,10 @@ def _live(model: Path, seconds: float, report: Path) -> None:
 def live_counts_explained(raw: int, compensated: int, raw_in_window: int,
                           compensated_in_window: int) -> list[str]:
     """
-    Return what the live counts show: one out per in, and why the totals differ.
+    Return the lines explaining the live counts: one out per in, and why the totals differ.
 
-    Parameters
-    ----------
-    raw, compensated : int
-        Raw and compensated messages the monitor received.
-    raw_in_window, compensated_in_window : int
-        Those stamped inside the window where the monitor heard both streams.
-
-    Returns
-    -------
-    list of str
-        Lines to print.
-
+    ``raw`` and ``compensated`` are the messages the monitor received, the ``_in_window``
+    ones those stamped inside the window where it heard both streams.
     """
     same = raw_in_window == compensated_in_window
     lines = [f'{"one out per in" if same else "not one out per in"}: while both streams were '

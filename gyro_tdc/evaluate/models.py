@@ -120,31 +120,13 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
                 held_out: Sequence[str | os.PathLike] | None = None,
                 loader: Callable[[str], CompensationModel] | None = None) -> list:
     """
-    Load model files and fit the ``px4`` baseline when asked.
+    Load model files and fit the ``px4`` baseline when asked; return NamedModels in order.
 
-    Parameters
-    ----------
-    specs : sequence of str
-        Model file paths (or shipped model names), ``px4``, or ``px4-onboard`` /
-        ``ardupilot-onboard`` (:mod:`gyro_tdc.evaluate.onboard`).
-    train_bags : sequence of str, optional
-        Bags the ``px4`` cubic is fitted on (required with ``px4``, used only by it).
-    bag : BagOptions, optional
-        How to read the training bags (the accelerometer is read whatever ``bag.accel``
-        says: the cubic gets an accelerometer part too).
-    log : callable, optional
-        Receives progress lines.
-    held_out : sequence of str or PathLike, optional
-        The held-out logs: ``px4-onboard`` / ``ardupilot-onboard`` are built from the
-        parameters of the first here (and rebuilt from each log's own by :func:`evaluate`).
-    loader : callable, optional
-        Reads one model spec (default: a model file or shipped name; the CLI's also takes a
-        learn_file, :func:`gyro_tdc.learn.read_model`).
-
-    Returns
-    -------
-    list of NamedModel
-        In the order of ``specs``, labelled by :func:`model_labels`.
+    ``specs`` are model files or shipped names (read by ``loader``, default
+    :func:`~gyro_tdc.model.load_model`), ``px4`` (a cubic fitted on ``train_bags``, read
+    as ``bag`` says, accelerometer included) or ``px4-onboard`` / ``ardupilot-onboard``
+    (:mod:`gyro_tdc.evaluate.onboard`, from the parameters of the first ``held_out`` log).
+    Labels come from :func:`model_labels`; ``log`` receives progress lines.
 
     Raises
     ------

@@ -67,23 +67,8 @@ def model_description(name: str, kind: str, features: Sequence[str], *,
     """
     Return the legend text of a model: its file (or ``px4``) and what it is.
 
-    Parameters
-    ----------
-    name : str
-        The model as given on the command line (a path, a shipped name or ``px4``).
-    kind : str
-        ``rbf`` or ``poly``.
-    features : sequence of str
-        Its effect ids (``lag`` included when the model has a thermal state).
-    tau_s : float, s, optional
-        The thermal state's total tau, shown beside ``lag``.
-
-    Returns
-    -------
-    str
-        E.g. ``modified.yaml: poly f(dT, dT2)``, ``auto.yaml: rbf f(dT, dT2, lag 176 s)`` or
-        ``px4: cubic in T fitted on --train``.
-
+    E.g. ``modified.yaml: poly f(dT, dT2)``, ``auto.yaml: rbf f(dT, dT2, lag 176 s)``
+    (``tau_s``: the thermal state's total tau, s) or ``px4: cubic in T fitted on --train``.
     """
     if name == 'px4':
         return 'px4: cubic in T fitted on --train'
@@ -121,41 +106,15 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
                 descriptions: Sequence[str] | None = None, options: str = '',
                 reanchor_s: float = 0.0) -> list:
     """
-    Write three PNGs for one bag (Agg canvas, no display needed).
+    Write three PNGs of one bag into ``directory`` (Agg canvas, no display needed).
 
-    * ``<label>_timeseries.png``: per axis the rate error against time, raw and every model
-      (left) and the models alone on a zoomed scale (right), then the temperature; the
-      re-anchoring window and the stretches outside a model's trained range are shaded and
-      labelled;
-    * ``<label>_residual_vs_temperature.png``: rate error against temperature, raw and per
-      model, coloured by heating, cooling and steady temperature;
-    * ``<label>_allan.png``: Allan deviation per axis, raw and compensated.
-
-    Each figure's title names the bag, the models and the options (``options``: re-anchoring
-    applied or not); every model keeps one colour, line style and marker in all three.
-
-    Parameters
-    ----------
-    b : BagEval
-        One evaluated bag, with its arrays.
-    directory : str or PathLike
-        Output directory (created).
-    points : int
-        Block means plotted per curve (long runs are averaged down to this).
-    descriptions : sequence of str, optional
-        Legend text per model of ``b.models`` (see :func:`model_description`); default: the
-        model as given and its effect ids.
-    options : str
-        What was applied, for the titles (e.g. ``re-anchored: mean error of the first 300 s
-        removed``); empty: nothing said.
-    reanchor_s : float, s
-        The re-anchoring window to shade (0: none).
-
-    Returns
-    -------
-    list of Path
-        The PNGs written.
-
+    ``<label>_timeseries.png`` (rate error against time, raw and models, then zoomed, then
+    the temperature; re-anchoring window and out-of-range stretches shaded),
+    ``<label>_residual_vs_temperature.png`` (coloured by heating, cooling, steady) and
+    ``<label>_allan.png``. Every model keeps one colour, line style and marker in all
+    three. ``points``: block means per curve; ``descriptions``: legend text per model
+    (:func:`model_description`); ``options``: what was applied, for the titles;
+    ``reanchor_s``: the window to shade (0: none). Returns the paths written.
     """
     import matplotlib
 

@@ -101,22 +101,7 @@ HOLDOUT_MODELS: tuple[HoldoutModel, ...] = (
 
 
 def burst_index(t: NDArray[np.float64], *, gap_s: float = 2.0) -> NDArray[np.int64]:
-    """
-    Return the burst number of each sample: a gap longer than ``gap_s`` starts a burst.
-
-    Parameters
-    ----------
-    t : NDArray[np.float64], shape (N,), s
-        Increasing stamps.
-    gap_s : float, s
-        Shortest gap between bursts.
-
-    Returns
-    -------
-    NDArray[np.int64], shape (N,)
-        Burst number of each sample, 0, 1, ...
-
-    """
+    """Return the burst number (0, 1, ...) of each stamp ``t``: a gap over ``gap_s`` starts one."""
     t = np.asarray(t, dtype=np.float64)
     if t.ndim != 1 or t.shape[0] == 0:
         raise FitError(f'Expected `t` of shape (N,) with N >= 1, got {t.shape}.')
@@ -153,35 +138,14 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
                     t0: float, params: Mapping[str, Mapping[str, float]] | None = None,
                     ridge: float = 1e-6, n_grid: int = 25) -> FullSeriesModel:
     """
-    Fit the comparator's ``poly`` model on some rows, the features computed on the whole run.
+    Fit the comparator's ``poly`` model on rows ``train``, the features computed on the whole run.
 
-    The effect parameters marked as fitted in the catalog (the ``lag`` time constant) are
-    chosen on the training rows: a log grid over the catalog bounds, then a bounded 1-D
-    search around the best point. With static features this is the same least squares as
-    :func:`gyro_tdc.identify.fit_model` with ``kind='poly'``.
-
-    Parameters
-    ----------
-    run : Run
-        The whole recording (stamps of every burst; filters run across the gaps).
-    train : NDArray[np.bool_], shape (N,)
-        Rows the model is fitted on.
-    features : sequence of str
-        Effect ids.
-    t0 : float, degC
-        Reference temperature.
-    params : mapping, optional
-        Starting or fixed effect parameters.
-    ridge : float
-        Relative ridge penalty on the non-constant weights (as ``fit_model``).
-    n_grid : int
-        Points of the log grid per fitted parameter.
-
-    Returns
-    -------
-    FullSeriesModel
-        Its ``temp_range_c`` is the range of the training rows.
-
+    The fitted effect parameters (the ``lag`` time constant) are chosen on the training rows:
+    a log grid of ``n_grid`` points over the catalog bounds, then a bounded 1-D search. With
+    static features this is :func:`gyro_tdc.identify.fit_model`'s least squares
+    (``kind='poly'``, same ``ridge``). ``t0`` is the reference temperature (degC),
+    ``params`` starting or fixed effect parameters; ``temp_range_c`` is that of the
+    training rows.
     """
     train = np.asarray(train, dtype=bool)
     if train.shape != (len(run),):
@@ -383,22 +347,9 @@ def pan_holdout(csv: str | Path | PanCubesat | None = None, *, n_blocks: int = 5
     """
     Evaluate the models on the PAN CubeSat TVAC recording (leave one burst block out).
 
-    Parameters
-    ----------
-    csv : str, Path or PanCubesat, optional
-        ``TVCtest3_7_20.csv`` or its parsed content (default: the shared data set beside the
-        repository).
-    n_blocks : int
-        Contiguous blocks of bursts (default 5 blocks of 5 bursts).
-    leave_one_out : bool
-        Also run leave-one-burst-out.
-    models : sequence of HoldoutModel
-        Models compared.
-
-    Returns
-    -------
-    dict
-        As :func:`burst_holdout`, with ``source`` the CSV path.
+    ``csv`` is ``TVCtest3_7_20.csv`` or its parsed content (default: the shared data set
+    beside the repository), cut into ``n_blocks`` blocks of bursts; ``leave_one_out`` also
+    runs leave-one-burst-out. Returns :func:`burst_holdout`'s dict with ``source``.
 
     Raises
     ------
@@ -525,22 +476,9 @@ def run_tool(prog: str, compute: Callable[[], Mapping[str, Any]],
     """
     Run a real-data tool: compute, print the table, write the JSON; one line on failure.
 
-    Parameters
-    ----------
-    prog : str
-        The tool's name, the prefix of its error lines (``PROG: error: ...``).
-    compute : callable
-        Returns the figures (a JSON-serialisable mapping).
-    fmt : callable
-        Formats the figures as the printed table.
-    json_path : Path, optional
-        Where to write the figures as JSON (atomically).
-
-    Returns
-    -------
-    int
-        0, or 2 on bad input or an unwritable ``json_path``.
-
+    ``compute`` returns the figures, ``fmt`` formats them, ``json_path`` (optional) receives
+    them atomically. Returns 0, or 2 after ``PROG: error: ...`` on bad input or an
+    unwritable ``json_path``.
     """
     try:
         result = compute()

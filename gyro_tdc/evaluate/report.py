@@ -71,36 +71,10 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
     """
     Return the evaluation in the documented JSON shape (doc/json.md), nothing more.
 
-    Parameters
-    ----------
-    bags : sequence of BagEval
-        Evaluated bags.
-    floor : sequence of 3 float, (deg/s)^2, optional
-        A known white-noise floor of the gyro per axis (``--floor``): adds ``bs_over_floor``
-        beside every ``bs`` and ``floor`` at the top.
-    accel_floor : sequence of 3 float, (m/s^2)^2, optional
-        Likewise for the accelerometer (``--accel-floor``): ``accel_bs_over_floor`` beside
-        every ``accel_bs`` (null where that is null) and ``accel_floor`` at the top.
-
-    Returns
-    -------
-    dict
-        ``{"bags": [{"bag", "samples", "temperature_c", "raw": {"bs", "rms_dps"},
-        "models": [{"model", "features", "bs", "rms_dps", "p_vs_raw",
-        "adev": {"tau_s", "dps"}, "reanchor"?}]}], "out_of_range"}``; BS in (deg/s)^2, RMS
-        and ADEV in deg/s, non-finite values as null; ``out_of_range`` the policy beyond the
-        trained range, ``reanchor`` (``--reanchor auto`` only) ``{samples, duration_s,
-        shift_dps, se_dps, tolerance_dps, reason}``; ``accel_bs`` beside ``bs`` in ``raw``
-        and each model: the accelerometer BS in (m/s^2)^2, null when not applicable;
-        ``bs_over_floor``, ``accel_bs_over_floor``, ``floor`` and ``accel_floor`` only with
-        ``floor`` and ``accel_floor``; ``constant_axes`` (only when there are any) in a bag:
-        the gyro axes constant on it (readings never varying beyond one quantum, or reading
-        their reference exactly; ``p_vs_raw`` null there), in a model: the axes it passes
-        through unchanged (constant in its training data); ``still`` (only for a bag without
-        a reference that moves, scored on its still stretches): ``samples``, ``stretches``,
-        ``still_s``, ``total_s``, ``share`` (at most 1) and ``sessions``, the same per
-        session.
-
+    BS in (deg/s)^2, RMS and ADEV in deg/s, non-finite values as null. ``floor`` and
+    ``accel_floor`` (known white-noise floors per axis, (deg/s)^2 and (m/s^2)^2, from
+    ``--floor`` / ``--accel-floor``) add ``bs_over_floor`` / ``accel_bs_over_floor`` beside
+    every BS and the floors at the top.
     """
     doc = {'bags': [{
         'bag': b.bag,
@@ -233,20 +207,8 @@ def format_summary(b: BagEval, *, floor: Sequence[float] | None = None,
     """
     Return the per-bag summary: BS, RMS and BS/BS1 per axis for raw data and every model.
 
-    Parameters
-    ----------
-    b : BagEval
-        One evaluated bag.
-    floor : sequence of 3 float, (deg/s)^2, optional
-        A known white-noise floor per axis: adds the columns BS / floor (``BS/fl``).
-    accel_floor : sequence of 3 float, (m/s^2)^2, optional
-        Likewise for the accelerometer rows (``aBS/fl``).
-
-    Returns
-    -------
-    str
-        Multi-line table (no trailing newline).
-
+    ``floor`` / ``accel_floor`` (white-noise floors per axis, (deg/s)^2 and (m/s^2)^2) add
+    the columns ``BS/fl`` and ``aBS/fl``. No trailing newline.
     """
     lo, hi = b.temperature_c
     reference = _REFERENCE.get(b.reference, f'reference {b.reference}')
@@ -359,21 +321,8 @@ def format_bag(b: BagEval, baseline: int | None = None, *,
     """
     Return every table of one bag: summary, paper tables against ``baseline``, Allan readouts.
 
-    Parameters
-    ----------
-    b : BagEval
-        One evaluated bag.
-    baseline : int, optional
-        Index into ``b.models`` of the conventional model; one paper table (tables 3-7) is
-        added per other model. None: no paper table.
-    floor, accel_floor : sequence of 3 float, optional
-        Known white-noise floors, (deg/s)^2 and (m/s^2)^2: see :func:`format_summary`.
-
-    Returns
-    -------
-    str
-        Multi-line text (no trailing newline).
-
+    ``baseline`` indexes ``b.models`` (the conventional model): one paper table (tables 3-7)
+    per other model; None: none. ``floor``, ``accel_floor``: see :func:`format_summary`.
     """
     parts = [format_summary(b, floor=floor, accel_floor=accel_floor)]
     if baseline is not None:
@@ -385,20 +334,9 @@ def format_bag(b: BagEval, baseline: int | None = None, *,
 
 def format_means(results: Sequence[BagEval], *, floor: Sequence[float] | None = None) -> str:
     """
-    Return the mean BS and BS/BS1 per model and axis over several bags.
+    Return the mean BS and BS/BS1 per model and axis over several bags (:func:`mean_scores`).
 
-    Parameters
-    ----------
-    results : sequence of BagEval
-        Evaluated bags (the same models in each).
-    floor : sequence of 3 float, (deg/s)^2, optional
-        A known white-noise floor per axis: adds the mean BS / floor (``BS/fl``).
-
-    Returns
-    -------
-    str
-        Multi-line table (no trailing newline); see :func:`gyro_tdc.evaluate.score.mean_scores`.
-
+    ``floor`` ((deg/s)^2 per axis) adds the mean BS / floor (``BS/fl``). No trailing newline.
     """
     rows = mean_scores(results)
     w = max([len(label) for label, _, _ in rows[1:]] + [12])
@@ -427,20 +365,8 @@ def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000)
     """
     Write ``DIR/<bag label>.csv``: every sample with the raw, reference and compensated rates.
 
-    Parameters
-    ----------
-    b : BagEval
-        One evaluated bag, with its arrays (``run`` and each model's ``omega``).
-    directory : str or PathLike
-        Output directory (created).
-    chunk : int
-        Rows formatted at once.
-
-    Returns
-    -------
-    Path
-        The CSV written; columns from :func:`csv_columns`, rates in rad/s.
-
+    Columns from :func:`csv_columns`, rates in rad/s, ``chunk`` rows formatted at once;
+    returns the path.
     """
     run = b.run
     if run is None:

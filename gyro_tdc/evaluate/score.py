@@ -198,34 +198,13 @@ def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: st
           features: Sequence[str] = (), bs_raw: NDArray[np.float64] | None = None,
           rate: float | None = None, allan: bool = True) -> ModelEval:
     """
-    Score one compensated (or raw) rate against the run's reference rate.
+    Score one compensated (or raw) rate ``omega`` (N, 3, rad/s) against the run's reference.
 
-    Parameters
-    ----------
-    omega : NDArray[np.float64], shape (N, 3), rad/s
-        The rate to score (``run.omega`` for the raw data).
-    run : Run
-        The run (stamps and reference rate).
-    label, model : str
-        Label and name of what is scored (``'raw'`` for the raw data).
-    features : sequence of str
-        Effect ids of the model.
-    bs_raw : NDArray[np.float64], shape (3,), (deg/s)^2, optional
-        BS of the raw data; ``p_vs_raw`` is ones when None.
-    rate : float, Hz, optional
-        Sample rate for the Allan deviation (default :func:`rate_hz` of the stamps).
-    allan : bool
-        Compute the Allan deviation; False leaves it empty (BS and RMS only, e.g. for
-        held-out samples with gaps between them).
-
-    Returns
-    -------
-    ModelEval
-        BS = mean((omega - omega_ref)^2) per axis in (deg/s)^2 (paper eq. 30), RMS in
-        deg/s, BS / ``bs_raw`` (NaN on an axis whose raw BS is 0, without a warning),
-        Allan deviation of the error (empty below 4 samples) and its readouts; the rate
-        itself kept in ``omega``.
-
+    BS = mean((omega - omega_ref)^2) per axis in (deg/s)^2 (paper eq. 30), RMS in deg/s,
+    BS / ``bs_raw`` (ones when None; NaN without a warning where the raw BS is 0), the
+    Allan deviation of the error at ``rate`` Hz (default from the stamps; empty below 4
+    samples or with ``allan`` False, e.g. held-out samples with gaps) and its readouts;
+    ``omega`` is kept. ``label``, ``model`` and ``features`` name what is scored.
     """
     err = omega - run.omega_ref
     bs = bias_stability(omega, run.omega_ref)
@@ -304,34 +283,21 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     label : str
         Short label of the run (default from its name).
     reanchor_s : float (s) or ``'auto'``
-        When > 0, remove from each model's compensated rate its mean error over the first
-        ``reanchor_s`` seconds (the run-to-run bias offset, as the compensator re-anchors at
-        start-up while the sensor is still); ``'auto'``: over as long as the compensator's
-        rule averages (:func:`gyro_tdc.runtime.reanchor.reanchor_shift` with the default windows
-        and tolerance, reported in ``ModelEval.reanchor``); the raw data are never
-        re-anchored. A run of several sessions (power cycles) is compensated and
-        re-anchored session by session, each from its own start.
-    out_of_range : str
-        ``'linear'`` (default), ``'clamp'`` or ``'extrapolate'`` beyond a model's range.
-    max_extrapolation_c : float, degC
-        Reach of the ``linear`` tangent.
-    sessions : str
-        How the run is cut into sessions (:func:`gyro_tdc.data.split_sessions`: ``auto``
-        at gaps and restarts; ``bag`` or ``none``: one session).
-    session_gap_s : float, s
-        The gap that starts a session (0: automatic).
+        > 0: remove each session's mean model error over its first ``reanchor_s`` seconds,
+        as the compensator re-anchors at start-up; ``'auto'``: the compensator's rule
+        (:func:`gyro_tdc.runtime.reanchor.reanchor_shift`). Raw data are never re-anchored.
+    out_of_range, max_extrapolation_c : str, float (degC)
+        The policy beyond a model's range and the reach of the ``linear`` tangent.
+    sessions, session_gap_s : str, float (s)
+        How the run is cut into sessions (:func:`gyro_tdc.data.split_sessions`).
     still : NDArray[np.bool_], shape (N,), optional
-        Score these samples only (the still stretches of data without a reference,
-        :func:`still_rows`): every model compensates the whole run, then raw and models
-        alike are re-anchored per session on its first still stretch (``reanchor_s`` is not
-        used) and scored on the still samples (no Allan deviation across the gaps).
+        Score these samples only (data without a reference, :func:`still_rows`): raw and
+        models re-anchored per session on its first still stretch, no Allan deviation.
 
     Returns
     -------
     BagEval
-        Scores, with the arrays kept for plots and export (call ``release()`` after); on
-        the constant axes (``BagEval.constant_axes``) every model's BS/BS1 is NaN (every
-        axis constant is scored so; :func:`evaluate` refuses such a bag).
+        With the arrays (call ``release()`` after); BS/BS1 NaN on the constant axes.
 
     """
     check_policy(out_of_range)
@@ -463,39 +429,17 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     """
     Evaluate models on held-out bags, one bag in memory at a time.
 
-    Parameters
-    ----------
-    bags : sequence of str or PathLike
-        Held-out bags (folders of bags expand to their bags).
-    models : sequence of NamedModel
-        Models to score.
-    bag : BagOptions, optional
-        How to read the bags (the accelerometer is read whatever ``bag.accel`` says: its
-        scores need it) and cut them into sessions (``sessions``, ``session_gap_s``).
-    reanchor_s : float (s) or ``'auto'``
-        Start-up re-anchoring of every session (see :func:`evaluate_run`); 0 = off.
-    out_of_range : str
-        Out-of-range policy (see :func:`evaluate_run`).
-    max_extrapolation_c : float, degC
-        Reach of the ``linear`` tangent.
-    log : callable, optional
-        Receives one line per bag read.
-    each : callable, optional
-        Called with every :class:`BagEval` while its arrays are still held (print its
-        tables, write its plots and CSV there).
-
-    Returns
-    -------
-    list of BagEval
-        One per bag, arrays released; a bag without a reference that moves is scored on its
-        still stretches only (:func:`still_rows`, ``BagEval.still``).
+    ``bags`` (folders expand to their bags) are read as ``bag`` says (the accelerometer
+    always) and cut into sessions; ``reanchor_s``, ``out_of_range`` and
+    ``max_extrapolation_c`` as in :func:`evaluate_run`. ``log`` receives one line per bag;
+    ``each`` is called with every :class:`BagEval` while its arrays are held (tables, plots,
+    CSV). A bag without a reference that moves is scored on its still stretches only.
 
     Raises
     ------
     GyroTdcError
-        DatasetError for a bag that cannot be read, or whose every gyro axis is constant
-        (:func:`held_out_constant`); FitError for a bag without a reference and without
-        a still stretch.
+        DatasetError: unreadable bag, or every gyro axis constant; FitError: no reference
+        and no still stretch.
 
     """
     check_policy(out_of_range)
@@ -525,18 +469,8 @@ def mean_scores(results: Sequence[BagEval]) -> list:
     """
     Return the mean BS and BS/BS1 per model and axis over bags (BS/BS1 averaged per bag).
 
-    Parameters
-    ----------
-    results : sequence of BagEval
-        Evaluated bags, the same models in the same order in each.
-
-    Returns
-    -------
-    list of (str, NDArray[np.float64], NDArray[np.float64])
-        ``(label, mean BS in (deg/s)^2, mean BS/BS1)`` for the raw data, then each model;
-        BS/BS1 over the bags where it is a number (NaN, without a warning, on an axis
-        constant in every bag: :attr:`BagEval.constant_axes`).
-
+    ``(label, mean BS in (deg/s)^2, mean BS/BS1)`` for raw data, then each model; BS/BS1
+    over the bags where it is a number (NaN, no warning, on an axis constant in every bag).
     """
     rows = [('raw', [b.raw for b in results])] + [
         (m.label, [b.models[i] for b in results]) for i, m in enumerate(results[0].models)]

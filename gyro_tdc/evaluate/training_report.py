@@ -107,23 +107,11 @@ def is_coverage_line(line: str) -> bool:
 
 def drift_slope(model: Any) -> NDArray[np.float64]:
     """
-    Return the mean slope of a model's static drift over its trained range, per axis.
+    Return a model's mean static-drift slope over its trained range, deg/s per degC per axis.
 
-    The static drift is the drift at thermal equilibrium (each temperature held until lag,
-    dT/dt and warm-up terms have settled); the slope is its change from the cold end of
-    ``temp_range_c`` to the warm end, divided by the span. For the conventional model f(dT)
-    it is the fitted zero-rate level change per degC (eq. 18, alpha).
-
-    Parameters
-    ----------
-    model : CompensationModel
-        A fitted model.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (3,), deg/s per degC
-        The slope on x, y and z; NaN when the range has no span.
-
+    The static drift is the drift at thermal equilibrium; the slope is its change across
+    ``temp_range_c`` divided by the span (NaN without a span). For the conventional f(dT)
+    it is the zero-rate level change per degC (eq. 18, alpha).
     """
     from gyro_tdc.model import drift
 

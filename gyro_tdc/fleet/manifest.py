@@ -168,19 +168,9 @@ def input_key(spec: SensorSpec, options: dict) -> str:
     """
     Return the resume key of a sensor: a hash of its inputs and the training options.
 
-    Parameters
-    ----------
-    spec : SensorSpec
-        The sensor.
-    options : dict
-        Keyword options of :func:`gyro_tdc.identify.train.train`.
-
-    Returns
-    -------
-    str
-        SHA-256 (hex) of the sensor id, the gyro_tdc version, the options and the path, size
-        and modification time (ns) of every file of every train and test bag.
-
+    SHA-256 (hex) of the sensor id, the gyro_tdc version, ``options`` (of
+    :func:`gyro_tdc.identify.train.train`) and the path, size and modification time (ns) of
+    every train and test bag.
     """
     blob = json.dumps({'format': KEY_FORMAT, 'version': __version__,
                        'sensor_id': spec.sensor_id, 'options': _plain_options(options),

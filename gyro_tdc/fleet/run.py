@@ -181,28 +181,16 @@ def open_engine(*, workers: int | None = None, scheduler: str | None = None,
     """
     Start an embedded Dask cluster, or connect to one, for the duration of a ``with``.
 
-    Parameters
-    ----------
-    workers : int, optional
-        Worker processes of the embedded ``LocalCluster`` (one thread each); default the
-        machine's cores. Ignored with ``scheduler``.
-    scheduler : str, optional
-        Address of a running Dask scheduler (``tcp://HOST:PORT``); its workers must read the
-        bags at the paths the manifest gives.
-    timeout_s : float, s
-        How long to wait for the scheduler and its first worker, and how long a fleet waits
-        when the cluster has lost every worker (:attr:`Engine.timeout_s`).
-
-    Yields
-    ------
-    Engine
-        The client and its description.
+    ``workers``: processes of the embedded ``LocalCluster`` (default the cores; ignored with
+    ``scheduler``, a ``tcp://HOST:PORT`` whose workers read the bags at the manifest's
+    paths). ``timeout_s`` (s): the wait for the scheduler and its first worker, and
+    :attr:`Engine.timeout_s`. Yields the :class:`Engine`.
 
     Raises
     ------
     FleetError
-        When the scheduler cannot be reached or has no worker within ``timeout_s``, or a
-        worker cannot import this gyro_tdc (see :func:`check_workers`).
+        Scheduler unreachable or without a worker in time, or a worker cannot import this
+        gyro_tdc (:func:`check_workers`).
 
     """
     from distributed import Client, LocalCluster
@@ -237,19 +225,12 @@ def worker_version() -> str:
 
 def check_workers(client: object, where: str) -> None:
     """
-    Check that every connected worker imports this gyro_tdc (a task it cannot unpickle hangs).
-
-    Parameters
-    ----------
-    client : distributed.Client
-        Connected client.
-    where : str
-        The scheduler, for messages.
+    Check that every worker of ``client`` imports this gyro_tdc (else a task hangs unpickled).
 
     Raises
     ------
     FleetError
-        When a worker cannot import ``gyro_tdc.fleet`` or has another gyro_tdc version.
+        A worker cannot import ``gyro_tdc.fleet`` or has another version; names ``where``.
 
     """
     for address, got in client.run(worker_version, on_error='return').items():

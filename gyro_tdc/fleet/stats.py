@@ -45,21 +45,9 @@ def drift_polynomial(model: CompensationModel, *, points: int = 41) -> NDArray[n
     """
     Fit a quadratic in temperature to the model's static drift over its trained range.
 
-    The static drift is the model's drift at thermal equilibrium: each temperature is held
-    long enough (10^7 s apart) that lag, dT/dt and warm-up terms have settled.
-
-    Parameters
-    ----------
-    model : CompensationModel
-        A fitted model.
-    points : int
-        Temperatures sampled over ``model.temp_range_c``.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (3, 3), deg/s per degC^k
-        ``c[axis, k]`` of ``b(T) = c0 + c1 T + c2 T^2`` (T in degC) per axis x, y, z.
-
+    The static drift is the drift at thermal equilibrium (lag, dT/dt and warm-up terms
+    settled), sampled at ``points`` temperatures. Returns ``c[axis, k]`` (3, 3) of
+    ``b(T) = c0 + c1 T + c2 T^2``, deg/s per degC^k, T in degC.
     """
     lo, hi = model.temp_range_c
     grid = np.linspace(lo, hi, points)

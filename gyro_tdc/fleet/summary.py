@@ -30,22 +30,11 @@ __all__ = ['format_table', 'summary_dict', 'write_summary']
 
 def summary_dict(result: FleetResult) -> dict:
     """
-    Return the ``summary.json`` content.
+    Return the ``summary.json`` content (doc/json.md).
 
-    Parameters
-    ----------
-    result : FleetResult
-        The fleet run.
-
-    Returns
-    -------
-    dict
-        ``{"engine": "dask", "scheduler", "workers", "sensors": [{"sensor_id", "status",
-        "error" (failed only), "model_file", "train_bs", "heldout_bs", "flags",
-        "constant_axes" (only when there are any)}]}``, BS in (deg/s)^2 per axis x, y, z;
-        ``constant_axes``: the gyro axes constant in the training bags (passed through, not
-        in the fleet statistics).
-
+    Per sensor its status, error, model file, training and held-out BS ((deg/s)^2 per axis),
+    flags, and the axes constant in its training bags (passed through, left out of the
+    fleet statistics).
     """
     rows = [{'sensor_id': s.sensor_id, 'status': s.status,
              **({'error': s.error} if s.status != 'ok' else {}),
@@ -80,22 +69,7 @@ def _csv_text(result: FleetResult) -> str:
 
 
 def write_summary(result: FleetResult, out_dir: str | os.PathLike) -> tuple[Path, Path]:
-    """
-    Write ``summary.json`` and ``summary.csv`` into ``out_dir``, each atomically.
-
-    Parameters
-    ----------
-    result : FleetResult
-        The fleet run.
-    out_dir : str or PathLike
-        Output folder (exists).
-
-    Returns
-    -------
-    tuple of Path
-        The JSON and the CSV file.
-
-    """
+    """Write ``summary.json`` and ``summary.csv`` into ``out_dir`` atomically; return the paths."""
     d = Path(out_dir)
     js = atomic_write(d / 'summary.json',
                       json.dumps(summary_dict(result), indent=1, ensure_ascii=False) + '\n',

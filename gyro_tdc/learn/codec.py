@@ -294,28 +294,15 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
     """
     Check every field of a state :func:`encode_state` made; return what it restores.
 
-    Parameters
-    ----------
-    state : Any
-        The state, as read from a ``learn_file``.
-    bin_c : float, degC, optional
-        The learner's bin width: bins outside the plausible temperatures are refused.
-    bin_entries, stretches : int, optional
-        Most entries a bin and most recent stretches the learner keeps.
-
-    Returns
-    -------
-    values : dict
-        The learner's attribute values by name (``last_save_t`` is the saved ``last_t``).
-    thermal : ThermalState or None
-        The thermal section the points were binned with (None: the thermometer).
+    Returns the learner's attribute values by name (``last_save_t`` is the saved
+    ``last_t``) and the thermal section the points were binned with (None: the
+    thermometer). ``bin_c`` (degC), ``bin_entries`` and ``stretches`` are the learner's
+    bin width, entries per bin and recent stretches kept, checked against when given.
 
     Raises
     ------
     LearnFileError
-        The state is not one a learner wrote: one line naming the field, what it must be and
-        what it holds (NaN or infinite values, negative counts, wrong shapes, implausible
-        temperatures or rates, a fit whose model a model file could not hold).
+        Not a state a learner wrote: one line naming the field, what it must be and holds.
 
     """
     if not isinstance(state, dict) or state.get('format') != FORMAT:

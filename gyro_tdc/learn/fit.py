@@ -63,26 +63,10 @@ def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
     """
     Return the ``poly`` model of a learned fit.
 
-    Parameters
-    ----------
-    coef : NDArray[np.float64], shape (1 + F, 3), rad/s
-        Intercept then one row per feature (``dT``; ``dT, dT2``).
-    features : sequence of str
-        ``('dT',)`` or ``('dT', 'dT2')``.
-    t0 : float, degC
-        Reference temperature.
-    temp_range : tuple of float, degC
-        Covered range (of the model temperature).
-    resid_var : NDArray[np.float64], shape (3,)
-        Residual variance of the fit.
-    thermal : ThermalState, optional
-        The thermal front end the points were binned with (None: the measured temperature,
-        a model of kind none).
-
-    Returns
-    -------
-    CompensationModel
-
+    ``coef`` (1 + F, 3; rad/s): intercept then one row per feature of ``features``
+    (``('dT',)`` or ``('dT', 'dT2')``); ``t0`` and ``temp_range`` in degC (of the model
+    temperature); ``thermal`` the front end the points were binned with (None: measured
+    temperature, a model of kind none).
     """
     f = len(features)
     coef = np.asarray(coef, dtype=np.float64).reshape(1 + f, 3)
@@ -99,18 +83,8 @@ def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:
     """
     Return the features the covered span allows (the growth rule).
 
-    Parameters
-    ----------
-    temps : NDArray[np.float64], shape (E,), degC
-        The entries' temperatures.
-    bins : int
-        Occupied temperature bins.
-
-    Returns
-    -------
-    tuple of str
-        ``()`` (a bias only), ``('dT',)``, ``('dT', 'dT2')`` or ``('dT', 'dT2', 'dT3')``.
-
+    From the entries' temperatures ``temps`` (degC) and the occupied bins: ``()`` (a bias
+    only), ``('dT',)``, ``('dT', 'dT2')`` or ``('dT', 'dT2', 'dT3')``.
     """
     span = float(temps.max() - temps.min()) if temps.size else 0.0
     for feats, least_c, least_bins in ((('dT', 'dT2', 'dT3'), SPAN_DT3_C, BINS_DT3),
@@ -127,26 +101,9 @@ def fit_sessions(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequenc
     """
     Weighted least squares, one intercept per session and a shared shape.
 
-    Parameters
-    ----------
-    e : NDArray[np.float64], shape (E, 7)
-        Point table rows ``(t_end, samples, temp, bx, by, bz, session)``.
-    wt : NDArray[np.float64], shape (E,)
-        Weights.
-    feats : sequence of str
-        Features (powers of ``temp - t0``, in order).
-    t0 : float, degC
-        Reference temperature.
-    session : float, optional
-        Whose intercept to return (default the newest).
-
-    Returns
-    -------
-    coef : NDArray[np.float64], shape (1 + F, 3)
-        The intercept of ``session``, then the shape.
-    resid : NDArray[np.float64], shape (E, 3)
-        Residuals.
-
+    ``e`` holds point rows ``(t_end, samples, temp, bx, by, bz, session)``, ``wt`` their
+    weights, ``feats`` powers of ``temp - t0``. Returns ``coef`` (1 + F, 3: the intercept
+    of ``session``, default the newest, then the shape) and the residuals (E, 3).
     """
     x, sessions = _design(e, feats, t0)
     coef = fit_columns(x, e[:, 3:6], weights=wt)
@@ -221,25 +178,10 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
     """
     Fit the point table: weights by samples and age, outliers dropped, then refit.
 
-    Parameters
-    ----------
-    e : NDArray[np.float64], shape (E, 7)
-        Point table (:func:`fit_sessions`), E >= 1.
-    feats : sequence of str
-        Features (:func:`grow_features`).
-    t_now : float, s
-        Stamp the ages are counted to.
-    half_life_s : float, s
-        Age at which an entry weighs half.
-    floor : float, rad/s
-        The gyro's noise floor (:func:`inliers`).
-
-    Returns
-    -------
-    dict
-        The fit record (plain types, what the learn file stores): ``features``, ``t0_c``,
-        ``coef``, ``range_c``, ``resid_var``, ``points``.
-
+    An entry ``half_life_s`` old weighs half; outliers are judged against ``floor``, the
+    gyro's noise floor in rad/s (:func:`inliers`). Returns the fit record (plain types, as
+    the learn file stores it): ``features``, ``t0_c``, ``coef``, ``range_c``,
+    ``resid_var``, ``points``.
     """
     age = np.maximum(t_now - e[:, 0], 0.0)
     wt = e[:, 1] * 0.5 ** (age / half_life_s)
@@ -316,21 +258,8 @@ def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationMode
     """
     Return the model of a fit record (a bias only as ``dT`` with a zero slope), checked.
 
-    The model is checked as a model file's is (:func:`gyro_tdc.model.check_model`: bounded
-    parameters, a finite and plausible drift over its range and the extrapolation limit)
-    before anything installs it.
-
-    Parameters
-    ----------
-    fit : dict
-        :func:`fit_points` output (with ``reanchor``, the start-up shift gate of
-        :func:`gyro_tdc.learn.gate.learned_gate`, in ``metrics['reanchor']``).
-    thermal : ThermalState, optional
-        The thermal front end the points were binned with.
-
-    Returns
-    -------
-    CompensationModel
+    Checked as a model file is (:func:`gyro_tdc.model.check_model`) before anything installs
+    it; the fit's ``reanchor`` gate goes to ``metrics['reanchor']``.
 
     Raises
     ------
@@ -355,24 +284,9 @@ def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float) -> l
     """
     Return the offset that zeroes a fit's mean residual over the newest still windows.
 
-    The fit's shape is kept; its intercept (the session's offset, an average over all of the
-    session's points) becomes that of the newest still time, as re-anchoring does: the
-    offset wanders (random walk, bias instability), the shape does not.
-
-    Parameters
-    ----------
-    fit : dict
-        :func:`fit_points` output.
-    rows : sequence of rows ``(samples, temp, bx, by, bz, t_end)``
-        Still windows of the current session (model temperature, mean raw rate).
-    since : float, s
-        Windows ending after this stamp count.
-
-    Returns
-    -------
-    list of 3 float, rad/s, or None
-        The intercept; None when no window is that recent.
-
+    The shape is kept; the intercept (averaged over the whole session) becomes that of the
+    windows ending after ``since``, as re-anchoring does: the offset wanders, the shape does
+    not. ``rows`` are ``(samples, temp, bx, by, bz, t_end)``; None when none is that recent.
     """
     r = np.asarray(rows, dtype=np.float64).reshape(-1, 6)
     r = r[r[:, 5] > since]
@@ -385,29 +299,12 @@ def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float) -> l
 def prediction_mse(model: CompensationModel, rows: Sequence[Sequence[float]],
                    thermal: ThermalState | None, since: float | None = None) -> float:
     """
-    Return the sample-weighted mean squared error of ``model`` over still windows.
+    Return the sample-weighted mean squared error of ``model`` over still windows, (rad/s)^2.
 
-    Parameters
-    ----------
-    model : CompensationModel
-        The model checked.
-    rows : sequence of rows ``(samples, temp, bx, by, bz, t_end)``
-        The windows: ``temp`` the model temperature (of ``thermal``), ``b`` the mean raw
-        rate (rad/s), ``t_end`` the stamp.
-    thermal : ThermalState or None
-        The thermal front end ``temp`` was computed with: a model with the same one is
-        evaluated at ``temp`` directly; any other runs its own front end over the windows.
-    since : float, s, optional
-        Judge the shape and the current offset apart: the error is the scatter of the
-        residuals around their mean over the windows stamped after ``since``, plus that
-        mean squared (a model whose offset is the newest still time's is not penalised on
-        older windows for the offset's wander).
-
-    Returns
-    -------
-    float, (rad/s)^2
-        The error, summed over the axes.
-
+    ``rows`` are ``(samples, temp, bx, by, bz, t_end)``, ``temp`` the model temperature of
+    ``thermal`` (a model with another front end runs its own). With ``since``, the error is
+    the residuals' scatter plus their mean squared over the windows after ``since``, so a
+    model re-anchored on the newest still time is not penalised for the offset's wander.
     """
     r = np.asarray(rows, dtype=np.float64).reshape(-1, 6)
     return window_error(r, predict_windows(model, r, thermal), since)
@@ -480,25 +377,9 @@ def stream_state(thermal: ThermalState | None, carry: ThermalCarry | None,
     """
     Return the model temperature of a batch of samples and the state to carry on.
 
-    Parameters
-    ----------
-    thermal : ThermalState or None
-        The front end (None or kind ``none``: the model temperature is ``temp``).
-    carry : ThermalCarry or None
-        The state after the previous batch; None starts settled at the first finite
-        ``temp`` (steady state).
-    t : NDArray[np.float64], shape (N,), s
-        Stamps.
-    temp : NDArray[np.float64], shape (N,), degC
-        Held measured temperature; NaN samples give NaN and do not advance the state.
-
-    Returns
-    -------
-    state : NDArray[np.float64], shape (N,), degC
-        The model temperature (``temp`` itself without a lag).
-    carry : ThermalCarry or None
-        The state after the last finite sample.
-
+    ``thermal`` None or of kind ``none``: the model temperature is ``temp`` itself.
+    ``carry`` None starts settled at the first finite ``temp``; NaN samples give NaN and do
+    not advance the state. ``t`` in s, ``temp`` (held, measured) and the result in degC.
     """
     ok = np.isfinite(temp)
     if thermal is None or thermal.kind == 'none' or not ok.any():

@@ -57,17 +57,9 @@ def learned_gate(model: CompensationModel, e: NDArray[np.float64],
     """
     Return the start-up shift record of a learned model (``metrics['reanchor']``).
 
-    Parameters
-    ----------
-    model : CompensationModel
-        The learned model (its temperature is the points' model temperature).
-    e : NDArray[np.float64], shape (E, 7)
-        The point table it was fitted on (:meth:`gyro_tdc.learn.Learner.entries`).
-    fit_table : callable
-        The learner's fit of a point table (a held-out power cycle's others), a fit record.
-    thermal : ThermalState or None
-        The thermal front end the points were binned with.
-
+    ``e`` is the point table it was fitted on (:meth:`gyro_tdc.learn.Learner.entries`),
+    ``fit_table`` the learner's fit of a point table (a held-out power cycle's others),
+    ``thermal`` the front end the points were binned with.
     """
     labels = np.unique(e[:, 6])         # one run per power cycle, in time order
     runs = [PointRun(p[np.argsort(p[:, 0], kind='stable')])

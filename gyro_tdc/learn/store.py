@@ -289,21 +289,9 @@ def open_learn_file(path: str | os.PathLike, load: Callable[[Any], None]) -> Ope
     """
     Resume from ``path`` and learn into it; when it is refused, keep it and use one beside it.
 
-    Parameters
-    ----------
-    path : str or PathLike
-        The configured ``learn_file``.
-    load : callable
-        ``load(document)``: a learner's ``load_state`` (raises LearnFileError to refuse).
-
-    Returns
-    -------
-    Opened
-        The file learned into: ``path`` when it is missing or a learner state; otherwise
-        :func:`alternate_path` (resumed when it holds a learner state), with one warning
-        line saying why ``path`` was refused and where learning goes; no file when the
-        alternate is refused too.
-
+    ``load(document)`` is a learner's ``load_state`` (LearnFileError refuses). Learning goes
+    to ``path`` when missing or a learner state, else to :func:`alternate_path` (resumed when
+    a learner state) with one warning line; no file when both are refused.
     """
     main = LearnFile(path)
     try:
@@ -341,21 +329,10 @@ def is_learn_file(path: str | os.PathLike) -> bool:
 
 def model_from_file(path: str | os.PathLike) -> CompensationModel:
     """
-    Return the current learned model of a learn_file.
+    Return the model a learner would install on resuming from the learn_file ``path``.
 
-    The file is read as the node resumes it (bounded, every field checked) but never
-    written. The model is the one the learner would install on resuming: its fit (the
-    newest session's offset, the shared shape) with the thermal section it was binned at.
-
-    Parameters
-    ----------
-    path : str or PathLike
-        The learn_file.
-
-    Returns
-    -------
-    CompensationModel
-        The learned model (``created`` names the file and its last update).
+    Read as the node resumes it (bounded, every field checked), never written; the model's
+    ``created`` names the file and its last update.
 
     Raises
     ------

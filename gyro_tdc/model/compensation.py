@@ -333,31 +333,13 @@ def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.flo
           max_extrapolation_c: float = MAX_EXTRAPOLATION_C, chunk: int = 200_000
           ) -> NDArray[np.float64]:
     """
-    Evaluate the zero-rate drift b(x) over one run.
+    Evaluate the zero-rate drift b(x) over one run, rad/s (N, 3).
 
-    Parameters
-    ----------
-    model : CompensationModel
-        The model.
-    t : NDArray[np.float64], shape (N,), s
-        Stamps of one continuous run.
-    temp : NDArray[np.float64], shape (N,), degC
-        Measured temperature at each stamp.
-    clamp : bool
-        Clamp the model temperature (the thermal state) to the model's valid range first
-        (default); False extrapolates. Ignored when ``out_of_range`` is given.
-    out_of_range : str, optional
-        ``'linear'``, ``'clamp'`` or ``'extrapolate'`` (:mod:`gyro_tdc.model.out_of_range`).
-    max_extrapolation_c : float, degC
-        Reach of the ``linear`` tangent beyond the range, after which it holds.
-    chunk : int
-        Rows evaluated at once (bounds memory for long runs).
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N, 3), rad/s
-        The drift per axis.
-
+    ``t`` (s) are the stamps of one continuous run, ``temp`` (degC) the measured
+    temperature. ``out_of_range`` (``'linear'``, ``'clamp'``, ``'extrapolate'``:
+    :mod:`gyro_tdc.model.out_of_range`, with ``max_extrapolation_c``) decides beyond the
+    range; without it, ``clamp`` clamps the model temperature to the range (False
+    extrapolates). ``chunk`` rows are evaluated at once to bound memory.
     """
     return _drift(model, t, temp, clamp, out_of_range, max_extrapolation_c, chunk)[0]
 
@@ -498,22 +480,9 @@ class StreamingCompensator:
 
     def step(self, t: float, temp: float, omega: NDArray[np.float64]) -> NDArray[np.float64]:
         """
-        Compensate one sample.
+        Compensate one raw rate ``omega`` (rad/s) at stamp ``t`` (s); return the rate.
 
-        Parameters
-        ----------
-        t : float, s
-            Stamp.
-        temp : float, degC
-            Temperature at ``t`` (latest thermometer sample).
-        omega : NDArray[np.float64], shape (3,), rad/s
-            Raw gyro output.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (3,), rad/s
-            Compensated rate.
-
+        ``temp`` (degC) is the latest thermometer sample at ``t``.
         """
         b = self.drift(t, temp)
         return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + self.dt_c * self.model.scale)

@@ -359,32 +359,13 @@ def batch_features(ids: Sequence[str], t: NDArray[np.float64], temp: NDArray[np.
                    t_start: float | None = None, state: NDArray[np.float64] | None = None
                    ) -> NDArray[np.float64]:
     """
-    Compute the network-input features of one run.
+    Compute the network-input features of one run, one column per :func:`input_ids` entry.
 
-    Parameters
-    ----------
-    ids : sequence of str
-        Effect ids; only the network inputs (see :func:`input_ids`) produce columns.
-    t : NDArray[np.float64], shape (N,), s
-        Stamps of one continuous run (filters start at ``t[0]``).
-    temp : NDArray[np.float64], shape (N,), degC
-        Measured temperature at each stamp.
-    t0 : float, degC
-        Reference temperature.
-    params : mapping, optional
-        Effect parameters (defaults from the catalog).
-    t_start : float, optional, s
-        Power-on time for ``warmup`` (default ``t[0]``).
-    state : NDArray[np.float64], shape (N,), degC, optional
-        The thermal state (the model temperature, already clamped when the model clamps):
-        the temperature terms are of it, and ``lag`` adds no column
-        (``input_ids(ids, state=True)``). None: the additive layout, features of ``temp``.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N, F)
-        One column per input id in :func:`input_ids` order.
-
+    ``t`` (s) are the stamps of one continuous run (filters start at ``t[0]``; ``warmup``
+    at ``t_start``, default ``t[0]``), ``temp`` the measured temperature, ``t0`` the
+    reference (degC), ``params`` the effect parameters (default the catalog's). With
+    ``state`` (the model temperature, clamped when the model clamps) the temperature terms
+    are of it and ``lag`` adds no column; None: the additive layout, features of ``temp``.
     """
     t = np.asarray(t, dtype=np.float64)
     temp = np.asarray(temp, dtype=np.float64)
@@ -440,23 +421,10 @@ class StreamingFeatures:
 
     def update(self, t: float, temp: float, state: float | None = None) -> NDArray[np.float64]:
         """
-        Advance to stamp ``t`` with temperature ``temp`` and return the feature vector.
+        Advance to stamp ``t`` (s) with temperature ``temp`` (degC); return the features.
 
-        Parameters
-        ----------
-        t : float, s
-            Stamp; a stamp not after the previous one leaves the filters unchanged.
-        temp : float, degC
-            Measured temperature at ``t``.
-        state : float, degC
-            The thermal state at ``t`` (required when built with ``state=True``, else
-            ignored).
-
-        Returns
-        -------
-        NDArray[np.float64], shape (F,)
-            The features in :func:`input_ids` order.
-
+        A stamp not after the previous one leaves the filters unchanged. ``state`` is the
+        thermal state at ``t`` (degC; required when built with ``state=True``, else ignored).
         """
         first = self._t_prev is None
         dt_s = 0.0 if first else max(t - self._t_prev, 0.0)

@@ -89,24 +89,11 @@ def _temps(temp_c: ArrayLike) -> NDArray[np.float64]:
 def px4_name(sensor: str, slot: int | None = None, field: str = 'ENABLE',
              axis: int | None = None) -> str:
     """
-    Return a PX4 thermal-calibration parameter name.
+    Return a PX4 thermal-calibration parameter name (``TC_G_ENABLE``, ``TC_A1_X3_2``...).
 
-    Parameters
-    ----------
-    sensor : str
-        ``'gyro'`` (``TC_G``) or ``'accel'`` (``TC_A``).
-    slot : int, optional
-        Calibration slot 0..3; None for the sensor-wide ``ENABLE``.
-    field : str
-        ``ENABLE`` (no slot), ``ID``, ``TREF``, ``TMIN``, ``TMAX`` or ``X0`` .. ``X3``.
-    axis : int, optional
-        0, 1, 2 (x, y, z) for the ``X0`` .. ``X3`` coefficients.
-
-    Returns
-    -------
-    str
-        E.g. ``TC_G_ENABLE``, ``TC_G0_TREF``, ``TC_A1_X3_2``.
-
+    ``sensor`` is ``'gyro'`` (``TC_G``) or ``'accel'`` (``TC_A``), ``slot`` 0..3 (None for
+    ``ENABLE``), ``field`` ``ENABLE``, ``ID``, ``TREF``, ``TMIN``, ``TMAX`` or ``X0`` ..
+    ``X3``, ``axis`` 0..2 for the ``X`` coefficients.
     """
     letter = _PX4_LETTER[_sensor(sensor)]
     if slot is None:
@@ -198,24 +185,9 @@ def px4_correction(params: Mapping[str, float] | Px4TempCal, temp_c: ArrayLike, 
 
     ``corrected = raw - px4_correction(...)``, as ``calibration::Gyroscope::Correct`` does
     with ``TemperatureCompensation::calc_thermal_offsets_3D`` (before the static offsets and
-    the rotation). ``TC_G_ENABLE`` is not looked at (see :func:`px4_enabled`).
-
-    Parameters
-    ----------
-    params : mapping of str to float, or Px4TempCal
-        The parameters (``TC_Gn_*`` of ``slot``), or one slot already read.
-    temp_c : ArrayLike, shape (N,), degC
-        The sensor's temperature.
-    sensor : str
-        ``'gyro'`` (rad/s) or ``'accel'`` (m/s^2).
-    slot : int
-        Calibration slot (see :func:`px4_slot`).
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N, 3)
-        ``X0 + X1 d + X2 d^2 + X3 d^3`` with ``d = clip(T, TMIN, TMAX) - TREF``.
-
+    the rotation): ``X0 + X1 d + X2 d^2 + X3 d^3``, ``d = clip(T, TMIN, TMAX) - TREF``, in
+    rad/s (gyro) or m/s^2 (accel). ``params`` are the parameters (``TC_Gn_*`` of ``slot``)
+    or one slot read; ``TC_G_ENABLE`` is not looked at (see :func:`px4_enabled`).
     """
     cal = params if isinstance(params, Px4TempCal) else Px4TempCal.from_params(
         params, sensor, slot)
@@ -309,25 +281,10 @@ def ardupilot_correction(params: Mapping[str, float] | ArduPilotTempCal, temp_c:
     Return what ArduPilot subtracts from a sample at ``temp_c`` (its temperature correction).
 
     ``corrected = raw - ardupilot_correction(...)`` as ``AP_InertialSensor::TCal::
-    correct_sensor`` does, before the static offsets (``INS_GYROFFS``) are removed.
-    ``INS_TCALn_ENABLE`` is not looked at (see :func:`ardupilot_enabled`).
-
-    Parameters
-    ----------
-    params : mapping of str to float, or ArduPilotTempCal
-        The parameters (``INS_TCALn_*``, ``INS_GYRn_CALTEMP``), or one IMU already read.
-    temp_c : ArrayLike, shape (N,), degC
-        The IMU's temperature.
-    sensor : str
-        ``'gyro'`` (rad/s) or ``'accel'`` (m/s^2).
-    instance : int
-        IMU index, 0-based (``INS_TCAL1`` is IMU 0).
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N, 3)
-        ``p(clip(T) - 35) - p(clip(CALTEMP) - 35)``, ``p(d) = (c1 d + c2 d^2 + c3 d^3) 1e-6``.
-
+    correct_sensor`` does, before the static offsets: ``p(clip(T) - 35) - p(clip(CALTEMP) -
+    35)``, ``p(d) = (c1 d + c2 d^2 + c3 d^3) 1e-6``, in rad/s (gyro) or m/s^2 (accel).
+    ``params`` are ``INS_TCALn_*`` and ``INS_GYRn_CALTEMP``, or one IMU read; ``instance``
+    is 0-based (``INS_TCAL1`` is IMU 0). ``INS_TCALn_ENABLE`` is not looked at.
     """
     cal = params if isinstance(params, ArduPilotTempCal) else ArduPilotTempCal.from_params(
         params, sensor, instance)
@@ -343,27 +300,9 @@ def onboard_status(params: Mapping[str, float], firmware: str, *, instance: int 
     """
     Return whether on-board thermal compensation was active, and that in words.
 
-    Parameters
-    ----------
-    params : mapping of str to float
-        The log's parameters.
-    firmware : str
-        ``'px4'`` or ``'ardupilot'``.
-    instance : int
-        ArduPilot IMU index (0-based); not used for PX4 (one switch for every gyro).
-    sensor : str
-        ``'gyro'`` or ``'accel'``.
-
-    Returns
-    -------
-    (bool, str)
-        Active, and e.g. ``'TC_G_ENABLE=1: on-board thermal compensation active'``.
-
-    Raises
-    ------
-    ValueError
-        An unknown ``firmware``.
-
+    E.g. ``(True, 'TC_G_ENABLE=1: on-board thermal compensation active')``. ``firmware`` is
+    ``'px4'`` or ``'ardupilot'`` (else ValueError); ``instance`` is the ArduPilot IMU index
+    (PX4 has one switch for every gyro); ``sensor`` ``'gyro'`` or ``'accel'``.
     """
     if firmware not in ('px4', 'ardupilot'):
         raise ValueError(f"Expected `firmware` to be 'px4' or 'ardupilot', got {firmware!r}.")

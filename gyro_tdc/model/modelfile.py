@@ -140,17 +140,7 @@ def _mapping(d: Mapping, key: str, *, required: bool = True) -> dict:
 
 def model_from_dict(d: Any) -> CompensationModel:
     """
-    Build and validate a model from a dict read from a model file.
-
-    Parameters
-    ----------
-    d : Any
-        The parsed YAML document.
-
-    Returns
-    -------
-    CompensationModel
-        The model.
+    Build and validate a model from the parsed YAML document of a model file.
 
     Raises
     ------

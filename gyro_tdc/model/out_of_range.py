@@ -69,25 +69,9 @@ def split(s: Any, lo: float, hi: float, policy: str,
     """
     Split a model temperature into where the model is evaluated and the tangent's reach.
 
-    Parameters
-    ----------
-    s : float or NDArray[np.float64], shape (N,), degC
-        Model temperature (the thermal state).
-    lo, hi : float, degC
-        The trained range.
-    policy : str
-        One of :data:`OUT_OF_RANGE_POLICIES`.
-    max_c : float, degC
-        Largest reach of the ``linear`` tangent.
-
-    Returns
-    -------
-    s_eval : float or NDArray[np.float64], degC
-        Where every term is evaluated: ``s`` (``extrapolate``, or inside the range), else
-        the nearest range end.
-    reach : float or NDArray[np.float64], degC
-        ``linear``: ``s - s_eval`` limited to ``+-max_c``; otherwise 0.
-
+    For model temperature ``s`` (degC) and the trained range ``lo`` .. ``hi``: ``s_eval`` is
+    ``s`` (``extrapolate``, or inside the range), else the nearest range end; ``reach`` is
+    ``s - s_eval`` limited to ``+-max_c`` for ``linear``, else 0.
     """
     arr = isinstance(s, np.ndarray)
     inside = s if policy == 'extrapolate' else np.clip(s, lo, hi) if arr else min(max(s, lo), hi)
@@ -148,19 +132,10 @@ class Tangent:
 
     def slope_one(self, row: NDArray[np.float64], d: float) -> NDArray[np.float64]:
         """
-        Return db/dS at one design row (the streaming form of :meth:`slope`, same maths).
+        Return db/dS (rad/s per degC) at one design row (the streaming form of :meth:`slope`).
 
-        Parameters
-        ----------
-        row : NDArray[np.float64], shape (1 + F + K,)
-            One row of :func:`gyro_tdc.model.compensation.rbf_design`.
-        d : float, degC
-            Its model temperature minus T0.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (3,), rad/s per degC
-
+        ``row`` is one row of :func:`gyro_tdc.model.compensation.rbf_design`, ``d`` its model
+        temperature minus T0 (degC).
         """
         h = SLOPE_STEP_C
         g = np.zeros(self._f)
@@ -177,21 +152,11 @@ class Tangent:
 
     def slope(self, design: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
         """
-        Return db/dS per axis at design rows whose temperature terms are at ``d``.
+        Return db/dS per axis (rad/s per degC) at design rows whose temperature terms are at ``d``.
 
-        Parameters
-        ----------
-        design : NDArray[np.float64], shape (N, 1 + F + K)
-            Rows of :func:`gyro_tdc.model.compensation.rbf_design` (``[1, x~, phi]``) at the range
-            end.
-        d : NDArray[np.float64], shape (N,), degC
-            The model temperature minus T0 those rows were computed at.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (N, 3), rad/s per degC
-            The derivative of the drift.
-
+        ``design`` holds rows ``[1, x~, phi]`` of
+        :func:`gyro_tdc.model.compensation.rbf_design` at the range end, ``d`` (degC) the
+        model temperature minus T0 they were computed at.
         """
         d = np.asarray(d, dtype=np.float64)
         h = SLOPE_STEP_C
@@ -217,20 +182,8 @@ def range_shortfall(temp_range_c: Sequence[float],
     """
     Return what a trained range misses of a typical operating range ('' when it covers it).
 
-    Parameters
-    ----------
-    temp_range_c : sequence of 2 float, degC
-        The trained range of the model temperature.
-    operating_c : sequence of 2 float, degC
-        The operating range to compare with (default -10 .. 50 degC).
-    margin_c : float, degC
-        A shortfall up to this much is not counted (a ramp that stops at 49.99 degC).
-
-    Returns
-    -------
-    str
-        E.g. ``'12.0 degC below (-10 .. 2.0) and 8.5 degC above (41.5 .. 50)'``.
-
+    E.g. ``'12.0 degC below (-10 .. 2.0) and 8.5 degC above (41.5 .. 50)'``; a shortfall up
+    to ``margin_c`` is not counted (a ramp that stops at 49.99 degC).
     """
     lo, hi = (float(v) for v in temp_range_c)
     want_lo, want_hi = (float(v) for v in operating_c)

@@ -118,20 +118,9 @@ class ThermalState:
 
     def temperature(self, t: ArrayLike, temp: ArrayLike) -> NDArray[np.float64]:
         """
-        Return the state (the model temperature) over one continuous run.
+        Return the state (the model temperature, degC) over one continuous run.
 
-        Parameters
-        ----------
-        t : ArrayLike, shape (N,), s
-            Stamps, non-decreasing.
-        temp : ArrayLike, shape (N,), degC
-            Measured temperature.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (N,), degC
-            The state, starting at ``temp[0]``; a copy of ``temp`` for kind ``none``.
-
+        Starts at ``temp[0]``; a copy of ``temp`` for kind ``none``. ``t`` (s) non-decreasing.
         """
         s = np.array(temp, dtype=np.float64)
         t = np.asarray(t, dtype=np.float64)
@@ -171,16 +160,6 @@ class ThermalState:
     def from_dict(cls, d: Any) -> ThermalState:
         """
         Build a front end from :meth:`to_dict` output (a model file's ``thermal`` section).
-
-        Parameters
-        ----------
-        d : Any
-            The parsed section.
-
-        Returns
-        -------
-        ThermalState
-            The front end.
 
         Raises
         ------
@@ -227,20 +206,9 @@ class StreamingThermalState:
 
     def update(self, t: float, temp: float) -> float:
         """
-        Advance to stamp ``t`` with measured temperature ``temp``; return the state.
+        Advance to stamp ``t`` (s) with measured temperature ``temp`` (degC); return the state.
 
-        Parameters
-        ----------
-        t : float, s
-            Stamp; a stamp not after the previous one leaves the state unchanged.
-        temp : float, degC
-            Measured temperature at ``t``.
-
-        Returns
-        -------
-        float, degC
-            The state (the model temperature).
-
+        A stamp not after the previous one leaves the state unchanged.
         """
         if self._t_prev is None:
             self._t_first = self._t_prev = t

@@ -65,26 +65,15 @@ def check_model(model: CompensationModel) -> None:
     """
     Check that a model's parameters are bounded and its drift finite and plausible.
 
-    Refused, in one line naming the field or what the model computes:
-
-    - ``t0_c`` and ``temp_range_c`` outside the plausible temperatures
-      (``TEMP_PLAUSIBLE_C``);
-    - an input ``std`` below :data:`MIN_INPUT_STD` or an RBF width below :data:`MIN_WIDTH`
-      (they divide the inputs and their squares);
-    - an input mean, centre, weight, intercept or linear-tail entry beyond
-      :data:`MAX_PARAM`, a residual variance beyond the square of the drift bound, an
-      effect's or the thermal state's time constant outside :data:`TAU_BOUNDS_S`;
-    - a gain ``1 + scale dT`` outside :data:`GAIN_BOUNDS` anywhere over the trained range
-      plus the extrapolation limit (``MAX_EXTRAPOLATION_C``): compensation divides by it;
-    - a drift that is not finite or exceeds ``MAX_DRIFT_RAD_S`` (the accelerometer part:
-      ``MAX_ACCEL_DRIFT_MPS2``) on the grid of :func:`drift_grid`, evaluated as the
-      ``extrapolate`` policy does, and along the ``linear`` policy's tangent at the range
-      ends out to the extrapolation limit.
-
-    Parameters
-    ----------
-    model : CompensationModel
-        A model built from a file (shapes and finiteness already checked).
+    For a model built from a file (shapes and finiteness checked). Refused: ``t0_c`` or
+    ``temp_range_c`` outside ``TEMP_PLAUSIBLE_C``; an input ``std`` below
+    :data:`MIN_INPUT_STD` or an RBF width below :data:`MIN_WIDTH` (they divide); a mean,
+    centre, weight, intercept or tail entry beyond :data:`MAX_PARAM`, a residual variance
+    beyond the drift bound squared, a time constant outside :data:`TAU_BOUNDS_S`; a gain
+    ``1 + scale dT`` outside :data:`GAIN_BOUNDS` over the range plus the extrapolation limit;
+    a drift not finite or beyond ``MAX_DRIFT_RAD_S`` (accelerometer:
+    ``MAX_ACCEL_DRIFT_MPS2``) on :func:`drift_grid` (``extrapolate``) and along the
+    ``linear`` tangents out to the extrapolation limit.
 
     Raises
     ------

@@ -50,19 +50,7 @@ def descriptor(spec: ParamSpec) -> ParameterDescriptor:
 
 def declare(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
     """
-    Declare every parameter of ``specs`` on ``node`` and return their values.
-
-    Parameters
-    ----------
-    node : rclpy.node.Node
-        The node.
-    specs : sequence of ParamSpec
-        The parameter table.
-
-    Returns
-    -------
-    dict
-        ``{name: value}`` after overrides (parameter files, ``parameter_overrides``).
+    Declare every parameter of ``specs`` on ``node``; return ``{name: value}`` after overrides.
 
     Raises
     ------
@@ -83,28 +71,11 @@ def declare(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
 def print_help(prog: str, doc: str, specs: Sequence[ParamSpec], args: Sequence[str] | None,
                *, paragraphs: int = 2, epilog: str = '') -> bool:
     """
-    Print a node's ``--help`` on stdout when its command line asks for it.
+    Print a node's ``--help`` on stdout when its command line ``args`` asks for it.
 
-    Parameters
-    ----------
-    prog : str
-        Executable name.
-    doc : str
-        The node module's docstring: its first ``paragraphs`` paragraphs are the summary.
-    specs : sequence of ParamSpec
-        The node's parameter table.
-    args : sequence of str or None
-        The command line, program first (None: ``sys.argv``).
-    paragraphs : int
-        How many paragraphs of ``doc`` to print.
-    epilog : str
-        Closing paragraph (parameter files...).
-
-    Returns
-    -------
-    bool
-        True when help was asked for and printed: the node must not start.
-
+    The summary is the first ``paragraphs`` paragraphs of ``doc`` (the node module's
+    docstring); ``args`` None reads ``sys.argv``. Returns True when help was printed: the
+    node must not start.
     """
     if not help_requested(sys.argv if args is None else args):
         return False

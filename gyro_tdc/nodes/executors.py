@@ -15,11 +15,10 @@
 """
 Executors for the nodes: which one, how to spin it, and the Jazzy ``main()`` loop.
 
-rclpy's executor, not the arithmetic, bounds a Python node's per-message cost: measured with
-``bench/bench_compensator.py``, the EventsExecutor (``events``) moves ~2.9x the messages of a
-SingleThreadedExecutor (``single``) in one process and needs ~1.5x less CPU per message across
-processes; its ``spin()`` is broken in the Jazzy wheels, so :func:`spin` loops on
-``spin_once``. :class:`StopSignals` makes SIGINT and SIGTERM one request to stop, acted on
+rclpy's executor, not the arithmetic, bounds a Python node's per-message cost: the
+EventsExecutor (``events``) moves more messages than the SingleThreadedExecutor (``single``;
+figures in doc/benchmarks.md); its ``spin()`` is broken in the Jazzy wheels, so :func:`spin`
+loops on ``spin_once``. :class:`StopSignals` makes SIGINT and SIGTERM one request to stop, acted on
 between callbacks, so a node stops the same clean way at any moment (doc/internals/nodes.md).
 """
 
@@ -170,22 +169,7 @@ class StopSignals:
 
 
 def make_executor(kind: str, context: Any = None) -> Any:
-    """
-    Return the executor named by an ``executor`` parameter.
-
-    Parameters
-    ----------
-    kind : str
-        ``'events'`` (rclpy.experimental.EventsExecutor) or ``'single'``.
-    context : rclpy.context.Context, optional
-        Context of the executor.
-
-    Returns
-    -------
-    rclpy.executors.Executor
-        The executor.
-
-    """
+    """Return the executor of an ``executor`` parameter: ``'events'`` or ``'single'``."""
     if kind == 'events':
         from rclpy.experimental import EventsExecutor
         return EventsExecutor(context=context)
@@ -197,21 +181,9 @@ def spin(executor: Any, context: Any = None, *, stop: Callable[[], bool] | None 
     """
     Run ``executor`` until its context shuts down or ``stop()`` is true.
 
-    The loop calls ``spin_once``: in the rclpy 7.1.6 Jazzy wheels
-    ``EventsExecutor.spin()`` dispatches nothing at all (neither timers nor
-    subscriptions) while its ``spin_once`` works and is the fast path.
-
-    Parameters
-    ----------
-    executor : rclpy.executors.Executor
-        The executor, nodes added.
-    context : rclpy.context.Context, optional
-        Its context (default: the global one).
-    stop : callable returning bool, optional
-        Checked after every callback and every ``poll_s`` without one.
-    poll_s : float, s
-        Longest wait of one ``spin_once``.
-
+    The loop calls ``spin_once`` (at most ``poll_s`` s each, ``stop`` checked after each):
+    in rclpy's Jazzy wheels ``EventsExecutor.spin()`` dispatches nothing while its
+    ``spin_once`` works and is the fast path.
     """
     while rclpy.ok(context=context) and not (stop is not None and stop()):
         executor.spin_once(timeout_sec=poll_s)
@@ -223,35 +195,13 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
     """
     Run one node until shutdown: the ``main()`` of ros2/demos, shared by the nodes.
 
-    Initialise rclpy, build the node inside ``try``, spin it, treat Ctrl-C, SIGTERM and an
-    external shutdown as a normal end, then shut the executor down (no callback runs after
-    it), destroy the node (which stops its own timers and workers and saves first) and shut
-    rclpy down. A stop signal (:class:`StopSignals`, on the main thread) is acted on between
-    callbacks; one during start-up abandons the node being built (nothing to save yet). The
-    exit status is 0 either way. A node that cannot start because of its
-    configuration (a parameter of the wrong type, out of range or not one of its choices,
-    inconsistent topic names: every :data:`STARTUP_ERRORS`) prints one line,
-    ``NAME: error: ...``, on stderr and the exit status is 2, with no traceback.
-
-    Parameters
-    ----------
-    make_node : callable returning rclpy.node.Node
-        Builds the node (after ``rclpy.init``).
-    args : list of str, optional
-        Command-line arguments for ``rclpy.init``.
-    executor : str or callable
-        Executor kind for :func:`make_executor`, or a function of the node returning it.
-    freeze_heap : bool
-        Move the objects alive after start-up out of the cyclic garbage collector's reach
-        (``gc.freeze()``), so that its full passes do not stall callbacks.
-    name : str
-        Executable name for the error line.
-
-    Returns
-    -------
-    int
-        Exit status: 0, or 2 when the node could not start.
-
+    Ctrl-C, SIGTERM and an external shutdown end normally (exit 0): the executor shuts
+    down, then the node is destroyed (it saves first) and rclpy shut down; a stop during
+    start-up abandons the node being built. A configuration error (every
+    :data:`STARTUP_ERRORS`) prints ``NAME: error: ...`` on stderr and returns 2, no
+    traceback. ``executor`` is a kind for :func:`make_executor` or a function of the node
+    returning one; ``freeze_heap`` calls ``gc.freeze()`` after start-up so the collector's
+    full passes do not stall callbacks.
     """
     stop = StopSignals()
     own = stop.install()

@@ -182,17 +182,9 @@ def window_stats(t: NDArray[np.float64], x: NDArray[np.float64], c: Sequence[flo
     """
     Return the block statistics of one window (batch form of the streaming sums).
 
-    Parameters
-    ----------
-    t : NDArray[np.float64], shape (N,), s
-        Stamps of the window's samples (blocks start at ``t[0]``).
-    x : NDArray[np.float64], shape (N, 3)
-        The values averaged (the compensated rate, or its error).
-    c : sequence of 3 float
-        The run's centring constant.
-    block_s : float, s
-        Block length.
-
+    ``t`` (s, N) are the stamps (blocks of ``block_s`` seconds start at ``t[0]``), ``x``
+    (N, 3) the values averaged (the compensated rate, or its error), ``c`` the run's
+    centring constant (3 floats).
     """
     t = np.asarray(t, dtype=np.float64)
     if t.size == 0:

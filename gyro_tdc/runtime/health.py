@@ -133,18 +133,8 @@ def sensor_mismatch(model: CompensationModel | None, sensor_id: str) -> str:
     """
     Say why ``model`` was not trained for the sensor ``sensor_id`` ('' when it was).
 
-    Parameters
-    ----------
-    model : CompensationModel or None
-        The model in use.
-    sensor_id : str
-        The compensator's ``sensor_id`` parameter; '' checks nothing.
-
-    Returns
-    -------
-    str
-        One line naming both ids and what to do, or '' (no model, no check, or a match).
-
+    One line naming both ids and what to do; '' without a model, with ``sensor_id`` '' (no
+    check) or on a match.
     """
     if not sensor_id or model is None or model.sensor_id == sensor_id:
         return ''
@@ -159,18 +149,8 @@ def frame_mismatch(model: CompensationModel | None, frame_id: str) -> str:
     """
     Say why ``model`` was not trained in the frame of the data ``frame_id`` ('' when it was).
 
-    Parameters
-    ----------
-    model : CompensationModel or None
-        The model in use.
-    frame_id : str
-        ``header.frame_id`` of the latest imu/data_raw message; '' checks nothing.
-
-    Returns
-    -------
-    str
-        One line naming both frames, or '' (no model, no frame on either side, or a match).
-
+    ``frame_id`` is ``header.frame_id`` of the latest imu/data_raw message. One line naming
+    both frames; '' without a model, without a frame on either side, or on a match.
     """
     if model is None or not frame_id or not model.frame_id or model.frame_id == frame_id:
         return ''
@@ -231,41 +211,18 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
            last_reload: str = 'none', inputs: InputStatus | None = None,
            sensor_id: str = '', frame_id: str = '') -> Health:
     """
-    Judge the compensator's state: what went wrong since the last report, and its figures.
+    Judge the compensator's state: what went wrong since ``since``, and its figures.
 
-    ERROR without a model (unless the rate passes through because the gyro is declared
-    corrected upstream) or when a compensation raised since ``since``; WARN while an upstream
-    correction is declared and the rate passes through (:func:`upstream_note`), when samples
-    had no, a stale, an out-of-range, a non-finite or an implausible input or an implausible
-    output, thermometer samples were rejected (non-finite or implausible), input messages
-    were lost or arrived already compensated since ``since``, and
-    while a gyro_tdc compensator publishes the input topic, the last model file asked for
-    was refused (``last_reload`` 'rejected: ...') or the model was trained for another
-    sensor than ``sensor_id`` (:func:`sensor_mismatch`) or in another frame than the data's
-    ``frame_id`` (:func:`frame_mismatch`); else OK ('compensating', or 'waiting for
-    imu/data_raw').
-
-    Parameters
-    ----------
-    core : CompensatorCore
-        The compensator.
-    since : HealthMark, optional
-        ``mark`` of the previous report (None: from the start).
-    model_file, last_reload : str
-        Where the model came from, and the outcome of the last (re)load.
-    inputs : InputStatus, optional
-        Losses, marked samples and upstream compensators seen by the node.
-    sensor_id : str
-        The IMU the compensator runs on ('' checks nothing).
-    frame_id : str
-        ``header.frame_id`` of the latest input ('' unknown): checked against the model's
-        (:func:`frame_mismatch`, WARN) and the ``hardware_id`` when ``sensor_id`` is ''.
-
-    Returns
-    -------
-    Health
-        Level, message, hardware id, key/value pairs and the counters now.
-
+    ERROR without a model (unless the gyro is declared corrected upstream and passes
+    through) or when a compensation raised. WARN on a declared upstream correction
+    (:func:`upstream_note`); on samples with a missing, stale, out-of-range, non-finite or
+    implausible input or an implausible output; on rejected thermometer samples, lost or
+    already compensated input, another gyro_tdc compensator on the input topic; on a refused
+    model file (``last_reload`` 'rejected: ...'); on a model of another sensor
+    (:func:`sensor_mismatch`) or frame (:func:`frame_mismatch`). Else OK ('compensating',
+    or 'waiting for imu/data_raw'). ``since`` is the previous report's ``mark`` (None: from
+    the start); ``inputs`` the losses, marked samples and upstream compensators the node saw;
+    ``frame_id`` also stands for the ``hardware_id`` when ``sensor_id`` is ''.
     """
     since = since or HealthMark()
     inputs = inputs or InputStatus()

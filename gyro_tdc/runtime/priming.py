@@ -120,27 +120,10 @@ def prepare(model: CompensationModel, policy: Policy, priming: Priming) -> Prepa
     """
     Make ``model`` ready to install, off the compensating thread.
 
-    Builds its streaming compensator, replays the feature filters over ``priming`` (the
-    first compensated sample, then the thermometer samples at most one per second, up to the
-    last IMU stamp of the copy), so a model with ``warmup`` or ``lag`` features carries on
-    rather than restarting, and works out its variance table and content id. Touches nothing
-    shared: safe in a worker thread while the core keeps compensating.
-    :meth:`CompensatorCore.install` finishes the replay and swaps it in.
-
-    Parameters
-    ----------
-    model : CompensationModel
-        The model.
-    policy : Policy
-        The policies (``out_of_range`` and the variances).
-    priming : Priming
-        From :meth:`CompensatorCore.priming`.
-
-    Returns
-    -------
-    PreparedModel
-        The model, its primed compensator and its tables.
-
+    Builds its streaming compensator and replays the feature filters over ``priming`` (from
+    :meth:`CompensatorCore.priming`), so a model with ``warmup`` or ``lag`` features carries
+    on rather than restarting; works out its variance table and content id. Touches nothing
+    shared; :meth:`CompensatorCore.install` finishes the replay and swaps it in.
     """
     comp, state = replay_from_first(model, policy, priming.first, priming.history, priming.last_t)
     return PreparedModel(model, model.model_id, comp, variance_table(model.residual_var, policy),

@@ -145,34 +145,15 @@ def reanchor_rule(model: CompensationModel, runs: Sequence, labels: Sequence[int
     """
     Decide per axis the smallest start-up shift the node takes; record it in the model.
 
-    Parameters
-    ----------
-    model : CompensationModel
-        The model fitted on ``runs``.
-    runs : sequence of runs
-        Its training runs (``t``, ``temp``, ``omega``, ``omega_ref`` and a length, as
-        :class:`gyro_tdc.data.Run`; constant axes neutral).
-    labels : sequence of int
-        Session label per run.
-    refit : callable
-        ``refit(runs, labels)``: ``model``'s form fitted on other runs (a held-out session's
-        others), None when too little is left; with ``rows``, ``refit(runs, labels,
-        rows=masks)``.
-    rows : sequence of bool arrays, optional
-        The samples of each run the model was fitted on (``train --still-only``: the still
-        rows); None: every sample.
-
-    Returns
-    -------
-    CompensationModel
-        ``model`` with ``metrics['reanchor']``: ``anchor_error_dps`` (RMS error of start-up
-        anchors taken throughout the data), ``min_shift_dps`` (0: any shift), ``sessions``,
-        ``held_out`` and, with two held out or more, ``always_dps``, ``gated_dps`` and
-        ``never_dps`` (RMS over the held-out sessions of their mean error re-anchored with
-        any shift, beyond the gate, never). Held out, the gate is kept on an axis where it
-        did better than any shift; without, it is kept (one session cannot show that a
-        shift within the anchors' own error is a turn-on offset).
-
+    ``runs`` are ``model``'s training runs (as :class:`gyro_tdc.data.Run`, constant axes
+    neutral) with a session label each; ``refit(runs, labels[, rows=masks])`` fits ``model``'s
+    form on other runs (None when too little is left); ``rows`` the samples fitted on (None:
+    all). Returns ``model`` with ``metrics['reanchor']``: ``anchor_error_dps`` (RMS error of
+    start-up anchors), ``min_shift_dps`` (0: any shift), ``sessions``, ``held_out`` and, with
+    two sessions held out or more, ``always_dps``, ``gated_dps``, ``never_dps`` (held-out RMS
+    of the mean error re-anchored with any shift, beyond the gate, never). The gate is kept
+    on an axis where, held out, it did better than any shift, and without a held-out session
+    (one session cannot show that a shift within the anchors' error is a turn-on offset).
     """
     labels = np.asarray(labels, dtype=np.int64)
     gate = SIGNIFICANCE * _anchor_error(model, runs, labels, rows)

@@ -41,26 +41,11 @@ __all__ = ['Profile', 'StaircasePlan', 'heat_conduction_time_s', 'hold_segment',
 def max_temperature_step_c(*, sensitivity_dps: float, alpha_dps_per_c: float,
                            beta_dps_per_c: float) -> float:
     """
-    Return the largest chamber temperature step of the precise test (paper eq. 20).
+    Return the largest chamber temperature step of the precise test (paper eq. 20), degC.
 
-    A step must not move the output by more than one digit:
-    ``dT <= dE_S / (|alpha| + |beta|)``.
-
-    Parameters
-    ----------
-    sensitivity_dps : float, deg/s per digit
-        Gyro sensitivity (resolution) ``dE_S``; 8.75e-3 for the L3GD20 at +-250 dps.
-    alpha_dps_per_c : float, (deg/s)/degC
-        Zero-rate level change vs temperature; its magnitude is used (0.03 for the L3GD20).
-    beta_dps_per_c : float, (deg/s)/degC
-        Sensitivity change vs temperature as a rate (2 % of full scale over the range;
-        0.04 for the L3GD20); its magnitude is used.
-
-    Returns
-    -------
-    float, degC
-        The bound of eq. 20 (0.125 degC for the L3GD20).
-
+    A step must not move the output by more than one digit: ``dT <= dE_S / (|alpha| +
+    |beta|)``, with the resolution ``sensitivity_dps`` (deg/s per digit) and the zero-rate
+    and sensitivity changes in (deg/s)/degC. The L3GD20 (8.75e-3, 0.03, 0.04) gives 0.125.
     """
     _positive('sensitivity_dps', sensitivity_dps)
     for name, value in (('alpha_dps_per_c', alpha_dps_per_c), ('beta_dps_per_c', beta_dps_per_c)):
@@ -75,32 +60,12 @@ def max_temperature_step_c(*, sensitivity_dps: float, alpha_dps_per_c: float,
 def heat_conduction_time_s(*, specific_heat_kj_per_kg_k: float, density_kg_per_m3: float,
                            length_m: float, conductivity_w_per_m_k: float) -> float:
     """
-    Return the paper's heat-conduction time ``t_s = C rho L^2 / k`` (eq. 24).
+    Return the paper's heat-conduction time ``t_s = C rho L^2 / k`` (eq. 24), s.
 
-    The paper evaluates eq. 24 with ``C`` in kJ/(kg K) and ``k`` in W/(m K) and reads the
-    result as seconds (SET-Z-021: C = 1.005, rho = 1.293, L = 0.6, k = 0.0267 -> 17.52 s).
-    This function reproduces that number. Note that in consistent SI units (C in J/(kg K))
-    the same expression is 1000 times larger (17,521 s, about 4.9 h): the 17.5 s figure,
-    and the 20 s hold derived from it, are the paper's experimental choice rather than a
-    conduction time constant. The simulator's lags are set independently, in
-    ``thermal.tau_*_s``.
-
-    Parameters
-    ----------
-    specific_heat_kj_per_kg_k : float, kJ/(kg K)
-        Specific heat capacity ``C`` of the chamber air.
-    density_kg_per_m3 : float, kg/m^3
-        Air density ``rho``.
-    length_m : float, m
-        Conduction length ``L`` from the chamber wall to the rate table centre.
-    conductivity_w_per_m_k : float, W/(m K)
-        Thermal conductivity ``k`` of air.
-
-    Returns
-    -------
-    float, s
-        ``C rho L^2 / k`` as the paper computes it (17.5209 s for SET-Z-021).
-
+    As the paper computes it: ``C`` in kJ/(kg K), ``k`` in W/(m K), read as seconds
+    (SET-Z-021 air, L = 0.6 m: 17.52 s). In consistent SI units the expression is 1000 times
+    larger, so the 17.5 s and the 20 s hold derived from it are the paper's experimental
+    choice, not a conduction time constant; the simulator's lags are ``thermal.tau_*_s``.
     """
     values = (('specific_heat_kj_per_kg_k', specific_heat_kj_per_kg_k),
               ('density_kg_per_m3', density_kg_per_m3), ('length_m', length_m),
@@ -191,31 +156,10 @@ def staircase_plan(*, sensitivity_dps: float = 8.75e-3, alpha_dps_per_c: float =
     """
     Derive step, hold and mean rate of the precise test (paper eqs. 20, 24, 25).
 
-    The defaults are the paper's L3GD20 in the SET-Z-021 chamber, giving 0.125 -> 0.1 degC,
-    17.52 -> 20 s and 18 degC/h.
-
-    Parameters
-    ----------
-    sensitivity_dps : float, deg/s per digit
-        Gyro resolution ``dE_S``.
-    alpha_dps_per_c : float, (deg/s)/degC
-        Zero-rate level change vs temperature.
-    beta_dps_per_c : float, (deg/s)/degC
-        Sensitivity change vs temperature, as a rate.
-    specific_heat_kj_per_kg_k : float, kJ/(kg K)
-        Specific heat of the chamber air.
-    density_kg_per_m3 : float, kg/m^3
-        Air density.
-    length_m : float, m
-        Conduction length.
-    conductivity_w_per_m_k : float, W/(m K)
-        Thermal conductivity of air.
-
-    Returns
-    -------
-    StaircasePlan
-        Bounds and the rounded values used.
-
+    The arguments are those of :func:`max_temperature_step_c` and
+    :func:`heat_conduction_time_s`; the defaults, the paper's L3GD20 in the SET-Z-021
+    chamber, give 0.125 -> 0.1 degC, 17.52 -> 20 s and 18 degC/h. Returns the bounds and
+    the rounded values used.
     """
     max_step = max_temperature_step_c(sensitivity_dps=sensitivity_dps,
                                       alpha_dps_per_c=alpha_dps_per_c,
@@ -272,20 +216,9 @@ class Profile:
     @classmethod
     def from_points(cls, t: ArrayLike, temp_c: ArrayLike) -> 'Profile':
         """
-        Build a profile from (time, temperature) points.
+        Build the piecewise-linear profile through (time, temperature) points.
 
-        Parameters
-        ----------
-        t : ArrayLike, shape (P,), s
-            Times, non-decreasing; shifted so the first is 0.
-        temp_c : ArrayLike, shape (P,), degC
-            Temperatures.
-
-        Returns
-        -------
-        Profile
-            The piecewise-linear profile through the points.
-
+        ``t`` (s) non-decreasing, shifted so the first is 0; ``temp_c`` in degC.
         """
         t = np.asarray(t, dtype=np.float64)
         return cls(t - (t[0] if t.size else 0.0), np.asarray(temp_c, dtype=np.float64))
@@ -293,20 +226,9 @@ class Profile:
     @classmethod
     def from_segments(cls, start_c: float, segments: Sequence[Segment]) -> 'Profile':
         """
-        Chain segments (``hold_segment``, ``ramp_segment``, ...) from ``start_c``.
+        Chain segments (``hold_segment``, ``ramp_segment``, ...) from ``start_c`` (degC) at 0.
 
-        Parameters
-        ----------
-        start_c : float, degC
-            Temperature at time 0.
-        segments : sequence of callables
-            Each maps ``(t0, temp0)`` to breakpoint arrays ``(t, temp)`` that follow it.
-
-        Returns
-        -------
-        Profile
-            The chained profile.
-
+        Each segment maps ``(t0, temp0)`` to the breakpoint arrays ``(t, temp)`` that follow.
         """
         ts = [np.zeros(1)]
         temps = [np.array([float(start_c)])]
@@ -402,22 +324,7 @@ def hold_segment(duration_s: float) -> Segment:
 
 
 def ramp_segment(to_c: float, rate_c_per_h: float) -> Segment:
-    """
-    Return a segment that ramps linearly to ``to_c`` (heating or cooling).
-
-    Parameters
-    ----------
-    to_c : float, degC
-        Target temperature.
-    rate_c_per_h : float, degC/h
-        Magnitude of the ramp rate, > 0.
-
-    Returns
-    -------
-    callable
-        Segment for :meth:`Profile.from_segments`.
-
-    """
+    """Return a segment ramping linearly to ``to_c`` (degC) at ``rate_c_per_h`` (> 0, degC/h)."""
     rate = _positive('rate_c_per_h', float(rate_c_per_h)) / 3600.0
     to_c = float(to_c)
 
@@ -435,22 +342,8 @@ def staircase_segment(to_c: float, step_c: float, hold_s: float) -> Segment:
 
     Each step jumps at the start of its hold, so ``n`` steps last ``n * hold_s`` and the mean
     rate is ``3600 * step_c / hold_s`` degC/h. A last partial step lands exactly on ``to_c``.
-    Works upwards (heating) and downwards (cooling).
-
-    Parameters
-    ----------
-    to_c : float, degC
-        Target temperature.
-    step_c : float, degC
-        Magnitude of one step, > 0 (0.1 in the paper).
-    hold_s : float, s
-        Hold after each step, > 0 (20 in the paper).
-
-    Returns
-    -------
-    callable
-        Segment for :meth:`Profile.from_segments`.
-
+    Works upwards and downwards; ``step_c`` (degC) and ``hold_s`` (s) are > 0 (the paper:
+    0.1 and 20).
     """
     step = _positive('step_c', float(step_c))
     hold = _positive('hold_s', float(hold_s))
@@ -498,19 +391,8 @@ def points_segment(t_s: ArrayLike, temp_c: ArrayLike) -> Segment:
     """
     Return a free piecewise-linear leg through (time, temperature) points.
 
-    Parameters
-    ----------
-    t_s : ArrayLike, shape (P,), s
-        Times relative to the segment start, starting at 0 and non-decreasing; a point at
-        0 with another temperature than the current one is a jump.
-    temp_c : ArrayLike, shape (P,), degC
-        Temperatures.
-
-    Returns
-    -------
-    callable
-        Segment for :meth:`Profile.from_segments`.
-
+    ``t_s`` (s) counts from the segment start, from 0, non-decreasing; a point at 0 with
+    another temperature than the current one is a jump. ``temp_c`` in degC.
     """
     t_rel = np.asarray(t_s, dtype=np.float64)
     temps = np.asarray(temp_c, dtype=np.float64)

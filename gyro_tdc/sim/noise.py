@@ -37,24 +37,9 @@ __all__ = ['gauss_markov', 'quantise', 'random_walk', 'white_noise']
 def white_noise(rng: np.random.Generator, n: int, *, density: ArrayLike,
                 rate_hz: float) -> NDArray[np.float64]:
     """
-    Return white noise of a given spectral density, sampled at ``rate_hz``.
+    Return ``n`` x 3 samples of white noise of spectral ``density`` (unit/sqrt(Hz) per axis).
 
-    Parameters
-    ----------
-    rng : numpy.random.Generator
-        Random source.
-    n : int
-        Number of samples.
-    density : ArrayLike, shape (3,), unit/sqrt(Hz)
-        Noise density per axis.
-    rate_hz : float, Hz
-        Sample rate.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (n, 3)
-        Samples with standard deviation ``density * sqrt(rate_hz)``.
-
+    Sampled at ``rate_hz``: standard deviation ``density * sqrt(rate_hz)``.
     """
     sigma = np.asarray(density, dtype=np.float64) * math.sqrt(rate_hz)
     return rng.standard_normal((n, 3)) * sigma
@@ -63,29 +48,11 @@ def white_noise(rng: np.random.Generator, n: int, *, density: ArrayLike,
 def gauss_markov(rng: np.random.Generator, n: int, *, sigma: ArrayLike,
                  tau_s: Sequence[float], dt: float) -> NDArray[np.float64]:
     """
-    Return a sum of stationary first-order Gauss-Markov processes.
+    Return ``n`` x 3 samples of a sum of stationary first-order Gauss-Markov processes.
 
-    Each of the ``len(tau_s)`` processes carries an equal share of the variance, so the sum
-    has standard deviation ``sigma`` per axis. Each starts in its stationary distribution.
-
-    Parameters
-    ----------
-    rng : numpy.random.Generator
-        Random source.
-    n : int
-        Number of samples.
-    sigma : ArrayLike, shape (3,)
-        Standard deviation of the sum, per axis.
-    tau_s : sequence of float, s
-        Correlation times, > 0.
-    dt : float, s
-        Sample interval.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (n, 3)
-        The summed processes.
-
+    One process per correlation time of ``tau_s`` (s, > 0), each with an equal share of the
+    variance so the sum has standard deviation ``sigma`` per axis; each starts in its
+    stationary distribution. ``dt`` is the sample interval (s).
     """
     sigma = np.asarray(sigma, dtype=np.float64)
     out = np.zeros((n, 3))
@@ -106,24 +73,9 @@ def gauss_markov(rng: np.random.Generator, n: int, *, sigma: ArrayLike,
 def random_walk(rng: np.random.Generator, n: int, *, k: ArrayLike,
                 dt: float) -> NDArray[np.float64]:
     """
-    Return a random walk starting at 0 with increments of standard deviation ``k sqrt(dt)``.
+    Return ``n`` x 3 samples of a random walk from 0, increments of std ``k sqrt(dt)``.
 
-    Parameters
-    ----------
-    rng : numpy.random.Generator
-        Random source.
-    n : int
-        Number of samples.
-    k : ArrayLike, shape (3,), unit/sqrt(s)
-        Random-walk coefficient per axis.
-    dt : float, s
-        Sample interval.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (n, 3)
-        The walk; row 0 is zero.
-
+    ``k`` per axis in unit/sqrt(s), ``dt`` in s; row 0 is zero.
     """
     k = np.asarray(k, dtype=np.float64)
     steps = rng.standard_normal((n, 3)) * (k * math.sqrt(dt))
@@ -134,22 +86,9 @@ def random_walk(rng: np.random.Generator, n: int, *, k: ArrayLike,
 
 def quantise(x: NDArray[np.float64], step: float, *, limit: float = 0.0) -> NDArray[np.float64]:
     """
-    Round to a multiple of ``step`` and clip at ``+-limit``, in place.
+    Round ``x`` to a multiple of ``step`` and clip at ``+-limit``, in place; return ``x``.
 
-    Parameters
-    ----------
-    x : NDArray[np.float64]
-        Values; modified in place.
-    step : float
-        Quantisation step (one digit), 0 to skip rounding.
-    limit : float
-        Saturation magnitude, 0 to skip clipping.
-
-    Returns
-    -------
-    NDArray[np.float64]
-        ``x``.
-
+    ``step`` is one digit, ``limit`` the saturation magnitude; 0 skips either.
     """
     if limit > 0.0:
         np.clip(x, -limit, limit, out=x)

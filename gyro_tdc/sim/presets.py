@@ -54,22 +54,12 @@ PRESETS: dict[str, dict] = {
 
 def preset(name: str) -> dict:
     """
-    Return a deep copy of a sensor preset.
-
-    Parameters
-    ----------
-    name : str
-        A key of ``PRESETS`` (``'l3gd20'``, ``'i3g4250d'``).
-
-    Returns
-    -------
-    dict
-        The ``gyro``, ``noise`` and ``accel`` sections.
+    Return a deep copy of the ``gyro``, ``noise`` and ``accel`` sections of a sensor preset.
 
     Raises
     ------
     KeyError
-        If the name is unknown.
+        If ``name`` is not a key of ``PRESETS`` (``'l3gd20'``, ``'i3g4250d'``).
 
     """
     return copy.deepcopy(PRESETS[name])

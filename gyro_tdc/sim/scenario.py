@@ -219,16 +219,8 @@ def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) ->
     """
     Load and validate a scenario by shipped name, YAML path, mapping or Scenario.
 
-    Parameters
-    ----------
-    name_or_path : str, os.PathLike, Mapping or Scenario
-        A shipped name such as ``'l3gd20_paper'`` (``config/scenarios/NAME.yaml``), a path
-        to a YAML file, a scenario mapping, or a Scenario (returned unchanged).
-
-    Returns
-    -------
-    Scenario
-        The validated scenario.
+    A shipped name such as ``'l3gd20_paper'`` is ``config/scenarios/NAME.yaml``; a Scenario
+    is returned unchanged.
 
     Raises
     ------

@@ -416,20 +416,10 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
 def gravity_vector(gravity_mps2: float, roll_deg: float, pitch_deg: float
                    ) -> NDArray[np.float64]:
     """
-    Return the specific force of gravity at rest in the sensor frame.
+    Return the specific force of gravity at rest in the sensor frame, m/s^2.
 
-    Parameters
-    ----------
-    gravity_mps2 : float, m/s^2
-        Magnitude.
-    roll_deg, pitch_deg : float, deg
-        Roll (about x) and pitch (about y) of the sensor.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (3,), m/s^2
-        ``g (-sin p, sin r cos p, cos r cos p)``: ``(0, 0, g)`` when level.
-
+    ``g (-sin p, sin r cos p, cos r cos p)`` for roll r (about x) and pitch p (about y) in
+    degrees: ``(0, 0, g)`` when level.
     """
     r, p = math.radians(roll_deg), math.radians(pitch_deg)
     return gravity_mps2 * np.array([-math.sin(p), math.sin(r) * math.cos(p),
@@ -486,25 +476,11 @@ def simulate_scenario(scenario: ScenarioLike, seed: int = 0, rate_hz: Optional[f
                       *, runs: Optional[Sequence[int]] = None,
                       overrides: Optional[Mapping[str, Any]] = None) -> list[SimRun]:
     """
-    Simulate every run of a scenario (or a chosen subset).
+    Simulate every run of a scenario (or the ``runs`` chosen, 0-based), one SimRun each.
 
-    Parameters
-    ----------
-    scenario : Scenario, str, os.PathLike or Mapping
-        The scenario, or anything :func:`gyro_tdc.sim.load_scenario` accepts.
-    seed : int
-        Seed of the run set, >= 0; run ``i`` is reproducible on its own.
-    rate_hz : float, optional
-        IMU rate overriding ``scenario.imu_rate_hz``.
-    runs : sequence of int, optional
-        Run indices to simulate (0-based); all ``scenario.runs.count`` when None.
-    overrides : Mapping, optional
-        Dotted-path overrides applied first (see :meth:`Scenario.with_overrides`).
-
-    Returns
-    -------
-    list of SimRun
-        One per run, in index order.
+    ``scenario`` is anything :func:`gyro_tdc.sim.load_scenario` accepts; ``overrides``
+    (dotted paths, :meth:`Scenario.with_overrides`) apply first; ``rate_hz`` overrides
+    ``scenario.imu_rate_hz``. Run ``i`` of ``seed`` (>= 0) is reproducible on its own.
 
     Raises
     ------
@@ -523,21 +499,9 @@ def to_run(simrun: SimRun) -> Run:
     """
     Align a simulated run on its IMU stamps as the compensator sees it live.
 
-    The temperature at each IMU stamp is the latest thermometer reading at or before it
-    (zero-order hold; the first reading before that); the reference is the rate-table rate
-    held at each stamp.
-
-    Parameters
-    ----------
-    simrun : SimRun
-        A simulated run.
-
-    Returns
-    -------
-    gyro_tdc.data.runs.Run
-        ``info`` holds ``truth`` (SimTruth), ``scenario``, ``seed``, ``run_index``,
-        ``source='sim'``; ``accel`` the accelerometer output.
-
+    The temperature at each stamp is the latest thermometer reading at or before it
+    (zero-order hold), the reference the rate-table rate held there. ``info`` holds
+    ``truth``, ``scenario``, ``seed``, ``run_index``, ``source='sim'``.
     """
     return Run(t=simrun.imu_t, temp=_held(simrun.temp_t, simrun.temp_c, simrun.imu_t),
                omega=simrun.gyro,

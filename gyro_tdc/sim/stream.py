@@ -127,17 +127,9 @@ class SimStream:
 
     def next_until(self, t: float) -> tuple[ImuChunk, TempChunk, RefChunk]:
         """
-        Return the samples with stamps up to and including ``t`` not handed out yet.
+        Return the chunks of samples stamped up to and including ``t`` not handed out yet.
 
-        Parameters
-        ----------
-        t : float, s
-            Simulated time to advance to; earlier than the last call returns empty chunks.
-
-        Returns
-        -------
-        tuple of (ImuChunk, TempChunk, RefChunk)
-            Possibly empty chunks, each in time order.
+        Each chunk in time order, possibly empty (a ``t`` before the last call's).
 
         Raises
         ------

@@ -66,22 +66,7 @@ class ThermalHistory:
     thermometer_c: NDArray[np.float64]
 
     def at(self, name: str, t: ArrayLike) -> NDArray[np.float64]:
-        """
-        Interpolate one node linearly onto other times.
-
-        Parameters
-        ----------
-        name : str
-            Field name, e.g. ``'die_c'``.
-        t : ArrayLike, shape (N,), s
-            Query times.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (N,)
-            Interpolated values (held constant beyond the grid).
-
-        """
+        """Interpolate node ``name`` (``'die_c'``...) linearly onto ``t``, held beyond the grid."""
         return np.interp(np.asarray(t, dtype=np.float64), self.t, getattr(self, name))
 
 
@@ -90,33 +75,13 @@ def simulate_thermal(profile: Profile, *, duration_s: float, dt: float = 0.1,
                      tau_die_s: float = 0.0, thermometer_location: str = 'package',
                      thermometer_tau_s: float = 0.0) -> ThermalHistory:
     """
-    Propagate the chamber profile through the thermal chain on a uniform grid.
+    Propagate the chamber profile through the thermal chain on a grid of ``dt`` s.
 
-    Chain: set point --tau_air--> air --tau_package--> package --tau_die--> die. The
-    thermometer is a further lag ``thermometer_tau_s`` of the package (an external probe on
-    the shell) or of the die (the on-die register). Every node starts settled at the
-    profile's first temperature.
-
-    Parameters
-    ----------
-    profile : Profile
-        Chamber set point.
-    duration_s : float, s
-        Simulated time span (the grid covers ``[0, duration_s]``).
-    dt : float, s
-        Internal grid step, > 0.
-    tau_air_s, tau_package_s, tau_die_s : float, s
-        Time constants of the three stages, >= 0 (0 = no lag).
-    thermometer_location : {'package', 'die'}
-        Node the thermometer sits on.
-    thermometer_tau_s : float, s
-        Thermometer time constant, >= 0.
-
-    Returns
-    -------
-    ThermalHistory
-        Every node on the grid.
-
+    Chain: set point --tau_air--> air --tau_package--> package --tau_die--> die (each >= 0,
+    0 = no lag). The thermometer is a further lag ``thermometer_tau_s`` of the package (a
+    probe on the shell) or of the die (the on-die register), per ``thermometer_location``.
+    Every node starts settled at the profile's first temperature; the grid covers
+    ``[0, duration_s]``.
     """
     if not (math.isfinite(duration_s) and duration_s >= 0.0):
         raise ValueError(f'Expected `duration_s` >= 0, got {duration_s!r}.')

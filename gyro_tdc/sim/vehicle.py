@@ -114,20 +114,8 @@ def plan_legs(spec: VehicleSpec, duration_s: float, rng: np.random.Generator
     """
     Draw the day's schedule: parked first, then drives and stops until ``duration_s``.
 
-    Parameters
-    ----------
-    spec : VehicleSpec
-        The vehicle section.
-    duration_s : float, s
-        Length of the day.
-    rng : numpy.random.Generator
-        The run's ``vehicle`` stream.
-
-    Returns
-    -------
-    tuple of Leg
-        In time order, covering ``[0, duration_s]`` (the last one cut at the end).
-
+    Legs in time order covering ``[0, duration_s]`` (the last cut at the end), drawn from
+    ``rng``, the run's ``vehicle`` stream.
     """
     def slope() -> tuple[float, float]:
         r, p = rng.standard_normal(2) * spec.slope_deg
@@ -158,23 +146,8 @@ def heated_profile(ambient: Profile, spec: VehicleSpec, legs: tuple[Leg, ...],
     """
     Return the set point of the thermal chain: the ambient plus the self-heating.
 
-    Parameters
-    ----------
-    ambient : Profile
-        The scenario's profile (the daily ambient cycle).
-    spec : VehicleSpec
-        The vehicle section.
-    legs : tuple of Leg
-        The day's schedule.
-    duration_s : float, s
-        Length of the day.
-
-    Returns
-    -------
-    setpoint, heating : Profile
-        The heated set point and the self-heating alone (degC above ambient), on a
-        :data:`_HEAT_STEP_S` grid.
-
+    Returns the heated set point and the self-heating alone (degC above ``ambient``, the
+    daily cycle), on a :data:`_HEAT_STEP_S` grid.
     """
     n = int(math.ceil(duration_s / _HEAT_STEP_S)) + 1
     t = np.arange(n, dtype=np.float64) * _HEAT_STEP_S

@@ -87,10 +87,7 @@ class ImuSource(Protocol):
         """
         Yield the samples due now, in time order (called once per tick of the driver).
 
-        Yields
-        ------
-        ImuSample
-            The next due reading; the driver publishes each before asking for the next.
+        The driver publishes each sample before asking for the next.
 
         Raises
         ------
@@ -145,16 +142,6 @@ class PolledSource:
 def check_sample(sample: ImuSample) -> ImuSample:
     """
     Return ``sample`` when every number in it is finite.
-
-    Parameters
-    ----------
-    sample : ImuSample
-        A reading.
-
-    Returns
-    -------
-    ImuSample
-        The same reading.
 
     Raises
     ------

@@ -279,14 +279,10 @@ class IioSource(PolledSource):
 
     def read(self) -> ImuSample:
         """
-        Read one sample from sysfs.
+        Read one sample from sysfs, stamped by ``clock``.
 
-        Returns
-        -------
-        ImuSample
-            Angular velocity in rad/s, acceleration in m/s^2 (or None), temperature
-            in degC (or None on samples that skip it or whose reading was implausible),
-            stamped by ``clock``.
+        Rate in rad/s, acceleration in m/s^2 (or None), temperature in degC (None when
+        skipped or implausible).
 
         Raises
         ------
