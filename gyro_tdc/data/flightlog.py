@@ -32,8 +32,8 @@ from gyro_tdc.errors import DatasetError
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['DATAFLASH_MAGIC', 'describe_log', 'detect_format', 'flight_log_data', 'FlightLog',
-           'is_flight_log', 'thermometer', 'ULOG_MAGIC']
+__all__ = ['columns', 'DATAFLASH_MAGIC', 'describe_log', 'detect_format', 'flight_log_data',
+           'FlightLog', 'is_flight_log', 'rate_hz', 'thermometer', 'ULOG_MAGIC']
 
 #: A ULog starts with these 7 bytes (then the version byte).
 ULOG_MAGIC = b'ULog\x01\x125'
@@ -127,6 +127,19 @@ def thermometer(values: object) -> NDArray[np.float64] | None:
     if finite.size == 0 or not np.any(finite != 0.0):
         return None
     return v
+
+
+def columns(d: dict, names: tuple[str, ...]) -> NDArray[np.float64] | None:
+    """Return a log's fields side by side as an (N, k) float64 array, None when one is missing."""
+    if not all(n in d for n in names):
+        return None
+    return np.column_stack([np.asarray(d[n], dtype=np.float64) for n in names])
+
+
+def rate_hz(t: NDArray[np.float64]) -> float:
+    """Return the mean sample rate of stamps ``t`` (s), Hz (0 without two stamps apart)."""
+    span = float(t.max() - t.min()) if len(t) > 1 else 0.0
+    return (len(t) - 1) / span if span > 0 else 0.0
 
 
 def is_flight_log(path: str | os.PathLike) -> bool:
