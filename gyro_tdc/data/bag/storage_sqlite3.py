@@ -79,17 +79,9 @@ class Sqlite3File:
             raise Unfit(f'{path.name}: no messages and topics tables')
         if db.execute('PRAGMA table_info(schema)').fetchall():
             schema = (db.execute('SELECT schema_version FROM schema').fetchone() or (-1,))[0]
-        elif any(x[1] == 'offered_qos_profiles'
-                 for x in db.execute('PRAGMA table_info(topics)').fetchall()):
-            schema = 2
         else:
-            schema = 1
-        self.definitions: dict[str, tuple[str, str]] = {}
-        if schema >= 4:
-            for name, encoding, text in db.execute(
-                    'SELECT topic_type, encoding, encoded_message_definition '
-                    'FROM message_definitions ORDER BY id'):
-                self.definitions.setdefault(name, (encoding, text))
+            schema = 1 + any(x[1] == 'offered_qos_profiles'
+                             for x in db.execute('PRAGMA table_info(topics)').fetchall())
         cols = ('id, name, type, serialization_format'
                 + (', offered_qos_profiles' if schema >= 2 else ", ''")
                 + (', type_description_hash' if schema >= 4 else ", ''"))
@@ -97,7 +89,12 @@ class Sqlite3File:
                       for cid, topic, msgtype, fmt, qos, digest
                       in db.execute(f'SELECT {cols} FROM topics ORDER BY id')]
         types = {c.msgtype for c in self.conns}
-        self.definitions = {k: v for k, v in self.definitions.items() if k in types}
+        self.definitions: dict[str, tuple[str, str]] = {}
+        for name, encoding, text in (db.execute(
+                'SELECT topic_type, encoding, encoded_message_definition '
+                'FROM message_definitions ORDER BY id') if schema >= 4 else ()):
+            if name in types:
+                self.definitions.setdefault(name, (encoding, text))
 
     def close(self) -> None:
         """Close the database."""
