@@ -73,9 +73,9 @@ class _Fields:
 
     def raw(self, size_fmt: str = '<I') -> bytes:
         (size,) = self.take(size_fmt)
-        if self.pos + size > len(self.data):
-            raise Unfit('an mcap record cut short')
         self.pos += size
+        if self.pos > len(self.data):
+            raise Unfit('an mcap record cut short')
         return self.data[self.pos - size:self.pos]
 
     def text(self) -> str:
@@ -134,7 +134,8 @@ class McapFile:
         head = bio.read(9)
         if head[:8] != _MAGIC or head[8:] != b'\x01':
             raise Unfit('not an mcap file with a header')
-        if _Fields(self._record(9)).text() != 'ros2':
+        (size,) = struct.unpack('<Q', self._exact(8, 9))     # the header record's length
+        if _Fields(self._exact(size)).text() != 'ros2':
             raise Unfit('an mcap profile other than ros2')
         data_start = bio.tell()
         size = bio.seek(0, 2)
@@ -148,13 +149,10 @@ class McapFile:
         bio.seek(summary)
         self._summary(bio.read(size - 37 - summary))
 
-    def _record(self, at: int) -> bytes:
-        """Return the body of the record whose uint64 length is at file offset ``at``."""
-        self.bio.seek(at)
-        (size,) = struct.unpack('<Q', self._exact(8))
-        return self._exact(size)
-
-    def _exact(self, size: int) -> bytes:
+    def _exact(self, size: int, at: int | None = None) -> bytes:
+        """Return ``size`` bytes read (from file offset ``at``), or raise Unfit."""
+        if at is not None:
+            self.bio.seek(at)
         data = self.bio.read(size)
         if len(data) != size:
             raise Unfit('an mcap record cut short')
@@ -214,10 +212,8 @@ class McapFile:
 
     def _decompress(self, c: _Chunk) -> bytes:
         """Return a chunk's records, checked against its size and checksum."""
-        self.bio.seek(c.offset + 9 + 24)
-        (crc,) = struct.unpack('<I', self._exact(4))
-        self.bio.seek(c.offset + 9 + 40 + len(c.compression))
-        data = self._exact(c.compressed_size)
+        (crc,) = struct.unpack('<I', self._exact(4, c.offset + 9 + 24))
+        data = self._exact(c.compressed_size, c.offset + 9 + 40 + len(c.compression))
         if c.compression == 'zstd':
             data = zstd.decompress(data)
         elif c.compression:           # lz4: rosbags reads it
