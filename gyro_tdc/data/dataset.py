@@ -67,9 +67,7 @@ def _interp_sorted(imu_t: NDArray[np.float64], tt: NDArray[np.float64],
     span, and the middle of every segment longer than ``2 * gap`` -- are located among the
     IMU stamps by binary search per knot instead of being tested per sample.
     """
-    n = len(imu_t)
-    temp = np.interp(imu_t, tt, tc)
-    valid = np.ones(n, dtype=bool)
+    temp, valid = np.interp(imu_t, tt, tc), np.ones(len(imu_t), dtype=bool)
     valid[:np.searchsorted(imu_t, tt[0], side='left')] = False
     valid[np.searchsorted(imu_t, tt[-1], side='right'):] = False
     # In segment j a stamp is invalid when both distances exceed the gap:
@@ -126,9 +124,8 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
         When shapes disagree or ``max_gap_s`` is not a positive number.
 
     """
-    imu_t = _vector('imu_t', imu_t)
-    temp_t = _vector('temp_t', temp_t)
-    temp_c = _vector('temp_c', temp_c)
+    imu_t, temp_t, temp_c = (_vector('imu_t', imu_t), _vector('temp_t', temp_t),
+                             _vector('temp_c', temp_c))
     if temp_c.shape != temp_t.shape:
         raise DatasetError(f'Expected `temp_c` to have shape {temp_t.shape} like `temp_t`, '
                            f'got {temp_c.shape}.')
@@ -166,9 +163,7 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
         order = np.argsort(imu_t, kind='stable')
         temp, valid = np.empty(len(imu_t)), np.empty(len(imu_t), dtype=bool)
         temp[order], valid[order] = _interp_sorted(imu_t[order], tt, tc, gap)
-    if return_counts:
-        return temp, valid, counts
-    return temp, valid
+    return (temp, valid, counts) if return_counts else (temp, valid)
 
 
 def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: float,
@@ -179,20 +174,17 @@ def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: 
     Appends a warning per topic with missing messages; raises DatasetError when more than
     ``max_loss`` of a topic's listed messages are missing. Returns topic -> [decoded, listed].
     """
-    out = {}
-    for topic, got in decoded.items():
-        listed = int(data.topics.get(topic, ('', 0))[1])
-        out[topic] = [int(got), listed]
-        lost = listed - int(got)
-        if lost <= 0:
-            continue
+    out = {topic: [int(got), int(data.topics.get(topic, ('', 0))[1])]
+           for topic, got in decoded.items()}
+    for topic, (got, listed) in out.items():
+        lost = listed - got
         note = (f'{topic}: read {got} of {listed} messages listed in the bag metadata '
-                f'({lost} lost: {100.0 * lost / listed:.2g} %; a damaged file or '
+                f'({lost} lost: {100.0 * lost / max(listed, 1):.2g} %; a damaged file or '
                 'undecodable messages)')
         if lost > max_loss * listed:
             raise DatasetError(f'Bag {str(bag)!r}: {note}, more than the '
                                f'{100.0 * max_loss:g} % allowed (--allow-loss accepts it).')
-        warnings.append(note)
+        warnings += [note] if lost > 0 else []
     return out
 
 
@@ -391,14 +383,12 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
             + (f'[{temp_t.min():.3f}, {temp_t.max():.3f}] s' if len(temp_t) else 'nothing')
             + (f' vs IMU [{t.min():.3f}, {t.max():.3f}] s' if len(t) else '')
             + f'; rejected {rejected}.')
-    if restarts:     # the first sample of each restarted part in the final stamps
-        restarts = [[int(np.searchsorted(t[keep], at)), back] for at, back in restarts]
     info = {'rejected': rejected, 'warnings': warnings, 'reference': source,
             'frame_id': data.frame_id, 'storage': data.storage, 'topics': data.topics,
             'samples_read': int(len(data.imu_t) + data.rejected['imu_nonfinite']),
             'messages': messages, 'decoded_by_rosbags': data.fallback, **extra}
-    if restarts:
-        info['restarts'] = restarts
+    if restarts:     # the first sample of each restarted part in the final stamps
+        info['restarts'] = [[int(np.searchsorted(t[keep], at)), back] for at, back in restarts]
     if not keep.all():
         kept = _as_slice(keep)    # the usual case (before the first reading): views, no copy
         t, temp, omega, omega_ref = t[kept], temp[kept], omega[kept], omega_ref[kept]
@@ -472,17 +462,14 @@ def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
         p = Path(raw)
         if not p.exists():
             raise DatasetError(f'Bag {str(p)!r} does not exist.')
-        if p.is_dir() and not _is_bag(p):
-            subs = [c for c in p.iterdir() if _is_bag(c) or is_flight_log(c)]
-            if subs:
-                out.extend(sorted(subs, key=_natural_key))
-                continue
-        out.append(p)
+        subs = ([c for c in p.iterdir() if _is_bag(c) or is_flight_log(c)]
+                if p.is_dir() and not _is_bag(p) else [])
+        out.extend(sorted(subs, key=_natural_key) or [p])
     seen: dict[Path, Path] = {}
     for p in out:
         real = Path(os.path.realpath(p))
-        if p.is_file() and p.suffix in ('.db3', '.mcap'):
-            real = real.parent          # a bag's storage file names the bag
+        # A bag's storage file names the bag.
+        real = real.parent if p.is_file() and p.suffix in ('.db3', '.mcap') else real
         if real in seen:
             raise DatasetError(f'Bag {str(p)!r} is given twice (also as {str(seen[real])!r}); '
                                'give each run once.')
@@ -529,21 +516,18 @@ def describe_read(bag: str | os.PathLike, run: Run, reference_topic: str) -> str
         ``read BAG: N samples over M min, reference rate ...; dropped ...``.
 
     """
-    source = run.info.get('reference', '?')
-    zero = not np.any(run.omega_ref)
-    log = run.info.get('log')
+    source, log = run.info.get('reference', '?'), run.info.get('log')
     reference = {'topic': f'reference rate from {reference_topic}'
-                          + (' (zero throughout)' if zero else ''),
+                          + ('' if np.any(run.omega_ref) else ' (zero throughout)'),
                  'constant': 'constant reference rate (--reference)',
                  'zero': 'reference rate zero (' + ('a flight log has none' if log else
                                                     f'no {reference_topic} in the bag') + ')'
                  }.get(source, f'reference {source}')
-    if log:
-        reference = f'{log}; {reference}'
-    counts = run.info.get('rejected', {})
-    dropped = '; '.join(f'{v} {_DROPPED.get(k, k)}' for k, v in counts.items() if v)
+    dropped = '; '.join(f'{v} {_DROPPED.get(k, k)}'
+                        for k, v in run.info.get('rejected', {}).items() if v)
     return (f'read {bag}: {len(run)} samples over {run.duration_s / 60.0:.1f} min, '
-            f'{reference}' + (f'; dropped {dropped}' if dropped else ''))
+            + (f'{log}; ' if log else '') + reference
+            + (f'; dropped {dropped}' if dropped else ''))
 
 
 def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
@@ -568,10 +552,8 @@ def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
 
     """
     options = BagOptions() if options is None else options
-    if isinstance(bags, (str, os.PathLike)):
-        bags = [bags]
     runs = []
-    for bag in expand_bags(bags):
+    for bag in expand_bags([bags] if isinstance(bags, (str, os.PathLike)) else bags):
         run = load_run(bag, options)
         if log is not None:
             log(describe_read(bag, run, options.reference_topic))
