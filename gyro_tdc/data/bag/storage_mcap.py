@@ -288,19 +288,15 @@ class _Records:
         logs = np.concatenate([p[2] for p in pieces])
         self.update(len(codes))
         if np.any(logs[1:] < logs[:-1]):
+            # rosbags sorts a chunk stably by log time: here message by message (rare, a
+            # chunk written out of order), each its own piece.
             order = np.argsort(logs, kind='stable')
+            single = [(rows[k:k + 1], code[k:k + 1], log[k:k + 1])
+                      for rows, code, log in pieces for k in range(len(code))]
+            pieces = [single[i] for i in order.tolist()]
             codes, logs = codes[order], logs[order]
-            others = self._sorted(pieces, order, codes, logs, pending)
-        else:
-            others = self._in_order(pieces, pending)
-        if others:
-            self._others(others, codes, logs, pending)
-
-    def _in_order(self, pieces: list[tuple[Any, ...]], pending: Pending
-                  ) -> list[tuple[int, bytes]]:
-        """Hand over the main messages of a chunk in log-time order; return the others."""
-        main = self.codes['imu']
-        others: list[tuple[int, bytes]] = []
+        out, main = self.out, self.codes['imu']
+        others: list[tuple[int, bytes]] = []       # (index in the chunk, message)
         at = 0
         for rows, code, log in pieces:
             is_main = code == main
@@ -311,31 +307,9 @@ class _Records:
                             log[is_main])
             others += [(at + i, bytes(rows[i, 31:])) for i in np.flatnonzero(~is_main).tolist()]
             at += len(code)
-        return others
-
-    def _sorted(self, pieces: list[tuple[Any, ...]], order: Any, codes: Any, logs: Any,
-                pending: Pending) -> list[tuple[int, bytes]]:
-        """
-        Hand over the main messages of a chunk sorted by log time; return the others.
-
-        rosbags sorts a chunk stably by log time; ``order`` is that sort, ``codes`` and
-        ``logs`` already sorted. Message by message: rare (a chunk written out of order).
-        """
-        main = self.codes['imu']
-        data = [bytes(r[31:]) for p in pieces for r in p[0]]
-        data = [data[i] for i in order.tolist()]
-        idx = np.flatnonzero(codes == main).tolist()
-        if idx:
-            parts = [data[i] for i in idx]
-            pending.add(b''.join(parts), np.fromiter(map(len, parts), dtype=np.int64,
-                                                     count=len(parts)), logs[idx])
-        return [(i, data[i]) for i in np.flatnonzero(codes != main).tolist()]
-
-    def _others(self, others: list[tuple[int, bytes]], codes: Any, logs: Any,
-                pending: Pending) -> None:
-        """Hand over the other roles' messages of a chunk, after its main ones."""
-        pending.flush()
-        out, main = self.out, self.codes['imu']
+        if not others:
+            return
+        pending.flush()               # the other roles' blocks come after the main ones
         mains = np.cumsum(codes == main)
         first = out.n_main - int(mains[-1])
         where = np.fromiter((i for i, _ in others), dtype=np.int64, count=len(others))
