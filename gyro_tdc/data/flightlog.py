@@ -155,11 +155,8 @@ def _sniff(path: Path) -> str:
             head = f.read(8)
     except OSError:
         head = b''
-    if head.startswith(ULOG_MAGIC):
-        return 'ulog'
-    if head.startswith(DATAFLASH_MAGIC):
-        return 'dataflash'
-    return _SUFFIXES.get(path.suffix.lower(), '')
+    return next((fmt for magic, fmt in ((ULOG_MAGIC, 'ulog'), (DATAFLASH_MAGIC, 'dataflash'))
+                 if head.startswith(magic)), _SUFFIXES.get(path.suffix.lower(), ''))
 
 
 def detect_format(path: str | os.PathLike, requested: str = 'auto') -> str:
@@ -261,24 +258,23 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
             'sensor data (PX4: log sensor_gyro) or turn the on-board compensation off, or '
             'pass --allow-onboard-corrected to use them as they are.')
     ok = np.isfinite(log.gyro).all(axis=1)
-    gyro_t, gyro = log.imu_t[ok], log.gyro[ok]
-    accel = None if log.accel is None else log.accel[ok]
     temp_t = log.imu_t if log.temp_t is None else np.asarray(log.temp_t, dtype=np.float64)
     warm = np.isfinite(log.temp_c) & np.isfinite(temp_t)
     if not warm.any():
         raise DatasetError(f'Log {str(p)!r}: {log.source} instance {log.instance} carries no '
                            'temperature; a drift model needs the IMU temperature.')
-    data = BagData(imu_t=gyro_t, gyro=gyro, accel=accel, frame_id='', temp_t=temp_t[warm],
-                   temp_c=log.temp_c[warm], temp_var=np.zeros(int(warm.sum())), ref_t=None,
-                   ref=None, topics={}, storage=fmt, path=str(p),
+    data = BagData(imu_t=log.imu_t[ok], gyro=log.gyro[ok],
+                   accel=None if log.accel is None else log.accel[ok], frame_id='',
+                   temp_t=temp_t[warm], temp_c=log.temp_c[warm],
+                   temp_var=np.zeros(int(warm.sum())), ref_t=None, ref=None, topics={},
+                   storage=fmt, path=str(p),
                    rejected={'imu_nonfinite': int(np.count_nonzero(~ok)),
                              'temp_nonfinite': int(np.count_nonzero(~warm)),
                              'ref_nonfinite': 0, 'undecodable': 0})
-    keep = {k: v for k, v in log.params.items() if k.startswith(('TC_', 'INS_TCAL'))
-            or k.endswith('_CALTEMP')}
-    info = {'log_format': fmt, 'log': describe_log(log), 'firmware': log.firmware,
-            'source': log.source, 'instance': log.instance, 'device_id': log.device_id,
-            'raw': log.raw, 'onboard_compensated': log.compensated, 'params': keep,
-            'temperature': log.temperature, 'temperature_proxy': log.proxy,
-            'warnings': warnings}
-    return data, info
+    return data, {
+        'log_format': fmt, 'log': describe_log(log), 'firmware': log.firmware,
+        'source': log.source, 'instance': log.instance, 'device_id': log.device_id,
+        'raw': log.raw, 'onboard_compensated': log.compensated,
+        'params': {k: v for k, v in log.params.items()
+                   if k.startswith(('TC_', 'INS_TCAL')) or k.endswith('_CALTEMP')},
+        'temperature': log.temperature, 'temperature_proxy': log.proxy, 'warnings': warnings}
