@@ -246,21 +246,20 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
     try:
         info = metadata.load(bag)
         metadata.check_counts(bag, info)
-        why = columnar.unfit(info) if via != 'rosbags' else None
-        if via != 'rosbags' and why is None:
+        why = columnar.unfit(info) if via != 'rosbags' else 'rosbags asked for'
+        if why is None:
             try:
                 with columnar.open_bag(bag, info) as opened:
                     topics, conns = _connections(opened.topics, opened.conns, bag, wanted)
                     return _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
                                     opened.typestore, bag, info, topics, conns, progress,
                                     accel, 'columnar')
-            except Unfit as err:
-                why = str(err)
             except DatasetError:
                 raise                     # a topic missing or of the wrong type
             except Exception as err:      # noqa: B902 (whatever it is, rosbags decides)
                 # Let rosbags read it, or say what is wrong with it.
-                why = f'{type(err).__name__}: {one_line(err)}'
+                why = (str(err) if isinstance(err, Unfit)
+                       else f'{type(err).__name__}: {one_line(err)}')
         if via == 'columnar':
             raise DatasetError(f'Cannot read bag {str(bag)!r} column by column: {why}.')
         with AnyReader([bag], default_typestore=jazzy()) as reader:
@@ -420,15 +419,14 @@ def _collect(feed: Callable[[Collector, Callable[[int], Any]], None], typestore:
     """Feed a storage read's blocks (``feed(collector, update)``) to a :class:`Collector`."""
     from tqdm import tqdm
 
-    roles = list(conns)
     msgtypes = {'imu': IMU_TYPE, 'temperature': topics[conns['temperature'][0].topic][0],
                 'reference': REFERENCE_TYPE}
-    expected = {role: sum(int(c.msgcount) for c in conns[role]) for role in roles}
+    expected = {role: sum(int(c.msgcount) for c in cs) for role, cs in conns.items()}
     size = metadata.storage_bytes(bag, info)
     if size is not None:             # compressed storage may hold more: the sinks grow
         expected = {role: min(n, size // metadata.min_message_bytes(msgtypes[role]) + 1)
                     for role, n in expected.items()}
-    out = Collector(roles, msgtypes, expected, typestore, with_accel)
+    out = Collector(list(conns), msgtypes, expected, typestore, with_accel)
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
         feed(out, bar.update)
