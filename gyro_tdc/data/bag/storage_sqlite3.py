@@ -126,16 +126,6 @@ class _Ranges:
         ids = (self.ids[role] if role else sorted(k for v in self.ids.values() for k in v))
         return f'topic_id IN ({",".join(str(int(k)) for k in ids)})'
 
-    def _index(self) -> str:
-        """Return the index on ``messages(timestamp)`` (rosbag2's own), the only one there."""
-        found = [(row[1], [x[2] for x in self.db.execute(
-                  'SELECT * FROM pragma_index_info(?)', (row[1],))])
-                 for row in self.db.execute("PRAGMA index_list('messages')")]
-        found = [(name, cols) for name, cols in found if cols[:1] == ['timestamp']]
-        if len(found) != 1 or found[0][1] != ['timestamp'] or "'" in found[0][0]:
-            raise Unfit(f'indexes on the timestamps {[x[1] for x in found]} (one expected)')
-        return found[0][0]
-
     def _check_plan(self, query: str, what: str, params: Sequence[int] = ()) -> None:
         rows = self.db.execute(f'EXPLAIN QUERY PLAN {query}', tuple(params))
         plan = ' '.join(str(x[-1]) for x in rows)
@@ -157,7 +147,14 @@ class _Ranges:
         if floating:
             case = ' '.join(f'WHEN {self._in(r)} THEN {_CODES[r]!r}' for r in roles)
             cols.append(f"group_concat(CASE {case} END, '')")
-        self.index = self._index()
+        # The index on messages(timestamp), rosbag2's own: the only one there.
+        found = [(row[1], [x[2] for x in self.db.execute(
+                  'SELECT * FROM pragma_index_info(?)', (row[1],))])
+                 for row in self.db.execute("PRAGMA index_list('messages')")]
+        found = [(name, cols) for name, cols in found if cols[:1] == ['timestamp']]
+        if len(found) != 1 or found[0][1] != ['timestamp'] or "'" in found[0][0]:
+            raise Unfit(f'indexes on the timestamps {[x[1] for x in found]} (one expected)')
+        self.index = found[0][0]
         query = (f'SELECT count(*), {", ".join(cols)} FROM messages INDEXED BY '
                  f"'{self.index}' WHERE {self._in()} AND timestamp >= ?1 AND timestamp < ?2")
         # rosbags' query of the file, and ours: both in timestamp-index order.
