@@ -164,21 +164,14 @@ def _inventory(topics: dict) -> str:
 def _thermometer(topics: dict, instance: int, source: str
                  ) -> tuple[str, NDArray[np.float64], NDArray[np.float64]] | None:
     """Return (name, stamps s, degC) of the thermometer ``source`` asks for, None if none."""
-    if source == 'imu':
-        cands = [(tp, f, instance) for tp, f in _IMU_THERMOMETERS]
-    elif source == 'baro':
-        cands = [(tp, f, 0) for tp, f in _BARO_THERMOMETERS]
-    else:
-        tp, _, f = source.partition('.')
-        cands = [(tp, f, instance), (tp, f, 0)]
+    tp, _, f = source.partition('.')
+    cands = {'imu': [(tp, f, instance) for tp, f in _IMU_THERMOMETERS],
+             'baro': [(tp, f, 0) for tp, f in _BARO_THERMOMETERS]}.get(
+        source, [(tp, f, instance), (tp, f, 0)])
     for tp, f, i in cands:
-        d = topics.get(tp, {}).get(i)
-        if d is None or f not in d:
-            continue
-        v = thermometer(d[f])
-        if v is not None:
-            name = f'{tp}.{f}' + (f' instance {i}' if i else '')
-            return name, _seconds(d), v
+        d = topics.get(tp, {}).get(i) or {}
+        if (v := thermometer(d.get(f))) is not None:
+            return f'{tp}.{f}' + (f' instance {i}' if i else ''), _seconds(d), v
     return None
 
 
@@ -191,14 +184,14 @@ def _required_thermometer(p: Path, topics: dict[str, dict[int, dict]], instance:
     Without the IMU's own thermometer the message names the barometer proxy when there is one.
     """
     therm = _thermometer(topics, instance, temperature_source)
+    if therm is None and temperature_source == 'imu':
+        baro = _thermometer(topics, instance, 'baro') is not None
+        raise DatasetError(
+            f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
+            "thermometer reads other than a constant 0 or NaN; the log's instances: "
+            f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
+                                        "barometer's as a proxy." if baro else '.'))
     if therm is None:
-        if temperature_source == 'imu':
-            baro = _thermometer(topics, instance, 'baro') is not None
-            raise DatasetError(
-                f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
-                "thermometer reads other than a constant 0 or NaN; the log's instances: "
-                f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
-                                            "barometer's as a proxy." if baro else '.'))
         raise DatasetError(f'Log {str(p)!r}: no usable thermometer for --temperature-source '
                            f"{temperature_source} (the log's instances: "
                            f'{_inventory(topics)}).')
