@@ -145,8 +145,7 @@ def _pick_gyro(gyros: dict[str, dict]) -> str:
 
 def _inventory(topics: dict) -> str:
     """Return what each instance of the log carries, in words (for a refusal)."""
-    ids = sorted({i for name in ('sensor_gyro', 'sensor_combined', 'vehicle_imu',
-                                 'vehicle_imu_status', 'sensor_accel')
+    ids = sorted({i for name in (*_GYRO_FIELDS, 'vehicle_imu_status', 'sensor_accel')
                   for i in topics.get(name, {})})
     parts = []
     for i in ids:
@@ -244,19 +243,16 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     for d in ulog.data_list:
         topics.setdefault(d.name, {})[int(d.multi_id)] = d.data
     active, words = onboard_status(params, 'px4')
-    notes: list[str] = []
     damaged = bool(ulog.file_corruption)
-    if damaged or chatter.getvalue():
-        notes.append('pyulog found damaged messages (skipped)')
-    found = {i for name in ('sensor_gyro', 'sensor_combined', 'vehicle_imu')
-             for i in topics.get(name, {})}
+    notes = ['pyulog found damaged messages (skipped)'] if damaged or chatter.getvalue() else []
+    found = {i for name in _GYRO_FIELDS for i in topics.get(name, {})}
     if not found:
         what = ', '.join(sorted({d.name for d in ulog.data_list})) or 'no logged topic'
         raise DatasetError(f'Log {str(p)!r} has neither sensor_gyro nor sensor_combined '
                            f'nor vehicle_imu (it has {what}).')
     gyros = _gyros(topics, instance)
     if not gyros:
-        kind = next(k for k in ('sensor_gyro', 'sensor_combined', 'vehicle_imu') if k in topics)
+        kind = next(k for k in _GYRO_FIELDS if k in topics)
         raise DatasetError(f'Log {str(p)!r}: {kind} has no instance {instance} (it has '
                            f'{", ".join(map(str, sorted(topics[kind])))}; what each instance '
                            f'carries: {_inventory(topics)}; --imu-instance N).')
