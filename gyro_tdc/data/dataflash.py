@@ -62,17 +62,16 @@ def _captured(sink: io.StringIO) -> Iterator[None]:
     saved = [os.dup(1), os.dup(2)]
     with tempfile.TemporaryFile(mode='w+b') as tmp:
         try:
-            os.dup2(tmp.fileno(), 1)
-            os.dup2(tmp.fileno(), 2)
+            for fd in (1, 2):
+                os.dup2(tmp.fileno(), fd)
             with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
                 yield
         finally:
             sys.stdout.flush()
             sys.stderr.flush()
-            os.dup2(saved[0], 1)
-            os.dup2(saved[1], 2)
-            for fd in saved:
-                os.close(fd)
+            for fd, old in zip((1, 2), saved):
+                os.dup2(old, fd)
+                os.close(old)
             tmp.seek(0)
             sink.write(tmp.read().decode('utf-8', 'replace'))
 
@@ -90,11 +89,7 @@ def _records(reader, mtype: int) -> dict[str, np.ndarray]:
     buf = np.frombuffer(reader.data_map, dtype=np.uint8)
     rows = buf[offs[:, None] + 3 + np.arange(dt.itemsize)]
     rec = np.ascontiguousarray(rows).view(dt).ravel()
-    out = {}
-    for n, c in zip(names, fmt.format):
-        col = rec[n]
-        out[n] = col * _SCALE[c] if c in _SCALE else col
-    return out
+    return {n: rec[n] * _SCALE[c] if c in _SCALE else rec[n] for n, c in zip(names, fmt.format)}
 
 
 def _truncated(reader) -> int:
@@ -112,9 +107,7 @@ def _truncated(reader) -> int:
 def _params(reader) -> dict[str, float]:
     """Return the first value of every PARM record's parameter."""
     mtype = reader.name_to_id.get('PARM')
-    if mtype is None:
-        return {}
-    cols = _records(reader, mtype)
+    cols = {'Name': [], 'Value': []} if mtype is None else _records(reader, mtype)
     out: dict[str, float] = {}
     for name, value in zip(cols['Name'], cols['Value']):
         out.setdefault(name.split(b'\0')[0].decode('ascii', 'replace'), float(value))
@@ -124,9 +117,7 @@ def _params(reader) -> dict[str, float]:
 def _imu(reader, kind: str = 'IMU') -> dict[int, dict[str, np.ndarray]]:
     """Return the records per instance (the ``I`` field, or IMU/IMU2/IMU3 of old logs)."""
     out: dict[int, dict[str, np.ndarray]] = {}
-    names = (('IMU', 0), ('IMU2', 1), ('IMU3', 2)) if kind == 'IMU' else (
-        ('BARO', 0), ('BAR2', 1), ('BAR3', 2))
-    for name, base in names:
+    for base, name in enumerate((kind, kind[:3] + '2', kind[:3] + '3')):   # IMU2, BAR2...
         mtype = reader.name_to_id.get(name)
         if mtype is None or not len(reader.offsets[mtype]):
             continue
