@@ -38,7 +38,7 @@ import apsw
 from gyro_tdc.data.bag import columnar, metadata
 from gyro_tdc.data.bag.codec import (decode, decode_float, decode_joined, Decoded, FLOAT_TYPES,
                                      IMU_TYPE, jazzy, KEEP, REFERENCE_TYPE, TEMPERATURE_TYPES)
-from gyro_tdc.data.bag.storage import Unfit
+from gyro_tdc.data.bag.storage import Logs, Unfit
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import NDArray
@@ -332,8 +332,7 @@ class Collector:
         self.main_bad: list[NDArray[np.int64]] = []    # main messages undecodable
         self.before: list[NDArray[np.int64]] = []      # Float readings: main messages before
 
-    def _store(self, role: str, dec: Decoded, logs: Sequence[int] | NDArray | None,
-               fetch_logs: Callable[[], NDArray[np.int64]] | None) -> NDArray[np.bool_] | None:
+    def _store(self, role: str, dec: Decoded, logs: Logs | None) -> NDArray[np.bool_] | None:
         """Put a decoded block into its sink; return the mask of decodable messages."""
         self.fallback[role] += dec.fallback
         if role == 'imu' and not self.frame_id:
@@ -342,8 +341,7 @@ class Collector:
         zero = stamp_ns == 0
         # A zero header stamp: the log time instead (Float readings are stamped in result()).
         if zero.any() and not (role == 'temperature' and self.floating):
-            logs = fetch_logs() if logs is None else logs
-            stamp_ns[zero] = np.asarray(logs, dtype=np.int64)[zero]
+            stamp_ns[zero] = np.asarray(logs() if callable(logs) else logs, dtype=np.int64)[zero]
         t, values, good = _seconds(stamp_ns), dec.values, None
         if dec.undecodable is not None:
             good = ~dec.undecodable
@@ -352,28 +350,25 @@ class Collector:
         self.sinks[role].add(t, values)
         return good
 
-    def main(self, buf: bytes | memoryview, lengths: Sequence[int],
-             logs: Sequence[int] | NDArray | None = None,
-             fetch_logs: Callable[[], NDArray[np.int64]] | None = None) -> None:
-        """Decode a block of main messages stored end to end in ``buf``."""
+    def main(self, buf: bytes | memoryview, lengths: Sequence[int], logs: Logs) -> None:
+        """Decode a block of main messages stored end to end in ``buf`` (``logs``: log times)."""
         if not len(lengths):
             return
         dec = decode_joined(buf, lengths, IMU_TYPE, self.typestore, self.keep_imu)
-        good = self._store('imu', dec, logs, fetch_logs)
+        good = self._store('imu', dec, logs)
         if good is not None:
             self.main_bad.append(self.n_main + np.flatnonzero(~good))
         self.n_main += len(lengths)
 
-    def other(self, role: str, raws: Sequence[bytes], logs: Sequence[int] | NDArray | None,
-              before: NDArray[np.int64] | None = None,
-              fetch_logs: Callable[[], NDArray[np.int64]] | None = None) -> None:
+    def other(self, role: str, raws: Sequence[bytes], logs: Logs,
+              before: NDArray[np.int64] | None = None) -> None:
         """Decode a block of one other role's messages (``before``: see the class)."""
         if not len(raws):
             return
         floating = role == 'temperature' and self.floating
         dec = (decode_float(raws, self.msgtypes[role], self.typestore) if floating else
                decode(raws, self.msgtypes[role], self.typestore))
-        good = self._store(role, dec, logs, fetch_logs)
+        good = self._store(role, dec, logs)
         if floating:
             before = np.asarray(before, dtype=np.int64)
             self.before.append(before if good is None else before[good])
@@ -398,10 +393,10 @@ class Collector:
             finite = (np.isfinite(sink.v[0][:sink.n]).all(axis=1) if sink
                       else np.zeros(0, dtype=bool))
             # Float readings before the first IMU message are dropped, not counted here.
-            keep = finite & stamped if role == 'temperature' and stamped is not None else None
-            rejected[key] = int(np.count_nonzero(~finite if keep is None else ~finite & stamped))
+            kept = stamped if role == 'temperature' and stamped is not None else True
+            rejected[key] = int(np.count_nonzero(~finite & kept))
             if sink is not None and (sink.n or role != 'reference'):    # no empty reference
-                out[role] = sink.result(finite if keep is None else keep)
+                out[role] = sink.result(finite & kept)
         imu_t, gyro, *accel = out['imu']
         temp_t, temp_c, temp_var = out['temperature']
         ref_t, ref = out['reference']

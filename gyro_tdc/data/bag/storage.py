@@ -69,8 +69,6 @@ class Pending:
             return
         pieces, lengths, logs = self.pieces, self.lengths, self.logs
         self.pieces, self.lengths, self.logs, self.n = [], [], [], 0
-
-        def fetch() -> NDArray[np.int64]:
-            return np.concatenate([x if isinstance(x, np.ndarray) else x() for x in logs])
-        buf = pieces[0] if len(pieces) == 1 else b''.join(pieces)
-        self.out.main(buf, np.concatenate(lengths), fetch_logs=fetch)
+        self.out.main(pieces[0] if len(pieces) == 1 else b''.join(pieces),
+                      np.concatenate(lengths),
+                      lambda: np.concatenate([x() if callable(x) else x for x in logs]))

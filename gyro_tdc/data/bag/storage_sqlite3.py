@@ -269,5 +269,5 @@ class _Ranges:
         for role in roles:
             if role != 'imu' and role in got:
                 _, buf, lengths = got[role]
-                out.other(role, split(buf, lengths), None,
-                          before if role == 'temperature' else None, fetch_logs=logs(role))
+                out.other(role, split(buf, lengths), logs(role),
+                          before if role == 'temperature' else None)
