@@ -32,8 +32,7 @@ from gyro_tdc.data.runs import Run
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['Coverage', 'RATE_THRESHOLD_C_PER_MIN', 'RATE_WINDOW_S', 'coverage',
-           'temperature_rate']
+__all__ = ['Coverage', 'RATE_THRESHOLD_C_PER_MIN', 'RATE_WINDOW_S', 'coverage', 'temperature_rate']
 
 #: ``|dT/dt|`` (degC/min) above which a sample counts as heating or cooling.
 RATE_THRESHOLD_C_PER_MIN = 0.05

@@ -365,8 +365,7 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
         # A flight log's thermometer runs at its own rate (PX4 logs sensor_gyro, the
         # barometer at 1 Hz or less): a gap is one of several of its periods.
         gap = max(gap, FLIGHT_LOG_GAP_PERIODS * float(np.median(np.diff(np.sort(temp_t)))))
-    temp, keep, counts = align_temperature(t, temp_t, temp_c, max_gap_s=gap,
-                                           return_counts=True)
+    temp, keep, counts = align_temperature(t, temp_t, temp_c, max_gap_s=gap, return_counts=True)
     rejected['temp_nonfinite'] += counts['nonfinite']
     rejected['temp_duplicate_stamps'] = counts['duplicates']
     if counts['conflicting']:

@@ -144,5 +144,4 @@ def encode_twists(twist: ArrayLike) -> Sequence[bytes]:
     ts = jazzy()
     vec = ts.types['geometry_msgs/msg/Vector3']
     make = ts.types[TWIST_TYPE]
-    return [ts.serialize_cdr(make(vec(*r[:3]), vec(*r[3:])), TWIST_TYPE)
-            for r in rows.tolist()]
+    return [ts.serialize_cdr(make(vec(*r[:3]), vec(*r[3:])), TWIST_TYPE) for r in rows.tolist()]

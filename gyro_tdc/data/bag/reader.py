@@ -322,8 +322,7 @@ class Collector:
                  expected: Mapping[str, int], typestore: Any, with_accel: bool) -> None:
         self.roles, self.msgtypes, self.typestore = list(roles), dict(msgtypes), typestore
         self.floating = self.msgtypes['temperature'] in FLOAT_TYPES
-        widths = {'imu': (3, 3) if with_accel else (3,), 'temperature': (1, 1),
-                  'reference': (3,)}
+        widths = {'imu': (3, 3) if with_accel else (3,), 'temperature': (1, 1), 'reference': (3,)}
         self.keep_imu = None if with_accel else KEEP[IMU_TYPE][:3]
         self.sinks = {role: _Sink(expected[role], widths[role]) for role in self.roles}
         self.frame_id = ''                                # of the first decodable IMU message

@@ -219,8 +219,7 @@ class _Ranges:
                     row = self.db.execute(query, (t, end)).fetchone()
                     if row[0]:
                         put((row, t, end))
-                        step = int(min(max(step * self.chunk / row[0], step / 4),
-                                       step * 4)) or 1
+                        step = int(min(max(step * self.chunk / row[0], step / 4), step * 4)) or 1
                     else:
                         step *= 2
                     t = end
