@@ -18,7 +18,8 @@ A rosbag2 directory's ``metadata.yaml``: where the bag is, its topics, and check
 The counts size every column of :func:`gyro_tdc.data.bag.reader.read_bag`, so they are checked
 against what the storage files can hold before anything is allocated (:func:`check_counts`).
 :func:`entries` reads the topic entries as rosbags' reader does and refuses, with
-:class:`ValueError`, what rosbags refuses: the columnar read then leaves the bag to rosbags.
+:class:`~gyro_tdc.data.bag.storage.Unfit`, what rosbags refuses: the columnar read then
+leaves the bag to rosbags.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from typing import Any, Mapping, NamedTuple
 
 from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
 from gyro_tdc.data.bag.codec import N_DOUBLES
+from gyro_tdc.data.bag.storage import Unfit
 from gyro_tdc.data.imu_cdr import FRAME_ID
 from gyro_tdc.errors import DatasetError
 
@@ -195,21 +197,21 @@ def entries(bag: Path, info: Mapping) -> list[Entry]:
 
     Raises
     ------
-    ValueError
+    Unfit
         A version, storage, compression or serialization rosbags does not read, a missing
         storage file or a missing key; rosbags' reader then says what is wrong.
 
     """
     try:
         if info['version'] > _VERSION:
-            raise ValueError(f'metadata version {info["version"]!r:.20}')
+            raise Unfit(f'metadata version {info["version"]!r:.20}')
         if info['storage_identifier'] not in ('sqlite3', 'mcap'):
-            raise ValueError(f'storage {info["storage_identifier"]!r:.20}')
+            raise Unfit(f'storage {info["storage_identifier"]!r:.20}')
         if any(not (bag / PurePath(x).name).exists() for x in info['relative_file_paths']):
-            raise ValueError('a storage file is missing')
+            raise Unfit('a storage file is missing')
         mode = info.get('compression_mode', '').lower()
         if mode not in ('', 'none') and info.get('compression_format') != 'zstd':
-            raise ValueError('compression other than zstd')
+            raise Unfit('compression other than zstd')
         out = [Entry(k + 1, m['name'], m['type'], x['message_count'],
                      m['serialization_format'], m.get('offered_qos_profiles', []),
                      m.get('type_description_hash', ''))
@@ -218,9 +220,9 @@ def entries(bag: Path, info: Mapping) -> list[Entry]:
         _ = (info['duration']['nanoseconds'], info['starting_time']['nanoseconds_since_epoch'],
              info['message_count'])
     except (KeyError, TypeError, AttributeError) as err:
-        raise ValueError(f'metadata.yaml: {type(err).__name__} {err}') from err
+        raise Unfit(f'metadata.yaml: {type(err).__name__} {err}') from err
     if any(x.fmt != 'cdr' for x in out):
-        raise ValueError('a serialization format other than cdr')
+        raise Unfit('a serialization format other than cdr')
     return out
 
 
