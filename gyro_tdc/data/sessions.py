@@ -173,10 +173,8 @@ def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0
     """
     check_sessions(mode, gap_s)
     out_runs: list[Run] = []
-    labels: list[int] = []
     sessions: list[Session] = []
-    breaks: list[str] = []
-    parts: list[tuple[int, int, int]] = []
+    labels, breaks, parts = [], [], []       # per run, found, (bag run, start, stop) per run
     for j, run in enumerate(runs):
         found = find_breaks(run, gap_s)
         breaks += [f'{run.name}: {why} at t = {run.t[i]:.1f} s' for i, why in found]
