@@ -102,15 +102,8 @@ def field_table(typestore: Any) -> Any:
         full = name if '/msg/' in name else name.replace('/', '/msg/', 1)
         if full not in typestore.fielddefs:
             return None
-        out = {}
-        for fname, (kind, desc) in typestore.fielddefs[full][1]:
-            if kind == Nodetype.BASE:
-                out[fname] = desc[0]
-            elif kind == Nodetype.NAME:
-                out[fname] = desc
-            else:
-                out[fname] = 'array'
-        return out
+        return {fname: desc[0] if kind == Nodetype.BASE else desc if kind == Nodetype.NAME
+                else 'array' for fname, (kind, desc) in typestore.fielddefs[full][1]}
     return fields_of
 
 
