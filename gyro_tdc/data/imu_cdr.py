@@ -305,9 +305,7 @@ def locate(data: bytes) -> tuple[int, int, int] | None:
         return None
     sec, nanosec, length = _HEAD.unpack_from(data, STAMP_SEC)
     base = body_offset(length)
-    if len(data) != base + _TAIL:
-        return None
-    return sec, nanosec, base
+    return (sec, nanosec, base) if len(data) == base + _TAIL else None
 
 
 class ImuView:
@@ -326,8 +324,7 @@ class ImuView:
     __slots__ = ('data', 'base')
 
     def __init__(self, data: bytes, base: int) -> None:
-        self.data = data
-        self.base = base
+        self.data, self.base = data, base
 
     def angular_velocity(self) -> tuple[float, float, float]:
         """Return ``angular_velocity`` (x, y, z), rad/s."""
@@ -335,8 +332,7 @@ class ImuView:
 
     def linear_acceleration(self) -> tuple[float, float, float] | None:
         """Return ``linear_acceleration``, m/s^2, or None when its covariance[0] is -1."""
-        cov0 = _F64.unpack_from(self.data, self.base + LINEAR_ACCELERATION_COV)[0]
-        if cov0 == -1.0:
+        if _F64.unpack_from(self.data, self.base + LINEAR_ACCELERATION_COV)[0] == -1.0:
             return None
         return _VEC3.unpack_from(self.data, self.base + LINEAR_ACCELERATION)
 
