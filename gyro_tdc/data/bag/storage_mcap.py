@@ -295,8 +295,16 @@ class _Records:
                       for rows, code, log in pieces for k in range(len(code))]
             pieces = [single[i] for i in order.tolist()]
             codes, logs = codes[order], logs[order]
-        out, main = self.out, self.codes['imu']
-        others: list[tuple[int, bytes]] = []       # (index in the chunk, message)
+        # Two steps, not one body: a chunk's main block copies are freed before the others decode.
+        others = self._in_order(pieces, pending)
+        if others:
+            self._others(others, codes, logs, pending)
+
+    def _in_order(self, pieces: list[tuple[Any, ...]], pending: Pending
+                  ) -> list[tuple[int, bytes]]:
+        """Hand over the main messages of a chunk's pieces in order; return the others."""
+        main = self.codes['imu']
+        others: list[tuple[int, bytes]] = []
         at = 0
         for rows, code, log in pieces:
             is_main = code == main
@@ -307,9 +315,13 @@ class _Records:
                             log[is_main])
             others += [(at + i, bytes(rows[i, 31:])) for i in np.flatnonzero(~is_main).tolist()]
             at += len(code)
-        if not others:
-            return
-        pending.flush()               # the other roles' blocks come after the main ones
+        return others
+
+    def _others(self, others: list[tuple[int, bytes]], codes: Any, logs: Any,
+                pending: Pending) -> None:
+        """Hand over the other roles' messages of a chunk, after its main ones."""
+        pending.flush()
+        out, main = self.out, self.codes['imu']
         mains = np.cumsum(codes == main)
         first = out.n_main - int(mains[-1])
         where = np.fromiter((i for i, _ in others), dtype=np.int64, count=len(others))
