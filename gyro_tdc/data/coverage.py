@@ -32,8 +32,7 @@ from gyro_tdc.data.runs import Run
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['Coverage', 'RATE_THRESHOLD_C_PER_MIN', 'RATE_WINDOW_S', 'coverage',
-           'temperature_rate']
+__all__ = ['Coverage', 'RATE_THRESHOLD_C_PER_MIN', 'RATE_WINDOW_S', 'coverage', 'temperature_rate']
 
 #: ``|dT/dt|`` (degC/min) above which a sample counts as heating or cooling.
 RATE_THRESHOLD_C_PER_MIN = 0.05
@@ -67,10 +66,8 @@ def temperature_rate(t: NDArray[np.float64], temp: NDArray[np.float64], *,
     if t.shape[0] < 2 or t[-1] <= t[0]:
         return np.zeros(t.shape[0])
     half = 0.5 * min(window_s, t[-1] - t[0])
-    a = np.clip(t - half, t[0], t[-1])
-    b = np.clip(t + half, t[0], t[-1])
-    span = np.maximum(b - a, 1e-9)
-    return (np.interp(b, t, temp) - np.interp(a, t, temp)) / span * 60.0
+    a, b = np.clip(t - half, t[0], t[-1]), np.clip(t + half, t[0], t[-1])
+    return (np.interp(b, t, temp) - np.interp(a, t, temp)) / np.maximum(b - a, 1e-9) * 60.0
 
 
 def _sample_minutes(t: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -96,8 +93,7 @@ def _directions(run: Run, threshold: float, *, points: int = 100_000
     """
     n = len(run)
     step = max(1, n // points)
-    rate = (temperature_rate(run.t, run.temp) if step == 1 else
-            temperature_rate(run.t[::step], run.temp[::step]))
+    rate = temperature_rate(run.t[::step], run.temp[::step])
     masks = (rate > threshold, rate < -threshold, np.abs(rate) <= threshold)
     return masks if step == 1 else tuple(np.repeat(m, step)[:n] for m in masks)
 
@@ -180,8 +176,7 @@ def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
     edges = first + bin_c * np.arange(nb + 1)
     v = np.subtract(temp, first)
     np.floor_divide(v, bin_c, out=v)
-    idx = v.astype(np.int64)
-    np.clip(idx, 0, nb - 1, out=idx)
+    idx = np.clip(v.astype(np.int64), 0, nb - 1)
     samples = np.bincount(idx, minlength=nb)
     mins = np.bincount(idx, weights=minutes, minlength=nb)
     inside = np.clip(np.minimum(edges[1:], hi) - np.maximum(edges[:-1], lo), 0.0, None)
@@ -191,10 +186,6 @@ def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
         density = mins / np.maximum(inside, 1e-9)
         ref = float(np.median(density[full]))
         sparse = [int(i) for i in np.flatnonzero(full & (density < sparse_fraction * ref))]
-    return Coverage(
-        bin_c=float(bin_c), edges=edges, samples=samples, minutes=mins, sparse=sparse,
-        temp_range_c=(lo, hi),
-        heating_min=float(minutes[heating].sum()),
-        cooling_min=float(minutes[cooling].sum()),
-        steady_min=float(minutes[steady].sum()),
-        threshold_c_per_min=float(threshold_c_per_min))
+    return Coverage(float(bin_c), edges, samples, mins, sparse, (lo, hi),
+                    *(float(minutes[m].sum()) for m in (heating, cooling, steady)),
+                    float(threshold_c_per_min))

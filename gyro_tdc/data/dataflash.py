@@ -30,7 +30,7 @@ import sys
 import tempfile
 from typing import Iterator
 
-from gyro_tdc.data.flightlog import FlightLog, thermometer
+from gyro_tdc.data.flightlog import columns, FlightLog, rate_hz, thermometer
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
@@ -62,17 +62,16 @@ def _captured(sink: io.StringIO) -> Iterator[None]:
     saved = [os.dup(1), os.dup(2)]
     with tempfile.TemporaryFile(mode='w+b') as tmp:
         try:
-            os.dup2(tmp.fileno(), 1)
-            os.dup2(tmp.fileno(), 2)
+            for fd in (1, 2):
+                os.dup2(tmp.fileno(), fd)
             with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
                 yield
         finally:
             sys.stdout.flush()
             sys.stderr.flush()
-            os.dup2(saved[0], 1)
-            os.dup2(saved[1], 2)
-            for fd in saved:
-                os.close(fd)
+            for fd, old in zip((1, 2), saved):
+                os.dup2(old, fd)
+                os.close(old)
             tmp.seek(0)
             sink.write(tmp.read().decode('utf-8', 'replace'))
 
@@ -90,11 +89,7 @@ def _records(reader, mtype: int) -> dict[str, np.ndarray]:
     buf = np.frombuffer(reader.data_map, dtype=np.uint8)
     rows = buf[offs[:, None] + 3 + np.arange(dt.itemsize)]
     rec = np.ascontiguousarray(rows).view(dt).ravel()
-    out = {}
-    for n, c in zip(names, fmt.format):
-        col = rec[n]
-        out[n] = col * _SCALE[c] if c in _SCALE else col
-    return out
+    return {n: rec[n] * _SCALE[c] if c in _SCALE else rec[n] for n, c in zip(names, fmt.format)}
 
 
 def _truncated(reader) -> int:
@@ -112,9 +107,7 @@ def _truncated(reader) -> int:
 def _params(reader) -> dict[str, float]:
     """Return the first value of every PARM record's parameter."""
     mtype = reader.name_to_id.get('PARM')
-    if mtype is None:
-        return {}
-    cols = _records(reader, mtype)
+    cols = {'Name': [], 'Value': []} if mtype is None else _records(reader, mtype)
     out: dict[str, float] = {}
     for name, value in zip(cols['Name'], cols['Value']):
         out.setdefault(name.split(b'\0')[0].decode('ascii', 'replace'), float(value))
@@ -124,9 +117,7 @@ def _params(reader) -> dict[str, float]:
 def _imu(reader, kind: str = 'IMU') -> dict[int, dict[str, np.ndarray]]:
     """Return the records per instance (the ``I`` field, or IMU/IMU2/IMU3 of old logs)."""
     out: dict[int, dict[str, np.ndarray]] = {}
-    names = (('IMU', 0), ('IMU2', 1), ('IMU3', 2)) if kind == 'IMU' else (
-        ('BARO', 0), ('BAR2', 1), ('BAR3', 2))
-    for name, base in names:
+    for base, name in enumerate((kind, kind[:3] + '2', kind[:3] + '3')):   # IMU2, BAR2...
         mtype = reader.name_to_id.get(name)
         if mtype is None or not len(reader.offsets[mtype]):
             continue
@@ -140,23 +131,24 @@ def _imu(reader, kind: str = 'IMU') -> dict[int, dict[str, np.ndarray]]:
     return out
 
 
-def _temperature(cols: dict[str, np.ndarray]) -> tuple[str, np.ndarray] | None:
+def _seconds(cols: dict[str, np.ndarray]) -> np.ndarray:
+    """Return a record type's ``TimeUS`` stamps in s."""
+    return np.asarray(cols['TimeUS'], dtype=np.float64) * 1e-6
+
+
+def _temperature(cols: dict[str, np.ndarray], fields: tuple[str, ...] = TEMPERATURE_FIELDS
+                 ) -> tuple[str, np.ndarray] | None:
     """Return (field, degC) of a record type's thermometer, None when it has none."""
-    for name in TEMPERATURE_FIELDS:
-        v = thermometer(cols.get(name))
-        if v is not None:
-            return name, v
-    return None
+    return next(((n, v) for n in fields if (v := thermometer(cols.get(n))) is not None), None)
 
 
 def _inventory(imus: dict, baros: dict) -> str:
     """Return what each IMU instance of the log carries, in words (for a refusal)."""
     parts = []
     for i, d in sorted(imus.items()):
-        t = np.asarray(d['TimeUS'], dtype=np.float64) * 1e-6
-        rate = (len(t) - 1) / float(t.max() - t.min()) if len(t) > 1 and t.max() > t.min() else 0
         temp = _temperature(d)
-        parts.append(f'{i}: {len(t)} samples at {rate:.3g} Hz, temperature '
+        parts.append(f'{i}: {len(d["TimeUS"])} samples at {rate_hz(_seconds(d)):.3g} Hz, '
+                     'temperature '
                      + (f'IMU.{temp[0]}' if temp else 'none'))
     baro = [i for i, d in sorted(baros.items()) if _temperature(d) is not None]
     return '; '.join(parts) + (f'; barometer temperature: BARO instance '
@@ -203,18 +195,13 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     # here, at the library's edge, so that a damaged log is one line like any bad input.
     except Exception as exc:  # noqa: B902
         raise DatasetError(f'Log {str(p)!r} is not a readable DataFlash log: {exc}') from None
+    msg, _, fld = temperature_source.partition('.')
     try:
-        params = _params(reader)
-        imus = _imu(reader)
-        baros = _imu(reader, 'BARO')
-        cut = _truncated(reader)
-        other = None
-        if temperature_source not in ('imu', 'baro'):
-            msg, _, fld = temperature_source.partition('.')
-            mtype = reader.name_to_id.get(msg)
-            if mtype is not None and len(reader.offsets[mtype]):
-                other = _records(reader, mtype)
-                other = (other.get('TimeUS'), thermometer(other.get(fld)))
+        params, imus, baros, cut = (_params(reader), _imu(reader), _imu(reader, 'BARO'),
+                                    _truncated(reader))
+        mtype = reader.name_to_id.get(msg) if fld else None
+        other = (_records(reader, mtype) if mtype is not None and len(reader.offsets[mtype])
+                 else {})
     except (KeyError, ValueError, TypeError, UnicodeDecodeError) as exc:
         raise DatasetError(f'Log {str(p)!r}: a record cannot be decoded ({exc}).') from None
     finally:
@@ -227,11 +214,12 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
                            f'{", ".join(map(str, sorted(imus)))}; what each carries: '
                            f'{_inventory(imus, baros)}; --imu-instance N).')
     d = imus[instance]
-    t = np.asarray(d['TimeUS'], dtype=np.float64) * 1e-6
-    gyro = np.column_stack([np.asarray(d[k], dtype=np.float64) for k in ('GyrX', 'GyrY', 'GyrZ')])
-    temp_t, name = None, ''
+    t = _seconds(d)
+    baro = baros.get(instance, baros.get(0, {}))
+    src = {'imu': d, 'baro': baro}.get(temperature_source, other)
+    found = _temperature(src, (fld,) if fld else TEMPERATURE_FIELDS)
+    temp_t = None
     if temperature_source == 'imu':
-        found = _temperature(d)
         temp = found[1] if found else np.full(len(t), np.nan)
         name = f'IMU.{found[0]}' if found else ''
         if found is None and len(imus) > 1:
@@ -239,30 +227,20 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
                                f'temperature (what each instance carries: '
                                f'{_inventory(imus, baros)}; --imu-instance N, or '
                                '--temperature-source baro).')
+    elif found is None or 'TimeUS' not in src:
+        raise DatasetError(f'Log {str(p)!r}: no usable thermometer for '
+                           f'--temperature-source {temperature_source} (what each IMU '
+                           f'instance carries: {_inventory(imus, baros)}).')
     else:
-        if temperature_source == 'baro':
-            src = baros.get(instance, baros.get(0)) if baros else None
-            found = None if src is None else _temperature(src)
-            got = None if found is None else (src['TimeUS'], found[1])
-            name = '' if found is None else f'BARO.{found[0]}'
-        else:
-            got, name = other, temperature_source
-        if got is None or got[0] is None or got[1] is None:
-            raise DatasetError(f'Log {str(p)!r}: no usable thermometer for '
-                               f'--temperature-source {temperature_source} (what each IMU '
-                               f'instance carries: {_inventory(imus, baros)}).')
-        temp_t = np.asarray(got[0], dtype=np.float64) * 1e-6
-        temp = got[1]
-    acc = None
-    if accel and all(k in d for k in ('AccX', 'AccY', 'AccZ')):
-        acc = np.column_stack([np.asarray(d[k], dtype=np.float64)
-                               for k in ('AccX', 'AccY', 'AccZ')])
+        temp_t, temp = _seconds(src), found[1]
+        name = f'BARO.{found[0]}' if temperature_source == 'baro' else temperature_source
+    acc = columns(d, ('AccX', 'AccY', 'AccZ')) if accel else None
     active, words = onboard_status(params, 'ardupilot', instance=instance)
     skipped = chatter.getvalue().count('\n')
     notes = [f'pymavlink skipped damaged bytes ({skipped} reports)'] if skipped else []
-    return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
-                     firmware='ardupilot', source='IMU', instance=int(instance),
-                     instances=tuple(sorted(imus)), raw=False, compensated=active,
-                     onboard=words, truncated_bytes=cut, notes=notes, temp_t=temp_t,
-                     temperature=name, proxy=temperature_source != 'imu',
+    return FlightLog(imu_t=t, gyro=columns(d, ('GyrX', 'GyrY', 'GyrZ')), temp_c=temp,
+                     accel=acc, params=params, firmware='ardupilot', source='IMU',
+                     instance=int(instance), instances=tuple(sorted(imus)), raw=False,
+                     compensated=active, onboard=words, truncated_bytes=cut, notes=notes,
+                     temp_t=temp_t, temperature=name, proxy=temperature_source != 'imu',
                      damage=f'pymavlink skipped {skipped} damaged headers' if skipped else '')

@@ -67,9 +67,7 @@ def _interp_sorted(imu_t: NDArray[np.float64], tt: NDArray[np.float64],
     span, and the middle of every segment longer than ``2 * gap`` -- are located among the
     IMU stamps by binary search per knot instead of being tested per sample.
     """
-    n = len(imu_t)
-    temp = np.interp(imu_t, tt, tc)
-    valid = np.ones(n, dtype=bool)
+    temp, valid = np.interp(imu_t, tt, tc), np.ones(len(imu_t), dtype=bool)
     valid[:np.searchsorted(imu_t, tt[0], side='left')] = False
     valid[np.searchsorted(imu_t, tt[-1], side='right'):] = False
     # In segment j a stamp is invalid when both distances exceed the gap:
@@ -126,9 +124,8 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
         When shapes disagree or ``max_gap_s`` is not a positive number.
 
     """
-    imu_t = _vector('imu_t', imu_t)
-    temp_t = _vector('temp_t', temp_t)
-    temp_c = _vector('temp_c', temp_c)
+    imu_t, temp_t, temp_c = (_vector('imu_t', imu_t), _vector('temp_t', temp_t),
+                             _vector('temp_c', temp_c))
     if temp_c.shape != temp_t.shape:
         raise DatasetError(f'Expected `temp_c` to have shape {temp_t.shape} like `temp_t`, '
                            f'got {temp_c.shape}.')
@@ -166,9 +163,7 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
         order = np.argsort(imu_t, kind='stable')
         temp, valid = np.empty(len(imu_t)), np.empty(len(imu_t), dtype=bool)
         temp[order], valid[order] = _interp_sorted(imu_t[order], tt, tc, gap)
-    if return_counts:
-        return temp, valid, counts
-    return temp, valid
+    return (temp, valid, counts) if return_counts else (temp, valid)
 
 
 def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: float,
@@ -179,20 +174,17 @@ def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: 
     Appends a warning per topic with missing messages; raises DatasetError when more than
     ``max_loss`` of a topic's listed messages are missing. Returns topic -> [decoded, listed].
     """
-    out = {}
-    for topic, got in decoded.items():
-        listed = int(data.topics.get(topic, ('', 0))[1])
-        out[topic] = [int(got), listed]
-        lost = listed - int(got)
-        if lost <= 0:
-            continue
+    out = {topic: [int(got), int(data.topics.get(topic, ('', 0))[1])]
+           for topic, got in decoded.items()}
+    for topic, (got, listed) in out.items():
+        lost = listed - got
         note = (f'{topic}: read {got} of {listed} messages listed in the bag metadata '
-                f'({lost} lost: {100.0 * lost / listed:.2g} %; a damaged file or '
+                f'({lost} lost: {100.0 * lost / max(listed, 1):.2g} %; a damaged file or '
                 'undecodable messages)')
         if lost > max_loss * listed:
             raise DatasetError(f'Bag {str(bag)!r}: {note}, more than the '
                                f'{100.0 * max_loss:g} % allowed (--allow-loss accepts it).')
-        warnings.append(note)
+        warnings += [note] if lost > 0 else []
     return out
 
 
@@ -214,11 +206,11 @@ def _follow_restarts(bag: object, data: object, gap: float) -> tuple[object, lis
     every topic by the same amount, so the parts follow one another in the bag's order;
     returns the data and, per restart, ``(first moved stamp, step back in s)``.
     """
-    imu = _parts(data.imu_t)
-    streams = {'temp_t': data.temp_t}
+    streams = {'imu_t': data.imu_t, 'temp_t': data.temp_t}
     if data.ref_t is not None and len(data.ref_t):
         streams['ref_t'] = data.ref_t
     cuts = {k: _parts(v) for k, v in streams.items()}
+    imu = cuts['imu_t']
     for key, c in cuts.items():
         if len(c) != len(imu):
             what = 'thermometer' if key == 'temp_t' else 'reference'
@@ -226,21 +218,17 @@ def _follow_restarts(bag: object, data: object, gap: float) -> tuple[object, lis
                 f'Bag {str(bag)!r}: the IMU stamps step back {len(imu) - 2} time(s) (a device '
                 f'clock restart) but the {what} stamps {len(c) - 2} time(s): the parts cannot '
                 'be matched; split the bag at the restarts.')
-    new = {'imu_t': data.imu_t.astype(np.float64, copy=True)}
-    new.update({k: v.astype(np.float64, copy=True) for k, v in streams.items()})
-    out = []
-    end = -math.inf
+    new = {k: v.astype(np.float64, copy=True) for k, v in streams.items()}
+    out, end = [], -math.inf
     for p in range(len(imu) - 1):
-        spans = {'imu_t': slice(imu[p], imu[p + 1])}
-        spans.update({k: slice(c[p], c[p + 1]) for k, c in cuts.items()})
-        starts = [float(new[k][sl].min()) for k, sl in spans.items() if sl.stop > sl.start]
-        shift = 0.0 if p == 0 else end + gap - min(starts)
+        spans = [(new[k], slice(c[p], c[p + 1])) for k, c in cuts.items() if c[p + 1] > c[p]]
+        shift = 0.0 if p == 0 else end + gap - min(float(v[sl].min()) for v, sl in spans)
         if p:
-            back = float(data.imu_t[imu[p] - 1] - data.imu_t[imu[p]])
-            out.append((float(new['imu_t'][imu[p]] + shift), back))
-        for k, sl in spans.items():
-            new[k][sl] += shift
-        end = max(float(new[k][sl].max()) for k, sl in spans.items() if sl.stop > sl.start)
+            out.append((float(new['imu_t'][imu[p]] + shift),
+                        float(data.imu_t[imu[p] - 1] - data.imu_t[imu[p]])))
+        for v, sl in spans:
+            v[sl] += shift
+        end = max(float(v[sl].max()) for v, sl in spans)
     return replace(data, **new), out
 
 
@@ -260,32 +248,29 @@ def _read_source(bag: str | os.PathLike, o: BagOptions, *,
     return flight_log_data(bag, log, fmt, o)
 
 
-def _gate_imu(data: object, rejected: dict[str, int]) -> tuple[NDArray, NDArray, NDArray, bool]:
+def _gate_imu(data: object, rejected: dict[str, int]) -> tuple[NDArray, NDArray, NDArray | None]:
     """
     Drop implausible rates, sort by stamp and keep the first sample of each stamp.
 
-    Returns stamps, rates, their rows in ``data.accel`` and whether those are all, in order.
+    Returns stamps, rates and their rows in ``data.accel`` (None: all of them, in order).
     """
-    t, omega = data.imu_t, data.gyro
-    rows = np.arange(len(t))          # of data.accel: follows every IMU sample dropped
-    same_rows = True                  # rows is still arange: data.accel needs no gather
-    plausible = np.abs(omega) <= MAX_RATE_RAD_S     # rows column by column: 3x faster
+    t, omega, rows = data.imu_t, data.gyro, None
+    plausible = np.abs(omega) <= MAX_RATE_RAD_S     # then column by column, not .all(axis=1)
     plausible = plausible[:, 0] & plausible[:, 1] & plausible[:, 2]
     if not plausible.all():
         rejected['imu_implausible'] = int(np.count_nonzero(~plausible))
-        t, omega, rows = t[plausible], omega[plausible], rows[plausible]
-        same_rows = False
+        rows = np.flatnonzero(plausible)
+        t, omega = t[rows], omega[rows]
     steps = np.diff(t)
     if np.any(steps <= 0):
         rejected['out_of_order'] = int(np.count_nonzero(steps < 0))
         order = np.argsort(t, kind='stable')
-        t, omega, rows = t[order], omega[order], rows[order]
-        same_rows = False
         first = np.ones(len(t), dtype=bool)
-        first[1:] = np.diff(t) > 0
+        first[1:] = np.diff(t[order]) > 0
         rejected['duplicate_stamps'] = int(np.count_nonzero(~first))
-        t, omega, rows = t[first], omega[first], rows[first]
-    return t, omega, rows, same_rows
+        order = order[first]
+        t, omega, rows = t[order], omega[order], order if rows is None else rows[order]
+    return t, omega, rows
 
 
 def _reference_rates(data: object, const: NDArray | None, t: NDArray, shape: tuple,
@@ -296,9 +281,7 @@ def _reference_rates(data: object, const: NDArray | None, t: NDArray, shape: tup
     Drops a topic's implausible rates and clears ``keep`` before its first message (counted).
     """
     if const is not None:
-        omega_ref = np.empty(shape)
-        omega_ref[:] = const
-        return 'constant', omega_ref
+        return 'constant', np.broadcast_to(const, shape).copy()
     if data.ref_t is None:
         return 'zero', np.zeros(shape)
     plausible = np.all(np.abs(data.ref) <= MAX_RATE_RAD_S, axis=1)
@@ -370,7 +353,7 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     restarts: list = []
     if len(data.imu_t) > 1 and np.any(np.diff(data.imu_t) < -RESTART_BACK_S):
         data, restarts = _follow_restarts(bag, data, 2.0 * o.max_gap_s + 1.0)
-    t, omega, rows, same_rows = _gate_imu(data, rejected)
+    t, omega, rows = _gate_imu(data, rejected)
     temp_t, temp_c = data.temp_t, data.temp_c
     plausible = plausible_temperatures(temp_t, temp_c)     # the node's and driver's gate
     if not plausible.all():
@@ -382,8 +365,7 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
         # A flight log's thermometer runs at its own rate (PX4 logs sensor_gyro, the
         # barometer at 1 Hz or less): a gap is one of several of its periods.
         gap = max(gap, FLIGHT_LOG_GAP_PERIODS * float(np.median(np.diff(np.sort(temp_t)))))
-    temp, keep, counts = align_temperature(t, temp_t, temp_c, max_gap_s=gap,
-                                           return_counts=True)
+    temp, keep, counts = align_temperature(t, temp_t, temp_c, max_gap_s=gap, return_counts=True)
     rejected['temp_nonfinite'] += counts['nonfinite']
     rejected['temp_duplicate_stamps'] = counts['duplicates']
     if counts['conflicting']:
@@ -400,35 +382,33 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
             + (f'[{temp_t.min():.3f}, {temp_t.max():.3f}] s' if len(temp_t) else 'nothing')
             + (f' vs IMU [{t.min():.3f}, {t.max():.3f}] s' if len(t) else '')
             + f'; rejected {rejected}.')
-    if restarts:     # the first sample of each restarted part in the final stamps
-        restarts = [[int(np.searchsorted(t[keep], at)), back] for at, back in restarts]
     info = {'rejected': rejected, 'warnings': warnings, 'reference': source,
             'frame_id': data.frame_id, 'storage': data.storage, 'topics': data.topics,
             'samples_read': int(len(data.imu_t) + data.rejected['imu_nonfinite']),
             'messages': messages, 'decoded_by_rosbags': data.fallback, **extra}
-    if restarts:
-        info['restarts'] = restarts
+    if restarts:     # the first sample of each restarted part in the final stamps
+        info['restarts'] = [[int(np.searchsorted(t[keep], at)), back] for at, back in restarts]
     if not keep.all():
         kept = _as_slice(keep)    # the usual case (before the first reading): views, no copy
         t, temp, omega, omega_ref = t[kept], temp[kept], omega[kept], omega_ref[kept]
-        rows = rows[kept]
-        same_rows = False
+        rows = kept if rows is None else rows[kept]
     acc = data.accel
     if acc is not None:
-        acc = np.ascontiguousarray(acc if same_rows else acc[_as_slice(rows)])
-        if not has_accelerometer(acc):
-            acc = None                # no accelerometer data (REP 145: zeros)
+        acc = np.ascontiguousarray(acc if rows is None else acc[_as_slice(rows)])
+        acc = acc if has_accelerometer(acc) else None    # no accelerometer (REP 145: zeros)
     return Run(t, temp, np.ascontiguousarray(omega), np.ascontiguousarray(omega_ref),
                str(bag), info, acc)
 
 
 def _as_slice(index: NDArray) -> slice | NDArray:
     """
-    Return ``index`` (a boolean mask or sorted row numbers) as a slice where it is one run.
+    Return ``index`` (a boolean mask, sorted row numbers or a slice) as a slice where it can.
 
-    Indexing by a slice gives views instead of copies of the full-length columns (~1 s for a
-    1 h, 1 kHz bag); the values are the same either way.
+    Indexing by a slice gives views instead of copies of the full-length columns; the values
+    are the same either way.
     """
+    if isinstance(index, slice):
+        return index
     if index.dtype == bool:          # one run: its first True and the count of them
         n = int(np.count_nonzero(index))
         a = int(np.argmax(index))
@@ -481,17 +461,14 @@ def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
         p = Path(raw)
         if not p.exists():
             raise DatasetError(f'Bag {str(p)!r} does not exist.')
-        if p.is_dir() and not _is_bag(p):
-            subs = [c for c in p.iterdir() if _is_bag(c) or is_flight_log(c)]
-            if subs:
-                out.extend(sorted(subs, key=_natural_key))
-                continue
-        out.append(p)
+        subs = ([c for c in p.iterdir() if _is_bag(c) or is_flight_log(c)]
+                if p.is_dir() and not _is_bag(p) else [])
+        out.extend(sorted(subs, key=_natural_key) or [p])
     seen: dict[Path, Path] = {}
     for p in out:
         real = Path(os.path.realpath(p))
-        if p.is_file() and p.suffix in ('.db3', '.mcap'):
-            real = real.parent          # a bag's storage file names the bag
+        # A bag's storage file names the bag.
+        real = real.parent if p.is_file() and p.suffix in ('.db3', '.mcap') else real
         if real in seen:
             raise DatasetError(f'Bag {str(p)!r} is given twice (also as {str(seen[real])!r}); '
                                'give each run once.')
@@ -538,21 +515,18 @@ def describe_read(bag: str | os.PathLike, run: Run, reference_topic: str) -> str
         ``read BAG: N samples over M min, reference rate ...; dropped ...``.
 
     """
-    source = run.info.get('reference', '?')
-    zero = not np.any(run.omega_ref)
-    log = run.info.get('log')
+    source, log = run.info.get('reference', '?'), run.info.get('log')
     reference = {'topic': f'reference rate from {reference_topic}'
-                          + (' (zero throughout)' if zero else ''),
+                          + ('' if np.any(run.omega_ref) else ' (zero throughout)'),
                  'constant': 'constant reference rate (--reference)',
                  'zero': 'reference rate zero (' + ('a flight log has none' if log else
                                                     f'no {reference_topic} in the bag') + ')'
                  }.get(source, f'reference {source}')
-    if log:
-        reference = f'{log}; {reference}'
-    counts = run.info.get('rejected', {})
-    dropped = '; '.join(f'{v} {_DROPPED.get(k, k)}' for k, v in counts.items() if v)
+    dropped = '; '.join(f'{v} {_DROPPED.get(k, k)}'
+                        for k, v in run.info.get('rejected', {}).items() if v)
     return (f'read {bag}: {len(run)} samples over {run.duration_s / 60.0:.1f} min, '
-            f'{reference}' + (f'; dropped {dropped}' if dropped else ''))
+            + (f'{log}; ' if log else '') + reference
+            + (f'; dropped {dropped}' if dropped else ''))
 
 
 def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
@@ -577,10 +551,8 @@ def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
 
     """
     options = BagOptions() if options is None else options
-    if isinstance(bags, (str, os.PathLike)):
-        bags = [bags]
     runs = []
-    for bag in expand_bags(bags):
+    for bag in expand_bags([bags] if isinstance(bags, (str, os.PathLike)) else bags):
         run = load_run(bag, options)
         if log is not None:
             log(describe_read(bag, run, options.reference_topic))

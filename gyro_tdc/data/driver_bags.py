@@ -32,18 +32,18 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from gyro_tdc.base import INPUT_FRAMES
+from gyro_tdc.data.bag.codec import IMU_TYPE, jazzy
 from gyro_tdc.data.bag.writer import write_bag
 from gyro_tdc.data.field_paths import (check_number, check_vector, DEFAULT_TEMPERATURE_FIELDS,
-                                       normalize_type, reader, stamp_kind, stamp_seconds, unquirk)
+                                       frd_to_flu, normalize_type, reader, stamp_kind,
+                                       stamp_seconds, unquirk)
 from gyro_tdc.errors import ConfigError, DatasetError, one_line
 import numpy as np
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.interfaces import Nodetype
-from rosbags.typesys import get_typestore, Stores
 
 __all__ = ['DriverInputs', 'field_table', 'normalize_bag']
 
-IMU_TYPE = 'sensor_msgs/msg/Imu'
 _HEADER = 'std_msgs/msg/Header'
 
 
@@ -102,15 +102,8 @@ def field_table(typestore: Any) -> Any:
         full = name if '/msg/' in name else name.replace('/', '/msg/', 1)
         if full not in typestore.fielddefs:
             return None
-        out = {}
-        for fname, (kind, desc) in typestore.fielddefs[full][1]:
-            if kind == Nodetype.BASE:
-                out[fname] = desc[0]
-            elif kind == Nodetype.NAME:
-                out[fname] = desc
-            else:
-                out[fname] = 'array'
-        return out
+        return {fname: desc[0] if kind == Nodetype.BASE else desc if kind == Nodetype.NAME
+                else 'array' for fname, (kind, desc) in typestore.fielddefs[full][1]}
     return fields_of
 
 
@@ -158,7 +151,7 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
     """
     path = Path(path)
     try:
-        with AnyReader([path], default_typestore=get_typestore(Stores.ROS2_JAZZY)) as bag:
+        with AnyReader([path], default_typestore=jazzy()) as bag:
             store = bag.typestore
             fields_of = field_table(store)
             imu_conn = _connection(bag, imu_topic, inputs.imu_type, '--imu-type')
@@ -180,39 +173,27 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
                        if ts_path else None)
             rate, stamp = reader(inputs.angular_velocity_field), reader(inputs.stamp_field)
             value, tstamp = reader(t_path), reader(ts_path) if ts_path else None
-            fix = unquirk(inputs.temperature_quirk)
-            imu_t: list[float] = []
-            gyro: list[tuple[float, float, float]] = []
-            accel: list[tuple[float, float, float]] = []
-            temp_t: list[float] = []
-            temp_c: list[float] = []
+            fix = unquirk(inputs.temperature_quirk) or float
+            imu_t, gyro, accel, temp_t, temp_c = [], [], [], [], []
             frame_id, gyro_cov, accel_cov = 'imu_link', None, (-1.0, 0.0, 0.0)
-            is_imu = imu_name == IMU_TYPE
             for conn, _, raw in bag.messages(connections=[imu_conn, temp_conn]):
                 msg = store.deserialize_cdr(raw, conn.msgtype)
                 if conn is imu_conn:
+                    if not imu_t and hasattr(msg, 'header'):
+                        frame_id = msg.header.frame_id
+                    if not imu_t and imu_name == IMU_TYPE:
+                        gyro_cov = tuple(msg.angular_velocity_covariance[[0, 4, 8]])
+                        accel_cov = tuple(msg.linear_acceleration_covariance[[0, 4, 8]])
                     w = rate(msg)
                     imu_t.append(stamp_seconds(kind, stamp(msg)))
                     g = (float(w.x), float(w.y), float(w.z))
-                    gyro.append((g[0], -g[1], -g[2]) if inputs.input_frame == 'frd' else g)
-                    if len(imu_t) == 1 and hasattr(msg, 'header'):
-                        frame_id = msg.header.frame_id
-                    if is_imu:
+                    gyro.append(frd_to_flu(*g) if inputs.input_frame == 'frd' else g)
+                    if imu_name == IMU_TYPE:
                         a = msg.linear_acceleration
                         accel.append((a.x, a.y, a.z))
-                        if len(imu_t) == 1:
-                            gyro_cov = tuple(msg.angular_velocity_covariance[[0, 4, 8]])
-                            accel_cov = tuple(msg.linear_acceleration_covariance[[0, 4, 8]])
-                    continue
-                if tstamp is not None:
-                    t = stamp_seconds(ts_kind, tstamp(msg))
-                elif imu_t:
-                    t = imu_t[-1]
-                else:
-                    continue                 # no IMU stamp to give it yet
-                c = float(value(msg))
-                temp_t.append(t)
-                temp_c.append(fix(c) if fix else c)
+                elif tstamp is not None or imu_t:    # else no IMU stamp to give it yet
+                    temp_t.append(stamp_seconds(ts_kind, tstamp(msg)) if tstamp else imu_t[-1])
+                    temp_c.append(fix(float(value(msg))))
     except AnyReaderError as exc:
         raise DatasetError(f'cannot read bag {str(path)!r}: {one_line(exc)}') from None
     if not imu_t:

@@ -43,6 +43,7 @@ DEFAULT_TEMPERATURE_FIELDS = {'sensor_msgs/msg/Temperature': 'temperature',
 _FLOATS = frozenset({'float', 'double', 'float32', 'float64', 'long double'})
 _INTEGERS = frozenset({'int8', 'uint8', 'int16', 'uint16', 'int32', 'uint32', 'int64',
                        'uint64', 'octet', 'byte', 'char'})
+_NUMBERS = _FLOATS | _INTEGERS
 _TIME = 'builtin_interfaces/Time'
 _NAME = re.compile(r'[A-Za-z][A-Za-z0-9_]*\Z')
 
@@ -68,11 +69,6 @@ def normalize_type(name: str) -> str:
     return '/'.join(parts)
 
 
-def _short(type_name: str) -> str:
-    """Return ``pkg/Type`` for ``pkg/msg/Type`` (rclpy's spelling in field tables)."""
-    return type_name.replace('/msg/', '/')
-
-
 def split_path(path: str, param: str) -> tuple[str, ...]:
     """
     Return the field names of a dotted path ('' is the message itself).
@@ -84,10 +80,9 @@ def split_path(path: str, param: str) -> tuple[str, ...]:
 
     """
     parts = tuple(path.split('.')) if path else ()
-    for part in parts:
-        if not _NAME.match(part):
-            raise ConfigError(f'{param}: expected a dotted path of field names (e.g. '
-                              f'header.stamp), got {path!r}.')
+    if not all(_NAME.match(part) for part in parts):
+        raise ConfigError(f'{param}: expected a dotted path of field names (e.g. '
+                          f'header.stamp), got {path!r}.')
     return parts
 
 
@@ -117,7 +112,7 @@ def check_number(type_name: str, path: str, fields_of: FieldsOf, param: str) -> 
 
     """
     leaf = _walk(type_name, path, fields_of, param)
-    if leaf not in _FLOATS and leaf not in _INTEGERS:
+    if leaf not in _NUMBERS:
         raise ConfigError(f'{param}: {path!r} in {type_name} is {leaf}, not a number.')
 
 
@@ -134,8 +129,7 @@ def check_vector(type_name: str, path: str, fields_of: FieldsOf, param: str) -> 
     leaf = _walk(type_name, path, fields_of, param)
     fields = fields_of(leaf)
     where = repr(path) if path else 'the message itself'
-    if fields is None or not all(fields.get(k) in _FLOATS or fields.get(k) in _INTEGERS
-                                 for k in 'xyz'):
+    if fields is None or not all(fields.get(k) in _NUMBERS for k in 'xyz'):
         raise ConfigError(f'{param}: {where} in {type_name} is {leaf}, not an x/y/z '
                           'vector of numbers.')
 
@@ -154,7 +148,7 @@ def stamp_kind(type_name: str, path: str, fields_of: FieldsOf, param: str) -> st
 
     """
     leaf = _walk(type_name, path, fields_of, param)
-    if _short(leaf) == _TIME:
+    if leaf.replace('/msg/', '/') == _TIME:        # rclpy spells it pkg/Type
         return 'time'
     if leaf in _INTEGERS:
         return 'micros'
@@ -164,9 +158,7 @@ def stamp_kind(type_name: str, path: str, fields_of: FieldsOf, param: str) -> st
 
 def reader(path: str) -> Callable[[Any], Any]:
     """Return a function reading a dotted path from a message ('' the message itself)."""
-    if not path:
-        return lambda msg: msg
-    return attrgetter(path)
+    return attrgetter(path) if path else (lambda msg: msg)
 
 
 def stamp_seconds(kind: str, value: Any) -> float:
@@ -203,11 +195,9 @@ def unquirk(kind: str) -> Callable[[float], float] | None:
         When ``kind`` is not one of :data:`TEMPERATURE_QUIRKS`.
 
     """
-    if kind == '':
-        return None
-    if kind == 'bno055_unsigned_byte':
-        return lambda t: t - 256.0 if t >= 128.0 else t
-    if kind == 'sbg_legacy_div256':
-        return lambda t: t * 256.0
+    quirks = {'': None, 'bno055_unsigned_byte': lambda t: t - 256.0 if t >= 128.0 else t,
+              'sbg_legacy_div256': lambda t: t * 256.0}
+    if kind in quirks:
+        return quirks[kind]
     raise ConfigError(f'Expected temperature_quirk to be one of '
                       f'{", ".join(map(repr, TEMPERATURE_QUIRKS))}, got {kind!r}.')

@@ -32,8 +32,8 @@ from gyro_tdc.errors import DatasetError
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['DATAFLASH_MAGIC', 'describe_log', 'detect_format', 'flight_log_data', 'FlightLog',
-           'is_flight_log', 'thermometer', 'ULOG_MAGIC']
+__all__ = ['columns', 'DATAFLASH_MAGIC', 'describe_log', 'detect_format', 'flight_log_data',
+           'FlightLog', 'is_flight_log', 'rate_hz', 'thermometer', 'ULOG_MAGIC']
 
 #: A ULog starts with these 7 bytes (then the version byte).
 ULOG_MAGIC = b'ULog\x01\x125'
@@ -129,6 +129,19 @@ def thermometer(values: object) -> NDArray[np.float64] | None:
     return v
 
 
+def columns(d: dict, names: tuple[str, ...]) -> NDArray[np.float64] | None:
+    """Return a log's fields side by side as an (N, k) float64 array, None when one is missing."""
+    if not all(n in d for n in names):
+        return None
+    return np.column_stack([np.asarray(d[n], dtype=np.float64) for n in names])
+
+
+def rate_hz(t: NDArray[np.float64]) -> float:
+    """Return the mean sample rate of stamps ``t`` (s), Hz (0 without two stamps apart)."""
+    span = float(t.max() - t.min()) if len(t) > 1 else 0.0
+    return (len(t) - 1) / span if span > 0 else 0.0
+
+
 def is_flight_log(path: str | os.PathLike) -> bool:
     """Return True when ``path`` is a file that looks like a ULog or DataFlash log."""
     p = Path(path)
@@ -142,11 +155,8 @@ def _sniff(path: Path) -> str:
             head = f.read(8)
     except OSError:
         head = b''
-    if head.startswith(ULOG_MAGIC):
-        return 'ulog'
-    if head.startswith(DATAFLASH_MAGIC):
-        return 'dataflash'
-    return _SUFFIXES.get(path.suffix.lower(), '')
+    return next((fmt for magic, fmt in ((ULOG_MAGIC, 'ulog'), (DATAFLASH_MAGIC, 'dataflash'))
+                 if head.startswith(magic)), _SUFFIXES.get(path.suffix.lower(), ''))
 
 
 def detect_format(path: str | os.PathLike, requested: str = 'auto') -> str:
@@ -248,24 +258,23 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
             'sensor data (PX4: log sensor_gyro) or turn the on-board compensation off, or '
             'pass --allow-onboard-corrected to use them as they are.')
     ok = np.isfinite(log.gyro).all(axis=1)
-    gyro_t, gyro = log.imu_t[ok], log.gyro[ok]
-    accel = None if log.accel is None else log.accel[ok]
     temp_t = log.imu_t if log.temp_t is None else np.asarray(log.temp_t, dtype=np.float64)
     warm = np.isfinite(log.temp_c) & np.isfinite(temp_t)
     if not warm.any():
         raise DatasetError(f'Log {str(p)!r}: {log.source} instance {log.instance} carries no '
                            'temperature; a drift model needs the IMU temperature.')
-    data = BagData(imu_t=gyro_t, gyro=gyro, accel=accel, frame_id='', temp_t=temp_t[warm],
-                   temp_c=log.temp_c[warm], temp_var=np.zeros(int(warm.sum())), ref_t=None,
-                   ref=None, topics={}, storage=fmt, path=str(p),
+    data = BagData(imu_t=log.imu_t[ok], gyro=log.gyro[ok],
+                   accel=None if log.accel is None else log.accel[ok], frame_id='',
+                   temp_t=temp_t[warm], temp_c=log.temp_c[warm],
+                   temp_var=np.zeros(int(warm.sum())), ref_t=None, ref=None, topics={},
+                   storage=fmt, path=str(p),
                    rejected={'imu_nonfinite': int(np.count_nonzero(~ok)),
                              'temp_nonfinite': int(np.count_nonzero(~warm)),
                              'ref_nonfinite': 0, 'undecodable': 0})
-    keep = {k: v for k, v in log.params.items() if k.startswith(('TC_', 'INS_TCAL'))
-            or k.endswith('_CALTEMP')}
-    info = {'log_format': fmt, 'log': describe_log(log), 'firmware': log.firmware,
-            'source': log.source, 'instance': log.instance, 'device_id': log.device_id,
-            'raw': log.raw, 'onboard_compensated': log.compensated, 'params': keep,
-            'temperature': log.temperature, 'temperature_proxy': log.proxy,
-            'warnings': warnings}
-    return data, info
+    return data, {
+        'log_format': fmt, 'log': describe_log(log), 'firmware': log.firmware,
+        'source': log.source, 'instance': log.instance, 'device_id': log.device_id,
+        'raw': log.raw, 'onboard_compensated': log.compensated,
+        'params': {k: v for k, v in log.params.items()
+                   if k.startswith(('TC_', 'INS_TCAL')) or k.endswith('_CALTEMP')},
+        'temperature': log.temperature, 'temperature_proxy': log.proxy, 'warnings': warnings}

@@ -24,8 +24,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import functools
+import itertools
 import struct
-from typing import Sequence
 
 from gyro_tdc.data.mark import cov_marked, MARK, UNKNOWN_MARK
 from gyro_tdc.errors import DatasetError
@@ -55,19 +55,12 @@ _IMU_ORDER = (('orientation', 4), ('orientation_covariance', 9), ('angular_veloc
               ('linear_acceleration_covariance', 9))
 
 
-def _fields(order: Sequence[tuple[str, int]]) -> dict[str, tuple[int, int]]:
-    """Return {name: (index of the first float64, count)} for fields in wire order."""
-    out, k = {}, 0
-    for name, count in order:
-        out[name] = (k, count)
-        k += count
-    return out
-
-
+_STARTS = [0, *itertools.accumulate(count for _, count in _IMU_ORDER)]
 #: Imu field name -> (index of its first value in the float64 block, number of values).
-IMU_FIELDS: dict[str, tuple[int, int]] = _fields(_IMU_ORDER)
+IMU_FIELDS: dict[str, tuple[int, int]] = {
+    name: (k, count) for (name, count), k in zip(_IMU_ORDER, _STARTS)}
 #: Number of float64 values after the header of an Imu.
-IMU_DOUBLES = sum(count for _, count in _IMU_ORDER)
+IMU_DOUBLES = _STARTS[-1]
 #: Byte offsets of the fields the compensator touches, from the start of the float64 block.
 ANGULAR_VELOCITY = 8 * IMU_FIELDS['angular_velocity'][0]
 ANGULAR_VELOCITY_COV = 8 * IMU_FIELDS['angular_velocity_covariance'][0]
@@ -267,18 +260,13 @@ def encode(sec: ArrayLike, nanosec: ArrayLike, frame_id: str, values: ArrayLike,
         raise DatasetError(f'Expected `values` to have shape (N, K), got {values.shape}.')
     frame = frame_id.encode('utf-8') + b'\x00'
     lay = Layout(len(frame), values.shape[1], big_endian)
-    dt = lay.dtype
-    n = values.shape[0]
-    rec = np.zeros(n, dtype=dt)
-    rec['encap'] = np.frombuffer(lay.encapsulation, dtype=np.uint8)
-    rec['sec'] = sec
-    rec['nanosec'] = nanosec
-    rec['strlen'] = len(frame)
-    rec['frame'] = np.frombuffer(frame, dtype=np.uint8)
-    rec['data'] = values
-    buf = rec.tobytes()
-    size = dt.itemsize
-    return [buf[i:i + size] for i in range(0, n * size, size)]
+    rec = np.zeros(values.shape[0], dtype=lay.dtype)
+    for name, value in (('encap', np.frombuffer(lay.encapsulation, dtype=np.uint8)),
+                        ('sec', sec), ('nanosec', nanosec), ('strlen', len(frame)),
+                        ('frame', np.frombuffer(frame, dtype=np.uint8)), ('data', values)):
+        rec[name] = value
+    buf, size = rec.tobytes(), lay.size
+    return [buf[i:i + size] for i in range(0, len(buf), size)]
 
 
 # --------------------------------------------------------------------------------------------
@@ -317,9 +305,7 @@ def locate(data: bytes) -> tuple[int, int, int] | None:
         return None
     sec, nanosec, length = _HEAD.unpack_from(data, STAMP_SEC)
     base = body_offset(length)
-    if len(data) != base + _TAIL:
-        return None
-    return sec, nanosec, base
+    return (sec, nanosec, base) if len(data) == base + _TAIL else None
 
 
 class ImuView:
@@ -338,8 +324,7 @@ class ImuView:
     __slots__ = ('data', 'base')
 
     def __init__(self, data: bytes, base: int) -> None:
-        self.data = data
-        self.base = base
+        self.data, self.base = data, base
 
     def angular_velocity(self) -> tuple[float, float, float]:
         """Return ``angular_velocity`` (x, y, z), rad/s."""
@@ -347,8 +332,7 @@ class ImuView:
 
     def linear_acceleration(self) -> tuple[float, float, float] | None:
         """Return ``linear_acceleration``, m/s^2, or None when its covariance[0] is -1."""
-        cov0 = _F64.unpack_from(self.data, self.base + LINEAR_ACCELERATION_COV)[0]
-        if cov0 == -1.0:
+        if _F64.unpack_from(self.data, self.base + LINEAR_ACCELERATION_COV)[0] == -1.0:
             return None
         return _VEC3.unpack_from(self.data, self.base + LINEAR_ACCELERATION)
 
@@ -405,7 +389,7 @@ class ImuView:
             _F64.pack_into(buf, c + 32, v4)
             _F64.pack_into(buf, c + 64, v8)
             if mark and 0.0 < v0 < _INF and 0.0 < v4 < _INF and 0.0 < v8 < _INF:
-                _U16_INTO(buf, c, _MARK16)   # (3x faster than bytearray slice assignment)
+                _U16_INTO(buf, c, _MARK16)   # (not a bytearray slice assignment: slower)
                 _U16_INTO(buf, c + 32, _MARK16)
                 _U16_INTO(buf, c + 64, _MARK16)
         elif mark and b is None:             # unknown stays unknown: -0.0 diagonal marks it

@@ -54,9 +54,7 @@ def mark(value: float) -> float:
         The marked value (within 2**-36 relative of ``value``).
 
     """
-    if not 0.0 < value < float('inf'):
-        return value
-    return _F64.unpack(MARK + _F64.pack(value)[2:])[0]
+    return _F64.unpack(MARK + _F64.pack(value)[2:])[0] if 0.0 < value < float('inf') else value
 
 
 def is_marked(value: float) -> bool:

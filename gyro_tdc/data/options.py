@@ -151,4 +151,4 @@ def _reference(value: object) -> tuple[float, float, float]:
     if ref.shape != (3,) or not np.all(np.isfinite(ref)):
         raise DatasetError('Expected `reference` to be three finite rates (x, y, z) in rad/s, '
                            f'got {value!r}.')
-    return (float(ref[0]), float(ref[1]), float(ref[2]))
+    return tuple(ref.tolist())

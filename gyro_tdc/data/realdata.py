@@ -129,12 +129,10 @@ def read_pan_cubesat_csv(path: str | Path) -> PanCubesat:
     t = rows[:, 0] / 1000.0
     if np.any(np.diff(t) <= 0):
         raise DatasetError(f'Expected strictly increasing `time (ms)` in {str(path)!r}.')
-    spike = rows[:, 4] <= PAN_SPIKE_GYROX
-    keep = ~spike
-    counts = raw.astype(np.int64).astype(np.uint16).view(np.int16)
-    temp_c = 25.0 + counts.astype(np.float64) / LSM6DSM_LSB_PER_C
+    keep = rows[:, 4] > PAN_SPIKE_GYROX
+    temp_c = 25.0 + raw.astype(np.int64).astype(np.uint16).view(np.int16) / LSM6DSM_LSB_PER_C
     return PanCubesat(t=t[keep], gyro=PAN_GYRO_CORRECTION * rows[keep, 4:7],
-                      temp_c=temp_c[keep], rows_read=int(len(rows)), removed_t=t[spike])
+                      temp_c=temp_c[keep], rows_read=int(len(rows)), removed_t=t[~keep])
 
 
 def pan_cubesat_to_bag(csv_path: str | Path, out: str | Path, *,
@@ -169,9 +167,7 @@ def pan_cubesat_to_bag(csv_path: str | Path, out: str | Path, *,
 
     """
     data = read_pan_cubesat_csv(csv_path)
-    n = len(data.t)
-    write_bag(out, imu_t=data.t, gyro=data.gyro, accel=np.zeros((n, 3)), temp_t=data.t,
+    write_bag(out, imu_t=data.t, gyro=data.gyro, accel=np.zeros_like(data.gyro), temp_t=data.t,
               temp_c=data.temp_c, temp_var=LSM6DSM_TEMP_VARIANCE, ref_t=data.t,
-              ref=np.zeros((n, 3)), storage=storage, frame_id='imu_link',
-              accel_cov=(-1.0, 0.0, 0.0))
+              ref=np.zeros_like(data.gyro), storage=storage, accel_cov=(-1.0, 0.0, 0.0))
     return data

@@ -109,14 +109,11 @@ class SessionSplit:
 
     def lines(self) -> list[str]:
         """Return the report: how many sessions, and every break found (cut or not)."""
-        cut = self.mode == 'auto'
-        head = (f'sessions ({self.mode}): {self.count} '
+        return [f'sessions ({self.mode}): {self.count} '
                 + ('(one offset for all the data)' if self.mode == 'none' else
-                   '(one turn-on offset each, a shared thermal curve)'))
-        out = [head]
-        for b in self.breaks:
-            out.append(f'  {b}' + ('' if cut else f' (not cut: --sessions {self.mode})'))
-        return out
+                   '(one turn-on offset each, a shared thermal curve)')] + [
+            f'  {b}' + ('' if self.mode == 'auto' else f' (not cut: --sessions {self.mode})')
+            for b in self.breaks]
 
 
 def find_breaks(run: Run, gap_s: float = 0.0) -> list[tuple[int, str]]:
@@ -176,29 +173,21 @@ def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0
     """
     check_sessions(mode, gap_s)
     out_runs: list[Run] = []
-    labels: list[int] = []
     sessions: list[Session] = []
-    breaks: list[str] = []
-    parts: list[tuple[int, int, int]] = []
+    labels, breaks, parts = [], [], []       # per run, found, (bag run, start, stop) per run
     for j, run in enumerate(runs):
         found = find_breaks(run, gap_s)
-        for i, why in found:
-            breaks.append(f'{run.name}: {why} at t = {run.t[i]:.1f} s')
-        if mode != 'auto' or not found:
-            pieces = [(run, 'bag')]
-            parts.append((j, 0, len(run)))
-        else:
-            cuts = [0] + [i for i, _ in found] + [len(run)]
-            whys = ['bag'] + [w for _, w in found]
-            pieces = [(run.slice(a, b, name=f'{run.name}@{k + 1}'), why)
-                      for k, (a, b, why) in enumerate(zip(cuts[:-1], cuts[1:], whys))]
-            parts.extend((j, a, b) for a, b in zip(cuts[:-1], cuts[1:]))
-            for piece, _ in pieces:
+        breaks += [f'{run.name}: {why} at t = {run.t[i]:.1f} s' for i, why in found]
+        cut = found if mode == 'auto' else []
+        cuts = [0] + [i for i, _ in cut] + [len(run)]
+        for k, (a, b, why) in enumerate(zip(cuts[:-1], cuts[1:], ['bag'] + [w for _, w in cut])):
+            piece = run.slice(a, b, name=f'{run.name}@{k + 1}') if cut else run
+            if cut:
                 piece.info.pop('restarts', None)      # indices of the whole run
-        for piece, why in pieces:
             label = 0 if mode == 'none' else len(sessions)
             out_runs.append(piece)
             labels.append(label)
+            parts.append((j, a, b))
             if mode != 'none':
                 sessions.append(Session(piece.name, run.name, label, float(piece.t[0]),
                                         float(piece.t[-1]), len(piece), why))

@@ -32,7 +32,7 @@ import os
 from pathlib import Path
 import struct
 
-from gyro_tdc.data.flightlog import FlightLog, thermometer
+from gyro_tdc.data.flightlog import columns, FlightLog, rate_hz, thermometer
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
@@ -96,9 +96,9 @@ def _seconds(d: dict) -> NDArray[np.float64]:
     return np.asarray(us, dtype=np.float64) * 1e-6
 
 
-def _xyz(d: dict, names: tuple[str, str, str]) -> NDArray[np.float64]:
-    """Return three fields side by side as an (N, 3) float64 array."""
-    return np.column_stack([np.asarray(d[n], dtype=np.float64) for n in names])
+def _vec(name: str) -> tuple[str, str, str]:
+    """Return the field names of a logged array of three (``name[0]`` ...)."""
+    return (f'{name}[0]', f'{name}[1]', f'{name}[2]')
 
 
 def _on(t: NDArray[np.float64], t_src: NDArray[np.float64],
@@ -106,54 +106,46 @@ def _on(t: NDArray[np.float64], t_src: NDArray[np.float64],
     """Interpolate ``v`` (stamps ``t_src``) onto ``t`` per column (NaN outside)."""
     order = np.argsort(t_src, kind='stable')
     ts, vs = t_src[order], v[order]
-    cols = [np.interp(t, ts, vs[:, j], left=np.nan, right=np.nan) for j in range(v.shape[1])]
-    return np.column_stack(cols)
+    return np.column_stack([np.interp(t, ts, vs[:, j], left=np.nan, right=np.nan)
+                            for j in range(v.shape[1])])
 
 
-def _rate(d: dict | None) -> float:
-    """Return a topic's mean sample rate, Hz (0 with fewer than two samples)."""
-    if d is None or len(d['timestamp']) < 2:
-        return 0.0
-    t = _seconds(d)
-    span = float(t.max() - t.min())
-    return (len(t) - 1) / span if span > 0 else 0.0
+def _rate(d: dict) -> float:
+    """Return a topic's mean sample rate, Hz."""
+    return rate_hz(_seconds(d))
 
 
-def _delta_rate(d: dict, what: str) -> NDArray[np.float64]:
+def _delta_rate(d: dict, what: str) -> NDArray[np.float64] | None:
     """Return ``vehicle_imu``'s integrated ``delta_angle``/``delta_velocity`` as a rate."""
-    dt = np.asarray(d[f'{what}_dt'], dtype=np.float64) * 1e-6
+    v = columns(d, _vec(what))
+    if v is None or f'{what}_dt' not in d:
+        return None
     with np.errstate(invalid='ignore', divide='ignore'):
-        return _xyz(d, tuple(f'{what}[{i}]' for i in range(3))) / dt[:, None]
+        return v / (np.asarray(d[f'{what}_dt'], dtype=np.float64)[:, None] * 1e-6)
+
+
+#: The gyro topics and the fields each needs to hold rates.
+_GYRO_FIELDS = {'sensor_gyro': ('x', 'y', 'z'), 'sensor_combined': ('gyro_rad[0]',),
+                'vehicle_imu': ('delta_angle[0]', 'delta_angle_dt')}
 
 
 def _gyros(topics: dict, instance: int) -> dict[str, dict]:
     """Return the gyro topics of an instance that hold rates: name -> columns."""
-    out = {}
-    g = topics.get('sensor_gyro', {}).get(instance)
-    if g is not None and all(k in g for k in ('x', 'y', 'z')):
-        out['sensor_gyro'] = g
-    c = topics.get('sensor_combined', {}).get(instance)
-    if c is not None and 'gyro_rad[0]' in c:
-        out['sensor_combined'] = c
-    v = topics.get('vehicle_imu', {}).get(instance)
-    if v is not None and 'delta_angle[0]' in v and 'delta_angle_dt' in v:
-        out['vehicle_imu'] = v
-    return out
+    return {k: d for k, need in _GYRO_FIELDS.items()
+            if (d := topics.get(k, {}).get(instance)) is not None and all(n in d for n in need)}
 
 
 def _pick_gyro(gyros: dict[str, dict]) -> str:
     """Return the gyro to read: ``sensor_gyro`` at full rate, else the fastest one."""
     rates = {k: _rate(d) for k, d in gyros.items()}
-    best = max(rates.values())
-    if 'sensor_gyro' in rates and rates['sensor_gyro'] >= FULL_RATE_FRACTION * best:
+    if 'sensor_gyro' in rates and rates['sensor_gyro'] >= FULL_RATE_FRACTION * max(rates.values()):
         return 'sensor_gyro'
     return max((k for k in rates if k != 'sensor_gyro'), key=lambda k: rates[k])
 
 
 def _inventory(topics: dict) -> str:
     """Return what each instance of the log carries, in words (for a refusal)."""
-    ids = sorted({i for name in ('sensor_gyro', 'sensor_combined', 'vehicle_imu',
-                                 'vehicle_imu_status', 'sensor_accel')
+    ids = sorted({i for name in (*_GYRO_FIELDS, 'vehicle_imu_status', 'sensor_accel')
                   for i in topics.get(name, {})})
     parts = []
     for i in ids:
@@ -171,21 +163,14 @@ def _inventory(topics: dict) -> str:
 def _thermometer(topics: dict, instance: int, source: str
                  ) -> tuple[str, NDArray[np.float64], NDArray[np.float64]] | None:
     """Return (name, stamps s, degC) of the thermometer ``source`` asks for, None if none."""
-    if source == 'imu':
-        cands = [(tp, f, instance) for tp, f in _IMU_THERMOMETERS]
-    elif source == 'baro':
-        cands = [(tp, f, 0) for tp, f in _BARO_THERMOMETERS]
-    else:
-        tp, _, f = source.partition('.')
-        cands = [(tp, f, instance), (tp, f, 0)]
+    tp, _, f = source.partition('.')
+    cands = {'imu': [(tp, f, instance) for tp, f in _IMU_THERMOMETERS],
+             'baro': [(tp, f, 0) for tp, f in _BARO_THERMOMETERS]}.get(
+        source, [(tp, f, instance), (tp, f, 0)])
     for tp, f, i in cands:
-        d = topics.get(tp, {}).get(i)
-        if d is None or f not in d:
-            continue
-        v = thermometer(d[f])
-        if v is not None:
-            name = f'{tp}.{f}' + (f' instance {i}' if i else '')
-            return name, _seconds(d), v
+        d = topics.get(tp, {}).get(i) or {}
+        if (v := thermometer(d.get(f))) is not None:
+            return f'{tp}.{f}' + (f' instance {i}' if i else ''), _seconds(d), v
     return None
 
 
@@ -198,14 +183,14 @@ def _required_thermometer(p: Path, topics: dict[str, dict[int, dict]], instance:
     Without the IMU's own thermometer the message names the barometer proxy when there is one.
     """
     therm = _thermometer(topics, instance, temperature_source)
+    if therm is None and temperature_source == 'imu':
+        baro = _thermometer(topics, instance, 'baro') is not None
+        raise DatasetError(
+            f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
+            "thermometer reads other than a constant 0 or NaN; the log's instances: "
+            f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
+                                        "barometer's as a proxy." if baro else '.'))
     if therm is None:
-        if temperature_source == 'imu':
-            baro = _thermometer(topics, instance, 'baro') is not None
-            raise DatasetError(
-                f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
-                "thermometer reads other than a constant 0 or NaN; the log's instances: "
-                f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
-                                            "barometer's as a proxy." if baro else '.'))
         raise DatasetError(f'Log {str(p)!r}: no usable thermometer for --temperature-source '
                            f"{temperature_source} (the log's instances: "
                            f'{_inventory(topics)}).')
@@ -258,19 +243,16 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     for d in ulog.data_list:
         topics.setdefault(d.name, {})[int(d.multi_id)] = d.data
     active, words = onboard_status(params, 'px4')
-    notes: list[str] = []
     damaged = bool(ulog.file_corruption)
-    if damaged or chatter.getvalue():
-        notes.append('pyulog found damaged messages (skipped)')
-    found = {i for name in ('sensor_gyro', 'sensor_combined', 'vehicle_imu')
-             for i in topics.get(name, {})}
+    notes = ['pyulog found damaged messages (skipped)'] if damaged or chatter.getvalue() else []
+    found = {i for name in _GYRO_FIELDS for i in topics.get(name, {})}
     if not found:
         what = ', '.join(sorted({d.name for d in ulog.data_list})) or 'no logged topic'
         raise DatasetError(f'Log {str(p)!r} has neither sensor_gyro nor sensor_combined '
                            f'nor vehicle_imu (it has {what}).')
     gyros = _gyros(topics, instance)
     if not gyros:
-        kind = next(k for k in ('sensor_gyro', 'sensor_combined', 'vehicle_imu') if k in topics)
+        kind = next(k for k in _GYRO_FIELDS if k in topics)
         raise DatasetError(f'Log {str(p)!r}: {kind} has no instance {instance} (it has '
                            f'{", ".join(map(str, sorted(topics[kind])))}; what each instance '
                            f'carries: {_inventory(topics)}; --imu-instance N).')
@@ -278,38 +260,30 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     d = gyros[source]
     t = _seconds(d)
     raw = source == 'sensor_gyro'
-    compensated = active and not raw
-    device = 0
+    device, acc = 0, None
     if raw:
-        gyro = _xyz(d, ('x', 'y', 'z'))
+        gyro = columns(d, ('x', 'y', 'z'))
         device = int(d['device_id'][0]) if 'device_id' in d and len(t) else 0
-        acc_topic, acc_names = topics.get('sensor_accel', {}).get(instance), ('x', 'y', 'z')
+        a = topics.get('sensor_accel', {}).get(instance)
+        if accel and a is not None and (v := columns(a, ('x', 'y', 'z'))) is not None:
+            acc = _on(t, _seconds(a), v)
     elif source == 'sensor_combined':
-        gyro = _xyz(d, tuple(f'gyro_rad[{i}]' for i in range(3)))
-        acc_topic, acc_names = d, tuple(f'accelerometer_m_s2[{i}]' for i in range(3))
-        if 'sensor_gyro' in gyros:
-            notes.append(f'sensor_gyro at {_rate(gyros["sensor_gyro"]):.3g} Hz beside '
-                         f'sensor_combined (rotated, calibrated on board) at {_rate(d):.3g} '
-                         'Hz: the faster one is read')
-        else:
-            notes.append('no sensor_gyro in the log: sensor_combined (rotated, calibrated on '
-                         'board) is all there is')
+        gyro = columns(d, _vec('gyro_rad'))
+        acc = columns(d, _vec('accelerometer_m_s2')) if accel else None
+        notes.append(f'sensor_gyro at {_rate(gyros["sensor_gyro"]):.3g} Hz beside '
+                     f'sensor_combined (rotated, calibrated on board) at {_rate(d):.3g} '
+                     'Hz: the faster one is read' if 'sensor_gyro' in gyros else
+                     'no sensor_gyro in the log: sensor_combined (rotated, calibrated on '
+                     'board) is all there is')
     else:
         gyro = _delta_rate(d, 'delta_angle')
-        acc_topic, acc_names = None, ()
+        acc = _delta_rate(d, 'delta_velocity') if accel else None
         notes.append(f'vehicle_imu (integrated, calibrated on board) at {_rate(d):.3g} Hz is '
                      'the fastest gyro')
     name, temp_t, temp = _required_thermometer(p, topics, instance, temperature_source, source)
-    acc = None
-    if accel:
-        if source == 'vehicle_imu' and 'delta_velocity[0]' in d and 'delta_velocity_dt' in d:
-            acc = _delta_rate(d, 'delta_velocity')
-        elif acc_topic is not None and all(n in acc_topic for n in acc_names):
-            acc = (_xyz(acc_topic, acc_names) if acc_topic is d
-                   else _on(t, _seconds(acc_topic), _xyz(acc_topic, acc_names)))
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
                      firmware='px4', source=source, instance=int(instance),
-                     instances=tuple(sorted(found)), raw=raw, compensated=compensated,
+                     instances=tuple(sorted(found)), raw=raw, compensated=active and not raw,
                      onboard=words, device_id=device, truncated_bytes=cut, notes=notes,
                      temp_t=temp_t, temperature=name, proxy=temperature_source != 'imu',
                      damage='pyulog resynchronised past damaged messages' if damaged else '')

@@ -25,11 +25,14 @@ bare ``std_msgs/msg/Float32`` or ``Float64`` (no header) are decoded by
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
+import functools
 from typing import Any, Sequence
 
 from gyro_tdc.data import imu_cdr
-from gyro_tdc.data.imu_cdr import field_slice, IMU_DOUBLES, IMU_FIELDS, layout_of
+from gyro_tdc.data.bag.storage import split
+from gyro_tdc.data.imu_cdr import CDR_LE, field_slice, IMU_DOUBLES, IMU_FIELDS, layout_of
 from gyro_tdc.errors import DatasetError
 import numpy as np
 from numpy.typing import NDArray
@@ -53,47 +56,38 @@ TEMPERATURE_TYPES = (TEMPERATURE_TYPE, *FLOAT_TYPES)
 N_DOUBLES = {IMU_TYPE: IMU_DOUBLES, TEMPERATURE_TYPE: 2, REFERENCE_TYPE: 3}
 
 
-def _columns(*names: str) -> tuple[int, ...]:
-    """Return the float64-block columns of Imu fields (see gyro_tdc.data.imu_cdr.IMU_FIELDS)."""
-    return tuple(k for name in names for k in range(IMU_DOUBLES)[field_slice(name)])
-
-
 # Columns of that float64 block that read_bag keeps: Imu angular_velocity and
-# linear_acceleration; Temperature temperature and variance; Vector3Stamped x, y, z.
-KEEP = {IMU_TYPE: _columns('angular_velocity', 'linear_acceleration'),
+# linear_acceleration (gyro_tdc.data.imu_cdr.IMU_FIELDS); Temperature temperature and
+# variance; Vector3Stamped x, y, z.
+KEEP = {IMU_TYPE: tuple(k for name in ('angular_velocity', 'linear_acceleration')
+                        for k in range(IMU_DOUBLES)[field_slice(name)]),
         TEMPERATURE_TYPE: (0, 1), REFERENCE_TYPE: (0, 1, 2)}
 
 
-_TYPESTORE = None
-
-
+@functools.lru_cache(maxsize=None)
 def jazzy() -> Any:
     """Return the (cached) ROS 2 Jazzy typestore."""
-    global _TYPESTORE
-    if _TYPESTORE is None:
-        _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
-    return _TYPESTORE
+    return get_typestore(Stores.ROS2_JAZZY)
 
 
 def to_msg(msgtype: str, sec: int, nanosec: int, frame_id: str,
            row: NDArray[np.float64]) -> Any:
     """Build a rosbags message object of ``msgtype`` from a header and its float64 block."""
-    ts = jazzy()
-    types = ts.types
+    types = jazzy().types
     header = types['std_msgs/msg/Header'](
         types['builtin_interfaces/msg/Time'](int(sec), int(nanosec)), frame_id)
     row = [float(x) for x in row]
-    if msgtype == IMU_TYPE:
-        vec = types['geometry_msgs/msg/Vector3']
-        f = {name: row[field_slice(name)] for name in IMU_FIELDS}
-        return types[IMU_TYPE](
-            header, types['geometry_msgs/msg/Quaternion'](*f['orientation']),
-            np.array(f['orientation_covariance']), vec(*f['angular_velocity']),
-            np.array(f['angular_velocity_covariance']), vec(*f['linear_acceleration']),
-            np.array(f['linear_acceleration_covariance']))
+    vec = types['geometry_msgs/msg/Vector3']
     if msgtype == TEMPERATURE_TYPE:
         return types[TEMPERATURE_TYPE](header, row[0], row[1])
-    return types[REFERENCE_TYPE](header, types['geometry_msgs/msg/Vector3'](*row[0:3]))
+    if msgtype != IMU_TYPE:
+        return types[REFERENCE_TYPE](header, vec(*row[0:3]))
+    f = {name: row[field_slice(name)] for name in IMU_FIELDS}
+    return types[IMU_TYPE](
+        header, types['geometry_msgs/msg/Quaternion'](*f['orientation']),
+        np.array(f['orientation_covariance']), vec(*f['angular_velocity']),
+        np.array(f['angular_velocity_covariance']), vec(*f['linear_acceleration']),
+        np.array(f['linear_acceleration_covariance']))
 
 
 def from_msg(msgtype: str, msg: Any) -> tuple[int, int, str, list[float]]:
@@ -106,11 +100,9 @@ def from_msg(msgtype: str, msg: Any) -> tuple[int, int, str, list[float]]:
         row = ([o.x, o.y, o.z, o.w, *msg.orientation_covariance, w.x, w.y, w.z,
                 *msg.angular_velocity_covariance, a.x, a.y, a.z,
                 *msg.linear_acceleration_covariance])
-    elif msgtype == TEMPERATURE_TYPE:
-        row = [msg.temperature, msg.variance]
     else:
-        v = msg.vector
-        row = [v.x, v.y, v.z]
+        v = msg.vector if msgtype == REFERENCE_TYPE else None
+        row = [msg.temperature, msg.variance] if v is None else [v.x, v.y, v.z]
     if len(row) != N_DOUBLES[msgtype]:
         raise DatasetError(f'Expected {msgtype} to hold {N_DOUBLES[msgtype]} float64 values '
                            f'after its header, got {len(row)}.')
@@ -123,12 +115,11 @@ def encode_checked(msgtype: str, sec: NDArray[np.int64], nanosec: NDArray[np.int
     if not len(sec):
         return []
     out = imu_cdr.encode(sec, nanosec, frame_id, data)
-    ref = bytes(jazzy().serialize_cdr(
-        to_msg(msgtype, sec[0], nanosec[0], frame_id, data[0]), msgtype))
-    if ref == out[0]:
+    ts = jazzy()
+    if bytes(ts.serialize_cdr(to_msg(msgtype, sec[0], nanosec[0], frame_id, data[0]),
+                              msgtype)) == out[0]:
         return out
     # The fixed layout disagrees with rosbags (should not happen): serialise one by one.
-    ts = jazzy()
     return [bytes(ts.serialize_cdr(to_msg(msgtype, s, ns, frame_id, row), msgtype))
             for s, ns, row in zip(sec.tolist(), nanosec.tolist(), data)]
 
@@ -157,31 +148,24 @@ def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype, msgtype: str,
     # Encapsulation (word 0), frame id length, frame id and its padding equal to the first
     # message's, compared as raw 32-bit words column by column (one strided pass each).
     words = np.frombuffer(buf, dtype=np.uint32).reshape(n, dt.itemsize // 4)
-    frame = rec['frame']
+    frame, data = rec['frame'], rec['data']
     cols = [0, *range(imu_cdr.FRAME_ID_LENGTH // 4, dt.fields['data'][1] // 4)]
     if frame[0, -1] != 0 or any(np.any(words[:, k] != words[0, k]) for k in cols):
         return None
     try:
         frame_id = frame[0, :-1].tobytes().decode('utf-8')
-    except UnicodeDecodeError:
-        return None
-    data = rec['data']
-    # Check the layout against rosbags on a few messages of every block.
-    ts = jazzy()
-    for i in sorted({0, n // 2, n - 1}):
-        try:
+        for i in sorted({0, n // 2, n - 1}):    # the layout checked against rosbags
             raw = bytes(buf[i * dt.itemsize:(i + 1) * dt.itemsize])
-            sec, nsec, fid, row = from_msg(msgtype, ts.deserialize_cdr(raw, msgtype))
-        except (SerdeError, AttributeError, DatasetError):
-            return None
-        if (sec != rec['sec'][i] or nsec != rec['nanosec'][i] or fid != frame_id
-                or not np.array_equal(np.asarray(row, dtype=np.float64), data[i],
-                                      equal_nan=True)):
-            return None
-    cols = list(KEEP[msgtype] if keep is None else keep)
-    values = data[:, cols].astype(np.float64, copy=False)
+            sec, nsec, fid, row = from_msg(msgtype, jazzy().deserialize_cdr(raw, msgtype))
+            if (sec != rec['sec'][i] or nsec != rec['nanosec'][i] or fid != frame_id
+                    or not np.array_equal(np.asarray(row, dtype=np.float64), data[i],
+                                          equal_nan=True)):
+                return None
+    except (SerdeError, AttributeError, DatasetError, UnicodeDecodeError):
+        return None
+    keep = list(KEEP[msgtype] if keep is None else keep)
     return Decoded(rec['sec'].astype(np.int64), rec['nanosec'].astype(np.int64), frame_id,
-                   values, 0)
+                   data[:, keep].astype(np.float64, copy=False), 0)
 
 
 def decode_joined(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
@@ -214,21 +198,15 @@ def decode_joined(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
 
     """
     n = len(lengths)
-    sizes = (lengths.astype(np.int64, copy=False) if isinstance(lengths, np.ndarray)
-             else np.fromiter(lengths, dtype=np.int64, count=n))
-    size = int(sizes[0]) if n else 0
-    if n and not np.any(sizes != size):
-        try:
-            dt = layout_of(bytes(buf[:size]), N_DOUBLES[msgtype]).dtype
-        except DatasetError:
-            dt = None
-        if dt is not None and dt.itemsize == size:
+    sizes = np.asarray(lengths, dtype=np.int64)
+    if n and not np.any(sizes != sizes[0]):
+        with contextlib.suppress(DatasetError):       # no fixed layout: rosbags decodes
+            size = int(sizes[0])
+            dt = layout_of(bytes(buf[:size]), N_DOUBLES[msgtype]).dtype   # of size bytes
             dec = _decode_records(buf[:n * size], n, dt, msgtype, keep)
             if dec is not None:
                 return dec
-    ends = np.cumsum(sizes).tolist()
-    raws = [bytes(buf[a:b]) for a, b in zip([0] + ends[:-1], ends)]
-    return decode_slow(raws, msgtype, typestore, keep)
+    return decode_slow([bytes(x) for x in split(buf, sizes)], msgtype, typestore, keep)
 
 
 def decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any,
@@ -236,11 +214,8 @@ def decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any,
     """Decode a block message by message with rosbags (any layout, any frame ids)."""
     n = len(raws)
     keep = list(KEEP[msgtype] if keep is None else keep)
-    sec = np.zeros(n, dtype=np.int64)
-    nsec = np.zeros(n, dtype=np.int64)
-    values = np.full((n, len(keep)), np.nan)
-    bad = np.zeros(n, dtype=bool)
-    frame_id = None
+    sec, nsec = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
+    values, bad, frame_id = np.full((n, len(keep)), np.nan), np.zeros(n, dtype=bool), None
     for i, raw in enumerate(raws):
         try:
             s, ns, fid, row = from_msg(msgtype, typestore.deserialize_cdr(raw, msgtype))
@@ -258,10 +233,6 @@ def decode(raws: Sequence[bytes], msgtype: str, typestore: Any,
            keep: Sequence[int] | None = None) -> Decoded:
     """Decode a block with the numpy fast path, falling back to rosbags when needed."""
     return decode_joined(b''.join(raws), [len(x) for x in raws], msgtype, typestore, keep)
-
-
-# CDR little-endian encapsulation (plain CDR, no options): the fast path of decode_float.
-_CDR_LE = b'\x00\x01\x00\x00'
 
 
 def decode_float(raws: Sequence[bytes], msgtype: str, typestore: Any) -> Decoded:
@@ -291,20 +262,16 @@ def decode_float(raws: Sequence[bytes], msgtype: str, typestore: Any) -> Decoded
     """
     n = len(raws)
     dtype = np.dtype(FLOAT_TYPES[msgtype])
-    size = len(_CDR_LE) + dtype.itemsize
-    zeros = np.zeros(n, dtype=np.int64)
-    values = np.zeros((n, 2))
-    if n and all(len(r) == size and r[:4] == _CDR_LE for r in raws):
-        buf = b''.join(raws)
-        value = np.ndarray((n,), dtype=dtype, buffer=buf, offset=len(_CDR_LE),
+    size = len(CDR_LE) + dtype.itemsize
+    if n and all(len(r) == size and r[:4] == CDR_LE for r in raws):
+        value = np.ndarray((n,), dtype=dtype, buffer=b''.join(raws), offset=len(CDR_LE),
                            strides=(size,))
-        try:
-            same = all(np.array_equal(np.float64(typestore.deserialize_cdr(
-                raws[i], msgtype).data), np.float64(value[i]), equal_nan=True)
-                for i in sorted({0, n // 2, n - 1}))
-        except (SerdeError, AttributeError):
-            same = False
-        if same:
-            values[:, 0] = value
-            return Decoded(zeros, zeros.copy(), '', values, 0)
+        with contextlib.suppress(SerdeError, AttributeError):
+            if all(np.array_equal(np.float64(typestore.deserialize_cdr(raws[i], msgtype).data),
+                                  np.float64(value[i]), equal_nan=True)
+                   for i in sorted({0, n // 2, n - 1})):
+                values = np.zeros((n, 2))
+                values[:, 0] = value
+                return Decoded(np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), '',
+                               values, 0)
     return decode_slow(raws, msgtype, typestore, (0, 1))

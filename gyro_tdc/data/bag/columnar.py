@@ -148,10 +148,7 @@ def open_bag(bag: Path, info: Mapping) -> Iterator[Bag]:
     A storage compressed file by file is decompressed into a temporary directory first,
     as rosbags does. Raises :class:`Unfit` where rosbags' reader must decide.
     """
-    try:
-        conns = entries(bag, info)
-    except ValueError as err:
-        raise Unfit(str(err)) from err
+    conns = entries(bag, info)
     paths = [bag / PurePath(x).name for x in info['relative_file_paths']]
     with ExitStack() as stack:
         if info.get('compression_mode', '').lower() == 'file':

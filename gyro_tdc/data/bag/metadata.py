@@ -18,7 +18,8 @@ A rosbag2 directory's ``metadata.yaml``: where the bag is, its topics, and check
 The counts size every column of :func:`gyro_tdc.data.bag.reader.read_bag`, so they are checked
 against what the storage files can hold before anything is allocated (:func:`check_counts`).
 :func:`entries` reads the topic entries as rosbags' reader does and refuses, with
-:class:`ValueError`, what rosbags refuses: the columnar read then leaves the bag to rosbags.
+:class:`~gyro_tdc.data.bag.storage.Unfit`, what rosbags refuses: the columnar read then
+leaves the bag to rosbags.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from typing import Any, Mapping, NamedTuple
 
 from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
 from gyro_tdc.data.bag.codec import N_DOUBLES
+from gyro_tdc.data.bag.storage import Unfit
 from gyro_tdc.data.imu_cdr import FRAME_ID
 from gyro_tdc.errors import DatasetError
 
@@ -82,32 +84,26 @@ def min_message_bytes(msgtype: str) -> int:
     least its NUL) and a run of float64 values; any other type at least its 4-byte CDR
     encapsulation.
     """
-    if msgtype in N_DOUBLES:
-        return FRAME_ID + 1 + 8 * N_DOUBLES[msgtype]
-    return 4
+    return FRAME_ID + 1 + 8 * N_DOUBLES[msgtype] if msgtype in N_DOUBLES else 4
 
 
 def storage_bytes(bag: Path, info: Mapping) -> int | None:
     """Return the size of the storage files metadata.yaml lists, bytes (None: one is missing)."""
     names = info.get('relative_file_paths')
-    total = 0
-    for name in names if isinstance(names, list) else []:
-        try:
-            total += (bag / PurePath(str(name)).name).stat().st_size
-        except OSError:
-            return None           # rosbags names the missing file
-    return total
+    try:
+        return sum((bag / PurePath(str(name)).name).stat().st_size
+                   for name in (names if isinstance(names, list) else []))
+    except OSError:
+        return None           # rosbags names the missing file
 
 
 def _topic_counts(info: Mapping) -> list[tuple[str, str, Any]]:
     """Return (name, type, message_count) of every well-formed topic entry of the metadata."""
-    out = []
     found = info.get('topics_with_message_count')
-    for entry in found if isinstance(found, list) else []:
-        meta = entry.get('topic_metadata') if isinstance(entry, Mapping) else None
-        if isinstance(meta, Mapping) and 'message_count' in entry:
-            out.append((str(meta.get('name')), str(meta.get('type')), entry['message_count']))
-    return out
+    entries = [(e, e.get('topic_metadata')) for e in (found if isinstance(found, list) else [])
+               if isinstance(e, Mapping)]
+    return [(str(meta.get('name')), str(meta.get('type')), e['message_count'])
+            for e, meta in entries if isinstance(meta, Mapping) and 'message_count' in e]
 
 
 def check_counts(bag: Path, info: Mapping) -> None:
@@ -137,13 +133,12 @@ def check_counts(bag: Path, info: Mapping) -> None:
     where = f'Cannot read bag {str(bag)!r} (unreadable or corrupt): metadata.yaml'
     fix = '`ros2 bag reindex` rebuilds metadata.yaml from the storage files'
     topics = _topic_counts(info)
-    counts = [(f'topic {name!r}', count) for name, _, count in topics]
     files = info.get('files')
-    counts += [(f'file {f.get("path")!r}', f['message_count'])
-               for f in (files if isinstance(files, list) else [])
-               if isinstance(f, Mapping) and 'message_count' in f]
-    if 'message_count' in info:
-        counts.append(('the bag', info['message_count']))
+    counts = ([(f'topic {name!r}', count) for name, _, count in topics]
+              + [(f'file {f.get("path")!r}', f['message_count'])
+                 for f in (files if isinstance(files, list) else [])
+                 if isinstance(f, Mapping) and 'message_count' in f]
+              + ([('the bag', info['message_count'])] if 'message_count' in info else []))
     for what, count in counts:
         if isinstance(count, bool) or not isinstance(count, int) or count < 0:
             raise DatasetError(f'{where} gives {what} a message_count of {count!r:.40}, not a '
@@ -169,17 +164,13 @@ def check_counts(bag: Path, info: Mapping) -> None:
 
 def describe(topics: Mapping[str, tuple[str, int]]) -> str:
     """Return 'name (type, N msgs), ...' for error messages."""
-    if not topics:
-        return 'none'
-    return ', '.join(f'{k} ({t}, {c} msgs)' for k, (t, c) in sorted(topics.items()))
+    return ', '.join(f'{k} ({t}, {c} msgs)' for k, (t, c) in sorted(topics.items())) or 'none'
 
 
 def qos(value: Any) -> Any:
     """Return offered QoS profiles as plain data (storage files keep them as YAML text)."""
-    if isinstance(value, str):
-        value = load_yaml(value, BAG_METADATA_LIMITS, source='offered_qos_profiles',
-                          error=DatasetError)
-    return value or []
+    return (load_yaml(value, BAG_METADATA_LIMITS, source='offered_qos_profiles',
+                      error=DatasetError) if isinstance(value, str) else value) or []
 
 
 class Entry(NamedTuple):
@@ -206,32 +197,32 @@ def entries(bag: Path, info: Mapping) -> list[Entry]:
 
     Raises
     ------
-    ValueError
+    Unfit
         A version, storage, compression or serialization rosbags does not read, a missing
         storage file or a missing key; rosbags' reader then says what is wrong.
 
     """
     try:
         if info['version'] > _VERSION:
-            raise ValueError(f'metadata version {info["version"]!r:.20}')
+            raise Unfit(f'metadata version {info["version"]!r:.20}')
         if info['storage_identifier'] not in ('sqlite3', 'mcap'):
-            raise ValueError(f'storage {info["storage_identifier"]!r:.20}')
+            raise Unfit(f'storage {info["storage_identifier"]!r:.20}')
         if any(not (bag / PurePath(x).name).exists() for x in info['relative_file_paths']):
-            raise ValueError('a storage file is missing')
+            raise Unfit('a storage file is missing')
         mode = info.get('compression_mode', '').lower()
         if mode not in ('', 'none') and info.get('compression_format') != 'zstd':
-            raise ValueError('compression other than zstd')
-        out = [Entry(k + 1, x['topic_metadata']['name'], x['topic_metadata']['type'],
-                     x['message_count'], x['topic_metadata']['serialization_format'],
-                     x['topic_metadata'].get('offered_qos_profiles', []),
-                     x['topic_metadata'].get('type_description_hash', ''))
-               for k, x in enumerate(info['topics_with_message_count'])]
+            raise Unfit('compression other than zstd')
+        out = [Entry(k + 1, m['name'], m['type'], x['message_count'],
+                     m['serialization_format'], m.get('offered_qos_profiles', []),
+                     m.get('type_description_hash', ''))
+               for k, x in enumerate(info['topics_with_message_count'])
+               for m in [x['topic_metadata']]]
         _ = (info['duration']['nanoseconds'], info['starting_time']['nanoseconds_since_epoch'],
              info['message_count'])
     except (KeyError, TypeError, AttributeError) as err:
-        raise ValueError(f'metadata.yaml: {type(err).__name__} {err}') from err
+        raise Unfit(f'metadata.yaml: {type(err).__name__} {err}') from err
     if any(x.fmt != 'cdr' for x in out):
-        raise ValueError('a serialization format other than cdr')
+        raise Unfit('a serialization format other than cdr')
     return out
 
 

@@ -28,6 +28,7 @@ from typing import Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
 from gyro_tdc.data.bag.reader import READ_ERRORS
+from gyro_tdc.data.field_paths import reader as field_reader, stamp_seconds
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -39,8 +40,10 @@ __all__ = ['MOTION_TYPES', 'MotionReports', 'ODOMETRY_TYPE', 'TWIST_STAMPED_TYPE
 TWIST_TYPE = 'geometry_msgs/msg/Twist'
 TWIST_STAMPED_TYPE = 'geometry_msgs/msg/TwistStamped'
 ODOMETRY_TYPE = 'nav_msgs/msg/Odometry'
+# Where the Twist is in each message type a motion topic may have (a dotted field path).
+_TWIST_PATHS = {TWIST_TYPE: '', TWIST_STAMPED_TYPE: 'twist', ODOMETRY_TYPE: 'twist.twist'}
 #: Message types a motion topic may have.
-MOTION_TYPES = (TWIST_TYPE, TWIST_STAMPED_TYPE, ODOMETRY_TYPE)
+MOTION_TYPES = tuple(_TWIST_PATHS)
 
 
 @dataclass(frozen=True)
@@ -65,15 +68,6 @@ class MotionReports:
     msgtype: str
     t: NDArray[np.float64]
     twist: NDArray[np.float64]
-
-
-def _twist_of(msgtype: str, msg: object) -> object:
-    """Return the Twist inside a message of ``msgtype``."""
-    if msgtype == TWIST_TYPE:
-        return msg
-    if msgtype == TWIST_STAMPED_TYPE:
-        return msg.twist
-    return msg.twist.twist
 
 
 def read_motion(path: str | Path, topic: str) -> MotionReports:
@@ -112,15 +106,12 @@ def read_motion(path: str | Path, topic: str) -> MotionReports:
                 raise DatasetError(f'Motion topic {topic!r} in bag {str(bag)!r} has type '
                                    f'{msgtype!r}, expected one of {", ".join(MOTION_TYPES)}.')
             conns = [c for c in reader.connections if c.topic == topic]
-            stamps, rows = [], []
+            stamps, rows, twist_of = [], [], field_reader(_TWIST_PATHS[msgtype])
             for conn, log_ns, raw in reader.messages(connections=conns):
                 msg = reader.deserialize(raw, conn.msgtype)
-                if msgtype == TWIST_TYPE:
-                    stamps.append(log_ns * 1e-9)
-                else:
-                    st = msg.header.stamp
-                    stamps.append(st.sec + st.nanosec * 1e-9)
-                tw = _twist_of(msgtype, msg)
+                stamps.append(log_ns * 1e-9 if msgtype == TWIST_TYPE
+                              else stamp_seconds('time', msg.header.stamp))
+                tw = twist_of(msg)
                 rows.append((tw.linear.x, tw.linear.y, tw.linear.z,
                              tw.angular.x, tw.angular.y, tw.angular.z))
     except (*READ_ERRORS, KeyError) as err:
@@ -153,5 +144,4 @@ def encode_twists(twist: ArrayLike) -> Sequence[bytes]:
     ts = jazzy()
     vec = ts.types['geometry_msgs/msg/Vector3']
     make = ts.types[TWIST_TYPE]
-    return [ts.serialize_cdr(make(vec(*r[:3]), vec(*r[3:])), TWIST_TYPE)
-            for r in rows.tolist()]
+    return [ts.serialize_cdr(make(vec(*r[:3]), vec(*r[3:])), TWIST_TYPE) for r in rows.tolist()]

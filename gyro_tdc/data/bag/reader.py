@@ -38,7 +38,7 @@ import apsw
 from gyro_tdc.data.bag import columnar, metadata
 from gyro_tdc.data.bag.codec import (decode, decode_float, decode_joined, Decoded, FLOAT_TYPES,
                                      IMU_TYPE, jazzy, KEEP, REFERENCE_TYPE, TEMPERATURE_TYPES)
-from gyro_tdc.data.bag.storage import Unfit
+from gyro_tdc.data.bag.storage import Logs, Unfit
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import NDArray
@@ -171,10 +171,8 @@ class _Sink:
                 new[:self.n] = old[:self.n]
             self.t, self.v = grown[0], grown[1:]
         self.t[self.n:end] = t
-        col = 0
-        for v, w in zip(self.v, self.widths):
-            v[self.n:end] = values[:, col:col + w]
-            col += w
+        for v, a in zip(self.v, np.cumsum([0] + self.widths).tolist()):
+            v[self.n:end] = values[:, a:a + v.shape[1]]
         self.n = end
 
     def result(self, keep: NDArray[np.bool_] | None = None) -> list[NDArray[np.float64]]:
@@ -182,9 +180,7 @@ class _Sink:
         out = [self.t[:self.n]] + [v[:self.n] for v in self.v]
         if keep is not None and not keep.all():
             return [x[keep] for x in out]
-        if self.n < 0.9 * len(self.t):
-            return [x.copy() for x in out]
-        return out
+        return [x.copy() for x in out] if self.n < 0.9 * len(self.t) else out
 
 
 #: How :func:`read_bag` reads the storage: ``'auto'`` (columnar where it applies, else
@@ -250,21 +246,20 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
     try:
         info = metadata.load(bag)
         metadata.check_counts(bag, info)
-        why = columnar.unfit(info) if via != 'rosbags' else None
-        if via != 'rosbags' and why is None:
+        why = columnar.unfit(info) if via != 'rosbags' else 'rosbags asked for'
+        if why is None:
             try:
                 with columnar.open_bag(bag, info) as opened:
                     topics, conns = _connections(opened.topics, opened.conns, bag, wanted)
                     return _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
                                     opened.typestore, bag, info, topics, conns, progress,
                                     accel, 'columnar')
-            except Unfit as err:
-                why = str(err)
             except DatasetError:
                 raise                     # a topic missing or of the wrong type
             except Exception as err:      # noqa: B902 (whatever it is, rosbags decides)
                 # Let rosbags read it, or say what is wrong with it.
-                why = f'{type(err).__name__}: {one_line(err)}'
+                why = (str(err) if isinstance(err, Unfit)
+                       else f'{type(err).__name__}: {one_line(err)}')
         if via == 'columnar':
             raise DatasetError(f'Cannot read bag {str(bag)!r} column by column: {why}.')
         with AnyReader([bag], default_typestore=jazzy()) as reader:
@@ -325,81 +320,64 @@ class Collector:
 
     def __init__(self, roles: Sequence[str], msgtypes: Mapping[str, str],
                  expected: Mapping[str, int], typestore: Any, with_accel: bool) -> None:
-        self.roles = list(roles)
-        self.msgtypes = dict(msgtypes)
+        self.roles, self.msgtypes, self.typestore = list(roles), dict(msgtypes), typestore
         self.floating = self.msgtypes['temperature'] in FLOAT_TYPES
-        self.typestore = typestore
-        self.with_accel = with_accel
-        widths = {'imu': (3, 3) if with_accel else (3,), 'temperature': (1, 1),
-                  'reference': (3,)}
-        self.keep = {'imu': None if with_accel else KEEP[IMU_TYPE][:3], 'temperature': None,
-                     'reference': None}
+        widths = {'imu': (3, 3) if with_accel else (3,), 'temperature': (1, 1), 'reference': (3,)}
+        self.keep_imu = None if with_accel else KEEP[IMU_TYPE][:3]
         self.sinks = {role: _Sink(expected[role], widths[role]) for role in self.roles}
-        self.frame_id: dict[str, str | None] = {role: None for role in self.roles}
+        self.frame_id = ''                                # of the first decodable IMU message
         self.fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
-        self.undecodable = 0
-        self.n_main = 0
+        self.undecodable = self.n_main = 0
         self.main_bad: list[NDArray[np.int64]] = []    # main messages undecodable
         self.before: list[NDArray[np.int64]] = []      # Float readings: main messages before
 
-    def _store(self, role: str, dec: Decoded, logs: Sequence[int] | NDArray | None,
-               fetch_logs: Callable[[], NDArray[np.int64]] | None) -> NDArray[np.bool_] | None:
+    def _store(self, role: str, dec: Decoded, logs: Logs | None) -> NDArray[np.bool_] | None:
         """Put a decoded block into its sink; return the mask of decodable messages."""
-        floating = role == 'temperature' and self.floating      # stamped in result()
-        sink = self.sinks[role]
         self.fallback[role] += dec.fallback
-        if self.frame_id[role] is None and dec.frame_id:
-            self.frame_id[role] = dec.frame_id
+        if role == 'imu' and not self.frame_id:
+            self.frame_id = dec.frame_id
         stamp_ns = dec.sec * 1_000_000_000 + dec.nanosec
-        good = None if dec.undecodable is None else ~dec.undecodable
         zero = stamp_ns == 0
-        if zero.any() and not floating:    # a zero header stamp: the log time instead
-            logs = fetch_logs() if logs is None else logs
-            stamp_ns[zero] = np.asarray(logs, dtype=np.int64)[zero]
-        t = _seconds(stamp_ns)
-        values = dec.values
-        if good is not None:
+        # A zero header stamp: the log time instead (Float readings are stamped in result()).
+        if zero.any() and not (role == 'temperature' and self.floating):
+            stamp_ns[zero] = np.asarray(logs() if callable(logs) else logs, dtype=np.int64)[zero]
+        t, values, good = _seconds(stamp_ns), dec.values, None
+        if dec.undecodable is not None:
+            good = ~dec.undecodable
             self.undecodable += int(dec.undecodable.sum())
             t, values = t[good], values[good]
-        sink.add(t, values)
+        self.sinks[role].add(t, values)
         return good
 
-    def main(self, buf: bytes | memoryview, lengths: Sequence[int],
-             logs: Sequence[int] | NDArray | None = None,
-             fetch_logs: Callable[[], NDArray[np.int64]] | None = None) -> None:
-        """Decode a block of main messages stored end to end in ``buf``."""
+    def main(self, buf: bytes | memoryview, lengths: Sequence[int], logs: Logs) -> None:
+        """Decode a block of main messages stored end to end in ``buf`` (``logs``: log times)."""
         if not len(lengths):
             return
-        dec = decode_joined(buf, lengths, IMU_TYPE, self.typestore, self.keep['imu'])
-        good = self._store('imu', dec, logs, fetch_logs)
+        dec = decode_joined(buf, lengths, IMU_TYPE, self.typestore, self.keep_imu)
+        good = self._store('imu', dec, logs)
         if good is not None:
             self.main_bad.append(self.n_main + np.flatnonzero(~good))
         self.n_main += len(lengths)
 
-    def other(self, role: str, raws: Sequence[bytes], logs: Sequence[int] | NDArray | None,
-              before: NDArray[np.int64] | None = None,
-              fetch_logs: Callable[[], NDArray[np.int64]] | None = None) -> None:
+    def other(self, role: str, raws: Sequence[bytes], logs: Logs,
+              before: NDArray[np.int64] | None = None) -> None:
         """Decode a block of one other role's messages (``before``: see the class)."""
         if not len(raws):
             return
         floating = role == 'temperature' and self.floating
         dec = (decode_float(raws, self.msgtypes[role], self.typestore) if floating else
-               decode(raws, self.msgtypes[role], self.typestore, self.keep[role]))
-        good = self._store(role, dec, logs, fetch_logs)
+               decode(raws, self.msgtypes[role], self.typestore))
+        good = self._store(role, dec, logs)
         if floating:
             before = np.asarray(before, dtype=np.int64)
             self.before.append(before if good is None else before[good])
 
     def result(self, bag: Path, storage: str, topics: dict, via: str) -> BagData:
         """Return the :class:`BagData`."""
-        before_imu = 0
-        stamped = None
+        before_imu, stamped, empty = 0, None, [np.zeros(0, dtype=np.int64)]
         if self.floating:
             sink = self.sinks['temperature']
-            before = (np.concatenate(self.before) if self.before
-                      else np.zeros(0, dtype=np.int64))
-            bad = (np.concatenate(self.main_bad) if self.main_bad
-                   else np.zeros(0, dtype=np.int64))
+            before, bad = (np.concatenate(x or empty) for x in (self.before, self.main_bad))
             # The last decodable main message before a reading is the one whose sink row is
             # the number of decodable main messages before it, less one.
             row = before - np.searchsorted(bad, before, side='left') - 1
@@ -414,16 +392,16 @@ class Collector:
             finite = (np.isfinite(sink.v[0][:sink.n]).all(axis=1) if sink
                       else np.zeros(0, dtype=bool))
             # Float readings before the first IMU message are dropped, not counted here.
-            keep = finite & stamped if role == 'temperature' and stamped is not None else None
-            rejected[key] = int(np.count_nonzero(~finite if keep is None else ~finite & stamped))
+            kept = stamped if role == 'temperature' and stamped is not None else True
+            rejected[key] = int(np.count_nonzero(~finite & kept))
             if sink is not None and (sink.n or role != 'reference'):    # no empty reference
-                out[role] = sink.result(finite if keep is None else keep)
+                out[role] = sink.result(finite & kept)
         imu_t, gyro, *accel = out['imu']
         temp_t, temp_c, temp_var = out['temperature']
         ref_t, ref = out['reference']
         return BagData(
             imu_t=imu_t, gyro=gyro, accel=accel[0] if accel else None,
-            frame_id=self.frame_id['imu'] or '', temp_t=temp_t, temp_c=temp_c[:, 0],
+            frame_id=self.frame_id, temp_t=temp_t, temp_c=temp_c[:, 0],
             temp_var=temp_var[:, 0], ref_t=ref_t, ref=ref, topics=topics, rejected=rejected,
             storage=storage, path=str(bag), fallback=self.fallback, via=via)
 
@@ -435,15 +413,14 @@ def _collect(feed: Callable[[Collector, Callable[[int], Any]], None], typestore:
     """Feed a storage read's blocks (``feed(collector, update)``) to a :class:`Collector`."""
     from tqdm import tqdm
 
-    roles = list(conns)
     msgtypes = {'imu': IMU_TYPE, 'temperature': topics[conns['temperature'][0].topic][0],
                 'reference': REFERENCE_TYPE}
-    expected = {role: sum(int(c.msgcount) for c in conns[role]) for role in roles}
+    expected = {role: sum(int(c.msgcount) for c in cs) for role, cs in conns.items()}
     size = metadata.storage_bytes(bag, info)
     if size is not None:             # compressed storage may hold more: the sinks grow
         expected = {role: min(n, size // metadata.min_message_bytes(msgtypes[role]) + 1)
                     for role, n in expected.items()}
-    out = Collector(roles, msgtypes, expected, typestore, with_accel)
+    out = Collector(list(conns), msgtypes, expected, typestore, with_accel)
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
         feed(out, bar.update)

@@ -49,16 +49,12 @@ class Pending:
 
     def __init__(self, out: Any, chunk: int) -> None:
         self.out, self.chunk = out, chunk
-        self.pieces: list[bytes] = []
-        self.lengths: list[NDArray[np.int64]] = []
-        self.logs: list[Logs] = []
+        self.parts: list[tuple[bytes, NDArray[np.int64], Logs]] = []
         self.n = 0
 
     def add(self, buf: bytes, lengths: NDArray[np.int64], logs: Logs) -> None:
         """Add messages stored end to end in ``buf``; hand the block over once it is full."""
-        self.pieces.append(buf)
-        self.lengths.append(lengths)
-        self.logs.append(logs)
+        self.parts.append((buf, lengths, logs))
         self.n += len(lengths)
         if self.n >= self.chunk:
             self.flush()
@@ -67,10 +63,8 @@ class Pending:
         """Hand what is gathered over (before any other role's block of the same span)."""
         if not self.n:
             return
-        pieces, lengths, logs = self.pieces, self.lengths, self.logs
-        self.pieces, self.lengths, self.logs, self.n = [], [], [], 0
-
-        def fetch() -> NDArray[np.int64]:
-            return np.concatenate([x if isinstance(x, np.ndarray) else x() for x in logs])
-        buf = pieces[0] if len(pieces) == 1 else b''.join(pieces)
-        self.out.main(buf, np.concatenate(lengths), fetch_logs=fetch)
+        pieces, lengths, logs = zip(*self.parts)
+        self.parts, self.n = [], 0
+        self.out.main(pieces[0] if len(pieces) == 1 else b''.join(pieces),
+                      np.concatenate(lengths),
+                      lambda: np.concatenate([x() if callable(x) else x for x in logs]))

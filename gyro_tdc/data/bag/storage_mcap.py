@@ -73,9 +73,9 @@ class _Fields:
 
     def raw(self, size_fmt: str = '<I') -> bytes:
         (size,) = self.take(size_fmt)
-        if self.pos + size > len(self.data):
-            raise Unfit('an mcap record cut short')
         self.pos += size
+        if self.pos > len(self.data):
+            raise Unfit('an mcap record cut short')
         return self.data[self.pos - size:self.pos]
 
     def text(self) -> str:
@@ -134,7 +134,8 @@ class McapFile:
         head = bio.read(9)
         if head[:8] != _MAGIC or head[8:] != b'\x01':
             raise Unfit('not an mcap file with a header')
-        if _Fields(self._record(9)).text() != 'ros2':
+        (size,) = struct.unpack('<Q', self._exact(8, 9))     # the header record's length
+        if _Fields(self._exact(size)).text() != 'ros2':
             raise Unfit('an mcap profile other than ros2')
         data_start = bio.tell()
         size = bio.seek(0, 2)
@@ -148,13 +149,10 @@ class McapFile:
         bio.seek(summary)
         self._summary(bio.read(size - 37 - summary))
 
-    def _record(self, at: int) -> bytes:
-        """Return the body of the record whose uint64 length is at file offset ``at``."""
-        self.bio.seek(at)
-        (size,) = struct.unpack('<Q', self._exact(8))
-        return self._exact(size)
-
-    def _exact(self, size: int) -> bytes:
+    def _exact(self, size: int, at: int | None = None) -> bytes:
+        """Return ``size`` bytes read (from file offset ``at``), or raise Unfit."""
+        if at is not None:
+            self.bio.seek(at)
         data = self.bio.read(size)
         if len(data) != size:
             raise Unfit('an mcap record cut short')
@@ -214,10 +212,8 @@ class McapFile:
 
     def _decompress(self, c: _Chunk) -> bytes:
         """Return a chunk's records, checked against its size and checksum."""
-        self.bio.seek(c.offset + 9 + 24)
-        (crc,) = struct.unpack('<I', self._exact(4))
-        self.bio.seek(c.offset + 9 + 40 + len(c.compression))
-        data = self._exact(c.compressed_size)
+        (crc,) = struct.unpack('<I', self._exact(4, c.offset + 9 + 24))
+        data = self._exact(c.compressed_size, c.offset + 9 + 40 + len(c.compression))
         if c.compression == 'zstd':
             data = zstd.decompress(data)
         elif c.compression:           # lz4: rosbags reads it
@@ -292,17 +288,21 @@ class _Records:
         logs = np.concatenate([p[2] for p in pieces])
         self.update(len(codes))
         if np.any(logs[1:] < logs[:-1]):
+            # rosbags sorts a chunk stably by log time: here message by message (rare, a
+            # chunk written out of order), each its own piece.
             order = np.argsort(logs, kind='stable')
+            single = [(rows[k:k + 1], code[k:k + 1], log[k:k + 1])
+                      for rows, code, log in pieces for k in range(len(code))]
+            pieces = [single[i] for i in order.tolist()]
             codes, logs = codes[order], logs[order]
-            others = self._sorted(pieces, order, codes, logs, pending)
-        else:
-            others = self._in_order(pieces, pending)
+        # Two steps, not one body: a chunk's main block copies are freed before the others decode.
+        others = self._in_order(pieces, pending)
         if others:
             self._others(others, codes, logs, pending)
 
     def _in_order(self, pieces: list[tuple[Any, ...]], pending: Pending
                   ) -> list[tuple[int, bytes]]:
-        """Hand over the main messages of a chunk in log-time order; return the others."""
+        """Hand over the main messages of a chunk's pieces in order; return the others."""
         main = self.codes['imu']
         others: list[tuple[int, bytes]] = []
         at = 0
@@ -316,24 +316,6 @@ class _Records:
             others += [(at + i, bytes(rows[i, 31:])) for i in np.flatnonzero(~is_main).tolist()]
             at += len(code)
         return others
-
-    def _sorted(self, pieces: list[tuple[Any, ...]], order: Any, codes: Any, logs: Any,
-                pending: Pending) -> list[tuple[int, bytes]]:
-        """
-        Hand over the main messages of a chunk sorted by log time; return the others.
-
-        rosbags sorts a chunk stably by log time; ``order`` is that sort, ``codes`` and
-        ``logs`` already sorted. Message by message: rare (a chunk written out of order).
-        """
-        main = self.codes['imu']
-        data = [bytes(r[31:]) for p in pieces for r in p[0]]
-        data = [data[i] for i in order.tolist()]
-        idx = np.flatnonzero(codes == main).tolist()
-        if idx:
-            parts = [data[i] for i in idx]
-            pending.add(b''.join(parts), np.fromiter(map(len, parts), dtype=np.int64,
-                                                     count=len(parts)), logs[idx])
-        return [(i, data[i]) for i in np.flatnonzero(codes != main).tolist()]
 
     def _others(self, others: list[tuple[int, bytes]], codes: Any, logs: Any,
                 pending: Pending) -> None:

@@ -79,17 +79,9 @@ class Sqlite3File:
             raise Unfit(f'{path.name}: no messages and topics tables')
         if db.execute('PRAGMA table_info(schema)').fetchall():
             schema = (db.execute('SELECT schema_version FROM schema').fetchone() or (-1,))[0]
-        elif any(x[1] == 'offered_qos_profiles'
-                 for x in db.execute('PRAGMA table_info(topics)').fetchall()):
-            schema = 2
         else:
-            schema = 1
-        self.definitions: dict[str, tuple[str, str]] = {}
-        if schema >= 4:
-            for name, encoding, text in db.execute(
-                    'SELECT topic_type, encoding, encoded_message_definition '
-                    'FROM message_definitions ORDER BY id'):
-                self.definitions.setdefault(name, (encoding, text))
+            schema = 1 + any(x[1] == 'offered_qos_profiles'
+                             for x in db.execute('PRAGMA table_info(topics)').fetchall())
         cols = ('id, name, type, serialization_format'
                 + (', offered_qos_profiles' if schema >= 2 else ", ''")
                 + (', type_description_hash' if schema >= 4 else ", ''"))
@@ -97,7 +89,12 @@ class Sqlite3File:
                       for cid, topic, msgtype, fmt, qos, digest
                       in db.execute(f'SELECT {cols} FROM topics ORDER BY id')]
         types = {c.msgtype for c in self.conns}
-        self.definitions = {k: v for k, v in self.definitions.items() if k in types}
+        self.definitions: dict[str, tuple[str, str]] = {}
+        for name, encoding, text in (db.execute(
+                'SELECT topic_type, encoding, encoded_message_definition '
+                'FROM message_definitions ORDER BY id') if schema >= 4 else ()):
+            if name in types:
+                self.definitions.setdefault(name, (encoding, text))
 
     def close(self) -> None:
         """Close the database."""
@@ -129,16 +126,6 @@ class _Ranges:
         ids = (self.ids[role] if role else sorted(k for v in self.ids.values() for k in v))
         return f'topic_id IN ({",".join(str(int(k)) for k in ids)})'
 
-    def _index(self) -> str:
-        """Return the index on ``messages(timestamp)`` (rosbag2's own), the only one there."""
-        found = [(row[1], [x[2] for x in self.db.execute(
-                  'SELECT * FROM pragma_index_info(?)', (row[1],))])
-                 for row in self.db.execute("PRAGMA index_list('messages')")]
-        found = [(name, cols) for name, cols in found if cols[:1] == ['timestamp']]
-        if len(found) != 1 or found[0][1] != ['timestamp'] or "'" in found[0][0]:
-            raise Unfit(f'indexes on the timestamps {[x[1] for x in found]} (one expected)')
-        return found[0][0]
-
     def _check_plan(self, query: str, what: str, params: Sequence[int] = ()) -> None:
         rows = self.db.execute(f'EXPLAIN QUERY PLAN {query}', tuple(params))
         plan = ' '.join(str(x[-1]) for x in rows)
@@ -160,7 +147,14 @@ class _Ranges:
         if floating:
             case = ' '.join(f'WHEN {self._in(r)} THEN {_CODES[r]!r}' for r in roles)
             cols.append(f"group_concat(CASE {case} END, '')")
-        self.index = self._index()
+        # The index on messages(timestamp), rosbag2's own: the only one there.
+        found = [(row[1], [x[2] for x in self.db.execute(
+                  'SELECT * FROM pragma_index_info(?)', (row[1],))])
+                 for row in self.db.execute("PRAGMA index_list('messages')")]
+        found = [(name, cols) for name, cols in found if cols[:1] == ['timestamp']]
+        if len(found) != 1 or found[0][1] != ['timestamp'] or "'" in found[0][0]:
+            raise Unfit(f'indexes on the timestamps {[x[1] for x in found]} (one expected)')
+        self.index = found[0][0]
         query = (f'SELECT count(*), {", ".join(cols)} FROM messages INDEXED BY '
                  f"'{self.index}' WHERE {self._in()} AND timestamp >= ?1 AND timestamp < ?2")
         # rosbags' query of the file, and ours: both in timestamp-index order.
@@ -225,8 +219,7 @@ class _Ranges:
                     row = self.db.execute(query, (t, end)).fetchone()
                     if row[0]:
                         put((row, t, end))
-                        step = int(min(max(step * self.chunk / row[0], step / 4),
-                                       step * 4)) or 1
+                        step = int(min(max(step * self.chunk / row[0], step / 4), step * 4)) or 1
                     else:
                         step *= 2
                     t = end
@@ -275,5 +268,5 @@ class _Ranges:
         for role in roles:
             if role != 'imu' and role in got:
                 _, buf, lengths = got[role]
-                out.other(role, split(buf, lengths), None,
-                          before if role == 'temperature' else None, fetch_logs=logs(role))
+                out.other(role, split(buf, lengths), logs(role),
+                          before if role == 'temperature' else None)

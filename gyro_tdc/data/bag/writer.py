@@ -59,12 +59,8 @@ def _times(name: str, t: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64
                            f'values in [{np.nanmin(arr) if arr.size else 0}, '
                            f'{np.nanmax(arr) if arr.size else 0}].')
     sec = np.floor(arr)
-    nsec = np.rint((arr - sec) * 1e9).astype(np.int64)
-    sec = sec.astype(np.int64)
-    carry = nsec >= 1_000_000_000
-    sec[carry] += 1
-    nsec[carry] -= 1_000_000_000
-    return sec, nsec
+    return np.divmod(sec.astype(np.int64) * 1_000_000_000
+                     + np.rint((arr - sec) * 1e9).astype(np.int64), 1_000_000_000)
 
 
 def _values(name: str, a: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
@@ -136,11 +132,11 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
     streams = [_imu_stream(imu_topic, imu_t, gyro, accel, gyro_cov, accel_cov)]
     temp_sec, temp_nsec = _times('temp_t', temp_t)
     m = len(temp_sec)
-    temp_c = _values('temp_c', temp_c, (m,))
     tvar = np.asarray(temp_var, dtype=np.float64)
-    tvar = _values('temp_var', np.broadcast_to(tvar, (m,)) if tvar.ndim == 0 else tvar, (m,))
+    temps = np.stack([_values('temp_c', temp_c, (m,)), _values(
+        'temp_var', np.broadcast_to(tvar, (m,)) if tvar.ndim == 0 else tvar, (m,))], axis=1)
     streams.append(_Stream(temperature_topic, TEMPERATURE_TYPE, temp_sec, temp_nsec,
-                           lambda idx: np.stack([temp_c[idx], tvar[idx]], axis=1)))
+                           lambda idx: temps[idx]))
     if (ref_t is None) != (ref is None):
         raise DatasetError('Expected `ref_t` and `ref` to be given together, got only '
                            f"{'ref_t' if ref is None else 'ref'}.")
@@ -178,22 +174,19 @@ def _imu_stream(topic: str, imu_t: ArrayLike, gyro: ArrayLike, accel: ArrayLike,
     """Return the Imu stream after checking its arrays (REP 145 orientation and covariances)."""
     imu_sec, imu_nsec = _times('imu_t', imu_t)
     n = len(imu_sec)
-    gyro = _values('gyro', gyro, (n, 3))
-    accel = _values('accel', accel, (n, 3))
-    gcov = _values('gyro_cov', np.zeros(3) if gyro_cov is None else gyro_cov, (3,))
-    acov = _values('accel_cov', np.zeros(3) if accel_cov is None else accel_cov, (3,))
+    gyro, accel = _values('gyro', gyro, (n, 3)), _values('accel', accel, (n, 3))
     imu_const = np.zeros(IMU_DOUBLES)
-    orientation = imu_const[field_slice('orientation')]
-    orientation[3] = 1.0           # orientation w
+    imu_const[field_slice('orientation').start + 3] = 1.0             # orientation w
     imu_const[field_slice('orientation_covariance').start] = -1.0  # no orientation (REP 145)
-    imu_const[field_slice('angular_velocity_covariance')] = np.diag(gcov).ravel()
-    imu_const[field_slice('linear_acceleration_covariance')] = np.diag(acov).ravel()
-    gyro_cols, accel_cols = field_slice('angular_velocity'), field_slice('linear_acceleration')
+    for arg, cov, name in (('gyro_cov', gyro_cov, 'angular_velocity_covariance'),
+                           ('accel_cov', accel_cov, 'linear_acceleration_covariance')):
+        cov = _values(arg, np.zeros(3) if cov is None else cov, (3,))
+        imu_const[field_slice(name)] = np.diag(cov).ravel()
 
     def imu_block(idx: NDArray[np.int64]) -> NDArray[np.float64]:
         block = np.broadcast_to(imu_const, (len(idx), IMU_DOUBLES)).copy()
-        block[:, gyro_cols] = gyro[idx]
-        block[:, accel_cols] = accel[idx]
+        block[:, field_slice('angular_velocity')] = gyro[idx]
+        block[:, field_slice('linear_acceleration')] = accel[idx]
         return block
     return _Stream(topic, IMU_TYPE, imu_sec, imu_nsec, imu_block)
 
@@ -201,8 +194,7 @@ def _imu_stream(topic: str, imu_t: ArrayLike, gyro: ArrayLike, accel: ArrayLike,
 def _write(path: Path, storage: str, frame_id: str, streams: Sequence[_Stream]) -> None:
     """Write the streams' messages in time order across topics (IMU first on equal stamps)."""
     stamps = np.concatenate([x.sec * 1_000_000_000 + x.nsec for x in streams])
-    which = np.concatenate([np.full(len(x.sec), k, dtype=np.int64)
-                            for k, x in enumerate(streams)])
+    which = np.repeat(np.arange(len(streams)), [len(x.sec) for x in streams])
     index = np.concatenate([np.arange(len(x.sec)) for x in streams])
     order = np.argsort(stamps, kind='stable')
     if path.exists():
@@ -220,16 +212,13 @@ def _write(path: Path, storage: str, frame_id: str, streams: Sequence[_Stream]) 
         for k0 in range(0, len(order), _WRITE_CHUNK):
             sel = order[k0:k0 + _WRITE_CHUNK]
             sel_which = which[sel]
-            payload: list[bytes] = [b''] * len(sel)
+            payload = np.empty(len(sel), dtype=object)
             for k, x in enumerate(streams):
                 pos = np.flatnonzero(sel_which == k)
-                if not pos.size:
-                    continue
                 idx = index[sel[pos]]
-                encoded = (x.block(idx) if x.raw else encode_checked(
-                    x.msgtype, x.sec[idx], x.nsec[idx], frame_id, x.block(idx)))
-                for p, raw in zip(pos.tolist(), encoded):
-                    payload[p] = raw
+                if pos.size:
+                    payload[pos] = (x.block(idx) if x.raw else encode_checked(
+                        x.msgtype, x.sec[idx], x.nsec[idx], frame_id, x.block(idx)))
             write = writer.write
             for cid, stamp, raw in zip(sel_which.tolist(), stamps[sel].tolist(), payload):
                 write(conns[cid], stamp, raw)

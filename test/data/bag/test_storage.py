@@ -26,8 +26,8 @@ class _Main:
     def __init__(self):
         self.blocks = []
 
-    def main(self, buf, lengths, fetch_logs=None):
-        self.blocks.append((bytes(buf), list(lengths), fetch_logs().tolist()))
+    def main(self, buf, lengths, logs):
+        self.blocks.append((bytes(buf), list(lengths), logs().tolist()))
 
 
 def test_split_cuts_messages_stored_end_to_end():
