@@ -158,9 +158,9 @@ def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None
     g_floor = capped
     a_floors = [s.accel_floor for s in first if s.accel_floor is not None]
     a_floor = np.min(a_floors, axis=0) if a_floors else None
-    return [detect_still(r.t, r.omega, r.accel, moving=m, window_s=w,
-                         min_still_s=min_still_s, gyro_floor=g_floor, accel_floor=a_floor)
-            for r, m, w in zip(runs, moving, windows)]
+    return [detect_still(r.t, r.omega, r.accel, moving=m, window_s=w, min_still_s=min_still_s,
+                         gyro_floor=g_floor, accel_floor=a_floor, again=s)
+            for r, m, w, s in zip(runs, moving, windows, first)]
 
 
 def moving_share(runs: Sequence[Run]) -> float:

@@ -24,7 +24,7 @@ run's noise floor from the start. See doc/internals/signal.md.
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 from typing import Callable
 
@@ -316,6 +316,8 @@ class Stillness:
     gyro_floor: NDArray[np.float64]
     accel_floor: NDArray[np.float64] | None
     reason: str = ''
+    #: The sample period and window statistics, for :func:`detect_still`'s ``again``.
+    stats: tuple = field(default=(), repr=False)
 
     @property
     def still_windows(self) -> NDArray[np.bool_]:
@@ -382,6 +384,33 @@ def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
     return mean + c, np.sqrt(var)
 
 
+def _windows(t: NDArray[np.float64], g: NDArray[np.float64], acc: NDArray[np.float64] | None,
+             window: float) -> tuple:
+    """
+    Return a run's windows: starts, counts, finite rows, windows with a non-finite row, and
+    the raw rate's and acceleration's means and standard deviations (None without accel).
+    """
+    n = t.shape[0]
+    k = np.subtract(t, t[0])           # window index floor((t - t0) / window), in place
+    k /= window
+    np.floor(k, out=k)
+    edge = np.empty(n, dtype=bool)
+    edge[0] = True
+    np.not_equal(k[1:], k[:-1], out=edge[1:])
+    starts = np.flatnonzero(edge)
+    counts = np.diff(np.append(starts, n))
+    fc = counts.astype(np.float64)
+    f = np.isfinite(g)                  # rows: column by column (3x faster than all(axis=1))
+    finite = f[:, 0] & f[:, 1] & f[:, 2]
+    if acc is not None:
+        f = np.isfinite(acc)
+        finite &= f[:, 0] & f[:, 1] & f[:, 2]
+    zeroed = None if finite.all() else finite      # non-finite rows count as zeros
+    return (starts, counts, finite, np.logical_or.reduceat(~finite, starts),
+            *_window_stats(g, starts, fc, zeroed),
+            *((None, None) if acc is None else _window_stats(acc, starts, fc, zeroed)))
+
+
 def _long_enough(g: NDArray[np.float64], duration: float, min_still_s: float | None) -> bool:
     """Return whether a still stretch (its raw rate, its duration in s) is kept."""
     if min_still_s is not None:
@@ -439,8 +468,8 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
                  rate: ArrayLike | None = None, moving: ArrayLike | None = None,
                  window_s: float = STILL_WINDOW_S, min_still_s: float | None = MIN_STILL_S,
                  gyro_std: float = 0.0, accel_std: float = 0.0, max_rate: float = MAX_RATE,
-                 gyro_floor: ArrayLike | None = None,
-                 accel_floor: ArrayLike | None = None) -> Stillness:
+                 gyro_floor: ArrayLike | None = None, accel_floor: ArrayLike | None = None,
+                 again: Stillness | None = None) -> Stillness:
     """
     Find the still samples of a run: the batch form of the still test.
 
@@ -454,7 +483,8 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     a standard error of at most :data:`MAX_STILL_SE` on every axis. ``gyro_std``/``accel_std``
     > 0 are fixed thresholds; ``gyro_floor``/``accel_floor`` replace this run's own noise floors
     (e.g. the quietest window of several bags of one sensor): a run that never stops would look
-    still to itself.
+    still to itself. ``again``: this call's own result on the same samples and windows, whose
+    window statistics are judged again (with other floors, veto or rate) instead of recomputed.
     """
     t = np.asarray(t, dtype=np.float64)
     g = np.asarray(gyro, dtype=np.float64)
@@ -465,7 +495,8 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     acc = np.asarray(accel, dtype=np.float64) if has_accelerometer(accel) else None
     if acc is not None and acc.shape != (n, 3):
         raise ValueError(f'Expected `accel` of shape {(n, 3)}, got {acc.shape}.')
-    dt = float(np.median(np.diff(t))) if n > 1 else 1.0
+    stats = again.stats if again is not None and again.mask.shape == (n,) else ()
+    dt = stats[0] if stats else float(np.median(np.diff(t))) if n > 1 else 1.0
     window = max(float(window_s), MIN_WINDOW_SAMPLES * dt)
     if n < 3:
         e, z, inf = np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.full(3, math.inf)
@@ -473,24 +504,9 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
         return Stillness(np.zeros(n, dtype=bool), (), window, e, e, np.zeros(0, dtype='<U10'),
                          z, z, za, za, inf, infa, np.zeros(0), inf, infa,
                          'too few samples to judge stillness')
-    k = np.subtract(t, t[0])           # window index floor((t - t0) / window), in place
-    k /= window
-    np.floor(k, out=k)
-    edge = np.empty(n, dtype=bool)
-    edge[0] = True
-    np.not_equal(k[1:], k[:-1], out=edge[1:])
-    starts = np.flatnonzero(edge)
-    counts = np.diff(np.append(starts, n))
+    _, starts, counts, finite, bad, g_mean, g_std, a_mean, a_std = stats = stats or (
+        dt, *_windows(t, g, acc, window))
     fc = counts.astype(np.float64)
-    f = np.isfinite(g)                  # rows: column by column (3x faster than all(axis=1))
-    finite = f[:, 0] & f[:, 1] & f[:, 2]
-    if acc is not None:
-        f = np.isfinite(acc)
-        finite &= f[:, 0] & f[:, 1] & f[:, 2]
-    bad = np.logical_or.reduceat(~finite, starts)
-    zeroed = None if finite.all() else finite      # non-finite rows count as zeros
-    g_mean, g_std = _window_stats(g, starts, fc, zeroed)
-    a_mean, a_std = (None, None) if acc is None else _window_stats(acc, starts, fc, zeroed)
     usable = (counts >= MIN_JUDGED) & ~bad
     vetoed = (np.zeros(starts.size, dtype=bool) if moving is None else
               np.logical_or.reduceat(np.asarray(moving, dtype=bool), starts))
@@ -512,4 +528,4 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     reason = '' if segments else _no_still_reason(why, min_still_s)
     return Stillness(mask, tuple(segments), window, starts, counts, why, g_mean, g_std, a_mean,
                      a_std, g_thr, None if acc is None else a_thr, np.asarray(durations),
-                     g_floor, a_floor, reason)
+                     g_floor, a_floor, reason, stats)
