@@ -349,7 +349,7 @@ _CHUNK_ROWS = 1 << 17
 
 
 def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
-                  counts: NDArray[np.float64], finite: NDArray[np.bool_] | None = None
+                  counts: NDArray[np.int64], finite: NDArray[np.bool_] | None = None
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return per-window means and standard deviations (W, 3) of ``x`` (ddof 1).
@@ -392,23 +392,16 @@ def _windows(t: NDArray[np.float64], g: NDArray[np.float64], acc: NDArray[np.flo
     """
     n = t.shape[0]
     k = np.subtract(t, t[0])           # window index floor((t - t0) / window), in place
-    k /= window
-    np.floor(k, out=k)
-    edge = np.empty(n, dtype=bool)
-    edge[0] = True
-    np.not_equal(k[1:], k[:-1], out=edge[1:])
-    starts = np.flatnonzero(edge)
+    np.floor(np.divide(k, window, out=k), out=k)
+    starts = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
     counts = np.diff(np.append(starts, n))
-    fc = counts.astype(np.float64)
-    f = np.isfinite(g)                  # rows: column by column (3x faster than all(axis=1))
-    finite = f[:, 0] & f[:, 1] & f[:, 2]
-    if acc is not None:
-        f = np.isfinite(acc)
-        finite &= f[:, 0] & f[:, 1] & f[:, 2]
+    finite = np.ones(n, dtype=bool)
+    for f in (np.isfinite(x) for x in (g, acc) if x is not None):
+        finite &= f[:, 0] & f[:, 1] & f[:, 2]      # column by column: 3x faster than all(axis=1)
     zeroed = None if finite.all() else finite      # non-finite rows count as zeros
     return (starts, counts, finite, np.logical_or.reduceat(~finite, starts),
-            *_window_stats(g, starts, fc, zeroed),
-            *((None, None) if acc is None else _window_stats(acc, starts, fc, zeroed)))
+            *_window_stats(g, starts, counts, zeroed),
+            *((None, None) if acc is None else _window_stats(acc, starts, counts, zeroed)))
 
 
 def _long_enough(g: NDArray[np.float64], duration: float, min_still_s: float | None) -> bool:
@@ -506,7 +499,6 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
                          'too few samples to judge stillness')
     _, starts, counts, finite, bad, g_mean, g_std, a_mean, a_std = stats = stats or (
         dt, *_windows(t, g, acc, window))
-    fc = counts.astype(np.float64)
     usable = (counts >= MIN_JUDGED) & ~bad
     vetoed = (np.zeros(starts.size, dtype=bool) if moving is None else
               np.logical_or.reduceat(np.asarray(moving, dtype=bool), starts))
@@ -517,7 +509,7 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     g_thr, a_thr = noise_thresholds(g_floor, a_floor, gyro_std=gyro_std, accel_std=accel_std)
     r = None if rate is None else np.asarray(rate, dtype=np.float64)
     mean_rate = None if r is None else _window_stats(np.where(np.isfinite(r), r, np.inf),
-                                                     starts, fc)[0]
+                                                     starts, counts)[0]
     why = judge_windows(g_std, a_std, g_thr, a_thr, mean_rate=mean_rate, max_rate=max_rate,
                         moving=vetoed, counts=counts, finite=~bad)
     segments, durations = _still_stretches(t, g, starts, why, dt, min_still_s)

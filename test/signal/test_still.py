@@ -64,6 +64,26 @@ def test_short_stops_are_dropped_below_the_minimum_duration():
     assert not st.mask.any() and st.reason.startswith('no still')
 
 
+def test_judging_again_reuses_the_windows_and_gives_a_fresh_verdict():
+    """``again`` judges a result's windows with other floors and veto as a fresh call does."""
+    t, gyro, accel = rest(900.0)
+    drive(t, gyro, accel, 100.0, 400.0)
+    gyro[5000] = np.nan
+    first = detect_still(t, gyro, accel, window_s=2.5)
+    moving = (t > 600.0) & (t < 650.0)
+    for kw in ({'gyro_floor': 3.0 * first.gyro_floor, 'accel_floor': first.accel_floor},
+               {'moving': moving, 'min_still_s': 0.0}):
+        fresh = detect_still(t, gyro, accel, window_s=2.5, **kw)
+        again = detect_still(t, gyro, accel, window_s=2.5, again=first, **kw)
+        assert again.gyro_mean is first.gyro_mean and again.segments == fresh.segments
+        for name in ('mask', 'why', 'gyro_threshold', 'accel_threshold', 'durations_s'):
+            np.testing.assert_array_equal(getattr(again, name), getattr(fresh, name))
+    assert not np.array_equal(again.mask, first.mask) and again.reason == fresh.reason
+    # Another run's result (other samples) is not reused.
+    other = detect_still(t[:-10], gyro[:-10], accel[:-10], window_s=2.5, again=first)
+    assert other.gyro_mean is not first.gyro_mean and other.starts.size == first.starts.size
+
+
 @pytest.mark.parametrize('turn_dps', [0.5, 2.0, 5.0])
 def test_slow_constant_yaw_turn_what_rejects_it(turn_dps):
     """A slow constant turn has no scatter: what tells it from a bias, and the honest limit."""
