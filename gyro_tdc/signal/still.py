@@ -387,8 +387,9 @@ def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
 def _windows(t: NDArray[np.float64], g: NDArray[np.float64], acc: NDArray[np.float64] | None,
              window: float) -> tuple:
     """
-    Return a run's windows: starts, counts, finite rows, windows with a non-finite row, and
-    the raw rate's and acceleration's means and standard deviations (None without accel).
+    Return a run's windows: starts, counts, finite rows and windows with a non-finite row.
+
+    Then the raw rate's and acceleration's means and standard deviations (None without one).
     """
     n = t.shape[0]
     k = np.subtract(t, t[0])           # window index floor((t - t0) / window), in place
