@@ -344,8 +344,8 @@ def _refusals(why: NDArray[np.str_]) -> dict[str, int]:
     return {r: int(np.count_nonzero(why == r)) for r in REASONS if np.any(why == r)}
 
 
-#: Rows per pass of :func:`_window_stats` (its temporaries stay small: a few MB).
-_CHUNK_ROWS = 1 << 17
+#: Rows per pass of :func:`_window_stats` (its temporaries stay in the cache: under 1 MB).
+_CHUNK_ROWS = 1 << 15
 
 
 def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
