@@ -72,16 +72,17 @@ MOTION_EPS = 1e-6
 REASONS = ('samples', 'non-finite', 'motion', 'gyro', 'accel', 'rate', 'brief')
 
 
-def auto_window(t: ArrayLike) -> float:
+def auto_window(t: ArrayLike, dt: float | None = None) -> float:
     """
     Return the trainers' auto still window for stamps ``t``, s (:data:`SHORT_WINDOW_S`).
 
     Short at high rates (a 15 s still stretch between flights holds whole windows), at least
     :data:`MIN_WINDOW_SAMPLES` sample periods, and never longer than :data:`STILL_WINDOW_S`
-    unless the rate asks for it.
+    unless the rate asks for it. ``dt``: the median step of ``t``, when known.
     """
-    t = np.asarray(t, dtype=np.float64)
-    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    if dt is None:
+        t = np.asarray(t, dtype=np.float64)
+        dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
     return max(min(STILL_WINDOW_S, SHORT_WINDOW_S), MIN_WINDOW_SAMPLES * dt) if dt > 0 else (
         STILL_WINDOW_S)
 
@@ -460,7 +461,7 @@ def _no_still_reason(why: NDArray[np.str_], min_still_s: float | None) -> str:
 
 def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, *,
                  rate: ArrayLike | None = None, moving: ArrayLike | None = None,
-                 window_s: float = STILL_WINDOW_S, min_still_s: float | None = MIN_STILL_S,
+                 window_s: float | None = STILL_WINDOW_S, min_still_s: float | None = MIN_STILL_S,
                  gyro_std: float = 0.0, accel_std: float = 0.0, max_rate: float = MAX_RATE,
                  gyro_floor: ArrayLike | None = None, accel_floor: ArrayLike | None = None,
                  again: Stillness | None = None) -> Stillness:
@@ -470,8 +471,8 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     ``t`` (N,) increasing stamps, ``gyro`` (N, 3) raw rate, ``accel`` (N, 3) acceleration
     (ignored when it holds no data, :func:`has_accelerometer`); ``rate`` the rate compensated
     by a prior minus any reference, whose window mean is at most ``max_rate``; ``moving`` (N,)
-    samples a motion report vetoes. Windows last ``window_s``, at least
-    :data:`MIN_WINDOW_SAMPLES` sample periods. A stretch of consecutive still windows is kept
+    samples a motion report vetoes. Windows last ``window_s`` (None: :func:`auto_window`), at
+    least :data:`MIN_WINDOW_SAMPLES` sample periods. A stretch of consecutive still windows is kept
     when it lasts ``min_still_s`` (0 keeps every still window); None judges it by its samples
     and its noise: :data:`MIN_STILL_S`, or :data:`MIN_STILL_SAMPLES` samples whose mean rate has
     a standard error of at most :data:`MAX_STILL_SE` on every axis. ``gyro_std``/``accel_std``
@@ -491,7 +492,8 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
         raise ValueError(f'Expected `accel` of shape {(n, 3)}, got {acc.shape}.')
     stats = again.stats if again is not None and again.mask.shape == (n,) else ()
     dt = stats[0] if stats else float(np.median(np.diff(t))) if n > 1 else 1.0
-    window = max(float(window_s), MIN_WINDOW_SAMPLES * dt)
+    window = (auto_window(t, dt) if window_s is None else
+              max(float(window_s), MIN_WINDOW_SAMPLES * dt))
     if n < 3:
         e, z, inf = np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.full(3, math.inf)
         za, infa = (None, None) if acc is None else (z, inf)
@@ -514,10 +516,7 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     why = judge_windows(g_std, a_std, g_thr, a_thr, mean_rate=mean_rate, max_rate=max_rate,
                         moving=vetoed, counts=counts, finite=~bad)
     segments, durations = _still_stretches(t, g, starts, why, dt, min_still_s)
-    mask = np.zeros(n, dtype=bool)
-    for i0, i1 in segments:
-        mask[i0:i1] = True
-    mask &= finite
+    mask = np.repeat(why == '', counts) & finite      # the rows of the kept stretches
     reason = '' if segments else _no_still_reason(why, min_still_s)
     return Stillness(mask, tuple(segments), window, starts, counts, why, g_mean, g_std, a_mean,
                      a_std, g_thr, None if acc is None else a_thr, np.asarray(durations),

@@ -217,6 +217,9 @@ def test_the_auto_still_test_judges_a_stretch_by_its_samples_and_its_noise():
     assert window == pytest.approx(2.5)
     auto = detect_still(t, gyro, window_s=window, min_still_s=None)
     assert len(auto.segments) == 2
+    # window_s None: the same auto window, from the median step detect_still takes anyway.
+    again = detect_still(t, gyro, window_s=None, min_still_s=None)
+    assert again.window_s == window and again.segments == auto.segments
     assert all(b - a >= MIN_STILL_SAMPLES for a, b in auto.segments)   # 15 s: 375 samples
     assert 25.0 <= auto.still_s <= 30.0
     assert not auto.mask[moves].any()
@@ -231,6 +234,7 @@ def test_the_auto_still_test_judges_a_stretch_by_its_samples_and_its_noise():
     assert loud.segments == () and 'samples with a mean known to' in loud.reason
     # At 1 Hz the window holds 20 samples and a stretch needs 60 s (as before).
     assert auto_window(np.arange(100.0)) == pytest.approx(20.0)
+    assert detect_still(np.arange(100.0), np.zeros((100, 3)), window_s=None).window_s == 20.0
 
 
 def test_noise_floor_pools_to_the_degrees_of_freedom():
