@@ -114,7 +114,7 @@ def _for_search(run: Run) -> Run:
     the search on a 1 kHz recording cost what it costs at 20 Hz.
     """
     dt = np.diff(run.t)
-    rate = 1.0 / float(np.median(dt)) if dt.size and np.median(dt) > 0 else 0.0
+    rate = 1.0 / p if dt.size and (p := float(np.median(dt))) > 0 else 0.0
     m = int(rate // SEARCH_RATE_HZ)
     if m < 2 or len(run) < 2 * m:
         return run

@@ -33,7 +33,7 @@ from gyro_tdc.identify.fit import fit_model, span
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, normalise_ids,
                             OPERATING_RANGE_C)
-from gyro_tdc.signal import auto_window, detect_still, NOISE_FACTOR, Stillness
+from gyro_tdc.signal import detect_still, NOISE_FACTOR, Stillness
 import numpy as np
 from numpy.typing import NDArray
 
@@ -147,19 +147,17 @@ def find_still(runs: Sequence[Run], *, moving: Sequence[NDArray[np.bool_] | None
     samples and its noise).
     """
     moving = [None] * len(runs) if moving is None else list(moving)
-    windows = [auto_window(r.t) if window_s is None else window_s for r in runs]
-
-    def judge(**floors: object) -> list[Stillness]:
-        return [detect_still(r.t, r.omega, r.accel, moving=m, window_s=w, min_still_s=min_still_s,
-                             **floors) for r, m, w in zip(runs, moving, windows)]
-
-    first = judge()
+    first = [detect_still(r.t, r.omega, r.accel, moving=m, window_s=window_s,
+                          min_still_s=min_still_s) for r, m in zip(runs, moving)]
     g_floor = np.min([s.gyro_floor for s in first], axis=0)
     capped = np.minimum(g_floor, STILL_STD_CEILING / NOISE_FACTOR)
     if len(runs) < 2 and np.array_equal(capped, g_floor):
         return first
     a_floors = [s.accel_floor for s in first if s.accel_floor is not None]
-    return judge(gyro_floor=capped, accel_floor=np.min(a_floors, axis=0) if a_floors else None)
+    a_floor = np.min(a_floors, axis=0) if a_floors else None
+    return [detect_still(r.t, r.omega, r.accel, moving=m, window_s=window_s,
+                         min_still_s=min_still_s, gyro_floor=capped, accel_floor=a_floor,
+                         again=s) for r, m, s in zip(runs, moving, first)]
 
 
 def moving_share(runs: Sequence[Run]) -> float:

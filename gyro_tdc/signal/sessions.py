@@ -68,17 +68,18 @@ def break_why(d: float) -> str:
     return f'gap of {d:.0f} s' if d > 0 else f'restart (stamps back by {-d:.0f} s)'
 
 
-def session_gap(t: NDArray[np.float64], gap_s: float = 0.0) -> float:
+def session_gap(t: NDArray[np.float64], gap_s: float = 0.0, *,
+                steps: NDArray[np.float64] | None = None) -> float:
     """
     Return the gap (s) above which a whole run starts a new session (the batch form).
 
     ``gap_s`` > 0 is a fixed threshold (``--session-gap``); 0: :func:`gap_limit` with the
     median step as the period and every step over GAP_PERIODS of them (up to BURST_MAX_S)
-    as the pauses; inf for fewer than two stamps.
+    as the pauses; inf for fewer than two stamps. ``steps``: ``np.diff(t)``, when known.
     """
     if gap_s > 0:
         return float(gap_s)
-    dt = np.diff(np.asarray(t, dtype=np.float64))
+    dt = np.diff(np.asarray(t, dtype=np.float64)) if steps is None else steps
     if dt.size == 0:
         return math.inf
     period = float(np.median(dt))
@@ -88,11 +89,9 @@ def session_gap(t: NDArray[np.float64], gap_s: float = 0.0) -> float:
 
 def gap_breaks(t: NDArray[np.float64], gap_s: float = 0.0) -> list[tuple[int, float]]:
     """Return the gaps of increasing stamps ``t`` that start a session: (first sample, gap s)."""
-    t = np.asarray(t, dtype=np.float64)
-    if t.size < 2:
-        return []
-    dt = np.diff(t)
-    return [(i + 1, float(dt[i])) for i in np.flatnonzero(dt > session_gap(t, gap_s)).tolist()]
+    dt = np.diff(np.asarray(t, dtype=np.float64))
+    gap = session_gap(t, gap_s, steps=dt)
+    return [(i + 1, float(dt[i])) for i in np.flatnonzero(dt > gap).tolist()]
 
 
 class SessionTracker:

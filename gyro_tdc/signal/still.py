@@ -24,7 +24,7 @@ run's noise floor from the start. See doc/internals/signal.md.
 from __future__ import annotations
 
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 import math
 from typing import Callable
 
@@ -72,16 +72,17 @@ MOTION_EPS = 1e-6
 REASONS = ('samples', 'non-finite', 'motion', 'gyro', 'accel', 'rate', 'brief')
 
 
-def auto_window(t: ArrayLike) -> float:
+def auto_window(t: ArrayLike, dt: float | None = None) -> float:
     """
     Return the trainers' auto still window for stamps ``t``, s (:data:`SHORT_WINDOW_S`).
 
     Short at high rates (a 15 s still stretch between flights holds whole windows), at least
     :data:`MIN_WINDOW_SAMPLES` sample periods, and never longer than :data:`STILL_WINDOW_S`
-    unless the rate asks for it.
+    unless the rate asks for it. ``dt``: the median step of ``t``, when known.
     """
-    t = np.asarray(t, dtype=np.float64)
-    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    if dt is None:
+        t = np.asarray(t, dtype=np.float64)
+        dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
     return max(min(STILL_WINDOW_S, SHORT_WINDOW_S), MIN_WINDOW_SAMPLES * dt) if dt > 0 else (
         STILL_WINDOW_S)
 
@@ -316,6 +317,8 @@ class Stillness:
     gyro_floor: NDArray[np.float64]
     accel_floor: NDArray[np.float64] | None
     reason: str = ''
+    #: The sample period and window statistics, for :func:`detect_still`'s ``again``.
+    stats: tuple = field(default=(), repr=False)
 
     @property
     def still_windows(self) -> NDArray[np.bool_]:
@@ -342,12 +345,12 @@ def _refusals(why: NDArray[np.str_]) -> dict[str, int]:
     return {r: int(np.count_nonzero(why == r)) for r in REASONS if np.any(why == r)}
 
 
-#: Rows per pass of :func:`_window_stats` (its temporaries stay small: a few MB).
-_CHUNK_ROWS = 1 << 17
+#: Rows per pass of :func:`_window_stats` (its temporaries stay in the cache: under 1 MB).
+_CHUNK_ROWS = 1 << 15
 
 
 def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
-                  counts: NDArray[np.float64], finite: NDArray[np.bool_] | None = None
+                  counts: NDArray[np.int64], finite: NDArray[np.bool_] | None = None
                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return per-window means and standard deviations (W, 3) of ``x`` (ddof 1).
@@ -380,6 +383,27 @@ def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
     with np.errstate(invalid='ignore', divide='ignore'):
         var = np.maximum(q - s * mean, 0.0) / (n - 1.0)
     return mean + c, np.sqrt(var)
+
+
+def _windows(t: NDArray[np.float64], g: NDArray[np.float64], acc: NDArray[np.float64] | None,
+             window: float) -> tuple:
+    """
+    Return a run's windows: starts, counts, finite rows and windows with a non-finite row.
+
+    Then the raw rate's and acceleration's means and standard deviations (None without one).
+    """
+    n = t.shape[0]
+    k = np.subtract(t, t[0])           # window index floor((t - t0) / window), in place
+    np.floor(np.divide(k, window, out=k), out=k)
+    starts = np.flatnonzero(np.r_[True, k[1:] != k[:-1]])
+    counts = np.diff(np.append(starts, n))
+    finite = np.ones(n, dtype=bool)
+    for f in (np.isfinite(x) for x in (g, acc) if x is not None):
+        finite &= f[:, 0] & f[:, 1] & f[:, 2]      # column by column: 3x faster than all(axis=1)
+    zeroed = None if finite.all() else finite      # non-finite rows count as zeros
+    return (starts, counts, finite, np.logical_or.reduceat(~finite, starts),
+            *_window_stats(g, starts, counts, zeroed),
+            *((None, None) if acc is None else _window_stats(acc, starts, counts, zeroed)))
 
 
 def _long_enough(g: NDArray[np.float64], duration: float, min_still_s: float | None) -> bool:
@@ -437,24 +461,25 @@ def _no_still_reason(why: NDArray[np.str_], min_still_s: float | None) -> str:
 
 def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, *,
                  rate: ArrayLike | None = None, moving: ArrayLike | None = None,
-                 window_s: float = STILL_WINDOW_S, min_still_s: float | None = MIN_STILL_S,
+                 window_s: float | None = STILL_WINDOW_S, min_still_s: float | None = MIN_STILL_S,
                  gyro_std: float = 0.0, accel_std: float = 0.0, max_rate: float = MAX_RATE,
-                 gyro_floor: ArrayLike | None = None,
-                 accel_floor: ArrayLike | None = None) -> Stillness:
+                 gyro_floor: ArrayLike | None = None, accel_floor: ArrayLike | None = None,
+                 again: Stillness | None = None) -> Stillness:
     """
     Find the still samples of a run: the batch form of the still test.
 
     ``t`` (N,) increasing stamps, ``gyro`` (N, 3) raw rate, ``accel`` (N, 3) acceleration
     (ignored when it holds no data, :func:`has_accelerometer`); ``rate`` the rate compensated
     by a prior minus any reference, whose window mean is at most ``max_rate``; ``moving`` (N,)
-    samples a motion report vetoes. Windows last ``window_s``, at least
-    :data:`MIN_WINDOW_SAMPLES` sample periods. A stretch of consecutive still windows is kept
+    samples a motion report vetoes. Windows last ``window_s`` (None: :func:`auto_window`), at
+    least :data:`MIN_WINDOW_SAMPLES` sample periods. A stretch of consecutive still windows is kept
     when it lasts ``min_still_s`` (0 keeps every still window); None judges it by its samples
     and its noise: :data:`MIN_STILL_S`, or :data:`MIN_STILL_SAMPLES` samples whose mean rate has
     a standard error of at most :data:`MAX_STILL_SE` on every axis. ``gyro_std``/``accel_std``
     > 0 are fixed thresholds; ``gyro_floor``/``accel_floor`` replace this run's own noise floors
     (e.g. the quietest window of several bags of one sensor): a run that never stops would look
-    still to itself.
+    still to itself. ``again``: this call's own result on the same samples and windows, whose
+    window statistics are judged again (with other floors, veto or rate) instead of recomputed.
     """
     t = np.asarray(t, dtype=np.float64)
     g = np.asarray(gyro, dtype=np.float64)
@@ -465,32 +490,18 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     acc = np.asarray(accel, dtype=np.float64) if has_accelerometer(accel) else None
     if acc is not None and acc.shape != (n, 3):
         raise ValueError(f'Expected `accel` of shape {(n, 3)}, got {acc.shape}.')
-    dt = float(np.median(np.diff(t))) if n > 1 else 1.0
-    window = max(float(window_s), MIN_WINDOW_SAMPLES * dt)
+    stats = again.stats if again is not None and again.mask.shape == (n,) else ()
+    dt = stats[0] if stats else float(np.median(np.diff(t))) if n > 1 else 1.0
+    window = (auto_window(t, dt) if window_s is None else
+              max(float(window_s), MIN_WINDOW_SAMPLES * dt))
     if n < 3:
         e, z, inf = np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.full(3, math.inf)
         za, infa = (None, None) if acc is None else (z, inf)
         return Stillness(np.zeros(n, dtype=bool), (), window, e, e, np.zeros(0, dtype='<U10'),
                          z, z, za, za, inf, infa, np.zeros(0), inf, infa,
                          'too few samples to judge stillness')
-    k = np.subtract(t, t[0])           # window index floor((t - t0) / window), in place
-    k /= window
-    np.floor(k, out=k)
-    edge = np.empty(n, dtype=bool)
-    edge[0] = True
-    np.not_equal(k[1:], k[:-1], out=edge[1:])
-    starts = np.flatnonzero(edge)
-    counts = np.diff(np.append(starts, n))
-    fc = counts.astype(np.float64)
-    f = np.isfinite(g)                  # rows: column by column (3x faster than all(axis=1))
-    finite = f[:, 0] & f[:, 1] & f[:, 2]
-    if acc is not None:
-        f = np.isfinite(acc)
-        finite &= f[:, 0] & f[:, 1] & f[:, 2]
-    bad = np.logical_or.reduceat(~finite, starts)
-    zeroed = None if finite.all() else finite      # non-finite rows count as zeros
-    g_mean, g_std = _window_stats(g, starts, fc, zeroed)
-    a_mean, a_std = (None, None) if acc is None else _window_stats(acc, starts, fc, zeroed)
+    _, starts, counts, finite, bad, g_mean, g_std, a_mean, a_std = stats = stats or (
+        dt, *_windows(t, g, acc, window))
     usable = (counts >= MIN_JUDGED) & ~bad
     vetoed = (np.zeros(starts.size, dtype=bool) if moving is None else
               np.logical_or.reduceat(np.asarray(moving, dtype=bool), starts))
@@ -501,15 +512,12 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     g_thr, a_thr = noise_thresholds(g_floor, a_floor, gyro_std=gyro_std, accel_std=accel_std)
     r = None if rate is None else np.asarray(rate, dtype=np.float64)
     mean_rate = None if r is None else _window_stats(np.where(np.isfinite(r), r, np.inf),
-                                                     starts, fc)[0]
+                                                     starts, counts)[0]
     why = judge_windows(g_std, a_std, g_thr, a_thr, mean_rate=mean_rate, max_rate=max_rate,
                         moving=vetoed, counts=counts, finite=~bad)
     segments, durations = _still_stretches(t, g, starts, why, dt, min_still_s)
-    mask = np.zeros(n, dtype=bool)
-    for i0, i1 in segments:
-        mask[i0:i1] = True
-    mask &= finite
+    mask = np.repeat(why == '', counts) & finite      # the rows of the kept stretches
     reason = '' if segments else _no_still_reason(why, min_still_s)
     return Stillness(mask, tuple(segments), window, starts, counts, why, g_mean, g_std, a_mean,
                      a_std, g_thr, None if acc is None else a_thr, np.asarray(durations),
-                     g_floor, a_floor, reason)
+                     g_floor, a_floor, reason, stats)

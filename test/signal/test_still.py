@@ -64,6 +64,26 @@ def test_short_stops_are_dropped_below_the_minimum_duration():
     assert not st.mask.any() and st.reason.startswith('no still')
 
 
+def test_judging_again_reuses_the_windows_and_gives_a_fresh_verdict():
+    """``again`` judges a result's windows with other floors and veto as a fresh call does."""
+    t, gyro, accel = rest(900.0)
+    drive(t, gyro, accel, 100.0, 400.0)
+    gyro[5000] = np.nan
+    first = detect_still(t, gyro, accel, window_s=2.5)
+    moving = (t > 600.0) & (t < 650.0)
+    for kw in ({'gyro_floor': 3.0 * first.gyro_floor, 'accel_floor': first.accel_floor},
+               {'moving': moving, 'min_still_s': 0.0}):
+        fresh = detect_still(t, gyro, accel, window_s=2.5, **kw)
+        again = detect_still(t, gyro, accel, window_s=2.5, again=first, **kw)
+        assert again.gyro_mean is first.gyro_mean and again.segments == fresh.segments
+        for name in ('mask', 'why', 'gyro_threshold', 'accel_threshold', 'durations_s'):
+            np.testing.assert_array_equal(getattr(again, name), getattr(fresh, name))
+    assert not np.array_equal(again.mask, first.mask) and again.reason == fresh.reason
+    # Another run's result (other samples) is not reused.
+    other = detect_still(t[:-10], gyro[:-10], accel[:-10], window_s=2.5, again=first)
+    assert other.gyro_mean is not first.gyro_mean and other.starts.size == first.starts.size
+
+
 @pytest.mark.parametrize('turn_dps', [0.5, 2.0, 5.0])
 def test_slow_constant_yaw_turn_what_rejects_it(turn_dps):
     """A slow constant turn has no scatter: what tells it from a bias, and the honest limit."""
@@ -197,6 +217,9 @@ def test_the_auto_still_test_judges_a_stretch_by_its_samples_and_its_noise():
     assert window == pytest.approx(2.5)
     auto = detect_still(t, gyro, window_s=window, min_still_s=None)
     assert len(auto.segments) == 2
+    # window_s None: the same auto window, from the median step detect_still takes anyway.
+    again = detect_still(t, gyro, window_s=None, min_still_s=None)
+    assert again.window_s == window and again.segments == auto.segments
     assert all(b - a >= MIN_STILL_SAMPLES for a, b in auto.segments)   # 15 s: 375 samples
     assert 25.0 <= auto.still_s <= 30.0
     assert not auto.mask[moves].any()
@@ -211,6 +234,7 @@ def test_the_auto_still_test_judges_a_stretch_by_its_samples_and_its_noise():
     assert loud.segments == () and 'samples with a mean known to' in loud.reason
     # At 1 Hz the window holds 20 samples and a stretch needs 60 s (as before).
     assert auto_window(np.arange(100.0)) == pytest.approx(20.0)
+    assert detect_still(np.arange(100.0), np.zeros((100, 3)), window_s=None).window_s == 20.0
 
 
 def test_noise_floor_pools_to_the_degrees_of_freedom():
