@@ -37,6 +37,7 @@ one-line refusal about stillness.
 
     .venv/bin/python bench/bench_board_logs.py                # 8 cases
     .venv/bin/python bench/bench_board_logs.py --cases 20 --seed 1
+    .venv/bin/python bench/bench_board_logs.py --seeds 0 1 2 3 4 5   # per seed, then pooled
 """
 
 import argparse
@@ -145,8 +146,8 @@ def run_case(seed: int, k: int, folder: Path) -> dict:
     c = draw_case(seed, k)
     days, paths = write_case(c, folder)
     train, held = paths[:N_TRAIN], (days[N_TRAIN:], paths[N_TRAIN:])
-    out = {key: c[key] for key in ('case', 'board', 'rate_hz', 'legs', 'resolution_c',
-                                   'noise_dps')}
+    out = {'seed': seed, **{key: c[key] for key in ('case', 'board', 'rate_hz', 'legs',
+                                                    'resolution_c', 'noise_dps')}}
     out['kinds'] = ' '.join(cy['kind'][0] + cy['format'][0] for cy in c['cycles'])
     for name, extra in (('still_only', ('--still-only',)), ('train', ())):
         model = folder / f'c{k}_{name}.yaml'
@@ -181,12 +182,13 @@ def _summary(rows: list, name: str, bound: float) -> list[str]:
                    + ' / '.join(f'{v:.3f}' for v in np.median(
                        [r[name] for r in fitted if r['board']] or [[math.nan] * 3], axis=0)))
         for r in sorted(fitted, key=lambda r: -float(np.max(r[name])))[:3]:
-            out.append(f"  worst: case {r['case']} ({r['rate_hz']:.1f} Hz, res "
+            out.append(f"  worst: seed {r['seed']} case {r['case']} ({r['rate_hz']:.1f} Hz, res "
                        f"{r['resolution_c']:.3g} degC) " + ' / '.join(
                            f'{v:.3f}' for v in r[name]))
     for r in refused:
         if r not in ok_ref:
-            out.append(f"  refusal not in one line, case {r['case']}: {r[name + '_note']}")
+            out.append(f"  refusal not in one line, seed {r['seed']} case {r['case']}: "
+                       f"{r[name + '_note']}")
     return out
 
 
@@ -195,23 +197,35 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--cases', type=int, default=8)
     ap.add_argument('--seed', type=int, default=0)
+    ap.add_argument('--seeds', type=int, nargs='+', help="several seeds: each one's summary, "
+                    'then the pooled one (instead of --seed)')
     args = ap.parse_args(argv)
-    rows = []
-    with tempfile.TemporaryDirectory() as tmp:
-        for k in range(args.cases):
-            r = run_case(args.seed, k, Path(tmp))
-            rows.append(r)
-            fmt = ['refused' if r[n] is None else ' / '.join(f'{v:.3f}' for v in r[n])
-                   for n in ('still_only', 'train')]
-            print(f"case {k:2d} (seed {args.seed}): {r['rate_hz']:7.1f} Hz, {r['legs']} legs, "
-                  f"res {r['resolution_c']:.3g} degC, noise {r['noise_dps']:.3f} deg/s | "
-                  f"still-only {fmt[0]} | train {fmt[1]}\n         cycles: {r['kinds']}"
-                  + ''.join(f"\n         {n}: {r[n + '_note']}" for n in ('still_only', 'train')
-                            if r[n + '_note']), flush=True)
-    for line in (_summary(rows, 'still_only', BOUND_STILL)
-                 + _summary(rows, 'train', BOUND_TRAIN)):
-        print(line)
+    seeds, every = args.seeds or [args.seed], []
+    for seed in seeds:
+        rows = []
+        with tempfile.TemporaryDirectory() as tmp:
+            for k in range(args.cases):
+                r = run_case(seed, k, Path(tmp))
+                rows.append(r)
+                fmt = ['refused' if r[n] is None else ' / '.join(f'{v:.3f}' for v in r[n])
+                       for n in ('still_only', 'train')]
+                print(f"case {k:2d} (seed {seed}): {r['rate_hz']:7.1f} Hz, {r['legs']} legs, "
+                      f"res {r['resolution_c']:.3g} degC, noise {r['noise_dps']:.3f} deg/s | "
+                      f"still-only {fmt[0]} | train {fmt[1]}\n         cycles: {r['kinds']}"
+                      + ''.join(f"\n         {n}: {r[n + '_note']}"
+                                for n in ('still_only', 'train') if r[n + '_note']), flush=True)
+        every += rows
+        _print_summary(rows, '' if len(seeds) == 1 else f'seed {seed}: ')
+    if len(seeds) > 1:
+        _print_summary(every, f"seeds {' '.join(map(str, seeds))} pooled: ")
     return 0
+
+
+def _print_summary(rows: list, head: str) -> None:
+    """Print both trainers' summaries of ``rows``, the first line of each after ``head``."""
+    for name, bound in (('still_only', BOUND_STILL), ('train', BOUND_TRAIN)):
+        first, *rest = _summary(rows, name, bound)
+        print('\n'.join([head + first, *rest]), flush=True)
 
 
 if __name__ == '__main__':
