@@ -35,6 +35,7 @@ import time
 
 from gyro_tdc.base import config_dir
 from gyro_tdc.nodes.executors import make_executor
+from gyro_tdc.runtime import Policy
 from gyro_tdc.signal import bias_stability
 import numpy as np
 import rclpy
@@ -56,16 +57,26 @@ class MonitorNode(Node):
         #: Rates (x, y, z) by header stamp [ns]: raw and compensated.
         self.raw: dict[int, tuple[float, float, float]] = {}
         self.comp: dict[int, tuple[float, float, float]] = {}
+        #: The angular_velocity_covariance[0] of each message by stamp, raw and compensated.
+        self.raw_var: dict[int, float] = {}
+        self.comp_var: dict[int, float] = {}
         self.temps: list[float] = []
-        for topic, into in (('imu/data_raw', self.raw), ('imu/data_compensated', self.comp)):
-            self.create_subscription(Imu, topic, functools.partial(self._store, into), qos)
+        for topic, into, var in (('imu/data_raw', self.raw, self.raw_var),
+                                 ('imu/data_compensated', self.comp, self.comp_var)):
+            self.create_subscription(Imu, topic, functools.partial(self._store, into, var), qos)
         self.create_subscription(Temperature, 'imu/temperature',
                                  lambda m: self.temps.append(m.temperature), qos)
 
     @staticmethod
-    def _store(into: dict, msg: Imu) -> None:
-        w = msg.angular_velocity
-        into[msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec] = (w.x, w.y, w.z)
+    def _store(into: dict, var: dict, msg: Imu) -> None:
+        w, stamp = msg.angular_velocity, msg.header.stamp
+        key = stamp.sec * 1_000_000_000 + stamp.nanosec
+        into[key] = (w.x, w.y, w.z)
+        var[key] = msg.angular_velocity_covariance[0]
+
+    def passed_raw(self, stamp: int, passthrough_variance: float) -> bool:
+        """Whether the compensator passed the raw rate of ``stamp`` (its variance added)."""
+        return self.comp_var[stamp] - self.raw_var[stamp] >= 0.5 * passthrough_variance
 
 
 @dataclass(frozen=True)
@@ -84,6 +95,11 @@ class LiveResult:
     # compensator's input or one of the monitor's) was not yet matched by DDS discovery.
     raw_in_window: int = 0
     compensated_in_window: int = 0
+    # Matched messages the compensator passed raw (no temperature yet: its thermometer
+    # subscription matched after its IMU one), and how many of them came after the first
+    # corrected one. The BS is of the corrected ones.
+    passed_raw: int = 0
+    passed_raw_after_first_corrected: int = 0
 
     def lines(self) -> list[str]:
         """Return a short human-readable report."""
@@ -162,7 +178,10 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
             if len(node.comp) != last:
                 last, quiet = len(node.comp), time.monotonic()
         elapsed = time.monotonic() - start
-        stamps = sorted(set(node.raw) & set(node.comp))
+        both = sorted(set(node.raw) & set(node.comp))
+        raw_pass = [node.passed_raw(s, Policy().passthrough_variance) for s in both]
+        stamps = [s for s, p in zip(both, raw_pass) if not p]
+        first = raw_pass.index(False) if False in raw_pass else len(raw_pass)
         ref = np.radians(np.asarray(reference_dps, dtype=float))
 
         def bs(rates: dict) -> tuple[float, float, float]:
@@ -176,7 +195,8 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
             raw_in_window=sum(1 for s in node.raw if lo <= s <= hi),
             compensated_in_window=sum(1 for s in node.comp if lo <= s <= hi),
             raw_received=len(node.raw), compensated_received=len(node.comp),
-            matched=len(stamps), bs_raw_dps2=bs(node.raw), bs_compensated_dps2=bs(node.comp),
+            matched=len(both), bs_raw_dps2=bs(node.raw), bs_compensated_dps2=bs(node.comp),
+            passed_raw=sum(raw_pass), passed_raw_after_first_corrected=sum(raw_pass[first:]),
             temperature_c=(float(min(temps)), float(max(temps))), seconds=elapsed)
     finally:
         for p in procs:
