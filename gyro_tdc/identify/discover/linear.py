@@ -170,7 +170,7 @@ def hac_pvalue(model: LinearModel, coef: NDArray[np.float64], cand: Sequence[int
         except np.linalg.LinAlgError:
             continue
         dof = max(min(1.5 * d.K / lags[a], d.K - xs.shape[1]), 1.0)
-        # scipy.stats.f.sf(f, len(sel), dof), without importing scipy.stats (~0.5 s): the
+        # scipy.stats.f.sf(f, len(sel), dof), without importing scipy.stats (slow): the
         # same function, and 1 below the distribution's support.
         ps.append(1.0 if f <= 0.0 else float(fdtrc(len(sel), dof, f)))
     return min(1.0, 3.0 * min(ps)) if ps else 1.0
