@@ -303,8 +303,8 @@ class ImuView:
         a covariance marked absent (-1, REP 145), nor to an all-zero (unknown) one unless
         ``base_variance`` > 0 makes its diagonal ``base_variance + var``. ``mark`` writes
         :mod:`gyro_tdc.data.mark`'s mark into a positive finite diagonal, or -0.0 into one that
-        stays unknown. ``accel`` (m/s^2) replaces ``linear_acceleration``; ``accel_var`` is added to its
-        covariance unless marked absent (None: left as is; never marked).
+        stays unknown. ``accel`` (m/s^2) replaces ``linear_acceleration``; ``accel_var`` is
+        added to its covariance unless marked absent (None: left as is; never marked).
         """
         buf = bytearray(self.data)
         base = self.base
