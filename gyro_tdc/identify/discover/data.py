@@ -239,7 +239,7 @@ class BlockData:
 
     def state(self, r: int, tau: float) -> NDArray[np.float64]:
         """
-        Return the thermal state (N,) of run ``r`` at its sample stamps, degC; ``tau`` in s.
+        Return run ``r``'s thermal state at its N sample stamps, degC; ``tau`` in s.
 
         The first-order lag (:func:`gyro_tdc.model.lag.first_order_lag`, settled at the first
         temperature) runs on the run's regular grid, where the temperature is linear between
@@ -278,7 +278,7 @@ class BlockData:
     def column(self, eid: str, params: Mapping[str, Mapping[str, float]], *,
                state_tau: float | None = None) -> NDArray[np.float64]:
         """
-        Return the block-mean column (K,) of input effect ``eid``, cached by parameters.
+        Return the K block means of input effect ``eid``'s column, cached by parameters.
 
         ``params`` is ``{effect: {param: value}}``. With ``state_tau`` (s, the thermal state's
         time constant) the temperature terms (``dT``, ``dT2``, ``dT3``) are powers of the state.
