@@ -43,23 +43,10 @@ RATE_WINDOW_S = 300.0
 def temperature_rate(t: NDArray[np.float64], temp: NDArray[np.float64], *,
                      window_s: float = RATE_WINDOW_S) -> NDArray[np.float64]:
     """
-    Estimate dT/dt at every sample by a centred difference over ``window_s``.
+    Estimate dT/dt (degC/min) at every sample by a centred difference over ``window_s``.
 
-    Parameters
-    ----------
-    t : NDArray[np.float64], shape (N,), s
-        Increasing stamps.
-    temp : NDArray[np.float64], shape (N,), degC
-        Temperature.
-    window_s : float, s
-        Width of the difference (shortened to the run's span); wide enough that thermometer
-        quantisation does not read as heating or cooling.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N,), degC/min
-        Temperature rate.
-
+    ``t`` (s) increasing, ``temp`` degC. The window (shortened to the run's span) is wide
+    enough that thermometer quantisation does not read as heating or cooling.
     """
     t = np.asarray(t, dtype=np.float64)
     temp = np.asarray(temp, dtype=np.float64)

@@ -433,28 +433,11 @@ def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
     """
     Expand bag paths: a folder of bag folders (a multi-run ``simulate``) becomes its bags.
 
-    A path that is a rosbag2 directory, a flight log, or anything else, is kept as is
-    (reading reports what is wrong with it); a directory without ``metadata.yaml`` whose
-    entries are bags or flight logs (``.ulg``, ``.bin``) expands to those, sorted by name
-    (natural order: ``run_2`` before ``run_10``).
-
-    Parameters
-    ----------
-    paths : iterable of str or PathLike
-        Bag paths, e.g. as given on the command line.
-
-    Returns
-    -------
-    list of Path
-        Bag paths in the given order.
-
-    Raises
-    ------
-    DatasetError
-        When a path does not exist, or two paths are the same bag (after resolving links
-        and folders of bags: a run read twice would weigh double in training and would not
-        be held out in discovery's leave-one-run-out).
-
+    A rosbag2 directory, a flight log or anything else is kept (reading reports what is wrong);
+    a directory without ``metadata.yaml`` expands to its bags and flight logs (``.ulg``,
+    ``.bin``) in natural order (``run_2`` before ``run_10``). Raises DatasetError when a path
+    does not exist or two paths are the same bag: a run read twice would weigh double in
+    training and escape discovery's leave-one-run-out.
     """
     out: list[Path] = []
     for raw in paths:
@@ -498,22 +481,10 @@ _DROPPED = {
 
 def describe_read(bag: str | os.PathLike, run: Run, reference_topic: str) -> str:
     """
-    Return the one line that says what was read from a bag, in words.
+    Return the one line that says what :func:`load_run` read from ``bag``, in words.
 
-    Parameters
-    ----------
-    bag : str or PathLike
-        The bag read.
-    run : Run
-        What :func:`load_run` made of it.
-    reference_topic : str
-        The reference topic asked for (named when it was used).
-
-    Returns
-    -------
-    str
-        ``read BAG: N samples over M min, reference rate ...; dropped ...``.
-
+    ``read BAG: N samples over M min, reference rate ...; dropped ...``; ``reference_topic``
+    is named when it was used.
     """
     source, log = run.info.get('reference', '?'), run.info.get('log')
     reference = {'topic': f'reference rate from {reference_topic}'
@@ -533,22 +504,10 @@ def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
               options: BagOptions | None = None, *,
               log: Callable[[str], None] | None = None) -> list[Run]:
     """
-    Load several bags with :func:`load_run`, one run per bag, after :func:`expand_bags`.
+    Load bags (or folders of them, :func:`expand_bags`) with :func:`load_run`, one run each.
 
-    Parameters
-    ----------
-    bags : iterable of str or PathLike (or a single one)
-        rosbag2 directories, or folders of them.
-    options : BagOptions, optional
-        How to read every bag (see :func:`load_run`).
-    log : callable, optional
-        Receives one line per bag read: samples, minutes, reference and what was dropped.
-
-    Returns
-    -------
-    list[Run]
-        One run per bag, in the given order.
-
+    Runs come in the given order, all read with ``options``. ``log`` receives one line per
+    bag (samples, minutes, reference, what was dropped) and its warnings.
     """
     options = BagOptions() if options is None else options
     runs = []

@@ -177,23 +177,9 @@ def unquirk(kind: str) -> Callable[[float], float] | None:
     """
     Return the function that undoes a driver's temperature encoding (None for '').
 
-    Parameters
-    ----------
-    kind : str
-        One of :data:`TEMPERATURE_QUIRKS`.
-
-    Returns
-    -------
-    callable or None
-        ``bno055_unsigned_byte``: a reading of 128 or more is ``256 + T`` with T below 0
-        (the chip's range is -40..85 degC), so 256 is taken off; ``sbg_legacy_div256``: the
-        reading is T / 256, so it is multiplied by 256.
-
-    Raises
-    ------
-    ConfigError
-        When ``kind`` is not one of :data:`TEMPERATURE_QUIRKS`.
-
+    ``bno055_unsigned_byte``: a reading of 128 or more is ``256 + T`` with T below 0 (the
+    chip reads -40..85 degC), so 256 is taken off; ``sbg_legacy_div256``: the reading is
+    T / 256. Raises ConfigError for a ``kind`` not in :data:`TEMPERATURE_QUIRKS`.
     """
     quirks = {'': None, 'bno055_unsigned_byte': lambda t: t - 256.0 if t >= 128.0 else t,
               'sbg_legacy_div256': lambda t: t * 256.0}

@@ -163,24 +163,9 @@ def detect_format(path: str | os.PathLike, requested: str = 'auto') -> str:
     """
     Return how to read ``path``: ``'rosbag2'``, ``'ulog'`` or ``'dataflash'``.
 
-    Parameters
-    ----------
-    path : str or PathLike
-        A bag directory, a bag's storage file, or a log file.
-    requested : str
-        ``--log-format``: ``'auto'`` (magic bytes, then the suffix ``.ulg`` / ``.bin``; a
-        directory or anything else is a bag) or the format itself.
-
-    Returns
-    -------
-    str
-        The format.
-
-    Raises
-    ------
-    DatasetError
-        An unknown ``requested`` format.
-
+    ``requested`` (``--log-format``) is the format, or ``'auto'``: magic bytes, then the
+    suffix ``.ulg`` / ``.bin``; a directory or anything else is a bag. Raises DatasetError for
+    an unknown ``requested``.
     """
     if requested not in LOG_FORMATS:
         raise DatasetError(f'Expected the log format to be one of {", ".join(LOG_FORMATS)}, '

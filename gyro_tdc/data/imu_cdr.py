@@ -89,19 +89,10 @@ def field_slice(name: str) -> slice:
 
 def body_offset(frame_len: int) -> int:
     """
-    Return the byte offset of the float64 block after a header.
+    Return the float64 block's byte offset after a header (4 more than a multiple of 8).
 
-    Parameters
-    ----------
-    frame_len : int
-        Serialized ``frame_id`` length, terminating NUL included (>= 1).
-
-    Returns
-    -------
-    int
-        Offset from the start of the message (encapsulation included); a multiple of 4
-        that is 4 more than a multiple of 8.
-
+    ``frame_len`` is the serialized ``frame_id`` length, NUL included; the offset counts
+    from the start of the message, encapsulation included.
     """
     end = FRAME_ID + frame_len - _ALIGN_ORIGIN
     return _ALIGN_ORIGIN + (end + 7) // 8 * 8
@@ -187,28 +178,12 @@ class Layout:
 
 def layout_of(data: bytes, n_doubles: int = IMU_DOUBLES) -> Layout:
     """
-    Return the layout of one serialized message, checking that it holds.
+    Return the layout (byte order, ``frame_id`` length) of one serialized message, checked.
 
-    Parameters
-    ----------
-    data : bytes
-        The serialized message, encapsulation header included.
-    n_doubles : int
-        Float64 values after the header (37 for an Imu).
-
-    Returns
-    -------
-    Layout
-        Byte order and ``frame_id`` length read from the message.
-
-    Raises
-    ------
-    DatasetError
-        When ``data`` is too short for a header, its encapsulation is not plain CDR (the two
-        option bytes are not checked), the
-        ``frame_id`` length is impossible or not NUL-terminated, or the length of ``data``
-        differs from the layout's.
-
+    ``data`` includes the encapsulation header; ``n_doubles`` float64 values follow the
+    header (37 for an Imu). Raises DatasetError when ``data`` is too short, not plain CDR (the
+    option bytes are not checked), its ``frame_id`` length impossible or not NUL-terminated,
+    or its length not the layout's.
     """
     n = len(data)
     if n < FRAME_ID:
@@ -236,24 +211,10 @@ def layout_of(data: bytes, n_doubles: int = IMU_DOUBLES) -> Layout:
 def encode(sec: ArrayLike, nanosec: ArrayLike, frame_id: str, values: ArrayLike, *,
            big_endian: bool = False) -> list[bytes]:
     """
-    Serialize header-plus-float64 messages that share one frame id.
+    Serialize header-plus-float64 messages that share one frame id, one per row of ``values``.
 
-    Parameters
-    ----------
-    sec, nanosec : ArrayLike, shape (N,)
-        Header stamps.
-    frame_id : str
-        Header frame id of every message.
-    values : ArrayLike, shape (N, K)
-        The float64 block after each header (K = 37 for an Imu, in :data:`IMU_FIELDS` order).
-    big_endian : bool
-        Byte order.
-
-    Returns
-    -------
-    list of bytes
-        One serialized message per row, byte for byte what rosbags' ``serialize_cdr`` writes.
-
+    ``values`` (N, K): K = 37 for an Imu, in :data:`IMU_FIELDS` order. The bytes are exactly
+    what rosbags' ``serialize_cdr`` writes.
     """
     values = np.asarray(values, dtype=np.float64)
     if values.ndim != 2:
@@ -286,20 +247,10 @@ _MARK16 = int.from_bytes(MARK, 'little')
 
 def locate(data: bytes) -> tuple[int, int, int] | None:
     """
-    Find the fields of a serialized little-endian Imu.
+    Find ``(sec, nanosec, base)`` of a serialized little-endian Imu (None: not one).
 
-    Parameters
-    ----------
-    data : bytes
-        The serialized message, encapsulation header included.
-
-    Returns
-    -------
-    tuple of (int, int, int) or None
-        ``(sec, nanosec, base)`` with ``base`` the byte offset of ``orientation`` (the
-        float64 block) in ``data``; None when ``data`` is not a little-endian plain CDR
-        Imu (the caller then deserialises it the general way).
-
+    ``base`` is the byte offset of ``orientation`` (the float64 block) in ``data``; on None
+    the caller deserialises the message the general way.
     """
     if len(data) < FRAME_ID + _TAIL or data[0] != _LE0 or data[1] != _LE1:
         return None
@@ -348,32 +299,12 @@ class ImuView:
         """
         Return a copy with ``angular_velocity`` replaced and ``var`` added to its covariance.
 
-        Parameters
-        ----------
-        wx, wy, wz : float, rad/s
-            New angular velocity.
-        var : tuple of 3 float, (rad/s)^2
-            Added to the covariance diagonal unless its first element is -1 (REP 145: no
-            data) or the covariance is all zero (unknown) and ``base_variance`` is not > 0:
-            unknown stays unknown (with ``mark``, its diagonal zeros made -0.0).
-        mark : bool
-            Also write :mod:`gyro_tdc.data.mark`'s mark into the diagonal (when all three
-            entries are positive and finite).
-        accel : tuple of 3 float, m/s^2, optional
-            New ``linear_acceleration`` (None: left as it is).
-        accel_var : tuple of 3 float, (m/s^2)^2, optional
-            Added to the ``linear_acceleration_covariance`` diagonal unless its first element
-            is -1 (None: left as it is). The mark is only ever in the angular velocity's.
-        base_variance : float, (rad/s)^2
-            The base of an all-zero (unknown) angular velocity covariance: > 0, its diagonal
-            becomes ``base_variance + var`` (and is marked with ``mark``); else it stays all
-            zero.
-
-        Returns
-        -------
-        bytes
-            The serialized message, every other byte unchanged.
-
+        Rates rad/s, variances (rad/s)^2; every other byte is unchanged. ``var`` is not added to
+        a covariance marked absent (-1, REP 145), nor to an all-zero (unknown) one unless
+        ``base_variance`` > 0 makes its diagonal ``base_variance + var``. ``mark`` writes
+        :mod:`gyro_tdc.data.mark`'s mark into a positive finite diagonal, or -0.0 into one that
+        stays unknown. ``accel`` (m/s^2) replaces ``linear_acceleration``; ``accel_var`` is
+        added to its covariance unless marked absent (None: left as is; never marked).
         """
         buf = bytearray(self.data)
         base = self.base

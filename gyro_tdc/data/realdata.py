@@ -138,33 +138,13 @@ def read_pan_cubesat_csv(path: str | Path) -> PanCubesat:
 def pan_cubesat_to_bag(csv_path: str | Path, out: str | Path, *,
                        storage: str = 'sqlite3') -> PanCubesat:
     """
-    Convert the PAN CubeSat TVAC CSV into a rosbag2 bag.
+    Convert the PAN CubeSat TVAC CSV (``TVCtest3_7_20.csv``) into the rosbag2 bag ``out``.
 
     One ``sensor_msgs/Imu`` per row on ``/imu/data_raw`` (no accelerometer in the file:
-    acceleration 0 with ``linear_acceleration_covariance[0] = -1``, REP 145), one
-    ``sensor_msgs/Temperature`` per row on ``/imu/temperature`` on the same stamps (variance
-    = quantisation variance of the 1/256 degC register) and a zero reference rate on
-    ``/rate_table/reference`` on the same stamps.
-
-    Parameters
-    ----------
-    csv_path : str or Path
-        ``TVCtest3_7_20.csv``.
-    out : str or Path
-        Bag directory to create (must not exist).
-    storage : {'sqlite3', 'mcap'}
-        rosbag2 storage plugin.
-
-    Returns
-    -------
-    PanCubesat
-        What was written and what was removed.
-
-    Raises
-    ------
-    DatasetError
-        When the CSV is unreadable or malformed, or the bag cannot be created.
-
+    ``linear_acceleration_covariance[0] = -1``, REP 145), a ``sensor_msgs/Temperature`` on
+    ``/imu/temperature`` (variance: quantisation of the 1/256 degC register) and a zero
+    reference rate, all on the same stamps. Returns what was written and removed; raises
+    DatasetError for a malformed CSV or a bag that cannot be created.
     """
     data = read_pan_cubesat_csv(csv_path)
     write_bag(out, imu_t=data.t, gyro=data.gyro, accel=np.zeros_like(data.gyro), temp_t=data.t,

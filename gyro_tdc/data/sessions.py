@@ -120,22 +120,9 @@ def find_breaks(run: Run, gap_s: float = 0.0) -> list[tuple[int, str]]:
     """
     Return where a run starts a new session: (first sample, why) in order.
 
-    A break is a stamp gap above :func:`gyro_tdc.signal.session_gap`, or a restart that
-    :func:`gyro_tdc.data.dataset.load_run` found (the device clock stepped back;
-    ``run.info['restarts']``: the first sample of each restarted part and the step back, s).
-
-    Parameters
-    ----------
-    run : Run
-        One run.
-    gap_s : float, s
-        ``--session-gap`` (0: automatic, see :func:`gyro_tdc.signal.session_gap`).
-
-    Returns
-    -------
-    list of (int, str)
-        Sample index and ``'gap of X s'`` / ``'restart (stamps back by X s)'``.
-
+    A break is a stamp gap above ``gap_s`` (0: automatic, :func:`gyro_tdc.signal.session_gap`)
+    or a restart :func:`gyro_tdc.data.dataset.load_run` found (``run.info['restarts']``);
+    why reads ``'gap of X s'`` or ``'restart (stamps back by X s)'``.
     """
     out: dict[int, str] = {i: break_why(d) for i, d in gap_breaks(run.t, gap_s)}
     for i, back in run.info.get('restarts', ()):

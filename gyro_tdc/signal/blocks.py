@@ -38,24 +38,11 @@ def _check_block(block: int) -> int:
 
 def block_length(n: int, points: int, *, at_most: bool = False) -> int:
     """
-    Return the block length that reduces ``n`` rows to about ``points`` blocks.
+    Return the block length (>= 1) that reduces ``n`` rows to about ``points`` blocks.
 
-    Parameters
-    ----------
-    n : int
-        Number of rows.
-    points : int
-        Wanted number of blocks (values below 1 count as 1).
-    at_most : bool
-        False: ``n // points`` rows per block, so there are at least ``points`` full blocks
-        when ``n >= points`` (plots). True: ``ceil(n / points)`` rows per block, so there are
-        at most ``points`` blocks (bounded memory for a solve).
-
-    Returns
-    -------
-    int
-        Block length, >= 1.
-
+    ``points`` below 1 counts as 1. By default ``n // points`` rows per block: at least
+    ``points`` full blocks when ``n >= points`` (plots); ``at_most``: ``ceil(n / points)``
+    rows, so at most ``points`` blocks (bounded memory for a solve).
     """
     points = max(int(points), 1)
     if at_most:
@@ -65,20 +52,9 @@ def block_length(n: int, points: int, *, at_most: bool = False) -> int:
 
 def block_counts(n: int, block: int) -> NDArray[np.float64]:
     """
-    Return the number of rows in each block of ``block`` rows out of ``n``.
+    Return the number of rows in each block of ``block`` (>= 1) rows out of ``n`` (>= 0).
 
-    Parameters
-    ----------
-    n : int
-        Number of rows, >= 0.
-    block : int
-        Rows per block, >= 1.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (ceil(n / block),)
-        ``block`` for every block, the remainder for a shorter last block.
-
+    ``block`` for every block, the remainder for a shorter last one; ``ceil(n / block)`` values.
     """
     block = _check_block(block)
     counts = np.full(-(-n // block), float(block))
@@ -128,22 +104,10 @@ def block_sum(a: ArrayLike, block: int, *, partial: bool = True) -> NDArray[np.f
 
 def block_mean(a: ArrayLike, block: int, *, partial: bool = True) -> NDArray[np.float64]:
     """
-    Average ``a`` over consecutive blocks of ``block`` rows.
+    Average ``a`` (N, ...) over consecutive blocks of ``block`` (>= 1) rows of its first axis.
 
-    Parameters
-    ----------
-    a : ArrayLike, shape (N, ...)
-        Rows to average (first axis).
-    block : int
-        Rows per block, >= 1; 1 returns ``a`` as a float64 array (no copy when it is one).
-    partial : bool
-        Keep the mean of a shorter last block (default); False drops it.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (B, ...)
-        Block means, ``B`` as in :func:`block_sum`.
-
+    ``block`` 1 returns ``a`` as float64 (no copy when it is one). A shorter last block keeps
+    its mean unless ``partial`` is False; ``B`` blocks as in :func:`block_sum`.
     """
     block = _check_block(block)
     a = np.asarray(a, dtype=np.float64)
@@ -159,18 +123,8 @@ def block_sumsq(a: ArrayLike, block: int) -> NDArray[np.float64]:
     """
     Sum ``a * a`` over consecutive blocks of ``block`` rows without a squared temporary.
 
-    Parameters
-    ----------
-    a : ArrayLike, shape (N, ...)
-        Rows (first axis).
-    block : int
-        Rows per block, >= 1; the last block may be shorter.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (ceil(N / block), ...)
-        Block sums of squares.
-
+    ``a`` (N, ...) is summed along its first axis; the last block may be shorter, so the
+    result has ``ceil(N / block)`` rows.
     """
     block = _check_block(block)
     a = np.asarray(a, dtype=np.float64)

@@ -42,27 +42,12 @@ def fit_columns(x: NDArray[np.float64], y: NDArray[np.float64], *,
     """
     Solve weighted, ridge-penalised linear least squares for the coefficients of ``x``.
 
-    Parameters
-    ----------
-    x : NDArray[np.float64], shape (N, P)
-        Design: effect columns (and session indicators).
-    y : NDArray[np.float64], shape (N,) or (N, M)
-        Targets.
-    weights : NDArray[np.float64], shape (N,), optional
-        Row weights (rows and targets are multiplied by their square roots).
-    penalty : NDArray[np.float64], shape (P,), optional
-        Square root of the ridge per column: a row ``penalty[j] e_j`` (target 0) is added
-        for every non-zero entry.
-    normalise : bool
-        Solve on columns scaled to unit norm (a zero column keeps a zero coefficient).
-    rcond : float, optional
-        Relative cut-off of small singular values (numpy's default when None).
-
-    Returns
-    -------
-    NDArray[np.float64], shape (P,) or (P, M)
-        Coefficients.
-
+    ``x`` (N, P) holds the effect columns (and session indicators), ``y`` (N,) or (N, M) the
+    targets; the coefficients are (P,) or (P, M). ``weights`` (N,) multiply rows and targets
+    by their square roots; ``penalty`` (P,) is the square root of the ridge per column (a row
+    ``penalty[j] e_j`` with target 0 per non-zero entry). ``normalise`` solves on unit-norm
+    columns (a zero column keeps a zero coefficient); ``rcond`` cuts small singular values
+    (numpy's default when None).
     """
     if weights is not None:
         sw = np.sqrt(weights)
@@ -324,30 +309,13 @@ def heldout(residual: Callable[[NDArray[np.bool_], NDArray[np.bool_]], NDArray[n
             groups: ArrayLike | None = None, weights: NDArray[np.float64] | None = None
             ) -> NDArray[np.float64]:
     """
-    Return held-out residuals: every row's from the fit without its fold.
+    Return held-out residuals (``shape`` (N, M)): every row's from the fit without its fold.
 
-    ``residual(test, train)`` fits on ``train`` and returns the residuals of the ``test``
-    rows. A session with no training row has no fitted offset: its residuals are
-    re-anchored to zero (weighted) mean, as the compensator re-anchors at start-up.
-
-    Parameters
-    ----------
-    residual : callable
-        ``residual(test, train) -> NDArray, shape (T, M)``.
-    folds : Folds or sequence of (test, train)
-        Row masks.
-    shape : tuple of int
-        Shape of the output, ``(N, M)``.
-    groups : ArrayLike, shape (N,), optional
-        Session of every row.
-    weights : NDArray[np.float64], shape (N,), optional
-        Row weights of the re-anchoring mean.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (N, M)
-        Held-out residuals; rows in no fold are zero.
-
+    ``residual(test, train)`` fits on ``train`` and returns the (T, M) residuals of the
+    ``test`` rows; ``folds`` are (test, train) row masks; rows in no fold are zero. With
+    ``groups`` (the session of every row) a session with no training row has no fitted
+    offset: its residuals are re-anchored to zero mean (weighted by ``weights``), as the
+    compensator re-anchors at start-up.
     """
     out = np.zeros(shape)
     g = None if groups is None else np.asarray(groups)

@@ -67,23 +67,11 @@ class TemperatureHold:
 
     def add(self, t: float, temp_c: float, not_after: float = math.inf) -> bool:
         """
-        Add one thermometer sample.
+        Add one thermometer sample ``temp_c`` (degC) at stamp ``t`` (s); return whether held.
 
-        Parameters
-        ----------
-        t : float, s
-            Stamp.
-        temp_c : float, degC
-            Reading.
-        not_after : float, s
-            Latest plausible stamp (the core: the last IMU stamp plus the stale timeout).
-
-        Returns
-        -------
-        bool
-            False when the sample is NaN/Inf (``rejected``) or implausible (``implausible``)
-            and was not held.
-
+        ``not_after`` (s) is the latest plausible stamp (the core: the last IMU stamp plus the
+        stale timeout). A NaN/Inf sample counts as ``rejected``, an implausible one as
+        ``implausible``; neither is held.
         """
         self.received += 1
         if self._gate is not None:

@@ -38,20 +38,10 @@ _DEG = 180.0 / math.pi
 def bias_stability(omega: NDArray[np.float64], omega_ref: NDArray[np.float64]
                    ) -> NDArray[np.float64]:
     """
-    Return BS = MSE(omega - omega_ref) per axis (paper eq. 30).
+    Return BS = MSE(omega - omega_ref) per axis, (deg/s)^2 (paper eq. 30).
 
-    Parameters
-    ----------
-    omega : NDArray[np.float64], shape (N, 3), rad/s
-        Evaluated rate (raw or compensated).
-    omega_ref : NDArray[np.float64], shape (N, 3) or (3,), rad/s
-        Reference rate.
-
-    Returns
-    -------
-    NDArray[np.float64], shape (3,), (deg/s)^2
-        Bias stability per axis.
-
+    ``omega`` (N, 3) is the evaluated rate (raw or compensated), ``omega_ref`` (N, 3) or (3,)
+    the reference, both rad/s.
     """
     e = (np.asarray(omega, dtype=np.float64) - np.asarray(omega_ref, dtype=np.float64)) * _DEG
     return np.mean(e * e, axis=0)
@@ -87,27 +77,14 @@ def allan_deviation(omega: NDArray[np.float64], rate_hz: float, *,
                     taus: NDArray[np.float64] | str = 'octave'
                     ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
-    Compute the overlapping Allan deviation of each axis.
+    Compute the overlapping Allan deviation of each axis: ``(taus, adev)``.
 
-    Parameters
-    ----------
-    omega : NDArray[np.float64], shape (N, 3), rad/s
-        Rate samples at a constant rate.
-    rate_hz : float, Hz
-        Sample rate.
-    taus : array or str
-        Averaging times in s, or an allantools keyword (``'octave'``).
-
-    Returns
-    -------
-    taus : NDArray[np.float64], shape (M,), s
-        Averaging times actually used (common to the three axes).
-    adev : NDArray[np.float64], shape (M, 3), deg/s
-        Allan deviation per axis.
-
+    ``omega`` (N, 3, rad/s) is sampled at the constant ``rate_hz``; ``taus`` are averaging
+    times in s or an allantools keyword (``'octave'``). Returns the times used (M,), common to
+    the three axes, and the deviation (M, 3) in deg/s.
     """
     omega = np.asarray(omega, dtype=np.float64) * _DEG
-    import allantools   # with scipy.stats ~0.35 s: imported when an Allan deviation is asked for
+    import allantools   # slow with scipy.stats: imported when an Allan deviation is asked for
     runs = [allantools.oadev(omega[:, ax], rate=float(rate_hz), data_type='freq', taus=taus)[:2]
             for ax in range(3)]                 # (taus, deviation) per axis
     m = min(len(runs[0][0]), *(len(dev) for _, dev in runs))
@@ -119,22 +96,10 @@ def noise_readouts(taus: NDArray[np.float64], adev: NDArray[np.float64]
     """
     Read angle random walk and bias instability off an Allan deviation curve.
 
-    Angle random walk is ``sigma(tau) * sqrt(tau)`` on the -1/2 slope at the shortest
-    averaging times (IEEE 952), converted to deg/sqrt(h); bias instability is the minimum of
-    the curve divided by 0.664, in deg/h.
-
-    Parameters
-    ----------
-    taus : NDArray[np.float64], shape (M,), s
-        Averaging times.
-    adev : NDArray[np.float64], shape (M, 3), deg/s
-        Allan deviation per axis.
-
-    Returns
-    -------
-    dict
-        ``{'arw_deg_sqrt_h': (3,), 'bias_instability_deg_h': (3,)}``.
-
+    ``taus`` (M,) s, ``adev`` (M, 3) deg/s. Angle random walk is ``sigma(tau) * sqrt(tau)``
+    on the -1/2 slope at the shortest averaging times (IEEE 952), in deg/sqrt(h); bias
+    instability is the curve's minimum / 0.664, in deg/h. Returns
+    ``{'arw_deg_sqrt_h': (3,), 'bias_instability_deg_h': (3,)}``.
     """
     taus = np.asarray(taus, dtype=np.float64)
     adev = np.asarray(adev, dtype=np.float64)

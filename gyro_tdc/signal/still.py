@@ -399,7 +399,7 @@ def _windows(t: NDArray[np.float64], g: NDArray[np.float64], acc: NDArray[np.flo
     counts = np.diff(np.append(starts, n))
     finite = np.ones(n, dtype=bool)
     for f in (np.isfinite(x) for x in (g, acc) if x is not None):
-        finite &= f[:, 0] & f[:, 1] & f[:, 2]      # column by column: 3x faster than all(axis=1)
+        finite &= f[:, 0] & f[:, 1] & f[:, 2]      # column by column: faster than all(axis=1)
     zeroed = None if finite.all() else finite      # non-finite rows count as zeros
     return (starts, counts, finite, np.logical_or.reduceat(~finite, starts),
             *_window_stats(g, starts, counts, zeroed),

@@ -264,28 +264,11 @@ class StillWindows:
             rate: Sequence[float] | None = None, temp_c: float = math.nan,
             moving: bool = False) -> Window | None:
         """
-        Add one sample; return the window it ended, judged, if any.
+        Add one sample; return the window it ended, judged, if any (else None).
 
-        Parameters
-        ----------
-        t : float, s
-            Stamp (increasing).
-        raw : sequence of 3 float, rad/s
-            Raw rate.
-        accel : sequence of 3 float, m/s^2, optional
-            Acceleration.
-        rate : sequence of 3 float, rad/s, optional
-            The rate compensated by a prior (the rate test).
-        temp_c : float, degC
-            Temperature to average over the window.
-        moving : bool
-            A motion flag vetoes this sample's window.
-
-        Returns
-        -------
-        Window or None
-            The window that just ended, else None.
-
+        ``t`` (s) increasing; ``raw`` rate and ``rate`` (compensated by a prior, for the rate
+        test) rad/s, ``accel`` m/s^2 (both optional); ``temp_c`` (degC) is averaged over the
+        window; ``moving`` (a motion flag) vetoes this sample's window.
         """
         done = None
         if self._grid:

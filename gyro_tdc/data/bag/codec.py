@@ -173,29 +173,11 @@ def decode_joined(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
     """
     Decode a block of messages stored end to end: numpy where they share one fixed layout.
 
-    The storage reads hand their blocks over so (no message copied on its own); where the
-    layout does not hold, or a sampled message disagrees with rosbags, rosbags decodes the
-    block message by message (``fallback`` counts them).
-
-    Parameters
-    ----------
-    buf : bytes or memoryview
-        The messages end to end (at least ``sum(lengths)`` bytes; nothing returned refers
-        to it).
-    lengths : sequence of int
-        The length of every message, in order.
-    msgtype : str
-        The message type.
-    typestore : Any
-        rosbags typestore of the fallback.
-    keep : sequence of int, optional
-        Columns of the float64 block to return (default ``KEEP[msgtype]``).
-
-    Returns
-    -------
-    Decoded
-        The decoded block (``fallback`` counts the messages decoded by rosbags).
-
+    ``buf`` holds the messages (``lengths`` bytes each, in order; nothing returned refers to
+    it), so the storage reads copy no message on its own. Where the layout does not hold, or a
+    sampled message disagrees with rosbags, the ``typestore`` decodes message by message
+    (``fallback`` of the result counts them). ``keep``: float64 columns returned (default
+    ``KEEP[msgtype]``).
     """
     n = len(lengths)
     sizes = np.asarray(lengths, dtype=np.int64)
@@ -237,28 +219,13 @@ def decode(raws: Sequence[bytes], msgtype: str, typestore: Any,
 
 def decode_float(raws: Sequence[bytes], msgtype: str, typestore: Any) -> Decoded:
     """
-    Decode a block of ``std_msgs/msg/Float32`` or ``Float64`` temperature readings.
+    Decode a block of ``std_msgs/msg/Float32`` or ``Float64`` temperatures (degC, variance 0).
 
-    The messages have no header: ``sec`` and ``nanosec`` are zero (the reader gives each
-    reading the stamp of the latest IMU message, as the node does live) and the second value
-    column, the variance, is 0 (unknown, as ``sensor_msgs/msg/Temperature`` says it). A block
-    of little-endian plain CDR messages of the one fixed size is read with numpy, checked
-    against rosbags on its first, middle and last message; anything else with rosbags.
-
-    Parameters
-    ----------
-    raws : Sequence[bytes]
-        Raw CDR messages of ``msgtype``.
-    msgtype : str
-        A key of :data:`FLOAT_TYPES`.
-    typestore : Any
-        rosbags typestore of the fallback.
-
-    Returns
-    -------
-    Decoded
-        Columns (value degC, variance 0); ``undecodable`` marks what rosbags could not read.
-
+    The messages have no header: ``sec`` and ``nanosec`` are zero (the reader stamps each
+    reading with the latest IMU message, as the node does live); the variance is 0 (unknown, as
+    ``sensor_msgs/msg/Temperature`` says). Plain little-endian CDR of one fixed size is read
+    with numpy, checked against rosbags on its first, middle and last message; anything else
+    by rosbags (``undecodable`` marks what it could not read).
     """
     n = len(raws)
     dtype = np.dtype(FLOAT_TYPES[msgtype])

@@ -78,52 +78,15 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
     """
     Write IMU, temperature and (optionally) reference-rate messages to a new rosbag2 bag.
 
-    Messages of all topics are written in time order; header stamps and log times are the
-    given times. Imu messages follow REP 145: identity orientation with
-    ``orientation_covariance[0] = -1`` (no orientation estimate), diagonal rate and
-    acceleration covariances. The bag embeds the ROS 2 Jazzy message definitions and uses
-    metadata version 9 (what Jazzy's rosbag2 writes).
-
-    Parameters
-    ----------
-    path : str or Path
-        Bag directory to create; must not exist.
-    imu_t : ArrayLike, shape (N,), s
-        IMU stamps (seconds since any epoch, >= 0).
-    gyro : ArrayLike, shape (N, 3), rad/s
-        Angular velocity.
-    accel : ArrayLike, shape (N, 3), m/s^2
-        Linear acceleration.
-    temp_t : ArrayLike, shape (M,), s
-        Thermometer stamps.
-    temp_c : ArrayLike, shape (M,), degC
-        Temperature.
-    temp_var : float or ArrayLike of shape (M,), degC^2
-        Temperature variance (0 = unknown).
-    ref_t : ArrayLike, shape (R,), s, optional
-        Reference-rate stamps; no reference topic is written when None.
-    ref : ArrayLike, shape (R, 3), rad/s, optional
-        Reference (commanded) rate; required with ``ref_t``.
-    storage : {'sqlite3', 'mcap'}
-        rosbag2 storage plugin.
-    frame_id : str
-        Header frame id of every message.
-    imu_topic, temperature_topic, reference_topic : str
-        Topic names.
-    gyro_cov, accel_cov : ArrayLike, shape (3,), optional
-        Diagonals of ``angular_velocity_covariance`` and ``linear_acceleration_covariance``
-        ((rad/s)^2 and (m/s^2)^2); zeros (unknown) when None. ``(-1, 0, 0)`` marks the
-        quantity as absent (REP 145).
-    extra : sequence of (str, str, ArrayLike, sequence of bytes)
-        Further topics already serialised: ``(topic, msgtype, t, messages)`` with the log
-        times ``t`` (s, shape (K,)) and K CDR messages (e.g. a ``cmd_vel`` Twist stream,
-        :func:`gyro_tdc.data.bag.motion.encode_twists`).
-
-    Raises
-    ------
-    DatasetError
-        When an argument has the wrong shape or the bag cannot be created.
-
+    ``path`` must not exist. Stamps are s (>= 0), ``gyro``/``ref`` rad/s (N, 3), ``accel``
+    m/s^2, ``temp_c`` degC, ``temp_var`` degC^2 (0 = unknown); no reference topic without
+    ``ref_t`` and ``ref`` (given together). Messages are written in time order, header stamps
+    = log times; Imu messages follow REP 145 (identity orientation, ``orientation_covariance[0]
+    = -1``, diagonal covariances ``gyro_cov``/``accel_cov``: zeros = unknown, ``(-1, 0, 0)`` =
+    absent). ``extra``: further serialised topics ``(topic, msgtype, t, messages)``, e.g.
+    :func:`gyro_tdc.data.bag.motion.encode_twists`. The bag embeds the Jazzy message
+    definitions, metadata version 9. Raises DatasetError on a wrong shape or a bag that cannot
+    be created.
     """
     if storage not in _STORAGES:
         raise DatasetError(f"Expected `storage` to be 'sqlite3' or 'mcap', got {storage!r}.")

@@ -239,24 +239,11 @@ class BlockData:
 
     def state(self, r: int, tau: float) -> NDArray[np.float64]:
         """
-        Return the thermal state of run ``r`` at its sample stamps, degC.
+        Return run ``r``'s thermal state at its N sample stamps, degC; ``tau`` in s.
 
         The first-order lag (:func:`gyro_tdc.model.lag.first_order_lag`, settled at the first
         temperature) runs on the run's regular grid, where the temperature is linear between
         grid points, and is interpolated back to the stamps.
-
-        Parameters
-        ----------
-        r : int
-            Run index.
-        tau : float, s
-            Time constant of the state.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (N,)
-            The state.
-
         """
         tg, temp_g = self.grids[r][:2]
         return np.interp(self.runs[r].t, tg, self._grid_state(tg, temp_g, tau))
@@ -270,20 +257,10 @@ class BlockData:
 
     def state_columns(self, tau: float) -> dict[str, NDArray[np.float64]]:
         """
-        Return the block means of the temperature terms of the thermal state, cached by tau.
+        Return the block means of the temperature terms of the thermal state, cached by tau (s).
 
-        Parameters
-        ----------
-        tau : float, s
-            Time constant of the state.
-
-        Returns
-        -------
-        dict
-            ``dT``, ``dT2``, ``dT3`` (K,): block means of their features of the state
-            (:func:`gyro_tdc.model.effects.batch_features` with ``state``); ``dtref`` (K, 3): of
-            ``(s - T0) omega_ref`` (the ``scale`` term).
-
+        ``dT``, ``dT2``, ``dT3`` (K,) of the state (:func:`gyro_tdc.model.effects.batch_features`
+        with ``state``) and ``dtref`` (K, 3) of ``(s - T0) omega_ref`` (the ``scale`` term).
         """
         def make() -> dict[str, NDArray[np.float64]]:
             def f(tg: NDArray[np.float64], temp_g: NDArray[np.float64], ref_g: NDArray[np.float64]
@@ -301,23 +278,10 @@ class BlockData:
     def column(self, eid: str, params: Mapping[str, Mapping[str, float]], *,
                state_tau: float | None = None) -> NDArray[np.float64]:
         """
-        Return the block-mean column of one input effect (K,), cached by parameters.
+        Return the K block means of input effect ``eid``'s column, cached by parameters.
 
-        Parameters
-        ----------
-        eid : str
-            An input effect id.
-        params : mapping
-            ``{effect: {param: value}}``.
-        state_tau : float, optional, s
-            With the thermal state, its time constant: the temperature terms (``dT``,
-            ``dT2``, ``dT3``) are then powers of the state.
-
-        Returns
-        -------
-        NDArray[np.float64], shape (K,)
-            The column.
-
+        ``params`` is ``{effect: {param: value}}``. With ``state_tau`` (s, the thermal state's
+        time constant) the temperature terms (``dT``, ``dT2``, ``dT3``) are powers of the state.
         """
         if state_tau is not None and eid in STATE_TERMS:
             return self.state_columns(state_tau)[eid]

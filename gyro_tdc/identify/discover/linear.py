@@ -117,29 +117,13 @@ def bandwidth(r: NDArray[np.float64], *, floor: bool = True) -> int:
 def ols_hac(y: NDArray[np.float64], x: NDArray[np.float64], maxlags: int
             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
-    Return the OLS coefficients and their Newey-West (Bartlett) covariance, small-sample corrected.
+    Return OLS coefficients (K,) and their small-sample corrected Newey-West covariance (K, K).
 
-    The numbers of statsmodels' ``OLS(y, x).fit(cov_type='HAC', cov_kwds={'maxlags': L,
-    'use_correction': True})`` (``params``, ``cov_params()``), bit for bit: the same
-    pseudo-inverse (SVD, singular values below 1e-15 of the largest dropped), the same
-    sandwich and the same operations in the same order (checked against statsmodels in
-    ``test/identify/discover/test_linear.py``), without importing statsmodels and pandas
-    (~0.5 s a process).
-
-    Parameters
-    ----------
-    y : NDArray[np.float64], shape (N,)
-        The regressand.
-    x : NDArray[np.float64], shape (N, K)
-        The design.
-    maxlags : int
-        Bartlett bandwidth, lags.
-
-    Returns
-    -------
-    params : NDArray[np.float64], shape (K,)
-    cov : NDArray[np.float64], shape (K, K)
-
+    Bit for bit statsmodels' ``OLS(y, x).fit(cov_type='HAC', cov_kwds={'maxlags': L,
+    'use_correction': True})`` (``params``, ``cov_params()``): the same pseudo-inverse (SVD,
+    singular values below 1e-15 of the largest dropped), sandwich and order of operations
+    (checked in ``test/identify/discover/test_linear.py``), without importing statsmodels and
+    pandas. ``y`` (N,), ``x`` (N, K); ``maxlags`` is the Bartlett bandwidth in lags.
     """
     x = np.asarray(x)
     params, pinv = pinv_fit(x, y)       # statsmodels' pinv_extended
@@ -186,7 +170,7 @@ def hac_pvalue(model: LinearModel, coef: NDArray[np.float64], cand: Sequence[int
         except np.linalg.LinAlgError:
             continue
         dof = max(min(1.5 * d.K / lags[a], d.K - xs.shape[1]), 1.0)
-        # scipy.stats.f.sf(f, len(sel), dof), without importing scipy.stats (~0.5 s): the
+        # scipy.stats.f.sf(f, len(sel), dof), without importing scipy.stats (slow): the
         # same function, and 1 below the distribution's support.
         ps.append(1.0 if f <= 0.0 else float(fdtrc(len(sel), dof, f)))
     return min(1.0, 3.0 * min(ps)) if ps else 1.0

@@ -73,32 +73,14 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'po
     """
     Fit the compensation model of the discovered effects, ready for ``save_model``.
 
-    The per-run offsets and the constant scale-factor error found by :func:`discover` are
-    removed from the runs first (they are not thermal: the compensator re-anchors its offset
-    at start-up, and a rate-table gain error belongs to a separate calibration); then
-    :func:`gyro_tdc.identify.fit_model` fits the final effects with the fitted time constants
-    and, with ``lag``, the thermal state discovery found (tau with its profile interval): a
-    format 2 model whose every temperature term follows the state. A gyro axis whose readings
-    never vary beyond one quantum is passed through, as ``train`` does
-    (:func:`gyro_tdc.identify.axes.neutral_runs`, :func:`~gyro_tdc.identify.axes.identity_axes`).
-
-    Parameters
-    ----------
-    result : DiscoveryResult
-        What :func:`discover` returned for ``runs``.
-    runs : sequence of Run
-        The same runs.
-    kind : str, optional
-        ``'poly'`` (default: exactly the linear model discovery validated; with ``lag``
-        every temperature term is a power of the lagged state) or ``'rbf'``.
-    created : mapping, optional
-        Extra creation info (command line, bags).
-
-    Returns
-    -------
-    gyro_tdc.model.compensation.CompensationModel
-        The fitted model.
-
+    The per-run offsets and the constant scale-factor error :func:`discover` found in ``runs``
+    (the runs of ``result``) are removed first: they are not thermal (the compensator
+    re-anchors its offset at start-up; a rate-table gain error is a separate calibration).
+    :func:`gyro_tdc.identify.fit_model` then fits the final effects with the fitted time
+    constants and, with ``lag``, discovery's thermal state: a format 2 model whose every
+    temperature term follows the state. ``kind``: ``'poly'`` (exactly the linear model
+    discovery validated) or ``'rbf'``; ``created``: extra creation info. A constant gyro axis
+    is passed through as ``train`` does (:func:`gyro_tdc.identify.axes.neutral_runs`).
     """
     if len(runs) != len(result.runs):
         raise FitError(f'Expected the {len(result.runs)} runs discovery analysed, '
@@ -125,24 +107,11 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'po
 
 def model_features(result: DiscoveryResult, runs: Sequence[Run]) -> tuple[str, ...]:
     """
-    Return the effects of the model file: the final effects the data can support.
+    Return the effects of the model file (catalog order): the final effects the data support.
 
-    With a temperature span under :data:`gyro_tdc.identify.MIN_SPAN_C` (a warm-up test at a
-    fixed ambient) the temperature effects, base ``dT`` included, are left out: the data say
-    nothing about them.
-
-    Parameters
-    ----------
-    result : DiscoveryResult
-        A discovery.
-    runs : sequence of Run
-        The runs it analysed.
-
-    Returns
-    -------
-    tuple of str
-        Effect ids, catalog order.
-
+    With a temperature span of ``runs`` under :data:`gyro_tdc.identify.MIN_SPAN_C` (a warm-up
+    at a fixed ambient) the temperature effects, base ``dT`` included, are left out: the data
+    say nothing about them.
     """
     span = max(float(np.max(r.temp)) for r in runs) - min(float(np.min(r.temp)) for r in runs)
     return tuple(e for e in result.final_effects

@@ -312,30 +312,12 @@ def discover(runs: Sequence[Run], options: DiscoverOptions | None = None, *,
     """
     Find the effects a drift model is missing, one step at a time.
 
-    Parameters
-    ----------
-    runs : sequence of Run
-        Measured runs (each a continuous recording from power-on; filters restart per run).
-    options : DiscoverOptions, optional
-        Base, candidates and guard; ``**kw`` are its fields, for a call that sets a few.
-    progress : callable, optional
-        Called as ``progress(step, effect_id)`` before each candidate is scored (``step``
-        counts the effects named so far, from 0), e.g. to drive a progress bar.
-    **kw
-        Fields of :class:`DiscoverOptions`.
-
-    Returns
-    -------
-    DiscoveryResult
-        Steps, final model, unidentifiable effects, maps.
-
-    Raises
-    ------
-    FitError
-        When the runs cannot support the analysis (too few blocks, non-finite values...).
-    FeatureError
-        When an effect id is unknown.
-
+    ``runs``: measured runs, each a continuous recording from power-on (filters restart per
+    run). ``options`` (or its fields as ``**kw``): base, candidates and guard. ``progress(step,
+    effect_id)`` is called before each candidate is scored (``step``: effects named so far,
+    from 0), e.g. for a progress bar. Returns the steps, final model, unidentifiable effects
+    and maps. Raises FitError when the runs cannot support the analysis (too few blocks,
+    non-finite values...), FeatureError for an unknown effect id.
     """
     o = replace(options or DiscoverOptions(), **kw)
     runs = list(runs)
