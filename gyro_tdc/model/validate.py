@@ -65,15 +65,8 @@ def check_model(model: CompensationModel) -> None:
     """
     Check that a model's parameters are bounded and its drift finite and plausible.
 
-    For a model built from a file (shapes and finiteness checked). Refused: ``t0_c`` or
-    ``temp_range_c`` outside ``TEMP_PLAUSIBLE_C``; an input ``std`` below
-    :data:`MIN_INPUT_STD` or an RBF width below :data:`MIN_WIDTH` (they divide); a mean,
-    centre, weight, intercept or tail entry beyond :data:`MAX_PARAM`, a residual variance
-    beyond the drift bound squared, a time constant outside :data:`TAU_BOUNDS_S`; a gain
-    ``1 + scale dT`` outside :data:`GAIN_BOUNDS` over the range plus the extrapolation limit;
-    a drift not finite or beyond ``MAX_DRIFT_RAD_S`` (accelerometer:
-    ``MAX_ACCEL_DRIFT_MPS2``) on :func:`drift_grid` (``extrapolate``) and along the
-    ``linear`` tangents out to the extrapolation limit.
+    For a model built from a file (shapes and finiteness checked); the bounds are listed in
+    ``doc/model_file.md`` ("Limits on what a model holds").
 
     Raises
     ------
