@@ -494,6 +494,8 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     dt = stats[0] if stats else float(np.median(np.diff(t))) if n > 1 else 1.0
     window = (auto_window(t, dt) if window_s is None else
               max(float(window_s), MIN_WINDOW_SAMPLES * dt))
+    if stats and (again.window_s != window or (stats[-1] is None) != (acc is None)):
+        stats = ()                    # other windows or sensors: its statistics do not apply
     if n < 3:
         e, z, inf = np.zeros(0, dtype=np.int64), np.zeros((0, 3)), np.full(3, math.inf)
         za, infa = (None, None) if acc is None else (z, inf)

@@ -82,6 +82,13 @@ def test_judging_again_reuses_the_windows_and_gives_a_fresh_verdict():
     # Another run's result (other samples) is not reused.
     other = detect_still(t[:-10], gyro[:-10], accel[:-10], window_s=2.5, again=first)
     assert other.gyro_mean is not first.gyro_mean and other.starts.size == first.starts.size
+    # Nor one of other windows, or of the other sensors: a fresh call's result instead.
+    for kw, acc in (({'window_s': 5.0}, accel), ({'window_s': 2.5}, None)):
+        reused = detect_still(t, gyro, acc, again=first, **kw)
+        fresh = detect_still(t, gyro, acc, **kw)
+        assert reused.gyro_mean is not first.gyro_mean
+        np.testing.assert_array_equal(reused.mask, fresh.mask)
+        np.testing.assert_array_equal(reused.starts, fresh.starts)
 
 
 @pytest.mark.parametrize('turn_dps', [0.5, 2.0, 5.0])
