@@ -179,7 +179,8 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
                 last, quiet = len(node.comp), time.monotonic()
         elapsed = time.monotonic() - start
         both = sorted(set(node.raw) & set(node.comp))
-        raw_pass = [node.passed_raw(s, Policy().passthrough_variance) for s in both]
+        pass_var = Policy().passthrough_variance
+        raw_pass = [node.passed_raw(s, pass_var) for s in both]
         stamps = [s for s, p in zip(both, raw_pass) if not p]
         first = raw_pass.index(False) if False in raw_pass else len(raw_pass)
         ref = np.radians(np.asarray(reference_dps, dtype=float))
