@@ -76,7 +76,7 @@ class MonitorNode(Node):
 
     def passed_raw(self, stamp: int, passthrough_variance: float) -> bool:
         """Whether the compensator passed the raw rate of ``stamp`` (its variance added)."""
-        return self.comp_var[stamp] - self.raw_var[stamp] >= 0.5 * passthrough_variance
+        return bool(self.comp_var[stamp] - self.raw_var[stamp] >= 0.5 * passthrough_variance)
 
 
 @dataclass(frozen=True)
