@@ -157,6 +157,7 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
     ctx = Context()
     rclpy.init(context=ctx)
     procs: list[subprocess.Popen] = []
+    node = ex = None
     try:
         node = MonitorNode(context=ctx)
         ex = make_executor('single', ctx)
@@ -208,4 +209,10 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
                 p.wait(timeout=10)
             except subprocess.TimeoutExpired:
                 p.kill()
+        # The monitor's readers go with it: a context shut down alone leaves them matched
+        # to the next publisher of these topics in this process's domain.
+        if ex is not None:
+            ex.shutdown()
+        if node is not None:
+            node.destroy_node()
         rclpy.try_shutdown(context=ctx)
