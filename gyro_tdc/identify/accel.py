@@ -39,8 +39,8 @@ from gyro_tdc.identify.thermal_search import run_state
 from gyro_tdc.model import (batch_features, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             drift, input_ids, KINDS, MAX_EXTRAPOLATION_C, normalise_ids,
                             resolve_params, STATE_TERMS, THERMAL_EFFECTS)
-from gyro_tdc.signal import (block_counts, block_length, block_mean, block_sumsq, detect_still,
-                             has_accelerometer, MAX_RATE, STILL_WINDOW_S)
+from gyro_tdc.signal import (block_length, BlockGrid, detect_still, has_accelerometer, MAX_RATE,
+                             STILL_WINDOW_S)
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -69,8 +69,6 @@ MAX_GAP_WINDOWS = 6
 MIN_SEGMENT_S = 60.0
 #: Trend of the specific force: median step over this many previous still windows.
 _TREND_WINDOWS = 5
-#: Rows per pass of :func:`_force_blocks` (rounded down to whole blocks).
-_CHUNK_ROWS = 1 << 17
 
 
 @dataclass(frozen=True)
@@ -310,49 +308,27 @@ def _slope_mg(part: CompensationModel) -> NDArray[np.float64]:
     return (b[2] - b[1]) / (hi - lo) / MG
 
 
-def _force_blocks(acc: NDArray[np.float64], sel: slice | NDArray[np.int64], n: int,
-                  block: int) -> tuple[NDArray[np.float64], ...]:
-    """
-    Return the block means, counts and within-block sums of squares of ``acc[sel]``.
-
-    Centred on the first row (no cancellation in the sums), in passes of whole blocks (about
-    :data:`_CHUNK_ROWS` rows): one pass over the ``n`` rows, without a centred copy of them.
-    """
-    contiguous = isinstance(sel, slice)
-    first = acc[sel.start] if contiguous else acc[sel[0]]
-    step = block * max(1, _CHUNK_ROWS // block)
-    buf = np.empty((min(step, n), acc.shape[1]))
-    means, sumsq = [], []
-    for c0 in range(0, n, step):
-        c1 = min(c0 + step, n)
-        rows = acc[sel.start + c0:sel.start + c1] if contiguous else acc[sel[c0:c1]]
-        a = np.subtract(rows, first, out=buf[:c1 - c0])
-        means.append(block_mean(a, block))
-        sumsq.append(block_sumsq(a, block))
-    ya = np.concatenate(means)
-    cnt = block_counts(n, block)
-    return ya + first, cnt, np.maximum(np.concatenate(sumsq) - cnt[:, None] * ya ** 2, 0.0)
-
-
 def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tuple[str, ...],
                     par: dict, block: int) -> tuple[list[dict], tuple[float, float]]:
-    """Return per still segment its block means, and the range of the model temperature."""
+    """
+    Return per still segment its block means, and the range of the model temperature.
+
+    The force's block means and scatter are centred on the segment's first row (gravity
+    dwarfs the scatter), summed in passes: no full copy of the force.
+    """
     segs, lo, hi = [], math.inf, -math.inf
     for r, d in usable:
         state = run_state(model.thermal, r)       # the gyro fit's, not computed again
         x = batch_features(ids, r.t, r.temp, t0=model.t0_c, params=par, state=state)
-        acc = np.asarray(r.accel, dtype=np.float64)
         for s in range(d.n_segments):
             idx = np.flatnonzero(d.segment == s)
             if idx.size == 0:
                 continue
-            # A contiguous segment (a chamber run: all of it) is a view, not a copy.
-            sel = slice(idx[0], idx[-1] + 1) if idx[-1] - idx[0] + 1 == idx.size else idx
-            ya, cnt, within = _force_blocks(acc, sel, idx.size, block)
-            lo, hi = min(lo, float(state[sel].min())), max(hi, float(state[sel].max()))
-            segs.append({'x': block_mean(x[sel], block), 'y': ya, 'n': cnt, 'within': within,
-                         't': block_mean(r.t[sel], block),
-                         'temp': block_mean(r.temp[sel], block)})
+            grid = BlockGrid(idx.size, block, take=idx)
+            ya, within = grid.moments(r.accel, centred=True)
+            lo, hi = min(lo, float(state[idx].min())), max(hi, float(state[idx].max()))
+            segs.append({'x': grid.mean(x), 'y': ya, 'n': grid.counts, 'within': within,
+                         't': grid.mean(r.t), 'temp': grid.mean(r.temp)})
     return segs, (lo, hi)
 
 

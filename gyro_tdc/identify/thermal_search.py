@@ -87,9 +87,8 @@ class RunBlocks:
         self.rows, self.counts, self.mean = self.grid.rows, self.grid.counts, self.grid.mean
         e = err if self.rows is None else err[self.rows]
         self.ss_raw = np.einsum('ij,ij->j', e, e)
-        self.y = self.mean(err)
+        self.y, self.ss_within = self.grid.moments(err)
         self.ref = self.mean(run.omega_ref) if self.has_ref else np.zeros(self.y.shape)
-        self.ss_within = self.grid.scatter(err, self.y)
 
     def _err(self) -> NDArray[np.float64]:
         return self.run.omega - self.run.omega_ref if self.has_ref else self.run.omega
@@ -101,7 +100,7 @@ class RunBlocks:
         if np.any(scale):
             temp = self.run.temp if state is None else state
             err = err - (temp - t0)[:, None] * self.run.omega_ref * scale
-        return self.grid.scatter(err, self.mean(err))
+        return self.grid.moments(err)[1]
 
     def features(self, ids: Sequence[str], t0: float, params: Mapping, *, exact: bool,
                  thermal: ThermalState, state: NDArray[np.float64] | None = None

@@ -15,17 +15,18 @@
 """
 Signal tools on IMU samples.
 
-Block means, the one estimator (least squares, sessions, blocks, folds), noise and accuracy
-metrics, the one still detector (its verdict, batch and streaming forms), the one
-session-break rule (batch and streaming) and the thermometer held by stamp.
+Block means and the one block grid, the one estimator (least squares, sessions, folds),
+noise and accuracy metrics, the one still detector (its verdict, batch and streaming forms),
+the one session-break rule (batch and streaming) and the thermometer held by stamp.
 """
 
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
-    'blocks': ['block_counts', 'block_length', 'block_mean', 'block_sum', 'block_sumsq'],
-    'estimator': ['BlockGrid', 'fit_columns', 'Folds', 'hat', 'heldout', 'pinv_fit',
-                  'session_columns', 'solve_normal', 'within'],
+    'blocks': ['block_counts', 'block_length', 'block_mean', 'block_sum', 'block_sumsq',
+               'BlockGrid', 'PASS_ROWS'],
+    'estimator': ['fit_columns', 'Folds', 'hat', 'heldout', 'pinv_fit', 'session_columns',
+                  'solve_normal', 'within'],
     'hold': ['hold_readings', 'TemperatureHold'],
     'metrics': ['allan_deviation', 'bias_stability', 'noise_readouts', 'p_ratios', 'rms_dps'],
     'sessions': ['BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'break_why', 'GAP_PERIODS',

@@ -16,17 +16,25 @@
 Block sums and means over consecutive rows: the one home of block averaging.
 
 Long runs are reduced to means over blocks of consecutive samples before a fit or a plot;
-the last block holds the remainder and is kept or dropped. See ``doc/internals/signal.md``.
+the last block holds the remainder and is kept or dropped. :class:`BlockGrid` is the one
+block grid of the fits, discovery and the accelerometer part (segments, short tails merged,
+rows that count, rows taken). See ``doc/internals/signal.md``.
 """
 
 from __future__ import annotations
 
 import math
+from typing import Callable
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['block_counts', 'block_length', 'block_mean', 'block_sum', 'block_sumsq']
+__all__ = ['block_counts', 'block_length', 'block_mean', 'block_sum', 'block_sumsq', 'BlockGrid',
+           'PASS_ROWS']
+
+#: Rows a :class:`BlockGrid` takes, masks or centres per pass (rounded down to whole blocks):
+#: its temporaries stay this small however long the stream.
+PASS_ROWS = 1 << 17
 
 
 def _check_block(block: int) -> int:
@@ -136,3 +144,117 @@ def block_sumsq(a: ArrayLike, block: int) -> NDArray[np.float64]:
         return head
     tail = a[full:]
     return np.concatenate([head, np.einsum('j...,j...->...', tail, tail)[None, ...]])
+
+
+class BlockGrid:
+    """
+    Consecutive rows cut into blocks: the one block grid of the fits.
+
+    Each segment (``bounds``) is cut into blocks of ``per`` rows, the last one shorter; with
+    ``merge_tail`` a tail shorter than half a block joins the block before it. With ``rows``
+    only those rows count: blocks without any are dropped. With ``take`` the grid's rows are
+    those rows of every array given (the still samples of a stream), gathered a pass at a time.
+
+    Parameters
+    ----------
+    n : int
+        Number of rows.
+    per : int
+        Rows per block, >= 1.
+    bounds : NDArray[np.int64], optional
+        Segment edges ``[0, ..., n]`` (default one segment).
+    merge_tail : bool
+        Join a short segment tail to the block before it.
+    rows : NDArray[np.bool_], shape (n,), optional
+        The rows that count.
+    take : NDArray[np.int64], shape (n,), optional
+        Increasing row indices of the arrays given: the grid's rows.
+
+    """
+
+    def __init__(self, n: int, per: int, *, bounds: NDArray[np.int64] | None = None,
+                 merge_tail: bool = False, rows: NDArray[np.bool_] | None = None,
+                 take: NDArray[np.int64] | None = None) -> None:
+        self.n, self.per, self.merge_tail = int(n), _check_block(per), merge_tail
+        self.bounds = np.array([0, n]) if bounds is None else np.asarray(bounds)
+        self.rows = None if rows is None else np.asarray(rows, dtype=bool)
+        self.take, self.offset = None if take is None else np.asarray(take), 0
+        if self.take is not None and self.take.size and self.take[-1] - self.take[0] + 1 == n:
+            self.take, self.offset = None, int(self.take[0])     # a contiguous run: views
+        self.keep = None
+        if self.rows is None:
+            self.counts = self._segments(lambda a, b: block_counts(b - a, self.per))
+        else:
+            c = self.sum(self.rows.astype(np.float64), masked=False)
+            self.keep = c > 0
+            self.counts = c[self.keep]
+
+    def _segments(self, blocks: Callable[[int, int], NDArray[np.float64]]) -> NDArray[np.float64]:
+        """Return ``blocks(a, b)`` of every segment, short tails merged, concatenated."""
+        if self.bounds.size == 2 and not self.merge_tail:
+            return blocks(int(self.bounds[0]), int(self.bounds[1]))
+        out, per = [], self.per
+        for a, b in zip(self.bounds[:-1], self.bounds[1:]):
+            s = blocks(int(a), int(b))
+            m = b - a
+            if self.merge_tail and m > per and 0 < (m % per) * 2 < per:
+                s = np.concatenate([s[:-2], s[-2:-1] + s[-1:]])
+            out.append(s)
+        return np.concatenate(out)
+
+    def _rows(self, x: NDArray[np.float64], a: int, b: int, masked: bool) -> NDArray[np.float64]:
+        """Return the grid's rows ``a:b`` of ``x``, those that do not count zeroed."""
+        r = x[self.offset + a:self.offset + b] if self.take is None else x[self.take[a:b]]
+        if masked and self.rows is not None:
+            r = np.where(self.rows[a:b].reshape((-1,) + (1,) * (x.ndim - 1)), r, 0.0)
+        return r
+
+    def _passes(self, x: ArrayLike, f: Callable[..., NDArray[np.float64]], *,
+                masked: bool = True, origin: NDArray[np.float64] | None = None
+                ) -> NDArray[np.float64]:
+        """
+        Return ``f(rows - origin, per)`` of every segment.
+
+        Rows taken, masked or centred are new arrays: they are made in passes of whole blocks.
+        """
+        x = np.asarray(x, dtype=np.float64)
+        copied = self.take is not None or origin is not None or masked and self.rows is not None
+        step = self.per * max(1, PASS_ROWS // self.per) if copied else max(self.n, 1)
+
+        def blocks(a: int, b: int) -> NDArray[np.float64]:
+            parts = []
+            for c in range(a, max(b, a + 1), step):
+                r = self._rows(x, c, min(c + step, b), masked)
+                parts.append(f(r if origin is None else r - origin, self.per))
+            return np.concatenate(parts)
+
+        s = self._segments(blocks)
+        return self.sel(s) if masked else s
+
+    def sel(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
+        """Return the rows of a per-block array (one per block) of the blocks kept."""
+        return x if self.keep is None else x[self.keep]
+
+    def sum(self, x: ArrayLike, *, masked: bool = True) -> NDArray[np.float64]:
+        """Return the block sums of ``x`` (N, ...) over the rows that count."""
+        return self._passes(x, block_sum, masked=masked)
+
+    def mean(self, x: ArrayLike) -> NDArray[np.float64]:
+        """Return the block means of ``x`` (N, ...) over the rows that count."""
+        s = self.sum(x)
+        return s / self.counts.reshape((-1,) + (1,) * (s.ndim - 1))
+
+    def moments(self, x: ArrayLike, *, centred: bool = False
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+        """
+        Return the block means of ``x`` (N, M) and each block's squared deviations from its mean.
+
+        The deviations are summed as ``sum(x^2) - n mean^2`` (at least 0); ``centred`` sums
+        ``x`` less the grid's first row, so no cancellation where the mean dwarfs the scatter
+        (gravity in a specific force).
+        """
+        x = np.asarray(x, dtype=np.float64)
+        origin = self._rows(x, 0, 1, False)[0] if centred and self.n else None
+        mean = self._passes(x, block_sum, origin=origin) / self.counts[:, None]
+        ss = self._passes(x, block_sumsq, origin=origin) - self.counts[:, None] * mean ** 2
+        return (mean if origin is None else mean + origin), np.maximum(ss, 0.0)

@@ -13,13 +13,14 @@
 # limitations under the License.
 
 """
-The one estimator: effect columns, one offset per session, weights, ridge, blocks, folds.
+The one estimator: effect columns, one offset per session, weights, ridge, folds.
 
 Every fit of effect columns in the package solves here (:func:`fit_columns`, :func:`solve_normal`,
 :func:`pinv_fit`, :func:`hat`); sessions get their offsets as indicator columns
-(:func:`session_columns`) or exactly eliminated (:func:`within`); :class:`BlockGrid` is the
-one block grid and :class:`Folds` the one cross-validation scheme (interleaved contiguous
-segments, or leave one session out), :func:`heldout` its held-out residuals.
+(:func:`session_columns`) or exactly eliminated (:func:`within`); :class:`Folds` is the one
+cross-validation scheme (interleaved contiguous segments, or leave one session out),
+:func:`heldout` its held-out residuals. Its rows are block means of the one block grid,
+:class:`gyro_tdc.signal.blocks.BlockGrid`.
 """
 
 from __future__ import annotations
@@ -27,12 +28,11 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
-from gyro_tdc.signal.blocks import block_counts, block_sum, block_sumsq
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['BlockGrid', 'fit_columns', 'Folds', 'hat', 'heldout', 'pinv_fit', 'session_columns',
-           'solve_normal', 'within']
+__all__ = ['fit_columns', 'Folds', 'hat', 'heldout', 'pinv_fit', 'session_columns', 'solve_normal',
+           'within']
 
 
 def fit_columns(x: NDArray[np.float64], y: NDArray[np.float64], *,
@@ -151,88 +151,6 @@ def within(a: NDArray[np.float64], groups: ArrayLike,
         counts = np.bincount(inverse, weights=weights, minlength=counts.size)
     means /= counts.reshape(shape)
     return means, a - means[inverse]
-
-
-class BlockGrid:
-    """
-    Consecutive rows cut into blocks: the one block grid of the fits.
-
-    Each segment (``bounds``) is cut into blocks of ``per`` rows, the last one shorter; with
-    ``merge_tail`` a tail shorter than half a block joins the block before it. With ``rows``
-    only those rows count: blocks without any are dropped.
-
-    Parameters
-    ----------
-    n : int
-        Number of rows.
-    per : int
-        Rows per block, >= 1.
-    bounds : NDArray[np.int64], optional
-        Segment edges ``[0, ..., n]`` (default one segment).
-    merge_tail : bool
-        Join a short segment tail to the block before it.
-    rows : NDArray[np.bool_], shape (n,), optional
-        The rows that count.
-
-    """
-
-    def __init__(self, n: int, per: int, *, bounds: NDArray[np.int64] | None = None,
-                 merge_tail: bool = False, rows: NDArray[np.bool_] | None = None) -> None:
-        self.n, self.per, self.merge_tail = int(n), int(per), merge_tail
-        self.bounds = np.array([0, n]) if bounds is None else np.asarray(bounds)
-        self.rows = None if rows is None else np.asarray(rows, dtype=bool)
-        self.keep = None
-        if self.rows is None:
-            self.counts = self._segments(lambda a, b: block_counts(b - a, self.per))
-        else:
-            c = self.sum(self.rows.astype(np.float64), masked=False)
-            self.keep = c > 0
-            self.counts = c[self.keep]
-
-    def _segments(self, blocks: Callable[[int, int], NDArray[np.float64]]) -> NDArray[np.float64]:
-        """Return ``blocks(a, b)`` of every segment, short tails merged, concatenated."""
-        if self.bounds.size == 2 and not self.merge_tail:
-            return blocks(int(self.bounds[0]), int(self.bounds[1]))
-        out, per = [], self.per
-        for a, b in zip(self.bounds[:-1], self.bounds[1:]):
-            s = blocks(int(a), int(b))
-            m = b - a
-            if self.merge_tail and m > per and 0 < (m % per) * 2 < per:
-                s = np.concatenate([s[:-2], s[-2:-1] + s[-1:]])
-            out.append(s)
-        return np.concatenate(out)
-
-    def sel(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Return the rows of a per-block array (one per block) of the blocks kept."""
-        return x if self.keep is None else x[self.keep]
-
-    def _masked(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Return ``x`` with the rows that do not count zeroed."""
-        shape = (-1,) + (1,) * (x.ndim - 1)
-        return np.where(self.rows.reshape(shape), x, 0.0)
-
-    def sum(self, x: ArrayLike, *, masked: bool = True) -> NDArray[np.float64]:
-        """Return the block sums of ``x`` (N, ...) over the rows that count."""
-        x = np.asarray(x, dtype=np.float64)
-        if masked and self.rows is not None:
-            x = self._masked(x)
-        s = self._segments(lambda a, b: block_sum(x[a:b], self.per))
-        return self.sel(s) if masked else s
-
-    def mean(self, x: ArrayLike) -> NDArray[np.float64]:
-        """Return the block means of ``x`` (N, ...) over the rows that count."""
-        x = np.asarray(x, dtype=np.float64)
-        return self.sum(x) / self.counts.reshape((-1,) + (1,) * (x.ndim - 1))
-
-    def sumsq(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Return the block sums of ``x * x`` (N, M) over the rows that count."""
-        if self.rows is not None:
-            x = self._masked(x)
-        return self.sel(self._segments(lambda a, b: block_sumsq(x[a:b], self.per)))
-
-    def scatter(self, x: NDArray[np.float64], mean: NDArray[np.float64]) -> NDArray[np.float64]:
-        """Return per block the sum of squared deviations of ``x`` (N, M) from ``mean``."""
-        return self.sumsq(x) - self.counts[:, None] * mean ** 2
 
 
 @dataclass(frozen=True)

@@ -255,12 +255,19 @@ def test_discovery_runs_are_the_still_segments_in_mg(chamber):
 
 
 @pytest.mark.parametrize('chunk_rows', [1, 7, 1000])
-def test_the_fit_is_the_same_in_passes_of_any_size(chamber, monkeypatch, chunk_rows):
-    # The force's block sums run in passes of whole blocks; the pass size changes no bit.
-    import gyro_tdc.identify.accel as part
+@pytest.mark.parametrize('max_rows', [20_000, 10 ** 6])
+def test_the_fit_is_the_same_in_passes_of_any_size(chamber, monkeypatch, chunk_rows, max_rows):
+    # The force's block sums run in passes of whole blocks (of one row too: max_rows above
+    # the still samples); the pass size changes no bit.
+    import gyro_tdc.signal.blocks as blocks
 
-    monkeypatch.setattr(part, '_CHUNK_ROWS', chunk_rows)
-    fit = fit_accel(chamber['runs'][:1], chamber['gyro'])
-    assert fit.part.model_id == chamber['fit'].part.model_id
-    np.testing.assert_array_equal(fit.train_bs, chamber['fit'].train_bs)
-    np.testing.assert_array_equal(fit.raw_bs, chamber['fit'].raw_bs)
+    ref = fit_accel(chamber['runs'][:1], chamber['gyro'], max_rows=max_rows)
+    monkeypatch.setattr(blocks, 'PASS_ROWS', chunk_rows)
+    fit = fit_accel(chamber['runs'][:1], chamber['gyro'], max_rows=max_rows)
+    assert fit.part.model_id == ref.part.model_id
+    np.testing.assert_array_equal(fit.train_bs, ref.train_bs)
+    np.testing.assert_array_equal(fit.raw_bs, ref.raw_bs)
+    if max_rows == 20_000:
+        assert fit.part.model_id == chamber['fit'].part.model_id
+    else:       # one row a block: the blocked fit's residual within 1e-3
+        np.testing.assert_allclose(fit.train_bs, chamber['fit'].train_bs, rtol=1e-3)

@@ -12,11 +12,10 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The one estimator: known coefficients recovered, sessions, blocks and folds as specified."""
+"""The one estimator: known coefficients recovered, sessions and folds as specified."""
 
-from gyro_tdc.signal.blocks import block_mean
-from gyro_tdc.signal.estimator import (BlockGrid, fit_columns, Folds, hat, heldout, pinv_fit,
-                                       session_columns, solve_normal, within)
+from gyro_tdc.signal.estimator import (fit_columns, Folds, hat, heldout, pinv_fit, session_columns,
+                                       solve_normal, within)
 import numpy as np
 import pytest
 
@@ -89,24 +88,6 @@ def test_one_offset_per_session_as_columns_or_eliminated_is_one_regression():
     np.testing.assert_allclose(slope, full[3:], rtol=1e-10)
     np.testing.assert_allclose(ym - xm @ slope, full[:3], rtol=1e-10)
     np.testing.assert_allclose(full[:3], offsets, atol=0.01)
-
-
-def test_block_grid_is_block_mean_and_merges_short_tails_of_segments():
-    a = np.arange(23.0)[:, None] * [1.0, -2.0]
-    grid = BlockGrid(23, 5)
-    np.testing.assert_array_equal(grid.mean(a), block_mean(a, 5))
-    assert grid.counts.tolist() == [5, 5, 5, 5, 3]
-    seg = BlockGrid(23, 5, bounds=np.array([0, 11, 23]), merge_tail=True)
-    # Segment 0..11: blocks 5, 6 (a tail of 1 joins); 11..23: 5, 5, 2 (2 < 2.5 joins too).
-    assert seg.counts.tolist() == [5, 6, 5, 7]
-    np.testing.assert_allclose(seg.mean(a)[:, 0], [2.0, 7.5, 13.0, 19.0])
-    rows = np.arange(23) % 7 != 0
-    rows[5:10] = False                                # the second block has no row
-    masked = BlockGrid(23, 5, rows=rows)
-    assert masked.counts.tolist() == [4, 4, 5, 2]
-    np.testing.assert_allclose(masked.mean(a[:, 0]), [2.5, 11.5, 17.0, 21.0])
-    np.testing.assert_allclose(masked.scatter(a, masked.mean(a))[:, 0],
-                               [5.0, 5.0, 10.0, 2.0])
 
 
 def test_folds_segments_interleave_and_sessions_leave_one_out():
