@@ -40,7 +40,7 @@ from gyro_tdc.model import (batch_features, compensate, CompensationModel, DEFAU
                             drift, input_ids, KINDS, MAX_EXTRAPOLATION_C, normalise_ids,
                             resolve_params, STATE_TERMS, THERMAL_EFFECTS)
 from gyro_tdc.signal import (block_length, BlockGrid, detect_still, has_accelerometer, MAX_RATE,
-                             STILL_WINDOW_S)
+                             STILL_WINDOW_S, within)
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -208,14 +208,8 @@ def static_bs(accel: ArrayLike, data: StaticData) -> NDArray[np.float64] | None:
     m = data.mask
     if not np.any(m):
         return None
-    a = np.asarray(accel, dtype=np.float64)[m]
-    seg = data.segment[m]
-    counts = np.bincount(seg, minlength=data.n_segments).astype(np.float64)
-    means = np.zeros((data.n_segments, 3))
-    np.add.at(means, seg, a)
-    means /= np.maximum(counts, 1.0)[:, None]
-    r = a - means[seg]
-    return np.einsum('ij,ij->j', r, r) / float(a.shape[0])
+    r = within(np.asarray(accel, dtype=np.float64)[m], data.segment[m])[1]
+    return np.einsum('ij,ij->j', r, r) / float(r.shape[0])
 
 
 def accel_features(model: CompensationModel, features: str | Sequence[str] | None = None

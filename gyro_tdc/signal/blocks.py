@@ -185,63 +185,52 @@ class BlockGrid:
         if self.rows is None:
             self.counts = self._segments(lambda a, b: block_counts(b - a, self.per))
         else:
-            c = self.sum(self.rows.astype(np.float64), masked=False)
+            c = self._passes(self.rows.astype(np.float64), block_sum, masked=False)
             self.keep = c > 0
             self.counts = c[self.keep]
 
     def _segments(self, blocks: Callable[[int, int], NDArray[np.float64]]) -> NDArray[np.float64]:
         """Return ``blocks(a, b)`` of every segment, short tails merged, concatenated."""
-        if self.bounds.size == 2 and not self.merge_tail:
-            return blocks(int(self.bounds[0]), int(self.bounds[1]))
         out, per = [], self.per
-        for a, b in zip(self.bounds[:-1], self.bounds[1:]):
-            s = blocks(int(a), int(b))
-            m = b - a
+        for a, b in zip(self.bounds[:-1].tolist(), self.bounds[1:].tolist()):
+            s, m = blocks(a, b), b - a
             if self.merge_tail and m > per and 0 < (m % per) * 2 < per:
                 s = np.concatenate([s[:-2], s[-2:-1] + s[-1:]])
             out.append(s)
         return np.concatenate(out)
 
-    def _rows(self, x: NDArray[np.float64], a: int, b: int, masked: bool) -> NDArray[np.float64]:
-        """Return the grid's rows ``a:b`` of ``x``, those that do not count zeroed."""
-        r = x[self.offset + a:self.offset + b] if self.take is None else x[self.take[a:b]]
-        if masked and self.rows is not None:
-            r = np.where(self.rows[a:b].reshape((-1,) + (1,) * (x.ndim - 1)), r, 0.0)
-        return r
-
     def _passes(self, x: ArrayLike, f: Callable[..., NDArray[np.float64]], *,
                 masked: bool = True, origin: NDArray[np.float64] | None = None
                 ) -> NDArray[np.float64]:
         """
-        Return ``f(rows - origin, per)`` of every segment.
+        Return ``f(rows - origin, per)`` of every segment, of the blocks kept when ``masked``.
 
         Rows taken, masked or centred are new arrays: they are made in passes of whole blocks.
         """
         x = np.asarray(x, dtype=np.float64)
-        copied = self.take is not None or origin is not None or masked and self.rows is not None
+        mask = self.rows if masked else None
+        copied = self.take is not None or origin is not None or mask is not None
         step = self.per * max(1, PASS_ROWS // self.per) if copied else max(self.n, 1)
 
         def blocks(a: int, b: int) -> NDArray[np.float64]:
             parts = []
             for c in range(a, max(b, a + 1), step):
-                r = self._rows(x, c, min(c + step, b), masked)
+                d = min(c + step, b)
+                r = x[self.offset + c:self.offset + d] if self.take is None else x[self.take[c:d]]
+                if mask is not None:
+                    r = np.where(mask[c:d].reshape((-1,) + (1,) * (x.ndim - 1)), r, 0.0)
                 parts.append(f(r if origin is None else r - origin, self.per))
             return np.concatenate(parts)
 
-        s = self._segments(blocks)
-        return self.sel(s) if masked else s
+        return self.sel(self._segments(blocks)) if masked else self._segments(blocks)
 
     def sel(self, x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Return the rows of a per-block array (one per block) of the blocks kept."""
         return x if self.keep is None else x[self.keep]
 
-    def sum(self, x: ArrayLike, *, masked: bool = True) -> NDArray[np.float64]:
-        """Return the block sums of ``x`` (N, ...) over the rows that count."""
-        return self._passes(x, block_sum, masked=masked)
-
     def mean(self, x: ArrayLike) -> NDArray[np.float64]:
         """Return the block means of ``x`` (N, ...) over the rows that count."""
-        s = self.sum(x)
+        s = self._passes(x, block_sum)
         return s / self.counts.reshape((-1,) + (1,) * (s.ndim - 1))
 
     def moments(self, x: ArrayLike, *, centred: bool = False
@@ -254,7 +243,9 @@ class BlockGrid:
         (gravity in a specific force).
         """
         x = np.asarray(x, dtype=np.float64)
-        origin = self._rows(x, 0, 1, False)[0] if centred and self.n else None
+        origin = None
+        if centred and self.n:
+            origin = x[self.offset if self.take is None else self.take[0]]
         mean = self._passes(x, block_sum, origin=origin) / self.counts[:, None]
         ss = self._passes(x, block_sumsq, origin=origin) - self.counts[:, None] * mean ** 2
         return (mean if origin is None else mean + origin), np.maximum(ss, 0.0)
