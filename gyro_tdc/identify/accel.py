@@ -314,13 +314,14 @@ def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tupl
     for r, d in usable:
         state = run_state(model.thermal, r)       # the gyro fit's, not computed again
         x = batch_features(ids, r.t, r.temp, t0=model.t0_c, params=par, state=state)
+        lo = min(lo, float(np.min(state, where=d.mask, initial=np.inf)))
+        hi = max(hi, float(np.max(state, where=d.mask, initial=-np.inf)))
         for s in range(d.n_segments):
             idx = np.flatnonzero(d.segment == s)
             if idx.size == 0:
                 continue
             grid = BlockGrid(idx.size, block, take=idx)
             ya, within = grid.moments(r.accel, centred=True)
-            lo, hi = min(lo, float(state[idx].min())), max(hi, float(state[idx].max()))
             segs.append({'x': grid.mean(x), 'y': ya, 'n': grid.counts, 'within': within,
                          't': grid.mean(r.t), 'temp': grid.mean(r.temp)})
     return segs, (lo, hi)

@@ -148,7 +148,7 @@ def block_sumsq(a: ArrayLike, block: int) -> NDArray[np.float64]:
 
 class BlockGrid:
     """
-    Consecutive rows cut into blocks: the one block grid of the fits.
+    Consecutive rows cut into blocks: the one block grid of fits, discovery, accelerometer part.
 
     Each segment (``bounds``) is cut into blocks of ``per`` rows, the last one shorter; with
     ``merge_tail`` a tail shorter than half a block joins the block before it. With ``rows``
@@ -211,15 +211,19 @@ class BlockGrid:
         mask = self.rows if masked else None
         copied = self.take is not None or origin is not None or mask is not None
         step = self.per * max(1, PASS_ROWS // self.per) if copied else max(self.n, 1)
+        buf = np.empty((min(step, self.n),) + x.shape[1:]) if copied else None   # reused
 
         def blocks(a: int, b: int) -> NDArray[np.float64]:
             parts = []
             for c in range(a, max(b, a + 1), step):
                 d = min(c + step, b)
-                r = x[self.offset + c:self.offset + d] if self.take is None else x[self.take[c:d]]
+                r = (x[self.offset + c:self.offset + d] if self.take is None else
+                     np.take(x, self.take[c:d], axis=0, out=buf[:d - c]))
+                if origin is not None:
+                    r = np.subtract(r, origin, out=buf[:d - c])
                 if mask is not None:
                     r = np.where(mask[c:d].reshape((-1,) + (1,) * (x.ndim - 1)), r, 0.0)
-                parts.append(f(r if origin is None else r - origin, self.per))
+                parts.append(f(r, self.per))
             return np.concatenate(parts)
 
         return self.sel(self._segments(blocks)) if masked else self._segments(blocks)

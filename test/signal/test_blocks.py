@@ -112,6 +112,8 @@ def test_block_grid_is_block_mean_and_merges_short_tails_of_segments():
     mean, scatter = masked.moments(a)
     np.testing.assert_array_equal(mean, masked.mean(a))
     np.testing.assert_allclose(scatter[:, 0], [5.0, 5.0, 10.0, 2.0])
+    for got, want in zip(masked.moments(a + 1e3, centred=True), (mean + 1e3, scatter)):
+        np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-9)
 
 
 def _grids(n):
