@@ -33,11 +33,11 @@ from gyro_tdc.base import plain
 from gyro_tdc.data import Coverage, coverage, Run
 from gyro_tdc.errors import FeatureError, FitError
 from gyro_tdc.identify.axes import constant_note
-from gyro_tdc.identify.fit import MIN_SAMPLES, MIN_SPAN_C
+from gyro_tdc.identify.fit import check_choices, MIN_SAMPLES, MIN_SPAN_C
 from gyro_tdc.identify.linear import fit_linear
 from gyro_tdc.identify.thermal_search import run_state
 from gyro_tdc.model import (batch_features, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
-                            drift, input_ids, KINDS, MAX_EXTRAPOLATION_C, normalise_ids,
+                            drift, input_ids, MAX_EXTRAPOLATION_C, normalise_ids,
                             resolve_params, STATE_TERMS, THERMAL_EFFECTS)
 from gyro_tdc.signal import (block_counts, block_length, block_mean, block_sumsq, detect_still,
                              has_accelerometer, MAX_RATE, STILL_WINDOW_S)
@@ -392,8 +392,7 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     """
     ids = accel_features(model, features)
     kind = model.kind if kind is None else kind
-    if kind not in KINDS:
-        raise FeatureError(f'Expected `kind` to be one of {", ".join(KINDS)}, got {kind!r}.')
+    check_choices(kind, None)
     n_centers = max(model.n_centers, 1) if n_centers is None else n_centers
     # A constant accelerometer is absent: its still data are not looked for.
     present = [r for r in runs if has_accelerometer(r.accel)]
