@@ -35,7 +35,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
                     'normalize_type', 'reader', 'stamp_kind', 'stamp_seconds', 'unquirk'],
     'flightlog': ['detect_format', 'FlightLog', 'is_flight_log'],
     'imu_cdr': ['ImuView', 'locate'],
-    'mark': ['diagonal_marked', 'mark_diagonal', 'mark_unknown'],
+    'mark': ['diagonal_marked'],
     'options': ['BagOptions', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',
                 'DEFAULT_TEMPERATURE_TOPIC', 'LOG_FORMATS', 'MAX_LOSS_FRACTION',
                 'TEMPERATURE_SOURCES'],
