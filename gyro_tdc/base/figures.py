@@ -30,7 +30,7 @@ __all__ = ['figure', 'save_png']
 
 
 def figure(**kw: Any) -> Any:
-    """Return a matplotlib figure (constrained layout, ``kw`` as for ``Figure``) on Agg."""
+    """Return a constrained-layout matplotlib figure on its own Agg canvas (``kw``: Figure's)."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
     fig = Figure(constrained_layout=True, **kw)
