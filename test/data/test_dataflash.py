@@ -111,3 +111,25 @@ def test_damaged_bytes_inside_are_skipped_quietly_and_said_on_the_read_line(tmp_
     assert 'pymavlink skipped damaged bytes' in run.info['log']
     assert any('damaged bytes inside' in w for w in run.info['warnings'])
     assert capfd.readouterr().err == ''          # the indexer's reports do not leak
+
+
+def test_arducopter_up_to_3_3_stamps_in_milliseconds(tmp_path):
+    imus = _imus(count=2)
+    path = write_dataflash(tmp_path / 'ms.bin', imus, stamp='TimeMS', temp_field='Temp')
+    for k, imu in enumerate(imus):
+        log = read_dataflash(path, instance=k)
+        np.testing.assert_allclose(log.imu_t, np.floor(imu.t * 1e3 + 1e-6) * 1e-3, atol=1e-9)
+        np.testing.assert_array_equal(log.temp_c, imu.temp)
+        assert log.temperature == 'IMU.Temp'
+    assert len(load_run(path, BagOptions(imu_instance=1))) == len(imus[1].t)
+
+
+def test_one_imu_whose_thermometer_reads_zero_is_refused_saying_what_the_log_has(tmp_path):
+    imu = _imus(count=1)[0]
+    path = write_dataflash(tmp_path / 'zero.bin', [Imu(t=imu.t, gyro=imu.gyro,
+                                                       temp=np.zeros_like(imu.temp))])
+    with pytest.raises(DatasetError, match=r'IMU instance 0 carries no temperature \(what '
+                                           r'each instance carries: 0: 300 samples at 50 Hz, '
+                                           r'temperature none; the log has no other '
+                                           r'thermometer\)\.$'):
+        load_run(path)

@@ -80,8 +80,10 @@ def extract_dataflash(src: Path, dst: Path, *, seconds: float,
     for ofs, length in rows:
         rec = bytes(buf[ofs:ofs + length])
         mtype = rec[2]
-        if mtype != 0x80 and reader.formats[mtype].columns[:1] == ['TimeUS']:
-            t_us = int.from_bytes(rec[3:11], 'little')
+        stamp = reader.formats[mtype].columns[:1] if mtype != 0x80 else []
+        if stamp in (['TimeUS'], ['TimeMS']):        # TimeMS: ArduPilot up to 3.3
+            t_us = (int.from_bytes(rec[3:11], 'little') if stamp == ['TimeUS'] else
+                    int.from_bytes(rec[3:7], 'little') * 1000)
             if t_end is None and t_us > 0:
                 t_end = t_us + seconds * 1e6
             if t_end is not None and t_us > t_end:
