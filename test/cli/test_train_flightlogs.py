@@ -35,6 +35,7 @@ from gyro_tdc.signal.metrics import bias_stability
 from gyro_tdc.sim import simulate_scenario
 import numpy as np
 import pytest
+from real_logs import PX4_ACCEL_THERMOMETER
 
 
 @pytest.fixture(scope='module')
@@ -172,3 +173,13 @@ def test_the_flight_controllers_own_correction_is_scored_exactly_as_it_applies_i
     assert_bad_input(capsys, [done, '--model', 'ardupilot-onboard', '--no-progress',
                               '--allow-onboard-corrected'],
                      'already carries the on-board correction', entry=evaluate)
+
+
+def test_a_real_flight_log_whose_still_time_spans_no_temperature_is_refused_in_one_line(
+        tmp_path, capsys):
+    # 10 s on the ground, then a flight; the still samples all read 23.5 degC.
+    out = ['--out', str(tmp_path / 'm.yaml'), '--no-progress']
+    for extra in ([], ['--still-only']):
+        assert_bad_input(capsys, [PX4_ACCEL_THERMOMETER, *extra, *out],
+                         '--still-only: the still time spans 0.00 degC only')
+    assert not (tmp_path / 'm.yaml').exists()
