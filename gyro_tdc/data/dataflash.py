@@ -221,7 +221,8 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
                            f'{_inventory(imus, baros)}; --imu-instance N).')
     d = imus[instance]
     t = _seconds(d)
-    baro = baros.get(instance, baros.get(0, {}))
+    b_inst = instance if instance in baros else 0       # BARO, BAR2...: per instance
+    baro = baros.get(b_inst, {})
     src = {'imu': d, 'baro': baro}.get(temperature_source, other)
     found = _temperature(src, (fld,) if fld else TEMPERATURE_FIELDS)
     temp_t = None
@@ -241,7 +242,8 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
                            f'instance carries: {_inventory(imus, baros)}).')
     else:
         temp_t, temp = _seconds(src), found[1]
-        name = f'BARO.{found[0]}' if temperature_source == 'baro' else temperature_source
+        name = (f'BARO.{found[0]}' + (f' instance {b_inst}' if b_inst else '')
+                if temperature_source == 'baro' else temperature_source)
     acc = columns(d, ('AccX', 'AccY', 'AccZ')) if accel else None
     active, words = onboard_status(params, 'ardupilot', instance=instance)
     skipped = chatter.getvalue().count('\n')
