@@ -19,7 +19,8 @@ Each extract keeps the original records of the topics / message types a reader u
 for byte, over a leading stretch of the log; ``test/support/files/flightlogs/SOURCE.md``
 names the source and licence of each. ``python test/support/real_logs.py SRC_DIR`` rebuilds
 them from the originals (the pyulog 1.2.1 sdist's ``test/``, bols-blue-org/ape's ``tests/``
-and PX4/px4-ulog-rs' ``tests/fixtures/``, all in one folder).
+PX4/px4-ulog-rs' ``tests/fixtures/`` and dronekit/dronekit-la-testdata, all in one
+folder).
 """
 
 from __future__ import annotations
@@ -44,6 +45,9 @@ ARDUPILOT_CUBEBLACK = FILES / 'ardupilot_cubeblack.bin'
 #: px4-ulog-rs' ``quadrotor_local.ulg`` (Pixhawk 6C): the gyro's thermometers read NaN, the
 #: accelerometer's of the same IMU (``vehicle_imu_status.temperature_accel``) serves.
 PX4_ACCEL_THERMOMETER = FILES / 'px4_v6c_accel_thermometer.ulg'
+#: dronekit-la-testdata's ``log171.bin`` (ArduCopter V3.3-dev): three IMUs at 50 Hz with
+#: ``Temp``, stamped in ``TimeMS``.
+ARDUPILOT_AC33 = FILES / 'ardupilot_ac33_three_imus.bin'
 
 _PX4_TOPICS = ['sensor_gyro', 'sensor_accel', 'sensor_combined', 'vehicle_imu',
                'vehicle_imu_status', 'sensor_baro', 'vehicle_air_data']
@@ -108,6 +112,7 @@ def main(src_dir: str) -> None:
     extract_dataflash(src / 'log_0_2020-5-1-14-53-42.bin', ARDUPILOT_CUBEBLACK,
                       seconds=120.0)
     extract_ulog(src / 'quadrotor_local.ulg', PX4_ACCEL_THERMOMETER, seconds=20.0)
+    extract_dataflash(src / 'log171.bin', ARDUPILOT_AC33, seconds=80.0)
 
 
 if __name__ == '__main__':
