@@ -15,8 +15,8 @@
 """
 The base every package stands on.
 
-Atomic writes, bounded YAML, plain types, limits, shipped resources, parameter specs, the
-one field checker and the latest-job worker.
+Atomic writes, PNG figures, bounded YAML, plain types, limits, shipped resources, parameter
+specs, the one field checker and the latest-job worker.
 """
 
 from gyro_tdc.base.face import lazy
@@ -24,6 +24,7 @@ from gyro_tdc.base.face import lazy
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'atomicio': ['atomic_dir', 'atomic_write', 'clean_leftovers'],
     'face': ['lazy'],
+    'figures': ['figure', 'save_png'],
     'fields': ['FieldChecker', 'is_number', 'shown'],
     'limits': ['check_bin_width', 'check_centers', 'check_sim_samples',
                'MAX_ACCEL_DRIFT_MPS2', 'MAX_CENTERS', 'MAX_DRIFT_RAD_S', 'MAX_RATE_RAD_S',

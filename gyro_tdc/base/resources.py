@@ -30,7 +30,7 @@ from typing import Optional, Union
 
 from gyro_tdc.errors import GyroTdcError, ModelFileError, ScenarioError
 
-__all__ = ['config_dir', 'model_names', 'model_path', 'scenario_names', 'scenario_path']
+__all__ = ['config_dir', 'model_path', 'scenario_names', 'scenario_path']
 
 PACKAGE = 'gyro_tdc'
 YAML_SUFFIXES = ('.yaml', '.yml')
@@ -131,24 +131,6 @@ def scenario_names(*, config: Optional[PathLike] = None) -> list[str]:
 
     """
     return _names(_dir(config, 'scenario'))
-
-
-def model_names(*, config: Optional[PathLike] = None) -> list[str]:
-    """
-    Return the names of the shipped models, sorted.
-
-    Parameters
-    ----------
-    config : str or os.PathLike, optional
-        Configuration directory to search instead of :func:`config_dir`.
-
-    Returns
-    -------
-    list of str
-        Stems of ``config/models/*.yaml``.
-
-    """
-    return _names(_dir(config, 'model'))
 
 
 def scenario_path(name_or_file: PathLike, *, config: Optional[PathLike] = None) -> Path:

@@ -89,7 +89,10 @@ def _records(reader, mtype: int) -> dict[str, np.ndarray]:
     buf = np.frombuffer(reader.data_map, dtype=np.uint8)
     rows = buf[offs[:, None] + 3 + np.arange(dt.itemsize)]
     rec = np.ascontiguousarray(rows).view(dt).ravel()
-    return {n: rec[n] * _SCALE[c] if c in _SCALE else rec[n] for n, c in zip(names, fmt.format)}
+    out = {n: rec[n] * _SCALE[c] if c in _SCALE else rec[n] for n, c in zip(names, fmt.format)}
+    if 'TimeUS' not in out and 'TimeMS' in out:     # ArduPilot up to 3.3 stamps in ms
+        out['TimeUS'] = np.asarray(out['TimeMS'], dtype=np.float64) * 1e3
+    return out
 
 
 def _truncated(reader) -> int:
@@ -132,7 +135,7 @@ def _imu(reader, kind: str = 'IMU') -> dict[int, dict[str, np.ndarray]]:
 
 
 def _seconds(cols: dict[str, np.ndarray]) -> np.ndarray:
-    """Return a record type's ``TimeUS`` stamps in s."""
+    """Return a record type's ``TimeUS`` (or ``TimeMS``, see :func:`_records`) stamps in s."""
     return np.asarray(cols['TimeUS'], dtype=np.float64) * 1e-6
 
 
@@ -209,31 +212,38 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
         reader.filehandle.close()
     if not imus:
         raise DatasetError(f'Log {str(p)!r} has no IMU records.')
+    if any('TimeUS' not in d for d in imus.values()):
+        raise DatasetError(f'Log {str(p)!r}: its IMU records carry no time stamp (neither '
+                           'TimeUS nor TimeMS).')
     if instance not in imus:
         raise DatasetError(f'Log {str(p)!r}: IMU has no instance {instance} (it has '
                            f'{", ".join(map(str, sorted(imus)))}; what each carries: '
                            f'{_inventory(imus, baros)}; --imu-instance N).')
     d = imus[instance]
     t = _seconds(d)
-    baro = baros.get(instance, baros.get(0, {}))
+    b_inst = instance if instance in baros else 0       # BARO, BAR2...: per instance
+    baro = baros.get(b_inst, {})
     src = {'imu': d, 'baro': baro}.get(temperature_source, other)
     found = _temperature(src, (fld,) if fld else TEMPERATURE_FIELDS)
     temp_t = None
     if temperature_source == 'imu':
-        temp = found[1] if found else np.full(len(t), np.nan)
-        name = f'IMU.{found[0]}' if found else ''
-        if found is None and len(imus) > 1:
+        if found is None:
+            baro_ok = any(_temperature(b) is not None for b in baros.values())
+            hint = ('--imu-instance N, or --temperature-source baro' if len(imus) > 1 else
+                    "--temperature-source baro takes the barometer's as a proxy" if baro_ok
+                    else 'the log has no other thermometer')
             raise DatasetError(f'Log {str(p)!r}: IMU instance {instance} carries no '
                                f'temperature (what each instance carries: '
-                               f'{_inventory(imus, baros)}; --imu-instance N, or '
-                               '--temperature-source baro).')
+                               f'{_inventory(imus, baros)}; {hint}).')
+        temp, name = found[1], f'IMU.{found[0]}'
     elif found is None or 'TimeUS' not in src:
         raise DatasetError(f'Log {str(p)!r}: no usable thermometer for '
                            f'--temperature-source {temperature_source} (what each IMU '
                            f'instance carries: {_inventory(imus, baros)}).')
     else:
         temp_t, temp = _seconds(src), found[1]
-        name = f'BARO.{found[0]}' if temperature_source == 'baro' else temperature_source
+        name = (f'BARO.{found[0]}' + (f' instance {b_inst}' if b_inst else '')
+                if temperature_source == 'baro' else temperature_source)
     acc = columns(d, ('AccX', 'AccY', 'AccZ')) if accel else None
     active, words = onboard_status(params, 'ardupilot', instance=instance)
     skipped = chatter.getvalue().count('\n')

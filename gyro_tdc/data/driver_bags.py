@@ -34,9 +34,8 @@ from typing import Any, Mapping
 from gyro_tdc.base import INPUT_FRAMES
 from gyro_tdc.data.bag.codec import IMU_TYPE, jazzy
 from gyro_tdc.data.bag.writer import write_bag
-from gyro_tdc.data.field_paths import (check_number, check_vector, DEFAULT_TEMPERATURE_FIELDS,
-                                       frd_to_flu, normalize_type, reader, stamp_kind,
-                                       stamp_seconds, unquirk)
+from gyro_tdc.data.field_paths import (check_vector, frd_to_flu, normalize_type, reader,
+                                       stamp_kind, stamp_seconds, temperature_path, unquirk)
 from gyro_tdc.errors import ConfigError, DatasetError, one_line
 import numpy as np
 from rosbags.highlevel import AnyReader, AnyReaderError
@@ -161,11 +160,8 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
             check_vector(imu_name, inputs.angular_velocity_field, fields_of,
                          '--angular-velocity-field')
             kind = stamp_kind(imu_name, inputs.stamp_field, fields_of, '--stamp-field')
-            t_path = inputs.temperature_field or DEFAULT_TEMPERATURE_FIELDS.get(temp_name, '')
-            if not t_path:
-                raise ConfigError(f'--temperature-field: {temp_name} has no default '
-                                  'temperature field; give the dotted path to its degC number.')
-            check_number(temp_name, t_path, fields_of, '--temperature-field')
+            t_path = temperature_path(temp_name, inputs.temperature_field, fields_of,
+                                      '--temperature-field')
             ts_path = inputs.temperature_stamp_field
             if not ts_path and (fields_of(temp_name) or {}).get('header') == _HEADER:
                 ts_path = 'header.stamp'

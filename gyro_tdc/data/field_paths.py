@@ -34,7 +34,7 @@ from gyro_tdc.errors import ConfigError
 
 __all__ = ['check_number', 'check_vector', 'DEFAULT_TEMPERATURE_FIELDS', 'FieldsOf',
            'frd_to_flu', 'normalize_type', 'reader', 'split_path', 'stamp_kind',
-           'stamp_seconds', 'unquirk']
+           'stamp_seconds', 'temperature_path', 'unquirk']
 
 #: The usual number field of the common thermometer types (``temperature_field`` empty).
 DEFAULT_TEMPERATURE_FIELDS = {'sensor_msgs/msg/Temperature': 'temperature',
@@ -114,6 +114,25 @@ def check_number(type_name: str, path: str, fields_of: FieldsOf, param: str) -> 
     leaf = _walk(type_name, path, fields_of, param)
     if leaf not in _NUMBERS:
         raise ConfigError(f'{param}: {path!r} in {type_name} is {leaf}, not a number.')
+
+
+def temperature_path(type_name: str, given: str, fields_of: FieldsOf, param: str) -> str:
+    """
+    Return the dotted path to the degC number of ``type_name``: ``given``, else its default.
+
+    Raises
+    ------
+    ConfigError
+        When the type has no default (and none is given) or the path is not a number; the
+        message names ``param``.
+
+    """
+    path = given or DEFAULT_TEMPERATURE_FIELDS.get(type_name, '')
+    if not path:
+        raise ConfigError(f'{param}: {type_name} has no default temperature field; give the '
+                          'dotted path to its degC number (e.g. mean_temp).')
+    check_number(type_name, path, fields_of, param)
+    return path
 
 
 def check_vector(type_name: str, path: str, fields_of: FieldsOf, param: str) -> None:

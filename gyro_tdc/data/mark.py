@@ -27,10 +27,9 @@ from __future__ import annotations
 
 import math
 import struct
-from typing import MutableSequence, Sequence
+from typing import Sequence
 
-__all__ = ['MARK', 'cov_marked', 'diagonal_marked', 'is_marked', 'mark', 'mark_diagonal',
-           'mark_unknown', 'UNKNOWN_MARK']
+__all__ = ['MARK', 'cov_marked', 'diagonal_marked', 'is_marked', 'mark', 'UNKNOWN_MARK']
 
 #: The two low-order bytes (little-endian float64) written into each marked variance.
 MARK = b'TG'
@@ -69,23 +68,6 @@ def cov_marked(data: bytes, offset: int) -> bool:
     return (data[offset:offset + 8] == UNKNOWN_MARK
             and data[offset + 32:offset + 40] == UNKNOWN_MARK
             and data[offset + 64:offset + 72] == UNKNOWN_MARK)
-
-
-def mark_diagonal(cov: MutableSequence[float]) -> None:
-    """Mark entries 0, 4 and 8 of a row-major 3x3 covariance in place, if all can be marked."""
-    if all(0.0 < cov[i] < float('inf') for i in (0, 4, 8)):
-        cov[0], cov[4], cov[8] = mark(cov[0]), mark(cov[4]), mark(cov[8])
-
-
-def mark_unknown(cov: MutableSequence[float]) -> None:
-    """
-    Mark an all-zero (REP 145: unknown) row-major 3x3 covariance in place: -0.0 diagonal.
-
-    Every entry still equals 0.0, so the covariance stays unknown to every reader; only the
-    sign bits say that a compensator applied a model. Anything else is left unchanged.
-    """
-    if not any(cov):
-        cov[0] = cov[4] = cov[8] = -0.0
 
 
 def _negative_zero(value: float) -> bool:

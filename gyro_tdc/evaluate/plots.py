@@ -27,7 +27,7 @@ import os
 from pathlib import Path
 from typing import Any, Sequence
 
-from gyro_tdc.base import atomic_write
+from gyro_tdc.base import figure, save_png
 from gyro_tdc.data import RATE_THRESHOLD_C_PER_MIN, temperature_rate
 from gyro_tdc.evaluate.report import AXES
 from gyro_tdc.evaluate.score import BagEval
@@ -75,21 +75,6 @@ def model_description(name: str, kind: str, features: Sequence[str], *,
     shown = [f'lag {tau_s:.3g} s' if f == 'lag' and tau_s is not None else f
              for f in features if f != 'bias']          # bias is in every model
     return f'{Path(name).name}: {kind} f({", ".join(shown) or "bias"})'
-
-
-def _figure(**kw: Any) -> Any:
-    """Return a matplotlib figure on the Agg canvas (no display needed)."""
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-    fig = Figure(constrained_layout=True, **kw)
-    FigureCanvasAgg(fig)
-    return fig
-
-
-def _save(fig: Any, path: Path) -> Path:
-    """Write a matplotlib figure as a PNG, atomically; return the path."""
-    atomic_write(path, lambda fh: fig.savefig(fh, dpi=90, format='png'), binary=True, what='plot')
-    return path
 
 
 def _zoom_limits(curves: Sequence[NDArray[np.float64]]) -> tuple[float, float] | None:
@@ -171,7 +156,7 @@ def _flag_spans(ax: Any, th: NDArray[np.float64], temp: NDArray[np.float64], b: 
 def _plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head, block,
                      reanchor_s) -> Path:
     """Write ``<label>_timeseries.png``: full scale, zoomed models, temperature."""
-    fig = _figure(figsize=(15, 11.5))
+    fig = figure(figsize=(15, 11.5))
     grid = fig.add_gridspec(4, 2, height_ratios=[1, 1, 1, 0.8])
     first = fig.add_subplot(grid[0, 0])
     left = [first] + [fig.add_subplot(grid[k, 0], sharex=first) for k in (1, 2)]
@@ -211,7 +196,7 @@ def _plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head
     bottom.set_xlabel('time since the start of the bag (h)')
     bottom.grid(True, alpha=0.3)
     fig.suptitle(f'Rate error vs time (left: {block}-sample means)\n{head}')
-    return _save(fig, out / f'{b.label}_timeseries.png')
+    return save_png(fig, out / f'{b.label}_timeseries.png')
 
 
 def _plot_residual_vs_temperature(b, out, run, temp, raw_err, model_err, legends, head,
@@ -223,7 +208,7 @@ def _plot_residual_vs_temperature(b, out, run, temp, raw_err, model_err, legends
               (f'cooling (< -{x:g} degC/min)', rate < -x, 'tab:blue'),
               ('steady', np.abs(rate) <= x, 'tab:gray')]
     series = [raw_err] + list(model_err)
-    fig = _figure(figsize=(14, 2.9 * len(series) + 1.0))
+    fig = figure(figsize=(14, 2.9 * len(series) + 1.0))
     axs = np.atleast_2d(fig.subplots(len(series), 3, squeeze=False))
     for r, e in enumerate(series):
         for k, a in enumerate(AXES):
@@ -239,12 +224,12 @@ def _plot_residual_vs_temperature(b, out, run, temp, raw_err, model_err, legends
                 ax.set_xlabel('temperature (degC)')
     axs[0, 0].legend(loc='best', markerscale=3)
     fig.suptitle(f'Rate error vs temperature, by heating and cooling\n{head}')
-    return _save(fig, out / f'{b.label}_residual_vs_temperature.png')
+    return save_png(fig, out / f'{b.label}_residual_vs_temperature.png')
 
 
 def _plot_allan(b, out, legends, styles, head) -> Path:
     """Write ``<label>_allan.png``: Allan deviation per axis, raw and every model."""
-    fig = _figure(figsize=(15, 5.2))
+    fig = figure(figsize=(15, 5.2))
     axs = fig.subplots(1, 3, sharey=True)
     for k, a in enumerate(AXES):
         for i, m in enumerate([b.raw] + list(b.models)):
@@ -258,4 +243,4 @@ def _plot_allan(b, out, legends, styles, head) -> Path:
     axs[0].set_ylabel('Allan deviation of the rate error (deg/s)')
     axs[0].legend(loc='best')
     fig.suptitle(f'Allan deviation\n{head}')
-    return _save(fig, out / f'{b.label}_allan.png')
+    return save_png(fig, out / f'{b.label}_allan.png')

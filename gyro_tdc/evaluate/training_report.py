@@ -21,16 +21,16 @@ Formats only, for ``gyro-tdc train`` and the demo (see ``doc/internals/evaluate.
 from __future__ import annotations
 
 import math
-from typing import Any, Sequence
+from typing import Sequence
 
 from gyro_tdc.data import Coverage
 from gyro_tdc.evaluate.report import AXES
 from gyro_tdc.identify import reanchor_lines, session_check_lines, TrainResult
-from gyro_tdc.model import MAX_EXTRAPOLATION_C, OPERATING_RANGE_C, range_shortfall
+from gyro_tdc.model import (MAX_EXTRAPOLATION_C, OPERATING_RANGE_C, range_shortfall,
+                            static_slope)
 import numpy as np
-from numpy.typing import NDArray
 
-__all__ = ['drift_slope', 'format_coverage', 'format_sessions', 'format_training',
+__all__ = ['format_coverage', 'format_sessions', 'format_training',
            'is_coverage_line', 'REANCHOR_SPREAD_DPS']
 
 
@@ -104,25 +104,6 @@ def is_coverage_line(line: str) -> bool:
 # --------------------------------------------------------------------------------------------
 # Training report
 # --------------------------------------------------------------------------------------------
-
-def drift_slope(model: Any) -> NDArray[np.float64]:
-    """
-    Return a model's mean static-drift slope over its trained range, deg/s per degC per axis.
-
-    The static drift is the drift at thermal equilibrium; the slope is its change across
-    ``temp_range_c`` divided by the span (NaN without a span). For the conventional f(dT)
-    it is the zero-rate level change per degC (eq. 18, alpha).
-    """
-    from gyro_tdc.model import drift
-
-    lo, hi = (float(v) for v in model.temp_range_c)
-    if not hi > lo:
-        return np.full(3, math.nan)
-    temp = np.array([lo, lo, hi])            # a settling sample, then the two ends
-    t = np.arange(3, dtype=np.float64) * 1e7    # far apart: every dynamic term has settled
-    b = np.degrees(drift(model, t, temp, clamp=True))
-    return (b[2] - b[1]) / (hi - lo)
-
 
 def _row3(label: str, values: Sequence[float]) -> str:
     """Format one table row of three per-axis numbers."""
@@ -233,8 +214,8 @@ def format_training(result: TrainResult) -> tuple[str, list]:
               _row3('RMS (deg/s)', met.get('train_rms_dps', [math.nan] * 3))]
     if np.any(m.scale != 0):
         lines.append(_row3('scale (1/C)', m.scale))
-    lines.append(_row3('drift/degC', drift_slope(m)) + '   (deg/s per degC: static drift, '
-                 'mean slope over the range)')
+    lines.append(_row3('drift/degC', np.degrees(static_slope(m)))
+                 + '   (deg/s per degC: static drift, mean slope over the range)')
     table, warns = format_coverage(result.coverage)
     lines.append(table)
     short = range_shortfall((lo, hi))

@@ -33,12 +33,12 @@ from gyro_tdc.base import plain
 from gyro_tdc.data import Coverage, coverage, Run
 from gyro_tdc.errors import FeatureError, FitError
 from gyro_tdc.identify.axes import constant_note
-from gyro_tdc.identify.fit import MIN_SAMPLES, MIN_SPAN_C
+from gyro_tdc.identify.fit import check_choices, MIN_SAMPLES, MIN_SPAN_C
 from gyro_tdc.identify.linear import fit_linear
 from gyro_tdc.identify.thermal_search import run_state
 from gyro_tdc.model import (batch_features, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
-                            drift, input_ids, KINDS, MAX_EXTRAPOLATION_C, normalise_ids,
-                            resolve_params, STATE_TERMS, THERMAL_EFFECTS)
+                            input_ids, MAX_EXTRAPOLATION_C, normalise_ids, resolve_params,
+                            STATE_TERMS, static_slope, THERMAL_EFFECTS)
 from gyro_tdc.signal import (block_length, BlockGrid, detect_still, has_accelerometer, MAX_RATE,
                              STILL_WINDOW_S, within)
 import numpy as np
@@ -283,23 +283,13 @@ class AccelFit:
                 f'  {"":<13}' + ''.join(f'{a:>12}' for a in 'xyz'),
                 _row('raw', self.raw_bs), _row('compensated', self.train_bs),
                 _row('RMS (mg)', np.sqrt(self.train_bs) / MG),
-                _row('change/degC', _slope_mg(p)) + '   (mg per degC: static change, mean '
-                                                    'slope over the range)'] + changes
+                _row('change/degC', static_slope(p) / MG)
+                + '   (mg per degC: static change, mean slope over the range)'] + changes
 
 
 def _row(label: str, values: ArrayLike) -> str:
     """Format one table row of three per-axis numbers."""
     return f'  {label:<13}' + ''.join(f'{float(v):>12.4g}' for v in values)
-
-
-def _slope_mg(part: CompensationModel) -> NDArray[np.float64]:
-    """Return the part's mean static slope over its range, mg per degC (NaN without span)."""
-    lo, hi = (float(v) for v in part.temp_range_c)
-    if not hi > lo:
-        return np.full(3, math.nan)
-    t = np.arange(3, dtype=np.float64) * 1e7      # far apart: every dynamic term settled
-    b = drift(part, t, np.array([lo, lo, hi]), clamp=True)
-    return (b[2] - b[1]) / (hi - lo) / MG
 
 
 def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tuple[str, ...],
@@ -363,8 +353,7 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     """
     ids = accel_features(model, features)
     kind = model.kind if kind is None else kind
-    if kind not in KINDS:
-        raise FeatureError(f'Expected `kind` to be one of {", ".join(KINDS)}, got {kind!r}.')
+    check_choices(kind, None)
     n_centers = max(model.n_centers, 1) if n_centers is None else n_centers
     # A constant accelerometer is absent: its still data are not looked for.
     present = [r for r in runs if has_accelerometer(r.accel)]

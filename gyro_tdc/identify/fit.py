@@ -42,8 +42,9 @@ from gyro_tdc.signal import block_length
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'FitOptions', 'MIN_SAMPLES', 'MIN_SPAN_C',
-           'run_state', 'span', 'TAU_BOUNDS', 'THERMAL_CHOICES', 'TWO_NODE_MARGIN']
+__all__ = ['check_choices', 'estimate_t0', 'fit_model', 'fit_px4_cubic', 'FitOptions',
+           'MIN_SAMPLES', 'MIN_SPAN_C', 'run_state', 'span', 'TAU_BOUNDS', 'THERMAL_CHOICES',
+           'TWO_NODE_MARGIN']
 
 #: Fewest samples a fit accepts.
 MIN_SAMPLES = 50
@@ -111,6 +112,15 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
                        'data); every training run has omega_ref = 0.')
 
 
+def check_choices(kind: str, thermal: str | ThermalState | None) -> None:
+    """Refuse a model kind or a thermal front end :func:`fit_model` does not know (FitError)."""
+    if kind not in KINDS:
+        raise FitError(f'Expected `kind` to be one of {", ".join(KINDS)}, got {kind!r}.')
+    if not (thermal is None or isinstance(thermal, ThermalState) or thermal in THERMAL_CHOICES):
+        raise FitError(f'Expected `thermal` to be one of {", ".join(THERMAL_CHOICES)} or a '
+                       f'ThermalState, got {thermal!r}.')
+
+
 def _thermal_choice(ids: tuple[str, ...], thermal: str | ThermalState | None,
                     fit_params: bool, params: Mapping | None
                     ) -> tuple[tuple[str, ...], str, ThermalState | None]:
@@ -118,9 +128,6 @@ def _thermal_choice(ids: tuple[str, ...], thermal: str | ThermalState | None,
     lagged, fixed = _LAG in ids, isinstance(thermal, ThermalState)
     if thermal is None:
         thermal = 'first_order' if lagged else 'none'
-    if not fixed and thermal not in THERMAL_CHOICES:
-        raise FitError(f'Unknown thermal front end {thermal!r}; expected one of '
-                       f'{", ".join(THERMAL_CHOICES)} or a ThermalState.')
     if (thermal.kind if fixed else thermal) == 'none':
         if lagged:
             what = "a thermal front end of kind 'none'" if fixed else "thermal='none'"
@@ -172,6 +179,10 @@ class FitOptions:
     thermal: str | ThermalState | None = None
     check_sessions: bool = True
 
+    def __post_init__(self) -> None:
+        """Check the kind and the thermal front end (:func:`check_choices`)."""
+        check_choices(self.kind, self.thermal)
+
 
 def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
               rows: Sequence[NDArray[np.bool_]] | None = None,
@@ -188,8 +199,6 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     """
     o = replace(options or FitOptions(), **kw)
     ids = normalise_ids(o.features)
-    if o.kind not in KINDS:
-        raise FitError(f'Unknown model kind {o.kind!r}; expected one of {", ".join(KINDS)}.')
     if o.kind == 'rbf' and o.n_centers < 1:
         raise FitError(f'`n_centers` must be at least 1 for an rbf model, got {o.n_centers}.')
     ids, mode, th = _thermal_choice(ids, o.thermal, o.fit_params, o.params)

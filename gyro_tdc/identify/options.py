@@ -26,8 +26,8 @@ from gyro_tdc.data import Coverage
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.accel import AccelFit
 from gyro_tdc.identify.features import AUTO, FeatureChoice
-from gyro_tdc.identify.fit import THERMAL_CHOICES
-from gyro_tdc.model import CompensationModel, KINDS, normalise_ids
+from gyro_tdc.identify.fit import check_choices
+from gyro_tdc.model import CompensationModel, normalise_ids
 
 __all__ = ['TrainOptions', 'TrainResult']
 
@@ -68,17 +68,12 @@ class TrainOptions:
         f = self.features
         auto = isinstance(f, str) and f.strip() == AUTO
         object.__setattr__(self, 'features', AUTO if auto else normalise_ids(f))
-        if self.kind not in KINDS:
-            raise FitError(f'Expected `kind` to be one of {", ".join(KINDS)}, '
-                           f'got {self.kind!r}.')
+        check_choices(self.kind, self.thermal)
         check_centers(self.n_centers)
         check_bin_width(self.bin_c)
         if self.ridge != 'auto' and not (isinstance(self.ridge, (int, float))
                                          and math.isfinite(self.ridge) and self.ridge >= 0):
             raise FitError(f"Expected `ridge` to be 'auto' or a number >= 0, got {self.ridge!r}.")
-        if self.thermal is not None and self.thermal not in THERMAL_CHOICES:
-            raise FitError(f'Expected `thermal` to be one of {", ".join(THERMAL_CHOICES)}, '
-                           f'got {self.thermal!r}.')
 
     @property
     def auto(self) -> bool:

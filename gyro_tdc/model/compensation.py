@@ -38,7 +38,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['CompensationModel', 'FORMAT_VERSION', 'StreamingCompensator', 'compensate',
-           'drift', 'model_temperature', 'predict_drift', 'rbf_design']
+           'drift', 'model_temperature', 'predict_drift', 'rbf_design', 'static_slope']
 
 KINDS = ('rbf', 'poly')
 #: The model-file format every model is (:mod:`gyro_tdc.model.modelfile` writes and reads it).
@@ -342,6 +342,23 @@ def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.flo
     extrapolates). ``chunk`` rows are evaluated at once to bound memory.
     """
     return _drift(model, t, temp, clamp, out_of_range, max_extrapolation_c, chunk)[0]
+
+
+def static_slope(model: CompensationModel) -> NDArray[np.float64]:
+    """
+    Return the mean slope of the static drift over the trained range, per degC per axis.
+
+    The static drift is the drift at thermal equilibrium (every dynamic term settled); its
+    change across ``temp_range_c`` over the span, in the model's unit (rad/s, m/s^2 for an
+    accelerometer part) per degC; NaN without a span. For the conventional f(dT) it is the
+    zero-rate level change per degC (eq. 18, alpha).
+    """
+    lo, hi = (float(v) for v in model.temp_range_c)
+    if not hi > lo:
+        return np.full(3, math.nan)
+    t = np.arange(3, dtype=np.float64) * 1e7      # far apart: every dynamic term settled
+    b = drift(model, t, np.array([lo, lo, hi]), clamp=True)     # a settling sample, the ends
+    return (b[2] - b[1]) / (hi - lo)
 
 
 def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],

@@ -31,9 +31,8 @@ import importlib
 from typing import Any, Callable, Mapping
 
 from geometry_msgs.msg import Twist, TwistStamped
-from gyro_tdc.data import (check_number, check_vector, DEFAULT_TEMPERATURE_FIELDS,
-                           frd_to_flu, normalize_type, reader, stamp_kind, stamp_seconds,
-                           unquirk)
+from gyro_tdc.data import (check_vector, frd_to_flu, normalize_type, reader, stamp_kind,
+                           stamp_seconds, temperature_path, unquirk)
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.runtime import CompensatorCore, TEMPERATURE_TYPES
 from nav_msgs.msg import Odometry
@@ -158,11 +157,7 @@ def input_reader(p: Any) -> InputReader:
     temp_cls = message_class(p.temperature_type, 'temperature_type',
                              ', '.join(TEMPERATURE_TYPES))
     temp_name = normalize_type(p.temperature_type)
-    path = p.temperature_field or DEFAULT_TEMPERATURE_FIELDS.get(temp_name, '')
-    if not path:
-        raise ConfigError(f'temperature_field: {temp_name} has no default temperature field; '
-                          'set the dotted path to its degC number (e.g. mean_temp).')
-    check_number(temp_name, path, _fields, 'temperature_field')
+    path = temperature_path(temp_name, p.temperature_field, _fields, 'temperature_field')
     get, fix = reader(path), unquirk(p.temperature_quirk) or float
 
     def temperature(msg: Any) -> float:

@@ -41,7 +41,7 @@ from rclpy.signals import SignalHandlerOptions
 from std_srvs.srv import Trigger
 
 __all__ = ['ShellNode', 'STARTUP_ERRORS', 'STOP_POLL_S', 'StopRequested', 'StopSignals',
-           'make_executor', 'run_node', 'spin', 'trigger']
+           'make_executor', 'quiet_abandoned', 'run_node', 'spin', 'trigger']
 
 #: Errors of a node's configuration at start-up, reported in one line by :func:`run_node`:
 #: rclpy's parameter errors (wrong type, out of range, ...) and gyro_tdc's own
@@ -126,6 +126,7 @@ class StopSignals:
 
     def __init__(self) -> None:
         self.signum: int | None = None
+        self.abandoned = False
         self._previous: dict[int, Any] = {}
         self._interrupt = False
 
@@ -161,11 +162,38 @@ class StopSignals:
 
     def _handle(self, signum: int, frame: Any) -> None:
         if self._interrupt:
-            self.signum = signum
+            self.signum, self.abandoned = signum, True
             raise StopRequested(signal.Signals(signum).name)
         if self.signum is not None:
             raise SystemExit(128 + signum)
         self.signum = signum
+
+
+@contextlib.contextmanager
+def quiet_abandoned(stop: StopSignals) -> Iterator[None]:
+    """
+    Within the block, silence the finalisers of objects a stop left half-built.
+
+    :class:`StopRequested` raised mid-build can land inside any constructor, rclpy's too;
+    the ``__del__`` of such an object then meets attributes its ``__init__`` never set
+    (rclpy's ``RcutilsLogger``) and Python prints "Exception ignored in ..." with a
+    traceback. Only AttributeErrors of finalisers after an abandoned build are dropped (and
+    the garbage collected here, not at exit); every other unraisable goes to the hook found.
+    """
+    previous = sys.unraisablehook
+
+    def hook(unraisable: Any) -> None:
+        if not (stop.abandoned and isinstance(unraisable.exc_value, AttributeError)
+                and getattr(unraisable.object, '__name__', None) == '__del__'):
+            previous(unraisable)
+
+    sys.unraisablehook = hook
+    try:
+        yield
+    finally:
+        if stop.abandoned:
+            gc.collect()
+        sys.unraisablehook = previous
 
 
 def make_executor(kind: str, context: Any = None) -> Any:
@@ -206,6 +234,13 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
     stop = StopSignals()
     own = stop.install()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if own else None)
+    with quiet_abandoned(stop):
+        return _run(stop, make_node, executor, freeze_heap, name)
+
+
+def _run(stop: StopSignals, make_node: Callable[[], Node], executor: Any, freeze_heap: bool,
+         name: str) -> int:
+    """Build, spin and tear down one node: the body of :func:`run_node`."""
     node = None
     ex = None
     try:

@@ -17,8 +17,8 @@ Simulator scenarios: the schema, the Scenario, loading and overrides.
 
 A scenario is a YAML mapping (``config/scenarios/NAME.yaml``) or a dict with a unit in every
 key; unknown keys are errors. :func:`load_scenario` reads and validates one into a
-:class:`Scenario`; :func:`list_scenarios` names the shipped ones. Every section and its
-defaults: ``doc/internals/sim.md``.
+:class:`Scenario`; :func:`gyro_tdc.base.resources.scenario_names` names the shipped ones.
+Every section and its defaults: ``doc/internals/sim.md``.
 """
 
 
@@ -30,8 +30,7 @@ import os
 from pathlib import Path
 from typing import Any, Mapping, Optional, Union
 
-from gyro_tdc.base import (config_dir, plain, read_yaml, SCENARIO_LIMITS, scenario_names,
-                           scenario_path)
+from gyro_tdc.base import config_dir, plain, read_yaml, SCENARIO_LIMITS, scenario_path
 from gyro_tdc.errors import GyroTdcError, ScenarioError
 from gyro_tdc.sim import chamber
 from gyro_tdc.sim.schema import merge, validate
@@ -39,7 +38,7 @@ from gyro_tdc.sim.specs import (AccelSpec, GyroSpec, NoiseSpec, RateTable, RunsS
                                 ThermometerSpec)
 from gyro_tdc.sim.vehicle import VehicleSpec
 
-__all__ = ['Scenario', 'list_scenarios', 'load_scenario', 'scenario_dir']
+__all__ = ['Scenario', 'load_scenario', 'scenario_dir']
 
 PathLike = Union[str, 'os.PathLike[str]']
 
@@ -200,19 +199,6 @@ def _as_scenario_error(call: Any, *args: Any) -> Any:
         raise
     except GyroTdcError as exc:
         raise ScenarioError(str(exc)) from exc
-
-
-def list_scenarios() -> list[str]:
-    """
-    Return the names of the shipped scenarios, sorted.
-
-    Returns
-    -------
-    list of str
-        Stems of ``config/scenarios/*.yaml``.
-
-    """
-    return _as_scenario_error(scenario_names)
 
 
 def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) -> Scenario:

@@ -31,10 +31,12 @@ from flightlogs import (bag_from_imu, Imu, imu_from_sim, px4_topics, write_dataf
 from gyro_tdc.cli.evaluate import main as evaluate
 from gyro_tdc.cli.train import main as train
 from gyro_tdc.model.fc_tempcal import ardupilot_correction, px4_correction
+from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal.metrics import bias_stability
 from gyro_tdc.sim import simulate_scenario
 import numpy as np
 import pytest
+from real_logs import ARDUPILOT_AC33, PX4_ACCEL_THERMOMETER
 
 
 @pytest.fixture(scope='module')
@@ -172,3 +174,37 @@ def test_the_flight_controllers_own_correction_is_scored_exactly_as_it_applies_i
     assert_bad_input(capsys, [done, '--model', 'ardupilot-onboard', '--no-progress',
                               '--allow-onboard-corrected'],
                      'already carries the on-board correction', entry=evaluate)
+
+
+def test_a_real_flight_log_whose_still_time_spans_no_temperature_is_refused_in_one_line(
+        tmp_path, capsys):
+    # 10 s on the ground, then a flight; the still samples all read 23.5 degC.
+    out = ['--out', str(tmp_path / 'm.yaml'), '--no-progress']
+    for extra in ([], ['--still-only']):
+        assert_bad_input(capsys, [PX4_ACCEL_THERMOMETER, *extra, *out],
+                         '--still-only: the still time spans 0.00 degC only')
+    assert not (tmp_path / 'm.yaml').exists()
+
+
+def test_a_real_flight_log_trains_on_its_still_stretch_only_and_evaluate_scores_that(
+        tmp_path, capsys):
+    # IMU3 of an ArduCopter 3.3 log warms 28 -> 32 degC over its 40 s on the ground, then flies.
+    log = [ARDUPILOT_AC33, '--imu-instance', '2', '--no-progress']
+    models, said = {}, {}
+    for name, extra in (('train', []), ('still', ['--still-only'])):
+        models[name] = tmp_path / f'{name}.yaml'
+        assert train([*map(str, log), *extra, '--out', str(models[name])]) == 0
+        said[name] = capsys.readouterr().out
+        assert 'training data: 1 bag(s), 1854 samples' in said[name]   # the still stretch
+    assert 'training on the still stretches only (as --still-only)' in said['train']
+    assert load_model(models['train']).model_id == load_model(models['still']).model_id
+    scores = tmp_path / 'scores.json'
+    assert evaluate([*map(str, log), '--model', str(models['train']), '--json',
+                     str(scores)]) == 0
+    assert 'scored the still stretches only, 1854 samples in 1 stretch(es)' in \
+        capsys.readouterr().out
+    got = json.loads(scores.read_text())['bags'][0]
+    assert got['samples'] == 1854
+    assert np.all(np.array(got['models'][0]['bs']) < np.array(got['raw']['bs']))
+    assert_bad_input(capsys, [ARDUPILOT_AC33, '--out', tmp_path / 'm0.yaml', '--no-progress'],
+                     '--still-only: the still time spans 1.11 degC only')

@@ -23,6 +23,7 @@ from gyro_tdc.data.dataset import describe_read, load_run
 from gyro_tdc.errors import DatasetError
 import numpy as np
 import pytest
+from real_logs import ARDUPILOT_AC33
 
 
 def _imus(n: int = 300, count: int = 3) -> list:
@@ -111,3 +112,46 @@ def test_damaged_bytes_inside_are_skipped_quietly_and_said_on_the_read_line(tmp_
     assert 'pymavlink skipped damaged bytes' in run.info['log']
     assert any('damaged bytes inside' in w for w in run.info['warnings'])
     assert capfd.readouterr().err == ''          # the indexer's reports do not leak
+
+
+def test_arducopter_up_to_3_3_stamps_in_milliseconds(tmp_path):
+    imus = _imus(count=2)
+    path = write_dataflash(tmp_path / 'ms.bin', imus, stamp='TimeMS', temp_field='Temp')
+    for k, imu in enumerate(imus):
+        log = read_dataflash(path, instance=k)
+        np.testing.assert_allclose(log.imu_t, np.floor(imu.t * 1e3 + 1e-6) * 1e-3, atol=1e-9)
+        np.testing.assert_array_equal(log.temp_c, imu.temp)
+        assert log.temperature == 'IMU.Temp'
+    assert len(load_run(path, BagOptions(imu_instance=1))) == len(imus[1].t)
+
+
+def test_one_imu_whose_thermometer_reads_zero_is_refused_saying_what_the_log_has(tmp_path):
+    imu = _imus(count=1)[0]
+    path = write_dataflash(tmp_path / 'zero.bin', [Imu(t=imu.t, gyro=imu.gyro,
+                                                       temp=np.zeros_like(imu.temp))])
+    with pytest.raises(DatasetError, match=r'IMU instance 0 carries no temperature \(what '
+                                           r'each instance carries: 0: 300 samples at 50 Hz, '
+                                           r'temperature none; the log has no other '
+                                           r'thermometer\)\.$'):
+        load_run(path)
+
+
+def test_a_real_arducopter_3_3_log_three_imus_with_temp_stamped_in_milliseconds():
+    # dronekit-la-testdata's log171.bin (a Pixhawk): handled, 40 s still, then a flight.
+    for k in range(3):
+        log = read_dataflash(ARDUPILOT_AC33, instance=k)
+        assert (log.instances, log.temperature) == ((0, 1, 2), 'IMU.Temp')
+        assert 1.0 / np.median(np.diff(log.imu_t)) == pytest.approx(50.0, rel=1e-6)
+        assert len(log.imu_t) == 3854 and log.truncated_bytes == 0 and not log.damage
+        assert 'INS_TCAL' in log.onboard and not log.compensated
+    steps = np.diff(np.unique(read_dataflash(ARDUPILOT_AC33, instance=1).temp_c))
+    np.testing.assert_allclose(steps, 0.125)                  # IMU2's thermometer: 1/8 degC
+    warming = read_dataflash(ARDUPILOT_AC33, instance=2).temp_c
+    assert warming[0] < 27.0 and warming.max() > 34.0          # IMU3 warms by 7 degC
+    run = load_run(ARDUPILOT_AC33, BagOptions(imu_instance=1, temperature_source='baro'))
+    assert run.info['temperature'] == 'BARO.Temp instance 1'  # BAR2 beside IMU2
+    assert 27.0 < run.temp.min() < run.temp.max() < 36.5
+    with pytest.raises(DatasetError, match=r'IMU has no instance 3 \(it has 0, 1, 2; what '
+                                           r'each carries: 0: 3854 samples at 48.2 Hz, '
+                                           r'temperature IMU.Temp; .*BARO instance 0, 1'):
+        load_run(ARDUPILOT_AC33, BagOptions(imu_instance=3))

@@ -21,7 +21,8 @@ from types import SimpleNamespace
 
 from gyro_tdc.base import TEMPERATURE_QUIRKS
 from gyro_tdc.data.field_paths import (check_number, check_vector, frd_to_flu, normalize_type,
-                                       reader, split_path, stamp_kind, stamp_seconds, unquirk)
+                                       reader, split_path, stamp_kind, stamp_seconds,
+                                       temperature_path, unquirk)
 from gyro_tdc.errors import ConfigError
 import pytest
 
@@ -55,6 +56,20 @@ def test_paths_of_real_driver_types_pass():
     assert stamp_kind(GYRO, 'timestamp', fields_of, 'stamp_field') == 'micros'
     check_number(STATS, 'mean_temp', fields_of, 'temperature_field')
     assert stamp_kind(STATS, 'header.header.stamp', fields_of, 'x') == 'time'
+
+
+def test_the_temperature_path_is_the_given_one_or_the_type_default():
+    """One rule for the node's temperature_field and the CLI's --temperature-field."""
+    tables = dict(TABLES, **{'sensor_msgs/msg/Temperature': {'temperature': 'double'},
+                             'std_msgs/msg/Float32': {'data': 'float'}})
+    assert temperature_path('sensor_msgs/msg/Temperature', '', tables.get, 'p') == 'temperature'
+    assert temperature_path('std_msgs/msg/Float32', '', tables.get, 'p') == 'data'
+    assert temperature_path(STATS, 'mean_temp', tables.get, 'p') == 'mean_temp'
+    with pytest.raises(ConfigError, match=f'^--temperature-field: {STATS} has no default '
+                       r'temperature field; give the dotted path to its degC number \(e.g.'):
+        temperature_path(STATS, '', tables.get, '--temperature-field')
+    with pytest.raises(ConfigError, match="^temperature_field: 'header' in .* not a number"):
+        temperature_path(STATS, 'header', tables.get, 'temperature_field')
 
 
 @pytest.mark.parametrize('check, type_name, path, needles', [

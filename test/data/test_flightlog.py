@@ -98,7 +98,7 @@ def test_ardupilot_cubeblack_three_imus_at_25_hz_and_the_barometer():
                                            r'baro\)'):
         load_run(ARDUPILOT_CUBEBLACK, BagOptions(imu_instance=1))
     run = load_run(ARDUPILOT_CUBEBLACK, BagOptions(imu_instance=1, temperature_source='baro'))
-    assert run.info['temperature'] == 'BARO.Temp' and run.info['temperature_proxy']
+    assert run.info['temperature'] == 'BARO.Temp instance 1' and run.info['temperature_proxy']
     with pytest.raises(DatasetError, match=r'IMU has no instance 3 \(it has 0, 1, 2; what '
                                            r'each carries: 0: 2055 samples at 24.5 Hz, '
                                            r'temperature IMU.T'):

@@ -19,8 +19,7 @@ from __future__ import annotations
 import math
 
 from gyro_tdc.data.imu_cdr import ImuView, locate
-from gyro_tdc.data.mark import (cov_marked, diagonal_marked, is_marked, MARK, mark, mark_diagonal,
-                                mark_unknown)
+from gyro_tdc.data.mark import cov_marked, diagonal_marked, is_marked, MARK, mark
 import numpy as np
 import pytest
 from rosbags.typesys import get_typestore, Stores
@@ -42,11 +41,11 @@ def test_no_data_unknown_and_non_finite_are_never_marked(value):
 
 def test_a_covariance_is_marked_on_its_whole_diagonal_or_not_at_all():
     cov = np.array([1e-6, 1e-9, 0.0, 0.0, 2e-6, 0.0, 0.0, 0.0, 3e-6])
-    mark_diagonal(cov)
+    assert not diagonal_marked(cov)
+    cov[[0, 4]] = mark(cov[0]), mark(cov[4])
+    assert not diagonal_marked(cov)                 # two of three: not the mark
+    cov[8] = mark(cov[8])
     assert diagonal_marked(cov) and cov[1] == 1e-9
-    unknown = np.array([1e-6, 0, 0, 0, 0.0, 0, 0, 0, 3e-6])
-    mark_diagonal(unknown)
-    assert not any(is_marked(v) for v in unknown)  # REP 145: 0 is unknown, left so
     assert not diagonal_marked(np.array([-1.0] + [0.0] * 8))
 
 
@@ -88,14 +87,12 @@ def test_imu_view_marks_only_what_it_may(cov0, marks):
 
 def test_an_unknown_covariance_is_marked_by_the_sign_of_its_zeros():
     """REP 145 unknown (all zero) stays all zero to every reader, yet carries the mark."""
-    cov = [0.0] * 9
-    mark_unknown(cov)
+    cov = [-0.0, 0.0, 0.0, 0.0, -0.0, 0.0, 0.0, 0.0, -0.0]
     assert cov == [0.0] * 9 and diagonal_marked(cov)      # -0.0 == 0.0: nothing invented
-    assert [math.copysign(1.0, v) for v in cov] == [-1, 1, 1, 1, -1, 1, 1, 1, -1]
     assert not diagonal_marked([0.0] * 9)                  # a driver's plain zeros
+    assert not diagonal_marked(cov[:1] + [1e-9] + cov[2:])     # only all zero is marked so
     known = [1e-6, 0.0, 0.0, 0.0, 1e-6, 0.0, 0.0, 0.0, 1e-6]
-    mark_unknown(known)
-    assert known[0] == 1e-6 and not diagonal_marked(known)    # only all zero is marked so
+    assert not diagonal_marked(known)
     # Serialized: the patch writes the same zeros, and a relay (deserialise, serialise)
     # keeps them.
     store = get_typestore(Stores.ROS2_JAZZY)
@@ -111,5 +108,7 @@ def test_an_unknown_covariance_is_marked_by_the_sign_of_its_zeros():
     msg = store.deserialize_cdr(out, 'sensor_msgs/msg/Imu')
     assert not any(msg.angular_velocity_covariance)
     assert diagonal_marked(msg.angular_velocity_covariance)
+    assert [math.copysign(1.0, v) for v in msg.angular_velocity_covariance] == [
+        -1, 1, 1, 1, -1, 1, 1, 1, -1]
     again = bytes(store.serialize_cdr(msg, 'sensor_msgs/msg/Imu'))
     assert again == out and cov_marked(again, base + 8 * 16)

@@ -25,6 +25,7 @@ from gyro_tdc.data.ulog import read_ulog, ulog_truncated_bytes
 from gyro_tdc.errors import DatasetError
 import numpy as np
 import pytest
+from real_logs import PX4_ACCEL_THERMOMETER
 
 
 def _imus(n: int = 300, count: int = 2) -> list:
@@ -205,3 +206,28 @@ def test_a_slow_thermometer_is_held_over_its_own_period(tmp_path):
     assert run.info['temperature'] == 'vehicle_imu_status.temperature_gyro'
     assert len(run) == int(slow[-1] - slow[0]) // 20000 + 1     # every sample in its span
     assert run.info['rejected']['no_temperature'] == n - len(run)
+
+
+def test_a_real_pixhawk_6c_whose_gyro_thermometer_reads_nan_uses_its_accelerometers():
+    # px4-ulog-rs' quadrotor_local.ulg (PX4 v1.16, Pixhawk 6C): sensor_gyro.temperature and
+    # vehicle_imu_status.temperature_gyro of instance 0 are NaN throughout.
+    log = read_ulog(PX4_ACCEL_THERMOMETER)
+    assert (log.source, log.instances, log.raw) == ('sensor_combined', (0, 1), False)
+    assert log.temperature == 'vehicle_imu_status.temperature_accel' and not log.proxy
+    assert 1.0 / np.median(np.diff(log.imu_t)) == pytest.approx(219.0, rel=0.05)
+    assert 1.0 / np.median(np.diff(log.temp_t)) == pytest.approx(1.0, rel=0.05)
+    np.testing.assert_array_equal(np.unique(log.temp_c), [23.5, 24.0])   # 0.5 degC steps
+    # Instance 1 has no sensor_combined: vehicle_imu (2 Hz) with its own sensor_gyro's
+    # thermometer.
+    other = read_ulog(PX4_ACCEL_THERMOMETER, instance=1)
+    assert other.source == 'vehicle_imu'
+    assert 1.0 / np.median(np.diff(other.imu_t)) == pytest.approx(2.0, rel=0.05)
+    assert other.temperature == 'sensor_gyro.temperature instance 1'
+    assert 23.9 < np.nanmin(other.temp_c) < np.nanmax(other.temp_c) < 24.4
+    # This PX4 logs no vehicle_air_data.baro_temp_celcius (its ambient_temperature reads a
+    # constant 15): the barometer's own topic is the proxy.
+    run = load_run(PX4_ACCEL_THERMOMETER, BagOptions(temperature_source='baro'))
+    assert run.info['temperature'] == 'sensor_baro.temperature' and run.info['temperature_proxy']
+    assert 24.4 < run.temp.min() < run.temp.max() < 24.9
+    line = describe_read(PX4_ACCEL_THERMOMETER, load_run(PX4_ACCEL_THERMOMETER), '/r')
+    assert 'temperature from vehicle_imu_status.temperature_accel' in line

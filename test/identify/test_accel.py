@@ -243,6 +243,8 @@ def test_accel_features(chamber):
     with pytest.raises(FeatureError, match='lag'):
         accel_features(unlagged, 'dT,lag')
     assert unlagged.thermal == ThermalState()
+    with pytest.raises(FitError, match="Expected `kind` to be one of rbf, poly, got 'mlp'"):
+        fit_accel(chamber['runs'][:1], gyro, kind='mlp')
 
 
 def test_discovery_runs_are_the_still_segments_in_mg(chamber):

@@ -22,6 +22,7 @@ import math
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify import (estimate_t0, fit_model, fit_px4_cubic, FitOptions,
                                session_check_lines)
+from gyro_tdc.model import ThermalState
 from gyro_tdc.model.compensation import compensate, predict_drift
 from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
@@ -54,8 +55,18 @@ def test_fit_options_are_the_keywords_and_a_keyword_overrides_them():
     other = fit_model([run], opts, sensor_id='s2')
     assert other.sensor_id == 's2' and other.model_id != model.model_id
     assert opts.sensor_id == 's1'        # the options object is not changed
-    with pytest.raises(FitError, match='Unknown model kind'):
+    with pytest.raises(FitError, match='Expected `kind` to be one of rbf, poly'):
         fit_model([run], opts, kind='spline')
+
+
+def test_fit_options_refuse_an_unknown_kind_or_front_end_when_built():
+    """One check of the choices, shared by FitOptions, TrainOptions and the accelerometer."""
+    with pytest.raises(FitError, match="Expected `kind` to be one of rbf, poly, got 'mlp'."):
+        FitOptions(kind='mlp')
+    with pytest.raises(FitError, match="two_node, auto or a ThermalState, got 'hot'."):
+        FitOptions(thermal='hot')
+    for thermal in (None, 'auto', ThermalState('first_order', (60.0,))):
+        assert FitOptions(thermal=thermal).thermal == thermal
 
 
 def test_modified_beats_conventional_only_when_dt2_present():
@@ -129,7 +140,7 @@ def test_bad_training_data_raise_clear_errors():
         fit_model([flat])
     with pytest.raises(FitError, match='non-zero reference rate'):
         fit_model([run], features='dT,scale')
-    with pytest.raises(FitError, match='Unknown model kind'):
+    with pytest.raises(FitError, match='Expected `kind` to be one of rbf, poly'):
         fit_model([run], kind='mlp')
     with pytest.raises(FitError, match='No training runs'):
         fit_model([])

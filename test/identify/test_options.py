@@ -36,7 +36,7 @@ def test_options_are_checked_when_built():
         TrainOptions(kind='spline')
     with pytest.raises(FitError, match='ridge'):
         TrainOptions(ridge=-1.0)
-    with pytest.raises(FitError, match='thermal'):
+    with pytest.raises(FitError, match="Expected `thermal` to be one of none, .*'third_order'"):
         TrainOptions(thermal='third_order')
     with pytest.raises(LimitError, match='centres'):
         TrainOptions(n_centers=MAX_CENTERS + 1)

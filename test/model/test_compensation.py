@@ -19,7 +19,8 @@ from pathlib import Path
 
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model.compensation import (compensate, CompensationModel, drift, model_temperature,
-                                         predict_drift, rbf_design, StreamingCompensator, summary)
+                                         predict_drift, rbf_design, static_slope,
+                                         StreamingCompensator, summary)
 from gyro_tdc.model.effects import batch_features
 from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
@@ -179,6 +180,16 @@ def test_format_2_state_model_drift_and_range_follow_the_state():
     assert clamped[t == 102.0][0] < 50.0 and clamped[-1] == 50.0
     s = summary(model)
     assert s['format_version'] == 2 and s['thermal']['tau_s'] == [50.0]
+
+
+def test_static_slope_is_the_settled_drift_change_over_the_range_per_degc():
+    # (f(50) - f(0)) / 50: the dT term gives linear[0] / 10, the even dT2 term nothing.
+    flat = _hand_model()
+    np.testing.assert_allclose(static_slope(flat), flat.linear[0] / 10.0, rtol=1e-12)
+    lagged = _hand_model(features=('dT', 'dT2', 'lag'), effect_params={'lag': {'tau_s': 50.0}},
+                         thermal=ThermalState('first_order', (50.0,)))
+    np.testing.assert_allclose(static_slope(lagged), static_slope(flat), rtol=1e-12)
+    assert np.all(np.isnan(static_slope(flat.replace(temp_range_c=(30.0, 30.0)))))
 
 
 def test_kind_none_evaluates_every_term_of_the_measured_temperature():

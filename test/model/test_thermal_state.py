@@ -239,7 +239,8 @@ def test_lag_alone_implies_dt_and_given_tau_is_not_assessed():
 @pytest.mark.parametrize('thermal, message', [
     ('none', "thermal='none' contradicts it"),
     (ThermalState(), "kind 'none' contradicts it"),
-    ('three_node', 'Unknown thermal front end'),
+    ('three_node', 'Expected `thermal` to be one of none, first_order, two_node, auto or a '
+                   "ThermalState, got 'three_node'"),
 ])
 def test_contradictory_or_unknown_front_end_is_refused(thermal, message):
     run = lag_run(seed=4, tau_die=200.0, rate_hz=1.0)

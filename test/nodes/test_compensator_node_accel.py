@@ -79,21 +79,6 @@ def rig(ros_context):
         r.close()
 
 
-def _imu(ns: int, w, a) -> Imu:
-    msg = Imu()
-    msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(ns), 10 ** 9)
-    msg.header.frame_id = 'imu_link'
-    msg.orientation.w = 1.0
-    msg.orientation_covariance[0] = -1.0
-    msg.angular_velocity.x, msg.angular_velocity.y, msg.angular_velocity.z = map(float, w)
-    msg.angular_velocity_covariance[0] = msg.angular_velocity_covariance[4] = 1e-6
-    msg.angular_velocity_covariance[8] = 2e-6
-    msg.linear_acceleration.x, msg.linear_acceleration.y, msg.linear_acceleration.z = \
-        map(float, a)
-    msg.linear_acceleration_covariance[:] = ACOV
-    return msg
-
-
 def _stream(r: Rig, c: dict, chunk: int = 5) -> list[Imu]:
     """
     Publish each sample's temperature (same stamp) then the Imu; wait for every output.
@@ -109,7 +94,7 @@ def _stream(r: Rig, c: dict, chunk: int = 5) -> list[Imu]:
             r.temperature(c['ns'][k], c['temp'][k])
         r.spin_until(lambda: r.node.core.temps.received >= temps + hi, what='temperatures in')
         for k in range(lo, hi):
-            r.imu_pub.publish(_imu(c['ns'][k], c['omega'][k], c['accel'][k]))
+            r.imu(c['ns'][k], c['omega'][k], accel=c['accel'][k], accel_cov=ACOV)
         r.spin_until(lambda: len(r.out) >= start + hi, what=f'{hi} outputs')
     return r.out[start:]
 

@@ -103,3 +103,40 @@ def test_stop_signals_are_one_request_and_a_second_one_ends_at_once():
     finally:
         stop.restore()
     assert (signal.getsignal(signal.SIGTERM), signal.getsignal(signal.SIGINT)) == before
+
+
+class _Half:
+    """A stop interrupts its ``__init__``; its ``__del__`` needs it (as rclpy's logger does)."""
+
+    def __init__(self) -> None:
+        signal.raise_signal(signal.SIGINT)      # lands here, before the attribute is set
+        self.pair = None
+
+    def __del__(self) -> None:
+        if self.pair:
+            pass
+
+
+def test_a_stop_mid_build_prints_no_finaliser_traceback(monkeypatch):
+    """The half-built object's ``__del__`` AttributeError is dropped; other unraisables are not."""
+    import sys
+
+    from gyro_tdc.nodes.executors import quiet_abandoned, run_node, StopSignals
+    seen = []
+    monkeypatch.setattr(sys, 'unraisablehook', seen.append)
+
+    def make_node():
+        _Half()
+        raise AssertionError('not reached: the stop abandons the build')
+
+    assert run_node(make_node, args=[]) == 0
+    assert seen == []
+    stop = StopSignals()        # nothing abandoned: the same finaliser error is reported
+    with quiet_abandoned(stop):
+        half = _Half.__new__(_Half)
+        del half
+    assert len(seen) == 1 and isinstance(seen[0].exc_value, AttributeError)
+    stop.abandoned = True       # abandoned: any other unraisable still goes through
+    with quiet_abandoned(stop):
+        sys.unraisablehook(type('U', (), {'exc_value': ValueError('x'), 'object': _Half.__del__}))
+    assert len(seen) == 2

@@ -19,9 +19,9 @@ from __future__ import annotations
 import math
 import re
 
+from gyro_tdc.base.resources import scenario_names
 from gyro_tdc.errors import ScenarioError
-from gyro_tdc.sim import (list_scenarios, load_scenario, Scenario, scenario_dir, simulate_run,
-                          simulate_scenario)
+from gyro_tdc.sim import load_scenario, Scenario, scenario_dir, simulate_run, simulate_scenario
 import numpy as np
 import pytest
 import yaml
@@ -33,11 +33,11 @@ MINIMAL = {'profile': {'start_c': 20.0, 'segments': [{'kind': 'hold', 'duration_
 
 
 def test_the_expected_scenarios_are_shipped():
-    assert set(SHIPPED) <= set(list_scenarios())
+    assert set(SHIPPED) <= set(scenario_names())
     assert (scenario_dir() / 'l3gd20_paper.yaml').is_file()
 
 
-@pytest.mark.parametrize('name', sorted(set(SHIPPED) | set(list_scenarios())))
+@pytest.mark.parametrize('name', sorted(set(SHIPPED) | set(scenario_names())))
 def test_every_shipped_scenario_loads_and_simulates(name):
     sc = load_scenario(name)
     assert sc.name == name and sc.description

@@ -88,7 +88,13 @@ class Rig:
         msg.variance = 0.01
         self.temp_pub.publish(msg)
 
-    def imu(self, ns: int, w, k: int = 0) -> Imu:
+    def imu(self, ns: int, w, k: int = 0, *, accel=None, accel_cov=None) -> Imu:
+        """
+        Publish one Imu of rate ``w`` and return it.
+
+        ``accel``: the specific force (default gravity on z, x stepping with ``k``);
+        ``accel_cov``: its nine covariance entries (default 1e-3 on x, the rest zero).
+        """
         msg = Imu()
         msg.header.stamp.sec, msg.header.stamp.nanosec = divmod(int(ns), 10 ** 9)
         msg.header.frame_id = 'imu_link'
@@ -98,8 +104,10 @@ class Rig:
         msg.angular_velocity_covariance[0] = msg.angular_velocity_covariance[4] = 1e-6
         msg.angular_velocity_covariance[8] = 2e-6
         msg.angular_velocity_covariance[1] = 1e-9
-        msg.linear_acceleration.x, msg.linear_acceleration.z = 1e-3 * (k % 7), 9.81
-        msg.linear_acceleration_covariance[0] = 1e-3
+        a = msg.linear_acceleration
+        a.x, a.y, a.z = (1e-3 * (k % 7), 0.0, 9.81) if accel is None else map(float, accel)
+        msg.linear_acceleration_covariance[:] = (
+            (1e-3,) + (0.0,) * 8 if accel_cov is None else accel_cov)
         self.imu_pub.publish(msg)
         return msg
 

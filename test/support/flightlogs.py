@@ -212,15 +212,18 @@ def _fmt_record(mtype: int, name: str, fmt: str, columns: str) -> bytes:
 
 
 def write_dataflash(path: Path, imus: list, params: dict | None = None, *,
-                    temperature: bool = True, temp_field: str = 'T') -> Path:
+                    temperature: bool = True, temp_field: str = 'T',
+                    stamp: str = 'TimeUS') -> Path:
     """
     Write an ArduPilot DataFlash log: FMT records, PARM, then IMU records of every instance.
 
     ``temperature=False`` uses an IMU format without ``T``; ``temp_field='Temp'`` names it as
-    ArduCopter 3.4 does.
+    ArduCopter 3.4 does; ``stamp='TimeMS'`` stamps in ms as ArduPilot up to 3.3 does.
     """
     name, fmt, cols = IMU_FORMAT if temperature else IMU_FORMAT_NO_T
     cols = cols.replace(',T,', f',{temp_field},')
+    if stamp == 'TimeMS':
+        fmt, cols = 'I' + fmt[1:], cols.replace('TimeUS', 'TimeMS', 1)
     out = [_fmt_record(0x80, 'FMT', 'BBnNZ', 'Type,Length,Name,Format,Columns'),
            _fmt_record(64, *PARM_FORMAT), _fmt_record(65, name, fmt, cols)]
     if params:
@@ -233,12 +236,13 @@ def write_dataflash(path: Path, imus: list, params: dict | None = None, *,
     for k, imu in enumerate(imus):
         acc = imu.accel if imu.accel is not None else np.zeros((len(imu.t), 3))
         recs.append(_df_records(65, fmt, cols, {
-            'TimeUS': _us(imu.t), 'I': np.full(len(imu.t), k), 'GyrX': imu.gyro[:, 0],
+            stamp: _us(imu.t) // (1000 if stamp == 'TimeMS' else 1),
+            'I': np.full(len(imu.t), k), 'GyrX': imu.gyro[:, 0],
             'GyrY': imu.gyro[:, 1], 'GyrZ': imu.gyro[:, 2], 'AccX': acc[:, 0],
             'AccY': acc[:, 1], 'AccZ': acc[:, 2], temp_field: imu.temp, 'GH': 1, 'AH': 1}))
     if recs:
         both = np.concatenate(recs)
-        both = both[np.argsort(both['body']['TimeUS'], kind='stable')]
+        both = both[np.argsort(both['body'][stamp], kind='stable')]
         out.append(both.tobytes())
     Path(path).write_bytes(b''.join(out))
     return Path(path)

@@ -18,8 +18,9 @@ Real flight-controller logs no one on the project wrote, as small extracts (and 
 Each extract keeps the original records of the topics / message types a reader uses, byte
 for byte, over a leading stretch of the log; ``test/support/files/flightlogs/SOURCE.md``
 names the source and licence of each. ``python test/support/real_logs.py SRC_DIR`` rebuilds
-them from the originals (the pyulog 1.2.1 sdist's ``test/`` and bols-blue-org/ape's
-``tests/``).
+them from the originals (the pyulog 1.2.1 sdist's ``test/``, bols-blue-org/ape's ``tests/``
+PX4/px4-ulog-rs' ``tests/fixtures/`` and dronekit/dronekit-la-testdata, all in one
+folder).
 """
 
 from __future__ import annotations
@@ -41,6 +42,12 @@ PX4_ZERO_THERMOMETERS = FILES / 'px4_zero_thermometers.ulg'
 PX4_HOVER = FILES / 'px4_hover.ulg'
 #: bols-blue-org/ape's CubeBlack log: three IMUs (IMU, IMU2, IMU3) at 25 Hz with ``T``.
 ARDUPILOT_CUBEBLACK = FILES / 'ardupilot_cubeblack.bin'
+#: px4-ulog-rs' ``quadrotor_local.ulg`` (Pixhawk 6C): the gyro's thermometers read NaN, the
+#: accelerometer's of the same IMU (``vehicle_imu_status.temperature_accel``) serves.
+PX4_ACCEL_THERMOMETER = FILES / 'px4_v6c_accel_thermometer.ulg'
+#: dronekit-la-testdata's ``log171.bin`` (ArduCopter V3.3-dev): three IMUs at 50 Hz with
+#: ``Temp``, stamped in ``TimeMS``.
+ARDUPILOT_AC33 = FILES / 'ardupilot_ac33_three_imus.bin'
 
 _PX4_TOPICS = ['sensor_gyro', 'sensor_accel', 'sensor_combined', 'vehicle_imu',
                'vehicle_imu_status', 'sensor_baro', 'vehicle_air_data']
@@ -80,8 +87,10 @@ def extract_dataflash(src: Path, dst: Path, *, seconds: float,
     for ofs, length in rows:
         rec = bytes(buf[ofs:ofs + length])
         mtype = rec[2]
-        if mtype != 0x80 and reader.formats[mtype].columns[:1] == ['TimeUS']:
-            t_us = int.from_bytes(rec[3:11], 'little')
+        stamp = reader.formats[mtype].columns[:1] if mtype != 0x80 else []
+        if stamp in (['TimeUS'], ['TimeMS']):        # TimeMS: ArduPilot up to 3.3
+            t_us = (int.from_bytes(rec[3:11], 'little') if stamp == ['TimeUS'] else
+                    int.from_bytes(rec[3:7], 'little') * 1000)
             if t_end is None and t_us > 0:
                 t_end = t_us + seconds * 1e6
             if t_end is not None and t_us > t_end:
@@ -102,6 +111,8 @@ def main(src_dir: str) -> None:
                  PX4_ZERO_THERMOMETERS, seconds=2.0)
     extract_dataflash(src / 'log_0_2020-5-1-14-53-42.bin', ARDUPILOT_CUBEBLACK,
                       seconds=120.0)
+    extract_ulog(src / 'quadrotor_local.ulg', PX4_ACCEL_THERMOMETER, seconds=20.0)
+    extract_dataflash(src / 'log171.bin', ARDUPILOT_AC33, seconds=80.0)
 
 
 if __name__ == '__main__':

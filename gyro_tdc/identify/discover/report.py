@@ -27,7 +27,7 @@ import math
 from pathlib import Path
 from typing import Any, Sequence
 
-from gyro_tdc.base import atomic_write
+from gyro_tdc.base import atomic_write, figure, save_png
 from gyro_tdc.identify.discover.data import BlockData
 from gyro_tdc.identify.discover.linear import ar1, DEG, LinearModel
 from gyro_tdc.identify.discover.results import BinMap, DiscoveryResult
@@ -155,20 +155,6 @@ def residual_adev(data: BlockData, model: LinearModel, coef: NDArray[np.float64]
     return np.asarray(taus), np.sqrt(np.mean(np.asarray(dev) ** 2, axis=1))
 
 
-def _figure(**kw: Any) -> Any:
-    """Return a matplotlib figure on the Agg canvas (no display needed)."""
-    import matplotlib
-    matplotlib.use('Agg')
-    from matplotlib.figure import Figure
-    return Figure(constrained_layout=True, **kw)
-
-
-def _save(fig: Any, path: Path) -> None:
-    """Write a matplotlib figure as a PNG, atomically."""
-    atomic_write(path, lambda fh: fig.savefig(fh, dpi=90, format='png'), binary=True,
-                 what='plot')
-
-
 def _table(head: Sequence[str], rows: Sequence[Sequence[Any]]) -> list[str]:
     """Return a markdown table (its lines, then an empty one)."""
     return ['| ' + ' | '.join(head) + ' |', '|' + '---|' * len(head)] + [
@@ -183,7 +169,7 @@ def _par(params: dict, unit: str = '') -> str:
 def _plot_maps(maps_rows: Sequence[tuple[str, Sequence[BinMap]]], path: Path) -> None:
     """Plot rows of residual maps (one row per model state) into one PNG."""
     ncol = max(len(m) for _t, m in maps_rows)
-    fig = _figure(figsize=(4.0 * ncol, 3.0 * len(maps_rows)))
+    fig = figure(figsize=(4.0 * ncol, 3.0 * len(maps_rows)))
     axes = fig.subplots(len(maps_rows), ncol, squeeze=False)
     for i, (title, maps) in enumerate(maps_rows):
         for ax in axes[i][len(maps):]:
@@ -207,7 +193,7 @@ def _plot_maps(maps_rows: Sequence[tuple[str, Sequence[BinMap]]], path: Path) ->
                 ax.set_ylabel('mean residual (deg/s), +-3 se')
             if i == 0 and j == 0:
                 ax.legend(fontsize=7)
-    _save(fig, path)
+    save_png(fig, path)
 
 
 def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
@@ -220,7 +206,7 @@ def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
         curves = [(', '.join(result.final_effects), result.adev_tau_s, result.adev_dps)]
     else:
         return False
-    fig = _figure(figsize=(6.0, 4.2))
+    fig = figure(figsize=(6.0, 4.2))
     ax = fig.subplots()
     for label, tau, dev in curves:
         ax.loglog(tau, dev, marker='.', label=label)
@@ -231,7 +217,7 @@ def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
     ax.set_ylabel('Allan deviation of the residual (deg/s)')
     ax.grid(True, which='both', lw=0.3)
     ax.legend(fontsize=8)
-    _save(fig, path)
+    save_png(fig, path)
     return True
 
 

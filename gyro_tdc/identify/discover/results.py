@@ -284,11 +284,6 @@ class DiscoveryResult:
         """Return the effects named, in step order."""
         return tuple(s.effect for s in self.steps)
 
-    @property
-    def consistent_with_noise(self) -> bool:
-        """Return True when the final gap is within 1.3 times the noise floor."""
-        return self.gap_dps <= 1.3 * self.noise_floor_dps
-
     def to_json(self, model_file: str | None = None) -> dict:
         """
         Return the ``discover --json`` document (plain types).
