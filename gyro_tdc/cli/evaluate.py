@@ -85,7 +85,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--plots', metavar='DIR', default=None, help='write PNGs per bag here')
     p.add_argument('--export', metavar='DIR', default=None,
                    help='write a CSV per bag here: time, temperature, raw, reference and '
-                        'compensated rates (rad/s)')
+                        'compensated rates (rad/s) of the samples scored (of a flight log: '
+                        'its still stretches)')
     add_bag_options(p)
     add_driver_options(p)
     add_session_options(p)
