@@ -152,6 +152,10 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     def each(b: BagEval) -> None:
         for line in [*(_reanchor_lines(b) if auto else ()), *format_still(b)]:
             log(line)
+        if b.still is not None and args.reanchor != 0:
+            given = args.reanchor if auto else f'{args.reanchor:g}'
+            log(f'{b.label}: --reanchor {given} does not apply to it (scored on its '
+                'still stretches, each session anchored on its first)')
         log(format_bag(b, baseline, floor=args.floor, accel_floor=args.accel_floor))
         if args.plots is not None:
             bar.set_postfix_str(f'{b.label}: plots')

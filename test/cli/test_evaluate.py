@@ -308,6 +308,11 @@ def test_a_real_flight_log_says_the_range_it_scored(tmp_path, capsys):
             f'{whole_hi:.2f} degC') in text
     # Trained on that stretch, the model is inside its range on every sample scored.
     assert 'outside the trained range' not in text
+    assert 'does not apply' not in text
+    # --reanchor is not what anchors the still stretches: it says so rather than claim it.
+    assert main([*log, '--model', str(model), '--reanchor', '10']) == 0
+    assert ('ardupilot_ac33_three_imus.bin: --reanchor 10 does not apply to it (scored on its '
+            'still stretches, each session anchored on its first)') in capsys.readouterr().out
     # The CSV holds the samples scored.
     rows = (tmp_path / 'csv' / 'ardupilot_ac33_three_imus.bin.csv').read_text().splitlines()
     assert len(rows) == 1 + 1854
