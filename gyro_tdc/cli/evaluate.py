@@ -66,7 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
                         'session (the turn-on offset of each power cycle, as the compensator '
                         're-anchors at start-up while still); auto: over as long as the '
                         "compensator takes to know it to its tolerance (0.1 x the model's "
-                        'residual std, 10 to 600 s); default 0: off')
+                        'residual std, 10 to 600 s); default 0: off (a log scored on its still '
+                        'stretches is anchored on the first of each session instead)')
     p.add_argument('--out-of-range', dest='out_of_range', default=DEFAULT_OUT_OF_RANGE,
                    choices=OUT_OF_RANGE_POLICIES,
                    help=f"beyond a model's trained range: linear ({_POLICY_WORDS['linear']}, "
