@@ -170,7 +170,7 @@ def test_a_bag_scored_still_only_says_whose_every_figure_is(bag):
                         '40.00 degC), reference rate zero (no reference topic)')
     assert lines[6] == ('  note: 25 % of the still samples scored lie outside the trained '
                         'range of mod [-10.00, 30.00] degC: evaluated clamped at the range ends')
-    assert ('over the still samples of the whole bag by the accelerometer\'s still test'
+    assert ("over the still samples of the whole bag by the accelerometer's still test"
             in lines[7])
     assert format_still(bag) == [
         'run3: no reference rate and the IMU moves: scored the still stretches only, 20 '
