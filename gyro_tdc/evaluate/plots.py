@@ -246,6 +246,11 @@ def _plot_allan(b, out, legends, styles, head) -> Path:
         axs[k].set_xlabel('averaging time tau (s)')
         axs[k].grid(True, which='both', alpha=0.3)
     axs[0].set_ylabel('Allan deviation of the rate error (deg/s)')
-    axs[0].legend(loc='best')
+    if any(len(m.adev_tau_s) for m in [b.raw] + list(b.models)):
+        axs[0].legend(loc='best')
+    else:                   # still stretches (gaps break the series) or under 4 samples
+        axs[1].text(0.5, 0.5, 'no Allan deviation: ' + ('still stretches' if b.still else
+                                                        'fewer than 4 samples'),
+                    ha='center', transform=axs[1].transAxes)
     fig.suptitle(f'Allan deviation\n{head}')
     return save_png(fig, out / f'{b.label}_allan.png')
