@@ -234,7 +234,7 @@ def format_summary(b: BagEval, *, floor: Sequence[float] | None = None,
     lo, hi = b.temperature_c
     reference = _REFERENCE.get(b.reference, f'reference {b.reference}')
     s = b.still
-    lines = [f'bag {b.bag}: {b.samples} samples over {b.duration_s / 3600.0:.2f} h, '
+    lines = [f'bag {b.bag}: {b.samples} samples over {_time_text(b.duration_s)}, '
              f'temperature {lo:.2f} .. {hi:.2f} degC, {reference}' if s is None else
              f'bag {b.bag}: scored {b.samples} still samples over {_time_text(b.duration_s)} '
              f'of still time at {lo:.2f} .. {hi:.2f} degC (the whole bag: '

@@ -47,6 +47,8 @@ def test_summary_table(bag):
     assert lines[6] == ('  note: 25 % of the samples lie outside the trained range of mod '
                         '[-10.00, 30.00] degC: evaluated clamped at the range ends')
     assert len(lines) == 7
+    bag.duration_s = 6.0                    # a short bag in s, not "0.00 h"
+    assert format_summary(bag).startswith('bag bags/run3: 50 samples over 6 s, temperature')
 
 
 def test_paper_table_ratios(bag):
