@@ -66,7 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
                         'session (the turn-on offset of each power cycle, as the compensator '
                         're-anchors at start-up while still); auto: over as long as the '
                         "compensator takes to know it to its tolerance (0.1 x the model's "
-                        'residual std, 10 to 600 s); default 0: off')
+                        'residual std, 10 to 600 s); default 0: off (a log scored on its still '
+                        'stretches is anchored on the first of each session instead)')
     p.add_argument('--out-of-range', dest='out_of_range', default=DEFAULT_OUT_OF_RANGE,
                    choices=OUT_OF_RANGE_POLICIES,
                    help=f"beyond a model's trained range: linear ({_POLICY_WORDS['linear']}, "
@@ -85,7 +86,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--plots', metavar='DIR', default=None, help='write PNGs per bag here')
     p.add_argument('--export', metavar='DIR', default=None,
                    help='write a CSV per bag here: time, temperature, raw, reference and '
-                        'compensated rates (rad/s)')
+                        'compensated rates (rad/s) of the samples scored (of a flight log: '
+                        'its still stretches)')
     add_bag_options(p)
     add_driver_options(p)
     add_session_options(p)
@@ -151,6 +153,10 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     def each(b: BagEval) -> None:
         for line in [*(_reanchor_lines(b) if auto else ()), *format_still(b)]:
             log(line)
+        if b.still is not None and args.reanchor != 0:
+            given = args.reanchor if auto else f'{args.reanchor:g}'
+            log(f'{b.label}: --reanchor {given} does not apply to it (scored on its '
+                'still stretches, each session anchored on its first)')
         log(format_bag(b, baseline, floor=args.floor, accel_floor=args.accel_floor))
         if args.plots is not None:
             bar.set_postfix_str(f'{b.label}: plots')

@@ -99,7 +99,8 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
     ``<label>_allan.png``. Every model keeps one colour, line style and marker in all
     three. ``points``: block means per curve; ``descriptions``: legend text per model
     (:func:`model_description`); ``options``: what was applied, for the titles;
-    ``reanchor_s``: the window to shade (0: none). Returns the paths written.
+    ``reanchor_s``: the window to shade (0: none). A bag scored on its still stretches only
+    shows those, as the titles say. Returns the paths written.
     """
     import matplotlib
 
@@ -127,7 +128,10 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
         str(d) for d in descriptions]
     styles = [_RAW_STYLE] + [_style(i, len(th), n_models) for i in range(n_models)]
     models_text = ', '.join(Path(str(m.model)).name for m in b.models) or 'none'
-    head = f'{b.bag}: models {models_text}' + (f'; {options}' if options else '')
+    head = (f'{b.bag}: models {models_text}' + (f'; {options}' if options else '')
+            + ('' if b.still is None else
+               f"; scored the still stretches only, {b.samples} of {b.still['total_samples']} "
+               'samples'))
     with matplotlib.rc_context(_FONTS):
         return [_plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head,
                                  block, reanchor_s),
@@ -193,7 +197,8 @@ def _plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head
     left[0].legend(loc='best', framealpha=0.85)
     bottom.plot(th, temp, color='black', lw=1.2)
     bottom.set_ylabel('temperature (degC)')
-    bottom.set_xlabel('time since the start of the bag (h)')
+    bottom.set_xlabel('time since the start of the bag (h)' if b.still is None else
+                      'time since the first still sample scored (h)')
     bottom.grid(True, alpha=0.3)
     fig.suptitle(f'Rate error vs time (left: {block}-sample means)\n{head}')
     return save_png(fig, out / f'{b.label}_timeseries.png')
@@ -241,6 +246,11 @@ def _plot_allan(b, out, legends, styles, head) -> Path:
         axs[k].set_xlabel('averaging time tau (s)')
         axs[k].grid(True, which='both', alpha=0.3)
     axs[0].set_ylabel('Allan deviation of the rate error (deg/s)')
-    axs[0].legend(loc='best')
+    if any(len(m.adev_tau_s) for m in [b.raw] + list(b.models)):
+        axs[0].legend(loc='best')
+    else:                   # still stretches (gaps break the series) or under 4 samples
+        axs[1].text(0.5, 0.5, 'no Allan deviation: ' + ('still stretches' if b.still else
+                                                        'fewer than 4 samples'),
+                    ha='center', transform=axs[1].transAxes)
     fig.suptitle(f'Allan deviation\n{head}')
     return save_png(fig, out / f'{b.label}_allan.png')

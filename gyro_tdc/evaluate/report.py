@@ -61,7 +61,8 @@ def _scores(m: Any, floor: Sequence[float] | None, accel_floor: Sequence[float] 
 
 def _still_json(still: dict) -> dict:
     """Return the still-only record of a bag: what was scored, in all and per session."""
-    keys = ('samples', 'stretches', 'still_s', 'total_s', 'share')
+    keys = ('samples', 'stretches', 'still_s', 'temperature_c', 'total_samples', 'total_s',
+            'total_temperature_c', 'share')
     return {**{k: still[k] for k in keys},
             'sessions': [{k: p[k] for k in keys} for p in still['per_session']]}
 
@@ -184,21 +185,41 @@ def _per_floor(bs: NDArray[np.float64] | None, floor: Sequence[float] | None) ->
     return [np.full(3, math.nan) if bs is None else np.asarray(bs) / np.asarray(floor)]
 
 
+def _range_text(span: Sequence[float] | None) -> str:
+    """Return a temperature range ``[lo, hi]`` as ``lo .. hi degC`` (``no sample``: None)."""
+    return 'no sample' if span is None else f'{span[0]:.2f} .. {span[1]:.2f} degC'
+
+
+def _time_text(seconds: float) -> str:
+    """Return a duration in s below 2 min, in min below 2 h, else in h."""
+    if seconds < 120.0:
+        return f'{seconds:.0f} s'
+    return f'{seconds / 60.0:.1f} min' if seconds < 7200.0 else f'{seconds / 3600.0:.2f} h'
+
+
 def format_still(b: BagEval) -> list:
-    """Return the lines saying what of a bag without a reference was scored (none: all)."""
+    """
+    Return the lines saying what of a bag without a reference was scored (none: all).
+
+    Every figure says whose it is: the still stretches scored (samples, seconds, temperature
+    range) beside the whole bag's (or session's) samples, seconds and temperature range.
+    """
     s = b.still
     if s is None:
         return []
 
-    def what(p: dict) -> str:
+    def what(p: dict, whole: str) -> str:
         return (f"{p['samples']} samples in {p['stretches']} stretch(es), {p['still_s']:.0f} s "
-                f"of {p['total_s']:.0f} s ({100.0 * p['share']:.3g} %)")
+                f"of {p['total_s']:.0f} s ({100.0 * p['share']:.3g} %), at "
+                f"{_range_text(p['temperature_c'])}; the whole {whole}: {p['total_samples']} "
+                f"samples at {_range_text(p['total_temperature_c'])}")
 
     lines = [f'{b.label}: no reference rate and the IMU moves: scored the still stretches '
-             f'only, {what(s)}; raw and models re-anchored on the first still stretch of each '
-             f"of the {s['sessions']} session(s), as the compensator does at start-up"]
+             f"only, {what(s, 'bag')}; raw and models re-anchored on the first still stretch "
+             f"of each of the {s['sessions']} session(s), as the compensator does at start-up"]
     if s['sessions'] > 1:
-        lines += [f'  session {k}: {what(p)}' for k, p in enumerate(s['per_session'], 1)]
+        lines += [f"  session {k}: {what(p, 'session')}"
+                  for k, p in enumerate(s['per_session'], 1)]
     return lines
 
 
@@ -212,8 +233,13 @@ def format_summary(b: BagEval, *, floor: Sequence[float] | None = None,
     """
     lo, hi = b.temperature_c
     reference = _REFERENCE.get(b.reference, f'reference {b.reference}')
-    lines = [f'bag {b.bag}: {b.samples} samples over {b.duration_s / 3600.0:.2f} h, '
-             f'temperature {lo:.2f} .. {hi:.2f} degC, {reference}']
+    s = b.still
+    lines = [f'bag {b.bag}: {b.samples} samples over {_time_text(b.duration_s)}, '
+             f'temperature {lo:.2f} .. {hi:.2f} degC, {reference}' if s is None else
+             f'bag {b.bag}: scored {b.samples} still samples over {_time_text(b.duration_s)} '
+             f'of still time at {lo:.2f} .. {hi:.2f} degC (the whole bag: '
+             f"{s['total_samples']} samples over {_time_text(s['total_s'])} at "
+             f"{_range_text(s['total_temperature_c'])}), {reference}"]
     w = max([len(m.label) for m in b.models] + [12])
     lines += ['  BS in (deg/s)^2 (paper eq. 30), RMS in deg/s, BS/BS1 against the raw data'
               + ('' if floor is None else
@@ -234,7 +260,9 @@ def _accel_rows(b: BagEval, w: int, accel_floor: Sequence[float] | None = None) 
     if b.raw.accel_bs is None:
         return []
     lines = ['  accelerometer (still run): BS = variance around the run mean in (m/s^2)^2, '
-             'BS/BS1 against the raw data'
+             + ('' if b.still is None else
+                "over the still samples of the whole bag by the accelerometer's still test, ")
+             + 'BS/BS1 against the raw data'
              + ('' if accel_floor is None else
                 f', aBS/fl against the floor {_floor_text(accel_floor)} (m/s^2)^2 '
                 '(--accel-floor)') + '; - : no accelerometer part',
@@ -255,7 +283,8 @@ def _outside_note(b: BagEval) -> str:
             key = (f'{100.0 * m.outside_fraction:.3g} %',
                    f'[{m.temp_range_c[0]:.2f}, {m.temp_range_c[1]:.2f}] degC')
             groups.setdefault(key, []).append(m.label)
-    parts = [f'{pct} of the samples lie outside the trained range of {", ".join(labels)} '
+    whose = 'the samples' if b.still is None else 'the still samples scored'
+    parts = [f'{pct} of {whose} lie outside the trained range of {", ".join(labels)} '
              f'{span}' if i == 0 else f'{pct} outside that of {", ".join(labels)} {span}'
              for i, ((pct, span), labels) in enumerate(groups.items())]
     how = {'clamp': 'evaluated clamped at the range ends',
@@ -312,6 +341,9 @@ def format_allan(b: BagEval) -> str:
              _head(w, 'ARW', 'BI')]
     lines += [_row(m.label, w, m.arw_deg_sqrt_h, m.bias_instability_deg_h)
               for m in [b.raw] + list(b.models)]
+    if b.still is not None:
+        lines.append('  note: no Allan deviation on still stretches (the gaps between them '
+                     'break the time series)')
     return '\n'.join(lines)
 
 
@@ -363,10 +395,11 @@ def csv_columns(b: BagEval) -> list:
 
 def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000) -> Path:
     """
-    Write ``DIR/<bag label>.csv``: every sample with the raw, reference and compensated rates.
+    Write ``DIR/<bag label>.csv``: every sample scored, raw, reference and compensated rates.
 
-    Columns from :func:`csv_columns`, rates in rad/s, ``chunk`` rows formatted at once;
-    returns the path.
+    Columns from :func:`csv_columns`, rates in rad/s, ``chunk`` rows formatted at once; a bag
+    scored on its still stretches only gives those samples (the models re-anchored as scored,
+    the raw rate as read). Returns the path.
     """
     run = b.run
     if run is None:

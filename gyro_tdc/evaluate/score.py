@@ -85,8 +85,9 @@ class ModelEval:
     temp_range_c : tuple of float, degC
         The model's trained range.
     outside_fraction : float
-        Fraction of the bag's samples whose model temperature (the thermal state) lies
-        outside ``temp_range_c`` (evaluated with the bag's out-of-range policy).
+        Fraction of the scored samples (all, or the still ones of a bag scored still-only)
+        whose model temperature (the thermal state) lies outside ``temp_range_c`` (evaluated
+        with the bag's out-of-range policy).
     omega : NDArray[np.float64], shape (N, 3), rad/s, or None
         The compensated rate (kept only while plots and CSVs are written).
     reanchor : dict, optional
@@ -132,11 +133,11 @@ class BagEval:
     label : str
         Short unique label (file names of plots and CSVs).
     samples : int
-        Samples evaluated.
+        Samples scored.
     temperature_c : tuple of float, degC
-        Min and max temperature.
+        Min and max temperature of the samples scored.
     duration_s : float, s
-        Time span.
+        Time scored: the bag's span, or the still time of a bag scored still-only.
     reference : str
         Where the reference rate came from (``constant``, ``topic``, ``zero``).
     raw : ModelEval
@@ -158,9 +159,11 @@ class BagEval:
     still : dict or None
         Data without a reference that move (:func:`still_rows`): only the still stretches
         were scored, raw and models alike each session re-anchored on its first still
-        stretch (as the compensator does at start-up); ``samples``, ``stretches``,
-        ``still_s``, ``total_s``, ``share`` (at most 1), ``sessions`` (their number) and
-        ``per_session`` (the same five per session). None: every sample was scored.
+        stretch (as the compensator does at start-up); what was scored: ``samples``,
+        ``stretches``, ``still_s``, ``temperature_c``; the whole bag: ``total_samples``,
+        ``total_s``, ``total_temperature_c``; ``share`` (``still_s / total_s``, at most 1),
+        ``sessions`` (their number) and ``per_session`` (the same eight per session). None:
+        every sample was scored.
 
     """
 
@@ -326,17 +329,20 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         lo, hi = m.temp_range_c
         ev.temp_range_c = (lo, hi)
         temp = model_temperature(m, run.t, run.temp)     # the range is the thermal state's
-        ev.outside_fraction = float(np.count_nonzero((temp < lo) | (temp > hi)) / max(len(run), 1))
+        if still is not None:                    # the thermal state runs over the whole bag
+            temp = temp[still]
+        ev.outside_fraction = float(np.count_nonzero((temp < lo) | (temp > hi))
+                                    / max(len(temp), 1))
         out.append(ev)
     raw.accel_bs, per_model = accel_scores(run, [nm.model for nm in models],
                                            out_of_range=out_of_range,
                                            max_extrapolation_c=max_extrapolation_c)
     for ev, bs in zip(out, per_model):
         ev.accel_bs = bs
-    return BagEval(bag=run.name, label=label or safe_label(run.name),
-                   samples=len(run) if still is None else int(np.count_nonzero(still)),
-                   temperature_c=(float(run.temp.min()), float(run.temp.max())),
-                   duration_s=run.duration_s, reference=str(run.info.get('reference', '?')),
+    return BagEval(bag=run.name, label=label or safe_label(run.name), samples=len(whole),
+                   temperature_c=(float(whole.temp.min()), float(whole.temp.max())),
+                   duration_s=run.duration_s if still is None else summary['still_s'],
+                   reference=str(run.info.get('reference', '?')),
                    raw=raw, models=out, run=whole, out_of_range=out_of_range,
                    constant_axes=[a for a, c in zip('xyz', const) if c], still=summary)
 
@@ -374,22 +380,38 @@ def _anchor_first_still(x: NDArray[np.float64], still: NDArray[np.bool_],
     return out
 
 
+def _span_c(temp: NDArray[np.float64]) -> list | None:
+    """Return ``[min, max]`` of temperatures in degC (None for none)."""
+    return [float(temp.min()), float(temp.max())] if temp.size else None
+
+
 def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]) -> dict:
-    """Return how much of a run the still-only scoring covers, in all and per session."""
+    """
+    Return how much of a run the still-only scoring covers, in all and per session.
+
+    Each figure says whose it is: the scored part's (``samples``, ``stretches``, ``still_s``,
+    ``temperature_c``) or the whole bag's or session's (``total_*``), so a flight log's range
+    is never read as the range scored.
+    """
     dt = float(np.median(np.diff(run.t))) if len(run) > 1 else 0.0
 
     def part(a: int, b: int) -> dict:
         starts, stops = _stretches(still, a, b)
         still_s = float(sum(run.t[j - 1] - run.t[i] + dt for i, j in zip(starts, stops)))
         total_s = float(run.t[b - 1] - run.t[a] + dt) if b > a else 0.0
+        temp = run.temp[a:b]
         return {'samples': int(np.count_nonzero(still[a:b])), 'stretches': int(starts.size),
-                'still_s': still_s, 'total_s': total_s,
+                'still_s': still_s, 'temperature_c': _span_c(temp[still[a:b]]),
+                'total_samples': b - a, 'total_s': total_s, 'total_temperature_c': _span_c(temp),
                 'share': min(still_s / total_s, 1.0) if total_s > 0 else 0.0}
 
     per = [part(a, b) for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist())]
-    whole = {k: sum(p[k] for p in per) for k in ('samples', 'stretches', 'still_s', 'total_s')}
+    whole = {k: sum(p[k] for p in per)
+             for k in ('samples', 'stretches', 'still_s', 'total_samples', 'total_s')}
     share = min(whole['still_s'] / whole['total_s'], 1.0) if whole['total_s'] > 0 else 0.0
-    return {**whole, 'share': share, 'sessions': len(per), 'per_session': per}
+    return {**whole, 'temperature_c': _span_c(run.temp[still]),
+            'total_temperature_c': _span_c(run.temp), 'share': share, 'sessions': len(per),
+            'per_session': per}
 
 
 def _constant(run: Run) -> NDArray[np.bool_]:

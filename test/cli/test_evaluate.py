@@ -16,7 +16,8 @@
 ``python -m gyro_tdc evaluate``: held-out scores, the paper's tables, JSON, plots, CSV, errors.
 
 Bags are written in ``tmp_path`` from ``synth.py`` runs and from the simulator (helpers in
-``test/cli/test_train.py``); models come from ``train``'s ``main``.
+``test/cli/test_train.py``); models come from ``train``'s ``main``. A real ArduCopter log
+(``test/support/files/flightlogs``) is scored on its still stretch, and its report says so.
 """
 
 from __future__ import annotations
@@ -276,3 +277,44 @@ def test_bad_bags(bags, tmp_path, capsys):
     assert_bad_input(capsys, [bags['test'], '--model', bags['mod'], '--temperature-topic',
                               '/t'], "no topic '/t'", '/imu/temperature', entry=main)
     assert_bad_input(capsys, [bags['test']], 'required: --model', entry=main)
+
+
+def test_a_real_flight_log_says_the_range_it_scored(tmp_path, capsys):
+    # ArduCopter 3.3, IMU3: 40 s still on the ground while it warms 28 -> 32 degC, then a
+    # flight; the log spans more. What evaluate scored is the still stretch, and it says so.
+    from real_logs import ARDUPILOT_AC33
+
+    log = [str(ARDUPILOT_AC33), '--imu-instance', '2', '--no-progress']
+    model = tmp_path / 'm.yaml'
+    assert train_main([*log, '--out', str(model)]) == 0
+    capsys.readouterr()
+    out = tmp_path / 'e.json'
+    assert main([*log, '--model', str(model), '--json', str(out), '--export',
+                 str(tmp_path / 'csv')]) == 0
+    text = capsys.readouterr().out
+    doc = json.loads(out.read_text())['bags'][0]
+    s = doc['still']
+    assert (doc['samples'], s['samples'], s['total_samples']) == (1854, 1854, 3854)
+    assert doc['temperature_c'] == s['temperature_c'] == s['sessions'][0]['temperature_c']
+    lo, hi = doc['temperature_c']
+    whole_lo, whole_hi = s['total_temperature_c']
+    assert 27.9 < lo < 28.1 and 31.9 < hi < 32.1           # IMU3 warming on the ground
+    assert whole_lo < lo - 2.0 and whole_hi > hi + 2.0     # the whole log spans more
+    assert s['still_s'] < 0.5 * s['total_s']
+    assert (f'scored 1854 still samples over {s["still_s"]:.0f} s of still time at '
+            f'{lo:.2f} .. {hi:.2f} degC (the whole bag: 3854 samples over '
+            f'{s["total_s"]:.0f} s at {whole_lo:.2f} .. {whole_hi:.2f} degC)') in text
+    assert (f'at {lo:.2f} .. {hi:.2f} degC; the whole bag: 3854 samples at {whole_lo:.2f} .. '
+            f'{whole_hi:.2f} degC') in text
+    # Trained on that stretch, the model is inside its range on every sample scored.
+    assert 'outside the trained range' not in text
+    assert 'does not apply' not in text
+    # --reanchor is not what anchors the still stretches: it says so rather than claim it.
+    assert main([*log, '--model', str(model), '--reanchor', '10']) == 0
+    assert ('ardupilot_ac33_three_imus.bin: --reanchor 10 does not apply to it (scored on its '
+            'still stretches, each session anchored on its first)') in capsys.readouterr().out
+    # The CSV holds the samples scored.
+    rows = (tmp_path / 'csv' / 'ardupilot_ac33_three_imus.bin.csv').read_text().splitlines()
+    assert len(rows) == 1 + 1854
+    temp = np.array([float(r.split(',')[1]) for r in rows[1:]])
+    assert (temp.min(), temp.max()) == pytest.approx((lo, hi), abs=1e-3)

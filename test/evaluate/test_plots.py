@@ -16,8 +16,11 @@
 
 from __future__ import annotations
 
+import warnings
+
 from gyro_tdc.evaluate.plots import model_description, write_plots
 from handmade_bag import handmade_bag
+import numpy as np
 import pytest
 
 
@@ -47,3 +50,14 @@ def test_three_plots_per_bag(bag, tmp_path):
     bag.release()
     with pytest.raises(ValueError, match='released'):
         write_plots(bag, tmp_path)
+
+
+def test_a_bag_scored_still_only_plots_without_an_allan_curve_or_a_warning(bag, tmp_path):
+    # Still stretches have no Allan deviation (the gaps break the series): no empty legend.
+    bag.still = {'samples': 50, 'total_samples': 120, 'sessions': 1}
+    for m in [bag.raw] + bag.models:
+        m.adev_tau_s, m.adev_dps = np.zeros(0), np.zeros((0, 3))
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        files = write_plots(bag, tmp_path / 'still', points=10)
+    assert [f.read_bytes()[:8] for f in files] == [b'\x89PNG\r\n\x1a\n'] * 3

@@ -20,8 +20,8 @@ import json
 import math
 
 from gyro_tdc.evaluate.report import (csv_columns, evaluation_json, format_allan, format_bag,
-                                      format_means, format_paper_table, format_summary,
-                                      write_csv, write_json)
+                                      format_means, format_paper_table, format_still,
+                                      format_summary, write_csv, write_json)
 from gyro_tdc.evaluate.score import BagEval
 from handmade_bag import handmade_bag, model_eval as _ev
 import numpy as np
@@ -47,6 +47,8 @@ def test_summary_table(bag):
     assert lines[6] == ('  note: 25 % of the samples lie outside the trained range of mod '
                         '[-10.00, 30.00] degC: evaluated clamped at the range ends')
     assert len(lines) == 7
+    bag.duration_s = 6.0                    # a short bag in s, not "0.00 h"
+    assert format_summary(bag).startswith('bag bags/run3: 50 samples over 6 s, temperature')
 
 
 def test_paper_table_ratios(bag):
@@ -154,3 +156,42 @@ def test_csv_holds_every_sample(bag, tmp_path):
     bag.release()
     with pytest.raises(ValueError, match='released'):
         write_csv(bag, tmp_path)
+
+
+def test_a_bag_scored_still_only_says_whose_every_figure_is(bag):
+    # A hand-made still-only record: 20 of the 50 samples, 30 of 90 s, 25-30 of 20-40 degC.
+    part = {'samples': 20, 'stretches': 2, 'still_s': 30.0, 'temperature_c': [25.0, 30.0],
+            'total_samples': 50, 'total_s': 90.0, 'total_temperature_c': [20.0, 40.0],
+            'share': 1.0 / 3.0}
+    bag.still = {**part, 'sessions': 1, 'per_session': [part]}
+    bag.samples, bag.temperature_c, bag.duration_s = 20, (25.0, 30.0), 30.0
+    bag.raw.accel_bs = np.array([4e-4, 8e-4, 2e-4])
+    lines = format_summary(bag).splitlines()
+    assert lines[0] == ('bag bags/run3: scored 20 still samples over 30 s of still time at '
+                        '25.00 .. 30.00 degC (the whole bag: 50 samples over 90 s at 20.00 .. '
+                        '40.00 degC), reference rate zero (no reference topic)')
+    assert lines[6] == ('  note: 25 % of the still samples scored lie outside the trained '
+                        'range of mod [-10.00, 30.00] degC: evaluated clamped at the range ends')
+    assert ("over the still samples of the whole bag by the accelerometer's still test"
+            in lines[7])
+    assert format_still(bag) == [
+        'run3: no reference rate and the IMU moves: scored the still stretches only, 20 '
+        'samples in 2 stretch(es), 30 s of 90 s (33.3 %), at 25.00 .. 30.00 degC; the whole '
+        'bag: 50 samples at 20.00 .. 40.00 degC; raw and models re-anchored on the first '
+        'still stretch of each of the 1 session(s), as the compensator does at start-up']
+    assert format_allan(bag).splitlines()[-1] == (
+        '  note: no Allan deviation on still stretches (the gaps between them break the time '
+        'series)')
+    bag.still['total_s'] = part['total_s'] = 3 * 3600.0     # long logs in min, then h
+    assert 'the whole bag: 50 samples over 3.00 h at' in format_summary(bag)
+    bag.duration_s = 600.0
+    assert 'scored 20 still samples over 10.0 min of still time' in format_summary(bag)
+    doc = evaluation_json([bag])['bags'][0]
+    assert doc['samples'] == 20 and doc['temperature_c'] == [25.0, 30.0]
+    assert doc['still']['total_temperature_c'] == [20.0, 40.0]
+    assert doc['still']['sessions'] == [{k: part[k] for k in doc['still']['sessions'][0]}]
+    assert list(doc['still']['sessions'][0]) == list(part)
+    # A bag scored whole says none of it.
+    bag.still = None
+    assert 'note' not in format_allan(bag)
+    assert 'still samples' not in format_summary(bag) and format_still(bag) == []

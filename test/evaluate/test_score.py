@@ -20,7 +20,8 @@ constant by ``train``'s rule (readings never varying beyond one quantum, at any 
 BS/BS1 NaN for every model (``const`` on the console, null in JSON), the other axes' figures
 those of the same bag without it, no warning; a bag constant on every axis is refused in one
 line. Data without a reference that move are scored on their still stretches only, each
-session re-anchored, and the record says how much, in all and per session.
+session re-anchored, and the record says how much, in all and per session: every sample
+count, duration and temperature range of the scored part beside the whole bag's.
 """
 
 from __future__ import annotations
@@ -378,6 +379,14 @@ def test_two_power_cycles_in_one_log_are_scored_and_reported_per_session(logs, t
     for p in s['per_session'] + [s]:
         assert 0.0 < p['still_s'] <= p['total_s'] and 0.0 < p['share'] <= 1.0
         np.testing.assert_allclose(p['share'], p['still_s'] / p['total_s'])
+        lo, hi = p['temperature_c']
+        assert p['total_temperature_c'][0] <= lo <= hi <= p['total_temperature_c'][1]
+        assert 0 < p['samples'] < p['total_samples']
+    # Whole-bag figures: the sessions' own add up to them (the half hour between is no one's).
+    assert sum(p['total_samples'] for p in s['per_session']) == s['total_samples'] == len(imu.t)
+    assert s['total_temperature_c'] == [float(imu.temp.min()), float(imu.temp.max())]
+    assert got.temperature_c == (min(p['temperature_c'][0] for p in s['per_session']),
+                                 max(p['temperature_c'][1] for p in s['per_session']))
     doc = evaluation_json([got])['bags'][0]['still']
     assert [x['stretches'] for x in doc['sessions']] == [
         p['stretches'] for p in s['per_session']]
@@ -389,3 +398,48 @@ def test_two_power_cycles_in_one_log_are_scored_and_reported_per_session(logs, t
     assert all(0.0 < v <= 100.0 for v in pct)
     assert evaluation_json(evaluate([_paths[2]], [nm]))['bags'][0]['still']['sessions'][0][
         'samples'] > 0
+
+
+def test_a_log_ending_in_flight_reports_the_range_and_time_it_scored(tmp_path):
+    # Still, flight, still, flight: the last flight warms the board beyond anything scored.
+    from flightlogs import Imu
+    from gyro_tdc.evaluate.report import format_still, format_summary
+
+    day = flight_day(11, legs=3, still_s=(60.0, 60.0), flight_s=(300.0, 300.0), tau_s=600.0)
+    end = int(np.flatnonzero(np.diff(day.still.astype(np.int8)) == 1)[-1]) + 1
+    imu = Imu(day.imu.t[:end], day.imu.gyro[:end], day.imu.temp[:end], day.imu.accel[:end])
+    run = load_run(write_dataflash(tmp_path / 'ends_in_flight.bin', [imu]))
+    still = still_rows(run)
+    assert still is not None and not still[-1]
+    scored = run.temp[still]
+    hi = float(np.median(scored))             # a model trained up to the middle of them
+    nm = NamedModel('lin.yaml', 'lin', _linear_model([0] * 3, [0] * 3, hi=hi))
+    b = evaluate_run(run, [nm], still=still)
+    # Every figure of the scored part is of the still samples; the whole bag's beside it.
+    assert b.temperature_c == (scored.min(), scored.max())
+    assert b.temperature_c[1] < run.temp.max() - 3.0
+    s = b.still
+    assert s['temperature_c'] == list(b.temperature_c) == s['per_session'][0]['temperature_c']
+    assert s['total_temperature_c'] == [run.temp.min(), run.temp.max()]
+    assert s['total_samples'] == len(run) > b.samples == int(still.sum())
+    assert b.duration_s == s['still_s'] < 0.3 * s['total_s']
+    # The share outside the trained range is of the samples scored, not of the flights.
+    outside = np.mean(scored > hi)
+    assert b.models[0].outside_fraction == pytest.approx(outside)
+    assert np.mean(run.temp > hi) > outside + 0.2
+    lo_s, hi_s = b.temperature_c
+    whole = f'{run.temp.min():.2f} .. {run.temp.max():.2f} degC'
+    assert (f'at {lo_s:.2f} .. {hi_s:.2f} degC; the whole bag: {len(run)} samples at '
+            f'{whole}') in format_still(b)[0]
+    head, *rest = format_summary(b).splitlines()
+    assert head.startswith(f'bag {run.name}: scored {b.samples} still samples over ')
+    assert f'at {lo_s:.2f} .. {hi_s:.2f} degC (the whole bag: {len(run)} samples over ' in head
+    assert f'at {whole}), reference rate zero' in head
+    assert any(f'{100 * outside:.3g} % of the still samples scored lie outside' in line
+               for line in rest)
+    doc = evaluation_json([b])['bags'][0]
+    assert doc['temperature_c'] == list(b.temperature_c) and doc['samples'] == b.samples
+    assert list(doc['still']) == ['samples', 'stretches', 'still_s', 'temperature_c',
+                                  'total_samples', 'total_s', 'total_temperature_c', 'share',
+                                  'sessions']
+    assert doc['still']['total_temperature_c'] == s['total_temperature_c']
