@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import math
 from typing import Callable, Mapping
 
+from gyro_tdc.base import plain
 from gyro_tdc.errors import FitError
 import numpy as np
 from numpy.typing import NDArray
@@ -131,12 +132,10 @@ class TauProfile:
 
     def to_dict(self) -> dict:
         """Return the profile as plain types (for a model's training metrics)."""
-        return {'tau_s': float(self.tau), 'interval_s': [float(v) for v in self.interval],
-                'identifiable': bool(self.identifiable),
-                'bounds_s': [float(v) for v in self.bounds],
-                'n_eff': [float(v) for v in self.n_eff],
-                'profile_tau_s': [float(v) for v in self.grid_tau],
-                'profile_stat': [float(v) for v in self.stat]}
+        return plain({'tau_s': self.tau, 'interval_s': self.interval,
+                      'identifiable': self.identifiable, 'bounds_s': self.bounds,
+                      'n_eff': self.n_eff, 'profile_tau_s': self.grid_tau,
+                      'profile_stat': self.stat})
 
 
 def profile_interval(sse: Callable[[float], NDArray[np.float64]], tau: float,
