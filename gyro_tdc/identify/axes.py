@@ -127,12 +127,8 @@ def neutral_runs(runs: Sequence[Run], const: NDArray[np.bool_]) -> list[Run]:
     """
     if not const.any():
         return list(runs)
-    out = []
-    for r in runs:
-        omega = np.array(r.omega, dtype=np.float64, copy=True)
-        omega[:, const] = r.omega_ref[:, const]
-        out.append(replace(r, omega=omega))
-    return out
+    return [replace(r, omega=np.where(const, r.omega_ref, np.asarray(r.omega, dtype=np.float64)))
+            for r in runs]
 
 
 def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[np.bool_],
