@@ -121,13 +121,9 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
     shared = None if scale_cols is not None else _fold_sums(design, y, folds)
     errors = np.zeros(len(RIDGE_GRID))
     for ax in range(3):
-        if shared is None:
-            d = np.column_stack([design, scale_cols[:, ax]])
-            gs, bs, ys = _fold_sums(d, y[:, ax:ax + 1], folds)
-            col = 0
-        else:
-            gs, bs, ys = shared
-            col = ax
+        col = 0 if shared is None else ax
+        gs, bs, ys = shared or _fold_sums(np.column_stack([design, scale_cols[:, ax]]),
+                                          y[:, ax:ax + 1], folds)
         q = gs.shape[1]
         g_all, b_all = gs.sum(axis=0), bs[:, :, col].sum(axis=0)
         # A column that is zero in every row (the constant, centred per group) has weight 0:

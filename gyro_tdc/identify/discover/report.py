@@ -68,8 +68,7 @@ def residual_maps(data: BlockData, r: NDArray[np.float64]) -> tuple[BinMap, ...]
     def binmap(name: str, label: str, keys: NDArray[np.int64], centers: NDArray[np.float64],
                labels: tuple[str, ...] = ()) -> BinMap:
         nb = centers.shape[0]
-        mean = np.full((nb, 3), np.nan)
-        se = np.full((nb, 3), np.nan)
+        mean, se = np.full((2, nb, 3), np.nan)
         count = np.zeros((nb, 3), dtype=np.int64)
         for a in range(3):
             k = keys[:, a] if keys.ndim == 2 else keys
