@@ -107,9 +107,7 @@ def _f32(x: ArrayLike) -> NDArray[np.float64]:
 
 def _cubic(d: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return the least-squares cubic in ``d`` per column: rows c0, c1, c2, c3, shape (4, 3)."""
-    a = np.vander(d, 4, increasing=True)
-    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
-    return coef
+    return np.linalg.lstsq(np.vander(d, 4, increasing=True), y, rcond=None)[0]
 
 
 def check_instance(firmware: str, instance: object, name: str = '`instance`') -> None:
