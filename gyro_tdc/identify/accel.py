@@ -223,8 +223,7 @@ def accel_features(model: CompensationModel, features: str | Sequence[str] | Non
     """
     lagged = model.thermal.kind != 'none'
     if features is None:
-        ids = normalise_ids(('dT', 'dT2') + tuple(e for e in model.features
-                                                  if e in STATE_TERMS))
+        ids = normalise_ids(('dT', 'dT2') + tuple(e for e in model.features if e in STATE_TERMS))
     else:
         ids = normalise_ids(features)
         bad = [e for e in ids if e not in ACCEL_EFFECTS]

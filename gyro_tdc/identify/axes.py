@@ -58,8 +58,7 @@ def constant_axes_of(arrays: Sequence[ArrayLike]) -> NDArray[np.bool_]:
     out = np.ones(3, dtype=bool)
     for i in range(3):
         # Three distinct finite values among the first few: not constant, no full pass.
-        head = np.unique(np.concatenate([_finite(a[:64, i]) for a in arrays]
-                                        or [np.zeros(0)]))
+        head = np.unique(np.concatenate([_finite(a[:64, i]) for a in arrays] or [np.zeros(0)]))
         if head.size > 2:
             out[i] = False
             continue

@@ -192,8 +192,7 @@ def _ardupilot(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None,
             # cubic's value at CALTEMP, constant included.
             offset = _f32(coef[0] + cal.poly([caltemp])[0])
     params.update(cals['gyro'].to_params('gyro', imu))
-    params.update({k: v for k, v in cals['accel'].to_params('accel', imu).items()
-                   if 'ACC' in k})
+    params.update({k: v for k, v in cals['accel'].to_params('accel', imu).items() if 'ACC' in k})
     params[f'INS_GYR{n}_CALTEMP'] = caltemp
     stem = 'INS_GYR' if imu == 0 else f'INS_GYR{n}'
     params.update({f'{stem}OFFS_{axis}': float(offset[i]) for i, axis in enumerate('XYZ')})

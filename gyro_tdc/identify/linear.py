@@ -82,8 +82,7 @@ def _fit_weights(design: NDArray[np.float64], y: NDArray[np.float64],
         p = design.shape[1]
         coef, scale, pen = np.empty((p, 3)), np.empty(3), np.append(pen, 0.0)
         for ax in range(3):
-            sol = fit_columns(np.column_stack([design, scale_cols[:, ax]]), y[:, ax],
-                              penalty=pen)
+            sol = fit_columns(np.column_stack([design, scale_cols[:, ax]]), y[:, ax], penalty=pen)
             coef[:, ax], scale[ax] = sol[:p], sol[p]
     resid = design @ coef - y
     if scale_cols is not None:

@@ -76,8 +76,7 @@ def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float]
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
     best, best_sse = grid[i], float(vals[i])
     if b > a:
-        res = minimize_scalar(objective, bounds=(a, b), method='bounded',
-                              options={'xatol': xatol})
+        res = minimize_scalar(objective, bounds=(a, b), method='bounded', options={'xatol': xatol})
         if res.fun <= vals[i]:
             best, best_sse = res.x, float(res.fun)
     tau = float(math.exp(best)) if log else float(best)

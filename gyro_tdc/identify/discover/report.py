@@ -279,8 +279,7 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
             for i, s in enumerate(result.steps, 1)])
     for i, s in enumerate(result.steps, 1):
         name = f'step{i}_maps.png'
-        _plot_maps([('before', s.maps_before), (f'after + {s.effect}', s.maps_after)],
-                   out / name)
+        _plot_maps([('before', s.maps_before), (f'after + {s.effect}', s.maps_after)], out / name)
         md += [f'## Step {i}: {s.effect}', '', s.description, '']
         if s.thermal is not None:
             md += [_thermal_line(s.thermal), '']

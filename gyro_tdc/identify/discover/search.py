@@ -338,8 +338,7 @@ def discover(runs: Sequence[Run], options: DiscoverOptions | None = None, *,
             break
         step, model, adev = _add_best(data, model, rnd, passing, o, adev)
         steps.append(step)
-    return _result(data, model, rnd, steps, unident, collinear, notes, cand_ids, base_ids,
-                   o, adev)
+    return _result(data, model, rnd, steps, unident, collinear, notes, cand_ids, base_ids, o, adev)
 
 
 def _score_round(data: BlockData, model: LinearModel, todo: Sequence[str], o: DiscoverOptions,
