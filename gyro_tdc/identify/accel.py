@@ -37,7 +37,7 @@ from gyro_tdc.identify.fit import check_choices, MIN_SAMPLES, MIN_SPAN_C
 from gyro_tdc.identify.linear import fit_linear
 from gyro_tdc.identify.thermal_search import run_state
 from gyro_tdc.model import (batch_features, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
-                            input_ids, MAX_EXTRAPOLATION_C, normalise_ids, resolve_params,
+                            MAX_EXTRAPOLATION_C, normalise_ids, resolve_params,
                             STATE_TERMS, static_slope, THERMAL_EFFECTS)
 from gyro_tdc.signal import (block_length, BlockGrid, detect_still, has_accelerometer, MAX_RATE,
                              STILL_WINDOW_S, within)
@@ -223,8 +223,7 @@ def accel_features(model: CompensationModel, features: str | Sequence[str] | Non
     """
     lagged = model.thermal.kind != 'none'
     if features is None:
-        ids = normalise_ids(('dT', 'dT2') + tuple(e for e in model.features
-                                                  if e in STATE_TERMS))
+        ids = normalise_ids(('dT', 'dT2') + tuple(e for e in model.features if e in STATE_TERMS))
     else:
         ids = normalise_ids(features)
         bad = [e for e in ids if e not in ACCEL_EFFECTS]
@@ -365,7 +364,7 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     with_acc = [(r, d) for r, d in zip(runs, datas) if d is not None]
     out = AccelFit(None, static=datas, total=sum(len(r) for r, _ in with_acc))
     usable = [(r, d) for r, d in with_acc if d.mask.any()]
-    if not with_acc or not usable:
+    if not usable:
         out.note = ('no static data: ' + '; '.join(sorted({d.reason for _, d in with_acc}))
                     if with_acc else
                     'no accelerometer data in the bags (all zero: the IMU publishes none)')
@@ -374,7 +373,6 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     par = resolve_params(ids, {k: v for k, v in model.effect_params.items() if k in ids})
     if th.kind != 'none':
         par['lag'] = {'tau_s': th.tau_total_s}
-    f = len(input_ids(ids, state=True))
     out.samples = n_static = sum(int(d.mask.sum()) for _, d in usable)
     segs, span = _segment_blocks(usable, model, ids, par,
                                  block_length(n_static, max_rows, at_most=True))
@@ -393,7 +391,7 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
                     np.concatenate([sg['y'] for sg in segs]), kind=kind, n_centers=n_centers,
                     ridge=ridge, seed=seed, groups=groups)
     coef = lf.coef.copy()
-    coef[0] = -(lf.design(np.zeros((1, f)))[0][1:] @ coef[1:])  # zero at the reference point
+    coef[0] = -(lf.design(np.zeros((1, lf.mean.size)))[0][1:] @ coef[1:])  # zero at T0
     offsets = lf.offsets - coef[0]                                # c_g: the still force at T0
     ss, ss_raw = _sums_of_squares(segs, lf.design, coef, offsets)
     out.raw_bs, out.train_bs = ss_raw / n_static, ss / n_static

@@ -58,8 +58,7 @@ def constant_axes_of(arrays: Sequence[ArrayLike]) -> NDArray[np.bool_]:
     out = np.ones(3, dtype=bool)
     for i in range(3):
         # Three distinct finite values among the first few: not constant, no full pass.
-        head = np.unique(np.concatenate([_finite(a[:64, i]) for a in arrays]
-                                        or [np.zeros(0)]))
+        head = np.unique(np.concatenate([_finite(a[:64, i]) for a in arrays] or [np.zeros(0)]))
         if head.size > 2:
             out[i] = False
             continue
@@ -127,12 +126,8 @@ def neutral_runs(runs: Sequence[Run], const: NDArray[np.bool_]) -> list[Run]:
     """
     if not const.any():
         return list(runs)
-    out = []
-    for r in runs:
-        omega = np.array(r.omega, dtype=np.float64, copy=True)
-        omega[:, const] = r.omega_ref[:, const]
-        out.append(replace(r, omega=omega))
-    return out
+    return [replace(r, omega=np.where(const, r.omega_ref, np.asarray(r.omega, dtype=np.float64)))
+            for r in runs]
 
 
 def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[np.bool_],

@@ -107,9 +107,7 @@ def _f32(x: ArrayLike) -> NDArray[np.float64]:
 
 def _cubic(d: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return the least-squares cubic in ``d`` per column: rows c0, c1, c2, c3, shape (4, 3)."""
-    a = np.vander(d, 4, increasing=True)
-    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
-    return coef
+    return np.linalg.lstsq(np.vander(d, 4, increasing=True), y, rcond=None)[0]
 
 
 def check_instance(firmware: str, instance: object, name: str = '`instance`') -> None:
@@ -194,8 +192,7 @@ def _ardupilot(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None,
             # cubic's value at CALTEMP, constant included.
             offset = _f32(coef[0] + cal.poly([caltemp])[0])
     params.update(cals['gyro'].to_params('gyro', imu))
-    params.update({k: v for k, v in cals['accel'].to_params('accel', imu).items()
-                   if 'ACC' in k})
+    params.update({k: v for k, v in cals['accel'].to_params('accel', imu).items() if 'ACC' in k})
     params[f'INS_GYR{n}_CALTEMP'] = caltemp
     stem = 'INS_GYR' if imu == 0 else f'INS_GYR{n}'
     params.update({f'{stem}OFFS_{axis}': float(offset[i]) for i, axis in enumerate('XYZ')})

@@ -91,8 +91,7 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
     if rows is not None and (len(rows) != len(runs) or any(
             np.shape(m) != (len(r),) for r, m in zip(runs, rows))):
         raise FitError('Expected `rows` to hold one boolean mask of shape (N,) per run.')
-    n = sum(len(r) if rows is None else int(np.count_nonzero(rows[i]))
-            for i, r in enumerate(runs))
+    n = sum(len(r) if rows is None else int(np.count_nonzero(rows[i])) for i, r in enumerate(runs))
     if n < MIN_SAMPLES:
         raise FitError(f'Too few samples to fit: {n} (need at least {MIN_SAMPLES}).')
     for r in runs:

@@ -72,17 +72,17 @@ def _penalty(p: int, f: int, ridge: float, n: int) -> NDArray[np.float64]:
 
 
 def _fit_weights(design: NDArray[np.float64], y: NDArray[np.float64],
-                 scale_cols: NDArray[np.float64] | None, pen: NDArray[np.float64]
+                 scale_cols: NDArray[np.float64] | None, f: int, ridge: float
                  ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Return the ridge solution for all axes: coefficients (P, 3), scale (3,), residual."""
+    pen = _penalty(design.shape[1], f, ridge, design.shape[0])
     if scale_cols is None:
         coef, scale = fit_columns(design, y, penalty=pen), np.zeros(3)
     else:
         p = design.shape[1]
         coef, scale, pen = np.empty((p, 3)), np.empty(3), np.append(pen, 0.0)
         for ax in range(3):
-            sol = fit_columns(np.column_stack([design, scale_cols[:, ax]]), y[:, ax],
-                              penalty=pen)
+            sol = fit_columns(np.column_stack([design, scale_cols[:, ax]]), y[:, ax], penalty=pen)
             coef[:, ax], scale[ax] = sol[:p], sol[p]
     resid = design @ coef - y
     if scale_cols is not None:
@@ -121,13 +121,9 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
     shared = None if scale_cols is not None else _fold_sums(design, y, folds)
     errors = np.zeros(len(RIDGE_GRID))
     for ax in range(3):
-        if shared is None:
-            d = np.column_stack([design, scale_cols[:, ax]])
-            gs, bs, ys = _fold_sums(d, y[:, ax:ax + 1], folds)
-            col = 0
-        else:
-            gs, bs, ys = shared
-            col = ax
+        col = 0 if shared is None else ax
+        gs, bs, ys = shared or _fold_sums(np.column_stack([design, scale_cols[:, ax]]),
+                                          y[:, ax:ax + 1], folds)
         q = gs.shape[1]
         g_all, b_all = gs.sum(axis=0), bs[:, :, col].sum(axis=0)
         # A column that is zero in every row (the constant, centred per group) has weight 0:
@@ -223,8 +219,7 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
     if ridge == 'auto':
         ridge = (_choose_ridge(design, y, scale_cols, f) if centers.shape[0]
                  and design.shape[0] >= 40 else RIDGE_GRID[1])
-    pen = _penalty(design.shape[1], f, ridge, design.shape[0])
-    coef, scale, resid = _fit_weights(design, y, scale_cols, pen)
+    coef, scale, resid = _fit_weights(design, y, scale_cols, f, ridge)
     offsets = None
     if groups is not None:          # the centred constant column is zero: no w0
         coef[0] = 0.0
@@ -247,23 +242,18 @@ def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
     rows = rng.choice(x.shape[0], min(max_rows, x.shape[0]), replace=False)
     xs, ys = x[rows], y[rows]
     ss = None if scale_cols is None else scale_cols[rows]
-    mean, std = fit.mean, fit.std
 
-    def unpack(theta: NDArray[np.float64]) -> tuple:
-        return theta[:k * f].reshape(k, f), np.exp(theta[k * f:])
+    def norm(theta: NDArray[np.float64]) -> tuple:
+        return fit.mean, fit.std, theta[:k * f].reshape(k, f), np.exp(theta[k * f:])
 
     def resid(theta: NDArray[np.float64]) -> NDArray[np.float64]:
-        centers, widths = unpack(theta)
-        d = rbf_design((mean, std, centers, widths), xs)
-        return _fit_weights(d, ys, ss, _penalty(d.shape[1], f, ridge, d.shape[0]))[2].ravel()
+        return _fit_weights(rbf_design(norm(theta), xs), ys, ss, f, ridge)[2].ravel()
 
     theta0 = np.concatenate([fit.centers.ravel(), np.log(fit.widths)])
     sol = least_squares(resid, theta0, method='trf', max_nfev=20, x_scale='jac')
     if sol.cost * 2 >= float((resid(theta0) ** 2).sum()):
         return fit
-    centers, widths = unpack(sol.x)
-    design = rbf_design((mean, std, centers, widths), x)
-    pen = _penalty(design.shape[1], f, ridge, design.shape[0])
-    coef, scale, r = _fit_weights(design, y, scale_cols, pen)
+    _mean, _std, centers, widths = best = norm(sol.x)
+    coef, scale, r = _fit_weights(rbf_design(best, x), y, scale_cols, f, ridge)
     return replace(fit, centers=centers, widths=widths, coef=coef, scale=scale, resid=r,
                    sse=float((r ** 2).sum()))

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import math
 from typing import Callable, Mapping
 
+from gyro_tdc.base import plain
 from gyro_tdc.errors import FitError
 import numpy as np
 from numpy.typing import NDArray
@@ -75,8 +76,7 @@ def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float]
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
     best, best_sse = grid[i], float(vals[i])
     if b > a:
-        res = minimize_scalar(objective, bounds=(a, b), method='bounded',
-                              options={'xatol': xatol})
+        res = minimize_scalar(objective, bounds=(a, b), method='bounded', options={'xatol': xatol})
         if res.fun <= vals[i]:
             best, best_sse = res.x, float(res.fun)
     tau = float(math.exp(best)) if log else float(best)
@@ -131,12 +131,10 @@ class TauProfile:
 
     def to_dict(self) -> dict:
         """Return the profile as plain types (for a model's training metrics)."""
-        return {'tau_s': float(self.tau), 'interval_s': [float(v) for v in self.interval],
-                'identifiable': bool(self.identifiable),
-                'bounds_s': [float(v) for v in self.bounds],
-                'n_eff': [float(v) for v in self.n_eff],
-                'profile_tau_s': [float(v) for v in self.grid_tau],
-                'profile_stat': [float(v) for v in self.stat]}
+        return plain({'tau_s': self.tau, 'interval_s': self.interval,
+                      'identifiable': self.identifiable, 'bounds_s': self.bounds,
+                      'n_eff': self.n_eff, 'profile_tau_s': self.grid_tau,
+                      'profile_stat': self.stat})
 
 
 def profile_interval(sse: Callable[[float], NDArray[np.float64]], tau: float,

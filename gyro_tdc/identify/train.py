@@ -64,9 +64,8 @@ def data_frame(runs: Sequence[Run]) -> str:
     """
     frames: dict[str, str] = {}
     for run in runs:
-        frame = str(run.info.get('frame_id') or '')
-        if frame:
-            frames.setdefault(frame, run.name)
+        frames.setdefault(str(run.info.get('frame_id') or ''), run.name)
+    frames.pop('', None)            # no frame recorded
     if len(frames) > 1:
         named = ', '.join(f'{name}: {frame!r}' for frame, name in frames.items())
         raise DatasetError(f'Expected the IMU data of every bag in one frame (a model corrects '

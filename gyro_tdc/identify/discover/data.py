@@ -86,14 +86,12 @@ def _block_noise(y: NDArray[np.float64], first: NDArray[np.int64], cnt: NDArray[
     key = ids * 3 + third
     c3 = np.bincount(key, minlength=3 * nb).reshape(nb, 3)
     ok = np.all(c3 > 0, axis=1)
-    nz = []
     with np.errstate(invalid='ignore', divide='ignore'):
-        for a in range(3):
-            m3 = np.bincount(key, weights=y[:, a], minlength=3 * nb).reshape(nb, 3) / c3
-            dd = (m3[:, 0] - 2.0 * m3[:, 1] + m3[:, 2]) / np.sqrt(
-                1.0 / c3[:, 0] + 4.0 / c3[:, 1] + 1.0 / c3[:, 2])
-            nz.append(np.where(ok, dd, np.nan))
-    return np.column_stack(nz)
+        m3 = np.stack([np.bincount(key, weights=y[:, a], minlength=3 * nb) for a in range(3)],
+                      axis=1).reshape(nb, 3, 3) / c3[:, :, None]
+        dd = (m3[:, 0] - 2.0 * m3[:, 1] + m3[:, 2]) / np.sqrt(
+            1.0 / c3[:, 0] + 4.0 / c3[:, 1] + 1.0 / c3[:, 2])[:, None]
+    return np.where(ok[:, None], dd, np.nan)
 
 
 def _noise_floor(noise: NDArray[np.float64], white: Sequence[NDArray[np.float64]]
@@ -329,9 +327,6 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
     soak_min = max(_SOAK_S, 3.0 * data.block_s)    # 2 minutes and three blocks
     first_soaks, soak = _soaks(data)
 
-    def add(eid: str, reason: str, extra: str = '') -> None:
-        out[eid] = unidentifiable(eid, reason, extra)
-
     if span < MIN_SPAN_C:
         out.update({e: unidentifiable(e, f'the temperature spans only {span:.2f} degC',
                                       ', of at least 10 degC') for e in _SPAN})
@@ -361,14 +356,13 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
             notes.append(f'The data only {leg}: {hysteresis}; a dT/dt or lag effect seen here '
                          f'rests on the change of the {leg}ing rate alone.')
     if not np.any(data.scale_axes):
-        if not np.any(np.abs(data.ref) > 1e-12):
-            add('scale', 'the reference rate is zero on every run: a sensitivity change has '
-                'nothing to scale')
-        else:
-            add('scale', 'the reference rate is constant on every run, so a sensitivity '
-                'change is indistinguishable from dT')
+        out['scale'] = unidentifiable('scale', (
+            'the reference rate is zero on every run: a sensitivity change has nothing to scale'
+            if not np.any(np.abs(data.ref) > 1e-12) else 'the reference rate is constant on '
+            'every run, so a sensitivity change is indistinguishable from dT'))
     # Warm-up: some run must start with a soak (no temperature change) after power-on.
     if not np.any(first_soaks >= soak_min):
-        add('warmup', 'no run starts with a soak after power-on: a warm-up transient cannot be '
-            'told apart from the temperature response and the bias')
+        out['warmup'] = unidentifiable('warmup', 'no run starts with a soak after power-on: a '
+                                       'warm-up transient cannot be told apart from the '
+                                       'temperature response and the bias')
     return {e: u for e, u in out.items() if e not in base}, notes

@@ -68,8 +68,7 @@ def residual_maps(data: BlockData, r: NDArray[np.float64]) -> tuple[BinMap, ...]
     def binmap(name: str, label: str, keys: NDArray[np.int64], centers: NDArray[np.float64],
                labels: tuple[str, ...] = ()) -> BinMap:
         nb = centers.shape[0]
-        mean = np.full((nb, 3), np.nan)
-        se = np.full((nb, 3), np.nan)
+        mean, se = np.full((2, nb, 3), np.nan)
         count = np.zeros((nb, 3), dtype=np.int64)
         for a in range(3):
             k = keys[:, a] if keys.ndim == 2 else keys
@@ -280,8 +279,7 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
             for i, s in enumerate(result.steps, 1)])
     for i, s in enumerate(result.steps, 1):
         name = f'step{i}_maps.png'
-        _plot_maps([('before', s.maps_before), (f'after + {s.effect}', s.maps_after)],
-                   out / name)
+        _plot_maps([('before', s.maps_before), (f'after + {s.effect}', s.maps_after)], out / name)
         md += [f'## Step {i}: {s.effect}', '', s.description, '']
         if s.thermal is not None:
             md += [_thermal_line(s.thermal), '']

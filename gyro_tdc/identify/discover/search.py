@@ -73,11 +73,6 @@ def _copy(params: Mapping) -> dict:
     return {k: dict(v) for k, v in params.items()}
 
 
-def _timed(eid: str, effects: Sequence[str]) -> list[str]:
-    """Return the time constants fitted with candidate ``eid``: its own and the state's."""
-    return list(dict.fromkeys(e for e in (eid, 'lag') if e in _TIMED and e in effects))
-
-
 def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
     """Return the search bounds of an effect's time constant, s."""
     lo, hi = EFFECTS[eid].bounds.get('tau_s', _SMOOTHING_BOUNDS_S)
@@ -137,15 +132,17 @@ def _thermal_state(data: BlockData, model: LinearModel) -> ThermalState | None:
     return ThermalState('first_order', (tau,), (prof.interval,), prof.identifiable)
 
 
-def _candidate_params(data: BlockData, model: LinearModel, eid: str) -> dict:
+def _candidate(data: BlockData, base: Sequence[str], params: Mapping, eid: str
+               ) -> tuple[tuple[str, ...], dict]:
     """
-    Return the model's parameters plus those of candidate ``eid`` (its tau fitted).
+    Return the effects ``base`` plus candidate ``eid``, and ``params`` with its tau fitted.
 
     With the thermal state in the model (or as the candidate) its tau is refitted with the
     candidate: a curvature named after ``lag`` moves the state's time constant.
     """
-    effects = _effects(model.effects, {eid})
-    return _fit_taus(data, effects, model.params, _timed(eid, effects))
+    effects = _effects(base, {eid})
+    timed = dict.fromkeys(e for e in (eid, 'lag') if e in _TIMED and e in effects)
+    return effects, _fit_taus(data, effects, params, list(timed))
 
 
 def _n_params(model: LinearModel, eid: str, params: Mapping) -> int:
@@ -182,8 +179,7 @@ def _beside_curve(data: BlockData, curve: tuple, folds: Folds, eid: str, params:
     requires ``dTdt`` and ``warmup`` to gain here and ranks them by it; ``lag`` (no column
     of its own) is ranked by it when it is the larger gain.
     """
-    effects = _effects(curve[1], {eid})
-    trial = _fit_taus(data, effects, params, _timed(eid, effects))
+    effects, trial = _candidate(data, curve[1], params, eid)
     return (curve[2] - mse(data, LinearModel(data, effects, trial).cv_residual(folds))) * DEG ** 2
 
 
@@ -342,8 +338,7 @@ def discover(runs: Sequence[Run], options: DiscoverOptions | None = None, *,
             break
         step, model, adev = _add_best(data, model, rnd, passing, o, adev)
         steps.append(step)
-    return _result(data, model, rnd, steps, unident, collinear, notes, cand_ids, base_ids,
-                   o, adev)
+    return _result(data, model, rnd, steps, unident, collinear, notes, cand_ids, base_ids, o, adev)
 
 
 def _score_round(data: BlockData, model: LinearModel, todo: Sequence[str], o: DiscoverOptions,
@@ -351,7 +346,7 @@ def _score_round(data: BlockData, model: LinearModel, todo: Sequence[str], o: Di
                  ) -> _Round:
     """Score every candidate of ``todo`` against ``model``; collinear ones go to the list."""
     coef = model.fit()
-    cparams = {eid: _candidate_params(data, model, eid) for eid in todo}
+    cparams = {eid: _candidate(data, model.effects, model.params, eid)[1] for eid in todo}
     lags, memory = _noise_lags(data, model, todo, cparams)
     folds, buffer = make_folds(data, memory, o.n_folds)
     rnd = _Round(coef, data.y - model.predict(coef), folds, buffer, model.cv_residual(folds), [])
