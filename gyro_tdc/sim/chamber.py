@@ -67,17 +67,16 @@ def heat_conduction_time_s(*, specific_heat_kj_per_kg_k: float, density_kg_per_m
     larger, so the 17.5 s and the 20 s hold derived from it are the paper's experimental
     choice, not a conduction time constant; the simulator's lags are ``thermal.tau_*_s``.
     """
-    values = (('specific_heat_kj_per_kg_k', specific_heat_kj_per_kg_k),
-              ('density_kg_per_m3', density_kg_per_m3), ('length_m', length_m),
-              ('conductivity_w_per_m_k', conductivity_w_per_m_k))
-    for name, value in values:
+    for name, value in (('specific_heat_kj_per_kg_k', specific_heat_kj_per_kg_k),
+                        ('density_kg_per_m3', density_kg_per_m3), ('length_m', length_m),
+                        ('conductivity_w_per_m_k', conductivity_w_per_m_k)):
         _positive(name, value)
     return float(specific_heat_kj_per_kg_k * density_kg_per_m3 * length_m ** 2
                  / conductivity_w_per_m_k)
 
 
-def _nice(x: float, name: str, up: bool) -> float:
-    exponent = math.floor(math.log10(_positive(name, x)))
+def _nice(x: float, up: bool) -> float:
+    exponent = math.floor(math.log10(_positive('x', x)))
     candidates = [m * 10.0 ** e for e in (exponent - 1, exponent, exponent + 1)
                   for m in (1.0, 2.0, 5.0)]
     # A relative tolerance so that 0.1 or 20 map onto themselves despite rounding.
@@ -101,7 +100,7 @@ def nice_floor(x: float) -> float:
         ``m * 10**e`` with ``m`` in (1, 2, 5), ``<= x`` (0.125 -> 0.1).
 
     """
-    return _nice(x, 'x', up=False)
+    return _nice(x, up=False)
 
 
 def nice_ceil(x: float) -> float:
@@ -119,7 +118,7 @@ def nice_ceil(x: float) -> float:
         ``m * 10**e`` with ``m`` in (1, 2, 5), ``>= x`` (17.52 -> 20).
 
     """
-    return _nice(x, 'x', up=True)
+    return _nice(x, up=True)
 
 
 @dataclass(frozen=True)
