@@ -229,12 +229,13 @@ class Profile:
 
         Each segment maps ``(t0, temp0)`` to the breakpoint arrays ``(t, temp)`` that follow.
         """
-        ts = [np.zeros(1)]
-        temps = [np.array([float(start_c)])]
+        end = (0.0, float(start_c))      # the last breakpoint: an empty segment keeps it
+        ts, temps = [np.zeros(1)], [np.array(end[1:])]
         for segment in segments:
-            t_seg, temp_seg = segment(float(ts[-1][-1]), float(temps[-1][-1]))
-            ts.append(np.asarray(t_seg, dtype=np.float64))
-            temps.append(np.asarray(temp_seg, dtype=np.float64))
+            t_seg, temp_seg = (np.asarray(a, dtype=np.float64) for a in segment(*end))
+            ts.append(t_seg)
+            temps.append(temp_seg)
+            end = (float(t_seg[-1]), float(temp_seg[-1])) if t_seg.size else end
         return cls(np.concatenate(ts), np.concatenate(temps))
 
     @property
