@@ -93,12 +93,6 @@ def _unused(path: Path) -> None:
         raise FileExistsError(errno.EEXIST, 'it exists already', str(path))
 
 
-def _unlink(path: Path) -> None:
-    """Remove ``path`` if it exists (cleanup: errors are ignored)."""
-    with suppress(OSError):
-        os.unlink(path)
-
-
 def _sync_dir(directory: Path) -> None:
     """Flush a directory entry to disk (best effort)."""
     with suppress(OSError):
@@ -264,7 +258,8 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
             os.fsync(stream.fileno())
         os.replace(tmp, target)
     except BaseException as exc:
-        _unlink(tmp)
+        with suppress(OSError):         # cleanup: the write's own error is the one raised
+            os.unlink(tmp)
         if isinstance(exc, OSError):
             raise _fail(what, path, exc) from None
         raise

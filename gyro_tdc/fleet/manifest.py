@@ -158,12 +158,6 @@ def _fingerprint(bag: str) -> list:
     return out
 
 
-def _plain_options(options: dict) -> dict:
-    """Return the training options that change a model, as JSON-able plain values."""
-    return {k: list(v) if isinstance(v, (tuple, list)) else v
-            for k, v in sorted(options.items()) if k != 'progress'}
-
-
 def input_key(spec: SensorSpec, options: dict) -> str:
     """
     Return the resume key of a sensor: a hash of its inputs and the training options.
@@ -173,7 +167,8 @@ def input_key(spec: SensorSpec, options: dict) -> str:
     every train and test bag.
     """
     blob = json.dumps({'format': KEY_FORMAT, 'version': __version__,
-                       'sensor_id': spec.sensor_id, 'options': _plain_options(options),
+                       'sensor_id': spec.sensor_id,
+                       'options': {k: v for k, v in options.items() if k != 'progress'},
                        'train': [_fingerprint(b) for b in spec.train],
                        'test': [_fingerprint(b) for b in spec.test]},
                       sort_keys=True, default=str)

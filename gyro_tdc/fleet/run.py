@@ -90,12 +90,6 @@ class SensorOutcome(SensorResult):
 HELDOUT_REANCHOR = 'auto'
 
 
-def _key_options(options: TrainOptions, bag: BagOptions) -> dict:
-    """Return the options a sensor's resume key hashes: all but the progress bar."""
-    return {'train': asdict(options), 'bag': asdict(replace(bag, progress=False)),
-            'heldout_reanchor': HELDOUT_REANCHOR}
-
-
 def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | None = None,
                previous_key: str | None = None, command: str = '') -> SensorOutcome:
     """
@@ -126,7 +120,9 @@ def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | Non
     bag = replace(BagOptions() if bag is None else bag, progress=False)
     out = SensorOutcome(spec.sensor_id, 'failed', pid=os.getpid())
     try:
-        out.key = input_key(spec, _key_options(options, bag))
+        # The resume key hashes every option but the progress bar (off here).
+        out.key = input_key(spec, {'train': asdict(options), 'bag': asdict(bag),
+                                   'heldout_reanchor': HELDOUT_REANCHOR})
         if previous_key is not None and previous_key == out.key:
             out.status = 'skipped'
             return out

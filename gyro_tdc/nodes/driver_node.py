@@ -22,6 +22,7 @@ reported and retried with backoff. See ``doc/internals/nodes.md``.
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass
 import sys
 import time
@@ -215,10 +216,8 @@ class DriverNode(ShellNode):
     def release(self) -> None:
         """Close and drop the source (an injected one is the caller's)."""
         if self._source is not None and self._source is not self._injected:
-            try:
+            with contextlib.suppress(DeviceError):
                 self._source.close()
-            except DeviceError:
-                pass
         self._source = None
 
     def _fail(self, exc: DeviceError) -> None:

@@ -67,17 +67,16 @@ def heat_conduction_time_s(*, specific_heat_kj_per_kg_k: float, density_kg_per_m
     larger, so the 17.5 s and the 20 s hold derived from it are the paper's experimental
     choice, not a conduction time constant; the simulator's lags are ``thermal.tau_*_s``.
     """
-    values = (('specific_heat_kj_per_kg_k', specific_heat_kj_per_kg_k),
-              ('density_kg_per_m3', density_kg_per_m3), ('length_m', length_m),
-              ('conductivity_w_per_m_k', conductivity_w_per_m_k))
-    for name, value in values:
+    for name, value in (('specific_heat_kj_per_kg_k', specific_heat_kj_per_kg_k),
+                        ('density_kg_per_m3', density_kg_per_m3), ('length_m', length_m),
+                        ('conductivity_w_per_m_k', conductivity_w_per_m_k)):
         _positive(name, value)
     return float(specific_heat_kj_per_kg_k * density_kg_per_m3 * length_m ** 2
                  / conductivity_w_per_m_k)
 
 
-def _nice(x: float, name: str, up: bool) -> float:
-    exponent = math.floor(math.log10(_positive(name, x)))
+def _nice(x: float, up: bool) -> float:
+    exponent = math.floor(math.log10(_positive('x', x)))
     candidates = [m * 10.0 ** e for e in (exponent - 1, exponent, exponent + 1)
                   for m in (1.0, 2.0, 5.0)]
     # A relative tolerance so that 0.1 or 20 map onto themselves despite rounding.
@@ -101,7 +100,7 @@ def nice_floor(x: float) -> float:
         ``m * 10**e`` with ``m`` in (1, 2, 5), ``<= x`` (0.125 -> 0.1).
 
     """
-    return _nice(x, 'x', up=False)
+    return _nice(x, up=False)
 
 
 def nice_ceil(x: float) -> float:
@@ -119,7 +118,7 @@ def nice_ceil(x: float) -> float:
         ``m * 10**e`` with ``m`` in (1, 2, 5), ``>= x`` (17.52 -> 20).
 
     """
-    return _nice(x, 'x', up=True)
+    return _nice(x, up=True)
 
 
 @dataclass(frozen=True)
@@ -230,12 +229,13 @@ class Profile:
 
         Each segment maps ``(t0, temp0)`` to the breakpoint arrays ``(t, temp)`` that follow.
         """
-        ts = [np.zeros(1)]
-        temps = [np.array([float(start_c)])]
+        end = (0.0, float(start_c))      # the last breakpoint: an empty segment keeps it
+        ts, temps = [np.zeros(1)], [np.array(end[1:])]
         for segment in segments:
-            t_seg, temp_seg = segment(float(ts[-1][-1]), float(temps[-1][-1]))
-            ts.append(np.asarray(t_seg, dtype=np.float64))
-            temps.append(np.asarray(temp_seg, dtype=np.float64))
+            t_seg, temp_seg = (np.asarray(a, dtype=np.float64) for a in segment(*end))
+            ts.append(t_seg)
+            temps.append(temp_seg)
+            end = (float(t_seg[-1]), float(temp_seg[-1])) if t_seg.size else end
         return cls(np.concatenate(ts), np.concatenate(temps))
 
     @property

@@ -30,7 +30,7 @@ import os
 from pathlib import Path
 from typing import Any, Mapping, Optional, Union
 
-from gyro_tdc.base import config_dir, plain, read_yaml, SCENARIO_LIMITS, scenario_path
+from gyro_tdc.base import config_dir, read_yaml, SCENARIO_LIMITS, scenario_path
 from gyro_tdc.errors import GyroTdcError, ScenarioError
 from gyro_tdc.sim import chamber
 from gyro_tdc.sim.schema import merge, validate
@@ -160,12 +160,7 @@ class Scenario:
                     raise ScenarioError(f'Override {key!r}: `{".".join(parts[:i + 1])}` is '
                                         f'not a mapping (it holds {child!r}).')
                 node = child
-            last = parts[-1]
-            value = copy.deepcopy(value)
-            if isinstance(value, Mapping) and isinstance(node.get(last), dict):
-                node[last] = merge(node[last], value)
-            else:
-                node[last] = plain(value, str_keys=False)
+            node[parts[-1]] = merge(node, {parts[-1]: value})[parts[-1]]
         return self.from_dict(data, name=self.name, source=self.source)
 
 

@@ -37,7 +37,8 @@ from gyro_tdc.sim.scenario import load_scenario, Scenario
 from gyro_tdc.sim.schema import DEG
 from gyro_tdc.sim.specs import GyroSpec, NoiseSpec, ThermometerSpec
 from gyro_tdc.sim.thermal import simulate_thermal, ThermalHistory
-from gyro_tdc.sim.vehicle import heated_profile, plan_legs, vehicle_motion, VehicleMotion
+from gyro_tdc.sim.vehicle import (gravity_in_sensor, heated_profile, plan_legs, vehicle_motion,
+                                  VehicleMotion)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -421,9 +422,7 @@ def gravity_vector(gravity_mps2: float, roll_deg: float, pitch_deg: float
     ``g (-sin p, sin r cos p, cos r cos p)`` for roll r (about x) and pitch p (about y) in
     degrees: ``(0, 0, g)`` when level.
     """
-    r, p = math.radians(roll_deg), math.radians(pitch_deg)
-    return gravity_mps2 * np.array([-math.sin(p), math.sin(r) * math.cos(p),
-                                    math.cos(r) * math.cos(p)])
+    return gravity_in_sensor(gravity_mps2, np.array([roll_deg]), np.array([pitch_deg]))[0]
 
 
 def _accelerometer(spec: Any, noise_rng: np.random.Generator, tilt_rng: np.random.Generator,
@@ -441,9 +440,8 @@ def _accelerometer(spec: Any, noise_rng: np.random.Generator, tilt_rng: np.rando
     accel = white_noise(noise_rng, n, density=spec.noise_mps2_per_rt_hz, rate_hz=rate)
     extra = tilt_rng.standard_normal(2) * spec.tilt_std_deg
     tilt = np.asarray(spec.tilt_deg, dtype=np.float64) + extra
-    g_before = gravity_vector(spec.gravity_mps2, tilt[0], tilt[1])
     after = tilt + np.asarray(spec.reorient_tilt_deg, dtype=np.float64)
-    g_after = gravity_vector(spec.gravity_mps2, after[0], after[1])
+    g_before, g_after = gravity_in_sensor(spec.gravity_mps2, *np.stack([tilt, after]).T)
     mg = G0 * 1e-3
     coefficients = {'bias': _vec(spec.bias_mg, mg), 'dT': _vec(spec.dT_mg_per_c, mg),
                     'dT2': _vec(spec.dT2_mg_per_c2, mg)}

@@ -102,6 +102,16 @@ def test_ramp_hold_step_and_points_segments_chain():
                                [0.0, 0.01, -0.02])
 
 
+def test_a_segment_with_nothing_to_do_keeps_the_chain_going():
+    # A ramp or staircase to the temperature already reached adds no breakpoint; the next
+    # segment starts from the last one there is.
+    profile = Profile.from_segments(20.0, [
+        ramp_segment(20.0, 10.0), staircase_segment(20.0, 0.1, 20.0), hold_segment(5.0),
+        ramp_segment(30.0, 36.0)])
+    np.testing.assert_allclose(profile.t, [0.0, 5.0, 1005.0])
+    np.testing.assert_allclose(profile.temp_c, [20.0, 20.0, 30.0])
+
+
 def test_profile_from_points_shifts_time_to_zero():
     profile = Profile.from_points([5.0, 15.0, 25.0], [0.0, 10.0, 10.0])
     np.testing.assert_allclose(profile.t, [0.0, 10.0, 20.0])
