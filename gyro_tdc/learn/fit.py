@@ -248,12 +248,6 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     return rec
 
 
-def _shape(coef: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Return the curve of an intercept-then-powers table at ``d = temp - t0``, (N, 3)."""
-    return sum((coef[j + 1] * d[:, None] ** (j + 1) for j in range(coef.shape[0] - 1)),
-               np.zeros((d.size, 3)))
-
-
 def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationModel:
     """
     Return the model of a fit record (a bias only as ``dT`` with a zero slope), checked.
@@ -292,7 +286,9 @@ def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float) -> l
     r = r[r[:, 5] > since]
     if not r.shape[0]:
         return None
-    shape = _shape(np.asarray(fit['coef'], dtype=np.float64), r[:, 1] - fit['t0_c'])
+    coef, d = np.asarray(fit['coef'], dtype=np.float64), r[:, 1] - fit['t0_c']
+    shape = sum((coef[j + 1] * d[:, None] ** (j + 1) for j in range(coef.shape[0] - 1)),
+                np.zeros((d.size, 3)))          # the curve without its intercept
     return np.average(r[:, 2:5] - shape, axis=0, weights=r[:, 0]).tolist()
 
 

@@ -241,8 +241,7 @@ class Learner:
 
     def caught_up(self) -> bool:
         """Return whether :meth:`step` has nothing to judge until the next sample arrives."""
-        buf = self.buf
-        return not buf or self._waiting()
+        return not self.buf or self._waiting()
 
     def _waiting(self) -> bool:
         """Return whether the window in progress goes on (no sample beyond it, no restart)."""
@@ -465,19 +464,14 @@ class Learner:
                 for v in self.bins.values() for e in v]
         return np.asarray(rows, dtype=np.float64).reshape(-1, 7)
 
-    def covered_c(self) -> tuple[float, float] | None:
-        """Return the covered temperature range (the entries' extremes), None when empty."""
-        e = self.entries()
-        return None if not e.shape[0] else (float(e[:, 2].min()), float(e[:, 2].max()))
-
     def _refit(self, t_now: float) -> bool:
         """Fit the point table; swap the candidate in when it predicts recent still time better."""
         self._fresh = False
         e = self.entries()
         fit = fit_points(e, grow_features(e[:, 2], len(self.bins)), t_now,
                          self.config.half_life_s, self._floor())
-        rows = np.asarray(self._recent_rows(), dtype=np.float64).reshape(-1, 6)
-        return self._offer(fit, rows, t_now)
+        rows = [r for s in self.recent if s.session == self.session for r in s.rows]
+        return self._offer(fit, np.asarray(rows, dtype=np.float64).reshape(-1, 6), t_now)
 
     def _floor(self) -> float:
         """Return the largest finite gyro noise floor of the axes, rad/s (0: none yet)."""
@@ -537,10 +531,6 @@ class Learner:
         self.swaps += 1
         return True
 
-    def _recent_rows(self) -> list:
-        """Return this session's recent windows (the check's and the offset's)."""
-        return [r for s in self.recent if s.session == self.session for r in s.rows]
-
     # -- reporting --------------------------------------------------------------------
 
     def diagnostic_values(self) -> dict[str, str]:
@@ -564,10 +554,11 @@ class Learner:
 
     def summary(self) -> dict[str, Any]:
         """Return what /diagnostics shows: points, range, still time, last update, check."""
-        chk = self.check
+        chk, e = self.check, self.entries()
         return {
-            'points': int(self.entries().shape[0]), 'bins': len(self.bins),
-            'covered_c': self.covered_c(), 'still_s': self.still_s,
+            'points': int(e.shape[0]), 'bins': len(self.bins),
+            'covered_c': (float(e[:, 2].min()), float(e[:, 2].max())) if e.shape[0] else None,
+            'still_s': self.still_s,
             'stretches': self.stretches, 'last_update_t': self.last_update_t,
             'features': None if self.fit is None else (self.fit['features'] or ['bias']),
             'held_out': None if self.fit is None else self.fit.get('held_out'),

@@ -130,6 +130,15 @@ class Tangent:
             for v in (model.input_std, model.linear, model.centers, model.weights))
         self._inv_w2 = 1.0 / np.asarray(model.widths, dtype=np.float64) ** 2
 
+    def _gradient(self, d: Any) -> NDArray[np.float64]:
+        """Return d x~ / dS per input (last axis) at ``d`` (degC, one value or an array)."""
+        h = SLOPE_STEP_C
+        g = np.zeros(np.shape(d) + (self._f,))
+        for j, step in self._terms:
+            g[..., j] = (step(0.0, 0.0, 0.0, d + h, False)
+                         - step(0.0, 0.0, 0.0, d - h, False)) / (2.0 * h)
+        return g / self._std
+
     def slope_one(self, row: NDArray[np.float64], d: float) -> NDArray[np.float64]:
         """
         Return db/dS (rad/s per degC) at one design row (the streaming form of :meth:`slope`).
@@ -137,12 +146,7 @@ class Tangent:
         ``row`` is one row of :func:`gyro_tdc.model.compensation.rbf_design`, ``d`` its model
         temperature minus T0 (degC).
         """
-        h = SLOPE_STEP_C
-        g = np.zeros(self._f)
-        for j, step in self._terms:
-            g[j] = (step(0.0, 0.0, 0.0, d + h, False)
-                    - step(0.0, 0.0, 0.0, d - h, False)) / (2.0 * h)
-        g /= self._std
+        g = self._gradient(d)
         out = g @ self._linear
         if self._centers.shape[0]:
             f = self._f
@@ -158,13 +162,7 @@ class Tangent:
         :func:`gyro_tdc.model.compensation.rbf_design` at the range end, ``d`` (degC) the
         model temperature minus T0 they were computed at.
         """
-        d = np.asarray(d, dtype=np.float64)
-        h = SLOPE_STEP_C
-        g = np.zeros((d.shape[0], self._f))          # d x~ / dS per input
-        for j, step in self._terms:
-            g[:, j] = (step(0.0, 0.0, 0.0, d + h, False)
-                       - step(0.0, 0.0, 0.0, d - h, False)) / (2.0 * h)
-        g /= self._std
+        g = self._gradient(np.asarray(d, dtype=np.float64))
         out = g @ self._linear
         if self._centers.shape[0]:
             f = self._f

@@ -399,11 +399,9 @@ class CompensatorCore:
             ox, oy, oz, var, flags, dist = out
         aout = avar = None
         if slot.accel is not None:
-            if accel is None:
-                aout, avar = self._accel_pass(None, 0)
-            else:
-                aout, avar, aflags = slot.accel.correct(t, temp, accel, flags & STALE, policy)
-                aout, avar = self._accel_pass(accel, aflags, aout, avar)
+            aout, avar, aflags = (None, None, 0) if accel is None else slot.accel.correct(
+                t, temp, accel, flags & STALE, policy)
+            aout, avar = self._accel_pass(accel, aflags, aout, avar)
         stream.t = t
         stream.temp = temp
         stream.flags = flags

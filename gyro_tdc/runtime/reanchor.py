@@ -314,14 +314,6 @@ class StillnessDetector:
         self._part = BlockStats()          # ... their statistics, around the run's centre
         self._early = early_allowed(self.tolerance, self.window, self.window_max)
 
-    def _begin_window(self, t: float, out: Sequence[float]) -> None:
-        """Start the window in progress at the sample ``t`` (the run's centre with a new run)."""
-        self._w0 = t
-        if not self._run:
-            self._c = (float(out[0]), float(out[1]), float(out[2]))
-        self._track = self.paused and self._early
-        self._next_block = t + self.block_s * (1.0 - 1e-9) if self._track else math.inf
-
     def update(self, t: float, raw: Sequence[float], out: Sequence[float],
                accel: Sequence[float] | None, temp_c: float) -> Anchor | None:
         """
@@ -352,8 +344,12 @@ class StillnessDetector:
                 found = self._flush()
         if t >= self._next_block:          # a block boundary of a tracked window
             found = self._boundary(t)
-        if self._w0 is None:
-            self._begin_window(t, out)
+        if self._w0 is None:               # a window starts (with a new run, its centre)
+            self._w0 = t
+            if not self._run:
+                self._c = (float(out[0]), float(out[1]), float(out[2]))
+            self._track = self.paused and self._early
+            self._next_block = t + self.block_s * (1.0 - 1e-9) if self._track else math.inf
         self._n += 1
         if self._track:
             self._rows.extend((t, out[0], out[1], out[2]))
