@@ -188,15 +188,6 @@ def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: 
     return out
 
 
-# RESTART_BACK_S (gyro_tdc.base.limits): IMU stamps stepping back by more than it in the
-# bag's order, the device restarted.
-
-
-def _parts(t: NDArray[np.float64]) -> list[int]:
-    """Return where ``t`` (bag order) steps back by more than RESTART_BACK_S: part starts."""
-    return [0] + (np.flatnonzero(np.diff(t) < -RESTART_BACK_S) + 1).tolist() + [len(t)]
-
-
 def _follow_restarts(bag: object, data: object, gap: float) -> tuple[object, list]:
     """
     Move every restarted part's stamps to follow the previous part, ``gap`` s after it.
@@ -209,7 +200,9 @@ def _follow_restarts(bag: object, data: object, gap: float) -> tuple[object, lis
     streams = {'imu_t': data.imu_t, 'temp_t': data.temp_t}
     if data.ref_t is not None and len(data.ref_t):
         streams['ref_t'] = data.ref_t
-    cuts = {k: _parts(v) for k, v in streams.items()}
+    # Part starts: where the stamps (bag order) step back by more than RESTART_BACK_S.
+    cuts = {k: [0] + (np.flatnonzero(np.diff(v) < -RESTART_BACK_S) + 1).tolist() + [len(v)]
+            for k, v in streams.items()}
     imu = cuts['imu_t']
     for key, c in cuts.items():
         if len(c) != len(imu):

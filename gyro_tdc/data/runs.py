@@ -60,13 +60,11 @@ class Run:
         n = np.shape(self.t)[0] if np.ndim(self.t) == 1 else -1
         if n < 0:
             raise ValueError(f'Expected `t` to have shape (N,), got {np.shape(self.t)}.')
-        for key, shape in (('temp', (n,)), ('omega', (n, 3)), ('omega_ref', (n, 3))):
+        for key, shape in (('temp', (n,)), ('omega', (n, 3)), ('omega_ref', (n, 3)),
+                           ('accel', (n, 3))):
             got = np.shape(getattr(self, key))
-            if got != shape:
+            if got != shape and not (key == 'accel' and self.accel is None):   # accel optional
                 raise ValueError(f'Expected `{key}` to have shape {shape}, got {got}.')
-        if self.accel is not None and np.shape(self.accel) != (n, 3):
-            raise ValueError(f'Expected `accel` to have shape {(n, 3)}, got '
-                             f'{np.shape(self.accel)}.')
         if n > 1 and not np.all(np.diff(self.t) > 0):
             raise ValueError('Expected `t` to be strictly increasing.')
 

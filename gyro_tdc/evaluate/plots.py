@@ -239,9 +239,8 @@ def _plot_allan(b, out, legends, styles, head) -> Path:
     for k, a in enumerate(AXES):
         for i, m in enumerate([b.raw] + list(b.models)):
             if len(m.adev_tau_s):
-                style = dict(styles[i])
-                style['markevery'] = None if i == 0 else (i % 3, 3)
-                axs[k].loglog(m.adev_tau_s, m.adev_dps[:, k], label=legends[i], **style)
+                axs[k].loglog(m.adev_tau_s, m.adev_dps[:, k], label=legends[i],
+                              **{**styles[i], 'markevery': None if i == 0 else (i % 3, 3)})
         axs[k].set_title(f'{a} axis')
         axs[k].set_xlabel('averaging time tau (s)')
         axs[k].grid(True, which='both', alpha=0.3)

@@ -23,6 +23,7 @@ interior and end blocks apart. The choices and why: ``doc/internals/evaluate.md`
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass
+from functools import partial
 import json
 import math
 from pathlib import Path
@@ -34,7 +35,7 @@ from gyro_tdc.data import default_pan_csv, PanCubesat, read_pan_cubesat_csv, Run
 from gyro_tdc.errors import FitError, GyroTdcError
 from gyro_tdc.evaluate.score import score
 from gyro_tdc.identify import estimate_t0, fit_linear, fit_model, fit_time_constant, rows_of
-from gyro_tdc.model import (batch_features, compensate, CompensationModel, EFFECTS,
+from gyro_tdc.model import (batch_features, compensate, EFFECTS,
                             normalise_ids, rbf_design, resolve_params)
 from gyro_tdc.signal import bias_stability, Folds
 import numpy as np
@@ -175,23 +176,6 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
                            (float(temp.min()), float(temp.max())))
 
 
-def _fit(spec: HoldoutModel, run: Run, train: NDArray[np.bool_], t0: float
-         ) -> CompensationModel | FullSeriesModel:
-    """Fit one compared model on the training rows."""
-    if spec.full_series:
-        return fit_full_series(run, train, features=spec.features, t0=t0)
-    return fit_model([rows_of(run, train)], kind=spec.kind, features=spec.features, t0=t0,
-                     n_centers=spec.n_centers, seed=0)
-
-
-def _compensated(model: CompensationModel | FullSeriesModel, run: Run, clamp: bool
-                 ) -> NDArray[np.float64]:
-    """Return the whole run compensated by a compared model (clamped or not)."""
-    if isinstance(model, FullSeriesModel):
-        return model.compensate(run.t, run.temp, run.omega, clamp=clamp)
-    return compensate(model, run.t, run.temp, run.omega, clamp=clamp)
-
-
 def _scored(omega: tuple[NDArray[np.float64], NDArray[np.float64]], held: Run,
             floor: NDArray[np.float64]) -> tuple[dict, NDArray[np.float64]]:
     """Score a clamped and an unclamped rate on held-out rows; return the row and BS."""
@@ -237,9 +221,14 @@ def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
             if spec.kind == 'raw':
                 rates[spec.name] = (run.omega[held],) * 2
                 extra = {}
-            else:
-                model = _fit(spec, run, train, t0)
-                rates[spec.name] = tuple(_compensated(model, run, c)[held] for c in (True, False))
+            else:         # fitted on the training rows, the whole run compensated
+                model = (fit_full_series(run, train, features=spec.features, t0=t0)
+                         if spec.full_series else
+                         fit_model([rows_of(run, train)], kind=spec.kind, features=spec.features,
+                                   t0=t0, n_centers=spec.n_centers, seed=0))
+                comp = (model.compensate if spec.full_series else partial(compensate, model))
+                rates[spec.name] = tuple(comp(run.t, run.temp, run.omega, clamp=c)[held]
+                                         for c in (True, False))
                 extra = {'effect_params': {k: dict(v) for k, v in model.effect_params.items()}}
             fold['models'][spec.name] = {**_scored(rates[spec.name], held_run, floor)[0], **extra}
         for g in (position, 'all'):

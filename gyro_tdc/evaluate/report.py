@@ -97,10 +97,9 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
         **({} if b.still is None else {'still': _still_json(b.still)}),
     } for b in bags]}
     doc['out_of_range'] = bags[0].out_of_range if bags else DEFAULT_OUT_OF_RANGE
-    if floor is not None:
-        doc['floor'] = _vec(np.asarray(floor))
-    if accel_floor is not None:
-        doc['accel_floor'] = _vec(np.asarray(accel_floor))
+    for key, fl in (('floor', floor), ('accel_floor', accel_floor)):
+        if fl is not None:
+            doc[key] = _vec(fl)
     return doc
 
 
