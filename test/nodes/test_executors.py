@@ -149,8 +149,8 @@ def test_a_stop_signal_a_non_python_thread_gets_mid_build_stops_it_at_once():
 
     from gyro_tdc.nodes.executors import run_node
     libc = ctypes.CDLL(None)
-    thread = ctypes.c_ulong()       # a C thread, as DDS's: it waits in pause() for a signal
-    assert libc.pthread_create(ctypes.byref(thread), None, libc.pause, None) == 0
+    thread = ctypes.c_ulong()       # a C thread, as DDS's: sleep(5), cut short by a signal
+    assert libc.pthread_create(ctypes.byref(thread), None, libc.sleep, ctypes.c_void_p(5)) == 0
     sent = []
 
     def make_node():
