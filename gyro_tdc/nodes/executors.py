@@ -119,7 +119,10 @@ class StopSignals:
     ends the spin at the next callback boundary and tears the node down in order. Only
     while a node is being built (:meth:`interrupting`: nothing learned yet, nothing to save)
     does a signal raise :class:`StopRequested` at once, so that a slow start (the sim back-end
-    simulates its whole run first) does not hold the stop up. A second signal while the
+    simulates its whole run first) does not hold the stop up. A signal the kernel hands to a
+    thread of rclpy's (not a Python one) only flags it, and CPython's main thread looks at
+    the flags when something makes it stop (a GIL request): so while a node is being built,
+    a Python thread asks for the GIL every :data:`STOP_POLL_S`. A second signal while the
     teardown runs (a save on a hung disk) ends the process at once with status 128 + the
     signal number.
     """
@@ -153,12 +156,15 @@ class StopSignals:
     def interrupting(self) -> Iterator[None]:
         """Within the block a stop signal (or one already received) raises StopRequested."""
         self._interrupt = True
+        done = threading.Event()
+        threading.Thread(target=_nudge, args=(done,), name='stop nudge', daemon=True).start()
         try:
             if self.requested:
                 raise StopRequested(signal.Signals(self.signum).name)
             yield
         finally:
             self._interrupt = False
+            done.set()
 
     def _handle(self, signum: int, frame: Any) -> None:
         if self._interrupt:
@@ -167,6 +173,12 @@ class StopSignals:
         if self.signum is not None:
             raise SystemExit(128 + signum)
         self.signum = signum
+
+
+def _nudge(done: threading.Event) -> None:
+    """Take the GIL every STOP_POLL_S until ``done``: the main thread runs pending handlers."""
+    while not done.wait(STOP_POLL_S):
+        pass
 
 
 @contextlib.contextmanager

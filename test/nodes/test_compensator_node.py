@@ -345,7 +345,7 @@ def test_main_runs_as_a_process_and_stops_on_sigint(models, ros_context, tmp_pat
         io.create_subscription(Imu, 'imu/data_compensated', out.append, RELIABLE)
         spin_until(executor, lambda: imu_pub.get_subscription_count() > 0
                    and temp_pub.get_subscription_count() > 0
-                   and io.count_publishers('imu/data_compensated') > 0, 15.0,
+                   and io.count_publishers('imu/data_compensated') > 0, 60.0,
                    what='discovery of the compensator process')
         t0 = 1_700_000_400.0
         temp = Temperature()
@@ -367,11 +367,11 @@ def test_main_runs_as_a_process_and_stops_on_sigint(models, ros_context, tmp_pat
             imu_pub.publish(sent[0])
             return any(abs(m.angular_velocity.x - 0.01) > 1e-9 for m in out)
 
-        spin_until(executor, probe, 10.0, what='compensation')
+        spin_until(executor, probe, 60.0, what='compensation')
         out.clear()
         for msg in sent[1:]:
             imu_pub.publish(msg)
-        spin_until(executor, lambda: len(out) >= 199, 10.0, what='199 outputs')
+        spin_until(executor, lambda: len(out) >= 199, 60.0, what='199 outputs')
         t = np.array([stamp_s(to_ns(t0 + 0.001 * (k + 1))) for k in range(1, 200)])
         expect = compensate(model, t, np.full(199, 30.0), np.tile([0.01, 0, 0], (199, 1)))
         np.testing.assert_allclose(rates(out), expect, rtol=0, atol=1e-9)

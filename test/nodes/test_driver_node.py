@@ -232,7 +232,7 @@ def test_sim_publishes_the_scenario(ros_context, executor):
     node, lis = start(ros_context, executor, backend='sim', scenario='demo_fast', seed=3,
                       time_scale=20.0, frame_id='sim_imu', angular_velocity_variance=2.0e-6,
                       temperature_variance=1.0e-4, linear_acceleration_variance=0.01)
-    spin_until(executor, lambda: len(lis.imu) >= 200 and len(lis.temp) >= 20, 10.0)
+    spin_until(executor, lambda: len(lis.imu) >= 200 and len(lis.temp) >= 20, 60.0)
     assert len(lis.imu) < len(run)  # paced: 20x real time, not flat out
     msgs = lis.imu[:200]
     w = np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z)
@@ -265,7 +265,7 @@ def test_sim_rate_table_reference_and_end_of_run(ros_context, executor):
     node, lis = start(ros_context, executor, backend='sim', scenario='rate_steps',
                       sim_rate_hz=0.5, time_scale=0.0, qos_depth=5000)
     spin_until(executor, lambda: node._state == 'finished' and len(lis.imu) == len(run),
-               20.0, what='whole run received')
+               60.0, what='whole run received')
     assert len(lis.ref) == run.ref_t.size
     got = np.array([(r.vector.x, r.vector.y, r.vector.z) for r in lis.ref])
     np.testing.assert_array_equal(got, run.ref)
@@ -310,7 +310,7 @@ def test_main_runs_as_a_process_with_the_sim_params_file(ros_context, executor):
                       str(CONFIG / 'driver_sim.yaml'), '-p', 'scenario:=demo_fast',
                       '-p', 'time_scale:=10.0', '-p', 'frame_id:=proc_imu') as child:
         lis = Listener(ros_context, executor)
-        spin_until(executor, lambda: len(lis.imu) >= 20 and len(lis.temp) >= 2, 20.0,
+        spin_until(executor, lambda: len(lis.imu) >= 20 and len(lis.temp) >= 2, 60.0,
                    what='messages from the driver process')
         assert lis.imu[0].header.frame_id == 'proc_imu'
         assert lis.imu[0].orientation_covariance[0] == -1.0

@@ -140,3 +140,26 @@ def test_a_stop_mid_build_prints_no_finaliser_traceback(monkeypatch):
     with quiet_abandoned(stop):
         sys.unraisablehook(type('U', (), {'exc_value': ValueError('x'), 'object': _Half.__del__}))
     assert len(seen) == 2
+
+
+def test_a_stop_signal_a_non_python_thread_gets_mid_build_stops_it_at_once():
+    """The kernel may hand the signal to one of rclpy's threads: the build still stops."""
+    import ctypes
+    import time
+
+    from gyro_tdc.nodes.executors import run_node
+    libc = ctypes.CDLL(None)
+    thread = ctypes.c_ulong()       # a C thread, as DDS's: sleep(5), cut short by a signal
+    assert libc.pthread_create(ctypes.byref(thread), None, libc.sleep, ctypes.c_void_p(5)) == 0
+    sent = []
+
+    def make_node():
+        sent.append(time.monotonic())
+        signal.pthread_kill(thread.value, signal.SIGTERM)
+        while time.monotonic() - sent[0] < 60.0:
+            pass                    # pure bytecode, as the sim back-end's simulation
+        raise AssertionError('not reached: the stop abandons the build')
+
+    assert run_node(make_node, args=[]) == 0
+    assert time.monotonic() - sent[0] < 30.0
+    libc.pthread_join(thread, None)

@@ -101,10 +101,10 @@ def test_nested_brackets_at_start_up_are_one_line_and_the_node_runs(tmp_path):
     nested.write_text(NESTED)
     with node_process(NODE, '-p', f'model_file:={nested}') as child:
         lines = Lines(child.stdout)
-        line = lines.wait_for('cannot load model_file')
+        line = lines.wait_for('cannot load model_file', 60.0)
         assert child.poll() is None  # still running, passing the raw rate through
         child.send_signal(signal.SIGINT)
-        code = child.wait(timeout=10)
+        code = child.wait(timeout=60)
         out = lines.join()
     assert code == 0, out
     assert 'Traceback' not in out and 'RecursionError' not in out
@@ -394,6 +394,8 @@ def test_reliable_input_counts_every_loss_of_a_keep_last_publisher(models, rig_f
     received = burst(rig, 20000, 'reliable', 'keep_last', depth=100, stall=True)
     counts = rig.node.core.counts
     assert counts['in'] == counts['out'] == received < 20000
+    # The message-lost event is dispatched on its own, after the samples (under load: later).
+    rig.spin_until(lambda: rig.node.inputs.lost > 0, 60.0, what='message-lost event')
     # Most of the publisher's drops are reported (measured: 76 % to 99 %), never more.
     assert 0 < rig.node.inputs.lost <= 20000 - received
     # /diagnostics said so (WARN) at the report after the losses, with the count.
@@ -442,7 +444,7 @@ def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path
     streamer = Streamer(rig, 2000.0)
     streamer.start()
     try:
-        rig.spin_until(lambda: streamer.sent >= 10_000, 30.0, what='5 s of stream')
+        rig.spin_until(lambda: streamer.sent >= 10_000, 120.0, what='5 s of stream')
     finally:
         sent = streamer.stop()
     spin_until_quiet(rig.executor, lambda: rig.node.core.counts['in'], 1.0, 60.0)
