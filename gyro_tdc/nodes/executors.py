@@ -247,35 +247,29 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
     own = stop.install()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if own else None)
     with quiet_abandoned(stop):
-        return _run(stop, make_node, executor, freeze_heap, name)
-
-
-def _run(stop: StopSignals, make_node: Callable[[], Node], executor: Any, freeze_heap: bool,
-         name: str) -> int:
-    """Build, spin and tear down one node: the body of :func:`run_node`."""
-    node = None
-    ex = None
-    try:
+        node = None
+        ex = None
         try:
-            with stop.interrupting():
-                node = make_node()
-        except STARTUP_ERRORS as exc:
-            print(f'{name}: error: {one_line(exc)}', file=sys.stderr)
-            return 2
-        ex = make_executor(executor(node) if callable(executor) else executor)
-        ex.add_node(node)
-        if freeze_heap:
-            gc.freeze()
-        spin(ex, stop=lambda: stop.requested, poll_s=STOP_POLL_S)
-    except (StopRequested, KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        try:
-            if ex is not None:
-                ex.shutdown()
-            if node is not None:
-                node.destroy_node()
-            rclpy.try_shutdown()
+            try:
+                with stop.interrupting():
+                    node = make_node()
+            except STARTUP_ERRORS as exc:
+                print(f'{name}: error: {one_line(exc)}', file=sys.stderr)
+                return 2
+            ex = make_executor(executor(node) if callable(executor) else executor)
+            ex.add_node(node)
+            if freeze_heap:
+                gc.freeze()
+            spin(ex, stop=lambda: stop.requested, poll_s=STOP_POLL_S)
+        except (StopRequested, KeyboardInterrupt, ExternalShutdownException):
+            pass
         finally:
-            stop.restore()
+            try:
+                if ex is not None:
+                    ex.shutdown()
+                if node is not None:
+                    node.destroy_node()
+                rclpy.try_shutdown()
+            finally:
+                stop.restore()
     return 0
