@@ -230,13 +230,13 @@ def format_summary(b: BagEval, *, floor: Sequence[float] | None = None,
     ``floor`` / ``accel_floor`` (white-noise floors per axis, (deg/s)^2 and (m/s^2)^2) add
     the columns ``BS/fl`` and ``aBS/fl``. No trailing newline.
     """
-    lo, hi = b.temperature_c
+    span = _range_text(b.temperature_c)
     reference = _REFERENCE.get(b.reference, f'reference {b.reference}')
     s = b.still
     lines = [f'bag {b.bag}: {b.samples} samples over {_time_text(b.duration_s)}, '
-             f'temperature {lo:.2f} .. {hi:.2f} degC, {reference}' if s is None else
+             f'temperature {span}, {reference}' if s is None else
              f'bag {b.bag}: scored {b.samples} still samples over {_time_text(b.duration_s)} '
-             f'of still time at {lo:.2f} .. {hi:.2f} degC (the whole bag: '
+             f'of still time at {span} (the whole bag: '
              f"{s['total_samples']} samples over {_time_text(s['total_s'])} at "
              f"{_range_text(s['total_temperature_c'])}), {reference}"]
     w = max([len(m.label) for m in b.models] + [12])
