@@ -29,9 +29,10 @@ from typing import Any
 
 from gyro_tdc.base import FieldChecker, MAX_RATE_RAD_S, shown, TEMP_PLAUSIBLE_C
 from gyro_tdc.errors import FeatureError, LearnFileError, ModelFileError
-from gyro_tdc.learn.fit import AXES, model_of
+from gyro_tdc.learn.fit import AXES, model_of, same_thermal
 from gyro_tdc.learn.records import Entry, RecentStretch
-from gyro_tdc.model import MAX_PARAM, ThermalState
+from gyro_tdc.model import (CompensationModel, MAX_PARAM, model_from_dict, model_to_dict,
+                            ThermalState)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -85,6 +86,9 @@ def encode_state(learner: Any) -> dict[str, Any]:
         'thermal_state': None if ts is None else [float(ts[0]), [float(v) for v in ts[1]]],
         'config': {k: getattr(learner.config, k) for k in _CONFIG_KEYS},
         'segment': [learner.segment, learner.segment_t0],
+        # A correction fit: the model it corrects, so the file alone gives the learned model.
+        **({'prior': model_to_dict(learner.prior)}
+           if learner.fit is not None and learner.fit.get('prior') else {}),
     }
 
 
@@ -183,11 +187,16 @@ def _recent(v: Any, most: int | None) -> list[RecentStretch]:
     return out
 
 
-def _fit(v: Any, thermal: ThermalState | None) -> dict | None:
-    """Return the fit record, its model checked like a model file's (None: no fit)."""
+def _fit(v: Any, thermal: ThermalState | None,
+         prior: CompensationModel | None) -> dict | None:
+    """
+    Return the fit record, its model checked like a model file's (None: no fit).
+
+    A correction fit (``prior``, a ``model_id``) must be one to the state's ``prior``.
+    """
     if v is None:
         return None
-    v = _dict(v, 'fit', _FIT_KEYS, optional=('reanchor',))
+    v = _dict(v, 'fit', _FIT_KEYS, optional=('reanchor', 'prior'))
     feats = _list(v['features'], 'fit.features')
     if tuple(feats) not in _FEATURES:
         raise _bad('fit.features', f'must be one of {", ".join(map(str, _FEATURES))}, '
@@ -205,8 +214,14 @@ def _fit(v: Any, thermal: ThermalState | None) -> dict | None:
            'held_out': _held_out(v['held_out'], bool(feats))}
     if v.get('reanchor') is not None:
         fit['reanchor'] = _gate(v['reanchor'])
+    if v.get('prior') is not None:
+        mid = v['prior']
+        if prior is None or mid != prior.model_id:
+            raise _bad('fit.prior', 'must be the model_id of the state\'s `prior`, got '
+                       f'{shown(mid)}')
+        fit['prior'] = mid
     try:
-        model_of(fit, thermal)
+        model_of(fit, thermal, prior)
     except ModelFileError as exc:
         raise _bad('fit', f'gives a model refused as a model file would be: {exc}') from None
     return fit
@@ -236,6 +251,19 @@ def _held_out(v: Any, curve: bool) -> dict | None:
         raise _bad('fit.held_out.offset_only', f'must be distinct axis names, got {axes!r:.40}')
     out['offset_only'] = axes
     return out
+
+
+def _prior(v: Any, thermal: ThermalState | None) -> CompensationModel | None:
+    """Return the model a correction fit was learned over (None: none), as a model file's."""
+    if v is None:
+        return None
+    try:
+        prior = model_from_dict(v)
+    except ModelFileError as exc:
+        raise _bad('prior', f'is not a model: {exc}') from None
+    if not same_thermal(prior.thermal, thermal):
+        raise _bad('prior', 'must have the thermal section the points were binned with')
+    return prior
 
 
 def _check(v: Any) -> dict | None:
@@ -295,7 +323,7 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
     Check every field of a state :func:`encode_state` made; return what it restores.
 
     Returns the learner's attribute values by name (``last_save_t`` is the saved
-    ``last_t``) and the thermal section the points were binned with (None: the
+    ``last_t``; ``prior`` the model a correction fit was learned over, None without one) and the thermal section the points were binned with (None: the
     thermometer). ``bin_c`` (degC), ``bin_entries`` and ``stretches`` are the learner's
     bin width, entries per bin and recent stretches kept, checked against when given.
 
@@ -307,17 +335,19 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
     """
     if not isinstance(state, dict) or state.get('format') != FORMAT:
         raise LearnFileError(f'not a learner state ({FORMAT!r} expected)')
-    _dict(state, 'state', _KEYS)
+    _dict(state, 'state', _KEYS, optional=('prior',))
     for k, x in _dict(state['config'], 'config', _CONFIG_KEYS).items():
         _number(x, f'config.{k}', 0.0)
     thermal = _thermal(state['thermal'])
+    prior = _prior(state.get('prior'), thermal)
     values = {
         'bins': _bins(state['bins'], bin_c, bin_entries),
         'gyro_floor': _floor_in(state['gyro_floor'], 'gyro_floor'),
         'accel_floor': _floor_in(state['accel_floor'], 'accel_floor'),
         'still_s': _number(state['still_s'], 'still_s', 0.0, MAX_COUNT, 'a duration in s'),
         'recent': _recent(state['recent'], stretches),
-        'fit': _fit(state['fit'], thermal),
+        'fit': _fit(state['fit'], thermal, prior),
+        'prior': prior,
         'check': _check(state['check']),
         'motion': _motion(state['motion']),
         'thermal_state': _thermal_state(state['thermal_state'], thermal),

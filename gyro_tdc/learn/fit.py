@@ -30,15 +30,18 @@ from dataclasses import replace
 import math
 from typing import Sequence
 
-from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag, normalise_ids,
-                            THERMAL_EFFECTS, ThermalState)
+from gyro_tdc.errors import ModelFileError
+from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag,
+                            MAX_EXTRAPOLATION_C, normalise_ids, STATE_TERMS, THERMAL_EFFECTS,
+                            ThermalState)
 from gyro_tdc.signal import fit_columns, Folds, hat, heldout, session_columns, within
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['AXES', 'at_state', 'BINS_DT2', 'BINS_DT3', 'compare', 'fit_points', 'fit_sessions',
-           'grow_features', 'held_out', 'inliers', 'learned_model', 'MAX_DROPS', 'model_of',
-           'offset_until', 'OUTLIER_K', 'prediction_mse', 'recent_offset', 'same_thermal',
+__all__ = ['AXES', 'at_state', 'BINS_DT2', 'BINS_DT3', 'compare', 'correction_features',
+           'corrected_model', 'fit_points', 'fit_sessions', 'grow_features', 'held_out',
+           'inliers', 'learned_model', 'MAX_DROPS', 'model_of', 'offset_until', 'on_prior',
+           'OUTLIER_K', 'prediction_mse', 'prior_terms', 'recent_offset', 'same_thermal',
            'SPAN_DT2_C', 'SPAN_DT3_C', 'SPAN_DT_C', 'stream_state', 'SWAP_CHANGE', 'ThermalCarry']
 
 OUTLIER_K = 4.0
@@ -248,12 +251,15 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     return rec
 
 
-def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationModel:
+def model_of(fit: dict, thermal: ThermalState | None = None,
+             prior: CompensationModel | None = None) -> CompensationModel:
     """
     Return the model of a fit record (a bias only as ``dT`` with a zero slope), checked.
 
-    Checked as a model file is (:func:`gyro_tdc.model.check_model`) before anything installs
-    it; the fit's ``reanchor`` gate goes to ``metrics['reanchor']``.
+    A record with a ``prior`` (its ``model_id``) is a correction to that model
+    (:func:`corrected_model`; ``prior`` must be it). Checked as a model file is
+    (:func:`gyro_tdc.model.check_model`) before anything installs it; the fit's
+    ``reanchor`` gate goes to ``metrics['reanchor']``.
 
     Raises
     ------
@@ -261,17 +267,91 @@ def model_of(fit: dict, thermal: ThermalState | None = None) -> CompensationMode
         The model is refused (one line naming what it computes or the field).
 
     """
-    feats = tuple(fit['features'])
-    coef = np.asarray(fit['coef'], dtype=np.float64)
-    if not feats:
-        feats, coef = ('dT',), np.vstack([coef, np.zeros((1, 3))])
-    model = learned_model(coef, feats, fit['t0_c'], tuple(fit['range_c']),
-                          np.asarray(fit['resid_var']), thermal)
+    if fit.get('prior') is not None:
+        model = corrected_model(prior, fit)
+    else:
+        feats = tuple(fit['features'])
+        coef = np.asarray(fit['coef'], dtype=np.float64)
+        if not feats:
+            feats, coef = ('dT',), np.vstack([coef, np.zeros((1, 3))])
+        model = learned_model(coef, feats, fit['t0_c'], tuple(fit['range_c']),
+                              np.asarray(fit['resid_var']), thermal)
     check_model(model)
     model.created['held_out'] = fit.get('held_out')
     if fit.get('reanchor'):               # the start-up shift gate (learn.gate)
         model = model.replace(metrics={**model.metrics, 'reanchor': fit['reanchor']})
     return model
+
+
+# -- a correction to the prior ----------------------------------------------------------
+
+
+def prior_terms(prior: CompensationModel | None) -> int:
+    """Return how many temperature terms (``dT``, ``dT2``, ``dT3`` inputs) a prior's curve has."""
+    return 0 if prior is None else len(STATE_TERMS & set(prior.inputs))
+
+
+def correction_features(prior: CompensationModel | None,
+                        feats: Sequence[str]) -> tuple[str, ...] | None:
+    """
+    Return the features of a correction to ``prior`` when ``feats`` cannot replace its curve.
+
+    None (the learner fits its own model) without a prior, or when the growth rule's
+    ``feats`` has as many terms as the prior's curve. Else ``()`` (the prior re-anchored),
+    or ``('dT',)`` with a span and a ``dT`` input the correction's slope can be added to.
+    """
+    if len(feats) >= prior_terms(prior):
+        return None
+    return ('dT',) if feats and 'dT' in prior.inputs else ()
+
+
+def on_prior(prior: CompensationModel, temp: NDArray[np.float64], rate: NDArray[np.float64]
+             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return still points as a correction to ``prior`` sees them: temperature and residual.
+
+    ``temp`` (P,) are model temperatures (degC), ``rate`` (P, 3) their mean raw rates
+    (rad/s). The residual is the rate minus the prior's settled drift (every time term
+    settled, beyond its range along the tangent, as the node's default ``linear``
+    evaluates it); the temperature is held where that tangent stops, so a straight line
+    in it is what the corrected model's own tangent gives.
+    """
+    temp = np.asarray(temp, dtype=np.float64)
+    lo, hi = prior.temp_range_c
+    m = at_state(prior)
+    # Samples far apart (every dynamic term settled), a settling sample first.
+    t = np.arange(temp.size + 1, dtype=np.float64) * 1e7
+    b = drift(m, t, np.r_[temp[:1], temp], out_of_range='linear')[1:]
+    held = np.clip(temp, lo - MAX_EXTRAPOLATION_C, hi + MAX_EXTRAPOLATION_C)
+    return held, np.asarray(rate, dtype=np.float64) - b
+
+
+def corrected_model(prior: CompensationModel | None, fit: dict) -> CompensationModel:
+    """
+    Return ``prior`` with a fit of its residuals added (the fit record's ``prior``).
+
+    The offset goes into its intercept, a ``dT`` slope into the linear tail of its ``dT``
+    input (normalised inputs: the slope times the input's deviation, the input's mean
+    into the intercept), so its shape, range, thermal front end and accelerometer part are
+    kept. ModelFileError when ``prior`` is not the model the fit was learned over.
+    """
+    mid = fit['prior']
+    if prior is None or prior.model_id != mid:
+        got = 'none' if prior is None else prior.model_id
+        raise ModelFileError(f'the fit is a correction to model {mid}, not to this one ({got})')
+    coef = np.asarray(fit['coef'], dtype=np.float64)
+    intercept, linear = prior.intercept + coef[0], np.array(prior.linear, dtype=np.float64)
+    if len(fit['features']):
+        if 'dT' not in prior.inputs:
+            raise ModelFileError(f'model {mid} has no dT input for the fit\'s slope')
+        j = prior.inputs.index('dT')
+        linear[j] += coef[1] * prior.input_std[j]
+        intercept = intercept + coef[1] * (prior.t0_c - fit['t0_c'] + prior.input_mean[j])
+    return prior.replace(intercept=intercept, linear=linear,
+                         residual_var=np.asarray(fit['resid_var'], dtype=np.float64),
+                         metrics={}, created={'fit': 'gyro_tdc.learn.learner (online, still '
+                                              f'time, a correction to model {mid})',
+                                              'prior': mid})
 
 
 def recent_offset(fit: dict, rows: Sequence[Sequence[float]], since: float) -> list[float] | None:

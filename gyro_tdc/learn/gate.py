@@ -53,13 +53,15 @@ class PointRun:
 
 def learned_gate(model: CompensationModel, e: NDArray[np.float64],
                  fit_table: Callable[[NDArray[np.float64]], dict],
-                 thermal: ThermalState | None) -> dict:
+                 thermal: ThermalState | None,
+                 prior: CompensationModel | None = None) -> dict:
     """
     Return the start-up shift record of a learned model (``metrics['reanchor']``).
 
     ``e`` is the point table it was fitted on (:meth:`gyro_tdc.learn.Learner.entries`),
     ``fit_table`` the learner's fit of a point table (a held-out power cycle's others),
-    ``thermal`` the front end the points were binned with.
+    ``thermal`` the front end the points were binned with, ``prior`` the model a
+    correction fit is learned over (:func:`gyro_tdc.learn.fit.model_of`).
     """
     labels = np.unique(e[:, 6])         # one run per power cycle, in time order
     runs = [PointRun(p[np.argsort(p[:, 0], kind='stable')])
@@ -67,7 +69,8 @@ def learned_gate(model: CompensationModel, e: NDArray[np.float64],
 
     def refit(others: list, g: list) -> CompensationModel | None:
         try:
-            return at_state(model_of(fit_table(np.vstack([r.rows for r in others])), thermal))
+            return at_state(model_of(fit_table(np.vstack([r.rows for r in others])), thermal,
+                                     prior))
         except (ModelFileError, ValueError, np.linalg.LinAlgError):
             return None                   # too little left without this power cycle
 

@@ -31,8 +31,9 @@ from typing import Any, Sequence
 from gyro_tdc.base import RESTART_BACK_S
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT, RECENT_ROWS
-from gyro_tdc.learn.fit import (compare, fit_points, grow_features, learned_model, model_of,
-                                offset_until, recent_offset, same_thermal, stream_state)
+from gyro_tdc.learn.fit import (compare, correction_features, fit_points, grow_features,
+                                learned_model, model_of, offset_until, on_prior, recent_offset,
+                                same_thermal, stream_state)
 from gyro_tdc.learn.gate import learned_gate
 from gyro_tdc.learn.records import Entry, held_out_line, LearnConfig, OpenStretch, RecentStretch
 from gyro_tdc.learn.store import LearnFile
@@ -150,6 +151,7 @@ class Learner:
         """
         values, saved = decode_state(state, bin_c=self.config.bin_c, bin_entries=BIN_ENTRIES,
                                      stretches=CHECK_STRETCHES)
+        values.pop('prior')               # the model a correction was learned over
         self.reset()
         still = self.still
         still.gyro_floor, still.accel_floor = values.pop('gyro_floor'), values.pop('accel_floor')
@@ -161,9 +163,17 @@ class Learner:
             # Binned at another model temperature than the prior's: the set_prior rule.
             self._forget_points()
             return
+        if self.fit is not None and not self._over_prior(self.fit):
+            # A correction to another prior is not applied to this one: refitted on the points.
+            self.fit, self.check = None, None
         if self.fit is not None:
-            self.model = model_of(self.fit, self.thermal)
+            self.model = model_of(self.fit, self.thermal, self.prior)
             self._swaps = [(None, self.model)]
+
+    def _over_prior(self, fit: dict) -> bool:
+        """Return whether ``fit`` applies over the prior (its own model, or a correction to it)."""
+        mid = fit.get('prior')
+        return mid is None or (self.prior is not None and self.prior.model_id == mid)
 
     def set_prior(self, model: CompensationModel | None) -> None:
         """
@@ -467,11 +477,26 @@ class Learner:
     def _refit(self, t_now: float) -> bool:
         """Fit the point table; swap the candidate in when it predicts recent still time better."""
         self._fresh = False
-        e = self.entries()
-        fit = fit_points(e, grow_features(e[:, 2], len(self.bins)), t_now,
-                         self.config.half_life_s, self._floor())
+        fit = self._fit_table(self.entries(), len(self.bins), t_now, self._floor())
         rows = [r for s in self.recent if s.session == self.session for r in s.rows]
         return self._offer(fit, np.asarray(rows, dtype=np.float64).reshape(-1, 6), t_now)
+
+    def _fit_table(self, e: NDArray[np.float64], bins: int, t_now: float, floor: float) -> dict:
+        """
+        Fit a point table of ``bins`` bins: its own model, or a correction to the prior.
+
+        Where the growth rule allows fewer terms than the prior's curve has, the prior's
+        shape is kept and its residuals fitted (:func:`gyro_tdc.learn.fit.correction_features`):
+        the record names the prior (``prior``, its ``model_id``).
+        """
+        feats = grow_features(e[:, 2], bins)
+        corr = None if self.prior is None else correction_features(self.prior, feats)
+        if corr is None:
+            return fit_points(e, feats, t_now, self.config.half_life_s, floor)
+        e = e.copy()
+        e[:, 2], e[:, 3:6] = on_prior(self.prior, e[:, 2], e[:, 3:6])
+        return dict(fit_points(e, corr, t_now, self.config.half_life_s, floor),
+                    prior=self.prior.model_id)
 
     def _floor(self) -> float:
         """Return the largest finite gyro noise floor of the axes, rad/s (0: none yet)."""
@@ -499,12 +524,16 @@ class Learner:
         floor = self._floor()
         if since is None:
             since = t_now - self.config.offset_s
+        seen = rows
+        if fit.get('prior') is not None:  # a correction: the windows' residuals on the prior
+            seen = rows.copy()
+            seen[:, 1], seen[:, 2:5] = on_prior(self.prior, rows[:, 1], rows[:, 2:5])
         try:
-            cand = model_of(fit, self.thermal)
-            offset = recent_offset(fit, rows, since) if self.config.offset_s > 0 else None
+            cand = model_of(fit, self.thermal, self.prior)
+            offset = recent_offset(fit, seen, since) if self.config.offset_s > 0 else None
             if offset is not None:        # the newest still time's offset, the same shape
                 fit['coef'][0] = offset
-                cand = model_of(fit, self.thermal)
+                cand = model_of(fit, self.thermal, self.prior)
         except ModelFileError as exc:     # checked as a model file: never installed
             self.refused, self.refused_why = self.refused + 1, str(exc)
             return False
@@ -520,9 +549,9 @@ class Learner:
         if not swap:
             return False
         # The start-up shift the node takes on it: the trainer's rule on the points (learn.gate).
-        fit['reanchor'] = learned_gate(cand, self.entries(), lambda sub: fit_points(
-            sub, grow_features(sub[:, 2], np.unique(sub[:, 2] // self.config.bin_c).size),
-            t_now, self.config.half_life_s, floor), self.thermal)
+        fit['reanchor'] = learned_gate(cand, self.entries(), lambda sub: self._fit_table(
+            sub, np.unique(sub[:, 2] // self.config.bin_c).size, t_now, floor),
+            self.thermal, self.prior)
         cand = cand.replace(metrics={**cand.metrics, 'reanchor': fit['reanchor']})
         trigger = t_now if self._trigger is None else max(self._trigger, t_now)
         self._swaps.append((trigger + self.config.swap_delay_s, cand))
@@ -560,7 +589,8 @@ class Learner:
             'covered_c': (float(e[:, 2].min()), float(e[:, 2].max())) if e.shape[0] else None,
             'still_s': self.still_s,
             'stretches': self.stretches, 'last_update_t': self.last_update_t,
-            'features': None if self.fit is None else (self.fit['features'] or ['bias']),
+            'features': None if self.fit is None else (
+                (['prior'] if self.fit.get('prior') else []) + (self.fit['features'] or ['bias'])),
             'held_out': None if self.fit is None else self.fit.get('held_out'),
             'swaps': self.swaps, 'check': None if chk is None else (
                 f"candidate {math.sqrt(chk['candidate_mse']):.3g} rad/s vs current "

@@ -354,7 +354,7 @@ def model_from_file(path: str | os.PathLike) -> CompensationModel:
             f'learn_file {str(p)!r} holds no accepted model yet ({points} points in '
             f'{len(values["bins"])} bins, {values["still_s"]:.0f} s still): learn longer, or '
             'give a model file')
-    model = model_of(fit, thermal)
+    model = model_of(fit, thermal, values['prior'])
     created = dict(model.created)
     created.update({'learn_file': str(p), 'last_update_stamp_s': values['last_update_t'],
                     'sessions': values['session'] + 1, 'points': fit['points']})

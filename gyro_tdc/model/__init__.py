@@ -32,7 +32,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
                    'ArduPilotTempCal', 'onboard_status', 'px4_correction', 'px4_slot',
                    'Px4TempCal'],
     'lag': ['first_order_lag'],
-    'modelfile': ['load_model', 'save_model'],
+    'modelfile': ['load_model', 'model_from_dict', 'model_to_dict', 'save_model'],
     'out_of_range': ['check_policy', 'DEFAULT_OUT_OF_RANGE', 'MAX_EXTRAPOLATION_C',
                      'OPERATING_RANGE_C', 'OUT_OF_RANGE_POLICIES', 'range_shortfall',
                      'variance_growth'],

@@ -672,9 +672,10 @@ def test_learning_on_a_trained_prior_beats_every_simple_anchor(logger):
     core.learner = Learner(prior=ours)
     learned = _prior_drift(_prior_stream(core, sim) - held.omega_ref) / best
     s = core.learner.summary()
-    # Measured: plain 0.66 / 2.77 / 0.12, learned 0.22 / 0.59 / 0.06 of the best of four
-    # simple anchors (the learner's model is day 3's own: features dT, 15.5-23.4 degC).
+    # Measured: plain 0.66 / 2.77 / 0.12, learned 0.21 / 0.52 / 0.05 of the best of four
+    # simple anchors (day 3's 15.5-23.4 degC supports one term, the prior's curve has two:
+    # the learned model is the prior with a dT correction).
     assert np.max(plain) > 1.5, plain
     assert np.all(learned <= 0.9), learned
     assert np.all(learned <= plain + 0.05), (learned, plain)
-    assert s['swaps'] > 10 and s['features'][:1] == ['dT'], s
+    assert s['swaps'] > 10 and s['features'] == ['prior', 'dT'], s
