@@ -113,7 +113,7 @@ def _array(d: Mapping, key: str, shape: tuple, *, positive: bool = False) -> np.
     """Read ``d[key]`` as a finite float array of ``shape`` (``-1`` matches any length)."""
     try:
         arr = np.asarray(_get(d, key), dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):     # OverflowError: an integer beyond float
         raise ModelFileError(f'field `{key}` must be numbers, got {d[key]!r:.60}') from None
     if len(shape) == 2 and arr.size == 0:
         arr = arr.reshape(0, shape[1] if shape[1] >= 0 else 0)

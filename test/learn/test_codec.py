@@ -22,7 +22,8 @@ import re
 
 from gyro_tdc.learn.codec import decode_state, encode_state
 from gyro_tdc.model.thermal_state import ThermalState
-from learn_states import fresh_learner, learned, plain_state, with_field
+from gyro_tdc.learn.learner import LearnConfig, Learner
+from learn_states import curved_prior, fresh_learner, learned, plain_state, with_field
 import numpy as np
 import pytest
 
@@ -107,3 +108,39 @@ def test_a_fit_holding_nan_is_not_loaded(base):
     with pytest.raises(ValueError, match='field `fit.coef'):
         learner.load_state(nan)
     assert learner.take_model() is None
+
+
+@pytest.fixture(scope='module')
+def corrected():
+    """Return a learner that learned a correction to its prior, and its state."""
+    learner = learned(prior=curved_prior())
+    return learner, plain_state(learner)
+
+
+def test_a_correction_keeps_the_prior_it_corrects(corrected):
+    learner, state = corrected
+    prior = learner.prior
+    assert state['fit']['prior'] == prior.model_id == state['prior']['model_id']
+    values, _ = decode_state(state)
+    assert values['prior'].model_id == prior.model_id and values['fit'] == learner.fit
+    # Without a correction there is no prior in the file (a learn file as before).
+    assert 'prior' not in plain_state(learned())
+
+
+@pytest.mark.parametrize('keys, value, field', [
+    (('fit', 'prior'), 'abcdef012345', 'fit.prior'),
+    (('fit', 'prior'), 7, 'fit.prior'),
+    (('prior',), None, 'fit.prior'),
+    (('prior',), {'kind': 'rbf'}, 'prior'),
+    (('prior', 'intercept'), [0.0, 0.0, 0.0], 'prior'),
+    (('prior', 'thermal'), {'kind': 'first_order', 'tau_s': [100.0]}, 'prior'),
+])
+def test_a_hostile_correction_is_refused_naming_the_field(corrected, keys, value, field):
+    """A wrong id, no prior, a prior that is no model (or was edited): one line, no change."""
+    learner, state = corrected
+    bad = with_field(state, keys, value)
+    fresh = Learner(LearnConfig(temperature_timeout=1e9), prior=learner.prior)
+    before = fresh.state()
+    with pytest.raises(ValueError, match=re.escape(f'field `{field}`')) as err:
+        fresh.load_state(bad)
+    assert '\n' not in str(err.value) and fresh.state() == before

@@ -18,10 +18,13 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.learn.fit import (at_state, fit_points, fit_sessions, grow_features, held_out,
-                                inliers, learned_model, model_of, prediction_mse, same_thermal,
+from gyro_tdc.errors import ModelFileError
+from gyro_tdc.learn.fit import (at_state, correction_features, fit_points, fit_sessions,
+                                grow_features, held_out, inliers, learned_model, model_of,
+                                on_prior, prediction_mse, prior_terms, same_thermal,
                                 stream_state)
-from gyro_tdc.model.compensation import drift
+from gyro_tdc.model import MAX_EXTRAPOLATION_C
+from gyro_tdc.model.compensation import CompensationModel, drift
 from gyro_tdc.model.modelfile import model_from_dict, model_to_dict
 from gyro_tdc.model.thermal_state import ThermalState
 from gyro_tdc.signal import hold_readings
@@ -208,3 +211,65 @@ def test_same_thermal_and_the_model_at_its_state():
     np.testing.assert_allclose(drift(flat, t, fo.temperature(t, temp)), drift(m, t, temp),
                                rtol=0, atol=1e-15)
     assert at_state(flat) is flat
+
+
+# -- a correction to the prior ------------------------------------------------------------
+
+
+def _rbf_prior():
+    """Return an RBF prior over normalised dT, dT2 (non-zero means and deviations), 14-26 degC."""
+    norm = (np.array([0.5, 12.0]), np.array([3.0, 15.0]),
+            np.array([[-1.0, -0.5], [0.0, 0.0], [1.0, 0.8]]), np.array([0.7, 0.9, 0.8]))
+    coef = np.array([[0.01, -0.02, 0.003], [2e-3, -1e-3, 4e-4], [-5e-4, 3e-4, 1e-4],
+                     [1e-3, 0.0, -2e-4], [-2e-3, 1e-3, 0.0], [5e-4, -4e-4, 3e-4]])
+    return CompensationModel.network('rbf', ('dT', 'dT2'), {}, 20.0, norm, coef,
+                                     temp_range_c=(14.0, 26.0), residual_var=np.full(3, 1e-8))
+
+
+def test_the_correction_rule_follows_the_priors_terms():
+    prior = _rbf_prior()
+    assert prior_terms(None) == 0 and prior_terms(prior) == 2
+    assert correction_features(None, ()) is None              # no prior: its own model
+    assert correction_features(prior, ()) == ()                # the prior re-anchored
+    assert correction_features(prior, ('dT',)) == ('dT',)      # with a slope
+    assert correction_features(prior, ('dT', 'dT2')) is None   # as many terms: its own
+    # A prior with no temperature term (a bias only) is replaced as before.
+    bias = learned_model(np.array([[0.01, 0.0, 0.0]]), (), 20.0, (15.0, 25.0), np.zeros(3))
+    assert prior_terms(bias) == 0 and correction_features(bias, ()) is None
+
+
+def test_a_correction_keeps_the_priors_shape_inside_and_beyond_its_range():
+    """prior + c0 + a (T - t0) wherever the node's linear policy evaluates it, and back."""
+    prior = _rbf_prior()
+    c0, a = np.array([1e-3, -2e-3, 5e-4]), np.array([3e-4, 1e-4, -2e-4])
+    fit = {'features': ['dT'], 't0_c': 18.5, 'coef': [c0.tolist(), a.tolist()],
+           'range_c': [12.0, 24.0], 'resid_var': [1e-8] * 3, 'points': 4, 'held_out': None,
+           'prior': prior.model_id}
+    model = model_of(fit, None, prior)
+    assert model.kind == 'rbf' and model.temp_range_c == prior.temp_range_c
+    np.testing.assert_array_equal(model.centers, prior.centers)
+    np.testing.assert_array_equal(model.weights, prior.weights)
+    temps = np.array([14.0, 17.3, 20.0, 26.0, 10.0, 30.5, 14.0 - 20.0, 26.0 + 30.0])
+    t = np.arange(temps.size) * 1e7
+    got = (drift(model, t, temps, out_of_range='linear')
+           - drift(prior, t, temps, out_of_range='linear'))
+    held = np.clip(temps, 14.0 - MAX_EXTRAPOLATION_C, 26.0 + MAX_EXTRAPOLATION_C)
+    np.testing.assert_allclose(got, c0 + (held - 18.5)[:, None] * a, rtol=0, atol=1e-12)
+    # on_prior gives back exactly that correction from the corrected model's drift.
+    h, res = on_prior(prior, temps, drift(model, t, temps, out_of_range='linear'))
+    np.testing.assert_array_equal(h, held)
+    np.testing.assert_allclose(res, c0 + (held - 18.5)[:, None] * a, rtol=0, atol=1e-12)
+    # A bias-only correction: the prior shifted.
+    flat = model_of(dict(fit, features=[], coef=[c0.tolist()]), None, prior)
+    np.testing.assert_allclose(flat.intercept - prior.intercept, c0, rtol=0, atol=1e-15)
+    np.testing.assert_array_equal(flat.linear, prior.linear)
+    # Never over another model, or none.
+    other = prior.replace(intercept=prior.intercept + 1e-3)
+    for wrong in (other, None):
+        with pytest.raises(ModelFileError, match='correction to model'):
+            model_of(fit, None, wrong)
+    # A slope where the prior has no dT input is refused, not dropped.
+    dt2 = learned_model(np.array([[0.01, 0, 0], [1e-5, 0, 0]]), ('dT2',), 20.0, (10.0, 30.0),
+                        np.zeros(3))
+    with pytest.raises(ModelFileError, match='no dT input'):
+        model_of(dict(fit, prior=dt2.model_id), None, dt2)

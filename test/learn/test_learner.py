@@ -41,6 +41,7 @@ from gyro_tdc.runtime import CompensatorCore, Policy
 from gyro_tdc.signal import block_mean
 from gyro_tdc.sim import load_scenario, simulate_run
 from gyro_tdc.sim.simulator import to_run
+from learn_states import curved_prior
 from learning_days import BOUND, day_offset, DEG2, floor_ratio, GAP_S, stream
 import numpy as np
 import pytest
@@ -195,6 +196,80 @@ def test_a_better_prior_is_kept_and_an_outlier_is_dropped():
     m = learner.model
     np.testing.assert_allclose(m.intercept[0] + m.linear[0, 0] * (25.0 - m.t0_c),
                                0.015, atol=5e-4)
+
+
+def _on_prior(prior, temps):
+    """Return the prior's drift at settled temperatures (degC), rad/s (N, 3)."""
+    temps = np.atleast_1d(np.asarray(temps, dtype=np.float64))
+    return drift(prior, np.arange(temps.size) * 1e7, temps, out_of_range='linear')
+
+
+def test_a_prior_is_corrected_not_replaced_where_the_points_support_less():
+    """One point keeps the prior's curve re-anchored; a 3 degC span adds a slope to it."""
+    prior = curved_prior()
+    offset, slope = np.array([4e-3, -3e-3, 2e-3]), np.array([3e-4, 0.0, -2e-4])
+
+    def truth(temp):
+        return _on_prior(prior, temp)[0] + offset + slope * (temp - 20.2)
+
+    learner = Learner(LearnConfig(temperature_timeout=1e9), prior=prior)
+    t = _still(learner, 0.0, 120.0, truth(20.2), 20.2)
+    m = learner.take_model()
+    assert m is not None and learner.fit['prior'] == prior.model_id
+    assert learner.fit['features'] == [] and learner.summary()['features'] == ['prior', 'bias']
+    # The prior's shape over its whole range, shifted by the offset at 20.2 degC (a bias-only
+    # model of its own would be flat: 4e-3 off at 10 degC on x).
+    temps = np.linspace(5.0, 35.0, 7)
+    shift = (drift(m, np.arange(7) * 1e7, temps, out_of_range='linear')
+             - _on_prior(prior, temps))
+    np.testing.assert_allclose(shift, np.tile(offset, (7, 1)), rtol=0, atol=3e-5)
+    assert m.kind == prior.kind and m.temp_range_c == prior.temp_range_c
+    for i, temp in enumerate((21.8, 23.4)):
+        t = _still(learner, t, 120.0, truth(temp), temp, seed=i + 1)
+    assert learner.fit['features'] == ['dT'] and learner.fit['prior'] == prior.model_id
+    m = learner.model
+    shift = drift(m, np.arange(7) * 1e7, temps, out_of_range='linear') - _on_prior(prior, temps)
+    want = offset + np.outer(temps - 20.2, slope)
+    np.testing.assert_allclose(shift, want, rtol=0, atol=2e-4)
+    np.testing.assert_allclose(learner.fit['coef'][1], slope, rtol=0, atol=3e-5)
+    # Without a prior nothing changes: its own bias-only model, no prior named.
+    own = Learner(LearnConfig(temperature_timeout=1e9))
+    _still(own, 0.0, 120.0, truth(20.2), 20.2)
+    assert own.fit['features'] == [] and 'prior' not in own.fit
+    assert own.model.kind == 'poly' and own.summary()['features'] == ['bias']
+
+
+def test_a_correction_persists_and_is_never_applied_to_another_prior(tmp_path):
+    prior = curved_prior()
+    learner = Learner(LearnConfig(temperature_timeout=1e9), prior=prior)
+    t = 0.0
+    for i, temp in enumerate((20.2, 23.4)):
+        t = _still(learner, t, 120.0, _on_prior(prior, temp)[0] + 2e-3, temp, seed=i)
+    assert learner.fit['prior'] == prior.model_id
+    path = tmp_path / 'learn.json'
+    learner.save(path)
+    # The file holds the prior it corrects: it alone gives the learned model.
+    assert model_from_file(path).model_id == learner.model.model_id
+    # Restarted over the same prior: the same model, installed at once.
+    again = Learner(LearnConfig(temperature_timeout=1e9), prior=curved_prior())
+    assert again.load(path) and again.fit == learner.fit
+    assert again.take_model().model_id == learner.model.model_id
+    # Over another prior (the same thermal section) or none: the points stay, the correction
+    # goes; the next stretch fits a correction to the new prior.
+    other = curved_prior().replace(intercept=prior.intercept + 1e-3)
+    for new in (other, None):
+        moved = Learner(LearnConfig(temperature_timeout=1e9), prior=new)
+        assert moved.load(path) and moved.fit is None and moved.model is new
+        assert moved.take_model() is None and moved.summary()['points'] == 2
+    _still(moved, t, 120.0, _on_prior(prior, 22.0)[0] + 2e-3, 22.0, seed=5)
+    assert moved.fit is not None and 'prior' not in moved.fit     # no prior: its own
+    moved = Learner(LearnConfig(temperature_timeout=1e9), prior=other)
+    moved.load(path)
+    _still(moved, t, 120.0, _on_prior(prior, 22.0)[0] + 2e-3, 22.0, seed=5)
+    assert moved.fit['prior'] == other.model_id
+    # set_prior: the correction goes with the prior it corrects.
+    learner.set_prior(other)
+    assert learner.fit is None and learner.model is other
 
 
 def test_reset_and_bad_file(tmp_path):

@@ -36,7 +36,8 @@ from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import drift
 from gyro_tdc.model.modelfile import load_model, save_model
 from hypothesis import given, HealthCheck, settings, strategies as st
-from learn_states import fresh_learner, hostile_files, HOSTILE_NAMES, learned, plain_state
+from learn_states import (curved_prior, fresh_learner, hostile_files, HOSTILE_NAMES, learned,
+                          plain_state)
 import numpy as np
 import pytest
 
@@ -310,10 +311,10 @@ def _check_loaded(learner):
     learner.diagnostic_values()
 
 
-def _load_bytes(directory, data):
+def _load_bytes(directory, data, prior=None):
     path = directory / 'learn.json'
     path.write_bytes(data)
-    learner = fresh_learner()
+    learner = learning.Learner(learning.LearnConfig(temperature_timeout=1e9), prior=prior)
     before = learner.state()
     try:
         learner.load(path)
@@ -356,6 +357,27 @@ def test_mutated_learn_files_load_finite_or_are_refused(tmp_path_factory, base, 
         text = text[:k] + data.draw(st.binary(max_size=4)) + text[k + data.draw(
             st.integers(0, 8)):]
     _load_bytes(tmp_path_factory.mktemp('mutated'), text)
+
+
+@pytest.fixture(scope='module')
+def corrected():
+    """Return a learner that learned a correction to its prior, and its state."""
+    learner = learned(prior=curved_prior())
+    return learner, plain_state(learner)
+
+
+@_SETTINGS
+@given(data=st.data())
+def test_mutated_correction_files_load_finite_or_are_refused(tmp_path_factory, corrected, data):
+    """The same over the prior the file corrects: its fit, its prior and their ids mutated."""
+    learner, state = corrected
+    doc = json.loads(json.dumps(state))
+    for _ in range(data.draw(st.integers(1, 2))):
+        paths = [p for p in _paths(doc) if p[0] in ('fit', 'prior')]
+        path = data.draw(st.sampled_from(paths))
+        value = data.draw(_PLAUSIBLE | _HOSTILE | st.just(Ellipsis))
+        _mutate(doc, path, copy.deepcopy(value))
+    _load_bytes(tmp_path_factory.mktemp('corrected'), json.dumps(doc).encode(), learner.prior)
 
 
 _RATE = st.floats(-0.1, 0.1) | st.floats(-100.0, 100.0)

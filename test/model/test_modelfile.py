@@ -100,6 +100,7 @@ def _broken(model, **edit):
     ({'widths': [1.0]}, r'`widths` must have shape \(12,\)'),
     ({'weights': [[0.0, 0.0]]}, r'`weights` must have shape \(12, 3\)'),
     ({'intercept': [0.0, float('nan'), 0.0]}, r'`intercept` has non-finite values'),
+    ({'intercept': [0.0, 10 ** 400, 0.0]}, r'`intercept` must be numbers'),
     ({'temp_range_c': [50.0, -10.0]}, r'`temp_range_c` must be \[min, max\]'),
     ({'residual_var_rad2_s2': [-1.0, 0.0, 0.0]}, r'must be non-negative'),
     ({'normalization': {'mean': [0, 0], 'std': [1, 0]}}, r'`std` must be positive'),

@@ -19,7 +19,7 @@ from __future__ import annotations
 import copy
 import json
 
-from gyro_tdc.learn.learner import LearnConfig, Learner
+from gyro_tdc.learn.learner import LearnConfig, learned_model, Learner
 import numpy as np
 
 #: The raw rate of the still stretches, rad/s.
@@ -30,9 +30,20 @@ HOSTILE_NAMES = ('model_yaml', 'truncated', 'list', 'bins_list', 'deep', 'deep_i
                  'not_utf8')
 
 
-def learned(temps=(20.2, 23.4), rate_hz=100.0):
-    """Return a learner that learned one still stretch (120 s) per temperature, then motion."""
-    learner = Learner(LearnConfig(temperature_timeout=1e9))
+def curved_prior():
+    """Return a prior whose curve has two terms (dT, dT2) over 10 .. 30 degC."""
+    coef = np.array([[0.012, -0.018, 0.004], [2e-4, -1e-4, 5e-5], [1e-5, 2e-5, -1e-5]])
+    return learned_model(coef, ('dT', 'dT2'), 20.0, (10.0, 30.0), np.full(3, 1e-8))
+
+
+def learned(temps=(20.2, 23.4), rate_hz=100.0, prior=None):
+    """
+    Return a learner that learned one still stretch (120 s) per temperature, then motion.
+
+    With ``prior`` (e.g. :func:`curved_prior`: two stretches support fewer terms than its
+    curve has), what it learns is a correction to it.
+    """
+    learner = Learner(LearnConfig(temperature_timeout=1e9), prior=prior)
     rng = np.random.default_rng(4)
     t = 0.0
     for temp in temps:
