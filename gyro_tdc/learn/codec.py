@@ -217,7 +217,7 @@ def _fit(v: Any, thermal: ThermalState | None,
     if v.get('prior') is not None:
         mid = v['prior']
         if prior is None or mid != prior.model_id:
-            raise _bad('fit.prior', 'must be the model_id of the state\'s `prior`, got '
+            raise _bad('fit.prior', "must be the model_id of the state's `prior`, got "
                        f'{shown(mid)}')
         fit['prior'] = mid
     try:
@@ -323,9 +323,10 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
     Check every field of a state :func:`encode_state` made; return what it restores.
 
     Returns the learner's attribute values by name (``last_save_t`` is the saved
-    ``last_t``; ``prior`` the model a correction fit was learned over, None without one) and the thermal section the points were binned with (None: the
-    thermometer). ``bin_c`` (degC), ``bin_entries`` and ``stretches`` are the learner's
-    bin width, entries per bin and recent stretches kept, checked against when given.
+    ``last_t``; ``prior`` the model a correction fit was learned over, None without one)
+    and the thermal section the points were binned with (None: the thermometer).
+    ``bin_c`` (degC), ``bin_entries`` and ``stretches`` are the learner's bin width, entries
+    per bin and recent stretches kept, checked against when given.
 
     Raises
     ------

@@ -343,7 +343,7 @@ def corrected_model(prior: CompensationModel | None, fit: dict) -> CompensationM
     intercept, linear = prior.intercept + coef[0], np.array(prior.linear, dtype=np.float64)
     if len(fit['features']):
         if 'dT' not in prior.inputs:
-            raise ModelFileError(f'model {mid} has no dT input for the fit\'s slope')
+            raise ModelFileError(f"model {mid} has no dT input for the fit's slope")
         j = prior.inputs.index('dT')
         linear[j] += coef[1] * prior.input_std[j]
         intercept = intercept + coef[1] * (prior.t0_c - fit['t0_c'] + prior.input_mean[j])

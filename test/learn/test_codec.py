@@ -21,8 +21,8 @@ import math
 import re
 
 from gyro_tdc.learn.codec import decode_state, encode_state
-from gyro_tdc.model.thermal_state import ThermalState
 from gyro_tdc.learn.learner import LearnConfig, Learner
+from gyro_tdc.model.thermal_state import ThermalState
 from learn_states import curved_prior, fresh_learner, learned, plain_state, with_field
 import numpy as np
 import pytest

@@ -239,7 +239,7 @@ def test_the_correction_rule_follows_the_priors_terms():
 
 
 def test_a_correction_keeps_the_priors_shape_inside_and_beyond_its_range():
-    """prior + c0 + a (T - t0) wherever the node's linear policy evaluates it, and back."""
+    """The prior plus c0 + a (T - t0) wherever the node's linear policy evaluates it."""
     prior = _rbf_prior()
     c0, a = np.array([1e-3, -2e-3, 5e-4]), np.array([3e-4, 1e-4, -2e-4])
     fit = {'features': ['dT'], 't0_c': 18.5, 'coef': [c0.tolist(), a.tolist()],
