@@ -372,6 +372,20 @@ def real_recording(held_bursts: int = 5) -> dict | None:
     return res
 
 
+def _held_sweep(held=range(3, 10)) -> None:
+    """Print family 3 with ``held`` bursts held out: ours_learn against ours, per axis."""
+    print('  held-out bursts: ours / ours_learn x y z (RMS of burst means / best simple anchor)')
+    splits = axes = 0
+    for h in held:
+        r = real_recording(h)
+        below = r['ours_learn'] <= r['ours']
+        splits, axes = splits + bool(below.all()), axes + int(below.sum())
+        print(f'  {h:2d}  ' + ' '.join(f'{v:7.3f}' for v in r['ours']) + '  / '
+              + ' '.join(f'{v:7.3f}' for v in r['ours_learn']))
+    print(f'  ours_learn at or below ours: {splits}/{len(held)} splits on every axis, '
+          f'{axes}/{3 * len(held)} axes')
+
+
 def _report(title: str, cases: list, keys: tuple, bound: float, what: str) -> None:
     """Print the pass rate, median and worst per axis, and the worst cases."""
     if not cases:
@@ -418,6 +432,9 @@ def main(argv: list | None = None) -> int:
     ap.add_argument('--logger-rate', type=float, default=1.0,
                     help='IMU rate of the family 2 loggers, Hz (default 1)')
     ap.add_argument('--seed', type=int, default=27, help='seed of the draws (default 27)')
+    ap.add_argument('--held-sweep', action='store_true',
+                    help='family 3 also with 3 .. 9 bursts held out: learn:=true against the '
+                         'node without learning')
     args = ap.parse_args(argv)
     start = time.perf_counter()
     case = issue_case()
@@ -453,6 +470,8 @@ def main(argv: list | None = None) -> int:
         if real['learned_gate_dps'] is not None:
             print("  with learn:=true, the learned model's gate (its points), deg/s: beyond "
                   + ' '.join(f'{v:.4f}' for v in real['learned_gate_dps']))
+        if args.held_sweep:
+            _held_sweep()
     print(f'\n{time.perf_counter() - start:.0f} s')
     return 0
 
