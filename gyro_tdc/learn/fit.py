@@ -305,25 +305,30 @@ def correction_features(prior: CompensationModel | None,
     return ('dT',) if feats and 'dT' in prior.inputs else ()
 
 
-def on_prior(prior: CompensationModel, temp: NDArray[np.float64], rate: NDArray[np.float64]
-             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def on_prior(prior: CompensationModel, rows: NDArray[np.float64],
+             columns: tuple[int, int] = (1, 2)) -> NDArray[np.float64]:
     """
-    Return still points as a correction to ``prior`` sees them: temperature and residual.
+    Return still points as a correction to ``prior`` sees them (a copy of ``rows``).
 
-    ``temp`` (P,) are model temperatures (degC), ``rate`` (P, 3) their mean raw rates
-    (rad/s). The residual is the rate minus the prior's settled drift (every time term
-    settled, beyond its range along the tangent, as the node's default ``linear``
-    evaluates it); the temperature is held where that tangent stops, so a straight line
-    in it is what the corrected model's own tangent gives.
+    ``rows`` hold a model temperature (degC) in column ``columns[0]`` and the mean raw rate
+    (rad/s, 3 columns) from ``columns[1]`` (windows ``samples, temp, rate, t_end`` by
+    default; the point table with ``(2, 3)``). The rate becomes its residual on the prior's
+    settled drift (every time term settled, beyond its range along the tangent, as the
+    node's default ``linear`` evaluates it); the temperature is held where that tangent
+    stops, so a straight line in it is what the corrected model's own tangent gives.
     """
-    temp = np.asarray(temp, dtype=np.float64)
+    out = np.array(rows, dtype=np.float64)
+    ct, cr = columns
+    temp = out[:, ct].copy()
+    if not temp.size:
+        return out
     lo, hi = prior.temp_range_c
     m = at_state(prior)
     # Samples far apart (every dynamic term settled), a settling sample first.
     t = np.arange(temp.size + 1, dtype=np.float64) * 1e7
-    b = drift(m, t, np.r_[temp[:1], temp], out_of_range='linear')[1:]
-    held = np.clip(temp, lo - MAX_EXTRAPOLATION_C, hi + MAX_EXTRAPOLATION_C)
-    return held, np.asarray(rate, dtype=np.float64) - b
+    out[:, cr:cr + 3] -= drift(m, t, np.r_[temp[:1], temp], out_of_range='linear')[1:]
+    out[:, ct] = np.clip(temp, lo - MAX_EXTRAPOLATION_C, hi + MAX_EXTRAPOLATION_C)
+    return out
 
 
 def corrected_model(prior: CompensationModel | None, fit: dict) -> CompensationModel:

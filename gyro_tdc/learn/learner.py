@@ -493,8 +493,7 @@ class Learner:
         corr = None if self.prior is None else correction_features(self.prior, feats)
         if corr is None:
             return fit_points(e, feats, t_now, self.config.half_life_s, floor)
-        e = e.copy()
-        e[:, 2], e[:, 3:6] = on_prior(self.prior, e[:, 2], e[:, 3:6])
+        e = on_prior(self.prior, e, columns=(2, 3))
         return dict(fit_points(e, corr, t_now, self.config.half_life_s, floor),
                     prior=self.prior.model_id)
 
@@ -524,10 +523,8 @@ class Learner:
         floor = self._floor()
         if since is None:
             since = t_now - self.config.offset_s
-        seen = rows
-        if fit.get('prior') is not None:  # a correction: the windows' residuals on the prior
-            seen = rows.copy()
-            seen[:, 1], seen[:, 2:5] = on_prior(self.prior, rows[:, 1], rows[:, 2:5])
+        # A correction: its offset from the windows' residuals on the prior.
+        seen = rows if fit.get('prior') is None else on_prior(self.prior, rows)
         try:
             cand = model_of(fit, self.thermal, self.prior)
             offset = recent_offset(fit, seen, since) if self.config.offset_s > 0 else None

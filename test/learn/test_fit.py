@@ -256,9 +256,14 @@ def test_a_correction_keeps_the_priors_shape_inside_and_beyond_its_range():
     held = np.clip(temps, 14.0 - MAX_EXTRAPOLATION_C, 26.0 + MAX_EXTRAPOLATION_C)
     np.testing.assert_allclose(got, c0 + (held - 18.5)[:, None] * a, rtol=0, atol=1e-12)
     # on_prior gives back exactly that correction from the corrected model's drift.
-    h, res = on_prior(prior, temps, drift(model, t, temps, out_of_range='linear'))
-    np.testing.assert_array_equal(h, held)
-    np.testing.assert_allclose(res, c0 + (held - 18.5)[:, None] * a, rtol=0, atol=1e-12)
+    rows = np.column_stack([np.ones(temps.size), temps,
+                            drift(model, t, temps, out_of_range='linear'), t])
+    seen = on_prior(prior, rows)
+    np.testing.assert_array_equal(seen[:, 1], held)
+    np.testing.assert_array_equal(seen[:, [0, 5]], rows[:, [0, 5]])
+    np.testing.assert_allclose(seen[:, 2:5], c0 + (held - 18.5)[:, None] * a, rtol=0,
+                               atol=1e-12)
+    assert on_prior(prior, np.zeros((0, 6))).shape == (0, 6)      # no windows: none
     # A bias-only correction: the prior shifted.
     flat = model_of(dict(fit, features=[], coef=[c0.tolist()]), None, prior)
     np.testing.assert_allclose(flat.intercept - prior.intercept, c0, rtol=0, atol=1e-15)
