@@ -29,7 +29,7 @@ import sys
 import threading
 import time
 
-from compensator_rig import rates, RELIABLE, to_ns
+from compensator_rig import ok_but_backlog, rates, RELIABLE, to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.identify import fit_model
@@ -326,7 +326,9 @@ def test_chained_compensators_are_reported(models, ros_context):
         assert 'published by gyro_tdc compensator /compensator_node' in st.message
         assert values(st)['already compensated'] == '100'
         st = first.diagnostic_status()
-        assert st.level == DiagnosticStatus.OK and values(st)['already compensated'] == '0'
+        # OK: a falling-behind report of its own (the burst on a starved machine) aside.
+        assert ok_but_backlog(st), (st.level, st.message)
+        assert values(st)['already compensated'] == '0'
         assert not any('compensator' in s.message for s in diag
                        if s.name.startswith('/compensator_node'))
     finally:
@@ -338,12 +340,15 @@ def test_chained_compensators_are_reported(models, ros_context):
 # -- 10: input losses ----------------------------------------------------------------------
 
 
-def burst(rig, count, reliability, history, depth=None, stall=False):
+def burst(rig, count, reliability, history, depth=None, stall=False, every=False):
     """
     Run burst_publisher.py in a child process; return the rig's input count when done.
 
     With ``stall`` the executor does not spin while the burst is published: the compensator
     is held up (as by a long pause of its process) and takes the queued messages after.
+    With ``every`` the burst is done when all ``count`` came in (a lost one never does: the
+    deadline fails the test), not after a quiet second: a reliable writer repairs what the
+    transport dropped only at its next heartbeat, seconds later on a loaded machine.
     """
     child = subprocess.Popen([sys.executable, str(HERE.parent / 'support' / 'burst_publisher.py'),
                               str(count), reliability, history, str(depth or count)],
@@ -359,6 +364,9 @@ def burst(rig, count, reliability, history, depth=None, stall=False):
         if stall:
             lines.wait_for('published', 120.0)
         rig.spin_until(lambda: lines.has('published'), 120.0, what='burst published')
+        if every:
+            rig.spin_until(lambda: rig.node.core.counts['in'] >= count, 300.0,
+                           what=f'all {count} messages in')
         spin_until_quiet(rig.executor, lambda: rig.node.core.counts['in'], 1.0, 60.0)
     finally:
         child.stdin.close()
@@ -408,7 +416,7 @@ def test_reliable_input_counts_every_loss_of_a_keep_last_publisher(models, rig_f
 @pytest.mark.serial  # losses depend on the load: not beside other tests
 def test_reliable_input_loses_nothing(rig_factory):
     rig = rig_factory(executor_kind='events', input_reliability='reliable')
-    received = burst(rig, 20000, 'reliable', 'keep_all')
+    received = burst(rig, 20000, 'reliable', 'keep_all', every=True)
     counts = rig.node.core.counts
     assert received == counts['out'] == 20000 and rig.node.inputs.lost == 0
     st = rig.node.diagnostic_status()
