@@ -168,7 +168,12 @@ def test_a_parser_crash_is_a_refused_file(models, rig_factory, crash):
 
 
 class Streamer(threading.Thread):
-    """Publish the rig's Imu at a steady rate from its own thread until stopped."""
+    """
+    Publish the rig's Imu at a steady rate from its own thread until stopped.
+
+    Stamped one period apart, as a live IMU: the node's queue age reads them against its
+    steady clock (stamps slower than real time would read as a node falling behind).
+    """
 
     def __init__(self, rig, rate_hz):
         super().__init__(daemon=True)
@@ -179,7 +184,7 @@ class Streamer(threading.Thread):
     def run(self):
         start = time.monotonic()
         while not self._halt.is_set():
-            self.rig.imu(to_ns(T0 + self.sent * 1e-3), (0.01, -0.02, 0.005), self.sent)
+            self.rig.imu(to_ns(T0 + self.sent * self.period), (0.01, -0.02, 0.005), self.sent)
             self.sent += 1
             # Pacing of the producer (not a wait for the system under test).
             time.sleep(max(0.0, start + self.sent * self.period - time.monotonic()))
@@ -442,7 +447,7 @@ def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path
     The node falls behind (WARN: samples wait over a second in its 2000-sample queue), the
     queue overwrites its oldest samples (DDS reports none of them): /diagnostics says WARN
     with the count, and every sample sent either came in or is counted missing, exactly (the
-    stamps are 1 ms apart).
+    stamps are 0.5 ms apart).
     """
     path = save_model(dtdt_model(10_000), tmp_path / 'dtdt10k.yaml')
     read_model(str(path))                                   # valid: loaded, not refused
