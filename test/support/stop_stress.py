@@ -279,6 +279,8 @@ def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
         time.sleep(delay_s)     # the random moment itself
         signalled = time.monotonic()
         signalled_ns = time.time_ns()
+        if child.poll() is not None and stop.clean:    # it ended by itself, unasked
+            stop.problems.append(f'exited (status {child.returncode}) before the signal')
         child.send_signal(signum)
         try:
             stop.code = child.wait(EXIT_S)
