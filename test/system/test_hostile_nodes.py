@@ -29,7 +29,7 @@ import sys
 import threading
 import time
 
-from compensator_rig import ok_but_backlog, rates, RELIABLE, to_ns
+from compensator_rig import ok_but_backlog, rates, RELIABLE, stamp_s, to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.identify import fit_model
@@ -184,15 +184,36 @@ class Streamer(threading.Thread):
     def run(self):
         start = time.monotonic()
         while not self._halt.is_set():
-            self.rig.imu(to_ns(T0 + self.sent * self.period), (0.01, -0.02, 0.005), self.sent)
-            self.sent += 1
+            self.publish_next()
             # Pacing of the producer (not a wait for the system under test).
             time.sleep(max(0.0, start + self.sent * self.period - time.monotonic()))
+
+    def publish_next(self):
+        """Publish the stream's next sample; return its stamp as the node reads it, s."""
+        ns = to_ns(T0 + self.sent * self.period)
+        self.rig.imu(ns, (0.01, -0.02, 0.005), self.sent)
+        self.sent += 1
+        return stamp_s(ns)
 
     def stop(self):
         self._halt.set()
         self.join(5.0)
         return self.sent
+
+    def close(self, tries=10):
+        """
+        Once the node is idle, publish samples until one comes in; return the count sent.
+
+        A lost tail has no later stamp to show it missing: the sample that comes in does.
+        """
+        for _ in range(tries):
+            stamp = self.publish_next()
+            deadline = time.monotonic() + 10.0
+            while self.rig.node.core.last_t != stamp and time.monotonic() < deadline:
+                self.rig.executor.spin_once(timeout_sec=0.05)
+            if self.rig.node.core.last_t == stamp:
+                return self.sent
+        raise AssertionError(f'none of {tries} closing samples came in')
 
 
 @pytest.mark.parametrize('via', ['reload', 'parameter'])
@@ -459,14 +480,15 @@ def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path
     try:
         rig.spin_until(lambda: streamer.sent >= 10_000, 120.0, what='5 s of stream')
     finally:
-        sent = streamer.stop()
+        streamer.stop()
     spin_until_quiet(rig.executor, lambda: rig.node.core.counts['in'], 1.0, 60.0)
+    sent = streamer.close()
     node = rig.node
     # Each report counts the samples missing since the one before: wait until the timer has
     # judged every sample and its report has come back (under load the last one was still
     # in flight, and the sum below came out short).
     rig.spin_until(lambda: not node.diagnostics.backlog.samples and rig.diag and values(
-        rig.diag[-1])['input missing'] == str(node.diagnostics.backlog.missing), 10.0,
+        rig.diag[-1])['input missing'] == str(node.diagnostics.backlog.missing), 60.0,
         what='the report of the last samples received')
     reports = rig.diag + [node.diagnostic_status()]
     missing = node.diagnostics.backlog.missing
