@@ -30,8 +30,8 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosutil import matched_readers, spin_until
 from sensor_msgs.msg import Imu, Temperature
 
-__all__ = ['BACKLOG_WARNING', 'ok_but_backlog', 'problems', 'record_statuses', 'RELIABLE', 'reported',
-           'Rig', 'rates', 'stamp_s', 'to_ns']
+__all__ = ['BACKLOG_WARNING', 'ok_but_backlog', 'problems', 'rates', 'record_statuses',
+           'RELIABLE', 'reported', 'Rig', 'stamp_s', 'to_ns']
 
 RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10000,
                       reliability=ReliabilityPolicy.RELIABLE)
