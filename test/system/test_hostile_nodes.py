@@ -477,10 +477,15 @@ def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path
     rig.spin_until(lambda: rig.node.core.temps.received == 1, what='temperature')
     streamer = Streamer(rig, 2000.0)
     streamer.start()
+    # 5 s of stream (10,000 samples when the streamer gets the CPU and the interpreter lock:
+    # it shares them with the node it floods, and on a loaded machine sends far fewer).
+    end = time.monotonic() + 5.0
     try:
-        rig.spin_until(lambda: streamer.sent >= 10_000, 120.0, what='5 s of stream')
+        while time.monotonic() < end:
+            rig.executor.spin_once(timeout_sec=0.05)
     finally:
         streamer.stop()
+    assert streamer.sent > 0
     spin_until_quiet(rig.executor, lambda: rig.node.core.counts['in'], 1.0, 60.0)
     sent = streamer.close()
     node = rig.node
