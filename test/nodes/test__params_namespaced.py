@@ -62,10 +62,12 @@ def read_back(ros_context, names: list[str], node_name: str = '/mavros/gyro_comp
     executor.add_node(node)
     try:
         client = AsyncParameterClient(node, node_name)
-        spin_until(executor, lambda: client.services_are_ready(), 20.0,
+        # Another process: 60 s, as every wait for one (a child starved under load answered
+        # none of six requests in 30 s).
+        spin_until(executor, lambda: client.services_are_ready(), 60.0,
                    what=f'parameter services of {node_name}')
         answer = request_until_answered(executor, lambda: client.get_parameters(names),
-                                        30.0, what=f'get_parameters of {node_name}')
+                                        60.0, what=f'get_parameters of {node_name}')
         values = [parameter_value_to_python(v) for v in answer.values]
         return dict(zip(names, values))
     finally:

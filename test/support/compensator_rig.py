@@ -30,7 +30,8 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosutil import matched_readers, spin_until
 from sensor_msgs.msg import Imu, Temperature
 
-__all__ = ['RELIABLE', 'Rig', 'rates', 'stamp_s', 'to_ns']
+__all__ = ['BACKLOG_WARNING', 'ok_but_backlog', 'problems', 'rates', 'record_statuses',
+           'RELIABLE', 'reported', 'Rig', 'stamp_s', 'to_ns']
 
 RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10000,
                       reliability=ReliabilityPolicy.RELIABLE)
@@ -49,6 +50,50 @@ def rates(msgs):
     """Return the angular velocities of Imu messages, shape (N, 3)."""
     return np.array([(m.angular_velocity.x, m.angular_velocity.y, m.angular_velocity.z)
                      for m in msgs])
+
+
+#: How the node's own backlog report starts: a node starved of CPU (a loaded machine) is
+#: rightly said to fall behind, whatever else a test is about.
+BACKLOG_WARNING = 'falling behind: '
+#: The messages of a status without a problem.
+NO_PROBLEM = ('compensating', 'waiting for imu/data_raw')
+
+
+def problems(status: DiagnosticStatus) -> list[str]:
+    """Return the problems a compensator status names, but a falling-behind report."""
+    return [p for p in status.message.split('; ')
+            if p not in NO_PROBLEM and not p.startswith(BACKLOG_WARNING)]
+
+
+def ok_but_backlog(status: DiagnosticStatus) -> bool:
+    """Return whether ``status`` is OK, or WARN for nothing but falling behind."""
+    return not problems(status) and (status.level == DiagnosticStatus.OK or (
+        status.level == DiagnosticStatus.WARN and BACKLOG_WARNING in status.message))
+
+
+def record_statuses(node) -> list[DiagnosticStatus]:
+    """
+    Keep every status ``node`` judges from now on, in order: its 1 Hz timer's and the test's.
+
+    Each report says what is new since the one before; under load the timer's may fall
+    anywhere in a feed, so a test sums or orders them rather than expect one report.
+    """
+    statuses: list[DiagnosticStatus] = []
+    judge = node.diagnostic_status
+
+    def recorded() -> DiagnosticStatus:
+        status = judge()
+        statuses.append(status)
+        return status
+    node.diagnostic_status = recorded
+    return statuses
+
+
+def reported(statuses, problem: str) -> int:
+    """Return the samples counted by ``problem (N samples)`` over ``statuses``, summed."""
+    head = f'{problem} ('
+    return sum(int(p[len(head):].split()[0]) for s in statuses for p in problems(s)
+               if p.startswith(head))
 
 
 class Rig:

@@ -279,6 +279,8 @@ def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
         time.sleep(delay_s)     # the random moment itself
         signalled = time.monotonic()
         signalled_ns = time.time_ns()
+        if child.poll() is not None and stop.clean:    # it ended by itself, unasked
+            stop.problems.append(f'exited (status {child.returncode}) before the signal')
         child.send_signal(signum)
         try:
             stop.code = child.wait(EXIT_S)
@@ -298,8 +300,11 @@ def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
             stop.problems.append(f'{text!r} in its output')
     if config.learn and poker is not None and poker.saved_between(started, signalled):
         # It was learning before the signal: the last state is written after it.
-        if not learn_file.exists() or learn_file.stat().st_mtime_ns < signalled_ns:
-            stop.problems.append('learn_file not written after the signal')
+        written = learn_file.stat().st_mtime_ns if learn_file.exists() else None
+        if written is None or written < signalled_ns:
+            when = ('missing' if written is None else
+                    f'last written {(signalled_ns - written) * 1e-9:.3f} s before it')
+            stop.problems.append(f'learn_file not written after the signal ({when})')
         else:
             try:
                 json.loads(learn_file.read_text())

@@ -29,7 +29,7 @@ import sys
 import threading
 import time
 
-from compensator_rig import rates, RELIABLE, to_ns
+from compensator_rig import ok_but_backlog, rates, RELIABLE, stamp_s, to_ns
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.identify import fit_model
@@ -168,7 +168,12 @@ def test_a_parser_crash_is_a_refused_file(models, rig_factory, crash):
 
 
 class Streamer(threading.Thread):
-    """Publish the rig's Imu at a steady rate from its own thread until stopped."""
+    """
+    Publish the rig's Imu at a steady rate from its own thread until stopped.
+
+    Stamped one period apart, as a live IMU: the node's queue age reads them against its
+    steady clock (stamps slower than real time would read as a node falling behind).
+    """
 
     def __init__(self, rig, rate_hz):
         super().__init__(daemon=True)
@@ -179,15 +184,36 @@ class Streamer(threading.Thread):
     def run(self):
         start = time.monotonic()
         while not self._halt.is_set():
-            self.rig.imu(to_ns(T0 + self.sent * 1e-3), (0.01, -0.02, 0.005), self.sent)
-            self.sent += 1
+            self.publish_next()
             # Pacing of the producer (not a wait for the system under test).
             time.sleep(max(0.0, start + self.sent * self.period - time.monotonic()))
+
+    def publish_next(self):
+        """Publish the stream's next sample; return its stamp as the node reads it, s."""
+        ns = to_ns(T0 + self.sent * self.period)
+        self.rig.imu(ns, (0.01, -0.02, 0.005), self.sent)
+        self.sent += 1
+        return stamp_s(ns)
 
     def stop(self):
         self._halt.set()
         self.join(5.0)
         return self.sent
+
+    def close(self, tries=10):
+        """
+        Once the node is idle, publish samples until one comes in; return the count sent.
+
+        A lost tail has no later stamp to show it missing: the sample that comes in does.
+        """
+        for _ in range(tries):
+            stamp = self.publish_next()
+            deadline = time.monotonic() + 10.0
+            while self.rig.node.core.last_t != stamp and time.monotonic() < deadline:
+                self.rig.executor.spin_once(timeout_sec=0.05)
+            if self.rig.node.core.last_t == stamp:
+                return self.sent
+        raise AssertionError(f'none of {tries} closing samples came in')
 
 
 @pytest.mark.parametrize('via', ['reload', 'parameter'])
@@ -326,7 +352,9 @@ def test_chained_compensators_are_reported(models, ros_context):
         assert 'published by gyro_tdc compensator /compensator_node' in st.message
         assert values(st)['already compensated'] == '100'
         st = first.diagnostic_status()
-        assert st.level == DiagnosticStatus.OK and values(st)['already compensated'] == '0'
+        # OK: a falling-behind report of its own (the burst on a starved machine) aside.
+        assert ok_but_backlog(st), (st.level, st.message)
+        assert values(st)['already compensated'] == '0'
         assert not any('compensator' in s.message for s in diag
                        if s.name.startswith('/compensator_node'))
     finally:
@@ -338,12 +366,15 @@ def test_chained_compensators_are_reported(models, ros_context):
 # -- 10: input losses ----------------------------------------------------------------------
 
 
-def burst(rig, count, reliability, history, depth=None, stall=False):
+def burst(rig, count, reliability, history, depth=None, stall=False, every=False):
     """
     Run burst_publisher.py in a child process; return the rig's input count when done.
 
     With ``stall`` the executor does not spin while the burst is published: the compensator
     is held up (as by a long pause of its process) and takes the queued messages after.
+    With ``every`` the burst is done when all ``count`` came in (a lost one never does: the
+    deadline fails the test), not after a quiet second: a reliable writer repairs what the
+    transport dropped only at its next heartbeat, seconds later on a loaded machine.
     """
     child = subprocess.Popen([sys.executable, str(HERE.parent / 'support' / 'burst_publisher.py'),
                               str(count), reliability, history, str(depth or count)],
@@ -359,6 +390,9 @@ def burst(rig, count, reliability, history, depth=None, stall=False):
         if stall:
             lines.wait_for('published', 120.0)
         rig.spin_until(lambda: lines.has('published'), 120.0, what='burst published')
+        if every:
+            rig.spin_until(lambda: rig.node.core.counts['in'] >= count, 300.0,
+                           what=f'all {count} messages in')
         spin_until_quiet(rig.executor, lambda: rig.node.core.counts['in'], 1.0, 60.0)
     finally:
         child.stdin.close()
@@ -408,7 +442,7 @@ def test_reliable_input_counts_every_loss_of_a_keep_last_publisher(models, rig_f
 @pytest.mark.serial  # losses depend on the load: not beside other tests
 def test_reliable_input_loses_nothing(rig_factory):
     rig = rig_factory(executor_kind='events', input_reliability='reliable')
-    received = burst(rig, 20000, 'reliable', 'keep_all')
+    received = burst(rig, 20000, 'reliable', 'keep_all', every=True)
     counts = rig.node.core.counts
     assert received == counts['out'] == 20000 and rig.node.inputs.lost == 0
     st = rig.node.diagnostic_status()
@@ -434,7 +468,7 @@ def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path
     The node falls behind (WARN: samples wait over a second in its 2000-sample queue), the
     queue overwrites its oldest samples (DDS reports none of them): /diagnostics says WARN
     with the count, and every sample sent either came in or is counted missing, exactly (the
-    stamps are 1 ms apart).
+    stamps are 0.5 ms apart).
     """
     path = save_model(dtdt_model(10_000), tmp_path / 'dtdt10k.yaml')
     read_model(str(path))                                   # valid: loaded, not refused
@@ -443,17 +477,23 @@ def test_a_node_that_cannot_keep_up_says_so_with_the_count(rig_factory, tmp_path
     rig.spin_until(lambda: rig.node.core.temps.received == 1, what='temperature')
     streamer = Streamer(rig, 2000.0)
     streamer.start()
+    # 5 s of stream (10,000 samples when the streamer gets the CPU and the interpreter lock:
+    # it shares them with the node it floods, and on a loaded machine sends far fewer).
+    end = time.monotonic() + 5.0
     try:
-        rig.spin_until(lambda: streamer.sent >= 10_000, 120.0, what='5 s of stream')
+        while time.monotonic() < end:
+            rig.executor.spin_once(timeout_sec=0.05)
     finally:
-        sent = streamer.stop()
+        streamer.stop()
+    assert streamer.sent > 0
     spin_until_quiet(rig.executor, lambda: rig.node.core.counts['in'], 1.0, 60.0)
+    sent = streamer.close()
     node = rig.node
     # Each report counts the samples missing since the one before: wait until the timer has
     # judged every sample and its report has come back (under load the last one was still
     # in flight, and the sum below came out short).
     rig.spin_until(lambda: not node.diagnostics.backlog.samples and rig.diag and values(
-        rig.diag[-1])['input missing'] == str(node.diagnostics.backlog.missing), 10.0,
+        rig.diag[-1])['input missing'] == str(node.diagnostics.backlog.missing), 60.0,
         what='the report of the last samples received')
     reports = rig.diag + [node.diagnostic_status()]
     missing = node.diagnostics.backlog.missing
