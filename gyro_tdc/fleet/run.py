@@ -26,6 +26,7 @@ from __future__ import annotations
 import asyncio
 import contextlib
 from dataclasses import asdict, dataclass, replace
+import gc
 import hashlib
 import json
 import logging
@@ -199,10 +200,17 @@ def open_engine(*, workers: int | None = None, scheduler: str | None = None,
             check_workers(client, 'local')
             yield Engine(client, 'local', n, timeout_s)
         return
+    failure = None
     try:
         client = Client(scheduler, timeout=f'{timeout_s}s')
     except timeouts as exc:
-        raise FleetError(f'--scheduler {scheduler}: cannot connect: {one_line(exc)}') from exc
+        failure = one_line(exc)
+    if failure is not None:
+        # The half-made Client sits in a reference cycle; its finaliser takes distributed's
+        # process-wide loop lock. Collected later on another thread (a new cluster's IO loop
+        # starting under that lock) it deadlocks: collect it here, where nothing holds it.
+        gc.collect()
+        raise FleetError(f'--scheduler {scheduler}: cannot connect: {failure}')
     with client:
         try:
             client.wait_for_workers(1, timeout=timeout_s)

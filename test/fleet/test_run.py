@@ -26,6 +26,7 @@ from __future__ import annotations
 import csv
 from dataclasses import replace
 import errno
+import gc
 import json
 import math
 import os
@@ -36,7 +37,7 @@ from dask_cluster import reaped
 from fleet_rig import (GOOD, make_bags, make_constant_bags, manifest_rows, OUTLIER, SENSOR_KEYS,
                        SUMMARY_KEYS, train_opts, write_manifest)
 from gyro_tdc.data import BagOptions
-from gyro_tdc.errors import OutputError
+from gyro_tdc.errors import FleetError, OutputError
 from gyro_tdc.fleet import open_engine, read_manifest, run_fleet
 from gyro_tdc.fleet.manifest import SensorSpec
 from gyro_tdc.fleet.run import _read_state, _record, run_sensor, SensorOutcome
@@ -235,3 +236,24 @@ def test_a_sensor_trained_on_bags_with_their_own_offsets(tmp_path):
     assert 'sessions' not in one.model.metrics
     assert min(one.heldout_bs) > 5 * floor             # one intercept: a bent curve
     assert one.key != out.key                          # the choice is part of the resume key
+
+
+def test_a_failed_connection_leaves_no_client_for_the_collector():
+    # distributed's Client finaliser takes a process-wide loop lock: a half-made Client left
+    # for the cyclic collector deadlocked a cluster started later in the same process.
+    from distributed import Client
+
+    def clients() -> list:
+        return [o for o in gc.get_objects() if isinstance(o, Client)]
+
+    gc.collect()
+    gc.disable()
+    try:
+        before = clients()             # another test's engine may be open
+        with pytest.raises(FleetError, match='cannot connect'):
+            with open_engine(scheduler='tcp://127.0.0.1:1', timeout_s=0.5):
+                pass
+        left = [c for c in clients() if not any(c is b for b in before)]
+    finally:
+        gc.enable()
+    assert left == []

@@ -24,6 +24,7 @@ close has a deadline, and whatever process the block started and is still alive 
 from __future__ import annotations
 
 import contextlib
+import gc
 import logging
 from typing import Any, Iterator
 
@@ -78,6 +79,9 @@ def local_cluster(n_workers: int = 1, **kwargs: Any) -> Iterator[Any]:
                    silence_logs=logging.CRITICAL)
     options.update(kwargs)
     with reaped():
+        # Garbage collected while the cluster's loop thread starts under distributed's
+        # process-wide loop lock, a Client's finaliser (which takes that lock) deadlocks it.
+        gc.collect()
         cluster = LocalCluster(**options)
         try:
             yield cluster
