@@ -238,6 +238,15 @@ class Poker:
             rclpy.try_shutdown(context=context)
 
 
+def _inode(path: Path) -> tuple[int, int] | None:
+    """Return the (device, inode) of ``path``, None when there is none."""
+    try:
+        st = path.stat()
+    except FileNotFoundError:
+        return None
+    return st.st_dev, st.st_ino
+
+
 def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
                poker: Poker | None, save_first: bool = False) -> Stop:
     """
@@ -279,6 +288,10 @@ def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
         time.sleep(delay_s)     # the random moment itself
         signalled = time.monotonic()
         signalled_ns = time.time_ns()
+        # Every save replaces the file (a new inode): the one there now must not be the one
+        # left after the stop. (A new file's mtime may read a few ms before this moment: the
+        # kernel stamps it from its coarse clock, stale on a CPU that was idle.)
+        before = _inode(learn_file) if config.learn else None
         if child.poll() is not None and stop.clean:    # it ended by itself, unasked
             stop.problems.append(f'exited (status {child.returncode}) before the signal')
         child.send_signal(signum)
@@ -301,7 +314,7 @@ def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
     if config.learn and poker is not None and poker.saved_between(started, signalled):
         # It was learning before the signal: the last state is written after it.
         written = learn_file.stat().st_mtime_ns if learn_file.exists() else None
-        if written is None or written < signalled_ns:
+        if written is None or _inode(learn_file) == before:
             when = ('missing' if written is None else
                     f'last written {(signalled_ns - written) * 1e-9:.3f} s before it')
             stop.problems.append(f'learn_file not written after the signal ({when})')
