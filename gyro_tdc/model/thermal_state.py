@@ -78,7 +78,7 @@ class ThermalState:
 
     def __post_init__(self) -> None:
         """Check the fields and store them as tuples of floats."""
-        if self.kind not in NODES:
+        if not isinstance(self.kind, str) or self.kind not in NODES:
             raise FeatureError(f'`kind` must be one of {", ".join(THERMAL_KINDS)}, '
                                f'got {self.kind!r}')
         taus = self.tau_s

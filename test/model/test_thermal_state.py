@@ -66,6 +66,8 @@ def test_kinds_fields_and_validation():
     assert th.tau_interval_s == ((20.0, 40.0), (350.0, 480.0))
     assert th.settle_s == SETTLE_TAUS * 430.0
     for kw, msg in [({'kind': 'three_node'}, '`kind` must be one of none, first_order'),
+                    ({'kind': []}, '`kind` must be one of none, first_order'),
+                    ({'kind': {'a': 1}}, '`kind` must be one of none, first_order'),
                     ({'kind': 'first_order'}, r'`tau_s` must hold 1 time constant'),
                     ({'kind': 'none', 'tau_s': (5.0,)}, r'`tau_s` must hold 0'),
                     ({'kind': 'first_order', 'tau_s': (-1.0,)}, 'positive finite'),
