@@ -339,18 +339,24 @@ def test_random_json_never_crashes_the_loader(tmp_path_factory, doc):
     _load_bytes(tmp_path_factory.mktemp('random'), json.dumps(doc).encode())
 
 
-@_SETTINGS
-@given(data=st.data())
-def test_mutated_learn_files_load_finite_or_are_refused(tmp_path_factory, base, data):
-    _, state = base
+def _mutated(state, data, paths_of):
+    """Return a copy of ``state`` with one or two of the paths ``paths_of`` gives mutated."""
     doc = json.loads(json.dumps(state))
     for _ in range(data.draw(st.integers(1, 2))):
-        paths = _paths(doc)
+        paths = paths_of(doc)
         if not paths:
             break
         path = data.draw(st.sampled_from(paths))
         value = data.draw(_PLAUSIBLE | _HOSTILE | st.just(Ellipsis))
         _mutate(doc, path, copy.deepcopy(value))
+    return doc
+
+
+@_SETTINGS
+@given(data=st.data())
+def test_mutated_learn_files_load_finite_or_are_refused(tmp_path_factory, base, data):
+    _, state = base
+    doc = _mutated(state, data, _paths)
     text = json.dumps(doc).encode()
     if data.draw(st.integers(0, 3)) == 0:     # and maybe damage the bytes themselves
         k = data.draw(st.integers(0, len(text)))
@@ -371,12 +377,7 @@ def corrected():
 def test_mutated_correction_files_load_finite_or_are_refused(tmp_path_factory, corrected, data):
     """The same over the prior the file corrects: its fit, its prior and their ids mutated."""
     learner, state = corrected
-    doc = json.loads(json.dumps(state))
-    for _ in range(data.draw(st.integers(1, 2))):
-        paths = [p for p in _paths(doc) if p[0] in ('fit', 'prior')]
-        path = data.draw(st.sampled_from(paths))
-        value = data.draw(_PLAUSIBLE | _HOSTILE | st.just(Ellipsis))
-        _mutate(doc, path, copy.deepcopy(value))
+    doc = _mutated(state, data, lambda d: [p for p in _paths(d) if p[0] in ('fit', 'prior')])
     _load_bytes(tmp_path_factory.mktemp('corrected'), json.dumps(doc).encode(), learner.prior)
 
 
