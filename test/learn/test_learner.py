@@ -45,7 +45,7 @@ from learn_states import curved_prior
 from learning_days import BOUND, day_offset, DEG2, floor_ratio, GAP_S, stream
 import numpy as np
 import pytest
-from still_logs import DEG, judge, learn_through_core, still_log
+from still_logs import DEG, judge, learn_directly, learn_through_core, still_log
 from thermal_synth import lag_run, OTHER
 
 
@@ -544,26 +544,11 @@ def test_a_1hz_still_log_is_learned_throughout():
     assert np.all(r['vs_batch'] <= 1.05), r['vs_batch']
 
 
-def _learn_directly(log, chunk_s=10.0):
-    """Feed a log to a learner alone (no core), stepped every ``chunk_s`` of stamps."""
-    learner = Learner(LearnConfig(temperature_timeout=5.0))
-    j = 0
-    edges = np.searchsorted(log.t, np.arange(log.t[0], log.t[-1] + chunk_s, chunk_s))
-    for a, b in zip(edges[:-1], edges[1:]):
-        while j < log.temp_t.size and log.temp_t[j] <= log.t[max(b - 1, a)]:
-            learner.add_temperature(float(log.temp_t[j]), float(log.temp_c[j]))
-            j += 1
-        for k in range(a, b):
-            learner.observe(float(log.t[k]), *log.gyro[k].tolist())
-        learner.step()
-    return learner
-
-
 def test_each_power_cycle_gets_its_own_offset():
     """Three power cycles an hour apart, each its turn-on offset: the last one re-learned."""
     log = still_log(rate_hz=1.0, days=3.0, day_s=FIELD_DAY_S / 2, seed=6, power_cycles=3,
                     turn_on_dps=0.3, accel=False)
-    learner = _learn_directly(log)
+    learner = learn_directly(log)
     assert learner.session == 2
     assert sorted(np.unique(learner.entries()[:, 6]).tolist()) == [0.0, 1.0, 2.0]
     last = log.session == 2
@@ -573,28 +558,6 @@ def test_each_power_cycle_gets_its_own_offset():
     temp = np.interp(log.t[end], log.temp_t, log.temp_c)
     err = log.truth[end] - drift(learner.model, log.t[end], temp)
     assert np.abs(err.mean(axis=0)).max() < 0.003 * DEG
-
-
-@pytest.mark.parametrize('turn_on_dps', [0.3, 0.0])
-def test_the_learned_model_carries_the_start_up_shift_gate_of_its_points(turn_on_dps, tmp_path):
-    """Three power cycles: any shift where they have their own offsets, else the gate."""
-    log = still_log(rate_hz=1.0, days=3.0, day_s=FIELD_DAY_S / 2, seed=6, power_cycles=3,
-                    turn_on_dps=turn_on_dps, accel=False)
-    learner = _learn_directly(log)
-    rec = learner.model.metrics['reanchor']
-    assert rec == learner.fit['reanchor']
-    assert (rec['sessions'], rec['held_out']) == (3, 3)
-    always, gated, never = (np.array(rec[k]) for k in ('always_dps', 'gated_dps', 'never_dps'))
-    gate = 2.0 * np.array(rec['anchor_error_dps'])
-    assert np.all((gate > 0.001) & (gate < 0.01)), rec      # still means of one gyro
-    np.testing.assert_allclose(rec['min_shift_dps'], np.where(gated < always, gate, 0.0))
-    if turn_on_dps:                   # held out, not re-anchoring misses tenths of deg/s
-        assert np.all(never > 20.0 * always) and rec['min_shift_dps'] == [0.0, 0.0, 0.0]
-    else:                             # a shift within the anchors' error is no offset
-        assert np.all(gated < always) and np.all(np.array(rec['min_shift_dps']) > 0.0)
-    # The learn file keeps it: the model it gives carries the same gate.
-    learner.save(tmp_path / 'learn.json')
-    assert model_from_file(tmp_path / 'learn.json').metrics['reanchor'] == rec
 
 
 def _bursts(learner, t0, n, period, rate=10.0, burst=5.0, bias=(0.01, -0.02, 0.005),

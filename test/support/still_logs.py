@@ -181,6 +181,21 @@ def still_log(*, rate_hz: float = 1.0, days: float = 3.0, profile: str = 'daily'
                      'power_cycles': power_cycles, 'true_temp': true_temp})
 
 
+def learn_directly(log, chunk_s=10.0):
+    """Feed a log to a learner alone (no core), stepped every ``chunk_s`` of stamps."""
+    learner = Learner(LearnConfig(temperature_timeout=5.0))
+    j = 0
+    edges = np.searchsorted(log.t, np.arange(log.t[0], log.t[-1] + chunk_s, chunk_s))
+    for a, b in zip(edges[:-1], edges[1:]):
+        while j < log.temp_t.size and log.temp_t[j] <= log.t[max(b - 1, a)]:
+            learner.add_temperature(float(log.temp_t[j]), float(log.temp_c[j]))
+            j += 1
+        for k in range(a, b):
+            learner.observe(float(log.t[k]), *log.gyro[k].tolist())
+        learner.step()
+    return learner
+
+
 def learn_through_core(log: StillLog, *, step_s: float = 1.0, config: LearnConfig | None = None,
                        policy: Policy | None = None):
     """
