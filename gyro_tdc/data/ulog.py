@@ -231,9 +231,10 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     p = Path(path)
     cut = ulog_truncated_bytes(p)
     chatter = io.StringIO()        # pyulog prints what it finds corrupt; the count is reported
+    asked = temperature_source.partition('.')[0]        # TOPIC.FIELD: any topic of the log
     try:
         with contextlib.redirect_stdout(chatter):
-            ulog = ULog(str(p), _TOPICS)
+            ulog = ULog(str(p), _TOPICS + ([asked] if '.' in temperature_source else []))
     except (ULogException, struct.error, UnicodeDecodeError, ValueError, IndexError,
             KeyError, TypeError, OSError) as exc:     # OSError: a seek past a damaged start
         raise DatasetError(f'Log {str(p)!r} is not a readable ULog: {exc}') from None

@@ -127,3 +127,14 @@ def test_arducopter_3_4_names_the_imu_temperature_temp(tmp_path):
                                            r'each instance carries: 0: 200 samples at 25 Hz, '
                                            r'temperature none; 1:'):
         load_run(cold, BagOptions(imu_instance=1))
+
+
+def test_a_thermometer_is_none_when_missing_nan_zero_or_implausible_and_keeps_real_gaps():
+    from gyro_tdc.data.flightlog import PLAUSIBLE_C, thermometer
+    assert thermometer(None) is None
+    assert thermometer([np.nan, np.nan]) is None
+    assert thermometer([0.0, 0.0, np.nan]) is None
+    assert thermometer([-1000.0] * 5) is None              # PX4's "no thermometer" filler
+    np.testing.assert_array_equal(thermometer([25.0, np.nan, 1e4, 26.0, -1000.0]),
+                                  [25.0, np.nan, np.nan, 26.0, np.nan])
+    np.testing.assert_array_equal(thermometer(list(PLAUSIBLE_C)), PLAUSIBLE_C)

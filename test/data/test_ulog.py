@@ -231,3 +231,27 @@ def test_a_real_pixhawk_6c_whose_gyro_thermometer_reads_nan_uses_its_acceleromet
     assert 24.4 < run.temp.min() < run.temp.max() < 24.9
     line = describe_read(PX4_ACCEL_THERMOMETER, load_run(PX4_ACCEL_THERMOMETER), '/r')
     assert 'temperature from vehicle_imu_status.temperature_accel' in line
+
+
+def test_any_topic_of_the_log_serves_as_a_thermometer_and_a_sentinel_is_none(tmp_path):
+    from flightlogs import Topic
+    imu = replace(_imus(count=1)[0], accel=None)
+    us = np.round(imu.t * 1e6).astype(np.uint64)
+    fields = [('uint64_t', 'timestamp'), ('float', 'temperature')]
+    topics = px4_topics([imu], temperature=False) + [
+        Topic('differential_pressure', fields, {
+            'timestamp': us[::10], 'temperature': np.linspace(20.0, 22.0, len(us[::10]))}),
+        # PX4 fills the field with -1000 where the sensor has no thermometer.
+        Topic('differential_pressure', fields, {
+            'timestamp': us[::10], 'temperature': np.full(len(us[::10]), -1000.0)},
+            multi_id=1)]
+    path = write_ulog(tmp_path / 'airspeed.ulg', topics)
+    log = read_ulog(path, temperature_source='differential_pressure.temperature')
+    assert log.temperature == 'differential_pressure.temperature' and log.proxy
+    np.testing.assert_allclose(log.temp_c, np.linspace(20.0, 22.0, len(us[::10])), rtol=1e-6)
+    other = write_ulog(tmp_path / 'sentinel.ulg', topics[:1] + [replace(topics[2], multi_id=0)])
+    with pytest.raises(DatasetError, match='no usable thermometer for --temperature-source '
+                                           'differential_pressure.temperature'):
+        read_ulog(other, temperature_source='differential_pressure.temperature')
+    with pytest.raises(DatasetError, match='carries no temperature'):
+        read_ulog(path)
