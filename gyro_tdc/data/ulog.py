@@ -91,8 +91,15 @@ def ulog_truncated_bytes(path: str | os.PathLike) -> int:
 
 
 def _seconds(d: dict) -> NDArray[np.float64]:
-    """Return a topic's sample stamps in s (``timestamp_sample`` where it has one)."""
-    us = d.get('timestamp_sample', d['timestamp'])
+    """
+    Return a topic's sample stamps in s (``timestamp_sample`` where it has one).
+
+    A driver that leaves ``timestamp_sample`` 0 would stack every sample on one stamp: such
+    a topic is stamped by ``timestamp`` (when it was published).
+    """
+    us = d.get('timestamp_sample')
+    if us is None or not np.all(np.asarray(us) > 0):
+        us = d['timestamp']
     return np.asarray(us, dtype=np.float64) * 1e-6
 
 

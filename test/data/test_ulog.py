@@ -255,3 +255,12 @@ def test_any_topic_of_the_log_serves_as_a_thermometer_and_a_sentinel_is_none(tmp
         read_ulog(other, temperature_source='differential_pressure.temperature')
     with pytest.raises(DatasetError, match='carries no temperature'):
         read_ulog(path)
+
+
+def test_a_driver_that_leaves_timestamp_sample_zero_is_stamped_by_its_timestamp(tmp_path):
+    imu = replace(_imus(count=1)[0], accel=None)
+    topics = px4_topics([imu])
+    topics[0].data['timestamp_sample'] = np.zeros(len(imu.t), dtype=np.uint64)
+    log = read_ulog(write_ulog(tmp_path / 'no_sample_stamp.ulg', topics))
+    np.testing.assert_allclose(log.imu_t, imu.t, atol=1e-9)     # not 300 samples at t = 0
+    assert len(load_run(tmp_path / 'no_sample_stamp.ulg')) == len(imu.t)
