@@ -15,14 +15,16 @@
 """
 Sweep real flight-controller logs through the CLI as a user runs it (issue 34's holdout).
 
-Every ``.ulg`` / ``.bin`` under the folders given is read by the readers (IMU instance 0,
-the IMU's thermometer and the barometer's), then run through ``train``, ``train
+Every ``.ulg`` / ``.bin`` under the folders given is read by the readers (every IMU
+instance, with the IMU's thermometer, the barometer's and the barometer's named as
+``TOPIC.FIELD`` / ``MSG.Field``), then instance 0 is run through ``train``, ``train
 --still-only`` and ``evaluate`` (the model trained, else the ``px4`` cubic fitted on the
 log), each with the default thermometer and with ``--temperature-source baro``. Printed per
 log: the outcome of each run (ok, refused, or a defect) and the first line of what it
 said; then the counts. A defect is: a traceback or an exit code other than 0 / 2, a
 refusal of more than one line, a percentage above 100 % (but the paper table's P3, a ratio),
-a thermometer outside -40 .. 125 degC, a gyro read slower than half the fastest gyro of the
+a thermometer outside -40 .. 125 degC or whose readings repeat a stamp (instances mixed), a
+gyro read slower than half the fastest gyro of the
 instance, or a model that makes the still stretches of its own log worse (``evaluate``'s
 ``p_vs_raw`` above 1.1 on an axis). A constant thermometer is noted on the read line.
 
@@ -91,8 +93,8 @@ def _ulog_gyro_rates(path: Path, instance: int = 0) -> dict:
     return out
 
 
-def inspect(path: Path, source: str) -> dict:
-    """Read the log as the CLI does; return what was read and the defects seen."""
+def inspect(path: Path, source: str, instance: int = 0) -> dict:
+    """Read one IMU of the log as the CLI does; return what was read and the defects seen."""
     from gyro_tdc.data.dataflash import read_dataflash
     from gyro_tdc.data.flightlog import detect_format, rate_hz
     from gyro_tdc.data.ulog import read_ulog
@@ -101,7 +103,7 @@ def inspect(path: Path, source: str) -> dict:
     fmt = detect_format(path)
     reader = read_ulog if fmt == 'ulog' else read_dataflash
     try:
-        log = reader(path, temperature_source=source)
+        log = reader(path, instance=instance, temperature_source=source)
     except GyroTdcError as exc:
         return {'outcome': 'refused', 'line': str(exc), 'defects': []}
     except Exception:  # noqa: B902 - a traceback is the defect this bench looks for
@@ -123,11 +125,14 @@ def inspect(path: Path, source: str) -> dict:
             defects.append(f'{log.source} read at {rate:.3g} Hz while '
                            + ', '.join(f'{k} {v:.3g} Hz' for k, v in rates.items()))
     t_src = log.imu_t if log.temp_t is None else log.temp_t
+    if log.temp_t is not None and np.any(np.diff(np.sort(log.temp_t)) == 0):
+        defects.append(f'{log.temperature}: readings repeat a stamp (instances mixed?)')
     line = (f'{log.firmware} {log.source} {rate:.3g} Hz x{len(log.imu_t)}, {log.temperature} '
             f'{rate_hz(np.asarray(t_src)):.3g} Hz '
             + (f'{temp.min():.1f}..{temp.max():.1f} degC' if temp.size else 'no reading')
             + ''.join(f' ({n})' for n in notes))
-    return {'outcome': 'read', 'line': line, 'defects': defects}
+    return {'outcome': 'read', 'line': line, 'defects': defects,
+            'instances': list(log.instances)}
 
 
 def _run(args: list, timeout: float) -> dict:
@@ -161,6 +166,11 @@ def _run(args: list, timeout: float) -> dict:
 def sweep_log(path: Path, timeout: float) -> dict:
     """Read, train (default, ``--still-only``) and evaluate one log with each thermometer."""
     runs = {}
+    named = 'sensor_baro.temperature' if path.suffix.lower() == '.ulg' else 'BARO.Temp'
+    for k in inspect(path, 'imu').get('instances', [0])[1:]:
+        for src in (*SOURCES, named):
+            runs[f'read {src} {k}'] = inspect(path, src, k)
+    runs[f'read {named}'] = inspect(path, named)
     with tempfile.TemporaryDirectory(prefix='gyro_tdc_real_') as tmp:
         for src in SOURCES:
             runs[f'read {src}'] = inspect(path, src)
@@ -218,7 +228,7 @@ def main(argv=None) -> int:
             counts[r['outcome']] += 1
             counts.update('defect: ' + d.split(' ')[0] for d in r['defects'])
             mark = ' DEFECT ' + '; '.join(r['defects']) if r['defects'] else ''
-            print(f'  {name:15s} {r["outcome"]:9s} {r["line"][:150]}{mark}')
+            print(f'  {name:26s} {r["outcome"]:9s} {r["line"][:150]}{mark}')
     bad = sum(1 for runs in result.values() if any(r['defects'] for r in runs.values()))
     print(f'{len(logs)} logs, {sum(len(r) for r in result.values())} runs; '
           + ', '.join(f'{k} {v}' for k, v in sorted(counts.items()))
