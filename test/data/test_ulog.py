@@ -264,3 +264,37 @@ def test_a_driver_that_leaves_timestamp_sample_zero_is_stamped_by_its_timestamp(
     log = read_ulog(write_ulog(tmp_path / 'no_sample_stamp.ulg', topics))
     np.testing.assert_allclose(log.imu_t, imu.t, atol=1e-9)     # not 300 samples at t = 0
     assert len(load_run(tmp_path / 'no_sample_stamp.ulg')) == len(imu.t)
+
+
+def test_sensor_combined_is_read_for_the_imu_sensor_selection_names(tmp_path):
+    from flightlogs import SENSOR_COMBINED, SENSOR_GYRO, Topic
+    imus = _imus(n=1000, count=2)                # 50 Hz; sensor_gyro logged at 1 Hz
+    imus[1] = replace(imus[1], temp=imus[1].temp + 20.0)
+    topics = []
+    for k, imu in enumerate(imus):
+        us = np.round(imu.t * 1e6).astype(np.uint64)[::50]
+        topics.append(Topic('sensor_gyro', SENSOR_GYRO, {
+            'timestamp': us, 'timestamp_sample': us, 'device_id': imu.device_id,
+            'x': imu.gyro[::50, 0], 'y': imu.gyro[::50, 1], 'z': imu.gyro[::50, 2],
+            'temperature': imu.temp[::50]}, multi_id=k))
+    us = np.round(imus[1].t * 1e6).astype(np.uint64)
+    topics.append(Topic('sensor_combined', SENSOR_COMBINED, {   # the IMU PX4 selected: 1
+        'timestamp': us, 'gyro_rad': imus[1].gyro, 'accelerometer_m_s2': imus[1].accel}))
+    selection = [('uint64_t', 'timestamp'), ('uint32_t', 'accel_device_id'),
+                 ('uint32_t', 'gyro_device_id')]
+    path = write_ulog(tmp_path / 'selected.ulg', topics + [Topic('sensor_selection', selection, {
+        'timestamp': us[:1], 'accel_device_id': 7, 'gyro_device_id': imus[1].device_id})])
+    log = read_ulog(path, instance=1)
+    assert (log.source, log.device_id) == ('sensor_combined', imus[1].device_id)
+    np.testing.assert_array_equal(log.gyro, imus[1].gyro)
+    assert log.temperature == 'sensor_gyro.temperature instance 1' and log.temp_c.min() > 40.0
+    log = read_ulog(path, instance=0)                # not IMU 1's gyro with IMU 0's thermometer
+    assert (log.source, log.device_id, len(log.imu_t)) == ('sensor_gyro', imus[0].device_id, 20)
+    assert 'sensor_combined carries instance 1 (sensor_selection)' in ' '.join(log.notes)
+    # A selection that changes mixes IMUs in sensor_combined: no instance's.
+    mixed = write_ulog(tmp_path / 'mixed.ulg', topics + [Topic('sensor_selection', selection, {
+        'timestamp': us[:2], 'accel_device_id': 7,
+        'gyro_device_id': [imus[0].device_id, imus[1].device_id]})])
+    assert {read_ulog(mixed, instance=k).source for k in (0, 1)} == {'sensor_gyro'}
+    # Without sensor_selection it is the first IMU's, as PX4 selects by default.
+    assert read_ulog(write_ulog(tmp_path / 'plain.ulg', topics)).source == 'sensor_combined'
