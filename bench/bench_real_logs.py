@@ -120,6 +120,8 @@ def inspect(path: Path, source: str, instance: int = 0) -> dict:
     rate = rate_hz(np.asarray(log.imu_t))
     if fmt == 'ulog':
         rates = _ulog_gyro_rates(path, log.instance)
+        if any(n.startswith('sensor_combined carries') for n in log.notes):
+            rates.pop('sensor_combined', None)       # another IMU's (sensor_selection)
         fast = max(rates.values(), default=0.0)
         if fast > 2.0 * rate:
             defects.append(f'{log.source} read at {rate:.3g} Hz while '
