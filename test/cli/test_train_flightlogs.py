@@ -214,6 +214,20 @@ def test_a_real_flight_log_trains_on_its_still_stretch_only_and_evaluate_scores_
                      '--still-only: the still time spans 1.11 degC only')
 
 
+def test_the_px4_baseline_on_a_real_flight_log_is_fitted_on_its_still_stretch_only(
+        tmp_path, capsys):
+    # Fitted on the whole log (25.5 .. 34.2 degC, a flight) it made the still stretch
+    # 120 / 4.8 / 354 x worse than raw.
+    log = [str(ARDUPILOT_AC33), '--imu-instance', '2', '--no-progress']
+    scores = tmp_path / 'px4.json'
+    assert evaluate([*log, '--json', str(scores), '--model', 'px4', '--train',
+                     str(ARDUPILOT_AC33)]) == 0
+    out = capsys.readouterr().out
+    assert 'the px4 cubic is fitted on the still stretches only (37 s of 80 s' in out
+    assert 'range 28.00 .. 32.03 degC' in out
+    assert max(json.loads(scores.read_text())['bags'][0]['models'][0]['p_vs_raw']) < 1.0
+
+
 def test_the_real_log_sweep_needs_no_log_and_finds_no_defect_in_a_real_extract(tmp_path):
     bench = Path(__file__).resolve().parents[2] / 'bench' / 'bench_real_logs.py'
     out = subprocess.run([sys.executable, str(bench), str(tmp_path)], capture_output=True,
