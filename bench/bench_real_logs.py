@@ -18,7 +18,7 @@ Sweep real flight-controller logs through the CLI as a user runs it (issue 34's 
 Every ``.ulg`` / ``.bin`` under the folders given is read by the readers (every IMU
 instance, with the IMU's thermometer, the barometer's and the barometer's named as
 ``TOPIC.FIELD`` / ``MSG.Field``), then instance 0 is run through ``train``, ``train
---still-only`` and ``evaluate`` (the model trained, else the ``px4`` cubic fitted on the
+--still-only`` and ``evaluate`` (the model trained, and the ``px4`` cubic fitted on the
 log), each with the default thermometer and with ``--temperature-source baro``. Printed per
 log: the outcome of each run (ok, refused, or a defect) and the first line of what it
 said; then the counts. A defect is: a traceback or an exit code other than 0 / 2, a
@@ -184,13 +184,14 @@ def sweep_log(path: Path, timeout: float) -> dict:
                                               *common], timeout)
                 if out.exists():
                     models.append((name, out))
-            js = Path(tmp) / f'{src}_eval.json'
-            model = (['--model', str(models[0][1])] if models
-                     else ['--model', 'px4', '--train', str(path)])    # --train: last
-            r = _run(['evaluate', str(path), '--json', str(js), *common, *model], timeout)
-            if r['outcome'] == 'ok' and models and js.exists():
-                r['defects'] += _harm(json.loads(js.read_text()), models[0][0])
-            runs[f'evaluate {src}'] = r
+            evals = [('evaluate', models[0][0], ['--model', str(models[0][1])])] if models else []
+            evals.append(('px4', 'px4', ['--model', 'px4', '--train', str(path)]))  # last
+            for name, by, model in evals:
+                js = Path(tmp) / f'{src}_{name}.json'
+                r = _run(['evaluate', str(path), '--json', str(js), *common, *model], timeout)
+                if r['outcome'] == 'ok' and js.exists():
+                    r['defects'] += _harm(json.loads(js.read_text()), by)
+                runs[f'{name} {src}'] = r
     return runs
 
 
