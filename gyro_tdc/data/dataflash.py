@@ -45,6 +45,8 @@ DATAFLASH_TYPES = {
 }
 #: The temperature field of ``IMU`` and ``BARO`` records: ``T``, or ``Temp`` (ArduCopter 3.4).
 TEMPERATURE_FIELDS = ('T', 'Temp')
+#: Records decoded at once (bounds the memory of a long log's decoding).
+_CHUNK = 1 << 16
 #: Scaled format characters (centi-units; degE7 for ``L``).
 _SCALE = {'c': 0.01, 'C': 0.01, 'e': 0.01, 'E': 0.01, 'L': 1e-7}
 
@@ -87,8 +89,11 @@ def _records(reader, mtype: int) -> dict[str, np.ndarray]:
         raise DatasetError(f'{fmt.name}: format {fmt.format!r} is {dt.itemsize} bytes, the '
                            f'FMT record says {fmt.len - 3}.')
     buf = np.frombuffer(reader.data_map, dtype=np.uint8)
-    rows = buf[offs[:, None] + 3 + np.arange(dt.itemsize)]
-    rec = np.ascontiguousarray(rows).view(dt).ravel()
+    cols = 3 + np.arange(dt.itemsize)
+    # Gathered in chunks: the byte index of a whole long log would take 8 bytes per byte.
+    rec = np.concatenate([np.ascontiguousarray(buf[offs[a:a + _CHUNK, None] + cols])
+                          .view(dt).ravel() for a in range(0, len(offs), _CHUNK)]
+                         or [np.zeros(0, dtype=dt)])
     out = {n: rec[n] * _SCALE[c] if c in _SCALE else rec[n] for n, c in zip(names, fmt.format)}
     if 'TimeUS' not in out and 'TimeMS' in out:     # ArduPilot up to 3.3 stamps in ms
         out['TimeUS'] = np.asarray(out['TimeMS'], dtype=np.float64) * 1e3
