@@ -154,7 +154,11 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     px4 = None
     if PX4 in specs:
         runs = load_runs(train_bags, with_accel(bag), log=log)
-        runs, kept = still_only_runs(runs)      # a flight log: its still stretches only
+        try:                                    # a flight log: its still stretches only
+            runs, kept = still_only_runs(runs)
+        except FitError as exc:
+            raise FitError(str(exc).replace('to discover on', 'to fit the px4 cubic on')
+                           ) from None
         if kept and log is not None:
             log(kept.replace('discovering on', 'the px4 cubic is fitted on'))
         const = constant_gyro_axes(runs)        # as train: every axis constant is refused

@@ -40,7 +40,7 @@ from gyro_tdc.signal.metrics import bias_stability
 from gyro_tdc.sim import simulate_scenario
 import numpy as np
 import pytest
-from real_logs import ARDUPILOT_AC33, ARDUPILOT_AC45, PX4_ACCEL_THERMOMETER
+from real_logs import ARDUPILOT_AC33, ARDUPILOT_AC45, PX4_ACCEL_THERMOMETER, PX4_HOVER
 
 
 @pytest.fixture(scope='module')
@@ -226,6 +226,11 @@ def test_the_px4_baseline_on_a_real_flight_log_is_fitted_on_its_still_stretch_on
     assert 'the px4 cubic is fitted on the still stretches only (37 s of 80 s' in out
     assert 'range 28.00 .. 32.03 degC' in out
     assert max(json.loads(scores.read_text())['bags'][0]['models'][0]['p_vs_raw']) < 1.0
+    hover = [str(PX4_HOVER), '--temperature-source', 'baro', '--no-progress']
+    assert evaluate([*hover, '--model', 'px4', '--train', str(PX4_HOVER)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith('no still stretch to fit the px4 cubic on (its motion is no drift): '
+                        'record the vehicle parked with the IMU on.') and '\n' not in err
 
 
 def test_the_real_log_sweep_needs_no_log_and_finds_no_defect_in_a_real_extract(tmp_path):
