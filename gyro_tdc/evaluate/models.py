@@ -33,8 +33,7 @@ from gyro_tdc.data import BagOptions, expand_bags, load_runs
 from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
 from gyro_tdc.identify import (constant_gyro_axes, fit_accel, fit_px4_cubic, identity_axes,
-                               neutral_runs, PX4_FEATURES)
-from gyro_tdc.identify.discover.model import still_only_runs
+                               neutral_runs, PX4_FEATURES, still_only_runs)
 from gyro_tdc.model import CompensationModel, load_model
 
 __all__ = ['NamedModel', 'PX4', 'bag_labels', 'load_models', 'model_labels', 'safe_label',
