@@ -28,10 +28,14 @@ gyro read slower than half the fastest gyro of the
 instance, or a model that makes the still stretches of its own log worse (``evaluate``'s
 ``p_vs_raw`` above 1.1 on an axis). A constant thermometer is noted on the read line.
 
+``--damaged K`` also reads and trains (``--allow-loss``) K copies of each log damaged as SD
+cards do (cut off, bytes flipped, a stretch zeroed; seeded by ``--seed``).
+
 No network, no logs shipped: point it at logs you have. ::
 
     .venv/bin/python bench/bench_real_logs.py /tmp/reallogs
     .venv/bin/python bench/bench_real_logs.py LOGS --timeout 120 --json out.json
+    .venv/bin/python bench/bench_real_logs.py LOGS --damaged 6 --seed 0
 """
 
 import argparse
@@ -195,6 +199,30 @@ def sweep_log(path: Path, timeout: float) -> dict:
     return runs
 
 
+def damaged_runs(path: Path, count: int, rng: np.random.Generator, timeout: float) -> dict:
+    """Read and ``train`` ``count`` damaged copies of a log: cut, bytes flipped, bytes zeroed."""
+    data = path.read_bytes()
+    runs = {}
+    with tempfile.TemporaryDirectory(prefix='gyro_tdc_damaged_') as tmp:
+        for k in range(count):
+            how = ('cut', 'flipped', 'zeroed')[k % 3]
+            at = int(rng.integers(min(64, len(data) - 1), len(data))) if len(data) > 1 else 0
+            if how == 'cut':
+                bad = data[:at]
+            elif how == 'flipped':
+                bad = bytearray(data)
+                for j in rng.integers(0, len(data), 5):
+                    bad[j] ^= 0xFF
+            else:
+                bad = data[:at] + bytes(len(data[at:at + 300])) + data[at + 300:]
+            copy = Path(tmp) / f'{how}{path.suffix}'
+            copy.write_bytes(bytes(bad))
+            runs[f'read {how} {at}'] = inspect(copy, 'imu')
+            runs[f'train {how} {at}'] = _run(['train', str(copy), '--out', str(copy) + '.yaml',
+                                              '--no-progress', '--allow-loss'], timeout)
+    return runs
+
+
 def _harm(doc: dict, trained_by: str) -> list:
     """Return a defect when a model makes the still stretches of its own log worse."""
     out = []
@@ -215,7 +243,11 @@ def main(argv=None) -> int:
     ap.add_argument('folders', nargs='*', default=[], help='folders (or files) of logs')
     ap.add_argument('--timeout', type=float, default=300.0, help='per command, s')
     ap.add_argument('--json', help='write every outcome here')
+    ap.add_argument('--damaged', type=int, default=0, metavar='K',
+                    help='also read and train K damaged copies of each log (seeded)')
+    ap.add_argument('--seed', type=int, default=0, help='seed of the damage')
     args = ap.parse_args(argv)
+    rng = np.random.default_rng(args.seed)
     logs = find_logs(args.folders)
     if not logs:
         print('nothing to read: no .ulg or .bin log under '
@@ -225,6 +257,7 @@ def main(argv=None) -> int:
     result = {}
     for path in logs:
         runs = sweep_log(path, args.timeout)
+        runs.update(damaged_runs(path, args.damaged, rng, args.timeout))
         result[str(path)] = runs
         print(f'== {path} ({path.stat().st_size / 1e6:.2f} MB)')
         for name, r in runs.items():

@@ -298,3 +298,20 @@ def test_sensor_combined_is_read_for_the_imu_sensor_selection_names(tmp_path):
     assert {read_ulog(mixed, instance=k).source for k in (0, 1)} == {'sensor_gyro'}
     # Without sensor_selection it is the first IMU's, as PX4 selects by default.
     assert read_ulog(write_ulog(tmp_path / 'plain.ulg', topics)).source == 'sensor_combined'
+
+
+def test_a_damaged_stamp_does_not_make_the_fastest_gyro_look_the_slowest(tmp_path):
+    from flightlogs import SENSOR_COMBINED, SENSOR_GYRO, Topic
+    imu = _imus(n=1200, count=1)[0]
+    us = np.round(imu.t * 1e6).astype(np.uint64)
+    bad = us.copy()
+    bad[600] = np.uint64(71776119083914675)               # one stamp whose high byte flipped
+    slow = us[::50]
+    topics = [Topic('sensor_gyro', SENSOR_GYRO, {
+        'timestamp': slow, 'timestamp_sample': slow, 'device_id': imu.device_id,
+        'x': imu.gyro[::50, 0], 'y': imu.gyro[::50, 1], 'z': imu.gyro[::50, 2],
+        'temperature': imu.temp[::50]}),
+        Topic('sensor_combined', SENSOR_COMBINED, {
+            'timestamp': bad, 'gyro_rad': imu.gyro, 'accelerometer_m_s2': imu.accel})]
+    log = read_ulog(write_ulog(tmp_path / 'flipped.ulg', topics))
+    assert log.source == 'sensor_combined' and len(log.imu_t) == 1200
