@@ -45,6 +45,8 @@ DATAFLASH_TYPES = {
 }
 #: The temperature field of ``IMU`` and ``BARO`` records: ``T``, or ``Temp`` (ArduCopter 3.4).
 TEMPERATURE_FIELDS = ('T', 'Temp')
+#: Records decoded at once (bounds the memory of a long log's decoding).
+_CHUNK = 1 << 16
 #: Scaled format characters (centi-units; degE7 for ``L``).
 _SCALE = {'c': 0.01, 'C': 0.01, 'e': 0.01, 'E': 0.01, 'L': 1e-7}
 
@@ -87,8 +89,11 @@ def _records(reader, mtype: int) -> dict[str, np.ndarray]:
         raise DatasetError(f'{fmt.name}: format {fmt.format!r} is {dt.itemsize} bytes, the '
                            f'FMT record says {fmt.len - 3}.')
     buf = np.frombuffer(reader.data_map, dtype=np.uint8)
-    rows = buf[offs[:, None] + 3 + np.arange(dt.itemsize)]
-    rec = np.ascontiguousarray(rows).view(dt).ravel()
+    cols = 3 + np.arange(dt.itemsize)
+    # Gathered in chunks: the byte index of a whole long log would take 8 bytes per byte.
+    rec = np.concatenate([np.ascontiguousarray(buf[offs[a:a + _CHUNK, None] + cols])
+                          .view(dt).ravel() for a in range(0, len(offs), _CHUNK)]
+                         or [np.zeros(0, dtype=dt)])
     out = {n: rec[n] * _SCALE[c] if c in _SCALE else rec[n] for n, c in zip(names, fmt.format)}
     if 'TimeUS' not in out and 'TimeMS' in out:     # ArduPilot up to 3.3 stamps in ms
         out['TimeUS'] = np.asarray(out['TimeMS'], dtype=np.float64) * 1e3
@@ -125,13 +130,34 @@ def _imu(reader, kind: str = 'IMU') -> dict[int, dict[str, np.ndarray]]:
         if mtype is None or not len(reader.offsets[mtype]):
             continue
         cols = _records(reader, mtype)
-        if 'I' in cols:
+        if _has_instances(cols):
             for i in np.unique(cols['I']).tolist():
                 sel = cols['I'] == i
                 out[int(i)] = {k: v[sel] for k, v in cols.items()}
         else:
             out[base] = cols
     return out
+
+
+def _has_instances(cols: dict[str, np.ndarray]) -> bool:
+    """Return True when a record type's ``I`` field numbers instances (a uint8)."""
+    return 'I' in cols and np.asarray(cols['I']).dtype == np.uint8
+
+
+def _instance(cols: dict[str, np.ndarray], want: int) -> tuple[dict[str, np.ndarray], int]:
+    """
+    Return the records of one instance of a message type and that instance.
+
+    A message with an instance field (``I``, a uint8: ``BARO``, ``MAG``... in ArduPilot 4;
+    ``HEAT.I`` is a float, its heater's integrator) interleaves its instances: ``want``
+    where it has it, else its first; a message without is one.
+    """
+    if not _has_instances(cols) or not len(cols['I']):
+        return cols, 0
+    have = np.unique(cols['I']).tolist()
+    i = want if want in have else int(have[0])
+    sel = cols['I'] == i
+    return {k: v[sel] for k, v in cols.items()}, int(i)
 
 
 def _seconds(cols: dict[str, np.ndarray]) -> np.ndarray:
@@ -223,6 +249,7 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     t = _seconds(d)
     b_inst = instance if instance in baros else 0       # BARO, BAR2...: per instance
     baro = baros.get(b_inst, {})
+    other, o_inst = _instance(other, instance)
     src = {'imu': d, 'baro': baro}.get(temperature_source, other)
     found = _temperature(src, (fld,) if fld else TEMPERATURE_FIELDS)
     temp_t = None
@@ -243,7 +270,8 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     else:
         temp_t, temp = _seconds(src), found[1]
         name = (f'BARO.{found[0]}' + (f' instance {b_inst}' if b_inst else '')
-                if temperature_source == 'baro' else temperature_source)
+                if temperature_source == 'baro' else
+                temperature_source + (f' instance {o_inst}' if o_inst else ''))
     acc = columns(d, ('AccX', 'AccY', 'AccZ')) if accel else None
     active, words = onboard_status(params, 'ardupilot', instance=instance)
     skipped = chatter.getvalue().count('\n')

@@ -33,13 +33,15 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['columns', 'DATAFLASH_MAGIC', 'describe_log', 'detect_format', 'flight_log_data',
-           'FlightLog', 'is_flight_log', 'rate_hz', 'thermometer', 'ULOG_MAGIC']
+           'FlightLog', 'is_flight_log', 'PLAUSIBLE_C', 'rate_hz', 'thermometer', 'ULOG_MAGIC']
 
 #: A ULog starts with these 7 bytes (then the version byte).
 ULOG_MAGIC = b'ULog\x01\x125'
 #: A DataFlash log starts with a FMT record: the two head bytes, then message type 0x80.
 DATAFLASH_MAGIC = b'\xa3\x95\x80'
 _SUFFIXES = {'.ulg': 'ulog', '.bin': 'dataflash'}
+#: Readings outside this range (degC) are no temperature of a working board.
+PLAUSIBLE_C = (-80.0, 200.0)
 
 
 @dataclass(frozen=True)
@@ -118,11 +120,15 @@ def thermometer(values: object) -> NDArray[np.float64] | None:
     Return a thermometer's readings as float64, None when it is no thermometer.
 
     A field that is missing, reads NaN throughout or a constant 0 (a driver that fills the
-    field without a sensor behind it) is no thermometer; NaN readings of a real one stay.
+    field without a sensor behind it) is no thermometer; NaN readings of a real one stay. A
+    reading outside :data:`PLAUSIBLE_C` is none (PX4 fills ``differential_pressure``'s
+    with -1000 where the sensor has no thermometer): NaN.
     """
     if values is None:
         return None
     v = np.asarray(values, dtype=np.float64).reshape(-1)
+    with np.errstate(invalid='ignore'):
+        v = np.where((v >= PLAUSIBLE_C[0]) & (v <= PLAUSIBLE_C[1]), v, np.nan)
     finite = v[np.isfinite(v)]
     if finite.size == 0 or not np.any(finite != 0.0):
         return None
@@ -137,9 +143,19 @@ def columns(d: dict, names: tuple[str, ...]) -> NDArray[np.float64] | None:
 
 
 def rate_hz(t: NDArray[np.float64]) -> float:
-    """Return the mean sample rate of stamps ``t`` (s), Hz (0 without two stamps apart)."""
-    span = float(t.max() - t.min()) if len(t) > 1 else 0.0
-    return (len(t) - 1) / span if span > 0 else 0.0
+    """
+    Return the mean sample rate of stamps ``t`` (s), Hz (0 without two stamps apart).
+
+    Over the middle 98 % of the sorted stamps where the whole span is over twice theirs: one
+    stamp a damaged byte threw years away (no checksum guards a log's payload) would make the
+    fastest gyro look the slowest.
+    """
+    t = np.sort(np.asarray(t, dtype=np.float64))
+    n, k = len(t), len(t) // 100
+    span = float(t[-1] - t[0]) if n > 1 else 0.0
+    if k and span > 2.0 * float(t[n - 1 - k] - t[k]) * (n - 1) / (n - 1 - 2 * k):
+        n, span = n - 2 * k, float(t[n - 1 - k] - t[k])
+    return (n - 1) / span if span > 0 else 0.0
 
 
 def is_flight_log(path: str | os.PathLike) -> bool:

@@ -41,7 +41,10 @@ from numpy.typing import NDArray
 __all__ = ['read_ulog', 'ulog_truncated_bytes']
 
 _TOPICS = ['sensor_gyro', 'sensor_accel', 'sensor_combined', 'vehicle_imu',
-           'vehicle_imu_status', 'sensor_baro', 'vehicle_air_data']
+           'vehicle_imu_status', 'sensor_baro', 'vehicle_air_data', 'sensor_selection']
+#: Where each topic of an instance names its gyro's device id.
+_DEVICE_FIELDS = (('sensor_gyro', 'device_id'), ('vehicle_imu', 'gyro_device_id'),
+                  ('vehicle_imu_status', 'gyro_device_id'))
 #: The IMU's own thermometers, in the order they are tried: (topic, field).
 _IMU_THERMOMETERS = (('sensor_gyro', 'temperature'), ('vehicle_imu_status', 'temperature_gyro'),
                      ('vehicle_imu_status', 'temperature_accel'),
@@ -91,8 +94,15 @@ def ulog_truncated_bytes(path: str | os.PathLike) -> int:
 
 
 def _seconds(d: dict) -> NDArray[np.float64]:
-    """Return a topic's sample stamps in s (``timestamp_sample`` where it has one)."""
-    us = d.get('timestamp_sample', d['timestamp'])
+    """
+    Return a topic's sample stamps in s (``timestamp_sample`` where it has one).
+
+    A driver that leaves ``timestamp_sample`` 0 would stack every sample on one stamp: such
+    a topic is stamped by ``timestamp`` (when it was published).
+    """
+    us = d.get('timestamp_sample')
+    if us is None or not np.all(np.asarray(us) > 0):
+        us = d['timestamp']
     return np.asarray(us, dtype=np.float64) * 1e-6
 
 
@@ -129,10 +139,39 @@ _GYRO_FIELDS = {'sensor_gyro': ('x', 'y', 'z'), 'sensor_combined': ('gyro_rad[0]
                 'vehicle_imu': ('delta_angle[0]', 'delta_angle_dt')}
 
 
+def _device(topics: dict, instance: int) -> int:
+    """Return the device id of an instance's gyro as its topics name it (0: unknown)."""
+    for tp, f in _DEVICE_FIELDS:
+        ids = np.asarray(topics.get(tp, {}).get(instance, {}).get(f, []))
+        if (ids := ids[ids != 0]).size:
+            return int(ids[0])
+    return 0
+
+
+def _combined_owner(topics: dict) -> int | None:
+    """
+    Return the instance whose gyro ``sensor_combined`` carries, None when no one instance.
+
+    ``sensor_combined`` is the selected IMU (``sensor_selection.gyro_device_id``), instance
+    0 unless the log says otherwise; a selection that changes mixes IMUs: None.
+    """
+    sel = topics.get('sensor_selection', {}).get(0, {}).get('gyro_device_id')
+    picked = set(np.asarray(sel if sel is not None else [], dtype=np.int64).tolist()) - {0}
+    if len(picked) > 1:
+        return None
+    ids = sorted({i for name in _GYRO_FIELDS for i in topics.get(name, {})})
+    known = {_device(topics, i): i for i in ids} | {0: 0}
+    # No selection logged, or no device id to match: the first IMU, PX4's default.
+    return known.get(next(iter(picked)), None) if picked and len(known) > 1 else 0
+
+
 def _gyros(topics: dict, instance: int) -> dict[str, dict]:
     """Return the gyro topics of an instance that hold rates: name -> columns."""
+    owner = _combined_owner(topics)
     return {k: d for k, need in _GYRO_FIELDS.items()
-            if (d := topics.get(k, {}).get(instance)) is not None and all(n in d for n in need)}
+            if (d := topics.get(k, {}).get(0 if k == 'sensor_combined' else instance))
+            is not None and all(n in d for n in need)
+            and (k != 'sensor_combined' or owner == instance)}
 
 
 def _pick_gyro(gyros: dict[str, dict]) -> str:
@@ -231,9 +270,10 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     p = Path(path)
     cut = ulog_truncated_bytes(p)
     chatter = io.StringIO()        # pyulog prints what it finds corrupt; the count is reported
+    asked = temperature_source.partition('.')[0]        # TOPIC.FIELD: any topic of the log
     try:
         with contextlib.redirect_stdout(chatter):
-            ulog = ULog(str(p), _TOPICS)
+            ulog = ULog(str(p), _TOPICS + ([asked] if '.' in temperature_source else []))
     except (ULogException, struct.error, UnicodeDecodeError, ValueError, IndexError,
             KeyError, TypeError, OSError) as exc:     # OSError: a seek past a damaged start
         raise DatasetError(f'Log {str(p)!r} is not a readable ULog: {exc}') from None
@@ -260,10 +300,14 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     d = gyros[source]
     t = _seconds(d)
     raw = source == 'sensor_gyro'
-    device, acc = 0, None
+    device, acc = _device(topics, instance), None
+    owner = _combined_owner(topics)
+    if 'sensor_combined' in topics and owner != instance and owner != 0:
+        notes.append('sensor_combined carries ' + (f'instance {owner}' if owner is not None
+                                                   else 'several IMUs (the selection changed)')
+                     + ' (sensor_selection), not this one')
     if raw:
         gyro = columns(d, ('x', 'y', 'z'))
-        device = int(d['device_id'][0]) if 'device_id' in d and len(t) else 0
         a = topics.get('sensor_accel', {}).get(instance)
         if accel and a is not None and (v := columns(a, ('x', 'y', 'z'))) is not None:
             acc = _on(t, _seconds(a), v)

@@ -33,7 +33,7 @@ from gyro_tdc.data import BagOptions, expand_bags, load_runs
 from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
 from gyro_tdc.identify import (constant_gyro_axes, fit_accel, fit_px4_cubic, identity_axes,
-                               neutral_runs, PX4_FEATURES)
+                               neutral_runs, PX4_FEATURES, still_only_runs)
 from gyro_tdc.model import CompensationModel, load_model
 
 __all__ = ['NamedModel', 'PX4', 'bag_labels', 'load_models', 'model_labels', 'safe_label',
@@ -124,7 +124,8 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
 
     ``specs`` are model files or shipped names (read by ``loader``, default
     :func:`~gyro_tdc.model.load_model`), ``px4`` (a cubic fitted on ``train_bags``, read
-    as ``bag`` says, accelerometer included) or ``px4-onboard`` / ``ardupilot-onboard``
+    as ``bag`` says, accelerometer included; on the still stretches of bags without a
+    reference that move, as ``train`` fits) or ``px4-onboard`` / ``ardupilot-onboard``
     (:mod:`gyro_tdc.evaluate.onboard`, from the parameters of the first ``held_out`` log).
     Labels come from :func:`model_labels`; ``log`` receives progress lines.
 
@@ -152,6 +153,13 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     px4 = None
     if PX4 in specs:
         runs = load_runs(train_bags, with_accel(bag), log=log)
+        try:                                    # a flight log: its still stretches only
+            runs, kept = still_only_runs(runs)
+        except FitError as exc:
+            raise FitError(str(exc).replace('to discover on', 'to fit the px4 cubic on')
+                           ) from None
+        if kept and log is not None:
+            log(kept.replace('discovering on', 'the px4 cubic is fitted on'))
         const = constant_gyro_axes(runs)        # as train: every axis constant is refused
         px4 = fit_px4_cubic(neutral_runs(runs, const), created={'bags': [r.name for r in runs]})
         px4 = identity_axes(px4, runs, const)   # a constant axis: not fitted, passed through

@@ -24,6 +24,10 @@ from __future__ import annotations
 
 from dataclasses import replace
 import json
+from pathlib import Path
+import shutil
+import subprocess
+import sys
 
 from bags import assert_bad_input
 from flightlogs import (bag_from_imu, Imu, imu_from_sim, px4_topics, write_dataflash,
@@ -36,7 +40,7 @@ from gyro_tdc.signal.metrics import bias_stability
 from gyro_tdc.sim import simulate_scenario
 import numpy as np
 import pytest
-from real_logs import ARDUPILOT_AC33, PX4_ACCEL_THERMOMETER
+from real_logs import ARDUPILOT_AC33, ARDUPILOT_AC45, PX4_ACCEL_THERMOMETER, PX4_HOVER
 
 
 @pytest.fixture(scope='module')
@@ -208,3 +212,38 @@ def test_a_real_flight_log_trains_on_its_still_stretch_only_and_evaluate_scores_
     assert np.all(np.array(got['models'][0]['bs']) < np.array(got['raw']['bs']))
     assert_bad_input(capsys, [ARDUPILOT_AC33, '--out', tmp_path / 'm0.yaml', '--no-progress'],
                      '--still-only: the still time spans 1.11 degC only')
+
+
+def test_the_px4_baseline_on_a_real_flight_log_is_fitted_on_its_still_stretch_only(
+        tmp_path, capsys):
+    # Fitted on the whole log (25.5 .. 34.2 degC, a flight) it made the still stretch
+    # 120 / 4.8 / 354 x worse than raw.
+    log = [str(ARDUPILOT_AC33), '--imu-instance', '2', '--no-progress']
+    scores = tmp_path / 'px4.json'
+    assert evaluate([*log, '--json', str(scores), '--model', 'px4', '--train',
+                     str(ARDUPILOT_AC33)]) == 0
+    out = capsys.readouterr().out
+    assert 'the px4 cubic is fitted on the still stretches only (37 s of 80 s' in out
+    assert 'range 28.00 .. 32.03 degC' in out
+    assert max(json.loads(scores.read_text())['bags'][0]['models'][0]['p_vs_raw']) < 1.0
+    hover = [str(PX4_HOVER), '--temperature-source', 'baro', '--no-progress']
+    assert evaluate([*hover, '--model', 'px4', '--train', str(PX4_HOVER)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.endswith('no still stretch to fit the px4 cubic on (its motion is no drift): '
+                        'record the vehicle parked with the IMU on.') and '\n' not in err
+
+
+def test_the_real_log_sweep_needs_no_log_and_finds_no_defect_in_a_real_extract(tmp_path):
+    bench = Path(__file__).resolve().parents[2] / 'bench' / 'bench_real_logs.py'
+    out = subprocess.run([sys.executable, str(bench), str(tmp_path)], capture_output=True,
+                         text=True, timeout=120, check=True).stdout
+    assert out == f'nothing to read: no .ulg or .bin log under {tmp_path}\n'
+    shutil.copy(ARDUPILOT_AC45, tmp_path)
+    out = subprocess.run([sys.executable, str(bench), str(tmp_path), '--json',
+                          str(tmp_path / 'sweep.json')], capture_output=True, text=True,
+                         timeout=600, check=True).stdout
+    runs = json.loads((tmp_path / 'sweep.json').read_text())[str(tmp_path / ARDUPILOT_AC45.name)]
+    assert runs['read BARO.Temp 1']['line'].endswith('BARO.Temp instance 1 10 Hz 33.2..34.1 degC')
+    assert all(runs[f'{cmd} imu']['outcome'] == 'refused' for cmd in ('train', 'still'))
+    assert 'already thermally compensated' in runs['train imu']['line']
+    assert out.splitlines()[-1].endswith('logs with a defect: 0')

@@ -23,7 +23,7 @@ from gyro_tdc.data.dataset import describe_read, load_run
 from gyro_tdc.errors import DatasetError
 import numpy as np
 import pytest
-from real_logs import ARDUPILOT_AC33
+from real_logs import ARDUPILOT_AC33, ARDUPILOT_AC45
 
 
 def _imus(n: int = 300, count: int = 3) -> list:
@@ -155,3 +155,33 @@ def test_a_real_arducopter_3_3_log_three_imus_with_temp_stamped_in_milliseconds(
                                            r'each carries: 0: 3854 samples at 48.2 Hz, '
                                            r'temperature IMU.Temp; .*BARO instance 0, 1'):
         load_run(ARDUPILOT_AC33, BagOptions(imu_instance=3))
+
+
+def test_a_real_arducopter_4_5_log_tells_instances_of_one_message_apart_by_their_i_field():
+    # mavparser's 00000081.BIN (CubeOrangePlus, heated): IMU and BARO each carry their
+    # instances in one message; HEAT's I is its heater's integrator, not an instance.
+    ranges = []
+    for k in range(3):
+        log = read_dataflash(ARDUPILOT_AC45, instance=k)
+        assert (log.instances, log.temperature, len(log.imu_t)) == ((0, 1, 2), 'IMU.T', 1255)
+        assert log.compensated and f'INS_TCAL{k + 1}_ENABLE=1' in log.onboard
+        assert not log.truncated_bytes and not log.damage
+        ranges.append((log.temp_c.min(), log.temp_c.max()))
+    assert ranges[0][0] > 43.0 and ranges[2][1] < 36.0       # IMU 3 sits away from the heater
+    with pytest.raises(DatasetError, match=r'already thermally compensated on board '
+                                           r'\(INS_TCAL1_ENABLE=1'):
+        load_run(ARDUPILOT_AC45)
+    # MSG.Field of a message with instances: the IMU's own, else the first; never mixed.
+    for src, k, name, lo, hi in (('BARO.Temp', 1, 'BARO.Temp instance 1', 33.0, 34.5),
+                                 ('BARO.Temp', 2, 'BARO.Temp', 44.5, 45.0),
+                                 ('IMU.T', 2, 'IMU.T instance 2', 33.8, 35.2),
+                                 ('HEAT.Temp', 1, 'HEAT.Temp', 43.4, 44.1),
+                                 ('MCU.MTemp', 0, 'MCU.MTemp', 37.3, 38.2)):
+        log = read_dataflash(ARDUPILOT_AC45, instance=k, temperature_source=src)
+        assert log.temperature == name and log.proxy
+        assert lo < log.temp_c.min() <= log.temp_c.max() < hi
+        assert np.all(np.diff(log.temp_t) > 0)                # one reading per stamp
+    assert len(read_dataflash(ARDUPILOT_AC45, temperature_source='HEAT.Temp').temp_t) == 50
+    run = load_run(ARDUPILOT_AC45, BagOptions(imu_instance=1, temperature_source='BARO.Temp',
+                                              allow_onboard_corrected=True))
+    assert run.info['temperature'] == 'BARO.Temp instance 1' and 33.0 < run.temp.min()

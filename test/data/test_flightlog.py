@@ -127,3 +127,26 @@ def test_arducopter_3_4_names_the_imu_temperature_temp(tmp_path):
                                            r'each instance carries: 0: 200 samples at 25 Hz, '
                                            r'temperature none; 1:'):
         load_run(cold, BagOptions(imu_instance=1))
+
+
+def test_a_thermometer_is_none_when_missing_nan_zero_or_implausible_and_keeps_real_gaps():
+    from gyro_tdc.data.flightlog import PLAUSIBLE_C, thermometer
+    assert thermometer(None) is None
+    assert thermometer([np.nan, np.nan]) is None
+    assert thermometer([0.0, 0.0, np.nan]) is None
+    assert thermometer([-1000.0] * 5) is None              # PX4's "no thermometer" filler
+    np.testing.assert_array_equal(thermometer([25.0, np.nan, 1e4, 26.0, -1000.0]),
+                                  [25.0, np.nan, np.nan, 26.0, np.nan])
+    np.testing.assert_array_equal(thermometer(list(PLAUSIBLE_C)), PLAUSIBLE_C)
+
+
+def test_one_stamp_a_damaged_byte_threw_away_does_not_change_a_topics_rate():
+    from gyro_tdc.data.flightlog import rate_hz
+    t = 20.0 + np.arange(1200) * 0.005                   # 200 Hz
+    assert rate_hz(t) == pytest.approx(200.0)
+    bad = t.copy()
+    bad[600] = 7.2e10                                      # a flipped high byte of its stamp
+    assert rate_hz(bad) == pytest.approx(200.0, rel=0.01)  # not 1200 / 7.2e10 s
+    gaps = np.concatenate([t[:600], t[600:] + 3.0])        # a logger dropout is no outlier
+    assert rate_hz(gaps) == pytest.approx(1199 / (gaps[-1] - gaps[0]))
+    assert rate_hz(t[:2]) == pytest.approx(200.0) and rate_hz(t[:1]) == 0.0

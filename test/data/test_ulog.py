@@ -231,3 +231,87 @@ def test_a_real_pixhawk_6c_whose_gyro_thermometer_reads_nan_uses_its_acceleromet
     assert 24.4 < run.temp.min() < run.temp.max() < 24.9
     line = describe_read(PX4_ACCEL_THERMOMETER, load_run(PX4_ACCEL_THERMOMETER), '/r')
     assert 'temperature from vehicle_imu_status.temperature_accel' in line
+
+
+def test_any_topic_of_the_log_serves_as_a_thermometer_and_a_sentinel_is_none(tmp_path):
+    from flightlogs import Topic
+    imu = replace(_imus(count=1)[0], accel=None)
+    us = np.round(imu.t * 1e6).astype(np.uint64)
+    fields = [('uint64_t', 'timestamp'), ('float', 'temperature')]
+    topics = px4_topics([imu], temperature=False) + [
+        Topic('differential_pressure', fields, {
+            'timestamp': us[::10], 'temperature': np.linspace(20.0, 22.0, len(us[::10]))}),
+        # PX4 fills the field with -1000 where the sensor has no thermometer.
+        Topic('differential_pressure', fields, {
+            'timestamp': us[::10], 'temperature': np.full(len(us[::10]), -1000.0)},
+            multi_id=1)]
+    path = write_ulog(tmp_path / 'airspeed.ulg', topics)
+    log = read_ulog(path, temperature_source='differential_pressure.temperature')
+    assert log.temperature == 'differential_pressure.temperature' and log.proxy
+    np.testing.assert_allclose(log.temp_c, np.linspace(20.0, 22.0, len(us[::10])), rtol=1e-6)
+    other = write_ulog(tmp_path / 'sentinel.ulg', topics[:1] + [replace(topics[2], multi_id=0)])
+    with pytest.raises(DatasetError, match='no usable thermometer for --temperature-source '
+                                           'differential_pressure.temperature'):
+        read_ulog(other, temperature_source='differential_pressure.temperature')
+    with pytest.raises(DatasetError, match='carries no temperature'):
+        read_ulog(path)
+
+
+def test_a_driver_that_leaves_timestamp_sample_zero_is_stamped_by_its_timestamp(tmp_path):
+    imu = replace(_imus(count=1)[0], accel=None)
+    topics = px4_topics([imu])
+    topics[0].data['timestamp_sample'] = np.zeros(len(imu.t), dtype=np.uint64)
+    log = read_ulog(write_ulog(tmp_path / 'no_sample_stamp.ulg', topics))
+    np.testing.assert_allclose(log.imu_t, imu.t, atol=1e-9)     # not 300 samples at t = 0
+    assert len(load_run(tmp_path / 'no_sample_stamp.ulg')) == len(imu.t)
+
+
+def test_sensor_combined_is_read_for_the_imu_sensor_selection_names(tmp_path):
+    from flightlogs import SENSOR_COMBINED, SENSOR_GYRO, Topic
+    imus = _imus(n=1000, count=2)                # 50 Hz; sensor_gyro logged at 1 Hz
+    imus[1] = replace(imus[1], temp=imus[1].temp + 20.0)
+    topics = []
+    for k, imu in enumerate(imus):
+        us = np.round(imu.t * 1e6).astype(np.uint64)[::50]
+        topics.append(Topic('sensor_gyro', SENSOR_GYRO, {
+            'timestamp': us, 'timestamp_sample': us, 'device_id': imu.device_id,
+            'x': imu.gyro[::50, 0], 'y': imu.gyro[::50, 1], 'z': imu.gyro[::50, 2],
+            'temperature': imu.temp[::50]}, multi_id=k))
+    us = np.round(imus[1].t * 1e6).astype(np.uint64)
+    topics.append(Topic('sensor_combined', SENSOR_COMBINED, {   # the IMU PX4 selected: 1
+        'timestamp': us, 'gyro_rad': imus[1].gyro, 'accelerometer_m_s2': imus[1].accel}))
+    selection = [('uint64_t', 'timestamp'), ('uint32_t', 'accel_device_id'),
+                 ('uint32_t', 'gyro_device_id')]
+    path = write_ulog(tmp_path / 'selected.ulg', topics + [Topic('sensor_selection', selection, {
+        'timestamp': us[:1], 'accel_device_id': 7, 'gyro_device_id': imus[1].device_id})])
+    log = read_ulog(path, instance=1)
+    assert (log.source, log.device_id) == ('sensor_combined', imus[1].device_id)
+    np.testing.assert_array_equal(log.gyro, imus[1].gyro)
+    assert log.temperature == 'sensor_gyro.temperature instance 1' and log.temp_c.min() > 40.0
+    log = read_ulog(path, instance=0)                # not IMU 1's gyro with IMU 0's thermometer
+    assert (log.source, log.device_id, len(log.imu_t)) == ('sensor_gyro', imus[0].device_id, 20)
+    assert 'sensor_combined carries instance 1 (sensor_selection)' in ' '.join(log.notes)
+    # A selection that changes mixes IMUs in sensor_combined: no instance's.
+    mixed = write_ulog(tmp_path / 'mixed.ulg', topics + [Topic('sensor_selection', selection, {
+        'timestamp': us[:2], 'accel_device_id': 7,
+        'gyro_device_id': [imus[0].device_id, imus[1].device_id]})])
+    assert {read_ulog(mixed, instance=k).source for k in (0, 1)} == {'sensor_gyro'}
+    # Without sensor_selection it is the first IMU's, as PX4 selects by default.
+    assert read_ulog(write_ulog(tmp_path / 'plain.ulg', topics)).source == 'sensor_combined'
+
+
+def test_a_damaged_stamp_does_not_make_the_fastest_gyro_look_the_slowest(tmp_path):
+    from flightlogs import SENSOR_COMBINED, SENSOR_GYRO, Topic
+    imu = _imus(n=1200, count=1)[0]
+    us = np.round(imu.t * 1e6).astype(np.uint64)
+    bad = us.copy()
+    bad[600] = np.uint64(71776119083914675)               # one stamp whose high byte flipped
+    slow = us[::50]
+    topics = [Topic('sensor_gyro', SENSOR_GYRO, {
+        'timestamp': slow, 'timestamp_sample': slow, 'device_id': imu.device_id,
+        'x': imu.gyro[::50, 0], 'y': imu.gyro[::50, 1], 'z': imu.gyro[::50, 2],
+        'temperature': imu.temp[::50]}),
+        Topic('sensor_combined', SENSOR_COMBINED, {
+            'timestamp': bad, 'gyro_rad': imu.gyro, 'accelerometer_m_s2': imu.accel})]
+    log = read_ulog(write_ulog(tmp_path / 'flipped.ulg', topics))
+    assert log.source == 'sensor_combined' and len(log.imu_t) == 1200

@@ -19,8 +19,8 @@ Each extract keeps the original records of the topics / message types a reader u
 for byte, over a leading stretch of the log; ``test/support/files/flightlogs/SOURCE.md``
 names the source and licence of each. ``python test/support/real_logs.py SRC_DIR`` rebuilds
 them from the originals (the pyulog 1.2.1 sdist's ``test/``, bols-blue-org/ape's ``tests/``
-PX4/px4-ulog-rs' ``tests/fixtures/`` and dronekit/dronekit-la-testdata, all in one
-folder).
+PX4/px4-ulog-rs' ``tests/fixtures/``, dronekit/dronekit-la-testdata and the mavparser 0.0.1
+sdist's ``data/``, all in one folder).
 """
 
 from __future__ import annotations
@@ -48,6 +48,11 @@ PX4_ACCEL_THERMOMETER = FILES / 'px4_v6c_accel_thermometer.ulg'
 #: dronekit-la-testdata's ``log171.bin`` (ArduCopter V3.3-dev): three IMUs at 50 Hz with
 #: ``Temp``, stamped in ``TimeMS``.
 ARDUPILOT_AC33 = FILES / 'ardupilot_ac33_three_imus.bin'
+
+#: mavparser 0.0.1's ``00000081.BIN`` (ArduCopter V4.5.7, CubeOrangePlus): three IMUs in one
+#: ``IMU`` message (``I``), two barometers in ``BARO`` (``I``), the heater's ``HEAT`` (whose
+#: ``I`` is its integrator), ``INS_TCALn_ENABLE`` = 1.
+ARDUPILOT_AC45 = FILES / 'ardupilot_ac45_cube_orange_plus.bin'
 
 _PX4_TOPICS = ['sensor_gyro', 'sensor_accel', 'sensor_combined', 'vehicle_imu',
                'vehicle_imu_status', 'sensor_baro', 'vehicle_air_data']
@@ -113,6 +118,8 @@ def main(src_dir: str) -> None:
                       seconds=120.0)
     extract_ulog(src / 'quadrotor_local.ulg', PX4_ACCEL_THERMOMETER, seconds=20.0)
     extract_dataflash(src / 'log171.bin', ARDUPILOT_AC33, seconds=80.0)
+    extract_dataflash(src / '00000081.BIN', ARDUPILOT_AC45, seconds=60.0,
+                      types=('FMT', 'PARM', 'MSG', 'VER', 'IMU', 'BARO', 'HEAT', 'MCU'))
 
 
 if __name__ == '__main__':
