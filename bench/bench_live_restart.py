@@ -20,8 +20,8 @@ reliable input) and a draining subscriber on one executor, in one process. Each 
 destroys the compensator, starts a new one resuming its learn_file and streams the next
 ``--chunk`` messages of vehicle day 1 (seed 1, 2 Hz); it fails when the outputs do not all
 come within ``--wait`` s (a failure starts a new rig). ``--hogs`` busy processes load the
-machine while it runs (ended at exit); ``--tree`` takes the rig from another checkout, to
-compare with the main branch's.
+machine while it runs (ended at exit), the rig ``--nice`` below them; ``--tree`` takes the
+rig from another checkout, to compare with the main branch's.
 
 ::
 
@@ -94,6 +94,7 @@ def main():
     parser.add_argument('--chunk', type=int, default=400, help='messages after each restart')
     parser.add_argument('--wait', type=float, default=10.0, help='longest wait of a step [s]')
     parser.add_argument('--hogs', type=int, default=0, help='busy processes beside it')
+    parser.add_argument('--nice', type=int, default=10, help="the rig's niceness over the hogs'")
     parser.add_argument('--tree', type=Path, default=ROOT, help='checkout of the rig')
     args = parser.parse_args()
     sys.path[:0] = [str(ROOT), str(ROOT / 'test' / 'support')]
@@ -105,6 +106,7 @@ def main():
     day = live_mod.serialised(simulate_run('vehicle_day1', seed=1, rate_hz=2.0), 0.0)
     hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'])
             for _ in range(args.hogs)]
+    os.nice(args.nice)      # the rig below the hogs: a starved test, as on a loaded CI runner
     start = time.monotonic()
     try:
         with tempfile.TemporaryDirectory() as tmp:
@@ -114,7 +116,7 @@ def main():
             hog.kill()
             hog.wait()
     print(f'{failed} of {args.restarts} restarts failed (rig of {args.tree}, {args.hogs} '
-          f'hogs, {args.chunk} messages each, wait {args.wait:g} s; '
+          f'hogs, nice +{args.nice}, {args.chunk} messages each, wait {args.wait:g} s; '
           f'{time.monotonic() - start:.0f} s)')
     return 0
 
