@@ -101,11 +101,11 @@ class Live:
     A learning compensator, a feeder and a draining subscriber on one executor.
 
     The feeder's writers are made afresh with each compensator (:meth:`start`): a reliable
-    writer that outlives a reader keeps its old samples, and the reader that replaces it
-    must be told once, when the writer matches it, that those are not for it. Within one
-    process Fast DDS tells it directly, once; if the new reader has not matched the writer
-    back by then (a loaded machine), it waits for those samples for good and takes nothing
-    more. A fresh writer has no old samples to announce.
+    writer that outlives a reader keeps its old samples, and tells the reader that replaces
+    it, once, as it matches it, that those are not for it. Within one process Fast DDS hands
+    that over directly: a reader that has not matched the writer back by then (a loaded
+    machine) drops it, and behind more such samples than its keep-all limit (5,000) it
+    accepts nothing more. A fresh writer has no old samples.
     """
 
     def __init__(self, context, learn_file, params=None):
