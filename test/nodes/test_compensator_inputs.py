@@ -39,7 +39,7 @@ import numpy as np
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
-from rosutil import spin_until
+from rosutil import matched_readers, matched_writers, spin_until
 from sensor_msgs.msg import Imu, Temperature
 import yaml
 
@@ -133,7 +133,10 @@ def probe(context, tmp_path, name):
             executor.add_node(n)
         spin_until(executor, lambda: imu_pub.get_subscription_count() > 0
                    and temp_pub.get_subscription_count() > 0
-                   and node.count_subscribers(output) > 0, 10.0, what='discovery')
+                   and matched_writers(node, '/driver/gyro') > 0
+                   and matched_writers(node, '/driver/thermometer') > 0
+                   and matched_readers(node, output) > 0
+                   and matched_writers(io, output) > 0, 10.0, what='discovery')
         imu_ns, w, temp_ns, temp_c = samples()
         j = 0
         for k, ns in enumerate(imu_ns):

@@ -36,7 +36,7 @@ import numpy as np
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
-from rosutil import matched_readers, spin_until
+from rosutil import matched_readers, matched_writers, spin_until
 from sensor_msgs.msg import Imu, Temperature
 from std_srvs.srv import Trigger
 
@@ -67,9 +67,14 @@ class LearnRig:
         spin_until(self.executor, lambda: self.imu_pub.get_subscription_count() > 0
                    and self.temp_pub.get_subscription_count() > 0
                    and self.save.service_is_ready() and self.reset.service_is_ready()
+                   and matched_writers(self.node, 'imu/data_raw') > 0
+                   and matched_writers(self.node, 'imu/temperature') > 0
                    and matched_readers(self.node, 'imu/data_compensated') > 0
+                   and matched_writers(self.io, 'imu/data_compensated') > 0
                    and (self.motion_pub is None
-                        or self.motion_pub.get_subscription_count() > 0), 10.0,
+                        or (self.motion_pub.get_subscription_count() > 0
+                            and matched_writers(self.node, self.motion_pub.topic_name) > 0)),
+                   10.0,
                    what='discovery')
 
     def feed(self, t0, secs, temp, bias, moving, seed, paced=False):

@@ -36,7 +36,8 @@ from gyro_tdc.runtime.health import health, OK, sensor_mismatch, WARN
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
-from rosutil import interrupt, Lines, node_process, spin_until
+from rosutil import (interrupt, Lines, matched_readers, matched_writers, node_process,
+                     spin_until)
 from sensor_msgs.msg import Imu
 from std_msgs.msg import Float32, Float64
 from synth import synth_run
@@ -118,7 +119,10 @@ class FloatRig:
             self.executor.add_node(node)
         spin_until(self.executor, lambda: self.imu_pub.get_subscription_count() > 0
                    and self.temp_pub.get_subscription_count() > 0
-                   and self.node.count_subscribers('imu/data_compensated') > 0, 10.0,
+                   and matched_writers(self.node, 'imu/data_raw') > 0
+                   and matched_writers(self.node, 'imu/temperature') > 0
+                   and matched_readers(self.node, 'imu/data_compensated') > 0
+                   and matched_writers(self.io, 'imu/data_compensated') > 0, 10.0,
                    what='discovery')
 
     def temperature(self, value):

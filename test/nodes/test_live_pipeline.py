@@ -29,7 +29,7 @@ import numpy as np
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rosutil import spin_until
+from rosutil import matched_writers, spin_until
 from sensor_msgs.msg import Imu
 
 SCENARIO = 'demo_fast'   # 20 -> 50 -> 20 degC, static effects bias, dT, dT2
@@ -80,7 +80,12 @@ def test_driver_to_compensator_reduces_bias_stability(ros_context, tmp_path):
         # Stream only once every subscription is matched, so nothing is lost to discovery.
         spin_until(executor, lambda: driver._imu_pub.get_subscription_count() >= 2
                    and driver._temp_pub.get_subscription_count() >= 1
-                   and comp._pub.get_subscription_count() >= 1, 10.0, what='discovery')
+                   and comp._pub.get_subscription_count() >= 1
+                   and matched_writers(comp, 'imu/data_raw') >= 1
+                   and matched_writers(comp, 'imu/temperature') >= 1
+                   and matched_writers(sink, 'imu/data_raw') >= 1
+                   and matched_writers(sink, 'imu/data_compensated') >= 1, 10.0,
+                   what='discovery')
         executor.add_node(driver)
         spin_until(executor, lambda: driver._state == 'finished', 60.0,
                    what='the whole run published')

@@ -27,7 +27,7 @@ import numpy as np
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rosutil import matched_readers, spin_until
+from rosutil import matched_readers, matched_writers, spin_until
 from sensor_msgs.msg import Imu, Temperature
 
 __all__ = ['BACKLOG_WARNING', 'ok_but_backlog', 'problems', 'rates', 'record_statuses',
@@ -112,11 +112,15 @@ class Rig:
         self.io.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 10)
         self.executor.add_node(self.node)
         self.executor.add_node(self.io)
-        # Matched on the writers' side, each way: what is published before is lost.
+        # Matched on both sides, each way: what is published before is lost.
         spin_until(self.executor, lambda: self.imu_pub.get_subscription_count() > 0
                    and self.temp_pub.get_subscription_count() > 0
+                   and matched_writers(self.node, 'imu/data_raw') > 0
+                   and matched_writers(self.node, 'imu/temperature') > 0
                    and matched_readers(self.node, 'imu/data_compensated') > 0
-                   and matched_readers(self.node, '/diagnostics') > 0, 20.0,
+                   and matched_writers(self.io, 'imu/data_compensated') > 0
+                   and matched_readers(self.node, '/diagnostics') > 0
+                   and matched_writers(self.io, '/diagnostics') > 0, 20.0,
                    what='discovery')
 
     def _on_diag(self, msg):

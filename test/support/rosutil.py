@@ -29,8 +29,8 @@ import threading
 import time
 from typing import Any, Callable, IO, Iterator, Optional
 
-__all__ = ['Lines', 'interrupt', 'matched_readers', 'node_process', 'request_until_answered',
-           'spin_until', 'spin_until_quiet']
+__all__ = ['Lines', 'interrupt', 'matched_readers', 'matched_writers', 'node_process',
+           'request_until_answered', 'spin_until', 'spin_until_quiet']
 
 
 @contextlib.contextmanager
@@ -71,6 +71,19 @@ def matched_readers(node: Any, topic: str) -> int:
     name = node.resolve_topic_name(topic)
     return sum(pub.get_subscription_count() for pub in node.publishers
                if pub.topic_name == name)
+
+
+def matched_writers(node: Any, topic: str) -> int:
+    """
+    Return how many writers the subscriptions of ``node`` on ``topic`` have matched.
+
+    The reader's side of a match, which can come after the writer's: a reader drops what
+    reaches it from a writer it has not matched yet (best effort: for good). A wait before
+    publishing needs both sides. ``topic`` is resolved as the node resolves it.
+    """
+    name = node.resolve_topic_name(topic)
+    return sum(sub.get_publisher_count() for sub in node.subscriptions
+               if sub.topic_name == name)
 
 
 def spin_until(executor: Any, predicate: Callable[[], bool], timeout_s: float = 10.0, *,

@@ -48,7 +48,7 @@ import numpy as np
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
-from rosutil import matched_readers, spin_until
+from rosutil import matched_readers, matched_writers, spin_until
 from sensor_msgs.msg import Imu, Temperature
 from std_srvs.srv import Trigger
 
@@ -97,7 +97,16 @@ def serialised(d, off):
 
 
 class Live:
-    """A learning compensator, a feeder and a draining subscriber on one executor."""
+    """
+    A learning compensator, a feeder and a draining subscriber on one executor.
+
+    The feeder's writers are made afresh with each compensator (:meth:`start`): a reliable
+    writer that outlives a reader keeps its old samples, and tells the reader that replaces
+    it, once, as it matches it, that those are not for it. Within one process Fast DDS hands
+    that over directly: a reader that has not matched the writer back by then (a loaded
+    machine) drops it, and behind more such samples than its keep-all limit (5,000) it
+    accepts nothing more. A fresh writer has no old samples.
+    """
 
     def __init__(self, context, learn_file, params=None):
         self.context = context
@@ -105,8 +114,6 @@ class Live:
         self.params = params
         self.executor = make_executor('events', context)
         self.io = rclpy.create_node('feeder', context=context)
-        self.imu_pub = self.io.create_publisher(Imu, 'imu/data_raw', RELIABLE)
-        self.temp_pub = self.io.create_publisher(Temperature, 'imu/temperature', RELIABLE)
         self.out: list[bytes] = []
         self.io.create_subscription(Imu, 'imu/data_compensated', self.out.append, RELIABLE,
                                     raw=True)
@@ -119,25 +126,34 @@ class Live:
         params = self.params or [
             Parameter('learn', value=True), Parameter('learn_file', value=self.learn_file),
             Parameter('learn_swap_delay', value=SWAP_DELAY_S)]
+        self.imu_pub = self.io.create_publisher(Imu, 'imu/data_raw', RELIABLE)
+        self.temp_pub = self.io.create_publisher(Temperature, 'imu/temperature', RELIABLE)
         self.node = CompensatorNode(context=self.context, parameter_overrides=[
             *params, Parameter('input_reliability', value='reliable')])
         self.executor.add_node(self.node)
-        # The service's discovery too: the new node's readers have matched by then.
         self.save = self.io.create_client(Trigger, 'compensator_node/learn_save')
+        # Each link matched on both sides: a reader drops what comes before it matched the
+        # writer (the temperatures are best effort: for good). The service's discovery too.
         self.spin_until(lambda: self.imu_pub.get_subscription_count() > 0
                         and self.temp_pub.get_subscription_count() > 0
-                        and (self.params is not None or self.save.service_is_ready())
-                        and matched_readers(self.node, 'imu/data_compensated') > 0,
+                        and matched_writers(self.node, 'imu/data_raw') > 0
+                        and matched_writers(self.node, 'imu/temperature') > 0
+                        and matched_readers(self.node, 'imu/data_compensated') > 0
+                        and matched_writers(self.io, 'imu/data_compensated') > 0
+                        and (self.params is not None or self.save.service_is_ready()),
                         'discovery')
 
     def stop(self):
-        """Destroy the compensator: killed, it saves learn_file on the way out."""
+        """Destroy the compensator (killed, it saves learn_file on the way out), its writers."""
         self.executor.remove_node(self.node)
         self.node.destroy_node()
         self.node = None
         self.io.destroy_client(self.save)
         self.spin_until(lambda: self.imu_pub.get_subscription_count() == 0
-                        and self.temp_pub.get_subscription_count() == 0, 'unmatched')
+                        and self.temp_pub.get_subscription_count() == 0
+                        and matched_writers(self.io, 'imu/data_compensated') == 0, 'unmatched')
+        self.io.destroy_publisher(self.imu_pub)
+        self.io.destroy_publisher(self.temp_pub)
 
     def spin_until(self, predicate, what, timeout_s=30.0):
         try:

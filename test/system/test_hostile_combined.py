@@ -39,7 +39,7 @@ import pytest
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
 from rclpy.serialization import serialize_message
-from rosutil import spin_until_quiet
+from rosutil import matched_writers, spin_until_quiet
 from sensor_msgs.msg import Imu
 from synth import synth_run
 import yaml
@@ -121,6 +121,7 @@ def test_a_malformed_message_a_1e30_reading_and_a_forged_model_in_a_2khz_stream(
     raw_pub = rig.io.create_publisher(Imu, 'imu/data_raw', RELIABLE)
     client = AsyncParameterClient(rig.io, 'compensator_node')
     rig.spin_until(lambda: raw_pub.get_subscription_count() > 0
+                   and matched_writers(node, 'imu/data_raw') >= 2
                    and client.services_are_ready(), what='raw publisher and parameters')
     stream = Stream(rig, raw_pub)
     stream.start()

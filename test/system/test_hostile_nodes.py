@@ -43,7 +43,8 @@ import pytest
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rosutil import Lines, node_process, spin_until, spin_until_quiet
+from rosutil import (Lines, matched_readers, matched_writers, node_process, spin_until,
+                     spin_until_quiet)
 from sensor_msgs.msg import Imu, Temperature
 from std_srvs.srv import Trigger
 from synth import synth_run
@@ -323,7 +324,14 @@ def test_chained_compensators_are_reported(models, ros_context):
         spin_until(executor, lambda: pub.get_subscription_count() == 1
                    and temp_pub.get_subscription_count() == 2
                    and io.count_publishers('imu/data_compensated') == 1
-                   and second.count_publishers('chain/middle') == 1, what='discovery')
+                   and second.count_publishers('chain/middle') == 1
+                   and matched_writers(first, 'imu/data_raw') == 1
+                   and matched_writers(first, 'imu/temperature') == 1
+                   and matched_writers(second, 'imu/temperature') == 1
+                   and matched_readers(first, 'chain/middle') == 1
+                   and matched_writers(second, 'chain/middle') == 1
+                   and matched_readers(second, 'imu/data_compensated') == 1
+                   and matched_writers(io, 'imu/data_compensated') == 1, what='discovery')
         temp = Temperature()
         temp.header.stamp.sec = int(T0) - 1
         temp.temperature = 20.0
@@ -651,7 +659,9 @@ def test_malformed_messages_are_dropped_counted_and_reported(models, rig_factory
     """Any participant can publish bytes: the node drops them, counts them and goes on."""
     rig = rig_factory(executor_kind=executor_kind, model_file=str(models['paper'][0]))
     raw = rig.io.create_publisher(Imu, 'imu/data_raw', RELIABLE)
-    rig.spin_until(lambda: raw.get_subscription_count() > 0, what='raw publisher matched')
+    rig.spin_until(lambda: raw.get_subscription_count() > 0
+                   and matched_writers(rig.node, 'imu/data_raw') >= 2,
+                   what='raw publisher matched')
     rig.temperature(to_ns(T0 - 1.0), 20.0)
     rig.spin_until(lambda: rig.node.core.temps.received == 1, what='temperature')
     payloads = _malformed_payloads()

@@ -48,7 +48,7 @@ import rclpy
 from rclpy.parameter import Parameter
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, qos_profile_sensor_data, QoSProfile,
                        ReliabilityPolicy)
-from rosutil import spin_until
+from rosutil import matched_readers, matched_writers, spin_until
 from sensor_msgs.msg import Imu, Temperature
 from std_msgs.msg import Float32
 from stereo_msgs.msg import DisparityImage
@@ -325,7 +325,10 @@ def test_recipe_compensates_what_the_driver_publishes(ros_context, name):
             executor.add_node(n)
         spin_until(executor, lambda: imu_pub.get_subscription_count() > 0
                    and (temp_pub is None or temp_pub.get_subscription_count() > 0)
-                   and node.count_subscribers(output) > 0, 10.0, what='discovery')
+                   and matched_writers(node, imu_pub.topic_name) > 0
+                   and (temp_pub is None or matched_writers(node, temp_pub.topic_name) > 0)
+                   and matched_readers(node, output) > 0
+                   and matched_writers(io, output) > 0, 10.0, what='discovery')
         t0 = 1_700_000_000 * 10 ** 9
         sent = 0
         for k in range(6):
