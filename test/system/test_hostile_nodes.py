@@ -283,7 +283,7 @@ def test_a_slow_model_file_never_stalls_compensation(models, rig_factory, via):
     assert np.all(is_a | is_b)
     if via == 'parameter':
         first_b = int(np.argmax(is_b))
-        assert n0 + 1000 < first_b <= swapped_at
+        assert n0 + 1000 <= first_b <= swapped_at     # the 1000 taken before the release
         assert is_b[first_b:].all() and is_a[:first_b].all()
 
 
