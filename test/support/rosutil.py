@@ -29,8 +29,8 @@ import threading
 import time
 from typing import Any, Callable, IO, Iterator, Optional
 
-__all__ = ['Lines', 'interrupt', 'matched_readers', 'matched_writers', 'node_process',
-           'request_until_answered', 'spin_until', 'spin_until_quiet']
+__all__ = ['graph_report', 'Lines', 'interrupt', 'matched_readers', 'matched_writers',
+           'node_process', 'request_until_answered', 'spin_until', 'spin_until_quiet']
 
 
 @contextlib.contextmanager
@@ -84,6 +84,24 @@ def matched_writers(node: Any, topic: str) -> int:
     name = node.resolve_topic_name(topic)
     return sum(sub.get_publisher_count() for sub in node.subscriptions
                if sub.topic_name == name)
+
+
+def graph_report(node: Any, *topics: str) -> str:
+    """
+    Return who publishes and subscribes each of ``topics`` in ``node``'s graph, one line.
+
+    For a failed discovery wait: a stale participant (one that left, still listed) and a
+    missing one read differently from the counts alone.
+    """
+    def who(infos: list) -> str:
+        return ', '.join(sorted(f'{i.node_namespace.rstrip("/")}/{i.node_name}' for i in infos))
+
+    parts = []
+    for topic in topics:
+        name = node.resolve_topic_name(topic)
+        parts.append(f'{name}: publishers [{who(node.get_publishers_info_by_topic(name))}], '
+                     f'subscribers [{who(node.get_subscriptions_info_by_topic(name))}]')
+    return '; '.join(parts)
 
 
 def spin_until(executor: Any, predicate: Callable[[], bool], timeout_s: float = 10.0, *,

@@ -43,8 +43,8 @@ import pytest
 import rclpy
 from rclpy.parameter import Parameter
 from rclpy.parameter_client import AsyncParameterClient
-from rosutil import (Lines, matched_readers, matched_writers, node_process, spin_until,
-                     spin_until_quiet)
+from rosutil import (graph_report, Lines, matched_readers, matched_writers, node_process,
+                     spin_until, spin_until_quiet)
 from sensor_msgs.msg import Imu, Temperature
 from std_srvs.srv import Trigger
 from synth import synth_run
@@ -321,17 +321,26 @@ def test_chained_compensators_are_reported(models, ros_context):
     for node in (first, second, io):
         executor.add_node(node)
     try:
-        spin_until(executor, lambda: pub.get_subscription_count() == 1
-                   and temp_pub.get_subscription_count() == 2
-                   and io.count_publishers('imu/data_compensated') == 1
-                   and second.count_publishers('chain/middle') == 1
-                   and matched_writers(first, 'imu/data_raw') == 1
-                   and matched_writers(first, 'imu/temperature') == 1
-                   and matched_writers(second, 'imu/temperature') == 1
-                   and matched_readers(first, 'chain/middle') == 1
-                   and matched_writers(second, 'chain/middle') == 1
-                   and matched_readers(second, 'imu/data_compensated') == 1
-                   and matched_writers(io, 'imu/data_compensated') == 1, what='discovery')
+        links = {'imu/data_raw': lambda: (pub.get_subscription_count(),
+                                          matched_writers(first, 'imu/data_raw')),
+                 'imu/temperature': lambda: (temp_pub.get_subscription_count(),
+                                             matched_writers(first, 'imu/temperature'),
+                                             matched_writers(second, 'imu/temperature')),
+                 'chain/middle': lambda: (second.count_publishers('chain/middle'),
+                                          matched_readers(first, 'chain/middle'),
+                                          matched_writers(second, 'chain/middle')),
+                 'imu/data_compensated': lambda: (
+                     io.count_publishers('imu/data_compensated'),
+                     matched_readers(second, 'imu/data_compensated'),
+                     matched_writers(io, 'imu/data_compensated'))}
+        want = {'imu/data_raw': (1, 1), 'imu/temperature': (2, 1, 1), 'chain/middle': (1, 1, 1),
+                'imu/data_compensated': (1, 1, 1)}
+        try:
+            spin_until(executor, lambda: all(links[k]() == v for k, v in want.items()),
+                       what='discovery')
+        except AssertionError as exc:      # say which link, and who the graph lists
+            raise AssertionError(f'{exc}: {({k: f() for k, f in links.items()})} against '
+                                 f'{want}; {graph_report(io, *want)}') from None
         temp = Temperature()
         temp.header.stamp.sec = int(T0) - 1
         temp.temperature = 20.0
@@ -391,8 +400,11 @@ def burst(rig, count, reliability, history, depth=None, stall=False, every=False
         lines = Lines(child.stdout)
         rig.spin_until(lambda: lines.has('matched'), 30.0, what='burst publisher matched')
         # Matched already; the graph cache can trail the match under load.
-        rig.spin_until(lambda: rig.node.count_publishers('imu/data_raw') == 2, 60.0,
-                       what='burst publisher in the graph')
+        try:
+            rig.spin_until(lambda: rig.node.count_publishers('imu/data_raw') == 2, 60.0,
+                           what='burst publisher in the graph')
+        except AssertionError as exc:      # who the graph lists: a stale or a missing one
+            raise AssertionError(f'{exc}; {graph_report(rig.node, "imu/data_raw")}') from None
         child.stdin.write('go\n')
         child.stdin.flush()
         if stall:
