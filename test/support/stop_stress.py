@@ -31,6 +31,7 @@ from __future__ import annotations
 import contextlib
 from dataclasses import dataclass, field
 import json
+import os
 from pathlib import Path
 import random
 import signal
@@ -247,6 +248,21 @@ def _inode(path: Path) -> tuple[int, int] | None:
     return st.st_dev, st.st_ino
 
 
+def _hold(path: Path) -> tuple[int | None, tuple[int, int] | None]:
+    """
+    Open ``path`` and return the descriptor and its (device, inode); (None, None) without one.
+
+    Held open, the inode cannot be freed and handed to a later file: a save that replaces
+    the file can then never come back under the same number (tmpfs and ext4 reuse them).
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except FileNotFoundError:
+        return None, None
+    st = os.fstat(fd)
+    return fd, (st.st_dev, st.st_ino)
+
+
 def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
                poker: Poker | None, save_first: bool = False) -> Stop:
     """
@@ -272,6 +288,7 @@ def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
     chunks: list[str] = []
     reader = threading.Thread(target=lambda: chunks.append(child.stdout.read()), daemon=True)
     reader.start()
+    held, before = None, None
     try:
         deadline = time.monotonic() + READY_S
         while not handlers_installed(child.pid):
@@ -288,10 +305,10 @@ def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
         time.sleep(delay_s)     # the random moment itself
         signalled = time.monotonic()
         signalled_ns = time.time_ns()
-        # Every save replaces the file (a new inode): the one there now must not be the one
-        # left after the stop. (A new file's mtime may read a few ms before this moment: the
-        # kernel stamps it from its coarse clock, stale on a CPU that was idle.)
-        before = _inode(learn_file) if config.learn else None
+        # Every save replaces the file (a new inode): the one there now, held open so that its
+        # number is not reused, must not be the one left after the stop. (A new file's mtime
+        # may read a few ms before this moment: the kernel stamps it from its coarse clock.)
+        held, before = _hold(learn_file) if config.learn else (None, None)
         if child.poll() is not None and stop.clean:    # it ended by itself, unasked
             stop.problems.append(f'exited (status {child.returncode}) before the signal')
         child.send_signal(signum)
@@ -306,6 +323,9 @@ def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
             child.wait()
         reader.join(10.0)
     stop.output = ''.join(chunks)
+    replaced = _inode(learn_file) != before if config.learn else False
+    if held is not None:
+        os.close(held)
     if stop.code not in (0, None):
         stop.problems.append(f'exit status {stop.code}')
     for text in UNCLEAN:
@@ -314,7 +334,7 @@ def _stop_once(config: Config, signum: int, delay_s: float, workdir: Path,
     if config.learn and poker is not None and poker.saved_between(started, signalled):
         # It was learning before the signal: the last state is written after it.
         written = learn_file.stat().st_mtime_ns if learn_file.exists() else None
-        if written is None or _inode(learn_file) == before:
+        if written is None or not replaced:
             when = ('missing' if written is None else
                     f'last written {(signalled_ns - written) * 1e-9:.3f} s before it')
             stop.problems.append(f'learn_file not written after the signal ({when})')
