@@ -153,13 +153,10 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     px4 = None
     if PX4 in specs:
         runs = load_runs(train_bags, with_accel(bag), log=log)
-        try:                                    # a flight log: its still stretches only
-            runs, kept = still_only_runs(runs)
-        except FitError as exc:
-            raise FitError(str(exc).replace('to discover on', 'to fit the px4 cubic on')
-                           ) from None
+        # A flight log: its still stretches only.
+        runs, kept = still_only_runs(runs, ('fit the px4 cubic', 'the px4 cubic is fitted'))
         if kept and log is not None:
-            log(kept.replace('discovering on', 'the px4 cubic is fitted on'))
+            log(kept)
         const = constant_gyro_axes(runs)        # as train: every axis constant is refused
         px4 = fit_px4_cubic(neutral_runs(runs, const), created={'bags': [r.name for r in runs]})
         px4 = identity_axes(px4, runs, const)   # a constant axis: not fitted, passed through

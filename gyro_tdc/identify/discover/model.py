@@ -30,7 +30,8 @@ import numpy as np
 __all__ = ['build_model', 'model_features', 'still_only_runs']
 
 
-def still_only_runs(runs: Sequence[Run]) -> tuple[list[Run], str | None]:
+def still_only_runs(runs: Sequence[Run], task: tuple[str, str] = ('discover', 'discovering')
+                    ) -> tuple[list[Run], str | None]:
     """
     Return what discovery may fit of runs without a reference: the still samples only.
 
@@ -39,7 +40,8 @@ def still_only_runs(runs: Sequence[Run]) -> tuple[list[Run], str | None]:
     while still: each keeps its still stretches (``train``'s still test, one noise floor for
     all, a constant axis at its reference), one offset per session as before; a session
     without still time is left out. Returns the runs and a line saying what was kept (None
-    when every sample is kept). Motion is never fitted as drift.
+    when every sample is kept). Motion is never fitted as drift. ``task`` words what is fitted
+    in those lines ("no still stretch to TASK on", "DOING on the still stretches only").
 
     Raises
     ------
@@ -57,13 +59,13 @@ def still_only_runs(runs: Sequence[Run]) -> tuple[list[Run], str | None]:
     kept = [rows_of(r, m) for r, m in zip(runs, masks) if np.count_nonzero(m) >= 16]
     moves = f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time'
     if not kept:
-        raise FitError(f'{moves}, with no still stretch to discover on (its motion is no '
+        raise FitError(f'{moves}, with no still stretch to {task[0]} on (its motion is no '
                        'drift): record the vehicle parked with the IMU on.')
     still_s = sum(np.count_nonzero(m) * float(np.median(np.diff(r.t)))
                   for r, m in zip(runs, masks) if len(r) > 1)
     total_s = sum(r.duration_s for r in runs)
     pct = min(100.0 * still_s / total_s, 100.0) if total_s > 0 else 0.0
-    return kept, (f'{moves}: discovering on the still stretches only ({still_s:.0f} s of '
+    return kept, (f'{moves}: {task[1]} on the still stretches only ({still_s:.0f} s of '
                   f'{total_s:.0f} s, {pct:.3g} %; {len(kept)} of {len(runs)} session(s)); '
                   'the motion is no drift')
 
