@@ -76,8 +76,11 @@ import threading  # noqa: E402
 import time  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+for _p in (ROOT, ROOT / 'test' / 'support'):
+    if str(_p) not in sys.path:
+        sys.path.insert(0, str(_p))
+
+from cpu_load import cpu_hogs  # noqa: E402
 
 DUTS = ('relay', 'compensator')
 QUEUE = 2000
@@ -738,17 +741,6 @@ def goals(summary):
               'us')
 
 
-def start_hogs(count):
-    """Start ``count`` busy-looping processes (competing CPU load); return them."""
-    return [subprocess.Popen([sys.executable, '-c', 'while True: pass']) for _ in range(count)]
-
-
-def stop_hogs(hogs):
-    for hog in hogs:
-        hog.kill()
-        hog.wait()
-
-
 # -- the core alone: this tree against another (older) one ----------------------------
 
 #: The child of one core run (``python -c``): the tree's own gyro_tdc, whatever its layout.
@@ -906,11 +898,8 @@ def main(argv=None):
           f'compensator raw_cdr {not args.no_raw_cdr}, executor {args.executor}, ROS_DOMAIN_ID '
           f'{os.environ["ROS_DOMAIN_ID"]}, {os.cpu_count()} CPUs, {args.duration:g} s x '
           f'{args.repeats} per rate, {args.hog} CPU hog process(es)', flush=True)
-    hogs = start_hogs(args.hog)
-    try:
+    with cpu_hogs(args.hog):
         return _run(args)
-    finally:
-        stop_hogs(hogs)
 
 
 def _run(args):

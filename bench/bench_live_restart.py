@@ -36,7 +36,6 @@ import os
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 from pathlib import Path  # noqa: E402, I100
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 import time  # noqa: E402
@@ -104,17 +103,11 @@ def main():
     live_mod = _rig_module(args.tree.resolve())
     from gyro_tdc.sim import simulate_run
     day = live_mod.serialised(simulate_run('vehicle_day1', seed=1, rate_hz=2.0), 0.0)
-    hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'])
-            for _ in range(args.hogs)]
-    os.nice(args.nice)      # the rig below the hogs: a starved test, as on a loaded CI runner
+    from cpu_load import cpu_hogs
     start = time.monotonic()
-    try:
-        with tempfile.TemporaryDirectory() as tmp:
-            failed = restarts(live_mod, day, args.restarts, args.chunk, args.wait, Path(tmp))
-    finally:
-        for hog in hogs:
-            hog.kill()
-            hog.wait()
+    with cpu_hogs(args.hogs), tempfile.TemporaryDirectory() as tmp:
+        os.nice(args.nice)  # the rig below the hogs: a starved test, as on a loaded CI runner
+        failed = restarts(live_mod, day, args.restarts, args.chunk, args.wait, Path(tmp))
     print(f'{failed} of {args.restarts} restarts failed (rig of {args.tree}, {args.hogs} '
           f'hogs, nice +{args.nice}, {args.chunk} messages each, wait {args.wait:g} s; '
           f'{time.monotonic() - start:.0f} s)')

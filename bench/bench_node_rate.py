@@ -51,8 +51,11 @@ import threading  # noqa: E402
 import time  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+for _p in (ROOT, ROOT / 'test' / 'support'):
+    if str(_p) not in sys.path:
+        sys.path.insert(0, str(_p))
+
+from cpu_load import cpu_hogs  # noqa: E402
 
 T0 = 1_700_000_000.0
 #: This run's namespace: another run on the domain (or any other /bench node) is not heard.
@@ -334,9 +337,7 @@ def main(argv=None) -> int:
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         models = make_models(Path(tmp))
-        hogs = [subprocess.Popen([sys.executable, '-c', 'while True: pass'])
-                for _ in range(args.hog)]
-        try:
+        with cpu_hogs(args.hog):
             for case in [c for _ in range(args.repeats) for c in args.cases.split(',')]:
                 row = run_case(case, args, Path(tmp), models)
                 rows.append(row)
@@ -356,10 +357,6 @@ def main(argv=None) -> int:
                           + (f' and {more} more runs' if more > 0 else ''), flush=True)
                 for w in row['warn']:
                     print(f'           WARN {w}', flush=True)
-        finally:
-            for hog in hogs:
-                hog.kill()
-                hog.wait()
     print('\ncase      hog     sent      out     lost  node in  missing  DDS lost  unreported'
           '  age max s')
     for r in rows:

@@ -41,9 +41,10 @@ import threading
 import time
 from typing import Iterator
 
+from cpu_load import cpu_hogs
 from fake_iio import l3gd20_files, make_device
 
-__all__ = ['Config', 'CONFIGS', 'cpu_hog', 'Poker', 'run_series', 'Series', 'Stop', 'stream']
+__all__ = ['Config', 'CONFIGS', 'Poker', 'run_series', 'Series', 'Stop', 'stream']
 
 #: Node executables, as ``ros2 run`` starts them.
 MODULES = {'driver': 'gyro_tdc.nodes.driver_node',
@@ -123,17 +124,6 @@ class Series:
         return [stop.line() for stop in self.stops] + [
             f'{clean} clean, {len(self.stops) - clean} unclean of {len(self.stops)} stops; '
             f'{self.reloads} ~/reload answered, {self.saves} ~/learn_save succeeded']
-
-
-@contextlib.contextmanager
-def cpu_hog() -> Iterator[subprocess.Popen]:
-    """Keep one core busy for the block (a child process spinning); kill it on the way out."""
-    hog = subprocess.Popen([sys.executable, '-c', 'while True: pass'])
-    try:
-        yield hog
-    finally:
-        hog.kill()
-        hog.wait()
 
 
 def _command(config: Config, extra: dict[str, str]) -> list[str]:
@@ -387,7 +377,7 @@ def run_series(node: str, signals: list[int], *, seed: int, workdir: Path,
     workdir.mkdir(parents=True, exist_ok=True)
     with contextlib.ExitStack() as stack:
         if hog:
-            stack.enter_context(cpu_hog())
+            stack.enter_context(cpu_hogs())
         poker = None
         if node == 'compensator':
             stack.enter_context(stream())
