@@ -35,7 +35,6 @@ from typing import Any
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from gyro_tdc.nodes.compensator_backlog import Backlog
 from gyro_tdc.runtime import frame_mismatch, health, HealthMark, InputRate, TEMPERATURE_TYPES
-from rclpy.impl.implementation_singleton import rclpy_implementation as _rclpy
 
 __all__ = ['DIAGNOSTICS_PERIOD_S', 'Diagnostics']
 
@@ -72,7 +71,7 @@ class Diagnostics:
         graph, found = self.node, set()
         try:
             publishers = graph.get_publishers_info_by_topic(graph.in_topic)
-        except _rclpy.RCLError:  # the graph cannot say now: ask again at the next report
+        except RuntimeError:  # rclpy's RCLError: the graph cannot say now, ask again later
             return self.inputs.upstream
         for info in publishers:
             fqn = f'{info.node_namespace.rstrip("/")}/{info.node_name}'
@@ -84,7 +83,7 @@ class Diagnostics:
             try:
                 services = graph.get_service_names_and_types_by_node(*who)
                 subs = graph.get_subscriber_names_and_types_by_node(*who)
-            except _rclpy.RCLError:  # it left between the queries (NodeNameNonExistentError)
+            except RuntimeError:  # RCLError: it left between the queries (NodeNameNonExistent)
                 continue
             if any(n == f'{fqn}/reload' and 'std_srvs/srv/Trigger' in t for n, t in services) \
                     and any(set(TEMPERATURE_TYPES) & set(t) for _, t in subs):

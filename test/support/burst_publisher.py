@@ -31,11 +31,8 @@ import time
 
 import rclpy
 from rclpy.duration import Duration
-from rclpy.impl.implementation_singleton import rclpy_implementation
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu
-
-RCLError = rclpy_implementation.RCLError
 
 
 def main(argv):
@@ -71,7 +68,7 @@ def main(argv):
             try:
                 pub.publish(msg)
                 break
-            except RCLError:  # held back by flow control (reliable keep-all): again
+            except RuntimeError:  # rclpy's RCLError: held back by flow control, again
                 retries += 1
     if reliability == 'reliable' and history == 'keep_all':
         pub.wait_for_all_acked(Duration(seconds=60))

@@ -377,3 +377,41 @@ def test_no_private_imports_across_modules(module, package, path):
         if _private(last) and not _in(package, [parent]):
             bad.append(target)
     assert bad == [], f'{module} imports private names of other modules: {bad}'
+
+
+#: Modules of dependencies that are their implementation, though no underscore marks them.
+IMPLEMENTATION = ('rclpy.impl',)
+
+
+def _dependency_private(source: str) -> list:
+    """Return the private names of dependencies a module's source imports or reads."""
+    tree, bad, aliases = ast.parse(source), [], set()
+    for node in ast.walk(tree):
+        if isinstance(node, (ast.Import, ast.ImportFrom)):
+            target = node.module if isinstance(node, ast.ImportFrom) else None
+            for a in node.names:
+                full = f'{target}.{a.name}' if target else a.name
+                if full.startswith(('gyro_tdc.', '__future__.')) or full == 'gyro_tdc':
+                    continue
+                if any(_private(p) for p in full.split('.')) or _in(full, IMPLEMENTATION):
+                    bad.append(full)
+                aliases.add(a.asname or a.name.partition('.')[0])
+    bad += [f'{n.value.id}.{n.attr}' for n in ast.walk(tree)
+            if isinstance(n, ast.Attribute) and isinstance(n.value, ast.Name)
+            and n.value.id in aliases and _private(n.attr)]
+    return bad
+
+
+def test_private_names_of_dependencies_are_found():
+    src = ('import numpy as np\nfrom scipy.signal import _sigtools\n'
+           'from rclpy.impl.implementation_singleton import rclpy_implementation\n'
+           'np._set_madvise_hugepage(False)\nnp.__version__\n')
+    assert _dependency_private(src) == [
+        'scipy.signal._sigtools', 'rclpy.impl.implementation_singleton.rclpy_implementation',
+        'np._set_madvise_hugepage']
+
+
+@pytest.mark.parametrize('module, package, path', MODULES, ids=[m[0] for m in MODULES])
+def test_no_private_name_of_a_dependency(module, package, path):
+    bad = _dependency_private(path.read_text(encoding='utf-8'))
+    assert bad == [], f'{module} uses private names of its dependencies: {bad}'
