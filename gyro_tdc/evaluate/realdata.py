@@ -42,12 +42,10 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['FullSeriesModel', 'HOLDOUT_MODELS', 'HoldoutModel', 'burst_holdout', 'burst_index',
-           'fit_full_series', 'format_holdout', 'pan_holdout', 'POSITIONS', 'run_tool']
+           'fit_full_series', 'format_holdout', 'pan_holdout', 'run_tool']
 
 _DEG = 180.0 / math.pi
-#: Fold positions: interior blocks are interpolation, end blocks extrapolation.
-POSITIONS = ('interior', 'end')
-#: Summary groups of a scheme.
+#: Summary groups of a scheme: interior blocks are interpolation, end blocks extrapolation.
 GROUPS = ('interior', 'end', 'all')
 
 

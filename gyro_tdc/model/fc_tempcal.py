@@ -31,9 +31,9 @@ from numpy.typing import ArrayLike, NDArray
 
 __all__ = [
     'ARDUPILOT_SCALE', 'ARDUPILOT_TREF_C', 'ArduPilotTempCal', 'Px4TempCal',
-    'ardupilot_caltemp_name', 'ardupilot_coeff_name', 'ardupilot_correction', 'ardupilot_enabled',
+    'ardupilot_caltemp_name', 'ardupilot_coeff_name', 'ardupilot_correction',
     'ardupilot_name',
-    'onboard_status', 'px4_correction', 'px4_enabled', 'px4_name', 'px4_names', 'px4_slot',
+    'onboard_status', 'px4_correction', 'px4_name', 'px4_names', 'px4_slot',
     'SENSORS',
 ]
 
@@ -70,7 +70,7 @@ def _shaped(cal: object, name: str, shape: tuple[int, int]) -> None:
 
 
 def _enabled(params: Mapping[str, float], name: str) -> bool:
-    """Return True when the switch ``name`` is 1 in ``params`` (absent: off)."""
+    """Return True when the switch ``name`` is 1 in ``params`` (absent: off; 2: learning)."""
     return int(params.get(name, 0) or 0) == 1
 
 
@@ -107,11 +107,6 @@ def px4_names(sensor: str, slot: int) -> list[str]:
     for k in (3, 2, 1, 0):
         names += [px4_name(sensor, slot, f'X{k}', i) for i in range(3)]
     return names + [px4_name(sensor, slot, f) for f in ('TREF', 'TMIN', 'TMAX')]
-
-
-def px4_enabled(params: Mapping[str, float], sensor: str = 'gyro') -> bool:
-    """Return True when ``TC_G_ENABLE`` (or ``TC_A_ENABLE``) is 1 in ``params``."""
-    return _enabled(params, px4_name(sensor))
 
 
 def px4_slot(params: Mapping[str, float], device_id: int, sensor: str = 'gyro') -> int | None:
@@ -187,7 +182,7 @@ def px4_correction(params: Mapping[str, float] | Px4TempCal, temp_c: ArrayLike, 
     with ``TemperatureCompensation::calc_thermal_offsets_3D`` (before the static offsets and
     the rotation): ``X0 + X1 d + X2 d^2 + X3 d^3``, ``d = clip(T, TMIN, TMAX) - TREF``, in
     rad/s (gyro) or m/s^2 (accel). ``params`` are the parameters (``TC_Gn_*`` of ``slot``)
-    or one slot read; ``TC_G_ENABLE`` is not looked at (see :func:`px4_enabled`).
+    or one slot read; ``TC_G_ENABLE`` is not looked at (see :func:`onboard_status`).
     """
     cal = params if isinstance(params, Px4TempCal) else Px4TempCal.from_params(
         params, sensor, slot)
@@ -213,11 +208,6 @@ def ardupilot_coeff_name(instance: int, order: int, axis: int, sensor: str = 'gy
 def ardupilot_caltemp_name(instance: int, sensor: str = 'gyro') -> str:
     """Return ``INS_GYR{instance + 1}_CALTEMP`` (or ``INS_ACC..``), the offsets' temperature."""
     return f'INS_{_AP_WORD[_sensor(sensor)]}{int(instance) + 1}_CALTEMP'
-
-
-def ardupilot_enabled(params: Mapping[str, float], instance: int = 0) -> bool:
-    """Return True when ``INS_TCALn_ENABLE`` is 1 (2 is learning: nothing is applied)."""
-    return _enabled(params, ardupilot_name(instance))
 
 
 @dataclass(frozen=True)

@@ -17,7 +17,7 @@
 from __future__ import annotations
 
 from gyro_tdc.model.fc_tempcal import (ardupilot_caltemp_name, ardupilot_coeff_name,
-                                       ardupilot_correction, ardupilot_enabled, ArduPilotTempCal,
+                                       ardupilot_correction, ArduPilotTempCal,
                                        onboard_status, px4_correction, px4_name, px4_names,
                                        px4_slot, Px4TempCal)
 import numpy as np
@@ -91,6 +91,6 @@ def test_onboard_status_reads_the_switches():
         True, 'TC_G_ENABLE=1: on-board thermal compensation active')
     assert onboard_status({}, 'px4')[0] is False
     assert onboard_status({'INS_TCAL2_ENABLE': 1}, 'ardupilot', instance=1)[0]
-    assert not ardupilot_enabled({'INS_TCAL1_ENABLE': 2})            # learning
+    assert onboard_status({'INS_TCAL1_ENABLE': 2}, 'ardupilot')[0] is False    # learning
     with pytest.raises(ValueError, match='firmware'):
         onboard_status({}, 'betaflight')
