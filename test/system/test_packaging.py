@@ -284,6 +284,33 @@ def test_doc_layout_lists_every_module():
     assert sorted(listed - modules) == [], 'doc/architecture.md Layout names missing modules'
 
 
+def _doc_package_map() -> set:
+    """Return the gyro_tdc/**/*.py paths the Package map of doc/architecture.md names."""
+    text = (ROOT / 'doc' / 'architecture.md').read_text(encoding='utf-8')
+    block = text.split('\n## Package map\n', 1)[1].split('```text\n', 1)[1].split('```', 1)[0]
+    paths, package = set(), ''
+    for line in block.splitlines()[1:]:          # the first line: the top-level modules
+        if line.startswith(' '):                 # the line before, continued
+            rest = line
+        else:
+            package, _, rest = line.partition('/')
+        for sub, inner in re.findall(r'(\w+)/\(([^)]*)\)', rest):
+            paths |= {f'gyro_tdc/{package.strip()}/{sub}/{m}.py' for m in inner.split()}
+        paths |= {f'gyro_tdc/{package.strip()}/{m}.py'
+                  for m in re.sub(r'\w+/\([^)]*\)', ' ', rest).split() if not m.endswith('/')}
+    return paths
+
+
+def test_doc_package_map_names_every_module_of_the_core_packages():
+    """Every module of a package the map spells out is named there (a package/ alone: none)."""
+    named = _doc_package_map()
+    spelled = {p.rsplit('/', 1)[0] for p in named}
+    modules = {p.relative_to(ROOT).as_posix() for p in (ROOT / 'gyro_tdc').rglob('*.py')
+               if p.name != '__init__.py' and p.parent.relative_to(ROOT).as_posix() in spelled}
+    assert sorted(modules - named) == [], 'modules missing from doc/architecture.md Package map'
+    assert sorted(named - modules) == [], 'doc/architecture.md Package map names no module'
+
+
 # -- the apt recipe: what apt gives, what pip adds, and the README that says so ---------------
 
 #: What a robot with apt-installed Jazzy takes from apt (rosdep key: Ubuntu 24.04's version).
