@@ -121,26 +121,11 @@ class Scenario:
 
     def with_overrides(self, overrides: Mapping[str, Any]) -> 'Scenario':
         """
-        Return a copy with fields replaced, validated again.
+        Return a copy with fields replaced by dotted path, validated again.
 
-        Parameters
-        ----------
-        overrides : Mapping[str, Any]
-            Dotted paths to new values, e.g. ``{'gyro.effects.dT3': True,
-            'noise.enabled': False, 'gyro.dT2_dps_per_c2': [1e-3, 0, 0],
-            'duration_s': 600.0, 'imu_rate_hz': 20.0}``. A mapping value replacing a
-            mapping is merged into it.
-
-        Returns
-        -------
-        Scenario
-            The modified scenario.
-
-        Raises
-        ------
-        ScenarioError
-            If a path is malformed or the result does not validate.
-
+        ``overrides``: e.g. ``{'gyro.effects.dT3': True, 'noise.enabled': False,
+        'duration_s': 600.0}``; a mapping value replacing a mapping is merged into it.
+        ScenarioError: a path is malformed or the result does not validate.
         """
         if not isinstance(overrides, Mapping):
             raise ScenarioError(f'Expected `overrides` to be a mapping of dotted paths to '
