@@ -181,3 +181,23 @@ def test_a_package_without_an_api_page_fails_the_build(tmp_path):
     result, _ = build(tmp_path, ['reference/api/gyro_tdc.runtime'])
     assert result.returncode != 0
     assert 'package gyro_tdc.model has no API page' in result.stderr
+
+
+def _unnamed_modules(package: str) -> list:
+    """Return the modules of ``gyro_tdc.<package>`` its internals page does not name."""
+    # Named as ``package.module`` (or ``gyro_tdc.package.module``), or as `module` alone.
+    text = (DOC / 'internals' / f'{package}.md').read_text(encoding='utf-8')
+    out = []
+    for path in sorted((ROOT / 'gyro_tdc' / package).rglob('*.py')):
+        if path.name == '__init__.py':
+            continue
+        dotted = '.'.join(path.relative_to(ROOT).with_suffix('').parts)
+        if not (dotted[len('gyro_tdc.'):] in text or f'`{path.stem}`' in text):
+            out.append(dotted)
+    return out
+
+
+@pytest.mark.parametrize('package', sorted(p.stem for p in (DOC / 'internals').glob('*.md')
+                                           if (ROOT / 'gyro_tdc' / p.stem).is_dir()))
+def test_internals_page_names_every_module_of_its_package(package):
+    assert _unnamed_modules(package) == []
