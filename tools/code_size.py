@@ -18,7 +18,8 @@ The size of ``gyro_tdc/`` as issue 33 measures it.
 
 Usage: ``python tools/code_size.py [ROOT]``. Prints the lines of code per package (lines
 holding a token that is not a comment, without docstrings and blank lines), the modules over
-600 lines, the function bodies over 80 lines and the modules that call a linear
+600 lines, the function bodies over 80 lines, the docstrings of 15 lines or more that are
+longer than their function's (or class's) body, and the modules that call a linear
 least-squares solver.
 """
 
@@ -34,6 +35,9 @@ import tokenize
 
 MAX_MODULE_LINES = 600
 MAX_BODY_LINES = 80
+#: A docstring of at least this many lines that is longer than its body is counted: what and
+#: why fit in a few lines (a record class's fields are its body's docs, counted apart).
+LONG_DOC_LINES = 15
 #: A linear solve of numpy or scipy (lstsq, solve, cho_solve, pinv); calls of the estimator's
 #: own solvers (``gyro_tdc.signal.solve_normal``, ``pinv_fit``) are not one.
 SOLVER = re.compile(r'\b(?:lstsq|linalg\.solve|cho_solve|linalg\.pinv)\(')
@@ -50,16 +54,21 @@ def _docstring(node: ast.AST) -> ast.Expr | None:
 
 
 def measure(path: Path) -> dict:
-    """Return the code lines, the long function bodies and the solver use of one module."""
+    """Return the code lines, the long function bodies and docstrings, the solver use."""
     src = path.read_text()
     tree = ast.parse(src)
     docs: set[int] = set()
-    long_bodies = []
+    long_bodies, long_docs = [], []
     for node in ast.walk(tree):
         doc = _docstring(node) if isinstance(
             node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) else None
         if doc is not None:
             docs.update(range(doc.lineno, doc.end_lineno + 1))
+            rest = node.body[1:]
+            size = doc.end_lineno - doc.lineno + 1
+            if not isinstance(node, ast.Module) and size >= LONG_DOC_LINES and size > (
+                    rest[-1].end_lineno - rest[0].lineno + 1 if rest else 0):
+                long_docs.append((isinstance(node, ast.ClassDef), node.name))
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
             body = node.body[1:] if doc is not None and len(node.body) > 1 else node.body
             length = node.end_lineno - body[0].lineno + 1
@@ -68,13 +77,13 @@ def measure(path: Path) -> dict:
     code = {line for tok in tokenize.generate_tokens(io.StringIO(src).readline)
             if tok.type not in _SKIP for line in range(tok.start[0], tok.end[0] + 1)}
     return {'code': len(code - docs), 'lines': src.count('\n'), 'long_bodies': long_bodies,
-            'solver': bool(SOLVER.search(src))}
+            'long_docs': long_docs, 'solver': bool(SOLVER.search(src))}
 
 
 def survey(root: Path) -> dict:
     """Measure every module below ``root``; return the totals and what breaks the limits."""
     per_package: collections.Counter = collections.Counter()
-    big, long_bodies, solvers = [], [], []
+    big, long_bodies, long_docs, solvers = [], [], [], []
     for path in sorted(root.rglob('*.py')):
         m = measure(path)
         rel = path.relative_to(root)
@@ -82,10 +91,11 @@ def survey(root: Path) -> dict:
         if m['lines'] > MAX_MODULE_LINES:
             big.append((m['lines'], str(rel)))
         long_bodies += [(n, f'{rel}:{name}') for n, name in m['long_bodies']]
+        long_docs += [(cls, f'{rel}:{name}') for cls, name in m['long_docs']]
         if m['solver']:
             solvers.append(str(rel))
     return {'per_package': per_package, 'total': sum(per_package.values()), 'big': big,
-            'long_bodies': long_bodies, 'solvers': solvers}
+            'long_bodies': long_bodies, 'long_docs': long_docs, 'solvers': solvers}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -100,6 +110,9 @@ def main(argv: list[str] | None = None) -> int:
           + (', '.join(f'{p} ({n})' for n, p in s['big']) or 'none'))
     print(f'function bodies over {MAX_BODY_LINES} lines: '
           + (', '.join(f'{p} ({n})' for n, p in s['long_bodies']) or 'none'))
+    classes = sum(cls for cls, _ in s['long_docs'])
+    print(f'docstrings of {LONG_DOC_LINES}+ lines longer than their body: '
+          f"{len(s['long_docs']) - classes} of functions, {classes} of classes")
     print(f"least-squares solves in {len(s['solvers'])} modules: {', '.join(s['solvers'])}")
     return 0
 

@@ -57,3 +57,17 @@ def test_the_count_sees_code_not_docstrings_comments_or_blanks(tmp_path):
     long_body = 'def g():\n    """Doc."""\n' + '    y = 1\n' * 81
     (pkg / 'c.py').write_text(long_body)
     assert SIZE['survey'](tmp_path)['long_bodies'] == [(81, 'pkg/c.py:g')]
+
+
+def test_no_function_docstring_of_15_lines_is_longer_than_its_body(survey):
+    assert [name for cls, name in survey['long_docs'] if not cls] == []
+
+
+def test_long_docstrings_are_counted_against_their_body(tmp_path):
+    pkg = tmp_path / 'pkg'
+    pkg.mkdir()
+    doc = '    """Doc.\n' + '\n' * 13 + '    """\n'         # 15 lines
+    (pkg / 'a.py').write_text('def f():\n' + doc + '    return 1\n\n\n'
+                              'class C:\n' + doc + '    x: int = 1\n\n\n'
+                              'def g():\n' + doc + '    y = 1\n' * 15)
+    assert SIZE['survey'](tmp_path)['long_docs'] == [(False, 'pkg/a.py:f'), (True, 'pkg/a.py:C')]
