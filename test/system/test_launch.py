@@ -28,11 +28,11 @@ from __future__ import annotations
 import inspect
 import os
 from pathlib import Path
-import re
 import xml.etree.ElementTree as ET
 
 from gyro_tdc.nodes import compensator_node, driver_node
 from gyro_tdc.runtime import TEMPERATURE_TYPES
+from launch_xml import resolve, SUBST
 import pytest
 import yaml
 
@@ -44,7 +44,6 @@ TAGS = {'launch': set(), 'arg': {'name', 'default', 'description'}, 'choice': {'
         'node': {'pkg', 'exec', 'name', 'namespace', 'output', 'if'},
         'param': {'from', 'name', 'value', 'type'},
         'remap': {'from', 'to'}}
-SUBST = re.compile(r'\$\((\S+) ([^)]*)\)')
 
 
 @pytest.fixture(scope='module')
@@ -60,20 +59,6 @@ def args(tree):
         out[arg.get('name')] = (arg.get('default'), [c.get('value') for c in arg],
                                 arg.get('description', ''))
     return out
-
-
-def resolve(text: str, values: dict) -> str:
-    """Resolve ``$(var X)`` from ``values`` and ``$(find-pkg-share gyro_tdc)`` to the repo."""
-    def one(match):
-        kind, what = match.group(1), match.group(2)
-        if kind == 'var':
-            return values[what]
-        assert (kind, what) == ('find-pkg-share', 'gyro_tdc'), match.group(0)
-        return str(ROOT)
-    for _ in range(5):      # an argument's default may refer to another argument
-        text = SUBST.sub(one, text)
-    assert '$(' not in text, text
-    return text
 
 
 def installed_files(setup_kwargs) -> dict:

@@ -43,6 +43,7 @@ from gyro_tdc.nodes.compensator_node import CompensatorNode
 from gyro_tdc.nodes.executors import make_executor
 from gyro_tdc.runtime import CompensatorCore, PARAMS
 from gyro_tdc.runtime.flags import PASSTHROUGH
+from launch_xml import resolve, SUBST
 import pytest
 import rclpy
 from rclpy.parameter import Parameter
@@ -56,7 +57,6 @@ import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
 RECIPES = ROOT / 'launch' / 'recipes'
-SUBST = re.compile(r'\$\((\S+) ([^)]*)\)')
 MODEL = 'l3gd20_modified'
 RELIABLE_10 = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                          reliability=ReliabilityPolicy.RELIABLE)
@@ -209,19 +209,6 @@ DRIVERS = {
 
 def recipe(name: str) -> ET.Element:
     return ET.parse(RECIPES / f'{name}.launch.xml').getroot()
-
-
-def resolve(text: str, values: dict) -> str:
-    def one(match):
-        kind, what = match.group(1), match.group(2)
-        if kind == 'var':
-            return values[what]
-        assert (kind, what) == ('find-pkg-share', 'gyro_tdc'), match.group(0)
-        return str(ROOT)
-    for _ in range(5):
-        text = SUBST.sub(one, text)
-    assert '$(' not in text, text
-    return text
 
 
 def node_settings(root: ET.Element, **overrides) -> dict:
