@@ -88,7 +88,7 @@ setup(
             'tqdm>=4.60',
             'dask[distributed]>=2024.1',
             'pyulog>=1.1',
-            'pymavlink>=2.4.40',
+            'pymavlink>=2.4.40,<2.5',  # DFReader_binary's record index: no documented API
         ],
         'test': ['pytest'],
     },

@@ -335,6 +335,50 @@ def _pins(path: Path) -> dict:
     return pins
 
 
+def _version(text: str) -> tuple:
+    return tuple(int(x) for x in re.findall(r'[0-9]+', text))
+
+
+def _ranges(setup_kwargs) -> dict:
+    """Return ``{normalised name: [(operator, version)]}`` of setup.py's install and train."""
+    out = {}
+    for req in setup_kwargs['install_requires'] + setup_kwargs['extras_require']['train']:
+        name = re.split(r'[\[<>=]', req)[0].strip().lower().replace('_', '-')
+        out[name] = re.findall(r'(>=|<=|==|<|>)\s*([0-9][0-9.]*)', req)
+    return out
+
+
+def _within(version: str, bounds: list) -> bool:
+    v = _version(version)
+    compare = {'>=': v.__ge__, '<=': v.__le__, '==': v.__eq__, '<': v.__lt__, '>': v.__gt__}
+    return all(compare[op](_version(b)) for op, b in bounds)
+
+
+def test_every_pinned_version_is_inside_setup_py_s_range(setup_kwargs):
+    ranges = _ranges(setup_kwargs)
+    full, robot = _pins(ROOT / 'requirements.txt'), _pins(ROOT / 'requirements-apt.txt')
+    apt = {name: version for name, (_, version) in APT_PROVIDED.items()}
+    assert _within('2.4.50', [('>=', '2.4.40'), ('<', '2.5')])
+    assert not _within('2.5.0', [('>=', '2.4.40'), ('<', '2.5')])
+    for source in (full, robot, apt):
+        bad = {n: v for n, v in source.items() if n in ranges and not _within(v, ranges[n])}
+        assert bad == {}, f'pinned outside setup.py: {bad} ({ranges})'
+    assert set(ranges) - {'setuptools'} <= set(full)
+
+
+def test_package_xml_version_bounds_are_setup_py_s(package, setup_kwargs):
+    ranges = _ranges(setup_kwargs)
+    package.evaluate_conditions({'ROS_VERSION': '2', 'ROS_PYTHON_VERSION': '3'})
+    bounded = {d.name: d for d in package.exec_depends if d.version_gte or d.version_lt}
+    assert bounded, 'package.xml bounds no dependency'
+    for key, dep in bounded.items():
+        name = key.removeprefix('python3-').removesuffix('-pip')
+        want = sorted(ranges[name])
+        got = sorted([('>=', dep.version_gte)] * bool(dep.version_gte)
+                     + [('<', dep.version_lt)] * bool(dep.version_lt))
+        assert got == want, (key, got, want)
+
+
 def test_requirements_apt_adds_to_apt_what_requirements_txt_pins():
     apt, full = _pins(ROOT / 'requirements-apt.txt'), _pins(ROOT / 'requirements.txt')
     assert not set(apt) & set(APT_PROVIDED)          # never pip over apt's builds
