@@ -199,24 +199,28 @@ class Folds:
         return cls(tuple(tests), tuple(trains))
 
     @classmethod
-    def sessions(cls, groups: ArrayLike, temp: ArrayLike | None = None) -> 'Folds':
+    def sessions(cls, groups: ArrayLike, temp: ArrayLike | None = None, *,
+                 min_rows: int = 1) -> 'Folds':
         """
         Return one fold per session: that session held out, the others trained on.
 
         With ``temp`` (one per row) a session is scored only inside the others' range of it
         (outside it a model is clamped or extrapolated, which says nothing of how its curve
-        carries to another power cycle); a fold with fewer than two such rows is skipped.
+        carries to another power cycle); a fold with fewer than two such rows is skipped, as
+        is one with fewer than ``min_rows`` held-out rows (a session re-anchored on one row
+        scores nothing).
         """
         g = np.asarray(groups)
         tests, trains = [], []
+        least = max(min_rows, 1 if temp is None else 2)
         for s in np.unique(g):
             test, train = g == s, g != s
             if temp is not None:
                 x = np.asarray(temp)
                 lo, hi = x[train].min(initial=np.inf), x[train].max(initial=-np.inf)
                 test &= (x >= lo) & (x <= hi)
-                if np.count_nonzero(test) < 2:
-                    continue
+            if np.count_nonzero(test) < least:
+                continue
             tests.append(test)
             trains.append(train)
         return cls(tuple(tests), tuple(trains))
