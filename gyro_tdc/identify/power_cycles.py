@@ -104,11 +104,12 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     """
     if not x.shape[1]:                          # no curve: nothing to judge
         return fit, offsets, None
-    folds, whole, n = Folds.sessions(groups, temp), False, int(np.unique(groups).size)
-    if not len(folds) and as_node is not None and n > 1:  # none overlaps: whole, as the node
-        folds, whole = Folds.sessions(groups, min_rows=2), True
+    folds, whole = Folds.sessions(groups, temp), False
+    if not len(folds) and as_node is not None:  # none overlaps: whole, as the node predicts
+        folds, whole = Folds.sessions(groups, temp, beyond=True), True
     if not len(folds):
-        return fit, offsets, {'folds': 0, 'sessions': n, 'offset_only': []}
+        return fit, offsets, {'folds': 0, 'sessions': int(np.unique(groups).size),
+                              'offset_only': []}
 
     def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
         f = fit_linear(x[train], y[train], kind=kind, n_centers=n_centers, ridge=fit.ridge,

@@ -200,27 +200,31 @@ class Folds:
 
     @classmethod
     def sessions(cls, groups: ArrayLike, temp: ArrayLike | None = None, *,
-                 min_rows: int = 1) -> 'Folds':
+                 beyond: bool = False) -> 'Folds':
         """
         Return one fold per session: that session held out, the others trained on.
 
         With ``temp`` (one per row) a session is scored only inside the others' range of it
         (outside it a model is clamped or extrapolated, which says nothing of how its curve
-        carries to another power cycle); a fold with fewer than two such rows is skipped, as
-        is one with fewer than ``min_rows`` held-out rows (a session re-anchored on one row
-        scores nothing).
+        carries to another power cycle); a fold with fewer than two such rows is skipped.
+        With ``beyond`` too, a session is held out whole (for a model that predicts it beyond
+        the others' range as the node does) where it has two rows or more and ``temp``
+        changes within one of the others' sessions (a curve to fit).
         """
         g = np.asarray(groups)
         tests, trains = [], []
-        least = max(min_rows, 1 if temp is None else 2)
         for s in np.unique(g):
             test, train = g == s, g != s
             if temp is not None:
                 x = np.asarray(temp)
-                lo, hi = x[train].min(initial=np.inf), x[train].max(initial=-np.inf)
-                test &= (x >= lo) & (x <= hi)
-            if np.count_nonzero(test) < least:
-                continue
+                if beyond:
+                    if not np.any(within(x[train], g[train])[1]):
+                        continue
+                else:
+                    lo, hi = x[train].min(initial=np.inf), x[train].max(initial=-np.inf)
+                    test &= (x >= lo) & (x <= hi)
+                if np.count_nonzero(test) < 2:
+                    continue
             tests.append(test)
             trains.append(train)
         return cls(tuple(tests), tuple(trains))
