@@ -151,7 +151,9 @@ def check_note(model_path: Path) -> str:
     if not rec['folds']:
         return 'not judged'
     how = 'whole' if rec.get('whole') else 'in range'
-    return f"{rec['folds']} {how}, offset only: {','.join(rec['offset_only']) or '-'}"
+    worse = ' '.join(map(str, rec['worse_folds']))
+    return (f"{rec['folds']} {how} (worse x y z: {worse}), offset only: "
+            f"{','.join(rec['offset_only']) or '-'}")
 
 
 def run_case(seed: int, k: int, folder: Path) -> dict:
