@@ -149,10 +149,9 @@ def check_note(model_path: Path) -> str:
     if not rec:
         return 'no check'
     if not rec['folds']:
-        return 'not judged'
-    how = 'whole' if rec.get('whole') else 'in range'
+        return "not judged (no session inside the others' temperatures)"
     worse = ' '.join(map(str, rec['worse_folds']))
-    return (f"{rec['folds']} {how} (worse x y z: {worse}), offset only: "
+    return (f"{rec['folds']} folds (worse x y z: {worse}), offset only: "
             f"{','.join(rec['offset_only']) or '-'}")
 
 

@@ -25,20 +25,19 @@ from __future__ import annotations
 from dataclasses import dataclass, replace
 import datetime as _dt
 import math
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
 from gyro_tdc import __version__
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
-from gyro_tdc.identify.power_cycles import AsNode, check_sessions
+from gyro_tdc.identify.power_cycles import check_sessions
 from gyro_tdc.identify.tau import fit_time_constant
 from gyro_tdc.identify.thermal_search import (choose_state, ParamSearch, run_blocks, run_state,
                                               RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
-from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, EFFECTS,
-                            input_ids, KINDS, normalise_ids, REFERENCE_EFFECTS, resolve_params,
-                            STATE_TERMS, TEMPERATURE_EFFECTS, THERMAL_EFFECTS, ThermalState,
-                            with_implied)
+from gyro_tdc.model import (CompensationModel, EFFECTS, input_ids, KINDS, normalise_ids,
+                            REFERENCE_EFFECTS, resolve_params, STATE_TERMS, TEMPERATURE_EFFECTS,
+                            THERMAL_EFFECTS, ThermalState, with_implied)
 from gyro_tdc.signal import block_length
 import numpy as np
 from numpy.typing import NDArray
@@ -232,16 +231,13 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
             offsets = offsets - offsets.mean(axis=0) + fit.coef[0]
     check, counts = None, np.concatenate([b.counts for b in blocks])
     bstate = np.concatenate([b.mean(s) for b, s in zip(blocks, states)])
+    if groups is not None and o.check_sessions:
+        fit, offsets, check = check_sessions(fit, offsets, x, y, scale_cols, groups, counts,
+                                             bstate, kind=o.kind, n_centers=o.n_centers,
+                                             seed=o.seed)
+    coef = fit.coef if groups is None else _with_level(fit, offsets)
     if th.kind != 'none':
         par[_LAG] = {'tau_s': th.tau_total_s}
-    if groups is not None and o.check_sessions:
-        fit, offsets, check = check_sessions(
-            fit, offsets, x, y, scale_cols, groups, counts, bstate, kind=o.kind,
-            n_centers=o.n_centers, seed=o.seed,
-            as_node=_as_node(blocks, states, rows, lambda f, rng: CompensationModel.network(
-                o.kind, ids, par, t0, f.norm, f.coef, scale=f.scale, temp_range_c=rng,
-                residual_var=np.zeros(3), thermal=th)))
-    coef = fit.coef if groups is None else _with_level(fit, offsets)
     created = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
                'gyro_tdc_version': __version__, **(o.created or {})}
     residual_var = _residual_var(blocks, states, counts, bstate, fit, t0, n_total)
@@ -323,32 +319,6 @@ def _residual_var(blocks: Sequence[RunBlocks], states: Sequence[NDArray[np.float
     gain = 1.0 + (bstate - t0)[:, None] * fit.scale
     ss = ((within + counts[:, None] * fit.resid ** 2) / gain ** 2).sum(axis=0)
     return np.maximum(ss, 0.0) / n_total
-
-
-def _as_node(blocks: Sequence[RunBlocks], states: Sequence[NDArray[np.float64]],
-             rows: Sequence[NDArray[np.bool_]] | None,
-             model: Callable[[LinearFit, tuple[float, float]], CompensationModel]) -> AsNode:
-    """
-    Return :func:`check_sessions`' ``as_node``: block residuals of a fold as the node predicts.
-
-    ``model(fold_fit, range)`` is the fold's fit as a model trained on ``range`` (the model
-    temperatures of the training rows); the held-out runs are compensated by it over every
-    sample (:data:`~gyro_tdc.model.DEFAULT_OUT_OF_RANGE` beyond the range) and the error
-    averaged over their blocks.
-    """
-    run_of = np.repeat(np.arange(len(blocks)), [b.y.shape[0] for b in blocks])
-
-    def residual(f: LinearFit, train: NDArray[np.bool_], test: NDArray[np.bool_]
-                 ) -> NDArray[np.float64]:
-        seen = np.unique(run_of[train])
-        m = model(f, span([states[i] if rows is None else states[i][rows[i]] for i in seen]))
-        out = np.zeros((run_of.size, 3))
-        for i in np.unique(run_of[test]):
-            r = blocks[i].run
-            c = compensate(m, r.t, r.temp, r.omega, out_of_range=DEFAULT_OUT_OF_RANGE)
-            out[run_of == i] = blocks[i].mean(r.omega_ref - c)
-        return out[test]
-    return residual
 
 
 def _with_level(fit: LinearFit, offsets: NDArray[np.float64] | None = None

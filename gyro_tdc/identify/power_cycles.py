@@ -18,10 +18,9 @@ Do no harm across power cycles: the thermal curve validated on held-out sessions
 :func:`check_sessions` holds each session out in turn (the estimator's
 :meth:`gyro_tdc.signal.Folds.sessions`), fits the curve on the others and scores it on the
 held-out session re-anchored, as the compensator re-anchors at start-up, against its offset
-alone. When no session overlaps the others' temperatures, each is held out whole and
-predicted as the node predicts beyond a model's range (along the tangent at its end). An axis
-whose curve does not predict every held-out power cycle better keeps the offset only;
-:func:`session_check_lines` says so with the figures, or that nothing could be judged.
+alone. An axis whose curve does not predict every held-out power cycle better keeps the
+offset only; :func:`session_check_lines` says so with the figures, or that no power cycle
+overlaps the others' temperatures and the curve is kept unchecked.
 
 :func:`reanchor_rule` (the rule of :mod:`gyro_tdc.runtime.startup_gate`, which the learner
 shares) decides the same way, per axis, how large a start-up shift the node takes (the gate
@@ -54,15 +53,12 @@ __all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'reanchor_lines', 'reanc
            'session_check_lines', 'SIGNIFICANCE']
 
 _DEG2 = (180.0 / math.pi) ** 2
-#: ``as_node(fold_fit, train, test)`` of :func:`check_sessions`.
-AsNode = Callable[[LinearFit, NDArray[np.bool_], NDArray[np.bool_]], NDArray[np.float64]]
 
 
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
                    y: NDArray[np.float64], scale_cols: NDArray[np.float64] | None,
                    groups: NDArray[np.int64], counts: NDArray[np.float64],
-                   temp: NDArray[np.float64], *, kind: str, n_centers: int, seed: int,
-                   as_node: AsNode | None = None
+                   temp: NDArray[np.float64], *, kind: str, n_centers: int, seed: int
                    ) -> tuple[LinearFit, NDArray[np.float64], dict | None]:
     """
     Validate the curve on held-out sessions; keep the offset only where it does no better.
@@ -82,11 +78,6 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
         Block-mean model temperature.
     kind, n_centers, seed
         As the fit's (its ridge is kept).
-    as_node : callable, optional
-        ``as_node(fold_fit, train, test)``: the residuals (prediction minus target) of the
-        ``test`` rows with ``fold_fit`` applied as the node applies a model trained on the
-        ``train`` rows, beyond their range too (:data:`~gyro_tdc.model.DEFAULT_OUT_OF_RANGE`).
-        When no session overlaps the others' temperatures, each is held out whole with it.
 
     Returns
     -------
@@ -97,17 +88,15 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     record : dict or None
         ``folds``, ``blocks``, ``curve_ms_dps2`` and ``offset_ms_dps2`` (held-out mean squares
         per axis, each session re-anchored), ``worse_folds`` (per axis, the held-out sessions
-        the curve predicts worse), ``offset_only`` (axis names) and ``whole`` (each session
-        held out whole, beyond the others' temperatures); with no fold to judge on,
-        ``folds`` 0 and no figures. None when the model has no curve.
+        the curve predicts worse) and ``offset_only`` (axis names); with no session to
+        judge on (none overlaps the others' temperatures), ``folds`` 0, ``sessions`` and no
+        figures: the curve is kept unchecked. None when the model has no curve.
 
     """
     if not x.shape[1]:                          # no curve: nothing to judge
         return fit, offsets, None
-    folds, whole = Folds.sessions(groups, temp), False
-    if not len(folds) and as_node is not None:  # none overlaps: whole, as the node predicts
-        folds, whole = Folds.sessions(groups, temp, beyond=True), True
-    if not len(folds):
+    folds = Folds.sessions(groups, temp)
+    if not len(folds):                          # no session to judge on: kept, said
         return fit, offsets, {'folds': 0, 'sessions': int(np.unique(groups).size),
                               'offset_only': []}
 
@@ -115,8 +104,6 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
         f = fit_linear(x[train], y[train], kind=kind, n_centers=n_centers, ridge=fit.ridge,
                        seed=seed, groups=groups[train],
                        scale_cols=None if scale_cols is None else scale_cols[train])
-        if whole:
-            return as_node(f, train, test)
         return f.predict(x[test], None if scale_cols is None else scale_cols[test]) - y[test]
 
     shape, scored = y.shape, np.any(np.stack(folds.test), axis=0)
@@ -133,7 +120,7 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     worse = np.sum([~(mean_square(r_curve, t) < mean_square(r_offset, t)) for t in folds.test],
                    axis=0)
     drop = np.flatnonzero(~(ms_curve < ms_offset) | (worse > 0))
-    record = {'folds': len(folds), 'blocks': int(np.count_nonzero(scored)), 'whole': whole,
+    record = {'folds': len(folds), 'blocks': int(np.count_nonzero(scored)),
               'curve_ms_dps2': (ms_curve * _DEG2).tolist(),
               'offset_ms_dps2': (ms_offset * _DEG2).tolist(), 'worse_folds': worse.tolist(),
               'offset_only': [AXES[a] for a in drop]}
@@ -153,15 +140,13 @@ def session_check_lines(record: dict | None) -> list[str]:
     if not record:
         return []
     if not record['folds']:
-        return [f"the curve is not judged on a held-out power cycle ({record['sessions']} "
-                'sessions with data, no fold of two blocks or more to hold out): the model '
-                'keeps it unchecked on every axis']
-    where = (f"{record['blocks']} blocks, none inside the others' temperatures: each "
-             'predicted whole as the node extrapolates beyond the range'
-             if record.get('whole') else
-             f"{record['blocks']} blocks inside the others' temperatures")
-    out = [f"the curve held out on each power cycle ({record['folds']} sessions, {where}, "
-           're-anchored), mean square, (deg/s)^2:',
+        return ['the curve is not judged on a held-out power cycle: none of the '
+                f"{record['sessions']} sessions with data has two blocks inside the others' "
+                'temperatures; the model keeps it on every axis unchecked (a power cycle over '
+                "the others' temperatures would judge it)"]
+    out = [f"the curve held out on each power cycle ({record['folds']} sessions, "
+           f"{record['blocks']} blocks inside the others' temperatures, re-anchored), "
+           'mean square, (deg/s)^2:',
            '  curve        ' + '  '.join(f'{v:10.3g}' for v in record['curve_ms_dps2']),
            '  offset only  ' + '  '.join(f'{v:10.3g}' for v in record['offset_ms_dps2'])]
     if 'worse_folds' in record:

@@ -241,7 +241,7 @@ def _held_out(v: Any, curve: bool) -> dict | None:
     """Return the fit's held-out record (None: the fit has no curve)."""
     if v is None and not curve:
         return None
-    v = _dict(v, 'fit.held_out', _HELD_KEYS, optional=('whole',))
+    v = _dict(v, 'fit.held_out', _HELD_KEYS)
     out = {k: _count(v[k], f'fit.held_out.{k}') for k in _HELD_KEYS[:3]}
     for k in _HELD_KEYS[3:5]:
         out[k] = None if v[k] is None and not out['folds'] else _CHK.numbers(
@@ -250,8 +250,6 @@ def _held_out(v: Any, curve: bool) -> dict | None:
     if not set(axes) <= set(AXES) or len(set(axes)) < len(axes):
         raise _bad('fit.held_out.offset_only', f'must be distinct axis names, got {axes!r:.40}')
     out['offset_only'] = axes
-    if 'whole' in v:
-        out['whole'] = _CHK.boolean(v['whole'], 'fit.held_out.whole')
     return out
 
 

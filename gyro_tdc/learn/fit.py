@@ -31,9 +31,9 @@ import math
 from typing import Sequence
 
 from gyro_tdc.errors import ModelFileError
-from gyro_tdc.model import (check_model, CompensationModel, DEFAULT_OUT_OF_RANGE, drift,
-                            first_order_lag, MAX_EXTRAPOLATION_C, normalise_ids, STATE_TERMS,
-                            THERMAL_EFFECTS, ThermalState)
+from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag,
+                            MAX_EXTRAPOLATION_C, normalise_ids, STATE_TERMS, THERMAL_EFFECTS,
+                            ThermalState)
 from gyro_tdc.signal import fit_columns, Folds, hat, heldout, session_columns, within
 import numpy as np
 from numpy.typing import NDArray
@@ -213,20 +213,17 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     Each session is held out in turn inside the others' temperatures (the estimator's
     :meth:`~gyro_tdc.signal.Folds.sessions`), the curve fitted on the others, and its
     residuals and the raw rate's re-anchored (:func:`~gyro_tdc.signal.heldout`), as the node
-    re-anchors a new power cycle. When no session overlaps another's temperatures, each is held
-    out whole and predicted as the node predicts beyond a model's range
-    (:data:`~gyro_tdc.model.DEFAULT_OUT_OF_RANGE`, along the tangent). Where the curve's
-    weighted mean square is not below the offset's, the axis keeps the offset only. Without a
-    fold (one session, or none with two points) nothing is judged and the curve is kept: it is
-    the only evidence, the prediction check still guards it and each power-up is re-anchored.
+    re-anchors a new power cycle. Where the curve's weighted mean square is not below the
+    offset's, the axis keeps the offset only. Without a fold (one session, or none
+    overlapping another's temperatures) nothing is judged and the curve is kept: it is the
+    only evidence, the prediction check still guards it and each power-up is re-anchored.
 
     Returns
     -------
     dict or None
         ``sessions``, ``folds``, ``points`` (scored), ``curve_ms_dps2`` and
-        ``offset_ms_dps2`` (per axis, (deg/s)^2; None without a fold), ``offset_only``
-        (axis names) and, when each session was held out whole, ``whole`` True; None
-        without a curve.
+        ``offset_ms_dps2`` (per axis, (deg/s)^2; None without a fold) and ``offset_only``
+        (axis names); None without a curve.
 
     """
     if not feats:
@@ -234,9 +231,6 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     g, y = e[:, 6], e[:, 3:6]
     x = np.column_stack([(e[:, 2] - t0) ** (j + 1) for j in range(len(feats))])
     folds = Folds.sessions(g, e[:, 2])
-    whole = not len(folds)
-    if whole:                             # none overlaps: each whole, as the node predicts
-        folds = Folds.sessions(g, e[:, 2], beyond=True)
     rec = {'sessions': int(np.unique(g).size), 'folds': len(folds), 'points': 0,
            'curve_ms_dps2': None, 'offset_ms_dps2': None, 'offset_only': []}
     if not len(folds):
@@ -245,12 +239,7 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
         # The shared shape with one offset per training session, the offsets eliminated.
         xc, yc = (within(v[train], g[train], wt[train])[1] for v in (x, y))
-        beta = fit_columns(xc, yc, weights=wt[train])
-        if not whole:
-            return y[test] - x[test] @ beta
-        m = learned_model(np.vstack([np.zeros((1, 3)), beta]), feats, t0,
-                          (float(e[train, 2].min()), float(e[train, 2].max())), np.zeros(3))
-        return y[test] - drift(m, e[test, 0], e[test, 2], out_of_range=DEFAULT_OUT_OF_RANGE)
+        return y[test] - x[test] @ fit_columns(xc, yc, weights=wt[train])
 
     scored = np.any(np.stack(folds.test), axis=0)
     w = wt[scored][:, None]
@@ -258,8 +247,7 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
           / w.sum() * _DEG2 for f in (curve, lambda test, train: y[test])]
     rec.update(points=int(np.count_nonzero(scored)), curve_ms_dps2=ms[0].tolist(),
                offset_ms_dps2=ms[1].tolist(),
-               offset_only=[AXES[a] for a in np.flatnonzero(~(ms[0] < ms[1]))],
-               **({'whole': True} if whole else {}))
+               offset_only=[AXES[a] for a in np.flatnonzero(~(ms[0] < ms[1]))])
     return rec
 
 

@@ -169,14 +169,12 @@ def held_out_line(fit: dict | None) -> str:
     if rec is None:
         return 'no curve' if fit is not None else 'no learned model yet'
     if not rec['folds']:
-        return (f"not judged ({rec['sessions']} session(s), no other power cycle to hold "
-                'out): the curve is kept, each power-up re-anchored')
+        return (f"not judged ({rec['sessions']} session(s), no other power cycle over the "
+                'same temperatures): the curve is kept, each power-up re-anchored')
     figs = ', '.join(f'{a} {c:.3g} vs {o:.3g}' for a, c, o in zip(
         'xyz', rec['curve_ms_dps2'], rec['offset_ms_dps2']))
     only = ', '.join(rec['offset_only'])
-    how = (", each cycle whole beyond the others' temperatures, predicted as the node "
-           'extrapolates' if rec.get('whole') else '')
     return (f"curve vs offset only, held out on {rec['folds']} of {rec['sessions']} power "
-            f"cycles ({rec['points']} points{how}), mean square (deg/s)^2: {figs}; "
+            f"cycles ({rec['points']} points), mean square (deg/s)^2: {figs}; "
             + (f'offset only on {only} (the curve does not beat it held out)' if only
                else 'the curve is kept on every axis'))

@@ -199,17 +199,13 @@ class Folds:
         return cls(tuple(tests), tuple(trains))
 
     @classmethod
-    def sessions(cls, groups: ArrayLike, temp: ArrayLike | None = None, *,
-                 beyond: bool = False) -> 'Folds':
+    def sessions(cls, groups: ArrayLike, temp: ArrayLike | None = None) -> 'Folds':
         """
         Return one fold per session: that session held out, the others trained on.
 
         With ``temp`` (one per row) a session is scored only inside the others' range of it
         (outside it a model is clamped or extrapolated, which says nothing of how its curve
         carries to another power cycle); a fold with fewer than two such rows is skipped.
-        With ``beyond`` too, a session is held out whole (for a model that predicts it beyond
-        the others' range as the node does) where it has two rows or more and ``temp``
-        changes within one of the others' sessions (a curve to fit).
         """
         g = np.asarray(groups)
         tests, trains = [], []
@@ -217,12 +213,8 @@ class Folds:
             test, train = g == s, g != s
             if temp is not None:
                 x = np.asarray(temp)
-                if beyond:
-                    if not np.any(within(x[train], g[train])[1]):
-                        continue
-                else:
-                    lo, hi = x[train].min(initial=np.inf), x[train].max(initial=-np.inf)
-                    test &= (x >= lo) & (x <= hi)
+                lo, hi = x[train].min(initial=np.inf), x[train].max(initial=-np.inf)
+                test &= (x >= lo) & (x <= hi)
                 if np.count_nonzero(test) < 2:
                     continue
             tests.append(test)

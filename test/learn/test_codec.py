@@ -45,11 +45,6 @@ def test_the_held_out_record_round_trips(base):
               'offset_ms_dps2': [2e-4, 1e-4, 3e-4], 'offset_only': ['y', 'z']}
     values, _ = decode_state(with_field(state, ('fit', 'held_out'), judged))
     assert values['fit']['held_out'] == judged
-    whole = {**judged, 'whole': True}        # each power cycle held out whole (none overlap)
-    values, _ = decode_state(with_field(state, ('fit', 'held_out'), whole))
-    assert values['fit']['held_out'] == whole
-    with pytest.raises(ValueError, match=re.escape('field `fit.held_out.whole`')):
-        decode_state(with_field(state, ('fit', 'held_out'), {**judged, 'whole': 'yes'}))
 
 
 def test_the_start_up_shift_gate_round_trips(base):

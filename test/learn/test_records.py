@@ -57,6 +57,3 @@ def test_the_held_out_line_says_what_was_judged_and_what_was_chosen():
     assert '\n' not in line
     line = held_out_line({'held_out': {**rec, 'offset_only': []}})
     assert line.endswith('the curve is kept on every axis')
-    line = held_out_line({'held_out': {**rec, 'whole': True}})
-    assert ("(40 points, each cycle whole beyond the others' temperatures, predicted as the "
-            'node extrapolates)') in line

@@ -112,17 +112,6 @@ def test_folds_segments_interleave_and_sessions_leave_one_out():
     assert [t.tolist() for t in inside.test] == [[False, False, True, True, False, False]]
     assert np.array_equal(inside.train[0], groups != 1)
     assert not len(Folds.sessions(np.zeros(4), np.arange(4.0)))      # one session: none
-    # Beyond: each session whole, where it has two rows and another varies within itself.
-    apart = np.array([10.0, 11.0, 30.0, 31.0, 32.0, 12.0])
-    assert not len(Folds.sessions(groups, apart))
-    whole = Folds.sessions(groups, apart, beyond=True)
-    assert [t.tolist() for t in whole.test] == [[False, False, True, True, True, False],
-                                                [True, True, False, False, False, False]]
-    assert all(np.array_equal(tr, groups != groups[t][0]) for t, tr in whole)
-    flat = np.array([10.0, 10.0, 30.0, 31.0, 32.0, 12.0])              # 3 alike: no curve
-    assert [t.tolist() for t in Folds.sessions(groups, flat, beyond=True).test] == [
-        [True, True, False, False, False, False]]
-    assert not len(Folds.sessions(np.zeros(4), np.arange(4.0), beyond=True))
 
 
 def test_heldout_reanchors_a_session_seen_nowhere_in_training():
