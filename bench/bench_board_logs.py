@@ -38,6 +38,7 @@ one-line refusal about stillness.
     .venv/bin/python bench/bench_board_logs.py                # 8 cases
     .venv/bin/python bench/bench_board_logs.py --cases 20 --seed 1
     .venv/bin/python bench/bench_board_logs.py --seeds 0 1 2 3 4 5   # per seed, then pooled
+    .venv/bin/python bench/bench_board_logs.py --seed 4 --case 5     # one case
 """
 
 import argparse
@@ -141,6 +142,19 @@ def held_out_ratio(model_path: Path, days: list, paths: list) -> np.ndarray:
     return still_drift(trimmed, comp) / still_drift(trimmed)
 
 
+def check_note(model_path: Path) -> str:
+    """Return how the trainer judged the curve on held-out power cycles, and what it kept."""
+    from gyro_tdc.model.modelfile import load_model
+    rec = load_model(model_path).metrics.get('sessions', {}).get('heldout')
+    if not rec:
+        return 'no check'
+    if not rec['folds']:
+        return "not judged (no session inside the others' temperatures)"
+    worse = ' '.join(map(str, rec['worse_folds']))
+    return (f"{rec['folds']} folds (worse x y z: {worse}), offset only: "
+            f"{','.join(rec['offset_only']) or '-'}")
+
+
 def run_case(seed: int, k: int, folder: Path) -> dict:
     """Train one drawn case both ways with the CLI; return the held-out ratios or refusals."""
     c = draw_case(seed, k)
@@ -156,6 +170,7 @@ def run_case(seed: int, k: int, folder: Path) -> dict:
         if code == 0:
             out[name] = held_out_ratio(model, *held)
             out[name + '_note'] = ''
+            out[name + '_check'] = check_note(model)
         else:
             out[name] = None
             out[name + '_note'] = lines[-1][:110] if lines else f'exit {code}'
@@ -199,19 +214,22 @@ def main(argv=None) -> int:
     ap.add_argument('--seed', type=int, default=0)
     ap.add_argument('--seeds', type=int, nargs='+', help="several seeds: each one's summary, "
                     'then the pooled one (instead of --seed)')
+    ap.add_argument('--case', type=int, help='run this case of each seed only')
     args = ap.parse_args(argv)
     seeds, every = args.seeds or [args.seed], []
     for seed in seeds:
         rows = []
         with tempfile.TemporaryDirectory() as tmp:
-            for k in range(args.cases):
+            for k in range(args.cases) if args.case is None else [args.case]:
                 r = run_case(seed, k, Path(tmp))
                 rows.append(r)
                 fmt = ['refused' if r[n] is None else ' / '.join(f'{v:.3f}' for v in r[n])
                        for n in ('still_only', 'train')]
                 print(f"case {k:2d} (seed {seed}): {r['rate_hz']:7.1f} Hz, {r['legs']} legs, "
                       f"res {r['resolution_c']:.3g} degC, noise {r['noise_dps']:.3f} deg/s | "
-                      f"still-only {fmt[0]} | train {fmt[1]}\n         cycles: {r['kinds']}"
+                      f"still-only {fmt[0]} | train {fmt[1]}\n         cycles: {r['kinds']}; "
+                      'held-out check: ' + ' | '.join(r.get(n + '_check', '-')
+                                                      for n in ('still_only', 'train'))
                       + ''.join(f"\n         {n}: {r[n + '_note']}"
                                 for n in ('still_only', 'train') if r[n + '_note']), flush=True)
         every += rows

@@ -19,7 +19,8 @@ Do no harm across power cycles: the thermal curve validated on held-out sessions
 :meth:`gyro_tdc.signal.Folds.sessions`), fits the curve on the others and scores it on the
 held-out session re-anchored, as the compensator re-anchors at start-up, against its offset
 alone. An axis whose curve does not predict every held-out power cycle better keeps the
-offset only; :func:`session_check_lines` says so with the figures.
+offset only; :func:`session_check_lines` says so with the figures, or that no power cycle
+overlaps the others' temperatures and the curve is kept unchecked.
 
 :func:`reanchor_rule` (the rule of :mod:`gyro_tdc.runtime.startup_gate`, which the learner
 shares) decides the same way, per axis, how large a start-up shift the node takes (the gate
@@ -87,13 +88,17 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     record : dict or None
         ``folds``, ``blocks``, ``curve_ms_dps2`` and ``offset_ms_dps2`` (held-out mean squares
         per axis, each session re-anchored), ``worse_folds`` (per axis, the held-out sessions
-        the curve predicts worse) and ``offset_only`` (axis names); None when no
-        session overlaps the others' temperatures or the model has no curve.
+        the curve predicts worse) and ``offset_only`` (axis names); with no session to
+        judge on (none overlaps the others' temperatures), ``folds`` 0, ``sessions`` and no
+        figures: the curve is kept unchecked. None when the model has no curve.
 
     """
-    folds = Folds.sessions(groups, temp)
-    if not len(folds) or not x.shape[1]:        # no session to judge on, or no curve
+    if not x.shape[1]:                          # no curve: nothing to judge
         return fit, offsets, None
+    folds = Folds.sessions(groups, temp)
+    if not len(folds):                          # no session to judge on: kept, said
+        return fit, offsets, {'folds': 0, 'sessions': int(np.unique(groups).size),
+                              'offset_only': []}
 
     def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
         f = fit_linear(x[train], y[train], kind=kind, n_centers=n_centers, ridge=fit.ridge,
@@ -134,6 +139,11 @@ def session_check_lines(record: dict | None) -> list[str]:
     """Return the report lines of a held-out session check (empty without one)."""
     if not record:
         return []
+    if not record['folds']:
+        return ['the curve is not judged on a held-out power cycle: none of the '
+                f"{record['sessions']} sessions with data has two blocks inside the others' "
+                'temperatures; the model keeps it on every axis unchecked (a power cycle over '
+                "the others' temperatures would judge it)"]
     out = [f"the curve held out on each power cycle ({record['folds']} sessions, "
            f"{record['blocks']} blocks inside the others' temperatures, re-anchored), "
            'mean square, (deg/s)^2:',

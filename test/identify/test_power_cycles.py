@@ -12,7 +12,7 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The start-up shift rule: the gate of one session's anchors, held-out sessions' choice."""
+"""Across power cycles: the start-up shift rule, and a curve no power cycle can judge."""
 
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ import json
 from bags import bag_from_run
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data import Run
-from gyro_tdc.identify import fit_model, reanchor_lines, reanchor_rule
+from gyro_tdc.identify import fit_model, reanchor_lines, reanchor_rule, session_check_lines
 from gyro_tdc.identify.still_only import rows_of
 from gyro_tdc.model import load_model
 import numpy as np
@@ -136,3 +136,18 @@ def test_train_reports_the_rule_in_text_and_json(tmp_path, capsys):
     rec = json.loads(js.read_text())['reanchor']
     assert rec == load_model(out).metrics['reanchor']
     assert rec['min_shift_dps'] == pytest.approx(2.0 * np.array(rec['anchor_error_dps']))
+
+
+def test_a_curve_no_power_cycle_can_judge_is_kept_and_the_report_says_so():
+    # Two power cycles 5 degC apart: none lies inside the other's temperatures, no fold.
+    cycles = ((10.0, 20.0, (0.4, -0.3, 0.1)), (25.0, 35.0, (-0.5, 0.2, 0.45)))
+    runs = [synth_run(seed=i, hours=1.0, rate_hz=2.0, t_lo=lo, t_hi=hi, noise_dps=0.02,
+                      offset_dps=off, name=f'run{i}') for i, (lo, hi, off) in enumerate(cycles)]
+    m = fit_model(runs, kind='poly', features='dT,dT2', t0=20.0, sessions=[0, 1])
+    check = m.metrics['sessions']['heldout']
+    assert check == {'folds': 0, 'sessions': 2, 'offset_only': []}
+    assert np.all(m.linear != 0.0)                      # the curve is kept on every axis
+    assert session_check_lines(check) == [
+        'the curve is not judged on a held-out power cycle: none of the 2 sessions with data '
+        "has two blocks inside the others' temperatures; the model keeps it on every axis "
+        "unchecked (a power cycle over the others' temperatures would judge it)"]
