@@ -45,7 +45,8 @@ from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.priming import (catch_up, prepare, PREPARED_BY, prepared_for, PreparedModel,
                                       Priming)
 from gyro_tdc.runtime.state import detector_for, reanchor_var, Reanchoring, StreamState, Tally
-from gyro_tdc.signal import TemperatureHold
+from gyro_tdc.signal import GAP_PERIODS, TemperatureHold
+import numpy as np
 
 __all__ = ['CompensatorCore', 'correction_is_safe', 'Output', 'timeless']
 
@@ -86,6 +87,9 @@ class CompensatorCore:
         self.tally = Tally()
         self.reanchoring = Reanchoring(detector_for(policy))
         self.learning = LearningGate()
+        #: Steps over this (s) are shown to the session rule: every step while the stream's
+        #: median period is learnt, then pauses of GAP_PERIODS periods (the learner's too).
+        self._pause_s = 0.0
         self._update_needs()
         if model is not None:
             self.set_model(model)
@@ -350,7 +354,7 @@ class CompensatorCore:
             self.reanchoring.sessions.begin(t, tally.counts['in'])
         else:
             d = t - last                # NaN fails the compares
-            if d > SESSION_GAP_S or d < -RESTART_BACK_S:
+            if d > self._pause_s or d < -RESTART_BACK_S:
                 self._session_break(t, d)
         gate = self.learning
         if t >= gate.gate:             # learning: a model due, or a sample to hand over
@@ -504,8 +508,9 @@ class CompensatorCore:
         """
         Start a new session at stamp ``t`` when the step ``d`` from the last one is a break.
 
-        A break is the shared rule's (:class:`gyro_tdc.signal.SessionTracker`, shown the steps
-        over ``SESSION_GAP_S`` or back by ``RESTART_BACK_S``): the IMU was power-cycled. Its
+        A break is the shared rule's (:class:`gyro_tdc.signal.SessionTracker`, shown the
+        learner's steps: pauses over ``GAP_PERIODS`` median periods, which it learns the
+        stream's rhythm from, and steps back by ``RESTART_BACK_S``): the IMU was power-cycled. Its
         streams start over (:meth:`StreamState.restart`), so do the model's time terms
         (:meth:`StreamingCompensator.reset`) and, with ``reanchor_on_start``, the
         re-anchoring (the old shift dropped).
@@ -513,6 +518,12 @@ class CompensatorCore:
         a = self.reanchoring
         k = self.tally.counts['in']
         sessions = a.sessions
+        if sessions.median is None:     # the period is being learnt: the steps over the gap
+            period = sessions.median_period(np.array([d]))
+            if period is not None:
+                self._pause_s = min(SESSION_GAP_S, GAP_PERIODS * period)
+            if not (d > SESSION_GAP_S or d < -RESTART_BACK_S):
+                return
         why = sessions.judge(d, sessions.period(self.stream.t, k) if d > 0 else 0.0)
         if not why:
             return

@@ -87,6 +87,26 @@ def test_a_bursty_logger_is_one_power_cycle_once_its_rhythm_shows():
     assert health(core).values['reanchor'].endswith('after a gap of 7200 s)')
 
 
+def test_pauses_shorter_than_the_gap_teach_the_rhythm_as_the_learner_and_batch_see_it():
+    """1 Hz bursts with 300 s pauses: a 700 s pause is no power cycle, for every user of the rule."""
+    from gyro_tdc.signal import session_gap
+    t, t0 = [], 0.0
+    for pause in [300.0] * 8 + [700.0] + [300.0] * 3 + [0.0]:
+        t += list(t0 + np.arange(100.0))
+        t0 = t[-1] + pause
+    t = np.array(t)
+    assert session_gap(t) > 700.0                   # the batch session cutter: one session
+    core = CompensatorCore(Policy(reanchor_on_start=True))
+    for ts in t:
+        core.process(float(ts), 0.0, 0.0, 0.0)
+    assert core.reanchoring.sessions.session == 1
+    assert len(core.reanchoring.sessions.rhythm) > 0
+    # A longer pause than the rhythm allows is still a power cycle.
+    for ts in t[-1] + 7200.0 + np.arange(100.0):
+        core.process(float(ts), 0.0, 0.0, 0.0)
+    assert core.reanchoring.sessions.session == 2
+
+
 def test_a_clock_restart_forgets_the_old_sessions_temperatures(timed_model):
     """After the stamps step back, the held readings and their age are the new session's."""
     first = _session(5000.0, 10.0, 40.0, seed=1)
