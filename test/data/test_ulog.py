@@ -21,11 +21,12 @@ from dataclasses import replace
 from flightlogs import Imu, px4_topics, write_ulog
 from gyro_tdc.data import BagOptions, detect_format, load_runs
 from gyro_tdc.data.dataset import describe_read, load_run
+from gyro_tdc.data.flightlog import rate_hz
 from gyro_tdc.data.ulog import read_ulog, ulog_truncated_bytes
 from gyro_tdc.errors import DatasetError
 import numpy as np
 import pytest
-from real_logs import PX4_ACCEL_THERMOMETER
+from real_logs import PX4_ACCEL_THERMOMETER, PX4_SELECTION_FLIPS
 
 
 def _imus(n: int = 300, count: int = 2) -> list:
@@ -337,3 +338,21 @@ def test_a_damaged_stamp_does_not_make_the_fastest_gyro_look_the_slowest(tmp_pat
             'timestamp': bad, 'gyro_rad': imu.gyro, 'accelerometer_m_s2': imu.accel})]
     log = read_ulog(write_ulog(tmp_path / 'flipped.ulg', topics))
     assert log.source == 'sensor_combined' and len(log.imu_t) == 1200
+
+
+def test_a_real_log_whose_selection_flips_gives_each_imu_its_own_200_hz_gyro():
+    from pyulog import ULog
+    log0, log1 = (read_ulog(PX4_SELECTION_FLIPS, instance=k) for k in (0, 1))
+    sel = ULog(str(PX4_SELECTION_FLIPS), ['sensor_selection']).data_list[0].data
+    assert [int(d) for d in sel['gyro_device_id']] == [log1.device_id, *[log0.device_id] * 2,
+                                                       log1.device_id, log0.device_id]
+    first, flip = (float(sel['timestamp'][k]) * 1e-6 for k in (1, -1))   # 2.55 .. 2.59 s in
+    for log in (log0, log1):
+        assert log.source == 'sensor_combined' and 150.0 < rate_hz(log.imu_t) < 250.0
+        assert 'carries this IMU in' in log.notes[0]
+    assert len(log0.imu_t) == 1300 and log0.imu_t[0] >= first and log0.imu_t[-1] > flip + 6
+    assert len(log1.imu_t) == 437 and log1.imu_t[-1] < flip       # every row is one IMU's
+    assert np.intersect1d(log0.imu_t, log1.imu_t).size == 0
+    assert log0.temperature == 'sensor_gyro.temperature'              # each its own
+    assert log1.temperature == 'vehicle_imu_status.temperature_accel instance 1'
+    assert log0.device_id != log1.device_id
