@@ -212,7 +212,7 @@ def test_help_exits_zero(capsys):
 
 @pytest.fixture(scope='module')
 def card(tmp_path_factory):
-    """An SD card's folder: two readable logs (one in ``log/DATE/``), two not."""
+    """Write an SD card's folder: two readable logs (one in ``log/DATE/``), two not."""
     root = tmp_path_factory.mktemp('card')
     return (root, *sd_card(root))
 
