@@ -24,9 +24,10 @@ log: the outcome of each run (ok, refused, or a defect) and the first line of wh
 said; then the counts. A defect is: a traceback or an exit code other than 0 / 2, a
 refusal of more than one line, a percentage above 100 % (but the paper table's P3, a ratio),
 a thermometer outside -40 .. 125 degC or whose readings repeat a stamp (instances mixed), a
-gyro read slower than half the fastest gyro of the
-instance, or a model that makes the still stretches of its own log worse (``evaluate``'s
-``p_vs_raw`` above 1.1 on an axis). A constant thermometer is noted on the read line.
+gyro read slower than half the fastest gyro of the instance (``sensor_combined`` counted in
+its rows where ``sensor_selection`` names the instance), or a model that makes the still
+stretches of its own log worse (``evaluate``'s ``p_vs_raw`` above 1.1 on an axis). A
+constant thermometer is noted on the read line.
 
 ``--damaged K`` also reads and trains (``--allow-loss``) K copies of each log damaged as SD
 cards do (cut off, bytes flipped, a stretch zeroed; seeded by ``--seed``).
