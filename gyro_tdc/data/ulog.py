@@ -176,20 +176,18 @@ def _combined_rows(topics: dict, instance: int) -> NDArray[np.bool_]:
 
 
 def _combined_note(topics: dict, instance: int, rows: NDArray[np.bool_]) -> str:
-    """Return what ``sensor_combined`` carries when it is not all this instance's ('' if it is)."""
+    """Return what ``sensor_combined`` carries when it is not all this instance's, else ''."""
     if rows.all():
         return ''
-    picked = set(np.asarray(topics.get('sensor_selection', {}).get(0, {}).get(
-        'gyro_device_id', []), dtype=np.int64).tolist()) - {0}
     if rows.any():
         return (f'sensor_combined carries this IMU in {int(rows.sum())} of {len(rows)} '
                 'samples (the selection changed, sensor_selection): those are its own')
-    if len(picked) > 1:
-        return 'sensor_combined carries other IMUs (sensor_selection), not this one'
-    ids = sorted({i for name in _GYRO_FIELDS for i in topics.get(name, {})})
-    owner = ({_device(topics, i): i for i in ids}.get(picked.pop()) if picked else 0)
-    return ('sensor_combined carries ' + ('an IMU of no instance' if owner is None
-                                          else f'instance {owner}')
+    ids = {i for name in _GYRO_FIELDS for i in topics.get(name, {})}
+    owners = {k for k in ids if _combined_rows(topics, k).any()}
+    if owners == {0}:          # the first IMU's, as PX4 selects by default: nothing to say
+        return ''
+    return ('sensor_combined carries ' + (f'instance {owners.pop()}' if len(owners) == 1
+                                          else 'other IMUs')
             + ' (sensor_selection), not this one')
 
 
