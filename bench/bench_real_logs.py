@@ -24,9 +24,10 @@ log: the outcome of each run (ok, refused, or a defect) and the first line of wh
 said; then the counts. A defect is: a traceback or an exit code other than 0 / 2, a
 refusal of more than one line, a percentage above 100 % (but the paper table's P3, a ratio),
 a thermometer outside -40 .. 125 degC or whose readings repeat a stamp (instances mixed), a
-gyro read slower than half the fastest gyro of the
-instance, or a model that makes the still stretches of its own log worse (``evaluate``'s
-``p_vs_raw`` above 1.1 on an axis). A constant thermometer is noted on the read line.
+gyro read slower than half the fastest gyro of the instance (``sensor_combined`` counted in
+its rows where ``sensor_selection`` names the instance), or a model that makes the still
+stretches of its own log worse (``evaluate``'s ``p_vs_raw`` above 1.1 on an axis). A
+constant thermometer is noted on the read line.
 
 ``--damaged K`` also reads and trains (``--allow-loss``) K copies of each log damaged as SD
 cards do (cut off, bytes flipped, a stretch zeroed; seeded by ``--seed``).
@@ -79,22 +80,46 @@ def find_logs(folders: list) -> list:
 
 
 def _ulog_gyro_rates(path: Path, instance: int = 0) -> dict:
-    """Return the rate (Hz) of every gyro topic of a ULog's instance, as pyulog reads it."""
+    """
+    Return the rate (Hz) of every gyro topic of a ULog's instance, as pyulog reads it.
+
+    ``sensor_combined`` counts with its rows where ``sensor_selection`` names the instance's
+    gyro (all of them for instance 0 when no selection is logged), judged here, not by the
+    reader.
+    """
     from pyulog import ULog
 
-    names = ['sensor_gyro', 'sensor_combined', 'vehicle_imu', 'sensor_gyro_fifo']
+    names = ['sensor_gyro', 'sensor_combined', 'vehicle_imu', 'sensor_gyro_fifo',
+             'sensor_selection']
     try:
         ulog = ULog(str(path), names)
     except Exception:  # noqa: B902 - the reader judges the log; this is a side figure
         return {}
+    data = {(d.name, d.multi_id): d.data for d in ulog.data_list}
     out = {}
-    for d in ulog.data_list:
-        t = np.asarray(d.data['timestamp'], dtype=np.float64) * 1e-6
-        if d.multi_id == instance and len(t) > 1 and t[-1] > t[0]:
-            per = (int(np.max(d.data['samples'])) if d.name == 'sensor_gyro_fifo'
-                   and 'samples' in d.data else 1)        # a FIFO message holds a burst
-            out[d.name] = (len(t) - 1) / (t[-1] - t[0]) * max(per, 1)
+    for (name, multi_id), d in data.items():
+        t = np.asarray(d['timestamp'], dtype=np.float64) * 1e-6
+        if name == 'sensor_combined':
+            t = t[_selected(data, instance, d['timestamp'])]
+        elif multi_id != instance or name == 'sensor_selection':
+            continue
+        if len(t) > 1 and t[-1] > t[0]:
+            per = (int(np.max(d['samples'])) if name == 'sensor_gyro_fifo'
+                   and 'samples' in d else 1)        # a FIFO message holds a burst
+            out[name] = (len(t) - 1) / (t[-1] - t[0]) * max(per, 1)
     return out
+
+
+def _selected(data: dict, instance: int, stamps) -> np.ndarray:
+    """Return which ``sensor_combined`` rows are the instance's gyro (``sensor_selection``)."""
+    sel = data.get(('sensor_selection', 0))
+    mine = next((int(d['device_id'][0]) for (n, k), d in data.items()
+                 if n == 'sensor_gyro' and k == instance and len(d['device_id'])), None)
+    if sel is None or mine is None:
+        return np.full(len(stamps), instance == 0)
+    order = np.argsort(sel['timestamp'], kind='stable')
+    at = np.searchsorted(sel['timestamp'][order], stamps, side='right') - 1
+    return (at >= 0) & (sel['gyro_device_id'][order][np.maximum(at, 0)] == mine)
 
 
 def inspect(path: Path, source: str, instance: int = 0) -> dict:
@@ -124,8 +149,6 @@ def inspect(path: Path, source: str, instance: int = 0) -> dict:
     rate = rate_hz(np.asarray(log.imu_t))
     if fmt == 'ulog':
         rates = _ulog_gyro_rates(path, log.instance)
-        if any(n.startswith('sensor_combined carries') for n in log.notes):
-            rates.pop('sensor_combined', None)       # another IMU's (sensor_selection)
         fast = max(rates.values(), default=0.0)
         if fast > 2.0 * rate:
             defects.append(f'{log.source} read at {rate:.3g} Hz while '

@@ -48,7 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
                     'paper (BS, P ratios), plus RMS and Allan deviation.')
     p.add_argument('bags', nargs='+', metavar='BAG',
                    help='held-out rosbag2 directory (sqlite3 or mcap), PX4 .ulg or '
-                        'ArduPilot .bin log, or a folder of them')
+                        'ArduPilot .bin log, or a folder of them (walked, subfolders too; '
+                        'one found there that cannot be read is skipped with a warning)')
     p.add_argument('--model', dest='models', action='append', required=True, metavar='MODEL',
                    help='model file or learn_file (its learned model; repeat for several; '
                         'reported in this order), px4 for '

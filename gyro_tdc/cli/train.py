@@ -48,11 +48,12 @@ def build_parser() -> argparse.ArgumentParser:
     p = ArgumentParser(
         prog='python -m gyro_tdc train',
         description='Identify a temperature-drift compensation model from rosbag2 bags '
-                    '(one run per bag; a folder of bag folders expands to its bags) and '
-                    'write it as a YAML model file.')
+                    'or flight logs (one run each) and write it as a YAML model file.')
     p.add_argument('bags', nargs='+', metavar='BAG',
-                   help='rosbag2 directory (sqlite3 or mcap), or a PX4 .ulg / ArduPilot .bin '
-                        'flight log')
+                   help='rosbag2 directory (sqlite3 or mcap), a PX4 .ulg / ArduPilot .bin '
+                        'flight log, or a folder: walked, subfolders too, for its bags and '
+                        'logs; one found there that cannot be read is skipped with a warning '
+                        'naming it and why (one named here is refused)')
     p.add_argument('--out', required=True, metavar='MODEL.yaml', help='model file to write')
     p.add_argument('--json', metavar='OUT', default=None,
                    help='also write what training produced as JSON (shape: doc/json.md)')

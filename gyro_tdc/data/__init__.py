@@ -29,7 +29,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'bag.writer': ['write_bag'],
     'coverage': ['Coverage', 'coverage', 'RATE_THRESHOLD_C_PER_MIN', 'temperature_rate'],
     'dataflash': ['read_dataflash'],
-    'dataset': ['expand_bags', 'load_runs'],
+    'dataset': ['expand_bags', 'find_bags', 'iter_runs', 'load_runs'],
     'driver_bags': ['DriverInputs', 'normalize_bag'],
     'field_paths': ['check_number', 'check_vector', 'frd_to_flu', 'normalize_type', 'reader',
                     'stamp_kind', 'stamp_seconds', 'temperature_path', 'unquirk'],

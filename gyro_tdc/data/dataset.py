@@ -26,7 +26,7 @@ import math
 import os
 from pathlib import Path
 import re
-from typing import Callable, Iterable
+from typing import Callable, Iterable, Iterator
 
 from gyro_tdc.base import (MAX_RATE_RAD_S, MAX_TEMP_SLEW_C_S, plausible_temperatures,
                            RESTART_BACK_S, TEMP_PLAUSIBLE_C)
@@ -41,8 +41,8 @@ from gyro_tdc.signal import has_accelerometer
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['align_temperature', 'describe_read', 'expand_bags', 'FLIGHT_LOG_GAP_PERIODS',
-           'load_run', 'load_runs']
+__all__ = ['align_temperature', 'describe_read', 'expand_bags', 'find_bags',
+           'FLIGHT_LOG_GAP_PERIODS', 'iter_runs', 'load_run', 'load_runs']
 
 #: A flight log's thermometer is trusted up to this many of its own sample periods away
 #: (at least ``BagOptions.max_gap_s``).
@@ -422,26 +422,26 @@ def _natural_key(path: Path) -> list:
     return [int(s) if s.isdigit() else s for s in re.split(r'(\d+)', path.name)]
 
 
-def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
+def find_bags(paths: Iterable[str | os.PathLike]) -> list[tuple[Path, bool]]:
     """
-    Expand bag paths: a folder of bag folders (a multi-run ``simulate``) becomes its bags.
+    Return the bags to read as ``(path, walked)``: ``walked`` when a folder's walk found it.
 
-    A rosbag2 directory, a flight log or anything else is kept (reading reports what is wrong);
-    a directory without ``metadata.yaml`` expands to its bags and flight logs (``.ulg``,
-    ``.bin``) in natural order (``run_2`` before ``run_10``). Raises DatasetError when a path
-    does not exist or two paths are the same bag: a run read twice would weigh double in
-    training and escape discovery's leave-one-run-out.
+    A rosbag2 directory, a flight log or anything else given is kept as it is (reading
+    reports what is wrong); a directory without ``metadata.yaml`` is walked into its bags
+    and flight logs (``.ulg``, ``.bin``), down its subfolders (an SD card's ``log/DATE/``),
+    in natural order (``run_2`` before ``run_10``); one where nothing is found is kept.
+    Raises DatasetError when a path does not exist or two paths are the same bag: a run read
+    twice would weigh double in training and escape discovery's leave-one-run-out.
     """
-    out: list[Path] = []
+    out: list[tuple[Path, bool]] = []
     for raw in paths:
         p = Path(raw)
         if not p.exists():
             raise DatasetError(f'Bag {str(p)!r} does not exist.')
-        subs = ([c for c in p.iterdir() if _is_bag(c) or is_flight_log(c)]
-                if p.is_dir() and not _is_bag(p) else [])
-        out.extend(sorted(subs, key=_natural_key) or [p])
+        subs = _walk(p) if p.is_dir() and not _is_bag(p) else []
+        out.extend([(c, True) for c in subs] or [(p, False)])
     seen: dict[Path, Path] = {}
-    for p in out:
+    for p, _ in out:
         real = Path(os.path.realpath(p))
         # A bag's storage file names the bag.
         real = real.parent if p.is_file() and p.suffix in ('.db3', '.mcap') else real
@@ -450,6 +450,22 @@ def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
                                'give each run once.')
         seen[real] = p
     return out
+
+
+def _walk(folder: Path) -> list[Path]:
+    """Return the bags and flight logs under ``folder`` (not inside a bag), naturally sorted."""
+    out = []
+    for c in sorted(folder.iterdir(), key=_natural_key):
+        if _is_bag(c) or is_flight_log(c):
+            out.append(c)
+        elif c.is_dir() and not c.is_symlink():
+            out.extend(_walk(c))
+    return out
+
+
+def expand_bags(paths: Iterable[str | os.PathLike]) -> list[Path]:
+    """Return the bags to read, folders walked (:func:`find_bags`)."""
+    return [p for p, _ in find_bags(paths)]
 
 
 # What each count of ``run.info['rejected']`` means, as a reader would say it.
@@ -497,18 +513,47 @@ def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
               options: BagOptions | None = None, *,
               log: Callable[[str], None] | None = None) -> list[Run]:
     """
-    Load bags (or folders of them, :func:`expand_bags`) with :func:`load_run`, one run each.
+    Load bags (or folders of them, :func:`find_bags`) with :func:`load_run`, one run each.
 
-    Runs come in the given order, all read with ``options``. ``log`` receives one line per
-    bag (samples, minutes, reference, what was dropped) and its warnings.
+    Runs come in the given order, all read with ``options``; what cannot be read is skipped
+    or refused as :func:`iter_runs` says.
+    """
+    return list(iter_runs(bags, options, log=log))
+
+
+def iter_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
+              options: BagOptions | None = None, *,
+              log: Callable[[str], None] | None = None) -> Iterator[Run]:
+    """
+    Yield the runs of bags (or folders of them, :func:`find_bags`) one at a time.
+
+    ``log`` receives one line per bag (samples, minutes, reference, what was dropped) and its
+    warnings. A bag or log that a folder's walk found and that cannot be read is skipped with
+    one warning naming it and why, and a last line counts what was read and skipped; one
+    named itself is refused (DatasetError), and so is a set of which nothing can be read.
     """
     options = BagOptions() if options is None else options
-    runs = []
-    for bag in expand_bags([bags] if isinstance(bags, (str, os.PathLike)) else bags):
-        run = load_run(bag, options)
+    found = find_bags([bags] if isinstance(bags, (str, os.PathLike)) else bags)
+    skipped, read = [], 0
+    for bag, walked in found:
+        try:
+            run = load_run(bag, options)
+        except DatasetError as exc:
+            if not walked:
+                raise
+            skipped.append(f'{bag}: {exc}')
+            if log is not None:
+                log(f'warning: skipped {bag}: {exc}')
+            continue
         if log is not None:
             log(describe_read(bag, run, options.reference_topic))
             for warning in run.info.get('warnings', ()):
                 log(f'warning: {bag}: {warning}')
-        runs.append(run)
-    return runs
+        read += 1
+        yield run
+    if skipped and not read:
+        raise DatasetError(f'None of the {len(skipped)} bags and logs found can be read '
+                           f'(the first: {skipped[0]}).')
+    if skipped and log is not None:
+        log(f'read {read} of the {len(found)} bags and logs, skipped {len(skipped)} '
+            'that cannot be read (each named above)')

@@ -16,7 +16,8 @@
 PX4 ULog (``.ulg``) -> one IMU as a :class:`gyro_tdc.data.flightlog.FlightLog` (via pyulog).
 
 The gyro is the highest-rate one the log has for the instance: ``sensor_gyro`` (raw) where it
-is logged at full rate, else ``sensor_combined`` or ``vehicle_imu`` (calibrated on board).
+is logged at full rate, else ``sensor_combined`` (its rows where ``sensor_selection`` names
+this IMU) or ``vehicle_imu`` (calibrated on board).
 The temperature is the IMU's own thermometer wherever the log has it (``sensor_gyro``,
 ``vehicle_imu_status``, ``sensor_accel``), on its own stamps, or a proxy the user names
 (``--temperature-source baro``: ``sensor_combined.baro_temp_celcius``, ``vehicle_air_data``,
@@ -148,30 +149,62 @@ def _device(topics: dict, instance: int) -> int:
     return 0
 
 
-def _combined_owner(topics: dict) -> int | None:
+def _combined_rows(topics: dict, instance: int) -> NDArray[np.bool_]:
     """
-    Return the instance whose gyro ``sensor_combined`` carries, None when no one instance.
+    Return which ``sensor_combined`` rows carry the gyro of ``instance``.
 
-    ``sensor_combined`` is the selected IMU (``sensor_selection.gyro_device_id``), instance
-    0 unless the log says otherwise; a selection that changes mixes IMUs: None.
+    ``sensor_combined`` is the selected IMU (``sensor_selection.gyro_device_id``): instance 0
+    when the log names no selection or no device id to match (PX4's default). Where the
+    selection changes, each row is the IMU selected at its stamp (before any selection: none).
     """
-    sel = topics.get('sensor_selection', {}).get(0, {}).get('gyro_device_id')
-    picked = set(np.asarray(sel if sel is not None else [], dtype=np.int64).tolist()) - {0}
-    if len(picked) > 1:
-        return None
+    c = topics.get('sensor_combined', {}).get(0, {})
+    n = len(c.get('timestamp', ()))
+    s = topics.get('sensor_selection', {}).get(0, {})
+    sel = np.asarray(s.get('gyro_device_id', []), dtype=np.int64)
     ids = sorted({i for name in _GYRO_FIELDS for i in topics.get(name, {})})
     known = {_device(topics, i): i for i in ids} | {0: 0}
-    # No selection logged, or no device id to match: the first IMU, PX4's default.
-    return known.get(next(iter(picked)), None) if picked and len(known) > 1 else 0
+    picked = set(sel.tolist()) - {0}
+    if not picked or len(known) == 1:
+        return np.full(n, instance == 0)
+    if len(picked) == 1:
+        return np.full(n, known.get(picked.pop()) == instance)
+    order = np.argsort(np.asarray(s['timestamp'], dtype=np.uint64), kind='stable')
+    at = np.searchsorted(np.asarray(s['timestamp'], dtype=np.uint64)[order],
+                         np.asarray(c['timestamp'], dtype=np.uint64), side='right') - 1
+    owner = np.array([known.get(int(d), -1) if d else -1 for d in sel[order]])
+    return (at >= 0) & (owner[np.maximum(at, 0)] == instance)
+
+
+def _combined_note(topics: dict, instance: int, rows: NDArray[np.bool_]) -> str:
+    """Return what ``sensor_combined`` carries when it is not all this instance's, else ''."""
+    if rows.all():
+        return ''
+    if rows.any():
+        return (f'sensor_combined carries this IMU in {int(rows.sum())} of {len(rows)} '
+                'samples (the selection changed, sensor_selection): those are its own')
+    ids = {i for name in _GYRO_FIELDS for i in topics.get(name, {})}
+    owners = {k for k in ids if _combined_rows(topics, k).any()}
+    if owners == {0}:          # the first IMU's, as PX4 selects by default: nothing to say
+        return ''
+    return ('sensor_combined carries ' + (f'instance {owners.pop()}' if len(owners) == 1
+                                          else 'other IMUs')
+            + ' (sensor_selection), not this one')
 
 
 def _gyros(topics: dict, instance: int) -> dict[str, dict]:
-    """Return the gyro topics of an instance that hold rates: name -> columns."""
-    owner = _combined_owner(topics)
-    return {k: d for k, need in _GYRO_FIELDS.items()
-            if (d := topics.get(k, {}).get(0 if k == 'sensor_combined' else instance))
-            is not None and all(n in d for n in need)
-            and (k != 'sensor_combined' or owner == instance)}
+    """Return the gyro topics of an instance that hold rates: name -> columns (its own rows)."""
+    out = {}
+    for k, need in _GYRO_FIELDS.items():
+        d = topics.get(k, {}).get(0 if k == 'sensor_combined' else instance)
+        if d is None or not all(n in d for n in need):
+            continue
+        if k == 'sensor_combined':
+            rows = _combined_rows(topics, instance)
+            if rows.sum() < 2:
+                continue
+            d = d if rows.all() else {f: np.asarray(v)[rows] for f, v in d.items()}
+        out[k] = d
+    return out
 
 
 def _pick_gyro(gyros: dict[str, dict]) -> str:
@@ -301,11 +334,9 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     t = _seconds(d)
     raw = source == 'sensor_gyro'
     device, acc = _device(topics, instance), None
-    owner = _combined_owner(topics)
-    if 'sensor_combined' in topics and owner != instance and owner != 0:
-        notes.append('sensor_combined carries ' + (f'instance {owner}' if owner is not None
-                                                   else 'several IMUs (the selection changed)')
-                     + ' (sensor_selection), not this one')
+    if 'sensor_combined' in topics and (
+            said := _combined_note(topics, instance, _combined_rows(topics, instance))):
+        notes.append(said)
     if raw:
         gyro = columns(d, ('x', 'y', 'z'))
         a = topics.get('sensor_accel', {}).get(instance)

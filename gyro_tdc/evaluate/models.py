@@ -29,7 +29,7 @@ import re
 from typing import Callable, Sequence
 
 from gyro_tdc.base import model_path
-from gyro_tdc.data import BagOptions, expand_bags, load_runs
+from gyro_tdc.data import BagOptions, iter_runs, load_runs
 from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
 from gyro_tdc.identify import (constant_gyro_axes, fit_accel, fit_px4_cubic, identity_axes,
@@ -144,7 +144,7 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     if any(s in ONBOARD for s in specs):
         if not held_out:
             raise FitError('The on-board models need the held-out logs they are read from.')
-        first = load_runs([expand_bags(held_out)[0]], with_accel(bag))[0]
+        first = next(iter_runs(held_out, with_accel(bag)))   # the first readable one
         for s in specs:
             if s in ONBOARD and s not in files:
                 files[s], line = onboard_model(s, first)

@@ -30,7 +30,7 @@ import math
 import os
 from typing import Callable, Sequence
 
-from gyro_tdc.data import BagOptions, expand_bags, load_runs, Run, split_sessions
+from gyro_tdc.data import BagOptions, expand_bags, iter_runs, Run, split_sessions
 from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.models import (bag_labels, load_models, model_labels, NamedModel, PX4,
                                       safe_label, with_accel)
@@ -451,9 +451,10 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     """
     Evaluate models on held-out bags, one bag in memory at a time.
 
-    ``bags`` (folders expand to their bags) are read as ``bag`` says (the accelerometer
-    always) and cut into sessions; ``reanchor_s``, ``out_of_range`` and
-    ``max_extrapolation_c`` as in :func:`evaluate_run`. ``log`` receives one line per bag;
+    ``bags`` (folders walked; a log found there that cannot be read is skipped, said on
+    ``log``) are read as ``bag`` says (the accelerometer always) and cut into sessions;
+    ``reanchor_s``, ``out_of_range`` and ``max_extrapolation_c`` as in
+    :func:`evaluate_run`. ``log`` receives one line per bag;
     ``each`` is called with every :class:`BagEval` while its arrays are held (tables, plots,
     CSV). A bag without a reference that moves is scored on its still stretches only.
 
@@ -467,9 +468,10 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     check_policy(out_of_range)
     o = BagOptions() if bag is None else bag
     paths = expand_bags(bags)
+    labels = dict(zip(map(str, paths), bag_labels(paths)))
     results = []
-    for path, label in zip(paths, bag_labels(paths)):
-        run = load_runs([path], with_accel(bag), log=log)[0]
+    for run in iter_runs(bags, with_accel(bag), log=log):   # unreadable walked logs skipped
+        label = labels[run.name]
         held_out_constant(run)              # every gyro axis constant: refused
         here = [replace(nm, model=onboard_model(nm.name, run)[0]) if nm.name in ONBOARD
                 else nm for nm in models]         # each log's own on-board parameters

@@ -26,6 +26,7 @@ import csv
 import json
 
 from bags import assert_bad_input, bag_from_run, sim_bags
+from flightlogs import sd_card
 from gyro_tdc.cli.evaluate import main
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data.dataset import load_run
@@ -318,3 +319,27 @@ def test_a_real_flight_log_says_the_range_it_scored(tmp_path, capsys):
     assert len(rows) == 1 + 1854
     temp = np.array([float(r.split(',')[1]) for r in rows[1:]])
     assert (temp.min(), temp.max()) == pytest.approx((lo, hi), abs=1e-3)
+
+
+def test_a_folder_skips_the_logs_it_cannot_read_and_scores_the_rest(tmp_path, capsys):
+    root = tmp_path / 'card'
+    good, bad = sd_card(root)
+    model, out = tmp_path / 'm.yaml', tmp_path / 'scores.json'
+    assert train_main([str(good[1]), '--out', str(model), '--features', 'dT,dT2',
+                       '--no-progress']) == 0
+    capsys.readouterr()
+    args = ['--model', str(model), '--no-progress']
+    assert main([str(root), *args, '--json', str(out)]) == 0
+    said = capsys.readouterr()
+    lines = said.out.splitlines()
+    for path in bad:
+        mine = [ln for ln in lines if str(path) in ln]
+        assert len(mine) == 1 and mine[0].startswith(f'warning: skipped {path}: '), lines
+    assert 'read 2 of the 4 bags and logs, skipped 2 that cannot be read' in said.out
+    assert said.err.strip() == ''
+    assert [b['bag'] for b in json.loads(out.read_text())['bags']] == [str(p) for p in good]
+    assert_bad_input(capsys, [bad[0], *args], 'damaged bytes inside the log', entry=main)
+    for path in good:
+        path.unlink()
+    assert_bad_input(capsys, [root, *args], 'None of the 2 bags and logs found can be read',
+                     entry=main)

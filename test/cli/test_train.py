@@ -23,6 +23,7 @@ runs of ``synth.py`` or from the simulator. The helpers here are shared with
 from __future__ import annotations
 
 from bags import assert_bad_input, bag_from_run, DEG, sim_bags
+from flightlogs import sd_card
 from gyro_tdc.cli.train import main
 from gyro_tdc.data.runs import Run
 from gyro_tdc.model.compensation import compensate
@@ -207,3 +208,36 @@ def test_unwritable_output_is_bad_input(synth_bag, tmp_path, capsys):
 def test_help_exits_zero(capsys):
     assert main(['--help']) == 0
     assert '--features' in capsys.readouterr().out
+
+
+@pytest.fixture(scope='module')
+def card(tmp_path_factory):
+    """Write an SD card's folder: two readable logs (one in ``log/DATE/``), two not."""
+    root = tmp_path_factory.mktemp('card')
+    return (root, *sd_card(root))
+
+
+def test_a_folder_skips_the_logs_it_cannot_read_and_trains_on_the_rest(card, tmp_path, capsys):
+    root, good, bad = card
+    out = tmp_path / 'card.yaml'
+    args = ['--out', out, '--features', 'dT,dT2', '--no-progress']
+    assert main([root, *args]) == 0
+    said = capsys.readouterr()
+    lines = said.out.splitlines()
+    for path, why in zip(bad, ('damaged bytes inside the log', 'empty')):
+        mine = [ln for ln in lines if str(path) in ln]
+        assert len(mine) == 1 and mine[0].startswith(f'warning: skipped {path}: '), lines
+        assert why in mine[0], mine[0]
+    assert 'read 2 of the 4 bags and logs, skipped 2 that cannot be read' in said.out
+    assert 'Traceback' not in said.err and said.err.strip() == ''
+    assert load_model(out).created['bags'] == [str(p) for p in good]
+    # Named on the command line, an unreadable log is refused in one line.
+    assert_bad_input(capsys, [bad[1], *args], str(bad[1]))
+    assert_bad_input(capsys, [good[1], bad[0], *args], 'damaged bytes inside the log')
+    # A folder of which nothing can be read: one line.
+    only_bad = tmp_path / 'bad'
+    only_bad.mkdir()
+    for path in bad:
+        (only_bad / path.name).write_bytes(path.read_bytes())
+    assert_bad_input(capsys, [only_bad, *args], 'None of the 2 bags and logs found can be read',
+                     'empty.BIN')

@@ -40,7 +40,8 @@ from gyro_tdc.signal.metrics import bias_stability
 from gyro_tdc.sim import simulate_scenario
 import numpy as np
 import pytest
-from real_logs import ARDUPILOT_AC33, ARDUPILOT_AC45, PX4_ACCEL_THERMOMETER, PX4_HOVER
+from real_logs import (ARDUPILOT_AC33, ARDUPILOT_AC45, PX4_ACCEL_THERMOMETER, PX4_HOVER,
+                       PX4_SELECTION_FLIPS)
 
 
 @pytest.fixture(scope='module')
@@ -247,3 +248,17 @@ def test_the_real_log_sweep_needs_no_log_and_finds_no_defect_in_a_real_extract(t
     assert all(runs[f'{cmd} imu']['outcome'] == 'refused' for cmd in ('train', 'still'))
     assert 'already thermally compensated' in runs['train imu']['line']
     assert out.splitlines()[-1].endswith('logs with a defect: 0')
+
+
+def test_the_real_log_sweep_judges_sensor_combined_by_the_selection_itself():
+    import importlib.util
+    path = Path(__file__).resolve().parents[2] / 'bench' / 'bench_real_logs.py'
+    spec = importlib.util.spec_from_file_location('bench_real_logs', path)
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    first, second = (bench._ulog_gyro_rates(PX4_SELECTION_FLIPS, k) for k in (0, 1))
+    assert 190.0 < first['sensor_combined'] < 210.0 and 1.0 < first['sensor_gyro'] < 1.2
+    assert 150.0 < second['sensor_combined'] < 200.0     # IMU 1's rows: before the flip
+    for k in (0, 1):          # each IMU read at its share of sensor_combined's 200 Hz
+        seen = bench.inspect(PX4_SELECTION_FLIPS, 'imu', k)
+        assert seen['defects'] == [] and 'sensor_combined' in seen['line'], seen

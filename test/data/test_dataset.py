@@ -282,3 +282,39 @@ def test_a_kept_run_of_rows_is_a_slice_and_a_gapped_one_stays_an_index():
     rows = np.array([2, 4, 3])          # the same span, out of order: not a slice
     assert _as_slice(rows) is rows
     assert _as_slice(np.zeros(4, dtype=bool)).dtype == bool
+
+
+def test_a_folder_is_walked_and_what_it_holds_that_cannot_be_read_is_skipped(tmp_path):
+    from flightlogs import sd_card
+    from gyro_tdc.data.dataset import find_bags, iter_runs
+    good, bad = sd_card(tmp_path / 'card')
+    (tmp_path / 'card' / 'run10.bin').write_bytes(good[1].read_bytes())
+    day = tmp_path / 'card' / 'log' / '2024-05-01'
+    assert find_bags([tmp_path / 'card']) == [
+        (tmp_path / 'card' / 'empty.BIN', True), (day / 'run0.ulg', True),
+        (day / 'run2.ulg', True), (tmp_path / 'card' / 'run1.bin', True),
+        (tmp_path / 'card' / 'run10.bin', True)]
+    assert find_bags([good[0]]) == [(good[0], False)]
+    said = []
+    runs = load_runs(tmp_path / 'card', log=said.append)
+    assert [r.name for r in runs] == [str(day / 'run0.ulg'), str(good[1]),
+                                      str(tmp_path / 'card' / 'run10.bin')]
+    skips = [ln for ln in said if ln.startswith('warning: skipped')]
+    assert len(skips) == 2 and skips[0].startswith(f'warning: skipped {bad[1]}: ')
+    assert skips[1].startswith(f'warning: skipped {bad[0]}: ')
+    assert 'damaged bytes inside the log' in skips[1]
+    assert said[-1] == ('read 3 of the 5 bags and logs, skipped 2 that cannot be read '
+                        '(each named above)')
+    assert len(load_runs(tmp_path / 'card')) == 3        # no log: skipped all the same
+    with pytest.raises(DatasetError, match='damaged bytes inside the log'):
+        load_runs([good[0], bad[0]])                       # named: refused
+    runs = iter_runs([bad[1].parent / 'log'])            # one at a time: the good one first
+    assert next(runs).name == str(day / 'run0.ulg')
+    with pytest.raises(StopIteration):
+        next(runs)
+    only_bad = tmp_path / 'bad'
+    only_bad.mkdir()
+    (only_bad / 'empty.BIN').write_bytes(b'')
+    with pytest.raises(DatasetError, match=r'None of the 1 bags and logs found can be read '
+                                           r'\(the first: .*empty\.BIN'):
+        load_runs(only_bad)

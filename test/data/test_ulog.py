@@ -21,11 +21,12 @@ from dataclasses import replace
 from flightlogs import Imu, px4_topics, write_ulog
 from gyro_tdc.data import BagOptions, detect_format, load_runs
 from gyro_tdc.data.dataset import describe_read, load_run
+from gyro_tdc.data.flightlog import rate_hz
 from gyro_tdc.data.ulog import read_ulog, ulog_truncated_bytes
 from gyro_tdc.errors import DatasetError
 import numpy as np
 import pytest
-from real_logs import PX4_ACCEL_THERMOMETER
+from real_logs import PX4_ACCEL_THERMOMETER, PX4_SELECTION_FLIPS
 
 
 def _imus(n: int = 300, count: int = 2) -> list:
@@ -291,11 +292,33 @@ def test_sensor_combined_is_read_for_the_imu_sensor_selection_names(tmp_path):
     log = read_ulog(path, instance=0)                # not IMU 1's gyro with IMU 0's thermometer
     assert (log.source, log.device_id, len(log.imu_t)) == ('sensor_gyro', imus[0].device_id, 20)
     assert 'sensor_combined carries instance 1 (sensor_selection)' in ' '.join(log.notes)
-    # A selection that changes mixes IMUs in sensor_combined: no instance's.
+    # A selection that changes: each row is the IMU selected at its stamp. A selection
+    # logged with stamp 0 (published before the logger started) comes first.
+    half = len(us) // 2
     mixed = write_ulog(tmp_path / 'mixed.ulg', topics + [Topic('sensor_selection', selection, {
-        'timestamp': us[:2], 'accel_device_id': 7,
+        'timestamp': np.array([0, us[half], us[half] + 1], dtype=np.uint64),
+        'accel_device_id': 7,
+        'gyro_device_id': [imus[1].device_id, imus[0].device_id, imus[1].device_id]})])
+    log = read_ulog(mixed, instance=0)      # one row is no gyro: sensor_gyro is read
+    assert log.source == 'sensor_gyro' and len(log.imu_t) == 20
+    log = read_ulog(mixed, instance=1)
+    assert (log.source, log.device_id) == ('sensor_combined', imus[1].device_id)
+    np.testing.assert_array_equal(log.gyro, np.delete(imus[1].gyro, half, axis=0))
+    assert f'carries this IMU in {len(us) - 1} of {len(us)} samples' in ' '.join(log.notes)
+    assert log.temperature == 'sensor_gyro.temperature instance 1'
+    flips = write_ulog(tmp_path / 'flips.ulg', topics + [Topic('sensor_selection', selection, {
+        'timestamp': us[[0, half]], 'accel_device_id': 7,
         'gyro_device_id': [imus[0].device_id, imus[1].device_id]})])
-    assert {read_ulog(mixed, instance=k).source for k in (0, 1)} == {'sensor_gyro'}
+    first, second = (read_ulog(flips, instance=k) for k in (0, 1))
+    assert first.source == second.source == 'sensor_combined'
+    np.testing.assert_array_equal(first.imu_t, np.round(imus[1].t * 1e6)[:half] * 1e-6)
+    np.testing.assert_array_equal(second.gyro, imus[1].gyro[half:])
+    # A selection of a device no instance logs: sensor_combined is no instance's.
+    other = write_ulog(tmp_path / 'other.ulg', topics + [Topic('sensor_selection', selection, {
+        'timestamp': us[:2], 'accel_device_id': 7, 'gyro_device_id': [99, 98]})])
+    log = read_ulog(other, instance=0)
+    assert log.source == 'sensor_gyro'
+    assert 'sensor_combined carries other IMUs (sensor_selection)' in ' '.join(log.notes)
     # Without sensor_selection it is the first IMU's, as PX4 selects by default.
     assert read_ulog(write_ulog(tmp_path / 'plain.ulg', topics)).source == 'sensor_combined'
 
@@ -315,3 +338,21 @@ def test_a_damaged_stamp_does_not_make_the_fastest_gyro_look_the_slowest(tmp_pat
             'timestamp': bad, 'gyro_rad': imu.gyro, 'accelerometer_m_s2': imu.accel})]
     log = read_ulog(write_ulog(tmp_path / 'flipped.ulg', topics))
     assert log.source == 'sensor_combined' and len(log.imu_t) == 1200
+
+
+def test_a_real_log_whose_selection_flips_gives_each_imu_its_own_200_hz_gyro():
+    from pyulog import ULog
+    log0, log1 = (read_ulog(PX4_SELECTION_FLIPS, instance=k) for k in (0, 1))
+    sel = ULog(str(PX4_SELECTION_FLIPS), ['sensor_selection']).data_list[0].data
+    assert [int(d) for d in sel['gyro_device_id']] == [log1.device_id, *[log0.device_id] * 2,
+                                                       log1.device_id, log0.device_id]
+    first, flip = (float(sel['timestamp'][k]) * 1e-6 for k in (1, -1))   # 2.55 .. 2.59 s in
+    for log in (log0, log1):
+        assert log.source == 'sensor_combined' and 150.0 < rate_hz(log.imu_t) < 250.0
+        assert 'carries this IMU in' in log.notes[0]
+    assert len(log0.imu_t) == 1300 and log0.imu_t[0] >= first and log0.imu_t[-1] > flip + 6
+    assert len(log1.imu_t) == 437 and log1.imu_t[-1] < flip       # every row is one IMU's
+    assert np.intersect1d(log0.imu_t, log1.imu_t).size == 0
+    assert log0.temperature == 'sensor_gyro.temperature'              # each its own
+    assert log1.temperature == 'vehicle_imu_status.temperature_accel instance 1'
+    assert log0.device_id != log1.device_id

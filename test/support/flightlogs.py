@@ -366,3 +366,28 @@ def still_drift(days: list, corrected: list | None = None) -> np.ndarray:
         if len(means) > 1:
             dev.append(means - means.mean(axis=0))
     return np.sqrt(np.mean(np.concatenate(dev) ** 2, axis=0))
+
+
+def sd_card(root: Path) -> tuple[list, list]:
+    """
+    Write an SD card's folder of logs under ``root``: (readable logs, unreadable logs).
+
+    Two heat-cool chamber runs, one as a ULog in ``log/DATE/`` (PX4's layout), one as a
+    DataFlash log; beside them a ULog damaged inside, an empty ``.BIN`` (the power cut
+    before its first byte) and a text file that is no log.
+    """
+    from gyro_tdc.sim import simulate_scenario
+    imus = [imu_from_sim(s) for s in simulate_scenario('l3gd20_heat_cool', seed=3,
+                                                       rate_hz=1.0)]
+    day = root / 'log' / '2024-05-01'
+    day.mkdir(parents=True)
+    good = [write_ulog(day / 'run0.ulg', px4_topics([imus[0]]), {'TC_G_ENABLE': 0}),
+            write_dataflash(root / 'run1.bin', [imus[1]], {'INS_TCAL1_ENABLE': 0})]
+    empty = root / 'empty.BIN'
+    empty.write_bytes(b'')
+    data = bytearray(good[0].read_bytes())
+    data[len(data) // 2:len(data) // 2 + 40] = bytes(40)
+    damaged = day / 'run2.ulg'
+    damaged.write_bytes(bytes(data))
+    (root / 'notes.txt').write_text('not a log')
+    return good, [damaged, empty]

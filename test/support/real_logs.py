@@ -19,8 +19,9 @@ Each extract keeps the original records of the topics / message types a reader u
 for byte, over a leading stretch of the log; ``test/support/files/flightlogs/SOURCE.md``
 names the source and licence of each. ``python test/support/real_logs.py SRC_DIR`` rebuilds
 them from the originals (the pyulog 1.2.1 sdist's ``test/``, bols-blue-org/ape's ``tests/``
-PX4/px4-ulog-rs' ``tests/fixtures/``, dronekit/dronekit-la-testdata and the mavparser 0.0.1
-sdist's ``data/``, all in one folder).
+PX4/px4-ulog-rs' ``tests/fixtures/``, dronekit/dronekit-la-testdata, the mavparser 0.0.1
+sdist's ``data/`` and roboto-ai/robologs-px4-actions' ``actions/tag_ulog/test/input/``, all
+in one folder).
 """
 
 from __future__ import annotations
@@ -54,15 +55,19 @@ ARDUPILOT_AC33 = FILES / 'ardupilot_ac33_three_imus.bin'
 #: ``I`` is its integrator), ``INS_TCALn_ENABLE`` = 1.
 ARDUPILOT_AC45 = FILES / 'ardupilot_ac45_cube_orange_plus.bin'
 
+#: robologs-px4-actions' ``test.ulg`` (PX4 1.12.3, FMU v5): ``sensor_selection`` flips between
+#: its two IMUs 2.6 s in; ``sensor_combined`` is each one's while it is selected.
+PX4_SELECTION_FLIPS = FILES / 'px4_fmuv5_selection_flips.ulg'
+
 _PX4_TOPICS = ['sensor_gyro', 'sensor_accel', 'sensor_combined', 'vehicle_imu',
                'vehicle_imu_status', 'sensor_baro', 'vehicle_air_data']
 
 
-def extract_ulog(src: Path, dst: Path, *, seconds: float) -> Path:
-    """Write the reader's topics of a ULog over its first ``seconds`` s (pyulog writes)."""
+def extract_ulog(src: Path, dst: Path, *, seconds: float, topics: tuple = ()) -> Path:
+    """Write the reader's topics (and ``topics``) of a ULog over its first ``seconds`` s."""
     from pyulog import ULog
 
-    ulog = ULog(str(src), _PX4_TOPICS)
+    ulog = ULog(str(src), _PX4_TOPICS + list(topics))
     start = min(int(d.data['timestamp'][0]) for d in ulog.data_list)
     for d in ulog.data_list:
         keep = d.data['timestamp'] <= start + seconds * 1e6
@@ -120,6 +125,8 @@ def main(src_dir: str) -> None:
     extract_dataflash(src / 'log171.bin', ARDUPILOT_AC33, seconds=80.0)
     extract_dataflash(src / '00000081.BIN', ARDUPILOT_AC45, seconds=60.0,
                       types=('FMT', 'PARM', 'MSG', 'VER', 'IMU', 'BARO', 'HEAT', 'MCU'))
+    extract_ulog(src / 'test.ulg', PX4_SELECTION_FLIPS, seconds=60.0,
+                 topics=('sensor_selection',))
 
 
 if __name__ == '__main__':
