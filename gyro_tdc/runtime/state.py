@@ -115,10 +115,10 @@ class Reanchoring:
     The re-anchoring: the stillness detector, the shift it found (or None), the session.
 
     ``sessions`` keeps the IMU's power cycles (``session``, from 1, began at ``session_t``;
-    shown the pauses and steps back the learner is shown). ``learned``: a learned model carrying this
-    session's offset is installed (taken from its own still time), so re-anchoring is done
-    for the session without a shift; ``waiting`` that it still waits for a still window
-    (:meth:`CompensatorCore._update_needs`).
+    shown the pauses and steps back the learner is shown). ``learned``: a learned model
+    carrying this session's offset is installed (taken from its own still time), so
+    re-anchoring is done for the session without a shift; ``waiting`` that it still waits
+    for a still window (:meth:`CompensatorCore._update_needs`).
     """
 
     detector: StillnessDetector

@@ -88,7 +88,7 @@ def test_a_bursty_logger_is_one_power_cycle_once_its_rhythm_shows():
 
 
 def test_pauses_shorter_than_the_gap_teach_the_rhythm_as_the_learner_and_batch_see_it():
-    """1 Hz bursts with 300 s pauses: a 700 s pause is no power cycle, for every user of the rule."""
+    """1 Hz bursts 300 s apart: a 700 s pause is no power cycle, for every user of the rule."""
     from gyro_tdc.signal import session_gap
     t, t0 = [], 0.0
     for pause in [300.0] * 8 + [700.0] + [300.0] * 3 + [0.0]:
