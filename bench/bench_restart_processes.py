@@ -21,8 +21,9 @@ test_restart_across_processes's rig (``test/support/restart_rig.py``): the drive
 started again ``--restarts`` times per input QoS mode (best effort, the default, and
 ``input_reliability: reliable``; the modes take turns), each life running a seeded random
 0.5-3 s after its first output. Printed per mode: restarts, how many resumed, the median
-and worst time from the process start to its first output, and the inputs lost between a
-life's first and last output, with ``--hogs`` busy processes beside it.
+and worst time from the process start to its first output (and to its model loaded, the
+start-up's share: the rest is creating the topics and discovery), and the inputs lost
+between a life's first and last output, with ``--hogs`` busy processes beside it.
 
 ::
 
@@ -101,9 +102,13 @@ def main():
         firsts = [v.first_output_s for v in vs if v.resumed]
         median = f'{statistics.median(firsts):.2f}' if firsts else '-'
         worst = f'{max(firsts):.2f}' if firsts else '-'
+        loaded = [v.loaded_s for v in vs if v.loaded_s == v.loaded_s]
+        loads = (f'{statistics.median(loaded):.2f} s, worst {max(loaded):.2f} s' if loaded
+                 else '-')
         answered, lost = sum(v.answered for v in vs), sum(v.lost for v in vs)
         print(f'{mode}: {len(vs)} restarts, {sum(v.resumed for v in vs)} resumed, first output '
-              f'median {median} s, worst {worst} s; lost while running {lost} of '
+              f'median {median} s, worst {worst} s (model loaded: median {loads}); '
+              f'lost while running {lost} of '
               f'{answered + lost}; unmatched {sum(v.unmatched for v in vs)}, duplicated '
               f'{sum(v.duplicated for v in vs)}, non-finite {sum(v.nonfinite for v in vs)}, '
               f'unclean stops {sum(not v.clean for v in vs)}')

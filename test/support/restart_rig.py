@@ -31,6 +31,7 @@ from dataclasses import dataclass, field
 import math
 import os
 from pathlib import Path
+import re
 import signal
 import subprocess
 import sys
@@ -165,11 +166,22 @@ class Run:
     """One life of a compensator process and what the probe saw of it."""
 
     started: float                     # Popen, monotonic [s]
+    started_wall: float = math.nan     # Popen, wall clock (the nodes' log stamps) [s]
     stopped: float = math.nan          # SIGINT sent, monotonic [s]
     code: Optional[int] = None         # exit code (None: killed after the stop timeout)
     stderr: str = ''
     first_output_s: float = math.nan   # from Popen to the first output [s]; nan: none
     outputs: list = field(default_factory=list)   # (arrival, stamp ns, finite)
+
+    @property
+    def loaded_s(self) -> float:
+        """Return the time from Popen to the node's model-loaded log line [s]; nan: none."""
+        found = _LOADED.search(self.stderr)
+        return float(found.group(1)) - self.started_wall if found else math.nan
+
+
+#: The compensator's log line once its model is loaded (before its topics are created).
+_LOADED = re.compile(r'\[INFO\] \[(\d+\.\d+)\] \[[^]]*\]: model \w+ from ')
 
 
 def _start(cmd: list[str], log: Path) -> subprocess.Popen:
@@ -219,7 +231,7 @@ class Restarter:
         k = len(self.runs)
         log = self.directory / f'comp_{self.mode}_{k}'
         n0 = self.probe.counts()[1]
-        run = Run(started=time.monotonic())
+        run = Run(started=time.monotonic(), started_wall=time.time())
         child = _start(compensator_command(self.comp_params), log)
         try:
             self.probe.wait(lambda: self.probe.counts()[1] > n0, first_timeout_s,
@@ -249,6 +261,7 @@ class Verdict:
 
     resumed: bool          # an output came
     first_output_s: float  # [s] from the start of the process
+    loaded_s: float        # [s] from the start of the process to its model loaded
     answered: int          # inputs between its first and last output that were answered
     lost: int              # inputs between its first and last output never answered
     unmatched: int         # outputs whose stamp no input carries
@@ -267,7 +280,7 @@ def judge(run: Run, inputs: set[int]) -> Verdict:
     else:
         window = set()
     return Verdict(
-        resumed=bool(stamps), first_output_s=run.first_output_s,
+        resumed=bool(stamps), first_output_s=run.first_output_s, loaded_s=run.loaded_s,
         answered=len(window & unique), lost=len(window - unique),
         unmatched=len(unique - inputs), duplicated=len(stamps) - len(unique),
         nonfinite=sum(not ok for _, _, ok in run.outputs),
