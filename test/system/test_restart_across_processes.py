@@ -30,9 +30,10 @@ from restart_rig import judge, MODES, Probe, RATE_HZ, Restarter
 
 LIVES = 4          # a start and three restarts
 RUN_S = 1.5        # each life runs this long after its first output [s]
-# From the process start to its first output [s]: Python, rclpy and the model load, then
-# discovery on loopback. bench/bench_restart_processes.py: 0.5-3.5 s idle, worst 6.2 s
-# with both cores busy (two hogs); twice that worst, and still "within seconds".
+# From the process start to its first output [s]: Python, rclpy and the model load (worst
+# 1.3 s with both cores busy), then the topics and discovery on loopback: usually 0.1 s, now
+# and then up to 3.5 s. bench/bench_restart_processes.py --hogs 2: worst 4.3 s in 60
+# restarts; the bound is near three times that, for a runner more loaded than two hogs.
 FIRST_OUTPUT_S = 12.0
 
 
