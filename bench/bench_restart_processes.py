@@ -71,7 +71,8 @@ def bench(restarts, seed, first_timeout_s, tmp):
     finally:
         code = driver.close()
         probe.close()
-    return {mode: [judge(run, probe.inputs) for run in comp.runs[1:]]
+    inputs = probe.input_stamps()
+    return {mode: [judge(run, inputs) for run in comp.runs[1:]]
             for mode, comp in comps.items()}, code
 
 

@@ -75,13 +75,13 @@ def _remaps(topics: dict[str, str]) -> list[str]:
 
 
 def driver_command(params: Path) -> list[str]:
-    """``python -m gyro_tdc.nodes.driver_node`` under NAMESPACE, remapped, from ``params``."""
+    """Return ``python -m gyro_tdc.nodes.driver_node`` under NAMESPACE, remapped, ``params``."""
     return [sys.executable, '-m', DRIVER, '--ros-args', '--params-file', str(params),
             *_remaps({'imu/data_raw': RAW, 'imu/temperature': TEMP})]
 
 
 def compensator_command(params: Path) -> list[str]:
-    """The compensator as a user starts it beside that driver: remapped to its topics."""
+    """Return the compensator's command as a user runs it beside that driver: its topics."""
     return [sys.executable, '-m', COMPENSATOR, '--ros-args', '--params-file', str(params),
             *_remaps({'__node': 'gyro_compensator', 'imu/data_raw': RAW,
                       'imu/temperature': TEMP, 'imu/data_compensated': OUT})]
@@ -137,6 +137,17 @@ class Probe:
         with self.lock:
             self.outputs.append((now, s.sec * 10 ** 9 + s.nanosec, finite))
 
+    def input_stamps(self) -> frozenset[int]:
+        """Return the input stamps seen so far (a copy: the probe thread goes on adding)."""
+        with self.lock:
+            return frozenset(self.inputs)
+
+    def reliability_of(self, node_name: str) -> str:
+        """Return the reliability of ``node_name``'s input subscription, as the graph lists it."""
+        infos = self.node.get_subscriptions_info_by_topic(f'{NAMESPACE}/{RAW}')
+        return ','.join(i.qos_profile.reliability.name.lower() for i in infos
+                        if i.node_name == node_name)
+
     def counts(self) -> tuple[int, int]:
         """Return how many inputs and outputs have come so far."""
         with self.lock:
@@ -172,6 +183,7 @@ class Run:
     stderr: str = ''
     first_output_s: float = math.nan   # from Popen to the first output [s]; nan: none
     outputs: list = field(default_factory=list)   # (arrival, stamp ns, finite)
+    input_qos: str = ''                # its input's reliability as the graph lists it
 
     @property
     def loaded_s(self) -> float:
@@ -238,6 +250,10 @@ class Restarter:
                             'the first output')
             with self.probe.lock:
                 run.first_output_s = self.probe.outputs[n0][0] - run.started
+            # The graph may list the input a little after the output came.
+            self.probe.wait(lambda: self.probe.reliability_of('gyro_compensator'),
+                            first_timeout_s, 'the input in the graph')
+            run.input_qos = self.probe.reliability_of('gyro_compensator')
             time.sleep(run_s)
         except AssertionError:
             pass
@@ -270,7 +286,7 @@ class Verdict:
     clean: bool            # exit code 0 after SIGINT, no traceback on stderr
 
 
-def judge(run: Run, inputs: set[int]) -> Verdict:
+def judge(run: Run, inputs: frozenset[int]) -> Verdict:
     """Judge one life against every input the probe saw (one output per input while running)."""
     stamps = [s for _, s, _ in run.outputs]
     unique = set(stamps)

@@ -39,7 +39,7 @@ FIRST_OUTPUT_S = 12.0
 
 @pytest.fixture(scope='module')
 def rig(tmp_path_factory):
-    """The probe and the driver process, shared by both modes; the driver stopped at the end."""
+    """Yield the probe and the driver process, shared by both modes; stop the driver after."""
     probe = Probe()
     driver = Restarter(probe, tmp_path_factory.mktemp('driver'), 'best_effort')
     try:
@@ -61,10 +61,12 @@ def test_restarted_compensator_resumes_one_output_per_input(rig, mode, tmp_path)
         comp.life(RUN_S, FIRST_OUTPUT_S)
         assert driver.driver.poll() is None, 'the driver stopped'
     # The lives' records against every input the probe has seen by now.
+    inputs = probe.input_stamps()
     for k, run in enumerate(comp.runs):
-        v = judge(run, probe.inputs)
+        v = judge(run, inputs)
         where = f'{mode} life {k}: {v}; stderr tail: {run.stderr[-2000:]}'
         assert v.clean, where
+        assert run.input_qos == MODES[mode], (run.input_qos, where)   # the mode it says
         assert v.resumed and v.first_output_s <= FIRST_OUTPUT_S, where
         assert v.answered >= 0.5 * RUN_S * RATE_HZ, where     # it ran for RUN_S
         assert v.lost == 0 and v.unmatched == 0 and v.duplicated == 0, where
