@@ -45,10 +45,27 @@ import time  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def _positive(text):
+class _Parser(argparse.ArgumentParser):
+    """Bad options: one line on stderr and exit status 2 (no usage dump)."""
+
+    def error(self, message):
+        """Print ``message`` in one line and exit 2."""
+        self.exit(2, f'{self.prog}: error: {message}\n')
+
+
+def count(text):
+    """Return a count >= 0 (ValueError otherwise)."""
     value = int(text)
     if value < 0:
-        raise argparse.ArgumentTypeError(f'expected a count >= 0, got {text}')
+        raise ValueError(text)
+    return value
+
+
+def seconds(text):
+    """Return a duration > 0 s (ValueError otherwise)."""
+    value = float(text)
+    if not value > 0:
+        raise ValueError(text)
     return value
 
 
@@ -78,16 +95,13 @@ def bench(restarts, seed, first_timeout_s, tmp):
 
 def main():
     """Run the restarts and print one line per mode."""
-    parser = argparse.ArgumentParser(description=__doc__.split('\n\n')[0])
-    parser.add_argument('--restarts', type=_positive, default=30, help='restarts per mode')
-    parser.add_argument('--hogs', type=_positive, default=0, help='busy processes beside it')
+    parser = _Parser(description=__doc__.split('\n\n')[0])
+    parser.add_argument('--restarts', type=count, default=30, help='restarts per mode')
+    parser.add_argument('--hogs', type=count, default=0, help='busy processes beside it')
     parser.add_argument('--seed', type=int, default=0, help='life lengths and the simulator')
-    parser.add_argument('--first-timeout', type=float, default=30.0,
+    parser.add_argument('--first-timeout', type=seconds, default=30.0,
                         help='longest wait for a first output [s]; none by then: not resumed')
-    try:
-        args = parser.parse_args()
-    except SystemExit as exc:
-        return exc.code
+    args = parser.parse_args()
     sys.path[:0] = [str(ROOT), str(ROOT / 'test' / 'support')]
     import ros_domain
     domain, _ = ros_domain.run_domain(os.environ.get('ROS_DOMAIN_ID'), os.getpid())

@@ -40,7 +40,7 @@ import time
 from typing import Optional
 
 __all__ = ['COMPENSATOR', 'DRIVER', 'judge', 'MODES', 'NAMESPACE', 'Probe', 'RATE_HZ',
-           'Restarter', 'Run', 'write_params']
+           'Restarter', 'Run', 'stop', 'Verdict', 'write_params']
 
 NAMESPACE = '/rover'
 RAW = 'gyro/raw'          # the driver's imu/data_raw remapped to it, the compensator's too
@@ -49,8 +49,8 @@ TEMP = 'gyro/temperature'
 RATE_HZ = 200.0           # the driver's steady rate (sim_rate_hz at time_scale 1) [Hz]
 DRIVER = 'gyro_tdc.nodes.driver_node'
 COMPENSATOR = 'gyro_tdc.nodes.compensator_node'
-#: The compensator's input QoS per mode: the default (best effort) and reliable.
-MODES = {'best_effort': 'best_effort', 'reliable': 'reliable'}
+#: The compensator's input_reliability per mode: the default (best effort) and reliable.
+MODES = ('best_effort', 'reliable')
 
 
 def write_params(directory: Path, mode: str, seed: int = 0) -> tuple[Path, Path]:
@@ -63,7 +63,7 @@ def write_params(directory: Path, mode: str, seed: int = 0) -> tuple[Path, Path]
     comp = directory / f'compensator_{mode}.yaml'
     comp.write_text(
         '/**:\n  ros__parameters:\n    model_file: l3gd20_modified\n'
-        f'    input_reliability: {MODES[mode]}\n    expected_rate_hz: {RATE_HZ}\n')
+        f'    input_reliability: {mode}\n    expected_rate_hz: {RATE_HZ}\n')
     return driver, comp
 
 
