@@ -30,10 +30,10 @@ from restart_rig import judge, MODES, Probe, RATE_HZ, Restarter
 
 LIVES = 4          # a start and three restarts
 RUN_S = 1.5        # each life runs this long after its first output [s]
-# From the process start to its first output [s]: Python, rclpy and the model load (worst
-# 1.3 s with both cores busy), then the topics and discovery on loopback: usually 0.1 s, now
-# and then up to 3.5 s. bench/bench_restart_processes.py --hogs 2: worst 4.3 s in 60
-# restarts; the bound is near three times that, for a runner more loaded than two hogs.
+# From the process start to its first output [s]: Python, rclpy and the model load (at most
+# 0.7 s), then the topics and discovery on loopback. bench/bench_restart_processes.py: median
+# 0.7 s, worst 3.8 s in 120 restarts with and without two CPU hogs; the bound is about three
+# times that worst, for a runner busier than two hogs, and still "within seconds".
 FIRST_OUTPUT_S = 12.0
 
 
