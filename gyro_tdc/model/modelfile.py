@@ -231,7 +231,18 @@ def _model_from_dict(d: Mapping) -> CompensationModel:
 
 
 def save_model(model: CompensationModel, path: str | os.PathLike) -> Path:
-    """Write a model file atomically and return its path (OutputError: nothing is left behind)."""
+    """
+    Write a model file atomically and return its path (OutputError: nothing is left behind).
+
+    A model that loading would refuse (:func:`check_model`: an implausible drift inside its
+    range or the extrapolation beyond it) is not written: ModelFileError, one line.
+    """
+    try:
+        check_model(model)
+    except ModelFileError as exc:
+        lo, hi = model.temp_range_c
+        raise ModelFileError(f'{path}: not written, the fitted model would be refused on '
+                             f'loading: {exc} (trained {lo:.1f} .. {hi:.1f} degC)') from None
     text = '# gyro_tdc compensation model (see README "Model file")\n' + yaml.safe_dump(
         model_to_dict(model), sort_keys=False, default_flow_style=None, width=100)
     return atomic_write(Path(path), text, what='model file')

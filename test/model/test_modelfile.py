@@ -132,3 +132,17 @@ def test_unparseable_or_unsafe_yaml_rejected(tmp_path, text, message):
 def test_missing_file_rejected(tmp_path):
     with pytest.raises(ModelFileError, match='cannot read model file'):
         load_model(tmp_path / 'nope.yaml')
+
+
+def test_a_model_loading_would_refuse_is_not_written(tmp_path, model):
+    """An implausible fit (a real log's steep curve extrapolated) leaves no file behind."""
+    good = model
+    bad = good.replace(intercept=good.intercept + np.array([0.0, 100.0, 0.0]))
+    out = tmp_path / 'm.yaml'
+    with pytest.raises(ModelFileError) as info:
+        save_model(bad, out)
+    text = str(info.value)
+    assert '\n' not in text and 'not written' in text and str(out) in text
+    assert 'the drift it computes is' in text and '(axis y)' in text
+    assert not out.exists() and not list(tmp_path.iterdir())
+    assert load_model(save_model(good, out)).model_id == good.model_id
