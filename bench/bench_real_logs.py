@@ -26,8 +26,8 @@ refusal of more than one line, a percentage above 100 % (but the paper table's P
 a thermometer outside -40 .. 125 degC or whose readings repeat a stamp (instances mixed), a
 gyro read slower than half the fastest gyro of the instance (``sensor_combined`` counted in
 its rows where ``sensor_selection`` names the instance), or a model that makes the still
-stretches of its own log worse (``evaluate``'s ``p_vs_raw`` above 1.1 on an axis). A
-constant thermometer is noted on the read line.
+stretches of its own log worse (``evaluate``'s ``p_vs_raw`` above 1.1 on an axis) or that
+``evaluate`` refuses to load. A constant thermometer is noted on the read line.
 
 ``--damaged K`` also reads and trains (``--allow-loss``) K copies of each log damaged as SD
 cards do (cut off, bytes flipped, a stretch zeroed; seeded by ``--seed``).
@@ -218,6 +218,8 @@ def sweep_log(path: Path, timeout: float) -> dict:
                 r = _run(['evaluate', str(path), '--json', str(js), *common, *model], timeout)
                 if r['outcome'] == 'ok' and js.exists():
                     r['defects'] += _harm(json.loads(js.read_text()), by)
+                elif r['outcome'] == 'refused' and by != 'px4' and str(models[0][1]) in r['line']:
+                    r['defects'].append('unloadable model written by train')
                 runs[f'{name} {src}'] = r
     return runs
 
