@@ -191,15 +191,20 @@ def _combined_note(topics: dict, instance: int, rows: NDArray[np.bool_]) -> str:
             + ' (sensor_selection), not this one')
 
 
-def _gyros(topics: dict, instance: int) -> dict[str, dict]:
-    """Return the gyro topics of an instance that hold rates: name -> columns (its own rows)."""
+def _gyros(topics: dict, instance: int, rows: NDArray[np.bool_] | None = None
+           ) -> dict[str, dict]:
+    """
+    Return the gyro topics of an instance that hold rates: name -> columns (its own rows).
+
+    ``rows``: :func:`_combined_rows` of the instance, when the caller has them already.
+    """
     out = {}
     for k, need in _GYRO_FIELDS.items():
         d = topics.get(k, {}).get(0 if k == 'sensor_combined' else instance)
         if d is None or not all(n in d for n in need):
             continue
         if k == 'sensor_combined':
-            rows = _combined_rows(topics, instance)
+            rows = _combined_rows(topics, instance) if rows is None else rows
             if rows.sum() < 2:
                 continue
             d = d if rows.all() else {f: np.asarray(v)[rows] for f, v in d.items()}
@@ -323,7 +328,8 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
         what = ', '.join(sorted({d.name for d in ulog.data_list})) or 'no logged topic'
         raise DatasetError(f'Log {str(p)!r} has neither sensor_gyro nor sensor_combined '
                            f'nor vehicle_imu (it has {what}).')
-    gyros = _gyros(topics, instance)
+    rows = _combined_rows(topics, instance) if 'sensor_combined' in topics else None
+    gyros = _gyros(topics, instance, rows)
     if not gyros:
         kind = next(k for k in _GYRO_FIELDS if k in topics)
         raise DatasetError(f'Log {str(p)!r}: {kind} has no instance {instance} (it has '
@@ -334,8 +340,7 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     t = _seconds(d)
     raw = source == 'sensor_gyro'
     device, acc = _device(topics, instance), None
-    if 'sensor_combined' in topics and (
-            said := _combined_note(topics, instance, _combined_rows(topics, instance))):
+    if rows is not None and (said := _combined_note(topics, instance, rows)):
         notes.append(said)
     if raw:
         gyro = columns(d, ('x', 'y', 'z'))
