@@ -38,8 +38,7 @@ from gyro_tdc.learn.gate import learned_gate
 from gyro_tdc.learn.records import Entry, held_out_line, LearnConfig, OpenStretch, RecentStretch
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
-from gyro_tdc.signal import (break_why, GAP_PERIODS, hold_readings, SessionTracker, StillWindows,
-                             Window)
+from gyro_tdc.signal import (break_why, hold_readings, SessionTracker, StillWindows, Window)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -300,8 +299,8 @@ class Learner:
         # A gap longer than the session rule's (before the batch or inside it) starts a new
         # session.
         dt = np.diff(t, prepend=t[0] if self.last_t is None else self.last_t)
-        period = self.sessions.median_period(dt)
-        pause = GAP_PERIODS * period if period is not None else self.config.session_gap_s
+        self.sessions.median_period(dt)
+        pause = self.sessions.pause_s()
         back = set(np.flatnonzero(dt < -RESTART_BACK_S).tolist())   # the device restarted
         pauses = sorted(set(np.flatnonzero(dt > pause).tolist()) | back)
         swapped = False

@@ -32,7 +32,7 @@ from operator import attrgetter
 from typing import Sequence
 
 from gyro_tdc.base import (MAX_DRIFT_RAD_S as _MAX_DRIFT, MAX_RATE_RAD_S as _MAX_RATE,
-                           MAX_TEMP_LEAD_S, RESTART_BACK_S, SESSION_GAP_S)
+                           MAX_TEMP_LEAD_S, RESTART_BACK_S)
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime.blockstats import Vec3
 from gyro_tdc.runtime.drift import (accel_slot, correction_is_safe, growth, ModelSlot,
@@ -45,7 +45,7 @@ from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.priming import (catch_up, prepare, PREPARED_BY, prepared_for, PreparedModel,
                                       Priming)
 from gyro_tdc.runtime.state import detector_for, reanchor_var, Reanchoring, StreamState, Tally
-from gyro_tdc.signal import GAP_PERIODS, TemperatureHold
+from gyro_tdc.signal import TemperatureHold
 import numpy as np
 
 __all__ = ['CompensatorCore', 'correction_is_safe', 'Output', 'timeless']
@@ -88,7 +88,7 @@ class CompensatorCore:
         self.reanchoring = Reanchoring(detector_for(policy))
         self.learning = LearningGate()
         #: Steps over this (s) are shown to the session rule: every step while the stream's
-        #: median period is learnt, then pauses of GAP_PERIODS periods (the learner's too).
+        #: median period is learnt, then its ``pause_s()`` (the learner's too).
         self._pause_s = 0.0
         self._update_needs()
         if model is not None:
@@ -508,9 +508,9 @@ class CompensatorCore:
         """
         Start a new session at stamp ``t`` when the step ``d`` from the last one is a break.
 
-        A break is the shared rule's (:class:`gyro_tdc.signal.SessionTracker`, shown the
-        learner's steps: pauses over ``GAP_PERIODS`` median periods, which it learns the
-        stream's rhythm from, and steps back by ``RESTART_BACK_S``): the IMU was power-cycled. Its
+        A break is the shared rule's (:class:`gyro_tdc.signal.SessionTracker`, shown the steps
+        over its ``pause_s()`` as the learner shows it, from which it learns the stream's
+        rhythm, and steps back by ``RESTART_BACK_S``): the IMU was power-cycled. Its
         streams start over (:meth:`StreamState.restart`), so do the model's time terms
         (:meth:`StreamingCompensator.reset`) and, with ``reanchor_on_start``, the
         re-anchoring (the old shift dropped).
@@ -521,8 +521,8 @@ class CompensatorCore:
         if sessions.median is None:     # the period is being learnt: the steps over the gap
             period = sessions.median_period(np.array([d]))
             if period is not None:
-                self._pause_s = min(SESSION_GAP_S, GAP_PERIODS * period)
-            if not (d > SESSION_GAP_S or d < -RESTART_BACK_S):
+                self._pause_s = sessions.pause_s()
+            if not (d > sessions.gap_s or d < -RESTART_BACK_S):
                 return
         why = sessions.judge(d, sessions.period(self.stream.t, k) if d > 0 else 0.0)
         if not why:

@@ -143,6 +143,17 @@ class SessionTracker:
                 self.median = float(np.median(self._steps))
         return self.median
 
+    def pause_s(self) -> float:
+        """
+        Return the step (s) over which a stream's step is shown to :meth:`judge`.
+
+        :attr:`gap_s` while the median period is unknown (the caller shows every step to
+        :meth:`median_period` then), then GAP_PERIODS median periods, at most gap_s.
+        """
+        if self.median is None:
+            return self.gap_s
+        return min(self.gap_s, GAP_PERIODS * self.median)
+
     def begin(self, t: float, k: int = 0) -> None:
         """Note the stream's first sample: stamp ``t`` (s), the ``k``-th counted."""
         self.t0, self.k0 = t, k

@@ -120,3 +120,22 @@ def test_a_clock_restart_forgets_the_old_sessions_temperatures(timed_model):
     assert stamp < 110.0 and 15.0 <= temp <= 25.0          # not the old session's 40 degC
     assert 0.0 <= core.temperature_age() <= 1.0             # it was about -5020 s
     assert core.temps.at(5120.0)[1] < 110.0                 # no old reading left to look up
+
+
+def test_the_core_and_the_learner_cut_a_slow_stream_alike():
+    """A 0.1 Hz stream: 700 s pauses are no power cycle, a 3 h one is, for both users."""
+    from gyro_tdc.learn import Learner
+    t, t0 = [], 0.0
+    for pause in [700.0] * 4 + [10800.0] + [700.0] * 2 + [0.0]:
+        t += list(t0 + 10.0 * np.arange(100.0))
+        t0 = t[-1] + pause
+    core = CompensatorCore(Policy(reanchor_on_start=True))
+    learner = Learner()
+    for k, ts in enumerate(t):
+        core.process(float(ts), 0.0, 0.0, 0.0)
+        learner.observe(float(ts), 0.0, 0.0, 0.0)
+        if k % 50 == 49:
+            learner.step(force=True)
+    learner.step(force=True)
+    assert core.reanchoring.sessions.session - 1 == learner.session == 1
+    assert core.reanchoring.sessions.pause_s() == learner.sessions.pause_s() == 600.0

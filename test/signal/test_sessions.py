@@ -94,3 +94,13 @@ def test_the_tracker_merges_sessions_once_the_rhythm_shows():
     assert relabel == {k: 0 for k in range(BURST_PAUSES)}
     assert tracker.session == 0 and tracker.gaps == []
     assert tracker.judge(7200.0, 0.1) == 'gap of 7200 s'
+
+
+def test_the_tracker_says_which_steps_to_show_it():
+    """The gap until the median period is known, then 100 periods, at most the gap."""
+    fast, slow = SessionTracker(), SessionTracker()
+    assert fast.pause_s() == SESSION_GAP_S == slow.pause_s()
+    fast.median_period(np.full(64, 0.01))
+    slow.median_period(np.full(64, 10.0))
+    assert fast.pause_s() == 1.0                     # 100 periods of 10 ms
+    assert slow.pause_s() == SESSION_GAP_S           # 100 periods of 10 s would be 1000 s
