@@ -31,7 +31,7 @@ from typing import Optional, Sequence
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
                                  ArgumentParser, bag_options, comma_floats, driver_bags,
                                  non_negative_float, read_model, run_command, UsageError)
-from gyro_tdc.data import expand_bags
+from gyro_tdc.data import find_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
                                format_still, load_models, model_description, PX4, write_csv,
                                write_json, write_plots)
@@ -136,7 +136,9 @@ def _run(args: argparse.Namespace, argv: list) -> int:
                f're-anchored: mean error of the first {args.reanchor:g} s removed'
                if args.reanchor > 0 else 'no re-anchoring')
     from tqdm import tqdm
-    bar = tqdm(total=len(expand_bags(args.bags)), unit='bag', desc='evaluate', file=sys.stderr,
+    found = find_bags(args.bags)
+    place = {str(p): k + 1 for k, (p, _) in enumerate(found)}
+    bar = tqdm(total=len(found), unit='bag', desc='evaluate', file=sys.stderr,
                leave=False, disable=not bag.progress)
 
     def log(line: str) -> None:     # on stdout, above the bar when there is one
@@ -167,7 +169,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         if args.export is not None:
             bar.set_postfix_str(f'{b.label}: CSV')
             log(f'wrote {write_csv(b, args.export)}')
-        bar.update(1)
+        bar.update(place[b.bag] - bar.n)       # past the logs skipped before it
 
     for nm, text in zip(models, descriptions):
         lo, hi = nm.model.temp_range_c
@@ -184,7 +186,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
             'removed (raw data untouched)')
     try:
         results = evaluate(args.bags, models, bag=bag, reanchor_s=args.reanchor, log=log,
-                           each=each, out_of_range=args.out_of_range)
+                           each=each, out_of_range=args.out_of_range, found=found)
     finally:
         bar.close()
     if args.json is not None:

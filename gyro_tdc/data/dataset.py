@@ -523,17 +523,20 @@ def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
 
 def iter_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
               options: BagOptions | None = None, *,
-              log: Callable[[str], None] | None = None) -> Iterator[Run]:
+              log: Callable[[str], None] | None = None,
+              found: list[tuple[Path, bool]] | None = None) -> Iterator[Run]:
     """
     Yield the runs of bags (or folders of them, :func:`find_bags`) one at a time.
 
+    ``found``: what :func:`find_bags` returned for ``bags``, when the caller has it (one walk).
     ``log`` receives one line per bag (samples, minutes, reference, what was dropped) and its
     warnings. A bag or log that a folder's walk found and that cannot be read is skipped with
     one warning naming it and why, and a last line counts what was read and skipped; one
     named itself is refused (DatasetError), and so is a set of which nothing can be read.
     """
     options = BagOptions() if options is None else options
-    found = find_bags([bags] if isinstance(bags, (str, os.PathLike)) else bags)
+    if found is None:
+        found = find_bags([bags] if isinstance(bags, (str, os.PathLike)) else bags)
     skipped, read = [], 0
     for bag, walked in found:
         try:

@@ -30,7 +30,7 @@ import math
 import os
 from typing import Callable, Sequence
 
-from gyro_tdc.data import BagOptions, expand_bags, iter_runs, Run, split_sessions
+from gyro_tdc.data import BagOptions, find_bags, iter_runs, Run, split_sessions
 from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.models import (bag_labels, load_models, model_labels, NamedModel, PX4,
                                       safe_label, with_accel)
@@ -447,7 +447,8 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
              out_of_range: str = DEFAULT_OUT_OF_RANGE,
              max_extrapolation_c: float = MAX_EXTRAPOLATION_C,
              log: Callable[[str], None] | None = None,
-             each: Callable[[BagEval], None] | None = None) -> list:
+             each: Callable[[BagEval], None] | None = None,
+             found: list | None = None) -> list:
     """
     Evaluate models on held-out bags, one bag in memory at a time.
 
@@ -457,6 +458,7 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     :func:`evaluate_run`. ``log`` receives one line per bag;
     ``each`` is called with every :class:`BagEval` while its arrays are held (tables, plots,
     CSV). A bag without a reference that moves is scored on its still stretches only.
+    ``found``: :func:`gyro_tdc.data.find_bags` of ``bags``, when the caller has it.
 
     Raises
     ------
@@ -467,10 +469,11 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     """
     check_policy(out_of_range)
     o = BagOptions() if bag is None else bag
-    paths = expand_bags(bags)
+    found = find_bags(bags) if found is None else found
+    paths = [p for p, _ in found]
     labels = dict(zip(map(str, paths), bag_labels(paths)))
     results = []
-    for run in iter_runs(bags, with_accel(bag), log=log):   # unreadable walked logs skipped
+    for run in iter_runs(bags, with_accel(bag), log=log, found=found):   # unreadable skipped
         label = labels[run.name]
         held_out_constant(run)              # every gyro axis constant: refused
         here = [replace(nm, model=onboard_model(nm.name, run)[0]) if nm.name in ONBOARD

@@ -343,3 +343,18 @@ def test_a_folder_skips_the_logs_it_cannot_read_and_scores_the_rest(tmp_path, ca
         path.unlink()
     assert_bad_input(capsys, [root, *args], 'None of the 2 bags and logs found can be read',
                      entry=main)
+
+
+def test_a_folder_is_walked_once(tmp_path, capsys, monkeypatch):
+    """The progress bar's count, the labels and the reading share one walk of the folder."""
+    import gyro_tdc.data.dataset as dataset
+    root = tmp_path / 'card'
+    good, _ = sd_card(root)
+    model = tmp_path / 'm.yaml'
+    assert train_main([str(good[1]), '--out', str(model), '--features', 'dT,dT2',
+                       '--no-progress']) == 0
+    walked, walk = [], dataset._walk
+    monkeypatch.setattr(dataset, '_walk', lambda folder: walked.append(folder) or walk(folder))
+    assert main([str(root), '--model', str(model)]) == 0
+    assert walked.count(root) == 1, walked
+    assert 'read 2 of the 4 bags and logs' in capsys.readouterr().out
