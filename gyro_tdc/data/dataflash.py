@@ -18,9 +18,9 @@ ArduPilot DataFlash (``.bin``) -> one IMU as a :class:`gyro_tdc.data.flightlog.F
 pymavlink's ``DFReader`` indexes the records and their FMT formats; the ``IMU`` records (with
 ``T``, or ``Temp`` in ArduCopter 3.4, per instance), ``BARO`` (a proxy thermometer with
 ``--temperature-source baro``) and ``PARM`` are decoded here column-wise with numpy. Where the
-log holds the gyro at the sensor rate as a stream (``GYR``, with ``ACC``: ``INS_RAW_LOG_OPT`` or
-``LOG_BITMASK``'s raw-IMU bit), it is read instead of ``IMU``'s and the IMU's thermometer is
-held onto it; the batch sampler's ``ISBD`` bursts are not a stream and are not read.
+log holds the gyro at the sensor rate as a stream (``GYR``, with ``ACC``: ``INS_RAW_LOG_OPT``
+or ``LOG_BITMASK``'s raw-IMU bit), it is read instead of ``IMU``'s, the IMU's thermometer on
+its own stamps beside it; the batch sampler's ``ISBD`` bursts are no stream and not read.
 """
 
 from __future__ import annotations
@@ -159,7 +159,7 @@ def _imu(reader, kind: str = 'IMU') -> dict[int, dict[str, np.ndarray]]:
 
 def _fast(reader, kind: str, instance: int) -> dict[str, np.ndarray] | None:
     """
-    Return one instance's sensor-rate records (``GYR``/``ACC``; ``GYR1``..3 of ArduPilot 3).
+    Return one instance's sensor-rate records (``GYR``/``ACC``; ``GYR1``..3 of older firmware).
 
     None when the log has none of ``kind`` at all; ``{}`` when only other instances'.
     ``INS_RAW_LOG_OPT``'s pre- and post-filter option logs the post-filter copy as instance
