@@ -157,20 +157,23 @@ def _imu(reader, kind: str = 'IMU') -> dict[int, dict[str, np.ndarray]]:
     return out
 
 
-def _fast(reader, kind: str, instance: int) -> dict[str, np.ndarray] | None:
+def _fast(reader, kind: str, instance: int) -> dict[str, np.ndarray] | str | None:
     """
     Return one instance's sensor-rate records (``GYR``/``ACC``; ``GYR1``..3 of older firmware).
 
-    None when the log has none of ``kind`` at all; ``{}`` when only other instances'.
+    None when the log has none of ``kind`` at all; ``{}`` when only other instances'; why
+    not, in words, when they cannot be decoded (the log is still read, from ``IMU``).
     ``INS_RAW_LOG_OPT``'s pre- and post-filter option logs the post-filter copy as instance
     ``I`` + the gyro count: ``I`` = the IMU instance is the pre-filter one.
     """
     ids = {n: m for n in (kind, f'{kind}1', f'{kind}2', f'{kind}3')
            if (m := reader.name_to_id.get(n)) is not None and len(reader.offsets[m])}
-    if kind in ids:
-        return _records(reader, ids[kind], instance)
-    name = f'{kind}{instance + 1}'
-    return _records(reader, ids[name]) if name in ids else {} if ids else None
+    name = kind if kind in ids else f'{kind}{instance + 1}'
+    try:
+        return (_records(reader, ids[name], instance if name == kind else None)
+                if name in ids else {} if ids else None)
+    except (DatasetError, KeyError, ValueError, TypeError) as exc:
+        return f'{kind} not used: its records cannot be decoded ({exc})'
 
 
 def _stamps(cols: dict[str, np.ndarray]) -> np.ndarray:
@@ -189,7 +192,7 @@ def _on(t: np.ndarray, t_src: np.ndarray, v: np.ndarray | None) -> np.ndarray | 
                                       right=np.nan) for j in range(v.shape[1])])
 
 
-def _sensor_rate(gyr: dict | None, imu_t: np.ndarray, instance: int
+def _sensor_rate(gyr: dict | str | None, imu_t: np.ndarray, instance: int
                  ) -> tuple[np.ndarray, np.ndarray, str] | str:
     """
     Return ``GYR``'s (stamps, gyro, what in words), or why it cannot stand in for ``IMU``.
@@ -198,8 +201,8 @@ def _sensor_rate(gyr: dict | None, imu_t: np.ndarray, instance: int
     ``IMU``'s and leave no ``IMU`` sample (but one in a thousand) :data:`FAST_GAP_S` away:
     a stream beside ``IMU`` over the whole log, its gaps the log's own.
     """
-    if gyr is None:
-        return ''
+    if gyr is None or isinstance(gyr, str):
+        return gyr or ''
     g = columns(gyr, ('GyrX', 'GyrY', 'GyrZ'))
     if g is None or 'TimeUS' not in gyr or not len(g):
         return f'GYR not used: it has no instance {instance}'
@@ -217,7 +220,7 @@ def _sensor_rate(gyr: dict | None, imu_t: np.ndarray, instance: int
     return t, g, f'gyro from GYR at {fast:.4g} Hz beside IMU at {slow:.3g} Hz'
 
 
-def _gyro_accel(d: dict, fast: tuple | str, acc: dict | None, accel: bool) -> tuple:
+def _gyro_accel(d: dict, fast: tuple | str, acc: dict | str | None, accel: bool) -> tuple:
     """
     Return (stamps, gyro, accelerometer, source, what in words) of one IMU instance.
 
@@ -231,7 +234,8 @@ def _gyro_accel(d: dict, fast: tuple | str, acc: dict | None, accel: bool) -> tu
     t, gyro, said = fast
     if not accel:
         return t, gyro, None, 'GYR', said
-    if acc and (a := columns(acc, acc_xyz)) is not None and 'TimeUS' in acc and len(a) > 1:
+    if (isinstance(acc, dict) and (a := columns(acc, acc_xyz)) is not None
+            and 'TimeUS' in acc and len(a) > 1):
         return t, gyro, _on(t, _stamps(acc), a), 'GYR', said + ', accelerometer from ACC'
     return (t, gyro, _on(t, _seconds(d), columns(d, acc_xyz)), 'GYR',
             said + ', accelerometer from IMU')

@@ -334,6 +334,19 @@ def test_damaged_gyr_records_are_read_or_refused_in_one_line_never_a_traceback(t
     g[:] = np.nan
     nan = write_dataflash(tmp_path / 'nan.bin', slow, fast={0: Imu(t=t, gyro=g, temp=None)})
     assert read_dataflash(nan).notes == ['GYR not used: 0 samples at 0 Hz, not faster than IMU']
+    # A GYR whose FMT record's length is not its format's: IMU's gyro, and why.
+    wide = ('GYR', 'QBQffff', 'TimeUS,I,SampleUS,GyrX,GyrY,GyrZ,GyrW')
+    data = bytearray(write_dataflash(tmp_path / 'w.bin', slow, fast=fast,
+                                     gyr_format=wide).read_bytes())
+    at = data.index(b'QBQffff')
+    data[at:at + 7] = b'QBQfff\0'
+    at = data.index(wide[2].encode())
+    data[at:at + len(wide[2])] = wide[2][:-5].encode().ljust(len(wide[2]), b'\0')
+    (tmp_path / 'fmt.bin').write_bytes(bytes(data))
+    log = read_dataflash(tmp_path / 'fmt.bin')
+    assert log.source == 'IMU' and log.notes[-1] == (
+        "GYR not used: its records cannot be decoded (GYR: format 'QBQfff' is 29 bytes, the "
+        'FMT record says 33.)')
     # A log cut off inside its last GYR record (32 bytes): a warning counting the loss.
     data = write_dataflash(tmp_path / 'whole.bin', slow, fast=fast).read_bytes()
     cut = tmp_path / 'cut.bin'
