@@ -210,7 +210,7 @@ def _sensor_rate(gyr: dict | str | None, imu_t: np.ndarray, instance: int
     ts = np.sort(t[np.isfinite(g).all(axis=1)])
     fast, slow = rate_hz(ts), rate_hz(imu_t)
     if len(ts) < 2 or fast < FAST_RATIO * slow:
-        return f'GYR not used: {len(ts)} samples at {fast:.4g} Hz, not faster than IMU'
+        return f'GYR not used: {len(ts)} samples at {fast:.4g} Hz, not twice as fast as IMU'
     at = np.clip(np.searchsorted(ts, imu_t), 1, len(ts) - 1)
     near = np.minimum(np.abs(ts[at] - imu_t), np.abs(ts[at - 1] - imu_t))
     far = int(np.count_nonzero(~(near <= FAST_GAP_S)))

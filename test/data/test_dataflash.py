@@ -275,7 +275,7 @@ def test_logs_without_a_gyr_stream_read_as_before_and_isbd_bursts_are_said(tmp_p
     slow, fast = _slow_and_fast(count=2)
     plain = read_dataflash(write_dataflash(tmp_path / 'plain.bin', slow), accel=True)
     cases = {'slow': ({0: Imu(t=slow[0].t, gyro=slow[0].gyro, temp=None)}, 0,
-                      ['GYR not used: 500 samples at 25 Hz, not faster than IMU']),
+                      ['GYR not used: 500 samples at 25 Hz, not twice as fast as IMU']),
              'other': ({1: fast[1]}, 0, ['GYR not used: it has no instance 0']),
              'isbd': (None, 4, ['ISBD batch samples not read (bursts, not a stream)'])}
     for name, (gyr, bursts, notes) in cases.items():
@@ -333,7 +333,8 @@ def test_damaged_gyr_records_are_read_or_refused_in_one_line_never_a_traceback(t
     # Every GYR sample non-finite: no stream, IMU's gyro.
     g[:] = np.nan
     nan = write_dataflash(tmp_path / 'nan.bin', slow, fast={0: Imu(t=t, gyro=g, temp=None)})
-    assert read_dataflash(nan).notes == ['GYR not used: 0 samples at 0 Hz, not faster than IMU']
+    assert read_dataflash(nan).notes == [
+        'GYR not used: 0 samples at 0 Hz, not twice as fast as IMU']
     # A GYR whose FMT record's length is not its format's: IMU's gyro, and why.
     wide = ('GYR', 'QBQffff', 'TimeUS,I,SampleUS,GyrX,GyrY,GyrZ,GyrW')
     data = bytearray(write_dataflash(tmp_path / 'w.bin', slow, fast=fast,
