@@ -21,11 +21,13 @@ thermometer resolution from 0.004 to 1 degC, flights between still stretches of 
 spike glitches, and for half the logs an end cut off inside a message; each log is written
 as a PX4 ULog (``sensor_gyro`` at full rate, or ``sensor_combined`` at full rate beside a
 1 Hz ``sensor_gyro`` carrying the temperature) or an ArduPilot DataFlash log (``IMU.T``, or
-``IMU.Temp``) and read back. Printed per test: the pass rate
-and the worst cases.
+``IMU.Temp``; or ``IMU.T`` at 25 Hz beside the sensor-rate ``GYR``) and read back. Printed per
+test: the pass rate and the worst cases.
 
 - **read**: every log is read, or refused in one line (a ``GyroTdcError``); any other
   exception is a failure.
+- **fastest gyro**: every log read gives the gyro at half the drawn rate or more (the
+  fastest the log holds, whatever carries the temperature).
 - **never fit motion**: default ``train`` on four logs either refuses in one line or gives a
   model that does no harm on the four held-out logs: the within-log drift of their still
   stretches (each stretch's mean less the log's mean of them) at most 1.1 x raw per axis.
@@ -77,8 +79,8 @@ def _case(rng: np.random.Generator) -> dict:
 
 #: How a power cycle is written: PX4 sensor_gyro at full rate; PX4 sensor_combined at full
 #: rate beside sensor_gyro (with the temperature) at 1 Hz; ArduPilot IMU with ``T``; with
-#: ``Temp`` (ArduCopter 3.4).
-FORMATS = ('ulog', 'ulog_multi_rate', 'dataflash', 'dataflash_temp')
+#: ``Temp`` (ArduCopter 3.4); IMU with ``T`` at 25 Hz beside GYR at full rate.
+FORMATS = ('ulog', 'ulog_multi_rate', 'dataflash', 'dataflash_temp', 'dataflash_gyr')
 
 
 def _multi_rate(imu) -> list:
@@ -95,6 +97,15 @@ def _multi_rate(imu) -> list:
                 'temperature': imu.temp[slow]})]
 
 
+def _gyr(imu) -> tuple:
+    """Return (IMU records at 25 Hz or the IMU's rate if slower, GYR records at full rate)."""
+    from dataclasses import replace
+    step = max(1, int(round(1.0 / (25.0 * float(np.median(np.diff(imu.t)))))))
+    slow = replace(imu, t=imu.t[::step], gyro=imu.gyro[::step], temp=imu.temp[::step],
+                   accel=None if imu.accel is None else imu.accel[::step])
+    return [slow], {0: replace(imu, accel=None)}
+
+
 def _write(day, path: Path, fmt: str, cut: bool, rng: np.random.Generator) -> Path:
     """Write one power cycle as a log, its end cut off inside a message when ``cut``."""
     from flightlogs import px4_topics, write_dataflash, write_ulog
@@ -104,6 +115,9 @@ def _write(day, path: Path, fmt: str, cut: bool, rng: np.random.Generator) -> Pa
         path = write_ulog(path.with_suffix('.ulg'), topics)
     elif fmt == 'ulog_multi_rate':
         path = write_ulog(path.with_suffix('.ulg'), _multi_rate(day.imu))
+    elif fmt == 'dataflash_gyr':
+        slow, fast = _gyr(day.imu)
+        path = write_dataflash(path.with_suffix('.bin'), slow, fast=fast)
     else:
         path = write_dataflash(path.with_suffix('.bin'), [day.imu],
                                temp_field='Temp' if fmt == 'dataflash_temp' else 'T')
@@ -138,6 +152,7 @@ def run_case(k: int, seed: int, folder: Path) -> dict:
     """Run the three tests on one drawn board; return its figures."""
     from flightlogs import flight_day, still_drift
     from gyro_tdc.data.dataset import load_run
+    from gyro_tdc.data.flightlog import rate_hz
     from gyro_tdc.errors import GyroTdcError
     from gyro_tdc.identify import train, TrainOptions
     from gyro_tdc.model import compensate, DEFAULT_OUT_OF_RANGE
@@ -153,10 +168,10 @@ def run_case(k: int, seed: int, folder: Path) -> dict:
                                                  'noise_dps', 'glitches')},
            'formats': ' '.join(f'{str(f)}{"(cut)" if cut else ""}'
                                for f, cut in zip(c['format'], c['cut']))}
-    out['read'], out['read_note'] = True, ''
+    out['read'], out['read_note'], out['fast'] = True, '', True
     for p in paths:
         try:
-            load_run(p)
+            out['fast'] &= bool(rate_hz(load_run(p).t) >= 0.5 * c['rate_hz'])
         except GyroTdcError as exc:
             out['read_note'] = f'refused: {str(exc)[:80]}'
         except Exception:  # noqa: B902  (the bench counts what the readers must not raise)
@@ -201,7 +216,8 @@ def main(argv=None) -> int:
             ratio = '-' if r['ratio'] is None else f"{r['ratio']:.3f}"
             print(f"case {k:2d}: {r['rate_hz']:7.1f} Hz, {r['legs']} legs, res "
                   f"{r['resolution_c']:.3g} degC, noise {r['noise_dps']:.3f} deg/s, "
-                  f"{r['glitches']} glitches | read {'ok' if r['read'] else 'FAIL'} | "
+                  f"{r['glitches']} glitches | read {'ok' if r['read'] else 'FAIL'}"
+                  f"{'' if r['fast'] else ' SLOW'} | "
                   f"train {r['train_note'][:40]}, held-out worst axis {ratio} x raw | still "
                   f"found {r['recall']:.2f}, precision {r['precision']:.3f}\n"
                   f"         logs: {r['formats']}", flush=True)
@@ -213,6 +229,8 @@ def main(argv=None) -> int:
                    for r in rows)
     knowable = sum(not math.isnan(r['recall']) for r in rows)
     print(f'read without traceback: {read_ok}/{n}')
+    fast = sum(r['fast'] for r in rows)
+    print(f'gyro read at half the drawn rate or more (the fastest the log holds): {fast}/{n}')
     print(f'never fit motion (refused in one line, or <= 1.1 x raw held out): {harm_ok}/{n} '
           f'({refused} refused)')
     print(f'still-only defaults find the still time (>= 0.5 of the stretches of 60 s or 250 '

@@ -17,7 +17,10 @@ ArduPilot DataFlash (``.bin``) -> one IMU as a :class:`gyro_tdc.data.flightlog.F
 
 pymavlink's ``DFReader`` indexes the records and their FMT formats; the ``IMU`` records (with
 ``T``, or ``Temp`` in ArduCopter 3.4, per instance), ``BARO`` (a proxy thermometer with
-``--temperature-source baro``) and ``PARM`` are decoded here column-wise with numpy.
+``--temperature-source baro``) and ``PARM`` are decoded here column-wise with numpy. Where the
+log holds the gyro at the sensor rate as a stream (``GYR``, with ``ACC``: ``INS_RAW_LOG_OPT``
+or ``LOG_BITMASK``'s raw-IMU bit), it is read instead of ``IMU``'s, the IMU's thermometer on
+its own stamps beside it; the batch sampler's ``ISBD`` bursts are no stream and not read.
 """
 
 from __future__ import annotations
@@ -49,6 +52,11 @@ TEMPERATURE_FIELDS = ('T', 'Temp')
 _CHUNK = 1 << 16
 #: Scaled format characters (centi-units; degE7 for ``L``).
 _SCALE = {'c': 0.01, 'C': 0.01, 'e': 0.01, 'E': 0.01, 'L': 1e-7}
+#: ``GYR`` replaces ``IMU``'s gyro when at least this many times as fast...
+FAST_RATIO = 2.0
+#: ...and every ``IMU`` sample (but one in a thousand, a stamp a damaged byte threw away)
+#: has a ``GYR`` sample within this many seconds: no gap the log's ``IMU`` does not share.
+FAST_GAP_S = 1.0
 
 
 @contextlib.contextmanager
@@ -78,8 +86,14 @@ def _captured(sink: io.StringIO) -> Iterator[None]:
             sink.write(tmp.read().decode('utf-8', 'replace'))
 
 
-def _records(reader, mtype: int) -> dict[str, np.ndarray]:
-    """Decode every whole record of one message type into columns."""
+def _records(reader, mtype: int, instance: int | None = None) -> dict[str, np.ndarray]:
+    """
+    Decode every whole record of one message type into columns.
+
+    ``instance``: only the records whose ``I`` (a uint8) is that one, picked by their ``I``
+    byte before decoding (a sensor-rate ``GYR`` of three IMUs would take gigabytes); a
+    message without ``I`` is instance 0's.
+    """
     fmt = reader.formats[mtype]
     offs = np.asarray(reader.offsets[mtype], dtype=np.int64)
     offs = offs[offs + fmt.len <= reader.data_len]
@@ -89,6 +103,10 @@ def _records(reader, mtype: int) -> dict[str, np.ndarray]:
         raise DatasetError(f'{fmt.name}: format {fmt.format!r} is {dt.itemsize} bytes, the '
                            f'FMT record says {fmt.len - 3}.')
     buf = np.frombuffer(reader.data_map, dtype=np.uint8)
+    if instance is not None:
+        at = (dt.fields or {}).get('I')
+        offs = (offs[buf[offs + 3 + at[1]] == instance] if at and at[0] == np.uint8
+                else offs[:len(offs) * (instance == 0)])
     cols = 3 + np.arange(dt.itemsize)
     # Gathered in chunks: the byte index of a whole long log would take 8 bytes per byte.
     rec = np.concatenate([np.ascontiguousarray(buf[offs[a:a + _CHUNK, None] + cols])
@@ -137,6 +155,90 @@ def _imu(reader, kind: str = 'IMU') -> dict[int, dict[str, np.ndarray]]:
         else:
             out[base] = cols
     return out
+
+
+def _fast(reader, kind: str, instance: int) -> dict[str, np.ndarray] | str | None:
+    """
+    Return one instance's sensor-rate records (``GYR``/``ACC``; ``GYR1``..3 of older firmware).
+
+    None when the log has none of ``kind`` at all; ``{}`` when only other instances'; why
+    not, in words, when they cannot be decoded (the log is still read, from ``IMU``).
+    ``INS_RAW_LOG_OPT``'s pre- and post-filter option logs the post-filter copy as instance
+    ``I`` + the gyro count: ``I`` = the IMU instance is the pre-filter one.
+    """
+    ids = {n: m for n in (kind, f'{kind}1', f'{kind}2', f'{kind}3')
+           if (m := reader.name_to_id.get(n)) is not None and len(reader.offsets[m])}
+    name = kind if kind in ids else f'{kind}{instance + 1}'
+    try:
+        return (_records(reader, ids[name], instance if name == kind else None)
+                if name in ids else {} if ids else None)
+    except (DatasetError, KeyError, ValueError, TypeError) as exc:
+        return f'{kind} not used: its records cannot be decoded ({exc})'
+
+
+def _stamps(cols: dict[str, np.ndarray]) -> np.ndarray:
+    """Return when each sensor-rate sample was taken (``SampleUS``; else ``TimeUS``), s."""
+    us = cols.get('SampleUS')
+    us = us if us is not None and len(us) and np.all(us > 0) else cols['TimeUS']
+    return np.asarray(us, dtype=np.float64) * 1e-6
+
+
+def _on(t: np.ndarray, t_src: np.ndarray, v: np.ndarray | None) -> np.ndarray | None:
+    """Interpolate ``v`` (stamps ``t_src``) onto ``t`` per column (NaN outside)."""
+    if v is None or not len(t_src):
+        return None
+    order = np.argsort(t_src, kind='stable')
+    return np.column_stack([np.interp(t, t_src[order], v[order, j], left=np.nan,
+                                      right=np.nan) for j in range(v.shape[1])])
+
+
+def _sensor_rate(gyr: dict | str | None, imu_t: np.ndarray, instance: int
+                 ) -> tuple[np.ndarray, np.ndarray, str] | str:
+    """
+    Return ``GYR``'s (stamps, gyro, what in words), or why it cannot stand in for ``IMU``.
+
+    It can when its finite samples come at least :data:`FAST_RATIO` times as fast as
+    ``IMU``'s and leave no ``IMU`` sample (but one in a thousand) :data:`FAST_GAP_S` away:
+    a stream beside ``IMU`` over the whole log, its gaps the log's own.
+    """
+    if gyr is None or isinstance(gyr, str):
+        return gyr or ''
+    g = columns(gyr, ('GyrX', 'GyrY', 'GyrZ'))
+    if g is None or 'TimeUS' not in gyr or not len(g):
+        return f'GYR not used: it has no instance {instance}'
+    t = _stamps(gyr)
+    ts = np.sort(t[np.isfinite(g).all(axis=1)])
+    fast, slow = rate_hz(ts), rate_hz(imu_t)
+    if len(ts) < 2 or fast < FAST_RATIO * slow:
+        return f'GYR not used: {len(ts)} samples at {fast:.4g} Hz, not twice as fast as IMU'
+    at = np.clip(np.searchsorted(ts, imu_t), 1, len(ts) - 1)
+    near = np.minimum(np.abs(ts[at] - imu_t), np.abs(ts[at - 1] - imu_t))
+    far = int(np.count_nonzero(~(near <= FAST_GAP_S)))
+    if far > len(imu_t) // 1000:
+        return (f'GYR at {fast:.4g} Hz not used: none within {FAST_GAP_S:g} s of {far} of '
+                f'{len(imu_t)} IMU samples (gaps, or it ends early)')
+    return t, g, f'gyro from GYR at {fast:.4g} Hz beside IMU at {slow:.3g} Hz'
+
+
+def _gyro_accel(d: dict, fast: tuple | str, acc: dict | str | None, accel: bool) -> tuple:
+    """
+    Return (stamps, gyro, accelerometer, source, what in words) of one IMU instance.
+
+    ``fast``: what :func:`_sensor_rate` found. On ``GYR``'s stamps the accelerometer is
+    ``ACC``'s where the log has it for the instance, else ``IMU``'s, interpolated.
+    """
+    acc_xyz = ('AccX', 'AccY', 'AccZ')
+    if isinstance(fast, str):
+        return (_seconds(d), columns(d, ('GyrX', 'GyrY', 'GyrZ')),
+                columns(d, acc_xyz) if accel else None, 'IMU', fast)
+    t, gyro, said = fast
+    if not accel:
+        return t, gyro, None, 'GYR', said
+    if (isinstance(acc, dict) and (a := columns(acc, acc_xyz)) is not None
+            and 'TimeUS' in acc and len(a) > 1):
+        return t, gyro, _on(t, _stamps(acc), a), 'GYR', said + ', accelerometer from ACC'
+    return (t, gyro, _on(t, _seconds(d), columns(d, acc_xyz)), 'GYR',
+            said + ', accelerometer from IMU')
 
 
 def _has_instances(cols: dict[str, np.ndarray]) -> bool:
@@ -196,7 +298,7 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     instance : int
         IMU instance (0-based, the ``I`` field).
     accel : bool
-        Also read ``AccX..Z``.
+        Also read ``AccX..Z`` (``ACC``'s or ``IMU``'s on ``GYR``'s stamps).
     temperature_source : str
         ``'imu'`` (``IMU.T`` / ``IMU.Temp``), ``'baro'`` (``BARO.T`` / ``BARO.Temp``, a
         proxy) or ``'MSG.Field'`` (another thermometer of the board, a proxy).
@@ -204,7 +306,8 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     Returns
     -------
     FlightLog
-        Never ``raw``: ``IMU`` is logged after the offsets and the temperature correction;
+        The gyro of ``GYR`` where :func:`_sensor_rate` finds it a stream, else ``IMU``'s.
+        Never ``raw``: both are logged after the offsets and the temperature correction;
         ``compensated`` when ``INS_TCALn_ENABLE`` is 1.
 
     Raises
@@ -228,6 +331,9 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     try:
         params, imus, baros, cut = (_params(reader), _imu(reader), _imu(reader, 'BARO'),
                                     _truncated(reader))
+        gyr = _fast(reader, 'GYR', instance)
+        acc = _fast(reader, 'ACC', instance) if accel else None
+        bursts = 'ISBD' in reader.name_to_id and len(reader.offsets[reader.name_to_id['ISBD']])
         mtype = reader.name_to_id.get(msg) if fld else None
         other = (_records(reader, mtype) if mtype is not None and len(reader.offsets[mtype])
                  else {})
@@ -247,6 +353,7 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
                            f'{_inventory(imus, baros)}; --imu-instance N).')
     d = imus[instance]
     t = _seconds(d)
+    fast = _sensor_rate(gyr, t, instance)
     b_inst = instance if instance in baros else 0       # BARO, BAR2...: per instance
     baro = baros.get(b_inst, {})
     other, o_inst = _instance(other, instance)
@@ -263,6 +370,7 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
                                f'temperature (what each instance carries: '
                                f'{_inventory(imus, baros)}; {hint}).')
         temp, name = found[1], f'IMU.{found[0]}'
+        temp_t = t if isinstance(fast, tuple) else None
     elif found is None or 'TimeUS' not in src:
         raise DatasetError(f'Log {str(p)!r}: no usable thermometer for '
                            f'--temperature-source {temperature_source} (what each IMU '
@@ -272,12 +380,15 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
         name = (f'BARO.{found[0]}' + (f' instance {b_inst}' if b_inst else '')
                 if temperature_source == 'baro' else
                 temperature_source + (f' instance {o_inst}' if o_inst else ''))
-    acc = columns(d, ('AccX', 'AccY', 'AccZ')) if accel else None
     active, words = onboard_status(params, 'ardupilot', instance=instance)
     skipped = chatter.getvalue().count('\n')
     notes = [f'pymavlink skipped damaged bytes ({skipped} reports)'] if skipped else []
-    return FlightLog(imu_t=t, gyro=columns(d, ('GyrX', 'GyrY', 'GyrZ')), temp_c=temp,
-                     accel=acc, params=params, firmware='ardupilot', source='IMU',
+    t, gyro, acc, source, said = _gyro_accel(d, fast, acc, accel)
+    notes += [said] if said else []
+    notes += (['ISBD batch samples not read (bursts, not a stream)']
+              if bursts and source == 'IMU' else [])
+    return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
+                     firmware='ardupilot', source=source,
                      instance=int(instance), instances=tuple(sorted(imus)), raw=False,
                      compensated=active, onboard=words, truncated_bytes=cut, notes=notes,
                      temp_t=temp_t, temperature=name, proxy=temperature_source != 'imu',

@@ -12,18 +12,22 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""ArduPilot DataFlash in: ``IMU`` with ``T`` per instance, ``PARM``, the guards."""
+"""ArduPilot DataFlash in: ``IMU`` with ``T`` per instance, ``GYR``/``ACC``, ``PARM``, guards."""
 
 from __future__ import annotations
+
+import hashlib
 
 from flightlogs import Imu, write_dataflash
 from gyro_tdc.data import BagOptions, detect_format
 from gyro_tdc.data.dataflash import read_dataflash
 from gyro_tdc.data.dataset import describe_read, load_run
+from gyro_tdc.data.flightlog import describe_log
 from gyro_tdc.errors import DatasetError
+from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
-from real_logs import ARDUPILOT_AC33, ARDUPILOT_AC45
+from real_logs import ARDUPILOT_AC33, ARDUPILOT_AC45, ARDUPILOT_CUBEBLACK
 
 
 def _imus(n: int = 300, count: int = 3) -> list:
@@ -185,3 +189,227 @@ def test_a_real_arducopter_4_5_log_tells_instances_of_one_message_apart_by_their
     run = load_run(ARDUPILOT_AC45, BagOptions(imu_instance=1, temperature_source='BARO.Temp',
                                               allow_onboard_corrected=True))
     assert run.info['temperature'] == 'BARO.Temp instance 1' and 33.0 < run.temp.min()
+
+
+# --------------------------------------------------------------------------------------------
+# The gyro at the sensor rate: GYR (and ACC) beside IMU
+# --------------------------------------------------------------------------------------------
+
+def _f32(a: np.ndarray) -> np.ndarray:
+    """Return ``a`` as the float32 a log holds, in float64."""
+    return np.asarray(a, dtype=np.float32).astype(np.float64)
+
+
+def _slow_and_fast(seconds: float = 20.0, rate: float = 1000.0, count: int = 2,
+                   accel: bool = True) -> tuple[list, dict]:
+    """Return ``count`` IMUs at 25 Hz and the same IMUs at ``rate`` (GYR, ACC when ``accel``)."""
+    rng = np.random.default_rng(7)
+    t = 20.0 + np.arange(int(seconds * 25)) / 25.0
+    slow = [Imu(t=t, gyro=_f32(rng.normal(0.0, 0.01, (len(t), 3))),
+                temp=_f32(np.linspace(30.0 + k, 40.0 + k, len(t))),
+                accel=_f32(rng.normal(0.0, 1.0, (len(t), 3)))) for k in range(count)]
+    ft = np.round((20.0 + np.arange(int(seconds * rate)) / rate) * 1e6) * 1e-6
+    fast = {k: Imu(t=ft, gyro=_f32(rng.normal(0.0, 0.01, (len(ft), 3))), temp=None,
+                   accel=_f32(rng.normal(0.0, 1.0, (len(ft), 3))) if accel else None)
+            for k in range(count)}
+    return slow, fast
+
+
+def test_gyr_at_the_sensor_rate_gives_the_gyro_the_imu_thermometer_held_onto_its_stamps(
+        tmp_path):
+    slow, fast = _slow_and_fast()
+    fast[1].accel = None                       # ACC of instance 0 only
+    fast[2] = Imu(t=fast[0].t, gyro=fast[0].gyro + 1.0, temp=None)   # a post-filter copy
+    path = write_dataflash(tmp_path / 'raw.bin', slow, fast=fast, bursts=3)
+    for k in range(2):
+        log = read_dataflash(path, instance=k, accel=True)
+        assert (log.source, log.instance, log.instances, log.temperature) == (
+            'GYR', k, (0, 1), 'IMU.T')
+        np.testing.assert_allclose(log.imu_t, fast[k].t, atol=1e-9)   # SampleUS, not TimeUS
+        np.testing.assert_array_equal(log.gyro, fast[k].gyro)         # never instance 2's
+        np.testing.assert_allclose(log.temp_t, slow[k].t, atol=1e-9)  # on the IMU's stamps
+        np.testing.assert_array_equal(log.temp_c, slow[k].temp)
+        src = 'ACC' if k == 0 else 'IMU'
+        assert log.notes == [f'gyro from GYR at 1000 Hz beside IMU at 25 Hz, accelerometer '
+                             f'from {src}']                # and no word of ISBD: not needed
+        if k == 0:                             # ACC: on the same stamps
+            np.testing.assert_array_equal(log.accel, fast[0].accel)
+        else:                                  # IMU's, interpolated (NaN after its last)
+            inside = log.imu_t <= slow[1].t[-1]
+            np.testing.assert_allclose(log.accel[inside], np.column_stack(
+                [np.interp(log.imu_t[inside], slow[1].t, slow[1].accel[:, j])
+                 for j in range(3)]), atol=1e-12)
+            assert np.isnan(log.accel[~inside]).all() and (~inside).sum() == 39
+        assert read_dataflash(path, instance=k).accel is None
+    run = load_run(path, BagOptions(imu_instance=1))
+    assert len(run) == 20000 - 39          # GYR after the last IMU reading: no temperature
+    np.testing.assert_allclose(run.temp, np.interp(run.t, slow[1].t, slow[1].temp), atol=1e-9)
+    line = describe_read(path, run, '/r')
+    assert ('ArduPilot DataFlash, GYR instance 1 of 2: calibrated on board (no thermal '
+            'compensation active)') in line
+    assert 'gyro from GYR at 1000 Hz beside IMU at 25 Hz; temperature from IMU.T' in line
+    proxy = read_dataflash(path, temperature_source='IMU.T', instance=1)
+    assert proxy.source == 'GYR' and proxy.proxy and proxy.temperature == 'IMU.T instance 1'
+
+
+def test_gyr_is_compensated_on_board_like_imu_and_refused_so(tmp_path):
+    slow, fast = _slow_and_fast(count=1)
+    path = write_dataflash(tmp_path / 'tcal.bin', slow, {'INS_TCAL1_ENABLE': 1}, fast=fast)
+    with pytest.raises(DatasetError, match=r'the GYR data were already thermally compensated '
+                                           r'on board \(INS_TCAL1_ENABLE=1'):
+        load_run(path)
+
+
+def test_arducopter_3_gyr1_records_without_an_instance_field(tmp_path):
+    slow, fast = _slow_and_fast(count=2)
+    old = ('GYR1', 'QQfff', 'TimeUS,SampleUS,GyrX,GyrY,GyrZ')
+    path = write_dataflash(tmp_path / 'gyr1.bin', slow, fast={0: fast[0]}, gyr_format=old)
+    log = read_dataflash(path)
+    assert log.source == 'GYR' and len(log.imu_t) == len(fast[0].t)
+    np.testing.assert_array_equal(log.gyro, fast[0].gyro)
+    other = read_dataflash(path, instance=1)
+    assert other.source == 'IMU' and other.notes == ['GYR not used: it has no instance 1']
+
+
+def test_logs_without_a_gyr_stream_read_as_before_and_isbd_bursts_are_said(tmp_path):
+    slow, fast = _slow_and_fast(count=2)
+    plain = read_dataflash(write_dataflash(tmp_path / 'plain.bin', slow), accel=True)
+    cases = {'slow': ({0: Imu(t=slow[0].t, gyro=slow[0].gyro, temp=None)}, 0,
+                      ['GYR not used: 500 samples at 25 Hz, not twice as fast as IMU']),
+             'other': ({1: fast[1]}, 0, ['GYR not used: it has no instance 0']),
+             'isbd': (None, 4, ['ISBD batch samples not read (bursts, not a stream)'])}
+    for name, (gyr, bursts, notes) in cases.items():
+        log = read_dataflash(write_dataflash(tmp_path / f'{name}.bin', slow, fast=gyr,
+                                             bursts=bursts), accel=True)
+        assert (log.source, log.notes, log.temp_t) == ('IMU', notes, None), name
+        for got, want in ((log.imu_t, plain.imu_t), (log.gyro, plain.gyro),
+                          (log.temp_c, plain.temp_c), (log.accel, plain.accel)):
+            np.testing.assert_array_equal(got, want)
+
+
+def _cut(t: np.ndarray, *spans: tuple) -> np.ndarray:
+    """Return which stamps ``t`` lie outside every (start, end) span (s after the first)."""
+    keep = np.ones(len(t), dtype=bool)
+    for a, b in spans:
+        keep &= ~((t >= t[0] + a) & (t < t[0] + b))
+    return keep
+
+
+def test_gyr_with_gaps_of_its_own_or_ending_early_is_not_read(tmp_path):
+    slow, fast = _slow_and_fast(count=1)
+    f = fast[0]
+    for name, keep, words in (
+            ('gap', _cut(f.t, (8.0, 11.0)), '850 Hz not used: none within 1 s of 25 of 500'),
+            ('early', _cut(f.t, (15.0, 99.0)), '1000 Hz not used: none within 1 s of 100 of 500')):
+        gyr = {0: Imu(t=f.t[keep], gyro=f.gyro[keep], temp=None)}
+        log = read_dataflash(write_dataflash(tmp_path / f'{name}.bin', slow, fast=gyr))
+        assert log.source == 'IMU' and log.notes == [
+            f'GYR at {words} IMU samples (gaps, or it ends early)'], name
+    # A gap the log's own IMU shares (disarmed, LOG_DISARMED 0): the stream stands.
+    imu = slow[0]
+    both = _cut(imu.t, (8.0, 11.0))
+    shared = write_dataflash(tmp_path / 'shared.bin', [Imu(t=imu.t[both], gyro=imu.gyro[both],
+                                                           temp=imu.temp[both])],
+                             fast={0: Imu(t=f.t[_cut(f.t, (8.0, 11.0))],
+                                          gyro=f.gyro[_cut(f.t, (8.0, 11.0))], temp=None)})
+    log = read_dataflash(shared)
+    assert log.source == 'GYR' and len(log.imu_t) == 17000
+
+
+def test_damaged_gyr_records_are_read_or_refused_in_one_line_never_a_traceback(tmp_path):
+    slow, fast = _slow_and_fast(count=1, accel=False)
+    g, t = fast[0].gyro.copy(), fast[0].t.copy()
+    g[100:110] = np.nan
+    g[200, 1] = np.inf
+    t[300:305] = t[299]                        # duplicated SampleUS
+    t[400], t[401] = t[401], t[400]            # one step backward
+    path = write_dataflash(tmp_path / 'bad.bin', slow, fast={0: Imu(t=t, gyro=g, temp=None)})
+    log = read_dataflash(path)
+    assert log.source == 'GYR' and len(log.imu_t) == 20000
+    run = load_run(path)
+    rej = run.info['rejected']
+    assert (rej['imu_nonfinite'], rej['duplicate_stamps'], rej['out_of_order']) == (11, 5, 1)
+    assert np.all(np.diff(run.t) > 0) and np.isfinite(run.omega).all()
+    # Every GYR sample non-finite: no stream, IMU's gyro.
+    g[:] = np.nan
+    nan = write_dataflash(tmp_path / 'nan.bin', slow, fast={0: Imu(t=t, gyro=g, temp=None)})
+    assert read_dataflash(nan).notes == [
+        'GYR not used: 0 samples at 0 Hz, not twice as fast as IMU']
+    # A GYR whose FMT record's length is not its format's: IMU's gyro, and why.
+    wide = ('GYR', 'QBQffff', 'TimeUS,I,SampleUS,GyrX,GyrY,GyrZ,GyrW')
+    data = bytearray(write_dataflash(tmp_path / 'w.bin', slow, fast=fast,
+                                     gyr_format=wide).read_bytes())
+    at = data.index(b'QBQffff')
+    data[at:at + 7] = b'QBQfff\0'
+    at = data.index(wide[2].encode())
+    data[at:at + len(wide[2])] = wide[2][:-5].encode().ljust(len(wide[2]), b'\0')
+    (tmp_path / 'fmt.bin').write_bytes(bytes(data))
+    log = read_dataflash(tmp_path / 'fmt.bin')
+    assert log.source == 'IMU' and log.notes[-1] == (
+        "GYR not used: its records cannot be decoded (GYR: format 'QBQfff' is 29 bytes, the "
+        'FMT record says 33.)')
+    # A log cut off inside its last GYR record (32 bytes): a warning counting the loss.
+    data = write_dataflash(tmp_path / 'whole.bin', slow, fast=fast).read_bytes()
+    cut = tmp_path / 'cut.bin'
+    cut.write_bytes(data[:-10])
+    assert read_dataflash(cut).truncated_bytes == 32 - 10
+    run = load_run(cut)
+    assert run.info['source'] == 'GYR'
+    assert any('the last 22 bytes' in w for w in run.info['warnings'])
+
+
+@settings(max_examples=25, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(rate=st.floats(10.0, 800.0), gap=st.tuples(st.floats(0.0, 10.0), st.floats(0.0, 6.0)),
+       cut=st.integers(0, 40), seed=st.integers(0, 1000))
+def test_a_gyr_stream_is_read_exactly_when_fast_and_whole_else_imu_unchanged(
+        tmp_path, rate, gap, cut, seed):
+    slow, fast = _slow_and_fast(seconds=12.0, rate=rate, count=1, accel=seed % 2 == 0)
+    f = fast[0]
+    keep = _cut(f.t, (gap[0], gap[0] + gap[1]))
+    path = write_dataflash(tmp_path / f'h{seed}.bin', slow,
+                           fast={0: Imu(t=f.t[keep], gyro=f.gyro[keep], temp=None,
+                                        accel=None if f.accel is None else f.accel[keep])})
+    if cut:
+        path.write_bytes(path.read_bytes()[:-cut])
+    try:
+        log = read_dataflash(path, accel=True)
+    except DatasetError:
+        return                                  # one line: the cut took the IMU's last
+    # A gap under 0.9 s anywhere, or under 1.5 s inside, leaves every IMU sample within 1 s.
+    whole = rate >= 2.5 * 25.0 and (gap[1] < 0.9 or (gap[1] < 1.5 and 0.5 < gap[0]
+                                                     and gap[0] + gap[1] < 11.0))
+    broken = rate < 1.5 * 25.0 or (gap[1] > 2.5 and gap[0] + gap[1] < 10.0)
+    assert log.source == ('GYR' if whole else 'IMU' if broken else log.source)
+    if log.source == 'GYR':
+        assert log.notes[0].startswith('gyro from GYR at ')
+        m = len(log.imu_t)
+        np.testing.assert_array_equal(log.gyro, f.gyro[keep][:m])
+        assert log.accel.shape == (m, 3) and len(log.temp_t) <= len(slow[0].t)
+    else:
+        assert log.notes[0].startswith('GYR') and log.temp_t is None
+        np.testing.assert_array_equal(log.gyro, slow[0].gyro[:len(log.imu_t)])
+
+
+def _digest(path, instance: int, source: str) -> str:
+    """Return a digest of what the reader gives for one IMU and thermometer ('refused')."""
+    try:
+        log = read_dataflash(path, instance=instance, accel=True, temperature_source=source)
+    except DatasetError:
+        return 'refused'
+    h = hashlib.sha256(describe_log(log).encode())
+    for a in (log.imu_t, log.gyro, log.temp_c, log.accel, log.temp_t):
+        h.update(b'' if a is None else np.ascontiguousarray(a, dtype=np.float64).tobytes())
+    return h.hexdigest()[:12]
+
+
+def test_the_real_logs_without_gyr_read_byte_for_byte_as_before_gyr_was_read():
+    # Digests of the line and arrays each committed ArduPilot log gave before GYR was read.
+    before = {ARDUPILOT_AC33: ['865910e482dd', '1e0b53f03326', '3990f5d7b389',
+                               '3cd12a1acfff', 'e8f7bad393b7', '60b7fdee8167'],
+              ARDUPILOT_AC45: ['c484510dc4e2', 'c2bbc430c437', 'df95205d016b',
+                               'fe0c328cc050', 'f400350a829c', '9e361e1e3bc7'],
+              ARDUPILOT_CUBEBLACK: ['788b0d98f3b0', '4517882dd572', 'refused',
+                                    '5e7c00810314', '1dbdd12e4006', '5d013cf1f875']}
+    for path, want in before.items():
+        assert [_digest(path, k, s) for k in range(3) for s in ('imu', 'baro')] == want

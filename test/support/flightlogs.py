@@ -17,7 +17,8 @@ Small flight-controller logs written by the tests: PX4 ULog and ArduPilot DataFl
 
 Both are written from their specifications with numpy (pyulog writes a ULog only back from
 one it has read, record by record): ULog = header, FLAG_BITS, FORMAT, INFO, PARAMETER,
-ADD_LOGGED and DATA messages; DataFlash = FMT records, then PARM and IMU records.
+ADD_LOGGED and DATA messages; DataFlash = FMT records, then PARM and IMU records, and where
+asked the sensor-rate GYR / ACC records and the batch sampler's ISBH / ISBD bursts.
 """
 
 from __future__ import annotations
@@ -181,12 +182,17 @@ def px4_topics(imus: list, *, combined: bool = False, temperature: bool = True) 
 # --------------------------------------------------------------------------------------------
 
 _DF = {'Q': '<u8', 'B': 'u1', 'f': '<f4', 'I': '<u4', 'H': '<u2', 'N': 'S16', 'n': 'S4',
-       'Z': 'S64'}
+       'Z': 'S64', 'a': ('<i2', (32,))}
 IMU_FORMAT = ('IMU', 'QBffffffIIfBBHH', 'TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,EG,EA,T,GH,AH,'
               'GHz,AHz')
 IMU_FORMAT_NO_T = ('IMU', 'QBffffffIIBBHH', 'TimeUS,I,GyrX,GyrY,GyrZ,AccX,AccY,AccZ,EG,EA,GH,AH,'
                    'GHz,AHz')
 PARM_FORMAT = ('PARM', 'QNf', 'TimeUS,Name,Value')
+#: ArduPilot's sensor-rate records (``libraries/AP_InertialSensor/LogStructure.h``).
+GYR_FORMAT = ('GYR', 'QBQfff', 'TimeUS,I,SampleUS,GyrX,GyrY,GyrZ')
+ACC_FORMAT = ('ACC', 'QBQfff', 'TimeUS,I,SampleUS,AccX,AccY,AccZ')
+ISBH_FORMAT = ('ISBH', 'QHBBHHQf', 'TimeUS,N,type,instance,mul,smp_cnt,SampleUS,smp_rate')
+ISBD_FORMAT = ('ISBD', 'QHHaaa', 'TimeUS,N,seqno,x,y,z')
 
 
 def _df_records(mtype: int, fmt: str, columns: str, data: dict) -> np.ndarray:
@@ -213,19 +219,27 @@ def _fmt_record(mtype: int, name: str, fmt: str, columns: str) -> bytes:
 
 def write_dataflash(path: Path, imus: list, params: dict | None = None, *,
                     temperature: bool = True, temp_field: str = 'T',
-                    stamp: str = 'TimeUS') -> Path:
+                    stamp: str = 'TimeUS', fast: dict | None = None, bursts: int = 0,
+                    gyr_format: tuple = GYR_FORMAT) -> Path:
     """
     Write an ArduPilot DataFlash log: FMT records, PARM, then IMU records of every instance.
 
     ``temperature=False`` uses an IMU format without ``T``; ``temp_field='Temp'`` names it as
     ArduCopter 3.4 does; ``stamp='TimeMS'`` stamps in ms as ArduPilot up to 3.3 does.
+    ``fast`` {instance: :class:`Imu`}: that instance's gyro at the sensor rate as ``GYR``
+    records (``SampleUS`` = ``t``; ``TimeUS`` when written, the next 2.5 ms tick), its
+    ``accel`` as ``ACC``; ``gyr_format`` another ``GYR`` layout. ``bursts``: that many batch
+    sampler bursts of instance 0's gyro (an ``ISBH`` + 32 ``ISBD`` each). Records go
+    interleaved by time, ``GYR`` last in each stretch.
     """
     name, fmt, cols = IMU_FORMAT if temperature else IMU_FORMAT_NO_T
     cols = cols.replace(',T,', f',{temp_field},')
     if stamp == 'TimeMS':
         fmt, cols = 'I' + fmt[1:], cols.replace('TimeUS', 'TimeMS', 1)
-    out = [_fmt_record(0x80, 'FMT', 'BBnNZ', 'Type,Length,Name,Format,Columns'),
-           _fmt_record(64, *PARM_FORMAT), _fmt_record(65, name, fmt, cols)]
+    kinds = [(64, *PARM_FORMAT), (65, name, fmt, cols), (66, *ACC_FORMAT),
+             (67, *ISBH_FORMAT), (68, *ISBD_FORMAT), (69, *gyr_format)]
+    out = [_fmt_record(0x80, 'FMT', 'BBnNZ', 'Type,Length,Name,Format,Columns')]
+    out += [_fmt_record(*k) for k in kinds[:2 if not (fast or bursts) else len(kinds)]]
     if params:
         keys = list(params)
         out.append(_df_records(64, PARM_FORMAT[1], PARM_FORMAT[2], {
@@ -240,12 +254,53 @@ def write_dataflash(path: Path, imus: list, params: dict | None = None, *,
             'I': np.full(len(imu.t), k), 'GyrX': imu.gyro[:, 0],
             'GyrY': imu.gyro[:, 1], 'GyrZ': imu.gyro[:, 2], 'AccX': acc[:, 0],
             'AccY': acc[:, 1], 'AccZ': acc[:, 2], temp_field: imu.temp, 'GH': 1, 'AH': 1}))
-    if recs:
-        both = np.concatenate(recs)
-        both = both[np.argsort(both['body'][stamp], kind='stable')]
-        out.append(both.tobytes())
+    blocks = [(np.concatenate(recs), stamp)] if recs else []
+    blocks += _fast_records(fast or {}, gyr_format) + _bursts(imus[0] if imus else None, bursts)
+    blocks = [(r[np.argsort(r['body'][st], kind='stable')], st) for r, st in blocks]
+    if blocks:
+        ends = [float(r['body'][st][-1]) * (1000 if st == 'TimeMS' else 1)
+                for r, st in blocks if len(r)]
+        edges = np.linspace(0.0, max(ends, default=0.0) + 1.0, 51)[1:-1]
+        for lo, hi in zip(np.r_[-1.0, edges], np.r_[edges, np.inf]):
+            for r, st in blocks:
+                us = r['body'][st].astype(np.float64) * (1000 if st == 'TimeMS' else 1)
+                out.append(r[(us > lo) & (us <= hi)].tobytes())
     Path(path).write_bytes(b''.join(out))
     return Path(path)
+
+
+def _fast_records(fast: dict, gyr_format: tuple) -> list:
+    """Return the ``ACC`` and ``GYR`` records of the instances at the sensor rate."""
+    out = []
+    for mtype, (name, fmt, cols), what in ((66, ACC_FORMAT, 'accel'), (69, gyr_format, 'gyro')):
+        for k, imu in sorted(fast.items()):
+            v = getattr(imu, what)
+            if v is None:
+                continue
+            us = _us(imu.t)
+            axes = [c for c in cols.split(',') if c[-1] in 'XYZ']
+            rec = _df_records(mtype, fmt, cols, {
+                'TimeUS': (us // 2500 + 1) * 2500, 'I': np.full(len(us), k), 'SampleUS': us,
+                **{a: v[:, j] for j, a in enumerate(axes)}})
+            out.append((rec, 'TimeUS'))
+    return out
+
+
+def _bursts(imu: Imu | None, count: int) -> list:
+    """Return ``count`` batch-sampler bursts of ``imu``'s gyro: ISBH + 4 ISBD of 32 samples."""
+    if imu is None or not count:
+        return []
+    n = len(imu.t)
+    starts = np.linspace(0, max(0, n - 128), count).astype(int)
+    head = _df_records(67, ISBH_FORMAT[1], ISBH_FORMAT[2], {
+        'TimeUS': _us(imu.t[starts]), 'N': np.arange(count), 'type': 1, 'mul': 1000,
+        'smp_cnt': 128, 'SampleUS': _us(imu.t[starts]), 'smp_rate': 1000.0})
+    rows = np.minimum(starts[:, None] + np.arange(128), n - 1).reshape(count * 4, 32)
+    g = np.clip(np.round(imu.gyro[rows] * 1000), -32768, 32767).astype(np.int16)
+    body = _df_records(68, ISBD_FORMAT[1], ISBD_FORMAT[2], {
+        'TimeUS': _us(imu.t[rows[:, -1]]), 'N': np.repeat(np.arange(count), 4),
+        'seqno': np.tile(np.arange(4), count), 'x': g[..., 0], 'y': g[..., 1], 'z': g[..., 2]})
+    return [(head, 'TimeUS'), (body, 'TimeUS')]
 
 
 # --------------------------------------------------------------------------------------------
