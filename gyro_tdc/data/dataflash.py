@@ -33,7 +33,7 @@ import sys
 import tempfile
 from typing import Iterator
 
-from gyro_tdc.data.flightlog import columns, FlightLog, rate_hz, thermometer
+from gyro_tdc.data.flightlog import columns, FlightLog, on_stamps, rate_hz, thermometer
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
@@ -183,15 +183,6 @@ def _stamps(cols: dict[str, np.ndarray]) -> np.ndarray:
     return np.asarray(us, dtype=np.float64) * 1e-6
 
 
-def _on(t: np.ndarray, t_src: np.ndarray, v: np.ndarray | None) -> np.ndarray | None:
-    """Interpolate ``v`` (stamps ``t_src``) onto ``t`` per column (NaN outside)."""
-    if v is None or not len(t_src):
-        return None
-    order = np.argsort(t_src, kind='stable')
-    return np.column_stack([np.interp(t, t_src[order], v[order, j], left=np.nan,
-                                      right=np.nan) for j in range(v.shape[1])])
-
-
 def _sensor_rate(gyr: dict | str | None, imu_t: np.ndarray, instance: int
                  ) -> tuple[np.ndarray, np.ndarray, str] | str:
     """
@@ -236,8 +227,8 @@ def _gyro_accel(d: dict, fast: tuple | str, acc: dict | str | None, accel: bool)
         return t, gyro, None, 'GYR', said
     if (isinstance(acc, dict) and (a := columns(acc, acc_xyz)) is not None
             and 'TimeUS' in acc and len(a) > 1):
-        return t, gyro, _on(t, _stamps(acc), a), 'GYR', said + ', accelerometer from ACC'
-    return (t, gyro, _on(t, _seconds(d), columns(d, acc_xyz)), 'GYR',
+        return t, gyro, on_stamps(t, _stamps(acc), a), 'GYR', said + ', accelerometer from ACC'
+    return (t, gyro, on_stamps(t, _seconds(d), columns(d, acc_xyz)), 'GYR',
             said + ', accelerometer from IMU')
 
 

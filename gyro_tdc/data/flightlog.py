@@ -33,7 +33,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['columns', 'DATAFLASH_MAGIC', 'describe_log', 'detect_format', 'flight_log_data',
-           'FlightLog', 'is_flight_log', 'PLAUSIBLE_C', 'rate_hz', 'thermometer', 'ULOG_MAGIC']
+           'FlightLog', 'is_flight_log', 'on_stamps', 'PLAUSIBLE_C', 'rate_hz', 'thermometer',
+           'ULOG_MAGIC']
 
 #: A ULog starts with these 7 bytes (then the version byte).
 ULOG_MAGIC = b'ULog\x01\x125'
@@ -140,6 +141,16 @@ def columns(d: dict, names: tuple[str, ...]) -> NDArray[np.float64] | None:
     if not all(n in d for n in names):
         return None
     return np.column_stack([np.asarray(d[n], dtype=np.float64) for n in names])
+
+
+def on_stamps(t: NDArray[np.float64], t_src: NDArray[np.float64],
+              v: NDArray[np.float64] | None) -> NDArray[np.float64] | None:
+    """Interpolate ``v`` (stamps ``t_src``) onto ``t`` per column (NaN outside; None: none)."""
+    if v is None or not len(t_src):
+        return None
+    order = np.argsort(t_src, kind='stable')
+    return np.column_stack([np.interp(t, t_src[order], v[order, j], left=np.nan, right=np.nan)
+                            for j in range(v.shape[1])])
 
 
 def rate_hz(t: NDArray[np.float64]) -> float:

@@ -33,7 +33,7 @@ import os
 from pathlib import Path
 import struct
 
-from gyro_tdc.data.flightlog import columns, FlightLog, rate_hz, thermometer
+from gyro_tdc.data.flightlog import columns, FlightLog, on_stamps, rate_hz, thermometer
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
@@ -110,15 +110,6 @@ def _seconds(d: dict) -> NDArray[np.float64]:
 def _vec(name: str) -> tuple[str, str, str]:
     """Return the field names of a logged array of three (``name[0]`` ...)."""
     return (f'{name}[0]', f'{name}[1]', f'{name}[2]')
-
-
-def _on(t: NDArray[np.float64], t_src: NDArray[np.float64],
-        v: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Interpolate ``v`` (stamps ``t_src``) onto ``t`` per column (NaN outside)."""
-    order = np.argsort(t_src, kind='stable')
-    ts, vs = t_src[order], v[order]
-    return np.column_stack([np.interp(t, ts, vs[:, j], left=np.nan, right=np.nan)
-                            for j in range(v.shape[1])])
 
 
 def _rate(d: dict) -> float:
@@ -346,7 +337,7 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
         gyro = columns(d, ('x', 'y', 'z'))
         a = topics.get('sensor_accel', {}).get(instance)
         if accel and a is not None and (v := columns(a, ('x', 'y', 'z'))) is not None:
-            acc = _on(t, _seconds(a), v)
+            acc = on_stamps(t, _seconds(a), v)
     elif source == 'sensor_combined':
         gyro = columns(d, _vec('gyro_rad'))
         acc = columns(d, _vec('accelerometer_m_s2')) if accel else None

@@ -150,3 +150,14 @@ def test_one_stamp_a_damaged_byte_threw_away_does_not_change_a_topics_rate():
     gaps = np.concatenate([t[:600], t[600:] + 3.0])        # a logger dropout is no outlier
     assert rate_hz(gaps) == pytest.approx(1199 / (gaps[-1] - gaps[0]))
     assert rate_hz(t[:2]) == pytest.approx(200.0) and rate_hz(t[:1]) == 0.0
+
+
+def test_values_are_put_on_other_stamps_with_nan_outside_their_span():
+    from gyro_tdc.data.flightlog import on_stamps
+    t_src = np.array([2.0, 0.0, 1.0])                       # out of order: sorted first
+    v = np.array([[20.0, 2.0], [0.0, 0.0], [10.0, 1.0]])
+    out = on_stamps(np.array([-1.0, 0.5, 1.5, 3.0]), t_src, v)
+    np.testing.assert_array_equal(out[1:3], [[5.0, 0.5], [15.0, 1.5]])
+    assert np.isnan(out[[0, 3]]).all()
+    assert on_stamps(np.arange(3.0), np.array([]), np.empty((0, 3))) is None
+    assert on_stamps(np.arange(3.0), t_src, None) is None
