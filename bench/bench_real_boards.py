@@ -152,6 +152,17 @@ def drift(logs: list, model=None) -> np.ndarray:
     return still_drift(days, rates) * _DEG
 
 
+def check_note(model_path: Path) -> str:
+    """Return how the trainer judged the curve across power cycles, and what it kept."""
+    from bench_board_logs import check_note as note
+    from gyro_tdc.model.modelfile import load_model
+    rec = load_model(model_path).metrics.get('sessions', {}).get('heldout') or {}
+    if rec.get('widest_span_c') is not None:
+        return (f"not judged, no power cycle spans 2 degC (widest {rec['widest_span_c']:.2f}): "
+                f"offset only: {','.join(rec['offset_only'])}")
+    return note(model_path)
+
+
 def _ratio(comp: np.ndarray, raw: np.ndarray) -> np.ndarray:
     """Return comp / raw per axis (NaN where raw is 0: a constant axis has nothing to score)."""
     return np.divide(comp, raw, out=np.full(3, math.nan), where=raw > 0)
@@ -160,7 +171,7 @@ def _ratio(comp: np.ndarray, raw: np.ndarray) -> np.ndarray:
 def run_draw(logs: list, rng: np.random.Generator, n_train: int, n_held: int, source: str,
              folder: Path) -> dict | None:
     """Train on a seeded draw of a group's logs with the CLI; return the held-out scores."""
-    from bench_board_logs import check_note, cli_train
+    from bench_board_logs import cli_train
     from gyro_tdc.model.modelfile import load_model
     with_still = [lg for lg in logs if lg['stretches'] >= 1]
     pool = with_still if len(with_still) >= n_train + 1 else logs
