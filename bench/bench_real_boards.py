@@ -55,10 +55,10 @@ start); ``pxf_copter_6-3-2014_*``, one copter on one day (7 logs, boot-calibrate
 -6 deg/s offset, 56 Hz ones with +0.8); the 56 Hz copter of September 2014 (25, 27 and 29 Sep
 and the 56 Hz logs of 7 Sep: the same offsets, +0.4..0.9 deg/s on x and y; the 29 Sep files
 repeat 7 Sep ones byte for byte); ``pxf_copter_23-9-2014_*``, a copter with a -23 deg/s offset
-that moves by up to 3 deg/s with its attitude (3 logs, two of 15 and 22 min with 14 still
-stretches each). joeydouglas/dataflash_logs' four logs of 18 Oct 2014 (ArduCopter, no IMU
-thermometer: ``baro``); UoBFlightLab/mav_log_data_science's two logs of one board
-(``IMU.T``, one still stretch each: nothing to score).
+that moves by up to 3 deg/s with its attitude (3 logs, two of 15 and 22 min with 15 and 14 still
+stretches). joeydouglas/dataflash_logs' four logs of 18 Oct 2014 (ArduCopter 3.1.3, no
+IMU thermometer, no usable barometer one: none read); UoBFlightLab/mav_log_data_science's two
+logs of one board (``IMU.T``, one still stretch each: nothing to score).
 """
 
 import argparse
