@@ -58,7 +58,9 @@ repeat 7 Sep ones byte for byte); ``pxf_copter_23-9-2014_*``, a copter with a -2
 that moves by up to 3 deg/s with its attitude (3 logs, two of 15 and 22 min with 15 and 14 still
 stretches). joeydouglas/dataflash_logs' four logs of 18 Oct 2014 (ArduCopter 3.1.3, no
 IMU thermometer, no usable barometer one: none read); UoBFlightLab/mav_log_data_science's two
-logs of one board (``IMU.T``, one still stretch each: nothing to score).
+logs of one board (``IMU.T``, one still stretch each: nothing to score); toopazo/toopazo_ulg's
+six PX4 logs of one FMU v4 Pro copter on one day (8-94 s, barometer only, one still stretch
+each at most: nothing to score).
 """
 
 import argparse
