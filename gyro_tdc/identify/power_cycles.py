@@ -20,7 +20,9 @@ Do no harm across power cycles: the thermal curve validated on held-out sessions
 held-out session re-anchored, as the compensator re-anchors at start-up, against its offset
 alone. An axis whose curve does not predict every held-out power cycle better keeps the
 offset only; :func:`session_check_lines` says so with the figures, or that no power cycle
-overlaps the others' temperatures and the curve is kept unchecked.
+overlaps the others' temperatures and the curve is kept unchecked. Unchecked, it must rest
+on :data:`MIN_SESSION_SPAN_C` of one power cycle: each offset free, a curve is told only
+within a power cycle, and one told over less (the short stops of flight logs) is kept off.
 
 :func:`reanchor_rule` (the rule of :mod:`gyro_tdc.runtime.startup_gate`, which the learner
 shares) decides the same way, per axis, how large a start-up shift the node takes (the gate
@@ -49,10 +51,13 @@ from gyro_tdc.signal import Folds, heldout, within
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'reanchor_lines', 'reanchor_rule',
-           'session_check_lines', 'SIGNIFICANCE']
+__all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_SESSION_SPAN_C', 'reanchor_lines',
+           'reanchor_rule', 'session_check_lines', 'SIGNIFICANCE']
 
 _DEG2 = (180.0 / math.pi) ** 2
+#: A curve no held-out power cycle can judge is kept only where one power cycle spans this
+#: many degC (block means) itself, as ``train --still-only`` asks of the still time.
+MIN_SESSION_SPAN_C = 2.0
 
 
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
@@ -90,15 +95,22 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
         per axis, each session re-anchored), ``worse_folds`` (per axis, the held-out sessions
         the curve predicts worse) and ``offset_only`` (axis names); with no session to
         judge on (none overlaps the others' temperatures), ``folds`` 0, ``sessions`` and no
-        figures: the curve is kept unchecked. None when the model has no curve.
+        figures: the curve is kept unchecked, unless two sessions or more none of which spans
+        :data:`MIN_SESSION_SPAN_C` (``widest_span_c``) leave it offset only on every axis.
+        None when the model has no curve.
 
     """
     if not x.shape[1]:                          # no curve: nothing to judge
         return fit, offsets, None
     folds = Folds.sessions(groups, temp)
     if not len(folds):                          # no session to judge on: kept, said
-        return fit, offsets, {'folds': 0, 'sessions': int(np.unique(groups).size),
-                              'offset_only': []}
+        sessions = np.unique(groups)
+        record = {'folds': 0, 'sessions': int(sessions.size), 'offset_only': []}
+        widest = max(float(np.ptp(temp[groups == g])) for g in sessions)
+        if sessions.size < 2 or widest >= MIN_SESSION_SPAN_C:
+            return fit, offsets, record
+        record.update(offset_only=list(AXES), widest_span_c=widest)
+        return (*_offset_only(fit, offsets, y, groups, np.arange(len(AXES))), record)
 
     def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
         f = fit_linear(x[train], y[train], kind=kind, n_centers=n_centers, ridge=fit.ridge,
@@ -126,13 +138,20 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
               'offset_only': [AXES[a] for a in drop]}
     if not drop.size:
         return fit, offsets, record
+    return (*_offset_only(fit, offsets, y, groups, drop), record)
+
+
+def _offset_only(fit: LinearFit, offsets: NDArray[np.float64], y: NDArray[np.float64],
+                 groups: NDArray[np.int64], drop: NDArray[np.int64]
+                 ) -> tuple[LinearFit, NDArray[np.float64]]:
+    """Return the fit and offsets with the axes ``drop`` each session's mean only."""
     means, centred = within(y, groups)
     coef, scale, resid, offsets = (a.copy() for a in (fit.coef, fit.scale, fit.resid, offsets))
     coef[:, drop], scale[drop] = 0.0, 0.0
     offsets[:, drop] = means[:, drop]
     resid[:, drop] = -centred[:, drop]
     return replace(fit, coef=coef, scale=scale, resid=resid,
-                   sse=float((resid ** 2).sum())), offsets, record
+                   sse=float((resid ** 2).sum())), offsets
 
 
 def session_check_lines(record: dict | None) -> list[str]:
@@ -140,9 +159,15 @@ def session_check_lines(record: dict | None) -> list[str]:
     if not record:
         return []
     if not record['folds']:
-        return ['the curve is not judged on a held-out power cycle: none of the '
+        head = ('the curve is not judged on a held-out power cycle: none of the '
                 f"{record['sessions']} sessions with data has two blocks inside the others' "
-                'temperatures; the model keeps it on every axis unchecked (a power cycle over '
+                'temperatures')
+        if 'widest_span_c' in record:
+            return [f'{head}, and none spans {MIN_SESSION_SPAN_C:g} degC of its own (widest '
+                    f"{record['widest_span_c']:.2f} degC): with an offset per power cycle the "
+                    'curve would rest on less; the model keeps the offset only on every axis '
+                    '(re-anchoring still applies)']
+        return [f'{head}; the model keeps it on every axis unchecked (a power cycle over '
                 "the others' temperatures would judge it)"]
     out = [f"the curve held out on each power cycle ({record['folds']} sessions, "
            f"{record['blocks']} blocks inside the others' temperatures, re-anchored), "

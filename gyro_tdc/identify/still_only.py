@@ -29,7 +29,7 @@ from typing import Callable, Sequence
 
 from gyro_tdc.data import Coverage, coverage, RATE_THRESHOLD_C_PER_MIN, Run, temperature_rate
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.fit import fit_model, span
+from gyro_tdc.identify.fit import fit_model, MIN_SPAN_C, span
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, normalise_ids,
                             OPERATING_RANGE_C)
@@ -283,7 +283,8 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
     Fit, then refit without the outlying stretches unless all or none are outliers.
 
     Clears the outlying stretches in ``rows`` (in place); returns the model, the mean
-    compensated rate per stretch (S, 3) and which stretches were dropped.
+    compensated rate per stretch (S, 3) and which stretches were dropped. FitError, saying
+    what to record, when the stretches left span too few degrees to fit.
     """
     model = fit_model(runs, rows=rows, **common)
     means = _stretch_means(model, runs, spans, labels)
@@ -292,6 +293,13 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
         for (i, a, b), drop in zip(spans, bad):
             if drop:
                 rows[i][a:b] = False
+        lo, hi = span([r.temp[m] for r, m in zip(runs, rows)])
+        if hi - lo < MIN_SPAN_C:
+            raise FitError(f'--still-only: {int(bad.sum())} of the {bad.size} still stretches '
+                           "look like slow turns (their mean rate off the others'); the rest "
+                           f'span {hi - lo:.2f} degC only ({lo:.1f} .. {hi:.1f} degC; need at '
+                           f'least {MIN_SPAN_C:g} degC): record stops at other temperatures, '
+                           'or veto the turns with --motion-topic.')
         model = fit_model(runs, rows=rows, **common)
         means = _stretch_means(model, runs, spans, labels)
     else:

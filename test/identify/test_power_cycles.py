@@ -23,6 +23,7 @@ from bags import bag_from_run
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data import Run
 from gyro_tdc.identify import fit_model, reanchor_lines, reanchor_rule, session_check_lines
+from gyro_tdc.identify.power_cycles import MIN_SESSION_SPAN_C
 from gyro_tdc.identify.still_only import rows_of
 from gyro_tdc.model import load_model
 import numpy as np
@@ -151,3 +152,33 @@ def test_a_curve_no_power_cycle_can_judge_is_kept_and_the_report_says_so():
         'the curve is not judged on a held-out power cycle: none of the 2 sessions with data '
         "has two blocks inside the others' temperatures; the model keeps it on every axis "
         "unchecked (a power cycle over the others' temperatures would judge it)"]
+
+
+def test_a_curve_no_power_cycle_shows_over_two_degrees_keeps_the_offset_only():
+    # Two power cycles of under a degree each, 10 degC apart: no fold, and each offset free,
+    # the curve rests on less than a degree of either (the short stops of flight logs).
+    cycles = ((20.0, 20.8, (0.0, 0.0, 0.1)), (30.0, 30.6, (0.4, -0.3, 0.1)))
+    runs = [synth_run(seed=60 + i, hours=0.25, rate_hz=2.0, t_lo=lo, t_hi=hi, noise_dps=0.05,
+                      offset_dps=off, name=f'stop{i}') for i, (lo, hi, off) in enumerate(cycles)]
+    m = fit_model(runs, kind='poly', features='dT,dT2', t0=20.0, sessions=[0, 1])
+    check = m.metrics['sessions']['heldout']
+    assert check['folds'] == 0 and check['sessions'] == 2
+    assert check['offset_only'] == ['x', 'y', 'z']
+    assert 0.4 < check['widest_span_c'] < MIN_SESSION_SPAN_C
+    assert np.all(m.linear == 0.0)                      # no curve: the offsets only
+    means = np.degrees([r.omega.mean(axis=0) for r in runs])   # each power cycle's offset
+    np.testing.assert_allclose(m.metrics['sessions']['offset_dps'], means - means.mean(axis=0),
+                               atol=2e-3)
+    line, = session_check_lines(check)
+    assert line.startswith('the curve is not judged on a held-out power cycle: none of the 2 '
+                           'sessions with data has two blocks inside the others')
+    assert (f'none spans {MIN_SESSION_SPAN_C:g} degC of its own (widest '
+            f"{check['widest_span_c']:.2f} degC)") in line
+    assert line.endswith('the model keeps the offset only on every axis (re-anchoring still '
+                         'applies)')
+    # A power cycle over 2 degC shows the curve: kept unchecked, as before.
+    wide = [runs[0], synth_run(seed=61, hours=0.25, rate_hz=2.0, t_lo=30.0, t_hi=33.0,
+                               noise_dps=0.05, offset_dps=cycles[1][2], name='stop1')]
+    kept = fit_model(wide, kind='poly', features='dT,dT2', t0=20.0, sessions=[0, 1])
+    assert kept.metrics['sessions']['heldout'] == {'folds': 0, 'sessions': 2, 'offset_only': []}
+    assert np.all(kept.linear != 0.0)

@@ -24,6 +24,7 @@ from gyro_tdc.cli.evaluate import main as evaluate_main
 from gyro_tdc.cli.simulate import simulate
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data.runs import Run
+from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
 from gyro_tdc.identify import fit_model
 from gyro_tdc.identify.options import TrainOptions
@@ -184,6 +185,37 @@ def test_a_slow_turn_that_looks_still_is_dropped_or_vetoed(days, tmp_path):
     assert all(s.kept for s in vetoed.still.stretches)
     assert not np.any(turn & ~veto)
     np.testing.assert_allclose(vetoed.model.residual_var, res.model.residual_var, rtol=0.05)
+
+
+def _stops(levels, rate_hz=10.0, seed=5):
+    """Return a run of 120 s still stretches (degC, z offset deg/s each), 30 s moving between."""
+    rng = np.random.default_rng(seed)
+    t, temp, omega, t0 = [], [], [], 0.0
+    for k, (deg_c, off) in enumerate(levels):
+        for n, still in ((int(120 * rate_hz), True), (int(30 * rate_hz), False)):
+            if not still and k == len(levels) - 1:
+                break
+            g = np.radians(rng.normal(0.0, 0.02 if still else 20.0, (n, 3)))
+            g[:, 2] += math.radians(off) if still else 0.0
+            t.append(t0 + np.arange(n) / rate_hz)
+            temp.append(np.full(n, deg_c))
+            omega.append(g)
+            t0 = t[-1][-1] + 1.0 / rate_hz
+    omega = np.concatenate(omega)
+    return Run(np.concatenate(t), np.concatenate(temp), omega, np.zeros_like(omega), 'stops')
+
+
+def test_slow_turns_dropped_leaving_too_few_degrees_say_so_in_still_terms(tmp_path):
+    # Four stops within 0.15 degC; three warmer ones whose mean rate zigzags (slow turns).
+    run = _stops([(20.0, 0.0), (20.05, 0.0), (20.1, 0.0), (20.15, 0.0), (24.0, 1.0),
+                  (27.0, -1.0), (30.0, 1.0)])
+    with pytest.raises(FitError) as err:
+        train_still_only(['stops'], tmp_path / 's.yaml',
+                         TrainOptions(features='dT', kind='poly'), runs=[run])
+    msg = str(err.value)
+    assert msg.startswith('--still-only: 3 of the 7 still stretches look like slow turns')
+    assert 'the rest span 0.15 degC only' in msg and 'record stops at other temperatures' in msg
+    assert '--motion-topic' in msg and '\n' not in msg
 
 
 # ------------------------------------------------------------------------- command line
