@@ -31,14 +31,15 @@ from typing import Sequence
 
 from gyro_tdc.base import plain
 from gyro_tdc.data import Coverage, coverage, Run
-from gyro_tdc.errors import FeatureError, FitError
+from gyro_tdc.errors import FeatureError, FitError, ModelFileError
 from gyro_tdc.identify.axes import constant_note
 from gyro_tdc.identify.fit import check_choices, MIN_SAMPLES, MIN_SPAN_C
 from gyro_tdc.identify.linear import fit_linear
+from gyro_tdc.identify.power_cycles import MIN_SESSION_SPAN_C
 from gyro_tdc.identify.thermal_search import run_state
-from gyro_tdc.model import (batch_features, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
-                            MAX_EXTRAPOLATION_C, normalise_ids, resolve_params,
-                            STATE_TERMS, static_slope, THERMAL_EFFECTS)
+from gyro_tdc.model import (batch_features, check_accel, compensate, CompensationModel,
+                            DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, normalise_ids,
+                            resolve_params, STATE_TERMS, static_slope, THERMAL_EFFECTS)
 from gyro_tdc.signal import (block_length, BlockGrid, detect_still, has_accelerometer, MAX_RATE,
                              STILL_WINDOW_S, within)
 import numpy as np
@@ -312,7 +313,8 @@ def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tupl
             grid = BlockGrid(idx.size, block, take=idx)
             ya, within = grid.moments(r.accel, centred=True)
             segs.append({'x': grid.mean(x), 'y': ya, 'n': grid.counts, 'within': within,
-                         't': grid.mean(r.t), 'temp': grid.mean(r.temp)})
+                         't': grid.mean(r.t), 'temp': grid.mean(r.temp),
+                         'state': grid.mean(state)})
     return segs, (lo, hi)
 
 
@@ -386,6 +388,12 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
         out.note = (f'the still data span {span[1] - span[0]:.3g} degC of the model '
                     f'temperature (need at least {MIN_SPAN_C} degC)')
         return out
+    widest = max(float(np.ptp(sg['state'])) for sg in segs)
+    if len(segs) > 1 and widest < MIN_SESSION_SPAN_C:
+        out.note = (f'no still segment spans {MIN_SESSION_SPAN_C:g} degC of the model '
+                    f'temperature of its own (widest {widest:.3g} degC of {len(segs)}): with a '
+                    'constant per segment, a curve is told only within one')
+        return out
     groups = np.concatenate([np.full(sg['n'].size, g) for g, sg in enumerate(segs)])
     lf = fit_linear(np.concatenate([sg['x'] for sg in segs]),
                     np.concatenate([sg['y'] for sg in segs]), kind=kind, n_centers=n_centers,
@@ -400,10 +408,16 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
         'raw_bs_m2_s4': out.raw_bs.tolist(), 'train_bs_m2_s4': out.train_bs.tolist(),
         'train_rms_mg': (np.sqrt(out.train_bs) / MG).tolist(),
         'ridge': float(lf.ridge), 'orientation_changes': [c.to_dict() for c in out.changes]}
-    out.part = CompensationModel.network(
+    part = CompensationModel.network(
         kind, ids, par, model.t0_c, lf.norm, coef, temp_range_c=span,
         residual_var=out.train_bs, frame_id=model.frame_id, sensor_id=model.sensor_id,
         metrics=metrics, created={}, thermal=th)
+    try:
+        check_accel(part)             # an optional part never keeps the gyro model unwritten
+    except ModelFileError as exc:
+        out.note = f'the part fitted is implausible, loading would refuse it ({exc})'
+        return out
+    out.part = part
     return out
 
 

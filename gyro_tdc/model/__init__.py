@@ -37,5 +37,5 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
                      'OPERATING_RANGE_C', 'OUT_OF_RANGE_POLICIES', 'range_shortfall',
                      'variance_growth'],
     'thermal_state': ['SETTLE_TAUS', 'ThermalState'],
-    'validate': ['check_model', 'MAX_PARAM'],
+    'validate': ['check_accel', 'check_model', 'MAX_PARAM'],
 })

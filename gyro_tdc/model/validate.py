@@ -34,7 +34,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['GAIN_BOUNDS', 'MAX_PARAM', 'MIN_INPUT_STD', 'MIN_WIDTH', 'TAU_BOUNDS_S',
-           'check_model', 'drift_grid']
+           'check_accel', 'check_model', 'drift_grid']
 
 #: Smallest input standard deviation (in the feature's own unit): 1/std scales every input.
 MIN_INPUT_STD = 1e-9
@@ -77,10 +77,16 @@ def check_model(model: CompensationModel) -> None:
     with np.errstate(all='ignore'):          # overflow shows as a value out of bounds
         _check_part(model, MAX_DRIFT_RAD_S, 'rad/s', 'residual_var_rad2_s2')
         if model.accel is not None:
-            try:
-                _check_part(model.accel, MAX_ACCEL_DRIFT_MPS2, 'm/s^2', 'residual_var_m2_s4')
-            except ModelFileError as exc:
-                raise ModelFileError(f'field `accel`: {exc}') from None
+            check_accel(model.accel)
+
+
+def check_accel(part: CompensationModel) -> None:
+    """Check an accelerometer part as :func:`check_model` does (its line names `accel`)."""
+    with np.errstate(all='ignore'):
+        try:
+            _check_part(part, MAX_ACCEL_DRIFT_MPS2, 'm/s^2', 'residual_var_m2_s4')
+        except ModelFileError as exc:
+            raise ModelFileError(f'field `accel`: {exc}') from None
 
 
 def _check_part(m: CompensationModel, bound: float, unit: str, resid: str) -> None:

@@ -273,3 +273,36 @@ def test_the_fit_is_the_same_in_passes_of_any_size(chamber, monkeypatch, chunk_r
         assert fit.part.model_id == chamber['fit'].part.model_id
     else:       # one row a block: the blocked fit's residual within 1e-3
         np.testing.assert_allclose(fit.train_bs, chamber['fit'].train_bs, rtol=1e-3)
+
+
+def _slice(run: Run, lo_c: float, hi_c: float, name: str) -> Run:
+    """The first stretch of ``run`` whose temperature lies in ``lo_c .. hi_c``, as a run."""
+    inside = (run.temp >= lo_c) & (run.temp <= hi_c)
+    k = int(np.argmax(inside))
+    end = k + int(np.argmin(inside[k:])) if not inside[k:].all() else len(run)
+    return Run(run.t[k:end], run.temp[k:end], run.omega[k:end], run.omega_ref[k:end], name,
+               accel=run.accel[k:end])
+
+
+def test_no_part_where_no_still_segment_spans_two_degrees_of_its_own(chamber):
+    """Each segment has its own constant: a curve over stops of under 2 degC is not told."""
+    run = chamber['runs'][0]
+    lo, hi = float(run.temp.min()), float(run.temp.max())
+    parts = [_slice(run, lo + 5.0, lo + 6.0, 'a'), _slice(run, hi - 6.0, hi - 5.0, 'b')]
+    assert all(len(p) >= 100 and np.ptp(p.temp) < 1.5 for p in parts)
+    fit = fit_accel(parts, chamber['gyro'])
+    assert fit.part is None
+    assert fit.note.startswith('no still segment spans 2 degC of the model temperature of its '
+                               'own (widest ')
+    # One segment over the same stretch is fitted as before; so is the whole run.
+    assert fit_accel([_slice(run, lo + 5.0, hi - 5.0, 'c')], chamber['gyro']).part is not None
+
+
+def test_an_implausible_part_is_left_out_and_said(chamber, monkeypatch):
+    """An optional part that loading would refuse never keeps the gyro model unwritten."""
+    import gyro_tdc.model.validate as validate
+    monkeypatch.setattr(validate, 'MAX_ACCEL_DRIFT_MPS2', 1e-6)
+    fit = fit_accel(chamber['runs'][:1], chamber['gyro'])
+    assert fit.part is None
+    assert fit.note.startswith('the part fitted is implausible, loading would refuse it '
+                               '(field `accel`: ')
