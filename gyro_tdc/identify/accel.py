@@ -35,13 +35,12 @@ from gyro_tdc.errors import FeatureError, FitError, ModelFileError
 from gyro_tdc.identify.axes import constant_note
 from gyro_tdc.identify.fit import check_choices, MIN_SAMPLES, MIN_SPAN_C
 from gyro_tdc.identify.linear import fit_linear
-from gyro_tdc.identify.power_cycles import MIN_SESSION_SPAN_C
 from gyro_tdc.identify.thermal_search import run_state
 from gyro_tdc.model import (batch_features, check_accel, compensate, CompensationModel,
                             DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, normalise_ids,
                             resolve_params, STATE_TERMS, static_slope, THERMAL_EFFECTS)
 from gyro_tdc.signal import (block_length, BlockGrid, detect_still, has_accelerometer, MAX_RATE,
-                             STILL_WINDOW_S, within)
+                             MIN_SESSION_SPAN_C, STILL_WINDOW_S, within)
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 

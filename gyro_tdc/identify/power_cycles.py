@@ -47,17 +47,14 @@ from gyro_tdc.identify.linear import fit_linear, LinearFit
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime import MAX_ANCHORS, MAX_ROWS, SIGNIFICANCE
 from gyro_tdc.runtime import reanchor_rule as _rule
-from gyro_tdc.signal import Folds, heldout, within
+from gyro_tdc.signal import Folds, heldout, MIN_SESSION_SPAN_C, within
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_SESSION_SPAN_C', 'reanchor_lines',
+__all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'reanchor_lines',
            'reanchor_rule', 'session_check_lines', 'SIGNIFICANCE']
 
 _DEG2 = (180.0 / math.pi) ** 2
-#: A curve no held-out power cycle can judge is kept only where one power cycle spans this
-#: many degC (block means) itself, as ``train --still-only`` asks of the still time.
-MIN_SESSION_SPAN_C = 2.0
 
 
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],

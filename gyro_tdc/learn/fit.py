@@ -34,7 +34,8 @@ from gyro_tdc.errors import ModelFileError
 from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag,
                             MAX_EXTRAPOLATION_C, normalise_ids, STATE_TERMS, THERMAL_EFFECTS,
                             ThermalState)
-from gyro_tdc.signal import fit_columns, Folds, hat, heldout, session_columns, within
+from gyro_tdc.signal import (fit_columns, Folds, hat, heldout, MIN_SESSION_SPAN_C, session_columns,
+                             within)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -216,7 +217,9 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     re-anchors a new power cycle. Where the curve's weighted mean square is not below the
     offset's, the axis keeps the offset only. Without a fold (one session, or none
     overlapping another's temperatures) nothing is judged and the curve is kept: it is the
-    only evidence, the prediction check still guards it and each power-up is re-anchored.
+    only evidence, the prediction check still guards it and each power-up is re-anchored;
+    unless, as the trainer, two sessions or more none of which spans
+    :data:`~gyro_tdc.signal.MIN_SESSION_SPAN_C` leave it offset only on every axis.
 
     Returns
     -------
@@ -234,6 +237,9 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     rec = {'sessions': int(np.unique(g).size), 'folds': len(folds), 'points': 0,
            'curve_ms_dps2': None, 'offset_ms_dps2': None, 'offset_only': []}
     if not len(folds):
+        sessions = np.unique(g)
+        if sessions.size > 1 and max(np.ptp(e[g == k, 2]) for k in sessions) < MIN_SESSION_SPAN_C:
+            rec['offset_only'] = list(AXES)
         return rec
 
     def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:

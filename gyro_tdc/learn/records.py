@@ -27,7 +27,7 @@ import math
 from typing import NamedTuple
 
 from gyro_tdc.base import SESSION_GAP_S
-from gyro_tdc.signal import MIN_STILL_S, STILL_WINDOW_S, Window
+from gyro_tdc.signal import MIN_SESSION_SPAN_C, MIN_STILL_S, STILL_WINDOW_S, Window
 
 __all__ = ['Entry', 'held_out_line', 'LearnConfig', 'OpenStretch', 'RecentStretch']
 
@@ -169,8 +169,12 @@ def held_out_line(fit: dict | None) -> str:
     if rec is None:
         return 'no curve' if fit is not None else 'no learned model yet'
     if not rec['folds']:
-        return (f"not judged ({rec['sessions']} session(s), no other power cycle over the "
-                'same temperatures): the curve is kept, each power-up re-anchored')
+        head = (f"not judged ({rec['sessions']} session(s), no other power cycle over the "
+                'same temperatures)')
+        if rec['offset_only']:
+            return (f'{head}, and none spans {MIN_SESSION_SPAN_C:g} degC of its own: offset '
+                    'only on every axis, each power-up re-anchored')
+        return f'{head}: the curve is kept, each power-up re-anchored'
     figs = ', '.join(f'{a} {c:.3g} vs {o:.3g}' for a, c, o in zip(
         'xyz', rec['curve_ms_dps2'], rec['offset_ms_dps2']))
     only = ', '.join(rec['offset_only'])

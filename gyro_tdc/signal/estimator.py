@@ -31,8 +31,12 @@ from typing import Callable, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['fit_columns', 'Folds', 'hat', 'heldout', 'pinv_fit', 'session_columns', 'solve_normal',
-           'within']
+__all__ = ['fit_columns', 'Folds', 'hat', 'heldout', 'MIN_SESSION_SPAN_C', 'pinv_fit',
+           'session_columns', 'solve_normal', 'within']
+
+#: With a free offset per group (power cycle, orientation segment) a curve is told only within
+#: a group: where no fold can judge it, it stands only on a group spanning this many degC.
+MIN_SESSION_SPAN_C = 2.0
 
 
 def fit_columns(x: NDArray[np.float64], y: NDArray[np.float64], *,

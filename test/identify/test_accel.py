@@ -276,7 +276,7 @@ def test_the_fit_is_the_same_in_passes_of_any_size(chamber, monkeypatch, chunk_r
 
 
 def _slice(run: Run, lo_c: float, hi_c: float, name: str) -> Run:
-    """The first stretch of ``run`` whose temperature lies in ``lo_c .. hi_c``, as a run."""
+    """Return the first stretch of ``run`` whose temperature lies in ``lo_c .. hi_c``."""
     inside = (run.temp >= lo_c) & (run.temp <= hi_c)
     k = int(np.argmax(inside))
     end = k + int(np.argmin(inside[k:])) if not inside[k:].all() else len(run)

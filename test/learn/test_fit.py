@@ -278,3 +278,17 @@ def test_a_correction_keeps_the_priors_shape_inside_and_beyond_its_range():
                         np.zeros(3))
     with pytest.raises(ModelFileError, match='no dT input'):
         model_of(dict(fit, prior=dt2.model_id), None, dt2)
+
+
+def test_power_cycles_apart_that_each_span_under_two_degrees_keep_the_offset_only():
+    """As the trainer: a curve told only by stops of under 2 degC each is not learnt."""
+    stops = np.vstack([_cycles([(1e-3, 5e-4, 2e-4)], temps=np.linspace(10.0, 11.5, 6)),
+                       _cycles([(0.0, 0.0, 0.0)] * 2, temps=np.linspace(30.0, 31.5, 6))[6:]])
+    rec = held_out(stops, stops[:, 1], ('dT',), 20.0)
+    assert rec['folds'] == 0 and rec['sessions'] == 2 and rec['offset_only'] == ['x', 'y', 'z']
+    fit = fit_points(stops, ('dT',), stops[:, 0].max(), 86400.0, 1e-3)
+    assert np.all(np.asarray(fit['coef'])[1:] == 0.0)
+    # One of them over 2 degC of its own: the curve is kept, unjudged, as before.
+    wide = np.vstack([stops[stops[:, 6] == 0.0],
+                      _cycles([(0.0, 0.0, 0.0)] * 2, temps=np.linspace(30.0, 33.0, 6))[6:]])
+    assert held_out(wide, wide[:, 1], ('dT',), 20.0)['offset_only'] == []

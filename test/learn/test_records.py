@@ -57,3 +57,12 @@ def test_the_held_out_line_says_what_was_judged_and_what_was_chosen():
     assert '\n' not in line
     line = held_out_line({'held_out': {**rec, 'offset_only': []}})
     assert line.endswith('the curve is kept on every axis')
+
+
+def test_the_held_out_line_says_when_short_power_cycles_left_the_offset_only():
+    rec = {'sessions': 2, 'folds': 0, 'points': 0, 'curve_ms_dps2': None,
+           'offset_ms_dps2': None, 'offset_only': ['x', 'y', 'z']}
+    line = held_out_line({'held_out': rec})
+    assert line == ('not judged (2 session(s), no other power cycle over the same '
+                    'temperatures), and none spans 2 degC of its own: offset only on every '
+                    'axis, each power-up re-anchored')
