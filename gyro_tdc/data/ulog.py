@@ -218,8 +218,9 @@ def _fifo(topics: dict, kind: str, device: int, instance: int) -> tuple | str | 
     The blocks of its ``device`` (of ``instance`` where the log names none). Sample k of a
     block of n is ``timestamp_sample - (n - 1 - k) * dt`` (PX4's drivers stamp a block by its
     newest sample), its value ``x[k] * scale``. A block whose ``samples`` is 0 or beyond 32,
-    ``dt`` or ``scale`` not finite and positive (scale: non-zero) is skipped and counted.
-    None without the topic; why not, in words, when no block is this IMU's or usable.
+    ``dt`` not in (0, 1 s] or ``scale`` not finite and non-zero is skipped and counted (and
+    any sample whose value overflows). None without the topic; why not, in words, when no
+    block is this IMU's or a field is missing.
     """
     name = f'sensor_{kind}_fifo'
     if not (inst := topics.get(name)):
@@ -232,20 +233,23 @@ def _fifo(topics: dict, kind: str, device: int, instance: int) -> tuple | str | 
     head = [columns(d, ('device_id', 'dt', 'scale', 'samples')) for d in own]
     if not own or any(a is None for a in axes + head):
         ids = sorted({int(i) for d in inst.values() for i in np.unique(d.get('device_id', []))})
+        mine = f'not {device}' if device else f'none of instance {instance}'
         return (f'{name} not used: ' + (f'its blocks are of device {", ".join(map(str, ids))}'
-                                        f', not {device}' if not own else 'a field is missing'))
+                                        f', {mine}' if not own else 'a field is missing'))
     dev, dt, scale, n = np.concatenate(head).T
+    mine = dev == device if device else np.ones(len(dev), dtype=bool)
     stamp = np.concatenate([_seconds(d) for d in own])
-    ok = ((n >= 1) & (n <= FIFO_SAMPLES) & (dt > 0) & (dt <= 1e6) & np.isfinite(scale)
-          & (scale != 0) & (not device or dev == device))
+    ok = (mine & (n >= 1) & (n <= FIFO_SAMPLES) & (dt > 0) & (dt <= 1e6) & np.isfinite(scale)
+          & (scale != 0))
     with np.errstate(invalid='ignore', over='ignore'):
         t = stamp[:, None] - (n[:, None] - 1 - k) * dt[:, None] * 1e-6
         v = np.stack([np.concatenate(axes[j::3]) * scale[:, None] for j in range(3)], axis=-1)
-    keep = ok[:, None] & (k < n[:, None])
+    keep = ok[:, None] & (k < n[:, None]) & np.isfinite(v).all(axis=-1)
     order = np.argsort(t[keep], kind='stable')
-    bad = int((~ok).sum())
+    bad = int(np.count_nonzero(mine & ~ok))
     return t[keep][order], v[keep][order], (
-        f', {bad} of {len(ok)} blocks skipped (samples, dt or scale out of range)' if bad else '')
+        f', {bad} of {int(mine.sum())} blocks skipped (samples, dt or scale out of range)'
+        if bad else '')
 
 
 def _stream(topics: dict, kind: str, device: int, instance: int, t: NDArray[np.float64],

@@ -453,12 +453,14 @@ def test_damaged_fifo_blocks_are_skipped_and_counted_never_a_traceback(tmp_path)
         d['scale'] = np.where(np.arange(len(d['samples'])) == 30, np.nan, d['scale'])
         d['timestamp_sample'] = d['timestamp_sample'].copy()
         d['timestamp_sample'][[100, 101]] = d['timestamp_sample'][[101, 100]]   # backwards
+        d['device_id'] = np.where(np.isin(np.arange(len(d['samples'])), [50, 51]), 99,
+                                  d['device_id'])           # another IMU's: not this one's
 
     path, imu = _fifo_log(tmp_path, edit=damage)
     log = read_ulog(path)
     assert log.source == 'sensor_gyro_fifo'
-    assert log.notes[0].endswith(', 5 of 750 blocks skipped (samples, dt or scale out of range)')
-    assert len(log.imu_t) == len(imu.t) - 5 * 8 and np.all(np.diff(log.imu_t) >= 0)
+    assert log.notes[0].endswith(', 5 of 748 blocks skipped (samples, dt or scale out of range)')
+    assert len(log.imu_t) == len(imu.t) - 7 * 8 and np.all(np.diff(log.imu_t) >= 0)
     assert np.isfinite(log.gyro).all()
     # A log cut inside a block: the blocks before it are read, the loss counted.
     cut = tmp_path / 'cut.ulg'
