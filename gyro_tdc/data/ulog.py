@@ -230,12 +230,14 @@ def _fifo(topics: dict, kind: str, device: int, instance: int) -> tuple | str | 
            or (not device and i == instance)]
     k = np.arange(FIFO_SAMPLES)
     axes = [columns(d, tuple(f'{a}[{j}]' for j in k)) for d in own for a in 'xyz']
-    head = [columns(d, ('device_id', 'dt', 'scale', 'samples')) for d in own]
+    need = ('device_id', 'dt', 'scale', 'samples')
+    head = [columns(d, need) for d in own]
     if not own or any(a is None for a in axes + head):
         ids = sorted({int(i) for d in inst.values() for i in np.unique(d.get('device_id', []))})
         mine = f'not {device}' if device else f'none of instance {instance}'
+        lack = next((f for d in own for f in need if f not in d), 'x[0..31], y or z')
         return (f'{name} not used: ' + (f'its blocks are of device {", ".join(map(str, ids))}'
-                                        f', {mine}' if not own else 'a field is missing'))
+                                        f', {mine}' if not own else f'its format has no {lack}'))
     dev, dt, scale, n = np.concatenate(head).T
     mine = dev == device if device else np.ones(len(dev), dtype=bool)
     stamp = np.concatenate([_seconds(d) for d in own])

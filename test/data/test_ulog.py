@@ -365,14 +365,15 @@ def test_a_real_log_whose_selection_flips_gives_each_imu_its_own_200_hz_gyro():
 
 def _fifo_log(tmp_path, name: str = 'fifo.ulg', *, rate: float = 1000.0, seconds: float = 6.0,
               fifo_device: int | None = None, block: int = 8, accel_fifo: bool = False,
-              blocks: slice = slice(None), edit=None) -> tuple:
+              blocks: slice = slice(None), edit=None, drop: str = '') -> tuple:
     """
     Write a PX4 log as its high-rate profile does; return (path, the IMU at the FIFO's rate).
 
     ``sensor_combined`` at a quarter of ``rate``, ``sensor_gyro`` and ``sensor_accel`` (the
     thermometer) at 1 Hz, ``sensor_gyro_fifo`` (of ``fifo_device``, by default the IMU's) at
     ``rate`` in blocks of ``block`` (``blocks`` of them), ``sensor_accel_fifo`` too where
-    asked; ``edit(data)`` damages the gyro FIFO's columns before they are written.
+    asked; ``edit(data)`` damages the gyro FIFO's columns before they are written, ``drop``
+    leaves one of its fields out of its format.
     """
     from flightlogs import fifo_topic, SENSOR_COMBINED, Topic
     n = int(rate * seconds)
@@ -386,6 +387,7 @@ def _fifo_log(tmp_path, name: str = 'fifo.ulg', *, rate: float = 1000.0, seconds
     us = np.round(t[::4] * 1e6).astype(np.uint64)
     gyro = fifo_topic('sensor_gyro_fifo', t, imu.gyro, fifo_device or imu.device_id, block=block)
     gyro.data = {k: v if np.ndim(v) == 0 else v[blocks] for k, v in gyro.data.items()}
+    gyro.fields = [f for f in gyro.fields if f[1] != drop]
     if edit is not None:
         edit(gyro.data)
     topics = px4_topics([slow]) + [Topic('sensor_combined', SENSOR_COMBINED, {
@@ -430,6 +432,10 @@ def test_a_fifo_that_cannot_stand_in_leaves_the_log_as_it_was_said_in_one_clause
              'slow.ulg': ({'rate': 400.0, 'block': 1, 'blocks': slice(None, None, 3)},
                           'sensor_gyro_fifo not used: 800 samples at 133.3 Hz, not twice as fast '
                           'as sensor_combined'),
+             'no_scale.ulg': ({'drop': 'scale'}, 'sensor_gyro_fifo not used: its format has '
+                              'no scale'),
+             'no_z.ulg': ({'drop': 'z'}, 'sensor_gyro_fifo not used: its format has no x[0..31], '
+                          'y or z'),
              'early.ulg': ({'blocks': slice(0, 500)}, 'sensor_gyro_fifo at 1000 Hz not used: none '
                            'within 1 s of 250 of 1500 sensor_combined samples (gaps, or it ends '
                            'early)')}
