@@ -20,9 +20,10 @@ an IMU rate from 1 Hz to 2 kHz (log-uniform), a turn-on offset per power cycle, 
 thermometer resolution from 0.004 to 1 degC, flights between still stretches of 10-60 s,
 spike glitches, and for half the logs an end cut off inside a message; each log is written
 as a PX4 ULog (``sensor_gyro`` at full rate, or ``sensor_combined`` at full rate beside a
-1 Hz ``sensor_gyro`` carrying the temperature) or an ArduPilot DataFlash log (``IMU.T``, or
-``IMU.Temp``; or ``IMU.T`` at 25 Hz beside the sensor-rate ``GYR``) and read back. Printed per
-test: the pass rate and the worst cases.
+1 Hz ``sensor_gyro`` carrying the temperature, or the sensor's FIFO ``sensor_gyro_fifo`` at
+full rate in blocks beside those two at a quarter of it) or an ArduPilot DataFlash log
+(``IMU.T``, or ``IMU.Temp``; or ``IMU.T`` at 25 Hz beside the sensor-rate ``GYR``) and read
+back. Printed per test: the pass rate and the worst cases.
 
 - **read**: every log is read, or refused in one line (a ``GyroTdcError``); any other
   exception is a failure.
@@ -79,8 +80,10 @@ def _case(rng: np.random.Generator) -> dict:
 
 #: How a power cycle is written: PX4 sensor_gyro at full rate; PX4 sensor_combined at full
 #: rate beside sensor_gyro (with the temperature) at 1 Hz; ArduPilot IMU with ``T``; with
-#: ``Temp`` (ArduCopter 3.4); IMU with ``T`` at 25 Hz beside GYR at full rate.
-FORMATS = ('ulog', 'ulog_multi_rate', 'dataflash', 'dataflash_temp', 'dataflash_gyr')
+#: ``Temp`` (ArduCopter 3.4); IMU with ``T`` at 25 Hz beside GYR at full rate; PX4
+#: sensor_gyro_fifo at full rate (blocks of up to 32) beside the multi-rate topics at a quarter.
+FORMATS = ('ulog', 'ulog_multi_rate', 'dataflash', 'dataflash_temp', 'dataflash_gyr',
+           'ulog_fifo')
 
 
 def _multi_rate(imu) -> list:
@@ -95,6 +98,17 @@ def _multi_rate(imu) -> list:
                 'timestamp': us[slow], 'timestamp_sample': us[slow], 'device_id': 1,
                 'x': imu.gyro[slow, 0], 'y': imu.gyro[slow, 1], 'z': imu.gyro[slow, 2],
                 'temperature': imu.temp[slow]})]
+
+
+def _fifo(imu) -> list:
+    """Return ULog topics: sensor_gyro_fifo at the IMU's rate, the rest as ``_multi_rate``'s."""
+    from dataclasses import replace
+    from flightlogs import fifo_topic
+    rate = 1.0 / float(np.median(np.diff(imu.t)))
+    quarter = replace(imu, t=imu.t[::4], gyro=imu.gyro[::4], temp=imu.temp[::4],
+                      accel=imu.accel[::4])
+    return _multi_rate(quarter) + [fifo_topic('sensor_gyro_fifo', imu.t, imu.gyro, 1,
+                                              block=int(np.clip(rate // 250, 1, 32)))]
 
 
 def _gyr(imu) -> tuple:
@@ -113,8 +127,9 @@ def _write(day, path: Path, fmt: str, cut: bool, rng: np.random.Generator) -> Pa
     if fmt == 'ulog':
         topics = px4_topics([replace(day.imu, accel=None)])
         path = write_ulog(path.with_suffix('.ulg'), topics)
-    elif fmt == 'ulog_multi_rate':
-        path = write_ulog(path.with_suffix('.ulg'), _multi_rate(day.imu))
+    elif fmt in ('ulog_multi_rate', 'ulog_fifo'):
+        topics = (_multi_rate if fmt == 'ulog_multi_rate' else _fifo)(day.imu)
+        path = write_ulog(path.with_suffix('.ulg'), topics)
     elif fmt == 'dataflash_gyr':
         slow, fast = _gyr(day.imu)
         path = write_dataflash(path.with_suffix('.bin'), slow, fast=fast)

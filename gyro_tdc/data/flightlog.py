@@ -33,8 +33,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['columns', 'DATAFLASH_MAGIC', 'describe_log', 'detect_format', 'flight_log_data',
-           'FlightLog', 'is_flight_log', 'on_stamps', 'PLAUSIBLE_C', 'rate_hz', 'thermometer',
-           'ULOG_MAGIC']
+           'FlightLog', 'is_flight_log', 'on_stamps', 'PLAUSIBLE_C', 'rate_hz', 'sensor_stream',
+           'thermometer', 'ULOG_MAGIC']
 
 #: A ULog starts with these 7 bytes (then the version byte).
 ULOG_MAGIC = b'ULog\x01\x125'
@@ -43,6 +43,11 @@ DATAFLASH_MAGIC = b'\xa3\x95\x80'
 _SUFFIXES = {'.ulg': 'ulog', '.bin': 'dataflash'}
 #: Readings outside this range (degC) are no temperature of a working board.
 PLAUSIBLE_C = (-80.0, 200.0)
+#: A sensor-rate stream replaces a log's gyro when at least this many times as fast...
+STREAM_RATIO = 2.0
+#: ...and every sample of that gyro (but one in a thousand) has one of the stream's within
+#: this many seconds: no gap the log's own gyro does not share.
+STREAM_GAP_S = 1.0
 
 
 @dataclass(frozen=True)
@@ -167,6 +172,29 @@ def rate_hz(t: NDArray[np.float64]) -> float:
     if k and span > 2.0 * float(t[n - 1 - k] - t[k]) * (n - 1) / (n - 1 - 2 * k):
         n, span = n - 2 * k, float(t[n - 1 - k] - t[k])
     return (n - 1) / span if span > 0 else 0.0
+
+
+def sensor_stream(t: NDArray[np.float64], v: NDArray[np.float64], slow_t: NDArray[np.float64],
+                  name: str, beside: str, what: str = 'gyro') -> tuple[bool, str]:
+    """
+    Return whether samples ``v`` at ``t`` (s) can stand in for ``beside``'s at ``slow_t``, and why.
+
+    They can when their finite samples come at least :data:`STREAM_RATIO` times as fast and
+    leave no ``beside`` sample (but one in a thousand) :data:`STREAM_GAP_S` away: a stream
+    beside it over the whole log, its gaps the log's own (a sensor's FIFO, ArduPilot's ``GYR``).
+    """
+    ts = np.sort(t[np.isfinite(v).all(axis=1)])
+    fast, slow = rate_hz(ts), rate_hz(slow_t)
+    if len(ts) < 2 or fast < STREAM_RATIO * slow:
+        return False, (f'{name} not used: {len(ts)} samples at {fast:.4g} Hz, not twice as '
+                       f'fast as {beside}')
+    at = np.clip(np.searchsorted(ts, slow_t), 1, len(ts) - 1)
+    near = np.minimum(np.abs(ts[at] - slow_t), np.abs(ts[at - 1] - slow_t))
+    far = int(np.count_nonzero(~(near <= STREAM_GAP_S)))
+    if far > len(slow_t) // 1000:
+        return False, (f'{name} at {fast:.4g} Hz not used: none within {STREAM_GAP_S:g} s of '
+                       f'{far} of {len(slow_t)} {beside} samples (gaps, or it ends early)')
+    return True, f'{what} from {name} at {fast:.4g} Hz beside {beside} at {slow:.3g} Hz'
 
 
 def is_flight_log(path: str | os.PathLike) -> bool:

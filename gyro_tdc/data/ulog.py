@@ -17,7 +17,8 @@ PX4 ULog (``.ulg``) -> one IMU as a :class:`gyro_tdc.data.flightlog.FlightLog` (
 
 The gyro is the highest-rate one the log has for the instance: ``sensor_gyro`` (raw) where it
 is logged at full rate, else ``sensor_combined`` (its rows where ``sensor_selection`` names
-this IMU) or ``vehicle_imu`` (calibrated on board).
+this IMU) or ``vehicle_imu`` (calibrated on board); where the log holds the sensor's FIFO
+(``sensor_gyro_fifo``, every raw sample in blocks) as a stream at least twice as fast, that.
 The temperature is the IMU's own thermometer wherever the log has it (``sensor_gyro``,
 ``vehicle_imu_status``, ``sensor_accel``), on its own stamps, or a proxy the user names
 (``--temperature-source baro``: ``sensor_combined.baro_temp_celcius``, ``vehicle_air_data``,
@@ -33,7 +34,8 @@ import os
 from pathlib import Path
 import struct
 
-from gyro_tdc.data.flightlog import columns, FlightLog, on_stamps, rate_hz, thermometer
+from gyro_tdc.data.flightlog import (columns, FlightLog, on_stamps, rate_hz, sensor_stream,
+                                     thermometer)
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
@@ -42,10 +44,15 @@ from numpy.typing import NDArray
 __all__ = ['read_ulog', 'ulog_truncated_bytes']
 
 _TOPICS = ['sensor_gyro', 'sensor_accel', 'sensor_combined', 'vehicle_imu',
-           'vehicle_imu_status', 'sensor_baro', 'vehicle_air_data', 'sensor_selection']
-#: Where each topic of an instance names its gyro's device id.
-_DEVICE_FIELDS = (('sensor_gyro', 'device_id'), ('vehicle_imu', 'gyro_device_id'),
-                  ('vehicle_imu_status', 'gyro_device_id'))
+           'vehicle_imu_status', 'sensor_baro', 'vehicle_air_data', 'sensor_selection',
+           'sensor_gyro_fifo', 'sensor_accel_fifo']
+#: Where each topic of an instance names its gyro's (accelerometer's) device id.
+_DEVICE_FIELDS = {'gyro': (('sensor_gyro', 'device_id'), ('vehicle_imu', 'gyro_device_id'),
+                           ('vehicle_imu_status', 'gyro_device_id')),
+                  'accel': (('sensor_accel', 'device_id'), ('vehicle_imu', 'accel_device_id'),
+                            ('vehicle_imu_status', 'accel_device_id'))}
+#: A FIFO block holds at most this many samples (``msg/SensorGyroFifo.msg``: ``int16[32] x``).
+FIFO_SAMPLES = 32
 #: The IMU's own thermometers, in the order they are tried: (topic, field).
 _IMU_THERMOMETERS = (('sensor_gyro', 'temperature'), ('vehicle_imu_status', 'temperature_gyro'),
                      ('vehicle_imu_status', 'temperature_accel'),
@@ -131,32 +138,33 @@ _GYRO_FIELDS = {'sensor_gyro': ('x', 'y', 'z'), 'sensor_combined': ('gyro_rad[0]
                 'vehicle_imu': ('delta_angle[0]', 'delta_angle_dt')}
 
 
-def _device(topics: dict, instance: int) -> int:
-    """Return the device id of an instance's gyro as its topics name it (0: unknown)."""
-    for tp, f in _DEVICE_FIELDS:
+def _device(topics: dict, instance: int, kind: str = 'gyro') -> int:
+    """Return the device id of an instance's gyro (``kind``) as its topics name it (0: unknown)."""
+    for tp, f in _DEVICE_FIELDS[kind]:
         ids = np.asarray(topics.get(tp, {}).get(instance, {}).get(f, []))
         if (ids := ids[ids != 0]).size:
             return int(ids[0])
     return 0
 
 
-def _combined_rows(topics: dict, instance: int) -> NDArray[np.bool_]:
+def _combined_rows(topics: dict, instance: int, kind: str = 'gyro') -> NDArray[np.bool_] | None:
     """
-    Return which ``sensor_combined`` rows carry the gyro of ``instance``.
+    Return which ``sensor_combined`` rows carry the gyro (``kind``) of ``instance``.
 
-    ``sensor_combined`` is the selected IMU (``sensor_selection.gyro_device_id``): instance 0
-    when the log names no selection or no device id to match (PX4's default). Where the
+    ``sensor_combined`` is the selected IMU (``sensor_selection.gyro_device_id``, its
+    accelerometer ``accel_device_id``): instance 0 when the log names no selection or no
+    device id to match (PX4's default; for the accelerometer None: the gyro's rows). Where the
     selection changes, each row is the IMU selected at its stamp (before any selection: none).
     """
     c = topics.get('sensor_combined', {}).get(0, {})
     n = len(c.get('timestamp', ()))
     s = topics.get('sensor_selection', {}).get(0, {})
-    sel = np.asarray(s.get('gyro_device_id', []), dtype=np.int64)
+    sel = np.asarray(s.get(f'{kind}_device_id', []), dtype=np.int64)
     ids = sorted({i for name in _GYRO_FIELDS for i in topics.get(name, {})})
-    known = {_device(topics, i): i for i in ids} | {0: 0}
+    known = {_device(topics, i, kind): i for i in ids} | {0: 0}
     picked = set(sel.tolist()) - {0}
     if not picked or len(known) == 1:
-        return np.full(n, instance == 0)
+        return np.full(n, instance == 0) if kind == 'gyro' else None
     if len(picked) == 1:
         return np.full(n, known.get(picked.pop()) == instance)
     order = np.argsort(np.asarray(s['timestamp'], dtype=np.uint64), kind='stable')
@@ -201,6 +209,95 @@ def _gyros(topics: dict, instance: int, rows: NDArray[np.bool_] | None = None
             d = d if rows.all() else {f: np.asarray(v)[rows] for f, v in d.items()}
         out[k] = d
     return out
+
+
+def _fifo(topics: dict, kind: str, device: int, instance: int) -> tuple | str | None:
+    """
+    Return one IMU's ``sensor_{kind}_fifo`` blocks as samples: (stamps s, (N, 3), words).
+
+    The blocks of its ``device`` (of ``instance`` where the log names none). Sample k of a
+    block of n is ``timestamp_sample - (n - 1 - k) * dt`` (PX4's drivers stamp a block by its
+    newest sample), its value ``x[k] * scale``. A block whose ``samples`` is 0 or beyond 32,
+    ``dt`` not in (0, 1 s] or ``scale`` not finite and non-zero is skipped and counted (and
+    any sample whose value overflows). None without the topic; why not, in words, when no
+    block is this IMU's or a field is missing.
+    """
+    name = f'sensor_{kind}_fifo'
+    if not (inst := topics.get(name)):
+        return None
+    own = [d for i, d in sorted(inst.items())
+           if (device and (np.asarray(d.get('device_id', [])) == device).any())
+           or (not device and i == instance)]
+    k = np.arange(FIFO_SAMPLES)
+    axes = [columns(d, tuple(f'{a}[{j}]' for j in k)) for d in own for a in 'xyz']
+    need = ('device_id', 'dt', 'scale', 'samples')
+    head = [columns(d, need) for d in own]
+    if not own or any(a is None for a in axes + head):
+        ids = sorted({int(i) for d in inst.values() for i in np.unique(d.get('device_id', []))})
+        mine = f'not {device}' if device else f'none of instance {instance}'
+        lack = next((f for d in own for f in need if f not in d), 'x[0..31], y or z')
+        return (f'{name} not used: ' + (f'its blocks are of device {", ".join(map(str, ids))}'
+                                        f', {mine}' if not own else f'its format has no {lack}'))
+    dev, dt, scale, n = np.concatenate(head).T
+    mine = dev == device if device else np.ones(len(dev), dtype=bool)
+    stamp = np.concatenate([_seconds(d) for d in own])
+    ok = (mine & (n >= 1) & (n <= FIFO_SAMPLES) & (dt > 0) & (dt <= 1e6) & np.isfinite(scale)
+          & (scale != 0))
+    with np.errstate(invalid='ignore', over='ignore'):
+        t = stamp[:, None] - (n[:, None] - 1 - k) * dt[:, None] * 1e-6
+        v = np.stack([np.concatenate(axes[j::3]) * scale[:, None] for j in range(3)], axis=-1)
+    keep = ok[:, None] & (k < n[:, None]) & np.isfinite(v).all(axis=-1)
+    order = np.argsort(t[keep], kind='stable')
+    bad = int(np.count_nonzero(mine & ~ok))
+    return t[keep][order], v[keep][order], (
+        f', {bad} of {int(mine.sum())} blocks skipped (samples, dt or scale out of range)'
+        if bad else '')
+
+
+def _stream(topics: dict, kind: str, device: int, instance: int, t: NDArray[np.float64],
+            beside: str) -> tuple:
+    """
+    Return (stamps, samples, words) of the FIFO where it stands in for ``beside`` at ``t``.
+
+    Else (None, None, why not in words; '' without the FIFO): see
+    :func:`gyro_tdc.data.flightlog.sensor_stream`.
+    """
+    fifo = _fifo(topics, kind, device, instance)
+    if not isinstance(fifo, tuple):
+        return None, None, fifo or ''
+    name, what = f'sensor_{kind}_fifo', {'gyro': 'gyro', 'accel': 'accelerometer'}[kind]
+    used, said = sensor_stream(fifo[0], fifo[1], t, name, beside, what)
+    return (fifo[0], fifo[1], said + fifo[2]) if used else (None, None, said)
+
+
+def _gyro_accel(topics: dict, instance: int, gyros: dict, source: str,
+                rows: NDArray[np.bool_] | None, accel: bool) -> tuple:
+    """
+    Return (stamps, gyro, accelerometer stamps, accelerometer, words) of the gyro ``source``.
+
+    ``sensor_combined``'s accelerometer is its rows where ``sensor_selection`` names this
+    IMU's accelerometer (NaN in the others), whichever IMU gives the gyro there.
+    """
+    d = gyros[source]
+    t = _seconds(d)
+    if source == 'sensor_gyro':
+        a = topics.get('sensor_accel', {}).get(instance)
+        v = columns(a, ('x', 'y', 'z')) if accel and a is not None else None
+        return t, columns(d, ('x', 'y', 'z')), _seconds(a) if v is not None else t, v, ''
+    if source == 'vehicle_imu':
+        return (t, _delta_rate(d, 'delta_angle'), t,
+                _delta_rate(d, 'delta_velocity') if accel else None,
+                f'vehicle_imu (integrated, calibrated on board) at {_rate(d):.3g} Hz is the '
+                'fastest gyro')
+    acc = columns(d, _vec('accelerometer_m_s2')) if accel else None
+    a_rows = _combined_rows(topics, instance, 'accel') if acc is not None else None
+    if a_rows is not None:
+        acc[~a_rows[rows]] = np.nan
+    return t, columns(d, _vec('gyro_rad')), t, acc, (
+        f'sensor_gyro at {_rate(gyros["sensor_gyro"]):.3g} Hz beside sensor_combined '
+        f'(rotated, calibrated on board) at {_rate(d):.3g} Hz: the faster one is read'
+        if 'sensor_gyro' in gyros else 'no sensor_gyro in the log: sensor_combined (rotated, '
+        'calibrated on board) is all there is')
 
 
 def _pick_gyro(gyros: dict[str, dict]) -> str:
@@ -327,30 +424,22 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
                            f'{", ".join(map(str, sorted(topics[kind])))}; what each instance '
                            f'carries: {_inventory(topics)}; --imu-instance N).')
     source = _pick_gyro(gyros)
-    d = gyros[source]
-    t = _seconds(d)
-    raw = source == 'sensor_gyro'
-    device, acc = _device(topics, instance), None
+    device = _device(topics, instance)
     if rows is not None and (said := _combined_note(topics, instance, rows)):
         notes.append(said)
-    if raw:
-        gyro = columns(d, ('x', 'y', 'z'))
-        a = topics.get('sensor_accel', {}).get(instance)
-        if accel and a is not None and (v := columns(a, ('x', 'y', 'z'))) is not None:
-            acc = on_stamps(t, _seconds(a), v)
-    elif source == 'sensor_combined':
-        gyro = columns(d, _vec('gyro_rad'))
-        acc = columns(d, _vec('accelerometer_m_s2')) if accel else None
-        notes.append(f'sensor_gyro at {_rate(gyros["sensor_gyro"]):.3g} Hz beside '
-                     f'sensor_combined (rotated, calibrated on board) at {_rate(d):.3g} '
-                     'Hz: the faster one is read' if 'sensor_gyro' in gyros else
-                     'no sensor_gyro in the log: sensor_combined (rotated, calibrated on '
-                     'board) is all there is')
-    else:
-        gyro = _delta_rate(d, 'delta_angle')
-        acc = _delta_rate(d, 'delta_velocity') if accel else None
-        notes.append(f'vehicle_imu (integrated, calibrated on board) at {_rate(d):.3g} Hz is '
-                     'the fastest gyro')
+    t, gyro, acc_t, acc, said = _gyro_accel(topics, instance, gyros, source, rows, accel)
+    acc_from = 'sensor_accel' if source == 'sensor_gyro' and acc is not None else source
+    fast_t, fast, why = _stream(topics, 'gyro', device, instance, t, source)
+    if fast_t is not None:
+        t, gyro, source, said, why = fast_t, fast, 'sensor_gyro_fifo', why, ''
+    notes += [n for n in (said, why) if n]
+    if accel:
+        fast_t, fast, why = _stream(topics, 'accel', _device(topics, instance, 'accel'),
+                                    instance, acc_t, acc_from)
+        notes += [why] if why else []
+        acc_t, acc = (fast_t, fast) if fast_t is not None else (acc_t, acc)
+        acc = acc if acc_t is t else on_stamps(t, acc_t, acc)
+    raw = source in ('sensor_gyro', 'sensor_gyro_fifo')
     name, temp_t, temp = _required_thermometer(p, topics, instance, temperature_source, source)
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
                      firmware='px4', source=source, instance=int(instance),

@@ -24,6 +24,7 @@ from gyro_tdc.data.dataset import describe_read, load_run
 from gyro_tdc.data.flightlog import rate_hz
 from gyro_tdc.data.ulog import read_ulog, ulog_truncated_bytes
 from gyro_tdc.errors import DatasetError
+from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
 from real_logs import PX4_ACCEL_THERMOMETER, PX4_SELECTION_FLIPS
@@ -356,3 +357,185 @@ def test_a_real_log_whose_selection_flips_gives_each_imu_its_own_200_hz_gyro():
     assert log0.temperature == 'sensor_gyro.temperature'              # each its own
     assert log1.temperature == 'vehicle_imu_status.temperature_accel instance 1'
     assert log0.device_id != log1.device_id
+    for k, log in enumerate((log0, log1)):        # its accelerometer flips with its gyro
+        with_accel = read_ulog(PX4_SELECTION_FLIPS, instance=k, accel=True)
+        np.testing.assert_array_equal(with_accel.gyro, log.gyro)
+        assert with_accel.accel.shape == log.gyro.shape and np.isfinite(with_accel.accel).all()
+
+
+def _fifo_log(tmp_path, name: str = 'fifo.ulg', *, rate: float = 1000.0, seconds: float = 6.0,
+              fifo_device: int | None = None, block: int = 8, accel_fifo: bool = False,
+              blocks: slice = slice(None), edit=None, drop: str = '') -> tuple:
+    """
+    Write a PX4 log as its high-rate profile does; return (path, the IMU at the FIFO's rate).
+
+    ``sensor_combined`` at a quarter of ``rate``, ``sensor_gyro`` and ``sensor_accel`` (the
+    thermometer) at 1 Hz, ``sensor_gyro_fifo`` (of ``fifo_device``, by default the IMU's) at
+    ``rate`` in blocks of ``block`` (``blocks`` of them), ``sensor_accel_fifo`` too where
+    asked; ``edit(data)`` damages the gyro FIFO's columns before they are written, ``drop``
+    leaves one of its fields out of its format.
+    """
+    from flightlogs import fifo_topic, SENSOR_COMBINED, Topic
+    n = int(rate * seconds)
+    rng = np.random.default_rng(7)
+    t = 30.0 + np.arange(n) / rate
+    imu = Imu(t=t, gyro=0.02 + 0.3 * np.sin(t[:, None] * [1.0, 2.0, 3.0]) + rng.normal(
+        0.0, 0.01, (n, 3)), temp=np.linspace(25.0, 31.0, n),
+        accel=[0.0, 0.0, -9.81] + rng.normal(0.0, 0.3, (n, 3)), device_id=2293768)
+    slow = replace(imu, t=t[::int(rate)], gyro=imu.gyro[::int(rate)], temp=imu.temp[::int(rate)],
+                   accel=imu.accel[::int(rate)])
+    us = np.round(t[::4] * 1e6).astype(np.uint64)
+    gyro = fifo_topic('sensor_gyro_fifo', t, imu.gyro, fifo_device or imu.device_id, block=block)
+    gyro.data = {k: v if np.ndim(v) == 0 else v[blocks] for k, v in gyro.data.items()}
+    gyro.fields = [f for f in gyro.fields if f[1] != drop]
+    if edit is not None:
+        edit(gyro.data)
+    topics = px4_topics([slow]) + [Topic('sensor_combined', SENSOR_COMBINED, {
+        'timestamp': us, 'gyro_rad': imu.gyro[::4], 'accelerometer_m_s2': imu.accel[::4]}), gyro]
+    if accel_fifo:
+        topics.append(fifo_topic('sensor_accel_fifo', t, imu.accel, imu.device_id + 1))
+    return write_ulog(tmp_path / name, topics, {'TC_G_ENABLE': 0}), imu
+
+
+def test_the_gyro_fifo_is_read_where_it_is_a_stream_the_thermometer_on_its_own_stamps(tmp_path):
+    path, imu = _fifo_log(tmp_path, accel_fifo=True)
+    log = read_ulog(path, accel=True)
+    assert (log.source, log.raw, log.compensated) == ('sensor_gyro_fifo', True, False)
+    assert log.notes == ['gyro from sensor_gyro_fifo at 1000 Hz beside sensor_combined at 250 '
+                         'Hz', 'accelerometer from sensor_accel_fifo at 1000 Hz beside '
+                         'sensor_combined at 250 Hz']
+    np.testing.assert_allclose(log.imu_t, imu.t, atol=1.5e-6)    # the newest sample's stamp
+    np.testing.assert_allclose(log.gyro, imu.gyro, atol=np.radians(1 / 131) / 1.9)
+    np.testing.assert_allclose(log.accel, imu.accel, atol=9.80665 / 8192 / 1.9)
+    assert log.temperature == 'sensor_gyro.temperature' and len(log.temp_t) == 6
+    run = load_run(path, BagOptions(accel=True))
+    assert 'gyro from sensor_gyro_fifo at 1000 Hz' in run.info['log']
+    assert len(run.t) == 5000 and 24.99 < run.temp.min() < run.temp.max() < 30.01  # 30..35 s
+    # Without sensor_accel_fifo the accelerometer is sensor_combined's, on the FIFO's stamps.
+    path, imu = _fifo_log(tmp_path, 'no_accel.ulg', block=32)
+    log = read_ulog(path, accel=True)
+    assert log.source == 'sensor_gyro_fifo' and len(log.notes) == 1
+    inside = (log.imu_t >= imu.t[0]) & (log.imu_t <= imu.t[::4][-1])
+    assert np.isfinite(log.accel[inside]).all() and np.isnan(log.accel[~inside]).all()
+    np.testing.assert_allclose(log.accel[::4][inside[::4]], imu.accel[::4], atol=1e-5)
+
+
+def test_a_fifo_that_cannot_stand_in_leaves_the_log_as_it_was_said_in_one_clause(tmp_path):
+    from pyulog import ULog
+    plain, _ = _fifo_log(tmp_path, 'plain.ulg', blocks=slice(0, 0))
+    ulog = ULog(str(plain), ['sensor_gyro_fifo'])
+    assert not ulog.data_list and 'sensor_gyro_fifo' in ulog.message_formats  # defined, no data
+    before = read_ulog(plain, accel=True)
+    assert before.source == 'sensor_combined'
+    cases = {'other.ulg': ({'fifo_device': 99}, 'sensor_gyro_fifo not used: its blocks are of '
+                           'device 99, not 2293768'),
+             'slow.ulg': ({'rate': 400.0, 'block': 1, 'blocks': slice(None, None, 3)},
+                          'sensor_gyro_fifo not used: 800 samples at 133.3 Hz, not twice as fast '
+                          'as sensor_combined'),
+             'no_scale.ulg': ({'drop': 'scale'}, 'sensor_gyro_fifo not used: its format has '
+                              'no scale'),
+             'no_z.ulg': ({'drop': 'z'}, 'sensor_gyro_fifo not used: its format has no x[0..31], '
+                          'y or z'),
+             'early.ulg': ({'blocks': slice(0, 500)}, 'sensor_gyro_fifo at 1000 Hz not used: none '
+                           'within 1 s of 250 of 1500 sensor_combined samples (gaps, or it ends '
+                           'early)')}
+    for name, (kw, said) in cases.items():
+        rate = kw.get('rate', 1000.0)
+        ref = before if rate == 1000.0 else read_ulog(_fifo_log(
+            tmp_path, 'p' + name, rate=rate, blocks=slice(0, 0))[0], accel=True)
+        log = read_ulog(_fifo_log(tmp_path, name, **kw)[0], accel=True)
+        assert log.notes == ref.notes + [said]
+        assert log.source == 'sensor_combined' and log.temperature == ref.temperature
+        for a, b in ((log.imu_t, ref.imu_t), (log.gyro, ref.gyro), (log.accel, ref.accel),
+                     (log.temp_c, ref.temp_c)):
+            np.testing.assert_array_equal(a, b)
+
+
+def test_damaged_fifo_blocks_are_skipped_and_counted_never_a_traceback(tmp_path):
+    def damage(d):
+        d['samples'] = d['samples'].copy()
+        d['samples'][[3, 9]] = [40, 0]                   # beyond 32, none
+        d['dt'] = np.where(np.isin(np.arange(len(d['samples'])), [20, 21]), [-5.0], d['dt'])
+        d['scale'] = np.where(np.arange(len(d['samples'])) == 30, np.nan, d['scale'])
+        d['timestamp_sample'] = d['timestamp_sample'].copy()
+        d['timestamp_sample'][[100, 101]] = d['timestamp_sample'][[101, 100]]   # backwards
+        d['device_id'] = np.where(np.isin(np.arange(len(d['samples'])), [50, 51]), 99,
+                                  d['device_id'])           # another IMU's: not this one's
+
+    path, imu = _fifo_log(tmp_path, edit=damage)
+    log = read_ulog(path)
+    assert log.source == 'sensor_gyro_fifo'
+    assert log.notes[0].endswith(', 5 of 748 blocks skipped (samples, dt or scale out of range)')
+    assert len(log.imu_t) == len(imu.t) - 7 * 8 and np.all(np.diff(log.imu_t) >= 0)
+    assert np.isfinite(log.gyro).all()
+    # A log cut inside a block: the blocks before it are read, the loss counted.
+    cut = tmp_path / 'cut.ulg'
+    cut.write_bytes(path.read_bytes()[:-100])
+    run = load_run(cut)
+    assert run.info['source'] == 'sensor_gyro_fifo'
+    assert any('the last' in w for w in run.info['warnings'])
+
+
+@settings(max_examples=30, deadline=None,
+          suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(field=st.sampled_from(['samples', 'dt', 'scale', 'timestamp_sample', 'device_id']),
+       values=st.lists(st.floats(allow_nan=True, allow_infinity=True, width=32), min_size=1,
+                       max_size=6), share=st.floats(0.0, 1.0), cut=st.integers(0, 300))
+def test_hostile_fifo_fields_read_or_refuse_in_one_line(tmp_path, field, values, share, cut):
+    types = {'samples': np.uint8, 'timestamp_sample': np.uint64, 'device_id': np.uint32}
+
+    def damage(d):
+        n = len(d['samples'])
+        at = np.random.default_rng(len(values)).random(n) < share
+        col = np.broadcast_to(np.asarray(d[field], dtype=np.float64), (n,)).copy()
+        col[at] = np.resize(values, int(at.sum()))
+        if field in types:
+            col = np.nan_to_num(col, nan=0.0, posinf=0.0, neginf=0.0)
+            col = np.clip(col, 0, np.iinfo(types[field]).max).astype(types[field])
+        d[field] = col
+
+    path, _ = _fifo_log(tmp_path, f'h{abs(hash((field, tuple(values), share)))}.ulg',
+                        seconds=3.0, edit=damage)
+    if cut:
+        path.write_bytes(path.read_bytes()[:-cut])
+    try:
+        log = read_ulog(path)
+    except DatasetError as exc:
+        assert '\n' not in str(exc)
+        return
+    assert log.source in ('sensor_gyro_fifo', 'sensor_combined')
+    assert len(log.imu_t) == len(log.gyro) and np.all(np.diff(log.imu_t) >= 0) or (
+        log.source == 'sensor_combined')
+    if log.source == 'sensor_gyro_fifo':
+        assert np.isfinite(log.imu_t).all() and np.isfinite(log.gyro).all()
+
+
+def test_sensor_combined_accelerometer_rows_follow_the_accelerometer_selection(tmp_path):
+    from flightlogs import SENSOR_COMBINED, Topic
+    imus = _imus(n=1000, count=2)
+    topics = px4_topics([replace(i, t=i.t[::50], gyro=i.gyro[::50], temp=i.temp[::50],
+                                 accel=i.accel[::50]) for i in imus])
+    us = np.round(imus[1].t * 1e6).astype(np.uint64)
+    topics.append(Topic('sensor_combined', SENSOR_COMBINED, {
+        'timestamp': us, 'gyro_rad': imus[1].gyro, 'accelerometer_m_s2': imus[1].accel}))
+    selection = [('uint64_t', 'timestamp'), ('uint32_t', 'accel_device_id'),
+                 ('uint32_t', 'gyro_device_id')]
+    half = len(us) // 2                  # the gyro stays IMU 1's, the accelerometer flips to 0's
+    path = write_ulog(tmp_path / 'accel_flip.ulg', topics + [Topic('sensor_selection', selection, {
+        'timestamp': us[[0, half]], 'accel_device_id': [imus[1].device_id + 1,
+                                                        imus[0].device_id + 1],
+        'gyro_device_id': imus[1].device_id})])
+    log = read_ulog(path, instance=1, accel=True)
+    assert log.source == 'sensor_combined'
+    np.testing.assert_array_equal(log.gyro, imus[1].gyro)
+    np.testing.assert_array_equal(log.accel[:half], imus[1].accel[:half])
+    assert np.isnan(log.accel[half:]).all()
+    # An accelerometer no instance logs is selected: none of its rows is this IMU's.
+    path = write_ulog(tmp_path / 'unknown.ulg', topics + [Topic('sensor_selection', selection, {
+        'timestamp': us[:1], 'accel_device_id': 7, 'gyro_device_id': imus[1].device_id})])
+    assert np.isnan(read_ulog(path, instance=1, accel=True).accel).all()
+    # A selection without accel_device_id: the gyro's rows, as before.
+    path = write_ulog(tmp_path / 'gyro_only.ulg', topics + [Topic('sensor_selection', [
+        ('uint64_t', 'timestamp'), ('uint32_t', 'gyro_device_id')], {
+        'timestamp': us[:1], 'gyro_device_id': imus[1].device_id})])
+    np.testing.assert_array_equal(read_ulog(path, instance=1, accel=True).accel, imus[1].accel)

@@ -35,7 +35,7 @@ import numpy as np
 # --------------------------------------------------------------------------------------------
 
 _ULOG_TYPES = {'uint64_t': '<u8', 'uint32_t': '<u4', 'uint16_t': '<u2', 'uint8_t': 'u1',
-               'float': '<f4', 'int32_t': '<i4'}
+               'float': '<f4', 'int32_t': '<i4', 'int16_t': '<i2'}
 SENSOR_GYRO = [('uint64_t', 'timestamp'), ('uint64_t', 'timestamp_sample'),
                ('uint32_t', 'device_id'), ('float', 'x'), ('float', 'y'), ('float', 'z'),
                ('float', 'temperature'), ('uint32_t', 'error_count')]
@@ -45,6 +45,12 @@ SENSOR_COMBINED = [('uint64_t', 'timestamp'), ('float[3]', 'gyro_rad'),
 VEHICLE_IMU = [('uint64_t', 'timestamp'), ('uint64_t', 'timestamp_sample'),
                ('float[3]', 'delta_angle'), ('float[3]', 'delta_velocity'),
                ('uint16_t', 'delta_angle_dt'), ('uint16_t', 'delta_velocity_dt')]
+#: PX4's ``msg/SensorGyroFifo.msg`` (and ``SensorAccelFifo.msg``), 1.12-1.15, as its logger
+#: lays the fields out (by size, padded).
+SENSOR_FIFO = [('uint64_t', 'timestamp'), ('uint64_t', 'timestamp_sample'),
+               ('uint32_t', 'device_id'), ('float', 'dt'), ('float', 'scale'),
+               ('int16_t[32]', 'x'), ('int16_t[32]', 'y'), ('int16_t[32]', 'z'),
+               ('uint8_t', 'samples'), ('uint8_t[3]', '_padding0')]
 VEHICLE_IMU_STATUS = [('uint64_t', 'timestamp'), ('uint32_t', 'gyro_device_id'),
                       ('float', 'temperature_gyro')]
 
@@ -109,14 +115,15 @@ def write_ulog(path: Path, topics: list, params: dict | None = None, *,
     blocks = []
     for msg_id, tp in enumerate(topics):
         out.append(_msg(b'A', struct.pack('<BH', tp.multi_id, msg_id) + tp.name.encode()))
-        dt = _ulog_dtype(tp.fields)
+        body = tp.fields[:-1] if tp.fields[-1][1].startswith('_padding') else tp.fields
+        dt = _ulog_dtype(body)                  # PX4's logger leaves a trailing pad out
         n = len(tp.data['timestamp'])
         rec = np.zeros(n, dtype=np.dtype([('size', '<u2'), ('kind', 'u1'), ('id', '<u2'),
                                           ('body', dt)]))
         rec['size'] = 2 + dt.itemsize
         rec['kind'] = ord('D')
         rec['id'] = msg_id
-        for _, name in tp.fields:
+        for _, name in body:
             rec['body'][name] = tp.data.get(name, 0)
         blocks.append((np.asarray(tp.data['timestamp'], dtype=np.uint64), rec))
     edges = np.unique(np.concatenate([t for t, _ in blocks] or [np.zeros(0, np.uint64)]))
@@ -175,6 +182,32 @@ def px4_topics(imus: list, *, combined: bool = False, temperature: bool = True) 
                      device_id=imu.device_id + 1)
             out.append(Topic('sensor_accel', SENSOR_ACCEL, a, multi_id=k))
     return out
+
+
+def fifo_topic(name: str, t: np.ndarray, v: np.ndarray, device_id: int, *, block: int = 8,
+               scale: float | None = None, multi_id: int = 0) -> Topic:
+    """
+    Return samples ``v`` (N, 3) at even stamps ``t`` (s) as PX4 FIFO blocks (``name``).
+
+    ``block`` samples a block (the last one fewer), stamped as PX4's drivers stamp it:
+    ``timestamp_sample`` the newest sample's, ``dt`` the spacing in us. The counts are
+    ``v / scale`` as int16; ``scale`` by default the ICM-42688-P's fine one (1/131 deg/s, or
+    g/8192 for an accelerometer), coarser where a sample would not fit.
+    """
+    v = np.asarray(v, dtype=np.float64)
+    fine = np.radians(1 / 131) if 'gyro' in name else 9.80665 / 8192
+    scale = scale or max(fine, float(np.abs(v).max(initial=0.0)) / 32767)
+    starts = np.arange(0, len(t), block)
+    counts = np.minimum(block, len(t) - starts)
+    at = np.minimum(starts[:, None] + np.arange(32), len(t) - 1)
+    used = (np.arange(32) < counts[:, None])[..., None]
+    raw = np.where(used, np.clip(np.round(v[at] / scale), -32768, 32767), 0).astype(np.int16)
+    us = _us(t)
+    dt = float(np.mean(np.diff(t))) * 1e6 if len(t) > 1 else 1000.0
+    return Topic(name, SENSOR_FIFO, {
+        'timestamp': us[starts + counts - 1], 'timestamp_sample': us[starts + counts - 1],
+        'device_id': device_id, 'dt': dt, 'scale': scale, 'samples': counts,
+        'x': raw[..., 0], 'y': raw[..., 1], 'z': raw[..., 2]}, multi_id=multi_id)
 
 
 # --------------------------------------------------------------------------------------------
