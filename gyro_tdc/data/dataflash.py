@@ -33,7 +33,8 @@ import sys
 import tempfile
 from typing import Iterator
 
-from gyro_tdc.data.flightlog import columns, FlightLog, on_stamps, rate_hz, thermometer
+from gyro_tdc.data.flightlog import (columns, FlightLog, on_stamps, rate_hz, sensor_stream,
+                                     thermometer)
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
@@ -52,11 +53,6 @@ TEMPERATURE_FIELDS = ('T', 'Temp')
 _CHUNK = 1 << 16
 #: Scaled format characters (centi-units; degE7 for ``L``).
 _SCALE = {'c': 0.01, 'C': 0.01, 'e': 0.01, 'E': 0.01, 'L': 1e-7}
-#: ``GYR`` replaces ``IMU``'s gyro when at least this many times as fast...
-FAST_RATIO = 2.0
-#: ...and every ``IMU`` sample (but one in a thousand, a stamp a damaged byte threw away)
-#: has a ``GYR`` sample within this many seconds: no gap the log's ``IMU`` does not share.
-FAST_GAP_S = 1.0
 
 
 @contextlib.contextmanager
@@ -188,9 +184,7 @@ def _sensor_rate(gyr: dict | str | None, imu_t: np.ndarray, instance: int
     """
     Return ``GYR``'s (stamps, gyro, what in words), or why it cannot stand in for ``IMU``.
 
-    It can when its finite samples come at least :data:`FAST_RATIO` times as fast as
-    ``IMU``'s and leave no ``IMU`` sample (but one in a thousand) :data:`FAST_GAP_S` away:
-    a stream beside ``IMU`` over the whole log, its gaps the log's own.
+    It can when it is a stream beside ``IMU`` (:func:`gyro_tdc.data.flightlog.sensor_stream`).
     """
     if gyr is None or isinstance(gyr, str):
         return gyr or ''
@@ -198,17 +192,8 @@ def _sensor_rate(gyr: dict | str | None, imu_t: np.ndarray, instance: int
     if g is None or 'TimeUS' not in gyr or not len(g):
         return f'GYR not used: it has no instance {instance}'
     t = _stamps(gyr)
-    ts = np.sort(t[np.isfinite(g).all(axis=1)])
-    fast, slow = rate_hz(ts), rate_hz(imu_t)
-    if len(ts) < 2 or fast < FAST_RATIO * slow:
-        return f'GYR not used: {len(ts)} samples at {fast:.4g} Hz, not twice as fast as IMU'
-    at = np.clip(np.searchsorted(ts, imu_t), 1, len(ts) - 1)
-    near = np.minimum(np.abs(ts[at] - imu_t), np.abs(ts[at - 1] - imu_t))
-    far = int(np.count_nonzero(~(near <= FAST_GAP_S)))
-    if far > len(imu_t) // 1000:
-        return (f'GYR at {fast:.4g} Hz not used: none within {FAST_GAP_S:g} s of {far} of '
-                f'{len(imu_t)} IMU samples (gaps, or it ends early)')
-    return t, g, f'gyro from GYR at {fast:.4g} Hz beside IMU at {slow:.3g} Hz'
+    ok, said = sensor_stream(t, g, imu_t, 'GYR', 'IMU')
+    return (t, g, said) if ok else said
 
 
 def _gyro_accel(d: dict, fast: tuple | str, acc: dict | str | None, accel: bool) -> tuple:
