@@ -20,7 +20,7 @@ schema 4, type_description_hash), ``messages`` (id, topic_id, timestamp, data; i
 timestamp), ``schema`` (schema_version) and ``message_definitions`` (schema 4). rosbags
 reads a file's messages ``ORDER BY timestamp`` through that index, ties by rowid; one query
 per time range walks the same index and returns every role's messages end to end
-(``group_concat``).
+(``group_concat``); two connections run the ranges by turns.
 """
 
 from __future__ import annotations
@@ -62,9 +62,9 @@ class Sqlite3File:
     """
 
     def __init__(self, path: Path) -> None:
-        # Shared with the thread that runs the range queries (see _Ranges).
-        self.db = sqlite3.connect(f'{path.absolute().as_uri()}?mode=ro&immutable=1', uri=True,
-                                  check_same_thread=False)
+        # Shared with a thread that runs range queries (see _Ranges).
+        self.uri = f'{path.absolute().as_uri()}?mode=ro&immutable=1'
+        self.db = sqlite3.connect(self.uri, uri=True, check_same_thread=False)
         try:
             self._open(path)
         except BaseException:
@@ -101,9 +101,9 @@ class Sqlite3File:
         self.db.close()
 
     def feed(self, roles: Mapping[int, str], out: Any, update: Callable[[int], Any], *,
-             chunk: int, expected: int) -> None:
+             chunk: int) -> None:
         """Hand the messages of ``roles`` (connection id -> role) to ``out``, a range at a time."""
-        _Ranges(self.db, roles, out, update, chunk, expected).run()
+        _Ranges(self, roles, out, update, chunk).run()
 
 
 class _Ranges:
@@ -112,13 +112,13 @@ class _Ranges:
 
     Each range's query returns, per role, the count, the shortest message and the messages
     end to end; a role whose messages differ in size has their lengths fetched.
-    The range grows or shrinks to hold about ``chunk`` messages.
+    A range holds about ``chunk`` messages of any topic (:meth:`_bounds`).
     """
 
-    def __init__(self, db: sqlite3.Connection, roles: Mapping[int, str], out: Any,
-                 update: Callable[[int], Any], chunk: int, expected: int) -> None:
-        self.db, self.out, self.update = db, out, update
-        self.chunk, self.expected = chunk, expected
+    def __init__(self, file: Sqlite3File, roles: Mapping[int, str], out: Any,
+                 update: Callable[[int], Any], chunk: int) -> None:
+        self.db, self.uri, self.out, self.update = file.db, file.uri, out, update
+        self.chunk = chunk
         self.ids = {role: sorted(k for k, r in roles.items() if r == role)
                     for role in out.roles if role in roles.values()}
 
@@ -168,62 +168,73 @@ class _Ranges:
 
     def run(self) -> None:
         """
-        Read the file range by range, the queries a range ahead of the decode.
+        Read the file range by range, two queries at once ahead of the decode.
 
-        SQLite runs a query without the interpreter lock, so a second thread runs the next
-        range's query while this one decodes the last: a read that overlaps, on a second
-        core, the storage with the decode. Its answers come in order through a short queue.
+        SQLite runs a query without the interpreter lock, so two threads, each with its own
+        connection, run the ranges by turns on the other cores while this one decodes
+        those before. Each hands its answers over in order through a short queue.
         """
         roles = list(self.ids)
         floating = self.out.floating and 'temperature' in self.ids
         query = self._query(roles, floating)
-        answers: queue.Queue = queue.Queue(maxsize=2)
+        ranges = self._bounds()
+        dbs = [self.db, sqlite3.connect(self.uri, uri=True, check_same_thread=False)]
         stop = threading.Event()
-        thread = threading.Thread(target=self._scan, args=(query, answers, stop),
-                                  name='gyro_tdc sqlite3 ranges', daemon=True)
-        thread.start()
+        answers = [queue.Queue(maxsize=2) for _ in dbs]
+        threads = [threading.Thread(target=self._scan, args=(db, query, ranges[k::2], q, stop),
+                                    name='gyro_tdc sqlite3 ranges', daemon=True)
+                   for k, (db, q) in enumerate(zip(dbs, answers))]
+        for thread in threads:
+            thread.start()
         pending = Pending(self.out, self.chunk)
         try:
-            while (answer := answers.get()) is not None:
-                if isinstance(answer, BaseException):
-                    raise answer
-                row, t, end = answer
-                self._range(row, roles, t, end, floating, pending)
-                self.update(row[0])
+            for k, (t, end) in enumerate(ranges):
+                row = answers[k % 2].get()
+                if isinstance(row, BaseException):
+                    raise row
+                if row[0]:
+                    self._range(row, roles, t, end, floating, pending)
+                    self.update(row[0])
             pending.flush()
         finally:
             stop.set()
-            while thread.is_alive():          # unblock a thread waiting to hand an answer
-                with contextlib.suppress(queue.Empty):
-                    answers.get(timeout=0.05)
-            thread.join()
+            for thread, q in zip(threads, answers):
+                while thread.is_alive():          # unblock a thread waiting to hand an answer
+                    with contextlib.suppress(queue.Empty):
+                        q.get(timeout=0.05)
+                thread.join()
+            dbs[1].close()
 
-    def _scan(self, query: str, answers: queue.Queue, stop: threading.Event) -> None:
-        """Run the range query over the file (a thread); hand each non-empty answer over."""
+    def _bounds(self) -> list[tuple[int, int]]:
+        """
+        Return time ranges of about ``chunk`` messages of any topic, from the timestamp index.
+
+        Each range ends where the index holds ``chunk`` later timestamps: one covering-index
+        query per range, a walk over the index alone.
+        """
+        lo, hi = self.db.execute('SELECT (SELECT min(timestamp) FROM messages), '
+                                 '(SELECT max(timestamp) FROM messages)').fetchone()
+        starts = [] if lo is None else [lo]
+        while starts and (nxt := self.db.execute(
+                f"SELECT timestamp FROM messages INDEXED BY '{self.index}' WHERE timestamp > ?1 "
+                'ORDER BY timestamp LIMIT 1 OFFSET ?2', (starts[-1], self.chunk - 1)).fetchone()):
+            starts.append(nxt[0])
+        return list(zip(starts, starts[1:] + [hi + 1]))
+
+    @staticmethod
+    def _scan(db: sqlite3.Connection, query: str, ranges: Sequence[tuple[int, int]],
+              answers: queue.Queue, stop: threading.Event) -> None:
+        """Run the range query over ``ranges`` (a thread); hand each answer or the error over."""
         def put(item: Any) -> None:
             while not stop.is_set():
                 with contextlib.suppress(queue.Full):
                     answers.put(item, timeout=0.05)
                     return
         try:
-            # Two subqueries: each a single min() or max() that SQLite answers from the
-            # timestamp index; min() and max() in one SELECT scan the whole table.
-            lo, hi = self.db.execute('SELECT (SELECT min(timestamp) FROM messages), '
-                                     '(SELECT max(timestamp) FROM messages)').fetchone()
-            if lo is not None:
-                span = hi - lo + 1
-                step = max(1, min(span * self.chunk // max(self.expected, 1), span // 16))
-                t = lo
-                while t <= hi and not stop.is_set():
-                    end = min(t + step, hi + 1)
-                    row = self.db.execute(query, (t, end)).fetchone()
-                    if row[0]:
-                        put((row, t, end))
-                        step = int(min(max(step * self.chunk / row[0], step / 4), step * 4)) or 1
-                    else:
-                        step *= 2
-                    t = end
-            put(None)
+            for t, end in ranges:
+                if stop.is_set():
+                    return
+                put(db.execute(query, (t, end)).fetchone())
         except BaseException as err:      # noqa: B902 (handed to the reading thread)
             put(err)
 
