@@ -33,7 +33,7 @@ import threading
 from typing import Any, Callable, Mapping, Sequence
 
 from gyro_tdc.data.bag.metadata import Entry
-from gyro_tdc.data.bag.storage import Pending, split, Unfit
+from gyro_tdc.data.bag.storage import split, Unfit
 import numpy as np
 from numpy.typing import NDArray
 
@@ -155,7 +155,7 @@ class _Ranges:
         if len(found) != 1 or found[0][1] != ['timestamp'] or "'" in found[0][0]:
             raise Unfit(f'indexes on the timestamps {[x[1] for x in found]} (one expected)')
         self.index = found[0][0]
-        query = (f'SELECT count(*), {", ".join(cols)} FROM messages INDEXED BY '
+        query = (f'SELECT {", ".join(cols)} FROM messages INDEXED BY '
                  f"'{self.index}' WHERE {self._in()} AND timestamp >= ?1 AND timestamp < ?2")
         # rosbags' query of the file, and ours: both in timestamp-index order.
         self._check_plan(
@@ -186,16 +186,15 @@ class _Ranges:
                    for k, (db, q) in enumerate(zip(dbs, answers))]
         for thread in threads:
             thread.start()
-        pending = Pending(self.out, self.chunk)
         try:
             for k, (t, end) in enumerate(ranges):
                 row = answers[k % 2].get()
                 if isinstance(row, BaseException):
                     raise row
-                if row[0]:
-                    self._range(row, roles, t, end, floating, pending)
-                    self.update(row[0])
-            pending.flush()
+                count = sum(row[3 * j] for j in range(len(roles)))
+                if count:
+                    self._range(row, roles, t, end, floating)
+                    self.update(count)
         finally:
             stop.set()
             for thread, q in zip(threads, answers):
@@ -247,12 +246,12 @@ class _Ranges:
             dtype=np.int64, count=count)
 
     def _range(self, row: Sequence[Any], roles: Sequence[str], t: int, end: int,
-               floating: bool, pending: Pending) -> None:
+               floating: bool) -> None:
         """Hand over the messages of one range (``row``: the range query's answer)."""
         out = self.out
         got = {}
         for k, role in enumerate(roles):
-            count, small, buf = row[1 + 3 * k:4 + 3 * k]
+            count, small, buf = row[3 * k:3 * k + 3]
             if not count:
                 continue
             if buf is None:
@@ -267,10 +266,9 @@ class _Ranges:
         def logs(role: str) -> Callable[[], NDArray[np.int64]]:
             return lambda: self._column('timestamp', role, got[role][0], t, end)
         if 'imu' in got:
-            pending.add(got['imu'][1], got['imu'][2], logs('imu'))
+            out.main(got['imu'][1], got['imu'][2], logs('imu'))   # a block of its own
         if len(got) == ('imu' in got):
             return
-        pending.flush()               # the other roles' blocks come after the main ones
         before = None
         if floating and 'temperature' in got:
             codes = np.frombuffer(row[-1].encode('ascii'), dtype=np.uint8)
