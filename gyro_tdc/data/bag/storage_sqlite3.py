@@ -25,9 +25,9 @@ per time range walks the same index and returns every role's messages end to end
 
 from __future__ import annotations
 
-import contextlib
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
-import queue
 import sqlite3
 import threading
 from typing import Any, Callable, Mapping, Sequence
@@ -39,6 +39,8 @@ from numpy.typing import NDArray
 
 __all__ = ['Sqlite3File']
 
+# Ranges asked ahead of the decode (two running, two waiting).
+_AHEAD = 4
 # One-byte role codes of the range query's order string (Float temperatures).
 _CODES = {'imu': 'm', 'temperature': 't', 'reference': 'r'}
 
@@ -171,38 +173,33 @@ class _Ranges:
         Read the file range by range, two queries at once ahead of the decode.
 
         SQLite runs a query without the interpreter lock, so two threads, each with its own
-        connection, run the ranges by turns on the other cores while this one decodes
-        those before. Each hands its answers over in order through a short queue.
+        connection, run the next ranges on the other cores while this one decodes the
+        answers in order.
         """
         roles = list(self.ids)
         floating = self.out.floating and 'temperature' in self.ids
-        query = self._query(roles, floating)
-        ranges = self._bounds()
-        dbs = [self.db, sqlite3.connect(self.uri, uri=True, check_same_thread=False)]
-        stop = threading.Event()
-        answers = [queue.Queue(maxsize=2) for _ in dbs]
-        threads = [threading.Thread(target=self._scan, args=(db, query, ranges[k::2], q, stop),
-                                    name='gyro_tdc sqlite3 ranges', daemon=True)
-                   for k, (db, q) in enumerate(zip(dbs, answers))]
-        for thread in threads:
-            thread.start()
+        query, ranges = self._query(roles, floating), self._bounds()
+        local, dbs = threading.local(), []
+
+        def ask(t: int, end: int) -> Any:
+            if not hasattr(local, 'db'):          # a connection per thread
+                local.db = sqlite3.connect(self.uri, uri=True, check_same_thread=False)
+                dbs.append(local.db)
+            return local.db.execute(query, (t, end)).fetchone()
         try:
-            for k, (t, end) in enumerate(ranges):
-                row = answers[k % 2].get()
-                if isinstance(row, BaseException):
-                    raise row
-                count = sum(row[3 * j] for j in range(len(roles)))
-                if count:
-                    self._range(row, roles, t, end, floating)
-                    self.update(count)
+            with ThreadPoolExecutor(2, thread_name_prefix='gyro_tdc sqlite3') as pool:
+                asked = deque(pool.submit(ask, *r) for r in ranges[:_AHEAD])
+                for k, (t, end) in enumerate(ranges):
+                    row = asked.popleft().result()
+                    if k + _AHEAD < len(ranges):
+                        asked.append(pool.submit(ask, *ranges[k + _AHEAD]))
+                    count = sum(row[3 * j] for j in range(len(roles)))
+                    if count:
+                        self._range(row, roles, t, end, floating)
+                        self.update(count)
         finally:
-            stop.set()
-            for thread, q in zip(threads, answers):
-                while thread.is_alive():          # unblock a thread waiting to hand an answer
-                    with contextlib.suppress(queue.Empty):
-                        q.get(timeout=0.05)
-                thread.join()
-            dbs[1].close()
+            for db in dbs:
+                db.close()
 
     def _bounds(self) -> list[tuple[int, int]]:
         """
@@ -219,23 +216,6 @@ class _Ranges:
                 'ORDER BY timestamp LIMIT 1 OFFSET ?2', (starts[-1], self.chunk - 1)).fetchone()):
             starts.append(nxt[0])
         return list(zip(starts, starts[1:] + [hi + 1]))
-
-    @staticmethod
-    def _scan(db: sqlite3.Connection, query: str, ranges: Sequence[tuple[int, int]],
-              answers: queue.Queue, stop: threading.Event) -> None:
-        """Run the range query over ``ranges`` (a thread); hand each answer or the error over."""
-        def put(item: Any) -> None:
-            while not stop.is_set():
-                with contextlib.suppress(queue.Full):
-                    answers.put(item, timeout=0.05)
-                    return
-        try:
-            for t, end in ranges:
-                if stop.is_set():
-                    return
-                put(db.execute(query, (t, end)).fetchone())
-        except BaseException as err:      # noqa: B902 (handed to the reading thread)
-            put(err)
 
     def _column(self, what: str, role: str, count: int, t: int, end: int
                 ) -> NDArray[np.int64]:
