@@ -27,10 +27,11 @@ from __future__ import annotations
 
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
+from itertools import islice
 from pathlib import Path
 import sqlite3
 import threading
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from gyro_tdc.data.bag.metadata import Entry
 from gyro_tdc.data.bag.storage import split, Unfit
@@ -188,11 +189,11 @@ class _Ranges:
             return local.db.execute(query, (t, end)).fetchone()
         try:
             with ThreadPoolExecutor(2, thread_name_prefix='gyro_tdc sqlite3') as pool:
-                asked = deque(pool.submit(ask, *r) for r in ranges[:_AHEAD])
-                for k, (t, end) in enumerate(ranges):
-                    row = asked.popleft().result()
-                    if k + _AHEAD < len(ranges):
-                        asked.append(pool.submit(ask, *ranges[k + _AHEAD]))
+                asked = deque((r, pool.submit(ask, *r)) for r in islice(ranges, _AHEAD))
+                while asked:
+                    (t, end), answer = asked.popleft()
+                    row = answer.result()
+                    asked.extend((r, pool.submit(ask, *r)) for r in islice(ranges, 1))
                     count = sum(row[3 * j] for j in range(len(roles)))
                     if count:
                         self._range(row, roles, t, end, floating)
@@ -201,21 +202,21 @@ class _Ranges:
             for db in dbs:
                 db.close()
 
-    def _bounds(self) -> list[tuple[int, int]]:
+    def _bounds(self) -> Iterator[tuple[int, int]]:
         """
-        Return time ranges of about ``chunk`` messages of any topic, from the timestamp index.
+        Yield time ranges of about ``chunk`` messages of any topic, from the timestamp index.
 
         Each range ends where the index holds ``chunk`` later timestamps: one covering-index
-        query per range, a walk over the index alone.
+        query per range, a walk over the index alone, made as the ranges are asked.
         """
-        lo, hi = self.db.execute('SELECT (SELECT min(timestamp) FROM messages), '
-                                 '(SELECT max(timestamp) FROM messages)').fetchone()
-        starts = [] if lo is None else [lo]
-        while starts and (nxt := self.db.execute(
+        t, hi = self.db.execute('SELECT (SELECT min(timestamp) FROM messages), '
+                                '(SELECT max(timestamp) FROM messages)').fetchone()
+        while t is not None:
+            nxt = self.db.execute(
                 f"SELECT timestamp FROM messages INDEXED BY '{self.index}' WHERE timestamp > ?1 "
-                'ORDER BY timestamp LIMIT 1 OFFSET ?2', (starts[-1], self.chunk - 1)).fetchone()):
-            starts.append(nxt[0])
-        return list(zip(starts, starts[1:] + [hi + 1]))
+                'ORDER BY timestamp LIMIT 1 OFFSET ?2', (t, self.chunk - 1)).fetchone()
+            yield t, hi + 1 if nxt is None else nxt[0]
+            t = None if nxt is None else nxt[0]
 
     def _column(self, what: str, role: str, count: int, t: int, end: int
                 ) -> NDArray[np.int64]:

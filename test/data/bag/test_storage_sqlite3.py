@@ -78,7 +78,7 @@ def test_the_ranges_keep_ties_whole_and_cover_every_message_once(tmp_path, monke
         ranges = storage_sqlite3._Ranges(f, {c.id: 'imu' for c in f.conns},
                                          SimpleNamespace(roles=['imu']), print, 64)
         ranges._query(['imu'], False)
-        cut = ranges._bounds()
+        cut = list(ranges._bounds())
         counts = [f.db.execute('SELECT count(*) FROM messages WHERE timestamp >= ? AND '
                                'timestamp < ?', r).fetchone()[0] for r in cut]
         total, = f.db.execute('SELECT count(*) FROM messages').fetchone()
