@@ -20,7 +20,7 @@ schema 4, type_description_hash), ``messages`` (id, topic_id, timestamp, data; i
 timestamp), ``schema`` (schema_version) and ``message_definitions`` (schema 4). rosbags
 reads a file's messages ``ORDER BY timestamp`` through that index, ties by rowid; one query
 per time range walks the same index and returns every role's messages end to end
-(``group_concat``); two connections run the ranges by turns.
+(``group_concat``); two connections run the ranges, two at once.
 """
 
 from __future__ import annotations
@@ -65,7 +65,7 @@ class Sqlite3File:
     """
 
     def __init__(self, path: Path) -> None:
-        # Shared with a thread that runs range queries (see _Ranges).
+        # Range queries run on connections of their own, opened from the same URI (_Ranges).
         self.uri = f'{path.absolute().as_uri()}?mode=ro&immutable=1'
         self.db = sqlite3.connect(self.uri, uri=True, check_same_thread=False)
         try:
@@ -209,6 +209,8 @@ class _Ranges:
         Each range ends where the index holds ``chunk`` later timestamps: one covering-index
         query per range, a walk over the index alone, made as the ranges are asked.
         """
+        # Two subqueries: each a single min() or max() that SQLite answers from the
+        # timestamp index; min() and max() in one SELECT scan the whole table.
         t, hi = self.db.execute('SELECT (SELECT min(timestamp) FROM messages), '
                                 '(SELECT max(timestamp) FROM messages)').fetchone()
         while t is not None:
