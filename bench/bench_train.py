@@ -36,7 +36,10 @@ benchmark (``load``: ``load_run``; ``train_paper``: ``--features dT,dT2 --no-acc
 ``rosbags``: ``read_bag(via='rosbags')``; ``mcap_package``: the ``mcap`` PyPI package's
 ``iter_messages``, an alternative to the columnar read of the MCAP format, not a dependency);
 ``--profile`` a cProfile of the train stage; ``--baseline DIR`` runs another checkout's train
-(``baseline``) in the same rounds, for before/after figures side by side::
+(``baseline``) in the same rounds, for before/after figures side by side. Each checkout's
+package is byte-compiled first (into its ``__pycache__``), as an installed one is: where
+bytecode is not written (``PYTHONDONTWRITEBYTECODE``), a checkout would otherwise compile
+every module at every start, which rosbags, installed, does not::
 
     .venv/bin/python bench/bench_train.py                       # both bags, both storages
     .venv/bin/python bench/bench_train.py --bags die --storage mcap --repeat 5 --profile
@@ -48,6 +51,7 @@ import os
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 
 import argparse  # noqa: E402, I100
+import compileall  # noqa: E402
 import json  # noqa: E402
 from pathlib import Path  # noqa: E402
 import resource  # noqa: E402
@@ -396,6 +400,8 @@ def main(argv=None):
         p.error(f'unknown stage(s) {", ".join(bad)}')
     stages = ['raw', 'storage', 'train'] + (['baseline'] if args.baseline else []) + extra
     BASELINE[:] = [Path(args.baseline).resolve()] if args.baseline else []
+    for root in (ROOT, *BASELINE):          # as installed: the bytecode compiled once
+        compileall.compile_dir(root / 'gyro_tdc', quiet=1)
     names = ('bench', 'die') if args.bags == 'both' else (args.bags,)
     storages = ('sqlite3', 'mcap') if args.storage == 'both' else (args.storage,)
     sys.path.insert(0, str(ROOT))

@@ -16,6 +16,10 @@
 
 from __future__ import annotations
 
+import os
+import subprocess
+import sys
+
 from gyro_tdc import __version__
 from gyro_tdc.__main__ import main
 from gyro_tdc.cli import COMMANDS
@@ -48,3 +52,17 @@ def test_a_command_gets_the_rest_and_its_exit_code_is_returned(capsys):
     assert capsys.readouterr().out.startswith('usage: gyro-tdc simulate ')
     assert main(['simulate', '--scenario', 'no_such_scenario', '--out', 'x']) == 2
     assert capsys.readouterr().err.startswith('gyro-tdc simulate: error: ')
+
+
+def test_openblas_idle_threads_sleep_unless_the_environment_says_otherwise(monkeypatch, capsys):
+    monkeypatch.setenv('OPENBLAS_THREAD_TIMEOUT', '28')
+    assert main(['--version']) == 0
+    assert os.environ['OPENBLAS_THREAD_TIMEOUT'] == '28'        # the user's own value
+    monkeypatch.delenv('OPENBLAS_THREAD_TIMEOUT')
+    assert main(['--version']) == 0
+    assert os.environ['OPENBLAS_THREAD_TIMEOUT'] == '16'
+    # Set in time: OpenBLAS reads it when numpy loads it, after the entry point is imported.
+    out = subprocess.run([sys.executable, '-c', 'import sys, gyro_tdc.__main__; '
+                          "print('numpy' in sys.modules)"], capture_output=True, text=True,
+                         check=True).stdout
+    assert out.strip() == 'False'

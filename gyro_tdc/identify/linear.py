@@ -30,7 +30,6 @@ from gyro_tdc.model import rbf_design
 from gyro_tdc.signal import fit_columns, Folds, solve_normal, within
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import least_squares
 
 __all__ = ['fit_linear', 'LinearFit', 'refine_rbf', 'RIDGE_GRID']
 
@@ -235,6 +234,8 @@ def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
                scale_cols: NDArray[np.float64] | None, fit: LinearFit, *, ridge: float,
                seed: int, max_rows: int = 2000) -> LinearFit:
     """Refine centres and widths by nonlinear least squares (variable projection)."""
+    from scipy.optimize import least_squares     # a costly import, for --refine only
+
     k, f = fit.centers.shape
     if k == 0:
         return fit

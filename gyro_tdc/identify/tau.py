@@ -30,7 +30,6 @@ from gyro_tdc.base import plain
 from gyro_tdc.errors import FitError
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize_scalar
 
 __all__ = ['effective_samples', 'fit_time_constant', 'MAX_TAU_RATIO', 'PROFILE_LEVEL',
            'profile_interval', 'TauProfile', 'TimeConstantFit']
@@ -76,6 +75,8 @@ def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float]
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
     best, best_sse = grid[i], float(vals[i])
     if b > a:
+        from scipy.optimize import minimize_scalar   # imported while the bags are read
+
         res = minimize_scalar(objective, bounds=(a, b), method='bounded', options={'xatol': xatol})
         if res.fun <= vals[i]:
             best, best_sse = res.x, float(res.fun)

@@ -36,7 +36,6 @@ from gyro_tdc.model import batch_features, EFFECTS, ThermalState
 from gyro_tdc.signal import block_length, block_mean, BlockGrid, Folds, heldout
 import numpy as np
 from numpy.typing import NDArray
-from scipy.optimize import minimize_scalar
 
 __all__ = ['choose_state', 'ParamSearch', 'run_blocks', 'run_state', 'RunBlocks', 'TAU_BOUNDS',
            'TWO_NODE_MARGIN']
@@ -238,6 +237,8 @@ class ParamSearch:
             if lo >= hi:
                 w = lo if i == 0 else hi
             else:
+                from scipy.optimize import minimize_scalar
+
                 w = math.exp(minimize_scalar(
                     lambda u: float(self.sse(pair(v, math.exp(u)), par).sum()),
                     bounds=(math.log(lo), math.log(hi)), method='bounded',

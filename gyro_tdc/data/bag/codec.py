@@ -137,12 +137,13 @@ class Decoded:
 
 
 def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype, msgtype: str,
-                    keep: Sequence[int] | None) -> Decoded | None:
+                    typestore: Any, keep: Sequence[int] | None) -> Decoded | None:
     """
     Decode ``n`` messages of layout ``dt`` stored end to end in ``buf``, or return None.
 
     None: the messages do not share one fixed layout (encapsulation, frame id) or a sampled
-    message disagrees with rosbags' deserialiser.
+    message disagrees with rosbags' deserialiser of ``typestore`` (the one that decodes them
+    otherwise).
     """
     rec = np.frombuffer(buf, dtype=dt)
     # Encapsulation (word 0), frame id length, frame id and its padding equal to the first
@@ -156,7 +157,7 @@ def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype, msgtype: str,
         frame_id = frame[0, :-1].tobytes().decode('utf-8')
         for i in sorted({0, n // 2, n - 1}):    # the layout checked against rosbags
             raw = bytes(buf[i * dt.itemsize:(i + 1) * dt.itemsize])
-            sec, nsec, fid, row = from_msg(msgtype, jazzy().deserialize_cdr(raw, msgtype))
+            sec, nsec, fid, row = from_msg(msgtype, typestore.deserialize_cdr(raw, msgtype))
             if (sec != rec['sec'][i] or nsec != rec['nanosec'][i] or fid != frame_id
                     or not np.array_equal(np.asarray(row, dtype=np.float64), data[i],
                                           equal_nan=True)):
@@ -185,7 +186,7 @@ def decode_joined(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
         with contextlib.suppress(DatasetError):       # no fixed layout: rosbags decodes
             size = int(sizes[0])
             dt = layout_of(bytes(buf[:size]), N_DOUBLES[msgtype]).dtype   # of size bytes
-            dec = _decode_records(buf[:n * size], n, dt, msgtype, keep)
+            dec = _decode_records(buf[:n * size], n, dt, msgtype, typestore, keep)
             if dec is not None:
                 return dec
     return decode_slow([bytes(x) for x in split(buf, sizes)], msgtype, typestore, keep)

@@ -126,7 +126,6 @@ class Bag:
         its messages, or match them after normalising their QoS) is :class:`Unfit`.
         """
         wanted = [(c, role) for role, cs in conns.items() for c in cs]
-        expected = sum(int(c.msgcount) for c, _ in wanted)
         for f in self.files:
             roles = {}
             for x in f.conns:
@@ -137,7 +136,7 @@ class Bag:
                     raise Unfit(f'topic {x.topic!r} of a storage file is not as metadata.yaml '
                                 'lists it')
             if roles:
-                f.feed(roles, out, update, chunk=max(int(chunk), 1), expected=expected)
+                f.feed(roles, out, update, chunk=max(int(chunk), 1))
 
 
 @contextmanager

@@ -142,14 +142,16 @@ def _columns(rows: int, width: int = 0) -> NDArray[np.float64]:
 
     numpy asks the kernel to back arrays of 4 MB or more with huge pages; where the kernel
     then compacts memory to find them on first touch (transparent huge pages on advice,
-    as Ubuntu and Debian ship them), filling the columns costs several times more. An
-    anonymous mapping of the standard ``mmap`` gets the kernel's default pages.
+    as Ubuntu and Debian ship them), filling the columns costs several times more. A
+    private anonymous mapping of the standard ``mmap`` gets the kernel's default pages (a
+    shared one, ``mmap``'s default, is shared memory: its pages cost more to fault in).
     """
     shape = (rows, width) if width else (rows,)
     size = rows * max(width, 1) * 8
     if size < 1 << 22:
         return np.empty(shape)
-    return np.frombuffer(mmap.mmap(-1, size), dtype=np.float64).reshape(shape)
+    return np.frombuffer(mmap.mmap(-1, size, flags=mmap.MAP_PRIVATE),
+                         dtype=np.float64).reshape(shape)
 
 
 class _Sink:

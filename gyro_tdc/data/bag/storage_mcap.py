@@ -197,7 +197,7 @@ class McapFile:
         self.bio.close()
 
     def feed(self, roles: Mapping[int, str], out: Any, update: Callable[[int], Any], *,
-             chunk: int, expected: int) -> None:
+             chunk: int) -> None:
         """Hand the messages of ``roles`` (channel id -> role) to ``out``, chunk by chunk."""
         chunks = sorted((c for c in self.chunks if any(c.counts.get(k, 0) for k in roles)),
                         key=lambda c: c.offset)

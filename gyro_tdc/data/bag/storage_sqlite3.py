@@ -20,25 +20,28 @@ schema 4, type_description_hash), ``messages`` (id, topic_id, timestamp, data; i
 timestamp), ``schema`` (schema_version) and ``message_definitions`` (schema 4). rosbags
 reads a file's messages ``ORDER BY timestamp`` through that index, ties by rowid; one query
 per time range walks the same index and returns every role's messages end to end
-(``group_concat``).
+(``group_concat``); two connections run the ranges, two at once.
 """
 
 from __future__ import annotations
 
-import contextlib
+from collections import deque
+from concurrent.futures import ThreadPoolExecutor
+from itertools import islice
 from pathlib import Path
-import queue
 import sqlite3
 import threading
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from gyro_tdc.data.bag.metadata import Entry
-from gyro_tdc.data.bag.storage import Pending, split, Unfit
+from gyro_tdc.data.bag.storage import split, Unfit
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['Sqlite3File']
 
+# Ranges asked ahead of the decode (two running, two waiting).
+_AHEAD = 4
 # One-byte role codes of the range query's order string (Float temperatures).
 _CODES = {'imu': 'm', 'temperature': 't', 'reference': 'r'}
 
@@ -62,9 +65,9 @@ class Sqlite3File:
     """
 
     def __init__(self, path: Path) -> None:
-        # Shared with the thread that runs the range queries (see _Ranges).
-        self.db = sqlite3.connect(f'{path.absolute().as_uri()}?mode=ro&immutable=1', uri=True,
-                                  check_same_thread=False)
+        # Range queries run on connections of their own, opened from the same URI (_Ranges).
+        self.uri = f'{path.absolute().as_uri()}?mode=ro&immutable=1'
+        self.db = sqlite3.connect(self.uri, uri=True, check_same_thread=False)
         try:
             self._open(path)
         except BaseException:
@@ -101,9 +104,9 @@ class Sqlite3File:
         self.db.close()
 
     def feed(self, roles: Mapping[int, str], out: Any, update: Callable[[int], Any], *,
-             chunk: int, expected: int) -> None:
+             chunk: int) -> None:
         """Hand the messages of ``roles`` (connection id -> role) to ``out``, a range at a time."""
-        _Ranges(self.db, roles, out, update, chunk, expected).run()
+        _Ranges(self, roles, out, update, chunk).run()
 
 
 class _Ranges:
@@ -112,13 +115,13 @@ class _Ranges:
 
     Each range's query returns, per role, the count, the shortest message and the messages
     end to end; a role whose messages differ in size has their lengths fetched.
-    The range grows or shrinks to hold about ``chunk`` messages.
+    A range holds about ``chunk`` messages of any topic (:meth:`_bounds`).
     """
 
-    def __init__(self, db: sqlite3.Connection, roles: Mapping[int, str], out: Any,
-                 update: Callable[[int], Any], chunk: int, expected: int) -> None:
-        self.db, self.out, self.update = db, out, update
-        self.chunk, self.expected = chunk, expected
+    def __init__(self, file: Sqlite3File, roles: Mapping[int, str], out: Any,
+                 update: Callable[[int], Any], chunk: int) -> None:
+        self.db, self.uri, self.out, self.update = file.db, file.uri, out, update
+        self.chunk = chunk
         self.ids = {role: sorted(k for k, r in roles.items() if r == role)
                     for role in out.roles if role in roles.values()}
 
@@ -155,7 +158,7 @@ class _Ranges:
         if len(found) != 1 or found[0][1] != ['timestamp'] or "'" in found[0][0]:
             raise Unfit(f'indexes on the timestamps {[x[1] for x in found]} (one expected)')
         self.index = found[0][0]
-        query = (f'SELECT count(*), {", ".join(cols)} FROM messages INDEXED BY '
+        query = (f'SELECT {", ".join(cols)} FROM messages INDEXED BY '
                  f"'{self.index}' WHERE {self._in()} AND timestamp >= ?1 AND timestamp < ?2")
         # rosbags' query of the file, and ours: both in timestamp-index order.
         self._check_plan(
@@ -168,64 +171,54 @@ class _Ranges:
 
     def run(self) -> None:
         """
-        Read the file range by range, the queries a range ahead of the decode.
+        Read the file range by range, two queries at once ahead of the decode.
 
-        SQLite runs a query without the interpreter lock, so a second thread runs the next
-        range's query while this one decodes the last: a read that overlaps, on a second
-        core, the storage with the decode. Its answers come in order through a short queue.
+        SQLite runs a query without the interpreter lock, so two threads, each with its own
+        connection, run the next ranges on the other cores while this one decodes the
+        answers in order.
         """
         roles = list(self.ids)
         floating = self.out.floating and 'temperature' in self.ids
-        query = self._query(roles, floating)
-        answers: queue.Queue = queue.Queue(maxsize=2)
-        stop = threading.Event()
-        thread = threading.Thread(target=self._scan, args=(query, answers, stop),
-                                  name='gyro_tdc sqlite3 ranges', daemon=True)
-        thread.start()
-        pending = Pending(self.out, self.chunk)
-        try:
-            while (answer := answers.get()) is not None:
-                if isinstance(answer, BaseException):
-                    raise answer
-                row, t, end = answer
-                self._range(row, roles, t, end, floating, pending)
-                self.update(row[0])
-            pending.flush()
-        finally:
-            stop.set()
-            while thread.is_alive():          # unblock a thread waiting to hand an answer
-                with contextlib.suppress(queue.Empty):
-                    answers.get(timeout=0.05)
-            thread.join()
+        query, ranges = self._query(roles, floating), self._bounds()
+        local, dbs = threading.local(), []
 
-    def _scan(self, query: str, answers: queue.Queue, stop: threading.Event) -> None:
-        """Run the range query over the file (a thread); hand each non-empty answer over."""
-        def put(item: Any) -> None:
-            while not stop.is_set():
-                with contextlib.suppress(queue.Full):
-                    answers.put(item, timeout=0.05)
-                    return
+        def ask(t: int, end: int) -> Any:
+            if not hasattr(local, 'db'):          # a connection per thread
+                local.db = sqlite3.connect(self.uri, uri=True, check_same_thread=False)
+                dbs.append(local.db)
+            return local.db.execute(query, (t, end)).fetchone()
         try:
-            # Two subqueries: each a single min() or max() that SQLite answers from the
-            # timestamp index; min() and max() in one SELECT scan the whole table.
-            lo, hi = self.db.execute('SELECT (SELECT min(timestamp) FROM messages), '
-                                     '(SELECT max(timestamp) FROM messages)').fetchone()
-            if lo is not None:
-                span = hi - lo + 1
-                step = max(1, min(span * self.chunk // max(self.expected, 1), span // 16))
-                t = lo
-                while t <= hi and not stop.is_set():
-                    end = min(t + step, hi + 1)
-                    row = self.db.execute(query, (t, end)).fetchone()
-                    if row[0]:
-                        put((row, t, end))
-                        step = int(min(max(step * self.chunk / row[0], step / 4), step * 4)) or 1
-                    else:
-                        step *= 2
-                    t = end
-            put(None)
-        except BaseException as err:      # noqa: B902 (handed to the reading thread)
-            put(err)
+            with ThreadPoolExecutor(2, thread_name_prefix='gyro_tdc sqlite3') as pool:
+                asked = deque((r, pool.submit(ask, *r)) for r in islice(ranges, _AHEAD))
+                while asked:
+                    (t, end), answer = asked.popleft()
+                    row = answer.result()
+                    asked.extend((r, pool.submit(ask, *r)) for r in islice(ranges, 1))
+                    count = sum(row[3 * j] for j in range(len(roles)))
+                    if count:
+                        self._range(row, roles, t, end, floating)
+                        self.update(count)
+        finally:
+            for db in dbs:
+                db.close()
+
+    def _bounds(self) -> Iterator[tuple[int, int]]:
+        """
+        Yield time ranges of about ``chunk`` messages of any topic, from the timestamp index.
+
+        Each range ends where the index holds ``chunk`` later timestamps: one covering-index
+        query per range, a walk over the index alone, made as the ranges are asked.
+        """
+        # Two subqueries: each a single min() or max() that SQLite answers from the
+        # timestamp index; min() and max() in one SELECT scan the whole table.
+        t, hi = self.db.execute('SELECT (SELECT min(timestamp) FROM messages), '
+                                '(SELECT max(timestamp) FROM messages)').fetchone()
+        while t is not None:
+            nxt = self.db.execute(
+                f"SELECT timestamp FROM messages INDEXED BY '{self.index}' WHERE timestamp > ?1 "
+                'ORDER BY timestamp LIMIT 1 OFFSET ?2', (t, self.chunk - 1)).fetchone()
+            yield t, hi + 1 if nxt is None else nxt[0]
+            t = None if nxt is None else nxt[0]
 
     def _column(self, what: str, role: str, count: int, t: int, end: int
                 ) -> NDArray[np.int64]:
@@ -236,12 +229,12 @@ class _Ranges:
             dtype=np.int64, count=count)
 
     def _range(self, row: Sequence[Any], roles: Sequence[str], t: int, end: int,
-               floating: bool, pending: Pending) -> None:
+               floating: bool) -> None:
         """Hand over the messages of one range (``row``: the range query's answer)."""
         out = self.out
         got = {}
         for k, role in enumerate(roles):
-            count, small, buf = row[1 + 3 * k:4 + 3 * k]
+            count, small, buf = row[3 * k:3 * k + 3]
             if not count:
                 continue
             if buf is None:
@@ -256,10 +249,9 @@ class _Ranges:
         def logs(role: str) -> Callable[[], NDArray[np.int64]]:
             return lambda: self._column('timestamp', role, got[role][0], t, end)
         if 'imu' in got:
-            pending.add(got['imu'][1], got['imu'][2], logs('imu'))
+            out.main(got['imu'][1], got['imu'][2], logs('imu'))   # a block of its own
         if len(got) == ('imu' in got):
             return
-        pending.flush()               # the other roles' blocks come after the main ones
         before = None
         if floating and 'temperature' in got:
             codes = np.frombuffer(row[-1].encode('ascii'), dtype=np.uint8)

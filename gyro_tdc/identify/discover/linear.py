@@ -33,7 +33,6 @@ from gyro_tdc.model import input_ids, THERMAL_EFFECTS
 from gyro_tdc.signal import fit_columns, Folds, heldout, pinv_fit, solve_normal
 import numpy as np
 from numpy.typing import NDArray
-from scipy.special import fdtrc
 
 __all__ = ['ar1', 'bandwidth', 'corr', 'DEG', 'gap', 'hac_pvalue', 'LinearModel', 'make_folds',
            'mse', 'ols_hac', 'weighted_corr', 'wsse']
@@ -152,6 +151,8 @@ def hac_pvalue(model: LinearModel, coef: NDArray[np.float64], cand: Sequence[int
     long bandwidth leaves few independent pieces of information, so the test does not
     pretend to more).
     """
+    from scipy.special import fdtrc     # imported while the bags are read (cli.train)
+
     d = model.data
     ps = []
     for a in range(3):

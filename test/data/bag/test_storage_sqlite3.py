@@ -17,10 +17,11 @@
 from __future__ import annotations
 
 import sqlite3
+from types import SimpleNamespace
 
-from columnar_tape import _chamber, _same_data, _write, ARRAYS
+from columnar_tape import _chamber, _same_data, _same_tape, _write, ARRAYS
 from gyro_tdc.data import read_bag
-from gyro_tdc.data.bag import codec, columnar, metadata
+from gyro_tdc.data.bag import codec, columnar, metadata, reader, storage_sqlite3
 import numpy as np
 import pytest
 
@@ -58,3 +59,28 @@ def test_a_sqlite3_file_without_definitions_is_read_with_the_jazzy_types(tmp_pat
         assert opened.files[0].definitions == {}
         assert opened.typestore is codec.jazzy()
     _same_data(bag)
+
+
+def test_the_ranges_keep_ties_whole_and_cover_every_message_once(tmp_path, monkeypatch):
+    # 300 messages (IMU and thermometer) at one log time, more than a range holds: the ranges
+    # are cut from the index between distinct times, in order, and end to end.
+    monkeypatch.setattr(reader, '_CHUNK', 64)
+    bag = _write(tmp_path / 'bag', 'sqlite3', _chamber(np.random.default_rng(13), floating=True))
+    (db3,) = bag.glob('*.db3')
+    with sqlite3.connect(db3) as db:
+        db.execute('UPDATE messages SET timestamp = (SELECT min(timestamp) FROM messages) + 7 '
+                   'WHERE rowid BETWEEN 50 AND 349')
+    db.close()
+    _same_tape(bag)
+    _same_data(bag)
+    with columnar.open_bag(bag, metadata.load(bag)) as opened:
+        f = opened.files[0]
+        ranges = storage_sqlite3._Ranges(f, {c.id: 'imu' for c in f.conns},
+                                         SimpleNamespace(roles=['imu']), print, 64)
+        ranges._query(['imu'], False)
+        cut = list(ranges._bounds())
+        counts = [f.db.execute('SELECT count(*) FROM messages WHERE timestamp >= ? AND '
+                               'timestamp < ?', r).fetchone()[0] for r in cut]
+        total, = f.db.execute('SELECT count(*) FROM messages').fetchone()
+    assert all(a < b for a, b in cut) and all(x[1] == y[0] for x, y in zip(cut, cut[1:]))
+    assert sum(counts) == total and max(counts) >= 300 and len(cut) > total // 64 - 5
