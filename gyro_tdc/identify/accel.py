@@ -39,8 +39,9 @@ from gyro_tdc.identify.thermal_search import run_state
 from gyro_tdc.model import (batch_features, check_accel, compensate, CompensationModel,
                             DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, normalise_ids,
                             resolve_params, STATE_TERMS, static_slope, THERMAL_EFFECTS)
-from gyro_tdc.signal import (block_length, BlockGrid, detect_still, has_accelerometer, MAX_RATE,
-                             MIN_SESSION_SPAN_C, STILL_WINDOW_S, within)
+from gyro_tdc.signal import (block_length, BlockGrid, curve_untold, detect_still,
+                             has_accelerometer, MAX_RATE, MIN_SESSION_SPAN_C, STILL_WINDOW_S,
+                             within)
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -387,13 +388,13 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
         out.note = (f'the still data span {span[1] - span[0]:.3g} degC of the model '
                     f'temperature (need at least {MIN_SPAN_C} degC)')
         return out
-    widest = max(float(np.ptp(sg['state'])) for sg in segs)
-    if len(segs) > 1 and widest < MIN_SESSION_SPAN_C:
+    groups = np.concatenate([np.full(sg['n'].size, g) for g, sg in enumerate(segs)])
+    widest = curve_untold(np.concatenate([sg['state'] for sg in segs]), groups)
+    if widest is not None:
         out.note = (f'no still segment spans {MIN_SESSION_SPAN_C:g} degC of the model '
                     f'temperature of its own (widest {widest:.3g} degC of {len(segs)}): with a '
                     'constant per segment, a curve is told only within one')
         return out
-    groups = np.concatenate([np.full(sg['n'].size, g) for g, sg in enumerate(segs)])
     lf = fit_linear(np.concatenate([sg['x'] for sg in segs]),
                     np.concatenate([sg['y'] for sg in segs]), kind=kind, n_centers=n_centers,
                     ridge=ridge, seed=seed, groups=groups)

@@ -47,7 +47,7 @@ from gyro_tdc.identify.linear import fit_linear, LinearFit
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime import MAX_ANCHORS, MAX_ROWS, SIGNIFICANCE
 from gyro_tdc.runtime import reanchor_rule as _rule
-from gyro_tdc.signal import Folds, heldout, MIN_SESSION_SPAN_C, within
+from gyro_tdc.signal import curve_untold, Folds, heldout, MIN_SESSION_SPAN_C, within
 import numpy as np
 from numpy.typing import NDArray
 
@@ -101,10 +101,8 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
         return fit, offsets, None
     folds = Folds.sessions(groups, temp)
     if not len(folds):                          # no session to judge on: kept, said
-        sessions = np.unique(groups)
-        record = {'folds': 0, 'sessions': int(sessions.size), 'offset_only': []}
-        widest = max(float(np.ptp(temp[groups == g])) for g in sessions)
-        if sessions.size < 2 or widest >= MIN_SESSION_SPAN_C:
+        record = {'folds': 0, 'sessions': int(np.unique(groups).size), 'offset_only': []}
+        if (widest := curve_untold(temp, groups)) is None:
             return fit, offsets, record
         record.update(offset_only=list(AXES), widest_span_c=widest)
         return (*_offset_only(fit, offsets, y, groups, np.arange(len(AXES))), record)

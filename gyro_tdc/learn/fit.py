@@ -34,7 +34,7 @@ from gyro_tdc.errors import ModelFileError
 from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag,
                             MAX_EXTRAPOLATION_C, normalise_ids, STATE_TERMS, THERMAL_EFFECTS,
                             ThermalState)
-from gyro_tdc.signal import (fit_columns, Folds, hat, heldout, MIN_SESSION_SPAN_C, session_columns,
+from gyro_tdc.signal import (curve_untold, fit_columns, Folds, hat, heldout, session_columns,
                              within)
 import numpy as np
 from numpy.typing import NDArray
@@ -237,8 +237,7 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     rec = {'sessions': int(np.unique(g).size), 'folds': len(folds), 'points': 0,
            'curve_ms_dps2': None, 'offset_ms_dps2': None, 'offset_only': []}
     if not len(folds):
-        sessions = np.unique(g)
-        if sessions.size > 1 and max(np.ptp(e[g == k, 2]) for k in sessions) < MIN_SESSION_SPAN_C:
+        if curve_untold(e[:, 2], g) is not None:
             rec['offset_only'] = list(AXES)
         return rec
 

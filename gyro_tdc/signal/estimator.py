@@ -31,8 +31,8 @@ from typing import Callable, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['fit_columns', 'Folds', 'hat', 'heldout', 'MIN_SESSION_SPAN_C', 'pinv_fit',
-           'session_columns', 'solve_normal', 'within']
+__all__ = ['curve_untold', 'fit_columns', 'Folds', 'hat', 'heldout', 'MIN_SESSION_SPAN_C',
+           'pinv_fit', 'session_columns', 'solve_normal', 'within']
 
 #: With a free offset per group (power cycle, orientation segment) a curve is told only within
 #: a group: where no fold can judge it, it stands only on a group spanning this many degC.
@@ -131,6 +131,21 @@ def session_columns(groups: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.
     g = np.asarray(groups)
     labels = np.unique(g)
     return np.column_stack([(g == s).astype(np.float64) for s in labels]), labels
+
+
+def curve_untold(temp: ArrayLike, groups: ArrayLike) -> float | None:
+    """
+    Return the widest group's span of ``temp`` (degC) where no group tells a curve, else None.
+
+    With a free offset per group a curve is told only within one: two groups or more, none
+    spanning :data:`MIN_SESSION_SPAN_C`, tell none (the rule where no fold can judge it).
+    """
+    g, temp = np.asarray(groups), np.asarray(temp, dtype=np.float64)
+    labels = np.unique(g)
+    if labels.size < 2:
+        return None
+    widest = max(float(np.ptp(temp[g == k])) for k in labels)
+    return widest if widest < MIN_SESSION_SPAN_C else None
 
 
 def within(a: NDArray[np.float64], groups: ArrayLike,

@@ -14,8 +14,8 @@
 
 """The one estimator: known coefficients recovered, sessions and folds as specified."""
 
-from gyro_tdc.signal.estimator import (fit_columns, Folds, hat, heldout, pinv_fit, session_columns,
-                                       solve_normal, within)
+from gyro_tdc.signal.estimator import (curve_untold, fit_columns, Folds, hat, heldout, pinv_fit,
+                                       session_columns, solve_normal, within)
 import numpy as np
 import pytest
 
@@ -129,3 +129,10 @@ def test_heldout_reanchors_a_session_seen_nowhere_in_training():
     np.testing.assert_allclose(plain[:, 0], [-1.0, 1.0, -2.0, 2.0])
     none = heldout(residual, Folds.sessions(groups), (4, 1))
     np.testing.assert_allclose(none[:, 0], [-11.0, -9.0, 8.0, 12.0])
+
+
+def test_a_curve_is_untold_by_groups_that_each_span_under_two_degrees():
+    temp = np.array([10.0, 11.5, 30.0, 31.0, 31.2])
+    assert curve_untold(temp, [0, 0, 1, 1, 1]) == 1.5            # the widest, under 2 degC
+    assert curve_untold(temp, [0, 0, 0, 0, 0]) is None            # one group: its own rule
+    assert curve_untold(np.r_[temp, 33.0], [0, 0, 1, 1, 1, 1]) is None   # 3 degC of one
