@@ -308,7 +308,8 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
         params, imus, baros, cut = (_params(reader), _imu(reader), _imu(reader, 'BARO'),
                                     _truncated(reader))
         gyr = _fast(reader, 'GYR', instance)
-        acc = _fast(reader, 'ACC', instance) if accel else None
+        # ACC is only read beside this instance's GYR (a sensor-rate stream is large).
+        acc = _fast(reader, 'ACC', instance) if accel and isinstance(gyr, dict) and gyr else None
         bursts = 'ISBD' in reader.name_to_id and len(reader.offsets[reader.name_to_id['ISBD']])
         mtype = reader.name_to_id.get(msg) if fld else None
         other = (_records(reader, mtype) if mtype is not None and len(reader.offsets[mtype])
