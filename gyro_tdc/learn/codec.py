@@ -247,7 +247,8 @@ def _held_out(v: Any, curve: bool) -> dict | None:
         out[k] = None if v[k] is None and not out['folds'] else _CHK.numbers(
             v[k], f'fit.held_out.{k}', 3, 0.0, MAX_PARAM, 'a mean square in (deg/s)^2')
     axes = _list(v['offset_only'], 'fit.held_out.offset_only', most=3)
-    if not set(axes) <= set(AXES) or len(set(axes)) < len(axes):
+    if (not all(isinstance(a, str) for a in axes) or not set(axes) <= set(AXES)
+            or len(set(axes)) < len(axes)):
         raise _bad('fit.held_out.offset_only', f'must be distinct axis names, got {axes!r:.40}')
     out['offset_only'] = axes
     return out

@@ -89,6 +89,7 @@ def test_thermal_section_is_kept():
      'fit.held_out.curve_ms_dps2[1]'),
     (('fit', 'held_out', 'offset_only'), ['x', 'w'], 'fit.held_out.offset_only'),
     (('fit', 'held_out', 'offset_only'), ['x', 'x'], 'fit.held_out.offset_only'),
+    (('fit', 'held_out', 'offset_only'), [['x']], 'fit.held_out.offset_only'),     # unhashable
     (('fit', 'reanchor', 'min_shift_dps'), [0.0, -1.0, 0.0], 'fit.reanchor.min_shift_dps[1]'),
     (('fit', 'reanchor', 'held_out'), 1.5, 'fit.reanchor.held_out'),
     (('fit', 'reanchor', 'gate'), 1.0, 'fit.reanchor'),
