@@ -23,6 +23,7 @@ rules: ``doc/internals/learn.md``.
 
 from __future__ import annotations
 
+from functools import partial
 import math
 import re
 from typing import Any
@@ -123,6 +124,26 @@ def _temp(v: Any, name: str) -> float:
     return _number(v, name, *_TEMP)
 
 
+def _rates(v: Any, name: str) -> tuple[float, float, float]:
+    """Return three rates, rad/s."""
+    return tuple(_CHK.numbers(v, name, 3, *_RATE))
+
+
+_samples = partial(_number, lo=1.0, hi=MAX_COUNT, what='a sample count')
+#: The items of a point-table entry (:class:`Entry`) and of a recent window: (label, check).
+_ENTRY = ((' (t_end)', _stamp), (' (samples)', _samples), (' (temperature)', _temp),
+          ('', _rates), (' (stretch)', _count), (' (session)', _count))
+_WINDOW = ((' (samples)', _samples), (' (temperature)', _temp),
+           *[(' (mean rate)', partial(_number, lo=_RATE[0], hi=_RATE[1], what=_RATE[2]))] * 3,
+           (' (t_end)', _stamp))
+
+
+def _row(v: Any, name: str, items: tuple) -> list:
+    """Return the list ``v``, each item checked by its ``(label, check)`` of ``items``."""
+    return [check(x, f'{name}[{i}]{label}')
+            for i, (x, (label, check)) in enumerate(zip(_list(v, name, len(items)), items))]
+
+
 def _floor_in(v: Any, name: str) -> NDArray[np.float64]:
     """Return a noise floor: positive, or infinite (null: not known yet)."""
     out = np.full(3, math.inf)
@@ -151,20 +172,10 @@ def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry
         k = int(key)
         if lo is not None and not lo <= k <= hi:
             raise _bad(name, f'must be a bin of a plausible temperature ({lo} .. {hi})')
-        rows = []
-        for j, e in enumerate(_list(entries, name, most=most)):
-            en = f'{name}[{j}]'
-            e = _list(e, en, 6)
-            rows.append(Entry(_stamp(e[0], f'{en}[0] (t_end)'),
-                              _number(e[1], f'{en}[1] (samples)', 1.0, MAX_COUNT,
-                                      'a sample count'),
-                              _temp(e[2], f'{en}[2] (temperature)'),
-                              tuple(_CHK.numbers(e[3], f'{en}[3]', 3, *_RATE)),
-                              _count(e[4], f'{en}[4] (stretch)'),
-                              _count(e[5], f'{en}[5] (session)')))
-        if not rows:
+        out[k] = [Entry(*_row(e, f'{name}[{j}]', _ENTRY))
+                  for j, e in enumerate(_list(entries, name, most=most))]
+        if not out[k]:
             raise _bad(name, 'must hold at least one entry')
-        out[k] = rows
     return out
 
 
@@ -174,14 +185,8 @@ def _recent(v: Any, most: int | None) -> list[RecentStretch]:
     for i, s in enumerate(_list(v, 'recent', most=most)):
         name = f'recent[{i}]'
         s = _list(s, name, 3)
-        rows = []
-        for j, r in enumerate(_list(s[2], f'{name}[2]', most=RECENT_ROWS)):
-            rn = f'{name}[2][{j}]'
-            r = _list(r, rn, 6)
-            rows.append([_number(r[0], f'{rn}[0] (samples)', 1.0, MAX_COUNT, 'a sample count'),
-                         _temp(r[1], f'{rn}[1] (temperature)'),
-                         *(_number(r[a], f'{rn}[{a}] (mean rate)', *_RATE) for a in (2, 3, 4)),
-                         _stamp(r[5], f'{rn}[5] (t_end)')])
+        rows = [_row(r, f'{name}[2][{j}]', _WINDOW)
+                for j, r in enumerate(_list(s[2], f'{name}[2]', most=RECENT_ROWS))]
         out.append(RecentStretch(_count(s[0], f'{name}[0] (stretch)'),
                                  _count(s[1], f'{name}[1] (session)'), rows))
     return out
@@ -309,12 +314,9 @@ def _thermal_state(v: Any, thermal: ThermalState | None) -> tuple[float, list[fl
 
 def _motion(v: Any) -> list[tuple[float, bool]]:
     """Return the motion reports (stamp, moving), in stamp order."""
-    out = []
-    for i, m in enumerate(_list(v, 'motion')):
-        m = _list(m, f'motion[{i}]', 2)
-        out.append((_stamp(m[0], f'motion[{i}][0]'), _CHK.boolean(m[1], f'motion[{i}][1]')))
-    out.sort(key=lambda r: r[0])
-    return out
+    out = [tuple(_row(m, f'motion[{i}]', (('', _stamp), ('', _CHK.boolean))))
+           for i, m in enumerate(_list(v, 'motion'))]
+    return sorted(out, key=lambda r: r[0])
 
 
 def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | None = None,
@@ -357,8 +359,7 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
     values.update({k: _count(state[k], k) for k in ('session', 'stretches', 'windows', 'swaps')})
     values.update({k: _stamp(state[k], k, optional=True)
                    for k in ('t_first', 'last_update_t', 'last_t')})
-    seg = _list(state['segment'], 'segment', 2)
-    values['segment'] = _count(seg[0], 'segment[0] (entry group)')
-    values['segment_t0'] = _stamp(seg[1], 'segment[1] (its first stamp)', optional=True)
+    values['segment'], values['segment_t0'] = _row(state['segment'], 'segment', (
+        (' (entry group)', _count), (' (its first stamp)', partial(_stamp, optional=True))))
     values['last_save_t'] = values['last_t']
     return values, thermal
