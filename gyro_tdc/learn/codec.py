@@ -26,7 +26,7 @@ from __future__ import annotations
 from functools import partial
 import math
 import re
-from typing import Any
+from typing import Any, Callable
 
 from gyro_tdc.base import FieldChecker, MAX_RATE_RAD_S, shown, TEMP_PLAUSIBLE_C
 from gyro_tdc.errors import FeatureError, LearnFileError, ModelFileError
@@ -51,10 +51,8 @@ _KEYS = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 's
          'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check', 'swaps',
          'motion', 'thermal', 'thermal_state', 'config', 'segment')
 _FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points', 'held_out')
-_GATE_KEYS = ('sessions', 'held_out', 'anchor_error_dps', 'min_shift_dps')
 _GATE_HELD = ('always_dps', 'gated_dps', 'never_dps')
 _HELD_KEYS = ('sessions', 'folds', 'points', 'curve_ms_dps2', 'offset_ms_dps2', 'offset_only')
-_CHECK_KEYS = ('t', 'candidate_mse', 'current_mse', 'swapped')
 _CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
 _RATE = (-MAX_RATE_RAD_S, MAX_RATE_RAD_S, 'a rate in rad/s')
 _TEMP = (*TEMP_PLAUSIBLE_C, 'a plausible temperature in degC')
@@ -112,11 +110,20 @@ _CHK = FieldChecker(lambda name, expected, got: _bad(name,
 _number, _count, _list, _dict = _CHK.number, _CHK.count, _CHK.items, _CHK.keys
 
 
-def _stamp(v: Any, name: str, optional: bool = False) -> float | None:
-    """Return a stamp, s (None when ``optional`` and null)."""
-    if v is None and optional:
-        return None
+def _maybe(check: Callable[[Any, str], Any]) -> Callable[[Any, str], Any]:
+    """Return ``check`` that takes null too (None)."""
+    return lambda v, name: None if v is None else check(v, name)
+
+
+def _stamp(v: Any, name: str) -> float:
+    """Return a stamp, s."""
     return _number(v, name, -MAX_STAMP_S, MAX_STAMP_S, 'a stamp in s')
+
+
+def _fields(v: Any, name: str, checks: dict, optional: tuple = ()) -> dict:
+    """Return the mapping ``v`` of the keys of ``checks`` (``optional`` ones may lack), checked."""
+    v = _dict(v, name, [k for k in checks if k not in optional], optional=optional)
+    return {k: check(v[k], f'{name}.{k}') for k, check in checks.items() if k in v}
 
 
 def _temp(v: Any, name: str) -> float:
@@ -234,12 +241,10 @@ def _fit(v: Any, thermal: ThermalState | None,
 
 def _gate(v: Any) -> dict:
     """Return the fit's start-up shift gate (:func:`gyro_tdc.learn.gate.learned_gate`)."""
-    v = _dict(v, 'fit.reanchor', _GATE_KEYS, optional=_GATE_HELD)
-    out = {k: _count(v[k], f'fit.reanchor.{k}') for k in _GATE_KEYS[:2]}
-    for k in _GATE_KEYS[2:] + _GATE_HELD:
-        if k in v:
-            out[k] = _CHK.numbers(v[k], f'fit.reanchor.{k}', 3, 0.0, MAX_PARAM, 'a rate in deg/s')
-    return out
+    dps = partial(_CHK.numbers, n=3, lo=0.0, hi=MAX_PARAM, what='a rate in deg/s')
+    rates = dict.fromkeys(('anchor_error_dps', 'min_shift_dps') + _GATE_HELD, dps)
+    return _fields(v, 'fit.reanchor', {'sessions': _count, 'held_out': _count, **rates},
+                   optional=_GATE_HELD)
 
 
 def _held_out(v: Any, curve: bool) -> dict | None:
@@ -276,13 +281,9 @@ def _check(v: Any) -> dict | None:
     """Return the last prediction check (None: none yet)."""
     if v is None:
         return None
-    v = _dict(v, 'check', _CHECK_KEYS)
-    mse = (0.0, MAX_RATE_RAD_S ** 2 * 3, 'a squared error in (rad/s)^2')
-    return {'t': _stamp(v['t'], 'check.t'),
-            'candidate_mse': _number(v['candidate_mse'], 'check.candidate_mse', *mse),
-            'current_mse': (None if v['current_mse'] is None
-                            else _number(v['current_mse'], 'check.current_mse', *mse)),
-            'swapped': _CHK.boolean(v['swapped'], 'check.swapped')}
+    mse = partial(_number, lo=0.0, hi=MAX_RATE_RAD_S ** 2 * 3, what='a squared error in (rad/s)^2')
+    return _fields(v, 'check', {'t': _stamp, 'candidate_mse': mse, 'current_mse': _maybe(mse),
+                                'swapped': _CHK.boolean})
 
 
 def _thermal(v: Any) -> ThermalState | None:
@@ -357,9 +358,8 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
         'thermal_state': _thermal_state(state['thermal_state'], thermal),
     }
     values.update({k: _count(state[k], k) for k in ('session', 'stretches', 'windows', 'swaps')})
-    values.update({k: _stamp(state[k], k, optional=True)
-                   for k in ('t_first', 'last_update_t', 'last_t')})
+    values.update({k: _maybe(_stamp)(state[k], k) for k in ('t_first', 'last_update_t', 'last_t')})
     values['segment'], values['segment_t0'] = _row(state['segment'], 'segment', (
-        (' (entry group)', _count), (' (its first stamp)', partial(_stamp, optional=True))))
+        (' (entry group)', _count), (' (its first stamp)', _maybe(_stamp))))
     values['last_save_t'] = values['last_t']
     return values, thermal
