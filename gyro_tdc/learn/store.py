@@ -157,10 +157,8 @@ class LearnFile:
                                  '(4 MiB) limit of a learn_file')
         if fix_mode and st.st_uid == os.geteuid():
             self._owner_rw(st)
-        flags = (os.O_RDONLY | getattr(os, 'O_NOFOLLOW', 0) | getattr(os, 'O_NONBLOCK', 0)
-                 | getattr(os, 'O_CLOEXEC', 0))
         try:
-            fd = os.open(p, flags)
+            fd = os.open(p, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
             with os.fdopen(fd, 'rb') as stream:
                 st = os.fstat(stream.fileno())
                 if not stat.S_ISREG(st.st_mode):
