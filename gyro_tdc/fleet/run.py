@@ -76,6 +76,7 @@ class SensorOutcome(SensorResult):
         Input key (:func:`input_key`); empty when it could not be computed.
     model : CompensationModel or None
         The trained model (``sensor_id`` set) when ok.
+
     """
 
     key: str = ''
