@@ -30,7 +30,6 @@ import os
 from pathlib import Path
 import shlex
 import shutil
-import sys
 import textwrap
 import time
 from typing import Sequence
@@ -317,7 +316,3 @@ def _run(args: argparse.Namespace, argv: list) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``gyro-tdc demo``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('demo', build_parser, _run, argv)
-
-
-if __name__ == '__main__':
-    sys.exit(main())

@@ -32,9 +32,8 @@ from typing import Callable, Sequence
 
 from gyro_tdc.data import BagOptions, find_bags, iter_runs, Run, split_sessions
 from gyro_tdc.errors import FitError
-from gyro_tdc.evaluate.models import (bag_labels, load_models, model_labels, NamedModel, PX4,
-                                      safe_label, with_accel)
-from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
+from gyro_tdc.evaluate.models import (bag_labels, load_models, model_labels, NamedModel,
+                                      ONBOARD, onboard_model, PX4, safe_label, with_accel)
 from gyro_tdc.identify import (accel_scores, all_constant_error, constant_axes, find_still,
                                MAX_MOVING_SHARE, MIN_SAMPLES, moving_share, rows_of)
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
