@@ -44,7 +44,6 @@ from numpy.typing import NDArray
 __all__ = ['FullSeriesModel', 'HOLDOUT_MODELS', 'HoldoutModel', 'burst_holdout', 'burst_index',
            'fit_full_series', 'format_holdout', 'pan_holdout', 'run_tool']
 
-_DEG = 180.0 / math.pi
 #: Summary groups of a scheme: interior blocks are interpolation, end blocks extrapolation.
 GROUPS = ('interior', 'end', 'all')
 
@@ -300,7 +299,7 @@ def burst_holdout(run: Run, *, n_blocks: int = 5, leave_one_out: bool = True,
                        f'burst of {int(counts.min())}.')
     if t0 is None:
         t0 = estimate_t0(run)
-    err = (run.omega - run.omega_ref) * _DEG
+    err = np.degrees(run.omega - run.omega_ref)
     means = np.array([err[burst == b].mean(axis=0) for b in range(n_bursts)])
     dev = err - means[burst]
     sd = np.sqrt((dev ** 2).mean(axis=0))
