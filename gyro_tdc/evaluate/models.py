@@ -48,20 +48,11 @@ PX4 = 'px4'
 @dataclass(frozen=True)
 class NamedModel:
     """
-    A model with the name it was given on the command line.
+    A model with the name it was given on the command line (a file path as given, or ``px4``).
 
-    Parameters
-    ----------
-    name : str
-        A model file path as given, or ``px4``.
-    label : str
-        Short unique label (tables, CSV columns, legends).
-    model : CompensationModel
-        The model.
-    out_of_range : str, optional
-        The model's own out-of-range policy (a flight controller's clamp), overriding the
-        evaluation's.
-
+    ``label`` is short and unique (tables, CSV columns, legends); ``out_of_range``, when set,
+    is the model's own out-of-range policy (a flight controller's clamp), overriding the
+    evaluation's.
     """
 
     name: str

@@ -53,21 +53,10 @@ class HoldoutModel:
     """
     One model compared in the held-out evaluation.
 
-    Parameters
-    ----------
-    name : str
-        Short name (JSON key and table label).
-    description : str
-        What it is.
-    kind : str
-        ``'raw'`` (no compensation), ``'poly'`` or ``'rbf'``.
-    features : tuple of str
-        Effect ids (``bias`` implied; empty: a constant offset).
-    n_centers : int
-        RBF centres K (``rbf`` only).
-    full_series : bool
-        Features computed on the whole recording (dynamic effects), see the module notes.
-
+    ``name`` is its JSON key and table label, ``kind`` ``'raw'`` (no compensation), ``'poly'``
+    or ``'rbf'`` (``n_centers`` RBF centres), ``features`` its effect ids (``bias`` implied;
+    empty: a constant offset); ``full_series``: the features computed on the whole recording
+    (dynamic effects, :class:`FullSeriesModel`).
     """
 
     name: str
