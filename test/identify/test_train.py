@@ -32,8 +32,8 @@ from gyro_tdc.data.bag.writer import write_bag
 from gyro_tdc.data.dataset import load_run
 from gyro_tdc.data.options import BagOptions
 from gyro_tdc.errors import DatasetError, FitError
+from gyro_tdc.evaluate.report import format_training
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
-from gyro_tdc.evaluate.training_report import format_training
 from gyro_tdc.identify import constant_gyro_axes
 from gyro_tdc.identify.options import TrainOptions
 from gyro_tdc.identify.still_only import moving_share, proxy_lag
