@@ -18,8 +18,9 @@ Do no harm across power cycles: the thermal curve validated on held-out sessions
 :func:`check_sessions` holds each session out in turn (the estimator's
 :meth:`gyro_tdc.signal.Folds.sessions`), fits the curve on the others and scores it on the
 held-out session re-anchored, as the compensator re-anchors at start-up, against its offset
-alone. An axis whose curve does not predict every held-out power cycle better keeps the
-offset only; :func:`session_check_lines` says so with the figures, or that no power cycle
+alone. An axis whose curve does not predict every held-out power cycle better, by
+:data:`~gyro_tdc.signal.CURVE_SIGNIFICANCE` standard errors of its gain
+(:func:`~gyro_tdc.signal.judge_curve`, the learner's rule too), keeps the offset only; :func:`session_check_lines` says so with the figures, or that no power cycle
 overlaps the others' temperatures and the curve is kept unchecked. Unchecked, it must rest
 on :data:`MIN_SESSION_SPAN_C` of one power cycle: each offset free, a curve is told only
 within a power cycle, and one told over less (the short stops of flight logs) is kept off.
@@ -47,7 +48,8 @@ from gyro_tdc.identify.linear import fit_linear, LinearFit
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime import MAX_ANCHORS, MAX_ROWS, SIGNIFICANCE
 from gyro_tdc.runtime import reanchor_rule as _rule
-from gyro_tdc.signal import curve_untold, Folds, heldout, MIN_SESSION_SPAN_C, within
+from gyro_tdc.signal import (CURVE_SIGNIFICANCE, curve_untold, Folds, heldout,
+                             judge_curve, MIN_SESSION_SPAN_C, within)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -90,7 +92,8 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     record : dict or None
         ``folds``, ``blocks``, ``curve_ms_dps2`` and ``offset_ms_dps2`` (held-out mean squares
         per axis, each session re-anchored), ``worse_folds`` (per axis, the held-out sessions
-        the curve predicts worse) and ``offset_only`` (axis names); with no session to
+        the curve predicts worse), ``gain_t`` (the t statistic of its gain) and
+        ``offset_only`` (axis names); with no session to
         judge on (none overlaps the others' temperatures), ``folds`` 0, ``sessions`` and no
         figures: the curve is kept unchecked, unless two sessions or more none of which spans
         :data:`MIN_SESSION_SPAN_C` (``widest_span_c``) leave it offset only on every axis.
@@ -113,23 +116,14 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
                        scale_cols=None if scale_cols is None else scale_cols[train])
         return f.predict(x[test], None if scale_cols is None else scale_cols[test]) - y[test]
 
-    shape, scored = y.shape, np.any(np.stack(folds.test), axis=0)
-
-    def mean_square(r: NDArray[np.float64], m: NDArray[np.bool_]) -> NDArray[np.float64]:
-        w = counts[m][:, None]
-        return (w * r[m] ** 2).sum(axis=0) / w.sum()
-
-    r_curve, r_offset = (heldout(f, folds, shape, groups=groups, weights=counts)
+    r_curve, r_offset = (heldout(f, folds, y.shape, groups=groups, weights=counts)
                          for f in (curve, lambda test, train: -y[test]))
-    ms_curve, ms_offset = mean_square(r_curve, scored), mean_square(r_offset, scored)
-    # Every held-out power cycle must be predicted better: a curve that misses one of a few
-    # power cycles is as likely to miss the next one.
-    worse = np.sum([~(mean_square(r_curve, t) < mean_square(r_offset, t)) for t in folds.test],
-                   axis=0)
-    drop = np.flatnonzero(~(ms_curve < ms_offset) | (worse > 0))
-    record = {'folds': len(folds), 'blocks': int(np.count_nonzero(scored)),
-              'curve_ms_dps2': (ms_curve * _DEG2).tolist(),
-              'offset_ms_dps2': (ms_offset * _DEG2).tolist(), 'worse_folds': worse.tolist(),
+    v = judge_curve(r_curve, r_offset, folds, counts)
+    drop = np.flatnonzero(v.drop)
+    record = {'folds': len(folds), 'blocks': v.rows,
+              'curve_ms_dps2': (v.ms_curve * _DEG2).tolist(),
+              'offset_ms_dps2': (v.ms_offset * _DEG2).tolist(),
+              'worse_folds': v.worse_folds.tolist(), 'gain_t': v.gain_t.tolist(),
               'offset_only': [AXES[a] for a in drop]}
     if not drop.size:
         return fit, offsets, record
@@ -172,10 +166,14 @@ def session_check_lines(record: dict | None) -> list[str]:
     if 'worse_folds' in record:
         out.append('  power cycles predicted worse by the curve: '
                    + '  '.join(f'{v:d}' for v in record['worse_folds']))
+    if 'gain_t' in record:
+        out.append("  the curve's gain in standard errors: "
+                   + '  '.join(f'{v:.1f}' for v in record['gain_t']))
     if record['offset_only']:
         out.append(f"axes {', '.join(record['offset_only'])}: the curve does not predict "
-                   'every held-out power cycle better than its offset alone; the model keeps '
-                   'the offset only there (re-anchoring still applies)')
+                   'every held-out power cycle better than its offset alone, by '
+                   f'{CURVE_SIGNIFICANCE:g} standard errors; the model keeps the offset only '
+                   'there (re-anchoring still applies)')
     return out
 
 

@@ -34,8 +34,8 @@ from gyro_tdc.errors import ModelFileError
 from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag,
                             MAX_EXTRAPOLATION_C, normalise_ids, STATE_TERMS, THERMAL_EFFECTS,
                             ThermalState)
-from gyro_tdc.signal import (curve_untold, fit_columns, Folds, hat, heldout, session_columns,
-                             within)
+from gyro_tdc.signal import (curve_untold, fit_columns, Folds, hat, heldout, judge_curve,
+                             session_columns, within)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -214,9 +214,10 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     Each session is held out in turn inside the others' temperatures (the estimator's
     :meth:`~gyro_tdc.signal.Folds.sessions`), the curve fitted on the others, and its
     residuals and the raw rate's re-anchored (:func:`~gyro_tdc.signal.heldout`), as the node
-    re-anchors a new power cycle. Where the curve's weighted mean square is not below the
-    offset's, the axis keeps the offset only. Without a fold (one session, or none
-    overlapping another's temperatures) nothing is judged and the curve is kept: it is the
+    re-anchors a new power cycle. Where the curve does not beat the offset on every held-out
+    power cycle, by :data:`~gyro_tdc.signal.CURVE_SIGNIFICANCE` standard errors
+    (:func:`~gyro_tdc.signal.judge_curve`, the trainer's rule), the axis keeps the offset only.
+    Without a fold (one session, or none overlapping another's temperatures) nothing is judged and the curve is kept: it is the
     only evidence, the prediction check still guards it and each power-up is re-anchored;
     unless, as the trainer, two sessions or more none of which spans
     :data:`~gyro_tdc.signal.MIN_SESSION_SPAN_C` leave it offset only on every axis.
@@ -246,13 +247,11 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
         xc, yc = (within(v[train], g[train], wt[train])[1] for v in (x, y))
         return y[test] - x[test] @ fit_columns(xc, yc, weights=wt[train])
 
-    scored = np.any(np.stack(folds.test), axis=0)
-    w = wt[scored][:, None]
-    ms = [(w * heldout(f, folds, y.shape, groups=g, weights=wt)[scored] ** 2).sum(axis=0)
-          / w.sum() * _DEG2 for f in (curve, lambda test, train: y[test])]
-    rec.update(points=int(np.count_nonzero(scored)), curve_ms_dps2=ms[0].tolist(),
-               offset_ms_dps2=ms[1].tolist(),
-               offset_only=[AXES[a] for a in np.flatnonzero(~(ms[0] < ms[1]))])
+    v = judge_curve(*(heldout(f, folds, y.shape, groups=g, weights=wt)
+                      for f in (curve, lambda test, train: y[test])), folds, wt)
+    rec.update(points=v.rows, curve_ms_dps2=(v.ms_curve * _DEG2).tolist(),
+               offset_ms_dps2=(v.ms_offset * _DEG2).tolist(),
+               offset_only=[AXES[a] for a in np.flatnonzero(v.drop)])
     return rec
 
 

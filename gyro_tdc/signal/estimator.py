@@ -31,12 +31,17 @@ from typing import Callable, Sequence
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['curve_untold', 'fit_columns', 'Folds', 'hat', 'heldout', 'MIN_SESSION_SPAN_C',
-           'pinv_fit', 'session_columns', 'solve_normal', 'within']
+__all__ = ['curve_untold', 'CURVE_SIGNIFICANCE', 'CurveVerdict', 'fit_columns', 'Folds', 'hat',
+           'heldout', 'judge_curve', 'MIN_SESSION_SPAN_C', 'pinv_fit', 'session_columns',
+           'solve_normal', 'within']
 
 #: With a free offset per group (power cycle, orientation segment) a curve is told only within
 #: a group: where no fold can judge it, it stands only on a group spanning this many degC.
 MIN_SESSION_SPAN_C = 2.0
+#: A curve is kept on an axis only where its held-out gain over the offset alone (per row, in
+#: squared residual) is this many standard errors above zero: a gain inside the noise of a
+#: few short still stretches is no evidence that the curve carries to the next power cycle.
+CURVE_SIGNIFICANCE = 2.0
 
 
 def fit_columns(x: NDArray[np.float64], y: NDArray[np.float64], *,
@@ -239,6 +244,45 @@ class Folds:
             tests.append(test)
             trains.append(train)
         return cls(tuple(tests), tuple(trains))
+
+
+@dataclass(frozen=True)
+class CurveVerdict:
+    """The held-out judgement of a curve against its offset alone, per axis."""
+
+    ms_curve: NDArray[np.float64]
+    ms_offset: NDArray[np.float64]
+    worse_folds: NDArray[np.int64]
+    gain_t: NDArray[np.float64]
+    drop: NDArray[np.bool_]
+    rows: int
+
+
+def judge_curve(r_curve: NDArray[np.float64], r_offset: NDArray[np.float64], folds: Folds,
+                weights: NDArray[np.float64]) -> CurveVerdict:
+    """
+    Judge a curve on held-out sessions against their offsets alone (the one rule).
+
+    ``r_curve`` and ``r_offset`` are the held-out residuals (N, M) of :func:`heldout`,
+    ``weights`` (N,) the rows' samples. Per axis: the weighted mean squares over the rows a
+    fold scores, the folds the curve predicts no better, and the t statistic of the curve's
+    per-row gain. An axis is dropped (offset only) unless the curve is better pooled, on every
+    held-out power cycle, and by :data:`CURVE_SIGNIFICANCE` standard errors.
+    """
+    scored = np.any(np.stack(folds.test), axis=0)
+    w = weights[:, None]
+
+    def mean_square(r: NDArray[np.float64], m: NDArray[np.bool_]) -> NDArray[np.float64]:
+        return (w[m] * r[m] ** 2).sum(axis=0) / w[m].sum()
+
+    ms_curve, ms_offset = mean_square(r_curve, scored), mean_square(r_offset, scored)
+    worse = np.sum([~(mean_square(r_curve, t) < mean_square(r_offset, t)) for t in folds.test],
+                   axis=0)
+    gain = (w * (r_offset ** 2 - r_curve ** 2))[scored]
+    with np.errstate(divide='ignore', invalid='ignore'):
+        t = gain.mean(axis=0) / (gain.std(axis=0, ddof=1) / np.sqrt(len(gain)))
+    drop = ~(ms_curve < ms_offset) | (worse > 0) | ~(t >= CURVE_SIGNIFICANCE)
+    return CurveVerdict(ms_curve, ms_offset, worse, t, drop, int(np.count_nonzero(scored)))
 
 
 def heldout(residual: Callable[[NDArray[np.bool_], NDArray[np.bool_]], NDArray[np.float64]],

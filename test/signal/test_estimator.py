@@ -14,8 +14,9 @@
 
 """The one estimator: known coefficients recovered, sessions and folds as specified."""
 
-from gyro_tdc.signal.estimator import (curve_untold, fit_columns, Folds, hat, heldout, pinv_fit,
-                                       session_columns, solve_normal, within)
+from gyro_tdc.signal.estimator import (curve_untold, CURVE_SIGNIFICANCE, fit_columns, Folds, hat,
+                                       heldout, judge_curve, pinv_fit, session_columns,
+                                       solve_normal, within)
 import numpy as np
 import pytest
 
@@ -136,3 +137,26 @@ def test_a_curve_is_untold_by_groups_that_each_span_under_two_degrees():
     assert curve_untold(temp, [0, 0, 1, 1, 1]) == 1.5            # the widest, under 2 degC
     assert curve_untold(temp, [0, 0, 0, 0, 0]) is None            # one group: its own rule
     assert curve_untold(np.r_[temp, 33.0], [0, 0, 1, 1, 1, 1]) is None   # 3 degC of one
+
+
+def test_judge_curve_keeps_a_significant_gain_on_every_fold_only():
+    rng = np.random.default_rng(3)
+    groups = np.repeat([0, 1, 2, 3], 200)
+    folds = Folds.sessions(groups)
+    w = np.full(groups.size, 25.0)
+    r_offset = rng.normal(0.0, 1.0, (groups.size, 3))
+    r_curve = r_offset.copy()
+    r_curve[:, 0] *= 0.8                        # x: a clear gain on every row
+    # y: better on every power cycle by 0.01 per row, in a gain of +-0.5 per row: no evidence
+    r_offset[:, 1] = rng.choice([-1.0, 1.0], groups.size)
+    r_curve[:, 1] = np.sqrt(1.0 - 0.01 - 0.5 * (-1.0) ** np.arange(groups.size))
+    r_curve[groups == 2, 2] *= 1.5              # z: a gain, but worse on one power cycle
+    r_curve[groups != 2, 2] *= 0.5
+    v = judge_curve(r_curve, r_offset, folds, w)
+    assert v.rows == groups.size and v.worse_folds[2] == 1 and v.worse_folds[0] == 0
+    assert v.gain_t[0] > CURVE_SIGNIFICANCE > abs(v.gain_t[1])
+    assert v.drop.tolist() == [False, True, True]
+    assert v.ms_curve[0] == pytest.approx(0.64 * v.ms_offset[0])
+    # the gain on y alone, made consistent, is kept
+    r_curve[:, 1] = 0.9 * r_offset[:, 1]
+    assert not judge_curve(r_curve, r_offset, folds, w).drop[1]
