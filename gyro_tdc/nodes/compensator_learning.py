@@ -222,7 +222,7 @@ class Learning:
         if self._learn_prior is not None:
             (model,), self._learn_prior = self._learn_prior, None
             learner.set_prior(model)
-            core.cancel_scheduled()
+            core.learning.cancel()
         if self._learn_timeout is not None:
             learner.config = replace(learner.config, temperature_timeout=self._learn_timeout)
             self._learn_timeout = None
@@ -268,7 +268,7 @@ class Learning:
         for it (up to :data:`LEARN_WAIT_S`, then it applies when the step ends).
         """
         self._learn_prior = (model,)
-        self.core.cancel_scheduled()
+        self.core.learning.cancel()
         self.wait()
 
     def save_now(self) -> str:
@@ -339,7 +339,7 @@ class Learning:
         if not self._step_now():
             return False, BUSY
         self.learner.reset()
-        self.core.cancel_scheduled()
+        self.core.learning.cancel()
         self.core.set_model(self.learner.prior)
         return True, ('learning reset: back to the prior' if self.learner.prior is not None
                       else 'learning reset: no model until the next still stretch')
