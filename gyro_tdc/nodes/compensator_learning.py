@@ -137,9 +137,9 @@ class Learning:
         #: The axes the learned model keeps offset-only, as last logged.
         self._offset_only: list[str] = []
         self._learn_jobs = LatestJob()
+        # The step in progress; a prior (a 1-tuple) and a timeout waiting for it to end.
         self.job: Job | None = None
-        self._learn_prior: tuple[CompensationModel | None] | None = None
-        self._learn_timeout: float | None = None
+        self._learn_prior = self._learn_timeout = None
         if node.params.learn_file:
             self._open(node.params.learn_file)
         else:
