@@ -212,9 +212,10 @@ def reanchor_var(model: CompensationModel | None, gate: LearningGate):
     The model's (None without one); for a learned model with a learner attached to ``gate``
     (:class:`~gyro_tdc.runtime.handoff.LearningGate`), at least the raw rate's noise variance
     per sample: the learner's noise floor of the means it is handed (``created['gyro_floor']``)
-    times the ``gate.block_n`` samples of the last one handed within a run. A learned model's residual variance is that
-    of its points' means, far below one sample's scatter: as the still threshold's prior and
-    the tolerance's scale it would refuse every window or never be met.
+    times the ``gate.block_n`` samples of the last one handed within a run. A learned model's
+    residual variance is that of its points' means, far below one sample's scatter: as the
+    still threshold's prior and the tolerance's scale it would refuse every window or never be
+    met.
     """
     if model is None:
         return None
