@@ -149,7 +149,7 @@ class Backlog:
     def _judge(self, stamp: np.ndarray, start: np.ndarray, idle: np.ndarray
                ) -> tuple[np.ndarray, int, int]:
         """Return each sample's queue age, s, and the samples missing and gaps counted."""
-        n, missing, gaps = len(stamp), self.missing, self.gaps
+        n, missing0, gaps0 = len(stamp), self.missing, self.gaps    # the counts before
         age = np.zeros(n)
         if self.period is None:           # learnt from the first MIN_STEPS steps
             steps = np.diff(stamp, prepend=stamp[0] if self._high is None else self._high)
@@ -185,7 +185,7 @@ class Backlog:
             self._gaps(steps[:hi - lo], age[lo:hi], idle[lo:hi])
             self._high = float(newest[hi - lo])
             lo = hi
-        return age, self.missing - missing, self.gaps - gaps
+        return age, self.missing - missing0, self.gaps - gaps0
 
     def _ages(self, newest: np.ndarray, start: np.ndarray) -> np.ndarray:
         """Return the queue ages of samples of one stream, s (from the newest stamp seen)."""
