@@ -35,8 +35,7 @@ from gyro_tdc.base import (MAX_DRIFT_RAD_S as _MAX_DRIFT, MAX_RATE_RAD_S as _MAX
                            MAX_TEMP_LEAD_S, RESTART_BACK_S)
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime.blockstats import Vec3
-from gyro_tdc.runtime.drift import (accel_slot, correction_is_safe, growth, ModelSlot,
-                                    timeless, widen)
+from gyro_tdc.runtime.drift import accel_slot, growth, ModelSlot, timeless, widen
 from gyro_tdc.runtime.flags import (IMPLAUSIBLE_INPUT, IMPLAUSIBLE_OUTPUT, NO_ACCEL_DATA,
                                     NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
                                     PASSTHROUGH, STALE, UPSTREAM)
@@ -48,7 +47,7 @@ from gyro_tdc.runtime.state import detector_for, reanchor_var, Reanchoring, Stre
 from gyro_tdc.signal import TemperatureHold
 import numpy as np
 
-__all__ = ['CompensatorCore', 'correction_is_safe', 'Output', 'timeless']
+__all__ = ['CompensatorCore', 'Output']
 
 #: What :meth:`CompensatorCore.process` returns, a plain tuple (a NamedTuple costs more per
 #: sample than the rest of the static path): ``(wx, wy, wz, variance, flags, accel,
