@@ -285,8 +285,8 @@ class DriverNode(ShellNode):
             state, 'publishing')
         if state == 'error':
             retry = max(self._retry_at - time.monotonic(), 0.0)
-            level, message = DiagnosticStatus.ERROR, (
-                f'device error, retry in {retry:.1f} s: {self._last_error}')
+            level = DiagnosticStatus.ERROR
+            message = f'device error, retry in {retry:.1f} s: {self._last_error}'
         values = {
             'backend': p.backend, 'device': self._device, 'state': state,
             'imu messages': self._published, 'temperature messages': self._temps,
