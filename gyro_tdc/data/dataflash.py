@@ -144,12 +144,8 @@ def _imu(reader, kind: str = 'IMU') -> dict[int, dict[str, np.ndarray]]:
         if mtype is None or not len(reader.offsets[mtype]):
             continue
         cols = _records(reader, mtype)
-        if _has_instances(cols):
-            for i in np.unique(cols['I']).tolist():
-                sel = cols['I'] == i
-                out[int(i)] = {k: v[sel] for k, v in cols.items()}
-        else:
-            out[base] = cols
+        parts = _instances(cols)
+        out.update({base: cols} if parts is None else parts)
     return out
 
 
@@ -217,9 +213,12 @@ def _gyro_accel(d: dict, fast: tuple | str, acc: dict | str | None, accel: bool)
             said + ', accelerometer from IMU')
 
 
-def _has_instances(cols: dict[str, np.ndarray]) -> bool:
-    """Return True when a record type's ``I`` field numbers instances (a uint8)."""
-    return 'I' in cols and np.asarray(cols['I']).dtype == np.uint8
+def _instances(cols: dict[str, np.ndarray]) -> dict[int, dict[str, np.ndarray]] | None:
+    """Return a message type's records per instance; None when its ``I`` is no instance number."""
+    if 'I' not in cols or np.asarray(cols['I']).dtype != np.uint8:
+        return None
+    return {int(i): {k: v[cols['I'] == i] for k, v in cols.items()}
+            for i in np.unique(cols['I']).tolist()}
 
 
 def _instance(cols: dict[str, np.ndarray], want: int) -> tuple[dict[str, np.ndarray], int]:
@@ -230,12 +229,11 @@ def _instance(cols: dict[str, np.ndarray], want: int) -> tuple[dict[str, np.ndar
     ``HEAT.I`` is a float, its heater's integrator) interleaves its instances: ``want``
     where it has it, else its first; a message without is one.
     """
-    if not _has_instances(cols) or not len(cols['I']):
+    parts = _instances(cols)
+    if not parts:
         return cols, 0
-    have = np.unique(cols['I']).tolist()
-    i = want if want in have else int(have[0])
-    sel = cols['I'] == i
-    return {k: v[sel] for k, v in cols.items()}, int(i)
+    i = want if want in parts else min(parts)
+    return parts[i], i
 
 
 def _seconds(cols: dict[str, np.ndarray]) -> np.ndarray:
@@ -255,8 +253,7 @@ def _inventory(imus: dict, baros: dict) -> str:
     for i, d in sorted(imus.items()):
         temp = _temperature(d)
         parts.append(f'{i}: {len(d["TimeUS"])} samples at {rate_hz(_seconds(d)):.3g} Hz, '
-                     'temperature '
-                     + (f'IMU.{temp[0]}' if temp else 'none'))
+                     'temperature ' + (f'IMU.{temp[0]}' if temp else 'none'))
     baro = [i for i, d in sorted(baros.items()) if _temperature(d) is not None]
     return '; '.join(parts) + (f'; barometer temperature: BARO instance '
                                f'{", ".join(map(str, baro))}' if baro else '')
@@ -365,8 +362,8 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     notes += (['ISBD batch samples not read (bursts, not a stream)']
               if bursts and source == 'IMU' else [])
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
-                     firmware='ardupilot', source=source,
-                     instance=int(instance), instances=tuple(sorted(imus)), raw=False,
-                     compensated=active, onboard=words, truncated_bytes=cut, notes=notes,
+                     firmware='ardupilot', source=source, instance=int(instance),
+                     instances=tuple(sorted(imus)), raw=False, compensated=active,
+                     onboard=words, truncated_bytes=cut, notes=notes,
                      temp_t=temp_t, temperature=name, proxy=temperature_source != 'imu',
                      damage=f'pymavlink skipped {skipped} damaged headers' if skipped else '')
