@@ -28,10 +28,9 @@ from __future__ import annotations
 import contextlib
 from dataclasses import dataclass
 import functools
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence, Union
 
 from gyro_tdc.data import imu_cdr
-from gyro_tdc.data.bag.storage import split
 from gyro_tdc.data.imu_cdr import CDR_LE, field_slice, IMU_DOUBLES, IMU_FIELDS, layout_of
 from gyro_tdc.errors import DatasetError
 import numpy as np
@@ -39,9 +38,9 @@ from numpy.typing import NDArray
 from rosbags.serde import SerdeError
 from rosbags.typesys import get_typestore, Stores
 
-__all__ = ['Decoded', 'FLOAT_TYPES', 'IMU_TYPE', 'KEEP', 'N_DOUBLES', 'REFERENCE_TYPE',
-           'TEMPERATURE_TYPE', 'TEMPERATURE_TYPES', 'decode', 'decode_float',
-           'decode_joined', 'decode_slow', 'encode_checked', 'from_msg', 'jazzy', 'to_msg']
+__all__ = ['Decoded', 'FLOAT_TYPES', 'IMU_TYPE', 'KEEP', 'Logs', 'N_DOUBLES', 'REFERENCE_TYPE',
+           'TEMPERATURE_TYPE', 'TEMPERATURE_TYPES', 'decode', 'decode_float', 'decode_joined',
+           'decode_slow', 'encode_checked', 'from_msg', 'jazzy', 'split', 'to_msg']
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'
 TEMPERATURE_TYPE = 'sensor_msgs/msg/Temperature'
@@ -62,6 +61,16 @@ N_DOUBLES = {IMU_TYPE: IMU_DOUBLES, TEMPERATURE_TYPE: 2, REFERENCE_TYPE: 3}
 KEEP = {IMU_TYPE: tuple(k for name in ('angular_velocity', 'linear_acceleration')
                         for k in range(IMU_DOUBLES)[field_slice(name)]),
         TEMPERATURE_TYPE: (0, 1), REFERENCE_TYPE: (0, 1, 2)}
+
+
+#: Log times of a block, or a function that fetches them when a message needs them.
+Logs = Union[NDArray[np.int64], Callable[[], NDArray[np.int64]]]
+
+
+def split(buf: bytes, lengths: NDArray[np.int64]) -> list[bytes]:
+    """Return the messages stored end to end in ``buf``."""
+    ends = np.cumsum(lengths).tolist()
+    return [buf[a:b] for a, b in zip([0] + ends[:-1], ends)]
 
 
 @functools.lru_cache(maxsize=None)

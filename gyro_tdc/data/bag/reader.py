@@ -37,8 +37,8 @@ from typing import Any, Callable, Mapping, Sequence
 import apsw
 from gyro_tdc.data.bag import columnar, metadata
 from gyro_tdc.data.bag.codec import (decode, decode_float, decode_joined, Decoded, FLOAT_TYPES,
-                                     IMU_TYPE, jazzy, KEEP, REFERENCE_TYPE, TEMPERATURE_TYPES)
-from gyro_tdc.data.bag.storage import Logs, Unfit
+                                     IMU_TYPE, jazzy, KEEP, Logs, REFERENCE_TYPE,
+                                     TEMPERATURE_TYPES)
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import NDArray
@@ -260,7 +260,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                 raise                     # a topic missing or of the wrong type
             except Exception as err:      # noqa: B902 (whatever it is, rosbags decides)
                 # Let rosbags read it, or say what is wrong with it.
-                why = (str(err) if isinstance(err, Unfit)
+                why = (str(err) if isinstance(err, metadata.Unfit)
                        else f'{type(err).__name__}: {one_line(err)}')
         if via == 'columnar':
             raise DatasetError(f'Cannot read bag {str(bag)!r} column by column: {why}.')

@@ -31,9 +31,10 @@ import struct
 import sys
 from typing import Any, Callable, Mapping, NamedTuple
 
-from gyro_tdc.data.bag.metadata import Entry
-from gyro_tdc.data.bag.storage import Pending, Unfit
+from gyro_tdc.data.bag.codec import Logs
+from gyro_tdc.data.bag.metadata import Entry, Unfit
 import numpy as np
+from numpy.typing import NDArray
 
 if sys.version_info >= (3, 14):
     from compression import zstd
@@ -106,6 +107,32 @@ def _qos(metadata: bytes) -> str:
         if key == 'offered_qos_profiles':
             return value
     return ''
+
+
+class Pending:
+    """Main (IMU) messages gathered until a block is full, then handed to ``out.main``."""
+
+    def __init__(self, out: Any, chunk: int) -> None:
+        self.out, self.chunk = out, chunk
+        self.parts: list[tuple[bytes, NDArray[np.int64], Logs]] = []
+        self.n = 0
+
+    def add(self, buf: bytes, lengths: NDArray[np.int64], logs: Logs) -> None:
+        """Add messages stored end to end in ``buf``; hand the block over once it is full."""
+        self.parts.append((buf, lengths, logs))
+        self.n += len(lengths)
+        if self.n >= self.chunk:
+            self.flush()
+
+    def flush(self) -> None:
+        """Hand what is gathered over (before any other role's block of the same span)."""
+        if not self.n:
+            return
+        pieces, lengths, logs = zip(*self.parts)
+        self.parts, self.n = [], 0
+        self.out.main(pieces[0] if len(pieces) == 1 else b''.join(pieces),
+                      np.concatenate(lengths),
+                      lambda: np.concatenate([x() if callable(x) else x for x in logs]))
 
 
 class McapFile:

@@ -33,8 +33,8 @@ import sqlite3
 import threading
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
-from gyro_tdc.data.bag.metadata import Entry
-from gyro_tdc.data.bag.storage import split, Unfit
+from gyro_tdc.data.bag.codec import split
+from gyro_tdc.data.bag.metadata import Entry, Unfit
 import numpy as np
 from numpy.typing import NDArray
 
