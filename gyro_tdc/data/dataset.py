@@ -58,8 +58,7 @@ def _vector(name: str, a: ArrayLike) -> NDArray[np.float64]:
 
 
 def _interp_sorted(imu_t: NDArray[np.float64], tt: NDArray[np.float64],
-                   tc: NDArray[np.float64], gap: float
-                   ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+                   tc: NDArray[np.float64], gap: float) -> tuple[NDArray, NDArray[np.bool_]]:
     """
     Interpolate onto sorted IMU stamps, working on the knots rather than on every sample.
 
@@ -522,8 +521,7 @@ def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
 
 
 def iter_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
-              options: BagOptions | None = None, *,
-              log: Callable[[str], None] | None = None,
+              options: BagOptions | None = None, *, log: Callable[[str], None] | None = None,
               found: list[tuple[Path, bool]] | None = None) -> Iterator[Run]:
     """
     Yield the runs of bags (or folders of them, :func:`find_bags`) one at a time.

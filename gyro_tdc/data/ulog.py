@@ -55,8 +55,7 @@ _DEVICE_FIELDS = {'gyro': (('sensor_gyro', 'device_id'), ('vehicle_imu', 'gyro_d
 FIFO_SAMPLES = 32
 #: The IMU's own thermometers, in the order they are tried: (topic, field).
 _IMU_THERMOMETERS = (('sensor_gyro', 'temperature'), ('vehicle_imu_status', 'temperature_gyro'),
-                     ('vehicle_imu_status', 'temperature_accel'),
-                     ('sensor_accel', 'temperature'))
+                     ('vehicle_imu_status', 'temperature_accel'), ('sensor_accel', 'temperature'))
 #: The barometer's thermometers (``--temperature-source baro``), in the order they are tried.
 _BARO_THERMOMETERS = (('sensor_combined', 'baro_temp_celcius'),
                       ('vehicle_air_data', 'baro_temp_celcius'), ('sensor_baro', 'temperature'))
@@ -330,8 +329,8 @@ def _thermometer(topics: dict, instance: int, source: str
     """Return (name, stamps s, degC) of the thermometer ``source`` asks for, None if none."""
     tp, _, f = source.partition('.')
     cands = {'imu': [(tp, f, instance) for tp, f in _IMU_THERMOMETERS],
-             'baro': [(tp, f, 0) for tp, f in _BARO_THERMOMETERS]}.get(
-        source, [(tp, f, instance), (tp, f, 0)])
+             'baro': [(tp, f, 0) for tp, f in _BARO_THERMOMETERS]
+             }.get(source, [(tp, f, instance), (tp, f, 0)])
     for tp, f, i in cands:
         d = topics.get(tp, {}).get(i) or {}
         if (v := thermometer(d.get(f))) is not None:
@@ -340,8 +339,7 @@ def _thermometer(topics: dict, instance: int, source: str
 
 
 def _required_thermometer(p: Path, topics: dict[str, dict[int, dict]], instance: int,
-                          temperature_source: str, source: str
-                          ) -> tuple[str, NDArray[np.float64], NDArray[np.float64]]:
+                          temperature_source: str, source: str) -> tuple:
     """
     Return :func:`_thermometer`'s ``(name, stamps, degC)`` or raise DatasetError saying why not.
 
@@ -357,8 +355,7 @@ def _required_thermometer(p: Path, topics: dict[str, dict[int, dict]], instance:
                                         "barometer's as a proxy." if baro else '.'))
     if therm is None:
         raise DatasetError(f'Log {str(p)!r}: no usable thermometer for --temperature-source '
-                           f"{temperature_source} (the log's instances: "
-                           f'{_inventory(topics)}).')
+                           f"{temperature_source} (the log's instances: {_inventory(topics)}).")
     return therm
 
 

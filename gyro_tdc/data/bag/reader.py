@@ -191,8 +191,8 @@ VIA = ('auto', 'columnar', 'rosbags')
 
 
 def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
-             reference_topic='/rate_table/reference', progress=False,
-             accel=True, via='auto') -> BagData:
+             reference_topic='/rate_table/reference', progress=False, accel=True, via='auto'
+             ) -> BagData:
     """
     Read IMU, temperature and reference-rate arrays from a rosbag2 bag, fast.
 
