@@ -184,9 +184,8 @@ def _combined_note(topics: dict, instance: int, rows: NDArray[np.bool_]) -> str:
     owners = {k for k in ids if _combined_rows(topics, k).any()}
     if owners == {0}:          # the first IMU's, as PX4 selects by default: nothing to say
         return ''
-    return ('sensor_combined carries ' + (f'instance {owners.pop()}' if len(owners) == 1
-                                          else 'other IMUs')
-            + ' (sensor_selection), not this one')
+    which = f'instance {owners.pop()}' if len(owners) == 1 else 'other IMUs'
+    return f'sensor_combined carries {which} (sensor_selection), not this one'
 
 
 def _gyros(topics: dict, instance: int, rows: NDArray[np.bool_] | None = None
@@ -210,20 +209,22 @@ def _gyros(topics: dict, instance: int, rows: NDArray[np.bool_] | None = None
     return out
 
 
-def _fifo(topics: dict, kind: str, device: int, instance: int) -> tuple | str | None:
+def _stream(topics: dict, kind: str, device: int, instance: int,
+            slow_t: NDArray[np.float64], beside: str) -> tuple:
     """
-    Return one IMU's ``sensor_{kind}_fifo`` blocks as samples: (stamps s, (N, 3), words).
+    Return (stamps, samples, words) of the FIFO where it stands in for ``beside`` at ``slow_t``.
 
-    The blocks of its ``device`` (of ``instance`` where the log names none). Sample k of a
-    block of n is ``timestamp_sample - (n - 1 - k) * dt`` (PX4's drivers stamp a block by its
-    newest sample), its value ``x[k] * scale``. A block whose ``samples`` is 0 or beyond 32,
-    ``dt`` not in (0, 1 s] or ``scale`` not finite and non-zero is skipped and counted (and
-    any sample whose value overflows). None without the topic; why not, in words, when no
-    block is this IMU's or a field is missing.
+    Else (None, None, why not in words; '' without the FIFO): see
+    :func:`gyro_tdc.data.flightlog.sensor_stream`. The FIFO is one IMU's
+    ``sensor_{kind}_fifo`` blocks of its ``device`` (of ``instance`` where the log names
+    none). Sample k of a block of n is ``timestamp_sample - (n - 1 - k) * dt`` (PX4's drivers
+    stamp a block by its newest sample), its value ``x[k] * scale``. A block whose ``samples``
+    is 0 or beyond 32, ``dt`` not in (0, 1 s] or ``scale`` not finite and non-zero is skipped
+    and counted (and any sample whose value overflows).
     """
     name = f'sensor_{kind}_fifo'
     if not (inst := topics.get(name)):
-        return None
+        return None, None, ''
     own = [d for i, d in sorted(inst.items())
            if (device and (np.asarray(d.get('device_id', [])) == device).any())
            or (not device and i == instance)]
@@ -235,8 +236,9 @@ def _fifo(topics: dict, kind: str, device: int, instance: int) -> tuple | str | 
         ids = sorted({int(i) for d in inst.values() for i in np.unique(d.get('device_id', []))})
         mine = f'not {device}' if device else f'none of instance {instance}'
         lack = next((f for d in own for f in need if f not in d), 'x[0..31], y or z')
-        return (f'{name} not used: ' + (f'its blocks are of device {", ".join(map(str, ids))}'
-                                        f', {mine}' if not own else f'its format has no {lack}'))
+        return None, None, (f'{name} not used: ' + (
+            f'its blocks are of device {", ".join(map(str, ids))}, {mine}' if not own
+            else f'its format has no {lack}'))
     dev, dt, scale, n = np.concatenate(head).T
     mine = dev == device if device else np.ones(len(dev), dtype=bool)
     stamp = np.concatenate([_seconds(d) for d in own])
@@ -247,26 +249,11 @@ def _fifo(topics: dict, kind: str, device: int, instance: int) -> tuple | str | 
         v = np.stack([np.concatenate(axes[j::3]) * scale[:, None] for j in range(3)], axis=-1)
     keep = ok[:, None] & (k < n[:, None]) & np.isfinite(v).all(axis=-1)
     order = np.argsort(t[keep], kind='stable')
-    bad = int(np.count_nonzero(mine & ~ok))
-    return t[keep][order], v[keep][order], (
-        f', {bad} of {int(mine.sum())} blocks skipped (samples, dt or scale out of range)'
-        if bad else '')
-
-
-def _stream(topics: dict, kind: str, device: int, instance: int, t: NDArray[np.float64],
-            beside: str) -> tuple:
-    """
-    Return (stamps, samples, words) of the FIFO where it stands in for ``beside`` at ``t``.
-
-    Else (None, None, why not in words; '' without the FIFO): see
-    :func:`gyro_tdc.data.flightlog.sensor_stream`.
-    """
-    fifo = _fifo(topics, kind, device, instance)
-    if not isinstance(fifo, tuple):
-        return None, None, fifo or ''
-    name, what = f'sensor_{kind}_fifo', {'gyro': 'gyro', 'accel': 'accelerometer'}[kind]
-    used, said = sensor_stream(fifo[0], fifo[1], t, name, beside, what)
-    return (fifo[0], fifo[1], said + fifo[2]) if used else (None, None, said)
+    t, v, bad = t[keep][order], v[keep][order], int(np.count_nonzero(mine & ~ok))
+    used, said = sensor_stream(t, v, slow_t, name, beside,
+                               'accelerometer' if kind == 'accel' else 'gyro')
+    return (t, v, said + (f', {bad} of {int(mine.sum())} blocks skipped (samples, dt or scale '
+                          'out of range)' if bad else '')) if used else (None, None, said)
 
 
 def _gyro_accel(topics: dict, instance: int, gyros: dict, source: str,
