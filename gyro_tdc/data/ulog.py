@@ -311,8 +311,7 @@ def _inventory(topics: dict) -> str:
                                              + ', '.join(baro) if baro else '')
 
 
-def _thermometer(topics: dict, instance: int, source: str
-                 ) -> tuple[str, NDArray[np.float64], NDArray[np.float64]] | None:
+def _thermometer(topics: dict, instance: int, source: str) -> tuple | None:
     """Return (name, stamps s, degC) of the thermometer ``source`` asks for, None if none."""
     tp, _, f = source.partition('.')
     cands = {'imu': [(tp, f, instance) for tp, f in _IMU_THERMOMETERS],
@@ -323,27 +322,6 @@ def _thermometer(topics: dict, instance: int, source: str
         if (v := thermometer(d.get(f))) is not None:
             return f'{tp}.{f}' + (f' instance {i}' if i else ''), _seconds(d), v
     return None
-
-
-def _required_thermometer(p: Path, topics: dict[str, dict[int, dict]], instance: int,
-                          temperature_source: str, source: str) -> tuple:
-    """
-    Return :func:`_thermometer`'s ``(name, stamps, degC)`` or raise DatasetError saying why not.
-
-    Without the IMU's own thermometer the message names the barometer proxy when there is one.
-    """
-    therm = _thermometer(topics, instance, temperature_source)
-    if therm is None and temperature_source == 'imu':
-        baro = _thermometer(topics, instance, 'baro') is not None
-        raise DatasetError(
-            f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
-            "thermometer reads other than a constant 0 or NaN; the log's instances: "
-            f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
-                                        "barometer's as a proxy." if baro else '.'))
-    if therm is None:
-        raise DatasetError(f'Log {str(p)!r}: no usable thermometer for --temperature-source '
-                           f"{temperature_source} (the log's instances: {_inventory(topics)}).")
-    return therm
 
 
 def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False,
@@ -424,7 +402,18 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
         acc_t, acc = (fast_t, fast) if fast_t is not None else (acc_t, acc)
         acc = acc if acc_t is t else on_stamps(t, acc_t, acc)
     raw = source in ('sensor_gyro', 'sensor_gyro_fifo')
-    name, temp_t, temp = _required_thermometer(p, topics, instance, temperature_source, source)
+    therm = _thermometer(topics, instance, temperature_source)
+    if therm is None and temperature_source == 'imu':
+        baro = _thermometer(topics, instance, 'baro') is not None
+        raise DatasetError(
+            f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
+            "thermometer reads other than a constant 0 or NaN; the log's instances: "
+            f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
+                                        "barometer's as a proxy." if baro else '.'))
+    if therm is None:
+        raise DatasetError(f'Log {str(p)!r}: no usable thermometer for --temperature-source '
+                           f"{temperature_source} (the log's instances: {_inventory(topics)}).")
+    name, temp_t, temp = therm
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
                      firmware='px4', source=source, instance=int(instance),
                      instances=tuple(sorted(found)), raw=raw, compensated=active and not raw,
