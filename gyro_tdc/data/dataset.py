@@ -234,9 +234,8 @@ def _read_source(bag: str | os.PathLike, o: BagOptions, *,
                         progress=o.progress, accel=bool(o.accel)), {}
     if not Path(bag).is_file():
         raise DatasetError(f'Log {str(bag)!r} is not a file.')
-    reader = read_ulog if fmt == 'ulog' else read_dataflash
-    log = reader(bag, instance=o.imu_instance, accel=bool(o.accel),
-                 temperature_source=o.temperature_source)
+    log = (read_ulog if fmt == 'ulog' else read_dataflash)(
+        bag, instance=o.imu_instance, accel=bool(o.accel), temperature_source=o.temperature_source)
     return flight_log_data(bag, log, fmt, o)
 
 

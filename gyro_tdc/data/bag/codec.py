@@ -106,9 +106,9 @@ def from_msg(msgtype: str, msg: Any) -> tuple[int, int, str, list[float]]:
     stamp = msg.header.stamp
     if msgtype == IMU_TYPE:   # the fields in wire order (gyro_tdc.data.imu_cdr.IMU_FIELDS)
         o, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
-        row = ([o.x, o.y, o.z, o.w, *msg.orientation_covariance, w.x, w.y, w.z,
-                *msg.angular_velocity_covariance, a.x, a.y, a.z,
-                *msg.linear_acceleration_covariance])
+        row = [o.x, o.y, o.z, o.w, *msg.orientation_covariance, w.x, w.y, w.z,
+               *msg.angular_velocity_covariance, a.x, a.y, a.z,
+               *msg.linear_acceleration_covariance]
     else:
         v = msg.vector if msgtype == REFERENCE_TYPE else None
         row = [msg.temperature, msg.variance] if v is None else [v.x, v.y, v.z]
@@ -167,9 +167,8 @@ def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype, msgtype: str,
         for i in sorted({0, n // 2, n - 1}):    # the layout checked against rosbags
             raw = bytes(buf[i * dt.itemsize:(i + 1) * dt.itemsize])
             sec, nsec, fid, row = from_msg(msgtype, typestore.deserialize_cdr(raw, msgtype))
-            if (sec != rec['sec'][i] or nsec != rec['nanosec'][i] or fid != frame_id
-                    or not np.array_equal(np.asarray(row, dtype=np.float64), data[i],
-                                          equal_nan=True)):
+            if (sec != rec['sec'][i] or nsec != rec['nanosec'][i] or fid != frame_id or not
+                    np.array_equal(np.asarray(row, dtype=np.float64), data[i], equal_nan=True)):
                 return None
     except (SerdeError, AttributeError, DatasetError, UnicodeDecodeError):
         return None

@@ -401,17 +401,16 @@ class Collector:
         imu_t, gyro, *accel = out['imu']
         temp_t, temp_c, temp_var = out['temperature']
         ref_t, ref = out['reference']
-        return BagData(
-            imu_t=imu_t, gyro=gyro, accel=accel[0] if accel else None,
-            frame_id=self.frame_id, temp_t=temp_t, temp_c=temp_c[:, 0],
-            temp_var=temp_var[:, 0], ref_t=ref_t, ref=ref, topics=topics, rejected=rejected,
-            storage=storage, path=str(bag), fallback=self.fallback, via=via)
+        return BagData(imu_t=imu_t, gyro=gyro, accel=accel[0] if accel else None,
+                       frame_id=self.frame_id, temp_t=temp_t, temp_c=temp_c[:, 0],
+                       temp_var=temp_var[:, 0], ref_t=ref_t, ref=ref, topics=topics,
+                       rejected=rejected, storage=storage, path=str(bag),
+                       fallback=self.fallback, via=via)
 
 
 def _collect(feed: Callable[[Collector, Callable[[int], Any]], None], typestore: Any,
              bag: Path, info: Mapping, topics: dict[str, tuple[str, int]],
-             conns: dict[str, list[Any]], progress: bool, with_accel: bool, via: str
-             ) -> BagData:
+             conns: dict[str, list[Any]], progress: bool, with_accel: bool, via: str) -> BagData:
     """Feed a storage read's blocks (``feed(collector, update)``) to a :class:`Collector`."""
     from tqdm import tqdm
 
