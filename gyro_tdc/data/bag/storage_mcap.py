@@ -231,10 +231,13 @@ class McapFile:
         for a, b in zip(chunks, chunks[1:]):
             if not (a.offset < b.offset and a.end <= b.start):
                 raise Unfit('mcap chunks overlap in time')
-        reader = _Records(roles, out, update)
+        self.codes = {role: k for k, role in enumerate(out.roles)}
+        self.ids = np.full(1 << 16, -1, dtype=np.int8)          # channel id -> role code
+        for cid, role in roles.items():
+            self.ids[cid] = self.codes[role]
         pending = Pending(out, chunk)
         for c in chunks:
-            reader.chunk(self._decompress(c), c, pending)
+            self._chunk(self._decompress(c), c, pending, update)
         pending.flush()
 
     def _decompress(self, c: _Chunk) -> bytes:
@@ -248,18 +251,6 @@ class McapFile:
         if len(data) != c.uncompressed_size or (crc and crc32(data) != crc):
             raise Unfit('a chunk of the wrong size or checksum')
         return data
-
-
-class _Records:
-    """The wanted message records of decompressed chunks, handed to a ``Collector``."""
-
-    def __init__(self, roles: Mapping[int, str], out: Any,
-                 update: Callable[[int], Any]) -> None:
-        self.out, self.update = out, update
-        self.codes = {role: k for k, role in enumerate(out.roles)}
-        self.ids = np.full(1 << 16, -1, dtype=np.int8)          # channel id -> role code
-        for cid, role in roles.items():
-            self.ids[cid] = self.codes[role]
 
     @staticmethod
     def runs(raw: bytes) -> list[tuple[int, int, int]]:
@@ -295,7 +286,8 @@ class _Records:
             pos += n * rec
         return runs
 
-    def chunk(self, raw: bytes, c: _Chunk, pending: Pending) -> None:
+    def _chunk(self, raw: bytes, c: _Chunk, pending: Pending, update: Callable[[int], Any]
+               ) -> None:
         """Hand over the wanted messages of one chunk, in rosbags' order."""
         arr = np.frombuffer(raw, dtype=np.uint8)
         pieces = []                                        # (rows, role codes, log times)
@@ -313,7 +305,7 @@ class _Records:
             return
         codes = np.concatenate([p[1] for p in pieces])
         logs = np.concatenate([p[2] for p in pieces])
-        self.update(len(codes))
+        update(len(codes))
         if np.any(logs[1:] < logs[:-1]):
             # rosbags sorts a chunk stably by log time: here message by message (rare, a
             # chunk written out of order), each its own piece.
@@ -348,7 +340,7 @@ class _Records:
                 pending: Pending) -> None:
         """Hand over the other roles' messages of a chunk, after its main ones."""
         pending.flush()
-        out, main = self.out, self.codes['imu']
+        out, main = pending.out, self.codes['imu']
         mains = np.cumsum(codes == main)
         first = out.n_main - int(mains[-1])
         where = np.fromiter((i for i, _ in others), dtype=np.int64, count=len(others))
