@@ -198,18 +198,18 @@ def entries(bag: Path, info: Mapping) -> list[Entry]:
     """
     Return the connections of metadata.yaml, refusing what rosbags' reader refuses.
 
+    The storage plugin is :func:`gyro_tdc.data.bag.columnar.unfit`'s to check, first.
+
     Raises
     ------
     Unfit
-        A version, storage, compression or serialization rosbags does not read, a missing
-        storage file or a missing key; rosbags' reader then says what is wrong.
+        A version, compression or serialization rosbags does not read, a missing storage
+        file or a missing key; rosbags' reader then says what is wrong.
 
     """
     try:
         if info['version'] > _VERSION:
             raise Unfit(f'metadata version {info["version"]!r:.20}')
-        if info['storage_identifier'] not in ('sqlite3', 'mcap'):
-            raise Unfit(f'storage {info["storage_identifier"]!r:.20}')
         if any(not (bag / PurePath(x).name).exists() for x in info['relative_file_paths']):
             raise Unfit('a storage file is missing')
         mode = info.get('compression_mode', '').lower()
