@@ -367,8 +367,7 @@ class Collector:
         if not len(raws):
             return
         floating = role == 'temperature' and self.floating
-        dec = (decode_float(raws, self.msgtypes[role], self.typestore) if floating else
-               decode(raws, self.msgtypes[role], self.typestore))
+        dec = (decode_float if floating else decode)(raws, self.msgtypes[role], self.typestore)
         good = self._store(role, dec, logs)
         if floating:
             before = np.asarray(before, dtype=np.int64)

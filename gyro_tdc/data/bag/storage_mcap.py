@@ -286,8 +286,7 @@ class McapFile:
             pos += n * rec
         return runs
 
-    def _chunk(self, raw: bytes, c: _Chunk, pending: Pending, update: Callable[[int], Any]
-               ) -> None:
+    def _chunk(self, raw: bytes, c: _Chunk, pending: Pending, update: Callable) -> None:
         """Hand over the wanted messages of one chunk, in rosbags' order."""
         arr = np.frombuffer(raw, dtype=np.uint8)
         pieces = []                                        # (rows, role codes, log times)
@@ -319,8 +318,7 @@ class McapFile:
         if others:
             self._others(others, codes, logs, pending)
 
-    def _in_order(self, pieces: list[tuple[Any, ...]], pending: Pending
-                  ) -> list[tuple[int, bytes]]:
+    def _in_order(self, pieces: list[tuple], pending: Pending) -> list[tuple[int, bytes]]:
         """Hand over the main messages of a chunk's pieces in order; return the others."""
         main = self.codes['imu']
         others: list[tuple[int, bytes]] = []
@@ -330,8 +328,7 @@ class McapFile:
             if is_main.any():
                 sel = rows if is_main.all() else rows[is_main]
                 pending.add(np.ascontiguousarray(sel[:, 31:]).tobytes(),
-                            np.full(len(sel), rows.shape[1] - 31, dtype=np.int64),
-                            log[is_main])
+                            np.full(len(sel), rows.shape[1] - 31, dtype=np.int64), log[is_main])
             others += [(at + i, bytes(rows[i, 31:])) for i in np.flatnonzero(~is_main).tolist()]
             at += len(code)
         return others
