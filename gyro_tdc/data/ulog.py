@@ -226,8 +226,7 @@ def _stream(topics: dict, kind: str, device: int, instance: int,
     if not (inst := topics.get(name)):
         return None, None, ''
     own = [d for i, d in sorted(inst.items())
-           if (device and (np.asarray(d.get('device_id', [])) == device).any())
-           or (not device and i == instance)]
+           if ((np.asarray(d.get('device_id', [])) == device).any() if device else i == instance)]
     k = np.arange(FIFO_SAMPLES)
     axes = [columns(d, tuple(f'{a}[{j}]' for j in k)) for d in own for a in 'xyz']
     need = ('device_id', 'dt', 'scale', 'samples')
