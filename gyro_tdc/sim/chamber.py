@@ -75,14 +75,10 @@ def heat_conduction_time_s(*, specific_heat_kj_per_kg_k: float, density_kg_per_m
                  / conductivity_w_per_m_k)
 
 
-def _nice(x: float, up: bool) -> float:
+def _series(x: float) -> list[float]:
+    """Return the 1-2-5 series from a decade below positive ``x`` to a decade above."""
     exponent = math.floor(math.log10(_positive('x', x)))
-    candidates = [m * 10.0 ** e for e in (exponent - 1, exponent, exponent + 1)
-                  for m in (1.0, 2.0, 5.0)]
-    # A relative tolerance so that 0.1 or 20 map onto themselves despite rounding.
-    if up:
-        return min(c for c in candidates if c >= x * (1.0 - 1e-12))
-    return max(c for c in candidates if c <= x * (1.0 + 1e-12))
+    return [m * 10.0 ** e for e in (exponent - 1, exponent, exponent + 1) for m in (1.0, 2.0, 5.0)]
 
 
 def nice_floor(x: float) -> float:
@@ -100,7 +96,8 @@ def nice_floor(x: float) -> float:
         ``m * 10**e`` with ``m`` in (1, 2, 5), ``<= x`` (0.125 -> 0.1).
 
     """
-    return _nice(x, up=False)
+    # A relative tolerance so that 0.1 or 20 map onto themselves despite rounding.
+    return max(c for c in _series(x) if c <= x * (1.0 + 1e-12))
 
 
 def nice_ceil(x: float) -> float:
@@ -118,7 +115,7 @@ def nice_ceil(x: float) -> float:
         ``m * 10**e`` with ``m`` in (1, 2, 5), ``>= x`` (17.52 -> 20).
 
     """
-    return _nice(x, up=True)
+    return min(c for c in _series(x) if c >= x * (1.0 - 1e-12))
 
 
 @dataclass(frozen=True)
@@ -166,8 +163,7 @@ def staircase_plan(*, sensitivity_dps: float = 8.75e-3, alpha_dps_per_c: float =
     min_hold = heat_conduction_time_s(specific_heat_kj_per_kg_k=specific_heat_kj_per_kg_k,
                                       density_kg_per_m3=density_kg_per_m3, length_m=length_m,
                                       conductivity_w_per_m_k=conductivity_w_per_m_k)
-    step = nice_floor(max_step)
-    hold = nice_ceil(min_hold)
+    step, hold = nice_floor(max_step), nice_ceil(min_hold)
     return StaircasePlan(max_step_c=max_step, step_c=step, min_hold_s=min_hold, hold_s=hold,
                          rate_c_per_h=3600.0 * step / hold)
 
@@ -360,8 +356,7 @@ def staircase_segment(to_c: float, step_c: float, hold_s: float) -> Segment:
         starts = t0 + hold * k
         # Each level: the jump at the start of its hold, then the end of the hold. The point
         # before the jump is the previous breakpoint, so every step is two breakpoints.
-        t = np.empty(2 * n)
-        temp = np.empty(2 * n)
+        t, temp = np.empty(2 * n), np.empty(2 * n)
         t[0::2], temp[0::2] = starts, levels
         t[1::2], temp[1::2] = starts + hold, levels
         return t, temp

@@ -86,15 +86,13 @@ class _Checker(FieldChecker):
 
     def _error(self, path: str, expected: str, got: Any) -> ScenarioError:
         shown = repr(got)
-        if len(shown) > 80:
-            shown = shown[:77] + '...'
+        shown = shown if len(shown) <= 80 else shown[:77] + '...'
         return ScenarioError(f'{self.source}: `{path}`: expected {expected}, got {shown}.')
 
     def num(self, path: str, x: Any, *, low: Optional[float] = None,
             strict: bool = False) -> float:
-        if low is None:
-            return self.number(x, path, what='a finite number')
-        return self.above(x, path, low, strict, what='a finite number')
+        return (self.number(x, path, what='a finite number') if low is None else
+                self.above(x, path, low, strict, what='a finite number'))
 
     def seq(self, path: str, x: Any, expected: str, n: Optional[int] = None,
             ok: Callable[[float], bool] = lambda v: True) -> tuple[float, ...]:
@@ -112,10 +110,10 @@ class _Checker(FieldChecker):
         return values
 
     def range(self, path: str, x: Any, positive: bool) -> tuple[float, float]:
-        low = '0 < low' if positive else '0 <= low'
-        lo, hi = self.seq(path, x, f'[low, high] with {low} <= high', 2)
+        expected = f'[low, high] with {"0 < low" if positive else "0 <= low"} <= high'
+        lo, hi = self.seq(path, x, expected, 2)
         if lo < 0.0 or hi < lo or (positive and lo <= 0.0):
-            raise self.fail(path, f'[low, high] with {low} <= high', x)
+            raise self.fail(path, expected, x)
         return lo, hi
 
     def choice(self, path: str, x: Any, ok: bool | type, expected: str) -> Any:
@@ -238,9 +236,8 @@ def _rate_table(chk: _Checker, raw: Any) -> RateTable:
         key, factor = ('rate_dps', DEG) if 'rate_dps' in entry else ('rate_rad_s', 1.0)
         times.append(t)
         rates.append(tuple(v * factor for v in chk.axis(f'{where}.{key}', entry[key])))
-    if not times or times[0] > 0.0:
-        times.insert(0, 0.0)
-        rates.insert(0, (0.0, 0.0, 0.0))
+    if not times or times[0] > 0.0:          # at rest from 0 s until the first entry
+        times, rates = [0.0] + times, [(0.0, 0.0, 0.0)] + rates
     return RateTable(t_s=tuple(times), rate_rad_s=tuple(rates))
 
 
@@ -270,10 +267,10 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
 
     """
     chk = _Checker(source)
-    top = chk.mapping('', data, _TOP) if isinstance(data, Mapping) else None
-    if top is None:
+    if not isinstance(data, Mapping):
         raise ScenarioError(f'{source}: expected the scenario to be a mapping of sections, '
                             f'got {type(data).__name__}.')
+    top = chk.mapping('', data, _TOP)
     version = top.get('format_version', FORMAT_VERSION)
     if version != FORMAT_VERSION:
         raise chk.fail('format_version', str(FORMAT_VERSION), version)
@@ -289,8 +286,8 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
     for section in _SECTIONS:
         if section in top and not isinstance(top[section], Mapping):
             raise chk.fail(section, 'a mapping', top[section])
-    merged = merge(DEFAULTS, PRESETS[sensor] if sensor else {})
-    merged = merge(merged, top)        # lists (rate_table, segments) replace, never merge
+    # Lists (rate_table, segments) replace, never merge.
+    merged = merge(merge(DEFAULTS, PRESETS[sensor] if sensor else {}), top)
 
     the_name = merged['name'] = chk.choice('name', merged.get('name') or name or 'scenario',
                                            str, 'a string')
