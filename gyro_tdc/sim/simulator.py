@@ -32,11 +32,10 @@ from gyro_tdc.base import is_number
 from gyro_tdc.data import Run
 from gyro_tdc.errors import ScenarioError
 from gyro_tdc.model import EFFECT_IDS
+from gyro_tdc.sim.chamber import simulate_thermal, ThermalHistory
 from gyro_tdc.sim.noise import gauss_markov, quantise, random_walk, white_noise
-from gyro_tdc.sim.scenario import load_scenario, Scenario
-from gyro_tdc.sim.schema import DEG
+from gyro_tdc.sim.scenario import DEG, load_scenario, Scenario
 from gyro_tdc.sim.specs import GyroSpec, NoiseSpec, ThermometerSpec
-from gyro_tdc.sim.thermal import simulate_thermal, ThermalHistory
 from gyro_tdc.sim.vehicle import (gravity_in_sensor, heated_profile, plan_legs, vehicle_motion,
                                   VehicleMotion)
 import numpy as np
@@ -89,7 +88,7 @@ class SimTruth:
         One output digit (0 when not quantised).
     noise_std : NDArray[np.float64], shape (3,), rad/s
         Noise floor per sample: ``sqrt(white_std^2 + quant_step^2 / 12)``.
-    thermal : gyro_tdc.sim.thermal.ThermalHistory
+    thermal : gyro_tdc.sim.chamber.ThermalHistory
         Every thermal node on the internal grid.
     accel_offset : NDArray[np.float64], shape (N, 3), m/s^2
         Accelerometer offset before noise: static bias plus the thermal terms.
