@@ -392,8 +392,7 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
                          force=None if motion is None else motion.force)
     accel = acc.pop('accel')
 
-    th = sc.thermometer
-    temp_t, temp_c, temp_var = _thermometer(th, thermal, duration, rng('thermometer'))
+    temp_t, temp_c, temp_var = _thermometer(sc.thermometer, thermal, duration, rng('thermometer'))
 
     truth = SimTruth(
         die_c=die, die_rate_c_per_s=die_rate, package_c=thermal.at('package_c', imu_t),
@@ -401,16 +400,15 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
         coefficients=coefficients,
         params={'t_ref_c': g.t_ref_c, 'tau_die_s': tau_die,
                 'tau_package_s': sc.thermal.tau_package_s, 'tau_air_s': sc.thermal.tau_air_s,
-                'thermometer_tau_s': th.tau_s, 'warmup_tau_s': g.warmup_tau_s,
+                'thermometer_tau_s': sc.thermometer.tau_s, 'warmup_tau_s': g.warmup_tau_s,
                 'power_on_s': g.power_on_s},
         bias_offset=offset if on['bias'] else np.zeros(3), white_std=white_std,
         quant_step=step, noise_std=np.sqrt(white_std ** 2 + step ** 2 / 12.0),
         thermal=thermal, **acc)
     name = sc.name if sc.runs.count == 1 else f'{sc.name}/run{run_index + 1}'
-    return SimRun(name=name, imu_t=imu_t, gyro=gyro, accel=accel, temp_t=temp_t,
-                  temp_c=temp_c, temp_var=float(temp_var), ref_t=ref_t, ref=ref, truth=truth,
-                  scenario=sc.name, seed=seed, run_index=run_index, rate_hz=rate,
-                  vehicle=motion)
+    return SimRun(name=name, imu_t=imu_t, gyro=gyro, accel=accel, temp_t=temp_t, temp_c=temp_c,
+                  temp_var=float(temp_var), ref_t=ref_t, ref=ref, truth=truth, scenario=sc.name,
+                  seed=seed, run_index=run_index, rate_hz=rate, vehicle=motion)
 
 
 def gravity_vector(gravity_mps2: float, roll_deg: float, pitch_deg: float
