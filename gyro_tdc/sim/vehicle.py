@@ -300,7 +300,6 @@ def vehicle_motion(spec: VehicleSpec, legs: tuple[Leg, ...], imu_t: NDArray[np.f
     n = t.shape[0]
     rate += rng.standard_normal((n, 3)) * (spec.vibration_dps * _DEG) * shake
     force += rng.standard_normal((n, 3)) * spec.vibration_mps2 * shake
-    driving = _driving(legs, t)
     cmd_t = np.zeros(0)
     if spec.cmd_vel_rate_hz > 0.0 and n:
         duration = float(t[-1]) + (float(t[1] - t[0]) if n > 1 else 0.0)
@@ -309,5 +308,5 @@ def vehicle_motion(spec: VehicleSpec, legs: tuple[Leg, ...], imu_t: NDArray[np.f
     cmd = np.zeros((cmd_t.size, 6))
     cmd[:, 0], cmd[:, 5] = _pl(vt, vv, cmd_t)[0], _pl(yt, yv, cmd_t)[0]
     return VehicleMotion(legs=legs, rate=rate, force=force, speed=speed, roll_deg=roll,
-                         pitch_deg=pitch, parked=~driving, heating_c=heating.value(t),
+                         pitch_deg=pitch, parked=~_driving(legs, t), heating_c=heating.value(t),
                          cmd_t=cmd_t, cmd=cmd)
