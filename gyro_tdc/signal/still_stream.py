@@ -301,7 +301,8 @@ class StillWindows:
         if not m:
             return []
         x = np.full((m, _COLS), math.nan)
-        for cols, v in ((0, t), (slice(1, 4), gyro), (slice(4, 7), accel), (10, temp)):
+        x[:, 0], x[:, 1:4] = t, gyro
+        for cols, v in ((slice(4, 7), accel), (10, temp)):       # optional: NaN without
             if v is not None:
                 x[:, cols] = v
         pending = self._take()
