@@ -26,9 +26,9 @@ from gyro_tdc.sim.chamber import (heat_conduction_time_s, max_temperature_step_c
                                   nice_floor, Profile, simulate_thermal, staircase_plan,
                                   StaircasePlan, ThermalHistory)
 from gyro_tdc.sim.scenario import load_scenario, Scenario, scenario_dir
-from gyro_tdc.sim.simulator import SimRun, SimTruth, simulate_run, simulate_scenario, to_run
+from gyro_tdc.sim.simulator import (SimRun, SimStream, SimTruth, simulate_run, simulate_scenario,
+                                    to_run)
 from gyro_tdc.sim.specs import PRESETS
-from gyro_tdc.sim.stream import SimStream
 from gyro_tdc.sim.vehicle import CMD_VEL_TOPIC, TRUTH_TOPIC
 
 __all__ = ['CMD_VEL_TOPIC', 'EFFECT_IDS', 'PRESETS', 'Profile', 'Scenario', 'SimRun', 'SimStream',
