@@ -29,13 +29,10 @@ from typing import Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = [
-    'ARDUPILOT_SCALE', 'ARDUPILOT_TREF_C', 'ArduPilotTempCal', 'Px4TempCal',
-    'ardupilot_caltemp_name', 'ardupilot_coeff_name', 'ardupilot_correction',
-    'ardupilot_name',
-    'onboard_status', 'px4_correction', 'px4_name', 'px4_names', 'px4_slot',
-    'SENSORS',
-]
+__all__ = ['ARDUPILOT_SCALE', 'ARDUPILOT_TREF_C', 'ArduPilotTempCal', 'Px4TempCal',
+           'ardupilot_caltemp_name', 'ardupilot_coeff_name', 'ardupilot_correction',
+           'ardupilot_name', 'onboard_status', 'px4_correction', 'px4_name', 'px4_names',
+           'px4_slot', 'SENSORS']
 
 #: The sensors both firmwares calibrate: ``'gyro'`` (rad/s) and ``'accel'`` (m/s^2).
 SENSORS = ('gyro', 'accel')
@@ -300,7 +297,6 @@ def onboard_status(params: Mapping[str, float], firmware: str, *, instance: int 
     active = _enabled(params, name)
     if name not in params:
         return False, f'{name} not in the log: no on-board thermal compensation known'
-    value = params[name]
-    shown = int(value) if float(value).is_integer() else value
+    shown = int(params[name]) if float(params[name]).is_integer() else params[name]
     return active, (f'{name}={shown}: on-board thermal compensation '
                     + ('active' if active else 'off'))

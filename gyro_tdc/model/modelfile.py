@@ -37,9 +37,8 @@ from gyro_tdc.model.validate import check_model
 import numpy as np
 import yaml
 
-__all__ = ['FORMAT_VERSION', 'MAX_MODEL_BYTES', 'MAX_MODEL_DEPTH',
-           'MAX_MODEL_NODES', 'load_model', 'model_from_dict',
-           'model_to_dict', 'save_model']
+__all__ = ['FORMAT_VERSION', 'MAX_MODEL_BYTES', 'MAX_MODEL_DEPTH', 'MAX_MODEL_NODES',
+           'load_model', 'model_from_dict', 'model_to_dict', 'save_model']
 
 MAX_MODEL_BYTES = 4 * 1024 * 1024
 MAX_MODEL_DEPTH = 32
