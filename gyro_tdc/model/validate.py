@@ -204,7 +204,7 @@ def drift_grid(m: CompensationModel, *, ext: float = MAX_EXTRAPOLATION_C,
     fixed = [j for j in range(len(inputs)) if j not in dyn_cols]     # the temperature terms
     # Another dynamic effect: the values it took in training, mean +- 4 std.
     values = [np.linspace(*known.get(inputs[j], (m.input_mean[j] - 4.0 * m.input_std[j],
-                                                m.input_mean[j] + 4.0 * m.input_std[j])),
+                                                 m.input_mean[j] + 4.0 * m.input_std[j])),
                           _GRID_DYNAMIC) for j in dyn_cols]
     # The grid: model temperatures x every combination of the dynamic inputs' values.
     temps = np.concatenate([np.linspace(lo - ext, hi + ext, n_temps), [lo, hi]])
