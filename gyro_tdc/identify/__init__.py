@@ -39,9 +39,8 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'fit': ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'FitOptions', 'MIN_SAMPLES',
             'TAU_BOUNDS', 'THERMAL_CHOICES'],
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],
-    'options': ['TrainOptions', 'TrainResult'],
     'power_cycles': ['check_sessions', 'reanchor_lines', 'reanchor_rule', 'session_check_lines'],
     'still_only': ['find_still', 'MAX_MOVING_SHARE', 'moving_share', 'rows_of'],
     'tau': ['effective_samples', 'fit_time_constant', 'profile_interval', 'TimeConstantFit'],
-    'train': ['train', 'train_still_only'],
+    'train': ['train', 'train_still_only', 'TrainOptions', 'TrainResult'],
 })

@@ -25,21 +25,19 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 import math
-from typing import Callable, Sequence
+from typing import Sequence
 
 from gyro_tdc.data import Coverage, coverage, RATE_THRESHOLD_C_PER_MIN, Run, temperature_rate
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.fit import fit_model, MIN_SPAN_C, span
-from gyro_tdc.identify.options import TrainOptions
-from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, normalise_ids,
-                            OPERATING_RANGE_C)
+from gyro_tdc.identify.fit import fit_model, FitOptions, MIN_SPAN_C, span
+from gyro_tdc.model import compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, OPERATING_RANGE_C
 from gyro_tdc.signal import detect_still, NOISE_FACTOR, Stillness
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['ADVICE_PARK_MIN', 'check_still_span', 'find_still', 'first_still_temperature',
            'fit_without_outliers', 'MAX_MOVING_SHARE', 'MIN_STILL_SPAN_C', 'moving_share',
-           'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'proxy_lag', 'rows_of', 'STILL_STD_CEILING',
+           'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'rows_of', 'STILL_STD_CEILING',
            'still_report', 'StillReport', 'Stretch']
 
 #: Smallest temperature span of the still time a model is fitted on, degC.
@@ -173,22 +171,6 @@ def moving_share(runs: Sequence[Run]) -> float:
     return moving / total if total else 0.0
 
 
-def proxy_lag(runs: Sequence[Run], ids: tuple, options: TrainOptions,
-              log: Callable[[str], None] | None = None) -> tuple:
-    """
-    Return the features with the thermal state (``lag``) added when a proxy is the thermometer.
-
-    A barometer (``--temperature-source``) sits on the board beside the IMU and lags its
-    die: with ``--features auto`` the thermal state is on by default for it.
-    """
-    if not options.auto or 'lag' in ids or not any(
-            r.info.get('temperature_proxy') for r in runs):
-        return ids
-    if log is not None:
-        log("features: lag added (the thermometer is a proxy of the IMU's, which lags it)")
-    return normalise_ids(tuple(ids) + ('lag',))
-
-
 def rows_of(run: Run, m: NDArray[np.bool_]) -> Run:
     """Return the samples ``m`` of a run as a run (with gaps)."""
     return Run(run.t[m], run.temp[m], run.omega[m], run.omega_ref[m], run.name,
@@ -277,7 +259,7 @@ def first_still_temperature(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_
 
 
 def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
-                         spans: list[tuple[int, int, int]], labels: list[int], common: dict
+                         spans: list[tuple[int, int, int]], labels: list[int], options: FitOptions
                          ) -> tuple[CompensationModel, NDArray[np.float64], NDArray[np.bool_]]:
     """
     Fit, then refit without the outlying stretches unless all or none are outliers.
@@ -286,7 +268,7 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
     compensated rate per stretch (S, 3) and which stretches were dropped. FitError, saying
     what to record, when the stretches left span too few degrees to fit.
     """
-    model = fit_model(runs, rows=rows, **common)
+    model = fit_model(runs, options, rows=rows, sessions=labels)
     means = _stretch_means(model, runs, spans, labels)
     bad = _outliers(means)
     if bad.any() and not bad.all():
@@ -300,7 +282,7 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
                            f'span {hi - lo:.2f} degC only ({lo:.1f} .. {hi:.1f} degC; need at '
                            f'least {MIN_SPAN_C:g} degC): record stops at other temperatures, '
                            'or veto the turns with --motion-topic.')
-        model = fit_model(runs, rows=rows, **common)
+        model = fit_model(runs, options, rows=rows, sessions=labels)
         means = _stretch_means(model, runs, spans, labels)
     else:
         bad[:] = False

@@ -26,33 +26,126 @@ save; the command line is :mod:`gyro_tdc.cli.train`. See ``doc/internals/identif
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import replace
+from dataclasses import dataclass, field, replace
+import math
 import os
 from pathlib import Path
-from typing import Callable, Sequence
+from typing import Any, Callable, Sequence
 
-from gyro_tdc.data import (BagOptions, coverage, load_runs, read_motion, Run, split_sessions)
+from gyro_tdc.base import check_bin_width, check_centers
+from gyro_tdc.data import (BagOptions, Coverage, coverage, load_runs, read_motion, Run,
+                           split_sessions)
 from gyro_tdc.errors import DatasetError, FitError
-from gyro_tdc.identify.accel import fit_accel
+from gyro_tdc.identify.accel import AccelFit, fit_accel
 from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, identity_axes,
                                     neutral_runs)
-from gyro_tdc.identify.features import features_for_fit
-from gyro_tdc.identify.fit import estimate_t0, fit_model
-from gyro_tdc.identify.options import TrainOptions, TrainResult
+from gyro_tdc.identify.features import AUTO, FeatureChoice, features_for_fit
+from gyro_tdc.identify.fit import check_choices, estimate_t0, fit_model, FitOptions
 from gyro_tdc.identify.power_cycles import reanchor_rule
 from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, check_still_span, find_still,
                                           first_still_temperature, fit_without_outliers,
-                                          MAX_MOVING_SHARE, moving_share, proxy_lag, rows_of,
+                                          MAX_MOVING_SHARE, moving_share, rows_of,
                                           still_report, Stretch)
-from gyro_tdc.model import save_model
+from gyro_tdc.model import CompensationModel, normalise_ids, save_model
 from gyro_tdc.signal import motion_veto
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['data_frame', 'train', 'train_still_only']
+__all__ = ['data_frame', 'proxy_lag', 'train', 'train_still_only', 'TrainOptions', 'TrainResult']
 
 _DEG = 180.0 / np.pi
 Log = Callable[[str], None] | None
+
+
+@dataclass(frozen=True)
+class TrainOptions:
+    """
+    How to train a model, checked when built so that a bad choice fails before any bag is read.
+
+    ``features`` is ``'auto'`` (the paper's ``dT,dT2`` plus what
+    :func:`~gyro_tdc.identify.features.choose_features` finds the data support) or effect ids
+    (held in catalog order); ``kind``, ``n_centers``, ``refine``, ``t0``, ``seed``, ``ridge``
+    and ``thermal`` are those of :class:`~gyro_tdc.identify.fit.FitOptions` (``t0`` by default
+    the stable initial temperature of the first bag, with ``--still-only`` of the first still
+    stretch); ``bin_c`` the coverage bins, degC; ``accel`` reads the accelerometer and fits its
+    part; ``sensor_id`` goes to the model. ``window_s`` and ``min_still_s``: the still test of
+    training without a reference (None: the window by the rate, a stretch judged by its
+    samples and its noise, :func:`gyro_tdc.signal.detect_still`). FeatureError for an unknown
+    effect id, FitError for a bad ``kind``, ``ridge`` or ``thermal``.
+    """
+
+    features: str | tuple[str, ...] = AUTO
+    kind: str = 'rbf'
+    n_centers: int = 12
+    refine: bool = False
+    t0: float | None = None
+    seed: int = 0
+    ridge: float | str = 'auto'
+    thermal: str | None = None
+    bin_c: float = 5.0
+    accel: bool = True
+    sensor_id: str = ''
+    window_s: float | None = None
+    min_still_s: float | None = None
+
+    def __post_init__(self) -> None:
+        """Normalise the features and check every choice."""
+        f = self.features
+        auto = isinstance(f, str) and f.strip() == AUTO
+        object.__setattr__(self, 'features', AUTO if auto else normalise_ids(f))
+        check_choices(self.kind, self.thermal)
+        check_centers(self.n_centers)
+        check_bin_width(self.bin_c)
+        if self.ridge != 'auto' and not (isinstance(self.ridge, (int, float))
+                                         and math.isfinite(self.ridge) and self.ridge >= 0):
+            raise FitError(f"Expected `ridge` to be 'auto' or a number >= 0, got {self.ridge!r}.")
+
+    @property
+    def auto(self) -> bool:
+        """Return True when the data choose the features (``features='auto'``)."""
+        return self.features == AUTO
+
+    def fit_options(self, **kw: Any) -> FitOptions:
+        """Return the :class:`FitOptions` of these choices (``kw``: the fit's other fields)."""
+        return FitOptions(kind=self.kind, n_centers=self.n_centers, refine=self.refine,
+                          ridge=self.ridge, seed=self.seed, thermal=self.thermal,
+                          sensor_id=str(self.sensor_id), **kw)
+
+
+@dataclass
+class TrainResult:
+    """
+    What :func:`gyro_tdc.identify.train.train` (or ``train_still_only``) produced.
+
+    The model as saved and where; the coverage of the training data (of the still time kept
+    with ``--still-only``), the bags and samples; the choice of ``features='auto'``; the
+    accelerometer part's fit (None with ``accel=False``); with ``--still-only`` the
+    :class:`~gyro_tdc.identify.still_only.StillReport`; the sessions
+    (:class:`gyro_tdc.data.SessionSplit`); ``constant``: axis name -> reading (rad/s) of the
+    gyro axes never varying beyond one quantum, passed through unchanged.
+    """
+
+    model: CompensationModel
+    path: Path
+    coverage: Coverage
+    bags: list
+    samples: int
+    choice: FeatureChoice | None = None
+    accel: AccelFit | None = None
+    still: object | None = None
+    sessions: object | None = None
+    constant: dict = field(default_factory=dict)
+
+    def constant_line(self) -> str:
+        """Return the one report line naming the constant gyro axes ('' when none)."""
+        if not self.constant:
+            return ''
+        many = len(self.constant) > 1
+        values = ', '.join(f'{v:.6g}' for v in self.constant.values())
+        return (f'gyro ax{"es" if many else "is"} {", ".join(self.constant)}: constant at '
+                f'{values} rad/s (never varying beyond one quantum: a 2-axis gyro or a dead '
+                f'axis); not fitted: the model passes {"them" if many else "it"} through '
+                'unchanged')
 
 
 def data_frame(runs: Sequence[Run]) -> str:
@@ -74,12 +167,28 @@ def data_frame(runs: Sequence[Run]) -> str:
     return next(iter(frames), '')
 
 
+def proxy_lag(runs: Sequence[Run], ids: tuple, options: TrainOptions,
+              log: Callable[[str], None] | None = None) -> tuple:
+    """
+    Return the features with the thermal state (``lag``) added when a proxy is the thermometer.
+
+    A barometer (``--temperature-source``) sits on the board beside the IMU and lags its
+    die: with ``--features auto`` the thermal state is on by default for it.
+    """
+    if not options.auto or 'lag' in ids or not any(
+            r.info.get('temperature_proxy') for r in runs):
+        return ids
+    if log is not None:
+        log("features: lag added (the thermometer is a proxy of the IMU's, which lags it)")
+    return normalise_ids(tuple(ids) + ('lag',))
+
+
 def _features(o: TrainOptions, on: Sequence[Run], runs: Sequence[Run], t0: float, log: Log
-              ) -> tuple[dict, object]:
-    """Return the ``fit_model`` keywords of the features chosen on ``on``, and the choice."""
+              ) -> tuple[FitOptions, FeatureChoice | None]:
+    """Return the fit's options with the features chosen on ``on``, and the choice."""
     ids, params, choice = features_for_fit(on, o.features, t0=t0)
-    return {**o.fit_kw(), 'features': proxy_lag(runs, ids, o, log), 'params': params or None,
-            't0': t0}, choice
+    return o.fit_options(features=proxy_lag(runs, ids, o, log), params=params or None,
+                         t0=t0), choice
 
 
 def _finish(model, o: TrainOptions, out: str | os.PathLike, accel_runs: Sequence[Run], choice,
@@ -95,7 +204,7 @@ def _finish(model, o: TrainOptions, out: str | os.PathLike, accel_runs: Sequence
                        accel=accel_fit, **result)
 
 
-def _gate(model, kw: dict, runs: Sequence[Run], labels: Sequence[int],
+def _gate(model, fo: FitOptions, runs: Sequence[Run], labels: Sequence[int],
           rows: Sequence[NDArray[np.bool_]] | None = None):
     """
     Return ``model`` with the start-up shift the node takes per axis, decided on the sessions.
@@ -103,10 +212,10 @@ def _gate(model, kw: dict, runs: Sequence[Run], labels: Sequence[int],
     Each session is refitted without the others at the model's features, parameters and
     thermal state (on ``rows`` of each run when given: the still rows).
     """
-    form = {**kw, 'features': model.features, 'params': model.effect_params,
-            'fit_params': False, 'thermal': model.thermal}
+    form = replace(fo, features=model.features, params=model.effect_params, fit_params=False,
+                   thermal=model.thermal)
     return reanchor_rule(model, runs, labels, lambda others, g, **rows_kw: fit_model(
-        others, **{**form, 'sessions': g, **rows_kw}), rows)
+        others, form, sessions=g, **rows_kw), rows)
 
 
 def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
@@ -141,10 +250,10 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     runs = split.runs
     const = constant_gyro_axes(runs)
     fitted = neutral_runs(runs, const)
-    kw, choice = _features(o, fitted, runs, estimate_t0(runs[0]) if o.t0 is None else o.t0, log)
-    model = fit_model(fitted, sessions=split.labels, frame_id=data_frame(runs),
-                      created={'command': command, 'bags': names}, **kw)
-    model = _gate(identity_axes(model, runs, const), kw, fitted, split.labels)
+    fo, choice = _features(o, fitted, runs, estimate_t0(runs[0]) if o.t0 is None else o.t0, log)
+    model = fit_model(fitted, fo, sessions=split.labels, frame_id=data_frame(runs),
+                      created={'command': command, 'bags': names})
+    model = _gate(identity_axes(model, runs, const), fo, fitted, split.labels)
     return _finish(model, o, out, runs, choice, {},
                    coverage=coverage(runs, bin_c=o.bin_c), bags=names,
                    samples=sum(len(r) for r in runs), sessions=split,
@@ -211,12 +320,12 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     t0 = first_still_temperature(runs, rows) if o.t0 is None else o.t0
     subs = ([rows_of(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
             if o.auto else [])            # the still rows, for the choice of features
-    kw, choice = _features(o, subs, runs, t0, log)
-    kw.update(frame_id=str(runs[0].info.get('frame_id') or 'imu_link'), sessions=labels,
-              created={'command': command, 'bags': bags, 'still_only': True})
+    fo, choice = _features(o, subs, runs, t0, log)
+    fo = replace(fo, frame_id=str(runs[0].info.get('frame_id') or 'imu_link'),
+                 created={'command': command, 'bags': bags, 'still_only': True})
     spans = [(i, a, b) for i, st in enumerate(still) for a, b in st.segments]
-    model, means, bad = fit_without_outliers(runs, rows, spans, labels, kw)
-    model = _gate(identity_axes(model, raw_runs, const, rows), kw, runs, labels, rows)
+    model, means, bad = fit_without_outliers(runs, rows, spans, labels, fo)
+    model = _gate(identity_axes(model, raw_runs, const, rows), fo, runs, labels, rows)
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
                          float(runs[i].temp[a:b].mean()), not drop,
                          tuple(float(v) * _DEG for v in mu))

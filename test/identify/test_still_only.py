@@ -27,8 +27,7 @@ from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
 from gyro_tdc.identify import fit_model
-from gyro_tdc.identify.options import TrainOptions
-from gyro_tdc.identify.train import train_still_only
+from gyro_tdc.identify.train import train_still_only, TrainOptions
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal import motion_veto
 from gyro_tdc.sim import load_scenario, simulate_run, to_run

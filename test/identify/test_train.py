@@ -27,17 +27,19 @@ import warnings
 from bags import bag_from_run
 from constant_axes import axis_sets, quanta, values, with_constant as _with
 from flightlogs import flight_day, still_drift, write_dataflash
+from gyro_tdc.base.limits import MAX_CENTERS
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data.bag.writer import write_bag
 from gyro_tdc.data.dataset import load_run
 from gyro_tdc.data.options import BagOptions
-from gyro_tdc.errors import DatasetError, FitError
+from gyro_tdc.errors import DatasetError, FeatureError, FitError, LimitError
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
 from gyro_tdc.evaluate.training_report import format_training
 from gyro_tdc.identify import constant_gyro_axes
-from gyro_tdc.identify.options import TrainOptions
-from gyro_tdc.identify.still_only import moving_share, proxy_lag
-from gyro_tdc.identify.train import train, train_still_only
+from gyro_tdc.identify.fit import FitOptions
+from gyro_tdc.identify.still_only import moving_share
+from gyro_tdc.identify.train import (proxy_lag, train, train_still_only, TrainOptions,
+                                     TrainResult)
 from gyro_tdc.model import compensate, DEFAULT_OUT_OF_RANGE
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal.metrics import bias_stability
@@ -320,3 +322,42 @@ def test_a_gyro_constant_on_every_axis_is_refused_with_trains_line(runs, tmp_pat
     assert not (tmp_path / 'a.yaml').exists()
     with pytest.raises(DatasetError):
         constant_gyro_axes([dead])
+
+
+def test_options_are_checked_when_built():
+    assert TrainOptions().auto and TrainOptions(features=' auto ').features == 'auto'
+    assert TrainOptions(features='dT2, dT').features == ('dT', 'dT2')     # catalog order
+    assert TrainOptions(features=['lag', 'dT']).features == ('dT', 'lag')
+    with pytest.raises(FeatureError, match='bogus'):
+        TrainOptions(features='dT,bogus')
+    with pytest.raises(FitError, match="Expected `kind` to be one of rbf, poly, got 'spline'"):
+        TrainOptions(kind='spline')
+    with pytest.raises(FitError, match='ridge'):
+        TrainOptions(ridge=-1.0)
+    with pytest.raises(FitError, match="Expected `thermal` to be one of none, .*'third_order'"):
+        TrainOptions(thermal='third_order')
+    with pytest.raises(LimitError, match='centres'):
+        TrainOptions(n_centers=MAX_CENTERS + 1)
+    with pytest.raises(LimitError, match='bin'):
+        TrainOptions(bin_c=0.0)
+
+
+def test_fit_options_are_the_training_choices_fit_model_shares():
+    o = TrainOptions(kind='poly', n_centers=5, refine=True, ridge=1e-3, seed=4,
+                     thermal='first_order', sensor_id=7, bin_c=2.0, accel=False)
+    fo = o.fit_options(t0=20.0)
+    assert fo == FitOptions(kind='poly', n_centers=5, refine=True, ridge=1e-3, seed=4,
+                            thermal='first_order', sensor_id='7', t0=20.0)
+
+
+@pytest.mark.parametrize('constant, line', [
+    ({}, ''),
+    ({'z': 0.0}, 'gyro axis z: constant at 0 rad/s'),
+    ({'x': 0.5, 'z': -1e-3}, 'gyro axes x, z: constant at 0.5, -0.001 rad/s')])
+def test_the_constant_line_names_each_constant_axis(constant, line):
+    res = TrainResult(model=None, path=None, coverage=None, bags=[], samples=0,
+                      constant=constant)
+    assert res.constant_line().startswith(line)
+    if constant:
+        assert ('passes them through' if len(constant) > 1 else 'passes it through') in \
+            res.constant_line()
