@@ -29,7 +29,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
              'constant_note', 'constant_readings', 'constant_values', 'identity_axes',
              'neutral_runs'],
     'discover': ['discover'],
-    'discover.model': ['build_model', 'still_only_runs'],
+    'discover.search': ['build_model'],
     'discover.report': ['write_report'],
     'discover.results': ['format_summary'],
     'export': ['check_instance', 'clamp_cost', 'ExportScore', 'FcExport', 'FIRMWARES',
@@ -40,7 +40,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
             'TAU_BOUNDS', 'THERMAL_CHOICES'],
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],
     'power_cycles': ['check_sessions', 'reanchor_lines', 'reanchor_rule', 'session_check_lines'],
-    'still_only': ['find_still', 'MAX_MOVING_SHARE', 'moving_share', 'rows_of'],
+    'still_only': ['find_still', 'MAX_MOVING_SHARE', 'moving_share', 'rows_of', 'still_only_runs'],
     'tau': ['effective_samples', 'fit_time_constant', 'profile_interval', 'TimeConstantFit'],
     'train': ['train', 'train_still_only', 'TrainOptions', 'TrainResult'],
 })

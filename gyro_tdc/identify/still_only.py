@@ -29,6 +29,7 @@ from typing import Sequence
 
 from gyro_tdc.data import Coverage, coverage, RATE_THRESHOLD_C_PER_MIN, Run, temperature_rate
 from gyro_tdc.errors import FitError
+from gyro_tdc.identify.axes import constant_gyro_axes, neutral_runs
 from gyro_tdc.identify.fit import fit_model, FitOptions, MIN_SPAN_C, span
 from gyro_tdc.model import compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, OPERATING_RANGE_C
 from gyro_tdc.signal import detect_still, NOISE_FACTOR, Stillness
@@ -38,7 +39,7 @@ from numpy.typing import NDArray
 __all__ = ['ADVICE_PARK_MIN', 'check_still_span', 'find_still', 'first_still_temperature',
            'fit_without_outliers', 'MAX_MOVING_SHARE', 'MIN_STILL_SPAN_C', 'moving_share',
            'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'rows_of', 'STILL_STD_CEILING',
-           'still_report', 'StillReport', 'Stretch']
+           'still_only_runs', 'still_report', 'StillReport', 'Stretch', 'unreferenced_motion']
 
 #: Smallest temperature span of the still time a model is fitted on, degC.
 MIN_STILL_SPAN_C = 2.0
@@ -171,10 +172,60 @@ def moving_share(runs: Sequence[Run]) -> float:
     return moving / total if total else 0.0
 
 
+def unreferenced_motion(runs: Sequence[Run]) -> tuple[float, list[Run]]:
+    """
+    Return the :func:`moving_share` of runs read without a reference rate, and the runs.
+
+    0 for runs with a reference rate; the runs returned have each constant gyro axis at its
+    reference (:func:`gyro_tdc.identify.axes.neutral_runs`) when the share was measured.
+    """
+    if not runs or any(r.info.get('reference') != 'zero' for r in runs):
+        return 0.0, list(runs)
+    fitted = neutral_runs(runs, constant_gyro_axes(runs))
+    return moving_share(fitted), fitted
+
+
 def rows_of(run: Run, m: NDArray[np.bool_]) -> Run:
     """Return the samples ``m`` of a run as a run (with gaps)."""
     return Run(run.t[m], run.temp[m], run.omega[m], run.omega_ref[m], run.name,
                dict(run.info), None if run.accel is None else run.accel[m])
+
+
+def still_only_runs(runs: Sequence[Run], task: tuple[str, str] = ('discover', 'discovering')
+                    ) -> tuple[list[Run], str | None]:
+    """
+    Return what discovery may fit of runs without a reference: the still samples only.
+
+    Runs with no reference rate (a flight log) that move longer than ``train``'s
+    :data:`MAX_MOVING_SHARE` are known to be at rest only
+    while still: each keeps its still stretches (``train``'s still test, one noise floor for
+    all, a constant axis at its reference), one offset per session as before; a session
+    without still time is left out. Returns the runs and a line saying what was kept (None
+    when every sample is kept). Motion is never fitted as drift. ``task`` words what is fitted
+    in those lines ("no still stretch to TASK on", "DOING on the still stretches only").
+
+    Raises
+    ------
+    FitError
+        When no session holds a still stretch: nothing could be fitted but the motion.
+
+    """
+    share, fitted = unreferenced_motion(runs)
+    if share <= MAX_MOVING_SHARE:
+        return list(runs), None
+    masks = [st.mask for st in find_still(fitted)]
+    kept = [rows_of(r, m) for r, m in zip(runs, masks) if np.count_nonzero(m) >= 16]
+    moves = f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time'
+    if not kept:
+        raise FitError(f'{moves}, with no still stretch to {task[0]} on (its motion is no '
+                       'drift): record the vehicle parked with the IMU on.')
+    still_s = sum(np.count_nonzero(m) * float(np.median(np.diff(r.t)))
+                  for r, m in zip(runs, masks) if len(r) > 1)
+    total_s = sum(r.duration_s for r in runs)
+    pct = min(100.0 * still_s / total_s, 100.0) if total_s > 0 else 0.0
+    return kept, (f'{moves}: {task[1]} on the still stretches only ({still_s:.0f} s of '
+                  f'{total_s:.0f} s, {pct:.3g} %; {len(kept)} of {len(runs)} session(s)); '
+                  'the motion is no drift')
 
 
 def _outliers(means: NDArray[np.float64]) -> NDArray[np.bool_]:

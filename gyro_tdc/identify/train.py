@@ -44,8 +44,8 @@ from gyro_tdc.identify.fit import check_choices, estimate_t0, fit_model, FitOpti
 from gyro_tdc.identify.power_cycles import reanchor_rule
 from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, check_still_span, find_still,
                                           first_still_temperature, fit_without_outliers,
-                                          MAX_MOVING_SHARE, moving_share, rows_of,
-                                          still_report, Stretch)
+                                          MAX_MOVING_SHARE, rows_of, still_report, Stretch,
+                                          unreferenced_motion)
 from gyro_tdc.model import CompensationModel, normalise_ids, save_model
 from gyro_tdc.signal import motion_veto
 import numpy as np
@@ -238,13 +238,12 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     o = TrainOptions() if options is None else options
     bag = replace(BagOptions() if bag is None else bag, accel=bool(o.accel))
     runs: list[Run] = load_runs(bags, bag, log=log)
-    if all(r.info.get('reference') == 'zero' for r in runs):
-        share = moving_share(neutral_runs(runs, constant_gyro_axes(runs)))
-        if share > MAX_MOVING_SHARE:
-            if log is not None:
-                log(f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time: '
-                    'training on the still stretches only (as --still-only)')
-            return train_still_only(bags, out, o, bag, command=command, log=log, runs=runs)
+    share = unreferenced_motion(runs)[0]
+    if share > MAX_MOVING_SHARE:
+        if log is not None:
+            log(f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time: '
+                'training on the still stretches only (as --still-only)')
+        return train_still_only(bags, out, o, bag, command=command, log=log, runs=runs)
     names = [r.name for r in runs]
     split = split_sessions(runs, bag.sessions, bag.session_gap_s)
     runs = split.runs
