@@ -32,9 +32,8 @@ from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
 from gyro_tdc.identify.power_cycles import check_sessions
-from gyro_tdc.identify.tau import fit_time_constant
-from gyro_tdc.identify.thermal_search import (choose_state, ParamSearch, run_blocks, run_state,
-                                              RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
+from gyro_tdc.identify.tau import (choose_state, fit_time_constant, ParamSearch, run_blocks,
+                                   run_state, RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
 from gyro_tdc.model import (CompensationModel, EFFECTS, input_ids, KINDS, normalise_ids,
                             REFERENCE_EFFECTS, resolve_params, STATE_TERMS, TEMPERATURE_EFFECTS,
                             THERMAL_EFFECTS, ThermalState, with_implied)
