@@ -30,10 +30,10 @@ from typing import Any, Callable, Mapping, Sequence
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.axes import constant_gyro_axes, identity_axes, neutral_runs
-from gyro_tdc.identify.discover.data import (BlockData, COLLINEAR, excitation, rel_residual,
-                                             unidentifiable)
-from gyro_tdc.identify.discover.linear import (bandwidth, corr, DEG, gap, hac_pvalue, LinearModel,
-                                               make_folds, mse, weighted_corr, wsse)
+from gyro_tdc.identify.discover.data import (bandwidth, BlockData, COLLINEAR, corr, DEG,
+                                             excitation, gap, hac_pvalue, LinearModel,
+                                             make_folds, mse, rel_residual, unidentifiable,
+                                             weighted_corr, wsse)
 from gyro_tdc.identify.discover.report import residual_adev, residual_maps
 from gyro_tdc.identify.discover.results import CandidateScore, DiscoveryResult, Step
 from gyro_tdc.identify.fit import estimate_t0, fit_model, MIN_SPAN_C
