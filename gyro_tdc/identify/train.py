@@ -19,14 +19,16 @@ Training: bags in, a fitted and saved compensation model out, with the coverage 
 :func:`train` fits a chamber's (or any referenced) bags; :func:`train_still_only` the still
 stretches of bags recorded in ordinary operation (``train --still-only``, and ``train`` on
 moving data without a reference). Both cut the bags into sessions, pass constant gyro axes
-through, choose the features, fit on the shared estimator, add the accelerometer part and
-save; the command line is :mod:`gyro_tdc.cli.train`. See ``doc/internals/identify.md``.
+through, choose the features (``--features auto``: :func:`choose_features`, the paper's
+f(dT, dT2) plus what discovery finds the data support, recorded in a :class:`FeatureChoice`),
+fit on the shared estimator, add the accelerometer part and save; the command line is
+:mod:`gyro_tdc.cli.train`. See ``doc/internals/identify.md``.
 """
 
 from __future__ import annotations
 
 from collections import Counter
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 import math
 import os
 from pathlib import Path
@@ -39,22 +41,182 @@ from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.identify.accel import AccelFit, fit_accel
 from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, identity_axes,
                                     neutral_runs)
-from gyro_tdc.identify.features import AUTO, FeatureChoice, features_for_fit
+from gyro_tdc.identify.discover.results import DiscoveryResult
+from gyro_tdc.identify.discover.search import discover
 from gyro_tdc.identify.fit import check_choices, estimate_t0, fit_model, FitOptions
 from gyro_tdc.identify.power_cycles import reanchor_rule
 from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, check_still_span, find_still,
                                           first_still_temperature, fit_without_outliers,
                                           MAX_MOVING_SHARE, rows_of, still_report, Stretch,
                                           unreferenced_motion)
-from gyro_tdc.model import CompensationModel, normalise_ids, save_model
-from gyro_tdc.signal import motion_veto
+from gyro_tdc.model import CompensationModel, EFFECTS, normalise_ids, save_model
+from gyro_tdc.signal import block_mean, motion_veto
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['data_frame', 'proxy_lag', 'train', 'train_still_only', 'TrainOptions', 'TrainResult']
+__all__ = ['AUTO', 'AUTO_BASE', 'choose_features', 'data_frame', 'Decision', 'FeatureChoice',
+           'features_for_fit', 'proxy_lag', 'SEARCH_RATE_HZ', 'train', 'train_still_only',
+           'TrainOptions', 'TrainResult']
 
 _DEG = 180.0 / np.pi
 Log = Callable[[str], None] | None
+
+
+#: The ``features`` value that lets the data choose (:func:`choose_features`).
+AUTO = 'auto'
+#: The starting model of ``auto``: the paper's modified model f(dT, dT2) (eq. 16).
+AUTO_BASE: tuple[str, ...] = ('dT', 'dT2')
+#: Sample rate (Hz) the feature search of ``auto`` runs at: faster runs are averaged down.
+SEARCH_RATE_HZ = 20.0
+
+
+@dataclass(frozen=True)
+class Decision:
+    """One effect of the automatic choice: base, added, rejected or unidentifiable, and why."""
+
+    effect: str
+    verdict: str
+    why: str
+
+    def line(self) -> str:
+        """Return the decision as one line of the training report."""
+        if self.verdict == 'added':
+            return f'  + {self.effect}: {self.why}'
+        verdict = {'unidentifiable': 'not identifiable'}.get(self.verdict, self.verdict)
+        return f'  - {self.effect}: {verdict}: {self.why}'
+
+
+@dataclass(frozen=True)
+class FeatureChoice:
+    """
+    What ``features='auto'`` chose, and why.
+
+    ``base`` the starting model, ``features`` the chosen effects (catalog order), ``decisions`` one
+    per effect considered (the base, those added in order, rejected, not identifiable);
+    ``discovery`` the search behind it (None when the data were too short, ``note`` says why).
+    """
+
+    base: tuple[str, ...]
+    features: tuple[str, ...]
+    decisions: tuple[Decision, ...]
+    discovery: DiscoveryResult | None = field(default=None, repr=False)
+    note: str = ''
+
+    def lines(self) -> list[str]:
+        """Return the report: a head line, one line per decision, notes, the features chosen."""
+        d = self.discovery
+        head = (f'features auto: start from {", ".join(self.base)} (the paper\'s f(dT, dT^2)); '
+                + (f'discovery on {len(d.runs)} bag(s): noise floor {d.noise_floor_dps:.3g} '
+                   f'deg/s on {d.block_s:g} s block means, held out by '
+                   f'{d.settings["folds"]}' if d is not None else self.note))
+        # What the data cannot test (one direction of temperature change): said once.
+        notes = [f'  note: {n}' for n in (d.notes if d is not None else ())
+                 if n.startswith('The data only')]
+        return ([head] + [x.line() for x in self.decisions if x.verdict != 'base'] + notes
+                + [f'features chosen: {", ".join(self.features)}'])
+
+    def to_dict(self) -> dict:
+        """Return the choice as plain types (the model's ``training`` metrics)."""
+        d = self.discovery
+        out = {'mode': AUTO, 'base': list(self.base), 'chosen': list(self.features),
+               'decisions': [asdict(x) for x in self.decisions]}
+        if d is not None:
+            out['discovery'] = {
+                'noise_floor_dps': float(d.noise_floor_dps), 'gap_dps': float(d.gap_dps),
+                'heldout_gap_dps': float(d.heldout_gap_dps), 'folds': d.settings['folds'],
+                'block_s': float(d.block_s),
+                'thermal': None if d.thermal is None else d.thermal.to_dict()}
+        else:
+            out['note'] = self.note
+        return out
+
+
+def _for_search(run: Run) -> Run:
+    """
+    Return ``run`` averaged down to about :data:`SEARCH_RATE_HZ` for the feature search.
+
+    The search works on block means of seconds; averaging groups of samples first leaves
+    those block means and their white-noise floor as they are (a mean of means), and makes
+    the search on a 1 kHz recording cost what it costs at 20 Hz.
+    """
+    dt = np.diff(run.t)
+    rate = 1.0 / p if dt.size and (p := float(np.median(dt))) > 0 else 0.0
+    m = int(rate // SEARCH_RATE_HZ)
+    if m < 2 or len(run) < 2 * m:
+        return run
+    ref = (block_mean(run.omega_ref, m, partial=False) if np.any(run.omega_ref)
+           else np.zeros((len(run) // m, 3)))         # no reference: its means are zeros
+    return Run(block_mean(run.t, m, partial=False), block_mean(run.temp, m, partial=False),
+               block_mean(run.omega, m, partial=False), ref, run.name, dict(run.info))
+
+
+def _floors(value: float, floor: float) -> str:
+    """Return a gap in noise floors, e.g. ``2.3x``."""
+    return f'{value / floor:.2f}x' if floor > 0 else f'{value:.3g} deg/s'
+
+
+def choose_features(runs: Sequence[Run], *, t0: float | None = None,
+                    base: Sequence[str] = AUTO_BASE, block_s: float = 10.0) -> FeatureChoice:
+    """
+    Choose the features of a model from the data: the paper's base plus what they support.
+
+    :func:`gyro_tdc.identify.discover.discover` starts from ``bias`` and ``base`` and adds,
+    one at a time, the catalog effect its false-discovery guard accepts (held-out gain, HAC
+    test, effect size). The base is kept whatever the data say; data too short for the search
+    keep it, with a note. Runs faster than :data:`SEARCH_RATE_HZ` are averaged down first (the
+    search works on block means of ``block_s``).
+    """
+    base_ids = tuple(e for e in normalise_ids(base) if e != 'bias')
+    decisions = [Decision(e, 'base', "the paper's model") for e in base_ids]
+    if t0 is None and runs:
+        t0 = estimate_t0(runs[0])
+    try:
+        res = discover([_for_search(r) for r in runs], base=('bias',) + base_ids, t0=t0,
+                       block_s=block_s, allan=False)
+    except FitError as exc:
+        return FeatureChoice(base_ids, base_ids, tuple(decisions),
+                             note=f'no search ({exc}); the base is kept')
+    floor = res.noise_floor_dps
+    for s in res.steps:
+        b = s.best
+        why = (f'held-out gap {_floors(s.heldout_gap_before_dps, floor)} -> '
+               f'{_floors(s.heldout_gap_after_dps, floor)} floor, HAC p {b.p_value:.2g}, '
+               f'effect {b.effect_rms_dps:.3g} deg/s')
+        if s.effect == 'lag' and s.thermal is not None:
+            why += f'; {s.thermal.describe()}'
+        elif s.params:
+            why += '; ' + ', '.join(f'{k} = {v:.4g}' for k, v in s.params.items())
+        if s.aliases:
+            why += f'; the data cannot tell it from {", ".join(s.aliases)}'
+        decisions.append(Decision(s.effect, 'added', why))
+    decisions += [Decision(c.effect, 'rejected', f'{c.why_not} (held-out gain '
+                           f'{c.heldout_gain_dps2:+.2g} (deg/s)^2, HAC p {c.p_value:.2g})')
+                  for c in res.candidates]
+    decisions += [Decision(u.effect, 'unidentifiable', f'{u.reason}') for u in res.unidentifiable]
+    seen = {x.effect for x in decisions}          # every catalog effect gets its line
+    decisions += [Decision(e, 'rejected', 'not tested') for e in EFFECTS
+                  if e != 'bias' and e not in seen]
+    features = tuple(e for e in res.final_effects if e != 'bias')
+    return FeatureChoice(base_ids, features, tuple(decisions), discovery=res)
+
+
+def features_for_fit(runs: Sequence[Run], features: str | tuple[str, ...], *, t0: float | None
+                     ) -> tuple[tuple[str, ...], dict, FeatureChoice | None]:
+    """
+    Return the features a fit takes, their fixed parameters and the choice behind them.
+
+    ``features`` is ``'auto'`` (chosen on ``runs``; the parameters are the time constants
+    discovery found that ``fit_model`` does not search itself) or effect ids (no choice: None).
+    """
+    if features != AUTO:
+        return normalise_ids(features), {}, None
+    # Data the search cannot analyse keep the base, and fit_model then says what is wrong
+    # with them (span, samples) as it does for named features.
+    choice = choose_features(runs, t0=t0)
+    d = choice.discovery
+    return choice.features, {} if d is None else {
+        k: v for k, v in d.params.items() if k in choice.features and not EFFECTS[k].fitted
+    }, choice
 
 
 @dataclass(frozen=True)
@@ -63,7 +225,7 @@ class TrainOptions:
     How to train a model, checked when built so that a bad choice fails before any bag is read.
 
     ``features`` is ``'auto'`` (the paper's ``dT,dT2`` plus what
-    :func:`~gyro_tdc.identify.features.choose_features` finds the data support) or effect ids
+    :func:`choose_features` finds the data support) or effect ids
     (held in catalog order); ``kind``, ``n_centers``, ``refine``, ``t0``, ``seed``, ``ridge``
     and ``thermal`` are those of :class:`~gyro_tdc.identify.fit.FitOptions` (``t0`` by default
     the stable initial temperature of the first bag, with ``--still-only`` of the first still
