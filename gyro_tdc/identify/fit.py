@@ -41,9 +41,9 @@ from gyro_tdc.signal import block_length
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['check_choices', 'estimate_t0', 'fit_model', 'fit_px4_cubic', 'FitOptions',
-           'MIN_SAMPLES', 'MIN_SPAN_C', 'run_state', 'span', 'TAU_BOUNDS', 'THERMAL_CHOICES',
-           'TWO_NODE_MARGIN']
+__all__ = ['check_choices', 'check_finite', 'estimate_t0', 'fit_model', 'fit_px4_cubic',
+           'FitOptions', 'MIN_SAMPLES', 'MIN_SPAN_C', 'run_state', 'span', 'TAU_BOUNDS',
+           'THERMAL_CHOICES', 'TWO_NODE_MARGIN']
 
 #: Fewest samples a fit accepts.
 MIN_SAMPLES = 50
@@ -82,6 +82,15 @@ def _labels(runs: Sequence[Run], sessions: Sequence | None) -> list[int] | None:
     return labels if len(index) > 1 else None
 
 
+def check_finite(run: Run, keys: Sequence[str] = ('temp', 'omega', 'omega_ref')) -> None:
+    """Raise FitError naming the first field of ``run`` holding a non-finite value."""
+    for key in keys:
+        x = np.asarray(getattr(run, key))
+        # All finite iff the min and the max are (NaN propagates): no boolean temporary.
+        if x.size and not (np.isfinite(x.min()) and np.isfinite(x.max())):
+            raise FitError(f'Run {run.name!r} has non-finite values in `{key}`.')
+
+
 def _check_runs(runs: Sequence[Run], ids: Sequence[str],
                 rows: Sequence[NDArray[np.bool_]] | None) -> None:
     """Reject data that cannot support a fit, with a message naming the problem."""
@@ -94,11 +103,7 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
     if n < MIN_SAMPLES:
         raise FitError(f'Too few samples to fit: {n} (need at least {MIN_SAMPLES}).')
     for r in runs:
-        for key in ('temp', 'omega', 'omega_ref'):
-            x = np.asarray(getattr(r, key))
-            # All finite iff the min and the max are (NaN propagates): no boolean temporary.
-            if x.size and not (np.isfinite(x.min()) and np.isfinite(x.max())):
-                raise FitError(f'Run {r.name!r} has non-finite values in `{key}`.')
+        check_finite(r)
     if TEMPERATURE_EFFECTS & set(ids):
         lo, hi = span([r.temp if rows is None else r.temp[rows[i]] for i, r in enumerate(runs)])
         if hi - lo < MIN_SPAN_C:

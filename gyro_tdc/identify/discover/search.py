@@ -36,7 +36,7 @@ from gyro_tdc.identify.discover.data import (bandwidth, BlockData, COLLINEAR, co
                                              weighted_corr, wsse)
 from gyro_tdc.identify.discover.report import residual_adev, residual_maps
 from gyro_tdc.identify.discover.results import CandidateScore, DiscoveryResult, Step
-from gyro_tdc.identify.fit import estimate_t0, fit_model, MIN_SPAN_C
+from gyro_tdc.identify.fit import check_finite, estimate_t0, fit_model, MIN_SPAN_C
 from gyro_tdc.identify.tau import effective_samples, fit_time_constant, profile_interval
 from gyro_tdc.model import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, STATIC_EFFECTS,
                             TEMPERATURE_EFFECTS, THERMAL_EFFECTS, ThermalState, with_implied)
@@ -505,9 +505,7 @@ def _check(runs: Sequence[Run], block_s: float) -> None:
             raise FitError(f'Expected gyro_tdc.data.runs.Run objects, got {type(r).__name__}.')
         if len(r) < 16:
             raise FitError(f'Run {r.name!r} has {len(r)} samples; need at least 16.')
-        for key in ('t', 'temp', 'omega', 'omega_ref'):
-            if not np.all(np.isfinite(getattr(r, key))):
-                raise FitError(f'Run {r.name!r} has non-finite values in `{key}`.')
+        check_finite(r, ('t', 'temp', 'omega', 'omega_ref'))
 
 
 def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'poly',
