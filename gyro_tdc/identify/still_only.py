@@ -196,19 +196,12 @@ def still_only_runs(runs: Sequence[Run], task: tuple[str, str] = ('discover', 'd
     """
     Return what discovery may fit of runs without a reference: the still samples only.
 
-    Runs with no reference rate (a flight log) that move longer than ``train``'s
-    :data:`MAX_MOVING_SHARE` are known to be at rest only
-    while still: each keeps its still stretches (``train``'s still test, one noise floor for
-    all, a constant axis at its reference), one offset per session as before; a session
-    without still time is left out. Returns the runs and a line saying what was kept (None
-    when every sample is kept). Motion is never fitted as drift. ``task`` words what is fitted
-    in those lines ("no still stretch to TASK on", "DOING on the still stretches only").
-
-    Raises
-    ------
-    FitError
-        When no session holds a still stretch: nothing could be fitted but the motion.
-
+    Runs with no reference rate (a flight log) moving longer than :data:`MAX_MOVING_SHARE`
+    keep their still stretches (``train``'s still test, one noise floor, a constant axis at
+    its reference), one offset per session; a session without still time is left out.
+    Returns the runs and a line saying what was kept (None when every sample is kept); ``task``
+    words what is fitted in it. FitError when no session holds a still stretch (motion is
+    never fitted as drift).
     """
     share, fitted = unreferenced_motion(runs)
     if share <= MAX_MOVING_SHARE:
