@@ -366,7 +366,7 @@ def test_the_constant_line_names_each_constant_axis(constant, line):
             res.constant_line()
 
 
-# Tests of gyro_tdc.identify.features: ``--features auto`` on a lagging die, one ramp direction.
+# ``--features auto`` (choose_features, features_for_fit) on a lagging die, one ramp direction.
 #
 # Power cycles of the simulator's L3GD20 (cubic drift in the die temperature, the die 90 s
 # behind the package thermometer unless said), each a 5 min soak, a 1 degC/min ramp and a
