@@ -36,10 +36,10 @@ from gyro_tdc.signal import detect_still, NOISE_FACTOR, Stillness
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['ADVICE_PARK_MIN', 'check_still_span', 'find_still', 'first_still_temperature',
-           'fit_without_outliers', 'MAX_MOVING_SHARE', 'MIN_STILL_SPAN_C', 'moving_share',
-           'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'rows_of', 'STILL_STD_CEILING',
-           'still_only_runs', 'still_report', 'StillReport', 'Stretch', 'unreferenced_motion']
+__all__ = ['ADVICE_PARK_MIN', 'find_still', 'fit_without_outliers', 'MAX_MOVING_SHARE',
+           'MIN_STILL_SPAN_C', 'moving_share', 'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'rows_of',
+           'STILL_STD_CEILING', 'still_only_runs', 'still_report', 'StillReport', 'Stretch',
+           'unreferenced_motion']
 
 #: Smallest temperature span of the still time a model is fitted on, degC.
 MIN_STILL_SPAN_C = 2.0
@@ -282,24 +282,6 @@ def _advice(cov: Coverage) -> list[str]:
         out.append(f'no heating still time ({cov.heating_min:.0f} min): park while the day '
                    'warms up (morning sun), or power the IMU on and leave it still')
     return out
-
-
-def check_still_span(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]]) -> None:
-    """Raise FitError, saying what to record, when the still time spans too few degrees."""
-    lo, hi = span([r.temp[m] for r, m in zip(runs, rows)])
-    if hi - lo < MIN_STILL_SPAN_C:
-        raise FitError(f'--still-only: the still time spans {hi - lo:.2f} degC only '
-                       f'({lo:.1f} .. {hi:.1f} degC; need at least '
-                       f'{MIN_STILL_SPAN_C:g} degC): record stops at other temperatures '
-                       '(a cold morning, right after a long drive).')
-
-
-def first_still_temperature(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]]) -> float:
-    """Return the median temperature of the first minute of the first still stretch."""
-    i = next(k for k, m in enumerate(rows) if m.any())
-    first = np.flatnonzero(rows[i])
-    head = first[runs[i].t[first] <= runs[i].t[first[0]] + 60.0]
-    return float(np.median(runs[i].temp[head]))
 
 
 def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],

@@ -43,12 +43,11 @@ from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, ident
                                     neutral_runs)
 from gyro_tdc.identify.discover.results import DiscoveryResult
 from gyro_tdc.identify.discover.search import discover
-from gyro_tdc.identify.fit import check_choices, estimate_t0, fit_model, FitOptions
+from gyro_tdc.identify.fit import check_choices, estimate_t0, fit_model, FitOptions, span
 from gyro_tdc.identify.power_cycles import reanchor_rule
-from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, check_still_span, find_still,
-                                          first_still_temperature, fit_without_outliers,
-                                          MAX_MOVING_SHARE, rows_of, still_report, Stretch,
-                                          unreferenced_motion)
+from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, find_still, fit_without_outliers,
+                                          MAX_MOVING_SHARE, MIN_STILL_SPAN_C, rows_of,
+                                          still_report, Stretch, unreferenced_motion)
 from gyro_tdc.model import CompensationModel, EFFECTS, normalise_ids, save_model
 from gyro_tdc.signal import block_mean, motion_veto
 import numpy as np
@@ -345,12 +344,12 @@ def proxy_lag(runs: Sequence[Run], ids: tuple, options: TrainOptions,
     return normalise_ids(tuple(ids) + ('lag',))
 
 
-def _features(o: TrainOptions, on: Sequence[Run], runs: Sequence[Run], t0: float, log: Log
-              ) -> tuple[FitOptions, FeatureChoice | None]:
-    """Return the fit's options with the features chosen on ``on``, and the choice."""
+def _features(o: TrainOptions, on: Sequence[Run], runs: Sequence[Run], t0: float, log: Log,
+              **kw: Any) -> tuple[FitOptions, FeatureChoice | None]:
+    """Return the fit's options (``kw``: its other fields) with the features chosen on ``on``."""
     ids, params, choice = features_for_fit(on, o.features, t0=t0)
-    return o.fit_options(features=proxy_lag(runs, ids, o, log), params=params or None,
-                         t0=t0), choice
+    return o.fit_options(features=proxy_lag(runs, ids, o, log), params=params or None, t0=t0,
+                         **kw), choice
 
 
 def _finish(model, o: TrainOptions, out: str | os.PathLike, accel_runs: Sequence[Run], choice,
@@ -411,9 +410,9 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     runs = split.runs
     const = constant_gyro_axes(runs)
     fitted = neutral_runs(runs, const)
-    fo, choice = _features(o, fitted, runs, estimate_t0(runs[0]) if o.t0 is None else o.t0, log)
-    model = fit_model(fitted, fo, sessions=split.labels, frame_id=data_frame(runs),
-                      created={'command': command, 'bags': names})
+    fo, choice = _features(o, fitted, runs, estimate_t0(runs[0]) if o.t0 is None else o.t0, log,
+                           frame_id=data_frame(runs), created={'command': command, 'bags': names})
+    model = fit_model(fitted, fo, sessions=split.labels)
     model = _gate(identity_axes(model, runs, const), fo, fitted, split.labels)
     return _finish(model, o, out, runs, choice, {},
                    coverage=coverage(runs, bin_c=o.bin_c), bags=names,
@@ -477,13 +476,20 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
             runs, raw_runs, rows, still, names))
         relabel = {g: k for k, g in enumerate(dict.fromkeys(labels[i] for i in keep))}
         labels = [relabel[labels[i]] for i in keep]
-    check_still_span(runs, rows)
-    t0 = first_still_temperature(runs, rows) if o.t0 is None else o.t0
+    lo, hi = span([r.temp[m] for r, m in zip(runs, rows)])
+    if hi - lo < MIN_STILL_SPAN_C:
+        raise FitError(f'--still-only: the still time spans {hi - lo:.2f} degC only '
+                       f'({lo:.1f} .. {hi:.1f} degC; need at least {MIN_STILL_SPAN_C:g} degC): '
+                       'record stops at other temperatures (a cold morning, right after a long '
+                       'drive).')
+    first = np.flatnonzero(rows[0])      # t0: the first minute of the first still stretch
+    t0 = (float(np.median(runs[0].temp[first[runs[0].t[first] <= runs[0].t[first[0]] + 60.0]]))
+          if o.t0 is None else o.t0)
     subs = ([rows_of(r, m) for r, m in zip(runs, rows) if np.count_nonzero(m) >= 2]
             if o.auto else [])            # the still rows, for the choice of features
-    fo, choice = _features(o, subs, runs, t0, log)
-    fo = replace(fo, frame_id=str(runs[0].info.get('frame_id') or 'imu_link'),
-                 created={'command': command, 'bags': bags, 'still_only': True})
+    fo, choice = _features(o, subs, runs, t0, log, frame_id=str(
+        runs[0].info.get('frame_id') or 'imu_link'), created={
+            'command': command, 'bags': bags, 'still_only': True})
     spans = [(i, a, b) for i, st in enumerate(still) for a, b in st.segments]
     model, means, bad = fit_without_outliers(runs, rows, spans, labels, fo)
     model = _gate(identity_axes(model, raw_runs, const, rows), fo, runs, labels, rows)
