@@ -410,9 +410,9 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     runs = split.runs
     const = constant_gyro_axes(runs)
     fitted = neutral_runs(runs, const)
-    fo, choice = _features(o, fitted, runs, estimate_t0(runs[0]) if o.t0 is None else o.t0, log,
-                           frame_id=data_frame(runs), created={'command': command, 'bags': names})
-    model = fit_model(fitted, fo, sessions=split.labels)
+    fo, choice = _features(o, fitted, runs, estimate_t0(runs[0]) if o.t0 is None else o.t0, log)
+    model = fit_model(fitted, fo, sessions=split.labels, frame_id=data_frame(runs),
+                      created={'command': command, 'bags': names})
     model = _gate(identity_axes(model, runs, const), fo, fitted, split.labels)
     return _finish(model, o, out, runs, choice, {},
                    coverage=coverage(runs, bin_c=o.bin_c), bags=names,
