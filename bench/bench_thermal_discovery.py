@@ -57,7 +57,7 @@ CURVATURES = {'none': 0.0, 'moderate': 1.0, 'dominant': 5.0}
 
 def overrides(tau_die: float, curvature: str) -> dict:
     """Return the scenario overrides of one case."""
-    from gyro_tdc.sim.presets import preset
+    from gyro_tdc.sim.specs import preset
 
     factor = CURVATURES[curvature]
     dt2 = [factor * v for v in preset('l3gd20')['gyro']['dT2_dps_per_c2']]

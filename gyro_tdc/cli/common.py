@@ -30,7 +30,7 @@ import re
 import shlex
 import sys
 import textwrap
-from typing import Callable, NoReturn, Optional, Sequence, TYPE_CHECKING
+from typing import Callable, NoReturn, Optional, Sequence
 
 from gyro_tdc.cli import PROG
 from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPIC,
@@ -39,14 +39,11 @@ from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPI
                            TEMPERATURE_SOURCES)
 from gyro_tdc.errors import GyroTdcError, one_line
 
-if TYPE_CHECKING:
-    from gyro_tdc.model import CompensationModel
-
 __all__ = ['ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_options',
            'add_session_options', 'bag_options', 'comma_floats', 'command_line', 'driver_bags',
            'effect_listing', 'finite_float', 'key_listing', 'non_negative_float',
            'non_negative_int', 'parse_reference', 'positive_float', 'positive_int', 'probability',
-           'progress', 'read_model', 'run_command']
+           'progress', 'run_command']
 
 _DEG = math.pi / 180.0
 _UNITS = {'': 1.0, 'rad/s': 1.0, 'rads': 1.0, 'deg/s': _DEG, 'dps': _DEG}
@@ -267,17 +264,6 @@ probability = _argtype('probability', finite_float, lambda v: 0.0 < v < 1.0,
                        'a number between 0 and 1')
 positive_int = _argtype('positive_int', int, lambda v: v >= 1, 'an integer >= 1')
 non_negative_int = _argtype('non_negative_int', int, lambda v: v >= 0, 'an integer >= 0')
-
-
-def read_model(spec: str) -> 'CompensationModel':
-    """
-    Return the model a command's model argument names: a file, a shipped name, a learn_file.
-
-    A ``learn_file`` gives its current learned model (:func:`gyro_tdc.learn.read_model`); one
-    with no accepted model yet is bad input (one line, exit 2).
-    """
-    from gyro_tdc.learn import read_model as read
-    return read(spec)
 
 
 def command_line(command: str, argv: Sequence[str]) -> str:

@@ -30,7 +30,6 @@ import os
 from pathlib import Path
 import shlex
 import shutil
-import sys
 import textwrap
 import time
 from typing import Sequence
@@ -172,8 +171,11 @@ def run_demo(out: Path, *, live_seconds: float = 20.0, skip_live: bool = False) 
     l3, lag = bags / 'l3gd20_paper', bags / 'lag_heat_cool'
     held_out = [str(l3 / f'run{i}') for i in range(2, 6)]
 
+    def yaml(name: str) -> str:
+        return str(models / f'{name}.yaml')
+
     def train(bag: Path, name: str, opts: list[str]) -> tuple[str, list[str]]:
-        return 'train', [str(bag), *opts, '--out', str(models / f'{name}.yaml'), '--no-progress']
+        return 'train', [str(bag), *opts, '--out', yaml(name), '--no-progress']
 
     plan = [   # one entry per step of STEPS but the live one: the commands it runs
         [('simulate', ['--scenario', 'l3gd20_paper', '--out', str(l3), '--seed', '1',
@@ -182,11 +184,9 @@ def run_demo(out: Path, *, live_seconds: float = 20.0, skip_live: bool = False) 
          for name, kind, feats in (('conventional', 'poly', 'dT'),
                                    ('modified', 'poly', 'dT,dT2'),
                                    ('modified_rbf', 'rbf', 'dT,dT2'))],
-        [('evaluate', held_out + ['--model', str(models / 'conventional.yaml'),
-                                  '--model', str(models / 'modified.yaml'),
+        [('evaluate', held_out + ['--model', yaml('conventional'), '--model', yaml('modified'),
                                   '--json', str(report / 'paper_tables.json'), '--no-progress'])],
-        [('evaluate', held_out[:1] + ['--model', str(models / 'modified_rbf.yaml'),
-                                      '--model', str(models / 'modified.yaml'),
+        [('evaluate', held_out[:1] + ['--model', yaml('modified_rbf'), '--model', yaml('modified'),
                                       '--model', 'px4', '--train', str(l3 / 'run1'),
                                       '--reanchor', '300',
                                       '--json', str(report / 'comparison.json'),
@@ -195,17 +195,15 @@ def run_demo(out: Path, *, live_seconds: float = 20.0, skip_live: bool = False) 
                        '--no-progress'])],
         [('discover', [str(lag / 'run1'), str(lag / 'run2'), '--base', 'bias,dT',
                        '--json', str(report / 'discovery.json'),
-                       '--report', str(report / 'discovery'),
-                       '--out', str(models / 'discovered.yaml')])],
+                       '--report', str(report / 'discovery'), '--out', yaml('discovered')])],
         [train(lag / 'run1', name, opts)
          for name, opts in (('datasheet', ['--features', 'dT', '--kind', 'poly']),
                             ('modified_lag_run', ['--features', 'dT,dT2', '--kind', 'poly']),
                             ('default_lag_run', []))],
-        [('evaluate', [str(lag / 'run2'), '--model', str(models / 'datasheet.yaml'),
-                       '--model', str(models / 'modified_lag_run.yaml'), '--model', 'px4',
-                       '--train', str(lag / 'run1'),
-                       '--model', str(models / 'default_lag_run.yaml'),
-                       '--model', str(models / 'discovered.yaml'),
+        [('evaluate', [str(lag / 'run2'), '--model', yaml('datasheet'),
+                       '--model', yaml('modified_lag_run'), '--model', 'px4',
+                       '--train', str(lag / 'run1'), '--model', yaml('default_lag_run'),
+                       '--model', yaml('discovered'),
                        '--json', str(report / 'lag_comparison.json'),
                        '--plots', str(report / 'evaluate_lag'), '--no-progress'])],
     ]
@@ -317,7 +315,3 @@ def _run(args: argparse.Namespace, argv: list) -> int:
 def main(argv: Sequence[str] | None = None) -> int:
     """Run ``gyro-tdc demo``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('demo', build_parser, _run, argv)
-
-
-if __name__ == '__main__':
-    sys.exit(main())

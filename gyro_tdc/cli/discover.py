@@ -171,7 +171,3 @@ def _accel_options(args: argparse.Namespace, base: tuple, cands: tuple | None) -
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run ``python -m gyro_tdc discover``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('discover', build_parser, _run, argv)
-
-
-if __name__ == '__main__':
-    sys.exit(main())

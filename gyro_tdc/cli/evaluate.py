@@ -30,11 +30,12 @@ from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
                                  ArgumentParser, bag_options, comma_floats, driver_bags,
-                                 non_negative_float, read_model, run_command, UsageError)
+                                 non_negative_float, run_command, UsageError)
 from gyro_tdc.data import find_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
                                format_still, load_models, model_description, PX4, write_csv,
                                write_json, write_plots)
+from gyro_tdc.learn import read_model
 from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES
 
 __all__ = ['build_parser', 'main']
@@ -223,7 +224,3 @@ def _state_tau(model) -> float | None:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run ``gyro-tdc evaluate``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('evaluate', build_parser, _run, argv)
-
-
-if __name__ == '__main__':
-    sys.exit(main())

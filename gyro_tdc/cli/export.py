@@ -25,15 +25,14 @@ improvement the form keeps against the full model (``doc/flight_controllers.md``
 from __future__ import annotations
 
 import argparse
-import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
-                                 non_negative_float, non_negative_int, read_model, run_command,
-                                 UsageError)
+                                 non_negative_float, non_negative_int, run_command, UsageError)
 from gyro_tdc.data import load_runs
 from gyro_tdc.identify import (check_instance, clamp_cost, fit_export, from_params, read_params,
                                score_export, share_kept, write_params)
+from gyro_tdc.learn import read_model
 from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, save_model
 import numpy as np
 
@@ -185,7 +184,3 @@ def _evaluate(args: argparse.Namespace, model, form, firmware: str) -> None:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run ``gyro-tdc export``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('export', build_parser, _run, argv)
-
-
-if __name__ == '__main__':
-    sys.exit(main())

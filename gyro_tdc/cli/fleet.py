@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import os
 from pathlib import Path
-import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import (ArgumentParser, bag_options, command_line, positive_float,
@@ -106,7 +105,3 @@ def main(argv: Optional[Sequence[str]] = None) -> int:
 
     """
     return run_command('fleet', build_parser, _run, argv)
-
-
-if __name__ == '__main__':
-    sys.exit(main())

@@ -225,7 +225,3 @@ def _run(args: argparse.Namespace, argv: list) -> int:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run ``gyro-tdc simulate``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('simulate', build_parser, _run, argv)
-
-
-if __name__ == '__main__':
-    sys.exit(main())

@@ -27,7 +27,6 @@ import argparse
 import importlib
 import json
 import math
-import sys
 import threading
 from typing import Optional, Sequence
 
@@ -206,7 +205,3 @@ def _run(args: argparse.Namespace, argv: list) -> int:
 def main(argv: Optional[Sequence[str]] = None) -> int:
     """Run ``python -m gyro_tdc train``: 0 on success, 2 on bad input (see ``run_command``)."""
     return run_command('train', build_parser, _run, argv)
-
-
-if __name__ == '__main__':
-    sys.exit(main())

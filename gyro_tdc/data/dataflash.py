@@ -144,12 +144,8 @@ def _imu(reader, kind: str = 'IMU') -> dict[int, dict[str, np.ndarray]]:
         if mtype is None or not len(reader.offsets[mtype]):
             continue
         cols = _records(reader, mtype)
-        if _has_instances(cols):
-            for i in np.unique(cols['I']).tolist():
-                sel = cols['I'] == i
-                out[int(i)] = {k: v[sel] for k, v in cols.items()}
-        else:
-            out[base] = cols
+        parts = _instances(cols)
+        out.update({base: cols} if parts is None else parts)
     return out
 
 
@@ -179,47 +175,43 @@ def _stamps(cols: dict[str, np.ndarray]) -> np.ndarray:
     return np.asarray(us, dtype=np.float64) * 1e-6
 
 
-def _sensor_rate(gyr: dict | str | None, imu_t: np.ndarray, instance: int
-                 ) -> tuple[np.ndarray, np.ndarray, str] | str:
-    """
-    Return ``GYR``'s (stamps, gyro, what in words), or why it cannot stand in for ``IMU``.
-
-    It can when it is a stream beside ``IMU`` (:func:`gyro_tdc.data.flightlog.sensor_stream`).
-    """
-    if gyr is None or isinstance(gyr, str):
-        return gyr or ''
-    g = columns(gyr, ('GyrX', 'GyrY', 'GyrZ'))
-    if g is None or 'TimeUS' not in gyr or not len(g):
-        return f'GYR not used: it has no instance {instance}'
-    t = _stamps(gyr)
-    ok, said = sensor_stream(t, g, imu_t, 'GYR', 'IMU')
-    return (t, g, said) if ok else said
-
-
-def _gyro_accel(d: dict, fast: tuple | str, acc: dict | str | None, accel: bool) -> tuple:
+def _gyro_accel(d: dict, gyr: dict | str | None, acc: dict | str | None, accel: bool,
+                instance: int) -> tuple:
     """
     Return (stamps, gyro, accelerometer, source, what in words) of one IMU instance.
 
-    ``fast``: what :func:`_sensor_rate` found. On ``GYR``'s stamps the accelerometer is
-    ``ACC``'s where the log has it for the instance, else ``IMU``'s, interpolated.
+    ``gyr``, ``acc``: what :func:`_fast` found. ``GYR``'s gyro where it is a stream beside
+    ``IMU`` (:func:`gyro_tdc.data.flightlog.sensor_stream`), else ``IMU``'s. On ``GYR``'s
+    stamps the accelerometer is ``ACC``'s where the log has it for the instance, else
+    ``IMU``'s, interpolated.
     """
-    acc_xyz = ('AccX', 'AccY', 'AccZ')
-    if isinstance(fast, str):
-        return (_seconds(d), columns(d, ('GyrX', 'GyrY', 'GyrZ')),
-                columns(d, acc_xyz) if accel else None, 'IMU', fast)
-    t, gyro, said = fast
+    acc_xyz, imu_t = ('AccX', 'AccY', 'AccZ'), _seconds(d)
+    ok, said = False, gyr if isinstance(gyr, str) else ''
+    if isinstance(gyr, dict):
+        gyro = columns(gyr, ('GyrX', 'GyrY', 'GyrZ'))
+        if gyro is None or 'TimeUS' not in gyr or not len(gyro):
+            said = f'GYR not used: it has no instance {instance}'
+        else:
+            t = _stamps(gyr)
+            ok, said = sensor_stream(t, gyro, imu_t, 'GYR', 'IMU')
+    if not ok:
+        return (imu_t, columns(d, ('GyrX', 'GyrY', 'GyrZ')),
+                columns(d, acc_xyz) if accel else None, 'IMU', said)
     if not accel:
         return t, gyro, None, 'GYR', said
     if (isinstance(acc, dict) and (a := columns(acc, acc_xyz)) is not None
             and 'TimeUS' in acc and len(a) > 1):
         return t, gyro, on_stamps(t, _stamps(acc), a), 'GYR', said + ', accelerometer from ACC'
-    return (t, gyro, on_stamps(t, _seconds(d), columns(d, acc_xyz)), 'GYR',
+    return (t, gyro, on_stamps(t, imu_t, columns(d, acc_xyz)), 'GYR',
             said + ', accelerometer from IMU')
 
 
-def _has_instances(cols: dict[str, np.ndarray]) -> bool:
-    """Return True when a record type's ``I`` field numbers instances (a uint8)."""
-    return 'I' in cols and np.asarray(cols['I']).dtype == np.uint8
+def _instances(cols: dict[str, np.ndarray]) -> dict[int, dict[str, np.ndarray]] | None:
+    """Return a message type's records per instance; None when its ``I`` is no instance number."""
+    if 'I' not in cols or np.asarray(cols['I']).dtype != np.uint8:
+        return None
+    return {int(i): {k: v[cols['I'] == i] for k, v in cols.items()}
+            for i in np.unique(cols['I']).tolist()}
 
 
 def _instance(cols: dict[str, np.ndarray], want: int) -> tuple[dict[str, np.ndarray], int]:
@@ -230,12 +222,11 @@ def _instance(cols: dict[str, np.ndarray], want: int) -> tuple[dict[str, np.ndar
     ``HEAT.I`` is a float, its heater's integrator) interleaves its instances: ``want``
     where it has it, else its first; a message without is one.
     """
-    if not _has_instances(cols) or not len(cols['I']):
+    parts = _instances(cols)
+    if not parts:
         return cols, 0
-    have = np.unique(cols['I']).tolist()
-    i = want if want in have else int(have[0])
-    sel = cols['I'] == i
-    return {k: v[sel] for k, v in cols.items()}, int(i)
+    i = want if want in parts else min(parts)
+    return parts[i], i
 
 
 def _seconds(cols: dict[str, np.ndarray]) -> np.ndarray:
@@ -255,8 +246,7 @@ def _inventory(imus: dict, baros: dict) -> str:
     for i, d in sorted(imus.items()):
         temp = _temperature(d)
         parts.append(f'{i}: {len(d["TimeUS"])} samples at {rate_hz(_seconds(d)):.3g} Hz, '
-                     'temperature '
-                     + (f'IMU.{temp[0]}' if temp else 'none'))
+                     'temperature ' + (f'IMU.{temp[0]}' if temp else 'none'))
     baro = [i for i, d in sorted(baros.items()) if _temperature(d) is not None]
     return '; '.join(parts) + (f'; barometer temperature: BARO instance '
                                f'{", ".join(map(str, baro))}' if baro else '')
@@ -282,7 +272,7 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     Returns
     -------
     FlightLog
-        The gyro of ``GYR`` where :func:`_sensor_rate` finds it a stream, else ``IMU``'s.
+        The gyro of ``GYR`` where :func:`_gyro_accel` finds it a stream, else ``IMU``'s.
         Never ``raw``: both are logged after the offsets and the temperature correction;
         ``compensated`` when ``INS_TCALn_ENABLE`` is 1.
 
@@ -329,14 +319,12 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
                            f'{", ".join(map(str, sorted(imus)))}; what each carries: '
                            f'{_inventory(imus, baros)}; --imu-instance N).')
     d = imus[instance]
-    t = _seconds(d)
-    fast = _sensor_rate(gyr, t, instance)
+    t, gyro, acc, source, said = _gyro_accel(d, gyr, acc, accel, instance)
     b_inst = instance if instance in baros else 0       # BARO, BAR2...: per instance
     baro = baros.get(b_inst, {})
     other, o_inst = _instance(other, instance)
     src = {'imu': d, 'baro': baro}.get(temperature_source, other)
     found = _temperature(src, (fld,) if fld else TEMPERATURE_FIELDS)
-    temp_t = None
     if temperature_source == 'imu':
         if found is None:
             baro_ok = any(_temperature(b) is not None for b in baros.values())
@@ -347,7 +335,7 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
                                f'temperature (what each instance carries: '
                                f'{_inventory(imus, baros)}; {hint}).')
         temp, name = found[1], f'IMU.{found[0]}'
-        temp_t = t if isinstance(fast, tuple) else None
+        temp_t = _seconds(d) if source == 'GYR' else None
     elif found is None or 'TimeUS' not in src:
         raise DatasetError(f'Log {str(p)!r}: no usable thermometer for '
                            f'--temperature-source {temperature_source} (what each IMU '
@@ -360,13 +348,12 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     active, words = onboard_status(params, 'ardupilot', instance=instance)
     skipped = chatter.getvalue().count('\n')
     notes = [f'pymavlink skipped damaged bytes ({skipped} reports)'] if skipped else []
-    t, gyro, acc, source, said = _gyro_accel(d, fast, acc, accel)
     notes += [said] if said else []
     notes += (['ISBD batch samples not read (bursts, not a stream)']
               if bursts and source == 'IMU' else [])
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
-                     firmware='ardupilot', source=source,
-                     instance=int(instance), instances=tuple(sorted(imus)), raw=False,
-                     compensated=active, onboard=words, truncated_bytes=cut, notes=notes,
+                     firmware='ardupilot', source=source, instance=int(instance),
+                     instances=tuple(sorted(imus)), raw=False, compensated=active,
+                     onboard=words, truncated_bytes=cut, notes=notes,
                      temp_t=temp_t, temperature=name, proxy=temperature_source != 'imu',
                      damage=f'pymavlink skipped {skipped} damaged headers' if skipped else '')

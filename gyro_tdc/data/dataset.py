@@ -58,8 +58,7 @@ def _vector(name: str, a: ArrayLike) -> NDArray[np.float64]:
 
 
 def _interp_sorted(imu_t: NDArray[np.float64], tt: NDArray[np.float64],
-                   tc: NDArray[np.float64], gap: float
-                   ) -> tuple[NDArray[np.float64], NDArray[np.bool_]]:
+                   tc: NDArray[np.float64], gap: float) -> tuple[NDArray, NDArray[np.bool_]]:
     """
     Interpolate onto sorted IMU stamps, working on the knots rather than on every sample.
 
@@ -235,9 +234,8 @@ def _read_source(bag: str | os.PathLike, o: BagOptions, *,
                         progress=o.progress, accel=bool(o.accel)), {}
     if not Path(bag).is_file():
         raise DatasetError(f'Log {str(bag)!r} is not a file.')
-    reader = read_ulog if fmt == 'ulog' else read_dataflash
-    log = reader(bag, instance=o.imu_instance, accel=bool(o.accel),
-                 temperature_source=o.temperature_source)
+    log = (read_ulog if fmt == 'ulog' else read_dataflash)(
+        bag, instance=o.imu_instance, accel=bool(o.accel), temperature_source=o.temperature_source)
     return flight_log_data(bag, log, fmt, o)
 
 
@@ -522,8 +520,7 @@ def load_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
 
 
 def iter_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
-              options: BagOptions | None = None, *,
-              log: Callable[[str], None] | None = None,
+              options: BagOptions | None = None, *, log: Callable[[str], None] | None = None,
               found: list[tuple[Path, bool]] | None = None) -> Iterator[Run]:
     """
     Yield the runs of bags (or folders of them, :func:`find_bags`) one at a time.

@@ -306,11 +306,10 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
     data = BagData(imu_t=log.imu_t[ok], gyro=log.gyro[ok],
                    accel=None if log.accel is None else log.accel[ok], frame_id='',
                    temp_t=temp_t[warm], temp_c=log.temp_c[warm],
-                   temp_var=np.zeros(int(warm.sum())), ref_t=None, ref=None, topics={},
-                   storage=fmt, path=str(p),
-                   rejected={'imu_nonfinite': int(np.count_nonzero(~ok)),
-                             'temp_nonfinite': int(np.count_nonzero(~warm)),
-                             'ref_nonfinite': 0, 'undecodable': 0})
+                   temp_var=np.zeros(int(warm.sum())), ref_t=None, ref=None, storage=fmt,
+                   path=str(p), rejected={'imu_nonfinite': int(np.count_nonzero(~ok)),
+                                          'temp_nonfinite': int(np.count_nonzero(~warm)),
+                                          'ref_nonfinite': 0, 'undecodable': 0})
     return data, {
         'log_format': fmt, 'log': describe_log(log), 'firmware': log.firmware,
         'source': log.source, 'instance': log.instance, 'device_id': log.device_id,

@@ -23,7 +23,7 @@ length (also of Temperature and Vector3Stamped), :func:`locate` finds them in on
 from __future__ import annotations
 
 from dataclasses import dataclass
-import functools
+from functools import cached_property
 import itertools
 import struct
 
@@ -32,12 +32,10 @@ from gyro_tdc.errors import DatasetError
 import numpy as np
 from numpy.typing import ArrayLike
 
-__all__ = [
-    'ANGULAR_VELOCITY', 'ANGULAR_VELOCITY_COV', 'CDR_BE', 'CDR_LE', 'FRAME_ID',
-    'FRAME_ID_LENGTH', 'IMU_DOUBLES', 'IMU_FIELDS', 'ImuView', 'LINEAR_ACCELERATION',
-    'LINEAR_ACCELERATION_COV', 'Layout', 'STAMP_NANOSEC', 'STAMP_SEC', 'body_offset',
-    'encode', 'field_slice', 'layout_of', 'locate',
-]
+__all__ = ['ANGULAR_VELOCITY', 'ANGULAR_VELOCITY_COV', 'CDR_BE', 'CDR_LE', 'FRAME_ID',
+           'FRAME_ID_LENGTH', 'IMU_DOUBLES', 'IMU_FIELDS', 'ImuView', 'LINEAR_ACCELERATION',
+           'LINEAR_ACCELERATION_COV', 'Layout', 'STAMP_NANOSEC', 'STAMP_SEC', 'body_offset',
+           'encode', 'field_slice', 'layout_of', 'locate']
 
 #: Encapsulation headers of plain CDR (representation id 00 01 / 00 00, options 00 00).
 CDR_LE = b'\x00\x01\x00\x00'
@@ -98,20 +96,6 @@ def body_offset(frame_len: int) -> int:
     return _ALIGN_ORIGIN + (end + 7) // 8 * 8
 
 
-@functools.lru_cache(maxsize=64)
-def _dtype(frame_len: int, n_doubles: int, big_endian: bool) -> np.dtype:
-    """Return (cached) the structured dtype of :attr:`Layout.dtype`."""
-    order = '>' if big_endian else '<'
-    body = body_offset(frame_len)
-    return np.dtype({
-        'names': ['encap', 'sec', 'nanosec', 'strlen', 'frame', 'data'],
-        'formats': [('u1', (4,)), order + 'i4', order + 'u4', order + 'u4',
-                    ('u1', (frame_len,)), (order + 'f8', (n_doubles,))],
-        'offsets': [0, STAMP_SEC, STAMP_NANOSEC, FRAME_ID_LENGTH, FRAME_ID, body],
-        'itemsize': body + 8 * n_doubles,
-    })
-
-
 @dataclass(frozen=True)
 class Layout:
     """
@@ -147,7 +131,7 @@ class Layout:
         """Return the 4-byte encapsulation header."""
         return CDR_BE if self.big_endian else CDR_LE
 
-    @property
+    @cached_property
     def dtype(self) -> np.dtype:
         """
         Return the structured dtype of one message; ``itemsize`` is the message length.
@@ -156,7 +140,14 @@ class Layout:
         ``frame`` (``frame_len`` x u1, NUL included) and ``data`` (``n_doubles`` x f8),
         in the byte order of the message.
         """
-        return _dtype(self.frame_len, self.n_doubles, self.big_endian)
+        order = '>' if self.big_endian else '<'
+        return np.dtype({
+            'names': ['encap', 'sec', 'nanosec', 'strlen', 'frame', 'data'],
+            'formats': [('u1', (4,)), order + 'i4', order + 'u4', order + 'u4',
+                        ('u1', (self.frame_len,)), (order + 'f8', (self.n_doubles,))],
+            'offsets': [0, STAMP_SEC, STAMP_NANOSEC, FRAME_ID_LENGTH, FRAME_ID, self.body],
+            'itemsize': self.size,
+        })
 
     def offset(self, name: str) -> int:
         """

@@ -65,9 +65,8 @@ def cov_marked(data: bytes, offset: int) -> bool:
     """Return whether the serialized covariance at ``offset`` carries the mark on its diagonal."""
     if data[offset:offset + 2] == MARK:
         return data[offset + 32:offset + 34] == MARK and data[offset + 64:offset + 66] == MARK
-    return (data[offset:offset + 8] == UNKNOWN_MARK
-            and data[offset + 32:offset + 40] == UNKNOWN_MARK
-            and data[offset + 64:offset + 72] == UNKNOWN_MARK)
+    return (data[offset:offset + 8] == data[offset + 32:offset + 40]
+            == data[offset + 64:offset + 72] == UNKNOWN_MARK)
 
 
 def _negative_zero(value: float) -> bool:

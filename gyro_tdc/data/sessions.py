@@ -180,7 +180,6 @@ def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0
                                         float(piece.t[-1]), len(piece), why))
     if mode == 'none' and out_runs:
         name = out_runs[0].name if len(out_runs) == 1 else 'all'
-        sessions.append(Session(name, name, 0, float(out_runs[0].t[0]),
-                                float(out_runs[-1].t[-1]), sum(len(r) for r in out_runs),
-                                'bag'))
+        sessions.append(Session(name, name, 0, float(out_runs[0].t[0]), float(out_runs[-1].t[-1]),
+                                sum(len(r) for r in out_runs), 'bag'))
     return SessionSplit(out_runs, labels, sessions, mode, breaks, parts)

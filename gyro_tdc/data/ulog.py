@@ -55,8 +55,7 @@ _DEVICE_FIELDS = {'gyro': (('sensor_gyro', 'device_id'), ('vehicle_imu', 'gyro_d
 FIFO_SAMPLES = 32
 #: The IMU's own thermometers, in the order they are tried: (topic, field).
 _IMU_THERMOMETERS = (('sensor_gyro', 'temperature'), ('vehicle_imu_status', 'temperature_gyro'),
-                     ('vehicle_imu_status', 'temperature_accel'),
-                     ('sensor_accel', 'temperature'))
+                     ('vehicle_imu_status', 'temperature_accel'), ('sensor_accel', 'temperature'))
 #: The barometer's thermometers (``--temperature-source baro``), in the order they are tried.
 _BARO_THERMOMETERS = (('sensor_combined', 'baro_temp_celcius'),
                       ('vehicle_air_data', 'baro_temp_celcius'), ('sensor_baro', 'temperature'))
@@ -185,9 +184,8 @@ def _combined_note(topics: dict, instance: int, rows: NDArray[np.bool_]) -> str:
     owners = {k for k in ids if _combined_rows(topics, k).any()}
     if owners == {0}:          # the first IMU's, as PX4 selects by default: nothing to say
         return ''
-    return ('sensor_combined carries ' + (f'instance {owners.pop()}' if len(owners) == 1
-                                          else 'other IMUs')
-            + ' (sensor_selection), not this one')
+    which = f'instance {owners.pop()}' if len(owners) == 1 else 'other IMUs'
+    return f'sensor_combined carries {which} (sensor_selection), not this one'
 
 
 def _gyros(topics: dict, instance: int, rows: NDArray[np.bool_] | None = None
@@ -211,23 +209,24 @@ def _gyros(topics: dict, instance: int, rows: NDArray[np.bool_] | None = None
     return out
 
 
-def _fifo(topics: dict, kind: str, device: int, instance: int) -> tuple | str | None:
+def _stream(topics: dict, kind: str, device: int, instance: int,
+            slow_t: NDArray[np.float64], beside: str) -> tuple:
     """
-    Return one IMU's ``sensor_{kind}_fifo`` blocks as samples: (stamps s, (N, 3), words).
+    Return (stamps, samples, words) of the FIFO where it stands in for ``beside`` at ``slow_t``.
 
-    The blocks of its ``device`` (of ``instance`` where the log names none). Sample k of a
-    block of n is ``timestamp_sample - (n - 1 - k) * dt`` (PX4's drivers stamp a block by its
-    newest sample), its value ``x[k] * scale``. A block whose ``samples`` is 0 or beyond 32,
-    ``dt`` not in (0, 1 s] or ``scale`` not finite and non-zero is skipped and counted (and
-    any sample whose value overflows). None without the topic; why not, in words, when no
-    block is this IMU's or a field is missing.
+    Else (None, None, why not in words; '' without the FIFO): see
+    :func:`gyro_tdc.data.flightlog.sensor_stream`. The FIFO is one IMU's
+    ``sensor_{kind}_fifo`` blocks of its ``device`` (of ``instance`` where the log names
+    none). Sample k of a block of n is ``timestamp_sample - (n - 1 - k) * dt`` (PX4's drivers
+    stamp a block by its newest sample), its value ``x[k] * scale``. A block whose ``samples``
+    is 0 or beyond 32, ``dt`` not in (0, 1 s] or ``scale`` not finite and non-zero is skipped
+    and counted (and any sample whose value overflows).
     """
     name = f'sensor_{kind}_fifo'
     if not (inst := topics.get(name)):
-        return None
+        return None, None, ''
     own = [d for i, d in sorted(inst.items())
-           if (device and (np.asarray(d.get('device_id', [])) == device).any())
-           or (not device and i == instance)]
+           if ((np.asarray(d.get('device_id', [])) == device).any() if device else i == instance)]
     k = np.arange(FIFO_SAMPLES)
     axes = [columns(d, tuple(f'{a}[{j}]' for j in k)) for d in own for a in 'xyz']
     need = ('device_id', 'dt', 'scale', 'samples')
@@ -236,8 +235,9 @@ def _fifo(topics: dict, kind: str, device: int, instance: int) -> tuple | str | 
         ids = sorted({int(i) for d in inst.values() for i in np.unique(d.get('device_id', []))})
         mine = f'not {device}' if device else f'none of instance {instance}'
         lack = next((f for d in own for f in need if f not in d), 'x[0..31], y or z')
-        return (f'{name} not used: ' + (f'its blocks are of device {", ".join(map(str, ids))}'
-                                        f', {mine}' if not own else f'its format has no {lack}'))
+        return None, None, (f'{name} not used: ' + (
+            f'its blocks are of device {", ".join(map(str, ids))}, {mine}' if not own
+            else f'its format has no {lack}'))
     dev, dt, scale, n = np.concatenate(head).T
     mine = dev == device if device else np.ones(len(dev), dtype=bool)
     stamp = np.concatenate([_seconds(d) for d in own])
@@ -248,26 +248,11 @@ def _fifo(topics: dict, kind: str, device: int, instance: int) -> tuple | str | 
         v = np.stack([np.concatenate(axes[j::3]) * scale[:, None] for j in range(3)], axis=-1)
     keep = ok[:, None] & (k < n[:, None]) & np.isfinite(v).all(axis=-1)
     order = np.argsort(t[keep], kind='stable')
-    bad = int(np.count_nonzero(mine & ~ok))
-    return t[keep][order], v[keep][order], (
-        f', {bad} of {int(mine.sum())} blocks skipped (samples, dt or scale out of range)'
-        if bad else '')
-
-
-def _stream(topics: dict, kind: str, device: int, instance: int, t: NDArray[np.float64],
-            beside: str) -> tuple:
-    """
-    Return (stamps, samples, words) of the FIFO where it stands in for ``beside`` at ``t``.
-
-    Else (None, None, why not in words; '' without the FIFO): see
-    :func:`gyro_tdc.data.flightlog.sensor_stream`.
-    """
-    fifo = _fifo(topics, kind, device, instance)
-    if not isinstance(fifo, tuple):
-        return None, None, fifo or ''
-    name, what = f'sensor_{kind}_fifo', {'gyro': 'gyro', 'accel': 'accelerometer'}[kind]
-    used, said = sensor_stream(fifo[0], fifo[1], t, name, beside, what)
-    return (fifo[0], fifo[1], said + fifo[2]) if used else (None, None, said)
+    t, v, bad = t[keep][order], v[keep][order], int(np.count_nonzero(mine & ~ok))
+    used, said = sensor_stream(t, v, slow_t, name, beside,
+                               'accelerometer' if kind == 'accel' else 'gyro')
+    return (t, v, said + (f', {bad} of {int(mine.sum())} blocks skipped (samples, dt or scale '
+                          'out of range)' if bad else '')) if used else (None, None, said)
 
 
 def _gyro_accel(topics: dict, instance: int, gyros: dict, source: str,
@@ -325,41 +310,17 @@ def _inventory(topics: dict) -> str:
                                              + ', '.join(baro) if baro else '')
 
 
-def _thermometer(topics: dict, instance: int, source: str
-                 ) -> tuple[str, NDArray[np.float64], NDArray[np.float64]] | None:
+def _thermometer(topics: dict, instance: int, source: str) -> tuple | None:
     """Return (name, stamps s, degC) of the thermometer ``source`` asks for, None if none."""
     tp, _, f = source.partition('.')
     cands = {'imu': [(tp, f, instance) for tp, f in _IMU_THERMOMETERS],
-             'baro': [(tp, f, 0) for tp, f in _BARO_THERMOMETERS]}.get(
-        source, [(tp, f, instance), (tp, f, 0)])
+             'baro': [(tp, f, 0) for tp, f in _BARO_THERMOMETERS]
+             }.get(source, [(tp, f, instance), (tp, f, 0)])
     for tp, f, i in cands:
         d = topics.get(tp, {}).get(i) or {}
         if (v := thermometer(d.get(f))) is not None:
             return f'{tp}.{f}' + (f' instance {i}' if i else ''), _seconds(d), v
     return None
-
-
-def _required_thermometer(p: Path, topics: dict[str, dict[int, dict]], instance: int,
-                          temperature_source: str, source: str
-                          ) -> tuple[str, NDArray[np.float64], NDArray[np.float64]]:
-    """
-    Return :func:`_thermometer`'s ``(name, stamps, degC)`` or raise DatasetError saying why not.
-
-    Without the IMU's own thermometer the message names the barometer proxy when there is one.
-    """
-    therm = _thermometer(topics, instance, temperature_source)
-    if therm is None and temperature_source == 'imu':
-        baro = _thermometer(topics, instance, 'baro') is not None
-        raise DatasetError(
-            f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
-            "thermometer reads other than a constant 0 or NaN; the log's instances: "
-            f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
-                                        "barometer's as a proxy." if baro else '.'))
-    if therm is None:
-        raise DatasetError(f'Log {str(p)!r}: no usable thermometer for --temperature-source '
-                           f"{temperature_source} (the log's instances: "
-                           f'{_inventory(topics)}).')
-    return therm
 
 
 def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False,
@@ -440,7 +401,18 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
         acc_t, acc = (fast_t, fast) if fast_t is not None else (acc_t, acc)
         acc = acc if acc_t is t else on_stamps(t, acc_t, acc)
     raw = source in ('sensor_gyro', 'sensor_gyro_fifo')
-    name, temp_t, temp = _required_thermometer(p, topics, instance, temperature_source, source)
+    therm = _thermometer(topics, instance, temperature_source)
+    if therm is None and temperature_source == 'imu':
+        baro = _thermometer(topics, instance, 'baro') is not None
+        raise DatasetError(
+            f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
+            "thermometer reads other than a constant 0 or NaN; the log's instances: "
+            f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
+                                        "barometer's as a proxy." if baro else '.'))
+    if therm is None:
+        raise DatasetError(f'Log {str(p)!r}: no usable thermometer for --temperature-source '
+                           f"{temperature_source} (the log's instances: {_inventory(topics)}).")
+    name, temp_t, temp = therm
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
                      firmware='px4', source=source, instance=int(instance),
                      instances=tuple(sorted(found)), raw=raw, compensated=active and not raw,

@@ -22,11 +22,10 @@ evaluation.
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
-    'models': ['load_models', 'NamedModel', 'PX4'],
-    'onboard': ['ONBOARD', 'onboard_model'],
+    'models': ['load_models', 'NamedModel', 'ONBOARD', 'onboard_model', 'PX4'],
     'plots': ['model_description', 'write_plots'],
-    'report': ['format_bag', 'format_means', 'format_still', 'write_csv', 'write_json'],
+    'report': ['format_bag', 'format_coverage', 'format_means', 'format_sessions', 'format_still',
+               'format_training', 'is_coverage_line', 'REANCHOR_SPREAD_DPS', 'write_csv',
+               'write_json'],
     'score': ['AUTO_REANCHOR', 'BagEval', 'evaluate', 'mean_scores'],
-    'training_report': ['format_coverage', 'format_sessions', 'format_training',
-                        'is_coverage_line', 'REANCHOR_SPREAD_DPS'],
 })

@@ -16,8 +16,9 @@
 The models an evaluation scores, and the labels of models and bags.
 
 :func:`load_models` turns command-line model specs into :class:`NamedModel` (a model file or
-shipped name, the ``px4`` cubic fitted on training bags, or a log's own on-board correction);
-the labels name them, and the held-out bags, in tables, CSV columns and file names.
+shipped name, the ``px4`` cubic fitted on training bags, or a log's own on-board correction,
+:func:`onboard_model`); the labels name them, and the held-out bags, in tables, CSV columns and
+file names.
 """
 
 from __future__ import annotations
@@ -29,15 +30,16 @@ import re
 from typing import Callable, Sequence
 
 from gyro_tdc.base import model_path
-from gyro_tdc.data import BagOptions, iter_runs, load_runs
-from gyro_tdc.errors import FitError
-from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
+from gyro_tdc.data import BagOptions, iter_runs, load_runs, Run
+from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.identify import (constant_gyro_axes, fit_accel, fit_px4_cubic, identity_axes,
                                neutral_runs, PX4_FEATURES, still_only_runs)
-from gyro_tdc.model import CompensationModel, load_model
+from gyro_tdc.model import (ARDUPILOT_SCALE, ARDUPILOT_TREF_C, ArduPilotTempCal,
+                            CompensationModel, load_model, onboard_status, px4_slot, Px4TempCal)
+import numpy as np
 
-__all__ = ['NamedModel', 'PX4', 'bag_labels', 'load_models', 'model_labels', 'safe_label',
-           'with_accel']
+__all__ = ['ARDUPILOT_ONBOARD', 'NamedModel', 'ONBOARD', 'PX4', 'PX4_ONBOARD', 'bag_labels',
+           'load_models', 'model_labels', 'onboard_model', 'safe_label', 'with_accel']
 
 #: Model spec of the PX4-style cubic in T fitted on training bags.
 PX4 = 'px4'
@@ -46,20 +48,11 @@ PX4 = 'px4'
 @dataclass(frozen=True)
 class NamedModel:
     """
-    A model with the name it was given on the command line.
+    A model with the name it was given on the command line (a file path as given, or ``px4``).
 
-    Parameters
-    ----------
-    name : str
-        A model file path as given, or ``px4``.
-    label : str
-        Short unique label (tables, CSV columns, legends).
-    model : CompensationModel
-        The model.
-    out_of_range : str, optional
-        The model's own out-of-range policy (a flight controller's clamp), overriding the
-        evaluation's.
-
+    ``label`` is short and unique (tables, CSV columns, legends); ``out_of_range``, when set,
+    is the model's own out-of-range policy (a flight controller's clamp), overriding the
+    evaluation's.
     """
 
     name: str
@@ -126,7 +119,7 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     :func:`~gyro_tdc.model.load_model`), ``px4`` (a cubic fitted on ``train_bags``, read
     as ``bag`` says, accelerometer included; on the still stretches of bags without a
     reference that move, as ``train`` fits) or ``px4-onboard`` / ``ardupilot-onboard``
-    (:mod:`gyro_tdc.evaluate.onboard`, from the parameters of the first ``held_out`` log).
+    (:func:`onboard_model`, from the parameters of the first ``held_out`` log).
     Labels come from :func:`model_labels`; ``log`` receives progress lines.
 
     Raises
@@ -174,3 +167,79 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     return [NamedModel(s, label, px4 if s == PX4 else files[s],
                        'clamp' if s in ONBOARD else None)
             for s, label in zip(specs, model_labels(specs))]
+
+
+# --------------------------------------------------------------------------------------------
+# The flight controller's own correction (evaluate --model px4-onboard|ardupilot-onboard):
+# the log's TC_G* / INS_TCALn_* parameters as an exact cubic, evaluated with the firmware's
+# clamp whatever --out-of-range says.
+# --------------------------------------------------------------------------------------------
+
+PX4_ONBOARD = 'px4-onboard'
+ARDUPILOT_ONBOARD = 'ardupilot-onboard'
+#: The model specs of the flight controllers' own corrections, and the firmware of each.
+ONBOARD = {PX4_ONBOARD: 'px4', ARDUPILOT_ONBOARD: 'ardupilot'}
+#: Residual variance given to the cubic (only the automatic re-anchoring's tolerance reads it).
+_RESIDUAL_VAR = 1e-8
+
+
+def _cubic(t0: float, intercept, linear, lo: float, hi: float, created: dict) -> CompensationModel:
+    """Return ``intercept + linear . (d, d^2, d^3)``, ``d = T - t0``, valid on ``[lo, hi]``."""
+    coef = np.vstack([np.reshape(intercept, (1, 3)), np.reshape(linear, (3, 3))])
+    return CompensationModel.polynomial(('dT', 'dT2', 'dT3'), t0, coef, temp_range_c=(lo, hi),
+                                        residual_var=np.full(3, _RESIDUAL_VAR), created=created)
+
+
+def onboard_model(spec: str, run: Run) -> tuple[CompensationModel, str]:
+    """
+    Return the flight controller's correction of a log as a model, and a line saying what it is.
+
+    Parameters
+    ----------
+    spec : str
+        ``px4-onboard`` or ``ardupilot-onboard``.
+    run : Run
+        A run read from a log of that firmware (``info['params']`` holds its parameters).
+
+    Returns
+    -------
+    (CompensationModel, str)
+        A ``poly`` cubic equal to the firmware's formula inside ``[TMIN, TMAX]`` (evaluate it
+        with the ``clamp`` policy), and a line naming the parameters it was built from.
+
+    Raises
+    ------
+    DatasetError
+        The run is no log of that firmware, its data already carry the correction, or (PX4)
+        no ``TC_Gn_ID`` matches the sensor's device id.
+
+    """
+    firmware = ONBOARD[spec]
+    if run.info.get('firmware') != firmware:
+        kind = {'px4': 'a PX4 ULog', 'ardupilot': 'an ArduPilot DataFlash log'}[firmware]
+        raise DatasetError(f'--model {spec} needs {kind} (its parameters), got {run.name!r}.')
+    if run.info.get('onboard_compensated'):
+        raise DatasetError(f'--model {spec}: {run.name!r} already carries the on-board '
+                           'correction; evaluate it on data logged without it.')
+    params = run.info.get('params', {})
+    active, words = onboard_status(params, firmware, instance=int(run.info.get('instance', 0)))
+    created = {'bags': [run.name], 'onboard': firmware}
+    if firmware == 'px4':
+        device = int(run.info.get('device_id', 0))
+        slot = px4_slot(params, device)
+        if slot is None:
+            raise DatasetError(f'--model {spec}: no TC_Gn_ID of {run.name!r} is the device id '
+                               f'{device} of the gyro read.')
+        cal = Px4TempCal.from_params(params, 'gyro', slot)
+        model = _cubic(cal.tref, cal.x[0], cal.x[1:], cal.tmin, cal.tmax, created)
+        what = (f'TC_G{slot}_* (device id {device}): cubic about TREF = {cal.tref:g} degC, '
+                f'clamped to {cal.tmin:g} .. {cal.tmax:g} degC')
+    else:
+        inst = int(run.info.get('instance', 0))
+        cal = ArduPilotTempCal.from_params(params, 'gyro', inst)
+        model = _cubic(ARDUPILOT_TREF_C, -cal.poly([cal.caltemp])[0],
+                       cal.coeff / ARDUPILOT_SCALE, cal.tmin, cal.tmax, created)
+        what = (f'INS_TCAL{inst + 1}_GYR*: cubic about {ARDUPILOT_TREF_C:g} degC, zero at '
+                f'CALTEMP = {cal.caltemp:g} degC, clamped to {cal.tmin:g} .. {cal.tmax:g} degC')
+    return model, (f"{spec}: the flight controller's correction from {what}; {words}"
+                   + ('' if active else ' (in this log it was not applied)'))

@@ -37,8 +37,6 @@ from numpy.typing import NDArray
 
 __all__ = ['model_description', 'write_plots']
 
-_DEG = 180.0 / math.pi
-
 
 # Plot styles: raw in grey, each model its own colour, line style and marker, so traces that
 # lie on top of each other stay visible; fonts 9 pt and up.
@@ -122,8 +120,8 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
     th = (_bmean(run.t) - run.t[0]) / 3600.0
     temp = _bmean(run.temp)
     n_models = len(b.models)
-    raw_err = _bmean((run.omega - run.omega_ref) * _DEG)
-    model_err = [_bmean((m.omega - run.omega_ref) * _DEG) for m in b.models]
+    raw_err = _bmean(np.degrees(run.omega - run.omega_ref))
+    model_err = [_bmean(np.degrees(m.omega - run.omega_ref)) for m in b.models]
     legends = [f'raw ({b.raw.label})' if b.raw.label != 'raw' else 'raw, uncompensated'] + [
         str(d) for d in descriptions]
     styles = [_RAW_STYLE] + [_style(i, len(th), n_models) for i in range(n_models)]

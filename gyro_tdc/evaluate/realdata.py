@@ -44,7 +44,6 @@ from numpy.typing import NDArray
 __all__ = ['FullSeriesModel', 'HOLDOUT_MODELS', 'HoldoutModel', 'burst_holdout', 'burst_index',
            'fit_full_series', 'format_holdout', 'pan_holdout', 'run_tool']
 
-_DEG = 180.0 / math.pi
 #: Summary groups of a scheme: interior blocks are interpolation, end blocks extrapolation.
 GROUPS = ('interior', 'end', 'all')
 
@@ -54,21 +53,10 @@ class HoldoutModel:
     """
     One model compared in the held-out evaluation.
 
-    Parameters
-    ----------
-    name : str
-        Short name (JSON key and table label).
-    description : str
-        What it is.
-    kind : str
-        ``'raw'`` (no compensation), ``'poly'`` or ``'rbf'``.
-    features : tuple of str
-        Effect ids (``bias`` implied; empty: a constant offset).
-    n_centers : int
-        RBF centres K (``rbf`` only).
-    full_series : bool
-        Features computed on the whole recording (dynamic effects), see the module notes.
-
+    ``name`` is its JSON key and table label, ``kind`` ``'raw'`` (no compensation), ``'poly'``
+    or ``'rbf'`` (``n_centers`` RBF centres), ``features`` its effect ids (``bias`` implied;
+    empty: a constant offset); ``full_series``: the features computed on the whole recording
+    (dynamic effects, :class:`FullSeriesModel`).
     """
 
     name: str
@@ -300,7 +288,7 @@ def burst_holdout(run: Run, *, n_blocks: int = 5, leave_one_out: bool = True,
                        f'burst of {int(counts.min())}.')
     if t0 is None:
         t0 = estimate_t0(run)
-    err = (run.omega - run.omega_ref) * _DEG
+    err = np.degrees(run.omega - run.omega_ref)
     means = np.array([err[burst == b].mean(axis=0) for b in range(n_bursts)])
     dev = err - means[burst]
     sd = np.sqrt((dev ** 2).mean(axis=0))

@@ -19,7 +19,7 @@ The evaluation core: score compensation models on held-out runs, in the paper's 
 :func:`evaluate_run` scores every :class:`NamedModel` on one run (a :class:`BagEval` of
 :class:`ModelEval`) and :func:`evaluate` does so for bags, one in memory at a time, with
 the out-of-range policy and re-anchoring of the compensator. The models and labels are
-:mod:`gyro_tdc.evaluate.models`' (their names are re-exported here). See
+:mod:`gyro_tdc.evaluate.models`' (:class:`NamedModel` is re-exported here). See
 ``doc/internals/evaluate.md``.
 """
 
@@ -32,9 +32,8 @@ from typing import Callable, Sequence
 
 from gyro_tdc.data import BagOptions, find_bags, iter_runs, Run, split_sessions
 from gyro_tdc.errors import FitError
-from gyro_tdc.evaluate.models import (bag_labels, load_models, model_labels, NamedModel, PX4,
-                                      safe_label, with_accel)
-from gyro_tdc.evaluate.onboard import ONBOARD, onboard_model
+from gyro_tdc.evaluate.models import (bag_labels, NamedModel, ONBOARD, onboard_model, safe_label,
+                                      with_accel)
 from gyro_tdc.identify import (accel_scores, all_constant_error, constant_axes, find_still,
                                MAX_MOVING_SHARE, MIN_SAMPLES, moving_share, rows_of)
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
@@ -45,9 +44,8 @@ from gyro_tdc.signal import (allan_deviation, bias_stability, noise_readouts, rm
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['AUTO_REANCHOR', 'BagEval', 'ModelEval', 'NamedModel', 'PX4', 'bag_labels', 'evaluate',
-           'evaluate_run', 'held_out_constant', 'load_models', 'mean_scores', 'model_labels',
-           'rate_hz', 'safe_label', 'score', 'still_rows']
+__all__ = ['AUTO_REANCHOR', 'BagEval', 'ModelEval', 'NamedModel', 'evaluate', 'evaluate_run',
+           'held_out_constant', 'mean_scores', 'rate_hz', 'score', 'still_rows']
 
 #: ``reanchor_s`` value for the compensator's precision-driven rule.
 AUTO_REANCHOR = 'auto'

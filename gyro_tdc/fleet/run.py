@@ -45,7 +45,7 @@ from gyro_tdc.data import BagOptions
 from gyro_tdc.errors import FleetError, GyroTdcError, one_line, OutputError
 from gyro_tdc.evaluate import evaluate, mean_scores, NamedModel
 from gyro_tdc.fleet.manifest import input_key, SensorSpec
-from gyro_tdc.fleet.results import FleetResult, SensorResult
+from gyro_tdc.fleet.results import AXES, FleetResult, SensorResult
 from gyro_tdc.fleet.stats import DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics
 from gyro_tdc.fleet.summary import write_summary
 from gyro_tdc.identify import train, TrainOptions
@@ -76,14 +76,11 @@ class SensorOutcome(SensorResult):
         Input key (:func:`input_key`); empty when it could not be computed.
     model : CompensationModel or None
         The trained model (``sensor_id`` set) when ok.
-    pid : int
-        Process id of the worker.
 
     """
 
     key: str = ''
     model: CompensationModel | None = None
-    pid: int = 0
 
 
 #: The held-out bags are scored re-anchored, session by session (``evaluate --reanchor
@@ -119,7 +116,7 @@ def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | Non
     """
     start = time.perf_counter()
     bag = replace(BagOptions() if bag is None else bag, progress=False)
-    out = SensorOutcome(spec.sensor_id, 'failed', pid=os.getpid())
+    out = SensorOutcome(spec.sensor_id, 'failed')
     try:
         # The resume key hashes every option but the progress bar (off here).
         out.key = input_key(spec, {'train': asdict(options), 'bag': asdict(bag),
@@ -266,27 +263,26 @@ def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
     state_file = state_dir / f'{out.sensor_id}.json'
     if out.status == 'skipped' and state is not None:
         figures = {k: state.get(k) for k in _FIGURES}
-        figures['constant_axes'] = [str(a) for a in state['constant_axes'] if a in ('x', 'y', 'z')]
+        figures['constant_axes'] = [str(a) for a in state['constant_axes'] if a in AXES]
         return SensorResult(out.sensor_id, 'ok', model_file=str(model_file), skipped=True,
                             **figures)
-    if out.status != 'ok' or out.model is None:
-        with contextlib.suppress(OSError):
-            state_file.unlink()       # the model on disk no longer matches these inputs
-        return SensorResult(out.sensor_id, 'failed', error=out.error or 'unknown failure',
-                            seconds=out.seconds)
-    figures = {k: getattr(out, k) for k in _FIGURES}
-    try:
-        save_model(out.model, model_file)
-        record = {'format': STATE_FORMAT, 'key': out.key,
-                  'model_sha256': hashlib.sha256(model_file.read_bytes()).hexdigest(),
-                  **figures, 'seconds': out.seconds}
-        atomic_write(state_file, json.dumps(record) + '\n', what='fleet state file')
-    except (GyroTdcError, OSError) as exc:       # this sensor's output only: the others go on
-        with contextlib.suppress(OSError):
-            state_file.unlink()
-        return SensorResult(out.sensor_id, 'failed', error=one_line(exc), seconds=out.seconds)
-    return SensorResult(out.sensor_id, 'ok', model_file=str(model_file), seconds=out.seconds,
-                        **dict(figures, constant_axes=list(out.constant_axes)))
+    error = out.error or 'unknown failure'
+    if out.status == 'ok' and out.model is not None:
+        figures = {k: getattr(out, k) for k in _FIGURES}
+        try:
+            save_model(out.model, model_file)
+            record = {'format': STATE_FORMAT, 'key': out.key,
+                      'model_sha256': hashlib.sha256(model_file.read_bytes()).hexdigest(),
+                      **figures, 'seconds': out.seconds}
+            atomic_write(state_file, json.dumps(record) + '\n', what='fleet state file')
+            return SensorResult(out.sensor_id, 'ok', model_file=str(model_file),
+                                seconds=out.seconds,
+                                **dict(figures, constant_axes=list(out.constant_axes)))
+        except (GyroTdcError, OSError) as exc:   # this sensor's output only: the others go on
+            error = one_line(exc)
+    with contextlib.suppress(OSError):
+        state_file.unlink()           # the model on disk no longer matches these inputs
+    return SensorResult(out.sensor_id, 'failed', error=error, seconds=out.seconds)
 
 
 class _NoWorker(FleetError):
@@ -418,8 +414,7 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
     out = Path(out_dir)
     state_dir = out / STATE_DIR
     state_dir.mkdir(parents=True, exist_ok=True)
-    states: dict[str, dict | None] = {}
-    futures = {}
+    futures = {}                        # future -> (sensor id, its resume state)
     done: dict[str, SensorResult] = {}
     write_errors: list[str] = []        # per-sensor output errors (a full disk...)
     pending: BaseException | None = None
@@ -429,20 +424,18 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
     try:
         with sigterm_as_interrupt():
             for spec in specs:
-                model_file = out / f'{spec.sensor_id}.yaml'
-                st = (None if force
-                      else _read_state(state_dir / f'{spec.sensor_id}.json', model_file))
-                states[spec.sensor_id] = st
+                sid = spec.sensor_id
+                st = None if force else _read_state(state_dir / f'{sid}.json', out / f'{sid}.yaml')
                 fut = engine.client.submit(run_sensor, spec, options, bag=bag, pure=False,
                                            previous_key=None if st is None else st.get('key'),
-                                           command=command, key=f'gyro_tdc-fleet-'
-                                           f'{spec.sensor_id}-{os.urandom(6).hex()}')
-                futures[fut] = spec.sensor_id
+                                           command=command,
+                                           key=f'gyro_tdc-fleet-{sid}-{os.urandom(6).hex()}')
+                futures[fut] = sid, st
             for fut in _completed(list(futures), engine):
-                sid = futures[fut]
+                sid, st = futures[fut]
                 outcome = (fut.result() if fut.status == 'finished' else _future_failure(sid, fut))
                 fut.release()
-                res = _record(outcome, out, state_dir, states[sid])
+                res = _record(outcome, out, state_dir, st)
                 if res.status != 'ok' and outcome.status == 'ok':
                     write_errors.append(f'{sid}: {res.error}')
                 done[sid] = res
@@ -462,9 +455,9 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
         bar.close()
         sensors = [done.get(s.sensor_id) or SensorResult(s.sensor_id, 'failed', error=not_run)
                    for s in specs]
-        result = FleetResult(engine.scheduler, engine.workers, sensors, outlier_z=outlier_z)
-        result.reference_c = fleet_statistics(sensors, outlier_z=outlier_z)
-        result.seconds = time.perf_counter() - start
+        result = FleetResult(engine.scheduler, engine.workers, sensors,
+                             fleet_statistics(sensors, outlier_z=outlier_z), outlier_z,
+                             time.perf_counter() - start)
         try:
             write_summary(result, out)
         except GyroTdcError as exc:     # say why, not only that the summary failed too

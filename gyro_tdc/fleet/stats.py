@@ -118,8 +118,8 @@ def fleet_statistics(sensors: Sequence[SensorResult], *,
     if len(fleet) < MIN_FLEET:
         return ref
     for name, unit in (('slope', 'deg/s/degC'), ('curvature', 'deg/s/degC^2')):
-        values = np.array([[math.nan if v is None else v for v in getattr(s, name)]
-                           for s in fleet])                    # (sensor, axis)
+        # (sensor, axis); a constant axis (None) is NaN
+        values = np.array([getattr(s, name) for s in fleet], dtype=np.float64)
         z = np.full(values.shape, math.nan)
         med = np.full(3, math.nan)
         for a in range(3):

@@ -23,9 +23,10 @@ rules: ``doc/internals/learn.md``.
 
 from __future__ import annotations
 
+from functools import partial
 import math
 import re
-from typing import Any
+from typing import Any, Callable
 
 from gyro_tdc.base import FieldChecker, MAX_RATE_RAD_S, shown, TEMP_PLAUSIBLE_C
 from gyro_tdc.errors import FeatureError, LearnFileError, ModelFileError
@@ -50,10 +51,8 @@ _KEYS = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 's
          'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check', 'swaps',
          'motion', 'thermal', 'thermal_state', 'config', 'segment')
 _FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points', 'held_out')
-_GATE_KEYS = ('sessions', 'held_out', 'anchor_error_dps', 'min_shift_dps')
 _GATE_HELD = ('always_dps', 'gated_dps', 'never_dps')
 _HELD_KEYS = ('sessions', 'folds', 'points', 'curve_ms_dps2', 'offset_ms_dps2', 'offset_only')
-_CHECK_KEYS = ('t', 'candidate_mse', 'current_mse', 'swapped')
 _CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
 _RATE = (-MAX_RATE_RAD_S, MAX_RATE_RAD_S, 'a rate in rad/s')
 _TEMP = (*TEMP_PLAUSIBLE_C, 'a plausible temperature in degC')
@@ -111,16 +110,45 @@ _CHK = FieldChecker(lambda name, expected, got: _bad(name,
 _number, _count, _list, _dict = _CHK.number, _CHK.count, _CHK.items, _CHK.keys
 
 
-def _stamp(v: Any, name: str, optional: bool = False) -> float | None:
-    """Return a stamp, s (None when ``optional`` and null)."""
-    if v is None and optional:
-        return None
+def _maybe(check: Callable[[Any, str], Any]) -> Callable[[Any, str], Any]:
+    """Return ``check`` that takes null too (None)."""
+    return lambda v, name: None if v is None else check(v, name)
+
+
+def _stamp(v: Any, name: str) -> float:
+    """Return a stamp, s."""
     return _number(v, name, -MAX_STAMP_S, MAX_STAMP_S, 'a stamp in s')
+
+
+def _fields(v: Any, name: str, checks: dict, optional: tuple = ()) -> dict:
+    """Return the mapping ``v`` of the keys of ``checks`` (``optional`` ones may lack), checked."""
+    v = _dict(v, name, [k for k in checks if k not in optional], optional=optional)
+    return {k: check(v[k], f'{name}.{k}') for k, check in checks.items() if k in v}
 
 
 def _temp(v: Any, name: str) -> float:
     """Return a plausible temperature, degC."""
     return _number(v, name, *_TEMP)
+
+
+def _rates(v: Any, name: str) -> tuple[float, float, float]:
+    """Return three rates, rad/s."""
+    return tuple(_CHK.numbers(v, name, 3, *_RATE))
+
+
+_samples = partial(_number, lo=1.0, hi=MAX_COUNT, what='a sample count')
+#: The items of a point-table entry (:class:`Entry`) and of a recent window: (label, check).
+_ENTRY = ((' (t_end)', _stamp), (' (samples)', _samples), (' (temperature)', _temp),
+          ('', _rates), (' (stretch)', _count), (' (session)', _count))
+_WINDOW = ((' (samples)', _samples), (' (temperature)', _temp),
+           *[(' (mean rate)', partial(_number, lo=_RATE[0], hi=_RATE[1], what=_RATE[2]))] * 3,
+           (' (t_end)', _stamp))
+
+
+def _row(v: Any, name: str, items: tuple) -> list:
+    """Return the list ``v``, each item checked by its ``(label, check)`` of ``items``."""
+    return [check(x, f'{name}[{i}]{label}')
+            for i, (x, (label, check)) in enumerate(zip(_list(v, name, len(items)), items))]
 
 
 def _floor_in(v: Any, name: str) -> NDArray[np.float64]:
@@ -151,20 +179,10 @@ def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry
         k = int(key)
         if lo is not None and not lo <= k <= hi:
             raise _bad(name, f'must be a bin of a plausible temperature ({lo} .. {hi})')
-        rows = []
-        for j, e in enumerate(_list(entries, name, most=most)):
-            en = f'{name}[{j}]'
-            e = _list(e, en, 6)
-            rows.append(Entry(_stamp(e[0], f'{en}[0] (t_end)'),
-                              _number(e[1], f'{en}[1] (samples)', 1.0, MAX_COUNT,
-                                      'a sample count'),
-                              _temp(e[2], f'{en}[2] (temperature)'),
-                              tuple(_CHK.numbers(e[3], f'{en}[3]', 3, *_RATE)),
-                              _count(e[4], f'{en}[4] (stretch)'),
-                              _count(e[5], f'{en}[5] (session)')))
-        if not rows:
+        out[k] = [Entry(*_row(e, f'{name}[{j}]', _ENTRY))
+                  for j, e in enumerate(_list(entries, name, most=most))]
+        if not out[k]:
             raise _bad(name, 'must hold at least one entry')
-        out[k] = rows
     return out
 
 
@@ -174,14 +192,8 @@ def _recent(v: Any, most: int | None) -> list[RecentStretch]:
     for i, s in enumerate(_list(v, 'recent', most=most)):
         name = f'recent[{i}]'
         s = _list(s, name, 3)
-        rows = []
-        for j, r in enumerate(_list(s[2], f'{name}[2]', most=RECENT_ROWS)):
-            rn = f'{name}[2][{j}]'
-            r = _list(r, rn, 6)
-            rows.append([_number(r[0], f'{rn}[0] (samples)', 1.0, MAX_COUNT, 'a sample count'),
-                         _temp(r[1], f'{rn}[1] (temperature)'),
-                         *(_number(r[a], f'{rn}[{a}] (mean rate)', *_RATE) for a in (2, 3, 4)),
-                         _stamp(r[5], f'{rn}[5] (t_end)')])
+        rows = [_row(r, f'{name}[2][{j}]', _WINDOW)
+                for j, r in enumerate(_list(s[2], f'{name}[2]', most=RECENT_ROWS))]
         out.append(RecentStretch(_count(s[0], f'{name}[0] (stretch)'),
                                  _count(s[1], f'{name}[1] (session)'), rows))
     return out
@@ -229,12 +241,10 @@ def _fit(v: Any, thermal: ThermalState | None,
 
 def _gate(v: Any) -> dict:
     """Return the fit's start-up shift gate (:func:`gyro_tdc.learn.gate.learned_gate`)."""
-    v = _dict(v, 'fit.reanchor', _GATE_KEYS, optional=_GATE_HELD)
-    out = {k: _count(v[k], f'fit.reanchor.{k}') for k in _GATE_KEYS[:2]}
-    for k in _GATE_KEYS[2:] + _GATE_HELD:
-        if k in v:
-            out[k] = _CHK.numbers(v[k], f'fit.reanchor.{k}', 3, 0.0, MAX_PARAM, 'a rate in deg/s')
-    return out
+    dps = partial(_CHK.numbers, n=3, lo=0.0, hi=MAX_PARAM, what='a rate in deg/s')
+    rates = dict.fromkeys(('anchor_error_dps', 'min_shift_dps') + _GATE_HELD, dps)
+    return _fields(v, 'fit.reanchor', {'sessions': _count, 'held_out': _count, **rates},
+                   optional=_GATE_HELD)
 
 
 def _held_out(v: Any, curve: bool) -> dict | None:
@@ -271,13 +281,9 @@ def _check(v: Any) -> dict | None:
     """Return the last prediction check (None: none yet)."""
     if v is None:
         return None
-    v = _dict(v, 'check', _CHECK_KEYS)
-    mse = (0.0, MAX_RATE_RAD_S ** 2 * 3, 'a squared error in (rad/s)^2')
-    return {'t': _stamp(v['t'], 'check.t'),
-            'candidate_mse': _number(v['candidate_mse'], 'check.candidate_mse', *mse),
-            'current_mse': (None if v['current_mse'] is None
-                            else _number(v['current_mse'], 'check.current_mse', *mse)),
-            'swapped': _CHK.boolean(v['swapped'], 'check.swapped')}
+    mse = partial(_number, lo=0.0, hi=MAX_RATE_RAD_S ** 2 * 3, what='a squared error in (rad/s)^2')
+    return _fields(v, 'check', {'t': _stamp, 'candidate_mse': mse, 'current_mse': _maybe(mse),
+                                'swapped': _CHK.boolean})
 
 
 def _thermal(v: Any) -> ThermalState | None:
@@ -309,12 +315,9 @@ def _thermal_state(v: Any, thermal: ThermalState | None) -> tuple[float, list[fl
 
 def _motion(v: Any) -> list[tuple[float, bool]]:
     """Return the motion reports (stamp, moving), in stamp order."""
-    out = []
-    for i, m in enumerate(_list(v, 'motion')):
-        m = _list(m, f'motion[{i}]', 2)
-        out.append((_stamp(m[0], f'motion[{i}][0]'), _CHK.boolean(m[1], f'motion[{i}][1]')))
-    out.sort(key=lambda r: r[0])
-    return out
+    out = [tuple(_row(m, f'motion[{i}]', (('', _stamp), ('', _CHK.boolean))))
+           for i, m in enumerate(_list(v, 'motion'))]
+    return sorted(out, key=lambda r: r[0])
 
 
 def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | None = None,
@@ -355,10 +358,8 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
         'thermal_state': _thermal_state(state['thermal_state'], thermal),
     }
     values.update({k: _count(state[k], k) for k in ('session', 'stretches', 'windows', 'swaps')})
-    values.update({k: _stamp(state[k], k, optional=True)
-                   for k in ('t_first', 'last_update_t', 'last_t')})
-    seg = _list(state['segment'], 'segment', 2)
-    values['segment'] = _count(seg[0], 'segment[0] (entry group)')
-    values['segment_t0'] = _stamp(seg[1], 'segment[1] (its first stamp)', optional=True)
+    values.update({k: _maybe(_stamp)(state[k], k) for k in ('t_first', 'last_update_t', 'last_t')})
+    values['segment'], values['segment_t0'] = _row(state['segment'], 'segment', (
+        (' (entry group)', _count), (' (its first stamp)', _maybe(_stamp))))
     values['last_save_t'] = values['last_t']
     return values, thermal

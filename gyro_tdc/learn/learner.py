@@ -162,17 +162,13 @@ class Learner:
             # Binned at another model temperature than the prior's: the set_prior rule.
             self._forget_points()
             return
-        if self.fit is not None and not self._over_prior(self.fit):
+        mid = None if self.fit is None else self.fit.get('prior')
+        if mid is not None and (self.prior is None or self.prior.model_id != mid):
             # A correction to another prior is not applied to this one: refitted on the points.
             self.fit, self.check = None, None
         if self.fit is not None:
             self.model = model_of(self.fit, self.thermal, self.prior)
             self._swaps = [(None, self.model)]
-
-    def _over_prior(self, fit: dict) -> bool:
-        """Return whether ``fit`` applies over the prior (its own model, or a correction to it)."""
-        mid = fit.get('prior')
-        return mid is None or (self.prior is not None and self.prior.model_id == mid)
 
     def set_prior(self, model: CompensationModel | None) -> None:
         """

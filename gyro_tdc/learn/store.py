@@ -39,8 +39,8 @@ from gyro_tdc.learn.fit import model_of
 from gyro_tdc.model import CompensationModel, load_model
 import numpy as np
 
-__all__ = ['ALTERNATE_SUFFIX', 'alternate_path', 'dumps', 'is_learn_file', 'LearnFile',
-           'MAX_BYTES', 'MAX_DEPTH', 'model_from_file', 'Opened', 'open_learn_file', 'read_model']
+__all__ = ['ALTERNATE_SUFFIX', 'dumps', 'is_learn_file', 'LearnFile', 'MAX_BYTES', 'MAX_DEPTH',
+           'model_from_file', 'Opened', 'open_learn_file', 'read_model']
 
 #: Largest learn_file read, bytes (checked before reading). A full state (300 bins of 8
 #: entries, three recent stretches of :data:`RECENT_ROWS` windows each) takes under 3 MiB.
@@ -157,10 +157,8 @@ class LearnFile:
                                  '(4 MiB) limit of a learn_file')
         if fix_mode and st.st_uid == os.geteuid():
             self._owner_rw(st)
-        flags = (os.O_RDONLY | getattr(os, 'O_NOFOLLOW', 0) | getattr(os, 'O_NONBLOCK', 0)
-                 | getattr(os, 'O_CLOEXEC', 0))
         try:
-            fd = os.open(p, flags)
+            fd = os.open(p, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
             with os.fdopen(fd, 'rb') as stream:
                 st = os.fstat(stream.fileno())
                 if not stat.S_ISREG(st.st_mode):
@@ -255,12 +253,6 @@ class LearnFile:
             self._mine = None
 
 
-def alternate_path(path: str | os.PathLike) -> Path:
-    """Return the file learned into when ``path`` is refused: beside it, ``NAME`` + suffix."""
-    p = Path(path)
-    return p.with_name(p.name + ALTERNATE_SUFFIX)
-
-
 @dataclass(frozen=True)
 class Opened:
     """
@@ -290,8 +282,9 @@ def open_learn_file(path: str | os.PathLike, load: Callable[[Any], None]) -> Ope
     Resume from ``path`` and learn into it; when it is refused, keep it and use one beside it.
 
     ``load(document)`` is a learner's ``load_state`` (LearnFileError refuses). Learning goes
-    to ``path`` when missing or a learner state, else to :func:`alternate_path` (resumed when
-    a learner state) with one warning line; no file when both are refused.
+    to ``path`` when missing or a learner state, else to the file beside it named ``NAME`` +
+    :data:`ALTERNATE_SUFFIX` (resumed when a learner state) with one warning line; no file
+    when both are refused.
     """
     main = LearnFile(path)
     try:
@@ -299,7 +292,7 @@ def open_learn_file(path: str | os.PathLike, load: Callable[[Any], None]) -> Ope
         return Opened(main, resumed, '', tuple(main.notes))
     except LearnFileError as exc:
         why = str(exc).removeprefix(f'{main.path}: ')
-    alt = LearnFile(alternate_path(path))
+    alt = LearnFile(main.path.with_name(main.path.name + ALTERNATE_SUFFIX))
     kept = f'learn_file {str(path)!r} is kept as it is and not written ({why})'
     try:
         resumed = alt.resume(load)

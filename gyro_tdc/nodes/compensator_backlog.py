@@ -99,11 +99,10 @@ class Backlog:
         self.period: float | None = 1.0 / expected_rate_hz if self.expected else None
         #: Samples missing, gaps, IMU pauses and stamp jumps counted so far.
         self.missing = self.gaps = self.pauses = self.jumps = 0
-        self._high: float | None = None      # the newest stamp of the stream
+        # The newest stamp of the stream, the queue-age baseline (as u in _ages), the report.
+        self._high = self._base = self._reported_at = None
         self._before: tuple | None = None    # (newest stamp, baseline) before a stamp jump
         self._last_end = -math.inf
-        self._base: float | None = None      # the queue-age baseline, as u in _ages
-        self._reported_at: float | None = None
         self._learning: list[float] = []
 
     def report(self, now: float) -> BacklogReport:
@@ -125,10 +124,9 @@ class Backlog:
             self._last_end = float(end[-1])
             age, missing, gaps = self._judge(stamp, start, idle)
             dur = end - start
-            values['queue age s'] = f'{age[-1]:.4f}'
-            values['queue age max s'] = f'{age.max():.4f}'
-            values['callback median us'] = f'{np.median(dur) * 1e6:.0f}'
-            values['callback max us'] = f'{dur.max() * 1e6:.0f}'
+            values.update({'queue age s': f'{age[-1]:.4f}', 'queue age max s': f'{age.max():.4f}',
+                           'callback median us': f'{np.median(dur) * 1e6:.0f}',
+                           'callback max us': f'{dur.max() * 1e6:.0f}'})
             if elapsed:
                 values['callback load %'] = f'{100.0 * dur.sum() / elapsed:.0f}'
             if age.max() > QUEUE_AGE_WARN_S:
@@ -151,9 +149,8 @@ class Backlog:
     def _judge(self, stamp: np.ndarray, start: np.ndarray, idle: np.ndarray
                ) -> tuple[np.ndarray, int, int]:
         """Return each sample's queue age, s, and the samples missing and gaps counted."""
-        n = len(stamp)
+        n, missing0, gaps0 = len(stamp), self.missing, self.gaps    # the counts before
         age = np.zeros(n)
-        missing = gaps = 0
         if self.period is None:           # learnt from the first MIN_STEPS steps
             steps = np.diff(stamp, prepend=stamp[0] if self._high is None else self._high)
             self._learning.extend(steps[(steps > 0) & (steps < STAMP_JUMP_S)].tolist())
@@ -185,12 +182,10 @@ class Backlog:
                 continue
             hi = lo + (int(far[0]) if far.size else n - lo)
             age[lo:hi] = self._ages(newest[1:hi - lo + 1], start[lo:hi])
-            more, count = self._gaps(steps[:hi - lo], age[lo:hi], idle[lo:hi])
-            missing += more
-            gaps += count
+            self._gaps(steps[:hi - lo], age[lo:hi], idle[lo:hi])
             self._high = float(newest[hi - lo])
             lo = hi
-        return age, missing, gaps
+        return age, self.missing - missing0, self.gaps - gaps0
 
     def _ages(self, newest: np.ndarray, start: np.ndarray) -> np.ndarray:
         """Return the queue ages of samples of one stream, s (from the newest stamp seen)."""
@@ -203,19 +198,15 @@ class Backlog:
         self._base = float(floor[-1])
         return u - floor
 
-    def _gaps(self, steps: np.ndarray, age: np.ndarray, idle: np.ndarray) -> tuple[int, int]:
-        """Count the samples missing in the stamp gaps of one stream; return (missing, gaps)."""
+    def _gaps(self, steps: np.ndarray, age: np.ndarray, idle: np.ndarray) -> None:
+        """Count the samples missing in the stamp gaps of one stream, and the IMU pauses."""
         period = self.period
-        if period is None:
-            return 0, 0
-        big = np.flatnonzero(steps > GAP_PERIODS * period)
-        if not big.size:
-            return 0, 0
+        big = np.flatnonzero(steps > GAP_PERIODS * period) if period is not None else ()
+        if not len(big):
+            return
         pause = ((steps[big] > PAUSE_S) & (idle[big] > PAUSE_S)
                  & (age[big] <= QUEUE_AGE_WARN_S))
         self.pauses += int(pause.sum())
         lost = big[~pause]
-        missing = int(np.rint(steps[lost] / period).sum()) - lost.size
-        self.missing += missing
+        self.missing += int(np.rint(steps[lost] / period).sum()) - lost.size
         self.gaps += int(lost.size)
-        return missing, int(lost.size)

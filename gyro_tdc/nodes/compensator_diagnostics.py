@@ -49,8 +49,7 @@ class Diagnostics:
         self.node, self.core, self.inputs = node, node.core, node.inputs
         self.log = node.get_logger()
         self._seen = HealthMark()
-        self._reported_anchor = None
-        self._frame_warned: tuple[str, str] | None = None
+        self._reported_anchor = self._frame_warned = None   # the anchor, (model, frame) said
         self.live_clock = time.monotonic          # wall time for liveness (tests replace it)
         p = node.params
         self.backlog = Backlog(p.expected_rate_hz)

@@ -137,9 +137,9 @@ class Learning:
         #: The axes the learned model keeps offset-only, as last logged.
         self._offset_only: list[str] = []
         self._learn_jobs = LatestJob()
+        # The step in progress; a prior (a 1-tuple) and a timeout waiting for it to end.
         self.job: Job | None = None
-        self._learn_prior: tuple[CompensationModel | None] | None = None
-        self._learn_timeout: float | None = None
+        self._learn_prior = self._learn_timeout = None
         if node.params.learn_file:
             self._open(node.params.learn_file)
         else:
@@ -222,7 +222,7 @@ class Learning:
         if self._learn_prior is not None:
             (model,), self._learn_prior = self._learn_prior, None
             learner.set_prior(model)
-            core.cancel_scheduled()
+            core.learning.cancel()
         if self._learn_timeout is not None:
             learner.config = replace(learner.config, temperature_timeout=self._learn_timeout)
             self._learn_timeout = None
@@ -268,7 +268,7 @@ class Learning:
         for it (up to :data:`LEARN_WAIT_S`, then it applies when the step ends).
         """
         self._learn_prior = (model,)
-        self.core.cancel_scheduled()
+        self.core.learning.cancel()
         self.wait()
 
     def save_now(self) -> str:
@@ -339,7 +339,7 @@ class Learning:
         if not self._step_now():
             return False, BUSY
         self.learner.reset()
-        self.core.cancel_scheduled()
+        self.core.learning.cancel()
         self.core.set_model(self.learner.prior)
         return True, ('learning reset: back to the prior' if self.learner.prior is not None
                       else 'learning reset: no model until the next still stretch')

@@ -36,7 +36,6 @@ from gyro_tdc.errors import ConfigError, DeviceError, GyroTdcError, one_line
 from gyro_tdc.nodes._params import declare, print_help
 from gyro_tdc.nodes.executors import run_node, ShellNode
 from gyro_tdc.sources import Backoff, check_sample, ImuSample, ImuSource, SourceExhausted
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
 from std_msgs.msg import Header
 
@@ -171,8 +170,7 @@ class DriverNode(ShellNode):
         super().__init__(kwargs.pop('node_name', 'driver_node'), **kwargs)
         self.params = p = DriverParams(**declare(self, PARAMS))
         self._backend = BACKENDS[p.backend]
-        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=p.qos_depth,
-                         reliability=ReliabilityPolicy.RELIABLE)
+        qos = p.qos_depth      # reliable, keep last
         self._imu_pub = self.create_publisher(Imu, 'imu/data_raw', qos)
         self._temp_pub = self.create_publisher(Temperature, 'imu/temperature', qos)
         self._ref_pub = (self.create_publisher(Vector3Stamped, 'rate_table/reference', qos)
@@ -180,8 +178,8 @@ class DriverNode(ShellNode):
         self._injected, self._source = source, None
         self._backoff = Backoff(p.retry_initial, p.retry_max)
         self._retry_at, self._state, self._last_error, self._device = 0.0, 'starting', '', ''
-        self._errors = self._published = self._temps = 0
-        self._temps_rejected = 0      # implausible readings the source dropped, as last logged
+        # Errors, messages published; implausible readings the source dropped, as last logged.
+        self._errors = self._published = self._temps = self._temps_rejected = 0
         # The message templates: constant fields filled once (REP 145: no orientation).
         self._imu = Imu(header=Header(frame_id=p.frame_id), orientation_covariance=NO_DATA,
                         angular_velocity_covariance=_diagonal(p.angular_velocity_variance))
@@ -208,9 +206,8 @@ class DriverNode(ShellNode):
                 raise ConfigError(one_line(exc)) from None
             return self._fail(exc)
         self._source, self._device, self._state = src, src.name, 'running'
-        self._imu.linear_acceleration_covariance = (
-            _diagonal(self.params.linear_acceleration_variance) if src.has_accel
-            else NO_DATA)
+        var = self.params.linear_acceleration_variance
+        self._imu.linear_acceleration_covariance = _diagonal(var) if src.has_accel else NO_DATA
         self.get_logger().info(f'opened {self._device}')
 
     def release(self) -> None:

@@ -41,7 +41,6 @@ import numpy as np
 import rclpy
 from rclpy.context import Context
 from rclpy.node import Node
-from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import Imu, Temperature
 
 __all__ = ['LiveResult', 'MonitorNode', 'run_live']
@@ -52,8 +51,7 @@ class MonitorNode(Node):
 
     def __init__(self, **kwargs) -> None:
         super().__init__('gyro_tdc_monitor', **kwargs)
-        qos = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=5000,
-                         reliability=ReliabilityPolicy.RELIABLE)
+        qos = 5000      # reliable, keep last 5000
         #: Rates (x, y, z) by header stamp [ns]: raw and compensated.
         self.raw: dict[int, tuple[float, float, float]] = {}
         self.comp: dict[int, tuple[float, float, float]] = {}

@@ -35,8 +35,7 @@ from gyro_tdc.base import (MAX_DRIFT_RAD_S as _MAX_DRIFT, MAX_RATE_RAD_S as _MAX
                            MAX_TEMP_LEAD_S, RESTART_BACK_S)
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime.blockstats import Vec3
-from gyro_tdc.runtime.drift import (accel_slot, correction_is_safe, growth, ModelSlot,
-                                    timeless, widen)
+from gyro_tdc.runtime.drift import accel_slot, growth, ModelSlot, timeless, widen
 from gyro_tdc.runtime.flags import (IMPLAUSIBLE_INPUT, IMPLAUSIBLE_OUTPUT, NO_ACCEL_DATA,
                                     NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
                                     PASSTHROUGH, STALE, UPSTREAM)
@@ -48,7 +47,7 @@ from gyro_tdc.runtime.state import detector_for, reanchor_var, Reanchoring, Stre
 from gyro_tdc.signal import TemperatureHold
 import numpy as np
 
-__all__ = ['CompensatorCore', 'correction_is_safe', 'Output', 'timeless']
+__all__ = ['CompensatorCore', 'Output']
 
 #: What :meth:`CompensatorCore.process` returns, a plain tuple (a NamedTuple costs more per
 #: sample than the rest of the static path): ``(wx, wy, wz, variance, flags, accel,
@@ -96,27 +95,23 @@ class CompensatorCore:
 
     model = property(attrgetter('slot.model'), doc='The model in use (None: passing through).')
     model_id = property(attrgetter('slot.model_id'), doc="The model's content id.")
-    anchor = property(attrgetter('reanchoring.anchor'),
-                      doc="The current session's re-anchoring shift, or None.")
+    anchor = property(attrgetter('reanchoring.anchor'), doc="This session's shift, or None.")
     flag_counts = property(attrgetter('tally.flags'), doc='Samples per flag bit.')
     last_error = property(attrgetter('tally.last_error'), doc='The last of those errors.')
-    motion_reports = property(attrgetter('tally.motion_reports'),
-                              doc='Outside motion reports received.')
+    motion_reports = property(attrgetter('tally.motion_reports'), doc='Motion reports taken.')
     last_t = property(attrgetter('stream.t'), doc='The last IMU stamp, s (None before any).')
     last_flags = property(attrgetter('stream.flags'), doc="The last sample's flags.")
-    accel_flags = property(attrgetter('stream.accel_flags'), doc=(
-        "The last sample's accelerometer flags (``PASSTHROUGH`` with why; ``NO_ACCEL_DATA``: "
-        'the sample had none); -1 before any.'))
-    moving = property(attrgetter('stream.moving'),
-                      doc='The latest outside motion report: None before any, else motion.')
-    learned_installs = property(attrgetter('learning.installs'), doc=(
-        'Learned models installed (on time or late: the learner counts the late ones).'))
+    accel_flags = property(attrgetter('stream.accel_flags'),
+                           doc="The last sample's accelerometer flags (-1 before any).")
+    moving = property(attrgetter('stream.moving'), doc='The latest motion report (None: none).')
+    learned_installs = property(attrgetter('learning.installs'), doc='Learned models installed.')
+    still_windows_rejected = property(attrgetter('reanchoring.detector.windows_rejected'),
+                                      doc='Windows judged not still while waiting to re-anchor.')
 
     @property
     def counts(self) -> dict[str, int]:
         """Return the samples ``in``, ``out`` and ``compensated`` (the core's own dict)."""
-        tally = self.tally
-        counts = tally.counts
+        tally, counts = self.tally, self.tally.counts
         counts['out'] = counts['compensated'] + tally.flags[PASSTHROUGH] + tally.errors
         return counts
 
@@ -139,8 +134,7 @@ class CompensatorCore:
         self.needs_accel = self.slot.accel is not None or a.waiting
         self.upstream_pass = bool(policy.upstream_correction) and (
             policy.upstream_policy == 'passthrough')
-        v = policy.passthrough_variance
-        self.pass_var = (v, v, v)
+        self.pass_var = (policy.passthrough_variance,) * 3
 
     # -- learning ---------------------------------------------------------------------
 
@@ -184,10 +178,6 @@ class CompensatorCore:
         gate.cancel()
         gate.installs += 1
         self.install(prepared, learned=True)
-
-    def cancel_scheduled(self) -> None:
-        """Drop the learned models waiting for their stamp (a model_file or a reset came)."""
-        self.learning.cancel()
 
     # -- model ------------------------------------------------------------------------
 
@@ -241,7 +231,7 @@ class CompensatorCore:
         self.reanchoring.on_install(
             comp, model, old.model is not None and prepared.model_id == old.model_id, learned,
             learned and old.learned,
-            self._reanchor_var(model) if learned else model.residual_var)
+            reanchor_var(model, self.learning) if learned else model.residual_var)
         self.slot = ModelSlot(model, prepared.model_id, comp, prepared.var, prepared.scale,
                               prepared.static, {},
                               accel_slot(model, comp, prepared.static, self.policy), learned)
@@ -257,7 +247,7 @@ class CompensatorCore:
         :meth:`Reanchoring.rethreshold`.
         """
         old, self.policy = self.policy, policy
-        self.reanchoring.rethreshold(old, policy, self._reanchor_var(self.slot.model),
+        self.reanchoring.rethreshold(old, policy, reanchor_var(self.slot.model, self.learning),
                                      self.stream.t if self.stream.moving else None)
         if any(getattr(old, f) != getattr(policy, f) for f in PREPARED_BY):
             gate = self.learning
@@ -534,16 +524,9 @@ class CompensatorCore:
         if slot.comp is not None:
             slot.comp.reset()             # warm-up and thermal state from the power-on
         if self.policy.reanchor_on_start:
-            a.restart(slot, self._reanchor_var(slot.model), self.learning.extend is not None)
+            gate = self.learning
+            a.restart(slot, reanchor_var(slot.model, gate), gate.extend is not None)
             self._update_needs()
-
-    def _reanchor_var(self, model: CompensationModel | None):
-        """Return the residual variance re-anchoring on ``model`` starts from (reanchor_var)."""
-        gate = self.learning
-        return reanchor_var(model, gate.extend is not None, gate.block_n)
-
-    still_windows_rejected = property(attrgetter('reanchoring.detector.windows_rejected'), doc=(
-        'How many windows were judged not still while waiting to re-anchor.'))
 
     def temperature_age(self) -> float | None:
         """Return the last IMU stamp minus the newest thermometer stamp, s (None if unknown)."""

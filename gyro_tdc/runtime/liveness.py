@@ -105,17 +105,13 @@ class InputRate:
     def __init__(self, name: str, start: float, expected_hz: float | None = 0.0, *,
                  tolerance: float = TOLERANCE, window_s: float = WINDOW_S,
                  learn_s: float = LEARN_S) -> None:
-        self.name = name
+        self.name, self.tolerance, self.window_s, self.learn_s = name, tolerance, window_s, learn_s
         self.judged = expected_hz is not None
         self.expected = expected_hz or None
-        self.max_hz = self.expected if self.expected else math.inf
-        self.tolerance = tolerance
-        self.window_s = window_s
-        self.learn_s = learn_s
+        self.max_hz = self.expected or math.inf
         self._samples: deque[tuple[float, int]] = deque()
         self._first: tuple[float, int] | None = None
-        self._count = 0
-        self._changed = start
+        self._count, self._changed = 0, start
 
     def window(self) -> float:
         """Return the window [s]: ``window_s``, or longer to hold ``MIN_EVENTS`` messages."""
@@ -142,18 +138,15 @@ class InputRate:
             self._count, self._changed = count, now
             if self._first is None:
                 self._first = (now, count)
-        window = self.window()
-        samples = self._samples
+        window, samples = self.window(), self._samples
         samples.append((now, count))
         while len(samples) > 1 and samples[1][0] <= now - window:
             samples.popleft()
         base_t, base_n = samples[0]
         if self._first is not None and base_t < self._first[0]:
             base_t, base_n = self._first
-        span = now - base_t
-        events = count - base_n
+        span, events, silent = now - base_t, count - base_n, now - self._changed
         hz = events / span if span > 0.0 and self._first is not None else None
-        silent = now - self._changed
         if self.judged and self.expected is None and self._first is not None:
             first_t, first_n = self._first
             if now - first_t >= self.learn_s and count > first_n:
@@ -168,8 +161,7 @@ class InputRate:
         elif silent >= window:          # FrequencyStatus: no events in the window
             level, message = ERROR, f'no {self.name} for {silent:.1f} s'
         elif self.expected and hz is not None and span >= MIN_WINDOW_S:
-            lo = self.expected * (1.0 - self.tolerance)
-            hi = self.max_hz * (1.0 + self.tolerance)
+            lo, hi = self.expected * (1.0 - self.tolerance), self.max_hz * (1.0 + self.tolerance)
             if not lo <= hz <= hi:
                 slow = hz < lo
                 level, message = WARN, (

@@ -47,62 +47,60 @@ MOTION_TYPES = ('twist', 'twist_stamped', 'odometry')
 UPSTREAM_CORRECTIONS = ('', 'px4', 'ardupilot', 'other', 'px4_ekf', 'bias_at_start')
 UPSTREAM_POLICIES = ('passthrough', 'compensate')
 
+
+def _policy(*args, **kwargs) -> ParamSpec:
+    """Return a ``policy`` row: a field of :class:`Policy`, settable at run time."""
+    return ParamSpec(*args, policy=True, read_only=False, **kwargs)
+
+
 #: The compensator's parameters (the node declares them; ``policy`` rows build :class:`Policy`).
 PARAMS = (
     ParamSpec('model_file', '', 'Model YAML file, or the name of a model in config/models; '
               'settable at run time (hot reload). Empty: pass the raw rate through.',
               read_only=False),
-    ParamSpec('out_of_range', DEFAULT_OUT_OF_RANGE, 'Outside the model temperature range: '
-              'continue the correction along its tangent at the range end for up to '
-              'max_extrapolation_c, then hold it (linear); evaluate at the nearest valid '
-              'temperature (clamp); or evaluate the model there (extrapolate).',
-              choices=OUT_OF_RANGE_POLICIES, policy=True, read_only=False),
-    ParamSpec('max_extrapolation_c', MAX_EXTRAPOLATION_C, 'How far beyond the model temperature '
-              'range the linear policy follows the tangent before it holds [degC].',
-              0.0, 1000.0, policy=True, read_only=False),
-    ParamSpec('temperature_timeout', 5.0, 'Temperature older than this (IMU stamp minus '
-              'thermometer stamp) is stale [s].', 0.001, 86400.0, policy=True, read_only=False),
-    ParamSpec('stale_policy', 'hold', 'With a stale temperature: keep compensating with the last '
-              'value (hold) or pass the raw rate through (passthrough).',
-              choices=('hold', 'passthrough'), policy=True, read_only=False),
-    ParamSpec('stale_variance', 1.0e-6, 'Added to the angular_velocity_covariance diagonal while '
-              'compensating with a stale temperature [(rad/s)^2].',
-              0.0, 1.0e3, policy=True, read_only=False),
-    ParamSpec('out_of_range_variance', 1.0e-6, 'Added to the covariance diagonal outside the '
-              "model's temperature range; with linear, times 1 + (d / 5 degC)^2 at a distance d "
-              'from the range [(rad/s)^2].', 0.0, 1.0e3, policy=True, read_only=False),
-    ParamSpec('passthrough_variance', 1.0e-4, 'Added to the covariance diagonal when the raw '
-              'rate is passed through uncompensated [(rad/s)^2].',
-              0.0, 1.0e3, policy=True, read_only=False),
-    ParamSpec('base_variance', 0.0, 'Base variance for an input whose '
-              'angular_velocity_covariance is all zero (REP 145: unknown). 0: unknown stays '
-              'unknown (all zero out, no compensation mark); > 0: the output diagonal is this '
-              "plus the model's variance, marked. A -1 in element 0 (no data) stays as it came "
-              '[(rad/s)^2].', 0.0, 1.0e3, policy=True, read_only=False),
-    ParamSpec('reanchor_on_start', True, 'Shift the model offset so the compensated rate '
-              'averages zero once the IMU is still and the mean is known to reanchor_tolerance: '
-              'the turn-on offset of this power cycle, which no model trained on other power '
-              'cycles knows; with the default still_window, still_window_max and '
-              'reanchor_tolerance, on an axis only beyond the gate its training found (the '
-              "model's reanchor min_shift_dps; none: any shift). false: keep the model offset "
-              '(the mean of its training sessions).', policy=True, read_only=False),
-    ParamSpec('reanchor_tolerance', 0.0, 'Largest standard error of the re-anchoring shift per '
-              "axis; 0: auto, 0.1 x the model's residual standard deviation, at least 1e-5 rad/s "
-              '[rad/s].', 0.0, 10.0, policy=True, read_only=False),
-    ParamSpec('still_window', STILL_WINDOW_S, 'Stillness window: the shortest averaging for '
-              're-anchoring [s].', 0.1, 3600.0, policy=True, read_only=False),
-    ParamSpec('still_window_max', STILL_WINDOW_MAX_S, 'Longest averaging for re-anchoring (the '
-              'shift is taken then even when its standard error is above the tolerance) [s].',
-              0.1, 86400.0, policy=True, read_only=False),
-    ParamSpec('still_gyro_std', 0.0, 'Largest per-axis standard deviation of the raw rate over a '
-              'still window; 0: auto, 4 x the quietest window so far [rad/s].',
-              0.0, 10.0, policy=True, read_only=False),
-    ParamSpec('still_max_rate', 0.02, 'Largest per-axis mean compensated rate over a still '
-              'window, i.e. the largest shift allowed [rad/s].',
-              0.0, 10.0, policy=True, read_only=False),
-    ParamSpec('still_accel_std', 0.0, 'Largest per-axis standard deviation of the acceleration '
-              'over a still window, when the IMU has one; 0: auto, 4 x the quietest window so '
-              'far [m/s^2].', 0.0, 100.0, policy=True, read_only=False),
+    _policy('out_of_range', DEFAULT_OUT_OF_RANGE, 'Outside the model temperature range: continue '
+            'the correction along its tangent at the range end for up to max_extrapolation_c, '
+            'then hold it (linear); evaluate at the nearest valid temperature (clamp); or '
+            'evaluate the model there (extrapolate).', choices=OUT_OF_RANGE_POLICIES),
+    _policy('max_extrapolation_c', MAX_EXTRAPOLATION_C, 'How far beyond the model temperature '
+            'range the linear policy follows the tangent before it holds [degC].', 0.0, 1000.0),
+    _policy('temperature_timeout', 5.0, 'Temperature older than this (IMU stamp minus thermometer '
+            'stamp) is stale [s].', 0.001, 86400.0),
+    _policy('stale_policy', 'hold', 'With a stale temperature: keep compensating with the last '
+            'value (hold) or pass the raw rate through (passthrough).',
+            choices=('hold', 'passthrough')),
+    _policy('stale_variance', 1.0e-6, 'Added to the angular_velocity_covariance diagonal while '
+            'compensating with a stale temperature [(rad/s)^2].', 0.0, 1.0e3),
+    _policy('out_of_range_variance', 1.0e-6, 'Added to the covariance diagonal outside the '
+            "model's temperature range; with linear, times 1 + (d / 5 degC)^2 at a distance d "
+            'from the range [(rad/s)^2].', 0.0, 1.0e3),
+    _policy('passthrough_variance', 1.0e-4, 'Added to the covariance diagonal when the raw rate '
+            'is passed through uncompensated [(rad/s)^2].', 0.0, 1.0e3),
+    _policy('base_variance', 0.0, 'Base variance for an input whose angular_velocity_covariance '
+            'is all zero (REP 145: unknown). 0: unknown stays unknown (all zero out, no '
+            "compensation mark); > 0: the output diagonal is this plus the model's variance, "
+            'marked. A -1 in element 0 (no data) stays as it came [(rad/s)^2].', 0.0, 1.0e3),
+    _policy('reanchor_on_start', True, 'Shift the model offset so the compensated rate averages '
+            'zero once the IMU is still and the mean is known to reanchor_tolerance: the turn-on '
+            'offset of this power cycle, which no model trained on other power cycles knows; with '
+            'the default still_window, still_window_max and reanchor_tolerance, on an axis only '
+            "beyond the gate its training found (the model's reanchor min_shift_dps; none: any "
+            'shift). false: keep the model offset (the mean of its training sessions).'),
+    _policy('reanchor_tolerance', 0.0, 'Largest standard error of the re-anchoring shift per '
+            "axis; 0: auto, 0.1 x the model's residual standard deviation, at least 1e-5 rad/s "
+            '[rad/s].', 0.0, 10.0),
+    _policy('still_window', STILL_WINDOW_S, 'Stillness window: the shortest averaging for '
+            're-anchoring [s].', 0.1, 3600.0),
+    _policy('still_window_max', STILL_WINDOW_MAX_S, 'Longest averaging for re-anchoring (the '
+            'shift is taken then even when its standard error is above the tolerance) [s].', 0.1,
+            86400.0),
+    _policy('still_gyro_std', 0.0, 'Largest per-axis standard deviation of the raw rate over a '
+            'still window; 0: auto, 4 x the quietest window so far [rad/s].', 0.0, 10.0),
+    _policy('still_max_rate', 0.02, 'Largest per-axis mean compensated rate over a still window, '
+            'i.e. the largest shift allowed [rad/s].', 0.0, 10.0),
+    _policy('still_accel_std', 0.0, 'Largest per-axis standard deviation of the acceleration over '
+            'a still window, when the IMU has one; 0: auto, 4 x the quietest window so far '
+            '[m/s^2].', 0.0, 100.0),
     ParamSpec('queue_depth', 2000, 'Depth of the imu/data_raw, imu/temperature and motion_topic '
               'subscriptions and of the imu/data_compensated publisher: the default of their '
               'qos_overrides.<topic>.<subscription|publisher>.depth parameters, which set one '
@@ -169,19 +167,18 @@ PARAMS = (
               'slower or faster, ERROR when none came over its window); 0: learnt from the '
               'arrivals of the first 5 s, then only slowing is judged. Read at start: the check '
               'is built then [Hz].', 0.0, 1.0e6),
-    ParamSpec('upstream_correction', '', 'A correction known to be active upstream of '
-              'imu/data_raw: px4 (TC_G_ENABLE=1), ardupilot (INS_TCALn_ENABLE=1), other (a '
-              'factory thermal calibration), px4_ekf (the EKF gyro bias estimate taken off '
-              'MAVLink HIGHRES_IMU, even with TC_G_ENABLE=0) or bias_at_start (the driver '
-              'removes a gyro bias at start: Xsens, UM7 zero_gyros, Phidgets; with '
-              'upstream_policy compensate, re-anchoring takes it out). Set: the node warns in '
-              'the log and on /diagnostics (WARN) and, with upstream_policy passthrough, passes '
-              'the rate through instead of correcting it twice. Empty: none known.',
-              choices=UPSTREAM_CORRECTIONS, policy=True, read_only=False),
-    ParamSpec('upstream_policy', 'passthrough', 'With upstream_correction set: pass the raw rate '
-              'through, flagged and without the compensation mark (passthrough), or compensate '
-              'anyway, for a model trained on the already corrected rate (compensate; no WARN).',
-              choices=UPSTREAM_POLICIES, policy=True, read_only=False),
+    _policy('upstream_correction', '', 'A correction known to be active upstream of imu/data_raw: '
+            'px4 (TC_G_ENABLE=1), ardupilot (INS_TCALn_ENABLE=1), other (a factory thermal '
+            'calibration), px4_ekf (the EKF gyro bias estimate taken off MAVLink HIGHRES_IMU, '
+            'even with TC_G_ENABLE=0) or bias_at_start (the driver removes a gyro bias at start: '
+            'Xsens, UM7 zero_gyros, Phidgets; with upstream_policy compensate, re-anchoring takes '
+            'it out). Set: the node warns in the log and on /diagnostics (WARN) and, with '
+            'upstream_policy passthrough, passes the rate through instead of correcting it twice. '
+            'Empty: none known.', choices=UPSTREAM_CORRECTIONS),
+    _policy('upstream_policy', 'passthrough', 'With upstream_correction set: pass the raw rate '
+            'through, flagged and without the compensation mark (passthrough), or compensate '
+            'anyway, for a model trained on the already corrected rate (compensate; no WARN).',
+            choices=UPSTREAM_POLICIES),
     ParamSpec('learn', False, 'Learn the bias vs temperature from still time while compensating '
               '(gyro_tdc.learn.learner): still-stretch means in 1 degC bins, refit off the '
               'message path, swapped in when it predicts the recent still time better; '
@@ -210,9 +207,9 @@ PARAMS = (
               'odometry (nav_msgs/Odometry, its twist); a zero header stamp counts as none. Read '
               "at start: a subscription's type is fixed when it is created.",
               choices=MOTION_TYPES),
-    ParamSpec('motion_threshold', MOTION_EPS, 'A motion report whose linear or angular velocity '
-              'has a component above this in magnitude (or a NaN) reports motion [m/s, rad/s].',
-              0.0, 1000.0, policy=True, read_only=False),
+    _policy('motion_threshold', MOTION_EPS, 'A motion report whose linear or angular velocity has '
+            'a component above this in magnitude (or a NaN) reports motion [m/s, rad/s].', 0.0,
+            1000.0),
 )
 
 #: One field per ``policy`` row of :data:`PARAMS` (same name, default and meaning), checked on

@@ -38,18 +38,15 @@ from array import array
 import math
 from typing import NamedTuple, Sequence
 
-from gyro_tdc.runtime.blockstats import (Anchor, block_length, block_sums, BLOCKS_PER_WINDOW,
-                                         BlockStats, default_tolerance, early_allowed,
-                                         EARLY_BLOCKS, max_windows, Shift, standard_error,
-                                         stats_of, STILL_WINDOW_MAX_S, TOLERANCE_FRACTION, Vec3,
-                                         window_stats)
+from gyro_tdc.runtime.blockstats import (Anchor, block_length, block_sums, BlockStats,
+                                         default_tolerance, early_allowed, EARLY_BLOCKS,
+                                         max_windows, Shift, standard_error, stats_of,
+                                         STILL_WINDOW_MAX_S, Vec3, window_stats)
 from gyro_tdc.signal import MIN_WINDOW_SAMPLES, STILL_WINDOW_S, StillWindows, Window
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['BLOCKS_PER_WINDOW', 'EARLY_BLOCKS', 'gated_shift', 'REANCHOR_KEY', 'shift_gate',
-           'STILL_WINDOW_S', 'StillnessDetector', 'TOLERANCE_FRACTION', 'block_length',
-           'default_tolerance', 'max_windows', 'reanchor_shift', 'standard_error', 'window_stats']
+__all__ = ['gated_shift', 'REANCHOR_KEY', 'reanchor_shift', 'shift_gate', 'StillnessDetector']
 
 _INF3 = (math.inf, math.inf, math.inf)
 #: The ``model.metrics`` key of the trainer's re-anchoring decision

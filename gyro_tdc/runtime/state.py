@@ -29,6 +29,7 @@ from gyro_tdc.model import CompensationModel, StreamingCompensator
 from gyro_tdc.runtime.blockstats import Anchor
 from gyro_tdc.runtime.drift import ModelSlot
 from gyro_tdc.runtime.flags import FLAG_NAMES
+from gyro_tdc.runtime.handoff import LearningGate
 from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.reanchor import gated_shift, StillnessDetector
 from gyro_tdc.signal import SessionTracker, TemperatureHold
@@ -204,24 +205,25 @@ class Reanchoring:
             self.detector.paused = True
 
 
-def reanchor_var(model: CompensationModel | None, learning: bool, block_n: int):
+def reanchor_var(model: CompensationModel | None, gate: LearningGate):
     """
     Return the residual variance re-anchoring on ``model`` is reset with, (rad/s)^2.
 
-    The model's (None without one); for a learned model with a learner attached
-    (``learning``), at least the raw rate's noise variance per sample: the learner's noise
-    floor of the means it is handed (``created['gyro_floor']``) times the ``block_n``
-    samples of the last one handed within a run. A learned model's residual variance is that
-    of its points' means, far below one sample's scatter: as the still threshold's prior and
-    the tolerance's scale it would refuse every window or never be met.
+    The model's (None without one); for a learned model with a learner attached to ``gate``
+    (:class:`~gyro_tdc.runtime.handoff.LearningGate`), at least the raw rate's noise variance
+    per sample: the learner's noise floor of the means it is handed (``created['gyro_floor']``)
+    times the ``gate.block_n`` samples of the last one handed within a run. A learned model's
+    residual variance is that of its points' means, far below one sample's scatter: as the
+    still threshold's prior and the tolerance's scale it would refuse every window or never be
+    met.
     """
     if model is None:
         return None
     var = np.asarray(model.residual_var, dtype=np.float64)
-    floor = model.created.get('gyro_floor') if learning else None
+    floor = model.created.get('gyro_floor') if gate.extend is not None else None
     if floor is None:
         return var
     floor = np.asarray(floor, dtype=np.float64)
     if floor.shape != (3,) or not np.isfinite(floor).all():
         return var
-    return np.maximum(var, floor ** 2 * max(1, block_n))
+    return np.maximum(var, floor ** 2 * max(1, gate.block_n))

@@ -53,9 +53,7 @@ def block_length(n: int, points: int, *, at_most: bool = False) -> int:
     rows, so at most ``points`` blocks (bounded memory for a solve).
     """
     points = max(int(points), 1)
-    if at_most:
-        return max(1, math.ceil(n / points))
-    return max(1, n // points)
+    return max(1, math.ceil(n / points) if at_most else n // points)
 
 
 def block_counts(n: int, block: int) -> NDArray[np.float64]:

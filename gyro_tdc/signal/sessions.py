@@ -150,9 +150,7 @@ class SessionTracker:
         :attr:`gap_s` while the median period is unknown (the caller shows every step to
         :meth:`median_period` then), then GAP_PERIODS median periods, at most gap_s.
         """
-        if self.median is None:
-            return self.gap_s
-        return min(self.gap_s, GAP_PERIODS * self.median)
+        return self.gap_s if self.median is None else min(self.gap_s, GAP_PERIODS * self.median)
 
     def begin(self, t: float, k: int = 0) -> None:
         """Note the stream's first sample: stamp ``t`` (s), the ``k``-th counted."""

@@ -410,13 +410,9 @@ def _long_enough(g: NDArray[np.float64], duration: float, min_still_s: float | N
     """Return whether a still stretch (its raw rate, its duration in s) is kept."""
     if min_still_s is not None:
         return duration + 1e-9 >= min_still_s
-    if duration + 1e-9 >= MIN_STILL_S:
-        return True
-    n = g.shape[0]
-    if n < MIN_STILL_SAMPLES:
-        return False
-    se = np.nanstd(g, axis=0, ddof=1) / math.sqrt(n)
-    return bool(np.all(se <= MAX_STILL_SE))
+    n = g.shape[0]       # else long, or enough samples whose mean is known well enough
+    return duration + 1e-9 >= MIN_STILL_S or (n >= MIN_STILL_SAMPLES and bool(
+        np.all(np.nanstd(g, axis=0, ddof=1) / math.sqrt(n) <= MAX_STILL_SE)))
 
 
 def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],

@@ -185,8 +185,7 @@ class StillWindows:
 
     def __init__(self, window_s: float = STILL_WINDOW_S, *, cut: str = 'grid',
                  gyro_std: float = 0.0, accel_std: float = 0.0, max_rate: float = MAX_RATE,
-                 min_samples: int = MIN_JUDGED,
-                 prior_std: ArrayLike | None = None) -> None:
+                 min_samples: int = MIN_JUDGED, prior_std: ArrayLike | None = None) -> None:
         if not (math.isfinite(window_s) and window_s > 0.0):
             raise ValueError(f'Expected `window_s` > 0, got {window_s!r}.')
         if cut not in CUTS:
@@ -226,9 +225,8 @@ class StillWindows:
     @property
     def window_end(self) -> float | None:
         """Return the grid stamp at which the window in progress ends (None: no window)."""
-        if self._k is None or self.t_first is None or not self._grid:
-            return None
-        return self.t_first + (self._k + 1) * self.window_s
+        ended = self._k is None or self.t_first is None or not self._grid
+        return None if ended else self.t_first + (self._k + 1) * self.window_s
 
     def observe_motion(self, t: float, moving: bool) -> None:
         """Record a motion report: from stamp ``t`` (s) until the next, moving or not."""
@@ -236,7 +234,7 @@ class StillWindows:
 
     def thresholds(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return the gyro and accelerometer thresholds in force (fixed or auto)."""
-        early = (self.windows_seen < NOISE_WINDOWS or not np.isfinite(self.gyro_noise.floor).any())
+        early = self.windows_seen < NOISE_WINDOWS or not np.isfinite(self.gyro_floor).any()
         return noise_thresholds(self.gyro_floor, self.accel_floor, gyro_std=self.gyro_std,
                                 accel_std=self.accel_std,
                                 prior_std=self.prior_std if early else None)
@@ -250,8 +248,7 @@ class StillWindows:
         newest refused one is kept. ``thresholds`` default to those in force.
         """
         g_thr, a_thr = self.thresholds() if thresholds is None else thresholds
-        for j in range(len(windows) - 1, -1, -1):
-            w = windows[j]
+        for j, w in reversed(list(enumerate(windows))):
             why = judge_windows([w.gyro_std], None if w.accel_std is None else [w.accel_std],
                                 g_thr, a_thr)[0]
             if why:
@@ -261,8 +258,8 @@ class StillWindows:
     # -- samples -----------------------------------------------------------------------
 
     def add(self, t: float, raw: Sequence[float], accel: Sequence[float] | None = None, *,
-            rate: Sequence[float] | None = None, temp_c: float = math.nan,
-            moving: bool = False) -> Window | None:
+            rate: Sequence[float] | None = None, temp_c: float = math.nan, moving: bool = False
+            ) -> Window | None:
         """
         Add one sample; return the window it ended, judged, if any (else None).
 
@@ -285,16 +282,15 @@ class StillWindows:
         rate = _NAN3 if rate is None else rate
         buf.extend((t, raw[0], raw[1], raw[2], accel[0], accel[1], accel[2], rate[0], rate[1],
                     rate[2], temp_c))
-        if moving:
-            self._moving = True
+        self._moving = self._moving or bool(moving)
         if (not self._grid and t - self._t0 >= self.window_s
                 and (len(buf) > _COLS or self._chunk is not None)):
             done = self._end(None)
         return done
 
     def extend(self, t: NDArray[np.float64], gyro: NDArray[np.float64],
-               accel: NDArray[np.float64] | None = None,
-               temp: NDArray[np.float64] | None = None) -> list[Window]:
+               accel: NDArray[np.float64] | None = None, temp: NDArray[np.float64] | None = None
+               ) -> list[Window]:
         """
         Add a chunk of samples (stamps increasing); return the windows it ended, judged.
 
@@ -305,12 +301,10 @@ class StillWindows:
         if not m:
             return []
         x = np.full((m, _COLS), math.nan)
-        x[:, 0] = t
-        x[:, 1:4] = gyro
-        if accel is not None:
-            x[:, 4:7] = accel
-        if temp is not None:
-            x[:, 10] = temp
+        x[:, 0], x[:, 1:4] = t, gyro
+        for cols, v in ((slice(4, 7), accel), (10, temp)):       # optional: NaN without
+            if v is not None:
+                x[:, cols] = v
         pending = self._take()
         if pending is not None:
             x = np.concatenate([pending, x])
@@ -321,19 +315,17 @@ class StillWindows:
             k = np.floor((tt - self.t_first) / self.window_s).astype(np.int64)
             cut = np.flatnonzero(k != k[-1])
             done = int(cut[-1]) + 1 if cut.size else 0
-            start = np.flatnonzero(np.r_[True, k[1:done] != k[:done - 1]]) if done else \
-                np.zeros(0, dtype=np.int64)
-            nxt = np.r_[tt[start[1:]], tt[done]].tolist() if done else []
+            start = np.flatnonzero(np.diff(k[:done], prepend=k[0] - 1))     # where k changes
+            nxt = np.r_[tt[start[1:]], tt[done]].tolist()
             self._k = int(k[-1])
         else:
-            start, i0 = [], 0
-            while i0 < tt.size:
-                later = np.flatnonzero(tt[i0 + 1:] - tt[i0] >= self.window_s)
+            start, done = [], 0
+            while done < tt.size:
+                later = np.flatnonzero(tt[done + 1:] - tt[done] >= self.window_s)
                 if not later.size:
                     break
-                start.append(i0)
-                i0 = i0 + 2 + int(later[0])
-            done = i0
+                start.append(done)
+                done += 2 + int(later[0])
             start = np.asarray(start, dtype=np.int64)
             nxt = [None] * start.size
         if done < tt.size:
@@ -379,39 +371,30 @@ class StillWindows:
         stop = np.r_[start[1:], m]
         flag, self._moving = self._moving, False     # the flag of the window in progress
         out = []
-        for i in range(start.size):
-            rows = x[int(start[i]):int(stop[i])]
-            astd = tuple(a_std[i].tolist()) if fin_a[i] else None
+        for i in range(start.size):             # in turn: each lowers the floor of the next
+            rows, k, finite = x[int(start[i]):int(stop[i])], int(n[i]), bool(fin_g[i])
+            t0, t1 = float(rows[0, 0]), float(rows[-1, 0])
+            self.windows_seen += 1
+            stds = [tuple(g_std[i].tolist()), tuple(a_std[i].tolist()) if fin_a[i] else None]
+            for j, noise in enumerate((self.gyro_noise, self.accel_noise)):
+                if not finite or stds[j] is None:
+                    continue
+                const, step = _steps(rows[:, 1 + 3 * j:4 + 3 * j])
+                if const.any():           # exactly zero, not the rounding of the mean's
+                    stds[j] = tuple(0.0 if c else v for c, v in zip(const.tolist(), stds[j]))
+                if k >= self.min_samples:
+                    noise.add(k - 1, np.asarray(stds[j]) ** 2, step)
             rm = None if r_mean is None or not given[i] else tuple(r_mean[i].tolist())
-            out.append(self._judge(rows, int(n[i]), tuple(g_mean[i].tolist()),
-                                   tuple(g_std[i].tolist()), astd, rm, float(temp[i]),
-                                   bool(fin_g[i]), flag and i == 0, t_next[i]))
+            g_thr, a_thr = self.thresholds()
+            moving = self.motion.veto(t0, t1) or (flag and i == 0)
+            why = str(judge_windows([stds[0]], None if stds[1] is None else [stds[1]], g_thr,
+                                    a_thr, mean_rate=None if rm is None else [rm],
+                                    max_rate=self.max_rate, moving=[moving], counts=[k],
+                                    min_samples=self.min_samples, finite=[finite])[0])
+            out.append(Window(t0, t1, k, tuple(g_mean[i].tolist()), *stds, rm, float(temp[i]),
+                              moving, why, (tuple(g_thr.tolist()), tuple(a_thr.tolist())),
+                              t_next[i], rows))
         return out
-
-    def _judge(self, rows: NDArray[np.float64], n: int, g_mean: tuple, g_std: tuple,
-               a_std: tuple | None, r_mean: tuple | None, temp: float, finite: bool,
-               flagged: bool, t_next: float | None) -> Window:
-        """Lower the floor, take the verdict of one window."""
-        t0, t1 = float(rows[0, 0]), float(rows[-1, 0])
-        self.windows_seen += 1
-        stds = [g_std, a_std]
-        for i, noise in enumerate((self.gyro_noise, self.accel_noise)):
-            if not finite or stds[i] is None:
-                continue
-            const, step = _steps(rows[:, 1 + 3 * i:4 + 3 * i])
-            if const.any():           # exactly zero, not the rounding of the mean's
-                stds[i] = tuple(0.0 if c else v for c, v in zip(const.tolist(), stds[i]))
-            if n >= self.min_samples:
-                noise.add(n - 1, np.asarray(stds[i]) ** 2, step)
-        g_std, a_std = stds
-        g_thr, a_thr = self.thresholds()
-        moving = self.motion.veto(t0, t1) or flagged
-        why = str(judge_windows([g_std], None if a_std is None else [a_std], g_thr, a_thr,
-                                mean_rate=None if r_mean is None else [r_mean],
-                                max_rate=self.max_rate, moving=[moving], counts=[n],
-                                min_samples=self.min_samples, finite=[finite])[0])
-        return Window(t0, t1, n, g_mean, g_std, a_std, r_mean, temp, moving, why,
-                      (tuple(g_thr.tolist()), tuple(a_thr.tolist())), t_next, rows)
 
 
 @dataclass(frozen=True)
@@ -501,17 +484,18 @@ class StreamingStill:
             The stretch that just ended (at least ``min_still_s``), else None.
 
         """
-        w = self.windows.add(t, raw, accel, rate=rate, temp_c=temp_c, moving=moving)
-        return None if w is None else self._take(w)
+        return self._take(self.windows.add(t, raw, accel, rate=rate, temp_c=temp_c,
+                                           moving=moving))
 
     def flush(self) -> StillSegment | None:
         """Judge the window in progress and return the stretch it ends (at shutdown)."""
-        w = self.windows.flush()
-        done = None if w is None else self._take(w)
+        done = self._take(self.windows.flush())
         return done if done is not None else self._close()
 
-    def _take(self, w: Window) -> StillSegment | None:
-        """Extend the stretch with a judged window, or end it."""
+    def _take(self, w: Window | None) -> StillSegment | None:
+        """Extend the stretch with a judged window (None: none ended), or end it."""
+        if w is None:
+            return None
         if w.why:
             self.rejected[w.why] += 1
             return self._close()
@@ -536,8 +520,7 @@ class StreamingStill:
             return None
         g_mean = tuple(sum(w.gyro_mean[i] * w.n for w in st) / n for i in range(3))
         g_std = tuple(math.sqrt(sum(w.gyro_std[i] ** 2 for w in st) / len(st)) for i in range(3))
-        r_mean = None
-        if all(w.rate_mean is not None for w in st):
-            r_mean = tuple(sum(w.rate_mean[i] * w.n for w in st) / n for i in range(3))
+        r_mean = (None if any(w.rate_mean is None for w in st) else
+                  tuple(sum(w.rate_mean[i] * w.n for w in st) / n for i in range(3)))
         temp = sum(w.temp_c * w.n for w in st) / n
         return StillSegment(float(t0), float(t1), int(n), g_mean, g_std, r_mean, float(temp))

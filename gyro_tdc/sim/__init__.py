@@ -23,12 +23,12 @@ reference. :func:`load_scenario` reads a scenario, :func:`simulate_scenario` run
 
 from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim.chamber import (heat_conduction_time_s, max_temperature_step_c, nice_ceil,
-                                  nice_floor, Profile, staircase_plan, StaircasePlan)
-from gyro_tdc.sim.presets import PRESETS
+                                  nice_floor, Profile, simulate_thermal, staircase_plan,
+                                  StaircasePlan, ThermalHistory)
 from gyro_tdc.sim.scenario import load_scenario, Scenario, scenario_dir
-from gyro_tdc.sim.simulator import SimRun, SimTruth, simulate_run, simulate_scenario, to_run
-from gyro_tdc.sim.stream import SimStream
-from gyro_tdc.sim.thermal import simulate_thermal, ThermalHistory
+from gyro_tdc.sim.simulator import (SimRun, SimStream, SimTruth, simulate_run, simulate_scenario,
+                                    to_run)
+from gyro_tdc.sim.specs import PRESETS
 from gyro_tdc.sim.vehicle import CMD_VEL_TOPIC, TRUTH_TOPIC
 
 __all__ = ['CMD_VEL_TOPIC', 'EFFECT_IDS', 'PRESETS', 'Profile', 'Scenario', 'SimRun', 'SimStream',

@@ -17,7 +17,9 @@ Thermal chamber: temperature profiles and the paper's precise test method (secti
 
 A :class:`Profile` is the air temperature as a piecewise-linear function of time (two
 breakpoints at one time make a jump); :func:`staircase_plan` applies the paper's step and
-heat-conduction equations (eq. 20, 24). See ``doc/internals/sim.md``.
+heat-conduction equations (eq. 20, 24). :func:`simulate_thermal` conducts the profile as
+first-order lags, set point -> air -> package -> MEMS die, each integrated exactly on a uniform
+internal grid (first-order hold). See ``doc/internals/sim.md``.
 """
 
 from __future__ import annotations
@@ -26,12 +28,13 @@ from dataclasses import dataclass
 import math
 from typing import Callable, Sequence, Tuple
 
+from gyro_tdc.model import first_order_lag
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['Profile', 'StaircasePlan', 'heat_conduction_time_s', 'hold_segment',
+__all__ = ['Profile', 'StaircasePlan', 'ThermalHistory', 'heat_conduction_time_s', 'hold_segment',
            'max_temperature_step_c', 'nice_ceil', 'nice_floor', 'points_segment', 'ramp_segment',
-           'staircase_plan', 'staircase_segment', 'step_segment']
+           'simulate_thermal', 'staircase_plan', 'staircase_segment', 'step_segment']
 
 
 # --------------------------------------------------------------------------------------------
@@ -75,14 +78,10 @@ def heat_conduction_time_s(*, specific_heat_kj_per_kg_k: float, density_kg_per_m
                  / conductivity_w_per_m_k)
 
 
-def _nice(x: float, up: bool) -> float:
+def _series(x: float) -> list[float]:
+    """Return the 1-2-5 series from a decade below positive ``x`` to a decade above."""
     exponent = math.floor(math.log10(_positive('x', x)))
-    candidates = [m * 10.0 ** e for e in (exponent - 1, exponent, exponent + 1)
-                  for m in (1.0, 2.0, 5.0)]
-    # A relative tolerance so that 0.1 or 20 map onto themselves despite rounding.
-    if up:
-        return min(c for c in candidates if c >= x * (1.0 - 1e-12))
-    return max(c for c in candidates if c <= x * (1.0 + 1e-12))
+    return [m * 10.0 ** e for e in (exponent - 1, exponent, exponent + 1) for m in (1.0, 2.0, 5.0)]
 
 
 def nice_floor(x: float) -> float:
@@ -100,7 +99,8 @@ def nice_floor(x: float) -> float:
         ``m * 10**e`` with ``m`` in (1, 2, 5), ``<= x`` (0.125 -> 0.1).
 
     """
-    return _nice(x, up=False)
+    # A relative tolerance so that 0.1 or 20 map onto themselves despite rounding.
+    return max(c for c in _series(x) if c <= x * (1.0 + 1e-12))
 
 
 def nice_ceil(x: float) -> float:
@@ -118,7 +118,7 @@ def nice_ceil(x: float) -> float:
         ``m * 10**e`` with ``m`` in (1, 2, 5), ``>= x`` (17.52 -> 20).
 
     """
-    return _nice(x, up=True)
+    return min(c for c in _series(x) if c >= x * (1.0 - 1e-12))
 
 
 @dataclass(frozen=True)
@@ -166,8 +166,7 @@ def staircase_plan(*, sensitivity_dps: float = 8.75e-3, alpha_dps_per_c: float =
     min_hold = heat_conduction_time_s(specific_heat_kj_per_kg_k=specific_heat_kj_per_kg_k,
                                       density_kg_per_m3=density_kg_per_m3, length_m=length_m,
                                       conductivity_w_per_m_k=conductivity_w_per_m_k)
-    step = nice_floor(max_step)
-    hold = nice_ceil(min_hold)
+    step, hold = nice_floor(max_step), nice_ceil(min_hold)
     return StaircasePlan(max_step_c=max_step, step_c=step, min_hold_s=min_hold, hold_s=hold,
                          rate_c_per_h=3600.0 * step / hold)
 
@@ -360,8 +359,7 @@ def staircase_segment(to_c: float, step_c: float, hold_s: float) -> Segment:
         starts = t0 + hold * k
         # Each level: the jump at the start of its hold, then the end of the hold. The point
         # before the jump is the previous breakpoint, so every step is two breakpoints.
-        t = np.empty(2 * n)
-        temp = np.empty(2 * n)
+        t, temp = np.empty(2 * n), np.empty(2 * n)
         t[0::2], temp[0::2] = starts, levels
         t[1::2], temp[1::2] = starts + hold, levels
         return t, temp
@@ -402,3 +400,80 @@ def points_segment(t_s: ArrayLike, temp_c: ArrayLike) -> Segment:
     if t_rel[0] != 0.0 or np.any(np.diff(t_rel) < 0.0):
         raise ValueError('Expected `t_s` to start at 0 and never decrease.')
     return lambda t0, temp0: (t0 + t_rel, temps.copy())
+
+
+# --------------------------------------------------------------------------------------------
+# Heat conduction
+# --------------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class ThermalHistory:
+    """
+    Temperatures of every thermal node on the internal grid.
+
+    Parameters
+    ----------
+    t : NDArray[np.float64], shape (G,), s
+        Internal grid ``k * dt``.
+    setpoint_c : NDArray[np.float64], shape (G,), degC
+        Chamber profile (set point).
+    air_c : NDArray[np.float64], shape (G,), degC
+        Chamber air at the sensor.
+    package_c : NDArray[np.float64], shape (G,), degC
+        Sensor package (metal shell) temperature.
+    die_c : NDArray[np.float64], shape (G,), degC
+        MEMS die temperature.
+    die_rate_c_per_s : NDArray[np.float64], shape (G,), degC/s
+        Time derivative of the die temperature.
+    thermometer_c : NDArray[np.float64], shape (G,), degC
+        Noise-free, unquantised thermometer reading (lagged package or die).
+
+    """
+
+    t: NDArray[np.float64]
+    setpoint_c: NDArray[np.float64]
+    air_c: NDArray[np.float64]
+    package_c: NDArray[np.float64]
+    die_c: NDArray[np.float64]
+    die_rate_c_per_s: NDArray[np.float64]
+    thermometer_c: NDArray[np.float64]
+
+    def at(self, name: str, t: ArrayLike) -> NDArray[np.float64]:
+        """Interpolate node ``name`` (``'die_c'``...) linearly onto ``t``, held beyond the grid."""
+        return np.interp(np.asarray(t, dtype=np.float64), self.t, getattr(self, name))
+
+
+def simulate_thermal(profile: Profile, *, duration_s: float, dt: float = 0.1,
+                     tau_air_s: float = 0.0, tau_package_s: float = 0.0,
+                     tau_die_s: float = 0.0, thermometer_location: str = 'package',
+                     thermometer_tau_s: float = 0.0) -> ThermalHistory:
+    """
+    Propagate the chamber profile through the thermal chain on a grid of ``dt`` s.
+
+    Chain: set point --tau_air--> air --tau_package--> package --tau_die--> die (each >= 0,
+    0 = no lag). The thermometer is a further lag ``thermometer_tau_s`` of the package (a
+    probe on the shell) or of the die (the on-die register), per ``thermometer_location``.
+    Every node starts settled at the profile's first temperature; the grid covers
+    ``[0, duration_s]``.
+    """
+    if not (math.isfinite(duration_s) and duration_s >= 0.0):
+        raise ValueError(f'Expected `duration_s` >= 0, got {duration_s!r}.')
+    if thermometer_location not in ('package', 'die'):
+        raise ValueError("Expected `thermometer_location` to be 'package' or 'die', got "
+                         f'{thermometer_location!r}.')
+    n = int(math.floor(duration_s / dt + 1e-9)) + 1
+    t = np.arange(n, dtype=np.float64) * dt
+    if t[-1] < duration_s:
+        t = np.append(t, t[-1] + dt)
+    setpoint = profile.value(t)
+    # Each node lags the one before: setpoint -> air -> package -> die, with its rate: exact
+    # (u - y) / tau, or the input's rate when tau = 0.
+    nodes, rate = [setpoint], profile.slope(t)
+    for tau in (tau_air_s, tau_package_s, tau_die_s):
+        nodes.append(first_order_lag(dt, nodes[-1], tau, hold='linear'))
+        rate = (nodes[-2] - nodes[-1]) / tau if tau > 0.0 else rate
+    _, air, package, die = nodes
+    source = package if thermometer_location == 'package' else die
+    thermometer = first_order_lag(dt, source, thermometer_tau_s, hold='linear')
+    return ThermalHistory(t=t, setpoint_c=setpoint, air_c=air, package_c=package, die_c=die,
+                          die_rate_c_per_s=rate, thermometer_c=thermometer)

@@ -17,8 +17,9 @@ Simulate a gyro in a thermal chamber on a rate table: whole runs as numpy arrays
 
 :func:`simulate_run` and :func:`simulate_scenario` compute each effect's term of the gyro
 and accelerometer outputs, noise, saturation and digits, vectorised, with one seeded random
-stream per component (switching an effect off leaves the others' noise unchanged).
-The output equation: ``doc/internals/sim.md``.
+stream per component (switching an effect off leaves the others' noise unchanged);
+:class:`SimStream` hands a run out chunk by chunk up to a requested simulated time, for a live
+driver. The output equation: ``doc/internals/sim.md``.
 """
 
 from __future__ import annotations
@@ -26,24 +27,23 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 import os
-from typing import Any, Callable, Mapping, Optional, Sequence, Union
+from typing import Any, Callable, Mapping, NamedTuple, Optional, Sequence, Union
 
 from gyro_tdc.base import is_number
 from gyro_tdc.data import Run
 from gyro_tdc.errors import ScenarioError
 from gyro_tdc.model import EFFECT_IDS
+from gyro_tdc.sim.chamber import simulate_thermal, ThermalHistory
 from gyro_tdc.sim.noise import gauss_markov, quantise, random_walk, white_noise
-from gyro_tdc.sim.scenario import load_scenario, Scenario
-from gyro_tdc.sim.schema import DEG
+from gyro_tdc.sim.scenario import DEG, load_scenario, Scenario
 from gyro_tdc.sim.specs import GyroSpec, NoiseSpec, ThermometerSpec
-from gyro_tdc.sim.thermal import simulate_thermal, ThermalHistory
 from gyro_tdc.sim.vehicle import (gravity_in_sensor, heated_profile, plan_legs, vehicle_motion,
                                   VehicleMotion)
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['G0', 'SimRun', 'SimTruth', 'gravity_vector', 'simulate_run', 'simulate_scenario',
-           'to_run']
+__all__ = ['G0', 'ImuChunk', 'RefChunk', 'SimRun', 'SimStream', 'SimTruth', 'TempChunk',
+           'gravity_vector', 'simulate_run', 'simulate_scenario', 'to_run']
 
 ScenarioLike = Union[Scenario, str, 'os.PathLike[str]', Mapping[str, Any]]
 
@@ -89,7 +89,7 @@ class SimTruth:
         One output digit (0 when not quantised).
     noise_std : NDArray[np.float64], shape (3,), rad/s
         Noise floor per sample: ``sqrt(white_std^2 + quant_step^2 / 12)``.
-    thermal : gyro_tdc.sim.thermal.ThermalHistory
+    thermal : gyro_tdc.sim.chamber.ThermalHistory
         Every thermal node on the internal grid.
     accel_offset : NDArray[np.float64], shape (N, 3), m/s^2
         Accelerometer offset before noise: static bias plus the thermal terms.
@@ -393,8 +393,7 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
                          force=None if motion is None else motion.force)
     accel = acc.pop('accel')
 
-    th = sc.thermometer
-    temp_t, temp_c, temp_var = _thermometer(th, thermal, duration, rng('thermometer'))
+    temp_t, temp_c, temp_var = _thermometer(sc.thermometer, thermal, duration, rng('thermometer'))
 
     truth = SimTruth(
         die_c=die, die_rate_c_per_s=die_rate, package_c=thermal.at('package_c', imu_t),
@@ -402,16 +401,15 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
         coefficients=coefficients,
         params={'t_ref_c': g.t_ref_c, 'tau_die_s': tau_die,
                 'tau_package_s': sc.thermal.tau_package_s, 'tau_air_s': sc.thermal.tau_air_s,
-                'thermometer_tau_s': th.tau_s, 'warmup_tau_s': g.warmup_tau_s,
+                'thermometer_tau_s': sc.thermometer.tau_s, 'warmup_tau_s': g.warmup_tau_s,
                 'power_on_s': g.power_on_s},
         bias_offset=offset if on['bias'] else np.zeros(3), white_std=white_std,
         quant_step=step, noise_std=np.sqrt(white_std ** 2 + step ** 2 / 12.0),
         thermal=thermal, **acc)
     name = sc.name if sc.runs.count == 1 else f'{sc.name}/run{run_index + 1}'
-    return SimRun(name=name, imu_t=imu_t, gyro=gyro, accel=accel, temp_t=temp_t,
-                  temp_c=temp_c, temp_var=float(temp_var), ref_t=ref_t, ref=ref, truth=truth,
-                  scenario=sc.name, seed=seed, run_index=run_index, rate_hz=rate,
-                  vehicle=motion)
+    return SimRun(name=name, imu_t=imu_t, gyro=gyro, accel=accel, temp_t=temp_t, temp_c=temp_c,
+                  temp_var=float(temp_var), ref_t=ref_t, ref=ref, truth=truth, scenario=sc.name,
+                  seed=seed, run_index=run_index, rate_hz=rate, vehicle=motion)
 
 
 def gravity_vector(gravity_mps2: float, roll_deg: float, pitch_deg: float
@@ -507,3 +505,91 @@ def to_run(simrun: SimRun) -> Run:
                info={'source': 'sim', 'scenario': simrun.scenario, 'seed': simrun.seed,
                      'run_index': simrun.run_index, 'truth': simrun.truth},
                accel=simrun.accel)
+
+
+class ImuChunk(NamedTuple):
+    """IMU samples of one chunk: stamps (K,) s, angular velocity and acceleration (K, 3)."""
+
+    t: NDArray[np.float64]
+    gyro: NDArray[np.float64]
+    accel: NDArray[np.float64]
+
+
+class TempChunk(NamedTuple):
+    """Thermometer readings of one chunk: stamps (K,) s and readings (K,) degC."""
+
+    t: NDArray[np.float64]
+    temp_c: NDArray[np.float64]
+
+
+class RefChunk(NamedTuple):
+    """Rate-table change points of one chunk: times (K,) s, the rate from each on (K, 3) rad/s."""
+
+    t: NDArray[np.float64]
+    ref: NDArray[np.float64]
+
+
+class SimStream:
+    """
+    Hand out one simulated run in time order.
+
+    Parameters
+    ----------
+    scenario : Scenario, str, os.PathLike or Mapping
+        The scenario, or anything :func:`gyro_tdc.sim.load_scenario` accepts.
+    seed : int
+        Seed of the run set (the same run as ``simulate_scenario(scenario, seed)``).
+    run_index : int
+        Which run of a multi-run scenario.
+    rate_hz : float, optional
+        IMU rate overriding the scenario's.
+
+    """
+
+    def __init__(self, scenario: ScenarioLike, seed: int = 0, run_index: int = 0, *,
+                 rate_hz: Optional[float] = None) -> None:
+        self.run: SimRun = simulate_run(scenario, seed=seed, run_index=run_index, rate_hz=rate_hz)
+        self._stamps = (self.run.imu_t, self.run.temp_t, self.run.ref_t)
+        self._i = (0, 0, 0)      # the next IMU, thermometer and reference rows
+        self._position = -math.inf
+
+    @property
+    def position(self) -> float:
+        """Return the time up to which samples were handed out (start: the first stamp)."""
+        return self.run.imu_t[0] if self._position == -math.inf else self._position
+
+    @property
+    def t_end(self) -> float:
+        """Return the last stamp of any stream."""
+        return float(max(t[-1] for t in self._stamps))
+
+    @property
+    def done(self) -> bool:
+        """Return True once every sample was handed out."""
+        return all(i >= t.size for i, t in zip(self._i, self._stamps))
+
+    def next_until(self, t: float) -> tuple[ImuChunk, TempChunk, RefChunk]:
+        """
+        Return the chunks of samples stamped up to and including ``t`` not handed out yet.
+
+        Each chunk in time order, possibly empty (a ``t`` before the last call's).
+
+        Raises
+        ------
+        ScenarioError
+            If ``t`` is not a number (NaN).
+
+        """
+        t = float(t)
+        if math.isnan(t):
+            raise ScenarioError('Expected `t` to be a time in seconds, got nan.')
+        run = self.run
+        (i0, i1, i2), self._i = self._i, tuple(
+            max(i, int(np.searchsorted(ts, t, side='right')))
+            for i, ts in zip(self._i, self._stamps))
+        j0, j1, j2 = self._i
+        imu = ImuChunk(run.imu_t[i0:j0], run.gyro[i0:j0], run.accel[i0:j0])
+        temp = TempChunk(run.temp_t[i1:j1], run.temp_c[i1:j1])
+        ref = RefChunk(run.ref_t[i2:j2], run.ref[i2:j2])
+        self._position = max(self._position, t)
+        return imu, temp, ref

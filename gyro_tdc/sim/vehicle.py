@@ -217,8 +217,7 @@ def _drive_profile(spec: VehicleSpec, leg: Leg, rng: np.random.Generator
     vt = [leg.t0_s, leg.t0_s + ramp, leg.t1_s - ramp, leg.t1_s]
     vv = [0.0, vmax, vmax, 0.0]
     yt, yv = [leg.t0_s], [0.0]
-    t = leg.t0_s + ramp
-    end = leg.t1_s - ramp
+    t, end = leg.t0_s + ramp, leg.t1_s - ramp
     while True:
         t += float(rng.uniform(*spec.straight_s))
         dur = float(rng.uniform(*spec.turn_s))
@@ -229,9 +228,7 @@ def _drive_profile(spec: VehicleSpec, leg: Leg, rng: np.random.Generator
         yt += [t, t + _TURN_RAMP_S, t + _TURN_RAMP_S + dur, t + 2.0 * _TURN_RAMP_S + dur]
         yv += [0.0, w, w, 0.0]
         t += 2.0 * _TURN_RAMP_S + dur
-    yt.append(leg.t1_s)
-    yv.append(0.0)
-    return vt, vv, yt, yv
+    return vt, vv, yt + [leg.t1_s], yv + [0.0]
 
 
 def _pl(tk: list[float], vk: list[float], t: NDArray[np.float64]
@@ -303,16 +300,13 @@ def vehicle_motion(spec: VehicleSpec, legs: tuple[Leg, ...], imu_t: NDArray[np.f
     n = t.shape[0]
     rate += rng.standard_normal((n, 3)) * (spec.vibration_dps * _DEG) * shake
     force += rng.standard_normal((n, 3)) * spec.vibration_mps2 * shake
-    driving = _driving(legs, t)
+    cmd_t = np.zeros(0)
     if spec.cmd_vel_rate_hz > 0.0 and n:
         duration = float(t[-1]) + (float(t[1] - t[0]) if n > 1 else 0.0)
         cmd_t = np.arange(int(math.ceil(duration * spec.cmd_vel_rate_hz - 1e-9)),
                           dtype=np.float64) / spec.cmd_vel_rate_hz
-        cmd = np.zeros((cmd_t.size, 6))
-        cmd[:, 0] = _pl(vt, vv, cmd_t)[0]
-        cmd[:, 5] = _pl(yt, yv, cmd_t)[0]
-    else:
-        cmd_t, cmd = np.zeros(0), np.zeros((0, 6))
+    cmd = np.zeros((cmd_t.size, 6))
+    cmd[:, 0], cmd[:, 5] = _pl(vt, vv, cmd_t)[0], _pl(yt, yv, cmd_t)[0]
     return VehicleMotion(legs=legs, rate=rate, force=force, speed=speed, roll_deg=roll,
-                         pitch_deg=pitch, parked=~driving, heating_c=heating.value(t),
+                         pitch_deg=pitch, parked=~_driving(legs, t), heating_c=heating.value(t),
                          cmd_t=cmd_t, cmd=cmd)

@@ -49,8 +49,8 @@ from gyro_tdc.model.compensation import compensate
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal.metrics import bias_stability
 from gyro_tdc.sim import simulate_scenario
-from gyro_tdc.sim.presets import preset
 from gyro_tdc.sim.simulator import to_run
+from gyro_tdc.sim.specs import preset
 import numpy as np
 import pytest
 from synth import synth_run

@@ -13,7 +13,7 @@
 # limitations under the License.
 
 """
-Tests of gyro_tdc.evaluate.models: labels, model files and the ``px4`` baseline.
+Tests of gyro_tdc.evaluate.models: labels, model files, the ``px4`` baseline, on-board models.
 
 Labels are file-name safe and unique; ``load_models`` reads model files and shipped names and
 refuses ``px4`` without training bags. The ``px4`` cubic does not fit a constant training
@@ -27,10 +27,13 @@ import warnings
 
 from bags import bag_from_run
 from constant_axes import quanta, values, with_constant as _with
+from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import DatasetError, FitError, ModelFileError
-from gyro_tdc.evaluate.models import bag_labels, load_models, model_labels, PX4, safe_label
+from gyro_tdc.evaluate.models import (bag_labels, load_models, model_labels, onboard_model, PX4,
+                                      safe_label)
 from gyro_tdc.model import compensate
 from gyro_tdc.model.compensation import CompensationModel
+from gyro_tdc.model.fc_tempcal import ardupilot_correction, px4_correction
 from hypothesis import given, settings
 import numpy as np
 import pytest
@@ -97,3 +100,40 @@ def test_px4_refuses_training_bags_constant_on_every_axis(runs, tmp_path):
     with pytest.raises(DatasetError) as err:
         load_models([PX4], train_bags=[bag])
     assert '\n' not in str(err.value) and 'every axis' in str(err.value)
+
+
+# The flight controller's own correction as a model: its formula, or one line why not.
+
+PX4_PARAMS = {'TC_G_ENABLE': 0, 'TC_G0_ID': 555, 'TC_G0_TREF': 30.0, 'TC_G0_TMIN': 10.0,
+              'TC_G0_TMAX': 60.0, 'TC_G0_X0_1': 1e-4, 'TC_G0_X1_0': 2e-3, 'TC_G0_X2_0': 1e-5}
+ARDU = {'INS_TCAL1_ENABLE': 0, 'INS_TCAL1_TMIN': 10.0, 'INS_TCAL1_TMAX': 60.0,
+        'INS_TCAL1_GYR1_X': 2000.0, 'INS_TCAL1_GYR2_X': 10.0, 'INS_GYR1_CALTEMP': 25.0}
+
+
+def _fc_log(firmware: str, params: dict, **info) -> Run:
+    """Return a flat run from a log of ``firmware`` with ``params``, 0 to 70 degC."""
+    t = np.arange(200.0)
+    return Run(t, np.linspace(0.0, 70.0, 200), np.zeros((200, 3)), np.zeros((200, 3)),
+               f'log.{firmware}', {'firmware': firmware, 'params': params, **info})
+
+
+@pytest.mark.parametrize('spec, run, correction', [
+    ('px4-onboard', _fc_log('px4', PX4_PARAMS, device_id=555), px4_correction),
+    ('ardupilot-onboard', _fc_log('ardupilot', ARDU), ardupilot_correction),
+])
+def test_the_model_is_the_firmware_formula_clamped_to_its_range(spec, run, correction):
+    model, line = onboard_model(spec, run)
+    assert line.startswith(f"{spec}: the flight controller's correction from ")
+    assert 'clamped to 10 .. 60 degC' in line and 'not applied' in line
+    got = run.omega - compensate(model, run.t, run.temp, run.omega, out_of_range='clamp')
+    np.testing.assert_allclose(got, correction(run.info['params'], run.temp), atol=1e-12)
+    assert model.temp_range_c == (10.0, 60.0)
+
+
+def test_a_log_that_cannot_give_the_model_is_refused_in_one_line():
+    with pytest.raises(DatasetError, match='needs a PX4 ULog'):
+        onboard_model('px4-onboard', _fc_log('ardupilot', ARDU))
+    with pytest.raises(DatasetError, match='no TC_Gn_ID .* is the device id 7'):
+        onboard_model('px4-onboard', _fc_log('px4', PX4_PARAMS, device_id=7))
+    with pytest.raises(DatasetError, match='already carries the on-board correction'):
+        onboard_model('ardupilot-onboard', _fc_log('ardupilot', ARDU, onboard_compensated=True))

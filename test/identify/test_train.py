@@ -34,8 +34,8 @@ from gyro_tdc.data.bag.writer import write_bag
 from gyro_tdc.data.dataset import load_run
 from gyro_tdc.data.options import BagOptions
 from gyro_tdc.errors import DatasetError, FeatureError, FitError, LimitError
+from gyro_tdc.evaluate.report import format_training
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
-from gyro_tdc.evaluate.training_report import format_training
 from gyro_tdc.identify import constant_gyro_axes, estimate_t0, fit_model
 from gyro_tdc.identify.fit import FitOptions
 from gyro_tdc.identify.still_only import moving_share

@@ -227,7 +227,7 @@ def stamp_ns(msg) -> int:
 
 
 def test_sim_publishes_the_scenario(ros_context, executor):
-    from gyro_tdc.sim.stream import SimStream
+    from gyro_tdc.sim import SimStream
     run = SimStream('demo_fast', seed=3).run
     node, lis = start(ros_context, executor, backend='sim', scenario='demo_fast', seed=3,
                       time_scale=20.0, frame_id='sim_imu', angular_velocity_variance=2.0e-6,
@@ -260,7 +260,7 @@ def test_sim_publishes_the_scenario(ros_context, executor):
 
 
 def test_sim_rate_table_reference_and_end_of_run(ros_context, executor):
-    from gyro_tdc.sim.stream import SimStream
+    from gyro_tdc.sim import SimStream
     run = SimStream('rate_steps', seed=0, rate_hz=0.5).run
     node, lis = start(ros_context, executor, backend='sim', scenario='rate_steps',
                       sim_rate_hz=0.5, time_scale=0.0, qos_depth=5000)

@@ -330,7 +330,7 @@ def test_a_scheduled_model_is_installed_at_its_stamp_a_late_one_at_once(model):
     core.schedule(model, float(t[50]))
     assert core.model_id == model.model_id and core.learned_installs == 2
     core.schedule(other, float(t[-1]) + 1.0)
-    core.cancel_scheduled()
+    core.learning.cancel()
     core.process(float(t[-1]) + 2.0, *omega[-1])
     assert core.model_id == model.model_id and core.learned_installs == 2
 

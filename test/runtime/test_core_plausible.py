@@ -23,7 +23,8 @@ from gyro_tdc.base.limits import MAX_DRIFT_RAD_S, MAX_RATE_RAD_S, MAX_TEMP_LEAD_
 from gyro_tdc.identify import fit_model
 from gyro_tdc.learn.learner import Learner
 from gyro_tdc.runtime import flags as F
-from gyro_tdc.runtime.core import CompensatorCore, correction_is_safe
+from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.drift import correction_is_safe
 from gyro_tdc.runtime.health import health, OK, WARN
 from gyro_tdc.runtime.policy import Policy
 from hypothesis import given, HealthCheck, settings, strategies as st

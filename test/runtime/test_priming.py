@@ -19,7 +19,8 @@ from __future__ import annotations
 from gyro_tdc.identify import fit_model
 from gyro_tdc.learn.learner import learned_model
 from gyro_tdc.runtime import priming as priming_mod
-from gyro_tdc.runtime.core import CompensatorCore, timeless
+from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.drift import timeless
 from gyro_tdc.runtime.policy import Policy
 import numpy as np
 import pytest

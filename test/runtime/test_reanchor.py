@@ -20,11 +20,12 @@ import math
 
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model import compensate
+from gyro_tdc.runtime.blockstats import (block_length, default_tolerance, max_windows,
+                                         standard_error, window_stats)
 from gyro_tdc.runtime.core import CompensatorCore
 from gyro_tdc.runtime.policy import Policy
-from gyro_tdc.runtime.reanchor import (block_length, default_tolerance, gated_shift,
-                                       max_windows, REANCHOR_KEY, reanchor_shift, shift_gate,
-                                       standard_error, StillnessDetector, window_stats)
+from gyro_tdc.runtime.reanchor import (gated_shift, REANCHOR_KEY, reanchor_shift, shift_gate,
+                                       StillnessDetector)
 import numpy as np
 import pytest
 from synth import synth_run

@@ -22,10 +22,11 @@ from gyro_tdc.data import Run
 from gyro_tdc.data.realdata import default_pan_csv, read_pan_cubesat_csv
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model import compensate
+from gyro_tdc.runtime.blockstats import block_length, EARLY_BLOCKS, window_stats
 from gyro_tdc.runtime.core import CompensatorCore
 from gyro_tdc.runtime.policy import Policy
-from gyro_tdc.runtime.reanchor import (block_length, EARLY_BLOCKS, reanchor_shift,
-                                       STILL_WINDOW_S, StillnessDetector, window_stats)
+from gyro_tdc.runtime.reanchor import reanchor_shift, StillnessDetector
+from gyro_tdc.signal import STILL_WINDOW_S
 import numpy as np
 import pytest
 

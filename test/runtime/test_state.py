@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from collections import deque
 
+from gyro_tdc.runtime.handoff import LearningGate
 from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.state import detector_for, reanchor_var, Reanchoring, StreamState, Tally
 from gyro_tdc.signal import TemperatureHold
@@ -94,10 +95,11 @@ class _Model:
 
 def test_reanchor_var_is_the_models_unless_a_learner_floor_is_larger():
     var = [1e-8, 2e-8, 3e-8]
-    assert reanchor_var(None, True, 10) is None
-    np.testing.assert_array_equal(reanchor_var(_Model(var, {}), True, 10), var)
+    learning, idle = LearningGate(extend=[].extend, block_n=10), LearningGate(block_n=10)
+    assert reanchor_var(None, learning) is None
+    np.testing.assert_array_equal(reanchor_var(_Model(var, {}), learning), var)
     floored = _Model(var, {'gyro_floor': [1e-4, 1e-5, 1e-6]})
-    np.testing.assert_array_equal(reanchor_var(floored, False, 10), var)
-    np.testing.assert_allclose(reanchor_var(floored, True, 10), [1e-7, 2e-8, 3e-8])
+    np.testing.assert_array_equal(reanchor_var(floored, idle), var)
+    np.testing.assert_allclose(reanchor_var(floored, learning), [1e-7, 2e-8, 3e-8])
     bad = _Model(var, {'gyro_floor': [float('nan'), 1.0, 1.0]})
-    np.testing.assert_array_equal(reanchor_var(bad, True, 10), var)
+    np.testing.assert_array_equal(reanchor_var(bad, learning), var)

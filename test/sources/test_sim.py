@@ -17,7 +17,7 @@
 from __future__ import annotations
 
 from fake_iio import l3gd20_files, make_device
-from gyro_tdc.sim.stream import SimStream
+from gyro_tdc.sim import SimStream
 from gyro_tdc.sources import IioSource, ImuSample, ImuSource, SimSource, SourceExhausted
 from manual_clock import Wall
 import numpy as np

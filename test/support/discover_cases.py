@@ -82,7 +82,7 @@ def unexplained_rms(sims_on, sims_off) -> float:
 
 def calibrate(sc: dict, effect: str, k: float, seed: int) -> dict:
     """Scale the coefficient of ``effect`` so its unexplained RMS is ``k`` noise std."""
-    from gyro_tdc.sim.presets import preset
+    from gyro_tdc.sim.specs import preset
 
     base = [e for e in sc['gyro']['effects'] if e != effect]
     key = COEF_KEY[effect]

@@ -36,9 +36,9 @@ from gyro_tdc.identify import fit_model
 from gyro_tdc.model.compensation import compensate, CompensationModel, drift, StreamingCompensator
 from gyro_tdc.model.out_of_range import added_variance, range_shortfall, VARIANCE_SCALE_C
 from gyro_tdc.runtime import CompensatorCore, Policy
+from gyro_tdc.runtime.blockstats import BLOCKS_PER_WINDOW, TOLERANCE_FRACTION
 from gyro_tdc.runtime.health import health
-from gyro_tdc.runtime.reanchor import (BLOCKS_PER_WINDOW, reanchor_shift, StillnessDetector,
-                                       TOLERANCE_FRACTION)
+from gyro_tdc.runtime.reanchor import reanchor_shift, StillnessDetector
 from gyro_tdc.signal.metrics import bias_stability
 import numpy as np
 import pytest

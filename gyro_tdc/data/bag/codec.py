@@ -28,10 +28,9 @@ from __future__ import annotations
 import contextlib
 from dataclasses import dataclass
 import functools
-from typing import Any, Sequence
+from typing import Any, Callable, Sequence, Union
 
 from gyro_tdc.data import imu_cdr
-from gyro_tdc.data.bag.storage import split
 from gyro_tdc.data.imu_cdr import CDR_LE, field_slice, IMU_DOUBLES, IMU_FIELDS, layout_of
 from gyro_tdc.errors import DatasetError
 import numpy as np
@@ -39,9 +38,9 @@ from numpy.typing import NDArray
 from rosbags.serde import SerdeError
 from rosbags.typesys import get_typestore, Stores
 
-__all__ = ['Decoded', 'FLOAT_TYPES', 'IMU_TYPE', 'KEEP', 'N_DOUBLES', 'REFERENCE_TYPE',
-           'TEMPERATURE_TYPE', 'TEMPERATURE_TYPES', 'decode', 'decode_float',
-           'decode_joined', 'decode_slow', 'encode_checked', 'from_msg', 'jazzy', 'to_msg']
+__all__ = ['Decoded', 'FLOAT_TYPES', 'IMU_TYPE', 'KEEP', 'Logs', 'N_DOUBLES', 'REFERENCE_TYPE',
+           'TEMPERATURE_TYPE', 'TEMPERATURE_TYPES', 'decode', 'decode_float', 'decode_joined',
+           'decode_slow', 'encode_checked', 'from_msg', 'jazzy', 'split', 'to_msg']
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'
 TEMPERATURE_TYPE = 'sensor_msgs/msg/Temperature'
@@ -62,6 +61,16 @@ N_DOUBLES = {IMU_TYPE: IMU_DOUBLES, TEMPERATURE_TYPE: 2, REFERENCE_TYPE: 3}
 KEEP = {IMU_TYPE: tuple(k for name in ('angular_velocity', 'linear_acceleration')
                         for k in range(IMU_DOUBLES)[field_slice(name)]),
         TEMPERATURE_TYPE: (0, 1), REFERENCE_TYPE: (0, 1, 2)}
+
+
+#: Log times of a block, or a function that fetches them when a message needs them.
+Logs = Union[NDArray[np.int64], Callable[[], NDArray[np.int64]]]
+
+
+def split(buf: bytes, lengths: NDArray[np.int64]) -> list[bytes]:
+    """Return the messages stored end to end in ``buf``."""
+    ends = np.cumsum(lengths).tolist()
+    return [buf[a:b] for a, b in zip([0] + ends[:-1], ends)]
 
 
 @functools.lru_cache(maxsize=None)
@@ -97,9 +106,9 @@ def from_msg(msgtype: str, msg: Any) -> tuple[int, int, str, list[float]]:
     stamp = msg.header.stamp
     if msgtype == IMU_TYPE:   # the fields in wire order (gyro_tdc.data.imu_cdr.IMU_FIELDS)
         o, w, a = msg.orientation, msg.angular_velocity, msg.linear_acceleration
-        row = ([o.x, o.y, o.z, o.w, *msg.orientation_covariance, w.x, w.y, w.z,
-                *msg.angular_velocity_covariance, a.x, a.y, a.z,
-                *msg.linear_acceleration_covariance])
+        row = [o.x, o.y, o.z, o.w, *msg.orientation_covariance, w.x, w.y, w.z,
+               *msg.angular_velocity_covariance, a.x, a.y, a.z,
+               *msg.linear_acceleration_covariance]
     else:
         v = msg.vector if msgtype == REFERENCE_TYPE else None
         row = [msg.temperature, msg.variance] if v is None else [v.x, v.y, v.z]
@@ -158,9 +167,8 @@ def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype, msgtype: str,
         for i in sorted({0, n // 2, n - 1}):    # the layout checked against rosbags
             raw = bytes(buf[i * dt.itemsize:(i + 1) * dt.itemsize])
             sec, nsec, fid, row = from_msg(msgtype, typestore.deserialize_cdr(raw, msgtype))
-            if (sec != rec['sec'][i] or nsec != rec['nanosec'][i] or fid != frame_id
-                    or not np.array_equal(np.asarray(row, dtype=np.float64), data[i],
-                                          equal_nan=True)):
+            if (sec != rec['sec'][i] or nsec != rec['nanosec'][i] or fid != frame_id or not
+                    np.array_equal(np.asarray(row, dtype=np.float64), data[i], equal_nan=True)):
                 return None
     except (SerdeError, AttributeError, DatasetError, UnicodeDecodeError):
         return None

@@ -20,7 +20,7 @@ storage files through their documented formats: sqlite3 with the standard ``sqli
 (:mod:`~gyro_tdc.data.bag.storage_sqlite3`), mcap record by record
 (:mod:`~gyro_tdc.data.bag.storage_mcap`). The same messages as rosbags' reader, byte for
 byte and in its order, decoded with the typestore rosbags' ``AnyReader`` would build; what
-this does not take (:func:`unfit`, :class:`~gyro_tdc.data.bag.storage.Unfit`) rosbags reads.
+this does not take (:func:`unfit`, :class:`~gyro_tdc.data.bag.metadata.Unfit`) rosbags reads.
 See ``doc/internals/data.md``.
 """
 
@@ -35,8 +35,7 @@ from tempfile import TemporaryDirectory
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
-from gyro_tdc.data.bag.metadata import entries, Entry, topics_of
-from gyro_tdc.data.bag.storage import Unfit
+from gyro_tdc.data.bag.metadata import entries, Entry, topics_of, Unfit
 from gyro_tdc.data.bag.storage_mcap import McapFile
 from gyro_tdc.data.bag.storage_sqlite3 import Sqlite3File
 from rosbags.typesys import get_types_from_idl, get_types_from_msg, get_typestore, Stores

@@ -18,7 +18,7 @@ A rosbag2 directory's ``metadata.yaml``: where the bag is, its topics, and check
 The counts size every column of :func:`gyro_tdc.data.bag.reader.read_bag`, so they are checked
 against what the storage files can hold before anything is allocated (:func:`check_counts`).
 :func:`entries` reads the topic entries as rosbags' reader does and refuses, with
-:class:`~gyro_tdc.data.bag.storage.Unfit`, what rosbags refuses: the columnar read then
+:class:`Unfit`, what rosbags refuses: the columnar read then
 leaves the bag to rosbags.
 """
 
@@ -29,13 +29,12 @@ from typing import Any, Mapping, NamedTuple
 
 from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
 from gyro_tdc.data.bag.codec import N_DOUBLES
-from gyro_tdc.data.bag.storage import Unfit
 from gyro_tdc.data.imu_cdr import FRAME_ID
 from gyro_tdc.errors import DatasetError
 
 __all__ = ['check_counts', 'describe', 'entries', 'Entry', 'load', 'min_message_bytes',
            'qos', 'bag_dir', 'storage_bytes', 'topics_of', 'ZSTD_MAX_RATIO',
-           'ZSTD_MIN_FRAME_BYTES']
+           'Unfit', 'ZSTD_MIN_FRAME_BYTES']
 
 #: Smallest zstd frame (magic, frame header, one block header): a message compressed on its
 #: own (``compression_mode: message``) takes at least this many bytes.
@@ -45,6 +44,10 @@ ZSTD_MIN_FRAME_BYTES = 9
 ZSTD_MAX_RATIO = 32768
 # The newest metadata version rosbags reads (Jazzy writes 9).
 _VERSION = 9
+
+
+class Unfit(Exception):
+    """The columnar read does not apply to this bag: rosbags' reader reads it."""
 
 
 def bag_dir(path: str | Path) -> Path:
@@ -195,18 +198,18 @@ def entries(bag: Path, info: Mapping) -> list[Entry]:
     """
     Return the connections of metadata.yaml, refusing what rosbags' reader refuses.
 
+    The storage plugin is :func:`gyro_tdc.data.bag.columnar.unfit`'s to check, first.
+
     Raises
     ------
     Unfit
-        A version, storage, compression or serialization rosbags does not read, a missing
-        storage file or a missing key; rosbags' reader then says what is wrong.
+        A version, compression or serialization rosbags does not read, a missing storage
+        file or a missing key; rosbags' reader then says what is wrong.
 
     """
     try:
         if info['version'] > _VERSION:
             raise Unfit(f'metadata version {info["version"]!r:.20}')
-        if info['storage_identifier'] not in ('sqlite3', 'mcap'):
-            raise Unfit(f'storage {info["storage_identifier"]!r:.20}')
         if any(not (bag / PurePath(x).name).exists() for x in info['relative_file_paths']):
             raise Unfit('a storage file is missing')
         mode = info.get('compression_mode', '').lower()

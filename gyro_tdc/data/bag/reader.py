@@ -37,8 +37,8 @@ from typing import Any, Callable, Mapping, Sequence
 import apsw
 from gyro_tdc.data.bag import columnar, metadata
 from gyro_tdc.data.bag.codec import (decode, decode_float, decode_joined, Decoded, FLOAT_TYPES,
-                                     IMU_TYPE, jazzy, KEEP, REFERENCE_TYPE, TEMPERATURE_TYPES)
-from gyro_tdc.data.bag.storage import Logs, Unfit
+                                     IMU_TYPE, jazzy, KEEP, Logs, REFERENCE_TYPE,
+                                     TEMPERATURE_TYPES)
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import NDArray
@@ -191,8 +191,8 @@ VIA = ('auto', 'columnar', 'rosbags')
 
 
 def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
-             reference_topic='/rate_table/reference', progress=False,
-             accel=True, via='auto') -> BagData:
+             reference_topic='/rate_table/reference', progress=False, accel=True, via='auto'
+             ) -> BagData:
     """
     Read IMU, temperature and reference-rate arrays from a rosbag2 bag, fast.
 
@@ -260,7 +260,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                 raise                     # a topic missing or of the wrong type
             except Exception as err:      # noqa: B902 (whatever it is, rosbags decides)
                 # Let rosbags read it, or say what is wrong with it.
-                why = (str(err) if isinstance(err, Unfit)
+                why = (str(err) if isinstance(err, metadata.Unfit)
                        else f'{type(err).__name__}: {one_line(err)}')
         if via == 'columnar':
             raise DatasetError(f'Cannot read bag {str(bag)!r} column by column: {why}.')
@@ -367,8 +367,7 @@ class Collector:
         if not len(raws):
             return
         floating = role == 'temperature' and self.floating
-        dec = (decode_float(raws, self.msgtypes[role], self.typestore) if floating else
-               decode(raws, self.msgtypes[role], self.typestore))
+        dec = (decode_float if floating else decode)(raws, self.msgtypes[role], self.typestore)
         good = self._store(role, dec, logs)
         if floating:
             before = np.asarray(before, dtype=np.int64)
@@ -401,17 +400,16 @@ class Collector:
         imu_t, gyro, *accel = out['imu']
         temp_t, temp_c, temp_var = out['temperature']
         ref_t, ref = out['reference']
-        return BagData(
-            imu_t=imu_t, gyro=gyro, accel=accel[0] if accel else None,
-            frame_id=self.frame_id, temp_t=temp_t, temp_c=temp_c[:, 0],
-            temp_var=temp_var[:, 0], ref_t=ref_t, ref=ref, topics=topics, rejected=rejected,
-            storage=storage, path=str(bag), fallback=self.fallback, via=via)
+        return BagData(imu_t=imu_t, gyro=gyro, accel=accel[0] if accel else None,
+                       frame_id=self.frame_id, temp_t=temp_t, temp_c=temp_c[:, 0],
+                       temp_var=temp_var[:, 0], ref_t=ref_t, ref=ref, topics=topics,
+                       rejected=rejected, storage=storage, path=str(bag),
+                       fallback=self.fallback, via=via)
 
 
 def _collect(feed: Callable[[Collector, Callable[[int], Any]], None], typestore: Any,
              bag: Path, info: Mapping, topics: dict[str, tuple[str, int]],
-             conns: dict[str, list[Any]], progress: bool, with_accel: bool, via: str
-             ) -> BagData:
+             conns: dict[str, list[Any]], progress: bool, with_accel: bool, via: str) -> BagData:
     """Feed a storage read's blocks (``feed(collector, update)``) to a :class:`Collector`."""
     from tqdm import tqdm
 

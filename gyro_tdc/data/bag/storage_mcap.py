@@ -31,9 +31,10 @@ import struct
 import sys
 from typing import Any, Callable, Mapping, NamedTuple
 
-from gyro_tdc.data.bag.metadata import Entry
-from gyro_tdc.data.bag.storage import Pending, Unfit
+from gyro_tdc.data.bag.codec import Logs
+from gyro_tdc.data.bag.metadata import Entry, Unfit
 import numpy as np
+from numpy.typing import NDArray
 
 if sys.version_info >= (3, 14):
     from compression import zstd
@@ -106,6 +107,32 @@ def _qos(metadata: bytes) -> str:
         if key == 'offered_qos_profiles':
             return value
     return ''
+
+
+class Pending:
+    """Main (IMU) messages gathered until a block is full, then handed to ``out.main``."""
+
+    def __init__(self, out: Any, chunk: int) -> None:
+        self.out, self.chunk = out, chunk
+        self.parts: list[tuple[bytes, NDArray[np.int64], Logs]] = []
+        self.n = 0
+
+    def add(self, buf: bytes, lengths: NDArray[np.int64], logs: Logs) -> None:
+        """Add messages stored end to end in ``buf``; hand the block over once it is full."""
+        self.parts.append((buf, lengths, logs))
+        self.n += len(lengths)
+        if self.n >= self.chunk:
+            self.flush()
+
+    def flush(self) -> None:
+        """Hand what is gathered over (before any other role's block of the same span)."""
+        if not self.n:
+            return
+        pieces, lengths, logs = zip(*self.parts)
+        self.parts, self.n = [], 0
+        self.out.main(pieces[0] if len(pieces) == 1 else b''.join(pieces),
+                      np.concatenate(lengths),
+                      lambda: np.concatenate([x() if callable(x) else x for x in logs]))
 
 
 class McapFile:
@@ -204,10 +231,13 @@ class McapFile:
         for a, b in zip(chunks, chunks[1:]):
             if not (a.offset < b.offset and a.end <= b.start):
                 raise Unfit('mcap chunks overlap in time')
-        reader = _Records(roles, out, update)
+        self.codes = {role: k for k, role in enumerate(out.roles)}
+        self.ids = np.full(1 << 16, -1, dtype=np.int8)          # channel id -> role code
+        for cid, role in roles.items():
+            self.ids[cid] = self.codes[role]
         pending = Pending(out, chunk)
         for c in chunks:
-            reader.chunk(self._decompress(c), c, pending)
+            self._chunk(self._decompress(c), c, pending, update)
         pending.flush()
 
     def _decompress(self, c: _Chunk) -> bytes:
@@ -221,18 +251,6 @@ class McapFile:
         if len(data) != c.uncompressed_size or (crc and crc32(data) != crc):
             raise Unfit('a chunk of the wrong size or checksum')
         return data
-
-
-class _Records:
-    """The wanted message records of decompressed chunks, handed to a ``Collector``."""
-
-    def __init__(self, roles: Mapping[int, str], out: Any,
-                 update: Callable[[int], Any]) -> None:
-        self.out, self.update = out, update
-        self.codes = {role: k for k, role in enumerate(out.roles)}
-        self.ids = np.full(1 << 16, -1, dtype=np.int8)          # channel id -> role code
-        for cid, role in roles.items():
-            self.ids[cid] = self.codes[role]
 
     @staticmethod
     def runs(raw: bytes) -> list[tuple[int, int, int]]:
@@ -268,7 +286,7 @@ class _Records:
             pos += n * rec
         return runs
 
-    def chunk(self, raw: bytes, c: _Chunk, pending: Pending) -> None:
+    def _chunk(self, raw: bytes, c: _Chunk, pending: Pending, update: Callable) -> None:
         """Hand over the wanted messages of one chunk, in rosbags' order."""
         arr = np.frombuffer(raw, dtype=np.uint8)
         pieces = []                                        # (rows, role codes, log times)
@@ -286,7 +304,7 @@ class _Records:
             return
         codes = np.concatenate([p[1] for p in pieces])
         logs = np.concatenate([p[2] for p in pieces])
-        self.update(len(codes))
+        update(len(codes))
         if np.any(logs[1:] < logs[:-1]):
             # rosbags sorts a chunk stably by log time: here message by message (rare, a
             # chunk written out of order), each its own piece.
@@ -300,8 +318,7 @@ class _Records:
         if others:
             self._others(others, codes, logs, pending)
 
-    def _in_order(self, pieces: list[tuple[Any, ...]], pending: Pending
-                  ) -> list[tuple[int, bytes]]:
+    def _in_order(self, pieces: list[tuple], pending: Pending) -> list[tuple[int, bytes]]:
         """Hand over the main messages of a chunk's pieces in order; return the others."""
         main = self.codes['imu']
         others: list[tuple[int, bytes]] = []
@@ -311,8 +328,7 @@ class _Records:
             if is_main.any():
                 sel = rows if is_main.all() else rows[is_main]
                 pending.add(np.ascontiguousarray(sel[:, 31:]).tobytes(),
-                            np.full(len(sel), rows.shape[1] - 31, dtype=np.int64),
-                            log[is_main])
+                            np.full(len(sel), rows.shape[1] - 31, dtype=np.int64), log[is_main])
             others += [(at + i, bytes(rows[i, 31:])) for i in np.flatnonzero(~is_main).tolist()]
             at += len(code)
         return others
@@ -321,7 +337,7 @@ class _Records:
                 pending: Pending) -> None:
         """Hand over the other roles' messages of a chunk, after its main ones."""
         pending.flush()
-        out, main = self.out, self.codes['imu']
+        out, main = pending.out, self.codes['imu']
         mains = np.cumsum(codes == main)
         first = out.n_main - int(mains[-1])
         where = np.fromiter((i for i, _ in others), dtype=np.int64, count=len(others))

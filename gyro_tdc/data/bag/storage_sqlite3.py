@@ -33,8 +33,8 @@ import sqlite3
 import threading
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
-from gyro_tdc.data.bag.metadata import Entry
-from gyro_tdc.data.bag.storage import split, Unfit
+from gyro_tdc.data.bag.codec import split
+from gyro_tdc.data.bag.metadata import Entry, Unfit
 import numpy as np
 from numpy.typing import NDArray
 
@@ -65,7 +65,7 @@ class Sqlite3File:
     """
 
     def __init__(self, path: Path) -> None:
-        # Range queries run on connections of their own, opened from the same URI (_Ranges).
+        # Range queries run on connections of their own, opened from the same URI (feed).
         self.uri = f'{path.absolute().as_uri()}?mode=ro&immutable=1'
         self.db = sqlite3.connect(self.uri, uri=True, check_same_thread=False)
         try:
@@ -102,28 +102,6 @@ class Sqlite3File:
     def close(self) -> None:
         """Close the database."""
         self.db.close()
-
-    def feed(self, roles: Mapping[int, str], out: Any, update: Callable[[int], Any], *,
-             chunk: int) -> None:
-        """Hand the messages of ``roles`` (connection id -> role) to ``out``, a range at a time."""
-        _Ranges(self, roles, out, update, chunk).run()
-
-
-class _Ranges:
-    """
-    The messages of one file read by time ranges over its timestamp index.
-
-    Each range's query returns, per role, the count, the shortest message and the messages
-    end to end; a role whose messages differ in size has their lengths fetched.
-    A range holds about ``chunk`` messages of any topic (:meth:`_bounds`).
-    """
-
-    def __init__(self, file: Sqlite3File, roles: Mapping[int, str], out: Any,
-                 update: Callable[[int], Any], chunk: int) -> None:
-        self.db, self.uri, self.out, self.update = file.db, file.uri, out, update
-        self.chunk = chunk
-        self.ids = {role: sorted(k for k, r in roles.items() if r == role)
-                    for role in out.roles if role in roles.values()}
 
     def _in(self, role: str | None = None) -> str:
         ids = (self.ids[role] if role else sorted(k for v in self.ids.values() for k in v))
@@ -169,17 +147,24 @@ class _Ranges:
         self._check_plan(query, 'the range query', (0, 1))
         return query
 
-    def run(self) -> None:
+    def feed(self, roles: Mapping[int, str], out: Any, update: Callable[[int], Any], *,
+             chunk: int) -> None:
         """
-        Read the file range by range, two queries at once ahead of the decode.
+        Hand the messages of ``roles`` (connection id -> role) to ``out``, a range at a time.
 
-        SQLite runs a query without the interpreter lock, so two threads, each with its own
-        connection, run the next ranges on the other cores while this one decodes the
-        answers in order.
+        The file is read by time ranges over its timestamp index, each of about ``chunk``
+        messages of any topic (:meth:`_bounds`). Each range's query returns, per role, the
+        count, the shortest message and the messages end to end; a role whose messages
+        differ in size has their lengths fetched. SQLite runs a query without the
+        interpreter lock, so two threads, each with its own connection, run the next ranges
+        on the other cores while this one decodes the answers in order.
         """
-        roles = list(self.ids)
-        floating = self.out.floating and 'temperature' in self.ids
-        query, ranges = self._query(roles, floating), self._bounds()
+        self.chunk = chunk
+        self.ids = {role: sorted(k for k, r in roles.items() if r == role)
+                    for role in out.roles if role in roles.values()}
+        names = list(self.ids)
+        floating = out.floating and 'temperature' in self.ids
+        query, ranges = self._query(names, floating), self._bounds()
         local, dbs = threading.local(), []
 
         def ask(t: int, end: int) -> Any:
@@ -194,10 +179,10 @@ class _Ranges:
                     (t, end), answer = asked.popleft()
                     row = answer.result()
                     asked.extend((r, pool.submit(ask, *r)) for r in islice(ranges, 1))
-                    count = sum(row[3 * j] for j in range(len(roles)))
+                    count = sum(row[3 * j] for j in range(len(names)))
                     if count:
-                        self._range(row, roles, t, end, floating)
-                        self.update(count)
+                        self._range(out, row, names, t, end, floating)
+                        update(count)
         finally:
             for db in dbs:
                 db.close()
@@ -228,10 +213,9 @@ class _Ranges:
             'AND timestamp < ?2 ORDER BY timestamp, rowid', (t, end))),
             dtype=np.int64, count=count)
 
-    def _range(self, row: Sequence[Any], roles: Sequence[str], t: int, end: int,
+    def _range(self, out: Any, row: Sequence[Any], roles: Sequence[str], t: int, end: int,
                floating: bool) -> None:
         """Hand over the messages of one range (``row``: the range query's answer)."""
-        out = self.out
         got = {}
         for k, role in enumerate(roles):
             count, small, buf = row[3 * k:3 * k + 3]

@@ -122,3 +122,7 @@ def test_decode_joined_equals_decode_on_one_reused_buffer():
         assert dec.fallback == (0 if raws[0] is uniform[0] else len(raws))
     scratch.seek(0)
     scratch.write(b'')            # nothing returned still holds the buffer
+
+
+def test_split_cuts_messages_stored_end_to_end():
+    assert codec.split(b'abcdefg', np.array([1, 0, 4, 2])) == [b'a', b'', b'bcde', b'fg']

@@ -23,7 +23,7 @@ from columnar_tape import (_chamber, _same_data, _same_tape, _tapes, _topics, _w
                            STORAGES, TS)
 from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE
 from gyro_tdc.data.bag import columnar, metadata, reader
-from gyro_tdc.data.bag.storage import Unfit
+from gyro_tdc.data.bag.metadata import Unfit
 from gyro_tdc.errors import DatasetError
 from hypothesis import given, HealthCheck, settings, strategies as st
 import numpy as np
