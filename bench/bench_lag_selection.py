@@ -58,7 +58,7 @@ if OLD_TREE:
 
 import bench_sessions as bs  # noqa: E402
 from gyro_tdc.identify import estimate_t0, fit_model  # noqa: E402
-from gyro_tdc.identify.features import features_for_fit  # noqa: E402
+from gyro_tdc.identify.train import features_for_fit  # noqa: E402
 from gyro_tdc.model import ThermalState  # noqa: E402
 import numpy as np  # noqa: E402
 

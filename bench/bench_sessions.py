@@ -75,8 +75,8 @@ from field_day import feed, stream  # noqa: E402
 from gyro_tdc.data import Run, split_sessions  # noqa: E402
 from gyro_tdc.data.realdata import default_pan_csv, read_pan_cubesat_csv  # noqa: E402
 from gyro_tdc.identify import estimate_t0, fit_model, fit_px4_cubic  # noqa: E402
-from gyro_tdc.identify.features import features_for_fit  # noqa: E402
 from gyro_tdc.identify.power_cycles import reanchor_rule  # noqa: E402
+from gyro_tdc.identify.train import features_for_fit  # noqa: E402
 from gyro_tdc.learn import Learner  # noqa: E402
 from gyro_tdc.model import compensate, DEFAULT_OUT_OF_RANGE  # noqa: E402
 from gyro_tdc.runtime import (CompensatorCore, default_tolerance, gated_shift,  # noqa: E402

@@ -148,8 +148,7 @@ def clean_leftovers(path: str | os.PathLike) -> list[str]:
         return []
     done, kept = [], []
     for name in names:
-        rest = name[len(prefix):]
-        owned = _OWNED.fullmatch(rest)
+        owned = _OWNED.fullmatch(name[len(prefix):])
         if owned is None:
             continue
         if owned['host'] != _HOST:
@@ -157,8 +156,7 @@ def clean_leftovers(path: str | os.PathLike) -> list[str]:
             continue
         if _alive(int(owned['pid'])):
             continue
-        leftover = path.parent / name
-        backup = owned['kind'] == 'old'
+        leftover, backup = path.parent / name, owned['kind'] == 'old'
         try:
             if (backup and len(path.name) <= _NAME_MAX and not os.path.lexists(path)):
                 os.rename(leftover, path)
@@ -227,10 +225,9 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
     clean_leftovers(target)
     try:
         target.parent.mkdir(parents=True, exist_ok=True)
-        try:
+        old = None
+        with suppress(FileNotFoundError):
             old = os.stat(target, follow_symlinks=follow_symlinks)
-        except FileNotFoundError:
-            old = None
         if old is not None and stat.S_ISLNK(old.st_mode):
             old = None          # a link replaced by a file: a fresh file's mode
         fd, tmp = _create_temp(target.parent, target.name)

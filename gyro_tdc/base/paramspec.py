@@ -189,8 +189,7 @@ def format_help(prog: str, summary: str, specs: Sequence[ParamSpec], *,
 
     """
     lines = [_fill(f'usage: {prog} [-h] [--ros-args [-p NAME:=VALUE]... '
-                   '[--params-file FILE]...]', '', ' ' * (8 + len(prog))),
-             '']
+                   '[--params-file FILE]...]', '', ' ' * (8 + len(prog))), '']
     for paragraph in summary.split('\n\n'):
         plain = re.sub(r':\w+:`~?([^`]+)`', r'\1', paragraph).replace('``', '')
         lines += [_fill(plain), '']

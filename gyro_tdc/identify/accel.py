@@ -35,7 +35,7 @@ from gyro_tdc.errors import FeatureError, FitError, ModelFileError
 from gyro_tdc.identify.axes import constant_note
 from gyro_tdc.identify.fit import check_choices, MIN_SAMPLES, MIN_SPAN_C
 from gyro_tdc.identify.linear import fit_linear
-from gyro_tdc.identify.thermal_search import run_state
+from gyro_tdc.identify.tau import run_state
 from gyro_tdc.model import (batch_features, check_accel, compensate, CompensationModel,
                             DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, normalise_ids,
                             resolve_params, STATE_TERMS, static_slope, THERMAL_EFFECTS)

@@ -32,9 +32,8 @@ from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
 from gyro_tdc.identify.power_cycles import check_sessions
-from gyro_tdc.identify.tau import fit_time_constant
-from gyro_tdc.identify.thermal_search import (choose_state, ParamSearch, run_blocks, run_state,
-                                              RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
+from gyro_tdc.identify.tau import (choose_state, fit_time_constant, ParamSearch, run_blocks,
+                                   run_state, RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
 from gyro_tdc.model import (CompensationModel, EFFECTS, input_ids, KINDS, normalise_ids,
                             REFERENCE_EFFECTS, resolve_params, STATE_TERMS, TEMPERATURE_EFFECTS,
                             THERMAL_EFFECTS, ThermalState, with_implied)
@@ -42,9 +41,9 @@ from gyro_tdc.signal import block_length
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['check_choices', 'estimate_t0', 'fit_model', 'fit_px4_cubic', 'FitOptions',
-           'MIN_SAMPLES', 'MIN_SPAN_C', 'run_state', 'span', 'TAU_BOUNDS', 'THERMAL_CHOICES',
-           'TWO_NODE_MARGIN']
+__all__ = ['check_choices', 'check_finite', 'estimate_t0', 'fit_model', 'fit_px4_cubic',
+           'FitOptions', 'MIN_SAMPLES', 'MIN_SPAN_C', 'run_state', 'span', 'TAU_BOUNDS',
+           'THERMAL_CHOICES', 'TWO_NODE_MARGIN']
 
 #: Fewest samples a fit accepts.
 MIN_SAMPLES = 50
@@ -83,6 +82,15 @@ def _labels(runs: Sequence[Run], sessions: Sequence | None) -> list[int] | None:
     return labels if len(index) > 1 else None
 
 
+def check_finite(run: Run, keys: Sequence[str] = ('temp', 'omega', 'omega_ref')) -> None:
+    """Raise FitError naming the first field of ``run`` holding a non-finite value."""
+    for key in keys:
+        x = np.asarray(getattr(run, key))
+        # All finite iff the min and the max are (NaN propagates): no boolean temporary.
+        if x.size and not (np.isfinite(x.min()) and np.isfinite(x.max())):
+            raise FitError(f'Run {run.name!r} has non-finite values in `{key}`.')
+
+
 def _check_runs(runs: Sequence[Run], ids: Sequence[str],
                 rows: Sequence[NDArray[np.bool_]] | None) -> None:
     """Reject data that cannot support a fit, with a message naming the problem."""
@@ -95,11 +103,7 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
     if n < MIN_SAMPLES:
         raise FitError(f'Too few samples to fit: {n} (need at least {MIN_SAMPLES}).')
     for r in runs:
-        for key in ('temp', 'omega', 'omega_ref'):
-            x = np.asarray(getattr(r, key))
-            # All finite iff the min and the max are (NaN propagates): no boolean temporary.
-            if x.size and not (np.isfinite(x.min()) and np.isfinite(x.max())):
-                raise FitError(f'Run {r.name!r} has non-finite values in `{key}`.')
+        check_finite(r)
     if TEMPERATURE_EFFECTS & set(ids):
         lo, hi = span([r.temp if rows is None else r.temp[rows[i]] for i, r in enumerate(runs)])
         if hi - lo < MIN_SPAN_C:

@@ -25,22 +25,21 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 import math
-from typing import Callable, Sequence
+from typing import Sequence
 
 from gyro_tdc.data import Coverage, coverage, RATE_THRESHOLD_C_PER_MIN, Run, temperature_rate
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.fit import fit_model, MIN_SPAN_C, span
-from gyro_tdc.identify.options import TrainOptions
-from gyro_tdc.model import (compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, normalise_ids,
-                            OPERATING_RANGE_C)
+from gyro_tdc.identify.axes import constant_gyro_axes, neutral_runs
+from gyro_tdc.identify.fit import fit_model, FitOptions, MIN_SPAN_C, span
+from gyro_tdc.model import compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, OPERATING_RANGE_C
 from gyro_tdc.signal import detect_still, NOISE_FACTOR, Stillness
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['ADVICE_PARK_MIN', 'check_still_span', 'find_still', 'first_still_temperature',
-           'fit_without_outliers', 'MAX_MOVING_SHARE', 'MIN_STILL_SPAN_C', 'moving_share',
-           'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'proxy_lag', 'rows_of', 'STILL_STD_CEILING',
-           'still_report', 'StillReport', 'Stretch']
+__all__ = ['ADVICE_PARK_MIN', 'find_still', 'fit_without_outliers', 'MAX_MOVING_SHARE',
+           'MIN_STILL_SPAN_C', 'moving_share', 'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'rows_of',
+           'STILL_STD_CEILING', 'still_only_runs', 'still_report', 'StillReport', 'Stretch',
+           'unreferenced_motion']
 
 #: Smallest temperature span of the still time a model is fitted on, degC.
 MIN_STILL_SPAN_C = 2.0
@@ -173,26 +172,53 @@ def moving_share(runs: Sequence[Run]) -> float:
     return moving / total if total else 0.0
 
 
-def proxy_lag(runs: Sequence[Run], ids: tuple, options: TrainOptions,
-              log: Callable[[str], None] | None = None) -> tuple:
+def unreferenced_motion(runs: Sequence[Run]) -> tuple[float, list[Run]]:
     """
-    Return the features with the thermal state (``lag``) added when a proxy is the thermometer.
+    Return the :func:`moving_share` of runs read without a reference rate, and the runs.
 
-    A barometer (``--temperature-source``) sits on the board beside the IMU and lags its
-    die: with ``--features auto`` the thermal state is on by default for it.
+    0 for runs with a reference rate; the runs returned have each constant gyro axis at its
+    reference (:func:`gyro_tdc.identify.axes.neutral_runs`) when the share was measured.
     """
-    if not options.auto or 'lag' in ids or not any(
-            r.info.get('temperature_proxy') for r in runs):
-        return ids
-    if log is not None:
-        log("features: lag added (the thermometer is a proxy of the IMU's, which lags it)")
-    return normalise_ids(tuple(ids) + ('lag',))
+    if not runs or any(r.info.get('reference') != 'zero' for r in runs):
+        return 0.0, list(runs)
+    fitted = neutral_runs(runs, constant_gyro_axes(runs))
+    return moving_share(fitted), fitted
 
 
 def rows_of(run: Run, m: NDArray[np.bool_]) -> Run:
     """Return the samples ``m`` of a run as a run (with gaps)."""
     return Run(run.t[m], run.temp[m], run.omega[m], run.omega_ref[m], run.name,
                dict(run.info), None if run.accel is None else run.accel[m])
+
+
+def still_only_runs(runs: Sequence[Run], task: tuple[str, str] = ('discover', 'discovering')
+                    ) -> tuple[list[Run], str | None]:
+    """
+    Return what discovery may fit of runs without a reference: the still samples only.
+
+    Runs with no reference rate (a flight log) moving longer than :data:`MAX_MOVING_SHARE`
+    keep their still stretches (``train``'s still test, one noise floor, a constant axis at
+    its reference), one offset per session; a session without still time is left out.
+    Returns the runs and a line saying what was kept (None when every sample is kept); ``task``
+    words what is fitted in it. FitError when no session holds a still stretch (motion is
+    never fitted as drift).
+    """
+    share, fitted = unreferenced_motion(runs)
+    if share <= MAX_MOVING_SHARE:
+        return list(runs), None
+    masks = [st.mask for st in find_still(fitted)]
+    kept = [rows_of(r, m) for r, m in zip(runs, masks) if np.count_nonzero(m) >= 16]
+    moves = f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time'
+    if not kept:
+        raise FitError(f'{moves}, with no still stretch to {task[0]} on (its motion is no '
+                       'drift): record the vehicle parked with the IMU on.')
+    still_s = sum(np.count_nonzero(m) * float(np.median(np.diff(r.t)))
+                  for r, m in zip(runs, masks) if len(r) > 1)
+    total_s = sum(r.duration_s for r in runs)
+    pct = min(100.0 * still_s / total_s, 100.0) if total_s > 0 else 0.0
+    return kept, (f'{moves}: {task[1]} on the still stretches only ({still_s:.0f} s of '
+                  f'{total_s:.0f} s, {pct:.3g} %; {len(kept)} of {len(runs)} session(s)); '
+                  'the motion is no drift')
 
 
 def _outliers(means: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -258,26 +284,8 @@ def _advice(cov: Coverage) -> list[str]:
     return out
 
 
-def check_still_span(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]]) -> None:
-    """Raise FitError, saying what to record, when the still time spans too few degrees."""
-    lo, hi = span([r.temp[m] for r, m in zip(runs, rows)])
-    if hi - lo < MIN_STILL_SPAN_C:
-        raise FitError(f'--still-only: the still time spans {hi - lo:.2f} degC only '
-                       f'({lo:.1f} .. {hi:.1f} degC; need at least '
-                       f'{MIN_STILL_SPAN_C:g} degC): record stops at other temperatures '
-                       '(a cold morning, right after a long drive).')
-
-
-def first_still_temperature(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]]) -> float:
-    """Return the median temperature of the first minute of the first still stretch."""
-    i = next(k for k, m in enumerate(rows) if m.any())
-    first = np.flatnonzero(rows[i])
-    head = first[runs[i].t[first] <= runs[i].t[first[0]] + 60.0]
-    return float(np.median(runs[i].temp[head]))
-
-
 def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
-                         spans: list[tuple[int, int, int]], labels: list[int], common: dict
+                         spans: list[tuple[int, int, int]], labels: list[int], options: FitOptions
                          ) -> tuple[CompensationModel, NDArray[np.float64], NDArray[np.bool_]]:
     """
     Fit, then refit without the outlying stretches unless all or none are outliers.
@@ -286,7 +294,7 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
     compensated rate per stretch (S, 3) and which stretches were dropped. FitError, saying
     what to record, when the stretches left span too few degrees to fit.
     """
-    model = fit_model(runs, rows=rows, **common)
+    model = fit_model(runs, options, rows=rows, sessions=labels)
     means = _stretch_means(model, runs, spans, labels)
     bad = _outliers(means)
     if bad.any() and not bad.all():
@@ -300,7 +308,7 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
                            f'span {hi - lo:.2f} degC only ({lo:.1f} .. {hi:.1f} degC; need at '
                            f'least {MIN_SPAN_C:g} degC): record stops at other temperatures, '
                            'or veto the turns with --motion-topic.')
-        model = fit_model(runs, rows=rows, **common)
+        model = fit_model(runs, options, rows=rows, sessions=labels)
         means = _stretch_means(model, runs, spans, labels)
     else:
         bad[:] = False

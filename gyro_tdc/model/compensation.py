@@ -258,11 +258,9 @@ def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
     ``model_or_norm`` is a model or ``(input_mean, input_std, centers, widths)``; ``x`` the
     raw feature rows (N, F).
     """
-    if isinstance(model_or_norm, CompensationModel):
-        m = model_or_norm
-        mean, std, centers, widths = m.input_mean, m.input_std, m.centers, m.widths
-    else:
-        mean, std, centers, widths = model_or_norm
+    m = model_or_norm
+    mean, std, centers, widths = ((m.input_mean, m.input_std, m.centers, m.widths)
+                                  if isinstance(m, CompensationModel) else m)
     xn = (np.asarray(x, dtype=np.float64) - mean) / std
     n, f = xn.shape
     k = centers.shape[0]
@@ -283,8 +281,7 @@ def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
 
 
 def model_temperature(model: CompensationModel, t: NDArray[np.float64],
-                      temp: NDArray[np.float64], *, clamp: bool = False
-                      ) -> NDArray[np.float64]:
+                      temp: NDArray[np.float64], *, clamp: bool = False) -> NDArray[np.float64]:
     """
     Return the model temperature over one run: the thermal state of the measured ``temp``.
 
@@ -362,8 +359,7 @@ def static_slope(model: CompensationModel) -> NDArray[np.float64]:
 
 
 def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
-               omega: NDArray[np.float64], *, clamp: bool = True,
-               out_of_range: str | None = None,
+               omega: NDArray[np.float64], *, clamp: bool = True, out_of_range: str | None = None,
                max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> NDArray[np.float64]:
     """
     Remove the modelled drift from a run: ``(omega - b) / (1 + s dT)``, rad/s (N, 3).
@@ -374,9 +370,9 @@ def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[n
     return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + d[:, None] * model.scale[None, :])
 
 
-def predict_drift(model: CompensationModel, t: NDArray[np.float64],
-                  temp: NDArray[np.float64], omega_ref: NDArray[np.float64], *,
-                  clamp: bool = False, out_of_range: str | None = None,
+def predict_drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
+                  omega_ref: NDArray[np.float64], *, clamp: bool = False,
+                  out_of_range: str | None = None,
                   max_extrapolation_c: float = MAX_EXTRAPOLATION_C) -> NDArray[np.float64]:
     """
     Simulate the raw output for a true rate: ``(1 + s dT) omega_ref + b``, rad/s (N, 3).
@@ -427,8 +423,7 @@ class StreamingCompensator:
         self.offset = np.zeros(3)
         self.in_range = True
         self.model_temp: float | None = None
-        self.range_distance_c = 0.0
-        self.dt_c = 0.0
+        self.range_distance_c = self.dt_c = 0.0
         #: The accelerometer part streamed alongside (None without one): ``accel.drift(t,
         #: temp)`` is the correction in m/s^2, ``accel.step(t, temp, a)`` the corrected
         #: specific force; its own copy of the thermal state, fed the same samples, equals

@@ -32,12 +32,10 @@ from gyro_tdc.model.lag import first_order_lag
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = [
-    'EFFECT_IDS', 'EFFECTS', 'Effect', 'INPUT_ORDER', 'NONLINEAR_EFFECTS', 'REFERENCE_EFFECTS',
-    'STATE_TERMS', 'STATIC_EFFECTS', 'Series', 'StreamStep', 'StreamingFeatures',
-    'TEMPERATURE_EFFECTS', 'THERMAL_EFFECTS', 'batch_features', 'input_ids', 'normalise_ids',
-    'resolve_params', 'with_implied',
-]
+__all__ = ['EFFECT_IDS', 'EFFECTS', 'Effect', 'INPUT_ORDER', 'NONLINEAR_EFFECTS',
+           'REFERENCE_EFFECTS', 'STATE_TERMS', 'STATIC_EFFECTS', 'Series', 'StreamStep',
+           'StreamingFeatures', 'TEMPERATURE_EFFECTS', 'THERMAL_EFFECTS', 'batch_features',
+           'input_ids', 'normalise_ids', 'resolve_params', 'with_implied']
 
 
 @dataclass(frozen=True)
@@ -286,9 +284,8 @@ def normalise_ids(ids: str | Sequence[str]) -> tuple[str, ...]:
         ids = [s.strip() for s in ids.split(',') if s.strip()]
     unknown = [i for i in ids if i not in EFFECTS]
     if unknown:
-        raise FeatureError(
-            f'Unknown effect id(s) {", ".join(map(repr, unknown))}; '
-            f'expected some of {", ".join(EFFECTS)}.')
+        raise FeatureError(f'Unknown effect id(s) {", ".join(map(repr, unknown))}; '
+                           f'expected some of {", ".join(EFFECTS)}.')
     return tuple(i for i in EFFECTS if i in set(ids))
 
 
@@ -316,8 +313,7 @@ def with_implied(ids: str | Sequence[str]) -> tuple[str, ...]:
     return ids
 
 
-def resolve_params(ids: Sequence[str],
-                   params: Mapping[str, Mapping[str, float]] | None = None
+def resolve_params(ids: Sequence[str], params: Mapping[str, Mapping[str, float]] | None = None
                    ) -> dict[str, dict[str, float]]:
     """
     Merge parameter values over the catalog defaults and check them.
@@ -335,11 +331,10 @@ def resolve_params(ids: Sequence[str],
         ``{effect_id: {param: value}}`` for every id with parameters.
 
     """
-    params = params or {}
     out: dict[str, dict[str, float]] = {}
     for eid in normalise_ids(ids):
         eff = EFFECTS[eid]
-        given = dict(params.get(eid, {}))
+        given = dict((params or {}).get(eid, {}))
         extra = set(given) - set(eff.params)
         if extra:
             raise FeatureError(f'Effect {eid!r} has no parameter(s) {sorted(extra)}; '
@@ -367,8 +362,7 @@ def batch_features(ids: Sequence[str], t: NDArray[np.float64], temp: NDArray[np.
     ``state`` (the model temperature, clamped when the model clamps) the temperature terms
     are of it and ``lag`` adds no column; None: the additive layout, features of ``temp``.
     """
-    t = np.asarray(t, dtype=np.float64)
-    temp = np.asarray(temp, dtype=np.float64)
+    t, temp = np.asarray(t, dtype=np.float64), np.asarray(temp, dtype=np.float64)
     if t.shape != temp.shape or t.ndim != 1:
         raise ValueError(f'Expected `t` and `temp` of equal shape (N,), got {t.shape} and '
                          f'{temp.shape}.')

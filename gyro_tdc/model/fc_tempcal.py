@@ -29,13 +29,10 @@ from typing import Mapping
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = [
-    'ARDUPILOT_SCALE', 'ARDUPILOT_TREF_C', 'ArduPilotTempCal', 'Px4TempCal',
-    'ardupilot_caltemp_name', 'ardupilot_coeff_name', 'ardupilot_correction',
-    'ardupilot_name',
-    'onboard_status', 'px4_correction', 'px4_name', 'px4_names', 'px4_slot',
-    'SENSORS',
-]
+__all__ = ['ARDUPILOT_SCALE', 'ARDUPILOT_TREF_C', 'ArduPilotTempCal', 'Px4TempCal',
+           'ardupilot_caltemp_name', 'ardupilot_coeff_name', 'ardupilot_correction',
+           'ardupilot_name', 'onboard_status', 'px4_correction', 'px4_name', 'px4_names',
+           'px4_slot', 'SENSORS']
 
 #: The sensors both firmwares calibrate: ``'gyro'`` (rad/s) and ``'accel'`` (m/s^2).
 SENSORS = ('gyro', 'accel')
@@ -103,10 +100,9 @@ def px4_name(sensor: str, slot: int | None = None, field: str = 'ENABLE',
 
 def px4_names(sensor: str, slot: int) -> list[str]:
     """Return every parameter name of one PX4 slot: ID, X3..X0 per axis, TREF, TMIN, TMAX."""
-    names = [px4_name(sensor, slot, 'ID')]
-    for k in (3, 2, 1, 0):
-        names += [px4_name(sensor, slot, f'X{k}', i) for i in range(3)]
-    return names + [px4_name(sensor, slot, f) for f in ('TREF', 'TMIN', 'TMAX')]
+    return ([px4_name(sensor, slot, 'ID')]
+            + [px4_name(sensor, slot, f'X{k}', i) for k in (3, 2, 1, 0) for i in range(3)]
+            + [px4_name(sensor, slot, f) for f in ('TREF', 'TMIN', 'TMAX')])
 
 
 def px4_slot(params: Mapping[str, float], device_id: int, sensor: str = 'gyro') -> int | None:
@@ -155,9 +151,8 @@ class Px4TempCal:
         """Read slot ``slot`` from ``params`` (missing ones take PX4's defaults)."""
         x = np.array([[float(params.get(px4_name(sensor, slot, f'X{k}', i), 0.0))
                        for i in range(3)] for k in range(4)])
-        get = {f: float(params.get(px4_name(sensor, slot, f), PX4_DEFAULTS[f]))
-               for f in PX4_DEFAULTS}
-        return cls(x, get['TREF'], get['TMIN'], get['TMAX'],
+        return cls(x, *(float(params.get(px4_name(sensor, slot, f), v))      # TREF, TMIN, TMAX
+                        for f, v in PX4_DEFAULTS.items()),
                    int(params.get(px4_name(sensor, slot, 'ID'), 0) or 0))
 
     def to_params(self, sensor: str = 'gyro', slot: int = 0) -> dict[str, float]:
@@ -300,7 +295,6 @@ def onboard_status(params: Mapping[str, float], firmware: str, *, instance: int 
     active = _enabled(params, name)
     if name not in params:
         return False, f'{name} not in the log: no on-board thermal compensation known'
-    value = params[name]
-    shown = int(value) if float(value).is_integer() else value
+    shown = int(params[name]) if float(params[name]).is_integer() else params[name]
     return active, (f'{name}={shown}: on-board thermal compensation '
                     + ('active' if active else 'off'))

@@ -37,9 +37,8 @@ from gyro_tdc.model.validate import check_model
 import numpy as np
 import yaml
 
-__all__ = ['FORMAT_VERSION', 'MAX_MODEL_BYTES', 'MAX_MODEL_DEPTH',
-           'MAX_MODEL_NODES', 'load_model', 'model_from_dict',
-           'model_to_dict', 'save_model']
+__all__ = ['FORMAT_VERSION', 'MAX_MODEL_BYTES', 'MAX_MODEL_DEPTH', 'MAX_MODEL_NODES',
+           'load_model', 'model_from_dict', 'model_to_dict', 'save_model']
 
 MAX_MODEL_BYTES = 4 * 1024 * 1024
 MAX_MODEL_DEPTH = 32
@@ -191,18 +190,15 @@ def _model_from_dict(d: Mapping) -> CompensationModel:
         raise ModelFileError(f'field `centers` has {len(rows)} rows, more than the limit of '
                              f'{MAX_CENTERS} centres')
     norm = _mapping(d, 'normalization')
-    mean = _array(norm, 'mean', (f,))
-    std = _array(norm, 'std', (f,), positive=True)
+    mean, std = _array(norm, 'mean', (f,)), _array(norm, 'std', (f,), positive=True)
     centers = _array(d, 'centers', (-1, f))
     k = centers.shape[0]
     if kind == 'poly' and k:
         raise ModelFileError(f'field `centers` must be empty for a poly model, got {k} rows')
-    widths = _array(d, 'widths', (k,), positive=True)
-    weights = _array(d, 'weights', (k, 3))
-    intercept = _array(d, 'intercept', (3,))
-    linear = _array(d, 'linear', (f, 3))
-    scale = _array(d, 'scale', (3,))
-    resid = _array(d, 'residual_var_rad2_s2', (3,))
+    widths, weights, intercept, linear, scale, resid = (
+        _array(d, key, shape, positive=key == 'widths') for key, shape in (
+            ('widths', (k,)), ('weights', (k, 3)), ('intercept', (3,)), ('linear', (f, 3)),
+            ('scale', (3,)), ('residual_var_rad2_s2', (3,))))
     if np.any(resid < 0):
         raise ModelFileError('field `residual_var_rad2_s2` must be non-negative')
     rng_ = _array(d, 'temp_range_c', (2,))
@@ -210,8 +206,7 @@ def _model_from_dict(d: Mapping) -> CompensationModel:
         raise ModelFileError(f'field `temp_range_c` must be [min, max], got {rng_.tolist()}')
     accel = _accel_from_dict(d)
     sensor = _mapping(d, 'sensor', required=False)
-    frame_id = sensor.get('frame_id', 'imu_link')
-    sensor_id = sensor.get('sensor_id', '')
+    frame_id, sensor_id = sensor.get('frame_id', 'imu_link'), sensor.get('sensor_id', '')
     if not isinstance(frame_id, str) or not isinstance(sensor_id, str):
         raise ModelFileError('field `sensor` must hold string `frame_id` and `sensor_id`')
     try:
@@ -219,8 +214,7 @@ def _model_from_dict(d: Mapping) -> CompensationModel:
             kind, ids, params, _CHK.number(_get(d, 't0_c'), 't0_c', what='a finite number'),
             (mean, std, centers, widths), np.vstack([intercept[None, :], linear, weights]),
             scale=scale, temp_range_c=rng_, residual_var=resid, frame_id=frame_id,
-            sensor_id=sensor_id,
-            metrics=_mapping(d, 'training', required=False),
+            sensor_id=sensor_id, metrics=_mapping(d, 'training', required=False),
             created=_mapping(d, 'created', required=False), thermal=thermal, accel=accel)
     except FeatureError as exc:
         raise ModelFileError(f'fields `thermal`/`features`/`effect_params`: {exc}') from None

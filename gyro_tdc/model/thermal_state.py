@@ -137,13 +137,11 @@ class ThermalState:
         if self.kind == 'none':
             return 'thermal state: the measured temperature (no lag)'
         taus = ' + '.join(f'{v:.4g}' for v in self.tau_s)
-        what = ('first-order lag' if self.kind == 'first_order'
-                else 'two-node lag (package + die)')
+        what = 'first-order lag' if self.kind == 'first_order' else 'two-node lag (package + die)'
         if self.tau_interval_s is None:
             return f'thermal state: {what}, tau = {taus} s (given, not fitted)'
         if self.identifiable is False:
-            lo = min(p[0] for p in self.tau_interval_s)
-            hi = max(p[1] for p in self.tau_interval_s)
+            lo, hi = min(p[0] for p in self.tau_interval_s), max(p[1] for p in self.tau_interval_s)
             return (f'thermal state: {what}; tau not identifiable from these data: profile '
                     f'flat over {lo:.4g}..{hi:.4g} s (best {taus} s)')
         ivs = ', '.join(f'{lo:.4g}..{hi:.4g}' for lo, hi in self.tau_interval_s)

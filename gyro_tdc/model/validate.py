@@ -22,6 +22,7 @@ A model file can pass every shape and finiteness check and still compute Inf, Na
 
 from __future__ import annotations
 
+import itertools
 from typing import Any, Iterator, Sequence
 
 from gyro_tdc.base import (MAX_ACCEL_DRIFT_MPS2, MAX_DRIFT_RAD_S, MAX_TEMP_RATE_C_S,
@@ -200,16 +201,14 @@ def drift_grid(m: CompensationModel, *, ext: float = MAX_EXTRAPOLATION_C,
     known = {'dTdt': (-MAX_TEMP_RATE_C_S, MAX_TEMP_RATE_C_S), 'warmup': (0.0, 1.0),
              'lag': (lo - ext - t0, hi + ext - t0)}
     dyn_cols = _dynamic(inputs)
+    fixed = [j for j in range(len(inputs)) if j not in dyn_cols]     # the temperature terms
     # Another dynamic effect: the values it took in training, mean +- 4 std.
-    dynamic = {inputs[j]: np.linspace(*known.get(inputs[j], (
-        m.input_mean[j] - 4.0 * m.input_std[j], m.input_mean[j] + 4.0 * m.input_std[j])),
-        _GRID_DYNAMIC) for j in dyn_cols}
+    values = [np.linspace(*known.get(inputs[j], (m.input_mean[j] - 4.0 * m.input_std[j],
+                                                 m.input_mean[j] + 4.0 * m.input_std[j])),
+                          _GRID_DYNAMIC) for j in dyn_cols]
     # The grid: model temperatures x every combination of the dynamic inputs' values.
     temps = np.concatenate([np.linspace(lo - ext, hi + ext, n_temps), [lo, hi]])
-    combos = np.zeros((1, 0))
-    if dyn_cols:
-        combos = np.array(np.meshgrid(*[dynamic[inputs[j]] for j in dyn_cols],
-                                      indexing='ij')).reshape(len(dyn_cols), -1).T
+    combos = np.array(list(itertools.product(*values)), dtype=np.float64)
     s = np.repeat(temps, combos.shape[0])
     dyn = np.tile(combos, (temps.size, 1))
     # Every centre's own point: the dynamic inputs at its coordinates (clipped to what
@@ -217,20 +216,15 @@ def drift_grid(m: CompensationModel, *, ext: float = MAX_EXTRAPOLATION_C,
     picked = np.arange(m.n_centers) if own is None else np.asarray(own, dtype=np.intp)
     if picked.size:
         raw = m.input_mean + m.centers[picked] * m.input_std   # raw feature units
-        at = np.column_stack([np.clip(raw[:, j], dynamic[inputs[j]][0],
-                                      dynamic[inputs[j]][-1]) for j in dyn_cols]
-                             ) if dyn_cols else np.zeros((picked.size, 0))
-        for j, eid in enumerate(inputs):
-            if j in dyn_cols:
-                continue
-            for d in _roots(eid, raw[:, j], t0, (lo - ext - t0, hi + ext - t0)):
+        at = np.clip(raw[:, dyn_cols], [v[0] for v in values], [v[-1] for v in values])
+        for j in fixed:
+            for d in _roots(inputs[j], raw[:, j]):
                 s = np.concatenate([s, np.clip(d + t0, lo - ext, hi + ext)])
                 dyn = np.vstack([dyn, at])
     x = np.empty((s.size, len(inputs)))
     x[:, dyn_cols] = dyn
-    for j, eid in enumerate(inputs):
-        if j not in dyn_cols:
-            x[:, j] = EFFECTS[eid].stream({}, t0)(0.0, 0.0, 0.0, s - t0, False)
+    for j in fixed:
+        x[:, j] = EFFECTS[inputs[j]].stream({}, t0)(0.0, 0.0, 0.0, s - t0, False)
     return x, s
 
 
@@ -239,25 +233,14 @@ def _dynamic(inputs: tuple[str, ...]) -> list[int]:
     return [j for j, eid in enumerate(inputs) if not EFFECTS[eid].static]
 
 
-def _roots(eid: str, v: NDArray[np.float64], t0: float, span: tuple[float, float]
-           ) -> list[NDArray[np.float64]]:
+def _roots(eid: str, v: NDArray[np.float64]) -> list[NDArray[np.float64]]:
     """Return dT values at which the temperature term ``eid`` equals (or is nearest) ``v``."""
     if eid == 'dT':
         return [v]
     if eid == 'dT2':
         r = np.sqrt(np.maximum(v, 0.0))
         return [r, -r]
-    if eid == 'dT3':
-        return [np.cbrt(v)]
-    # Another temperature term: the nearest of 1025 temperatures, on each side of T0.
-    d = np.linspace(*span, 1025)
-    f = EFFECTS[eid].stream({}, t0)(0.0, 0.0, 0.0, d, False)
-    out = []
-    for side in (d <= 0.0, d >= 0.0):
-        if side.any():
-            ds, fs = d[side], f[side]
-            out.append(ds[np.abs(fs[None, :] - v[:, None]).argmin(axis=1)])
-    return out
+    return [np.cbrt(v)]         # dT3 (STATE_TERMS are dT, dT2 and dT3)
 
 
 def _drifts(m: CompensationModel, bound: float) -> Iterator[tuple[Any, NDArray[np.float64]]]:

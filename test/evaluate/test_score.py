@@ -42,8 +42,7 @@ from gyro_tdc.evaluate.report import evaluation_json, format_bag, format_means
 from gyro_tdc.evaluate.score import (evaluate, evaluate_run, held_out_constant, mean_scores,
                                      NamedModel, rate_hz, score, still_rows)
 from gyro_tdc.identify import fit_model, MIN_SAMPLES
-from gyro_tdc.identify.options import TrainOptions
-from gyro_tdc.identify.train import train_still_only
+from gyro_tdc.identify.train import train_still_only, TrainOptions
 from gyro_tdc.model.compensation import CompensationModel
 from gyro_tdc.runtime.reanchor import reanchor_shift
 from hypothesis import given, settings, strategies as st

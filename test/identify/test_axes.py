@@ -35,8 +35,7 @@ from gyro_tdc.evaluate.report import evaluation_json, format_bag, format_means
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
 from gyro_tdc.identify.accel import G0
 from gyro_tdc.identify.axes import constant_axes, constant_axes_of
-from gyro_tdc.identify.options import TrainOptions
-from gyro_tdc.identify.train import train
+from gyro_tdc.identify.train import train, TrainOptions
 from gyro_tdc.model.compensation import compensate, StreamingCompensator
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal.metrics import bias_stability

@@ -20,15 +20,18 @@ import importlib.util
 import math
 from pathlib import Path
 
+from flightlogs import flight_day, write_dataflash
 from gyro_tdc.cli.evaluate import main as evaluate_main
 from gyro_tdc.cli.simulate import simulate
 from gyro_tdc.cli.train import main as train_main
+from gyro_tdc.data import load_runs
 from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
 from gyro_tdc.identify import fit_model
-from gyro_tdc.identify.options import TrainOptions
-from gyro_tdc.identify.train import train_still_only
+from gyro_tdc.identify.discover import discover
+from gyro_tdc.identify.still_only import still_only_runs
+from gyro_tdc.identify.train import train_still_only, TrainOptions
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal import motion_veto
 from gyro_tdc.sim import load_scenario, simulate_run, to_run
@@ -302,3 +305,61 @@ def test_cli_still_only_on_four_logs_of_a_board_does_no_harm_on_eight_more(case,
     else:
         ratio = bench.held_out_ratio(tmp_path / 'train.yaml', days[4:], paths[4:])
         assert np.all(ratio <= bench.BOUND_TRAIN), ratio
+
+
+@pytest.fixture(scope='module')
+def flights(tmp_path_factory):
+    """Three power cycles of one board at 25 Hz: flights between 10-60 s stops."""
+    root = tmp_path_factory.mktemp('flights')
+    days = [flight_day(seed, legs=8) for seed in range(3)]
+    paths = [write_dataflash(root / f'day{seed}.bin', [d.imu]) for seed, d in enumerate(days)]
+    return days, paths
+
+
+def test_flight_logs_keep_their_still_stretches_only(flights):
+    days, paths = flights
+    runs = load_runs(paths)
+    kept, line = still_only_runs(runs)
+    assert line is not None and 'still stretches only' in line
+    assert len(kept) == len(runs)
+    for day, run, k in zip(days, runs, kept):
+        idx = np.searchsorted(run.t, k.t)
+        np.testing.assert_array_equal(run.t[idx], k.t)
+        assert np.all(day.still[idx])                 # nothing of a flight is kept
+        assert len(k) > 0.6 * day.still.sum()
+        assert np.all(k.omega_ref == 0.0)
+    pct = float(line.split(' %;')[0].rsplit(', ', 1)[1])
+    assert 0.0 < pct <= 100.0
+
+
+def test_discovery_on_flights_fits_the_drift_not_the_motion(flights):
+    days, paths = flights
+    runs = load_runs(paths)
+    kept, _line = still_only_runs(runs)
+    still = discover(kept, allan=False, max_steps=2)
+    # The still stretches' noise: 0.05 deg/s per sample, a few mdeg/s on 10 s means; the
+    # flights would put tens of deg/s of manoeuvres into the same gaps.
+    assert still.white_noise_dps < 0.1
+    assert still.noise_floor_dps < 0.01
+    assert still.gap_dps < 2.0 * still.noise_floor_dps
+    moving = discover(runs, allan=False, max_steps=0)
+    assert moving.gap_dps > 20.0 * still.gap_dps
+    # The drift slope found is the board's (0.004 deg/s per degC on x near 35 degC, the
+    # curvature pulling it lower near the cold T0).
+    slope = np.degrees(still.coef['dT'])
+    assert 0.001 < slope[0] < 0.006
+
+
+def test_data_with_a_reference_or_without_motion_are_kept_whole(flights, tmp_path):
+    days, paths = flights
+    runs = load_runs(paths)
+    ref = [type(r)(r.t, r.temp, r.omega, r.omega_ref, r.name, {**r.info, 'reference': 'topic'})
+           for r in runs]
+    assert still_only_runs(ref) == (ref, None)
+    quiet = flight_day(7, legs=1, still_s=(300.0, 300.0))
+    run = load_runs([write_dataflash(tmp_path / 'quiet.bin', [quiet.imu])])
+    assert still_only_runs(run) == (run, None)
+    flying = flight_day(8, legs=2, still_s=(0.2, 0.3), flight_s=(300.0, 300.0))
+    run = load_runs([write_dataflash(tmp_path / 'flying.bin', [flying.imu])])
+    with pytest.raises(FitError, match='no still stretch to discover on'):
+        still_only_runs(run)

@@ -32,7 +32,7 @@ import math
 
 from gyro_tdc.data import Run, split_sessions
 from gyro_tdc.identify import estimate_t0, fit_model
-from gyro_tdc.identify.features import features_for_fit
+from gyro_tdc.identify.train import features_for_fit
 from gyro_tdc.learn.learner import LearnConfig, learned_model, Learner
 from gyro_tdc.learn.store import model_from_file
 from gyro_tdc.model import compensate, drift

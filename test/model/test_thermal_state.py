@@ -408,7 +408,7 @@ def test_hand_built_models_have_kind_none_and_lag_needs_a_lagged_state():
 def test_training_report_prints_tau_with_its_interval_or_that_it_is_not_pinned():
     from gyro_tdc.data.coverage import coverage
     from gyro_tdc.evaluate.report import format_training
-    from gyro_tdc.identify.options import TrainResult
+    from gyro_tdc.identify.train import TrainResult
 
     ramp = lag_run(seed=3, tau_die=300.0, segments=(('ramp', 60.0, 20.0),), start_c=-10.0,
                    skip_s=3000.0, rate_hz=1.0)

@@ -23,11 +23,11 @@ the tests and the modules of the package: ``doc/internals/identify.md``.
 
 from __future__ import annotations
 
-from gyro_tdc.identify.discover.model import build_model, model_features
 from gyro_tdc.identify.discover.report import write_report
 from gyro_tdc.identify.discover.results import (BinMap, CandidateScore, DiscoveryResult,
                                                 format_summary, Step, Unidentifiable)
-from gyro_tdc.identify.discover.search import discover, DiscoverOptions
+from gyro_tdc.identify.discover.search import (build_model, discover, DiscoverOptions,
+                                               model_features)
 
 __all__ = ['BinMap', 'CandidateScore', 'DiscoverOptions', 'DiscoveryResult', 'Step',
            'Unidentifiable', 'build_model', 'discover', 'format_summary', 'model_features',

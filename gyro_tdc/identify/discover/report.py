@@ -28,8 +28,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from gyro_tdc.base import atomic_write, figure, save_png
-from gyro_tdc.identify.discover.data import BlockData
-from gyro_tdc.identify.discover.linear import ar1, DEG, LinearModel
+from gyro_tdc.identify.discover.data import ar1, BlockData, DEG, LinearModel
 from gyro_tdc.identify.discover.results import BinMap, DiscoveryResult
 from gyro_tdc.model import batch_features, ThermalState
 from gyro_tdc.signal import allan_deviation

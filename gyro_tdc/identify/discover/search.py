@@ -29,21 +29,22 @@ from typing import Any, Callable, Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.discover.data import (BlockData, COLLINEAR, excitation, rel_residual,
-                                             unidentifiable)
-from gyro_tdc.identify.discover.linear import (bandwidth, corr, DEG, gap, hac_pvalue, LinearModel,
-                                               make_folds, mse, weighted_corr, wsse)
+from gyro_tdc.identify.axes import constant_gyro_axes, identity_axes, neutral_runs
+from gyro_tdc.identify.discover.data import (bandwidth, BlockData, COLLINEAR, corr, DEG,
+                                             excitation, gap, hac_pvalue, LinearModel,
+                                             make_folds, mse, rel_residual, unidentifiable,
+                                             weighted_corr, wsse)
 from gyro_tdc.identify.discover.report import residual_adev, residual_maps
 from gyro_tdc.identify.discover.results import CandidateScore, DiscoveryResult, Step
-from gyro_tdc.identify.fit import estimate_t0
+from gyro_tdc.identify.fit import check_finite, estimate_t0, fit_model, MIN_SPAN_C
 from gyro_tdc.identify.tau import effective_samples, fit_time_constant, profile_interval
 from gyro_tdc.model import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, STATIC_EFFECTS,
-                            THERMAL_EFFECTS, ThermalState, with_implied)
+                            TEMPERATURE_EFFECTS, THERMAL_EFFECTS, ThermalState, with_implied)
 from gyro_tdc.signal import fit_columns, Folds
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['discover', 'DiscoverOptions']
+__all__ = ['build_model', 'discover', 'DiscoverOptions', 'model_features']
 
 #: Candidate order (catalog order without ``bias``).
 _CANDIDATES = tuple(e for e in EFFECTS if e != 'bias')
@@ -504,6 +505,54 @@ def _check(runs: Sequence[Run], block_s: float) -> None:
             raise FitError(f'Expected gyro_tdc.data.runs.Run objects, got {type(r).__name__}.')
         if len(r) < 16:
             raise FitError(f'Run {r.name!r} has {len(r)} samples; need at least 16.')
-        for key in ('t', 'temp', 'omega', 'omega_ref'):
-            if not np.all(np.isfinite(getattr(r, key))):
-                raise FitError(f'Run {r.name!r} has non-finite values in `{key}`.')
+        check_finite(r, ('t', 'temp', 'omega', 'omega_ref'))
+
+
+def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'poly',
+                created: Mapping | None = None):
+    """
+    Fit the compensation model of the discovered effects, ready for ``save_model``.
+
+    The per-run offsets and the constant scale-factor error :func:`discover` found in ``runs``
+    (the runs of ``result``) are removed first: they are not thermal (the compensator
+    re-anchors its offset at start-up; a rate-table gain error is a separate calibration).
+    :func:`gyro_tdc.identify.fit_model` then fits the final effects with the fitted time
+    constants and, with ``lag``, discovery's thermal state: a format 2 model whose every
+    temperature term follows the state. ``kind``: ``'poly'`` (exactly the linear model
+    discovery validated) or ``'rbf'``; ``created``: extra creation info. A constant gyro axis
+    is passed through as ``train`` does (:func:`gyro_tdc.identify.axes.neutral_runs`).
+    """
+    if len(runs) != len(result.runs):
+        raise FitError(f'Expected the {len(result.runs)} runs discovery analysed, '
+                       f'got {len(runs)}.')
+    off = np.asarray(result.coef['offsets'])
+    mean_off = off.mean(axis=0)
+    gain = np.asarray(result.coef['gain'])
+    adjusted = [Run(run.t, run.temp, run.omega - (off[r] - mean_off)[None, :]
+                    - gain[None, :] * run.omega_ref, run.omega_ref, run.name, dict(run.info))
+                for r, run in enumerate(runs)]
+    features = model_features(result, runs)
+    info = {'discover': {'final_effects': list(result.final_effects),
+                         'noise_floor_dps': result.noise_floor_dps,
+                         'gain_removed': [float(g) for g in gain]}, **dict(created or {})}
+    # A constant gyro axis (train's rule) is fitted as train fits it: not at all (its
+    # columns exactly zero, passed through), its figures the raw ones.
+    const = constant_gyro_axes(runs)
+    model = fit_model(neutral_runs(adjusted, const), kind=kind, features=features,
+                      t0=result.t0_c, fit_params=False, created=info,
+                      params={k: v for k, v in result.params.items() if k != 'lag'},
+                      thermal=result.thermal if 'lag' in features else None)
+    return identity_axes(model, runs, const)
+
+
+def model_features(result: DiscoveryResult, runs: Sequence[Run]) -> tuple[str, ...]:
+    """
+    Return the effects of the model file (catalog order): the final effects the data support.
+
+    With a temperature span of ``runs`` under :data:`gyro_tdc.identify.MIN_SPAN_C` (a warm-up
+    at a fixed ambient) the temperature effects, base ``dT`` included, are left out: the data
+    say nothing about them.
+    """
+    span = max(float(np.max(r.temp)) for r in runs) - min(float(np.min(r.temp)) for r in runs)
+    return tuple(e for e in result.final_effects
+                 if span >= MIN_SPAN_C or e not in TEMPERATURE_EFFECTS)

@@ -17,8 +17,7 @@
 from __future__ import annotations
 
 from gyro_tdc.identify.discover import discover, write_report
-from gyro_tdc.identify.discover.data import BlockData
-from gyro_tdc.identify.discover.linear import LinearModel
+from gyro_tdc.identify.discover.data import BlockData, LinearModel
 from gyro_tdc.identify.discover.report import residual_adev, residual_maps
 import numpy as np
 from synth import synth_run
