@@ -65,40 +65,15 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
                    temp: NDArray[np.float64], *, kind: str, n_centers: int, seed: int
                    ) -> tuple[LinearFit, NDArray[np.float64], dict | None]:
     """
-    Validate the curve on held-out sessions; keep the offset only where it does no better.
+    Validate the curve on held-out sessions (:func:`~gyro_tdc.signal.judge_curve`).
 
-    Parameters
-    ----------
-    fit : LinearFit
-        The fit on every session (``groups``: ``coef[0]`` zero, ``offsets`` per session).
-    offsets : NDArray[np.float64], shape (G, 3), rad/s
-        The session offsets of ``fit`` (after refinement, when refined).
-    x, y, scale_cols, groups
-        The block rows of the fit: features (K, F), target (K, 3), scale columns (K, 3) or
-        None, session of each row (K,).
-    counts : NDArray[np.float64], shape (K,)
-        Samples per block (the weights of the held-out means).
-    temp : NDArray[np.float64], shape (K,), degC
-        Block-mean model temperature.
-    kind, n_centers, seed
-        As the fit's (its ridge is kept).
-
-    Returns
-    -------
-    fit : LinearFit
-        ``fit`` with the curve, scale term and residual of the offset-only axes replaced.
-    offsets : NDArray[np.float64], shape (G, 3)
-        Offsets, each session's mean on the offset-only axes.
-    record : dict or None
-        ``folds``, ``blocks``, ``curve_ms_dps2`` and ``offset_ms_dps2`` (held-out mean squares
-        per axis, each session re-anchored), ``worse_folds`` (per axis, the held-out sessions
-        the curve predicts worse), ``gain_t`` (the t statistic of its gain) and
-        ``offset_only`` (axis names); with no session to
-        judge on (none overlaps the others' temperatures), ``folds`` 0, ``sessions`` and no
-        figures: the curve is kept unchecked, unless two sessions or more none of which spans
-        :data:`MIN_SESSION_SPAN_C` (``widest_span_c``) leave it offset only on every axis.
-        None when the model has no curve.
-
+    ``x``, ``y``, ``scale_cols``, ``groups``, ``counts`` and ``temp`` are the fit's block rows
+    (features, target, scale columns, session, samples, model temperature); ``offsets`` its
+    session offsets. Returns the fit and offsets with the offset-only axes each session's mean
+    only, and the record: ``folds``, ``blocks``, held-out mean squares of curve and offset,
+    ``worse_folds``, ``gain_t``, ``offset_only``; with no fold ``folds`` 0 and ``sessions``
+    (the curve kept unchecked unless no session spans :data:`MIN_SESSION_SPAN_C`,
+    ``widest_span_c``); None without a curve.
     """
     if not x.shape[1]:                          # no curve: nothing to judge
         return fit, offsets, None
