@@ -20,9 +20,10 @@ Do no harm across power cycles: the thermal curve validated on held-out sessions
 held-out session re-anchored, as the compensator re-anchors at start-up, against its offset
 alone. An axis whose curve does not predict every held-out power cycle better, by
 :data:`~gyro_tdc.signal.CURVE_SIGNIFICANCE` standard errors of its gain
-(:func:`~gyro_tdc.signal.judge_curve`, the learner's rule too), keeps the offset only; :func:`session_check_lines` says so with the figures, or that no power cycle
-overlaps the others' temperatures and the curve is kept unchecked. Unchecked, it must rest
-on :data:`MIN_SESSION_SPAN_C` of one power cycle: each offset free, a curve is told only
+(:func:`~gyro_tdc.signal.judge_curve`; the learner asks no significance), keeps the offset
+only; :func:`session_check_lines` says so with the figures, or that no power cycle overlaps
+the others' temperatures and the curve is kept unchecked. Unchecked, it must rest on
+:data:`MIN_SESSION_SPAN_C` of one power cycle: each offset free, a curve is told only
 within a power cycle, and one told over less (the short stops of flight logs) is kept off.
 
 :func:`reanchor_rule` (the rule of :mod:`gyro_tdc.runtime.startup_gate`, which the learner
@@ -98,7 +99,8 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     record = {'folds': len(folds), 'blocks': v.rows,
               'curve_ms_dps2': (v.ms_curve * _DEG2).tolist(),
               'offset_ms_dps2': (v.ms_offset * _DEG2).tolist(),
-              'worse_folds': v.worse_folds.tolist(), 'gain_t': v.gain_t.tolist(),
+              'worse_folds': v.worse_folds.tolist(),
+              'gain_t': [float(t) if np.isfinite(t) else None for t in v.gain_t],
               'offset_only': [AXES[a] for a in drop]}
     if not drop.size:
         return fit, offsets, record
@@ -143,7 +145,7 @@ def session_check_lines(record: dict | None) -> list[str]:
                    + '  '.join(f'{v:d}' for v in record['worse_folds']))
     if 'gain_t' in record:
         out.append("  the curve's gain in standard errors: "
-                   + '  '.join(f'{v:.1f}' for v in record['gain_t']))
+                   + '  '.join('-' if v is None else f'{v:.1f}' for v in record['gain_t']))
     if record['offset_only']:
         out.append(f"axes {', '.join(record['offset_only'])}: the curve does not predict "
                    'every held-out power cycle better than its offset alone, by '

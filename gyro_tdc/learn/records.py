@@ -27,8 +27,7 @@ import math
 from typing import NamedTuple
 
 from gyro_tdc.base import SESSION_GAP_S
-from gyro_tdc.signal import (CURVE_SIGNIFICANCE, MIN_SESSION_SPAN_C, MIN_STILL_S, STILL_WINDOW_S,
-                             Window)
+from gyro_tdc.signal import MIN_SESSION_SPAN_C, MIN_STILL_S, STILL_WINDOW_S, Window
 
 __all__ = ['Entry', 'held_out_line', 'LearnConfig', 'OpenStretch', 'RecentStretch']
 
@@ -181,6 +180,6 @@ def held_out_line(fit: dict | None) -> str:
     only = ', '.join(rec['offset_only'])
     return (f"curve vs offset only, held out on {rec['folds']} of {rec['sessions']} power "
             f"cycles ({rec['points']} points), mean square (deg/s)^2: {figs}; "
-            + (f'offset only on {only} (the curve does not beat it on every held-out power cycle by '
-                f'{CURVE_SIGNIFICANCE:g} standard errors)' if only
+            + (f'offset only on {only} (the curve does not beat it on every held-out power '
+               'cycle)' if only
                else 'the curve is kept on every axis'))

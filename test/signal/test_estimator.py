@@ -14,7 +14,7 @@
 
 """The one estimator: known coefficients recovered, sessions and folds as specified."""
 
-from gyro_tdc.signal.estimator import (curve_untold, CURVE_SIGNIFICANCE, fit_columns, Folds, hat,
+from gyro_tdc.signal.estimator import (CURVE_SIGNIFICANCE, curve_untold, fit_columns, Folds, hat,
                                        heldout, judge_curve, pinv_fit, session_columns,
                                        solve_normal, within)
 import numpy as np
