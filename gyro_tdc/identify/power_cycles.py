@@ -20,7 +20,7 @@ Do no harm across power cycles: the thermal curve validated on held-out sessions
 held-out session re-anchored, as the compensator re-anchors at start-up, against its offset
 alone. An axis whose curve does not predict every held-out power cycle better, by
 :data:`~gyro_tdc.signal.CURVE_SIGNIFICANCE` standard errors of its gain
-(:func:`~gyro_tdc.signal.judge_curve`; the learner asks no significance), keeps the offset
+(:func:`~gyro_tdc.signal.judge_curve`; the learner asks its pooled part), keeps the offset
 only; :func:`session_check_lines` says so with the figures, or that no power cycle overlaps
 the others' temperatures and the curve is kept unchecked. Unchecked, it must rest on
 :data:`MIN_SESSION_SPAN_C` of one power cycle: each offset free, a curve is told only

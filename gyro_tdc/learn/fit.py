@@ -214,9 +214,10 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     Each session is held out in turn inside the others' temperatures (the estimator's
     :meth:`~gyro_tdc.signal.Folds.sessions`), the curve fitted on the others, and its
     residuals and the raw rate's re-anchored (:func:`~gyro_tdc.signal.heldout`), as the node
-    re-anchors a new power cycle. Where the curve does not beat the offset on every held-out
-    power cycle (:func:`~gyro_tdc.signal.judge_curve`, the trainer's rule without its
-    significance), the axis keeps the offset only.
+    re-anchors a new power cycle. Where the curve's weighted mean square over the held-out
+    power cycles is not below the offset's (:func:`~gyro_tdc.signal.judge_curve`, the
+    trainer's rule without its every-fold and significance parts), the axis keeps the offset
+    only.
     Without a fold (one session, or none overlapping another's temperatures) nothing is
     judged and the curve is kept: it is the only evidence, the prediction check still guards
     it and each power-up is re-anchored; unless, as the trainer, two sessions or more none of
@@ -247,11 +248,13 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
         xc, yc = (within(v[train], g[train], wt[train])[1] for v in (x, y))
         return y[test] - x[test] @ fit_columns(xc, yc, weights=wt[train])
 
-    # No significance asked: the learner judges again at every power cycle and its
-    # prediction check guards each swap; the trainer's 2 standard errors on its few bin points
-    # dropped a y curve that carries (test_field_live: day 2 at 1.9x the floor, not 1.3).
+    # The pooled figure only: the learner judges again at every power cycle and its
+    # prediction check guards each swap. The trainer's 2 standard errors on its bin points
+    # dropped a y curve that carries (test_field_live: day 2 at 1.9x the floor, not 1.3), and
+    # its every-fold part a z curve that carries (bench_learning_field --carry 8: 1.06).
     v = judge_curve(*(heldout(f, folds, y.shape, groups=g, weights=wt)
-                      for f in (curve, lambda test, train: y[test])), folds, wt, 0.0)
+                      for f in (curve, lambda test, train: y[test])), folds, wt,
+                    significance=0.0, every_fold=False)
     rec.update(points=v.rows, curve_ms_dps2=(v.ms_curve * _DEG2).tolist(),
                offset_ms_dps2=(v.ms_offset * _DEG2).tolist(),
                offset_only=[AXES[a] for a in np.flatnonzero(v.drop)])

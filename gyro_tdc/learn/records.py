@@ -180,6 +180,5 @@ def held_out_line(fit: dict | None) -> str:
     only = ', '.join(rec['offset_only'])
     return (f"curve vs offset only, held out on {rec['folds']} of {rec['sessions']} power "
             f"cycles ({rec['points']} points), mean square (deg/s)^2: {figs}; "
-            + (f'offset only on {only} (the curve does not beat it on every held-out power '
-               'cycle)' if only
+            + (f'offset only on {only} (the curve does not beat it held out)' if only
                else 'the curve is kept on every axis'))

@@ -259,8 +259,8 @@ class CurveVerdict:
 
 
 def judge_curve(r_curve: NDArray[np.float64], r_offset: NDArray[np.float64], folds: Folds,
-                weights: NDArray[np.float64], significance: float = CURVE_SIGNIFICANCE
-                ) -> CurveVerdict:
+                weights: NDArray[np.float64], significance: float = CURVE_SIGNIFICANCE,
+                every_fold: bool = True) -> CurveVerdict:
     """
     Judge a curve on held-out sessions against their offsets alone (the one rule).
 
@@ -268,8 +268,9 @@ def judge_curve(r_curve: NDArray[np.float64], r_offset: NDArray[np.float64], fol
     ``weights`` (N,) the rows' samples. Per axis: the weighted mean squares over the rows a
     fold scores, the folds the curve predicts no better, and the t statistic of the curve's
     per-row gain. An axis is dropped (offset only) unless the curve is better pooled, on every
-    held-out power cycle, and by ``significance`` standard errors (the trainer's
-    :data:`CURVE_SIGNIFICANCE`; the learner, which judges again at every power cycle, asks 0).
+    held-out power cycle (``every_fold``), and by ``significance`` standard errors (the
+    trainer's rule; the learner, which judges again at every power cycle, asks the pooled
+    figure only: ``significance`` 0 and not ``every_fold``).
     """
     scored = np.any(np.stack(folds.test), axis=0)
     w = weights[:, None]
@@ -283,7 +284,7 @@ def judge_curve(r_curve: NDArray[np.float64], r_offset: NDArray[np.float64], fol
     gain = (w * (r_offset ** 2 - r_curve ** 2))[scored]
     with np.errstate(divide='ignore', invalid='ignore'):
         t = gain.mean(axis=0) / (gain.std(axis=0, ddof=1) / np.sqrt(len(gain)))
-    drop = ~(ms_curve < ms_offset) | (worse > 0) | ~(t >= significance)
+    drop = ~(ms_curve < ms_offset) | (every_fold & (worse > 0)) | ~(t >= significance)
     return CurveVerdict(ms_curve, ms_offset, worse, t, drop, int(np.count_nonzero(scored)))
 
 

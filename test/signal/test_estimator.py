@@ -160,3 +160,9 @@ def test_judge_curve_keeps_a_significant_gain_on_every_fold_only():
     # the gain on y alone, made consistent, is kept
     r_curve[:, 1] = 0.9 * r_offset[:, 1]
     assert not judge_curve(r_curve, r_offset, folds, w).drop[1]
+    # the learner's pooled figure only: z's pooled gain keeps it, y's hair too
+    assert judge_curve(r_curve, r_offset, folds, w, significance=0.0,
+                       every_fold=False).drop.tolist() == [False, False, False]
+    r_curve[:, 2] = 1.01 * r_offset[:, 2]
+    assert judge_curve(r_curve, r_offset, folds, w, significance=0.0,
+                       every_fold=False).drop.tolist() == [False, False, True]
