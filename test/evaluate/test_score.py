@@ -33,7 +33,7 @@ import warnings
 
 from bags import bag_from_run
 from constant_axes import axis_sets, quanta, values, with_constant as _with
-from flightlogs import flight_day, write_dataflash
+from flightlogs import flight_day, flight_logs, write_dataflash
 from gyro_tdc.data import write_bag
 from gyro_tdc.data.dataset import load_run
 from gyro_tdc.data.runs import Run
@@ -315,8 +315,7 @@ def test_a_bag_constant_on_every_axis_is_refused_in_one_line(runs, model, tmp_pa
 def logs(tmp_path_factory):
     """Three power cycles with flights; a model trained on the first two."""
     root = tmp_path_factory.mktemp('logs')
-    days = [flight_day(seed, legs=5) for seed in range(3)]
-    paths = [write_dataflash(root / f'day{k}.bin', [d.imu]) for k, d in enumerate(days)]
+    days, paths = flight_logs(root, 3, legs=5)
     model = train_still_only(paths[:2], root / 'm.yaml', TrainOptions()).model
     return days, paths, NamedModel('m.yaml', 'm', model)
 

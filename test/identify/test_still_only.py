@@ -20,7 +20,7 @@ import importlib.util
 import math
 from pathlib import Path
 
-from flightlogs import flight_day, write_dataflash
+from flightlogs import flight_day, flight_logs, write_dataflash
 from gyro_tdc.cli.evaluate import main as evaluate_main
 from gyro_tdc.cli.simulate import simulate
 from gyro_tdc.cli.train import main as train_main
@@ -310,10 +310,7 @@ def test_cli_still_only_on_four_logs_of_a_board_does_no_harm_on_eight_more(case,
 @pytest.fixture(scope='module')
 def flights(tmp_path_factory):
     """Three power cycles of one board at 25 Hz: flights between 10-60 s stops."""
-    root = tmp_path_factory.mktemp('flights')
-    days = [flight_day(seed, legs=8) for seed in range(3)]
-    paths = [write_dataflash(root / f'day{seed}.bin', [d.imu]) for seed, d in enumerate(days)]
-    return days, paths
+    return flight_logs(tmp_path_factory.mktemp('flights'), 3, legs=8)
 
 
 def test_flight_logs_keep_their_still_stretches_only(flights):

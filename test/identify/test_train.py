@@ -27,7 +27,7 @@ import warnings
 
 from bags import bag_from_run
 from constant_axes import axis_sets, quanta, values, with_constant as _with
-from flightlogs import flight_day, still_drift, write_dataflash
+from flightlogs import flight_day, flight_logs, still_drift, write_dataflash
 from gyro_tdc.base.limits import MAX_CENTERS
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data.bag.writer import write_bag
@@ -108,10 +108,7 @@ def test_the_options_reach_the_model(bags, tmp_path):
 @pytest.fixture(scope='module')
 def board(tmp_path_factory):
     """Return eight power cycles of one IMU at 25 Hz, flights between 10-60 s stops."""
-    root = tmp_path_factory.mktemp('board')
-    days = [flight_day(seed, legs=6) for seed in range(8)]
-    paths = [write_dataflash(root / f'day{seed}.bin', [d.imu]) for seed, d in enumerate(days)]
-    return days, paths
+    return flight_logs(tmp_path_factory.mktemp('board'), 8, legs=6)
 
 
 def _held_out_ratio(model, days, paths):

@@ -438,6 +438,12 @@ def flight_day(seed: int, *, rate_hz: float = 25.0, still_s: tuple = (10.0, 60.0
     return FlightDay(imu, is_still, offset, d, glitch)
 
 
+def flight_logs(root: Path, n: int, *, legs: int) -> tuple[list, list]:
+    """Return ``n`` power cycles of one board (seeds 0..n-1) and their DataFlash logs."""
+    days = [flight_day(seed, legs=legs) for seed in range(n)]
+    return days, [write_dataflash(root / f'day{k}.bin', [d.imu]) for k, d in enumerate(days)]
+
+
 def still_drift(days: list, corrected: list | None = None) -> np.ndarray:
     """
     Return the within-log drift of still stretches per axis, rad/s (3,).
