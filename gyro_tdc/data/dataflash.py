@@ -25,16 +25,13 @@ its own stamps beside it; the batch sampler's ``ISBD`` bursts are no stream and 
 
 from __future__ import annotations
 
-import contextlib
+from functools import partial
 import io
 import os
 from pathlib import Path
-import sys
-import tempfile
-from typing import Iterator
 
-from gyro_tdc.data.flightlog import (columns, FlightLog, on_stamps, rate_hz, sensor_stream,
-                                     thermometer)
+from gyro_tdc.data.flightlog import (captured, columns, FlightLog, no_instance, no_temperature,
+                                     on_stamps, rate_hz, seconds, sensor_stream, thermometer)
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
@@ -53,33 +50,10 @@ TEMPERATURE_FIELDS = ('T', 'Temp')
 _CHUNK = 1 << 16
 #: Scaled format characters (centi-units; degE7 for ``L``).
 _SCALE = {'c': 0.01, 'C': 0.01, 'e': 0.01, 'E': 0.01, 'L': 1e-7}
-
-
-@contextlib.contextmanager
-def _captured(sink: io.StringIO) -> Iterator[None]:
-    """
-    Send what is printed meanwhile to ``sink``, at the file descriptors too.
-
-    pymavlink's compiled indexer prints every damaged header of a log to the process's
-    stderr; a damaged log must stay one line (the error, or a count in the reader's line).
-    """
-    sys.stdout.flush()
-    sys.stderr.flush()
-    saved = [os.dup(1), os.dup(2)]
-    with tempfile.TemporaryFile(mode='w+b') as tmp:
-        try:
-            for fd in (1, 2):
-                os.dup2(tmp.fileno(), fd)
-            with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
-                yield
-        finally:
-            sys.stdout.flush()
-            sys.stderr.flush()
-            for fd, old in zip((1, 2), saved):
-                os.dup2(old, fd)
-                os.close(old)
-            tmp.seek(0)
-            sink.write(tmp.read().decode('utf-8', 'replace'))
+#: A record type's stamps in s: ``TimeUS`` (or ``TimeMS``, see :func:`_records`); a
+#: sensor-rate sample's when it was taken (``SampleUS``).
+_seconds = partial(seconds, field='TimeUS')
+_stamps = partial(seconds, field='TimeUS', sample='SampleUS')
 
 
 def _records(reader, mtype: int, instance: int | None = None) -> dict[str, np.ndarray]:
@@ -168,13 +142,6 @@ def _fast(reader, kind: str, instance: int) -> dict[str, np.ndarray] | str | Non
         return f'{kind} not used: its records cannot be decoded ({exc})'
 
 
-def _stamps(cols: dict[str, np.ndarray]) -> np.ndarray:
-    """Return when each sensor-rate sample was taken (``SampleUS``; else ``TimeUS``), s."""
-    us = cols.get('SampleUS')
-    us = us if us is not None and len(us) and np.all(us > 0) else cols['TimeUS']
-    return np.asarray(us, dtype=np.float64) * 1e-6
-
-
 def _gyro_accel(d: dict, gyr: dict | str | None, acc: dict | str | None, accel: bool,
                 instance: int) -> tuple:
     """
@@ -227,11 +194,6 @@ def _instance(cols: dict[str, np.ndarray], want: int) -> tuple[dict[str, np.ndar
         return cols, 0
     i = want if want in parts else min(parts)
     return parts[i], i
-
-
-def _seconds(cols: dict[str, np.ndarray]) -> np.ndarray:
-    """Return a record type's ``TimeUS`` (or ``TimeMS``, see :func:`_records`) stamps in s."""
-    return np.asarray(cols['TimeUS'], dtype=np.float64) * 1e-6
 
 
 def _temperature(cols: dict[str, np.ndarray], fields: tuple[str, ...] = TEMPERATURE_FIELDS
@@ -287,7 +249,7 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     p = Path(path)
     chatter = io.StringIO()        # DFReader prints what it skips; the count is reported
     try:
-        with _captured(chatter):
+        with captured(chatter):
             reader = DFReader_binary(str(p), zero_time_base=False)
     # pymavlink raises a bare Exception for a FMT record it cannot use (DFFormat): caught
     # here, at the library's edge, so that a damaged log is one line like any bad input.
@@ -315,9 +277,7 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
         raise DatasetError(f'Log {str(p)!r}: its IMU records carry no time stamp (neither '
                            'TimeUS nor TimeMS).')
     if instance not in imus:
-        raise DatasetError(f'Log {str(p)!r}: IMU has no instance {instance} (it has '
-                           f'{", ".join(map(str, sorted(imus)))}; what each carries: '
-                           f'{_inventory(imus, baros)}; --imu-instance N).')
+        raise no_instance(p, 'IMU', instance, imus, _inventory(imus, baros))
     d = imus[instance]
     t, gyro, acc, source, said = _gyro_accel(d, gyr, acc, accel, instance)
     b_inst = instance if instance in baros else 0       # BARO, BAR2...: per instance
@@ -325,23 +285,14 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     other, o_inst = _instance(other, instance)
     src = {'imu': d, 'baro': baro}.get(temperature_source, other)
     found = _temperature(src, (fld,) if fld else TEMPERATURE_FIELDS)
+    if found is None or 'TimeUS' not in src:
+        raise no_temperature(p, f'IMU instance {instance}', temperature_source,
+                             _inventory(imus, baros), instances=len(imus),
+                             baro=any(_temperature(b) is not None for b in baros.values()))
+    temp, temp_t = found[1], _seconds(src)
     if temperature_source == 'imu':
-        if found is None:
-            baro_ok = any(_temperature(b) is not None for b in baros.values())
-            hint = ('--imu-instance N, or --temperature-source baro' if len(imus) > 1 else
-                    "--temperature-source baro takes the barometer's as a proxy" if baro_ok
-                    else 'the log has no other thermometer')
-            raise DatasetError(f'Log {str(p)!r}: IMU instance {instance} carries no '
-                               f'temperature (what each instance carries: '
-                               f'{_inventory(imus, baros)}; {hint}).')
-        temp, name = found[1], f'IMU.{found[0]}'
-        temp_t = _seconds(d) if source == 'GYR' else None
-    elif found is None or 'TimeUS' not in src:
-        raise DatasetError(f'Log {str(p)!r}: no usable thermometer for '
-                           f'--temperature-source {temperature_source} (what each IMU '
-                           f'instance carries: {_inventory(imus, baros)}).')
+        name, temp_t = f'IMU.{found[0]}', temp_t if source == 'GYR' else None
     else:
-        temp_t, temp = _seconds(src), found[1]
         name = (f'BARO.{found[0]}' + (f' instance {b_inst}' if b_inst else '')
                 if temperature_source == 'baro' else
                 temperature_source + (f' instance {o_inst}' if o_inst else ''))

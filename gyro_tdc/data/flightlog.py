@@ -22,9 +22,14 @@ refusing data the flight controller already compensated (see ``doc/internals/dat
 
 from __future__ import annotations
 
+import contextlib
 from dataclasses import dataclass, field
+import io
 import os
 from pathlib import Path
+import sys
+import tempfile
+from typing import Iterator
 
 from gyro_tdc.data.bag.reader import BagData
 from gyro_tdc.data.options import BagOptions, LOG_FORMATS
@@ -32,9 +37,10 @@ from gyro_tdc.errors import DatasetError
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['columns', 'DATAFLASH_MAGIC', 'describe_log', 'detect_format', 'flight_log_data',
-           'FlightLog', 'is_flight_log', 'on_stamps', 'PLAUSIBLE_C', 'rate_hz', 'sensor_stream',
-           'thermometer', 'ULOG_MAGIC']
+__all__ = ['captured', 'columns', 'DATAFLASH_MAGIC', 'describe_log', 'detect_format',
+           'flight_log_data', 'FlightLog', 'is_flight_log', 'no_instance', 'no_temperature',
+           'on_stamps', 'PLAUSIBLE_C', 'rate_hz', 'seconds', 'sensor_stream', 'thermometer',
+           'ULOG_MAGIC']
 
 #: A ULog starts with these 7 bytes (then the version byte).
 ULOG_MAGIC = b'ULog\x01\x125'
@@ -195,6 +201,75 @@ def sensor_stream(t: NDArray[np.float64], v: NDArray[np.float64], slow_t: NDArra
         return False, (f'{name} at {fast:.4g} Hz not used: none within {STREAM_GAP_S:g} s of '
                        f'{far} of {len(slow_t)} {beside} samples (gaps, or it ends early)')
     return True, f'{what} from {name} at {fast:.4g} Hz beside {beside} at {slow:.3g} Hz'
+
+
+def seconds(d: dict, field: str, sample: str = '') -> NDArray[np.float64]:
+    """
+    Return a record's stamps (microseconds in the log) in s: ``sample`` where it has one.
+
+    ``sample`` is when each sample was taken (``timestamp_sample``, ``SampleUS``), ``field``
+    when it was logged; a driver that leaves ``sample`` 0 would stack every sample on one
+    stamp, so such a record is stamped by ``field``.
+    """
+    us = d.get(sample)
+    if us is None or not np.all(np.asarray(us) > 0):
+        us = d[field]
+    return np.asarray(us, dtype=np.float64) * 1e-6
+
+
+@contextlib.contextmanager
+def captured(sink: io.StringIO) -> Iterator[None]:
+    """
+    Send what is printed meanwhile to ``sink``, at the file descriptors too.
+
+    pyulog prints what it finds corrupt, pymavlink's compiled indexer every damaged header
+    to the process's stderr; a damaged log must stay one line (the error, or a count in the
+    reader's line).
+    """
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = [os.dup(1), os.dup(2)]
+    with tempfile.TemporaryFile(mode='w+b') as tmp:
+        try:
+            for fd in (1, 2):
+                os.dup2(tmp.fileno(), fd)
+            with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+                yield
+        finally:
+            sys.stdout.flush()
+            sys.stderr.flush()
+            for fd, old in zip((1, 2), saved):
+                os.dup2(old, fd)
+                os.close(old)
+            tmp.seek(0)
+            sink.write(tmp.read().decode('utf-8', 'replace'))
+
+
+def no_instance(path: Path, kind: str, instance: int, has: object,
+                inventory: str) -> DatasetError:
+    """Return the refusal of an IMU instance the log does not hold (``has``: the ones it does)."""
+    return DatasetError(f'Log {str(path)!r}: {kind} has no instance {instance} (it has '
+                        f'{", ".join(map(str, sorted(has)))}; what each instance carries: '
+                        f'{inventory}; --imu-instance N).')
+
+
+def no_temperature(path: Path, what: str, source: str, inventory: str, *, instances: int,
+                   baro: bool) -> DatasetError:
+    """
+    Return the refusal of a log without the thermometer ``source`` (``--temperature-source``).
+
+    ``what``: the IMU read, in words; ``inventory``: what each instance carries; ``instances``:
+    how many IMUs the log holds; ``baro``: whether it has a barometer's thermometer.
+    """
+    if source != 'imu':
+        return DatasetError(f'Log {str(path)!r}: no usable thermometer for --temperature-source '
+                            f'{source} (what each instance carries: {inventory}).')
+    hint = ('--imu-instance N, or --temperature-source baro' if instances > 1 and baro else
+            "--temperature-source baro takes the barometer's as a proxy" if baro else
+            '--imu-instance N' if instances > 1 else 'the log has no other thermometer')
+    return DatasetError(f'Log {str(path)!r}: {what} carries no temperature (no thermometer '
+                        'reads other than a constant 0 or NaN; what each instance carries: '
+                        f'{inventory}; {hint}).')
 
 
 def is_flight_log(path: str | os.PathLike) -> bool:

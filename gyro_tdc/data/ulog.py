@@ -27,15 +27,15 @@ The temperature is the IMU's own thermometer wherever the log has it (``sensor_g
 
 from __future__ import annotations
 
-import contextlib
+from functools import partial
 import io
 import mmap
 import os
 from pathlib import Path
 import struct
 
-from gyro_tdc.data.flightlog import (columns, FlightLog, on_stamps, rate_hz, sensor_stream,
-                                     thermometer)
+from gyro_tdc.data.flightlog import (captured, columns, FlightLog, no_instance, no_temperature,
+                                     on_stamps, rate_hz, seconds, sensor_stream, thermometer)
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
@@ -65,6 +65,8 @@ _HEADER_BYTES = 16
 #: ULog message types (FLAG_BITS, FORMAT, INFO, INFO_MULTIPLE, PARAMETER, PARAMETER_DEFAULT,
 #: ADD_LOGGED, REMOVE_LOGGED, DATA, LOGGING, LOGGING_TAGGED, DROPOUT, SYNC).
 _KINDS = frozenset(b'BFIMPQARDLCOS')
+#: A topic's sample stamps in s (``timestamp_sample``, else ``timestamp``).
+_seconds = partial(seconds, field='timestamp', sample='timestamp_sample')
 
 
 def ulog_truncated_bytes(path: str | os.PathLike) -> int:
@@ -98,19 +100,6 @@ def ulog_truncated_bytes(path: str | os.PathLike) -> int:
                 return size - ofs
             ofs = end
         return size - ofs
-
-
-def _seconds(d: dict) -> NDArray[np.float64]:
-    """
-    Return a topic's sample stamps in s (``timestamp_sample`` where it has one).
-
-    A driver that leaves ``timestamp_sample`` 0 would stack every sample on one stamp: such
-    a topic is stamped by ``timestamp`` (when it was published).
-    """
-    us = d.get('timestamp_sample')
-    if us is None or not np.all(np.asarray(us) > 0):
-        us = d['timestamp']
-    return np.asarray(us, dtype=np.float64) * 1e-6
 
 
 def _vec(name: str) -> tuple[str, str, str]:
@@ -359,7 +348,7 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     chatter = io.StringIO()        # pyulog prints what it finds corrupt; the count is reported
     asked = temperature_source.partition('.')[0]        # TOPIC.FIELD: any topic of the log
     try:
-        with contextlib.redirect_stdout(chatter):
+        with captured(chatter):
             ulog = ULog(str(p), _TOPICS + ([asked] if '.' in temperature_source else []))
     except (ULogException, struct.error, UnicodeDecodeError, ValueError, IndexError,
             KeyError, TypeError, OSError) as exc:     # OSError: a seek past a damaged start
@@ -381,9 +370,7 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     gyros = _gyros(topics, instance, rows)
     if not gyros:
         kind = next(k for k in _GYRO_FIELDS if k in topics)
-        raise DatasetError(f'Log {str(p)!r}: {kind} has no instance {instance} (it has '
-                           f'{", ".join(map(str, sorted(topics[kind])))}; what each instance '
-                           f'carries: {_inventory(topics)}; --imu-instance N).')
+        raise no_instance(p, kind, instance, topics[kind], _inventory(topics))
     source = _pick_gyro(gyros)
     device = _device(topics, instance)
     if rows is not None and (said := _combined_note(topics, instance, rows)):
@@ -402,16 +389,10 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
         acc = acc if acc_t is t else on_stamps(t, acc_t, acc)
     raw = source in ('sensor_gyro', 'sensor_gyro_fifo')
     therm = _thermometer(topics, instance, temperature_source)
-    if therm is None and temperature_source == 'imu':
-        baro = _thermometer(topics, instance, 'baro') is not None
-        raise DatasetError(
-            f'Log {str(p)!r}: {source} instance {instance} carries no temperature (no '
-            "thermometer reads other than a constant 0 or NaN; the log's instances: "
-            f'{_inventory(topics)})' + ('; --temperature-source baro takes the '
-                                        "barometer's as a proxy." if baro else '.'))
     if therm is None:
-        raise DatasetError(f'Log {str(p)!r}: no usable thermometer for --temperature-source '
-                           f"{temperature_source} (the log's instances: {_inventory(topics)}).")
+        raise no_temperature(p, f'{source} instance {instance}', temperature_source,
+                             _inventory(topics), instances=len(found),
+                             baro=_thermometer(topics, instance, 'baro') is not None)
     name, temp_t, temp = therm
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
                      firmware='px4', source=source, instance=int(instance),

@@ -133,8 +133,10 @@ def test_one_imu_whose_thermometer_reads_zero_is_refused_saying_what_the_log_has
     imu = _imus(count=1)[0]
     path = write_dataflash(tmp_path / 'zero.bin', [Imu(t=imu.t, gyro=imu.gyro,
                                                        temp=np.zeros_like(imu.temp))])
-    with pytest.raises(DatasetError, match=r'IMU instance 0 carries no temperature \(what '
-                                           r'each instance carries: 0: 300 samples at 50 Hz, '
+    with pytest.raises(DatasetError, match=r'IMU instance 0 carries no temperature \(no '
+                                           r'thermometer reads other than a constant 0 or '
+                                           r'NaN; what each instance carries: 0: 300 samples '
+                                           r'at 50 Hz, '
                                            r'temperature none; the log has no other '
                                            r'thermometer\)\.$'):
         load_run(path)
@@ -156,7 +158,8 @@ def test_a_real_arducopter_3_3_log_three_imus_with_temp_stamped_in_milliseconds(
     assert run.info['temperature'] == 'BARO.Temp instance 1'  # BAR2 beside IMU2
     assert 27.0 < run.temp.min() < run.temp.max() < 36.5
     with pytest.raises(DatasetError, match=r'IMU has no instance 3 \(it has 0, 1, 2; what '
-                                           r'each carries: 0: 3854 samples at 48.2 Hz, '
+                                           r'each instance carries: 0: 3854 samples at '
+                                           r'48.2 Hz, '
                                            r'temperature IMU.Temp; .*BARO instance 0, 1'):
         load_run(ARDUPILOT_AC33, BagOptions(imu_instance=3))
 

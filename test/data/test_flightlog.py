@@ -90,8 +90,9 @@ def test_ardupilot_cubeblack_three_imus_at_25_hz_and_the_barometer():
         assert _rate_hz(log.imu_t) == pytest.approx(25.0, rel=0.05)
         assert 35.0 < log.temp_c.min() < log.temp_c.max() < 60.0
     # IMU2 of this board logs T as a constant 0: no thermometer; the line says what each has.
-    with pytest.raises(DatasetError, match=r'IMU instance 1 carries no temperature \(what '
-                                           r'each instance carries: 0: 2055 samples at '
+    with pytest.raises(DatasetError, match=r'IMU instance 1 carries no temperature \(no '
+                                           r'thermometer reads other than a constant 0 or '
+                                           r'NaN; what each instance carries: 0: 2055 samples at '
                                            r'24.5 Hz, temperature IMU.T; 1: 2055 samples at '
                                            r'24.5 Hz, temperature none; 2: .*BARO instance '
                                            r'0, 1; --imu-instance N, or --temperature-source '
@@ -100,7 +101,8 @@ def test_ardupilot_cubeblack_three_imus_at_25_hz_and_the_barometer():
     run = load_run(ARDUPILOT_CUBEBLACK, BagOptions(imu_instance=1, temperature_source='baro'))
     assert run.info['temperature'] == 'BARO.Temp instance 1' and run.info['temperature_proxy']
     with pytest.raises(DatasetError, match=r'IMU has no instance 3 \(it has 0, 1, 2; what '
-                                           r'each carries: 0: 2055 samples at 24.5 Hz, '
+                                           r'each instance carries: 0: 2055 samples at '
+                                           r'24.5 Hz, '
                                            r'temperature IMU.T'):
         load_run(ARDUPILOT_CUBEBLACK, BagOptions(imu_instance=3))
 
@@ -123,8 +125,10 @@ def test_arducopter_3_4_names_the_imu_temperature_temp(tmp_path):
     assert log.temperature == 'IMU.Temp'
     np.testing.assert_allclose(log.temp_c, imu.temp, rtol=1e-6)
     cold = write_dataflash(tmp_path / 'cold.bin', [imu, imu], temperature=False)
-    with pytest.raises(DatasetError, match=r'IMU instance 1 carries no temperature \(what '
-                                           r'each instance carries: 0: 200 samples at 25 Hz, '
+    with pytest.raises(DatasetError, match=r'IMU instance 1 carries no temperature \(no '
+                                           r'thermometer reads other than a constant 0 or '
+                                           r'NaN; what each instance carries: 0: 200 samples '
+                                           r'at 25 Hz, '
                                            r'temperature none; 1:'):
         load_run(cold, BagOptions(imu_instance=1))
 
