@@ -125,17 +125,13 @@ class _Tape:
         self.got = {role: [] for role in self.roles}
         self.before = []
 
-    def main(self, buf, lengths, logs):
+    def add(self, role, buf, lengths, logs, before=None):
         logs = logs() if callable(logs) else logs
         ends = np.cumsum(lengths).tolist()
         for a, b, log in zip([0] + ends[:-1], ends, list(logs)):
-            self.got['imu'].append((int(log), bytes(buf[a:b])))
-        self.n_main += len(lengths)
-
-    def other(self, role, raws, logs, before=None):
-        logs = logs() if callable(logs) else logs
-        self.got[role] += [(int(log), bytes(raw)) for log, raw in zip(list(logs), raws)]
-        if before is not None:
+            self.got[role].append((int(log), bytes(buf[a:b])))
+        self.n_main += len(lengths) if role == 'imu' else 0
+        if role == 'temperature' and self.floating:
             self.before += [int(x) for x in before]
 
 

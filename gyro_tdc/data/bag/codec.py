@@ -17,7 +17,7 @@
 The fixed-layout numpy CDR codec of the three recorded message types, checked against rosbags.
 
 Imu, Temperature and Vector3Stamped blocks are encoded (:func:`encode_checked`) and decoded
-(:func:`decode`) as numpy structured arrays; every fast path checks itself against
+(:func:`decode_joined`) as numpy structured arrays; every fast path checks itself against
 rosbags' serialiser and falls back to it (:func:`decode_slow`). Temperatures published as a
 bare ``std_msgs/msg/Float32`` or ``Float64`` (no header) are decoded by
 :func:`decode_float`. See ``doc/internals/data.md``.
@@ -39,7 +39,7 @@ from rosbags.serde import SerdeError
 from rosbags.typesys import get_typestore, Stores
 
 __all__ = ['Decoded', 'FLOAT_TYPES', 'IMU_TYPE', 'KEEP', 'Logs', 'N_DOUBLES', 'REFERENCE_TYPE',
-           'TEMPERATURE_TYPE', 'TEMPERATURE_TYPES', 'decode', 'decode_float', 'decode_joined',
+           'TEMPERATURE_TYPE', 'TEMPERATURE_TYPES', 'decode_float', 'decode_joined',
            'decode_slow', 'encode_checked', 'from_msg', 'jazzy', 'split', 'to_msg']
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'
@@ -220,34 +220,29 @@ def decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any,
     return Decoded(sec, nsec, frame_id or '', values, n, bad if bad.any() else None)
 
 
-def decode(raws: Sequence[bytes], msgtype: str, typestore: Any,
-           keep: Sequence[int] | None = None) -> Decoded:
-    """Decode a block with the numpy fast path, falling back to rosbags when needed."""
-    return decode_joined(b''.join(raws), [len(x) for x in raws], msgtype, typestore, keep)
-
-
-def decode_float(raws: Sequence[bytes], msgtype: str, typestore: Any) -> Decoded:
+def decode_float(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
+                 typestore: Any) -> Decoded:
     """
     Decode a block of ``std_msgs/msg/Float32`` or ``Float64`` temperatures (degC, variance 0).
 
-    The messages have no header: ``sec`` and ``nanosec`` are zero (the reader stamps each
-    reading with the latest IMU message, as the node does live); the variance is 0 (unknown, as
-    ``sensor_msgs/msg/Temperature`` says). Plain little-endian CDR of one fixed size is read
-    with numpy, checked against rosbags on its first, middle and last message; anything else
-    by rosbags (``undecodable`` marks what it could not read).
+    The messages (stored end to end in ``buf``) have no header: ``sec`` and ``nanosec`` are
+    zero (the reader stamps each reading with the latest IMU message, as the node does live);
+    the variance is 0 (unknown, as ``sensor_msgs/msg/Temperature`` says). Plain little-endian
+    CDR of one fixed size is read with numpy, checked against rosbags on its first, middle and
+    last message; anything else by rosbags (``undecodable`` marks what it could not read).
     """
-    n = len(raws)
+    n, sizes = len(lengths), np.asarray(lengths, dtype=np.int64)
     dtype = np.dtype(FLOAT_TYPES[msgtype])
     size = len(CDR_LE) + dtype.itemsize
-    if n and all(len(r) == size and r[:4] == CDR_LE for r in raws):
-        value = np.ndarray((n,), dtype=dtype, buffer=b''.join(raws), offset=len(CDR_LE),
-                           strides=(size,))
+    raw = np.frombuffer(buf, dtype=np.uint8)
+    if n and np.all(sizes == size) and np.all(raw.reshape(n, size)[:, :4] == list(CDR_LE)):
+        value = np.ndarray((n,), dtype=dtype, buffer=buf, offset=len(CDR_LE), strides=(size,))
         with contextlib.suppress(SerdeError, AttributeError):
-            if all(np.array_equal(np.float64(typestore.deserialize_cdr(raws[i], msgtype).data),
-                                  np.float64(value[i]), equal_nan=True)
-                   for i in sorted({0, n // 2, n - 1})):
+            if all(np.array_equal(np.float64(typestore.deserialize_cdr(
+                    bytes(buf[i * size:(i + 1) * size]), msgtype).data), np.float64(value[i]),
+                    equal_nan=True) for i in sorted({0, n // 2, n - 1})):
                 values = np.zeros((n, 2))
                 values[:, 0] = value
                 return Decoded(np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), '',
                                values, 0)
-    return decode_slow(raws, msgtype, typestore, (0, 1))
+    return decode_slow([bytes(x) for x in split(buf, sizes)], msgtype, typestore, (0, 1))

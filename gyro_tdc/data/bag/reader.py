@@ -36,9 +36,8 @@ from typing import Any, Callable, Mapping, Sequence
 
 import apsw
 from gyro_tdc.data.bag import columnar, metadata
-from gyro_tdc.data.bag.codec import (decode, decode_float, decode_joined, Decoded, FLOAT_TYPES,
-                                     IMU_TYPE, jazzy, KEEP, Logs, REFERENCE_TYPE,
-                                     TEMPERATURE_TYPES)
+from gyro_tdc.data.bag.codec import (decode_float, decode_joined, Decoded, FLOAT_TYPES, IMU_TYPE,
+                                     jazzy, KEEP, Logs, REFERENCE_TYPE, TEMPERATURE_TYPES)
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import NDArray
@@ -313,15 +312,17 @@ class Collector:
     """
     Decode blocks of raw messages, role by role, into the columns of a :class:`BagData`.
 
-    A storage reader hands over each role's messages in bag order, in blocks: the IMU
-    topic's (all its connections, the *main* messages) with :meth:`main`, the others with
-    :meth:`other`; blocks of different roles may come in any interleaving. A bare Float
-    temperature reading comes with the number of main messages before it in bag order, and
-    takes the stamp of the last decodable one (resolved in :meth:`result`).
+    A storage reader hands over each role's messages in bag order, in blocks (:meth:`add`):
+    the IMU topic's (all its connections, the *main* messages) and the others' in any
+    interleaving. Small main blocks (an mcap chunk's) are gathered into blocks of about
+    ``chunk`` messages before they are decoded. A bare Float temperature reading comes with
+    the number of main messages before it in bag order, and takes the stamp of the last
+    decodable one (resolved in :meth:`result`).
     """
 
     def __init__(self, roles: Sequence[str], msgtypes: Mapping[str, str],
-                 expected: Mapping[str, int], typestore: Any, with_accel: bool) -> None:
+                 expected: Mapping[str, int], typestore: Any, with_accel: bool,
+                 chunk: int) -> None:
         self.roles, self.msgtypes, self.typestore = list(roles), dict(msgtypes), typestore
         self.floating = self.msgtypes['temperature'] in FLOAT_TYPES
         widths = {'imu': (3, 3) if with_accel else (3,), 'temperature': (1, 1), 'reference': (3,)}
@@ -330,6 +331,7 @@ class Collector:
         self.frame_id = ''                                # of the first decodable IMU message
         self.fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
         self.undecodable = self.n_main = 0
+        self.chunk, self.pending = chunk, []              # main blocks not decoded yet
         self.main_bad: list[NDArray[np.int64]] = []    # main messages undecodable
         self.before: list[NDArray[np.int64]] = []      # Float readings: main messages before
 
@@ -351,30 +353,46 @@ class Collector:
         self.sinks[role].add(t, values)
         return good
 
-    def main(self, buf: bytes | memoryview, lengths: Sequence[int], logs: Logs) -> None:
-        """Decode a block of main messages stored end to end in ``buf`` (``logs``: log times)."""
+    def add(self, role: str, buf: bytes | memoryview, lengths: Sequence[int], logs: Logs,
+            before: NDArray[np.int64] | None = None) -> None:
+        """
+        Take a block of one role's messages stored end to end in ``buf``.
+
+        ``logs``: their log times (or a function returning them); ``before``: of each
+        message, the main messages before it in bag order (used for Float readings).
+        """
         if not len(lengths):
             return
-        dec = decode_joined(buf, lengths, IMU_TYPE, self.typestore, self.keep_imu)
-        good = self._store('imu', dec, logs)
-        if good is not None:
-            self.main_bad.append(self.n_main + np.flatnonzero(~good))
-        self.n_main += len(lengths)
-
-    def other(self, role: str, raws: Sequence[bytes], logs: Logs,
-              before: NDArray[np.int64] | None = None) -> None:
-        """Decode a block of one other role's messages (``before``: see the class)."""
-        if not len(raws):
+        if role == 'imu':
+            self.pending.append((buf, lengths, logs))
+            self.n_main += len(lengths)
+            big = 2 * len(lengths) >= self.chunk      # a storage range's block: as it is
+            if big or sum(len(x[1]) for x in self.pending) >= self.chunk:
+                self.flush()
             return
         floating = role == 'temperature' and self.floating
-        dec = (decode_float if floating else decode)(raws, self.msgtypes[role], self.typestore)
-        good = self._store(role, dec, logs)
+        good = self._store(role, (decode_float if floating else decode_joined)(
+            buf, lengths, self.msgtypes[role], self.typestore), logs)
         if floating:
             before = np.asarray(before, dtype=np.int64)
             self.before.append(before if good is None else before[good])
 
+    def flush(self) -> None:
+        """Decode the main blocks gathered (before :meth:`result`)."""
+        if not self.pending:
+            return
+        bufs, lengths, logs = zip(*self.pending)
+        self.pending, lengths = [], np.concatenate(lengths)
+        dec = decode_joined(bufs[0] if len(bufs) == 1 else b''.join(bufs), lengths, IMU_TYPE,
+                            self.typestore, self.keep_imu)
+        good = self._store('imu', dec, lambda: np.concatenate(
+            [x() if callable(x) else np.asarray(x, dtype=np.int64) for x in logs]))
+        if good is not None:
+            self.main_bad.append(self.n_main - len(lengths) + np.flatnonzero(~good))
+
     def result(self, bag: Path, storage: str, topics: dict, via: str) -> BagData:
         """Return the :class:`BagData`."""
+        self.flush()
         before_imu, stamped, empty = 0, None, [np.zeros(0, dtype=np.int64)]
         if self.floating:
             sink = self.sinks['temperature']
@@ -420,7 +438,7 @@ def _collect(feed: Callable[[Collector, Callable[[int], Any]], None], typestore:
     if size is not None:             # compressed storage may hold more: the sinks grow
         expected = {role: min(n, size // metadata.min_message_bytes(msgtypes[role]) + 1)
                     for role, n in expected.items()}
-    out = Collector(list(conns), msgtypes, expected, typestore, with_accel)
+    out = Collector(list(conns), msgtypes, expected, typestore, with_accel, _CHUNK)
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
         feed(out, bar.update)
@@ -434,14 +452,10 @@ def _rosbags_feed(source: Any, conns: dict[str, list[Any]], out: Collector,
     gen = source.messages(connections=[c for r in out.roles for c in conns[r]])
     while block := list(islice(gen, _CHUNK)):
         roles = [role_of[id(conn)] for conn, _, _ in block]
-        first = out.n_main
-        mains = np.cumsum([r == 'imu' for r in roles])    # main messages up to each one
+        mains = out.n_main + np.cumsum([r == 'imu' for r in roles])   # main messages up to each
         for role in out.roles:
-            mine = [k for k, r in enumerate(roles) if r == role]
-            raws = [block[k][2] for k in mine]
-            logs = np.array([block[k][1] for k in mine], dtype=np.int64)
-            if role == 'imu' and mine:
-                out.main(b''.join(raws), [len(x) for x in raws], logs)
-            elif mine:
-                out.other(role, raws, logs, first + mains[mine])
+            if mine := [k for k, r in enumerate(roles) if r == role]:
+                raws = [block[k][2] for k in mine]
+                out.add(role, b''.join(raws), [len(x) for x in raws],
+                        np.array([block[k][1] for k in mine], dtype=np.int64), mains[mine])
         update(len(block))

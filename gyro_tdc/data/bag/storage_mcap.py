@@ -31,10 +31,8 @@ import struct
 import sys
 from typing import Any, Callable, Mapping, NamedTuple
 
-from gyro_tdc.data.bag.codec import Logs
 from gyro_tdc.data.bag.metadata import Entry, Unfit
 import numpy as np
-from numpy.typing import NDArray
 
 if sys.version_info >= (3, 14):
     from compression import zstd
@@ -107,32 +105,6 @@ def _qos(metadata: bytes) -> str:
         if key == 'offered_qos_profiles':
             return value
     return ''
-
-
-class Pending:
-    """Main (IMU) messages gathered until a block is full, then handed to ``out.main``."""
-
-    def __init__(self, out: Any, chunk: int) -> None:
-        self.out, self.chunk = out, chunk
-        self.parts: list[tuple[bytes, NDArray[np.int64], Logs]] = []
-        self.n = 0
-
-    def add(self, buf: bytes, lengths: NDArray[np.int64], logs: Logs) -> None:
-        """Add messages stored end to end in ``buf``; hand the block over once it is full."""
-        self.parts.append((buf, lengths, logs))
-        self.n += len(lengths)
-        if self.n >= self.chunk:
-            self.flush()
-
-    def flush(self) -> None:
-        """Hand what is gathered over (before any other role's block of the same span)."""
-        if not self.n:
-            return
-        pieces, lengths, logs = zip(*self.parts)
-        self.parts, self.n = [], 0
-        self.out.main(pieces[0] if len(pieces) == 1 else b''.join(pieces),
-                      np.concatenate(lengths),
-                      lambda: np.concatenate([x() if callable(x) else x for x in logs]))
 
 
 class McapFile:
@@ -235,10 +207,8 @@ class McapFile:
         self.ids = np.full(1 << 16, -1, dtype=np.int8)          # channel id -> role code
         for cid, role in roles.items():
             self.ids[cid] = self.codes[role]
-        pending = Pending(out, chunk)
         for c in chunks:
-            self._chunk(self._decompress(c), c, pending, update)
-        pending.flush()
+            self._chunk(self._decompress(c), c, out, update)
 
     def _decompress(self, c: _Chunk) -> bytes:
         """Return a chunk's records, checked against its size and checksum."""
@@ -286,7 +256,7 @@ class McapFile:
             pos += n * rec
         return runs
 
-    def _chunk(self, raw: bytes, c: _Chunk, pending: Pending, update: Callable) -> None:
+    def _chunk(self, raw: bytes, c: _Chunk, out: Any, update: Callable) -> None:
         """Hand over the wanted messages of one chunk, in rosbags' order."""
         arr = np.frombuffer(raw, dtype=np.uint8)
         pieces = []                                        # (rows, role codes, log times)
@@ -314,11 +284,12 @@ class McapFile:
             pieces = [single[i] for i in order.tolist()]
             codes, logs = codes[order], logs[order]
         # Two steps, not one body: a chunk's main block copies are freed before the others decode.
-        others = self._in_order(pieces, pending)
+        first = out.n_main
+        others = self._in_order(pieces, out)
         if others:
-            self._others(others, codes, logs, pending)
+            self._others(others, codes, logs, first, out)
 
-    def _in_order(self, pieces: list[tuple], pending: Pending) -> list[tuple[int, bytes]]:
+    def _in_order(self, pieces: list[tuple], out: Any) -> list[tuple[int, bytes]]:
         """Hand over the main messages of a chunk's pieces in order; return the others."""
         main = self.codes['imu']
         others: list[tuple[int, bytes]] = []
@@ -327,24 +298,19 @@ class McapFile:
             is_main = code == main
             if is_main.any():
                 sel = rows if is_main.all() else rows[is_main]
-                pending.add(np.ascontiguousarray(sel[:, 31:]).tobytes(),
-                            np.full(len(sel), rows.shape[1] - 31, dtype=np.int64), log[is_main])
+                out.add('imu', np.ascontiguousarray(sel[:, 31:]).tobytes(),
+                        np.full(len(sel), rows.shape[1] - 31, dtype=np.int64), log[is_main])
             others += [(at + i, bytes(rows[i, 31:])) for i in np.flatnonzero(~is_main).tolist()]
             at += len(code)
         return others
 
-    def _others(self, others: list[tuple[int, bytes]], codes: Any, logs: Any,
-                pending: Pending) -> None:
-        """Hand over the other roles' messages of a chunk, after its main ones."""
-        pending.flush()
-        out, main = pending.out, self.codes['imu']
-        mains = np.cumsum(codes == main)
-        first = out.n_main - int(mains[-1])
+    def _others(self, others: list[tuple[int, bytes]], codes: Any, logs: Any, first: int,
+                out: Any) -> None:
+        """Hand over the other roles' messages of a chunk (``first``: main messages before)."""
+        mains = first + np.cumsum(codes == self.codes['imu'])
         where = np.fromiter((i for i, _ in others), dtype=np.int64, count=len(others))
-        for role in out.roles:
+        for role in out.roles[1:]:
             mine = np.flatnonzero(codes[where] == self.codes[role])
-            if role == 'imu' or not mine.size:
-                continue
-            pos = where[mine]
-            before = first + mains[pos] if role == 'temperature' and out.floating else None
-            out.other(role, [others[i][1] for i in mine.tolist()], logs[pos], before)
+            if mine.size:
+                raws, pos = [others[i][1] for i in mine.tolist()], where[mine]
+                out.add(role, b''.join(raws), [len(x) for x in raws], logs[pos], mains[pos])

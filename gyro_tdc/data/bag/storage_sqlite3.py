@@ -33,7 +33,6 @@ import sqlite3
 import threading
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
-from gyro_tdc.data.bag.codec import split
 from gyro_tdc.data.bag.metadata import Entry, Unfit
 import numpy as np
 from numpy.typing import NDArray
@@ -232,17 +231,10 @@ class Sqlite3File:
 
         def logs(role: str) -> Callable[[], NDArray[np.int64]]:
             return lambda: self._column('timestamp', role, got[role][0], t, end)
-        if 'imu' in got:
-            out.main(got['imu'][1], got['imu'][2], logs('imu'))   # a block of its own
-        if len(got) == ('imu' in got):
-            return
         before = None
         if floating and 'temperature' in got:
             codes = np.frombuffer(row[-1].encode('ascii'), dtype=np.uint8)
             mains = np.cumsum(codes == ord(_CODES['imu']))
-            before = out.n_main - int(mains[-1]) + mains[codes == ord(_CODES['temperature'])]
-        for role in roles:
-            if role != 'imu' and role in got:
-                _, buf, lengths = got[role]
-                out.other(role, split(buf, lengths), logs(role),
-                          before if role == 'temperature' else None)
+            before = out.n_main + mains[codes == ord(_CODES['temperature'])]
+        for role, (_, buf, lengths) in got.items():     # the main messages first
+            out.add(role, buf, lengths, logs(role), before)

@@ -26,6 +26,11 @@ import numpy as np
 import pytest
 
 
+def _decode(raws, msgtype, typestore, keep=None):
+    """Decode a list of messages (joined end to end, as the storage reads hand them over)."""
+    return codec.decode_joined(b''.join(raws), [len(x) for x in raws], msgtype, typestore, keep)
+
+
 # ------------------------------------------------------------------------------------------
 # The fixed-layout codec equals rosbags' serialiser
 # ------------------------------------------------------------------------------------------
@@ -50,7 +55,7 @@ def test_fixed_layout_decodes_every_field_like_rosbags(msgtype, frame_id, little
         assert rec['frame'][i].tobytes() == frame
         np.testing.assert_array_equal(rec['data'][i], row)
 
-    dec = codec.decode(raws, msgtype, TS)
+    dec = _decode(raws, msgtype, TS)
     assert dec.fallback == 0 and dec.frame_id == frame_id
     keep = list(codec.KEEP[msgtype])
     for i, raw in enumerate(raws):
@@ -78,17 +83,17 @@ def test_fixed_layout_encodes_like_rosbags(msgtype, frame_id):
 def test_fast_decoder_refuses_mixed_layouts():
     rng = np.random.default_rng(3)
     same_len = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('imu0', 'imu1')]
-    assert codec.decode(same_len, IMU_TYPE, TS).fallback == len(same_len)
+    assert _decode(same_len, IMU_TYPE, TS).fallback == len(same_len)
     other_len = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('a', 'bcd')]
-    assert codec.decode(other_len, IMU_TYPE, TS).fallback == len(other_len)
+    assert _decode(other_len, IMU_TYPE, TS).fallback == len(other_len)
     mixed_endian = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE, little_endian=le))
                     for le in (True, False)]
-    assert codec.decode(mixed_endian, IMU_TYPE, TS).fallback == len(mixed_endian)
+    assert _decode(mixed_endian, IMU_TYPE, TS).fallback == len(mixed_endian)
     trailing = [bytes(TS.serialize_cdr(_imu(rng), IMU_TYPE)) + b'\0\0' for _ in range(2)]
-    assert codec.decode(trailing, IMU_TYPE, TS).fallback == len(trailing)
+    assert _decode(trailing, IMU_TYPE, TS).fallback == len(trailing)
     # ...and the rosbags fallback decodes all of them right.
     for raws in (same_len, other_len, mixed_endian, trailing):
-        dec = codec.decode(raws, IMU_TYPE, TS)
+        dec = _decode(raws, IMU_TYPE, TS)
         assert dec.fallback == len(raws)
         for i, raw in enumerate(raws):
             row = np.asarray(_fields(IMU_TYPE, TS.deserialize_cdr(raw, IMU_TYPE))[3])
@@ -105,7 +110,7 @@ def _same_decoded(a, b):
 def test_decode_joined_equals_decode_on_one_reused_buffer():
     # The reader's path: messages written end to end into one BytesIO reused from block to
     # block (a longer block first, so stale bytes follow the shorter one), decoded from a
-    # view of it: the same result as decode() on the list, fast path and fallback alike.
+    # view of it: the same result as _decode() on the list, fast path and fallback alike.
     rng = np.random.default_rng(5)
     uniform = [bytes(TS.serialize_cdr(_imu(rng, sec=i + 1, nsec=7 * i), IMU_TYPE))
                for i in range(9)]
@@ -118,7 +123,7 @@ def test_decode_joined_equals_decode_on_one_reused_buffer():
         view = scratch.getbuffer()
         dec = codec.decode_joined(view, lengths, IMU_TYPE, TS)
         del view
-        _same_decoded(dec, codec.decode(raws, IMU_TYPE, TS))
+        _same_decoded(dec, _decode(raws, IMU_TYPE, TS))
         assert dec.fallback == (0 if raws[0] is uniform[0] else len(raws))
     scratch.seek(0)
     scratch.write(b'')            # nothing returned still holds the buffer

@@ -19,7 +19,6 @@ from __future__ import annotations
 from columnar_tape import _chamber, _tapes, _write
 from gyro_tdc.data import read_bag
 from gyro_tdc.data.bag.metadata import Unfit
-from gyro_tdc.data.bag.storage_mcap import Pending
 import numpy as np
 import pytest
 
@@ -49,26 +48,3 @@ def test_mcap_chunks_overlapping_in_time_go_to_rosbags(tmp_path):
     assert got.via == 'rosbags'
     np.testing.assert_array_equal(got.imu_t, ref.imu_t)
     np.testing.assert_array_equal(got.temp_c, ref.temp_c)
-
-
-class _Main:
-    """A Collector stand-in recording each main block handed over."""
-
-    def __init__(self):
-        self.blocks = []
-
-    def main(self, buf, lengths, logs):
-        self.blocks.append((bytes(buf), list(lengths), logs().tolist()))
-
-
-def test_pending_hands_full_blocks_over_and_the_rest_on_flush():
-    out = _Main()
-    pending = Pending(out, chunk=4)
-    pending.add(b'aabb', np.array([2, 2]), np.array([1, 2]))
-    assert out.blocks == []                          # 2 of 4: gathered
-    pending.add(b'ccddee', np.array([2, 2, 2]), lambda: np.array([3, 4, 5]))
-    assert out.blocks == [(b'aabbccddee', [2, 2, 2, 2, 2], [1, 2, 3, 4, 5])]
-    pending.add(b'f', np.array([1]), np.array([6]))
-    pending.flush()
-    pending.flush()                                  # nothing gathered: nothing handed over
-    assert out.blocks[1:] == [(b'f', [1], [6])]
