@@ -267,11 +267,9 @@ class Bytes:
     floating = False
     roles = ['imu', 'temperature']
     nbytes = 0
-    def main(self, buf, lengths, logs=None, fetch_logs=None):
-        self.n_main += len(lengths)
+    def add(self, role, buf, lengths, logs=None, before=None):
+        self.n_main += len(lengths) if role == 'imu' else 0
         self.nbytes += len(buf)
-    def other(self, role, raws, logs, before=None, fetch_logs=None):
-        self.nbytes += sum(map(len, raws))
 out = Bytes()
 with columnar.open_bag(bag, metadata.load(bag)) as opened:
     _, conns = reader._connections(opened.topics, opened.conns, bag, wanted)

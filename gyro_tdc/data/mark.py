@@ -25,57 +25,32 @@ See ``doc/internals/data.md``.
 
 from __future__ import annotations
 
-import math
 import struct
 from typing import Sequence
 
-__all__ = ['MARK', 'cov_marked', 'diagonal_marked', 'is_marked', 'mark', 'UNKNOWN_MARK']
+__all__ = ['MARK', 'cov_marked', 'diagonal_marked', 'UNKNOWN_MARK']
 
-#: The two low-order bytes (little-endian float64) written into each marked variance.
 MARK = b'TG'
-#: The little-endian float64 -0.0: each diagonal entry of a marked unknown covariance.
 UNKNOWN_MARK = struct.pack('<d', -0.0)
-_F64 = struct.Struct('<d')
-
-
-def mark(value: float) -> float:
-    """
-    Return ``value`` with :data:`MARK` in its two lowest mantissa bytes.
-
-    Parameters
-    ----------
-    value : float
-        A positive, finite variance; anything else is returned unchanged.
-
-    Returns
-    -------
-    float
-        The marked value (within 2**-36 relative of ``value``).
-
-    """
-    return _F64.unpack(MARK + _F64.pack(value)[2:])[0] if 0.0 < value < float('inf') else value
-
-
-def is_marked(value: float) -> bool:
-    """Return whether ``value`` carries :data:`MARK` (and is positive and finite)."""
-    return bool(0.0 < value < float('inf')) and _F64.pack(value)[:2] == MARK
+_COV = struct.Struct('<9d')
+_INF = float('inf')
 
 
 def cov_marked(data: bytes, offset: int) -> bool:
-    """Return whether the serialized covariance at ``offset`` carries the mark on its diagonal."""
+    """
+    Return whether the serialized covariance (row-major 3x3) at ``offset`` carries the mark.
+
+    :data:`MARK` in the two lowest bytes of its three diagonal entries, each positive and
+    finite; or, for an all-zero (unknown) covariance, -0.0 on its diagonal.
+    """
     if data[offset:offset + 2] == MARK:
-        return data[offset + 32:offset + 34] == MARK and data[offset + 64:offset + 66] == MARK
+        return (data[offset + 32:offset + 34] == MARK and data[offset + 64:offset + 66] == MARK
+                and all(0.0 < v < _INF for v in _COV.unpack_from(data, offset)[::4]))
     return (data[offset:offset + 8] == data[offset + 32:offset + 40]
-            == data[offset + 64:offset + 72] == UNKNOWN_MARK)
-
-
-def _negative_zero(value: float) -> bool:
-    return bool(value == 0.0) and math.copysign(1.0, value) < 0.0
+            == data[offset + 64:offset + 72] == UNKNOWN_MARK
+            and not any(_COV.unpack_from(data, offset)))
 
 
 def diagonal_marked(cov: Sequence[float]) -> bool:
-    """Return whether entries 0, 4 and 8 of a row-major 3x3 covariance carry a mark."""
-    if is_marked(cov[0]):
-        return is_marked(cov[4]) and is_marked(cov[8])
-    return (_negative_zero(cov[0]) and _negative_zero(cov[4]) and _negative_zero(cov[8])
-            and not any(cov[i] for i in (1, 2, 3, 5, 6, 7)))
+    """Return whether a deserialized 3x3 covariance carries the mark (:func:`cov_marked`)."""
+    return cov_marked(_COV.pack(*cov), 0)
