@@ -149,23 +149,6 @@ class Layout:
             'itemsize': self.size,
         })
 
-    def offset(self, name: str) -> int:
-        """
-        Return the byte offset of an Imu field from the start of the message.
-
-        Parameters
-        ----------
-        name : str
-            A key of :data:`IMU_FIELDS`.
-
-        Returns
-        -------
-        int
-            Offset of the field's first float64.
-
-        """
-        return self.body + 8 * IMU_FIELDS[name][0]
-
 
 def layout_of(data: bytes, n_doubles: int = IMU_DOUBLES) -> Layout:
     """
