@@ -283,34 +283,26 @@ class McapFile:
                       for rows, code, log in pieces for k in range(len(code))]
             pieces = [single[i] for i in order.tolist()]
             codes, logs = codes[order], logs[order]
-        # Two steps, not one body: a chunk's main block copies are freed before the others decode.
-        first = out.n_main
-        others = self._in_order(pieces, out)
-        if others:
-            self._others(others, codes, logs, first, out)
-
-    def _in_order(self, pieces: list[tuple], out: Any) -> list[tuple[int, bytes]]:
-        """Hand over the main messages of a chunk's pieces in order; return the others."""
-        main = self.codes['imu']
-        others: list[tuple[int, bytes]] = []
+        # The main messages go over piece by piece (the Collector gathers them), the others'
+        # of the chunk in one block per role, each with the main messages before it.
+        mains = out.n_main + np.cumsum(codes == self.codes['imu'])
+        got: dict[str, list] = {role: [] for role in out.roles[1:]}
         at = 0
         for rows, code, log in pieces:
-            is_main = code == main
-            if is_main.any():
-                sel = rows if is_main.all() else rows[is_main]
-                out.add('imu', np.ascontiguousarray(sel[:, 31:]).tobytes(),
-                        np.full(len(sel), rows.shape[1] - 31, dtype=np.int64), log[is_main])
-            others += [(at + i, bytes(rows[i, 31:])) for i in np.flatnonzero(~is_main).tolist()]
+            for role in out.roles:
+                mine = np.flatnonzero(code == self.codes[role])
+                if mine.size:
+                    sel = rows if mine.size == len(code) else rows[mine]
+                    part = (np.ascontiguousarray(sel[:, 31:]).tobytes(),
+                            np.full(mine.size, rows.shape[1] - 31, dtype=np.int64), log[mine],
+                            mains[at + mine])
+                    if role == 'imu':
+                        out.add(role, *part)
+                    else:
+                        got[role].append(part)
             at += len(code)
-        return others
-
-    def _others(self, others: list[tuple[int, bytes]], codes: Any, logs: Any, first: int,
-                out: Any) -> None:
-        """Hand over the other roles' messages of a chunk (``first``: main messages before)."""
-        mains = first + np.cumsum(codes == self.codes['imu'])
-        where = np.fromiter((i for i, _ in others), dtype=np.int64, count=len(others))
-        for role in out.roles[1:]:
-            mine = np.flatnonzero(codes[where] == self.codes[role])
-            if mine.size:
-                raws, pos = [others[i][1] for i in mine.tolist()], where[mine]
-                out.add(role, b''.join(raws), [len(x) for x in raws], logs[pos], mains[pos])
+        for role, parts in got.items():
+            if parts:
+                bufs, lengths, times, before = zip(*parts)
+                out.add(role, b''.join(bufs), np.concatenate(lengths), np.concatenate(times),
+                        np.concatenate(before))
