@@ -23,6 +23,7 @@ What discovery found: steps, candidate scores, residual maps, and their JSON and
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from functools import partial
 
 from gyro_tdc.base import plain
 from gyro_tdc.errors import DatasetError
@@ -301,9 +302,7 @@ class DiscoveryResult:
             ``tau_interval_s``, ``identifiable``) when the final model has a thermal state.
 
         """
-        def pl(v: object) -> object:
-            return plain(v, nan_to_none=True)
-
+        pl = partial(plain, nan_to_none=True)
         steps = [{
             'effect': s.effect, 'aliases': list(s.aliases), 'description': s.description,
             'gap_before_dps': float(s.gap_before_dps), 'gap_after_dps': float(s.gap_after_dps),
