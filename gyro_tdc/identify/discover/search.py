@@ -256,51 +256,34 @@ def _score(data: BlockData, model: LinearModel, rnd: _Round, eid: str, params: d
 
 @dataclass(frozen=True)
 class DiscoverOptions:
-    """
-    What :func:`discover` starts from, which candidates it tries and its false-discovery guard.
+    """What :func:`discover` starts from, the candidates it tries and its false-discovery guard."""
 
-    Parameters
-    ----------
-    base : str or sequence of str
-        Effects of the starting model (``'bias,dT'``: eq. 18's conventional model); ``bias``
-        is always included, as one offset per run.
-    candidates : str or sequence of str, optional
-        Effects to try (default: every catalog effect not in ``base``).
-    block_s : float, s
-        Block length of the analysis; gaps and the noise floor are RMS of block means.
-    t0 : float, optional, degC
-        Reference temperature (default :func:`gyro_tdc.identify.estimate_t0` of the first run).
-    alpha : float
-        Family-wise significance level per step (Bonferroni over candidates and axes).
-    min_heldout : float
-        Smallest held-out gain, as a fraction of the squared noise floor.
-    min_effect : float
-        Smallest effect RMS, as a fraction of the noise floor.
-    alias_margin : float
-        A candidate within this fraction of the best held-out gain...
-    alias_corr : float
-        ...whose fitted contribution correlates at least this much with the best's is an alias.
-    max_steps : int
-        Most effects added.
-    n_folds : int
-        Cross-validation folds for a single run (:func:`make_folds`; several runs: leave one
-        run out).
-    allan : bool
-        Compute the Allan deviation of the residual before and after each step.
-
-    """
-
+    #: Effects of the starting model (``'bias,dT'``: eq. 18's conventional model); ``bias``
+    #: is always included, as one offset per run.
     base: str | Sequence[str] = ('bias', 'dT')
+    #: Effects to try (default: every catalog effect not in ``base``).
     candidates: str | Sequence[str] | None = None
+    #: Block length of the analysis, s; gaps and the noise floor are RMS of block means.
     block_s: float = 10.0
+    #: Reference temperature, degC (default :func:`gyro_tdc.identify.estimate_t0` of the
+    #: first run).
     t0: float | None = None
+    #: Family-wise significance level per step (Bonferroni over candidates and axes).
     alpha: float = 0.01
+    #: Smallest held-out gain, as a fraction of the squared noise floor.
     min_heldout: float = 0.1
+    #: Smallest effect RMS, as a fraction of the noise floor.
     min_effect: float = 0.6
+    #: A candidate within this fraction of the best held-out gain...
     alias_margin: float = 0.25
+    #: ...whose fitted contribution correlates at least this much with the best's is an alias.
     alias_corr: float = 0.9
+    #: Most effects added.
     max_steps: int = 6
+    #: Cross-validation folds for a single run (:func:`make_folds`; several runs: leave one
+    #: run out).
     n_folds: int = 5
+    #: Compute the Allan deviation of the residual before and after each step.
     allan: bool = True
 
 
