@@ -289,8 +289,7 @@ def _search(runs: Sequence[Run], o: FitOptions, ids: tuple[str, ...], inputs: tu
         inner = 'poly'
     search = ParamSearch(runs, search_inputs, t0, inner=inner, n_centers=o.n_centers,
                          ridge=RIDGE_GRID[1] if o.ridge == 'auto' else o.ridge, seed=o.seed,
-                         scale='scale' in ids, n_total=sum(len(r) for r in runs), rows=rows,
-                         labels=labels)
+                         scale='scale' in ids, rows=rows, labels=labels)
     for _round in range(2 if len(free) + fit_state > 1 else 1):
         for eid, name in free:
 

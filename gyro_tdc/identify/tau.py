@@ -317,11 +317,11 @@ class ParamSearch:
     """
 
     def __init__(self, runs: Sequence[Run], inputs: Sequence[str], t0: float, *, inner: str,
-                 n_centers: int, ridge: float, seed: int, scale: bool, n_total: int,
+                 n_centers: int, ridge: float, seed: int, scale: bool,
                  rows: Sequence[NDArray[np.bool_]] | None = None,
                  labels: Sequence[int] | None = None) -> None:
         self.blocks, self.y, self.groups = run_blocks(
-            runs, block_length(n_total, 20_000, at_most=True), rows, labels)
+            runs, block_length(sum(map(len, runs)), 20_000, at_most=True), rows, labels)
         self.inputs, self.t0, self.scale, self.inner = tuple(inputs), t0, scale, inner
         self.n_centers, self.ridge, self.seed = n_centers, ridge, seed
 

@@ -126,8 +126,7 @@ def test_the_first_order_search_finds_the_lag_and_its_interval(lagged):
     ids = ('dT', 'dT2', 'lag')
     par = resolve_params(ids, None)
     search = ParamSearch(lagged, input_ids(ids, state=True), 25.0, inner='poly', n_centers=0,
-                         ridge=1e-6, seed=0, scale=False, n_total=sum(map(len, lagged)),
-                         labels=[0, 1])
+                         ridge=1e-6, seed=0, scale=False, labels=[0, 1])
     tau, seen = search.first_order(par, TAU_BOUNDS)
     assert abs(tau - TAU_DIE) < 0.05 * TAU_DIE and len(seen) >= 13
     state, info = choose_state(search, 'first_order', par, tau, seen)

@@ -37,7 +37,8 @@ from gyro_tdc.identify.fit import MIN_SPAN_C
 from gyro_tdc.model import (batch_features, EFFECTS, first_order_lag, input_ids,
                             REFERENCE_EFFECTS, STATE_TERMS, STATIC_EFFECTS, TEMPERATURE_EFFECTS,
                             THERMAL_EFFECTS)
-from gyro_tdc.signal import BlockGrid, fit_columns, Folds, heldout, pinv_fit, solve_normal
+from gyro_tdc.signal import (BlockGrid, fit_columns, Folds, heldout, pinv_fit, session_columns,
+                             solve_normal)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -170,7 +171,7 @@ class BlockData:
                 parts[key].append(v)
             white.append(np.delete(np.diff(y, axis=0), breaks - 1, axis=0))  # inside segments
             # Regular grid for the filtered features; the reference rate held on it from the
-            # last sample (a step schedule).
+            # last sample (a step schedule). It has two points at least (t[0] and one step on).
             step = min(max(med, self.block_s / 10.0), 1.0) if self.block_s > med else med
             tg = t[0] + np.arange(int(math.floor((t[-1] - t[0]) / step)) + 2) * step
             tg = tg[tg <= t[-1] + step]
@@ -192,7 +193,7 @@ class BlockData:
         self.static = {eid: cat['static'][:, j] for j, eid in enumerate(_STATIC)}
         self.n_runs = len(self.runs)
         self.t_since = self.t - np.array([self.runs[r].t[0] for r in self.run])
-        self.offsets = np.eye(self.n_runs)[self.run]
+        self.offsets = session_columns(self.run)[0]      # one offset per run
         sig, wsig = _noise_floor(cat['noise'], white)      # per-sample equivalent, rad/s
         self.floor_axes = sig / math.sqrt(self.n.mean())   # on the block scale, rad/s
         self.floor = float(np.sqrt(np.mean(self.floor_axes ** 2)))
@@ -256,8 +257,7 @@ class BlockData:
     def _grid_state(tg: NDArray[np.float64], temp_g: NDArray[np.float64], tau: float
                     ) -> NDArray[np.float64]:
         """Return the thermal state on a regular grid (temperature linear between points)."""
-        step = float(tg[1] - tg[0]) if tg.size > 1 else 1.0
-        return first_order_lag(step, temp_g, float(tau), hold='linear')
+        return first_order_lag(float(tg[1] - tg[0]), temp_g, float(tau), hold='linear')
 
     def state_columns(self, tau: float) -> dict[str, NDArray[np.float64]]:
         """
@@ -474,8 +474,7 @@ def ols_hac(y: NDArray[np.float64], x: NDArray[np.float64], maxlags: int
     return params, cov
 
 
-def hac_pvalue(model: LinearModel, coef: NDArray[np.float64], cand: Sequence[int],
-               lags: Sequence[int]) -> float:
+def hac_pvalue(model: LinearModel, cand: Sequence[int], lags: Sequence[int]) -> float:
     """
     Return the HAC Wald p-value of the columns ``cand`` (smallest over axes, times 3).
 

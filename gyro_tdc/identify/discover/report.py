@@ -131,15 +131,12 @@ def _full_rate_residual(data: BlockData, model: LinearModel, coef: NDArray[np.fl
     state = None if model.state_tau is None else data.state(r, model.state_tau)
     x = batch_features(model.effects, run.t, run.temp, t0=data.t0, params=model.params,
                        state=state)
-    d = (run.temp if state is None else state) - data.t0
+    d = (run.temp if state is None else state)[:, None] - data.t0
     nr, m = data.n_runs, x.shape[1]
-    pred = np.zeros((len(run), 3))
-    for a in range(3):
-        c, ref = coef[:, a], run.omega_ref[:, a]
-        pred[:, a] = c[r] + x @ c[nr:nr + m]
-        for j, lab in enumerate(model.axis_labels, nr + m):
-            pred[:, a] += (c[j] * ref * data.gain_axes[a] if lab == 'gain'
-                           else c[j] * d * ref * data.scale_axes[a])
+    pred = coef[r] + x @ coef[nr:nr + m]
+    for j, lab in enumerate(model.axis_labels, nr + m):     # gain, scale: per-axis columns
+        on = data.gain_axes if lab == 'gain' else d * data.scale_axes
+        pred += coef[j] * run.omega_ref * on
     return (run.omega - run.omega_ref - pred)[bounds[i]:bounds[i + 1]], 1.0 / med
 
 

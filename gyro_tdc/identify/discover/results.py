@@ -23,6 +23,7 @@ What discovery found: steps, candidate scores, residual maps, and their JSON and
 from __future__ import annotations
 
 from dataclasses import asdict, dataclass, field
+from functools import partial
 
 from gyro_tdc.base import plain
 from gyro_tdc.errors import DatasetError
@@ -36,38 +37,24 @@ __all__ = ['BinMap', 'CandidateScore', 'DiscoveryResult', 'format_summary', 'Ste
 
 @dataclass(frozen=True)
 class BinMap:
-    """
-    The residual binned by one quantity, per axis, with the bins noise cannot explain marked.
+    """The residual binned by one quantity, per axis, with the bins noise cannot explain marked."""
 
-    Parameters
-    ----------
-    name : str
-        ``temperature``, ``dTdt``, ``reference`` or ``time``.
-    label : str
-        What the bins are, with unit (x axis of a plot).
-    centers : NDArray[np.float64], shape (B, 3)
-        Bin centres per axis (the reference map bins each axis by its own rate); NaN where a
-        bin is empty on that axis.
-    mean_dps : NDArray[np.float64], shape (B, 3), deg/s
-        Weighted mean residual per bin and axis.
-    se_dps : NDArray[np.float64], shape (B, 3), deg/s
-        Its standard error from the noise floor, inflated for autocorrelated noise.
-    count : NDArray[np.int64], shape (B, 3)
-        Blocks per bin and axis.
-    flagged : NDArray[np.bool_], shape (B, 3)
-        ``|mean| > 3 se``: a disagreement noise does not explain.
-    labels : tuple of str
-        Bin labels (e.g. ``cooling fast``), one per bin.
-
-    """
-
+    #: ``temperature``, ``dTdt``, ``reference`` or ``time``.
     name: str
+    #: What the bins are, with unit (x axis of a plot).
     label: str
+    #: Bin centres (B, 3) per axis (the reference map bins each axis by its own rate); NaN
+    #: where a bin is empty on that axis.
     centers: NDArray[np.float64]
+    #: Weighted mean residual (B, 3) per bin and axis, deg/s.
     mean_dps: NDArray[np.float64]
+    #: Its standard error (B, 3) from the noise floor, inflated for autocorrelated noise, deg/s.
     se_dps: NDArray[np.float64]
+    #: Blocks (B, 3) per bin and axis.
     count: NDArray[np.int64]
+    #: ``|mean| > 3 se`` (B, 3): a disagreement noise does not explain.
     flagged: NDArray[np.bool_]
+    #: Bin labels (e.g. ``cooling fast``), one per bin.
     labels: tuple[str, ...] = ()
 
     @property
@@ -78,41 +65,27 @@ class BinMap:
 
 @dataclass(frozen=True)
 class CandidateScore:
-    """
-    How well one candidate effect explains what the current model misses.
+    """How well one candidate effect explains what the current model misses."""
 
-    Parameters
-    ----------
-    effect : str
-        Effect id.
-    params : dict
-        Fitted effect parameters (e.g. ``{'tau_s': 180.0}``).
-    p_value : float
-        HAC Wald test of the added columns, smallest over axes times 3 (Bonferroni over axes).
-    heldout_gain_dps2 : float, (deg/s)^2
-        Held-out mean squared gap of the model minus that with the candidate.
-    effect_rms_dps : float, deg/s
-        RMS of the in-sample improvement (what the candidate explains), over blocks and axes.
-    gap_dps, heldout_gap_dps : float, deg/s
-        In-sample and held-out gap with the candidate added.
-    passed : bool
-        Significant, held-out gain and effect size all above their thresholds.
-    why_not : str
-        Which test failed (empty when passed).
-    coef : NDArray[np.float64], shape (q, 3)
-        Fitted coefficients of the candidate's columns (SI units of the feature).
-
-    """
-
+    #: Effect id.
     effect: str
+    #: Fitted effect parameters (e.g. ``{'tau_s': 180.0}``).
     params: dict
+    #: HAC Wald test of the added columns, smallest over axes times 3 (Bonferroni over axes).
     p_value: float
+    #: Held-out mean squared gap of the model minus that with the candidate, (deg/s)^2.
     heldout_gain_dps2: float
+    #: RMS of the in-sample improvement (what the candidate explains), over blocks and axes,
+    #: deg/s.
     effect_rms_dps: float
+    #: In-sample and held-out gap with the candidate added, deg/s.
     gap_dps: float
     heldout_gap_dps: float
+    #: Significant, held-out gain and effect size all above their thresholds.
     passed: bool
+    #: Which test failed (empty when passed).
     why_not: str
+    #: Fitted coefficients (q, 3) of the candidate's columns (SI units of the feature).
     coef: NDArray[np.float64] = field(repr=False)
 
 
@@ -139,57 +112,38 @@ class Unidentifiable:
 
 @dataclass(frozen=True)
 class Step:
-    """
-    One discovery step: the effect named, the evidence and the gap before and after.
+    """One discovery step: the effect named, the evidence and the gap before and after."""
 
-    Parameters
-    ----------
-    effect : str
-        The effect added.
-    aliases : tuple of str
-        Candidates this data cannot tell apart from it.
-    description : str
-        Its physics (``EFFECTS[effect].description``).
-    params : dict
-        Its fitted parameters (time constants, s).
-    coef_dps : NDArray[np.float64], shape (q, 3)
-        Its coefficients per axis in deg/s per feature unit (after the refit).
-    gap_before_dps, gap_after_dps : float, deg/s
-        In-sample gap before and after.
-    heldout_gap_before_dps, heldout_gap_after_dps : float, deg/s
-        Held-out gap before and after.
-    candidates : tuple of CandidateScore
-        Every candidate scored at this step, best first.
-    maps_before, maps_after : tuple of BinMap
-        Residual maps before and after.
-    adev_tau_s : NDArray[np.float64], shape (M,), s
-        Allan deviation averaging times (longest run, full rate).
-    adev_before_dps, adev_after_dps : NDArray[np.float64], shape (M,), deg/s
-        Allan deviation of the residual before and after (RMS over axes).
-    best : CandidateScore, optional
-        The score of the effect added.
-    thermal : ThermalState, optional
-        The thermal state of the model after the step, tau with its profile interval (None
-        without ``lag``).
-
-    """
-
+    #: The effect added.
     effect: str
+    #: Candidates this data cannot tell apart from it.
     aliases: tuple[str, ...]
+    #: Its physics (``EFFECTS[effect].description``).
     description: str
+    #: Its fitted parameters (time constants, s).
     params: dict
+    #: Its coefficients (q, 3) per axis in deg/s per feature unit (after the refit).
     coef_dps: NDArray[np.float64]
+    #: In-sample gap before and after, deg/s.
     gap_before_dps: float
     gap_after_dps: float
+    #: Held-out gap before and after, deg/s.
     heldout_gap_before_dps: float
     heldout_gap_after_dps: float
+    #: Every candidate scored at this step, best first.
     candidates: tuple[CandidateScore, ...] = field(repr=False)
+    #: Residual maps before and after.
     maps_before: tuple[BinMap, ...] = field(repr=False)
     maps_after: tuple[BinMap, ...] = field(repr=False)
+    #: Allan deviation averaging times (M,) (longest run, full rate), s.
     adev_tau_s: NDArray[np.float64] = field(repr=False)
+    #: Allan deviation (M,) of the residual before and after (RMS over axes), deg/s.
     adev_before_dps: NDArray[np.float64] = field(repr=False)
     adev_after_dps: NDArray[np.float64] = field(repr=False)
+    #: The score of the effect added.
     best: CandidateScore | None = field(default=None, repr=False)
+    #: The thermal state of the model after the step, tau with its profile interval (None
+    #: without ``lag``).
     thermal: ThermalState | None = None
 
 
@@ -301,9 +255,7 @@ class DiscoveryResult:
             ``tau_interval_s``, ``identifiable``) when the final model has a thermal state.
 
         """
-        def pl(v: object) -> object:
-            return plain(v, nan_to_none=True)
-
+        pl = partial(plain, nan_to_none=True)
         steps = [{
             'effect': s.effect, 'aliases': list(s.aliases), 'description': s.description,
             'gap_before_dps': float(s.gap_before_dps), 'gap_after_dps': float(s.gap_after_dps),

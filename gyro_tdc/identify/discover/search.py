@@ -36,7 +36,7 @@ from gyro_tdc.identify.discover.data import (bandwidth, BlockData, COLLINEAR, co
                                              weighted_corr, wsse)
 from gyro_tdc.identify.discover.report import residual_adev, residual_maps
 from gyro_tdc.identify.discover.results import CandidateScore, DiscoveryResult, Step
-from gyro_tdc.identify.fit import check_finite, estimate_t0, fit_model, MIN_SPAN_C
+from gyro_tdc.identify.fit import check_finite, estimate_t0, fit_model, MIN_SPAN_C, span
 from gyro_tdc.identify.tau import effective_samples, fit_time_constant, profile_interval
 from gyro_tdc.model import (EFFECTS, NONLINEAR_EFFECTS, normalise_ids, STATIC_EFFECTS,
                             TEMPERATURE_EFFECTS, THERMAL_EFFECTS, ThermalState, with_implied)
@@ -78,7 +78,7 @@ def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
     """Return the search bounds of an effect's time constant, s."""
     lo, hi = EFFECTS[eid].bounds.get('tau_s', _SMOOTHING_BOUNDS_S)
     longest = max(r.duration_s for r in data.runs)
-    grid_step = max(float(g[0][1] - g[0][0]) if g[0].size > 1 else 1.0 for g in data.grids)
+    grid_step = max(float(g[0][1] - g[0][0]) for g in data.grids)    # every grid: 2+ points
     # A warm-up shorter than three blocks is a dummy for the first block.
     lo = max(lo, 2.0 * grid_step, 3.0 * data.block_s if eid == 'warmup' else 0.0)
     return lo, min(hi, max(2.0 * longest, 4.0 * lo))
@@ -226,13 +226,13 @@ def _score(data: BlockData, model: LinearModel, rnd: _Round, eid: str, params: d
     gain = (mse_m - mse(data, ho)) * DEG ** 2
     eff = math.sqrt(max(wsse(data, rnd.resid) - wsse(data, r), 0.0) / (3.0 * data.w.sum())) * DEG
     if idx:
-        p = hac_pvalue(cand, coef, idx, lags)
+        p = hac_pvalue(cand, idx, lags)
     else:
         # A candidate that changes the model instead of adding columns (the thermal state)
         # is not nested in it: Davidson and MacKinnon's J test adds its fitted values to
         # the current model as one column per axis and tests that column.
         aug = LinearModel(data, model.effects, model.params, extra=pred)
-        p = hac_pvalue(aug, aug.fit(), aug.columns_of('extra'), lags)
+        p = hac_pvalue(aug, aug.columns_of('extra'), lags)
     floor = data.floor * DEG
     why = [f'p={p:.2g}'] if p >= o.alpha / max(n_cand, 1) else []
     if gain <= max(o.min_heldout * floor ** 2, 0.01 * mse_m * DEG ** 2):
@@ -256,51 +256,34 @@ def _score(data: BlockData, model: LinearModel, rnd: _Round, eid: str, params: d
 
 @dataclass(frozen=True)
 class DiscoverOptions:
-    """
-    What :func:`discover` starts from, which candidates it tries and its false-discovery guard.
+    """What :func:`discover` starts from, the candidates it tries and its false-discovery guard."""
 
-    Parameters
-    ----------
-    base : str or sequence of str
-        Effects of the starting model (``'bias,dT'``: eq. 18's conventional model); ``bias``
-        is always included, as one offset per run.
-    candidates : str or sequence of str, optional
-        Effects to try (default: every catalog effect not in ``base``).
-    block_s : float, s
-        Block length of the analysis; gaps and the noise floor are RMS of block means.
-    t0 : float, optional, degC
-        Reference temperature (default :func:`gyro_tdc.identify.estimate_t0` of the first run).
-    alpha : float
-        Family-wise significance level per step (Bonferroni over candidates and axes).
-    min_heldout : float
-        Smallest held-out gain, as a fraction of the squared noise floor.
-    min_effect : float
-        Smallest effect RMS, as a fraction of the noise floor.
-    alias_margin : float
-        A candidate within this fraction of the best held-out gain...
-    alias_corr : float
-        ...whose fitted contribution correlates at least this much with the best's is an alias.
-    max_steps : int
-        Most effects added.
-    n_folds : int
-        Cross-validation folds for a single run (:func:`make_folds`; several runs: leave one
-        run out).
-    allan : bool
-        Compute the Allan deviation of the residual before and after each step.
-
-    """
-
+    #: Effects of the starting model (``'bias,dT'``: eq. 18's conventional model); ``bias``
+    #: is always included, as one offset per run.
     base: str | Sequence[str] = ('bias', 'dT')
+    #: Effects to try (default: every catalog effect not in ``base``).
     candidates: str | Sequence[str] | None = None
+    #: Block length of the analysis, s; gaps and the noise floor are RMS of block means.
     block_s: float = 10.0
+    #: Reference temperature, degC (default :func:`gyro_tdc.identify.estimate_t0` of the
+    #: first run).
     t0: float | None = None
+    #: Family-wise significance level per step (Bonferroni over candidates and axes).
     alpha: float = 0.01
+    #: Smallest held-out gain, as a fraction of the squared noise floor.
     min_heldout: float = 0.1
+    #: Smallest effect RMS, as a fraction of the noise floor.
     min_effect: float = 0.6
+    #: A candidate within this fraction of the best held-out gain...
     alias_margin: float = 0.25
+    #: ...whose fitted contribution correlates at least this much with the best's is an alias.
     alias_corr: float = 0.9
+    #: Most effects added.
     max_steps: int = 6
+    #: Cross-validation folds for a single run (:func:`make_folds`; several runs: leave one
+    #: run out).
     n_folds: int = 5
+    #: Compute the Allan deviation of the residual before and after each step.
     allan: bool = True
 
 
@@ -553,6 +536,6 @@ def model_features(result: DiscoveryResult, runs: Sequence[Run]) -> tuple[str, .
     at a fixed ambient) the temperature effects, base ``dT`` included, are left out: the data
     say nothing about them.
     """
-    span = max(float(np.max(r.temp)) for r in runs) - min(float(np.min(r.temp)) for r in runs)
+    lo, hi = span([r.temp for r in runs])
     return tuple(e for e in result.final_effects
-                 if span >= MIN_SPAN_C or e not in TEMPERATURE_EFFECTS)
+                 if hi - lo >= MIN_SPAN_C or e not in TEMPERATURE_EFFECTS)

@@ -146,7 +146,7 @@ def test_hac_pvalue_of_a_present_and_an_absent_curvature(a2, significant):
     coef = model.fit()
     r = (data.y - model.predict(coef)) * data.sw[:, None]
     lags = [bandwidth(r[:, a]) for a in range(3)]
-    p = hac_pvalue(model, coef, model.columns_of('dT2'), lags)
+    p = hac_pvalue(model, model.columns_of('dT2'), lags)
     assert 0.0 <= p <= 1.0
     assert (p < 1e-20) if significant else (p > 0.1)
 
