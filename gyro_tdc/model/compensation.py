@@ -33,7 +33,7 @@ from gyro_tdc.base import plain
 from gyro_tdc.errors import FeatureError
 from gyro_tdc.model.effects import batch_features, input_ids, StreamingFeatures, THERMAL_EFFECTS
 from gyro_tdc.model.out_of_range import check_policy, MAX_EXTRAPOLATION_C, split, Tangent
-from gyro_tdc.model.thermal_state import SETTLE_TAUS, ThermalState
+from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 from numpy.typing import NDArray
 
@@ -389,8 +389,8 @@ class StreamingCompensator:
     Compensate one sample at a time, exactly as :func:`compensate` does on a whole run.
 
     With a thermal state the state starts at the first measured temperature (steady-state
-    assumption); :attr:`thermal_settled` says when :data:`gyro_tdc.model.thermal_state.SETTLE_TAUS`
-    time constants have passed since that first sample, judged by the stamps.
+    assumption); :attr:`thermal_progress` counts the time constants passed since that first
+    sample, judged by the stamps (settled at :data:`gyro_tdc.model.thermal_state.SETTLE_TAUS`).
 
     Parameters
     ----------
@@ -447,12 +447,6 @@ class StreamingCompensator:
         None when the model has no lagged state (kind ``none``).
         """
         return None if self.thermal.thermal.kind == 'none' else self.thermal.progress
-
-    @property
-    def thermal_settled(self) -> bool:
-        """Return False while a lagged state is within its first ``SETTLE_TAUS`` tau."""
-        p = self.thermal_progress
-        return p is None or p >= SETTLE_TAUS
 
     def shift_offset(self, delta: NDArray[np.float64]) -> None:
         """Add ``delta`` (3,), rad/s, to the modelled drift (start-up re-anchoring)."""

@@ -233,14 +233,9 @@ def _drive_profile(spec: VehicleSpec, leg: Leg, rng: np.random.Generator
 
 def _pl(tk: list[float], vk: list[float], t: NDArray[np.float64]
         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return a piecewise-linear function through knots and its slope at ``t``."""
-    tk_a, vk_a = np.asarray(tk, dtype=np.float64), np.asarray(vk, dtype=np.float64)
-    value = np.interp(t, tk_a, vk_a)
-    dt = np.diff(tk_a)
-    slopes = np.where(dt > 0.0, np.diff(vk_a) / np.where(dt > 0.0, dt, 1.0), 0.0)
-    i = np.clip(np.searchsorted(tk_a, t, side='right') - 1, 0, max(slopes.size - 1, 0))
-    inside = (t >= tk_a[0]) & (t < tk_a[-1])
-    return value, np.where(inside, slopes[i] if slopes.size else 0.0, 0.0)
+    """Return the piecewise-linear function through knots (from 0 s) and its slope at ``t``."""
+    f = Profile(np.asarray(tk, dtype=np.float64), np.asarray(vk, dtype=np.float64))
+    return f.value(t), f.slope(t)
 
 
 def vehicle_motion(spec: VehicleSpec, legs: tuple[Leg, ...], imu_t: NDArray[np.float64],
