@@ -35,10 +35,11 @@ from gyro_tdc.model.effects import batch_features, input_ids, StreamingFeatures,
 from gyro_tdc.model.out_of_range import check_policy, MAX_EXTRAPOLATION_C, split, Tangent
 from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['CompensationModel', 'FORMAT_VERSION', 'StreamingCompensator', 'compensate',
-           'drift', 'model_temperature', 'predict_drift', 'rbf_design', 'static_slope']
+           'drift', 'model_temperature', 'predict_drift', 'rbf_design', 'static_slope',
+           'steady_drift']
 
 KINDS = ('rbf', 'poly')
 #: The model-file format every model is (:mod:`gyro_tdc.model.modelfile` writes and reads it).
@@ -341,21 +342,33 @@ def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.flo
     return _drift(model, t, temp, clamp, out_of_range, max_extrapolation_c, chunk)[0]
 
 
+def steady_drift(model: CompensationModel, temps: ArrayLike, **policy: Any
+                 ) -> NDArray[np.float64]:
+    """
+    Return the drift b(T) (N, 3) of ``model`` held long at each temperature ``temps`` (degC).
+
+    The static drift: the thermal state equals T, dT/dt is 0 and the warm-up has decayed
+    (each temperature held 1e7 s twice after one settling sample, so the batch features
+    are their settled values). ``policy``: :func:`drift`'s ``clamp`` or ``out_of_range``.
+    """
+    temps = np.asarray(temps, dtype=np.float64).reshape(-1)
+    u = np.concatenate([temps[:1], np.repeat(temps, 2)])
+    return drift(model, np.arange(u.size) * 1e7, u, **policy)[2::2]
+
+
 def static_slope(model: CompensationModel) -> NDArray[np.float64]:
     """
     Return the mean slope of the static drift over the trained range, per degC per axis.
 
-    The static drift is the drift at thermal equilibrium (every dynamic term settled); its
-    change across ``temp_range_c`` over the span, in the model's unit (rad/s, m/s^2 for an
-    accelerometer part) per degC; NaN without a span. For the conventional f(dT) it is the
-    zero-rate level change per degC (eq. 18, alpha).
+    The change of :func:`steady_drift` across ``temp_range_c`` over the span, in the model's
+    unit (rad/s, m/s^2 for an accelerometer part) per degC; NaN without a span. For the
+    conventional f(dT) it is the zero-rate level change per degC (eq. 18, alpha).
     """
     lo, hi = (float(v) for v in model.temp_range_c)
     if not hi > lo:
         return np.full(3, math.nan)
-    t = np.arange(3, dtype=np.float64) * 1e7      # far apart: every dynamic term settled
-    b = drift(model, t, np.array([lo, lo, hi]), clamp=True)     # a settling sample, the ends
-    return (b[2] - b[1]) / (hi - lo)
+    b = steady_drift(model, [lo, hi])
+    return (b[1] - b[0]) / (hi - lo)
 
 
 def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
