@@ -159,10 +159,10 @@ def heated_profile(ambient: Profile, spec: VehicleSpec, legs: tuple[Leg, ...],
 def gravity_in_sensor(gravity_mps2: float, roll_deg: NDArray[np.float64],
                       pitch_deg: NDArray[np.float64]) -> NDArray[np.float64]:
     """
-    Return the specific force of gravity in the sensor frame for arrays of roll and pitch.
+    Return the specific force of gravity at rest in the sensor frame, (N, 3), m/s^2.
 
-    The convention of :func:`gyro_tdc.sim.simulator.gravity_vector` (``(0, 0, g)`` level),
-    vectorised: shape (N, 3), m/s^2.
+    ``g (-sin p, sin r cos p, cos r cos p)`` for arrays of roll r (about x) and pitch p
+    (about y) in degrees: ``(0, 0, g)`` when level.
     """
     r, p = np.radians(roll_deg), np.radians(pitch_deg)
     return gravity_mps2 * np.stack([-np.sin(p), np.sin(r) * np.cos(p), np.cos(r) * np.cos(p)],
