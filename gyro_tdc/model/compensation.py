@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, fields, replace
 import hashlib
 import json
 import math
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar
 
 from gyro_tdc.base import plain
 from gyro_tdc.errors import FeatureError
@@ -505,19 +505,3 @@ class StreamingCompensator:
         """
         b = self.drift(t, temp)
         return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + self.dt_c * self.model.scale)
-
-
-def summary(model: CompensationModel) -> Mapping[str, Any]:
-    """Return a short plain-type description of a model (for logs and diagnostics)."""
-    out = {'model_id': model.model_id, 'kind': model.kind, 'features': list(model.features),
-           'centers': model.n_centers, 't0_c': model.t0_c,
-           'temp_range_c': [float(v) for v in model.temp_range_c],
-           'effect_params': model.effect_params,
-           'residual_std_dps': [math.degrees(math.sqrt(v)) for v in model.residual_var],
-           'format_version': FORMAT_VERSION, 'thermal': model.thermal.to_dict()}
-    if model.accel is not None:
-        a = model.accel
-        out['accel'] = {'model_id': a.model_id, 'kind': a.kind, 'features': list(a.features),
-                        'temp_range_c': [float(v) for v in a.temp_range_c],
-                        'residual_std_mps2': [math.sqrt(v) for v in a.residual_var]}
-    return out
