@@ -20,9 +20,9 @@ import copy
 import math
 import re
 
-from gyro_tdc.base.resources import scenario_names
+from gyro_tdc.base.resources import config_dir, scenario_names
 from gyro_tdc.errors import ScenarioError
-from gyro_tdc.sim import load_scenario, Scenario, scenario_dir, simulate_run, simulate_scenario
+from gyro_tdc.sim import load_scenario, Scenario, simulate_run, simulate_scenario
 from gyro_tdc.sim.scenario import DEFAULTS
 import numpy as np
 import pytest
@@ -37,7 +37,7 @@ MINIMAL = {'profile': {'start_c': 20.0, 'segments': [{'kind': 'hold', 'duration_
 
 def test_the_expected_scenarios_are_shipped():
     assert set(SHIPPED) <= set(scenario_names())
-    assert (scenario_dir() / 'l3gd20_paper.yaml').is_file()
+    assert (config_dir() / 'scenarios' / 'l3gd20_paper.yaml').is_file()
 
 
 @pytest.mark.parametrize('name', sorted(set(SHIPPED) | set(scenario_names())))
