@@ -64,6 +64,10 @@ def test_kinds_fields_and_validation():
     th = ThermalState('two_node', [30, 400.0], [[20, 40], [350, 480.0]], True)
     assert th.tau_s == (30.0, 400.0) and th.tau_total_s == 430.0
     assert th.tau_interval_s == ((20.0, 40.0), (350.0, 480.0))
+    s = th.stream()                                    # settled SETTLE_TAUS x 430 s after
+    s.update(0.0, 20.0)
+    s.update(SETTLE_TAUS * 430.0, 20.0)
+    assert s.settled and s.progress == SETTLE_TAUS
     for kw, msg in [({'kind': 'three_node'}, '`kind` must be one of none, first_order'),
                     ({'kind': []}, '`kind` must be one of none, first_order'),
                     ({'kind': {'a': 1}}, '`kind` must be one of none, first_order'),
