@@ -30,7 +30,7 @@ import math
 from typing import Sequence
 
 from gyro_tdc.fleet.results import AXES, SensorResult
-from gyro_tdc.model import CompensationModel, drift
+from gyro_tdc.model import CompensationModel, steady_drift
 import numpy as np
 from numpy.typing import NDArray
 
@@ -51,9 +51,7 @@ def drift_polynomial(model: CompensationModel, *, points: int = 41) -> NDArray[n
     """
     lo, hi = model.temp_range_c
     grid = np.linspace(lo, hi, points)
-    temp = np.concatenate(([grid[0]], grid))          # a settling sample, dropped below
-    t = np.arange(temp.size, dtype=np.float64) * 1e7
-    b = np.degrees(drift(model, t, temp, clamp=True)[1:])
+    b = np.degrees(steady_drift(model, grid))
     design = np.stack((np.ones_like(grid), grid, grid * grid), axis=1)
     coef, *_ = np.linalg.lstsq(design, b, rcond=None)
     return coef.T.copy()

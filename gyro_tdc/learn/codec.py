@@ -115,20 +115,10 @@ def _maybe(check: Callable[[Any, str], Any]) -> Callable[[Any, str], Any]:
     return lambda v, name: None if v is None else check(v, name)
 
 
-def _stamp(v: Any, name: str) -> float:
-    """Return a stamp, s."""
-    return _number(v, name, -MAX_STAMP_S, MAX_STAMP_S, 'a stamp in s')
-
-
 def _fields(v: Any, name: str, checks: dict, optional: tuple = ()) -> dict:
     """Return the mapping ``v`` of the keys of ``checks`` (``optional`` ones may lack), checked."""
     v = _dict(v, name, [k for k in checks if k not in optional], optional=optional)
     return {k: check(v[k], f'{name}.{k}') for k, check in checks.items() if k in v}
-
-
-def _temp(v: Any, name: str) -> float:
-    """Return a plausible temperature, degC."""
-    return _number(v, name, *_TEMP)
 
 
 def _rates(v: Any, name: str) -> tuple[float, float, float]:
@@ -136,6 +126,9 @@ def _rates(v: Any, name: str) -> tuple[float, float, float]:
     return tuple(_CHK.numbers(v, name, 3, *_RATE))
 
 
+#: A stamp (s), a plausible temperature (degC) and a sample count.
+_stamp = partial(_number, lo=-MAX_STAMP_S, hi=MAX_STAMP_S, what='a stamp in s')
+_temp = partial(_number, lo=TEMP_PLAUSIBLE_C[0], hi=TEMP_PLAUSIBLE_C[1], what=_TEMP[2])
 _samples = partial(_number, lo=1.0, hi=MAX_COUNT, what='a sample count')
 #: The items of a point-table entry (:class:`Entry`) and of a recent window: (label, check).
 _ENTRY = ((' (t_end)', _stamp), (' (samples)', _samples), (' (temperature)', _temp),

@@ -32,8 +32,8 @@ from typing import Sequence
 
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag,
-                            MAX_EXTRAPOLATION_C, normalise_ids, STATE_TERMS, THERMAL_EFFECTS,
-                            ThermalState)
+                            MAX_EXTRAPOLATION_C, normalise_ids, STATE_TERMS, steady_drift,
+                            THERMAL_EFFECTS, ThermalState)
 from gyro_tdc.signal import (curve_untold, fit_columns, Folds, hat, heldout, judge_curve,
                              session_columns, within)
 import numpy as np
@@ -333,10 +333,7 @@ def on_prior(prior: CompensationModel, rows: NDArray[np.float64],
     if not temp.size:
         return out
     lo, hi = prior.temp_range_c
-    m = at_state(prior)
-    # Samples far apart (every dynamic term settled), a settling sample first.
-    t = np.arange(temp.size + 1, dtype=np.float64) * 1e7
-    out[:, cr:cr + 3] -= drift(m, t, np.r_[temp[:1], temp], out_of_range='linear')[1:]
+    out[:, cr:cr + 3] -= steady_drift(at_state(prior), temp, out_of_range='linear')
     out[:, ct] = np.clip(temp, lo - MAX_EXTRAPOLATION_C, hi + MAX_EXTRAPOLATION_C)
     return out
 

@@ -23,7 +23,7 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'compensation': ['compensate', 'CompensationModel', 'drift', 'KINDS', 'model_temperature',
-                     'rbf_design', 'static_slope', 'StreamingCompensator'],
+                     'rbf_design', 'static_slope', 'steady_drift', 'StreamingCompensator'],
     'effects': ['batch_features', 'EFFECT_IDS', 'EFFECTS', 'input_ids',
                 'NONLINEAR_EFFECTS', 'normalise_ids', 'REFERENCE_EFFECTS', 'resolve_params',
                 'STATE_TERMS', 'STATIC_EFFECTS', 'TEMPERATURE_EFFECTS', 'THERMAL_EFFECTS',

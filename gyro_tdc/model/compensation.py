@@ -27,18 +27,19 @@ from dataclasses import dataclass, field, fields, replace
 import hashlib
 import json
 import math
-from typing import Any, ClassVar, Mapping
+from typing import Any, ClassVar
 
 from gyro_tdc.base import plain
 from gyro_tdc.errors import FeatureError
 from gyro_tdc.model.effects import batch_features, input_ids, StreamingFeatures, THERMAL_EFFECTS
 from gyro_tdc.model.out_of_range import check_policy, MAX_EXTRAPOLATION_C, split, Tangent
-from gyro_tdc.model.thermal_state import SETTLE_TAUS, ThermalState
+from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['CompensationModel', 'FORMAT_VERSION', 'StreamingCompensator', 'compensate',
-           'drift', 'model_temperature', 'predict_drift', 'rbf_design', 'static_slope']
+           'drift', 'model_temperature', 'predict_drift', 'rbf_design', 'static_slope',
+           'steady_drift']
 
 KINDS = ('rbf', 'poly')
 #: The model-file format every model is (:mod:`gyro_tdc.model.modelfile` writes and reads it).
@@ -341,21 +342,33 @@ def drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.flo
     return _drift(model, t, temp, clamp, out_of_range, max_extrapolation_c, chunk)[0]
 
 
+def steady_drift(model: CompensationModel, temps: ArrayLike, **policy: Any
+                 ) -> NDArray[np.float64]:
+    """
+    Return the drift b(T) (N, 3) of ``model`` held long at each temperature ``temps`` (degC).
+
+    The static drift: the thermal state equals T, dT/dt is 0 and the warm-up has decayed
+    (each temperature held 1e7 s twice after one settling sample, so the batch features
+    are their settled values). ``policy``: :func:`drift`'s ``clamp`` or ``out_of_range``.
+    """
+    temps = np.asarray(temps, dtype=np.float64).reshape(-1)
+    u = np.concatenate([temps[:1], np.repeat(temps, 2)])
+    return drift(model, np.arange(u.size) * 1e7, u, **policy)[2::2]
+
+
 def static_slope(model: CompensationModel) -> NDArray[np.float64]:
     """
     Return the mean slope of the static drift over the trained range, per degC per axis.
 
-    The static drift is the drift at thermal equilibrium (every dynamic term settled); its
-    change across ``temp_range_c`` over the span, in the model's unit (rad/s, m/s^2 for an
-    accelerometer part) per degC; NaN without a span. For the conventional f(dT) it is the
-    zero-rate level change per degC (eq. 18, alpha).
+    The change of :func:`steady_drift` across ``temp_range_c`` over the span, in the model's
+    unit (rad/s, m/s^2 for an accelerometer part) per degC; NaN without a span. For the
+    conventional f(dT) it is the zero-rate level change per degC (eq. 18, alpha).
     """
     lo, hi = (float(v) for v in model.temp_range_c)
     if not hi > lo:
         return np.full(3, math.nan)
-    t = np.arange(3, dtype=np.float64) * 1e7      # far apart: every dynamic term settled
-    b = drift(model, t, np.array([lo, lo, hi]), clamp=True)     # a settling sample, the ends
-    return (b[2] - b[1]) / (hi - lo)
+    b = steady_drift(model, [lo, hi])
+    return (b[1] - b[0]) / (hi - lo)
 
 
 def compensate(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.float64],
@@ -389,8 +402,8 @@ class StreamingCompensator:
     Compensate one sample at a time, exactly as :func:`compensate` does on a whole run.
 
     With a thermal state the state starts at the first measured temperature (steady-state
-    assumption); :attr:`thermal_settled` says when :data:`gyro_tdc.model.thermal_state.SETTLE_TAUS`
-    time constants have passed since that first sample, judged by the stamps.
+    assumption); :attr:`thermal_progress` counts the time constants passed since that first
+    sample, judged by the stamps (settled at :data:`gyro_tdc.model.thermal_state.SETTLE_TAUS`).
 
     Parameters
     ----------
@@ -448,12 +461,6 @@ class StreamingCompensator:
         """
         return None if self.thermal.thermal.kind == 'none' else self.thermal.progress
 
-    @property
-    def thermal_settled(self) -> bool:
-        """Return False while a lagged state is within its first ``SETTLE_TAUS`` tau."""
-        p = self.thermal_progress
-        return p is None or p >= SETTLE_TAUS
-
     def shift_offset(self, delta: NDArray[np.float64]) -> None:
         """Add ``delta`` (3,), rad/s, to the modelled drift (start-up re-anchoring)."""
         self.offset = self.offset + np.asarray(delta, dtype=np.float64).reshape(3)
@@ -498,19 +505,3 @@ class StreamingCompensator:
         """
         b = self.drift(t, temp)
         return (np.asarray(omega, dtype=np.float64) - b) / (1.0 + self.dt_c * self.model.scale)
-
-
-def summary(model: CompensationModel) -> Mapping[str, Any]:
-    """Return a short plain-type description of a model (for logs and diagnostics)."""
-    out = {'model_id': model.model_id, 'kind': model.kind, 'features': list(model.features),
-           'centers': model.n_centers, 't0_c': model.t0_c,
-           'temp_range_c': [float(v) for v in model.temp_range_c],
-           'effect_params': model.effect_params,
-           'residual_std_dps': [math.degrees(math.sqrt(v)) for v in model.residual_var],
-           'format_version': FORMAT_VERSION, 'thermal': model.thermal.to_dict()}
-    if model.accel is not None:
-        a = model.accel
-        out['accel'] = {'model_id': a.model_id, 'kind': a.kind, 'features': list(a.features),
-                        'temp_range_c': [float(v) for v in a.temp_range_c],
-                        'residual_std_mps2': [math.sqrt(v) for v in a.residual_var]}
-    return out

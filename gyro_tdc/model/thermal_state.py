@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import math
 from typing import Any, Mapping
 
+from gyro_tdc.base import is_number
 from gyro_tdc.errors import FeatureError
 from gyro_tdc.model.lag import first_order_lag
 import numpy as np
@@ -43,12 +44,9 @@ SETTLE_TAUS = 3.0
 
 def _positive(value: Any, name: str) -> float:
     """Return ``value`` as a positive finite float, or raise naming ``name``."""
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
-        raise FeatureError(f'`{name}` must be a number, got {value!r:.60}')
-    v = float(value)
-    if not (math.isfinite(v) and v > 0.0):
-        raise FeatureError(f'`{name}` must be a positive finite number, got {value!r}')
-    return v
+    if not (is_number(value) and float(value) > 0.0):
+        raise FeatureError(f'`{name}` must be a positive finite number, got {value!r:.60}')
+    return float(value)
 
 
 @dataclass(frozen=True)
@@ -110,11 +108,6 @@ class ThermalState:
     def tau_total_s(self) -> float:
         """Return the state's mean delay behind a ramp: the sum of the time constants, s."""
         return float(sum(self.tau_s))
-
-    @property
-    def settle_s(self) -> float:
-        """Return the time after the first sample at which the state counts as settled, s."""
-        return SETTLE_TAUS * self.tau_total_s
 
     def temperature(self, t: ArrayLike, temp: ArrayLike) -> NDArray[np.float64]:
         """
@@ -225,15 +218,12 @@ class StreamingThermalState:
         return u
 
     @property
-    def elapsed_s(self) -> float:
-        """Return the stamp time since the first sample, s (0 before any)."""
-        return 0.0 if self._t_first is None else self._t_prev - self._t_first
-
-    @property
     def progress(self) -> float:
-        """Return the elapsed time in time constants (``inf`` without a lag)."""
+        """Return the stamp time since the first sample in time constants (``inf``: no lag)."""
         total = self.thermal.tau_total_s
-        return math.inf if total == 0.0 else self.elapsed_s / total
+        if total == 0.0:
+            return math.inf
+        return 0.0 if self._t_first is None else (self._t_prev - self._t_first) / total
 
     @property
     def settled(self) -> bool:

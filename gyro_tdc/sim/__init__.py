@@ -25,7 +25,7 @@ from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim.chamber import (heat_conduction_time_s, max_temperature_step_c, nice_ceil,
                                   nice_floor, Profile, simulate_thermal, staircase_plan,
                                   StaircasePlan, ThermalHistory)
-from gyro_tdc.sim.scenario import load_scenario, Scenario, scenario_dir
+from gyro_tdc.sim.scenario import load_scenario, Scenario
 from gyro_tdc.sim.simulator import (SimRun, SimStream, SimTruth, simulate_run, simulate_scenario,
                                     to_run)
 from gyro_tdc.sim.specs import PRESETS
@@ -33,6 +33,5 @@ from gyro_tdc.sim.vehicle import CMD_VEL_TOPIC, TRUTH_TOPIC
 
 __all__ = ['CMD_VEL_TOPIC', 'EFFECT_IDS', 'PRESETS', 'Profile', 'Scenario', 'SimRun', 'SimStream',
            'SimTruth', 'StaircasePlan', 'ThermalHistory', 'TRUTH_TOPIC', 'heat_conduction_time_s',
-           'load_scenario', 'max_temperature_step_c', 'nice_ceil', 'nice_floor',
-           'scenario_dir', 'simulate_run', 'simulate_scenario', 'simulate_thermal',
-           'staircase_plan', 'to_run']
+           'load_scenario', 'max_temperature_step_c', 'nice_ceil', 'nice_floor', 'simulate_run',
+           'simulate_scenario', 'simulate_thermal', 'staircase_plan', 'to_run']

@@ -31,10 +31,9 @@ import copy
 from dataclasses import dataclass, field
 import math
 import os
-from pathlib import Path
 from typing import Any, Callable, Mapping, Optional, Union
 
-from gyro_tdc.base import (config_dir, FieldChecker, is_number, plain, read_yaml, SCENARIO_LIMITS,
+from gyro_tdc.base import (FieldChecker, is_number, plain, read_yaml, SCENARIO_LIMITS,
                            scenario_path)
 from gyro_tdc.errors import GyroTdcError, ScenarioError
 from gyro_tdc.model import EFFECT_IDS
@@ -45,7 +44,7 @@ from gyro_tdc.sim.vehicle import VEHICLE_FIELDS, VehicleSpec
 import numpy as np
 
 __all__ = ['DEFAULTS', 'DEG', 'FORMAT_VERSION', 'Scenario', 'load_scenario', 'merge',
-           'scenario_dir', 'validate']
+           'validate']
 
 FORMAT_VERSION = 1
 DEG = math.pi / 180.0
@@ -445,24 +444,6 @@ class Scenario:
 # --------------------------------------------------------------------------------------------
 # Files
 # --------------------------------------------------------------------------------------------
-
-def scenario_dir() -> Path:
-    """
-    Return the directory of the shipped scenarios (``config/scenarios``).
-
-    Returns
-    -------
-    pathlib.Path
-        Found through :func:`gyro_tdc.base.resources.config_dir`.
-
-    Raises
-    ------
-    ScenarioError
-        If the configuration directory cannot be found.
-
-    """
-    return _as_scenario_error(config_dir) / 'scenarios'
-
 
 def _as_scenario_error(call: Any, *args: Any) -> Any:
     """Return ``call(*args)``; a resource error becomes a ScenarioError (one message)."""

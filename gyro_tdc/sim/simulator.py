@@ -43,7 +43,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['G0', 'ImuChunk', 'RefChunk', 'SimRun', 'SimStream', 'SimTruth', 'TempChunk',
-           'gravity_vector', 'simulate_run', 'simulate_scenario', 'to_run']
+           'simulate_run', 'simulate_scenario', 'to_run']
 
 ScenarioLike = Union[Scenario, str, 'os.PathLike[str]', Mapping[str, Any]]
 
@@ -410,17 +410,6 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     return SimRun(name=name, imu_t=imu_t, gyro=gyro, accel=accel, temp_t=temp_t, temp_c=temp_c,
                   temp_var=float(temp_var), ref_t=ref_t, ref=ref, truth=truth, scenario=sc.name,
                   seed=seed, run_index=run_index, rate_hz=rate, vehicle=motion)
-
-
-def gravity_vector(gravity_mps2: float, roll_deg: float, pitch_deg: float
-                   ) -> NDArray[np.float64]:
-    """
-    Return the specific force of gravity at rest in the sensor frame, m/s^2.
-
-    ``g (-sin p, sin r cos p, cos r cos p)`` for roll r (about x) and pitch p (about y) in
-    degrees: ``(0, 0, g)`` when level.
-    """
-    return gravity_in_sensor(gravity_mps2, np.array([roll_deg]), np.array([pitch_deg]))[0]
 
 
 def _accelerometer(spec: Any, noise_rng: np.random.Generator, tilt_rng: np.random.Generator,

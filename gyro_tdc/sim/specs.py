@@ -234,11 +234,6 @@ class AccelSpec:
     reorient_at_s: float = spec_field('nonneg', 0.0, 0.0)
     reorient_tilt_deg: tuple[float, float] = spec_field('tilt', [0.0, 0.0], (0.0, 0.0))
 
-    @property
-    def thermal(self) -> bool:
-        """Return True when the offset changes with temperature."""
-        return any(v != 0.0 for v in self.dT_mg_per_c + self.dT2_mg_per_c2)
-
 
 @dataclass(frozen=True)
 class RateTable:
@@ -256,11 +251,6 @@ class RateTable:
 
     t_s: tuple[float, ...]
     rate_rad_s: tuple[Vec3, ...]
-
-    @property
-    def moving(self) -> bool:
-        """Return True when any rate is non-zero."""
-        return any(v != 0.0 for row in self.rate_rad_s for v in row)
 
     def arrays(self) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Return the change points as arrays ``(t (R,), rate (R, 3))``."""

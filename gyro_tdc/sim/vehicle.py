@@ -159,10 +159,10 @@ def heated_profile(ambient: Profile, spec: VehicleSpec, legs: tuple[Leg, ...],
 def gravity_in_sensor(gravity_mps2: float, roll_deg: NDArray[np.float64],
                       pitch_deg: NDArray[np.float64]) -> NDArray[np.float64]:
     """
-    Return the specific force of gravity in the sensor frame for arrays of roll and pitch.
+    Return the specific force of gravity at rest in the sensor frame, (N, 3), m/s^2.
 
-    The convention of :func:`gyro_tdc.sim.simulator.gravity_vector` (``(0, 0, g)`` level),
-    vectorised: shape (N, 3), m/s^2.
+    ``g (-sin p, sin r cos p, cos r cos p)`` for arrays of roll r (about x) and pitch p
+    (about y) in degrees: ``(0, 0, g)`` when level.
     """
     r, p = np.radians(roll_deg), np.radians(pitch_deg)
     return gravity_mps2 * np.stack([-np.sin(p), np.sin(r) * np.cos(p), np.cos(r) * np.cos(p)],
@@ -233,14 +233,9 @@ def _drive_profile(spec: VehicleSpec, leg: Leg, rng: np.random.Generator
 
 def _pl(tk: list[float], vk: list[float], t: NDArray[np.float64]
         ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return a piecewise-linear function through knots and its slope at ``t``."""
-    tk_a, vk_a = np.asarray(tk, dtype=np.float64), np.asarray(vk, dtype=np.float64)
-    value = np.interp(t, tk_a, vk_a)
-    dt = np.diff(tk_a)
-    slopes = np.where(dt > 0.0, np.diff(vk_a) / np.where(dt > 0.0, dt, 1.0), 0.0)
-    i = np.clip(np.searchsorted(tk_a, t, side='right') - 1, 0, max(slopes.size - 1, 0))
-    inside = (t >= tk_a[0]) & (t < tk_a[-1])
-    return value, np.where(inside, slopes[i] if slopes.size else 0.0, 0.0)
+    """Return the piecewise-linear function through knots (from 0 s) and its slope at ``t``."""
+    f = Profile(np.asarray(tk, dtype=np.float64), np.asarray(vk, dtype=np.float64))
+    return f.value(t), f.slope(t)
 
 
 def vehicle_motion(spec: VehicleSpec, legs: tuple[Leg, ...], imu_t: NDArray[np.float64],

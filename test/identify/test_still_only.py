@@ -35,10 +35,10 @@ from gyro_tdc.identify.train import train_still_only, TrainOptions
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal import motion_veto
 from gyro_tdc.sim import load_scenario, simulate_run, to_run
-from gyro_tdc.sim.simulator import gravity_vector
 from gyro_tdc.sim.vehicle import CMD_VEL_TOPIC, gravity_in_sensor, TRUTH_TOPIC
 import numpy as np
 import pytest
+from scenarios import gravity_vector, table_moving
 import yaml
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -77,7 +77,7 @@ def test_vehicle_day_physics(days):
     assert np.degrees(np.abs(v.rate[~v.parked, 2]).max()) > 10.0
     np.testing.assert_allclose(d1.ref, v.rate)               # the truth, never a rate table
     assert not d1.moving                 # so a sim driver publishes no rate_table/reference
-    assert not load_scenario('vehicle_day1').rate_table.moving
+    assert not table_moving(load_scenario('vehicle_day1').rate_table)
     # The accelerometer reads the specific force plus its offset and noise.
     off = d1.truth.accel_offset
     assert np.abs(d1.accel - off - v.force)[v.parked].max() < 0.05

@@ -20,9 +20,10 @@ from pathlib import Path
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model.compensation import (compensate, CompensationModel, drift, model_temperature,
                                          predict_drift, rbf_design, static_slope,
-                                         StreamingCompensator, summary)
+                                         StreamingCompensator)
 from gyro_tdc.model.effects import batch_features
 from gyro_tdc.model.thermal_state import ThermalState
+from model_summary import summary
 import numpy as np
 import pytest
 from synth import synth_run

@@ -64,7 +64,10 @@ def test_kinds_fields_and_validation():
     th = ThermalState('two_node', [30, 400.0], [[20, 40], [350, 480.0]], True)
     assert th.tau_s == (30.0, 400.0) and th.tau_total_s == 430.0
     assert th.tau_interval_s == ((20.0, 40.0), (350.0, 480.0))
-    assert th.settle_s == SETTLE_TAUS * 430.0
+    s = th.stream()                                    # settled SETTLE_TAUS x 430 s after
+    s.update(0.0, 20.0)
+    s.update(SETTLE_TAUS * 430.0, 20.0)
+    assert s.settled and s.progress == SETTLE_TAUS
     for kw, msg in [({'kind': 'three_node'}, '`kind` must be one of none, first_order'),
                     ({'kind': []}, '`kind` must be one of none, first_order'),
                     ({'kind': {'a': 1}}, '`kind` must be one of none, first_order'),
@@ -116,12 +119,12 @@ def test_streaming_state_equals_batch_on_irregular_stamps_with_a_gap(thermal, se
 
 def test_settled_by_stamps_after_three_tau():
     s = StreamingThermalState(ThermalState('two_node', (20.0, 80.0)))
-    assert not s.settled and s.elapsed_s == 0.0
+    assert not s.settled and s.progress == 0.0
     s.update(1000.0, 25.0)
     s.update(1299.0, 25.0)
     assert s.progress == pytest.approx(2.99) and not s.settled
     s.update(1290.0, 25.0)                             # an older stamp: no time passes
-    assert s.elapsed_s == 299.0
+    assert s.progress * 100.0 == pytest.approx(299.0)
     s.update(1300.0, 25.0)
     assert s.settled and s.progress == pytest.approx(3.0)
     none = ThermalState().stream()
@@ -306,9 +309,9 @@ def test_streaming_compensator_reports_the_settling_state(lag_model):
     tau = lag_model.thermal.tau_total_s
     comp.drift(100.0, 20.0)
     comp.drift(100.0 + tau, 21.0)
-    assert comp.thermal_progress == pytest.approx(1.0) and not comp.thermal_settled
+    assert comp.thermal_progress == pytest.approx(1.0) and not comp.thermal.settled
     comp.drift(100.0 + 3 * tau, 21.0)
-    assert comp.thermal_settled
+    assert comp.thermal.settled and comp.thermal_progress >= SETTLE_TAUS
     comp.reset()
     assert comp.model_temp is None and comp.thermal_progress == 0.0
     static = lag_model.replace(features=('dT', 'dT2', 'dTdt'), effect_params={

@@ -23,9 +23,10 @@ from gyro_tdc.errors import ScenarioError
 from gyro_tdc.sim import (EFFECT_IDS, load_scenario, Scenario, SimStream, simulate_run,
                           simulate_scenario, to_run)
 from gyro_tdc.sim.noise import white_noise
-from gyro_tdc.sim.simulator import G0, gravity_vector
+from gyro_tdc.sim.simulator import G0
 import numpy as np
 import pytest
+from scenarios import accel_thermal, gravity_vector
 
 DEG = math.pi / 180.0
 
@@ -322,7 +323,7 @@ def test_bad_accel_fields_are_named(key, value, match):
 
 def test_accel_chamber_scenario_ships_and_to_run_carries_the_accelerometer():
     sc = load_scenario('accel_chamber')
-    assert sc.runs.count == 2 and sc.accel.thermal
+    assert sc.runs.count == 2 and accel_thermal(sc.accel)
     run = to_run(simulate_run(sc, seed=0, rate_hz=0.2))
     assert run.accel is not None and run.accel.shape == (len(run), 3)
     assert run.slice(5, 10).accel.shape == (5, 3)
