@@ -56,8 +56,8 @@ MAX_RATE = 0.02
 #: Default shortest still stretch kept by :func:`detect_still`, s.
 MIN_STILL_S = 60.0
 #: Auto still test (``min_still_s=None``): a shorter stretch is kept when it holds at least
-#: this many samples ...
-MIN_STILL_SAMPLES = 250
+#: this many samples (five windows of the fewest; 12 s at 8 Hz, a stop of an SD-card log) ...
+MIN_STILL_SAMPLES = 100
 #: ... and the standard error of its mean rate is at most this, rad/s (0.01 deg/s), on every
 #: axis: a 15 s stretch at 25 Hz of a quiet MEMS gyro, or 2 s at 1 kHz.
 MAX_STILL_SE = 1.75e-4
@@ -417,18 +417,21 @@ def _long_enough(g: NDArray[np.float64], duration: float, min_still_s: float | N
 
 def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
                      starts: NDArray[np.int64], why: NDArray[np.str_], dt: float,
-                     min_still_s: float | None) -> tuple[list, list]:
+                     window: float, min_still_s: float | None) -> tuple[list, list]:
     """
     Return the kept stretches of consecutive still windows and their durations.
 
     A stretch is a half-open sample range ``(start, stop)``; its duration, s, spans its
-    stamps plus one sample period ``dt``. The windows of a stretch too short to keep
+    stamps plus one sample period ``dt``. A gap in the stamps longer than a ``window``
+    (the logger stopped) ends a stretch. The windows of a stretch too short to keep
     (:func:`_long_enough`) are marked ``'brief'`` in ``why``, in place.
     """
     n = t.shape[0]
     ends = np.append(starts[1:], n)
-    edges = np.diff(np.concatenate([[0], (why == '').astype(np.int8), [0]]))
-    first_w, stop_w = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    still = why == ''
+    joined = still[1:] & still[:-1] & (t[starts[1:]] - t[starts[1:] - 1] <= window)
+    first_w = np.flatnonzero(still & ~np.r_[False, joined])
+    stop_w = np.flatnonzero(still & ~np.r_[joined, False]) + 1
     segments, durations = [], []
     for a, b in zip(first_w.tolist(), stop_w.tolist()):
         i0, i1 = int(starts[a]), int(ends[b - 1])
@@ -513,7 +516,7 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
                                                      starts, counts)[0]
     why = judge_windows(g_std, a_std, g_thr, a_thr, mean_rate=mean_rate, max_rate=max_rate,
                         moving=vetoed, counts=counts, finite=~bad)
-    segments, durations = _still_stretches(t, g, starts, why, dt, min_still_s)
+    segments, durations = _still_stretches(t, g, starts, why, dt, window, min_still_s)
     mask = np.repeat(why == '', counts) & finite      # the rows of the kept stretches
     reason = '' if segments else _no_still_reason(why, min_still_s)
     return Stillness(mask, tuple(segments), window, starts, counts, why, g_mean, g_std, a_mean,
