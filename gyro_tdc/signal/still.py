@@ -55,8 +55,9 @@ NOISE_DOF = 2 * MIN_WINDOW_SAMPLES
 MAX_RATE = 0.02
 #: Default shortest still stretch kept by :func:`detect_still`, s.
 MIN_STILL_S = 60.0
-#: Auto still test (``min_still_s=None``): a shorter stretch is kept when it holds at least
-#: this many samples (five windows of the fewest; 12 s at 8 Hz, a stop of an SD-card log) ...
+#: Auto still test (``min_still_s=None``): a shorter stretch is kept when it lasts
+#: :data:`STILL_WINDOW_S`, holds at least this many samples (five windows of the fewest; 12 s
+#: at 8 Hz, a stop of an SD-card log) ...
 MIN_STILL_SAMPLES = 100
 #: ... and the standard error of its mean rate is at most this, rad/s (0.01 deg/s), on every
 #: axis: a 15 s stretch at 25 Hz of a quiet MEMS gyro, or 2 s at 1 kHz.
@@ -411,8 +412,9 @@ def _long_enough(g: NDArray[np.float64], duration: float, min_still_s: float | N
     if min_still_s is not None:
         return duration + 1e-9 >= min_still_s
     n = g.shape[0]       # else long, or enough samples whose mean is known well enough
-    return duration + 1e-9 >= MIN_STILL_S or (n >= MIN_STILL_SAMPLES and bool(
-        np.all(np.nanstd(g, axis=0, ddof=1) / math.sqrt(n) <= MAX_STILL_SE)))
+    return duration + 1e-9 >= MIN_STILL_S or (
+        n >= MIN_STILL_SAMPLES and duration + 1e-9 >= STILL_WINDOW_S and bool(
+            np.all(np.nanstd(g, axis=0, ddof=1) / math.sqrt(n) <= MAX_STILL_SE)))
 
 
 def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
@@ -452,9 +454,10 @@ def _no_still_reason(why: NDArray[np.str_], min_still_s: float | None) -> str:
     if rej.get('brief'):
         return (f'no still stretch of {min_still_s:g} s or more (the longest still '
                 'stretch is shorter)' if min_still_s is not None else
-                f'no still stretch of {MIN_STILL_S:g} s or of {MIN_STILL_SAMPLES} '
-                f'samples with a mean known to {MAX_STILL_SE * 180.0 / math.pi:g} deg/s '
-                '(the still stretches are shorter or noisier)')
+                f'no still stretch of {MIN_STILL_S:g} s, or of {STILL_WINDOW_S:g} s and '
+                f'{MIN_STILL_SAMPLES} samples with a mean known to '
+                f'{MAX_STILL_SE * 180.0 / math.pi:.2g} deg/s (the still stretches are shorter '
+                'or noisier)')
     return 'no still window (the IMU moves)'
 
 
@@ -473,8 +476,9 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     samples a motion report vetoes. Windows last ``window_s`` (None: :func:`auto_window`), at
     least :data:`MIN_WINDOW_SAMPLES` sample periods. A stretch of consecutive still windows is kept
     when it lasts ``min_still_s`` (0 keeps every still window); None judges it by its samples
-    and its noise: :data:`MIN_STILL_S`, or :data:`MIN_STILL_SAMPLES` samples whose mean rate has
-    a standard error of at most :data:`MAX_STILL_SE` on every axis. ``gyro_std``/``accel_std``
+    and its noise: :data:`MIN_STILL_S`, or :data:`STILL_WINDOW_S` and :data:`MIN_STILL_SAMPLES`
+    samples whose mean rate has a standard error of at most :data:`MAX_STILL_SE` on every
+    axis; a gap in the stamps longer than a window ends a stretch. ``gyro_std``/``accel_std``
     > 0 are fixed thresholds; ``gyro_floor``/``accel_floor`` replace this run's own noise floors
     (e.g. the quietest window of several bags of one sensor): a run that never stops would look
     still to itself. ``again``: this call's own result on the same samples and windows, whose
