@@ -152,8 +152,9 @@ def check_note(model_path: Path) -> str:
     rec = load_model(model_path).metrics.get('sessions', {}).get('heldout')
     if not rec:
         return 'no check'
-    if not rec['folds']:
-        return "not judged (no session inside the others' temperatures)"
+    if 'worse_folds' not in rec:
+        return (f"not judged ({rec['folds']} of {rec['sessions']} sessions inside the others' "
+                f"temperatures), offset only: {','.join(rec['offset_only']) or '-'}")
     worse = ' '.join(map(str, rec['worse_folds']))
     return (f"{rec['folds']} folds (worse x y z: {worse}), offset only: "
             f"{','.join(rec['offset_only']) or '-'}")

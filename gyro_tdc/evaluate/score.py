@@ -394,8 +394,8 @@ def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]
     dt = float(np.median(np.diff(run.t))) if len(run) > 1 else 0.0
 
     def part(a: int, b: int) -> dict:
-        starts, stops = _stretches(still, a, b)
-        still_s = float(sum(run.t[j - 1] - run.t[i] + dt for i, j in zip(starts, stops)))
+        starts, _ = _stretches(still, a, b)
+        still_s = float(np.count_nonzero(still[a:b])) * dt     # a logging gap is no still time
         total_s = float(run.t[b - 1] - run.t[a] + dt) if b > a else 0.0
         temp = run.temp[a:b]
         return {'samples': int(np.count_nonzero(still[a:b])), 'stretches': int(starts.size),
@@ -455,14 +455,15 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     ``reanchor_s``, ``out_of_range`` and ``max_extrapolation_c`` as in
     :func:`evaluate_run`. ``log`` receives one line per bag;
     ``each`` is called with every :class:`BagEval` while its arrays are held (tables, plots,
-    CSV). A bag without a reference that moves is scored on its still stretches only.
+    CSV). A bag without a reference that moves is scored on its still stretches only; one
+    with none is skipped, said on ``log`` (FitError when no bag is left to score).
     ``found``: :func:`gyro_tdc.data.find_bags` of ``bags``, when the caller has it.
 
     Raises
     ------
     GyroTdcError
-        DatasetError: unreadable bag, or every gyro axis constant; FitError: no reference
-        and no still stretch.
+        DatasetError: unreadable bag, or every gyro axis constant; FitError: no bag with a
+        reference or a still stretch.
 
     """
     check_policy(out_of_range)
@@ -470,16 +471,19 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     found = find_bags(bags) if found is None else found
     paths = [p for p, _ in found]
     labels = dict(zip(map(str, paths), bag_labels(paths)))
-    results = []
+    results, unscored = [], []
     for run in iter_runs(bags, with_accel(bag), log=log, found=found):   # unreadable skipped
         label = labels[run.name]
         held_out_constant(run)              # every gyro axis constant: refused
         here = [replace(nm, model=onboard_model(nm.name, run)[0]) if nm.name in ONBOARD
                 else nm for nm in models]         # each log's own on-board parameters
         still = still_rows(run)
-        if still is not None and not still.any():
-            raise FitError(f'{run.name}: no reference rate and no still stretch to score '
-                           '(the IMU moves throughout; its motion is no drift).')
+        if still is not None and not still.any():      # nothing to score: said, skipped
+            unscored.append(f'{run.name}: no reference rate and no still stretch to score '
+                            '(the IMU moves throughout; its motion is no drift).')
+            if log is not None:
+                log(f'warning: skipped {unscored[-1]}')
+            continue
         b = evaluate_run(run, here, label=label, reanchor_s=reanchor_s,
                          out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c,
                          sessions=o.sessions, session_gap_s=o.session_gap_s, still=still)
@@ -487,6 +491,10 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
             each(b)
         b.release()
         results.append(b)
+    if unscored and not results:
+        raise FitError(unscored[0] if len(unscored) == 1 else
+                       f'no log has a still stretch to score ({len(unscored)} read); '
+                       f'{unscored[0]}')
     return results
 
 

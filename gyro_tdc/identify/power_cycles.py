@@ -58,6 +58,9 @@ __all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'reanchor_lines',
            'reanchor_rule', 'session_check_lines', 'SIGNIFICANCE']
 
 _DEG2 = (180.0 / math.pi) ** 2
+#: Fewest held-out power cycles that judge a curve of several: one that agrees is no
+#: evidence that the curve carries to the next.
+MIN_FOLDS = 2
 
 
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
@@ -72,18 +75,18 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     (features, target, scale columns, session, samples, model temperature); ``offsets`` its
     session offsets. Returns the fit and offsets with the offset-only axes each session's mean
     only, and the record: ``folds``, ``blocks``, held-out mean squares of curve and offset,
-    ``worse_folds``, ``gain_t``, ``offset_only``; with no fold ``folds`` 0 and ``sessions``
-    (the curve kept unchecked unless no session spans :data:`MIN_SESSION_SPAN_C`,
-    ``widest_span_c``); None without a curve.
+    ``worse_folds``, ``gain_t``, ``offset_only``; with fewer than :data:`MIN_FOLDS` folds
+    ``folds``, ``sessions`` and every axis offset only (``widest_span_c`` too where no session
+    spans :data:`MIN_SESSION_SPAN_C`); None without a curve.
     """
     if not x.shape[1]:                          # no curve: nothing to judge
         return fit, offsets, None
     folds = Folds.sessions(groups, temp)
-    if not len(folds):                          # no session to judge on: kept, said
-        record = {'folds': 0, 'sessions': int(np.unique(groups).size), 'offset_only': []}
-        if (widest := curve_untold(temp, groups)) is None:
-            return fit, offsets, record
-        record.update(offset_only=list(AXES), widest_span_c=widest)
+    if len(folds) < MIN_FOLDS:                  # too few power cycles judge it: offset only
+        record = {'folds': len(folds), 'sessions': int(np.unique(groups).size),
+                  'offset_only': list(AXES)}
+        if (widest := curve_untold(temp, groups)) is not None:
+            record['widest_span_c'] = widest
         return (*_offset_only(fit, offsets, y, groups, np.arange(len(AXES))), record)
 
     def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -124,17 +127,18 @@ def session_check_lines(record: dict | None) -> list[str]:
     """Return the report lines of a held-out session check (empty without one)."""
     if not record:
         return []
-    if not record['folds']:
-        head = ('the curve is not judged on a held-out power cycle: none of the '
-                f"{record['sessions']} sessions with data has two blocks inside the others' "
-                'temperatures')
+    if record['folds'] < MIN_FOLDS:
+        head = (f"the curve is judged on {record['folds']} held-out power cycle(s) of the "
+                f"{record['sessions']} sessions with data (one with two blocks inside the "
+                "others' temperatures judges it)")
         if 'widest_span_c' in record:
             return [f'{head}, and none spans {MIN_SESSION_SPAN_C:g} degC of its own (widest '
                     f"{record['widest_span_c']:.2f} degC): with an offset per power cycle the "
                     'curve would rest on less; the model keeps the offset only on every axis '
                     '(re-anchoring still applies)']
-        return [f'{head}; the model keeps it on every axis unchecked (a power cycle over '
-                "the others' temperatures would judge it)"]
+        return [f'{head}; fewer than {MIN_FOLDS} cannot tell whether it carries to the next '
+                'power cycle: the model keeps the offset only on every axis (re-anchoring '
+                'still applies)']
     out = [f"the curve held out on each power cycle ({record['folds']} sessions, "
            f"{record['blocks']} blocks inside the others' temperatures, re-anchored), "
            'mean square, (deg/s)^2:',

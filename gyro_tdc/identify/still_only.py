@@ -303,10 +303,11 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
                 rows[i][a:b] = False
         lo, hi = span([r.temp[m] for r, m in zip(runs, rows)])
         if hi - lo < MIN_SPAN_C:
-            raise FitError(f'--still-only: {int(bad.sum())} of the {bad.size} still stretches '
-                           "look like slow turns (their mean rate off the others'); the rest "
-                           f'span {hi - lo:.2f} degC only ({lo:.1f} .. {hi:.1f} degC; need at '
-                           f'least {MIN_SPAN_C:g} degC): record stops at other temperatures, '
+            raise FitError(f'still-only training: {int(bad.sum())} of the {bad.size} still '
+                           "stretches look like slow turns (their mean rate off the others'); "
+                           f'the rest span {hi - lo:.2f} degC only ({lo:.1f} .. {hi:.1f} degC; '
+                           f'need at least {MIN_SPAN_C:g} degC): record stops at other '
+                           'temperatures, '
                            'or veto the turns with --motion-topic.')
         model = fit_model(runs, options, rows=rows, sessions=labels)
         means = _stretch_means(model, runs, spans, labels)

@@ -465,7 +465,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     if not any(m.any() for m in rows):
         why = '; '.join(sorted({st.reason for st in still if st.reason}))
         least = 'long enough' if o.min_still_s is None else f'of {o.min_still_s:g} s or more'
-        raise FitError(f'--still-only: no still stretch {least} in '
+        raise FitError(f'still-only training: no still stretch {least} in '
                        f'{len(runs)} bag(s) ({why}): park the vehicle for '
                        f'{ADVICE_PARK_MIN} min with the IMU on, and record it.')
     whole_runs, whole_rows = list(runs), list(rows)     # the report covers every bag
@@ -478,7 +478,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         labels = [relabel[labels[i]] for i in keep]
     lo, hi = span([r.temp[m] for r, m in zip(runs, rows)])
     if hi - lo < MIN_STILL_SPAN_C:
-        raise FitError(f'--still-only: the still time spans {hi - lo:.2f} degC only '
+        raise FitError(f'still-only training: the still time spans {hi - lo:.2f} degC only '
                        f'({lo:.1f} .. {hi:.1f} degC; need at least {MIN_STILL_SPAN_C:g} degC): '
                        'record stops at other temperatures (a cold morning, right after a long '
                        'drive).')

@@ -55,9 +55,10 @@ NOISE_DOF = 2 * MIN_WINDOW_SAMPLES
 MAX_RATE = 0.02
 #: Default shortest still stretch kept by :func:`detect_still`, s.
 MIN_STILL_S = 60.0
-#: Auto still test (``min_still_s=None``): a shorter stretch is kept when it holds at least
-#: this many samples ...
-MIN_STILL_SAMPLES = 250
+#: Auto still test (``min_still_s=None``): a shorter stretch is kept when it lasts
+#: :data:`STILL_WINDOW_S`, holds at least this many samples (five windows of the fewest; 12 s
+#: at 8 Hz, a stop of an SD-card log) ...
+MIN_STILL_SAMPLES = 100
 #: ... and the standard error of its mean rate is at most this, rad/s (0.01 deg/s), on every
 #: axis: a 15 s stretch at 25 Hz of a quiet MEMS gyro, or 2 s at 1 kHz.
 MAX_STILL_SE = 1.75e-4
@@ -411,24 +412,28 @@ def _long_enough(g: NDArray[np.float64], duration: float, min_still_s: float | N
     if min_still_s is not None:
         return duration + 1e-9 >= min_still_s
     n = g.shape[0]       # else long, or enough samples whose mean is known well enough
-    return duration + 1e-9 >= MIN_STILL_S or (n >= MIN_STILL_SAMPLES and bool(
-        np.all(np.nanstd(g, axis=0, ddof=1) / math.sqrt(n) <= MAX_STILL_SE)))
+    return duration + 1e-9 >= MIN_STILL_S or (
+        n >= MIN_STILL_SAMPLES and duration + 1e-9 >= STILL_WINDOW_S and bool(
+            np.all(np.nanstd(g, axis=0, ddof=1) / math.sqrt(n) <= MAX_STILL_SE)))
 
 
 def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
                      starts: NDArray[np.int64], why: NDArray[np.str_], dt: float,
-                     min_still_s: float | None) -> tuple[list, list]:
+                     window: float, min_still_s: float | None) -> tuple[list, list]:
     """
     Return the kept stretches of consecutive still windows and their durations.
 
     A stretch is a half-open sample range ``(start, stop)``; its duration, s, spans its
-    stamps plus one sample period ``dt``. The windows of a stretch too short to keep
+    stamps plus one sample period ``dt``. A gap in the stamps longer than a ``window``
+    (the logger stopped) ends a stretch. The windows of a stretch too short to keep
     (:func:`_long_enough`) are marked ``'brief'`` in ``why``, in place.
     """
     n = t.shape[0]
     ends = np.append(starts[1:], n)
-    edges = np.diff(np.concatenate([[0], (why == '').astype(np.int8), [0]]))
-    first_w, stop_w = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    still = why == ''
+    joined = still[1:] & still[:-1] & (t[starts[1:]] - t[starts[1:] - 1] <= window)
+    first_w = np.flatnonzero(still & ~np.r_[False, joined])
+    stop_w = np.flatnonzero(still & ~np.r_[joined, False]) + 1
     segments, durations = [], []
     for a, b in zip(first_w.tolist(), stop_w.tolist()):
         i0, i1 = int(starts[a]), int(ends[b - 1])
@@ -449,9 +454,10 @@ def _no_still_reason(why: NDArray[np.str_], min_still_s: float | None) -> str:
     if rej.get('brief'):
         return (f'no still stretch of {min_still_s:g} s or more (the longest still '
                 'stretch is shorter)' if min_still_s is not None else
-                f'no still stretch of {MIN_STILL_S:g} s or of {MIN_STILL_SAMPLES} '
-                f'samples with a mean known to {MAX_STILL_SE * 180.0 / math.pi:g} deg/s '
-                '(the still stretches are shorter or noisier)')
+                f'no still stretch of {MIN_STILL_S:g} s, or of {STILL_WINDOW_S:g} s and '
+                f'{MIN_STILL_SAMPLES} samples with a mean known to '
+                f'{MAX_STILL_SE * 180.0 / math.pi:.2g} deg/s (the still stretches are shorter '
+                'or noisier)')
     return 'no still window (the IMU moves)'
 
 
@@ -470,8 +476,9 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     samples a motion report vetoes. Windows last ``window_s`` (None: :func:`auto_window`), at
     least :data:`MIN_WINDOW_SAMPLES` sample periods. A stretch of consecutive still windows is kept
     when it lasts ``min_still_s`` (0 keeps every still window); None judges it by its samples
-    and its noise: :data:`MIN_STILL_S`, or :data:`MIN_STILL_SAMPLES` samples whose mean rate has
-    a standard error of at most :data:`MAX_STILL_SE` on every axis. ``gyro_std``/``accel_std``
+    and its noise: :data:`MIN_STILL_S`, or :data:`STILL_WINDOW_S` and :data:`MIN_STILL_SAMPLES`
+    samples whose mean rate has a standard error of at most :data:`MAX_STILL_SE` on every
+    axis; a gap in the stamps longer than a window ends a stretch. ``gyro_std``/``accel_std``
     > 0 are fixed thresholds; ``gyro_floor``/``accel_floor`` replace this run's own noise floors
     (e.g. the quietest window of several bags of one sensor): a run that never stops would look
     still to itself. ``again``: this call's own result on the same samples and windows, whose
@@ -513,7 +520,7 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
                                                      starts, counts)[0]
     why = judge_windows(g_std, a_std, g_thr, a_thr, mean_rate=mean_rate, max_rate=max_rate,
                         moving=vetoed, counts=counts, finite=~bad)
-    segments, durations = _still_stretches(t, g, starts, why, dt, min_still_s)
+    segments, durations = _still_stretches(t, g, starts, why, dt, window, min_still_s)
     mask = np.repeat(why == '', counts) & finite      # the rows of the kept stretches
     reason = '' if segments else _no_still_reason(why, min_still_s)
     return Stillness(mask, tuple(segments), window, starts, counts, why, g_mean, g_std, a_mean,

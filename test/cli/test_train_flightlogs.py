@@ -183,11 +183,13 @@ def test_the_flight_controllers_own_correction_is_scored_exactly_as_it_applies_i
 
 def test_a_real_flight_log_whose_still_time_spans_no_temperature_is_refused_in_one_line(
         tmp_path, capsys):
-    # 10 s on the ground, then a flight; the still samples all read 23.5 degC.
+    # 10 s on the ground (5 s of it still), then a flight; the still samples read 23.5 degC.
     out = ['--out', str(tmp_path / 'm.yaml'), '--no-progress']
     for extra in ([], ['--still-only']):
         assert_bad_input(capsys, [PX4_ACCEL_THERMOMETER, *extra, *out],
-                         '--still-only: the still time spans 0.00 degC only')
+                         'still-only training: no still stretch long enough in 1 bag(s)')
+    assert_bad_input(capsys, [PX4_ACCEL_THERMOMETER, '--min-still', '4', *out],
+                     'still-only training: the still time spans 0.00 degC only')
     assert not (tmp_path / 'm.yaml').exists()
 
 
@@ -212,7 +214,7 @@ def test_a_real_flight_log_trains_on_its_still_stretch_only_and_evaluate_scores_
     assert got['samples'] == 1854
     assert np.all(np.array(got['models'][0]['bs']) < np.array(got['raw']['bs']))
     assert_bad_input(capsys, [ARDUPILOT_AC33, '--out', tmp_path / 'm0.yaml', '--no-progress'],
-                     '--still-only: the still time spans 1.11 degC only')
+                     'still-only training: the still time spans 1.11 degC only')
 
 
 def test_the_px4_baseline_on_a_real_flight_log_is_fitted_on_its_still_stretch_only(

@@ -352,10 +352,16 @@ def test_evaluate_scores_still_only_where_the_data_move_and_all_otherwise(logs, 
     path = write_dataflash(tmp_path / 'quiet.bin', [quiet.imu])
     got = evaluate([path], [nm])
     assert got[0].still is None and got[0].samples == len(quiet.imu.t)
-    flying = flight_day(8, legs=2, still_s=(5.0, 6.0), flight_s=(200.0, 200.0))
+    flying = flight_day(8, legs=2, still_s=(2.0, 3.0), flight_s=(200.0, 200.0))
     path = write_dataflash(tmp_path / 'flying.bin', [flying.imu])
     with pytest.raises(FitError, match='no reference rate and no still stretch to score'):
         evaluate([path], [nm])
+    # Beside a log that has still stretches it is skipped, said; the other is scored.
+    said = []
+    got = evaluate([paths[2], path], [nm], log=said.append)
+    assert [b.bag for b in got] == [str(paths[2])]
+    assert any(line.startswith(f'warning: skipped {path}: no reference rate and no still '
+                               'stretch to score') for line in said), said
 
 
 def test_two_power_cycles_in_one_log_are_scored_and_reported_per_session(logs, tmp_path):

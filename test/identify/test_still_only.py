@@ -216,7 +216,7 @@ def test_slow_turns_dropped_leaving_too_few_degrees_say_so_in_still_terms(tmp_pa
         train_still_only(['stops'], tmp_path / 's.yaml',
                          TrainOptions(features='dT', kind='poly'), runs=[run])
     msg = str(err.value)
-    assert msg.startswith('--still-only: 3 of the 7 still stretches look like slow turns')
+    assert msg.startswith('still-only training: 3 of the 7 still stretches look like slow turns')
     assert 'the rest span 0.15 degC only' in msg and 'record stops at other temperatures' in msg
     assert '--motion-topic' in msg and '\n' not in msg
 

@@ -183,7 +183,8 @@ def test_moving_share_tells_a_flight_log_from_a_still_one(board):
 
 
 def test_a_real_flight_log_with_too_little_still_time_is_refused_in_one_line(tmp_path):
-    with pytest.raises(FitError, match=r'--still-only: the still time spans 0\.\d+ degC only'):
+    with pytest.raises(FitError,
+                       match=r'still-only training: the still time spans 0\.\d+ degC only'):
         train([ARDUPILOT_CUBEBLACK], tmp_path / 'm.yaml', TrainOptions())
 
 

@@ -244,6 +244,23 @@ def test_the_auto_still_test_judges_a_stretch_by_its_samples_and_its_noise():
     assert detect_still(np.arange(100.0), np.zeros((100, 3)), window_s=None).window_s == 20.0
 
 
+def test_a_logging_gap_ends_a_still_stretch_and_low_rate_stops_count():
+    from gyro_tdc.signal import MIN_STILL_SAMPLES
+    rng = np.random.default_rng(11)
+    rate = 25.0
+    # An SD-card logger that stops for 290 s inside a stop: two stretches, not one of 310 s.
+    t = np.r_[np.arange(250) / rate, 300.0 + np.arange(250) / rate]
+    gyro = rng.normal(0.0, 0.05 * DEG, (t.size, 3))
+    st = detect_still(t, gyro, window_s=None, min_still_s=None)
+    assert st.segments == ((0, 250), (250, 500))
+    assert st.still_s == pytest.approx(20.0, abs=0.1)
+    # A 15 s stop of an 8 Hz log (120 samples) is kept when its mean is known well enough.
+    assert MIN_STILL_SAMPLES <= 120
+    t8 = np.arange(120) / 8.0
+    st8 = detect_still(t8, rng.normal(0.0, 0.05 * DEG, (120, 3)), window_s=None, min_still_s=None)
+    assert st8.segments == ((0, 120),)
+
+
 def test_noise_floor_pools_to_the_degrees_of_freedom():
     f = NoiseFloor()
     f.add(9, np.full(3, 1.0), np.full(3, math.inf))
