@@ -34,7 +34,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'discover.results': ['format_summary'],
     'export': ['check_instance', 'clamp_cost', 'ExportScore', 'FcExport', 'FIRMWARES',
                'fit_export', 'from_params', 'read_params', 'score_export', 'share_kept',
-               'steady_drift', 'write_params'],
+               'write_params'],
     'fit': ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'FitOptions', 'MIN_SAMPLES',
             'TAU_BOUNDS', 'THERMAL_CHOICES'],
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],

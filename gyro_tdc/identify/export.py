@@ -33,14 +33,14 @@ from gyro_tdc.base import atomic_write
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError, ModelFileError
 from gyro_tdc.model import (ArduPilotTempCal, compensate, CompensationModel,
-                            DEFAULT_OUT_OF_RANGE, drift, Px4TempCal)
+                            DEFAULT_OUT_OF_RANGE, Px4TempCal, steady_drift)
 from gyro_tdc.signal import bias_stability, rms_dps
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['check_instance', 'ExportScore', 'FIRMWARES', 'FcExport', 'GRID_POINTS', 'clamp_cost',
            'fit_export', 'from_params', 'read_params', 'score_export', 'share_kept',
-           'steady_drift', 'write_params']
+           'write_params']
 
 #: The flight-controller firmwares an export targets.
 FIRMWARES = ('px4', 'ardupilot')
@@ -51,27 +51,8 @@ AP_TREF_C = 35.0
 AP_SCALE = 1.0e6
 #: Valid range of ArduPilot's INS_TCALn_TMIN/TMAX (its parameter metadata), degC.
 AP_LIMITS_C = (-70.0, 80.0)
-#: Stamp step of the steady-state staircase, s: every filter and warm-up term has settled.
-_SETTLED_S = 1.0e7
 #: MAVLink parameter types in a QGroundControl .params file.
 _INT32, _REAL32 = 6, 9
-
-
-def steady_drift(model: CompensationModel, temps: ArrayLike, *,
-                 out_of_range: str = 'clamp') -> NDArray[np.float64]:
-    """
-    Return the drift b(T) (N, 3) a model subtracts held long at each temperature ``temps``.
-
-    The thermal state then equals it, dT/dt is 0 and the warm-up has decayed: each
-    temperature is held for :data:`_SETTLED_S` (twice, the second value kept) after one
-    settling sample, so the batch features are exactly their settled values.
-    """
-    temps = np.asarray(temps, dtype=np.float64).reshape(-1)
-    if temps.size == 0:
-        return np.zeros((0, 3))
-    u = np.concatenate([temps[:1], np.repeat(temps, 2)])
-    t = np.arange(u.size) * _SETTLED_S
-    return drift(model, t, u, out_of_range=out_of_range)[2::2]
 
 
 @dataclass(frozen=True)
@@ -139,8 +120,9 @@ def fit_export(model: CompensationModel, firmware: str, *, instance: int = 0,
         raise FitError(f'the model range {lo:g} .. {hi:g} degC is too narrow for a cubic in '
                        'temperature (at least 1 degC)')
     grid = np.linspace(lo, hi, max(int(points), 8))
-    gyro = steady_drift(model, grid)
-    acc = None if model.accel is None else steady_drift(model.accel, grid)
+    gyro = steady_drift(model, grid, out_of_range='clamp')
+    acc = (None if model.accel is None else
+           steady_drift(model.accel, grid, out_of_range='clamp'))
     notes: list[str] = []
     exp = (_px4 if firmware == 'px4' else _ardupilot)(gyro, acc, grid, instance, int(device_id),
                                                       notes)
