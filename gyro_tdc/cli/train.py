@@ -39,7 +39,7 @@ from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.evaluate import format_coverage, format_sessions, format_training
 from gyro_tdc.identify import AUTO, train, train_still_only, TrainOptions, TrainResult
 from gyro_tdc.model import KINDS
-from gyro_tdc.signal import MAX_STILL_SE, MIN_STILL_S, MIN_STILL_SAMPLES, STILL_WINDOW_S
+from gyro_tdc.signal import MAX_STILL_SE, MIN_STILL_S, MIN_STILL_SAMPLES
 
 __all__ = ['add_train_options', 'build_parser', 'main', 'train_options', 'training_json']
 
@@ -76,9 +76,9 @@ def build_parser() -> argparse.ArgumentParser:
     g.add_argument('--min-still', type=positive_float, default=None, metavar='S',
                    help='training without a reference: shortest still stretch kept, in s '
                         f'(default: judged by its samples and its noise: {MIN_STILL_S:g} s, '
-                        f'or {STILL_WINDOW_S:g} s and {MIN_STILL_SAMPLES} samples whose mean '
-                        f'rate is known to {MAX_STILL_SE * 180.0 / math.pi:.2g} deg/s, e.g. '
-                        '15 s at 8 or 25 Hz)')
+                        f'or two still-test windows (5 s at 8 Hz and up) and '
+                        f'{MIN_STILL_SAMPLES} samples whose mean rate is known to '
+                        f'{MAX_STILL_SE * 180.0 / math.pi:.2g} deg/s, e.g. 15 s at 8 or 25 Hz)')
     return p
 
 

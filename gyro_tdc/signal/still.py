@@ -55,9 +55,9 @@ NOISE_DOF = 2 * MIN_WINDOW_SAMPLES
 MAX_RATE = 0.02
 #: Default shortest still stretch kept by :func:`detect_still`, s.
 MIN_STILL_S = 60.0
-#: Auto still test (``min_still_s=None``): a shorter stretch is kept when it lasts
-#: :data:`STILL_WINDOW_S`, holds at least this many samples (five windows of the fewest; 12 s
-#: at 8 Hz, a stop of an SD-card log) ...
+#: Auto still test (``min_still_s=None``): a shorter stretch is kept when it lasts two windows,
+#: holds at least this many samples (five windows of the fewest; 12 s at 8 Hz, a stop of an
+#: SD-card log) ...
 MIN_STILL_SAMPLES = 100
 #: ... and the standard error of its mean rate is at most this, rad/s (0.01 deg/s), on every
 #: axis: a 15 s stretch at 25 Hz of a quiet MEMS gyro, or 2 s at 1 kHz.
@@ -407,13 +407,14 @@ def _windows(t: NDArray[np.float64], g: NDArray[np.float64], acc: NDArray[np.flo
             *((None, None) if acc is None else _window_stats(acc, starts, counts, zeroed)))
 
 
-def _long_enough(g: NDArray[np.float64], duration: float, min_still_s: float | None) -> bool:
+def _long_enough(g: NDArray[np.float64], duration: float, window: float,
+                 min_still_s: float | None) -> bool:
     """Return whether a still stretch (its raw rate, its duration in s) is kept."""
     if min_still_s is not None:
         return duration + 1e-9 >= min_still_s
-    n = g.shape[0]       # else long, or enough samples whose mean is known well enough
+    n = g.shape[0]       # else long, or two windows of samples whose mean is known well enough
     return duration + 1e-9 >= MIN_STILL_S or (
-        n >= MIN_STILL_SAMPLES and duration + 1e-9 >= STILL_WINDOW_S and bool(
+        n >= MIN_STILL_SAMPLES and duration + 1e-6 >= 2.0 * window and bool(
             np.all(np.nanstd(g, axis=0, ddof=1) / math.sqrt(n) <= MAX_STILL_SE)))
 
 
@@ -438,7 +439,7 @@ def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
     for a, b in zip(first_w.tolist(), stop_w.tolist()):
         i0, i1 = int(starts[a]), int(ends[b - 1])
         dur = float(t[i1 - 1] - t[i0]) + dt
-        if not _long_enough(g[i0:i1], dur, min_still_s):
+        if not _long_enough(g[i0:i1], dur, window, min_still_s):
             why[a:b] = 'brief'
             continue
         segments.append((i0, i1))
@@ -454,7 +455,7 @@ def _no_still_reason(why: NDArray[np.str_], min_still_s: float | None) -> str:
     if rej.get('brief'):
         return (f'no still stretch of {min_still_s:g} s or more (the longest still '
                 'stretch is shorter)' if min_still_s is not None else
-                f'no still stretch of {MIN_STILL_S:g} s, or of {STILL_WINDOW_S:g} s and '
+                f'no still stretch of {MIN_STILL_S:g} s, or of two windows and '
                 f'{MIN_STILL_SAMPLES} samples with a mean known to '
                 f'{MAX_STILL_SE * 180.0 / math.pi:.2g} deg/s (the still stretches are shorter '
                 'or noisier)')
@@ -476,7 +477,7 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
     samples a motion report vetoes. Windows last ``window_s`` (None: :func:`auto_window`), at
     least :data:`MIN_WINDOW_SAMPLES` sample periods. A stretch of consecutive still windows is kept
     when it lasts ``min_still_s`` (0 keeps every still window); None judges it by its samples
-    and its noise: :data:`MIN_STILL_S`, or :data:`STILL_WINDOW_S` and :data:`MIN_STILL_SAMPLES`
+    and its noise: :data:`MIN_STILL_S`, or two windows and :data:`MIN_STILL_SAMPLES`
     samples whose mean rate has a standard error of at most :data:`MAX_STILL_SE` on every
     axis; a gap in the stamps longer than a window ends a stretch. ``gyro_std``/``accel_std``
     > 0 are fixed thresholds; ``gyro_floor``/``accel_floor`` replace this run's own noise floors
