@@ -195,12 +195,14 @@ def test_sensor_id_match_is_quiet_and_mismatch_warns(ros_context, model, tmp_pat
     own = save_model(model.replace(sensor_id='imu-7'), tmp_path / 'own.yaml')
     other = save_model(model, tmp_path / 'other.yaml')
     node = CompensatorNode(context=ros_context, parameter_overrides=[
-        Parameter('model_file', value=str(own)), Parameter('sensor_id', value='imu-7')])
+        Parameter('model_file', value=str(own)), Parameter('sensor_id', value='imu-7'),
+        Parameter('load_wait', value=10.0)])
     try:
         status = node.diagnostic_status()
         assert 'not for this IMU' not in status.message
-        ok, _ = node.loading.load(str(other))           # another sensor's model swapped in
-        assert ok
+        # Another sensor's model swapped in (read within load_wait, installed at once).
+        assert node.set_parameters([Parameter('model_file', value=str(other))])[0].successful
+        assert node.loading.model_file == str(other)
         status = node.diagnostic_status()
         assert status.level == bytes((WARN,)) and 'not for this IMU' in status.message
     finally:
