@@ -284,28 +284,26 @@ class Learning:
         self._take(what, text, notes)
         return f'saved {store.path}' if what == 'saved' else f'failed: {text}'
 
-    def values(self) -> dict[str, str]:
-        """Return the learner's /diagnostics pairs and where its state is written."""
+    def report(self) -> tuple[int, str, dict[str, str]]:
+        """
+        Return the learner's /diagnostics report: level, problems ('' none) and pairs.
+
+        WARN while learn_file is refused (kept; learning goes beside it) or a save failed.
+        """
         if self.job is None:         # idle: read it; during a step, the last figures
             self._learn_values = self.learner.diagnostic_values()
-        store, warning = self.learn_store, self.learn_file_warning
+        store, warning, error = self.learn_store, self.learn_file_warning, self.learn_save_error
         where = 'none' if not self.params.learn_file else (
             (str(store.path) if store is not None else 'nothing written')
             + (f' ({warning})' if warning else ''))
-        return {**self._learn_values, 'learn file': where,
-                'learn save error': self.learn_save_error,
-                'learn save failures': str(self.learn_save_failures),
-                'learn step errors': str(self.learn_step_errors)}
-
-    def problems(self) -> list[str]:
-        """Return what /diagnostics warns about the learner ([] when nothing)."""
-        problems = []
-        if self.learn_file_warning:       # learn_file refused: kept, learning beside it
-            problems.append('learn_file refused (see learn file)')
-        if self.learn_save_error:
+        problems = ['learn_file refused (see learn file)'] if warning else []
+        if error:
             problems.append(f'learn_file not saved ({self.learn_save_failures} failed saves, '
-                            f'see learn save error): {self.learn_save_error}')
-        return problems
+                            f'see learn save error): {error}')
+        return (1 if problems else 0), '; '.join(problems), {
+            **self._learn_values, 'learn file': where, 'learn save error': error,
+            'learn save failures': str(self.learn_save_failures),
+            'learn step errors': str(self.learn_step_errors)}
 
     # -- the timer and the services ------------------------------------------------------
 
