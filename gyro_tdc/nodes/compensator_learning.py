@@ -137,9 +137,9 @@ class Learning:
         #: The axes the learned model keeps offset-only, as last logged.
         self._offset_only: list[str] = []
         self._learn_jobs = LatestJob()
-        # The step in progress; a prior (a 1-tuple) and a timeout waiting for it to end.
+        # The step in progress; a 'prior' and a 'timeout' waiting for it to end.
         self.job: Job | None = None
-        self._learn_prior = self._learn_timeout = None
+        self._waiting: dict[str, Any] = {}
         if node.params.learn_file:
             self._open(node.params.learn_file)
         else:
@@ -219,13 +219,12 @@ class Learning:
         and motion reports the message path appended since.
         """
         learner, core = self.learner, self.core
-        if self._learn_prior is not None:
-            (model,), self._learn_prior = self._learn_prior, None
-            learner.set_prior(model)
+        if 'prior' in self._waiting:
+            learner.set_prior(self._waiting.pop('prior'))
             core.learning.cancel()
-        if self._learn_timeout is not None:
-            learner.config = replace(learner.config, temperature_timeout=self._learn_timeout)
-            self._learn_timeout = None
+        if 'timeout' in self._waiting:
+            learner.config = replace(learner.config,
+                                     temperature_timeout=self._waiting.pop('timeout'))
         for due, model in learner.take_swaps(core.last_t):
             core.schedule(model, due)
         if core.learned_installs != self._learned_installs:
@@ -254,7 +253,7 @@ class Learning:
         """Give the learner a new temperature_timeout (from its next step)."""
         if timeout_s == self.learner.config.temperature_timeout:
             return
-        self._learn_timeout = timeout_s
+        self._waiting['timeout'] = timeout_s
         if self.job is None:
             self._sync()
 
@@ -267,7 +266,7 @@ class Learning:
         (:meth:`gyro_tdc.learn.learner.Learner.set_prior`). During a step the prior waits
         for it (up to :data:`LEARN_WAIT_S`, then it applies when the step ends).
         """
-        self._learn_prior = (model,)
+        self._waiting['prior'] = model
         self.core.learning.cancel()
         self.wait()
 
