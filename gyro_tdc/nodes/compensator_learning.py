@@ -245,10 +245,6 @@ class Learning:
         """
         return (self.job is None or self.job.wait(timeout_s)) and self._settle()
 
-    def caught_up(self) -> bool:
-        """Return whether the learner has stepped over everything the node received."""
-        return self._settle() and self.learner.caught_up()
-
     def set_timeout(self, timeout_s: float) -> None:
         """Give the learner a new temperature_timeout (from its next step)."""
         if timeout_s == self.learner.config.temperature_timeout:
