@@ -154,14 +154,15 @@ class ModelLoading:
                 self._reverting = None
 
     def on_set(self, params: list[Parameter]) -> SetParametersResult:
-        """Check a new ``model_file`` by reading it; a file slower than ``load_wait`` reads on."""
+        """
+        Check a new ``model_file`` by reading it; a file slower than ``load_wait`` reads on.
+
+        rclpy has refused a value that is not a string before this runs.
+        """
         for param in params:
             name = param.value
             if param.name != 'model_file':
                 continue
-            if not isinstance(name, str):
-                return SetParametersResult(successful=False,
-                                           reason='model_file must be a string')
             job = (self._read_within_wait(name, 'parameter')
                    if name and name != self._reverting else None)
             if job is None:
