@@ -39,6 +39,8 @@ from collections import deque
 import math
 from typing import NamedTuple
 
+from gyro_tdc.runtime.health import ERROR, OK, WARN
+
 __all__ = ['InputRate', 'LEARN_S', 'MIN_EVENTS', 'RateReport', 'TOLERANCE', 'WINDOW_S']
 
 #: diagnostic_updater FrequencyStatus's default tolerance on the expected frequency.
@@ -51,8 +53,6 @@ MIN_EVENTS = 20
 LEARN_S = 5.0
 #: A rate is judged over at least this much of the window [s].
 MIN_WINDOW_S = 1.0
-
-OK, WARN, ERROR = 0, 1, 2
 
 
 class RateReport(NamedTuple):
