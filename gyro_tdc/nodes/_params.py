@@ -69,16 +69,16 @@ def declare(node: Node, specs: Sequence[ParamSpec]) -> dict[str, Any]:
 
 
 def print_help(prog: str, doc: str, specs: Sequence[ParamSpec], args: Sequence[str] | None,
-               *, paragraphs: int = 2, epilog: str = '') -> bool:
+               *, epilog: str = '') -> bool:
     """
     Print a node's ``--help`` on stdout when its command line ``args`` asks for it.
 
-    The summary is the first ``paragraphs`` paragraphs of ``doc`` (the node module's
-    docstring); ``args`` None reads ``sys.argv``. Returns True when help was printed: the
-    node must not start.
+    The summary is the first two paragraphs of ``doc`` (the node module's docstring);
+    ``args`` None reads ``sys.argv``. Returns True when help was printed: the node must not
+    start.
     """
     if not help_requested(sys.argv if args is None else args):
         return False
-    text = '\n\n'.join(' '.join(p.split()) for p in doc.strip().split('\n\n')[:paragraphs])
+    text = '\n\n'.join(' '.join(p.split()) for p in doc.strip().split('\n\n')[:2])
     print(format_help(prog, text, specs, epilog=epilog))
     return True

@@ -34,7 +34,7 @@ from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticStatus, KeyValue
 from gyro_tdc.nodes.compensator_backlog import Backlog
-from gyro_tdc.runtime import frame_mismatch, health, HealthMark, InputRate, TEMPERATURE_TYPES
+from gyro_tdc.runtime import frame_mismatch, health, InputRate, TEMPERATURE_TYPES
 
 __all__ = ['DIAGNOSTICS_PERIOD_S', 'Diagnostics']
 
@@ -48,7 +48,7 @@ class Diagnostics:
     def __init__(self, node: Any) -> None:
         self.node, self.core, self.inputs = node, node.core, node.inputs
         self.log = node.get_logger()
-        self._seen = HealthMark()
+        self._seen: dict = {}     # the counters at the last report (Health.mark)
         self._reported_anchor = self._frame_warned = None   # the anchor, (model, frame) said
         self.live_clock = time.monotonic          # wall time for liveness (tests replace it)
         p = node.params
@@ -105,7 +105,7 @@ class Diagnostics:
         if why and self._frame_warned != (core.model.model_id, frame):
             self._frame_warned = (core.model.model_id, frame)
             log.warning(why)
-        marked = h.mark.already_compensated - self._seen.already_compensated
+        marked = h.mark['marked'] - self._seen.get('marked', 0)
         if marked > 0:
             log.warning(f'{marked} imu/data_raw samples were already compensated by gyro_tdc: '
                         'the model is applied twice', throttle_duration_sec=10.0)
@@ -119,19 +119,16 @@ class Diagnostics:
                      f'{h.values["reanchor se dps"]} deg/s ({h.values["reanchor stopped on"]})')
         values, level, message = {**h.values, **node.motion.values()}, h.level, h.message
         reports = [(r.level, r.message, r.values(role)) for role, r in self.liveness().items()]
-        for report_level, report_message, report_values in reports + [
-                self.backlog.report(time.perf_counter())]:
+        reports.append(self.backlog.report(time.perf_counter()))
+        if node.learning is not None:
+            reports.append(node.learning.report())
+        for report_level, report_message, report_values in reports:
             values.update(report_values)
             level = max(level, report_level)
-            if report_message:
+            if report_message:   # said instead of the OK message, else after the problems
                 message = (report_message if message in ('compensating',
                                                          'waiting for imu/data_raw')
                            else f'{message}; {report_message}')
-        if node.learning is not None:
-            values.update(node.learning.values())
-            for problem in node.learning.problems():  # learn_file refused, a save failed
-                level = max(level, DiagnosticStatus.WARN[0])
-                message = f'{message}; {problem}'
         return DiagnosticStatus(
             level=bytes((level,)), name=f'{node.get_fully_qualified_name()}: {TASK}',
             message=message, hardware_id=h.hardware_id,

@@ -39,7 +39,7 @@ from nav_msgs.msg import Odometry
 from sensor_msgs.msg import Imu
 
 __all__ = ['IMU_TYPE', 'InputReader', 'input_reader', 'message_class', 'MOTION_MESSAGES',
-           'MotionInput', 'TEMPERATURE_MESSAGES']
+           'MotionInput']
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'  # (gyro_tdc.data's would load rosbags)
 MOTION_MESSAGES = {'twist': Twist, 'twist_stamped': TwistStamped, 'odometry': Odometry}
@@ -66,11 +66,6 @@ def message_class(name: str, param: str, hint: str = '') -> type:
     if cls is None or not callable(getattr(cls, 'get_fields_and_field_types', None)):
         raise ConfigError(f'{param}: {pkg} has no message {cls_name!r} (for {name!r}){hint}.')
     return cls
-
-
-#: The temperature types the node knows (any other is read by field), loaded by name.
-TEMPERATURE_MESSAGES = {name: message_class(name, 'temperature_type')
-                        for name in TEMPERATURE_TYPES}
 
 
 @functools.lru_cache(maxsize=256)

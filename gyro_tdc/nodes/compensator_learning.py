@@ -137,9 +137,9 @@ class Learning:
         #: The axes the learned model keeps offset-only, as last logged.
         self._offset_only: list[str] = []
         self._learn_jobs = LatestJob()
-        # The step in progress; a prior (a 1-tuple) and a timeout waiting for it to end.
+        # The step in progress; a 'prior' and a 'timeout' waiting for it to end.
         self.job: Job | None = None
-        self._learn_prior = self._learn_timeout = None
+        self._waiting: dict[str, Any] = {}
         if node.params.learn_file:
             self._open(node.params.learn_file)
         else:
@@ -219,13 +219,12 @@ class Learning:
         and motion reports the message path appended since.
         """
         learner, core = self.learner, self.core
-        if self._learn_prior is not None:
-            (model,), self._learn_prior = self._learn_prior, None
-            learner.set_prior(model)
+        if 'prior' in self._waiting:
+            learner.set_prior(self._waiting.pop('prior'))
             core.learning.cancel()
-        if self._learn_timeout is not None:
-            learner.config = replace(learner.config, temperature_timeout=self._learn_timeout)
-            self._learn_timeout = None
+        if 'timeout' in self._waiting:
+            learner.config = replace(learner.config,
+                                     temperature_timeout=self._waiting.pop('timeout'))
         for due, model in learner.take_swaps(core.last_t):
             core.schedule(model, due)
         if core.learned_installs != self._learned_installs:
@@ -246,15 +245,11 @@ class Learning:
         """
         return (self.job is None or self.job.wait(timeout_s)) and self._settle()
 
-    def caught_up(self) -> bool:
-        """Return whether the learner has stepped over everything the node received."""
-        return self._settle() and self.learner.caught_up()
-
     def set_timeout(self, timeout_s: float) -> None:
         """Give the learner a new temperature_timeout (from its next step)."""
         if timeout_s == self.learner.config.temperature_timeout:
             return
-        self._learn_timeout = timeout_s
+        self._waiting['timeout'] = timeout_s
         if self.job is None:
             self._sync()
 
@@ -267,7 +262,7 @@ class Learning:
         (:meth:`gyro_tdc.learn.learner.Learner.set_prior`). During a step the prior waits
         for it (up to :data:`LEARN_WAIT_S`, then it applies when the step ends).
         """
-        self._learn_prior = (model,)
+        self._waiting['prior'] = model
         self.core.learning.cancel()
         self.wait()
 
@@ -284,28 +279,26 @@ class Learning:
         self._take(what, text, notes)
         return f'saved {store.path}' if what == 'saved' else f'failed: {text}'
 
-    def values(self) -> dict[str, str]:
-        """Return the learner's /diagnostics pairs and where its state is written."""
+    def report(self) -> tuple[int, str, dict[str, str]]:
+        """
+        Return the learner's /diagnostics report: level, problems ('' none) and pairs.
+
+        WARN while learn_file is refused (kept; learning goes beside it) or a save failed.
+        """
         if self.job is None:         # idle: read it; during a step, the last figures
             self._learn_values = self.learner.diagnostic_values()
-        store, warning = self.learn_store, self.learn_file_warning
+        store, warning, error = self.learn_store, self.learn_file_warning, self.learn_save_error
         where = 'none' if not self.params.learn_file else (
             (str(store.path) if store is not None else 'nothing written')
             + (f' ({warning})' if warning else ''))
-        return {**self._learn_values, 'learn file': where,
-                'learn save error': self.learn_save_error,
-                'learn save failures': str(self.learn_save_failures),
-                'learn step errors': str(self.learn_step_errors)}
-
-    def problems(self) -> list[str]:
-        """Return what /diagnostics warns about the learner ([] when nothing)."""
-        problems = []
-        if self.learn_file_warning:       # learn_file refused: kept, learning beside it
-            problems.append('learn_file refused (see learn file)')
-        if self.learn_save_error:
+        problems = ['learn_file refused (see learn file)'] if warning else []
+        if error:
             problems.append(f'learn_file not saved ({self.learn_save_failures} failed saves, '
-                            f'see learn save error): {self.learn_save_error}')
-        return problems
+                            f'see learn save error): {error}')
+        return (1 if problems else 0), '; '.join(problems), {
+            **self._learn_values, 'learn file': where, 'learn save error': error,
+            'learn save failures': str(self.learn_save_failures),
+            'learn step errors': str(self.learn_step_errors)}
 
     # -- the timer and the services ------------------------------------------------------
 

@@ -130,11 +130,9 @@ class ModelLoading:
                        f'{error}')
         return False, error
 
-    def load(self, name: str) -> tuple[bool, str]:
-        """Load ``name`` ('' for none) now and install it, or keep the model; (success, why)."""
+    def clear(self) -> tuple[bool, str]:
+        """Use no model (``model_file`` ''): the raw rate passes through; (True, why)."""
         self._jobs.drop()  # this request is newer than any file still being read
-        if name:
-            return self._finish(name, self._load_work(name)())
         self.core.set_model(None)
         self.model_file, self.last_reload = '', 'no model'
         self._new_prior(None)
@@ -156,14 +154,15 @@ class ModelLoading:
                 self._reverting = None
 
     def on_set(self, params: list[Parameter]) -> SetParametersResult:
-        """Check a new ``model_file`` by reading it; a file slower than ``load_wait`` reads on."""
+        """
+        Check a new ``model_file`` by reading it; a file slower than ``load_wait`` reads on.
+
+        rclpy has refused a value that is not a string before this runs.
+        """
         for param in params:
             name = param.value
             if param.name != 'model_file':
                 continue
-            if not isinstance(name, str):
-                return SetParametersResult(successful=False,
-                                           reason='model_file must be a string')
             job = (self._read_within_wait(name, 'parameter')
                    if name and name != self._reverting else None)
             if job is None:
@@ -183,14 +182,14 @@ class ModelLoading:
                 if job is not None:
                     self._finish(job.name, job.result)
                 elif not param.value and self._reverting is None:
-                    self.load('')
+                    self.clear()
         self._pending.clear()
 
     def reload(self) -> tuple[bool, str]:
         """Read ``model_file`` again (``~/reload``); one slower than ``load_wait`` reads on."""
         name = self.node.get_parameter('model_file').value
         if not name:
-            return self.load('')
+            return self.clear()
         job = self._read_within_wait(name, 'reload')
         if job is not None:
             return self._finish(name, job.result)

@@ -36,8 +36,7 @@ from gyro_tdc.errors import ConfigError
 from gyro_tdc.model import CompensationModel
 from gyro_tdc.nodes._params import declare, print_help
 from gyro_tdc.nodes.compensator_diagnostics import Diagnostics, DIAGNOSTICS_PERIOD_S
-from gyro_tdc.nodes.compensator_inputs import (input_reader, MOTION_MESSAGES, MotionInput,
-                                               TEMPERATURE_MESSAGES)
+from gyro_tdc.nodes.compensator_inputs import input_reader, MOTION_MESSAGES, MotionInput
 from gyro_tdc.nodes.compensator_learning import LEARN_STEP_S, Learning
 from gyro_tdc.nodes.compensator_loading import LOAD_POLL_S, ModelLoading, read_model
 from gyro_tdc.nodes.executors import run_node, ShellNode, trigger
@@ -53,8 +52,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import Imu
 from std_srvs.srv import Trigger
 
-__all__ = ['CompensatorNode', 'CompensatorParams', 'PARAMS', 'TEMPERATURE_MESSAGES', 'main',
-           'read_model']
+__all__ = ['CompensatorNode', 'CompensatorParams', 'PARAMS', 'main', 'read_model']
 
 CompensatorParams = spec_dataclass(
     'CompensatorParams', PARAMS, "The compensator's parameters (rows of ``PARAMS``).",
@@ -133,13 +131,10 @@ class CompensatorNode(ShellNode):
         self._pub = self.create_publisher(Imu, 'imu/data_compensated', qos(depth, True), **opts)
         reader, imu_qos = self.reader, qos(depth, reliable, keep_all=reliable)
         events = SubscriptionEventCallbacks(message_lost=self._on_message_lost)
-        if not reader.fast:     # another type: turned into an Imu, then the one step
-            imu_sub = self.create_subscription(reader.imu_cls, 'imu/data_raw', self._on_imu_other,
-                                               imu_qos, event_callbacks=events, **opts)
-        else:
-            imu_sub = self.create_subscription(
-                Imu, 'imu/data_raw', self._on_imu_raw if p.raw_cdr else self._on_imu, imu_qos,
-                raw=p.raw_cdr, event_callbacks=events, **opts)
+        raw = reader.fast and p.raw_cdr     # another type is turned into an Imu first
+        imu_sub = self.create_subscription(
+            reader.imu_cls, 'imu/data_raw', self._on_imu_raw if raw else self._on_imu, imu_qos,
+            raw=raw, event_callbacks=events, **opts)
         self.inputs.reliability = imu_sub.qos_profile.reliability.name.lower()
         # As deep as the IMU queue, best effort: a simulated run streamed faster than real time
         # sends one temperature per IMU sample, and a lost one makes the next ones stale.
@@ -262,19 +257,16 @@ class CompensatorNode(ShellNode):
     #: The ``raw_cdr`` subscription's callback: the bytes as they came.
     _on_imu_raw = _compensate
 
-    def _on_imu(self, msg: Imu, start: float | None = None) -> None:
-        """Compensate a deserialised Imu: serialized again, then the one step."""
-        self._compensate(serialize_message(msg), perf_counter() if start is None else start)
-
-    def _on_imu_other(self, msg: Any) -> None:
-        """Turn an ``imu_type`` message into an Imu (FLU, stamped) and compensate that."""
-        start = perf_counter()
-        try:
-            imu = self.reader.to_imu(msg)
-        except Exception as exc:  # the callback edge: a field out of range, a bad stamp
-            return self._malformed('imu/data_raw message not readable as '
-                                   f'{self.params.imu_type} (dropped', exc)
-        self._compensate(serialize_message(imu), start)
+    def _on_imu(self, msg: Any, start: float | None = None) -> None:
+        """Compensate a deserialised message (an ``imu_type`` one made an Imu first: FLU)."""
+        start = perf_counter() if start is None else start
+        if self.reader.to_imu is not None:
+            try:
+                msg = self.reader.to_imu(msg)
+            except Exception as exc:  # the callback edge: a field out of range, a bad stamp
+                return self._malformed('imu/data_raw message not readable as '
+                                       f'{self.params.imu_type} (dropped', exc)
+        self._compensate(serialize_message(msg), start)
 
     def _malformed(self, what: str, exc: Exception) -> None:
         """Count an input that is not an Imu (nothing to republish); the stream goes on."""

@@ -17,7 +17,7 @@ Executors for the nodes: which one, how to spin it, and the Jazzy ``main()`` loo
 
 rclpy's executor, not the arithmetic, bounds a Python node's per-message cost: the
 EventsExecutor (``events``) moves more messages than the SingleThreadedExecutor (``single``;
-figures in doc/benchmarks.md); its ``spin()`` is broken in the Jazzy wheels, so :func:`spin`
+figures in doc/benchmarks.md); its ``spin()`` is broken in the Jazzy wheels, so :func:`run_node`
 loops on ``spin_once``. :class:`StopSignals` makes SIGINT and SIGTERM one request to stop, acted on
 between callbacks, so a node stops the same clean way at any moment (doc/internals/nodes.md).
 """
@@ -41,7 +41,7 @@ from rclpy.signals import SignalHandlerOptions
 from std_srvs.srv import Trigger
 
 __all__ = ['ShellNode', 'STARTUP_ERRORS', 'STOP_POLL_S', 'StopRequested', 'StopSignals',
-           'make_executor', 'quiet_abandoned', 'run_node', 'spin', 'trigger']
+           'make_executor', 'quiet_abandoned', 'run_node', 'trigger']
 
 #: Errors of a node's configuration at start-up, reported in one line by :func:`run_node`:
 #: rclpy's parameter errors (wrong type, out of range, ...) and gyro_tdc's own
@@ -216,19 +216,6 @@ def make_executor(kind: str, context: Any = None) -> Any:
     return SingleThreadedExecutor(context=context)
 
 
-def spin(executor: Any, context: Any = None, *, stop: Callable[[], bool] | None = None,
-         poll_s: float = 0.5) -> None:
-    """
-    Run ``executor`` until its context shuts down or ``stop()`` is true.
-
-    The loop calls ``spin_once`` (at most ``poll_s`` s each, ``stop`` checked after each):
-    in rclpy's Jazzy wheels ``EventsExecutor.spin()`` dispatches nothing while its
-    ``spin_once`` works and is the fast path.
-    """
-    while rclpy.ok(context=context) and not (stop is not None and stop()):
-        executor.spin_once(timeout_sec=poll_s)
-
-
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
              executor: str | Callable[[Any], str] = 'single',
              freeze_heap: bool = False, name: str = 'node') -> int:
@@ -260,7 +247,10 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
             ex.add_node(node)
             if freeze_heap:
                 gc.freeze()
-            spin(ex, stop=lambda: stop.requested, poll_s=STOP_POLL_S)
+            # spin_once, not spin(): in rclpy's Jazzy wheels EventsExecutor.spin() dispatches
+            # nothing while its spin_once works and is the fast path.
+            while rclpy.ok() and not stop.requested:
+                ex.spin_once(timeout_sec=STOP_POLL_S)
         except (StopRequested, KeyboardInterrupt, ExternalShutdownException):
             pass
         finally:

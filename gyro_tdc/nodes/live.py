@@ -52,29 +52,25 @@ class MonitorNode(Node):
     def __init__(self, **kwargs) -> None:
         super().__init__('gyro_tdc_monitor', **kwargs)
         qos = 5000      # reliable, keep last 5000
-        #: Rates (x, y, z) by header stamp [ns]: raw and compensated.
-        self.raw: dict[int, tuple[float, float, float]] = {}
-        self.comp: dict[int, tuple[float, float, float]] = {}
-        #: The angular_velocity_covariance[0] of each message by stamp, raw and compensated.
-        self.raw_var: dict[int, float] = {}
-        self.comp_var: dict[int, float] = {}
+        #: Rates (x, y, z) and angular_velocity_covariance[0] by header stamp [ns]: raw and
+        #: compensated.
+        self.raw: dict[int, tuple[float, float, float, float]] = {}
+        self.comp: dict[int, tuple[float, float, float, float]] = {}
         self.temps: list[float] = []
-        for topic, into, var in (('imu/data_raw', self.raw, self.raw_var),
-                                 ('imu/data_compensated', self.comp, self.comp_var)):
-            self.create_subscription(Imu, topic, functools.partial(self._store, into, var), qos)
+        for topic, into in (('imu/data_raw', self.raw), ('imu/data_compensated', self.comp)):
+            self.create_subscription(Imu, topic, functools.partial(self._store, into), qos)
         self.create_subscription(Temperature, 'imu/temperature',
                                  lambda m: self.temps.append(m.temperature), qos)
 
     @staticmethod
-    def _store(into: dict, var: dict, msg: Imu) -> None:
+    def _store(into: dict, msg: Imu) -> None:
         w, stamp = msg.angular_velocity, msg.header.stamp
-        key = stamp.sec * 1_000_000_000 + stamp.nanosec
-        into[key] = (w.x, w.y, w.z)
-        var[key] = msg.angular_velocity_covariance[0]
+        into[stamp.sec * 1_000_000_000 + stamp.nanosec] = (
+            w.x, w.y, w.z, msg.angular_velocity_covariance[0])
 
     def passed_raw(self, stamp: int, passthrough_variance: float) -> bool:
         """Whether the compensator passed the raw rate of ``stamp`` (its variance added)."""
-        return bool(self.comp_var[stamp] - self.raw_var[stamp] >= 0.5 * passthrough_variance)
+        return bool(self.comp[stamp][3] - self.raw[stamp][3] >= 0.5 * passthrough_variance)
 
 
 @dataclass(frozen=True)
@@ -186,7 +182,7 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
 
         def bs(rates: dict) -> tuple[float, float, float]:
             """Return the bias stability of the messages both streams have, (deg/s)^2."""
-            w = np.array([rates[s] for s in stamps]).reshape(-1, 3)
+            w = np.array([rates[s][:3] for s in stamps]).reshape(-1, 3)
             return tuple(bias_stability(w, ref).tolist()) if stamps else (math.nan,) * 3
         temps = node.temps or [math.nan]
         lo = max(min(node.raw, default=0), min(node.comp, default=0))

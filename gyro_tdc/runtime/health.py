@@ -22,7 +22,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from types import MappingProxyType
 from typing import Any, Mapping, NamedTuple, TYPE_CHECKING
 
 from gyro_tdc.base import MAX_TEMP_SLEW_C_S, TEMP_PLAUSIBLE_C
@@ -36,7 +35,7 @@ if TYPE_CHECKING:  # pragma: no cover - typing only (core does not import this m
     from gyro_tdc.runtime.core import CompensatorCore
     from gyro_tdc.runtime.policy import Policy
 
-__all__ = ['ERROR', 'Health', 'HealthMark', 'InputStatus', 'OK', 'WARN', 'accel_state',
+__all__ = ['ERROR', 'Health', 'InputStatus', 'OK', 'WARN', 'accel_state', 'counters',
            'frame_mismatch', 'health', 'sensor_mismatch', 'upstream_note']
 
 
@@ -95,38 +94,35 @@ class InputStatus:
     upstream: tuple[str, ...] = ()
 
 
-class HealthMark(NamedTuple):
-    """
-    The cumulative counters at one report: flags, temperatures rejected, errors, inputs.
-
-    ``temps_rejected`` counts non-finite readings, ``temps_implausible`` the readings the
-    plausibility gate refused.
-    """
-
-    flags: Mapping[int, int] = MappingProxyType({})
-    temps_rejected: int = 0
-    errors: int = 0
-    lost: int = 0
-    already_compensated: int = 0
-    malformed: int = 0
-    temps_implausible: int = 0
-
-
 class Health(NamedTuple):
     """
     The compensator's state as /diagnostics shows it.
 
     ``level`` is ``OK``, ``WARN`` or ``ERROR``; ``hardware_id`` the ``sensor_id`` parameter,
     else the data's frame id (never the model's: it names the hardware reporting);
-    ``values`` the key/value pairs in display order; ``mark`` the counters now, to pass to
-    the next :func:`health` call.
+    ``values`` the key/value pairs in display order; ``mark`` the cumulative counters now
+    (:func:`counters`), to pass to the next :func:`health` call.
     """
 
     level: int
     message: str
     hardware_id: str
     values: dict[str, str]
-    mark: HealthMark
+    mark: dict[int | str, int]
+
+
+def counters(core: CompensatorCore, inputs: InputStatus) -> dict[int | str, int]:
+    """
+    Return the cumulative counters a report counts its news from.
+
+    Samples per flag bit, then ``rejected`` (non-finite readings), ``implausible`` (readings
+    the plausibility gate refused), ``errors``, and the inputs ``lost``, ``malformed`` and
+    ``marked`` (already compensated).
+    """
+    return {**core.flag_counts, 'rejected': core.temps.rejected,
+            'implausible': core.temps.implausible, 'errors': core.tally.errors,
+            'lost': inputs.lost, 'malformed': inputs.malformed,
+            'marked': inputs.already_compensated}
 
 
 def sensor_mismatch(model: CompensationModel | None, sensor_id: str) -> str:
@@ -207,7 +203,7 @@ def upstream_note(policy: Policy) -> str:
             'be trained on the already corrected rate)')
 
 
-def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file: str = '',
+def health(core: CompensatorCore, since: Mapping | None = None, *, model_file: str = '',
            last_reload: str = 'none', inputs: InputStatus | None = None,
            sensor_id: str = '', frame_id: str = '') -> Health:
     """
@@ -224,27 +220,23 @@ def health(core: CompensatorCore, since: HealthMark | None = None, *, model_file
     the start); ``inputs`` the losses, marked samples and upstream compensators the node saw;
     ``frame_id`` also stands for the ``hardware_id`` when ``sensor_id`` is ''.
     """
-    since = since or HealthMark()
     inputs = inputs or InputStatus()
-    counts = core.flag_counts
-    new = {bit: counts[bit] - since.flags.get(bit, 0) for bit in counts}
-    level, problems = _problems(core, since, new, inputs, last_reload, sensor_id, frame_id)
+    mark = counters(core, inputs)
+    new = {k: n - (since or {}).get(k, 0) for k, n in mark.items()}
+    level, problems = _problems(core, new, inputs, last_reload, sensor_id, frame_id)
     message = '; '.join(problems) or ('compensating' if core.counts['in'] else
                                       'waiting for imu/data_raw')
     if new[PASSTHROUGH]:
         message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
     values = _values(core, inputs, model_file, last_reload, frame_id)
     return Health(level, message, sensor_id or frame_id, {k: str(v) for k, v in values.items()},
-                  HealthMark(dict(counts), core.temps.rejected, core.tally.errors, inputs.lost,
-                             inputs.already_compensated, inputs.malformed,
-                             core.temps.implausible))
+                  mark)
 
 
-def _problems(core: CompensatorCore, since: HealthMark, new: dict[int, int],
-              inputs: InputStatus, last_reload: str, sensor_id: str, frame_id: str
-              ) -> tuple[int, list[str]]:
-    """Return the level and the problems of :func:`health` (``new``: flags since ``since``)."""
-    model, temps = core.model, core.temps
+def _problems(core: CompensatorCore, new: dict[int | str, int], inputs: InputStatus,
+              last_reload: str, sensor_id: str, frame_id: str) -> tuple[int, list[str]]:
+    """Return the level and the problems of :func:`health` (``new``: counters since the last)."""
+    model = core.model
     found = []                            # (level, problem)
     upstream = upstream_note(core.policy)
     if upstream and core.upstream_pass:
@@ -260,11 +252,8 @@ def _problems(core: CompensatorCore, since: HealthMark, new: dict[int, int],
               for bit in (NO_TEMPERATURE, STALE, OUT_OF_RANGE, NON_FINITE, IMPLAUSIBLE_INPUT,
                           IMPLAUSIBLE_OUTPUT) if new[bit]]
     lo, hi = TEMP_PLAUSIBLE_C
-    rejected = temps.rejected - since.temps_rejected
-    implausible = temps.implausible - since.temps_implausible
-    lost = inputs.lost - since.lost
-    malformed = inputs.malformed - since.malformed
-    marked = inputs.already_compensated - since.already_compensated
+    rejected, implausible, lost, malformed, marked = (
+        new[k] for k in ('rejected', 'implausible', 'lost', 'malformed', 'marked'))
     found += [(WARN, text) for count, text in (
         (rejected, f'non-finite temperature ({rejected} samples rejected)'),
         (implausible, f'temperatures rejected (implausible): {implausible} (outside {lo:g}..'
@@ -280,7 +269,7 @@ def _problems(core: CompensatorCore, since: HealthMark, new: dict[int, int],
         found.append((WARN, f'imu/data_raw is published by gyro_tdc compensator '
                             f'{", ".join(inputs.upstream)}: chained compensators apply the '
                             'drift model twice'))
-    errors = core.tally.errors - since.errors
+    errors = new['errors']
     if errors:
         found.append((ERROR, f'compensation failed on {errors} samples, passed through: '
                              f'{core.last_error}'))

@@ -26,7 +26,7 @@ counters at each report (the message path is not touched); the window never star
 the input's first message (so a driver that starts late is not reported slow); and the
 window holds at least 20 expected messages (a 1 Hz IMU is judged over 20 s, not 5, where the
 one-message granularity of a 5 s window would exceed the tolerance). An expected rate of 0
-is learnt from the first ``learn_s`` of arrivals, after which only slowing (and silence) is
+is learnt from the first :data:`LEARN_S` of arrivals, after which only slowing (and silence) is
 judged. diagnostic_updater's ``TimeStampStatus`` compares stamps with the ROS clock; the
 compensator's clock is the IMU stamp, so the stamp ages it shows are the other inputs'
 stamps against the last IMU stamp (``temperature age s``, judged by ``temperature_timeout``),
@@ -38,6 +38,8 @@ from __future__ import annotations
 from collections import deque
 import math
 from typing import NamedTuple
+
+from gyro_tdc.runtime.health import ERROR, OK, WARN
 
 __all__ = ['InputRate', 'LEARN_S', 'MIN_EVENTS', 'RateReport', 'TOLERANCE', 'WINDOW_S']
 
@@ -51,8 +53,6 @@ MIN_EVENTS = 20
 LEARN_S = 5.0
 #: A rate is judged over at least this much of the window [s].
 MIN_WINDOW_S = 1.0
-
-OK, WARN, ERROR = 0, 1, 2
 
 
 class RateReport(NamedTuple):
@@ -95,17 +95,13 @@ class InputRate:
     start : float, s
         Monotonic time the node started (silence before the first message counts from it).
     expected_hz : float
-        Expected rate; 0: learnt from the first ``learn_s`` of arrivals (then only a slower
-        rate warns); None: not judged (rate and silence shown only).
-    tolerance, window_s, learn_s : float
-        As :data:`TOLERANCE`, :data:`WINDOW_S`, :data:`LEARN_S`.
+        Expected rate; 0: learnt from the first :data:`LEARN_S` of arrivals (then only a
+        slower rate warns); None: not judged (rate and silence shown only).
 
     """
 
-    def __init__(self, name: str, start: float, expected_hz: float | None = 0.0, *,
-                 tolerance: float = TOLERANCE, window_s: float = WINDOW_S,
-                 learn_s: float = LEARN_S) -> None:
-        self.name, self.tolerance, self.window_s, self.learn_s = name, tolerance, window_s, learn_s
+    def __init__(self, name: str, start: float, expected_hz: float | None) -> None:
+        self.name = name
         self.judged = expected_hz is not None
         self.expected = expected_hz or None
         self.max_hz = self.expected or math.inf
@@ -114,8 +110,8 @@ class InputRate:
         self._count, self._changed = 0, start
 
     def window(self) -> float:
-        """Return the window [s]: ``window_s``, or longer to hold ``MIN_EVENTS`` messages."""
-        return max(self.window_s, MIN_EVENTS / self.expected) if self.expected else self.window_s
+        """Return the window [s]: :data:`WINDOW_S`, or longer to hold ``MIN_EVENTS`` messages."""
+        return max(WINDOW_S, MIN_EVENTS / self.expected) if self.expected else WINDOW_S
 
     def run(self, now: float, count: int) -> RateReport:
         """
@@ -149,7 +145,7 @@ class InputRate:
         hz = events / span if span > 0.0 and self._first is not None else None
         if self.judged and self.expected is None and self._first is not None:
             first_t, first_n = self._first
-            if now - first_t >= self.learn_s and count > first_n:
+            if now - first_t >= LEARN_S and count > first_n:
                 self.expected = (count - first_n) / (now - first_t)
                 window = self.window()
         level, message = OK, ''
@@ -161,7 +157,7 @@ class InputRate:
         elif silent >= window:          # FrequencyStatus: no events in the window
             level, message = ERROR, f'no {self.name} for {silent:.1f} s'
         elif self.expected and hz is not None and span >= MIN_WINDOW_S:
-            lo, hi = self.expected * (1.0 - self.tolerance), self.max_hz * (1.0 + self.tolerance)
+            lo, hi = self.expected * (1.0 - TOLERANCE), self.max_hz * (1.0 + TOLERANCE)
             if not lo <= hz <= hi:
                 slow = hz < lo
                 level, message = WARN, (

@@ -315,7 +315,7 @@ def test_an_unreadable_message_is_counted_and_the_stream_goes_on(ros_context):
     try:
         bad = vector_msg(T0_NS, (0.1, 0.2, 0.3))
         bad.header.stamp = SimpleNamespace(sec=2 ** 40, nanosec=0)   # not an int32
-        node._on_imu_other(bad)
+        node._on_imu(bad)
         assert node.inputs.malformed == 1
         assert node.core.counts['in'] == 0                 # never reached the core
     finally:

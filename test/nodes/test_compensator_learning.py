@@ -22,7 +22,7 @@ import os
 import shutil
 import stat
 
-from compensator_rig import RELIABLE, to_ns
+from compensator_rig import learning_caught_up, RELIABLE, to_ns
 from diagnostic_msgs.msg import DiagnosticStatus
 from geometry_msgs.msg import Twist
 from gyro_tdc.learn.learner import FORMAT, learned_model
@@ -403,7 +403,7 @@ def test_a_failing_save_is_on_diagnostics_and_logged_once_a_minute(ros_context, 
     try:
         node = rig.node
         t = rig.feed(1000.0, 120.0, 20.0, np.array(BIAS), False, 1)
-        spin_until(rig.executor, node.learning.caught_up, 10.0, what='learning')
+        spin_until(rig.executor, learning_caught_up(node), 10.0, what='learning')
         # The periodic save runs on the learner's thread a save period after the step.
         spin_until(rig.executor, path.is_file, 10.0, what='the first save')
         assert _values(node)['learn save error'] == ''
@@ -411,7 +411,7 @@ def test_a_failing_save_is_on_diagnostics_and_logged_once_a_minute(ros_context, 
         where.write_text('not a directory any more\n')
         for k in range(4):                # four windows, each stepped and saved on its own
             t = rig.feed(t, 11.0, 20.0, np.array(BIAS), False, 2 + k)
-            spin_until(rig.executor, node.learning.caught_up, 10.0, what='learning')
+            spin_until(rig.executor, learning_caught_up(node), 10.0, what='learning')
         v = _values(node)
         status = node.diagnostic_status()         # ERROR too: no model learned yet
         assert status.level >= DiagnosticStatus.WARN
@@ -423,7 +423,7 @@ def test_a_failing_save_is_on_diagnostics_and_logged_once_a_minute(ros_context, 
         where.unlink()                    # the directory is back: the next save succeeds
         (tmp_path / 'moved').rename(where)
         rig.feed(t, 11.0, 20.0, np.array(BIAS), False, 9)
-        spin_until(rig.executor, node.learning.caught_up, 10.0, what='learning')
+        spin_until(rig.executor, learning_caught_up(node), 10.0, what='learning')
         v = _values(node)
         assert v['learn save error'] == '' and 'learn_file not saved' not in \
             node.diagnostic_status().message

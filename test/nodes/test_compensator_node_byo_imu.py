@@ -29,7 +29,7 @@ from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model.modelfile import load_model, save_model
 from gyro_tdc.nodes.compensator_inputs import message_class
-from gyro_tdc.nodes.compensator_node import CompensatorNode, TEMPERATURE_MESSAGES
+from gyro_tdc.nodes.compensator_node import CompensatorNode
 from gyro_tdc.nodes.executors import make_executor
 from gyro_tdc.runtime import CompensatorCore, PARAMS, Policy, TEMPERATURE_TYPES
 from gyro_tdc.runtime.health import health, OK, sensor_mismatch, WARN
@@ -72,9 +72,9 @@ def test_temperature_types_agree_between_the_table_and_the_node():
     # Any installed type is taken (read by temperature_field); the usual three are the
     # node's known ones, each loaded by name to its class.
     assert not spec.choices
-    assert TEMPERATURE_TYPES == tuple(TEMPERATURE_MESSAGES)
-    assert spec.default == 'sensor_msgs/msg/Temperature'
-    for name, cls in TEMPERATURE_MESSAGES.items():
+    assert spec.default == TEMPERATURE_TYPES[0] == 'sensor_msgs/msg/Temperature'
+    for name in TEMPERATURE_TYPES:
+        cls = message_class(name, 'temperature_type')
         pkg, _, msg = name.split('/')
         assert cls.__module__.startswith(f'{pkg}.msg') and cls.__name__ == msg
         assert message_class(name, 'temperature_type') is cls
@@ -195,12 +195,14 @@ def test_sensor_id_match_is_quiet_and_mismatch_warns(ros_context, model, tmp_pat
     own = save_model(model.replace(sensor_id='imu-7'), tmp_path / 'own.yaml')
     other = save_model(model, tmp_path / 'other.yaml')
     node = CompensatorNode(context=ros_context, parameter_overrides=[
-        Parameter('model_file', value=str(own)), Parameter('sensor_id', value='imu-7')])
+        Parameter('model_file', value=str(own)), Parameter('sensor_id', value='imu-7'),
+        Parameter('load_wait', value=10.0)])
     try:
         status = node.diagnostic_status()
         assert 'not for this IMU' not in status.message
-        ok, _ = node.loading.load(str(other))           # another sensor's model swapped in
-        assert ok
+        # Another sensor's model swapped in (read within load_wait, installed at once).
+        assert node.set_parameters([Parameter('model_file', value=str(other))])[0].successful
+        assert node.loading.model_file == str(other)
         status = node.diagnostic_status()
         assert status.level == bytes((WARN,)) and 'not for this IMU' in status.message
     finally:

@@ -56,12 +56,11 @@ def test_the_monitor_tells_a_raw_pass_through_by_the_variance_the_compensator_ad
     try:
         node = MonitorNode(context=ctx)
         for stamp_s, raw_var, comp_var in ((1, 2.7e-6, 2.7e-6 + 1e-4), (2, 2.7e-6, 3.1e-6)):
-            for into, var, v in ((node.raw, node.raw_var, raw_var),
-                                 (node.comp, node.comp_var, comp_var)):
+            for into, v in ((node.raw, raw_var), (node.comp, comp_var)):
                 msg = Imu()
                 msg.header.stamp.sec = stamp_s
                 msg.angular_velocity_covariance[0] = v
-                node._store(into, var, msg)
+                node._store(into, msg)
         key = 1_000_000_000
         assert node.passed_raw(key, 1e-4) is True and node.passed_raw(2 * key, 1e-4) is False
         node.destroy_node()

@@ -30,11 +30,16 @@ from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rosutil import matched_readers, matched_writers, spin_until
 from sensor_msgs.msg import Imu, Temperature
 
-__all__ = ['BACKLOG_WARNING', 'ok_but_backlog', 'problems', 'rates', 'record_statuses',
-           'RELIABLE', 'reported', 'Rig', 'stamp_s', 'to_ns']
+__all__ = ['BACKLOG_WARNING', 'learning_caught_up', 'ok_but_backlog', 'problems', 'rates',
+           'record_statuses', 'RELIABLE', 'reported', 'Rig', 'stamp_s', 'to_ns']
 
 RELIABLE = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10000,
                       reliability=ReliabilityPolicy.RELIABLE)
+
+
+def learning_caught_up(node: CompensatorNode):
+    """Return a test of whether ``node``'s learner has stepped over everything it received."""
+    return lambda: node.learning.wait(0.0) and node.learning.learner.caught_up()
 
 
 def to_ns(t: float) -> int:

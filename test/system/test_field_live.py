@@ -37,7 +37,7 @@ import importlib.util
 import json
 from pathlib import Path
 
-from compensator_rig import RELIABLE
+from compensator_rig import learning_caught_up, RELIABLE
 from gyro_tdc.data.imu_cdr import encode, field_slice, IMU_DOUBLES, Layout
 from gyro_tdc.identify.train import train_still_only
 from gyro_tdc.nodes.compensator_node import CompensatorNode
@@ -197,7 +197,7 @@ class Live:
                 self.imu_pub.publish(imu[k])
             self.spin_until(lambda: len(self.out) >= first + hi - start, 'outputs')
             if self.node.learning is not None:
-                self.spin_until(self.node.learning.caught_up, 'learn timer')
+                self.spin_until(learning_caught_up(self.node), 'learn timer')
         assert len(self.out) == first + stop - start          # one out for every one in
         if self.node.learning is not None:
             assert self.node.learning.learner.diagnostic_values()['learn late swaps'] == '0'
