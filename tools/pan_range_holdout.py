@@ -38,13 +38,14 @@ if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
 from gyro_tdc.data.realdata import default_pan_csv, read_pan_cubesat_csv  # noqa: E402
 from gyro_tdc.data.runs import Run  # noqa: E402
 from gyro_tdc.errors import GyroTdcError  # noqa: E402
-from gyro_tdc.evaluate.realdata import burst_index, run_tool  # noqa: E402
+from gyro_tdc.evaluate.realdata import burst_index  # noqa: E402
 from gyro_tdc.evaluate.score import score  # noqa: E402
 from gyro_tdc.identify import fit_model  # noqa: E402
 from gyro_tdc.model.compensation import compensate  # noqa: E402
 from gyro_tdc.model.out_of_range import MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES  # noqa: E402
 from gyro_tdc.signal.metrics import bias_stability  # noqa: E402
 import numpy as np  # noqa: E402
+from pan_holdout import run_tool  # noqa: E402
 
 #: (name, description, fit_model options); ``bias`` and ``linear fit`` are the baselines.
 MODELS = (

@@ -25,12 +25,11 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
                                  ArgumentParser, bag_options, comma_floats, driver_bags,
-                                 non_negative_float, run_command, UsageError)
+                                 non_negative_float, progress_bar, run_command, UsageError)
 from gyro_tdc.data import find_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
                                format_still, load_models, model_description, PX4, write_csv,
@@ -132,27 +131,17 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     args.bags = driver_bags(args, args.bags)       # a driver's own types, read by field
     args.train = driver_bags(args, args.train) if args.train else args.train
     auto = args.reanchor == AUTO_REANCHOR
-    options = ('re-anchored: mean error removed over the head of each session until known to '
-               "the compensator's tolerance" if auto else
-               f're-anchored: mean error of the first {args.reanchor:g} s removed'
-               if args.reanchor > 0 else 'no re-anchoring')
-    from tqdm import tqdm
+    # One description of the re-anchoring: the console line and the plot titles.
+    how = ('re-anchored (auto): mean error removed over the head of each session, averaged '
+           "until its standard error is 0.1 x the model's residual std or 600 s" if auto else
+           f're-anchored: mean error over the first {args.reanchor:g} s of each session removed'
+           if args.reanchor > 0 else 'no re-anchoring')
     found = find_bags(args.bags)
     place = {str(p): k + 1 for k, (p, _) in enumerate(found)}
-    bar = tqdm(total=len(found), unit='bag', desc='evaluate', file=sys.stderr,
-               leave=False, disable=not bag.progress)
-
-    def log(line: str) -> None:     # on stdout, above the bar when there is one
-        if bar.disable:
-            print(line, flush=True)
-        else:
-            bar.write(line, file=sys.stdout)
-
+    bar, log = progress_bar(len(found), 'bag', 'evaluate', bag.progress)
     models = load_models(specs, train_bags=args.train, bag=bag, log=log, held_out=args.bags,
                          loader=read_model)
-    descriptions = [model_description(nm.name, nm.model.kind, nm.model.features,
-                                      tau_s=_state_tau(nm.model))
-                    for nm in models]
+    descriptions = [model_description(nm.name, nm.model) for nm in models]
 
     def each(b: BagEval) -> None:
         for line in [*(_reanchor_lines(b) if auto else ()), *format_still(b)]:
@@ -164,7 +153,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         log(format_bag(b, baseline, floor=args.floor, accel_floor=args.accel_floor))
         if args.plots is not None:
             bar.set_postfix_str(f'{b.label}: plots')
-            for f in write_plots(b, args.plots, descriptions=descriptions, options=options,
+            for f in write_plots(b, args.plots, descriptions=descriptions, options=how,
                                  reanchor_s=0.0 if auto else args.reanchor):
                 log(f'wrote {f}')
         if args.export is not None:
@@ -178,13 +167,9 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     log(f"out-of-range policy: {args.out_of_range} (beyond a model's trained range of the "
         f'model temperature {_POLICY_WORDS[args.out_of_range]}; --out-of-range '
         f'{"|".join(OUT_OF_RANGE_POLICIES)})')
-    if auto:
-        log('models re-anchored (auto): mean error removed over the head of each session, '
-            "averaged until its standard error is 0.1 x the model's residual std or 600 s "
-            '(raw data untouched); per model: samples, seconds, standard error')
-    elif args.reanchor > 0:
-        log(f'models re-anchored: mean error over the first {args.reanchor:g} s of each session '
-            'removed (raw data untouched)')
+    if args.reanchor:
+        log(f'models {how} (raw data untouched)'
+            + ('; per model: samples, seconds, standard error' if auto else ''))
     try:
         results = evaluate(args.bags, models, bag=bag, reanchor_s=args.reanchor, log=log,
                            each=each, out_of_range=args.out_of_range, found=found)
@@ -213,12 +198,6 @@ def _reanchor_lines(b: BagEval) -> list[str]:
                          + ' deg/s, standard error '
                          + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
     return lines
-
-
-def _state_tau(model) -> float | None:
-    """Return the total tau of a model's thermal state in s (None without a state)."""
-    th = getattr(model, 'thermal', None)
-    return None if th is None or th.kind == 'none' else float(th.tau_total_s)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
