@@ -32,10 +32,10 @@ from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_sessio
                                  non_negative_float, progress_bar, run_command, UsageError)
 from gyro_tdc.data import find_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
-                               format_still, load_models, model_description, PX4, write_csv,
-                               write_json, write_plots)
+                               format_still, load_models, model_description, POLICY_WORDS, PX4,
+                               write_csv, write_json, write_plots)
 from gyro_tdc.learn import read_model
-from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES
+from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, OUT_OF_RANGE_POLICIES
 
 __all__ = ['build_parser', 'main']
 
@@ -71,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
                         'stretches is anchored on the first of each session instead)')
     p.add_argument('--out-of-range', dest='out_of_range', default=DEFAULT_OUT_OF_RANGE,
                    choices=OUT_OF_RANGE_POLICIES,
-                   help=f"beyond a model's trained range: linear ({_POLICY_WORDS['linear']}, "
+                   help=f"beyond a model's trained range: linear ({POLICY_WORDS['linear']}, "
                         'as the compensator node by default), clamp, or extrapolate (default: '
                         '%(default)s)')
     p.add_argument('--floor', type=_floor, default=None, metavar='X,Y,Z|V',
@@ -107,13 +107,6 @@ def _floor(text: str) -> tuple[float, float, float]:
         raise argparse.ArgumentTypeError(
             f'expected one number > 0 or three x,y,z (a variance per axis), got {text!r}')
     return tuple(values * 3) if len(values) == 1 else tuple(values)
-
-
-_POLICY_WORDS = {
-    'linear': 'the correction continues along its tangent at the range end, held beyond '
-              f'{MAX_EXTRAPOLATION_C:g} degC',
-    'clamp': 'the correction is held at the range end',
-    'extrapolate': 'the model is evaluated there'}
 
 
 def _run(args: argparse.Namespace, argv: list) -> int:
@@ -165,7 +158,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         lo, hi = nm.model.temp_range_c
         log(f'model {nm.label} = {text}, trained {lo:.2f} .. {hi:.2f} degC')
     log(f"out-of-range policy: {args.out_of_range} (beyond a model's trained range of the "
-        f'model temperature {_POLICY_WORDS[args.out_of_range]}; --out-of-range '
+        f'model temperature {POLICY_WORDS[args.out_of_range]}; --out-of-range '
         f'{"|".join(OUT_OF_RANGE_POLICIES)})')
     if args.reanchor:
         log(f'models {how} (raw data untouched)'
