@@ -299,8 +299,8 @@ def _outside_note(b: BagEval) -> str:
              f'{span}' if i == 0 else f'{pct} outside that of {", ".join(labels)} {span}'
              for i, ((pct, span), labels) in enumerate(groups.items())]
     p = b.out_of_range
-    return (f'  note: {"; ".join(parts)}: {POLICY_WORDS.get(p, p)} (out-of-range policy {p})'
-            if parts else '')
+    return (f'  note: {"; ".join(parts)}: {POLICY_WORDS.get(p, p)} (out-of-range policy {p}'
+            + ('' if p == 'clamp' else ', not clamped') + ')' if parts else '')
 
 
 def format_paper_table(b: BagEval, conventional: int, modified: int) -> str:
