@@ -32,8 +32,10 @@ from pathlib import Path
 import sys
 
 ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
-    sys.path.insert(0, str(ROOT))
+# A checkout without `pip install -e .`, and tools/pan_holdout.py (its run_tool) beside this.
+for path in (ROOT, ROOT / 'tools'):
+    if str(path) not in sys.path:
+        sys.path.insert(0, str(path))
 
 from gyro_tdc.data.realdata import default_pan_csv, read_pan_cubesat_csv  # noqa: E402
 from gyro_tdc.data.runs import Run  # noqa: E402
