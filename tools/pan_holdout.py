@@ -26,15 +26,40 @@ method and its caveats are in ``doc/real_data.md``.
 from __future__ import annotations
 
 import argparse
+import json
 from pathlib import Path
 import sys
+from typing import Any, Callable, Mapping
 
 ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(ROOT))
 
+from gyro_tdc.base import atomic_write  # noqa: E402
 from gyro_tdc.data.realdata import default_pan_csv  # noqa: E402
-from gyro_tdc.evaluate.realdata import format_holdout, pan_holdout, run_tool  # noqa: E402
+from gyro_tdc.errors import GyroTdcError  # noqa: E402
+from gyro_tdc.evaluate.realdata import format_holdout, pan_holdout  # noqa: E402
+
+
+def run_tool(prog: str, compute: Callable[[], Mapping[str, Any]],
+             fmt: Callable[[Mapping[str, Any]], str], json_path: Path | None) -> int:
+    """
+    Run a real-data tool: compute, print the table, write the JSON; one line on failure.
+
+    ``compute`` returns the figures, ``fmt`` formats them, ``json_path`` (optional) receives
+    them atomically. Returns 0, or 2 after ``PROG: error: ...`` on bad input or an
+    unwritable ``json_path``.
+    """
+    try:
+        result = compute()
+        print(fmt(result))
+        if json_path is not None:
+            atomic_write(json_path, json.dumps(result, indent=1) + '\n', what='JSON file')
+            print(f'\nwrote {json_path}')
+    except GyroTdcError as err:
+        print(f'{prog}: error: {err}', file=sys.stderr)
+        return 2
+    return 0
 
 
 def _blocks(text: str) -> int:

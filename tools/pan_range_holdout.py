@@ -32,19 +32,22 @@ from pathlib import Path
 import sys
 
 ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
-    sys.path.insert(0, str(ROOT))
+# A checkout without `pip install -e .`, and tools/pan_holdout.py (its run_tool) beside this.
+for path in (ROOT, ROOT / 'tools'):
+    if str(path) not in sys.path:
+        sys.path.insert(0, str(path))
 
 from gyro_tdc.data.realdata import default_pan_csv, read_pan_cubesat_csv  # noqa: E402
 from gyro_tdc.data.runs import Run  # noqa: E402
 from gyro_tdc.errors import GyroTdcError  # noqa: E402
-from gyro_tdc.evaluate.realdata import burst_index, run_tool  # noqa: E402
+from gyro_tdc.evaluate.realdata import burst_index  # noqa: E402
 from gyro_tdc.evaluate.score import score  # noqa: E402
 from gyro_tdc.identify import fit_model  # noqa: E402
 from gyro_tdc.model.compensation import compensate  # noqa: E402
 from gyro_tdc.model.out_of_range import MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES  # noqa: E402
 from gyro_tdc.signal.metrics import bias_stability  # noqa: E402
 import numpy as np  # noqa: E402
+from pan_holdout import run_tool  # noqa: E402
 
 #: (name, description, fit_model options); ``bias`` and ``linear fit`` are the baselines.
 MODELS = (

@@ -43,7 +43,7 @@ __all__ = ['ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_option
            'add_session_options', 'bag_options', 'comma_floats', 'command_line', 'driver_bags',
            'effect_listing', 'finite_float', 'key_listing', 'non_negative_float',
            'non_negative_int', 'parse_reference', 'positive_float', 'positive_int', 'probability',
-           'progress', 'run_command']
+           'progress', 'progress_bar', 'run_command']
 
 _DEG = math.pi / 180.0
 _UNITS = {'': 1.0, 'rad/s': 1.0, 'rads': 1.0, 'deg/s': _DEG, 'dps': _DEG}
@@ -234,6 +234,24 @@ def bag_options(args: argparse.Namespace, **more: object) -> BagOptions:
 def progress(args: argparse.Namespace) -> bool:
     """Return whether to show progress bars: ``--no-progress`` given, else a terminal."""
     return sys.stderr.isatty() if args.progress is None else bool(args.progress)
+
+
+def progress_bar(total: int | None, unit: str, desc: str, shown: bool) -> tuple:
+    """
+    Return a tqdm bar on stderr (hidden unless ``shown``) and ``log(line)`` for stdout.
+
+    ``log`` prints above the bar while it shows, so lines and bar never mix.
+    """
+    from tqdm import tqdm
+    bar = tqdm(total=total, unit=unit, desc=desc, file=sys.stderr, leave=False,
+               disable=not shown)
+
+    def log(line: str) -> None:
+        if bar.disable:
+            print(line, flush=True)
+        else:
+            bar.write(line, file=sys.stdout)
+    return bar, log
 
 
 # --------------------------------------------------------------------------------------------

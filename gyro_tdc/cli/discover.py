@@ -32,7 +32,8 @@ from typing import Optional, Sequence
 from gyro_tdc.base import atomic_write
 from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser, bag_options,
                                  command_line, effect_listing, finite_float, positive_float,
-                                 positive_int, probability, run_command, UsageError)
+                                 positive_int, probability, progress_bar, run_command,
+                                 UsageError)
 from gyro_tdc.data import load_runs, split_sessions
 from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.identify import (ACCEL_EFFECTS, build_model, constant_gyro_axes, constant_note,
@@ -118,9 +119,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         runs, still = still_only_runs(runs)     # no reference and moving: the still stretches
         if still is not None:
             print(still)
-    from tqdm import tqdm
-    bar = tqdm(unit='candidate', desc='discover', file=sys.stderr, leave=False,
-               disable=not sys.stderr.isatty())
+    bar = progress_bar(None, 'candidate', 'discover', sys.stderr.isatty())[0]
 
     def progress(step: int, eid: str) -> None:
         bar.set_postfix_str(f'step {step + 1}: scoring {eid}')

@@ -25,18 +25,17 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
                                  ArgumentParser, bag_options, comma_floats, driver_bags,
-                                 non_negative_float, run_command, UsageError)
+                                 non_negative_float, progress_bar, run_command, UsageError)
 from gyro_tdc.data import find_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
-                               format_still, load_models, model_description, PX4, write_csv,
-                               write_json, write_plots)
+                               format_still, load_models, model_description, POLICY_WORDS, PX4,
+                               write_csv, write_json, write_plots)
 from gyro_tdc.learn import read_model
-from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OUT_OF_RANGE_POLICIES
+from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, OUT_OF_RANGE_POLICIES
 
 __all__ = ['build_parser', 'main']
 
@@ -72,7 +71,7 @@ def build_parser() -> argparse.ArgumentParser:
                         'stretches is anchored on the first of each session instead)')
     p.add_argument('--out-of-range', dest='out_of_range', default=DEFAULT_OUT_OF_RANGE,
                    choices=OUT_OF_RANGE_POLICIES,
-                   help=f"beyond a model's trained range: linear ({_POLICY_WORDS['linear']}, "
+                   help=f"beyond a model's trained range: linear ({POLICY_WORDS['linear']}, "
                         'as the compensator node by default), clamp, or extrapolate (default: '
                         '%(default)s)')
     p.add_argument('--floor', type=_floor, default=None, metavar='X,Y,Z|V',
@@ -110,13 +109,6 @@ def _floor(text: str) -> tuple[float, float, float]:
     return tuple(values * 3) if len(values) == 1 else tuple(values)
 
 
-_POLICY_WORDS = {
-    'linear': 'the correction continues along its tangent at the range end, held beyond '
-              f'{MAX_EXTRAPOLATION_C:g} degC',
-    'clamp': 'the correction is held at the range end',
-    'extrapolate': 'the model is evaluated there'}
-
-
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``evaluate`` with parsed arguments; print the tables and write the outputs."""
     specs = list(args.models)
@@ -132,27 +124,17 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     args.bags = driver_bags(args, args.bags)       # a driver's own types, read by field
     args.train = driver_bags(args, args.train) if args.train else args.train
     auto = args.reanchor == AUTO_REANCHOR
-    options = ('re-anchored: mean error removed over the head of each session until known to '
-               "the compensator's tolerance" if auto else
-               f're-anchored: mean error of the first {args.reanchor:g} s removed'
-               if args.reanchor > 0 else 'no re-anchoring')
-    from tqdm import tqdm
+    # One description of the re-anchoring: the console line and the plot titles.
+    how = ('re-anchored (auto): mean error removed over the head of each session, averaged '
+           "until its standard error is 0.1 x the model's residual std or 600 s" if auto else
+           f're-anchored: mean error over the first {args.reanchor:g} s of each session removed'
+           if args.reanchor > 0 else 'no re-anchoring')
     found = find_bags(args.bags)
     place = {str(p): k + 1 for k, (p, _) in enumerate(found)}
-    bar = tqdm(total=len(found), unit='bag', desc='evaluate', file=sys.stderr,
-               leave=False, disable=not bag.progress)
-
-    def log(line: str) -> None:     # on stdout, above the bar when there is one
-        if bar.disable:
-            print(line, flush=True)
-        else:
-            bar.write(line, file=sys.stdout)
-
+    bar, log = progress_bar(len(found), 'bag', 'evaluate', bag.progress)
     models = load_models(specs, train_bags=args.train, bag=bag, log=log, held_out=args.bags,
                          loader=read_model)
-    descriptions = [model_description(nm.name, nm.model.kind, nm.model.features,
-                                      tau_s=_state_tau(nm.model))
-                    for nm in models]
+    descriptions = [model_description(nm.name, nm.model) for nm in models]
 
     def each(b: BagEval) -> None:
         for line in [*(_reanchor_lines(b) if auto else ()), *format_still(b)]:
@@ -164,7 +146,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         log(format_bag(b, baseline, floor=args.floor, accel_floor=args.accel_floor))
         if args.plots is not None:
             bar.set_postfix_str(f'{b.label}: plots')
-            for f in write_plots(b, args.plots, descriptions=descriptions, options=options,
+            for f in write_plots(b, args.plots, descriptions=descriptions, options=how,
                                  reanchor_s=0.0 if auto else args.reanchor):
                 log(f'wrote {f}')
         if args.export is not None:
@@ -176,15 +158,11 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         lo, hi = nm.model.temp_range_c
         log(f'model {nm.label} = {text}, trained {lo:.2f} .. {hi:.2f} degC')
     log(f"out-of-range policy: {args.out_of_range} (beyond a model's trained range of the "
-        f'model temperature {_POLICY_WORDS[args.out_of_range]}; --out-of-range '
+        f'model temperature {POLICY_WORDS[args.out_of_range]}; --out-of-range '
         f'{"|".join(OUT_OF_RANGE_POLICIES)})')
-    if auto:
-        log('models re-anchored (auto): mean error removed over the head of each session, '
-            "averaged until its standard error is 0.1 x the model's residual std or 600 s "
-            '(raw data untouched); per model: samples, seconds, standard error')
-    elif args.reanchor > 0:
-        log(f'models re-anchored: mean error over the first {args.reanchor:g} s of each session '
-            'removed (raw data untouched)')
+    if args.reanchor:
+        log(f'models {how} (raw data untouched)'
+            + ('; per model: samples, seconds, standard error' if auto else ''))
     try:
         results = evaluate(args.bags, models, bag=bag, reanchor_s=args.reanchor, log=log,
                            each=each, out_of_range=args.out_of_range, found=found)
@@ -213,12 +191,6 @@ def _reanchor_lines(b: BagEval) -> list[str]:
                          + ' deg/s, standard error '
                          + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
     return lines
-
-
-def _state_tau(model) -> float | None:
-    """Return the total tau of a model's thermal state in s (None without a state)."""
-    th = getattr(model, 'thermal', None)
-    return None if th is None or th.kind == 'none' else float(th.tau_total_s)
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

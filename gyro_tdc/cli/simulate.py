@@ -27,13 +27,12 @@ import argparse
 import math
 import os
 from pathlib import Path
-import sys
 import textwrap
 import time
 from typing import Callable, Optional, Sequence
 
 from gyro_tdc.base import atomic_dir, check_sim_samples, clean_leftovers, scenario_names
-from gyro_tdc.cli.common import ArgumentParser, progress, run_command
+from gyro_tdc.cli.common import ArgumentParser, progress, progress_bar, run_command
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.sim import CMD_VEL_TOPIC, load_scenario, SimRun, simulate_run, TRUTH_TOPIC
 import numpy as np
@@ -186,10 +185,8 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
     # run killed at any point leaves the old or the new output there, never neither.
     names = [f'run{i + 1}' for i in range(sc.runs.count)] if sc.runs.count > 1 else ['']
     from gyro_tdc.data import encode_twists, TWIST_TYPE, write_bag
-    from tqdm import tqdm
-    bar = tqdm(total=len(names), unit='run', desc='simulate', file=sys.stderr,
-               disable=not progress or len(names) < 2, leave=False)
-    log = log if bar.disable else bar.write     # summary lines above the bar
+    bar, above = progress_bar(len(names), 'run', 'simulate', progress and len(names) > 1)
+    log = log if bar.disable else above     # summary lines above the bar
     with atomic_dir(out_path, what='bag', replace=force) as build:
         if sc.runs.count > 1:
             build.mkdir()

@@ -25,7 +25,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'models': ['load_models', 'NamedModel', 'ONBOARD', 'onboard_model', 'PX4'],
     'plots': ['model_description', 'write_plots'],
     'report': ['format_bag', 'format_coverage', 'format_means', 'format_sessions', 'format_still',
-               'format_training', 'is_coverage_line', 'REANCHOR_SPREAD_DPS', 'write_csv',
-               'write_json'],
+               'format_training', 'is_coverage_line', 'POLICY_WORDS', 'REANCHOR_SPREAD_DPS',
+               'write_csv', 'write_json'],
     'score': ['AUTO_REANCHOR', 'BagEval', 'evaluate', 'mean_scores'],
 })

@@ -60,19 +60,20 @@ def _style(i: int, n_points: int, n_models: int) -> dict:
             'markersize': 5, 'markevery': (i * step // max(n_models, 1), step)}
 
 
-def model_description(name: str, kind: str, features: Sequence[str], *,
-                      tau_s: float | None = None) -> str:
+def model_description(name: str, model: Any) -> str:
     """
-    Return the legend text of a model: its file (or ``px4``) and what it is.
+    Return the legend text of a model (a ``CompensationModel``): its file (or ``px4``), what it is.
 
-    E.g. ``modified.yaml: poly f(dT, dT2)``, ``auto.yaml: rbf f(dT, dT2, lag 176 s)``
-    (``tau_s``: the thermal state's total tau, s) or ``px4: cubic in T fitted on --train``.
+    E.g. ``modified.yaml: poly f(dT, dT2)``, ``auto.yaml: rbf f(dT, dT2, lag 176 s)`` (the
+    thermal state's total tau) or ``px4: cubic in T fitted on --train``.
     """
     if name == 'px4':
         return 'px4: cubic in T fitted on --train'
+    th = getattr(model, 'thermal', None)
+    tau_s = None if th is None or th.kind == 'none' else float(th.tau_total_s)
     shown = [f'lag {tau_s:.3g} s' if f == 'lag' and tau_s is not None else f
-             for f in features if f != 'bias']          # bias is in every model
-    return f'{Path(name).name}: {kind} f({", ".join(shown) or "bias"})'
+             for f in model.features if f != 'bias']          # bias is in every model
+    return f'{Path(name).name}: {model.kind} f({", ".join(shown) or "bias"})'
 
 
 def _zoom_limits(curves: Sequence[NDArray[np.float64]]) -> tuple[float, float] | None:

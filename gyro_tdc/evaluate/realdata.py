@@ -24,15 +24,12 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 from functools import partial
-import json
 import math
 from pathlib import Path
-import sys
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Mapping, Sequence
 
-from gyro_tdc.base import atomic_write
 from gyro_tdc.data import default_pan_csv, PanCubesat, read_pan_cubesat_csv, Run
-from gyro_tdc.errors import FitError, GyroTdcError
+from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.score import score
 from gyro_tdc.identify import estimate_t0, fit_linear, fit_model, fit_time_constant, rows_of
 from gyro_tdc.model import (batch_features, compensate, EFFECTS,
@@ -42,7 +39,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['FullSeriesModel', 'HOLDOUT_MODELS', 'HoldoutModel', 'burst_holdout', 'burst_index',
-           'fit_full_series', 'format_holdout', 'pan_holdout', 'run_tool']
+           'fit_full_series', 'format_holdout', 'pan_holdout']
 
 #: Summary groups of a scheme: interior blocks are interpolation, end blocks extrapolation.
 GROUPS = ('interior', 'end', 'all')
@@ -171,12 +168,10 @@ def _scored(omega: tuple[NDArray[np.float64], NDArray[np.float64]], held: Run,
             'floor_ratio_unclamped': (ev_u.bs / floor).tolist()}, ev.bs
 
 
-def _scheme(run: Run, burst: NDArray[np.int64], n_blocks: int,
+def _scheme(run: Run, burst: NDArray[np.int64], means: NDArray[np.float64], n_blocks: int,
             models: Sequence[HoldoutModel], t0: float) -> dict:
-    """Run one leave-one-block-out scheme; return its folds and summaries."""
-    n_bursts = int(burst.max()) + 1
-    err = run.omega - run.omega_ref
-    means = np.array([err[burst == b].mean(axis=0) for b in range(n_bursts)])
+    """Run one leave-one-block-out scheme (``means``: each burst's mean error, rad/s)."""
+    n_bursts, err = len(means), run.omega - run.omega_ref
 
     def floor_of(idx: NDArray[np.int64]) -> NDArray[np.float64]:
         """BS of held-out samples around their own burst means (the white-noise floor)."""
@@ -288,17 +283,15 @@ def burst_holdout(run: Run, *, n_blocks: int = 5, leave_one_out: bool = True,
                        f'burst of {int(counts.min())}.')
     if t0 is None:
         t0 = estimate_t0(run)
-    err = np.degrees(run.omega - run.omega_ref)
+    err = run.omega - run.omega_ref
     means = np.array([err[burst == b].mean(axis=0) for b in range(n_bursts)])
-    dev = err - means[burst]
-    sd = np.sqrt((dev ** 2).mean(axis=0))
+    sd = np.degrees(np.sqrt(((err - means[burst]) ** 2).mean(axis=0)))
     # First differences within bursts: an independent look at the white noise.
     same = np.diff(burst) == 0
-    diff_sd = np.std(np.diff(err, axis=0)[same], axis=0) / math.sqrt(2.0)
+    diff_sd = np.degrees(np.std(np.diff(err, axis=0)[same], axis=0)) / math.sqrt(2.0)
     starts = np.array([run.t[burst == b][0] for b in range(n_bursts)])
-    schemes = [_scheme(run, burst, n_blocks, models, t0)]
-    if leave_one_out and n_blocks != n_bursts:
-        schemes.append(_scheme(run, burst, n_bursts, models, t0))
+    schemes = [_scheme(run, burst, means, n, models, t0) for n in (
+        [n_blocks] + ([n_bursts] if leave_one_out and n_blocks != n_bursts else []))]
     return {
         'source': run.name, 'samples': len(run), 'bursts': n_bursts,
         'samples_per_burst': [int(counts.min()), int(counts.max())],
@@ -310,7 +303,7 @@ def burst_holdout(run: Run, *, n_blocks: int = 5, leave_one_out: bool = True,
         'noise': {'within_burst_sd_dps': sd.tolist(), 'floor_bs_dps2': (sd ** 2).tolist(),
                   'diff_sd_dps': diff_sd.tolist(),
                   'burst_mean_se_dps': (sd / math.sqrt(float(np.median(counts)))).tolist()},
-        'drift_dps': (means[-1] - means[0]).tolist(),
+        'drift_dps': np.degrees(means[-1] - means[0]).tolist(),
         'models': [m.to_dict() for m in models],
         'schemes': schemes,
     }
@@ -444,24 +437,3 @@ def format_holdout(result: Mapping[str, Any]) -> str:
                       _head(not unclamped)]
             lines += _model_rows(sm['models'], names, unclamped=unclamped, ratios=True)
     return '\n'.join(lines)
-
-
-def run_tool(prog: str, compute: Callable[[], Mapping[str, Any]],
-             fmt: Callable[[Mapping[str, Any]], str], json_path: Path | None) -> int:
-    """
-    Run a real-data tool: compute, print the table, write the JSON; one line on failure.
-
-    ``compute`` returns the figures, ``fmt`` formats them, ``json_path`` (optional) receives
-    them atomically. Returns 0, or 2 after ``PROG: error: ...`` on bad input or an
-    unwritable ``json_path``.
-    """
-    try:
-        result = compute()
-        print(fmt(result))
-        if json_path is not None:
-            atomic_write(json_path, json.dumps(result, indent=1) + '\n', what='JSON file')
-            print(f'\nwrote {json_path}')
-    except GyroTdcError as err:
-        print(f'{prog}: error: {err}', file=sys.stderr)
-        return 2
-    return 0

@@ -41,9 +41,15 @@ from numpy.typing import NDArray
 __all__ = ['AXES', 'csv_columns', 'evaluation_json', 'format_allan', 'format_bag',
            'format_coverage', 'format_means', 'format_paper_table', 'format_sessions',
            'format_still', 'format_summary', 'format_training', 'is_coverage_line',
-           'REANCHOR_SPREAD_DPS', 'write_csv', 'write_json']
+           'POLICY_WORDS', 'REANCHOR_SPREAD_DPS', 'write_csv', 'write_json']
 
 AXES = ('x', 'y', 'z')
+#: What each out-of-range policy does beyond a model's trained range (notes, console).
+POLICY_WORDS = {
+    'linear': 'the correction continues along its tangent at the range end, held beyond '
+              f'{MAX_EXTRAPOLATION_C:g} degC',
+    'clamp': 'the correction is held at the range end',
+    'extrapolate': 'the model is evaluated there'}
 
 
 # --------------------------------------------------------------------------------------------
@@ -292,13 +298,9 @@ def _outside_note(b: BagEval) -> str:
     parts = [f'{pct} of {whose} lie outside the trained range of {", ".join(labels)} '
              f'{span}' if i == 0 else f'{pct} outside that of {", ".join(labels)} {span}'
              for i, ((pct, span), labels) in enumerate(groups.items())]
-    how = {'clamp': 'evaluated clamped at the range ends',
-           'extrapolate': 'the models evaluated there (extrapolated, not clamped)',
-           'linear': 'the correction continued along its tangent at the range end, held '
-                     f'beyond {MAX_EXTRAPOLATION_C:g} degC (out-of-range policy linear, not '
-                     'clamped)'}
-    return (f'  note: {"; ".join(parts)}: {how.get(b.out_of_range, b.out_of_range)}'
-            if parts else '')
+    p = b.out_of_range
+    return (f'  note: {"; ".join(parts)}: {POLICY_WORDS.get(p, p)} (out-of-range policy {p}'
+            + ('' if p == 'clamp' else ', not clamped') + ')' if parts else '')
 
 
 def format_paper_table(b: BagEval, conventional: int, modified: int) -> str:
@@ -558,9 +560,8 @@ def format_training(result: TrainResult) -> tuple[str, list]:
             + f'T0 = {m.t0_c:.3f} degC' + (f', {params}' if params else ''))
     lo, hi = m.temp_range_c
     of = 'the model temperature, the thermal state' if lagged else 'the model temperature'
-    lines = [head, f'TRAINED RANGE {lo:.2f} .. {hi:.2f} degC ({of}); beyond it the compensator '
-                   'continues the correction along its tangent (out_of_range: linear) for up '
-                   f'to {MAX_EXTRAPOLATION_C:g} degC, then holds it',
+    lines = [head, f'TRAINED RANGE {lo:.2f} .. {hi:.2f} degC ({of}); beyond it (the '
+                   f"compensator's out_of_range: linear) {POLICY_WORDS['linear']}",
              f'training data: {len(result.bags)} bag(s), {result.samples} samples']
     constant = result.constant_line()
     if constant:                # one line: the axes not fitted, passed through unchanged
@@ -582,10 +583,9 @@ def format_training(result: TrainResult) -> tuple[str, list]:
         warns = list(warns) + [
             f'the training data cover {lo:.1f} .. {hi:.1f} degC, less than a typical operating '
             f'range of {a:g} .. {b:g} degC ({short} missing): there the model is not '
-            'calibrated; the compensator extrapolates along the tangent at the range end '
-            f'(out_of_range: linear, up to {MAX_EXTRAPOLATION_C:g} degC, then held; clamp '
-            'or extrapolate are the alternatives, see doc/real_data.md); record the missing '
-            'temperatures to calibrate them']
+            f"calibrated and (the compensator's out_of_range: linear) {POLICY_WORDS['linear']} "
+            '(clamp or extrapolate are the alternatives, see doc/real_data.md); record the '
+            'missing temperatures to calibrate them']
     if lagged and th.identifiable is False:
         warns = list(warns) + [
             th.describe().split('; ', 1)[-1] + ': soaks after heating and cooling steps '

@@ -324,13 +324,10 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         ev.reanchor = info
         ev.constant_axes = [str(a) for a in m.metrics.get('constant_axes', ())]
         ev.p_vs_raw[const] = math.nan       # no signal to score there
-        lo, hi = m.temp_range_c
-        ev.temp_range_c = (lo, hi)
-        temp = model_temperature(m, run.t, run.temp)     # the range is the thermal state's
-        if still is not None:                    # the thermal state runs over the whole bag
-            temp = temp[still]
-        ev.outside_fraction = float(np.count_nonzero((temp < lo) | (temp > hi))
-                                    / max(len(temp), 1))
+        ev.temp_range_c = lo, hi = tuple(m.temp_range_c)
+        # The range is the thermal state's, which runs over the whole bag.
+        temp = model_temperature(m, run.t, run.temp)[slice(None) if still is None else still]
+        ev.outside_fraction = float(np.mean((temp < lo) | (temp > hi))) if len(temp) else 0.0
         out.append(ev)
     raw.accel_bs, per_model = accel_scores(run, [nm.model for nm in models],
                                            out_of_range=out_of_range,
@@ -393,23 +390,23 @@ def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]
     """
     dt = float(np.median(np.diff(run.t))) if len(run) > 1 else 0.0
 
-    def part(a: int, b: int) -> dict:
-        starts, _ = _stretches(still, a, b)
-        still_s = float(np.count_nonzero(still[a:b])) * dt     # a logging gap is no still time
-        total_s = float(run.t[b - 1] - run.t[a] + dt) if b > a else 0.0
-        temp = run.temp[a:b]
-        return {'samples': int(np.count_nonzero(still[a:b])), 'stretches': int(starts.size),
-                'still_s': still_s, 'temperature_c': _span_c(temp[still[a:b]]),
-                'total_samples': b - a, 'total_s': total_s, 'total_temperature_c': _span_c(temp),
-                'share': min(still_s / total_s, 1.0) if total_s > 0 else 0.0}
+    def part(a: int, b: int, figures: dict | None = None) -> dict:
+        """The figures of samples ``a:b``: counted, or (``figures``) summed over sessions."""
+        if figures is None:
+            n = int(np.count_nonzero(still[a:b]))
+            figures = {'samples': n, 'stretches': int(_stretches(still, a, b)[0].size),
+                       'total_samples': b - a,
+                       'still_s': n * dt,           # a logging gap is no still time
+                       'total_s': float(run.t[b - 1] - run.t[a] + dt) if b > a else 0.0}
+        total_s, temp = figures['total_s'], run.temp[a:b]
+        return {**figures, 'temperature_c': _span_c(temp[still[a:b]]),
+                'total_temperature_c': _span_c(temp),
+                'share': min(figures['still_s'] / total_s, 1.0) if total_s > 0 else 0.0}
 
     per = [part(a, b) for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist())]
-    whole = {k: sum(p[k] for p in per)
-             for k in ('samples', 'stretches', 'still_s', 'total_samples', 'total_s')}
-    share = min(whole['still_s'] / whole['total_s'], 1.0) if whole['total_s'] > 0 else 0.0
-    return {**whole, 'temperature_c': _span_c(run.temp[still]),
-            'total_temperature_c': _span_c(run.temp), 'share': share, 'sessions': len(per),
-            'per_session': per}
+    keys = ('samples', 'stretches', 'still_s', 'total_samples', 'total_s')
+    whole = part(0, len(run), {k: sum(p[k] for p in per) for k in keys})
+    return {**whole, 'sessions': len(per), 'per_session': per}
 
 
 def _constant(run: Run) -> NDArray[np.bool_]:

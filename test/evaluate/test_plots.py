@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+from types import SimpleNamespace
 import warnings
 
 from gyro_tdc.evaluate.plots import model_description, write_plots
@@ -42,10 +43,14 @@ def test_three_plots_per_bag(bag, tmp_path):
     assert [f.read_bytes()[:8] for f in files] == [b'\x89PNG\r\n\x1a\n'] * 3
     with pytest.raises(ValueError, match='one per model'):
         write_plots(bag, tmp_path, descriptions=['only one'])
-    assert model_description('out/m/modified.yaml', 'poly', ['dT', 'dT2']) == \
+
+    def model(kind, features, tau_s=None):
+        th = SimpleNamespace(kind='none' if tau_s is None else 'first_order', tau_total_s=tau_s)
+        return SimpleNamespace(kind=kind, features=features, thermal=th)
+    assert model_description('out/m/modified.yaml', model('poly', ['dT', 'dT2'])) == \
         'modified.yaml: poly f(dT, dT2)'
-    assert model_description('px4', 'poly', ['dT', 'dT2', 'dT3']).startswith('px4: cubic')
-    assert model_description('a/auto.yaml', 'rbf', ['dT', 'dT2', 'lag'], tau_s=175.95) == \
+    assert model_description('px4', model('poly', ['dT', 'dT2', 'dT3'])).startswith('px4: cubic')
+    assert model_description('a/auto.yaml', model('rbf', ['dT', 'dT2', 'lag'], 175.95)) == \
         'auto.yaml: rbf f(dT, dT2, lag 176 s)'
     bag.release()
     with pytest.raises(ValueError, match='released'):

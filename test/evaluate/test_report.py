@@ -47,7 +47,8 @@ def test_summary_table(bag):
     assert lines[3].split() == ['raw', '100', '100', '100', '10', '10', '10', '1', '1', '1']
     assert lines[4].split() == ['conv', '4', '2', '1', '2', '1.414', '1', '0.04', '0.02', '0.01']
     assert lines[6] == ('  note: 25 % of the samples lie outside the trained range of mod '
-                        '[-10.00, 30.00] degC: evaluated clamped at the range ends')
+                        '[-10.00, 30.00] degC: the correction is held at the range end '
+                        '(out-of-range policy clamp)')
     assert len(lines) == 7
     bag.duration_s = 6.0                    # a short bag in s, not "0.00 h"
     assert format_summary(bag).startswith('bag bags/run3: 50 samples over 6 s, temperature')
@@ -173,7 +174,8 @@ def test_a_bag_scored_still_only_says_whose_every_figure_is(bag):
                         '25.00 .. 30.00 degC (the whole bag: 50 samples over 90 s at 20.00 .. '
                         '40.00 degC), reference rate zero (no reference topic)')
     assert lines[6] == ('  note: 25 % of the still samples scored lie outside the trained '
-                        'range of mod [-10.00, 30.00] degC: evaluated clamped at the range ends')
+                        'range of mod [-10.00, 30.00] degC: the correction is held at the range '
+                        'end (out-of-range policy clamp)')
     assert ("over the still samples of the whole bag by the accelerometer's still test"
             in lines[7])
     assert format_still(bag) == [
