@@ -60,7 +60,13 @@ stretches). joeydouglas/dataflash_logs' four logs of 18 Oct 2014 (ArduCopter 3.1
 IMU thermometer, no usable barometer one: none read); UoBFlightLab/mav_log_data_science's two
 logs of one board (``IMU.T``, one still stretch each: nothing to score); toopazo/toopazo_ulg's
 six PX4 logs of one FMU v4 Pro copter on one day (8-94 s, barometer only, one still stretch
-each at most: nothing to score).
+each at most: nothing to score). fdeedat/Repo_TA_2024 (no licence: not shipped; ``fetch
+github:fdeedat/Repo_TA_2024``, then ``git show c70c7322:LOGS/000000NN.BIN``, 17 logs under
+4 MiB): one SpeedyBee F4 V4 (ICM-42688-P, the same serial in every log), ArduCopter
+4.6.0-dev, ``IMU`` at 25 Hz with ``T`` in 0.48 degC steps, logging stops of up to 8 min,
+most ends cut inside a message, 26-47 degC: the board of issue 34. ::
+
+    .venv/bin/python bench/bench_real_boards.py --group /tmp/s10/boards/fdeedat_speedybeef4v4
 """
 
 import argparse
