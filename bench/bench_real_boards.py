@@ -64,9 +64,9 @@ each at most: nothing to score). fdeedat/Repo_TA_2024 (no licence: not shipped; 
 github:fdeedat/Repo_TA_2024``, then ``git show c70c7322:LOGS/000000NN.BIN``, 17 logs under
 4 MiB): one SpeedyBee F4 V4 (ICM-42688-P, the same serial in every log), ArduCopter
 4.6.0-dev, ``IMU`` at 25 Hz with ``T`` in 0.48 degC steps, logging stops of up to 8 min,
-most ends cut inside a message, 26-47 degC: the board of issue 34. ::
+most ends cut inside a message, 26-47 degC: a board as issue 34 describes. ::
 
-    .venv/bin/python bench/bench_real_boards.py --group /tmp/s10/boards/fdeedat_speedybeef4v4
+    .venv/bin/python bench/bench_real_boards.py --group SPEEDYBEE_FOLDER --draws 6 --seed 0
 """
 
 import argparse
