@@ -184,11 +184,8 @@ def window_stats(t: NDArray[np.float64], x: NDArray[np.float64], c: Sequence[flo
 
     ``t`` (s, N) are the stamps (blocks of ``block_s`` seconds start at ``t[0]``), ``x``
     (N, 3) the values averaged (the compensated rate, or its error), ``c`` the run's
-    centring constant (3 floats).
+    centring constant (3 floats); ``t`` not empty.
     """
-    t = np.asarray(t, dtype=np.float64)
-    if t.size == 0:
-        return BlockStats()
     return stats_of(*block_sums(t, x, c, block_s, float(t[0]))[1:])
 
 

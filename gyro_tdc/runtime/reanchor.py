@@ -393,33 +393,6 @@ class StillnessDetector:
         self._end_window()
         return None if w is None else self._judge(w)
 
-    def _blocks(self, w: Window) -> BlockStats:
-        """
-        Return the block statistics of a window's compensated rate around the run's centre.
-
-        Each block's sum runs sample by sample, as a stream adds them (the blocks padded
-        with zeros to one length, summed along it), then the blocks in order.
-        """
-        t, x = w.t, w.rate - np.asarray(self._c)
-        k = np.floor((t - t[0]) / self.block_s)
-        first = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
-        counts = np.diff(np.append(first, t.size))
-        block = np.repeat(np.arange(first.size), counts)
-        padded = np.zeros((first.size, int(counts.max()), 3))
-        padded[block, np.arange(t.size) - first[block]] = x
-        n = m = 0
-        s, a, b = [0.0] * 3, [0.0] * 3, [0.0] * 3
-        c2 = 0.0
-        for nk, sums in zip(counts.tolist(), padded.sum(axis=1).tolist()):
-            n += nk
-            m += 1
-            for i, v in enumerate(sums):
-                s[i] += v
-                a[i] += v * v
-                b[i] += v * nk
-            c2 += float(nk * nk)
-        return BlockStats(n, m, tuple(s), tuple(a), tuple(b), c2)
-
     def _judge(self, w: Window) -> Anchor | None:
         """Extend, drop or finish the run with the window that just ended."""
         if not self._run:                 # a run starts: its centring constant
@@ -429,7 +402,8 @@ class StillnessDetector:
             self._run = []          # motion before the tolerance was met: start over
             return None
         run = self._run
-        run.append(_Window(w.t0, self._blocks(w), w.gyro_std, w.accel_std))
+        stats = window_stats(w.t, w.rate, self._c, self.block_s)
+        run.append(_Window(w.t0, stats, w.gyro_std, w.accel_std))
         j, _ = self.still.last_refused(run, w.thresholds)
         if j >= 0:
             del run[:j + 1]

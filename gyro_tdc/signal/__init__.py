@@ -37,5 +37,5 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
               'MotionReports', 'MOTION_EPS', 'motion_veto', 'NOISE_FACTOR', 'noise_floor',
               'noise_thresholds', 'NOISE_WINDOWS', 'SHORT_WINDOW_S', 'Stillness',
               'STILL_WINDOW_S', 'windows_moving'],
-    'still_stream': ['StillSegment', 'StillWindows', 'StreamingStill', 'Window'],
+    'still_stream': ['StillWindows', 'Window'],
 })

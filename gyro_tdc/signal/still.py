@@ -35,7 +35,7 @@ __all__ = ['auto_window', 'detect_still', 'has_accelerometer', 'judge_windows', 
            'MAX_STILL_SE', 'MIN_JUDGED', 'MIN_STILL_S', 'MIN_STILL_SAMPLES', 'MIN_WINDOW_SAMPLES',
            'MotionReports', 'MOTION_EPS', 'motion_veto', 'NOISE_DOF', 'NOISE_FACTOR',
            'NOISE_WINDOWS', 'noise_floor', 'noise_thresholds', 'NoiseFloor', 'REASONS',
-           'SHORT_WINDOW_S', 'Stillness', 'STILL_WINDOW_S', 'windows_moving']
+           'SHORT_WINDOW_S', 'Stillness', 'STILL_WINDOW_S', 'window_moments', 'windows_moving']
 
 #: Default window, s: the shortest still stretch judged (and the re-anchoring window).
 STILL_WINDOW_S = 10.0
@@ -346,44 +346,43 @@ def _refusals(why: NDArray[np.str_]) -> dict[str, int]:
     return {r: int(np.count_nonzero(why == r)) for r in REASONS if np.any(why == r)}
 
 
-#: Rows per pass of :func:`_window_stats` (its temporaries stay in the cache: under 1 MB).
+#: Rows per pass of :func:`window_moments` (its temporaries stay in the cache: under 1 MB).
 _CHUNK_ROWS = 1 << 15
 
 
-def _window_stats(x: NDArray[np.float64], starts: NDArray[np.int64],
-                  counts: NDArray[np.int64], finite: NDArray[np.bool_] | None = None
-                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+@np.errstate(invalid='ignore', divide='ignore')        # a non-finite row, a single row
+def window_moments(x: NDArray[np.float64], starts: NDArray[np.int64],
+                   counts: NDArray[np.int64], finite: NDArray[np.bool_] | None = None
+                   ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Return per-window means and standard deviations (W, 3) of ``x`` (ddof 1).
 
-    Rows where ``finite`` is False count as zeros. The sums run over whole windows in
-    passes of about :data:`_CHUNK_ROWS` rows, each window's in the same order as one pass
-    over all rows would (so the same numbers), without a full-length temporary.
+    The one home of the still test's window statistics, batch and streaming. Each window is
+    centred on its first row: an axis that never changes has a scatter of exactly zero, and
+    a non-finite row spoils its own window only; rows where ``finite`` is False count as
+    zeros. The sums run in passes of about :data:`_CHUNK_ROWS` rows of whole windows.
     """
-    n = x.shape[0]
-    c = x[0] if finite is None or finite[0] else np.zeros(x.shape[1])
-    w = starts.size
-    s = np.empty((w, x.shape[1]))
-    q = np.empty((w, x.shape[1]))
+    n, w = x.shape[0], starts.size
+    s, q = np.empty((w, x.shape[1])), np.empty((w, x.shape[1]))
     ends = np.append(starts[1:], n)
-    zero = 0.0 - c                       # a zeroed row, centred
     buf = np.empty((min(n, max(_CHUNK_ROWS, int(counts.max()))), x.shape[1]))
     i = 0
     while i < w:
         j = max(i + 1, int(np.searchsorted(ends, starts[i] + _CHUNK_ROWS, side='right')))
-        a, b = int(starts[i]), int(ends[j - 1])
-        d = np.subtract(x[a:b], c, out=buf[:b - a])
+        a, b, loc = int(starts[i]), int(ends[j - 1]), starts[i:j] - starts[i]
+        d = buf[:b - a]
+        d[...] = x[a:b]
         if finite is not None:
-            d[~finite[a:b]] = zero
-        loc = starts[i:j] - a
+            d[~finite[a:b]] = 0.0
+        c = d[loc]
+        d -= np.repeat(c, counts[i:j], axis=0)
         s[i:j] = np.add.reduceat(d, loc, axis=0)
         q[i:j] = np.add.reduceat(np.multiply(d, d, out=d), loc, axis=0)
+        s[i:j] /= counts[i:j, None]
+        q[i:j] = np.maximum(q[i:j] - s[i:j] * s[i:j] * counts[i:j, None], 0.0)
+        s[i:j] += c
         i = j
-    n = counts[:, None]
-    mean = s / n
-    with np.errstate(invalid='ignore', divide='ignore'):
-        var = np.maximum(q - s * mean, 0.0) / (n - 1.0)
-    return mean + c, np.sqrt(var)
+    return s, np.sqrt(q / (counts[:, None] - 1.0))
 
 
 def _windows(t: NDArray[np.float64], g: NDArray[np.float64], acc: NDArray[np.float64] | None,
@@ -403,8 +402,8 @@ def _windows(t: NDArray[np.float64], g: NDArray[np.float64], acc: NDArray[np.flo
         finite &= f[:, 0] & f[:, 1] & f[:, 2]      # column by column: faster than all(axis=1)
     zeroed = None if finite.all() else finite      # non-finite rows count as zeros
     return (starts, counts, finite, np.logical_or.reduceat(~finite, starts),
-            *_window_stats(g, starts, counts, zeroed),
-            *((None, None) if acc is None else _window_stats(acc, starts, counts, zeroed)))
+            *window_moments(g, starts, counts, zeroed),
+            *((None, None) if acc is None else window_moments(acc, starts, counts, zeroed)))
 
 
 def _long_enough(g: NDArray[np.float64], duration: float, window: float,
@@ -517,8 +516,7 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
                else np.asarray(accel_floor, float))
     g_thr, a_thr = noise_thresholds(g_floor, a_floor, gyro_std=gyro_std, accel_std=accel_std)
     r = None if rate is None else np.asarray(rate, dtype=np.float64)
-    mean_rate = None if r is None else _window_stats(np.where(np.isfinite(r), r, np.inf),
-                                                     starts, counts)[0]
+    mean_rate = None if r is None else window_moments(r, starts, counts)[0]
     why = judge_windows(g_std, a_std, g_thr, a_thr, mean_rate=mean_rate, max_rate=max_rate,
                         moving=vetoed, counts=counts, finite=~bad)
     segments, durations = _still_stretches(t, g, starts, why, dt, window, min_still_s)

@@ -16,24 +16,24 @@
 The streaming form of the still test: windows judged one sample (or one chunk) at a time.
 
 :class:`StillWindows` is the one streaming detector (windows, running noise floor, motion
-reports, verdict); :class:`StreamingStill` adds still stretches. The rule, the floor and the
-reports themselves live in :mod:`gyro_tdc.signal.still`. See doc/internals/signal.md.
+reports, verdict); its users keep their own stretches of still windows. The rule, the floor,
+the reports and the window statistics live in :mod:`gyro_tdc.signal.still`. See
+doc/internals/signal.md.
 """
 
 from __future__ import annotations
 
 from array import array
-from dataclasses import dataclass
 import math
 from typing import Any, NamedTuple, Sequence
 
-from gyro_tdc.signal.still import (judge_windows, MAX_RATE, MIN_JUDGED, MIN_STILL_S,
-                                   MotionReports, noise_thresholds, NOISE_WINDOWS, NoiseFloor,
-                                   REASONS, STILL_WINDOW_S)
+from gyro_tdc.signal.still import (judge_windows, MAX_RATE, MIN_JUDGED, MotionReports,
+                                   noise_thresholds, NOISE_WINDOWS, NoiseFloor, STILL_WINDOW_S,
+                                   window_moments)
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['CUTS', 'StillSegment', 'StillWindows', 'StreamingStill', 'Window']
+__all__ = ['CUTS', 'StillWindows', 'Window']
 
 #: How a stream is cut into windows: ``'grid'``, on ``floor((t - t_first) / window_s)`` (the
 #: batch form's grid; a window is judged when the first sample of the next arrives), or
@@ -67,7 +67,7 @@ class Window(NamedTuple):
     moving : bool
         A motion report or flag vetoed it.
     why : str
-        ``''`` for a still window, else why not (one of :data:`REASONS`).
+        ``''`` for a still window, else why not (one of :data:`~gyro_tdc.signal.still.REASONS`).
     thresholds : tuple of two tuples of 3 float
         Gyro (rad/s) and accelerometer (m/s^2) thresholds in force when it was judged.
     t_next : float or None, s
@@ -117,31 +117,16 @@ class Window(NamedTuple):
 _STEP_ROWS = 64
 
 
-def _steps(x: NDArray[np.float64]) -> tuple[NDArray[np.bool_], NDArray[np.float64]]:
+def _step(x: NDArray[np.float64]) -> NDArray[np.float64]:
     """
-    Return per column whether it is constant and a finest positive step (inf: none).
+    Return per column a finest positive step between readings (inf: none).
 
     The step is looked for among the first :data:`_STEP_ROWS` readings: on quantised data
     two neighbouring levels are there; on data that are not, any step found is far below
     the noise (the floor it bounds is then the pooled variance's).
     """
-    lo, hi = x.min(axis=0), x.max(axis=0)
-    const = lo == hi
-    step = np.full(x.shape[1], math.inf)
-    if not const.all():
-        d = np.diff(np.sort(x[:_STEP_ROWS], axis=0), axis=0)
-        d = np.where(d > 0.0, d, math.inf).min(axis=0, initial=math.inf)
-        step = np.where(const, math.inf, d)
-    return const, step
-
-
-def _moments(x: NDArray[np.float64], start: NDArray[np.int64], n: NDArray[np.int64]
-             ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return per-window means and standard deviations (ddof 1, two passes) of ``x`` (N, 3)."""
-    mean = np.add.reduceat(x, start, axis=0) / n[:, None]
-    dev = x - (mean if start.size == 1 else np.repeat(mean, n, axis=0))
-    var = np.add.reduceat(dev * dev, start, axis=0) / np.maximum(n - 1, 1)[:, None]
-    return mean, np.sqrt(var)
+    d = np.diff(np.sort(x[:_STEP_ROWS], axis=0), axis=0)
+    return np.where(d > 0.0, d, math.inf).min(axis=0, initial=math.inf)
 
 
 def _floor(noise: str, doc: str) -> property:
@@ -355,18 +340,18 @@ class StillWindows:
         """Compute the statistics of the windows of ``x`` starting at ``start``; judge them."""
         m = x.shape[0]
         n = np.diff(np.r_[start, m])
-        g_mean, g_std = _moments(x[:, 1:4], start, n)
+        g_mean, g_std = window_moments(x[:, 1:4], start, n)
         fin_g = np.isfinite(g_mean).all(axis=1) & np.isfinite(g_std).all(axis=1)
         acc = x[:, 4:7]
         fin_a = np.logical_and.reduceat(np.isfinite(acc).all(axis=1), start)
         a_mean = a_std = None
         if fin_a.any():
-            a_mean, a_std = _moments(acc, start, n)
+            a_mean, a_std = window_moments(acc, start, n)
             # Finite rows, all zero exactly when mean and std are (has_accelerometer).
             fin_a &= ~(np.all(a_mean == 0.0, axis=1) & np.all(a_std == 0.0, axis=1))
         rate = x[:, 7:10]
         given = np.logical_or.reduceat(np.isfinite(rate).any(axis=1), start)
-        r_mean = np.add.reduceat(rate, start, axis=0) / n[:, None] if given.any() else None
+        r_mean = window_moments(rate, start, n)[0] if given.any() else None
         temp = np.add.reduceat(np.ascontiguousarray(x[:, 10]), start) / n
         stop = np.r_[start[1:], m]
         flag, self._moving = self._moving, False     # the flag of the window in progress
@@ -377,13 +362,8 @@ class StillWindows:
             self.windows_seen += 1
             stds = [tuple(g_std[i].tolist()), tuple(a_std[i].tolist()) if fin_a[i] else None]
             for j, noise in enumerate((self.gyro_noise, self.accel_noise)):
-                if not finite or stds[j] is None:
-                    continue
-                const, step = _steps(rows[:, 1 + 3 * j:4 + 3 * j])
-                if const.any():           # exactly zero, not the rounding of the mean's
-                    stds[j] = tuple(0.0 if c else v for c, v in zip(const.tolist(), stds[j]))
-                if k >= self.min_samples:
-                    noise.add(k - 1, np.asarray(stds[j]) ** 2, step)
+                if finite and stds[j] is not None and k >= self.min_samples:
+                    noise.add(k - 1, np.asarray(stds[j]) ** 2, _step(rows[:, 1 + 3 * j:4 + 3 * j]))
             rm = None if r_mean is None or not given[i] else tuple(r_mean[i].tolist())
             g_thr, a_thr = self.thresholds()
             moving = self.motion.veto(t0, t1) or (flag and i == 0)
@@ -395,132 +375,3 @@ class StillWindows:
                               moving, why, (tuple(g_thr.tolist()), tuple(a_thr.tolist())),
                               t_next[i], rows))
         return out
-
-
-@dataclass(frozen=True)
-class StillSegment:
-    """
-    One finished still stretch of a stream (:class:`StreamingStill`).
-
-    Parameters
-    ----------
-    t0_s, t1_s : float, s
-        First and last stamp.
-    samples : int
-        Samples in it.
-    gyro_mean : tuple of 3 float, rad/s
-        Mean raw rate (the bias while still).
-    gyro_std : tuple of 3 float, rad/s
-        Standard deviation of the raw rate around its window means (RMS over the windows).
-    rate_mean : tuple of 3 float, rad/s, or None
-        Mean of the ``rate`` given (e.g. the compensated rate), None when none was.
-    temp_c : float, degC
-        Mean of the ``temp_c`` given (e.g. the model temperature); NaN when none was.
-
-    """
-
-    t0_s: float
-    t1_s: float
-    samples: int
-    gyro_mean: tuple
-    gyro_std: tuple
-    rate_mean: tuple | None
-    temp_c: float
-
-    @property
-    def duration_s(self) -> float:
-        """Return the span of the stamps, s."""
-        return self.t1_s - self.t0_s
-
-
-class StreamingStill:
-    """
-    Still stretches of a stream as they end: consecutive still windows of :class:`StillWindows`.
-
-    When the floor drops, the windows of the current stretch that the new thresholds refuse
-    are dropped with everything before them; a stretch is returned when the first window
-    that is not still ends it, if it lasted ``min_still_s``. With fixed thresholds the
-    stretches are exactly those of :func:`detect_still` on the same samples; with auto
-    thresholds they match once the floor is known (the batch form knows it from the start).
-
-    Parameters
-    ----------
-    window_s : float, s
-        Window length (at least :data:`MIN_WINDOW_SAMPLES` sample periods).
-    min_still_s : float, s
-        Shortest stretch returned.
-    gyro_std, accel_std : float
-        Fixed thresholds, rad/s and m/s^2; 0: auto.
-    max_rate : float, rad/s
-        Largest mean of the ``rate`` given over a still window.
-    prior_std : sequence of 3 float, rad/s, optional
-        Prior of the gyro's scatter (a model's residual standard deviation).
-
-    """
-
-    def __init__(self, window_s: float = STILL_WINDOW_S, *, min_still_s: float = MIN_STILL_S,
-                 gyro_std: float = 0.0, accel_std: float = 0.0, max_rate: float = MAX_RATE,
-                 prior_std: ArrayLike | None = None) -> None:
-        self.windows = StillWindows(window_s, gyro_std=gyro_std, accel_std=accel_std,
-                                    max_rate=max_rate, prior_std=prior_std)
-        self.min_still_s = float(min_still_s)
-        self.reset()
-
-    def reset(self) -> None:
-        """Forget everything (noise floor included); the next sample starts the grid."""
-        self.windows.reset(prior_std=self.windows.prior_std)
-        self.rejected = {r: 0 for r in REASONS}
-        self._stretch: list[Window] = []
-
-    def update(self, t: float, raw: ArrayLike, accel: ArrayLike | None = None, *,
-               rate: ArrayLike | None = None, temp_c: float = math.nan,
-               moving: bool = False) -> StillSegment | None:
-        """
-        Add one sample (as :meth:`StillWindows.add`); return the still stretch it ended, if any.
-
-        Returns
-        -------
-        StillSegment or None
-            The stretch that just ended (at least ``min_still_s``), else None.
-
-        """
-        return self._take(self.windows.add(t, raw, accel, rate=rate, temp_c=temp_c,
-                                           moving=moving))
-
-    def flush(self) -> StillSegment | None:
-        """Judge the window in progress and return the stretch it ends (at shutdown)."""
-        done = self._take(self.windows.flush())
-        return done if done is not None else self._close()
-
-    def _take(self, w: Window | None) -> StillSegment | None:
-        """Extend the stretch with a judged window (None: none ended), or end it."""
-        if w is None:
-            return None
-        if w.why:
-            self.rejected[w.why] += 1
-            return self._close()
-        st = self._stretch
-        j, why = self.windows.last_refused(st, w.thresholds)
-        if j >= 0:
-            self.rejected[why] += j + 1
-            del st[:j + 1]
-        st.append(w.light())
-        return None
-
-    def _close(self) -> StillSegment | None:
-        """End the current stretch; return it when long enough."""
-        st, self._stretch = self._stretch, []
-        if not st:
-            return None
-        t0, t1 = st[0].t0, st[-1].t1
-        n = sum(w.n for w in st)
-        period = (t1 - t0) / max(n - 1, 1)
-        if t1 - t0 + period + 1e-9 < self.min_still_s:
-            self.rejected['brief'] += len(st)
-            return None
-        g_mean = tuple(sum(w.gyro_mean[i] * w.n for w in st) / n for i in range(3))
-        g_std = tuple(math.sqrt(sum(w.gyro_std[i] ** 2 for w in st) / len(st)) for i in range(3))
-        r_mean = (None if any(w.rate_mean is None for w in st) else
-                  tuple(sum(w.rate_mean[i] * w.n for w in st) / n for i in range(3)))
-        temp = sum(w.temp_c * w.n for w in st) / n
-        return StillSegment(float(t0), float(t1), int(n), g_mean, g_std, r_mean, float(temp))

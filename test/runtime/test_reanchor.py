@@ -20,7 +20,7 @@ import math
 
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model import compensate
-from gyro_tdc.runtime.blockstats import (block_length, default_tolerance, max_windows,
+from gyro_tdc.runtime.blockstats import (block_length, BlockStats, default_tolerance, max_windows,
                                          standard_error, window_stats)
 from gyro_tdc.runtime.core import CompensatorCore
 from gyro_tdc.runtime.policy import Policy
@@ -120,8 +120,8 @@ def test_motion_reports_veto_a_slow_constant_turn():
     assert anchors and all(not (a.t - a.duration_s <= 8.5 <= a.t) for a in anchors)
 
 
-def test_anchor_is_the_streams_own_sums_bit_for_bit():
-    """The shift is the block sums of a stream adding one sample at a time, exactly."""
+def test_anchor_is_the_block_sums_of_its_windows_bit_for_bit():
+    """The shift is the block sums of its windows: the batch rule's, exactly."""
     rng = np.random.default_rng(8)
     det = StillnessDetector(window=10.0, window_max=30.0, tolerance=1e-9)
     t = np.arange(3500) / 100.0 + 0.003 * rng.random(3500)
@@ -150,7 +150,10 @@ def test_anchor_is_the_streams_own_sums_bit_for_bit():
             n += 1
         s = [u + v for u, v in zip(s, [u + v for u, v in zip(ws, bs)])]
     assert found.samples == n
-    assert found.delta == tuple(ci + si / n for ci, si in zip(c, s))
+    assert found.delta == pytest.approx(tuple(ci + si / n for ci, si in zip(c, s)), rel=1e-12)
+    st = sum((window_stats(t[a:b], out[a:b], c, block_length(10.0)) for a, b in windows),
+             BlockStats())
+    assert found.delta == tuple(ci + si / st.n for ci, si in zip(c, st.s))
 
 
 def _gated(model, gate_dps):

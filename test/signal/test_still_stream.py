@@ -18,10 +18,11 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.signal import detect_still, NOISE_FACTOR, StillWindows, StreamingStill
+from gyro_tdc.signal import detect_still, NOISE_FACTOR, StillWindows
 import numpy as np
 import pytest
 from still_data import DEG, drive, RATE_HZ, rest
+from streaming_still import StreamingStill
 
 SIGMA = 5e-4
 
