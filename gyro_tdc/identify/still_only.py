@@ -290,6 +290,9 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
     """
     Fit, then refit without the outlying stretches unless all or none are outliers.
 
+    A run whose every stretch looks outlying keeps them (its own offset takes them): dropped,
+    the run would have no still time and no offset.
+
     Clears the outlying stretches in ``rows`` (in place); returns the model, the mean
     compensated rate per stretch (S, 3) and which stretches were dropped. FitError, saying
     what to record, when the stretches left span too few degrees to fit.
@@ -297,6 +300,10 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
     model = fit_model(runs, options, rows=rows, sessions=labels)
     means = _stretch_means(model, runs, spans, labels)
     bad = _outliers(means)
+    run_of = np.array([i for i, _, _ in spans], dtype=np.int64)
+    for i in np.unique(run_of[bad]):    # a run keeps its stops when all look like turns
+        if bad[run_of == i].all():
+            bad[run_of == i] = False
     if bad.any() and not bad.all():
         for (i, a, b), drop in zip(spans, bad):
             if drop:

@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 import importlib.util
 import math
 from pathlib import Path
@@ -360,3 +361,16 @@ def test_data_with_a_reference_or_without_motion_are_kept_whole(flights, tmp_pat
     run = load_runs([write_dataflash(tmp_path / 'flying.bin', [flying.imu])])
     with pytest.raises(FitError, match='no still stretch to discover on'):
         still_only_runs(run)
+
+
+def test_a_power_cycle_whose_every_stop_is_a_slow_turn_is_no_crash(tmp_path):
+    # Two clean power cycles over 20 .. 30 degC; a third whose two stops zigzag (slow turns):
+    # dropping both would leave it no still time, so it keeps them (its offset takes them).
+    clean = [_stops([(20.0 + 2.0 * k + j, 0.0) for k in range(5)], seed=10 + j)
+             for j in range(2)]
+    turns = _stops([(22.0, 1.0), (28.0, -1.0)], seed=12)
+    runs = [replace(r, name=f'cycle{j}') for j, r in enumerate([*clean, turns])]
+    res = train_still_only(['a', 'b', 'c'], tmp_path / 's.yaml',
+                           TrainOptions(features='dT', kind='poly'), runs=runs)
+    assert res.model.metrics['sessions']['count'] == 3
+    assert (tmp_path / 's.yaml').exists()
