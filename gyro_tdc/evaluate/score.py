@@ -391,7 +391,7 @@ def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]
     dt = float(np.median(np.diff(run.t))) if len(run) > 1 else 0.0
 
     def part(a: int, b: int, figures: dict | None = None) -> dict:
-        """The figures of samples ``a:b``: counted, or (``figures``) summed over sessions."""
+        """Return the figures of samples ``a:b``: counted, or (``figures``) summed."""
         if figures is None:
             n = int(np.count_nonzero(still[a:b]))
             figures = {'samples': n, 'stretches': int(_stretches(still, a, b)[0].size),

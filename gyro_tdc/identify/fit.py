@@ -163,7 +163,8 @@ class FitOptions:
     ``'two_node'``, ``'auto'`` (two nodes when they lower the cross-validated error by
     :data:`TWO_NODE_MARGIN`) or a fixed :class:`ThermalState` (default: first order with
     ``lag``). ``check_sessions``: an axis whose curve does not predict a held-out power cycle
-    better than its offset keeps the offset only (:mod:`gyro_tdc.identify.power_cycles`).
+    better than its offset keeps the offset only (:mod:`gyro_tdc.identify.power_cycles`);
+    with fewer than ``min_folds`` held-out power cycles to judge it, every axis does.
     """
 
     kind: str = 'rbf'
@@ -181,6 +182,7 @@ class FitOptions:
     created: Mapping | None = None
     thermal: str | ThermalState | None = None
     check_sessions: bool = True
+    min_folds: int = 1
 
     def __post_init__(self) -> None:
         """Check the kind and the thermal front end (:func:`check_choices`)."""
@@ -238,7 +240,7 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     if groups is not None and o.check_sessions:
         fit, offsets, check = check_sessions(fit, offsets, x, y, scale_cols, groups, counts,
                                              bstate, kind=o.kind, n_centers=o.n_centers,
-                                             seed=o.seed)
+                                             seed=o.seed, min_folds=o.min_folds)
     coef = fit.coef if groups is None else _with_level(fit, offsets)
     if th.kind != 'none':
         par[_LAG] = {'tau_s': th.tau_total_s}

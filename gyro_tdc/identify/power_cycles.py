@@ -54,20 +54,20 @@ from gyro_tdc.signal import (CURVE_SIGNIFICANCE, curve_untold, Folds, heldout,
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'reanchor_lines',
+__all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_FOLDS', 'reanchor_lines',
            'reanchor_rule', 'session_check_lines', 'SIGNIFICANCE']
 
 _DEG2 = (180.0 / math.pi) ** 2
-#: Fewest held-out power cycles that judge a curve of several: one that agrees is no
-#: evidence that the curve carries to the next.
+#: Fewest held-out power cycles that judge a curve of several stops (still-only training):
+#: one that agrees is no evidence that the curve carries to the next.
 MIN_FOLDS = 2
 
 
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
                    y: NDArray[np.float64], scale_cols: NDArray[np.float64] | None,
                    groups: NDArray[np.int64], counts: NDArray[np.float64],
-                   temp: NDArray[np.float64], *, kind: str, n_centers: int, seed: int
-                   ) -> tuple[LinearFit, NDArray[np.float64], dict | None]:
+                   temp: NDArray[np.float64], *, kind: str, n_centers: int, seed: int,
+                   min_folds: int = 1) -> tuple[LinearFit, NDArray[np.float64], dict | None]:
     """
     Validate the curve on held-out sessions (:func:`~gyro_tdc.signal.judge_curve`).
 
@@ -75,18 +75,24 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     (features, target, scale columns, session, samples, model temperature); ``offsets`` its
     session offsets. Returns the fit and offsets with the offset-only axes each session's mean
     only, and the record: ``folds``, ``blocks``, held-out mean squares of curve and offset,
-    ``worse_folds``, ``gain_t``, ``offset_only``; with fewer than :data:`MIN_FOLDS` folds
-    ``folds``, ``sessions`` and every axis offset only (``widest_span_c`` too where no session
-    spans :data:`MIN_SESSION_SPAN_C`); None without a curve.
+    ``worse_folds``, ``gain_t``, ``offset_only``; with no fold ``folds`` 0 and ``sessions``
+    (the curve kept unchecked unless no session spans :data:`MIN_SESSION_SPAN_C`,
+    ``widest_span_c``), and with fewer than ``min_folds`` (still-only training:
+    :data:`MIN_FOLDS`) every axis offset only (``min_folds``); None without a curve.
     """
     if not x.shape[1]:                          # no curve: nothing to judge
         return fit, offsets, None
     folds = Folds.sessions(groups, temp)
-    if len(folds) < MIN_FOLDS:                  # too few power cycles judge it: offset only
+    if len(folds) < max(min_folds, 1):          # too few power cycles judge it
         record = {'folds': len(folds), 'sessions': int(np.unique(groups).size),
-                  'offset_only': list(AXES)}
+                  'offset_only': []}
         if (widest := curve_untold(temp, groups)) is not None:
             record['widest_span_c'] = widest
+        elif min_folds <= 1:                    # none judges it: kept unchecked, said
+            return fit, offsets, record
+        else:
+            record['min_folds'] = min_folds
+        record['offset_only'] = list(AXES)
         return (*_offset_only(fit, offsets, y, groups, np.arange(len(AXES))), record)
 
     def curve(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
@@ -127,18 +133,23 @@ def session_check_lines(record: dict | None) -> list[str]:
     """Return the report lines of a held-out session check (empty without one)."""
     if not record:
         return []
-    if record['folds'] < MIN_FOLDS:
-        head = (f"the curve is judged on {record['folds']} held-out power cycle(s) of the "
-                f"{record['sessions']} sessions with data (one with two blocks inside the "
-                "others' temperatures judges it)")
+    if 'worse_folds' not in record:
+        head = ('the curve is not judged on a held-out power cycle: none of the '
+                f"{record['sessions']} sessions with data has two blocks inside the others' "
+                'temperatures' if not record['folds'] else
+                f"the curve is judged on {record['folds']} held-out power cycle only (of the "
+                f"{record['sessions']} sessions with data)")
         if 'widest_span_c' in record:
             return [f'{head}, and none spans {MIN_SESSION_SPAN_C:g} degC of its own (widest '
                     f"{record['widest_span_c']:.2f} degC): with an offset per power cycle the "
                     'curve would rest on less; the model keeps the offset only on every axis '
                     '(re-anchoring still applies)']
-        return [f'{head}; fewer than {MIN_FOLDS} cannot tell whether it carries to the next '
-                'power cycle: the model keeps the offset only on every axis (re-anchoring '
-                'still applies)']
+        if not record['offset_only']:
+            return [f'{head}; the model keeps it on every axis unchecked (a power cycle over '
+                    "the others' temperatures would judge it)"]
+        return [f"{head}; fewer than {record['min_folds']} cannot tell whether a curve of "
+                'stops carries to the next power cycle: the model keeps the offset only on '
+                'every axis (re-anchoring still applies)']
     out = [f"the curve held out on each power cycle ({record['folds']} sessions, "
            f"{record['blocks']} blocks inside the others' temperatures, re-anchored), "
            'mean square, (deg/s)^2:',

@@ -44,7 +44,7 @@ from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, ident
 from gyro_tdc.identify.discover.results import DiscoveryResult
 from gyro_tdc.identify.discover.search import discover
 from gyro_tdc.identify.fit import check_choices, estimate_t0, fit_model, FitOptions, span
-from gyro_tdc.identify.power_cycles import reanchor_rule
+from gyro_tdc.identify.power_cycles import MIN_FOLDS, reanchor_rule
 from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, find_still, fit_without_outliers,
                                           MAX_MOVING_SHARE, MIN_STILL_SPAN_C, rows_of,
                                           still_report, Stretch, unreferenced_motion)
@@ -491,6 +491,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         runs[0].info.get('frame_id') or 'imu_link'), created={
             'command': command, 'bags': bags, 'still_only': True})
     spans = [(i, a, b) for i, st in enumerate(still) for a, b in st.segments]
+    fo = replace(fo, min_folds=MIN_FOLDS)       # a curve of stops needs two power cycles
     model, means, bad = fit_without_outliers(runs, rows, spans, labels, fo)
     model = _gate(identity_axes(model, raw_runs, const, rows), fo, runs, labels, rows)
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),

@@ -17,25 +17,13 @@
 from __future__ import annotations
 
 import math
-import struct
 
 from gyro_tdc.data.imu_cdr import ImuView, locate
 from gyro_tdc.data.mark import cov_marked, diagonal_marked, MARK
+from marks import is_marked, mark
 import numpy as np
 import pytest
 from rosbags.typesys import get_typestore, Stores
-
-_F64 = struct.Struct('<d')
-
-
-def mark(value):
-    """Return a variance with MARK in its two lowest mantissa bytes, as the node writes it."""
-    return _F64.unpack(MARK + _F64.pack(value)[2:])[0] if 0.0 < value < math.inf else value
-
-
-def is_marked(value):
-    """Return whether one variance carries MARK (positive and finite)."""
-    return bool(0.0 < value < math.inf) and _F64.pack(value)[:2] == MARK
 
 
 @pytest.mark.parametrize('value', [1e-6, 2.5e-5, 0.25, 1.0, 3.0e3, 5e-324 * 2 ** 60])

@@ -22,7 +22,9 @@ import json
 from bags import bag_from_run
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data import Run
-from gyro_tdc.identify import fit_model, reanchor_lines, reanchor_rule, session_check_lines
+from gyro_tdc.identify import (fit_model, FitOptions, reanchor_lines, reanchor_rule,
+                               session_check_lines)
+from gyro_tdc.identify.power_cycles import MIN_FOLDS
 from gyro_tdc.identify.still_only import rows_of
 from gyro_tdc.model import load_model
 from gyro_tdc.signal import MIN_SESSION_SPAN_C
@@ -139,30 +141,19 @@ def test_train_reports_the_rule_in_text_and_json(tmp_path, capsys):
     assert rec['min_shift_dps'] == pytest.approx(2.0 * np.array(rec['anchor_error_dps']))
 
 
-def test_a_curve_too_few_power_cycles_judge_keeps_the_offset_only_and_one_cycle_keeps_it():
+def test_a_curve_no_power_cycle_can_judge_is_kept_and_the_report_says_so():
     # Two power cycles 5 degC apart: none lies inside the other's temperatures, no fold.
     cycles = ((10.0, 20.0, (0.4, -0.3, 0.1)), (25.0, 35.0, (-0.5, 0.2, 0.45)))
     runs = [synth_run(seed=i, hours=1.0, rate_hz=2.0, t_lo=lo, t_hi=hi, noise_dps=0.02,
                       offset_dps=off, name=f'run{i}') for i, (lo, hi, off) in enumerate(cycles)]
     m = fit_model(runs, kind='poly', features='dT,dT2', t0=20.0, sessions=[0, 1])
     check = m.metrics['sessions']['heldout']
-    assert check == {'folds': 0, 'sessions': 2, 'offset_only': ['x', 'y', 'z']}
-    assert np.all(m.linear == 0.0)                      # no curve: the offsets only
+    assert check == {'folds': 0, 'sessions': 2, 'offset_only': []}
+    assert np.all(m.linear != 0.0)                      # the curve is kept on every axis
     assert session_check_lines(check) == [
-        'the curve is judged on 0 held-out power cycle(s) of the 2 sessions with data (one '
-        "with two blocks inside the others' temperatures judges it); fewer than 2 cannot tell "
-        'whether it carries to the next power cycle: the model keeps the offset only on every '
-        'axis (re-anchoring still applies)']
-    # A third between them is inside the others' temperatures: one fold is not enough either.
-    third = synth_run(seed=5, hours=1.0, rate_hz=2.0, t_lo=21.0, t_hi=24.0, noise_dps=0.02,
-                      offset_dps=(0.1, 0.1, -0.2), name='run2')
-    m3 = fit_model([*runs, third], kind='poly', features='dT,dT2', t0=20.0, sessions=[0, 1, 2])
-    check3 = m3.metrics['sessions']['heldout']
-    assert check3['folds'] == 1 and check3['offset_only'] == ['x', 'y', 'z']
-    assert np.all(m3.linear == 0.0)
-    # One power cycle alone (a calibration run) keeps its curve: nothing to judge it on.
-    one = fit_model(runs[:1], kind='poly', features='dT,dT2', t0=20.0, sessions=[0])
-    assert np.all(one.linear != 0.0) and 'sessions' not in one.metrics
+        'the curve is not judged on a held-out power cycle: none of the 2 sessions with data '
+        "has two blocks inside the others' temperatures; the model keeps it on every axis "
+        "unchecked (a power cycle over the others' temperatures would judge it)"]
 
 
 def test_a_curve_no_power_cycle_shows_over_two_degrees_keeps_the_offset_only():
@@ -181,16 +172,43 @@ def test_a_curve_no_power_cycle_shows_over_two_degrees_keeps_the_offset_only():
     np.testing.assert_allclose(m.metrics['sessions']['offset_dps'], means - means.mean(axis=0),
                                atol=2e-3)
     line, = session_check_lines(check)
-    assert line.startswith('the curve is judged on 0 held-out power cycle(s) of the 2 '
-                           'sessions with data')
+    assert line.startswith('the curve is not judged on a held-out power cycle: none of the 2 '
+                           'sessions with data has two blocks inside the others')
     assert (f'none spans {MIN_SESSION_SPAN_C:g} degC of its own (widest '
             f"{check['widest_span_c']:.2f} degC)") in line
     assert line.endswith('the model keeps the offset only on every axis (re-anchoring still '
                          'applies)')
-    # A power cycle over 2 degC shows the curve, but no other power cycle judges it.
+    # A power cycle over 2 degC shows the curve: kept unchecked, as before.
     wide = [runs[0], synth_run(seed=61, hours=0.25, rate_hz=2.0, t_lo=30.0, t_hi=33.0,
                                noise_dps=0.05, offset_dps=cycles[1][2], name='stop1')]
     kept = fit_model(wide, kind='poly', features='dT,dT2', t0=20.0, sessions=[0, 1])
-    assert kept.metrics['sessions']['heldout'] == {'folds': 0, 'sessions': 2,
-                                                   'offset_only': ['x', 'y', 'z']}
-    assert np.all(kept.linear == 0.0)
+    assert kept.metrics['sessions']['heldout'] == {'folds': 0, 'sessions': 2, 'offset_only': []}
+    assert np.all(kept.linear != 0.0)
+
+
+def test_a_curve_of_stops_needs_two_power_cycles_to_judge_it():
+    # Still-only training asks two folds (MIN_FOLDS): none, or one, keeps the offset only.
+    cycles = ((10.0, 20.0, (0.4, -0.3, 0.1)), (25.0, 35.0, (-0.5, 0.2, 0.45)))
+    runs = [synth_run(seed=i, hours=1.0, rate_hz=2.0, t_lo=lo, t_hi=hi, noise_dps=0.02,
+                      offset_dps=off, name=f'run{i}') for i, (lo, hi, off) in enumerate(cycles)]
+    opts = FitOptions(kind='poly', features='dT,dT2', t0=20.0, min_folds=MIN_FOLDS)
+    none = fit_model(runs, opts, sessions=[0, 1])
+    check = none.metrics['sessions']['heldout']
+    assert check == {'folds': 0, 'sessions': 2, 'offset_only': ['x', 'y', 'z'],
+                     'min_folds': 2}
+    assert np.all(none.linear == 0.0)
+    assert session_check_lines(check)[0].endswith(
+        'fewer than 2 cannot tell whether a curve of stops carries to the next power cycle: '
+        'the model keeps the offset only on every axis (re-anchoring still applies)')
+    # A third power cycle between them lies inside the others' temperatures: one fold.
+    third = synth_run(seed=5, hours=1.0, rate_hz=2.0, t_lo=21.0, t_hi=24.0, noise_dps=0.02,
+                      offset_dps=(0.1, 0.1, -0.2), name='run2')
+    one = fit_model([*runs, third], opts, sessions=[0, 1, 2])
+    check = one.metrics['sessions']['heldout']
+    assert check['folds'] == 1 and check['offset_only'] == ['x', 'y', 'z']
+    assert session_check_lines(check)[0].startswith(
+        'the curve is judged on 1 held-out power cycle only (of the 3 sessions with data)')
+    # The default (one fold judges; none keeps the curve unchecked) is unchanged.
+    judged = fit_model([*runs, third], kind='poly', features='dT,dT2', t0=20.0,
+                       sessions=[0, 1, 2]).metrics['sessions']['heldout']
+    assert judged['folds'] == 1 and 'worse_folds' in judged

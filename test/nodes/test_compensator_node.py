@@ -22,13 +22,13 @@ from pathlib import Path
 from compensator_rig import rates, record_statuses, RELIABLE, reported, stamp_s, to_ns
 from diagnostic_msgs.msg import DiagnosticStatus
 from gyro_tdc.data.imu_cdr import ImuView, locate
-from gyro_tdc.data.mark import mark
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model.compensation import compensate
 from gyro_tdc.model.modelfile import save_model
 from gyro_tdc.nodes.compensator_node import PARAMS
 from gyro_tdc.nodes.executors import make_executor
 from gyro_tdc.runtime import CompensatorCore, Policy
+from marks import mark
 import numpy as np
 import pytest
 import rclpy

@@ -25,7 +25,8 @@ from __future__ import annotations
 
 import math
 
-from gyro_tdc.data.mark import diagonal_marked, mark
+from gyro_tdc.data.mark import diagonal_marked
+from marks import mark
 import pytest
 from rclpy.parameter import Parameter
 from sensor_msgs.msg import Imu
