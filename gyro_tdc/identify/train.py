@@ -37,7 +37,7 @@ from typing import Any, Callable, Sequence
 from gyro_tdc.base import check_bin_width, check_centers
 from gyro_tdc.data import (BagOptions, Coverage, coverage, load_runs, read_motion, Run,
                            split_sessions)
-from gyro_tdc.errors import DatasetError, FitError
+from gyro_tdc.errors import DatasetError, FitError, ModelFileError
 from gyro_tdc.identify.accel import AccelFit, fit_accel
 from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, identity_axes,
                                     neutral_runs)
@@ -48,7 +48,8 @@ from gyro_tdc.identify.power_cycles import MIN_FOLDS, reanchor_rule
 from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, find_still, fit_without_outliers,
                                           MAX_MOVING_SHARE, MIN_STILL_SPAN_C, rows_of,
                                           still_report, Stretch, unreferenced_motion)
-from gyro_tdc.model import CompensationModel, EFFECTS, normalise_ids, save_model
+from gyro_tdc.model import (check_model, CompensationModel, EFFECTS, normalise_ids,
+                            save_model)
 from gyro_tdc.signal import block_mean, motion_veto
 import numpy as np
 from numpy.typing import NDArray
@@ -494,6 +495,15 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     fo = replace(fo, min_folds=MIN_FOLDS)       # a curve of stops needs two power cycles
     model, means, bad = fit_without_outliers(runs, rows, spans, labels, fo)
     model = _gate(identity_axes(model, raw_runs, const, rows), fo, runs, labels, rows)
+    try:
+        check_model(model)
+    except ModelFileError as exc:               # a curve of stops beyond belief: no harm
+        if log is not None:
+            log(f'the curve of the stops would be refused on loading ({exc}): the model '
+                'keeps the offset only on every axis (re-anchoring still applies)')
+        fo = replace(fo, features=())
+        model, means, bad = fit_without_outliers(runs, rows, spans, labels, fo)
+        model = _gate(identity_axes(model, raw_runs, const, rows), fo, runs, labels, rows)
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
                          float(runs[i].temp[a:b].mean()), not drop,
                          tuple(float(v) * _DEG for v in mu))

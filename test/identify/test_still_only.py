@@ -374,3 +374,18 @@ def test_a_power_cycle_whose_every_stop_is_a_slow_turn_is_no_crash(tmp_path):
                            TrainOptions(features='dT', kind='poly'), runs=runs)
     assert res.model.metrics['sessions']['count'] == 3
     assert (tmp_path / 's.yaml').exists()
+
+
+def test_a_curve_of_stops_loading_would_refuse_keeps_the_offset_only(tmp_path):
+    # One power cycle of stops whose z rate climbs 0 -> 270 deg/s over 35 .. 38 degC: its
+    # curve, continued 15 degC beyond the range, is beyond any gyro. Offset only, said.
+    run = _stops([(35.0 + k, 30.0 * k * k) for k in range(4)])
+    said = []
+    res = train_still_only(['stops'], tmp_path / 's.yaml',
+                           TrainOptions(features='dT,dT2', kind='poly'), runs=[run],
+                           log=said.append)
+    assert any(line.startswith('the curve of the stops would be refused on loading (the '
+                               'drift it computes is') and line.endswith(
+        'the model keeps the offset only on every axis (re-anchoring still applies)')
+        for line in said), said
+    assert res.model.features == () and (tmp_path / 's.yaml').exists()
