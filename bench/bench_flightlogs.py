@@ -33,8 +33,8 @@ back. Printed per test: the pass rate and the worst cases.
   model that does no harm on the four held-out logs: the within-log drift of their still
   stretches (each stretch's mean less the log's mean of them) at most 1.1 x raw per axis.
 - **still found**: the still test with the trainers' defaults (``find_still``) finds at least
-  half of the true still time in the stretches its rule can keep (60 s, or 250 samples), and
-  nothing of a flight (precision >= 0.99).
+  half of the true still time in the stretches its rule can keep (60 s, or MIN_STILL_SAMPLES
+  samples), and nothing of a flight (precision >= 0.99).
 
 ::
 
@@ -154,7 +154,7 @@ def _still_found(days, paths) -> tuple[float, float]:
         truth = np.interp(run.t, day.imu.t, day.still.astype(float)) > 0.5
         got += int(np.count_nonzero(st.mask))
         right += int(np.count_nonzero(truth & st.mask))
-        # Recall over the true stretches the default rule can keep (60 s, or 250 samples).
+        # Recall over the true stretches the default rule can keep (60 s, or MIN_STILL_SAMPLES).
         edges = np.flatnonzero(np.diff(np.concatenate([[0], truth.astype(np.int8), [0]])))
         for a, b in zip(edges[::2], edges[1::2]):
             if b - a >= MIN_STILL_SAMPLES or run.t[b - 1] - run.t[a] >= MIN_STILL_S:
@@ -248,7 +248,9 @@ def main(argv=None) -> int:
     print(f'gyro read at half the drawn rate or more (the fastest the log holds): {fast}/{n}')
     print(f'never fit motion (refused in one line, or <= 1.1 x raw held out): {harm_ok}/{n} '
           f'({refused} refused)')
-    print(f'still-only defaults find the still time (>= 0.5 of the stretches of 60 s or 250 '
+    from gyro_tdc.signal import MIN_STILL_SAMPLES
+    print(f'still-only defaults find the still time (>= 0.5 of the stretches of 60 s or '
+          f'{MIN_STILL_SAMPLES} '
           f'samples, precision >= 0.99): {still_ok}/{n} ({n - knowable} without such a '
           'stretch: precision only)')
     fitted = [r for r in rows if r['ratio'] is not None]

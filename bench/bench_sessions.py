@@ -373,16 +373,16 @@ def real_recording(held_bursts: int = 5) -> dict | None:
 
 
 def _held_sweep(held=range(3, 10)) -> None:
-    """Print family 3 with ``held`` bursts held out: ours, ours_learn and the floor, per axis."""
-    print('  held-out bursts: ours / ours_learn / floor x y z (RMS of burst means / best simple '
-          "anchor; floor: the burst means' standard error)")
+    """Print family 3 with ``held`` bursts held out: ours, ours_learn, floor, per axis."""
+    print('  held-out bursts: ours / ours_learn / floor / ours over the best unanchored fit x y z '
+          "(RMS of burst means / best simple anchor; floor: the burst means' standard error)")
     splits = axes = 0
     for h in held:
         r = real_recording(h)
         below = r['ours_learn'] <= r['ours']
         splits, axes = splits + bool(below.all()), axes + int(below.sum())
         cols = ('  / '.join(' '.join(f'{v:7.3f}' for v in r[k])
-                for k in ('ours', 'ours_learn', 'floor')))
+                for k in ('ours', 'ours_learn', 'floor', 'ours_vs_best_unanchored')))
         print(f'  {h:2d}  {cols}')
     print(f'  ours_learn at or below ours: {splits}/{len(held)} splits on every axis, '
           f'{axes}/{3 * len(held)} axes')
