@@ -155,12 +155,10 @@ def session_check_lines(record: dict | None) -> list[str]:
            'mean square, (deg/s)^2:',
            '  curve        ' + '  '.join(f'{v:10.3g}' for v in record['curve_ms_dps2']),
            '  offset only  ' + '  '.join(f'{v:10.3g}' for v in record['offset_ms_dps2'])]
-    if 'worse_folds' in record:
-        out.append('  power cycles predicted worse by the curve: '
-                   + '  '.join(f'{v:d}' for v in record['worse_folds']))
-    if 'gain_t' in record:
-        out.append("  the curve's gain in standard errors: "
-                   + '  '.join('-' if v is None else f'{v:.1f}' for v in record['gain_t']))
+    out.append('  power cycles predicted worse by the curve: '
+               + '  '.join(f'{v:d}' for v in record['worse_folds']))
+    out.append("  the curve's gain in standard errors: "
+               + '  '.join('-' if v is None else f'{v:.1f}' for v in record['gain_t']))
     if record['offset_only']:
         out.append(f"axes {', '.join(record['offset_only'])}: the curve does not predict "
                    'every held-out power cycle better than its offset alone, by '

@@ -492,18 +492,22 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         runs[0].info.get('frame_id') or 'imu_link'), created={
             'command': command, 'bags': bags, 'still_only': True})
     spans = [(i, a, b) for i, st in enumerate(still) for a, b in st.segments]
+
+    def fit(fo: FitOptions) -> tuple[CompensationModel, NDArray[np.float64], NDArray[np.bool_]]:
+        model, means, bad = fit_without_outliers(runs, rows, spans, labels, fo)
+        model = _gate(identity_axes(model, raw_runs, const, rows), fo, runs, labels, rows)
+        return model, means, bad
+
     fo = replace(fo, min_folds=MIN_FOLDS)       # a curve of stops needs two power cycles
-    model, means, bad = fit_without_outliers(runs, rows, spans, labels, fo)
-    model = _gate(identity_axes(model, raw_runs, const, rows), fo, runs, labels, rows)
+    model, means, bad = fit(fo)
     try:
         check_model(model)
     except ModelFileError as exc:               # a curve of stops beyond belief: no harm
         if log is not None:
             log(f'the curve of the stops would be refused on loading ({exc}): the model '
                 'keeps the offset only on every axis (re-anchoring still applies)')
-        fo = replace(fo, features=())
-        model, means, bad = fit_without_outliers(runs, rows, spans, labels, fo)
-        model = _gate(identity_axes(model, raw_runs, const, rows), fo, runs, labels, rows)
+        model, means, again = fit(replace(fo, features=()))
+        bad |= again                            # the first fit's drops stay dropped
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
                          float(runs[i].temp[a:b].mean()), not drop,
                          tuple(float(v) * _DEG for v in mu))
