@@ -93,7 +93,8 @@ class FeatureChoice:
 
     ``base`` the starting model, ``features`` the chosen effects (catalog order), ``decisions`` one
     per effect considered (the base, those added in order, rejected, not identifiable);
-    ``discovery`` the search behind it (None when the data were too short, ``note`` says why).
+    ``discovery`` the search behind it (None when the data were too short, ``note`` says why);
+    ``dropped`` why the model keeps none of them after all (empty: it keeps them).
     """
 
     base: tuple[str, ...]
@@ -101,6 +102,7 @@ class FeatureChoice:
     decisions: tuple[Decision, ...]
     discovery: DiscoveryResult | None = field(default=None, repr=False)
     note: str = ''
+    dropped: str = ''
 
     def lines(self) -> list[str]:
         """Return the report: a head line, one line per decision, notes, the features chosen."""
@@ -113,13 +115,15 @@ class FeatureChoice:
         notes = [f'  note: {n}' for n in (d.notes if d is not None else ())
                  if n.startswith('The data only')]
         return ([head] + [x.line() for x in self.decisions if x.verdict != 'base'] + notes
-                + [f'features chosen: {", ".join(self.features)}'])
+                + [f'features chosen: {", ".join(self.features)}'
+                   + (f'; not kept: {self.dropped}' if self.dropped else '')])
 
     def to_dict(self) -> dict:
         """Return the choice as plain types (the model's ``training`` metrics)."""
         d = self.discovery
         out = {'mode': AUTO, 'base': list(self.base), 'chosen': list(self.features),
-               'decisions': [asdict(x) for x in self.decisions]}
+               'decisions': [asdict(x) for x in self.decisions],
+               **({'dropped': self.dropped} if self.dropped else {})}
         if d is not None:
             out['discovery'] = {
                 'noise_floor_dps': float(d.noise_floor_dps), 'gap_dps': float(d.gap_dps),
@@ -508,6 +512,9 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                 'keeps the offset only on every axis (re-anchoring still applies)')
         model, means, again = fit(replace(fo, features=()))
         bad |= again                            # the first fit's drops stay dropped
+        if choice is not None:
+            choice = replace(choice, dropped='its curve would be refused on loading, the '
+                             'model keeps the offset only')
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
                          float(runs[i].temp[a:b].mean()), not drop,
                          tuple(float(v) * _DEG for v in mu))

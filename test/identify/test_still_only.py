@@ -389,3 +389,10 @@ def test_a_curve_of_stops_loading_would_refuse_keeps_the_offset_only(tmp_path):
         'the model keeps the offset only on every axis (re-anchoring still applies)')
         for line in said), said
     assert res.model.features == () and (tmp_path / 's.yaml').exists()
+    # features auto: the report's last word on the features is what the model keeps.
+    res = train_still_only(['stops'], tmp_path / 'a.yaml', TrainOptions(kind='poly'),
+                           runs=[run])
+    assert res.model.features == ()
+    assert res.choice.lines()[-1].endswith('; not kept: its curve would be refused on '
+                                           'loading, the model keeps the offset only')
+    assert res.model.metrics['features']['dropped'].startswith('its curve would be refused')
