@@ -31,7 +31,6 @@ from itertools import islice
 import mmap
 from pathlib import Path
 import struct
-import sys
 from typing import Any, Callable, Mapping, Sequence
 
 import apsw
@@ -45,11 +44,6 @@ from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 import yaml
-
-if sys.version_info >= (3, 14):
-    from compression.zstd import ZstdError
-else:                         # rosbags' own zstd before Python 3.14
-    from backports.zstd import ZstdError
 
 __all__ = ['BagData', 'Collector', 'READ_ERRORS', 'read_bag', 'VIA']
 
@@ -272,7 +266,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
             return _collect(lambda out, update: _rosbags_feed(source, conns, out, update),
                             reader.typestore, bag, info, topics, conns, progress, accel,
                             'rosbags')
-    except ZstdError as err:
+    except metadata.zstd.ZstdError as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r}: its data are not compressed as '
                            f'metadata.yaml says (compression_format '
                            f'{info.get("compression_format")!r:.20}, compression_mode '

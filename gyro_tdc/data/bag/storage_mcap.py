@@ -28,16 +28,10 @@ from __future__ import annotations
 from binascii import crc32
 from pathlib import Path
 import struct
-import sys
 from typing import Any, Callable, Mapping, NamedTuple
 
-from gyro_tdc.data.bag.metadata import Entry, Unfit
+from gyro_tdc.data.bag.metadata import Entry, Unfit, zstd
 import numpy as np
-
-if sys.version_info >= (3, 14):
-    from compression import zstd
-else:                         # rosbags' own zstd before Python 3.14
-    from backports import zstd
 
 __all__ = ['McapFile']
 
