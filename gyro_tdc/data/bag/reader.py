@@ -57,11 +57,6 @@ READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yam
                UnicodeDecodeError, OverflowError, struct.error)
 
 
-def _seconds(stamp_ns: NDArray[np.int64]) -> NDArray[np.float64]:
-    """Return integer nanosecond stamps as float seconds (whole seconds added exactly)."""
-    return (stamp_ns // 1_000_000_000) + (stamp_ns % 1_000_000_000) * 1e-9
-
-
 @dataclass(frozen=True)
 class BagData:
     """
@@ -339,7 +334,9 @@ class Collector:
         # A zero header stamp: the log time instead (Float readings are stamped in result()).
         if zero.any() and not (role == 'temperature' and self.floating):
             stamp_ns[zero] = np.asarray(logs() if callable(logs) else logs, dtype=np.int64)[zero]
-        t, values, good = _seconds(stamp_ns), dec.values, None
+        # Float seconds, the whole seconds added exactly.
+        t = (stamp_ns // 1_000_000_000) + (stamp_ns % 1_000_000_000) * 1e-9
+        values, good = dec.values, None
         if dec.undecodable is not None:
             good = ~dec.undecodable
             self.undecodable += int(dec.undecodable.sum())

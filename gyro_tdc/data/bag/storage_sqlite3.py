@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
+from functools import partial
 from itertools import islice
 from pathlib import Path
 import sqlite3
@@ -228,13 +229,12 @@ class Sqlite3File:
             if len(buf) != int(lengths.sum()):
                 raise Unfit(f'{role}: the blobs of a range do not add up')
             got[role] = (count, buf, lengths)
-
-        def logs(role: str) -> Callable[[], NDArray[np.int64]]:
-            return lambda: self._column('timestamp', role, got[role][0], t, end)
         before = None
         if floating and 'temperature' in got:
             codes = np.frombuffer(row[-1].encode('ascii'), dtype=np.uint8)
             mains = np.cumsum(codes == ord(_CODES['imu']))
             before = out.n_main + mains[codes == ord(_CODES['temperature'])]
-        for role, (_, buf, lengths) in got.items():     # the main messages first
-            out.add(role, buf, lengths, logs(role), before)
+        for role, (count, buf, lengths) in got.items():     # the main messages first
+            # The log times, fetched only where a message needs them.
+            out.add(role, buf, lengths, partial(self._column, 'timestamp', role, count, t, end),
+                    before)
