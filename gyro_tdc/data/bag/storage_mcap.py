@@ -266,8 +266,7 @@ class McapFile:
                 pieces.append((rows[keep] if not keep.all() else rows, code[keep], logs[keep]))
         if not pieces:
             return
-        codes = np.concatenate([p[1] for p in pieces])
-        logs = np.concatenate([p[2] for p in pieces])
+        codes, logs = (np.concatenate([p[k] for p in pieces]) for k in (1, 2))
         update(len(codes))
         if np.any(logs[1:] < logs[:-1]):
             # rosbags sorts a chunk stably by log time: here message by message (rare, a
