@@ -154,4 +154,5 @@ def open_bag(bag: Path, info: Mapping) -> Iterator[Bag]:
         for path in paths:
             files.append(_FILES[info['storage_identifier']](path))
             stack.callback(files[-1].close)
+            files[-1].load()              # a file refused is closed with the others
         yield Bag(conns, files)

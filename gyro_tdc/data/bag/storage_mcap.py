@@ -116,13 +116,9 @@ class McapFile:
 
     def __init__(self, path: Path) -> None:
         self.bio = path.open('rb')
-        try:
-            self._open()
-        except BaseException:
-            self.bio.close()
-            raise
 
-    def _open(self) -> None:
+    def load(self) -> None:
+        """Read the header, footer and summary (:func:`~.columnar.open_bag`: once it can close)."""
         bio = self.bio
         head = bio.read(9)
         if head[:8] != _MAGIC or head[8:] != b'\x01':

@@ -67,15 +67,11 @@ class Sqlite3File:
     def __init__(self, path: Path) -> None:
         # Range queries run on connections of their own, opened from the same URI (feed).
         self.uri = f'{path.absolute().as_uri()}?mode=ro&immutable=1'
-        self.db = sqlite3.connect(self.uri, uri=True, check_same_thread=False)
-        try:
-            self._open(path)
-        except BaseException:
-            self.db.close()
-            raise
+        self.db, self.path = sqlite3.connect(self.uri, uri=True, check_same_thread=False), path
 
-    def _open(self, path: Path) -> None:
-        db = self.db
+    def load(self) -> None:
+        """Read the topics and definitions (:func:`~.columnar.open_bag`: once it can close)."""
+        db, path = self.db, self.path
         found = db.execute("SELECT count(*) FROM sqlite_master WHERE type = 'table' "
                            "AND name IN ('messages', 'topics')").fetchone()
         if found is None or found[0] != 2:
