@@ -34,12 +34,12 @@ from gyro_tdc.data.bag.reader import read_bag
 from gyro_tdc.data.dataflash import read_dataflash
 from gyro_tdc.data.flightlog import detect_format, flight_log_data, is_flight_log
 from gyro_tdc.data.options import BagOptions
-from gyro_tdc.data.runs import Run
+from gyro_tdc.data.runs import float_array, Run
 from gyro_tdc.data.ulog import read_ulog
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.signal import has_accelerometer
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
 __all__ = ['align_temperature', 'describe_read', 'expand_bags', 'find_bags',
            'FLIGHT_LOG_GAP_PERIODS', 'iter_runs', 'load_run', 'load_runs']
@@ -47,14 +47,6 @@ __all__ = ['align_temperature', 'describe_read', 'expand_bags', 'find_bags',
 #: A flight log's thermometer is trusted up to this many of its own sample periods away
 #: (at least ``BagOptions.max_gap_s``).
 FLIGHT_LOG_GAP_PERIODS = 2.5
-
-
-def _vector(name: str, a: ArrayLike) -> NDArray[np.float64]:
-    """Return ``a`` as a 1-D float64 array or raise DatasetError naming it."""
-    arr = np.asarray(a, dtype=np.float64)
-    if arr.ndim != 1:
-        raise DatasetError(f'Expected `{name}` to have shape (N,), got {arr.shape}.')
-    return arr
 
 
 def _interp_sorted(imu_t: NDArray[np.float64], tt: NDArray[np.float64],
@@ -123,8 +115,8 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
         When shapes disagree or ``max_gap_s`` is not a positive number.
 
     """
-    imu_t, temp_t, temp_c = (_vector('imu_t', imu_t), _vector('temp_t', temp_t),
-                             _vector('temp_c', temp_c))
+    imu_t, temp_t, temp_c = (float_array('imu_t', imu_t), float_array('temp_t', temp_t),
+                             float_array('temp_c', temp_c))
     if temp_c.shape != temp_t.shape:
         raise DatasetError(f'Expected `temp_c` to have shape {temp_t.shape} like `temp_t`, '
                            f'got {temp_c.shape}.')

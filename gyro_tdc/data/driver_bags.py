@@ -34,16 +34,14 @@ from typing import Any, Mapping
 from gyro_tdc.base import INPUT_FRAMES
 from gyro_tdc.data.bag.codec import IMU_TYPE, jazzy
 from gyro_tdc.data.bag.writer import write_bag
-from gyro_tdc.data.field_paths import (check_vector, frd_to_flu, normalize_type, reader,
-                                       stamp_kind, stamp_seconds, temperature_path, unquirk)
+from gyro_tdc.data.field_paths import (normalize_type, rate_fields, stamp_seconds,
+                                       temperature_fields, unquirk)
 from gyro_tdc.errors import ConfigError, DatasetError, one_line
 import numpy as np
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.interfaces import Nodetype
 
 __all__ = ['DriverInputs', 'field_table', 'normalize_bag']
-
-_HEADER = 'std_msgs/msg/Header'
 
 
 @dataclass(frozen=True)
@@ -106,6 +104,11 @@ def field_table(typestore: Any) -> Any:
     return fields_of
 
 
+def _option(name: str) -> str:
+    """Return the command-line option of a :class:`DriverInputs` field (``--stamp-field``)."""
+    return '--' + name.replace('_', '-')
+
+
 def _connection(reader_: AnyReader, topic: str, want: str | None, option: str) -> Any:
     conns = [c for c in reader_.connections if c.topic == topic]
     if not conns:
@@ -156,20 +159,9 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
             imu_conn = _connection(bag, imu_topic, inputs.imu_type, '--imu-type')
             temp_conn = _connection(bag, temperature_topic, inputs.temperature_type or None,
                                     '--temperature-type')
-            imu_name, temp_name = imu_conn.msgtype, temp_conn.msgtype
-            check_vector(imu_name, inputs.angular_velocity_field, fields_of,
-                         '--angular-velocity-field')
-            kind = stamp_kind(imu_name, inputs.stamp_field, fields_of, '--stamp-field')
-            t_path = temperature_path(temp_name, inputs.temperature_field, fields_of,
-                                      '--temperature-field')
-            ts_path = inputs.temperature_stamp_field
-            if not ts_path and (fields_of(temp_name) or {}).get('header') == _HEADER:
-                ts_path = 'header.stamp'
-            ts_kind = (stamp_kind(temp_name, ts_path, fields_of, '--temperature-stamp-field')
-                       if ts_path else None)
-            rate, stamp = reader(inputs.angular_velocity_field), reader(inputs.stamp_field)
-            value, tstamp = reader(t_path), reader(ts_path) if ts_path else None
-            fix = unquirk(inputs.temperature_quirk) or float
+            imu_name = imu_conn.msgtype
+            rate, stamp, kind = rate_fields(imu_name, inputs, fields_of, _option)
+            value, tstamp = temperature_fields(temp_conn.msgtype, inputs, fields_of, _option)
             imu_t, gyro, accel, temp_t, temp_c = [], [], [], [], []
             frame_id, gyro_cov, accel_cov = 'imu_link', None, (-1.0, 0.0, 0.0)
             for conn, _, raw in bag.messages(connections=[imu_conn, temp_conn]):
@@ -180,16 +172,14 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
                     if not imu_t and imu_name == IMU_TYPE:
                         gyro_cov = tuple(msg.angular_velocity_covariance[[0, 4, 8]])
                         accel_cov = tuple(msg.linear_acceleration_covariance[[0, 4, 8]])
-                    w = rate(msg)
                     imu_t.append(stamp_seconds(kind, stamp(msg)))
-                    g = (float(w.x), float(w.y), float(w.z))
-                    gyro.append(frd_to_flu(*g) if inputs.input_frame == 'frd' else g)
+                    gyro.append(rate(msg))
                     if imu_name == IMU_TYPE:
                         a = msg.linear_acceleration
                         accel.append((a.x, a.y, a.z))
                 elif tstamp is not None or imu_t:    # else no IMU stamp to give it yet
-                    temp_t.append(stamp_seconds(ts_kind, tstamp(msg)) if tstamp else imu_t[-1])
-                    temp_c.append(fix(float(value(msg))))
+                    temp_t.append(tstamp(msg) if tstamp else imu_t[-1])
+                    temp_c.append(value(msg))
     except AnyReaderError as exc:
         raise DatasetError(f'cannot read bag {str(path)!r}: {one_line(exc)}') from None
     if not imu_t:

@@ -33,8 +33,8 @@ from gyro_tdc.base import TEMPERATURE_QUIRKS
 from gyro_tdc.errors import ConfigError
 
 __all__ = ['check_number', 'check_vector', 'DEFAULT_TEMPERATURE_FIELDS', 'FieldsOf',
-           'frd_to_flu', 'normalize_type', 'reader', 'split_path', 'stamp_kind',
-           'stamp_seconds', 'temperature_path', 'unquirk']
+           'frd_to_flu', 'normalize_type', 'rate_fields', 'reader', 'split_path', 'stamp_kind',
+           'stamp_seconds', 'temperature_fields', 'temperature_path', 'unquirk']
 
 #: The usual number field of the common thermometer types (``temperature_field`` empty).
 DEFAULT_TEMPERATURE_FIELDS = {'sensor_msgs/msg/Temperature': 'temperature',
@@ -206,3 +206,50 @@ def unquirk(kind: str) -> Callable[[float], float] | None:
         return quirks[kind]
     raise ConfigError(f'Expected temperature_quirk to be one of '
                       f'{", ".join(map(repr, TEMPERATURE_QUIRKS))}, got {kind!r}.')
+
+
+def rate_fields(type_name: str, choices: Any, fields_of: FieldsOf,
+                option: Callable[[str], str] = str
+                ) -> tuple[Callable[[Any], tuple[float, float, float]], Callable[[Any], Any], str]:
+    """
+    Check an IMU type's rate and stamp paths; return (FLU rate, stamp, :func:`stamp_kind`).
+
+    ``choices`` holds ``angular_velocity_field``, ``stamp_field`` and ``input_frame`` (a
+    :class:`~gyro_tdc.data.driver_bags.DriverInputs`, or the compensator's parameters);
+    ``option(name)`` is how a ConfigError names one (the parameter, the command-line option).
+    The rate reader returns x, y, z as floats in FLU axes, the stamp reader the raw stamp.
+    """
+    check_vector(type_name, choices.angular_velocity_field, fields_of,
+                 option('angular_velocity_field'))
+    kind = stamp_kind(type_name, choices.stamp_field, fields_of, option('stamp_field'))
+    get, frd = reader(choices.angular_velocity_field), choices.input_frame == 'frd'
+
+    def rate(msg: Any) -> tuple[float, float, float]:
+        w = get(msg)
+        x, y, z = float(w.x), float(w.y), float(w.z)
+        return frd_to_flu(x, y, z) if frd else (x, y, z)
+    return rate, reader(choices.stamp_field), kind
+
+
+def temperature_fields(type_name: str, choices: Any, fields_of: FieldsOf,
+                       option: Callable[[str], str] = str
+                       ) -> tuple[Callable[[Any], float], Callable[[Any], float] | None]:
+    """
+    Check a thermometer type's paths; return (degC of a message, its stamp in s, or None).
+
+    ``choices`` holds ``temperature_field`` ('' the type's default), ``temperature_stamp_field``
+    ('' its ``header.stamp`` where it has one, else None is returned: the caller stamps a
+    reading with the latest IMU stamp) and ``temperature_quirk`` (undone); ``option`` as in
+    :func:`rate_fields`.
+    """
+    path = temperature_path(type_name, choices.temperature_field, fields_of,
+                            option('temperature_field'))
+    get, fix = reader(path), unquirk(choices.temperature_quirk) or float
+    header = str((fields_of(type_name) or {}).get('header')).replace('/msg/', '/')
+    stamp_path = choices.temperature_stamp_field or (
+        'header.stamp' if header == 'std_msgs/Header' else '')   # rclpy spells it pkg/Type
+    if not stamp_path:
+        return lambda msg: fix(float(get(msg))), None
+    kind = stamp_kind(type_name, stamp_path, fields_of, option('temperature_stamp_field'))
+    get_stamp = reader(stamp_path)
+    return lambda msg: fix(float(get(msg))), lambda msg: stamp_seconds(kind, get_stamp(msg))

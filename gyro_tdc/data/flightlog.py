@@ -274,8 +274,7 @@ def no_temperature(path: Path, what: str, source: str, inventory: str, *, instan
 
 def is_flight_log(path: str | os.PathLike) -> bool:
     """Return True when ``path`` is a file that looks like a ULog or DataFlash log."""
-    p = Path(path)
-    return p.is_file() and _sniff(p) != ''
+    return detect_format(path) != 'rosbag2'
 
 
 def _sniff(path: Path) -> str:

@@ -18,8 +18,18 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from gyro_tdc.errors import DatasetError
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
+
+
+def float_array(name: str, a: ArrayLike, shape: tuple[int, ...] | None = None
+                ) -> NDArray[np.float64]:
+    """Return ``a`` as float64 of ``shape`` (None: any 1-D) or raise DatasetError naming it."""
+    arr = np.asarray(a, dtype=np.float64)
+    if (arr.ndim != 1) if shape is None else (arr.shape != shape):
+        raise DatasetError(f'Expected `{name}` to have shape {shape or "(N,)"}, got {arr.shape}.')
+    return arr
 
 
 @dataclass(frozen=True)

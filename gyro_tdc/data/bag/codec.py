@@ -40,7 +40,7 @@ from rosbags.typesys import get_typestore, Stores
 
 __all__ = ['Decoded', 'FLOAT_TYPES', 'IMU_TYPE', 'KEEP', 'Logs', 'N_DOUBLES', 'REFERENCE_TYPE',
            'TEMPERATURE_TYPE', 'TEMPERATURE_TYPES', 'decode_float', 'decode_joined',
-           'decode_slow', 'encode_checked', 'from_msg', 'jazzy', 'split', 'to_msg']
+           'decode_slow', 'encode_checked', 'from_msg', 'jazzy', 'to_msg']
 
 IMU_TYPE = 'sensor_msgs/msg/Imu'
 TEMPERATURE_TYPE = 'sensor_msgs/msg/Temperature'
@@ -65,12 +65,6 @@ KEEP = {IMU_TYPE: tuple(k for name in ('angular_velocity', 'linear_acceleration'
 
 #: Log times of a block, or a function that fetches them when a message needs them.
 Logs = Union[NDArray[np.int64], Callable[[], NDArray[np.int64]]]
-
-
-def split(buf: bytes, lengths: NDArray[np.int64]) -> list[bytes]:
-    """Return the messages stored end to end in ``buf``."""
-    ends = np.cumsum(lengths).tolist()
-    return [buf[a:b] for a, b in zip([0] + ends[:-1], ends)]
 
 
 @functools.lru_cache(maxsize=None)
@@ -197,12 +191,14 @@ def decode_joined(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
             dec = _decode_records(buf[:n * size], n, dt, msgtype, typestore, keep)
             if dec is not None:
                 return dec
-    return decode_slow([bytes(x) for x in split(buf, sizes)], msgtype, typestore, keep)
+    return decode_slow(buf, sizes, msgtype, typestore, keep)
 
 
-def decode_slow(raws: Sequence[bytes], msgtype: str, typestore: Any,
+def decode_slow(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str, typestore: Any,
                 keep: Sequence[int] | None = None) -> Decoded:
-    """Decode a block message by message with rosbags (any layout, any frame ids)."""
+    """Decode a block stored end to end message by message with rosbags (any layout)."""
+    ends = np.cumsum(lengths).tolist()
+    raws = [bytes(buf[a:b]) for a, b in zip([0] + ends[:-1], ends)]
     n = len(raws)
     keep = list(KEEP[msgtype] if keep is None else keep)
     sec, nsec = np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64)
@@ -241,8 +237,6 @@ def decode_float(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
             if all(np.array_equal(np.float64(typestore.deserialize_cdr(
                     bytes(buf[i * size:(i + 1) * size]), msgtype).data), np.float64(value[i]),
                     equal_nan=True) for i in sorted({0, n // 2, n - 1})):
-                values = np.zeros((n, 2))
-                values[:, 0] = value
-                return Decoded(np.zeros(n, dtype=np.int64), np.zeros(n, dtype=np.int64), '',
-                               values, 0)
-    return decode_slow([bytes(x) for x in split(buf, sizes)], msgtype, typestore, (0, 1))
+                zeros = np.zeros(n, dtype=np.int64)
+                return Decoded(zeros, zeros.copy(), '', np.column_stack([value, zeros * 0.0]), 0)
+    return decode_slow(buf, sizes, msgtype, typestore, (0, 1))

@@ -30,20 +30,14 @@ from contextlib import contextmanager, ExitStack
 from functools import lru_cache
 from pathlib import Path, PurePath
 import shutil
-import sys
 from tempfile import TemporaryDirectory
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
-from gyro_tdc.data.bag.metadata import entries, Entry, topics_of, Unfit
+from gyro_tdc.data.bag.metadata import entries, Entry, topics_of, Unfit, zstd
 from gyro_tdc.data.bag.storage_mcap import McapFile
 from gyro_tdc.data.bag.storage_sqlite3 import Sqlite3File
 from rosbags.typesys import get_types_from_idl, get_types_from_msg, get_typestore, Stores
-
-if sys.version_info >= (3, 14):
-    from compression import zstd
-else:                         # rosbags' own zstd before Python 3.14
-    from backports import zstd
 
 __all__ = ['Bag', 'open_bag', 'unfit']
 
@@ -160,4 +154,5 @@ def open_bag(bag: Path, info: Mapping) -> Iterator[Bag]:
         for path in paths:
             files.append(_FILES[info['storage_identifier']](path))
             stack.callback(files[-1].close)
+            files[-1].load()              # a file refused is closed with the others
         yield Bag(conns, files)

@@ -25,6 +25,7 @@ leaves the bag to rosbags.
 from __future__ import annotations
 
 from pathlib import Path, PurePath
+import sys
 from typing import Any, Mapping, NamedTuple
 
 from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
@@ -32,9 +33,14 @@ from gyro_tdc.data.bag.codec import N_DOUBLES
 from gyro_tdc.data.imu_cdr import FRAME_ID
 from gyro_tdc.errors import DatasetError
 
+if sys.version_info >= (3, 14):
+    from compression import zstd
+else:                         # rosbags' own zstd before Python 3.14
+    from backports import zstd
+
 __all__ = ['check_counts', 'describe', 'entries', 'Entry', 'load', 'min_message_bytes',
            'qos', 'bag_dir', 'storage_bytes', 'topics_of', 'ZSTD_MAX_RATIO',
-           'Unfit', 'ZSTD_MIN_FRAME_BYTES']
+           'Unfit', 'zstd', 'ZSTD_MIN_FRAME_BYTES']
 
 #: Smallest zstd frame (magic, frame header, one block header): a message compressed on its
 #: own (``compression_mode: message``) takes at least this many bytes.

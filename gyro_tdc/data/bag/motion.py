@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
+from gyro_tdc.data.bag.metadata import describe
 from gyro_tdc.data.bag.reader import READ_ERRORS
 from gyro_tdc.data.field_paths import reader as field_reader, stamp_seconds
 from gyro_tdc.errors import DatasetError, one_line
@@ -96,12 +97,11 @@ def read_motion(path: str | Path, topic: str) -> MotionReports:
     bag = Path(path)
     try:
         with AnyReader([bag], default_typestore=jazzy()) as reader:
-            topics = {name: info.msgtype or '?' for name, info in reader.topics.items()}
+            topics = {name: (t.msgtype or '?', t.msgcount) for name, t in reader.topics.items()}
             if topic not in topics:
-                present = ', '.join(f'{k} ({v})' for k, v in sorted(topics.items()))
                 raise DatasetError(f'Bag {str(bag)!r} has no motion topic {topic!r}; topics '
-                                   f'present: {present or "none"}.')
-            msgtype = topics[topic]
+                                   f'present: {describe(topics)}.')
+            msgtype = topics[topic][0]
             if msgtype not in MOTION_TYPES:
                 raise DatasetError(f'Motion topic {topic!r} in bag {str(bag)!r} has type '
                                    f'{msgtype!r}, expected one of {", ".join(MOTION_TYPES)}.')
@@ -140,8 +140,7 @@ def encode_twists(twist: ArrayLike) -> Sequence[bytes]:
         One CDR message per row.
 
     """
-    rows = np.asarray(twist, dtype=np.float64).reshape(-1, 6)
     ts = jazzy()
-    vec = ts.types['geometry_msgs/msg/Vector3']
-    make = ts.types[TWIST_TYPE]
-    return [ts.serialize_cdr(make(vec(*r[:3]), vec(*r[3:])), TWIST_TYPE) for r in rows.tolist()]
+    vec, make = ts.types['geometry_msgs/msg/Vector3'], ts.types[TWIST_TYPE]
+    return [ts.serialize_cdr(make(vec(*r[:3]), vec(*r[3:])), TWIST_TYPE)
+            for r in np.asarray(twist, dtype=np.float64).reshape(-1, 6).tolist()]

@@ -31,7 +31,6 @@ from itertools import islice
 import mmap
 from pathlib import Path
 import struct
-import sys
 from typing import Any, Callable, Mapping, Sequence
 
 import apsw
@@ -46,11 +45,6 @@ from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 import yaml
 
-if sys.version_info >= (3, 14):
-    from compression.zstd import ZstdError
-else:                         # rosbags' own zstd before Python 3.14
-    from backports.zstd import ZstdError
-
 __all__ = ['BagData', 'Collector', 'READ_ERRORS', 'read_bag', 'VIA']
 
 # Messages per block when reading: small enough that a block's raw bytes (~5 MB of Imu) are
@@ -61,11 +55,6 @@ _CHUNK = 1 << 14
 # struct.error); zstd's error (data not compressed as metadata.yaml says) is caught apart.
 READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
                UnicodeDecodeError, OverflowError, struct.error)
-
-
-def _seconds(stamp_ns: NDArray[np.int64]) -> NDArray[np.float64]:
-    """Return integer nanosecond stamps as float seconds (whole seconds added exactly)."""
-    return (stamp_ns // 1_000_000_000) + (stamp_ns % 1_000_000_000) * 1e-9
 
 
 @dataclass(frozen=True)
@@ -272,7 +261,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
             return _collect(lambda out, update: _rosbags_feed(source, conns, out, update),
                             reader.typestore, bag, info, topics, conns, progress, accel,
                             'rosbags')
-    except ZstdError as err:
+    except metadata.zstd.ZstdError as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r}: its data are not compressed as '
                            f'metadata.yaml says (compression_format '
                            f'{info.get("compression_format")!r:.20}, compression_mode '
@@ -345,7 +334,9 @@ class Collector:
         # A zero header stamp: the log time instead (Float readings are stamped in result()).
         if zero.any() and not (role == 'temperature' and self.floating):
             stamp_ns[zero] = np.asarray(logs() if callable(logs) else logs, dtype=np.int64)[zero]
-        t, values, good = _seconds(stamp_ns), dec.values, None
+        # Float seconds, the whole seconds added exactly.
+        t = (stamp_ns // 1_000_000_000) + (stamp_ns % 1_000_000_000) * 1e-9
+        values, good = dec.values, None
         if dec.undecodable is not None:
             good = ~dec.undecodable
             self.undecodable += int(dec.undecodable.sum())
@@ -356,13 +347,12 @@ class Collector:
     def add(self, role: str, buf: bytes | memoryview, lengths: Sequence[int], logs: Logs,
             before: NDArray[np.int64] | None = None) -> None:
         """
-        Take a block of one role's messages stored end to end in ``buf``.
+        Take a block of one role's messages stored end to end in ``buf`` (the storage reads
+        hand over no empty block).
 
         ``logs``: their log times (or a function returning them); ``before``: of each
         message, the main messages before it in bag order (used for Float readings).
         """
-        if not len(lengths):
-            return
         if role == 'imu':
             self.pending.append((buf, lengths, logs))
             self.n_main += len(lengths)

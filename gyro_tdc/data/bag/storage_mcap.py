@@ -28,16 +28,10 @@ from __future__ import annotations
 from binascii import crc32
 from pathlib import Path
 import struct
-import sys
 from typing import Any, Callable, Mapping, NamedTuple
 
-from gyro_tdc.data.bag.metadata import Entry, Unfit
+from gyro_tdc.data.bag.metadata import Entry, Unfit, zstd
 import numpy as np
-
-if sys.version_info >= (3, 14):
-    from compression import zstd
-else:                         # rosbags' own zstd before Python 3.14
-    from backports import zstd
 
 __all__ = ['McapFile']
 
@@ -122,13 +116,9 @@ class McapFile:
 
     def __init__(self, path: Path) -> None:
         self.bio = path.open('rb')
-        try:
-            self._open()
-        except BaseException:
-            self.bio.close()
-            raise
 
-    def _open(self) -> None:
+    def load(self) -> None:
+        """Read the header, footer and summary (:func:`~.columnar.open_bag`: once it can close)."""
         bio = self.bio
         head = bio.read(9)
         if head[:8] != _MAGIC or head[8:] != b'\x01':
@@ -272,8 +262,7 @@ class McapFile:
                 pieces.append((rows[keep] if not keep.all() else rows, code[keep], logs[keep]))
         if not pieces:
             return
-        codes = np.concatenate([p[1] for p in pieces])
-        logs = np.concatenate([p[2] for p in pieces])
+        codes, logs = (np.concatenate([p[k] for p in pieces]) for k in (1, 2))
         update(len(codes))
         if np.any(logs[1:] < logs[:-1]):
             # rosbags sorts a chunk stably by log time: here message by message (rare, a

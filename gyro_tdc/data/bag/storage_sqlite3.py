@@ -27,6 +27,7 @@ from __future__ import annotations
 
 from collections import deque
 from concurrent.futures import ThreadPoolExecutor
+from functools import partial
 from itertools import islice
 from pathlib import Path
 import sqlite3
@@ -66,15 +67,11 @@ class Sqlite3File:
     def __init__(self, path: Path) -> None:
         # Range queries run on connections of their own, opened from the same URI (feed).
         self.uri = f'{path.absolute().as_uri()}?mode=ro&immutable=1'
-        self.db = sqlite3.connect(self.uri, uri=True, check_same_thread=False)
-        try:
-            self._open(path)
-        except BaseException:
-            self.db.close()
-            raise
+        self.db, self.path = sqlite3.connect(self.uri, uri=True, check_same_thread=False), path
 
-    def _open(self, path: Path) -> None:
-        db = self.db
+    def load(self) -> None:
+        """Read the topics and definitions (:func:`~.columnar.open_bag`: once it can close)."""
+        db, path = self.db, self.path
         found = db.execute("SELECT count(*) FROM sqlite_master WHERE type = 'table' "
                            "AND name IN ('messages', 'topics')").fetchone()
         if found is None or found[0] != 2:
@@ -228,13 +225,12 @@ class Sqlite3File:
             if len(buf) != int(lengths.sum()):
                 raise Unfit(f'{role}: the blobs of a range do not add up')
             got[role] = (count, buf, lengths)
-
-        def logs(role: str) -> Callable[[], NDArray[np.int64]]:
-            return lambda: self._column('timestamp', role, got[role][0], t, end)
         before = None
         if floating and 'temperature' in got:
             codes = np.frombuffer(row[-1].encode('ascii'), dtype=np.uint8)
             mains = np.cumsum(codes == ord(_CODES['imu']))
             before = out.n_main + mains[codes == ord(_CODES['temperature'])]
-        for role, (_, buf, lengths) in got.items():     # the main messages first
-            out.add(role, buf, lengths, logs(role), before)
+        for role, (count, buf, lengths) in got.items():     # the main messages first
+            # The log times, fetched only where a message needs them.
+            out.add(role, buf, lengths, partial(self._column, 'timestamp', role, count, t, end),
+                    before)

@@ -31,6 +31,7 @@ from typing import Any, Callable, NamedTuple, Sequence
 from gyro_tdc.data.bag.codec import (encode_checked, IMU_TYPE, jazzy, REFERENCE_TYPE,
                                      TEMPERATURE_TYPE)
 from gyro_tdc.data.imu_cdr import field_slice, IMU_DOUBLES
+from gyro_tdc.data.runs import float_array
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -51,9 +52,7 @@ _QOS = Qos(QosHistory.UNKNOWN, 0, QosReliability.RELIABLE, QosDurability.VOLATIL
 
 def _times(name: str, t: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Return (sec, nanosec) of float seconds, checking shape, finiteness and sign."""
-    arr = np.asarray(t, dtype=np.float64)
-    if arr.ndim != 1:
-        raise DatasetError(f'Expected `{name}` to have shape (N,), got {arr.shape}.')
+    arr = float_array(name, t)
     if not np.all(np.isfinite(arr)) or np.any(arr < 0) or np.any(arr >= 2.0 ** 31):
         raise DatasetError(f'Expected `{name}` to hold finite times in [0, 2**31) s, got '
                            f'values in [{np.nanmin(arr) if arr.size else 0}, '
@@ -61,14 +60,6 @@ def _times(name: str, t: ArrayLike) -> tuple[NDArray[np.int64], NDArray[np.int64
     sec = np.floor(arr)
     return np.divmod(sec.astype(np.int64) * 1_000_000_000
                      + np.rint((arr - sec) * 1e9).astype(np.int64), 1_000_000_000)
-
-
-def _values(name: str, a: ArrayLike, shape: tuple[int, ...]) -> NDArray[np.float64]:
-    """Return ``a`` as float64 after checking its shape."""
-    arr = np.asarray(a, dtype=np.float64)
-    if arr.shape != shape:
-        raise DatasetError(f'Expected `{name}` to have shape {shape}, got {arr.shape}.')
-    return arr
 
 
 def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=None, ref=None,
@@ -96,7 +87,7 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
     temp_sec, temp_nsec = _times('temp_t', temp_t)
     m = len(temp_sec)
     tvar = np.asarray(temp_var, dtype=np.float64)
-    temps = np.stack([_values('temp_c', temp_c, (m,)), _values(
+    temps = np.stack([float_array('temp_c', temp_c, (m,)), float_array(
         'temp_var', np.broadcast_to(tvar, (m,)) if tvar.ndim == 0 else tvar, (m,))], axis=1)
     streams.append(_Stream(temperature_topic, TEMPERATURE_TYPE, temp_sec, temp_nsec,
                            lambda idx: temps[idx]))
@@ -105,7 +96,7 @@ def write_bag(path, *, imu_t, gyro, accel, temp_t, temp_c, temp_var=0.0, ref_t=N
                            f"{'ref_t' if ref is None else 'ref'}.")
     if ref_t is not None:
         ref_sec, ref_nsec = _times('ref_t', ref_t)
-        ref = _values('ref', ref, (len(ref_sec), 3))
+        ref = float_array('ref', ref, (len(ref_sec), 3))
         streams.append(_Stream(reference_topic, REFERENCE_TYPE, ref_sec, ref_nsec,
                                lambda idx: ref[idx]))
     for topic, msgtype, t_x, msgs in extra:
@@ -137,13 +128,13 @@ def _imu_stream(topic: str, imu_t: ArrayLike, gyro: ArrayLike, accel: ArrayLike,
     """Return the Imu stream after checking its arrays (REP 145 orientation and covariances)."""
     imu_sec, imu_nsec = _times('imu_t', imu_t)
     n = len(imu_sec)
-    gyro, accel = _values('gyro', gyro, (n, 3)), _values('accel', accel, (n, 3))
+    gyro, accel = float_array('gyro', gyro, (n, 3)), float_array('accel', accel, (n, 3))
     imu_const = np.zeros(IMU_DOUBLES)
     imu_const[field_slice('orientation').start + 3] = 1.0             # orientation w
     imu_const[field_slice('orientation_covariance').start] = -1.0  # no orientation (REP 145)
     for arg, cov, name in (('gyro_cov', gyro_cov, 'angular_velocity_covariance'),
                            ('accel_cov', accel_cov, 'linear_acceleration_covariance')):
-        cov = _values(arg, np.zeros(3) if cov is None else cov, (3,))
+        cov = float_array(arg, np.zeros(3) if cov is None else cov, (3,))
         imu_const[field_slice(name)] = np.diag(cov).ravel()
 
     def imu_block(idx: NDArray[np.int64]) -> NDArray[np.float64]:

@@ -129,5 +129,12 @@ def test_decode_joined_equals_decode_on_one_reused_buffer():
     scratch.write(b'')            # nothing returned still holds the buffer
 
 
-def test_split_cuts_messages_stored_end_to_end():
-    assert codec.split(b'abcdefg', np.array([1, 0, 4, 2])) == [b'a', b'', b'bcde', b'fg']
+def test_decode_slow_cuts_messages_stored_end_to_end():
+    rng = np.random.default_rng(9)
+    raws = [bytes(TS.serialize_cdr(_imu(rng, frame_id=f), IMU_TYPE)) for f in ('a', 'bcd')]
+    dec = codec.decode_slow(b''.join(raws), np.array([len(raws[0]), 0, len(raws[1])]),
+                            IMU_TYPE, TS)
+    assert dec.fallback == 3 and dec.undecodable.tolist() == [False, True, False]
+    for i, raw in ((0, raws[0]), (2, raws[1])):
+        row = np.asarray(_fields(IMU_TYPE, TS.deserialize_cdr(raw, IMU_TYPE))[3])
+        np.testing.assert_array_equal(dec.values[i], row[list(codec.KEEP[IMU_TYPE])])
