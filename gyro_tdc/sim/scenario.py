@@ -150,16 +150,11 @@ class _Checker(FieldChecker):
                     raise self.fail(path, 'effect ids from ' + ', '.join(EFFECT_IDS), e)
             return {k: k in x for k in EFFECT_IDS}
         if isinstance(x, Mapping):
-            for k in EFFECT_IDS:
-                if k not in x:
-                    raise self.fail(f'{path}.{k}', 'true or false', None)
-            out = {}
-            for k, v in x.items():
+            for k in x:
                 if k not in EFFECT_IDS:
                     raise self.fail(f'{path}.{k}', 'an effect id (' + ', '.join(EFFECT_IDS)
                                     + ')', k)
-                out[k] = self.boolean(v, f'{path}.{k}')
-            return out
+            return {k: self.boolean(x.get(k), f'{path}.{k}') for k in EFFECT_IDS}
         raise self.fail(path, 'a list of effect ids or a mapping id -> bool', x)
 
 
@@ -289,9 +284,6 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
     gyro_in = top.get('gyro')
     if isinstance(gyro_in, Mapping) and isinstance(gyro_in.get('effects'), (list, tuple)):
         top['gyro'] = dict(gyro_in, effects=chk.effects('gyro.effects', gyro_in['effects']))
-    for section in _SECTIONS:
-        if section in top and not isinstance(top[section], Mapping):
-            raise chk.fail(section, 'a mapping', top[section])
     # Lists (rate_table, segments) replace, never merge.
     merged = merge(merge(DEFAULTS, PRESETS[sensor] if sensor else {}), top)
 
@@ -445,16 +437,6 @@ class Scenario:
 # Files
 # --------------------------------------------------------------------------------------------
 
-def _as_scenario_error(call: Any, *args: Any) -> Any:
-    """Return ``call(*args)``; a resource error becomes a ScenarioError (one message)."""
-    try:
-        return call(*args)
-    except ScenarioError:
-        raise
-    except GyroTdcError as exc:
-        raise ScenarioError(str(exc)) from exc
-
-
 def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) -> Scenario:
     """
     Load and validate a scenario by shipped name, YAML path, mapping or Scenario.
@@ -472,6 +454,11 @@ def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) ->
         return name_or_path
     if isinstance(name_or_path, Mapping):
         return Scenario.from_dict(name_or_path)
-    path = _as_scenario_error(scenario_path, name_or_path)
+    try:
+        path = scenario_path(name_or_path)
+    except ScenarioError:
+        raise
+    except GyroTdcError as exc:         # no config directory: one ScenarioError too
+        raise ScenarioError(str(exc)) from exc
     data = read_yaml(path, SCENARIO_LIMITS, error=ScenarioError)
     return Scenario.from_dict({} if data is None else data, name=path.stem, source=path.name)
