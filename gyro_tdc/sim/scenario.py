@@ -279,7 +279,6 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
     if sensor is not None and sensor not in PRESETS:
         raise chk.fail('sensor', 'a preset name (' + ', '.join(sorted(PRESETS)) + ') or null',
                        sensor)
-    top = dict(top)
     # A list of effects means exactly those: expand it before merging over the defaults.
     gyro_in = top.get('gyro')
     if isinstance(gyro_in, Mapping) and isinstance(gyro_in.get('effects'), (list, tuple)):
