@@ -128,13 +128,13 @@ class _Checker(FieldChecker):
         return x
 
     def mapping(self, path: str, x: Any, allowed: tuple[str, ...]) -> dict:
-        if not isinstance(x, Mapping):
-            raise self.fail(path, 'a mapping', x)
-        for key in x:
+        """Return ``x`` as a dict (base's check) whose keys are all ``allowed``."""
+        out = super().mapping(x, path)
+        for key in out:
             if key not in allowed:
                 where = f'{path}.{key}' if path else str(key)
                 raise self.fail(where, 'a known key (one of ' + ', '.join(allowed) + ')', key)
-        return dict(x)
+        return out
 
     def section(self, path: str, x: Any, fields: Mapping[str, tuple[str, Any]]) -> dict:
         """Return a section's fields checked by kind (missing ones at their defaults)."""
