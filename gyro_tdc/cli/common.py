@@ -161,7 +161,7 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
     ref.add_argument('--reference-topic', default=DEFAULT_REFERENCE_TOPIC, metavar='TOPIC',
                      help='geometry_msgs/Vector3Stamped rate-table topic, held onto the IMU '
                           'stamps, used when present (default: %(default)s)')
-    g.add_argument('--no-progress', dest='progress', action='store_false',
+    g.add_argument('--no-progress', dest='progress', action='store_false', default=None,
                    help='no progress bar while reading (default: shown on a terminal)')
     g.add_argument('--allow-loss', action='store_true',
                    help='use a bag even when more than 1 %% of the messages of a topic listed '
@@ -184,7 +184,6 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
                         'ArduPilot BARO.T), or TOPIC.FIELD / MSG.Field (another thermometer '
                         'of the board); a proxy lags the die, so training adds the thermal '
                         'state (lag) with --features auto (default: %(default)s)')
-    parser.set_defaults(progress=None)
 
 
 def add_session_options(parser: argparse.ArgumentParser) -> None:

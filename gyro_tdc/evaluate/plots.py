@@ -120,12 +120,11 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
 
     th = (_bmean(run.t) - run.t[0]) / 3600.0
     temp = _bmean(run.temp)
-    n_models = len(b.models)
     raw_err = _bmean(np.degrees(run.omega - run.omega_ref))
     model_err = [_bmean(np.degrees(m.omega - run.omega_ref)) for m in b.models]
     legends = [f'raw ({b.raw.label})' if b.raw.label != 'raw' else 'raw, uncompensated'] + [
         str(d) for d in descriptions]
-    styles = [_RAW_STYLE] + [_style(i, len(th), n_models) for i in range(n_models)]
+    styles = [_RAW_STYLE] + [_style(i, len(th), len(b.models)) for i in range(len(b.models))]
     models_text = ', '.join(Path(str(m.model)).name for m in b.models) or 'none'
     head = (f'{b.bag}: models {models_text}' + (f'; {options}' if options else '')
             + ('' if b.still is None else

@@ -215,11 +215,8 @@ def _scheme(run: Run, burst: NDArray[np.int64], means: NDArray[np.float64], n_bl
         for g in (position, 'all'):
             pooled[g].append((idx, rates))
         folds.append(fold)
-    summary = {}
-    for g in GROUPS:
-        if not pooled[g]:
-            summary[g] = None
-            continue
+    summary = dict.fromkeys(GROUPS)         # a group without a fold: None
+    for g in filter(pooled.get, GROUPS):
         idx = np.concatenate([x[0] for x in pooled[g]])
         floor = floor_of(idx)
         group_run = rows_of(run, idx)
@@ -229,11 +226,9 @@ def _scheme(run: Run, burst: NDArray[np.int64], means: NDArray[np.float64], n_bl
         for spec in models:
             rate = tuple(np.concatenate([x[1][spec.name][c] for x in pooled[g]]) for c in (0, 1))
             summary[g]['models'][spec.name], bs_of[spec.name] = _scored(rate, group_run, floor)
-        for spec in models:
-            row = summary[g]['models'][spec.name]
-            for base in ('raw', 'bias'):
-                if base in bs_of:
-                    row[f'p_vs_{base}'] = (bs_of[spec.name] / bs_of[base]).tolist()
+        for name, row in summary[g]['models'].items():
+            row.update({f'p_vs_{base}': (bs_of[name] / bs_of[base]).tolist()
+                        for base in ('raw', 'bias') if base in bs_of})
     sizes = sorted({len(b) for b in blocks})
     name = 'leave_one_burst_out' if n_blocks == n_bursts else 'leave_one_block_out'
     return {'name': name, 'n_blocks': n_blocks, 'bursts_per_block': sizes, 'folds': folds,

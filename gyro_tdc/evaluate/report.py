@@ -129,9 +129,7 @@ def write_json(bags: Sequence[BagEval], path: str | os.PathLike, *,
 
 def _g(v: float, width: int = 11) -> str:
     """Format one number for a table column."""
-    if not math.isfinite(v):
-        return f'{"-":>{width}}'
-    return f'{v:>{width}.4g}'
+    return f'{v:>{width}.4g}' if math.isfinite(v) else f'{"-":>{width}}'
 
 
 #: The BS/BS1 cell of an axis with nothing to score (it reads its reference exactly).
@@ -191,9 +189,8 @@ def _row(label: str, w: int, *groups: Any) -> str:
 
 def _per_floor(bs: NDArray[np.float64] | None, floor: Sequence[float] | None) -> list:
     """Return ``[BS / floor]`` (NaN where there is no BS) with a floor, else ``[]``."""
-    if floor is None:
-        return []
-    return [np.full(3, math.nan) if bs is None else np.asarray(bs) / np.asarray(floor)]
+    return [] if floor is None else [
+        np.full(3, math.nan) if bs is None else np.asarray(bs) / np.asarray(floor)]
 
 
 def _range_text(span: Sequence[float] | None) -> str:
@@ -258,11 +255,7 @@ def format_summary(b: BagEval, *, floor: Sequence[float] | None = None,
               _head(w, 'BS', 'RMS', 'BS/BS1', *(['BS/fl'] if floor else []))]
     lines += [_row(m.label, w, m.bs, m.rms_dps, _ratio_cells(m.p_vs_raw, b.constant_axes),
                    *_per_floor(m.bs, floor)) for m in [b.raw] + list(b.models)]
-    note = _outside_note(b)
-    if note:
-        lines.append(note)
-    lines += _constant_notes(b)
-    lines += _accel_rows(b, w, accel_floor)
+    lines += _outside_note(b) + _constant_notes(b) + _accel_rows(b, w, accel_floor)
     return '\n'.join(lines)
 
 
@@ -286,8 +279,8 @@ def _accel_rows(b: BagEval, w: int, accel_floor: Sequence[float] | None = None) 
     return lines
 
 
-def _outside_note(b: BagEval) -> str:
-    """Return one note for every model the bag leaves the trained range of ('' if none)."""
+def _outside_note(b: BagEval) -> list:
+    """Return one note for every model the bag leaves the trained range of (none: [])."""
     groups: dict = {}       # (fraction text, range) -> labels, in model order
     for m in b.models:
         if m.outside_fraction > 0:
@@ -299,8 +292,8 @@ def _outside_note(b: BagEval) -> str:
              f'{span}' if i == 0 else f'{pct} outside that of {", ".join(labels)} {span}'
              for i, ((pct, span), labels) in enumerate(groups.items())]
     p = b.out_of_range
-    return (f'  note: {"; ".join(parts)}: {POLICY_WORDS.get(p, p)} (out-of-range policy {p}'
-            + ('' if p == 'clamp' else ', not clamped') + ')' if parts else '')
+    return [f'  note: {"; ".join(parts)}: {POLICY_WORDS.get(p, p)} (out-of-range policy {p}'
+            + ('' if p == 'clamp' else ', not clamped') + ')'] if parts else []
 
 
 def format_paper_table(b: BagEval, conventional: int, modified: int) -> str:
@@ -330,11 +323,9 @@ def format_paper_table(b: BagEval, conventional: int, modified: int) -> str:
              + f'{"P3":>10}']
     for i, a in enumerate(AXES):
         p3 = p['P3'][i]
-        if a in b.constant_axes:
-            ratios = f'{_CONST:>11}{_CONST:>11}{_CONST:>10}'
-        else:
-            ratios = (_g(p['P1'][i]) + _g(p['P2'][i])
-                      + (f'{100.0 * p3:>9.2f}%' if math.isfinite(p3) else f'{"-":>10}'))
+        ratios = (f'{_CONST:>11}{_CONST:>11}{_CONST:>10}' if a in b.constant_axes else
+                  _g(p['P1'][i]) + _g(p['P2'][i])
+                  + (f'{100.0 * p3:>9.2f}%' if math.isfinite(p3) else f'{"-":>10}'))
         lines.append(f'  {a + "-axis":<7}' + _g(b.raw.bs[i]) + _g(conv.bs[i]) + _g(modi.bs[i])
                      + ratios)
     return '\n'.join(lines)
@@ -363,12 +354,10 @@ def format_bag(b: BagEval, baseline: int | None = None, *,
     ``baseline`` indexes ``b.models`` (the conventional model): one paper table (tables 3-7)
     per other model; None: none. ``floor``, ``accel_floor``: see :func:`format_summary`.
     """
-    parts = [format_summary(b, floor=floor, accel_floor=accel_floor)]
-    if baseline is not None:
-        parts += [format_paper_table(b, baseline, i) for i in range(len(b.models))
-                  if i != baseline]
-    parts.append(format_allan(b))
-    return '\n'.join(parts)
+    tables = [format_paper_table(b, baseline, i) for i in range(len(b.models))
+              if baseline is not None and i != baseline]
+    return '\n'.join([format_summary(b, floor=floor, accel_floor=accel_floor), *tables,
+                      format_allan(b)])
 
 
 def format_means(results: Sequence[BagEval], *, floor: Sequence[float] | None = None) -> str:
@@ -394,10 +383,8 @@ def format_means(results: Sequence[BagEval], *, floor: Sequence[float] | None = 
 
 def csv_columns(b: BagEval) -> list:
     """Return the CSV header of a bag: time, temperature, raw, reference, each model."""
-    cols = ['t_s', 'temp_c']
-    for who in ['raw', 'ref'] + [m.label for m in b.models]:
-        cols += [f'{who}_{a}_rad_s' for a in AXES]
-    return cols
+    who = ['raw', 'ref'] + [m.label for m in b.models]
+    return ['t_s', 'temp_c'] + [f'{w}_{a}_rad_s' for w in who for a in AXES]
 
 
 def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000) -> Path:
@@ -514,14 +501,12 @@ def format_sessions(result: TrainResult) -> list[str]:
     anchors = reanchor_lines(result.model.metrics.get('reanchor'))
     if not info:
         return out + anchors
-    out.append("turn-on offset of each session against the model's (their mean), deg/s:")
-    width = max(len(n) for n in info['names'])
-    for name, off, n in zip(info['names'], info['offset_dps'], info['samples']):
-        out.append(f'  {name:<{width}}  ' + '  '.join(f'{v:+10.5f}' for v in off)
-                   + f'   ({n} samples)')
-    spread = info['spread_dps']
-    out.append(f'  {"spread":<{width}}  ' + '  '.join(f'{v:10.5f}' for v in spread)
-               + '   (largest minus smallest)')
+    width, spread = max(len(n) for n in info['names']), info['spread_dps']
+    out += ["turn-on offset of each session against the model's (their mean), deg/s:",
+            *(f'  {name:<{width}}  ' + '  '.join(f'{v:+10.5f}' for v in off) + f'   ({n} samples)'
+              for name, off, n in zip(info['names'], info['offset_dps'], info['samples'])),
+            f'  {"spread":<{width}}  ' + '  '.join(f'{v:10.5f}' for v in spread)
+            + '   (largest minus smallest)']
     if max(spread) > REANCHOR_SPREAD_DPS:
         out.append(f'the turn-on offset changes by up to {max(spread):.3g} deg/s from one '
                    'power cycle to the next: a model fixes the thermal curve, not the offset '
@@ -539,7 +524,6 @@ def format_training(result: TrainResult) -> tuple[str, list]:
     warnings: coverage, and that the thermal state's tau is not identifiable when so.
     """
     m = result.model
-    met = m.metrics
     feats = ', '.join(m.inputs) or 'bias only'
     th = m.thermal
     lagged = th is not None and th.kind != 'none'
@@ -563,14 +547,13 @@ def format_training(result: TrainResult) -> tuple[str, list]:
     lines = [head, f'TRAINED RANGE {lo:.2f} .. {hi:.2f} degC ({of}); beyond it (the '
                    f"compensator's out_of_range: linear) {POLICY_WORDS['linear']}",
              f'training data: {len(result.bags)} bag(s), {result.samples} samples']
-    constant = result.constant_line()
-    if constant:                # one line: the axes not fitted, passed through unchanged
-        lines.append(constant)
+    # One line (when any): the constant axes, not fitted, passed through unchanged.
+    lines += [line for line in [result.constant_line()] if line]
     lines += ['training bias stability BS, (deg/s)^2:',
               f'  {"":<13}' + ''.join(f'{a:>12}' for a in AXES),
-              _row3('raw', met.get('raw_bs_dps2', [math.nan] * 3)),
-              _row3('compensated', met.get('train_bs_dps2', [math.nan] * 3)),
-              _row3('RMS (deg/s)', met.get('train_rms_dps', [math.nan] * 3))]
+              *(_row3(label, m.metrics.get(key, [math.nan] * 3)) for label, key in (
+                  ('raw', 'raw_bs_dps2'), ('compensated', 'train_bs_dps2'),
+                  ('RMS (deg/s)', 'train_rms_dps')))]
     if np.any(m.scale != 0):
         lines.append(_row3('scale (1/C)', m.scale))
     lines.append(_row3('drift/degC', np.degrees(static_slope(m)))

@@ -209,16 +209,13 @@ def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: st
     """
     err = omega - run.omega_ref
     bs = bias_stability(omega, run.omega_ref)
-    if allan and len(run) >= 4:
-        tau, adev = allan_deviation(err, rate_hz(run.t) if rate is None else rate)
-    else:
-        tau, adev = np.zeros(0), np.zeros((0, 3))
+    tau, adev = (allan_deviation(err, rate_hz(run.t) if rate is None else rate)
+                 if allan and len(run) >= 4 else (np.zeros(0), np.zeros((0, 3))))
     nr = noise_readouts(tau, adev)
-    if bs_raw is None:
-        p = np.ones(3)
-    else:                   # an axis reading its reference exactly (raw BS 0): no ratio
-        bs_raw = np.asarray(bs_raw, dtype=np.float64)
-        p = np.divide(bs, bs_raw, out=np.full(3, math.nan), where=bs_raw > 0)
+    # An axis reading its reference exactly (raw BS 0): no ratio.
+    p = np.ones(3) if bs_raw is None else np.divide(
+        bs, np.asarray(bs_raw, dtype=np.float64), out=np.full(3, math.nan),
+        where=np.asarray(bs_raw) > 0)
     return ModelEval(model=model, label=label, features=list(features), bs=bs,
                      rms_dps=rms_dps(err), p_vs_raw=p, adev_tau_s=np.asarray(tau),
                      adev_dps=np.asarray(adev), arw_deg_sqrt_h=nr['arw_deg_sqrt_h'],
@@ -253,17 +250,13 @@ def _compensated(nm: NamedModel, parts: Sequence[Run], reanchor_s: float | str,
     does on a new power cycle) and re-anchored over its own head; with several, the
     re-anchoring record is the first session's with ``sessions``: one record per session.
     """
-    comps, infos = [], []
-    for part in parts:
-        comp = compensate(nm.model, part.t, part.temp, part.omega,
-                          out_of_range=nm.out_of_range or out_of_range,
-                          max_extrapolation_c=max_extrapolation_c)
-        comp, info = _reanchored(comp, part, nm.model, reanchor_s)
-        comps.append(comp)
-        infos.append(info)
+    comps, infos = zip(*(_reanchored(compensate(nm.model, part.t, part.temp, part.omega,
+                                                out_of_range=nm.out_of_range or out_of_range,
+                                                max_extrapolation_c=max_extrapolation_c),
+                                     part, nm.model, reanchor_s) for part in parts))
     if len(parts) == 1:
         return comps[0], infos[0]
-    info = None if infos[0] is None else dict(infos[0], sessions=infos)
+    info = None if infos[0] is None else dict(infos[0], sessions=list(infos))
     return np.concatenate(comps), info
 
 
@@ -411,9 +404,8 @@ def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]
 
 def _constant(run: Run) -> NDArray[np.bool_]:
     """Return ``train``'s constant axes of a run of at least as many samples as it fits."""
-    if len(run) < MIN_SAMPLES:          # too few to tell a constant axis from a quiet one
-        return np.zeros(3, dtype=bool)
-    return constant_axes(run.omega)
+    # Too few samples to tell a constant axis from a quiet one: none.
+    return np.zeros(3, dtype=bool) if len(run) < MIN_SAMPLES else constant_axes(run.omega)
 
 
 def held_out_constant(run: Run) -> NDArray[np.bool_]:
@@ -470,7 +462,6 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
     labels = dict(zip(map(str, paths), bag_labels(paths)))
     results, unscored = [], []
     for run in iter_runs(bags, with_accel(bag), log=log, found=found):   # unreadable skipped
-        label = labels[run.name]
         held_out_constant(run)              # every gyro axis constant: refused
         here = [replace(nm, model=onboard_model(nm.name, run)[0]) if nm.name in ONBOARD
                 else nm for nm in models]         # each log's own on-board parameters
@@ -481,7 +472,7 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
             if log is not None:
                 log(f'warning: skipped {unscored[-1]}')
             continue
-        b = evaluate_run(run, here, label=label, reanchor_s=reanchor_s,
+        b = evaluate_run(run, here, label=labels[run.name], reanchor_s=reanchor_s,
                          out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c,
                          sessions=o.sessions, session_gap_s=o.session_gap_s, still=still)
         if each is not None:

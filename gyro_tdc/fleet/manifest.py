@@ -151,11 +151,9 @@ def _fingerprint(bag: str) -> list:
         files = [p]
     else:
         return [bag, 'missing']
-    out: list = [bag]
-    for f in files:
-        st = f.stat()
-        out.append([f.relative_to(p).as_posix() if f != p else '', st.st_size, st.st_mtime_ns])
-    return out
+    stats = [(f, f.stat()) for f in files]
+    return [bag] + [[f.relative_to(p).as_posix() if f != p else '', st.st_size, st.st_mtime_ns]
+                    for f, st in stats]
 
 
 def input_key(spec: SensorSpec, options: dict) -> str:

@@ -348,11 +348,8 @@ def _completed(futures: list, engine: Engine) -> Iterator[object]:
 def _summary_error(exc: Exception, pending: BaseException | None,
                    write_errors: list) -> OutputError:
     """Return one line: why the fleet stopped or what it could not write, then the summary."""
-    why = []
-    if isinstance(pending, KeyboardInterrupt):
-        why.append('interrupted')
-    elif pending is not None:
-        why.append(one_line(pending))
+    why = [] if pending is None else [
+        'interrupted' if isinstance(pending, KeyboardInterrupt) else one_line(pending)]
     if write_errors:
         more = len(write_errors) - 1
         why.append(write_errors[0] + (f' (and {more} more sensor(s))' if more else ''))
@@ -363,12 +360,10 @@ def _summary_error(exc: Exception, pending: BaseException | None,
 
 def _future_failure(sid: str, future: object) -> SensorOutcome:
     """Describe a task that raised on its worker (or was lost with it) as a failure."""
-    if future.status == 'error':
-        exc = future.exception()
-        reason = f'{type(exc).__name__} on the worker: {one_line(exc)}'
-    else:
-        reason = f'task {future.status} (worker lost or cluster shut down)'
-    return SensorOutcome(sid, 'failed', error=reason)
+    exc = future.exception() if future.status == 'error' else None
+    return SensorOutcome(sid, 'failed', error=(
+        f'task {future.status} (worker lost or cluster shut down)' if exc is None
+        else f'{type(exc).__name__} on the worker: {one_line(exc)}'))
 
 
 def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: TrainOptions,

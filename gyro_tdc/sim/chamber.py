@@ -212,16 +212,6 @@ class Profile:
         object.__setattr__(self, 'temp_c', temp)
 
     @classmethod
-    def from_points(cls, t: ArrayLike, temp_c: ArrayLike) -> 'Profile':
-        """
-        Build the piecewise-linear profile through (time, temperature) points.
-
-        ``t`` (s) non-decreasing, shifted so the first is 0; ``temp_c`` in degC.
-        """
-        t = np.asarray(t, dtype=np.float64)
-        return cls(t - (t[0] if t.size else 0.0), np.asarray(temp_c, dtype=np.float64))
-
-    @classmethod
     def from_segments(cls, start_c: float, segments: Sequence[Segment]) -> 'Profile':
         """
         Chain segments (``hold_segment``, ``ramp_segment``, ...) from ``start_c`` (degC) at 0.
@@ -241,11 +231,6 @@ class Profile:
     def duration_s(self) -> float:
         """Return the time of the last breakpoint."""
         return float(self.t[-1])
-
-    @property
-    def span_c(self) -> tuple[float, float]:
-        """Return the lowest and highest temperature."""
-        return float(self.temp_c.min()), float(self.temp_c.max())
 
     def value(self, t: ArrayLike) -> NDArray[np.float64]:
         """

@@ -110,10 +110,9 @@ class _Checker(FieldChecker):
 
     def axis(self, path: str, x: Any, *, low: Optional[float] = None) -> Vec3:
         expected = 'a number or a list of 3 numbers' + ('' if low is None else f' >= {low:g}')
-        values = (float(x),) * 3 if is_number(x) else self.seq(path, x, expected, 3)
-        if low is not None and min(values) < low:
-            raise self.fail(path, expected, x)
-        return values
+        ok = (lambda v: True) if low is None else (lambda v: v >= low)
+        return ((float(x),) * 3 if is_number(x) and ok(float(x))
+                else self.seq(path, x, expected, 3, ok))   # a number not ok fails here too
 
     def range(self, path: str, x: Any, positive: bool) -> tuple[float, float]:
         expected = f'[low, high] with {"0 < low" if positive else "0 <= low"} <= high'
@@ -129,13 +128,13 @@ class _Checker(FieldChecker):
         return x
 
     def mapping(self, path: str, x: Any, allowed: tuple[str, ...]) -> dict:
-        if not isinstance(x, Mapping):
-            raise self.fail(path, 'a mapping', x)
-        for key in x:
+        """Return ``x`` as a dict (base's check) whose keys are all ``allowed``."""
+        out = super().mapping(x, path)
+        for key in out:
             if key not in allowed:
                 where = f'{path}.{key}' if path else str(key)
                 raise self.fail(where, 'a known key (one of ' + ', '.join(allowed) + ')', key)
-        return dict(x)
+        return out
 
     def section(self, path: str, x: Any, fields: Mapping[str, tuple[str, Any]]) -> dict:
         """Return a section's fields checked by kind (missing ones at their defaults)."""
@@ -150,16 +149,11 @@ class _Checker(FieldChecker):
                     raise self.fail(path, 'effect ids from ' + ', '.join(EFFECT_IDS), e)
             return {k: k in x for k in EFFECT_IDS}
         if isinstance(x, Mapping):
-            for k in EFFECT_IDS:
-                if k not in x:
-                    raise self.fail(f'{path}.{k}', 'true or false', None)
-            out = {}
-            for k, v in x.items():
+            for k in x:
                 if k not in EFFECT_IDS:
                     raise self.fail(f'{path}.{k}', 'an effect id (' + ', '.join(EFFECT_IDS)
                                     + ')', k)
-                out[k] = self.boolean(v, f'{path}.{k}')
-            return out
+            return {k: self.boolean(x.get(k), f'{path}.{k}') for k in EFFECT_IDS}
         raise self.fail(path, 'a list of effect ids or a mapping id -> bool', x)
 
 
@@ -284,14 +278,10 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
     if sensor is not None and sensor not in PRESETS:
         raise chk.fail('sensor', 'a preset name (' + ', '.join(sorted(PRESETS)) + ') or null',
                        sensor)
-    top = dict(top)
     # A list of effects means exactly those: expand it before merging over the defaults.
     gyro_in = top.get('gyro')
     if isinstance(gyro_in, Mapping) and isinstance(gyro_in.get('effects'), (list, tuple)):
         top['gyro'] = dict(gyro_in, effects=chk.effects('gyro.effects', gyro_in['effects']))
-    for section in _SECTIONS:
-        if section in top and not isinstance(top[section], Mapping):
-            raise chk.fail(section, 'a mapping', top[section])
     # Lists (rate_table, segments) replace, never merge.
     merged = merge(merge(DEFAULTS, PRESETS[sensor] if sensor else {}), top)
 
@@ -445,16 +435,6 @@ class Scenario:
 # Files
 # --------------------------------------------------------------------------------------------
 
-def _as_scenario_error(call: Any, *args: Any) -> Any:
-    """Return ``call(*args)``; a resource error becomes a ScenarioError (one message)."""
-    try:
-        return call(*args)
-    except ScenarioError:
-        raise
-    except GyroTdcError as exc:
-        raise ScenarioError(str(exc)) from exc
-
-
 def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) -> Scenario:
     """
     Load and validate a scenario by shipped name, YAML path, mapping or Scenario.
@@ -472,6 +452,11 @@ def load_scenario(name_or_path: Union[PathLike, Scenario, Mapping[str, Any]]) ->
         return name_or_path
     if isinstance(name_or_path, Mapping):
         return Scenario.from_dict(name_or_path)
-    path = _as_scenario_error(scenario_path, name_or_path)
+    try:
+        path = scenario_path(name_or_path)
+    except ScenarioError:
+        raise
+    except GyroTdcError as exc:         # no config directory: one ScenarioError too
+        raise ScenarioError(str(exc)) from exc
     data = read_yaml(path, SCENARIO_LIMITS, error=ScenarioError)
     return Scenario.from_dict({} if data is None else data, name=path.stem, source=path.name)

@@ -548,11 +548,6 @@ class SimStream:
         return self.run.imu_t[0] if self._position == -math.inf else self._position
 
     @property
-    def t_end(self) -> float:
-        """Return the last stamp of any stream."""
-        return float(max(t[-1] for t in self._stamps))
-
-    @property
     def done(self) -> bool:
         """Return True once every sample was handed out."""
         return all(i >= t.size for i, t in zip(self._i, self._stamps))

@@ -226,12 +226,11 @@ class IioSource(PolledSource):
 
     def _vector(self, kind: str, *, required: bool) -> tuple[_Channel, ...] | None:
         raws = [self.device_dir / f'in_{kind}_{axis}_raw' for axis in _AXES]
-        present = [_exists(path) for path in raws]
-        if not any(present) and not required:
+        missing = [path for path in raws if not _exists(path)]
+        if missing and (required or len(missing) < len(raws)):
+            raise DeviceError(f'IIO file {str(missing[0])!r} is missing.')
+        if missing:
             return None
-        for path, ok in zip(raws, present):
-            if not ok:
-                raise DeviceError(f'IIO file {str(path)!r} is missing.')
         channels = []
         read = functools.cache(_read_number)
         for axis, path in zip(_AXES, raws):

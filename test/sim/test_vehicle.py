@@ -60,7 +60,7 @@ def test_driving_heats_the_set_point_and_moves_the_vehicle():
     spec = Scenario.from_dict(dict(DAY, vehicle={'start_parked_s': 600.0})).vehicle
     rng = np.random.default_rng(1)
     legs = plan_legs(spec, 7200.0, rng)
-    ambient = Profile.from_points([0.0, 7200.0], [20.0, 20.0])
+    ambient = Profile([0.0, 7200.0], [20.0, 20.0])
     setpoint, heating = heated_profile(ambient, spec, legs, 7200.0)
     assert heating.value([0.0, 590.0]).max() == 0.0 and heating.temp_c.max() > 1.0
     np.testing.assert_allclose(setpoint.temp_c, 20.0 + heating.temp_c)
