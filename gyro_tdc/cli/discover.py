@@ -119,7 +119,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         runs, still = still_only_runs(runs)     # no reference and moving: the still stretches
         if still is not None:
             print(still)
-    bar = progress_bar(None, 'candidate', 'discover', sys.stderr.isatty())[0]
+    bar = progress_bar(None, 'candidate', 'discover', bag.progress)[0]
 
     def progress(step: int, eid: str) -> None:
         bar.set_postfix_str(f'step {step + 1}: scoring {eid}')

@@ -25,6 +25,7 @@ searched on its still stretches only, or refused in one line about stillness.
 from __future__ import annotations
 
 import json
+import sys
 
 from discover_cases import calibrate, HEAT, scenario, write_runs
 from flightlogs import flight_day, write_dataflash
@@ -72,6 +73,15 @@ def test_cli_json_shape_model_file_and_report(tmp_path, capsys):
     report = (out / 'report' / 'report.md').read_text()
     assert 'step1_maps.png' in report and (out / 'report' / 'step1_maps.png').stat().st_size
     assert (out / 'report' / 'allan.png').is_file()
+
+
+@pytest.mark.parametrize('flag,shown', [([], True), (['--no-progress'], False)])
+def test_the_candidate_bar_follows_no_progress_on_a_terminal(tmp_path, capsys, monkeypatch,
+                                                             flag, shown):
+    (bag,) = write_runs(tmp_path, scenario(['bias', 'dT'], rate_hz=2.0, segments=HEAT), 52)
+    monkeypatch.setattr(sys.stderr, 'isatty', lambda: True)
+    assert main([str(bag), *flag]) == 0
+    assert ('discover: ' in capsys.readouterr().err) is shown
 
 
 def test_cli_null_json_has_empty_steps(tmp_path):
