@@ -298,7 +298,7 @@ def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``demo``."""
     parser = ArgumentParser(prog=f'{PROG} demo', description=_description(),
                             formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument('--out', type=Path, default=Path('out/demo'),
+    parser.add_argument('-o', '--out', type=Path, default=Path('out/demo'),
                         help='output folder (default: out/demo)')
     parser.add_argument('--live-seconds', type=positive_float, default=20.0,
                         help='length of the live ROS step in s (default 20)')

@@ -63,8 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help='write the machine-readable result to OUT (shape: doc/json.md)')
     p.add_argument('--report', metavar='DIR',
                    help='write report.md with PNG residual maps and Allan deviation to DIR')
-    p.add_argument('--out', metavar='MODEL.yaml', help='write a model file of the discovered '
-                   'effects (compensator_node loads it)')
+    p.add_argument('-o', '--out', metavar='MODEL.yaml', help='write a model file of the '
+                   'discovered effects (compensator_node loads it)')
     p.add_argument('--kind', default='poly', choices=KINDS,
                    help='model of --out: poly (linear in the features of the model temperature, '
                         'what discovery validated; with lag every temperature term is of the '

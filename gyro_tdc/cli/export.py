@@ -66,7 +66,7 @@ def build_parser() -> argparse.ArgumentParser:
     which.add_argument('--ardupilot', metavar='MODEL', default=None,
                        help='model file (or shipped name) to export as ArduPilot INS_TCALn_* '
                             'parameters (a Mission Planner / MAVProxy .parm file)')
-    p.add_argument('--out', required=True, metavar='FILE',
+    p.add_argument('-o', '--out', required=True, metavar='FILE',
                    help='parameter file to write (with --model: the model file)')
     p.add_argument('--instance', type=non_negative_int, default=0, metavar='N',
                    help='PX4 calibration slot 0..3 (TC_G<N>) or ArduPilot IMU 0..2 '

@@ -45,7 +45,7 @@ def build_parser() -> argparse.ArgumentParser:
                     'evaluated on its test bags, with fleet-outlier flags on the drift '
                     'coefficients; the training options are those of train.')
     p.add_argument('manifest', metavar='MANIFEST.csv', help='the fleet manifest')
-    p.add_argument('--out', required=True, metavar='DIR',
+    p.add_argument('-o', '--out', required=True, metavar='DIR',
                    help='output folder: <sensor_id>.yaml, summary.json, summary.csv')
     eng = p.add_argument_group('Dask engine').add_mutually_exclusive_group()
     eng.add_argument('--workers', type=positive_int, default=None, metavar='N',

@@ -78,7 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
                     'bags (one per run).')
     parser.add_argument('--scenario', required=True, metavar='NAME|FILE',
                         help='shipped scenario name (listed below) or a YAML file')
-    parser.add_argument('--out', required=True, metavar='BAG',
+    parser.add_argument('-o', '--out', required=True, metavar='BAG',
                         help='bag directory to create; for a multi-run scenario a directory '
                              'holding run1 ... runN')
     parser.add_argument('--force', action='store_true',

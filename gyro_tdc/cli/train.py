@@ -55,7 +55,7 @@ def build_parser() -> argparse.ArgumentParser:
                         'flight log, or a folder: walked, subfolders too, for its bags and '
                         'logs; one found there that cannot be read is skipped with a warning '
                         'naming it and why (one named here is refused)')
-    p.add_argument('--out', required=True, metavar='MODEL.yaml', help='model file to write')
+    p.add_argument('-o', '--out', required=True, metavar='MODEL.yaml', help='model file to write')
     p.add_argument('--json', metavar='OUT', default=None,
                    help='also write what training produced as JSON (shape: doc/json.md)')
     p.add_argument('--sensor-id', default='', metavar='ID',

@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import argparse
+import importlib
 import math
 from pathlib import Path
 
@@ -160,3 +161,12 @@ def test_simulate_lists_the_scenarios(capsys):
     tail = _help(capsys, 'simulate').split('\nshipped scenarios', 1)[1]
     assert [line.split(':')[0].strip() for line in tail.splitlines()
             if line.startswith('  ') and not line.startswith('      ')] == scenario_names()
+
+
+@pytest.mark.parametrize('command,argv', [
+    ('train', ['bag']), ('discover', ['bag']), ('export', ['--px4', 'm.yaml']),
+    ('fleet', ['fleet.csv']), ('simulate', ['--scenario', 'l3gd20_paper']), ('demo', [])])
+def test_o_is_out_in_every_command_that_writes(command, argv):
+    parser = importlib.import_module(f'gyro_tdc.cli.{command}').build_parser()
+    assert str(parser.parse_args([*argv, '-o', 'x']).out) == 'x'
+    assert str(parser.parse_args([*argv, '--out', 'x']).out) == 'x'

@@ -190,7 +190,9 @@ def test_bad_reference(synth_bag, tmp_path, capsys, value):
 
 def test_usage_errors_are_one_line(synth_bag, tmp_path, capsys):
     bag, _ = synth_bag
-    assert_bad_input(capsys, [bag], 'the following arguments are required: --out')
+    assert main([str(bag), '-o', str(tmp_path / 'o.yaml'), '--no-progress']) == 0
+    assert load_model(tmp_path / 'o.yaml').features
+    assert_bad_input(capsys, [bag], 'the following arguments are required: -o/--out')
     assert_bad_input(capsys, [bag, '--out', tmp_path / 'm.yaml', '--kind', 'spline'],
                      "invalid choice: 'spline'")
     assert_bad_input(capsys, [bag, '--out', tmp_path / 'm.yaml', '--centers', '0'],
