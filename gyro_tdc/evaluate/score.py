@@ -39,7 +39,7 @@ from gyro_tdc.identify import (accel_scores, all_constant_error, constant_axes, 
 from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT_OUT_OF_RANGE,
                             MAX_EXTRAPOLATION_C, model_temperature)
 from gyro_tdc.runtime import default_tolerance, gated_shift, reanchor_shift, STILL_WINDOW_MAX_S
-from gyro_tdc.signal import (allan_deviation, bias_stability, noise_readouts, rms_dps,
+from gyro_tdc.signal import (allan_deviation, auto_window, bias_stability, noise_readouts, rms_dps,
                              STILL_WINDOW_S)
 import numpy as np
 from numpy.typing import NDArray
@@ -300,11 +300,13 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     whole, summary, kw = run, None, {'rate': rate_hz(run.t)}
     bounds = np.cumsum([0] + [len(p) for p in parts])
 
+    spans = None if still is None else _spans(still, run.t, bounds)
+
     def pick(x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Return what is scored of a rate: the still samples, each session anchored."""
-        return x if still is None else _anchor_first_still(x, still, bounds)[still]
+        return x if still is None else _anchor_first_still(x, spans, bounds)[still]
     if still is not None:
-        summary = _still_summary(run, still, bounds)
+        summary = _still_summary(run, still, bounds, spans)
         whole, kw, reanchor_s = rows_of(run, still), {'allan': False}, 0.0
     raw = score(pick(run.omega), whole, **kw)
     const |= ~(raw.bs > 0)                  # an axis reading its reference exactly
@@ -350,19 +352,33 @@ def still_rows(run: Run) -> NDArray[np.bool_] | None:
     return find_still([run])[0].mask
 
 
-def _stretches(still: NDArray[np.bool_], a: int, b: int
-               ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """Return the starts and stops of the still stretches within samples ``a:b``."""
-    edges = np.diff(np.concatenate([[0], still[a:b].astype(np.int8), [0]]))
-    return np.flatnonzero(edges == 1) + a, np.flatnonzero(edges == -1) + a
+def _spans(still: NDArray[np.bool_], t: NDArray[np.float64], bounds: NDArray[np.int64]
+           ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """
+    Return the starts and stops of the still stretches: runs of still samples.
+
+    As in the still test, a gap in the stamps longer than its window (the logger stopped)
+    ends a stretch; so does a session's end.
+    """
+    joined = still[1:] & still[:-1] & (np.diff(t) <= auto_window(t))
+    joined[bounds[1:-1] - 1] = False
+    return (np.flatnonzero(still & ~np.r_[False, joined]),
+            np.flatnonzero(still & ~np.r_[joined, False]) + 1)
 
 
-def _anchor_first_still(x: NDArray[np.float64], still: NDArray[np.bool_],
+def _stretches(spans: tuple, a: int, b: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Return the starts and stops of the still stretches ``spans`` within samples ``a:b``."""
+    starts, stops = spans
+    keep = (starts >= a) & (starts < b)
+    return starts[keep], stops[keep]
+
+
+def _anchor_first_still(x: NDArray[np.float64], spans: tuple,
                         bounds: NDArray[np.int64]) -> NDArray[np.float64]:
     """Return ``x`` less, per session, its mean over the session's first still stretch."""
     out = np.array(x, dtype=np.float64, copy=True)
     for a, b in zip(bounds[:-1].tolist(), bounds[1:].tolist()):
-        starts, stops = _stretches(still, a, b)
+        starts, stops = _stretches(spans, a, b)
         if starts.size:
             out[a:b] -= out[starts[0]:stops[0]].mean(axis=0)
     return out
@@ -373,7 +389,8 @@ def _span_c(temp: NDArray[np.float64]) -> list | None:
     return [float(temp.min()), float(temp.max())] if temp.size else None
 
 
-def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]) -> dict:
+def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64],
+                   spans: tuple) -> dict:
     """
     Return how much of a run the still-only scoring covers, in all and per session.
 
@@ -387,7 +404,7 @@ def _still_summary(run: Run, still: NDArray[np.bool_], bounds: NDArray[np.int64]
         """Return the figures of samples ``a:b``: counted, or (``figures``) summed."""
         if figures is None:
             n = int(np.count_nonzero(still[a:b]))
-            figures = {'samples': n, 'stretches': int(_stretches(still, a, b)[0].size),
+            figures = {'samples': n, 'stretches': int(_stretches(spans, a, b)[0].size),
                        'total_samples': b - a,
                        'still_s': n * dt,           # a logging gap is no still time
                        'total_s': float(run.t[b - 1] - run.t[a] + dt) if b > a else 0.0}

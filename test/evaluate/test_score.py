@@ -447,3 +447,23 @@ def test_a_log_ending_in_flight_reports_the_range_and_time_it_scored(tmp_path):
                                   'total_samples', 'total_s', 'total_temperature_c', 'share',
                                   'sessions']
     assert doc['still']['total_temperature_c'] == s['total_temperature_c']
+
+
+def test_a_logging_gap_ends_a_still_stretch_as_the_still_test_ends_it():
+    # Two stops at 50 Hz logged back to back in the samples, 5 min apart in time, then a
+    # flight: two stretches scored, the first alone anchoring the session.
+    rng = np.random.default_rng(7)
+    t = np.r_[np.arange(0.0, 60.0, 0.02), np.arange(360.0, 420.0, 0.02),
+              np.arange(420.0, 720.0, 0.02)]
+    still = t < 420.0
+    omega = rng.normal(0.0, 1e-3, (t.size, 3)) + np.where(t[:, None] < 360.0, 0.0, 0.01)
+    omega[~still] += rng.normal(0.0, 0.5, (int((~still).sum()), 3))
+    run = Run(t, 25.0 + t / 720.0, omega, np.zeros_like(omega), 'gap',
+              {'reference': 'zero'})
+    nm = NamedModel('lin.yaml', 'lin', _linear_model([0] * 3, [0] * 3))
+    b = evaluate_run(run, [nm], still=still)
+    assert b.still['stretches'] == 2 and b.samples == int(still.sum())
+    n = int((t < 60.0).sum())
+    np.testing.assert_allclose(b.raw.omega[:n].mean(axis=0), 0.0, atol=1e-12)
+    # The second stop keeps its step against the first: the anchor spans the first only.
+    np.testing.assert_allclose(b.raw.omega[n:].mean(axis=0), 0.01, atol=1e-3)
