@@ -30,6 +30,7 @@ import sys
 from typing import Optional, Sequence
 
 from gyro_tdc.base import atomic_write
+from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser, bag_options,
                                  command_line, effect_listing, finite_float, positive_float,
                                  positive_int, probability, progress_bar, run_command,
@@ -47,7 +48,7 @@ __all__ = ['build_parser', 'main']
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``discover``."""
     p = ArgumentParser(
-        prog='python -m gyro_tdc discover',
+        prog=f'{PROG} discover',
         description='Fit the drift model with the base effects to measured bags, show where it '
                     'disagrees with them, name the missing effect, add it and repeat until the '
                     'residual is noise.')

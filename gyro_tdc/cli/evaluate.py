@@ -27,6 +27,7 @@ import argparse
 import math
 from typing import Optional, Sequence
 
+from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
                                  ArgumentParser, bag_options, comma_floats, driver_bags,
                                  non_negative_float, progress_bar, run_command, UsageError)
@@ -43,7 +44,7 @@ __all__ = ['build_parser', 'main']
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``evaluate``."""
     p = ArgumentParser(
-        prog='python -m gyro_tdc evaluate',
+        prog=f'{PROG} evaluate',
         description='Score compensation models on held-out rosbag2 bags in the terms of the '
                     'paper (BS, P ratios), plus RMS and Allan deviation.')
     p.add_argument('bags', nargs='+', metavar='BAG',

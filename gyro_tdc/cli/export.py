@@ -27,6 +27,7 @@ from __future__ import annotations
 import argparse
 from typing import Optional, Sequence
 
+from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
                                  non_negative_float, non_negative_int, run_command, UsageError)
 from gyro_tdc.data import load_runs
@@ -48,7 +49,7 @@ _LOAD = {'px4': 'QGroundControl: Vehicle Setup > Parameters > Tools > Load from 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``export``."""
     p = ArgumentParser(
-        prog='python -m gyro_tdc export',
+        prog=f'{PROG} export',
         description="Write a model's drift as a flight controller's thermal-calibration "
                     'parameters (PX4 TC_G*/TC_A*, ArduPilot INS_TCALn_*), fitted in their '
                     'exact cubic over the trained range; with --eval, score the form as the '

@@ -27,6 +27,7 @@ import os
 from pathlib import Path
 from typing import Optional, Sequence
 
+from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (ArgumentParser, bag_options, command_line, positive_float,
                                  positive_int, run_command, UsageError)
 from gyro_tdc.cli.train import add_train_options, train_options
@@ -39,7 +40,7 @@ __all__ = ['build_parser', 'main']
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``fleet``."""
     p = ArgumentParser(
-        prog='python -m gyro_tdc fleet',
+        prog=f'{PROG} fleet',
         description='Calibrate a fleet of IMUs on Dask: one model per row of a manifest CSV '
                     '(sensor_id,train,test; bags separated by ";", relative to the manifest), '
                     'evaluated on its test bags, with fleet-outlier flags on the drift '

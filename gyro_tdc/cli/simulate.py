@@ -32,6 +32,7 @@ import time
 from typing import Callable, Optional, Sequence
 
 from gyro_tdc.base import atomic_dir, check_sim_samples, clean_leftovers, scenario_names
+from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import ArgumentParser, progress, progress_bar, run_command
 from gyro_tdc.errors import GyroTdcError
 from gyro_tdc.sim import CMD_VEL_TOPIC, load_scenario, SimRun, simulate_run, TRUTH_TOPIC
@@ -73,7 +74,7 @@ def scenario_listing(width: int = 92) -> str:
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``simulate``."""
     parser = ArgumentParser(
-        prog='gyro-tdc simulate',
+        prog=f'{PROG} simulate',
         description='Simulate a gyro in a thermal chamber on a rate table and write rosbag2 '
                     'bags (one per run).')
     parser.add_argument('--scenario', required=True, metavar='NAME|FILE',

@@ -31,6 +31,7 @@ import threading
 from typing import Optional, Sequence
 
 from gyro_tdc.base import atomic_write, plain
+from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
                                  ArgumentParser, bag_options, command_line, driver_bags,
                                  effect_listing, finite_float, positive_float, positive_int,
@@ -47,7 +48,7 @@ __all__ = ['add_train_options', 'build_parser', 'main', 'train_options', 'traini
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``train``."""
     p = ArgumentParser(
-        prog='python -m gyro_tdc train',
+        prog=f'{PROG} train',
         description='Identify a temperature-drift compensation model from rosbag2 bags '
                     'or flight logs (one run each) and write it as a YAML model file.')
     p.add_argument('bags', nargs='+', metavar='BAG',

@@ -168,5 +168,6 @@ def test_simulate_lists_the_scenarios(capsys):
     ('fleet', ['fleet.csv']), ('simulate', ['--scenario', 'l3gd20_paper']), ('demo', [])])
 def test_o_is_out_in_every_command_that_writes(command, argv):
     parser = importlib.import_module(f'gyro_tdc.cli.{command}').build_parser()
+    assert parser.prog == f'gyro-tdc {command}'     # one name, as run_command prints it
     assert str(parser.parse_args([*argv, '-o', 'x']).out) == 'x'
     assert str(parser.parse_args([*argv, '--out', 'x']).out) == 'x'
