@@ -66,11 +66,6 @@ def _shaped(cal: object, name: str, shape: tuple[int, int]) -> None:
     object.__setattr__(cal, name, a)
 
 
-def _enabled(params: Mapping[str, float], name: str) -> bool:
-    """Return True when the switch ``name`` is 1 in ``params`` (absent: off; 2: learning)."""
-    return int(params.get(name, 0) or 0) == 1
-
-
 def _temps(temp_c: ArrayLike) -> NDArray[np.float64]:
     """Return ``temp_c`` as a 1-D float64 array."""
     t = np.asarray(temp_c, dtype=np.float64)
@@ -292,7 +287,7 @@ def onboard_status(params: Mapping[str, float], firmware: str, *, instance: int 
     if firmware not in ('px4', 'ardupilot'):
         raise ValueError(f"Expected `firmware` to be 'px4' or 'ardupilot', got {firmware!r}.")
     name = px4_name(sensor) if firmware == 'px4' else ardupilot_name(instance)
-    active = _enabled(params, name)
+    active = int(params.get(name, 0) or 0) == 1        # absent: off; 2: learning
     if name not in params:
         return False, f'{name} not in the log: no on-board thermal compensation known'
     shown = int(params[name]) if float(params[name]).is_integer() else params[name]
