@@ -485,8 +485,7 @@ def stream_state(thermal: ThermalState | None, carry: ThermalCarry | None,
 
 def same_thermal(a: ThermalState | None, b: ThermalState | None) -> bool:
     """Return whether two thermal sections give the same model temperature (None = none)."""
-    ka = 'none' if a is None else a.kind
-    kb = 'none' if b is None else b.kind
+    ka, kb = ('none' if x is None else x.kind for x in (a, b))
     return ka == kb and (ka == 'none' or a.tau_s == b.tau_s)
 
 

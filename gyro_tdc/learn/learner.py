@@ -446,11 +446,10 @@ class Learner:
 
     def _remember(self, rows: list) -> None:
         """Keep new windows for the check and the offset: the newest stretches and rows."""
-        stretch = self.stretches
-        if self.recent and self.recent[-1].stretch == stretch:
+        if self.recent and self.recent[-1].stretch == self.stretches:
             self.recent[-1].rows.extend(rows)
         else:
-            self.recent.append(RecentStretch(stretch, self.session, rows))
+            self.recent.append(RecentStretch(self.stretches, self.session, rows))
         del self.recent[:-CHECK_STRETCHES]
         total = sum(len(r.rows) for r in self.recent)
         while total > CHECK_ROWS:

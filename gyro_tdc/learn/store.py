@@ -348,10 +348,9 @@ def model_from_file(path: str | os.PathLike) -> CompensationModel:
             f'{len(values["bins"])} bins, {values["still_s"]:.0f} s still): learn longer, or '
             'give a model file')
     model = model_of(fit, thermal, values['prior'])
-    created = dict(model.created)
-    created.update({'learn_file': str(p), 'last_update_stamp_s': values['last_update_t'],
-                    'sessions': values['session'] + 1, 'points': fit['points']})
-    return model.replace(created=created)
+    return model.replace(created={**model.created, 'learn_file': str(p),
+                                  'last_update_stamp_s': values['last_update_t'],
+                                  'sessions': values['session'] + 1, 'points': fit['points']})
 
 
 def read_model(spec: str | os.PathLike) -> CompensationModel:
