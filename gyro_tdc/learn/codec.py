@@ -161,9 +161,8 @@ def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry
     if not isinstance(v, dict):
         raise _bad('bins', f'must be an object (bin -> entries), got {shown(v)}')
     lo = hi = None
-    if bin_c is not None:
-        lo = math.floor(TEMP_PLAUSIBLE_C[0] / bin_c) - 1
-        hi = math.floor(TEMP_PLAUSIBLE_C[1] / bin_c) + 1
+    if bin_c is not None:           # the bins of the plausible temperatures, one either side
+        lo, hi = (math.floor(c / bin_c) + d for c, d in zip(TEMP_PLAUSIBLE_C, (-1, 1)))
     out: dict[int, list[Entry]] = {}
     for key, entries in v.items():
         name = f'bins[{key!r:.20}]'
