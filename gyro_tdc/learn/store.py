@@ -32,7 +32,7 @@ import re
 import stat
 from typing import Any, Callable
 
-from gyro_tdc.base import atomic_write, model_path
+from gyro_tdc.base import atomic_write, model_path, read_text
 from gyro_tdc.errors import LearnFileError, ModelFileError, OutputError
 from gyro_tdc.learn.codec import decode_state, FORMAT
 from gyro_tdc.learn.fit import model_of
@@ -157,22 +157,7 @@ class LearnFile:
                                  '(4 MiB) limit of a learn_file')
         if fix_mode and st.st_uid == os.geteuid():
             self._owner_rw(st)
-        try:
-            fd = os.open(p, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
-            with os.fdopen(fd, 'rb') as stream:
-                st = os.fstat(stream.fileno())
-                if not stat.S_ISREG(st.st_mode):
-                    raise LearnFileError(f'{p}: not a regular file')
-                data = stream.read(MAX_BYTES + 1)
-        except OSError as exc:
-            raise LearnFileError(f'{p}: cannot read: {exc.strerror or exc}') from None
-        if len(data) > MAX_BYTES:
-            raise LearnFileError(f'{p}: more than the {MAX_BYTES}-byte (4 MiB) limit of a '
-                                 'learn_file')
-        try:
-            text = data.decode('utf-8')
-        except UnicodeDecodeError:
-            raise LearnFileError(f'{p}: not JSON (not UTF-8 text)') from None
+        text, st = read_text(p, MAX_BYTES, 'learn_file', LearnFileError, regular=True)
         if _depth(text) > MAX_DEPTH:
             raise LearnFileError(f'{p}: not a learner state (nested deeper than {MAX_DEPTH} '
                                  'levels)')
