@@ -307,9 +307,8 @@ def _thermal_state(v: Any, thermal: ThermalState | None) -> tuple[float, list[fl
 
 def _motion(v: Any) -> list[tuple[float, bool]]:
     """Return the motion reports (stamp, moving), in stamp order."""
-    out = [tuple(_row(m, f'motion[{i}]', (('', _stamp), ('', _CHK.boolean))))
-           for i, m in enumerate(_list(v, 'motion'))]
-    return sorted(out, key=lambda r: r[0])
+    return sorted((tuple(_row(m, f'motion[{i}]', (('', _stamp), ('', _CHK.boolean))))
+                   for i, m in enumerate(_list(v, 'motion'))), key=lambda r: r[0])
 
 
 def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | None = None,

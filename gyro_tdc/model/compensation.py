@@ -128,8 +128,7 @@ class CompensationModel:
             raise FeatureError(f'`thermal` must be a ThermalState, got {type(th).__name__}')
         if self.accel is not None:
             self._check_accel()
-        lagged = bool(THERMAL_EFFECTS & set(self.features))
-        if lagged != (th.kind != 'none'):
+        if bool(THERMAL_EFFECTS & set(self.features)) != (th.kind != 'none'):     # lagged
             raise FeatureError(f'thermal kind {th.kind!r} does not match the features '
                                f'{list(self.features)}: `lag` goes with a lagged state '
                                '(first_order, two_node), no `lag` with kind none')

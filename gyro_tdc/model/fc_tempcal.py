@@ -174,9 +174,8 @@ def px4_correction(params: Mapping[str, float] | Px4TempCal, temp_c: ArrayLike, 
     rad/s (gyro) or m/s^2 (accel). ``params`` are the parameters (``TC_Gn_*`` of ``slot``)
     or one slot read; ``TC_G_ENABLE`` is not looked at (see :func:`onboard_status`).
     """
-    cal = params if isinstance(params, Px4TempCal) else Px4TempCal.from_params(
-        params, sensor, slot)
-    return cal.offset(temp_c)
+    return (params if isinstance(params, Px4TempCal) else Px4TempCal.from_params(
+        params, sensor, slot)).offset(temp_c)
 
 
 # --------------------------------------------------------------------------------------------
@@ -266,9 +265,8 @@ def ardupilot_correction(params: Mapping[str, float] | ArduPilotTempCal, temp_c:
     ``params`` are ``INS_TCALn_*`` and ``INS_GYRn_CALTEMP``, or one IMU read; ``instance``
     is 0-based (``INS_TCAL1`` is IMU 0). ``INS_TCALn_ENABLE`` is not looked at.
     """
-    cal = params if isinstance(params, ArduPilotTempCal) else ArduPilotTempCal.from_params(
-        params, sensor, instance)
-    return cal.offset(temp_c)
+    return (params if isinstance(params, ArduPilotTempCal) else ArduPilotTempCal.from_params(
+        params, sensor, instance)).offset(temp_c)
 
 
 # --------------------------------------------------------------------------------------------
