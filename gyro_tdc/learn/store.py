@@ -152,9 +152,6 @@ class LearnFile:
                                  'the file itself)')
         if not stat.S_ISREG(st.st_mode):
             raise LearnFileError(f'{p}: not a regular file')
-        if st.st_size > MAX_BYTES:
-            raise LearnFileError(f'{p}: {st.st_size} bytes, more than the {MAX_BYTES}-byte '
-                                 '(4 MiB) limit of a learn_file')
         if fix_mode and st.st_uid == os.geteuid():
             self._owner_rw(st)
         text, st = read_text(p, MAX_BYTES, 'learn_file', LearnFileError, regular=True)
