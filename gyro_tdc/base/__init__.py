@@ -36,5 +36,6 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
                   'TEMPERATURE_QUIRKS'],
     'resources': ['config_dir', 'model_path', 'scenario_names', 'scenario_path'],
     'worker': ['Job', 'LatestJob'],
-    'yamlio': ['BAG_METADATA_LIMITS', 'load_yaml', 'read_yaml', 'SCENARIO_LIMITS', 'YamlLimits'],
+    'yamlio': ['BAG_METADATA_LIMITS', 'load_yaml', 'read_text', 'read_yaml', 'SCENARIO_LIMITS',
+               'YamlLimits'],
 })

@@ -25,12 +25,14 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import os
 from pathlib import Path
+import stat
 from typing import Any
 
 from gyro_tdc.errors import GyroTdcError
 import yaml
 
-__all__ = ['BAG_METADATA_LIMITS', 'SCENARIO_LIMITS', 'YamlLimits', 'load_yaml', 'read_yaml']
+__all__ = ['BAG_METADATA_LIMITS', 'SCENARIO_LIMITS', 'YamlLimits', 'load_yaml', 'read_text',
+           'read_yaml']
 
 _LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 _OPEN = (yaml.MappingStartEvent, yaml.SequenceStartEvent)
@@ -148,6 +150,36 @@ def load_yaml(text: str, limits: YamlLimits, *, source: str = '<string>',
     return yaml.load(text, Loader=_LOADER)
 
 
+def read_text(path: str | os.PathLike, max_bytes: int, what: str,
+              error: type[GyroTdcError] = GyroTdcError, *, regular: bool = False
+              ) -> tuple[str, os.stat_result]:
+    """
+    Return a UTF-8 file's text, read within ``max_bytes`` (its size checked first), and its stat.
+
+    ``regular``: never through a symbolic link, never waiting on a FIFO, a regular file only.
+    Raises ``error`` in one line naming the file and ``what`` it is: unreadable, not a
+    regular file, too large, or not UTF-8.
+    """
+    extra = os.O_NOFOLLOW | os.O_NONBLOCK if regular else 0
+    try:
+        with open(path, 'rb', opener=lambda p, flags: os.open(p, flags | extra)) as stream:
+            st = os.fstat(stream.fileno())
+            if regular and not stat.S_ISREG(st.st_mode):
+                raise error(f'{path}: not a regular file')
+            if st.st_size > max_bytes:
+                raise error(f'{path}: {st.st_size} bytes, more than the {max_bytes}-byte limit '
+                            f'of a {what}')
+            data = stream.read(max_bytes + 1)
+    except OSError as exc:
+        raise error(f'{path}: cannot read {what}: {exc.strerror or exc}') from None
+    if len(data) > max_bytes:
+        raise error(f'{path}: more than the {max_bytes}-byte limit of a {what}')
+    try:
+        return data.decode('utf-8'), st
+    except UnicodeDecodeError:
+        raise error(f'{path}: not a text (UTF-8) {what}') from None
+
+
 def read_yaml(path: str | os.PathLike, limits: YamlLimits, *,
               error: type[GyroTdcError] = GyroTdcError) -> Any:
     """
@@ -158,21 +190,7 @@ def read_yaml(path: str | os.PathLike, limits: YamlLimits, *,
     not UTF-8, too large, malformed, or over a limit.
     """
     path = Path(path)
-    try:
-        with open(path, 'rb') as stream:
-            size = os.fstat(stream.fileno()).st_size
-            if size > limits.max_bytes:
-                raise error(f'{path}: {size} bytes, more than the {limits.max_bytes}-byte '
-                            f'limit of a {limits.what}')
-            data = stream.read(limits.max_bytes + 1)
-    except OSError as exc:
-        raise error(f'{path}: cannot read {limits.what}: {exc.strerror or exc}') from None
-    if len(data) > limits.max_bytes:
-        raise error(f'{path}: more than the {limits.max_bytes}-byte limit of a {limits.what}')
-    try:
-        text = data.decode('utf-8')
-    except UnicodeDecodeError:
-        raise error(f'{path}: not a text (UTF-8) {limits.what}') from None
+    text = read_text(path, limits.max_bytes, limits.what, error)[0]
     try:
         return load_yaml(text, limits, source=str(path), error=error)
     except yaml.YAMLError as exc:

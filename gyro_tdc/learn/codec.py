@@ -161,9 +161,8 @@ def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry
     if not isinstance(v, dict):
         raise _bad('bins', f'must be an object (bin -> entries), got {shown(v)}')
     lo = hi = None
-    if bin_c is not None:
-        lo = math.floor(TEMP_PLAUSIBLE_C[0] / bin_c) - 1
-        hi = math.floor(TEMP_PLAUSIBLE_C[1] / bin_c) + 1
+    if bin_c is not None:           # the bins of the plausible temperatures, one either side
+        lo, hi = (math.floor(c / bin_c) + d for c, d in zip(TEMP_PLAUSIBLE_C, (-1, 1)))
     out: dict[int, list[Entry]] = {}
     for key, entries in v.items():
         name = f'bins[{key!r:.20}]'
@@ -308,9 +307,8 @@ def _thermal_state(v: Any, thermal: ThermalState | None) -> tuple[float, list[fl
 
 def _motion(v: Any) -> list[tuple[float, bool]]:
     """Return the motion reports (stamp, moving), in stamp order."""
-    out = [tuple(_row(m, f'motion[{i}]', (('', _stamp), ('', _CHK.boolean))))
-           for i, m in enumerate(_list(v, 'motion'))]
-    return sorted(out, key=lambda r: r[0])
+    return sorted((tuple(_row(m, f'motion[{i}]', (('', _stamp), ('', _CHK.boolean))))
+                   for i, m in enumerate(_list(v, 'motion'))), key=lambda r: r[0])
 
 
 def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | None = None,

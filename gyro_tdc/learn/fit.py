@@ -138,8 +138,7 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
         True for the entries kept.
 
     """
-    n = e.shape[0]
-    keep = np.ones(n, dtype=bool)
+    keep = np.ones(e.shape[0], dtype=bool)
     for _ in range(MAX_DROPS):
         idx = np.flatnonzero(keep)
         if idx.size <= len(feats) + np.unique(e[idx, 6]).size + 2:
@@ -187,8 +186,7 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
     the learn file stores it): ``features``, ``t0_c``, ``coef``, ``range_c``,
     ``resid_var``, ``points``.
     """
-    age = np.maximum(t_now - e[:, 0], 0.0)
-    wt = e[:, 1] * 0.5 ** (age / half_life_s)
+    wt = e[:, 1] * 0.5 ** (np.maximum(t_now - e[:, 0], 0.0) / half_life_s)     # by age
     t0 = float(np.average(e[:, 2], weights=wt))
     coef, res = fit_sessions(e, wt, feats, t0)
     keep = inliers(e, wt, feats, t0, floor)
@@ -200,10 +198,10 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
     if flat:                              # those axes: one offset per session, no curve
         c0, r0 = fit_sessions(e, wt, (), t0)
         coef[0, flat], coef[1:, flat], res[:, flat] = c0[0, flat], 0.0, r0[:, flat]
-    resid = np.average(res ** 2, axis=0, weights=wt)
     return {'features': list(feats), 't0_c': t0, 'coef': coef.tolist(),
             'range_c': [float(e[:, 2].min()), float(e[:, 2].max())],
-            'resid_var': resid.tolist(), 'points': int(e.shape[0]), 'held_out': record}
+            'resid_var': np.average(res ** 2, axis=0, weights=wt).tolist(),
+            'points': int(e.shape[0]), 'held_out': record}
 
 
 def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str],
@@ -415,8 +413,7 @@ def window_error(r: NDArray[np.float64], pred: NDArray[np.float64],
             mean = np.average(res[new], axis=0, weights=r[new, 0])
             return float(np.average(((res - mean) ** 2).sum(axis=1), weights=r[:, 0])
                          + (mean ** 2).sum())
-    err = (res ** 2).sum(axis=1)
-    return float(np.average(err, weights=r[:, 0]))
+    return float(np.average((res ** 2).sum(axis=1), weights=r[:, 0]))
 
 
 def compare(cand: CompensationModel, current: CompensationModel | None,
@@ -485,8 +482,7 @@ def stream_state(thermal: ThermalState | None, carry: ThermalCarry | None,
 
 def same_thermal(a: ThermalState | None, b: ThermalState | None) -> bool:
     """Return whether two thermal sections give the same model temperature (None = none)."""
-    ka = 'none' if a is None else a.kind
-    kb = 'none' if b is None else b.kind
+    ka, kb = ('none' if x is None else x.kind for x in (a, b))
     return ka == kb and (ka == 'none' or a.tau_s == b.tau_s)
 
 

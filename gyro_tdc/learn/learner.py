@@ -296,9 +296,8 @@ class Learner:
         # session.
         dt = np.diff(t, prepend=t[0] if self.last_t is None else self.last_t)
         self.sessions.median_period(dt)
-        pause = self.sessions.pause_s()
         back = set(np.flatnonzero(dt < -RESTART_BACK_S).tolist())   # the device restarted
-        pauses = sorted(set(np.flatnonzero(dt > pause).tolist()) | back)
+        pauses = sorted(set(np.flatnonzero(dt > self.sessions.pause_s()).tolist()) | back)
         swapped = False
         for lo, hi in zip([0] + pauses, pauses + [t.size]):
             if hi > lo:
@@ -343,8 +342,7 @@ class Learner:
             self.thermal_state = None     # after a power-off: steady state at the next reading
         temp, self.thermal_state = stream_state(self.thermal, self.thermal_state, t, temp)
         self.last_t = float(t[-1])
-        windows = self.still.extend(t, w, acc, temp)
-        return self._windows(windows, None) or swapped
+        return self._windows(self.still.extend(t, w, acc, temp), None) or swapped
 
     def flush(self, t_trigger: float | None = None) -> bool:
         """
@@ -446,11 +444,10 @@ class Learner:
 
     def _remember(self, rows: list) -> None:
         """Keep new windows for the check and the offset: the newest stretches and rows."""
-        stretch = self.stretches
-        if self.recent and self.recent[-1].stretch == stretch:
+        if self.recent and self.recent[-1].stretch == self.stretches:
             self.recent[-1].rows.extend(rows)
         else:
-            self.recent.append(RecentStretch(stretch, self.session, rows))
+            self.recent.append(RecentStretch(self.stretches, self.session, rows))
         del self.recent[:-CHECK_STRETCHES]
         total = sum(len(r.rows) for r in self.recent)
         while total > CHECK_ROWS:

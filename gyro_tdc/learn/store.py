@@ -32,7 +32,7 @@ import re
 import stat
 from typing import Any, Callable
 
-from gyro_tdc.base import atomic_write, model_path
+from gyro_tdc.base import atomic_write, model_path, read_text
 from gyro_tdc.errors import LearnFileError, ModelFileError, OutputError
 from gyro_tdc.learn.codec import decode_state, FORMAT
 from gyro_tdc.learn.fit import model_of
@@ -152,27 +152,9 @@ class LearnFile:
                                  'the file itself)')
         if not stat.S_ISREG(st.st_mode):
             raise LearnFileError(f'{p}: not a regular file')
-        if st.st_size > MAX_BYTES:
-            raise LearnFileError(f'{p}: {st.st_size} bytes, more than the {MAX_BYTES}-byte '
-                                 '(4 MiB) limit of a learn_file')
         if fix_mode and st.st_uid == os.geteuid():
             self._owner_rw(st)
-        try:
-            fd = os.open(p, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK | os.O_CLOEXEC)
-            with os.fdopen(fd, 'rb') as stream:
-                st = os.fstat(stream.fileno())
-                if not stat.S_ISREG(st.st_mode):
-                    raise LearnFileError(f'{p}: not a regular file')
-                data = stream.read(MAX_BYTES + 1)
-        except OSError as exc:
-            raise LearnFileError(f'{p}: cannot read: {exc.strerror or exc}') from None
-        if len(data) > MAX_BYTES:
-            raise LearnFileError(f'{p}: more than the {MAX_BYTES}-byte (4 MiB) limit of a '
-                                 'learn_file')
-        try:
-            text = data.decode('utf-8')
-        except UnicodeDecodeError:
-            raise LearnFileError(f'{p}: not JSON (not UTF-8 text)') from None
+        text, st = read_text(p, MAX_BYTES, 'learn_file', LearnFileError, regular=True)
         if _depth(text) > MAX_DEPTH:
             raise LearnFileError(f'{p}: not a learner state (nested deeper than {MAX_DEPTH} '
                                  'levels)')
@@ -348,10 +330,9 @@ def model_from_file(path: str | os.PathLike) -> CompensationModel:
             f'{len(values["bins"])} bins, {values["still_s"]:.0f} s still): learn longer, or '
             'give a model file')
     model = model_of(fit, thermal, values['prior'])
-    created = dict(model.created)
-    created.update({'learn_file': str(p), 'last_update_stamp_s': values['last_update_t'],
-                    'sessions': values['session'] + 1, 'points': fit['points']})
-    return model.replace(created=created)
+    return model.replace(created={**model.created, 'learn_file': str(p),
+                                  'last_update_stamp_s': values['last_update_t'],
+                                  'sessions': values['session'] + 1, 'points': fit['points']})
 
 
 def read_model(spec: str | os.PathLike) -> CompensationModel:

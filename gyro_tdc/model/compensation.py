@@ -128,8 +128,7 @@ class CompensationModel:
             raise FeatureError(f'`thermal` must be a ThermalState, got {type(th).__name__}')
         if self.accel is not None:
             self._check_accel()
-        lagged = bool(THERMAL_EFFECTS & set(self.features))
-        if lagged != (th.kind != 'none'):
+        if bool(THERMAL_EFFECTS & set(self.features)) != (th.kind != 'none'):     # lagged
             raise FeatureError(f'thermal kind {th.kind!r} does not match the features '
                                f'{list(self.features)}: `lag` goes with a lagged state '
                                '(first_order, two_node), no `lag` with kind none')
@@ -312,12 +311,11 @@ def _drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.fl
     s, reach = split(model_temperature(model, t, temp), lo, hi, policy, max_c)
     x = batch_features(model.features, t, temp, t0=model.t0_c, params=model.effect_params, state=s)
     d = s - model.t0_c
-    coef = model.coefficients
     out = np.empty((x.shape[0], 3))
     tangent = Tangent(model) if np.any(reach) else None
     for i in range(0, x.shape[0], chunk):
         design = rbf_design(model, x[i:i + chunk])
-        out[i:i + chunk] = design @ coef
+        out[i:i + chunk] = design @ model.coefficients
         if tangent is not None:
             r = reach[i:i + chunk]
             k = np.flatnonzero(r)
@@ -431,7 +429,6 @@ class StreamingCompensator:
         self._coef = model.coefficients
         self._mean, self._std, self._centers = model.input_mean, model.input_std, model.centers
         self._inv2w2 = 1.0 / (2.0 * model.widths ** 2)
-        self._f = len(model.inputs)
         self._lo, self._hi = model.temp_range_c
         self.offset = np.zeros(3)
         self.in_range = True
@@ -482,19 +479,13 @@ class StreamingCompensator:
             s, reach = split(s, self._lo, self._hi, self.policy, self.max_extrapolation_c)
         x = self.features.update(t, temp, s)
         xn = (x - self._mean) / self._std
-        row = np.empty(1 + self._f + self._centers.shape[0])
-        row[0] = 1.0
-        row[1:1 + self._f] = xn
-        if self._centers.shape[0]:
-            d2 = ((xn[None, :] - self._centers) ** 2).sum(axis=1)
-            row[1 + self._f:] = np.exp(-d2 * self._inv2w2)
+        phi = np.exp(-((xn - self._centers) ** 2).sum(axis=1) * self._inv2w2)
+        row = np.concatenate(([1.0], xn, phi))
         d = s - self.model.t0_c
         b = row @ self._coef + self.offset
         if reach:
             b = b + reach * self._tangent.slope_one(row, d)
-            d = d + reach
-        self.model_temp = s + reach
-        self.dt_c = d
+        self.model_temp, self.dt_c = s + reach, d + reach
         return b
 
     def step(self, t: float, temp: float, omega: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -28,7 +28,7 @@ import math
 from typing import Callable, Mapping, Sequence
 
 from gyro_tdc.errors import FeatureError
-from gyro_tdc.model.lag import first_order_lag
+from gyro_tdc.model.lag import first_order_lag, lag_step
 import numpy as np
 from numpy.typing import NDArray
 
@@ -177,11 +177,7 @@ def _of_lag(out: Callable) -> dict:
 
         def step(t: float, dt_s: float, temp: float, d: float, first: bool) -> float:
             nonlocal y
-            if first:
-                y = temp
-            else:
-                a = math.exp(-dt_s / tau)
-                y = a * y + (1.0 - a) * temp
+            y = temp if first else lag_step(y, temp, dt_s, tau)
             return out(temp, y, tau, t0)
         return step
     return {'batch': batch, 'stream': stream}

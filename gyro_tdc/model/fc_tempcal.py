@@ -66,11 +66,6 @@ def _shaped(cal: object, name: str, shape: tuple[int, int]) -> None:
     object.__setattr__(cal, name, a)
 
 
-def _enabled(params: Mapping[str, float], name: str) -> bool:
-    """Return True when the switch ``name`` is 1 in ``params`` (absent: off; 2: learning)."""
-    return int(params.get(name, 0) or 0) == 1
-
-
 def _temps(temp_c: ArrayLike) -> NDArray[np.float64]:
     """Return ``temp_c`` as a 1-D float64 array."""
     t = np.asarray(temp_c, dtype=np.float64)
@@ -179,9 +174,8 @@ def px4_correction(params: Mapping[str, float] | Px4TempCal, temp_c: ArrayLike, 
     rad/s (gyro) or m/s^2 (accel). ``params`` are the parameters (``TC_Gn_*`` of ``slot``)
     or one slot read; ``TC_G_ENABLE`` is not looked at (see :func:`onboard_status`).
     """
-    cal = params if isinstance(params, Px4TempCal) else Px4TempCal.from_params(
-        params, sensor, slot)
-    return cal.offset(temp_c)
+    return (params if isinstance(params, Px4TempCal) else Px4TempCal.from_params(
+        params, sensor, slot)).offset(temp_c)
 
 
 # --------------------------------------------------------------------------------------------
@@ -271,9 +265,8 @@ def ardupilot_correction(params: Mapping[str, float] | ArduPilotTempCal, temp_c:
     ``params`` are ``INS_TCALn_*`` and ``INS_GYRn_CALTEMP``, or one IMU read; ``instance``
     is 0-based (``INS_TCAL1`` is IMU 0). ``INS_TCALn_ENABLE`` is not looked at.
     """
-    cal = params if isinstance(params, ArduPilotTempCal) else ArduPilotTempCal.from_params(
-        params, sensor, instance)
-    return cal.offset(temp_c)
+    return (params if isinstance(params, ArduPilotTempCal) else ArduPilotTempCal.from_params(
+        params, sensor, instance)).offset(temp_c)
 
 
 # --------------------------------------------------------------------------------------------
@@ -292,7 +285,7 @@ def onboard_status(params: Mapping[str, float], firmware: str, *, instance: int 
     if firmware not in ('px4', 'ardupilot'):
         raise ValueError(f"Expected `firmware` to be 'px4' or 'ardupilot', got {firmware!r}.")
     name = px4_name(sensor) if firmware == 'px4' else ardupilot_name(instance)
-    active = _enabled(params, name)
+    active = int(params.get(name, 0) or 0) == 1        # absent: off; 2: learning
     if name not in params:
         return False, f'{name} not in the log: no on-board thermal compensation known'
     shown = int(params[name]) if float(params[name]).is_integer() else params[name]

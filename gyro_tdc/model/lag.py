@@ -26,10 +26,16 @@ import math
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['HOLDS', 'first_order_lag']
+__all__ = ['HOLDS', 'first_order_lag', 'lag_step']
 
 #: Input holds of :func:`first_order_lag`.
 HOLDS = ('step', 'linear')
+
+
+def lag_step(y: float, u: float, dt_s: float, tau: float) -> float:
+    """Return the lag's state ``dt_s`` s after ``y`` with the input ``u`` held (one step)."""
+    a = math.exp(-dt_s / tau)
+    return a * y + (1.0 - a) * u
 
 
 def _doubling_scan(a: float, b: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -189,13 +195,10 @@ def first_order_lag(t: ArrayLike | float, u: ArrayLike, tau: float, *, hold: str
     if n == 1:
         return np.full(1, start)
     if uniform and hold == 'linear':
-        y = np.empty(n)
-        y[0] = start
         a = math.exp(-dt / tau)
         c = tau * -math.expm1(-dt / tau) / dt
         # y[k+1] = a y[k] + (1 - c) u[k+1] + (c - a) u[k]: one constant factor.
-        y[1:] = _constant_scan(a, (1.0 - c) * u[1:] + (c - a) * u[:-1], start)
-        return y
+        return np.r_[start, _constant_scan(a, (1.0 - c) * u[1:] + (c - a) * u[:-1], start)]
     m = n - 1
     step = np.full(m, dt) if uniform else np.maximum(np.diff(t), 0.0)
     rows, width = _rows(m, float(step.sum()) / tau)

@@ -29,7 +29,7 @@ from typing import Any, Mapping
 
 from gyro_tdc.base import is_number
 from gyro_tdc.errors import FeatureError
-from gyro_tdc.model.lag import first_order_lag
+from gyro_tdc.model.lag import first_order_lag, lag_step
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -209,11 +209,8 @@ class StreamingThermalState:
         dt_s = max(t - self._t_prev, 0.0)
         self._t_prev = max(t, self._t_prev)
         u = temp
-        y = self._y
-        for i, tau in enumerate(self._taus):
-            a = math.exp(-dt_s / tau)
-            y[i] = a * y[i] + (1.0 - a) * u
-            u = y[i]
+        for i, tau in enumerate(self._taus):      # cascaded nodes
+            u = self._y[i] = lag_step(self._y[i], u, dt_s, tau)
         self.value = u
         return u
 

@@ -100,9 +100,7 @@ def pinv_fit(x: NDArray[np.float64], y: NDArray[np.float64], *, cutoff: float = 
     ``pinv_extended``, operation for operation, so a HAC covariance built on it matches).
     """
     u, s, vt = np.linalg.svd(x.conjugate(), False)
-    cut = cutoff * np.maximum.reduce(s)
-    for i in range(min(u.shape[0], vt.shape[1])):
-        s[i] = 1.0 / s[i] if s[i] > cut else 0.0
+    s = np.divide(1.0, s, out=np.zeros_like(s), where=s > cutoff * np.maximum.reduce(s))
     pinv = np.dot(np.transpose(vt), np.multiply(s[:, np.newaxis], np.transpose(u)))
     return np.dot(pinv, y), pinv
 

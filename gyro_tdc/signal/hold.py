@@ -101,11 +101,8 @@ class TemperatureHold:
             None when every sample held is later than ``t`` (or none was received).
 
         """
-        ts = self._t
-        if ts and ts[-1] <= t:
-            return self._c[-1], ts[-1]
-        i = bisect.bisect_right(ts, t)
-        return (self._c[i - 1], ts[i - 1]) if i else None
+        i = bisect.bisect_right(self._t, t)
+        return (self._c[i - 1], self._t[i - 1]) if i else None
 
     def drop_after(self, t: float) -> int:
         """

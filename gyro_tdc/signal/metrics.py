@@ -49,8 +49,7 @@ def bias_stability(omega: NDArray[np.float64], omega_ref: NDArray[np.float64]
 
 def rms_dps(err: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return the RMS per axis, in deg/s, of an error signal (N, 3) given in rad/s."""
-    e = np.asarray(err, dtype=np.float64) * _DEG
-    return np.sqrt(np.mean(e * e, axis=0))
+    return np.sqrt(bias_stability(err, 0.0))
 
 
 def p_ratios(bs1: NDArray[np.float64], bs2: NDArray[np.float64], bs3: NDArray[np.float64]

@@ -23,6 +23,7 @@ doc/internals/signal.md.
 
 from __future__ import annotations
 
+from itertools import accumulate
 import math
 from typing import Sequence
 
@@ -224,11 +225,9 @@ class SessionTracker:
         merge = {s for s, gap in self.gaps if gap <= limit and s <= self.session}
         if not merge:
             return None
-        new, label = {}, 0
-        for k in range(self.session + 1):
-            if k and k not in merge:
-                label += 1
-            new[k] = label
+        # A merged session takes its predecessor's label; the others count on.
+        new = dict(enumerate(accumulate(int(k > 0 and k not in merge)
+                                        for k in range(self.session + 1))))
         self.gaps = [(new[s], g) for s, g in self.gaps if s not in merge and s in new]
         self.session = new[self.session]
         return new

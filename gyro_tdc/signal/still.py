@@ -507,10 +507,9 @@ def detect_still(t: ArrayLike, gyro: ArrayLike, accel: ArrayLike | None = None, 
                          'too few samples to judge stillness')
     _, starts, counts, finite, bad, g_mean, g_std, a_mean, a_std = stats = stats or (
         dt, *_windows(t, g, acc, window))
-    usable = (counts >= MIN_JUDGED) & ~bad
     vetoed = (np.zeros(starts.size, dtype=bool) if moving is None else
               np.logical_or.reduceat(np.asarray(moving, dtype=bool), starts))
-    may = usable & ~vetoed
+    may = (counts >= MIN_JUDGED) & ~bad & ~vetoed      # windows that may be still
     g_floor = noise_floor(g_std, may) if gyro_floor is None else np.asarray(gyro_floor, float)
     a_floor = (None if a_std is None else noise_floor(a_std, may) if accel_floor is None
                else np.asarray(accel_floor, float))

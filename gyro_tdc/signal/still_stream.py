@@ -263,10 +263,8 @@ class StillWindows:
         buf = self._buf
         if not buf and self._chunk is None:
             self._t0 = t
-        accel = _NAN3 if accel is None else accel
-        rate = _NAN3 if rate is None else rate
-        buf.extend((t, raw[0], raw[1], raw[2], accel[0], accel[1], accel[2], rate[0], rate[1],
-                    rate[2], temp_c))
+        buf.extend((t, *raw, *(_NAN3 if accel is None else accel),
+                    *(_NAN3 if rate is None else rate), temp_c))
         self._moving = self._moving or bool(moving)
         if (not self._grid and t - self._t0 >= self.window_s
                 and (len(buf) > _COLS or self._chunk is not None)):
