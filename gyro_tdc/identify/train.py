@@ -425,6 +425,29 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                    constant=constant_readings(runs, const))
 
 
+def _curve_or_offsets(fit: Callable, fo: FitOptions, choice: FeatureChoice | None,
+                      log: Log) -> tuple:
+    """
+    Return ``fit(fo)``, or the offsets alone where loading would refuse its curve.
+
+    Such a curve of stops is beyond belief: the offset-only model does no harm. The first
+    fit's dropped stretches stay dropped; the choice and ``log`` say why.
+    """
+    model, means, bad = fit(fo)
+    try:
+        check_model(model)
+    except ModelFileError as exc:
+        if log is not None:
+            log(f'the curve of the stops would be refused on loading ({exc}): the model '
+                'keeps the offset only on every axis (re-anchoring still applies)')
+        model, means, again = fit(replace(fo, features=()))
+        bad |= again
+        if choice is not None:
+            choice = replace(choice, dropped='its curve would be refused on loading, the '
+                             'model keeps the offset only')
+    return model, means, bad, choice
+
+
 def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                      options: TrainOptions | None = None, bag: BagOptions | None = None, *,
                      command: str = '', log: Log = None, runs: Sequence[Run] | None = None,
@@ -502,19 +525,9 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         model = _gate(identity_axes(model, raw_runs, const, rows), fo, runs, labels, rows)
         return model, means, bad
 
-    fo = replace(fo, min_folds=MIN_FOLDS)       # a curve of stops needs two power cycles
-    model, means, bad = fit(fo)
-    try:
-        check_model(model)
-    except ModelFileError as exc:               # a curve of stops beyond belief: no harm
-        if log is not None:
-            log(f'the curve of the stops would be refused on loading ({exc}): the model '
-                'keeps the offset only on every axis (re-anchoring still applies)')
-        model, means, again = fit(replace(fo, features=()))
-        bad |= again                            # the first fit's drops stay dropped
-        if choice is not None:
-            choice = replace(choice, dropped='its curve would be refused on loading, the '
-                             'model keeps the offset only')
+    # A curve of stops needs two power cycles to judge it.
+    model, means, bad, choice = _curve_or_offsets(fit, replace(fo, min_folds=MIN_FOLDS),
+                                                  choice, log)
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
                          float(runs[i].temp[a:b].mean()), not drop,
                          tuple(float(v) * _DEG for v in mu))
