@@ -305,6 +305,4 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
             [(f'`{u.effect}`', u.reason, u.experiment) for u in result.unidentifiable])
     if result.notes:
         md += ['## Notes', ''] + [f'- {n}' for n in result.notes] + ['']
-    path = out / 'report.md'
-    atomic_write(path, '\n'.join(md), what='report')
-    return path
+    return atomic_write(out / 'report.md', '\n'.join(md), what='report')
