@@ -122,8 +122,7 @@ def _angle_deg(u: NDArray[np.float64], v: NDArray[np.float64]) -> float:
     nu, nv = float(np.linalg.norm(u)), float(np.linalg.norm(v))
     if nu == 0.0 or nv == 0.0:
         return 0.0
-    c = float(np.dot(u, v)) / (nu * nv)
-    return math.degrees(math.acos(min(1.0, max(-1.0, c))))
+    return math.degrees(math.acos(min(1.0, max(-1.0, float(np.dot(u, v)) / (nu * nv)))))
 
 
 def static_data(run: Run, *, model: CompensationModel | None = None,
@@ -156,9 +155,8 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
     starts, counts, a_mean = st.starts, st.counts.astype(np.float64), st.accel_mean
     still = st.still_windows
     if not np.any(still):
-        usable = ~np.isin(st.why, ('samples', 'non-finite'))
         return none('the reference rate is not zero (a turning rate table is not static)'
-                    if np.all((st.why == 'motion') | ~usable) else
+                    if np.all(np.isin(st.why, ('motion', 'samples', 'non-finite'))) else
                     'no still window (the IMU moves)')
     # Orientation segments over the still windows.
     seg_of, changes, steps = np.full(starts.size, -1, dtype=np.int64), [], []
@@ -180,18 +178,15 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
             elif gap == 1:
                 steps.append(a_mean[j] - a_mean[prev])
         if new:
-            seg += 1
-            steps = []
-        seg_of[j] = seg
-        prev = j
+            seg, steps = seg + 1, []
+        seg_of[j], prev = seg, j
     # Drop short segments, renumber the rest.
     ends = np.append(starts[1:], n)
     keep_ids = [s for s in range(seg + 1) for w in [np.flatnonzero(seg_of == s)]
                 if t[ends[w[-1]] - 1] - t[starts[w[0]]] >= min_segment_s or seg == 0]
     remap = np.full(seg + 2, -1, dtype=np.int64)        # remap[-1]: not still, stays -1
     remap[keep_ids] = np.arange(len(keep_ids))
-    seg_of = remap[seg_of]
-    per_sample = np.repeat(seg_of, counts.astype(np.int64))
+    per_sample = np.repeat(remap[seg_of], counts.astype(np.int64))
     finite = np.isfinite(acc)
     mask = (per_sample >= 0) & finite[:, 0] & finite[:, 1] & finite[:, 2]
     return StaticData(run.name, mask, np.where(mask, per_sample, -1), len(keep_ids),
@@ -235,9 +230,8 @@ def accel_features(model: CompensationModel, features: str | Sequence[str] | Non
             raise FeatureError('lag: the accelerometer part shares the thermal state of the '
                                "model, which has none (kind 'none')")
     ids = tuple(e for e in ids if e not in THERMAL_EFFECTS)
-    if not any(e in STATE_TERMS for e in ids):
-        ids = ('dT',) + ids
-    return normalise_ids(ids + (('lag',) if lagged else ()))
+    return normalise_ids(ids + (() if any(e in STATE_TERMS for e in ids) else ('dT',))
+                         + (('lag',) if lagged else ()))
 
 
 @dataclass(eq=False)
@@ -358,7 +352,7 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     n_centers = max(model.n_centers, 1) if n_centers is None else n_centers
     # A constant accelerometer is absent: its still data are not looked for.
     present = [r for r in runs if has_accelerometer(r.accel)]
-    constant = constant_note(present) if present else ''
+    constant = constant_note(present)
     if constant:
         return AccelFit(None, note=constant, static=[None] * len(runs),
                         total=sum(len(r) for r in present))
@@ -372,9 +366,8 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
                     'no accelerometer data in the bags (all zero: the IMU publishes none)')
         return out
     th = model.thermal
-    par = resolve_params(ids, {k: v for k, v in model.effect_params.items() if k in ids})
-    if th.kind != 'none':
-        par['lag'] = {'tau_s': th.tau_total_s}
+    par = {**resolve_params(ids, {k: v for k, v in model.effect_params.items() if k in ids}),
+           **({} if th.kind == 'none' else {'lag': {'tau_s': th.tau_total_s}})}
     out.samples = n_static = sum(int(d.mask.sum()) for _, d in usable)
     segs, span = _segment_blocks(usable, model, ids, par,
                                  block_length(n_static, max_rows, at_most=True))
@@ -400,8 +393,8 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
                     ridge=ridge, seed=seed, groups=groups)
     coef = lf.coef.copy()
     coef[0] = -(lf.design(np.zeros((1, lf.mean.size)))[0][1:] @ coef[1:])  # zero at T0
-    offsets = lf.offsets - coef[0]                                # c_g: the still force at T0
-    ss, ss_raw = _sums_of_squares(segs, lf.design, coef, offsets)
+    # c_g, the still force at T0: each segment's offset less the constant.
+    ss, ss_raw = _sums_of_squares(segs, lf.design, coef, lf.offsets - coef[0])
     out.raw_bs, out.train_bs = ss_raw / n_static, ss / n_static
     metrics = {
         'samples': int(n_static), 'runs': [r.name for r, _ in usable], 'segments': len(segs),
@@ -414,10 +407,9 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
         metrics=metrics, created={}, thermal=th)
     try:
         check_accel(part)             # an optional part never keeps the gyro model unwritten
+        out.part = part
     except ModelFileError as exc:
         out.note = f'the part fitted is implausible, loading would refuse it ({exc})'
-        return out
-    out.part = part
     return out
 
 
@@ -475,8 +467,8 @@ def discovery_runs(runs: Sequence[Run]) -> list[Run]:
         for s in range(d.n_segments):
             idx = np.flatnonzero(d.segment == s)
             a = np.asarray(r.accel, dtype=np.float64)[idx] / MG * (math.pi / 180.0)
-            name = r.name if d.n_segments == 1 else f'{r.name}#{s + 1}'
-            out.append(Run(r.t[idx], r.temp[idx], a, np.zeros_like(a), name,
+            out.append(Run(r.t[idx], r.temp[idx], a, np.zeros_like(a),
+                           r.name if d.n_segments == 1 else f'{r.name}#{s + 1}',
                            {'source': 'accel', 'changes': [c.to_dict() for c in d.changes]}))
     if not out:
         raise FitError('no still accelerometer data to discover effects on: '

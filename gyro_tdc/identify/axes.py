@@ -25,7 +25,7 @@ dead axis, or a drift below the resolution. Nothing can be fitted on it; every t
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Sequence
+from typing import Callable, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import DatasetError
@@ -34,8 +34,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 __all__ = ['all_constant_error', 'AXES', 'constant_axes', 'constant_axes_of', 'constant_gyro_axes',
-           'constant_note', 'constant_readings', 'constant_values', 'identity_axes',
-           'neutral_runs']
+           'constant_note', 'constant_readings', 'constant_values', 'fit_varying',
+           'identity_axes', 'neutral_runs']
 
 #: The axis names, in order.
 AXES = ('x', 'y', 'z')
@@ -55,19 +55,18 @@ def constant_axes_of(arrays: Sequence[ArrayLike]) -> NDArray[np.bool_]:
     True also for an axis without any finite reading.
     """
     arrays = [np.asarray(a, dtype=np.float64).reshape(-1, 3) for a in arrays]
-    out = np.ones(3, dtype=bool)
-    for i in range(3):
+
+    def constant(i: int) -> bool:
         # Three distinct finite values among the first few: not constant, no full pass.
-        head = np.unique(np.concatenate([_finite(a[:64, i]) for a in arrays] or [np.zeros(0)]))
-        if head.size > 2:
-            out[i] = False
-            continue
+        if np.unique(np.concatenate([_finite(a[:64, i]) for a in arrays] or [np.zeros(0)])
+                     ).size > 2:
+            return False
         cols = [v for v in (_finite(a[:, i]) for a in arrays) if v.size]
-        if cols:
-            lo = min(float(v.min()) for v in cols)
-            hi = max(float(v.max()) for v in cols)
-            out[i] = lo == hi or all(bool(np.all((v == lo) | (v == hi))) for v in cols)
-    return out
+        lo = min((float(v.min()) for v in cols), default=0.0)     # no finite reading: True
+        hi = max((float(v.max()) for v in cols), default=0.0)
+        return lo == hi or all(bool(np.all((v == lo) | (v == hi))) for v in cols)
+
+    return np.array([constant(i) for i in range(3)])
 
 
 def constant_axes(values: ArrayLike) -> NDArray[np.bool_]:
@@ -77,14 +76,9 @@ def constant_axes(values: ArrayLike) -> NDArray[np.bool_]:
 
 def constant_values(arrays: Sequence[ArrayLike]) -> NDArray[np.float64]:
     """Return per axis the first finite reading of ``arrays`` (NaN for an axis with none)."""
-    out = np.full(3, np.nan)
-    for a in arrays:
-        a = np.asarray(a, dtype=np.float64).reshape(-1, 3)
-        for i in np.flatnonzero(np.isnan(out)):
-            v = _finite(a[:, i])
-            if v.size:
-                out[i] = v[0]
-    return out
+    arrays = [np.asarray(a, dtype=np.float64).reshape(-1, 3) for a in arrays]
+    return np.array([next((v[0] for v in (_finite(a[:, i]) for a in arrays) if v.size), np.nan)
+                     for i in range(3)])
 
 
 def constant_note(runs: Sequence[Run]) -> str:
@@ -130,6 +124,20 @@ def neutral_runs(runs: Sequence[Run], const: NDArray[np.bool_]) -> list[Run]:
             for r in runs]
 
 
+def fit_varying(runs: Sequence[Run], fit: Callable[[list[Run]], CompensationModel], *,
+                fitted: Sequence[Run] | None = None) -> CompensationModel:
+    """
+    Return ``fit`` of the runs with their constant gyro axes passed through (train's rule).
+
+    ``fit`` gets :func:`neutral_runs` of ``fitted`` (default ``runs``), the axes constant in
+    ``runs`` (:func:`constant_gyro_axes`: DatasetError when every one is) reading their
+    reference; the model is then :func:`identity_axes` of ``runs``.
+    """
+    const = constant_gyro_axes(runs)
+    return identity_axes(fit(neutral_runs(runs if fitted is None else fitted, const)), runs,
+                         const)
+
+
 def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[np.bool_],
                   rows: Sequence[NDArray[np.bool_]] | None = None) -> CompensationModel:
     """
@@ -149,12 +157,10 @@ def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[
         n += len(e)
     ms = np.zeros(3)
     ms[const] = ss / max(n, 1)
-    met = dict(model.metrics)
     dps2 = ms * _DEG2
-    for key, v in (('raw_bs_dps2', dps2), ('train_bs_dps2', dps2),
-                   ('train_rms_dps', np.sqrt(dps2))):
-        met[key] = np.where(const, v, met[key]).tolist()
-    met['constant_axes'] = [a for a, c in zip(AXES, const) if c]
+    met = {**model.metrics, **{key: np.where(const, v, model.metrics[key]).tolist() for key, v in (
+        ('raw_bs_dps2', dps2), ('train_bs_dps2', dps2), ('train_rms_dps', np.sqrt(dps2)))},
+           'constant_axes': [a for a, c in zip(AXES, const) if c]}
     return model.replace(residual_var=np.where(const, ms, model.residual_var), metrics=met)
 
 

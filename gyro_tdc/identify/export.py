@@ -34,7 +34,7 @@ from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError, ModelFileError
 from gyro_tdc.model import (ArduPilotTempCal, compensate, CompensationModel,
                             DEFAULT_OUT_OF_RANGE, Px4TempCal, steady_drift)
-from gyro_tdc.signal import bias_stability, rms_dps
+from gyro_tdc.signal import bias_stability, fit_columns, rms_dps
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -88,7 +88,7 @@ def _f32(x: ArrayLike) -> NDArray[np.float64]:
 
 def _cubic(d: NDArray[np.float64], y: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return the least-squares cubic in ``d`` per column: rows c0, c1, c2, c3, shape (4, 3)."""
-    return np.linalg.lstsq(np.vander(d, 4, increasing=True), y, rcond=None)[0]
+    return fit_columns(np.vander(d, 4, increasing=True), y)     # the one least-squares home
 
 
 def check_instance(firmware: str, instance: object, name: str = '`instance`') -> None:
@@ -120,9 +120,8 @@ def fit_export(model: CompensationModel, firmware: str, *, instance: int = 0,
         raise FitError(f'the model range {lo:g} .. {hi:g} degC is too narrow for a cubic in '
                        'temperature (at least 1 degC)')
     grid = np.linspace(lo, hi, max(int(points), 8))
-    gyro = steady_drift(model, grid, out_of_range='clamp')
-    acc = (None if model.accel is None else
-           steady_drift(model.accel, grid, out_of_range='clamp'))
+    gyro, acc = (None if m is None else steady_drift(m, grid, out_of_range='clamp')
+                 for m in (model, model.accel))
     notes: list[str] = []
     exp = (_px4 if firmware == 'px4' else _ardupilot)(gyro, acc, grid, instance, int(device_id),
                                                       notes)
@@ -160,28 +159,25 @@ def _ardupilot(gyro: NDArray[np.float64], acc: NDArray[np.float64] | None,
                      f'accept ({AP_LIMITS_C[0]:g} .. {AP_LIMITS_C[1]:g} degC)')
     n = imu + 1
     caltemp = float(_f32(min(max(AP_TREF_C, lo), hi)))
-    params, cals, offset = {f'INS_TCAL{n}_ENABLE': 1}, {}, np.zeros(3)
-    for sensor, y in (('gyro', gyro), ('accel', acc)):
-        if y is None:          # ENABLE applies to both: no accelerometer part is zeros
-            cals[sensor] = ArduPilotTempCal(np.zeros((3, 3)), tmin, tmax, caltemp)
-            notes.append('the model has no accelerometer part: INS_TCAL'
-                         f'{n}_ACC* are written as 0 (no accelerometer correction)')
-            continue
-        coef = _cubic(grid - AP_TREF_C, y)
-        cals[sensor] = cal = ArduPilotTempCal(_f32(coef[1:] * AP_SCALE), tmin, tmax, caltemp)
-        if sensor == 'gyro':
-            # The firmware subtracts p(T) - p(CALTEMP) and INS_GYROFFS: the offsets are the
-            # cubic's value at CALTEMP, constant included.
-            offset = _f32(coef[0] + cal.poly([caltemp])[0])
-    params.update(cals['gyro'].to_params('gyro', imu))
-    params.update({k: v for k, v in cals['accel'].to_params('accel', imu).items() if 'ACC' in k})
+    coef = _cubic(grid - AP_TREF_C, gyro)
+    cal = ArduPilotTempCal(_f32(coef[1:] * AP_SCALE), tmin, tmax, caltemp)
+    # The firmware subtracts p(T) - p(CALTEMP) and INS_GYROFFS: the offsets are the cubic's
+    # value at CALTEMP, constant included.
+    offset = _f32(coef[0] + cal.poly([caltemp])[0])
+    # ENABLE applies to both: no accelerometer part is zeros.
+    acal = ArduPilotTempCal(np.zeros((3, 3)) if acc is None else _f32(
+        _cubic(grid - AP_TREF_C, acc)[1:] * AP_SCALE), tmin, tmax, caltemp)
+    if acc is None:
+        notes.append('the model has no accelerometer part: INS_TCAL'
+                     f'{n}_ACC* are written as 0 (no accelerometer correction)')
+    params = {f'INS_TCAL{n}_ENABLE': 1, **cal.to_params('gyro', imu),
+              **{k: v for k, v in acal.to_params('accel', imu).items() if 'ACC' in k}}
     params[f'INS_GYR{n}_CALTEMP'] = caltemp
     stem = 'INS_GYR' if imu == 0 else f'INS_GYR{n}'
     params.update({f'{stem}OFFS_{axis}': float(offset[i]) for i, axis in enumerate('XYZ')})
     notes.append(f'INS_GYR{n}_CALTEMP and {stem}OFFS_* carry the constant; a gyro calibration '
                  'at boot (INS_GYR_CAL=1) replaces both with what it measures then')
-    return FcExport('ardupilot', params, cals['gyro'], offset,
-                    None if acc is None else cals['accel'])
+    return FcExport('ardupilot', params, cal, offset, None if acc is None else acal)
 
 
 # --------------------------------------------------------------------------------------------
@@ -206,10 +202,9 @@ def write_params(export: FcExport, path: str | os.PathLike, *, header: Sequence[
     """
     lines = [f'# {h}'.rstrip() for h in header]
     if export.firmware == 'px4':
-        lines += ['#', '# Vehicle-Id Component-Id Name Value Type']
-        lines += [f'1\t1\t{name}\t{_value_text(value)}\t'
-                  f'{_INT32 if isinstance(value, int) else _REAL32}'
-                  for name, value in export.params.items()]
+        lines += ['#', '# Vehicle-Id Component-Id Name Value Type'] + [
+            f'1\t1\t{name}\t{_value_text(value)}\t{_INT32 if isinstance(value, int) else _REAL32}'
+            for name, value in export.params.items()]
     else:
         lines += [f'{name} {_value_text(value)}' for name, value in export.params.items()]
     return atomic_write(path, '\n'.join(lines) + '\n', what='parameter file')
@@ -310,11 +305,10 @@ def score_export(model: CompensationModel, forms: dict, runs: Sequence[Run], *,
         comp = {'raw': run.omega,
                 'model': _head_removed(compensate(model, run.t, run.temp, run.omega,
                                                   out_of_range=out_of_range), run, reanchor_s)}
-        outside = 0.0
-        for label, form in forms.items():
-            comp[label] = _head_removed(run.omega - form.correction(run.temp), run, reanchor_s)
-            lo, hi = form.range_c
-            outside = max(outside, float(np.mean((run.temp < lo) | (run.temp > hi))))
+        comp.update({label: _head_removed(run.omega - form.correction(run.temp), run, reanchor_s)
+                     for label, form in forms.items()})
+        outside = max([0.0] + [float(np.mean((run.temp < lo) | (run.temp > hi)))
+                               for lo, hi in (f.range_c for f in forms.values())])
         out.append(ExportScore(run.name, len(run), outside,
                                {k: bias_stability(v, run.omega_ref) for k, v in comp.items()},
                                {k: rms_dps(v - run.omega_ref) for k, v in comp.items()}))

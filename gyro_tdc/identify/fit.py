@@ -252,13 +252,9 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
                'train_bs_dps2': (residual_var * deg2).tolist(),
                'train_rms_dps': np.sqrt(residual_var * deg2).tolist(),
                'raw_bs_dps2': (sum(b.ss_raw for b in blocks) / n_total * deg2).tolist(),
-               'ridge': fit.ridge}
-    if thermal_info:
-        metrics['thermal'] = thermal_info
+               'ridge': fit.ridge, **({'thermal': thermal_info} if thermal_info else {})}
     if groups is not None:
-        metrics['sessions'] = _session_metrics(runs, labels, offsets, rows)
-        if check:
-            metrics['sessions']['heldout'] = check
+        metrics['sessions'] = _session_metrics(runs, labels, offsets, rows, check)
     return CompensationModel.network(
         o.kind, ids, par, t0, fit.norm, coef, scale=fit.scale,
         temp_range_c=span(states if rows is None else [s[m] for s, m in zip(states, rows)]),
@@ -283,30 +279,23 @@ def _search(runs: Sequence[Run], o: FitOptions, ids: tuple[str, ...], inputs: tu
     fit_state = th is None
     if not (free or fit_state):
         return th, {}
-    search_inputs, inner = inputs, o.kind
-    if fit_state:
-        th = ThermalState('first_order', (par[_LAG]['tau_s'],))
-        if o.kind == 'rbf':
-            search_inputs = input_ids(ids + tuple(STATE_TERMS), state=True)
-        inner = 'poly'
-    search = ParamSearch(runs, search_inputs, t0, inner=inner, n_centers=o.n_centers,
+    th = ThermalState('first_order', (par[_LAG]['tau_s'],)) if fit_state else th
+    search = ParamSearch(runs, input_ids(ids + tuple(STATE_TERMS), state=True)
+                         if fit_state and o.kind == 'rbf' else inputs, t0,
+                         inner='poly' if fit_state else o.kind, n_centers=o.n_centers,
                          ridge=RIDGE_GRID[1] if o.ridge == 'auto' else o.ridge, seed=o.seed,
                          scale='scale' in ids, rows=rows, labels=labels)
     for _round in range(2 if len(free) + fit_state > 1 else 1):
         for eid, name in free:
 
             def sse(tau: float, eid: str = eid, name: str = name) -> float:
-                trial = {k: dict(v) for k, v in par.items()}
-                trial[eid][name] = tau
-                return float(search.sse(th, trial).sum())
+                return float(search.sse(th, {**par, eid: {**par[eid], name: tau}}).sum())
 
             par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name], n_grid=13).tau
         if fit_state:
             tau, seen = search.first_order(par, TAU_BOUNDS)
             th = ThermalState('first_order', (tau,))
-    if not fit_state:
-        return th, {}
-    return choose_state(search, mode, par, th.tau_s[0], seen)
+    return choose_state(search, mode, par, th.tau_s[0], seen) if fit_state else (th, {})
 
 
 def _residual_var(blocks: Sequence[RunBlocks], states: Sequence[NDArray[np.float64]],
@@ -335,17 +324,16 @@ def _with_level(fit: LinearFit, offsets: NDArray[np.float64] | None = None
 
 
 def _session_metrics(runs: Sequence[Run], labels: Sequence[int], offsets: NDArray[np.float64],
-                     rows: Sequence[NDArray[np.bool_]] | None) -> dict:
-    """Return the sessions' names, samples and offsets from their mean (deg/s)."""
+                     rows: Sequence[NDArray[np.bool_]] | None, check: dict | None) -> dict:
+    """Return the sessions' names, samples, offsets from their mean (deg/s) and ``check``."""
     rel = (offsets - offsets.mean(axis=0)) * _DEG
-    names: list[list[str]] = [[] for _ in range(offsets.shape[0])]
-    samples = [0] * offsets.shape[0]
-    for i, (r, g) in enumerate(zip(runs, labels)):
-        names[g].append(r.name)
-        samples[g] += len(r) if rows is None else int(np.count_nonzero(rows[i]))
-    return {'count': int(offsets.shape[0]), 'names': [', '.join(n) for n in names],
-            'samples': samples, 'offset_dps': rel.tolist(),
-            'spread_dps': (rel.max(axis=0) - rel.min(axis=0)).tolist()}
+    own = [[i for i, g in enumerate(labels) if g == k] for k in range(offsets.shape[0])]
+    return {'count': int(offsets.shape[0]),
+            'names': [', '.join(runs[i].name for i in ii) for ii in own],
+            'samples': [sum(len(runs[i]) if rows is None else int(np.count_nonzero(rows[i]))
+                            for i in ii) for ii in own], 'offset_dps': rel.tolist(),
+            'spread_dps': (rel.max(axis=0) - rel.min(axis=0)).tolist(),
+            **({'heldout': check} if check else {})}
 
 
 def fit_px4_cubic(runs: Sequence[Run], *, t0: float | None = None, **kw) -> CompensationModel:

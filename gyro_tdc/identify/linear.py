@@ -40,8 +40,7 @@ def _place_centers(xn: NDArray[np.float64], k: int, seed: int
     rng = np.random.default_rng(seed)
     if xn.shape[0] > 20_000:
         xn = xn[rng.choice(xn.shape[0], 20_000, replace=False)]
-    uniq = np.unique(np.round(xn, 9), axis=0)
-    k = min(k, uniq.shape[0])
+    k = min(k, np.unique(np.round(xn, 9), axis=0).shape[0])
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
         from scipy.cluster.vq import kmeans2    # a costly import: only k-means needs it
@@ -52,8 +51,7 @@ def _place_centers(xn: NDArray[np.float64], k: int, seed: int
         return centers, np.ones(1)
     d = np.sqrt(((centers[:, None, :] - centers[None, :, :]) ** 2).sum(axis=2))
     np.fill_diagonal(d, np.inf)
-    nn = np.sort(d, axis=1)[:, :min(2, k - 1)]
-    return centers, np.maximum(nn.mean(axis=1), 1e-3)
+    return centers, np.maximum(np.sort(d, axis=1)[:, :min(2, k - 1)].mean(axis=1), 1e-3)
 
 
 #: Relative penalty on the linear tail (conditioning only: the tail is the physics).
@@ -83,22 +81,15 @@ def _fit_weights(design: NDArray[np.float64], y: NDArray[np.float64],
         for ax in range(3):
             sol = fit_columns(np.column_stack([design, scale_cols[:, ax]]), y[:, ax], penalty=pen)
             coef[:, ax], scale[ax] = sol[:p], sol[p]
-    resid = design @ coef - y
-    if scale_cols is not None:
-        resid += scale_cols * scale
-    return coef, scale, resid
+    return coef, scale, design @ coef - y + (0.0 if scale_cols is None else scale_cols * scale)
 
 
 def _fold_sums(d: NDArray[np.float64], y: NDArray[np.float64], folds: Folds
                ) -> tuple[NDArray[np.float64], ...]:
     """Return per fold's held-out rows ``d'd`` (F, Q, Q), ``d'y`` (F, Q, M), ``y'y`` (F, M)."""
-    gs, bs, ys = [], [], []
-    for test, _train in folds:
-        dj, yj = d[test], y[test]
-        gs.append(dj.T @ dj)
-        bs.append(dj.T @ yj)
-        ys.append(np.einsum('ij,ij->j', yj, yj))
-    return np.array(gs), np.array(bs), np.array(ys)
+    sums = [(dj.T @ dj, dj.T @ yj, np.einsum('ij,ij->j', yj, yj))
+            for dj, yj in ((d[test], y[test]) for test, _train in folds)]
+    return tuple(np.array(s) for s in zip(*sums))
 
 
 def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
@@ -123,7 +114,6 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
         col = 0 if shared is None else ax
         gs, bs, ys = shared or _fold_sums(np.column_stack([design, scale_cols[:, ax]]),
                                           y[:, ax:ax + 1], folds)
-        q = gs.shape[1]
         g_all, b_all = gs.sum(axis=0), bs[:, :, col].sum(axis=0)
         # A column that is zero in every row (the constant, centred per group) has weight 0:
         # solve without it (else every solve is singular and falls back to least squares).
@@ -131,11 +121,9 @@ def _choose_ridge(design: NDArray[np.float64], y: NDArray[np.float64],
         sub = np.ix_(live, live)
         for k in range(len(folds)):
             gk, bk, yyk = gs[k][sub], bs[k, live, col], float(ys[k, col])
-            g = g_all[sub] - gk
-            b = b_all[live] - bk
+            g, b = g_all[sub] - gk, b_all[live] - bk
             for i, ridge in enumerate(RIDGE_GRID):
-                pen = np.zeros(q)
-                pen[:p] = _penalty(p, f, ridge, n_trs[k]) ** 2
+                pen = np.append(_penalty(p, f, ridge, n_trs[k]) ** 2, np.zeros(gs.shape[1] - p))
                 w = solve_normal(g + np.diag(pen[live]), b)
                 errors[i] += float(w @ (gk @ w)) - 2.0 * float(w @ bk) + yyk
     # The largest ridge within 1 % of the best error: prefer the smoother network.
@@ -179,10 +167,7 @@ class LinearFit:
     def predict(self, x: NDArray[np.float64],
                 scale_cols: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
         """Return the fitted drift (N, 3) at feature rows ``x`` (and ``dT omega_ref``)."""
-        out = self.design(x) @ self.coef
-        if scale_cols is not None:
-            out += scale_cols * self.scale
-        return out
+        return self.design(x) @ self.coef + (0 if scale_cols is None else scale_cols * self.scale)
 
 
 def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
@@ -204,10 +189,8 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
     std = x.std(axis=0) if x.shape[1] else np.ones(0)
     std = np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
     xn = (x - mean) / std
-    if kind == 'rbf' and x.shape[1]:
-        centers, widths = _place_centers(xn, n_centers, seed)
-    else:
-        centers, widths = np.zeros((0, x.shape[1])), np.zeros(0)
+    centers, widths = (_place_centers(xn, n_centers, seed) if kind == 'rbf' and x.shape[1]
+                       else (np.zeros((0, x.shape[1])), np.zeros(0)))
     design = rbf_design((mean, std, centers, widths), x)
     f = x.shape[1]
     if groups is not None:

@@ -27,6 +27,7 @@ trial time constant (variable projection); :func:`choose_state` picks the therma
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 import math
 from typing import Callable, Mapping, Sequence
 import weakref
@@ -90,8 +91,7 @@ def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float]
         res = minimize_scalar(objective, bounds=(a, b), method='bounded', options={'xatol': xatol})
         if res.fun <= vals[i]:
             best, best_sse = res.x, float(res.fun)
-    tau = float(math.exp(best)) if log else float(best)
-    return TimeConstantFit(tau=tau, sse=best_sse,
+    return TimeConstantFit(tau=float(math.exp(best)) if log else float(best), sse=best_sse,
                            grid_tau=np.exp(grid) if log else grid, grid_sse=vals)
 
 
@@ -104,8 +104,7 @@ def effective_samples(resid: NDArray[np.float64], *, min_batches: int = 32
     ``(1 + rho) / (1 - rho)`` and the batch-means values ``m var(mean of m rows) / var(row)`` for
     ``m = 2, 4, ...`` while ``min_batches`` batches remain (memory longer than one lag).
     """
-    r = np.asarray(resid, dtype=np.float64)
-    r = r.reshape(r.shape[0], -1)
+    r = np.asarray(resid, dtype=np.float64).reshape(len(resid), -1)
     n = r.shape[0]
     if n < 3:
         return np.full(r.shape[1], float(max(n, 1)))
@@ -115,8 +114,7 @@ def effective_samples(resid: NDArray[np.float64], *, min_batches: int = 32
     inflation = (1.0 + rho) / (1.0 - rho)
     m = 2
     while n // m >= min_batches:
-        k = n // m * m
-        means = r[:k].reshape(-1, m, r.shape[1]).mean(axis=1)
+        means = r[:n // m * m].reshape(-1, m, r.shape[1]).mean(axis=1)
         inflation = np.maximum(inflation, m * means.var(axis=0) / var)
         m *= 2
     return np.clip(n / np.maximum(inflation, 1.0), 1.0, float(n))
@@ -186,8 +184,7 @@ def profile_interval(sse: Callable[[float], NDArray[np.float64]], tau: float,
     for side, bound in ((-1.0, u_lo), (1.0, u_hi)):
         inside, outside, d = u0, None, step
         while True:
-            u = u0 + side * d
-            u = max(u, bound) if side < 0 else min(u, bound)
+            u = max(u0 - d, bound) if side < 0 else min(u0 + d, bound)
             if stat(math.exp(u)) > level:
                 outside = u
                 break
@@ -203,9 +200,8 @@ def profile_interval(sse: Callable[[float], NDArray[np.float64]], tau: float,
     st = np.array([stat(v) for v in grid])
     st -= min(0.0, float(st.min()))
     within = grid[st <= level]
-    lo = min(math.exp(ends[0]), float(within.min()))
-    hi = max(math.exp(ends[1]), float(within.max()))
-    lo, hi = max(min(lo, tau), lo_b), min(max(hi, tau), hi_b)
+    lo = max(min(math.exp(ends[0]), float(within.min()), tau), lo_b)
+    hi = min(max(math.exp(ends[1]), float(within.max()), tau), hi_b)
     eps = 1e-9
     ident = lo > lo_b * (1 + eps) and hi < hi_b * (1 - eps) and hi <= max_ratio * lo
     return TauProfile(tau=float(tau), interval=(lo, hi), identifiable=bool(ident),
@@ -253,8 +249,7 @@ class RunBlocks:
         self.t, self.temp = block_mean(run.t, block), block_mean(run.temp, block)
         # No reference rate (a chamber run): x - 0 is x and the means of zeros are zeros.
         self.has_ref = bool(np.any(run.omega_ref))
-        err = self._err()
-        self.grid = BlockGrid(len(run), block, rows=rows)
+        err, self.grid = self._err(), BlockGrid(len(run), block, rows=rows)
         self.rows, self.counts, self.mean = self.grid.rows, self.grid.counts, self.grid.mean
         e = err if self.rows is None else err[self.rows]
         self.ss_raw = np.einsum('ij,ij->j', e, e)
@@ -267,10 +262,8 @@ class RunBlocks:
     def scatter(self, scale: NDArray[np.float64], t0: float,
                 state: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
         """Return per block the squared deviations of the error less ``scale dT omega_ref``."""
-        err = self._err()
-        if np.any(scale):
-            temp = self.run.temp if state is None else state
-            err = err - (temp - t0)[:, None] * self.run.omega_ref * scale
+        temp = self.run.temp if state is None else state     # called with a non-zero scale
+        err = self._err() - (temp - t0)[:, None] * self.run.omega_ref * scale
         return self.grid.moments(err)[1]
 
     def features(self, ids: Sequence[str], t0: float, params: Mapping, *, exact: bool,
@@ -288,8 +281,7 @@ class RunBlocks:
                    thermal: ThermalState | None = None) -> NDArray[np.float64]:
         """Return block means of ``dT * omega_ref`` (N, 3): exact, or with ``thermal`` coarse."""
         if thermal is not None:
-            dt = self.grid.sel(thermal.temperature(self.t, self.temp)) - t0
-            return dt[:, None] * self.ref
+            return (self.grid.sel(thermal.temperature(self.t, self.temp)) - t0)[:, None] * self.ref
         d = (self.run.temp if state is None else state) - t0
         return self.mean(d[:, None] * self.run.omega_ref)
 
@@ -322,8 +314,8 @@ class ParamSearch:
                  labels: Sequence[int] | None = None) -> None:
         self.blocks, self.y, self.groups = run_blocks(
             runs, block_length(sum(map(len, runs)), 20_000, at_most=True), rows, labels)
-        self.inputs, self.t0, self.scale, self.inner = tuple(inputs), t0, scale, inner
-        self.n_centers, self.ridge, self.seed = n_centers, ridge, seed
+        self.inputs, self.t0, self.scale = tuple(inputs), t0, scale
+        self._linear = partial(fit_linear, kind=inner, n_centers=n_centers, ridge=ridge, seed=seed)
 
     def design(self, thermal: ThermalState, par: Mapping
                ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
@@ -334,14 +326,10 @@ class ParamSearch:
         return x, (np.concatenate([b.scale_cols(self.t0, thermal=lagged) for b in self.blocks])
                    if self.scale else None)
 
-    def _linear(self, x, y, sc, groups) -> LinearFit:
-        return fit_linear(x, y, scale_cols=sc, kind=self.inner, n_centers=self.n_centers,
-                          ridge=self.ridge, seed=self.seed, groups=groups)
-
     def fit(self, thermal: ThermalState, par: Mapping) -> LinearFit:
         """Return the linear fit on the coarse rows with this front end and parameters."""
         x, sc = self.design(thermal, par)
-        return self._linear(x, self.y, sc, self.groups)
+        return self._linear(x, self.y, scale_cols=sc, groups=self.groups)
 
     def sse(self, thermal: ThermalState, par: Mapping) -> NDArray[np.float64]:
         """Return the residual sum of squares per axis (3,)."""
@@ -361,8 +349,8 @@ class ParamSearch:
         g = self.groups
 
         def residual(test: NDArray[np.bool_], train: NDArray[np.bool_]) -> NDArray[np.float64]:
-            fit = self._linear(x[train], self.y[train], None if sc is None else sc[train],
-                               None if g is None else g[train])
+            fit = self._linear(x[train], self.y[train], scale_cols=None if sc is None else
+                               sc[train], groups=None if g is None else g[train])
             r = fit.predict(x[test], None if sc is None else sc[test]) - self.y[test]
             if g is not None:           # the fitted offset of every session trained on
                 for j, grp in enumerate(np.unique(g[train])):

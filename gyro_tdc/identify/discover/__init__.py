@@ -21,14 +21,11 @@ passes the false-discovery guard (held-out gain, HAC significance, effect size).
 the tests and the modules of the package: ``doc/internals/identify.md``.
 """
 
-from __future__ import annotations
+from gyro_tdc.base.face import lazy
 
-from gyro_tdc.identify.discover.report import write_report
-from gyro_tdc.identify.discover.results import (BinMap, CandidateScore, DiscoveryResult,
-                                                format_summary, Step, Unidentifiable)
-from gyro_tdc.identify.discover.search import (build_model, discover, DiscoverOptions,
-                                               model_features)
-
-__all__ = ['BinMap', 'CandidateScore', 'DiscoverOptions', 'DiscoveryResult', 'Step',
-           'Unidentifiable', 'build_model', 'discover', 'format_summary', 'model_features',
-           'write_report']
+__all__, __getattr__, __dir__ = lazy(__name__, {
+    'report': ['write_report'],
+    'results': ['BinMap', 'CandidateScore', 'DiscoveryResult', 'format_summary', 'Step',
+                'Unidentifiable'],
+    'search': ['build_model', 'discover', 'DiscoverOptions', 'model_features'],
+})

@@ -68,14 +68,12 @@ def unidentifiable(eid: str, reason: str, extra: str = '') -> Unidentifiable:
 
 def rel_residual(x: NDArray[np.float64], col: NDArray[np.float64]) -> float:
     """Return ``|col - projection on span(x)| / |col - mean|`` (0: col is in the span)."""
-    c = col - col.mean()
-    nc = float(np.linalg.norm(c))
+    nc = float(np.linalg.norm(col - col.mean()))
     if nc == 0.0:
         return 0.0
     if x.shape[1] == 0:
         return 1.0
-    beta = fit_columns(x, col, normalise=True)
-    return float(np.linalg.norm(col - x @ beta)) / nc
+    return float(np.linalg.norm(col - x @ fit_columns(x, col, normalise=True))) / nc
 
 
 def _block_noise(y: NDArray[np.float64], first: NDArray[np.int64], cnt: NDArray[np.float64]
@@ -88,17 +86,15 @@ def _block_noise(y: NDArray[np.float64], first: NDArray[np.int64], cnt: NDArray[
     """
     nb = cnt.shape[0]
     ids = np.repeat(np.arange(nb), cnt.astype(np.int64))
-    pos = np.arange(y.shape[0]) - first[ids]
-    third = np.minimum(3 * pos // cnt[ids].astype(np.int64), 2)
+    third = np.minimum(3 * (np.arange(y.shape[0]) - first[ids]) // cnt[ids].astype(np.int64), 2)
     key = ids * 3 + third
     c3 = np.bincount(key, minlength=3 * nb).reshape(nb, 3)
-    ok = np.all(c3 > 0, axis=1)
     with np.errstate(invalid='ignore', divide='ignore'):
         m3 = np.stack([np.bincount(key, weights=y[:, a], minlength=3 * nb) for a in range(3)],
                       axis=1).reshape(nb, 3, 3) / c3[:, :, None]
         dd = (m3[:, 0] - 2.0 * m3[:, 1] + m3[:, 2]) / np.sqrt(
             1.0 / c3[:, 0] + 4.0 / c3[:, 1] + 1.0 / c3[:, 2])[:, None]
-    return np.where(ok[:, None], dd, np.nan)
+    return np.where(np.all(c3 > 0, axis=1)[:, None], dd, np.nan)
 
 
 def _noise_floor(noise: NDArray[np.float64], white: Sequence[NDArray[np.float64]]
@@ -137,32 +133,26 @@ class BlockData:
     """
 
     def __init__(self, runs: Sequence[Run], *, block_s: float, t0: float) -> None:
-        self.runs = list(runs)
-        self.t0 = float(t0)
-        self.block_s = float(block_s)
+        self.runs, self.t0, self.block_s = list(runs), float(t0), float(block_s)
         parts: dict[str, list] = defaultdict(list)
         #: Per run: its regular grid, the temperature and the reference rate there, the
         #: grid span of each block, the block times and the run's rows of the blocks.
         self.grids: list[tuple] = []
-        white = []
-        span = 0.0
-        start = 0
+        white, span, start = [], 0.0, 0
         for r, run in enumerate(self.runs):
             t = np.asarray(run.t, dtype=np.float64)
-            n = t.shape[0]
-            dt = np.diff(t)
+            n, dt = t.shape[0], np.diff(t)
             med = float(np.median(dt)) if n > 1 else self.block_s
             breaks = np.flatnonzero(dt > max(20.0 * med, 0.5 * self.block_s)) + 1
             grid = BlockGrid(n, max(1, int(round(self.block_s / med))),
                              bounds=np.concatenate([[0], breaks, [n]]), merge_tail=True)
             cnt = grid.counts
-            nb = cnt.shape[0]
             span += n * med
             y = np.asarray(run.omega, dtype=np.float64) - run.omega_ref
             x = batch_features(_STATIC, t, run.temp, t0=self.t0)
             last = np.cumsum(cnt).astype(np.int64) - 1
             first = last - cnt.astype(np.int64) + 1
-            for key, v in (('run', np.full(nb, r, dtype=np.int64)), ('n', cnt),
+            for key, v in (('run', np.full(len(cnt), r, dtype=np.int64)), ('n', cnt),
                            ('t', grid.mean(t)), ('tfirst', t[first]), ('tlast', t[last]),
                            ('temp', grid.mean(run.temp)), ('y', grid.mean(y)),
                            ('ref', grid.mean(run.omega_ref)),
@@ -180,8 +170,8 @@ class BlockData:
                                np.asarray(run.omega_ref, dtype=np.float64)[held],
                                np.searchsorted(tg, t[first], side='left'),
                                np.searchsorted(tg, t[last], side='right'), parts['t'][-1],
-                               start, start + nb))
-            start += nb
+                               start, start + len(cnt)))
+            start += len(cnt)
 
         cat = {k: np.concatenate(v) for k, v in parts.items()}
         for key in ('run', 'n', 't', 'tfirst', 'tlast', 'temp', 'y', 'ref', 'dtref'):
@@ -329,19 +319,18 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
     out: dict[str, Unidentifiable] = {}
     notes: list[str] = []
     span = float(data.temp.max() - data.temp.min())
-    moving = data.moving
     soak_min = max(_SOAK_S, 3.0 * data.block_s)    # 2 minutes and three blocks
     first_soaks, soak = _soaks(data)
 
     if span < MIN_SPAN_C:
         out.update({e: unidentifiable(e, f'the temperature spans only {span:.2f} degC',
                                       ', of at least 10 degC') for e in _SPAN})
-    if not np.any(moving):
+    if not np.any(data.moving):
         out.update({e: unidentifiable(e, 'the temperature never changes at a measurable rate')
                     for e in _RATE if e not in out})
     elif data.heating != data.cooling:
         leg = 'heat' if data.heating else 'cool'
-        r = np.abs(data.rate_cpm[moving])
+        r = np.abs(data.rate_cpm[data.moving])
         q1, q3 = np.percentile(r, [25, 75])
         one_rate = (q3 - q1) < 0.25 * float(np.median(r))
         one = f'The data only {leg} and at one rate (~{np.median(r):.2f} degC/min)'
@@ -432,19 +421,16 @@ def bandwidth(r: NDArray[np.float64], *, floor: bool = True) -> int:
     Lewis, Stock and Watson's rule for a test); without, the noise memory itself.
     """
     k = r.shape[0]
-    c = r - r.mean()
     n = 1 << int(math.ceil(math.log2(2 * k)))
-    f = np.fft.rfft(c, n)
+    f = np.fft.rfft(r - r.mean(), n)
     acf = np.fft.irfft(f * np.conj(f), n)[:k]
     if acf[0] <= 0:
         return 1
-    rho = acf / acf[0]
-    tau = 1.0 + 2.0 * np.cumsum(rho[1:])
+    tau = 1.0 + 2.0 * np.cumsum((acf / acf[0])[1:])
     m = np.arange(1, k)
     ok = np.flatnonzero(m >= 5.0 * tau)
     lag = int(m[ok[0]]) if ok.size else k // 3
-    if floor:
-        lag = max(lag, int(math.ceil(1.3 * math.sqrt(k))))
+    lag = max(lag, int(math.ceil(1.3 * math.sqrt(k)))) if floor else lag
     return int(min(max(lag, 1), max(k // 3, 1)))
 
 
@@ -530,17 +516,15 @@ class LinearModel:
     def __init__(self, data: BlockData, effects: Sequence[str],
                  params: Mapping[str, Mapping[str, float]], *,
                  extra: NDArray[np.float64] | None = None) -> None:
-        self.data = data
-        self.effects = tuple(effects)
+        self.data, self.effects = data, tuple(effects)
         self.params = {k: dict(v) for k, v in params.items()}
         #: Time constant of the thermal state (s), None without ``lag``.
         state = bool(THERMAL_EFFECTS & set(self.effects))
         self.state_tau = float(self.params['lag']['tau_s']) if state else None
         self.inputs = input_ids(self.effects, state=state)
         self.labels = [f'offset:{r}' for r in range(data.n_runs)] + list(self.inputs)
-        cols = [data.offsets] + [data.column(e, self.params, state_tau=self.state_tau)[:, None]
-                                 for e in self.inputs]
-        self.common = np.hstack(cols)
+        self.common = np.hstack([data.offsets] + [data.column(
+            e, self.params, state_tau=self.state_tau)[:, None] for e in self.inputs])
         # Per-axis columns: the rate table's gain, scale only on axes whose rate steps can
         # separate it, and a column of its own (the J test).
         ax = {'gain': data.ref * data.gain_axes[None, :] if np.any(data.gain_axes) else None,

@@ -78,8 +78,7 @@ def residual_maps(data: BlockData, r: NDArray[np.float64]) -> tuple[BinMap, ...]
             mean[has, a] = s[has] / wsum[has]
             se[has, a] = floor[a] * infl[a] / np.sqrt(wsum[has])
         flagged = np.nan_to_num(np.abs(mean)) > 3.0 * np.nan_to_num(se, nan=np.inf)
-        if centers.ndim == 1:
-            centers = np.repeat(centers[:, None], 3, axis=1)
+        centers = np.repeat(centers[:, None], 3, axis=1) if centers.ndim == 1 else centers
         return BinMap(name, label, centers, mean, se, count, flagged, labels)
 
     # Temperature: up to 10 equal-width bins.
@@ -93,9 +92,7 @@ def residual_maps(data: BlockData, r: NDArray[np.float64]) -> tuple[BinMap, ...]
     for sign, (slow, fast) in ((1, (3, 4)), (-1, (1, 0))):
         m = data.moving & (sign * rate > 0)
         if np.any(m):
-            med = float(np.median(sign * rate[m]))
-            k[m & (sign * rate <= med)] = slow
-            k[m & (sign * rate > med)] = fast
+            k[m] = np.where(sign * rate[m] <= float(np.median(sign * rate[m])), slow, fast)
     out.append(binmap('dTdt', 'dT/dt (degC/min)', k, _centers(rate, k, 5),
                       ('cooling fast', 'cooling slow', 'still', 'heating slow', 'heating fast')))
     # Reference rate: each axis by its own rate, up to 8 levels or quantile bins.
@@ -110,9 +107,8 @@ def residual_maps(data: BlockData, r: NDArray[np.float64]) -> tuple[BinMap, ...]
             cen[:, a] = _centers(v, keys[:, a], 8)
         out.append(binmap('reference', 'reference rate (deg/s)', keys, cen))
     # Time since the start of each run.
-    tmax = float(data.t_since.max()) / 60.0
+    tm, tmax = data.t_since / 60.0, float(data.t_since.max()) / 60.0
     edges = np.asarray([e for e in _TIME_EDGES_MIN if e < tmax] + [tmax + 1e-9])
-    tm = data.t_since / 60.0
     k = _bins(tm, edges)
     out.append(binmap('time', 'time since start (min)', k, _centers(tm, k, edges.size - 1)))
     return tuple(out)
@@ -122,8 +118,7 @@ def _full_rate_residual(data: BlockData, model: LinearModel, coef: NDArray[np.fl
                         ) -> tuple[NDArray[np.float64], float]:
     """Return the full-rate residual of the longest contiguous stretch of the longest run."""
     r = int(np.argmax([len(x) for x in data.runs]))
-    run = data.runs[r]
-    dt = np.diff(run.t)
+    run, dt = data.runs[r], np.diff(data.runs[r].t)
     med = float(np.median(dt)) if dt.size else 1.0
     bounds = np.concatenate([[0], np.flatnonzero(dt > 1.5 * med + 1e-9) + 1, [len(run)]])
     i = int(np.argmax(np.diff(bounds)))
@@ -208,8 +203,7 @@ def _plot_allan(result: DiscoveryResult, path: Path) -> bool:
     tb = result.settings.get('block_mean_s', result.block_s)
     ax.plot([tb], [result.noise_floor_dps], 'k*', ms=10,
             label=f'noise floor (block means, {tb:.3g} s)')
-    ax.set_xlabel('averaging time tau (s)')
-    ax.set_ylabel('Allan deviation of the residual (deg/s)')
+    ax.set(xlabel='averaging time tau (s)', ylabel='Allan deviation of the residual (deg/s)')
     ax.grid(True, which='both', lw=0.3)
     ax.legend(fontsize=8)
     save_png(fig, path)
@@ -311,6 +305,4 @@ def write_report(result: DiscoveryResult, out_dir: str | Path) -> Path:
             [(f'`{u.effect}`', u.reason, u.experiment) for u in result.unidentifiable])
     if result.notes:
         md += ['## Notes', ''] + [f'- {n}' for n in result.notes] + ['']
-    path = out / 'report.md'
-    atomic_write(path, '\n'.join(md), what='report')
-    return path
+    return atomic_write(out / 'report.md', '\n'.join(md), what='report')

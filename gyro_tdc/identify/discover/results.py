@@ -270,14 +270,12 @@ class DiscoveryResult:
                      'after_dps': pl(s.adev_after_dps)},
             'thermal': None if s.thermal is None else s.thermal.to_dict(),
         } for s in self.steps]
-        doc = {'base_effects': list(self.base_effects),
-               'noise_floor_dps': float(self.noise_floor_dps), 'steps': steps,
-               'final_effects': list(self.final_effects),
-               'unidentifiable': [asdict(u) for u in self.unidentifiable],
-               'model_file': None if model_file is None else str(model_file)}
-        if self.thermal is not None:        # the final thermal state, when there is one
-            doc['thermal'] = self.thermal.to_dict()
-        return doc
+        return {'base_effects': list(self.base_effects),
+                'noise_floor_dps': float(self.noise_floor_dps), 'steps': steps,
+                'final_effects': list(self.final_effects),
+                'unidentifiable': [asdict(u) for u in self.unidentifiable],
+                'model_file': None if model_file is None else str(model_file),
+                **({} if self.thermal is None else {'thermal': self.thermal.to_dict()})}
 
 
 def format_summary(result: DiscoveryResult) -> str:

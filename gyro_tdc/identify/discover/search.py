@@ -29,7 +29,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
-from gyro_tdc.identify.axes import constant_gyro_axes, identity_axes, neutral_runs
+from gyro_tdc.identify.axes import fit_varying
 from gyro_tdc.identify.discover.data import (bandwidth, BlockData, COLLINEAR, corr, DEG,
                                              excitation, gap, hac_pvalue, LinearModel,
                                              make_folds, mse, rel_residual, unidentifiable,
@@ -69,19 +69,13 @@ def _effects(*groups: Sequence[str]) -> tuple[str, ...]:
     return tuple(e for e in EFFECTS if e in ids)
 
 
-def _copy(params: Mapping) -> dict:
-    """Return a copy of ``{effect: {param: value}}`` whose inner dicts can be changed."""
-    return {k: dict(v) for k, v in params.items()}
-
-
 def _tau_bounds(data: BlockData, eid: str) -> tuple[float, float]:
     """Return the search bounds of an effect's time constant, s."""
     lo, hi = EFFECTS[eid].bounds.get('tau_s', _SMOOTHING_BOUNDS_S)
-    longest = max(r.duration_s for r in data.runs)
     grid_step = max(float(g[0][1] - g[0][0]) for g in data.grids)    # every grid: 2+ points
     # A warm-up shorter than three blocks is a dummy for the first block.
     lo = max(lo, 2.0 * grid_step, 3.0 * data.block_s if eid == 'warmup' else 0.0)
-    return lo, min(hi, max(2.0 * longest, 4.0 * lo))
+    return lo, min(hi, max(2.0 * max(r.duration_s for r in data.runs), 4.0 * lo))
 
 
 def _fit_taus(data: BlockData, effects: Sequence[str], params: dict, which: Sequence[str]) -> dict:
@@ -93,14 +87,12 @@ def _fit_taus(data: BlockData, effects: Sequence[str], params: dict, which: Sequ
     :func:`gyro_tdc.identify.fit_time_constant` searches a log-spaced grid for the basin and
     refines it with a bounded Brent search.
     """
-    params = _copy(params)
+    params = {k: dict(v) for k, v in params.items()}     # its inner dicts change below
     for eid in which:
         params.setdefault(eid, dict(EFFECTS[eid].params))
     for eid in which:
         def sse(tau: float, eid: str = eid) -> float:
-            trial = _copy(params)
-            trial[eid]['tau_s'] = tau
-            return LinearModel(data, effects, trial).sse()
+            return LinearModel(data, effects, {**params, eid: {**params[eid], 'tau_s': tau}}).sse()
 
         params[eid]['tau_s'] = fit_time_constant(sse, _tau_bounds(data, eid), n_grid=14,
                                                  xatol=0.01).tau
@@ -123,9 +115,7 @@ def _thermal_state(data: BlockData, model: LinearModel) -> ThermalState | None:
     lo, hi = _tau_bounds(data, 'lag')
 
     def sse(v: float) -> NDArray[np.float64]:
-        trial = _copy(model.params)
-        trial['lag']['tau_s'] = v
-        r = LinearModel(data, model.effects, trial).residual()
+        r = LinearModel(data, model.effects, {**model.params, 'lag': {'tau_s': v}}).residual()
         return (data.w[:, None] * r * r).sum(axis=0)
 
     n_eff = effective_samples(model.residual() * data.sw[:, None])
@@ -161,8 +151,7 @@ def _noise_lags(data: BlockData, model: LinearModel, todo: Sequence[str], cparam
     (each with its fitted time constant), so that a second effect not yet in the model does
     not pass for long-memory noise and hide the first.
     """
-    params = _copy(model.params)
-    params.update({eid: dict(cparams[eid][eid]) for eid in todo if eid in _TIMED})
+    params = {**model.params, **{eid: cparams[eid][eid] for eid in todo if eid in _TIMED}}
     r = LinearModel(data, _effects(model.effects, todo), params).residual() * data.sw[:, None]
     memory = max(bandwidth(r[:, a], floor=False) for a in range(3))
     return [bandwidth(r[:, a]) for a in range(3)], int(memory)
@@ -210,11 +199,9 @@ def _score(data: BlockData, model: LinearModel, rnd: _Round, eid: str, params: d
     own = dict(params[eid]) if eid in _TIMED else {}
     # Is it spanned by the current model (per axis)? (The thermal state has no column of
     # its own: it changes the temperature columns; its test is the J test below.)
-    rel = []
-    for a in range(3):
-        xa = cand.design(a) * data.sw[:, None]
-        rel += [rel_residual(np.delete(xa, idx, axis=1), xa[:, i]) for i in idx
-                if np.linalg.norm(xa[:, i]) > 0]
+    rel = [rel_residual(np.delete(xa, idx, axis=1), xa[:, i])
+           for xa in (cand.design(a) * data.sw[:, None] for a in range(3))
+           for i in idx if np.linalg.norm(xa[:, i]) > 0]
     if idx and (not rel or max(rel) < COLLINEAR):
         return CandidateScore(eid, own, 1.0, 0.0, 0.0, math.nan, math.nan, False, 'collinear',
                               np.zeros((len(idx), 3))), None, params
@@ -225,14 +212,11 @@ def _score(data: BlockData, model: LinearModel, rnd: _Round, eid: str, params: d
     mse_m = mse(data, rnd.heldout)
     gain = (mse_m - mse(data, ho)) * DEG ** 2
     eff = math.sqrt(max(wsse(data, rnd.resid) - wsse(data, r), 0.0) / (3.0 * data.w.sum())) * DEG
-    if idx:
-        p = hac_pvalue(cand, idx, lags)
-    else:
-        # A candidate that changes the model instead of adding columns (the thermal state)
-        # is not nested in it: Davidson and MacKinnon's J test adds its fitted values to
-        # the current model as one column per axis and tests that column.
-        aug = LinearModel(data, model.effects, model.params, extra=pred)
-        p = hac_pvalue(aug, aug.columns_of('extra'), lags)
+    # A candidate that changes the model instead of adding columns (the thermal state) is
+    # not nested in it: Davidson and MacKinnon's J test adds its fitted values to the
+    # current model as one column per axis and tests that column.
+    aug = None if idx else LinearModel(data, model.effects, model.params, extra=pred)
+    p = hac_pvalue(cand, idx, lags) if idx else hac_pvalue(aug, aug.columns_of('extra'), lags)
     floor = data.floor * DEG
     why = [f'p={p:.2g}'] if p >= o.alpha / max(n_cand, 1) else []
     if gain <= max(o.min_heldout * floor ** 2, 0.01 * mse_m * DEG ** 2):
@@ -308,9 +292,8 @@ def discover(runs: Sequence[Run], options: DiscoverOptions | None = None, *,
     data = BlockData(runs, block_s=o.block_s, t0=estimate_t0(runs[0]) if o.t0 is None else o.t0)
     _check_blocks(data, base_ids, o.block_s)
     unident, notes = excitation(data, base_ids)
-    params = {eid: dict(EFFECTS[eid].params) for eid in base_ids if EFFECTS[eid].params}
     model = LinearModel(data, base_ids,
-                        _fit_taus(data, base_ids, params, [e for e in base_ids if e in _TIMED]))
+                        _fit_taus(data, base_ids, {}, [e for e in base_ids if e in _TIMED]))
     steps, collinear, adev = [], [], None
     while True:
         todo = [e for e in cand_ids if e not in model.effects and e not in unident]
@@ -337,11 +320,9 @@ def _score_round(data: BlockData, model: LinearModel, todo: Sequence[str], o: Di
     # The static curve the model lacks (of :data:`_CURVE`), beside which a time-memory
     # candidate is scored too: its effects and held-out mean square.
     missing = tuple(e for e in _CURVE if e not in model.effects)
-    curve = None
-    if missing and set(todo) & set(_MEMORY):
-        effects = _effects(model.effects, missing)
-        curve = (missing, effects,
-                 mse(data, LinearModel(data, effects, model.params).cv_residual(folds)))
+    effects = _effects(model.effects, missing)
+    curve = ((missing, effects, mse(data, LinearModel(data, effects, model.params).cv_residual(
+        folds))) if missing and set(todo) & set(_MEMORY) else None)
     for eid in todo:
         if progress is not None:
             progress(step, eid)
@@ -368,15 +349,13 @@ def _add_best(data: BlockData, model: LinearModel, rnd: _Round, passing: list,
     inside the trained temperatures. Returns the step, the new model and its Allan deviation.
     """
     best, contrib_b, _p = passing[0]
-    family = [passing[0]]
     one = data.heating != data.cooling      # data that only heat, or only cool
-    for item in rnd.results[1:]:
-        sc, contrib, _p = item
-        if (contrib is not None and sc.heldout_gain_dps2 > 0
-                and sc.heldout_gain_dps2 >= (1.0 - o.alias_margin) * best.heldout_gain_dps2
-                and (abs(weighted_corr(contrib, contrib_b, data.w)) >= o.alias_corr
-                     or (one and {sc.effect, best.effect} == {'lag', 'dTdt'} and sc.passed))):
-            family.append(item)
+    family = [passing[0]] + [
+        item for item in rnd.results[1:] for sc, contrib, _p in [item]
+        if contrib is not None and sc.heldout_gain_dps2 > 0
+        and sc.heldout_gain_dps2 >= (1.0 - o.alias_margin) * best.heldout_gain_dps2
+        and (abs(weighted_corr(contrib, contrib_b, data.w)) >= o.alias_corr
+             or (one and {sc.effect, best.effect} == {'lag', 'dTdt'} and sc.passed))]
     best, _c, p_b = min((x for x in family if x[0].passed),
                         key=lambda x: _n_params(model, x[0].effect, x[2]))
     effects = _effects(model.effects, {best.effect})
@@ -387,7 +366,7 @@ def _add_best(data: BlockData, model: LinearModel, rnd: _Round, passing: list,
     r_n = data.y - new.predict(coef)
     before, after = ((adev or residual_adev(data, model, rnd.coef),
                       residual_adev(data, new, coef)) if o.allan else (_NO_ADEV, _NO_ADEV))
-    step = Step(
+    return Step(
         effect=best.effect, aliases=tuple(x[0].effect for x in family if x[0] is not best),
         description=EFFECTS[best.effect].description,
         params=dict(new.params.get(best.effect, {})) if best.effect in _TIMED else {},
@@ -397,8 +376,7 @@ def _add_best(data: BlockData, model: LinearModel, rnd: _Round, passing: list,
         heldout_gap_after_dps=gap(data, new.cv_residual(rnd.folds)),
         candidates=tuple(x[0] for x in rnd.results), maps_before=residual_maps(data, rnd.resid),
         maps_after=residual_maps(data, r_n), adev_tau_s=before[0], adev_before_dps=before[1],
-        adev_after_dps=after[1], best=best, thermal=_thermal_state(data, new))
-    return step, new, after
+        adev_after_dps=after[1], best=best, thermal=_thermal_state(data, new)), new, after
 
 
 def _result(data: BlockData, model: LinearModel, rnd: _Round, steps: list, unident: dict,
@@ -406,10 +384,9 @@ def _result(data: BlockData, model: LinearModel, rnd: _Round, steps: list, unide
             o: DiscoverOptions, adev: tuple | None) -> DiscoveryResult:
     """Return the result of the last round (the final model's): gaps, maps and the record."""
     effects = model.effects
-    for eid in collinear:
-        if eid not in effects and eid not in unident:
-            unident[eid] = unidentifiable(eid, 'on this data its feature is a combination of '
-                                          f'the effects of the model ({", ".join(effects)})')
+    unident.update({eid: unidentifiable(eid, 'on this data its feature is a combination of the '
+                                        f'effects of the model ({", ".join(effects)})')
+                    for eid in collinear if eid not in effects and eid not in unident})
     adev = (adev or residual_adev(data, model, rnd.coef)) if o.allan else _NO_ADEV
     folds = ('leave-one-run-out' if data.n_runs >= 2
              else f'{len(rnd.folds)} blocked folds, buffer {rnd.buffer} blocks')
@@ -469,12 +446,11 @@ def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateS
 def _coef_dict(data: BlockData, model: LinearModel, coef: NDArray[np.float64]) -> dict:
     """Return the final coefficients by name (SI units)."""
     nr, j = data.n_runs, model.common.shape[1]
-    out: dict[str, Any] = {'offsets': coef[:nr].copy(), **{
+    return {'offsets': coef[:nr].copy(), **{
         lab: coef[nr + i].copy() for i, lab in enumerate(model.labels[nr:])},
-        'gain': np.zeros(3), 'scale': np.zeros(3)}
-    out.update({lab: coef[j + i] * (data.gain_axes if lab == 'gain' else data.scale_axes)
-                for i, lab in enumerate(model.axis_labels)})
-    return out
+        'gain': np.zeros(3), 'scale': np.zeros(3),
+        **{lab: coef[j + i] * (data.gain_axes if lab == 'gain' else data.scale_axes)
+           for i, lab in enumerate(model.axis_labels)}}
 
 
 def _check(runs: Sequence[Run], block_s: float) -> None:
@@ -503,7 +479,7 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'po
     constants and, with ``lag``, discovery's thermal state: a format 2 model whose every
     temperature term follows the state. ``kind``: ``'poly'`` (exactly the linear model
     discovery validated) or ``'rbf'``; ``created``: extra creation info. A constant gyro axis
-    is passed through as ``train`` does (:func:`gyro_tdc.identify.axes.neutral_runs`).
+    is passed through as ``train`` does (:func:`gyro_tdc.identify.axes.fit_varying`).
     """
     if len(runs) != len(result.runs):
         raise FitError(f'Expected the {len(result.runs)} runs discovery analysed, '
@@ -520,12 +496,10 @@ def build_model(result: DiscoveryResult, runs: Sequence[Run], *, kind: str = 'po
                          'gain_removed': [float(g) for g in gain]}, **dict(created or {})}
     # A constant gyro axis (train's rule) is fitted as train fits it: not at all (its
     # columns exactly zero, passed through), its figures the raw ones.
-    const = constant_gyro_axes(runs)
-    model = fit_model(neutral_runs(adjusted, const), kind=kind, features=features,
-                      t0=result.t0_c, fit_params=False, created=info,
-                      params={k: v for k, v in result.params.items() if k != 'lag'},
-                      thermal=result.thermal if 'lag' in features else None)
-    return identity_axes(model, runs, const)
+    return fit_varying(runs, lambda fitted: fit_model(
+        fitted, kind=kind, features=features, t0=result.t0_c, fit_params=False, created=info,
+        params={k: v for k, v in result.params.items() if k != 'lag'},
+        thermal=result.thermal if 'lag' in features else None), fitted=adjusted)
 
 
 def model_features(result: DiscoveryResult, runs: Sequence[Run]) -> tuple[str, ...]:
