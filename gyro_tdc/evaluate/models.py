@@ -32,8 +32,8 @@ from typing import Callable, Sequence
 from gyro_tdc.base import model_path
 from gyro_tdc.data import BagOptions, iter_runs, load_runs, Run
 from gyro_tdc.errors import DatasetError, FitError
-from gyro_tdc.identify import (constant_gyro_axes, fit_accel, fit_px4_cubic, identity_axes,
-                               neutral_runs, PX4_FEATURES, still_only_runs)
+from gyro_tdc.identify import (fit_accel, fit_px4_cubic, fit_varying, PX4_FEATURES,
+                               still_only_runs)
 from gyro_tdc.model import (ARDUPILOT_SCALE, ARDUPILOT_TREF_C, ArduPilotTempCal,
                             CompensationModel, load_model, onboard_status, px4_slot, Px4TempCal)
 import numpy as np
@@ -150,9 +150,9 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
         runs, kept = still_only_runs(runs, ('fit the px4 cubic', 'the px4 cubic is fitted'))
         if kept and log is not None:
             log(kept)
-        const = constant_gyro_axes(runs)        # as train: every axis constant is refused
-        px4 = fit_px4_cubic(neutral_runs(runs, const), created={'bags': [r.name for r in runs]})
-        px4 = identity_axes(px4, runs, const)   # a constant axis: not fitted, passed through
+        # As train: a constant axis passed through, every axis constant refused.
+        px4 = fit_varying(runs, lambda rs: fit_px4_cubic(
+            rs, created={'bags': [r.name for r in runs]}))
         acc = fit_accel(runs, px4, kind='poly', features=PX4_FEATURES)
         if acc.part is not None:          # PX4's TC_A*: a cubic for the accelerometer too
             px4 = px4.replace(accel=acc.part)
