@@ -178,29 +178,22 @@ def upstream_note(policy: Policy) -> str:
         return ''
     passthrough = policy.upstream_policy == 'passthrough'
     if which == 'bias_at_start':
-        head = 'gyro bias removed upstream at start (bias_at_start)'
-        if passthrough:
-            return (f'{head}: raw rate passed through, its thermal drift since the start '
-                    'stays (upstream_policy compensate corrects it, re-anchoring takes the '
-                    'removed bias out)')
-        if not policy.reanchor_on_start:
-            return (f'{head}: compensating, but reanchor_on_start is false: the output is '
-                    "off by the model's bias at the start temperature; set it true")
-        return (f'{head}: compensating, re-anchoring takes the removed bias out '
-                '(reanchor_on_start)')
-    if which == 'px4_ekf':
-        head = 'gyro already corrected upstream (px4_ekf: the EKF gyro bias off HIGHRES_IMU)'
-        instead = ('take the rate without the EKF bias, e.g. PX4 uXRCE-DDS sensor_gyro, and '
-                   'clear upstream_correction')
-    else:
-        head = f'gyro already thermally corrected upstream ({which})'
-        instead = ('disable the upstream correction, e.g. TC_G_ENABLE=0 or INS_TCALn_ENABLE=0, '
-                   'and clear upstream_correction')
-    if passthrough:
-        return (f'{head}: raw rate passed through, not corrected twice (to compensate here '
-                f'instead, {instead})')
-    return (f'{head}: compensating on top of it (upstream_policy compensate: the model must '
-            'be trained on the already corrected rate)')
+        return 'gyro bias removed upstream at start (bias_at_start): ' + (
+            'raw rate passed through, its thermal drift since the start stays (upstream_policy '
+            'compensate corrects it, re-anchoring takes the removed bias out)' if passthrough
+            else 'compensating, re-anchoring takes the removed bias out (reanchor_on_start)'
+            if policy.reanchor_on_start else 'compensating, but reanchor_on_start is false: '
+            "the output is off by the model's bias at the start temperature; set it true")
+    head, instead = (
+        ('gyro already corrected upstream (px4_ekf: the EKF gyro bias off HIGHRES_IMU)',
+         'take the rate without the EKF bias, e.g. PX4 uXRCE-DDS sensor_gyro, and clear '
+         'upstream_correction') if which == 'px4_ekf' else
+        (f'gyro already thermally corrected upstream ({which})', 'disable the upstream '
+         'correction, e.g. TC_G_ENABLE=0 or INS_TCALn_ENABLE=0, and clear upstream_correction'))
+    return f'{head}: ' + (
+        f'raw rate passed through, not corrected twice (to compensate here instead, {instead})'
+        if passthrough else 'compensating on top of it (upstream_policy compensate: the model '
+        'must be trained on the already corrected rate)')
 
 
 def health(core: CompensatorCore, since: Mapping | None = None, *, model_file: str = '',
