@@ -105,8 +105,7 @@ class Diagnostics:
         if why and self._frame_warned != (core.model.model_id, frame):
             self._frame_warned = (core.model.model_id, frame)
             log.warning(why)
-        marked = h.mark['marked'] - self._seen.get('marked', 0)
-        if marked > 0:
+        if (marked := h.mark['marked'] - self._seen.get('marked', 0)) > 0:
             log.warning(f'{marked} imu/data_raw samples were already compensated by gyro_tdc: '
                         'the model is applied twice', throttle_duration_sec=10.0)
         self._seen = h.mark

@@ -71,8 +71,7 @@ class ModelLoading:
 
     def load_at_start(self) -> None:
         """Load ``model_file`` on this thread (at start: nothing to hold up yet)."""
-        name = self.node.params.model_file
-        if not name:
+        if not (name := self.node.params.model_file):
             return self.log.warning('no model_file: passing the raw rate through')
         prepared, error = self._load_work(name)()
         if prepared is not None:
@@ -114,8 +113,7 @@ class ModelLoading:
         lo, hi = model.temp_range_c
         self.log.info(f'model {prepared.model_id} from {name!r}: {model.kind}, features '
                       f'{",".join(model.features)}, valid {lo:.1f}..{hi:.1f} degC')
-        mismatch = sensor_mismatch(model, self.node.params.sensor_id)
-        if mismatch:
+        if mismatch := sensor_mismatch(model, self.node.params.sensor_id):
             self.log.warning(mismatch)
         self._new_prior(model)
 
@@ -187,8 +185,7 @@ class ModelLoading:
 
     def reload(self) -> tuple[bool, str]:
         """Read ``model_file`` again (``~/reload``); one slower than ``load_wait`` reads on."""
-        name = self.node.get_parameter('model_file').value
-        if not name:
+        if not (name := self.node.get_parameter('model_file').value):
             return self.clear()
         job = self._read_within_wait(name, 'reload')
         if job is not None:

@@ -234,8 +234,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
     own = stop.install()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if own else None)
     with quiet_abandoned(stop):
-        node = None
-        ex = None
+        node = ex = None
         try:
             try:
                 with stop.interrupting():

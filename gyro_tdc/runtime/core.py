@@ -493,8 +493,7 @@ class CompensatorCore:
                 self._pause_s = sessions.pause_s()
             if not (d > sessions.gap_s or d < -RESTART_BACK_S):
                 return
-        why = sessions.judge(d, sessions.period(self.stream.t, k) if d > 0 else 0.0)
-        if not why:
+        if not (why := sessions.judge(d, sessions.period(self.stream.t, k) if d > 0 else 0.0)):
             return
         sessions.start(t, why, k)
         a.learned = False

@@ -262,8 +262,7 @@ def _problems(core: CompensatorCore, new: dict[int | str, int], inputs: InputSta
         found.append((WARN, f'imu/data_raw is published by gyro_tdc compensator '
                             f'{", ".join(inputs.upstream)}: chained compensators apply the '
                             'drift model twice'))
-    errors = new['errors']
-    if errors:
+    if errors := new['errors']:
         found.append((ERROR, f'compensation failed on {errors} samples, passed through: '
                              f'{core.last_error}'))
     return max((level for level, _ in found), default=OK), [why for _, why in found]
