@@ -170,8 +170,8 @@ class Learning:
         for line in filter(None, [*opened.notes, opened.warning]):
             self.log.warning(line)
         if opened.resumed:
-            model = self.learner.take_model()   # installed at once, on this thread
-            if model is not None:
+            # Installed at once, on this thread.
+            if (model := self.learner.take_model()) is not None:
                 self.core.set_model(model)
                 self.node.loading.model_file = 'learned'
             s = self.learner.summary()
@@ -182,8 +182,7 @@ class Learning:
 
     def _settle(self) -> bool:
         """Take a finished step's outcome and bring the learner up to date; return whether idle."""
-        job = self.job
-        if job is not None:
+        if (job := self.job) is not None:
             if not job.done:
                 return False
             self.job = None

@@ -138,8 +138,7 @@ class ModelLoading:
 
     def on_poll(self) -> None:
         """Install (or refuse) a model finished in the background."""
-        job = self._jobs.claim() if self._jobs.pending is not None else None
-        if job is None:
+        if (job := self._jobs.claim() if self._jobs.pending is not None else None) is None:
             return
         ok, _ = self._finish(job.name, job.result)
         if (not ok and job.origin == 'parameter'
@@ -157,10 +156,7 @@ class ModelLoading:
 
         rclpy has refused a value that is not a string before this runs.
         """
-        for param in params:
-            name = param.value
-            if param.name != 'model_file':
-                continue
+        for name in (q.value for q in params if q.name == 'model_file'):
             job = (self._read_within_wait(name, 'parameter')
                    if name and name != self._reverting else None)
             if job is None:
@@ -174,21 +170,18 @@ class ModelLoading:
 
     def on_parameters_set(self, params: list[Parameter]) -> None:
         """Install the model read by :meth:`on_set`."""
-        for param in params:
-            if param.name == 'model_file':
-                job = self._pending.pop(param.value, None)
-                if job is not None:
-                    self._finish(job.name, job.result)
-                elif not param.value and self._reverting is None:
-                    self.clear()
+        for name in (q.value for q in params if q.name == 'model_file'):
+            if (job := self._pending.pop(name, None)) is not None:
+                self._finish(job.name, job.result)
+            elif not name and self._reverting is None:
+                self.clear()
         self._pending.clear()
 
     def reload(self) -> tuple[bool, str]:
         """Read ``model_file`` again (``~/reload``); one slower than ``load_wait`` reads on."""
         if not (name := self.node.get_parameter('model_file').value):
             return self.clear()
-        job = self._read_within_wait(name, 'reload')
-        if job is not None:
+        if (job := self._read_within_wait(name, 'reload')) is not None:
             return self._finish(name, job.result)
         return True, (f'reading {name} in the background (longer than load_wait); '
                       f'{self.core.model_id or "no model"} stays in use until it is ready; '

@@ -254,14 +254,12 @@ class DriverNode(ShellNode):
             return
         if self._source is None and time.monotonic() >= self._retry_at:
             self._try_open()
-        src = self._source
-        if src is None:
+        if (src := self._source) is None:
             return
         try:
             for sample in src.pending():
                 self._publish(src, check_sample(sample))
-            rejected = getattr(src, 'temperatures_rejected', 0)
-            if rejected != self._temps_rejected:
+            if (rejected := getattr(src, 'temperatures_rejected', 0)) != self._temps_rejected:
                 self._temps_rejected = rejected
                 self.get_logger().warning(
                     f'{rejected} implausible thermometer readings dropped (outside the '

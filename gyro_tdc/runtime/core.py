@@ -149,8 +149,7 @@ class CompensatorCore:
         Returns the models scheduled (or installed), ``(effective stamp or None, model)``,
         oldest first (:meth:`gyro_tdc.learn.learner.Learner.take_swaps`).
         """
-        learner = self.learning.learner
-        if learner is None:
+        if (learner := self.learning.learner) is None:
             return []
         learner.step()
         swaps = learner.take_swaps(self.stream.t)
@@ -264,8 +263,7 @@ class CompensatorCore:
         if not self.temps.add(t, temp_c, math.inf if last_t is None else last_t + max(
                 self.policy.temperature_timeout, MAX_TEMP_LEAD_S)):
             return False
-        learner = self.learning.learner
-        if learner is not None:
+        if (learner := self.learning.learner) is not None:
             learner.add_temperature(t, temp_c)
         history = self.stream.history
         if not history or t >= history[-1][0] + self.HISTORY_SPACING_S:
@@ -353,12 +351,10 @@ class CompensatorCore:
             finite = (math.isfinite(wx) and math.isfinite(wy) and math.isfinite(wz)
                       and math.isfinite(t))
             return self._pass(t, wx, wy, wz, IMPLAUSIBLE_INPUT if finite else NON_FINITE, accel)
-        held = self.temps.at(t)
-        if held is None:
+        if (held := self.temps.at(t)) is None:
             return self._pass(t, wx, wy, wz, NO_TEMPERATURE, accel)
         temp, t_temp = held
-        policy = self.policy
-        flags = 0
+        policy, flags = self.policy, 0
         if t - t_temp > policy.temperature_timeout:
             if policy.stale_policy == 'passthrough':
                 return self._pass(t, wx, wy, wz, STALE, accel)
@@ -378,8 +374,7 @@ class CompensatorCore:
             flags |= e.oor
             dist = e.distance_c
         else:
-            out = self._timed(t, temp, wx, wy, wz, flags)
-            if out is None:
+            if (out := self._timed(t, temp, wx, wy, wz, flags)) is None:
                 return self._pass(t, wx, wy, wz, IMPLAUSIBLE_OUTPUT, accel)
             ox, oy, oz, var, flags, dist = out
         aout = avar = None
@@ -470,8 +465,7 @@ class CompensatorCore:
 
     def _still(self, t: float, raw: Vec3, out: Vec3, accel: Sequence[float] | None,
                temp: float) -> None:
-        found = self.reanchoring.detector.update(t, raw, out, accel, temp)
-        if found is not None:
+        if (found := self.reanchoring.detector.update(t, raw, out, accel, temp)) is not None:
             self.reanchoring.take(found, self.slot, temp)
             self._update_needs()
 

@@ -95,8 +95,7 @@ def replay(comp: StreamingCompensator, history: Iterable[tuple[float, float]], u
         if t_k > t_prev:
             advance(comp, t_k, temp_prev)
             t_prev = t_k
-        temp_prev = temp_k
-        t_seen = t_k
+        temp_prev, t_seen = temp_k, t_k
     return Replay(t_prev, temp_prev, t_seen)
 
 
