@@ -172,11 +172,8 @@ class MotionInput:
 
     def on_motion(self, msg: Any) -> None:
         """Hand one Twist, TwistStamped or Odometry to the core at its stamp (or the latest)."""
-        if isinstance(msg, Twist):
-            twist, st = msg, None
-        else:
-            twist = msg.twist.twist if isinstance(msg, Odometry) else msg.twist
-            st = msg.header.stamp
+        twist, st = (msg, None) if isinstance(msg, Twist) else (
+            msg.twist.twist if isinstance(msg, Odometry) else msg.twist, msg.header.stamp)
         t = st.sec + st.nanosec * 1e-9 if st is not None and (st.sec or st.nanosec) else (
             self.core.last_t)                # no stamp: the latest IMU stamp received
         if t is None:

@@ -303,8 +303,7 @@ class Learning:
         # A step in progress: again at the next tick; no window ended: nothing to do.
         if not self._settle() or self.learner.caught_up():
             return
-        learner = self.learner
-        store = self.learn_store if self.params.learn_file else None
+        learner, store = self.learner, (self.learn_store if self.params.learn_file else None)
         self.job = self._learn_jobs.start(
             'learning step', 'timer', lambda: _step_and_save(learner, store))
 

@@ -167,8 +167,8 @@ class CompensatorNode(ShellNode):
 
     def frame_id(self) -> str:
         """Return ``header.frame_id`` of the latest imu/data_raw message ('' before one)."""
-        return '' if self._last_imu is None else deserialize_message(
-            self._last_imu, Imu).header.frame_id
+        last = self._last_imu
+        return '' if last is None else deserialize_message(last, Imu).header.frame_id
 
     def _say_upstream(self, policy: Policy) -> None:
         """Log what upstream_correction does with the input (a warning when it passes it)."""

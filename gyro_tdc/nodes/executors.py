@@ -133,11 +133,6 @@ class StopSignals:
         self._previous: dict[int, Any] = {}
         self._interrupt = False
 
-    @property
-    def requested(self) -> bool:
-        """Return whether a stop signal has arrived."""
-        return self.signum is not None
-
     def install(self) -> bool:
         """Handle the stop signals here; return False off the main thread (nothing done)."""
         if threading.current_thread() is not threading.main_thread():
@@ -159,7 +154,7 @@ class StopSignals:
         done = threading.Event()
         threading.Thread(target=_nudge, args=(done,), name='stop nudge', daemon=True).start()
         try:
-            if self.requested:
+            if self.signum is not None:     # a stop signal has already arrived
                 raise StopRequested(signal.Signals(self.signum).name)
             yield
         finally:
@@ -248,7 +243,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
                 gc.freeze()
             # spin_once, not spin(): in rclpy's Jazzy wheels EventsExecutor.spin() dispatches
             # nothing while its spin_once works and is the fast path.
-            while rclpy.ok() and not stop.requested:
+            while rclpy.ok() and stop.signum is None:
                 ex.spin_once(timeout_sec=STOP_POLL_S)
         except (StopRequested, KeyboardInterrupt, ExternalShutdownException):
             pass

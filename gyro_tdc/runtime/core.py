@@ -285,9 +285,8 @@ class CompensatorCore:
         eps = self.policy.motion_threshold
         moving = not all(math.isfinite(v) and abs(v) <= eps for v in components)
         self.tally.motion_reports += 1
-        stream = self.stream
-        if moving != stream.moving:          # only changes are passed on
-            stream.moving = moving
+        if moving != self.stream.moving:     # only changes are passed on
+            self.stream.moving = moving
             self.reanchoring.detector.observe_motion(t, moving)
             if self.learning.learner is not None:
                 self.learning.learner.observe_motion(t, moving)
@@ -325,16 +324,12 @@ class CompensatorCore:
             To add to the linear_acceleration_covariance diagonal (None: leave it).
 
         """
-        tally = self.tally
+        tally, stream = self.tally, self.stream
         tally.counts['in'] += 1
-        stream = self.stream
-        last = stream.t
-        if last is None:                # the first session starts
+        if (last := stream.t) is None:  # the first session starts
             self.reanchoring.sessions.begin(t, tally.counts['in'])
-        else:
-            d = t - last                # NaN fails the compares
-            if d > self._pause_s or d < -RESTART_BACK_S:
-                self._session_break(t, d)
+        elif (d := t - last) > self._pause_s or d < -RESTART_BACK_S:   # NaN fails the compares
+            self._session_break(t, d)
         gate = self.learning
         if t >= gate.gate:             # learning: a model due, or a sample to hand over
             if t >= gate.due:
@@ -398,8 +393,7 @@ class CompensatorCore:
         Returns the output rate, the variance to add, the flags and the distance from the
         range; None when the output check refuses it (not finite, an implausible drift).
         """
-        slot = self.slot
-        comp = slot.comp
+        slot, comp = self.slot, self.slot.comp
         ox, oy, oz = comp.step(t, temp, (wx, wy, wz)).tolist()
         dist = comp.range_distance_c
         if comp.in_range:
@@ -446,9 +440,7 @@ class CompensatorCore:
     def _pass(self, t: float, wx: float, wy: float, wz: float, why: int,
               accel: Sequence[float] | None = None) -> Output:
         flags = why | PASSTHROUGH
-        aout = avar = None
-        if self.slot.accel is not None:
-            aout, avar = self._accel_pass(accel, why)
+        aout, avar = (None, None) if self.slot.accel is None else self._accel_pass(accel, why)
         counts = self.tally.flags
         counts[why] += 1
         counts[PASSTHROUGH] += 1
