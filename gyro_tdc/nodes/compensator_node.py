@@ -222,8 +222,7 @@ class CompensatorNode(ShellNode):
         again first. ``start``: the callback's start on the steady clock, for the backlog.
         """
         start = perf_counter() if start is None else start
-        found = locate(data)
-        if found is None:  # not little-endian plain CDR: the slow, general way
+        if (found := locate(data)) is None:  # not little-endian plain CDR: the slow, general way
             try:
                 data = serialize_message(deserialize_message(data, Imu))
             except Exception as exc:  # the callback edge: any participant can send bytes
