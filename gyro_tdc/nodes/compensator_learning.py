@@ -266,8 +266,7 @@ class Learning:
         """Write learn_file (or the file used instead) now; return what happened (one line)."""
         if not self.params.learn_file:
             return 'no learn_file'
-        store = self.learn_store
-        if store is None:
+        if (store := self.learn_store) is None:
             return f'failed: nothing is written ({self.learn_file_warning})'
         what, text, notes = _write(self.learner, store)
         if what == 'saved':

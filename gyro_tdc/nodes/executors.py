@@ -137,8 +137,7 @@ class StopSignals:
         """Handle the stop signals here; return False off the main thread (nothing done)."""
         if threading.current_thread() is not threading.main_thread():
             return False
-        for signum in STOP_SIGNALS:
-            self._previous[signum] = signal.signal(signum, self._handle)
+        self._previous.update((s, signal.signal(s, self._handle)) for s in STOP_SIGNALS)
         return True
 
     def restore(self) -> None:
