@@ -159,8 +159,7 @@ class Backlog:
                 # loses samples, and its steps are then mostly longer than the period.
                 self.period = float(np.quantile(self._learning, PERIOD_QUANTILE))
                 self._learning = []
-        jump = STAMP_JUMP_S if self.period is None else max(STAMP_JUMP_S,
-                                                            JUMP_SAMPLES * self.period)
+        jump = max(STAMP_JUMP_S, JUMP_SAMPLES * (self.period or 0.0))   # period: learning
         lo = 0
         while lo < n:
             if self._high is None:

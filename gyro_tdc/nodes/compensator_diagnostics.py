@@ -105,13 +105,11 @@ class Diagnostics:
         if why and self._frame_warned != (core.model.model_id, frame):
             self._frame_warned = (core.model.model_id, frame)
             log.warning(why)
-        marked = h.mark['marked'] - self._seen.get('marked', 0)
-        if marked > 0:
+        if (marked := h.mark['marked'] - self._seen.get('marked', 0)) > 0:
             log.warning(f'{marked} imu/data_raw samples were already compensated by gyro_tdc: '
                         'the model is applied twice', throttle_duration_sec=10.0)
         self._seen = h.mark
-        anchor = core.anchor
-        if anchor is not None and anchor is not self._reported_anchor:
+        if (anchor := core.anchor) is not None and anchor is not self._reported_anchor:
             self._reported_anchor = anchor
             log.info(f're-anchored after {anchor.samples} still samples over '
                      f'{anchor.duration_s:.1f} s at {anchor.temp_c:.2f} degC: offset shift '

@@ -71,8 +71,6 @@ def message_class(name: str, param: str, hint: str = '') -> type:
 @functools.lru_cache(maxsize=256)
 def _fields(type_name: str) -> Mapping[str, str] | None:
     """Return the field table of a message type name as rclpy spells it, None if not one."""
-    if '/' not in type_name or '<' in type_name or '[' in type_name:
-        return None
     try:
         return dict(message_class(type_name, 'type').get_fields_and_field_types())
     except ConfigError:
@@ -138,8 +136,7 @@ def input_reader(p: Any) -> InputReader:
     """
     imu_cls = message_class(p.imu_type, 'imu_type',
                             f'{IMU_TYPE}, geometry_msgs/msg/Vector3Stamped')
-    imu_name = normalize_type(p.imu_type)
-    fast = imu_name == IMU_TYPE
+    fast = (imu_name := normalize_type(p.imu_type)) == IMU_TYPE
     if fast and (p.angular_velocity_field, p.stamp_field) != ('angular_velocity',
                                                               'header.stamp'):
         raise ConfigError('angular_velocity_field, stamp_field: a sensor_msgs/msg/Imu '
@@ -154,19 +151,11 @@ def input_reader(p: Any) -> InputReader:
     temp_name = normalize_type(p.temperature_type)
     path = temperature_path(temp_name, p.temperature_field, _fields, 'temperature_field')
     get, fix = reader(path), unquirk(p.temperature_quirk) or float
-
-    def temperature(msg: Any) -> float:
-        return fix(float(get(msg)))
-
     stamp_path = p.temperature_stamp_field or ('header.stamp' if _has_header(temp_name) else '')
-    temp_stamp = None
-    if stamp_path:
-        kind = stamp_kind(temp_name, stamp_path, _fields, 'temperature_stamp_field')
-        get_stamp = reader(stamp_path)
-
-        def temp_stamp(msg: Any) -> float:  # noqa: F811 (None above: no stamp)
-            return stamp_seconds(kind, get_stamp(msg))
-    return InputReader(imu_cls, temp_cls, fast, to_imu, temperature, temp_stamp)
+    kind = stamp_path and stamp_kind(temp_name, stamp_path, _fields, 'temperature_stamp_field')
+    get_stamp = reader(stamp_path)     # no stamp path: the latest IMU stamp is taken
+    return InputReader(imu_cls, temp_cls, fast, to_imu, lambda msg: fix(float(get(msg))),
+                       (lambda msg: stamp_seconds(kind, get_stamp(msg))) if stamp_path else None)
 
 
 class MotionInput:
@@ -183,11 +172,8 @@ class MotionInput:
 
     def on_motion(self, msg: Any) -> None:
         """Hand one Twist, TwistStamped or Odometry to the core at its stamp (or the latest)."""
-        if isinstance(msg, Twist):
-            twist, st = msg, None
-        else:
-            twist = msg.twist.twist if isinstance(msg, Odometry) else msg.twist
-            st = msg.header.stamp
+        twist, st = (msg, None) if isinstance(msg, Twist) else (
+            msg.twist.twist if isinstance(msg, Odometry) else msg.twist, msg.header.stamp)
         t = st.sec + st.nanosec * 1e-9 if st is not None and (st.sec or st.nanosec) else (
             self.core.last_t)                # no stamp: the latest IMU stamp received
         if t is None:

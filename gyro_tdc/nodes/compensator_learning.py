@@ -131,7 +131,7 @@ class Learning:
 
     def __init__(self, node: Any) -> None:
         self.node, self.core, self.params = node, node.core, node.params
-        self.log = log = node.get_logger()
+        self.log = node.get_logger()
         self.learner = self._new_learner()
         self._learned_installs = 0
         #: The axes the learned model keeps offset-only, as last logged.
@@ -143,7 +143,7 @@ class Learning:
         if node.params.learn_file:
             self._open(node.params.learn_file)
         else:
-            log.warning('learn without learn_file: nothing is kept across restarts')
+            self.log.warning('learn without learn_file: nothing is kept across restarts')
         self._front = _Front(self.learner.config)
         self._learn_values = self.learner.diagnostic_values()
         sys.setswitchinterval(min(sys.getswitchinterval(), SWITCH_INTERVAL_S))
@@ -158,7 +158,6 @@ class Learning:
 
     def _open(self, path: str) -> None:
         """Resume ``learn_file`` (or the file used beside it); a file refused is said once."""
-        log = self.log
         try:
             opened = open_learn_file(path, self.learner.load_state)
         except Exception as exc:  # the start-up edge: no file content stops the node
@@ -166,26 +165,24 @@ class Learning:
             self.learn_file_warning = (f'learn_file {path!r} not used '
                                        f'({type(exc).__name__}: {exc}): learning from '
                                        'the start, nothing is kept across restarts')
-            return log.warning(self.learn_file_warning)
+            return self.log.warning(self.learn_file_warning)
         self.learn_store, self.learn_file_warning = opened.file, opened.warning
-        for line in [*opened.notes, opened.warning]:
-            if line:
-                log.warning(line)
+        for line in filter(None, [*opened.notes, opened.warning]):
+            self.log.warning(line)
         if opened.resumed:
-            model = self.learner.take_model()   # installed at once, on this thread
-            if model is not None:
+            # Installed at once, on this thread.
+            if (model := self.learner.take_model()) is not None:
                 self.core.set_model(model)
                 self.node.loading.model_file = 'learned'
             s = self.learner.summary()
-            log.info(f'resumed learning from {opened.file.path}: {s["points"]} points, '
-                     f'{s["still_s"]:.0f} s still')
+            self.log.info(f'resumed learning from {opened.file.path}: {s["points"]} points, '
+                          f'{s["still_s"]:.0f} s still')
 
     # -- the learner's owner: the worker during a step, else the executor's thread ------
 
     def _settle(self) -> bool:
         """Take a finished step's outcome and bring the learner up to date; return whether idle."""
-        job = self.job
-        if job is not None:
+        if (job := self.job) is not None:
             if not job.done:
                 return False
             self.job = None
@@ -247,11 +244,10 @@ class Learning:
 
     def set_timeout(self, timeout_s: float) -> None:
         """Give the learner a new temperature_timeout (from its next step)."""
-        if timeout_s == self.learner.config.temperature_timeout:
-            return
-        self._waiting['timeout'] = timeout_s
-        if self.job is None:
-            self._sync()
+        if timeout_s != self.learner.config.temperature_timeout:
+            self._waiting['timeout'] = timeout_s
+            if self.job is None:
+                self._sync()
 
     def new_prior(self, model: CompensationModel | None) -> None:
         """
@@ -270,8 +266,7 @@ class Learning:
         """Write learn_file (or the file used instead) now; return what happened (one line)."""
         if not self.params.learn_file:
             return 'no learn_file'
-        store = self.learn_store
-        if store is None:
+        if (store := self.learn_store) is None:
             return f'failed: nothing is written ({self.learn_file_warning})'
         what, text, notes = _write(self.learner, store)
         if what == 'saved':
@@ -307,8 +302,7 @@ class Learning:
         # A step in progress: again at the next tick; no window ended: nothing to do.
         if not self._settle() or self.learner.caught_up():
             return
-        learner = self.learner
-        store = self.learn_store if self.params.learn_file else None
+        learner, store = self.learner, (self.learn_store if self.params.learn_file else None)
         self.job = self._learn_jobs.start(
             'learning step', 'timer', lambda: _step_and_save(learner, store))
 
@@ -342,9 +336,8 @@ class Learning:
         if not self.params.learn_file:
             return
         if not self.wait(3 * LEARN_WAIT_S):
-            self.log.error('learning step still running at shutdown: learn_file '
-                           'keeps its last save')
-            return
+            return self.log.error('learning step still running at shutdown: learn_file '
+                                  'keeps its last save')
         self.learner.step()
         self.learner.flush()
         self.save_now()

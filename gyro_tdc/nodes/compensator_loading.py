@@ -71,8 +71,7 @@ class ModelLoading:
 
     def load_at_start(self) -> None:
         """Load ``model_file`` on this thread (at start: nothing to hold up yet)."""
-        name = self.node.params.model_file
-        if not name:
+        if not (name := self.node.params.model_file):
             return self.log.warning('no model_file: passing the raw rate through')
         prepared, error = self._load_work(name)()
         if prepared is not None:
@@ -114,8 +113,7 @@ class ModelLoading:
         lo, hi = model.temp_range_c
         self.log.info(f'model {prepared.model_id} from {name!r}: {model.kind}, features '
                       f'{",".join(model.features)}, valid {lo:.1f}..{hi:.1f} degC')
-        mismatch = sensor_mismatch(model, self.node.params.sensor_id)
-        if mismatch:
+        if mismatch := sensor_mismatch(model, self.node.params.sensor_id):
             self.log.warning(mismatch)
         self._new_prior(model)
 
@@ -140,8 +138,7 @@ class ModelLoading:
 
     def on_poll(self) -> None:
         """Install (or refuse) a model finished in the background."""
-        job = self._jobs.claim() if self._jobs.pending is not None else None
-        if job is None:
+        if (job := self._jobs.claim() if self._jobs.pending is not None else None) is None:
             return
         ok, _ = self._finish(job.name, job.result)
         if (not ok and job.origin == 'parameter'
@@ -159,10 +156,7 @@ class ModelLoading:
 
         rclpy has refused a value that is not a string before this runs.
         """
-        for param in params:
-            name = param.value
-            if param.name != 'model_file':
-                continue
+        for name in (q.value for q in params if q.name == 'model_file'):
             job = (self._read_within_wait(name, 'parameter')
                    if name and name != self._reverting else None)
             if job is None:
@@ -176,22 +170,18 @@ class ModelLoading:
 
     def on_parameters_set(self, params: list[Parameter]) -> None:
         """Install the model read by :meth:`on_set`."""
-        for param in params:
-            if param.name == 'model_file':
-                job = self._pending.pop(param.value, None)
-                if job is not None:
-                    self._finish(job.name, job.result)
-                elif not param.value and self._reverting is None:
-                    self.clear()
+        for name in (q.value for q in params if q.name == 'model_file'):
+            if (job := self._pending.pop(name, None)) is not None:
+                self._finish(job.name, job.result)
+            elif not name and self._reverting is None:
+                self.clear()
         self._pending.clear()
 
     def reload(self) -> tuple[bool, str]:
         """Read ``model_file`` again (``~/reload``); one slower than ``load_wait`` reads on."""
-        name = self.node.get_parameter('model_file').value
-        if not name:
+        if not (name := self.node.get_parameter('model_file').value):
             return self.clear()
-        job = self._read_within_wait(name, 'reload')
-        if job is not None:
+        if (job := self._read_within_wait(name, 'reload')) is not None:
             return self._finish(name, job.result)
         return True, (f'reading {name} in the background (longer than load_wait); '
                       f'{self.core.model_id or "no model"} stays in use until it is ready; '

@@ -101,8 +101,7 @@ class CompensatorNode(ShellNode):
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
         self.in_topic = self.resolve_topic_name('imu/data_raw')
-        out_topic = self.resolve_topic_name('imu/data_compensated')
-        if self.in_topic == out_topic:
+        if (out_topic := self.resolve_topic_name('imu/data_compensated')) == self.in_topic:
             raise ConfigError(f'imu/data_raw and imu/data_compensated both resolve to '
                               f'{out_topic}: the compensator would compensate its own output '
                               'in a loop; remap one of them')
@@ -173,9 +172,8 @@ class CompensatorNode(ShellNode):
 
     def _say_upstream(self, policy: Policy) -> None:
         """Log what upstream_correction does with the input (a warning when it passes it)."""
-        note = upstream_note(policy)
+        note, log = upstream_note(policy), self.get_logger()
         if note:
-            log = self.get_logger()
             (log.warning if self.core.upstream_pass else log.info)(note)
 
     # -- run-time parameter changes ----------------------------------------------------
@@ -196,11 +194,10 @@ class CompensatorNode(ShellNode):
         if not changes and not live:
             return
         self.params = replace(self.params, **changes, **live)
-        old = self.core.policy
+        old, log = self.core.policy, self.get_logger()
         policy = replace(old, **changes)
         said = [f'{k} {getattr(old, k)!r} -> {v!r}' for k, v in changes.items()
                 if getattr(old, k) != v]
-        log = self.get_logger()
         if said:
             self.core.set_policy(policy)
             if self.learning is not None:
@@ -209,8 +206,8 @@ class CompensatorNode(ShellNode):
             if (old.upstream_correction, old.upstream_policy) != (
                     policy.upstream_correction, policy.upstream_policy):
                 self._say_upstream(policy)
-        mismatch = 'sensor_id' in live and sensor_mismatch(self.core.model, self.params.sensor_id)
-        if mismatch:
+        if mismatch := 'sensor_id' in live and sensor_mismatch(self.core.model,
+                                                               self.params.sensor_id):
             log.warning(mismatch)
 
     # -- the hot path -----------------------------------------------------------------
@@ -224,10 +221,8 @@ class CompensatorNode(ShellNode):
         it came; bytes that are not little-endian plain CDR are deserialised and serialized
         again first. ``start``: the callback's start on the steady clock, for the backlog.
         """
-        if start is None:
-            start = perf_counter()
-        found = locate(data)
-        if found is None:  # not little-endian plain CDR: the slow, general way
+        start = perf_counter() if start is None else start
+        if (found := locate(data)) is None:  # not little-endian plain CDR: the slow, general way
             try:
                 data = serialize_message(deserialize_message(data, Imu))
             except Exception as exc:  # the callback edge: any participant can send bytes
@@ -240,9 +235,8 @@ class CompensatorNode(ShellNode):
         if view.marked():
             self.inputs.already_compensated += 1
         wx, wy, wz = view.angular_velocity()
-        core = self.core
+        core, t = self.core, sec + nanosec * 1e-9
         a = view.linear_acceleration() if core.needs_accel else None
-        t = sec + nanosec * 1e-9
         try:
             wx, wy, wz, var, flags, aout, avar = core.process(t, wx, wy, wz, a)
         except Exception as exc:  # the callback edge: never lose the message
@@ -282,8 +276,8 @@ class CompensatorNode(ShellNode):
         (``temperatures_ignored``).
         """
         stamp = self.reader.temperature_stamp
-        t = self.core.last_t if stamp is None else stamp(msg)
-        if t is None:  # before the first IMU message there is no stamp to give it
+        # Before the first IMU message there is no stamp to give it.
+        if (t := self.core.last_t if stamp is None else stamp(msg)) is None:
             self.temperatures_ignored += 1
             return
         self.core.add_temperature(t, self.reader.temperature(msg))

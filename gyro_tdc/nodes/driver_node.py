@@ -220,11 +220,10 @@ class DriverNode(ShellNode):
     def _fail(self, exc: DeviceError) -> None:
         """Record a device error, drop the source and schedule a retry with backoff."""
         self._errors += 1
-        self._last_error = str(exc)
+        self._last_error, self._state = str(exc), 'error'
         self.release()
         delay = self._backoff.next_delay()
         self._retry_at = time.monotonic() + delay
-        self._state = 'error'
         self.get_logger().warning(f'device error: {exc} (retry in {delay:.2f} s)')
 
     def _publish(self, src: ImuSource, sample: ImuSample) -> None:
@@ -255,14 +254,12 @@ class DriverNode(ShellNode):
             return
         if self._source is None and time.monotonic() >= self._retry_at:
             self._try_open()
-        src = self._source
-        if src is None:
+        if (src := self._source) is None:
             return
         try:
             for sample in src.pending():
                 self._publish(src, check_sample(sample))
-            rejected = getattr(src, 'temperatures_rejected', 0)
-            if rejected != self._temps_rejected:
+            if (rejected := getattr(src, 'temperatures_rejected', 0)) != self._temps_rejected:
                 self._temps_rejected = rejected
                 self.get_logger().warning(
                     f'{rejected} implausible thermometer readings dropped (outside the '
@@ -284,9 +281,9 @@ class DriverNode(ShellNode):
         level, message = DiagnosticStatus.OK, {'finished': 'scenario finished'}.get(
             state, 'publishing')
         if state == 'error':
-            retry = max(self._retry_at - time.monotonic(), 0.0)
-            level = DiagnosticStatus.ERROR
-            message = f'device error, retry in {retry:.1f} s: {self._last_error}'
+            level, message = DiagnosticStatus.ERROR, (
+                f'device error, retry in {max(self._retry_at - time.monotonic(), 0.0):.1f} s: '
+                f'{self._last_error}')
         values = {
             'backend': p.backend, 'device': self._device, 'state': state,
             'imu messages': self._published, 'temperature messages': self._temps,

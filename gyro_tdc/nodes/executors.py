@@ -133,17 +133,11 @@ class StopSignals:
         self._previous: dict[int, Any] = {}
         self._interrupt = False
 
-    @property
-    def requested(self) -> bool:
-        """Return whether a stop signal has arrived."""
-        return self.signum is not None
-
     def install(self) -> bool:
         """Handle the stop signals here; return False off the main thread (nothing done)."""
         if threading.current_thread() is not threading.main_thread():
             return False
-        for signum in STOP_SIGNALS:
-            self._previous[signum] = signal.signal(signum, self._handle)
+        self._previous.update((s, signal.signal(s, self._handle)) for s in STOP_SIGNALS)
         return True
 
     def restore(self) -> None:
@@ -159,7 +153,7 @@ class StopSignals:
         done = threading.Event()
         threading.Thread(target=_nudge, args=(done,), name='stop nudge', daemon=True).start()
         try:
-            if self.requested:
+            if self.signum is not None:     # a stop signal has already arrived
                 raise StopRequested(signal.Signals(self.signum).name)
             yield
         finally:
@@ -234,8 +228,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
     own = stop.install()
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if own else None)
     with quiet_abandoned(stop):
-        node = None
-        ex = None
+        node = ex = None
         try:
             try:
                 with stop.interrupting():
@@ -249,7 +242,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
                 gc.freeze()
             # spin_once, not spin(): in rclpy's Jazzy wheels EventsExecutor.spin() dispatches
             # nothing while its spin_once works and is the fast path.
-            while rclpy.ok() and not stop.requested:
+            while rclpy.ok() and stop.signum is None:
                 ex.spin_once(timeout_sec=STOP_POLL_S)
         except (StopRequested, KeyboardInterrupt, ExternalShutdownException):
             pass

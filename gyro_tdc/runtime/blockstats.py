@@ -168,13 +168,9 @@ def standard_error(st: BlockStats) -> Vec3:
     """
     if st.m < 2 or st.n == 0:
         return _INF3
-    n = float(st.n)
-    k = st.m / (st.m - 1.0)
-    out = []
-    for s, a, b in zip(st.s, st.a, st.b):
-        mu = s / n
-        out.append(math.sqrt(max(k * (a - 2.0 * mu * b + mu * mu * st.c2), 0.0)) / n)
-    return tuple(out)
+    n, k = float(st.n), st.m / (st.m - 1.0)
+    return tuple(math.sqrt(max(k * (a - 2.0 * mu * b + mu * mu * st.c2), 0.0)) / n
+                 for mu, a, b in zip((s / n for s in st.s), st.a, st.b))
 
 
 def window_stats(t: NDArray[np.float64], x: NDArray[np.float64], c: Sequence[float],

@@ -138,15 +138,9 @@ class CompensatorCore:
 
     # -- learning ---------------------------------------------------------------------
 
-    @property
-    def learner(self):
-        """Return the attached :class:`gyro_tdc.learn.learner.Learner`, or None."""
-        return self.learning.learner
-
-    @learner.setter
-    def learner(self, learner) -> None:
-        """Attach a learner: it sees every raw sample and thermometer reading (appends)."""
-        self.learning.attach(learner)
+    #: The attached :class:`gyro_tdc.learn.learner.Learner`, or None; setting one attaches it:
+    #: it sees every raw sample and thermometer reading (appends).
+    learner = property(attrgetter('learning.learner'), lambda self, v: self.learning.attach(v))
 
     def learn_step(self) -> list:
         """
@@ -155,8 +149,7 @@ class CompensatorCore:
         Returns the models scheduled (or installed), ``(effective stamp or None, model)``,
         oldest first (:meth:`gyro_tdc.learn.learner.Learner.take_swaps`).
         """
-        learner = self.learning.learner
-        if learner is None:
+        if (learner := self.learning.learner) is None:
             return []
         learner.step()
         swaps = learner.take_swaps(self.stream.t)
@@ -199,11 +192,10 @@ class CompensatorCore:
 
         None passes every sample through (``model_id`` keeps naming the last model installed).
         """
-        if model is None:
-            self.slot = ModelSlot(model_id=self.slot.model_id)
-            self._update_needs()
-            return
-        self.install(prepare(model, self.policy, self.priming(model)))
+        if model is not None:
+            return self.install(prepare(model, self.policy, self.priming(model)))
+        self.slot = ModelSlot(model_id=self.slot.model_id)
+        self._update_needs()
 
     def install(self, prepared: PreparedModel, learned: bool = False) -> None:
         """
@@ -222,11 +214,9 @@ class CompensatorCore:
         """
         if not prepared_for(prepared, self.policy):   # read before a policy change
             prepared = prepare(prepared.model, self.policy, prepared.priming)
-        model = prepared.model
-        stream = self.stream
+        model, stream, old = prepared.model, self.stream, self.slot
         comp = catch_up(prepared, Priming(stream.first, stream.history, stream.t, stream.temp),
                         self.policy)
-        old = self.slot
         learned = learned and self.learning.learner is not None
         self.reanchoring.on_install(
             comp, model, old.model is not None and prepared.model_id == old.model_id, learned,
@@ -273,8 +263,7 @@ class CompensatorCore:
         if not self.temps.add(t, temp_c, math.inf if last_t is None else last_t + max(
                 self.policy.temperature_timeout, MAX_TEMP_LEAD_S)):
             return False
-        learner = self.learning.learner
-        if learner is not None:
+        if (learner := self.learning.learner) is not None:
             learner.add_temperature(t, temp_c)
         history = self.stream.history
         if not history or t >= history[-1][0] + self.HISTORY_SPACING_S:
@@ -296,9 +285,8 @@ class CompensatorCore:
         eps = self.policy.motion_threshold
         moving = not all(math.isfinite(v) and abs(v) <= eps for v in components)
         self.tally.motion_reports += 1
-        stream = self.stream
-        if moving != stream.moving:          # only changes are passed on
-            stream.moving = moving
+        if moving != self.stream.moving:     # only changes are passed on
+            self.stream.moving = moving
             self.reanchoring.detector.observe_motion(t, moving)
             if self.learning.learner is not None:
                 self.learning.learner.observe_motion(t, moving)
@@ -336,16 +324,12 @@ class CompensatorCore:
             To add to the linear_acceleration_covariance diagonal (None: leave it).
 
         """
-        tally = self.tally
+        tally, stream = self.tally, self.stream
         tally.counts['in'] += 1
-        stream = self.stream
-        last = stream.t
-        if last is None:                # the first session starts
+        if (last := stream.t) is None:  # the first session starts
             self.reanchoring.sessions.begin(t, tally.counts['in'])
-        else:
-            d = t - last                # NaN fails the compares
-            if d > self._pause_s or d < -RESTART_BACK_S:
-                self._session_break(t, d)
+        elif (d := t - last) > self._pause_s or d < -RESTART_BACK_S:   # NaN fails the compares
+            self._session_break(t, d)
         gate = self.learning
         if t >= gate.gate:             # learning: a model due, or a sample to hand over
             if t >= gate.due:
@@ -362,12 +346,10 @@ class CompensatorCore:
             finite = (math.isfinite(wx) and math.isfinite(wy) and math.isfinite(wz)
                       and math.isfinite(t))
             return self._pass(t, wx, wy, wz, IMPLAUSIBLE_INPUT if finite else NON_FINITE, accel)
-        held = self.temps.at(t)
-        if held is None:
+        if (held := self.temps.at(t)) is None:
             return self._pass(t, wx, wy, wz, NO_TEMPERATURE, accel)
         temp, t_temp = held
-        policy = self.policy
-        flags = 0
+        policy, flags = self.policy, 0
         if t - t_temp > policy.temperature_timeout:
             if policy.stale_policy == 'passthrough':
                 return self._pass(t, wx, wy, wz, STALE, accel)
@@ -387,8 +369,7 @@ class CompensatorCore:
             flags |= e.oor
             dist = e.distance_c
         else:
-            out = self._timed(t, temp, wx, wy, wz, flags)
-            if out is None:
+            if (out := self._timed(t, temp, wx, wy, wz, flags)) is None:
                 return self._pass(t, wx, wy, wz, IMPLAUSIBLE_OUTPUT, accel)
             ox, oy, oz, var, flags, dist = out
         aout = avar = None
@@ -396,10 +377,7 @@ class CompensatorCore:
             aout, avar, aflags = (None, None, 0) if accel is None else slot.accel.correct(
                 t, temp, accel, flags & STALE, policy)
             aout, avar = self._accel_pass(accel, aflags, aout, avar)
-        stream.t = t
-        stream.temp = temp
-        stream.flags = flags
-        stream.distance_c = dist
+        stream.t, stream.temp, stream.flags, stream.distance_c = t, temp, flags, dist
         tally.counts['compensated'] += 1
         if flags:
             self._flagged(t, (wx, wy, wz), (ox, oy, oz), accel, temp, flags)
@@ -415,16 +393,14 @@ class CompensatorCore:
         Returns the output rate, the variance to add, the flags and the distance from the
         range; None when the output check refuses it (not finite, an implausible drift).
         """
-        slot = self.slot
-        comp = slot.comp
-        out = comp.step(t, temp, (wx, wy, wz))
+        slot, comp = self.slot, self.slot.comp
+        ox, oy, oz = comp.step(t, temp, (wx, wy, wz)).tolist()
         dist = comp.range_distance_c
         if comp.in_range:
             var = slot.var[flags]
         else:
             flags |= OUT_OF_RANGE
             var = widen(slot.var[flags], growth(dist, self.policy))
-        ox, oy, oz = out.tolist()
         m = _MAX_DRIFT
         if not (abs(ox - wx) <= m and abs(oy - wy) <= m and abs(oz - wz) <= m
                 and math.isfinite(var[0] + var[1] + var[2])):     # the output check
@@ -453,44 +429,35 @@ class CompensatorCore:
         None: the sample had none; ``out`` None: it passes through (``why``), widened by
         ``passthrough_variance``; else ``out`` was corrected, with flags ``why``.
         """
-        if accel is None:
-            self.stream.accel_flags = NO_ACCEL_DATA
-            self.tally.accel['missing'] += 1
-            return None, None
-        if out is not None:
-            self.stream.accel_flags = why
-            self.tally.accel['compensated'] += 1
-            return out, var
-        self.stream.accel_flags = why | PASSTHROUGH
-        self.tally.accel['passed through'] += 1
-        return None, self.pass_var
+        flags, outcome, result = (
+            (NO_ACCEL_DATA, 'missing', (None, None)) if accel is None else
+            (why, 'compensated', (out, var)) if out is not None else
+            (why | PASSTHROUGH, 'passed through', (None, self.pass_var)))
+        self.stream.accel_flags = flags
+        self.tally.accel[outcome] += 1
+        return result
 
     def _pass(self, t: float, wx: float, wy: float, wz: float, why: int,
               accel: Sequence[float] | None = None) -> Output:
         flags = why | PASSTHROUGH
-        aout = avar = None
-        if self.slot.accel is not None:
-            aout, avar = self._accel_pass(accel, why)
-        tally = self.tally
-        tally.flags[why] += 1
-        tally.flags[PASSTHROUGH] += 1
-        stream = self.stream
-        stream.flags = flags
+        aout, avar = (None, None) if self.slot.accel is None else self._accel_pass(accel, why)
+        counts = self.tally.flags
+        counts[why] += 1
+        counts[PASSTHROUGH] += 1
+        self.stream.flags = flags
         if math.isfinite(t):
-            stream.t = t
+            self.stream.t = t
         return wx, wy, wz, self.pass_var, flags, aout, avar
 
     def fail(self, exc: Exception) -> Vec3:
         """Count a sample whose compensation raised ``exc`` (sent raw); return its variance."""
-        tally = self.tally
-        tally.errors += 1
-        tally.last_error = f'{type(exc).__name__}: {exc}'
+        self.tally.errors += 1
+        self.tally.last_error = f'{type(exc).__name__}: {exc}'
         return self.pass_var
 
     def _still(self, t: float, raw: Vec3, out: Vec3, accel: Sequence[float] | None,
                temp: float) -> None:
-        found = self.reanchoring.detector.update(t, raw, out, accel, temp)
-        if found is not None:
+        if (found := self.reanchoring.detector.update(t, raw, out, accel, temp)) is not None:
             self.reanchoring.take(found, self.slot, temp)
             self._update_needs()
 
@@ -505,17 +472,14 @@ class CompensatorCore:
         (:meth:`StreamingCompensator.reset`) and, with ``reanchor_on_start``, the
         re-anchoring (the old shift dropped).
         """
-        a = self.reanchoring
-        k = self.tally.counts['in']
+        a, k = self.reanchoring, self.tally.counts['in']
         sessions = a.sessions
         if sessions.median is None:     # the period is being learnt: the steps over the gap
-            period = sessions.median_period(np.array([d]))
-            if period is not None:
+            if sessions.median_period(np.array([d])) is not None:
                 self._pause_s = sessions.pause_s()
             if not (d > sessions.gap_s or d < -RESTART_BACK_S):
                 return
-        why = sessions.judge(d, sessions.period(self.stream.t, k) if d > 0 else 0.0)
-        if not why:
+        if not (why := sessions.judge(d, sessions.period(self.stream.t, k) if d > 0 else 0.0)):
             return
         sessions.start(t, why, k)
         a.learned = False
@@ -530,7 +494,5 @@ class CompensatorCore:
 
     def temperature_age(self) -> float | None:
         """Return the last IMU stamp minus the newest thermometer stamp, s (None if unknown)."""
-        latest = self.temps.latest
-        if latest is None or self.stream.t is None:
-            return None
-        return self.stream.t - latest[1]
+        latest, t = self.temps.latest, self.stream.t
+        return None if latest is None or t is None else t - latest[1]

@@ -77,10 +77,8 @@ def correction_is_safe(b: Vec3, d: Vec3) -> bool:
     The correction is ``w (1/d - 1) - b/d``, at most ``MAX_RATE |1/d - 1| + |b/d|`` in size;
     the half is a margin far above the rounding of either side. NaN or Inf gives False.
     """
-    for bi, di in zip(b, d):
-        if not di or not _MAX_RATE * abs(1.0 / di - 1.0) + abs(bi / di) <= 0.5 * _MAX_DRIFT:
-            return False            # NaN fails the compare
-    return True
+    return all(di and _MAX_RATE * abs(1.0 / di - 1.0) + abs(bi / di) <= 0.5 * _MAX_DRIFT
+               for bi, di in zip(b, d))     # NaN fails the compare
 
 
 def timeless(model: CompensationModel) -> bool:
@@ -163,10 +161,9 @@ def accel_slot(model: CompensationModel, comp: StreamingCompensator, static: boo
                policy: Policy) -> AccelSlot | None:
     """Return the slot of ``model``'s accelerometer part (None: it has none)."""
     part = model.accel
-    if part is None:
-        return None
-    return AccelSlot(comp.accel, variance_table(part.residual_var, policy),
-                     static and set(part.features) <= STATIC_EFFECTS)
+    return None if part is None else AccelSlot(
+        comp.accel, variance_table(part.residual_var, policy),
+        static and set(part.features) <= STATIC_EFFECTS)
 
 
 def variance_table(residual_var: Sequence[float], policy: Policy) -> dict[int, Vec3]:

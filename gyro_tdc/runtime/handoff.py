@@ -80,15 +80,12 @@ class LearningGate:
 
     def attach(self, learner: Any) -> None:
         """Attach ``learner`` (None: detach): it is handed the samples from now on."""
-        self.learner = learner
-        self.extend = None
-        self.next = math.inf
+        self.learner, self.extend, self.next = learner, None, math.inf
         del self.block[:]
         self.block_extend = self.block.extend
         if learner is not None:
-            self.extend = learner.buf.extend
+            self.extend, self.next = learner.buf.extend, -math.inf
             self.period = 1.0 / learner.config.max_rate_hz
-            self.next = -math.inf
         self.reopen()
 
     def reopen(self) -> None:

@@ -50,8 +50,7 @@ def accel_state(core: CompensatorCore) -> str:
         part) or ``'passthrough (why)'`` for the last sample.
 
     """
-    model = core.model
-    if model is None or model.accel is None:
+    if getattr(core.model, 'accel', None) is None:    # no model, or no accelerometer part
         return 'not in model'
     flags = core.accel_flags
     if flags == -1:
@@ -178,29 +177,22 @@ def upstream_note(policy: Policy) -> str:
         return ''
     passthrough = policy.upstream_policy == 'passthrough'
     if which == 'bias_at_start':
-        head = 'gyro bias removed upstream at start (bias_at_start)'
-        if passthrough:
-            return (f'{head}: raw rate passed through, its thermal drift since the start '
-                    'stays (upstream_policy compensate corrects it, re-anchoring takes the '
-                    'removed bias out)')
-        if not policy.reanchor_on_start:
-            return (f'{head}: compensating, but reanchor_on_start is false: the output is '
-                    "off by the model's bias at the start temperature; set it true")
-        return (f'{head}: compensating, re-anchoring takes the removed bias out '
-                '(reanchor_on_start)')
-    if which == 'px4_ekf':
-        head = 'gyro already corrected upstream (px4_ekf: the EKF gyro bias off HIGHRES_IMU)'
-        instead = ('take the rate without the EKF bias, e.g. PX4 uXRCE-DDS sensor_gyro, and '
-                   'clear upstream_correction')
-    else:
-        head = f'gyro already thermally corrected upstream ({which})'
-        instead = ('disable the upstream correction, e.g. TC_G_ENABLE=0 or INS_TCALn_ENABLE=0, '
-                   'and clear upstream_correction')
-    if passthrough:
-        return (f'{head}: raw rate passed through, not corrected twice (to compensate here '
-                f'instead, {instead})')
-    return (f'{head}: compensating on top of it (upstream_policy compensate: the model must '
-            'be trained on the already corrected rate)')
+        return 'gyro bias removed upstream at start (bias_at_start): ' + (
+            'raw rate passed through, its thermal drift since the start stays (upstream_policy '
+            'compensate corrects it, re-anchoring takes the removed bias out)' if passthrough
+            else 'compensating, re-anchoring takes the removed bias out (reanchor_on_start)'
+            if policy.reanchor_on_start else 'compensating, but reanchor_on_start is false: '
+            "the output is off by the model's bias at the start temperature; set it true")
+    head, instead = (
+        ('gyro already corrected upstream (px4_ekf: the EKF gyro bias off HIGHRES_IMU)',
+         'take the rate without the EKF bias, e.g. PX4 uXRCE-DDS sensor_gyro, and clear '
+         'upstream_correction') if which == 'px4_ekf' else
+        (f'gyro already thermally corrected upstream ({which})', 'disable the upstream '
+         'correction, e.g. TC_G_ENABLE=0 or INS_TCALn_ENABLE=0, and clear upstream_correction'))
+    return f'{head}: ' + (
+        f'raw rate passed through, not corrected twice (to compensate here instead, {instead})'
+        if passthrough else 'compensating on top of it (upstream_policy compensate: the model '
+        'must be trained on the already corrected rate)')
 
 
 def health(core: CompensatorCore, since: Mapping | None = None, *, model_file: str = '',
@@ -228,18 +220,15 @@ def health(core: CompensatorCore, since: Mapping | None = None, *, model_file: s
                                       'waiting for imu/data_raw')
     if new[PASSTHROUGH]:
         message += f'; {new[PASSTHROUGH]} samples passed through uncompensated'
-    values = _values(core, inputs, model_file, last_reload, frame_id)
-    return Health(level, message, sensor_id or frame_id, {k: str(v) for k, v in values.items()},
-                  mark)
+    values = _values(core, inputs, model_file, last_reload, frame_id).items()
+    return Health(level, message, sensor_id or frame_id, {k: str(v) for k, v in values}, mark)
 
 
 def _problems(core: CompensatorCore, new: dict[int | str, int], inputs: InputStatus,
               last_reload: str, sensor_id: str, frame_id: str) -> tuple[int, list[str]]:
     """Return the level and the problems of :func:`health` (``new``: counters since the last)."""
-    model = core.model
-    found = []                            # (level, problem)
-    upstream = upstream_note(core.policy)
-    if upstream and core.upstream_pass:
+    model, found = core.model, []         # found: (level, problem)
+    if (upstream := upstream_note(core.policy)) and core.upstream_pass:
         found.append((WARN, upstream))
     if model is None and not core.upstream_pass:
         found.append((ERROR, f'no model loaded ({last_reload})'))
@@ -269,8 +258,7 @@ def _problems(core: CompensatorCore, new: dict[int | str, int], inputs: InputSta
         found.append((WARN, f'imu/data_raw is published by gyro_tdc compensator '
                             f'{", ".join(inputs.upstream)}: chained compensators apply the '
                             'drift model twice'))
-    errors = new['errors']
-    if errors:
+    if errors := new['errors']:
         found.append((ERROR, f'compensation failed on {errors} samples, passed through: '
                              f'{core.last_error}'))
     return max((level for level, _ in found), default=OK), [why for _, why in found]
@@ -279,13 +267,8 @@ def _problems(core: CompensatorCore, new: dict[int | str, int], inputs: InputSta
 def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_reload: str,
             frame_id: str) -> dict[str, Any]:
     """Return :func:`health`'s key/value pairs (not yet strings)."""
-    model = core.model
-    counts = core.flag_counts
-    upstream = upstream_note(core.policy)
-    anchor = core.anchor
-    age = core.temperature_age()
-    flags = core.last_flags
-    k = core.reanchoring.sessions
+    model, anchor, flags, counts = core.model, core.anchor, core.last_flags, core.flag_counts
+    age, k = core.temperature_age(), core.reanchoring.sessions
     session = (f' (session {k.session} from t={k.t0:.3f} s, after a {k.why})'
                if k.session > 1 else '')
     values = {
@@ -317,7 +300,7 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
         'input malformed': inputs.malformed,
         'already compensated': inputs.already_compensated,
         'upstream compensators': ','.join(inputs.upstream),
-        'upstream correction': upstream or 'none declared',
+        'upstream correction': upstream_note(core.policy) or 'none declared',
         'passed through as corrected upstream': counts[UPSTREAM],
         'accelerometer': accel_state(core),
         'reanchor': ('off' if not core.policy.reanchor_on_start else
@@ -327,9 +310,8 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
     }
     if core.accel_on:
         values.update((f'accelerometer {k}', v) for k, v in core.tally.accel.items())
-    comp = core.slot.comp                 # the lagged state's start-up assumption (3 tau)
-    settling = None if comp is None else comp.thermal_progress
-    if settling is not None:
+    # The lagged state's start-up assumption (3 tau); None: no model or no lagged state.
+    if (settling := getattr(core.slot.comp, 'thermal_progress', None)) is not None:
         values['thermal state'] = (f'settling ({settling:.1f} of {SETTLE_TAUS:g} tau)'
                                    if settling < SETTLE_TAUS else 'settled')
     if anchor is not None:

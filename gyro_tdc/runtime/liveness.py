@@ -150,7 +150,7 @@ class InputRate:
                 window = self.window()
         level, message = OK, ''
         if not self.judged:
-            pass
+            pass                        # rate and silence shown only
         elif self._first is None:
             level = ERROR if silent >= window else WARN
             message = f'no {self.name} yet ({silent:.1f} s since start)'

@@ -95,8 +95,7 @@ def replay(comp: StreamingCompensator, history: Iterable[tuple[float, float]], u
         if t_k > t_prev:
             advance(comp, t_k, temp_prev)
             t_prev = t_k
-        temp_prev = temp_k
-        t_seen = t_k
+        temp_prev, t_seen = temp_k, t_k
     return Replay(t_prev, temp_prev, t_seen)
 
 
@@ -159,8 +158,8 @@ def catch_up(prepared: PreparedModel, priming: Priming, policy: Policy) -> Strea
             or prepared.priming.last_t is None or last_t < prepared.priming.last_t):
         comp, state = replay_from_first(model, policy, first, history, last_t)
     else:
-        seen = state.t_seen           # the samples recorded since, from the newest back
-        tail = list(takewhile(lambda entry: entry[0] > seen, reversed(history)))
+        # The samples recorded since, from the newest back.
+        tail = list(takewhile(lambda entry: entry[0] > state.t_seen, reversed(history)))
         state = replay(comp, reversed(tail), last_t, state)
     if last_t > state.t_prev:
         advance(comp, last_t, state.temp_prev if last_temp is None else last_temp)

@@ -78,8 +78,7 @@ def _sessions(model: CompensationModel, runs: Sequence, labels: Sequence[int],
             k = max(1, -(-np.count_nonzero(m) // MAX_ROWS))
         c = compensate(model, t, temp, omega, out_of_range=DEFAULT_OUT_OF_RANGE)
         t, e, mt = (block_mean(a[m], k) for a in (t, c - ref, model_temperature(model, t, temp)))
-        keep = (mt >= lo) & (mt <= hi)
-        if np.count_nonzero(keep) >= 2:
+        if np.count_nonzero(keep := (mt >= lo) & (mt <= hi)) >= 2:
             out.setdefault(int(g), []).append((t[keep], e[keep]))
     return out
 
@@ -121,8 +120,7 @@ def _held_out(model: CompensationModel, runs: Sequence, labels: NDArray[np.int64
     ss, n_all, held = np.zeros((3, 3)), 0.0, 0
     for test, train in Folds.sessions(labels):
         kw = {} if rows is None else {'rows': list(compress(rows, train))}
-        m = refit(list(compress(runs, train)), labels[train].tolist(), **kw)
-        if m is None:
+        if (m := refit(list(compress(runs, train)), labels[train].tolist(), **kw)) is None:
             continue                      # too little left without this session
         parts = _sessions(m, list(compress(runs, test)), labels[test], *m.temp_range_c,
                           rows=None if rows is None else list(compress(rows, test)))

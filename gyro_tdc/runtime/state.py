@@ -100,13 +100,12 @@ class StreamState:
         (``d`` < 0) leaves readings stamped beyond what the new session may send (``t`` plus
         ``timeout``): they are the old session's and are dropped from ``temps``.
         """
-        last = self.t
         self.first = None                 # set again at the session's first compensated sample
         self.history.clear()
         if d < 0:
             temps.drop_after(t + timeout)
         held = temps.at(t)
-        if held is not None and t - held[1] <= timeout and (d < 0 or held[1] > last):
+        if held is not None and t - held[1] <= timeout and (d < 0 or held[1] > self.t):
             self.history.append((held[1], held[0]))
 
 
@@ -220,10 +219,9 @@ def reanchor_var(model: CompensationModel | None, gate: LearningGate):
     if model is None:
         return None
     var = np.asarray(model.residual_var, dtype=np.float64)
-    floor = model.created.get('gyro_floor') if gate.extend is not None else None
-    if floor is None:
-        return var
-    floor = np.asarray(floor, dtype=np.float64)
+    # No learner, no floor, or not 3 finite numbers: the model's own.
+    floor = np.asarray(model.created.get('gyro_floor') if gate.extend is not None else np.nan,
+                       dtype=np.float64)
     if floor.shape != (3,) or not np.isfinite(floor).all():
         return var
     return np.maximum(var, floor ** 2 * max(1, gate.block_n))
