@@ -347,10 +347,9 @@ class Collector:
     def add(self, role: str, buf: bytes | memoryview, lengths: Sequence[int], logs: Logs,
             before: NDArray[np.int64] | None = None) -> None:
         """
-        Take a block of one role's messages stored end to end in ``buf`` (the storage reads
-        hand over no empty block).
+        Take a block of one role's messages stored end to end in ``buf``.
 
-        ``logs``: their log times (or a function returning them); ``before``: of each
+        The storage reads hand over no empty block. ``logs``: their log times (or a function returning them); ``before``: of each
         message, the main messages before it in bag order (used for Float readings).
         """
         if role == 'imu':
