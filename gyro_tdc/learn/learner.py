@@ -444,8 +444,9 @@ class Learner:
 
     def _remember(self, rows: list) -> None:
         """Keep new windows for the check and the offset: the newest stretches and rows."""
-        if self.recent and self.recent[-1].stretch == self.stretches:
-            self.recent[-1].rows.extend(rows)
+        last = self.recent[-1] if self.recent else None
+        if last is not None and (last.stretch, last.session) == (self.stretches, self.session):
+            last.rows.extend(rows)
         else:
             self.recent.append(RecentStretch(self.stretches, self.session, rows))
         del self.recent[:-CHECK_STRETCHES]
@@ -512,6 +513,8 @@ class Learner:
     def _offer(self, fit: dict, rows: NDArray[np.float64], t_now: float,
                since: float | None = None) -> bool:
         """Give ``fit`` the offset of the newest windows; swap it in when the check says so."""
+        if not rows.shape[0]:           # no still window of this session to judge it by
+            return False
         floor = self._floor()
         if since is None:
             since = t_now - self.config.offset_s

@@ -469,3 +469,19 @@ def test_a_broken_learn_file_is_refused_and_left_as_it_is(learner, tmp_path):
     with pytest.raises(LearnFileError, match='session'):
         read_model(str(path))
     assert stat.S_IMODE(os.stat(path).st_mode) == 0o400 and path.read_text() == text
+
+
+def test_a_newest_stretch_of_another_session_is_no_crash(tmp_path):
+    # The file's newest recent stretch (of session 0) has the number of the learner's next
+    # stretch (of session 1): the windows that follow are session 1's own and judge its next
+    # candidate (they were added to session 0's, leaving none: ZeroDivisionError).
+    entry = [0.0, 1.0, 0.0, [0.0, 0.0, 0.0], 1, 0]
+    doc = {'format': FORMAT, 'bins': {'0': [entry, entry]}, 'session': 1,
+           'gyro_floor': [9.3e-05, 9.6e-05, 9.5e-05], 'accel_floor': [None] * 3,
+           't_first': 0.0, 'still_s': 240.0, 'stretches': 2, 'windows': 29,
+           'recent': [[3, 0, []]], 'fit': None, 'last_update_t': 209.99, 'last_t': 0.0,
+           'check': None, 'swaps': 2, 'motion': [[300.0, True]], 'thermal': None,
+           'thermal_state': None, 'segment': [2, 150.0],
+           'config': {'bin_c': 1.0, 'half_life_s': 86400.0, 'window_s': 10.0,
+                      'min_still_s': 60.0}}
+    _load_bytes(tmp_path, json.dumps(doc).encode())
