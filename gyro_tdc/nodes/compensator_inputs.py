@@ -31,8 +31,7 @@ import importlib
 from typing import Any, Callable, Mapping
 
 from geometry_msgs.msg import Twist, TwistStamped
-from gyro_tdc.data import (check_vector, frd_to_flu, normalize_type, reader, stamp_kind,
-                           stamp_seconds, temperature_path, unquirk)
+from gyro_tdc.data import normalize_type, rate_fields, temperature_fields
 from gyro_tdc.errors import ConfigError
 from gyro_tdc.runtime import CompensatorCore, TEMPERATURE_TYPES
 from nav_msgs.msg import Odometry
@@ -101,10 +100,8 @@ class InputReader:
 
 def _imu_converter(type_name: str, p: Any) -> Callable[[Any], Imu]:
     """Return ``to_imu(msg)`` for an imu_type other than sensor_msgs/Imu."""
-    check_vector(type_name, p.angular_velocity_field, _fields, 'angular_velocity_field')
-    kind = stamp_kind(type_name, p.stamp_field, _fields, 'stamp_field')
-    rate, stamp = reader(p.angular_velocity_field), reader(p.stamp_field)
-    has_header, frame_id, frd = _has_header(type_name), p.frame_id, p.input_frame == 'frd'
+    rate, stamp, kind = rate_fields(type_name, p, _fields)
+    has_header, frame_id = _has_header(type_name), p.frame_id
     # One Imu, refilled per message: publish() serializes it at once (a new Imu costs more
     # than the rest of the conversion). REP 145: no orientation, no acceleration.
     out = Imu()
@@ -112,9 +109,7 @@ def _imu_converter(type_name: str, p: Any) -> Callable[[Any], Imu]:
     cov, av, h = out.angular_velocity_covariance, out.angular_velocity, out.header
 
     def to_imu(msg: Any) -> Imu:
-        w = rate(msg)
-        x, y, z = float(w.x), float(w.y), float(w.z)
-        av.x, av.y, av.z = frd_to_flu(x, y, z) if frd else (x, y, z)
+        av.x, av.y, av.z = rate(msg)
         s = stamp(msg)    # a builtin_interfaces/Time, or microseconds
         sec, nanosec = (s.sec, s.nanosec) if kind == 'time' else divmod(int(s) * 1000, 10 ** 9)
         if not (_INT32_MIN <= sec <= _INT32_MAX and 0 <= nanosec < 1_000_000_000):
@@ -148,14 +143,9 @@ def input_reader(p: Any) -> InputReader:
     to_imu = None if fast else _imu_converter(imu_name, p)
     temp_cls = message_class(p.temperature_type, 'temperature_type',
                              ', '.join(TEMPERATURE_TYPES))
-    temp_name = normalize_type(p.temperature_type)
-    path = temperature_path(temp_name, p.temperature_field, _fields, 'temperature_field')
-    get, fix = reader(path), unquirk(p.temperature_quirk) or float
-    stamp_path = p.temperature_stamp_field or ('header.stamp' if _has_header(temp_name) else '')
-    kind = stamp_path and stamp_kind(temp_name, stamp_path, _fields, 'temperature_stamp_field')
-    get_stamp = reader(stamp_path)     # no stamp path: the latest IMU stamp is taken
-    return InputReader(imu_cls, temp_cls, fast, to_imu, lambda msg: fix(float(get(msg))),
-                       (lambda msg: stamp_seconds(kind, get_stamp(msg))) if stamp_path else None)
+    # No temperature stamp path: the latest IMU stamp is taken.
+    temperature, temp_stamp = temperature_fields(normalize_type(p.temperature_type), p, _fields)
+    return InputReader(imu_cls, temp_cls, fast, to_imu, temperature, temp_stamp)
 
 
 class MotionInput:
