@@ -349,8 +349,9 @@ class Collector:
         """
         Take a block of one role's messages stored end to end in ``buf``.
 
-        The storage reads hand over no empty block. ``logs``: their log times (or a function returning them); ``before``: of each
-        message, the main messages before it in bag order (used for Float readings).
+        The storage reads hand over no empty block. ``logs``: their log times (or a function
+        returning them); ``before``: of each message, the main messages before it in bag order
+        (used for Float readings).
         """
         if role == 'imu':
             self.pending.append((buf, lengths, logs))
