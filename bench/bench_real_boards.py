@@ -24,7 +24,9 @@ Per seeded draw, four logs (``--train``; fewer in a small group, one log always 
 are trained exactly as a user runs it (``python -m gyro_tdc train --still-only LOGS --out
 m.yaml``, defaults; then default ``train``), drawn among the logs with a still stretch
 (the others teach ``--still-only`` nothing), and up to eight others (``--held``) held out,
-drawn among those with two still stretches or more (the score needs two). Score, as
+drawn among those with two still stretches or more (the score needs two); with
+``--held-first`` the held-out logs are drawn first, so every draw holds out eight where the
+group has eight with two still stretches and four more with one. Score, as
 ``flightlogs.still_drift``: per axis the within-log drift of still stretches (each
 stretch's mean less its log's mean of them: each log re-anchored as the node does) of the
 compensated rate over raw's, pooled over the held-out logs. ``--still-only`` passes at
@@ -176,20 +178,42 @@ def _ratio(comp: np.ndarray, raw: np.ndarray) -> np.ndarray:
     return np.divide(comp, raw, out=np.full(3, math.nan), where=raw > 0)
 
 
-def run_draw(logs: list, rng: np.random.Generator, n_train: int, n_held: int, source: str,
-             folder: Path) -> dict | None:
-    """Train on a seeded draw of a group's logs with the CLI; return the held-out scores."""
-    from bench_board_logs import cli_train
-    from gyro_tdc.model.modelfile import load_model
+def draw_logs(logs: list, rng: np.random.Generator, n_train: int, n_held: int,
+              held_first: bool) -> tuple[list, list]:
+    """Return a draw's trained and held-out logs.
+
+    By default the trained logs are drawn first among those with a still stretch, then up
+    to ``n_held`` held out among the others with two. ``held_first`` draws the held-out
+    logs first, leaving ``n_train`` logs with a still stretch to train on: every draw then
+    holds out ``n_held`` logs where the group has that many with two still stretches.
+    """
+    def pick(pool, n):
+        return [pool[i] for i in sorted(rng.choice(len(pool), size=n, replace=False))]
+
+    def without(pool, drawn):
+        return [lg for lg in pool if not any(lg is d for d in drawn)]
+
     with_still = [lg for lg in logs if lg['stretches'] >= 1]
+    two = [lg for lg in logs if lg['stretches'] >= 2]
+    if held_first:
+        held = pick(two, max(0, min(n_held, len(two), len(with_still) - n_train)))
+        pool = without(with_still, held) or without(logs, held)
+        return pick(pool, min(n_train, len(pool))), held
     pool = with_still if len(with_still) >= n_train + 1 else logs
     train = [pool[i] for i in rng.choice(len(pool), size=min(n_train, len(pool) - 1),
                                          replace=False)]
-    others = [lg for lg in logs if lg['stretches'] >= 2 and not any(lg is t for t in train)]
-    if not others:
+    others = without(two, train)
+    return train, pick(others, min(n_held, len(others)))
+
+
+def run_draw(logs: list, rng: np.random.Generator, n_train: int, n_held: int, source: str,
+             folder: Path, held_first: bool = False) -> dict | None:
+    """Train on a seeded draw of a group's logs with the CLI; return the held-out scores."""
+    from bench_board_logs import cli_train
+    from gyro_tdc.model.modelfile import load_model
+    train, held = draw_logs(logs, rng, n_train, n_held, held_first)
+    if not held or not train:
         return None
-    held = [others[i] for i in sorted(rng.choice(len(others), size=min(n_held, len(others)),
-                                                 replace=False))]
     raw = drift(held)
     out = {'train_logs': [lg['path'].name for lg in train],
            'held_logs': [lg['path'].name for lg in held],
@@ -270,6 +294,9 @@ def main(argv=None) -> int:
     ap.add_argument('--seed', type=int, default=0)
     ap.add_argument('--train', type=int, default=4, help='logs trained on per draw')
     ap.add_argument('--held', type=int, default=8, help='held-out logs per draw, at most')
+    ap.add_argument('--held-first', action='store_true',
+                    help='draw the held-out logs first (up to --held with two still '
+                    'stretches), then the trained among the rest')
     args = ap.parse_args(argv)
     src = args.temperature_source
     for spec in args.group:
@@ -291,7 +318,7 @@ def main(argv=None) -> int:
                 if len(read) < 2:
                     break
                 r = run_draw(read, np.random.default_rng([args.seed, d]), args.train, args.held,
-                             src, Path(tmp))
+                             src, Path(tmp), args.held_first)
                 if r is None:
                     print(f'  draw {d}: no held-out log with 2 still stretches')
                     continue

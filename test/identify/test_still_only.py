@@ -283,6 +283,26 @@ def _board_bench():
     return bench
 
 
+def test_the_real_board_bench_can_hold_out_eight_logs_on_every_draw():
+    """--held-first: eight held out with two stops each, four trained among the rest."""
+    spec = importlib.util.spec_from_file_location('bench_real_boards',
+                                                  ROOT / 'bench' / 'bench_real_boards.py')
+    bench = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bench)
+    logs = [{'name': k, 'stretches': s} for k, s in enumerate([2] * 10 + [1] * 6 + [0])]
+    for draw in range(20):
+        rng = np.random.default_rng([0, draw])
+        train, held = bench.draw_logs(logs, rng, 4, 8, held_first=True)
+        assert len(held) == 8 and all(lg['stretches'] >= 2 for lg in held)
+        assert len(train) == 4 and all(lg['stretches'] >= 1 for lg in train)
+        assert not {lg['name'] for lg in train} & {lg['name'] for lg in held}
+        train, held = bench.draw_logs(logs, np.random.default_rng([0, draw]), 4, 8, False)
+        assert len(train) == 4 and not {lg['name'] for lg in train} & {lg['name'] for lg in held}
+    few = logs[:9] + logs[10:13]                # 9 with two stops, 3 with one
+    train, held = bench.draw_logs(few, np.random.default_rng(0), 4, 8, held_first=True)
+    assert (len(train), len(held)) == (4, 8)    # one with two stops is trained on
+
+
 @pytest.mark.parametrize('case', [0])
 def test_cli_still_only_on_four_logs_of_a_board_does_no_harm_on_eight_more(case, tmp_path):
     """Four 25 Hz DataFlash logs trained as a user does; <= 1.05x raw on eight held out."""
