@@ -166,10 +166,14 @@ def _combined_note(topics: dict, instance: int, rows: NDArray[np.bool_]) -> str:
     """Return what ``sensor_combined`` carries when it is not all this instance's, else ''."""
     if rows.all():
         return ''
-    if rows.any():
-        return (f'sensor_combined carries this IMU in {int(rows.sum())} of {len(rows)} '
-                'samples (the selection changed, sensor_selection): those are its own')
     ids = {i for name in _GYRO_FIELDS for i in topics.get(name, {})}
+    if rows.any():
+        rest = {k: int(_combined_rows(topics, k).sum()) for k in sorted(ids - {instance})}
+        most = max(rest, key=rest.get, default=None)
+        return (f'sensor_combined carries this IMU in {int(rows.sum())} of {len(rows)} '
+                'samples (the selection changed, sensor_selection): those are its own' + (
+                    f'; instance {most} has {rest[most]} (--imu-instance {most})'
+                    if most is not None and rest[most] > rows.sum() else ''))
     owners = {k for k in ids if _combined_rows(topics, k).any()}
     if owners == {0}:          # the first IMU's, as PX4 selects by default: nothing to say
         return ''

@@ -357,6 +357,9 @@ def test_a_real_log_whose_selection_flips_gives_each_imu_its_own_200_hz_gyro():
     assert log0.temperature == 'sensor_gyro.temperature'              # each its own
     assert log1.temperature == 'vehicle_imu_status.temperature_accel instance 1'
     assert log0.device_id != log1.device_id
+    # The IMU selected for less of the log names the one that holds the rest.
+    assert 'instance 0 has 1300 (--imu-instance 0)' in log1.notes[0]
+    assert '--imu-instance' not in log0.notes[0]
     for k, log in enumerate((log0, log1)):        # its accelerometer flips with its gyro
         with_accel = read_ulog(PX4_SELECTION_FLIPS, instance=k, accel=True)
         np.testing.assert_array_equal(with_accel.gyro, log.gyro)
