@@ -395,7 +395,9 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     therm = _thermometer(topics, instance, temperature_source)
     if therm is None:
         raise no_temperature(p, f'{source} instance {instance}', temperature_source,
-                             _inventory(topics), instances=len(found),
+                             _inventory(topics),
+                             others=sum(_thermometer(topics, k, 'imu') is not None
+                                        for k in found if k != instance),
                              baro=_thermometer(topics, instance, 'baro') is not None)
     name, temp_t, temp = therm
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,

@@ -79,6 +79,8 @@ def test_px4_thermometers_that_read_a_constant_zero_are_no_thermometers():
     assert '0: sensor_gyro 1 Hz, sensor_combined 188 Hz' in text
     assert '2: sensor_gyro 1 Hz, vehicle_imu 2 Hz, temperature: none' in text
     assert '--temperature-source baro' not in text and '\n' not in text
+    # No other IMU has a thermometer either: --imu-instance would not help.
+    assert '--imu-instance' not in text and 'the log has no other thermometer' in text
     with pytest.raises(DatasetError, match='no usable thermometer'):
         load_run(PX4_ZERO_THERMOMETERS, BagOptions(temperature_source='baro'))
 
