@@ -278,12 +278,19 @@ def _gyro_accel(topics: dict, instance: int, gyros: dict, source: str,
         'calibrated on board) is all there is')
 
 
-def _pick_gyro(gyros: dict[str, dict]) -> str:
-    """Return the gyro to read: ``sensor_gyro`` at full rate, else the fastest one."""
+def _pick_gyro(gyros: dict[str, dict], fastest: float = 0.0) -> str:
+    """
+    Return the gyro to read: ``sensor_gyro`` at full rate, else the fastest one.
+
+    Full rate is judged against ``fastest``, the fastest gyro topic of the whole log, as
+    well: a ``sensor_gyro`` at the logger's 1 Hz default is not full rate beside a 2 Hz
+    ``vehicle_imu`` because the other topic happens to be that slow too.
+    """
     rates = {k: _rate(d) for k, d in gyros.items()}
-    if 'sensor_gyro' in rates and rates['sensor_gyro'] >= FULL_RATE_FRACTION * max(rates.values()):
+    full = FULL_RATE_FRACTION * max(fastest, *rates.values())
+    if 'sensor_gyro' in rates and rates['sensor_gyro'] >= full:
         return 'sensor_gyro'
-    return max((k for k in rates if k != 'sensor_gyro'), key=lambda k: rates[k])
+    return max(rates, key=lambda k: rates[k])
 
 
 def _inventory(topics: dict) -> str:
@@ -375,7 +382,8 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     if not gyros:
         kind = next(k for k in _GYRO_FIELDS if k in topics)
         raise no_instance(p, kind, instance, topics[kind], _inventory(topics))
-    source = _pick_gyro(gyros)
+    source = _pick_gyro(gyros, max(_rate(d) for name in _GYRO_FIELDS
+                                   for d in topics.get(name, {}).values()))
     device = _device(topics, instance)
     if rows is not None and (said := _combined_note(topics, instance, rows)):
         notes.append(said)
