@@ -376,7 +376,9 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     if not found:
         what = ', '.join(sorted({d.name for d in ulog.data_list})) or 'no logged topic'
         raise DatasetError(f'Log {str(p)!r} has neither sensor_gyro nor sensor_combined '
-                           f'nor vehicle_imu (it has {what}).')
+                           f'nor vehicle_imu (it has {what})' + (
+                               ': the log is damaged (pyulog skipped messages it could not '
+                               'decode or attribute)' if notes else '') + '.')
     rows = _combined_rows(topics, instance) if 'sensor_combined' in topics else None
     gyros = _gyros(topics, instance, rows)
     if not gyros:
