@@ -287,7 +287,9 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     found = _temperature(src, (fld,) if fld else TEMPERATURE_FIELDS)
     if found is None or 'TimeUS' not in src:
         raise no_temperature(p, f'IMU instance {instance}', temperature_source,
-                             _inventory(imus, baros), instances=len(imus),
+                             _inventory(imus, baros),
+                             others=sum(_temperature(v) is not None
+                                        for k, v in imus.items() if k != instance),
                              baro=any(_temperature(b) is not None for b in baros.values()))
     temp, temp_t = found[1], _seconds(src)
     if temperature_source == 'imu':

@@ -253,20 +253,21 @@ def no_instance(path: Path, kind: str, instance: int, has: object,
                         f'{inventory}; --imu-instance N).')
 
 
-def no_temperature(path: Path, what: str, source: str, inventory: str, *, instances: int,
+def no_temperature(path: Path, what: str, source: str, inventory: str, *, others: int,
                    baro: bool) -> DatasetError:
     """
     Return the refusal of a log without the thermometer ``source`` (``--temperature-source``).
 
-    ``what``: the IMU read, in words; ``inventory``: what each instance carries; ``instances``:
-    how many IMUs the log holds; ``baro``: whether it has a barometer's thermometer.
+    ``what``: the IMU read, in words; ``inventory``: what each instance carries; ``others``:
+    how many other IMUs of the log have a thermometer (``--imu-instance`` is proposed only
+    then); ``baro``: whether it has a barometer's thermometer.
     """
     if source != 'imu':
         return DatasetError(f'Log {str(path)!r}: no usable thermometer for --temperature-source '
                             f'{source} (what each instance carries: {inventory}).')
-    hint = ('--imu-instance N, or --temperature-source baro' if instances > 1 and baro else
+    hint = ('--imu-instance N, or --temperature-source baro' if others and baro else
             "--temperature-source baro takes the barometer's as a proxy" if baro else
-            '--imu-instance N' if instances > 1 else 'the log has no other thermometer')
+            '--imu-instance N' if others else 'the log has no other thermometer')
     return DatasetError(f'Log {str(path)!r}: {what} carries no temperature (no thermometer '
                         'reads other than a constant 0 or NaN; what each instance carries: '
                         f'{inventory}; {hint}).')

@@ -166,10 +166,14 @@ def _combined_note(topics: dict, instance: int, rows: NDArray[np.bool_]) -> str:
     """Return what ``sensor_combined`` carries when it is not all this instance's, else ''."""
     if rows.all():
         return ''
-    if rows.any():
-        return (f'sensor_combined carries this IMU in {int(rows.sum())} of {len(rows)} '
-                'samples (the selection changed, sensor_selection): those are its own')
     ids = {i for name in _GYRO_FIELDS for i in topics.get(name, {})}
+    if rows.any():
+        rest = {k: int(_combined_rows(topics, k).sum()) for k in sorted(ids - {instance})}
+        most = max(rest, key=rest.get, default=None)
+        return (f'sensor_combined carries this IMU in {int(rows.sum())} of {len(rows)} '
+                'samples (the selection changed, sensor_selection): those are its own' + (
+                    f'; instance {most} has {rest[most]} (--imu-instance {most})'
+                    if most is not None and rest[most] > rows.sum() else ''))
     owners = {k for k in ids if _combined_rows(topics, k).any()}
     if owners == {0}:          # the first IMU's, as PX4 selects by default: nothing to say
         return ''
@@ -274,12 +278,19 @@ def _gyro_accel(topics: dict, instance: int, gyros: dict, source: str,
         'calibrated on board) is all there is')
 
 
-def _pick_gyro(gyros: dict[str, dict]) -> str:
-    """Return the gyro to read: ``sensor_gyro`` at full rate, else the fastest one."""
+def _pick_gyro(gyros: dict[str, dict], fastest: float = 0.0) -> str:
+    """
+    Return the gyro to read: ``sensor_gyro`` at full rate, else the fastest one.
+
+    Full rate is judged against ``fastest``, the fastest gyro topic of the whole log, as
+    well: a ``sensor_gyro`` at the logger's 1 Hz default is not full rate beside a 2 Hz
+    ``vehicle_imu`` because the other topic happens to be that slow too.
+    """
     rates = {k: _rate(d) for k, d in gyros.items()}
-    if 'sensor_gyro' in rates and rates['sensor_gyro'] >= FULL_RATE_FRACTION * max(rates.values()):
+    full = FULL_RATE_FRACTION * max(fastest, *rates.values())
+    if 'sensor_gyro' in rates and rates['sensor_gyro'] >= full:
         return 'sensor_gyro'
-    return max((k for k in rates if k != 'sensor_gyro'), key=lambda k: rates[k])
+    return max(rates, key=lambda k: rates[k])
 
 
 def _inventory(topics: dict) -> str:
@@ -365,13 +376,16 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     if not found:
         what = ', '.join(sorted({d.name for d in ulog.data_list})) or 'no logged topic'
         raise DatasetError(f'Log {str(p)!r} has neither sensor_gyro nor sensor_combined '
-                           f'nor vehicle_imu (it has {what}).')
+                           f'nor vehicle_imu (it has {what})' + (
+                               ': the log is damaged (pyulog skipped messages it could not '
+                               'decode or attribute)' if notes else '') + '.')
     rows = _combined_rows(topics, instance) if 'sensor_combined' in topics else None
     gyros = _gyros(topics, instance, rows)
     if not gyros:
         kind = next(k for k in _GYRO_FIELDS if k in topics)
         raise no_instance(p, kind, instance, topics[kind], _inventory(topics))
-    source = _pick_gyro(gyros)
+    source = _pick_gyro(gyros, max(_rate(d) for name in _GYRO_FIELDS
+                                   for d in topics.get(name, {}).values()))
     device = _device(topics, instance)
     if rows is not None and (said := _combined_note(topics, instance, rows)):
         notes.append(said)
@@ -391,7 +405,9 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     therm = _thermometer(topics, instance, temperature_source)
     if therm is None:
         raise no_temperature(p, f'{source} instance {instance}', temperature_source,
-                             _inventory(topics), instances=len(found),
+                             _inventory(topics),
+                             others=sum(_thermometer(topics, k, 'imu') is not None
+                                        for k in found if k != instance),
                              baro=_thermometer(topics, instance, 'baro') is not None)
     name, temp_t, temp = therm
     return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,

@@ -47,10 +47,12 @@ def test_px4_sensor_gyro_at_1_hz_beside_sensor_combined_gives_the_200_hz_gyro():
     line = describe_read(PX4_MULTI_RATE, run, '/r')
     assert 'sensor_gyro at 1 Hz beside sensor_combined' in line
     assert 'temperature from sensor_gyro.temperature' in line
-    # Instance 1 has no sensor_combined: its own sensor_gyro (the fastest it has) is read.
+    # Instances 1 and 2 have no sensor_combined: vehicle_imu at 2 Hz, the fastest they have,
+    # both alike (sensor_gyro at the logger's 1 Hz is no full-rate gyro beside it).
     other = read_ulog(PX4_MULTI_RATE, instance=1)
-    assert other.source in ('sensor_gyro', 'vehicle_imu')
+    assert other.source == 'vehicle_imu' and _rate_hz(other.imu_t) == pytest.approx(2.0, 0.05)
     assert 28.0 < np.nanmin(other.temp_c) < 29.0        # that IMU's own thermometer
+    assert read_ulog(PX4_MULTI_RATE, instance=2).source == 'vehicle_imu'
 
 
 def test_px4_barometer_as_a_proxy_where_it_is_the_only_thermometer():
@@ -79,6 +81,8 @@ def test_px4_thermometers_that_read_a_constant_zero_are_no_thermometers():
     assert '0: sensor_gyro 1 Hz, sensor_combined 188 Hz' in text
     assert '2: sensor_gyro 1 Hz, vehicle_imu 2 Hz, temperature: none' in text
     assert '--temperature-source baro' not in text and '\n' not in text
+    # No other IMU has a thermometer either: --imu-instance would not help.
+    assert '--imu-instance' not in text and 'the log has no other thermometer' in text
     with pytest.raises(DatasetError, match='no usable thermometer'):
         load_run(PX4_ZERO_THERMOMETERS, BagOptions(temperature_source='baro'))
 

@@ -168,6 +168,23 @@ def test_damaged_bytes_inside_are_said_on_the_read_line_not_taken_for_a_cut(tmp_
     assert 'pyulog found damaged messages (skipped)' in run.info['log']
 
 
+def test_a_log_whose_subscriptions_are_damaged_is_refused_as_damaged(tmp_path):
+    # A stretch of zeros over the subscriptions (ADD_LOGGED) leaves pyulog no topic to read.
+    imus = [replace(_imus(count=1)[0], accel=None)]
+    data = bytearray(write_ulog(tmp_path / 'whole.ulg', px4_topics(imus)).read_bytes())
+    pos = 16                                  # the header; then (size, type) per message
+    start = None
+    while data[pos + 2] != ord('D'):
+        start = pos if start is None and data[pos + 2] == ord('A') else start
+        pos += 3 + int.from_bytes(data[pos:pos + 2], 'little')
+    data[start:pos] = bytes(pos - start)
+    path = tmp_path / 'damaged.ulg'
+    path.write_bytes(bytes(data))
+    with pytest.raises(DatasetError, match=r'no logged topic\): the log is damaged') as err:
+        read_ulog(path)
+    assert '\n' not in str(err.value)
+
+
 def test_vehicle_imu_is_read_as_a_rate_where_it_is_the_fastest_gyro(tmp_path):
     from flightlogs import SENSOR_GYRO, Topic, VEHICLE_IMU
     rng = np.random.default_rng(9)
@@ -357,6 +374,9 @@ def test_a_real_log_whose_selection_flips_gives_each_imu_its_own_200_hz_gyro():
     assert log0.temperature == 'sensor_gyro.temperature'              # each its own
     assert log1.temperature == 'vehicle_imu_status.temperature_accel instance 1'
     assert log0.device_id != log1.device_id
+    # The IMU selected for less of the log names the one that holds the rest.
+    assert 'instance 0 has 1300 (--imu-instance 0)' in log1.notes[0]
+    assert '--imu-instance' not in log0.notes[0]
     for k, log in enumerate((log0, log1)):        # its accelerometer flips with its gyro
         with_accel = read_ulog(PX4_SELECTION_FLIPS, instance=k, accel=True)
         np.testing.assert_array_equal(with_accel.gyro, log.gyro)
