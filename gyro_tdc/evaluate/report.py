@@ -29,7 +29,7 @@ import os
 from pathlib import Path
 from typing import Any, IO, Sequence
 
-from gyro_tdc.base import atomic_write, plain
+from gyro_tdc.base import atomic_write, AXES, plain
 from gyro_tdc.data import Coverage
 from gyro_tdc.evaluate.score import BagEval, mean_scores
 from gyro_tdc.identify import reanchor_lines, session_check_lines, TrainResult
@@ -38,12 +38,11 @@ from gyro_tdc.model import (DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OPERATING
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['AXES', 'csv_columns', 'evaluation_json', 'format_allan', 'format_bag',
+__all__ = ['csv_columns', 'evaluation_json', 'format_allan', 'format_bag',
            'format_coverage', 'format_means', 'format_paper_table', 'format_sessions',
            'format_still', 'format_summary', 'format_training', 'is_coverage_line',
            'POLICY_WORDS', 'REANCHOR_SPREAD_DPS', 'write_csv', 'write_json']
 
-AXES = ('x', 'y', 'z')
 #: What each out-of-range policy does beyond a model's trained range (notes, console).
 POLICY_WORDS = {
     'linear': 'the correction continues along its tangent at the range end, held beyond '

@@ -18,9 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-__all__ = ['AXES', 'FleetResult', 'SensorResult']
-
-AXES = ('x', 'y', 'z')
+__all__ = ['FleetResult', 'SensorResult']
 
 
 @dataclass

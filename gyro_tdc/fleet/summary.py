@@ -22,8 +22,8 @@ import json
 import os
 from pathlib import Path
 
-from gyro_tdc.base import atomic_write
-from gyro_tdc.fleet.results import AXES, FleetResult
+from gyro_tdc.base import atomic_write, AXES
+from gyro_tdc.fleet.results import FleetResult
 
 __all__ = ['format_table', 'summary_dict', 'write_summary']
 
