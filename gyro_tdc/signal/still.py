@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import math
 from typing import Callable
 
+from gyro_tdc.base import DEG_PER_RAD
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -456,7 +457,7 @@ def _no_still_reason(why: NDArray[np.str_], min_still_s: float | None) -> str:
                 'stretch is shorter)' if min_still_s is not None else
                 f'no still stretch of {MIN_STILL_S:g} s, or of two windows and '
                 f'{MIN_STILL_SAMPLES} samples with a mean known to '
-                f'{MAX_STILL_SE * 180.0 / math.pi:.2g} deg/s (the still stretches are shorter '
+                f'{MAX_STILL_SE * DEG_PER_RAD:.2g} deg/s (the still stretches are shorter '
                 'or noisier)')
     return 'no still window (the IMU moves)'
 
