@@ -22,7 +22,7 @@ specs, the one field checker, the latest-job worker, the axes and unit factors.
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
-    'atomicio': ['atomic_dir', 'atomic_write', 'clean_leftovers'],
+    'atomicio': ['atomic_dir', 'atomic_json', 'atomic_write', 'clean_leftovers'],
     'face': ['lazy'],
     'figures': ['figure', 'save_png'],
     'fields': ['FieldChecker', 'is_number', 'shown'],

@@ -23,13 +23,12 @@ See ``doc/internals/evaluate.md``.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
 from typing import Any, IO, Sequence
 
-from gyro_tdc.base import atomic_write, AXES, plain
+from gyro_tdc.base import atomic_json, atomic_write, AXES, plain
 from gyro_tdc.data import Coverage
 from gyro_tdc.evaluate.score import BagEval, mean_scores
 from gyro_tdc.identify import reanchor_lines, session_check_lines, TrainResult
@@ -119,7 +118,7 @@ def write_json(bags: Sequence[BagEval], path: str | os.PathLike, *,
                accel_floor: Sequence[float] | None = None) -> Path:
     """Write :func:`evaluation_json` to ``path`` atomically (parents created); return it."""
     doc = evaluation_json(bags, floor=floor, accel_floor=accel_floor)
-    return atomic_write(path, json.dumps(doc, indent=1, allow_nan=False) + '\n', what='JSON file')
+    return atomic_json(path, doc, allow_nan=False)
 
 
 # --------------------------------------------------------------------------------------------

@@ -18,11 +18,10 @@ from __future__ import annotations
 
 import csv
 import io
-import json
 import os
 from pathlib import Path
 
-from gyro_tdc.base import atomic_write, AXES
+from gyro_tdc.base import atomic_json, atomic_write, AXES
 from gyro_tdc.fleet.results import FleetResult
 
 __all__ = ['format_table', 'summary_dict', 'write_summary']
@@ -71,9 +70,8 @@ def _csv_text(result: FleetResult) -> str:
 def write_summary(result: FleetResult, out_dir: str | os.PathLike) -> tuple[Path, Path]:
     """Write ``summary.json`` and ``summary.csv`` into ``out_dir`` atomically; return the paths."""
     d = Path(out_dir)
-    js = atomic_write(d / 'summary.json',
-                      json.dumps(summary_dict(result), indent=1, ensure_ascii=False) + '\n',
-                      what='fleet summary')
+    js = atomic_json(d / 'summary.json', summary_dict(result), what='fleet summary',
+                     ensure_ascii=False)
     return js, atomic_write(d / 'summary.csv', _csv_text(result), what='fleet summary', newline='')
 
 
