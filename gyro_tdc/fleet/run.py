@@ -45,9 +45,8 @@ from gyro_tdc.data import BagOptions
 from gyro_tdc.errors import FleetError, GyroTdcError, one_line, OutputError
 from gyro_tdc.evaluate import evaluate, mean_scores, NamedModel
 from gyro_tdc.fleet.manifest import input_key, SensorSpec
-from gyro_tdc.fleet.results import FleetResult, SensorResult
+from gyro_tdc.fleet.results import FleetResult, SensorResult, write_summary
 from gyro_tdc.fleet.stats import DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics
-from gyro_tdc.fleet.summary import write_summary
 from gyro_tdc.identify import train, TrainOptions
 from gyro_tdc.model import CompensationModel, save_model
 
