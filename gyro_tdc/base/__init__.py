@@ -16,13 +16,13 @@
 The base every package stands on.
 
 Atomic writes, PNG figures, bounded YAML, plain types, limits, shipped resources, parameter
-specs, the one field checker and the latest-job worker.
+specs, the one field checker, the latest-job worker, the axes and unit factors.
 """
 
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
-    'atomicio': ['atomic_dir', 'atomic_write', 'clean_leftovers'],
+    'atomicio': ['atomic_dir', 'atomic_json', 'atomic_write', 'clean_leftovers'],
     'face': ['lazy'],
     'figures': ['figure', 'save_png'],
     'fields': ['FieldChecker', 'is_number', 'shown'],
@@ -35,6 +35,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'paramspec': ['format_help', 'help_requested', 'INPUT_FRAMES', 'ParamSpec', 'spec_dataclass',
                   'TEMPERATURE_QUIRKS'],
     'resources': ['config_dir', 'model_path', 'scenario_names', 'scenario_path'],
+    'units': ['AXES', 'DEG_PER_RAD', 'G0', 'MG', 'RAD_PER_DEG'],
     'worker': ['Job', 'LatestJob'],
     'yamlio': ['BAG_METADATA_LIMITS', 'load_yaml', 'read_text', 'read_yaml', 'SCENARIO_LIMITS',
                'YamlLimits'],

@@ -17,7 +17,8 @@ Atomic output: every file and bag directory the package writes goes through here
 
 :func:`atomic_write` leaves either the old content or the complete new one (a new file with
 the mode of a plain ``open``, an overwritten one keeping its mode, symbolic links written
-through); :func:`atomic_dir` builds a directory beside its target and renames it into place.
+through), :func:`atomic_json` so a JSON document; :func:`atomic_dir` builds a directory beside
+its target and renames it into place.
 A failure leaves nothing behind and is one :class:`~gyro_tdc.errors.OutputError` line.
 See ``doc/internals/base.md``.
 """
@@ -29,6 +30,7 @@ import ctypes
 import errno
 import functools
 import hashlib
+import json
 import logging
 import os
 from pathlib import Path
@@ -41,7 +43,7 @@ from typing import Callable, IO, Iterator, Union
 
 from gyro_tdc.errors import OutputError
 
-__all__ = ['atomic_dir', 'atomic_write', 'clean_leftovers']
+__all__ = ['atomic_dir', 'atomic_json', 'atomic_write', 'clean_leftovers']
 
 Content = Union[str, bytes, Callable[[IO], None]]
 _NAME_MAX = 200     # characters of the target name kept in a temporary name
@@ -262,6 +264,17 @@ def atomic_write(path: str | os.PathLike, content: Content, *, binary: bool = Fa
         raise
     _sync_dir(target.parent)
     return path
+
+
+def atomic_json(path: str | os.PathLike, doc: object, *, what: str = 'JSON file',
+                indent: int | None = 1, **dumps: object) -> Path:
+    """
+    Write ``doc`` as JSON and a final newline with :func:`atomic_write`; return the path.
+
+    The one JSON writer of the package: ``indent`` one space (None: one line) and ``dumps``
+    the other options of ``json.dumps`` (``allow_nan=False``, ``ensure_ascii=False``).
+    """
+    return atomic_write(path, json.dumps(doc, indent=indent, **dumps) + '\n', what=what)
 
 
 @functools.lru_cache(maxsize=1)

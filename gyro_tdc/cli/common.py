@@ -32,6 +32,7 @@ import sys
 import textwrap
 from typing import Callable, NoReturn, Optional, Sequence
 
+from gyro_tdc.base import RAD_PER_DEG
 from gyro_tdc.cli import PROG
 from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPIC,
                            DEFAULT_TEMPERATURE_TOPIC, GAP_PERIODS, LOG_FORMATS,
@@ -45,8 +46,7 @@ __all__ = ['ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_option
            'non_negative_int', 'parse_reference', 'positive_float', 'positive_int', 'probability',
            'progress', 'progress_bar', 'run_command']
 
-_DEG = math.pi / 180.0
-_UNITS = {'': 1.0, 'rad/s': 1.0, 'rads': 1.0, 'deg/s': _DEG, 'dps': _DEG}
+_UNITS = {'': 1.0, 'rad/s': 1.0, 'rads': 1.0, 'deg/s': RAD_PER_DEG, 'dps': RAD_PER_DEG}
 
 
 class UsageError(GyroTdcError):

@@ -34,7 +34,7 @@ import textwrap
 import time
 from typing import Sequence
 
-from gyro_tdc.base import atomic_write, model_path
+from gyro_tdc.base import atomic_json, model_path
 from gyro_tdc.cli import load_main, PROG
 from gyro_tdc.cli.common import ArgumentParser, key_listing, positive_float, run_command
 from gyro_tdc.errors import GyroTdcError
@@ -265,8 +265,7 @@ def _live(model: Path, seconds: float, report: Path) -> None:
     print('\n'.join([*result.lines(), *live_counts_explained(
         result.raw_received, result.compensated_received, result.raw_in_window,
         result.compensated_in_window)]))
-    atomic_write(report / 'live.json', json.dumps(result.__dict__, indent=1) + '\n',
-                 what='JSON file')
+    atomic_json(report / 'live.json', result.__dict__)
 
 
 def live_counts_explained(raw: int, compensated: int, raw_in_window: int,

@@ -24,12 +24,11 @@ See ``doc/internals/cli.md``.
 from __future__ import annotations
 
 import argparse
-import json
 from pathlib import Path
 import sys
 from typing import Optional, Sequence
 
-from gyro_tdc.base import atomic_write
+from gyro_tdc.base import atomic_json
 from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser, bag_options,
                                  command_line, effect_listing, finite_float, positive_float,
@@ -149,7 +148,7 @@ def _run(args: argparse.Namespace, argv: list) -> int:
         print(f'wrote report {write_report(result, args.report)}')
     if args.json_out is not None:
         doc = {**result.to_json(model_file), **(dict(sensor='accel', unit='mg') if accel else {})}
-        atomic_write(args.json_out, json.dumps(doc, indent=1) + '\n', what='JSON file')
+        atomic_json(args.json_out, doc)
         print(f'wrote {args.json_out}')
     return 0
 

@@ -91,6 +91,13 @@ def _axes(values) -> str:
     return ' '.join(f'{v:10.3e}' for v in values)
 
 
+def _model_line(spec: str, model, what: str) -> str:
+    """Return ``model SPEC (id, kind features), WHAT lo .. hi degC``: the model at hand."""
+    lo, hi = model.temp_range_c
+    return (f'model {spec} ({model.model_id}, {model.kind} {",".join(model.features)}), '
+            f'{what} {lo:.2f} .. {hi:.2f} degC')
+
+
 def _write_model(args: argparse.Namespace) -> int:
     """Write ``--model`` (a learn_file's learned model) as a model file at ``--out``."""
     if args.eval or args.reanchor:
@@ -98,10 +105,8 @@ def _write_model(args: argparse.Namespace) -> int:
                          'with gyro-tdc evaluate BAG --model MODEL')
     model = read_model(args.model)
     path = save_model(model, args.out)
-    lo, hi = model.temp_range_c
     learned = model.created.get('learn_file')
-    print(f'model {args.model} ({model.model_id}, {model.kind} {",".join(model.features)}), '
-          f'range {lo:.2f} .. {hi:.2f} degC'
+    print(_model_line(args.model, model, 'range')
           + (f': learned, {model.created.get("points")} points, last update at stamp '
              f'{model.created.get("last_update_stamp_s")} s' if learned else ''))
     print(f'wrote {path}' + (' (its offset is that of the last session: re-anchor it on another '
@@ -122,8 +127,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     lo, hi = model.temp_range_c
     state = ('steady-state drift vs temperature (the thermal state settled)'
              if model.thermal.kind != 'none' else 'drift vs temperature')
-    print(f'model {spec} ({model.model_id}, {model.kind} {",".join(model.features)}), trained '
-          f'{lo:.2f} .. {hi:.2f} degC: its {state} fitted on a uniform temperature grid')
+    print(_model_line(spec, model, 'trained') + f': its {state} fitted on a uniform '
+          'temperature grid')
     # PX4 TC_Gn_ID: --device-id, or the model's numeric sensor_id, or 0.
     sid = str(model.sensor_id).strip()
     device_id = args.device_id if args.device_id is not None else int(sid) if sid.isdigit() else 0

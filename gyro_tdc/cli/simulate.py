@@ -185,7 +185,7 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
     # output stays at its path until the new one is complete, then the two are swapped; a
     # run killed at any point leaves the old or the new output there, never neither.
     names = [f'run{i + 1}' for i in range(sc.runs.count)] if sc.runs.count > 1 else ['']
-    from gyro_tdc.data import encode_twists, TWIST_TYPE, write_bag
+    from gyro_tdc.data import DEFAULT_REFERENCE_TOPIC, encode_twists, TWIST_TYPE, write_bag
     bar, above = progress_bar(len(names), 'run', 'simulate', progress and len(names) > 1)
     log = log if bar.disable else above     # summary lines above the bar
     with atomic_dir(out_path, what='bag', replace=force) as build:
@@ -195,7 +195,7 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
             start = time.perf_counter()
             run = simulate_run(sc, seed=seed, run_index=index, rate_hz=rate_hz)
             accel_var = (np.asarray(sc.accel.noise_mps2_per_rt_hz) ** 2) * run.rate_hz
-            ref_topic, extra = '/rate_table/reference', []
+            ref_topic, extra = DEFAULT_REFERENCE_TOPIC, []
             ref_t, ref = (run.ref_t, run.ref) if run.moving else (None, None)
             if run.vehicle is not None:      # no rate table: the true rate, for evaluation only
                 ref_topic, ref_t, ref = TRUTH_TOPIC, run.imu_t, run.ref
@@ -204,8 +204,7 @@ def simulate(scenario: str, out: str, *, storage: str = 'sqlite3', seed: int = 0
                               encode_twists(run.vehicle.cmd))]
             write_bag(build / name, imu_t=run.imu_t, gyro=run.gyro, accel=run.accel,
                       temp_t=run.temp_t, temp_c=run.temp_c, temp_var=run.temp_var, ref_t=ref_t,
-                      ref=ref, storage=storage, frame_id='imu_link', imu_topic='/imu/data_raw',
-                      temperature_topic='/imu/temperature', reference_topic=ref_topic,
+                      ref=ref, storage=storage, reference_topic=ref_topic,
                       gyro_cov=run.truth.noise_std ** 2, accel_cov=accel_var, extra=extra)
             log(_summary(run, out_path / name, time.perf_counter() - start))
             bar.update(1)

@@ -25,12 +25,11 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import math
 import threading
 from typing import Optional, Sequence
 
-from gyro_tdc.base import atomic_write, plain
+from gyro_tdc.base import atomic_json, DEG_PER_RAD, plain
 from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
                                  ArgumentParser, bag_options, command_line, driver_bags,
@@ -79,7 +78,7 @@ def build_parser() -> argparse.ArgumentParser:
                         f'(default: judged by its samples and its noise: {MIN_STILL_S:g} s, '
                         f'or two still-test windows (5 s at 8 Hz and up) and '
                         f'{MIN_STILL_SAMPLES} samples whose mean rate is known to '
-                        f'{MAX_STILL_SE * 180.0 / math.pi:.2g} deg/s, e.g. 15 s at 8 or 25 Hz)')
+                        f'{MAX_STILL_SE * DEG_PER_RAD:.2g} deg/s, e.g. 15 s at 8 or 25 Hz)')
     return p
 
 
@@ -199,8 +198,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     print(''.join(f'warning: {w}\n' for w in warns), end='')
     print(f'wrote {result.path} (model_id {result.model.model_id})', flush=True)
     if args.json is not None:
-        doc = json.dumps(training_json(result, warns), indent=1, allow_nan=False) + '\n'
-        print(f'wrote {atomic_write(args.json, doc, what="JSON file")}', flush=True)
+        path = atomic_json(args.json, training_json(result, warns), allow_nan=False)
+        print(f'wrote {path}', flush=True)
     return 0
 
 

@@ -27,9 +27,8 @@ import os
 from pathlib import Path
 from typing import Any, Sequence
 
-from gyro_tdc.base import figure, save_png
+from gyro_tdc.base import AXES, figure, save_png
 from gyro_tdc.data import RATE_THRESHOLD_C_PER_MIN, temperature_rate
-from gyro_tdc.evaluate.report import AXES
 from gyro_tdc.evaluate.score import BagEval
 from gyro_tdc.signal import block_length, block_mean
 import numpy as np

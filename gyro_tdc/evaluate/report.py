@@ -23,13 +23,12 @@ See ``doc/internals/evaluate.md``.
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from pathlib import Path
 from typing import Any, IO, Sequence
 
-from gyro_tdc.base import atomic_write, plain
+from gyro_tdc.base import atomic_json, atomic_write, AXES, plain
 from gyro_tdc.data import Coverage
 from gyro_tdc.evaluate.score import BagEval, mean_scores
 from gyro_tdc.identify import reanchor_lines, session_check_lines, TrainResult
@@ -38,12 +37,11 @@ from gyro_tdc.model import (DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OPERATING
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['AXES', 'csv_columns', 'evaluation_json', 'format_allan', 'format_bag',
+__all__ = ['csv_columns', 'evaluation_json', 'format_allan', 'format_bag',
            'format_coverage', 'format_means', 'format_paper_table', 'format_sessions',
            'format_still', 'format_summary', 'format_training', 'is_coverage_line',
            'POLICY_WORDS', 'REANCHOR_SPREAD_DPS', 'write_csv', 'write_json']
 
-AXES = ('x', 'y', 'z')
 #: What each out-of-range policy does beyond a model's trained range (notes, console).
 POLICY_WORDS = {
     'linear': 'the correction continues along its tangent at the range end, held beyond '
@@ -120,7 +118,7 @@ def write_json(bags: Sequence[BagEval], path: str | os.PathLike, *,
                accel_floor: Sequence[float] | None = None) -> Path:
     """Write :func:`evaluation_json` to ``path`` atomically (parents created); return it."""
     doc = evaluation_json(bags, floor=floor, accel_floor=accel_floor)
-    return atomic_write(path, json.dumps(doc, indent=1, allow_nan=False) + '\n', what='JSON file')
+    return atomic_json(path, doc, allow_nan=False)
 
 
 # --------------------------------------------------------------------------------------------

@@ -40,7 +40,7 @@ from gyro_tdc.model import (check_policy, compensate, CompensationModel, DEFAULT
                             MAX_EXTRAPOLATION_C, model_temperature)
 from gyro_tdc.runtime import default_tolerance, gated_shift, reanchor_shift, STILL_WINDOW_MAX_S
 from gyro_tdc.signal import (allan_deviation, auto_window, bias_stability, noise_readouts, rms_dps,
-                             STILL_WINDOW_S)
+                             STILL_WINDOW_S, stretch_edges)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -300,7 +300,9 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
     whole, summary, kw = run, None, {'rate': rate_hz(run.t)}
     bounds = np.cumsum([0] + [len(p) for p in parts])
 
-    spans = None if still is None else _spans(still, run.t, bounds)
+    # The still stretches: the still test's gap rule, and each session's end.
+    spans = None if still is None else stretch_edges(still, np.diff(run.t), auto_window(run.t),
+                                                     bounds[1:-1] - 1)
 
     def pick(x: NDArray[np.float64]) -> NDArray[np.float64]:
         """Return what is scored of a rate: the still samples, each session anchored."""
@@ -350,20 +352,6 @@ def still_rows(run: Run) -> NDArray[np.bool_] | None:
     if run.info.get('reference') != 'zero' or moving_share([run]) <= MAX_MOVING_SHARE:
         return None
     return find_still([run])[0].mask
-
-
-def _spans(still: NDArray[np.bool_], t: NDArray[np.float64], bounds: NDArray[np.int64]
-           ) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
-    """
-    Return the starts and stops of the still stretches: runs of still samples.
-
-    As in the still test, a gap in the stamps longer than its window (the logger stopped)
-    ends a stretch; so does a session's end.
-    """
-    joined = still[1:] & still[:-1] & (np.diff(t) <= auto_window(t))
-    joined[bounds[1:-1] - 1] = False
-    return (np.flatnonzero(still & ~np.r_[False, joined]),
-            np.flatnonzero(still & ~np.r_[joined, False]) + 1)
 
 
 def _stretches(spans: tuple, a: int, b: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:

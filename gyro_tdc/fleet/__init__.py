@@ -25,10 +25,9 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'manifest': ['check_sensor_id', 'input_key', 'read_manifest', 'SensorSpec'],
-    'results': ['FleetResult', 'SensorResult'],
+    'results': ['FleetResult', 'format_table', 'SensorResult', 'summary_dict', 'write_summary'],
     'run': ['Engine', 'open_engine', 'run_fleet', 'run_sensor', 'SensorOutcome',
             'sigterm_as_interrupt'],
     'stats': ['DEFAULT_OUTLIER_Z', 'drift_polynomial', 'fleet_statistics', 'MIN_FLEET',
               'robust_z'],
-    'summary': ['format_table', 'summary_dict', 'write_summary'],
 })

@@ -40,14 +40,13 @@ import time
 from typing import Callable, Iterator, Sequence
 
 from gyro_tdc import __version__
-from gyro_tdc.base import atomic_write
+from gyro_tdc.base import atomic_json, AXES
 from gyro_tdc.data import BagOptions
 from gyro_tdc.errors import FleetError, GyroTdcError, one_line, OutputError
 from gyro_tdc.evaluate import evaluate, mean_scores, NamedModel
 from gyro_tdc.fleet.manifest import input_key, SensorSpec
-from gyro_tdc.fleet.results import AXES, FleetResult, SensorResult
+from gyro_tdc.fleet.results import FleetResult, SensorResult, write_summary
 from gyro_tdc.fleet.stats import DEFAULT_OUTLIER_Z, drift_polynomial, fleet_statistics
-from gyro_tdc.fleet.summary import write_summary
 from gyro_tdc.identify import train, TrainOptions
 from gyro_tdc.model import CompensationModel, save_model
 
@@ -274,7 +273,7 @@ def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
             record = {'format': STATE_FORMAT, 'key': out.key,
                       'model_sha256': hashlib.sha256(model_file.read_bytes()).hexdigest(),
                       **figures, 'seconds': out.seconds}
-            atomic_write(state_file, json.dumps(record) + '\n', what='fleet state file')
+            atomic_json(state_file, record, what='fleet state file', indent=None)
             return SensorResult(out.sensor_id, 'ok', model_file=str(model_file),
                                 seconds=out.seconds,
                                 **dict(figures, constant_axes=list(out.constant_axes)))

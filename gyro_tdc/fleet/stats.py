@@ -29,7 +29,8 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
-from gyro_tdc.fleet.results import AXES, SensorResult
+from gyro_tdc.base import AXES
+from gyro_tdc.fleet.results import SensorResult
 from gyro_tdc.model import CompensationModel, steady_drift
 import numpy as np
 from numpy.typing import NDArray

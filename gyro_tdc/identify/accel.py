@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import math
 from typing import Sequence
 
-from gyro_tdc.base import plain
+from gyro_tdc.base import G0, MG, plain, RAD_PER_DEG
 from gyro_tdc.data import Coverage, coverage, Run
 from gyro_tdc.errors import FeatureError, FitError, ModelFileError
 from gyro_tdc.identify.axes import constant_note
@@ -50,10 +50,6 @@ __all__ = ['ACCEL_EFFECTS', 'AccelFit', 'accel_features', 'accel_scores', 'compe
            'MIN_JUMP_DEG', 'MIN_SEGMENT_S', 'MIN_STATIC_FRACTION', 'OrientationChange',
            'PX4_FEATURES', 'static_bs', 'static_data', 'StaticData']
 
-#: Standard gravity, m/s^2 per g.
-G0 = 9.80665
-#: One milli-g in m/s^2.
-MG = G0 * 1e-3
 #: Effects an accelerometer part may hold (the temperature terms, the gradient, the state).
 ACCEL_EFFECTS: tuple[str, ...] = ('dT', 'dT2', 'dT3', 'dTdt', 'lag')
 #: The PX4-style baseline (``TC_A*``): a cubic in the measured temperature.
@@ -466,7 +462,7 @@ def discovery_runs(runs: Sequence[Run]) -> list[Run]:
             continue
         for s in range(d.n_segments):
             idx = np.flatnonzero(d.segment == s)
-            a = np.asarray(r.accel, dtype=np.float64)[idx] / MG * (math.pi / 180.0)
+            a = np.asarray(r.accel, dtype=np.float64)[idx] / MG * RAD_PER_DEG
             out.append(Run(r.t[idx], r.temp[idx], a, np.zeros_like(a),
                            r.name if d.n_segments == 1 else f'{r.name}#{s + 1}',
                            {'source': 'accel', 'changes': [c.to_dict() for c in d.changes]}))

@@ -27,6 +27,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Callable, Sequence
 
+from gyro_tdc.base import AXES, DEG_PER_RAD
 from gyro_tdc.data import Run
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import CompensationModel
@@ -37,9 +38,7 @@ __all__ = ['all_constant_error', 'AXES', 'constant_axes', 'constant_axes_of', 'c
            'constant_note', 'constant_readings', 'constant_values', 'fit_varying',
            'identity_axes', 'neutral_runs']
 
-#: The axis names, in order.
-AXES = ('x', 'y', 'z')
-_DEG2 = (180.0 / np.pi) ** 2
+_DEG2 = DEG_PER_RAD ** 2
 
 
 def _finite(v: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -24,10 +24,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 import datetime as _dt
-import math
 from typing import Any, Mapping, Sequence
 
 from gyro_tdc import __version__
+from gyro_tdc.base import DEG_PER_RAD
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
@@ -53,7 +53,6 @@ MIN_SPAN_C = 0.5
 THERMAL_CHOICES = ('none', 'first_order', 'two_node', 'auto')
 #: The effect that makes the model temperature a lagged state (``lag``, the one thermal id).
 (_LAG,) = THERMAL_EFFECTS
-_DEG = 180.0 / math.pi
 
 
 def estimate_t0(run: Run, *, window_s: float = 60.0) -> float:
@@ -247,7 +246,7 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     created = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
                'gyro_tdc_version': __version__, **(o.created or {})}
     residual_var = _residual_var(blocks, states, counts, bstate, fit, t0, n_total)
-    deg2 = _DEG ** 2
+    deg2 = DEG_PER_RAD ** 2
     metrics = {'samples': int(n_total), 'runs': [r.name for r in runs],
                'train_bs_dps2': (residual_var * deg2).tolist(),
                'train_rms_dps': np.sqrt(residual_var * deg2).tolist(),
@@ -326,7 +325,7 @@ def _with_level(fit: LinearFit, offsets: NDArray[np.float64] | None = None
 def _session_metrics(runs: Sequence[Run], labels: Sequence[int], offsets: NDArray[np.float64],
                      rows: Sequence[NDArray[np.bool_]] | None, check: dict | None) -> dict:
     """Return the sessions' names, samples, offsets from their mean (deg/s) and ``check``."""
-    rel = (offsets - offsets.mean(axis=0)) * _DEG
+    rel = (offsets - offsets.mean(axis=0)) * DEG_PER_RAD
     own = [[i for i, g in enumerate(labels) if g == k] for k in range(offsets.shape[0])]
     return {'count': int(offsets.shape[0]),
             'names': [', '.join(runs[i].name for i in ii) for ii in own],

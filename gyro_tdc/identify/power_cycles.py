@@ -38,10 +38,10 @@ With two sessions or more the choice is the one that did better held out;
 from __future__ import annotations
 
 from dataclasses import replace
-import math
 
 from typing import Callable, Sequence
 
+from gyro_tdc.base import DEG_PER_RAD
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.axes import AXES
@@ -57,7 +57,7 @@ from numpy.typing import NDArray
 __all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_FOLDS', 'reanchor_lines',
            'reanchor_rule', 'session_check_lines', 'SIGNIFICANCE']
 
-_DEG2 = (180.0 / math.pi) ** 2
+_DEG2 = DEG_PER_RAD ** 2
 #: Fewest held-out power cycles that judge a curve of several stops (still-only training):
 #: one that agrees is no evidence that the curve carries to the next.
 MIN_FOLDS = 2

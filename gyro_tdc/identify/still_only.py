@@ -27,6 +27,7 @@ from dataclasses import dataclass, field, replace
 import math
 from typing import Sequence
 
+from gyro_tdc.base import DEG_PER_RAD
 from gyro_tdc.data import Coverage, coverage, RATE_THRESHOLD_C_PER_MIN, Run, temperature_rate
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.axes import constant_gyro_axes, neutral_runs
@@ -59,7 +60,6 @@ MAX_MOVING_SHARE = 0.01
 ADVICE_PARK_MIN = 20
 #: A bin (or direction) with less still time than this is named in the advice, min.
 _FEW_MIN = 10.0
-_DEG = 180.0 / math.pi
 
 
 @dataclass(frozen=True)
@@ -334,7 +334,7 @@ def _stretch_means(model: CompensationModel, runs: Sequence[Run],
     """
     info = model.metrics.get('sessions')
     shift = (np.zeros((max(labels, default=0) + 1, 3)) if info is None
-             else np.asarray(info['offset_dps']) / _DEG)
+             else np.asarray(info['offset_dps']) / DEG_PER_RAD)
     comp = [compensate(model, r.t, r.temp, r.omega, out_of_range=DEFAULT_OUT_OF_RANGE)
             - shift[g] for r, g in zip(runs, labels)]
     return np.array([comp[i][a:b].mean(axis=0) for i, a, b in spans]).reshape(-1, 3)

@@ -34,7 +34,7 @@ import os
 from pathlib import Path
 from typing import Any, Callable, Sequence
 
-from gyro_tdc.base import check_bin_width, check_centers
+from gyro_tdc.base import check_bin_width, check_centers, DEG_PER_RAD
 from gyro_tdc.data import (BagOptions, Coverage, coverage, load_runs, read_motion, Run,
                            split_sessions)
 from gyro_tdc.errors import DatasetError, FitError, ModelFileError
@@ -58,7 +58,6 @@ __all__ = ['AUTO', 'AUTO_BASE', 'choose_features', 'data_frame', 'Decision', 'Fe
            'features_for_fit', 'proxy_lag', 'SEARCH_RATE_HZ', 'train', 'train_still_only',
            'TrainOptions', 'TrainResult']
 
-_DEG = 180.0 / np.pi
 Log = Callable[[str], None] | None
 
 
@@ -530,7 +529,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                                                   choice, log)
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),
                          float(runs[i].temp[a:b].mean()), not drop,
-                         tuple(float(v) * _DEG for v in mu))
+                         tuple(float(v) * DEG_PER_RAD for v in mu))
                  for (i, a, b), drop, mu in zip(spans, bad, means)]
     report = still_report(whole_runs, whole_rows, stretches, bin_c=o.bin_c,
                           motion_topic=bag.motion_topic, rejected=rejected)

@@ -30,6 +30,7 @@ from dataclasses import replace
 import math
 from typing import Sequence
 
+from gyro_tdc.base import AXES, DEG_PER_RAD
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag,
                             MAX_EXTRAPOLATION_C, normalise_ids, STATE_TERMS, steady_drift,
@@ -52,8 +53,7 @@ SPAN_DT2_C = 8.0
 BINS_DT2 = 5
 SPAN_DT3_C = 15.0
 BINS_DT3 = 10
-AXES = ('x', 'y', 'z')
-_DEG2 = (180.0 / math.pi) ** 2
+_DEG2 = DEG_PER_RAD ** 2
 #: A candidate is swapped in only when its prediction over the recent windows differs from
 #: the current model's by this fraction of the gyro noise floor (RMS, rad/s) or more.
 SWAP_CHANGE = 0.02

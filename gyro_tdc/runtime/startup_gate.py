@@ -30,6 +30,7 @@ from itertools import compress
 import math
 from typing import Callable, Sequence
 
+from gyro_tdc.base import DEG_PER_RAD
 from gyro_tdc.model import compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, model_temperature
 from gyro_tdc.runtime.blockstats import default_tolerance, STILL_WINDOW_MAX_S
 from gyro_tdc.runtime.reanchor import REANCHOR_KEY, reanchor_shift
@@ -39,7 +40,6 @@ from numpy.typing import NDArray
 
 __all__ = ['MAX_ANCHORS', 'MAX_ROWS', 'reanchor_rule', 'SIGNIFICANCE']
 
-_DEG = 180.0 / math.pi
 #: A gated node takes a start-up shift on an axis only beyond this many times the RMS error
 #: of start-up anchors taken throughout the training data.
 SIGNIFICANCE = 2.0
@@ -156,14 +156,14 @@ def reanchor_rule(model: CompensationModel, runs: Sequence, labels: Sequence[int
     labels = np.asarray(labels, dtype=np.int64)
     gate = SIGNIFICANCE * _anchor_error(model, runs, labels, rows)
     rec = {'sessions': int(np.unique(labels).size), 'held_out': 0,
-           'anchor_error_dps': (gate / SIGNIFICANCE * _DEG).tolist()}
+           'anchor_error_dps': (gate / SIGNIFICANCE * DEG_PER_RAD).tolist()}
     if rec['sessions'] >= 2:
         held, ms = _held_out(model, runs, labels, gate, refit, rows)
         rec['held_out'] = held
         if held >= 2:
-            rms = np.sqrt(ms) * _DEG
+            rms = np.sqrt(ms) * DEG_PER_RAD
             rec.update(always_dps=rms[0].tolist(), gated_dps=rms[1].tolist(),
                        never_dps=rms[2].tolist())
             gate = np.where(ms[1] < ms[0], gate, 0.0)
-    rec['min_shift_dps'] = (gate * _DEG).tolist()
+    rec['min_shift_dps'] = (gate * DEG_PER_RAD).tolist()
     return model.replace(metrics={**model.metrics, REANCHOR_KEY: rec})

@@ -36,6 +36,6 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
               'MAX_STILL_SE', 'MIN_STILL_S', 'MIN_STILL_SAMPLES', 'MIN_WINDOW_SAMPLES',
               'MotionReports', 'MOTION_EPS', 'motion_veto', 'NOISE_FACTOR', 'noise_floor',
               'noise_thresholds', 'NOISE_WINDOWS', 'SHORT_WINDOW_S', 'Stillness',
-              'STILL_WINDOW_S', 'windows_moving'],
+              'STILL_WINDOW_S', 'stretch_edges', 'windows_moving'],
     'still_stream': ['StillWindows', 'Window'],
 })

@@ -25,14 +25,11 @@ Accuracy metrics in the paper's terms, plus the usual inertial-sensor noise figu
 
 from __future__ import annotations
 
-import math
-
+from gyro_tdc.base import DEG_PER_RAD
 import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['allan_deviation', 'bias_stability', 'noise_readouts', 'p_ratios', 'rms_dps']
-
-_DEG = 180.0 / math.pi
 
 
 def bias_stability(omega: NDArray[np.float64], omega_ref: NDArray[np.float64]
@@ -43,7 +40,8 @@ def bias_stability(omega: NDArray[np.float64], omega_ref: NDArray[np.float64]
     ``omega`` (N, 3) is the evaluated rate (raw or compensated), ``omega_ref`` (N, 3) or (3,)
     the reference, both rad/s.
     """
-    e = (np.asarray(omega, dtype=np.float64) - np.asarray(omega_ref, dtype=np.float64)) * _DEG
+    e = (np.asarray(omega, dtype=np.float64)
+         - np.asarray(omega_ref, dtype=np.float64)) * DEG_PER_RAD
     return np.mean(e * e, axis=0)
 
 
@@ -82,7 +80,7 @@ def allan_deviation(omega: NDArray[np.float64], rate_hz: float, *,
     times in s or an allantools keyword (``'octave'``). Returns the times used (M,), common to
     the three axes, and the deviation (M, 3) in deg/s.
     """
-    omega = np.asarray(omega, dtype=np.float64) * _DEG
+    omega = np.asarray(omega, dtype=np.float64) * DEG_PER_RAD
     import allantools   # slow with scipy.stats: imported when an Allan deviation is asked for
     runs = [allantools.oadev(omega[:, ax], rate=float(rate_hz), data_type='freq', taus=taus)[:2]
             for ax in range(3)]                 # (taus, deviation) per axis

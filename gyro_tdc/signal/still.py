@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import math
 from typing import Callable
 
+from gyro_tdc.base import DEG_PER_RAD
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
@@ -35,7 +36,8 @@ __all__ = ['auto_window', 'detect_still', 'has_accelerometer', 'judge_windows', 
            'MAX_STILL_SE', 'MIN_JUDGED', 'MIN_STILL_S', 'MIN_STILL_SAMPLES', 'MIN_WINDOW_SAMPLES',
            'MotionReports', 'MOTION_EPS', 'motion_veto', 'NOISE_DOF', 'NOISE_FACTOR',
            'NOISE_WINDOWS', 'noise_floor', 'noise_thresholds', 'NoiseFloor', 'REASONS',
-           'SHORT_WINDOW_S', 'Stillness', 'STILL_WINDOW_S', 'window_moments', 'windows_moving']
+           'SHORT_WINDOW_S', 'Stillness', 'STILL_WINDOW_S', 'stretch_edges', 'window_moments',
+           'windows_moving']
 
 #: Default window, s: the shortest still stretch judged (and the re-anchoring window).
 STILL_WINDOW_S = 10.0
@@ -417,6 +419,21 @@ def _long_enough(g: NDArray[np.float64], duration: float, window: float,
             np.all(np.nanstd(g, axis=0, ddof=1) / math.sqrt(n) <= MAX_STILL_SE)))
 
 
+def stretch_edges(still: NDArray[np.bool_], steps: NDArray[np.float64], window: float,
+                  cuts: ArrayLike = ()) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """
+    Return the starts and stops (half-open) of the runs of True in ``still``: its stretches.
+
+    The still test's one gap rule: a step of the stamps between neighbours (``steps``, one
+    fewer than ``still``) longer than ``window`` (the logger stopped) ends a stretch; so does
+    each index ``i`` of ``cuts`` (between ``i`` and ``i + 1``: a session's end).
+    """
+    joined = still[1:] & still[:-1] & (steps <= window)
+    joined[np.asarray(cuts, dtype=np.int64)] = False
+    return (np.flatnonzero(still & ~np.r_[False, joined]),
+            np.flatnonzero(still & ~np.r_[joined, False]) + 1)
+
+
 def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
                      starts: NDArray[np.int64], why: NDArray[np.str_], dt: float,
                      window: float, min_still_s: float | None) -> tuple[list, list]:
@@ -430,10 +447,7 @@ def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
     """
     n = t.shape[0]
     ends = np.append(starts[1:], n)
-    still = why == ''
-    joined = still[1:] & still[:-1] & (t[starts[1:]] - t[starts[1:] - 1] <= window)
-    first_w = np.flatnonzero(still & ~np.r_[False, joined])
-    stop_w = np.flatnonzero(still & ~np.r_[joined, False]) + 1
+    first_w, stop_w = stretch_edges(why == '', t[starts[1:]] - t[starts[1:] - 1], window)
     segments, durations = [], []
     for a, b in zip(first_w.tolist(), stop_w.tolist()):
         i0, i1 = int(starts[a]), int(ends[b - 1])
@@ -456,7 +470,7 @@ def _no_still_reason(why: NDArray[np.str_], min_still_s: float | None) -> str:
                 'stretch is shorter)' if min_still_s is not None else
                 f'no still stretch of {MIN_STILL_S:g} s, or of two windows and '
                 f'{MIN_STILL_SAMPLES} samples with a mean known to '
-                f'{MAX_STILL_SE * 180.0 / math.pi:.2g} deg/s (the still stretches are shorter '
+                f'{MAX_STILL_SE * DEG_PER_RAD:.2g} deg/s (the still stretches are shorter '
                 'or noisier)')
     return 'no still window (the IMU moves)'
 

@@ -29,12 +29,11 @@ from __future__ import annotations
 
 import copy
 from dataclasses import dataclass, field
-import math
 import os
 from typing import Any, Callable, Mapping, Optional, Union
 
-from gyro_tdc.base import (FieldChecker, is_number, plain, read_yaml, SCENARIO_LIMITS,
-                           scenario_path)
+from gyro_tdc.base import (FieldChecker, is_number, plain, RAD_PER_DEG, read_yaml,
+                           SCENARIO_LIMITS, scenario_path)
 from gyro_tdc.errors import GyroTdcError, ScenarioError
 from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim import chamber
@@ -43,11 +42,9 @@ from gyro_tdc.sim.specs import (AccelSpec, GyroSpec, NoiseSpec, PRESETS, RateTab
 from gyro_tdc.sim.vehicle import VEHICLE_FIELDS, VehicleSpec
 import numpy as np
 
-__all__ = ['DEFAULTS', 'DEG', 'FORMAT_VERSION', 'Scenario', 'load_scenario', 'merge',
-           'validate']
+__all__ = ['DEFAULTS', 'FORMAT_VERSION', 'Scenario', 'load_scenario', 'merge', 'validate']
 
 FORMAT_VERSION = 1
-DEG = math.pi / 180.0
 
 # Each section's type, its fields' (kind, default) on the type; each kind is a check of _KINDS.
 _SPECS = {'thermal': ThermalSpec, 'thermometer': ThermometerSpec, 'gyro': GyroSpec,
@@ -233,7 +230,7 @@ def _rate_table(chk: _Checker, raw: Any) -> RateTable:
                            'increasing)', t)
         if ('rate_dps' in entry) == ('rate_rad_s' in entry):
             raise chk.fail(where, 'exactly one of rate_dps or rate_rad_s', entry)
-        key, factor = ('rate_dps', DEG) if 'rate_dps' in entry else ('rate_rad_s', 1.0)
+        key, factor = ('rate_dps', RAD_PER_DEG) if 'rate_dps' in entry else ('rate_rad_s', 1.0)
         times.append(t)
         rates.append(tuple(v * factor for v in chk.axis(f'{where}.{key}', entry[key])))
     if not times or times[0] > 0.0:          # at rest from 0 s until the first entry

@@ -29,13 +29,13 @@ import math
 import os
 from typing import Any, Callable, Mapping, NamedTuple, Optional, Sequence, Union
 
-from gyro_tdc.base import is_number
+from gyro_tdc.base import G0, is_number, MG, RAD_PER_DEG
 from gyro_tdc.data import Run
 from gyro_tdc.errors import ScenarioError
 from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim.chamber import simulate_thermal, ThermalHistory
 from gyro_tdc.sim.noise import gauss_markov, quantise, random_walk, white_noise
-from gyro_tdc.sim.scenario import DEG, load_scenario, Scenario
+from gyro_tdc.sim.scenario import load_scenario, Scenario
 from gyro_tdc.sim.specs import GyroSpec, NoiseSpec, ThermometerSpec
 from gyro_tdc.sim.vehicle import (gravity_in_sensor, heated_profile, plan_legs, vehicle_motion,
                                   VehicleMotion)
@@ -51,8 +51,6 @@ ScenarioLike = Union[Scenario, str, 'os.PathLike[str]', Mapping[str, Any]]
 # Appending a stream leaves the earlier ones (and so every earlier run) unchanged.
 _STREAMS = ('offset', 'white', 'bias_instability', 'rrw', 'accel', 'thermometer', 'tilt',
             'vehicle')
-#: Standard gravity: one g in m/s^2 (the unit of the accelerometer's mg coefficients).
-G0 = 9.80665
 
 
 @dataclass(frozen=True, eq=False)
@@ -243,10 +241,10 @@ def _vec(values: Sequence[float], factor: float = 1.0) -> NDArray[np.float64]:
 
 
 #: Each gyro effect's coefficient field and its factor to rad/s units.
-_GYRO_FIELDS = (('bias', 'bias_dps', DEG), ('dT', 'dT_dps_per_c', DEG),
-                ('dT2', 'dT2_dps_per_c2', DEG), ('dT3', 'dT3_dps_per_c3', DEG),
-                ('dTdt', 'dTdt_dps_per_c_per_s', DEG), ('scale', 'scale_ppm_per_c', 1e-6),
-                ('warmup', 'warmup_dps', DEG))
+_GYRO_FIELDS = (('bias', 'bias_dps', RAD_PER_DEG), ('dT', 'dT_dps_per_c', RAD_PER_DEG),
+                ('dT2', 'dT2_dps_per_c2', RAD_PER_DEG), ('dT3', 'dT3_dps_per_c3', RAD_PER_DEG),
+                ('dTdt', 'dTdt_dps_per_c_per_s', RAD_PER_DEG),
+                ('scale', 'scale_ppm_per_c', 1e-6), ('warmup', 'warmup_dps', RAD_PER_DEG))
 
 
 def _coefficients(g: GyroSpec, on: Mapping[str, bool], offset: NDArray[np.float64]
@@ -280,18 +278,19 @@ def _drift(g: GyroSpec, on: Mapping[str, bool], coefficients: Mapping[str, NDArr
 def _add_noise(gyro: NDArray[np.float64], nz: NoiseSpec,
                rng: Callable[[str], np.random.Generator], rate: float) -> NDArray[np.float64]:
     """Add the enabled noise processes to ``gyro`` in place; return the white noise std."""
-    white_std = _vec(nz.arw_dps_per_rt_hz, DEG) * math.sqrt(rate) if nz.enabled else np.zeros(3)
+    density = _vec(nz.arw_dps_per_rt_hz, RAD_PER_DEG)
+    white_std = density * math.sqrt(rate) if nz.enabled else np.zeros(3)
     if not nz.enabled:
         return white_std
     n, dt = gyro.shape[0], 1.0 / rate
     if np.any(white_std > 0.0):
-        gyro += white_noise(rng('white'), n, density=_vec(nz.arw_dps_per_rt_hz, DEG), rate_hz=rate)
+        gyro += white_noise(rng('white'), n, density=density, rate_hz=rate)
     if np.any(_vec(nz.bias_instability_dps) > 0.0):
         gyro += gauss_markov(rng('bias_instability'), n,
-                             sigma=_vec(nz.bias_instability_dps, DEG),
+                             sigma=_vec(nz.bias_instability_dps, RAD_PER_DEG),
                              tau_s=nz.bias_instability_tau_s, dt=dt)
     if np.any(_vec(nz.rrw_dps_per_rt_s) > 0.0):
-        gyro += random_walk(rng('rrw'), n, k=_vec(nz.rrw_dps_per_rt_s, DEG), dt=dt)
+        gyro += random_walk(rng('rrw'), n, k=_vec(nz.rrw_dps_per_rt_s, RAD_PER_DEG), dt=dt)
     return white_std
 
 
@@ -370,7 +369,7 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     die_rate = thermal.at('die_rate_c_per_s', imu_t)
     d_t = die - g.t_ref_c
 
-    offset = rng('offset').standard_normal(3) * _vec(sc.runs.bias_offset_dps_std, DEG)
+    offset = rng('offset').standard_normal(3) * _vec(sc.runs.bias_offset_dps_std, RAD_PER_DEG)
     coefficients = _coefficients(g, on, offset)
 
     # Deterministic part: drift (error) and output = reference + drift.
@@ -386,8 +385,8 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     drift = _drift(g, on, coefficients, imu_t, d_t, die_rate, omega_ref)
     gyro = omega_ref + drift
     white_std = _add_noise(gyro, sc.noise, rng, rate)
-    step = g.sensitivity_mdps_per_digit * 1e-3 * DEG if g.quantise else 0.0
-    quantise(gyro, step, limit=g.range_dps * DEG)
+    step = g.sensitivity_mdps_per_digit * 1e-3 * RAD_PER_DEG if g.quantise else 0.0
+    quantise(gyro, step, limit=g.range_dps * RAD_PER_DEG)
 
     acc = _accelerometer(sc.accel, rng('accel'), rng('tilt'), imu_t, d_t, rate,
                          force=None if motion is None else motion.force)
@@ -429,9 +428,8 @@ def _accelerometer(spec: Any, noise_rng: np.random.Generator, tilt_rng: np.rando
     tilt = np.asarray(spec.tilt_deg, dtype=np.float64) + extra
     after = tilt + np.asarray(spec.reorient_tilt_deg, dtype=np.float64)
     g_before, g_after = gravity_in_sensor(spec.gravity_mps2, *np.stack([tilt, after]).T)
-    mg = G0 * 1e-3
-    coefficients = {'bias': _vec(spec.bias_mg, mg), 'dT': _vec(spec.dT_mg_per_c, mg),
-                    'dT2': _vec(spec.dT2_mg_per_c2, mg)}
+    coefficients = {'bias': _vec(spec.bias_mg, MG), 'dT': _vec(spec.dT_mg_per_c, MG),
+                    'dT2': _vec(spec.dT2_mg_per_c2, MG)}
     thermal = (d_t[:, None] * coefficients['dT'] + (d_t * d_t)[:, None] * coefficients['dT2'])
     offset = thermal + coefficients['bias']
     reorient = float(spec.reorient_at_s)
@@ -447,7 +445,7 @@ def _accelerometer(spec: Any, noise_rng: np.random.Generator, tilt_rng: np.rando
         g_after = g_before
     if np.any(offset):
         accel += offset
-    step = spec.sensitivity_mg_per_digit * mg
+    step = spec.sensitivity_mg_per_digit * MG
     quantise(accel, step, limit=spec.range_g * G0)
     white = _vec(spec.noise_mps2_per_rt_hz) * math.sqrt(rate)
     return {'accel': accel, 'accel_offset': offset, 'accel_thermal': thermal,

@@ -29,6 +29,7 @@ import copy
 from dataclasses import dataclass, field, fields, MISSING
 from typing import Any
 
+from gyro_tdc.base import G0
 from gyro_tdc.model import EFFECT_IDS
 import numpy as np
 from numpy.typing import NDArray
@@ -222,7 +223,7 @@ class AccelSpec:
 
     """
 
-    gravity_mps2: float = spec_field('num', 9.80665)
+    gravity_mps2: float = spec_field('num', G0)
     noise_mps2_per_rt_hz: Vec3 = spec_field('axis_nonneg', 0.0)
     tilt_deg: tuple[float, float] = spec_field('tilt', [0.0, 0.0], (0.0, 0.0))
     tilt_std_deg: float = spec_field('nonneg', 0.0, 0.0)
@@ -289,7 +290,7 @@ def _sensor(range_dps: float, bias: list, dT: list, dT2: list, dT3: list, dTdt: 
                   'bias_instability_dps': bias_instability,
                   'bias_instability_tau_s': [10.0, 100.0, 1000.0],
                   'rrw_dps_per_rt_s': [1.0e-5, 1.0e-5, 1.0e-5]},
-        'accel': {'gravity_mps2': 9.80665, 'noise_mps2_per_rt_hz': 0.0015},
+        'accel': {'gravity_mps2': G0, 'noise_mps2_per_rt_hz': 0.0015},
     }
 
 

@@ -26,6 +26,7 @@ from __future__ import annotations
 from dataclasses import dataclass, fields
 import math
 
+from gyro_tdc.base import RAD_PER_DEG
 from gyro_tdc.model import first_order_lag
 from gyro_tdc.sim.chamber import Profile
 from gyro_tdc.sim.specs import section_fields, spec_field
@@ -40,7 +41,6 @@ __all__ = ['CMD_VEL_TOPIC', 'Leg', 'TRUTH_TOPIC', 'VEHICLE_DEFAULTS', 'VEHICLE_F
 TRUTH_TOPIC = '/truth/angular_velocity'
 #: Topic of the commanded motion (geometry_msgs/Twist) in simulated vehicle bags.
 CMD_VEL_TOPIC = '/cmd_vel'
-_DEG = math.pi / 180.0
 
 #: Grid step of the heated set point, s (the self-heating moves over minutes).
 _HEAT_STEP_S = 5.0
@@ -224,7 +224,7 @@ def _drive_profile(spec: VehicleSpec, leg: Leg, rng: np.random.Generator
         if t + dur + 2.0 * _TURN_RAMP_S >= end:
             break
         sign = 1.0 if rng.random() < 0.5 else -1.0
-        w = float(rng.uniform(*spec.turn_rate_dps)) * _DEG * sign
+        w = float(rng.uniform(*spec.turn_rate_dps)) * RAD_PER_DEG * sign
         yt += [t, t + _TURN_RAMP_S, t + _TURN_RAMP_S + dur, t + 2.0 * _TURN_RAMP_S + dur]
         yv += [0.0, w, w, 0.0]
         t += 2.0 * _TURN_RAMP_S + dur
@@ -293,7 +293,7 @@ def vehicle_motion(spec: VehicleSpec, legs: tuple[Leg, ...], imu_t: NDArray[np.f
     force[:, 1] += speed * yaw_rate
     shake = np.clip(speed / spec.speed_mps, 0.0, 1.0)[:, None]
     n = t.shape[0]
-    rate += rng.standard_normal((n, 3)) * (spec.vibration_dps * _DEG) * shake
+    rate += rng.standard_normal((n, 3)) * (spec.vibration_dps * RAD_PER_DEG) * shake
     force += rng.standard_normal((n, 3)) * spec.vibration_mps2 * shake
     cmd_t = np.zeros(0)
     if spec.cmd_vel_rate_hz > 0.0 and n:

@@ -33,12 +33,11 @@ import stat
 import time
 from typing import Callable
 
-from gyro_tdc.base import TemperatureGate
+from gyro_tdc.base import AXES, TemperatureGate
 from gyro_tdc.errors import DeviceError
 from gyro_tdc.sources.base import ImuSample, PolledSource, Vec3
 
 DEFAULT_IIO_ROOT = '/sys/bus/iio/devices'
-_AXES = ('x', 'y', 'z')
 
 
 def _exists(path: Path, *, directory: bool = False) -> bool:
@@ -225,7 +224,7 @@ class IioSource(PolledSource):
         return None
 
     def _vector(self, kind: str, *, required: bool) -> tuple[_Channel, ...] | None:
-        raws = [self.device_dir / f'in_{kind}_{axis}_raw' for axis in _AXES]
+        raws = [self.device_dir / f'in_{kind}_{axis}_raw' for axis in AXES]
         missing = [path for path in raws if not _exists(path)]
         if missing and (required or len(missing) < len(raws)):
             raise DeviceError(f'IIO file {str(missing[0])!r} is missing.')
@@ -233,7 +232,7 @@ class IioSource(PolledSource):
             return None
         channels = []
         read = functools.cache(_read_number)
-        for axis, path in zip(_AXES, raws):
+        for axis, path in zip(AXES, raws):
             scale_file = self._shared_or_own(kind, axis, 'scale')
             if scale_file is None:
                 raise DeviceError(f'IIO file {str(self.device_dir / f"in_{kind}_scale")!r} is '

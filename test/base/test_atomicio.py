@@ -24,11 +24,13 @@ a replaced one stays until its successor is complete; what a dead writer left is
 from __future__ import annotations
 
 import errno
+import json
+import math
 import os
 from pathlib import Path
 import stat
 
-from gyro_tdc.base.atomicio import atomic_dir, atomic_write
+from gyro_tdc.base.atomicio import atomic_dir, atomic_json, atomic_write
 from gyro_tdc.errors import OutputError
 from gyro_tdc.model.modelfile import load_model, save_model
 from hostile_helpers import one_line_error, small_model
@@ -120,6 +122,17 @@ def test_binary_writer_and_bytes_content(tmp_path):
     atomic_write(tmp_path / 'b.bin', b'\x02')
     assert (tmp_path / 'a.bin').read_bytes() == b'\x00\x01'
     assert (tmp_path / 'b.bin').read_bytes() == b'\x02'
+
+
+def test_json_has_one_space_of_indent_a_final_newline_and_the_options_asked(tmp_path):
+    doc = {'a': [1, 2.5], 'b': 'µ'}
+    path = atomic_json(tmp_path / 'sub' / 'doc.json', doc)
+    assert path.read_text(encoding='utf-8') == json.dumps(doc, indent=1) + '\n'
+    line = atomic_json(tmp_path / 'line.json', doc, indent=None, ensure_ascii=False)
+    assert line.read_text(encoding='utf-8') == '{"a": [1, 2.5], "b": "µ"}\n'
+    with pytest.raises(ValueError):
+        atomic_json(tmp_path / 'nan.json', {'x': math.nan}, allow_nan=False)
+    assert not (tmp_path / 'nan.json').exists()
 
 
 def test_atomic_dir_appears_complete_or_not_at_all(tmp_path, umask):

@@ -12,11 +12,13 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""The fleet's results: a sensor's constant-axis note and the failed sensors of a fleet."""
+"""The fleet's results: constant-axis notes, failed sensors, summary.json/csv and the table."""
 
 from __future__ import annotations
 
-from gyro_tdc.fleet import FleetResult, SensorResult
+from fleet_rig import constant_sensor
+from gyro_tdc.fleet import FleetResult, format_table, SensorResult, summary_dict
+import numpy as np
 
 
 def test_constant_note_names_the_axes_in_the_right_number():
@@ -31,3 +33,28 @@ def test_failed_lists_every_sensor_not_ok():
     sensors = [SensorResult('a', 'ok'), SensorResult('b', 'failed', error='x'),
                SensorResult('c', 'ok', skipped=True)]
     assert [s.sensor_id for s in FleetResult('local', 1, sensors).failed] == ['b']
+
+
+def test_table_of_a_large_fleet_lists_only_failed_and_flagged_sensors():
+    sensors = [SensorResult(f's{i:02d}', 'ok', train_bs=[0.1] * 3) for i in range(45)]
+    sensors[7] = SensorResult('s07', 'failed', error='Bag is corrupt')
+    sensors[9].flags.append('drift slope on x 9.0σ from the fleet')
+    lines = format_table(FleetResult('local', 2, sensors, seconds=1.0)).splitlines()
+    assert [line.split()[0] for line in lines[1:-1]] == ['s07', 's09']
+    assert 'Bag is corrupt' in lines[1] and '9.0σ' in lines[2]
+    assert lines[-1].startswith('45 sensors: 44 ok (0 unchanged, skipped), 1 failed, 1 flagged')
+
+
+def test_summary_and_table_name_the_constant_axes():
+    """JSON key only when there are any; CSV column; table note and count; shown when many."""
+    rng = np.random.default_rng(9)
+    sensors = [constant_sensor(f's{i:02d}', rng) for i in range(44)]
+    sensors.append(constant_sensor('zz', rng, 'z'))
+    sensors[0].train_bs = [0.1] * 3
+    result = FleetResult('local', 1, sensors, seconds=1.0)
+    rows = {r['sensor_id']: r for r in summary_dict(result)['sensors']}
+    assert rows['zz']['constant_axes'] == ['z'] and 'constant_axes' not in rows['s00']
+    lines = format_table(result).splitlines()
+    assert [line.split()[0] for line in lines[1:-1]] == ['zz']          # many: only it
+    assert 'gyro axis z constant (not fitted' in lines[1]
+    assert '1 with a constant gyro axis' in lines[-1] and '0 flagged' in lines[-1]

@@ -20,7 +20,7 @@ import math
 
 from gyro_tdc.runtime.reanchor import StillnessDetector
 from gyro_tdc.signal import (detect_still, judge_windows, MAX_RATE, motion_veto, NOISE_FACTOR,
-                             noise_floor, noise_thresholds, windows_moving)
+                             noise_floor, noise_thresholds, stretch_edges, windows_moving)
 from gyro_tdc.signal.still import NoiseFloor
 import numpy as np
 import pytest
@@ -270,3 +270,13 @@ def test_noise_floor_pools_to_the_degrees_of_freedom():
     np.testing.assert_allclose(f.floor, 1.0)
     f.add(9, np.zeros(3), np.array([0.5, math.inf, 0.5]))   # a constant window pooled
     assert f.floor[0] == f.floor[2] < 1.0 and f.floor[0] >= 0.5 / math.sqrt(12.0)
+
+
+def test_a_long_step_or_a_cut_ends_a_stretch():
+    still = np.array([1, 1, 0, 1, 1, 1, 1, 1], dtype=bool)
+    steps = np.array([1.0, 1.0, 1.0, 1.0, 9.0, 1.0, 1.0])     # a gap between items 4 and 5
+    starts, stops = stretch_edges(still, steps, 2.0)
+    assert starts.tolist() == [0, 3, 5] and stops.tolist() == [2, 5, 8]
+    starts, stops = stretch_edges(still, steps, 2.0, [5])    # cut between items 5 and 6
+    assert starts.tolist() == [0, 3, 5, 6] and stops.tolist() == [2, 5, 6, 8]
+    assert stretch_edges(still, steps, 10.0)[0].tolist() == [0, 3]

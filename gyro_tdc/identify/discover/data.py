@@ -30,6 +30,7 @@ import math
 from typing import Callable, Mapping, Sequence
 import warnings
 
+from gyro_tdc.base import DEG_PER_RAD as DEG
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.discover.results import Unidentifiable
@@ -361,10 +362,6 @@ def excitation(data: BlockData, base: Sequence[str]) -> tuple[dict, list[str]]:
                                        'warm-up transient cannot be told apart from the '
                                        'temperature response and the bias')
     return {e: u for e, u in out.items() if e not in base}, notes
-
-
-#: rad/s to deg/s.
-DEG = 180.0 / math.pi
 
 
 def wsse(data: BlockData, r: NDArray[np.float64]) -> float:

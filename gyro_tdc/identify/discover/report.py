@@ -27,7 +27,7 @@ import math
 from pathlib import Path
 from typing import Any, Sequence
 
-from gyro_tdc.base import atomic_write, figure, save_png
+from gyro_tdc.base import atomic_write, AXES, figure, save_png
 from gyro_tdc.identify.discover.data import ar1, BlockData, DEG, LinearModel
 from gyro_tdc.identify.discover.results import BinMap, DiscoveryResult
 from gyro_tdc.model import batch_features, ThermalState
@@ -37,7 +37,6 @@ from numpy.typing import NDArray
 
 __all__ = ['residual_adev', 'residual_maps', 'write_report']
 
-_AXES = ('x', 'y', 'z')
 _COLORS = ('tab:blue', 'tab:orange', 'tab:green')
 
 
@@ -171,7 +170,7 @@ def _plot_maps(maps_rows: Sequence[tuple[str, Sequence[BinMap]]], path: Path) ->
                 if not np.any(ok):
                     continue
                 ax.errorbar(x[ok], y[ok], yerr=3.0 * e[ok], color=_COLORS[a], marker='.',
-                            capsize=2, lw=1, label=_AXES[a])
+                            capsize=2, lw=1, label=AXES[a])
                 fl = ok & m.flagged[:, a]
                 ax.plot(x[fl], y[fl], 'o', mfc='none', mec='red', ms=9)
             ax.axhline(0.0, color='k', lw=0.5)
