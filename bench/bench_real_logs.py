@@ -30,7 +30,8 @@ stretches of its own log worse (``evaluate``'s ``p_vs_raw`` above 1.1 on an axis
 ``evaluate`` refuses to load. A constant thermometer is noted on the read line.
 
 ``--damaged K`` also reads and trains (``--allow-loss``) K copies of each log damaged as SD
-cards do (cut off, bytes flipped, a stretch zeroed; seeded by ``--seed``).
+cards do (cut off, bytes flipped, a stretch zeroed; seeded by ``--seed``), with the first
+thermometer (``imu``, then ``baro``) that reads the undamaged log.
 
 No network, no logs shipped: point it at logs you have. ::
 
@@ -225,9 +226,15 @@ def sweep_log(path: Path, timeout: float) -> dict:
 
 
 def damaged_runs(path: Path, count: int, rng: np.random.Generator, timeout: float) -> dict:
-    """Read and ``train`` ``count`` damaged copies of a log: cut, bytes flipped, bytes zeroed."""
+    """Read and ``train`` ``count`` damaged copies of a log: cut, bytes flipped, bytes zeroed.
+
+    With the first thermometer of :data:`SOURCES` that reads the undamaged log.
+    """
     data = path.read_bytes()
     runs = {}
+    # The first thermometer that reads the whole log: on a log whose only one is the
+    # barometer, damage must be met by a read, not by the refusal of a missing thermometer.
+    src = next((s for s in SOURCES if inspect(path, s)['outcome'] == 'read'), SOURCES[0])
     with tempfile.TemporaryDirectory(prefix='gyro_tdc_damaged_') as tmp:
         for k in range(count):
             how = ('cut', 'flipped', 'zeroed')[k % 3]
@@ -242,9 +249,10 @@ def damaged_runs(path: Path, count: int, rng: np.random.Generator, timeout: floa
                 bad = data[:at] + bytes(len(data[at:at + 300])) + data[at + 300:]
             copy = Path(tmp) / f'{how}{path.suffix}'
             copy.write_bytes(bytes(bad))
-            runs[f'read {how} {at}'] = inspect(copy, 'imu')
-            runs[f'train {how} {at}'] = _run(['train', str(copy), '--out', str(copy) + '.yaml',
-                                              '--no-progress', '--allow-loss'], timeout)
+            runs[f'read {how} {at} {src}'] = inspect(copy, src)
+            runs[f'train {how} {at} {src}'] = _run(
+                ['train', str(copy), '--out', str(copy) + '.yaml', '--no-progress',
+                 '--allow-loss', '--temperature-source', src], timeout)
     return runs
 
 
