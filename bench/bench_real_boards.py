@@ -180,7 +180,8 @@ def _ratio(comp: np.ndarray, raw: np.ndarray) -> np.ndarray:
 
 def draw_logs(logs: list, rng: np.random.Generator, n_train: int, n_held: int,
               held_first: bool) -> tuple[list, list]:
-    """Return a draw's trained and held-out logs.
+    """
+    Return a draw's trained and held-out logs.
 
     By default the trained logs are drawn first among those with a still stretch, then up
     to ``n_held`` held out among the others with two. ``held_first`` draws the held-out

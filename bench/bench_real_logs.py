@@ -226,7 +226,8 @@ def sweep_log(path: Path, timeout: float) -> dict:
 
 
 def damaged_runs(path: Path, count: int, rng: np.random.Generator, timeout: float) -> dict:
-    """Read and ``train`` ``count`` damaged copies of a log: cut, bytes flipped, bytes zeroed.
+    """
+    Read and ``train`` ``count`` damaged copies of a log: cut, bytes flipped, bytes zeroed.
 
     With the first thermometer of :data:`SOURCES` that reads the undamaged log.
     """
