@@ -218,11 +218,12 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
 
     Ctrl-C, SIGTERM and an external shutdown end normally (exit 0): the executor shuts
     down, then the node is destroyed (it saves first) and rclpy shut down; a stop during
-    start-up abandons the node being built. A configuration error (every
-    :data:`STARTUP_ERRORS`) prints ``NAME: error: ...`` on stderr and returns 2, no
-    traceback. ``executor`` is a kind for :func:`make_executor` or a function of the node
-    returning one; ``freeze_heap`` calls ``gc.freeze()`` after start-up so the collector's
-    full passes do not stall callbacks.
+    start-up abandons the node being built, also where an import or a constructor wrapped
+    the stop in an error of its own (an extension module's "initialization failed"). A
+    configuration error (every :data:`STARTUP_ERRORS`) prints ``NAME: error: ...`` on
+    stderr and returns 2, no traceback. ``executor`` is a kind for :func:`make_executor` or
+    a function of the node returning one; ``freeze_heap`` calls ``gc.freeze()`` after
+    start-up so the collector's full passes do not stall callbacks.
     """
     stop = StopSignals()
     own = stop.install()
@@ -233,7 +234,13 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
             try:
                 with stop.interrupting():
                     node = make_node()
-            except STARTUP_ERRORS as exc:
+            except StopRequested:
+                raise
+            except Exception as exc:
+                if stop.abandoned:      # the stop, wrapped by an import or a constructor
+                    raise StopRequested(signal.Signals(stop.signum).name) from exc
+                if not isinstance(exc, STARTUP_ERRORS):
+                    raise
                 print(f'{name}: error: {one_line(exc)}', file=sys.stderr)
                 return 2
             ex = make_executor(executor(node) if callable(executor) else executor)

@@ -142,6 +142,27 @@ def test_a_stop_mid_build_prints_no_finaliser_traceback(monkeypatch):
     assert len(seen) == 2
 
 
+def test_a_stop_an_import_wraps_mid_build_is_a_stop_not_a_traceback(capfd):
+    """A signal inside an extension module's init surfaces as ImportError: still a stop."""
+    from gyro_tdc.nodes.executors import run_node, StopRequested
+
+    def make_node():
+        try:
+            signal.raise_signal(signal.SIGINT)      # lands in the module's init ...
+        except StopRequested as exc:                # ... which reports its own failure
+            raise ImportError('initialization failed') from exc
+        raise AssertionError('not reached: the stop abandons the build')
+
+    def failing_build():
+        raise ImportError('no module named nowhere')
+
+    assert run_node(make_node, args=[]) == 0
+    out, err = capfd.readouterr()
+    assert 'Traceback' not in out + err and 'ImportError' not in out + err
+    with pytest.raises(ImportError, match='nowhere'):   # without a stop: a real error
+        run_node(failing_build, args=[])
+
+
 def test_a_stop_signal_a_non_python_thread_gets_mid_build_stops_it_at_once():
     """The kernel may hand the signal to one of rclpy's threads: the build still stops."""
     import ctypes
