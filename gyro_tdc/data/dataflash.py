@@ -31,7 +31,7 @@ import os
 from pathlib import Path
 
 from gyro_tdc.data.flightlog import (captured, columns, FlightLog, no_instance, no_temperature,
-                                     on_stamps, rate_hz, seconds, sensor_stream, thermometer)
+                                     on_stamps, rate_words, seconds, sensor_stream, thermometer)
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
@@ -207,7 +207,7 @@ def _inventory(imus: dict, baros: dict) -> str:
     parts = []
     for i, d in sorted(imus.items()):
         temp = _temperature(d)
-        parts.append(f'{i}: {len(d["TimeUS"])} samples at {rate_hz(_seconds(d)):.3g} Hz, '
+        parts.append(f'{i}: {len(d["TimeUS"])} samples at {rate_words(_seconds(d))}, '
                      'temperature ' + (f'IMU.{temp[0]}' if temp else 'none'))
     baro = [i for i, d in sorted(baros.items()) if _temperature(d) is not None]
     return '; '.join(parts) + (f'; barometer temperature: BARO instance '

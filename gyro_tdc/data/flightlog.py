@@ -39,8 +39,8 @@ from numpy.typing import NDArray
 
 __all__ = ['captured', 'columns', 'DATAFLASH_MAGIC', 'describe_log', 'detect_format',
            'flight_log_data', 'FlightLog', 'is_flight_log', 'no_instance', 'no_temperature',
-           'on_stamps', 'PLAUSIBLE_C', 'rate_hz', 'seconds', 'sensor_stream', 'thermometer',
-           'ULOG_MAGIC']
+           'on_stamps', 'PLAUSIBLE_C', 'rate_hz', 'rate_words', 'seconds', 'sensor_stream',
+           'thermometer', 'ULOG_MAGIC']
 
 #: A ULog starts with these 7 bytes (then the version byte).
 ULOG_MAGIC = b'ULog\x01\x125'
@@ -178,6 +178,23 @@ def rate_hz(t: NDArray[np.float64]) -> float:
     if k and span > 2.0 * float(t[n - 1 - k] - t[k]) * (n - 1) / (n - 1 - 2 * k):
         n, span = n - 2 * k, float(t[n - 1 - k] - t[k])
     return (n - 1) / span if span > 0 else 0.0
+
+
+def rate_words(t: NDArray[np.float64]) -> str:
+    """
+    Return the rate of stamps ``t`` (s) in words for an inventory: its mean rate.
+
+    A log that records only while armed pauses (steps over ten times the median): its mean
+    rate (:func:`rate_hz`) counts the pauses, so where that is under 0.8 times the rate
+    between them both are said (e.g. ``50 Hz (26.8 Hz over the log: it pauses)``).
+    """
+    mean = rate_hz(t)
+    steps = np.diff(np.unique(np.asarray(t, dtype=np.float64)))
+    run = steps[steps <= 10.0 * np.median(steps)] if steps.size else steps
+    typical = run.size / float(run.sum()) if run.size and run.sum() > 0 else 0.0
+    if mean < 0.8 * typical:
+        return f'{typical:.3g} Hz ({mean:.3g} Hz over the log: it pauses)'
+    return f'{mean:.3g} Hz'
 
 
 def sensor_stream(t: NDArray[np.float64], v: NDArray[np.float64], slow_t: NDArray[np.float64],

@@ -35,7 +35,8 @@ from pathlib import Path
 import struct
 
 from gyro_tdc.data.flightlog import (captured, columns, FlightLog, no_instance, no_temperature,
-                                     on_stamps, rate_hz, seconds, sensor_stream, thermometer)
+                                     on_stamps, rate_hz, rate_words, seconds,
+                                     sensor_stream, thermometer)
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import onboard_status
 import numpy as np
@@ -299,7 +300,7 @@ def _inventory(topics: dict) -> str:
                   for i in topics.get(name, {})})
     parts = []
     for i in ids:
-        has = [f'{k} {_rate(d):.3g} Hz' for k, d in _gyros(topics, i).items()]
+        has = [f'{k} {rate_words(_seconds(d))}' for k, d in _gyros(topics, i).items()]
         temps = [f'{tp}.{f}' for tp, f in _IMU_THERMOMETERS
                  if thermometer(topics.get(tp, {}).get(i, {}).get(f)) is not None]
         has.append('temperature: ' + (', '.join(temps) if temps else 'none'))

@@ -142,6 +142,17 @@ def test_one_imu_whose_thermometer_reads_zero_is_refused_saying_what_the_log_has
         load_run(path)
 
 
+def test_an_imu_logged_only_while_armed_is_said_at_its_rate_and_its_mean(tmp_path):
+    # ArduCopter 3.2 logs IMU only while armed: the mean rate counts the pauses.
+    imu = _imus(count=1)[0]
+    t = np.r_[imu.t[:150], imu.t[150:] + 6.0]           # 3 s at 50 Hz, 6 s off, 3 s on
+    path = write_dataflash(tmp_path / 'armed.bin', [Imu(t=t, gyro=imu.gyro,
+                                                        temp=np.zeros_like(imu.temp))])
+    with pytest.raises(DatasetError, match=r'0: 300 samples at 50 Hz \(25 Hz over the log: '
+                                           r'it pauses\), temperature none'):
+        load_run(path)
+
+
 def test_a_real_arducopter_3_3_log_three_imus_with_temp_stamped_in_milliseconds():
     # dronekit-la-testdata's log171.bin (a Pixhawk): handled, 40 s still, then a flight.
     for k in range(3):
