@@ -181,7 +181,7 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
     f.add_argument('--temperature-source', default='imu', metavar='SRC',
                    help=f'the thermometer of a flight log: {" or ".join(TEMPERATURE_SOURCES)} '
                         "(the barometer's, e.g. PX4 sensor_combined.baro_temp_celcius, "
-                        'ArduPilot BARO.T), or TOPIC.FIELD / MSG.Field (another thermometer '
+                        'ArduPilot BARO.Temp), or TOPIC.FIELD / MSG.Field (another thermometer '
                         'of the board); a proxy lags the die, so training adds the thermal '
                         'state (lag) with --features auto (default: %(default)s)')
 
