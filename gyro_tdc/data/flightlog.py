@@ -191,7 +191,7 @@ def rate_words(t: NDArray[np.float64]) -> str:
     mean = rate_hz(t)
     steps = np.diff(np.unique(np.asarray(t, dtype=np.float64)))
     run = steps[steps <= 10.0 * np.median(steps)] if steps.size else steps
-    typical = run.size / float(run.sum()) if run.size and run.sum() > 0 else 0.0
+    typical = run.size / float(run.sum()) if run.size else 0.0
     if mean < 0.8 * typical:
         return f'{typical:.3g} Hz ({mean:.3g} Hz over the log: it pauses)'
     return f'{mean:.3g} Hz'

@@ -234,9 +234,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
             try:
                 with stop.interrupting():
                     node = make_node()
-            except StopRequested:
-                raise
-            except Exception as exc:
+            except Exception as exc:    # StopRequested is no Exception: it passes
                 if stop.abandoned:      # the stop, wrapped by an import or a constructor
                     raise StopRequested(signal.Signals(stop.signum).name) from exc
                 if not isinstance(exc, STARTUP_ERRORS):
