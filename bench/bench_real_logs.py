@@ -225,17 +225,18 @@ def sweep_log(path: Path, timeout: float) -> dict:
     return runs
 
 
-def damaged_runs(path: Path, count: int, rng: np.random.Generator, timeout: float) -> dict:
+def damaged_runs(path: Path, count: int, rng: np.random.Generator, timeout: float,
+                 swept: dict) -> dict:
     """
     Read and ``train`` ``count`` damaged copies of a log: cut, bytes flipped, bytes zeroed.
 
-    With the first thermometer of :data:`SOURCES` that reads the undamaged log.
+    With the first thermometer of :data:`SOURCES` that read the undamaged log (``swept``,
+    :func:`sweep_log`'s runs): on a log whose only one is the barometer, damage must be met
+    by a read, not by the refusal of a missing thermometer.
     """
     data = path.read_bytes()
     runs = {}
-    # The first thermometer that reads the whole log: on a log whose only one is the
-    # barometer, damage must be met by a read, not by the refusal of a missing thermometer.
-    src = next((s for s in SOURCES if inspect(path, s)['outcome'] == 'read'), SOURCES[0])
+    src = next((s for s in SOURCES if swept[f'read {s}']['outcome'] == 'read'), SOURCES[0])
     with tempfile.TemporaryDirectory(prefix='gyro_tdc_damaged_') as tmp:
         for k in range(count):
             how = ('cut', 'flipped', 'zeroed')[k % 3]
@@ -291,7 +292,7 @@ def main(argv=None) -> int:
     result = {}
     for path in logs:
         runs = sweep_log(path, args.timeout)
-        runs.update(damaged_runs(path, args.damaged, rng, args.timeout))
+        runs.update(damaged_runs(path, args.damaged, rng, args.timeout, runs))
         result[str(path)] = runs
         print(f'== {path} ({path.stat().st_size / 1e6:.2f} MB)')
         for name, r in runs.items():

@@ -47,11 +47,16 @@ DEG = math.pi / 180.0
 BOUND = 1.1
 
 
+def _script(path: Path):
+    """Return the module of a script of the repository (a tool or a bench)."""
+    spec = importlib.util.spec_from_file_location(path.stem, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
 def _tool():
-    spec = importlib.util.spec_from_file_location('field_day', ROOT / 'tools' / 'field_day.py')
-    tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(tool)
-    return tool
+    return _script(ROOT / 'tools' / 'field_day.py')
 
 
 @pytest.fixture(scope='module')
@@ -276,19 +281,12 @@ def test_cli_still_time_with_too_small_a_span_says_what_to_record(tmp_path, caps
 # ------------------------------------------------------------------ logs of one board (issue 34)
 
 def _board_bench():
-    spec = importlib.util.spec_from_file_location('bench_board_logs',
-                                                  ROOT / 'bench' / 'bench_board_logs.py')
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
-    return bench
+    return _script(ROOT / 'bench' / 'bench_board_logs.py')
 
 
 def test_the_real_board_bench_can_hold_out_eight_logs_on_every_draw():
     """--held-first: eight held out with two stops each, four trained among the rest."""
-    spec = importlib.util.spec_from_file_location('bench_real_boards',
-                                                  ROOT / 'bench' / 'bench_real_boards.py')
-    bench = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bench)
+    bench = _script(ROOT / 'bench' / 'bench_real_boards.py')
     logs = [{'name': k, 'stretches': s} for k, s in enumerate([2] * 10 + [1] * 6 + [0])]
     for draw in range(20):
         rng = np.random.default_rng([0, draw])
