@@ -20,8 +20,10 @@ from flightlogs import Imu, write_dataflash
 from gyro_tdc.data import BagOptions
 from gyro_tdc.data.dataflash import read_dataflash
 from gyro_tdc.data.dataset import describe_read, load_run
+from gyro_tdc.data.flightlog import rate_words
 from gyro_tdc.data.ulog import read_ulog
 from gyro_tdc.errors import DatasetError
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 from real_logs import (ARDUPILOT_CUBEBLACK, PX4_BARO_ONLY, PX4_MULTI_RATE,
@@ -169,3 +171,12 @@ def test_values_are_put_on_other_stamps_with_nan_outside_their_span():
     assert np.isnan(out[[0, 3]]).all()
     assert on_stamps(np.arange(3.0), np.array([]), np.empty((0, 3))) is None
     assert on_stamps(np.arange(3.0), t_src, None) is None
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(st.one_of(st.floats(-1e9, 1e9), st.just(float('nan'))), max_size=40))
+def test_an_inventory_says_a_rate_of_any_stamps_damage_leaves(stamps):
+    """Stamps out of order, repeated, NaN, none or one: a rate in words, never an error."""
+    with np.errstate(all='ignore'):
+        said = rate_words(np.array(stamps, dtype=np.float64))
+    assert said.endswith(('Hz', 'it pauses)')) and 'Hz' in said
