@@ -131,7 +131,8 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
     time_scale : float
         Simulated seconds per wall-clock second.
     seconds : float, s
-        How long to stream.
+        How long to stream, from the driver's first message (a busy machine may take
+        seconds to start it; it has 20 s before the window opens anyway).
     reference_dps : tuple of float, deg/s
         True rate of the stream (the BS reference).
 
@@ -163,6 +164,9 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
                 raise RuntimeError('compensator_node did not come up: ' + ' '.join(comp_cmd))
             ex.spin_once(timeout_sec=0.05)
         procs.append(subprocess.Popen(drv_cmd, env=env, stdout=subprocess.DEVNULL))
+        deadline = time.monotonic() + 20.0          # the driver's start-up, not the window
+        while not node.raw and time.monotonic() < deadline and procs[1].poll() is None:
+            ex.spin_once(timeout_sec=0.05)
         start = time.monotonic()
         while time.monotonic() - start < seconds:
             ex.spin_once(timeout_sec=0.05)
