@@ -194,11 +194,8 @@ def reanchor_lines(record: dict | None) -> list[str]:
                 'fitted on the others, re-anchored at its start), RMS of their mean error, deg/s:',
                 *(f'  {k:<22}' + '  '.join(f'{v:10.3g}' for v in record[f'{k.split()[0]}_dps'])
                   for k in ('always (any shift)', 'gated (beyond the gate)', 'never'))]
-    for a, v in zip(AXES, record['min_shift_dps']):
-        if v > 0:
-            out.append(f'axis {a}: the node re-anchors only beyond {v:.3g} deg/s '
-                       f"({SIGNIFICANCE:g} x its anchors' error: a smaller start-up shift is no "
-                       'evidence of a turn-on offset)')
-        else:
-            out.append(f'axis {a}: the node re-anchors any start-up shift')
-    return out
+    return out + [f'axis {a}: the node re-anchors only beyond {v:.3g} deg/s ({SIGNIFICANCE:g} x '
+                  "its anchors' error: a smaller start-up shift is no evidence of a turn-on "
+                  'offset)'
+                  if v > 0 else f'axis {a}: the node re-anchors any start-up shift'
+                  for a, v in zip(AXES, record['min_shift_dps'])]
