@@ -121,16 +121,14 @@ def _angle_deg(u: NDArray[np.float64], v: NDArray[np.float64]) -> float:
     return math.degrees(math.acos(min(1.0, max(-1.0, float(np.dot(u, v)) / (nu * nv)))))
 
 
-def static_data(run: Run, *, model: CompensationModel | None = None,
-                window_s: float = STILL_WINDOW_S, max_rate: float = MAX_RATE,
-                min_segment_s: float = MIN_SEGMENT_S) -> StaticData | None:
+def static_data(run: Run, *, model: CompensationModel | None = None) -> StaticData | None:
     """
     Find the still samples of a run and split them at orientation changes (None: no accel).
 
     The still windows are the one still test's (:func:`gyro_tdc.signal.detect_still`) with a
     non-zero reference rate as the motion veto and, with a gyro ``model``, a mean compensated
-    rate of at most ``max_rate`` (a slow constant turn has no spread); orientation segments
-    shorter than ``min_segment_s`` are dropped.
+    rate of at most :data:`gyro_tdc.signal.MAX_RATE` (a slow constant turn has no spread);
+    orientation segments shorter than :data:`MIN_SEGMENT_S` are dropped.
     """
     if not has_accelerometer(run.accel):
         return None
@@ -140,7 +138,7 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
         model, t, run.temp, run.omega, out_of_range=DEFAULT_OUT_OF_RANGE) - run.omega_ref
     # The one still test: every still window counts, the segments set the shortest stretch.
     st = detect_still(t, run.omega, acc, rate=rate, moving=moves[:, 0] | moves[:, 1] | moves[:, 2],
-                      window_s=window_s, min_still_s=0.0, max_rate=max_rate)
+                      window_s=STILL_WINDOW_S, min_still_s=0.0, max_rate=MAX_RATE)
 
     def none(reason: str) -> StaticData:
         return StaticData(run.name, np.zeros(n, dtype=bool), np.full(n, -1), 0, (), st.window_s,
@@ -149,8 +147,7 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
     if st.reason == 'too few samples to judge stillness':
         return none(st.reason)
     starts, counts, a_mean = st.starts, st.counts.astype(np.float64), st.accel_mean
-    still = st.still_windows
-    if not np.any(still):
+    if not np.any(st.still_windows):
         return none('the reference rate is not zero (a turning rate table is not static)'
                     if np.all(np.isin(st.why, ('motion', 'samples', 'non-finite'))) else
                     'no still window (the IMU moves)')
@@ -158,7 +155,7 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
     seg_of, changes, steps = np.full(starts.size, -1, dtype=np.int64), [], []
     seg, prev = -1, -1
     var_mean = st.accel_std ** 2 / counts[:, None]    # variance of each window's mean, per axis
-    for j in np.flatnonzero(still).tolist():
+    for j in np.flatnonzero(st.still_windows).tolist():
         new = prev < 0 or j - prev - 1 > MAX_GAP_WINDOWS
         if not new:
             gap = j - prev
@@ -179,7 +176,7 @@ def static_data(run: Run, *, model: CompensationModel | None = None,
     # Drop short segments, renumber the rest.
     ends = np.append(starts[1:], n)
     keep_ids = [s for s in range(seg + 1) for w in [np.flatnonzero(seg_of == s)]
-                if t[ends[w[-1]] - 1] - t[starts[w[0]]] >= min_segment_s or seg == 0]
+                if t[ends[w[-1]] - 1] - t[starts[w[0]]] >= MIN_SEGMENT_S or seg == 0]
     remap = np.full(seg + 2, -1, dtype=np.int64)        # remap[-1]: not still, stays -1
     remap[keep_ids] = np.arange(len(keep_ids))
     per_sample = np.repeat(remap[seg_of], counts.astype(np.int64))
@@ -370,19 +367,16 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     # Coverage of the still data from its block means (the minutes per bin are the same).
     out.coverage = coverage([Run(sg['t'], sg['temp'], np.zeros((sg['t'].size, 3)),
                                  np.zeros((sg['t'].size, 3))) for sg in segs], bin_c=bin_c)
-    if n_static < MIN_SAMPLES:
-        out.note = f'too few still samples ({n_static}, need at least {MIN_SAMPLES})'
-        return out
-    if span[1] - span[0] < MIN_SPAN_C:
-        out.note = (f'the still data span {span[1] - span[0]:.3g} degC of the model '
-                    f'temperature (need at least {MIN_SPAN_C} degC)')
-        return out
     groups = np.concatenate([np.full(sg['n'].size, g) for g, sg in enumerate(segs)])
     widest = curve_untold(np.concatenate([sg['state'] for sg in segs]), groups)
-    if widest is not None:
-        out.note = (f'no still segment spans {MIN_SESSION_SPAN_C:g} degC of the model '
-                    f'temperature of its own (widest {widest:.3g} degC of {len(segs)}): with a '
-                    'constant per segment, a curve is told only within one')
+    out.note = (f'too few still samples ({n_static}, need at least {MIN_SAMPLES})'
+                if n_static < MIN_SAMPLES else
+                f'the still data span {span[1] - span[0]:.3g} degC of the model temperature '
+                f'(need at least {MIN_SPAN_C} degC)' if span[1] - span[0] < MIN_SPAN_C else
+                f'no still segment spans {MIN_SESSION_SPAN_C:g} degC of the model temperature '
+                f'of its own (widest {widest:.3g} degC of {len(segs)}): with a constant per '
+                'segment, a curve is told only within one' if widest is not None else '')
+    if out.note:
         return out
     lf = fit_linear(np.concatenate([sg['x'] for sg in segs]),
                     np.concatenate([sg['y'] for sg in segs]), kind=kind, n_centers=n_centers,
@@ -421,8 +415,7 @@ def compensate_accel(model: CompensationModel, t: ArrayLike, temp: ArrayLike,
     if model.accel is None:
         raise FeatureError('the model has no accelerometer part (train with accelerometer '
                            'data, without --no-accel)')
-    return compensate(model.accel, np.asarray(t, dtype=np.float64),
-                      np.asarray(temp, dtype=np.float64), np.asarray(accel, dtype=np.float64),
+    return compensate(model.accel, *(np.asarray(x, dtype=np.float64) for x in (t, temp, accel)),
                       out_of_range=out_of_range, max_extrapolation_c=max_extrapolation_c)
 
 

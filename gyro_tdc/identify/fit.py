@@ -91,8 +91,8 @@ def check_finite(run: Run, keys: Sequence[str] = ('temp', 'omega', 'omega_ref'))
 
 
 def _check_runs(runs: Sequence[Run], ids: Sequence[str],
-                rows: Sequence[NDArray[np.bool_]] | None) -> None:
-    """Reject data that cannot support a fit, with a message naming the problem."""
+                rows: Sequence[NDArray[np.bool_]] | None) -> int:
+    """Return the samples that count; FitError, naming the problem, when they cannot fit."""
     if not runs:
         raise FitError('No training runs given.')
     if rows is not None and (len(rows) != len(runs) or any(
@@ -112,6 +112,7 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
     if needs_ref and not any(np.any(np.abs(r.omega_ref) > 1e-9) for r in runs):
         raise FitError(f'Effect `{needs_ref[0]}` needs a non-zero reference rate (rate-table '
                        'data); every training run has omega_ref = 0.')
+    return n
 
 
 def check_choices(kind: str, thermal: str | ThermalState | None) -> None:
@@ -206,20 +207,18 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     if o.kind == 'rbf' and o.n_centers < 1:
         raise FitError(f'`n_centers` must be at least 1 for an rbf model, got {o.n_centers}.')
     ids, mode, th = _thermal_choice(ids, o.thermal, o.fit_params, o.params)
-    _check_runs(runs, ids, rows)
+    n_total = _check_runs(runs, ids, rows)
     labels = _labels(runs, sessions)
     t0 = estimate_t0(runs[0]) if o.t0 is None else o.t0
     inputs = input_ids(ids, state=True)
     par = resolve_params(ids, o.params)
-    n_all = sum(len(r) for r in runs)
     rows = None if rows is None else [np.asarray(m, dtype=bool) for m in rows]
-    n_total = n_all if rows is None else int(sum(np.count_nonzero(m) for m in rows))
-    block = block_length(n_all, o.max_rows, at_most=True)
+    block = block_length(sum(len(r) for r in runs), o.max_rows, at_most=True)
     blocks, y, groups = run_blocks(runs, block, rows, labels)
     th, thermal_info = _search(runs, o, ids, inputs, t0, par, mode, th, rows, labels)
 
     states = [run_state(th, r) for r in runs]
-    x = np.concatenate([b.features(inputs, t0, par, exact=True, thermal=th, state=s)
+    x = np.concatenate([b.features(inputs, t0, par, th, state=s)
                         for b, s in zip(blocks, states)])
     scale_cols = (np.concatenate([b.scale_cols(t0, state=s) for b, s in zip(blocks, states)])
                   if 'scale' in ids else None)

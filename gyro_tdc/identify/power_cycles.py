@@ -111,8 +111,6 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
               'worse_folds': v.worse_folds.tolist(),
               'gain_t': [float(t) if np.isfinite(t) else None for t in v.gain_t],
               'offset_only': [AXES[a] for a in drop]}
-    if not drop.size:
-        return fit, offsets, record
     return (*_offset_only(fit, offsets, y, groups, drop), record)
 
 
@@ -196,11 +194,8 @@ def reanchor_lines(record: dict | None) -> list[str]:
                 'fitted on the others, re-anchored at its start), RMS of their mean error, deg/s:',
                 *(f'  {k:<22}' + '  '.join(f'{v:10.3g}' for v in record[f'{k.split()[0]}_dps'])
                   for k in ('always (any shift)', 'gated (beyond the gate)', 'never'))]
-    for a, v, e in zip(AXES, record['min_shift_dps'], record['anchor_error_dps']):
-        if v > 0:
-            out.append(f'axis {a}: the node re-anchors only beyond {v:.3g} deg/s '
-                       f"({SIGNIFICANCE:g} x its anchors' error: a smaller start-up shift is no "
-                       'evidence of a turn-on offset)')
-        else:
-            out.append(f'axis {a}: the node re-anchors any start-up shift')
-    return out
+    return out + [f'axis {a}: the node re-anchors only beyond {v:.3g} deg/s ({SIGNIFICANCE:g} x '
+                  "its anchors' error: a smaller start-up shift is no evidence of a turn-on "
+                  'offset)'
+                  if v > 0 else f'axis {a}: the node re-anchors any start-up shift'
+                  for a, v in zip(AXES, record['min_shift_dps'])]

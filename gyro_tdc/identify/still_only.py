@@ -314,8 +314,7 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
                            "stretches look like slow turns (their mean rate off the others'); "
                            f'the rest span {hi - lo:.2f} degC only ({lo:.1f} .. {hi:.1f} degC; '
                            f'need at least {MIN_SPAN_C:g} degC): record stops at other '
-                           'temperatures, '
-                           'or veto the turns with --motion-topic.')
+                           'temperatures, or veto the turns with --motion-topic.')
         model = fit_model(runs, options, rows=rows, sessions=labels)
         means = _stretch_means(model, runs, spans, labels)
     else:

@@ -183,12 +183,9 @@ def profile_interval(sse: Callable[[float], NDArray[np.float64]], tau: float,
     ends = []
     for side, bound in ((-1.0, u_lo), (1.0, u_hi)):
         inside, outside, d = u0, None, step
-        while True:
+        while outside is None:
             u = max(u0 - d, bound) if side < 0 else min(u0 + d, bound)
-            if stat(math.exp(u)) > level:
-                outside = u
-                break
-            inside = u
+            inside, outside = (inside, u) if stat(math.exp(u)) > level else (u, None)
             if u == bound:
                 break
             d *= 2.0
@@ -266,14 +263,12 @@ class RunBlocks:
         err = self._err() - (temp - t0)[:, None] * self.run.omega_ref * scale
         return self.grid.moments(err)[1]
 
-    def features(self, ids: Sequence[str], t0: float, params: Mapping, *, exact: bool,
-                 thermal: ThermalState, state: NDArray[np.float64] | None = None
-                 ) -> NDArray[np.float64]:
-        """Return block-mean features: ``exact`` from full rate, else from the block means."""
-        if exact and self.block > 1:
-            s = run_state(thermal, self.run) if state is None else state
+    def features(self, ids: Sequence[str], t0: float, params: Mapping, thermal: ThermalState,
+                 state: NDArray[np.float64] | None = None) -> NDArray[np.float64]:
+        """Return block-mean features: with the run's ``state`` from full rate, else coarse."""
+        if state is not None and self.block > 1:
             return self.mean(batch_features(ids, self.run.t, self.run.temp, t0=t0,
-                                            params=params, state=s))
+                                            params=params, state=state))
         return self.grid.sel(batch_features(ids, self.t, self.temp, t0=t0, params=params,
                                             state=thermal.temperature(self.t, self.temp)))
 
@@ -320,8 +315,7 @@ class ParamSearch:
     def design(self, thermal: ThermalState, par: Mapping
                ) -> tuple[NDArray[np.float64], NDArray[np.float64] | None]:
         """Return the coarse feature rows and scale columns of a front end."""
-        x = np.concatenate([b.features(self.inputs, self.t0, par, exact=False, thermal=thermal)
-                            for b in self.blocks])
+        x = np.concatenate([b.features(self.inputs, self.t0, par, thermal) for b in self.blocks])
         lagged = thermal if thermal.kind != 'none' else None
         return x, (np.concatenate([b.scale_cols(self.t0, thermal=lagged) for b in self.blocks])
                    if self.scale else None)
@@ -336,13 +330,12 @@ class ParamSearch:
         r = self.fit(thermal, par).resid
         return np.einsum('ij,ij->j', r, r)
 
-    def cv_sse(self, thermal: ThermalState, par: Mapping, *, window_s: float = 60.0,
-               n_segments: int = 20, n_folds: int = 5) -> float:
+    def cv_sse(self, thermal: ThermalState, par: Mapping) -> float:
         """
         Return the cross-validated SSE of the slow error.
 
-        Each row is predicted by a fit without its fold (interleaved contiguous segments); the
-        out-of-fold residuals are averaged over ``window_s`` windows before squaring, so the
+        Each row is predicted by a fit without its fold (20 interleaved contiguous segments in 5
+        folds); the out-of-fold residuals are averaged over 60 s windows before squaring, so the
         white noise shrinks and the figure measures the drift the model misses.
         """
         x, sc = self.design(thermal, par)
@@ -357,11 +350,11 @@ class ParamSearch:
                     r[g[test] == grp] += fit.offsets[j]
             return r
 
-        folds = Folds.segments(x.shape[0], n_segments=n_segments, n_folds=n_folds)
+        folds = Folds.segments(x.shape[0], n_segments=20, n_folds=5)
         resid = heldout(residual, folds, self.y.shape, groups=g)
         steps = np.concatenate([np.diff(b.t) for b in self.blocks])
-        dt = float(np.median(steps)) if steps.size else window_s
-        w = max(1, int(round(window_s / dt))) if dt > 0 else 1
+        dt = float(np.median(steps)) if steps.size else 60.0
+        w = max(1, int(round(60.0 / dt))) if dt > 0 else 1
         return float((block_mean(resid, w) ** 2).sum())
 
     def first_order(self, par: Mapping, bounds: tuple[float, float]) -> tuple[float, dict]:

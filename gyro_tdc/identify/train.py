@@ -123,14 +123,13 @@ class FeatureChoice:
         out = {'mode': AUTO, 'base': list(self.base), 'chosen': list(self.features),
                'decisions': [asdict(x) for x in self.decisions],
                **({'dropped': self.dropped} if self.dropped else {})}
-        if d is not None:
-            out['discovery'] = {
-                'noise_floor_dps': float(d.noise_floor_dps), 'gap_dps': float(d.gap_dps),
-                'heldout_gap_dps': float(d.heldout_gap_dps), 'folds': d.settings['folds'],
-                'block_s': float(d.block_s),
-                'thermal': None if d.thermal is None else d.thermal.to_dict()}
-        else:
-            out['note'] = self.note
+        if d is None:
+            return {**out, 'note': self.note}
+        out['discovery'] = {
+            'noise_floor_dps': float(d.noise_floor_dps), 'gap_dps': float(d.gap_dps),
+            'heldout_gap_dps': float(d.heldout_gap_dps), 'folds': d.settings['folds'],
+            'block_s': float(d.block_s),
+            'thermal': None if d.thermal is None else d.thermal.to_dict()}
         return out
 
 
@@ -147,10 +146,8 @@ def _for_search(run: Run) -> Run:
     m = int(rate // SEARCH_RATE_HZ)
     if m < 2 or len(run) < 2 * m:
         return run
-    ref = (block_mean(run.omega_ref, m, partial=False) if np.any(run.omega_ref)
-           else np.zeros((len(run) // m, 3)))         # no reference: its means are zeros
-    return Run(block_mean(run.t, m, partial=False), block_mean(run.temp, m, partial=False),
-               block_mean(run.omega, m, partial=False), ref, run.name, dict(run.info))
+    means = [block_mean(x, m, partial=False) for x in (run.t, run.temp, run.omega, run.omega_ref)]
+    return Run(*means, run.name, dict(run.info))
 
 
 def _floors(value: float, floor: float) -> str:
@@ -332,8 +329,7 @@ def data_frame(runs: Sequence[Run]) -> str:
     return next(iter(frames), '')
 
 
-def proxy_lag(runs: Sequence[Run], ids: tuple, options: TrainOptions,
-              log: Callable[[str], None] | None = None) -> tuple:
+def proxy_lag(runs: Sequence[Run], ids: tuple, options: TrainOptions, log: Log = None) -> tuple:
     """
     Return the features with the thermal state (``lag``) added when a proxy is the thermometer.
 
