@@ -76,10 +76,6 @@ def _fields(type_name: str) -> Mapping[str, str] | None:
         return None
 
 
-def _has_header(type_name: str) -> bool:
-    return (_fields(type_name) or {}).get('header') == 'std_msgs/Header'
-
-
 @dataclass(frozen=True)
 class InputReader:
     """
@@ -101,7 +97,8 @@ class InputReader:
 def _imu_converter(type_name: str, p: Any) -> Callable[[Any], Imu]:
     """Return ``to_imu(msg)`` for an imu_type other than sensor_msgs/Imu."""
     rate, stamp, kind = rate_fields(type_name, p, _fields)
-    has_header, frame_id = _has_header(type_name), p.frame_id
+    has_header = (_fields(type_name) or {}).get('header') == 'std_msgs/Header'
+    frame_id = p.frame_id
     # One Imu, refilled per message: publish() serializes it at once (a new Imu costs more
     # than the rest of the conversion). REP 145: no orientation, no acceleration.
     out = Imu()

@@ -251,9 +251,9 @@ class CompensatorNode(ShellNode):
     #: The ``raw_cdr`` subscription's callback: the bytes as they came.
     _on_imu_raw = _compensate
 
-    def _on_imu(self, msg: Any, start: float | None = None) -> None:
+    def _on_imu(self, msg: Any) -> None:
         """Compensate a deserialised message (an ``imu_type`` one made an Imu first: FLU)."""
-        start = perf_counter() if start is None else start
+        start = perf_counter()
         if self.reader.to_imu is not None:
             try:
                 msg = self.reader.to_imu(msg)

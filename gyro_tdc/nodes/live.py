@@ -27,7 +27,6 @@ from dataclasses import dataclass
 import functools
 import math
 import os
-from pathlib import Path
 import signal
 import subprocess
 import sys
@@ -107,9 +106,11 @@ class LiveResult:
         ]
 
 
-def _node_cmd(module: str, params_file: Path, overrides: dict) -> list[str]:
+def _node_cmd(module: str, params_file: str, **overrides: object) -> list[str]:
+    """Return the command line ``ros2 run`` runs ``module`` with, on a shipped params file."""
     return [sys.executable, '-m', f'gyro_tdc.nodes.{module}', '--ros-args', '--params-file',
-            str(params_file), *(a for k, v in overrides.items() for a in ('-p', f'{k}:={v}'))]
+            str(config_dir() / params_file),
+            *(a for k, v in overrides.items() for a in ('-p', f'{k}:={v}'))]
 
 
 def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed: int = 7,
@@ -143,12 +144,9 @@ def run_live(model_file: str | os.PathLike, *, scenario: str = 'demo_fast', seed
 
     """
     env = dict(os.environ, ROS_AUTOMATIC_DISCOVERY_RANGE='LOCALHOST')
-    cfg = config_dir()
-    comp_cmd = _node_cmd('compensator_node', cfg / 'compensator.yaml',
-                         {'model_file': str(model_file)})
-    drv_cmd = _node_cmd('driver_node', cfg / 'driver_sim.yaml',
-                        {'scenario': scenario, 'seed': seed, 'sim_rate_hz': float(sim_rate_hz),
-                         'time_scale': float(time_scale)})
+    comp_cmd = _node_cmd('compensator_node', 'compensator.yaml', model_file=model_file)
+    drv_cmd = _node_cmd('driver_node', 'driver_sim.yaml', scenario=scenario, seed=seed,
+                        sim_rate_hz=float(sim_rate_hz), time_scale=float(time_scale))
     ctx = Context()
     rclpy.init(context=ctx)
     procs: list[subprocess.Popen] = []

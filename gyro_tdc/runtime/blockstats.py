@@ -113,11 +113,8 @@ class BlockStats(NamedTuple):
         """Return the statistics of two sets of blocks together."""
         if not isinstance(other, BlockStats):
             return NotImplemented
-        return BlockStats(self.n + other.n, self.m + other.m,
-                          tuple(u + v for u, v in zip(self.s, other.s)),
-                          tuple(u + v for u, v in zip(self.a, other.a)),
-                          tuple(u + v for u, v in zip(self.b, other.b)),
-                          self.c2 + other.c2)
+        return BlockStats(*(x + y if not isinstance(x, tuple) else
+                            tuple(u + v for u, v in zip(x, y)) for x, y in zip(self, other)))
 
 
 class Shift(NamedTuple):

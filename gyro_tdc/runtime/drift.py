@@ -129,8 +129,7 @@ class AccelSlot:
     def refresh(self, t: float, temp: float, policy: Policy) -> AccelEntry:
         """Evaluate the part at one temperature; keep it when static."""
         acomp = self.comp              # no scale term: the output is a - b
-        bx, by, bz = acomp.drift(t, temp).tolist()
-        entry = AccelEntry(bx, by, bz, 0 if acomp.in_range else OUT_OF_RANGE,
+        entry = AccelEntry(*acomp.drift(t, temp).tolist(), 0 if acomp.in_range else OUT_OF_RANGE,
                            growth(acomp.range_distance_c, policy))
         if self.static:
             self.cache[temp] = entry

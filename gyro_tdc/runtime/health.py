@@ -50,16 +50,12 @@ def accel_state(core: CompensatorCore) -> str:
         part) or ``'passthrough (why)'`` for the last sample.
 
     """
-    if getattr(core.model, 'accel', None) is None:    # no model, or no accelerometer part
-        return 'not in model'
     flags = core.accel_flags
-    if flags == -1:
-        return 'passthrough (no sample yet)'
-    if flags & NO_ACCEL_DATA:
-        return 'passthrough (no accelerometer data in the Imu)'
-    if flags & PASSTHROUGH:
-        return f'passthrough ({describe_flags(flags & ~PASSTHROUGH)})'
-    return 'compensated'
+    return ('not in model' if getattr(core.model, 'accel', None) is None else
+            'passthrough (no sample yet)' if flags == -1 else
+            'passthrough (no accelerometer data in the Imu)' if flags & NO_ACCEL_DATA else
+            f'passthrough ({describe_flags(flags & ~PASSTHROUGH)})' if flags & PASSTHROUGH
+            else 'compensated')
 
 
 #: Levels of :class:`Health` (the byte values of diagnostic_msgs/DiagnosticStatus).
@@ -271,17 +267,16 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
     age, k = core.temperature_age(), core.reanchoring.sessions
     session = (f' (session {k.session} from t={k.t0:.3f} s, after a {k.why})'
                if k.session > 1 else '')
+    mid, features, kind, frame, lims = ('',) * 5 if model is None else (
+        model.model_id, ','.join(model.features), model.kind, model.frame_id,
+        '{:.2f}..{:.2f}'.format(*model.temp_range_c))
     values = {
         'compensation active': (model is not None and core.counts['compensated'] > 0
                                 and not flags & PASSTHROUGH),
         'why not': describe_flags(flags & ~OUT_OF_RANGE) if flags & PASSTHROUGH else '',
-        'model id': model.model_id if model is not None else '', 'model file': model_file,
-        'model features': ','.join(model.features) if model is not None else '',
-        'model kind': model.kind if model is not None else '',
-        'model frame': model.frame_id if model is not None else '', 'data frame': frame_id,
-        'model range degC': '{:.2f}..{:.2f}'.format(*model.temp_range_c)
-        if model is not None else '',
-        'last reload': last_reload,
+        'model id': mid, 'model file': model_file, 'model features': features,
+        'model kind': kind, 'model frame': frame, 'data frame': frame_id,
+        'model range degC': lims, 'last reload': last_reload,
         'temperature degC': f'{core.stream.temp:.3f}' if core.stream.temp is not None else '',
         'temperature age s': f'{age:.3f}' if age is not None else '',
         'temperature stale': bool(flags & STALE), 'in range': not flags & OUT_OF_RANGE,

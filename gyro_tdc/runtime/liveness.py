@@ -148,15 +148,13 @@ class InputRate:
             if now - first_t >= LEARN_S and count > first_n:
                 self.expected = (count - first_n) / (now - first_t)
                 window = self.window()
-        level, message = OK, ''
-        if not self.judged:
-            pass                        # rate and silence shown only
-        elif self._first is None:
+        level, message = OK, ''          # not judged: rate and silence shown only
+        if self.judged and self._first is None:
             level = ERROR if silent >= window else WARN
             message = f'no {self.name} yet ({silent:.1f} s since start)'
-        elif silent >= window:          # FrequencyStatus: no events in the window
+        elif self.judged and silent >= window:    # FrequencyStatus: no events in the window
             level, message = ERROR, f'no {self.name} for {silent:.1f} s'
-        elif self.expected and hz is not None and span >= MIN_WINDOW_S:
+        elif self.expected and hz is not None and span >= MIN_WINDOW_S:   # judged only
             lo, hi = self.expected * (1.0 - TOLERANCE), self.max_hz * (1.0 + TOLERANCE)
             if not lo <= hz <= hi:
                 slow = hz < lo
@@ -164,5 +162,4 @@ class InputRate:
                     f'{self.name} too {"slow" if slow else "fast"}: {hz:.2f} Hz over {span:.1f} '
                     f's, expected {self.expected:.2f} Hz (at {"least" if slow else "most"} '
                     f'{lo if slow else hi:.2f})')
-        return RateReport(level, message, hz, events, span, silent,
-                          self.expected if self.judged else None)
+        return RateReport(level, message, hz, events, span, silent, self.expected)
