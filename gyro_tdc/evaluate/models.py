@@ -38,8 +38,9 @@ from gyro_tdc.model import (ARDUPILOT_SCALE, ARDUPILOT_TREF_C, ArduPilotTempCal,
                             CompensationModel, load_model, onboard_status, px4_slot, Px4TempCal)
 import numpy as np
 
-__all__ = ['ARDUPILOT_ONBOARD', 'NamedModel', 'ONBOARD', 'PX4', 'PX4_ONBOARD', 'bag_labels',
-           'load_models', 'model_labels', 'onboard_model', 'safe_label', 'with_accel']
+__all__ = ['ARDUPILOT_ONBOARD', 'axes_words', 'NamedModel', 'ONBOARD', 'PX4', 'PX4_ONBOARD',
+           'bag_labels', 'load_models', 'model_labels', 'onboard_model', 'safe_label',
+           'with_accel']
 
 #: Model spec of the PX4-style cubic in T fitted on training bags.
 PX4 = 'px4'
@@ -102,6 +103,11 @@ def bag_labels(paths: Sequence[str | os.PathLike]) -> list:
 # Models
 # --------------------------------------------------------------------------------------------
 
+def axes_words(axes: Sequence[str]) -> str:
+    """Return ``axis x`` or ``axes x, y``: axes named in a sentence."""
+    return f'ax{"es" if len(axes) > 1 else "is"} {", ".join(axes)}'
+
+
 def with_accel(bag: BagOptions | None) -> BagOptions:
     """Return ``bag`` (default :class:`~gyro_tdc.data.BagOptions`) reading the accelerometer."""
     return replace(BagOptions() if bag is None else bag, accel=True)
@@ -162,8 +168,8 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
             log(f'fitted px4 cubic in T - T0 on {len(runs)} bag(s): T0 = {px4.t0_c:.3f} degC, '
                 f'range {lo:.2f} .. {hi:.2f} degC; accelerometer '
                 + ('cubic too' if acc.part is not None else f'not fitted: {acc.note}')
-                + (f'; gyro ax{"es" if len(axes) > 1 else "is"} {", ".join(axes)} constant: '
-                   'not fitted, passed through unchanged' if axes else ''))
+                + (f'; gyro {axes_words(axes)} constant: not fitted, passed through unchanged'
+                   if axes else ''))
     return [NamedModel(s, label, px4 if s == PX4 else files[s],
                        'clamp' if s in ONBOARD else None)
             for s, label in zip(specs, model_labels(specs))]

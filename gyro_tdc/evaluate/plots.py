@@ -179,9 +179,8 @@ def _plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head
         # Zoom on the models within ZOOM_BS_FACTOR of the best BS on this axis; a model far
         # worse runs off this scale (it is on the full-scale panel).
         best = min((float(m.bs[k]) for m in b.models), default=math.nan)
-        near = [e[:, k] for m, e in zip(b.models, zerr)
-                if math.isfinite(best) and float(m.bs[k]) <= _ZOOM_BS_FACTOR * best]
-        limits = _zoom_limits(near)
+        limits = _zoom_limits([e[:, k] for m, e in zip(b.models, zerr) if math.isfinite(best)
+                               and float(m.bs[k]) <= _ZOOM_BS_FACTOR * best])
         if limits is not None:
             right[k].set_ylim(*limits)
         right[k].axhline(0.0, color='0.3', lw=0.8)

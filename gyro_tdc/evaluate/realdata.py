@@ -119,17 +119,15 @@ class FullSeriesModel:
 
 
 def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[str],
-                    t0: float, params: Mapping[str, Mapping[str, float]] | None = None,
-                    ridge: float = 1e-6, n_grid: int = 25) -> FullSeriesModel:
+                    t0: float, ridge: float = 1e-6, n_grid: int = 25) -> FullSeriesModel:
     """
     Fit the comparator's ``poly`` model on rows ``train``, the features computed on the whole run.
 
     The fitted effect parameters (the ``lag`` time constant) are chosen on the training rows:
     a log grid of ``n_grid`` points over the catalog bounds, then a bounded 1-D search. With
     static features this is :func:`gyro_tdc.identify.fit_model`'s least squares
-    (``kind='poly'``, same ``ridge``). ``t0`` is the reference temperature (degC),
-    ``params`` starting or fixed effect parameters; ``temp_range_c`` is that of the
-    training rows.
+    (``kind='poly'``, same ``ridge``). ``t0`` is the reference temperature (degC), the
+    effect parameters start at the catalog's; ``temp_range_c`` is that of the training rows.
     """
     train = np.asarray(train, dtype=bool)
     if train.shape != (len(run),):
@@ -137,7 +135,7 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
     if np.count_nonzero(train) < 2:
         raise FitError(f'Expected at least 2 training rows, got {np.count_nonzero(train)}.')
     ids = normalise_ids(features)
-    par = resolve_params(ids, params)
+    par = resolve_params(ids)
     y = (run.omega - run.omega_ref)[train]
 
     def design(p: Mapping) -> NDArray[np.float64]:
@@ -402,13 +400,12 @@ def format_holdout(result: Mapping[str, Any]) -> str:
                   f'clamped =']
         if s['n_blocks'] <= 10:
             for f in s['folds']:
+                how = ('interpolation' if f['position'] == 'interior' else
+                       f'extrapolation, {100 * f["outside_fraction"]:.0f} % of samples outside '
+                       'the training range')
                 lines += ['', f'block {f["block"]}: bursts {f["bursts"][0]}-{f["bursts"][1]}, '
                           f'{f["temperature_c"][1]:.2f}..{f["temperature_c"][0]:.2f} degC, '
-                          f'{f["position"]} ('
-                          + ('interpolation' if f['position'] == 'interior' else
-                             f'extrapolation, {100 * f["outside_fraction"]:.0f} % of samples '
-                             'outside the training range')
-                          + f'), floor {_f3(f["floor_bs_dps2"], ".3e")}'
+                          f'{f["position"]} ({how}), floor {_f3(f["floor_bs_dps2"], ".3e")}'
                           + _fitted(f['models']), _head(False)]
                 lines += _model_rows(f['models'], names, unclamped=False, ratios=False)
         else:

@@ -30,6 +30,7 @@ from typing import Any, IO, Sequence
 
 from gyro_tdc.base import atomic_json, atomic_write, AXES, plain
 from gyro_tdc.data import Coverage
+from gyro_tdc.evaluate.models import axes_words
 from gyro_tdc.evaluate.score import BagEval, mean_scores
 from gyro_tdc.identify import reanchor_lines, session_check_lines, TrainResult
 from gyro_tdc.model import (DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OPERATING_RANGE_C,
@@ -142,23 +143,16 @@ def _ratio_cells(p: Sequence[float], constant: Sequence[str], width: int = 11) -
 
 def _constant_notes(b: BagEval) -> list:
     """Return the lines naming a bag's constant gyro axes and the models' identity axes."""
-    out = []
     exact = [a for a, v in zip(AXES, b.raw.bs) if a in b.constant_axes and not v > 0]
-    stuck = [a for a in b.constant_axes if a not in exact]
-    for axes, what in ((exact, ('read', 'reads', 'the reference rate exactly on every sample')),
-                       (stuck, ('never vary', 'never varies', 'beyond one quantum'))):
-        if axes:
-            many = len(axes) > 1
-            out.append(f'  note: gyro ax{"es" if many else "is"} {", ".join(axes)} '
-                       f'{what[0] if many else what[1]} {what[2]} (constant: a 2-axis gyro or '
-                       f'a dead axis): no signal to score, BS/BS1 {_CONST}')
-    for m in b.models:
-        if m.constant_axes:
-            many = len(m.constant_axes) > 1
-            out.append(f'  note: {m.label} passes gyro ax{"es" if many else "is"} '
-                       f'{", ".join(m.constant_axes)} through unchanged (constant in its '
-                       'training data: not fitted)')
-    return out
+    says = ((exact, 'reads', 'read', 'the reference rate exactly on every sample'),
+            ([a for a in b.constant_axes if a not in exact], 'never varies', 'never vary',
+             'beyond one quantum'))
+    out = [f'  note: gyro {axes_words(axes)} {many if len(axes) > 1 else one} {what} '
+           f'(constant: a 2-axis gyro or a dead axis): no signal to score, BS/BS1 {_CONST}'
+           for axes, one, many, what in says if axes]
+    return out + [f'  note: {m.label} passes gyro {axes_words(m.constant_axes)} through '
+                  'unchanged (constant in its training data: not fitted)'
+                  for m in b.models if m.constant_axes]
 
 
 # BagEval.reference (where the reference rate came from) in words.
@@ -448,8 +442,7 @@ def format_coverage(c: Coverage) -> tuple[str, list]:
         names = ', '.join(_bin_name(c, i) for i in c.sparse)
         warns.append(f'little data in temperature bin(s) {names} (under a quarter of the '
                      'median minutes per degC): the model is poorly constrained there')
-    total = c.heating_min + c.cooling_min
-    if total > 0 and min(c.heating_min, c.cooling_min) == 0:
+    if c.heating_min + c.cooling_min > 0 and min(c.heating_min, c.cooling_min) == 0:
         missing = 'cooling' if c.cooling_min == 0 else 'heating'
         warns.append(f'no {missing} data: heating/cooling hysteresis and thermal lag cannot '
                      f'be told apart from static drift; record a {missing} leg too')

@@ -181,8 +181,7 @@ class BagEval:
     def release(self) -> None:
         """Drop the sample arrays (keep the scores)."""
         self.run = None
-        self.raw.omega = None
-        for m in self.models:
+        for m in [self.raw, *self.models]:
             m.omega = None
 
 

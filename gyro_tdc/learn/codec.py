@@ -110,9 +110,9 @@ _CHK = FieldChecker(lambda name, expected, got: _bad(name,
 _number, _count, _list, _dict = _CHK.number, _CHK.count, _CHK.items, _CHK.keys
 
 
-def _maybe(check: Callable[[Any, str], Any]) -> Callable[[Any, str], Any]:
+def _maybe(check: Callable[..., Any]) -> Callable[..., Any]:
     """Return ``check`` that takes null too (None)."""
-    return lambda v, name: None if v is None else check(v, name)
+    return lambda v, *args: None if v is None else check(v, *args)
 
 
 def _fields(v: Any, name: str, checks: dict, optional: tuple = ()) -> dict:
@@ -146,14 +146,12 @@ def _row(v: Any, name: str, items: tuple) -> list:
 
 def _floor_in(v: Any, name: str) -> NDArray[np.float64]:
     """Return a noise floor: positive, or infinite (null: not known yet)."""
-    out = np.full(3, math.inf)
-    for i, f in enumerate(_list(v, name, 3)):
-        if f is None:
-            continue
-        out[i] = _number(f, f'{name}[{i}]', 0.0, 1e6, 'a noise floor (positive or null)')
-        if not out[i] > 0.0:
+    floor = _list(v, name, 3)
+    for i, f in enumerate(floor):
+        if f is not None and not _number(f, f'{name}[{i}]', 0.0, 1e6,
+                                         'a noise floor (positive or null)') > 0.0:
             raise _bad(f'{name}[{i}]', f'must be positive or null, got {f!r}')
-    return out
+    return np.array([math.inf if f is None else float(f) for f in floor])
 
 
 def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry]]:
@@ -180,26 +178,19 @@ def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry
 
 def _recent(v: Any, most: int | None) -> list[RecentStretch]:
     """Return the recent stretches: ``[stretch, session, windows]``."""
-    out = []
-    for i, s in enumerate(_list(v, 'recent', most=most)):
-        name = f'recent[{i}]'
-        s = _list(s, name, 3)
-        rows = [_row(r, f'{name}[2][{j}]', _WINDOW)
-                for j, r in enumerate(_list(s[2], f'{name}[2]', most=RECENT_ROWS))]
-        out.append(RecentStretch(_count(s[0], f'{name}[0] (stretch)'),
-                                 _count(s[1], f'{name}[1] (session)'), rows))
-    return out
+    items = ((' (stretch)', _count), (' (session)', _count), ('', lambda w, name: [
+        _row(r, f'{name}[{j}]', _WINDOW) for j, r in enumerate(_list(w, name, most=RECENT_ROWS))]))
+    return [RecentStretch(*_row(s, f'recent[{i}]', items))
+            for i, s in enumerate(_list(v, 'recent', most=most))]
 
 
 def _fit(v: Any, thermal: ThermalState | None,
          prior: CompensationModel | None) -> dict | None:
     """
-    Return the fit record, its model checked like a model file's (None: no fit).
+    Return the fit record, its model checked like a model file's (null: :func:`_maybe`).
 
     A correction fit (``prior``, a ``model_id``) must be one to the state's ``prior``.
     """
-    if v is None:
-        return None
     v = _dict(v, 'fit', _FIT_KEYS, optional=('reanchor', 'prior'))
     feats = _list(v['features'], 'fit.features')
     if tuple(feats) not in _FEATURES:
@@ -257,9 +248,7 @@ def _held_out(v: Any, curve: bool) -> dict | None:
 
 
 def _prior(v: Any, thermal: ThermalState | None) -> CompensationModel | None:
-    """Return the model a correction fit was learned over (None: none), as a model file's."""
-    if v is None:
-        return None
+    """Return the model a correction fit was learned over, as a model file's."""
     try:
         prior = model_from_dict(v)
     except ModelFileError as exc:
@@ -270,18 +259,14 @@ def _prior(v: Any, thermal: ThermalState | None) -> CompensationModel | None:
 
 
 def _check(v: Any) -> dict | None:
-    """Return the last prediction check (None: none yet)."""
-    if v is None:
-        return None
+    """Return the last prediction check."""
     mse = partial(_number, lo=0.0, hi=MAX_RATE_RAD_S ** 2 * 3, what='a squared error in (rad/s)^2')
     return _fields(v, 'check', {'t': _stamp, 'candidate_mse': mse, 'current_mse': _maybe(mse),
                                 'swapped': _CHK.boolean})
 
 
 def _thermal(v: Any) -> ThermalState | None:
-    """Return the thermal section the points were binned with (None: the thermometer)."""
-    if v is None:
-        return None
+    """Return the thermal section the points were binned with."""
     if not isinstance(v, dict) or not isinstance(v.get('kind'), str):
         raise _bad('thermal', f'must be a thermal section with a `kind`, got {shown(v)}')
     try:
@@ -295,14 +280,11 @@ def _thermal(v: Any) -> ThermalState | None:
 
 def _thermal_state(v: Any, thermal: ThermalState | None) -> tuple[float, list[float]] | None:
     """Return the carried thermal state: (stamp, one value per node of ``thermal``)."""
-    if v is None:
-        return None
     nodes = 0 if thermal is None else len(thermal.tau_s)
     if not nodes:
         raise _bad('thermal_state', 'must be null without a thermal section with a lag')
-    v = _list(v, 'thermal_state', 2)
-    return (_stamp(v[0], 'thermal_state[0]'),
-            _CHK.numbers(v[1], 'thermal_state[1]', nodes, *_TEMP))
+    temps = partial(_CHK.numbers, n=nodes, lo=_TEMP[0], hi=_TEMP[1], what=_TEMP[2])
+    return tuple(_row(v, 'thermal_state', (('', _stamp), ('', temps))))
 
 
 def _motion(v: Any) -> list[tuple[float, bool]]:
@@ -334,19 +316,19 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
     _dict(state, 'state', _KEYS, optional=('prior',))
     for k, x in _dict(state['config'], 'config', _CONFIG_KEYS).items():
         _number(x, f'config.{k}', 0.0)
-    thermal = _thermal(state['thermal'])
-    prior = _prior(state.get('prior'), thermal)
+    thermal = _maybe(_thermal)(state['thermal'])
+    prior = _maybe(_prior)(state.get('prior'), thermal)
     values = {
         'bins': _bins(state['bins'], bin_c, bin_entries),
         'gyro_floor': _floor_in(state['gyro_floor'], 'gyro_floor'),
         'accel_floor': _floor_in(state['accel_floor'], 'accel_floor'),
         'still_s': _number(state['still_s'], 'still_s', 0.0, MAX_COUNT, 'a duration in s'),
         'recent': _recent(state['recent'], stretches),
-        'fit': _fit(state['fit'], thermal, prior),
+        'fit': _maybe(_fit)(state['fit'], thermal, prior),
         'prior': prior,
-        'check': _check(state['check']),
+        'check': _maybe(_check)(state['check']),
         'motion': _motion(state['motion']),
-        'thermal_state': _thermal_state(state['thermal_state'], thermal),
+        'thermal_state': _maybe(_thermal_state)(state['thermal_state'], thermal),
     }
     values.update({k: _count(state[k], k) for k in ('session', 'stretches', 'windows', 'swaps')})
     values.update({k: _maybe(_stamp)(state[k], k) for k in ('t_first', 'last_update_t', 'last_t')})

@@ -72,8 +72,7 @@ def learned_model(coef: NDArray[np.float64], features: Sequence[str], t0: float,
     temperature); ``thermal`` the front end the points were binned with (None: measured
     temperature, a model of kind none).
     """
-    f = len(features)
-    coef = np.asarray(coef, dtype=np.float64).reshape(1 + f, 3)
+    coef = np.asarray(coef, dtype=np.float64).reshape(1 + len(features), 3)
     feats, params = tuple(features), {}
     if thermal is not None and thermal.kind != 'none':
         feats, params = normalise_ids(feats + ('lag',)), {'lag': {'tau_s': thermal.tau_total_s}}
@@ -146,8 +145,7 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
         x = _design(e[idx], feats, t0)[0]
         w = wt[idx]
         a, h = hat(x, w)
-        coef = a @ ((x * w[:, None]).T @ e[idx, 3:6])
-        res = e[idx, 3:6] - x @ coef
+        res = e[idx, 3:6] - x @ (a @ ((x * w[:, None]).T @ e[idx, 3:6]))
         alone = h > 1.0 - 1e-9            # alone in its session: its intercept needs it
         if alone.all():
             break
@@ -449,11 +447,8 @@ def offset_until(rows: NDArray[np.float64], since: float, recent: bool,
     (the fit's intercept of its newest session); None when it has none (the offset is an
     older session's).
     """
-    if recent:
-        new = rows[rows[:, 5] > since, 5]
-        return float(new.max()) if new.size else None
-    mine = entries[entries[:, 6] == session, 0]
-    return float(mine.max()) if mine.size else None
+    stamps = rows[rows[:, 5] > since, 5] if recent else entries[entries[:, 6] == session, 0]
+    return float(stamps.max()) if stamps.size else None
 
 
 def stream_state(thermal: ThermalState | None, carry: ThermalCarry | None,

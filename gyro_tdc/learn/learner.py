@@ -374,10 +374,7 @@ class Learner:
                 swapped = self._close(win.thresholds) or swapped
                 continue
             self._stretch.add(win.light())
-            done = self._commit()
-            if not done and self._fresh:
-                done = self._early_offset(win.t1)
-            swapped = done or swapped
+            swapped = self._commit() or (self._fresh and self._early_offset(win.t1)) or swapped
         return swapped
 
     def _close(self, thresholds: tuple | None = None) -> bool:
@@ -391,9 +388,7 @@ class Learner:
         if not st.rows:
             return False
         if not st.learned:
-            j, _ = self.still.last_refused(st.rows, thresholds)
-            if j >= 0:
-                st.keep_from(j + 1)
+            st.keep_from(self.still.last_refused(st.rows, thresholds)[0] + 1)
             if not st.rows or st.span() + 1e-9 < self.config.min_still_s:
                 return False
             self._new_stretch(st.rows[0].t0)

@@ -198,8 +198,7 @@ class CompensationModel:
                     self.widths, self.weights, self.intercept, self.linear, self.scale,
                     self.residual_var):
             a = np.ascontiguousarray(arr, dtype=np.float64)
-            h.update(repr(a.shape).encode())
-            h.update(a.tobytes())
+            h.update(repr(a.shape).encode() + a.tobytes())
         return h.hexdigest()[:12]
 
     def replace(self, **changes: Any) -> 'CompensationModel':
@@ -477,8 +476,7 @@ class StreamingCompensator:
         if not self.in_range:
             self.range_distance_c = s - min(max(s, self._lo), self._hi)
             s, reach = split(s, self._lo, self._hi, self.policy, self.max_extrapolation_c)
-        x = self.features.update(t, temp, s)
-        xn = (x - self._mean) / self._std
+        xn = (self.features.update(t, temp, s) - self._mean) / self._std
         phi = np.exp(-((xn - self._centers) ** 2).sum(axis=1) * self._inv2w2)
         row = np.concatenate(([1.0], xn, phi))
         d = s - self.model.t0_c

@@ -153,12 +153,8 @@ class Effect:
 
 def _static(step: StreamStep) -> dict:
     """Return the forms of a stateless step elementwise in ``d``, flagged ``static``."""
-    def batch(s: Series, p: Mapping[str, float]) -> NDArray[np.float64]:
-        return step(s.t, 0.0, s.temp, s.d, False)
-
-    def stream(p: Mapping[str, float], t0: float) -> StreamStep:
-        return step
-    return {'batch': batch, 'stream': stream, 'static': True}
+    return {'batch': lambda s, p: step(s.t, 0.0, s.temp, s.d, False),
+            'stream': lambda p, t0: step, 'static': True}
 
 
 # Lagged effects: a function ``out(T, T_lag, tau, T0)`` of the first-order-lagged
@@ -185,9 +181,6 @@ def _of_lag(out: Callable) -> dict:
 
 def _warmup() -> dict:
     """Return both forms of ``exp(-(t - t_power_on) / tau_s)``."""
-    def batch(s: Series, p: Mapping[str, float]) -> NDArray[np.float64]:
-        return np.exp(-(s.t - s.t_start) / p['tau_s'])
-
     def stream(p: Mapping[str, float], t0: float) -> StreamStep:
         tau = p['tau_s']
         start = 0.0
@@ -197,7 +190,7 @@ def _warmup() -> dict:
             start = t if first else start
             return math.exp(-(t - start) / tau)
         return step
-    return {'batch': batch, 'stream': stream}
+    return {'batch': lambda s, p: np.exp(-(s.t - s.t_start) / p['tau_s']), 'stream': stream}
 
 
 EFFECTS: dict[str, Effect] = {e.id: e for e in (

@@ -87,10 +87,8 @@ def _accel_from_dict(d: Mapping) -> CompensationModel | None:
                              'accelerometer part')
     sub = dict(sec, format_version=FORMAT_VERSION, thermal=d.get('thermal'), t0_c=d.get('t0_c'),
                sensor=d.get('sensor'), scale=[0.0, 0.0, 0.0])
-    if 'residual_var_m2_s4' not in sub:
-        raise ModelFileError('field `accel`: missing field `residual_var_m2_s4`')
-    sub['residual_var_rad2_s2'] = sub.pop('residual_var_m2_s4')
     try:
+        sub['residual_var_rad2_s2'] = _get(sub, 'residual_var_m2_s4')
         return _model_from_dict(sub)
     except ModelFileError as exc:
         raise ModelFileError(f'field `accel`: {exc}') from None

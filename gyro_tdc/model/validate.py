@@ -261,10 +261,8 @@ def _drifts(m: CompensationModel, bound: float) -> Iterator[tuple[Any, NDArray[n
     dyn_cols = _dynamic(m.inputs)
 
     def describe(xs: NDArray[np.float64], ss: NDArray[np.float64], note: str = '') -> Any:
-        def where(row: int) -> str:
-            extra = ''.join(f', {m.inputs[j]} {xs[row, j]:.3g}' for j in dyn_cols)
-            return f'at {ss[row]:.4g} degC{note}{extra}'
-        return where
+        return lambda row: f'at {ss[row]:.4g} degC{note}' + ''.join(
+            f', {m.inputs[j]} {xs[row, j]:.3g}' for j in dyn_cols)
 
     tail = m.intercept + ((x - m.input_mean) / m.input_std) @ m.linear
     spread = np.abs(m.weights).sum(axis=0)
