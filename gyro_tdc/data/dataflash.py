@@ -94,10 +94,8 @@ def _truncated(reader) -> int:
     for mtype, offs in enumerate(reader.offsets):
         if len(offs) and mtype in reader.formats and offs[-1] > last:
             last, end = int(offs[-1]), int(offs[-1]) + reader.formats[mtype].len
-    if last < 0:
-        return 0
     # A record cut short, or the head of one too short for the indexer to see.
-    return reader.data_len - last if end > reader.data_len else reader.data_len - end
+    return 0 if last < 0 else reader.data_len - (last if end > reader.data_len else end)
 
 
 def _params(reader) -> dict[str, float]:
@@ -204,11 +202,9 @@ def _temperature(cols: dict[str, np.ndarray], fields: tuple[str, ...] = TEMPERAT
 
 def _inventory(imus: dict, baros: dict) -> str:
     """Return what each IMU instance of the log carries, in words (for a refusal)."""
-    parts = []
-    for i, d in sorted(imus.items()):
-        temp = _temperature(d)
-        parts.append(f'{i}: {len(d["TimeUS"])} samples at {rate_words(_seconds(d))}, '
-                     'temperature ' + (f'IMU.{temp[0]}' if temp else 'none'))
+    parts = [f'{i}: {len(d["TimeUS"])} samples at {rate_words(_seconds(d))}, temperature '
+             + (f'IMU.{temp[0]}' if (temp := _temperature(d)) else 'none')
+             for i, d in sorted(imus.items())]
     baro = [i for i, d in sorted(baros.items()) if _temperature(d) is not None]
     return '; '.join(parts) + (f'; barometer temperature: BARO instance '
                                f'{", ".join(map(str, baro))}' if baro else '')
@@ -281,9 +277,8 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     d = imus[instance]
     t, gyro, acc, source, said = _gyro_accel(d, gyr, acc, accel, instance)
     b_inst = instance if instance in baros else 0       # BARO, BAR2...: per instance
-    baro = baros.get(b_inst, {})
     other, o_inst = _instance(other, instance)
-    src = {'imu': d, 'baro': baro}.get(temperature_source, other)
+    src = {'imu': d, 'baro': baros.get(b_inst, {})}.get(temperature_source, other)
     found = _temperature(src, (fld,) if fld else TEMPERATURE_FIELDS)
     if found is None or 'TimeUS' not in src:
         raise no_temperature(p, f'IMU instance {instance}', temperature_source,

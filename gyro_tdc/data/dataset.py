@@ -139,8 +139,7 @@ def align_temperature(imu_t, temp_t, temp_c, *, max_gap_s=5.0, return_counts=Fal
         last = np.ones(len(tt), dtype=bool)      # the last sample given of each stamp
         last[:-1] = np.diff(tt) > 0
         if not last.all():
-            kept = np.searchsorted(tt, tt, side='right') - 1
-            differ = ~last & (tc != tc[kept])
+            differ = ~last & (tc != tc[np.searchsorted(tt, tt, side='right') - 1])
             counts['duplicates'] = int(np.count_nonzero(~last))
             counts['conflicting'] = int(np.unique(tt[differ]).size)
             tt, tc = tt[last], tc[last]
@@ -524,6 +523,7 @@ def iter_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
     named itself is refused (DatasetError), and so is a set of which nothing can be read.
     """
     options = BagOptions() if options is None else options
+    log = log or (lambda _line: None)
     if found is None:
         found = find_bags([bags] if isinstance(bags, (str, os.PathLike)) else bags)
     skipped, read = [], 0
@@ -534,18 +534,16 @@ def iter_runs(bags: Iterable[str | os.PathLike] | str | os.PathLike,
             if not walked:
                 raise
             skipped.append(f'{bag}: {exc}')
-            if log is not None:
-                log(f'warning: skipped {bag}: {exc}')
+            log(f'warning: skipped {bag}: {exc}')
             continue
-        if log is not None:
-            log(describe_read(bag, run, options.reference_topic))
-            for warning in run.info.get('warnings', ()):
-                log(f'warning: {bag}: {warning}')
+        log(describe_read(bag, run, options.reference_topic))
+        for warning in run.info.get('warnings', ()):
+            log(f'warning: {bag}: {warning}')
         read += 1
         yield run
     if skipped and not read:
         raise DatasetError(f'None of the {len(skipped)} bags and logs found can be read '
                            f'(the first: {skipped[0]}).')
-    if skipped and log is not None:
+    if skipped:
         log(f'read {read} of the {len(found)} bags and logs, skipped {len(skipped)} '
             'that cannot be read (each named above)')

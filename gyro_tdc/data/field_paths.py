@@ -147,10 +147,9 @@ def check_vector(type_name: str, path: str, fields_of: FieldsOf, param: str) -> 
     """
     leaf = _walk(type_name, path, fields_of, param)
     fields = fields_of(leaf)
-    where = repr(path) if path else 'the message itself'
     if fields is None or not all(fields.get(k) in _NUMBERS for k in 'xyz'):
-        raise ConfigError(f'{param}: {where} in {type_name} is {leaf}, not an x/y/z '
-                          'vector of numbers.')
+        raise ConfigError(f'{param}: {repr(path) if path else "the message itself"} in '
+                          f'{type_name} is {leaf}, not an x/y/z vector of numbers.')
 
 
 def stamp_kind(type_name: str, path: str, fields_of: FieldsOf, param: str) -> str:
@@ -182,9 +181,7 @@ def reader(path: str) -> Callable[[Any], Any]:
 
 def stamp_seconds(kind: str, value: Any) -> float:
     """Return a stamp read at a ``stamp_kind`` path in seconds."""
-    if kind == 'time':
-        return value.sec + value.nanosec * 1e-9
-    return value * 1e-6
+    return value.sec + value.nanosec * 1e-9 if kind == 'time' else value * 1e-6
 
 
 def frd_to_flu(x: float, y: float, z: float) -> tuple[float, float, float]:

@@ -141,17 +141,13 @@ def thermometer(values: object) -> NDArray[np.float64] | None:
     v = np.asarray(values, dtype=np.float64).reshape(-1)
     with np.errstate(invalid='ignore'):
         v = np.where((v >= PLAUSIBLE_C[0]) & (v <= PLAUSIBLE_C[1]), v, np.nan)
-    finite = v[np.isfinite(v)]
-    if finite.size == 0 or not np.any(finite != 0.0):
-        return None
-    return v
+    return v if np.any(np.abs(v) > 0.0) else None      # NaN compares False: none or all 0
 
 
 def columns(d: dict, names: tuple[str, ...]) -> NDArray[np.float64] | None:
     """Return a log's fields side by side as an (N, k) float64 array, None when one is missing."""
-    if not all(n in d for n in names):
-        return None
-    return np.column_stack([np.asarray(d[n], dtype=np.float64) for n in names])
+    return (np.column_stack([np.asarray(d[n], dtype=np.float64) for n in names])
+            if all(n in d for n in names) else None)
 
 
 def on_stamps(t: NDArray[np.float64], t_src: NDArray[np.float64],
@@ -192,9 +188,8 @@ def rate_words(t: NDArray[np.float64]) -> str:
     steps = np.diff(np.unique(np.asarray(t, dtype=np.float64)))
     run = steps[steps <= 10.0 * np.median(steps)] if steps.size else steps
     typical = run.size / float(run.sum()) if run.size else 0.0
-    if mean < 0.8 * typical:
-        return f'{typical:.3g} Hz ({mean:.3g} Hz over the log: it pauses)'
-    return f'{mean:.3g} Hz'
+    return (f'{typical:.3g} Hz ({mean:.3g} Hz over the log: it pauses)' if mean < 0.8 * typical
+            else f'{mean:.3g} Hz')
 
 
 def sensor_stream(t: NDArray[np.float64], v: NDArray[np.float64], slow_t: NDArray[np.float64],
@@ -295,17 +290,6 @@ def is_flight_log(path: str | os.PathLike) -> bool:
     return detect_format(path) != 'rosbag2'
 
 
-def _sniff(path: Path) -> str:
-    """Return the format the file's first bytes or its suffix say ('' when neither does)."""
-    try:
-        with open(path, 'rb') as f:
-            head = f.read(8)
-    except OSError:
-        head = b''
-    return next((fmt for magic, fmt in ((ULOG_MAGIC, 'ulog'), (DATAFLASH_MAGIC, 'dataflash'))
-                 if head.startswith(magic)), _SUFFIXES.get(path.suffix.lower(), ''))
-
-
 def detect_format(path: str | os.PathLike, requested: str = 'auto') -> str:
     """
     Return how to read ``path``: ``'rosbag2'``, ``'ulog'`` or ``'dataflash'``.
@@ -317,10 +301,16 @@ def detect_format(path: str | os.PathLike, requested: str = 'auto') -> str:
     if requested not in LOG_FORMATS:
         raise DatasetError(f'Expected the log format to be one of {", ".join(LOG_FORMATS)}, '
                            f'got {requested!r}.')
-    if requested != 'auto':
-        return requested
     p = Path(path)
-    return (_sniff(p) or 'rosbag2') if p.is_file() else 'rosbag2'
+    if requested != 'auto' or not p.is_file():
+        return 'rosbag2' if requested == 'auto' else requested
+    try:
+        with open(p, 'rb') as f:
+            head = f.read(8)
+    except OSError:
+        head = b''
+    return next((fmt for magic, fmt in ((ULOG_MAGIC, 'ulog'), (DATAFLASH_MAGIC, 'dataflash'))
+                 if head.startswith(magic)), _SUFFIXES.get(p.suffix.lower(), 'rosbag2'))
 
 
 def describe_log(log: FlightLog) -> str:

@@ -92,8 +92,7 @@ def body_offset(frame_len: int) -> int:
     ``frame_len`` is the serialized ``frame_id`` length, NUL included; the offset counts
     from the start of the message, encapsulation included.
     """
-    end = FRAME_ID + frame_len - _ALIGN_ORIGIN
-    return _ALIGN_ORIGIN + (end + 7) // 8 * 8
+    return _ALIGN_ORIGIN + (FRAME_ID + frame_len - _ALIGN_ORIGIN + 7) // 8 * 8
 
 
 @dataclass(frozen=True)
@@ -125,11 +124,6 @@ class Layout:
     def size(self) -> int:
         """Return the length of the serialized message in bytes."""
         return self.body + 8 * self.n_doubles
-
-    @property
-    def encapsulation(self) -> bytes:
-        """Return the 4-byte encapsulation header."""
-        return CDR_BE if self.big_endian else CDR_LE
 
     @cached_property
     def dtype(self) -> np.dtype:
@@ -196,7 +190,7 @@ def encode(sec: ArrayLike, nanosec: ArrayLike, frame_id: str, values: ArrayLike,
     frame = frame_id.encode('utf-8') + b'\x00'
     lay = Layout(len(frame), values.shape[1], big_endian)
     rec = np.zeros(values.shape[0], dtype=lay.dtype)
-    for name, value in (('encap', np.frombuffer(lay.encapsulation, dtype=np.uint8)),
+    for name, value in (('encap', np.frombuffer(CDR_BE if big_endian else CDR_LE, np.uint8)),
                         ('sec', sec), ('nanosec', nanosec), ('strlen', len(frame)),
                         ('frame', np.frombuffer(frame, dtype=np.uint8)), ('data', values)):
         rec[name] = value
@@ -257,9 +251,8 @@ class ImuView:
 
     def linear_acceleration(self) -> tuple[float, float, float] | None:
         """Return ``linear_acceleration``, m/s^2, or None when its covariance[0] is -1."""
-        if _F64.unpack_from(self.data, self.base + LINEAR_ACCELERATION_COV)[0] == -1.0:
-            return None
-        return _VEC3.unpack_from(self.data, self.base + LINEAR_ACCELERATION)
+        return (None if _F64.unpack_from(self.data, self.base + LINEAR_ACCELERATION_COV)[0] == -1.0
+                else _VEC3.unpack_from(self.data, self.base + LINEAR_ACCELERATION))
 
     def marked(self) -> bool:
         """Return whether the angular velocity covariance carries the compensation mark."""

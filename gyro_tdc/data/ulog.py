@@ -115,11 +115,11 @@ def _rate(d: dict) -> float:
 
 def _delta_rate(d: dict, what: str) -> NDArray[np.float64] | None:
     """Return ``vehicle_imu``'s integrated ``delta_angle``/``delta_velocity`` as a rate."""
-    v = columns(d, _vec(what))
-    if v is None or f'{what}_dt' not in d:
+    v = columns(d, (*_vec(what), f'{what}_dt'))
+    if v is None:
         return None
     with np.errstate(invalid='ignore', divide='ignore'):
-        return v / (np.asarray(d[f'{what}_dt'], dtype=np.float64)[:, None] * 1e-6)
+        return v[:, :3] / (v[:, 3:] * 1e-6)
 
 
 #: The gyro topics and the fields each needs to hold rates.
@@ -289,26 +289,24 @@ def _pick_gyro(gyros: dict[str, dict], fastest: float = 0.0) -> str:
     """
     rates = {k: _rate(d) for k, d in gyros.items()}
     full = FULL_RATE_FRACTION * max(fastest, *rates.values())
-    if 'sensor_gyro' in rates and rates['sensor_gyro'] >= full:
-        return 'sensor_gyro'
-    return max(rates, key=lambda k: rates[k])
+    return ('sensor_gyro' if 'sensor_gyro' in rates and rates['sensor_gyro'] >= full
+            else max(rates, key=lambda k: rates[k]))
 
 
 def _inventory(topics: dict) -> str:
     """Return what each instance of the log carries, in words (for a refusal)."""
     ids = sorted({i for name in (*_GYRO_FIELDS, 'vehicle_imu_status', 'sensor_accel')
                   for i in topics.get(name, {})})
-    parts = []
-    for i in ids:
-        has = [f'{k} {rate_words(_seconds(d))}' for k, d in _gyros(topics, i).items()]
-        temps = [f'{tp}.{f}' for tp, f in _IMU_THERMOMETERS
-                 if thermometer(topics.get(tp, {}).get(i, {}).get(f)) is not None]
-        has.append('temperature: ' + (', '.join(temps) if temps else 'none'))
-        parts.append(f'{i}: ' + ', '.join(has))
-    baro = [f'{tp}.{f}' for tp, f in _BARO_THERMOMETERS
-            if thermometer(topics.get(tp, {}).get(0, {}).get(f)) is not None]
-    return ('; '.join(parts) or 'no IMU') + ('; barometer temperature: '
-                                             + ', '.join(baro) if baro else '')
+
+    def found(pairs: tuple, i: int) -> str:
+        return ', '.join(f'{tp}.{f}' for tp, f in pairs
+                         if thermometer(topics.get(tp, {}).get(i, {}).get(f)) is not None)
+    parts = [f'{i}: ' + ', '.join([f'{k} {rate_words(_seconds(d))}'
+                                   for k, d in _gyros(topics, i).items()]
+                                  + [f'temperature: {found(_IMU_THERMOMETERS, i) or "none"}'])
+             for i in ids]
+    baro = found(_BARO_THERMOMETERS, 0)
+    return ('; '.join(parts) or 'no IMU') + (f'; barometer temperature: {baro}' if baro else '')
 
 
 def _thermometer(topics: dict, instance: int, source: str) -> tuple | None:

@@ -98,7 +98,7 @@ def test_layout_reads_every_field_that_rosbags_writes(frame_id, little):
     assert lay == Layout(len(frame), IMU_DOUBLES, big_endian=not little)
     assert lay.size == len(raw) == lay.dtype.itemsize
     assert lay.body % 8 == 4 and lay.body >= imu_cdr.FRAME_ID + len(frame)
-    assert raw[:4] == lay.encapsulation
+    assert raw[:4] == (CDR_LE if little else CDR_BE)
     rec = np.frombuffer(raw, dtype=lay.dtype)[0]
     assert (rec['sec'], rec['nanosec']) == (1_700_000_000, 123_456_789)
     assert rec['strlen'] == len(frame) and rec['frame'].tobytes() == frame

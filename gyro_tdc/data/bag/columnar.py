@@ -52,9 +52,8 @@ def unfit(info: Mapping) -> str | None:
     storage = str(info.get('storage_identifier', ''))
     if storage not in _FILES:
         return f'storage {storage!r:.20}'
-    if str(info.get('compression_mode') or '').lower() == 'message':
-        return 'every message compressed on its own'
-    return None
+    return ('every message compressed on its own'
+            if str(info.get('compression_mode') or '').lower() == 'message' else None)
 
 
 @lru_cache(maxsize=8)

@@ -288,9 +288,8 @@ def _connections(topics: dict[str, tuple[str, int]], connections: Sequence[Any],
                                    f'present: {metadata.describe(topics)}.')
             continue
         if topics[topic][0] not in msgtype:
-            expected = ' or '.join(repr(x) for x in msgtype)
-            raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has type '
-                               f'{topics[topic][0]!r}, expected {expected}.')
+            raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has type {topics[topic][0]!r}'
+                               f', expected {" or ".join(map(repr, msgtype))}.')
         if topics[topic][1] == 0 and required:
             raise DatasetError(f'Topic {topic!r} in bag {str(bag)!r} has no messages.')
         conns[role] = [c for c in connections if c.topic == topic]

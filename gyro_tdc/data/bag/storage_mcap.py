@@ -120,8 +120,7 @@ class McapFile:
     def load(self) -> None:
         """Read the header, footer and summary (:func:`~.columnar.open_bag`: once it can close)."""
         bio = self.bio
-        head = bio.read(9)
-        if head[:8] != _MAGIC or head[8:] != b'\x01':
+        if bio.read(9) != _MAGIC + b'\x01':       # the magic, then a header record
             raise Unfit('not an mcap file with a header')
         (size,) = struct.unpack('<Q', self._exact(8, 9))     # the header record's length
         if _Fields(self._exact(size)).text() != 'ros2':
@@ -195,8 +194,7 @@ class McapFile:
                 raise Unfit('mcap chunks overlap in time')
         self.codes = {role: k for k, role in enumerate(out.roles)}
         self.ids = np.full(1 << 16, -1, dtype=np.int8)          # channel id -> role code
-        for cid, role in roles.items():
-            self.ids[cid] = self.codes[role]
+        self.ids[list(roles)] = [self.codes[role] for role in roles.values()]
         for c in chunks:
             self._chunk(self._decompress(c), c, out, update)
 

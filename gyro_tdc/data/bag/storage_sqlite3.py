@@ -72,9 +72,8 @@ class Sqlite3File:
     def load(self) -> None:
         """Read the topics and definitions (:func:`~.columnar.open_bag`: once it can close)."""
         db, path = self.db, self.path
-        found = db.execute("SELECT count(*) FROM sqlite_master WHERE type = 'table' "
-                           "AND name IN ('messages', 'topics')").fetchone()
-        if found is None or found[0] != 2:
+        if db.execute("SELECT count(*) FROM sqlite_master WHERE type = 'table' "
+                      "AND name IN ('messages', 'topics')").fetchone() != (2,):
             raise Unfit(f'{path.name}: no messages and topics tables')
         if db.execute('PRAGMA table_info(schema)').fetchall():
             schema = (db.execute('SELECT schema_version FROM schema').fetchone() or (-1,))[0]

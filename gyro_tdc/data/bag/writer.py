@@ -173,9 +173,8 @@ def _write(path: Path, storage: str, frame_id: str, streams: Sequence[_Stream]) 
                 if pos.size:
                     payload[pos] = (x.block(idx) if x.raw else encode_checked(
                         x.msgtype, x.sec[idx], x.nsec[idx], frame_id, x.block(idx)))
-            write = writer.write
             for cid, stamp, raw in zip(sel_which.tolist(), stamps[sel].tolist(), payload):
-                write(conns[cid], stamp, raw)
+                writer.write(conns[cid], stamp, raw)
         writer.close()
         ok = True
     except (WriterError, OSError, sqlite3.Error) as err:
