@@ -521,7 +521,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         why = '; '.join(sorted({st.reason for st in still if st.reason}))
         least = 'long enough' if o.min_still_s is None else f'of {o.min_still_s:g} s or more'
         raise FitError(f'still-only training: no still stretch {least} in '
-                       f'{len(runs)} bag(s) ({why}): park the vehicle for '
+                       f'{len(bags)} bag(s) ({why}): park the vehicle for '
                        f'{ADVICE_PARK_MIN} min with the IMU on, and record it.')
     whole_runs, whole_rows = list(runs), list(rows)     # the report covers every bag
     if not all(m.any() for m in rows):

@@ -214,6 +214,17 @@ def test_one_power_cycle_warming_still_over_a_span_keeps_its_curve(tmp_path):
     assert not any(ln.startswith('one power cycle only') for ln in said), said
 
 
+def test_no_still_time_counts_the_bags_not_their_sessions(tmp_path):
+    # One log that only flies, its stamps jumping 20 min on (a logging pause): two sessions
+    # of one bag. The refusal counts the bag the user gave.
+    day = flight_day(6, legs=2, still_s=(0.5, 1.0), flight_s=(120.0, 120.0))
+    run = load_run(write_dataflash(tmp_path / 'flying.bin', [day.imu]))
+    t = run.t + np.where(np.arange(len(run)) >= len(run) // 2, 1200.0, 0.0)
+    with pytest.raises(FitError, match=r'no still stretch long enough in 1 bag\(s\)'):
+        train_still_only(['flying'], tmp_path / 'm.yaml', TrainOptions(),
+                         runs=[replace(run, t=t)])
+
+
 def test_a_real_flight_log_with_too_little_still_time_is_refused_in_one_line(tmp_path):
     with pytest.raises(FitError,
                        match=r'still-only training: the still time spans 0\.\d+ degC only'):
