@@ -50,7 +50,7 @@ from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, find_still, fit_witho
                                           still_report, Stretch, unreferenced_motion)
 from gyro_tdc.model import (check_model, CompensationModel, EFFECTS, normalise_ids,
                             save_model)
-from gyro_tdc.signal import block_mean, motion_veto
+from gyro_tdc.signal import block_mean, MIN_SESSION_SPAN_C, motion_veto
 import numpy as np
 from numpy.typing import NDArray
 
@@ -443,6 +443,34 @@ def _curve_or_offsets(fit: Callable, fo: FitOptions, choice: FeatureChoice | Non
     return model, means, bad, choice
 
 
+def _one_power_cycle(runs: Sequence[Run], spans: Sequence[tuple[int, int, int]],
+                     labels: Sequence[int], fo: FitOptions, choice: FeatureChoice | None,
+                     log: Log) -> tuple[FitOptions, FeatureChoice | None]:
+    """
+    Return ``fo`` and ``choice``, offset only where one power cycle's curve rests on stops.
+
+    With one session no power cycle is held out (fewer than ``MIN_FOLDS`` judge the curve).
+    Told across stops, none spanning ``MIN_SESSION_SPAN_C`` of its own (quarter means), it
+    did not carry to the next power cycle on real boards: the offset only. A still stretch
+    over that span (a warm-up on the ground, a parked day) tells the curve on its own: kept.
+    """
+    if len(set(labels)) > 1 or not fo.features or not spans:
+        return fo, choice
+    widest = max(float(np.ptp(block_mean(runs[i].temp[a:b], max(1, (b - a) // 4),
+                                         partial=False))) for i, a, b in spans)
+    if widest >= MIN_SESSION_SPAN_C:
+        return fo, choice
+    if log is not None:
+        log(f'one power cycle only, and no still stretch spans {MIN_SESSION_SPAN_C:g} degC of '
+            f'its own (the widest {widest:.2f} degC): no held-out power cycle can tell whether '
+            'its curve of stops carries to the next; the model keeps the offset only on every '
+            'axis (re-anchoring still applies)')
+    if choice is not None:
+        choice = replace(choice, dropped='one power cycle of stops cannot judge its curve, '
+                         'the model keeps the offset only')
+    return replace(fo, features=()), choice
+
+
 def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                      options: TrainOptions | None = None, bag: BagOptions | None = None, *,
                      command: str = '', log: Log = None, runs: Sequence[Run] | None = None,
@@ -489,7 +517,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         why = '; '.join(sorted({st.reason for st in still if st.reason}))
         least = 'long enough' if o.min_still_s is None else f'of {o.min_still_s:g} s or more'
         raise FitError(f'still-only training: no still stretch {least} in '
-                       f'{len(runs)} bag(s) ({why}): park the vehicle for '
+                       f'{len(bags)} bag(s) ({why}): park the vehicle for '
                        f'{ADVICE_PARK_MIN} min with the IMU on, and record it.')
     whole_runs, whole_rows = list(runs), list(rows)     # the report covers every bag
     if not all(m.any() for m in rows):
@@ -521,6 +549,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         return model, means, bad
 
     # A curve of stops needs two power cycles to judge it.
+    fo, choice = _one_power_cycle(runs, spans, labels, fo, choice, log)
     model, means, bad, choice = _curve_or_offsets(fit, replace(fo, min_folds=MIN_FOLDS),
                                                   choice, log)
     stretches = [Stretch(names[i], float(runs[i].t[a]), float(runs[i].t[b - 1]),

@@ -395,12 +395,14 @@ def test_a_power_cycle_whose_every_stop_is_a_slow_turn_is_no_crash(tmp_path):
 
 
 def test_a_curve_of_stops_loading_would_refuse_keeps_the_offset_only(tmp_path):
-    # One power cycle of stops whose z rate climbs 0 -> 270 deg/s over 35 .. 38 degC: its
-    # curve, continued 15 degC beyond the range, is beyond any gyro. Offset only, said.
-    run = _stops([(35.0 + k, 30.0 * k * k) for k in range(4)])
+    # Three power cycles of stops whose z rate climbs 0 -> 270 deg/s over 35 .. 38 degC: the
+    # curve carries from one to the next (the held-out check keeps it), but continued 15 degC
+    # beyond the range it is beyond any gyro. Offset only, said.
+    runs = [replace(_stops([(35.0 + k, 30.0 * k * k) for k in range(4)], seed=5 + j),
+                    name=f'cycle{j}') for j in range(3)]
     said = []
-    res = train_still_only(['stops'], tmp_path / 's.yaml',
-                           TrainOptions(features='dT,dT2', kind='poly'), runs=[run],
+    res = train_still_only(['a', 'b', 'c'], tmp_path / 's.yaml',
+                           TrainOptions(features='dT,dT2', kind='poly'), runs=runs,
                            log=said.append)
     assert any(line.startswith('the curve of the stops would be refused on loading (the '
                                'drift it computes is') and line.endswith(
@@ -408,8 +410,8 @@ def test_a_curve_of_stops_loading_would_refuse_keeps_the_offset_only(tmp_path):
         for line in said), said
     assert res.model.features == () and (tmp_path / 's.yaml').exists()
     # features auto: the report's last word on the features is what the model keeps.
-    res = train_still_only(['stops'], tmp_path / 'a.yaml', TrainOptions(kind='poly'),
-                           runs=[run])
+    res = train_still_only(['a', 'b', 'c'], tmp_path / 'a.yaml', TrainOptions(kind='poly'),
+                           runs=runs)
     assert res.model.features == ()
     assert res.choice.lines()[-1].endswith('; not kept: its curve would be refused on '
                                            'loading, the model keeps the offset only')

@@ -182,6 +182,49 @@ def test_moving_share_tells_a_flight_log_from_a_still_one(board):
                                                   [still.imu]))]) == 0.0
 
 
+def test_one_power_cycle_of_stops_keeps_the_offset_only_and_says_why(tmp_path):
+    # One flight log: stops of 15-45 s while the board warms from 20 degC. Nothing holds a
+    # power cycle out to tell whether its curve carries to the next: the offset only, said.
+    day = flight_day(3, legs=8, still_s=(15.0, 45.0), tau_s=900.0)
+    path = write_dataflash(tmp_path / 'one.bin', [day.imu])
+    said = []
+    result = train_still_only([path], tmp_path / 'm.yaml', TrainOptions(), log=said.append)
+    assert result.model.features == ()
+    assert np.all(result.model.linear == 0.0)
+    line = [ln for ln in said if ln.startswith('one power cycle only, and no still stretch')]
+    assert len(line) == 1 and line[0].endswith(
+        'the model keeps the offset only on every axis (re-anchoring still applies)'), said
+    assert 'spans 2 degC of its own (the widest 0.' in line[0]
+    assert result.choice.lines()[-1].endswith('; not kept: one power cycle of stops cannot '
+                                              'judge its curve, the model keeps the offset only')
+    # Default train on the flight log (it moves: its stops only) does the same.
+    assert train([path], tmp_path / 'd.yaml', TrainOptions()).model.features == ()
+
+
+def test_one_power_cycle_warming_still_over_a_span_keeps_its_curve(tmp_path):
+    # Still 10 min while warming 20 -> 35 degC, then a flight, then a stop: the long stretch
+    # tells the curve on its own, as a warm-up on the ground or a parked day does; kept.
+    day = flight_day(4, legs=2, still_s=(600.0, 600.0), flight_s=(60.0, 60.0), t_end=35.0,
+                     tau_s=300.0)
+    path = write_dataflash(tmp_path / 'parked.bin', [day.imu])
+    said = []
+    result = train_still_only([path], tmp_path / 'm.yaml', TrainOptions(features='dT,dT2'),
+                              log=said.append)
+    assert result.model.features == ('dT', 'dT2')
+    assert not any(ln.startswith('one power cycle only') for ln in said), said
+
+
+def test_no_still_time_counts_the_bags_not_their_sessions(tmp_path):
+    # One log that only flies, its stamps jumping 20 min on (a logging pause): two sessions
+    # of one bag. The refusal counts the bag the user gave.
+    day = flight_day(6, legs=2, still_s=(0.5, 1.0), flight_s=(120.0, 120.0))
+    run = load_run(write_dataflash(tmp_path / 'flying.bin', [day.imu]))
+    t = run.t + np.where(np.arange(len(run)) >= len(run) // 2, 1200.0, 0.0)
+    with pytest.raises(FitError, match=r'no still stretch long enough in 1 bag\(s\)'):
+        train_still_only(['flying'], tmp_path / 'm.yaml', TrainOptions(),
+                         runs=[replace(run, t=t)])
+
+
 def test_a_real_flight_log_with_too_little_still_time_is_refused_in_one_line(tmp_path):
     with pytest.raises(FitError,
                        match=r'still-only training: the still time spans 0\.\d+ degC only'):
