@@ -111,6 +111,8 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
               'worse_folds': v.worse_folds.tolist(),
               'gain_t': [float(t) if np.isfinite(t) else None for t in v.gain_t],
               'offset_only': [AXES[a] for a in drop]}
+    if not drop.size:           # every curve kept: the fit as it is, no copy, no pass over y
+        return fit, offsets, record
     return (*_offset_only(fit, offsets, y, groups, drop), record)
 
 
