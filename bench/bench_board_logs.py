@@ -39,6 +39,7 @@ one-line refusal about stillness.
     .venv/bin/python bench/bench_board_logs.py --cases 20 --seed 1
     .venv/bin/python bench/bench_board_logs.py --seeds 0 1 2 3 4 5   # per seed, then pooled
     .venv/bin/python bench/bench_board_logs.py --seed 4 --case 5     # one case
+    .venv/bin/python bench/bench_board_logs.py --train 1 --cases 20   # one log trained
 """
 
 import argparse
@@ -160,11 +161,11 @@ def check_note(model_path: Path) -> str:
             f"{','.join(rec['offset_only']) or '-'}")
 
 
-def run_case(seed: int, k: int, folder: Path) -> dict:
+def run_case(seed: int, k: int, folder: Path, n_train: int = N_TRAIN) -> dict:
     """Train one drawn case both ways with the CLI; return the held-out ratios or refusals."""
     c = draw_case(seed, k)
     days, paths = write_case(c, folder)
-    train, held = paths[:N_TRAIN], (days[N_TRAIN:], paths[N_TRAIN:])
+    train, held = paths[:n_train], (days[N_TRAIN:], paths[N_TRAIN:])
     out = {'seed': seed, **{key: c[key] for key in ('case', 'board', 'rate_hz', 'legs',
                                                     'resolution_c', 'noise_dps')}}
     out['kinds'] = ' '.join(cy['kind'][0] + cy['format'][0] for cy in c['cycles'])
@@ -220,13 +221,16 @@ def main(argv=None) -> int:
     ap.add_argument('--seeds', type=int, nargs='+', help="several seeds: each one's summary, "
                     'then the pooled one (instead of --seed)')
     ap.add_argument('--case', type=int, help='run this case of each seed only')
+    ap.add_argument('--train', type=int, default=N_TRAIN, choices=range(1, N_TRAIN + 1),
+                    metavar='N', help='train on the first N of the four training logs (1: '
+                    'one power cycle, nothing held out to judge its curve)')
     args = ap.parse_args(argv)
     seeds, every = args.seeds or [args.seed], []
     for seed in seeds:
         rows = []
         with tempfile.TemporaryDirectory() as tmp:
             for k in range(args.cases) if args.case is None else [args.case]:
-                r = run_case(seed, k, Path(tmp))
+                r = run_case(seed, k, Path(tmp), args.train)
                 rows.append(r)
                 fmt = ['refused' if r[n] is None else ' / '.join(f'{v:.3f}' for v in r[n])
                        for n in ('still_only', 'train')]

@@ -67,6 +67,9 @@ AUTO = 'auto'
 AUTO_BASE: tuple[str, ...] = ('dT', 'dT2')
 #: Sample rate (Hz) the feature search of ``auto`` runs at: faster runs are averaged down.
 SEARCH_RATE_HZ = 20.0
+#: With one power cycle, a still stretch tells the curve on its own only if it lasts this
+#: long (s) as well as spanning ``MIN_SESSION_SPAN_C``: a slow warm, not the power-on minutes.
+SLOW_CURVE_S = 300.0
 
 
 @dataclass(frozen=True)
@@ -452,19 +455,23 @@ def _one_power_cycle(runs: Sequence[Run], spans: Sequence[tuple[int, int, int]],
     With one session no power cycle is held out (fewer than ``MIN_FOLDS`` judge the curve).
     Told across stops, none spanning ``MIN_SESSION_SPAN_C`` of its own (quarter means), it
     did not carry to the next power cycle on real boards: the offset only. A still stretch
-    over that span (a warm-up on the ground, a parked day) tells the curve on its own: kept.
+    of ``SLOW_CURVE_S`` or more over that span (a parked day, a chamber ramp) tells the curve
+    on its own: kept. A shorter one is the first minutes after power-on, when the gyro settles
+    and the board self-heats fastest: on real boards its curve did not carry either.
     """
     if len(set(labels)) > 1 or not fo.features or not spans:
         return fo, choice
-    widest = max(float(np.ptp(block_mean(runs[i].temp[a:b], max(1, (b - a) // 4),
-                                         partial=False))) for i, a, b in spans)
-    if widest >= MIN_SESSION_SPAN_C:
+    told = [(float(np.ptp(block_mean(runs[i].temp[a:b], max(1, (b - a) // 4), partial=False))),
+             float(runs[i].t[b - 1] - runs[i].t[a])) for i, a, b in spans]
+    if any(c >= MIN_SESSION_SPAN_C and s >= SLOW_CURVE_S for c, s in told):
         return fo, choice
+    widest, lasting = max(told)
     if log is not None:
-        log(f'one power cycle only, and no still stretch spans {MIN_SESSION_SPAN_C:g} degC of '
-            f'its own (the widest {widest:.2f} degC): no held-out power cycle can tell whether '
-            'its curve of stops carries to the next; the model keeps the offset only on every '
-            'axis (re-anchoring still applies)')
+        log(f'one power cycle only, and no still stretch of {SLOW_CURVE_S / 60:g} min or more '
+            f'spans {MIN_SESSION_SPAN_C:g} degC of its own (the widest {widest:.2f} degC in '
+            f'{lasting / 60:.1f} min): no held-out power cycle can tell whether its curve of '
+            'stops carries to the next; the model keeps the offset only on every axis '
+            '(re-anchoring still applies)')
     if choice is not None:
         choice = replace(choice, dropped='one power cycle of stops cannot judge its curve, '
                          'the model keeps the offset only')

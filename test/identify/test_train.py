@@ -194,7 +194,7 @@ def test_one_power_cycle_of_stops_keeps_the_offset_only_and_says_why(tmp_path):
     line = [ln for ln in said if ln.startswith('one power cycle only, and no still stretch')]
     assert len(line) == 1 and line[0].endswith(
         'the model keeps the offset only on every axis (re-anchoring still applies)'), said
-    assert 'spans 2 degC of its own (the widest 0.' in line[0]
+    assert 'of 5 min or more spans 2 degC of its own (the widest 0.' in line[0]
     assert result.choice.lines()[-1].endswith('; not kept: one power cycle of stops cannot '
                                               'judge its curve, the model keeps the offset only')
     # Default train on the flight log (it moves: its stops only) does the same.
@@ -212,6 +212,23 @@ def test_one_power_cycle_warming_still_over_a_span_keeps_its_curve(tmp_path):
                               log=said.append)
     assert result.model.features == ('dT', 'dT2')
     assert not any(ln.startswith('one power cycle only') for ln in said), said
+
+
+def test_one_power_cycle_warming_fast_after_power_on_keeps_the_offset_only(tmp_path):
+    # Still 90 s right after power-on while the board self-heats 20 -> 26 degC, then flights
+    # and short stops: the span is told in the power-on minutes only, which on real boards
+    # did not carry to the next power cycle. The offset only, and the line says why.
+    day = flight_day(5, legs=4, still_s=(90.0, 90.0), flight_s=(60.0, 60.0), t_end=35.0,
+                     tau_s=150.0)
+    path = write_dataflash(tmp_path / 'warmup.bin', [day.imu])
+    said = []
+    result = train_still_only([path], tmp_path / 'm.yaml', TrainOptions(features='dT,dT2'),
+                              log=said.append)
+    assert result.model.features == ()
+    line = [ln for ln in said if ln.startswith('one power cycle only')]
+    assert len(line) == 1 and ' min): no held-out power cycle' in line[0], said
+    widest = float(line[0].split('(the widest ')[1].split(' degC')[0])
+    assert widest >= 2.0, line
 
 
 def test_no_still_time_counts_the_bags_not_their_sessions(tmp_path):
