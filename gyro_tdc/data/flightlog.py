@@ -162,18 +162,28 @@ def on_stamps(t: NDArray[np.float64], t_src: NDArray[np.float64],
 
 def rate_hz(t: NDArray[np.float64]) -> float:
     """
-    Return the mean sample rate of stamps ``t`` (s), Hz (0 without two stamps apart).
+    Return the mean sample rate of stamps ``t`` (s, in log order), Hz (0 without two apart).
 
-    Over the middle 98 % of the sorted stamps where the whole span is over twice theirs: one
-    stamp a damaged byte threw years away (no checksum guards a log's payload) would make the
-    fastest gyro look the slowest.
+    Over the middle 98 % of the stamps where the whole span is over twice theirs: one stamp a
+    damaged byte threw years away (no checksum guards a log's payload) would make the fastest
+    gyro look the slowest. Where the stamps go back (damage, a reset), over the time their
+    runs cover, each instant once: the gaps the jumps leave between runs are no pause.
     """
-    t = np.sort(np.asarray(t, dtype=np.float64))
-    n, k = len(t), len(t) // 100
-    span = float(t[-1] - t[0]) if n > 1 else 0.0
-    if k and span > 2.0 * float(t[n - 1 - k] - t[k]) * (n - 1) / (n - 1 - 2 * k):
-        n, span = n - 2 * k, float(t[n - 1 - k] - t[k])
-    return (n - 1) / span if span > 0 else 0.0
+    t = np.asarray(t, dtype=np.float64)
+    t = t[np.isfinite(t)]
+    s = np.sort(t)
+    n, k = len(s), len(s) // 100
+    if k and s[-1] - s[0] > 2.0 * float(s[n - 1 - k] - s[k]) * (n - 1) / (n - 1 - 2 * k):
+        t = t[(t >= s[k]) & (t <= s[n - 1 - k])]
+    if len(t) < 2:
+        return 0.0
+    cut = np.flatnonzero(np.diff(t) < 0) + 1
+    starts, ends = t[np.r_[0, cut]], t[np.r_[cut - 1, len(t) - 1]]
+    order = np.argsort(starts, kind='stable')
+    starts, ends = starts[order], ends[order]
+    before = np.r_[-np.inf, np.maximum.accumulate(ends)[:-1]]
+    span = float(np.sum(np.clip(ends - np.maximum(starts, before), 0.0, None)))
+    return (len(t) - 1) / span if span > 0 else 0.0
 
 
 def rate_words(t: NDArray[np.float64]) -> str:

@@ -162,6 +162,22 @@ def test_one_stamp_a_damaged_byte_threw_away_does_not_change_a_topics_rate():
     assert rate_hz(t[:2]) == pytest.approx(200.0) and rate_hz(t[:1]) == 0.0
 
 
+def test_stamps_that_go_back_count_the_time_their_runs_cover_once():
+    # As px4-ulog-rs' corrupt_format_not_utf8.ulg: a 200 Hz topic whose stamps jump back
+    # 244 s and 117 s, leaving gaps between its three runs (the span read as 72 Hz before).
+    from gyro_tdc.data.flightlog import rate_hz
+    a = 5488.0 + np.arange(7000) * 0.005
+    b = a[-1] - 243.8 + np.arange(7000) * 0.005
+    c = b[-1] - 117.2 + np.arange(7000) * 0.005
+    assert rate_hz(np.concatenate([a, b, c])) == pytest.approx(200.0, rel=1e-3)
+    # Messages out of order by a step (pyulog's sample_unordered.ulg) cover their span once.
+    t = 20.0 + np.arange(1200) * 0.005
+    swapped = t.copy()
+    swapped[[300, 301]] = swapped[[301, 300]]
+    assert rate_hz(swapped) == pytest.approx(rate_hz(t))
+    assert rate_hz(np.r_[t, np.nan]) == pytest.approx(200.0)    # a NaN stamp is no stamp
+
+
 def test_values_are_put_on_other_stamps_with_nan_outside_their_span():
     from gyro_tdc.data.flightlog import on_stamps
     t_src = np.array([2.0, 0.0, 1.0])                       # out of order: sorted first
