@@ -409,16 +409,17 @@ class CompensatorCore:
 
     def _flagged(self, t: float, raw: Vec3, out: Vec3, accel: Sequence[float] | None,
                  temp: float, flags: int) -> None:
-        """Count a compensated sample's flags; re-anchor out of range with a learner."""
+        """Count a compensated sample's flags; re-anchor out of range where it is safe."""
         fc = self.tally.flags
         if flags & STALE:
             fc[STALE] += 1
         if flags & OUT_OF_RANGE:
             fc[OUT_OF_RANGE] += 1
-            # With a learner, a new power cycle is re-anchored out of range too: the shift
-            # holds only until the learner gives the cycle its own offset.
+            # Out of range a shift would take in the curve's extrapolation error, except: with
+            # a learner (the shift holds only until it gives the cycle its own offset), and for
+            # a model of the offset only (no curve to extrapolate: its range is no limit).
             if (flags == OUT_OF_RANGE and self.reanchoring.waiting
-                    and self.learning.extend is not None):
+                    and (self.learning.extend is not None or not self.slot.model.features)):
                 self._still(t, raw, out, accel, temp)
 
     def _accel_pass(self, accel: Sequence[float] | None, why: int, out: Vec3 | None = None,

@@ -405,3 +405,23 @@ def test_a_short_gap_or_reanchoring_off_keeps_the_session(static_model):
     assert off_core.anchor is None and off_core.reanchoring.sessions.session == 2
     np.testing.assert_allclose(out3.mean(axis=0), off, atol=2e-4)
     assert health(off_core).values['reanchor'].startswith('off (session 2')
+
+
+def test_a_model_of_the_offset_only_is_re_anchored_out_of_its_range(static_model):
+    """Out of range a curve's shift would take in its extrapolation error; an offset has none."""
+    flat = fit_model([synth_run(hours=1.0, rate_hz=2.0, seed=3)], features=())
+    assert flat.features == () and flat.temp_range_c[1] < 55.0
+    offset = np.array([0.9e-3, -0.5e-3, 0.3e-3])
+    for model, anchored in ((flat, True), (static_model, False)):
+        t, omega, tt, tc = stream(n=1500, rate_hz=100.0, t_lo=60.0, t_hi=60.3)
+        raw = omega - 0.01 - compensate(model, t, zoh(t, tt, tc), np.zeros_like(omega)) + offset
+        core = CompensatorCore(Policy(reanchor_on_start=True, still_window=5.0), model)
+        out, _, flags = run_core(core, t, raw, tt, tc)
+        assert np.all(flags == OUT_OF_RANGE)            # flagged (and widened) either way
+        assert (core.anchor is not None) is anchored
+        if anchored:
+            np.testing.assert_allclose(core.anchor.delta, offset, atol=2e-4)
+            assert np.abs(out[t > core.anchor.t].mean(axis=0)).max() < 2e-4
+        else:       # the curve's output is the same as without re-anchoring
+            plain = CompensatorCore(Policy(reanchor_on_start=False), model)
+            np.testing.assert_array_equal(out, run_core(plain, t, raw, tt, tc)[0])
