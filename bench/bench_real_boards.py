@@ -69,6 +69,13 @@ github:fdeedat/Repo_TA_2024``, then ``git show c70c7322:LOGS/000000NN.BIN``, 17 
 most ends cut inside a message, 26-47 degC: a board as issue 34 describes. ::
 
     .venv/bin/python bench/bench_real_boards.py --group SPEEDYBEE_FOLDER --draws 6 --seed 0
+
+``--node`` also streams every held-out log through the compensator node's core with its
+defaults (``CompensatorCore(Policy(), model)``: start-up re-anchoring with the model's gate,
+out-of-range rules) and scores what the within-log drift cannot see, a constant error: the
+RMS of the output's still-stretch means after each log's first still stretch (the rate is
+zero while still), beside raw's (the board's own boot calibration, doing nothing) and raw
+re-anchored on its first still stretch (what re-anchoring alone, without a model, gives).
 """
 
 import argparse
@@ -84,7 +91,7 @@ import sys  # noqa: E402
 import tempfile  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-for p in (ROOT, ROOT / 'bench', ROOT / 'test' / 'support'):
+for p in (ROOT, ROOT / 'bench', ROOT / 'test' / 'support', ROOT / 'tools'):
     if str(p) not in sys.path:
         sys.path.insert(0, str(p))
 
@@ -173,6 +180,26 @@ def check_note(model_path: Path) -> str:
     return note(model_path)
 
 
+def node_error(logs: list, model=None, anchored: bool = False) -> np.ndarray:
+    """
+    Return the RMS of still-stretch means after each log's first, deg/s per axis.
+
+    Of the node's output with ``model`` (streamed through ``CompensatorCore`` with the
+    defaults), else of raw, ``anchored``: less its first still stretch's mean.
+    """
+    from field_day import feed
+    from gyro_tdc.runtime import CompensatorCore, Policy
+    errs = []
+    for lg in logs:
+        r = lg['run']
+        out = r.omega if model is None else feed(CompensatorCore(Policy(), model), r.t, r.omega,
+                                                 r.accel, r.t, r.temp)[0]
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], lg['still'].astype(np.int8), [0]])))
+        means = np.array([out[a:b].mean(axis=0) for a, b in zip(edges[::2], edges[1::2])])
+        errs.append(means[1:] - (means[0] if anchored else 0.0))
+    return np.sqrt(np.mean(np.concatenate(errs) ** 2, axis=0)) * _DEG
+
+
 def _ratio(comp: np.ndarray, raw: np.ndarray) -> np.ndarray:
     """Return comp / raw per axis (NaN where raw is 0: a constant axis has nothing to score)."""
     return np.divide(comp, raw, out=np.full(3, math.nan), where=raw > 0)
@@ -208,7 +235,7 @@ def draw_logs(logs: list, rng: np.random.Generator, n_train: int, n_held: int,
 
 
 def run_draw(logs: list, rng: np.random.Generator, n_train: int, n_held: int, source: str,
-             folder: Path, held_first: bool = False) -> dict | None:
+             folder: Path, held_first: bool = False, node: bool = False) -> dict | None:
     """Train on a seeded draw of a group's logs with the CLI; return the held-out scores."""
     from bench_board_logs import cli_train
     from gyro_tdc.model.modelfile import load_model
@@ -219,6 +246,8 @@ def run_draw(logs: list, rng: np.random.Generator, n_train: int, n_held: int, so
     out = {'train_logs': [lg['path'].name for lg in train],
            'held_logs': [lg['path'].name for lg in held],
            'raw_dps': raw, 'se_dps': noise_se(held)}
+    if node:
+        out['node_raw'], out['node_anchored'] = node_error(held), node_error(held, anchored=True)
     for name, extra in (('still_only', ('--still-only',)), ('train', ())):
         path = folder / f'{name}.yaml'
         path.unlink(missing_ok=True)
@@ -234,6 +263,8 @@ def run_draw(logs: list, rng: np.random.Generator, n_train: int, n_held: int, so
         model = load_model(path)
         out[name] = _ratio(drift(held, model), raw)
         out[name + '_check'] = check_note(path)
+        if node:
+            out[name + '_node'] = node_error(held, model)
         out[name + '_per_log'] = [(lg['path'].name, _ratio(drift([lg], model), drift([lg])))
                                   for lg in held]
     return out
@@ -278,6 +309,14 @@ def summary(rows: list, name: str, bound: float) -> list[str]:
                       key=lambda x: -_worst(x[1]))
         for f, v, d in logs[:3]:
             out.append(f'  worst held-out log: {f} (draw {d}) {_fmt(v)}')
+    if fitted and name + '_node' in fitted[0]:
+        for base, what in (('node_raw', 'raw (boot calibration)'),
+                           ('node_anchored', 'raw re-anchored on its first stop')):
+            q = np.array([_ratio(r[name + '_node'], r[base]) for r in fitted])
+            out.append(f'  node, still means after the first stop, over {what}: median '
+                       + _fmt(np.nanmedian(q, axis=0)) + ', worst ' + _fmt(np.nanmax(q, axis=0))
+                       + f', draws <= 1.05 on every axis: {int(np.sum(np.all(q <= 1.05, 1)))}'
+                       f' of {len(q)}')
     notes = sorted({r[name + '_note'][:120] for r in refused})
     out += [f'  refused: {n}' for n in notes]
     return out
@@ -298,6 +337,9 @@ def main(argv=None) -> int:
     ap.add_argument('--held-first', action='store_true',
                     help='draw the held-out logs first (up to --held with two still '
                     'stretches), then the trained among the rest')
+    ap.add_argument('--node', action='store_true',
+                    help="also stream the held-out logs through the node's core (defaults) "
+                    'and score its still means after the first stop')
     args = ap.parse_args(argv)
     src = args.temperature_source
     for spec in args.group:
@@ -319,7 +361,7 @@ def main(argv=None) -> int:
                 if len(read) < 2:
                     break
                 r = run_draw(read, np.random.default_rng([args.seed, d]), args.train, args.held,
-                             src, Path(tmp), args.held_first)
+                             src, Path(tmp), args.held_first, args.node)
                 if r is None:
                     print(f'  draw {d}: no held-out log with 2 still stretches')
                     continue

@@ -224,7 +224,9 @@ class CompensatorCore:
             reanchor_var(model, self.learning) if learned else model.residual_var)
         self.slot = ModelSlot(model, prepared.model_id, comp, prepared.var, prepared.scale,
                               prepared.static, {},
-                              accel_slot(model, comp, prepared.static, self.policy), learned)
+                              accel_slot(model, comp, prepared.static, self.policy), learned,
+                              not (np.any(model.linear) or np.any(model.weights)
+                                   or np.any(model.scale)))
         self._update_needs()
 
     def set_policy(self, policy: Policy) -> None:
@@ -419,7 +421,7 @@ class CompensatorCore:
             # a learner (the shift holds only until it gives the cycle its own offset), and for
             # a model of the offset only (no curve to extrapolate: its range is no limit).
             if (flags == OUT_OF_RANGE and self.reanchoring.waiting
-                    and (self.learning.extend is not None or not self.slot.model.features)):
+                    and (self.learning.extend is not None or self.slot.flat)):
                 self._still(t, raw, out, accel, temp)
 
     def _accel_pass(self, accel: Sequence[float] | None, why: int, out: Vec3 | None = None,

@@ -188,6 +188,8 @@ class ModelSlot:
     accel: AccelSlot | None = None
     #: The attached learner's model (:meth:`CompensatorCore.schedule`).
     learned: bool = False
+    #: Its drift is its intercept alone (no curve: its range is no limit on re-anchoring).
+    flat: bool = False
 
     def clear(self) -> None:
         """Forget the drift cached per temperature (the model's offset moved)."""
