@@ -206,6 +206,11 @@ class CompensationModel:
         return replace(self, **changes)
 
     @property
+    def offset_only(self) -> bool:
+        """Return whether the drift is the intercept alone: no linear, RBF or scale term."""
+        return not (np.any(self.linear) or np.any(self.weights) or np.any(self.scale))
+
+    @property
     def coefficients(self) -> NDArray[np.float64]:
         """Return intercept, linear tail and RBF weights stacked, (1 + F + K, 3)."""
         return np.vstack([self.intercept[None, :], self.linear, self.weights])

@@ -225,8 +225,7 @@ class CompensatorCore:
         self.slot = ModelSlot(model, prepared.model_id, comp, prepared.var, prepared.scale,
                               prepared.static, {},
                               accel_slot(model, comp, prepared.static, self.policy), learned,
-                              not (np.any(model.linear) or np.any(model.weights)
-                                   or np.any(model.scale)))
+                              model.offset_only)
         self._update_needs()
 
     def set_policy(self, policy: Policy) -> None:

@@ -188,7 +188,8 @@ class ModelSlot:
     accel: AccelSlot | None = None
     #: The attached learner's model (:meth:`CompensatorCore.schedule`).
     learned: bool = False
-    #: Its drift is its intercept alone (no curve: its range is no limit on re-anchoring).
+    #: The model's ``offset_only``, read once (no curve: its range is no limit on
+    #: re-anchoring).
     flat: bool = False
 
     def clear(self) -> None:
