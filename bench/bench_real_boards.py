@@ -129,7 +129,11 @@ def group_logs(spec: str) -> tuple[list, list]:
 
 
 def read_log(path: Path, source: str) -> dict:
-    """Read one log as ``evaluate`` does; return its run and still mask, or the refusal."""
+    """
+    Read one log as ``evaluate`` does; return its run, still mask and stretches, or the refusal.
+
+    ``spans``: the (start, stop) of each run of still samples; ``stretches``: how many.
+    """
     from gyro_tdc.data import BagOptions
     from gyro_tdc.data.dataset import load_run
     from gyro_tdc.errors import GyroTdcError
@@ -142,16 +146,13 @@ def read_log(path: Path, source: str) -> dict:
         return {'path': path, 'refused': str(exc).splitlines()[0]}
     still = find_still([run])[0].mask
     edges = np.flatnonzero(np.diff(np.concatenate([[0], still.astype(np.int8), [0]])))
-    return {'path': path, 'run': run, 'still': still, 'stretches': len(edges) // 2}
+    spans = list(zip(edges[::2].tolist(), edges[1::2].tolist()))
+    return {'path': path, 'run': run, 'still': still, 'spans': spans, 'stretches': len(spans)}
 
 
 def noise_se(logs: list) -> np.ndarray:
     """Return the white-noise standard error of a still stretch's mean, deg/s (RMS, per axis)."""
-    se = []
-    for lg in logs:
-        m = lg['still']
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], m.astype(np.int8), [0]])))
-        se += [lg['run'].omega[a:b].var(axis=0) / (b - a) for a, b in zip(edges[::2], edges[1::2])]
+    se = [lg['run'].omega[a:b].var(axis=0) / (b - a) for lg in logs for a, b in lg['spans']]
     return np.sqrt(np.mean(se, axis=0)) * _DEG
 
 
@@ -194,8 +195,7 @@ def node_error(logs: list, model=None, anchored: bool = False) -> np.ndarray:
         r = lg['run']
         out = r.omega if model is None else feed(CompensatorCore(Policy(), model), r.t, r.omega,
                                                  r.accel, r.t, r.temp)[0]
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], lg['still'].astype(np.int8), [0]])))
-        means = np.array([out[a:b].mean(axis=0) for a, b in zip(edges[::2], edges[1::2])])
+        means = np.array([out[a:b].mean(axis=0) for a, b in lg['spans']])
         errs.append(means[1:] - (means[0] if anchored else 0.0))
     return np.sqrt(np.mean(np.concatenate(errs) ** 2, axis=0)) * _DEG
 
