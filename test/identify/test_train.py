@@ -182,13 +182,18 @@ def test_moving_share_tells_a_flight_log_from_a_still_one(board):
                                                   [still.imu]))]) == 0.0
 
 
+def _one_log(tmp_path, day, options):
+    """Train ``--still-only`` on one simulated flight log; return its path, result, lines said."""
+    path = write_dataflash(tmp_path / 'one.bin', [day.imu])
+    said = []
+    return path, train_still_only([path], tmp_path / 'm.yaml', options, log=said.append), said
+
+
 def test_one_power_cycle_of_stops_keeps_the_offset_only_and_says_why(tmp_path):
     # One flight log: stops of 15-45 s while the board warms from 20 degC. Nothing holds a
     # power cycle out to tell whether its curve carries to the next: the offset only, said.
-    day = flight_day(3, legs=8, still_s=(15.0, 45.0), tau_s=900.0)
-    path = write_dataflash(tmp_path / 'one.bin', [day.imu])
-    said = []
-    result = train_still_only([path], tmp_path / 'm.yaml', TrainOptions(), log=said.append)
+    path, result, said = _one_log(tmp_path, flight_day(3, legs=8, still_s=(15.0, 45.0),
+                                                       tau_s=900.0), TrainOptions())
     assert result.model.features == ()
     assert np.all(result.model.linear == 0.0)
     line = [ln for ln in said if ln.startswith('one power cycle only, and no still stretch')]
@@ -203,27 +208,21 @@ def test_one_power_cycle_of_stops_keeps_the_offset_only_and_says_why(tmp_path):
 
 def test_one_power_cycle_warming_still_over_a_span_keeps_its_curve(tmp_path):
     # Still 10 min while warming 20 -> 35 degC, then a flight, then a stop: the long stretch
-    # tells the curve on its own, as a warm-up on the ground or a parked day does; kept.
+    # tells the curve on its own, as a parked day does; kept.
     day = flight_day(4, legs=2, still_s=(600.0, 600.0), flight_s=(60.0, 60.0), t_end=35.0,
                      tau_s=300.0)
-    path = write_dataflash(tmp_path / 'parked.bin', [day.imu])
-    said = []
-    result = train_still_only([path], tmp_path / 'm.yaml', TrainOptions(features='dT,dT2'),
-                              log=said.append)
+    _, result, said = _one_log(tmp_path, day, TrainOptions(features='dT,dT2'))
     assert result.model.features == ('dT', 'dT2')
     assert not any(ln.startswith('one power cycle only') for ln in said), said
 
 
 def test_one_power_cycle_warming_fast_after_power_on_keeps_the_offset_only(tmp_path):
-    # Still 90 s right after power-on while the board self-heats 20 -> 26 degC, then flights
+    # Still 90 s right after power-on while the board self-heats 20 -> 27 degC, then flights
     # and short stops: the span is told in the power-on minutes only, which on real boards
     # did not carry to the next power cycle. The offset only, and the line says why.
     day = flight_day(5, legs=4, still_s=(90.0, 90.0), flight_s=(60.0, 60.0), t_end=35.0,
                      tau_s=150.0)
-    path = write_dataflash(tmp_path / 'warmup.bin', [day.imu])
-    said = []
-    result = train_still_only([path], tmp_path / 'm.yaml', TrainOptions(features='dT,dT2'),
-                              log=said.append)
+    _, result, said = _one_log(tmp_path, day, TrainOptions(features='dT,dT2'))
     assert result.model.features == ()
     line = [ln for ln in said if ln.startswith('one power cycle only')]
     assert len(line) == 1 and ' min): no held-out power cycle' in line[0], said
