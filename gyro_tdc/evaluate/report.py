@@ -32,7 +32,8 @@ from gyro_tdc.base import atomic_json, atomic_write, AXES, plain
 from gyro_tdc.data import Coverage
 from gyro_tdc.evaluate.models import axes_words
 from gyro_tdc.evaluate.score import BagEval, mean_scores
-from gyro_tdc.identify import reanchor_lines, session_check_lines, TrainResult
+from gyro_tdc.identify import (offset_check_lines, reanchor_lines, session_check_lines,
+                               TrainResult)
 from gyro_tdc.model import (DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, OPERATING_RANGE_C,
                             range_shortfall, static_slope)
 import numpy as np
@@ -493,7 +494,9 @@ def format_sessions(result: TrainResult) -> list[str]:
     if not info:
         return out + anchors
     width, spread = max(len(n) for n in info['names']), info['spread_dps']
-    out += ["turn-on offset of each session against the model's (their mean), deg/s:",
+    level = ('their mean' if not info.get('turn_on', {}).get('no_offset') else
+             f"their mean; none on {', '.join(info['turn_on']['no_offset'])}")
+    out += [f"turn-on offset of each session against the model's ({level}), deg/s:",
             *(f'  {name:<{width}}  ' + '  '.join(f'{v:+10.5f}' for v in off) + f'   ({n} samples)'
               for name, off, n in zip(info['names'], info['offset_dps'], info['samples'])),
             f'  {"spread":<{width}}  ' + '  '.join(f'{v:10.5f}' for v in spread)
@@ -503,7 +506,8 @@ def format_sessions(result: TrainResult) -> list[str]:
                    'power cycle to the next: a model fixes the thermal curve, not the offset '
                    'of a new power cycle; re-anchor on the vehicle (compensator_node '
                    'reanchor_on_start, on by default) and score with evaluate --reanchor auto')
-    return out + session_check_lines(info.get('heldout')) + anchors
+    return (out + session_check_lines(info.get('heldout'))
+            + offset_check_lines(info.get('turn_on')) + anchors)
 
 
 def format_training(result: TrainResult) -> tuple[str, list]:

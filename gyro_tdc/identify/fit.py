@@ -31,7 +31,7 @@ from gyro_tdc.base import DEG_PER_RAD
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
-from gyro_tdc.identify.power_cycles import check_sessions
+from gyro_tdc.identify.power_cycles import check_offsets, check_sessions
 from gyro_tdc.identify.tau import (choose_state, fit_time_constant, ParamSearch, run_blocks,
                                    run_state, RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
 from gyro_tdc.model import (CompensationModel, EFFECTS, input_ids, KINDS, normalise_ids,
@@ -200,7 +200,9 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     is fitted at them on the shared estimator. ``rows`` (a mask per run) are the samples that
     count (the still ones): the fit, residual, sample count and range use them while the filters
     run over every sample. ``sessions`` (a label per run) give every session its own turn-on
-    offset beside one curve: the intercept is their mean, ``metrics['sessions']`` holds them.
+    offset beside one curve: the intercept is their mean (none on an axis without curve where
+    the mean does not predict a held-out power cycle's, :func:`check_offsets`),
+    ``metrics['sessions']`` holds them.
     """
     o = replace(options or FitOptions(), **kw)
     ids = normalise_ids(o.features)
@@ -239,7 +241,9 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
         fit, offsets, check = check_sessions(fit, offsets, x, y, scale_cols, groups, counts,
                                              bstate, kind=o.kind, n_centers=o.n_centers,
                                              seed=o.seed, min_folds=o.min_folds)
-    coef = fit.coef if groups is None else _with_level(fit, offsets)
+    coef, turn_on = fit.coef if groups is None else _with_level(fit, offsets), None
+    if groups is not None and o.check_sessions:
+        coef[0], turn_on = check_offsets(offsets, coef, fit.scale)
     if th.kind != 'none':
         par[_LAG] = {'tau_s': th.tau_total_s}
     created = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
@@ -252,7 +256,8 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
                'raw_bs_dps2': (sum(b.ss_raw for b in blocks) / n_total * deg2).tolist(),
                'ridge': fit.ridge, **({'thermal': thermal_info} if thermal_info else {})}
     if groups is not None:
-        metrics['sessions'] = _session_metrics(runs, labels, offsets, rows, check)
+        metrics['sessions'] = _session_metrics(runs, labels, offsets - coef[0], rows,
+                                               check, turn_on)
     return CompensationModel.network(
         o.kind, ids, par, t0, fit.norm, coef, scale=fit.scale,
         temp_range_c=span(states if rows is None else [s[m] for s, m in zip(states, rows)]),
@@ -322,16 +327,18 @@ def _with_level(fit: LinearFit, offsets: NDArray[np.float64] | None = None
 
 
 def _session_metrics(runs: Sequence[Run], labels: Sequence[int], offsets: NDArray[np.float64],
-                     rows: Sequence[NDArray[np.bool_]] | None, check: dict | None) -> dict:
-    """Return the sessions' names, samples, offsets from their mean (deg/s) and ``check``."""
-    rel = (offsets - offsets.mean(axis=0)) * DEG_PER_RAD
+                     rows: Sequence[NDArray[np.bool_]] | None, check: dict | None,
+                     turn_on: dict | None) -> dict:
+    """Return the sessions' names, samples, offsets from the model's (deg/s) and the checks."""
+    rel = offsets * DEG_PER_RAD
     own = [[i for i, g in enumerate(labels) if g == k] for k in range(offsets.shape[0])]
     return {'count': int(offsets.shape[0]),
             'names': [', '.join(runs[i].name for i in ii) for ii in own],
             'samples': [sum(len(runs[i]) if rows is None else int(np.count_nonzero(rows[i]))
                             for i in ii) for ii in own], 'offset_dps': rel.tolist(),
             'spread_dps': (rel.max(axis=0) - rel.min(axis=0)).tolist(),
-            **({'heldout': check} if check else {})}
+            **({'heldout': check} if check else {}),
+            **({'turn_on': turn_on} if turn_on else {})}
 
 
 def fit_px4_cubic(runs: Sequence[Run], *, t0: float | None = None, **kw) -> CompensationModel:

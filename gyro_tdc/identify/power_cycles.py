@@ -54,8 +54,9 @@ from gyro_tdc.signal import (CURVE_SIGNIFICANCE, curve_untold, Folds, heldout,
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_FOLDS', 'reanchor_lines',
-           'reanchor_rule', 'session_check_lines', 'SIGNIFICANCE']
+__all__ = ['check_offsets', 'check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_FOLDS',
+           'offset_check_lines', 'reanchor_lines', 'reanchor_rule', 'session_check_lines',
+           'SIGNIFICANCE']
 
 _DEG2 = DEG_PER_RAD ** 2
 #: Fewest held-out power cycles that judge a curve of several stops (still-only training):
@@ -127,6 +128,54 @@ def _offset_only(fit: LinearFit, offsets: NDArray[np.float64], y: NDArray[np.flo
     resid[:, drop] = -centred[:, drop]
     return replace(fit, coef=coef, scale=scale, resid=resid,
                    sse=float((resid ** 2).sum())), offsets
+
+
+def check_offsets(offsets: NDArray[np.float64], coef: NDArray[np.float64],
+                  scale: NDArray[np.float64]) -> tuple[NDArray[np.float64], dict | None]:
+    """
+    Judge the offset of every offset-only axis on held-out power cycles against none.
+
+    ``offsets`` are the sessions' turn-on offsets (S, 3), ``coef`` and ``scale`` the fit's.
+    Each power cycle's offset is predicted by the mean of the others' (leave one out) and by
+    none: an axis without curve whose mean does not predict better, in mean square and on the
+    median power cycle (a failed boot calibration weighs on the one, not the other), gets no
+    offset (a board that zeroes its gyro at power-on, as ArduPilot and PX4 do; re-anchoring
+    still applies).
+    Returns the model's intercept and the record (None: one session, or every axis a curve).
+    """
+    level, k = offsets.mean(axis=0), offsets.shape[0]
+    flat = ~np.any(coef[1:], axis=0) & (np.asarray(scale) == 0.0)
+    if k < 2 or not flat.any():
+        return level, None
+    err = offsets - (offsets.sum(axis=0) - offsets) / (k - 1), offsets
+    ms = [(e ** 2).mean(axis=0) for e in err]
+    med = [np.median(np.abs(e), axis=0) for e in err]
+    none = flat & ~((ms[0] < ms[1]) & (med[0] < med[1]))
+    return np.where(none, 0.0, level), {
+        'sessions': k, 'mean_ms_dps2': (ms[0] * _DEG2).tolist(),
+        'none_ms_dps2': (ms[1] * _DEG2).tolist(),
+        'mean_median_dps': (med[0] * DEG_PER_RAD).tolist(),
+        'none_median_dps': (med[1] * DEG_PER_RAD).tolist(),
+        'axes': [AXES[a] for a in np.flatnonzero(flat)],
+        'no_offset': [AXES[a] for a in np.flatnonzero(none)]}
+
+
+def offset_check_lines(record: dict | None) -> list[str]:
+    """Return the report lines of :func:`check_offsets` (empty without a record)."""
+    if not record:
+        return []
+    out = [f"the offset of the axes without curve ({', '.join(record['axes'])}) held out on each "
+           f"of the {record['sessions']} power cycles: mean square, (deg/s)^2, and median "
+           'error, deg/s:',
+           *(f'  {name:<12} ' + '  '.join(f'{v:10.3g}' for v in record[f'{key}_ms_dps2'])
+             + '   ' + '  '.join(f'{v:10.3g}' for v in record[f'{key}_median_dps'])
+             for name, key in (("others' mean", 'mean'), ('none', 'none')))]
+    if record['no_offset']:
+        out.append(f"axes {', '.join(record['no_offset'])}: the other power cycles' offsets do "
+                   "not predict a held-out one's better than none, in both (a board that "
+                   'zeroes its gyro at power-on): the model adds no offset there '
+                   '(re-anchoring still applies)')
+    return out
 
 
 def session_check_lines(record: dict | None) -> list[str]:

@@ -22,8 +22,8 @@ import json
 from bags import bag_from_run
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data import Run
-from gyro_tdc.identify import (fit_model, FitOptions, reanchor_lines, reanchor_rule,
-                               session_check_lines)
+from gyro_tdc.identify import (check_offsets, fit_model, FitOptions, offset_check_lines,
+                               reanchor_lines, reanchor_rule, session_check_lines)
 from gyro_tdc.identify.power_cycles import MIN_FOLDS
 from gyro_tdc.identify.still_only import rows_of
 from gyro_tdc.model import load_model
@@ -169,8 +169,11 @@ def test_a_curve_no_power_cycle_shows_over_two_degrees_keeps_the_offset_only():
     assert 0.4 < check['widest_span_c'] < MIN_SESSION_SPAN_C
     assert np.all(m.linear == 0.0)                      # no curve: the offsets only
     means = np.degrees([r.omega.mean(axis=0) for r in runs])   # each power cycle's offset
-    np.testing.assert_allclose(m.metrics['sessions']['offset_dps'], means - means.mean(axis=0),
-                               atol=2e-3)
+    # Each against the model's: their mean, or none where it does not predict the other.
+    none = np.isin(['x', 'y', 'z'], m.metrics['sessions']['turn_on']['no_offset'])
+    level = np.where(none, 0.0, means.mean(axis=0))
+    np.testing.assert_allclose(np.degrees(m.intercept), level, atol=2e-3)
+    np.testing.assert_allclose(m.metrics['sessions']['offset_dps'], means - level, atol=2e-3)
     line, = session_check_lines(check)
     assert line.startswith('the curve is not judged on a held-out power cycle: none of the 2 '
                            'sessions with data has two blocks inside the others')
@@ -212,3 +215,69 @@ def test_a_curve_of_stops_needs_two_power_cycles_to_judge_it():
     judged = fit_model([*runs, third], kind='poly', features='dT,dT2', t0=20.0,
                        sessions=[0, 1, 2]).metrics['sessions']['heldout']
     assert judged['folds'] == 1 and 'worse_folds' in judged
+
+
+def _offsets(*rows):
+    """Return session offsets given in deg/s, rad/s (S, 3)."""
+    return np.radians(np.array(rows, dtype=np.float64))
+
+
+_FLAT = np.zeros((3, 3))          # coefficients of three offset-only axes (intercept, two terms)
+
+
+def test_an_offset_that_repeats_across_power_cycles_is_kept():
+    off = _offsets((0.40, -0.30, 0.10), (0.45, -0.32, 0.12), (0.38, -0.29, 0.09))
+    level, rec = check_offsets(off, _FLAT, np.zeros(3))
+    np.testing.assert_array_equal(level, off.mean(axis=0))
+    assert rec['no_offset'] == [] and rec['axes'] == ['x', 'y', 'z']
+    assert all(m < n for m, n in zip(rec['mean_ms_dps2'], rec['none_ms_dps2']))
+    assert len(offset_check_lines(rec)) == 3               # the figures, no axis dropped
+
+
+def test_offsets_of_a_board_that_zeroes_its_gyro_at_power_on_give_no_offset():
+    # x: a boot calibration on every power cycle (near 0); y: two of four failed (0.25,
+    # 0.3 deg/s): the others' mean wins in mean square, not on the median power cycle;
+    # z: a real turn-on offset that repeats.
+    off = _offsets((0.010, 0.01, 0.50), (-0.02, 0.02, 0.52), (0.015, 0.25, 0.49),
+                   (-0.01, 0.30, 0.51))
+    level, rec = check_offsets(off, _FLAT, np.zeros(3))
+    assert rec['no_offset'] == ['x', 'y']
+    assert rec['mean_ms_dps2'][1] < rec['none_ms_dps2'][1]             # mean square: mean
+    assert rec['mean_median_dps'][1] > rec['none_median_dps'][1]       # median: none
+    np.testing.assert_array_equal(level[:2], 0.0)
+    assert level[2] == pytest.approx(off[:, 2].mean())
+    assert offset_check_lines(rec)[-1].startswith(
+        "axes x, y: the other power cycles' offsets do not predict a held-out one's better "
+        'than none, in both')
+
+
+def test_an_axis_with_a_curve_or_one_session_keeps_its_level_unjudged():
+    off = _offsets((0.01, 0.01, 0.01), (-0.01, -0.02, -0.02))
+    coef = _FLAT.copy()
+    coef[1, 0] = 1e-4                                     # x has a curve
+    level, rec = check_offsets(off, coef, np.array([0.0, 1e-3, 0.0]))    # y a scale term
+    assert rec['axes'] == ['z'] and rec['no_offset'] == ['z']
+    np.testing.assert_array_equal(level[:2], off[:, :2].mean(axis=0))
+    level, rec = check_offsets(off[:1], _FLAT, np.zeros(3))
+    assert rec is None and offset_check_lines(rec) == []
+    np.testing.assert_array_equal(level, off[0])
+
+
+def test_train_gives_no_offset_where_boot_calibrated_power_cycles_show_none(tmp_path, capsys):
+    # Three power cycles whose offsets scatter around zero (a board that calibrates at power-on),
+    # no curve: the model adds no offset; the node still re-anchors.
+    runs = [synth_run(seed=i, hours=0.5, rate_hz=5.0, t_lo=20.0, t_hi=30.0, noise_dps=0.01,
+                      a1=(0.0, 0.0, 0.0), a2=(0.0, 0.0, 0.0), b0=(0.0, 0.0, 0.0),
+                      offset_dps=off, name=f'boot{i}')
+            for i, off in enumerate(((0.01, -0.02, 0.015), (-0.015, 0.01, -0.02),
+                                     (0.005, 0.015, 0.01)))]
+    bags = [str(bag_from_run(r, tmp_path / r.name)) for r in runs]
+    out = tmp_path / 'm.yaml'
+    assert train_main([*bags, '--out', str(out), '--features', 'bias', '--kind', 'poly',
+                       '--no-progress']) == 0
+    text = capsys.readouterr().out
+    m = load_model(out)
+    assert m.metrics['sessions']['turn_on']['no_offset'] == ['x', 'y', 'z']
+    np.testing.assert_array_equal(m.intercept, 0.0)
+    assert "against the model's (their mean; none on x, y, z)" in text
+    assert 'the model adds no offset there (re-anchoring still applies)' in text
