@@ -150,13 +150,12 @@ def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
         Per-bin counts and minutes, sparse bins and direction minutes.
 
     """
-    one = len(runs) == 1                    # one run: its arrays, not copies
-    temp = np.asarray(runs[0].temp) if one else np.concatenate([r.temp for r in runs])
-    minutes = _sample_minutes(runs[0].t) if one else np.concatenate(
-        [_sample_minutes(r.t) for r in runs])
-    thr = threshold_c_per_min
-    heating, cooling, steady = (_directions(runs[0], thr) if one else [
-        np.concatenate(m) for m in zip(*(_directions(r, thr) for r in runs))])
+    def joined(parts: Sequence[NDArray]) -> NDArray:
+        return parts[0] if len(parts) == 1 else np.concatenate(parts)   # one run: no copy
+    temp = joined([np.asarray(r.temp) for r in runs])
+    minutes = joined([_sample_minutes(r.t) for r in runs])
+    heating, cooling, steady = (joined(m) for m in zip(
+        *(_directions(r, threshold_c_per_min) for r in runs)))
     lo, hi = float(temp.min()), float(temp.max())
     first = math.floor(lo / bin_c) * bin_c
     nb = max(1, int(math.floor((hi - first) / bin_c)) + 1)

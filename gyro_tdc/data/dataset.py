@@ -64,13 +64,11 @@ def _interp_sorted(imu_t: NDArray[np.float64], tt: NDArray[np.float64],
     # In segment j a stamp is invalid when both distances exceed the gap:
     # t - tt[j] > gap and tt[j + 1] - t > gap.
     seg = np.flatnonzero(np.diff(tt) > 2.0 * gap)
-    if seg.size:
-        start = np.searchsorted(imu_t, tt[seg], side='right')
-        stop = np.searchsorted(imu_t, tt[seg + 1], side='left')
-        for a, b, j in zip(start.tolist(), stop.tolist(), seg.tolist()):
-            if a < b:
-                part = imu_t[a:b]
-                valid[a:b] &= ~((part - tt[j] > gap) & (tt[j + 1] - part > gap))
+    start = np.searchsorted(imu_t, tt[seg], side='right')
+    stop = np.searchsorted(imu_t, tt[seg + 1], side='left')
+    for a, b, j in zip(start.tolist(), stop.tolist(), seg.tolist()):
+        part = imu_t[a:b]
+        valid[a:b] &= ~((part - tt[j] > gap) & (tt[j + 1] - part > gap))
     temp[~valid] = np.nan
     return temp, valid
 
@@ -423,8 +421,7 @@ def find_bags(paths: Iterable[str | os.PathLike]) -> list[tuple[Path, bool]]:
     twice would weigh double in training and escape discovery's leave-one-run-out.
     """
     out: list[tuple[Path, bool]] = []
-    for raw in paths:
-        p = Path(raw)
+    for p in map(Path, paths):
         if not p.exists():
             raise DatasetError(f'Bag {str(p)!r} does not exist.')
         subs = _walk(p) if p.is_dir() and not _is_bag(p) else []

@@ -298,7 +298,6 @@ class ImuView:
             c = base + LINEAR_ACCELERATION_COV
             cov = _COV.unpack_from(buf, c)
             if cov[0] != -1.0:
-                _F64.pack_into(buf, c, cov[0] + accel_var[0])
-                _F64.pack_into(buf, c + 32, cov[4] + accel_var[1])
-                _F64.pack_into(buf, c + 64, cov[8] + accel_var[2])
+                for k, v in enumerate(accel_var):     # the diagonal: entries 0, 4 and 8
+                    _F64.pack_into(buf, c + 32 * k, cov[4 * k] + v)
         return bytes(buf)

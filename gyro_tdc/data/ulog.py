@@ -48,10 +48,9 @@ _TOPICS = ['sensor_gyro', 'sensor_accel', 'sensor_combined', 'vehicle_imu',
            'vehicle_imu_status', 'sensor_baro', 'vehicle_air_data', 'sensor_selection',
            'sensor_gyro_fifo', 'sensor_accel_fifo']
 #: Where each topic of an instance names its gyro's (accelerometer's) device id.
-_DEVICE_FIELDS = {'gyro': (('sensor_gyro', 'device_id'), ('vehicle_imu', 'gyro_device_id'),
-                           ('vehicle_imu_status', 'gyro_device_id')),
-                  'accel': (('sensor_accel', 'device_id'), ('vehicle_imu', 'accel_device_id'),
-                            ('vehicle_imu_status', 'accel_device_id'))}
+_DEVICE_FIELDS = {kind: ((f'sensor_{kind}', 'device_id'), ('vehicle_imu', f'{kind}_device_id'),
+                         ('vehicle_imu_status', f'{kind}_device_id'))
+                  for kind in ('gyro', 'accel')}
 #: A FIFO block holds at most this many samples (``msg/SensorGyroFifo.msg``: ``int16[32] x``).
 FIFO_SAMPLES = 32
 #: The IMU's own thermometers, in the order they are tried: (topic, field).

@@ -96,20 +96,23 @@ def min_message_bytes(msgtype: str) -> int:
     return FRAME_ID + 1 + 8 * N_DOUBLES[msgtype] if msgtype in N_DOUBLES else 4
 
 
+def _list(info: Mapping, key: str) -> list:
+    """Return the list metadata.yaml gives under ``key`` (none: an empty one)."""
+    return info[key] if isinstance(info.get(key), list) else []
+
+
 def storage_bytes(bag: Path, info: Mapping) -> int | None:
     """Return the size of the storage files metadata.yaml lists, bytes (None: one is missing)."""
-    names = info.get('relative_file_paths')
     try:
         return sum((bag / PurePath(str(name)).name).stat().st_size
-                   for name in (names if isinstance(names, list) else []))
+                   for name in _list(info, 'relative_file_paths'))
     except OSError:
         return None           # rosbags names the missing file
 
 
 def _topic_counts(info: Mapping) -> list[tuple[str, str, Any]]:
     """Return (name, type, message_count) of every well-formed topic entry of the metadata."""
-    found = info.get('topics_with_message_count')
-    entries = [(e, e.get('topic_metadata')) for e in (found if isinstance(found, list) else [])
+    entries = [(e, e.get('topic_metadata')) for e in _list(info, 'topics_with_message_count')
                if isinstance(e, Mapping)]
     return [(str(meta.get('name')), str(meta.get('type')), e['message_count'])
             for e, meta in entries if isinstance(meta, Mapping) and 'message_count' in e]
@@ -142,11 +145,9 @@ def check_counts(bag: Path, info: Mapping) -> None:
     where = f'Cannot read bag {str(bag)!r} (unreadable or corrupt): metadata.yaml'
     fix = '`ros2 bag reindex` rebuilds metadata.yaml from the storage files'
     topics = _topic_counts(info)
-    files = info.get('files')
     counts = ([(f'topic {name!r}', count) for name, _, count in topics]
               + [(f'file {f.get("path")!r}', f['message_count'])
-                 for f in (files if isinstance(files, list) else [])
-                 if isinstance(f, Mapping) and 'message_count' in f]
+                 for f in _list(info, 'files') if isinstance(f, Mapping) and 'message_count' in f]
               + ([('the bag', info['message_count'])] if 'message_count' in info else []))
     for what, count in counts:
         if isinstance(count, bool) or not isinstance(count, int) or count < 0:
