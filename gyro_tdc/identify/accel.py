@@ -180,8 +180,7 @@ def static_data(run: Run, *, model: CompensationModel | None = None) -> StaticDa
     remap = np.full(seg + 2, -1, dtype=np.int64)        # remap[-1]: not still, stays -1
     remap[keep_ids] = np.arange(len(keep_ids))
     per_sample = np.repeat(remap[seg_of], counts.astype(np.int64))
-    finite = np.isfinite(acc)
-    mask = (per_sample >= 0) & finite[:, 0] & finite[:, 1] & finite[:, 2]
+    mask = (per_sample >= 0) & np.isfinite(acc).all(axis=1)
     return StaticData(run.name, mask, np.where(mask, per_sample, -1), len(keep_ids),
                       tuple(changes), st.window_s, '' if mask.any() else
                       'no still stretch long enough')
