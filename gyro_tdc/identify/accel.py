@@ -348,14 +348,13 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     if constant:
         return AccelFit(None, note=constant, static=[None] * len(runs),
                         total=sum(len(r) for r in present))
-    datas = [static_data(r) for r in runs]
-    with_acc = [(r, d) for r, d in zip(runs, datas) if d is not None]
-    out = AccelFit(None, static=datas, total=sum(len(r) for r, _ in with_acc))
-    usable = [(r, d) for r, d in with_acc if d.mask.any()]
+    datas = [static_data(r) for r in runs]      # None where a run has no accelerometer
+    out = AccelFit(None, static=datas, total=sum(len(r) for r in present))
+    usable = [(r, d) for r, d in zip(runs, datas) if d is not None and d.mask.any()]
     if not usable:
-        out.note = ('no static data: ' + '; '.join(sorted({d.reason for _, d in with_acc}))
-                    if with_acc else
-                    'no accelerometer data in the bags (all zero: the IMU publishes none)')
+        out.note = ('no static data: ' + '; '.join(sorted(
+            {d.reason for d in datas if d is not None})) if present else
+            'no accelerometer data in the bags (all zero: the IMU publishes none)')
         return out
     th = model.thermal
     par = {**resolve_params(ids, {k: v for k, v in model.effect_params.items() if k in ids}),
