@@ -423,8 +423,8 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                    constant=constant_readings(runs, const))
 
 
-def _offset_only(fo: FitOptions, choice: FeatureChoice | None, log: Log, why: str,
-                 dropped: str) -> tuple[FitOptions, FeatureChoice | None]:
+def _drop_curve(fo: FitOptions, choice: FeatureChoice | None, log: Log, why: str,
+                dropped: str) -> tuple[FitOptions, FeatureChoice | None]:
     """
     Return ``fo`` without features and ``choice`` saying why: the model keeps the offsets.
 
@@ -448,8 +448,8 @@ def _curve_or_offsets(fit: Callable, fo: FitOptions, choice: FeatureChoice | Non
     try:
         check_model(model)
     except ModelFileError as exc:
-        fo, choice = _offset_only(fo, choice, log, 'the curve of the stops would be refused '
-                                  f'on loading ({exc}):', 'its curve would be refused on loading')
+        fo, choice = _drop_curve(fo, choice, log, 'the curve of the stops would be refused '
+                                 f'on loading ({exc}):', 'its curve would be refused on loading')
         model, means, again = fit(fo)
         bad |= again
     return model, means, bad, choice
@@ -475,7 +475,7 @@ def _one_power_cycle(runs: Sequence[Run], spans: Sequence[tuple[int, int, int]],
     if any(c >= MIN_SESSION_SPAN_C and s >= SLOW_CURVE_S for c, s in told):
         return fo, choice
     widest, lasting = max(told)
-    return _offset_only(
+    return _drop_curve(
         fo, choice, log, f'one power cycle only, and no still stretch of {SLOW_CURVE_S / 60:g} '
         f'min or more spans {MIN_SESSION_SPAN_C:g} degC of its own (the widest {widest:.2f} '
         f'degC in {lasting / 60:.1f} min): no held-out power cycle can tell whether its curve '
