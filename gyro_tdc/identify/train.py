@@ -129,9 +129,8 @@ class FeatureChoice:
         if d is None:
             return {**out, 'note': self.note}
         out['discovery'] = {
-            'noise_floor_dps': float(d.noise_floor_dps), 'gap_dps': float(d.gap_dps),
-            'heldout_gap_dps': float(d.heldout_gap_dps), 'folds': d.settings['folds'],
-            'block_s': float(d.block_s),
+            **{k: float(getattr(d, k)) for k in ('noise_floor_dps', 'gap_dps', 'heldout_gap_dps')},
+            'folds': d.settings['folds'], 'block_s': float(d.block_s),
             'thermal': None if d.thermal is None else d.thermal.to_dict()}
         return out
 
