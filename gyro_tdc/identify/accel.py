@@ -180,8 +180,7 @@ def static_data(run: Run, *, model: CompensationModel | None = None) -> StaticDa
     remap = np.full(seg + 2, -1, dtype=np.int64)        # remap[-1]: not still, stays -1
     remap[keep_ids] = np.arange(len(keep_ids))
     per_sample = np.repeat(remap[seg_of], counts.astype(np.int64))
-    finite = np.isfinite(acc)
-    mask = (per_sample >= 0) & finite[:, 0] & finite[:, 1] & finite[:, 2]
+    mask = (per_sample >= 0) & np.isfinite(acc).all(axis=1)
     return StaticData(run.name, mask, np.where(mask, per_sample, -1), len(keep_ids),
                       tuple(changes), st.window_s, '' if mask.any() else
                       'no still stretch long enough')
@@ -349,14 +348,13 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     if constant:
         return AccelFit(None, note=constant, static=[None] * len(runs),
                         total=sum(len(r) for r in present))
-    datas = [static_data(r) for r in runs]
-    with_acc = [(r, d) for r, d in zip(runs, datas) if d is not None]
-    out = AccelFit(None, static=datas, total=sum(len(r) for r, _ in with_acc))
-    usable = [(r, d) for r, d in with_acc if d.mask.any()]
+    datas = [static_data(r) for r in runs]      # None where a run has no accelerometer
+    out = AccelFit(None, static=datas, total=sum(len(r) for r in present))
+    usable = [(r, d) for r, d in zip(runs, datas) if d is not None and d.mask.any()]
     if not usable:
-        out.note = ('no static data: ' + '; '.join(sorted({d.reason for _, d in with_acc}))
-                    if with_acc else
-                    'no accelerometer data in the bags (all zero: the IMU publishes none)')
+        out.note = ('no static data: ' + '; '.join(sorted(
+            {d.reason for d in datas if d is not None})) if present else
+            'no accelerometer data in the bags (all zero: the IMU publishes none)')
         return out
     th = model.thermal
     par = {**resolve_params(ids, {k: v for k, v in model.effect_params.items() if k in ids}),

@@ -304,22 +304,20 @@ def fit_without_outliers(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],
     for i in np.unique(run_of[bad]):    # a run keeps its stops when all look like turns
         if bad[run_of == i].all():
             bad[run_of == i] = False
-    if bad.any() and not bad.all():
-        for (i, a, b), drop in zip(spans, bad):
-            if drop:
-                rows[i][a:b] = False
-        lo, hi = span([r.temp[m] for r, m in zip(runs, rows)])
-        if hi - lo < MIN_SPAN_C:
-            raise FitError(f'still-only training: {int(bad.sum())} of the {bad.size} still '
-                           "stretches look like slow turns (their mean rate off the others'); "
-                           f'the rest span {hi - lo:.2f} degC only ({lo:.1f} .. {hi:.1f} degC; '
-                           f'need at least {MIN_SPAN_C:g} degC): record stops at other '
-                           'temperatures, or veto the turns with --motion-topic.')
-        model = fit_model(runs, options, rows=rows, sessions=labels)
-        means = _stretch_means(model, runs, spans, labels)
-    else:
-        bad[:] = False
-    return model, means, bad
+    if not bad.any() or bad.all():
+        return model, means, np.zeros_like(bad)
+    for (i, a, b), drop in zip(spans, bad):
+        if drop:
+            rows[i][a:b] = False
+    lo, hi = span([r.temp[m] for r, m in zip(runs, rows)])
+    if hi - lo < MIN_SPAN_C:
+        raise FitError(f'still-only training: {int(bad.sum())} of the {bad.size} still '
+                       "stretches look like slow turns (their mean rate off the others'); "
+                       f'the rest span {hi - lo:.2f} degC only ({lo:.1f} .. {hi:.1f} degC; '
+                       f'need at least {MIN_SPAN_C:g} degC): record stops at other '
+                       'temperatures, or veto the turns with --motion-topic.')
+    model = fit_model(runs, options, rows=rows, sessions=labels)
+    return model, _stretch_means(model, runs, spans, labels), bad
 
 
 def _stretch_means(model: CompensationModel, runs: Sequence[Run],

@@ -199,8 +199,7 @@ def profile_interval(sse: Callable[[float], NDArray[np.float64]], tau: float,
     within = grid[st <= level]
     lo = max(min(math.exp(ends[0]), float(within.min()), tau), lo_b)
     hi = min(max(math.exp(ends[1]), float(within.max()), tau), hi_b)
-    eps = 1e-9
-    ident = lo > lo_b * (1 + eps) and hi < hi_b * (1 - eps) and hi <= max_ratio * lo
+    ident = lo > lo_b * (1 + 1e-9) and hi < hi_b * (1 - 1e-9) and hi <= max_ratio * lo
     return TauProfile(tau=float(tau), interval=(lo, hi), identifiable=bool(ident),
                       grid_tau=grid, stat=st, n_eff=n_eff, bounds=(lo_b, hi_b))
 

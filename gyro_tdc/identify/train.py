@@ -129,9 +129,8 @@ class FeatureChoice:
         if d is None:
             return {**out, 'note': self.note}
         out['discovery'] = {
-            'noise_floor_dps': float(d.noise_floor_dps), 'gap_dps': float(d.gap_dps),
-            'heldout_gap_dps': float(d.heldout_gap_dps), 'folds': d.settings['folds'],
-            'block_s': float(d.block_s),
+            **{k: float(getattr(d, k)) for k in ('noise_floor_dps', 'gap_dps', 'heldout_gap_dps')},
+            'folds': d.settings['folds'], 'block_s': float(d.block_s),
             'thermal': None if d.thermal is None else d.thermal.to_dict()}
         return out
 
@@ -423,6 +422,19 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                    constant=constant_readings(runs, const))
 
 
+def _drop_curve(fo: FitOptions, choice: FeatureChoice | None, log: Log, why: str,
+                dropped: str) -> tuple[FitOptions, FeatureChoice | None]:
+    """
+    Return ``fo`` without features and ``choice`` saying why: the model keeps the offsets.
+
+    ``why`` opens the line said on ``log`` (with its separator), ``dropped`` the choice's note.
+    """
+    if log is not None:
+        log(f'{why} the model keeps the offset only on every axis (re-anchoring still applies)')
+    return replace(fo, features=()), None if choice is None else replace(
+        choice, dropped=f'{dropped}, the model keeps the offset only')
+
+
 def _curve_or_offsets(fit: Callable, fo: FitOptions, choice: FeatureChoice | None,
                       log: Log) -> tuple:
     """
@@ -435,14 +447,10 @@ def _curve_or_offsets(fit: Callable, fo: FitOptions, choice: FeatureChoice | Non
     try:
         check_model(model)
     except ModelFileError as exc:
-        if log is not None:
-            log(f'the curve of the stops would be refused on loading ({exc}): the model '
-                'keeps the offset only on every axis (re-anchoring still applies)')
-        model, means, again = fit(replace(fo, features=()))
+        fo, choice = _drop_curve(fo, choice, log, 'the curve of the stops would be refused '
+                                 f'on loading ({exc}):', 'its curve would be refused on loading')
+        model, means, again = fit(fo)
         bad |= again
-        if choice is not None:
-            choice = replace(choice, dropped='its curve would be refused on loading, the '
-                             'model keeps the offset only')
     return model, means, bad, choice
 
 
@@ -466,16 +474,11 @@ def _one_power_cycle(runs: Sequence[Run], spans: Sequence[tuple[int, int, int]],
     if any(c >= MIN_SESSION_SPAN_C and s >= SLOW_CURVE_S for c, s in told):
         return fo, choice
     widest, lasting = max(told)
-    if log is not None:
-        log(f'one power cycle only, and no still stretch of {SLOW_CURVE_S / 60:g} min or more '
-            f'spans {MIN_SESSION_SPAN_C:g} degC of its own (the widest {widest:.2f} degC in '
-            f'{lasting / 60:.1f} min): no held-out power cycle can tell whether its curve of '
-            'stops carries to the next; the model keeps the offset only on every axis '
-            '(re-anchoring still applies)')
-    if choice is not None:
-        choice = replace(choice, dropped='one power cycle of stops cannot judge its curve, '
-                         'the model keeps the offset only')
-    return replace(fo, features=()), choice
+    return _drop_curve(
+        fo, choice, log, f'one power cycle only, and no still stretch of {SLOW_CURVE_S / 60:g} '
+        f'min or more spans {MIN_SESSION_SPAN_C:g} degC of its own (the widest {widest:.2f} '
+        f'degC in {lasting / 60:.1f} min): no held-out power cycle can tell whether its curve '
+        'of stops carries to the next;', 'one power cycle of stops cannot judge its curve')
 
 
 def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
