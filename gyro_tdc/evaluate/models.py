@@ -227,8 +227,8 @@ def onboard_model(spec: str, run: Run) -> tuple[CompensationModel, str]:
     if run.info.get('onboard_compensated'):
         raise DatasetError(f'--model {spec}: {run.name!r} already carries the on-board '
                            'correction; evaluate it on data logged without it.')
-    params = run.info.get('params', {})
-    active, words = onboard_status(params, firmware, instance=int(run.info.get('instance', 0)))
+    params, inst = run.info.get('params', {}), int(run.info.get('instance', 0))
+    active, words = onboard_status(params, firmware, instance=inst)
     created = {'bags': [run.name], 'onboard': firmware}
     if firmware == 'px4':
         device = int(run.info.get('device_id', 0))
@@ -241,7 +241,6 @@ def onboard_model(spec: str, run: Run) -> tuple[CompensationModel, str]:
         what = (f'TC_G{slot}_* (device id {device}): cubic about TREF = {cal.tref:g} degC, '
                 f'clamped to {cal.tmin:g} .. {cal.tmax:g} degC')
     else:
-        inst = int(run.info.get('instance', 0))
         cal = ArduPilotTempCal.from_params(params, 'gyro', inst)
         model = _cubic(ARDUPILOT_TREF_C, -cal.poly([cal.caltemp])[0],
                        cal.coeff / ARDUPILOT_SCALE, cal.tmin, cal.tmax, created)
