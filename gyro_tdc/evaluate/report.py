@@ -390,7 +390,6 @@ def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000)
     run = b.run
     if run is None:
         raise ValueError('Expected `b.run` to hold the data; it was released.')
-    path = Path(directory) / f'{b.label}.csv'
     cols = csv_columns(b)
     fmt = ['%.6f', '%.6g'] + ['%.9g'] * (len(cols) - 2)
 
@@ -402,7 +401,7 @@ def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000)
                                     + [m.omega[sl] for m in b.models])
             np.savetxt(fh, block, fmt=fmt, delimiter=',')
 
-    return atomic_write(path, rows, what='CSV file', newline='\n')
+    return atomic_write(Path(directory) / f'{b.label}.csv', rows, what='CSV file', newline='\n')
 
 
 # --------------------------------------------------------------------------------------------
