@@ -27,7 +27,7 @@ from dataclasses import dataclass, replace
 import os
 from pathlib import Path
 import re
-from typing import Callable, Sequence
+from typing import Callable, Iterable, Sequence
 
 from gyro_tdc.base import model_path
 from gyro_tdc.data import BagOptions, iter_runs, load_runs, Run
@@ -72,31 +72,27 @@ def safe_label(text: str) -> str:
     return re.sub(r'[^A-Za-z0-9_.-]+', '_', stem).strip('_.') or 'unnamed'
 
 
-def _unique(base: str, taken: list) -> str:
-    """Return ``base``, or ``base_2``, ``base_3``... when it is taken."""
-    label, k = base, 2
-    while label in taken:
-        label, k = f'{base}_{k}', k + 1
-    return label
+def _uniques(bases: Iterable[str]) -> list:
+    """Return ``bases`` in order, one already taken made ``base_2``, ``base_3``..."""
+    out: list = []
+    for base in bases:
+        label, k = base, 2
+        while label in out:
+            label, k = f'{base}_{k}', k + 1
+        out.append(label)
+    return out
 
 
 def model_labels(names: Sequence[str]) -> list:
     """Return short labels for model specs, made unique with a numeric suffix."""
-    out: list = []
-    for name in names:
-        base = PX4 if name == PX4 else safe_label(name)
-        out.append(_unique('raw_model' if base == 'raw' else base, out))
-    return out
+    return _uniques('raw_model' if b == 'raw' else b for b in map(safe_label, names))
 
 
 def bag_labels(paths: Sequence[str | os.PathLike]) -> list:
     """Return unique file-name labels for bag paths (parent folder added on clashes)."""
     base = [safe_label(str(p)) for p in paths]
-    out: list = []
-    for p, b in zip(paths, base):
-        out.append(_unique(safe_label(f'{Path(p).parent.name}_{b}') if base.count(b) > 1
-                           else b, out))
-    return out
+    return _uniques(safe_label(f'{Path(p).parent.name}_{b}') if base.count(b) > 1 else b
+                    for p, b in zip(paths, base))
 
 
 # --------------------------------------------------------------------------------------------
@@ -227,8 +223,8 @@ def onboard_model(spec: str, run: Run) -> tuple[CompensationModel, str]:
     if run.info.get('onboard_compensated'):
         raise DatasetError(f'--model {spec}: {run.name!r} already carries the on-board '
                            'correction; evaluate it on data logged without it.')
-    params = run.info.get('params', {})
-    active, words = onboard_status(params, firmware, instance=int(run.info.get('instance', 0)))
+    params, inst = run.info.get('params', {}), int(run.info.get('instance', 0))
+    active, words = onboard_status(params, firmware, instance=inst)
     created = {'bags': [run.name], 'onboard': firmware}
     if firmware == 'px4':
         device = int(run.info.get('device_id', 0))
@@ -241,7 +237,6 @@ def onboard_model(spec: str, run: Run) -> tuple[CompensationModel, str]:
         what = (f'TC_G{slot}_* (device id {device}): cubic about TREF = {cal.tref:g} degC, '
                 f'clamped to {cal.tmin:g} .. {cal.tmax:g} degC')
     else:
-        inst = int(run.info.get('instance', 0))
         cal = ArduPilotTempCal.from_params(params, 'gyro', inst)
         model = _cubic(ARDUPILOT_TREF_C, -cal.poly([cal.caltemp])[0],
                        cal.coeff / ARDUPILOT_SCALE, cal.tmin, cal.tmax, created)

@@ -324,9 +324,8 @@ def pan_holdout(csv: str | Path | PanCubesat | None = None, *, n_blocks: int = 5
         path = Path(csv) if csv is not None else default_pan_csv()
         data, source = read_pan_cubesat_csv(path), str(path)
     run = Run(data.t, data.temp_c, data.gyro, np.zeros_like(data.gyro), source)
-    out = burst_holdout(run, n_blocks=n_blocks, leave_one_out=leave_one_out, models=models)
-    out['rows_removed'] = data.rows_removed
-    return out
+    return {**burst_holdout(run, n_blocks=n_blocks, leave_one_out=leave_one_out, models=models),
+            'rows_removed': data.rows_removed}
 
 
 def _f3(values: Sequence[float], fmt: str) -> str:

@@ -62,13 +62,13 @@ def _vec(a: NDArray[np.float64] | None) -> list | None:
 
 
 def _scores(m: Any, floor: Sequence[float] | None, accel_floor: Sequence[float] | None) -> dict:
-    """Return the ``bs`` and ``accel_bs`` keys of one entry, each with its ratio to a floor."""
+    """Return the ``bs``, ``accel_bs`` (each with its ratio to a floor) and ``rms_dps`` keys."""
     out = {}
     for key, bs, fl in (('bs', m.bs, floor), ('accel_bs', m.accel_bs, accel_floor)):
         out[key] = _vec(bs)
         if fl is not None:
             out[f'{key}_over_floor'] = None if bs is None else _vec(np.divide(bs, fl))
-    return out
+    return {**out, 'rms_dps': _vec(m.rms_dps)}
 
 
 def _still_json(still: dict) -> dict:
@@ -93,12 +93,11 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
         'bag': b.bag,
         'samples': int(b.samples),
         'temperature_c': _vec(b.temperature_c),
-        'raw': {**_scores(b.raw, floor, accel_floor), 'rms_dps': _vec(b.raw.rms_dps)},
+        'raw': _scores(b.raw, floor, accel_floor),
         'models': [{
             'model': m.model,
             'features': list(m.features),
             **_scores(m, floor, accel_floor),
-            'rms_dps': _vec(m.rms_dps),
             'p_vs_raw': _vec(m.p_vs_raw),
             'adev': {'tau_s': _vec(m.adev_tau_s),
                      'dps': [_vec(row) for row in np.asarray(m.adev_dps)]},
@@ -391,7 +390,6 @@ def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000)
     run = b.run
     if run is None:
         raise ValueError('Expected `b.run` to hold the data; it was released.')
-    path = Path(directory) / f'{b.label}.csv'
     cols = csv_columns(b)
     fmt = ['%.6f', '%.6g'] + ['%.9g'] * (len(cols) - 2)
 
@@ -403,7 +401,7 @@ def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000)
                                     + [m.omega[sl] for m in b.models])
             np.savetxt(fh, block, fmt=fmt, delimiter=',')
 
-    return atomic_write(path, rows, what='CSV file', newline='\n')
+    return atomic_write(Path(directory) / f'{b.label}.csv', rows, what='CSV file', newline='\n')
 
 
 # --------------------------------------------------------------------------------------------

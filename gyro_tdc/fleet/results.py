@@ -28,6 +28,7 @@ import os
 from pathlib import Path
 
 from gyro_tdc.base import atomic_json, atomic_write, AXES
+from gyro_tdc.evaluate.models import axes_words
 
 __all__ = ['FleetResult', 'SensorResult', 'format_table', 'summary_dict', 'write_summary']
 
@@ -89,11 +90,8 @@ class SensorResult:
 
     def constant_note(self) -> str:
         """Return the table's note on the constant axes ('' when none)."""
-        if not self.constant_axes:
-            return ''
-        many = len(self.constant_axes) > 1
-        return (f'gyro ax{"es" if many else "is"} {", ".join(self.constant_axes)} constant '
-                '(not fitted, passed through; not in the fleet statistics)')
+        return (f'gyro {axes_words(self.constant_axes)} constant (not fitted, passed through; '
+                'not in the fleet statistics)' if self.constant_axes else '')
 
 
 @dataclass

@@ -249,10 +249,9 @@ def _read_state(path: Path, model_file: Path) -> dict | None:
         digest = hashlib.sha256(model_file.read_bytes()).hexdigest()
     except (OSError, ValueError):
         return None
-    if (not isinstance(state, dict) or state.get('format') != STATE_FORMAT
-            or not isinstance(state.get('constant_axes'), list)):
-        return None
-    return state if state.get('model_sha256') == digest else None
+    return state if (isinstance(state, dict) and state.get('format') == STATE_FORMAT
+                     and isinstance(state.get('constant_axes'), list)
+                     and state.get('model_sha256') == digest) else None
 
 
 def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,

@@ -32,6 +32,7 @@ from typing import Sequence
 from gyro_tdc.base import AXES
 from gyro_tdc.fleet.results import SensorResult
 from gyro_tdc.model import CompensationModel, steady_drift
+from gyro_tdc.signal import fit_columns
 import numpy as np
 from numpy.typing import NDArray
 
@@ -50,12 +51,9 @@ def drift_polynomial(model: CompensationModel, *, points: int = 41) -> NDArray[n
     settled), sampled at ``points`` temperatures. Returns ``c[axis, k]`` (3, 3) of
     ``b(T) = c0 + c1 T + c2 T^2``, deg/s per degC^k, T in degC.
     """
-    lo, hi = model.temp_range_c
-    grid = np.linspace(lo, hi, points)
-    b = np.degrees(steady_drift(model, grid))
+    grid = np.linspace(*model.temp_range_c, points)
     design = np.stack((np.ones_like(grid), grid, grid * grid), axis=1)
-    coef, *_ = np.linalg.lstsq(design, b, rcond=None)
-    return coef.T.copy()
+    return fit_columns(design, np.degrees(steady_drift(model, grid))).T.copy()
 
 
 def robust_z(values: Sequence[float]) -> NDArray[np.float64]:

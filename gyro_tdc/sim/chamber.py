@@ -248,9 +248,8 @@ class Profile:
 
         """
         t, i, j, dt = self._bracket(t)
-        frac = np.clip(np.where(dt > 0.0, (t - self.t[i]) / np.where(dt > 0.0, dt, 1.0), 0.0),
-                       0.0, 1.0)
-        return self.temp_c[i] + frac * (self.temp_c[j] - self.temp_c[i])
+        frac = np.divide(t - self.t[i], dt, out=np.zeros_like(t), where=dt > 0.0)
+        return self.temp_c[i] + np.clip(frac, 0.0, 1.0) * (self.temp_c[j] - self.temp_c[i])
 
     def slope(self, t: ArrayLike) -> NDArray[np.float64]:
         """
@@ -269,8 +268,7 @@ class Profile:
         """
         t, i, j, dt = self._bracket(t)
         inside = (dt > 0.0) & (t >= self.t[0]) & (t < self.t[-1])
-        return np.where(inside, (self.temp_c[j] - self.temp_c[i]) / np.where(dt > 0.0, dt, 1.0),
-                        0.0)
+        return np.divide(self.temp_c[j] - self.temp_c[i], dt, out=np.zeros_like(t), where=inside)
 
     def _bracket(self, t: ArrayLike) -> tuple[NDArray[np.float64], NDArray[np.intp],
                                               NDArray[np.intp], NDArray[np.float64]]:

@@ -65,8 +65,7 @@ def gauss_markov(rng: np.random.Generator, n: int, *, sigma: ArrayLike,
         w = rng.standard_normal((n, 3))
         # x[k] = phi x[k-1] + drive w[k], with x[-1] drawn from the stationary N(0, 1).
         zi = (phi * rng.standard_normal(3))[np.newaxis, :]
-        x, _ = lfilter([drive], [1.0, -phi], w, axis=0, zi=zi)
-        out += x * share
+        out += lfilter([drive], [1.0, -phi], w, axis=0, zi=zi)[0] * share
     return out
 
 

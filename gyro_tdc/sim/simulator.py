@@ -422,12 +422,10 @@ def _accelerometer(spec: Any, noise_rng: np.random.Generator, tilt_rng: np.rando
     a scenario without tilt, offsets and digits gives the same output as then. ``force``
     (a vehicle day's specific force, N x 3) replaces gravity at the fixed tilt.
     """
-    n = imu_t.size
-    accel = white_noise(noise_rng, n, density=spec.noise_mps2_per_rt_hz, rate_hz=rate)
-    extra = tilt_rng.standard_normal(2) * spec.tilt_std_deg
-    tilt = np.asarray(spec.tilt_deg, dtype=np.float64) + extra
-    after = tilt + np.asarray(spec.reorient_tilt_deg, dtype=np.float64)
-    g_before, g_after = gravity_in_sensor(spec.gravity_mps2, *np.stack([tilt, after]).T)
+    accel = white_noise(noise_rng, imu_t.size, density=spec.noise_mps2_per_rt_hz, rate_hz=rate)
+    tilt = _vec(spec.tilt_deg) + tilt_rng.standard_normal(2) * spec.tilt_std_deg
+    g_before, g_after = gravity_in_sensor(
+        spec.gravity_mps2, *np.stack([tilt, tilt + _vec(spec.reorient_tilt_deg)]).T)
     coefficients = {'bias': _vec(spec.bias_mg, MG), 'dT': _vec(spec.dT_mg_per_c, MG),
                     'dT2': _vec(spec.dT2_mg_per_c2, MG)}
     thermal = (d_t[:, None] * coefficients['dT'] + (d_t * d_t)[:, None] * coefficients['dT2'])
@@ -566,12 +564,10 @@ class SimStream:
         if math.isnan(t):
             raise ScenarioError('Expected `t` to be a time in seconds, got nan.')
         run = self.run
-        (i0, i1, i2), self._i = self._i, tuple(
-            max(i, int(np.searchsorted(ts, t, side='right')))
-            for i, ts in zip(self._i, self._stamps))
-        j0, j1, j2 = self._i
-        imu = ImuChunk(run.imu_t[i0:j0], run.gyro[i0:j0], run.accel[i0:j0])
-        temp = TempChunk(run.temp_t[i1:j1], run.temp_c[i1:j1])
-        ref = RefChunk(run.ref_t[i2:j2], run.ref[i2:j2])
+        old, self._i = self._i, tuple(max(i, int(np.searchsorted(ts, t, side='right')))
+                                      for i, ts in zip(self._i, self._stamps))
+        imu, temp, ref = (slice(i, j) for i, j in zip(old, self._i))
         self._position = max(self._position, t)
-        return imu, temp, ref
+        return (ImuChunk(run.imu_t[imu], run.gyro[imu], run.accel[imu]),
+                TempChunk(run.temp_t[temp], run.temp_c[temp]),
+                RefChunk(run.ref_t[ref], run.ref[ref]))

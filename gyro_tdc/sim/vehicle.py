@@ -282,8 +282,7 @@ def vehicle_motion(spec: VehicleSpec, legs: tuple[Leg, ...], imu_t: NDArray[np.f
     yaw_rate, _ = _pl(yt, yv, t)
     roll, droll = _pl(at, ar, t)
     pitch, dpitch = _pl(at, ap, t)
-    phi, th = np.radians(roll), np.radians(pitch)
-    dphi, dth = np.radians(droll), np.radians(dpitch)
+    phi, th, dphi, dth = np.radians([roll, pitch, droll, dpitch])
     # Euler (yaw-pitch-roll) kinematics: body rates from the attitude rates.
     rate = np.stack([dphi - yaw_rate * np.sin(th),
                      dth * np.cos(phi) + yaw_rate * np.sin(phi) * np.cos(th),
