@@ -25,7 +25,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'atomicio': ['atomic_dir', 'atomic_json', 'atomic_write', 'clean_leftovers'],
     'face': ['lazy'],
     'figures': ['figure', 'save_png'],
-    'fields': ['FieldChecker', 'is_number', 'shown'],
+    'fields': ['FieldChecker', 'is_number', 'MAX_COUNT', 'shown'],
     'limits': ['check_bin_width', 'check_centers', 'check_sim_samples',
                'MAX_ACCEL_DRIFT_MPS2', 'MAX_CENTERS', 'MAX_DRIFT_RAD_S', 'MAX_RATE_RAD_S',
                'MAX_TEMP_LEAD_S', 'MAX_TEMP_RATE_C_S', 'MAX_TEMP_SLEW_C_S', 'RESTART_BACK_S',

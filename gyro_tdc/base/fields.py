@@ -27,9 +27,9 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-__all__ = ['FieldChecker', 'is_number', 'shown']
+__all__ = ['FieldChecker', 'is_number', 'MAX_COUNT', 'shown']
 
-#: Largest count a field holds (an integral float is exact up to here).
+#: Largest count a field holds (sessions, windows, samples): an integral float is exact to it.
 MAX_COUNT = 2 ** 53
 
 

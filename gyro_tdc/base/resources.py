@@ -36,13 +36,14 @@ PACKAGE = 'gyro_tdc'
 YAML_SUFFIXES = ('.yaml', '.yml')
 
 PathLike = Union[str, 'os.PathLike[str]']
+#: Where a source checkout (or an editable install) holds ``config/`` and ``package.xml``.
+_ROOT = Path(__file__).resolve().parents[2]
 
 
 def _checkout_config_dir() -> Optional[Path]:
-    root = Path(__file__).resolve().parents[2]
-    found = root / 'config'
+    found = _ROOT / 'config'
     # package.xml beside config/ tells a checkout from an unrelated site-packages/config.
-    return found if found.is_dir() and (root / 'package.xml').is_file() else None
+    return found if found.is_dir() and (_ROOT / 'package.xml').is_file() else None
 
 
 def _share_config_dir() -> Optional[Path]:
@@ -70,10 +71,9 @@ def config_dir() -> Path:
     """
     found = _checkout_config_dir() or _share_config_dir()
     if found is None:
-        checkout = Path(__file__).resolve().parents[2] / 'config'
         raise GyroTdcError(
-            f'gyro_tdc config directory not found: expected {checkout} (source checkout) or '
-            f'share/{PACKAGE}/config in a prefix on AMENT_PREFIX_PATH '
+            f'gyro_tdc config directory not found: expected {_ROOT / "config"} (source '
+            f'checkout) or share/{PACKAGE}/config in a prefix on AMENT_PREFIX_PATH '
             f'(AMENT_PREFIX_PATH={os.environ.get("AMENT_PREFIX_PATH", "<unset>")!r})')
     return found
 

@@ -28,7 +28,7 @@ import math
 import re
 from typing import Any, Callable
 
-from gyro_tdc.base import FieldChecker, MAX_RATE_RAD_S, shown, TEMP_PLAUSIBLE_C
+from gyro_tdc.base import FieldChecker, MAX_COUNT, MAX_RATE_RAD_S, shown, TEMP_PLAUSIBLE_C
 from gyro_tdc.errors import FeatureError, LearnFileError, ModelFileError
 from gyro_tdc.learn.fit import AXES, model_of, same_thermal
 from gyro_tdc.learn.records import Entry, RecentStretch
@@ -44,8 +44,6 @@ FORMAT = 'gyro_tdc learn 1'
 RECENT_ROWS = 8640
 #: Largest stamp magnitude, s (an unsigned 32-bit second count).
 MAX_STAMP_S = 2.0 ** 32
-#: Largest count (sessions, stretches, windows, swaps, samples of an entry).
-MAX_COUNT = 2 ** 53
 _FEATURES = ((), ('dT',), ('dT', 'dT2'), ('dT', 'dT2', 'dT3'))
 _KEYS = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 'still_s',
          'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check', 'swaps',

@@ -177,7 +177,7 @@ def _design(e: NDArray[np.float64], feats: Sequence[str], t0: float
 def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_life_s: float,
                floor: float) -> dict:
     """
-    Fit the point table: weights by samples and age, outliers dropped, then refit.
+    Fit the point table: weights by samples and age, fitted without its outliers.
 
     An entry ``half_life_s`` old weighs half; outliers are judged against ``floor``, the
     gyro's noise floor in rad/s (:func:`inliers`). Returns the fit record (plain types, as
@@ -186,11 +186,10 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
     """
     wt = e[:, 1] * 0.5 ** (np.maximum(t_now - e[:, 0], 0.0) / half_life_s)     # by age
     t0 = float(np.average(e[:, 2], weights=wt))
-    coef, res = fit_sessions(e, wt, feats, t0)
     keep = inliers(e, wt, feats, t0, floor)
     if not keep.all():
         e, wt = e[keep], wt[keep]
-        coef, res = fit_sessions(e, wt, feats, t0)
+    coef, res = fit_sessions(e, wt, feats, t0)
     record = held_out(e, wt, feats, t0)
     flat = [AXES.index(a) for a in record['offset_only']] if record else []
     if flat:                              # those axes: one offset per session, no curve

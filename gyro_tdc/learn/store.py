@@ -84,6 +84,16 @@ def _depth(text: str) -> int:
     return int(np.cumsum(step).max(initial=0))
 
 
+def _lstat(path: Path, fail: Callable[[object], Exception]) -> os.stat_result | None:
+    """Return ``os.lstat(path)``; None when nothing is there, else ``fail(why)`` is raised."""
+    try:
+        return os.lstat(path)
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        raise fail(exc.strerror or exc) from None
+
+
 def _signature(st: os.stat_result) -> tuple[int, int, int, int]:
     """Return what tells one version of a file from another."""
     return st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns
@@ -137,12 +147,9 @@ class LearnFile:
         p = self.path
         self._mine = None
         self.notes = []
-        try:
-            st = os.lstat(p)
-        except FileNotFoundError:
+        st = _lstat(p, lambda why: LearnFileError(f'{p}: cannot read: {why}'))
+        if st is None:
             return None
-        except OSError as exc:
-            raise LearnFileError(f'{p}: cannot read: {exc.strerror or exc}') from None
         if stat.S_ISLNK(st.st_mode):
             try:
                 to = f' to {os.readlink(p)!r:.80}'
@@ -208,13 +215,7 @@ class LearnFile:
         if size > MAX_BYTES:
             raise OutputError(f'cannot write learn_file {str(p)!r}: the state takes {size} '
                               f'bytes, more than the {MAX_BYTES}-byte limit it is read with')
-        try:
-            st = os.lstat(p)
-        except FileNotFoundError:
-            st = None
-        except OSError as exc:
-            raise OutputError(f'cannot write learn_file {str(p)!r}: '
-                              f'{exc.strerror or exc}') from None
+        st = _lstat(p, lambda why: OutputError(f'cannot write learn_file {str(p)!r}: {why}'))
         if st is not None and _signature(st) != self._mine:
             try:
                 doc = LearnFile(p).read()

@@ -445,8 +445,7 @@ def _still_stretches(t: NDArray[np.float64], g: NDArray[np.float64],
     (the logger stopped) ends a stretch. The windows of a stretch too short to keep
     (:func:`_long_enough`) are marked ``'brief'`` in ``why``, in place.
     """
-    n = t.shape[0]
-    ends = np.append(starts[1:], n)
+    ends = np.append(starts[1:], t.shape[0])
     first_w, stop_w = stretch_edges(why == '', t[starts[1:]] - t[starts[1:] - 1], window)
     segments, durations = [], []
     for a, b in zip(first_w.tolist(), stop_w.tolist()):
