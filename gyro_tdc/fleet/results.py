@@ -28,7 +28,7 @@ import os
 from pathlib import Path
 
 from gyro_tdc.base import atomic_json, atomic_write, AXES
-from gyro_tdc.evaluate.models import axes_words
+from gyro_tdc.evaluate import axes_words
 
 __all__ = ['FleetResult', 'SensorResult', 'format_table', 'summary_dict', 'write_summary']
 

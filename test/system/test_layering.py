@@ -56,7 +56,7 @@ LAYERS: dict[str, frozenset] = {k: frozenset(v.split()) for k, v in {
     'evaluate': 'base data errors identify model runtime signal',
     'sim': 'base data errors model',
     'sources': 'base errors sim',
-    'fleet': 'gyro_tdc base data errors evaluate identify model',
+    'fleet': 'gyro_tdc base data errors evaluate identify model signal',
     'nodes': 'base data errors learn model runtime signal sim sources',
     'cli': 'base data errors evaluate fleet identify learn model nodes signal sim',
     '__main__': 'gyro_tdc cli',
