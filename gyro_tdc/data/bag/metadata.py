@@ -161,15 +161,17 @@ def check_counts(bag: Path, info: Mapping) -> None:
     # metadata.yaml does not say), holds more than its size.
     packed = mode == 'file' or str(info.get('storage_identifier', '')) == 'mcap'
     room = size * ZSTD_MAX_RATIO if packed else size
-    need = 0
+    need = total = 0
     for name, msgtype, count in topics:
         each = ZSTD_MIN_FRAME_BYTES if mode == 'message' else min_message_bytes(msgtype)
-        need += count * each
+        need, total = need + count * each, total + count
         if need > room:
-            raise DatasetError(f'{where} says topic {name!r} holds {count} messages, more '
-                               f'than its {size} bytes of storage can hold (a {msgtype} '
-                               f'message takes at least {each} bytes): the storage is '
-                               f'truncated or the metadata wrong ({fix}).')
+            what = (f'topic {name!r} holds {count} messages' if count * each > room else
+                    f'its topics hold {total} messages together (at least {need} bytes; '
+                    f'topic {name!r}, the last counted, {count})')
+            raise DatasetError(f'{where} says {what}, more than its {size} bytes of storage '
+                               f'can hold (a {msgtype} message takes at least {each} bytes): '
+                               f'the storage is truncated or the metadata wrong ({fix}).')
 
 
 def describe(topics: Mapping[str, tuple[str, int]]) -> str:

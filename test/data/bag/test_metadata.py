@@ -90,6 +90,21 @@ def test_lying_topic_count_is_refused_before_anything_is_sized(tmp_path, small_b
     _refused(bag, "topic '/imu/data_raw'", needle, '`ros2 bag reindex`')
 
 
+def test_counts_no_topic_breaks_alone_are_refused_as_the_topics_together(tmp_path, small_bag):
+    # Each topic within the storage on its own, both together beyond it: the line names the sum.
+    size = (small_bag / 'bag.db3').stat().st_size
+    least = {t: metadata.min_message_bytes(t) for t in (IMU_TYPE, 'sensor_msgs/msg/Temperature')}
+    n = {t: (size // b) * 2 // 3 for t, b in least.items()}
+
+    def both(info):
+        for entry in info['topics_with_message_count']:
+            entry['message_count'] = n[entry['topic_metadata']['type']]
+    text = _refused(edited(small_bag, tmp_path / 'bag', both),
+                    f'its topics hold {sum(n.values())} messages together',
+                    f'more than its {size} bytes of storage', '`ros2 bag reindex`')
+    assert 'the last counted' in text
+
+
 def test_count_of_a_file_and_of_the_bag_must_be_whole_numbers(tmp_path, small_bag):
     def file_count(info):
         info['files'][0]['message_count'] = -1
