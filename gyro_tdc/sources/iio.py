@@ -196,6 +196,9 @@ class IioSource(PolledSource):
         for name, every in (('temp_every', temp_every), ('rescale_every', rescale_every)):
             if int(every) < 1:
                 raise ValueError(f'Expected `{name}` >= 1, got {every!r}.')
+        if require_temperature and not read_temperature:
+            raise ValueError('Expected `read_temperature` with `require_temperature`: a '
+                             'thermometer not read cannot be required.')
         self.device_dir = Path(device_dir)
         if not _exists(self.device_dir, directory=True):
             raise DeviceError(f'IIO device directory {str(self.device_dir)!r} does not exist.')

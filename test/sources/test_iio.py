@@ -112,6 +112,13 @@ def test_no_thermometer(tmp_path):
         IioSource(dev, require_temperature=True)
 
 
+def test_a_thermometer_not_read_cannot_be_required(tmp_path):
+    dev = make_device(tmp_path, l3gd20_files())         # it has one
+    with pytest.raises(ValueError, match='`read_temperature` with `require_temperature`'):
+        IioSource(dev, read_temperature=False, require_temperature=True)
+    assert not IioSource(dev, read_temperature=False).has_temperature
+
+
 def test_temperature_decimation(tmp_path):
     src = IioSource(make_device(tmp_path, l3gd20_files()), temp_every=3)
     temps = [src.read().temp_c for _ in range(7)]
