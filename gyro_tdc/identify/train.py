@@ -505,11 +505,11 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
             'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
         runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
                          log=said)
-        if bag.motion_topic:
-            reps = [read_motion(r.name, bag.motion_topic) for r in runs]
-            moving = [motion_veto(r.t, rep.t, rep.twist) for r, rep in zip(runs, reps)]
     else:
         runs = [replace(r, omega_ref=np.zeros_like(r.omega)) for r in runs]
+    if moving is None and bag.motion_topic:
+        reps = [read_motion(r.name, bag.motion_topic) for r in runs]
+        moving = [motion_veto(r.t, rep.t, rep.twist) for r, rep in zip(runs, reps)]
     bags = [r.name for r in runs]
     split = split_sessions(runs, bag.sessions, bag.session_gap_s)
     if moving is not None:

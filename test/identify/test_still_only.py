@@ -25,14 +25,14 @@ from flightlogs import flight_day, flight_logs, write_dataflash
 from gyro_tdc.cli.evaluate import main as evaluate_main
 from gyro_tdc.cli.simulate import simulate
 from gyro_tdc.cli.train import main as train_main
-from gyro_tdc.data import load_runs
+from gyro_tdc.data import BagOptions, load_runs
 from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
 from gyro_tdc.identify import fit_model
 from gyro_tdc.identify.discover import discover
 from gyro_tdc.identify.still_only import still_only_runs
-from gyro_tdc.identify.train import train_still_only, TrainOptions
+from gyro_tdc.identify.train import train, train_still_only, TrainOptions
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal import motion_veto
 from gyro_tdc.sim import load_scenario, simulate_run, to_run
@@ -251,6 +251,14 @@ def test_cli_still_only_with_motion_topic_and_evaluate_on_the_truth(tmp_path, ca
     assert f'; motion veto {CMD_VEL_TOPIC}' in out and 'still time heating' in out
     assert 'still time per 5 degC (min): ' in out and 'record next: park for 20 min' in out
     assert load_model(model).metrics['still']['motion_topic'] == CMD_VEL_TOPIC
+    # train() on the same bag falls back to the still stretches with the same veto (the
+    # runs it loaded handed over, the motion topic read for them).
+    said = []
+    train([str(bag)], tmp_path / 'api.yaml', TrainOptions(features='dT,dT2,lag', accel=False),
+          BagOptions(motion_topic=CMD_VEL_TOPIC), log=said.append)
+    assert any('training on the still stretches only' in line for line in said)
+    cli, api = (load_model(p).metrics['still'] for p in (model, tmp_path / 'api.yaml'))
+    assert api == cli
     assert evaluate_main([str(bag), '--model', str(model), '--reference-topic', TRUTH_TOPIC,
                           '--reanchor', 'auto']) == 0
     assert f'reference rate from {TRUTH_TOPIC}' in capsys.readouterr().out
