@@ -28,6 +28,7 @@ from gyro_tdc.identify.power_cycles import MIN_FOLDS
 from gyro_tdc.identify.still_only import rows_of
 from gyro_tdc.model import load_model
 from gyro_tdc.signal import MIN_SESSION_SPAN_C
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 from synth import synth_run
@@ -281,3 +282,27 @@ def test_train_gives_no_offset_where_boot_calibrated_power_cycles_show_none(tmp_
     np.testing.assert_array_equal(m.intercept, 0.0)
     assert "against the model's (their mean; none on x, y, z)" in text
     assert 'the model adds no offset there (re-anchoring still applies)' in text
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.tuples(*[st.floats(-1.0, 1.0, allow_subnormal=False)] * 3), min_size=2,
+                max_size=12),
+       st.tuples(*[st.booleans()] * 3))
+def test_the_level_is_the_mean_or_none_and_a_curve_axis_is_never_judged(rows, curve):
+    off = _offsets(*rows)
+    coef = _FLAT.copy()
+    coef[1] = np.where(curve, 1e-4, 0.0)
+    level, rec = check_offsets(off, coef, np.zeros(3))
+    mean = off.mean(axis=0)
+    assert np.all(np.isfinite(level))
+    for a, name in enumerate('xyz'):
+        dropped = rec is not None and name in rec['no_offset']
+        assert level[a] == (0.0 if dropped else mean[a])
+        assert not (curve[a] and dropped)
+    if rec is not None:
+        assert rec['axes'] == [n for n, c in zip('xyz', curve) if not c]
+    else:
+        assert all(curve)
+    # A turn-on offset that repeats (the same in every power cycle, away from zero) is kept.
+    same = np.repeat(off[:1] + np.radians(0.5) * np.sign(off[:1] + 1e-12), len(rows), axis=0)
+    assert check_offsets(same, _FLAT, np.zeros(3))[1]['no_offset'] == []
