@@ -29,7 +29,7 @@ import numpy as np
 
 __all__ = ['FieldChecker', 'is_number', 'MAX_COUNT', 'shown']
 
-#: Largest count a field holds (sessions, windows, samples): an integral float is exact to it.
+#: Largest count a field holds: a float holds every whole number up to it exactly.
 MAX_COUNT = 2 ** 53
 
 
