@@ -165,15 +165,15 @@ def offset_check_lines(record: dict | None) -> list[str]:
     if not record:
         return []
     out = [f"the offset of the axes without curve ({', '.join(record['axes'])}) held out on each "
-           f"of the {record['sessions']} power cycles: mean square, (deg/s)^2, and median "
-           'error, deg/s:',
+           f"of the {record['sessions']} power cycles: mean square x y z, (deg/s)^2 | median "
+           'error x y z, deg/s:',
            *(f'  {name:<12} ' + '  '.join(f'{v:10.3g}' for v in record[f'{key}_ms_dps2'])
-             + '   ' + '  '.join(f'{v:10.3g}' for v in record[f'{key}_median_dps'])
+             + '  |' + '  '.join(f'{v:10.3g}' for v in record[f'{key}_median_dps'])
              for name, key in (("others' mean", 'mean'), ('none', 'none')))]
     if record['no_offset']:
-        out.append(f"axes {', '.join(record['no_offset'])}: the other power cycles' offsets do "
-                   "not predict a held-out one's better than none, in both (a board that "
-                   'zeroes its gyro at power-on): the model adds no offset there '
+        out.append(f"axes {', '.join(record['no_offset'])}: the other power cycles' mean does "
+                   "not predict a held-out one's offset better than none on both figures (a "
+                   'board that zeroes its gyro at power-on): the model adds no offset there '
                    '(re-anchoring still applies)')
     return out
 

@@ -248,8 +248,8 @@ def test_offsets_of_a_board_that_zeroes_its_gyro_at_power_on_give_no_offset():
     np.testing.assert_array_equal(level[:2], 0.0)
     assert level[2] == pytest.approx(off[:, 2].mean())
     assert offset_check_lines(rec)[-1].startswith(
-        "axes x, y: the other power cycles' offsets do not predict a held-out one's better "
-        'than none, in both')
+        "axes x, y: the other power cycles' mean does not predict a held-out one's offset "
+        'better than none on both figures')
 
 
 def test_an_axis_with_a_curve_or_one_session_keeps_its_level_unjudged():
