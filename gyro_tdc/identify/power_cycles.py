@@ -137,9 +137,9 @@ def check_offsets(offsets: NDArray[np.float64], coef: NDArray[np.float64],
 
     ``offsets`` are the sessions' turn-on offsets (S, 3), ``coef`` and ``scale`` the fit's.
     Each power cycle's offset is predicted by the mean of the others' (leave one out) and by
-    none: an axis without curve whose mean does not predict better, in mean square and on the
-    median power cycle (a failed boot calibration weighs on the one, not the other), gets no
-    offset (a board that zeroes its gyro at power-on, as ArduPilot and PX4 do; re-anchoring
+    none: an axis without curve whose mean does not predict better, in mean square and in
+    mean absolute error (a failed boot calibration weighs on the one, far less on the other),
+    gets no offset (a board that zeroes its gyro at power-on, as ArduPilot and PX4 do; re-anchoring
     still applies).
     Returns the model's intercept and the record (None: one session, or every axis a curve).
     """
@@ -149,13 +149,13 @@ def check_offsets(offsets: NDArray[np.float64], coef: NDArray[np.float64],
         return level, None
     err = offsets - (offsets.sum(axis=0) - offsets) / (k - 1), offsets
     ms = [(e ** 2).mean(axis=0) for e in err]
-    med = [np.median(np.abs(e), axis=0) for e in err]
-    none = flat & ~((ms[0] < ms[1]) & (med[0] < med[1]))
+    mae = [np.abs(e).mean(axis=0) for e in err]
+    none = flat & ~((ms[0] < ms[1]) & (mae[0] < mae[1]))
     return np.where(none, 0.0, level), {
         'sessions': k, 'mean_ms_dps2': (ms[0] * _DEG2).tolist(),
         'none_ms_dps2': (ms[1] * _DEG2).tolist(),
-        'mean_median_dps': (med[0] * DEG_PER_RAD).tolist(),
-        'none_median_dps': (med[1] * DEG_PER_RAD).tolist(),
+        'mean_mae_dps': (mae[0] * DEG_PER_RAD).tolist(),
+        'none_mae_dps': (mae[1] * DEG_PER_RAD).tolist(),
         'axes': [AXES[a] for a in np.flatnonzero(flat)],
         'no_offset': [AXES[a] for a in np.flatnonzero(none)]}
 
@@ -165,10 +165,10 @@ def offset_check_lines(record: dict | None) -> list[str]:
     if not record:
         return []
     out = [f"the offset of the axes without curve ({', '.join(record['axes'])}) held out on each "
-           f"of the {record['sessions']} power cycles: mean square x y z, (deg/s)^2 | median "
-           'error x y z, deg/s:',
+           f"of the {record['sessions']} power cycles: mean square x y z, (deg/s)^2 | mean "
+           'absolute error x y z, deg/s:',
            *(f'  {name:<12} ' + '  '.join(f'{v:10.3g}' for v in record[f'{key}_ms_dps2'])
-             + '  |' + '  '.join(f'{v:10.3g}' for v in record[f'{key}_median_dps'])
+             + '  |' + '  '.join(f'{v:10.3g}' for v in record[f'{key}_mae_dps'])
              for name, key in (("others' mean", 'mean'), ('none', 'none')))]
     if record['no_offset']:
         out.append(f"axes {', '.join(record['no_offset'])}: the other power cycles' mean does "
