@@ -77,8 +77,10 @@ class Anchor:
     tolerance : tuple of 3 float, rad/s
         The tolerance the SE was held to.
     reason : str
-        ``'precision'`` (SE within the tolerance), ``'longest'`` (``window_max`` reached)
-        or ``'end of data'`` (:func:`reanchor_shift` only); ``''`` for a single window.
+        ``'precision'`` (SE within the tolerance), ``'longest'`` (``window_max`` reached),
+        ``'motion'`` (motion ended the still run first: the stream's form of ``'end of
+        data'``) or ``'end of data'`` (:func:`reanchor_shift` only); ``''`` for a single
+        window.
 
     """
 

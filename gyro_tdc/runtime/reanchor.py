@@ -399,8 +399,11 @@ class StillnessDetector:
             self._c = tuple(w.rate[0].tolist())
         if w.why:
             self.windows_rejected += 1
-            self._run = []          # motion before the tolerance was met: start over
-            return None
+            run, self._run = self._run, []
+            # Motion ends a still run before the tolerance was met: its mean is the best this
+            # stop gives (a flight log's stops last seconds), as reanchor_shift takes a run
+            # that ends first; with no still window yet there is nothing to take.
+            return self._anchor(run, w.t0, float(w.temp[0]), 'motion') if run else None
         run = self._run
         stats = window_stats(w.t, w.rate, self._c, self.block_s)
         run.append(_Window(w.t0, stats, w.gyro_std, w.accel_std))
@@ -409,8 +412,7 @@ class StillnessDetector:
             del run[:j + 1]
             self.windows_rejected += 1
             return None
-        total = sum((r.stats for r in run), BlockStats())
-        se = standard_error(total)
+        se = standard_error(sum((r.stats for r in run), BlockStats()))
         if all(s <= v for s, v in zip(se, self.tolerance)):
             reason = 'precision'
         elif len(run) >= max_windows(self.window, self.window_max):
@@ -419,8 +421,13 @@ class StillnessDetector:
             return None
         if len(run) == 1 and self.window_max <= self.window:
             reason = ''
+        self._run = []
+        return self._anchor(run, w.t1, float(w.temp[-1]), reason)
+
+    def _anchor(self, run: list[_Window], t_end: float, temp_c: float, reason: str) -> Anchor:
+        """Return the anchor of the still windows ``run``, ended at ``t_end`` for ``reason``."""
+        total = sum((r.stats for r in run), BlockStats())
         delta = tuple(ci + si / total.n for ci, si in zip(self._c, total.s))
         g_rms = tuple(math.sqrt(sum(r.gyro_std[i] ** 2 for r in run) / len(run)) for i in range(3))
-        self._run = []
-        return Anchor(w.t1, delta, total.n, g_rms, float(w.temp[-1]), w.t1 - run[0].t_start, se,
-                      self.tolerance, reason)
+        return Anchor(t_end, delta, total.n, g_rms, temp_c, t_end - run[0].t_start,
+                      standard_error(total), self.tolerance, reason)

@@ -156,6 +156,33 @@ def test_anchor_is_the_block_sums_of_its_windows_bit_for_bit():
     assert found.delta == tuple(ci + si / st.n for ci, si in zip(c, st.s))
 
 
+def test_motion_that_ends_a_still_run_before_its_precision_gives_its_anchor():
+    # 25 s still (two whole 10 s windows, the third cut by motion) with a tolerance never
+    # met, then moving: the still windows' mean is the anchor ('motion'), not thrown away.
+    rng = np.random.default_rng(4)
+    det = StillnessDetector(window=10.0, window_max=60.0, gyro_std=0.01, max_rate=0.02,
+                            tolerance=1e-9)
+    t = np.arange(4000) / 100.0
+    out = 1e-3 * rng.standard_normal((4000, 3)) + 0.004
+    moving = t >= 25.0
+    out[moving, 0] += 0.3 * np.sin(t[moving] * 5.0)
+    found = [a for k in range(4000)
+             if (a := det.update(float(t[k]), out[k].tolist(), out[k].tolist(), None, 20.0))]
+    assert len(found) == 1 and found[0].reason == 'motion'
+    a = found[0]
+    # The two whole windows (each from its first sample to the first 10 s after it).
+    i1 = int(np.flatnonzero(t >= 10.0)[0])
+    n = i1 + 2 + int(np.flatnonzero(t[i1 + 1:] - t[i1 + 1] >= 10.0)[0])
+    assert a.samples == n and t[n - 1] < 25.0          # still samples only
+    assert a.delta == pytest.approx(out[:n].mean(axis=0), abs=1e-12)
+    assert 20.0 <= a.t <= 25.0 and a.duration_s == pytest.approx(a.t, abs=0.02)
+    # No still window before the motion: nothing to take.
+    det = StillnessDetector(window=10.0, window_max=60.0, gyro_std=0.01, max_rate=0.02,
+                            tolerance=1e-9)
+    assert not any(det.update(float(t[k]), out[k].tolist(), out[k].tolist(), None, 20.0)
+                   for k in range(4000) if t[k] >= 25.0)
+
+
 def _gated(model, gate_dps):
     """Return ``model`` carrying the trainer's gate (deg/s per axis)."""
     return model.replace(metrics={**model.metrics, REANCHOR_KEY: {'min_shift_dps': gate_dps}})
