@@ -492,8 +492,8 @@ def format_sessions(result: TrainResult) -> list[str]:
     if not info:
         return out + anchors
     width, spread = max(len(n) for n in info['names']), info['spread_dps']
-    level = ('their mean' if not info.get('turn_on', {}).get('no_offset') else
-             f"their mean; none on {', '.join(info['turn_on']['no_offset'])}")
+    none = info.get('turn_on', {}).get('no_offset')
+    level = f"their mean; none on {', '.join(none)}" if none else 'their mean'
     out += [f"turn-on offset of each session against the model's ({level}), deg/s:",
             *(f'  {name:<{width}}  ' + '  '.join(f'{v:+10.5f}' for v in off) + f'   ({n} samples)'
               for name, off, n in zip(info['names'], info['offset_dps'], info['samples'])),

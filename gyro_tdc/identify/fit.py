@@ -241,9 +241,11 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
         fit, offsets, check = check_sessions(fit, offsets, x, y, scale_cols, groups, counts,
                                              bstate, kind=o.kind, n_centers=o.n_centers,
                                              seed=o.seed, min_folds=o.min_folds)
-    coef, turn_on = fit.coef if groups is None else _with_level(fit, offsets), None
-    if groups is not None and o.check_sessions:
-        coef[0], turn_on = check_offsets(offsets, coef, fit.scale)
+    coef, turn_on = fit.coef, None
+    if groups is not None:
+        coef = _with_level(fit, offsets)
+        if o.check_sessions:
+            coef[0], turn_on = check_offsets(offsets, coef, fit.scale)
     if th.kind != 'none':
         par[_LAG] = {'tau_s': th.tau_total_s}
     created = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),

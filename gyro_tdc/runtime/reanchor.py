@@ -403,7 +403,8 @@ class StillnessDetector:
             # Motion ends a still run before the tolerance was met: its mean is the best this
             # stop gives (a flight log's stops last seconds), as reanchor_shift takes a run
             # that ends first; with no still window yet there is nothing to take.
-            return self._anchor(run, w.t0, float(w.temp[0]), 'motion') if run else None
+            return (self._anchor(run, sum((r.stats for r in run), BlockStats()), w.t0,
+                                 float(w.temp[0]), 'motion') if run else None)
         run = self._run
         stats = window_stats(w.t, w.rate, self._c, self.block_s)
         run.append(_Window(w.t0, stats, w.gyro_std, w.accel_std))
@@ -412,8 +413,8 @@ class StillnessDetector:
             del run[:j + 1]
             self.windows_rejected += 1
             return None
-        se = standard_error(sum((r.stats for r in run), BlockStats()))
-        if all(s <= v for s, v in zip(se, self.tolerance)):
+        total = sum((r.stats for r in run), BlockStats())
+        if all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
             reason = 'precision'
         elif len(run) >= max_windows(self.window, self.window_max):
             reason = 'longest'
@@ -422,11 +423,11 @@ class StillnessDetector:
         if len(run) == 1 and self.window_max <= self.window:
             reason = ''
         self._run = []
-        return self._anchor(run, w.t1, float(w.temp[-1]), reason)
+        return self._anchor(run, total, w.t1, float(w.temp[-1]), reason)
 
-    def _anchor(self, run: list[_Window], t_end: float, temp_c: float, reason: str) -> Anchor:
-        """Return the anchor of the still windows ``run``, ended at ``t_end`` for ``reason``."""
-        total = sum((r.stats for r in run), BlockStats())
+    def _anchor(self, run: list[_Window], total: BlockStats, t_end: float, temp_c: float,
+                reason: str) -> Anchor:
+        """Return the anchor of the still windows ``run`` (``total`` their block statistics)."""
         delta = tuple(ci + si / total.n for ci, si in zip(self._c, total.s))
         g_rms = tuple(math.sqrt(sum(r.gyro_std[i] ** 2 for r in run) / len(run)) for i in range(3))
         return Anchor(t_end, delta, total.n, g_rms, temp_c, t_end - run[0].t_start,
