@@ -357,11 +357,12 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
 
     if not np.any(keep):
         raise DatasetError(
-            f'Bag {str(bag)!r} has no usable sample: {len(data.imu_t)} IMU samples read, '
+            f'{str(bag)!r} has no usable sample: {len(data.imu_t)} IMU samples read, '
             f'{len(temp_t)} temperature samples spanning '
             + (f'[{temp_t.min():.3f}, {temp_t.max():.3f}] s' if len(temp_t) else 'nothing')
             + (f' vs IMU [{t.min():.3f}, {t.max():.3f}] s' if len(t) else '')
-            + f'; rejected {rejected}.')
+            + '; rejected: ' + (', '.join(f'{v} {k}' for k, v in rejected.items() if v)
+                                or 'none') + '.')
     info = {'rejected': rejected, 'warnings': warnings, 'reference': source,
             'frame_id': data.frame_id, 'storage': data.storage, 'topics': data.topics,
             'samples_read': int(len(data.imu_t) + data.rejected['imu_nonfinite']),

@@ -16,6 +16,8 @@
 
 from __future__ import annotations
 
+import re
+
 from gyro_tdc.data import IMU_TYPE, TEMPERATURE_TYPE, write_bag
 from gyro_tdc.data.dataset import align_temperature, load_run, load_runs
 from gyro_tdc.data.options import BagOptions
@@ -252,8 +254,11 @@ def test_load_run_errors(tmp_path):
         load_run(tmp_path / 'bag', BagOptions(temperature_topic='/temp'))
     write_bag(tmp_path / 'apart', imu_t=[0.0, 0.1], gyro=np.zeros((2, 3)),
               accel=np.zeros((2, 3)), temp_t=[50.0, 51.0], temp_c=[20.0, 20.0])
-    with pytest.raises(DatasetError, match='no usable sample'):
+    with pytest.raises(DatasetError, match='no usable sample') as err:
         load_run(tmp_path / 'apart')
+    # What was rejected, by name and count; no reason that rejected nothing.
+    assert re.search(r'rejected: (\d+ \w+, )*\d+ no_temperature', str(err.value))
+    assert ': 0' not in str(err.value) and ' 0 ' not in str(err.value)
 
 
 def test_load_run_drops_a_thermometer_jump_as_the_node_does(tmp_path):
