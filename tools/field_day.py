@@ -205,7 +205,7 @@ def learn_days(day1, day2, ref2: NDArray[np.float64], floor: NDArray[np.float64]
     saved = {}
 
     def save(k: int) -> None:
-        if killed.learner.save_due():
+        if killed.learner.tick_save_clock():
             killed.learner.save(learn_file)
             saved['state'], saved['k'] = json.loads(json.dumps(killed.learner.state())), k
 
