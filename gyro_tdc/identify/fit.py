@@ -27,7 +27,7 @@ import datetime as _dt
 from typing import Any, Mapping, Sequence
 
 from gyro_tdc import __version__
-from gyro_tdc.base import DEG_PER_RAD
+from gyro_tdc.base import DEG2_PER_RAD2, DEG_PER_RAD
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
@@ -251,11 +251,10 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     created = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
                'gyro_tdc_version': __version__, **(o.created or {})}
     residual_var = _residual_var(blocks, states, counts, bstate, fit, t0, n_total)
-    deg2 = DEG_PER_RAD ** 2
     metrics = {'samples': int(n_total), 'runs': [r.name for r in runs],
-               'train_bs_dps2': (residual_var * deg2).tolist(),
-               'train_rms_dps': np.sqrt(residual_var * deg2).tolist(),
-               'raw_bs_dps2': (sum(b.ss_raw for b in blocks) / n_total * deg2).tolist(),
+               'train_bs_dps2': (residual_var * DEG2_PER_RAD2).tolist(),
+               'train_rms_dps': np.sqrt(residual_var * DEG2_PER_RAD2).tolist(),
+               'raw_bs_dps2': (sum(b.ss_raw for b in blocks) / n_total * DEG2_PER_RAD2).tolist(),
                'ridge': fit.ridge, **({'thermal': thermal_info} if thermal_info else {})}
     if groups is not None:
         metrics['sessions'] = _session_metrics(runs, labels, offsets - coef[0], rows,

@@ -41,7 +41,7 @@ from dataclasses import replace
 
 from typing import Callable, Sequence
 
-from gyro_tdc.base import DEG_PER_RAD
+from gyro_tdc.base import DEG2_PER_RAD2, DEG_PER_RAD
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.axes import AXES
@@ -58,7 +58,6 @@ __all__ = ['check_offsets', 'check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_FO
            'offset_check_lines', 'reanchor_lines', 'reanchor_rule', 'session_check_lines',
            'SIGNIFICANCE']
 
-_DEG2 = DEG_PER_RAD ** 2
 #: Fewest held-out power cycles that judge a curve of several stops (still-only training):
 #: one that agrees is no evidence that the curve carries to the next.
 MIN_FOLDS = 2
@@ -107,8 +106,8 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     v = judge_curve(r_curve, r_offset, folds, counts)
     drop = np.flatnonzero(v.drop)
     record = {'folds': len(folds), 'blocks': v.rows,
-              'curve_ms_dps2': (v.ms_curve * _DEG2).tolist(),
-              'offset_ms_dps2': (v.ms_offset * _DEG2).tolist(),
+              'curve_ms_dps2': (v.ms_curve * DEG2_PER_RAD2).tolist(),
+              'offset_ms_dps2': (v.ms_offset * DEG2_PER_RAD2).tolist(),
               'worse_folds': v.worse_folds.tolist(),
               'gain_t': [float(t) if np.isfinite(t) else None for t in v.gain_t],
               'offset_only': [AXES[a] for a in drop]}
@@ -152,8 +151,8 @@ def check_offsets(offsets: NDArray[np.float64], coef: NDArray[np.float64],
     mae = [np.abs(e).mean(axis=0) for e in err]
     none = flat & ~((ms[0] < ms[1]) & (mae[0] < mae[1]))
     return np.where(none, 0.0, level), {
-        'sessions': k, 'mean_ms_dps2': (ms[0] * _DEG2).tolist(),
-        'none_ms_dps2': (ms[1] * _DEG2).tolist(),
+        'sessions': k, 'mean_ms_dps2': (ms[0] * DEG2_PER_RAD2).tolist(),
+        'none_ms_dps2': (ms[1] * DEG2_PER_RAD2).tolist(),
         'mean_mae_dps': (mae[0] * DEG_PER_RAD).tolist(),
         'none_mae_dps': (mae[1] * DEG_PER_RAD).tolist(),
         'axes': [AXES[a] for a in np.flatnonzero(flat)],
