@@ -443,7 +443,8 @@ def discovery_runs(runs: Sequence[Run]) -> list[Run]:
     Each orientation segment of each run becomes one run (``BAG``, or ``BAG#k`` of several):
     discovery fits one offset per run (gravity and the static offset). Its ``omega`` is the
     specific force in mg scaled by pi/180, so discovery's deg/s read in mg; the reference is
-    zero. FitError when no run has still accelerometer data.
+    zero; a segment without samples is left out. FitError when no run has still accelerometer
+    data.
     """
     out, notes = [], set()
     for r in runs:
@@ -453,6 +454,8 @@ def discovery_runs(runs: Sequence[Run]) -> list[Run]:
             continue
         for s in range(d.n_segments):
             idx = np.flatnonzero(d.segment == s)
+            if idx.size == 0:
+                continue                  # no still sample left: nothing to discover on
             a = np.asarray(r.accel, dtype=np.float64)[idx] / MG * RAD_PER_DEG
             out.append(Run(r.t[idx], r.temp[idx], a, np.zeros_like(a),
                            r.name if d.n_segments == 1 else f'{r.name}#{s + 1}',
