@@ -48,12 +48,10 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = ['ACCEL_EFFECTS', 'AccelFit', 'accel_features', 'accel_scores', 'compensate_accel',
            'discovery_runs', 'fit_accel', 'G0', 'JUMP_SIGMAS', 'MAX_GAP_WINDOWS', 'MG',
            'MIN_JUMP_DEG', 'MIN_SEGMENT_S', 'MIN_STATIC_FRACTION', 'OrientationChange',
-           'PX4_FEATURES', 'static_bs', 'static_data', 'StaticData']
+           'static_bs', 'static_data', 'StaticData']
 
 #: Effects an accelerometer part may hold (the temperature terms, the gradient, the state).
 ACCEL_EFFECTS: tuple[str, ...] = ('dT', 'dT2', 'dT3', 'dTdt', 'lag')
-#: The PX4-style baseline (``TC_A*``): a cubic in the measured temperature.
-PX4_FEATURES: tuple[str, ...] = ('dT', 'dT2', 'dT3')
 #: ``evaluate`` reports accelerometer figures for runs at least this still.
 MIN_STATIC_FRACTION = 0.5
 #: An orientation jump must exceed this many standard deviations of its noise ...

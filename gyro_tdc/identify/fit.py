@@ -42,11 +42,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['check_choices', 'check_finite', 'estimate_t0', 'fit_model', 'fit_px4_cubic',
-           'FitOptions', 'MIN_SAMPLES', 'MIN_SPAN_C', 'run_state', 'span', 'TAU_BOUNDS',
-           'THERMAL_CHOICES', 'TWO_NODE_MARGIN']
+           'FitOptions', 'MIN_SAMPLES', 'MIN_SPAN_C', 'PX4_FEATURES', 'run_state', 'span',
+           'TAU_BOUNDS', 'THERMAL_CHOICES', 'TWO_NODE_MARGIN']
 
 #: Fewest samples a fit accepts.
 MIN_SAMPLES = 50
+#: The PX4-style baseline (``TC_G*``, ``TC_A*``): a cubic in the measured temperature.
+PX4_FEATURES: tuple[str, ...] = ('dT', 'dT2', 'dT3')
 #: Smallest temperature span (degC) a fit with temperature features accepts.
 MIN_SPAN_C = 0.5
 #: Values of ``fit_model(thermal=...)`` besides a fixed :class:`ThermalState`.
@@ -344,4 +346,4 @@ def _session_metrics(runs: Sequence[Run], labels: Sequence[int], offsets: NDArra
 
 def fit_px4_cubic(runs: Sequence[Run], *, t0: float | None = None, **kw) -> CompensationModel:
     """Fit the PX4-style baseline: a ``poly`` cubic in T - T0 per axis (``fit_model`` ``**kw``)."""
-    return fit_model(runs, kind='poly', features=('dT', 'dT2', 'dT3'), t0=t0, **kw)
+    return fit_model(runs, kind='poly', features=PX4_FEATURES, t0=t0, **kw)
