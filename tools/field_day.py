@@ -54,6 +54,7 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(ROOT))
 
+from gyro_tdc.base import DEG2_PER_RAD2  # noqa: E402
 from gyro_tdc.cli.simulate import simulate  # noqa: E402
 from gyro_tdc.cli.train import main as train_main  # noqa: E402
 from gyro_tdc.data import BagOptions, read_bag  # noqa: E402
@@ -78,7 +79,6 @@ GAP_S = 3600.0
 #: IMU messages between learner steps (1 s at 10 Hz): within ``swap_delay_s``, so the output
 #: is the node's whenever its timer runs (swaps take effect at their stamps).
 POLL = 10
-_DEG2 = (180.0 / math.pi) ** 2
 
 
 def stream(model: CompensationModel, imu_t: NDArray[np.float64], gyro: NDArray[np.float64],
@@ -193,7 +193,7 @@ def learn_days(day1, day2, ref2: NDArray[np.float64], floor: NDArray[np.float64]
 
     def ratio(out, ok, start=0):
         ref = ref2[start:start + out.shape[0]]
-        return ((out[ok] - ref[ok]) ** 2).mean(axis=0) * _DEG2 / floor
+        return ((out[ok] - ref[ok]) ** 2).mean(axis=0) * DEG2_PER_RAD2 / floor
 
     core = new()
     feed(core, day1.imu_t, day1.gyro, day1.accel, day1.temp_t, day1.temp_c)
@@ -205,7 +205,7 @@ def learn_days(day1, day2, ref2: NDArray[np.float64], floor: NDArray[np.float64]
     saved = {}
 
     def save(k: int) -> None:
-        if killed.learner.save_due():
+        if killed.learner.tick_save_clock():
             killed.learner.save(learn_file)
             saved['state'], saved['k'] = json.loads(json.dumps(killed.learner.state())), k
 
@@ -243,7 +243,7 @@ def field_day(out_dir: Path, *, force: bool = False) -> dict:
     model = load_model(model_path)
     # The noise floor: what the simulator's white noise and digits leave per sample.
     truth = simulate_run('vehicle_day2', seed=2).truth
-    floor = truth.noise_std ** 2 * _DEG2
+    floor = truth.noise_std ** 2 * DEG2_PER_RAD2
     batch = evaluate([out_dir / 'day2'], [NamedModel('still-only', 'still-only', model)],
                      bag=BagOptions(reference_topic=TRUTH_TOPIC), reanchor_s='auto')[0]
     bs_batch = batch.models[0].bs
@@ -253,7 +253,7 @@ def field_day(out_dir: Path, *, force: bool = False) -> dict:
                            None)]
     out, ok, core = stream(model, data.imu_t, data.gyro, data.accel, data.temp_t, data.temp_c)
     err = out[ok] - ref[ok]
-    bs_stream = (err ** 2).mean(axis=0) * _DEG2
+    bs_stream = (err ** 2).mean(axis=0) * DEG2_PER_RAD2
     anchor = core.anchor
     learn = learn_days(read_bag(out_dir / 'day1'), data, ref, floor, out_dir / 'learn.json')
     return {

@@ -35,7 +35,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'paramspec': ['format_help', 'help_requested', 'INPUT_FRAMES', 'ParamSpec', 'spec_dataclass',
                   'TEMPERATURE_QUIRKS'],
     'resources': ['config_dir', 'model_path', 'scenario_names', 'scenario_path'],
-    'units': ['AXES', 'DEG_PER_RAD', 'G0', 'MG', 'RAD_PER_DEG'],
+    'units': ['AXES', 'DEG2_PER_RAD2', 'DEG_PER_RAD', 'G0', 'MG', 'RAD_PER_DEG'],
     'worker': ['Job', 'LatestJob'],
     'yamlio': ['BAG_METADATA_LIMITS', 'load_yaml', 'read_text', 'read_yaml', 'SCENARIO_LIMITS',
                'YamlLimits'],

@@ -21,12 +21,14 @@ accelerometer figures, so a factor is written once and read the same everywhere.
 
 import math
 
-__all__ = ['AXES', 'DEG_PER_RAD', 'G0', 'MG', 'RAD_PER_DEG']
+__all__ = ['AXES', 'DEG2_PER_RAD2', 'DEG_PER_RAD', 'G0', 'MG', 'RAD_PER_DEG']
 
 #: The gyro and accelerometer axes, in the order of every (N, 3) array.
 AXES = ('x', 'y', 'z')
 #: Degrees per radian: a rate in rad/s times this is in deg/s.
 DEG_PER_RAD = 180.0 / math.pi
+#: Square degrees per square radian: a mean square in (rad/s)^2 times this is in (deg/s)^2.
+DEG2_PER_RAD2 = DEG_PER_RAD ** 2
 #: Radians per degree: a rate in deg/s times this is in rad/s.
 RAD_PER_DEG = math.pi / 180.0
 #: Standard gravity, m/s^2 per g.

@@ -217,8 +217,8 @@ def run_demo(out: Path, *, live_seconds: float = 20.0, skip_live: bool = False) 
         begin(n)
         for command, argv in commands:
             _run_step(n, command, argv, covered)
-        if command == 'discover':
-            _print_discovery(report / 'discovery.json')
+            if command == 'discover':
+                _print_discovery(report / 'discovery.json')
     if not skip_live:
         begin(len(STEPS))
         _live(model_path(DEFAULT_MODEL), live_seconds, report)

@@ -403,7 +403,7 @@ def format_holdout(result: Mapping[str, Any]) -> str:
                        f'extrapolation, {100 * f["outside_fraction"]:.0f} % of samples outside '
                        'the training range')
                 lines += ['', f'block {f["block"]}: bursts {f["bursts"][0]}-{f["bursts"][1]}, '
-                          f'{f["temperature_c"][1]:.2f}..{f["temperature_c"][0]:.2f} degC, '
+                          f'{f["temperature_c"][0]:.2f}..{f["temperature_c"][1]:.2f} degC, '
                           f'{f["position"]} ({how}), floor {_f3(f["floor_bs_dps2"], ".3e")}'
                           + _fitted(f['models']), _head(False)]
                 lines += _model_rows(f['models'], names, unclamped=False, ratios=False)

@@ -32,7 +32,7 @@ from typing import Sequence
 from gyro_tdc.base import AXES
 from gyro_tdc.fleet.results import SensorResult
 from gyro_tdc.model import CompensationModel, steady_drift
-from gyro_tdc.signal import fit_columns
+from gyro_tdc.signal import fit_columns, mad_sigma
 import numpy as np
 from numpy.typing import NDArray
 
@@ -40,7 +40,6 @@ __all__ = ['DEFAULT_OUTLIER_Z', 'MIN_FLEET', 'drift_polynomial', 'fleet_statisti
 
 DEFAULT_OUTLIER_Z = 3.5      # Iglewicz and Hoaglin's cut-off for the modified z-score
 MIN_FLEET = 3                # fewer trained sensors: no z-scores, no flags
-_MAD_TO_SIGMA = 1.4826       # MAD of a normal distribution times this = its sigma
 
 
 def drift_polynomial(model: CompensationModel, *, points: int = 41) -> NDArray[np.float64]:
@@ -73,7 +72,7 @@ def robust_z(values: Sequence[float]) -> NDArray[np.float64]:
     """
     v = np.asarray(values, dtype=np.float64)
     med = float(np.median(v))
-    scale = _MAD_TO_SIGMA * float(np.median(np.abs(v - med)))
+    scale = float(mad_sigma(v))
     if not (math.isfinite(scale) and scale > 0):
         return np.full(v.shape, math.nan)
     return (v - med) / scale

@@ -24,7 +24,7 @@ from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'accel': ['ACCEL_EFFECTS', 'accel_features', 'accel_scores', 'compensate_accel',
-              'discovery_runs', 'fit_accel', 'MG', 'PX4_FEATURES', 'static_bs', 'static_data'],
+              'discovery_runs', 'fit_accel', 'MG', 'static_bs', 'static_data'],
     'axes': ['all_constant_error', 'constant_axes', 'constant_axes_of', 'constant_gyro_axes',
              'constant_note', 'constant_readings', 'constant_values', 'fit_varying',
              'identity_axes', 'neutral_runs'],
@@ -33,7 +33,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
                'fit_export', 'from_params', 'read_params', 'score_export', 'share_kept',
                'write_params'],
     'fit': ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'FitOptions', 'MIN_SAMPLES',
-            'TAU_BOUNDS', 'THERMAL_CHOICES'],
+            'PX4_FEATURES', 'TAU_BOUNDS', 'THERMAL_CHOICES'],
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],
     'power_cycles': ['check_offsets', 'check_sessions', 'offset_check_lines', 'reanchor_lines',
                      'reanchor_rule', 'session_check_lines'],

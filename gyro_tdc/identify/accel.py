@@ -48,12 +48,10 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = ['ACCEL_EFFECTS', 'AccelFit', 'accel_features', 'accel_scores', 'compensate_accel',
            'discovery_runs', 'fit_accel', 'G0', 'JUMP_SIGMAS', 'MAX_GAP_WINDOWS', 'MG',
            'MIN_JUMP_DEG', 'MIN_SEGMENT_S', 'MIN_STATIC_FRACTION', 'OrientationChange',
-           'PX4_FEATURES', 'static_bs', 'static_data', 'StaticData']
+           'static_bs', 'static_data', 'StaticData']
 
 #: Effects an accelerometer part may hold (the temperature terms, the gradient, the state).
 ACCEL_EFFECTS: tuple[str, ...] = ('dT', 'dT2', 'dT3', 'dTdt', 'lag')
-#: The PX4-style baseline (``TC_A*``): a cubic in the measured temperature.
-PX4_FEATURES: tuple[str, ...] = ('dT', 'dT2', 'dT3')
 #: ``evaluate`` reports accelerometer figures for runs at least this still.
 MIN_STATIC_FRACTION = 0.5
 #: An orientation jump must exceed this many standard deviations of its noise ...
@@ -443,7 +441,8 @@ def discovery_runs(runs: Sequence[Run]) -> list[Run]:
     Each orientation segment of each run becomes one run (``BAG``, or ``BAG#k`` of several):
     discovery fits one offset per run (gravity and the static offset). Its ``omega`` is the
     specific force in mg scaled by pi/180, so discovery's deg/s read in mg; the reference is
-    zero. FitError when no run has still accelerometer data.
+    zero; a segment without samples is left out. FitError when no run has still accelerometer
+    data.
     """
     out, notes = [], set()
     for r in runs:
@@ -453,6 +452,8 @@ def discovery_runs(runs: Sequence[Run]) -> list[Run]:
             continue
         for s in range(d.n_segments):
             idx = np.flatnonzero(d.segment == s)
+            if idx.size == 0:
+                continue                  # no still sample left: nothing to discover on
             a = np.asarray(r.accel, dtype=np.float64)[idx] / MG * RAD_PER_DEG
             out.append(Run(r.t[idx], r.temp[idx], a, np.zeros_like(a),
                            r.name if d.n_segments == 1 else f'{r.name}#{s + 1}',

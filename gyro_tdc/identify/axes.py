@@ -27,7 +27,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Callable, Sequence
 
-from gyro_tdc.base import AXES, DEG_PER_RAD
+from gyro_tdc.base import AXES, DEG2_PER_RAD2
 from gyro_tdc.data import Run
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import CompensationModel
@@ -37,8 +37,6 @@ from numpy.typing import ArrayLike, NDArray
 __all__ = ['all_constant_error', 'AXES', 'constant_axes', 'constant_axes_of', 'constant_gyro_axes',
            'constant_note', 'constant_readings', 'constant_values', 'fit_varying',
            'identity_axes', 'neutral_runs']
-
-_DEG2 = DEG_PER_RAD ** 2
 
 
 def _finite(v: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -156,7 +154,7 @@ def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[
         n += len(e)
     ms = np.zeros(3)
     ms[const] = ss / max(n, 1)
-    dps2 = ms * _DEG2
+    dps2 = ms * DEG2_PER_RAD2
     met = {**model.metrics, **{key: np.where(const, v, model.metrics[key]).tolist() for key, v in (
         ('raw_bs_dps2', dps2), ('train_bs_dps2', dps2), ('train_rms_dps', np.sqrt(dps2)))},
            'constant_axes': [a for a, c in zip(AXES, const) if c]}

@@ -27,7 +27,7 @@ import datetime as _dt
 from typing import Any, Mapping, Sequence
 
 from gyro_tdc import __version__
-from gyro_tdc.base import DEG_PER_RAD
+from gyro_tdc.base import DEG2_PER_RAD2, DEG_PER_RAD
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
@@ -42,11 +42,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['check_choices', 'check_finite', 'estimate_t0', 'fit_model', 'fit_px4_cubic',
-           'FitOptions', 'MIN_SAMPLES', 'MIN_SPAN_C', 'run_state', 'span', 'TAU_BOUNDS',
-           'THERMAL_CHOICES', 'TWO_NODE_MARGIN']
+           'FitOptions', 'MIN_SAMPLES', 'MIN_SPAN_C', 'PX4_FEATURES', 'run_state', 'span',
+           'TAU_BOUNDS', 'THERMAL_CHOICES', 'TWO_NODE_MARGIN']
 
 #: Fewest samples a fit accepts.
 MIN_SAMPLES = 50
+#: The PX4-style baseline (``TC_G*``, ``TC_A*``): a cubic in the measured temperature.
+PX4_FEATURES: tuple[str, ...] = ('dT', 'dT2', 'dT3')
 #: Smallest temperature span (degC) a fit with temperature features accepts.
 MIN_SPAN_C = 0.5
 #: Values of ``fit_model(thermal=...)`` besides a fixed :class:`ThermalState`.
@@ -251,11 +253,10 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     created = {'utc': _dt.datetime.now(_dt.timezone.utc).isoformat(timespec='seconds'),
                'gyro_tdc_version': __version__, **(o.created or {})}
     residual_var = _residual_var(blocks, states, counts, bstate, fit, t0, n_total)
-    deg2 = DEG_PER_RAD ** 2
     metrics = {'samples': int(n_total), 'runs': [r.name for r in runs],
-               'train_bs_dps2': (residual_var * deg2).tolist(),
-               'train_rms_dps': np.sqrt(residual_var * deg2).tolist(),
-               'raw_bs_dps2': (sum(b.ss_raw for b in blocks) / n_total * deg2).tolist(),
+               'train_bs_dps2': (residual_var * DEG2_PER_RAD2).tolist(),
+               'train_rms_dps': np.sqrt(residual_var * DEG2_PER_RAD2).tolist(),
+               'raw_bs_dps2': (sum(b.ss_raw for b in blocks) / n_total * DEG2_PER_RAD2).tolist(),
                'ridge': fit.ridge, **({'thermal': thermal_info} if thermal_info else {})}
     if groups is not None:
         metrics['sessions'] = _session_metrics(runs, labels, offsets - coef[0], rows,
@@ -345,4 +346,4 @@ def _session_metrics(runs: Sequence[Run], labels: Sequence[int], offsets: NDArra
 
 def fit_px4_cubic(runs: Sequence[Run], *, t0: float | None = None, **kw) -> CompensationModel:
     """Fit the PX4-style baseline: a ``poly`` cubic in T - T0 per axis (``fit_model`` ``**kw``)."""
-    return fit_model(runs, kind='poly', features=('dT', 'dT2', 'dT3'), t0=t0, **kw)
+    return fit_model(runs, kind='poly', features=PX4_FEATURES, t0=t0, **kw)

@@ -41,7 +41,7 @@ from dataclasses import replace
 
 from typing import Callable, Sequence
 
-from gyro_tdc.base import DEG_PER_RAD
+from gyro_tdc.base import DEG2_PER_RAD2, DEG_PER_RAD
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.axes import AXES
@@ -58,7 +58,6 @@ __all__ = ['check_offsets', 'check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_FO
            'offset_check_lines', 'reanchor_lines', 'reanchor_rule', 'session_check_lines',
            'SIGNIFICANCE']
 
-_DEG2 = DEG_PER_RAD ** 2
 #: Fewest held-out power cycles that judge a curve of several stops (still-only training):
 #: one that agrees is no evidence that the curve carries to the next.
 MIN_FOLDS = 2
@@ -107,8 +106,8 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     v = judge_curve(r_curve, r_offset, folds, counts)
     drop = np.flatnonzero(v.drop)
     record = {'folds': len(folds), 'blocks': v.rows,
-              'curve_ms_dps2': (v.ms_curve * _DEG2).tolist(),
-              'offset_ms_dps2': (v.ms_offset * _DEG2).tolist(),
+              'curve_ms_dps2': (v.ms_curve * DEG2_PER_RAD2).tolist(),
+              'offset_ms_dps2': (v.ms_offset * DEG2_PER_RAD2).tolist(),
               'worse_folds': v.worse_folds.tolist(),
               'gain_t': [float(t) if np.isfinite(t) else None for t in v.gain_t],
               'offset_only': [AXES[a] for a in drop]}
@@ -152,12 +151,17 @@ def check_offsets(offsets: NDArray[np.float64], coef: NDArray[np.float64],
     mae = [np.abs(e).mean(axis=0) for e in err]
     none = flat & ~((ms[0] < ms[1]) & (mae[0] < mae[1]))
     return np.where(none, 0.0, level), {
-        'sessions': k, 'mean_ms_dps2': (ms[0] * _DEG2).tolist(),
-        'none_ms_dps2': (ms[1] * _DEG2).tolist(),
+        'sessions': k, 'mean_ms_dps2': (ms[0] * DEG2_PER_RAD2).tolist(),
+        'none_ms_dps2': (ms[1] * DEG2_PER_RAD2).tolist(),
         'mean_mae_dps': (mae[0] * DEG_PER_RAD).tolist(),
         'none_mae_dps': (mae[1] * DEG_PER_RAD).tolist(),
         'axes': [AXES[a] for a in np.flatnonzero(flat)],
         'no_offset': [AXES[a] for a in np.flatnonzero(none)]}
+
+
+def _figures(values: Sequence[float]) -> str:
+    """Return a report row's figures: each in 10.3g, two spaces apart."""
+    return '  '.join(f'{v:10.3g}' for v in values)
 
 
 def offset_check_lines(record: dict | None) -> list[str]:
@@ -167,8 +171,8 @@ def offset_check_lines(record: dict | None) -> list[str]:
     out = [f"the offset of the axes without curve ({', '.join(record['axes'])}) held out on each "
            f"of the {record['sessions']} power cycles: mean square x y z, (deg/s)^2 | mean "
            'absolute error x y z, deg/s:',
-           *(f'  {name:<12} ' + '  '.join(f'{v:10.3g}' for v in record[f'{key}_ms_dps2'])
-             + '  |' + '  '.join(f'{v:10.3g}' for v in record[f'{key}_mae_dps'])
+           *(f'  {name:<12} ' + _figures(record[f'{key}_ms_dps2']) + '  |'
+             + _figures(record[f'{key}_mae_dps'])
              for name, key in (("others' mean", 'mean'), ('none', 'none')))]
     if record['no_offset']:
         out.append(f"axes {', '.join(record['no_offset'])}: the other power cycles' mean does "
@@ -202,8 +206,8 @@ def session_check_lines(record: dict | None) -> list[str]:
     out = [f"the curve held out on each power cycle ({record['folds']} sessions, "
            f"{record['blocks']} blocks inside the others' temperatures, re-anchored), "
            'mean square, (deg/s)^2:',
-           '  curve        ' + '  '.join(f'{v:10.3g}' for v in record['curve_ms_dps2']),
-           '  offset only  ' + '  '.join(f'{v:10.3g}' for v in record['offset_ms_dps2'])]
+           '  curve        ' + _figures(record['curve_ms_dps2']),
+           '  offset only  ' + _figures(record['offset_ms_dps2'])]
     out.append('  power cycles predicted worse by the curve: '
                + '  '.join(f'{v:d}' for v in record['worse_folds']))
     out.append("  the curve's gain in standard errors: "
@@ -238,12 +242,12 @@ def reanchor_lines(record: dict | None) -> list[str]:
     """Return the report lines of the re-anchoring decision (empty without one)."""
     if not record:
         return []
-    row = '  '.join(f'{v:10.3g}' for v in record['anchor_error_dps'])
-    out = [f'start-up anchors taken throughout the training data err by (RMS, deg/s) {row}']
+    out = ['start-up anchors taken throughout the training data err by (RMS, deg/s) '
+           + _figures(record['anchor_error_dps'])]
     if 'always_dps' in record:
         out += [f"held out on {record['held_out']} power cycles (each predicted by the model "
                 'fitted on the others, re-anchored at its start), RMS of their mean error, deg/s:',
-                *(f'  {k:<22}' + '  '.join(f'{v:10.3g}' for v in record[f'{k.split()[0]}_dps'])
+                *(f'  {k:<22}' + _figures(record[f'{k.split()[0]}_dps'])
                   for k in ('always (any shift)', 'gated (beyond the gate)', 'never'))]
     return out + [f'axis {a}: the node re-anchors only beyond {v:.3g} deg/s ({SIGNIFICANCE:g} x '
                   "its anchors' error: a smaller start-up shift is no evidence of a turn-on "

@@ -33,7 +33,7 @@ from gyro_tdc.errors import FitError
 from gyro_tdc.identify.axes import constant_gyro_axes, neutral_runs
 from gyro_tdc.identify.fit import fit_model, FitOptions, MIN_SPAN_C, span
 from gyro_tdc.model import compensate, CompensationModel, DEFAULT_OUT_OF_RANGE, OPERATING_RANGE_C
-from gyro_tdc.signal import detect_still, NOISE_FACTOR, Stillness
+from gyro_tdc.signal import detect_still, mad_sigma, NOISE_FACTOR, Stillness
 import numpy as np
 from numpy.typing import NDArray
 
@@ -226,7 +226,7 @@ def _outliers(means: NDArray[np.float64]) -> NDArray[np.bool_]:
     if means.shape[0] < 4:
         return np.zeros(means.shape[0], dtype=bool)
     dev = np.abs(means - np.median(means, axis=0))
-    limit = np.maximum(OUTLIER_SIGMAS * (1.4826 * np.median(dev, axis=0)), OUTLIER_FLOOR_RAD_S)
+    limit = np.maximum(OUTLIER_SIGMAS * mad_sigma(means), OUTLIER_FLOOR_RAD_S)
     return np.any(dev > limit, axis=1)
 
 

@@ -30,13 +30,13 @@ from dataclasses import replace
 import math
 from typing import Sequence
 
-from gyro_tdc.base import AXES, DEG_PER_RAD
+from gyro_tdc.base import AXES, DEG2_PER_RAD2
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag,
                             MAX_EXTRAPOLATION_C, normalise_ids, STATE_TERMS, steady_drift,
                             THERMAL_EFFECTS, ThermalState)
 from gyro_tdc.signal import (curve_untold, fit_columns, Folds, hat, heldout, judge_curve,
-                             session_columns, within)
+                             MAD_TO_SIGMA, session_columns, within)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -53,7 +53,6 @@ SPAN_DT2_C = 8.0
 BINS_DT2 = 5
 SPAN_DT3_C = 15.0
 BINS_DT3 = 10
-_DEG2 = DEG_PER_RAD ** 2
 #: A candidate is swapped in only when its prediction over the recent windows differs from
 #: the current model's by this fraction of the gyro noise floor (RMS, rad/s) or more.
 SWAP_CHANGE = 0.02
@@ -159,7 +158,7 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
         order = np.argsort(r)
         cw = np.cumsum(w[others][order])
         mad = float(r[order][np.searchsorted(cw, 0.5 * cw[-1])])
-        sigma = max(1.4826 * mad, floor / math.sqrt(max(float(e[:, 1].max()), 1.0)), 1e-12)
+        sigma = max(MAD_TO_SIGMA * mad, floor / math.sqrt(max(float(e[:, 1].max()), 1.0)), 1e-12)
         if worst <= OUTLIER_K * sigma:
             break
         keep[idx[k]] = False
@@ -250,8 +249,8 @@ def held_out(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[st
     v = judge_curve(*(heldout(f, folds, y.shape, groups=g, weights=wt)
                       for f in (curve, lambda test, train: y[test])), folds, wt,
                     significance=0.0, every_fold=False)
-    rec.update(points=v.rows, curve_ms_dps2=(v.ms_curve * _DEG2).tolist(),
-               offset_ms_dps2=(v.ms_offset * _DEG2).tolist(),
+    rec.update(points=v.rows, curve_ms_dps2=(v.ms_curve * DEG2_PER_RAD2).tolist(),
+               offset_ms_dps2=(v.ms_offset * DEG2_PER_RAD2).tolist(),
                offset_only=[AXES[a] for a in np.flatnonzero(v.drop)])
     return rec
 

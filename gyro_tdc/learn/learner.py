@@ -255,8 +255,12 @@ class Learner:
         return (wend is not None and t < wend
                 and (self.last_t is None or t >= self.last_t - RESTART_BACK_S))
 
-    def save_due(self) -> bool:
-        """Return whether ``save_period_s`` of stamp time passed since the last save."""
+    def tick_save_clock(self) -> bool:
+        """
+        Return whether ``save_period_s`` of stamp time passed since the last save.
+
+        Not a pure query: the first call with a stamp starts the save clock there.
+        """
         if self.last_t is None:
             return False
         if self.last_save_t is None:

@@ -94,7 +94,7 @@ def _step_and_save(learner: Learner, store: LearnFile | None) -> tuple[str, str,
     """
     try:
         learner.step()
-        if store is None or not learner.save_due():
+        if store is None or not learner.tick_save_clock():
             return '', '', []
         learner.saved()                 # a failed save is tried again a save period later
         return _write(learner, store)

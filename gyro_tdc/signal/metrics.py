@@ -20,7 +20,8 @@ Accuracy metrics in the paper's terms, plus the usual inertial-sensor noise figu
   (eq. 32 defines P_i = BS_(i+1)/BS_i; the tables report P2 against BS1, and so do we);
 * RMS in deg/s;
 * overlapping Allan deviation (allantools, gyro rate as its ``freq`` data type) with the
-  angle random walk (deg/sqrt(h)) and bias instability (deg/h) read off it.
+  angle random walk (deg/sqrt(h)) and bias instability (deg/h) read off it;
+* the robust standard deviation ``1.4826 MAD`` (median absolute deviation) outlier tests use.
 """
 
 from __future__ import annotations
@@ -29,7 +30,11 @@ from gyro_tdc.base import DEG_PER_RAD
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['allan_deviation', 'bias_stability', 'noise_readouts', 'p_ratios', 'rms_dps']
+__all__ = ['allan_deviation', 'bias_stability', 'mad_sigma', 'MAD_TO_SIGMA', 'noise_readouts',
+           'p_ratios', 'rms_dps']
+
+#: The median absolute deviation (MAD) of normal data times this is its standard deviation.
+MAD_TO_SIGMA = 1.4826
 
 
 def bias_stability(omega: NDArray[np.float64], omega_ref: NDArray[np.float64]
@@ -107,3 +112,8 @@ def noise_readouts(taus: NDArray[np.float64], adev: NDArray[np.float64]
     arw = np.median(adev[short] * np.sqrt(taus[short])[:, None], axis=0) * 60.0
     bi = adev.min(axis=0) / 0.664 * 3600.0
     return {'arw_deg_sqrt_h': arw, 'bias_instability_deg_h': bi}
+
+
+def mad_sigma(values: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Return ``1.4826 MAD`` along the first axis: a standard deviation outliers barely move."""
+    return MAD_TO_SIGMA * np.median(np.abs(values - np.median(values, axis=0)), axis=0)

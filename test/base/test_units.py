@@ -16,11 +16,12 @@
 
 import math
 
-from gyro_tdc.base import AXES, DEG_PER_RAD, G0, MG, RAD_PER_DEG
+from gyro_tdc.base import AXES, DEG2_PER_RAD2, DEG_PER_RAD, G0, MG, RAD_PER_DEG
 
 
 def test_the_factors_are_the_conversions_they_name():
     assert AXES == ('x', 'y', 'z')
     assert DEG_PER_RAD == 180.0 / math.pi and RAD_PER_DEG == math.pi / 180.0
     assert math.degrees(1.0) == DEG_PER_RAD and math.radians(1.0) == RAD_PER_DEG
+    assert DEG2_PER_RAD2 == (180.0 / math.pi) ** 2
     assert G0 == 9.80665 and MG == G0 * 1e-3

@@ -292,6 +292,17 @@ def test_synthetic_bursts_reach_the_floor_where_the_model_is_right():
     assert 'leave_one_burst_out' not in text
 
 
+def test_block_lines_give_the_temperatures_low_to_high():
+    run, _ = _bursty_run()
+    models = [m for m in HOLDOUT_MODELS if m.name in ('raw', 'bias')]
+    res = burst_holdout(run, n_blocks=4, leave_one_out=False, models=models)
+    text = format_holdout(res)
+    for f in res['schemes'][0]['folds']:
+        lo, hi = f['temperature_c']
+        assert lo < hi
+        assert f'bursts {f["bursts"][0]}-{f["bursts"][1]}, {lo:.2f}..{hi:.2f} degC, ' in text
+
+
 def test_bad_arguments_name_the_argument():
     run, _ = _bursty_run()
     with pytest.raises(FitError, match=r'`n_blocks` between 2 and the number of bursts \(12\), '

@@ -22,6 +22,7 @@ thermal state is the one the accelerometer part shares.
 
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 
 from gyro_tdc.data.runs import Run
@@ -254,6 +255,22 @@ def test_discovery_runs_are_the_still_segments_in_mg(chamber):
     run = chamber['runs'][0]
     with pytest.raises(FitError, match='no still accelerometer data.*x: no accelerometer'):
         discovery_runs([Run(run.t, run.temp, run.omega, run.omega_ref, 'x')])
+
+
+def test_discovery_runs_leave_out_an_empty_segment(chamber, monkeypatch):
+    # Segments 0 and 2 hold the still samples, segment 1 none: no run of zero samples.
+    import gyro_tdc.identify.accel as accel_module
+
+    run = chamber['runs'][0]
+    d = static_data(run)
+    still = np.flatnonzero(d.segment == 0)
+    segment = d.segment.copy()
+    segment[still[still.size // 2:]] = 2
+    monkeypatch.setattr(accel_module, 'static_data',
+                        lambda r: replace(d, segment=segment, n_segments=3))
+    runs = discovery_runs([run])
+    assert [r.name for r in runs] == [f'{run.name}#1', f'{run.name}#3']
+    assert [len(r) for r in runs] == [still.size // 2, still.size - still.size // 2]
 
 
 @pytest.mark.parametrize('chunk_rows', [1, 7, 1000])

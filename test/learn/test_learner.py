@@ -103,7 +103,7 @@ def test_restart_mid_day2_resumes_from_learn_file(days, uninterrupted, tmp_path)
     saved = {}
 
     def save(k):
-        if learner.save_due():
+        if learner.tick_save_clock():
             learner.save(path)
             saved['state'] = json.loads(json.dumps(learner.state()))
             saved['k'] = k

@@ -16,8 +16,8 @@
 
 import math
 
-from gyro_tdc.signal.metrics import (allan_deviation, bias_stability, noise_readouts, p_ratios,
-                                     rms_dps)
+from gyro_tdc.signal.metrics import (allan_deviation, bias_stability, mad_sigma, noise_readouts,
+                                     p_ratios, rms_dps)
 import numpy as np
 import pytest
 
@@ -28,6 +28,16 @@ def test_bias_stability_is_mse_in_dps_squared():
     omega = np.array([[1.0, 2.0, 0.0], [3.0, 2.0, 0.0]]) * DEG
     np.testing.assert_allclose(bias_stability(omega, np.zeros(3)), [5.0, 4.0, 0.0])
     np.testing.assert_allclose(rms_dps(omega), [np.sqrt(5.0), 2.0, 0.0])
+
+
+def test_mad_sigma_is_the_scaled_median_absolute_deviation_per_column():
+    # Medians 3 and 30; absolute deviations 2 1 0 1 97 and 20 10 0 10 20: MADs 1 and 10.
+    v = np.array([[1.0, 10.0], [2.0, 20.0], [3.0, 30.0], [4.0, 40.0], [100.0, 50.0]])
+    np.testing.assert_allclose(mad_sigma(v), [1.4826, 14.826])
+    # Normal data: the standard deviation, which one wild value barely moves.
+    x = np.random.default_rng(1).normal(0.0, 2.0, 100_001)
+    x[0] = 1e9
+    assert mad_sigma(x) == pytest.approx(2.0, rel=0.02)
 
 
 def test_p_ratios_match_paper_table_3():

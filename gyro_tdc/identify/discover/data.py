@@ -38,8 +38,8 @@ from gyro_tdc.identify.fit import MIN_SPAN_C
 from gyro_tdc.model import (batch_features, EFFECTS, first_order_lag, input_ids,
                             REFERENCE_EFFECTS, STATE_TERMS, STATIC_EFFECTS, TEMPERATURE_EFFECTS,
                             THERMAL_EFFECTS)
-from gyro_tdc.signal import (BlockGrid, fit_columns, Folds, heldout, pinv_fit, session_columns,
-                             solve_normal)
+from gyro_tdc.signal import (BlockGrid, fit_columns, Folds, heldout, mad_sigma, pinv_fit,
+                             session_columns, solve_normal)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -106,13 +106,10 @@ def _noise_floor(noise: NDArray[np.float64], white: Sequence[NDArray[np.float64]
     The white noise comes from first differences inside segments; it stands in for an axis
     whose blocks are too short for thirds.
     """
-    def mad(v: NDArray[np.float64]) -> NDArray[np.float64]:
-        return 1.4826 * np.median(np.abs(v - np.median(v, axis=0)), axis=0)
-
     finite = [noise[:, a][np.isfinite(noise[:, a])] for a in range(3)]
-    sig = np.array([mad(v) if v.size >= 3 else np.nan for v in finite])
+    sig = np.array([mad_sigma(v) if v.size >= 3 else np.nan for v in finite])
     wd = np.concatenate(white)
-    wsig = mad(wd) / math.sqrt(2) if wd.shape[0] >= 3 else np.full(3, np.nan)
+    wsig = mad_sigma(wd) / math.sqrt(2) if wd.shape[0] >= 3 else np.full(3, np.nan)
     sig = np.where(np.isfinite(sig), sig, wsig)
     if not np.all(np.isfinite(sig)):
         raise FitError('Cannot estimate the noise floor: blocks too short; '
