@@ -76,6 +76,10 @@ out-of-range rules) and scores what the within-log drift cannot see, a constant 
 RMS of the output's still-stretch means after each log's first still stretch (the rate is
 zero while still), beside raw's (the board's own boot calibration, doing nothing) and raw
 re-anchored on its first still stretch (what re-anchoring alone, without a model, gives).
+
+A model with an accelerometer part is also scored on the held-out logs' still segments
+(:func:`gyro_tdc.identify.accel.static_data`): the accelerometer's BS within each orientation
+segment, compensated over raw, per axis.
 """
 
 import argparse
@@ -168,6 +172,23 @@ def drift(logs: list, model=None) -> np.ndarray:
         rates.append(r.omega if model is None else
                      compensate(model, r.t, r.temp, r.omega, out_of_range=DEFAULT_OUT_OF_RANGE))
     return still_drift(days, rates) * _DEG
+
+
+def accel_bs(logs: list, model) -> np.ndarray:
+    """Return the accelerometer's BS within each still segment, compensated over raw."""
+    from gyro_tdc.identify.accel import compensate_accel, static_data
+    ss = np.zeros((2, 3))
+    for lg in logs:
+        r = lg['run']
+        d = static_data(r)
+        if d is None:
+            continue
+        a = np.asarray(r.accel, dtype=np.float64)
+        for x, k in ((a, 0), (compensate_accel(model, r.t, r.temp, a), 1)):
+            for s in range(d.n_segments):
+                v = x[d.segment == s]
+                ss[k] += ((v - v.mean(axis=0)) ** 2).sum(axis=0) if len(v) > 1 else 0.0
+    return ss[1] / ss[0]
 
 
 def check_note(model_path: Path) -> str:
@@ -265,6 +286,7 @@ def run_draw(logs: list, rng: np.random.Generator, n_train: int, n_held: int, so
         out[name + '_check'] = check_note(path)
         if node:
             out[name + '_node'] = node_error(held, model)
+        out[name + '_accel'] = None if model.accel is None else accel_bs(held, model)
         out[name + '_per_log'] = [(lg['path'].name, _ratio(drift([lg], model), drift([lg])))
                                   for lg in held]
     return out
@@ -317,6 +339,13 @@ def summary(rows: list, name: str, bound: float) -> list[str]:
                        + _fmt(np.nanmedian(q, axis=0)) + ', worst ' + _fmt(np.nanmax(q, axis=0))
                        + f', draws <= 1.05 on every axis: {int(np.sum(np.all(q <= 1.05, 1)))}'
                        f' of {len(q)}')
+    if fitted:
+        parts = [r[name + '_accel'] for r in fitted if r[name + '_accel'] is not None]
+        out.append(f'  accelerometer part in {len(parts)} of {len(fitted)} fitted models'
+                   + ('' if not parts else ': held-out still segments, BS over raw within '
+                      'each: median ' + _fmt(np.nanmedian(parts, axis=0)) + ', worst '
+                      + _fmt(np.nanmax(parts, axis=0)) + ', draws <= 1.05 on every axis: '
+                      f'{int(np.sum(np.all(np.array(parts) <= 1.05, axis=1)))} of {len(parts)}'))
     notes = sorted({r[name + '_note'][:120] for r in refused})
     out += [f'  refused: {n}' for n in notes]
     return out

@@ -29,12 +29,13 @@ from dataclasses import dataclass, field
 import math
 from typing import Sequence
 
-from gyro_tdc.base import G0, MG, plain, RAD_PER_DEG
+from gyro_tdc.base import DEG2_PER_RAD2, G0, MG, plain, RAD_PER_DEG
 from gyro_tdc.data import Coverage, coverage, Run
 from gyro_tdc.errors import FeatureError, FitError, ModelFileError
 from gyro_tdc.identify.axes import constant_note
 from gyro_tdc.identify.fit import check_choices, MIN_SAMPLES, MIN_SPAN_C
 from gyro_tdc.identify.linear import fit_linear
+from gyro_tdc.identify.power_cycles import check_sessions, MIN_FOLDS, SLOW_CURVE_S
 from gyro_tdc.identify.tau import run_state
 from gyro_tdc.model import (batch_features, check_accel, compensate, CompensationModel,
                             DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, normalise_ids,
@@ -242,6 +243,8 @@ class AccelFit:
     train_bs: NDArray[np.float64] | None = None
     samples: int = 0
     total: int = 0
+    #: The held-out check across power cycles (:func:`_in_mg2` of ``check_sessions``'s).
+    check: dict | None = None
 
     @property
     def changes(self) -> list:
@@ -252,7 +255,7 @@ class AccelFit:
         """Return the training report of the accelerometer part (no coverage table)."""
         changes = [c.line() for c in self.changes]
         if self.part is None:
-            return [f'accelerometer: not fitted: {self.note}'] + changes
+            return [f'accelerometer: not fitted: {self.note}'] + _check_lines(self.check) + changes
         p = self.part
         segs = sum(d.n_segments for d in self.static if d is not None)
         state = ('the thermal state shared with the gyro' if p.thermal.kind != 'none'
@@ -268,7 +271,36 @@ class AccelFit:
                 _row('raw', self.raw_bs), _row('compensated', self.train_bs),
                 _row('RMS (mg)', np.sqrt(self.train_bs) / MG),
                 _row('change/degC', static_slope(p) / MG)
-                + '   (mg per degC: static change, mean slope over the range)'] + changes
+                + '   (mg per degC: static change, mean slope over the range)'
+                ] + _check_lines(self.check) + changes
+
+
+def _in_mg2(record: dict | None) -> dict | None:
+    """Return a session check's record with its mean squares in mg^2 (None: none)."""
+    if record is None or 'curve_ms_dps2' not in record:
+        return record
+    out = {k: v for k, v in record.items() if not k.endswith('_dps2')}
+    for key in ('curve', 'offset'):
+        out[f'{key}_ms_mg2'] = (np.asarray(record[f'{key}_ms_dps2'])
+                                / (DEG2_PER_RAD2 * MG ** 2)).tolist()
+    return out
+
+
+def _check_lines(record: dict | None) -> list[str]:
+    """Return the report lines of the accelerometer's check across power cycles."""
+    if not record or 'curve_ms_mg2' not in record:
+        return []
+    out = ['accelerometer: the change with temperature held out on each power cycle '
+           f"({record['folds']} sessions, {record['blocks']} blocks inside the others' "
+           'temperatures, each orientation segment re-anchored), mean square, mg^2:',
+           _row('curve', record['curve_ms_mg2']), _row('none', record['offset_ms_mg2']),
+           '  power cycles predicted worse by the curve: '
+           + '  '.join(f'{v:d}' for v in record['worse_folds'])]
+    if record['offset_only']:
+        out.append(f"accelerometer axes {', '.join(record['offset_only'])}: the change with "
+                   'temperature does not predict every held-out power cycle better than '
+                   'none: the part removes none there')
+    return out
 
 
 def _row(label: str, values: ArrayLike) -> str:
@@ -285,7 +317,7 @@ def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tupl
     dwarfs the scatter), summed in passes: no full copy of the force.
     """
     segs, lo, hi = [], math.inf, -math.inf
-    for r, d in usable:
+    for k, (r, d) in enumerate(usable):
         state = run_state(model.thermal, r)       # the gyro fit's, not computed again
         x = batch_features(ids, r.t, r.temp, t0=model.t0_c, params=par, state=state)
         lo = min(lo, float(np.min(state, where=d.mask, initial=np.inf)))
@@ -296,7 +328,7 @@ def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tupl
                 continue
             grid = BlockGrid(idx.size, block, take=idx)
             ya, within = grid.moments(r.accel, centred=True)
-            segs.append({'x': grid.mean(x), 'y': ya, 'n': grid.counts, 'within': within,
+            segs.append({'run': k, 'x': grid.mean(x), 'y': ya, 'n': grid.counts, 'within': within,
                          't': grid.mean(r.t), 'temp': grid.mean(r.temp),
                          'state': grid.mean(state)})
     return segs, (lo, hi)
@@ -324,7 +356,7 @@ def _sums_of_squares(segs: Sequence[dict], design, coef: NDArray[np.float64],
 def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
               features: str | Sequence[str] | None = None, kind: str | None = None,
               n_centers: int | None = None, ridge: float | str = 'auto', seed: int = 0,
-              max_rows: int = 20_000, bin_c: float = 5.0) -> AccelFit:
+              max_rows: int = 20_000, bin_c: float = 5.0, min_folds: int = 1) -> AccelFit:
     """
     Fit the accelerometer part of ``model`` on the still data of ``runs``.
 
@@ -332,9 +364,12 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     (gravity and the static offset), ``f`` the network of the features of the model's thermal
     state (``fit_linear`` with ``groups``), its intercept set so ``f`` is zero at T0 (dynamic
     terms settled). ``kind`` and ``n_centers`` default to the gyro model's; still data longer
-    than ``max_rows`` are block-averaged inside each segment. The gyro model does not judge
-    stillness (a model being judged would reject still data). The AccelFit says why there is
-    no part: no accelerometer data, no still data, too small a span, too few samples.
+    than ``max_rows`` are block-averaged inside each segment. As the gyro's curve, the change
+    is judged on each power cycle (run) held out (``check_sessions``, ``min_folds`` of them
+    at least): an axis where it does not predict better than none removes none. The gyro
+    model does not judge stillness (a model being judged would reject still data). The
+    AccelFit says why there is no part: no accelerometer data, no still data, too small a
+    span, too few samples, no axis that carries.
     """
     ids = accel_features(model, features)
     kind = model.kind if kind is None else kind
@@ -374,19 +409,23 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
                 'segment, a curve is told only within one' if widest is not None else '')
     if out.note:
         return out
-    lf = fit_linear(np.concatenate([sg['x'] for sg in segs]),
-                    np.concatenate([sg['y'] for sg in segs]), kind=kind, n_centers=n_centers,
-                    ridge=ridge, seed=seed, groups=groups)
+    x, y = (np.concatenate([sg[k] for sg in segs]) for k in ('x', 'y'))
+    lf = fit_linear(x, y, kind=kind, n_centers=n_centers, ridge=ridge, seed=seed, groups=groups)
+    lf, offsets, out.note = _carried(lf, segs, x, y, groups, out, kind=kind, n_centers=n_centers,
+                                     seed=seed, min_folds=min_folds)
+    if out.note:
+        return out
     coef = lf.coef.copy()
     coef[0] = -(lf.design(np.zeros((1, lf.mean.size)))[0][1:] @ coef[1:])  # zero at T0
     # c_g, the still force at T0: each segment's offset less the constant.
-    ss, ss_raw = _sums_of_squares(segs, lf.design, coef, lf.offsets - coef[0])
+    ss, ss_raw = _sums_of_squares(segs, lf.design, coef, offsets - coef[0])
     out.raw_bs, out.train_bs = ss_raw / n_static, ss / n_static
     metrics = {
         'samples': int(n_static), 'runs': [r.name for r, _ in usable], 'segments': len(segs),
         'raw_bs_m2_s4': out.raw_bs.tolist(), 'train_bs_m2_s4': out.train_bs.tolist(),
         'train_rms_mg': (np.sqrt(out.train_bs) / MG).tolist(),
-        'ridge': float(lf.ridge), 'orientation_changes': [c.to_dict() for c in out.changes]}
+        'ridge': float(lf.ridge), 'orientation_changes': [c.to_dict() for c in out.changes],
+        **({} if out.check is None else {'held_out': out.check})}
     part = CompensationModel.network(
         kind, ids, par, model.t0_c, lf.norm, coef, temp_range_c=span,
         residual_var=out.train_bs, frame_id=model.frame_id, sensor_id=model.sensor_id,
@@ -397,6 +436,36 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     except ModelFileError as exc:
         out.note = f'the part fitted is implausible, loading would refuse it ({exc})'
     return out
+
+
+def _carried(lf, segs: Sequence[dict], x: NDArray[np.float64], y: NDArray[np.float64],
+             groups: NDArray[np.int64], out: AccelFit, *, kind: str, n_centers: int, seed: int,
+             min_folds: int) -> tuple:
+    """
+    Judge the change on each power cycle held out, as the gyro's curve; return the fit.
+
+    Each held-out orientation segment is re-anchored (``check_sessions`` with the runs as
+    ``units``); with one power cycle nothing is held out, and a curve of stops
+    (``min_folds`` >= MIN_FOLDS) then needs a segment of SLOW_CURVE_S spanning
+    MIN_SESSION_SPAN_C. Returns the fit, the segments' offsets and why no part ('' : one).
+    """
+    units = np.concatenate([np.full(sg['n'].size, sg['run']) for sg in segs])
+    if np.unique(units).size < 2:
+        slow = any(np.ptp(sg['state']) >= MIN_SESSION_SPAN_C and np.ptp(sg['t']) >= SLOW_CURVE_S
+                   for sg in segs)
+        return lf, lf.offsets, '' if slow or min_folds < MIN_FOLDS else (
+            f'one power cycle of stops, and no still segment of {SLOW_CURVE_S / 60:g} min or '
+            f'more spans {MIN_SESSION_SPAN_C:g} degC of its own: no held-out power cycle can '
+            'tell whether the change carries to the next')
+    n, state = (np.concatenate([sg[k] for sg in segs]) for k in ('n', 'state'))
+    lf, offsets, check = check_sessions(lf, lf.offsets, x, y, None, groups,
+                                        n.astype(np.float64), state, kind=kind,
+                                        n_centers=n_centers, seed=seed, units=units,
+                                        min_folds=min_folds)
+    out.check = _in_mg2(check)
+    return lf, offsets, ('the change with temperature does not predict a held-out power cycle '
+                         'better than none on any axis'
+                         if check is not None and len(check['offset_only']) == 3 else '')
 
 
 def compensate_accel(model: CompensationModel, t: ArrayLike, temp: ArrayLike,

@@ -56,18 +56,22 @@ from numpy.typing import NDArray
 
 __all__ = ['check_offsets', 'check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_FOLDS',
            'offset_check_lines', 'reanchor_lines', 'reanchor_rule', 'session_check_lines',
-           'SIGNIFICANCE']
+           'SIGNIFICANCE', 'SLOW_CURVE_S']
 
 #: Fewest held-out power cycles that judge a curve of several stops (still-only training):
 #: one that agrees is no evidence that the curve carries to the next.
 MIN_FOLDS = 2
+#: With one power cycle, a still stretch tells the curve on its own only if it lasts this
+#: long (s) as well as spanning ``MIN_SESSION_SPAN_C``: a slow warm, not the power-on minutes.
+SLOW_CURVE_S = 300.0
 
 
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
                    y: NDArray[np.float64], scale_cols: NDArray[np.float64] | None,
                    groups: NDArray[np.int64], counts: NDArray[np.float64],
                    temp: NDArray[np.float64], *, kind: str, n_centers: int, seed: int,
-                   min_folds: int = 1) -> tuple[LinearFit, NDArray[np.float64], dict | None]:
+                   min_folds: int = 1, units: NDArray[np.int64] | None = None
+                   ) -> tuple[LinearFit, NDArray[np.float64], dict | None]:
     """
     Validate the curve on held-out sessions (:func:`~gyro_tdc.signal.judge_curve`).
 
@@ -79,12 +83,15 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     (the curve kept unchecked unless no session spans :data:`MIN_SESSION_SPAN_C`,
     ``widest_span_c``), and with fewer than ``min_folds`` (still-only training:
     :data:`MIN_FOLDS`) every axis offset only (``min_folds``); None without a curve.
+    ``units`` (default ``groups``) is the power cycle of each row where one holds several
+    offsets (the accelerometer's orientation segments): a fold holds out a power cycle.
     """
     if not x.shape[1]:                          # no curve: nothing to judge
         return fit, offsets, None
-    folds = Folds.sessions(groups, temp)
+    units = groups if units is None else units
+    folds = Folds.sessions(units, temp)
     if len(folds) < max(min_folds, 1):          # too few power cycles judge it
-        record = {'folds': len(folds), 'sessions': int(np.unique(groups).size),
+        record = {'folds': len(folds), 'sessions': int(np.unique(units).size),
                   'offset_only': []}
         if (widest := curve_untold(temp, groups)) is not None:
             record['widest_span_c'] = widest

@@ -44,7 +44,7 @@ from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, ident
 from gyro_tdc.identify.discover.results import DiscoveryResult
 from gyro_tdc.identify.discover.search import discover
 from gyro_tdc.identify.fit import check_choices, estimate_t0, fit_model, FitOptions, span
-from gyro_tdc.identify.power_cycles import MIN_FOLDS, reanchor_rule
+from gyro_tdc.identify.power_cycles import MIN_FOLDS, reanchor_rule, SLOW_CURVE_S
 from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, find_still, fit_without_outliers,
                                           MAX_MOVING_SHARE, MIN_STILL_SPAN_C, rows_of,
                                           still_report, Stretch, unreferenced_motion)
@@ -67,9 +67,6 @@ AUTO = 'auto'
 AUTO_BASE: tuple[str, ...] = ('dT', 'dT2')
 #: Sample rate (Hz) the feature search of ``auto`` runs at: faster runs are averaged down.
 SEARCH_RATE_HZ = 20.0
-#: With one power cycle, a still stretch tells the curve on its own only if it lasts this
-#: long (s) as well as spanning ``MIN_SESSION_SPAN_C``: a slow warm, not the power-on minutes.
-SLOW_CURVE_S = 300.0
 
 
 @dataclass(frozen=True)
@@ -355,10 +352,10 @@ def _features(o: TrainOptions, on: Sequence[Run], runs: Sequence[Run], t0: float
 
 
 def _finish(model, o: TrainOptions, out: str | os.PathLike, accel_runs: Sequence[Run], choice,
-            metrics: dict, **result) -> TrainResult:
+            metrics: dict, min_folds: int = 1, **result) -> TrainResult:
     """Add the accelerometer part and the training records, save, return the result."""
-    accel_fit = (fit_accel(accel_runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c)
-                 if o.accel else None)
+    accel_fit = (fit_accel(accel_runs, model, n_centers=o.n_centers, seed=o.seed, bin_c=o.bin_c,
+                           min_folds=min_folds) if o.accel else None)
     if choice is not None:
         metrics = {**metrics, 'features': choice.to_dict()}
     model = model.replace(accel=None if accel_fit is None else accel_fit.part,
@@ -568,7 +565,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                  for (i, a, b), drop, mu in zip(spans, bad, means)]
     report = still_report(whole_runs, whole_rows, stretches, bin_c=o.bin_c,
                           motion_topic=bag.motion_topic, rejected=rejected)
-    return _finish(model, o, out, runs, choice, {'still': report.to_dict()},
+    return _finish(model, o, out, runs, choice, {'still': report.to_dict()}, MIN_FOLDS,
                    coverage=report.coverage, bags=bags,
                    samples=int(sum(np.count_nonzero(m) for m in rows)), still=report,
                    sessions=split, constant=constant_readings(raw_runs, const))

@@ -30,6 +30,7 @@ from gyro_tdc.errors import FeatureError, FitError, ModelFileError
 from gyro_tdc.identify import (accel_features, accel_scores, compensate_accel, discovery_runs,
                                fit_accel, fit_linear, fit_model, fit_px4_cubic, MG, PX4_FEATURES,
                                static_bs, static_data)
+from gyro_tdc.identify.power_cycles import MIN_FOLDS, SLOW_CURVE_S
 from gyro_tdc.model.compensation import drift, StreamingCompensator
 from gyro_tdc.model.modelfile import load_model, model_from_dict, model_to_dict, save_model
 from gyro_tdc.model.thermal_state import ThermalState
@@ -323,3 +324,54 @@ def test_an_implausible_part_is_left_out_and_said(chamber, monkeypatch):
     assert fit.part is None
     assert fit.note.startswith('the part fitted is implausible, loading would refuse it '
                                '(field `accel`: ')
+
+
+def _with_z_slope(run: Run, slope: float, name: str) -> Run:
+    """Return ``run`` with a z change of ``slope`` (m/s^2 per degC) of its own power cycle."""
+    acc = np.array(run.accel, dtype=np.float64)
+    acc[:, 2] += slope * (run.temp - run.temp.mean())
+    return replace(run, accel=acc, name=name)
+
+
+def test_the_change_is_judged_on_held_out_power_cycles(chamber):
+    """As the gyro's curve: an axis whose change does not carry to another power cycle is off."""
+    gyro, (a, b) = chamber['gyro'], chamber['runs']
+    carried = fit_accel([a, b], gyro)
+    check = carried.part.metrics['held_out']
+    assert check['folds'] == 2 and check['offset_only'] == []
+    assert np.all(np.array(check['curve_ms_mg2']) < np.array(check['offset_ms_mg2']))
+    # z's change differs from one power cycle to the next (each its own slope): not carried.
+    slope = 20.0 * MG
+    fit = fit_accel([_with_z_slope(a, slope, 'a'), _with_z_slope(b, -slope, 'b')], gyro)
+    check = fit.part.metrics['held_out']
+    assert check['offset_only'] == ['z'] and check['worse_folds'][2] == 2
+    temp = np.linspace(-10.0, 50.0, 61)               # slowly: the thermal state follows
+    change = compensate_accel(gyro.replace(accel=fit.part), 3600.0 * np.arange(61.0), temp,
+                              np.zeros((61, 3)))
+    assert np.all(change[:, 2] == 0.0) and np.ptp(change[:, :2], axis=0).min() > MG
+    lines = fit.lines()
+    assert any(line.startswith('accelerometer: the change with temperature held out on each '
+                               'power cycle (2 sessions') for line in lines)
+    assert 'accelerometer axes z: the change with temperature does not predict every ' \
+           'held-out power cycle better than none: the part removes none there' in lines
+    # Every axis so: no part, said.
+    acc = [np.array(r.accel) for r in (a, b)]
+    for k, s in enumerate((slope, -slope)):
+        acc[k] += s * (np.array((a, b)[k].temp) - (a, b)[k].temp.mean())[:, None] * [1, 1, 1]
+    none = fit_accel([replace(r, accel=x) for r, x in zip((a, b), acc)], gyro)
+    assert none.part is None and none.note.startswith('the change with temperature does not '
+                                                      'predict a held-out power cycle')
+    assert none.check['offset_only'] == ['x', 'y', 'z']
+
+
+def test_one_power_cycle_of_stops_needs_a_slow_segment(chamber):
+    """Still-only training (MIN_FOLDS): one power cycle's change rests on a slow segment."""
+    run = chamber['runs'][0]
+    lo = float(run.temp.min())
+    short = _slice(run, lo + 5.0, lo + 8.0, 'short')
+    assert np.ptp(short.t) < SLOW_CURVE_S and np.ptp(short.temp) > 2.5
+    assert fit_accel([short], chamber['gyro']).part is not None         # default train
+    fit = fit_accel([short], chamber['gyro'], min_folds=MIN_FOLDS)
+    assert fit.part is None and fit.note.startswith('one power cycle of stops, and no still '
+                                                    'segment of 5 min or more spans 2 degC')
+    assert fit_accel([run], chamber['gyro'], min_folds=MIN_FOLDS).part is not None
