@@ -356,7 +356,8 @@ def _sums_of_squares(segs: Sequence[dict], design, coef: NDArray[np.float64],
 def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
               features: str | Sequence[str] | None = None, kind: str | None = None,
               n_centers: int | None = None, ridge: float | str = 'auto', seed: int = 0,
-              max_rows: int = 20_000, bin_c: float = 5.0, min_folds: int = 1) -> AccelFit:
+              max_rows: int = 20_000, bin_c: float = 5.0, min_folds: int = 1,
+              judge: bool = True) -> AccelFit:
     """
     Fit the accelerometer part of ``model`` on the still data of ``runs``.
 
@@ -366,7 +367,8 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     terms settled). ``kind`` and ``n_centers`` default to the gyro model's; still data longer
     than ``max_rows`` are block-averaged inside each segment. As the gyro's curve, the change
     is judged on each power cycle (run) held out (``check_sessions``, ``min_folds`` of them
-    at least): an axis where it does not predict better than none removes none. The gyro
+    at least; ``judge`` False: unchecked, as the PX4-style baseline is fitted): an axis where
+    it does not predict better than none removes none. The gyro
     model does not judge stillness (a model being judged would reject still data). The
     AccelFit says why there is no part: no accelerometer data, no still data, too small a
     span, too few samples, no axis that carries.
@@ -412,7 +414,8 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     x, y = (np.concatenate([sg[k] for sg in segs]) for k in ('x', 'y'))
     lf = fit_linear(x, y, kind=kind, n_centers=n_centers, ridge=ridge, seed=seed, groups=groups)
     lf, offsets, out.note = _carried(lf, segs, x, y, groups, out, kind=kind, n_centers=n_centers,
-                                     seed=seed, min_folds=min_folds)
+                                     seed=seed, min_folds=min_folds) if judge else (
+        lf, lf.offsets, '')
     if out.note:
         return out
     coef = lf.coef.copy()

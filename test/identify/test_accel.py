@@ -31,6 +31,7 @@ from gyro_tdc.identify import (accel_features, accel_scores, compensate_accel, d
                                fit_accel, fit_linear, fit_model, fit_px4_cubic, MG, PX4_FEATURES,
                                static_bs, static_data)
 from gyro_tdc.identify.power_cycles import MIN_FOLDS, SLOW_CURVE_S
+from gyro_tdc.model import static_slope
 from gyro_tdc.model.compensation import drift, StreamingCompensator
 from gyro_tdc.model.modelfile import load_model, model_from_dict, model_to_dict, save_model
 from gyro_tdc.model.thermal_state import ThermalState
@@ -345,6 +346,10 @@ def test_the_change_is_judged_on_held_out_power_cycles(chamber):
     fit = fit_accel([_with_z_slope(a, slope, 'a'), _with_z_slope(b, -slope, 'b')], gyro)
     check = fit.part.metrics['held_out']
     assert check['offset_only'] == ['z'] and check['worse_folds'][2] == 2
+    # Unjudged (the PX4-style baseline, fitted as PX4 fits it): z's change is kept.
+    px4 = fit_accel([_with_z_slope(a, slope, 'a'), _with_z_slope(b, -slope, 'b')], gyro,
+                    judge=False).part
+    assert 'held_out' not in px4.metrics and static_slope(px4)[2] != 0.0
     temp = np.linspace(-10.0, 50.0, 61)               # slowly: the thermal state follows
     change = compensate_accel(gyro.replace(accel=fit.part), 3600.0 * np.arange(61.0), temp,
                               np.zeros((61, 3)))
