@@ -31,6 +31,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
                'MAX_TEMP_LEAD_S', 'MAX_TEMP_RATE_C_S', 'MAX_TEMP_SLEW_C_S', 'RESTART_BACK_S',
                'SESSION_GAP_PERIODS', 'SESSION_GAP_S', 'TEMP_PLAUSIBLE_C', 'TEMP_SLEW_MARGIN_C'],
     'plain': ['plain'],
+    'preload': ['need', 'start_imports'],
     'plausible': ['plausible_temperatures', 'temperature_ok', 'TemperatureGate'],
     'paramspec': ['format_help', 'help_requested', 'INPUT_FRAMES', 'ParamSpec', 'spec_dataclass',
                   'TEMPERATURE_QUIRKS'],

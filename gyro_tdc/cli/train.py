@@ -24,12 +24,10 @@ choice of features, the training report and the coverage; bad input exits 2 with
 from __future__ import annotations
 
 import argparse
-import importlib
 import math
-import threading
 from typing import Optional, Sequence
 
-from gyro_tdc.base import atomic_json, DEG_PER_RAD, plain
+from gyro_tdc.base import atomic_json, DEG_PER_RAD, plain, start_imports
 from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
                                  ArgumentParser, bag_options, command_line, driver_bags,
@@ -153,21 +151,6 @@ def _lines(part: object) -> list:
     return [] if part is None else part.lines()
 
 
-def _import_scipy() -> None:
-    """
-    Import the scipy modules the fit uses, in a thread, while the bags are read.
-
-    Most of the start-up is scipy's import; the read mostly waits on the storage (no
-    interpreter lock), so this thread takes it off the trainer's path. A fit that needs a
-    module first waits for it here; a failure is the fit's own import to report.
-    """
-    for name in ('scipy.special', 'scipy.optimize', 'scipy.cluster.vq'):
-        try:
-            importlib.import_module(name)
-        except Exception:   # noqa: B902 (raised again where the fit imports it)
-            return
-
-
 def _run(args: argparse.Namespace, argv: list) -> int:
     """Run ``train`` with parsed arguments; print the report."""
     # Checked before any bag is read: a bad feature id fails at once.
@@ -177,7 +160,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     bag = bag_options(args, motion_topic=args.motion_topic)
     args.bags = driver_bags(args, args.bags)       # a driver's own types, read by field
     fit = train_still_only if args.still_only else train     # still: no reference is read
-    threading.Thread(target=_import_scipy, name='gyro_tdc scipy import', daemon=True).start()
+    # Most of the start-up is scipy's import; the read mostly waits on the storage.
+    start_imports(('scipy.special', 'scipy.optimize', 'scipy.cluster.vq'))
     result = fit(args.bags, args.out, options, bag, command=command_line('train', argv),
                  log=lambda line: print(line, flush=True))
     text, warns = format_training(result)

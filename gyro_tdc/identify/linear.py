@@ -26,6 +26,7 @@ from dataclasses import dataclass, replace
 import math
 import warnings
 
+from gyro_tdc.base import need
 from gyro_tdc.model import rbf_design
 from gyro_tdc.signal import fit_columns, Folds, solve_normal, within
 import numpy as np
@@ -43,7 +44,7 @@ def _place_centers(xn: NDArray[np.float64], k: int, seed: int
     k = min(k, np.unique(np.round(xn, 9), axis=0).shape[0])
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
-        from scipy.cluster.vq import kmeans2    # a costly import: only k-means needs it
+        kmeans2 = need('scipy.cluster.vq').kmeans2     # a costly import: only k-means
         centers, _ = kmeans2(xn, k, seed=rng, minit='++')
     centers = np.unique(centers, axis=0)
     k = centers.shape[0]
@@ -217,7 +218,7 @@ def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
                scale_cols: NDArray[np.float64] | None, fit: LinearFit, *, ridge: float,
                seed: int, max_rows: int = 2000) -> LinearFit:
     """Refine centres and widths by nonlinear least squares (variable projection)."""
-    from scipy.optimize import least_squares     # a costly import, for --refine only
+    least_squares = need('scipy.optimize').least_squares     # a costly import: --refine only
 
     k, f = fit.centers.shape
     if k == 0:

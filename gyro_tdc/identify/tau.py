@@ -32,7 +32,7 @@ import math
 from typing import Callable, Mapping, Sequence
 import weakref
 
-from gyro_tdc.base import plain
+from gyro_tdc.base import need, plain
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit
@@ -86,8 +86,7 @@ def fit_time_constant(sse: Callable[[float], float], bounds: tuple[float, float]
     a, b = grid[max(i - 1, 0)], grid[min(i + 1, grid.size - 1)]
     best, best_sse = grid[i], float(vals[i])
     if b > a:
-        from scipy.optimize import minimize_scalar   # imported while the bags are read
-
+        minimize_scalar = need('scipy.optimize').minimize_scalar
         res = minimize_scalar(objective, bounds=(a, b), method='bounded', options={'xatol': xatol})
         if res.fun <= vals[i]:
             best, best_sse = res.x, float(res.fun)
@@ -389,8 +388,7 @@ class ParamSearch:
             if lo >= hi:
                 w = lo if i == 0 else hi
             else:
-                from scipy.optimize import minimize_scalar
-
+                minimize_scalar = need('scipy.optimize').minimize_scalar
                 w = math.exp(minimize_scalar(
                     lambda u: float(self.sse(pair(v, math.exp(u)), par).sum()),
                     bounds=(math.log(lo), math.log(hi)), method='bounded',

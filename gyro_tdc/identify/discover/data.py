@@ -30,7 +30,7 @@ import math
 from typing import Callable, Mapping, Sequence
 import warnings
 
-from gyro_tdc.base import DEG_PER_RAD as DEG
+from gyro_tdc.base import DEG_PER_RAD as DEG, need
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.discover.results import Unidentifiable
@@ -465,8 +465,7 @@ def hac_pvalue(model: LinearModel, cand: Sequence[int], lags: Sequence[int]) -> 
     long bandwidth leaves few independent pieces of information, so the test does not
     pretend to more).
     """
-    from scipy.special import fdtrc     # imported while the bags are read (cli.train)
-
+    fdtrc = need('scipy.special').fdtrc     # imported while the bags are read (cli.train)
     d = model.data
     ps = []
     for a in range(3):
