@@ -466,9 +466,14 @@ def _carried(lf, segs: Sequence[dict], x: NDArray[np.float64], y: NDArray[np.flo
                                         n_centers=n_centers, seed=seed, units=units,
                                         min_folds=min_folds)
     out.check = _in_mg2(check)
-    return lf, offsets, ('the change with temperature does not predict a held-out power cycle '
-                         'better than none on any axis'
-                         if check is not None and len(check['offset_only']) == 3 else '')
+    if check is None or len(check['offset_only']) < 3:
+        return lf, offsets, ''
+    if 'worse_folds' in check:
+        return lf, offsets, ('the change with temperature does not predict every held-out power '
+                             'cycle better than none on any axis')
+    return lf, offsets, (f"judged on {check['folds']} held-out power cycle(s) of "
+                         f"{check['sessions']} only: fewer than {min_folds} cannot tell "
+                         'whether a change of stops carries to the next power cycle')
 
 
 def compensate_accel(model: CompensationModel, t: ArrayLike, temp: ArrayLike,
