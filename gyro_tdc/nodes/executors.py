@@ -26,6 +26,8 @@ from __future__ import annotations
 
 import contextlib
 import gc
+import os
+import re
 import signal
 import sys
 import threading
@@ -221,13 +223,27 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, *,
     start-up abandons the node being built, also where an import or a constructor wrapped
     the stop in an error of its own (an extension module's "initialization failed"). A
     configuration error (every :data:`STARTUP_ERRORS`) prints ``NAME: error: ...`` on
-    stderr and returns 2, no traceback. ``executor`` is a kind for :func:`make_executor` or
+    stderr and returns 2, no traceback; so does a command line rcl refuses (a params file it
+    cannot read). ``executor`` is a kind for :func:`make_executor` or
     a function of the node returning one; ``freeze_heap`` calls ``gc.freeze()`` after
     start-up so the collector's full passes do not stall callbacks.
     """
+    argv = sys.argv if args is None else args
+    for flag, path in zip(argv, argv[1:]):
+        if flag == '--params-file' and not os.access(path, os.R_OK):
+            # Said before rcl, which would log its own line and raise.
+            print(f'{name}: error: cannot read the params file {path!r} (--params-file)',
+                  file=sys.stderr)
+            return 2
     stop = StopSignals()
     own = stop.install()
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if own else None)
+    try:
+        rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO if own else None)
+    except RuntimeError as exc:     # rcl refused the command line: a params file, a remap
+        stop.restore()
+        text = re.sub(r', at \S+:\d+', '', one_line(exc))     # rcl's source locations
+        print(f'{name}: error: cannot start: {text}', file=sys.stderr)
+        return 2
     with quiet_abandoned(stop):
         node = ex = None
         try:

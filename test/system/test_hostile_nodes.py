@@ -585,6 +585,26 @@ def test_diagnostics_name_the_stale_temperature_under_passthrough(models, rig_fa
     assert v['temperature stale'] == 'True' and int(v['stale']) > 0
 
 
+@pytest.mark.parametrize('module', [NODE, 'gyro_tdc.nodes.driver_node'])
+@pytest.mark.parametrize('content', [None, 'a: [unclosed\n'])
+def test_a_params_file_that_cannot_be_used_is_named_without_traceback(module, content, tmp_path):
+    """A missing params file: one line, exit 2; one rcl cannot parse: rcl's log, ours."""
+    bad = tmp_path / 'params.yaml'
+    if content is not None:
+        bad.write_text(content)
+    done = subprocess.run([sys.executable, '-m', module, '--ros-args', '--params-file',
+                           str(bad)], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2
+    assert 'Traceback' not in done.stderr + done.stdout
+    errors = [x for x in done.stderr.splitlines() if x.strip()]
+    ours = [x for x in errors if ': error: ' in x]
+    assert len(ours) == 1 and str(bad) in ours[0] and 'parser.c' not in ours[0], done.stderr
+    if content is None:
+        assert errors == ours and 'cannot read the params file' in ours[0]
+    else:           # rcl logs its own line first: the file's parse error is its to say
+        assert 'cannot start: ' in ours[0] and all('[rcl]' in x for x in errors if x not in ours)
+
+
 @pytest.mark.parametrize('module,arg,name', [
     (NODE, 'out_of_range:=bogus', 'out_of_range'),
     (NODE, 'queue_depth:=abc', 'queue_depth'),
