@@ -29,13 +29,13 @@ from dataclasses import dataclass, field
 import math
 from typing import Sequence
 
-from gyro_tdc.base import DEG2_PER_RAD2, G0, MG, plain, RAD_PER_DEG
+from gyro_tdc.base import G0, MG, plain, RAD_PER_DEG
 from gyro_tdc.data import Coverage, coverage, Run
 from gyro_tdc.errors import FeatureError, FitError, ModelFileError
 from gyro_tdc.identify.axes import constant_note
 from gyro_tdc.identify.fit import check_choices, MIN_SAMPLES, MIN_SPAN_C
 from gyro_tdc.identify.linear import fit_linear
-from gyro_tdc.identify.power_cycles import check_sessions, MIN_FOLDS, SLOW_CURVE_S
+from gyro_tdc.identify.power_cycles import check_sessions, MIN_FOLDS, SLOW_CURVE_S, told_alone
 from gyro_tdc.identify.tau import run_state
 from gyro_tdc.model import (batch_features, check_accel, compensate, CompensationModel,
                             DEFAULT_OUT_OF_RANGE, MAX_EXTRAPOLATION_C, normalise_ids,
@@ -243,7 +243,7 @@ class AccelFit:
     train_bs: NDArray[np.float64] | None = None
     samples: int = 0
     total: int = 0
-    #: The held-out check across power cycles (:func:`_in_mg2` of ``check_sessions``'s).
+    #: The held-out check across power cycles (``check_sessions``'s record, in mg^2).
     check: dict | None = None
 
     @property
@@ -273,17 +273,6 @@ class AccelFit:
                 _row('change/degC', static_slope(p) / MG)
                 + '   (mg per degC: static change, mean slope over the range)'
                 ] + _check_lines(self.check) + changes
-
-
-def _in_mg2(record: dict | None) -> dict | None:
-    """Return a session check's record with its mean squares in mg^2 (None: none)."""
-    if record is None or 'curve_ms_dps2' not in record:
-        return record
-    out = {k: v for k, v in record.items() if not k.endswith('_dps2')}
-    for key in ('curve', 'offset'):
-        out[f'{key}_ms_mg2'] = (np.asarray(record[f'{key}_ms_dps2'])
-                                / (DEG2_PER_RAD2 * MG ** 2)).tolist()
-    return out
 
 
 def _check_lines(record: dict | None) -> list[str]:
@@ -413,9 +402,9 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
         return out
     x, y = (np.concatenate([sg[k] for sg in segs]) for k in ('x', 'y'))
     lf = fit_linear(x, y, kind=kind, n_centers=n_centers, ridge=ridge, seed=seed, groups=groups)
-    lf, offsets, out.note = _carried(lf, segs, x, y, groups, out, kind=kind, n_centers=n_centers,
-                                     seed=seed, min_folds=min_folds) if judge else (
-        lf, lf.offsets, '')
+    lf, offsets, out.check, out.note = _carried(
+        lf, segs, x, y, groups, kind=kind, n_centers=n_centers, seed=seed,
+        min_folds=min_folds) if judge else (lf, lf.offsets, None, '')
     if out.note:
         return out
     coef = lf.coef.copy()
@@ -442,7 +431,7 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
 
 
 def _carried(lf, segs: Sequence[dict], x: NDArray[np.float64], y: NDArray[np.float64],
-             groups: NDArray[np.int64], out: AccelFit, *, kind: str, n_centers: int, seed: int,
+             groups: NDArray[np.int64], *, kind: str, n_centers: int, seed: int,
              min_folds: int) -> tuple:
     """
     Judge the change on each power cycle held out, as the gyro's curve; return the fit.
@@ -450,13 +439,13 @@ def _carried(lf, segs: Sequence[dict], x: NDArray[np.float64], y: NDArray[np.flo
     Each held-out orientation segment is re-anchored (``check_sessions`` with the runs as
     ``units``); with one power cycle nothing is held out, and a curve of stops
     (``min_folds`` >= MIN_FOLDS) then needs a segment of SLOW_CURVE_S spanning
-    MIN_SESSION_SPAN_C. Returns the fit, the segments' offsets and why no part ('' : one).
+    MIN_SESSION_SPAN_C. Returns the fit, the segments' offsets, the check's record (mg^2;
+    None: none) and why no part ('': one).
     """
     units = np.concatenate([np.full(sg['n'].size, sg['run']) for sg in segs])
     if np.unique(units).size < 2:
-        slow = any(np.ptp(sg['state']) >= MIN_SESSION_SPAN_C and np.ptp(sg['t']) >= SLOW_CURVE_S
-                   for sg in segs)
-        return lf, lf.offsets, '' if slow or min_folds < MIN_FOLDS else (
+        slow = told_alone([(np.ptp(sg['state']), np.ptp(sg['t'])) for sg in segs])
+        return lf, lf.offsets, None, '' if slow or min_folds < MIN_FOLDS else (
             f'one power cycle of stops, and no still segment of {SLOW_CURVE_S / 60:g} min or '
             f'more spans {MIN_SESSION_SPAN_C:g} degC of its own: no held-out power cycle can '
             'tell whether the change carries to the next')
@@ -464,16 +453,15 @@ def _carried(lf, segs: Sequence[dict], x: NDArray[np.float64], y: NDArray[np.flo
     lf, offsets, check = check_sessions(lf, lf.offsets, x, y, None, groups,
                                         n.astype(np.float64), state, kind=kind,
                                         n_centers=n_centers, seed=seed, units=units,
-                                        min_folds=min_folds)
-    out.check = _in_mg2(check)
+                                        min_folds=min_folds, unit=('mg2', 1.0 / MG ** 2))
     if check is None or len(check['offset_only']) < 3:
-        return lf, offsets, ''
-    if 'worse_folds' in check:
-        return lf, offsets, ('the change with temperature does not predict every held-out power '
-                             'cycle better than none on any axis')
-    return lf, offsets, (f"judged on {check['folds']} held-out power cycle(s) of "
-                         f"{check['sessions']} only: fewer than {min_folds} cannot tell "
-                         'whether a change of stops carries to the next power cycle')
+        return lf, offsets, check, ''
+    why = ('the change with temperature does not predict every held-out power cycle better '
+           'than none on any axis' if 'worse_folds' in check else
+           f"judged on {check['folds']} held-out power cycle(s) of {check['sessions']} only: "
+           f'fewer than {min_folds} cannot tell whether a change of stops carries to the next '
+           'power cycle')
+    return lf, offsets, check, why
 
 
 def compensate_accel(model: CompensationModel, t: ArrayLike, temp: ArrayLike,

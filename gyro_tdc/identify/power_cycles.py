@@ -56,7 +56,7 @@ from numpy.typing import NDArray
 
 __all__ = ['check_offsets', 'check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_FOLDS',
            'offset_check_lines', 'reanchor_lines', 'reanchor_rule', 'session_check_lines',
-           'SIGNIFICANCE', 'SLOW_CURVE_S']
+           'SIGNIFICANCE', 'SLOW_CURVE_S', 'told_alone']
 
 #: Fewest held-out power cycles that judge a curve of several stops (still-only training):
 #: one that agrees is no evidence that the curve carries to the next.
@@ -66,11 +66,17 @@ MIN_FOLDS = 2
 SLOW_CURVE_S = 300.0
 
 
+def told_alone(told: Sequence[tuple[float, float]]) -> bool:
+    """Return whether one power cycle's still stretches (span degC, duration s) tell a curve."""
+    return any(c >= MIN_SESSION_SPAN_C and s >= SLOW_CURVE_S for c, s in told)
+
+
 def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.float64],
                    y: NDArray[np.float64], scale_cols: NDArray[np.float64] | None,
                    groups: NDArray[np.int64], counts: NDArray[np.float64],
                    temp: NDArray[np.float64], *, kind: str, n_centers: int, seed: int,
-                   min_folds: int = 1, units: NDArray[np.int64] | None = None
+                   min_folds: int = 1, units: NDArray[np.int64] | None = None,
+                   unit: tuple[str, float] = ('dps2', DEG2_PER_RAD2)
                    ) -> tuple[LinearFit, NDArray[np.float64], dict | None]:
     """
     Validate the curve on held-out sessions (:func:`~gyro_tdc.signal.judge_curve`).
@@ -85,6 +91,7 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     :data:`MIN_FOLDS`) every axis offset only (``min_folds``); None without a curve.
     ``units`` (default ``groups``) is the power cycle of each row where one holds several
     offsets (the accelerometer's orientation segments): a fold holds out a power cycle.
+    ``unit`` names the mean squares' unit in the record's keys and scales them to it.
     """
     if not x.shape[1]:                          # no curve: nothing to judge
         return fit, offsets, None
@@ -113,8 +120,8 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     v = judge_curve(r_curve, r_offset, folds, counts)
     drop = np.flatnonzero(v.drop)
     record = {'folds': len(folds), 'blocks': v.rows,
-              'curve_ms_dps2': (v.ms_curve * DEG2_PER_RAD2).tolist(),
-              'offset_ms_dps2': (v.ms_offset * DEG2_PER_RAD2).tolist(),
+              f'curve_ms_{unit[0]}': (v.ms_curve * unit[1]).tolist(),
+              f'offset_ms_{unit[0]}': (v.ms_offset * unit[1]).tolist(),
               'worse_folds': v.worse_folds.tolist(),
               'gain_t': [float(t) if np.isfinite(t) else None for t in v.gain_t],
               'offset_only': [AXES[a] for a in drop]}

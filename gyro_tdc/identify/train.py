@@ -44,7 +44,7 @@ from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, ident
 from gyro_tdc.identify.discover.results import DiscoveryResult
 from gyro_tdc.identify.discover.search import discover
 from gyro_tdc.identify.fit import check_choices, estimate_t0, fit_model, FitOptions, span
-from gyro_tdc.identify.power_cycles import MIN_FOLDS, reanchor_rule, SLOW_CURVE_S
+from gyro_tdc.identify.power_cycles import MIN_FOLDS, reanchor_rule, SLOW_CURVE_S, told_alone
 from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, find_still, fit_without_outliers,
                                           MAX_MOVING_SHARE, MIN_STILL_SPAN_C, rows_of,
                                           still_report, Stretch, unreferenced_motion)
@@ -468,7 +468,7 @@ def _one_power_cycle(runs: Sequence[Run], spans: Sequence[tuple[int, int, int]],
         return fo, choice
     told = [(float(np.ptp(block_mean(runs[i].temp[a:b], max(1, (b - a) // 4), partial=False))),
              float(runs[i].t[b - 1] - runs[i].t[a])) for i, a, b in spans]
-    if any(c >= MIN_SESSION_SPAN_C and s >= SLOW_CURVE_S for c, s in told):
+    if told_alone(told):
         return fo, choice
     widest, lasting = max(told)
     return _drop_curve(
