@@ -266,7 +266,8 @@ class Learner:
         if self.last_save_t is None:
             self.last_save_t = self.last_t
             return False
-        return self.last_t - self.last_save_t >= self.config.save_period_s
+        # Stamps that stepped back (the IMU's clock restarted) make a save due.
+        return not -RESTART_BACK_S <= self.last_t - self.last_save_t < self.config.save_period_s
 
     def saved(self) -> None:
         """Note that the state was saved now (by stamp)."""
@@ -339,7 +340,15 @@ class Learner:
         if why:
             # A new session (power-up): its own turn-on offset, learned apart; what it
             # closes was computable at its first sample.
-            swapped = self.flush(float(t[0]))
+            n, t0 = len(self._swaps), float(t[0])
+            swapped = self.flush(t0)
+            # Nothing not handed over yet carries the new session's offset; after stamps that
+            # stepped back (the IMU's clock restarted) one due by the old clock is due now.
+            if gap < 0:
+                self._swaps[:n] = [(None if due is None else min(due, t0), m)
+                                   for due, m in self._swaps[:n]]
+            for _, m in self._swaps:
+                m.created['offset_until'] = None
             self.sessions.start(float(t[0]), why, gap=gap)
             self._fresh = True            # its offset from its first still windows
             self.still.restart()          # the window grid starts again

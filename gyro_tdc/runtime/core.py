@@ -197,7 +197,8 @@ class CompensatorCore:
         self.slot = ModelSlot(model_id=self.slot.model_id)
         self._update_needs()
 
-    def install(self, prepared: PreparedModel, learned: bool = False) -> None:
+    def install(self, prepared: PreparedModel, learned: bool = False, *,
+                older_clock: bool = False) -> None:
         """
         Swap in a model made ready by :func:`prepare` (call it on the thread that compensates).
 
@@ -210,6 +211,9 @@ class CompensatorCore:
             The model and its primed streaming state.
         learned : bool
             The model is the attached learner's.
+        older_clock : bool
+            It was learned before the IMU's stamps stepped back (a restart): its offset is
+            never this session's, whatever its stamps say.
 
         """
         if not prepared_for(prepared, self.policy):   # read before a policy change
@@ -221,7 +225,8 @@ class CompensatorCore:
         self.reanchoring.on_install(
             comp, model, old.model is not None and prepared.model_id == old.model_id, learned,
             learned and old.learned,
-            reanchor_var(model, self.learning) if learned else model.residual_var)
+            reanchor_var(model, self.learning) if learned else model.residual_var,
+            older_clock=older_clock)
         self.slot = ModelSlot(model, prepared.model_id, comp, prepared.var, prepared.scale,
                               prepared.static, {},
                               accel_slot(model, comp, prepared.static, self.policy), learned,
@@ -484,6 +489,8 @@ class CompensatorCore:
         if not (why := sessions.judge(d, sessions.period(self.stream.t, k) if d > 0 else 0.0)):
             return
         sessions.start(t, why, k)
+        # The stamps stepped back: the learner's hand-off and queue ran on the old clock.
+        waiting = self.learning.restart_clock() if d < 0 else None
         a.learned = False
         self.stream.restart(t, d, self.temps, self.policy.temperature_timeout)
         slot = self.slot
@@ -493,6 +500,9 @@ class CompensatorCore:
             gate = self.learning
             a.restart(slot, reanchor_var(slot.model, gate), gate.extend is not None)
             self._update_needs()
+        if waiting is not None:
+            self.learning.installs += 1
+            self.install(waiting, learned=True, older_clock=True)
 
     def temperature_age(self) -> float | None:
         """Return the last IMU stamp minus the newest thermometer stamp, s (None if unknown)."""

@@ -103,6 +103,23 @@ class LearningGate:
         self.queue.clear()
         self.reopen()
 
+    def restart_clock(self) -> PreparedModel | None:
+        """
+        The stamps stepped back (the IMU restarted): close the old clock's hand-off and queue.
+
+        The block is handed over alone and the next sample is handed over at once (a hand-off
+        stamp of the old clock would hold every sample back until the new stamps pass it);
+        the newest learned model waiting for an old-clock stamp is returned, due now (None:
+        none was waiting).
+        """
+        if self.extend is not None:
+            hand_off(self.block, self.extend)
+            self.next = -math.inf
+        prepared = self.queue[-1][1] if self.queue else None
+        self.queue.clear()
+        self.reopen()
+        return prepared
+
     def take_due(self, t: float) -> PreparedModel:
         """Return the newest learned model due at stamp ``t`` (s); drop the older ones."""
         queue = self.queue

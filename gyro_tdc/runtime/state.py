@@ -129,7 +129,8 @@ class Reanchoring:
     sessions: SessionTracker = field(default_factory=lambda: SessionTracker(first=1))
 
     def on_install(self, comp: StreamingCompensator, model: CompensationModel, same: bool,
-                   learned: bool, older: bool, residual_var: NDArray[np.float64]) -> None:
+                   learned: bool, older: bool, residual_var: NDArray[np.float64], *,
+                   older_clock: bool = False) -> None:
         """
         Carry the re-anchoring over a model swap (``comp``: the new model's compensator).
 
@@ -138,9 +139,11 @@ class Reanchoring:
         own: one taken from this session's still time (``created['offset_until']`` at or after
         its first stamp) replaces the shift and ends the session's re-anchoring; one of an
         older session after a learned model (``older``) keeps the shift, or the re-anchoring
-        under way (the shift is this session's offset against the older one).
+        under way (the shift is this session's offset against the older one). One learned
+        before the stamps stepped back (``older_clock``) is of an older session, whatever its
+        stamps.
         """
-        until = model.created.get('offset_until')
+        until = None if older_clock else model.created.get('offset_until')
         start = self.sessions.t0
         if learned and until is not None and start is not None and until >= start:
             self.anchor = None            # this session's offset: no shift, no re-anchoring

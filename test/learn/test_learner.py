@@ -717,3 +717,42 @@ def test_learning_on_a_trained_prior_beats_every_simple_anchor(logger):
     assert np.all(learned <= 0.9), learned
     assert np.all(learned <= plain + 0.05), (learned, plain)
     assert s['swaps'] > 10 and s['features'] == ['prior', 'dT'], s
+
+
+def test_stamps_that_step_back_start_a_session_due_now_and_save():
+    """
+    A restart of the IMU's clock (stamps from 5 s again): a new session, old swaps due now.
+
+    The models the learner accepted before the restart and had not handed over yet are due
+    at the new session's first stamp at the latest (before: at their old-clock stamps, which
+    the new stamps may never reach) and carry no offset of the new session (their old-clock
+    ``offset_until`` could fall inside it); the save is due at once (before: not until the
+    new stamps passed the last save's).
+    """
+    log = still_log(rate_hz=1.0, days=1.0, day_s=14400.0, profile='daily', t_lo=15.0,
+                    t_hi=25.0, power_cycles=2, gap_s=600.0, seed=2)
+    learner = Learner(LearnConfig(temperature_timeout=5.0))
+    second = log.session == 1
+    t0 = float(log.t[second][0])
+    stamps = np.where(second, log.t - t0 + 5.0, log.t)
+    temp_t = np.where(log.temp_t >= t0, log.temp_t - t0 + 5.0, log.temp_t)
+    first = np.flatnonzero(~second)
+    for k in first:
+        learner.add_temperature(float(temp_t[k]), float(log.temp_c[k]))
+        learner.observe(float(stamps[k]), *log.gyro[k].tolist())
+    learner.step()
+    assert learner.tick_save_clock() is False       # starts the save clock
+    learner.saved()
+    pending = len(learner._swaps)
+    assert pending and max(due for due, _ in learner._swaps if due is not None) > 700.0
+    for k in np.flatnonzero(second)[:600]:
+        learner.add_temperature(float(temp_t[k]), float(log.temp_c[k]))
+        learner.observe(float(stamps[k]), *log.gyro[k].tolist())
+    learner.step()
+    assert learner.session == 1 and learner.last_t < 700.0
+    assert learner.tick_save_clock()
+    swaps = learner.take_swaps()
+    assert len(swaps) >= pending
+    for due, m in swaps[:pending]:
+        assert due is None or due <= 5.0
+        assert m.created['offset_until'] is None

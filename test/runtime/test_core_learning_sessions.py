@@ -61,7 +61,8 @@ def _stream(log):
 
     The core's learner is a front that only appends (no learner attribute but those); the
     learner is handed its samples and stepped every second of stamps and what it swapped in
-    is scheduled. Returns the outputs, the anchors (session, stamp) and the core.
+    is scheduled. Returns the outputs, the anchors (session, stamp), the core and the
+    learner.
     """
     policy = Policy()
     core = CompensatorCore(policy)
@@ -79,9 +80,12 @@ def _stream(log):
     anchors, seen = [], None
     j, m = 0, log.temp_t.size
     next_step = float(log.t[0]) + 1.0
+    blocks = 0
+    # The order messages arrive in (by default their stamps).
+    imu_at, temp_at = (log.info.get(k, v) for k, v in (('imu_at', log.t), ('temp_at', log.temp_t)))
     for k in range(log.t.size):
         ts = float(log.t[k])
-        while j < m and log.temp_t[j] <= ts:
+        while j < m and temp_at[j] <= imu_at[k]:
             core.add_temperature(float(log.temp_t[j]), float(log.temp_c[j]))
             j += 1
         out[k] = core.process(ts, *log.gyro[k].tolist(), log.accel[k].tolist())[:3]
@@ -89,10 +93,14 @@ def _stream(log):
             seen = core.anchor
             if seen is not None:
                 anchors.append((core.reanchoring.sessions.session, ts))
-        if ts >= next_step:
+        if not ts < next_step:           # every second of stamps (a restart: at once)
             step()
             next_step = ts + 1.0
-    return out, anchors, core
+        elif ts < next_step - 2.0:
+            next_step = ts
+        blocks = max(blocks, len(core.learning.block))
+    core.largest_block = blocks
+    return out, anchors, core, learner
 
 
 def test_a_new_power_cycle_of_2khz_bursts_takes_its_offset_in_its_first_burst():
@@ -110,7 +118,7 @@ def test_a_new_power_cycle_of_2khz_bursts_takes_its_offset_in_its_first_burst():
     """
     log = still_log(rate_hz=2000.0, days=2.0, day_s=1800.0, profile='cooling', t_lo=10.0,
                     t_hi=20.0, arw_dps=0.03, power_cycles=2, bursts=(2.0, 120.0), seed=3)
-    out, anchors, core = _stream(log)
+    out, anchors, core, _ = _stream(log)
     second = log.session == 1
     t2, out2 = log.t[second], out[second]
     burst = np.r_[0, np.cumsum(np.diff(t2) > 2.0)]
@@ -131,6 +139,44 @@ def test_a_new_power_cycle_of_2khz_bursts_takes_its_offset_in_its_first_burst():
         assert np.all(np.abs(mean) < 4 * se), (mean / DEG, change / DEG)
     # By then a learned model carrying this cycle's offset is in use: the shift dropped.
     assert core.reanchoring.learned and core.anchor is None
+
+
+def test_a_power_cycle_whose_stamps_restart_is_learned_at_once():
+    """
+    Learn a power cycle whose stamps start again near 0, as a flight controller's boot clock.
+
+    Two power cycles of a 10 Hz still logger, turn-on offsets of 0.2 deg/s, the second's
+    stamps (IMU and thermometer) restarting at 5 s, below the first's. The core hands the
+    learner the second cycle's samples from its first one (before: none until its stamps
+    passed the first cycle's last hand-off stamp, which they never do, while the hand-off
+    block grew by every sample), the learner counts the new power cycle, learns it, and a
+    model carrying its own offset is installed: its second half's output is within 4 SE of
+    a 10 min mean of zero.
+    """
+    log = still_log(rate_hz=10.0, days=1.0, day_s=14400.0, profile='daily', t_lo=15.0,
+                    t_hi=25.0, power_cycles=2, gap_s=600.0, seed=5)
+    t0 = log.t[log.session == 1][0]
+    keep = log.t < t0 + 5400.0                        # the second cycle 90 min, the first 2 h
+    for name in ('t', 'gyro', 'accel', 'truth', 'session'):
+        setattr(log, name, getattr(log, name)[keep])
+    kt = log.temp_t < t0 + 5400.0
+    log.temp_t, log.temp_c = log.temp_t[kt], log.temp_c[kt]
+    second = log.session == 1
+    log.info.update(imu_at=log.t, temp_at=log.temp_t)
+    log.t = np.where(second, log.t - t0 + 5.0, log.t)
+    log.temp_t = np.where(log.temp_t >= t0, log.temp_t - t0 + 5.0, log.temp_t)
+    assert log.t[second][-1] < log.t[~second][-1]
+    out, anchors, core, learner = _stream(log)
+    assert core.reanchoring.sessions.session == 2 and learner.session == 1
+    assert core.largest_block < 7 * 100              # a second of samples at the most
+    # Every sample reached the learner (the window in progress waits for its end).
+    assert learner.last_t > log.t[-1] - 2 * learner.config.window_s
+    assert core.reanchoring.learned                  # the second cycle's own offset in use
+    t2, out2 = log.t[second], out[second]
+    late = t2 > t2[0] + 0.5 * (t2[-1] - t2[0])
+    tail = late & (t2 > t2[-1] - 600.0)
+    se = 0.03 * DEG / math.sqrt(600.0)
+    assert np.all(np.abs(out2[tail].mean(axis=0)) < 4 * se + 0.004 * DEG), out2[tail].mean(0)
 
 
 class _Learner:

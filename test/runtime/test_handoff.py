@@ -85,3 +85,34 @@ def test_a_pause_closes_the_block_and_slow_streams_go_sample_by_sample():
     ts = np.arange(30.0)                                 # 1 Hz: every sample, at once
     _feed(slow, ts, np.ones((30, 3)))
     np.testing.assert_array_equal(sink1.rows()[:, 0], ts)
+
+
+def test_stamps_that_step_back_are_handed_over_at_once():
+    """
+    A restart of the IMU's clock closes the old clock's block and opens the hand-off at once.
+
+    1 kHz for 2 s, then the stamps start again at 0.5 s: the old block is handed alone, the
+    new stamps from their first sample on (before: every sample held in the block until the
+    stamps passed the old clock's hand-off stamp), and a learned model queued for an
+    old-clock stamp is installed at the restart, as not carrying the new session's offset.
+    """
+    from gyro_tdc.learn.fit import learned_model
+    core, sink = CompensatorCore(Policy()), _Sink(100.0)
+    core.learner = sink
+    core.add_temperature(9.0, 20.0)
+    t1 = 10.0 + np.arange(2000) / 1000.0
+    _feed(core, t1, np.zeros((t1.size, 3)))
+    m = learned_model(np.array([[1e-3] * 3, [0.0] * 3]), ('dT',), 20.0, (0.0, 40.0),
+                      np.full(3, 1e-6))
+    m.created['offset_until'] = 11.5             # in the old clock: after the new start
+    core.schedule(m, 13.0)                       # due by the old clock: waiting
+    assert core.model is None or core.model_id != m.model_id
+    t2 = 0.5 + np.arange(500) / 1000.0
+    _feed(core, t2, np.ones((t2.size, 3)))
+    rows = sink.rows()
+    new = rows[rows[:, 0] < 5.0]
+    assert new.shape[0] == 50 and new[0, 0] == 0.5          # from the first sample, 100 Hz
+    np.testing.assert_array_equal(new[:, 1], 1.0)           # no old sample mixed in
+    assert len(core.learning.block) < 7 * 20
+    assert core.model_id == m.model_id and core.reanchoring.sessions.session == 2
+    assert not core.reanchoring.learned and core.reanchoring.waiting
