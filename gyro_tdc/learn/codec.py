@@ -313,7 +313,8 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
         raise LearnFileError(f'not a learner state ({FORMAT!r} expected)')
     _dict(state, 'state', _KEYS, optional=('prior',))
     for k, x in _dict(state['config'], 'config', _CONFIG_KEYS).items():
-        _number(x, f'config.{k}', 0.0)
+        if x is not None or k != 'min_still_s':          # None: the auto rule
+            _number(x, f'config.{k}', 0.0)
     thermal = _maybe(_thermal)(state['thermal'])
     prior = _maybe(_prior)(state.get('prior'), thermal)
     values = {

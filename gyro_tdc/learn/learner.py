@@ -38,7 +38,8 @@ from gyro_tdc.learn.gate import learned_gate
 from gyro_tdc.learn.records import Entry, held_out_line, LearnConfig, OpenStretch, RecentStretch
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
-from gyro_tdc.signal import (break_why, hold_readings, SessionTracker, StillWindows, Window)
+from gyro_tdc.signal import (break_why, hold_readings, long_enough, SessionTracker, StillWindows,
+                             Window)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -66,13 +67,7 @@ class Learner:
     """
     Online learner of the bias vs temperature from still time (module docstring).
 
-    Parameters
-    ----------
-    config : LearnConfig
-        Settings.
-    prior : CompensationModel, optional
-        The current model at start (from ``model_file``).
-
+    ``config``: its settings; ``prior``: the current model at start (from ``model_file``).
     """
 
     def __init__(self, config: LearnConfig | None = None,
@@ -342,14 +337,13 @@ class Learner:
             # closes was computable at its first sample.
             n, t0 = len(self._swaps), float(t[0])
             swapped = self.flush(t0)
-            # Nothing not handed over yet carries the new session's offset; after stamps that
-            # stepped back (the IMU's clock restarted) one due by the old clock is due now.
-            if gap < 0:
-                self._swaps[:n] = [(None if due is None else min(due, t0), m)
-                                   for due, m in self._swaps[:n]]
-            for _, m in self._swaps:
+            # None not handed over carries the new session's offset; after stamps that stepped
+            # back (the IMU's clock restarted) one due by the old clock is due now.
+            for k, (due, m) in enumerate(self._swaps):
                 m.created['offset_until'] = None
-            self.sessions.start(float(t[0]), why, gap=gap)
+                if gap < 0 and k < n and due is not None:
+                    self._swaps[k] = (min(due, t0), m)
+            self.sessions.start(t0, why, gap=gap)
             self._fresh = True            # its offset from its first still windows
             self.still.restart()          # the window grid starts again
             self.thermal_state = None     # after a power-off: steady state at the next reading
@@ -402,10 +396,15 @@ class Learner:
             return False
         if not st.learned:
             st.keep_from(self.still.last_refused(st.rows, thresholds)[0] + 1)
-            if not st.rows or st.span() + 1e-9 < self.config.min_still_s:
+            if not st.rows or not self._long_enough(st):
                 return False
             self._new_stretch(st.rows[0].t0)
         return self._learn(st.rows)
+
+    def _long_enough(self, st: OpenStretch) -> bool:
+        """Return whether a stretch not learned yet is learned: the trainers' rule."""
+        return long_enough(st.n, st.span(), st.mean_se, self.config.window_s,
+                           self.config.min_still_s)
 
     def _new_stretch(self, t0: float) -> None:
         """Count a stretch that is learned from now on; its entries form a new group."""
@@ -417,7 +416,7 @@ class Learner:
         """Learn a long stretch's windows so far (every ``commit_s``) while it goes on."""
         st = self._stretch
         if not st.learned:
-            if st.span() < self.config.min_still_s:
+            if not self._long_enough(st):
                 return False
             self._new_stretch(st.rows[0].t0)
             st.learned = True

@@ -27,7 +27,9 @@ import math
 from typing import NamedTuple
 
 from gyro_tdc.base import SESSION_GAP_S
-from gyro_tdc.signal import MIN_SESSION_SPAN_C, MIN_STILL_S, STILL_WINDOW_S, Window
+from gyro_tdc.signal import MIN_SESSION_SPAN_C, STILL_WINDOW_S, Window
+import numpy as np
+from numpy.typing import NDArray
 
 __all__ = ['Entry', 'held_out_line', 'LearnConfig', 'OpenStretch', 'RecentStretch']
 
@@ -81,8 +83,13 @@ class LearnConfig:
         Temperature bin width.
     half_life_s : float, s
         Age (by message stamp) at which an entry weighs half.
-    window_s, min_still_s : float, s
-        Still test window and shortest stretch.
+    window_s : float, s
+        Still test window.
+    min_still_s : float or None, s
+        Shortest stretch learned; None (auto): the trainers' rule
+        (:func:`gyro_tdc.signal.long_enough`), :data:`~gyro_tdc.signal.MIN_STILL_S` or two
+        windows of samples whose mean is known well enough (a 20 s stop of a 25 Hz
+        flight-controller log).
     temperature_timeout : float, s
         A thermometer reading older than this (by stamp) gives no temperature.
     save_period_s : float, s
@@ -117,7 +124,7 @@ class LearnConfig:
     bin_c: float = 1.0
     half_life_s: float = 86400.0
     window_s: float = STILL_WINDOW_S
-    min_still_s: float = MIN_STILL_S
+    min_still_s: float | None = None
     temperature_timeout: float = 5.0
     save_period_s: float = 180.0
     commit_s: float = 300.0
@@ -155,6 +162,14 @@ class OpenStretch:
             return 0.0
         d = self.rows[-1].t1 - self.t0
         return d + d / max(self.n - 1, 1)
+
+    def mean_se(self) -> NDArray[np.float64]:
+        """Return the standard error of the stretch's mean raw rate per axis, rad/s."""
+        n = np.array([r.n for r in self.rows], dtype=np.float64)
+        mean, std = (np.array([getattr(r, k) for r in self.rows]) for k in ('gyro_mean',
+                                                                            'gyro_std'))
+        ss = (n - 1.0) @ std ** 2 + n @ (mean - n @ mean / n.sum()) ** 2
+        return np.sqrt(ss / max(n.sum() - 1.0, 1.0) / n.sum())
 
     def keep_from(self, j: int) -> None:
         """Drop the windows before ``j`` (a stretch not learned yet)."""

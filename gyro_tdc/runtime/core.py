@@ -212,8 +212,7 @@ class CompensatorCore:
         learned : bool
             The model is the attached learner's.
         older_clock : bool
-            It was learned before the IMU's stamps stepped back (a restart): its offset is
-            never this session's, whatever its stamps say.
+            Learned before the stamps stepped back: never of this session's offset.
 
         """
         if not prepared_for(prepared, self.policy):   # read before a policy change

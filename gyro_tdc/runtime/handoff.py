@@ -105,7 +105,7 @@ class LearningGate:
 
     def restart_clock(self) -> PreparedModel | None:
         """
-        The stamps stepped back (the IMU restarted): close the old clock's hand-off and queue.
+        Close the old clock's hand-off and queue: the stamps stepped back (the IMU restarted).
 
         The block is handed over alone and the next sample is handed over at once (a hand-off
         stamp of the old clock would hold every sample back until the new stamps pass it);

@@ -32,12 +32,12 @@ from gyro_tdc.base import DEG_PER_RAD
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['auto_window', 'detect_still', 'has_accelerometer', 'judge_windows', 'MAX_RATE',
-           'MAX_STILL_SE', 'MIN_JUDGED', 'MIN_STILL_S', 'MIN_STILL_SAMPLES', 'MIN_WINDOW_SAMPLES',
-           'MotionReports', 'MOTION_EPS', 'motion_veto', 'NOISE_DOF', 'NOISE_FACTOR',
-           'NOISE_WINDOWS', 'noise_floor', 'noise_thresholds', 'NoiseFloor', 'REASONS',
-           'SHORT_WINDOW_S', 'Stillness', 'STILL_WINDOW_S', 'stretch_edges', 'window_moments',
-           'windows_moving']
+__all__ = ['auto_window', 'detect_still', 'has_accelerometer', 'judge_windows', 'long_enough',
+           'MAX_RATE', 'MAX_STILL_SE', 'MIN_JUDGED', 'MIN_STILL_S', 'MIN_STILL_SAMPLES',
+           'MIN_WINDOW_SAMPLES', 'MotionReports', 'MOTION_EPS', 'motion_veto', 'NOISE_DOF',
+           'NOISE_FACTOR', 'NOISE_WINDOWS', 'noise_floor', 'noise_thresholds', 'NoiseFloor',
+           'REASONS', 'SHORT_WINDOW_S', 'Stillness', 'STILL_WINDOW_S', 'stretch_edges',
+           'window_moments', 'windows_moving']
 
 #: Default window, s: the shortest still stretch judged (and the re-anchoring window).
 STILL_WINDOW_S = 10.0
@@ -408,15 +408,28 @@ def _windows(t: NDArray[np.float64], g: NDArray[np.float64], acc: NDArray[np.flo
             *((None, None) if acc is None else window_moments(acc, starts, counts, zeroed)))
 
 
+def long_enough(n: int, duration: float, se: Callable[[], ArrayLike], window: float,
+                min_still_s: float | None) -> bool:
+    """
+    Return whether a still stretch of ``n`` samples over ``duration`` s is kept (trained on).
+
+    ``min_still_s`` s or more; None (auto): :data:`MIN_STILL_S`, or two ``window`` of
+    :data:`MIN_STILL_SAMPLES` samples or more whose mean is known to :data:`MAX_STILL_SE`
+    (``se()``: the standard error of the mean raw rate per axis, rad/s, asked only then).
+    """
+    if min_still_s is not None:
+        return duration + 1e-9 >= min_still_s
+    return duration + 1e-9 >= MIN_STILL_S or (
+        n >= MIN_STILL_SAMPLES and duration + 1e-6 >= 2.0 * window
+        and bool(np.all(np.asarray(se(), dtype=np.float64) <= MAX_STILL_SE)))
+
+
 def _long_enough(g: NDArray[np.float64], duration: float, window: float,
                  min_still_s: float | None) -> bool:
     """Return whether a still stretch (its raw rate, its duration in s) is kept."""
-    if min_still_s is not None:
-        return duration + 1e-9 >= min_still_s
-    n = g.shape[0]       # else long, or two windows of samples whose mean is known well enough
-    return duration + 1e-9 >= MIN_STILL_S or (
-        n >= MIN_STILL_SAMPLES and duration + 1e-6 >= 2.0 * window and bool(
-            np.all(np.nanstd(g, axis=0, ddof=1) / math.sqrt(n) <= MAX_STILL_SE)))
+    n = g.shape[0]
+    return long_enough(n, duration, lambda: np.nanstd(g, axis=0, ddof=1) / math.sqrt(n),
+                       window, min_still_s)
 
 
 def stretch_edges(still: NDArray[np.bool_], steps: NDArray[np.float64], window: float,

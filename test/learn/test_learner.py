@@ -756,3 +756,51 @@ def test_stamps_that_step_back_start_a_session_due_now_and_save():
     for due, m in swaps[:pending]:
         assert due is None or due <= 5.0
         assert m.created['offset_until'] is None
+
+
+def _stops(stop_s, noise_dps, rate_hz=25.0, stops=3, seed=0):
+    """Return a 25 Hz stream: ``stops`` still stretches of ``stop_s`` after 30 s of rocking."""
+    rng = np.random.default_rng(seed)
+    parts, t0 = [], 0.0
+    for k in range(stops):
+        for still, span in ((False, 30.0), (True, stop_s)):
+            t = t0 + np.arange(int(span * rate_hz)) / rate_hz
+            w = np.full((t.size, 3), 0.01) + rng.normal(0.0, noise_dps * DEG, (t.size, 3))
+            if not still:
+                w += 0.5 * np.sin(2.0 * math.pi * 0.7 * t)[:, None]
+            parts.append((t, w))
+            t0 = t[-1] + 1.0 / rate_hz
+    t = np.concatenate([p[0] for p in parts])
+    return t, np.concatenate([p[1] for p in parts])
+
+
+def _learn_stops(t, w, config):
+    learner = Learner(config)
+    for k in range(t.size):
+        if k % 25 == 0:
+            learner.add_temperature(float(t[k]), 20.0 + t[k] / 600.0)
+        learner.observe(float(t[k]), *w[k].tolist())
+        if k % 250 == 249:
+            learner.step()
+    learner.flush()
+    return learner
+
+
+@pytest.mark.parametrize('stop_s, noise_dps, learned', [
+    (25.0, 0.02, 3),     # a quiet 25 s stop at 25 Hz: its mean known to 0.0008 deg/s
+    (15.0, 0.02, 0),     # shorter than two 10 s windows
+    (25.0, 0.5, 0),      # a mean known to 0.02 deg/s only: over MAX_STILL_SE
+    (65.0, 0.5, 3),      # a minute: kept whatever its noise
+])
+def test_a_stretch_is_learned_by_the_trainers_rule(stop_s, noise_dps, learned):
+    """
+    Learn a flight controller's short stops as the trainers keep them (``min_still_s`` None).
+
+    Two 10 s windows of 100 samples or more whose mean is known to 0.01 deg/s, or 60 s; a
+    fixed ``min_still_s`` of 60 s (before: the learner's only rule) learns none of the short
+    quiet stops.
+    """
+    t, w = _stops(stop_s, noise_dps)
+    assert _learn_stops(t, w, LearnConfig()).stretches == learned
+    if stop_s < 60.0:
+        assert _learn_stops(t, w, LearnConfig(min_still_s=60.0)).stretches == 0
