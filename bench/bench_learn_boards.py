@@ -126,6 +126,9 @@ def main(argv=None) -> int:
               f"{sum(lg['stretches'] >= 2 for lg in logs)} with two or more; clock "
               f'{args.clock}', flush=True)
         rows = []
+        if sum(lg['stretches'] >= 2 for lg in logs) < 2:
+            print('  nothing to score: fewer than two logs with two still stretches')
+            continue
         for d in range(args.draws):
             r = run_draw(logs, args.clock, np.random.default_rng([args.seed, d]))
             rows.append(r)
