@@ -49,6 +49,10 @@ from numpy.typing import NDArray
 __all__ = ['gated_shift', 'REANCHOR_KEY', 'reanchor_shift', 'shift_gate', 'StillnessDetector']
 
 _INF3 = (math.inf, math.inf, math.inf)
+#: A still run resumed after a pause keeps its windows before it only where their mean and
+#: the first window's after it agree within this many combined standard errors on every axis
+#: (else the bias moved in the pause: a board warming after a cold start).
+PAUSE_AGREE = 4.0
 #: The ``model.metrics`` key of the trainer's re-anchoring decision
 #: (:func:`gyro_tdc.identify.power_cycles.reanchor_rule`): ``min_shift_dps`` per axis.
 REANCHOR_KEY = 'reanchor'
@@ -133,7 +137,7 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
     applied from the first sample without a stillness test (the run is taken as still at
     its start, as ``evaluate --reanchor auto`` does), the early end of a bursty stream's
     window included (from the first step longer than ``window`` on, or from the start with
-    ``paused``).
+    ``paused``), and its pause rule (:data:`PAUSE_AGREE`, on the whole window after it).
 
     Parameters
     ----------
@@ -171,9 +175,13 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
         first_pause = 0 if paused else (int(long[0]) + 1 if long.size else t.size)
     else:
         first_pause = t.size
-    i0, last, reason = 0, -1, 'end of data'
+    i0, last, reason, start = 0, -1, 'end of data', 0
     for _ in range(max_windows(window, window_max)):
         i1, ends = _window_end(t, i0, window) if i0 < t.size else (-1, -1)
+        if 0 < i0 < t.size and t[i0] - t[i0 - 1] > window and total.n:   # after a pause
+            e = t.size if ends < 0 else ends
+            if not _agree(total, window_stats(t[i0:e], x[i0:e], c, bs)):
+                total, start = BlockStats(), i0
         if first_pause <= i0 < t.size:
             early = _early_end(t, x, i0, t.size if ends < 0 else ends, c, bs, total, tol)
             if early is not None:
@@ -193,7 +201,13 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
         last = t.size - 1
         total = window_stats(t, x, c, bs)
     delta = tuple(ci + si / total.n for ci, si in zip(c, total.s))
-    return Shift(delta, standard_error(total), total.n, float(t[last] - t[0]), reason)
+    return Shift(delta, standard_error(total), total.n, float(t[last] - t[start]), reason)
+
+
+def _agree(run: BlockStats, win: BlockStats) -> bool:
+    """Return whether two means agree within PAUSE_AGREE combined standard errors."""
+    return all(abs(a / run.n - b / win.n) <= PAUSE_AGREE * math.hypot(u, v)
+               for a, b, u, v in zip(run.s, win.s, standard_error(run), standard_error(win)))
 
 
 class _Window(NamedTuple):
@@ -297,6 +311,7 @@ class StillnessDetector:
         self.still.reset(prior_std=self.noise_prior)
         self._run: list[_Window] = []
         self._c: Vec3 = (0.0, 0.0, 0.0)
+        self._resumed = False              # the next window judged follows a pause
         self._end_window()
 
     def _end_window(self) -> None:
@@ -339,6 +354,7 @@ class StillnessDetector:
             self.paused = True
             if self._n >= 2:               # the window ends before it (the burst's end)
                 found = self._flush()
+            self._resumed = True           # the next window judged follows the pause
         if t >= self._next_block:          # a block boundary of a tracked window
             found = self._boundary(t)
         if self._w0 is None:               # a window starts (with a new run, its centre)
@@ -398,6 +414,7 @@ class StillnessDetector:
         if not self._run:                 # a run starts: its centring constant
             self._c = tuple(w.rate[0].tolist())
         if w.why:
+            self._resumed = False
             self.windows_rejected += 1
             run, self._run = self._run, []
             # Motion ends a still run before the tolerance was met: its mean is the best this
@@ -407,6 +424,9 @@ class StillnessDetector:
                                  float(w.temp[0]), 'motion') if run else None)
         run = self._run
         stats = window_stats(w.t, w.rate, self._c, self.block_s)
+        if self._resumed and run and not _agree(sum((r.stats for r in run), BlockStats()), stats):
+            del run[:]                    # the bias moved in the pause: start again here
+        self._resumed = False
         run.append(_Window(w.t0, stats, w.gyro_std, w.accel_std))
         j, _ = self.still.last_refused(run, w.thresholds)
         if j >= 0:

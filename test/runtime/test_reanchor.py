@@ -183,6 +183,41 @@ def test_motion_that_ends_a_still_run_before_its_precision_gives_its_anchor():
                    for k in range(4000) if t[k] >= 25.0)
 
 
+@pytest.mark.parametrize('step', [0.0, 0.02])
+def test_a_run_resumed_after_a_pause_keeps_what_came_before_only_where_it_agrees(step):
+    """
+    Keep a still run across a pause only while its mean agrees with the first window after.
+
+    12 s still at 25 Hz, 30 s without samples (a logger that stopped), then 20 s still, a
+    tolerance the first 12 s do not meet. With the same bias on both sides the first anchor
+    averages both (a bursty logger's run goes on); with the bias stepped by 0.02 rad/s in the
+    pause (a board warming after a cold start: over 100 standard errors) it is the second
+    stretch's alone (before: the run mixed both, whose scatter kept it above the tolerance:
+    no anchor; on a short run, a mix of both).
+    """
+    rng = np.random.default_rng(7)
+    det = StillnessDetector(window=10.0, window_max=60.0, gyro_std=0.02, max_rate=0.05,
+                            tolerance=1e-4)      # 12 s are not enough, 20 s are
+    t = np.r_[np.arange(300) / 25.0, 42.0 + np.arange(500) / 25.0]
+    out = 2e-3 * rng.standard_normal((t.size, 3)) + 0.004
+    after = t > 40.0
+    out[after] += step
+    found = [a for k in range(t.size)
+             if (a := det.update(float(t[k]), out[k].tolist(), out[k].tolist(), None, 20.0))]
+    a = found[0]
+    assert a.t > 42.0                                     # taken after the pause
+    if step:
+        assert a.delta == pytest.approx((0.004 + step,) * 3, abs=5e-4)
+        assert a.duration_s < 20.0                        # the second stretch alone
+    else:
+        assert a.delta == pytest.approx((0.004,) * 3, abs=5e-4)
+        assert a.duration_s > 42.0                        # from the first stretch on
+    # The batch form (evaluate --reanchor auto) keeps the same rule.
+    shift = reanchor_shift(t, out, tolerance=(1e-4,) * 3)
+    assert shift.delta == pytest.approx(a.delta, abs=3e-4)
+    assert (shift.duration_s < 20.0) == bool(step)
+
+
 def _gated(model, gate_dps):
     """Return ``model`` carrying the trainer's gate (deg/s per axis)."""
     return model.replace(metrics={**model.metrics, REANCHOR_KEY: {'min_shift_dps': gate_dps}})
