@@ -178,19 +178,21 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
     i0, last, reason, start = 0, -1, 'end of data', 0
     for _ in range(max_windows(window, window_max)):
         i1, ends = _window_end(t, i0, window) if i0 < t.size else (-1, -1)
-        if 0 < i0 < t.size and t[i0] - t[i0 - 1] > window and total.n:   # after a pause
-            e = t.size if ends < 0 else ends
-            if not _agree(total, window_stats(t[i0:e], x[i0:e], c, bs)):
-                total, start = BlockStats(), i0
+        e = t.size if ends < 0 else ends
+        # After a pause the run goes on only where it agrees with the window (else it starts
+        # again there, once that window is taken).
+        run = total if not (0 < i0 < t.size and t[i0] - t[i0 - 1] > window and total.n) or \
+            _agree(total, window_stats(t[i0:e], x[i0:e], c, bs)) else BlockStats()
         if first_pause <= i0 < t.size:
-            early = _early_end(t, x, i0, t.size if ends < 0 else ends, c, bs, total, tol)
+            early = _early_end(t, x, i0, e, c, bs, run, tol)
             if early is not None:
-                j, total = early
+                (j, total), start = early, start if run is total else i0
                 last, reason = j - 1, 'precision'
                 break
         if i1 < 0:
             break
-        total = total + window_stats(t[i0:i1 + 1], x[i0:i1 + 1], c, bs)
+        total, start = (run + window_stats(t[i0:i1 + 1], x[i0:i1 + 1], c, bs),
+                        start if run is total else i0)
         last, i0 = i1, i1 + 1
         if all(s <= v for s, v in zip(standard_error(total), tol)):
             reason = 'precision'

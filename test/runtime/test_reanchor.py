@@ -216,6 +216,10 @@ def test_a_run_resumed_after_a_pause_keeps_what_came_before_only_where_it_agrees
     shift = reanchor_shift(t, out, tolerance=(1e-4,) * 3)
     assert shift.delta == pytest.approx(a.delta, abs=3e-4)
     assert (shift.duration_s < 20.0) == bool(step)
+    # Data that end 4 s after the pause, inside the window after it: the windows before.
+    cut = reanchor_shift(t[:400], out[:400], tolerance=(1e-4,) * 3)
+    assert cut.reason == 'end of data' and cut.samples == 300
+    assert cut.delta == pytest.approx((0.004,) * 3, abs=5e-4)
 
 
 def _gated(model, gate_dps):
