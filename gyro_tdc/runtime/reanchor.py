@@ -179,10 +179,10 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
     for _ in range(max_windows(window, window_max)):
         i1, ends = _window_end(t, i0, window) if i0 < t.size else (-1, -1)
         e = t.size if ends < 0 else ends
-        # After a pause the run goes on only where it agrees with the window (else it starts
-        # again there, once that window is taken).
-        run = total if not (0 < i0 < t.size and t[i0] - t[i0 - 1] > window and total.n) or \
-            _agree(total, window_stats(t[i0:e], x[i0:e], c, bs)) else BlockStats()
+        run = total                       # after a pause the run goes on only where it agrees
+        if 0 < i0 < t.size and t[i0] - t[i0 - 1] > window and total.n and not _agree(
+                total, window_stats(t[i0:e], x[i0:e], c, bs)):
+            run = BlockStats()            # with the window after it (once that is taken)
         if first_pause <= i0 < t.size:
             early = _early_end(t, x, i0, e, c, bs, run, tol)
             if early is not None:

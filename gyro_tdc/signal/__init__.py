@@ -34,10 +34,9 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'sessions': ['BURST_FACTOR', 'BURST_MAX_S', 'BURST_PAUSES', 'break_why', 'GAP_PERIODS',
                  'gap_breaks', 'gap_limit', 'session_gap', 'SessionTracker'],
     'still': ['auto_window', 'detect_still', 'has_accelerometer', 'judge_windows', 'long_enough',
-              'MAX_RATE',
-              'MAX_STILL_SE', 'MIN_STILL_S', 'MIN_STILL_SAMPLES', 'MIN_WINDOW_SAMPLES',
-              'MotionReports', 'MOTION_EPS', 'motion_veto', 'NOISE_FACTOR', 'noise_floor',
-              'noise_thresholds', 'NOISE_WINDOWS', 'SHORT_WINDOW_S', 'Stillness',
+              'MAX_RATE', 'MAX_STILL_SE', 'MIN_STILL_S', 'MIN_STILL_SAMPLES',
+              'MIN_WINDOW_SAMPLES', 'MotionReports', 'MOTION_EPS', 'motion_veto', 'NOISE_FACTOR',
+              'noise_floor', 'noise_thresholds', 'NOISE_WINDOWS', 'SHORT_WINDOW_S', 'Stillness',
               'STILL_WINDOW_S', 'stretch_edges', 'windows_moving'],
     'still_stream': ['StillWindows', 'Window'],
 })
