@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 import copy
+import json
 import math
 import re
 
@@ -93,12 +94,24 @@ def test_thermal_section_is_kept():
     (('fit', 'reanchor', 'min_shift_dps'), [0.0, -1.0, 0.0], 'fit.reanchor.min_shift_dps[1]'),
     (('fit', 'reanchor', 'held_out'), 1.5, 'fit.reanchor.held_out'),
     (('fit', 'reanchor', 'gate'), 1.0, 'fit.reanchor'),
+    (('config', 'min_still_s'), 'auto', 'config.min_still_s'),     # null is the auto rule
+    (('config', 'min_still_s'), -5.0, 'config.min_still_s'),
+    (('config', 'window_s'), None, 'config.window_s'),            # null there is not
 ])
 def test_every_field_is_checked_and_named(base, keys, value, field):
     """Refuse NaN or Inf anywhere, negative counts, wrong shapes, naming the field."""
     _, state = base
     with pytest.raises(ValueError, match=re.escape(f'field `{field}`')):
         fresh_learner().load_state(with_field(state, keys, value))
+
+
+def test_the_auto_stretch_rule_round_trips(base):
+    """Save and load a learner whose ``min_still_s`` is None (the default: the auto rule)."""
+    _, state = base
+    assert state['config']['min_still_s'] is None
+    learner = fresh_learner()
+    learner.load_state(json.loads(json.dumps(state)))
+    assert learner.state()['config']['min_still_s'] is None
 
 
 def test_a_fit_holding_nan_is_not_loaded(base):
