@@ -138,15 +138,21 @@ def thermometer(values: object) -> NDArray[np.float64] | None:
     """
     if values is None:
         return None
-    v = np.asarray(values, dtype=np.float64).reshape(-1)
+    v = _float64(values).reshape(-1)
     with np.errstate(invalid='ignore'):
         v = np.where((v >= PLAUSIBLE_C[0]) & (v <= PLAUSIBLE_C[1]), v, np.nan)
     return v if np.any(np.abs(v) > 0.0) else None      # NaN compares False: none or all 0
 
 
+def _float64(values: object) -> NDArray[np.float64]:
+    """Return a log's field as float64; a signalling NaN (damaged bytes) is a NaN, silently."""
+    with np.errstate(invalid='ignore'):
+        return np.asarray(values, dtype=np.float64)
+
+
 def columns(d: dict, names: tuple[str, ...]) -> NDArray[np.float64] | None:
     """Return a log's fields side by side as an (N, k) float64 array, None when one is missing."""
-    return (np.column_stack([np.asarray(d[n], dtype=np.float64) for n in names])
+    return (np.column_stack([_float64(d[n]) for n in names])
             if all(n in d for n in names) else None)
 
 

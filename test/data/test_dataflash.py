@@ -427,3 +427,32 @@ def test_the_real_logs_without_gyr_read_byte_for_byte_as_before_gyr_was_read():
                                     '5e7c00810314', '1dbdd12e4006', '5d013cf1f875']}
     for path, want in before.items():
         assert [_digest(path, k, s) for k in range(3) for s in ('imu', 'baro')] == want
+
+
+def test_damaged_bytes_read_as_records_make_no_instance_and_no_warning(tmp_path):
+    """
+    Leave out a lone IMU record beside a stream, and read a signalling NaN without a warning.
+
+    As a log with 6,705 damaged headers did (Krutharth23/Biomimicry): instances 45 and 48
+    of one record each beside two IMUs were listed and counted ("instance 0 of 4"), and a
+    thermometer reading whose bytes were a signalling NaN printed numpy's ``RuntimeWarning:
+    invalid value encountered in cast`` on the console.
+    """
+    import dataclasses
+    import struct
+    import warnings
+    imus = _imus(count=2)
+    temp = imus[0].temp.copy()
+    temp[100] = 37.123457
+    lone = Imu(t=imus[1].t[:1], gyro=imus[1].gyro[:1], temp=imus[1].temp[:1],
+               accel=imus[1].accel[:1])
+    path = write_dataflash(tmp_path / 'd.bin', [dataclasses.replace(imus[0], temp=temp), lone])
+    raw, mark = path.read_bytes(), struct.pack('<f', 37.123457)
+    assert raw.count(mark) == 1
+    path.write_bytes(raw.replace(mark, struct.pack('<I', 0x7F800001)))   # a signalling NaN
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        log = read_dataflash(path)
+    assert log.instances == (0,) and 'IMU instance 1 left out' in '; '.join(log.notes)
+    assert np.isnan(log.temp_c[100]) and np.isfinite(np.delete(log.temp_c, 100)).all()
+    assert 'instance 0 of 1' in describe_log(log)
