@@ -124,8 +124,9 @@ def _imu(reader, kind: str = 'IMU') -> tuple[dict[int, dict[str, np.ndarray]], l
         parts = _instances(cols)
         out.update({base: cols} if parts is None else parts)
     lone = [i for i, d in out.items() if len(next(iter(d.values()))) < 2]
-    return ({i: d for i, d in out.items() if i not in lone}, lone) if len(lone) < len(out) \
-        else (out, [])
+    if len(lone) == len(out):             # none beside another: the log's only records
+        lone = []
+    return {i: d for i, d in out.items() if i not in lone}, lone
 
 
 def _fast(reader, kind: str, instance: int) -> dict[str, np.ndarray] | str | None:
