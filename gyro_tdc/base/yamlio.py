@@ -41,28 +41,17 @@ _CLOSE = (yaml.MappingEndEvent, yaml.SequenceEndEvent)
 
 @dataclass(frozen=True)
 class YamlLimits:
-    """
-    Hard limits of one kind of YAML file.
+    """Hard limits of one kind of YAML file, checked before the document is built."""
 
-    Parameters
-    ----------
-    what : str
-        Kind of file, for messages (e.g. ``'model file'``).
-    max_bytes : int
-        Largest file size in bytes.
-    max_depth : int
-        Deepest nesting of mappings and sequences.
-    max_nodes : int
-        Most nodes, an alias counting as the size of the node it repeats.
-    aliases : bool
-        Whether anchors and aliases (``&a`` / ``*a``) are allowed at all.
-
-    """
-
+    #: Kind of file, for messages (e.g. ``'model file'``).
     what: str
+    #: Largest file size, bytes.
     max_bytes: int = field(kw_only=True)
+    #: Deepest nesting of mappings and sequences.
     max_depth: int = field(kw_only=True)
+    #: Most nodes, an alias counting as the size of the node it repeats.
     max_nodes: int = field(kw_only=True)
+    #: Whether anchors and aliases (``&a`` / ``*a``) are allowed at all.
     aliases: bool = field(kw_only=True)
 
 

@@ -90,36 +90,29 @@ class Coverage:
     """
     How well training data cover temperature and thermal direction.
 
-    Parameters
-    ----------
-    bin_c : float, degC
-        Bin width.
-    edges : NDArray[np.float64], shape (B + 1,), degC
-        Bin edges.
-    samples : NDArray[np.int64], shape (B,)
-        Samples per bin.
-    minutes : NDArray[np.float64], shape (B,)
-        Minutes per bin.
-    sparse : list of int
-        Indices of bins inside the span with too little data.
-    temp_range_c : tuple of float
-        Min and max temperature.
-    heating_min, cooling_min, steady_min : float
-        Minutes with dT/dt above +threshold, below -threshold, in between.
-    threshold_c_per_min : float
-        The dT/dt threshold.
-
+    Per temperature bin, and in minutes heating, cooling and steady: what a model trained
+    on the data has seen of each.
     """
 
+    #: Bin width, degC.
     bin_c: float
+    #: Bin edges (B + 1,), degC.
     edges: NDArray[np.float64]
+    #: Samples per bin (B,).
     samples: NDArray[np.int64]
+    #: Minutes per bin (B,).
     minutes: NDArray[np.float64]
+    #: Indices of bins inside the span with too little data.
     sparse: list
+    #: Min and max temperature, degC.
     temp_range_c: tuple
+    #: Minutes with dT/dt above +``threshold_c_per_min``.
     heating_min: float
+    #: Minutes with dT/dt below -``threshold_c_per_min``.
     cooling_min: float
+    #: Minutes with dT/dt in between.
     steady_min: float
+    #: The dT/dt threshold, degC/min.
     threshold_c_per_min: float
 
 

@@ -61,69 +61,50 @@ class FlightLog:
     """
     One IMU of a flight-controller log, as its reader found it.
 
-    Parameters
-    ----------
-    imu_t : NDArray[np.float64], shape (N,), s
-        Sample stamps (the log's boot clock).
-    gyro : NDArray[np.float64], shape (N, 3), rad/s
-        Angular rate.
-    temp_c : NDArray[np.float64], shape (N,) or (M,), degC
-        The temperature at each sample (NaN where the log has none), or at ``temp_t``.
-    accel : NDArray[np.float64], shape (N, 3), m/s^2, or None
-        Specific force at each sample; None when not read or absent.
-    params : dict[str, float]
-        The log's parameters (the values at its start).
-    firmware : str
-        ``'px4'`` or ``'ardupilot'``.
-    source : str
-        Where the samples came from (``sensor_gyro``, ``sensor_combined``, ``IMU``).
-    instance : int
-        The IMU instance read (0-based).
-    instances : tuple of int
-        Every instance the log holds.
-    raw : bool
-        True: the samples precede every on-board correction.
-    compensated : bool
-        True: the flight controller's thermal compensation was applied to the samples.
-    onboard : str
-        What the parameters say about on-board thermal compensation, in words.
-    device_id : int
-        The sensor's device id where the log gives one (0 otherwise).
-    truncated_bytes : int
-        Bytes after the last whole message (a log cut short), 0 when none.
-    notes : list of str
-        Further facts for the reader's line (e.g. the temperature's source).
-    temp_t : NDArray[np.float64], shape (M,), s, or None
-        The thermometer's own stamps (its rate, e.g. 1 Hz beside a 200 Hz gyro); None:
-        ``temp_c`` is on ``imu_t``.
-    temperature : str
-        The thermometer read (``IMU.T``, ``sensor_gyro.temperature``, ``BARO.Temp``...).
-    proxy : bool
-        True: the thermometer is not the IMU's own (``--temperature-source``).
-    damage : str
-        What the reader skipped of damaged bytes inside the log (not at its end), in words;
-        '' when nothing was.
-
+    The samples, and what the log says about them (firmware, source, on-board corrections,
+    thermometer, damage), for the reader's line and its refusals.
     """
 
+    #: Sample stamps (N,), s (the log's boot clock).
     imu_t: NDArray[np.float64]
+    #: Angular rate (N, 3), rad/s.
     gyro: NDArray[np.float64]
+    #: The temperature at each sample (N,) (NaN where the log has none), or at ``temp_t``
+    #: (M,), degC.
     temp_c: NDArray[np.float64]
+    #: Specific force at each sample (N, 3), m/s^2; None when not read or absent.
     accel: NDArray[np.float64] | None
+    #: The log's parameters (the values at its start), name -> value.
     params: dict
+    #: ``'px4'`` or ``'ardupilot'``.
     firmware: str
+    #: Where the samples came from (``sensor_gyro``, ``sensor_combined``, ``IMU``).
     source: str
+    #: The IMU instance read (0-based).
     instance: int
+    #: Every instance the log holds.
     instances: tuple
+    #: True when the samples precede every on-board correction.
     raw: bool
+    #: True when the flight controller's thermal compensation was applied to the samples.
     compensated: bool
+    #: What the parameters say about on-board thermal compensation, in words.
     onboard: str
+    #: The sensor's device id where the log gives one (0 otherwise).
     device_id: int = 0
+    #: Bytes after the last whole message (a log cut short), 0 when none.
     truncated_bytes: int = 0
+    #: Further facts for the reader's line (e.g. the temperature's source).
     notes: list = field(default_factory=list)
+    #: The thermometer's own stamps (M,), s (its rate, e.g. 1 Hz beside a 200 Hz gyro);
+    #: None: ``temp_c`` is on ``imu_t``.
     temp_t: NDArray[np.float64] | None = None
+    #: The thermometer read (``IMU.T``, ``sensor_gyro.temperature``, ``BARO.Temp``...).
     temperature: str = ''
+    #: True when the thermometer is not the IMU's own (``--temperature-source``).
     proxy: bool = False
+    #: What the reader skipped of damaged bytes inside the log (not at its end), in words;
+    #: '' when nothing was.
     damage: str = ''
 
 

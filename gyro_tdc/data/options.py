@@ -45,49 +45,6 @@ class BagOptions:
     """
     Every choice about reading bags, as :func:`gyro_tdc.data.dataset.load_run` takes them.
 
-    Parameters
-    ----------
-    imu_topic : str
-        ``sensor_msgs/msg/Imu`` topic.
-    temperature_topic : str
-        ``sensor_msgs/msg/Temperature`` topic.
-    reference : tuple of 3 float, rad/s, optional
-        Constant reference rate (x, y, z); when given, the reference topic is not read.
-    reference_topic : str
-        ``geometry_msgs/msg/Vector3Stamped`` topic, held (zero-order) onto the IMU stamps
-        when present; the reference is zero when the bag has no such topic.
-    max_gap_s : float, s
-        Largest distance from an IMU stamp to the nearest thermometer sample.
-    progress : bool
-        Show a progress bar while reading.
-    max_loss : float
-        Largest fraction of a topic's messages (as listed in the bag's metadata) that may be
-        missing after reading; 1.0 accepts any loss (it is still reported).
-    accel : bool
-        Also read the linear acceleration into ``run.accel``.
-    motion_topic : str
-        A ``cmd_vel`` (Twist), TwistStamped or Odometry topic vetoing stillness while it
-        reports motion (``train --still-only``); empty: none.
-    log_format : str
-        One of :data:`LOG_FORMATS`: how to read each path (``auto``: by the file).
-    imu_instance : int
-        The IMU of a flight-controller log to read (0-based: ``sensor_gyro`` multi-id,
-        DataFlash ``IMU`` instance).
-    allow_onboard_corrected : bool
-        Read flight-log data the flight controller already thermally compensated (refused
-        otherwise).
-    sessions : str
-        How the runs are cut into sessions, one turn-on offset each
-        (:func:`gyro_tdc.data.sessions.split_sessions`): ``auto`` (a bag, cut at gaps and
-        restarts), ``bag`` or ``none``.
-    session_gap_s : float, s
-        Stamp gap that starts a session; 0: automatic
-        (:func:`gyro_tdc.data.sessions.session_gap`).
-    temperature_source : str
-        The thermometer of a flight-controller log: ``'imu'`` (the IMU's own), ``'baro'``
-        (the barometer's, a proxy) or ``'TOPIC.FIELD'`` / ``'MSG.Field'`` (another
-        thermometer of the board, a proxy).
-
     Raises
     ------
     DatasetError
@@ -97,20 +54,45 @@ class BagOptions:
 
     """
 
+    #: ``sensor_msgs/msg/Imu`` topic.
     imu_topic: str = DEFAULT_IMU_TOPIC
+    #: ``sensor_msgs/msg/Temperature`` topic.
     temperature_topic: str = DEFAULT_TEMPERATURE_TOPIC
+    #: Constant reference rate (x, y, z), rad/s; when given, the reference topic is not read.
     reference: tuple[float, float, float] | None = None
+    #: ``geometry_msgs/msg/Vector3Stamped`` topic, held (zero-order) onto the IMU stamps
+    #: when present; the reference is zero when the bag has no such topic.
     reference_topic: str = DEFAULT_REFERENCE_TOPIC
+    #: Largest distance from an IMU stamp to the nearest thermometer sample, s.
     max_gap_s: float = 5.0
+    #: Show a progress bar while reading.
     progress: bool = False
+    #: Largest fraction of a topic's messages (as listed in the bag's metadata) that may be
+    #: missing after reading; 1.0 accepts any loss (it is still reported).
     max_loss: float = MAX_LOSS_FRACTION
+    #: Also read the linear acceleration into ``run.accel``.
     accel: bool = False
+    #: A ``cmd_vel`` (Twist), TwistStamped or Odometry topic vetoing stillness while it
+    #: reports motion (``train --still-only``); empty: none.
     motion_topic: str = ''
+    #: How to read each path, one of :data:`LOG_FORMATS` (``auto`` tells by the file).
     log_format: str = 'auto'
+    #: The IMU of a flight-controller log to read, 0-based (``sensor_gyro`` multi-id,
+    #: DataFlash ``IMU`` instance).
     imu_instance: int = 0
+    #: Read flight-log data the flight controller already thermally compensated (refused
+    #: otherwise).
     allow_onboard_corrected: bool = False
+    #: How the runs are cut into sessions, one turn-on offset each
+    #: (:func:`gyro_tdc.data.sessions.split_sessions`): ``auto`` (a bag, cut at gaps and
+    #: restarts), ``bag`` or ``none``.
     sessions: str = 'auto'
+    #: Stamp gap that starts a session, s; 0 for automatic
+    #: (:func:`gyro_tdc.data.sessions.session_gap`).
     session_gap_s: float = 0.0
+    #: The thermometer of a flight-controller log, ``'imu'`` (the IMU's own), ``'baro'``
+    #: (the barometer's, a proxy) or ``'TOPIC.FIELD'`` / ``'MSG.Field'`` (another
+    #: thermometer of the board, a proxy).
     temperature_source: str = 'imu'
 
     def __post_init__(self) -> None:

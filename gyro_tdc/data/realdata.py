@@ -44,28 +44,17 @@ LSM6DSM_TEMP_VARIANCE = (1.0 / LSM6DSM_LSB_PER_C) ** 2 / 12.0
 
 @dataclass(frozen=True)
 class PanCubesat:
-    """
-    The PAN CubeSat TVAC recording after the authors' corrections.
+    """The PAN CubeSat TVAC recording after the authors' corrections, ready for a bag."""
 
-    Parameters
-    ----------
-    t : NDArray[np.float64], shape (N,), s
-        Time since boot.
-    gyro : NDArray[np.float64], shape (N, 3), rad/s
-        Corrected angular rate (logged x 0.5).
-    temp_c : NDArray[np.float64], shape (N,), degC
-        Die temperature from the raw register.
-    rows_read : int
-        Data rows in the CSV.
-    removed_t : NDArray[np.float64], shape (K,), s
-        Times of the spike rows that were removed.
-
-    """
-
+    #: Time since boot (N,), s.
     t: NDArray[np.float64]
+    #: Corrected angular rate (N, 3), rad/s (logged x 0.5).
     gyro: NDArray[np.float64]
+    #: Die temperature from the raw register (N,), degC.
     temp_c: NDArray[np.float64]
+    #: Data rows in the CSV.
     rows_read: int
+    #: Times of the spike rows that were removed (K,), s.
     removed_t: NDArray[np.float64]
 
     @property

@@ -42,64 +42,41 @@ __all__ = ['BURST_FACTOR', 'BURST_PAUSES', 'find_breaks', 'GAP_PERIODS', 'Sessio
 
 @dataclass(frozen=True)
 class Session:
-    """
-    One session: a power cycle of the sensor, with its own turn-on offset.
+    """One session: a power cycle of the sensor, with its own turn-on offset."""
 
-    Parameters
-    ----------
-    name : str
-        The run's name: the bag, or ``BAG@k`` for the k-th session (from 1) of a bag cut
-        into several.
-    bag : str
-        The bag it came from (``'all'`` with ``--sessions none`` and several bags).
-    index : int
-        Its label, 0-based in order: the offset it gets in a fit.
-    start_s, end_s : float, s
-        First and last stamp.
-    samples : int
-        Samples.
-    why : str
-        What started it: ``'bag'``, ``'gap of X s'`` or ``'restart (stamps back by X s)'``.
-
-    """
-
+    #: The run's name, the bag or ``BAG@k`` for the k-th session (from 1) of a bag cut
+    #: into several.
     name: str
+    #: The bag it came from (``'all'`` with ``--sessions none`` and several bags).
     bag: str
+    #: Its label, 0-based in order, the offset it gets in a fit.
     index: int
+    #: First stamp, s.
     start_s: float
+    #: Last stamp, s.
     end_s: float
+    #: Samples.
     samples: int
+    #: What started it, ``'bag'``, ``'gap of X s'`` or ``'restart (stamps back by X s)'``.
     why: str = 'bag'
 
 
 @dataclass(frozen=True)
 class SessionSplit:
-    """
-    Runs cut into sessions, with one label per run (runs with one label share an offset).
+    """Runs cut into sessions, with one label per run (runs with one label share an offset)."""
 
-    Parameters
-    ----------
-    runs : list of Run
-        One per session with ``mode='auto'``; the runs as given otherwise.
-    labels : list of int
-        The session of each run (0-based).
-    sessions : list of Session
-        One per label.
-    mode : str
-        One of :data:`SESSION_MODES`.
-    breaks : list of str
-        Every gap or restart found, in words (also those not cut with ``bag`` / ``none``).
-    parts : list of (int, int, int)
-        Per run of ``runs``: the run it was cut from and its samples ``start:stop`` there
-        (to cut per-sample arrays the same way, e.g. a motion veto).
-
-    """
-
+    #: One per session with ``mode='auto'``; the runs as given otherwise.
     runs: list
+    #: The session of each run (0-based).
     labels: list
+    #: One :class:`Session` per label.
     sessions: list
+    #: One of :data:`SESSION_MODES`.
     mode: str = 'auto'
+    #: Every gap or restart found, in words (also those not cut with ``bag`` / ``none``).
     breaks: list = field(default_factory=list)
+    #: Per run of ``runs``, (run it was cut from, start, stop), its samples ``start:stop``
+    #: there (to cut per-sample arrays the same way, e.g. a motion veto).
     parts: list = field(default_factory=list)
 
     @property

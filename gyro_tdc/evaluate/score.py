@@ -57,125 +57,88 @@ AUTO_REANCHOR = 'auto'
 
 @dataclass
 class ModelEval:
-    """
-    Scores of one model on one bag.
+    """Scores of one model on one bag: one row of the evaluation's tables and plots."""
 
-    Parameters
-    ----------
-    model : str
-        The model as given on the command line (a path, or ``px4``).
-    label : str
-        Short unique label for tables, CSV columns and legends.
-    features : list of str
-        Effect ids of the model.
-    bs : NDArray[np.float64], shape (3,), (deg/s)^2
-        Bias stability after compensation.
-    rms_dps : NDArray[np.float64], shape (3,), deg/s
-        RMS of compensated minus reference rate.
-    p_vs_raw : NDArray[np.float64], shape (3,)
-        ``bs`` / raw BS.
-    adev_tau_s : NDArray[np.float64], shape (M,), s
-        Allan averaging times.
-    adev_dps : NDArray[np.float64], shape (M, 3), deg/s
-        Allan deviation of the compensated error.
-    arw_deg_sqrt_h, bias_instability_deg_h : NDArray[np.float64], shape (3,)
-        Readouts of the Allan curve.
-    temp_range_c : tuple of float, degC
-        The model's trained range.
-    outside_fraction : float
-        Fraction of the scored samples (all, or the still ones of a bag scored still-only)
-        whose model temperature (the thermal state) lies outside ``temp_range_c`` (evaluated
-        with the bag's out-of-range policy).
-    omega : NDArray[np.float64], shape (N, 3), rad/s, or None
-        The compensated rate (kept only while plots and CSVs are written).
-    reanchor : dict, optional
-        With ``reanchor_s='auto'``: ``samples``, ``duration_s``, ``shift_dps``, ``se_dps``,
-        ``tolerance_dps`` (3 each) and ``reason`` of the re-anchoring.
-    accel_bs : NDArray[np.float64], shape (3,), (m/s^2)^2, optional
-        Accelerometer BS (variance around the run mean over the still samples) after the
-        model's accelerometer part (raw: of the raw data); None when not applicable (no
-        accelerometer data, a run not static, a model without an accelerometer part).
-    constant_axes : list of str
-        The gyro axes the model does not correct: constant in its training data, passed
-        through unchanged (``model.metrics['constant_axes']``; empty for the raw data).
-
-    """
-
+    #: The model as given on the command line (a path, or ``px4``).
     model: str
+    #: Short unique label for tables, CSV columns and legends.
     label: str
+    #: Effect ids of the model.
     features: list
+    #: Bias stability after compensation (3,), (deg/s)^2.
     bs: NDArray[np.float64]
+    #: RMS of compensated minus reference rate (3,), deg/s.
     rms_dps: NDArray[np.float64]
+    #: ``bs`` / raw BS (3,).
     p_vs_raw: NDArray[np.float64]
+    #: Allan averaging times (M,), s.
     adev_tau_s: NDArray[np.float64]
+    #: Allan deviation of the compensated error (M, 3), deg/s.
     adev_dps: NDArray[np.float64]
+    #: Angle random walk read off the Allan curve (3,), deg/sqrt(h).
     arw_deg_sqrt_h: NDArray[np.float64]
+    #: Bias instability read off the Allan curve (3,), deg/h.
     bias_instability_deg_h: NDArray[np.float64]
+    #: The model's trained range, degC.
     temp_range_c: tuple = (math.nan, math.nan)
+    #: Fraction of the scored samples (all, or the still ones of a bag scored still-only)
+    #: whose model temperature (the thermal state) lies outside ``temp_range_c`` (evaluated
+    #: with the bag's out-of-range policy).
     outside_fraction: float = 0.0
+    #: The compensated rate (N, 3), rad/s (kept only while plots and CSVs are written).
     omega: NDArray[np.float64] | None = field(default=None, repr=False)
+    #: The re-anchoring with ``reanchor_s='auto'``, its ``samples``, ``duration_s``,
+    #: ``shift_dps``, ``se_dps``, ``tolerance_dps`` (3 each) and ``reason``.
     reanchor: dict | None = None
+    #: Accelerometer BS (3,), (m/s^2)^2 (variance around the run mean over the still
+    #: samples) after the model's accelerometer part (raw: of the raw data); None when not
+    #: applicable (no accelerometer data, a run not static, a model without an accelerometer
+    #: part).
     accel_bs: NDArray[np.float64] | None = None
+    #: The gyro axes the model does not correct, constant in its training data, passed
+    #: through unchanged (``model.metrics['constant_axes']``; empty for the raw data).
     constant_axes: list = field(default_factory=list)
 
 
 @dataclass
 class BagEval:
-    """
-    Scores of every model on one held-out bag.
+    """Scores of every model on one held-out bag, the raw data scored alike beside them."""
 
-    Parameters
-    ----------
-    bag : str
-        The bag path.
-    label : str
-        Short unique label (file names of plots and CSVs).
-    samples : int
-        Samples scored.
-    temperature_c : tuple of float, degC
-        Min and max temperature of the samples scored.
-    duration_s : float, s
-        Time scored: the bag's span, or the still time of a bag scored still-only.
-    reference : str
-        Where the reference rate came from (``constant``, ``topic``, ``zero``).
-    raw : ModelEval
-        The uncompensated data scored like a model (``p_vs_raw`` = 1).
-    models : list of ModelEval
-        One per model, in command-line order.
-    run : Run or None
-        The data (kept only while plots and CSVs are written).
-    out_of_range : str
-        The out-of-range policy the models were evaluated with (:func:`evaluate_run` sets
-        it; ``'clamp'`` when a result is built by hand).
-    constant_axes : list of str
-        The gyro axes that are constant on this bag by ``train``'s rule (readings never
-        varying beyond one quantum, :func:`gyro_tdc.identify.constant_axes`: a 2-axis gyro's
-        filled-in 0, a dead axis; judged on bags of at least ``MIN_SAMPLES`` = 50 samples, as
-        many as ``train`` fits), or that read exactly their reference rate on every sample
-        (raw BS 0): there is no signal to score, BS/BS1 does not apply there (NaN, not a
-        number to read).
-    still : dict or None
-        Data without a reference that move (:func:`still_rows`): only the still stretches
-        were scored, raw and models alike each session re-anchored on its first still
-        stretch (as the compensator does at start-up); what was scored: ``samples``,
-        ``stretches``, ``still_s``, ``temperature_c``; the whole bag: ``total_samples``,
-        ``total_s``, ``total_temperature_c``; ``share`` (``still_s / total_s``, at most 1),
-        ``sessions`` (their number) and ``per_session`` (the same eight per session). None:
-        every sample was scored.
-
-    """
-
+    #: The bag path.
     bag: str
+    #: Short unique label (file names of plots and CSVs).
     label: str
+    #: Samples scored.
     samples: int
+    #: Min and max temperature of the samples scored, degC.
     temperature_c: tuple
+    #: Time scored, s, the bag's span or the still time of a bag scored still-only.
     duration_s: float
+    #: Where the reference rate came from (``constant``, ``topic``, ``zero``).
     reference: str
+    #: The uncompensated data scored like a model (``p_vs_raw`` = 1).
     raw: ModelEval
+    #: One :class:`ModelEval` per model, in command-line order.
     models: list
+    #: The data (kept only while plots and CSVs are written).
     run: Run | None = field(default=None, repr=False)
+    #: The out-of-range policy the models were evaluated with (:func:`evaluate_run` sets
+    #: it; ``'clamp'`` when a result is built by hand).
     out_of_range: str = 'clamp'
+    #: The gyro axes that are constant on this bag by ``train``'s rule (readings never
+    #: varying beyond one quantum, :func:`gyro_tdc.identify.constant_axes`: a 2-axis gyro's
+    #: filled-in 0, a dead axis; judged on bags of at least ``MIN_SAMPLES`` = 50 samples, as
+    #: many as ``train`` fits), or that read exactly their reference rate on every sample
+    #: (raw BS 0): there is no signal to score, BS/BS1 does not apply there (NaN, not a
+    #: number to read).
     constant_axes: list = field(default_factory=list)
+    #: For data without a reference that move (:func:`still_rows`), only the still
+    #: stretches were scored, raw and models alike each session re-anchored on its first
+    #: still stretch (as the compensator does at start-up); what was scored: ``samples``,
+    #: ``stretches``, ``still_s``, ``temperature_c``; the whole bag: ``total_samples``,
+    #: ``total_s``, ``total_temperature_c``; ``share`` (``still_s / total_s``, at most 1),
+    #: ``sessions`` (their number) and ``per_session`` (the same eight per session). None:
+    #: every sample was scored.
     still: dict | None = None
 
     def release(self) -> None:

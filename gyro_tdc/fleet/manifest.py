@@ -43,25 +43,15 @@ _SENSOR_ID = re.compile(r'[A-Za-z0-9][A-Za-z0-9._-]{0,127}')
 
 @dataclass(frozen=True)
 class SensorSpec:
-    """
-    One manifest row: a sensor and its bags.
+    """One manifest row: a sensor and its bags, the input of one fleet task."""
 
-    Parameters
-    ----------
-    sensor_id : str
-        Sensor identifier (a valid file name: letters, digits, ``.``, ``_``, ``-``).
-    train : tuple of str
-        Training bags (absolute or relative to the working directory).
-    test : tuple of str
-        Held-out bags (may be empty).
-    line : int
-        Line of the manifest (for messages).
-
-    """
-
+    #: Sensor identifier, a valid file name (letters, digits, ``.``, ``_``, ``-``).
     sensor_id: str
+    #: Training bags (absolute or relative to the working directory).
     train: tuple[str, ...]
+    #: Held-out bags (may be empty).
     test: tuple[str, ...] = ()
+    #: Line of the manifest (for messages).
     line: int = 0
 
 

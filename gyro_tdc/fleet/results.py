@@ -35,57 +35,41 @@ __all__ = ['FleetResult', 'SensorResult', 'format_table', 'summary_dict', 'write
 
 @dataclass
 class SensorResult:
-    """
-    One sensor's line of the fleet summary.
+    """One sensor's line of the fleet summary: its model, its scores and its outlier flags."""
 
-    Parameters
-    ----------
-    sensor_id : str
-        The sensor.
-    status : str
-        ``'ok'`` or ``'failed'``.
-    error : str
-        One-line reason when failed.
-    model_file : str or None
-        The model written (or kept, when skipped).
-    train_bs, heldout_bs : list of 3 float or None, (deg/s)^2
-        Training and mean held-out BS per axis.
-    skipped : bool
-        True when inputs and options were unchanged and the model was kept.
-    drift_poly : list or None, deg/s per degC^k
-        Static drift quadratic per axis (see :func:`drift_polynomial`).
-    temp_range_c : list of 2 float or None, degC
-        The model's trained temperature range.
-    slope, curvature : list of 3 float or None, deg/s/degC and deg/s/degC^2
-        Drift slope at the fleet's reference temperature and curvature per axis.
-    z_slope, z_curvature : list of 3 float or None
-        Their robust z-scores against the fleet (None when not computed).
-    flags : list of str
-        Fleet-outlier flags.
-    seconds : float, s
-        Wall time of the task on its worker (0 when skipped).
-    constant_axes : list of str
-        The gyro axes constant in the sensor's training bags (never varying beyond one
-        quantum): not fitted, its model passes them through; they take no part in the fleet
-        statistics (no slope, curvature or z-score there, never flagged).
-
-    """
-
+    #: The sensor.
     sensor_id: str
+    #: ``'ok'`` or ``'failed'``.
     status: str
+    #: One-line reason when failed.
     error: str = ''
+    #: The model written (or kept, when skipped).
     model_file: str | None = None
+    #: Training BS per axis, (deg/s)^2.
     train_bs: list | None = None
+    #: Mean held-out BS per axis, (deg/s)^2.
     heldout_bs: list | None = None
+    #: True when inputs and options were unchanged and the model was kept.
     skipped: bool = False
+    #: Static drift quadratic per axis, deg/s per degC^k (see :func:`drift_polynomial`).
     drift_poly: list | None = None
+    #: The model's trained temperature range (2 floats), degC.
     temp_range_c: list | None = None
+    #: Drift slope per axis at the fleet's reference temperature, deg/s/degC.
     slope: list | None = None
+    #: Drift curvature per axis, deg/s/degC^2.
     curvature: list | None = None
+    #: Robust z-score of ``slope`` per axis against the fleet (None when not computed).
     z_slope: list | None = None
+    #: Robust z-score of ``curvature`` per axis against the fleet (None when not computed).
     z_curvature: list | None = None
+    #: Fleet-outlier flags.
     flags: list = field(default_factory=list)
+    #: Wall time of the task on its worker, s (0 when skipped).
     seconds: float = 0.0
+    #: The gyro axes constant in the sensor's training bags (never varying beyond one
+    #: quantum): not fitted, its model passes them through; they take no part in the fleet
+    #: statistics (no slope, curvature or z-score there, never flagged).
     constant_axes: list = field(default_factory=list)
 
     def constant_note(self) -> str:
@@ -96,32 +80,20 @@ class SensorResult:
 
 @dataclass
 class FleetResult:
-    """
-    Everything a fleet run produced.
+    """Everything a fleet run produced: the summary's lines and how they were computed."""
 
-    Parameters
-    ----------
-    scheduler : str
-        ``'local'`` for the embedded cluster, else the scheduler address.
-    workers : int
-        Dask workers at the start.
-    sensors : list of SensorResult
-        In manifest order.
-    reference_c : float or None, degC
-        Temperature at which drift slopes are compared (the fleet's median of the middle
-        of each model's trained range).
-    outlier_z : float
-        Flag threshold on the robust z-score.
-    seconds : float, s
-        Wall time of the run.
-
-    """
-
+    #: ``'local'`` for the embedded cluster, else the scheduler address.
     scheduler: str
+    #: Dask workers at the start.
     workers: int
+    #: One :class:`SensorResult` per sensor, in manifest order.
     sensors: list
+    #: Temperature at which drift slopes are compared, degC (the fleet's median of the
+    #: middle of each model's trained range).
     reference_c: float | None = None
+    #: Flag threshold on the robust z-score.
     outlier_z: float = 3.5
+    #: Wall time of the run, s.
     seconds: float = 0.0
 
     @property

@@ -68,17 +68,11 @@ class SensorOutcome(SensorResult):
     (``error`` says why); ``seconds`` is the task's wall time on the worker, ``train_bs``,
     ``heldout_bs``, ``drift_poly`` (:func:`drift_polynomial` as nested lists),
     ``temp_range_c`` and ``constant_axes`` the model's (``heldout_bs`` None without test bags).
-
-    Parameters
-    ----------
-    key : str
-        Input key (:func:`input_key`); empty when it could not be computed.
-    model : CompensationModel or None
-        The trained model (``sensor_id`` set) when ok.
-
     """
 
+    #: Input key (:func:`input_key`); empty when it could not be computed.
     key: str = ''
+    #: The trained model (``sensor_id`` set) when ok.
     model: CompensationModel | None = None
 
 
@@ -146,25 +140,15 @@ def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | Non
 
 @dataclass
 class Engine:
-    """
-    A Dask client and what to report about it.
+    """A Dask client and what to report about it."""
 
-    Parameters
-    ----------
-    client : distributed.Client
-        Connected client.
-    scheduler : str
-        ``'local'`` or the scheduler address.
-    workers : int
-        Workers connected at the start.
-    timeout_s : float, s
-        How long a fleet waits while the cluster has no worker before it gives up.
-
-    """
-
+    #: Connected client (``distributed.Client``).
     client: object
+    #: ``'local'`` or the scheduler address.
     scheduler: str
+    #: Workers connected at the start.
     workers: int
+    #: How long a fleet waits while the cluster has no worker before it gives up, s.
     timeout_s: float = 30.0
 
 

@@ -36,31 +36,19 @@ __all__ = ['Entry', 'held_out_line', 'LearnConfig', 'OpenStretch', 'RecentStretc
 
 @dataclass(slots=True)
 class Entry:
-    """
-    One point of the learner's table: the mean of a bin's still windows in one entry group.
+    """One point of the learner's table: the mean of a bin's still windows in one entry group."""
 
-    Parameters
-    ----------
-    t_end : float, s
-        Stamp of its newest window's end (its age).
-    samples : float
-        Samples it averages (its weight).
-    temp_c : float, degC
-        Mean model temperature.
-    bias : tuple of 3 float, rad/s
-        Mean raw rate.
-    group : int
-        Its entry group (a stretch, or an ``entry_s`` part of a long one).
-    session : int
-        The session (power cycle) it was learned in.
-
-    """
-
+    #: Stamp of its newest window's end (its age), s.
     t_end: float
+    #: Samples it averages (its weight).
     samples: float
+    #: Mean model temperature, degC.
     temp_c: float
+    #: Mean raw rate (x, y, z), rad/s.
     bias: tuple[float, float, float]
+    #: Its entry group (a stretch, or an ``entry_s`` part of a long one).
     group: int
+    #: The session (power cycle) it was learned in.
     session: int
 
 
@@ -74,64 +62,46 @@ class RecentStretch(NamedTuple):
 
 @dataclass(frozen=True)
 class LearnConfig:
-    """
-    Settings of the learner.
+    """Settings of the learner: its table's bins and ageing, its still test and its timing."""
 
-    Parameters
-    ----------
-    bin_c : float, degC
-        Temperature bin width.
-    half_life_s : float, s
-        Age (by message stamp) at which an entry weighs half.
-    window_s : float, s
-        Still test window.
-    min_still_s : float or None, s
-        Shortest stretch learned; None (auto): the trainers' rule
-        (:func:`gyro_tdc.signal.long_enough`), :data:`~gyro_tdc.signal.MIN_STILL_S` or two
-        windows of samples whose mean is known well enough (a 20 s stop of a 25 Hz
-        flight-controller log).
-    temperature_timeout : float, s
-        A thermometer reading older than this (by stamp) gives no temperature.
-    save_period_s : float, s
-        Stamp time between periodic saves.
-    commit_s : float, s
-        A still stretch longer than this is learned every ``commit_s`` while it goes on.
-    entry_s : float, s
-        A bin's entry gathers one stretch's windows over at most this long (then a new entry
-        begins), so a long stop is learned as many points, each of its hours aged apart.
-    offset_s : float, s
-        The current session's offset is the mean over the newest ``offset_s`` of its still
-        windows of the raw rate minus the fitted shape (the offset wanders: a random walk,
-        bias instability); 0: the fit's intercept of the session.
-    max_rate_hz : float, Hz
-        The core hands the learner at most one sample per ``1 / max_rate_hz`` of stamps
-        (by stamp, so a replay at any speed hands the same samples): from a faster IMU the
-        mean of the samples since the last hand-off (a 1 kHz IMU is learned from means of
-        10, a tenth of the noise variance of one sample), plenty for 10 s still windows.
-    session_gap_s : float, s
-        A gap in the IMU stamps longer than this starts a new session (a power-up: the
-        gyro's turn-on offset changes; each session gets its own intercept in the fit), when
-        it is also longer than :data:`GAP_PERIODS` sample periods and, in a stream that pauses
-        regularly (bursts), than :data:`BURST_FACTOR` times its median pause; stamps that step
-        back by over ``RESTART_BACK_S`` (a device clock restarted) start one too.
-    swap_delay_s : float, s
-        An accepted candidate takes effect this long (by stamp) after the sample that let it
-        be computed (:meth:`Learner.take_swaps`), so its effective stamp is fixed by the
-        data, not by when :meth:`Learner.step` happens to run.
-
-    """
-
+    #: Temperature bin width, degC.
     bin_c: float = 1.0
+    #: Age (by message stamp) at which an entry weighs half, s.
     half_life_s: float = 86400.0
+    #: Still test window, s.
     window_s: float = STILL_WINDOW_S
+    #: Shortest stretch learned, s; None (auto) for the trainers' rule
+    #: (:func:`gyro_tdc.signal.long_enough`), :data:`~gyro_tdc.signal.MIN_STILL_S` or two
+    #: windows of samples whose mean is known well enough (a 20 s stop of a 25 Hz
+    #: flight-controller log).
     min_still_s: float | None = None
+    #: A thermometer reading older than this (by stamp) gives no temperature, s.
     temperature_timeout: float = 5.0
+    #: Stamp time between periodic saves, s.
     save_period_s: float = 180.0
+    #: A still stretch longer than this (s) is learned every ``commit_s`` while it goes on.
     commit_s: float = 300.0
+    #: A bin's entry gathers one stretch's windows over at most this long (s; then a new
+    #: entry begins), so a long stop is learned as many points, each of its hours aged apart.
     entry_s: float = 3600.0
+    #: The current session's offset is the mean over the newest ``offset_s`` (s) of its still
+    #: windows of the raw rate minus the fitted shape (the offset wanders: a random walk,
+    #: bias instability); 0: the fit's intercept of the session.
     offset_s: float = 1800.0
+    #: The core hands the learner at most one sample per ``1 / max_rate_hz`` of stamps
+    #: (by stamp, so a replay at any speed hands the same samples): from a faster IMU the
+    #: mean of the samples since the last hand-off (a 1 kHz IMU is learned from means of
+    #: 10, a tenth of the noise variance of one sample), plenty for 10 s still windows.
     max_rate_hz: float = 100.0
+    #: A gap in the IMU stamps longer than this (s) starts a new session (a power-up, the
+    #: gyro's turn-on offset changes; each session gets its own intercept in the fit), when
+    #: it is also longer than :data:`GAP_PERIODS` sample periods and, in a stream that pauses
+    #: regularly (bursts), than :data:`BURST_FACTOR` times its median pause; stamps that step
+    #: back by over ``RESTART_BACK_S`` (a device clock restarted) start one too.
     session_gap_s: float = SESSION_GAP_S
+    #: An accepted candidate takes effect this long (s, by stamp) after the sample that let
+    #: it be computed (:meth:`Learner.take_swaps`), so its effective stamp is fixed by the
+    #: data, not by when :meth:`Learner.step` happens to run.
     swap_delay_s: float = 5.0
 
 

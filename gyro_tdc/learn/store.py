@@ -238,25 +238,15 @@ class LearnFile:
 
 @dataclass(frozen=True)
 class Opened:
-    """
-    The file a learner learns into, as :func:`open_learn_file` chose it.
+    """The file a learner learns into, as :func:`open_learn_file` chose it, and why."""
 
-    Attributes
-    ----------
-    file : LearnFile or None
-        Where the state is written (None: both candidates refused; nothing is kept).
-    resumed : bool
-        Whether a saved state was loaded.
-    warning : str
-        One line when ``learn_file`` itself was refused (kept as it is), else ''.
-    notes : tuple of str
-        Other lines worth a warning (a mode given back to the owner).
-
-    """
-
+    #: Where the state is written; None when both candidates were refused (nothing is kept).
     file: LearnFile | None
+    #: Whether a saved state was loaded.
     resumed: bool
+    #: One line when ``learn_file`` itself was refused (kept as it is), else ''.
     warning: str
+    #: Other lines worth a warning (a mode given back to the owner).
     notes: tuple[str, ...] = ()
 
 

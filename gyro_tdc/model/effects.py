@@ -40,28 +40,18 @@ __all__ = ['EFFECT_IDS', 'EFFECTS', 'Effect', 'INPUT_ORDER', 'NONLINEAR_EFFECTS'
 
 @dataclass(frozen=True)
 class Series:
-    """
-    The signals of one continuous run that batch features are computed from.
+    """The signals of one continuous run that batch features are computed from."""
 
-    Parameters
-    ----------
-    t : NDArray[np.float64], shape (N,), s
-        Stamps (filters start at ``t[0]``).
-    temp : NDArray[np.float64], shape (N,), degC
-        Measured temperature at each stamp.
-    t0 : float, degC
-        Reference temperature.
-    d : NDArray[np.float64], shape (N,), degC
-        The model temperature minus ``t0``: the thermal state's, or ``temp``'s without one.
-    t_start : float, s
-        Power-on time.
-
-    """
-
+    #: Stamps (N,), s (filters start at ``t[0]``).
     t: NDArray[np.float64]
+    #: Measured temperature at each stamp (N,), degC.
     temp: NDArray[np.float64]
+    #: Reference temperature, degC.
     t0: float
+    #: The model temperature minus ``t0`` (N,), degC, the thermal state's or (without one)
+    #: ``temp``'s.
     d: NDArray[np.float64]
+    #: Power-on time, s.
     t_start: float
 
 
@@ -80,58 +70,43 @@ class Effect:
     """
     One physical effect of the catalog: its description, parameters, flags and feature.
 
-    Parameters
-    ----------
-    id : str
-        Stable identifier (``dT``, ``lag``...).
-    description : str
-        The physics, in one or two sentences.
-    feature : str
-        What the feature is, in symbols.
-    excited_by : str
-        The experiment that makes the effect visible.
-    params : Mapping[str, float]
-        Parameter defaults (e.g. ``{'tau_s': 60.0}``).
-    fitted : tuple of str
-        Parameters identified from data during training (others stay at their default).
-    bounds : Mapping[str, tuple of float]
-        Search bounds of the fitted parameters.
-    is_input : bool
-        True when the feature is an input of the drift network (then ``batch`` and
-        ``stream`` are given; ``bias`` and ``scale`` have neither).
-    batch : callable, optional
-        ``batch(series, params) -> NDArray (N,)``: the feature over a run.
-    stream : callable, optional
-        ``stream(params, t0) -> step``: a fresh stateful step, ``step(t, dt_s, temp, d,
-        first) -> float``, equal to ``batch`` sample by sample.
-    static : bool
-        No time memory: the effect depends on the current temperature (and rate) alone.
-        False by default, the safe side: the compensator re-evaluates a model with any
-        non-static effect at every sample.
-    needs_span : bool
-        Identifiable only from data that span a range of temperatures.
-    needs_reference : bool
-        Identifiable only with a non-zero reference rate (rate-table data).
-    thermal : bool
-        The effect is the thermal front end (``lag``): in a model with a thermal state it
-        adds no column and makes every temperature term follow the lagged state; its
-        ``batch``/``stream`` forms are the additive column of discovery's search.
-
+    Training, discovery and the compensator all read an effect from here, so its batch and
+    streaming forms and what identifies it are defined once.
     """
 
+    #: Stable identifier (``dT``, ``lag``...).
     id: str
+    #: The physics, in one or two sentences.
     description: str
+    #: What the feature is, in symbols.
     feature: str
+    #: The experiment that makes the effect visible.
     excited_by: str
+    #: Parameter defaults (e.g. ``{'tau_s': 60.0}``).
     params: Mapping[str, float] = field(default_factory=dict)
+    #: Parameters identified from data during training (others stay at their default).
     fitted: tuple[str, ...] = ()
+    #: Search bounds (low, high) of the fitted parameters.
     bounds: Mapping[str, tuple[float, float]] = field(default_factory=dict)
+    #: True when the feature is an input of the drift network (then ``batch`` and
+    #: ``stream`` are given; ``bias`` and ``scale`` have neither).
     is_input: bool = True
+    #: The feature over a run, ``batch(series, params) -> NDArray (N,)``.
     batch: BatchFeature | None = field(default=None, repr=False, compare=False)
+    #: A fresh stateful step, ``stream(params, t0) -> step``, with ``step(t, dt_s, temp, d,
+    #: first) -> float`` equal to ``batch`` sample by sample.
     stream: StreamFactory | None = field(default=None, repr=False, compare=False)
+    #: No time memory, the effect depends on the current temperature (and rate) alone.
+    #: False by default, the safe side: the compensator re-evaluates a model with any
+    #: non-static effect at every sample.
     static: bool = False
+    #: Identifiable only from data that span a range of temperatures.
     needs_span: bool = True
+    #: Identifiable only with a non-zero reference rate (rate-table data).
     needs_reference: bool = False
+    #: The effect is the thermal front end (``lag``), which in a model with a thermal state
+    #: adds no column and makes every temperature term follow the lagged state; its
+    #: ``batch``/``stream`` forms are the additive column of discovery's search.
     thermal: bool = False
 
     def __post_init__(self) -> None:

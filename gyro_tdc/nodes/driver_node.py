@@ -120,32 +120,21 @@ def _open_iio(p: DriverParams, clock_ns: Callable[[], int]) -> ImuSource:
 
 @dataclass(frozen=True)
 class Backend:
-    """
-    What the node knows of one back-end: the only place the ``backend`` parameter matters.
+    """What the node knows of one back-end: the only place the ``backend`` parameter matters."""
 
-    Parameters
-    ----------
-    open : callable (DriverParams, clock_ns) -> ImuSource
-        Opens the source; ``clock_ns`` returns the node clock in ns.
-    tick_hz : str
-        Parameter giving how often the node asks the source for due samples [Hz].
-    hardware_id : callable (DriverParams) -> str
-        What /diagnostics names while no source is open.
-    reference : bool
-        Whether the node publishes ``rate_table/reference``.
-    diagnostics : tuple of str
-        Parameters reported on /diagnostics.
-    retry : bool
-        Whether a source that cannot be opened at start-up is retried (a device may
-        appear); False makes it a configuration error and the node does not start.
-
-    """
-
+    #: Opens the source, ``open(params, clock_ns) -> ImuSource``; ``clock_ns()`` returns the
+    #: node clock in ns.
     open: Callable[[DriverParams, Callable[[], int]], ImuSource]
+    #: Parameter giving how often the node asks the source for due samples [Hz].
     tick_hz: str
+    #: What /diagnostics names while no source is open, ``hardware_id(params) -> str``.
     hardware_id: Callable[[DriverParams], str]
+    #: Whether the node publishes ``rate_table/reference``.
     reference: bool = False
+    #: Parameters reported on /diagnostics.
     diagnostics: tuple[str, ...] = ()
+    #: Whether a source that cannot be opened at start-up is retried (a device may
+    #: appear); False makes it a configuration error and the node does not start.
     retry: bool = True
 
 

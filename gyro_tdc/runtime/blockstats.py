@@ -58,40 +58,30 @@ class Anchor:
     """
     The result of re-anchoring: the offset shift that zeroes the compensated rate.
 
-    Parameters
-    ----------
-    t : float, s
-        Stamp of the last sample averaged.
-    delta : tuple of 3 float, rad/s
-        Shift added to the model's drift.
-    samples : int
-        Samples averaged.
-    gyro_std : tuple of 3 float, rad/s
-        Standard deviation of the raw rate within the still windows (RMS over them).
-    temp_c : float, degC
-        Temperature at the end.
-    duration_s : float, s
-        Stamp of the last sample averaged minus that of the first.
-    se : tuple of 3 float, rad/s
-        Standard error of ``delta`` (block means; see the module docstring).
-    tolerance : tuple of 3 float, rad/s
-        The tolerance the SE was held to.
-    reason : str
-        ``'precision'`` (SE within the tolerance), ``'longest'`` (``window_max`` reached),
-        ``'motion'`` (motion ended the still run first: the stream's form of ``'end of
-        data'``) or ``'end of data'`` (:func:`reanchor_shift` only); ``''`` for a single
-        window.
-
+    It carries the evidence behind the shift (samples, spread, standard error against its
+    tolerance) and why the averaging stopped.
     """
 
+    #: Stamp of the last sample averaged, s.
     t: float
+    #: Shift added to the model's drift (x, y, z), rad/s.
     delta: Vec3
+    #: Samples averaged.
     samples: int
+    #: Standard deviation of the raw rate within the still windows (RMS over them), rad/s.
     gyro_std: Vec3
+    #: Temperature at the end, degC.
     temp_c: float
+    #: Stamp of the last sample averaged minus that of the first, s.
     duration_s: float = 0.0
+    #: Standard error of ``delta`` (block means; see the module docstring), rad/s.
     se: Vec3 = _INF3
+    #: The tolerance the SE was held to, rad/s.
     tolerance: Vec3 = _INF3
+    #: ``'precision'`` (SE within the tolerance), ``'longest'`` (``window_max`` reached),
+    #: ``'motion'`` (motion ended the still run first: the stream's form of ``'end of
+    #: data'``) or ``'end of data'`` (:func:`reanchor_shift` only); ``''`` for a single
+    #: window.
     reason: str = ''
 
 

@@ -64,28 +64,17 @@ OK, WARN, ERROR = 0, 1, 2
 
 @dataclass
 class InputStatus:
-    """
-    What the node knows of its input beyond the samples themselves (kept by the node).
+    """What the node knows of its input beyond the samples themselves (kept by the node)."""
 
-    Parameters
-    ----------
-    reliability : str
-        QoS reliability of the IMU subscription (``best_effort`` or ``reliable``).
-    lost : int
-        Input messages DDS reported lost (the subscription's message-lost event, cumulative).
-    already_compensated : int
-        Input samples that carried the compensation mark (:mod:`gyro_tdc.data.mark`).
-    malformed : int
-        Input messages that could not be read as an Imu (dropped: nothing to republish).
-    upstream : tuple of str
-        Nodes publishing the input topic that look like gyro_tdc compensators.
-
-    """
-
+    #: QoS reliability of the IMU subscription (``best_effort`` or ``reliable``).
     reliability: str = 'best_effort'
+    #: Input messages DDS reported lost (the subscription's message-lost event, cumulative).
     lost: int = 0
+    #: Input samples that carried the compensation mark (:mod:`gyro_tdc.data.mark`).
     already_compensated: int = 0
+    #: Input messages that could not be read as an Imu (dropped, nothing to republish).
     malformed: int = 0
+    #: Nodes publishing the input topic that look like gyro_tdc compensators.
     upstream: tuple[str, ...] = ()
 
 

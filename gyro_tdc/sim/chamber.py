@@ -123,28 +123,17 @@ def nice_ceil(x: float) -> float:
 
 @dataclass(frozen=True)
 class StaircasePlan:
-    """
-    The precise test's staircase derived from the sensor and chamber data.
+    """The precise test's staircase derived from the sensor and chamber data."""
 
-    Parameters
-    ----------
-    max_step_c : float, degC
-        Bound of eq. 20.
-    step_c : float, degC
-        Step used (``max_step_c`` rounded down on the 1-2-5 series).
-    min_hold_s : float, s
-        Heat-conduction time of eq. 24.
-    hold_s : float, s
-        Hold used (``min_hold_s`` rounded up on the 1-2-5 series; eq. 25).
-    rate_c_per_h : float, degC/h
-        Mean heating rate ``3600 step_c / hold_s``.
-
-    """
-
+    #: Bound of eq. 20 on the step, degC.
     max_step_c: float
+    #: Step used, degC (``max_step_c`` rounded down on the 1-2-5 series).
     step_c: float
+    #: Heat-conduction time of eq. 24, s.
     min_hold_s: float
+    #: Hold used, s (``min_hold_s`` rounded up on the 1-2-5 series; eq. 25).
     hold_s: float
+    #: Mean heating rate ``3600 step_c / hold_s``, degC/h.
     rate_c_per_h: float
 
 
@@ -391,34 +380,21 @@ def points_segment(t_s: ArrayLike, temp_c: ArrayLike) -> Segment:
 
 @dataclass(frozen=True)
 class ThermalHistory:
-    """
-    Temperatures of every thermal node on the internal grid.
+    """Temperatures of every thermal node on the internal grid, from set point to thermometer."""
 
-    Parameters
-    ----------
-    t : NDArray[np.float64], shape (G,), s
-        Internal grid ``k * dt``.
-    setpoint_c : NDArray[np.float64], shape (G,), degC
-        Chamber profile (set point).
-    air_c : NDArray[np.float64], shape (G,), degC
-        Chamber air at the sensor.
-    package_c : NDArray[np.float64], shape (G,), degC
-        Sensor package (metal shell) temperature.
-    die_c : NDArray[np.float64], shape (G,), degC
-        MEMS die temperature.
-    die_rate_c_per_s : NDArray[np.float64], shape (G,), degC/s
-        Time derivative of the die temperature.
-    thermometer_c : NDArray[np.float64], shape (G,), degC
-        Noise-free, unquantised thermometer reading (lagged package or die).
-
-    """
-
+    #: Internal grid ``k * dt`` (G,), s.
     t: NDArray[np.float64]
+    #: Chamber profile (set point) (G,), degC.
     setpoint_c: NDArray[np.float64]
+    #: Chamber air at the sensor (G,), degC.
     air_c: NDArray[np.float64]
+    #: Sensor package (metal shell) temperature (G,), degC.
     package_c: NDArray[np.float64]
+    #: MEMS die temperature (G,), degC.
     die_c: NDArray[np.float64]
+    #: Time derivative of the die temperature (G,), degC/s.
     die_rate_c_per_s: NDArray[np.float64]
+    #: Noise-free, unquantised thermometer reading (lagged package or die) (G,), degC.
     thermometer_c: NDArray[np.float64]
 
     def at(self, name: str, t: ArrayLike) -> NDArray[np.float64]:

@@ -58,79 +58,60 @@ class SimTruth:
     """
     What the simulator knows and a real experiment does not.
 
-    Parameters
-    ----------
-    die_c : NDArray[np.float64], shape (N,), degC
-        MEMS die temperature at the IMU stamps.
-    die_rate_c_per_s : NDArray[np.float64], shape (N,), degC/s
-        Its time derivative.
-    package_c : NDArray[np.float64], shape (N,), degC
-        Package temperature at the IMU stamps.
-    air_c : NDArray[np.float64], shape (N,), degC
-        Chamber air temperature at the IMU stamps.
-    drift : NDArray[np.float64], shape (N, 3), rad/s
-        Deterministic error ``output - w_ref`` before noise, saturation and quantisation.
-    effects : tuple of str
-        Enabled effect ids.
-    coefficients : dict of str to NDArray, shape (3,)
-        Applied coefficients by effect id, zero when the effect is off: ``bias`` rad/s
-        (run offset included), ``dT`` rad/s/degC, ``dT2`` rad/s/degC^2, ``dT3``
-        rad/s/degC^3, ``dTdt`` (rad/s)/(degC/s), ``scale`` 1/degC, ``warmup`` rad/s.
-    params : dict of str to float
-        ``t_ref_c``, ``tau_die_s`` (applied die lag), ``tau_package_s``, ``tau_air_s``,
-        ``thermometer_tau_s``, ``warmup_tau_s``, ``power_on_s``.
-    bias_offset : NDArray[np.float64], shape (3,), rad/s
-        This run's run-to-run bias offset (part of ``coefficients['bias']``).
-    white_std : NDArray[np.float64], shape (3,), rad/s
-        Per-sample standard deviation of the white rate noise (``density sqrt(rate)``).
-    quant_step : float, rad/s
-        One output digit (0 when not quantised).
-    noise_std : NDArray[np.float64], shape (3,), rad/s
-        Noise floor per sample: ``sqrt(white_std^2 + quant_step^2 / 12)``.
-    thermal : gyro_tdc.sim.chamber.ThermalHistory
-        Every thermal node on the internal grid.
-    accel_offset : NDArray[np.float64], shape (N, 3), m/s^2
-        Accelerometer offset before noise: static bias plus the thermal terms.
-    accel_thermal : NDArray[np.float64], shape (N, 3), m/s^2
-        Its change with temperature alone, relative to ``t_ref_c`` (what a model removes).
-    accel_gravity : NDArray[np.float64], shape (2, 3), m/s^2
-        Gravity in the sensor frame before and after ``reorient_at_s`` (equal without one).
-    accel_tilt_deg : NDArray[np.float64], shape (2,), deg
-        Roll and pitch of this run (before any reorientation).
-    accel_reorient_s : float, s
-        Time of the orientation change (0: none).
-    accel_coefficients : dict of str to NDArray, shape (3,)
-        ``bias`` m/s^2, ``dT`` m/s^2/degC, ``dT2`` m/s^2/degC^2.
-    accel_white_std : NDArray[np.float64], shape (3,), m/s^2
-        Per-sample standard deviation of the white noise.
-    accel_quant_step : float, m/s^2
-        One accelerometer digit (0 when not quantised).
-    accel_noise_std : NDArray[np.float64], shape (3,), m/s^2
-        Accelerometer noise floor per sample: ``sqrt(white^2 + step^2 / 12)``.
-
+    The true temperatures, drift and noise behind a simulated run: tests check what a model
+    recovered against them.
     """
 
+    #: MEMS die temperature at the IMU stamps (N,), degC.
     die_c: NDArray[np.float64]
+    #: Its time derivative (N,), degC/s.
     die_rate_c_per_s: NDArray[np.float64]
+    #: Package temperature at the IMU stamps (N,), degC.
     package_c: NDArray[np.float64]
+    #: Chamber air temperature at the IMU stamps (N,), degC.
     air_c: NDArray[np.float64]
+    #: Deterministic error ``output - w_ref`` before noise, saturation and quantisation
+    #: (N, 3), rad/s.
     drift: NDArray[np.float64]
+    #: Enabled effect ids.
     effects: tuple[str, ...]
+    #: Applied coefficients (3,) by effect id, zero when the effect is off, ``bias`` rad/s
+    #: (run offset included), ``dT`` rad/s/degC, ``dT2`` rad/s/degC^2, ``dT3``
+    #: rad/s/degC^3, ``dTdt`` (rad/s)/(degC/s), ``scale`` 1/degC, ``warmup`` rad/s.
     coefficients: dict[str, NDArray[np.float64]]
+    #: ``t_ref_c``, ``tau_die_s`` (applied die lag), ``tau_package_s``, ``tau_air_s``,
+    #: ``thermometer_tau_s``, ``warmup_tau_s``, ``power_on_s``.
     params: dict[str, float]
+    #: This run's run-to-run bias offset (3,), rad/s (part of ``coefficients['bias']``).
     bias_offset: NDArray[np.float64]
+    #: Per-sample standard deviation of the white rate noise (3,), rad/s
+    #: (``density sqrt(rate)``).
     white_std: NDArray[np.float64]
+    #: One output digit, rad/s (0 when not quantised).
     quant_step: float
+    #: Noise floor per sample (3,), rad/s, ``sqrt(white_std^2 + quant_step^2 / 12)``.
     noise_std: NDArray[np.float64]
+    #: Every thermal node on the internal grid.
     thermal: ThermalHistory = field(repr=False)
+    #: Accelerometer offset before noise (N, 3), m/s^2, static bias plus the thermal terms.
     accel_offset: NDArray[np.float64] = field(default=None, repr=False)
+    #: Its change with temperature alone (N, 3), m/s^2, relative to ``t_ref_c`` (what a model
+    #: removes).
     accel_thermal: NDArray[np.float64] = field(default=None, repr=False)
+    #: Gravity in the sensor frame before and after ``reorient_at_s`` (2, 3), m/s^2 (equal
+    #: without one).
     accel_gravity: NDArray[np.float64] = field(default=None)
+    #: Roll and pitch of this run (2,), deg (before any reorientation).
     accel_tilt_deg: NDArray[np.float64] = field(default=None)
+    #: Time of the orientation change, s (0 for none).
     accel_reorient_s: float = 0.0
+    #: Coefficients (3,) by term, ``bias`` m/s^2, ``dT`` m/s^2/degC, ``dT2`` m/s^2/degC^2.
     accel_coefficients: dict = field(default_factory=dict)
+    #: Per-sample standard deviation of the accelerometer's white noise (3,), m/s^2.
     accel_white_std: NDArray[np.float64] = field(default=None)
+    #: One accelerometer digit, m/s^2 (0 when not quantised).
     accel_quant_step: float = 0.0
+    #: Accelerometer noise floor per sample (3,), m/s^2, ``sqrt(white^2 + step^2 / 12)``.
     accel_noise_std: NDArray[np.float64] = field(default=None)
 
 

@@ -76,107 +76,70 @@ class ThermalSpec:
 
 @dataclass(frozen=True)
 class ThermometerSpec:
-    """
-    Thermometer: where it sits, how often and how finely it reads.
+    """Thermometer: where it sits, how often and how finely it reads."""
 
-    Parameters
-    ----------
-    location : {'package', 'die'}
-        External probe on the package, or the on-die register.
-    rate_hz : float, Hz
-        Sample rate.
-    resolution_c : float, degC
-        Quantisation step (0 = none).
-    noise_c : float, degC
-        White noise standard deviation.
-    tau_s : float, s
-        Sensor time constant.
-    offset_c : float, degC
-        Calibration offset added to every reading.
-
-    """
-
+    #: ``'package'`` (an external probe on the package) or ``'die'`` (the on-die register).
     location: str = spec_field('location', 'package')
+    #: Sample rate, Hz.
     rate_hz: float = spec_field('pos', 1.0)
+    #: Quantisation step, degC (0 = none).
     resolution_c: float = spec_field('nonneg', 0.0)
+    #: White noise standard deviation, degC.
     noise_c: float = spec_field('nonneg', 0.0)
+    #: Sensor time constant, s.
     tau_s: float = spec_field('nonneg', 0.0)
+    #: Calibration offset added to every reading, degC.
     offset_c: float = spec_field('num', 0.0)
 
 
 @dataclass(frozen=True)
 class GyroSpec:
-    """
-    Deterministic gyro error model, in the scenario's units (deg/s based).
+    """Deterministic gyro error model, in the scenario's units (deg/s based)."""
 
-    Parameters
-    ----------
-    effects : tuple of str
-        Enabled effect ids (subset of :data:`gyro_tdc.model.effects.EFFECT_IDS`).
-    t_ref_c : float, degC
-        Reference temperature of ``dT_die``.
-    bias_dps, dT_dps_per_c, dT2_dps_per_c2, dT3_dps_per_c3 : tuple of 3 float
-        Polynomial coefficients in ``dT_die``.
-    dTdt_dps_per_c_per_s : tuple of 3 float, (deg/s)/(degC/s)
-        Gain on the die's rate of temperature change.
-    scale_ppm_per_c : tuple of 3 float, ppm/degC
-        Scale-factor change vs temperature.
-    warmup_dps : tuple of 3 float, deg/s
-        Warm-up transient amplitude.
-    warmup_tau_s : float, s
-        Warm-up time constant.
-    power_on_s : float, s
-        Power-on time relative to the start of the recording.
-    sensitivity_mdps_per_digit : float, mdps
-        One digit of the output (quantisation step).
-    range_dps : float, deg/s
-        Full scale (saturation); 0 = none.
-    quantise : bool
-        Round the output to digits.
-
-    """
-
+    #: Enabled effect ids (subset of :data:`gyro_tdc.model.effects.EFFECT_IDS`).
     effects: tuple[str, ...] = spec_field('effects',
                                           {k: k in ('bias', 'dT', 'dT2') for k in EFFECT_IDS})
+    #: Reference temperature of ``dT_die``, degC.
     t_ref_c: float = spec_field('num', 25.0)
+    #: Constant term of the polynomial in ``dT_die`` per axis, deg/s.
     bias_dps: Vec3 = spec_field('axis', 0.0)
+    #: Linear coefficient in ``dT_die`` per axis, deg/s/degC.
     dT_dps_per_c: Vec3 = spec_field('axis', 0.0)
+    #: Quadratic coefficient in ``dT_die`` per axis, deg/s/degC^2.
     dT2_dps_per_c2: Vec3 = spec_field('axis', 0.0)
+    #: Cubic coefficient in ``dT_die`` per axis, deg/s/degC^3.
     dT3_dps_per_c3: Vec3 = spec_field('axis', 0.0)
+    #: Gain on the die's rate of temperature change per axis, (deg/s)/(degC/s).
     dTdt_dps_per_c_per_s: Vec3 = spec_field('axis', 0.0)
+    #: Scale-factor change vs temperature per axis, ppm/degC.
     scale_ppm_per_c: Vec3 = spec_field('axis', 0.0)
+    #: Warm-up transient amplitude per axis, deg/s.
     warmup_dps: Vec3 = spec_field('axis', 0.0)
+    #: Warm-up time constant, s.
     warmup_tau_s: float = spec_field('pos', 300.0)
+    #: Power-on time relative to the start of the recording, s.
     power_on_s: float = spec_field('num', 0.0)
+    #: One digit of the output (quantisation step), mdps.
     sensitivity_mdps_per_digit: float = spec_field('nonneg', 0.0)
+    #: Full scale (saturation), deg/s; 0 = none.
     range_dps: float = spec_field('nonneg', 0.0)
+    #: Round the output to digits.
     quantise: bool = spec_field('bool', True)
 
 
 @dataclass(frozen=True)
 class NoiseSpec:
-    """
-    Stochastic gyro errors.
+    """Stochastic gyro errors: white rate noise, bias instability and rate random walk."""
 
-    Parameters
-    ----------
-    enabled : bool
-        Master switch.
-    arw_dps_per_rt_hz : tuple of 3 float, (deg/s)/sqrt(Hz)
-        White rate noise density.
-    bias_instability_dps : tuple of 3 float, deg/s
-        Standard deviation of the Gauss-Markov sum.
-    bias_instability_tau_s : tuple of float, s
-        Correlation times of the Gauss-Markov processes.
-    rrw_dps_per_rt_s : tuple of 3 float, (deg/s)/sqrt(s)
-        Rate random walk coefficient.
-
-    """
-
+    #: Master switch.
     enabled: bool = spec_field('bool', True)
+    #: White rate noise density per axis, (deg/s)/sqrt(Hz).
     arw_dps_per_rt_hz: Vec3 = spec_field('axis_nonneg', 0.0)
+    #: Standard deviation of the Gauss-Markov sum per axis, deg/s.
     bias_instability_dps: Vec3 = spec_field('axis_nonneg', 0.0)
+    #: Correlation times of the Gauss-Markov processes, s.
     bias_instability_tau_s: tuple[float, ...] = spec_field('taus', [10.0, 100.0, 1000.0])
+    #: Rate random walk coefficient per axis, (deg/s)/sqrt(s).
     rrw_dps_per_rt_s: Vec3 = spec_field('axis_nonneg', 0.0)
 
 
@@ -192,47 +155,30 @@ class AccelSpec:
 
     then saturated at ``range_g`` and quantised to ``sensitivity_mg_per_digit``. ``u`` is the
     unit vector of "up" in the sensor frame, ``(-sin p, sin r cos p, cos r cos p)``: +z when
-    level. The tilt is fixed per run: ``tilt_deg`` plus a random part drawn per run
-    (``tilt_std_deg``); ``reorient_at_s`` > 0 adds ``reorient_tilt_deg`` from that time on
-    (a mid-run orientation change, for the detection tests).
-
-    Parameters
-    ----------
-    gravity_mps2 : float, m/s^2
-        Magnitude of the specific force at rest.
-    noise_mps2_per_rt_hz : tuple of 3 float, (m/s^2)/sqrt(Hz)
-        Noise density.
-    tilt_deg : tuple of 2 float, deg
-        Roll and pitch of the sensor (0, 0: gravity on +z).
-    tilt_std_deg : float, deg
-        Standard deviation of a random roll and pitch added per run.
-    bias_mg : tuple of 3 float, mg
-        Static offset (the ordinary calibration's; not thermal).
-    dT_mg_per_c : tuple of 3 float, mg/degC
-        Offset change per degC of the die.
-    dT2_mg_per_c2 : tuple of 3 float, mg/degC^2
-        Curvature of the offset in the die temperature.
-    sensitivity_mg_per_digit : float, mg
-        One output digit (quantisation step); 0 = not quantised.
-    range_g : float, g
-        Full scale (saturation); 0 = none.
-    reorient_at_s : float, s
-        Time of a mid-run orientation change; 0 = none.
-    reorient_tilt_deg : tuple of 2 float, deg
-        Roll and pitch added at ``reorient_at_s``.
-
+    level. The tilt is fixed per run; ``reorient_at_s`` > 0 changes it mid-run.
     """
 
+    #: Magnitude of the specific force at rest, m/s^2.
     gravity_mps2: float = spec_field('num', G0)
+    #: Noise density per axis, (m/s^2)/sqrt(Hz).
     noise_mps2_per_rt_hz: Vec3 = spec_field('axis_nonneg', 0.0)
+    #: Roll and pitch of the sensor, deg ((0, 0) puts gravity on +z).
     tilt_deg: tuple[float, float] = spec_field('tilt', [0.0, 0.0], (0.0, 0.0))
+    #: Standard deviation of a random roll and pitch added per run, deg.
     tilt_std_deg: float = spec_field('nonneg', 0.0, 0.0)
+    #: Static offset per axis, mg (the ordinary calibration's; not thermal).
     bias_mg: Vec3 = spec_field('axis', 0.0, (0.0, 0.0, 0.0))
+    #: Offset change per degC of the die, per axis, mg/degC.
     dT_mg_per_c: Vec3 = spec_field('axis', 0.0, (0.0, 0.0, 0.0))
+    #: Curvature of the offset in the die temperature, per axis, mg/degC^2.
     dT2_mg_per_c2: Vec3 = spec_field('axis', 0.0, (0.0, 0.0, 0.0))
+    #: One output digit (quantisation step), mg; 0 = not quantised.
     sensitivity_mg_per_digit: float = spec_field('nonneg', 0.0, 0.0)
+    #: Full scale (saturation), g; 0 = none.
     range_g: float = spec_field('nonneg', 0.0, 0.0)
+    #: Time of a mid-run orientation change (for the detection tests), s; 0 = none.
     reorient_at_s: float = spec_field('nonneg', 0.0, 0.0)
+    #: Roll and pitch added at ``reorient_at_s``, deg.
     reorient_tilt_deg: tuple[float, float] = spec_field('tilt', [0.0, 0.0], (0.0, 0.0))
 
 

@@ -174,38 +174,29 @@ class VehicleMotion:
     """
     The motion of a simulated vehicle day at the IMU stamps (what a real day does not record).
 
-    Parameters
-    ----------
-    legs : tuple of Leg
-        The schedule.
-    rate : NDArray[np.float64], shape (N,), 3), rad/s
-        True body rate (manoeuvres, slope changes, vibration).
-    force : NDArray[np.float64], shape (N, 3), m/s^2
-        Specific force: gravity in the sensor frame plus the vehicle's acceleration.
-    speed : NDArray[np.float64], shape (N,), m/s
-        Speed.
-    roll_deg, pitch_deg : NDArray[np.float64], shape (N,), deg
-        Attitude.
-    parked : NDArray[np.bool_], shape (N,)
-        Samples where the vehicle is parked (still).
-    heating_c : NDArray[np.float64], shape (N,), degC
-        Self-heating above the ambient.
-    cmd_t : NDArray[np.float64], shape (M,), s
-        Stamps of the commanded motion (empty without cmd_vel).
-    cmd : NDArray[np.float64], shape (M, 6)
-        Twist components: linear x, y, z (m/s), angular x, y, z (rad/s).
-
+    The run holds it as ``SimRun.vehicle``; the run's reference rate is then ``rate``.
     """
 
+    #: The schedule, a tuple of :class:`Leg`.
     legs: tuple
+    #: True body rate (N, 3), rad/s (manoeuvres, slope changes, vibration).
     rate: NDArray[np.float64]
+    #: Specific force (N, 3), m/s^2, gravity in the sensor frame plus the vehicle's
+    #: acceleration.
     force: NDArray[np.float64]
+    #: Speed (N,), m/s.
     speed: NDArray[np.float64]
+    #: Roll (N,), deg.
     roll_deg: NDArray[np.float64]
+    #: Pitch (N,), deg.
     pitch_deg: NDArray[np.float64]
+    #: Samples where the vehicle is parked (still) (N,).
     parked: NDArray[np.bool_]
+    #: Self-heating above the ambient (N,), degC.
     heating_c: NDArray[np.float64]
+    #: Stamps of the commanded motion (M,), s (empty without cmd_vel).
     cmd_t: NDArray[np.float64]
+    #: Twist components (M, 6), linear x, y, z (m/s) and angular x, y, z (rad/s).
     cmd: NDArray[np.float64]
 
 

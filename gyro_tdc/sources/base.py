@@ -38,31 +38,20 @@ class SourceExhausted(DeviceError):
 
 @dataclass(frozen=True, slots=True)
 class ImuSample:
-    """
-    One reading of a gyro (and whatever came with it).
+    """One reading of a gyro (and whatever came with it), as every source yields it."""
 
-    Parameters
-    ----------
-    t : float, s
-        Source time of the sample (simulated time, or a monotonic clock).
-    omega : tuple of 3 float, rad/s
-        Angular velocity x, y, z.
-    accel : tuple of 3 float, m/s^2, or None
-        Linear acceleration x, y, z when the device has an accelerometer.
-    temp_c : float, degC, or None
-        Temperature read with this sample; None when no new reading came with it.
-    temp_t : float, s, or None
-        Source time of the temperature reading when it differs from ``t``.
-    ref : tuple of 3 float, rad/s, or None
-        Rate-table reference when it changed at this sample (simulator only).
-
-    """
-
+    #: Source time of the sample, s (simulated time, or a monotonic clock).
     t: float
+    #: Angular velocity x, y, z, rad/s.
     omega: Vec3
+    #: Linear acceleration x, y, z, m/s^2, when the device has an accelerometer; else None.
     accel: Vec3 | None = None
+    #: Temperature read with this sample, degC; None when no new reading came with it.
     temp_c: float | None = None
+    #: Source time of the temperature reading when it differs from ``t``, s; else None.
     temp_t: float | None = None
+    #: Rate-table reference x, y, z, rad/s, when it changed at this sample (simulator only);
+    #: else None.
     ref: Vec3 | None = None
 
 

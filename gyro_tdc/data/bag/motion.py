@@ -49,25 +49,15 @@ MOTION_TYPES = tuple(_TWIST_PATHS)
 
 @dataclass(frozen=True)
 class MotionReports:
-    """
-    The motion reports of one bag topic.
+    """The motion reports of one bag topic, as the still test's veto reads them."""
 
-    Parameters
-    ----------
-    topic : str
-        The topic.
-    msgtype : str
-        Its type (one of :data:`MOTION_TYPES`).
-    t : NDArray[np.float64], shape (M,), s
-        Stamps: the header stamp, or the log time for a plain Twist.
-    twist : NDArray[np.float64], shape (M, 6)
-        Linear x, y, z (m/s) and angular x, y, z (rad/s).
-
-    """
-
+    #: The topic.
     topic: str
+    #: Its type (one of :data:`MOTION_TYPES`).
     msgtype: str
+    #: Stamps (M,), s, the header stamp or (for a plain Twist) the log time.
     t: NDArray[np.float64]
+    #: Twist (M, 6), linear x, y, z (m/s) and angular x, y, z (rad/s).
     twist: NDArray[np.float64]
 
 

@@ -62,65 +62,49 @@ class BagData:
     """
     Arrays read from a bag, one entry per message that held finite values.
 
-    Parameters
-    ----------
-    imu_t : NDArray[np.float64], shape (N,), s
-        IMU header stamps (the log time where a header stamp is zero), in bag order (the
-        order rosbags' reader yields the messages of every connection of the topic: log
-        time within a storage file, the files one after the other; not sorted by header
-        stamp).
-    gyro : NDArray[np.float64], shape (N, 3), rad/s
-        Angular velocity; samples with a NaN or infinite component are rejected.
-    accel : NDArray[np.float64], shape (N, 3), m/s^2, or None
-        Linear acceleration (not checked: a missing accelerometer does not reject gyro
-        data); None when read with ``accel=False``.
-    frame_id : str
-        Header frame id of the first IMU message.
-    temp_t : NDArray[np.float64], shape (M,), s
-        Thermometer stamps. A ``std_msgs/msg/Float32`` or ``Float64`` reading, which has no
-        header, takes the stamp of the latest IMU message before it in the bag's order (log
-        time), as the compensator node stamps it live; readings before the first IMU
-        message are dropped (``temp_before_imu``), as the node ignores them.
-    temp_c : NDArray[np.float64], shape (M,), degC
-        Temperature; non-finite samples rejected.
-    temp_var : NDArray[np.float64], shape (M,), degC^2
-        Temperature variance as recorded (0, unknown, for a Float reading).
-    ref_t : NDArray[np.float64], shape (R,), s, or None
-        Reference-rate stamps; None when the bag has no (non-empty) reference topic.
-    ref : NDArray[np.float64], shape (R, 3), rad/s, or None
-        Reference rate.
-    topics : dict[str, tuple[str, int]]
-        Every topic of the bag: name -> (type, message count).
-    rejected : dict[str, int]
-        Counts of rejected messages: ``imu_nonfinite``, ``temp_nonfinite``,
-        ``ref_nonfinite``, ``undecodable`` (messages rosbags could not deserialise) and
-        ``temp_before_imu`` (Float readings before the first IMU message).
-    storage : str
-        Storage plugin of the bag ('sqlite3' or 'mcap').
-    path : str
-        The bag directory.
-    fallback : dict[str, int]
-        Messages per role ('imu', 'temperature', 'reference') decoded one by one with
-        rosbags because the fixed-layout numpy decoder did not apply.
-    via : str
-        How the storage was read: 'columnar' or 'rosbags' (see :func:`read_bag`).
-
+    What was rejected, how the storage was read and which topics the bag holds come with
+    them, for the reader's report.
     """
 
+    #: IMU header stamps (N,), s (the log time where a header stamp is zero), in bag order
+    #: (the order rosbags' reader yields the messages of every connection of the topic: log
+    #: time within a storage file, the files one after the other; not sorted by header
+    #: stamp).
     imu_t: NDArray[np.float64]
+    #: Angular velocity (N, 3), rad/s; samples with a NaN or infinite component are rejected.
     gyro: NDArray[np.float64]
+    #: Linear acceleration (N, 3), m/s^2, or None when read with ``accel=False``; not
+    #: checked: a missing accelerometer does not reject gyro data.
     accel: NDArray[np.float64] | None
+    #: Header frame id of the first IMU message.
     frame_id: str
+    #: Thermometer stamps (M,), s. A ``std_msgs/msg/Float32`` or ``Float64`` reading, which
+    #: has no header, takes the stamp of the latest IMU message before it in the bag's order
+    #: (log time), as the compensator node stamps it live; readings before the first IMU
+    #: message are dropped (``temp_before_imu``), as the node ignores them.
     temp_t: NDArray[np.float64]
+    #: Temperature (M,), degC; non-finite samples rejected.
     temp_c: NDArray[np.float64]
+    #: Temperature variance (M,) as recorded, degC^2 (0, unknown, for a Float reading).
     temp_var: NDArray[np.float64]
+    #: Reference-rate stamps (R,), s; None when the bag has no (non-empty) reference topic.
     ref_t: NDArray[np.float64] | None
+    #: Reference rate (R, 3), rad/s, or None.
     ref: NDArray[np.float64] | None
+    #: Every topic of the bag, name -> (type, message count).
     topics: dict = field(default_factory=dict)
+    #: Counts of rejected messages by reason, ``imu_nonfinite``, ``temp_nonfinite``,
+    #: ``ref_nonfinite``, ``undecodable`` (messages rosbags could not deserialise) and
+    #: ``temp_before_imu`` (Float readings before the first IMU message).
     rejected: dict = field(default_factory=dict)
+    #: Storage plugin of the bag ('sqlite3' or 'mcap').
     storage: str = ''
+    #: The bag directory.
     path: str = ''
+    #: Messages per role ('imu', 'temperature', 'reference') decoded one by one with
+    #: rosbags because the fixed-layout numpy decoder did not apply.
     fallback: dict = field(default_factory=dict, compare=False)
+    #: How the storage was read, 'columnar' or 'rosbags' (see :func:`read_bag`).
     via: str = field(default='', compare=False)
 
 
