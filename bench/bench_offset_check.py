@@ -14,7 +14,7 @@
 # limitations under the License.
 
 """
-The offset check across power cycles (``identify.power_cycles.check_offsets``), swept.
+The offset check across power cycles (``gyro_tdc.signal.check_offsets``), swept.
 
 Seeded draws of turn-on offsets per power cycle, of two kinds of gyro:
 
@@ -35,7 +35,7 @@ Usage: ``python bench/bench_offset_check.py [--draws N] [--seed S]``.
 import argparse
 import sys
 
-from gyro_tdc.identify import check_offsets
+from gyro_tdc.signal import check_offsets
 import numpy as np
 
 BOUND = 1.05

@@ -35,7 +35,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'fit': ['estimate_t0', 'fit_model', 'fit_px4_cubic', 'FitOptions', 'MIN_SAMPLES',
             'PX4_FEATURES', 'TAU_BOUNDS', 'THERMAL_CHOICES'],
     'linear': ['fit_linear', 'LinearFit', 'RIDGE_GRID'],
-    'power_cycles': ['check_offsets', 'check_sessions', 'offset_check_lines', 'reanchor_lines',
+    'power_cycles': ['check_sessions', 'offset_check_lines', 'reanchor_lines',
                      'reanchor_rule', 'session_check_lines'],
     'still_only': ['find_still', 'MAX_MOVING_SHARE', 'moving_share', 'rows_of', 'still_only_runs'],
     'tau': ['effective_samples', 'fit_time_constant', 'profile_interval', 'TimeConstantFit'],

@@ -31,13 +31,13 @@ from gyro_tdc.base import DEG2_PER_RAD2, DEG_PER_RAD
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.linear import fit_linear, LinearFit, refine_rbf, RIDGE_GRID
-from gyro_tdc.identify.power_cycles import check_offsets, check_sessions
+from gyro_tdc.identify.power_cycles import check_sessions
 from gyro_tdc.identify.tau import (choose_state, fit_time_constant, ParamSearch, run_blocks,
                                    run_state, RunBlocks, TAU_BOUNDS, TWO_NODE_MARGIN)
 from gyro_tdc.model import (CompensationModel, EFFECTS, input_ids, KINDS, normalise_ids,
                             REFERENCE_EFFECTS, resolve_params, STATE_TERMS, TEMPERATURE_EFFECTS,
                             THERMAL_EFFECTS, ThermalState, with_implied)
-from gyro_tdc.signal import block_length
+from gyro_tdc.signal import block_length, check_offsets
 import numpy as np
 from numpy.typing import NDArray
 
@@ -203,7 +203,7 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     count (the still ones): the fit, residual, sample count and range use them while the filters
     run over every sample. ``sessions`` (a label per run) give every session its own turn-on
     offset beside one curve: the intercept is their mean (none on an axis without curve where
-    the mean does not predict a held-out power cycle's, :func:`check_offsets`),
+    the mean does not predict a held-out power cycle's, :func:`~gyro_tdc.signal.check_offsets`),
     ``metrics['sessions']`` holds them.
     """
     o = replace(options or FitOptions(), **kw)

@@ -41,7 +41,7 @@ from dataclasses import replace
 
 from typing import Callable, Sequence
 
-from gyro_tdc.base import DEG2_PER_RAD2, DEG_PER_RAD
+from gyro_tdc.base import DEG2_PER_RAD2
 from gyro_tdc.data import Run
 from gyro_tdc.errors import FitError
 from gyro_tdc.identify.axes import AXES
@@ -54,7 +54,7 @@ from gyro_tdc.signal import (CURVE_SIGNIFICANCE, curve_untold, Folds, heldout,
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['check_offsets', 'check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_FOLDS',
+__all__ = ['check_sessions', 'MAX_ANCHORS', 'MAX_ROWS', 'MIN_FOLDS',
            'offset_check_lines', 'reanchor_lines', 'reanchor_rule', 'session_check_lines',
            'SIGNIFICANCE', 'SLOW_CURVE_S', 'told_alone']
 
@@ -143,43 +143,13 @@ def _offset_only(fit: LinearFit, offsets: NDArray[np.float64], y: NDArray[np.flo
                    sse=float((resid ** 2).sum())), offsets
 
 
-def check_offsets(offsets: NDArray[np.float64], coef: NDArray[np.float64],
-                  scale: NDArray[np.float64]) -> tuple[NDArray[np.float64], dict | None]:
-    """
-    Judge the offset of every offset-only axis on held-out power cycles against none.
-
-    ``offsets`` are the sessions' turn-on offsets (S, 3), ``coef`` and ``scale`` the fit's.
-    Each power cycle's offset is predicted by the mean of the others' (leave one out) and by
-    none: an axis without curve whose mean does not predict better, in mean square and in
-    mean absolute error (a failed boot calibration weighs on the one, far less on the other),
-    gets no offset (a board that zeroes its gyro at power-on, as ArduPilot and PX4 do; re-anchoring
-    still applies).
-    Returns the model's intercept and the record (None: one session, or every axis a curve).
-    """
-    level, k = offsets.mean(axis=0), offsets.shape[0]
-    flat = ~np.any(coef[1:], axis=0) & (np.asarray(scale) == 0.0)
-    if k < 2 or not flat.any():
-        return level, None
-    err = offsets - (offsets.sum(axis=0) - offsets) / (k - 1), offsets
-    ms = [(e ** 2).mean(axis=0) for e in err]
-    mae = [np.abs(e).mean(axis=0) for e in err]
-    none = flat & ~((ms[0] < ms[1]) & (mae[0] < mae[1]))
-    return np.where(none, 0.0, level), {
-        'sessions': k, 'mean_ms_dps2': (ms[0] * DEG2_PER_RAD2).tolist(),
-        'none_ms_dps2': (ms[1] * DEG2_PER_RAD2).tolist(),
-        'mean_mae_dps': (mae[0] * DEG_PER_RAD).tolist(),
-        'none_mae_dps': (mae[1] * DEG_PER_RAD).tolist(),
-        'axes': [AXES[a] for a in np.flatnonzero(flat)],
-        'no_offset': [AXES[a] for a in np.flatnonzero(none)]}
-
-
 def _figures(values: Sequence[float]) -> str:
     """Return a report row's figures: each in 10.3g, two spaces apart."""
     return '  '.join(f'{v:10.3g}' for v in values)
 
 
 def offset_check_lines(record: dict | None) -> list[str]:
-    """Return the report lines of :func:`check_offsets` (empty without a record)."""
+    """Return the report lines of :func:`~gyro_tdc.signal.check_offsets` (none without one)."""
     if not record:
         return []
     out = [f"the offset of the axes without curve ({', '.join(record['axes'])}) held out on each "

@@ -25,9 +25,9 @@ from gyro_tdc.base.face import lazy
 __all__, __getattr__, __dir__ = lazy(__name__, {
     'blocks': ['block_counts', 'block_length', 'block_mean', 'block_sum', 'block_sumsq',
                'BlockGrid', 'PASS_ROWS'],
-    'estimator': ['curve_untold', 'CURVE_SIGNIFICANCE', 'CurveVerdict', 'fit_columns', 'Folds',
-                  'hat', 'heldout', 'judge_curve', 'MIN_SESSION_SPAN_C', 'pinv_fit',
-                  'session_columns', 'solve_normal', 'within'],
+    'estimator': ['check_offsets', 'curve_untold', 'CURVE_SIGNIFICANCE', 'CurveVerdict',
+                  'fit_columns', 'Folds', 'hat', 'heldout', 'judge_curve', 'MIN_SESSION_SPAN_C',
+                  'pinv_fit', 'session_columns', 'solve_normal', 'within'],
     'hold': ['hold_readings', 'TemperatureHold'],
     'metrics': ['allan_deviation', 'bias_stability', 'mad_sigma', 'MAD_TO_SIGMA', 'noise_readouts',
                 'p_ratios', 'rms_dps'],

@@ -19,7 +19,9 @@ Every fit of effect columns in the package solves here (:func:`fit_columns`, :fu
 :func:`pinv_fit`, :func:`hat`); sessions get their offsets as indicator columns
 (:func:`session_columns`) or exactly eliminated (:func:`within`); :class:`Folds` is the one
 cross-validation scheme (interleaved contiguous segments, or leave one session out),
-:func:`heldout` its held-out residuals. Its rows are block means of the one block grid,
+:func:`heldout` its held-out residuals; :func:`check_offsets` judges the sessions' mean offset
+against none on held-out sessions (the trainer's and the learner's rule for a power cycle whose
+offset is not known yet). Its rows are block means of the one block grid,
 :class:`gyro_tdc.signal.blocks.BlockGrid`.
 """
 
@@ -28,12 +30,13 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Callable, Sequence
 
+from gyro_tdc.base import AXES, DEG2_PER_RAD2, DEG_PER_RAD
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['curve_untold', 'CURVE_SIGNIFICANCE', 'CurveVerdict', 'fit_columns', 'Folds', 'hat',
-           'heldout', 'judge_curve', 'MIN_SESSION_SPAN_C', 'pinv_fit', 'session_columns',
-           'solve_normal', 'within']
+__all__ = ['check_offsets', 'curve_untold', 'CURVE_SIGNIFICANCE', 'CurveVerdict', 'fit_columns',
+           'Folds', 'hat', 'heldout', 'judge_curve', 'MIN_SESSION_SPAN_C', 'pinv_fit',
+           'session_columns', 'solve_normal', 'within']
 
 #: With a free offset per group (power cycle, orientation segment) a curve is told only within
 #: a group: where no fold can judge it, it stands only on a group spanning this many degC.
@@ -316,3 +319,33 @@ def heldout(residual: Callable[[NDArray[np.bool_], NDArray[np.bool_]], NDArray[n
                     r[m] -= (w[:, None] * r[m]).sum(axis=0) / w.sum()
         out[test] = r
     return out
+
+
+def check_offsets(offsets: NDArray[np.float64], coef: NDArray[np.float64],
+                  scale: NDArray[np.float64]) -> tuple[NDArray[np.float64], dict | None]:
+    """
+    Judge the offset of every offset-only axis on held-out power cycles against none.
+
+    ``offsets`` are the sessions' turn-on offsets (S, 3), ``coef`` and ``scale`` the fit's.
+    Each power cycle's offset is predicted by the mean of the others' (leave one out) and by
+    none: an axis without curve whose mean does not predict better, in mean square and in
+    mean absolute error (a failed boot calibration weighs on the one, far less on the other),
+    gets no offset (a board that zeroes its gyro at power-on, as ArduPilot and PX4 do; re-anchoring
+    still applies).
+    Returns the model's intercept and the record (None: one session, or every axis a curve).
+    """
+    level, k = offsets.mean(axis=0), offsets.shape[0]
+    flat = ~np.any(coef[1:], axis=0) & (np.asarray(scale) == 0.0)
+    if k < 2 or not flat.any():
+        return level, None
+    err = offsets - (offsets.sum(axis=0) - offsets) / (k - 1), offsets
+    ms = [(e ** 2).mean(axis=0) for e in err]
+    mae = [np.abs(e).mean(axis=0) for e in err]
+    none = flat & ~((ms[0] < ms[1]) & (mae[0] < mae[1]))
+    return np.where(none, 0.0, level), {
+        'sessions': k, 'mean_ms_dps2': (ms[0] * DEG2_PER_RAD2).tolist(),
+        'none_ms_dps2': (ms[1] * DEG2_PER_RAD2).tolist(),
+        'mean_mae_dps': (mae[0] * DEG_PER_RAD).tolist(),
+        'none_mae_dps': (mae[1] * DEG_PER_RAD).tolist(),
+        'axes': [AXES[a] for a in np.flatnonzero(flat)],
+        'no_offset': [AXES[a] for a in np.flatnonzero(none)]}

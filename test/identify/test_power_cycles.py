@@ -22,12 +22,12 @@ import json
 from bags import bag_from_run
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data import Run
-from gyro_tdc.identify import (check_offsets, fit_model, FitOptions, offset_check_lines,
-                               reanchor_lines, reanchor_rule, session_check_lines)
+from gyro_tdc.identify import (fit_model, FitOptions, offset_check_lines, reanchor_lines,
+                               reanchor_rule, session_check_lines)
 from gyro_tdc.identify.power_cycles import MIN_FOLDS
 from gyro_tdc.identify.still_only import rows_of
 from gyro_tdc.model import load_model
-from gyro_tdc.signal import MIN_SESSION_SPAN_C
+from gyro_tdc.signal import check_offsets, MIN_SESSION_SPAN_C
 from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
