@@ -48,7 +48,8 @@ _FEATURES = ((), ('dT',), ('dT', 'dT2'), ('dT', 'dT2', 'dT3'))
 _KEYS = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 'still_s',
          'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check', 'swaps',
          'motion', 'thermal', 'thermal_state', 'config', 'segment')
-_FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points', 'held_out')
+_FIT_KEYS = ('features', 't0_c', 'coef', 'turn_on', 'range_c', 'resid_var', 'points',
+             'held_out')
 _GATE_HELD = ('always_dps', 'gated_dps', 'never_dps')
 _HELD_KEYS = ('sessions', 'folds', 'points', 'curve_ms_dps2', 'offset_ms_dps2', 'offset_only')
 _CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
@@ -200,6 +201,8 @@ def _fit(v: Any, thermal: ThermalState | None,
     if not rng[0] <= rng[1]:
         raise _bad('fit.range_c', f'must be [low, high], got {rng}')
     fit = {'features': list(feats), 't0_c': _temp(v['t0_c'], 'fit.t0_c'), 'coef': coef,
+           'turn_on': _CHK.numbers(v['turn_on'], 'fit.turn_on', 3, -MAX_PARAM, MAX_PARAM,
+                                   'a coefficient'),
            'range_c': rng,
            'resid_var': _CHK.numbers(v['resid_var'], 'fit.resid_var', 3, 0.0,
                                      MAX_RATE_RAD_S ** 2, 'a variance in (rad/s)^2'),
@@ -215,6 +218,7 @@ def _fit(v: Any, thermal: ThermalState | None,
         fit['prior'] = mid
     try:
         model_of(fit, thermal, prior)
+        model_of(dict(fit, coef=[fit['turn_on']] + coef[1:]), thermal, prior)
     except ModelFileError as exc:
         raise _bad('fit', f'gives a model refused as a model file would be: {exc}') from None
     return fit

@@ -35,8 +35,8 @@ from gyro_tdc.errors import ModelFileError
 from gyro_tdc.model import (check_model, CompensationModel, drift, first_order_lag,
                             MAX_EXTRAPOLATION_C, normalise_ids, STATE_TERMS, steady_drift,
                             THERMAL_EFFECTS, ThermalState)
-from gyro_tdc.signal import (curve_untold, fit_columns, Folds, hat, heldout, judge_curve,
-                             MAD_TO_SIGMA, session_columns, within)
+from gyro_tdc.signal import (check_offsets, curve_untold, fit_columns, Folds, hat, heldout,
+                             judge_curve, MAD_TO_SIGMA, session_columns, within)
 import numpy as np
 from numpy.typing import NDArray
 
@@ -99,19 +99,20 @@ def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:
 
 def fit_sessions(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
                  session: float | None = None
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """
     Weighted least squares, one intercept per session and a shared shape.
 
     ``e`` holds point rows ``(t_end, samples, temp, bx, by, bz, session)``, ``wt`` their
     weights, ``feats`` powers of ``temp - t0``. Returns ``coef`` (1 + F, 3: the intercept
-    of ``session``, default the newest, then the shape) and the residuals (E, 3).
+    of ``session``, default the newest, then the shape), the residuals (E, 3) and every
+    session's intercept (S, 3).
     """
     x, sessions = _design(e, feats, t0)
     coef = fit_columns(x, e[:, 3:6], weights=wt)
     k = sessions.size
     i = k - 1 if session is None else int(np.flatnonzero(sessions == session)[0])
-    return np.vstack([coef[i:i + 1], coef[k:]]), e[:, 3:6] - x @ coef
+    return np.vstack([coef[i:i + 1], coef[k:]]), e[:, 3:6] - x @ coef, coef[:k]
 
 
 def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
@@ -180,21 +181,25 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
 
     An entry ``half_life_s`` old weighs half; outliers are judged against ``floor``, the
     gyro's noise floor in rad/s (:func:`inliers`). Returns the fit record (plain types, as
-    the learn file stores it): ``features``, ``t0_c``, ``coef``, ``range_c``,
-    ``resid_var``, ``points``.
+    the learn file stores it): ``features``, ``t0_c``, ``coef``, ``turn_on`` (the intercept
+    of a power cycle whose offset is not known yet: the sessions' mean, or none on an axis
+    without curve where the mean does not predict a held-out session's, as the trainer
+    decides, :func:`~gyro_tdc.signal.check_offsets`), ``range_c``, ``resid_var``, ``points``.
     """
     wt = e[:, 1] * 0.5 ** (np.maximum(t_now - e[:, 0], 0.0) / half_life_s)     # by age
     t0 = float(np.average(e[:, 2], weights=wt))
     keep = inliers(e, wt, feats, t0, floor)
     if not keep.all():
         e, wt = e[keep], wt[keep]
-    coef, res = fit_sessions(e, wt, feats, t0)
+    coef, res, offsets = fit_sessions(e, wt, feats, t0)
     record = held_out(e, wt, feats, t0)
     flat = [AXES.index(a) for a in record['offset_only']] if record else []
     if flat:                              # those axes: one offset per session, no curve
-        c0, r0 = fit_sessions(e, wt, (), t0)
+        c0, r0, o0 = fit_sessions(e, wt, (), t0)
         coef[0, flat], coef[1:, flat], res[:, flat] = c0[0, flat], 0.0, r0[:, flat]
+        offsets[:, flat] = o0[:, flat]
     return {'features': list(feats), 't0_c': t0, 'coef': coef.tolist(),
+            'turn_on': check_offsets(offsets, coef, np.zeros(3))[0].tolist(),
             'range_c': [float(e[:, 2].min()), float(e[:, 2].max())],
             'resid_var': np.average(res ** 2, axis=0, weights=wt).tolist(),
             'points': int(e.shape[0]), 'held_out': record}

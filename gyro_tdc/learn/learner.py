@@ -35,7 +35,8 @@ from gyro_tdc.learn.fit import (compare, correction_features, fit_points, grow_f
                                 learned_model, model_of, offset_until, on_prior, recent_offset,
                                 same_thermal, stream_state)
 from gyro_tdc.learn.gate import learned_gate
-from gyro_tdc.learn.records import Entry, held_out_line, LearnConfig, OpenStretch, RecentStretch
+from gyro_tdc.learn.records import (Entry, held_out_line, LearnConfig, OpenStretch, pool,
+                                    RecentStretch, remember)
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
 from gyro_tdc.signal import (break_why, hold_readings, long_enough, SessionTracker, StillWindows,
@@ -54,13 +55,6 @@ CHECK_STRETCHES = 3
 #: ... and their windows kept, newest first (a day of 10 s windows, what learn_file keeps).
 CHECK_ROWS = RECENT_ROWS
 _NO_ACCEL = (math.nan,) * 3
-
-
-def _pool(parts: list) -> tuple[float, float, tuple[float, float, float]]:
-    """Return the samples, mean temperature and mean rate of ``(samples, temp, rate)`` parts."""
-    m = sum(p[0] for p in parts)
-    return (m, sum(p[0] * p[1] for p in parts) / m,
-            tuple(sum(p[0] * p[2][a] for p in parts) / m for a in range(3)))
 
 
 class Learner:
@@ -344,12 +338,28 @@ class Learner:
                 if gap < 0 and k < n and due is not None:
                     self._swaps[k] = (min(due, t0), m)
             self.sessions.start(t0, why, gap=gap)
+            self._power_up(t0)
             self._fresh = True            # its offset from its first still windows
             self.still.restart()          # the window grid starts again
             self.thermal_state = None     # after a power-off: steady state at the next reading
         temp, self.thermal_state = stream_state(self.thermal, self.thermal_state, t, temp)
         self.last_t = float(t[-1])
         return self._windows(self.still.extend(t, w, acc, temp), None) or swapped
+
+    def _power_up(self, t0: float) -> None:
+        """At a new power cycle swap in the fit with a power-up's intercept (``turn_on``)."""
+        if self.fit is None:
+            return
+        fit = dict(self.fit, coef=[list(self.fit['turn_on'])] + self.fit['coef'][1:])
+        try:
+            model = model_of(fit, self.thermal, self.prior)
+        except ModelFileError as exc:     # checked as a model file: never installed
+            self.refused, self.refused_why = self.refused + 1, str(exc)
+            return
+        floor = [float(v) for v in self.still.gyro_floor]
+        model.created.update(offset_until=None, gyro_floor=floor)
+        self._swaps.append((t0 + self.config.swap_delay_s, model))   # computable at t0
+        self.fit, self.model = fit, model
 
     def flush(self, t_trigger: float | None = None) -> bool:
         """
@@ -439,32 +449,16 @@ class Learner:
         for r in new:
             groups.setdefault(int(math.floor(r.temp_c / self.config.bin_c)), []).append(r)
         for b, rs in groups.items():
-            m, temp, bias = _pool([(r.n, r.temp_c, r.gyro_mean) for r in rs])
+            m, temp, bias = pool([(r.n, r.temp_c, r.gyro_mean) for r in rs])
             lst = self.bins.setdefault(b, [])
             if lst and lst[-1].group == sid:       # the same group: one entry per bin
                 o = lst.pop()
-                m, temp, bias = _pool([(o.samples, o.temp_c, o.bias), (m, temp, bias)])
+                m, temp, bias = pool([(o.samples, o.temp_c, o.bias), (m, temp, bias)])
             lst.append(Entry(float(rs[-1].t1), float(m), temp, bias, sid, self.session))
             del lst[:-BIN_ENTRIES]
-        self._remember([[r.n, r.temp_c, *r.gyro_mean, r.t1] for r in new])
+        remember(self.recent, RecentStretch(self.stretches, self.session, [
+            [r.n, r.temp_c, *r.gyro_mean, r.t1] for r in new]), CHECK_STRETCHES, CHECK_ROWS)
         return self._refit(new[-1].t1)
-
-    def _remember(self, rows: list) -> None:
-        """Keep new windows for the check and the offset: the newest stretches and rows."""
-        last = self.recent[-1] if self.recent else None
-        if last is not None and (last.stretch, last.session) == (self.stretches, self.session):
-            last.rows.extend(rows)
-        else:
-            self.recent.append(RecentStretch(self.stretches, self.session, rows))
-        del self.recent[:-CHECK_STRETCHES]
-        total = sum(len(r.rows) for r in self.recent)
-        while total > CHECK_ROWS:
-            first = self.recent[0].rows
-            cut = min(total - CHECK_ROWS, len(first))
-            del first[:cut]
-            total -= cut
-            if not first:
-                del self.recent[0]
 
     # -- the fit ----------------------------------------------------------------------
 
@@ -530,17 +524,17 @@ class Learner:
         try:
             cand = model_of(fit, self.thermal, self.prior)
             offset = recent_offset(fit, seen, since) if self.config.offset_s > 0 else None
-            if offset is not None:        # the newest still time's offset, the same shape
-                fit['coef'][0] = offset
+            # Whose offset it carries: the newest still time it was taken from (the core keeps
+            # re-anchoring a new power cycle until a model carries that cycle's offset).
+            until = offset_until(rows, since, offset is not None, self.entries(), self.session)
+            if offset is not None or until is None:   # the newest still time's, or a power-up's
+                fit['coef'][0] = list(fit['turn_on']) if offset is None else offset
                 cand = model_of(fit, self.thermal, self.prior)
         except ModelFileError as exc:     # checked as a model file: never installed
             self.refused, self.refused_why = self.refused + 1, str(exc)
             return False
         anchor = since if self.config.offset_s > 0 or since == -math.inf else None
-        # Whose offset it carries: the newest still time it was taken from (the core keeps
-        # re-anchoring a new power cycle until a model carries that cycle's offset).
-        cand.created['offset_until'] = offset_until(rows, since, offset is not None,
-                                                    self.entries(), self.session)
+        cand.created['offset_until'] = until
         # The noise of the samples it is handed (the core's re-anchoring prior at a new one).
         cand.created['gyro_floor'] = [float(v) for v in self.still.gyro_floor]
         new, old, swap = compare(cand, self.model, rows, self.thermal, anchor, floor)

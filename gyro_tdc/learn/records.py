@@ -31,7 +31,8 @@ from gyro_tdc.signal import MIN_SESSION_SPAN_C, STILL_WINDOW_S, Window
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['Entry', 'held_out_line', 'LearnConfig', 'OpenStretch', 'RecentStretch']
+__all__ = ['Entry', 'held_out_line', 'LearnConfig', 'OpenStretch', 'pool', 'RecentStretch',
+           'remember']
 
 
 @dataclass(slots=True)
@@ -167,3 +168,33 @@ def held_out_line(fit: dict | None) -> str:
             f"cycles ({rec['points']} points), mean square (deg/s)^2: {figs}; "
             + (f'offset only on {only} (the curve does not beat it held out)' if only
                else 'the curve is kept on every axis'))
+
+
+def pool(parts: list) -> tuple[float, float, tuple[float, float, float]]:
+    """Return the samples, mean temperature and mean rate of ``(samples, temp, rate)`` parts."""
+    m = sum(p[0] for p in parts)
+    return (m, sum(p[0] * p[1] for p in parts) / m,
+            tuple(sum(p[0] * p[2][a] for p in parts) / m for a in range(3)))
+
+
+def remember(recent: list[RecentStretch], new: RecentStretch, stretches: int, rows: int) -> None:
+    """
+    Keep ``new`` windows in ``recent`` (newest last) for the check and the offset.
+
+    Windows of the newest stretch join it; at most ``stretches`` stretches and ``rows``
+    windows are kept, the oldest dropped first.
+    """
+    last = recent[-1] if recent else None
+    if last is not None and (last.stretch, last.session) == (new.stretch, new.session):
+        last.rows.extend(new.rows)
+    else:
+        recent.append(new)
+    del recent[:-stretches]
+    total = sum(len(r.rows) for r in recent)
+    while total > rows:
+        first = recent[0].rows
+        cut = min(total - rows, len(first))
+        del first[:cut]
+        total -= cut
+        if not first:
+            del recent[0]

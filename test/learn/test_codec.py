@@ -77,6 +77,10 @@ def test_thermal_section_is_kept():
     (('fit', 't0_c'), 1e308, 'fit.t0_c'),
     (('fit', 'coef', 0, 1), 1e6, 'fit'),               # bounded, but a drift of 1e6 rad/s
     (('fit', 'resid_var'), [1e-8, 1e-8], 'fit.resid_var'),
+    (('fit', 'turn_on', 1), math.nan, 'fit.turn_on[1]'),
+    (('fit', 'turn_on'), [0.0, 0.0], 'fit.turn_on'),
+    (('fit', 'turn_on', 2), 1e12, 'fit.turn_on[2]'),
+    (('fit', 'turn_on', 0), 100.0, 'fit'),        # bounded, but a drift of 100 rad/s
     (('session',), -1, 'session'),
     (('stretches',), 2.5, 'stretches'),
     (('still_s',), math.nan, 'still_s'),

@@ -53,9 +53,10 @@ def test_growth_rule():
 def test_sessions_share_the_shape_and_an_outlier_goes():
     e = np.vstack([_table(np.arange(10.0, 30.0, 2.0)),
                    _table(np.arange(15.0, 35.0, 2.5), session=1.0, shift=3e-3)])
-    coef, res = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0)
+    coef, res, offsets = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0)
     np.testing.assert_allclose(coef[:, 0], [0.013, 1e-3, 2e-5], rtol=1e-9)
-    coef0, _ = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0, session=0.0)
+    np.testing.assert_allclose(offsets[:, 0], [0.01, 0.013], rtol=1e-9)
+    coef0, _, _ = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0, session=0.0)
     assert coef0[0, 0] == pytest.approx(0.01)
     assert np.abs(res).max() < 1e-12
     e[4, 3] += 0.05                         # one entry far off
@@ -67,6 +68,22 @@ def test_sessions_share_the_shape_and_an_outlier_goes():
     want = 0.013 + 1e-3 * (temps - 20.0) + 2e-5 * (temps - 20.0) ** 2
     got = drift(model_of(fit), np.zeros(3), temps, clamp=False)[:, 0]
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
+
+
+def test_a_power_up_gets_the_sessions_mean_or_none_as_the_trainer_decides():
+    """``turn_on``: the mean of the sessions' intercepts, none where it predicts worse."""
+    rows = []
+    for k, (x, y) in enumerate(((0.010, -0.50), (-0.010, -0.52), (0.012, -0.49))):
+        b = _table(np.arange(18.0, 23.0), session=float(k))
+        b[:, 3], b[:, 4] = np.radians(x), np.radians(y)      # offsets only: no curve
+        rows.append(b)
+    e = np.vstack(rows)
+    fit = fit_points(e, (), e[:, 0].max(), 86400.0, 1e-4)
+    assert fit['turn_on'][0] == 0.0               # x: zeroed at power-on, scattering
+    assert fit['turn_on'][1] == pytest.approx(np.radians(-0.50333), rel=1e-4)
+    assert fit['coef'][0][1] == pytest.approx(np.radians(-0.49))     # the newest's own
+    curved = fit_points(_table(np.arange(10.0, 30.0, 2.0)), ('dT',), 2000.0, 86400.0, 1e-3)
+    assert curved['turn_on'] == curved['coef'][0]                      # one session: its own
 
 
 @pytest.mark.parametrize('thermal', [None, ThermalState('none'),
