@@ -31,7 +31,7 @@ from typing import Any, Callable
 from gyro_tdc.base import FieldChecker, MAX_COUNT, MAX_RATE_RAD_S, shown, TEMP_PLAUSIBLE_C
 from gyro_tdc.errors import FeatureError, LearnFileError, ModelFileError
 from gyro_tdc.learn.fit import AXES, model_of, same_thermal
-from gyro_tdc.learn.records import Entry, RecentStretch
+from gyro_tdc.learn.records import Entry, POWER_UPS, RecentStretch
 from gyro_tdc.model import (CompensationModel, MAX_PARAM, model_from_dict, model_to_dict,
                             ThermalState)
 import numpy as np
@@ -47,9 +47,8 @@ MAX_STAMP_S = 2.0 ** 32
 _FEATURES = ((), ('dT',), ('dT', 'dT2'), ('dT', 'dT2', 'dT3'))
 _KEYS = ('format', 'bins', 'session', 'gyro_floor', 'accel_floor', 't_first', 'still_s',
          'stretches', 'windows', 'recent', 'fit', 'last_update_t', 'last_t', 'check', 'swaps',
-         'motion', 'thermal', 'thermal_state', 'config', 'segment')
-_FIT_KEYS = ('features', 't0_c', 'coef', 'turn_on', 'range_c', 'resid_var', 'points',
-             'held_out')
+         'motion', 'thermal', 'thermal_state', 'config', 'segment', 'power_ups')
+_FIT_KEYS = ('features', 't0_c', 'coef', 'range_c', 'resid_var', 'points', 'held_out')
 _GATE_HELD = ('always_dps', 'gated_dps', 'never_dps')
 _HELD_KEYS = ('sessions', 'folds', 'points', 'curve_ms_dps2', 'offset_ms_dps2', 'offset_only')
 _CONFIG_KEYS = ('bin_c', 'half_life_s', 'window_s', 'min_still_s')
@@ -84,6 +83,8 @@ def encode_state(learner: Any) -> dict[str, Any]:
         'thermal_state': None if ts is None else [float(ts[0]), [float(v) for v in ts[1]]],
         'config': {k: getattr(learner.config, k) for k in _CONFIG_KEYS},
         'segment': [learner.segment, learner.segment_t0],
+        'power_ups': [[int(u[0]), int(u[1]), *(float(v) for v in u[2:])]
+                      for u in learner.power_ups],
         # A correction fit: the model it corrects, so the file alone gives the learned model.
         **({'prior': model_to_dict(learner.prior)}
            if learner.fit is not None and learner.fit.get('prior') else {}),
@@ -135,6 +136,7 @@ _ENTRY = ((' (t_end)', _stamp), (' (samples)', _samples), (' (temperature)', _te
 _WINDOW = ((' (samples)', _samples), (' (temperature)', _temp),
            *[(' (mean rate)', partial(_number, lo=_RATE[0], hi=_RATE[1], what=_RATE[2]))] * 3,
            (' (t_end)', _stamp))
+_POWER_UP = ((' (session)', _count), (' (windows)', _count), *_WINDOW[:-1])
 
 
 def _row(v: Any, name: str, items: tuple) -> list:
@@ -201,8 +203,6 @@ def _fit(v: Any, thermal: ThermalState | None,
     if not rng[0] <= rng[1]:
         raise _bad('fit.range_c', f'must be [low, high], got {rng}')
     fit = {'features': list(feats), 't0_c': _temp(v['t0_c'], 'fit.t0_c'), 'coef': coef,
-           'turn_on': _CHK.numbers(v['turn_on'], 'fit.turn_on', 3, -MAX_PARAM, MAX_PARAM,
-                                   'a coefficient'),
            'range_c': rng,
            'resid_var': _CHK.numbers(v['resid_var'], 'fit.resid_var', 3, 0.0,
                                      MAX_RATE_RAD_S ** 2, 'a variance in (rad/s)^2'),
@@ -218,7 +218,6 @@ def _fit(v: Any, thermal: ThermalState | None,
         fit['prior'] = mid
     try:
         model_of(fit, thermal, prior)
-        model_of(dict(fit, coef=[fit['turn_on']] + coef[1:]), thermal, prior)
     except ModelFileError as exc:
         raise _bad('fit', f'gives a model refused as a model file would be: {exc}') from None
     return fit
@@ -327,6 +326,8 @@ def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | N
         'accel_floor': _floor_in(state['accel_floor'], 'accel_floor'),
         'still_s': _number(state['still_s'], 'still_s', 0.0, MAX_COUNT, 'a duration in s'),
         'recent': _recent(state['recent'], stretches),
+        'power_ups': [_row(u, f'power_ups[{i}]', _POWER_UP) for i, u in enumerate(
+            _list(state['power_ups'], 'power_ups', most=POWER_UPS))],
         'fit': _maybe(_fit)(state['fit'], thermal, prior),
         'prior': prior,
         'check': _maybe(_check)(state['check']),

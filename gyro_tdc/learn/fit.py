@@ -43,8 +43,9 @@ from numpy.typing import NDArray
 __all__ = ['AXES', 'at_state', 'BINS_DT2', 'BINS_DT3', 'compare', 'correction_features',
            'corrected_model', 'fit_points', 'fit_sessions', 'grow_features', 'held_out',
            'inliers', 'learned_model', 'MAX_DROPS', 'model_of', 'offset_until', 'on_prior',
-           'OUTLIER_K', 'prediction_mse', 'prior_terms', 'recent_offset', 'same_thermal',
-           'SPAN_DT2_C', 'SPAN_DT3_C', 'SPAN_DT_C', 'stream_state', 'SWAP_CHANGE', 'ThermalCarry']
+           'OUTLIER_K', 'power_up_offset', 'prediction_mse', 'prior_terms', 'recent_offset',
+           'same_thermal', 'SPAN_DT2_C', 'SPAN_DT3_C', 'SPAN_DT_C', 'stream_state', 'SWAP_CHANGE',
+           'ThermalCarry']
 
 OUTLIER_K = 4.0
 MAX_DROPS = 3
@@ -99,20 +100,19 @@ def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:
 
 def fit_sessions(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
                  session: float | None = None
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Weighted least squares, one intercept per session and a shared shape.
 
     ``e`` holds point rows ``(t_end, samples, temp, bx, by, bz, session)``, ``wt`` their
     weights, ``feats`` powers of ``temp - t0``. Returns ``coef`` (1 + F, 3: the intercept
-    of ``session``, default the newest, then the shape), the residuals (E, 3) and every
-    session's intercept (S, 3).
+    of ``session``, default the newest, then the shape) and the residuals (E, 3).
     """
     x, sessions = _design(e, feats, t0)
     coef = fit_columns(x, e[:, 3:6], weights=wt)
     k = sessions.size
     i = k - 1 if session is None else int(np.flatnonzero(sessions == session)[0])
-    return np.vstack([coef[i:i + 1], coef[k:]]), e[:, 3:6] - x @ coef, coef[:k]
+    return np.vstack([coef[i:i + 1], coef[k:]]), e[:, 3:6] - x @ coef
 
 
 def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
@@ -181,25 +181,21 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
 
     An entry ``half_life_s`` old weighs half; outliers are judged against ``floor``, the
     gyro's noise floor in rad/s (:func:`inliers`). Returns the fit record (plain types, as
-    the learn file stores it): ``features``, ``t0_c``, ``coef``, ``turn_on`` (the intercept
-    of a power cycle whose offset is not known yet: the sessions' mean, or none on an axis
-    without curve where the mean does not predict a held-out session's, as the trainer
-    decides, :func:`~gyro_tdc.signal.check_offsets`), ``range_c``, ``resid_var``, ``points``.
+    the learn file stores it): ``features``, ``t0_c``, ``coef``, ``range_c``,
+    ``resid_var``, ``points``.
     """
     wt = e[:, 1] * 0.5 ** (np.maximum(t_now - e[:, 0], 0.0) / half_life_s)     # by age
     t0 = float(np.average(e[:, 2], weights=wt))
     keep = inliers(e, wt, feats, t0, floor)
     if not keep.all():
         e, wt = e[keep], wt[keep]
-    coef, res, offsets = fit_sessions(e, wt, feats, t0)
+    coef, res = fit_sessions(e, wt, feats, t0)
     record = held_out(e, wt, feats, t0)
     flat = [AXES.index(a) for a in record['offset_only']] if record else []
     if flat:                              # those axes: one offset per session, no curve
-        c0, r0, o0 = fit_sessions(e, wt, (), t0)
+        c0, r0 = fit_sessions(e, wt, (), t0)
         coef[0, flat], coef[1:, flat], res[:, flat] = c0[0, flat], 0.0, r0[:, flat]
-        offsets[:, flat] = o0[:, flat]
     return {'features': list(feats), 't0_c': t0, 'coef': coef.tolist(),
-            'turn_on': check_offsets(offsets, coef, np.zeros(3))[0].tolist(),
             'range_c': [float(e[:, 2].min()), float(e[:, 2].max())],
             'resid_var': np.average(res ** 2, axis=0, weights=wt).tolist(),
             'points': int(e.shape[0]), 'held_out': record}
@@ -438,6 +434,27 @@ def compare(cand: CompensationModel, current: CompensationModel | None,
     change = (float(np.sqrt(np.average(((pred - cur) ** 2).mean(axis=1), weights=rows[:, 0])))
               if rows.shape[0] else math.inf)
     return new, old, new < old and not change < SWAP_CHANGE * floor
+
+
+def power_up_offset(fit: dict, ups: Sequence[Sequence[float]],
+                    prior: CompensationModel | None = None) -> list[float]:
+    """
+    Return the intercept of ``fit`` for a power cycle whose offset is not known yet.
+
+    ``ups`` are the power cycles' first still windows pooled, rows ``[session, windows,
+    samples, temp, bx, by, bz]`` (:func:`gyro_tdc.learn.records.keep_power_up`); each gives
+    its offset on the fit's shape (a correction's on the prior's residuals), and the trainer's
+    rule over them (:func:`~gyro_tdc.signal.check_offsets`) the intercept: their mean, or none
+    on an axis without curve where the others' mean predicts one worse. None recorded: the
+    fit's own.
+    """
+    r = np.asarray(ups, dtype=np.float64).reshape(-1, 7)
+    if not r.shape[0]:
+        return [float(v) for v in fit['coef'][0]]
+    rows = np.column_stack([r[:, 2:7], np.zeros(r.shape[0])])     # samples, temp, b, t_end
+    seen = rows if fit.get('prior') is None else on_prior(prior, rows)
+    offsets = np.array([recent_offset(fit, row[None], -math.inf) for row in seen])
+    return check_offsets(offsets, np.asarray(fit['coef']), np.zeros(3))[0].tolist()
 
 
 def offset_until(rows: NDArray[np.float64], since: float, recent: bool,

@@ -32,11 +32,12 @@ from gyro_tdc.base import RESTART_BACK_S
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.codec import decode_state, encode_state, FORMAT, RECENT_ROWS
 from gyro_tdc.learn.fit import (compare, correction_features, fit_points, grow_features,
-                                learned_model, model_of, offset_until, on_prior, recent_offset,
-                                same_thermal, stream_state)
+                                learned_model, model_of, offset_until, on_prior,
+                                power_up_offset, recent_offset, same_thermal, stream_state)
 from gyro_tdc.learn.gate import learned_gate
-from gyro_tdc.learn.records import (Entry, held_out_line, LearnConfig, OpenStretch, pool,
-                                    RecentStretch, remember)
+from gyro_tdc.learn.records import (Entry, held_out_line, keep_power_up, LearnConfig,
+                                    OpenStretch, pool, RecentStretch, relabel_power_ups,
+                                    remember)
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
 from gyro_tdc.signal import (break_why, hold_readings, long_enough, SessionTracker, StillWindows,
@@ -112,6 +113,9 @@ class Learner:
         self.sessions = SessionTracker(self.config.session_gap_s)
         #: A new session whose first stretch is not learned yet (:meth:`_early_offset`).
         self._fresh = False
+        #: Each power cycle's first still windows (``records.keep_power_up``), being pooled.
+        self.power_ups: list[list] = []
+        self._up_open = True
         #: Accepted candidates not handed over yet: (effective stamp or None: at once, model).
         self._swaps: list[tuple[float | None, CompensationModel]] = []
         self._trigger: float | None = None    # stamp of the sample that let a refit run
@@ -147,6 +151,7 @@ class Learner:
         self.sessions.session = values.pop('session')
         for name, value in values.items():
             setattr(self, name, value)
+        self._up_open = not (self.power_ups and self.power_ups[-1][0] == self.session)
         if not same_thermal(saved, self.thermal):
             # Binned at another model temperature than the prior's: the set_prior rule.
             self._forget_points()
@@ -179,7 +184,7 @@ class Learner:
         self.bins = {}
         self.recent = []
         self.fit, self.model, self._swaps, self.check = None, self.prior, [], None
-        self._stretch = OpenStretch()
+        self._stretch, self.power_ups = OpenStretch(), []
         self.still.drop_window()
         self.thermal_state = None
 
@@ -205,12 +210,7 @@ class Learner:
         self.temps.append((t, temp_c))
 
     def observe_motion(self, t: float, moving: bool) -> None:
-        """
-        Record a motion report (stamp ``t``, s): it holds until the next one.
-
-        It applies when :meth:`step` judges the windows it covers (one a window late no
-        longer vetoes the windows already judged).
-        """
+        """Record a motion report at ``t`` (s), held until the next, for windows not judged yet."""
         self.still.observe_motion(t, moving)
 
     def take_model(self) -> CompensationModel | None:
@@ -312,9 +312,9 @@ class Learner:
         why = self.sessions.judge(gap, period)
         relabel = self.sessions.merges(period)
         if relabel:
-            for v in self.bins.values():
-                for e in v:
-                    e.session = relabel.get(e.session, e.session)
+            self.power_ups = relabel_power_ups(self.power_ups, relabel)
+            for e in (e for v in self.bins.values() for e in v):
+                e.session = relabel.get(e.session, e.session)
             self.recent = [r._replace(session=relabel.get(r.session, r.session))
                            for r in self.recent]
         return why
@@ -339,6 +339,7 @@ class Learner:
                     self._swaps[k] = (min(due, t0), m)
             self.sessions.start(t0, why, gap=gap)
             self._power_up(t0)
+            self._up_open = True
             self._fresh = True            # its offset from its first still windows
             self.still.restart()          # the window grid starts again
             self.thermal_state = None     # after a power-off: steady state at the next reading
@@ -347,17 +348,17 @@ class Learner:
         return self._windows(self.still.extend(t, w, acc, temp), None) or swapped
 
     def _power_up(self, t0: float) -> None:
-        """At a new power cycle swap in the fit with a power-up's intercept (``turn_on``)."""
+        """At a new power cycle swap in the fit with a power-up's intercept (unknown offset)."""
         if self.fit is None:
             return
-        fit = dict(self.fit, coef=[list(self.fit['turn_on'])] + self.fit['coef'][1:])
+        fit = dict(self.fit, coef=[power_up_offset(self.fit, self.power_ups, self.prior)]
+                   + self.fit['coef'][1:])
         try:
             model = model_of(fit, self.thermal, self.prior)
         except ModelFileError as exc:     # checked as a model file: never installed
             self.refused, self.refused_why = self.refused + 1, str(exc)
             return
-        floor = [float(v) for v in self.still.gyro_floor]
-        model.created.update(offset_until=None, gyro_floor=floor)
+        model.created.update(offset_until=None, gyro_floor=list(map(float, self.still.gyro_floor)))
         self._swaps.append((t0 + self.config.swap_delay_s, model))   # computable at t0
         self.fit, self.model = fit, model
 
@@ -389,8 +390,11 @@ class Learner:
                 continue                  # a sliver (a burst cut by the grid): no evidence
             if win.why or not math.isfinite(win.temp_c):
                 swapped = self._close(win.thresholds) or swapped
+                self._up_open &= not (self.power_ups and self.power_ups[-1][0] == self.session)
                 continue
             self._stretch.add(win.light())
+            if self._up_open:
+                self._up_open = keep_power_up(self.power_ups, self.session, win)
             swapped = self._commit() or (self._fresh and self._early_offset(win.t1)) or swapped
         return swapped
 
@@ -528,7 +532,8 @@ class Learner:
             # re-anchoring a new power cycle until a model carries that cycle's offset).
             until = offset_until(rows, since, offset is not None, self.entries(), self.session)
             if offset is not None or until is None:   # the newest still time's, or a power-up's
-                fit['coef'][0] = list(fit['turn_on']) if offset is None else offset
+                fit['coef'][0] = (power_up_offset(fit, self.power_ups, self.prior)
+                                  if offset is None else offset)
                 cand = model_of(fit, self.thermal, self.prior)
         except ModelFileError as exc:     # checked as a model file: never installed
             self.refused, self.refused_why = self.refused + 1, str(exc)

@@ -31,8 +31,13 @@ from gyro_tdc.signal import MIN_SESSION_SPAN_C, STILL_WINDOW_S, Window
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['Entry', 'held_out_line', 'LearnConfig', 'OpenStretch', 'pool', 'RecentStretch',
-           'remember']
+__all__ = ['Entry', 'held_out_line', 'keep_power_up', 'LearnConfig', 'OpenStretch', 'pool',
+           'POWER_UP_WINDOWS', 'POWER_UPS', 'RecentStretch', 'relabel_power_ups', 'remember']
+
+#: Power cycles whose first still windows the learner keeps (the newest).
+POWER_UPS = 100
+#: Still windows a power cycle's first still time pools at most (10 s each).
+POWER_UP_WINDOWS = 6
 
 
 @dataclass(slots=True)
@@ -198,3 +203,33 @@ def remember(recent: list[RecentStretch], new: RecentStretch, stretches: int, ro
         total -= cut
         if not first:
             del recent[0]
+
+
+def keep_power_up(ups: list, session: int, win: Window) -> bool:
+    """
+    Pool a still window ``win`` into ``session``'s power-up row; return whether it stays open.
+
+    A power cycle's row ``[session, windows, samples, temp, bx, by, bz]`` pools its first
+    still windows (up to :data:`POWER_UP_WINDOWS`): its turn-on offset, whether or not a
+    stretch of it is ever learned. The newest :data:`POWER_UPS` rows are kept.
+    """
+    if not ups or ups[-1][0] != session:
+        ups.append([session, 0, win.n, win.temp_c, *win.gyro_mean])
+        del ups[:-POWER_UPS]
+    else:
+        row = ups[-1]
+        m, temp, bias = pool([(row[2], row[3], row[4:7]), (win.n, win.temp_c, win.gyro_mean)])
+        row[2:] = [m, temp, *bias]
+    ups[-1][1] += 1
+    return ups[-1][1] < POWER_UP_WINDOWS
+
+
+def relabel_power_ups(ups: list, relabel: dict) -> list:
+    """Return ``ups`` relabelled (``relabel``: merged sessions); the first row of each stays."""
+    out, seen = [], set()
+    for row in ups:
+        s = relabel.get(row[0], row[0])
+        if s not in seen:
+            seen.add(s)
+            out.append([s, *row[1:]])
+    return out

@@ -77,10 +77,11 @@ def test_thermal_section_is_kept():
     (('fit', 't0_c'), 1e308, 'fit.t0_c'),
     (('fit', 'coef', 0, 1), 1e6, 'fit'),               # bounded, but a drift of 1e6 rad/s
     (('fit', 'resid_var'), [1e-8, 1e-8], 'fit.resid_var'),
-    (('fit', 'turn_on', 1), math.nan, 'fit.turn_on[1]'),
-    (('fit', 'turn_on'), [0.0, 0.0], 'fit.turn_on'),
-    (('fit', 'turn_on', 2), 1e12, 'fit.turn_on[2]'),
-    (('fit', 'turn_on', 0), 100.0, 'fit'),        # bounded, but a drift of 100 rad/s
+    (('power_ups', 0, 4), math.nan, 'power_ups[0][4] (mean rate)'),
+    (('power_ups', 0, 3), 1e30, 'power_ups[0][3] (temperature)'),
+    (('power_ups', 0, 0), -1, 'power_ups[0][0] (session)'),
+    (('power_ups', 0), [0, 1, 10.0], 'power_ups[0]'),
+    (('power_ups',), [[0, 1, 10.0, 20.0, 0.0, 0.0, 0.0]] * 101, 'power_ups'),
     (('session',), -1, 'session'),
     (('stretches',), 2.5, 'stretches'),
     (('still_s',), math.nan, 'still_s'),

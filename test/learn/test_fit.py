@@ -21,8 +21,8 @@ import math
 from gyro_tdc.errors import ModelFileError
 from gyro_tdc.learn.fit import (at_state, correction_features, fit_points, fit_sessions,
                                 grow_features, held_out, inliers, learned_model, model_of,
-                                on_prior, prediction_mse, prior_terms, same_thermal,
-                                stream_state)
+                                on_prior, power_up_offset, prediction_mse, prior_terms,
+                                same_thermal, stream_state)
 from gyro_tdc.model import MAX_EXTRAPOLATION_C
 from gyro_tdc.model.compensation import CompensationModel, drift
 from gyro_tdc.model.modelfile import model_from_dict, model_to_dict
@@ -53,10 +53,9 @@ def test_growth_rule():
 def test_sessions_share_the_shape_and_an_outlier_goes():
     e = np.vstack([_table(np.arange(10.0, 30.0, 2.0)),
                    _table(np.arange(15.0, 35.0, 2.5), session=1.0, shift=3e-3)])
-    coef, res, offsets = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0)
+    coef, res = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0)
     np.testing.assert_allclose(coef[:, 0], [0.013, 1e-3, 2e-5], rtol=1e-9)
-    np.testing.assert_allclose(offsets[:, 0], [0.01, 0.013], rtol=1e-9)
-    coef0, _, _ = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0, session=0.0)
+    coef0, _ = fit_sessions(e, e[:, 1], ('dT', 'dT2'), 20.0, session=0.0)
     assert coef0[0, 0] == pytest.approx(0.01)
     assert np.abs(res).max() < 1e-12
     e[4, 3] += 0.05                         # one entry far off
@@ -70,20 +69,21 @@ def test_sessions_share_the_shape_and_an_outlier_goes():
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-12)
 
 
-def test_a_power_up_gets_the_sessions_mean_or_none_as_the_trainer_decides():
-    """``turn_on``: the mean of the sessions' intercepts, none where it predicts worse."""
-    rows = []
-    for k, (x, y) in enumerate(((0.010, -0.50), (-0.010, -0.52), (0.012, -0.49))):
-        b = _table(np.arange(18.0, 23.0), session=float(k))
-        b[:, 3], b[:, 4] = np.radians(x), np.radians(y)      # offsets only: no curve
-        rows.append(b)
-    e = np.vstack(rows)
-    fit = fit_points(e, (), e[:, 0].max(), 86400.0, 1e-4)
-    assert fit['turn_on'][0] == 0.0               # x: zeroed at power-on, scattering
-    assert fit['turn_on'][1] == pytest.approx(np.radians(-0.50333), rel=1e-4)
-    assert fit['coef'][0][1] == pytest.approx(np.radians(-0.49))     # the newest's own
-    curved = fit_points(_table(np.arange(10.0, 30.0, 2.0)), ('dT',), 2000.0, 86400.0, 1e-3)
-    assert curved['turn_on'] == curved['coef'][0]                      # one session: its own
+def test_a_power_up_gets_the_power_cycles_mean_or_none_as_the_trainer_decides():
+    """The first still windows of each power cycle: their mean, none where it predicts worse."""
+    fit = {'features': ['dT'], 't0_c': 20.0, 'coef': [[0.1, 0.2, 0.3], [0.0, 0.0, 1e-3]],
+           'range_c': [15.0, 25.0], 'resid_var': [1e-8] * 3, 'points': 9}
+    # x zeroed at power-on (scattering about 0), y a repeating offset, z a curve.
+    ups = [[k, 3, 300.0, temp, *np.radians([x, y, 0.0]), ] for k, (x, y, temp) in enumerate(
+        ((0.010, -0.50, 18.0), (-0.010, -0.52, 20.0), (0.012, -0.49, 22.0)))]
+    for u in ups:
+        u[6] = 0.004 + 1e-3 * (u[3] - 20.0)       # z: an offset of 0.004 on the curve
+    got = power_up_offset(fit, ups)
+    assert got[0] == 0.0
+    assert got[1] == pytest.approx(np.radians(-0.50333), rel=1e-4)
+    assert got[2] == pytest.approx(0.004, rel=1e-9)                  # the curve's axis: mean
+    assert power_up_offset(fit, []) == [0.1, 0.2, 0.3]                # none recorded: its own
+    assert power_up_offset(fit, ups[:1])[1] == pytest.approx(np.radians(-0.50))   # one: it
 
 
 @pytest.mark.parametrize('thermal', [None, ThermalState('none'),

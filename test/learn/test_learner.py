@@ -627,8 +627,9 @@ def test_a_new_power_cycle_starts_from_the_trainers_offset_until_its_own_is_lear
 
     Three power cycles 3 h apart: x zeroed at power-on (offsets scattering around zero: the
     others' mean predicts a held-out one worse than none), y and z a repeating turn-on offset
-    (their mean). The fourth's first samples swap in that intercept, ``swap_delay_s`` after
-    its first stamp, carrying no offset of its own; its first still stretch then gives its own.
+    (their mean), judged on each cycle's first still windows. The fourth's first samples swap
+    in that intercept, ``swap_delay_s`` after its first stamp, carrying no offset of its own;
+    its first still stretch then gives its own.
     """
     learner = Learner(LearnConfig(temperature_timeout=1e9))
     offsets = [(0.010, -0.50, 0.005), (-0.010, -0.52, 0.005), (0.012, -0.49, 0.006)]
@@ -636,14 +637,15 @@ def test_a_new_power_cycle_starts_from_the_trainers_offset_until_its_own_is_lear
     for k, bias in enumerate(offsets):
         t = _bursts(learner, t, 1, 10.0, burst=200.0, bias=np.radians(bias), seed=k) + 3 * 3600.0
     learner.take_swaps()
-    assert learner.session == 2 and learner.fit['turn_on'][0] == 0.0
+    assert learner.session == 2
+    assert [u[:2] for u in learner.power_ups] == [[0, 6], [1, 6], [2, 6]]   # first 60 s each
     _bursts(learner, t, 1, 10.0, burst=2.0, bias=np.radians((0.03, -0.45, 0.004)), seed=5)
     assert learner.session == 3
     due, model = learner.take_swaps()[-1]
     assert due == pytest.approx(t + learner.config.swap_delay_s)
     assert model.created['offset_until'] is None
     want = np.radians([0.0, np.mean([b[1] for b in offsets]), np.mean([b[2] for b in offsets])])
-    np.testing.assert_allclose(model.intercept, want, rtol=0, atol=np.radians(2e-4))
+    np.testing.assert_allclose(model.intercept, want, rtol=0, atol=np.radians(5e-4))  # 60 s' SE
     _bursts(learner, t + 10.0, 1, 10.0, burst=200.0, bias=np.radians((0.03, -0.45, 0.004)),
             seed=6)
     own = learner.take_swaps()[-1][1]

@@ -242,8 +242,7 @@ def test_a_learned_candidate_is_checked_like_a_model_file(monkeypatch):
     """A refit whose model computes NaN is never swapped in; it is counted on /diagnostics."""
     def nan_fit(*args, **kwargs):
         return {'features': ['dT'], 't0_c': 20.0, 'coef': [[math.nan] * 3, [0.0] * 3],
-                'turn_on': [math.nan] * 3, 'range_c': [20.0, 20.0], 'resid_var': [1e-8] * 3,
-                'points': 1}
+                'range_c': [20.0, 20.0], 'resid_var': [1e-8] * 3, 'points': 1}
     monkeypatch.setattr(learning, 'fit_points', nan_fit)
     learner = learned(temps=(20.0,))
     assert learner.take_model() is None and learner.fit is None and learner.swaps == 0
@@ -401,8 +400,7 @@ def _typed_states(draw, base_state):
         lo, hi = sorted(draw(st.floats(-100.0, 200.0)) for _ in range(2))
         fit = {'features': feats, 't0_c': draw(st.floats(-100.0, 200.0)),
                'coef': [[draw(_COEF) for _ in range(3)] for _ in range(1 + len(feats))],
-               'turn_on': [draw(_COEF) for _ in range(3)], 'range_c': [lo, hi],
-               'resid_var': [draw(st.floats(0.0, 1.0)) for _ in range(3)],
+               'range_c': [lo, hi], 'resid_var': [draw(st.floats(0.0, 1.0)) for _ in range(3)],
                'points': draw(st.integers(1, 50))}
     recent = [[draw(st.integers(1, 10)), draw(st.integers(0, 3)),
                [[draw(st.integers(3, 1000)), draw(st.floats(-100.0, 200.0)),
