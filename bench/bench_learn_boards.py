@@ -117,11 +117,15 @@ def main(argv=None) -> int:
                     help="the stream's stamps: each log's boot clock, or one running clock")
     ap.add_argument('--draws', type=int, default=4, help='seeded orders per group')
     ap.add_argument('--seed', type=int, default=0)
+    ap.add_argument('--start-c', metavar='LO:HI', default=None,
+                    help='keep the logs whose first temperature is in [LO, HI) degC (e.g. :43)')
     args = ap.parse_args(argv)
+    lo, hi = ((float(v) if v else math.inf * (-1) ** (i + 1))
+              for i, v in enumerate((args.start_c or ':').split(':')))
     for spec in args.group:
         paths, _ = group_logs(spec)
         logs = [lg for lg in (read_log(p, args.temperature_source) for p in paths)
-                if 'run' in lg and lg['stretches'] >= 1]
+                if 'run' in lg and lg['stretches'] >= 1 and lo <= lg['run'].temp[0] < hi]
         print(f'== group {spec}: {len(logs)} logs with a still stretch, '
               f"{sum(lg['stretches'] >= 2 for lg in logs)} with two or more; clock "
               f'{args.clock}', flush=True)
