@@ -242,5 +242,8 @@ def onboard_model(spec: str, run: Run) -> tuple[CompensationModel, str]:
                        cal.coeff / ARDUPILOT_SCALE, cal.tmin, cal.tmax, created)
         what = (f'INS_TCAL{inst + 1}_GYR*: cubic about {ARDUPILOT_TREF_C:g} degC, zero at '
                 f'CALTEMP = {cal.caltemp:g} degC, clamped to {cal.tmin:g} .. {cal.tmax:g} degC')
+        if not any(k.startswith(f'INS_TCAL{inst + 1}_') for k in params):
+            what = (f'INS_TCAL{inst + 1}_*, which the log does not hold (a firmware without '
+                    'temperature calibration): none, the raw rate')
     return model, (f"{spec}: the flight controller's correction from {what}; {words}"
                    + ('' if active else ' (in this log it was not applied)'))

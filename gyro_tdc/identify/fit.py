@@ -117,6 +117,22 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
     return n
 
 
+def _check_state_span(states: Sequence[NDArray[np.float64]], runs: Sequence[Run],
+                      rows: Sequence[NDArray[np.bool_]] | None, th: ThermalState,
+                      ids: Sequence[str]) -> None:
+    """Raise FitError when the lagged die temperature the model is fitted in spans too little."""
+    if th.kind == 'none' or not TEMPERATURE_EFFECTS & set(ids):
+        return
+    pick = (lambda a, i: a) if rows is None else (lambda a, i: a[rows[i]])
+    lo, hi = span([pick(s, i) for i, s in enumerate(states)])
+    if hi - lo < MIN_SPAN_C:
+        tlo, thi = span([pick(r.temp, i) for i, r in enumerate(runs)])
+        raise FitError(f'The lagged die temperature (tau {th.tau_total_s:.0f} s) spans '
+                       f'{hi - lo:.3f} degC only ({lo:.2f} .. {hi:.2f}; the thermometer '
+                       f'{thi - tlo:.2f} degC; need at least {MIN_SPAN_C} degC): record a wider '
+                       'range, or give --features without lag.')
+
+
 def check_choices(kind: str, thermal: str | ThermalState | None) -> None:
     """Refuse a model kind or a thermal front end :func:`fit_model` does not know (FitError)."""
     if kind not in KINDS:
@@ -222,6 +238,7 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     th, thermal_info = _search(runs, o, ids, inputs, t0, par, mode, th, rows, labels)
 
     states = [run_state(th, r) for r in runs]
+    _check_state_span(states, runs, rows, th, ids)
     x = np.concatenate([b.features(inputs, t0, par, th, state=s)
                         for b, s in zip(blocks, states)])
     scale_cols = (np.concatenate([b.scale_cols(t0, state=s) for b, s in zip(blocks, states)])

@@ -130,6 +130,14 @@ def test_the_model_is_the_firmware_formula_clamped_to_its_range(spec, run, corre
     assert model.temp_range_c == (10.0, 60.0)
 
 
+def test_a_firmware_without_temperature_calibration_is_said_and_corrects_nothing():
+    run = _fc_log('ardupilot', {})                     # ArduCopter 3.x: no INS_TCAL* at all
+    model, line = onboard_model('ardupilot-onboard', run)
+    assert 'INS_TCAL1_*, which the log does not hold' in line and 'CALTEMP' not in line
+    np.testing.assert_allclose(compensate(model, run.t, run.temp, run.omega), run.omega,
+                               rtol=0, atol=1e-15)
+
+
 def test_a_log_that_cannot_give_the_model_is_refused_in_one_line():
     with pytest.raises(DatasetError, match='needs a PX4 ULog'):
         onboard_model('px4-onboard', _fc_log('ardupilot', ARDU))

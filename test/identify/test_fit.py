@@ -17,6 +17,7 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
 import math
 
 from gyro_tdc.errors import FitError
@@ -144,6 +145,18 @@ def test_bad_training_data_raise_clear_errors():
         fit_model([run], kind='mlp')
     with pytest.raises(FitError, match='No training runs'):
         fit_model([])
+
+
+def test_a_lagged_die_that_barely_moves_is_refused_in_one_line():
+    """The thermometer spans 1 degC in the last 30 s; a die lagging it by 1500 s does not."""
+    run = synth_run(seed=16, hours=0.2, t_lo=20.0, t_hi=20.0)
+    t = run.t - run.t[0]
+    late = replace(run, temp=20.0 + np.clip((t - (t[-1] - 30.0)) / 30.0, 0.0, 1.0))
+    with pytest.raises(FitError, match=r'^The lagged die temperature \(tau 1500 s\) spans '
+                                       r'0\.0[0-9]+ degC only .*the thermometer 1\.00 degC.*'
+                                       'give --features without lag\\.$'):
+        fit_model([late], features='dT,dT2', thermal=ThermalState('first_order', (1500.0,)))
+    assert fit_model([late], features='dT,dT2').temp_range_c == (20.0, 21.0)   # no lag: fits
 
 
 @pytest.mark.parametrize('features', ['dT,dT2', 'dT,dT2,scale'])
