@@ -43,7 +43,8 @@ from gyro_tdc.identify.axes import (constant_gyro_axes, constant_readings, ident
                                     neutral_runs)
 from gyro_tdc.identify.discover.results import DiscoveryResult
 from gyro_tdc.identify.discover.search import discover
-from gyro_tdc.identify.fit import check_choices, estimate_t0, fit_model, FitOptions, span
+from gyro_tdc.identify.fit import (check_choices, estimate_t0, fit_model, FitOptions, MIN_SPAN_C,
+                                   span)
 from gyro_tdc.identify.power_cycles import MIN_FOLDS, reanchor_rule, SLOW_CURVE_S, told_alone
 from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, find_still, fit_without_outliers,
                                           MAX_MOVING_SHARE, MIN_STILL_SPAN_C, rows_of,
@@ -387,9 +388,10 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     Every session gets its own turn-on offset beside one shared thermal curve. Data without a
     reference rate that move longer than :data:`~gyro_tdc.identify.still_only.MAX_MOVING_SHARE`
     of the time are trained on their still stretches only (:func:`train_still_only`, said on
-    ``log``): motion is no drift. A constant gyro axis is not fitted: the model passes it
-    through (``result.constant``, ``model.metrics['constant_axes']``). The start-up shift the
-    node takes per axis is decided on the sessions
+    ``log``): motion is no drift; still ones keep the offset only where one power cycle cannot
+    tell its curve, as there (:func:`_one_power_cycle`). A constant gyro axis is not fitted:
+    the model passes it through (``result.constant``, ``model.metrics['constant_axes']``).
+    The start-up shift the node takes per axis is decided on the sessions
     (:func:`~gyro_tdc.identify.power_cycles.reanchor_rule`, ``model.metrics['reanchor']``).
     GyroTdcError
     (DatasetError, FitError, ModelFileError, OutputError) for what cannot be read, fitted or
@@ -410,6 +412,11 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     const = constant_gyro_axes(runs)
     fitted = neutral_runs(runs, const)
     fo, choice = _features(o, fitted, runs, estimate_t0(runs[0]) if o.t0 is None else o.t0, log)
+    lo, hi = span([r.temp for r in runs])
+    if hi - lo >= MIN_SPAN_C and not any(np.any(r.omega_ref) for r in runs):
+        # Still, no reference: as --still-only (a smaller span is refused by the fit).
+        fo, choice = _one_power_cycle(runs, [(i, 0, len(r)) for i, r in enumerate(runs)],
+                                      split.labels, fo, choice, log)
     model = fit_model(fitted, fo, sessions=split.labels, frame_id=data_frame(runs),
                       created={'command': command, 'bags': names})
     model = _gate(identity_axes(model, runs, const), fo, fitted, split.labels)

@@ -170,6 +170,22 @@ def test_temperature_span_too_small(tmp_path, capsys):
                               tmp_path / 'm.yaml'], 'Temperature span too small')
 
 
+def test_one_short_still_power_cycle_keeps_the_offset_only(tmp_path, capsys):
+    """Still, no reference, 3 min over 1.5 degC: its curve cannot be judged, as --still-only."""
+    run = synth_run(seed=2, hours=0.05, t_lo=25.0, t_hi=26.5)
+    out = tmp_path / 'm.yaml'
+    assert main([str(bag_from_run(run, tmp_path / 'short')), '--out', str(out),
+                 '--no-progress']) == 0
+    said = capsys.readouterr().out
+    assert 'one power cycle only, and no still stretch of 5 min or more spans 2 degC' in said
+    assert load_model(out).offset_only
+    wide = synth_run(seed=2, hours=0.2, t_lo=25.0, t_hi=35.0)        # 12 min over 10 degC
+    assert main([str(bag_from_run(wide, tmp_path / 'wide')), '--out', str(out),
+                 '--no-progress']) == 0
+    assert 'one power cycle only' not in capsys.readouterr().out
+    assert not load_model(out).offset_only
+
+
 def test_too_few_samples(tmp_path, capsys):
     run = synth_run(seed=2, hours=0.002)  # 36 samples at 5 Hz
     assert_bad_input(capsys, [bag_from_run(run, tmp_path / 'short', temp_hz=5.0), '--out',
