@@ -29,6 +29,7 @@ from functools import partial
 import io
 import os
 from pathlib import Path
+import re
 
 from gyro_tdc.data.flightlog import (captured, columns, FlightLog, no_instance, no_temperature,
                                      on_stamps, rate_words, seconds, sensor_stream, thermometer)
@@ -52,6 +53,8 @@ _CHUNK = 1 << 16
 _SCALE = {'c': 0.01, 'C': 0.01, 'e': 0.01, 'E': 0.01, 'L': 1e-7}
 #: A record type's stamps in s: ``TimeUS`` (or ``TimeMS``, see :func:`_records`); a
 #: sensor-rate sample's when it was taken (``SampleUS``).
+#: ArduPilot's boot message naming the board: its name and three words of its unique id.
+_BOARD = re.compile(r'\S+( [0-9A-F]{8}){3}')
 _seconds = partial(seconds, field='TimeUS')
 _stamps = partial(seconds, field='TimeUS', sample='SampleUS')
 
@@ -106,6 +109,16 @@ def _params(reader) -> dict[str, float]:
     for name, value in zip(cols['Name'], cols['Value']):
         out.setdefault(name.split(b'\0')[0].decode('ascii', 'replace'), float(value))
     return out
+
+
+def _board(reader) -> str:
+    """Return the board's boot line (``Pixhawk6C 00490034 30315109 34373938``), or ''."""
+    mtype = reader.name_to_id.get('MSG')
+    for text in [] if mtype is None else _records(reader, mtype).get('Message', [])[:32]:
+        line = bytes(text).split(b'\0')[0].decode('ascii', 'replace').strip()
+        if _BOARD.fullmatch(line):
+            return line
+    return ''
 
 
 def _imu(reader, kind: str = 'IMU') -> tuple[dict[int, dict[str, np.ndarray]], list[int]]:
@@ -263,6 +276,7 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     try:
         params, (imus, lone), (baros, _), cut = (_params(reader), _imu(reader),
                                                  _imu(reader, 'BARO'), _truncated(reader))
+        board = _board(reader)
         gyr = _fast(reader, 'GYR', instance)
         # ACC is only read beside this instance's GYR (a sensor-rate stream is large).
         acc = _fast(reader, 'ACC', instance) if accel and isinstance(gyr, dict) and gyr else None
@@ -314,4 +328,5 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
                      instances=tuple(sorted(imus)), raw=False, compensated=active,
                      onboard=words, truncated_bytes=cut, notes=notes,
                      temp_t=temp_t, temperature=name, proxy=temperature_source != 'imu',
-                     damage=f'pymavlink skipped {skipped} damaged headers' if skipped else '')
+                     damage=f'pymavlink skipped {skipped} damaged headers' if skipped else '',
+                     board=board)

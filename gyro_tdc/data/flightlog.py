@@ -106,6 +106,9 @@ class FlightLog:
     #: What the reader skipped of damaged bytes inside the log (not at its end), in words;
     #: '' when nothing was.
     damage: str = ''
+    #: The board the log was written on (its name and unique id as the firmware logs them),
+    #: '' when the log does not say.
+    board: str = ''
 
 
 def thermometer(values: object) -> NDArray[np.float64] | None:
@@ -395,4 +398,5 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
         'raw': log.raw, 'onboard_compensated': log.compensated,
         'params': {k: v for k, v in log.params.items()
                    if k.startswith(('TC_', 'INS_TCAL')) or k.endswith('_CALTEMP')},
-        'temperature': log.temperature, 'temperature_proxy': log.proxy, 'warnings': warnings}
+        'temperature': log.temperature, 'temperature_proxy': log.proxy, 'warnings': warnings,
+        'board': log.board}

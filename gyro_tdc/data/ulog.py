@@ -413,4 +413,6 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
                      instances=tuple(sorted(found)), raw=raw, compensated=active and not raw,
                      onboard=words, device_id=device, truncated_bytes=cut, notes=notes,
                      temp_t=temp_t, temperature=name, proxy=temperature_source != 'imu',
-                     damage='pyulog resynchronised past damaged messages' if damaged else '')
+                     damage='pyulog resynchronised past damaged messages' if damaged else '',
+                     board=' '.join(str(ulog.msg_info_dict[k]) for k in ('ver_hw', 'sys_uuid')
+                                    if k in ulog.msg_info_dict))

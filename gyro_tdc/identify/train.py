@@ -400,6 +400,7 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     o = TrainOptions() if options is None else options
     bag = replace(BagOptions() if bag is None else bag, accel=bool(o.accel))
     runs: list[Run] = load_runs(bags, bag, log=log)
+    _boards_said(runs, log)
     share = unreferenced_motion(runs)[0]
     if share > MAX_MOVING_SHARE:
         if log is not None:
@@ -424,6 +425,19 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
                    coverage=coverage(runs, bin_c=o.bin_c), bags=names,
                    samples=sum(len(r) for r in runs), sessions=split,
                    constant=constant_readings(runs, const))
+
+
+def _boards_said(runs: Sequence[Run], log: Log) -> None:
+    """Warn on ``log`` when the logs name more than one board: one model fits none of them."""
+    boards: dict[str, int] = {}
+    for r in runs:
+        if r.info.get('board'):
+            boards[r.info['board']] = boards.get(r.info['board'], 0) + 1
+    if len(boards) > 1 and log is not None:
+        log(f'warning: the logs come from {len(boards)} boards ('
+            + '; '.join(f"{b}: {n} log{'s' * (n > 1)}" for b, n in boards.items())
+            + '): each board drifts its own way, and one model of them fits none; train '
+            'each board apart (gyro-tdc fleet calibrates many)')
 
 
 def _drop_curve(fo: FitOptions, choice: FeatureChoice | None, log: Log, why: str,
@@ -509,6 +523,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
             'constant reference rate (--reference)', 'no reference read (still: zero rate)')))
         runs = load_runs(bags, replace(bag, reference=(0.0, 0.0, 0.0), accel=bool(o.accel)),
                          log=said)
+        _boards_said(runs, log)
     else:
         runs = [replace(r, omega_ref=np.zeros_like(r.omega)) for r in runs]
     if moving is None and bag.motion_topic:

@@ -87,6 +87,24 @@ def test_a_calibration_session_trains_to_the_same_held_out_accuracy_in_every_for
             'compensation active); INS_TCAL1_ENABLE=0') in got['dataflash'][1]
 
 
+def test_logs_of_two_boards_are_said_one_model_fits_neither(session, tmp_path, capsys):
+    _, imus, _ = session
+    logs = [write_dataflash(tmp_path / f'{b}.bin', [imu], {'INS_TCAL1_ENABLE': 0},
+                            board=f'Pixhawk6C {b} 30315109 34373938')
+            for b, imu in zip(('00490034', '00450021'), imus)]
+    out = ['--out', str(tmp_path / 'm.yaml'), '--features', 'dT,dT2', '--no-progress']
+    assert train([*map(str, logs), *out]) == 0
+    said = capsys.readouterr().out
+    assert ('warning: the logs come from 2 boards (Pixhawk6C 00490034 30315109 34373938: 1 '
+            'log; Pixhawk6C 00450021 30315109 34373938: 1 log): each board drifts its own way'
+            in said)
+    same = [write_dataflash(tmp_path / f'same{k}.bin', [imu], {'INS_TCAL1_ENABLE': 0},
+                            board='Pixhawk6C 00490034 30315109 34373938')
+            for k, imu in enumerate(imus)]
+    assert train([*map(str, same), *out]) == 0
+    assert 'warning: the logs come from' not in capsys.readouterr().out
+
+
 def _short(imu, n=600):
     """Return the first ``n`` samples of an IMU (a small log is enough to be refused)."""
     return replace(imu, t=imu.t[:n], gyro=imu.gyro[:n], temp=imu.temp[:n], accel=imu.accel[:n])

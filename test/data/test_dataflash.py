@@ -456,3 +456,17 @@ def test_damaged_bytes_read_as_records_make_no_instance_and_no_warning(tmp_path)
     assert log.instances == (0,) and 'IMU instance 1 left out' in '; '.join(log.notes)
     assert np.isnan(log.temp_c[100]) and np.isfinite(np.delete(log.temp_c, 100)).all()
     assert 'instance 0 of 1' in describe_log(log)
+
+
+def test_the_board_is_its_boot_line_real_and_written(tmp_path):
+    """The board is ArduPilot's MSG at boot naming it and its unique id; '' where none does."""
+    for path, board in ((ARDUPILOT_AC33, 'PX4v2 004A002F 33345119 32383433'),
+                        (ARDUPILOT_AC45, 'CubeOrangePlus 00260020 31325110 32313638'),
+                        (ARDUPILOT_CUBEBLACK, 'CubeBlack 004F0021 33375118 37333835')):
+        assert read_dataflash(path).board == board
+    named = write_dataflash(tmp_path / 'named.bin', _imus()[:1], board='Pixhawk6C 00490034 '
+                            '30315109 34373938')
+    assert load_run(named).info['board'] == 'Pixhawk6C 00490034 30315109 34373938'
+    said = write_dataflash(tmp_path / 'said.bin', _imus()[:1], board='Frame: QUAD/X')
+    assert read_dataflash(said).board == ''                  # a MSG, but no board line
+    assert read_dataflash(write_dataflash(tmp_path / 'none.bin', _imus()[:1])).board == ''

@@ -559,3 +559,13 @@ def test_sensor_combined_accelerometer_rows_follow_the_accelerometer_selection(t
         ('uint64_t', 'timestamp'), ('uint32_t', 'gyro_device_id')], {
         'timestamp': us[:1], 'gyro_device_id': imus[1].device_id})])
     np.testing.assert_array_equal(read_ulog(path, instance=1, accel=True).accel, imus[1].accel)
+
+
+def test_the_board_is_the_hardware_name_and_uuid_where_the_log_has_them(tmp_path):
+    assert read_ulog(PX4_ACCEL_THERMOMETER).board == ('PX4_FMU_V6C 0006000000003535323734325116'
+                                                      '003d0021')
+    topics = px4_topics(_imus(count=1))
+    info = {'sys_name': 'PX4', 'ver_hw': 'PX4_FMU_V5', 'sys_uuid': '000100020003'}
+    named = write_ulog(tmp_path / 'named.ulg', topics, info=info)
+    assert load_run(named).info['board'] == 'PX4_FMU_V5 000100020003'
+    assert read_ulog(write_ulog(tmp_path / 'bare.ulg', topics)).board == ''

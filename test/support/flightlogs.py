@@ -253,7 +253,7 @@ def _fmt_record(mtype: int, name: str, fmt: str, columns: str) -> bytes:
 def write_dataflash(path: Path, imus: list, params: dict | None = None, *,
                     temperature: bool = True, temp_field: str = 'T',
                     stamp: str = 'TimeUS', fast: dict | None = None, bursts: int = 0,
-                    gyr_format: tuple = GYR_FORMAT) -> Path:
+                    gyr_format: tuple = GYR_FORMAT, board: str = '') -> Path:
     """
     Write an ArduPilot DataFlash log: FMT records, PARM, then IMU records of every instance.
 
@@ -263,7 +263,8 @@ def write_dataflash(path: Path, imus: list, params: dict | None = None, *,
     records (``SampleUS`` = ``t``; ``TimeUS`` when written, the next 2.5 ms tick), its
     ``accel`` as ``ACC``; ``gyr_format`` another ``GYR`` layout. ``bursts``: that many batch
     sampler bursts of instance 0's gyro (an ``ISBH`` + 32 ``ISBD`` each). Records go
-    interleaved by time, ``GYR`` last in each stretch.
+    interleaved by time, ``GYR`` last in each stretch. ``board``: a ``MSG`` record of that text
+    after the firmware's (the boot line naming the board).
     """
     name, fmt, cols = IMU_FORMAT if temperature else IMU_FORMAT_NO_T
     cols = cols.replace(',T,', f',{temp_field},')
@@ -273,6 +274,11 @@ def write_dataflash(path: Path, imus: list, params: dict | None = None, *,
              (67, *ISBH_FORMAT), (68, *ISBD_FORMAT), (69, *gyr_format)]
     out = [_fmt_record(0x80, 'FMT', 'BBnNZ', 'Type,Length,Name,Format,Columns')]
     out += [_fmt_record(*k) for k in kinds[:2 if not (fast or bursts) else len(kinds)]]
+    if board:
+        out.append(_fmt_record(70, 'MSG', 'QZ', 'TimeUS,Message'))
+        out.append(_df_records(70, 'QZ', 'TimeUS,Message', {
+            'TimeUS': np.zeros(2, dtype=np.uint64),
+            'Message': [b'ArduCopter V4.5.4 (fd1bcc61)', board.encode()]}).tobytes())
     if params:
         keys = list(params)
         out.append(_df_records(64, PARM_FORMAT[1], PARM_FORMAT[2], {
