@@ -117,16 +117,13 @@ def _check_runs(runs: Sequence[Run], ids: Sequence[str],
     return n
 
 
-def _check_state_span(states: Sequence[NDArray[np.float64]], runs: Sequence[Run],
+def _check_state_span(state_span: tuple[float, float], runs: Sequence[Run],
                       rows: Sequence[NDArray[np.bool_]] | None, th: ThermalState,
                       ids: Sequence[str]) -> None:
     """Raise FitError when the lagged die temperature the model is fitted in spans too little."""
-    if th.kind == 'none' or not TEMPERATURE_EFFECTS & set(ids):
-        return
-    pick = (lambda a, i: a) if rows is None else (lambda a, i: a[rows[i]])
-    lo, hi = span([pick(s, i) for i, s in enumerate(states)])
-    if hi - lo < MIN_SPAN_C:
-        tlo, thi = span([pick(r.temp, i) for i, r in enumerate(runs)])
+    lo, hi = state_span
+    if th.kind != 'none' and TEMPERATURE_EFFECTS & set(ids) and hi - lo < MIN_SPAN_C:
+        tlo, thi = span([r.temp if rows is None else r.temp[rows[i]] for i, r in enumerate(runs)])
         raise FitError(f'The lagged die temperature (tau {th.tau_total_s:.0f} s) spans '
                        f'{hi - lo:.3f} degC only ({lo:.2f} .. {hi:.2f}; the thermometer '
                        f'{thi - tlo:.2f} degC; need at least {MIN_SPAN_C} degC): record a wider '
@@ -238,7 +235,8 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     th, thermal_info = _search(runs, o, ids, inputs, t0, par, mode, th, rows, labels)
 
     states = [run_state(th, r) for r in runs]
-    _check_state_span(states, runs, rows, th, ids)
+    state_span = span(states if rows is None else [s[m] for s, m in zip(states, rows)])
+    _check_state_span(state_span, runs, rows, th, ids)
     x = np.concatenate([b.features(inputs, t0, par, th, state=s)
                         for b, s in zip(blocks, states)])
     scale_cols = (np.concatenate([b.scale_cols(t0, state=s) for b, s in zip(blocks, states)])
@@ -280,7 +278,7 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
                                                check, turn_on)
     return CompensationModel.network(
         o.kind, ids, par, t0, fit.norm, coef, scale=fit.scale,
-        temp_range_c=span(states if rows is None else [s[m] for s, m in zip(states, rows)]),
+        temp_range_c=state_span,
         residual_var=residual_var, frame_id=o.frame_id, sensor_id=o.sensor_id, created=created,
         thermal=th, metrics=metrics)
 

@@ -40,7 +40,7 @@ from numpy.typing import NDArray
 __all__ = ['ADVICE_PARK_MIN', 'find_still', 'fit_without_outliers', 'MAX_MOVING_SHARE',
            'MIN_STILL_SPAN_C', 'moving_share', 'OUTLIER_FLOOR_RAD_S', 'OUTLIER_SIGMAS', 'rows_of',
            'STILL_STD_CEILING', 'still_only_runs', 'still_report', 'StillReport', 'Stretch',
-           'unreferenced_motion']
+           'unreferenced', 'unreferenced_motion']
 
 #: Smallest temperature span of the still time a model is fitted on, degC.
 MIN_STILL_SPAN_C = 2.0
@@ -172,6 +172,11 @@ def moving_share(runs: Sequence[Run]) -> float:
     return moving / total if total else 0.0
 
 
+def unreferenced(runs: Sequence[Run]) -> bool:
+    """Return whether every run was read without a reference rate (none: False)."""
+    return bool(runs) and all(r.info.get('reference') == 'zero' for r in runs)
+
+
 def unreferenced_motion(runs: Sequence[Run]) -> tuple[float, list[Run]]:
     """
     Return the :func:`moving_share` of runs read without a reference rate, and the runs.
@@ -179,7 +184,7 @@ def unreferenced_motion(runs: Sequence[Run]) -> tuple[float, list[Run]]:
     0 for runs with a reference rate; the runs returned have each constant gyro axis at its
     reference (:func:`gyro_tdc.identify.axes.neutral_runs`) when the share was measured.
     """
-    if not runs or any(r.info.get('reference') != 'zero' for r in runs):
+    if not unreferenced(runs):
         return 0.0, list(runs)
     fitted = neutral_runs(runs, constant_gyro_axes(runs))
     return moving_share(fitted), fitted

@@ -48,7 +48,8 @@ from gyro_tdc.identify.fit import (check_choices, estimate_t0, fit_model, FitOpt
 from gyro_tdc.identify.power_cycles import MIN_FOLDS, reanchor_rule, SLOW_CURVE_S, told_alone
 from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, find_still, fit_without_outliers,
                                           MAX_MOVING_SHARE, MIN_STILL_SPAN_C, rows_of,
-                                          still_report, Stretch, unreferenced_motion)
+                                          still_report, Stretch, unreferenced,
+                                          unreferenced_motion)
 from gyro_tdc.model import (check_model, CompensationModel, EFFECTS, normalise_ids,
                             save_model)
 from gyro_tdc.signal import block_mean, MIN_SESSION_SPAN_C, motion_veto
@@ -414,7 +415,7 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     fitted = neutral_runs(runs, const)
     fo, choice = _features(o, fitted, runs, estimate_t0(runs[0]) if o.t0 is None else o.t0, log)
     lo, hi = span([r.temp for r in runs])
-    if hi - lo >= MIN_SPAN_C and not any(np.any(r.omega_ref) for r in runs):
+    if hi - lo >= MIN_SPAN_C and unreferenced(runs):
         # Still, no reference: as --still-only (a smaller span is refused by the fit).
         fo, choice = _one_power_cycle(runs, [(i, 0, len(r)) for i, r in enumerate(runs)],
                                       split.labels, fo, choice, log)
