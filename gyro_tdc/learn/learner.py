@@ -40,6 +40,7 @@ from gyro_tdc.learn.records import (Entry, held_out_line, keep_power_up, LearnCo
                                     remember)
 from gyro_tdc.learn.store import LearnFile
 from gyro_tdc.model import CompensationModel, ThermalState
+from gyro_tdc.runtime import power_up, POWER_UP_KEY
 from gyro_tdc.signal import (break_why, hold_readings, long_enough, SessionTracker, StillWindows,
                              Window)
 import numpy as np
@@ -94,9 +95,7 @@ class Learner:
         """Forget everything learned (points, floor, model); the prior is current again."""
         self.bins: dict[int, list[Entry]] = {}
         self.still.reset()
-        self.still_s = 0.0
-        self.stretches = 0
-        self.windows = 0
+        self.still_s, self.stretches, self.windows = 0.0, 0, 0
         self.recent: list[RecentStretch] = []     # newest last
         self.fit: dict | None = None          # the learned model in use
         self.model: CompensationModel | None = self.prior
@@ -181,8 +180,7 @@ class Learner:
 
     def _forget_points(self) -> None:
         """Drop what was binned at the old model temperature; restart the thermal state."""
-        self.bins = {}
-        self.recent = []
+        self.bins, self.recent = {}, []
         self.fit, self.model, self._swaps, self.check = None, self.prior, [], None
         self._stretch, self.power_ups = OpenStretch(), []
         self.still.drop_window()
@@ -331,12 +329,11 @@ class Learner:
             # closes was computable at its first sample.
             n, t0 = len(self._swaps), float(t[0])
             swapped = self.flush(t0)
-            # None not handed over carries the new session's offset; after stamps that stepped
-            # back (the IMU's clock restarted) one due by the old clock is due now.
+            # None not handed over carries the new session's offset (a power-up's intercept);
+            # after the clock restarted (stamps back) one due by the old clock is due now.
             for k, (due, m) in enumerate(self._swaps):
-                m.created['offset_until'] = None
-                if gap < 0 and k < n and due is not None:
-                    self._swaps[k] = (min(due, t0), m)
+                self._swaps[k] = (min(due, t0) if gap < 0 and k < n and due is not None
+                                  else due, power_up(m))
             self.sessions.start(t0, why, gap=gap)
             self._power_up(t0)
             self._up_open = True
@@ -358,7 +355,8 @@ class Learner:
         except ModelFileError as exc:     # checked as a model file: never installed
             self.refused, self.refused_why = self.refused + 1, str(exc)
             return
-        model.created.update(offset_until=None, gyro_floor=list(map(float, self.still.gyro_floor)))
+        model.created.update({'offset_until': None, POWER_UP_KEY: model.intercept.tolist(),
+                              'gyro_floor': list(map(float, self.still.gyro_floor))})
         self._swaps.append((t0 + self.config.swap_delay_s, model))   # computable at t0
         self.fit, self.model = fit, model
 
@@ -531,15 +529,18 @@ class Learner:
             # Whose offset it carries: the newest still time it was taken from (the core keeps
             # re-anchoring a new power cycle until a model carries that cycle's offset).
             until = offset_until(rows, since, offset is not None, self.entries(), self.session)
+            up = power_up_offset(fit, self.power_ups, self.prior)
             if offset is not None or until is None:   # the newest still time's, or a power-up's
-                fit['coef'][0] = (power_up_offset(fit, self.power_ups, self.prior)
-                                  if offset is None else offset)
+                fit['coef'][0] = up if offset is None else offset
                 cand = model_of(fit, self.thermal, self.prior)
+            # The intercept the core gives the next power cycle until its offset is known.
+            twin = cand if offset is None and until is None else model_of(
+                dict(fit, coef=[up] + fit['coef'][1:]), self.thermal, self.prior)
         except ModelFileError as exc:     # checked as a model file: never installed
             self.refused, self.refused_why = self.refused + 1, str(exc)
             return False
         anchor = since if self.config.offset_s > 0 or since == -math.inf else None
-        cand.created['offset_until'] = until
+        cand.created.update({'offset_until': until, POWER_UP_KEY: twin.intercept.tolist()})
         # The noise of the samples it is handed (the core's re-anchoring prior at a new one).
         cand.created['gyro_floor'] = [float(v) for v in self.still.gyro_floor]
         new, old, swap = compare(cand, self.model, rows, self.thermal, anchor, floor)

@@ -39,7 +39,7 @@ from gyro_tdc.runtime.drift import accel_slot, growth, ModelSlot, timeless, wide
 from gyro_tdc.runtime.flags import (IMPLAUSIBLE_INPUT, IMPLAUSIBLE_OUTPUT, NO_ACCEL_DATA,
                                     NO_MODEL, NO_TEMPERATURE, NON_FINITE, OUT_OF_RANGE,
                                     PASSTHROUGH, STALE, UPSTREAM)
-from gyro_tdc.runtime.handoff import LearningGate
+from gyro_tdc.runtime.handoff import LearningGate, power_up, POWER_UP_KEY
 from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.priming import (catch_up, prepare, PREPARED_BY, prepared_for, PreparedModel,
                                       Priming)
@@ -499,9 +499,24 @@ class CompensatorCore:
             gate = self.learning
             a.restart(slot, reanchor_var(slot.model, gate), gate.extend is not None)
             self._update_needs()
-        if waiting is not None:
+        if (up := self._power_up_model(waiting)) is not None:
             self.learning.installs += 1
-            self.install(waiting, learned=True, older_clock=True)
+            self.install(up, learned=True, older_clock=True)
+
+    def _power_up_model(self, waiting: PreparedModel | None) -> PreparedModel | None:
+        """
+        Return the learned model a new power cycle starts on (None: the one in force).
+
+        The newest learned model (``waiting`` on the old clock, else the one installed) with
+        the intercept its learner gave a power cycle whose offset is not known yet
+        (:func:`~gyro_tdc.runtime.handoff.power_up`): not the last cycle's offset.
+        """
+        slot = self.slot
+        model = waiting.model if waiting is not None else slot.model if slot.learned else None
+        if model is None or POWER_UP_KEY not in model.created:
+            return waiting
+        model = power_up(model)
+        return prepare(model, self.policy, self.priming(model))
 
     def temperature_age(self) -> float | None:
         """Return the last IMU stamp minus the newest thermometer stamp, s (None if unknown)."""

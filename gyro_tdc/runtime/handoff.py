@@ -27,13 +27,25 @@ from dataclasses import dataclass, field
 import math
 from typing import Any, Callable, Sequence
 
+from gyro_tdc.model import CompensationModel
 from gyro_tdc.runtime.priming import PreparedModel
+import numpy as np
 
-__all__ = ['BLOCK_FIELDS', 'hand_off', 'LearningGate']
+__all__ = ['BLOCK_FIELDS', 'hand_off', 'LearningGate', 'power_up', 'POWER_UP_KEY']
 
 #: Floats per sample handed to the learner: stamp, rate (3), specific force (3; NaN: none).
 BLOCK_FIELDS = 7
 _NAN3 = (math.nan, math.nan, math.nan)
+#: A learned model's ``created`` key: the intercept (rad/s, 3 floats) its learner gives a new
+#: power cycle whose offset is not known yet.
+POWER_UP_KEY = 'power_up_intercept'
+
+
+def power_up(model: CompensationModel) -> CompensationModel:
+    """Return ``model`` for a new power cycle: its :data:`POWER_UP_KEY` intercept, no offset."""
+    up = model.created.get(POWER_UP_KEY, model.intercept)
+    return model.replace(intercept=np.asarray(up, dtype=np.float64).reshape(3),
+                         created={**model.created, 'offset_until': None})
 
 
 def hand_off(block: array, extend: Callable) -> int:

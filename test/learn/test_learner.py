@@ -495,7 +495,9 @@ def _cadence_state(learner):
 def test_step_cadence_within_the_delay_gives_the_same_output_bit_for_bit(cadence_runs):
     ref_outs, ref_acc, ref_l, ref_core = cadence_runs[1.0]
     assert len(ref_acc) > 10 and ref_l.late_swaps == 0
-    assert ref_core.learned_installs == len([a for a in ref_acc if a[0] is not None])
+    # Every model accepted with a stamp, and day 2 started on the power-up intercept.
+    assert ref_core.reanchoring.sessions.session == 2
+    assert ref_core.learned_installs == len([a for a in ref_acc if a[0] is not None]) + 1
     assert ref_outs[1][1].all()                # learned on day 1: day 2 compensated throughout
     for s in (10.0, 100.0):
         outs, acc, learner, core = cadence_runs[s]
@@ -628,28 +630,39 @@ def test_a_new_power_cycle_starts_from_the_trainers_offset_until_its_own_is_lear
     Three power cycles 3 h apart: x zeroed at power-on (offsets scattering around zero: the
     others' mean predicts a held-out one worse than none), y and z a repeating turn-on offset
     (their mean), judged on each cycle's first still windows. The fourth's first samples swap
-    in that intercept, ``swap_delay_s`` after its first stamp, carrying no offset of its own;
-    its first still stretch then gives its own.
+    in that intercept, ``swap_delay_s`` after its first stamp, carrying no offset of its own,
+    as do the models not handed over before the break; its first still stretch then gives
+    its own, and the intercept for the next power-up (``created['power_up_intercept']``).
     """
     learner = Learner(LearnConfig(temperature_timeout=1e9))
     offsets = [(0.010, -0.50, 0.005), (-0.010, -0.52, 0.005), (0.012, -0.49, 0.006)]
     t = 1000.0
     for k, bias in enumerate(offsets):
         t = _bursts(learner, t, 1, 10.0, burst=200.0, bias=np.radians(bias), seed=k) + 3 * 3600.0
-    learner.take_swaps()
     assert learner.session == 2
     assert [u[:2] for u in learner.power_ups] == [[0, 6], [1, 6], [2, 6]]   # first 60 s each
     _bursts(learner, t, 1, 10.0, burst=2.0, bias=np.radians((0.03, -0.45, 0.004)), seed=5)
     assert learner.session == 3
-    due, model = learner.take_swaps()[-1]
+    swaps = learner.take_swaps()
+    due, model = swaps[-1]
     assert due == pytest.approx(t + learner.config.swap_delay_s)
-    assert model.created['offset_until'] is None
     want = np.radians([0.0, np.mean([b[1] for b in offsets]), np.mean([b[2] for b in offsets])])
     np.testing.assert_allclose(model.intercept, want, rtol=0, atol=np.radians(5e-4))  # 60 s' SE
+    # Every model (those not handed over before the break too) carries no cycle's offset:
+    # the intercept a power-up's offset is given, as the core starts a power cycle on.
+    assert len(swaps) > 1
+    for _, m in swaps:
+        assert m.created['offset_until'] is None
+        np.testing.assert_array_equal(m.intercept, m.created['power_up_intercept'])
     _bursts(learner, t + 10.0, 1, 10.0, burst=200.0, bias=np.radians((0.03, -0.45, 0.004)),
             seed=6)
     own = learner.take_swaps()[-1][1]
     assert own.created['offset_until'] is not None
+    # Its intercept for the next power-up: the four cycles' mean on y and z, none on x.
+    four = offsets + [(0.03, -0.45, 0.004)]
+    np.testing.assert_allclose(own.created['power_up_intercept'], np.radians(
+        [0.0, np.mean([b[1] for b in four]), np.mean([b[2] for b in four])]), rtol=0,
+        atol=np.radians(5e-4))
     np.testing.assert_allclose(own.intercept, np.radians([0.03, -0.45, 0.004]), rtol=0,
                                atol=np.radians(5e-4))      # the noise's SE: 1e-4 deg/s
 

@@ -201,6 +201,19 @@ def _bias(b, until):
     return m
 
 
+def _feeder(core, rng, noise):
+    """Return ``feed(t0, n, offset)``: n samples at 100 Hz at 20 degC, still; the outputs."""
+    def feed(t0, n, offset):
+        t = t0 + np.arange(n) / 100.0
+        out = np.empty((n, 3))
+        for k in range(n):
+            core.add_temperature(float(t[k]), 20.0)
+            w = offset + rng.normal(0.0, noise, 3)
+            out[k] = core.process(float(t[k]), *w.tolist(), (0.0, 0.0, 9.81))[:3]
+        return out
+    return feed
+
+
 def test_a_learned_model_of_this_session_ends_its_reanchoring_an_older_one_keeps_the_shift():
     """
     Keep or drop the shift by whose offset a learned install carries; restart at a break.
@@ -210,20 +223,11 @@ def test_a_learned_model_of_this_session_ends_its_reanchoring_an_older_one_keeps
     session's still time drops it and ends re-anchoring for the session (no new anchor
     however long it is still); a power cycle starts re-anchoring again.
     """
-    rng = np.random.default_rng(1)
     core = CompensatorCore(Policy(still_window=5.0))
     core.learner = _Learner()
+    feed = _feeder(core, np.random.default_rng(1), 1e-3)
     core.add_temperature(0.0, 20.0)
     a, b1, b2 = np.full(3, 1e-3), np.array([3e-3, -2e-3, 1e-3]), np.array([-1e-3, 2e-3, 0.0])
-
-    def feed(t0, n, offset):
-        t = t0 + np.arange(n) / 100.0
-        out = np.empty((n, 3))
-        for k in range(n):
-            core.add_temperature(float(t[k]), 20.0)
-            w = offset + rng.normal(0.0, 1e-3, 3)
-            out[k] = core.process(float(t[k]), *w.tolist(), (0.0, 0.0, 9.81))[:3]
-        return out
 
     core.schedule(_bias(a, -1.0), None)           # a learned model from before the stream
     feed(1.0, 3000, b1)
@@ -243,3 +247,35 @@ def test_a_learned_model_of_this_session_ends_its_reanchoring_an_older_one_keeps
     assert core.reanchoring.sessions.session == 2 and core.anchor is not None
     assert health(core).values['reanchor'].startswith('done at t=')
     assert np.allclose(core.anchor.delta, b2 - b1, atol=3e-4)
+
+
+def test_a_new_power_cycle_starts_on_the_learners_power_up_intercept_at_once():
+    """
+    Start a power cycle on the intercept the learner gave an unknown offset, not the last one.
+
+    A learned model carries its session's offset ``b1`` and the learner's intercept for a
+    power cycle whose offset is not known yet (``created['power_up_intercept']``). At a
+    pause of an hour, and again at stamps stepping back (a boot clock), the first samples of
+    the new cycle (0.2 s: before any still window ends) are corrected by that intercept at
+    once (before: by ``b1``, until the learner saw the break), and re-anchoring goes on.
+    """
+    core = CompensatorCore(Policy(still_window=5.0))
+    core.learner = _Learner()
+    feed = _feeder(core, np.random.default_rng(2), 1e-4)
+    b1, up = np.array([3e-3, -2e-3, 1e-3]), np.array([0.0, -1e-3, 5e-4])
+
+    model = _bias(b1, 30.0)
+    model.created['power_up_intercept'] = up.tolist()
+    core.add_temperature(0.0, 20.0)
+    core.schedule(model, None)
+    assert np.allclose(feed(1.0, 3000, b1).mean(axis=0), 0.0, atol=5e-5)
+    for t0, session in ((3700.0, 2), (1.0, 3)):     # a pause, then the stamps stepping back
+        b = np.array([1e-3, 1e-3, 1e-3])
+        out = feed(t0, 20, b)
+        assert core.reanchoring.sessions.session == session
+        np.testing.assert_allclose(out.mean(axis=0), b - up, atol=1e-4)   # b1: 5e-4 off
+        np.testing.assert_array_equal(core.slot.model.intercept, up)
+        assert core.reanchoring.waiting and core.slot.model.created['offset_until'] is None
+        out = feed(t0 + 0.2, 1500, b)                # anchored on its own still time
+        assert core.anchor is not None
+        np.testing.assert_allclose(out[-300:].mean(axis=0), 0.0, atol=5e-5)
