@@ -35,7 +35,8 @@ axis). Every anchor taken (one a session at most) is judged:
 
 A case fires when one of its sessions anchors (it has at least 60 s of still time in its
 bursts), passes when it fired and every anchor passed; ``anchored`` is the share of its
-samples compensated with their session's anchor in force (what the re-anchoring covered).
+samples compensated with their session's anchor in force (what the re-anchoring covered),
+``provisional`` the share with a still run's shift so far in force before it.
 
 ``--rule`` trains with ``train``'s start-up shift rule: an axis within the model's gate is
 not shifted and is judged unshifted. ``--old COMMIT`` runs the re-anchoring of
@@ -179,13 +180,15 @@ def case(d: dict, detector_cls=None, rule: bool = False) -> dict:
     add_t, proc = core.add_temperature, core.process
     tl, tql, rl = t.tolist(), tq.tolist(), raw.tolist()
     anchors, covered, prev = [], np.zeros(n, dtype=bool), None
+    early = np.zeros(n, dtype=bool)        # a provisional shift in force
     ra = core.reanchoring
     c0 = time.process_time()
     for i in range(n):
         add_t(tl[i], tql[i])
         w = rl[i]
         proc(tl[i], w[0], w[1], w[2])
-        a = ra.anchor
+        a = ra.anchor if ra.settled else None
+        early[i] = ra.anchor is not None and a is None
         if a is not None:
             covered[i] = a is prev         # output with the anchor already in force
             if a is not prev:
@@ -206,6 +209,7 @@ def case(d: dict, detector_cls=None, rule: bool = False) -> dict:
                        'pass': bool(np.all(err <= bound))})
     return {'fired': bool(anchors), 'cpu_us': 1e6 * cpu / n, 'n': n, 'anchors': judged,
             'sessions': ra.sessions.session, 'anchored': float(covered.mean()),
+            'provisional': float(early.mean()),
             'pass': bool(judged) and all(j['pass'] for j in judged),
             'key': [(j['anchor'].t, j['anchor'].delta, j['anchor'].samples) for j in judged]}
 
@@ -239,7 +243,9 @@ def rates(cases: list, results: list) -> dict:
                   'anchors_pass': sum(j['pass'] for j in js),
                   'with_moving': sum(j['moving'] > 0 for j in js),
                   'sessions': sum(r['sessions'] for r in rs),
-                  'anchored': float(np.median([r['anchored'] for r in rs])) if rs else 0.0}
+                  'anchored': float(np.median([r['anchored'] for r in rs])) if rs else 0.0,
+                  'provisional': float(np.median([r.get('provisional', 0.0) for r in rs]))
+                  if rs else 0.0}
     return out
 
 
@@ -255,8 +261,9 @@ def side_by_side(names: list, tables: list) -> None:
         for label, k, of in rows:
             cells = [f'{t[g][k]}/{t[g][of]}' for t in tables]
             print(f'    {label:28s}' + ''.join(f'{c:>30s}' for c in cells))
-        print(f'    {"anchored share (median)":28s}'
-              + ''.join(f'{t[g]["anchored"]:30.3f}' for t in tables))
+        for label, k in (('anchored share (median)', 'anchored'),
+                         ('provisional share (median)', 'provisional')):
+            print(f'    {label:28s}' + ''.join(f'{t[g][k]:30.3f}' for t in tables))
 
 
 def report(name: str, cases: list, results: list) -> None:

@@ -109,7 +109,7 @@ class Diagnostics:
             log.warning(f'{marked} imu/data_raw samples were already compensated by gyro_tdc: '
                         'the model is applied twice', throttle_duration_sec=10.0)
         self._seen = h.mark
-        if (anchor := core.anchor) is not None and anchor is not self._reported_anchor:
+        if core.reanchoring.settled and (anchor := core.anchor) is not self._reported_anchor:
             self._reported_anchor = anchor
             log.info(f're-anchored after {anchor.samples} still samples over '
                      f'{anchor.duration_s:.1f} s at {anchor.temp_c:.2f} degC: offset shift '

@@ -130,7 +130,7 @@ class CompensatorCore:
         ``pass_var``: the variance a sample passed through raw adds, per axis.
         """
         a, policy = self.reanchoring, self.policy
-        a.waiting = bool(policy.reanchor_on_start and a.anchor is None and not a.learned)
+        a.waiting = bool(policy.reanchor_on_start and not a.settled and not a.learned)
         self.needs_accel = self.slot.accel is not None or a.waiting
         self.upstream_pass = bool(policy.upstream_correction) and (
             policy.upstream_policy == 'passthrough')
@@ -463,9 +463,16 @@ class CompensatorCore:
 
     def _still(self, t: float, raw: Vec3, out: Vec3, accel: Sequence[float] | None,
                temp: float) -> None:
-        if (found := self.reanchoring.detector.update(t, raw, out, accel, temp)) is not None:
-            self.reanchoring.take(found, self.slot, temp)
+        a = self.reanchoring
+        if a.anchor is not None:          # a provisional shift: the detector averages without it
+            s = a.shown
+            out = (out[0] + s[0], out[1] + s[1], out[2] + s[2])
+        if (found := a.detector.update(t, raw, out, accel, temp)) is not None:
+            a.take(found, self.slot, temp)
             self._update_needs()
+        elif a.detector.provisional is not a.seen:
+            a.seen = a.detector.provisional
+            a.take(a.seen, self.slot, temp)
 
     def _session_break(self, t: float, d: float) -> None:
         """

@@ -29,6 +29,7 @@ from gyro_tdc.model import SETTLE_TAUS
 from gyro_tdc.runtime.flags import (describe_flags, IMPLAUSIBLE_INPUT, IMPLAUSIBLE_OUTPUT,
                                     NO_ACCEL_DATA, NO_MODEL, NO_TEMPERATURE, NON_FINITE,
                                     OUT_OF_RANGE, PASSTHROUGH, STALE, UPSTREAM)
+from gyro_tdc.runtime.reanchor import PROVISIONAL
 
 if TYPE_CHECKING:  # pragma: no cover - typing only (core does not import this module)
     from gyro_tdc.model import CompensationModel
@@ -290,7 +291,8 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
         'reanchor': ('off' if not core.policy.reanchor_on_start else
                      'offset from the learner' if anchor is None and core.reanchoring.learned
                      else 'waiting for stillness' if anchor is None else
-                     f'done at t={anchor.t:.3f} s') + session,
+                     f'averaging, provisional shift at t={anchor.t:.3f} s'
+                     if anchor.reason == PROVISIONAL else f'done at t={anchor.t:.3f} s') + session,
     }
     if core.accel_on:
         values.update((f'accelerometer {k}', v) for k, v in core.tally.accel.items())

@@ -81,7 +81,8 @@ PARAMS = (
             "compensation mark); > 0: the output diagonal is this plus the model's variance, "
             'marked. A -1 in element 0 (no data) stays as it came [(rad/s)^2].', 0.0, 1.0e3),
     _policy('reanchor_on_start', True, 'Shift the model offset so the compensated rate averages '
-            'zero once the IMU is still and the mean is known to reanchor_tolerance: the turn-on '
+            'zero once the IMU is still and the mean is known to reanchor_tolerance (meanwhile by '
+            'the mean so far on the axes where it is beyond 3 standard errors): the turn-on '
             'offset of this power cycle, which no model trained on other power cycles knows; with '
             'the default still_window, still_window_max and reanchor_tolerance, on an axis only '
             "beyond the gate its training found (the model's reanchor min_shift_dps; none: any "

@@ -35,6 +35,7 @@ continuous stream never pauses: its windows, and its anchors, are the span windo
 from __future__ import annotations
 
 from array import array
+from dataclasses import replace
 import math
 from typing import NamedTuple, Sequence
 
@@ -46,13 +47,18 @@ from gyro_tdc.signal import MIN_WINDOW_SAMPLES, STILL_WINDOW_S, StillWindows, Wi
 import numpy as np
 from numpy.typing import NDArray
 
-__all__ = ['gated_shift', 'REANCHOR_KEY', 'reanchor_shift', 'shift_gate', 'StillnessDetector']
+__all__ = ['gated_shift', 'PROVISIONAL', 'REANCHOR_KEY', 'reanchor_shift', 'shift_gate',
+           'StillnessDetector']
 
 _INF3 = (math.inf, math.inf, math.inf)
 #: A still run resumed after a pause keeps its windows before it only where their mean and
 #: the first window's after it agree within this many combined standard errors on every axis
 #: (else the bias moved in the pause: a board warming after a cold start).
 PAUSE_AGREE = 4.0
+#: The reason of a still run's shift so far (:attr:`StillnessDetector.provisional`), whose
+#: axes within :data:`PROVISIONAL_Z` standard errors of zero are zeroed.
+PROVISIONAL = 'provisional'
+PROVISIONAL_Z = 3.0
 #: The ``model.metrics`` key of the trainer's re-anchoring decision
 #: (:func:`gyro_tdc.identify.power_cycles.reanchor_rule`): ``min_shift_dps`` per axis.
 REANCHOR_KEY = 'reanchor'
@@ -312,6 +318,8 @@ class StillnessDetector:
                 self.tolerance = default_tolerance(residual_var)
         self.still.reset(prior_std=self.noise_prior)
         self._run: list[_Window] = []
+        #: The run's shift so far, until its anchor (None: no still run, or no axis off).
+        self.provisional: Anchor | None = None
         self._c: Vec3 = (0.0, 0.0, 0.0)
         self._resumed = False              # the next window judged follows a pause
         self._end_window()
@@ -415,6 +423,7 @@ class StillnessDetector:
         """Extend, drop or finish the run with the window that just ended."""
         if not self._run:                 # a run starts: its centring constant
             self._c = tuple(w.rate[0].tolist())
+        self.provisional = None
         if w.why:
             self._resumed = False
             self.windows_rejected += 1
@@ -434,18 +443,27 @@ class StillnessDetector:
         if j >= 0:
             del run[:j + 1]
             self.windows_rejected += 1
-            return None
         total = sum((r.stats for r in run), BlockStats())
-        if all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
-            reason = 'precision'
-        elif len(run) >= max_windows(self.window, self.window_max):
+        if j >= 0 or not all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
+            if j >= 0 or len(run) < max_windows(self.window, self.window_max):
+                self.provisional = self._so_far(run, total, w.t1, float(w.temp[-1]))
+                return None
             reason = 'longest'
         else:
-            return None
+            reason = 'precision'
         if len(run) == 1 and self.window_max <= self.window:
             reason = ''
         self._run = []
         return self._anchor(run, total, w.t1, float(w.temp[-1]), reason)
+
+    def _so_far(self, run: list[_Window], total: BlockStats, t_end: float, temp_c: float
+                ) -> Anchor | None:
+        """Return the run's shift so far (:data:`PROVISIONAL`), or None when no axis is off."""
+        if not run:
+            return None
+        a = self._anchor(run, total, t_end, temp_c, PROVISIONAL)
+        delta = tuple(d if abs(d) > PROVISIONAL_Z * e else 0.0 for d, e in zip(a.delta, a.se))
+        return replace(a, delta=delta) if any(delta) else None
 
     def _anchor(self, run: list[_Window], total: BlockStats, t_end: float, temp_c: float,
                 reason: str) -> Anchor:

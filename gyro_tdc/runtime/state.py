@@ -31,7 +31,7 @@ from gyro_tdc.runtime.drift import ModelSlot
 from gyro_tdc.runtime.flags import FLAG_NAMES
 from gyro_tdc.runtime.handoff import LearningGate
 from gyro_tdc.runtime.policy import Policy
-from gyro_tdc.runtime.reanchor import gated_shift, StillnessDetector
+from gyro_tdc.runtime.reanchor import gated_shift, PROVISIONAL, StillnessDetector
 from gyro_tdc.signal import SessionTracker, TemperatureHold
 import numpy as np
 from numpy.typing import NDArray
@@ -118,7 +118,9 @@ class Reanchoring:
     shown the pauses and steps back the learner is shown). ``learned``: a learned model
     carrying this session's offset is installed (taken from its own still time), so
     re-anchoring is done for the session without a shift; ``waiting`` that it still waits
-    for a still window (:meth:`CompensatorCore._update_needs`).
+    for a still window (:meth:`CompensatorCore._update_needs`). Until the anchor, ``anchor``
+    may be the still run's shift so far (reason :data:`~gyro_tdc.runtime.reanchor.PROVISIONAL`,
+    the detector's ``provisional``); ``shown`` is what it moved the output by.
     """
 
     detector: StillnessDetector
@@ -127,6 +129,14 @@ class Reanchoring:
     waiting: bool = False
     #: The IMU's sessions by the shared rule (:class:`gyro_tdc.signal.SessionTracker`).
     sessions: SessionTracker = field(default_factory=lambda: SessionTracker(first=1))
+    shown: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    #: The detector's provisional shift last taken (the core takes each new one).
+    seen: Anchor | None = None
+
+    @property
+    def settled(self) -> bool:
+        """Return whether this session's shift is taken (not a provisional one, not none)."""
+        return self.anchor is not None and self.anchor.reason != PROVISIONAL
 
     def on_install(self, comp: StreamingCompensator, model: CompensationModel, same: bool,
                    learned: bool, older: bool, residual_var: NDArray[np.float64], *,
@@ -146,12 +156,12 @@ class Reanchoring:
         until = None if older_clock else model.created.get('offset_until')
         start = self.sessions.t0
         if learned and until is not None and start is not None and until >= start:
-            self.anchor = None            # this session's offset: no shift, no re-anchoring
+            self.anchor, self.shown = None, (0.0, 0.0, 0.0)   # this session's offset: no shift
             self.learned = True
         elif (same or older) and self.anchor is not None:
             comp.shift_offset(np.asarray(self.anchor.delta, dtype=np.float64))
         elif not same and not older:
-            self.anchor = None
+            self.anchor, self.shown = None, (0.0, 0.0, 0.0)
             self.learned = False
             self.detector.reset(residual_var=residual_var)
 
@@ -163,8 +173,7 @@ class Reanchoring:
         Its windows start over; the motion report in force (``moving_t``: the last stamp
         while a report says motion, else None) carries over.
         """
-        if self.anchor is not None or all(getattr(old, f) == getattr(policy, f)
-                                          for f in STILL_FIELDS):
+        if self.settled or all(getattr(old, f) == getattr(policy, f) for f in STILL_FIELDS):
             return
         detector = detector_for(policy)
         detector.reset(residual_var=residual_var)
@@ -172,16 +181,19 @@ class Reanchoring:
             detector.observe_motion(moving_t, True)
         self.detector = detector
 
-    def take(self, found: Anchor, slot: ModelSlot, temp: float) -> None:
+    def take(self, found: Anchor | None, slot: ModelSlot, temp: float) -> None:
         """
-        Shift ``slot``'s model offset by the shift ``found`` at ``temp``; keep it.
+        Shift ``slot``'s model offset by the shift ``found`` at ``temp`` (None: none); keep it.
 
         With the default averaging, an axis whose shift is within the model's gate
         (:func:`gated_shift`: no evidence of a turn-on offset, as its training measured
         anchors of that averaging) is not shifted.
         """
         # The compensated rate is divided by 1 + s dT: the drift shift is the mean times it.
-        den = slot.scale_at(temp)
+        den = None if found is None else slot.scale_at(temp)
+        self.undo(slot)                   # a provisional shift is replaced
+        if found is None:
+            return
         delta = np.asarray(found.delta) * den
         if self.detector.default_rule:
             delta = gated_shift(slot.model, delta)
@@ -189,6 +201,14 @@ class Reanchoring:
         slot.clear()
         self.anchor = replace(found, delta=tuple(float(v) for v in delta),
                               se=tuple(float(v) for v in np.asarray(found.se) * np.abs(den)))
+        self.shown = tuple(float(v) for v in delta / den)
+
+    def undo(self, slot: ModelSlot) -> None:
+        """Undo ``slot``'s shift (none: nothing to do)."""
+        if self.anchor is not None and slot.comp is not None:
+            slot.comp.shift_offset(-np.asarray(self.anchor.delta, dtype=np.float64))
+            slot.clear()
+        self.anchor, self.shown = None, (0.0, 0.0, 0.0)
 
     def restart(self, slot: ModelSlot, residual_var: NDArray[np.float64] | None,
                 paused: bool) -> None:
@@ -198,10 +218,7 @@ class Reanchoring:
         ``paused``: the break is a pause the detector was not shown (a learner is attached),
         so a window may end early, within a burst.
         """
-        if self.anchor is not None and slot.comp is not None:
-            slot.comp.shift_offset(-np.asarray(self.anchor.delta, dtype=np.float64))
-            slot.clear()
-        self.anchor = None
+        self.undo(slot)
         self.detector.reset(residual_var=residual_var)
         if paused:
             self.detector.paused = True

@@ -103,7 +103,7 @@ def test_policy_is_built_from_the_parameter_table():
 
 def test_stream_equals_offline_compensation(model):
     t, omega, tt, tc = stream()
-    core = CompensatorCore(Policy(), model)
+    core = CompensatorCore(Policy(reanchor_on_start=False), model)   # the arithmetic alone
     out, var, flags = run_core(core, t, omega, tt, tc)
     ref = compensate(model, t, zoh(t, tt, tc), omega)
     np.testing.assert_allclose(out, ref, rtol=0, atol=1e-12)
@@ -134,7 +134,7 @@ def test_static_model_fast_path_is_bit_identical_to_step(mode):
     assert np.any(static.scale != 0.0)
     lo, hi = static.temp_range_c
     t, omega, tt, tc = stream(n=2000, rate_hz=50.0, t_lo=lo - 5.0, t_hi=hi + 5.0)
-    core = CompensatorCore(Policy(out_of_range=mode), static)
+    core = CompensatorCore(Policy(out_of_range=mode, reanchor_on_start=False), static)
     out, _, flags = run_core(core, t, omega, tt, tc)
     step = StreamingCompensator(static, out_of_range=mode)
     temp = zoh(t, tt, tc)
@@ -199,7 +199,8 @@ def test_out_of_range(model, mode):
     lo, hi = model.temp_range_c
     # The range is the model temperature's (the lagged state, tau = 120 s): 1000 s of data.
     t, omega, tt, tc = stream(n=500, rate_hz=0.5, t_lo=hi - 5.0, t_hi=hi + 10.0)
-    core = CompensatorCore(Policy(out_of_range=mode, out_of_range_variance=0.125), model)
+    core = CompensatorCore(Policy(out_of_range=mode, out_of_range_variance=0.125,
+                                  reanchor_on_start=False), model)
     out, var, flags = run_core(core, t, omega, tt, tc)
     temp = zoh(t, tt, tc)
     outside = model_temperature(model, t, temp) > hi

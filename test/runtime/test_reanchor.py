@@ -23,9 +23,10 @@ from gyro_tdc.model import compensate
 from gyro_tdc.runtime.blockstats import (block_length, BlockStats, default_tolerance, max_windows,
                                          standard_error, window_stats)
 from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.health import health
 from gyro_tdc.runtime.policy import Policy
-from gyro_tdc.runtime.reanchor import (gated_shift, REANCHOR_KEY, reanchor_shift, shift_gate,
-                                       StillnessDetector)
+from gyro_tdc.runtime.reanchor import (gated_shift, PROVISIONAL, REANCHOR_KEY, reanchor_shift,
+                                       shift_gate, StillnessDetector)
 import numpy as np
 import pytest
 from synth import synth_run
@@ -183,6 +184,34 @@ def test_motion_that_ends_a_still_run_before_its_precision_gives_its_anchor():
                    for k in range(4000) if t[k] >= 25.0)
 
 
+def test_a_still_run_gives_its_shift_so_far_on_the_axes_already_known_to_be_off():
+    """
+    Until its anchor a still run offers its mean so far where it is 3 SE off zero.
+
+    x is 4 mrad/s off, y and z on zero, 1 mrad/s noise at 100 Hz, a tolerance met after 60 s
+    (window_max): after each 10 s window ``provisional`` holds the run's x mean so far and 0 on
+    y and z (0.1 mrad/s SE), ``update`` returns nothing until the anchor, which clears it.
+    """
+    rng = np.random.default_rng(5)
+    det = StillnessDetector(window=10.0, window_max=60.0, gyro_std=0.01, max_rate=0.02,
+                            tolerance=1e-9)
+    t = np.arange(7000) / 100.0
+    out = 1e-3 * rng.standard_normal((7000, 3)) + [0.004, 0.0, 0.0]
+    seen, found = [], []
+    for k in range(7000):
+        if (a := det.update(float(t[k]), out[k].tolist(), out[k].tolist(), None, 20.0)):
+            found.append((k, a))
+        if det.provisional is not None and (not seen or det.provisional is not seen[-1][1]):
+            seen.append((k, det.provisional))
+    assert [a.reason for _, a in found] == ['longest']
+    assert len(seen) == 5 and all(p.reason == PROVISIONAL for _, p in seen)
+    for k, p in seen:                    # each window's end: the run's mean so far
+        assert 10.0 <= t[k] < found[0][0] / 100.0
+        assert p.delta[0] == pytest.approx(out[:p.samples, 0].mean(), abs=1e-12)
+        assert p.delta[1:] == (0.0, 0.0) and p.samples < found[0][1].samples
+    assert det.provisional is None
+
+
 @pytest.mark.parametrize('step', [0.0, 0.02])
 def test_a_run_resumed_after_a_pause_keeps_what_came_before_only_where_it_agrees(step):
     """
@@ -271,3 +300,39 @@ def test_the_core_takes_no_shift_within_the_models_gate():
 def compensate_zero(model, t, temp):
     """Return the model's drift (rad/s) along ``temp``: what the sensor adds to a zero rate."""
     return -compensate(model, t, temp, np.zeros((t.size, 3)))
+
+
+def test_the_core_shifts_by_the_run_so_far_until_its_anchor():
+    """
+    Correct an offset known to 3 SE at the first still window, not only at the anchor.
+
+    x 0.2 deg/s off, y and z on the model, 0.03 deg/s noise at 25 Hz (a flight controller's
+    rest), a tolerance of 2e-5 rad/s (30 s of averaging): from the first window's end
+    the x output is the offset minus the run's mean so far (within 4 SE of a window),
+    y and z untouched; health says so. The anchor then averages the output as it was before
+    the provisional shift: its shift is the offset, not a rest of it.
+    """
+    model = fit_model([synth_run(hours=0.5, rate_hz=2.0, seed=2, noise_dps=0.01)],
+                      kind='poly', features='dT')
+    rng = np.random.default_rng(6)
+    t = 100.0 + np.arange(3000) / 25.0
+    offset = np.radians([0.2, 0.0, 0.0])
+    raw = (rng.normal(0.0, math.radians(0.03), (t.size, 3)) + offset
+           + compensate_zero(model, t, np.full(t.size, 25.0)))
+    core = CompensatorCore(Policy(reanchor_tolerance=2e-5), model)
+    out, states = np.empty_like(raw), []
+    for k in range(t.size):
+        if k % 25 == 0:
+            core.add_temperature(t[k], 25.0)
+        out[k] = core.process(t[k], *raw[k])[:3]
+        states.append(health(core).values['reanchor'])
+    first = int(np.flatnonzero([s.startswith('averaging') for s in states])[0])
+    final = int(np.flatnonzero([s.startswith('done') for s in states])[0])
+    assert 9.9 < t[first] - t[0] < 10.5 and t[final] - t[first] > 15.0
+    se = math.radians(0.03) / math.sqrt(250)
+    mid = slice(first + 1, final)
+    assert abs(out[mid, 0].mean()) < 4 * se < offset[0]
+    np.testing.assert_allclose(out[:final, 1:], (raw - compensate_zero(
+        model, t, np.full(t.size, 25.0)))[:final, 1:], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(core.anchor.delta, offset, atol=4 * se)
+    assert core.reanchoring.settled and core.anchor.reason == 'precision'

@@ -175,7 +175,7 @@ def _reanchor(core, t, raw, temp_c=25.0):
             last = t[k]
             core.add_temperature(last, temp_c)
         core.process(t[k], raw[k, 0], raw[k, 1], raw[k, 2])
-        if core.anchor is not None:
+        if core.reanchoring.settled:      # its anchor, not the run's shift so far
             return core.anchor
     return None
 
