@@ -33,8 +33,8 @@ from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_sessio
                                  non_negative_float, progress_bar, run_command, UsageError)
 from gyro_tdc.data import find_bags
 from gyro_tdc.evaluate import (AUTO_REANCHOR, BagEval, evaluate, format_bag, format_means,
-                               format_still, load_models, model_description, POLICY_WORDS, PX4,
-                               write_csv, write_json, write_plots)
+                               format_still, imu_mismatch, load_models, model_description,
+                               POLICY_WORDS, PX4, write_csv, write_json, write_plots)
 from gyro_tdc.learn import read_model
 from gyro_tdc.model import DEFAULT_OUT_OF_RANGE, OUT_OF_RANGE_POLICIES
 
@@ -138,7 +138,8 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     descriptions = [model_description(nm.name, nm.model) for nm in models]
 
     def each(b: BagEval) -> None:
-        for line in [*(_reanchor_lines(b) if auto else ()), *format_still(b)]:
+        for line in [*(w for nm in models if (w := imu_mismatch(nm, b.run, b.label))),
+                     *(_reanchor_lines(b) if auto else ()), *format_still(b)]:
             log(line)
         if b.still is not None and args.reanchor != 0:
             given = args.reanchor if auto else f'{args.reanchor:g}'

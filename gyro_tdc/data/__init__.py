@@ -34,7 +34,7 @@ __all__, __getattr__, __dir__ = lazy(__name__, {
     'field_paths': ['check_number', 'check_vector', 'frd_to_flu', 'normalize_type',
                     'rate_fields', 'reader', 'stamp_kind', 'stamp_seconds', 'temperature_fields',
                     'temperature_path', 'unquirk'],
-    'flightlog': ['detect_format', 'FlightLog', 'is_flight_log'],
+    'flightlog': ['detect_format', 'FlightLog', 'imu_of', 'is_flight_log'],
     'imu_cdr': ['ImuView', 'locate'],
     'mark': ['diagonal_marked'],
     'options': ['BagOptions', 'DEFAULT_IMU_TOPIC', 'DEFAULT_REFERENCE_TOPIC',

@@ -29,7 +29,7 @@ import os
 from pathlib import Path
 import sys
 import tempfile
-from typing import Iterator
+from typing import Any, Iterator, Mapping
 
 from gyro_tdc.data.bag.reader import BagData
 from gyro_tdc.data.options import BagOptions, LOG_FORMATS
@@ -38,7 +38,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 __all__ = ['captured', 'columns', 'DATAFLASH_MAGIC', 'describe_log', 'detect_format',
-           'flight_log_data', 'FlightLog', 'is_flight_log', 'no_instance', 'no_temperature',
+           'flight_log_data', 'FlightLog', 'imu_of', 'is_flight_log', 'no_instance',
+           'no_temperature',
            'on_stamps', 'PLAUSIBLE_C', 'rate_hz', 'rate_words', 'seconds', 'sensor_stream',
            'thermometer', 'ULOG_MAGIC']
 
@@ -400,3 +401,9 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
                    if k.startswith(('TC_', 'INS_TCAL')) or k.endswith('_CALTEMP')},
         'temperature': log.temperature, 'temperature_proxy': log.proxy, 'warnings': warnings,
         'board': log.board}
+
+
+def imu_of(info: Mapping[str, Any]) -> str | None:
+    """Return the IMU a run's ``info`` names, ``'<board> IMU <instance>'`` (None: no board)."""
+    board = info.get('board')
+    return f"{board} IMU {info.get('instance') or 0}" if board else None

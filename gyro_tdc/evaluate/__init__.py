@@ -22,7 +22,8 @@ evaluation.
 from gyro_tdc.base.face import lazy
 
 __all__, __getattr__, __dir__ = lazy(__name__, {
-    'models': ['axes_words', 'load_models', 'NamedModel', 'ONBOARD', 'onboard_model', 'PX4'],
+    'models': ['axes_words', 'imu_mismatch', 'load_models', 'NamedModel', 'ONBOARD',
+               'onboard_model', 'PX4'],
     'plots': ['model_description', 'write_plots'],
     'report': ['format_bag', 'format_coverage', 'format_means', 'format_sessions', 'format_still',
                'format_training', 'is_coverage_line', 'POLICY_WORDS', 'REANCHOR_SPREAD_DPS',

@@ -30,7 +30,7 @@ import re
 from typing import Callable, Iterable, Sequence
 
 from gyro_tdc.base import model_path
-from gyro_tdc.data import BagOptions, iter_runs, load_runs, Run
+from gyro_tdc.data import BagOptions, imu_of, iter_runs, load_runs, Run
 from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.identify import (fit_accel, fit_px4_cubic, fit_varying, PX4_FEATURES,
                                still_only_runs)
@@ -39,8 +39,8 @@ from gyro_tdc.model import (ARDUPILOT_SCALE, ARDUPILOT_TREF_C, ArduPilotTempCal,
 import numpy as np
 
 __all__ = ['ARDUPILOT_ONBOARD', 'axes_words', 'NamedModel', 'ONBOARD', 'PX4', 'PX4_ONBOARD',
-           'bag_labels', 'load_models', 'model_labels', 'onboard_model', 'safe_label',
-           'with_accel']
+           'bag_labels', 'imu_mismatch', 'load_models', 'model_labels', 'onboard_model',
+           'safe_label', 'with_accel']
 
 #: Model spec of the PX4-style cubic in T fitted on training bags.
 PX4 = 'px4'
@@ -247,3 +247,19 @@ def onboard_model(spec: str, run: Run) -> tuple[CompensationModel, str]:
                     'temperature calibration): none, the raw rate')
     return model, (f"{spec}: the flight controller's correction from {what}; {words}"
                    + ('' if active else ' (in this log it was not applied)'))
+
+
+def imu_mismatch(nm: NamedModel, run: Run | None, label: str) -> str | None:
+    """
+    Return a warning when ``run`` is of another IMU than ``nm``'s model was trained on.
+
+    Both as flight logs name them (:func:`gyro_tdc.data.imu_of`: the board and the IMU
+    instance); None when either is not known, or they agree.
+    """
+    trained = nm.model.created.get('imus') or []
+    here = None if run is None else imu_of(run.info)
+    if not (isinstance(trained, list) and trained) or here is None or here in trained:
+        return None
+    return (f'warning: {label} is {here}; model {nm.label} was trained on '
+            f"{', '.join(map(str, trained))}: each IMU drifts its own way, a model of one "
+            'does not carry to another')

@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any, Callable, Sequence
 
 from gyro_tdc.base import check_bin_width, check_centers, DEG_PER_RAD
-from gyro_tdc.data import (BagOptions, Coverage, coverage, load_runs, read_motion, Run,
+from gyro_tdc.data import (BagOptions, Coverage, coverage, imu_of, load_runs, read_motion, Run,
                            split_sessions)
 from gyro_tdc.errors import DatasetError, FitError, ModelFileError
 from gyro_tdc.identify.accel import AccelFit, fit_accel
@@ -420,7 +420,7 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
         fo, choice = _one_power_cycle(runs, [(i, 0, len(r)) for i, r in enumerate(runs)],
                                       split.labels, fo, choice, log)
     model = fit_model(fitted, fo, sessions=split.labels, frame_id=data_frame(runs),
-                      created={'command': command, 'bags': names})
+                      created={'command': command, 'bags': names, **_imus(runs)})
     model = _gate(identity_axes(model, runs, const), fo, fitted, split.labels)
     return _finish(model, o, out, runs, choice, {},
                    coverage=coverage(runs, bin_c=o.bin_c), bags=names,
@@ -439,6 +439,12 @@ def _boards_said(runs: Sequence[Run], log: Log) -> None:
             + '; '.join(f"{b}: {n} log{'s' * (n > 1)}" for b, n in boards.items())
             + '): each board drifts its own way, and one model of them fits none; train '
             'each board apart (gyro-tdc fleet calibrates many)')
+
+
+def _imus(runs: Sequence[Run]) -> dict:
+    """Return ``created['imus']``: the IMUs the logs name (``evaluate`` warns on another)."""
+    imus = sorted({i for i in (imu_of(r.info) for r in runs) if i})
+    return {'imus': imus} if imus else {}
 
 
 def _drop_curve(fo: FitOptions, choice: FeatureChoice | None, log: Log, why: str,
@@ -570,7 +576,7 @@ def train_still_only(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
             if o.auto else [])            # the still rows, for the choice of features
     fo, choice = _features(o, subs, runs, t0, log, frame_id=str(
         runs[0].info.get('frame_id') or 'imu_link'), created={
-            'command': command, 'bags': bags, 'still_only': True})
+            'command': command, 'bags': bags, 'still_only': True, **_imus(runs)})
     spans = [(i, a, b) for i, st in enumerate(still) for a, b in st.segments]
 
     def fit(fo: FitOptions) -> tuple[CompensationModel, NDArray[np.float64], NDArray[np.bool_]]:

@@ -105,6 +105,29 @@ def test_logs_of_two_boards_are_said_one_model_fits_neither(session, tmp_path, c
     assert 'warning: the logs come from' not in capsys.readouterr().out
 
 
+def test_evaluate_warns_on_a_log_of_another_imu_than_the_models(session, tmp_path, capsys):
+    """The model keeps the IMUs its logs name; a log of another is scored with a warning."""
+    _, imus, _ = session
+    board = 'Pixhawk6C 00490034 30315109 34373938'
+    mine = write_dataflash(tmp_path / 'mine.bin', [imus[0]], {'INS_TCAL1_ENABLE': 0},
+                           board=board)
+    model = tmp_path / 'm.yaml'
+    assert train([str(mine), '--out', str(model), '--features', 'dT,dT2',
+                  '--no-progress']) == 0
+    assert load_model(model).created['imus'] == [f'{board} IMU 0']
+    other = write_dataflash(tmp_path / 'other.bin', [imus[1]], {'INS_TCAL1_ENABLE': 0},
+                            board='Pixhawk6C 00450021 30315109 34373938')
+    again = write_dataflash(tmp_path / 'again.bin', [imus[1]], {'INS_TCAL1_ENABLE': 0},
+                            board=board)
+    capsys.readouterr()
+    for log, warned in ((other, True), (again, False)):
+        assert evaluate([str(log), '--model', str(model), '--no-progress']) == 0
+        out = capsys.readouterr().out
+        assert (f'is Pixhawk6C 00450021 30315109 34373938 IMU 0; model m was trained on '
+                f'{board} IMU 0: each IMU drifts its own way' in out) is warned, out
+        assert ('warning: ' in out and 'trained on' in out) is warned
+
+
 def _short(imu, n=600):
     """Return the first ``n`` samples of an IMU (a small log is enough to be refused)."""
     return replace(imu, t=imu.t[:n], gyro=imu.gyro[:n], temp=imu.temp[:n], accel=imu.accel[:n])

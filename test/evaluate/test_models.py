@@ -29,8 +29,8 @@ from bags import bag_from_run
 from constant_axes import quanta, values, with_constant as _with
 from gyro_tdc.data.runs import Run
 from gyro_tdc.errors import DatasetError, FitError, ModelFileError
-from gyro_tdc.evaluate.models import (bag_labels, load_models, model_labels, onboard_model, PX4,
-                                      safe_label)
+from gyro_tdc.evaluate.models import (bag_labels, imu_mismatch, load_models, model_labels,
+                                      NamedModel, onboard_model, PX4, safe_label)
 from gyro_tdc.model import compensate
 from gyro_tdc.model.compensation import CompensationModel
 from gyro_tdc.model.fc_tempcal import ardupilot_correction, px4_correction
@@ -145,3 +145,23 @@ def test_a_log_that_cannot_give_the_model_is_refused_in_one_line():
         onboard_model('px4-onboard', _fc_log('px4', PX4_PARAMS, device_id=7))
     with pytest.raises(DatasetError, match='already carries the on-board correction'):
         onboard_model('ardupilot-onboard', _fc_log('ardupilot', ARDU, onboard_compensated=True))
+
+
+def test_a_log_of_another_imu_than_the_models_is_said_and_unknowns_are_not():
+    """Warn only when both the model's IMUs and the log's are known and differ."""
+    run = synth_run(hours=0.2, rate_hz=1.0, seed=1)
+    model = CompensationModel.polynomial(('dT',), 20.0, np.zeros((2, 3)), temp_range_c=(0.0, 40.0),
+                                         residual_var=np.full(3, 1e-6))
+    named = NamedModel('m.yaml', 'm', model.replace(created={'imus': ['B 1 IMU 0']}))
+    run.info.update(board='B 1', instance=1)
+    said = imu_mismatch(named, run, 'log')
+    assert said.startswith('warning: log is B 1 IMU 1; model m was trained on B 1 IMU 0')
+    run.info['instance'] = 0
+    assert imu_mismatch(named, run, 'log') is None                  # the same IMU
+    run.info['board'] = ''
+    assert imu_mismatch(named, run, 'log') is None                  # the log names no board
+    run.info['board'] = 'B 2'
+    for created in ({}, {'imus': 'B 1 IMU 0'}, {'imus': []}):        # none known, or malformed
+        assert imu_mismatch(NamedModel('m', 'm', model.replace(created=created)), run,
+                            'log') is None
+    assert imu_mismatch(named, None, 'log') is None
