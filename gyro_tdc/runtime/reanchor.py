@@ -443,25 +443,31 @@ class StillnessDetector:
         if j >= 0:
             del run[:j + 1]
             self.windows_rejected += 1
+            self.provisional = self._so_far(run, w)
+            return None
         total = sum((r.stats for r in run), BlockStats())
-        if j >= 0 or not all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
-            if j >= 0 or len(run) < max_windows(self.window, self.window_max):
-                self.provisional = self._so_far(run, total, w.t1, float(w.temp[-1]))
-                return None
+        if all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
+            reason = 'precision'
+        elif len(run) >= max_windows(self.window, self.window_max):
             reason = 'longest'
         else:
-            reason = 'precision'
+            self.provisional = self._so_far(run, w)
+            return None
         if len(run) == 1 and self.window_max <= self.window:
             reason = ''
         self._run = []
         return self._anchor(run, total, w.t1, float(w.temp[-1]), reason)
 
-    def _so_far(self, run: list[_Window], total: BlockStats, t_end: float, temp_c: float
-                ) -> Anchor | None:
-        """Return the run's shift so far (:data:`PROVISIONAL`), or None when no axis is off."""
+    def _so_far(self, run: list[_Window], w: Window) -> Anchor | None:
+        """
+        Return the run's shift so far at the end of window ``w`` (:data:`PROVISIONAL`).
+
+        None when the run is empty or no axis is beyond :data:`PROVISIONAL_Z` standard errors.
+        """
         if not run:
             return None
-        a = self._anchor(run, total, t_end, temp_c, PROVISIONAL)
+        a = self._anchor(run, sum((r.stats for r in run), BlockStats()), w.t1,
+                         float(w.temp[-1]), PROVISIONAL)
         delta = tuple(d if abs(d) > PROVISIONAL_Z * e else 0.0 for d, e in zip(a.delta, a.se))
         return replace(a, delta=delta) if any(delta) else None
 
