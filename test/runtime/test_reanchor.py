@@ -18,15 +18,18 @@ from __future__ import annotations
 
 import math
 
+from gyro_tdc.base.limits import MAX_DRIFT_RAD_S
 from gyro_tdc.identify import fit_model
 from gyro_tdc.model import compensate
 from gyro_tdc.runtime.blockstats import (block_length, BlockStats, default_tolerance, max_windows,
                                          standard_error, window_stats)
 from gyro_tdc.runtime.core import CompensatorCore
+from gyro_tdc.runtime.flags import PASSTHROUGH
 from gyro_tdc.runtime.health import health
 from gyro_tdc.runtime.policy import Policy
 from gyro_tdc.runtime.reanchor import (gated_shift, PROVISIONAL, REANCHOR_KEY, reanchor_shift,
                                        shift_gate, StillnessDetector)
+from hypothesis import example, given, settings, strategies as st
 import numpy as np
 import pytest
 from synth import synth_run
@@ -336,3 +339,42 @@ def test_the_core_shifts_by_the_run_so_far_until_its_anchor():
         model, t, np.full(t.size, 25.0)))[:final, 1:], rtol=0, atol=1e-12)
     np.testing.assert_allclose(core.anchor.delta, offset, atol=4 * se)
     assert core.reanchoring.settled and core.anchor.reason == 'precision'
+
+
+@settings(max_examples=12, deadline=None)
+@given(offset=st.lists(st.floats(-0.015, 0.015), min_size=3, max_size=3),
+       noise=st.floats(1e-5, 0.05), rate=st.sampled_from([1.0, 25.0, 200.0]),
+       glitch=st.floats(0.0, 0.05), seed=st.integers(0, 2 ** 16))
+@example(offset=[0.01, -0.005, 0.0], noise=0.01, rate=25.0, glitch=0.02, seed=1)  # shifts early
+def test_provisional_shifts_on_hostile_still_streams_keep_the_output_finite_and_plausible(
+        offset, noise, rate, glitch, seed):
+    """
+    Offsets up to still_max_rate, any noise, non-finite and implausible samples in a still run.
+
+    Whatever the run's shift so far, every output is finite and corrected by at most
+    MAX_DRIFT_RAD_S, a provisional or final shift is finite, and a shift in force is undone
+    when the run restarts at a power cycle.
+    """
+    model = fit_model([synth_run(hours=0.5, rate_hz=2.0, seed=2, noise_dps=0.01)],
+                      kind='poly', features='dT')
+    rng = np.random.default_rng(seed)
+    n = int(40.0 * rate)
+    t = 100.0 + np.arange(n) / rate
+    raw = rng.normal(0.0, noise, (n, 3)) + offset + compensate_zero(model, t,
+                                                                    np.full(n, 25.0))
+    bad = rng.random(n) < glitch
+    raw[bad] = rng.choice([math.nan, math.inf, 1e6], size=(int(bad.sum()), 3))
+    core = CompensatorCore(Policy(), model)
+    shifts = []
+    for k in range(n):
+        core.add_temperature(t[k], 25.0)
+        ox, oy, oz, _, flags, _, _ = core.process(t[k], *raw[k])
+        if not flags & PASSTHROUGH:
+            out = np.array([ox, oy, oz])
+            assert np.all(np.isfinite(out))
+            assert np.all(np.abs(out - raw[k]) <= MAX_DRIFT_RAD_S)
+        if core.anchor is not None:
+            shifts.append(core.anchor.delta)
+    assert np.all(np.isfinite(np.asarray(shifts, dtype=float)))
+    core.process(t[-1] + 7200.0, *offset)             # a power cycle: the shift undone
+    assert core.anchor is None and not core.reanchoring.settled
