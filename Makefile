@@ -1,9 +1,8 @@
 # gyro_tdc developer entry points. Everything runs from the repository's .venv.
 #
 #   make venv    create/refresh .venv (ROS 2 Jazzy wheels, deps, dev tools, editable gyro_tdc)
-#   make test    run the test suite on TEST_WORKERS (one per core, 2 to 4) xdist workers (own
-#                ROS_DOMAIN_ID per worker, loopback discovery only; a test fails after
-#                pytest.ini's timeout)
+#   make test    run the test suite on TEST_WORKERS (3) xdist workers (own ROS_DOMAIN_ID per
+#                worker, loopback discovery only; a test fails after pytest.ini's timeout)
 #   make test-stress  run the whole suite STRESS_RUNS (2) times in a row beside a process that
 #                keeps one core busy (a CPU hog), stopping at the first failing run; the hog is
 #                killed on exit. Finds the tests whose result depends on the load (long)
@@ -44,11 +43,7 @@ DOMAIN := if [ -z "$${ROS_DOMAIN_ID:-}" ]; then export ROS_DOMAIN_ID=$$(( $$$$ %
 # never the base, or the next id along that stride that no other live pytest process holds
 # (a lock in /tmp per id, test/conftest.py), so neither two workers nor two runs share one.
 # Tests marked `serial` (their result depends on the load) run with no other test beside them.
-# One worker per core, at least 2 and at most 4 (each starts its own rclpy and DDS domain): on
-# two cores a third worker made the whole suite 28 % slower (767 s against 601 s; the summed
-# time of its tests 1.8x that of two workers').
-TEST_WORKERS ?= $(shell n=$$(getconf _NPROCESSORS_ONLN 2>/dev/null || echo 2); \
-	echo $$(( n < 2 ? 2 : n > 4 ? 4 : n )))
+TEST_WORKERS ?= 3
 
 .PHONY: venv test test-stress lint demo bench docs rosdoc2 readme-check test-apt-versions clean distclean
 
