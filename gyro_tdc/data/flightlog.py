@@ -39,9 +39,8 @@ from numpy.typing import NDArray
 
 __all__ = ['captured', 'columns', 'DATAFLASH_MAGIC', 'describe_log', 'detect_format',
            'flight_log_data', 'FlightLog', 'imu_of', 'is_flight_log', 'no_instance',
-           'no_temperature',
-           'on_stamps', 'PLAUSIBLE_C', 'rate_hz', 'rate_words', 'seconds', 'sensor_stream',
-           'thermometer', 'ULOG_MAGIC']
+           'no_temperature', 'on_stamps', 'PLAUSIBLE_C', 'rate_hz', 'rate_words', 'seconds',
+           'sensor_stream', 'thermometer', 'ULOG_MAGIC']
 
 #: A ULog starts with these 7 bytes (then the version byte).
 ULOG_MAGIC = b'ULog\x01\x125'

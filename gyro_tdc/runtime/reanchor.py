@@ -443,7 +443,7 @@ class StillnessDetector:
         if j >= 0:
             del run[:j + 1]
             self.windows_rejected += 1
-            self.provisional = self._so_far(run, w)
+            self.provisional = self._so_far(run, w, sum((r.stats for r in run), BlockStats()))
             return None
         total = sum((r.stats for r in run), BlockStats())
         if all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
@@ -451,23 +451,24 @@ class StillnessDetector:
         elif len(run) >= max_windows(self.window, self.window_max):
             reason = 'longest'
         else:
-            self.provisional = self._so_far(run, w)
+            self.provisional = self._so_far(run, w, total)
             return None
         if len(run) == 1 and self.window_max <= self.window:
             reason = ''
         self._run = []
         return self._anchor(run, total, w.t1, float(w.temp[-1]), reason)
 
-    def _so_far(self, run: list[_Window], w: Window) -> Anchor | None:
+    def _so_far(self, run: list[_Window], w: Window, total: BlockStats) -> Anchor | None:
         """
         Return the run's shift so far at the end of window ``w`` (:data:`PROVISIONAL`).
+
+        ``total``: the block statistics of ``run``.
 
         None when the run is empty or no axis is beyond :data:`PROVISIONAL_Z` standard errors.
         """
         if not run:
             return None
-        a = self._anchor(run, sum((r.stats for r in run), BlockStats()), w.t1,
-                         float(w.temp[-1]), PROVISIONAL)
+        a = self._anchor(run, total, w.t1, float(w.temp[-1]), PROVISIONAL)
         delta = tuple(d if abs(d) > PROVISIONAL_Z * e else 0.0 for d, e in zip(a.delta, a.se))
         return replace(a, delta=delta) if any(delta) else None
 

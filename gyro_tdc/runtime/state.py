@@ -190,6 +190,7 @@ class Reanchoring:
         anchors of that averaging) is not shifted.
         """
         # The compensated rate is divided by 1 + s dT: the drift shift is the mean times it.
+        # Read before undo: a static model's divisor comes from the drift cache undo clears.
         den = None if found is None else slot.scale_at(temp)
         self.undo(slot)                   # a provisional shift is replaced
         if found is None:
