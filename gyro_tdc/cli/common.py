@@ -358,29 +358,31 @@ def add_driver_options(parser: argparse.ArgumentParser) -> None:
 
     """
     from gyro_tdc.base import INPUT_FRAMES, TEMPERATURE_QUIRKS
+    from gyro_tdc.data import DriverInputs
+    d = DriverInputs()          # the defaults: a plain Imu + Temperature bag
     g = parser.add_argument_group("driver message types (as compensator_node's parameters)")
-    g.add_argument('--imu-type', default='sensor_msgs/msg/Imu', metavar='PKG/msg/TYPE',
+    g.add_argument('--imu-type', default=d.imu_type, metavar='PKG/msg/TYPE',
                    help='type of the IMU topic, e.g. geometry_msgs/msg/Vector3Stamped or '
                         'px4_msgs/msg/SensorGyro (default: %(default)s)')
-    g.add_argument('--angular-velocity-field', default='angular_velocity', metavar='PATH',
+    g.add_argument('--angular-velocity-field', default=d.angular_velocity_field, metavar='PATH',
                    help="dotted path to its x/y/z rate in rad/s, e.g. vector; '' the message "
                         'itself (default: %(default)s)')
-    g.add_argument('--stamp-field', default='header.stamp', metavar='PATH',
+    g.add_argument('--stamp-field', default=d.stamp_field, metavar='PATH',
                    help='dotted path to its stamp: a builtin_interfaces/Time or an integer in '
                         'microseconds, e.g. timestamp (default: %(default)s)')
-    g.add_argument('--input-frame', default='flu', choices=INPUT_FRAMES,
+    g.add_argument('--input-frame', default=d.input_frame, choices=INPUT_FRAMES,
                    help='axes of that rate: flu, or frd (PX4) turned to FLU (default: '
                         '%(default)s)')
-    g.add_argument('--temperature-type', default='', metavar='PKG/msg/TYPE',
+    g.add_argument('--temperature-type', default=d.temperature_type, metavar='PKG/msg/TYPE',
                    help='type of the temperature topic, checked against the bag (default: '
                         'as the bag says)')
-    g.add_argument('--temperature-field', default='', metavar='PATH',
+    g.add_argument('--temperature-field', default=d.temperature_field, metavar='PATH',
                    help='dotted path to its degC number, e.g. mean_temp (default: '
                         'temperature, or data for std_msgs Float32/Float64)')
-    g.add_argument('--temperature-stamp-field', default='', metavar='PATH',
+    g.add_argument('--temperature-stamp-field', default=d.temperature_stamp_field, metavar='PATH',
                    help='dotted path to its stamp, e.g. header.header.stamp (default: '
                         'header.stamp where it has one, else the latest IMU stamp)')
-    g.add_argument('--temperature-quirk', default='', choices=TEMPERATURE_QUIRKS,
+    g.add_argument('--temperature-quirk', default=d.temperature_quirk, choices=TEMPERATURE_QUIRKS,
                    help="undo a driver's temperature encoding: bno055_unsigned_byte or "
                         'sbg_legacy_div256 (default: none)')
 

@@ -17,18 +17,21 @@
 from __future__ import annotations
 
 import argparse
+from dataclasses import asdict
 import importlib
 import math
 from pathlib import Path
 
 from gyro_tdc.base.resources import scenario_names
 from gyro_tdc.cli import COMMANDS, load_main
-from gyro_tdc.cli.common import (add_bag_options, ArgumentParser, bag_options, command_line,
-                                 finite_float, non_negative_float, non_negative_int,
-                                 parse_reference, positive_float, positive_int, probability,
-                                 run_command, UsageError)
+from gyro_tdc.cli.common import (add_bag_options, add_driver_options, ArgumentParser,
+                                 bag_options, command_line, finite_float, non_negative_float,
+                                 non_negative_int, parse_reference, positive_float,
+                                 positive_int, probability, run_command, UsageError)
+from gyro_tdc.data import DriverInputs
 from gyro_tdc.errors import DatasetError, one_line
 from gyro_tdc.model.effects import EFFECTS
+from gyro_tdc.runtime.policy import PARAMS, TEMPERATURE_TYPES
 import pytest
 
 
@@ -81,6 +84,19 @@ def test_bag_options_from_the_shared_parser():
     assert lossy.accel is True
     with pytest.raises(UsageError, match='not allowed with argument'):
         p.parse_args(['--reference', '0,0,0', '--reference-topic', '/r'])
+
+
+def test_driver_options_default_to_the_nodes_parameters():
+    p = ArgumentParser(prog='x')
+    add_driver_options(p)
+    args = vars(p.parse_args([]))
+    assert DriverInputs(**{k: args[k] for k in asdict(DriverInputs())}).plain
+    # The node's input parameters of the same name have the same defaults, but the
+    # temperature type: the node subscribes to one, the trainer reads what the bag holds.
+    node = {s.name: s.default for s in PARAMS}
+    same = {k: v for k, v in asdict(DriverInputs()).items() if k != 'temperature_type'}
+    assert {k: node[k] for k in same} == same
+    assert args['temperature_type'] == '' and node['temperature_type'] == TEMPERATURE_TYPES[0]
 
 
 def _parser():
