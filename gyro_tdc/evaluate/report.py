@@ -265,7 +265,7 @@ def _accel_rows(b: BagEval, w: int, accel_floor: Sequence[float] | None = None) 
              _head(w, 'aBS', 'aBS/BS1', *(['aBS/fl'] if accel_floor else []))]
     for m in [b.raw] + list(b.models):
         bs = np.full(3, math.nan) if m.accel_bs is None else np.asarray(m.accel_bs)
-        with np.errstate(divide='ignore', invalid='ignore'):    # a constant axis: 0 / 0
+        with np.errstate(divide='ignore', invalid='ignore', over='ignore'):   # a constant axis
             ratio = bs / np.asarray(b.raw.accel_bs)
         lines.append(_row(m.label, w, bs, ratio, *_per_floor(m.accel_bs, accel_floor)))
     return lines
@@ -307,7 +307,7 @@ def format_paper_table(b: BagEval, conventional: int, modified: int) -> str:
     """
     from gyro_tdc.signal import p_ratios
     conv, modi = b.models[conventional], b.models[modified]
-    with np.errstate(divide='ignore', invalid='ignore'):    # a constant axis: 0 / 0
+    with np.errstate(divide='ignore', invalid='ignore', over='ignore'):   # a constant axis
         p = p_ratios(b.raw.bs, conv.bs, modi.bs)
     lines = [f'  paper table (eq. 31-32), {b.label}: BS1 raw, BS2 {conv.label} '
              f'(conventional), BS3 {modi.label} (modified); BS in (deg/s)^2',

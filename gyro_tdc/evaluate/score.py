@@ -174,10 +174,12 @@ def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: st
     tau, adev = (allan_deviation(err, rate_hz(run.t) if rate is None else rate)
                  if allan and len(run) >= 4 else (np.zeros(0), np.zeros((0, 3))))
     nr = noise_readouts(tau, adev)
-    # An axis reading its reference exactly (raw BS 0): no ratio.
-    p = np.ones(3) if bs_raw is None else np.divide(
-        bs, np.asarray(bs_raw, dtype=np.float64), out=np.full(3, math.nan),
-        where=np.asarray(bs_raw) > 0)
+    # An axis reading its reference exactly (raw BS 0): no ratio; one a hair off it
+    # (a subnormal raw BS) overflows to inf, which the caller flags as constant.
+    with np.errstate(over='ignore'):
+        p = np.ones(3) if bs_raw is None else np.divide(
+            bs, np.asarray(bs_raw, dtype=np.float64), out=np.full(3, math.nan),
+            where=np.asarray(bs_raw) > 0)
     return ModelEval(model=model, label=label, features=list(features), bs=bs,
                      rms_dps=rms_dps(err), p_vs_raw=p, adev_tau_s=np.asarray(tau),
                      adev_dps=np.asarray(adev), arw_deg_sqrt_h=nr['arw_deg_sqrt_h'],

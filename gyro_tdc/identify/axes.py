@@ -27,7 +27,7 @@ from __future__ import annotations
 from dataclasses import replace
 from typing import Callable, Sequence
 
-from gyro_tdc.base import AXES, DEG2_PER_RAD2
+from gyro_tdc.base import AXES, DEG2_PER_RAD2, MAX_DRIFT_RAD_S
 from gyro_tdc.data import Run
 from gyro_tdc.errors import DatasetError
 from gyro_tdc.model import CompensationModel
@@ -141,7 +141,9 @@ def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[
     Return ``model`` with its constant axes recorded as passed through unchanged.
 
     Their training figures (BS, RMS, residual variance) are the raw error's mean square over
-    ``runs`` as read (over ``rows`` when given); ``training.constant_axes`` names them.
+    ``runs`` as read (over ``rows`` when given); ``training.constant_axes`` names them. The
+    variance is at most the square of the drift bound, what a model file holds: an axis
+    stuck beyond it (saturated) is passed through too.
     """
     if not const.any():
         return model
@@ -158,7 +160,8 @@ def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[
     met = {**model.metrics, **{key: np.where(const, v, model.metrics[key]).tolist() for key, v in (
         ('raw_bs_dps2', dps2), ('train_bs_dps2', dps2), ('train_rms_dps', np.sqrt(dps2)))},
            'constant_axes': [a for a, c in zip(AXES, const) if c]}
-    return model.replace(residual_var=np.where(const, ms, model.residual_var), metrics=met)
+    var = np.minimum(ms, MAX_DRIFT_RAD_S ** 2)
+    return model.replace(residual_var=np.where(const, var, model.residual_var), metrics=met)
 
 
 def constant_readings(runs: Sequence[Run], const: NDArray[np.bool_]) -> dict:

@@ -45,7 +45,7 @@ from gyro_tdc.identify import fit_model, MIN_SAMPLES
 from gyro_tdc.identify.train import train_still_only, TrainOptions
 from gyro_tdc.model.compensation import CompensationModel
 from gyro_tdc.runtime.reanchor import reanchor_shift
-from hypothesis import given, settings, strategies as st
+from hypothesis import example, given, settings, strategies as st
 import numpy as np
 import pytest
 from synth import synth_run
@@ -244,6 +244,7 @@ def model(runs):
 
 
 @given(axes=axis_sets, value=values, quantum=quanta, seed=st.integers(0, 1000))
+@example(axes=[0], value=2.2103057084258616e-163, quantum=0.0, seed=0)   # raw BS subnormal
 @settings(max_examples=20)
 def test_a_held_out_constant_axis_is_flagged_whatever_it_reads(runs, model, axes, value,
                                                                quantum, seed):

@@ -35,7 +35,7 @@ from gyro_tdc.evaluate.report import evaluation_json, format_bag, format_means
 from gyro_tdc.evaluate.score import evaluate_run, NamedModel
 from gyro_tdc.identify.accel import G0
 from gyro_tdc.identify.axes import constant_axes, constant_axes_of
-from gyro_tdc.identify.train import train, TrainOptions
+from gyro_tdc.identify.train import train, train_still_only, TrainOptions
 from gyro_tdc.model.compensation import compensate, StreamingCompensator
 from gyro_tdc.model.modelfile import load_model
 from gyro_tdc.signal.metrics import bias_stability
@@ -189,6 +189,25 @@ def test_features_auto_and_lag_leave_the_constant_axis_identity(runs, tmp_path):
         assert res.constant == pytest.approx({'y': -0.3}, abs=1e-4)
         assert not np.any(res.model.weights[:, 1]) and not np.any(res.model.linear[:, 1])
         assert res.model.intercept[1] == 0.0
+
+
+@pytest.mark.parametrize('value', [34.9, -5.01])
+@pytest.mark.parametrize('still_only', [False, True])
+def test_an_axis_stuck_beyond_any_drift_is_passed_through(runs, tmp_path, value, still_only):
+    """A saturated axis (2000 deg/s full scale): passed through, its variance the file's cap."""
+    run, held = runs
+    stuck = _with(run, [1], value, 1e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter('error')
+        res = (train_still_only(['stuck'], tmp_path / 'model.yaml', OPTIONS, runs=[stuck])
+               if still_only else _train(tmp_path, stuck))
+    model = load_model(res.path)
+    assert model.metrics['constant_axes'] == ['y']
+    assert model.residual_var[1] == 25.0            # MAX_DRIFT_RAD_S ** 2, what a file holds
+    assert model.metrics['train_rms_dps'][1] == pytest.approx(math.degrees(abs(value)), rel=1e-3)
+    held_stuck = _with(held, [1], value, 1e-3)
+    comp = compensate(model, held.t, held.temp, held_stuck.omega)
+    assert np.array_equal(comp[:, 1], held_stuck.omega[:, 1])
 
 
 def test_every_axis_constant_is_refused_in_one_line(runs, tmp_path):
