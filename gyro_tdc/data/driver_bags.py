@@ -33,12 +33,13 @@ from typing import Any, Mapping
 
 from gyro_tdc.base import INPUT_FRAMES
 from gyro_tdc.data.bag.codec import IMU_TYPE, jazzy
+from gyro_tdc.data.bag.reader import READ_ERRORS
 from gyro_tdc.data.bag.writer import write_bag
 from gyro_tdc.data.field_paths import (normalize_type, rate_fields, stamp_seconds,
                                        temperature_fields, unquirk)
 from gyro_tdc.errors import ConfigError, DatasetError, one_line
 import numpy as np
-from rosbags.highlevel import AnyReader, AnyReaderError
+from rosbags.highlevel import AnyReader
 from rosbags.interfaces import Nodetype
 
 __all__ = ['DriverInputs', 'field_table', 'normalize_bag']
@@ -180,7 +181,7 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
                 elif tstamp is not None or imu_t:    # else no IMU stamp to give it yet
                     temp_t.append(tstamp(msg) if tstamp else imu_t[-1])
                     temp_c.append(value(msg))
-    except AnyReaderError as exc:
+    except READ_ERRORS as exc:       # rosbags' errors and what its parsers let through
         raise DatasetError(f'cannot read bag {str(path)!r}: {one_line(exc)}') from None
     if not imu_t:
         raise DatasetError(f'bag {str(path)!r} has no message on {imu_topic!r}.')

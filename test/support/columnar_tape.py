@@ -134,6 +134,11 @@ class _Tape:
         if role == 'temperature' and self.floating:
             self.before += [int(x) for x in before]
 
+    @property
+    def received(self):
+        """Return the messages handed over, per role (as the Collector counts them)."""
+        return {role: len(x) for role, x in self.got.items()}
+
 
 WANTED = [('imu', '/imu/data_raw', (IMU_TYPE,), True),
           ('temperature', '/imu/temperature', (TEMPERATURE_TYPE, FLOAT_TYPE), True),

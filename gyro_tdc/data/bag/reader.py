@@ -51,10 +51,11 @@ __all__ = ['BagData', 'Collector', 'READ_ERRORS', 'read_bag', 'VIA']
 # recycled by the allocator, large enough to amortise the per-block checks.
 _CHUNK = 1 << 14
 # rosbags' own errors, plus what its parsers let through on damaged files (found by fuzzing
-# sqlite3 and mcap bags: huge record lengths raise OverflowError from seek, short reads
-# struct.error); zstd's error (data not compressed as metadata.yaml says) is caught apart.
+# sqlite3 and mcap bags: huge record lengths raise OverflowError from seek, or MemoryError
+# from read, short reads struct.error); zstd's error (data not compressed as metadata.yaml
+# says) is caught apart.
 READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
-               UnicodeDecodeError, OverflowError, struct.error)
+               UnicodeDecodeError, OverflowError, MemoryError, struct.error)
 
 
 @dataclass(frozen=True)
@@ -303,6 +304,7 @@ class Collector:
         self.frame_id = ''                                # of the first decodable IMU message
         self.fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
         self.undecodable = self.n_main = 0
+        self.received = dict.fromkeys(self.roles, 0)     # messages handed over, per role
         self.chunk, self.pending = chunk, []              # main blocks not decoded yet
         self.main_bad: list[NDArray[np.int64]] = []    # main messages undecodable
         self.before: list[NDArray[np.int64]] = []      # Float readings: main messages before
@@ -336,6 +338,7 @@ class Collector:
         returning them); ``before``: of each message, the main messages before it in bag order
         (used for Float readings).
         """
+        self.received[role] += len(lengths)
         if role == 'imu':
             self.pending.append((buf, lengths, logs))
             self.n_main += len(lengths)

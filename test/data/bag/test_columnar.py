@@ -25,7 +25,7 @@ from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE
 from gyro_tdc.data.bag import columnar, metadata, reader
 from gyro_tdc.data.bag.metadata import Unfit
 from gyro_tdc.errors import DatasetError
-from hypothesis import given, HealthCheck, settings, strategies as st
+from hypothesis import example, given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
@@ -182,6 +182,7 @@ def pristine(tmp_path_factory):
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(storage=st.sampled_from(STORAGES), where=st.floats(0.0, 1.0),
        junk=st.binary(min_size=1, max_size=64), cut=st.booleans())
+@example(storage='sqlite3', where=0.9616038597528169, junk=b'\x01', cut=False)  # the index
 def test_damaged_storage_is_read_as_rosbags_reads_it_or_refused_in_one_line(
         tmp_path_factory, pristine, storage, where, junk, cut):
     bag = tmp_path_factory.mktemp('hurt') / 'bag'

@@ -19,6 +19,7 @@ from __future__ import annotations
 from columnar_tape import _chamber, _tapes, _write
 from gyro_tdc.data import read_bag
 from gyro_tdc.data.bag.metadata import Unfit
+from gyro_tdc.errors import DatasetError
 import numpy as np
 import pytest
 
@@ -48,3 +49,18 @@ def test_mcap_chunks_overlapping_in_time_go_to_rosbags(tmp_path):
     assert got.via == 'rosbags'
     np.testing.assert_array_equal(got.imu_t, ref.imu_t)
     np.testing.assert_array_equal(got.temp_c, ref.temp_c)
+
+
+def test_a_summary_record_claiming_exabytes_is_a_corrupt_bag_in_one_line(tmp_path):
+    # A damaged length field: rosbags reads the 2**62 bytes it claims (MemoryError).
+    rng = np.random.default_rng(15)
+    bag = _write(tmp_path / 'bag', 'mcap', _chamber(rng))
+    (path,) = bag.glob('*.mcap')
+    raw = bytearray(path.read_bytes())
+    start = int.from_bytes(raw[-28:-20], 'little')     # the footer's summary_start
+    raw[start + 1:start + 9] = (1 << 62).to_bytes(8, 'little')  # its first record's length
+    path.write_bytes(bytes(raw))
+    for via in ('auto', 'rosbags'):
+        with pytest.raises(DatasetError, match='unreadable or corrupt') as err:
+            read_bag(bag, via=via)
+        assert '\n' not in str(err.value) and str(bag) in str(err.value)
