@@ -89,8 +89,10 @@ class Bag:
     files : list[Sqlite3File | McapFile]
         The storage files, in metadata.yaml's order.
     sqlite3 : bool
-        Whether a file is sqlite3: :meth:`feed` then hands over every message metadata.yaml
-        lists, or is :class:`Unfit`.
+        Whether a file is sqlite3.
+    short : str or None
+        After :meth:`feed`, on sqlite3: what it handed over of fewer messages than
+        metadata.yaml lists (None: every one).
     typestore : Typestore
         The types of the bag's own message definitions, as ``AnyReader`` builds them (the
         Jazzy types when the bag has none).
@@ -100,6 +102,7 @@ class Bag:
     def __init__(self, conns: list[Entry], files: list[Any]) -> None:
         self.conns, self.files = conns, files
         self.sqlite3 = any(isinstance(f, Sqlite3File) for f in files)
+        self.short: str | None = None
         self.topics = topics_of(conns)
         defs = []
         for c in conns:
@@ -135,11 +138,10 @@ class Bag:
                 f.feed(roles, out, update, chunk=max(int(chunk), 1))
         # The sqlite3 read seeks its time ranges in the timestamp index, where rosbags walks
         # it end to end: a damaged index can hide messages from the seeks alone.
-        for role, cs in conns.items():
-            listed = sum(int(c.msgcount) for c in cs)
-            if self.sqlite3 and out.received[role] < listed:
-                raise Unfit(f'{out.received[role]} {role} messages of the {listed} '
-                            'metadata.yaml lists')
+        short = [f'{out.received[role]} {role} messages of the {n} metadata.yaml lists'
+                 for role, n in ((r, sum(int(c.msgcount) for c in cs)) for r, cs in conns.items())
+                 if self.sqlite3 and out.received[role] < n]
+        self.short = '; '.join(short) or None
 
 
 @contextmanager

@@ -222,13 +222,18 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
         info = metadata.load(bag)
         metadata.check_counts(bag, info)
         why = columnar.unfit(info) if via != 'rosbags' else 'rosbags asked for'
+        partial = None
         if why is None:
             try:
                 with columnar.open_bag(bag, info) as opened:
                     topics, conns = _connections(opened.topics, opened.conns, bag, wanted)
-                    return _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
+                    data = _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
                                     opened.typestore, bag, info, topics, conns, progress,
                                     accel, 'columnar')
+                if opened.short is None or via == 'columnar':
+                    return data
+                # Fewer than listed: rosbags' walk of a damaged index may find the others.
+                why, partial = opened.short, data
             except DatasetError:
                 raise                     # a topic missing or of the wrong type
             except Exception as err:      # noqa: B902 (whatever it is, rosbags decides)
@@ -237,15 +242,20 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                        else f'{type(err).__name__}: {one_line(err)}')
         if via == 'columnar':
             raise DatasetError(f'Cannot read bag {str(bag)!r} column by column: {why}.')
-        with AnyReader([bag], default_typestore=jazzy()) as reader:
-            topics, conns = _connections(
-                {name: (t.msgtype or '?', int(t.msgcount)) for name, t in reader.topics.items()},
-                reader.connections, bag, wanted)
-            # One bag: its rosbags Reader directly, without AnyReader's merge across bags.
-            source = reader.readers[0] if len(reader.readers) == 1 else reader
-            return _collect(lambda out, update: _rosbags_feed(source, conns, out, update),
-                            reader.typestore, bag, info, topics, conns, progress, accel,
-                            'rosbags')
+        try:
+            with AnyReader([bag], default_typestore=jazzy()) as reader:
+                topics, conns = _connections(
+                    {name: (t.msgtype or '?', int(t.msgcount))
+                     for name, t in reader.topics.items()}, reader.connections, bag, wanted)
+                # One bag: its rosbags Reader directly, without AnyReader's merge across bags.
+                source = reader.readers[0] if len(reader.readers) == 1 else reader
+                return _collect(lambda out, update: _rosbags_feed(source, conns, out, update),
+                                reader.typestore, bag, info, topics, conns, progress, accel,
+                                'rosbags')
+        except READ_ERRORS:
+            if partial is None:
+                raise
+            return partial          # rosbags reads none of it: what the columnar read got
     except metadata.zstd.ZstdError as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r}: its data are not compressed as '
                            f'metadata.yaml says (compression_format '

@@ -24,6 +24,7 @@ from gyro_tdc.data import read_bag
 from gyro_tdc.data.bag import codec, columnar, metadata, reader
 import numpy as np
 import pytest
+from rosbags.rosbag2 import ReaderError
 
 
 @pytest.mark.parametrize('change, via', [
@@ -69,6 +70,19 @@ def test_a_damaged_timestamp_index_is_read_as_rosbags_reads_it(tmp_path, monkeyp
     assert got.via == 'rosbags' and len(ref.imu_t) + len(ref.temp_t) == len(ts)
     for name in ARRAYS:
         np.testing.assert_array_equal(getattr(got, name), getattr(ref, name))
+    # Where rosbags cannot open the bag at all, what the columnar read got (the loss policy
+    # of load_run judges it against metadata.yaml's counts).
+    forced = read_bag(bag, via='columnar')
+    assert forced.via == 'columnar' and len(forced.imu_t) + len(forced.temp_t) < len(ts)
+
+    class Refusing:
+        def __init__(self, *args, **kwargs):
+            raise ReaderError('database disk image is malformed')
+    monkeypatch.setattr(reader, 'AnyReader', Refusing)
+    partial = read_bag(bag)
+    assert partial.via == 'columnar'
+    for name in ARRAYS:
+        np.testing.assert_array_equal(getattr(partial, name), getattr(forced, name))
 
 
 def test_a_sqlite3_file_without_definitions_is_read_with_the_jazzy_types(tmp_path):
