@@ -262,8 +262,9 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                            f'{info.get("compression_format")!r:.20}, compression_mode '
                            f'{info.get("compression_mode")!r:.20}): {one_line(err)}') from err
     except READ_ERRORS as err:
+        why, hint = one_line(err), metadata.cut_off(bag, info)
         raise DatasetError(f'Cannot read bag {str(bag)!r} (unreadable or corrupt): '
-                           f'{one_line(err)}') from err
+                           + (f'{why.rstrip(".")}{hint}.' if hint else why)) from err
 
 
 def _connections(topics: dict[str, tuple[str, int]], connections: Sequence[Any], bag: Path,

@@ -64,3 +64,19 @@ def test_a_summary_record_claiming_exabytes_is_a_corrupt_bag_in_one_line(tmp_pat
         with pytest.raises(DatasetError, match='unreadable or corrupt') as err:
             read_bag(bag, via=via)
         assert '\n' not in str(err.value) and str(bag) in str(err.value)
+        assert 'mcap recover' not in str(err.value)        # its footer is whole
+
+
+@pytest.mark.parametrize('keep', [0.3, 0.9, 0.99999])
+def test_an_mcap_file_cut_off_names_the_file_and_mcap_recover(tmp_path, keep):
+    # The power went while the file was written: no footer, a chunk cut short.
+    bag = _write(tmp_path / 'bag', 'mcap', _chamber(np.random.default_rng(16)))
+    (path,) = bag.glob('*.mcap')
+    raw = path.read_bytes()
+    path.write_bytes(raw[:int(keep * len(raw))])
+    for via in ('auto', 'rosbags'):
+        with pytest.raises(DatasetError, match='unreadable or corrupt') as err:
+            read_bag(bag, via=via)
+        text = str(err.value)
+        assert '\n' not in text and f'{path.name} ends without the mcap footer' in text
+        assert '`mcap recover`' in text and '.;' not in text
