@@ -28,10 +28,10 @@ import math
 from gyro_tdc.errors import LimitError
 
 __all__ = ['MAX_ACCEL_DRIFT_MPS2', 'MAX_CENTERS', 'MAX_COVERAGE_BINS', 'MAX_DRIFT_RAD_S',
-           'MAX_RATE_RAD_S', 'MAX_SIM_SAMPLES', 'MAX_TEMP_LEAD_S', 'MAX_TEMP_RATE_C_S',
-           'MAX_TEMP_SLEW_C_S', 'RESTART_BACK_S', 'SESSION_GAP_PERIODS', 'SESSION_GAP_S',
-           'SIM_BYTES_PER_SAMPLE', 'TEMP_PLAUSIBLE_C', 'TEMP_SLEW_MARGIN_C', 'check_bin_width',
-           'check_centers', 'check_sim_samples']
+           'MAX_RATE_RAD_S', 'MAX_SIM_RUNS', 'MAX_SIM_SAMPLES', 'MAX_TEMP_LEAD_S',
+           'MAX_TEMP_RATE_C_S', 'MAX_TEMP_SLEW_C_S', 'RESTART_BACK_S', 'SESSION_GAP_PERIODS',
+           'SESSION_GAP_S', 'SIM_BYTES_PER_SAMPLE', 'TEMP_PLAUSIBLE_C', 'TEMP_SLEW_MARGIN_C',
+           'check_bin_width', 'check_centers', 'check_sim_samples']
 
 #: Temperatures a MEMS die can read, degC: outside, a reading is a glitch (one home for the
 #: trainer, the driver, the compensator and the learner).
@@ -74,6 +74,9 @@ RESTART_BACK_S = 1.0
 MAX_CENTERS = 10_000
 MAX_COVERAGE_BINS = 10_000
 MAX_SIM_SAMPLES = 20_000_000
+#: Runs (power cycles) a scenario may ask for: a campaign of any chamber, far below what
+#: would never end (simulate names every run before the first).
+MAX_SIM_RUNS = 1_000
 SIM_BYTES_PER_SAMPLE = 350
 
 

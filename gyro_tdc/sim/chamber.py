@@ -26,15 +26,27 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 import math
-from typing import Callable, Sequence, Tuple
+from typing import Any, Callable, Sequence, Tuple
 
 from gyro_tdc.model import first_order_lag
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['Profile', 'StaircasePlan', 'ThermalHistory', 'heat_conduction_time_s', 'hold_segment',
-           'max_temperature_step_c', 'nice_ceil', 'nice_floor', 'points_segment', 'ramp_segment',
-           'simulate_thermal', 'staircase_plan', 'staircase_segment', 'step_segment']
+__all__ = ['MAX_STAIRCASE_STEPS', 'Profile', 'SegmentError', 'StaircasePlan', 'ThermalHistory',
+           'heat_conduction_time_s', 'hold_segment', 'max_temperature_step_c', 'nice_ceil',
+           'nice_floor', 'points_segment', 'ramp_segment', 'simulate_thermal', 'staircase_plan',
+           'staircase_segment', 'step_segment']
+
+#: Steps a staircase segment may take (the paper's: 1,250 of 0.1 degC).
+MAX_STAIRCASE_STEPS = 1_000_000
+
+
+class SegmentError(ValueError):
+    """A segment that cannot follow where the profile is: what it must be and what it is."""
+
+    def __init__(self, expected: str, got: Any) -> None:
+        super().__init__(f'expected {expected}, got {got!r:.40}')
+        self.expected, self.got = expected, got
 
 
 # --------------------------------------------------------------------------------------------
@@ -323,6 +335,9 @@ def staircase_segment(to_c: float, step_c: float, hold_s: float) -> Segment:
     def segment(t0: float, temp0: float):
         span = to_c - temp0
         n = int(math.ceil(abs(span) / step - 1e-9))
+        if n > MAX_STAIRCASE_STEPS:
+            raise SegmentError(f'a staircase of at most {MAX_STAIRCASE_STEPS:,} steps (of '
+                               f'{step:g} degC from {temp0:g} to {to_c:g} degC)', n)
         if n <= 0:
             return np.zeros(0), np.zeros(0)
         k = np.arange(n, dtype=np.float64)

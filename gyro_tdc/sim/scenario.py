@@ -32,8 +32,9 @@ from dataclasses import dataclass, field
 import os
 from typing import Any, Callable, Mapping, Optional, Union
 
-from gyro_tdc.base import (FieldChecker, is_number, plain, RAD_PER_DEG, read_yaml,
-                           SCENARIO_LIMITS, scenario_path)
+from gyro_tdc.base import (FieldChecker, is_number, MAX_SIM_RUNS, MAX_SIM_SAMPLES, plain,
+                           RAD_PER_DEG, read_yaml, SCENARIO_LIMITS, scenario_path,
+                           TEMP_PLAUSIBLE_C)
 from gyro_tdc.errors import GyroTdcError, ScenarioError
 from gyro_tdc.model import EFFECT_IDS
 from gyro_tdc.sim import chamber
@@ -80,6 +81,11 @@ def merge(base: Mapping, top: Mapping) -> dict:
     return out
 
 
+#: Any number of a scenario, in its unit: far beyond every physical one, and squared (a
+#: variance) still a float.
+MAX_MAGNITUDE = 1e9
+
+
 class _Checker(FieldChecker):
     """The scenario's field kinds on base's FieldChecker: one ScenarioError naming the field."""
 
@@ -94,8 +100,11 @@ class _Checker(FieldChecker):
 
     def num(self, path: str, x: Any, *, low: Optional[float] = None,
             strict: bool = False) -> float:
-        return (self.number(x, path, what='a finite number') if low is None else
-                self.above(x, path, low, strict, what='a finite number'))
+        v = (self.number(x, path, what='a finite number') if low is None else
+             self.above(x, path, low, strict, what='a finite number'))
+        if not abs(v) <= MAX_MAGNITUDE:
+            raise self.fail(path, f'a number within +-{MAX_MAGNITUDE:g}', x)
+        return v
 
     def seq(self, path: str, x: Any, expected: str, n: Optional[int] = None,
             ok: Callable[[float], bool] = lambda v: True) -> tuple[float, ...]:
@@ -103,6 +112,8 @@ class _Checker(FieldChecker):
         if (not isinstance(x, (list, tuple)) or not x or (n is not None and len(x) != n)
                 or not all(is_number(e) and ok(float(e)) for e in x)):
             raise self.fail(path, expected, x)
+        if not all(abs(float(e)) <= MAX_MAGNITUDE for e in x):
+            raise self.fail(path, f'numbers within +-{MAX_MAGNITUDE:g}', x)
         return tuple(float(e) for e in x)
 
     def axis(self, path: str, x: Any, *, low: Optional[float] = None) -> Vec3:
@@ -159,12 +170,13 @@ _KINDS: dict[str, Callable[[_Checker, str, Any], Any]] = {
     'num': lambda c, p, x: c.num(p, x),
     'pos': lambda c, p, x: c.num(p, x, low=0.0, strict=True),
     'nonneg': lambda c, p, x: c.num(p, x, low=0.0),
-    'temp': lambda c, p, x: c.num(p, x, low=-273.15),
+    'temp': lambda c, p, x: c.number(x, p, *TEMP_PLAUSIBLE_C, 'a temperature in degC'),
     'axis': lambda c, p, x: c.axis(p, x),
     'axis_nonneg': lambda c, p, x: c.axis(p, x, low=0.0),
     'bool': lambda c, p, x: c.boolean(x, p),
     'count': lambda c, p, x: c.choice(p, x, isinstance(x, int) and not isinstance(x, bool)
-                                      and x >= 1, 'an integer >= 1'),
+                                      and 1 <= x <= MAX_SIM_RUNS,
+                                      f'an integer within 1 .. {MAX_SIM_RUNS:,}'),
     'location': lambda c, p, x: c.choice(p, x, x in ('package', 'die'), "'package' or 'die'"),
     'taus': lambda c, p, x: c.seq(p, x, 'a non-empty list of numbers > 0', ok=lambda v: v > 0.0),
     'tilt': lambda c, p, x: c.seq(p, x, 'roll and pitch in degrees, a list of 2 numbers within '
@@ -183,21 +195,23 @@ def _points(chk: _Checker, where: str, seg: Mapping) -> chamber.Segment:
         raise chk.fail(f'{where}.temp_c', f'{len(ts)} values (as many as t_s)', seg['temp_c'])
     if ts[0] != 0.0 or any(b < a for a, b in zip(ts, ts[1:])):
         raise chk.fail(f'{where}.t_s', 'times starting at 0 and never decreasing', seg['t_s'])
-    if min(temps) < -273.15:
-        raise chk.fail(f'{where}.temp_c', 'temperatures >= -273.15', seg['temp_c'])
+    lo, hi = TEMP_PLAUSIBLE_C
+    if not lo <= min(temps) <= max(temps) <= hi:
+        raise chk.fail(f'{where}.temp_c', f'temperatures within {lo:g} .. {hi:g} degC',
+                       seg['temp_c'])
     return chamber.points_segment(np.asarray(ts), np.asarray(temps))
 
 
 def _profile(chk: _Checker, raw: Any) -> chamber.Profile:
     prof = chk.mapping('profile', raw, ('start_c', 'segments'))
-    start = chk.num('profile.start_c', prof.get('start_c'), low=-273.15)
+    start = _KINDS['temp'](chk, 'profile.start_c', prof.get('start_c'))
     segments = prof.get('segments')
     if not isinstance(segments, (list, tuple)) or not segments:
         raise chk.fail('profile.segments', 'a non-empty list of segments', segments)
     built = []
     for i, seg in enumerate(segments):
         where = f'profile.segments[{i}]'
-        if not isinstance(seg, Mapping) or seg.get('kind') not in _SEGMENTS:
+        if not isinstance(seg, Mapping) or seg.get('kind') not in tuple(_SEGMENTS):
             got = seg.get('kind') if isinstance(seg, Mapping) else seg
             raise chk.fail(f'{where}.kind' if isinstance(seg, Mapping) else where,
                            'a segment kind (' + ', '.join(_SEGMENTS) + ')', got)
@@ -209,7 +223,10 @@ def _profile(chk: _Checker, raw: Any) -> chamber.Profile:
                 raise chk.fail(f'{where}.{key}', f'a value (required by kind {kind!r})', None)
         built.append(_points(chk, where, seg) if kind == 'points' else make(
             *(_KINDS[bound](chk, f'{where}.{key}', seg[key]) for key, bound in fields.items())))
-    profile = chamber.Profile.from_segments(start, built)
+    try:
+        profile = chamber.Profile.from_segments(start, built)
+    except chamber.SegmentError as exc:     # a staircase of too many steps
+        raise chk.fail('profile.segments', exc.expected, exc.got) from None
     if profile.duration_s <= 0.0:
         raise chk.fail('profile.segments', 'segments lasting longer than 0 s in total', segments)
     return profile
@@ -272,7 +289,7 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
     if version != FORMAT_VERSION:
         raise chk.fail('format_version', str(FORMAT_VERSION), version)
     sensor = top.get('sensor')
-    if sensor is not None and sensor not in PRESETS:
+    if sensor is not None and not (isinstance(sensor, str) and sensor in PRESETS):
         raise chk.fail('sensor', 'a preset name (' + ', '.join(sorted(PRESETS)) + ') or null',
                        sensor)
     # A list of effects means exactly those: expand it before merging over the defaults.
@@ -309,6 +326,11 @@ def validate(data: Any, *, name: Optional[str], source: str) -> dict[str, Any]:
     if vehicle is not None:
         vehicle = VehicleSpec(**chk.section('vehicle', vehicle, VEHICLE_FIELDS))
         merged['vehicle'] = vehicle.to_dict()
+    # The other streams a run samples, as bounded as the IMU's (checked where it is chosen).
+    for where, r in (('thermometer.rate_hz', thermometer_rate),
+                     ('vehicle.cmd_vel_rate_hz', vehicle.cmd_vel_rate_hz if vehicle else 0.0)):
+        if not duration * r <= MAX_SIM_SAMPLES:
+            raise chk.fail(where, f'at most {MAX_SIM_SAMPLES:.3g} samples in {duration:g} s', r)
     return dict(name=the_name, description=description, source=source, sensor=sensor,
                 imu_rate_hz=rate, duration_s=duration, profile=profile,
                 **{section: spec(**values[section]) for section, spec in _SPECS.items()},

@@ -20,10 +20,12 @@ import copy
 import math
 import re
 
+from gyro_tdc.base import check_sim_samples
 from gyro_tdc.base.resources import config_dir, scenario_names
-from gyro_tdc.errors import ScenarioError
+from gyro_tdc.errors import LimitError, ScenarioError
 from gyro_tdc.sim import load_scenario, Scenario, simulate_run, simulate_scenario
 from gyro_tdc.sim.scenario import DEFAULTS
+from hypothesis import given, settings, strategies as st
 import numpy as np
 import pytest
 from scenarios import table_moving
@@ -166,6 +168,24 @@ def _bad(**changes):
     (_bad(noise__bias_instability_tau_s=[]), 'noise.bias_instability_tau_s'),
     (_bad(thermal__tau_die_s=float('nan')), 'thermal.tau_die_s'),
     (_bad(runs__count=0), 'runs.count'),
+    (_bad(runs__count=1001), 'runs.count'),         # simulate would name them all first
+    (_bad(runs__count=2 ** 63), 'runs.count'),
+    (_bad(thermometer__rate_hz=1e30), 'thermometer.rate_hz'),    # not a 1e30-element arange
+    (_bad(vehicle__cmd_vel_rate_hz=1e30), 'vehicle.cmd_vel_rate_hz'),
+    (_bad(sensor=['l3gd20']), 'sensor'), (_bad(sensor={'a': 1}), 'sensor'),
+    (_bad(profile={'start_c': 20.0, 'segments': [{'kind': {}}]}), 'profile.segments[0].kind'),
+    (_bad(profile__start_c=1e19), 'profile.start_c'),       # a chamber's, -100 .. 200 degC
+    (_bad(profile={'start_c': 20.0, 'segments': [{'kind': 'ramp', 'to_c': 2 ** 63,
+                                                  'rate_c_per_h': 1.0}]}),
+     'profile.segments[0].to_c'),
+    (_bad(profile={'start_c': 20.0, 'segments': [{'kind': 'points', 't_s': [0.0, 1.0],
+                                                  'temp_c': [20.0, -300.0]}]}),
+     'profile.segments[0].temp_c'),
+    (_bad(profile={'start_c': 20.0, 'segments': [{'kind': 'staircase', 'to_c': 30.0,
+                                                  'step_c': 1e-300, 'hold_s': 1.0}]}),
+     'profile.segments'),                           # 1e301 steps: not one array of them
+    (_bad(thermometer__noise_c=1e300), 'thermometer.noise_c'),   # its square overflowed
+    (_bad(gyro__bias_dps=[0.0, 1e300, 0.0]), 'gyro.bias_dps'),
     (_bad(sensor='bmi088'), 'sensor'),
     (_bad(imu_rate_hz=-5), 'imu_rate_hz'),
     (_bad(format_version=2), 'format_version'),
@@ -220,3 +240,48 @@ def test_defaults_fill_every_section_and_the_preset_overrides_them():
     l3 = Scenario.from_dict(dict(MINIMAL, sensor='l3gd20'))
     assert l3.gyro.warmup_tau_s == 240.0 and l3.gyro.range_dps == 250.0
     assert l3.noise.bias_instability_dps == (0.004, 0.005, 0.004)
+
+
+#: What a hostile or careless scenario file puts where a number, list or name belongs.
+_HOSTILE = st.sampled_from([0, -1, 1e-300, 1e300, math.nan, math.inf, -math.inf, '', 'x', None,
+                            True, [], {}, [1, 2], {'a': 1}, 10 ** 30, -10 ** 30, 2 ** 63,
+                            86400 * 365, '1e400', 3, 1e-3, 1e9])
+
+
+def _paths(d, pre=()):
+    """Yield the path of every entry of a nested mapping / list."""
+    items = d.items() if isinstance(d, dict) else enumerate(d) if isinstance(d, list) else ()
+    for k, v in items:
+        yield pre + (k,)
+        yield from _paths(v, pre + (k,))
+
+
+@given(data=st.data())
+@settings(max_examples=60, deadline=None)
+def test_mutated_shipped_scenarios_simulate_or_are_refused_in_one_line(data):
+    name = data.draw(st.sampled_from(sorted(scenario_names())))
+    doc = yaml.safe_load((config_dir() / 'scenarios' / f'{name}.yaml').read_text())
+    for _ in range(data.draw(st.integers(1, 3))):
+        path = data.draw(st.sampled_from(list(_paths(doc))))
+        node = doc
+        for k in path[:-1]:
+            node = node[k]
+        if data.draw(st.integers(0, 4)) == 0 and isinstance(node, dict):
+            del node[path[-1]]
+        else:
+            node[path[-1]] = data.draw(_HOSTILE)
+    try:
+        sc = Scenario.from_dict(doc, source='mutated.yaml')
+    except ScenarioError as exc:
+        assert '\n' not in str(exc) and str(exc).startswith('mutated.yaml: ')
+        return
+    try:
+        n = check_sim_samples(sc.duration_s, 1.0)
+    except LimitError as exc:           # simulate's refusal, before any array is made
+        assert '\n' not in str(exc)
+        return
+    if n > 400_000:                     # legal, but too long to simulate here
+        return
+    # What loads simulates (at 1 Hz, a run of a day in a fraction of a second).
+    runs = simulate_scenario(sc, seed=0, rate_hz=1.0, runs=[0])
+    assert np.all(np.isfinite(runs[0].imu_t)) and len(runs[0].temp_t) >= 1
