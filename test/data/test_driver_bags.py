@@ -25,6 +25,8 @@ the arrays of the same samples written as Imu + Temperature.
 
 from __future__ import annotations
 
+import sqlite3
+
 from driver_msgs import driver_typestore
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data import DriverInputs, normalize_bag, read_bag, write_bag
@@ -142,3 +144,22 @@ def test_bno055_below_zero_is_read_signed(tmp_path):
                         imu_topic='/imu/data_raw', temperature_topic='/imu/temperature',
                         out=tmp_path / 'read')
     assert list(read_bag(out).temp_c) == [-5.0, 3.0]
+
+
+@pytest.mark.parametrize('blob', [b'\x00\x01\x00\x00\x01\x02\x03',     # a message cut short
+                                  b'\xff\xff\xff\xff' * 4])              # not CDR at all
+def test_a_damaged_message_is_one_line_naming_the_bag(tmp_path, blob):
+    # rosbags' deserializer raises its own errors (not AnyReaderError) on damaged bytes.
+    bag = driver_bag(tmp_path / 'px4', n=50)
+    (db3,) = bag.glob('*.db3')
+    with sqlite3.connect(db3) as db:
+        db.execute('UPDATE messages SET data = ? WHERE id = (SELECT min(id) FROM messages '
+                   'WHERE topic_id = (SELECT id FROM topics WHERE name = ?))',
+                   (blob, '/fmu/out/sensor_gyro'))
+    db.close()
+    with pytest.raises(DatasetError) as err:
+        normalize_bag(bag, DriverInputs(**OPTIONS), imu_topic='/fmu/out/sensor_gyro',
+                      temperature_topic='/mip/sensor/temperature_statistics',
+                      out=tmp_path / 'read')
+    assert str(err.value).startswith(f"cannot read bag '{bag}'") and '\n' not in str(err.value)
+    assert not (tmp_path / 'read').exists()
