@@ -118,7 +118,8 @@ def test_nested_brackets_on_reload_and_parameter_set_keep_the_model(models, rig_
     path, model = models['paper']
     live = tmp_path / 'live.yaml'
     live.write_text(Path(path).read_text())
-    rig = rig_factory(model_file=str(live))
+    # load_wait: each reload answers with the file's verdict, however busy the machine.
+    rig = rig_factory(model_file=str(live), load_wait=10.0)
     imu_ns = [to_ns(T0 + 0.01 * k) for k in range(50)]
     omega = np.tile([0.01, -0.02, 0.005], (50, 1))
     rig.feed(imu_ns, omega, [to_ns(T0 - 1.0)], [20.0])
@@ -151,7 +152,7 @@ def test_a_parser_crash_is_a_refused_file(models, rig_factory, crash):
             raise crash('deep in the parser')
         return read_model(name)
 
-    rig = rig_factory(model_file=str(path), node_kwargs={'loader': loader})
+    rig = rig_factory(model_file=str(path), node_kwargs={'loader': loader}, load_wait=10.0)
     st = rig.node.diagnostic_status()
     assert st.level == DiagnosticStatus.ERROR
     assert f'{crash.__name__} while reading the model file' in st.message
@@ -543,7 +544,8 @@ def test_reload_of_the_same_file_keeps_the_reanchoring(models, rig_factory, tmp_
     path, model = models['paper']
     live = tmp_path / 'live.yaml'
     live.write_text(Path(path).read_text())
-    rig = rig_factory(model_file=str(live), reanchor_on_start=True, still_window=1.0)
+    rig = rig_factory(model_file=str(live), reanchor_on_start=True, still_window=1.0,
+                      load_wait=10.0)
     rng = np.random.default_rng(12)
     n = 400  # 2 s: still after 1 s, the last 100 samples compensated with the shift
     raw = -np.tile(steady(model, 22.0, (0.0, 0.0, 0.0)), (n, 1)) + [8e-4, -6e-4, 4e-4] \
