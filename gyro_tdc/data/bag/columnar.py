@@ -28,13 +28,13 @@ from __future__ import annotations
 
 from contextlib import contextmanager, ExitStack
 from functools import lru_cache
-from pathlib import Path, PurePath
+from pathlib import Path
 import shutil
 from tempfile import TemporaryDirectory
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
-from gyro_tdc.data.bag.metadata import entries, Entry, topics_of, Unfit, zstd
+from gyro_tdc.data.bag.metadata import entries, Entry, storage_paths, topics_of, Unfit, zstd
 from gyro_tdc.data.bag.storage_mcap import McapFile
 from gyro_tdc.data.bag.storage_sqlite3 import Sqlite3File
 from rosbags.typesys import get_types_from_idl, get_types_from_msg, get_typestore, Stores
@@ -88,8 +88,6 @@ class Bag:
         Topic -> (type, message count), as rosbags' ``AnyReader.topics`` has them.
     files : list[Sqlite3File | McapFile]
         The storage files, in metadata.yaml's order.
-    sqlite3 : bool
-        Whether a file is sqlite3.
     short : str or None
         After :meth:`feed`, on sqlite3: what it handed over of fewer messages than
         metadata.yaml lists (None: every one).
@@ -101,7 +99,6 @@ class Bag:
 
     def __init__(self, conns: list[Entry], files: list[Any]) -> None:
         self.conns, self.files = conns, files
-        self.sqlite3 = any(isinstance(f, Sqlite3File) for f in files)
         self.short: str | None = None
         self.topics = topics_of(conns)
         defs = []
@@ -138,10 +135,11 @@ class Bag:
                 f.feed(roles, out, update, chunk=max(int(chunk), 1))
         # The sqlite3 read seeks its time ranges in the timestamp index, where rosbags walks
         # it end to end: a damaged index can hide messages from the seeks alone.
-        short = [f'{out.received[role]} {role} messages of the {n} metadata.yaml lists'
-                 for role, n in ((r, sum(int(c.msgcount) for c in cs)) for r, cs in conns.items())
-                 if self.sqlite3 and out.received[role] < n]
-        self.short = '; '.join(short) or None
+        if any(isinstance(f, Sqlite3File) for f in self.files):
+            listed = {role: sum(int(c.msgcount) for c in cs) for role, cs in conns.items()}
+            self.short = '; '.join(
+                f'{out.received[role]} {role} messages of the {n} metadata.yaml lists'
+                for role, n in listed.items() if out.received[role] < n) or None
 
 
 @contextmanager
@@ -153,7 +151,7 @@ def open_bag(bag: Path, info: Mapping) -> Iterator[Bag]:
     as rosbags does. Raises :class:`Unfit` where rosbags' reader must decide.
     """
     conns = entries(bag, info)
-    paths = [bag / PurePath(x).name for x in info['relative_file_paths']]
+    paths = storage_paths(bag, info)
     with ExitStack() as stack:
         if info.get('compression_mode', '').lower() == 'file':
             tmp = Path(stack.enter_context(TemporaryDirectory()))

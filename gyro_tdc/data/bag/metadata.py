@@ -38,8 +38,8 @@ if sys.version_info >= (3, 14):
 else:                         # rosbags' own zstd before Python 3.14
     from backports import zstd
 
-__all__ = ['check_counts', 'cut_off', 'describe', 'entries', 'Entry', 'load', 'min_message_bytes',
-           'qos', 'bag_dir', 'storage_bytes', 'topics_of', 'ZSTD_MAX_RATIO',
+__all__ = ['check_counts', 'describe', 'entries', 'Entry', 'load', 'min_message_bytes',
+           'qos', 'bag_dir', 'storage_bytes', 'storage_paths', 'topics_of', 'ZSTD_MAX_RATIO',
            'Unfit', 'zstd', 'ZSTD_MIN_FRAME_BYTES']
 
 #: Smallest zstd frame (magic, frame header, one block header): a message compressed on its
@@ -101,29 +101,17 @@ def _list(info: Mapping, key: str) -> list:
     return info[key] if isinstance(info.get(key), list) else []
 
 
+def storage_paths(bag: Path, info: Mapping) -> list[Path]:
+    """Return the paths of the storage files metadata.yaml lists (beside it, by name)."""
+    return [bag / PurePath(str(name)).name for name in _list(info, 'relative_file_paths')]
+
+
 def storage_bytes(bag: Path, info: Mapping) -> int | None:
     """Return the size of the storage files metadata.yaml lists, bytes (None: one is missing)."""
     try:
-        return sum((bag / PurePath(str(name)).name).stat().st_size
-                   for name in _list(info, 'relative_file_paths'))
+        return sum(path.stat().st_size for path in storage_paths(bag, info))
     except OSError:
         return None           # rosbags names the missing file
-
-
-def cut_off(bag: Path, info: Mapping) -> str:
-    """Return a hint naming an mcap file of the bag that ends without its footer ('': none)."""
-    for name in _list(info, 'relative_file_paths'):
-        path = bag / PurePath(str(name)).name
-        try:
-            with path.open('rb') as f:
-                f.seek(max(f.seek(0, 2) - 8, 0))
-                whole = path.suffix != '.mcap' or f.read(8) == b'\x89MCAP0\r\n'
-        except OSError:
-            continue
-        if not whole:
-            return (f'; {path.name} ends without the mcap footer (cut off while it was '
-                    'written?): `mcap recover` (the mcap CLI) copies what it holds to a new file')
-    return ''
 
 
 def _topic_counts(info: Mapping) -> list[tuple[str, str, Any]]:

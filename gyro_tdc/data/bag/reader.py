@@ -37,6 +37,7 @@ import apsw
 from gyro_tdc.data.bag import columnar, metadata
 from gyro_tdc.data.bag.codec import (decode_float, decode_joined, Decoded, FLOAT_TYPES, IMU_TYPE,
                                      jazzy, KEEP, Logs, REFERENCE_TYPE, TEMPERATURE_TYPES)
+from gyro_tdc.data.bag.storage_mcap import cut_off
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
 from numpy.typing import NDArray
@@ -262,7 +263,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                            f'{info.get("compression_format")!r:.20}, compression_mode '
                            f'{info.get("compression_mode")!r:.20}): {one_line(err)}') from err
     except READ_ERRORS as err:
-        why, hint = one_line(err), metadata.cut_off(bag, info)
+        why, hint = one_line(err), cut_off(metadata.storage_paths(bag, info))
         raise DatasetError(f'Cannot read bag {str(bag)!r} (unreadable or corrupt): '
                            + (f'{why.rstrip(".")}{hint}.' if hint else why)) from err
 
@@ -314,11 +315,16 @@ class Collector:
         self.sinks = {role: _Sink(expected[role], widths[role]) for role in self.roles}
         self.frame_id = ''                                # of the first decodable IMU message
         self.fallback = {'imu': 0, 'temperature': 0, 'reference': 0}
-        self.undecodable = self.n_main = 0
+        self.undecodable = 0
         self.received = dict.fromkeys(self.roles, 0)     # messages handed over, per role
         self.chunk, self.pending = chunk, []              # main blocks not decoded yet
         self.main_bad: list[NDArray[np.int64]] = []    # main messages undecodable
         self.before: list[NDArray[np.int64]] = []      # Float readings: main messages before
+
+    @property
+    def n_main(self) -> int:
+        """Return the main (IMU) messages handed over so far."""
+        return self.received['imu']
 
     def _store(self, role: str, dec: Decoded, logs: Logs | None) -> NDArray[np.bool_] | None:
         """Put a decoded block into its sink; return the mask of decodable messages."""
@@ -352,7 +358,6 @@ class Collector:
         self.received[role] += len(lengths)
         if role == 'imu':
             self.pending.append((buf, lengths, logs))
-            self.n_main += len(lengths)
             big = 2 * len(lengths) >= self.chunk      # a storage range's block: as it is
             if big or sum(len(x[1]) for x in self.pending) >= self.chunk:
                 self.flush()

@@ -28,17 +28,32 @@ from __future__ import annotations
 from binascii import crc32
 from pathlib import Path
 import struct
-from typing import Any, Callable, Mapping, NamedTuple
+from typing import Any, Callable, Iterable, Mapping, NamedTuple
 
 from gyro_tdc.data.bag.metadata import Entry, Unfit, zstd
 import numpy as np
 
-__all__ = ['McapFile']
+__all__ = ['cut_off', 'McapFile']
 
 _MAGIC = b'\x89MCAP0\r\n'
 _FOOTER = b'\x02\x14\x00\x00\x00\x00\x00\x00\x00'     # opcode and length of the footer
 _SCHEMA, _CHANNEL, _MESSAGE, _CHUNK_INDEX, _STATISTICS = 0x03, 0x04, 0x05, 0x08, 0x0B
 _SUMMARY_END = (0x02, 0x0E)                            # footer, summary offset
+
+
+def cut_off(paths: Iterable[Path]) -> str:
+    """Return a hint naming the first mcap file of ``paths`` that ends without its magic ('')."""
+    for path in paths:
+        try:
+            with path.open('rb') as f:
+                f.seek(max(f.seek(0, 2) - len(_MAGIC), 0))
+                whole = path.suffix != '.mcap' or f.read(len(_MAGIC)) == _MAGIC
+        except OSError:
+            continue
+        if not whole:
+            return (f'; {path.name} ends without the mcap footer (cut off while it was '
+                    'written?): `mcap recover` (the mcap CLI) copies what it holds to a new file')
+    return ''
 
 
 class _Chunk(NamedTuple):
