@@ -274,6 +274,9 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
         raise DatasetError(f'Log {str(p)!r} is not a readable DataFlash log: {exc}') from None
     msg, _, fld = temperature_source.partition('.')
     try:
+        if not any(len(offs) for offs in reader.offsets):
+            raise DatasetError(f'Log {str(p)!r} is not a DataFlash log: not one record in '
+                               f'its {reader.data_len} bytes.')
         params, (imus, lone), (baros, _), cut = (_params(reader), _imu(reader),
                                                  _imu(reader, 'BARO'), _truncated(reader))
         board = _board(reader)

@@ -83,6 +83,18 @@ def test_a_log_without_temperature_is_one_error(tmp_path):
         load_run(path)
 
 
+def test_a_file_without_one_dataflash_record_is_no_log_not_a_log_without_imu(tmp_path):
+    # A firmware image, an EEPROM dump: ``.bin`` too (found among real logs in repositories).
+    for name, data in (('px4io.bin', bytes(range(256)) * 40), ('eeprom.bin', bytes(4096))):
+        (tmp_path / name).write_bytes(data)
+        with pytest.raises(DatasetError, match=r'is not a DataFlash log: not one record in '
+                                               rf'its {len(data)} bytes\.$'):
+            read_dataflash(tmp_path / name)
+    log = write_dataflash(tmp_path / 'noimu.bin', [], {'INS_TCAL1_ENABLE': 0.0})
+    with pytest.raises(DatasetError, match='has no IMU records'):
+        read_dataflash(log)
+
+
 def test_a_log_cut_off_at_its_end_is_read_with_a_warning_that_counts_the_loss(tmp_path):
     imus = _imus(count=1)
     whole = write_dataflash(tmp_path / 'whole.bin', imus)
