@@ -33,7 +33,7 @@ from typing import Any, Mapping
 
 from gyro_tdc.base import INPUT_FRAMES
 from gyro_tdc.data.bag.codec import IMU_TYPE, jazzy
-from gyro_tdc.data.bag.reader import READ_ERRORS
+from gyro_tdc.data.bag.reader import READ_ERRORS, with_data
 from gyro_tdc.data.bag.writer import write_bag
 from gyro_tdc.data.field_paths import (normalize_type, rate_fields, stamp_seconds,
                                        temperature_fields, unquirk)
@@ -165,7 +165,8 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
             value, tstamp = temperature_fields(temp_conn.msgtype, inputs, fields_of, _option)
             imu_t, gyro, accel, temp_t, temp_c = [], [], [], [], []
             frame_id, gyro_cov, accel_cov = 'imu_link', None, (-1.0, 0.0, 0.0)
-            for conn, _, raw in bag.messages(connections=[imu_conn, temp_conn]):
+            for conn, _, raw in with_data(bag.messages(connections=[imu_conn, temp_conn]),
+                                          path):
                 msg = store.deserialize_cdr(raw, conn.msgtype)
                 if conn is imu_conn:
                     if not imu_t and hasattr(msg, 'header'):

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import sqlite3
 
+from bags import null_message_data
 from driver_msgs import driver_typestore
 from gyro_tdc.cli.train import main as train_main
 from gyro_tdc.data import DriverInputs, normalize_bag, read_bag, write_bag
@@ -147,16 +148,20 @@ def test_bno055_below_zero_is_read_signed(tmp_path):
 
 
 @pytest.mark.parametrize('blob', [b'\x00\x01\x00\x00\x01\x02\x03',     # a message cut short
-                                  b'\xff\xff\xff\xff' * 4])              # not CDR at all
+                                  b'\xff\xff\xff\xff' * 4,               # not CDR at all
+                                  None])                   # data read as NULL (a damaged row)
 def test_a_damaged_message_is_one_line_naming_the_bag(tmp_path, blob):
     # rosbags' deserializer raises its own errors (not AnyReaderError) on damaged bytes.
     bag = driver_bag(tmp_path / 'px4', n=50)
     (db3,) = bag.glob('*.db3')
-    with sqlite3.connect(db3) as db:
-        db.execute('UPDATE messages SET data = ? WHERE id = (SELECT min(id) FROM messages '
-                   'WHERE topic_id = (SELECT id FROM topics WHERE name = ?))',
-                   (blob, '/fmu/out/sensor_gyro'))
-    db.close()
+    if blob is None:
+        null_message_data(db3, '/fmu/out/sensor_gyro')
+    else:
+        with sqlite3.connect(db3) as db:
+            db.execute('UPDATE messages SET data = ? WHERE id = (SELECT min(id) FROM messages '
+                       'WHERE topic_id = (SELECT id FROM topics WHERE name = ?))',
+                       (blob, '/fmu/out/sensor_gyro'))
+        db.close()
     with pytest.raises(DatasetError) as err:
         normalize_bag(bag, DriverInputs(**OPTIONS), imu_topic='/fmu/out/sensor_gyro',
                       temperature_topic='/mip/sensor/temperature_statistics',

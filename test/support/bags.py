@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+import sqlite3
 
 from gyro_tdc.cli.train import main
 from gyro_tdc.data import write_bag
@@ -77,3 +78,23 @@ def assert_bad_input(capsys, argv, *needles, entry=main):
     for needle in needles:
         assert needle in lines[0], lines[0]
     return lines[0]
+
+
+def null_message_data(db3: Path, topic: str, index: int = 0) -> None:
+    """
+    Make message ``index`` of ``topic`` in a sqlite3 storage file hold NULL data.
+
+    As a damaged record header does: the schema's ``NOT NULL`` is lifted for the write and
+    put back, so the file says ``NOT NULL`` and holds a NULL (``PRAGMA writable_schema``).
+    """
+    edit = "UPDATE sqlite_master SET sql = replace(sql, ?, ?) WHERE name = 'messages'"
+    for step in ('lift', 'null', 'restore'):
+        db = sqlite3.connect(db3, isolation_level=None)
+        db.execute('PRAGMA writable_schema = ON')
+        if step == 'null':
+            db.execute('UPDATE messages SET data = NULL WHERE id = (SELECT id FROM messages '
+                       'WHERE topic_id = (SELECT id FROM topics WHERE name = ?) '
+                       'ORDER BY timestamp LIMIT 1 OFFSET ?)', (topic, index))
+        else:
+            db.execute(edit, ('data BLOB NOT NULL', 'data BLOB')[::1 if step == 'lift' else -1])
+        db.close()

@@ -28,7 +28,7 @@ from typing import Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
 from gyro_tdc.data.bag.metadata import describe
-from gyro_tdc.data.bag.reader import READ_ERRORS
+from gyro_tdc.data.bag.reader import READ_ERRORS, with_data
 from gyro_tdc.data.field_paths import reader as field_reader, stamp_seconds
 from gyro_tdc.errors import DatasetError, one_line
 import numpy as np
@@ -97,7 +97,7 @@ def read_motion(path: str | Path, topic: str) -> MotionReports:
                                    f'{msgtype!r}, expected one of {", ".join(MOTION_TYPES)}.')
             conns = [c for c in reader.connections if c.topic == topic]
             stamps, rows, twist_of = [], [], field_reader(_TWIST_PATHS[msgtype])
-            for conn, log_ns, raw in reader.messages(connections=conns):
+            for conn, log_ns, raw in with_data(reader.messages(connections=conns), bag):
                 msg = reader.deserialize(raw, conn.msgtype)
                 stamps.append(log_ns * 1e-9 if msgtype == TWIST_TYPE
                               else stamp_seconds('time', msg.header.stamp))

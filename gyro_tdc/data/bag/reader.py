@@ -29,9 +29,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from itertools import islice
 import mmap
+import os
 from pathlib import Path
 import struct
-from typing import Any, Callable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 import apsw
 from gyro_tdc.data.bag import columnar, metadata
@@ -46,7 +47,7 @@ from rosbags.rosbag2 import ReaderError
 from rosbags.serde import SerdeError
 import yaml
 
-__all__ = ['BagData', 'Collector', 'READ_ERRORS', 'read_bag', 'VIA']
+__all__ = ['BagData', 'Collector', 'READ_ERRORS', 'read_bag', 'VIA', 'with_data']
 
 # Messages per block when reading: small enough that a block's raw bytes (~5 MB of Imu) are
 # recycled by the allocator, large enough to amortise the per-block checks.
@@ -57,6 +58,16 @@ _CHUNK = 1 << 14
 # says) is caught apart.
 READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
                UnicodeDecodeError, OverflowError, MemoryError, struct.error)
+
+
+def with_data(messages: Iterable[tuple[Any, int, Any]],
+              bag: str | os.PathLike) -> Iterator[tuple[Any, int, Any]]:
+    """Pass rosbags' ``(connection, stamp, raw)``; a raw of None is a damaged file, refused."""
+    for conn, ns, raw in messages:
+        if raw is None:                 # a damaged sqlite3 row's data reads as NULL
+            raise DatasetError(f'cannot read bag {str(bag)!r}: a message on {conn.topic!r} '
+                               f'has no data (a damaged file).')
+        yield conn, ns, raw
 
 
 @dataclass(frozen=True)
@@ -442,7 +453,9 @@ def _rosbags_feed(source: Any, conns: dict[str, list[Any]], out: Collector,
     """Hand rosbags' raw messages to ``out`` in blocks of ``_CHUNK`` (the reference read)."""
     role_of = {id(c): role for role in out.roles for c in conns[role]}
     gen = source.messages(connections=[c for r in out.roles for c in conns[r]])
-    while block := list(islice(gen, _CHUNK)):
+    while whole := list(islice(gen, _CHUNK)):
+        # A row whose data reads as NULL (a damaged sqlite3 record) is a message lost.
+        block = [m for m in whole if isinstance(m[2], (bytes, bytearray, memoryview))]
         roles = [role_of[id(conn)] for conn, _, _ in block]
         mains = out.n_main + np.cumsum([r == 'imu' for r in roles])   # main messages up to each
         for role in out.roles:
@@ -450,4 +463,4 @@ def _rosbags_feed(source: Any, conns: dict[str, list[Any]], out: Collector,
                 raws = [block[k][2] for k in mine]
                 out.add(role, b''.join(raws), [len(x) for x in raws],
                         np.array([block[k][1] for k in mine], dtype=np.int64), mains[mine])
-        update(len(block))
+        update(len(whole))

@@ -183,6 +183,7 @@ def pristine(tmp_path_factory):
 @given(storage=st.sampled_from(STORAGES), where=st.floats(0.0, 1.0),
        junk=st.binary(min_size=1, max_size=64), cut=st.booleans())
 @example(storage='sqlite3', where=0.9616038597528169, junk=b'\x01', cut=False)  # the index
+@example(storage='sqlite3', where=0.8784913624986797, junk=b'\x00', cut=False)  # NULL data
 def test_damaged_storage_is_read_as_rosbags_reads_it_or_refused_in_one_line(
         tmp_path_factory, pristine, storage, where, junk, cut):
     bag = tmp_path_factory.mktemp('hurt') / 'bag'

@@ -16,6 +16,7 @@
 
 from __future__ import annotations
 
+from bags import null_message_data
 from gyro_tdc.data import encode_twists, read_motion, TWIST_TYPE, write_bag
 from gyro_tdc.errors import DatasetError
 import numpy as np
@@ -51,3 +52,11 @@ def test_a_missing_or_mistyped_motion_topic_is_one_line(tmp_path):
         read_motion(bag, '/imu/temperature')
     with pytest.raises(DatasetError, match='Cannot read motion topic'):
         read_motion(tmp_path / 'nothing', '/cmd_vel')
+
+
+def test_a_motion_message_without_data_is_one_line(tmp_path):
+    bag = _bag(tmp_path / 'bag', 'sqlite3', np.zeros((3, 6)), [0.0, 0.1, 0.2])
+    null_message_data(next(bag.glob('*.db3')), '/cmd_vel', 1)
+    with pytest.raises(DatasetError, match=rf"^cannot read bag '{bag}': a message on '/cmd_vel' "
+                                           r'has no data \(a damaged file\)\.$'):
+        read_motion(bag, '/cmd_vel')

@@ -19,9 +19,11 @@ from __future__ import annotations
 import re
 import sqlite3
 
+from bags import null_message_data
 from columnar_tape import _chamber, _same_data, _same_tape, _write, ARRAYS
 from gyro_tdc.data import read_bag
 from gyro_tdc.data.bag import codec, columnar, metadata, reader
+from gyro_tdc.errors import DatasetError
 import numpy as np
 import pytest
 from rosbags.rosbag2 import ReaderError
@@ -83,6 +85,24 @@ def test_a_damaged_timestamp_index_is_read_as_rosbags_reads_it(tmp_path, monkeyp
     assert partial.via == 'columnar'
     for name in ARRAYS:
         np.testing.assert_array_equal(getattr(partial, name), getattr(forced, name))
+
+
+def test_a_message_whose_data_reads_as_null_is_one_message_lost(tmp_path):
+    # A damaged record header can make a row's data column NULL: rosbags hands it over as
+    # None. Every read skips it; metadata.yaml's count tells the loss policy it is missing.
+    bag = _write(tmp_path / 'bag', 'sqlite3', _chamber(np.random.default_rng(15), n=300))
+    (db3,) = bag.glob('*.db3')
+    null_message_data(db3, '/imu/data_raw', 150)
+    whole = _write(tmp_path / 'whole', 'sqlite3', _chamber(np.random.default_rng(15), n=300))
+    want = read_bag(whole)
+    with pytest.raises(DatasetError, match='column by column') as info:
+        read_bag(bag, via='columnar')           # the fast read leaves it to rosbags
+    assert '\n' not in str(info.value)
+    for via in ('auto', 'rosbags'):
+        got = read_bag(bag, via=via)
+        assert got.via == 'rosbags' and len(got.imu_t) == len(want.imu_t) - 1
+        np.testing.assert_array_equal(np.delete(want.imu_t, 150), got.imu_t)
+        np.testing.assert_array_equal(want.temp_c, got.temp_c)
 
 
 def test_a_sqlite3_file_without_definitions_is_read_with_the_jazzy_types(tmp_path):
