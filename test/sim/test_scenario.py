@@ -269,7 +269,9 @@ def test_mutated_shipped_scenarios_simulate_or_are_refused_in_one_line(data):
         if data.draw(st.integers(0, 4)) == 0 and isinstance(node, dict):
             del node[path[-1]]
         else:
-            node[path[-1]] = data.draw(_HOSTILE)
+            # A copy: sampled_from hands out its own objects, which would be mutated later
+            # (carried into the next example) or put inside themselves (a cycle).
+            node[path[-1]] = copy.deepcopy(data.draw(_HOSTILE))
     try:
         sc = Scenario.from_dict(doc, source='mutated.yaml')
     except ScenarioError as exc:
