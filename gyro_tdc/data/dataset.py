@@ -166,12 +166,14 @@ def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: 
            for topic, got in decoded.items()}
     for topic, (got, listed) in out.items():
         lost = listed - got
+        why = ('a storage file cut off at its end' if data.warnings else
+               'a damaged file or undecodable messages')
         note = (f'{topic}: read {got} of {listed} messages listed in the bag metadata '
-                f'({lost} lost: {100.0 * lost / max(listed, 1):.2g} %; a damaged file or '
-                'undecodable messages)')
+                f'({lost} lost: {100.0 * lost / max(listed, 1):.2g} %; {why})')
         if lost > max_loss * listed:
             raise DatasetError(f'Bag {str(bag)!r}: {note}, more than the '
-                               f'{100.0 * max_loss:g} % allowed (--allow-loss accepts it).')
+                               f'{100.0 * max_loss:g} % allowed (--allow-loss accepts it)'
+                               + ''.join(f'; {w}' for w in data.warnings) + '.')
         warnings += [note] if lost > 0 else []
     return out
 
@@ -322,7 +324,7 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
     const = None if o.reference is None else np.asarray(o.reference, dtype=np.float64)
     data, extra = _read_source(bag, o, read_reference=const is None)
     rejected = {k: data.rejected.get(k, 0) for k in _DROPPED}
-    warnings: list[str] = list(extra.pop('warnings', ()))
+    warnings: list[str] = [*extra.pop('warnings', ()), *data.warnings]
     messages = {} if extra else _check_counts(bag, data, {
         o.imu_topic: len(data.imu_t) + data.rejected['imu_nonfinite'],
         o.temperature_topic: (len(data.temp_t) + data.rejected['temp_nonfinite']

@@ -26,7 +26,7 @@ columns sized by the counts of ``metadata.yaml``, checked first
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from itertools import islice
 import mmap
 import os
@@ -119,6 +119,8 @@ class BagData:
     fallback: dict = field(default_factory=dict, compare=False)
     #: How the storage was read, 'columnar' or 'rosbags' (see :func:`read_bag`).
     via: str = field(default='', compare=False)
+    #: What the read warns of: a storage file cut off (an mcap file without its footer).
+    warnings: tuple = field(default=(), compare=False)
 
 
 def _columns(rows: int, width: int = 0) -> NDArray[np.float64]:
@@ -242,6 +244,11 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                     data = _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
                                     opened.typestore, bag, info, topics, conns, progress,
                                     accel, 'columnar')
+                    cut = tuple(f'{f.name} ends without the mcap footer (cut off while it was '
+                                f'written): read to its last whole chunk, the {f.lost} bytes '
+                                'after it are lost' for f in opened.files
+                                if getattr(f, 'lost', None) is not None)
+                    data = replace(data, warnings=cut) if cut else data
                 if opened.short is None or via == 'columnar':
                     return data
                 # Fewer than listed: rosbags' walk of a damaged index may find the others.

@@ -21,6 +21,9 @@ records found with numpy. rosbags merges the chunks by log time (ties by chunk o
 chunk's messages in a stable sort by log time, those outside the chunk's indexed span
 dropped; when the chunks' spans follow each other in file order, that is the chunks one
 after the other, which is what this reads (anything else is :class:`Unfit`: rosbags reads).
+A file without its footer (cut off while it was written: the power went), which rosbags
+refuses, is scanned record by record up to its last whole chunk (``lost``: the bytes after
+it), as the mcap libraries' fallback scan and ``mcap recover`` read it.
 """
 
 from __future__ import annotations
@@ -38,6 +41,10 @@ __all__ = ['cut_off', 'McapFile']
 _MAGIC = b'\x89MCAP0\r\n'
 _FOOTER = b'\x02\x14\x00\x00\x00\x00\x00\x00\x00'     # opcode and length of the footer
 _SCHEMA, _CHANNEL, _MESSAGE, _CHUNK_INDEX, _STATISTICS = 0x03, 0x04, 0x05, 0x08, 0x0B
+_CHUNK, _DATA_END = 0x06, 0x0F
+#: Bytes a file cut off may lose beyond twice its largest chunk (a chunk is written whole,
+#: then its message indexes, at most as long); more is a damaged record, not a cut.
+_CUT_SLACK = 1 << 16
 _SUMMARY_END = (0x02, 0x0E)                            # footer, summary offset
 
 
@@ -130,7 +137,9 @@ class McapFile:
     """
 
     def __init__(self, path: Path) -> None:
-        self.bio = path.open('rb')
+        self.bio, self.name = path.open('rb'), path.name
+        #: Bytes after the last whole chunk of a file cut off (None: the file is whole).
+        self.lost: int | None = None
 
     def load(self) -> None:
         """Read the header, footer and summary (:func:`~.columnar.open_bag`: once it can close)."""
@@ -145,7 +154,8 @@ class McapFile:
         bio.seek(max(size - 37, 0))
         footer = bio.read(37)
         if len(footer) != 37 or footer[:9] != _FOOTER or footer[-8:] != _MAGIC:
-            raise Unfit('no mcap footer')
+            self._scan(data_start, size)
+            return
         (summary,) = struct.unpack_from('<Q', footer, 9)
         if not data_start <= summary <= size - 37:
             raise Unfit('an mcap file without a summary')
@@ -163,10 +173,7 @@ class McapFile:
 
     def _summary(self, data: bytes) -> None:
         """Parse the summary section's schemas, channels and chunk index."""
-        schemas: dict[int, tuple[str, str, str]] = {}
-        self.conns: list[Entry] = []
-        self.definitions: dict[str, tuple[str, str]] = {}
-        self.chunks: list[_Chunk] = []
+        schemas = self._start()
         statistics = False
         f = _Fields(data)
         while True:
@@ -176,24 +183,83 @@ class McapFile:
             if op in _SUMMARY_END:
                 break
             rec = _Fields(f.raw('<Q'))
-            if op == _SCHEMA:
-                (key,) = rec.take('<H')
-                schemas[key] = (rec.text(), rec.text(), rec.text())
-            elif op == _CHANNEL:
-                key, schema_id = rec.take('<HH')
-                name, encoding, text = schemas.get(schema_id, ('__schemaless__', '', ''))
-                topic, fmt, meta = rec.text(), rec.text(), rec.raw()
-                if all(c.id != key for c in self.conns):
-                    self.conns.append(Entry(key, topic, name, 0, fmt, _qos(meta), ''))
-                    if schema_id in schemas:
-                        self.definitions.setdefault(name, (encoding, text))
-            elif op == _CHUNK_INDEX:
+            self._register(op, rec, schemas)
+            if op == _CHUNK_INDEX:
                 self.chunks.append(_chunk_index(rec))
             statistics |= op == _STATISTICS
         if statistics and not schemas:
             raise Unfit('an mcap summary without schemas')     # rosbags scans the file
         if not self.chunks:
             raise Unfit('an mcap file without a chunk index')
+
+    def _start(self) -> dict[int, tuple[str, str, str]]:
+        """Empty the connections, definitions and chunks; return the schemas to fill."""
+        self.conns: list[Entry] = []
+        self.definitions: dict[str, tuple[str, str]] = {}
+        self.chunks: list[_Chunk] = []
+        return {}
+
+    def _register(self, op: int, rec: _Fields, schemas: dict) -> None:
+        """Take a schema or a channel record (any other is left alone)."""
+        if op == _SCHEMA:
+            (key,) = rec.take('<H')
+            schemas[key] = (rec.text(), rec.text(), rec.text())
+        elif op == _CHANNEL:
+            key, schema_id = rec.take('<HH')
+            name, encoding, text = schemas.get(schema_id, ('__schemaless__', '', ''))
+            topic, fmt, meta = rec.text(), rec.text(), rec.raw()
+            if all(c.id != key for c in self.conns):
+                self.conns.append(Entry(key, topic, name, 0, fmt, _qos(meta), ''))
+                if schema_id in schemas:
+                    self.definitions.setdefault(name, (encoding, text))
+
+    def _scan(self, pos: int, size: int) -> None:
+        """Read a file without its footer record by record, up to its last whole chunk."""
+        schemas = self._start()
+        longest, ended = 0, False
+        while pos + 9 <= size:
+            op, length = struct.unpack('<BQ', self._exact(9, pos))
+            ended = op == _DATA_END           # what follows is the summary
+            if ended or pos + 9 + length > size:
+                break
+            if op == _MESSAGE:
+                raise Unfit('mcap messages outside chunks')
+            if op == _CHUNK:
+                head = _Fields(self._exact(min(length, 1 << 16), pos + 9))
+                start, end, uncompressed, _ = head.take('<QQQI')
+                compression = head.text()
+                (compressed,) = head.take('<Q')
+                c = _Chunk(start, end, pos, {}, compression, compressed, uncompressed)
+                self.chunks.append(c._replace(counts=self._contents(self._decompress(c),
+                                                                    schemas)))
+                longest = max(longest, 9 + length)
+            else:
+                self._register(op, _Fields(self._exact(length, pos + 9)), schemas)
+            pos += 9 + length
+        if not self.chunks:
+            raise Unfit('an mcap file cut off before its first whole chunk')
+        if not ended and size - pos > 2 * longest + _CUT_SLACK:
+            raise Unfit(f'an mcap file whose records stop {size - pos} bytes before its end')
+        self.lost = size - pos
+
+    def _contents(self, raw: bytes, schemas: dict) -> dict[int, int]:
+        """Take a chunk's schemas and channels; return its messages per channel id."""
+        counts: dict[int, int] = {}
+        runs = {pos: (rec, n) for pos, rec, n in self.runs(raw)}
+        arr = np.frombuffer(raw, dtype=np.uint8)
+        pos = 0
+        while pos < len(raw):
+            if pos in runs:
+                rec, n = runs[pos]
+                ids = arr[pos:pos + n * rec].reshape(n, rec)[:, 9:11].copy().view('<u2')
+                for key, k in zip(*np.unique(ids, return_counts=True)):
+                    counts[int(key)] = counts.get(int(key), 0) + int(k)
+                pos += n * rec
+                continue
+            (length,) = struct.unpack_from('<Q', raw, pos + 1)
+            self._register(raw[pos], _Fields(raw[pos + 9:pos + 9 + length]), schemas)
+            pos += 9 + length
+        return counts
 
     def close(self) -> None:
         """Close the file."""
