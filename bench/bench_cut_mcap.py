@@ -1,0 +1,112 @@
+# Copyright 2026 The gyro_tdc Authors
+#
+# Licensed under the Apache License, Version 2.0 (the "License");
+# you may not use this file except in compliance with the License.
+# You may obtain a copy of the License at
+#
+#     http://www.apache.org/licenses/LICENSE-2.0
+#
+# Unless required by applicable law or agreed to in writing, software
+# distributed under the License is distributed on an "AS IS" BASIS,
+# WITHOUT WARRANTIES OR CONDITIONS OF ANY KIND, either express or implied.
+# See the License for the specific language governing permissions and
+# limitations under the License.
+
+"""
+mcap files cut off at random points (the power went while ``ros2 bag record`` wrote them).
+
+Per bag shape (one chunk; four chunks; a 100 Hz IMU with Float temperatures over 14
+chunks; four zstd-compressed chunks), ``--cuts`` copies are cut at seeded random offsets and
+read by ``read_bag`` as ``train`` reads them. A copy must read the messages of its whole
+chunks, the same as the uncut bag's first ones, with a warning naming the file, or be
+refused in one line; anything else is a defect. Printed per shape: read, refused, defects,
+and the worst read (the largest share of the uncut bag's IMU messages lost). ::
+
+    .venv/bin/python bench/bench_cut_mcap.py --cuts 40 --seed 0
+"""
+
+import argparse
+from pathlib import Path
+import shutil
+import sys
+import tempfile
+
+ROOT = Path(__file__).resolve().parent.parent
+for extra in (ROOT, ROOT / 'test' / 'support'):
+    if str(extra) not in sys.path:
+        sys.path.insert(0, str(extra))
+
+from columnar_tape import _chamber, _write  # noqa: E402
+from gyro_tdc.data import read_bag  # noqa: E402
+from gyro_tdc.errors import DatasetError  # noqa: E402
+import numpy as np  # noqa: E402
+from rosbags.rosbag2 import CompressionMode  # noqa: E402
+
+#: name -> (IMU messages, Float temperatures, chunk compression)
+SHAPES = {'one chunk': (700, False, None), 'four chunks': (9000, False, None),
+          'float, 14 chunks': (30000, True, None),
+          'zstd chunks': (9000, False, CompressionMode.STORAGE)}
+
+
+def judge(bag: Path, ref, cut_at: int, size: int) -> tuple[str, float]:
+    """Return the outcome of reading one cut copy and the share of IMU messages lost."""
+    try:
+        got = read_bag(bag)
+    except DatasetError as exc:
+        return ('refused' if '\n' not in str(exc) else 'defect: a refusal of lines'), 1.0
+    except Exception as exc:  # noqa: B902 (any other exception is the defect counted)
+        return f'defect: {type(exc).__name__}', 1.0
+    n, m = len(got.imu_t), len(got.temp_t)
+    same = (np.array_equal(got.imu_t, ref.imu_t[:n]) and np.array_equal(got.gyro, ref.gyro[:n])
+            and np.array_equal(got.temp_c, ref.temp_c[:m]))
+    warned = cut_at == size or any('ends without the mcap footer' in w for w in got.warnings)
+    if not same:
+        return 'defect: not the first messages of the uncut bag', 1.0
+    return ('read' if warned else 'defect: no warning'), 1.0 - n / len(ref.imu_t)
+
+
+def main(argv=None) -> int:
+    """Cut, read and count; print per shape."""
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    ap.add_argument('--cuts', type=int, default=40, help='cut copies per shape')
+    ap.add_argument('--seed', type=int, default=0, help='seed of the cut offsets')
+    args = ap.parse_args(argv)
+    rng = np.random.default_rng(args.seed)
+    print(f'{args.cuts} cut copies per shape, seed {args.seed}: read, refused in one line, '
+          'defects, worst read (share of IMU messages lost)')
+    total = {'read': 0, 'refused': 0, 'defect': 0}
+    with tempfile.TemporaryDirectory(prefix='gyro_tdc_cut_') as tmp:
+        for k, (name, (n, floating, comp)) in enumerate(SHAPES.items()):
+            whole = _write(Path(tmp) / f'whole{k}', 'mcap',
+                           _chamber(np.random.default_rng(k), n=n, floating=floating),
+                           compression=comp)
+            ref = read_bag(whole)
+            (path,) = whole.glob('*.mcap')
+            raw = path.read_bytes()
+            counts, worst, defects = {'read': 0, 'refused': 0, 'defect': 0}, 0.0, []
+            for j in range(args.cuts):
+                at = int(rng.integers(0, len(raw)))
+                bag = Path(tmp) / f'cut{k}_{j}'
+                shutil.copytree(whole, bag)
+                next(bag.glob('*.mcap')).write_bytes(raw[:at])
+                outcome, lost = judge(bag, ref, at, len(raw))
+                counts[outcome.split(':')[0]] += 1
+                if outcome == 'read':
+                    worst = max(worst, lost)
+                elif outcome != 'refused':
+                    defects.append(f'{outcome} (cut at {at} of {len(raw)} bytes)')
+                shutil.rmtree(bag)
+            for key in total:
+                total[key] += counts[key]
+            print(f'  {name:18s} {counts["read"]:4d} {counts["refused"]:4d} '
+                  f'{counts["defect"]:4d}   worst read {100 * worst:.1f} % lost '
+                  f'({len(raw)} bytes, {n} IMU messages)')
+            for line in defects[:5]:
+                print(f'    {line}')
+    print(f'{sum(total.values())} cut copies: {total["read"]} read, {total["refused"]} '
+          f'refused, {total["defect"]} defects')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
