@@ -34,6 +34,7 @@ from typing import Any, Mapping
 from gyro_tdc.base import INPUT_FRAMES
 from gyro_tdc.data.bag.codec import IMU_TYPE, jazzy
 from gyro_tdc.data.bag.reader import READ_ERRORS, with_data
+from gyro_tdc.data.bag.storage_mcap import cut_off
 from gyro_tdc.data.bag.writer import write_bag
 from gyro_tdc.data.field_paths import (normalize_type, rate_fields, stamp_seconds,
                                        temperature_fields, unquirk)
@@ -183,7 +184,8 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
                     temp_t.append(tstamp(msg) if tstamp else imu_t[-1])
                     temp_c.append(value(msg))
     except READ_ERRORS as exc:       # rosbags' errors and what its parsers let through
-        raise DatasetError(f'cannot read bag {str(path)!r}: {one_line(exc)}') from None
+        cut = cut_off(sorted(path.glob('*.mcap')) if path.is_dir() else [path])
+        raise DatasetError(f'cannot read bag {str(path)!r}: {one_line(exc)}{cut}') from None
     if not imu_t:
         raise DatasetError(f'bag {str(path)!r} has no message on {imu_topic!r}.')
     order = np.argsort(temp_t, kind='stable')

@@ -34,7 +34,7 @@ from gyro_tdc.data import DriverInputs, normalize_bag, read_bag, write_bag
 from gyro_tdc.errors import ConfigError, DatasetError
 import numpy as np
 import pytest
-from rosbags.rosbag2 import Writer
+from rosbags.rosbag2 import StoragePlugin, Writer
 
 GYRO_TYPE = 'px4_msgs/msg/SensorGyro'
 STATS_TYPE = 'microstrain_inertial_msgs/msg/MipSensorTemperatureStatistics'
@@ -56,7 +56,7 @@ def samples(n=4000, rate_hz=100.0, seed=3):
     return us, w, t_us, t_c
 
 
-def driver_bag(path, n=4000):
+def driver_bag(path, n=4000, storage='sqlite3'):
     """Write what a PX4 + MicroStrain pair would record: FRD SensorGyro, nested temperature."""
     store = driver_typestore()
     Gyro, Stats = store.types[GYRO_TYPE], store.types[STATS_TYPE]
@@ -64,7 +64,8 @@ def driver_bag(path, n=4000):
     Header = store.types['std_msgs/msg/Header']
     Time = store.types['builtin_interfaces/msg/Time']
     us, w, t_us, t_c = samples(n)
-    with Writer(path, version=9) as writer:
+    plugin = StoragePlugin.MCAP if storage == 'mcap' else StoragePlugin.SQLITE3
+    with Writer(path, version=9, storage_plugin=plugin) as writer:
         gc = writer.add_connection('/fmu/out/sensor_gyro', GYRO_TYPE, typestore=store)
         tc = writer.add_connection('/mip/sensor/temperature_statistics', STATS_TYPE,
                                    typestore=store)
@@ -133,6 +134,21 @@ def test_bad_driver_options_name_the_option(tmp_path, change, error, needles):
                       out=tmp_path / 'read')
     for needle in needles:
         assert needle in str(err.value)
+
+
+def test_an_mcap_file_cut_off_is_one_line_naming_it_and_mcap_recover(tmp_path):
+    # The driver-type path reads through rosbags, which refuses a file without its footer.
+    bag = driver_bag(tmp_path / 'px4', n=2000, storage='mcap')
+    (mcap,) = bag.glob('*.mcap')
+    mcap.write_bytes(mcap.read_bytes()[:mcap.stat().st_size // 2])
+    with pytest.raises(DatasetError) as err:
+        normalize_bag(bag, DriverInputs(**OPTIONS), imu_topic='/fmu/out/sensor_gyro',
+                      temperature_topic='/mip/sensor/temperature_statistics',
+                      out=tmp_path / 'read')
+    text = str(err.value)
+    assert text.startswith(f"cannot read bag '{bag}'") and '\n' not in text
+    assert f'{mcap.name} ends without the mcap footer' in text and '`mcap recover`' in text
+    assert not (tmp_path / 'read').exists()
 
 
 def test_bno055_below_zero_is_read_signed(tmp_path):
