@@ -164,10 +164,10 @@ def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: 
     """
     out = {topic: [int(got), int(data.topics.get(topic, ('', 0))[1])]
            for topic, got in decoded.items()}
+    why = ('a storage file cut off at its end' if data.warnings else
+           'a damaged file or undecodable messages')
     for topic, (got, listed) in out.items():
         lost = listed - got
-        why = ('a storage file cut off at its end' if data.warnings else
-               'a damaged file or undecodable messages')
         note = (f'{topic}: read {got} of {listed} messages listed in the bag metadata '
                 f'({lost} lost: {100.0 * lost / max(listed, 1):.2g} %; {why})')
         if lost > max_loss * listed:

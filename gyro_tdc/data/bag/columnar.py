@@ -112,6 +112,13 @@ class Bag:
                 defs.append((c.msgtype, kind, text, c.digest))
         self.typestore = _typestore(tuple(defs)) if defs else jazzy()
 
+    @property
+    def warnings(self) -> tuple[str, ...]:
+        """Return a warning per storage file cut off (an mcap file read to its last chunk)."""
+        return tuple(f'{f.name} ends without the mcap footer (cut off while it was written): '
+                     f'read to its last whole chunk, the {f.lost} bytes after it are lost'
+                     for f in self.files if isinstance(f, McapFile) and f.lost is not None)
+
     def feed(self, conns: Mapping[str, Sequence[Entry]], out: Any,
              update: Callable[[int], Any], chunk: int) -> None:
         """

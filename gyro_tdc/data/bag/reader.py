@@ -244,11 +244,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                     data = _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
                                     opened.typestore, bag, info, topics, conns, progress,
                                     accel, 'columnar')
-                    cut = tuple(f'{f.name} ends without the mcap footer (cut off while it was '
-                                f'written): read to its last whole chunk, the {f.lost} bytes '
-                                'after it are lost' for f in opened.files
-                                if getattr(f, 'lost', None) is not None)
-                    data = replace(data, warnings=cut) if cut else data
+                    data = replace(data, warnings=opened.warnings)
                 if opened.short is None or via == 'columnar':
                     return data
                 # Fewer than listed: rosbags' walk of a damaged index may find the others.
