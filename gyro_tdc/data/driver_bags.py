@@ -33,6 +33,7 @@ from typing import Any, Mapping
 
 from gyro_tdc.base import INPUT_FRAMES
 from gyro_tdc.data.bag.codec import IMU_TYPE, jazzy
+from gyro_tdc.data.bag.columnar import readable
 from gyro_tdc.data.bag.reader import READ_ERRORS, with_data
 from gyro_tdc.data.bag.storage_mcap import cut_off
 from gyro_tdc.data.bag.writer import write_bag
@@ -155,7 +156,7 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
     """
     path = Path(path)
     try:
-        with AnyReader([path], default_typestore=jazzy()) as bag:
+        with readable(path) as opened, AnyReader([opened], default_typestore=jazzy()) as bag:
             store = bag.typestore
             fields_of = field_table(store)
             imu_conn = _connection(bag, imu_topic, inputs.imu_type, '--imu-type')

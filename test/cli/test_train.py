@@ -148,6 +148,28 @@ def test_not_a_bag(tmp_path, capsys):
 
 
 @pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
+def test_a_bag_without_metadata_yaml_trains_the_same_model_with_a_warning(
+        synth_bag, tmp_path, capsys, storage):
+    # The power went during `ros2 bag record`: rosbag2 wrote no metadata.yaml.
+    _, run = synth_bag
+    bag = bag_from_run(run, tmp_path / 'rec', storage=storage)
+    args = ['--kind', 'poly', '--no-progress']
+    assert main([str(bag), '--out', str(tmp_path / 'a.yaml'), *args]) == 0
+    (data,) = [p for p in bag.iterdir() if p.suffix in ('.db3', '.mcap')]
+    data.rename(bag / f'rec_0{data.suffix}')
+    (bag / 'metadata.yaml').unlink()
+    capsys.readouterr()
+    assert main([str(bag), '--out', str(tmp_path / 'b.yaml'), *args]) == 0
+    out = capsys.readouterr()
+    assert (f'warning: {bag}: no metadata.yaml (the recording did not close: rosbag2 writes '
+            f'it then): read from rec_0{data.suffix} as `ros2 bag reindex` would list it'
+            in out.out + out.err)
+    a, b = load_model(tmp_path / 'a.yaml'), load_model(tmp_path / 'b.yaml')
+    assert a.model_id == b.model_id
+    assert sorted(p.name for p in bag.iterdir()) == [f'rec_0{data.suffix}']
+
+
+@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
 def test_corrupt_bag(tmp_path, capsys, storage):
     bag = bag_from_run(synth_run(seed=1, hours=0.2), tmp_path / 'bad', storage=storage)
     data = next(p for p in bag.iterdir() if p.suffix in ('.db3', '.mcap'))

@@ -323,3 +323,32 @@ def test_a_folder_is_walked_and_what_it_holds_that_cannot_be_read_is_skipped(tmp
     with pytest.raises(DatasetError, match=r'None of the 1 bags and logs found can be read '
                                            r'\(the first: .*empty\.BIN'):
         load_runs(only_bad)
+
+
+@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
+def test_a_walk_reads_a_bag_that_lost_its_metadata_yaml(tmp_path, storage):
+    # A robot's bag folder after a power loss: one bag closed, one without metadata.yaml
+    # (its storage file as rosbag2 names it), and a folder of notes that is no bag.
+    from gyro_tdc.data.dataset import find_bags
+    ext = '.db3' if storage == 'sqlite3' else '.mcap'
+    root = tmp_path / 'bags'
+    _bag(root / 'closed', storage=storage, n=2000)
+    _bag(root / 'cut', storage=storage, n=3000, seed=5)
+    (root / 'cut' / f'cut{ext}').rename(root / 'cut' / f'cut_0{ext}')
+    (root / 'cut' / 'metadata.yaml').unlink()
+    (root / 'notes').mkdir()
+    (root / 'notes' / 'trip_1.mcap').write_bytes(b'not a bag')
+    (root / 'notes' / 'readme.txt').write_text('flight notes')
+    assert find_bags([root]) == [(root / 'closed', True), (root / 'cut', True)]
+    said = []
+    runs = load_runs(root, log=said.append)
+    assert [len(r.t) for r in runs] == [2000, 3000]
+    assert runs[1].info['warnings'][0].startswith('no metadata.yaml (the recording did not '
+                                                  f'close: rosbag2 writes it then): read from '
+                                                  f'cut_0{ext}')
+    assert any(ln.startswith(f'warning: {root / "cut"}: no metadata.yaml') for ln in said)
+    assert not (root / 'cut' / 'metadata.yaml').exists()
+    with pytest.raises(DatasetError, match=r'no metadata\.yaml, and not only storage files '
+                                           r'named NAME_N\.db3 or NAME_N\.mcap \(found '
+                                           r"\['readme\.txt', 'trip_1\.mcap'\]\)"):
+        load_runs(root / 'notes')

@@ -102,6 +102,22 @@ def test_a_driver_bag_reads_as_the_same_samples_in_imu_and_temperature(tmp_path)
     np.testing.assert_allclose(got.temp_t, want.temp_t, atol=5e-7, rtol=0)   # float64 at 1.7e9 s
 
 
+@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
+def test_a_driver_bag_without_metadata_yaml_reads_as_with_it(tmp_path, storage):
+    # The recording did not close: rosbags reads the storage through a rebuilt metadata.yaml.
+    kw = dict(imu_topic='/fmu/out/sensor_gyro',
+              temperature_topic='/mip/sensor/temperature_statistics')
+    bag = driver_bag(tmp_path / 'px4', n=1000, storage=storage)
+    want = read_bag(normalize_bag(bag, DriverInputs(**OPTIONS), out=tmp_path / 'a', **kw), **kw)
+    (f,) = [p for p in bag.iterdir() if p.name != 'metadata.yaml']
+    f.rename(bag / f'px4_0{f.suffix}')
+    (bag / 'metadata.yaml').unlink()
+    got = read_bag(normalize_bag(bag, DriverInputs(**OPTIONS), out=tmp_path / 'b', **kw), **kw)
+    assert got.gyro.tobytes() == want.gyro.tobytes() and len(got.gyro) == 1000
+    assert got.temp_c.tobytes() == want.temp_c.tobytes()
+    assert sorted(p.name for p in bag.iterdir()) == [f'px4_0{f.suffix}']
+
+
 def test_train_reads_a_driver_bag_with_the_node_parameters_as_options(tmp_path, capsys):
     bag = driver_bag(tmp_path / 'px4')
     args = [str(bag), '--imu-topic', '/fmu/out/sensor_gyro', '--temperature-topic',

@@ -26,20 +26,24 @@ See ``doc/internals/data.md``.
 
 from __future__ import annotations
 
-from contextlib import contextmanager, ExitStack
+from contextlib import closing, contextmanager, ExitStack
 from functools import lru_cache
 from pathlib import Path
 import shutil
+import sqlite3
 from tempfile import TemporaryDirectory
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
-from gyro_tdc.data.bag.metadata import entries, Entry, storage_paths, topics_of, Unfit, zstd
+from gyro_tdc.data.bag.metadata import (entries, Entry, locate, storage_paths, topics_of, Unfit,
+                                        zstd)
 from gyro_tdc.data.bag.storage_mcap import McapFile
 from gyro_tdc.data.bag.storage_sqlite3 import Sqlite3File
+from gyro_tdc.errors import DatasetError, one_line
 from rosbags.typesys import get_types_from_idl, get_types_from_msg, get_typestore, Stores
+import yaml
 
-__all__ = ['Bag', 'open_bag', 'unfit']
+__all__ = ['Bag', 'open_bag', 'readable', 'rebuild', 'rebuilt_notes', 'unfit']
 
 _FILES = {'sqlite3': Sqlite3File, 'mcap': McapFile}
 # Message definition encodings of sqlite3 and mcap storage: 'msg' or 'idl' ('' is none).
@@ -173,3 +177,80 @@ def open_bag(bag: Path, info: Mapping) -> Iterator[Bag]:
             stack.callback(files[-1].close)
             files[-1].load()              # a file refused is closed with the others
         yield Bag(conns, files)
+
+
+def rebuild(bag: Path, paths: Sequence[Path]) -> dict:
+    """
+    Return the metadata.yaml of storage files that have none, as ``ros2 bag reindex`` does.
+
+    Every topic with its messages counted in the files (a cut-off mcap file's up to its last
+    whole chunk). Raises DatasetError naming the bag and why when a file cannot be read.
+    """
+    storage = 'sqlite3' if paths[0].suffix == '.db3' else 'mcap'
+    topics: list[list] = []                        # [entry, messages]
+    listed, spans, packed = [], [], False
+    for path in paths:
+        try:
+            with closing(_FILES[storage](path)) as f:
+                f.load()
+                counts, packed = f.counts(), packed or f.compressed()
+        except (Unfit, sqlite3.Error, OSError, ValueError, MemoryError) as err:
+            raise DatasetError(f'Cannot read bag {str(bag)!r} (no metadata.yaml): storage file '
+                               f'{path.name} is unreadable or corrupt: {one_line(err)}') from err
+        for conn in f.conns:
+            n = counts.get(conn.id, (0,))[0]
+            t = next((t for t in topics if t[0].same(conn)), None)
+            if t is None:
+                topics.append([conn, n])
+            else:
+                t[1] += n
+        spans += [v[1:] for v in counts.values()]
+        listed.append({'path': path.name, 'message_count': sum(v[0] for v in counts.values())})
+    start, end = (min(a for a, _ in spans), max(b for _, b in spans)) if spans else (0, 0)
+    return {'version': 9, 'storage_identifier': storage,
+            'relative_file_paths': [p.name for p in paths],
+            'duration': {'nanoseconds': end - start},
+            'starting_time': {'nanoseconds_since_epoch': start},
+            'message_count': sum(n for _, n in topics),
+            'compression_format': 'zstd' if packed else '',
+            'compression_mode': 'message' if packed else '',
+            'topics_with_message_count': [
+                {'topic_metadata': {'name': c.topic, 'type': c.msgtype,
+                                    'serialization_format': c.fmt,
+                                    'offered_qos_profiles': c.qos,
+                                    'type_description_hash': c.digest},
+                 'message_count': n} for c, n in topics],
+            'files': listed}
+
+
+def rebuilt_notes(paths: Sequence[Path]) -> tuple[str, ...]:
+    """Return the warnings of a read of storage files without their metadata.yaml."""
+    wal = [(p.name, w.stat().st_size) for p in paths
+           if (w := p.with_name(p.name + '-wal')).is_file() and w.stat().st_size]
+    return (f'no metadata.yaml (the recording did not close: rosbag2 writes it then): read '
+            f'from {", ".join(p.name for p in paths)} as `ros2 bag reindex` would list it',
+            *(f"{name}-wal: {size} bytes of SQLite's write-ahead log not read (the messages "
+              f"written last; `sqlite3 {name} 'PRAGMA wal_checkpoint'` merges them into the "
+              'file)' for name, size in wal))
+
+
+@contextmanager
+def readable(path: str | Path) -> Iterator[Path]:
+    """
+    Yield a bag directory rosbags' reader opens: the bag's, or one with a rebuilt metadata.yaml.
+
+    A bag without metadata.yaml (:func:`~gyro_tdc.data.bag.metadata.locate`) is given a
+    temporary directory of links to its storage files beside its :func:`rebuild`
+    metadata.yaml; nothing is written into the bag.
+    """
+    bag, paths = locate(path)
+    if paths is None:
+        yield bag
+        return
+    info = rebuild(bag, paths)
+    with TemporaryDirectory(prefix='gyro_tdc_bag_') as tmp:
+        for p in paths:
+            (Path(tmp) / p.name).symlink_to(p.absolute())
+        (Path(tmp) / 'metadata.yaml').write_text(
+            yaml.safe_dump({'rosbag2_bagfile_information': info}), encoding='utf-8')
+        yield Path(tmp)

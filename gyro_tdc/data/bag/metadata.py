@@ -25,6 +25,7 @@ leaves the bag to rosbags.
 from __future__ import annotations
 
 from pathlib import Path, PurePath
+import re
 import sys
 from typing import Any, Mapping, NamedTuple
 
@@ -38,13 +39,16 @@ if sys.version_info >= (3, 14):
 else:                         # rosbags' own zstd before Python 3.14
     from backports import zstd
 
-__all__ = ['check_counts', 'describe', 'entries', 'Entry', 'load', 'min_message_bytes',
-           'qos', 'bag_dir', 'storage_bytes', 'storage_paths', 'topics_of', 'ZSTD_MAX_RATIO',
-           'Unfit', 'zstd', 'ZSTD_MIN_FRAME_BYTES']
+__all__ = ['check_counts', 'describe', 'entries', 'Entry', 'load', 'locate',
+           'min_message_bytes', 'qos', 'STORAGE_SUFFIXES', 'storage_bytes', 'storage_files',
+           'storage_paths', 'topics_of', 'ZSTD_MAX_RATIO', 'Unfit', 'zstd', 'ZSTD_MAGIC',
+           'ZSTD_MIN_FRAME_BYTES']
 
 #: Smallest zstd frame (magic, frame header, one block header): a message compressed on its
 #: own (``compression_mode: message``) takes at least this many bytes.
 ZSTD_MIN_FRAME_BYTES = 9
+#: The first bytes of a zstd frame.
+ZSTD_MAGIC = b'\x28\xb5\x2f\xfd'
 #: Largest expansion of zstd (a 4-byte RLE block stands for up to 128 KiB): a storage file
 #: compressed whole (``compression_mode: file``) holds at most this many bytes per byte.
 ZSTD_MAX_RATIO = 32768
@@ -56,8 +60,39 @@ class Unfit(Exception):
     """The columnar read does not apply to this bag: rosbags' reader reads it."""
 
 
-def bag_dir(path: str | Path) -> Path:
-    """Return the rosbag2 directory of ``path`` or raise DatasetError saying why not."""
+#: A split storage file as rosbag2 names it (``NAME_N``), as ``ros2 bag reindex`` finds them.
+_SPLIT = re.compile(r'.+_(\d+)')
+STORAGE_SUFFIXES = ('.db3', '.mcap')
+
+
+def storage_files(folder: Path) -> list[Path]:
+    """
+    Return the storage files of a folder that holds nothing else, as ``ros2 bag reindex`` does.
+
+    ``NAME_N.db3`` / ``NAME_N.mcap`` by N (rosbag2's), and ``FOLDER.db3`` / ``.mcap``
+    (rosbags' writer's name); SQLite's own ``-wal``, ``-shm`` and ``-journal`` files may
+    stand beside them. Anything else there: none (a folder of other things, walked).
+    """
+    found, other = [], False
+    for p in folder.iterdir():
+        if p.suffix in STORAGE_SUFFIXES and p.is_file() and (
+                _SPLIT.fullmatch(p.stem) or p.stem == folder.name):
+            found.append(p)
+        else:
+            other |= not p.name.endswith(('-wal', '-shm', '-journal'))
+    return [] if other else sorted(found, key=lambda p: (
+        int(m[1]) if (m := _SPLIT.fullmatch(p.stem)) else -1, p.name))
+
+
+def locate(path: str | Path) -> tuple[Path, list[Path] | None]:
+    """
+    Return a bag's directory and, when it has no metadata.yaml, the storage files to read.
+
+    A recording cut off (the power went) has no metadata.yaml: rosbag2 writes it on close.
+    Such a directory is a bag when it holds storage files named as rosbag2 names them (of
+    one storage); a ``.db3`` or ``.mcap`` file without metadata.yaml beside it is a bag of
+    that file alone. Raises DatasetError saying why ``path`` is no bag.
+    """
     p = Path(path)
     if not p.exists():
         raise DatasetError(f'Bag {str(p)!r} does not exist.')
@@ -65,15 +100,22 @@ def bag_dir(path: str | Path) -> Path:
         if p.suffix == '.bag':
             raise DatasetError(f'Bag {str(p)!r} is a ROS 1 bag; expected a rosbag2 directory '
                                '(convert it with rosbags-convert).')
-        if p.suffix in ('.db3', '.mcap') and (p.parent / 'metadata.yaml').is_file():
-            return p.parent
+        if p.suffix in STORAGE_SUFFIXES:
+            return p.parent, None if (p.parent / 'metadata.yaml').is_file() else [p]
         raise DatasetError(f'Bag {str(p)!r} is a file, not a rosbag2 directory (a folder '
                            'with metadata.yaml and .db3 or .mcap files).')
-    if not (p / 'metadata.yaml').is_file():
+    if (p / 'metadata.yaml').is_file():
+        return p, None
+    files = storage_files(p)
+    if not files:
         found = sorted(x.name for x in p.iterdir())[:5]
-        raise DatasetError(f'Bag {str(p)!r} is not a rosbag2 directory: no metadata.yaml '
-                           f'(found {found or "nothing"}; `ros2 bag reindex` can rebuild it).')
-    return p
+        raise DatasetError(f'Bag {str(p)!r} is not a rosbag2 directory: no metadata.yaml, '
+                           f'and not only storage files named NAME_N.db3 or NAME_N.mcap (found '
+                           f'{found or "nothing"}).')
+    if len({f.suffix for f in files}) > 1:
+        raise DatasetError(f'Bag {str(p)!r} has no metadata.yaml and holds both .db3 and '
+                           '.mcap files: give the storage file to read.')
+    return p, files
 
 
 def load(bag: Path) -> Mapping:

@@ -27,6 +27,7 @@ from pathlib import Path
 from typing import Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
+from gyro_tdc.data.bag.columnar import readable
 from gyro_tdc.data.bag.metadata import describe
 from gyro_tdc.data.bag.reader import READ_ERRORS, with_data
 from gyro_tdc.data.field_paths import reader as field_reader, stamp_seconds
@@ -86,7 +87,7 @@ def read_motion(path: str | Path, topic: str) -> MotionReports:
     """
     bag = Path(path)
     try:
-        with AnyReader([bag], default_typestore=jazzy()) as reader:
+        with readable(bag) as opened, AnyReader([opened], default_typestore=jazzy()) as reader:
             topics = {name: (t.msgtype or '?', t.msgcount) for name, t in reader.topics.items()}
             if topic not in topics:
                 raise DatasetError(f'Bag {str(bag)!r} has no motion topic {topic!r}; topics '

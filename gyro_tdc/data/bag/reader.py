@@ -226,14 +226,15 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
     """
     if via not in VIA:
         raise DatasetError(f'Expected `via` to be one of {", ".join(VIA)}, got {via!r}.')
-    bag = metadata.bag_dir(path)
+    bag, files = metadata.locate(path)
     info: Mapping = {}
     wanted = [('imu', imu_topic, (IMU_TYPE,), True),
               ('temperature', temperature_topic, TEMPERATURE_TYPES, True)]
     if reference_topic is not None:
         wanted.append(('reference', reference_topic, (REFERENCE_TYPE,), False))
     try:
-        info = metadata.load(bag)
+        info = metadata.load(bag) if files is None else columnar.rebuild(bag, files)
+        notes = () if files is None else columnar.rebuilt_notes(files)
         metadata.check_counts(bag, info)
         why = columnar.unfit(info) if via != 'rosbags' else 'rosbags asked for'
         partial = None
@@ -244,7 +245,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                     data = _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
                                     opened.typestore, bag, info, topics, conns, progress,
                                     accel, 'columnar')
-                    data = replace(data, warnings=opened.warnings)
+                    data = replace(data, warnings=notes + opened.warnings)
                 if opened.short is None or via == 'columnar':
                     return data
                 # Fewer than listed: rosbags' walk of a damaged index may find the others.
@@ -258,15 +259,17 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
         if via == 'columnar':
             raise DatasetError(f'Cannot read bag {str(bag)!r} column by column: {why}.')
         try:
-            with AnyReader([bag], default_typestore=jazzy()) as reader:
+            with columnar.readable(path) as readable, \
+                    AnyReader([readable], default_typestore=jazzy()) as reader:
                 topics, conns = _connections(
                     {name: (t.msgtype or '?', int(t.msgcount))
                      for name, t in reader.topics.items()}, reader.connections, bag, wanted)
                 # One bag: its rosbags Reader directly, without AnyReader's merge across bags.
                 source = reader.readers[0] if len(reader.readers) == 1 else reader
-                return _collect(lambda out, update: _rosbags_feed(source, conns, out, update),
-                                reader.typestore, bag, info, topics, conns, progress, accel,
-                                'rosbags')
+                return replace(_collect(
+                    lambda out, update: _rosbags_feed(source, conns, out, update),
+                    reader.typestore, bag, info, topics, conns, progress, accel, 'rosbags'),
+                    warnings=notes)
         except READ_ERRORS:
             if partial is None:
                 raise

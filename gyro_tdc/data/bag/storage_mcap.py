@@ -33,7 +33,7 @@ from pathlib import Path
 import struct
 from typing import Any, Callable, Iterable, Mapping, NamedTuple
 
-from gyro_tdc.data.bag.metadata import Entry, Unfit, zstd
+from gyro_tdc.data.bag.metadata import Entry, Unfit, zstd, ZSTD_MAGIC
 import numpy as np
 
 __all__ = ['cut_off', 'McapFile']
@@ -260,6 +260,23 @@ class McapFile:
             self._register(raw[pos], _Fields(raw[pos + 9:pos + 9 + length]), schemas)
             pos += 9 + length
         return counts
+
+    def counts(self) -> dict[int, tuple[int, int, int]]:
+        """Return channel id -> (messages, first and last log time, ns), from the chunks."""
+        out: dict[int, tuple[int, int, int]] = {}
+        for c in self.chunks:
+            for key, n in c.counts.items():
+                m, lo, hi = out.get(key, (0, c.start, c.end))
+                out[key] = (m + n, min(lo, c.start), max(hi, c.end))
+        return out
+
+    def compressed(self) -> bool:
+        """Return whether the first message is a zstd frame (compressed message by message)."""
+        if not self.chunks or self.chunks[0].compression not in ('', 'zstd'):
+            return False                      # lz4 chunks: rosbags reads them
+        raw = self._decompress(self.chunks[0])
+        runs = self.runs(raw)
+        return bool(runs) and raw[runs[0][0] + 31:runs[0][0] + 35] == ZSTD_MAGIC
 
     def close(self) -> None:
         """Close the file."""

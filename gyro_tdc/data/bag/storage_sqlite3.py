@@ -34,7 +34,7 @@ import sqlite3
 import threading
 from typing import Any, Callable, Iterator, Mapping, Sequence
 
-from gyro_tdc.data.bag.metadata import Entry, Unfit
+from gyro_tdc.data.bag.metadata import Entry, Unfit, ZSTD_MAGIC
 import numpy as np
 from numpy.typing import NDArray
 
@@ -93,6 +93,17 @@ class Sqlite3File:
                 'FROM message_definitions ORDER BY id') if schema >= 4 else ()):
             if name in types:
                 self.definitions.setdefault(name, (encoding, text))
+
+    def counts(self) -> dict[int, tuple[int, int, int]]:
+        """Return topic id -> (messages, first and last log time, ns), from the table."""
+        return {k: (n, lo, hi) for k, n, lo, hi in self.db.execute(
+            'SELECT topic_id, count(*), min(timestamp), max(timestamp) FROM messages '
+            'GROUP BY topic_id')}
+
+    def compressed(self) -> bool:
+        """Return whether the first message is a zstd frame (compressed message by message)."""
+        first = self.db.execute('SELECT substr(data, 1, 4) FROM messages LIMIT 1').fetchone()
+        return first is not None and first[0] == ZSTD_MAGIC
 
     def close(self) -> None:
         """Close the database."""

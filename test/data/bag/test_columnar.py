@@ -17,6 +17,7 @@
 from __future__ import annotations
 
 from pathlib import Path
+import re
 import shutil
 
 from columnar_tape import (_chamber, _same_data, _same_tape, _tapes, _topics, _write, ARRAYS,
@@ -244,3 +245,185 @@ def test_a_storage_topic_unlike_its_metadata_goes_to_rosbags(tmp_path, storage):
     with pytest.raises(DatasetError, match='column by column: topic'):
         read_bag(bag, via='columnar')
     assert read_bag(bag).via == 'rosbags'
+
+
+# ------------------------------------------------------------------------------------------
+# A bag without metadata.yaml (the recording did not close), as `ros2 bag reindex` lists it
+# ------------------------------------------------------------------------------------------
+
+REAL = Path(__file__).parents[2] / 'support' / 'files' / 'rosbag2'
+
+
+def _without_metadata(bag: Path, ext: str) -> list[str]:
+    """Name the storage files as rosbag2 splits them (in metadata.yaml's order), drop it."""
+    info = metadata.load(bag)
+    for k, name in enumerate(info['relative_file_paths']):
+        (bag / name).rename(bag / f'{bag.name}_{k}{ext}')
+    (bag / 'metadata.yaml').unlink()
+    return sorted(p.name for p in bag.iterdir())
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_a_bag_without_metadata_yaml_is_read_as_ros2_bag_reindex_lists_it(tmp_path, storage):
+    bag = _several_files(tmp_path, storage)
+    ref, info = read_bag(bag), metadata.load(bag)
+    ext = '.db3' if storage == 'sqlite3' else '.mcap'
+    files = _without_metadata(bag, ext)
+    got = read_bag(bag)
+    for name in ARRAYS:
+        a, b = getattr(got, name), getattr(ref, name)
+        assert (a is None) == (b is None) and (a is None or a.tobytes() == b.tobytes()), name
+    assert got.topics == ref.topics and got.via == 'columnar'
+    (warning,) = got.warnings
+    assert warning == (f'no metadata.yaml (the recording did not close: rosbag2 writes it '
+                       f'then): read from bag_0{ext}, bag_1{ext} as `ros2 bag reindex` would '
+                       'list it')
+    _same_data(bag)                         # rosbags' read, of the rebuilt metadata.yaml
+    # Nothing is written into the bag.
+    assert sorted(p.name for p in bag.iterdir()) == files
+    rebuilt = columnar.rebuild(*metadata.locate(bag))
+    for key in ('message_count', 'storage_identifier'):
+        assert rebuilt[key] == info[key], key
+    starts = [f['starting_time']['nanoseconds_since_epoch'] for f in info['files']]
+    ends = [a + f['duration']['nanoseconds'] for a, f in zip(starts, info['files'])]
+    assert rebuilt['starting_time']['nanoseconds_since_epoch'] == min(starts)
+    assert rebuilt['duration']['nanoseconds'] == max(ends) - min(starts)
+    assert [(t['topic_metadata']['name'], t['message_count'])
+            for t in rebuilt['topics_with_message_count']] == [
+        (t['topic_metadata']['name'], t['message_count'])
+        for t in info['topics_with_message_count']]
+    assert [f['message_count'] for f in rebuilt['files']] == [
+        f['message_count'] for f in info['files']]
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_rosbag2s_own_bag_without_metadata_reads_as_its_reindex_test_lists_it(tmp_path, storage):
+    # rosbag2's reindex test bag (written by its C++ storage plugins, split in three files):
+    # the same topic, counts and times from either storage, read in full by rosbags.
+    real = REAL / storage / 'multiple_files'
+    bag, files = metadata.locate(real)
+    assert bag == real and [f.name for f in files] == [
+        f'multiple_files_{k}.{"db3" if storage == "sqlite3" else "mcap"}' for k in range(3)]
+    info = columnar.rebuild(bag, files)
+    assert info['message_count'] == 3177 and [
+        (t['topic_metadata']['name'], t['topic_metadata']['type'], t['message_count'])
+        for t in info['topics_with_message_count']] == [('/chatter', 'std_msgs/msg/String', 3177)]
+    assert info['starting_time']['nanoseconds_since_epoch'] == 1616653333034080451
+    assert info['duration']['nanoseconds'] == 6352112906
+    with columnar.readable(real) as opened, AnyReader([opened], default_typestore=TS) as r:
+        texts = {r.deserialize(raw, c.msgtype).data for c, _, raw in r.messages()}
+        assert sum(1 for _ in r.messages()) == 3177 and texts == {'test'}
+    assert not opened.exists() and sorted(p.name for p in real.iterdir()) == [
+        f.name for f in files]
+    with pytest.raises(DatasetError, match=r"has no topic '/imu/data_raw' \(imu\); topics "
+                                           r'present: /chatter \(std_msgs/msg/String, 3177'):
+        read_bag(real)
+
+
+def test_a_storage_file_without_metadata_beside_it_is_a_bag_of_that_file(tmp_path):
+    rng = np.random.default_rng(12)
+    one = _write(tmp_path / 'one', 'mcap', _chamber(rng))
+    other = _write(tmp_path / 'other', 'mcap', _chamber(rng, n=50))
+    ref = read_bag(one)
+    shutil.copy(other / 'other.mcap', tmp_path / 'loose_1.mcap')
+    shutil.copy(one / 'one.mcap', tmp_path / 'loose_2.mcap')
+    got = read_bag(tmp_path / 'loose_2.mcap')
+    assert got.gyro.tobytes() == ref.gyro.tobytes() and got.topics == ref.topics
+    assert 'read from loose_2.mcap as' in got.warnings[0]
+    # The real talker (rosbag2's, no IMU): its topics named.
+    shutil.copy(REAL / 'talker.mcap', tmp_path / 'talker.mcap')
+    with pytest.raises(DatasetError, match=r"no topic '/imu/data_raw' \(imu\); topics present: "
+                                           r'/parameter_events \(rcl_interfaces/msg/'
+                                           r'ParameterEvent, 0 msgs\), /rosout \(rcl_interfaces/'
+                                           r'msg/Log, 10 msgs\), '
+                                           r'/topic \(std_msgs/msg/String, 10 msgs\)\.$'):
+        read_bag(tmp_path / 'talker.mcap')
+
+
+def test_an_mcap_file_cut_off_without_metadata_yaml_is_read_with_both_warnings(tmp_path):
+    # The power went during `ros2 bag record`: no footer and no metadata.yaml.
+    rng = np.random.default_rng(16)
+    whole = _write(tmp_path / 'whole', 'mcap', _chamber(rng, n=9000))
+    ref = read_bag(whole)
+    bag = tmp_path / 'rec'
+    bag.mkdir()
+    raw = (whole / 'whole.mcap').read_bytes()
+    (bag / 'rec_0.mcap').write_bytes(raw[:int(0.7 * len(raw))])
+    got = read_bag(bag)
+    n = len(got.imu_t)
+    assert 0 < n < len(ref.imu_t) and got.gyro.tobytes() == ref.gyro[:n].tobytes()
+    rebuilt, cut = got.warnings
+    assert rebuilt.startswith('no metadata.yaml') and cut.startswith('rec_0.mcap ends without')
+    # rosbags reads no file without its footer: the paths through it say so in one line.
+    with pytest.raises(DatasetError, match=r'unreadable or corrupt.*rec_0\.mcap ends without '
+                                           'the mcap footer'):
+        read_bag(bag, via='rosbags')
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_a_bag_compressed_message_by_message_without_metadata_goes_to_rosbags(tmp_path,
+                                                                              storage):
+    rng = np.random.default_rng(5)
+    bag = _write(tmp_path / 'bag', storage, _chamber(rng), compression=CompressionMode.MESSAGE)
+    ref = read_bag(bag)
+    _without_metadata(bag, '.db3' if storage == 'sqlite3' else '.mcap')
+    got = read_bag(bag)
+    assert got.gyro.tobytes() == ref.gyro.tobytes()
+    assert got.temp_c.tobytes() == ref.temp_c.tobytes()
+    assert got.warnings[0].startswith('no metadata.yaml')
+
+
+@pytest.mark.parametrize('files, needle', [
+    ({'notes.txt': b'hello', 'old.db3': b''},
+     r'not a rosbag2 directory: no metadata\.yaml, and not only storage files named '
+     r"NAME_N\.db3 or NAME_N\.mcap \(found \['notes\.txt', 'old\.db3'\]\)\.$"),
+    ({'x_0.db3': b'', 'x_1.mcap': b''}, r'holds both \.db3 and \.mcap files'),
+    ({'x_0.db3': b'SQLite format 3\x00' + bytes(200)},
+     r'\(no metadata\.yaml\): storage file x_0\.db3 is unreadable or corrupt: '),
+    ({'x_0.db3': b'not a database at all' * 100},
+     r'\(no metadata\.yaml\): storage file x_0\.db3 is unreadable or corrupt: '),
+    ({'x_0.mcap': b'\x89MCAP0\r\n' + bytes(40)},
+     r'\(no metadata\.yaml\): storage file x_0\.mcap is unreadable or corrupt: '),
+    ({'x_0.mcap': b'plain text'},
+     r'\(no metadata\.yaml\): storage file x_0\.mcap is unreadable or corrupt: not an mcap'),
+])
+def test_a_folder_without_metadata_that_is_no_bag_is_one_line(tmp_path, files, needle):
+    bag = tmp_path / 'x'
+    bag.mkdir()
+    for name, data in files.items():
+        (bag / name).write_bytes(data)
+    with pytest.raises(DatasetError, match=needle) as err:
+        read_bag(bag)
+    assert '\n' not in str(err.value)
+    assert sorted(p.name for p in bag.iterdir()) == sorted(files)
+
+
+def test_an_unmerged_sqlite_write_ahead_log_is_named_not_read(tmp_path):
+    # rosbag2's `resilient` preset records with SQLite's write-ahead log: after a power loss
+    # the messages written last may stand in NAME_0.db3-wal only.
+    import sqlite3
+    rng = np.random.default_rng(13)
+    bag = _write(tmp_path / 'bag', 'sqlite3', _chamber(rng))
+    ref = read_bag(bag)
+    _without_metadata(bag, '.db3')
+    db = sqlite3.connect(bag / 'bag_0.db3')
+    try:
+        db.execute('PRAGMA journal_mode=WAL')
+        db.execute('PRAGMA wal_autocheckpoint=0')
+        db.execute('INSERT INTO messages (topic_id, timestamp, data) SELECT topic_id, '
+                   'timestamp + 1000000000000, data FROM messages')
+        db.commit()
+        cut = tmp_path / 'cut'
+        cut.mkdir()
+        for name in ('bag_0.db3', 'bag_0.db3-wal'):       # the power goes: the files as they are
+            shutil.copy(bag / name, cut / name)
+    finally:
+        db.close()
+    got = read_bag(cut)
+    assert got.gyro.tobytes() == ref.gyro.tobytes()
+    rebuilt, wal = got.warnings
+    assert rebuilt.startswith('no metadata.yaml') and re.fullmatch(
+        r"bag_0\.db3-wal: \d+ bytes of SQLite's write-ahead log not read \(the messages "
+        r"written last; `sqlite3 bag_0\.db3 'PRAGMA wal_checkpoint'` merges them into the "
+        r'file\)', wal)
+    assert sorted(p.name for p in cut.iterdir()) == ['bag_0.db3', 'bag_0.db3-wal']

@@ -43,6 +43,17 @@ def test_twists_read_back_in_time_order_with_their_log_times(tmp_path, storage):
     np.testing.assert_array_equal(got.twist, twist[order])
 
 
+def test_a_motion_topic_of_a_bag_without_metadata_yaml_reads_as_with_it(tmp_path):
+    rng = np.random.default_rng(4)
+    bag = _bag(tmp_path / 'bag', 'mcap', rng.normal(size=(5, 6)), [0.1, 0.2, 0.3, 0.4, 0.5])
+    want = read_motion(bag, '/cmd_vel')
+    (bag / 'bag.mcap').rename(bag / 'bag_0.mcap')
+    (bag / 'metadata.yaml').unlink()
+    got = read_motion(bag, '/cmd_vel')
+    np.testing.assert_array_equal(got.twist, want.twist)
+    np.testing.assert_array_equal(got.t, want.t)
+
+
 def test_a_missing_or_mistyped_motion_topic_is_one_line(tmp_path):
     bag = _bag(tmp_path / 'bag', 'sqlite3', np.zeros((1, 6)), [0.0])
     with pytest.raises(DatasetError, match="no motion topic '/odom'; topics present: .*/cmd_vel"):
@@ -50,8 +61,12 @@ def test_a_missing_or_mistyped_motion_topic_is_one_line(tmp_path):
     with pytest.raises(DatasetError, match="'/imu/temperature' .* has type 'sensor_msgs/msg/"
                                            "Temperature', expected one of"):
         read_motion(bag, '/imu/temperature')
-    with pytest.raises(DatasetError, match='Cannot read motion topic'):
+    with pytest.raises(DatasetError, match=r"^Bag '.*nothing' does not exist\.$"):
         read_motion(tmp_path / 'nothing', '/cmd_vel')
+    (tmp_path / 'empty').mkdir()
+    (tmp_path / 'empty' / 'metadata.yaml').write_text('rosbag2_bagfile_information: {}\n')
+    with pytest.raises(DatasetError, match='Cannot read motion topic'):
+        read_motion(tmp_path / 'empty', '/cmd_vel')
 
 
 def test_a_motion_message_without_data_is_one_line(tmp_path):
