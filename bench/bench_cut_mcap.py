@@ -20,9 +20,15 @@ chunks; four zstd-compressed chunks), ``--cuts`` copies are cut at seeded random
 read by ``read_bag`` as ``train`` reads them. A copy must read the messages of its whole
 chunks, the same as the uncut bag's first ones, with a warning naming the file, or be
 refused in one line; anything else is a defect. Printed per shape: read, refused, defects,
-and the worst read (the largest share of the uncut bag's IMU messages lost). ::
+and the worst read (the largest share of the uncut bag's IMU messages lost).
+
+``--no-metadata``: as the power loss leaves them, without metadata.yaml (rosbag2 writes it
+on close) and the file named as rosbag2 names it; a sqlite3 shape is added, whose cut copy
+must read messages of the uncut bag (any of them, in order) or be refused. Every read must
+then also warn of the missing metadata.yaml. ::
 
     .venv/bin/python bench/bench_cut_mcap.py --cuts 40 --seed 0
+    .venv/bin/python bench/bench_cut_mcap.py --cuts 40 --seed 1 --no-metadata
 """
 
 import argparse
@@ -42,13 +48,24 @@ from gyro_tdc.errors import DatasetError  # noqa: E402
 import numpy as np  # noqa: E402
 from rosbags.rosbag2 import CompressionMode  # noqa: E402
 
-#: name -> (IMU messages, Float temperatures, chunk compression)
-SHAPES = {'one chunk': (700, False, None), 'four chunks': (9000, False, None),
-          'float, 14 chunks': (30000, True, None),
-          'zstd chunks': (9000, False, CompressionMode.STORAGE)}
+#: name -> (storage, IMU messages, Float temperatures, chunk compression)
+SHAPES = {'one chunk': ('mcap', 700, False, None), 'four chunks': ('mcap', 9000, False, None),
+          'float, 14 chunks': ('mcap', 30000, True, None),
+          'zstd chunks': ('mcap', 9000, False, CompressionMode.STORAGE),
+          'sqlite3': ('sqlite3', 9000, False, None)}
 
 
-def judge(bag: Path, ref, cut_at: int, size: int) -> tuple[str, float]:
+def _among(got, ref) -> bool:
+    """Return whether every IMU and temperature sample read is one of ``ref``'s, in order."""
+    for t, v, rt, rv in ((got.imu_t, got.gyro, ref.imu_t, ref.gyro),
+                         (got.temp_t, got.temp_c, ref.temp_t, ref.temp_c)):
+        k = np.searchsorted(rt, t)
+        if np.any(k >= len(rt)) or not (np.array_equal(rt[k], t) and np.array_equal(rv[k], v)):
+            return False
+    return True
+
+
+def judge(bag: Path, ref, cut_at: int, size: int, bare: bool) -> tuple[str, float]:
     """Return the outcome of reading one cut copy and the share of IMU messages lost."""
     try:
         got = read_bag(bag)
@@ -57,11 +74,17 @@ def judge(bag: Path, ref, cut_at: int, size: int) -> tuple[str, float]:
     except Exception as exc:  # noqa: B902 (any other exception is the defect counted)
         return f'defect: {type(exc).__name__}', 1.0
     n, m = len(got.imu_t), len(got.temp_t)
-    same = (np.array_equal(got.imu_t, ref.imu_t[:n]) and np.array_equal(got.gyro, ref.gyro[:n])
-            and np.array_equal(got.temp_c, ref.temp_c[:m]))
-    warned = cut_at == size or any('ends without the mcap footer' in w for w in got.warnings)
+    if got.storage == 'sqlite3':
+        same, warned = _among(got, ref), True
+    else:
+        same = (np.array_equal(got.imu_t, ref.imu_t[:n])
+                and np.array_equal(got.gyro, ref.gyro[:n])
+                and np.array_equal(got.temp_c, ref.temp_c[:m]))
+        warned = cut_at == size or any('ends without the mcap footer' in w for w in got.warnings)
     if not same:
-        return 'defect: not the first messages of the uncut bag', 1.0
+        return 'defect: not messages of the uncut bag', 1.0
+    if bare and not (got.warnings and got.warnings[0].startswith('no metadata.yaml')):
+        return 'defect: no warning of the missing metadata.yaml', 1.0
     return ('read' if warned else 'defect: no warning'), 1.0 - n / len(ref.imu_t)
 
 
@@ -70,26 +93,33 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--cuts', type=int, default=40, help='cut copies per shape')
     ap.add_argument('--seed', type=int, default=0, help='seed of the cut offsets')
+    ap.add_argument('--no-metadata', action='store_true',
+                    help='cut copies without metadata.yaml, and a sqlite3 shape')
     args = ap.parse_args(argv)
+    shapes = {k: v for k, v in SHAPES.items() if args.no_metadata or v[0] == 'mcap'}
     rng = np.random.default_rng(args.seed)
-    print(f'{args.cuts} cut copies per shape, seed {args.seed}: read, refused in one line, '
-          'defects, worst read (share of IMU messages lost)')
+    print(f'{args.cuts} cut copies per shape, seed {args.seed}'
+          f'{", without metadata.yaml" if args.no_metadata else ""}: read, refused in one '
+          'line, defects, worst read (share of IMU messages lost)')
     total = {'read': 0, 'refused': 0, 'defect': 0}
     with tempfile.TemporaryDirectory(prefix='gyro_tdc_cut_') as tmp:
-        for k, (name, (n, floating, comp)) in enumerate(SHAPES.items()):
-            whole = _write(Path(tmp) / f'whole{k}', 'mcap',
+        for k, (name, (storage, n, floating, comp)) in enumerate(shapes.items()):
+            whole = _write(Path(tmp) / f'whole{k}', storage,
                            _chamber(np.random.default_rng(k), n=n, floating=floating),
                            compression=comp)
             ref = read_bag(whole)
-            (path,) = whole.glob('*.mcap')
+            (path,) = [p for p in whole.iterdir() if p.suffix in ('.db3', '.mcap')]
             raw = path.read_bytes()
             counts, worst, defects = {'read': 0, 'refused': 0, 'defect': 0}, 0.0, []
             for j in range(args.cuts):
                 at = int(rng.integers(0, len(raw)))
                 bag = Path(tmp) / f'cut{k}_{j}'
                 shutil.copytree(whole, bag)
-                next(bag.glob('*.mcap')).write_bytes(raw[:at])
-                outcome, lost = judge(bag, ref, at, len(raw))
+                (bag / path.name).write_bytes(raw[:at])
+                if args.no_metadata:
+                    (bag / 'metadata.yaml').unlink()
+                    (bag / path.name).rename(bag / f'{bag.name}_0{path.suffix}')
+                outcome, lost = judge(bag, ref, at, len(raw), args.no_metadata)
                 counts[outcome.split(':')[0]] += 1
                 if outcome == 'read':
                     worst = max(worst, lost)

@@ -195,8 +195,11 @@ def rebuild(bag: Path, paths: Sequence[Path]) -> dict:
                 f.load()
                 counts, packed = f.counts(), packed or f.compressed()
         except (Unfit, sqlite3.Error, OSError, ValueError, MemoryError) as err:
+            fix = (f' (`sqlite3 {path.name} .recover | sqlite3 NEW/{path.name}` copies what '
+                   'it holds to a new file)' if storage == 'sqlite3' else '')
             raise DatasetError(f'Cannot read bag {str(bag)!r} (no metadata.yaml): storage file '
-                               f'{path.name} is unreadable or corrupt: {one_line(err)}') from err
+                               f'{path.name} is unreadable or corrupt: {one_line(err)}{fix}'
+                               ) from err
         for conn in f.conns:
             n = counts.get(conn.id, (0,))[0]
             t = next((t for t in topics if t[0].same(conn)), None)

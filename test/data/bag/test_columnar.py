@@ -182,11 +182,14 @@ def pristine(tmp_path_factory):
 @settings(max_examples=12, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(storage=st.sampled_from(STORAGES), where=st.floats(0.0, 1.0),
-       junk=st.binary(min_size=1, max_size=64), cut=st.booleans())
-@example(storage='sqlite3', where=0.9616038597528169, junk=b'\x01', cut=False)  # the index
-@example(storage='sqlite3', where=0.8784913624986797, junk=b'\x00', cut=False)  # NULL data
+       junk=st.binary(min_size=1, max_size=64), cut=st.booleans(), bare=st.booleans())
+@example(storage='sqlite3', where=0.9616038597528169, junk=b'\x01', cut=False,
+         bare=False)                                                          # the index
+@example(storage='sqlite3', where=0.8784913624986797, junk=b'\x00', cut=False,
+         bare=False)                                                          # NULL data
 def test_damaged_storage_is_read_as_rosbags_reads_it_or_refused_in_one_line(
-        tmp_path_factory, pristine, storage, where, junk, cut):
+        tmp_path_factory, pristine, storage, where, junk, cut, bare):
+    # ``bare``: without metadata.yaml, listed from the damaged file for either read.
     bag = tmp_path_factory.mktemp('hurt') / 'bag'
     shutil.copytree(pristine[storage], bag)
     (path,) = [p for p in bag.iterdir() if p.suffix in ('.db3', '.mcap')]
@@ -194,6 +197,8 @@ def test_damaged_storage_is_read_as_rosbags_reads_it_or_refused_in_one_line(
     at = int(where * (len(raw) - 1))
     raw = raw[:at] if cut else raw[:at] + junk + raw[at + len(junk):]
     path.write_bytes(bytes(raw))
+    if bare:
+        _without_metadata(bag, path.suffix)
     outcomes = []
     for via in ('auto', 'rosbags'):
         try:
@@ -381,7 +386,9 @@ def test_a_bag_compressed_message_by_message_without_metadata_goes_to_rosbags(tm
     ({'x_0.db3': b'SQLite format 3\x00' + bytes(200)},
      r'\(no metadata\.yaml\): storage file x_0\.db3 is unreadable or corrupt: '),
     ({'x_0.db3': b'not a database at all' * 100},
-     r'\(no metadata\.yaml\): storage file x_0\.db3 is unreadable or corrupt: '),
+     r'\(no metadata\.yaml\): storage file x_0\.db3 is unreadable or corrupt: .* '
+     r'\(`sqlite3 x_0\.db3 \.recover \| sqlite3 NEW/x_0\.db3` copies what it holds to a new '
+     r'file\)$'),
     ({'x_0.mcap': b'\x89MCAP0\r\n' + bytes(40)},
      r'\(no metadata\.yaml\): storage file x_0\.mcap is unreadable or corrupt: '),
     ({'x_0.mcap': b'plain text'},

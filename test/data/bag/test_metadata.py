@@ -23,6 +23,7 @@ from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, 
 from gyro_tdc.data.bag import metadata
 from gyro_tdc.errors import DatasetError
 import numpy as np
+from hypothesis import given, HealthCheck, settings, strategies as st
 import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import CompressionFormat, CompressionMode, Writer
@@ -174,3 +175,34 @@ def test_genuinely_compressed_bags_pass_the_count_check(tmp_path, mode):
     got, want = read_bag(bag), read_bag(flat)
     np.testing.assert_array_equal(got.gyro, want.gyro)
     np.testing.assert_array_equal(got.temp_c, want.temp_c)
+
+
+_NAMES = st.sampled_from(['bag_0.db3', 'bag_1.db3', 'bag_10.db3', 'bag_2.mcap', 'bag.db3',
+                          'bag.mcap', 'x_3.mcap', 'x.db3', 'bag_0.db3-wal', 'bag_0.db3-shm',
+                          'notes.txt', 'metadata.yaml', '_1.db3', 'bag_-1.db3', 'sub/'])
+
+
+@settings(max_examples=60, deadline=None,
+          suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(names=st.sets(_NAMES, max_size=6))
+def test_a_folder_is_a_bag_or_one_line_saying_why_not(tmp_path_factory, names):
+    # Whatever a folder holds: its storage files as `ros2 bag reindex` finds them (by N,
+    # one storage), metadata.yaml's bag, or one line naming what is there.
+    bag = tmp_path_factory.mktemp('x') / 'bag'
+    bag.mkdir()
+    for name in names:
+        (bag / name.rstrip('/')).mkdir() if name.endswith('/') else (bag / name).write_bytes(b'')
+    try:
+        where, files = metadata.locate(bag)
+    except DatasetError as err:
+        assert '\n' not in str(err) and str(bag) in str(err)
+        assert 'metadata.yaml' not in names
+        return
+    assert where == bag
+    if 'metadata.yaml' in names:
+        assert files is None
+        return
+    assert files and len({f.suffix for f in files}) == 1
+    assert set(names) <= {f.name for f in files} | {'bag_0.db3-wal', 'bag_0.db3-shm'}
+    index = [int(f.stem.rsplit('_', 1)[1]) if f.stem != 'bag' else -1 for f in files]
+    assert index == sorted(index)
