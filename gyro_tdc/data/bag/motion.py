@@ -105,7 +105,7 @@ def read_motion(path: str | Path, topic: str) -> MotionReports:
                 tw = twist_of(msg)
                 rows.append((tw.linear.x, tw.linear.y, tw.linear.z,
                              tw.angular.x, tw.angular.y, tw.angular.z))
-    except (*READ_ERRORS, KeyError) as err:
+    except READ_ERRORS as err:
         raise DatasetError(f'Cannot read motion topic {topic!r} of bag {str(bag)!r}: '
                            f'{one_line(err)}') from err
     if not stamps:

@@ -54,10 +54,11 @@ __all__ = ['BagData', 'Collector', 'READ_ERRORS', 'read_bag', 'VIA', 'with_data'
 _CHUNK = 1 << 14
 # rosbags' own errors, plus what its parsers let through on damaged files (found by fuzzing
 # sqlite3 and mcap bags: huge record lengths raise OverflowError from seek, or MemoryError
-# from read, short reads struct.error); zstd's error (data not compressed as metadata.yaml
+# from read, short reads struct.error, a damaged message definition naming a type it does
+# not define KeyError from its typesys); zstd's error (data not compressed as metadata.yaml
 # says) is caught apart.
 READ_ERRORS = (AnyReaderError, ReaderError, apsw.Error, OSError, SerdeError, yaml.YAMLError,
-               UnicodeDecodeError, OverflowError, MemoryError, struct.error)
+               UnicodeDecodeError, OverflowError, MemoryError, struct.error, KeyError)
 
 
 def with_data(messages: Iterable[tuple[Any, int, Any]],
@@ -280,7 +281,9 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                            f'{info.get("compression_format")!r:.20}, compression_mode '
                            f'{info.get("compression_mode")!r:.20}): {one_line(err)}') from err
     except READ_ERRORS as err:
-        why, hint = one_line(err), cut_off(metadata.storage_paths(bag, info))
+        why = (f'a message definition names {err}, a type no definition of the bag defines'
+               if isinstance(err, KeyError) else one_line(err))
+        hint = cut_off(metadata.storage_paths(bag, info))
         raise DatasetError(f'Cannot read bag {str(bag)!r} (unreadable or corrupt): '
                            + (f'{why.rstrip(".")}{hint}.' if hint else why)) from err
 

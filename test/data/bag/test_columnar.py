@@ -187,6 +187,9 @@ def pristine(tmp_path_factory):
          bare=False)                                                          # the index
 @example(storage='sqlite3', where=0.8784913624986797, junk=b'\x00', cut=False,
          bare=False)                                                          # NULL data
+@example(storage='mcap', where=0.9808085268678934, junk=b' ', cut=False,
+         bare=False)                                            # a schema naming no type
+@example(storage='sqlite3', where=0.984375, junk=b'\x00', cut=True, bare=True)  # NULL stamps
 def test_damaged_storage_is_read_as_rosbags_reads_it_or_refused_in_one_line(
         tmp_path_factory, pristine, storage, where, junk, cut, bare):
     # ``bare``: without metadata.yaml, listed from the damaged file for either read.
