@@ -22,8 +22,8 @@ import shutil
 from gyro_tdc.data import IMU_TYPE, read_bag, REFERENCE_TYPE, TEMPERATURE_TYPE, write_bag
 from gyro_tdc.data.bag import metadata
 from gyro_tdc.errors import DatasetError
-import numpy as np
 from hypothesis import given, HealthCheck, settings, strategies as st
+import numpy as np
 import pytest
 from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import CompressionFormat, CompressionMode, Writer
