@@ -69,13 +69,16 @@ def _reference(rng, ns: int) -> bytes:
 
 
 def _write(path: Path, storage: str, streams, *, shuffle: bool = False,
-           compression: CompressionMode | None = None, seed: int = 0) -> Path:
+           compression: CompressionMode | None = None, seed: int = 0,
+           definitions: dict | None = None) -> Path:
     """
     Write ``streams``: [(topic, msgtype, qos depth, [(log ns, raw), ...])] with rosbags.
 
     Two streams of one topic with different QoS depths are two connections of it. Messages
     are written in time order, or shuffled (rowids and mcap chunks out of time order).
+    ``definitions``: msgtype -> definition text of a type the Jazzy typestore lacks.
     """
+    definitions = definitions or {}
     wr = Writer(path, version=9, storage_plugin=PLUGINS[storage])
     if compression is not None:
         wr.set_compression(compression, CompressionFormat.ZSTD)
@@ -85,8 +88,9 @@ def _write(path: Path, storage: str, streams, *, shuffle: bool = False,
         order = np.random.default_rng(seed).permutation(len(items))
         items = [items[i] for i in order]
     with wr:
-        conns = [wr.add_connection(topic, msgtype, typestore=TS,
-                                   offered_qos_profiles=_qos(depth))
+        given = {k: {'msgdef': v, 'rihs01': 'RIHS01_' + '0' * 64} for k, v in definitions.items()}
+        conns = [wr.add_connection(topic, msgtype, offered_qos_profiles=_qos(depth),
+                                   **given.get(msgtype, {'typestore': TS}))
                  for topic, msgtype, depth, _ in streams]
         for ns, k, raw in items:
             wr.write(conns[k], ns, raw)

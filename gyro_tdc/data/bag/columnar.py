@@ -32,7 +32,7 @@ from pathlib import Path
 import shutil
 import sqlite3
 from tempfile import TemporaryDirectory
-from typing import Any, Callable, Iterator, Mapping, Sequence
+from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
 from gyro_tdc.data.bag.metadata import (entries, Entry, locate, storage_paths, topics_of, Unfit,
@@ -95,9 +95,6 @@ class Bag:
     short : str or None
         After :meth:`feed`, on sqlite3: what it handed over of fewer messages than
         metadata.yaml lists (None: every one).
-    typestore : Typestore
-        The types of the bag's own message definitions, as ``AnyReader`` builds them (the
-        Jazzy types when the bag has none).
 
     """
 
@@ -105,16 +102,24 @@ class Bag:
         self.conns, self.files = conns, files
         self.short: str | None = None
         self.topics = topics_of(conns)
-        defs = []
-        for c in conns:
-            found = [f.definitions[c.msgtype] for f in files if c.msgtype in f.definitions]
+
+    def typestore(self, msgtypes: Iterable[str]) -> Any:
+        """
+        Return the types of ``msgtypes`` from the bag's own definitions, as AnyReader would.
+
+        Jazzy's types where the bag has none. The other types' definitions are not parsed:
+        one rosbags cannot parse (a service event's) stops nothing.
+        """
+        defs, wanted = [], set(msgtypes)
+        for c in (c for c in self.conns if c.msgtype in wanted):
+            found = [f.definitions[c.msgtype] for f in self.files if c.msgtype in f.definitions]
             found = [(_ENCODINGS.get(enc), text) for enc, text in found]
             if any(kind is None for kind, _ in found):
                 raise Unfit(f'a message definition encoding of {c.msgtype} rosbags does not read')
             kind, text = next(((k, t) for k, t in found if k), ('', ''))
             if kind:
                 defs.append((c.msgtype, kind, text, c.digest))
-        self.typestore = _typestore(tuple(defs)) if defs else jazzy()
+        return _typestore(tuple(defs)) if defs else jazzy()
 
     @property
     def warnings(self) -> tuple[str, ...]:

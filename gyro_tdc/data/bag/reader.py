@@ -244,8 +244,9 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                 with columnar.open_bag(bag, info) as opened:
                     topics, conns = _connections(opened.topics, opened.conns, bag, wanted)
                     data = _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
-                                    opened.typestore, bag, info, topics, conns, progress,
-                                    accel, 'columnar')
+                                    opened.typestore(c.msgtype for cs in conns.values()
+                                                     for c in cs),
+                                    bag, info, topics, conns, progress, accel, 'columnar')
                     data = replace(data, warnings=notes + opened.warnings)
                 if opened.short is None or via == 'columnar':
                     return data

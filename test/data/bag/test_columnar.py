@@ -232,9 +232,34 @@ def test_the_open_lists_rosbags_topics_connections_and_types(tmp_path, storage):
         (f,) = b.files
         assert {x.msgtype: x.msgdef.data for x in a.connections} == {
             name: text for name, (_, text) in f.definitions.items()}
+        store = b.typestore([IMU_TYPE, TEMPERATURE_TYPE, REFERENCE_TYPE])
         for name in (IMU_TYPE, TEMPERATURE_TYPE, REFERENCE_TYPE):
-            assert b.typestore.fielddefs[name] == a.typestore.fielddefs[name]
-            assert b.typestore.hash_rihs01(name) == a.typestore.hash_rihs01(name)
+            assert store.fielddefs[name] == a.typestore.fielddefs[name]
+            assert store.hash_rihs01(name) == a.typestore.hash_rihs01(name)
+
+
+#: A service event's definition as rosbag2 stores it (the request and response of the .srv
+#: file): rosbags cannot parse it.
+SERVICE_EVENT = ('test_msgs/srv/BasicTypes_Event', 'bool bool_value\nint64 int64_value\n---\n'
+                 'bool bool_value\nint64 int64_value\n')
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_a_service_event_definition_rosbags_cannot_parse_stops_nothing(tmp_path, storage):
+    # Jazzy records service events beside topics (`ros2 bag record --all`): only the
+    # definitions of the topics read are parsed.
+    rng = np.random.default_rng(14)
+    plain = _write(tmp_path / 'plain', storage, _chamber(rng))
+    event = ('/svc/_service_event', SERVICE_EVENT[0], 10, [(5 * 10**9 + 7, b'\x00\x01\x00\x00')])
+    bag = _write(tmp_path / 'bag', storage, _chamber(np.random.default_rng(14)) + [event],
+                 definitions=dict([SERVICE_EVENT]))
+    with pytest.raises(DatasetError, match='unreadable or corrupt'):
+        read_bag(bag, via='rosbags')                   # rosbags refuses the whole bag
+    got, ref = read_bag(bag), read_bag(plain)
+    assert got.via == 'columnar' and got.topics['/svc/_service_event'] == (SERVICE_EVENT[0], 1)
+    for name in ARRAYS:
+        a, b = getattr(got, name), getattr(ref, name)
+        assert (a is None) == (b is None) and (a is None or a.tobytes() == b.tobytes()), name
 
 
 @pytest.mark.parametrize('storage', STORAGES)

@@ -114,7 +114,7 @@ def test_a_sqlite3_file_without_definitions_is_read_with_the_jazzy_types(tmp_pat
     db.close()
     with columnar.open_bag(bag, metadata.load(bag)) as opened:
         assert opened.files[0].definitions == {}
-        assert opened.typestore is codec.jazzy()
+        assert opened.typestore([c.msgtype for c in opened.conns]) is codec.jazzy()
     _same_data(bag)
 
 
