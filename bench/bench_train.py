@@ -34,7 +34,8 @@ and prints the medians, ``train / raw`` (goal <= 1.0), ``train / storage``, the 
 and the model id of every train run. ``--stages`` adds in-process stages of the older
 benchmark (``load``: ``load_run``; ``train_paper``: ``--features dT,dT2 --no-accel``;
 ``rosbags``: ``read_bag(via='rosbags')``; ``mcap_package``: the ``mcap`` PyPI package's
-``iter_messages``, an alternative to the columnar read of the MCAP format, not a dependency);
+``iter_messages``, an alternative to the columnar read of the MCAP format, not a dependency;
+``bare``: ``train`` on the storage file alone, without metadata.yaml, as a power loss leaves it);
 ``--profile`` a cProfile of the train stage; ``--baseline DIR`` runs another checkout's train
 (``baseline``) in the same rounds, for before/after figures side by side. Each checkout's
 package is byte-compiled first (into its ``__pycache__``), as an installed one is: where
@@ -240,7 +241,7 @@ def _stage_mcap_package(bag):
 
 STAGES = {'raw_reader': _stage_raw_reader, 'load': _stage_load, 'train_paper':
           _stage_train_paper, 'rosbags': _stage_rosbags, 'train': _stage_train,
-          'mcap_package': _stage_mcap_package}
+          'mcap_package': _stage_mcap_package, 'bare': _stage_train}
 
 # The process stages: each a whole interpreter, as a user or a script would run it.
 _RAW = """
@@ -267,8 +268,10 @@ class Bytes:
     floating = False
     roles = ['imu', 'temperature']
     nbytes = 0
+    received = {'imu': 0, 'temperature': 0}
     def add(self, role, buf, lengths, logs=None, before=None):
         self.n_main += len(lengths) if role == 'imu' else 0
+        self.received[role] += len(lengths)
         self.nbytes += len(buf)
 out = Bytes()
 with columnar.open_bag(bag, metadata.load(bag)) as opened:
@@ -320,7 +323,14 @@ def _run_stage(stage, bag, tmp):
         return _process([sys.executable, '-c', _RAW, str(bag)], _env())
     if stage == 'storage':
         return _process([sys.executable, '-c', _STORAGE, str(bag)], _env())
-    if stage in ('train', 'baseline'):
+    if stage == 'bare':         # the power lost: the storage file alone, no metadata.yaml
+        bare = Path(tmp) / 'bare'
+        if not bare.is_dir():
+            bare.mkdir()
+            (f,) = [x for x in bag.iterdir() if x.suffix in ('.db3', '.mcap')]
+            os.link(f, bare / f'bare_0{f.suffix}')
+        bag = bare
+    if stage in ('train', 'baseline', 'bare'):
         root = BASELINE[0] if stage == 'baseline' else ROOT
         # In the checkout: ``-m`` puts the working directory first on sys.path.
         r = _process([sys.executable, '-m', 'gyro_tdc', 'train', str(bag), '--out',
@@ -363,7 +373,8 @@ LABELS = {'raw': "rosbags' raw read (process: AnyReader.messages())",
           'raw_reader': "rosbags' raw read (rosbag2.Reader, in process)",
           'load': 'load_run (in process)', 'rosbags': "read_bag(via='rosbags') (in process)",
           'train_paper': 'train --features dT,dT2 --no-accel (in process)',
-          'mcap_package': "the mcap package's iter_messages (in process)"}
+          'mcap_package': "the mcap package's iter_messages (in process)",
+          'bare': 'gyro-tdc train BAG without metadata.yaml (process)'}
 
 
 def _bag_path(name, storage, minutes, rate_hz):
@@ -452,6 +463,9 @@ def main(argv=None):
                 print(f'  baseline ({args.baseline}) / raw = {base["seconds"] / raw:.2f}, '
                       f'CPU {base["cpu"] / med["raw"]["cpu"]:.2f}; train / baseline = '
                       f'{train / base["seconds"]:.2f}, CPU {cpu:.2f}')
+            if 'bare' in med:
+                print(f'  bare / train = {med["bare"]["seconds"] / train:.2f} (no metadata.yaml: '
+                      'the topics counted in the storage first)')
             print(f'  model id {", ".join(ids)}')
             summary.append((name, storage, raw, store, train, med['train']['peak_rss'],
                             ', '.join(ids), med['train']['cpu'] / med['raw']['cpu']))
