@@ -86,7 +86,7 @@ def storage_files(folder: Path) -> list[Path]:
 
 def locate(path: str | Path) -> tuple[Path, list[Path] | None]:
     """
-    Return a bag's directory and, when it has no metadata.yaml, the storage files to read.
+    Return a bag (its directory, or a storage file alone) and its files without metadata.yaml.
 
     A recording cut off (the power went) has no metadata.yaml: rosbag2 writes it on close.
     Such a directory is a bag when it holds storage files named as rosbag2 names them (of
@@ -101,7 +101,7 @@ def locate(path: str | Path) -> tuple[Path, list[Path] | None]:
             raise DatasetError(f'Bag {str(p)!r} is a ROS 1 bag; expected a rosbag2 directory '
                                '(convert it with rosbags-convert).')
         if p.suffix in STORAGE_SUFFIXES:
-            return p.parent, None if (p.parent / 'metadata.yaml').is_file() else [p]
+            return (p.parent, None) if (p.parent / 'metadata.yaml').is_file() else (p, [p])
         raise DatasetError(f'Bag {str(p)!r} is a file, not a rosbag2 directory (a folder '
                            'with metadata.yaml and .db3 or .mcap files).')
     if (p / 'metadata.yaml').is_file():
@@ -145,7 +145,8 @@ def _list(info: Mapping, key: str) -> list:
 
 def storage_paths(bag: Path, info: Mapping) -> list[Path]:
     """Return the paths of the storage files metadata.yaml lists (beside it, by name)."""
-    return [bag / PurePath(str(name)).name for name in _list(info, 'relative_file_paths')]
+    root = bag if bag.is_dir() else bag.parent          # a storage file alone: its folder
+    return [root / PurePath(str(name)).name for name in _list(info, 'relative_file_paths')]
 
 
 def storage_bytes(bag: Path, info: Mapping) -> int | None:
@@ -265,7 +266,8 @@ def entries(bag: Path, info: Mapping) -> list[Entry]:
     try:
         if info['version'] > _VERSION:
             raise Unfit(f'metadata version {info["version"]!r:.20}')
-        if any(not (bag / PurePath(x).name).exists() for x in info['relative_file_paths']):
+        root = bag if bag.is_dir() else bag.parent
+        if any(not (root / PurePath(x).name).exists() for x in info['relative_file_paths']):
             raise Unfit('a storage file is missing')
         mode = info.get('compression_mode', '').lower()
         if mode not in ('', 'none') and info.get('compression_format') != 'zstd':

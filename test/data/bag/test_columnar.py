@@ -363,9 +363,11 @@ def test_a_storage_file_without_metadata_beside_it_is_a_bag_of_that_file(tmp_pat
     got = read_bag(tmp_path / 'loose_2.mcap')
     assert got.gyro.tobytes() == ref.gyro.tobytes() and got.topics == ref.topics
     assert 'read from loose_2.mcap as' in got.warnings[0]
+    assert got.path == str(tmp_path / 'loose_2.mcap')
     # The real talker (rosbag2's, no IMU): its topics named.
     shutil.copy(REAL / 'talker.mcap', tmp_path / 'talker.mcap')
-    with pytest.raises(DatasetError, match=r"no topic '/imu/data_raw' \(imu\); topics present: "
+    with pytest.raises(DatasetError, match=rf"^Bag '{tmp_path / 'talker.mcap'}' has no topic "
+                                           r"'/imu/data_raw' \(imu\); topics present: "
                                            r'/parameter_events \(rcl_interfaces/msg/'
                                            r'ParameterEvent, 0 msgs\), /rosout \(rcl_interfaces/'
                                            r'msg/Log, 10 msgs\), '
