@@ -30,7 +30,7 @@ from typing import Callable, Iterable, Iterator
 
 from gyro_tdc.base import (MAX_RATE_RAD_S, MAX_TEMP_SLEW_C_S, plausible_temperatures,
                            RESTART_BACK_S, TEMP_PLAUSIBLE_C)
-from gyro_tdc.data.bag.metadata import storage_files, STORAGE_SUFFIXES
+from gyro_tdc.data.bag.metadata import has_metadata, storage_files, STORAGE_SUFFIXES
 from gyro_tdc.data.bag.reader import read_bag
 from gyro_tdc.data.dataflash import read_dataflash
 from gyro_tdc.data.flightlog import detect_format, flight_log_data, is_flight_log
@@ -405,7 +405,7 @@ def _as_slice(index: NDArray) -> slice | NDArray:
 
 def _is_bag(path: Path) -> bool:
     """Return True when ``path`` is a rosbag2 directory (metadata.yaml, or storage files only)."""
-    return path.is_dir() and ((path / 'metadata.yaml').is_file() or bool(storage_files(path)))
+    return path.is_dir() and (has_metadata(path) or bool(storage_files(path)))
 
 
 def _natural_key(path: Path) -> list:
@@ -434,8 +434,8 @@ def find_bags(paths: Iterable[str | os.PathLike]) -> list[tuple[Path, bool]]:
     for p, _ in out:
         real = Path(os.path.realpath(p))
         # A bag's storage file names the bag (a file without metadata.yaml is one).
-        real = real.parent if p.is_file() and p.suffix in STORAGE_SUFFIXES and (
-            p.parent / 'metadata.yaml').is_file() else real
+        real = real.parent if p.is_file() and p.suffix in STORAGE_SUFFIXES and has_metadata(
+            p.parent) else real
         if real in seen:
             raise DatasetError(f'Bag {str(p)!r} is given twice (also as {str(seen[real])!r}); '
                                'give each run once.')

@@ -325,10 +325,12 @@ def test_a_folder_is_walked_and_what_it_holds_that_cannot_be_read_is_skipped(tmp
         load_runs(only_bad)
 
 
-@pytest.mark.parametrize('storage', ['sqlite3', 'mcap'])
-def test_a_walk_reads_a_bag_that_lost_its_metadata_yaml(tmp_path, storage):
+@pytest.mark.parametrize('storage, meta', [('sqlite3', 'no'), ('mcap', 'no'),
+                                           ('mcap', 'an empty')])
+def test_a_walk_reads_a_bag_that_lost_its_metadata_yaml(tmp_path, storage, meta):
     # A robot's bag folder after a power loss: one bag closed, one without metadata.yaml
-    # (its storage file as rosbag2 names it), and a folder of notes that is no bag.
+    # or with an empty one (the power went as rosbag2 wrote it at close; its storage file
+    # as rosbag2 names it), and a folder of notes that is no bag.
     from gyro_tdc.data.dataset import find_bags
     ext = '.db3' if storage == 'sqlite3' else '.mcap'
     root = tmp_path / 'bags'
@@ -336,6 +338,8 @@ def test_a_walk_reads_a_bag_that_lost_its_metadata_yaml(tmp_path, storage):
     _bag(root / 'cut', storage=storage, n=3000, seed=5)
     (root / 'cut' / f'cut{ext}').rename(root / 'cut' / f'cut_0{ext}')
     (root / 'cut' / 'metadata.yaml').unlink()
+    if meta == 'an empty':
+        (root / 'cut' / 'metadata.yaml').write_bytes(b'')
     (root / 'notes').mkdir()
     (root / 'notes' / 'trip_1.mcap').write_bytes(b'not a bag')
     (root / 'notes' / 'readme.txt').write_text('flight notes')
@@ -343,11 +347,12 @@ def test_a_walk_reads_a_bag_that_lost_its_metadata_yaml(tmp_path, storage):
     said = []
     runs = load_runs(root, log=said.append)
     assert [len(r.t) for r in runs] == [2000, 3000]
-    assert runs[1].info['warnings'][0].startswith('no metadata.yaml (the recording did not '
-                                                  f'close: rosbag2 writes it then): read from '
-                                                  f'cut_0{ext}')
-    assert any(ln.startswith(f'warning: {root / "cut"}: no metadata.yaml') for ln in said)
-    assert not (root / 'cut' / 'metadata.yaml').exists()
+    assert runs[1].info['warnings'][0].startswith(f'{meta} metadata.yaml (the recording did '
+                                                  'not close: rosbag2 writes it then): read '
+                                                  f'from cut_0{ext}')
+    assert any(ln.startswith(f'warning: {root / "cut"}: {meta} metadata.yaml') for ln in said)
+    assert sorted(p.name for p in (root / 'cut').iterdir()) == [f'cut_0{ext}'] + (
+        ['metadata.yaml'] if meta == 'an empty' else [])
     with pytest.raises(DatasetError, match=r'no metadata\.yaml, and not only storage files '
                                            r'named NAME_N\.db3 or NAME_N\.mcap \(found '
                                            r"\['readme\.txt', 'trip_1\.mcap'\]\)"):

@@ -235,7 +235,8 @@ def rebuilt_notes(paths: Sequence[Path]) -> tuple[str, ...]:
     """Return the warnings of a read of storage files without their metadata.yaml."""
     wal = [(p.name, w.stat().st_size) for p in paths
            if (w := p.with_name(p.name + '-wal')).is_file() and w.stat().st_size]
-    return (f'no metadata.yaml (the recording did not close: rosbag2 writes it then): read '
+    meta = 'an empty' if (paths[0].parent / 'metadata.yaml').is_file() else 'no'
+    return (f'{meta} metadata.yaml (the recording did not close: rosbag2 writes it then): read '
             f'from {", ".join(p.name for p in paths)} as `ros2 bag reindex` would list it',
             *(f"{name}-wal: {size} bytes of SQLite's write-ahead log not read (the messages "
               f"written last; `sqlite3 {name} 'PRAGMA wal_checkpoint'` merges them into the "

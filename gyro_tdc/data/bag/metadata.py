@@ -39,7 +39,7 @@ if sys.version_info >= (3, 14):
 else:                         # rosbags' own zstd before Python 3.14
     from backports import zstd
 
-__all__ = ['check_counts', 'describe', 'entries', 'Entry', 'load', 'locate',
+__all__ = ['check_counts', 'describe', 'entries', 'Entry', 'has_metadata', 'load', 'locate',
            'min_message_bytes', 'qos', 'STORAGE_SUFFIXES', 'storage_bytes', 'storage_files',
            'storage_paths', 'topics_of', 'ZSTD_MAX_RATIO', 'Unfit', 'zstd', 'ZSTD_MAGIC',
            'ZSTD_MIN_FRAME_BYTES']
@@ -65,6 +65,12 @@ _SPLIT = re.compile(r'.+_(\d+)')
 STORAGE_SUFFIXES = ('.db3', '.mcap')
 
 
+def has_metadata(folder: Path) -> bool:
+    """Return whether ``folder`` holds a metadata.yaml (an empty one is none: cut as written)."""
+    meta = folder / 'metadata.yaml'
+    return meta.is_file() and meta.stat().st_size > 0
+
+
 def storage_files(folder: Path) -> list[Path]:
     """
     Return the storage files of a folder that holds nothing else, as ``ros2 bag reindex`` does.
@@ -79,7 +85,7 @@ def storage_files(folder: Path) -> list[Path]:
                 _SPLIT.fullmatch(p.stem) or p.stem == folder.name):
             found.append(p)
         else:
-            other |= not p.name.endswith(('-wal', '-shm', '-journal'))
+            other |= not p.name.endswith(('-wal', '-shm', '-journal', 'metadata.yaml'))
     return [] if other else sorted(found, key=lambda p: (
         int(m[1]) if (m := _SPLIT.fullmatch(p.stem)) else -1, p.name))
 
@@ -101,10 +107,10 @@ def locate(path: str | Path) -> tuple[Path, list[Path] | None]:
             raise DatasetError(f'Bag {str(p)!r} is a ROS 1 bag; expected a rosbag2 directory '
                                '(convert it with rosbags-convert).')
         if p.suffix in STORAGE_SUFFIXES:
-            return (p.parent, None) if (p.parent / 'metadata.yaml').is_file() else (p, [p])
+            return (p.parent, None) if has_metadata(p.parent) else (p, [p])
         raise DatasetError(f'Bag {str(p)!r} is a file, not a rosbag2 directory (a folder '
                            'with metadata.yaml and .db3 or .mcap files).')
-    if (p / 'metadata.yaml').is_file():
+    if has_metadata(p):
         return p, None
     files = storage_files(p)
     if not files:
