@@ -12,23 +12,25 @@
 # See the License for the specific language governing permissions and
 # limitations under the License.
 
-"""
+r"""
 rosbag2 bags no one here wrote, read as ``train`` reads them: read, or refused in one line.
 
 Every folder under the roots given that holds ``.db3`` or ``.mcap`` files is read three
 ways: as it is; copied without its metadata.yaml (as a power loss leaves a bag); and each
 of its storage files alone. Each is read by ``read_bag`` (the trainer's read: the columnar
-read, rosbags' where it gives way) and by ``read_motion`` of its first topic (rosbags'
-reader through the same listing). An outcome is ok; listed (refused in one line that lists
-the bag's topics: it was opened, the IMU or motion topic is not among them); refused (a
+read, rosbags' where it gives way) and by ``read_motion`` of ``/cmd_vel`` (rosbags' reader
+through the same listing). An outcome is ok; listed (refused in one line that lists the
+bag's topics: it was opened, the IMU or motion topic is not among them); refused (a
 ``DatasetError`` of one line, its reason printed); or a defect (anything else). Printed: a
-line per bag and the counts. rosbag2's own
-test bags (its C++ storage plugins wrote them; services, split files, wrong formats)::
+line per bag and the counts. rosbag2's own test bags (its C++ storage plugins wrote them;
+services, split files, wrong formats), from ROSBAG2, a clone of
+https://github.com/ros2/rosbag2 (25304dd here)::
 
-    git -C /work/.mirror/ros2+rosbag2/repo archive HEAD rosbag2_py/test/resources \\
-        rosbag2_tests/resources rosbag2_transport/test/resources ros2bag/test/resources \\
-        rosbag2_cpp/test/rosbag2_cpp/bags | tar -x -C /tmp/rosbag2_bags
-    .venv/bin/python bench/bench_foreign_bags.py /tmp/rosbag2_bags
+    mkdir -p out/rosbag2_bags
+    git -C ROSBAG2 archive HEAD rosbag2_py/test/resources rosbag2_tests/resources \
+        rosbag2_transport/test/resources ros2bag/test/resources \
+        rosbag2_cpp/test/rosbag2_cpp/bags | tar -x -C out/rosbag2_bags
+    .venv/bin/python bench/bench_foreign_bags.py out/rosbag2_bags
 """
 
 import argparse
