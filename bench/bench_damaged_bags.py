@@ -24,10 +24,13 @@ offset, a stretch of 16 to 4,096 bytes zeroed, in the storage file (3 in 4) or i
 exits 0, or exits 2 with one line naming what is wrong; a defect is anything else (an
 exception out of the command, an exit code other than 0 or 2, a refusal of more than one
 line). Printed per storage and damage: runs, ok,
-refused, defects; then every defect. ::
+refused, defects; then every defect. ``--no-metadata``: each damaged copy also loses its
+metadata.yaml (the storage file named as rosbag2 names it), as a power loss leaves a bag;
+the same damage draws. ::
 
     .venv/bin/python bench/bench_damaged_bags.py                  # 40 copies per storage
     .venv/bin/python bench/bench_damaged_bags.py --bags 100 --seed 3 --driver
+    .venv/bin/python bench/bench_damaged_bags.py --bags 50 --seed 5 --driver --no-metadata
 """
 
 import argparse
@@ -92,7 +95,8 @@ def run(command: str, argv: list) -> tuple:
     return 'defect', (lines or err.getvalue().splitlines() or [''])[-1][:200], f'exit {code}'
 
 
-def sweep(storage: str, bags: int, rng: np.random.Generator, driver: bool, root: Path) -> list:
+def sweep(storage: str, bags: int, rng: np.random.Generator, driver: bool, root: Path,
+          bare: bool = False) -> list:
     """Write one bag of ``storage``, damage ``bags`` copies; return one record per run."""
     from bags import bag_from_run
     from synth import synth_run
@@ -107,6 +111,9 @@ def sweep(storage: str, bags: int, rng: np.random.Generator, driver: bool, root:
         target = storage_file if rng.random() < 0.75 else meta
         how = DAMAGE[k % len(DAMAGE)]
         damage(target, how, rng)
+        if bare:
+            meta.unlink()
+            storage_file.rename(bag / f'{bag.name}_0{storage_file.suffix}')
         for opts in ([], extra) if extra else ([],):
             for command, argv in (
                     ('train', [str(bag), '--out', str(root / f'm{k}.yaml'), '--features',
@@ -128,13 +135,16 @@ def main(argv=None) -> int:
     ap.add_argument('--seed', type=int, default=0, help='seed of the damage')
     ap.add_argument('--driver', action='store_true',
                     help='also run each copy through the driver-type path (--input-frame frd)')
+    ap.add_argument('--no-metadata', action='store_true',
+                    help='each damaged copy without metadata.yaml (as a power loss leaves it)')
     args = ap.parse_args(argv)
     rng = np.random.default_rng(args.seed)
     with tempfile.TemporaryDirectory(prefix='gyro_tdc_damaged_bags_') as tmp:
         runs = [r for s in ('sqlite3', 'mcap')
-                for r in sweep(s, args.bags, rng, args.driver, Path(tmp))]
+                for r in sweep(s, args.bags, rng, args.driver, Path(tmp), args.no_metadata)]
     counts = collections.Counter((r['storage'], r['damage'], r['outcome']) for r in runs)
-    print(f'{args.bags} damaged copies per storage, seed {args.seed}: runs, ok, refused in one '
+    print(f'{args.bags} damaged copies per storage, seed {args.seed}'
+          f'{", without metadata.yaml" if args.no_metadata else ""}: runs, ok, refused in one '
           'line, defects')
     for storage in ('sqlite3', 'mcap'):
         for how in DAMAGE:

@@ -165,8 +165,8 @@ def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: 
     """
     out = {topic: [int(got), int(data.topics.get(topic, ('', 0))[1])]
            for topic, got in decoded.items()}
-    why = ('a storage file cut off at its end' if data.warnings else
-           'a damaged file or undecodable messages')
+    cut = any('ends without the mcap footer' in w for w in data.warnings)
+    why = 'a storage file cut off at its end' if cut else 'a damaged file or undecodable messages'
     for topic, (got, listed) in out.items():
         lost = listed - got
         note = (f'{topic}: read {got} of {listed} messages listed in the bag metadata '

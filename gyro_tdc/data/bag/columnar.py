@@ -212,7 +212,8 @@ def rebuild(bag: Path, paths: Sequence[Path]) -> dict:
                 topics.append([conn, n])
             else:
                 t[1] += n
-        spans += [v[1:] for v in counts.values() if None not in v]     # NULL stamps: damage
+        # Stamps NULL or of another type (SQLite keeps what a damaged record says): damage.
+        spans += [v[1:] for v in counts.values() if all(type(x) is int for x in v[1:])]
         listed.append({'path': path.name, 'message_count': sum(v[0] for v in counts.values())})
     start, end = (min(a for a, _ in spans), max(b for _, b in spans)) if spans else (0, 0)
     return {'version': 9, 'storage_identifier': storage,

@@ -464,8 +464,10 @@ def _rosbags_feed(source: Any, conns: dict[str, list[Any]], out: Collector,
     role_of = {id(c): role for role in out.roles for c in conns[role]}
     gen = source.messages(connections=[c for r in out.roles for c in conns[r]])
     while whole := list(islice(gen, _CHUNK)):
-        # A row whose data reads as NULL (a damaged sqlite3 record) is a message lost.
-        block = [m for m in whole if isinstance(m[2], (bytes, bytearray, memoryview))]
+        # A row whose data reads as NULL, or whose stamp as no whole number (a damaged sqlite3
+        # record), is a message lost.
+        block = [m for m in whole if isinstance(m[2], (bytes, bytearray, memoryview))
+                 and isinstance(m[1], int)]
         roles = [role_of[id(conn)] for conn, _, _ in block]
         mains = out.n_main + np.cumsum([r == 'imu' for r in roles])   # main messages up to each
         for role in out.roles:

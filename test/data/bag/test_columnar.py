@@ -464,3 +464,30 @@ def test_an_unmerged_sqlite_write_ahead_log_is_named_not_read(tmp_path):
         r"written last; `sqlite3 bag_0\.db3 'PRAGMA wal_checkpoint'` merges them into the "
         r'file\)', wal)
     assert sorted(p.name for p in cut.iterdir()) == ['bag_0.db3', 'bag_0.db3-wal']
+
+
+@pytest.mark.parametrize('bare', [False, True])
+def test_a_stamp_of_another_type_in_a_db3_is_a_message_lost_not_a_crash(tmp_path, bare):
+    # SQLite keeps what a damaged record says: a blob where a stamp was. The listing of a
+    # bag without metadata.yaml skips it; rosbags' read (the columnar one comes up short)
+    # loses that one message, and the loss policy names damage, not a cut.
+    import sqlite3
+    from gyro_tdc.data.dataset import load_run
+    rng = np.random.default_rng(15)
+    bag = _write(tmp_path / 'bag', 'sqlite3', _chamber(rng))
+    total = metadata.load(bag)['message_count']
+    if bare:
+        _without_metadata(bag, '.db3')
+    db = sqlite3.connect(next(bag.glob('*.db3')))
+    try:
+        db.execute("UPDATE messages SET timestamp = X'00' WHERE id = 300")
+        db.commit()
+    finally:
+        db.close()
+    if bare:
+        assert columnar.rebuild(*metadata.locate(bag))['message_count'] == total
+    got = read_bag(bag)
+    assert len(got.imu_t) + len(got.temp_t) == total - 1
+    warnings = load_run(bag).info['warnings']
+    assert any(': read 699 of 700 messages' in w and '1 lost' in w
+               and 'a damaged file or undecodable messages' in w for w in warnings), warnings
