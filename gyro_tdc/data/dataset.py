@@ -32,6 +32,7 @@ from gyro_tdc.base import (MAX_RATE_RAD_S, MAX_TEMP_SLEW_C_S, plausible_temperat
                            RESTART_BACK_S, TEMP_PLAUSIBLE_C)
 from gyro_tdc.data.bag.metadata import has_metadata, storage_files, STORAGE_SUFFIXES
 from gyro_tdc.data.bag.reader import read_bag
+from gyro_tdc.data.bag.storage_mcap import CUT_OFF
 from gyro_tdc.data.dataflash import read_dataflash
 from gyro_tdc.data.flightlog import detect_format, flight_log_data, is_flight_log
 from gyro_tdc.data.options import BagOptions
@@ -165,7 +166,7 @@ def _check_counts(bag: object, data: object, decoded: dict[str, int], max_loss: 
     """
     out = {topic: [int(got), int(data.topics.get(topic, ('', 0))[1])]
            for topic, got in decoded.items()}
-    cut = any('ends without the mcap footer' in w for w in data.warnings)
+    cut = any(CUT_OFF in w for w in data.warnings)
     why = 'a storage file cut off at its end' if cut else 'a damaged file or undecodable messages'
     for topic, (got, listed) in out.items():
         lost = listed - got

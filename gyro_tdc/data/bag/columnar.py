@@ -37,7 +37,7 @@ from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 from gyro_tdc.data.bag.codec import jazzy
 from gyro_tdc.data.bag.metadata import (entries, Entry, locate, storage_paths, topics_of, Unfit,
                                         zstd)
-from gyro_tdc.data.bag.storage_mcap import McapFile
+from gyro_tdc.data.bag.storage_mcap import CUT_OFF, McapFile
 from gyro_tdc.data.bag.storage_sqlite3 import Sqlite3File
 from gyro_tdc.errors import DatasetError, one_line
 from rosbags.typesys import get_types_from_idl, get_types_from_msg, get_typestore, Stores
@@ -124,7 +124,7 @@ class Bag:
     @property
     def warnings(self) -> tuple[str, ...]:
         """Return a warning per storage file cut off (an mcap file read to its last chunk)."""
-        return tuple(f'{f.name} ends without the mcap footer (cut off while it was written): '
+        return tuple(f'{f.name} {CUT_OFF} (cut off while it was written): '
                      f'read to its last whole chunk, the {f.lost} bytes after it are lost'
                      for f in self.files if isinstance(f, McapFile) and f.lost is not None)
 
@@ -245,19 +245,19 @@ def rebuilt_notes(paths: Sequence[Path]) -> tuple[str, ...]:
 
 
 @contextmanager
-def readable(path: str | Path) -> Iterator[Path]:
+def readable(path: str | Path, info: Mapping | None = None) -> Iterator[Path]:
     """
     Yield a bag directory rosbags' reader opens: the bag's, or one with a rebuilt metadata.yaml.
 
     A bag without metadata.yaml (:func:`~gyro_tdc.data.bag.metadata.locate`) is given a
     temporary directory of links to its storage files beside its :func:`rebuild`
-    metadata.yaml; nothing is written into the bag.
+    metadata.yaml (``info``, where the caller has it); nothing is written into the bag.
     """
     bag, paths = locate(path)
     if paths is None:
         yield bag
         return
-    info = rebuild(bag, paths)
+    info = rebuild(bag, paths) if info is None else info
     with TemporaryDirectory(prefix='gyro_tdc_bag_') as tmp:
         for p in paths:
             (Path(tmp) / p.name).symlink_to(p.absolute())

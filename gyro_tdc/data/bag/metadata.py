@@ -149,10 +149,15 @@ def _list(info: Mapping, key: str) -> list:
     return info[key] if isinstance(info.get(key), list) else []
 
 
+def _folder(bag: Path) -> Path:
+    """Return the folder of a bag's storage files (a storage file alone: its folder)."""
+    return bag if bag.is_dir() else bag.parent
+
+
 def storage_paths(bag: Path, info: Mapping) -> list[Path]:
     """Return the paths of the storage files metadata.yaml lists (beside it, by name)."""
-    root = bag if bag.is_dir() else bag.parent          # a storage file alone: its folder
-    return [root / PurePath(str(name)).name for name in _list(info, 'relative_file_paths')]
+    return [_folder(bag) / PurePath(str(name)).name
+            for name in _list(info, 'relative_file_paths')]
 
 
 def storage_bytes(bag: Path, info: Mapping) -> int | None:
@@ -272,8 +277,8 @@ def entries(bag: Path, info: Mapping) -> list[Entry]:
     try:
         if info['version'] > _VERSION:
             raise Unfit(f'metadata version {info["version"]!r:.20}')
-        root = bag if bag.is_dir() else bag.parent
-        if any(not (root / PurePath(x).name).exists() for x in info['relative_file_paths']):
+        if any(not (_folder(bag) / PurePath(x).name).exists()
+               for x in info['relative_file_paths']):
             raise Unfit('a storage file is missing')
         mode = info.get('compression_mode', '').lower()
         if mode not in ('', 'none') and info.get('compression_format') != 'zstd':

@@ -261,7 +261,7 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
         if via == 'columnar':
             raise DatasetError(f'Cannot read bag {str(bag)!r} column by column: {why}.')
         try:
-            with columnar.readable(path) as readable, \
+            with columnar.readable(path, info if files else None) as readable, \
                     AnyReader([readable], default_typestore=jazzy()) as reader:
                 topics, conns = _connections(
                     {name: (t.msgtype or '?', int(t.msgcount))

@@ -36,7 +36,7 @@ from typing import Any, Callable, Iterable, Mapping, NamedTuple
 from gyro_tdc.data.bag.metadata import Entry, Unfit, zstd, ZSTD_MAGIC
 import numpy as np
 
-__all__ = ['cut_off', 'McapFile']
+__all__ = ['CUT_OFF', 'cut_off', 'McapFile']
 
 _MAGIC = b'\x89MCAP0\r\n'
 _FOOTER = b'\x02\x14\x00\x00\x00\x00\x00\x00\x00'     # opcode and length of the footer
@@ -46,6 +46,8 @@ _CHUNK, _DATA_END = 0x06, 0x0F
 #: then its message indexes, at most as long); more is a damaged record, not a cut.
 _CUT_SLACK = 1 << 16
 _SUMMARY_END = (0x02, 0x0E)                            # footer, summary offset
+#: What the warnings and refusals say of an mcap file cut off (the loss policy looks for it).
+CUT_OFF = 'ends without the mcap footer'
 
 
 def cut_off(paths: Iterable[Path]) -> str:
@@ -58,7 +60,7 @@ def cut_off(paths: Iterable[Path]) -> str:
         except OSError:
             continue
         if not whole:
-            return (f'; {path.name} ends without the mcap footer (cut off while it was '
+            return (f'; {path.name} {CUT_OFF} (cut off while it was '
                     'written?): `mcap recover` (the mcap CLI) copies what it holds to a new file')
     return ''
 
