@@ -85,7 +85,8 @@ def storage_files(folder: Path) -> list[Path]:
                 _SPLIT.fullmatch(p.stem) or p.stem == folder.name):
             found.append(p)
         else:
-            other |= not p.name.endswith(('-wal', '-shm', '-journal', 'metadata.yaml'))
+            other |= p.name != 'metadata.yaml' and not p.name.endswith(
+                ('-wal', '-shm', '-journal'))
     return [] if other else sorted(found, key=lambda p: (
         int(m[1]) if (m := _SPLIT.fullmatch(p.stem)) else -1, p.name))
 

@@ -413,6 +413,8 @@ def test_a_bag_compressed_message_by_message_without_metadata_goes_to_rosbags(tm
      r'not a rosbag2 directory: no metadata\.yaml, and not only storage files named '
      r"NAME_N\.db3 or NAME_N\.mcap \(found \['notes\.txt', 'old\.db3'\]\)\.$"),
     ({'x_0.db3': b'', 'x_1.mcap': b''}, r'holds both \.db3 and \.mcap files'),
+    ({'x_0.db3': b'', 'old_metadata.yaml': b''},
+     r"not only storage files named .* \(found \['old_metadata\.yaml', 'x_0\.db3'\]\)"),
     ({'x_0.db3': b'SQLite format 3\x00' + bytes(200)},
      r'\(no metadata\.yaml\): storage file x_0\.db3 is unreadable or corrupt: '),
     ({'x_0.db3': b'not a database at all' * 100},
