@@ -30,7 +30,8 @@ from typing import Callable, Iterable, Iterator
 
 from gyro_tdc.base import (MAX_RATE_RAD_S, MAX_TEMP_SLEW_C_S, plausible_temperatures,
                            RESTART_BACK_S, TEMP_PLAUSIBLE_C)
-from gyro_tdc.data.bag.metadata import has_metadata, storage_files, STORAGE_SUFFIXES
+from gyro_tdc.data.bag.metadata import (has_metadata, missing, storage_files,
+                                        STORAGE_SUFFIXES)
 from gyro_tdc.data.bag.reader import read_bag
 from gyro_tdc.data.bag.storage_mcap import CUT_OFF
 from gyro_tdc.data.dataflash import read_dataflash
@@ -435,7 +436,7 @@ def find_bags(paths: Iterable[str | os.PathLike]) -> list[tuple[Path, bool]]:
     for p, _ in out:
         real = Path(os.path.realpath(p))
         # A bag's storage file names the bag (a file without metadata.yaml is one).
-        real = real.parent if p.is_file() and p.suffix in STORAGE_SUFFIXES and has_metadata(
+        real = real.parent if p.is_file() and p.suffix in STORAGE_SUFFIXES and not missing(
             p.parent) else real
         if real in seen:
             raise DatasetError(f'Bag {str(p)!r} is given twice (also as {str(seen[real])!r}); '

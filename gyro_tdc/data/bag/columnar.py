@@ -35,8 +35,8 @@ from tempfile import TemporaryDirectory
 from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
-from gyro_tdc.data.bag.metadata import (entries, Entry, locate, storage_paths, topics_of, Unfit,
-                                        zstd)
+from gyro_tdc.data.bag.metadata import (entries, Entry, locate, missing, storage_paths,
+                                        topics_of, Unfit, zstd)
 from gyro_tdc.data.bag.storage_mcap import CUT_OFF, McapFile
 from gyro_tdc.data.bag.storage_sqlite3 import Sqlite3File
 from gyro_tdc.errors import DatasetError, one_line
@@ -202,8 +202,8 @@ def rebuild(bag: Path, paths: Sequence[Path]) -> dict:
         except (Unfit, sqlite3.Error, OSError, ValueError, MemoryError) as err:
             fix = (f' (`sqlite3 {path.name} .recover | sqlite3 NEW/{path.name}` copies what '
                    'it holds to a new file)' if storage == 'sqlite3' else '')
-            raise DatasetError(f'Cannot read bag {str(bag)!r} (no metadata.yaml): storage file '
-                               f'{path.name} is unreadable or corrupt: {one_line(err)}{fix}'
+            raise DatasetError(f'Cannot read bag {str(bag)!r} ({missing(path.parent)}): storage '
+                               f'file {path.name} is unreadable or corrupt: {one_line(err)}{fix}'
                                ) from err
         for conn in f.conns:
             n = counts.get(conn.id, (0,))[0]
@@ -236,9 +236,11 @@ def rebuilt_notes(paths: Sequence[Path]) -> tuple[str, ...]:
     """Return the warnings of a read of storage files without their metadata.yaml."""
     wal = [(p.name, w.stat().st_size) for p in paths
            if (w := p.with_name(p.name + '-wal')).is_file() and w.stat().st_size]
-    meta = 'an empty' if (paths[0].parent / 'metadata.yaml').is_file() else 'no'
-    return (f'{meta} metadata.yaml (the recording did not close: rosbag2 writes it then): read '
-            f'from {", ".join(p.name for p in paths)} as `ros2 bag reindex` would list it',
+    why = missing(paths[0].parent) or ''
+    why += '' if why.startswith('a damaged') else (' (the recording did not close: rosbag2 '
+                                                   'writes it then)')
+    return (f'{why}: read from {", ".join(p.name for p in paths)} as `ros2 bag reindex` would '
+            'list it',
             *(f"{name}-wal: {size} bytes of SQLite's write-ahead log not read (the messages "
               f"written last; `sqlite3 {name} 'PRAGMA wal_checkpoint'` merges them into the "
               'file)' for name, size in wal))

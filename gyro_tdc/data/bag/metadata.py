@@ -33,6 +33,7 @@ from gyro_tdc.base import BAG_METADATA_LIMITS, load_yaml
 from gyro_tdc.data.bag.codec import N_DOUBLES
 from gyro_tdc.data.imu_cdr import FRAME_ID
 from gyro_tdc.errors import DatasetError
+import yaml
 
 if sys.version_info >= (3, 14):
     from compression import zstd
@@ -40,9 +41,9 @@ else:                         # rosbags' own zstd before Python 3.14
     from backports import zstd
 
 __all__ = ['check_counts', 'describe', 'entries', 'Entry', 'has_metadata', 'load', 'locate',
-           'min_message_bytes', 'qos', 'STORAGE_SUFFIXES', 'storage_bytes', 'storage_files',
-           'storage_paths', 'topics_of', 'ZSTD_MAX_RATIO', 'Unfit', 'zstd', 'ZSTD_MAGIC',
-           'ZSTD_MIN_FRAME_BYTES']
+           'min_message_bytes', 'missing', 'qos', 'STORAGE_SUFFIXES', 'storage_bytes',
+           'storage_files', 'storage_paths', 'topics_of', 'ZSTD_MAX_RATIO', 'Unfit', 'zstd',
+           'ZSTD_MAGIC', 'ZSTD_MIN_FRAME_BYTES']
 
 #: Smallest zstd frame (magic, frame header, one block header): a message compressed on its
 #: own (``compression_mode: message``) takes at least this many bytes.
@@ -60,6 +61,11 @@ class Unfit(Exception):
     """The columnar read does not apply to this bag: rosbags' reader reads it."""
 
 
+#: The keys rosbag2 requires of metadata.yaml, with the version that brought each (yaml.hpp).
+_REQUIRED = (('version', 0), ('storage_identifier', 0), ('duration', 0), ('starting_time', 0),
+             ('message_count', 0), ('topics_with_message_count', 0), ('relative_file_paths', 0),
+             ('compression_format', 3), ('compression_mode', 3), ('files', 5),
+             ('custom_data', 6), ('ros_distro', 8))
 #: A split storage file as rosbag2 names it (``NAME_N``), as ``ros2 bag reindex`` finds them.
 _SPLIT = re.compile(r'.+_(\d+)')
 STORAGE_SUFFIXES = ('.db3', '.mcap')
@@ -69,6 +75,31 @@ def has_metadata(folder: Path) -> bool:
     """Return whether ``folder`` holds a metadata.yaml (an empty one is none: cut as written)."""
     meta = folder / 'metadata.yaml'
     return meta.is_file() and meta.stat().st_size > 0
+
+
+def missing(folder: Path) -> str | None:
+    """
+    Return what is wrong with a folder's metadata.yaml for a read, or None when nothing is.
+
+    'no metadata.yaml', 'an empty metadata.yaml', or 'a damaged metadata.yaml (why)': one
+    that is no YAML or lacks a key rosbag2 requires of its version (cut while rosbag2 wrote
+    it on close). One over a size or nesting limit is not damaged: its read says so.
+    """
+    meta = folder / 'metadata.yaml'
+    if not meta.is_file():
+        return 'no metadata.yaml'
+    if not has_metadata(folder):
+        return 'an empty metadata.yaml'
+    try:
+        info = load(folder)
+    except (yaml.YAMLError, UnicodeDecodeError):
+        return 'a damaged metadata.yaml (not valid YAML)'
+    except (DatasetError, OSError):
+        return None
+    version = info.get('version')
+    version = version if type(version) is int else 0
+    lacks = [k for k, since in _REQUIRED if since <= version and k not in info]
+    return f'a damaged metadata.yaml (no {lacks[0]})' if lacks else None
 
 
 def storage_files(folder: Path) -> list[Path]:
@@ -98,7 +129,8 @@ def locate(path: str | Path) -> tuple[Path, list[Path] | None]:
     A recording cut off (the power went) has no metadata.yaml: rosbag2 writes it on close.
     Such a directory is a bag when it holds storage files named as rosbag2 names them (of
     one storage); a ``.db3`` or ``.mcap`` file without metadata.yaml beside it is a bag of
-    that file alone. Raises DatasetError saying why ``path`` is no bag.
+    that file alone. A damaged metadata.yaml (:func:`missing`) counts as none. Raises
+    DatasetError saying why ``path`` is no bag.
     """
     p = Path(path)
     if not p.exists():
@@ -108,20 +140,20 @@ def locate(path: str | Path) -> tuple[Path, list[Path] | None]:
             raise DatasetError(f'Bag {str(p)!r} is a ROS 1 bag; expected a rosbag2 directory '
                                '(convert it with rosbags-convert).')
         if p.suffix in STORAGE_SUFFIXES:
-            return (p.parent, None) if has_metadata(p.parent) else (p, [p])
+            return (p, [p]) if missing(p.parent) else (p.parent, None)
         raise DatasetError(f'Bag {str(p)!r} is a file, not a rosbag2 directory (a folder '
                            'with metadata.yaml and .db3 or .mcap files).')
-    if has_metadata(p):
-        return p, None
-    files = storage_files(p)
+    files, why = storage_files(p), missing(p)
+    if why is None or (has_metadata(p) and not files):
+        return p, None            # a damaged one without storage files beside it: refused
     if not files:
         found = sorted(x.name for x in p.iterdir())[:5]
-        raise DatasetError(f'Bag {str(p)!r} is not a rosbag2 directory: no metadata.yaml, '
-                           f'and not only storage files named NAME_N.db3 or NAME_N.mcap (found '
+        raise DatasetError(f'Bag {str(p)!r} is not a rosbag2 directory: {why}, and not only '
+                           f'storage files named NAME_N.db3 or NAME_N.mcap (found '
                            f'{found or "nothing"}).')
     if len({f.suffix for f in files}) > 1:
-        raise DatasetError(f'Bag {str(p)!r} has no metadata.yaml and holds both .db3 and '
-                           '.mcap files: give the storage file to read.')
+        raise DatasetError(f'Bag {str(p)!r} has {why} and holds both .db3 and .mcap files: '
+                           'give the storage file to read.')
     return p, files
 
 

@@ -297,11 +297,40 @@ def test_corrupt_storage_file(tmp_path, storage, damage):
         read_bag(tmp_path / 'bag')
 
 
-def test_corrupt_metadata(tmp_path):
-    _small_bag(tmp_path / 'bag', 'sqlite3')
+@pytest.mark.parametrize('storage', STORAGES)
+def test_a_damaged_metadata_yaml_yields_to_the_storage_files(tmp_path, storage):
+    _small_bag(tmp_path / 'bag', storage)
+    want = read_bag(tmp_path / 'bag')
     (tmp_path / 'bag' / 'metadata.yaml').write_text('rosbag2_bagfile_information: [\n')
+    got = read_bag(tmp_path / 'bag')
+    np.testing.assert_array_equal(got.gyro, want.gyro)
+    np.testing.assert_array_equal(got.temp_c, want.temp_c)
+    assert got.warnings[0] == (f'a damaged metadata.yaml (not valid YAML): read from '
+                               f'{next((tmp_path / "bag").glob("*.*[p3]")).name} as `ros2 bag '
+                               'reindex` would list it')
+    # Beside other files the folder is no bare bag: the damaged metadata.yaml is refused.
+    (tmp_path / 'bag' / 'notes.txt').write_text('calibration run 3\n')
     with pytest.raises(DatasetError, match=r'unreadable or corrupt'):
         read_bag(tmp_path / 'bag')
+
+
+@pytest.mark.parametrize('storage', STORAGES)
+def test_a_metadata_yaml_cut_anywhere_reads_the_same_messages(tmp_path, storage):
+    # The power went while rosbag2 wrote metadata.yaml on close: every cut of it reads the
+    # bag's messages, from the storage files where what is left lacks a key rosbag2 needs.
+    bag = tmp_path / 'bag'
+    _small_bag(bag, storage)
+    whole = (bag / 'metadata.yaml').read_bytes()
+    want = read_bag(bag)
+    cuts = sorted({*range(1, len(whole), 7), *(i + 1 for i, b in enumerate(whole) if b == 10)})
+    damaged = 0
+    for cut in cuts:
+        (bag / 'metadata.yaml').write_bytes(whole[:cut])
+        got = read_bag(bag)
+        np.testing.assert_array_equal(got.gyro, want.gyro, err_msg=f'cut at byte {cut}')
+        np.testing.assert_array_equal(got.temp_t, want.temp_t, err_msg=f'cut at byte {cut}')
+        damaged += any(w.startswith('a damaged metadata.yaml') for w in got.warnings)
+    assert 0.9 * len(cuts) < damaged < len(cuts)      # the last keys' cuts leave it whole
 
 
 @pytest.mark.parametrize('storage', STORAGES)
