@@ -25,10 +25,13 @@ and the worst read (the largest share of the uncut bag's IMU messages lost).
 ``--no-metadata``: as the power loss leaves them, without metadata.yaml (rosbag2 writes it
 on close) and the file named as rosbag2 names it; a sqlite3 shape is added, whose cut copy
 must read messages of the uncut bag (any of them, in order) or be refused. Every read must
-then also warn of the missing metadata.yaml. ::
+then also warn of the missing metadata.yaml. ``--cut-metadata``: the same, but metadata.yaml
+is cut at a random byte too (the power went while rosbag2 wrote it on close); a read must
+warn of it as damaged unless what is left holds every key rosbag2 requires. ::
 
     .venv/bin/python bench/bench_cut_mcap.py --cuts 40 --seed 0
     .venv/bin/python bench/bench_cut_mcap.py --cuts 40 --seed 1 --no-metadata
+    .venv/bin/python bench/bench_cut_mcap.py --cuts 40 --seed 2 --cut-metadata
 """
 
 import argparse
@@ -44,6 +47,7 @@ for extra in (ROOT, ROOT / 'test' / 'support'):
 
 from columnar_tape import _chamber, _write  # noqa: E402
 from gyro_tdc.data import read_bag  # noqa: E402
+from gyro_tdc.data.bag.metadata import missing  # noqa: E402
 from gyro_tdc.errors import DatasetError  # noqa: E402
 import numpy as np  # noqa: E402
 from rosbags.rosbag2 import CompressionMode  # noqa: E402
@@ -67,6 +71,7 @@ def _among(got, ref) -> bool:
 
 def judge(bag: Path, ref, cut_at: int, size: int, bare: bool) -> tuple[str, float]:
     """Return the outcome of reading one cut copy and the share of IMU messages lost."""
+    why = missing(bag) if bare else None          # what the read must warn of first
     try:
         got = read_bag(bag)
     except DatasetError as exc:
@@ -83,8 +88,8 @@ def judge(bag: Path, ref, cut_at: int, size: int, bare: bool) -> tuple[str, floa
         warned = cut_at == size or any('ends without the mcap footer' in w for w in got.warnings)
     if not same:
         return 'defect: not messages of the uncut bag', 1.0
-    if bare and not (got.warnings and got.warnings[0].startswith('no metadata.yaml')):
-        return 'defect: no warning of the missing metadata.yaml', 1.0
+    if why and not (got.warnings and got.warnings[0].startswith(why)):
+        return f'defect: no warning of {why}', 1.0
     return ('read' if warned else 'defect: no warning'), 1.0 - n / len(ref.imu_t)
 
 
@@ -95,11 +100,15 @@ def main(argv=None) -> int:
     ap.add_argument('--seed', type=int, default=0, help='seed of the cut offsets')
     ap.add_argument('--no-metadata', action='store_true',
                     help='cut copies without metadata.yaml, and a sqlite3 shape')
+    ap.add_argument('--cut-metadata', action='store_true',
+                    help='as --no-metadata, with metadata.yaml cut at a random byte')
     args = ap.parse_args(argv)
-    shapes = {k: v for k, v in SHAPES.items() if args.no_metadata or v[0] == 'mcap'}
+    bare = args.no_metadata or args.cut_metadata
+    shapes = {k: v for k, v in SHAPES.items() if bare or v[0] == 'mcap'}
     rng = np.random.default_rng(args.seed)
     print(f'{args.cuts} cut copies per shape, seed {args.seed}'
-          f'{", without metadata.yaml" if args.no_metadata else ""}: read, refused in one '
+          f'{", without metadata.yaml" if args.no_metadata else ""}'
+          f'{", metadata.yaml cut" if args.cut_metadata else ""}: read, refused in one '
           'line, defects, worst read (share of IMU messages lost)')
     total = {'read': 0, 'refused': 0, 'defect': 0}
     with tempfile.TemporaryDirectory(prefix='gyro_tdc_cut_') as tmp:
@@ -116,10 +125,14 @@ def main(argv=None) -> int:
                 bag = Path(tmp) / f'cut{k}_{j}'
                 shutil.copytree(whole, bag)
                 (bag / path.name).write_bytes(raw[:at])
-                if args.no_metadata:
-                    (bag / 'metadata.yaml').unlink()
+                if bare:
+                    if args.no_metadata:
+                        (bag / 'metadata.yaml').unlink()
+                    else:
+                        meta = (bag / 'metadata.yaml').read_bytes()
+                        (bag / 'metadata.yaml').write_bytes(meta[:rng.integers(0, len(meta))])
                     (bag / path.name).rename(bag / f'{bag.name}_0{path.suffix}')
-                outcome, lost = judge(bag, ref, at, len(raw), args.no_metadata)
+                outcome, lost = judge(bag, ref, at, len(raw), bare)
                 counts[outcome.split(':')[0]] += 1
                 if outcome == 'read':
                     worst = max(worst, lost)
