@@ -94,8 +94,7 @@ class _Checker(FieldChecker):
         self.source = source
 
     def _error(self, path: str, expected: str, got: Any) -> ScenarioError:
-        shown = repr(got)
-        shown = shown if len(shown) <= 80 else shown[:77] + '...'
+        shown = f'{got!r:.77}...' if len(repr(got)) > 80 else repr(got)
         return ScenarioError(f'{self.source}: `{path}`: expected {expected}, got {shown}.')
 
     def num(self, path: str, x: Any, *, low: Optional[float] = None,
@@ -439,9 +438,7 @@ class Scenario:
             parts = key.split('.')
             node = data
             for i, part in enumerate(parts[:-1]):
-                child = node.get(part)
-                if child is None:
-                    child = node[part] = {}
+                child = node[part] = {} if node.get(part) is None else node[part]
                 if not isinstance(child, dict):
                     raise ScenarioError(f'Override {key!r}: `{".".join(parts[:i + 1])}` is '
                                         f'not a mapping (it holds {child!r}).')
