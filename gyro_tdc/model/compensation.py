@@ -37,9 +37,8 @@ from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['CompensationModel', 'FORMAT_VERSION', 'StreamingCompensator', 'compensate',
-           'drift', 'model_temperature', 'predict_drift', 'rbf_design', 'static_slope',
-           'steady_drift']
+__all__ = ['CompensationModel', 'FORMAT_VERSION', 'StreamingCompensator', 'compensate', 'drift',
+           'model_temperature', 'predict_drift', 'rbf_design', 'static_slope', 'steady_drift']
 
 KINDS = ('rbf', 'poly')
 #: The model-file format every model is (:mod:`gyro_tdc.model.modelfile` writes and reads it).
@@ -267,20 +266,16 @@ def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
                                   if isinstance(m, CompensationModel) else m)
     xn = (np.asarray(x, dtype=np.float64) - mean) / std
     n, f = xn.shape
-    k = centers.shape[0]
-    out = np.empty((n, 1 + f + k))
+    out = np.empty((n, 1 + f + centers.shape[0]))
     out[:, 0] = 1.0
     out[:, 1:1 + f] = xn
-    if k:
-        # Squared distances accumulated one input at a time: no (N, K, F) temporary.
-        phi = out[:, 1 + f:]
-        phi.fill(0.0)
-        for j in range(f):
-            diff = xn[:, j:j + 1] - centers[None, :, j]
-            diff *= diff
-            phi += diff
-        phi *= -1.0 / (2.0 * widths ** 2)
-        np.exp(phi, out=phi)
+    # Squared distances accumulated one input at a time: no (N, K, F) temporary.
+    phi = out[:, 1 + f:]
+    phi.fill(0.0)
+    for j in range(f):
+        phi += (xn[:, j:j + 1] - centers[None, :, j]) ** 2
+    phi *= -1.0 / (2.0 * widths ** 2)
+    np.exp(phi, out=phi)
     return out
 
 
