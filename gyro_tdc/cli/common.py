@@ -35,9 +35,8 @@ from typing import Callable, NoReturn, Optional, Sequence
 from gyro_tdc.base import RAD_PER_DEG
 from gyro_tdc.cli import PROG
 from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPIC,
-                           DEFAULT_TEMPERATURE_TOPIC, GAP_PERIODS, LOG_FORMATS,
-                           MAX_LOSS_FRACTION, SESSION_GAP_S, SESSION_MODES,
-                           TEMPERATURE_SOURCES)
+                           DEFAULT_TEMPERATURE_TOPIC, GAP_PERIODS, LOG_FORMATS, MAX_LOSS_FRACTION,
+                           SESSION_GAP_S, SESSION_MODES, TEMPERATURE_SOURCES)
 from gyro_tdc.errors import GyroTdcError, one_line
 
 __all__ = ['ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_options',
@@ -361,30 +360,27 @@ def add_driver_options(parser: argparse.ArgumentParser) -> None:
     from gyro_tdc.data import DriverInputs
     d = DriverInputs()          # the defaults: a plain Imu + Temperature bag
     g = parser.add_argument_group("driver message types (as compensator_node's parameters)")
-    g.add_argument('--imu-type', default=d.imu_type, metavar='PKG/msg/TYPE',
-                   help='type of the IMU topic, e.g. geometry_msgs/msg/Vector3Stamped or '
-                        'px4_msgs/msg/SensorGyro (default: %(default)s)')
-    g.add_argument('--angular-velocity-field', default=d.angular_velocity_field, metavar='PATH',
-                   help="dotted path to its x/y/z rate in rad/s, e.g. vector; '' the message "
-                        'itself (default: %(default)s)')
-    g.add_argument('--stamp-field', default=d.stamp_field, metavar='PATH',
-                   help='dotted path to its stamp: a builtin_interfaces/Time or an integer in '
-                        'microseconds, e.g. timestamp (default: %(default)s)')
-    g.add_argument('--input-frame', default=d.input_frame, choices=INPUT_FRAMES,
-                   help='axes of that rate: flu, or frd (PX4) turned to FLU (default: '
-                        '%(default)s)')
-    g.add_argument('--temperature-type', default=d.temperature_type, metavar='PKG/msg/TYPE',
-                   help='type of the temperature topic, checked against the bag (default: '
-                        'as the bag says)')
-    g.add_argument('--temperature-field', default=d.temperature_field, metavar='PATH',
-                   help='dotted path to its degC number, e.g. mean_temp (default: '
-                        'temperature, or data for std_msgs Float32/Float64)')
-    g.add_argument('--temperature-stamp-field', default=d.temperature_stamp_field, metavar='PATH',
-                   help='dotted path to its stamp, e.g. header.header.stamp (default: '
-                        'header.stamp where it has one, else the latest IMU stamp)')
-    g.add_argument('--temperature-quirk', default=d.temperature_quirk, choices=TEMPERATURE_QUIRKS,
-                   help="undo a driver's temperature encoding: bno055_unsigned_byte or "
-                        'sbg_legacy_div256 (default: none)')
+    # Each option sets the DriverInputs field of its name; a tuple is its choices, else metavar.
+    for name, how, text in (
+            ('imu_type', 'PKG/msg/TYPE', 'type of the IMU topic, e.g. geometry_msgs/msg/'
+             'Vector3Stamped or px4_msgs/msg/SensorGyro (default: %(default)s)'),
+            ('angular_velocity_field', 'PATH', 'dotted path to its x/y/z rate in rad/s, e.g. '
+             "vector; '' the message itself (default: %(default)s)"),
+            ('stamp_field', 'PATH', 'dotted path to its stamp: a builtin_interfaces/Time or an '
+             'integer in microseconds, e.g. timestamp (default: %(default)s)'),
+            ('input_frame', INPUT_FRAMES, 'axes of that rate: flu, or frd (PX4) turned to FLU '
+             '(default: %(default)s)'),
+            ('temperature_type', 'PKG/msg/TYPE', 'type of the temperature topic, checked '
+             'against the bag (default: as the bag says)'),
+            ('temperature_field', 'PATH', 'dotted path to its degC number, e.g. mean_temp '
+             '(default: temperature, or data for std_msgs Float32/Float64)'),
+            ('temperature_stamp_field', 'PATH', 'dotted path to its stamp, e.g. '
+             'header.header.stamp (default: header.stamp where it has one, else the latest '
+             'IMU stamp)'),
+            ('temperature_quirk', TEMPERATURE_QUIRKS, "undo a driver's temperature encoding: "
+             'bno055_unsigned_byte or sbg_legacy_div256 (default: none)')):
+        how = {'choices': how} if isinstance(how, tuple) else {'metavar': how}
+        g.add_argument('--' + name.replace('_', '-'), default=getattr(d, name), help=text, **how)
 
 
 def driver_bags(args: argparse.Namespace, paths: Sequence[str]) -> list:

@@ -32,8 +32,7 @@ from gyro_tdc.base import atomic_json
 from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser, bag_options,
                                  command_line, effect_listing, finite_float, positive_float,
-                                 positive_int, probability, progress_bar, run_command,
-                                 UsageError)
+                                 positive_int, probability, progress_bar, run_command, UsageError)
 from gyro_tdc.data import load_runs, split_sessions
 from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.identify import (ACCEL_EFFECTS, build_model, constant_gyro_axes, constant_note,
