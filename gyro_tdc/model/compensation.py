@@ -234,8 +234,7 @@ class CompensationModel:
                    widths=widths, weights=coef[1 + f:], intercept=coef[0],
                    linear=coef[1:1 + f], scale=np.zeros(3) if scale is None else scale,
                    temp_range_c=(float(temp_range_c[0]), float(temp_range_c[1])),
-                   residual_var=np.asarray(residual_var, dtype=np.float64).reshape(3),
-                   **extra)
+                   residual_var=np.asarray(residual_var, dtype=np.float64).reshape(3), **extra)
 
     @classmethod
     def polynomial(cls, features: tuple[str, ...], t0_c: float, coef: NDArray[np.float64], *,
