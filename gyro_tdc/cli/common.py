@@ -153,19 +153,17 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument('--temperature-topic', default=DEFAULT_TEMPERATURE_TOPIC, metavar='TOPIC',
                    help='sensor_msgs/Temperature topic (default: %(default)s)')
     ref = g.add_mutually_exclusive_group()
-    ref.add_argument('--reference', metavar='X,Y,Z', default=None,
-                     help='constant reference (true) rate in rad/s, or with a deg/s suffix '
-                          '(e.g. 10,5,20dps); default: the reference topic when the bag has '
-                          'it, else zero')
+    ref.add_argument('--reference', metavar='X,Y,Z', help='constant reference (true) rate in '
+                     'rad/s, or with a deg/s suffix (e.g. 10,5,20dps); default: the reference '
+                     'topic when the bag has it, else zero')
     ref.add_argument('--reference-topic', default=DEFAULT_REFERENCE_TOPIC, metavar='TOPIC',
                      help='geometry_msgs/Vector3Stamped rate-table topic, held onto the IMU '
                           'stamps, used when present (default: %(default)s)')
     g.add_argument('--no-progress', dest='progress', action='store_false', default=None,
                    help='no progress bar while reading (default: shown on a terminal)')
-    g.add_argument('--allow-loss', action='store_true',
-                   help='use a bag even when more than 1 %% of the messages of a topic listed '
-                        'in its metadata cannot be read, or a flight log cut short (the loss '
-                        'is reported either way)')
+    g.add_argument('--allow-loss', action='store_true', help='use a bag even when more than 1 %% '
+                   'of the messages of a topic listed in its metadata cannot be read, or a flight '
+                   'log cut short (the loss is reported either way)')
     f = parser.add_argument_group('flight-controller logs (PX4 ULog, ArduPilot DataFlash)')
     f.add_argument('--log-format', default='auto', choices=LOG_FORMATS,
                    help='how to read each path: auto tells a rosbag2 bag, a .ulg and a .bin '
@@ -196,12 +194,11 @@ def add_session_options(parser: argparse.ArgumentParser) -> None:
 
     """
     g = parser.add_argument_group('sessions (power cycles, one turn-on offset each)')
-    g.add_argument('--sessions', default='auto', choices=SESSION_MODES,
-                   help='how the bags are cut into sessions, each with its own turn-on '
-                        'offset beside one shared thermal curve: auto (every bag, cut again '
-                        'where its stamps pause for longer than --session-gap or its device '
-                        'clock restarts), bag (one per bag) or none (one offset for all, as '
-                        'one power cycle) (default: %(default)s)')
+    g.add_argument('--sessions', default='auto', choices=SESSION_MODES, help='how the bags are '
+                   'cut into sessions, each with its own turn-on offset beside one shared thermal '
+                   'curve: auto (every bag, cut again where its stamps pause for longer than '
+                   '--session-gap or its device clock restarts), bag (one per bag) or none (one '
+                   'offset for all, as one power cycle) (default: %(default)s)')
     g.add_argument('--session-gap', dest='session_gap', type=non_negative_float, default=0.0,
                    metavar='S',
                    help='a stamp gap longer than S seconds starts a new session; 0: automatic '
@@ -241,8 +238,7 @@ def progress_bar(total: int | None, unit: str, desc: str, shown: bool) -> tuple:
     ``log`` prints above the bar while it shows, so lines and bar never mix.
     """
     from tqdm import tqdm
-    bar = tqdm(total=total, unit=unit, desc=desc, file=sys.stderr, leave=False,
-               disable=not shown)
+    bar = tqdm(total=total, unit=unit, desc=desc, file=sys.stderr, leave=False, disable=not shown)
 
     def log(line: str) -> None:
         if bar.disable:

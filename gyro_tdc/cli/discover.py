@@ -64,10 +64,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='write report.md with PNG residual maps and Allan deviation to DIR')
     p.add_argument('-o', '--out', metavar='MODEL.yaml', help='write a model file of the '
                    'discovered effects (compensator_node loads it)')
-    p.add_argument('--kind', default='poly', choices=KINDS,
-                   help='model of --out: poly (linear in the features of the model temperature, '
-                        'what discovery validated; with lag every temperature term is of the '
-                        'lagged state) or rbf (default: poly)')
+    p.add_argument('--kind', default='poly', choices=KINDS, help='model of --out: poly (linear in '
+                   'the features of the model temperature, what discovery validated; with lag '
+                   'every temperature term is of the lagged state) or rbf (default: poly)')
     p.add_argument('--block-s', type=positive_float, default=10.0, metavar='S',
                    help='block length in s; gaps and the noise floor are RMS of block means '
                         '(default: %(default)s)')

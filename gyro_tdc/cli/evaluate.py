@@ -57,12 +57,10 @@ def build_parser() -> argparse.ArgumentParser:
                         'a PX4-style cubic in T fitted on the --train bags, or px4-onboard / '
                         "ardupilot-onboard for the flight controller's own correction as each "
                         "held-out log's TC_G* / INS_TCALn_* parameters define it (its clamp)")
-    p.add_argument('--train', nargs='+', metavar='BAG', default=None,
-                   help='bags to fit the px4 cubic on')
-    p.add_argument('--baseline', metavar='MODEL', default=None,
-                   help='the conventional model of the paper tables (one of the --model '
-                        'values, or another model file, evaluated too); default: the first '
-                        'of exactly two models')
+    p.add_argument('--train', nargs='+', metavar='BAG', help='bags to fit the px4 cubic on')
+    p.add_argument('--baseline', metavar='MODEL', help='the conventional model of the paper '
+                   'tables (one of the --model values, or another model file, evaluated too); '
+                   'default: the first of exactly two models')
     p.add_argument('--reanchor', type=_reanchor, default=0.0, metavar='S|auto',
                    help='remove from each model the mean error over the first S s of every '
                         'session (the turn-on offset of each power cycle, as the compensator '
@@ -75,21 +73,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"beyond a model's trained range: linear ({POLICY_WORDS['linear']}, "
                         'as the compensator node by default), clamp, or extrapolate (default: '
                         '%(default)s)')
-    p.add_argument('--floor', type=_floor, default=None, metavar='X,Y,Z|V',
+    p.add_argument('--floor', type=_floor, metavar='X,Y,Z|V',
                    help='a known white-noise floor of the gyro per axis in (deg/s)^2 (one '
                         'value: all axes), e.g. ARW^2 x rate from the simulator or a '
                         'datasheet: adds BS / floor per model (BS/fl; bs_over_floor in --json)')
-    p.add_argument('--accel-floor', dest='accel_floor', type=_floor, default=None,
-                   metavar='X,Y,Z|V',
-                   help='likewise for the accelerometer, in (m/s^2)^2 (aBS/fl; '
-                        'accel_bs_over_floor in --json)')
-    p.add_argument('--json', metavar='OUT', default=None,
-                   help='write the scores as JSON (shape: doc/json.md)')
-    p.add_argument('--plots', metavar='DIR', default=None, help='write PNGs per bag here')
-    p.add_argument('--export', metavar='DIR', default=None,
-                   help='write a CSV per bag here: time, temperature, raw, reference and '
-                        'compensated rates (rad/s) of the samples scored (of a flight log: '
-                        'its still stretches)')
+    p.add_argument('--accel-floor', dest='accel_floor', type=_floor,
+                   metavar='X,Y,Z|V', help='likewise for the accelerometer, in (m/s^2)^2 (aBS/fl; '
+                   'accel_bs_over_floor in --json)')
+    p.add_argument('--json', metavar='OUT', help='write the scores as JSON (shape: doc/json.md)')
+    p.add_argument('--plots', metavar='DIR', help='write PNGs per bag here')
+    p.add_argument('--export', metavar='DIR', help='write a CSV per bag here: time, temperature, '
+                   'raw, reference and compensated rates (rad/s) of the samples scored (of a '
+                   'flight log: its still stretches)')
     add_bag_options(p)
     add_driver_options(p)
     add_session_options(p)
