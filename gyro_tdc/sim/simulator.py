@@ -237,9 +237,8 @@ def _coefficients(g: GyroSpec, on: Mapping[str, bool], offset: NDArray[np.float6
 
 
 def _drift(g: GyroSpec, on: Mapping[str, bool], coefficients: Mapping[str, NDArray[np.float64]],
-           imu_t: NDArray[np.float64], d_t: NDArray[np.float64],
-           die_rate: NDArray[np.float64], omega_ref: NDArray[np.float64]
-           ) -> NDArray[np.float64]:
+           imu_t: NDArray[np.float64], d_t: NDArray[np.float64], die_rate: NDArray[np.float64],
+           omega_ref: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return the gyro drift (N, 3), rad/s, of the die temperature, its rate and the rate."""
     poly = np.stack((d_t, d_t * d_t, d_t * d_t * d_t), axis=1)            # (N, 3 powers)
     weights = np.stack((coefficients['dT'], coefficients['dT2'], coefficients['dT3']))
