@@ -45,11 +45,9 @@ __all__ = ['build_parser', 'main']
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``discover``."""
-    p = ArgumentParser(
-        prog=f'{PROG} discover',
-        description='Fit the drift model with the base effects to measured bags, show where it '
-                    'disagrees with them, name the missing effect, add it and repeat until the '
-                    'residual is noise.')
+    p = ArgumentParser(prog=f'{PROG} discover', description='Fit the drift model with the base '
+                       'effects to measured bags, show where it disagrees with them, name the '
+                       'missing effect, add it and repeat until the residual is noise.')
     p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap), '
                    'or a PX4 .ulg / ArduPilot .bin flight log')
     p.help_tail = effect_listing     # --help ends with the effect ids

@@ -43,10 +43,9 @@ __all__ = ['build_parser', 'main']
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``evaluate``."""
-    p = ArgumentParser(
-        prog=f'{PROG} evaluate',
-        description='Score compensation models on held-out rosbag2 bags in the terms of the '
-                    'paper (BS, P ratios), plus RMS and Allan deviation.')
+    p = ArgumentParser(prog=f'{PROG} evaluate', description='Score compensation models on '
+                       'held-out rosbag2 bags in the terms of the paper (BS, P ratios), plus RMS '
+                       'and Allan deviation.')
     p.add_argument('bags', nargs='+', metavar='BAG',
                    help='held-out rosbag2 directory (sqlite3 or mcap), PX4 .ulg or '
                         'ArduPilot .bin log, or a folder of them (walked, subfolders too; '

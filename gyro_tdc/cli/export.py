@@ -47,14 +47,13 @@ _LOAD = {'px4': 'QGroundControl: Vehicle Setup > Parameters > Tools > Load from 
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``export``."""
-    p = ArgumentParser(
-        prog=f'{PROG} export',
-        description="Write a model's drift as a flight controller's thermal-calibration "
-                    'parameters (PX4 TC_G*/TC_A*, ArduPilot INS_TCALn_*), fitted in their '
-                    'exact cubic over the trained range; with --eval, score the form as the '
-                    'firmware applies it beside the full model on held-out bags. Or, with '
-                    '--model, write a model (a learn_file: its learned model) as a model '
-                    'file. MODEL is a model file, a shipped name or a learn_file.')
+    p = ArgumentParser(prog=f'{PROG} export', description="Write a model's drift as a flight "
+                       "controller's thermal-calibration parameters (PX4 TC_G*/TC_A*, ArduPilot "
+                       'INS_TCALn_*), fitted in their exact cubic over the trained range; with '
+                       '--eval, score the form as the firmware applies it beside the full model '
+                       'on held-out bags. Or, with --model, write a model (a learn_file: its '
+                       'learned model) as a model file. MODEL is a model file, a shipped name or '
+                       'a learn_file.')
     which = p.add_mutually_exclusive_group(required=True)
     which.add_argument('--model', metavar='MODEL', help='model file or learn_file to write as a '
                        'gyro_tdc model file (YAML) at --out: the learned model of a learn_file, '

@@ -39,12 +39,11 @@ __all__ = ['build_parser', 'main']
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``fleet``."""
-    p = ArgumentParser(
-        prog=f'{PROG} fleet',
-        description='Calibrate a fleet of IMUs on Dask: one model per row of a manifest CSV '
-                    '(sensor_id,train,test; bags separated by ";", relative to the manifest), '
-                    'evaluated on its test bags, with fleet-outlier flags on the drift '
-                    'coefficients; the training options are those of train.')
+    p = ArgumentParser(prog=f'{PROG} fleet', description='Calibrate a fleet of IMUs on Dask: one '
+                       'model per row of a manifest CSV (sensor_id,train,test; bags separated by '
+                       '";", relative to the manifest), evaluated on its test bags, with '
+                       'fleet-outlier flags on the drift coefficients; the training options are '
+                       'those of train.')
     p.add_argument('manifest', metavar='MANIFEST.csv', help='the fleet manifest')
     p.add_argument('-o', '--out', required=True, metavar='DIR',
                    help='output folder: <sensor_id>.yaml, summary.json, summary.csv')

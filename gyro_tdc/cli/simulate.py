@@ -73,10 +73,8 @@ def scenario_listing(width: int = 92) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``simulate``."""
-    parser = ArgumentParser(
-        prog=f'{PROG} simulate',
-        description='Simulate a gyro in a thermal chamber on a rate table and write rosbag2 '
-                    'bags (one per run).')
+    parser = ArgumentParser(prog=f'{PROG} simulate', description='Simulate a gyro in a thermal '
+                            'chamber on a rate table and write rosbag2 bags (one per run).')
     parser.add_argument('--scenario', required=True, metavar='NAME|FILE',
                         help='shipped scenario name (listed below) or a YAML file')
     parser.add_argument('-o', '--out', required=True, metavar='BAG', help='bag directory to '

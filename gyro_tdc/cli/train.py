@@ -44,10 +44,9 @@ __all__ = ['add_train_options', 'build_parser', 'main', 'train_options', 'traini
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``train``."""
-    p = ArgumentParser(
-        prog=f'{PROG} train',
-        description='Identify a temperature-drift compensation model from rosbag2 bags '
-                    'or flight logs (one run each) and write it as a YAML model file.')
+    p = ArgumentParser(prog=f'{PROG} train', description='Identify a temperature-drift '
+                       'compensation model from rosbag2 bags or flight logs (one run each) and '
+                       'write it as a YAML model file.')
     p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap), a '
                    'PX4 .ulg / ArduPilot .bin flight log, or a folder: walked, subfolders too, '
                    'for its bags and logs; one found there that cannot be read is skipped with a '
