@@ -317,8 +317,7 @@ def _drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.fl
         if tangent is not None:
             r = reach[i:i + chunk]
             k = np.flatnonzero(r)
-            if k.size:
-                out[i + k] += r[k, None] * tangent.slope(design[k], d[i:i + chunk][k])
+            out[i + k] += r[k, None] * tangent.slope(design[k], d[i:i + chunk][k])
     return out, d + reach
 
 

@@ -82,7 +82,7 @@ def heat_conduction_time_s(*, specific_heat_kj_per_kg_k: float, density_kg_per_m
     larger, so the 17.5 s and the 20 s hold derived from it are the paper's experimental
     choice, not a conduction time constant; the simulator's lags are ``thermal.tau_*_s``.
     """
-    for name, value in locals().items():     # every argument, in order
+    for name, value in list(locals().items()):     # every argument, in order
         _positive(name, value)
     return float(specific_heat_kj_per_kg_k * density_kg_per_m3 * length_m ** 2
                  / conductivity_w_per_m_k)
