@@ -97,8 +97,7 @@ class _Checker(FieldChecker):
         shown = f'{got!r:.77}...' if len(repr(got)) > 80 else repr(got)
         return ScenarioError(f'{self.source}: `{path}`: expected {expected}, got {shown}.')
 
-    def num(self, path: str, x: Any, *, low: Optional[float] = None,
-            strict: bool = False) -> float:
+    def num(self, path: str, x: Any, *, low: float | None = None, strict: bool = False) -> float:
         v = (self.number(x, path, what='a finite number') if low is None else
              self.above(x, path, low, strict, what='a finite number'))
         if not abs(v) <= MAX_MAGNITUDE:
