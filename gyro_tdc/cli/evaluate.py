@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import Optional, Sequence
+from typing import Iterator, Optional, Sequence
 
 from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
@@ -172,21 +172,18 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     return 0
 
 
-def _reanchor_lines(b: BagEval) -> list[str]:
-    """Return what the automatic re-anchoring did for each model on a bag (each session)."""
-    lines = []
+def _reanchor_lines(b: BagEval) -> Iterator[str]:
+    """Yield what the automatic re-anchoring did for each model on a bag (each session)."""
     for m in b.models:
         if m.reanchor is None:         # scored on still stretches: anchored on them
             continue
         records = m.reanchor.get('sessions') or [m.reanchor]
         for k, r in enumerate(records):
             where = f' session {k + 1}' if len(records) > 1 else ''
-            lines.append(f'{b.label}: {m.label} re-anchored{where} on {r["samples"]} samples '
-                         f'over {r["duration_s"]:.1f} s ({r["reason"]}): shift '
-                         + ', '.join(f'{v:+.5f}' for v in r['shift_dps'])
-                         + ' deg/s, standard error '
-                         + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
-    return lines
+            yield (f'{b.label}: {m.label} re-anchored{where} on {r["samples"]} samples '
+                   f'over {r["duration_s"]:.1f} s ({r["reason"]}): shift '
+                   + ', '.join(f'{v:+.5f}' for v in r['shift_dps']) + ' deg/s, standard error '
+                   + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:
