@@ -163,8 +163,7 @@ def _evaluate(args: argparse.Namespace, model, form, firmware: str) -> None:
     how = (f', mean error of the first {args.reanchor:g} s removed (model and form)'
            if args.reanchor else '')
     print(f'held out: BS (deg/s)^2 and RMS deg/s per axis x y z; {firmware} applied as the '
-          f'firmware does (raw minus its correction at the measured temperature, clamped)'
-          + how)
+          f'firmware does (raw minus its correction at the measured temperature, clamped)' + how)
     scores = score_export(model, {firmware: form}, runs, reanchor_s=args.reanchor)
     labels = ('raw', 'model', firmware)
     for s in scores:
