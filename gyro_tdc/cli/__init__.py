@@ -97,9 +97,8 @@ def load_main(name: str) -> Callable[[Optional[Sequence[str]]], Optional[int]]:
         module = importlib.import_module(command.module)
     except ModuleNotFoundError as exc:
         if exc.name == command.module:
-            raise CommandUnavailable(
-                f'command {name!r} is not available: module {command.module} is not '
-                f'installed') from exc
+            raise CommandUnavailable(f'command {name!r} is not available: module '
+                                     f'{command.module} is not installed') from exc
         raise
     main = getattr(module, 'main', None)
     if not callable(main):

@@ -35,9 +35,8 @@ from typing import Callable, NoReturn, Optional, Sequence
 from gyro_tdc.base import RAD_PER_DEG
 from gyro_tdc.cli import PROG
 from gyro_tdc.data import (BagOptions, DEFAULT_IMU_TOPIC, DEFAULT_REFERENCE_TOPIC,
-                           DEFAULT_TEMPERATURE_TOPIC, GAP_PERIODS, LOG_FORMATS,
-                           MAX_LOSS_FRACTION, SESSION_GAP_S, SESSION_MODES,
-                           TEMPERATURE_SOURCES)
+                           DEFAULT_TEMPERATURE_TOPIC, GAP_PERIODS, LOG_FORMATS, MAX_LOSS_FRACTION,
+                           SESSION_GAP_S, SESSION_MODES, TEMPERATURE_SOURCES)
 from gyro_tdc.errors import GyroTdcError, one_line
 
 __all__ = ['ArgumentParser', 'UsageError', 'add_bag_options', 'add_driver_options',
@@ -154,19 +153,17 @@ def add_bag_options(parser: argparse.ArgumentParser) -> None:
     g.add_argument('--temperature-topic', default=DEFAULT_TEMPERATURE_TOPIC, metavar='TOPIC',
                    help='sensor_msgs/Temperature topic (default: %(default)s)')
     ref = g.add_mutually_exclusive_group()
-    ref.add_argument('--reference', metavar='X,Y,Z', default=None,
-                     help='constant reference (true) rate in rad/s, or with a deg/s suffix '
-                          '(e.g. 10,5,20dps); default: the reference topic when the bag has '
-                          'it, else zero')
+    ref.add_argument('--reference', metavar='X,Y,Z', help='constant reference (true) rate in '
+                     'rad/s, or with a deg/s suffix (e.g. 10,5,20dps); default: the reference '
+                     'topic when the bag has it, else zero')
     ref.add_argument('--reference-topic', default=DEFAULT_REFERENCE_TOPIC, metavar='TOPIC',
                      help='geometry_msgs/Vector3Stamped rate-table topic, held onto the IMU '
                           'stamps, used when present (default: %(default)s)')
     g.add_argument('--no-progress', dest='progress', action='store_false', default=None,
                    help='no progress bar while reading (default: shown on a terminal)')
-    g.add_argument('--allow-loss', action='store_true',
-                   help='use a bag even when more than 1 %% of the messages of a topic listed '
-                        'in its metadata cannot be read, or a flight log cut short (the loss '
-                        'is reported either way)')
+    g.add_argument('--allow-loss', action='store_true', help='use a bag even when more than 1 %% '
+                   'of the messages of a topic listed in its metadata cannot be read, or a flight '
+                   'log cut short (the loss is reported either way)')
     f = parser.add_argument_group('flight-controller logs (PX4 ULog, ArduPilot DataFlash)')
     f.add_argument('--log-format', default='auto', choices=LOG_FORMATS,
                    help='how to read each path: auto tells a rosbag2 bag, a .ulg and a .bin '
@@ -197,12 +194,11 @@ def add_session_options(parser: argparse.ArgumentParser) -> None:
 
     """
     g = parser.add_argument_group('sessions (power cycles, one turn-on offset each)')
-    g.add_argument('--sessions', default='auto', choices=SESSION_MODES,
-                   help='how the bags are cut into sessions, each with its own turn-on '
-                        'offset beside one shared thermal curve: auto (every bag, cut again '
-                        'where its stamps pause for longer than --session-gap or its device '
-                        'clock restarts), bag (one per bag) or none (one offset for all, as '
-                        'one power cycle) (default: %(default)s)')
+    g.add_argument('--sessions', default='auto', choices=SESSION_MODES, help='how the bags are '
+                   'cut into sessions, each with its own turn-on offset beside one shared thermal '
+                   'curve: auto (every bag, cut again where its stamps pause for longer than '
+                   '--session-gap or its device clock restarts), bag (one per bag) or none (one '
+                   'offset for all, as one power cycle) (default: %(default)s)')
     g.add_argument('--session-gap', dest='session_gap', type=non_negative_float, default=0.0,
                    metavar='S',
                    help='a stamp gap longer than S seconds starts a new session; 0: automatic '
@@ -242,8 +238,7 @@ def progress_bar(total: int | None, unit: str, desc: str, shown: bool) -> tuple:
     ``log`` prints above the bar while it shows, so lines and bar never mix.
     """
     from tqdm import tqdm
-    bar = tqdm(total=total, unit=unit, desc=desc, file=sys.stderr, leave=False,
-               disable=not shown)
+    bar = tqdm(total=total, unit=unit, desc=desc, file=sys.stderr, leave=False, disable=not shown)
 
     def log(line: str) -> None:
         if bar.disable:
@@ -361,30 +356,27 @@ def add_driver_options(parser: argparse.ArgumentParser) -> None:
     from gyro_tdc.data import DriverInputs
     d = DriverInputs()          # the defaults: a plain Imu + Temperature bag
     g = parser.add_argument_group("driver message types (as compensator_node's parameters)")
-    g.add_argument('--imu-type', default=d.imu_type, metavar='PKG/msg/TYPE',
-                   help='type of the IMU topic, e.g. geometry_msgs/msg/Vector3Stamped or '
-                        'px4_msgs/msg/SensorGyro (default: %(default)s)')
-    g.add_argument('--angular-velocity-field', default=d.angular_velocity_field, metavar='PATH',
-                   help="dotted path to its x/y/z rate in rad/s, e.g. vector; '' the message "
-                        'itself (default: %(default)s)')
-    g.add_argument('--stamp-field', default=d.stamp_field, metavar='PATH',
-                   help='dotted path to its stamp: a builtin_interfaces/Time or an integer in '
-                        'microseconds, e.g. timestamp (default: %(default)s)')
-    g.add_argument('--input-frame', default=d.input_frame, choices=INPUT_FRAMES,
-                   help='axes of that rate: flu, or frd (PX4) turned to FLU (default: '
-                        '%(default)s)')
-    g.add_argument('--temperature-type', default=d.temperature_type, metavar='PKG/msg/TYPE',
-                   help='type of the temperature topic, checked against the bag (default: '
-                        'as the bag says)')
-    g.add_argument('--temperature-field', default=d.temperature_field, metavar='PATH',
-                   help='dotted path to its degC number, e.g. mean_temp (default: '
-                        'temperature, or data for std_msgs Float32/Float64)')
-    g.add_argument('--temperature-stamp-field', default=d.temperature_stamp_field, metavar='PATH',
-                   help='dotted path to its stamp, e.g. header.header.stamp (default: '
-                        'header.stamp where it has one, else the latest IMU stamp)')
-    g.add_argument('--temperature-quirk', default=d.temperature_quirk, choices=TEMPERATURE_QUIRKS,
-                   help="undo a driver's temperature encoding: bno055_unsigned_byte or "
-                        'sbg_legacy_div256 (default: none)')
+    # Each option sets the DriverInputs field of its name; a tuple is its choices, else metavar.
+    for name, how, text in (
+            ('imu_type', 'PKG/msg/TYPE', 'type of the IMU topic, e.g. geometry_msgs/msg/'
+             'Vector3Stamped or px4_msgs/msg/SensorGyro (default: %(default)s)'),
+            ('angular_velocity_field', 'PATH', 'dotted path to its x/y/z rate in rad/s, e.g. '
+             "vector; '' the message itself (default: %(default)s)"),
+            ('stamp_field', 'PATH', 'dotted path to its stamp: a builtin_interfaces/Time or an '
+             'integer in microseconds, e.g. timestamp (default: %(default)s)'),
+            ('input_frame', INPUT_FRAMES, 'axes of that rate: flu, or frd (PX4) turned to FLU '
+             '(default: %(default)s)'),
+            ('temperature_type', 'PKG/msg/TYPE', 'type of the temperature topic, checked '
+             'against the bag (default: as the bag says)'),
+            ('temperature_field', 'PATH', 'dotted path to its degC number, e.g. mean_temp '
+             '(default: temperature, or data for std_msgs Float32/Float64)'),
+            ('temperature_stamp_field', 'PATH', 'dotted path to its stamp, e.g. '
+             'header.header.stamp (default: header.stamp where it has one, else the latest '
+             'IMU stamp)'),
+            ('temperature_quirk', TEMPERATURE_QUIRKS, "undo a driver's temperature encoding: "
+             'bno055_unsigned_byte or sbg_legacy_div256 (default: none)')):
+        how = {'choices': how} if isinstance(how, tuple) else {'metavar': how}
+        g.add_argument('--' + name.replace('_', '-'), default=getattr(d, name), help=text, **how)
 
 
 def driver_bags(args: argparse.Namespace, paths: Sequence[str]) -> list:

@@ -56,8 +56,7 @@ STEPS = (
     'modified, P1-P3)',
     'Compare on run 2: modified RBF, modified polynomial and a PX4-style cubic (fitted on run '
     '1), with start-up re-anchoring, with plots',
-    'Simulate a sensor whose MEMS die lags its thermometer by 180 s (heating and cooling, '
-    '2 runs)',
+    'Simulate a sensor whose MEMS die lags its thermometer by 180 s (heating and cooling, 2 runs)',
     'Discover what the datasheet model f(dT) misses, from the bags alone',
     'Train on its run 1: datasheet f(dT), modified f(dT, dT^2) and the default options '
     '(--features auto)',
@@ -242,8 +241,7 @@ def _print_discovery(path: Path) -> None:
 
 def _node_lines(model_stem: str) -> list[str]:
     """Return the two node commands, as a pip-venv user and as an apt ROS user types them."""
-    comp = ('--ros-args --params-file config/compensator.yaml '
-            f'-p model_file:={model_stem}')
+    comp = f'--ros-args --params-file config/compensator.yaml -p model_file:={model_stem}'
     drv = ('--ros-args --params-file config/driver_sim.yaml -p scenario:=demo_fast '
            '-p seed:=7 -p sim_rate_hz:=10.0 -p time_scale:=50.0')
     return ["# this repository's venv (make venv), from the repository root:",

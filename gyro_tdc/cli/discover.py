@@ -32,8 +32,7 @@ from gyro_tdc.base import atomic_json
 from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, add_session_options, ArgumentParser, bag_options,
                                  command_line, effect_listing, finite_float, positive_float,
-                                 positive_int, probability, progress_bar, run_command,
-                                 UsageError)
+                                 positive_int, probability, progress_bar, run_command, UsageError)
 from gyro_tdc.data import load_runs, split_sessions
 from gyro_tdc.errors import DatasetError, FitError
 from gyro_tdc.identify import (ACCEL_EFFECTS, build_model, constant_gyro_axes, constant_note,
@@ -46,11 +45,9 @@ __all__ = ['build_parser', 'main']
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``discover``."""
-    p = ArgumentParser(
-        prog=f'{PROG} discover',
-        description='Fit the drift model with the base effects to measured bags, show where it '
-                    'disagrees with them, name the missing effect, add it and repeat until the '
-                    'residual is noise.')
+    p = ArgumentParser(prog=f'{PROG} discover', description='Fit the drift model with the base '
+                       'effects to measured bags, show where it disagrees with them, name the '
+                       'missing effect, add it and repeat until the residual is noise.')
     p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap), '
                    'or a PX4 .ulg / ArduPilot .bin flight log')
     p.help_tail = effect_listing     # --help ends with the effect ids
@@ -65,10 +62,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help='write report.md with PNG residual maps and Allan deviation to DIR')
     p.add_argument('-o', '--out', metavar='MODEL.yaml', help='write a model file of the '
                    'discovered effects (compensator_node loads it)')
-    p.add_argument('--kind', default='poly', choices=KINDS,
-                   help='model of --out: poly (linear in the features of the model temperature, '
-                        'what discovery validated; with lag every temperature term is of the '
-                        'lagged state) or rbf (default: poly)')
+    p.add_argument('--kind', default='poly', choices=KINDS, help='model of --out: poly (linear in '
+                   'the features of the model temperature, what discovery validated; with lag '
+                   'every temperature term is of the lagged state) or rbf (default: poly)')
     p.add_argument('--block-s', type=positive_float, default=10.0, metavar='S',
                    help='block length in s; gaps and the noise floor are RMS of block means '
                         '(default: %(default)s)')

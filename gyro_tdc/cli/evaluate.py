@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import argparse
 import math
-from typing import Optional, Sequence
+from typing import Iterator, Optional, Sequence
 
 from gyro_tdc.cli import PROG
 from gyro_tdc.cli.common import (add_bag_options, add_driver_options, add_session_options,
@@ -43,10 +43,9 @@ __all__ = ['build_parser', 'main']
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``evaluate``."""
-    p = ArgumentParser(
-        prog=f'{PROG} evaluate',
-        description='Score compensation models on held-out rosbag2 bags in the terms of the '
-                    'paper (BS, P ratios), plus RMS and Allan deviation.')
+    p = ArgumentParser(prog=f'{PROG} evaluate', description='Score compensation models on '
+                       'held-out rosbag2 bags in the terms of the paper (BS, P ratios), plus RMS '
+                       'and Allan deviation.')
     p.add_argument('bags', nargs='+', metavar='BAG',
                    help='held-out rosbag2 directory (sqlite3 or mcap), PX4 .ulg or '
                         'ArduPilot .bin log, or a folder of them (walked, subfolders too; '
@@ -57,12 +56,10 @@ def build_parser() -> argparse.ArgumentParser:
                         'a PX4-style cubic in T fitted on the --train bags, or px4-onboard / '
                         "ardupilot-onboard for the flight controller's own correction as each "
                         "held-out log's TC_G* / INS_TCALn_* parameters define it (its clamp)")
-    p.add_argument('--train', nargs='+', metavar='BAG', default=None,
-                   help='bags to fit the px4 cubic on')
-    p.add_argument('--baseline', metavar='MODEL', default=None,
-                   help='the conventional model of the paper tables (one of the --model '
-                        'values, or another model file, evaluated too); default: the first '
-                        'of exactly two models')
+    p.add_argument('--train', nargs='+', metavar='BAG', help='bags to fit the px4 cubic on')
+    p.add_argument('--baseline', metavar='MODEL', help='the conventional model of the paper '
+                   'tables (one of the --model values, or another model file, evaluated too); '
+                   'default: the first of exactly two models')
     p.add_argument('--reanchor', type=_reanchor, default=0.0, metavar='S|auto',
                    help='remove from each model the mean error over the first S s of every '
                         'session (the turn-on offset of each power cycle, as the compensator '
@@ -75,21 +72,18 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"beyond a model's trained range: linear ({POLICY_WORDS['linear']}, "
                         'as the compensator node by default), clamp, or extrapolate (default: '
                         '%(default)s)')
-    p.add_argument('--floor', type=_floor, default=None, metavar='X,Y,Z|V',
+    p.add_argument('--floor', type=_floor, metavar='X,Y,Z|V',
                    help='a known white-noise floor of the gyro per axis in (deg/s)^2 (one '
                         'value: all axes), e.g. ARW^2 x rate from the simulator or a '
                         'datasheet: adds BS / floor per model (BS/fl; bs_over_floor in --json)')
-    p.add_argument('--accel-floor', dest='accel_floor', type=_floor, default=None,
-                   metavar='X,Y,Z|V',
-                   help='likewise for the accelerometer, in (m/s^2)^2 (aBS/fl; '
-                        'accel_bs_over_floor in --json)')
-    p.add_argument('--json', metavar='OUT', default=None,
-                   help='write the scores as JSON (shape: doc/json.md)')
-    p.add_argument('--plots', metavar='DIR', default=None, help='write PNGs per bag here')
-    p.add_argument('--export', metavar='DIR', default=None,
-                   help='write a CSV per bag here: time, temperature, raw, reference and '
-                        'compensated rates (rad/s) of the samples scored (of a flight log: '
-                        'its still stretches)')
+    p.add_argument('--accel-floor', dest='accel_floor', type=_floor,
+                   metavar='X,Y,Z|V', help='likewise for the accelerometer, in (m/s^2)^2 (aBS/fl; '
+                   'accel_bs_over_floor in --json)')
+    p.add_argument('--json', metavar='OUT', help='write the scores as JSON (shape: doc/json.md)')
+    p.add_argument('--plots', metavar='DIR', help='write PNGs per bag here')
+    p.add_argument('--export', metavar='DIR', help='write a CSV per bag here: time, temperature, '
+                   'raw, reference and compensated rates (rad/s) of the samples scored (of a '
+                   'flight log: its still stretches)')
     add_bag_options(p)
     add_driver_options(p)
     add_session_options(p)
@@ -178,21 +172,18 @@ def _run(args: argparse.Namespace, argv: list) -> int:
     return 0
 
 
-def _reanchor_lines(b: BagEval) -> list[str]:
-    """Return what the automatic re-anchoring did for each model on a bag (each session)."""
-    lines = []
+def _reanchor_lines(b: BagEval) -> Iterator[str]:
+    """Yield what the automatic re-anchoring did for each model on a bag (each session)."""
     for m in b.models:
         if m.reanchor is None:         # scored on still stretches: anchored on them
             continue
         records = m.reanchor.get('sessions') or [m.reanchor]
         for k, r in enumerate(records):
             where = f' session {k + 1}' if len(records) > 1 else ''
-            lines.append(f'{b.label}: {m.label} re-anchored{where} on {r["samples"]} samples '
-                         f'over {r["duration_s"]:.1f} s ({r["reason"]}): shift '
-                         + ', '.join(f'{v:+.5f}' for v in r['shift_dps'])
-                         + ' deg/s, standard error '
-                         + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
-    return lines
+            yield (f'{b.label}: {m.label} re-anchored{where} on {r["samples"]} samples '
+                   f'over {r["duration_s"]:.1f} s ({r["reason"]}): shift '
+                   + ', '.join(f'{v:+.5f}' for v in r['shift_dps']) + ' deg/s, standard error '
+                   + ', '.join(f'{v:.5f}' for v in r['se_dps']) + ' deg/s')
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

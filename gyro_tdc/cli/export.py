@@ -40,31 +40,27 @@ import numpy as np
 __all__ = ['build_parser', 'main']
 
 #: Where each firmware's ground station loads the file.
-_LOAD = {'px4': 'QGroundControl: Vehicle Setup > Parameters > Tools > Load from file, then '
-                'reboot',
+_LOAD = {'px4': 'QGroundControl: Vehicle Setup > Parameters > Tools > Load from file, then reboot',
          'ardupilot': 'Mission Planner: Config > Full Parameter List > Load from file; '
                       'MAVProxy: param load FILE; then reboot'}
 
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``export``."""
-    p = ArgumentParser(
-        prog=f'{PROG} export',
-        description="Write a model's drift as a flight controller's thermal-calibration "
-                    'parameters (PX4 TC_G*/TC_A*, ArduPilot INS_TCALn_*), fitted in their '
-                    'exact cubic over the trained range; with --eval, score the form as the '
-                    'firmware applies it beside the full model on held-out bags. Or, with '
-                    '--model, write a model (a learn_file: its learned model) as a model '
-                    'file. MODEL is a model file, a shipped name or a learn_file.')
+    p = ArgumentParser(prog=f'{PROG} export', description="Write a model's drift as a flight "
+                       "controller's thermal-calibration parameters (PX4 TC_G*/TC_A*, ArduPilot "
+                       'INS_TCALn_*), fitted in their exact cubic over the trained range; with '
+                       '--eval, score the form as the firmware applies it beside the full model '
+                       'on held-out bags. Or, with --model, write a model (a learn_file: its '
+                       'learned model) as a model file. MODEL is a model file, a shipped name or '
+                       'a learn_file.')
     which = p.add_mutually_exclusive_group(required=True)
-    which.add_argument('--model', metavar='MODEL', default=None,
-                       help='model file or learn_file to write as a gyro_tdc model file '
-                            '(YAML) at --out: the learned model of a learn_file, to evaluate, '
-                            'inspect or ship to another vehicle as model_file')
-    which.add_argument('--px4', metavar='MODEL', default=None,
-                       help='model file (or shipped name) to export as PX4 TC_* parameters '
-                            '(a QGroundControl .params file)')
-    which.add_argument('--ardupilot', metavar='MODEL', default=None,
+    which.add_argument('--model', metavar='MODEL', help='model file or learn_file to write as a '
+                       'gyro_tdc model file (YAML) at --out: the learned model of a learn_file, '
+                       'to evaluate, inspect or ship to another vehicle as model_file')
+    which.add_argument('--px4', metavar='MODEL', help='model file (or shipped name) to export as '
+                       'PX4 TC_* parameters (a QGroundControl .params file)')
+    which.add_argument('--ardupilot', metavar='MODEL',
                        help='model file (or shipped name) to export as ArduPilot INS_TCALn_* '
                             'parameters (a Mission Planner / MAVProxy .parm file)')
     p.add_argument('-o', '--out', required=True, metavar='FILE',
@@ -72,11 +68,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument('--instance', type=non_negative_int, default=0, metavar='N',
                    help='PX4 calibration slot 0..3 (TC_G<N>) or ArduPilot IMU 0..2 '
                         '(INS_TCAL<N+1>) (default: %(default)s)')
-    p.add_argument('--device-id', type=non_negative_int, default=None, metavar='ID',
+    p.add_argument('--device-id', type=non_negative_int, metavar='ID',
                    help="PX4 TC_Gn_ID: the gyro's device_id (sensor_gyro.device_id, "
                         "CAL_GYRn_ID); default: the model's sensor_id when it is a number, "
                         'else 0 (PX4 then applies the slot to no gyro)')
-    p.add_argument('--eval', nargs='+', metavar='BAG', default=None,
+    p.add_argument('--eval', nargs='+', metavar='BAG',
                    help='held-out bags (or flight logs): BS and RMS of raw, full model and '
                         'the exported form applied as the firmware applies it')
     p.add_argument('--reanchor', type=non_negative_float, default=0.0, metavar='S',
@@ -167,8 +163,7 @@ def _evaluate(args: argparse.Namespace, model, form, firmware: str) -> None:
     how = (f', mean error of the first {args.reanchor:g} s removed (model and form)'
            if args.reanchor else '')
     print(f'held out: BS (deg/s)^2 and RMS deg/s per axis x y z; {firmware} applied as the '
-          f'firmware does (raw minus its correction at the measured temperature, clamped)'
-          + how)
+          f'firmware does (raw minus its correction at the measured temperature, clamped)' + how)
     scores = score_export(model, {firmware: form}, runs, reanchor_s=args.reanchor)
     labels = ('raw', 'model', firmware)
     for s in scores:
@@ -182,9 +177,8 @@ def _evaluate(args: argparse.Namespace, model, form, firmware: str) -> None:
     if len(scores) > 1:
         mean = {k: float(np.mean([np.mean(s.bs[k]) for s in scores])) for k in labels}
         kept = share_kept(mean['raw'], mean['model'], mean[firmware])
-        print(f'mean over {len(scores)} bags: {firmware} keeps {100 * kept:.2f} % '
-              f'(BS raw {mean["raw"]:.3e}, model {mean["model"]:.3e}, {firmware} '
-              f'{mean[firmware]:.3e})')
+        print(f'mean over {len(scores)} bags: {firmware} keeps {100 * kept:.2f} % (BS raw '
+              f'{mean["raw"]:.3e}, model {mean["model"]:.3e}, {firmware} {mean[firmware]:.3e})')
 
 
 def main(argv: Optional[Sequence[str]] = None) -> int:

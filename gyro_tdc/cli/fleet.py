@@ -39,28 +39,26 @@ __all__ = ['build_parser', 'main']
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``fleet``."""
-    p = ArgumentParser(
-        prog=f'{PROG} fleet',
-        description='Calibrate a fleet of IMUs on Dask: one model per row of a manifest CSV '
-                    '(sensor_id,train,test; bags separated by ";", relative to the manifest), '
-                    'evaluated on its test bags, with fleet-outlier flags on the drift '
-                    'coefficients; the training options are those of train.')
+    p = ArgumentParser(prog=f'{PROG} fleet', description='Calibrate a fleet of IMUs on Dask: one '
+                       'model per row of a manifest CSV (sensor_id,train,test; bags separated by '
+                       '";", relative to the manifest), evaluated on its test bags, with '
+                       'fleet-outlier flags on the drift coefficients; the training options are '
+                       'those of train.')
     p.add_argument('manifest', metavar='MANIFEST.csv', help='the fleet manifest')
     p.add_argument('-o', '--out', required=True, metavar='DIR',
                    help='output folder: <sensor_id>.yaml, summary.json, summary.csv')
     eng = p.add_argument_group('Dask engine').add_mutually_exclusive_group()
-    eng.add_argument('--workers', type=positive_int, default=None, metavar='N',
+    eng.add_argument('--workers', type=positive_int, metavar='N',
                      help='worker processes of the embedded LocalCluster (default: the '
                           "machine's cores)")
-    eng.add_argument('--scheduler', default=None, metavar='ADDRESS',
+    eng.add_argument('--scheduler', metavar='ADDRESS',
                      help='use a running Dask cluster (tcp://HOST:PORT) instead; its workers '
                           'must read the bags at the paths of the manifest')
     p.add_argument('--connect-timeout', type=positive_float, default=30.0, metavar='S',
                    help='seconds to wait for --scheduler and its first worker, and for a '
                         'worker when the cluster has lost them all (default: %(default)s)')
-    p.add_argument('--force', action='store_true',
-                   help='retrain sensors whose bags and options are unchanged (default: skip '
-                        'them, keeping their models)')
+    p.add_argument('--force', action='store_true', help='retrain sensors whose bags and options '
+                   'are unchanged (default: skip them, keeping their models)')
     p.add_argument('--outlier-z', type=positive_float, default=DEFAULT_OUTLIER_Z, metavar='Z',
                    help='flag a drift coefficient whose robust z-score against the fleet '
                         'exceeds Z (default: %(default)s)')

@@ -73,15 +73,12 @@ def scenario_listing(width: int = 92) -> str:
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``simulate``."""
-    parser = ArgumentParser(
-        prog=f'{PROG} simulate',
-        description='Simulate a gyro in a thermal chamber on a rate table and write rosbag2 '
-                    'bags (one per run).')
+    parser = ArgumentParser(prog=f'{PROG} simulate', description='Simulate a gyro in a thermal '
+                            'chamber on a rate table and write rosbag2 bags (one per run).')
     parser.add_argument('--scenario', required=True, metavar='NAME|FILE',
                         help='shipped scenario name (listed below) or a YAML file')
-    parser.add_argument('-o', '--out', required=True, metavar='BAG',
-                        help='bag directory to create; for a multi-run scenario a directory '
-                             'holding run1 ... runN')
+    parser.add_argument('-o', '--out', required=True, metavar='BAG', help='bag directory to '
+                        'create; for a multi-run scenario a directory holding run1 ... runN')
     parser.add_argument('--force', action='store_true',
                         help='replace --out when it exists and holds what simulate writes (a '
                              'bag, or a folder of run bags); anything else is refused')
@@ -89,7 +86,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help='rosbag2 storage plugin (default: sqlite3)')
     parser.add_argument('--seed', type=int, default=0, metavar='N',
                         help='random seed (default: 0)')
-    parser.add_argument('--rate-hz', type=float, default=None, metavar='F',
+    parser.add_argument('--rate-hz', type=float, metavar='F',
                         help="IMU rate in Hz (default: the scenario's)")
     parser.help_tail = scenario_listing      # read only when --help asks for it
     parser.add_argument('--no-progress', dest='progress', action='store_false', default=None,

@@ -44,17 +44,15 @@ __all__ = ['add_train_options', 'build_parser', 'main', 'train_options', 'traini
 
 def build_parser() -> argparse.ArgumentParser:
     """Return the argument parser of ``train``."""
-    p = ArgumentParser(
-        prog=f'{PROG} train',
-        description='Identify a temperature-drift compensation model from rosbag2 bags '
-                    'or flight logs (one run each) and write it as a YAML model file.')
-    p.add_argument('bags', nargs='+', metavar='BAG',
-                   help='rosbag2 directory (sqlite3 or mcap), a PX4 .ulg / ArduPilot .bin '
-                        'flight log, or a folder: walked, subfolders too, for its bags and '
-                        'logs; one found there that cannot be read is skipped with a warning '
-                        'naming it and why (one named here is refused)')
+    p = ArgumentParser(prog=f'{PROG} train', description='Identify a temperature-drift '
+                       'compensation model from rosbag2 bags or flight logs (one run each) and '
+                       'write it as a YAML model file.')
+    p.add_argument('bags', nargs='+', metavar='BAG', help='rosbag2 directory (sqlite3 or mcap), a '
+                   'PX4 .ulg / ArduPilot .bin flight log, or a folder: walked, subfolders too, '
+                   'for its bags and logs; one found there that cannot be read is skipped with a '
+                   'warning naming it and why (one named here is refused)')
     p.add_argument('-o', '--out', required=True, metavar='MODEL.yaml', help='model file to write')
-    p.add_argument('--json', metavar='OUT', default=None,
+    p.add_argument('--json', metavar='OUT',
                    help='also write what training produced as JSON (shape: doc/json.md)')
     p.add_argument('--sensor-id', default='', metavar='ID',
                    help="the recorded sensor's id (e.g. its serial number), written to the "
@@ -63,15 +61,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.help_tail = effect_listing     # --help ends with the effect ids
     add_train_options(p)
     g = p.add_argument_group('training from ordinary operation (no reference, no chamber)')
-    g.add_argument('--still-only', action='store_true',
-                   help='train on the still stretches only (bags recorded in normal '
-                        'operation: the rate is zero while still); the thermal state runs '
-                        'over every sample; no reference is read')
+    g.add_argument('--still-only', action='store_true', help='train on the still stretches only '
+                   '(bags recorded in normal operation: the rate is zero while still); the '
+                   'thermal state runs over every sample; no reference is read')
     g.add_argument('--motion-topic', default='', metavar='TOPIC',
                    help='with --still-only: a geometry_msgs/Twist (cmd_vel), TwistStamped or '
                         'nav_msgs/Odometry topic; still only while it reports zero motion '
                         '(rejects slow constant turns the IMU cannot tell from rest)')
-    g.add_argument('--min-still', type=positive_float, default=None, metavar='S',
+    g.add_argument('--min-still', type=positive_float, metavar='S',
                    help='training without a reference: shortest still stretch kept, in s '
                         f'(default: judged by its samples and its noise: {MIN_STILL_S:g} s, '
                         f'or two still-test windows (5 s at 8 Hz and up) and '
@@ -88,16 +85,14 @@ def add_train_options(p: argparse.ArgumentParser) -> None:
                         'support, each choice printed with its reason; dT,dT2 is exactly '
                         'the modified model, dT the conventional one; lag makes every '
                         'temperature term follow the lagged die temperature, tau fitted)')
-    p.add_argument('--kind', default='rbf', choices=KINDS,
-                   help='rbf network with a linear tail, or poly (linear in the features) '
-                        '(default: %(default)s)')
+    p.add_argument('--kind', default='rbf', choices=KINDS, help='rbf network with a linear tail, '
+                   'or poly (linear in the features) (default: %(default)s)')
     p.add_argument('--centers', type=positive_int, default=12, metavar='K',
                    help='RBF centres (default: %(default)s)')
     p.add_argument('--refine', action='store_true',
                    help='refine RBF centres and widths by nonlinear least squares')
-    p.add_argument('--t0', type=finite_float, default=None, metavar='C',
-                   help='reference temperature T0 in degC (default: the stable initial '
-                        'temperature of the first bag)')
+    p.add_argument('--t0', type=finite_float, metavar='C', help='reference temperature T0 in degC '
+                   '(default: the stable initial temperature of the first bag)')
     p.add_argument('--seed', type=int, default=0, help='seed of the centre placement')
     p.add_argument('--bin', dest='bin_c', type=positive_float, default=5.0, metavar='C',
                    help='width of the coverage bins in degC (default: %(default)s)')

@@ -37,9 +37,8 @@ from gyro_tdc.model.thermal_state import ThermalState
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-__all__ = ['CompensationModel', 'FORMAT_VERSION', 'StreamingCompensator', 'compensate',
-           'drift', 'model_temperature', 'predict_drift', 'rbf_design', 'static_slope',
-           'steady_drift']
+__all__ = ['CompensationModel', 'FORMAT_VERSION', 'StreamingCompensator', 'compensate', 'drift',
+           'model_temperature', 'predict_drift', 'rbf_design', 'static_slope', 'steady_drift']
 
 KINDS = ('rbf', 'poly')
 #: The model-file format every model is (:mod:`gyro_tdc.model.modelfile` writes and reads it).
@@ -235,8 +234,7 @@ class CompensationModel:
                    widths=widths, weights=coef[1 + f:], intercept=coef[0],
                    linear=coef[1:1 + f], scale=np.zeros(3) if scale is None else scale,
                    temp_range_c=(float(temp_range_c[0]), float(temp_range_c[1])),
-                   residual_var=np.asarray(residual_var, dtype=np.float64).reshape(3),
-                   **extra)
+                   residual_var=np.asarray(residual_var, dtype=np.float64).reshape(3), **extra)
 
     @classmethod
     def polynomial(cls, features: tuple[str, ...], t0_c: float, coef: NDArray[np.float64], *,
@@ -267,20 +265,16 @@ def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
                                   if isinstance(m, CompensationModel) else m)
     xn = (np.asarray(x, dtype=np.float64) - mean) / std
     n, f = xn.shape
-    k = centers.shape[0]
-    out = np.empty((n, 1 + f + k))
+    out = np.empty((n, 1 + f + centers.shape[0]))
     out[:, 0] = 1.0
     out[:, 1:1 + f] = xn
-    if k:
-        # Squared distances accumulated one input at a time: no (N, K, F) temporary.
-        phi = out[:, 1 + f:]
-        phi.fill(0.0)
-        for j in range(f):
-            diff = xn[:, j:j + 1] - centers[None, :, j]
-            diff *= diff
-            phi += diff
-        phi *= -1.0 / (2.0 * widths ** 2)
-        np.exp(phi, out=phi)
+    # Squared distances accumulated one input at a time: no (N, K, F) temporary.
+    phi = out[:, 1 + f:]
+    phi.fill(0.0)
+    for j in range(f):
+        phi += (xn[:, j:j + 1] - centers[None, :, j]) ** 2
+    phi *= -1.0 / (2.0 * widths ** 2)
+    np.exp(phi, out=phi)
     return out
 
 
@@ -323,8 +317,7 @@ def _drift(model: CompensationModel, t: NDArray[np.float64], temp: NDArray[np.fl
         if tangent is not None:
             r = reach[i:i + chunk]
             k = np.flatnonzero(r)
-            if k.size:
-                out[i + k] += r[k, None] * tangent.slope(design[k], d[i:i + chunk][k])
+            out[i + k] += r[k, None] * tangent.slope(design[k], d[i:i + chunk][k])
     return out, d + reach
 
 

@@ -107,11 +107,9 @@ def px4_slot(params: Mapping[str, float], device_id: int, sensor: str = 'gyro') 
     ``device_id`` is that of the ``sensor_gyro`` / ``sensor_accel`` instance; the slot is the
     one the firmware maps that device to.
     """
-    for slot in range(PX4_SLOTS):
-        got = params.get(px4_name(sensor, slot, 'ID'))
-        if got is not None and int(got) != 0 and int(got) == int(device_id):
-            return slot
-    return None
+    return next((slot for slot in range(PX4_SLOTS)
+                 if int(params.get(px4_name(sensor, slot, 'ID')) or 0) == int(device_id) != 0),
+                None)
 
 
 @dataclass(frozen=True)

@@ -110,8 +110,7 @@ def _check_part(m: CompensationModel, bound: float, unit: str, resid: str) -> No
                             ('intercept', m.intercept, f' {unit}'),
                             ('linear', m.linear, f' {unit}')):
         _at_most(arr, MAX_PARAM, name, what)
-    _at_most(m.residual_var, bound * bound, resid, f' ({unit})^2, the square of the drift '
-             'bound,')
+    _at_most(m.residual_var, bound * bound, resid, f' ({unit})^2, the square of the drift bound,')
     _check_taus(m)
     ext = MAX_EXTRAPOLATION_C
     d_ends = np.array([lo - ext, hi + ext]) - m.t0_c
@@ -159,8 +158,7 @@ def _check_taus(m: CompensationModel) -> None:
     taus += [(f'thermal.tau_s[{i}]', v) for i, v in enumerate(m.thermal.tau_s)]
     for name, v in taus:
         if not lo <= v <= hi:
-            raise ModelFileError(f'field `{name}` must lie within {lo:g} .. {hi:g} s, got '
-                                 f'{v:g}')
+            raise ModelFileError(f'field `{name}` must lie within {lo:g} .. {hi:g} s, got {v:g}')
 
 
 def drift_grid(m: CompensationModel, *, ext: float = MAX_EXTRAPOLATION_C,
@@ -214,13 +212,12 @@ def drift_grid(m: CompensationModel, *, ext: float = MAX_EXTRAPOLATION_C,
     # Every centre's own point: the dynamic inputs at its coordinates (clipped to what
     # they plausibly take), the temperature where each temperature term reaches it.
     picked = np.arange(m.n_centers) if own is None else np.asarray(own, dtype=np.intp)
-    if picked.size:
-        raw = m.input_mean + m.centers[picked] * m.input_std   # raw feature units
-        at = np.clip(raw[:, dyn_cols], [v[0] for v in values], [v[-1] for v in values])
-        for j in fixed:
-            for d in _roots(inputs[j], raw[:, j]):
-                s = np.concatenate([s, np.clip(d + t0, lo - ext, hi + ext)])
-                dyn = np.vstack([dyn, at])
+    raw = m.input_mean + m.centers[picked] * m.input_std   # raw feature units
+    at = np.clip(raw[:, dyn_cols], [v[0] for v in values], [v[-1] for v in values])
+    for j in fixed:
+        for d in _roots(inputs[j], raw[:, j]):
+            s = np.concatenate([s, np.clip(d + t0, lo - ext, hi + ext)])
+            dyn = np.vstack([dyn, at])
     x = np.empty((s.size, len(inputs)))
     x[:, dyn_cols] = dyn
     for j in fixed:

@@ -82,9 +82,7 @@ def heat_conduction_time_s(*, specific_heat_kj_per_kg_k: float, density_kg_per_m
     larger, so the 17.5 s and the 20 s hold derived from it are the paper's experimental
     choice, not a conduction time constant; the simulator's lags are ``thermal.tau_*_s``.
     """
-    for name, value in (('specific_heat_kj_per_kg_k', specific_heat_kj_per_kg_k),
-                        ('density_kg_per_m3', density_kg_per_m3), ('length_m', length_m),
-                        ('conductivity_w_per_m_k', conductivity_w_per_m_k)):
+    for name, value in list(locals().items()):     # every argument, in order
         _positive(name, value)
     return float(specific_heat_kj_per_kg_k * density_kg_per_m3 * length_m ** 2
                  / conductivity_w_per_m_k)
@@ -346,10 +344,7 @@ def staircase_segment(to_c: float, step_c: float, hold_s: float) -> Segment:
         starts = t0 + hold * k
         # Each level: the jump at the start of its hold, then the end of the hold. The point
         # before the jump is the previous breakpoint, so every step is two breakpoints.
-        t, temp = np.empty(2 * n), np.empty(2 * n)
-        t[0::2], temp[0::2] = starts, levels
-        t[1::2], temp[1::2] = starts + hold, levels
-        return t, temp
+        return np.column_stack([starts, starts + hold]).ravel(), np.repeat(levels, 2)
     return segment
 
 

@@ -78,8 +78,7 @@ def random_walk(rng: np.random.Generator, n: int, *, k: ArrayLike,
     """
     k = np.asarray(k, dtype=np.float64)
     steps = rng.standard_normal((n, 3)) * (k * math.sqrt(dt))
-    if n:
-        steps[0] = 0.0
+    steps[:1] = 0.0
     return np.cumsum(steps, axis=0)
 
 
@@ -92,7 +91,5 @@ def quantise(x: NDArray[np.float64], step: float, *, limit: float = 0.0) -> NDAr
     if limit > 0.0:
         np.clip(x, -limit, limit, out=x)
     if step > 0.0:
-        np.divide(x, step, out=x)
-        np.rint(x, out=x)
-        np.multiply(x, step, out=x)
+        np.multiply(np.rint(np.divide(x, step, out=x), out=x), step, out=x)
     return x

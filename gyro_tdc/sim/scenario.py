@@ -94,12 +94,10 @@ class _Checker(FieldChecker):
         self.source = source
 
     def _error(self, path: str, expected: str, got: Any) -> ScenarioError:
-        shown = repr(got)
-        shown = shown if len(shown) <= 80 else shown[:77] + '...'
+        shown = f'{got!r:.77}...' if len(repr(got)) > 80 else repr(got)
         return ScenarioError(f'{self.source}: `{path}`: expected {expected}, got {shown}.')
 
-    def num(self, path: str, x: Any, *, low: Optional[float] = None,
-            strict: bool = False) -> float:
+    def num(self, path: str, x: Any, *, low: float | None = None, strict: bool = False) -> float:
         v = (self.number(x, path, what='a finite number') if low is None else
              self.above(x, path, low, strict, what='a finite number'))
         if not abs(v) <= MAX_MAGNITUDE:
@@ -439,9 +437,7 @@ class Scenario:
             parts = key.split('.')
             node = data
             for i, part in enumerate(parts[:-1]):
-                child = node.get(part)
-                if child is None:
-                    child = node[part] = {}
+                child = node[part] = {} if node.get(part) is None else node[part]
                 if not isinstance(child, dict):
                     raise ScenarioError(f'Override {key!r}: `{".".join(parts[:i + 1])}` is '
                                         f'not a mapping (it holds {child!r}).')

@@ -27,7 +27,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 import os
-from typing import Any, Callable, Mapping, NamedTuple, Optional, Sequence, Union
+from typing import Any, Mapping, NamedTuple, Optional, Sequence, Union
 
 from gyro_tdc.base import G0, is_number, MG, RAD_PER_DEG
 from gyro_tdc.data import Run
@@ -237,9 +237,8 @@ def _coefficients(g: GyroSpec, on: Mapping[str, bool], offset: NDArray[np.float6
 
 
 def _drift(g: GyroSpec, on: Mapping[str, bool], coefficients: Mapping[str, NDArray[np.float64]],
-           imu_t: NDArray[np.float64], d_t: NDArray[np.float64],
-           die_rate: NDArray[np.float64], omega_ref: NDArray[np.float64]
-           ) -> NDArray[np.float64]:
+           imu_t: NDArray[np.float64], d_t: NDArray[np.float64], die_rate: NDArray[np.float64],
+           omega_ref: NDArray[np.float64]) -> NDArray[np.float64]:
     """Return the gyro drift (N, 3), rad/s, of the die temperature, its rate and the rate."""
     poly = np.stack((d_t, d_t * d_t, d_t * d_t * d_t), axis=1)            # (N, 3 powers)
     weights = np.stack((coefficients['dT'], coefficients['dT2'], coefficients['dT3']))
@@ -257,7 +256,7 @@ def _drift(g: GyroSpec, on: Mapping[str, bool], coefficients: Mapping[str, NDArr
 
 
 def _add_noise(gyro: NDArray[np.float64], nz: NoiseSpec,
-               rng: Callable[[str], np.random.Generator], rate: float) -> NDArray[np.float64]:
+               rng: Mapping[str, np.random.Generator], rate: float) -> NDArray[np.float64]:
     """Add the enabled noise processes to ``gyro`` in place; return the white noise std."""
     density = _vec(nz.arw_dps_per_rt_hz, RAD_PER_DEG)
     white_std = density * math.sqrt(rate) if nz.enabled else np.zeros(3)
@@ -265,13 +264,13 @@ def _add_noise(gyro: NDArray[np.float64], nz: NoiseSpec,
         return white_std
     n, dt = gyro.shape[0], 1.0 / rate
     if np.any(white_std > 0.0):
-        gyro += white_noise(rng('white'), n, density=density, rate_hz=rate)
+        gyro += white_noise(rng['white'], n, density=density, rate_hz=rate)
     if np.any(_vec(nz.bias_instability_dps) > 0.0):
-        gyro += gauss_markov(rng('bias_instability'), n,
+        gyro += gauss_markov(rng['bias_instability'], n,
                              sigma=_vec(nz.bias_instability_dps, RAD_PER_DEG),
                              tau_s=nz.bias_instability_tau_s, dt=dt)
     if np.any(_vec(nz.rrw_dps_per_rt_s) > 0.0):
-        gyro += random_walk(rng('rrw'), n, k=_vec(nz.rrw_dps_per_rt_s, RAD_PER_DEG), dt=dt)
+        gyro += random_walk(rng['rrw'], n, k=_vec(nz.rrw_dps_per_rt_s, RAD_PER_DEG), dt=dt)
     return white_std
 
 
@@ -322,12 +321,8 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     if rate_hz is not None and (not is_number(rate_hz) or float(rate_hz) <= 0.0):
         raise ScenarioError(f'Expected `rate_hz` to be a finite number > 0, got {rate_hz!r}.')
     rate = sc.imu_rate_hz if rate_hz is None else float(rate_hz)
-    streams = dict(zip(_STREAMS, np.random.SeedSequence(seed, spawn_key=(run_index,))
-                       .spawn(len(_STREAMS))))
-
-    def rng(name: str) -> np.random.Generator:
-        return np.random.default_rng(streams[name])
-
+    rng = {name: np.random.default_rng(s) for name, s in zip(
+        _STREAMS, np.random.SeedSequence(seed, spawn_key=(run_index,)).spawn(len(_STREAMS)))}
     g = sc.gyro
     on = {k: k in g.effects for k in EFFECT_IDS}
     tau_die = sc.thermal.tau_die_s if on['lag'] else 0.0
@@ -335,8 +330,7 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     # A vehicle day: the schedule first; the set point is the ambient plus self-heating.
     profile, legs, heating = sc.profile, None, None
     if sc.vehicle is not None:
-        vehicle_rng = rng('vehicle')
-        legs = plan_legs(sc.vehicle, duration, vehicle_rng)
+        legs = plan_legs(sc.vehicle, duration, rng['vehicle'])
         profile, heating = heated_profile(sc.profile, sc.vehicle, legs, duration)
 
     # Thermal chain on the internal grid, then onto the IMU stamps.
@@ -350,7 +344,7 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     die_rate = thermal.at('die_rate_c_per_s', imu_t)
     d_t = die - g.t_ref_c
 
-    offset = rng('offset').standard_normal(3) * _vec(sc.runs.bias_offset_dps_std, RAD_PER_DEG)
+    offset = rng['offset'].standard_normal(3) * _vec(sc.runs.bias_offset_dps_std, RAD_PER_DEG)
     coefficients = _coefficients(g, on, offset)
 
     # Deterministic part: drift (error) and output = reference + drift.
@@ -360,7 +354,7 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     omega_ref = _held(ref_t, ref, imu_t)
     motion = None
     if legs is not None:     # the vehicle's true body rate replaces the rate table
-        motion = vehicle_motion(sc.vehicle, legs, imu_t, vehicle_rng,
+        motion = vehicle_motion(sc.vehicle, legs, imu_t, rng['vehicle'],
                                 gravity_mps2=sc.accel.gravity_mps2, heating=heating)
         ref_t, ref, omega_ref = imu_t, motion.rate, motion.rate
     drift = _drift(g, on, coefficients, imu_t, d_t, die_rate, omega_ref)
@@ -369,11 +363,11 @@ def simulate_run(scenario: ScenarioLike, *, seed: int = 0, run_index: int = 0,
     step = g.sensitivity_mdps_per_digit * 1e-3 * RAD_PER_DEG if g.quantise else 0.0
     quantise(gyro, step, limit=g.range_dps * RAD_PER_DEG)
 
-    acc = _accelerometer(sc.accel, rng('accel'), rng('tilt'), imu_t, d_t, rate,
+    acc = _accelerometer(sc.accel, rng['accel'], rng['tilt'], imu_t, d_t, rate,
                          force=None if motion is None else motion.force)
     accel = acc.pop('accel')
 
-    temp_t, temp_c, temp_var = _thermometer(sc.thermometer, thermal, duration, rng('thermometer'))
+    temp_t, temp_c, temp_var = _thermometer(sc.thermometer, thermal, duration, rng['thermometer'])
 
     truth = SimTruth(
         die_c=die, die_rate_c_per_s=die_rate, package_c=thermal.at('package_c', imu_t),
@@ -466,11 +460,9 @@ def to_run(simrun: SimRun) -> Run:
     ``truth``, ``scenario``, ``seed``, ``run_index``, ``source='sim'``.
     """
     return Run(t=simrun.imu_t, temp=_held(simrun.temp_t, simrun.temp_c, simrun.imu_t),
-               omega=simrun.gyro,
-               omega_ref=simrun.ref_at(simrun.imu_t), name=simrun.name,
+               omega=simrun.gyro, omega_ref=simrun.ref_at(simrun.imu_t), name=simrun.name,
                info={'source': 'sim', 'scenario': simrun.scenario, 'seed': simrun.seed,
-                     'run_index': simrun.run_index, 'truth': simrun.truth},
-               accel=simrun.accel)
+                     'run_index': simrun.run_index, 'truth': simrun.truth}, accel=simrun.accel)
 
 
 class ImuChunk(NamedTuple):

@@ -109,8 +109,7 @@ class Leg:
     pitch_deg: float
 
 
-def plan_legs(spec: VehicleSpec, duration_s: float, rng: np.random.Generator
-              ) -> tuple[Leg, ...]:
+def plan_legs(spec: VehicleSpec, duration_s: float, rng: np.random.Generator) -> tuple[Leg, ...]:
     """
     Draw the day's schedule: parked first, then drives and stops until ``duration_s``.
 
