@@ -70,8 +70,8 @@ def encode_state(learner: Any) -> dict[str, Any]:
                            [float(b) for b in e.bias], e.group, e.session]
                           for e in v] for k, v in sorted(learner.bins.items())},
         'session': learner.session,
-        'gyro_floor': _floor_out(learner.still.gyro_floor),
-        'accel_floor': _floor_out(learner.still.accel_floor),
+        **{k: [float(v) if math.isfinite(v) else None for v in getattr(learner.still, k)]
+           for k in ('gyro_floor', 'accel_floor')},
         't_first': learner.still.t_first, 'still_s': learner.still_s,
         'stretches': learner.stretches, 'windows': learner.windows,
         'recent': [[stretch, session, rows[-RECENT_ROWS:]]
@@ -89,11 +89,6 @@ def encode_state(learner: Any) -> dict[str, Any]:
         **({'prior': model_to_dict(learner.prior)}
            if learner.fit is not None and learner.fit.get('prior') else {}),
     }
-
-
-def _floor_out(floor: NDArray[np.float64]) -> list[float | None]:
-    """Return a noise floor as plain types: None where it is not known yet (infinite)."""
-    return [float(v) if math.isfinite(v) else None for v in floor]
 
 
 # -- decoding: every field checked, by name ------------------------------------------------
@@ -159,16 +154,16 @@ def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry
     """Return the point table: bin -> entries ``[t_end, samples, temp, b, stretch, session]``."""
     if not isinstance(v, dict):
         raise _bad('bins', f'must be an object (bin -> entries), got {shown(v)}')
-    lo = hi = None
-    if bin_c is not None:           # the bins of the plausible temperatures, one either side
-        lo, hi = (math.floor(c / bin_c) + d for c, d in zip(TEMP_PLAUSIBLE_C, (-1, 1)))
+    # The bins of the plausible temperatures, one either side.
+    lo, hi = (-math.inf, math.inf) if bin_c is None else (
+        math.floor(c / bin_c) + d for c, d in zip(TEMP_PLAUSIBLE_C, (-1, 1)))
     out: dict[int, list[Entry]] = {}
     for key, entries in v.items():
         name = f'bins[{key!r:.20}]'
         if not (isinstance(key, str) and re.fullmatch(r'-?[0-9]{1,9}', key)):
             raise _bad(name, 'must be keyed by a bin number')
         k = int(key)
-        if lo is not None and not lo <= k <= hi:
+        if not lo <= k <= hi:
             raise _bad(name, f'must be a bin of a plausible temperature ({lo} .. {hi})')
         out[k] = [Entry(*_row(e, f'{name}[{j}]', _ENTRY))
                   for j, e in enumerate(_list(entries, name, most=most))]
@@ -185,8 +180,7 @@ def _recent(v: Any, most: int | None) -> list[RecentStretch]:
             for i, s in enumerate(_list(v, 'recent', most=most))]
 
 
-def _fit(v: Any, thermal: ThermalState | None,
-         prior: CompensationModel | None) -> dict | None:
+def _fit(v: Any, thermal: ThermalState | None, prior: CompensationModel | None) -> dict | None:
     """
     Return the fit record, its model checked like a model file's (null: :func:`_maybe`).
 
@@ -210,8 +204,7 @@ def _fit(v: Any, thermal: ThermalState | None,
            'held_out': _held_out(v['held_out'], bool(feats))}
     if v.get('reanchor') is not None:
         fit['reanchor'] = _gate(v['reanchor'])
-    if v.get('prior') is not None:
-        mid = v['prior']
+    if (mid := v.get('prior')) is not None:
         if prior is None or mid != prior.model_id:
             raise _bad('fit.prior', "must be the model_id of the state's `prior`, got "
                        f'{shown(mid)}')

@@ -95,19 +95,16 @@ class Learner:
         """Forget everything learned (points, floor, model); the prior is current again."""
         self.bins: dict[int, list[Entry]] = {}
         self.still.reset()
-        self.still_s, self.stretches, self.windows = 0.0, 0, 0
+        self.still_s, self.stretches, self.windows, self.swaps = 0.0, 0, 0, 0
         self.recent: list[RecentStretch] = []     # newest last
         self.fit: dict | None = None          # the learned model in use
         self.model: CompensationModel | None = self.prior
-        self.last_update_t: float | None = None
-        self.last_t: float | None = None
-        self.last_save_t: float | None = None
+        #: Stamps (s) of the last model update, the last sample and the last save, or None.
+        self.last_update_t = self.last_t = self.last_save_t = None
         self.check: dict | None = None
-        self.swaps = 0
         self._stretch = OpenStretch()
         #: The entry group being filled: a stretch, or an ``entry_s`` part of a long one.
-        self.segment = 0
-        self.segment_t0: float | None = None
+        self.segment, self.segment_t0 = 0, None
         #: The session, from 0, and the stream's median period (the shared rule).
         self.sessions = SessionTracker(self.config.session_gap_s)
         #: A new session whose first stretch is not learned yet (:meth:`_early_offset`).
@@ -237,8 +234,7 @@ class Learner:
 
     def _waiting(self) -> bool:
         """Return whether the window in progress goes on (no sample beyond it, no restart)."""
-        wend = self.still.window_end
-        t = self.buf[-SAMPLE]
+        wend, t = self.still.window_end, self.buf[-SAMPLE]
         return (wend is not None and t < wend
                 and (self.last_t is None or t >= self.last_t - RESTART_BACK_S))
 
@@ -486,8 +482,7 @@ class Learner:
         the record names the prior (``prior``, its ``model_id``).
         """
         feats = grow_features(e[:, 2], bins)
-        corr = None if self.prior is None else correction_features(self.prior, feats)
-        if corr is None:
+        if (corr := correction_features(self.prior, feats)) is None:
             return fit_points(e, feats, t_now, self.config.half_life_s, floor)
         e = on_prior(self.prior, e, columns=(2, 3))
         return dict(fit_points(e, corr, t_now, self.config.half_life_s, floor),

@@ -445,12 +445,11 @@ class CompensatorCore:
 
     def _pass(self, t: float, wx: float, wy: float, wz: float, why: int,
               accel: Sequence[float] | None = None) -> Output:
-        flags = why | PASSTHROUGH
         aout, avar = (None, None) if self.slot.accel is None else self._accel_pass(accel, why)
         counts = self.tally.flags
         counts[why] += 1
         counts[PASSTHROUGH] += 1
-        self.stream.flags = flags
+        self.stream.flags = flags = why | PASSTHROUGH
         if math.isfinite(t):
             self.stream.t = t
         return wx, wy, wz, self.pass_var, flags, aout, avar
