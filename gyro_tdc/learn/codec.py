@@ -116,18 +116,14 @@ def _fields(v: Any, name: str, checks: dict, optional: tuple = ()) -> dict:
     return {k: check(v[k], f'{name}.{k}') for k, check in checks.items() if k in v}
 
 
-def _rates(v: Any, name: str) -> tuple[float, float, float]:
-    """Return three rates, rad/s."""
-    return tuple(_CHK.numbers(v, name, 3, *_RATE))
-
-
 #: A stamp (s), a plausible temperature (degC) and a sample count.
 _stamp = partial(_number, lo=-MAX_STAMP_S, hi=MAX_STAMP_S, what='a stamp in s')
 _temp = partial(_number, lo=TEMP_PLAUSIBLE_C[0], hi=TEMP_PLAUSIBLE_C[1], what=_TEMP[2])
 _samples = partial(_number, lo=1.0, hi=MAX_COUNT, what='a sample count')
 #: The items of a point-table entry (:class:`Entry`) and of a recent window: (label, check).
 _ENTRY = ((' (t_end)', _stamp), (' (samples)', _samples), (' (temperature)', _temp),
-          ('', _rates), (' (stretch)', _count), (' (session)', _count))
+          ('', lambda v, name: tuple(_CHK.numbers(v, name, 3, *_RATE))), (' (stretch)', _count),
+          (' (session)', _count))
 _WINDOW = ((' (samples)', _samples), (' (temperature)', _temp),
            *[(' (mean rate)', partial(_number, lo=_RATE[0], hi=_RATE[1], what=_RATE[2]))] * 3,
            (' (t_end)', _stamp))
@@ -234,8 +230,7 @@ def _held_out(v: Any, curve: bool) -> dict | None:
         out[k] = None if v[k] is None and not out['folds'] else _CHK.numbers(
             v[k], f'fit.held_out.{k}', 3, 0.0, MAX_PARAM, 'a mean square in (deg/s)^2')
     axes = _list(v['offset_only'], 'fit.held_out.offset_only', most=3)
-    if (not all(isinstance(a, str) for a in axes) or not set(axes) <= set(AXES)
-            or len(set(axes)) < len(axes)):
+    if not all(a in AXES for a in axes) or len(set(axes)) < len(axes):
         raise _bad('fit.held_out.offset_only', f'must be distinct axis names, got {axes!r:.40}')
     out['offset_only'] = axes
     return out
@@ -288,8 +283,7 @@ def _motion(v: Any) -> list[tuple[float, bool]]:
 
 
 def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | None = None,
-                 stretches: int | None = None
-                 ) -> tuple[dict[str, Any], ThermalState | None]:
+                 stretches: int | None = None) -> tuple[dict[str, Any], ThermalState | None]:
     """
     Check every field of a state :func:`encode_state` made; return what it restores.
 

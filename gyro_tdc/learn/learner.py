@@ -274,9 +274,9 @@ class Learner:
         x = np.array(buf[:m], dtype=np.float64).reshape(-1, SAMPLE)
         del buf[:m]
         ok = np.isfinite(x[:, 0])
-        t, w, acc = x[ok, 0], x[ok, 1:4], x[ok, 4:7]
-        if not np.isfinite(x[:, 4:7]).all():
-            acc = None                    # missing or not three values: the gyro alone
+        t, w = x[ok, 0], x[ok, 1:4]
+        # Missing or not three values: the gyro alone.
+        acc = x[ok, 4:7] if np.isfinite(x[:, 4:7]).all() else None
         if not t.size:
             return False
         temp, self.temps = hold_readings(self.temps, t, self.config.temperature_timeout)
@@ -304,8 +304,7 @@ class Learner:
         """
         period = self.sessions.median or 0.0
         why = self.sessions.judge(gap, period)
-        relabel = self.sessions.merges(period)
-        if relabel:
+        if relabel := self.sessions.merges(period):
             self.power_ups = relabel_power_ups(self.power_ups, relabel)
             for e in (e for v in self.bins.values() for e in v):
                 e.session = relabel.get(e.session, e.session)
@@ -332,8 +331,8 @@ class Learner:
                                   else due, power_up(m))
             self.sessions.start(t0, why, gap=gap)
             self._power_up(t0)
-            self._up_open = True
-            self._fresh = True            # its offset from its first still windows
+            # Its first still windows are pooled and give its offset.
+            self._up_open = self._fresh = True
             self.still.restart()          # the window grid starts again
             self.thermal_state = None     # after a power-off: steady state at the next reading
         temp, self.thermal_state = stream_state(self.thermal, self.thermal_state, t, temp)
@@ -364,8 +363,7 @@ class Learner:
         """
         swapped = self.step(force=True)
         trigger = self.last_t if t_trigger is None else t_trigger
-        last = self.still.flush()
-        if last is not None:
+        if (last := self.still.flush()) is not None:
             swapped = self._windows([last], trigger) or swapped
         self._trigger = trigger
         return self._close() or swapped
@@ -514,8 +512,7 @@ class Learner:
         if not rows.shape[0]:           # no still window of this session to judge it by
             return False
         floor = self._floor()
-        if since is None:
-            since = t_now - self.config.offset_s
+        since = t_now - self.config.offset_s if since is None else since
         # A correction: its offset from the windows' residuals on the prior.
         seen = rows if fit.get('prior') is None else on_prior(self.prior, rows)
         try:
@@ -549,8 +546,7 @@ class Learner:
         cand = cand.replace(metrics={**cand.metrics, 'reanchor': fit['reanchor']})
         trigger = t_now if self._trigger is None else max(self._trigger, t_now)
         self._swaps.append((trigger + self.config.swap_delay_s, cand))
-        self.fit, self.model = fit, cand
-        self.last_update_t = t_now
+        self.fit, self.model, self.last_update_t = fit, cand, t_now
         self.swaps += 1
         return True
 
@@ -569,8 +565,7 @@ class Learner:
                                           else f'{s["last_update_t"]:.3f}'),
             'learn prediction check': s['check'] or 'none yet',
             'learn held out': held_out_line(self.fit),
-            'learn session': str(self.session),
-            'learn late swaps': str(self.late_swaps),
+            'learn session': str(self.session), 'learn late swaps': str(self.late_swaps),
             'learn candidates refused': (f'{self.refused} (last: {self.refused_why})'
                                          if self.refused else '0'),
         }

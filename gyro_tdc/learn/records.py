@@ -142,8 +142,8 @@ class OpenStretch:
     def mean_se(self) -> NDArray[np.float64]:
         """Return the standard error of the stretch's mean raw rate per axis, rad/s."""
         n = np.array([r.n for r in self.rows], dtype=np.float64)
-        mean, std = (np.array([getattr(r, k) for r in self.rows]) for k in ('gyro_mean',
-                                                                            'gyro_std'))
+        mean = np.array([r.gyro_mean for r in self.rows])
+        std = np.array([r.gyro_std for r in self.rows])
         ss = (n - 1.0) @ std ** 2 + n @ (mean - n @ mean / n.sum()) ** 2
         return np.sqrt(ss / max(n.sum() - 1.0, 1.0) / n.sum())
 

@@ -186,8 +186,7 @@ def block_sums(t: NDArray[np.float64], x: NDArray[np.float64], c: Sequence[float
     k = np.floor((t - origin) / block_s)
     starts = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
     sums = np.add.reduceat(np.asarray(x, dtype=np.float64) - np.asarray(c), starts, axis=0)
-    counts = np.diff(np.append(starts, t.size)).astype(np.float64)
-    return starts, sums, counts
+    return starts, sums, np.diff(np.append(starts, t.size)).astype(np.float64)
 
 
 def stats_of(sums: NDArray[np.float64], counts: NDArray[np.float64]) -> BlockStats:

@@ -54,8 +54,7 @@ def hand_off(block: array, extend: Callable) -> int:
 
     Returns the number of samples it held.
     """
-    n = len(block) // BLOCK_FIELDS
-    if n == 1:
+    if (n := len(block) // BLOCK_FIELDS) == 1:
         extend(block)
     elif n:
         extend(tuple(sum(block[i::BLOCK_FIELDS]) / n for i in range(BLOCK_FIELDS)))

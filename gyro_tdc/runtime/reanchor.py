@@ -93,8 +93,7 @@ def _window_end(t: NDArray[np.float64], i0: int, window: float) -> tuple[int, in
     samples or more ends before a pause (a step longer than ``window``): without the next
     burst's first sample.
     """
-    later = np.flatnonzero(t[i0 + 1:] - t[i0] >= window)
-    if not later.size:
+    if not (later := np.flatnonzero(t[i0 + 1:] - t[i0] >= window)).size:
         return -1, -1
     i1 = i0 + 1 + int(later[0])
     return (i1 - 1 if i1 - i0 >= 2 and t[i1] - t[i1 - 1] > window else i1), i1
@@ -111,8 +110,7 @@ def _early_end(t: NDArray[np.float64], x: NDArray[np.float64], i0: int, i1: int,
     MIN_WINDOW_SAMPLES samples, ``total`` with those blocks is tested against ``tol``.
     None: it never is precise early.
     """
-    tt = t[i0:i1]
-    if tt.size < 2:
+    if (tt := t[i0:i1]).size < 2:
         return None
     starts, sums, counts = block_sums(tt, x[i0:i1], c, block_s, float(tt[0]))
     if starts.size <= EARLY_BLOCKS:
@@ -184,8 +182,7 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
                 total, window_stats(t[i0:e], x[i0:e], c, bs)):
             run = BlockStats()            # with the window after it (once that is taken)
         if first_pause <= i0 < t.size:
-            early = _early_end(t, x, i0, e, c, bs, run, tol)
-            if early is not None:
+            if (early := _early_end(t, x, i0, e, c, bs, run, tol)) is not None:
                 (j, total), start = early, start if run is total else i0
                 last, reason = j - 1, 'precision'
                 break
@@ -369,8 +366,7 @@ class StillnessDetector:
         self._n += 1
         if self._track:
             self._rows.extend((t, out[0], out[1], out[2]))
-        w = self.still.add(t, raw, accel, rate=out, temp_c=temp_c)
-        if w is not None:
+        if (w := self.still.add(t, raw, accel, rate=out, temp_c=temp_c)) is not None:
             self._end_window()
             found = self._judge(w)
         if found is not None:
@@ -387,9 +383,8 @@ class StillnessDetector:
         blocks are summed when a test is due (every sample before ``t`` is in one).
         """
         w0, bs = self._w0, self.block_s
-        k = math.floor((t - w0) / bs)
-        if k == self._block:               # the rounding of the boundary's estimate
-            return None
+        if (k := math.floor((t - w0) / bs)) == self._block:
+            return None                    # the rounding of the boundary's estimate
         self._block = k
         self._next_block = w0 + ((k + 1) * bs) * (1.0 - 1e-9)
         n = len(self._rows) // 4
@@ -402,9 +397,8 @@ class StillnessDetector:
         if self._part.m < EARLY_BLOCKS:
             return None
         total = sum((r.stats for r in self._run), self._part)
-        if not all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
-            return None
-        return self._flush()
+        precise = all(s <= v for s, v in zip(standard_error(total), self.tolerance))
+        return self._flush() if precise else None
 
     def _flush(self) -> Anchor | None:
         """End the window in progress here and judge it."""
