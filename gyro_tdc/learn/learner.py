@@ -460,9 +460,8 @@ class Learner:
 
     def entries(self) -> NDArray[np.float64]:
         """Return the point table: rows ``(t_end, samples, temp, bx, by, bz, session)``."""
-        rows = [[e.t_end, e.samples, e.temp_c, *e.bias, e.session]
-                for v in self.bins.values() for e in v]
-        return np.asarray(rows, dtype=np.float64).reshape(-1, 7)
+        return np.asarray([[e.t_end, e.samples, e.temp_c, *e.bias, e.session]
+                           for v in self.bins.values() for e in v], np.float64).reshape(-1, 7)
 
     def _refit(self, t_now: float) -> bool:
         """Fit the point table; swap the candidate in when it predicts recent still time better."""

@@ -127,8 +127,7 @@ class LearningGate:
             hand_off(self.block, self.extend)
             self.next = -math.inf
         prepared = self.queue[-1][1] if self.queue else None
-        self.queue.clear()
-        self.reopen()
+        self.cancel()
         return prepared
 
     def take_due(self, t: float) -> PreparedModel:
