@@ -70,8 +70,8 @@ def encode_state(learner: Any) -> dict[str, Any]:
                            [float(b) for b in e.bias], e.group, e.session]
                           for e in v] for k, v in sorted(learner.bins.items())},
         'session': learner.session,
-        'gyro_floor': _floor_out(learner.still.gyro_floor),
-        'accel_floor': _floor_out(learner.still.accel_floor),
+        **{k: [float(v) if math.isfinite(v) else None for v in getattr(learner.still, k)]
+           for k in ('gyro_floor', 'accel_floor')},
         't_first': learner.still.t_first, 'still_s': learner.still_s,
         'stretches': learner.stretches, 'windows': learner.windows,
         'recent': [[stretch, session, rows[-RECENT_ROWS:]]
@@ -89,11 +89,6 @@ def encode_state(learner: Any) -> dict[str, Any]:
         **({'prior': model_to_dict(learner.prior)}
            if learner.fit is not None and learner.fit.get('prior') else {}),
     }
-
-
-def _floor_out(floor: NDArray[np.float64]) -> list[float | None]:
-    """Return a noise floor as plain types: None where it is not known yet (infinite)."""
-    return [float(v) if math.isfinite(v) else None for v in floor]
 
 
 # -- decoding: every field checked, by name ------------------------------------------------
@@ -121,18 +116,14 @@ def _fields(v: Any, name: str, checks: dict, optional: tuple = ()) -> dict:
     return {k: check(v[k], f'{name}.{k}') for k, check in checks.items() if k in v}
 
 
-def _rates(v: Any, name: str) -> tuple[float, float, float]:
-    """Return three rates, rad/s."""
-    return tuple(_CHK.numbers(v, name, 3, *_RATE))
-
-
 #: A stamp (s), a plausible temperature (degC) and a sample count.
 _stamp = partial(_number, lo=-MAX_STAMP_S, hi=MAX_STAMP_S, what='a stamp in s')
 _temp = partial(_number, lo=TEMP_PLAUSIBLE_C[0], hi=TEMP_PLAUSIBLE_C[1], what=_TEMP[2])
 _samples = partial(_number, lo=1.0, hi=MAX_COUNT, what='a sample count')
 #: The items of a point-table entry (:class:`Entry`) and of a recent window: (label, check).
 _ENTRY = ((' (t_end)', _stamp), (' (samples)', _samples), (' (temperature)', _temp),
-          ('', _rates), (' (stretch)', _count), (' (session)', _count))
+          ('', lambda v, name: tuple(_CHK.numbers(v, name, 3, *_RATE))), (' (stretch)', _count),
+          (' (session)', _count))
 _WINDOW = ((' (samples)', _samples), (' (temperature)', _temp),
            *[(' (mean rate)', partial(_number, lo=_RATE[0], hi=_RATE[1], what=_RATE[2]))] * 3,
            (' (t_end)', _stamp))
@@ -159,16 +150,16 @@ def _bins(v: Any, bin_c: float | None, most: int | None) -> dict[int, list[Entry
     """Return the point table: bin -> entries ``[t_end, samples, temp, b, stretch, session]``."""
     if not isinstance(v, dict):
         raise _bad('bins', f'must be an object (bin -> entries), got {shown(v)}')
-    lo = hi = None
-    if bin_c is not None:           # the bins of the plausible temperatures, one either side
-        lo, hi = (math.floor(c / bin_c) + d for c, d in zip(TEMP_PLAUSIBLE_C, (-1, 1)))
+    # The bins of the plausible temperatures, one either side.
+    lo, hi = (-math.inf, math.inf) if bin_c is None else (
+        math.floor(c / bin_c) + d for c, d in zip(TEMP_PLAUSIBLE_C, (-1, 1)))
     out: dict[int, list[Entry]] = {}
     for key, entries in v.items():
         name = f'bins[{key!r:.20}]'
         if not (isinstance(key, str) and re.fullmatch(r'-?[0-9]{1,9}', key)):
             raise _bad(name, 'must be keyed by a bin number')
         k = int(key)
-        if lo is not None and not lo <= k <= hi:
+        if not lo <= k <= hi:
             raise _bad(name, f'must be a bin of a plausible temperature ({lo} .. {hi})')
         out[k] = [Entry(*_row(e, f'{name}[{j}]', _ENTRY))
                   for j, e in enumerate(_list(entries, name, most=most))]
@@ -185,8 +176,7 @@ def _recent(v: Any, most: int | None) -> list[RecentStretch]:
             for i, s in enumerate(_list(v, 'recent', most=most))]
 
 
-def _fit(v: Any, thermal: ThermalState | None,
-         prior: CompensationModel | None) -> dict | None:
+def _fit(v: Any, thermal: ThermalState | None, prior: CompensationModel | None) -> dict | None:
     """
     Return the fit record, its model checked like a model file's (null: :func:`_maybe`).
 
@@ -210,8 +200,7 @@ def _fit(v: Any, thermal: ThermalState | None,
            'held_out': _held_out(v['held_out'], bool(feats))}
     if v.get('reanchor') is not None:
         fit['reanchor'] = _gate(v['reanchor'])
-    if v.get('prior') is not None:
-        mid = v['prior']
+    if (mid := v.get('prior')) is not None:
         if prior is None or mid != prior.model_id:
             raise _bad('fit.prior', "must be the model_id of the state's `prior`, got "
                        f'{shown(mid)}')
@@ -241,8 +230,7 @@ def _held_out(v: Any, curve: bool) -> dict | None:
         out[k] = None if v[k] is None and not out['folds'] else _CHK.numbers(
             v[k], f'fit.held_out.{k}', 3, 0.0, MAX_PARAM, 'a mean square in (deg/s)^2')
     axes = _list(v['offset_only'], 'fit.held_out.offset_only', most=3)
-    if (not all(isinstance(a, str) for a in axes) or not set(axes) <= set(AXES)
-            or len(set(axes)) < len(axes)):
+    if not all(a in AXES for a in axes) or len(set(axes)) < len(axes):
         raise _bad('fit.held_out.offset_only', f'must be distinct axis names, got {axes!r:.40}')
     out['offset_only'] = axes
     return out
@@ -295,8 +283,7 @@ def _motion(v: Any) -> list[tuple[float, bool]]:
 
 
 def decode_state(state: Any, *, bin_c: float | None = None, bin_entries: int | None = None,
-                 stretches: int | None = None
-                 ) -> tuple[dict[str, Any], ThermalState | None]:
+                 stretches: int | None = None) -> tuple[dict[str, Any], ThermalState | None]:
     """
     Check every field of a state :func:`encode_state` made; return what it restores.
 

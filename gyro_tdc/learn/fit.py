@@ -99,8 +99,7 @@ def grow_features(temps: NDArray[np.float64], bins: int) -> tuple[str, ...]:
 
 
 def fit_sessions(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str], t0: float,
-                 session: float | None = None
-                 ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+                 session: float | None = None) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """
     Weighted least squares, one intercept per session and a shared shape.
 
@@ -139,11 +138,9 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
     """
     keep = np.ones(e.shape[0], dtype=bool)
     for _ in range(MAX_DROPS):
-        idx = np.flatnonzero(keep)
-        if idx.size <= len(feats) + np.unique(e[idx, 6]).size + 2:
+        if (idx := np.flatnonzero(keep)).size <= len(feats) + np.unique(e[idx, 6]).size + 2:
             break
-        x = _design(e[idx], feats, t0)[0]
-        w = wt[idx]
+        x, w = _design(e[idx], feats, t0)[0], wt[idx]
         a, h = hat(x, w)
         res = e[idx, 3:6] - x @ (a @ ((x * w[:, None]).T @ e[idx, 3:6]))
         alone = h > 1.0 - 1e-9            # alone in its session: its intercept needs it
@@ -151,7 +148,6 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
             break
         loo = np.where(alone[:, None], 0.0, res / np.where(alone, 1.0, 1.0 - h)[:, None])
         k = int(np.argmax(np.abs(loo).max(axis=1)))
-        worst = float(np.abs(loo[k]).max())
         # The others' residuals in the fit without entry k.
         others = np.arange(idx.size) != k
         lev = (x[others] @ a @ x[k]) * w[k]
@@ -160,7 +156,7 @@ def inliers(e: NDArray[np.float64], wt: NDArray[np.float64], feats: Sequence[str
         cw = np.cumsum(w[others][order])
         mad = float(r[order][np.searchsorted(cw, 0.5 * cw[-1])])
         sigma = max(MAD_TO_SIGMA * mad, floor / math.sqrt(max(float(e[:, 1].max()), 1.0)), 1e-12)
-        if worst <= OUTLIER_K * sigma:
+        if np.abs(loo[k]).max() <= OUTLIER_K * sigma:     # the worst is no outlier
             break
         keep[idx[k]] = False
     return keep
@@ -187,8 +183,7 @@ def fit_points(e: NDArray[np.float64], feats: Sequence[str], t_now: float, half_
     wt = e[:, 1] * 0.5 ** (np.maximum(t_now - e[:, 0], 0.0) / half_life_s)     # by age
     t0 = float(np.average(e[:, 2], weights=wt))
     keep = inliers(e, wt, feats, t0, floor)
-    if not keep.all():
-        e, wt = e[keep], wt[keep]
+    e, wt = e[keep], wt[keep]
     coef, res = fit_sessions(e, wt, feats, t0)
     record = held_out(e, wt, feats, t0)
     flat = [AXES.index(a) for a in record['offset_only']] if record else []
@@ -275,8 +270,7 @@ def model_of(fit: dict, thermal: ThermalState | None = None,
     if fit.get('prior') is not None:
         model = corrected_model(prior, fit)
     else:
-        feats = tuple(fit['features'])
-        coef = np.asarray(fit['coef'], dtype=np.float64)
+        feats, coef = tuple(fit['features']), np.asarray(fit['coef'], dtype=np.float64)
         if not feats:
             feats, coef = ('dT',), np.vstack([coef, np.zeros((1, 3))])
         model = learned_model(coef, feats, fit['t0_c'], tuple(fit['range_c']),
@@ -405,8 +399,7 @@ def window_error(r: NDArray[np.float64], pred: NDArray[np.float64],
     """Return :func:`prediction_mse` from the windows (W, 6) and a prediction (W, 3)."""
     res = r[:, 2:5] - pred
     if since is not None:
-        new = r[:, 5] > since
-        if new.any():
+        if (new := r[:, 5] > since).any():
             mean = np.average(res[new], axis=0, weights=r[new, 0])
             return float(np.average(((res - mean) ** 2).sum(axis=1), weights=r[:, 0])
                          + (mean ** 2).sum())

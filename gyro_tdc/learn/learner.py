@@ -95,19 +95,16 @@ class Learner:
         """Forget everything learned (points, floor, model); the prior is current again."""
         self.bins: dict[int, list[Entry]] = {}
         self.still.reset()
-        self.still_s, self.stretches, self.windows = 0.0, 0, 0
+        self.still_s, self.stretches, self.windows, self.swaps = 0.0, 0, 0, 0
         self.recent: list[RecentStretch] = []     # newest last
         self.fit: dict | None = None          # the learned model in use
         self.model: CompensationModel | None = self.prior
-        self.last_update_t: float | None = None
-        self.last_t: float | None = None
-        self.last_save_t: float | None = None
+        #: Stamps (s) of the last model update, the last sample and the last save, or None.
+        self.last_update_t = self.last_t = self.last_save_t = None
         self.check: dict | None = None
-        self.swaps = 0
         self._stretch = OpenStretch()
         #: The entry group being filled: a stretch, or an ``entry_s`` part of a long one.
-        self.segment = 0
-        self.segment_t0: float | None = None
+        self.segment, self.segment_t0 = 0, None
         #: The session, from 0, and the stream's median period (the shared rule).
         self.sessions = SessionTracker(self.config.session_gap_s)
         #: A new session whose first stretch is not learned yet (:meth:`_early_offset`).
@@ -237,8 +234,7 @@ class Learner:
 
     def _waiting(self) -> bool:
         """Return whether the window in progress goes on (no sample beyond it, no restart)."""
-        wend = self.still.window_end
-        t = self.buf[-SAMPLE]
+        wend, t = self.still.window_end, self.buf[-SAMPLE]
         return (wend is not None and t < wend
                 and (self.last_t is None or t >= self.last_t - RESTART_BACK_S))
 
@@ -278,9 +274,9 @@ class Learner:
         x = np.array(buf[:m], dtype=np.float64).reshape(-1, SAMPLE)
         del buf[:m]
         ok = np.isfinite(x[:, 0])
-        t, w, acc = x[ok, 0], x[ok, 1:4], x[ok, 4:7]
-        if not np.isfinite(x[:, 4:7]).all():
-            acc = None                    # missing or not three values: the gyro alone
+        t, w = x[ok, 0], x[ok, 1:4]
+        # Missing or not three values: the gyro alone.
+        acc = x[ok, 4:7] if np.isfinite(x[:, 4:7]).all() else None
         if not t.size:
             return False
         temp, self.temps = hold_readings(self.temps, t, self.config.temperature_timeout)
@@ -308,8 +304,7 @@ class Learner:
         """
         period = self.sessions.median or 0.0
         why = self.sessions.judge(gap, period)
-        relabel = self.sessions.merges(period)
-        if relabel:
+        if relabel := self.sessions.merges(period):
             self.power_ups = relabel_power_ups(self.power_ups, relabel)
             for e in (e for v in self.bins.values() for e in v):
                 e.session = relabel.get(e.session, e.session)
@@ -336,8 +331,8 @@ class Learner:
                                   else due, power_up(m))
             self.sessions.start(t0, why, gap=gap)
             self._power_up(t0)
-            self._up_open = True
-            self._fresh = True            # its offset from its first still windows
+            # Its first still windows are pooled and give its offset.
+            self._up_open = self._fresh = True
             self.still.restart()          # the window grid starts again
             self.thermal_state = None     # after a power-off: steady state at the next reading
         temp, self.thermal_state = stream_state(self.thermal, self.thermal_state, t, temp)
@@ -368,8 +363,7 @@ class Learner:
         """
         swapped = self.step(force=True)
         trigger = self.last_t if t_trigger is None else t_trigger
-        last = self.still.flush()
-        if last is not None:
+        if (last := self.still.flush()) is not None:
             swapped = self._windows([last], trigger) or swapped
         self._trigger = trigger
         return self._close() or swapped
@@ -466,9 +460,8 @@ class Learner:
 
     def entries(self) -> NDArray[np.float64]:
         """Return the point table: rows ``(t_end, samples, temp, bx, by, bz, session)``."""
-        rows = [[e.t_end, e.samples, e.temp_c, *e.bias, e.session]
-                for v in self.bins.values() for e in v]
-        return np.asarray(rows, dtype=np.float64).reshape(-1, 7)
+        return np.asarray([[e.t_end, e.samples, e.temp_c, *e.bias, e.session]
+                           for v in self.bins.values() for e in v], np.float64).reshape(-1, 7)
 
     def _refit(self, t_now: float) -> bool:
         """Fit the point table; swap the candidate in when it predicts recent still time better."""
@@ -486,8 +479,7 @@ class Learner:
         the record names the prior (``prior``, its ``model_id``).
         """
         feats = grow_features(e[:, 2], bins)
-        corr = None if self.prior is None else correction_features(self.prior, feats)
-        if corr is None:
+        if (corr := correction_features(self.prior, feats)) is None:
             return fit_points(e, feats, t_now, self.config.half_life_s, floor)
         e = on_prior(self.prior, e, columns=(2, 3))
         return dict(fit_points(e, corr, t_now, self.config.half_life_s, floor),
@@ -519,8 +511,7 @@ class Learner:
         if not rows.shape[0]:           # no still window of this session to judge it by
             return False
         floor = self._floor()
-        if since is None:
-            since = t_now - self.config.offset_s
+        since = t_now - self.config.offset_s if since is None else since
         # A correction: its offset from the windows' residuals on the prior.
         seen = rows if fit.get('prior') is None else on_prior(self.prior, rows)
         try:
@@ -554,8 +545,7 @@ class Learner:
         cand = cand.replace(metrics={**cand.metrics, 'reanchor': fit['reanchor']})
         trigger = t_now if self._trigger is None else max(self._trigger, t_now)
         self._swaps.append((trigger + self.config.swap_delay_s, cand))
-        self.fit, self.model = fit, cand
-        self.last_update_t = t_now
+        self.fit, self.model, self.last_update_t = fit, cand, t_now
         self.swaps += 1
         return True
 
@@ -574,8 +564,7 @@ class Learner:
                                           else f'{s["last_update_t"]:.3f}'),
             'learn prediction check': s['check'] or 'none yet',
             'learn held out': held_out_line(self.fit),
-            'learn session': str(self.session),
-            'learn late swaps': str(self.late_swaps),
+            'learn session': str(self.session), 'learn late swaps': str(self.late_swaps),
             'learn candidates refused': (f'{self.refused} (last: {self.refused_why})'
                                          if self.refused else '0'),
         }

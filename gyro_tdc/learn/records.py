@@ -142,8 +142,8 @@ class OpenStretch:
     def mean_se(self) -> NDArray[np.float64]:
         """Return the standard error of the stretch's mean raw rate per axis, rad/s."""
         n = np.array([r.n for r in self.rows], dtype=np.float64)
-        mean, std = (np.array([getattr(r, k) for r in self.rows]) for k in ('gyro_mean',
-                                                                            'gyro_std'))
+        mean = np.array([r.gyro_mean for r in self.rows])
+        std = np.array([r.gyro_std for r in self.rows])
         ss = (n - 1.0) @ std ** 2 + n @ (mean - n @ mean / n.sum()) ** 2
         return np.sqrt(ss / max(n.sum() - 1.0, 1.0) / n.sum())
 
@@ -189,18 +189,17 @@ def remember(recent: list[RecentStretch], new: RecentStretch, stretches: int, ro
     Windows of the newest stretch join it; at most ``stretches`` stretches and ``rows``
     windows are kept, the oldest dropped first.
     """
-    last = recent[-1] if recent else None
-    if last is not None and (last.stretch, last.session) == (new.stretch, new.session):
-        last.rows.extend(new.rows)
+    if recent and recent[-1][:2] == new[:2]:      # the same stretch and session
+        recent[-1].rows.extend(new.rows)
     else:
         recent.append(new)
     del recent[:-stretches]
-    total = sum(len(r.rows) for r in recent)
-    while total > rows:
+    excess = sum(len(r.rows) for r in recent) - rows
+    while excess > 0:
         first = recent[0].rows
-        cut = min(total - rows, len(first))
+        cut = min(excess, len(first))
         del first[:cut]
-        total -= cut
+        excess -= cut
         if not first:
             del recent[0]
 
@@ -226,10 +225,7 @@ def keep_power_up(ups: list, session: int, win: Window) -> bool:
 
 def relabel_power_ups(ups: list, relabel: dict) -> list:
     """Return ``ups`` relabelled (``relabel``: merged sessions); the first row of each stays."""
-    out, seen = [], set()
+    out: dict = {}
     for row in ups:
-        s = relabel.get(row[0], row[0])
-        if s not in seen:
-            seen.add(s)
-            out.append([s, *row[1:]])
-    return out
+        out.setdefault(relabel.get(row[0], row[0]), row[1:])
+    return [[s, *rest] for s, rest in out.items()]

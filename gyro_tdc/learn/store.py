@@ -118,8 +118,7 @@ class LearnFile:
 
     def _owner_rw(self, st: os.stat_result) -> bool:
         """Give the owner read and write permission when it lacks them (a note); return if so."""
-        mode = stat.S_IMODE(st.st_mode)
-        if mode & 0o600 == 0o600:
+        if (mode := stat.S_IMODE(st.st_mode)) & 0o600 == 0o600:
             return False
         try:
             os.chmod(self.path, mode | 0o600)   # a regular file: the caller checked (lstat)
@@ -145,10 +144,8 @@ class LearnFile:
 
         """
         p = self.path
-        self._mine = None
-        self.notes = []
-        st = _lstat(p, lambda why: LearnFileError(f'{p}: cannot read: {why}'))
-        if st is None:
+        self._mine, self.notes = None, []
+        if (st := _lstat(p, lambda why: LearnFileError(f'{p}: cannot read: {why}'))) is None:
             return None
         if stat.S_ISLNK(st.st_mode):
             try:
@@ -184,8 +181,7 @@ class LearnFile:
             The file is not a learner state (:meth:`read`, or ``load`` refused it).
 
         """
-        doc = self.read()
-        if doc is None:
+        if (doc := self.read()) is None:
             return False
         try:
             load(doc)
@@ -211,8 +207,7 @@ class LearnFile:
         """
         p = self.path
         text = dumps(state)
-        size = len(text.encode('utf-8'))
-        if size > MAX_BYTES:
+        if (size := len(text.encode('utf-8'))) > MAX_BYTES:
             raise OutputError(f'cannot write learn_file {str(p)!r}: the state takes {size} '
                               f'bytes, more than the {MAX_BYTES}-byte limit it is read with')
         st = _lstat(p, lambda why: OutputError(f'cannot write learn_file {str(p)!r}: {why}'))
@@ -261,8 +256,7 @@ def open_learn_file(path: str | os.PathLike, load: Callable[[Any], None]) -> Ope
     """
     main = LearnFile(path)
     try:
-        resumed = main.resume(load)
-        return Opened(main, resumed, '', tuple(main.notes))
+        return Opened(main, main.resume(load), '', tuple(main.notes))
     except LearnFileError as exc:
         why = str(exc).removeprefix(f'{main.path}: ')
     alt = LearnFile(main.path.with_name(main.path.name + ALTERNATE_SUFFIX))
@@ -309,12 +303,10 @@ def model_from_file(path: str | os.PathLike) -> CompensationModel:
 
     """
     p = Path(path)
-    doc = LearnFile(p).read(fix_mode=False)
-    if doc is None:
+    if (doc := LearnFile(p).read(fix_mode=False)) is None:
         raise ModelFileError(f'learn_file {str(p)!r} does not exist')
     values, thermal = decode_state(doc)
-    fit = values['fit']
-    if fit is None:
+    if (fit := values['fit']) is None:
         points = sum(len(v) for v in values['bins'].values())
         raise ModelFileError(
             f'learn_file {str(p)!r} holds no accepted model yet ({points} points in '
@@ -338,6 +330,4 @@ def read_model(spec: str | os.PathLike) -> CompensationModel:
         A file that starts as a learn_file but is not a learner state.
 
     """
-    if is_learn_file(spec):
-        return model_from_file(spec)
-    return load_model(model_path(spec))
+    return model_from_file(spec) if is_learn_file(spec) else load_model(model_path(spec))

@@ -186,16 +186,13 @@ def block_sums(t: NDArray[np.float64], x: NDArray[np.float64], c: Sequence[float
     k = np.floor((t - origin) / block_s)
     starts = np.flatnonzero(np.concatenate([[True], k[1:] != k[:-1]]))
     sums = np.add.reduceat(np.asarray(x, dtype=np.float64) - np.asarray(c), starts, axis=0)
-    counts = np.diff(np.append(starts, t.size)).astype(np.float64)
-    return starts, sums, counts
+    return starts, sums, np.diff(np.append(starts, t.size)).astype(np.float64)
 
 
 def stats_of(sums: NDArray[np.float64], counts: NDArray[np.float64]) -> BlockStats:
     """Return the block statistics of blocks with these sums and sample counts."""
-    return BlockStats(int(counts.sum()), int(counts.size), tuple(sums.sum(axis=0).tolist()),
-                      tuple((sums ** 2).sum(axis=0).tolist()),
-                      tuple((sums * counts[:, None]).sum(axis=0).tolist()),
-                      float((counts ** 2).sum()))
+    s, a, b = (tuple(v.sum(axis=0).tolist()) for v in (sums, sums ** 2, sums * counts[:, None]))
+    return BlockStats(int(counts.sum()), int(counts.size), s, a, b, float((counts ** 2).sum()))
 
 
 def early_allowed(tol: Sequence[float], window: float, window_max: float) -> bool:

@@ -348,8 +348,7 @@ class CompensatorCore:
             return self._pass(t, wx, wy, wz, NO_MODEL)
         m = _MAX_RATE                   # NaN fails the compares
         if not (abs(wx) <= m and abs(wy) <= m and abs(wz) <= m and math.isfinite(t)):
-            finite = (math.isfinite(wx) and math.isfinite(wy) and math.isfinite(wz)
-                      and math.isfinite(t))
+            finite = all(map(math.isfinite, (wx, wy, wz, t)))
             return self._pass(t, wx, wy, wz, IMPLAUSIBLE_INPUT if finite else NON_FINITE, accel)
         if (held := self.temps.at(t)) is None:
             return self._pass(t, wx, wy, wz, NO_TEMPERATURE, accel)
@@ -445,12 +444,11 @@ class CompensatorCore:
 
     def _pass(self, t: float, wx: float, wy: float, wz: float, why: int,
               accel: Sequence[float] | None = None) -> Output:
-        flags = why | PASSTHROUGH
         aout, avar = (None, None) if self.slot.accel is None else self._accel_pass(accel, why)
         counts = self.tally.flags
         counts[why] += 1
         counts[PASSTHROUGH] += 1
-        self.stream.flags = flags
+        self.stream.flags = flags = why | PASSTHROUGH
         if math.isfinite(t):
             self.stream.t = t
         return wx, wy, wz, self.pass_var, flags, aout, avar
@@ -465,8 +463,7 @@ class CompensatorCore:
                temp: float) -> None:
         a = self.reanchoring
         if a.anchor is not None:          # a provisional shift: the detector averages without it
-            s = a.shown
-            out = (out[0] + s[0], out[1] + s[1], out[2] + s[2])
+            out = tuple(o + s for o, s in zip(out, a.shown))
         if (found := a.detector.update(t, raw, out, accel, temp)) is not None:
             a.take(found, self.slot, temp)
             self._update_needs()

@@ -54,8 +54,7 @@ def hand_off(block: array, extend: Callable) -> int:
 
     Returns the number of samples it held.
     """
-    n = len(block) // BLOCK_FIELDS
-    if n == 1:
+    if (n := len(block) // BLOCK_FIELDS) == 1:
         extend(block)
     elif n:
         extend(tuple(sum(block[i::BLOCK_FIELDS]) / n for i in range(BLOCK_FIELDS)))
@@ -128,16 +127,14 @@ class LearningGate:
             hand_off(self.block, self.extend)
             self.next = -math.inf
         prepared = self.queue[-1][1] if self.queue else None
-        self.queue.clear()
-        self.reopen()
+        self.cancel()
         return prepared
 
     def take_due(self, t: float) -> PreparedModel:
         """Return the newest learned model due at stamp ``t`` (s); drop the older ones."""
-        queue = self.queue
         prepared = None
-        while queue and queue[0][0] <= t:
-            prepared = queue.popleft()[1]
+        while self.queue and self.queue[0][0] <= t:
+            prepared = self.queue.popleft()[1]
         self.reopen()
         self.installs += 1
         return prepared
@@ -155,15 +152,13 @@ class LearningGate:
         gap), so no mean spans one. The per-sample work is one ``extend`` of the block.
         """
         sample = (t, wx, wy, wz, *(_NAN3 if accel is None else accel))  # Learner.observe's
-        if t < self.next:                     # no hand-off due yet, by stamp
-            self.block_extend(sample)
-            return
-        self.next = t + 0.999 * self.period
-        block = self.block
-        if block and last is not None and t - last > 1.5 * self.period:
-            # A pause: the block before it goes alone; this sample starts the next.
-            hand_off(block, self.extend)
-            self.block_extend(sample)
-        else:
-            self.block_extend(sample)
-            self.block_n = hand_off(block, self.extend)
+        if t >= self.next:                    # a hand-off due, by stamp
+            self.next = t + 0.999 * self.period
+            if self.block and last is not None and t - last > 1.5 * self.period:
+                # A pause: the block before it goes alone; this sample starts the next.
+                hand_off(self.block, self.extend)
+            else:
+                self.block_extend(sample)
+                self.block_n = hand_off(self.block, self.extend)
+                return
+        self.block_extend(sample)

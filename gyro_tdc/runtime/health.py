@@ -158,8 +158,7 @@ def upstream_note(policy: Policy) -> str:
         and saying whether the raw rate passes through or is compensated on top.
 
     """
-    which = policy.upstream_correction
-    if not which:
+    if not (which := policy.upstream_correction):
         return ''
     passthrough = policy.upstream_policy == 'passthrough'
     if which == 'bias_at_start':
@@ -282,8 +281,7 @@ def _values(core: CompensatorCore, inputs: InputStatus, model_file: str, last_re
         'temperatures rejected (implausible)': core.temps.implausible,
         'errors': core.tally.errors, 'last error': core.last_error,
         'input reliability': inputs.reliability, 'input lost': inputs.lost,
-        'input malformed': inputs.malformed,
-        'already compensated': inputs.already_compensated,
+        'input malformed': inputs.malformed, 'already compensated': inputs.already_compensated,
         'upstream compensators': ','.join(inputs.upstream),
         'upstream correction': upstream_note(core.policy) or 'none declared',
         'passed through as corrected upstream': counts[UPSTREAM],

@@ -76,12 +76,11 @@ class RateReport(NamedTuple):
 
     def values(self, prefix: str) -> dict[str, str]:
         """Return the /diagnostics key/value pairs, keys starting with ``prefix``."""
-        return {f'{prefix} rate Hz': '' if self.hz is None else f'{self.hz:.2f}',
-                f'{prefix} expected rate Hz': ('' if self.expected_hz is None
-                                               else f'{self.expected_hz:.2f}'),
-                f'{prefix} events in window': str(self.events),
-                f'{prefix} window s': f'{self.window_s:.3f}',
-                f'{prefix} silent s': f'{self.silent_s:.3f}'}
+        rate, expected = ('' if v is None else f'{v:.2f}' for v in (self.hz, self.expected_hz))
+        return {f'{prefix} {k}': v for k, v in (
+            ('rate Hz', rate), ('expected rate Hz', expected),
+            ('events in window', str(self.events)), ('window s', f'{self.window_s:.3f}'),
+            ('silent s', f'{self.silent_s:.3f}'))}
 
 
 class InputRate:

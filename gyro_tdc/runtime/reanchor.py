@@ -93,13 +93,10 @@ def _window_end(t: NDArray[np.float64], i0: int, window: float) -> tuple[int, in
     samples or more ends before a pause (a step longer than ``window``): without the next
     burst's first sample.
     """
-    later = np.flatnonzero(t[i0 + 1:] - t[i0] >= window)
-    if not later.size:
+    if not (later := np.flatnonzero(t[i0 + 1:] - t[i0] >= window)).size:
         return -1, -1
     i1 = i0 + 1 + int(later[0])
-    if i1 - i0 >= 2 and t[i1] - t[i1 - 1] > window:
-        return i1 - 1, i1
-    return i1, i1
+    return (i1 - 1 if i1 - i0 >= 2 and t[i1] - t[i1 - 1] > window else i1), i1
 
 
 def _early_end(t: NDArray[np.float64], x: NDArray[np.float64], i0: int, i1: int,
@@ -113,20 +110,18 @@ def _early_end(t: NDArray[np.float64], x: NDArray[np.float64], i0: int, i1: int,
     MIN_WINDOW_SAMPLES samples, ``total`` with those blocks is tested against ``tol``.
     None: it never is precise early.
     """
-    tt = t[i0:i1]
-    if tt.size < 2:
+    if (tt := t[i0:i1]).size < 2:
         return None
     starts, sums, counts = block_sums(tt, x[i0:i1], c, block_s, float(tt[0]))
     if starts.size <= EARLY_BLOCKS:
         return None
-    cs, ca = np.cumsum(sums, axis=0), np.cumsum(sums ** 2, axis=0)
-    cb = np.cumsum(sums * counts[:, None], axis=0)
+    # Running sums over the blocks of what BlockStats sums: s, a, b; n and c2.
+    cums = [np.cumsum(a, axis=0) for a in (sums, sums ** 2, sums * counts[:, None])]
     cn, cc = np.cumsum(counts), np.cumsum(counts ** 2)
     for m in range(EARLY_BLOCKS, starts.size):      # the m whole blocks before starts[m]
         if cn[m - 1] < MIN_WINDOW_SAMPLES:
             continue
-        st = total + BlockStats(int(cn[m - 1]), m, tuple(cs[m - 1].tolist()),
-                                tuple(ca[m - 1].tolist()), tuple(cb[m - 1].tolist()),
+        st = total + BlockStats(int(cn[m - 1]), m, *(tuple(c[m - 1].tolist()) for c in cums),
                                 float(cc[m - 1]))
         if all(v <= w for v, w in zip(standard_error(st), tol)):
             return i0 + int(starts[m]), st
@@ -167,20 +162,17 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
         or every sample of a run shorter than one window).
 
     """
-    t = np.asarray(t, dtype=np.float64)
-    x = np.asarray(x, dtype=np.float64)
+    t, x = np.asarray(t, dtype=np.float64), np.asarray(x, dtype=np.float64)
     if t.ndim != 1 or x.shape != (t.size, 3) or t.size == 0:
         raise ValueError(f'Expected `t` of shape (N,) and `x` of shape (N, 3) with N >= 1, '
                          f'got {t.shape} and {x.shape}.')
     tol = tuple(float(v) for v in tolerance)
     bs = block_length(window)
     c = tuple(x[0].tolist())
-    total = BlockStats()
+    total, first_pause = BlockStats(), t.size      # no early end before the first pause
     if early_allowed(tol, window, window_max):
         long = np.flatnonzero(np.diff(t) > window)
         first_pause = 0 if paused else (int(long[0]) + 1 if long.size else t.size)
-    else:
-        first_pause = t.size
     i0, last, reason, start = 0, -1, 'end of data', 0
     for _ in range(max_windows(window, window_max)):
         i1, ends = _window_end(t, i0, window) if i0 < t.size else (-1, -1)
@@ -190,8 +182,7 @@ def reanchor_shift(t: NDArray[np.float64], x: NDArray[np.float64], *,
                 total, window_stats(t[i0:e], x[i0:e], c, bs)):
             run = BlockStats()            # with the window after it (once that is taken)
         if first_pause <= i0 < t.size:
-            early = _early_end(t, x, i0, e, c, bs, run, tol)
-            if early is not None:
+            if (early := _early_end(t, x, i0, e, c, bs, run, tol)) is not None:
                 (j, total), start = early, start if run is total else i0
                 last, reason = j - 1, 'precision'
                 break
@@ -268,9 +259,8 @@ class StillnessDetector:
         self.tolerance: Vec3 = (self.fixed_tolerance,) * 3 if self.fixed_tolerance > 0 else _INF3
         self.noise_prior: Vec3 | None = None
         #: The one streaming still test; re-anchoring windows hold at least two samples.
-        self.still = StillWindows(self.window, cut='span', gyro_std=float(gyro_std),
-                                  accel_std=float(accel_std), max_rate=float(max_rate),
-                                  min_samples=2)
+        self.still = StillWindows(self.window, cut='span', gyro_std=float(gyro_std), min_samples=2,
+                                  accel_std=float(accel_std), max_rate=float(max_rate))
         #: The stream has paused (kept over :meth:`reset`) ...
         self.paused = False
         #: ... judged from the stamp of the last sample given (None after an anchor: the
@@ -376,8 +366,7 @@ class StillnessDetector:
         self._n += 1
         if self._track:
             self._rows.extend((t, out[0], out[1], out[2]))
-        w = self.still.add(t, raw, accel, rate=out, temp_c=temp_c)
-        if w is not None:
+        if (w := self.still.add(t, raw, accel, rate=out, temp_c=temp_c)) is not None:
             self._end_window()
             found = self._judge(w)
         if found is not None:
@@ -394,9 +383,8 @@ class StillnessDetector:
         blocks are summed when a test is due (every sample before ``t`` is in one).
         """
         w0, bs = self._w0, self.block_s
-        k = math.floor((t - w0) / bs)
-        if k == self._block:               # the rounding of the boundary's estimate
-            return None
+        if (k := math.floor((t - w0) / bs)) == self._block:
+            return None                    # the rounding of the boundary's estimate
         self._block = k
         self._next_block = w0 + ((k + 1) * bs) * (1.0 - 1e-9)
         n = len(self._rows) // 4
@@ -409,9 +397,8 @@ class StillnessDetector:
         if self._part.m < EARLY_BLOCKS:
             return None
         total = sum((r.stats for r in self._run), self._part)
-        if not all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
-            return None
-        return self._flush()
+        precise = all(s <= v for s, v in zip(standard_error(total), self.tolerance))
+        return self._flush() if precise else None
 
     def _flush(self) -> Anchor | None:
         """End the window in progress here and judge it."""
@@ -424,8 +411,8 @@ class StillnessDetector:
         if not self._run:                 # a run starts: its centring constant
             self._c = tuple(w.rate[0].tolist())
         self.provisional = None
+        resumed, self._resumed = self._resumed, False     # this window follows a pause
         if w.why:
-            self._resumed = False
             self.windows_rejected += 1
             run, self._run = self._run, []
             # Motion ends a still run before the tolerance was met: its mean is the best this
@@ -435,22 +422,18 @@ class StillnessDetector:
                                  float(w.temp[0]), 'motion') if run else None)
         run = self._run
         stats = window_stats(w.t, w.rate, self._c, self.block_s)
-        if self._resumed and run and not _agree(sum((r.stats for r in run), BlockStats()), stats):
+        if resumed and run and not _agree(sum((r.stats for r in run), BlockStats()), stats):
             del run[:]                    # the bias moved in the pause: start again here
-        self._resumed = False
         run.append(_Window(w.t0, stats, w.gyro_std, w.accel_std))
-        j, _ = self.still.last_refused(run, w.thresholds)
-        if j >= 0:
+        if (j := self.still.last_refused(run, w.thresholds)[0]) >= 0:
             del run[:j + 1]
             self.windows_rejected += 1
-            self.provisional = self._so_far(run, w, sum((r.stats for r in run), BlockStats()))
-            return None
         total = sum((r.stats for r in run), BlockStats())
-        if all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
+        if j < 0 and all(s <= v for s, v in zip(standard_error(total), self.tolerance)):
             reason = 'precision'
-        elif len(run) >= max_windows(self.window, self.window_max):
+        elif j < 0 and len(run) >= max_windows(self.window, self.window_max):
             reason = 'longest'
-        else:
+        else:                             # a refused window, or the run goes on
             self.provisional = self._so_far(run, w, total)
             return None
         if len(run) == 1 and self.window_max <= self.window:

@@ -158,9 +158,8 @@ def reanchor_rule(model: CompensationModel, runs: Sequence, labels: Sequence[int
     rec = {'sessions': int(np.unique(labels).size), 'held_out': 0,
            'anchor_error_dps': (gate / SIGNIFICANCE * DEG_PER_RAD).tolist()}
     if rec['sessions'] >= 2:
-        held, ms = _held_out(model, runs, labels, gate, refit, rows)
-        rec['held_out'] = held
-        if held >= 2:
+        rec['held_out'], ms = _held_out(model, runs, labels, gate, refit, rows)
+        if rec['held_out'] >= 2:
             rms = np.sqrt(ms) * DEG_PER_RAD
             rec.update(always_dps=rms[0].tolist(), gated_dps=rms[1].tolist(),
                        never_dps=rms[2].tolist())

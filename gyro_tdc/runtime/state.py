@@ -155,14 +155,14 @@ class Reanchoring:
         """
         until = None if older_clock else model.created.get('offset_until')
         start = self.sessions.t0
-        if learned and until is not None and start is not None and until >= start:
-            self.anchor, self.shown = None, (0.0, 0.0, 0.0)   # this session's offset: no shift
-            self.learned = True
-        elif (same or older) and self.anchor is not None:
-            comp.shift_offset(np.asarray(self.anchor.delta, dtype=np.float64))
-        elif not same and not older:
-            self.anchor, self.shown = None, (0.0, 0.0, 0.0)
-            self.learned = False
+        own = learned and until is not None and start is not None and until >= start
+        if not own and (same or older):   # the shift (or the re-anchoring under way) is kept
+            if self.anchor is not None:
+                comp.shift_offset(np.asarray(self.anchor.delta, dtype=np.float64))
+            return
+        # This session's offset (no shift, re-anchoring done), or another model: start over.
+        self.anchor, self.shown, self.learned = None, (0.0, 0.0, 0.0), own
+        if not own:
             self.detector.reset(residual_var=residual_var)
 
     def rethreshold(self, old: Policy, policy: Policy, residual_var: NDArray[np.float64] | None,
@@ -221,8 +221,7 @@ class Reanchoring:
         """
         self.undo(slot)
         self.detector.reset(residual_var=residual_var)
-        if paused:
-            self.detector.paused = True
+        self.detector.paused |= paused
 
 
 def reanchor_var(model: CompensationModel | None, gate: LearningGate):
