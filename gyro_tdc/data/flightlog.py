@@ -257,8 +257,7 @@ def captured(sink: io.StringIO) -> Iterator[None]:
             sink.write(tmp.read().decode('utf-8', 'replace'))
 
 
-def no_instance(path: Path, kind: str, instance: int, has: object,
-                inventory: str) -> DatasetError:
+def no_instance(path: Path, kind: str, instance: int, has: object, inventory: str) -> DatasetError:
     """Return the refusal of an IMU instance the log does not hold (``has``: the ones it does)."""
     return DatasetError(f'Log {str(path)!r}: {kind} has no instance {instance} (it has '
                         f'{", ".join(map(str, sorted(has)))}; what each instance carries: '

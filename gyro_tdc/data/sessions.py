@@ -108,8 +108,7 @@ def find_breaks(run: Run, gap_s: float = 0.0) -> list[tuple[int, str]]:
     return sorted(out.items())
 
 
-def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0
-                   ) -> SessionSplit:
+def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0) -> SessionSplit:
     """
     Cut runs into sessions and label them: each session gets its own turn-on offset.
 

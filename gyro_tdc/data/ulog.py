@@ -181,8 +181,7 @@ def _combined_note(topics: dict, instance: int, rows: NDArray[np.bool_]) -> str:
     return f'sensor_combined carries {which} (sensor_selection), not this one'
 
 
-def _gyros(topics: dict, instance: int, rows: NDArray[np.bool_] | None = None
-           ) -> dict[str, dict]:
+def _gyros(topics: dict, instance: int, rows: NDArray[np.bool_] | None = None) -> dict[str, dict]:
     """
     Return the gyro topics of an instance that hold rates: name -> columns (its own rows).
 

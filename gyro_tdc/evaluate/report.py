@@ -108,9 +108,8 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
         **({} if b.still is None else {'still': _still_json(b.still)}),
     } for b in bags]}
     doc['out_of_range'] = bags[0].out_of_range if bags else DEFAULT_OUT_OF_RANGE
-    for key, fl in (('floor', floor), ('accel_floor', accel_floor)):
-        if fl is not None:
-            doc[key] = _vec(fl)
+    doc.update({key: _vec(fl) for key, fl in (('floor', floor), ('accel_floor', accel_floor))
+                if fl is not None})
     return doc
 
 
@@ -169,8 +168,7 @@ def _floor_text(floor: Sequence[float]) -> str:
 
 def _head(w: int, *names: str) -> str:
     """Return a table's header: a label column ``w`` wide, then ``NAME x y z`` per name."""
-    return f'  {"":<{w}} ' + '  '.join(''.join(f'{n + " " + a:>11}' for a in AXES)
-                                       for n in names)
+    return f'  {"":<{w}} ' + '  '.join(''.join(f'{n + " " + a:>11}' for a in AXES) for n in names)
 
 
 def _row(label: str, w: int, *groups: Any) -> str:
@@ -553,8 +551,7 @@ def format_training(result: TrainResult) -> tuple[str, list]:
                  + '   (deg/s per degC: static drift, mean slope over the range)')
     table, warns = format_coverage(result.coverage)
     lines.append(table)
-    short = range_shortfall((lo, hi))
-    if short:
+    if short := range_shortfall((lo, hi)):
         a, b = OPERATING_RANGE_C
         warns = list(warns) + [
             f'the training data cover {lo:.1f} .. {hi:.1f} degC, less than a typical operating '

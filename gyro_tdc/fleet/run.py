@@ -258,8 +258,7 @@ def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
                       **figures, 'seconds': out.seconds}
             atomic_json(state_file, record, what='fleet state file', indent=None)
             return SensorResult(out.sensor_id, 'ok', model_file=str(model_file),
-                                seconds=out.seconds,
-                                **dict(figures, constant_axes=list(out.constant_axes)))
+                                seconds=out.seconds, **figures)
         except (GyroTdcError, OSError) as exc:   # this sensor's output only: the others go on
             error = one_line(exc)
     with contextlib.suppress(OSError):
@@ -335,9 +334,8 @@ def _summary_error(exc: Exception, pending: BaseException | None,
     if write_errors:
         more = len(write_errors) - 1
         why.append(write_errors[0] + (f' (and {more} more sensor(s))' if more else ''))
-    if not why:
-        return OutputError(one_line(exc))
-    return OutputError(f'{"; ".join(why)}; and no fleet summary: {one_line(exc)}')
+    return OutputError(f'{"; ".join(why)}; and no fleet summary: {one_line(exc)}' if why
+                       else one_line(exc))
 
 
 def _future_failure(sid: str, future: object) -> SensorOutcome:

@@ -51,7 +51,7 @@ def drift_polynomial(model: CompensationModel, *, points: int = 41) -> NDArray[n
     ``b(T) = c0 + c1 T + c2 T^2``, deg/s per degC^k, T in degC.
     """
     grid = np.linspace(*model.temp_range_c, points)
-    design = np.stack((np.ones_like(grid), grid, grid * grid), axis=1)
+    design = np.vander(grid, 3, increasing=True)          # 1, T, T^2
     return fit_columns(design, np.degrees(steady_drift(model, grid))).T.copy()
 
 
@@ -71,11 +71,10 @@ def robust_z(values: Sequence[float]) -> NDArray[np.float64]:
 
     """
     v = np.asarray(values, dtype=np.float64)
-    med = float(np.median(v))
     scale = float(mad_sigma(v))
     if not (math.isfinite(scale) and scale > 0):
         return np.full(v.shape, math.nan)
-    return (v - med) / scale
+    return (v - float(np.median(v))) / scale
 
 
 def fleet_statistics(sensors: Sequence[SensorResult], *,
@@ -116,8 +115,7 @@ def fleet_statistics(sensors: Sequence[SensorResult], *,
     for name, unit in (('slope', 'deg/s/degC'), ('curvature', 'deg/s/degC^2')):
         # (sensor, axis); a constant axis (None) is NaN
         values = np.array([getattr(s, name) for s in fleet], dtype=np.float64)
-        z = np.full(values.shape, math.nan)
-        med = np.full(3, math.nan)
+        z, med = np.full(values.shape, math.nan), np.full(3, math.nan)
         for a in range(3):
             rows = fitted[:, a]
             if np.count_nonzero(rows) >= MIN_FLEET:
