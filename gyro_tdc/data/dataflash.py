@@ -43,8 +43,7 @@ __all__ = ['DATAFLASH_TYPES', 'read_dataflash', 'TEMPERATURE_FIELDS']
 DATAFLASH_TYPES = {
     'a': ('<i2', (32,)), 'b': 'i1', 'B': 'u1', 'h': '<i2', 'H': '<u2', 'i': '<i4', 'I': '<u4',
     'f': '<f4', 'd': '<f8', 'n': 'S4', 'N': 'S16', 'Z': 'S64', 'c': '<i2', 'C': '<u2',
-    'e': '<i4', 'E': '<u4', 'L': '<i4', 'M': 'u1', 'q': '<i8', 'Q': '<u8', 'g': '<f2',
-}
+    'e': '<i4', 'E': '<u4', 'L': '<i4', 'M': 'u1', 'q': '<i8', 'Q': '<u8', 'g': '<f2'}
 #: The temperature field of ``IMU`` and ``BARO`` records: ``T``, or ``Temp`` (ArduCopter 3.4).
 TEMPERATURE_FIELDS = ('T', 'Temp')
 #: Records decoded at once (bounds the memory of a long log's decoding).
@@ -208,8 +207,7 @@ def _instance(cols: dict[str, np.ndarray], want: int) -> tuple[dict[str, np.ndar
     ``HEAT.I`` is a float, its heater's integrator) interleaves its instances: ``want``
     where it has it, else its first; a message without is one.
     """
-    parts = _instances(cols)
-    if not parts:
+    if not (parts := _instances(cols)):
         return cols, 0
     i = want if want in parts else min(parts)
     return parts[i], i

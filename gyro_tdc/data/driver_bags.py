@@ -113,8 +113,7 @@ def _option(name: str) -> str:
 
 
 def _connection(reader_: AnyReader, topic: str, want: str | None, option: str) -> Any:
-    conns = [c for c in reader_.connections if c.topic == topic]
-    if not conns:
+    if not (conns := [c for c in reader_.connections if c.topic == topic]):
         raise DatasetError(f'bag has no topic {topic!r} (topics: '
                            f'{", ".join(sorted({c.topic for c in reader_.connections}))}).')
     got = conns[0].msgtype

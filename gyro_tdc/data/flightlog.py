@@ -380,8 +380,7 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
             'pass --allow-onboard-corrected to use them as they are.')
     ok = np.isfinite(log.gyro).all(axis=1)
     temp_t = log.imu_t if log.temp_t is None else np.asarray(log.temp_t, dtype=np.float64)
-    warm = np.isfinite(log.temp_c) & np.isfinite(temp_t)
-    if not warm.any():
+    if not (warm := np.isfinite(log.temp_c) & np.isfinite(temp_t)).any():
         raise DatasetError(f'Log {str(p)!r}: {log.source} instance {log.instance} carries no '
                            'temperature; a drift model needs the IMU temperature.')
     data = BagData(imu_t=log.imu_t[ok], gyro=log.gyro[ok],

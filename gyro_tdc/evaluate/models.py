@@ -227,8 +227,7 @@ def onboard_model(spec: str, run: Run) -> tuple[CompensationModel, str]:
     created = {'bags': [run.name], 'onboard': firmware}
     if firmware == 'px4':
         device = int(run.info.get('device_id', 0))
-        slot = px4_slot(params, device)
-        if slot is None:
+        if (slot := px4_slot(params, device)) is None:
             raise DatasetError(f'--model {spec}: no TC_Gn_ID of {run.name!r} is the device id '
                                f'{device} of the gyro read.')
         cal = Px4TempCal.from_params(params, 'gyro', slot)

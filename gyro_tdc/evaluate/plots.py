@@ -102,8 +102,7 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
     """
     import matplotlib
 
-    run = b.run
-    if run is None:
+    if (run := b.run) is None:
         raise ValueError('Expected `b.run` to hold the data; it was released.')
     if descriptions is None:
         descriptions = [f'{m.model} ({", ".join(m.features) or "bias"})' for m in b.models]

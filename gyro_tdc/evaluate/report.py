@@ -202,8 +202,7 @@ def format_still(b: BagEval) -> list:
     Every figure says whose it is: the still stretches scored (samples, seconds, temperature
     range) beside the whole bag's (or session's) samples, seconds and temperature range.
     """
-    s = b.still
-    if s is None:
+    if (s := b.still) is None:
         return []
 
     def what(p: dict, whole: str) -> str:
@@ -385,8 +384,7 @@ def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000)
     scored on its still stretches only gives those samples (the models re-anchored as scored,
     the raw rate as read). Returns the path.
     """
-    run = b.run
-    if run is None:
+    if (run := b.run) is None:
         raise ValueError('Expected `b.run` to hold the data; it was released.')
     cols = csv_columns(b)
     fmt = ['%.6f', '%.6g'] + ['%.9g'] * (len(cols) - 2)
@@ -422,8 +420,7 @@ def format_coverage(c: Coverage) -> tuple[str, list]:
     """
     lo, hi = c.temp_range_c
     lines = [f'temperature range covered: {lo:.2f} .. {hi:.2f} degC (span {hi - lo:.2f} degC)']
-    minutes = np.asarray(c.minutes, dtype=np.float64)
-    if minutes.size:
+    if (minutes := np.asarray(c.minutes, dtype=np.float64)).size:
         least, most = int(np.argmin(minutes)), int(np.argmax(minutes))
         thin = (f'{len(c.sparse)} thin (named in the warning below)' if c.sparse else 'none thin')
         lines.append(f'coverage per {c.bin_c:g} degC bin: {minutes.size} bins '
@@ -481,8 +478,7 @@ def format_sessions(result: TrainResult) -> list[str]:
     re-anchor on the vehicle, then the start-up shift the node takes per axis
     (:func:`~gyro_tdc.identify.power_cycles.reanchor_lines`); empty without sessions.
     """
-    split = getattr(result, 'sessions', None)
-    if split is None:
+    if (split := getattr(result, 'sessions', None)) is None:
         return []
     out = list(split.lines())
     info = result.model.metrics.get('sessions')

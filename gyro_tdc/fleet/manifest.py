@@ -123,8 +123,7 @@ def read_manifest(path: str | os.PathLike) -> list[SensorSpec]:
             raise FleetError(f'{where}: sensor_id {sid!r} repeats line {seen[sid.lower()]} '
                              f'(ids must differ, also in letter case)')
         seen[sid.lower()] = line
-        train_bags = _bags(row[1], base)
-        if not train_bags:
+        if not (train_bags := _bags(row[1], base)):
             raise FleetError(f'{where}: sensor {sid!r} has no training bag')
         specs.append(SensorSpec(sid, train_bags, _bags(row[2], base), line))
     if not specs:

@@ -410,10 +410,9 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
                 sid, st = futures[fut]
                 outcome = (fut.result() if fut.status == 'finished' else _future_failure(sid, fut))
                 fut.release()
-                res = _record(outcome, out, state_dir, st)
+                done[sid] = res = _record(outcome, out, state_dir, st)
                 if res.status != 'ok' and outcome.status == 'ok':
                     write_errors.append(f'{sid}: {res.error}')
-                done[sid] = res
                 bar.update(1)
                 if log is not None:
                     what = ('unchanged, skipped' if res.skipped else res.status

@@ -72,9 +72,8 @@ def robust_z(values: Sequence[float]) -> NDArray[np.float64]:
     """
     v = np.asarray(values, dtype=np.float64)
     scale = float(mad_sigma(v))
-    if not (math.isfinite(scale) and scale > 0):
-        return np.full(v.shape, math.nan)
-    return (v - float(np.median(v))) / scale
+    ok = math.isfinite(scale) and scale > 0
+    return (v - float(np.median(v))) / scale if ok else np.full(v.shape, math.nan)
 
 
 def fleet_statistics(sensors: Sequence[SensorResult], *,
@@ -99,8 +98,7 @@ def fleet_statistics(sensors: Sequence[SensorResult], *,
         (None) and are left out of the axis' median and MAD.
 
     """
-    fleet = [s for s in sensors if s.status == 'ok' and s.drift_poly is not None]
-    if not fleet:
+    if not (fleet := [s for s in sensors if s.status == 'ok' and s.drift_poly is not None]):
         return None
     ref = float(np.median([sum(s.temp_range_c) / 2.0 for s in fleet]))
     # fitted[i, a]: sensor i's model is fitted on axis a (not an identity axis).
