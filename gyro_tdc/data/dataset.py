@@ -393,8 +393,7 @@ def _as_slice(index: NDArray) -> slice | NDArray:
     if isinstance(index, slice):
         return index
     if index.dtype == bool:          # one run: its first True and the count of them
-        n = int(np.count_nonzero(index))
-        a = int(np.argmax(index))
+        n, a = int(np.count_nonzero(index)), int(np.argmax(index))
         return slice(a, a + n) if n and index[a:a + n].all() else index
     if len(index) and int(index[-1]) - int(index[0]) + 1 == len(index) and np.all(
             np.diff(index) == 1):

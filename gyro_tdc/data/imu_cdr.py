@@ -271,8 +271,7 @@ class ImuView:
         stays unknown. ``accel`` (m/s^2) replaces ``linear_acceleration``; ``accel_var`` is
         added to its covariance unless marked absent (None: left as is; never marked).
         """
-        buf = bytearray(self.data)
-        base = self.base
+        buf, base = bytearray(self.data), self.base
         _VEC3.pack_into(buf, base + ANGULAR_VELOCITY, wx, wy, wz)
         c = base + ANGULAR_VELOCITY_COV
         cov = _COV.unpack_from(buf, c)

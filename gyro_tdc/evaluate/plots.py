@@ -116,8 +116,7 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
     def _bmean(a: NDArray[np.float64]) -> NDArray[np.float64]:
         return block_mean(a, block, partial=False)   # a trailing partial block is dropped
 
-    th = (_bmean(run.t) - run.t[0]) / 3600.0
-    temp = _bmean(run.temp)
+    th, temp = (_bmean(run.t) - run.t[0]) / 3600.0, _bmean(run.temp)
     raw_err = _bmean(np.degrees(run.omega - run.omega_ref))
     model_err = [_bmean(np.degrees(m.omega - run.omega_ref)) for m in b.models]
     legends = [f'raw ({b.raw.label})' if b.raw.label != 'raw' else 'raw, uncompensated'] + [

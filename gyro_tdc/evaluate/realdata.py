@@ -181,11 +181,9 @@ def _scheme(run: Run, burst: NDArray[np.int64], means: NDArray[np.float64], n_bl
     block_of = np.repeat(np.arange(len(blocks)), [len(b) for b in blocks])[burst]
     # Leave one block of bursts out: a block is a session of the estimator's folds.
     for i, (held, train) in enumerate(Folds.sessions(block_of)):
-        held_bursts = blocks[i]
-        idx = np.flatnonzero(held)
+        held_bursts, idx = blocks[i], np.flatnonzero(held)
         position = 'end' if held_bursts[0] == 0 or held_bursts[-1] == n_bursts - 1 else 'interior'
-        floor = floor_of(idx)
-        held_run = rows_of(run, idx)
+        floor, held_run = floor_of(idx), rows_of(run, idx)
         t_lo, t_hi = float(run.temp[train].min()), float(run.temp[train].max())
         temp_h = run.temp[held]
         fold = {'block': i, 'bursts': [int(held_bursts[0]), int(held_bursts[-1])],
@@ -213,8 +211,7 @@ def _scheme(run: Run, burst: NDArray[np.int64], means: NDArray[np.float64], n_bl
     summary = dict.fromkeys(GROUPS)         # a group without a fold: None
     for g in filter(pooled.get, GROUPS):
         idx = np.concatenate([x[0] for x in pooled[g]])
-        floor = floor_of(idx)
-        group_run = rows_of(run, idx)
+        floor, group_run = floor_of(idx), rows_of(run, idx)
         summary[g] = {'folds': len(pooled[g]), 'samples': len(idx),
                       'floor_bs_dps2': floor.tolist(), 'models': {}}
         bs_of = {}
@@ -400,11 +397,10 @@ def format_holdout(result: Mapping[str, Any]) -> str:
         else:
             lines += ['', 'BS/floor on x per held-out fold:',
                       '  fold  T degC  pos       ' + ' '.join(f'{n:>12}' for n in names)]
-            for f in s['folds']:
-                t_mid = 0.5 * sum(f['temperature_c'])
-                lines.append(f'  {f["block"]:>4}  {t_mid:6.2f}  {f["position"]:<8}  '
-                             + ' '.join(f'{f["models"][n]["floor_ratio"][0]:12.2f}'
-                                        for n in names))
+            lines += [f'  {f["block"]:>4}  {0.5 * sum(f["temperature_c"]):6.2f}  '
+                      f'{f["position"]:<8}  '
+                      + ' '.join(f'{f["models"][n]["floor_ratio"][0]:12.2f}' for n in names)
+                      for f in s['folds']]
         for g, label, unclamped in (
                 ('interior', 'interior blocks (interpolation)', False),
                 ('end', 'end blocks (extrapolation), clamped', False),

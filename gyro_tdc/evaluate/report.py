@@ -543,10 +543,9 @@ def format_training(result: TrainResult) -> tuple[str, list]:
                   ('RMS (deg/s)', 'train_rms_dps')))]
     if np.any(m.scale != 0):
         lines.append(_row3('scale (1/C)', m.scale))
-    lines.append(_row3('drift/degC', np.degrees(static_slope(m)))
-                 + '   (deg/s per degC: static drift, mean slope over the range)')
     table, warns = format_coverage(result.coverage)
-    lines.append(table)
+    lines += [_row3('drift/degC', np.degrees(static_slope(m)))
+              + '   (deg/s per degC: static drift, mean slope over the range)', table]
     if short := range_shortfall((lo, hi)):
         a, b = OPERATING_RANGE_C
         warns = list(warns) + [

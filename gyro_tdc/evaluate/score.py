@@ -169,8 +169,7 @@ def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: st
     samples or with ``allan`` False, e.g. held-out samples with gaps) and its readouts;
     ``omega`` is kept. ``label``, ``model`` and ``features`` name what is scored.
     """
-    err = omega - run.omega_ref
-    bs = bias_stability(omega, run.omega_ref)
+    err, bs = omega - run.omega_ref, bias_stability(omega, run.omega_ref)
     tau, adev = (allan_deviation(err, rate_hz(run.t) if rate is None else rate)
                  if allan and len(run) >= 4 else (np.zeros(0), np.zeros((0, 3))))
     nr = noise_readouts(tau, adev)

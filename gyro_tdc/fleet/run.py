@@ -129,8 +129,7 @@ def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | Non
         out.drift_poly = drift_polynomial(model).tolist()
         out.temp_range_c = [float(v) for v in model.temp_range_c]
         out.constant_axes = [str(a) for a in model.metrics.get('constant_axes', ())]
-        out.model = model
-        out.status = 'ok'
+        out.model, out.status = model, 'ok'
     except (GyroTdcError, OSError) as exc:
         out.error = one_line(exc)
     finally:

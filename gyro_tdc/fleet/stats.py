@@ -121,9 +121,7 @@ def fleet_statistics(sensors: Sequence[SensorResult], *,
                 med[a] = float(np.median(values[rows, a]))
         for i, s in enumerate(fleet):
             setattr(s, f'z_{name}', [None if math.isnan(v) else float(v) for v in z[i]])
-            for a, axis in enumerate(AXES):
-                if abs(z[i, a]) > outlier_z:
-                    s.flags.append(f'drift {name} on {axis} {abs(z[i, a]):.1f}σ from the '
-                                   f'fleet ({values[i, a]:+.3g} vs median {med[a]:+.3g} '
-                                   f'{unit})')
+            s.flags += [f'drift {name} on {axis} {abs(z[i, a]):.1f}σ from the fleet '
+                        f'({values[i, a]:+.3g} vs median {med[a]:+.3g} {unit})'
+                        for a, axis in enumerate(AXES) if abs(z[i, a]) > outlier_z]
     return ref
