@@ -303,11 +303,9 @@ def detect_format(path: str | os.PathLike, requested: str = 'auto') -> str:
     p = Path(path)
     if requested != 'auto' or not p.is_file():
         return 'rosbag2' if requested == 'auto' else requested
-    try:
-        with open(p, 'rb') as f:
-            head = f.read(8)
-    except OSError:
-        head = b''
+    head = b''
+    with contextlib.suppress(OSError), open(p, 'rb') as f:
+        head = f.read(8)
     return next((fmt for magic, fmt in ((ULOG_MAGIC, 'ulog'), (DATAFLASH_MAGIC, 'dataflash'))
                  if head.startswith(magic)), _SUFFIXES.get(p.suffix.lower(), 'rosbag2'))
 

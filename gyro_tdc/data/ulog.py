@@ -71,19 +71,10 @@ _seconds = partial(seconds, field='timestamp', sample='timestamp_sample')
 
 def ulog_truncated_bytes(path: str | os.PathLike) -> int:
     """
-    Return how many bytes follow the last whole message of a ULog (0: it ends cleanly).
+    Return how many bytes of ``path`` follow its last whole message (0: it ends cleanly).
 
-    Parameters
-    ----------
-    path : str or PathLike
-        The ULog.
-
-    Returns
-    -------
-    int
-        Bytes of a message cut short at the end (the whole file past the header when even
-        the header is incomplete); 0 also when the walk meets a damaged message first.
-
+    The bytes of a message cut short at the end (the whole file past the header when even
+    the header is incomplete); 0 also when the walk meets a damaged message first.
     """
     size = os.path.getsize(path)
     if size < _HEADER_BYTES:
@@ -95,10 +86,9 @@ def ulog_truncated_bytes(path: str | os.PathLike) -> int:
             length, kind = unpack(m, ofs)
             if kind not in _KINDS:
                 return 0            # damaged, not cut: pyulog resynchronises and says so
-            end = ofs + 3 + length
-            if end > size:
-                return size - ofs
-            ofs = end
+            if ofs + 3 + length > size:
+                break
+            ofs += 3 + length
         return size - ofs
 
 

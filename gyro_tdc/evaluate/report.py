@@ -90,14 +90,10 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
     every BS and the floors at the top.
     """
     doc = {'bags': [{
-        'bag': b.bag,
-        'samples': int(b.samples),
-        'temperature_c': _vec(b.temperature_c),
+        'bag': b.bag, 'samples': int(b.samples), 'temperature_c': _vec(b.temperature_c),
         'raw': _scores(b.raw, floor, accel_floor),
         'models': [{
-            'model': m.model,
-            'features': list(m.features),
-            **_scores(m, floor, accel_floor),
+            'model': m.model, 'features': list(m.features), **_scores(m, floor, accel_floor),
             'p_vs_raw': _vec(m.p_vs_raw),
             'adev': {'tau_s': _vec(m.adev_tau_s),
                      'dps': [_vec(row) for row in np.asarray(m.adev_dps)]},
@@ -541,8 +537,7 @@ def format_training(result: TrainResult) -> tuple[str, list]:
               *(_row3(label, m.metrics.get(key, [math.nan] * 3)) for label, key in (
                   ('raw', 'raw_bs_dps2'), ('compensated', 'train_bs_dps2'),
                   ('RMS (deg/s)', 'train_rms_dps')))]
-    if np.any(m.scale != 0):
-        lines.append(_row3('scale (1/C)', m.scale))
+    lines += [_row3('scale (1/C)', m.scale)] if np.any(m.scale != 0) else []
     table, warns = format_coverage(result.coverage)
     lines += [_row3('drift/degC', np.degrees(static_slope(m)))
               + '   (deg/s per degC: static drift, mean slope over the range)', table]

@@ -114,7 +114,7 @@ def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | Non
         # The resume key hashes every option but the progress bar (off here).
         out.key = input_key(spec, {'train': asdict(options), 'bag': asdict(bag),
                                    'heldout_reanchor': HELDOUT_REANCHOR})
-        if previous_key is not None and previous_key == out.key:
+        if previous_key == out.key:
             out.status = 'skipped'
             return out
         with tempfile.TemporaryDirectory(prefix='gyro_tdc_fleet_') as tmp:
