@@ -199,20 +199,6 @@ def _instances(cols: dict[str, np.ndarray]) -> dict[int, dict[str, np.ndarray]] 
             for i in np.unique(cols['I']).tolist()}
 
 
-def _instance(cols: dict[str, np.ndarray], want: int) -> tuple[dict[str, np.ndarray], int]:
-    """
-    Return the records of one instance of a message type and that instance.
-
-    A message with an instance field (``I``, a uint8: ``BARO``, ``MAG``... in ArduPilot 4;
-    ``HEAT.I`` is a float, its heater's integrator) interleaves its instances: ``want``
-    where it has it, else its first; a message without is one.
-    """
-    if not (parts := _instances(cols)):
-        return cols, 0
-    i = want if want in parts else min(parts)
-    return parts[i], i
-
-
 def _temperature(cols: dict[str, np.ndarray], fields: tuple[str, ...] = TEMPERATURE_FIELDS
                  ) -> tuple[str, np.ndarray] | None:
     """Return (field, degC) of a record type's thermometer, None when it has none."""
@@ -298,7 +284,12 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     d = imus[instance]
     t, gyro, acc, source, said = _gyro_accel(d, gyr, acc, accel, instance)
     b_inst = instance if instance in baros else 0       # BARO, BAR2...: per instance
-    other, o_inst = _instance(other, instance)
+    # A message with an instance field (I, a uint8: BARO, MAG... in ArduPilot 4; HEAT.I is a
+    # float, its heater's integrator) interleaves its instances: this IMU's where it has it,
+    # else its first; a message without is one.
+    parts = _instances(other) or {0: other}
+    o_inst = instance if instance in parts else min(parts)
+    other = parts[o_inst]
     src = {'imu': d, 'baro': baros.get(b_inst, {})}.get(temperature_source, other)
     found = _temperature(src, (fld,) if fld else TEMPERATURE_FIELDS)
     if found is None or 'TimeUS' not in src:
