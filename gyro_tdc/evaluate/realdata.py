@@ -144,8 +144,7 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
         for name in EFFECTS[eid].fitted:
 
             def sse(tau: float, eid: str = eid, name: str = name) -> float:
-                trial = {k: dict(v) for k, v in par.items()}
-                trial[eid][name] = tau
+                trial = {**par, eid: {**par[eid], name: tau}}       # par itself unchanged
                 return fit_linear(design(trial), y, kind='poly', ridge=ridge).sse
 
             par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name], n_grid=n_grid).tau
