@@ -48,8 +48,7 @@ def temperature_rate(t: NDArray[np.float64], temp: NDArray[np.float64], *,
     ``t`` (s) increasing, ``temp`` degC. The window (shortened to the run's span) is wide
     enough that thermometer quantisation does not read as heating or cooling.
     """
-    t = np.asarray(t, dtype=np.float64)
-    temp = np.asarray(temp, dtype=np.float64)
+    t, temp = np.asarray(t, dtype=np.float64), np.asarray(temp, dtype=np.float64)
     if t.shape[0] < 2 or t[-1] <= t[0]:
         return np.zeros(t.shape[0])
     half = 0.5 * min(window_s, t[-1] - t[0])
@@ -156,7 +155,6 @@ def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
     v = np.subtract(temp, first)
     np.floor_divide(v, bin_c, out=v)
     idx = np.clip(v.astype(np.int64), 0, nb - 1)
-    samples = np.bincount(idx, minlength=nb)
     mins = np.bincount(idx, weights=minutes, minlength=nb)
     inside = np.clip(np.minimum(edges[1:], hi) - np.maximum(edges[:-1], lo), 0.0, None)
     full = inside >= 0.5 * bin_c
@@ -165,6 +163,6 @@ def coverage(runs: Sequence[Run], *, bin_c: float = 5.0,
         density = mins / np.maximum(inside, 1e-9)
         ref = float(np.median(density[full]))
         sparse = [int(i) for i in np.flatnonzero(full & (density < sparse_fraction * ref))]
-    return Coverage(float(bin_c), edges, samples, mins, sparse, (lo, hi),
+    return Coverage(float(bin_c), edges, np.bincount(idx, minlength=nb), mins, sparse, (lo, hi),
                     *(float(minutes[m].sum()) for m in (heating, cooling, steady)),
                     float(threshold_c_per_min))

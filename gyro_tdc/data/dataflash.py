@@ -43,8 +43,7 @@ __all__ = ['DATAFLASH_TYPES', 'read_dataflash', 'TEMPERATURE_FIELDS']
 DATAFLASH_TYPES = {
     'a': ('<i2', (32,)), 'b': 'i1', 'B': 'u1', 'h': '<i2', 'H': '<u2', 'i': '<i4', 'I': '<u4',
     'f': '<f4', 'd': '<f8', 'n': 'S4', 'N': 'S16', 'Z': 'S64', 'c': '<i2', 'C': '<u2',
-    'e': '<i4', 'E': '<u4', 'L': '<i4', 'M': 'u1', 'q': '<i8', 'Q': '<u8', 'g': '<f2',
-}
+    'e': '<i4', 'E': '<u4', 'L': '<i4', 'M': 'u1', 'q': '<i8', 'Q': '<u8', 'g': '<f2'}
 #: The temperature field of ``IMU`` and ``BARO`` records: ``T``, or ``Temp`` (ArduCopter 3.4).
 TEMPERATURE_FIELDS = ('T', 'Temp')
 #: Records decoded at once (bounds the memory of a long log's decoding).
@@ -91,6 +90,12 @@ def _records(reader, mtype: int, instance: int | None = None) -> dict[str, np.nd
     return out
 
 
+def _named(reader, name: str) -> dict[str, np.ndarray]:
+    """Return the records of the message type ``name`` ({} when the log has none)."""
+    mtype = reader.name_to_id.get(name)
+    return _records(reader, mtype) if mtype is not None and len(reader.offsets[mtype]) else {}
+
+
 def _truncated(reader) -> int:
     """Return the bytes of a record cut short at the end of the log (0: none)."""
     last, end = -1, 0
@@ -103,18 +108,15 @@ def _truncated(reader) -> int:
 
 def _params(reader) -> dict[str, float]:
     """Return the first value of every PARM record's parameter."""
-    mtype = reader.name_to_id.get('PARM')
-    cols = {'Name': [], 'Value': []} if mtype is None else _records(reader, mtype)
-    out: dict[str, float] = {}
-    for name, value in zip(cols['Name'], cols['Value']):
+    cols, out = _named(reader, 'PARM'), {}
+    for name, value in zip(cols.get('Name', ()), cols.get('Value', ())):
         out.setdefault(name.split(b'\0')[0].decode('ascii', 'replace'), float(value))
     return out
 
 
 def _board(reader) -> str:
     """Return the board's boot line (``Pixhawk6C 00490034 30315109 34373938``), or ''."""
-    mtype = reader.name_to_id.get('MSG')
-    for text in [] if mtype is None else _records(reader, mtype).get('Message', [])[:32]:
+    for text in _named(reader, 'MSG').get('Message', [])[:32]:
         line = bytes(text).split(b'\0')[0].decode('ascii', 'replace').strip()
         if _BOARD.fullmatch(line):
             return line
@@ -130,12 +132,9 @@ def _imu(reader, kind: str = 'IMU') -> tuple[dict[int, dict[str, np.ndarray]], l
     """
     out: dict[int, dict[str, np.ndarray]] = {}
     for base, name in enumerate((kind, kind[:3] + '2', kind[:3] + '3')):   # IMU2, BAR2...
-        mtype = reader.name_to_id.get(name)
-        if mtype is None or not len(reader.offsets[mtype]):
-            continue
-        cols = _records(reader, mtype)
-        parts = _instances(cols)
-        out.update({base: cols} if parts is None else parts)
+        if cols := _named(reader, name):
+            parts = _instances(cols)
+            out.update({base: cols} if parts is None else parts)
     lone = [i for i, d in out.items() if len(next(iter(d.values()))) < 2]
     if len(lone) == len(out):             # none beside another: the log's only records
         lone = []
@@ -185,8 +184,8 @@ def _gyro_accel(d: dict, gyr: dict | str | None, acc: dict | str | None, accel: 
                 columns(d, acc_xyz) if accel else None, 'IMU', said)
     if not accel:
         return t, gyro, None, 'GYR', said
-    if (isinstance(acc, dict) and (a := columns(acc, acc_xyz)) is not None
-            and 'TimeUS' in acc and len(a) > 1):
+    a = columns(acc, acc_xyz) if isinstance(acc, dict) and 'TimeUS' in acc else None
+    if a is not None and len(a) > 1:
         return t, gyro, on_stamps(t, _stamps(acc), a), 'GYR', said + ', accelerometer from ACC'
     return (t, gyro, on_stamps(t, imu_t, columns(d, acc_xyz)), 'GYR',
             said + ', accelerometer from IMU')
@@ -198,21 +197,6 @@ def _instances(cols: dict[str, np.ndarray]) -> dict[int, dict[str, np.ndarray]] 
         return None
     return {int(i): {k: v[cols['I'] == i] for k, v in cols.items()}
             for i in np.unique(cols['I']).tolist()}
-
-
-def _instance(cols: dict[str, np.ndarray], want: int) -> tuple[dict[str, np.ndarray], int]:
-    """
-    Return the records of one instance of a message type and that instance.
-
-    A message with an instance field (``I``, a uint8: ``BARO``, ``MAG``... in ArduPilot 4;
-    ``HEAT.I`` is a float, its heater's integrator) interleaves its instances: ``want``
-    where it has it, else its first; a message without is one.
-    """
-    parts = _instances(cols)
-    if not parts:
-        return cols, 0
-    i = want if want in parts else min(parts)
-    return parts[i], i
 
 
 def _temperature(cols: dict[str, np.ndarray], fields: tuple[str, ...] = TEMPERATURE_FIELDS
@@ -284,9 +268,7 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
         # ACC is only read beside this instance's GYR (a sensor-rate stream is large).
         acc = _fast(reader, 'ACC', instance) if accel and isinstance(gyr, dict) and gyr else None
         bursts = 'ISBD' in reader.name_to_id and len(reader.offsets[reader.name_to_id['ISBD']])
-        mtype = reader.name_to_id.get(msg) if fld else None
-        other = (_records(reader, mtype) if mtype is not None and len(reader.offsets[mtype])
-                 else {})
+        other = _named(reader, msg) if fld else {}
     except (KeyError, ValueError, TypeError, UnicodeDecodeError) as exc:
         raise DatasetError(f'Log {str(p)!r}: a record cannot be decoded ({exc}).') from None
     finally:
@@ -302,7 +284,12 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     d = imus[instance]
     t, gyro, acc, source, said = _gyro_accel(d, gyr, acc, accel, instance)
     b_inst = instance if instance in baros else 0       # BARO, BAR2...: per instance
-    other, o_inst = _instance(other, instance)
+    # A message with an instance field (I, a uint8: BARO, MAG... in ArduPilot 4; HEAT.I is a
+    # float, its heater's integrator) interleaves its instances: this IMU's where it has it,
+    # else its first; a message without is one.
+    parts = _instances(other) or {0: other}
+    o_inst = instance if instance in parts else min(parts)
+    other = parts[o_inst]
     src = {'imu': d, 'baro': baros.get(b_inst, {})}.get(temperature_source, other)
     found = _temperature(src, (fld,) if fld else TEMPERATURE_FIELDS)
     if found is None or 'TimeUS' not in src:
@@ -311,13 +298,10 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
                              others=sum(_temperature(v) is not None
                                         for k, v in imus.items() if k != instance),
                              baro=any(_temperature(b) is not None for b in baros.values()))
-    temp, temp_t = found[1], _seconds(src)
-    if temperature_source == 'imu':
-        name, temp_t = f'IMU.{found[0]}', temp_t if source == 'GYR' else None
-    else:
-        name = (f'BARO.{found[0]}' + (f' instance {b_inst}' if b_inst else '')
-                if temperature_source == 'baro' else
-                temperature_source + (f' instance {o_inst}' if o_inst else ''))
+    temp_t = None if temperature_source == 'imu' and source != 'GYR' else _seconds(src)
+    inst = {'imu': 0, 'baro': b_inst}.get(temperature_source, o_inst)
+    name = {'imu': f'IMU.{found[0]}', 'baro': f'BARO.{found[0]}'}.get(
+        temperature_source, temperature_source) + (f' instance {inst}' if inst else '')
     active, words = onboard_status(params, 'ardupilot', instance=instance)
     skipped = chatter.getvalue().count('\n')
     notes = [f'pymavlink skipped damaged bytes ({skipped} reports)'] if skipped else []
@@ -326,7 +310,7 @@ def read_dataflash(path: str | os.PathLike, *, instance: int = 0,
     notes += [said] if said else []
     notes += (['ISBD batch samples not read (bursts, not a stream)']
               if bursts and source == 'IMU' else [])
-    return FlightLog(imu_t=t, gyro=gyro, temp_c=temp, accel=acc, params=params,
+    return FlightLog(imu_t=t, gyro=gyro, temp_c=found[1], accel=acc, params=params,
                      firmware='ardupilot', source=source, instance=int(instance),
                      instances=tuple(sorted(imus)), raw=False, compensated=active,
                      onboard=words, truncated_bytes=cut, notes=notes,

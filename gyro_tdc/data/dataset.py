@@ -221,8 +221,7 @@ def _follow_restarts(bag: object, data: object, gap: float) -> tuple[object, lis
 def _read_source(bag: str | os.PathLike, o: BagOptions, *,
                  read_reference: bool) -> tuple[object, dict]:
     """Read a rosbag2 bag, or a flight-controller log (one IMU, no reference topic)."""
-    fmt = detect_format(bag, o.log_format)
-    if fmt == 'rosbag2':
+    if (fmt := detect_format(bag, o.log_format)) == 'rosbag2':
         return read_bag(bag, imu_topic=o.imu_topic, temperature_topic=o.temperature_topic,
                         reference_topic=o.reference_topic if read_reference else None,
                         progress=o.progress, accel=bool(o.accel)), {}
@@ -378,8 +377,7 @@ def load_run(bag: str | os.PathLike, options: BagOptions | None = None) -> Run:
         kept = _as_slice(keep)    # the usual case (before the first reading): views, no copy
         t, temp, omega, omega_ref = t[kept], temp[kept], omega[kept], omega_ref[kept]
         rows = kept if rows is None else rows[kept]
-    acc = data.accel
-    if acc is not None:
+    if (acc := data.accel) is not None:
         acc = np.ascontiguousarray(acc if rows is None else acc[_as_slice(rows)])
         acc = acc if has_accelerometer(acc) else None    # no accelerometer (REP 145: zeros)
     return Run(t, temp, np.ascontiguousarray(omega), np.ascontiguousarray(omega_ref),
@@ -396,8 +394,7 @@ def _as_slice(index: NDArray) -> slice | NDArray:
     if isinstance(index, slice):
         return index
     if index.dtype == bool:          # one run: its first True and the count of them
-        n = int(np.count_nonzero(index))
-        a = int(np.argmax(index))
+        n, a = int(np.count_nonzero(index)), int(np.argmax(index))
         return slice(a, a + n) if n and index[a:a + n].all() else index
     if len(index) and int(index[-1]) - int(index[0]) + 1 == len(index) and np.all(
             np.diff(index) == 1):
@@ -477,8 +474,7 @@ _DROPPED = {
     'temp_duplicate_stamps': 'temperature readings repeating a stamp (the last one kept)',
     'out_of_order': 'IMU samples out of order (sorted, not dropped)',
     'no_temperature': 'IMU samples with no temperature reading near them (ends or gaps)',
-    'no_reference': 'IMU samples before the first reference message',
-}
+    'no_reference': 'IMU samples before the first reference message'}
 
 
 def describe_read(bag: str | os.PathLike, run: Run, reference_topic: str) -> str:

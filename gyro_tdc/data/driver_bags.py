@@ -113,8 +113,7 @@ def _option(name: str) -> str:
 
 
 def _connection(reader_: AnyReader, topic: str, want: str | None, option: str) -> Any:
-    conns = [c for c in reader_.connections if c.topic == topic]
-    if not conns:
+    if not (conns := [c for c in reader_.connections if c.topic == topic]):
         raise DatasetError(f'bag has no topic {topic!r} (topics: '
                            f'{", ".join(sorted({c.topic for c in reader_.connections}))}).')
     got = conns[0].msgtype
@@ -167,8 +166,7 @@ def normalize_bag(path: str | Path, inputs: DriverInputs, *, imu_topic: str,
             value, tstamp = temperature_fields(temp_conn.msgtype, inputs, fields_of, _option)
             imu_t, gyro, accel, temp_t, temp_c = [], [], [], [], []
             frame_id, gyro_cov, accel_cov = 'imu_link', None, (-1.0, 0.0, 0.0)
-            for conn, _, raw in with_data(bag.messages(connections=[imu_conn, temp_conn]),
-                                          path):
+            for conn, _, raw in with_data(bag.messages(connections=[imu_conn, temp_conn]), path):
                 msg = store.deserialize_cdr(raw, conn.msgtype)
                 if conn is imu_conn:
                     if not imu_t and hasattr(msg, 'header'):

@@ -90,8 +90,7 @@ def _walk(type_name: str, path: str, fields_of: FieldsOf, param: str) -> str:
     """Return the type name at ``path`` in ``type_name``, or raise ConfigError naming it."""
     here = type_name
     for name in split_path(path, param):
-        fields = fields_of(here)
-        if fields is None:
+        if (fields := fields_of(here)) is None:
             raise ConfigError(f'{param}: {here} in {type_name} is not a message, it has no '
                               f'field {name!r} (path {path!r}).')
         if name not in fields:
@@ -111,8 +110,7 @@ def check_number(type_name: str, path: str, fields_of: FieldsOf, param: str) -> 
         When the path is missing or leads to something else; the message names ``param``.
 
     """
-    leaf = _walk(type_name, path, fields_of, param)
-    if leaf not in _NUMBERS:
+    if (leaf := _walk(type_name, path, fields_of, param)) not in _NUMBERS:
         raise ConfigError(f'{param}: {path!r} in {type_name} is {leaf}, not a number.')
 
 
@@ -127,8 +125,7 @@ def temperature_path(type_name: str, given: str, fields_of: FieldsOf, param: str
         message names ``param``.
 
     """
-    path = given or DEFAULT_TEMPERATURE_FIELDS.get(type_name, '')
-    if not path:
+    if not (path := given or DEFAULT_TEMPERATURE_FIELDS.get(type_name, '')):
         raise ConfigError(f'{param}: {type_name} has no default temperature field; give the '
                           'dotted path to its degC number (e.g. mean_temp).')
     check_number(type_name, path, fields_of, param)
@@ -146,8 +143,7 @@ def check_vector(type_name: str, path: str, fields_of: FieldsOf, param: str) -> 
 
     """
     leaf = _walk(type_name, path, fields_of, param)
-    fields = fields_of(leaf)
-    if fields is None or not all(fields.get(k) in _NUMBERS for k in 'xyz'):
+    if (fields := fields_of(leaf)) is None or not all(fields.get(k) in _NUMBERS for k in 'xyz'):
         raise ConfigError(f'{param}: {repr(path) if path else "the message itself"} in '
                           f'{type_name} is {leaf}, not an x/y/z vector of numbers.')
 

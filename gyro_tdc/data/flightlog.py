@@ -257,8 +257,7 @@ def captured(sink: io.StringIO) -> Iterator[None]:
             sink.write(tmp.read().decode('utf-8', 'replace'))
 
 
-def no_instance(path: Path, kind: str, instance: int, has: object,
-                inventory: str) -> DatasetError:
+def no_instance(path: Path, kind: str, instance: int, has: object, inventory: str) -> DatasetError:
     """Return the refusal of an IMU instance the log does not hold (``has``: the ones it does)."""
     return DatasetError(f'Log {str(path)!r}: {kind} has no instance {instance} (it has '
                         f'{", ".join(map(str, sorted(has)))}; what each instance carries: '
@@ -304,11 +303,9 @@ def detect_format(path: str | os.PathLike, requested: str = 'auto') -> str:
     p = Path(path)
     if requested != 'auto' or not p.is_file():
         return 'rosbag2' if requested == 'auto' else requested
-    try:
-        with open(p, 'rb') as f:
-            head = f.read(8)
-    except OSError:
-        head = b''
+    head = b''
+    with contextlib.suppress(OSError), open(p, 'rb') as f:
+        head = f.read(8)
     return next((fmt for magic, fmt in ((ULOG_MAGIC, 'ulog'), (DATAFLASH_MAGIC, 'dataflash'))
                  if head.startswith(magic)), _SUFFIXES.get(p.suffix.lower(), 'rosbag2'))
 
@@ -381,8 +378,7 @@ def flight_log_data(path: str | os.PathLike, log: FlightLog, fmt: str,
             'pass --allow-onboard-corrected to use them as they are.')
     ok = np.isfinite(log.gyro).all(axis=1)
     temp_t = log.imu_t if log.temp_t is None else np.asarray(log.temp_t, dtype=np.float64)
-    warm = np.isfinite(log.temp_c) & np.isfinite(temp_t)
-    if not warm.any():
+    if not (warm := np.isfinite(log.temp_c) & np.isfinite(temp_t)).any():
         raise DatasetError(f'Log {str(p)!r}: {log.source} instance {log.instance} carries no '
                            'temperature; a drift model needs the IMU temperature.')
     data = BagData(imu_t=log.imu_t[ok], gyro=log.gyro[ok],

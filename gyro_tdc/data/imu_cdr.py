@@ -140,8 +140,7 @@ class Layout:
             'formats': [('u1', (4,)), order + 'i4', order + 'u4', order + 'u4',
                         ('u1', (self.frame_len,)), (order + 'f8', (self.n_doubles,))],
             'offsets': [0, STAMP_SEC, STAMP_NANOSEC, FRAME_ID_LENGTH, FRAME_ID, self.body],
-            'itemsize': self.size,
-        })
+            'itemsize': self.size})
 
 
 def layout_of(data: bytes, n_doubles: int = IMU_DOUBLES) -> Layout:
@@ -157,8 +156,7 @@ def layout_of(data: bytes, n_doubles: int = IMU_DOUBLES) -> Layout:
     if n < FRAME_ID:
         raise DatasetError(f'Expected a serialized message of at least {FRAME_ID} bytes '
                            f'(encapsulation and header), got {n} bytes.')
-    rep = bytes(data[:2])
-    if rep not in (CDR_LE[:2], CDR_BE[:2]):
+    if (rep := bytes(data[:2])) not in (CDR_LE[:2], CDR_BE[:2]):
         raise DatasetError(f'Expected the encapsulation header to start with the plain CDR '
                            f'representation {CDR_LE[:2].hex(" ")} (little endian) or '
                            f'{CDR_BE[:2].hex(" ")} (big endian), got {rep.hex(" ")}.')
@@ -273,8 +271,7 @@ class ImuView:
         stays unknown. ``accel`` (m/s^2) replaces ``linear_acceleration``; ``accel_var`` is
         added to its covariance unless marked absent (None: left as is; never marked).
         """
-        buf = bytearray(self.data)
-        base = self.base
+        buf, base = bytearray(self.data), self.base
         _VEC3.pack_into(buf, base + ANGULAR_VELOCITY, wx, wy, wz)
         c = base + ANGULAR_VELOCITY_COV
         cov = _COV.unpack_from(buf, c)

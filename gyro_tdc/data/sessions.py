@@ -108,32 +108,16 @@ def find_breaks(run: Run, gap_s: float = 0.0) -> list[tuple[int, str]]:
     return sorted(out.items())
 
 
-def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0
-                   ) -> SessionSplit:
+def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0) -> SessionSplit:
     """
     Cut runs into sessions and label them: each session gets its own turn-on offset.
 
-    Parameters
-    ----------
-    runs : sequence of Run
-        One run per bag.
-    mode : str
-        ``'auto'``: every bag is a session, cut at every break (:func:`find_breaks`);
-        ``'bag'``: one session per bag, not cut; ``'none'``: one session for everything
-        (one offset, as if the data were one power cycle).
-    gap_s : float, s
-        ``--session-gap`` (0: automatic).
-
-    Returns
-    -------
-    SessionSplit
-        The runs (cut with ``auto``), a label per run, the sessions and the breaks found.
-
-    Raises
-    ------
-    DatasetError
-        For an unknown mode or a negative gap.
-
+    ``mode`` ``'auto'``: every bag (``runs``: one run per bag) is a session, cut at every
+    break (:func:`find_breaks`); ``'bag'``: one session per bag, not cut; ``'none'``: one
+    session for everything (one offset, as if the data were one power cycle). ``gap_s``:
+    ``--session-gap`` (0: automatic). Returns the runs (cut with ``auto``), a label per run,
+    the sessions and the breaks found; raises DatasetError for an unknown mode or a negative
+    gap.
     """
     check_sessions(mode, gap_s)
     out_runs: list[Run] = []
@@ -148,12 +132,11 @@ def split_sessions(runs: Sequence[Run], mode: str = 'auto', gap_s: float = 0.0
             piece = run.slice(a, b, name=f'{run.name}@{k + 1}') if cut else run
             if cut:
                 piece.info.pop('restarts', None)      # indices of the whole run
-            label = 0 if mode == 'none' else len(sessions)
             out_runs.append(piece)
-            labels.append(label)
+            labels.append(0 if mode == 'none' else len(sessions))
             parts.append((j, a, b))
             if mode != 'none':
-                sessions.append(Session(piece.name, run.name, label, float(piece.t[0]),
+                sessions.append(Session(piece.name, run.name, len(sessions), float(piece.t[0]),
                                         float(piece.t[-1]), len(piece), why))
     if mode == 'none' and out_runs:
         name = out_runs[0].name if len(out_runs) == 1 else 'all'

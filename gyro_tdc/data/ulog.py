@@ -71,19 +71,10 @@ _seconds = partial(seconds, field='timestamp', sample='timestamp_sample')
 
 def ulog_truncated_bytes(path: str | os.PathLike) -> int:
     """
-    Return how many bytes follow the last whole message of a ULog (0: it ends cleanly).
+    Return how many bytes of ``path`` follow its last whole message (0: it ends cleanly).
 
-    Parameters
-    ----------
-    path : str or PathLike
-        The ULog.
-
-    Returns
-    -------
-    int
-        Bytes of a message cut short at the end (the whole file past the header when even
-        the header is incomplete); 0 also when the walk meets a damaged message first.
-
+    The bytes of a message cut short at the end (the whole file past the header when even
+    the header is incomplete); 0 also when the walk meets a damaged message first.
     """
     size = os.path.getsize(path)
     if size < _HEADER_BYTES:
@@ -95,10 +86,9 @@ def ulog_truncated_bytes(path: str | os.PathLike) -> int:
             length, kind = unpack(m, ofs)
             if kind not in _KINDS:
                 return 0            # damaged, not cut: pyulog resynchronises and says so
-            end = ofs + 3 + length
-            if end > size:
-                return size - ofs
-            ofs = end
+            if ofs + 3 + length > size:
+                break
+            ofs += 3 + length
         return size - ofs
 
 
@@ -114,8 +104,7 @@ def _rate(d: dict) -> float:
 
 def _delta_rate(d: dict, what: str) -> NDArray[np.float64] | None:
     """Return ``vehicle_imu``'s integrated ``delta_angle``/``delta_velocity`` as a rate."""
-    v = columns(d, (*_vec(what), f'{what}_dt'))
-    if v is None:
+    if (v := columns(d, (*_vec(what), f'{what}_dt'))) is None:
         return None
     with np.errstate(invalid='ignore', divide='ignore'):
         return v[:, :3] / (v[:, 3:] * 1e-6)
@@ -150,8 +139,7 @@ def _combined_rows(topics: dict, instance: int, kind: str = 'gyro') -> NDArray[n
     sel = np.asarray(s.get(f'{kind}_device_id', []), dtype=np.int64)
     ids = sorted({i for name in _GYRO_FIELDS for i in topics.get(name, {})})
     known = {_device(topics, i, kind): i for i in ids} | {0: 0}
-    picked = set(sel.tolist()) - {0}
-    if not picked or len(known) == 1:
+    if not (picked := set(sel.tolist()) - {0}) or len(known) == 1:
         return np.full(n, instance == 0) if kind == 'gyro' else None
     if len(picked) == 1:
         return np.full(n, known.get(picked.pop()) == instance)
@@ -181,8 +169,7 @@ def _combined_note(topics: dict, instance: int, rows: NDArray[np.bool_]) -> str:
     return f'sensor_combined carries {which} (sensor_selection), not this one'
 
 
-def _gyros(topics: dict, instance: int, rows: NDArray[np.bool_] | None = None
-           ) -> dict[str, dict]:
+def _gyros(topics: dict, instance: int, rows: NDArray[np.bool_] | None = None) -> dict[str, dict]:
     """
     Return the gyro topics of an instance that hold rates: name -> columns (its own rows).
 
@@ -370,16 +357,14 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
     active, words = onboard_status(params, 'px4')
     damaged = bool(ulog.file_corruption)
     notes = ['pyulog found damaged messages (skipped)'] if damaged or chatter.getvalue() else []
-    found = {i for name in _GYRO_FIELDS for i in topics.get(name, {})}
-    if not found:
+    if not (found := {i for name in _GYRO_FIELDS for i in topics.get(name, {})}):
         what = ', '.join(sorted({d.name for d in ulog.data_list})) or 'no logged topic'
         raise DatasetError(f'Log {str(p)!r} has neither sensor_gyro nor sensor_combined '
                            f'nor vehicle_imu (it has {what})' + (
                                ': the log is damaged (pyulog skipped messages it could not '
                                'decode or attribute)' if notes else '') + '.')
     rows = _combined_rows(topics, instance) if 'sensor_combined' in topics else None
-    gyros = _gyros(topics, instance, rows)
-    if not gyros:
+    if not (gyros := _gyros(topics, instance, rows)):
         kind = next(k for k in _GYRO_FIELDS if k in topics)
         raise no_instance(p, kind, instance, topics[kind], _inventory(topics))
     source = _pick_gyro(gyros, max(_rate(d) for name in _GYRO_FIELDS
@@ -400,8 +385,7 @@ def read_ulog(path: str | os.PathLike, *, instance: int = 0, accel: bool = False
         acc_t, acc = (fast_t, fast) if fast_t is not None else (acc_t, acc)
         acc = acc if acc_t is t else on_stamps(t, acc_t, acc)
     raw = source in ('sensor_gyro', 'sensor_gyro_fifo')
-    therm = _thermometer(topics, instance, temperature_source)
-    if therm is None:
+    if (therm := _thermometer(topics, instance, temperature_source)) is None:
         raise no_temperature(p, f'{source} instance {instance}', temperature_source,
                              _inventory(topics),
                              others=sum(_thermometer(topics, k, 'imu') is not None

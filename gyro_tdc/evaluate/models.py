@@ -135,6 +135,7 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
     if PX4 in specs and not train_bags:
         raise FitError('The px4 baseline needs training bags to fit its cubic on.')
     loader = loader or (lambda spec: load_model(model_path(spec)))
+    log = log or (lambda _line: None)
     files = {s: loader(s) for s in specs if s != PX4 and s not in ONBOARD}
     if any(s in ONBOARD for s in specs):
         if not held_out:
@@ -143,14 +144,13 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
         for s in specs:
             if s in ONBOARD and s not in files:
                 files[s], line = onboard_model(s, first)
-                if log is not None:
-                    log(line)
+                log(line)
     px4 = None
     if PX4 in specs:
         runs = load_runs(train_bags, with_accel(bag), log=log)
         # A flight log: its still stretches only.
         runs, kept = still_only_runs(runs, ('fit the px4 cubic', 'the px4 cubic is fitted'))
-        if kept and log is not None:
+        if kept:
             log(kept)
         # As train: a constant axis passed through, every axis constant refused.
         px4 = fit_varying(runs, lambda rs: fit_px4_cubic(
@@ -158,14 +158,13 @@ def load_models(specs: Sequence[str], *, train_bags: Sequence[str] | None = None
         acc = fit_accel(runs, px4, kind='poly', features=PX4_FEATURES, judge=False)
         if acc.part is not None:          # PX4's TC_A*: a cubic for the accelerometer too
             px4 = px4.replace(accel=acc.part)
-        if log is not None:
-            lo, hi = px4.temp_range_c
-            axes = px4.metrics.get('constant_axes', [])
-            log(f'fitted px4 cubic in T - T0 on {len(runs)} bag(s): T0 = {px4.t0_c:.3f} degC, '
-                f'range {lo:.2f} .. {hi:.2f} degC; accelerometer '
-                + ('cubic too' if acc.part is not None else f'not fitted: {acc.note}')
-                + (f'; gyro {axes_words(axes)} constant: not fitted, passed through unchanged'
-                   if axes else ''))
+        lo, hi = px4.temp_range_c
+        axes = px4.metrics.get('constant_axes', [])
+        log(f'fitted px4 cubic in T - T0 on {len(runs)} bag(s): T0 = {px4.t0_c:.3f} degC, '
+            f'range {lo:.2f} .. {hi:.2f} degC; accelerometer '
+            + ('cubic too' if acc.part is not None else f'not fitted: {acc.note}')
+            + (f'; gyro {axes_words(axes)} constant: not fitted, passed through unchanged'
+               if axes else ''))
     return [NamedModel(s, label, px4 if s == PX4 else files[s],
                        'clamp' if s in ONBOARD else None)
             for s, label in zip(specs, model_labels(specs))]
@@ -228,8 +227,7 @@ def onboard_model(spec: str, run: Run) -> tuple[CompensationModel, str]:
     created = {'bags': [run.name], 'onboard': firmware}
     if firmware == 'px4':
         device = int(run.info.get('device_id', 0))
-        slot = px4_slot(params, device)
-        if slot is None:
+        if (slot := px4_slot(params, device)) is None:
             raise DatasetError(f'--model {spec}: no TC_Gn_ID of {run.name!r} is the device id '
                                f'{device} of the gyro read.')
         cal = Px4TempCal.from_params(params, 'gyro', slot)

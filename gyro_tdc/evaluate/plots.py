@@ -102,8 +102,7 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
     """
     import matplotlib
 
-    run = b.run
-    if run is None:
+    if (run := b.run) is None:
         raise ValueError('Expected `b.run` to hold the data; it was released.')
     if descriptions is None:
         descriptions = [f'{m.model} ({", ".join(m.features) or "bias"})' for m in b.models]
@@ -117,8 +116,7 @@ def write_plots(b: BagEval, directory: str | os.PathLike, *, points: int = 3000,
     def _bmean(a: NDArray[np.float64]) -> NDArray[np.float64]:
         return block_mean(a, block, partial=False)   # a trailing partial block is dropped
 
-    th = (_bmean(run.t) - run.t[0]) / 3600.0
-    temp = _bmean(run.temp)
+    th, temp = (_bmean(run.t) - run.t[0]) / 3600.0, _bmean(run.temp)
     raw_err = _bmean(np.degrees(run.omega - run.omega_ref))
     model_err = [_bmean(np.degrees(m.omega - run.omega_ref)) for m in b.models]
     legends = [f'raw ({b.raw.label})' if b.raw.label != 'raw' else 'raw, uncompensated'] + [
@@ -192,9 +190,8 @@ def _plot_timeseries(b, out, th, temp, raw_err, model_err, legends, styles, head
                        f'within {_ZOOM_BS_FACTOR:g}x of the best BS')
     left[0].legend(loc='best', framealpha=0.85)
     bottom.plot(th, temp, color='black', lw=1.2)
-    bottom.set_ylabel('temperature (degC)')
-    bottom.set_xlabel('time since the start of the bag (h)' if b.still is None else
-                      'time since the first still sample scored (h)')
+    bottom.set(ylabel='temperature (degC)', xlabel='time since the start of the bag (h)'
+               if b.still is None else 'time since the first still sample scored (h)')
     bottom.grid(True, alpha=0.3)
     fig.suptitle(f'Rate error vs time (left: {block}-sample means)\n{head}')
     return save_png(fig, out / f'{b.label}_timeseries.png')
@@ -217,12 +214,9 @@ def _plot_residual_vs_temperature(b, out, run, temp, raw_err, model_err, legends
             for name, sel, color in groups:
                 if np.any(sel):
                     ax.scatter(temp[sel], e[sel, k], s=4, color=color, label=name)
-            ax.set_title(f'{legends[r]} - {a}')
+            ax.set(title=f'{legends[r]} - {a}', ylabel='rate error (deg/s)' if k == 0 else '',
+                   xlabel='temperature (degC)' if r == len(series) - 1 else '')
             ax.grid(True, alpha=0.3)
-            if k == 0:
-                ax.set_ylabel('rate error (deg/s)')
-            if r == len(series) - 1:
-                ax.set_xlabel('temperature (degC)')
     axs[0, 0].legend(loc='best', markerscale=3)
     fig.suptitle(f'Rate error vs temperature, by heating and cooling\n{head}')
     return save_png(fig, out / f'{b.label}_residual_vs_temperature.png')
@@ -237,8 +231,7 @@ def _plot_allan(b, out, legends, styles, head) -> Path:
             if len(m.adev_tau_s):
                 axs[k].loglog(m.adev_tau_s, m.adev_dps[:, k], label=legends[i],
                               **{**styles[i], 'markevery': None if i == 0 else (i % 3, 3)})
-        axs[k].set_title(f'{a} axis')
-        axs[k].set_xlabel('averaging time tau (s)')
+        axs[k].set(title=f'{a} axis', xlabel='averaging time tau (s)')
         axs[k].grid(True, which='both', alpha=0.3)
     axs[0].set_ylabel('Allan deviation of the rate error (deg/s)')
     if any(len(m.adev_tau_s) for m in [b.raw] + list(b.models)):

@@ -80,8 +80,7 @@ HOLDOUT_MODELS: tuple[HoldoutModel, ...] = (
     HoldoutModel('px4', 'PX4-style cubic f(dT, dT^2, dT^3)', 'poly', ('dT', 'dT2', 'dT3')),
     HoldoutModel('lag', 'poly f(dT, lagged T) = f(dT, dT/dt), tau fitted on the training '
                  'rows, features on the full time series', 'poly', ('dT', 'lag'),
-                 full_series=True),
-)
+                 full_series=True))
 
 
 def burst_index(t: NDArray[np.float64], *, gap_s: float = 2.0) -> NDArray[np.int64]:
@@ -145,8 +144,7 @@ def fit_full_series(run: Run, train: NDArray[np.bool_], *, features: Sequence[st
         for name in EFFECTS[eid].fitted:
 
             def sse(tau: float, eid: str = eid, name: str = name) -> float:
-                trial = {k: dict(v) for k, v in par.items()}
-                trial[eid][name] = tau
+                trial = {**par, eid: {**par[eid], name: tau}}       # par itself unchanged
                 return fit_linear(design(trial), y, kind='poly', ridge=ridge).sse
 
             par[eid][name] = fit_time_constant(sse, EFFECTS[eid].bounds[name], n_grid=n_grid).tau
@@ -182,11 +180,9 @@ def _scheme(run: Run, burst: NDArray[np.int64], means: NDArray[np.float64], n_bl
     block_of = np.repeat(np.arange(len(blocks)), [len(b) for b in blocks])[burst]
     # Leave one block of bursts out: a block is a session of the estimator's folds.
     for i, (held, train) in enumerate(Folds.sessions(block_of)):
-        held_bursts = blocks[i]
-        idx = np.flatnonzero(held)
+        held_bursts, idx = blocks[i], np.flatnonzero(held)
         position = 'end' if held_bursts[0] == 0 or held_bursts[-1] == n_bursts - 1 else 'interior'
-        floor = floor_of(idx)
-        held_run = rows_of(run, idx)
+        floor, held_run = floor_of(idx), rows_of(run, idx)
         t_lo, t_hi = float(run.temp[train].min()), float(run.temp[train].max())
         temp_h = run.temp[held]
         fold = {'block': i, 'bursts': [int(held_bursts[0]), int(held_bursts[-1])],
@@ -197,10 +193,8 @@ def _scheme(run: Run, burst: NDArray[np.int64], means: NDArray[np.float64], n_bl
                 'floor_bs_dps2': floor.tolist(), 'models': {}}
         rates = {}
         for spec in models:
-            if spec.kind == 'raw':
-                rates[spec.name] = (run.omega[held],) * 2
-                extra = {}
-            else:         # fitted on the training rows, the whole run compensated
+            rates[spec.name], extra = (run.omega[held],) * 2, {}
+            if spec.kind != 'raw':      # fitted on the training rows, the whole run compensated
                 model = (fit_full_series(run, train, features=spec.features, t0=t0)
                          if spec.full_series else
                          fit_model([rows_of(run, train)], kind=spec.kind, features=spec.features,
@@ -216,8 +210,7 @@ def _scheme(run: Run, burst: NDArray[np.int64], means: NDArray[np.float64], n_bl
     summary = dict.fromkeys(GROUPS)         # a group without a fold: None
     for g in filter(pooled.get, GROUPS):
         idx = np.concatenate([x[0] for x in pooled[g]])
-        floor = floor_of(idx)
-        group_run = rows_of(run, idx)
+        floor, group_run = floor_of(idx), rows_of(run, idx)
         summary[g] = {'folds': len(pooled[g]), 'samples': len(idx),
                       'floor_bs_dps2': floor.tolist(), 'models': {}}
         bs_of = {}
@@ -227,10 +220,9 @@ def _scheme(run: Run, burst: NDArray[np.int64], means: NDArray[np.float64], n_bl
         for name, row in summary[g]['models'].items():
             row.update({f'p_vs_{base}': (bs_of[name] / bs_of[base]).tolist()
                         for base in ('raw', 'bias') if base in bs_of})
-    sizes = sorted({len(b) for b in blocks})
-    name = 'leave_one_burst_out' if n_blocks == n_bursts else 'leave_one_block_out'
-    return {'name': name, 'n_blocks': n_blocks, 'bursts_per_block': sizes, 'folds': folds,
-            'summary': summary}
+    return {'name': 'leave_one_burst_out' if n_blocks == n_bursts else 'leave_one_block_out',
+            'n_blocks': n_blocks, 'bursts_per_block': sorted({len(b) for b in blocks}),
+            'folds': folds, 'summary': summary}
 
 
 def burst_holdout(run: Run, *, n_blocks: int = 5, leave_one_out: bool = True,
@@ -270,12 +262,10 @@ def burst_holdout(run: Run, *, n_blocks: int = 5, leave_one_out: bool = True,
     names = [m.name for m in models]
     if len(set(names)) != len(names) or not names:
         raise FitError(f'Expected `models` with unique names, got {names}.')
-    counts = np.bincount(burst)
-    if counts.min() < 2:
+    if (counts := np.bincount(burst)).min() < 2:
         raise FitError(f'Expected at least 2 samples per burst (gap_s = {gap_s} s), got a '
                        f'burst of {int(counts.min())}.')
-    if t0 is None:
-        t0 = estimate_t0(run)
+    t0 = estimate_t0(run) if t0 is None else t0
     err = run.omega - run.omega_ref
     means = np.array([err[burst == b].mean(axis=0) for b in range(n_bursts)])
     sd = np.degrees(np.sqrt(((err - means[burst]) ** 2).mean(axis=0)))
@@ -283,23 +273,20 @@ def burst_holdout(run: Run, *, n_blocks: int = 5, leave_one_out: bool = True,
     same = np.diff(burst) == 0
     diff_sd = np.degrees(np.std(np.diff(err, axis=0)[same], axis=0)) / math.sqrt(2.0)
     starts = np.array([run.t[burst == b][0] for b in range(n_bursts)])
-    schemes = [_scheme(run, burst, means, n, models, t0) for n in (
-        [n_blocks] + ([n_bursts] if leave_one_out and n_blocks != n_bursts else []))]
-    return {
-        'source': run.name, 'samples': len(run), 'bursts': n_bursts,
-        'samples_per_burst': [int(counts.min()), int(counts.max())],
-        'burst_period_s': float(np.median(np.diff(starts))) if n_bursts > 1 else 0.0,
-        'temperature_c': [float(run.temp.min()), float(run.temp.max())],
-        'temperature_first_last_c': [float(run.temp[burst == 0].mean()),
-                                     float(run.temp[burst == n_bursts - 1].mean())],
-        't0_c': float(t0),
-        'noise': {'within_burst_sd_dps': sd.tolist(), 'floor_bs_dps2': (sd ** 2).tolist(),
-                  'diff_sd_dps': diff_sd.tolist(),
-                  'burst_mean_se_dps': (sd / math.sqrt(float(np.median(counts)))).tolist()},
-        'drift_dps': np.degrees(means[-1] - means[0]).tolist(),
-        'models': [m.to_dict() for m in models],
-        'schemes': schemes,
-    }
+    return {'source': run.name, 'samples': len(run), 'bursts': n_bursts,
+            'samples_per_burst': [int(counts.min()), int(counts.max())],
+            'burst_period_s': float(np.median(np.diff(starts))) if n_bursts > 1 else 0.0,
+            'temperature_c': [float(run.temp.min()), float(run.temp.max())],
+            'temperature_first_last_c': [float(run.temp[burst == 0].mean()),
+                                         float(run.temp[burst == n_bursts - 1].mean())],
+            't0_c': float(t0),
+            'noise': {'within_burst_sd_dps': sd.tolist(), 'floor_bs_dps2': (sd ** 2).tolist(),
+                      'diff_sd_dps': diff_sd.tolist(),
+                      'burst_mean_se_dps': (sd / math.sqrt(float(np.median(counts)))).tolist()},
+            'drift_dps': np.degrees(means[-1] - means[0]).tolist(),
+            'models': [m.to_dict() for m in models],
+            'schemes': [_scheme(run, burst, means, n, models, t0) for n in (
+                [n_blocks] + ([n_bursts] if leave_one_out and n_blocks != n_bursts else []))]}
 
 
 def pan_holdout(csv: str | Path | PanCubesat | None = None, *, n_blocks: int = 5,
@@ -390,8 +377,7 @@ def format_holdout(result: Mapping[str, Any]) -> str:
         'models: ' + '; '.join(f'{m["name"]} = {m["description"]}' for m in r['models']),
         'columns: BS in (deg/s)^2 around the reference 0, RMS in deg/s, ratio = BS / noise '
         'floor of the held-out samples (>= 1 up to the temperature-noise term), /bias = BS / '
-        'BS of the bias-only baseline',
-    ]
+        'BS of the bias-only baseline']
     for s in r['schemes']:
         sizes = '/'.join(str(v) for v in s['bursts_per_block'])
         lines += ['', f'== {s["name"]}: {s["n_blocks"]} blocks of {sizes} bursts; fit on the '
@@ -410,18 +396,16 @@ def format_holdout(result: Mapping[str, Any]) -> str:
         else:
             lines += ['', 'BS/floor on x per held-out fold:',
                       '  fold  T degC  pos       ' + ' '.join(f'{n:>12}' for n in names)]
-            for f in s['folds']:
-                t_mid = 0.5 * sum(f['temperature_c'])
-                lines.append(f'  {f["block"]:>4}  {t_mid:6.2f}  {f["position"]:<8}  '
-                             + ' '.join(f'{f["models"][n]["floor_ratio"][0]:12.2f}'
-                                        for n in names))
+            lines += [f'  {f["block"]:>4}  {0.5 * sum(f["temperature_c"]):6.2f}  '
+                      f'{f["position"]:<8}  '
+                      + ' '.join(f'{f["models"][n]["floor_ratio"][0]:12.2f}' for n in names)
+                      for f in s['folds']]
         for g, label, unclamped in (
                 ('interior', 'interior blocks (interpolation)', False),
                 ('end', 'end blocks (extrapolation), clamped', False),
                 ('end', 'end blocks, NOT clamped (models extrapolate)', True),
                 ('all', 'all blocks, clamped', False)):
-            sm = s['summary'][g]
-            if sm is None:
+            if (sm := s['summary'][g]) is None:
                 continue
             lines += ['', f'mean over {label}: {sm["folds"]} folds, {sm["samples"]} samples, '
                       f'floor {_f3(sm["floor_bs_dps2"], ".3e")}',

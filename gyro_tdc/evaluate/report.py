@@ -90,14 +90,10 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
     every BS and the floors at the top.
     """
     doc = {'bags': [{
-        'bag': b.bag,
-        'samples': int(b.samples),
-        'temperature_c': _vec(b.temperature_c),
+        'bag': b.bag, 'samples': int(b.samples), 'temperature_c': _vec(b.temperature_c),
         'raw': _scores(b.raw, floor, accel_floor),
         'models': [{
-            'model': m.model,
-            'features': list(m.features),
-            **_scores(m, floor, accel_floor),
+            'model': m.model, 'features': list(m.features), **_scores(m, floor, accel_floor),
             'p_vs_raw': _vec(m.p_vs_raw),
             'adev': {'tau_s': _vec(m.adev_tau_s),
                      'dps': [_vec(row) for row in np.asarray(m.adev_dps)]},
@@ -108,9 +104,8 @@ def evaluation_json(bags: Sequence[BagEval], *, floor: Sequence[float] | None = 
         **({} if b.still is None else {'still': _still_json(b.still)}),
     } for b in bags]}
     doc['out_of_range'] = bags[0].out_of_range if bags else DEFAULT_OUT_OF_RANGE
-    for key, fl in (('floor', floor), ('accel_floor', accel_floor)):
-        if fl is not None:
-            doc[key] = _vec(fl)
+    doc.update({key: _vec(fl) for key, fl in (('floor', floor), ('accel_floor', accel_floor))
+                if fl is not None})
     return doc
 
 
@@ -169,8 +164,7 @@ def _floor_text(floor: Sequence[float]) -> str:
 
 def _head(w: int, *names: str) -> str:
     """Return a table's header: a label column ``w`` wide, then ``NAME x y z`` per name."""
-    return f'  {"":<{w}} ' + '  '.join(''.join(f'{n + " " + a:>11}' for a in AXES)
-                                       for n in names)
+    return f'  {"":<{w}} ' + '  '.join(''.join(f'{n + " " + a:>11}' for a in AXES) for n in names)
 
 
 def _row(label: str, w: int, *groups: Any) -> str:
@@ -204,8 +198,7 @@ def format_still(b: BagEval) -> list:
     Every figure says whose it is: the still stretches scored (samples, seconds, temperature
     range) beside the whole bag's (or session's) samples, seconds and temperature range.
     """
-    s = b.still
-    if s is None:
+    if (s := b.still) is None:
         return []
 
     def what(p: dict, whole: str) -> str:
@@ -387,8 +380,7 @@ def write_csv(b: BagEval, directory: str | os.PathLike, *, chunk: int = 100_000)
     scored on its still stretches only gives those samples (the models re-anchored as scored,
     the raw rate as read). Returns the path.
     """
-    run = b.run
-    if run is None:
+    if (run := b.run) is None:
         raise ValueError('Expected `b.run` to hold the data; it was released.')
     cols = csv_columns(b)
     fmt = ['%.6f', '%.6g'] + ['%.9g'] * (len(cols) - 2)
@@ -424,8 +416,7 @@ def format_coverage(c: Coverage) -> tuple[str, list]:
     """
     lo, hi = c.temp_range_c
     lines = [f'temperature range covered: {lo:.2f} .. {hi:.2f} degC (span {hi - lo:.2f} degC)']
-    minutes = np.asarray(c.minutes, dtype=np.float64)
-    if minutes.size:
+    if (minutes := np.asarray(c.minutes, dtype=np.float64)).size:
         least, most = int(np.argmin(minutes)), int(np.argmax(minutes))
         thin = (f'{len(c.sparse)} thin (named in the warning below)' if c.sparse else 'none thin')
         lines.append(f'coverage per {c.bin_c:g} degC bin: {minutes.size} bins '
@@ -483,8 +474,7 @@ def format_sessions(result: TrainResult) -> list[str]:
     re-anchor on the vehicle, then the start-up shift the node takes per axis
     (:func:`~gyro_tdc.identify.power_cycles.reanchor_lines`); empty without sessions.
     """
-    split = getattr(result, 'sessions', None)
-    if split is None:
+    if (split := getattr(result, 'sessions', None)) is None:
         return []
     out = list(split.lines())
     info = result.model.metrics.get('sessions')
@@ -547,14 +537,11 @@ def format_training(result: TrainResult) -> tuple[str, list]:
               *(_row3(label, m.metrics.get(key, [math.nan] * 3)) for label, key in (
                   ('raw', 'raw_bs_dps2'), ('compensated', 'train_bs_dps2'),
                   ('RMS (deg/s)', 'train_rms_dps')))]
-    if np.any(m.scale != 0):
-        lines.append(_row3('scale (1/C)', m.scale))
-    lines.append(_row3('drift/degC', np.degrees(static_slope(m)))
-                 + '   (deg/s per degC: static drift, mean slope over the range)')
+    lines += [_row3('scale (1/C)', m.scale)] if np.any(m.scale != 0) else []
     table, warns = format_coverage(result.coverage)
-    lines.append(table)
-    short = range_shortfall((lo, hi))
-    if short:
+    lines += [_row3('drift/degC', np.degrees(static_slope(m)))
+              + '   (deg/s per degC: static drift, mean slope over the range)', table]
+    if short := range_shortfall((lo, hi)):
         a, b = OPERATING_RANGE_C
         warns = list(warns) + [
             f'the training data cover {lo:.1f} .. {hi:.1f} degC, less than a typical operating '

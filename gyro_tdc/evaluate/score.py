@@ -169,8 +169,7 @@ def score(omega: NDArray[np.float64], run: Run, *, label: str = 'raw', model: st
     samples or with ``allan`` False, e.g. held-out samples with gaps) and its readouts;
     ``omega`` is kept. ``label``, ``model`` and ``features`` name what is scored.
     """
-    err = omega - run.omega_ref
-    bs = bias_stability(omega, run.omega_ref)
+    err, bs = omega - run.omega_ref, bias_stability(omega, run.omega_ref)
     tau, adev = (allan_deviation(err, rate_hz(run.t) if rate is None else rate)
                  if allan and len(run) >= 4 else (np.zeros(0), np.zeros((0, 3))))
     nr = noise_readouts(tau, adev)
@@ -276,13 +275,16 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         whole, kw, reanchor_s = rows_of(run, still), {'allan': False}, 0.0
     raw = score(pick(run.omega), whole, **kw)
     const |= ~(raw.bs > 0)                  # an axis reading its reference exactly
+    raw.accel_bs, per_model = accel_scores(run, [nm.model for nm in models],
+                                           out_of_range=out_of_range,
+                                           max_extrapolation_c=max_extrapolation_c)
     out = []
-    for nm in models:
+    for nm, accel_bs in zip(models, per_model):
         m = nm.model
         comp, info = _compensated(nm, parts, reanchor_s, out_of_range, max_extrapolation_c)
         ev = score(pick(comp), whole, label=nm.label, model=nm.name, features=list(m.features),
                    bs_raw=raw.bs, **kw)
-        ev.reanchor = info
+        ev.reanchor, ev.accel_bs = info, accel_bs
         ev.constant_axes = [str(a) for a in m.metrics.get('constant_axes', ())]
         ev.p_vs_raw[const] = math.nan       # no signal to score there
         ev.temp_range_c = lo, hi = tuple(m.temp_range_c)
@@ -290,11 +292,6 @@ def evaluate_run(run: Run, models: Sequence[NamedModel], *, label: str = '',
         temp = model_temperature(m, run.t, run.temp)[slice(None) if still is None else still]
         ev.outside_fraction = float(np.mean((temp < lo) | (temp > hi))) if len(temp) else 0.0
         out.append(ev)
-    raw.accel_bs, per_model = accel_scores(run, [nm.model for nm in models],
-                                           out_of_range=out_of_range,
-                                           max_extrapolation_c=max_extrapolation_c)
-    for ev, bs in zip(out, per_model):
-        ev.accel_bs = bs
     return BagEval(bag=run.name, label=label or safe_label(run.name), samples=len(whole),
                    temperature_c=(float(whole.temp.min()), float(whole.temp.max())),
                    duration_s=run.duration_s if still is None else summary['still_s'],
@@ -313,9 +310,8 @@ def still_rows(run: Run) -> NDArray[np.bool_] | None:
     stretches (the trainers' still test with its defaults) are scored; its motion is no
     drift.
     """
-    if run.info.get('reference') != 'zero' or moving_share([run]) <= MAX_MOVING_SHARE:
-        return None
-    return find_still([run])[0].mask
+    moving = run.info.get('reference') == 'zero' and not moving_share([run]) <= MAX_MOVING_SHARE
+    return find_still([run])[0].mask if moving else None
 
 
 def _stretches(spans: tuple, a: int, b: int) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
@@ -392,8 +388,7 @@ def held_out_constant(run: Run) -> NDArray[np.bool_]:
         When every axis is: there is no gyro to evaluate.
 
     """
-    const = _constant(run)
-    if const.all():
+    if (const := _constant(run)).all():
         raise all_constant_error([run.omega], 'evaluate', run.name)
     return const
 
@@ -434,8 +429,8 @@ def evaluate(bags: Sequence[str | os.PathLike], models: Sequence[NamedModel], *,
         held_out_constant(run)              # every gyro axis constant: refused
         here = [replace(nm, model=onboard_model(nm.name, run)[0]) if nm.name in ONBOARD
                 else nm for nm in models]         # each log's own on-board parameters
-        still = still_rows(run)
-        if still is not None and not still.any():      # nothing to score: said, skipped
+        # Nothing to score: said, skipped.
+        if (still := still_rows(run)) is not None and not still.any():
             unscored.append(f'{run.name}: no reference rate and no still stretch to score '
                             '(the IMU moves throughout; its motion is no drift).')
             if log is not None:

@@ -123,8 +123,7 @@ def read_manifest(path: str | os.PathLike) -> list[SensorSpec]:
             raise FleetError(f'{where}: sensor_id {sid!r} repeats line {seen[sid.lower()]} '
                              f'(ids must differ, also in letter case)')
         seen[sid.lower()] = line
-        train_bags = _bags(row[1], base)
-        if not train_bags:
+        if not (train_bags := _bags(row[1], base)):
             raise FleetError(f'{where}: sensor {sid!r} has no training bag')
         specs.append(SensorSpec(sid, train_bags, _bags(row[2], base), line))
     if not specs:
@@ -135,12 +134,9 @@ def read_manifest(path: str | os.PathLike) -> list[SensorSpec]:
 def _fingerprint(bag: str) -> list:
     """Return the path, size and mtime (ns) of every file of a bag (a file or a folder)."""
     p = Path(bag)
-    if p.is_dir():
-        files = sorted(f for f in p.rglob('*') if f.is_file())
-    elif p.exists():
-        files = [p]
-    else:
+    if not p.exists():
         return [bag, 'missing']
+    files = sorted(f for f in p.rglob('*') if f.is_file()) if p.is_dir() else [p]
     stats = [(f, f.stat()) for f in files]
     return [bag] + [[f.relative_to(p).as_posix() if f != p else '', st.st_size, st.st_mtime_ns]
                     for f, st in stats]

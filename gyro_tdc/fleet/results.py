@@ -134,11 +134,10 @@ def _csv_text(result: FleetResult) -> str:
                 for a in range(3)]
 
     ref = '' if result.reference_c is None else f'{result.reference_c:.3f}'
-    for s in result.sensors:
-        w.writerow([s.sensor_id, s.status, int(s.skipped), f'{s.seconds:.3f}',
-                    s.model_file or '', ref if s.slope is not None else '']
-                   + [c for name in per_axis for c in cells(getattr(s, name))]
-                   + ['; '.join(s.flags), ' '.join(s.constant_axes), s.error])
+    w.writerows([s.sensor_id, s.status, int(s.skipped), f'{s.seconds:.3f}', s.model_file or '',
+                 ref if s.slope is not None else '']
+                + [c for name in per_axis for c in cells(getattr(s, name))]
+                + ['; '.join(s.flags), ' '.join(s.constant_axes), s.error] for s in result.sensors)
     return buf.getvalue()
 
 

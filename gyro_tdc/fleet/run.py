@@ -114,7 +114,7 @@ def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | Non
         # The resume key hashes every option but the progress bar (off here).
         out.key = input_key(spec, {'train': asdict(options), 'bag': asdict(bag),
                                    'heldout_reanchor': HELDOUT_REANCHOR})
-        if previous_key is not None and previous_key == out.key:
+        if previous_key == out.key:
             out.status = 'skipped'
             return out
         with tempfile.TemporaryDirectory(prefix='gyro_tdc_fleet_') as tmp:
@@ -129,8 +129,7 @@ def run_sensor(spec: SensorSpec, options: TrainOptions, *, bag: BagOptions | Non
         out.drift_poly = drift_polynomial(model).tolist()
         out.temp_range_c = [float(v) for v in model.temp_range_c]
         out.constant_axes = [str(a) for a in model.metrics.get('constant_axes', ())]
-        out.model = model
-        out.status = 'ok'
+        out.model, out.status = model, 'ok'
     except (GyroTdcError, OSError) as exc:
         out.error = one_line(exc)
     finally:
@@ -258,8 +257,7 @@ def _record(out: SensorOutcome, out_dir: Path, state_dir: Path,
                       **figures, 'seconds': out.seconds}
             atomic_json(state_file, record, what='fleet state file', indent=None)
             return SensorResult(out.sensor_id, 'ok', model_file=str(model_file),
-                                seconds=out.seconds,
-                                **dict(figures, constant_axes=list(out.constant_axes)))
+                                seconds=out.seconds, **figures)
         except (GyroTdcError, OSError) as exc:   # this sensor's output only: the others go on
             error = one_line(exc)
     with contextlib.suppress(OSError):
@@ -335,9 +333,8 @@ def _summary_error(exc: Exception, pending: BaseException | None,
     if write_errors:
         more = len(write_errors) - 1
         why.append(write_errors[0] + (f' (and {more} more sensor(s))' if more else ''))
-    if not why:
-        return OutputError(one_line(exc))
-    return OutputError(f'{"; ".join(why)}; and no fleet summary: {one_line(exc)}')
+    return OutputError(f'{"; ".join(why)}; and no fleet summary: {one_line(exc)}' if why
+                       else one_line(exc))
 
 
 def _future_failure(sid: str, future: object) -> SensorOutcome:
@@ -412,10 +409,9 @@ def run_fleet(specs: Sequence[SensorSpec], out_dir: str | os.PathLike, options: 
                 sid, st = futures[fut]
                 outcome = (fut.result() if fut.status == 'finished' else _future_failure(sid, fut))
                 fut.release()
-                res = _record(outcome, out, state_dir, st)
+                done[sid] = res = _record(outcome, out, state_dir, st)
                 if res.status != 'ok' and outcome.status == 'ok':
                     write_errors.append(f'{sid}: {res.error}')
-                done[sid] = res
                 bar.update(1)
                 if log is not None:
                     what = ('unchanged, skipped' if res.skipped else res.status

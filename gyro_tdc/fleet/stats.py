@@ -51,7 +51,7 @@ def drift_polynomial(model: CompensationModel, *, points: int = 41) -> NDArray[n
     ``b(T) = c0 + c1 T + c2 T^2``, deg/s per degC^k, T in degC.
     """
     grid = np.linspace(*model.temp_range_c, points)
-    design = np.stack((np.ones_like(grid), grid, grid * grid), axis=1)
+    design = np.vander(grid, 3, increasing=True)          # 1, T, T^2
     return fit_columns(design, np.degrees(steady_drift(model, grid))).T.copy()
 
 
@@ -71,11 +71,9 @@ def robust_z(values: Sequence[float]) -> NDArray[np.float64]:
 
     """
     v = np.asarray(values, dtype=np.float64)
-    med = float(np.median(v))
     scale = float(mad_sigma(v))
-    if not (math.isfinite(scale) and scale > 0):
-        return np.full(v.shape, math.nan)
-    return (v - med) / scale
+    ok = math.isfinite(scale) and scale > 0
+    return (v - float(np.median(v))) / scale if ok else np.full(v.shape, math.nan)
 
 
 def fleet_statistics(sensors: Sequence[SensorResult], *,
@@ -100,8 +98,7 @@ def fleet_statistics(sensors: Sequence[SensorResult], *,
         (None) and are left out of the axis' median and MAD.
 
     """
-    fleet = [s for s in sensors if s.status == 'ok' and s.drift_poly is not None]
-    if not fleet:
+    if not (fleet := [s for s in sensors if s.status == 'ok' and s.drift_poly is not None]):
         return None
     ref = float(np.median([sum(s.temp_range_c) / 2.0 for s in fleet]))
     # fitted[i, a]: sensor i's model is fitted on axis a (not an identity axis).
@@ -116,8 +113,7 @@ def fleet_statistics(sensors: Sequence[SensorResult], *,
     for name, unit in (('slope', 'deg/s/degC'), ('curvature', 'deg/s/degC^2')):
         # (sensor, axis); a constant axis (None) is NaN
         values = np.array([getattr(s, name) for s in fleet], dtype=np.float64)
-        z = np.full(values.shape, math.nan)
-        med = np.full(3, math.nan)
+        z, med = np.full(values.shape, math.nan), np.full(3, math.nan)
         for a in range(3):
             rows = fitted[:, a]
             if np.count_nonzero(rows) >= MIN_FLEET:
@@ -125,9 +121,7 @@ def fleet_statistics(sensors: Sequence[SensorResult], *,
                 med[a] = float(np.median(values[rows, a]))
         for i, s in enumerate(fleet):
             setattr(s, f'z_{name}', [None if math.isnan(v) else float(v) for v in z[i]])
-            for a, axis in enumerate(AXES):
-                if abs(z[i, a]) > outlier_z:
-                    s.flags.append(f'drift {name} on {axis} {abs(z[i, a]):.1f}σ from the '
-                                   f'fleet ({values[i, a]:+.3g} vs median {med[a]:+.3g} '
-                                   f'{unit})')
+            s.flags += [f'drift {name} on {axis} {abs(z[i, a]):.1f}σ from the fleet '
+                        f'({values[i, a]:+.3g} vs median {med[a]:+.3g} {unit})'
+                        for a, axis in enumerate(AXES) if abs(z[i, a]) > outlier_z]
     return ref
