@@ -26,6 +26,7 @@ from __future__ import annotations
 import contextlib
 import gc
 import logging
+from multiprocessing import resource_tracker
 from typing import Any, Iterator
 
 import psutil
@@ -42,7 +43,14 @@ def _descendants() -> set[int]:
 
 @contextlib.contextmanager
 def reaped() -> Iterator[None]:
-    """Kill, after the block, every process it started (recursively) that is still alive."""
+    """
+    Kill, after the block, every process it started (recursively) that is still alive.
+
+    multiprocessing's resource tracker, which the block's first process start launches for
+    the rest of the run, is started before: killed, the next start relaunches it with a
+    warning on stderr ("process died unexpectedly") that a test of one error line reads.
+    """
+    resource_tracker.ensure_running()
     before = _descendants()
     try:
         yield
