@@ -186,8 +186,7 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
     ``rbf`` with at least 40 rows). ``groups`` give each group its own constant (the
     within-group problem solved exactly, e.g. one offset per session or orientation).
     """
-    mean = x.mean(axis=0) if x.shape[1] else np.zeros(0)
-    std = x.std(axis=0) if x.shape[1] else np.ones(0)
+    mean, std = x.mean(axis=0), x.std(axis=0)
     std = np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
     xn = (x - mean) / std
     centers, widths = (_place_centers(xn, n_centers, seed) if kind == 'rbf' and x.shape[1]
