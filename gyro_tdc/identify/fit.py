@@ -275,11 +275,10 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     if groups is not None:
         metrics['sessions'] = _session_metrics(runs, labels, offsets - coef[0], rows,
                                                check, turn_on)
-    return CompensationModel.network(
-        o.kind, ids, par, t0, fit.norm, coef, scale=fit.scale,
-        temp_range_c=state_span,
-        residual_var=residual_var, frame_id=o.frame_id, sensor_id=o.sensor_id, created=created,
-        thermal=th, metrics=metrics)
+    return CompensationModel.network(o.kind, ids, par, t0, fit.norm, coef, scale=fit.scale,
+                                     temp_range_c=state_span, residual_var=residual_var,
+                                     frame_id=o.frame_id, sensor_id=o.sensor_id,
+                                     created=created, thermal=th, metrics=metrics)
 
 
 def _search(runs: Sequence[Run], o: FitOptions, ids: tuple[str, ...], inputs: tuple[str, ...],

@@ -44,8 +44,8 @@ def _place_centers(xn: NDArray[np.float64], k: int, seed: int
     k = min(k, np.unique(np.round(xn, 9), axis=0).shape[0])
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
-        kmeans2 = need('scipy.cluster.vq').kmeans2     # a costly import: only k-means
-        centers, _ = kmeans2(xn, k, seed=rng, minit='++')
+        # A costly import: only k-means.
+        centers, _ = need('scipy.cluster.vq').kmeans2(xn, k, seed=rng, minit='++')
     centers = np.unique(centers, axis=0)
     k = centers.shape[0]
     if k == 1:
@@ -222,8 +222,7 @@ def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
     k, f = fit.centers.shape
     if k == 0:
         return fit
-    rng = np.random.default_rng(seed)
-    rows = rng.choice(x.shape[0], min(max_rows, x.shape[0]), replace=False)
+    rows = np.random.default_rng(seed).choice(x.shape[0], min(max_rows, x.shape[0]), replace=False)
     xs, ys = x[rows], y[rows]
     ss = None if scale_cols is None else scale_cols[rows]
 

@@ -421,9 +421,8 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     model = fit_model(fitted, fo, sessions=split.labels, frame_id=data_frame(runs),
                       created={'command': command, 'bags': names, **_imus(runs)})
     model = _gate(identity_axes(model, runs, const), fo, fitted, split.labels)
-    return _finish(model, o, out, runs, choice, {},
-                   coverage=coverage(runs, bin_c=o.bin_c), bags=names,
-                   samples=sum(len(r) for r in runs), sessions=split,
+    return _finish(model, o, out, runs, choice, {}, coverage=coverage(runs, bin_c=o.bin_c),
+                   bags=names, samples=sum(len(r) for r in runs), sessions=split,
                    constant=constant_readings(runs, const))
 
 
