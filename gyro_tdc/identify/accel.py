@@ -365,8 +365,7 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     n_centers = max(model.n_centers, 1) if n_centers is None else n_centers
     # A constant accelerometer is absent: its still data are not looked for.
     present = [r for r in runs if has_accelerometer(r.accel)]
-    constant = constant_note(present)
-    if constant:
+    if constant := constant_note(present):
         return AccelFit(None, note=constant, static=[None] * len(runs),
                         total=sum(len(r) for r in present))
     datas = [static_data(r) for r in runs]      # None where a run has no accelerometer

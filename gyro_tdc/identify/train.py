@@ -401,8 +401,7 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     bag = replace(BagOptions() if bag is None else bag, accel=bool(o.accel))
     runs: list[Run] = load_runs(bags, bag, log=log)
     _boards_said(runs, log)
-    share = unreferenced_motion(runs)[0]
-    if share > MAX_MOVING_SHARE:
+    if (share := unreferenced_motion(runs)[0]) > MAX_MOVING_SHARE:
         if log is not None:
             log(f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time: '
                 'training on the still stretches only (as --still-only)')

@@ -89,8 +89,7 @@ def residual_maps(data: BlockData, r: NDArray[np.float64]) -> tuple[BinMap, ...]
     rate = data.rate_cpm
     k = np.full(data.K, 2, dtype=np.int64)
     for sign, (slow, fast) in ((1, (3, 4)), (-1, (1, 0))):
-        m = data.moving & (sign * rate > 0)
-        if np.any(m):
+        if np.any(m := data.moving & (sign * rate > 0)):
             k[m] = np.where(sign * rate[m] <= float(np.median(sign * rate[m])), slow, fast)
     out.append(binmap('dTdt', 'dT/dt (degC/min)', k, _centers(rate, k, 5),
                       ('cooling fast', 'cooling slow', 'still', 'heating slow', 'heating fast')))
