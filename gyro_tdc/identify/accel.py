@@ -162,8 +162,7 @@ def static_data(run: Run, *, model: CompensationModel | None = None) -> StaticDa
             e = a_mean[j] - (a_mean[prev] + gap * trend)
             se = math.sqrt(float(np.sum(var_mean[j] + var_mean[prev])))
             jump = float(np.linalg.norm(e)) > JUMP_SIGMAS * se
-            angle = _angle_deg(a_mean[prev], a_mean[j]) if jump else 0.0
-            if jump and angle >= MIN_JUMP_DEG:
+            if jump and (angle := _angle_deg(a_mean[prev], a_mean[j])) >= MIN_JUMP_DEG:
                 new = True
                 changes.append(OrientationChange(run.name, float(t[starts[j]]), angle,
                                                  a_mean[prev].copy(), a_mean[j].copy()))
@@ -311,10 +310,8 @@ def _segment_blocks(usable: Sequence[tuple], model: CompensationModel, ids: tupl
         x = batch_features(ids, r.t, r.temp, t0=model.t0_c, params=par, state=state)
         lo = min(lo, float(np.min(state, where=d.mask, initial=np.inf)))
         hi = max(hi, float(np.max(state, where=d.mask, initial=-np.inf)))
-        for s in range(d.n_segments):
+        for s in np.unique(d.segment[d.mask]):     # the segments with still samples
             idx = np.flatnonzero(d.segment == s)
-            if idx.size == 0:
-                continue
             grid = BlockGrid(idx.size, block, take=idx)
             ya, within = grid.moments(r.accel, centred=True)
             segs.append({'run': k, 'x': grid.mean(x), 'y': ya, 'n': grid.counts, 'within': within,
@@ -368,8 +365,7 @@ def fit_accel(runs: Sequence[Run], model: CompensationModel, *,
     n_centers = max(model.n_centers, 1) if n_centers is None else n_centers
     # A constant accelerometer is absent: its still data are not looked for.
     present = [r for r in runs if has_accelerometer(r.accel)]
-    constant = constant_note(present)
-    if constant:
+    if constant := constant_note(present):
         return AccelFit(None, note=constant, static=[None] * len(runs),
                         total=sum(len(r) for r in present))
     datas = [static_data(r) for r in runs]      # None where a run has no accelerometer
@@ -515,10 +511,8 @@ def discovery_runs(runs: Sequence[Run]) -> list[Run]:
         if d is None or not d.mask.any():
             notes.add(f'{r.name}: ' + ('no accelerometer data' if d is None else d.reason))
             continue
-        for s in range(d.n_segments):
+        for s in np.unique(d.segment[d.mask]):     # a segment without samples: none
             idx = np.flatnonzero(d.segment == s)
-            if idx.size == 0:
-                continue                  # no still sample left: nothing to discover on
             a = np.asarray(r.accel, dtype=np.float64)[idx] / MG * RAD_PER_DEG
             out.append(Run(r.t[idx], r.temp[idx], a, np.zeros_like(a),
                            r.name if d.n_segments == 1 else f'{r.name}#{s + 1}',

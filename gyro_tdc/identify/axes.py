@@ -131,8 +131,7 @@ def fit_varying(runs: Sequence[Run], fit: Callable[[list[Run]], CompensationMode
     reference; the model is then :func:`identity_axes` of ``runs``.
     """
     const = constant_gyro_axes(runs)
-    return identity_axes(fit(neutral_runs(runs if fitted is None else fitted, const)), runs,
-                         const)
+    return identity_axes(fit(neutral_runs(runs if fitted is None else fitted, const)), runs, const)
 
 
 def identity_axes(model: CompensationModel, runs: Sequence[Run], const: NDArray[np.bool_],

@@ -237,8 +237,7 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     states = [run_state(th, r) for r in runs]
     state_span = span(states if rows is None else [s[m] for s, m in zip(states, rows)])
     _check_state_span(state_span, runs, rows, th, ids)
-    x = np.concatenate([b.features(inputs, t0, par, th, state=s)
-                        for b, s in zip(blocks, states)])
+    x = np.concatenate([b.features(inputs, t0, par, th, state=s) for b, s in zip(blocks, states)])
     scale_cols = (np.concatenate([b.scale_cols(t0, state=s) for b, s in zip(blocks, states)])
                   if 'scale' in ids else None)
     fit = fit_linear(x, y, scale_cols=scale_cols, kind=o.kind, n_centers=o.n_centers,
@@ -276,11 +275,10 @@ def fit_model(runs: Sequence[Run], options: FitOptions | None = None, *,
     if groups is not None:
         metrics['sessions'] = _session_metrics(runs, labels, offsets - coef[0], rows,
                                                check, turn_on)
-    return CompensationModel.network(
-        o.kind, ids, par, t0, fit.norm, coef, scale=fit.scale,
-        temp_range_c=state_span,
-        residual_var=residual_var, frame_id=o.frame_id, sensor_id=o.sensor_id, created=created,
-        thermal=th, metrics=metrics)
+    return CompensationModel.network(o.kind, ids, par, t0, fit.norm, coef, scale=fit.scale,
+                                     temp_range_c=state_span, residual_var=residual_var,
+                                     frame_id=o.frame_id, sensor_id=o.sensor_id,
+                                     created=created, thermal=th, metrics=metrics)
 
 
 def _search(runs: Sequence[Run], o: FitOptions, ids: tuple[str, ...], inputs: tuple[str, ...],

@@ -44,8 +44,8 @@ def _place_centers(xn: NDArray[np.float64], k: int, seed: int
     k = min(k, np.unique(np.round(xn, 9), axis=0).shape[0])
     with warnings.catch_warnings():
         warnings.simplefilter('ignore')
-        kmeans2 = need('scipy.cluster.vq').kmeans2     # a costly import: only k-means
-        centers, _ = kmeans2(xn, k, seed=rng, minit='++')
+        # A costly import: only k-means.
+        centers, _ = need('scipy.cluster.vq').kmeans2(xn, k, seed=rng, minit='++')
     centers = np.unique(centers, axis=0)
     k = centers.shape[0]
     if k == 1:
@@ -186,8 +186,7 @@ def fit_linear(x: NDArray[np.float64], y: NDArray[np.float64], *,
     ``rbf`` with at least 40 rows). ``groups`` give each group its own constant (the
     within-group problem solved exactly, e.g. one offset per session or orientation).
     """
-    mean = x.mean(axis=0) if x.shape[1] else np.zeros(0)
-    std = x.std(axis=0) if x.shape[1] else np.ones(0)
+    mean, std = x.mean(axis=0), x.std(axis=0)
     std = np.where(std > 1e-12 * np.maximum(np.abs(mean), 1.0), std, 1.0)
     xn = (x - mean) / std
     centers, widths = (_place_centers(xn, n_centers, seed) if kind == 'rbf' and x.shape[1]
@@ -223,8 +222,7 @@ def refine_rbf(x: NDArray[np.float64], y: NDArray[np.float64],
     k, f = fit.centers.shape
     if k == 0:
         return fit
-    rng = np.random.default_rng(seed)
-    rows = rng.choice(x.shape[0], min(max_rows, x.shape[0]), replace=False)
+    rows = np.random.default_rng(seed).choice(x.shape[0], min(max_rows, x.shape[0]), replace=False)
     xs, ys = x[rows], y[rows]
     ss = None if scale_cols is None else scale_cols[rows]
 

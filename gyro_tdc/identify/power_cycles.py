@@ -98,8 +98,7 @@ def check_sessions(fit: LinearFit, offsets: NDArray[np.float64], x: NDArray[np.f
     units = groups if units is None else units
     folds = Folds.sessions(units, temp)
     if len(folds) < max(min_folds, 1):          # too few power cycles judge it
-        record = {'folds': len(folds), 'sessions': int(np.unique(units).size),
-                  'offset_only': []}
+        record = {'folds': len(folds), 'sessions': int(np.unique(units).size), 'offset_only': []}
         if (widest := curve_untold(temp, groups)) is not None:
             record['widest_span_c'] = widest
         elif min_folds <= 1:                    # none judges it: kept unchecked, said

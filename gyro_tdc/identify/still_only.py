@@ -231,8 +231,7 @@ def _outliers(means: NDArray[np.float64]) -> NDArray[np.bool_]:
     if means.shape[0] < 4:
         return np.zeros(means.shape[0], dtype=bool)
     dev = np.abs(means - np.median(means, axis=0))
-    limit = np.maximum(OUTLIER_SIGMAS * mad_sigma(means), OUTLIER_FLOOR_RAD_S)
-    return np.any(dev > limit, axis=1)
+    return np.any(dev > np.maximum(OUTLIER_SIGMAS * mad_sigma(means), OUTLIER_FLOOR_RAD_S), axis=1)
 
 
 def still_report(runs: Sequence[Run], rows: Sequence[NDArray[np.bool_]],

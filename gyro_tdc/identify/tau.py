@@ -218,8 +218,7 @@ def run_state(thermal: ThermalState, run: Run) -> NDArray[np.float64]:
     """Return ``thermal.temperature(run.t, run.temp)``, once per run and front end (read-only)."""
     key = (thermal.kind, tuple(float(v) for v in thermal.tau_s), id(run.t), id(run.temp))
     rid = id(run)
-    hit = _STATES.get(rid)
-    if hit is not None and hit[0]() is run and hit[1] == key:
+    if (hit := _STATES.get(rid)) is not None and hit[0]() is run and hit[1] == key:
         return hit[2]
     state = thermal.temperature(run.t, run.temp)
     state.flags.writeable = False

@@ -50,8 +50,7 @@ from gyro_tdc.identify.still_only import (ADVICE_PARK_MIN, find_still, fit_witho
                                           MAX_MOVING_SHARE, MIN_STILL_SPAN_C, rows_of,
                                           still_report, Stretch, unreferenced,
                                           unreferenced_motion)
-from gyro_tdc.model import (check_model, CompensationModel, EFFECTS, normalise_ids,
-                            save_model)
+from gyro_tdc.model import check_model, CompensationModel, EFFECTS, normalise_ids, save_model
 from gyro_tdc.signal import block_mean, MIN_SESSION_SPAN_C, motion_veto
 import numpy as np
 from numpy.typing import NDArray
@@ -402,8 +401,7 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     bag = replace(BagOptions() if bag is None else bag, accel=bool(o.accel))
     runs: list[Run] = load_runs(bags, bag, log=log)
     _boards_said(runs, log)
-    share = unreferenced_motion(runs)[0]
-    if share > MAX_MOVING_SHARE:
+    if (share := unreferenced_motion(runs)[0]) > MAX_MOVING_SHARE:
         if log is not None:
             log(f'no reference rate and the IMU moves {100.0 * share:.3g} % of the time: '
                 'training on the still stretches only (as --still-only)')
@@ -422,18 +420,14 @@ def train(bags: Sequence[str | os.PathLike], out: str | os.PathLike,
     model = fit_model(fitted, fo, sessions=split.labels, frame_id=data_frame(runs),
                       created={'command': command, 'bags': names, **_imus(runs)})
     model = _gate(identity_axes(model, runs, const), fo, fitted, split.labels)
-    return _finish(model, o, out, runs, choice, {},
-                   coverage=coverage(runs, bin_c=o.bin_c), bags=names,
-                   samples=sum(len(r) for r in runs), sessions=split,
+    return _finish(model, o, out, runs, choice, {}, coverage=coverage(runs, bin_c=o.bin_c),
+                   bags=names, samples=sum(len(r) for r in runs), sessions=split,
                    constant=constant_readings(runs, const))
 
 
 def _boards_said(runs: Sequence[Run], log: Log) -> None:
     """Warn on ``log`` when the logs name more than one board: one model fits none of them."""
-    boards: dict[str, int] = {}
-    for r in runs:
-        if r.info.get('board'):
-            boards[r.info['board']] = boards.get(r.info['board'], 0) + 1
+    boards = Counter(r.info['board'] for r in runs if r.info.get('board'))
     if len(boards) > 1 and log is not None:
         log(f'warning: the logs come from {len(boards)} boards ('
             + '; '.join(f"{b}: {n} log{'s' * (n > 1)}" for b, n in boards.items())

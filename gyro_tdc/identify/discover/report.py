@@ -89,8 +89,7 @@ def residual_maps(data: BlockData, r: NDArray[np.float64]) -> tuple[BinMap, ...]
     rate = data.rate_cpm
     k = np.full(data.K, 2, dtype=np.int64)
     for sign, (slow, fast) in ((1, (3, 4)), (-1, (1, 0))):
-        m = data.moving & (sign * rate > 0)
-        if np.any(m):
+        if np.any(m := data.moving & (sign * rate > 0)):
             k[m] = np.where(sign * rate[m] <= float(np.median(sign * rate[m])), slow, fast)
     out.append(binmap('dTdt', 'dT/dt (degC/min)', k, _centers(rate, k, 5),
                       ('cooling fast', 'cooling slow', 'still', 'heating slow', 'heating fast')))
@@ -113,9 +112,13 @@ def residual_maps(data: BlockData, r: NDArray[np.float64]) -> tuple[BinMap, ...]
     return tuple(out)
 
 
-def _full_rate_residual(data: BlockData, model: LinearModel, coef: NDArray[np.float64]
-                        ) -> tuple[NDArray[np.float64], float]:
-    """Return the full-rate residual of the longest contiguous stretch of the longest run."""
+def residual_adev(data: BlockData, model: LinearModel, coef: NDArray[np.float64]
+                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """
+    Return Allan deviation (taus, RMS over axes in deg/s) of the full-rate residual.
+
+    The residual is that of the longest contiguous stretch of the longest run.
+    """
     r = int(np.argmax([len(x) for x in data.runs]))
     run, dt = data.runs[r], np.diff(data.runs[r].t)
     med = float(np.median(dt)) if dt.size else 1.0
@@ -131,16 +134,10 @@ def _full_rate_residual(data: BlockData, model: LinearModel, coef: NDArray[np.fl
     for j, lab in enumerate(model.axis_labels, nr + m):     # gain, scale: per-axis columns
         on = data.gain_axes if lab == 'gain' else d * data.scale_axes
         pred += coef[j] * run.omega_ref * on
-    return (run.omega - run.omega_ref - pred)[bounds[i]:bounds[i + 1]], 1.0 / med
-
-
-def residual_adev(data: BlockData, model: LinearModel, coef: NDArray[np.float64]
-                  ) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """Return Allan deviation (taus, RMS over axes in deg/s) of the full-rate residual."""
-    res, rate = _full_rate_residual(data, model, coef)
+    res = (run.omega - run.omega_ref - pred)[bounds[i]:bounds[i + 1]]
     if res.shape[0] < 16:
         return np.zeros(0), np.zeros(0)
-    taus, dev = allan_deviation(res, rate)
+    taus, dev = allan_deviation(res, 1.0 / med)
     return np.asarray(taus), np.sqrt(np.mean(np.asarray(dev) ** 2, axis=1))
 
 

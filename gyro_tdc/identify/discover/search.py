@@ -434,8 +434,7 @@ def _confounded(data: BlockData, model: LinearModel, scores: Sequence[CandidateS
         beta = fit_columns(x, col, weights=data.w, normalise=True, rcond=1e-12)
         cols[sc.effect] = (col - x @ beta) * data.sw
     for (a, col_a), (b, col_b) in combinations(cols.items(), 2):
-        c = corr(col_a, col_b)
-        if abs(c) >= 0.7:
+        if abs(c := corr(col_a, col_b)) >= 0.7:
             how = ('confounded on this data: it cannot tell them apart' if abs(c) >= 0.95
                    else 'partly confounded on this data')
             notes.append(f'{a} and {b} are {how} '
