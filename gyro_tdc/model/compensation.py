@@ -272,7 +272,9 @@ def rbf_design(model_or_norm: CompensationModel | tuple, x: NDArray[np.float64]
     phi = out[:, 1 + f:]
     phi.fill(0.0)
     for j in range(f):
-        phi += (xn[:, j:j + 1] - centers[None, :, j]) ** 2
+        diff = xn[:, j:j + 1] - centers[None, :, j]
+        diff *= diff
+        phi += diff
     phi *= -1.0 / (2.0 * widths ** 2)
     np.exp(phi, out=phi)
     return out

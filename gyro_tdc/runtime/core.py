@@ -463,7 +463,8 @@ class CompensatorCore:
                temp: float) -> None:
         a = self.reanchoring
         if a.anchor is not None:          # a provisional shift: the detector averages without it
-            out = tuple(o + s for o, s in zip(out, a.shown))
+            s = a.shown
+            out = (out[0] + s[0], out[1] + s[1], out[2] + s[2])
         if (found := a.detector.update(t, raw, out, accel, temp)) is not None:
             a.take(found, self.slot, temp)
             self._update_needs()
