@@ -146,7 +146,13 @@ class Tangent:
         ``row`` is one row of :func:`gyro_tdc.model.compensation.rbf_design`, ``d`` its model
         temperature minus T0 (degC).
         """
-        return self.slope(row[None, :], np.array([d], dtype=np.float64))[0]
+        g = self._gradient(d)
+        out = g @ self._linear
+        if self._centers.shape[0]:
+            f = self._f
+            proj = row[1:1 + f] @ g - self._centers @ g
+            out += (-row[1 + f:] * proj * self._inv_w2) @ self._weights
+        return out
 
     def slope(self, design: NDArray[np.float64], d: NDArray[np.float64]) -> NDArray[np.float64]:
         """
