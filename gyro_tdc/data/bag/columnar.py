@@ -35,8 +35,8 @@ from tempfile import TemporaryDirectory
 from typing import Any, Callable, Iterable, Iterator, Mapping, Sequence
 
 from gyro_tdc.data.bag.codec import jazzy
-from gyro_tdc.data.bag.metadata import (entries, Entry, locate, missing, storage_paths,
-                                        topics_of, Unfit, zstd)
+from gyro_tdc.data.bag.metadata import (entries, Entry, has_metadata, locate, missing,
+                                        storage_paths, topics_of, Unfit, zstd)
 from gyro_tdc.data.bag.storage_mcap import CUT_OFF, McapFile
 from gyro_tdc.data.bag.storage_sqlite3 import Sqlite3File
 from gyro_tdc.errors import DatasetError, one_line
@@ -236,9 +236,10 @@ def rebuilt_notes(paths: Sequence[Path]) -> tuple[str, ...]:
     """Return the warnings of a read of storage files without their metadata.yaml."""
     wal = [(p.name, w.stat().st_size) for p in paths
            if (w := p.with_name(p.name + '-wal')).is_file() and w.stat().st_size]
-    why = missing(paths[0].parent) or ''
-    why += '' if why.startswith('a damaged') else (' (the recording did not close: rosbag2 '
-                                                   'writes it then)')
+    folder = paths[0].parent
+    # None or empty: never closed; a damaged one says why itself.
+    why = missing(folder) if has_metadata(folder) else (
+        f'{missing(folder)} (the recording did not close: rosbag2 writes it then)')
     return (f'{why}: read from {", ".join(p.name for p in paths)} as `ros2 bag reindex` would '
             'list it',
             *(f"{name}-wal: {size} bytes of SQLite's write-ahead log not read (the messages "
