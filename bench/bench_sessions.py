@@ -350,6 +350,13 @@ def real_recording(held_bursts: int = 5) -> dict | None:
     res = {'best_dps': best, 'features': ','.join(ours.features)}
     out, _, _ = stream(ours, t, rec.gyro, None, t, rec.temp_c, Policy())
     res['ours'] = burst_rms(out[held]) / best
+    res.update(_offset_check(out, burst, held))
+    # Causal anchors: each held-out burst re-anchored on the mean of the 1 or 5 bursts before.
+    means = np.array([out[burst == k].mean(axis=0) for k in np.unique(burst)])
+    for n in (1, 5):
+        prior = np.array([means[k - n:k].mean(axis=0) for k in range(len(means))[-held_bursts:]])
+        shift = prior[burst[held] - burst[held][0]]
+        res[f'ours_on_previous_{n}'] = burst_rms(out[held] - shift) / best
     out, _, _ = stream(ours, t, rec.gyro, None, t, rec.temp_c, Policy(reanchor_on_start=False))
     res['ours_no_reanchor'] = burst_rms(out[held]) / best
     core = CompensatorCore(Policy(), ours)
@@ -370,6 +377,27 @@ def real_recording(held_bursts: int = 5) -> dict | None:
            / np.count_nonzero(burst[held] == k) for k in np.unique(burst[held])]
     res['floor'] = np.sqrt(np.mean(se2, axis=0)) / DEG / best
     return res
+
+
+def _offset_check(out: np.ndarray, burst: np.ndarray, held: np.ndarray) -> dict:
+    """
+    Return how far ours' held-out offset is from chance, and whether it could be tracked.
+
+    From the burst means of ours' output (deg/s): the training bursts' scatter, the lag-1
+    autocorrelation of their means (near 0: burst to burst the offset is white, so no causal
+    re-anchoring can follow it), and the held-out bursts' mean offset over its standard error
+    under that scatter.
+    """
+    means = np.array([out[burst == k].mean(axis=0) for k in np.unique(burst)]) / DEG
+    n_held = len(np.unique(burst[held]))
+    train, test = means[:-n_held], means[-n_held:]
+    dev = train - train.mean(axis=0)
+    scatter = train.std(axis=0, ddof=1)
+    return {'train_scatter_dps': scatter,
+            'train_lag1': np.sum(dev[1:] * dev[:-1], axis=0) / np.sum(dev ** 2, axis=0),
+            'lag1_bound': 1.96 / math.sqrt(len(train)),
+            'held_offset_dps': test.mean(axis=0),
+            'held_offset_z': test.mean(axis=0) / (scatter / math.sqrt(n_held))}
 
 
 def _held_sweep(held=range(3, 10)) -> None:
@@ -465,8 +493,16 @@ def main(argv: list | None = None) -> int:
               f'held out, trained features {real["features"]}: RMS of burst means / best '
               f'simple anchor ({" ".join(f"{v:.5f}" for v in real["best_dps"])} deg/s) x y z')
         for key in ('ours', 'ours_no_reanchor', 'ours_learn', 'ours_anchored_on_2_held',
+                    'ours_on_previous_1', 'ours_on_previous_5',
                     'raw_mean_removed', 'floor', 'ours_vs_best_unanchored'):
             print(f'  {key:<25} ' + ' '.join(f'{v:8.3f}' for v in real[key]))
+        print("  ours' burst means: training scatter (deg/s) "
+              + ' '.join(f'{v:.5f}' for v in real['train_scatter_dps'])
+              + '; lag-1 autocorrelation ' + ' '.join(f'{v:+.2f}' for v in real['train_lag1'])
+              + f' (white within +-{real["lag1_bound"]:.2f}); held-out mean offset '
+              + ' '.join(f'{v:+.5f}' for v in real['held_offset_dps'])
+              + ' deg/s, ' + ' '.join(f'{v:+.2f}' for v in real['held_offset_z'])
+              + ' standard errors of that scatter')
         print('  the start-up shift the node takes (the trained gate), deg/s: beyond '
               + ' '.join(f'{v:.4f}' for v in real['gate_dps']))
         if real['learned_gate_dps'] is not None:
