@@ -212,9 +212,6 @@ class IioSource(PolledSource):
         self._gyro = self._vector('anglvel', required=True)
         self._accel = self._vector('accel', required=False) if read_accel else None
         self._temp = self._temperature(required=require_temperature) if read_temperature else None
-        if require_temperature and self._temp is None:
-            raise DeviceError(f'IIO device {str(self.device_dir)!r} has no thermometer '
-                              '(in_temp_raw or in_temp_input), and one is required.')
         self._channels = tuple(c for c in (*self._gyro, *(self._accel or ()), self._temp) if c)
         #: Whether samples carry acceleration, and temperature.
         self.has_accel, self.has_temperature = self._accel is not None, self._temp is not None
