@@ -204,11 +204,8 @@ class IioSource(PolledSource):
             raise DeviceError(f'IIO device directory {str(self.device_dir)!r} does not exist.')
         name_file = self.device_dir / 'name'
         self.name = _read_text(name_file) if _exists(name_file) else self.device_dir.name
-        self._clock = clock
-        self._temp_every = int(temp_every)
-        self._rescale_every = int(rescale_every)
-        self._count = 0
-        self._temp_gate = TemperatureGate()
+        self._clock, self._count, self._temp_gate = clock, 0, TemperatureGate()
+        self._temp_every, self._rescale_every = int(temp_every), int(rescale_every)
         self._gyro = self._vector('anglvel', required=True)
         self._accel = self._vector('accel', required=False) if read_accel else None
         self._temp = self._temperature(required=require_temperature) if read_temperature else None
