@@ -230,8 +230,7 @@ class IioSource(PolledSource):
         channels = []
         read = functools.cache(_read_number)
         for axis, path in zip(AXES, raws):
-            scale_file = self._shared_or_own(kind, axis, 'scale')
-            if scale_file is None:
+            if (scale_file := self._shared_or_own(kind, axis, 'scale')) is None:
                 raise DeviceError(f'IIO file {str(self.device_dir / f"in_{kind}_scale")!r} is '
                                   f'missing (nor is there in_{kind}_{axis}_scale).')
             channels.append(_Channel(path, scale_file, self._shared_or_own(kind, axis, 'offset')))

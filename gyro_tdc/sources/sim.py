@@ -139,8 +139,7 @@ class SimSource:
         limit = (float('inf') if self.time_scale == 0.0
                  else sim0 + (now - wall0) * self.time_scale)
         for _ in range(self.max_batch):
-            t_next = self._peek_t()
-            if t_next is not None and t_next > limit:
+            if (t_next := self._peek_t()) is not None and t_next > limit:
                 return
             yield self.read()  # raises SourceExhausted at the end of the run
 
