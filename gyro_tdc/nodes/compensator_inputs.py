@@ -81,14 +81,13 @@ class InputReader:
     """
     How the node reads its two inputs: the subscriptions' classes and the converters.
 
-    ``fast``: the IMU input is a ``sensor_msgs/Imu``; else ``to_imu(msg) -> Imu`` (FLU,
-    stamped). ``temperature(msg)`` is degC (quirk undone), ``temperature_stamp(msg)`` s
-    (None: the latest IMU stamp is taken).
+    ``to_imu(msg) -> Imu`` (FLU, stamped) converts an IMU input that is not a
+    ``sensor_msgs/Imu`` (None for one); ``temperature(msg)`` is degC (quirk undone),
+    ``temperature_stamp(msg)`` s (None: the latest IMU stamp is taken).
     """
 
     imu_cls: type
     temperature_cls: type
-    fast: bool
     to_imu: Callable[[Any], Imu] | None
     temperature: Callable[[Any], float]
     temperature_stamp: Callable[[Any], float] | None
@@ -142,7 +141,7 @@ def input_reader(p: Any) -> InputReader:
                              ', '.join(TEMPERATURE_TYPES))
     # No temperature stamp path: the latest IMU stamp is taken.
     temperature, temp_stamp = temperature_fields(normalize_type(p.temperature_type), p, _fields)
-    return InputReader(imu_cls, temp_cls, fast, to_imu, temperature, temp_stamp)
+    return InputReader(imu_cls, temp_cls, to_imu, temperature, temp_stamp)
 
 
 class MotionInput:

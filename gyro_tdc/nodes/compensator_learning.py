@@ -180,16 +180,6 @@ class Learning:
 
     # -- the learner's owner: the worker during a step, else the executor's thread ------
 
-    def _settle(self) -> bool:
-        """Take a finished step's outcome and bring the learner up to date; return whether idle."""
-        if (job := self.job) is not None:
-            if not job.done:
-                return False
-            self.job = None
-            self._take(*job.result)
-        self._sync()
-        return True
-
     def _take(self, what: str, text: str, notes: list[str]) -> None:
         """Take the outcome of a step or save: clear or count a save error, log notes."""
         log = self.log
@@ -238,9 +228,15 @@ class Learning:
         Wait for the step in progress and bring the learner up to date; return whether idle.
 
         Call on the executor's thread; the learner may then be read or changed until the
-        executor runs the learn timer again.
+        executor runs the learn timer again; ``timeout_s`` 0 only looks.
         """
-        return (self.job is None or self.job.wait(timeout_s)) and self._settle()
+        if (job := self.job) is not None:
+            if not job.wait(timeout_s):
+                return False
+            self.job = None
+            self._take(*job.result)
+        self._sync()
+        return True
 
     def set_timeout(self, timeout_s: float) -> None:
         """Give the learner a new temperature_timeout (from its next step)."""
@@ -300,7 +296,7 @@ class Learning:
     def on_timer(self) -> None:
         """Timer: hand the learner what came; start its step on the worker when there is work."""
         # A step in progress: again at the next tick; no window ended: nothing to do.
-        if not self._settle() or self.learner.caught_up():
+        if not self.wait(0.0) or self.learner.caught_up():
             return
         learner, store = self.learner, (self.learn_store if self.params.learn_file else None)
         self.job = self._learn_jobs.start(

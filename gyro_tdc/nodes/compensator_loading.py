@@ -138,7 +138,7 @@ class ModelLoading:
 
     def on_poll(self) -> None:
         """Install (or refuse) a model finished in the background."""
-        if (job := self._jobs.claim() if self._jobs.pending is not None else None) is None:
+        if (job := self._jobs.claim()) is None:
             return
         ok, _ = self._finish(job.name, job.result)
         if (not ok and job.origin == 'parameter'
@@ -157,14 +157,12 @@ class ModelLoading:
         rclpy has refused a value that is not a string before this runs.
         """
         for name in (q.value for q in params if q.name == 'model_file'):
-            job = (self._read_within_wait(name, 'parameter')
-                   if name and name != self._reverting else None)
-            if job is None:
+            if not name or name == self._reverting or (
+                    job := self._read_within_wait(name, 'parameter')) is None:
                 continue  # none, the revert, or slower than load_wait: on_poll installs it
-            prepared, error = job.result
-            if prepared is None:
-                self._finish(name, job.result)
-                return SetParametersResult(successful=False, reason=error)
+            if job.result[0] is None:     # refused: said, and the set fails with why
+                return SetParametersResult(successful=False,
+                                           reason=self._finish(name, job.result)[1])
             self._pending[name] = job
         return SetParametersResult(successful=True)
 

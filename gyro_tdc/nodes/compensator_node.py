@@ -130,7 +130,7 @@ class CompensatorNode(ShellNode):
         self._pub = self.create_publisher(Imu, 'imu/data_compensated', qos(depth, True), **opts)
         reader, imu_qos = self.reader, qos(depth, reliable, keep_all=reliable)
         events = SubscriptionEventCallbacks(message_lost=self._on_message_lost)
-        raw = reader.fast and p.raw_cdr     # another type is turned into an Imu first
+        raw = reader.to_imu is None and p.raw_cdr    # another type is made an Imu first
         imu_sub = self.create_subscription(
             reader.imu_cls, 'imu/data_raw', self._on_imu_raw if raw else self._on_imu, imu_qos,
             raw=raw, event_callbacks=events, **opts)

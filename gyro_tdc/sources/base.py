@@ -139,8 +139,7 @@ def check_sample(sample: ImuSample) -> ImuSample:
 
     """
     for name, size in (('t', 1), ('omega', 3), ('accel', 3), ('temp_c', 1)):
-        value = getattr(sample, name)
-        if value is None and name in ('accel', 'temp_c'):
+        if (value := getattr(sample, name)) is None and name in ('accel', 'temp_c'):
             continue                      # not read with this sample
         values = (value,) if size == 1 else value
         if len(values) != size or not all(

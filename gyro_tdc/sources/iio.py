@@ -204,17 +204,11 @@ class IioSource(PolledSource):
             raise DeviceError(f'IIO device directory {str(self.device_dir)!r} does not exist.')
         name_file = self.device_dir / 'name'
         self.name = _read_text(name_file) if _exists(name_file) else self.device_dir.name
-        self._clock = clock
-        self._temp_every = int(temp_every)
-        self._rescale_every = int(rescale_every)
-        self._count = 0
-        self._temp_gate = TemperatureGate()
+        self._clock, self._count, self._temp_gate = clock, 0, TemperatureGate()
+        self._temp_every, self._rescale_every = int(temp_every), int(rescale_every)
         self._gyro = self._vector('anglvel', required=True)
         self._accel = self._vector('accel', required=False) if read_accel else None
         self._temp = self._temperature(required=require_temperature) if read_temperature else None
-        if require_temperature and self._temp is None:
-            raise DeviceError(f'IIO device {str(self.device_dir)!r} has no thermometer '
-                              '(in_temp_raw or in_temp_input), and one is required.')
         self._channels = tuple(c for c in (*self._gyro, *(self._accel or ()), self._temp) if c)
         #: Whether samples carry acceleration, and temperature.
         self.has_accel, self.has_temperature = self._accel is not None, self._temp is not None
@@ -236,8 +230,7 @@ class IioSource(PolledSource):
         channels = []
         read = functools.cache(_read_number)
         for axis, path in zip(AXES, raws):
-            scale_file = self._shared_or_own(kind, axis, 'scale')
-            if scale_file is None:
+            if (scale_file := self._shared_or_own(kind, axis, 'scale')) is None:
                 raise DeviceError(f'IIO file {str(self.device_dir / f"in_{kind}_scale")!r} is '
                                   f'missing (nor is there in_{kind}_{axis}_scale).')
             channels.append(_Channel(path, scale_file, self._shared_or_own(kind, axis, 'offset')))

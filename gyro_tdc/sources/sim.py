@@ -84,13 +84,9 @@ class SimSource:
         except (GyroTdcError, ValueError) as exc:
             raise DeviceError(f'Cannot simulate scenario {scenario!r}: {exc}') from None
         self.name = f'sim:{self._stream.run.name}'
-        self._moving = bool(self._stream.run.moving)
-        self._chunk_s = float(chunk_s)
-        self._scenario = scenario
-        self.time_scale = float(time_scale)
-        self.max_batch = int(max_batch)
-        self._clock_ns = clock_ns
-        self._wall = wall
+        self._moving, self._scenario = bool(self._stream.run.moving), scenario
+        self.time_scale, self.max_batch = float(time_scale), int(max_batch)
+        self._chunk_s, self._clock_ns, self._wall = float(chunk_s), clock_ns, wall
         self._origin: tuple[int, float, float] | None = None  # (clock ns, sim s, wall s)
         self._imu: deque[tuple[float, tuple, tuple]] = deque()
         self._temps: deque[tuple[float, float]] = deque()
@@ -143,8 +139,7 @@ class SimSource:
         limit = (float('inf') if self.time_scale == 0.0
                  else sim0 + (now - wall0) * self.time_scale)
         for _ in range(self.max_batch):
-            t_next = self._peek_t()
-            if t_next is not None and t_next > limit:
+            if (t_next := self._peek_t()) is not None and t_next > limit:
                 return
             yield self.read()  # raises SourceExhausted at the end of the run
 
