@@ -100,6 +100,12 @@ def test_unknown_backend_names_the_choices():
     assert '`backend`' in line and "'foo'" in line and 'sim' in line and 'iio' in line
 
 
+def test_retry_max_below_retry_initial_is_refused_in_one_line():
+    line = one_error_line(run('driver_node', '--ros-args', '-p', 'retry_initial:=2.0', '-p',
+                              'retry_max:=1.0'), 'driver_node')
+    assert '`retry_max`' in line and '`retry_initial`' in line and '1.0' in line
+
+
 def test_unknown_scenario_names_the_shipped_ones_and_is_not_retried():
     proc = run('driver_node', '--ros-args', '-p', 'scenario:=nope')
     line = one_error_line(proc, 'driver_node')
