@@ -82,7 +82,8 @@ class SimSource:
             self._stream = SimStream(scenario, seed=seed, run_index=run_index,
                                      rate_hz=rate_hz or None)
         except (GyroTdcError, ValueError) as exc:
-            raise DeviceError(f'Cannot simulate scenario {scenario!r}: {exc}') from None
+            raise DeviceError(f'Cannot simulate scenario '
+                              f'{getattr(scenario, "name", scenario)!r}: {exc}') from None
         self.name = f'sim:{self._stream.run.name}'
         self._moving, self._scenario = bool(self._stream.run.moving), scenario
         self.time_scale, self.max_batch = float(time_scale), int(max_batch)

@@ -106,6 +106,13 @@ def test_retry_max_below_retry_initial_is_refused_in_one_line():
     assert '`retry_max`' in line and '`retry_initial`' in line and '1.0' in line
 
 
+def test_run_index_beyond_the_scenario_is_refused_by_name():
+    line = one_error_line(run('driver_node', '--ros-args', '-p', 'run_index:=10000'),
+                          'driver_node')
+    assert "scenario 'l3gd20_paper': " in line and '`run_index`' in line
+    assert 'Scenario(' not in line and len(line) < 200
+
+
 def test_unknown_scenario_names_the_shipped_ones_and_is_not_retried():
     proc = run('driver_node', '--ros-args', '-p', 'scenario:=nope')
     line = one_error_line(proc, 'driver_node')
