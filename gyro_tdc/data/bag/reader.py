@@ -227,14 +227,14 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
     """
     if via not in VIA:
         raise DatasetError(f'Expected `via` to be one of {", ".join(VIA)}, got {via!r}.')
-    bag, files = metadata.locate(path)
-    info: Mapping = {}
+    bag, files, info = metadata.find(path)
     wanted = [('imu', imu_topic, (IMU_TYPE,), True),
               ('temperature', temperature_topic, TEMPERATURE_TYPES, True)]
     if reference_topic is not None:
         wanted.append(('reference', reference_topic, (REFERENCE_TYPE,), False))
     try:
-        info = metadata.load(bag) if files is None else columnar.rebuild(bag, files)
+        if not info:                # metadata.yaml not read (or empty), or none
+            info = metadata.load(bag) if files is None else columnar.rebuild(bag, files)
         notes = () if files is None else columnar.rebuilt_notes(files)
         metadata.check_counts(bag, info)
         why = columnar.unfit(info) if via != 'rosbags' else 'rosbags asked for'
