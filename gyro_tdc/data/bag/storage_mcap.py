@@ -29,6 +29,7 @@ it), as the mcap libraries' fallback scan and ``mcap recover`` read it.
 from __future__ import annotations
 
 from binascii import crc32
+from functools import partial
 from pathlib import Path
 import struct
 from typing import Any, Callable, Iterable, Mapping, NamedTuple
@@ -142,6 +143,9 @@ class McapFile:
         self.bio, self.name = path.open('rb'), path.name
         #: Bytes after the last whole chunk of a file cut off (None: the file is whole).
         self.lost: int | None = None
+        self.conns: list[Entry] = []
+        self.definitions: dict[str, tuple[str, str]] = {}
+        self.chunks: list[_Chunk] = []
 
     def load(self) -> None:
         """Read the header, footer and summary (:func:`~.columnar.open_bag`: once it can close)."""
@@ -175,7 +179,7 @@ class McapFile:
 
     def _summary(self, data: bytes) -> None:
         """Parse the summary section's schemas, channels and chunk index."""
-        schemas = self._start()
+        schemas: dict = {}
         statistics = False
         f = _Fields(data)
         while True:
@@ -184,25 +188,19 @@ class McapFile:
             (op,) = f.take('<B')
             if op in _SUMMARY_END:
                 break
-            rec = _Fields(f.raw('<Q'))
-            self._register(op, rec, schemas)
+            body = f.raw('<Q')
+            self._register(op, body, schemas)
             if op == _CHUNK_INDEX:
-                self.chunks.append(_chunk_index(rec))
+                self.chunks.append(_chunk_index(_Fields(body)))
             statistics |= op == _STATISTICS
         if statistics and not schemas:
             raise Unfit('an mcap summary without schemas')     # rosbags scans the file
         if not self.chunks:
             raise Unfit('an mcap file without a chunk index')
 
-    def _start(self) -> dict[int, tuple[str, str, str]]:
-        """Empty the connections, definitions and chunks; return the schemas to fill."""
-        self.conns: list[Entry] = []
-        self.definitions: dict[str, tuple[str, str]] = {}
-        self.chunks: list[_Chunk] = []
-        return {}
-
-    def _register(self, op: int, rec: _Fields, schemas: dict) -> None:
+    def _register(self, op: int, body: bytes, schemas: dict) -> None:
         """Take a schema or a channel record (any other is left alone)."""
+        rec = _Fields(body)
         if op == _SCHEMA:
             (key,) = rec.take('<H')
             schemas[key] = (rec.text(), rec.text(), rec.text())
@@ -217,7 +215,7 @@ class McapFile:
 
     def _scan(self, pos: int, size: int) -> None:
         """Read a file without its footer record by record, up to its last whole chunk."""
-        schemas = self._start()
+        schemas: dict = {}
         longest, ended = 0, False
         while pos + 9 <= size:
             op, length = struct.unpack('<BQ', self._exact(9, pos))
@@ -236,7 +234,7 @@ class McapFile:
                                                                     schemas)))
                 longest = max(longest, 9 + length)
             else:
-                self._register(op, _Fields(self._exact(length, pos + 9)), schemas)
+                self._register(op, self._exact(length, pos + 9), schemas)
             pos += 9 + length
         if not self.chunks:
             raise Unfit('an mcap file cut off before its first whole chunk')
@@ -247,20 +245,11 @@ class McapFile:
     def _contents(self, raw: bytes, schemas: dict) -> dict[int, int]:
         """Take a chunk's schemas and channels; return its messages per channel id."""
         counts: dict[int, int] = {}
-        runs = {pos: (rec, n) for pos, rec, n in self.runs(raw)}
         arr = np.frombuffer(raw, dtype=np.uint8)
-        pos = 0
-        while pos < len(raw):
-            if pos in runs:
-                rec, n = runs[pos]
-                ids = arr[pos:pos + n * rec].reshape(n, rec)[:, 9:11].copy().view('<u2')
-                for key, k in zip(*np.unique(ids, return_counts=True)):
-                    counts[int(key)] = counts.get(int(key), 0) + int(k)
-                pos += n * rec
-                continue
-            (length,) = struct.unpack_from('<Q', raw, pos + 1)
-            self._register(raw[pos], _Fields(raw[pos + 9:pos + 9 + length]), schemas)
-            pos += 9 + length
+        for pos, rec, n in self.runs(raw, partial(self._register, schemas=schemas)):
+            ids = arr[pos:pos + n * rec].reshape(n, rec)[:, 9:11].copy().view('<u2')
+            for key, k in zip(*np.unique(ids, return_counts=True)):
+                counts[int(key)] = counts.get(int(key), 0) + int(k)
         return counts
 
     def counts(self) -> dict[int, tuple[int, int, int]]:
@@ -311,7 +300,8 @@ class McapFile:
         return data
 
     @staticmethod
-    def runs(raw: bytes) -> list[tuple[int, int, int]]:
+    def runs(raw: bytes, other: Callable[[int, bytes], Any] | None = None
+             ) -> list[tuple[int, int, int]]:
         """Return the runs of message records of ``raw``: (start, record size, count)."""
         size = len(raw)
         arr = np.frombuffer(raw, dtype=np.uint8)
@@ -322,6 +312,8 @@ class McapFile:
                 raise Unfit('a chunk record cut short')
             length = int.from_bytes(raw[pos + 1:pos + 9], 'little')
             if raw[pos] != _MESSAGE:
+                if other is not None:     # other(opcode, body) takes it
+                    other(raw[pos], raw[pos + 9:pos + 9 + length])
                 pos += 9 + length             # rosbags skips it (even past the end)
                 continue
             rec = 9 + length
