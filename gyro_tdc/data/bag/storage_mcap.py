@@ -29,6 +29,7 @@ it), as the mcap libraries' fallback scan and ``mcap recover`` read it.
 from __future__ import annotations
 
 from binascii import crc32
+import contextlib
 from functools import partial
 from pathlib import Path
 import struct
@@ -36,6 +37,7 @@ from typing import Any, Callable, Iterable, Mapping, NamedTuple
 
 from gyro_tdc.data.bag.metadata import Entry, Unfit, zstd, ZSTD_MAGIC
 import numpy as np
+from numpy.typing import NDArray
 
 __all__ = ['CUT_OFF', 'cut_off', 'McapFile']
 
@@ -53,16 +55,12 @@ CUT_OFF = 'ends without the mcap footer'
 
 def cut_off(paths: Iterable[Path]) -> str:
     """Return a hint naming the first mcap file of ``paths`` that ends without its magic ('')."""
-    for path in paths:
-        try:
-            with path.open('rb') as f:
-                f.seek(max(f.seek(0, 2) - len(_MAGIC), 0))
-                whole = path.suffix != '.mcap' or f.read(len(_MAGIC)) == _MAGIC
-        except OSError:
-            continue
-        if not whole:
-            return (f'; {path.name} {CUT_OFF} (cut off while it was '
-                    'written?): `mcap recover` (the mcap CLI) copies what it holds to a new file')
+    for path in (p for p in paths if p.suffix == '.mcap'):
+        with contextlib.suppress(OSError), path.open('rb') as f:
+            f.seek(max(f.seek(0, 2) - len(_MAGIC), 0))
+            if f.read(len(_MAGIC)) != _MAGIC:
+                return (f'; {path.name} {CUT_OFF} (cut off while it was written?): '
+                        '`mcap recover` (the mcap CLI) copies what it holds to a new file')
     return ''
 
 
@@ -245,9 +243,8 @@ class McapFile:
     def _contents(self, raw: bytes, schemas: dict) -> dict[int, int]:
         """Take a chunk's schemas and channels; return its messages per channel id."""
         counts: dict[int, int] = {}
-        arr = np.frombuffer(raw, dtype=np.uint8)
-        for pos, rec, n in self.runs(raw, partial(self._register, schemas=schemas)):
-            ids = arr[pos:pos + n * rec].reshape(n, rec)[:, 9:11].copy().view('<u2')
+        for rows in self.runs(raw, partial(self._register, schemas=schemas)):
+            ids = rows[:, 9:11].copy().view('<u2')
             for key, k in zip(*np.unique(ids, return_counts=True)):
                 counts[int(key)] = counts.get(int(key), 0) + int(k)
         return counts
@@ -265,9 +262,8 @@ class McapFile:
         """Return whether the first message is a zstd frame (compressed message by message)."""
         if not self.chunks or self.chunks[0].compression not in ('', 'zstd'):
             return False                      # lz4 chunks: rosbags reads them
-        raw = self._decompress(self.chunks[0])
-        runs = self.runs(raw)
-        return bool(runs) and raw[runs[0][0] + 31:runs[0][0] + 35] == ZSTD_MAGIC
+        runs = self.runs(self._decompress(self.chunks[0]))
+        return bool(runs) and runs[0][0, 31:35].tobytes() == ZSTD_MAGIC
 
     def close(self) -> None:
         """Close the file."""
@@ -301,8 +297,8 @@ class McapFile:
 
     @staticmethod
     def runs(raw: bytes, other: Callable[[int, bytes], Any] | None = None
-             ) -> list[tuple[int, int, int]]:
-        """Return the runs of message records of ``raw``: (start, record size, count)."""
+             ) -> list[NDArray[np.uint8]]:
+        """Return the runs of message records of ``raw``, each (count, record size) bytes."""
         size = len(raw)
         arr = np.frombuffer(raw, dtype=np.uint8)
         runs = []
@@ -332,16 +328,14 @@ class McapFile:
                 if k < m:
                     break
                 w *= 4
-            runs.append((pos, rec, n))
+            runs.append(arr[pos:pos + n * rec].reshape(n, rec))
             pos += n * rec
         return runs
 
     def _chunk(self, raw: bytes, c: _Chunk, out: Any, update: Callable) -> None:
         """Hand over the wanted messages of one chunk, in rosbags' order."""
-        arr = np.frombuffer(raw, dtype=np.uint8)
         pieces = []                                        # (rows, role codes, log times)
-        for pos, rec, n in self.runs(raw):
-            rows = arr[pos:pos + n * rec].reshape(n, rec)
+        for rows in self.runs(raw):
             code = self.ids[rows[:, 9:11].copy().view('<u2').ravel()]
             logs = rows[:, 15:23].copy().view('<u8').ravel()
             if logs.size and int(logs.max()) >= 1 << 63:
