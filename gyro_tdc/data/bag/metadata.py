@@ -211,14 +211,6 @@ def storage_bytes(bag: Path, info: Mapping) -> int | None:
         return None           # rosbags names the missing file
 
 
-def _topic_counts(info: Mapping) -> list[tuple[str, str, Any]]:
-    """Return (name, type, message_count) of every well-formed topic entry of the metadata."""
-    entries = [(e, e.get('topic_metadata')) for e in _list(info, 'topics_with_message_count')
-               if isinstance(e, Mapping)]
-    return [(str(meta.get('name')), str(meta.get('type')), e['message_count'])
-            for e, meta in entries if isinstance(meta, Mapping) and 'message_count' in e]
-
-
 def check_counts(bag: Path, info: Mapping) -> None:
     """
     Check that the message counts of a bag's metadata are plausible, before any sizing.
@@ -245,7 +237,10 @@ def check_counts(bag: Path, info: Mapping) -> None:
     """
     where = f'Cannot read bag {str(bag)!r} (unreadable or corrupt): metadata.yaml'
     fix = '`ros2 bag reindex` rebuilds metadata.yaml from the storage files'
-    topics = _topic_counts(info)
+    # (name, type, message_count) of every well-formed topic entry
+    topics = [(str(meta.get('name')), str(meta.get('type')), e['message_count'])
+              for e in _list(info, 'topics_with_message_count') if isinstance(e, Mapping)
+              and isinstance(meta := e.get('topic_metadata'), Mapping) and 'message_count' in e]
     counts = ([(f'topic {name!r}', count) for name, _, count in topics]
               + [(f'file {f.get("path")!r}', f['message_count'])
                  for f in _list(info, 'files') if isinstance(f, Mapping) and 'message_count' in f]
