@@ -214,7 +214,7 @@ class McapFile:
     def _scan(self, pos: int, size: int) -> None:
         """Read a file without its footer record by record, up to its last whole chunk."""
         schemas: dict = {}
-        longest, ended = 0, False
+        register, longest, ended = partial(self._register, schemas=schemas), 0, False
         while pos + 9 <= size:
             op, length = struct.unpack('<BQ', self._exact(9, pos))
             ended = op == _DATA_END           # what follows is the summary
@@ -228,26 +228,21 @@ class McapFile:
                 compression = head.text()
                 (compressed,) = head.take('<Q')
                 c = _Chunk(start, end, pos, {}, compression, compressed, uncompressed)
-                self.chunks.append(c._replace(counts=self._contents(self._decompress(c),
-                                                                    schemas)))
+                # Its schemas and channels taken, its messages counted per channel id.
+                for rows in self.runs(self._decompress(c), register):
+                    ids, n = np.unique(rows[:, 9:11].copy().view('<u2'), return_counts=True)
+                    for key, k in zip(ids.tolist(), n.tolist()):
+                        c.counts[key] = c.counts.get(key, 0) + k
+                self.chunks.append(c)
                 longest = max(longest, 9 + length)
             else:
-                self._register(op, self._exact(length, pos + 9), schemas)
+                register(op, self._exact(length, pos + 9))
             pos += 9 + length
         if not self.chunks:
             raise Unfit('an mcap file cut off before its first whole chunk')
         if not ended and size - pos > 2 * longest + _CUT_SLACK:
             raise Unfit(f'an mcap file whose records stop {size - pos} bytes before its end')
         self.lost = size - pos
-
-    def _contents(self, raw: bytes, schemas: dict) -> dict[int, int]:
-        """Take a chunk's schemas and channels; return its messages per channel id."""
-        counts: dict[int, int] = {}
-        for rows in self.runs(raw, partial(self._register, schemas=schemas)):
-            ids = rows[:, 9:11].copy().view('<u2')
-            for key, k in zip(*np.unique(ids, return_counts=True)):
-                counts[int(key)] = counts.get(int(key), 0) + int(k)
-        return counts
 
     def counts(self) -> dict[int, tuple[int, int, int]]:
         """Return channel id -> (messages, first and last log time, ns), from the chunks."""
