@@ -139,27 +139,32 @@ class Decoded:
     undecodable: NDArray[np.bool_] | None = None
 
 
-def _decode_records(buf: bytes | memoryview, n: int, dt: np.dtype, msgtype: str,
+def _decode_records(buf: bytes | memoryview, sizes: NDArray[np.int64], msgtype: str,
                     typestore: Any, keep: Sequence[int] | None) -> Decoded | None:
     """
-    Decode ``n`` messages of layout ``dt`` stored end to end in ``buf``, or return None.
+    Decode messages of ``sizes`` bytes stored end to end in ``buf`` with numpy, or return None.
 
-    None: the messages do not share one fixed layout (encapsulation, frame id) or a sampled
-    message disagrees with rosbags' deserialiser of ``typestore`` (the one that decodes them
-    otherwise).
+    None: the messages do not share one fixed layout (size, encapsulation, frame id) or a
+    sampled message disagrees with rosbags' deserialiser of ``typestore`` (the one that
+    decodes them otherwise).
     """
-    rec = np.frombuffer(buf, dtype=dt)
-    # Encapsulation (word 0), frame id length, frame id and its padding equal to the first
-    # message's, compared as raw 32-bit words column by column (one strided pass each).
-    words = np.frombuffer(buf, dtype=np.uint32).reshape(n, dt.itemsize // 4)
-    frame, data = rec['frame'], rec['data']
-    cols = [0, *range(imu_cdr.FRAME_ID_LENGTH // 4, dt.fields['data'][1] // 4)]
-    if frame[0, -1] != 0 or any(np.any(words[:, k] != words[0, k]) for k in cols):
-        return None
+    n = len(sizes)
     try:
+        if not n or np.any(sizes != sizes[0]):
+            return None
+        size = int(sizes[0])
+        dt = layout_of(bytes(buf[:size]), N_DOUBLES[msgtype]).dtype   # of size bytes
+        rec = np.frombuffer(buf[:n * size], dtype=dt)
+        # Encapsulation (word 0), frame id length, frame id and its padding equal to the first
+        # message's, compared as raw 32-bit words column by column (one strided pass each).
+        words = np.frombuffer(buf[:n * size], dtype=np.uint32).reshape(n, size // 4)
+        frame, data = rec['frame'], rec['data']
+        cols = [0, *range(imu_cdr.FRAME_ID_LENGTH // 4, dt.fields['data'][1] // 4)]
+        if frame[0, -1] != 0 or any(np.any(words[:, k] != words[0, k]) for k in cols):
+            return None
         frame_id = frame[0, :-1].tobytes().decode('utf-8')
         for i in sorted({0, n // 2, n - 1}):    # the layout checked against rosbags
-            raw = bytes(buf[i * dt.itemsize:(i + 1) * dt.itemsize])
+            raw = bytes(buf[i * size:(i + 1) * size])
             sec, nsec, fid, row = from_msg(msgtype, typestore.deserialize_cdr(raw, msgtype))
             if (sec != rec['sec'][i] or nsec != rec['nanosec'][i] or fid != frame_id or not
                     np.array_equal(np.asarray(row, dtype=np.float64), data[i], equal_nan=True)):
@@ -182,16 +187,9 @@ def decode_joined(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str,
     (``fallback`` of the result counts them). ``keep``: float64 columns returned (default
     ``KEEP[msgtype]``).
     """
-    n = len(lengths)
     sizes = np.asarray(lengths, dtype=np.int64)
-    if n and not np.any(sizes != sizes[0]):
-        with contextlib.suppress(DatasetError):       # no fixed layout: rosbags decodes
-            size = int(sizes[0])
-            dt = layout_of(bytes(buf[:size]), N_DOUBLES[msgtype]).dtype   # of size bytes
-            dec = _decode_records(buf[:n * size], n, dt, msgtype, typestore, keep)
-            if dec is not None:
-                return dec
-    return decode_slow(buf, sizes, msgtype, typestore, keep)
+    return (_decode_records(buf, sizes, msgtype, typestore, keep)
+            or decode_slow(buf, sizes, msgtype, typestore, keep))
 
 
 def decode_slow(buf: bytes | memoryview, lengths: Sequence[int], msgtype: str, typestore: Any,

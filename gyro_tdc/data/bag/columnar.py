@@ -206,12 +206,9 @@ def rebuild(bag: Path, paths: Sequence[Path]) -> dict:
                                f'file {path.name} is unreadable or corrupt: {one_line(err)}{fix}'
                                ) from err
         for conn in f.conns:
-            n = counts.get(conn.id, (0,))[0]
-            t = next((t for t in topics if t[0].same(conn)), None)
-            if t is None:
-                topics.append([conn, n])
-            else:
-                t[1] += n
+            if (t := next((t for t in topics if t[0].same(conn)), None)) is None:
+                topics.append(t := [conn, 0])
+            t[1] += counts.get(conn.id, (0,))[0]
         # Stamps NULL or of another type (SQLite keeps what a damaged record says): damage.
         spans += [v[1:] for v in counts.values() if all(type(x) is int for x in v[1:])]
         listed.append({'path': path.name, 'message_count': sum(v[0] for v in counts.values())})

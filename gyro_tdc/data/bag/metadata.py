@@ -40,8 +40,8 @@ if sys.version_info >= (3, 14):
 else:                         # rosbags' own zstd before Python 3.14
     from backports import zstd
 
-__all__ = ['check_counts', 'describe', 'entries', 'Entry', 'has_metadata', 'load', 'locate',
-           'min_message_bytes', 'missing', 'qos', 'STORAGE_SUFFIXES', 'storage_bytes',
+__all__ = ['check_counts', 'describe', 'entries', 'Entry', 'find', 'has_metadata', 'load',
+           'locate', 'min_message_bytes', 'missing', 'qos', 'STORAGE_SUFFIXES', 'storage_bytes',
            'storage_files', 'storage_paths', 'topics_of', 'ZSTD_MAX_RATIO', 'Unfit', 'zstd',
            'ZSTD_MAGIC', 'ZSTD_MIN_FRAME_BYTES']
 
@@ -85,21 +85,25 @@ def missing(folder: Path) -> str | None:
     that is no YAML or lacks a key rosbag2 requires of its version (cut while rosbag2 wrote
     it on close). One over a size or nesting limit is not damaged: its read says so.
     """
-    meta = folder / 'metadata.yaml'
-    if not meta.is_file():
-        return 'no metadata.yaml'
+    return _read(folder)[0]
+
+
+def _read(folder: Path) -> tuple[str | None, Mapping]:
+    """Return what :func:`missing` says and the metadata read on the way (none: empty)."""
+    if not (folder / 'metadata.yaml').is_file():
+        return 'no metadata.yaml', {}
     if not has_metadata(folder):
-        return 'an empty metadata.yaml'
+        return 'an empty metadata.yaml', {}
     try:
         info = load(folder)
     except (yaml.YAMLError, UnicodeDecodeError):
-        return 'a damaged metadata.yaml (not valid YAML)'
+        return 'a damaged metadata.yaml (not valid YAML)', {}
     except (DatasetError, OSError):
-        return None
+        return None, {}                      # load() says what is wrong
     version = info.get('version')
     version = version if type(version) is int else 0
     lacks = [k for k, since in _REQUIRED if since <= version and k not in info]
-    return f'a damaged metadata.yaml (no {lacks[0]})' if lacks else None
+    return (f'a damaged metadata.yaml (no {lacks[0]})' if lacks else None), info
 
 
 def storage_files(folder: Path) -> list[Path]:
@@ -132,6 +136,11 @@ def locate(path: str | Path) -> tuple[Path, list[Path] | None]:
     that file alone. A damaged metadata.yaml (:func:`missing`) counts as none. Raises
     DatasetError saying why ``path`` is no bag.
     """
+    return find(path)[:2]
+
+
+def find(path: str | Path) -> tuple[Path, list[Path] | None, Mapping]:
+    """Return :func:`locate`'s bag and files, and the metadata it read (none: empty)."""
     p = Path(path)
     if not p.exists():
         raise DatasetError(f'Bag {str(p)!r} does not exist.')
@@ -140,12 +149,13 @@ def locate(path: str | Path) -> tuple[Path, list[Path] | None]:
             raise DatasetError(f'Bag {str(p)!r} is a ROS 1 bag; expected a rosbag2 directory '
                                '(convert it with rosbags-convert).')
         if p.suffix in STORAGE_SUFFIXES:
-            return (p, [p]) if missing(p.parent) else (p.parent, None)
+            why, info = _read(p.parent)
+            return (p, [p], {}) if why else (p.parent, None, info)
         raise DatasetError(f'Bag {str(p)!r} is a file, not a rosbag2 directory (a folder '
                            'with metadata.yaml and .db3 or .mcap files).')
-    files, why = storage_files(p), missing(p)
+    files, (why, info) = storage_files(p), _read(p)
     if why is None or (has_metadata(p) and not files):
-        return p, None            # a damaged one without storage files beside it: refused
+        return p, None, info      # a damaged one without storage files beside it: refused
     if not files:
         found = sorted(x.name for x in p.iterdir())[:5]
         raise DatasetError(f'Bag {str(p)!r} is not a rosbag2 directory: {why}, and not only '
@@ -154,7 +164,7 @@ def locate(path: str | Path) -> tuple[Path, list[Path] | None]:
     if len({f.suffix for f in files}) > 1:
         raise DatasetError(f'Bag {str(p)!r} has {why} and holds both .db3 and .mcap files: '
                            'give the storage file to read.')
-    return p, files
+    return p, files, {}
 
 
 def load(bag: Path) -> Mapping:
@@ -201,14 +211,6 @@ def storage_bytes(bag: Path, info: Mapping) -> int | None:
         return None           # rosbags names the missing file
 
 
-def _topic_counts(info: Mapping) -> list[tuple[str, str, Any]]:
-    """Return (name, type, message_count) of every well-formed topic entry of the metadata."""
-    entries = [(e, e.get('topic_metadata')) for e in _list(info, 'topics_with_message_count')
-               if isinstance(e, Mapping)]
-    return [(str(meta.get('name')), str(meta.get('type')), e['message_count'])
-            for e, meta in entries if isinstance(meta, Mapping) and 'message_count' in e]
-
-
 def check_counts(bag: Path, info: Mapping) -> None:
     """
     Check that the message counts of a bag's metadata are plausible, before any sizing.
@@ -235,7 +237,10 @@ def check_counts(bag: Path, info: Mapping) -> None:
     """
     where = f'Cannot read bag {str(bag)!r} (unreadable or corrupt): metadata.yaml'
     fix = '`ros2 bag reindex` rebuilds metadata.yaml from the storage files'
-    topics = _topic_counts(info)
+    # (name, type, message_count) of every well-formed topic entry
+    topics = [(str(meta.get('name')), str(meta.get('type')), e['message_count'])
+              for e in _list(info, 'topics_with_message_count') if isinstance(e, Mapping)
+              and isinstance(meta := e.get('topic_metadata'), Mapping) and 'message_count' in e]
     counts = ([(f'topic {name!r}', count) for name, _, count in topics]
               + [(f'file {f.get("path")!r}', f['message_count'])
                  for f in _list(info, 'files') if isinstance(f, Mapping) and 'message_count' in f]

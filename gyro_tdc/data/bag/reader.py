@@ -26,7 +26,8 @@ columns sized by the counts of ``metadata.yaml``, checked first
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
+from functools import partial
 from itertools import islice
 import mmap
 import os
@@ -227,31 +228,30 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
     """
     if via not in VIA:
         raise DatasetError(f'Expected `via` to be one of {", ".join(VIA)}, got {via!r}.')
-    bag, files = metadata.locate(path)
-    info: Mapping = {}
+    bag, files, info = metadata.find(path)
+    # A reference topic of None is no topic of the bag: skipped.
     wanted = [('imu', imu_topic, (IMU_TYPE,), True),
-              ('temperature', temperature_topic, TEMPERATURE_TYPES, True)]
-    if reference_topic is not None:
-        wanted.append(('reference', reference_topic, (REFERENCE_TYPE,), False))
+              ('temperature', temperature_topic, TEMPERATURE_TYPES, True),
+              ('reference', reference_topic, (REFERENCE_TYPE,), False)]
     try:
-        info = metadata.load(bag) if files is None else columnar.rebuild(bag, files)
+        if not info:                # metadata.yaml not read (or empty), or none
+            info = metadata.load(bag) if files is None else columnar.rebuild(bag, files)
         notes = () if files is None else columnar.rebuilt_notes(files)
         metadata.check_counts(bag, info)
+        collect = partial(_collect, bag, info, progress, accel)
         why = columnar.unfit(info) if via != 'rosbags' else 'rosbags asked for'
-        partial = None
+        got = None
         if why is None:
             try:
                 with columnar.open_bag(bag, info) as opened:
                     topics, conns = _connections(opened.topics, opened.conns, bag, wanted)
-                    data = _collect(lambda out, update: opened.feed(conns, out, update, _CHUNK),
-                                    opened.typestore(c.msgtype for cs in conns.values()
-                                                     for c in cs),
-                                    bag, info, topics, conns, progress, accel, 'columnar')
-                    data = replace(data, warnings=notes + opened.warnings)
+                    data = collect(opened.feed, opened.typestore(
+                        c.msgtype for cs in conns.values() for c in cs), topics, conns,
+                        'columnar', notes + opened.warnings)
                 if opened.short is None or via == 'columnar':
                     return data
                 # Fewer than listed: rosbags' walk of a damaged index may find the others.
-                why, partial = opened.short, data
+                why, got = opened.short, data
             except DatasetError:
                 raise                     # a topic missing or of the wrong type
             except Exception as err:      # noqa: B902 (whatever it is, rosbags decides)
@@ -268,14 +268,12 @@ def read_bag(path, *, imu_topic='/imu/data_raw', temperature_topic='/imu/tempera
                      for name, t in reader.topics.items()}, reader.connections, bag, wanted)
                 # One bag: its rosbags Reader directly, without AnyReader's merge across bags.
                 source = reader.readers[0] if len(reader.readers) == 1 else reader
-                return replace(_collect(
-                    lambda out, update: _rosbags_feed(source, conns, out, update),
-                    reader.typestore, bag, info, topics, conns, progress, accel, 'rosbags'),
-                    warnings=notes)
+                return collect(partial(_rosbags_feed, source), reader.typestore, topics, conns,
+                               'rosbags', notes)
         except READ_ERRORS:
-            if partial is None:
+            if got is None:
                 raise
-            return partial          # rosbags reads none of it: what the columnar read got
+            return got              # rosbags reads none of it: what the columnar read got
     except metadata.zstd.ZstdError as err:
         raise DatasetError(f'Cannot read bag {str(bag)!r}: its data are not compressed as '
                            f'metadata.yaml says (compression_format '
@@ -403,31 +401,31 @@ class Collector:
         if good is not None:
             self.main_bad.append(self.n_main - len(lengths) + np.flatnonzero(~good))
 
-    def result(self, bag: Path, storage: str, topics: dict, via: str) -> BagData:
+    def result(self, bag: Path, storage: str, topics: dict, via: str,
+               warnings: tuple = ()) -> BagData:
         """Return the :class:`BagData`."""
         self.flush()
-        before_imu, stamped, empty = 0, None, [np.zeros(0, dtype=np.int64)]
+        rejected = {'undecodable': self.undecodable, 'temp_before_imu': 0}
+        kept = {'imu': True, 'temperature': True, 'reference': True}
         if self.floating:
             sink = self.sinks['temperature']
-            before, bad = (np.concatenate(x or empty) for x in (self.before, self.main_bad))
+            before, bad = (np.concatenate(x or [np.zeros(0, dtype=np.int64)])
+                           for x in (self.before, self.main_bad))
             # The last decodable main message before a reading is the one whose sink row is
-            # the number of decodable main messages before it, less one.
+            # the number of decodable main messages before it, less one. Readings before
+            # the first IMU message are dropped, not counted as non-finite.
             row = before - np.searchsorted(bad, before, side='left') - 1
-            stamped = row >= 0
-            before_imu = int(np.count_nonzero(~stamped))
+            kept['temperature'] = row >= 0
+            rejected['temp_before_imu'] = int(np.count_nonzero(row < 0))
             sink.t[:sink.n] = self.sinks['imu'].t[row.clip(0)]
-        rejected = {'undecodable': self.undecodable, 'temp_before_imu': before_imu}
         out: dict[str, list] = {'reference': [None, None]}
         for role, key in (('imu', 'imu_nonfinite'), ('temperature', 'temp_nonfinite'),
                           ('reference', 'ref_nonfinite')):
             sink = self.sinks.get(role)
-            finite = (np.isfinite(sink.v[0][:sink.n]).all(axis=1) if sink
-                      else np.zeros(0, dtype=bool))
-            # Float readings before the first IMU message are dropped, not counted here.
-            kept = stamped if role == 'temperature' and stamped is not None else True
-            rejected[key] = int(np.count_nonzero(~finite & kept))
+            finite = np.isfinite(sink.v[0][:sink.n]).all(axis=1) if sink else np.zeros(0, bool)
+            rejected[key] = int(np.count_nonzero(~finite & kept[role]))
             if sink is not None and (sink.n or role != 'reference'):    # no empty reference
-                out[role] = sink.result(finite & kept)
+                out[role] = sink.result(finite & kept[role])
         imu_t, gyro, *accel = out['imu']
         temp_t, temp_c, temp_var = out['temperature']
         ref_t, ref = out['reference']
@@ -435,13 +433,13 @@ class Collector:
                        frame_id=self.frame_id, temp_t=temp_t, temp_c=temp_c[:, 0],
                        temp_var=temp_var[:, 0], ref_t=ref_t, ref=ref, topics=topics,
                        rejected=rejected, storage=storage, path=str(bag),
-                       fallback=self.fallback, via=via)
+                       fallback=self.fallback, via=via, warnings=warnings)
 
 
-def _collect(feed: Callable[[Collector, Callable[[int], Any]], None], typestore: Any,
-             bag: Path, info: Mapping, topics: dict[str, tuple[str, int]],
-             conns: dict[str, list[Any]], progress: bool, with_accel: bool, via: str) -> BagData:
-    """Feed a storage read's blocks (``feed(collector, update)``) to a :class:`Collector`."""
+def _collect(bag: Path, info: Mapping, progress: bool, with_accel: bool, feed: Callable,
+             typestore: Any, topics: dict[str, tuple[str, int]], conns: dict[str, list[Any]],
+             via: str, warnings: tuple) -> BagData:
+    """Feed a storage read's blocks (``feed(conns, collector, update, chunk)``) to a Collector."""
     from tqdm import tqdm
 
     msgtypes = {'imu': IMU_TYPE, 'temperature': topics[conns['temperature'][0].topic][0],
@@ -454,16 +452,16 @@ def _collect(feed: Callable[[Collector, Callable[[int], Any]], None], typestore:
     out = Collector(list(conns), msgtypes, expected, typestore, with_accel, _CHUNK)
     with tqdm(total=sum(expected.values()), unit='msg', unit_scale=True, desc=bag.name,
               disable=not progress, leave=False) as bar:
-        feed(out, bar.update)
-    return out.result(bag, str(info.get('storage_identifier', '')), topics, via)
+        feed(conns, out, bar.update, _CHUNK)
+    return out.result(bag, str(info.get('storage_identifier', '')), topics, via, warnings)
 
 
 def _rosbags_feed(source: Any, conns: dict[str, list[Any]], out: Collector,
-                  update: Callable[[int], Any]) -> None:
-    """Hand rosbags' raw messages to ``out`` in blocks of ``_CHUNK`` (the reference read)."""
+                  update: Callable[[int], Any], chunk: int) -> None:
+    """Hand rosbags' raw messages to ``out`` in blocks of ``chunk`` (the reference read)."""
     role_of = {id(c): role for role in out.roles for c in conns[role]}
     gen = source.messages(connections=[c for r in out.roles for c in conns[r]])
-    while whole := list(islice(gen, _CHUNK)):
+    while whole := list(islice(gen, chunk)):
         # A row whose data reads as NULL, or whose stamp as no whole number (a damaged sqlite3
         # record), is a message lost.
         block = [m for m in whole if isinstance(m[2], (bytes, bytearray, memoryview))

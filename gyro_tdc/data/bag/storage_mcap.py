@@ -29,12 +29,15 @@ it), as the mcap libraries' fallback scan and ``mcap recover`` read it.
 from __future__ import annotations
 
 from binascii import crc32
+import contextlib
+from functools import partial
 from pathlib import Path
 import struct
 from typing import Any, Callable, Iterable, Mapping, NamedTuple
 
 from gyro_tdc.data.bag.metadata import Entry, Unfit, zstd, ZSTD_MAGIC
 import numpy as np
+from numpy.typing import NDArray
 
 __all__ = ['CUT_OFF', 'cut_off', 'McapFile']
 
@@ -52,16 +55,12 @@ CUT_OFF = 'ends without the mcap footer'
 
 def cut_off(paths: Iterable[Path]) -> str:
     """Return a hint naming the first mcap file of ``paths`` that ends without its magic ('')."""
-    for path in paths:
-        try:
-            with path.open('rb') as f:
-                f.seek(max(f.seek(0, 2) - len(_MAGIC), 0))
-                whole = path.suffix != '.mcap' or f.read(len(_MAGIC)) == _MAGIC
-        except OSError:
-            continue
-        if not whole:
-            return (f'; {path.name} {CUT_OFF} (cut off while it was '
-                    'written?): `mcap recover` (the mcap CLI) copies what it holds to a new file')
+    for path in (p for p in paths if p.suffix == '.mcap'):
+        with contextlib.suppress(OSError), path.open('rb') as f:
+            f.seek(max(f.seek(0, 2) - len(_MAGIC), 0))
+            if f.read(len(_MAGIC)) != _MAGIC:
+                return (f'; {path.name} {CUT_OFF} (cut off while it was written?): '
+                        '`mcap recover` (the mcap CLI) copies what it holds to a new file')
     return ''
 
 
@@ -142,6 +141,9 @@ class McapFile:
         self.bio, self.name = path.open('rb'), path.name
         #: Bytes after the last whole chunk of a file cut off (None: the file is whole).
         self.lost: int | None = None
+        self.conns: list[Entry] = []
+        self.definitions: dict[str, tuple[str, str]] = {}
+        self.chunks: list[_Chunk] = []
 
     def load(self) -> None:
         """Read the header, footer and summary (:func:`~.columnar.open_bag`: once it can close)."""
@@ -175,7 +177,7 @@ class McapFile:
 
     def _summary(self, data: bytes) -> None:
         """Parse the summary section's schemas, channels and chunk index."""
-        schemas = self._start()
+        schemas: dict = {}
         statistics = False
         f = _Fields(data)
         while True:
@@ -184,25 +186,19 @@ class McapFile:
             (op,) = f.take('<B')
             if op in _SUMMARY_END:
                 break
-            rec = _Fields(f.raw('<Q'))
-            self._register(op, rec, schemas)
+            body = f.raw('<Q')
+            self._register(op, body, schemas)
             if op == _CHUNK_INDEX:
-                self.chunks.append(_chunk_index(rec))
+                self.chunks.append(_chunk_index(_Fields(body)))
             statistics |= op == _STATISTICS
         if statistics and not schemas:
             raise Unfit('an mcap summary without schemas')     # rosbags scans the file
         if not self.chunks:
             raise Unfit('an mcap file without a chunk index')
 
-    def _start(self) -> dict[int, tuple[str, str, str]]:
-        """Empty the connections, definitions and chunks; return the schemas to fill."""
-        self.conns: list[Entry] = []
-        self.definitions: dict[str, tuple[str, str]] = {}
-        self.chunks: list[_Chunk] = []
-        return {}
-
-    def _register(self, op: int, rec: _Fields, schemas: dict) -> None:
+    def _register(self, op: int, body: bytes, schemas: dict) -> None:
         """Take a schema or a channel record (any other is left alone)."""
+        rec = _Fields(body)
         if op == _SCHEMA:
             (key,) = rec.take('<H')
             schemas[key] = (rec.text(), rec.text(), rec.text())
@@ -217,8 +213,8 @@ class McapFile:
 
     def _scan(self, pos: int, size: int) -> None:
         """Read a file without its footer record by record, up to its last whole chunk."""
-        schemas = self._start()
-        longest, ended = 0, False
+        schemas: dict = {}
+        register, longest, ended = partial(self._register, schemas=schemas), 0, False
         while pos + 9 <= size:
             op, length = struct.unpack('<BQ', self._exact(9, pos))
             ended = op == _DATA_END           # what follows is the summary
@@ -232,36 +228,21 @@ class McapFile:
                 compression = head.text()
                 (compressed,) = head.take('<Q')
                 c = _Chunk(start, end, pos, {}, compression, compressed, uncompressed)
-                self.chunks.append(c._replace(counts=self._contents(self._decompress(c),
-                                                                    schemas)))
+                # Its schemas and channels taken, its messages counted per channel id.
+                for rows in self.runs(self._decompress(c), register):
+                    ids, n = np.unique(rows[:, 9:11].copy().view('<u2'), return_counts=True)
+                    for key, k in zip(ids.tolist(), n.tolist()):
+                        c.counts[key] = c.counts.get(key, 0) + k
+                self.chunks.append(c)
                 longest = max(longest, 9 + length)
             else:
-                self._register(op, _Fields(self._exact(length, pos + 9)), schemas)
+                register(op, self._exact(length, pos + 9))
             pos += 9 + length
         if not self.chunks:
             raise Unfit('an mcap file cut off before its first whole chunk')
         if not ended and size - pos > 2 * longest + _CUT_SLACK:
             raise Unfit(f'an mcap file whose records stop {size - pos} bytes before its end')
         self.lost = size - pos
-
-    def _contents(self, raw: bytes, schemas: dict) -> dict[int, int]:
-        """Take a chunk's schemas and channels; return its messages per channel id."""
-        counts: dict[int, int] = {}
-        runs = {pos: (rec, n) for pos, rec, n in self.runs(raw)}
-        arr = np.frombuffer(raw, dtype=np.uint8)
-        pos = 0
-        while pos < len(raw):
-            if pos in runs:
-                rec, n = runs[pos]
-                ids = arr[pos:pos + n * rec].reshape(n, rec)[:, 9:11].copy().view('<u2')
-                for key, k in zip(*np.unique(ids, return_counts=True)):
-                    counts[int(key)] = counts.get(int(key), 0) + int(k)
-                pos += n * rec
-                continue
-            (length,) = struct.unpack_from('<Q', raw, pos + 1)
-            self._register(raw[pos], _Fields(raw[pos + 9:pos + 9 + length]), schemas)
-            pos += 9 + length
-        return counts
 
     def counts(self) -> dict[int, tuple[int, int, int]]:
         """Return channel id -> (messages, first and last log time, ns), from the chunks."""
@@ -276,9 +257,8 @@ class McapFile:
         """Return whether the first message is a zstd frame (compressed message by message)."""
         if not self.chunks or self.chunks[0].compression not in ('', 'zstd'):
             return False                      # lz4 chunks: rosbags reads them
-        raw = self._decompress(self.chunks[0])
-        runs = self.runs(raw)
-        return bool(runs) and raw[runs[0][0] + 31:runs[0][0] + 35] == ZSTD_MAGIC
+        runs = self.runs(self._decompress(self.chunks[0]))
+        return bool(runs) and runs[0][0, 31:35].tobytes() == ZSTD_MAGIC
 
     def close(self) -> None:
         """Close the file."""
@@ -311,8 +291,9 @@ class McapFile:
         return data
 
     @staticmethod
-    def runs(raw: bytes) -> list[tuple[int, int, int]]:
-        """Return the runs of message records of ``raw``: (start, record size, count)."""
+    def runs(raw: bytes, other: Callable[[int, bytes], Any] | None = None
+             ) -> list[NDArray[np.uint8]]:
+        """Return the runs of message records of ``raw``, each (count, record size) bytes."""
         size = len(raw)
         arr = np.frombuffer(raw, dtype=np.uint8)
         runs = []
@@ -322,6 +303,8 @@ class McapFile:
                 raise Unfit('a chunk record cut short')
             length = int.from_bytes(raw[pos + 1:pos + 9], 'little')
             if raw[pos] != _MESSAGE:
+                if other is not None:     # other(opcode, body) takes it
+                    other(raw[pos], raw[pos + 9:pos + 9 + length])
                 pos += 9 + length             # rosbags skips it (even past the end)
                 continue
             rec = 9 + length
@@ -340,16 +323,14 @@ class McapFile:
                 if k < m:
                     break
                 w *= 4
-            runs.append((pos, rec, n))
+            runs.append(arr[pos:pos + n * rec].reshape(n, rec))
             pos += n * rec
         return runs
 
     def _chunk(self, raw: bytes, c: _Chunk, out: Any, update: Callable) -> None:
         """Hand over the wanted messages of one chunk, in rosbags' order."""
-        arr = np.frombuffer(raw, dtype=np.uint8)
         pieces = []                                        # (rows, role codes, log times)
-        for pos, rec, n in self.runs(raw):
-            rows = arr[pos:pos + n * rec].reshape(n, rec)
+        for rows in self.runs(raw):
             code = self.ids[rows[:, 9:11].copy().view('<u2').ravel()]
             logs = rows[:, 15:23].copy().view('<u8').ravel()
             if logs.size and int(logs.max()) >= 1 << 63:

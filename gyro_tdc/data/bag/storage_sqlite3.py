@@ -83,8 +83,7 @@ class Sqlite3File:
         cols = ('id, name, type, serialization_format'
                 + (', offered_qos_profiles' if schema >= 2 else ", ''")
                 + (', type_description_hash' if schema >= 4 else ", ''"))
-        self.conns = [Entry(cid, topic, msgtype, 0, fmt, qos, digest)
-                      for cid, topic, msgtype, fmt, qos, digest
+        self.conns = [Entry(cid, topic, msgtype, 0, *rest) for cid, topic, msgtype, *rest
                       in db.execute(f'SELECT {cols} FROM topics ORDER BY id')]
         types = {c.msgtype for c in self.conns}
         self.definitions: dict[str, tuple[str, str]] = {}
